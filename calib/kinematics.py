@@ -1,0 +1,132 @@
+"""Forward kinematics and the MCPC identification Jacobian, vectorised over configurations.
+
+Frames (world = the frame ``V_0`` starts from, metres):
+- ``F_k`` (k = 1..n): link k's frame, right after joint k's motion ``Q_k``; its z-axis is joint k's
+  axis. These are the MJCF body frames of the links.
+- the tool frame ``F_n V_n``.
+
+Pose error (paper eqs. 6-9): ``T_actual = T_model (I + dT)`` to first order, with
+``dT = [[Omega(delta), d], [0, 0]]`` expressed in the model's tool frame; ``y = [d; delta]``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from calib.mcpc import MCPCModel, shape_matrices
+from calib.robot_def import RobotDef
+from calib.transforms import inv_pose, rot_x, rot_y, rot_z, trans
+
+__all__ = [
+    "motion_matrices",
+    "fk_frames",
+    "fk_tool",
+    "fk_dh",
+    "pose_error",
+    "identification_jacobian",
+]
+
+
+def motion_matrices(model: MCPCModel, q: np.ndarray) -> np.ndarray:
+    """``Q_k(q_k)`` for joint vectors ``q`` (m, n) (rad or m); shape (m, n, 4, 4)."""
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    Q = rot_z(q + model.joint_offsets)
+    for k, kind in enumerate(model.joint_types):
+        if kind == "prismatic":
+            Q[:, k] = trans(np.stack([0 * q[:, k], 0 * q[:, k], q[:, k]], axis=-1))
+    return Q
+
+
+def _check_q(model: MCPCModel, q: np.ndarray) -> np.ndarray:
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    if q.ndim != 2 or q.shape[1] != model.n:
+        raise ValueError(f"joint array must have shape (m, {model.n}), got {np.shape(q)}")
+    return q
+
+
+def fk_frames(model: MCPCModel, q: np.ndarray) -> np.ndarray:
+    """All frames for joint vectors ``q`` (m, n): shape (m, n + 1, 4, 4).
+
+    ``out[:, k - 1]`` is link frame ``F_k`` (k = 1..n) and ``out[:, n]`` the tool frame, in the world
+    frame (m).
+    """
+    q = _check_q(model, q)
+    V = shape_matrices(model.params)
+    Q = motion_matrices(model, q)
+    out = np.empty((q.shape[0], model.n + 1, 4, 4))
+    P = np.broadcast_to(V[0], (q.shape[0], 4, 4))
+    for k in range(model.n):
+        F = P @ Q[:, k]
+        out[:, k] = F
+        P = F @ V[k + 1]
+    out[:, model.n] = P
+    return out
+
+
+def fk_tool(model: MCPCModel, q: np.ndarray) -> np.ndarray:
+    """Tool poses ``T_world_tool`` (m, 4, 4) for joint vectors ``q`` (m, n)."""
+    return fk_frames(model, q)[:, -1]
+
+
+def fk_dh(robot: RobotDef, q: np.ndarray) -> np.ndarray:
+    """Standard-DH frames 1..n (m, n, 4, 4) straight from the DH table, for cross-checks."""
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    rev = np.array([t == "revolute" for t in robot.joint_types])
+    theta = robot.dh_offset + np.where(rev, q, 0.0)
+    d = robot.dh_d + np.where(rev, 0.0, q)
+    zeros = np.zeros_like(d)
+    A = (
+        rot_z(theta)
+        @ trans(np.stack([zeros, zeros, d], axis=-1))
+        @ trans(np.stack([np.broadcast_to(robot.dh_a, d.shape), zeros, zeros], axis=-1))
+        @ rot_x(np.broadcast_to(robot.dh_alpha, d.shape))
+    )
+    out = np.empty_like(A)
+    P = np.eye(4)
+    for k in range(robot.n):
+        P = P @ A[:, k]
+        out[:, k] = P
+    return out
+
+
+def pose_error(T_model: np.ndarray, T_actual: np.ndarray) -> np.ndarray:
+    """``y = [d; delta]`` (..., 6) with ``T_actual = T_model exp(dT)``, in the model tool frame.
+
+    ``d`` in metres, ``delta`` a rotation vector in radians (exact, not only first order).
+    """
+    E = inv_pose(T_model) @ np.asarray(T_actual, dtype=float)
+    rv = Rotation.from_matrix(E[..., :3, :3].reshape(-1, 3, 3)).as_rotvec()
+    return np.concatenate([E[..., :3, 3], rv.reshape(E.shape[:-2] + (3,))], axis=-1)
+
+
+def identification_jacobian(model: MCPCModel, q: np.ndarray) -> np.ndarray:
+    """Analytic Jacobian of the tool pose error w.r.t. every MCPC parameter (eqs. 6-13).
+
+    Returns shape (m, 6, 6 (n + 1)): rows ``[d; delta]`` in the tool frame, columns the flat
+    parameters ``params.reshape(-1)`` (select the minimal set with ``mcpc.minimal_indices``).
+    Units: rows m and rad, columns per rad (angles) and per m (lengths).
+    """
+    q = _check_q(model, q)
+    m, n = q.shape[0], model.n
+    frames = fk_frames(model, q)
+    p = model.params
+    # World frame in which each shape matrix V_k starts: F_0 = I, F_k for k >= 1.
+    start = np.empty((m, n + 1, 4, 4))
+    start[:, 0] = np.eye(4)
+    start[:, 1:] = frames[:, :n]
+    A1 = start @ rot_x(p[:, 0])  # after Rx(alpha): beta acts here
+    A2 = A1 @ rot_y(p[:, 1])  # after Ry(beta): gamma acts here
+    A3 = A2 @ rot_z(p[:, 2])  # after Rz(gamma): translations act here
+    Tinv = inv_pose(frames[:, n])[:, None]  # (m, 1, 4, 4)
+    J = np.empty((m, 6, n + 1, 6))
+    for col, (A, axis) in enumerate(((start, 0), (A1, 1), (A2, 2))):
+        X = Tinv @ A  # action frame expressed in the tool frame
+        w = X[..., :3, axis]  # rotation axis in tool frame
+        J[:, 3:, :, col] = np.moveaxis(w, -1, 1)
+        J[:, :3, :, col] = np.moveaxis(np.cross(X[..., :3, 3], w), -1, 1)
+    X = Tinv @ A3
+    for axis in range(3):
+        J[:, :3, :, 3 + axis] = np.moveaxis(X[..., :3, axis], -1, 1)
+        J[:, 3:, :, 3 + axis] = 0.0
+    return J.reshape(m, 6, 6 * (n + 1))
