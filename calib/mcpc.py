@@ -91,9 +91,7 @@ def _decompose_conditioned(g: np.ndarray, free_offset: bool) -> tuple[float, np.
     """
     if not free_offset or abs(g[0, 2]) <= np.sqrt(0.5):
         return 0.0, g
-    best = min(
-        (abs((rot_z(-c) @ g)[0, 2]), c) for c in (0.0, np.pi / 2, -np.pi / 2, np.pi)
-    )[1]
+    best = min((abs((rot_z(-c) @ g)[0, 2]), c) for c in (0.0, np.pi / 2, -np.pi / 2, np.pi))[1]
     return best, rot_z(-best) @ g
 
 
@@ -154,10 +152,11 @@ def dh_to_mcpc(
     The resulting chain gives the same tool pose as the DH chain for every joint vector, and each
     MCPC joint frame lies on the same joint axis as the corresponding DH frame.
     """
-    S = rot_z(robot.dh_offset) @ trans(
-        np.column_stack([np.zeros(robot.n), np.zeros(robot.n), robot.dh_d])
-    ) @ trans(np.column_stack([robot.dh_a, np.zeros(robot.n), np.zeros(robot.n)])) @ rot_x(
-        robot.dh_alpha
+    S = (
+        rot_z(robot.dh_offset)
+        @ trans(np.column_stack([np.zeros(robot.n), np.zeros(robot.n), robot.dh_d]))
+        @ trans(np.column_stack([robot.dh_a, np.zeros(robot.n), np.zeros(robot.n)]))
+        @ rot_x(robot.dh_alpha)
     )
     base = np.eye(4) if T_world_base is None else np.asarray(T_world_base, dtype=float)
     tool = np.eye(4) if T_flange_tool is None else np.asarray(T_flange_tool, dtype=float)

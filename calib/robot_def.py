@@ -147,7 +147,9 @@ def load_robot(name_or_path: str | Path) -> RobotDef:
             a.append(float(jt["a_mm"]) / 1000)
             d.append(float(jt["d_mm"]) / 1000)
             unit = ang if kind == "revolute" else 1 / 1000
-            off.append(float(jt.get("offset_deg" if kind == "revolute" else "theta_deg", 0.0)) * ang)
+            off.append(
+                float(jt.get("offset_deg" if kind == "revolute" else "theta_deg", 0.0)) * ang
+            )
             lo, hi = (float(x) for x in jt["range_deg" if kind == "revolute" else "range_mm"])
         except KeyError as exc:
             raise RobotDefinitionError(f"{where}: missing key {exc}") from exc

@@ -1,0 +1,83 @@
+"""The one acquisition loop: drive any ``Robot`` along planned postures into a dataset on disk.
+
+The loop knows nothing of the backend: the simulator and the hardware adapter are both ``Robot``s.
+Observers that only a simulator has (analytic corner projections, ground truth) are passed in as
+optional callbacks by the caller.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from calib.dataset import DatasetWriter
+from scenarios.progress import Progress
+from scenarios.robot import Robot
+
+__all__ = ["AcquisitionError", "AcquisitionHooks", "acquire"]
+
+
+class AcquisitionError(RuntimeError):
+    """Acquisition stopped; the message says how many frames are safe and how to resume."""
+
+
+@dataclass
+class AcquisitionHooks:
+    """Optional simulator-side callbacks.
+
+    ``detect``: returns ``{"left": {id: (4,2)}, "right": {...}}`` for the current posture (analytic
+    path; without it the loop captures images). ``record_truth(index)``: store ground truth of the
+    frame just taken (simulation only).
+    """
+
+    detect: Callable[[], dict[str, dict[int, np.ndarray]]] | None = None
+    record_truth: Callable[[int], None] | None = None
+
+
+def acquire(
+    robot: Robot,
+    writer: DatasetWriter,
+    *,
+    hooks: AcquisitionHooks | None = None,
+    progress: Progress | None = None,
+) -> int:
+    """Take every planned frame that the dataset does not hold yet; returns frames taken now.
+
+    Raises:
+        AcquisitionError: a robot or camera failure; every frame taken before it is kept on disk
+            and ``selfcal acquire ... --resume`` continues from there.
+        ValueError: a planned posture outside the joint ranges (raised by the robot before it moves).
+    """
+    hooks = hooks or AcquisitionHooks()
+    plan = writer.info.planned_joints_deg
+    todo = [i for i in range(len(plan)) if i not in set(writer.done)]
+    taken = 0
+    if progress is not None:
+        progress.start(len(plan), done=len(plan) - len(todo))
+    for i in todo:
+        try:
+            robot.move_to(plan[i])
+            q = robot.joints()
+            if hooks.detect is not None:
+                writer.add_frame(i, q, detections=hooks.detect())
+            else:
+                pair = robot.capture()
+                writer.add_frame(i, q, left=pair.left, right=pair.right)
+            if hooks.record_truth is not None:
+                hooks.record_truth(i)
+        except ValueError:
+            raise
+        except (Exception, KeyboardInterrupt) as exc:
+            raise AcquisitionError(
+                f"acquisition stopped at frame {i} of {len(plan)}: {exc}. "
+                f"{writer.n_done} frames are kept in {writer.root}; continue with "
+                f"`selfcal acquire CONFIG --out {writer.root} --resume`"
+            ) from exc
+        taken += 1
+        if progress is not None:
+            progress.advance()
+    if progress is not None:
+        progress.finish()
+    return taken

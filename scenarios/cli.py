@@ -1,0 +1,261 @@
+"""``selfcal``: the command line of scorbot-selfcal.
+
+Millimetres and degrees at this edge, SI inside. Every command exits non-zero with a one-line
+message naming the problem (and how to fix it) on bad input.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["main", "build_parser"]
+
+EXIT_BAD_INPUT = 2
+EXIT_FAILED = 1
+
+
+class CliError(Exception):
+    """A user-facing error: printed without a traceback."""
+
+
+def _floats(text: str, count: int | None, what: str) -> np.ndarray:
+    try:
+        vals = np.array([float(x) for x in text.replace(" ", "").split(",") if x != ""])
+    except ValueError:
+        raise CliError(f"{what}: expected comma-separated numbers, got {text!r}") from None
+    if count is not None and len(vals) != count:
+        raise CliError(f"{what}: expected {count} numbers, got {len(vals)} in {text!r}")
+    if not np.all(np.isfinite(vals)):
+        raise CliError(f"{what}: numbers must be finite, got {text!r}")
+    return vals
+
+
+def _robot(name: str):
+    from calib.robot_def import RobotDefinitionError, load_robot
+
+    try:
+        return load_robot(name)
+    except RobotDefinitionError as exc:
+        raise CliError(str(exc)) from None
+
+
+def _joints_rad(robot, text: str) -> np.ndarray:
+    q = np.radians(_floats(text, robot.n, "--joints (deg)"))
+    try:
+        robot.check_joints(q)
+    except ValueError as exc:
+        raise CliError(str(exc)) from None
+    return q
+
+
+def cmd_fk(args: argparse.Namespace) -> int:
+    from calib.kinematics import fk_tool
+    from calib.mcpc import dh_to_mcpc
+    from calib.tool_pose import tool_pose
+
+    robot = _robot(args.model)
+    q = _joints_rad(robot, args.joints)
+    T = fk_tool(dh_to_mcpc(robot), q[None])[0]
+    xyz, pitch, roll = tool_pose(T)
+    out = {
+        "model": robot.name,
+        "joints_deg": np.round(np.degrees(q), 6).tolist(),
+        "xyz_mm": np.round(np.asarray(xyz) * 1000, 4).tolist(),
+        "pitch_deg": round(float(np.degrees(pitch)), 4),
+        "roll_deg": round(float(np.degrees(roll)), 4),
+    }
+    print(json.dumps(out))
+    return 0
+
+
+def cmd_ik(args: argparse.Namespace) -> int:
+    from calib.ik import UnreachableError, ik, ik_nearest
+
+    robot = _robot(args.model)
+    xyz = _floats(args.xyz, 3, "--xyz (mm)") / 1000.0
+    pitch, roll = np.radians(args.pitch), np.radians(args.roll)
+    try:
+        if args.branch:
+            sols = [s for s in ik(robot, xyz, pitch, roll) if s.branch == args.branch]
+            if not sols:
+                names = sorted({s.branch for s in ik(robot, xyz, pitch, roll)})
+                raise CliError(f"--branch {args.branch!r}: no such solution; available: {names}")
+            if not sols[0].in_range:
+                raise CliError(f"branch {args.branch}: {sols[0].violation}")
+            q = sols[0].joints
+        else:
+            q = ik_nearest(robot, xyz, pitch, roll)
+    except UnreachableError as exc:
+        raise CliError(f"unreachable: {exc}") from None
+    print(json.dumps({"model": robot.name, "joints_deg": np.round(np.degrees(q), 6).tolist()}))
+    return 0
+
+
+def cmd_render(args: argparse.Namespace) -> int:
+    from scenarios.backends import render_posture
+
+    robot = _robot(args.model)
+    q = _joints_rad(robot, args.joints)
+    paths = render_posture(robot, q, Path(args.out), config=args.config)
+    print(json.dumps({"left": str(paths[0]), "right": str(paths[1])}))
+    return 0
+
+
+def _scenario(path: str | None):
+    from scenarios.config import ConfigError, load_scenario
+
+    try:
+        return load_scenario(path)
+    except ConfigError as exc:
+        raise CliError(str(exc)) from None
+
+
+def cmd_acquire(args: argparse.Namespace) -> int:
+    from scenarios.pipeline import run_acquire
+
+    run_acquire(_scenario(args.config), Path(args.out), resume=args.resume, quiet=args.quiet)
+    return 0
+
+
+def cmd_calibrate(args: argparse.Namespace) -> int:
+    from scenarios.pipeline import run_calibrate
+
+    run_calibrate(Path(args.dataset), quiet=args.quiet)
+    return 0
+
+
+def cmd_report(args: argparse.Namespace) -> int:
+    from scenarios.pipeline import run_report
+
+    run_report(Path(args.dataset), quiet=args.quiet)
+    return 0
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    from scenarios.pipeline import run_all
+
+    run_all(_scenario(args.config), Path(args.out), resume=args.resume, quiet=args.quiet)
+    return 0
+
+
+CONFIG_HELP = """\
+scenario keys (TOML; every key has a default, units in the names):
+  [robot]        model = "er4u-paper" | "er4u-vendor";  backend = "sim" | "hardware"
+  [robot.hardware] port (pyserial URL), baudrate, xonxoff, cameras = [left, right]
+  [camera]       resolution = [640, 480]; fx = 800.0 (px); mu = 1.0; baseline_mm = 60.0
+  [target]       markers = 20; scale_length_mm = 200.0; marker_size_mm = 30.0; seed = 1
+  [perturbation] seed = 1; translation_mm = 1.0; rotation_deg = 0.5; [perturbation.table] name = value
+  [trajectory]   poses = 30; seed = 1; min_markers = 6
+  [noise]        render = true; image_sigma = 2.0 (0-255); pixel_sigma = 0.5 (px); seed = 1
+  [validation]   poses = 20; seed = 2
+default scenario: scenarios/paper.toml
+"""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``selfcal`` argument parser."""
+    p = argparse.ArgumentParser(
+        prog="selfcal",
+        description="Vision-based self-calibration testbench for camera-equipped robot arms "
+        "(SCORBOT ER-4u). Millimetres and degrees on the command line.",
+    )
+    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    def add(name: str, func, help_: str, epilog: str | None = None) -> argparse.ArgumentParser:
+        sp = sub.add_parser(
+            name,
+            help=help_,
+            description=help_,
+            epilog=epilog,
+            formatter_class=argparse.RawDescriptionHelpFormatter,
+        )
+        sp.set_defaults(func=func)
+        return sp
+
+    sp = add("fk", cmd_fk, "forward kinematics: print the tool pose as JSON")
+    sp.add_argument("--model", default="er4u-paper", help="robot model name (default er4u-paper)")
+    sp.add_argument(
+        "--joints", required=True, help="joint angles in deg, e.g. 38.15,-30,45,-63.54,0"
+    )
+
+    sp = add("ik", cmd_ik, "inverse kinematics: print joint angles (deg) as JSON")
+    sp.add_argument("--model", default="er4u-paper")
+    sp.add_argument("--xyz", required=True, help="tool point in mm, e.g. 320.8,252.0,182.8")
+    sp.add_argument("--pitch", type=float, required=True, help="tool pitch in deg")
+    sp.add_argument("--roll", type=float, default=0.0, help="tool roll in deg (default 0)")
+    sp.add_argument(
+        "--branch", default=None, help="a specific solution branch (default: nearest home)"
+    )
+
+    sp = add(
+        "render", cmd_render, "render the stereo pair at a posture: DIR/left.png, DIR/right.png"
+    )
+    sp.add_argument("--model", default="er4u-paper")
+    sp.add_argument("--joints", required=True, help="joint angles in deg")
+    sp.add_argument("--out", required=True, help="output folder")
+    sp.add_argument("--config", default=None, help="scenario TOML for camera and target settings")
+
+    for name, func, help_ in (
+        ("acquire", cmd_acquire, "drive the robot along the trajectory into a dataset folder"),
+        ("run", cmd_run, "acquire, calibrate and report in one go (the main job)"),
+    ):
+        sp = add(name, func, help_, CONFIG_HELP)
+        sp.add_argument(
+            "config",
+            nargs="?" if name == "run" else None,
+            default=None,
+            help="scenario TOML (default scenarios/paper.toml)",
+        )
+        sp.add_argument("--out", required=True, help="dataset/output folder")
+        sp.add_argument("--resume", action="store_true", help="continue an interrupted acquisition")
+        sp.add_argument("--quiet", action="store_true", help="no progress output")
+
+    sp = add("calibrate", cmd_calibrate, "dataset -> DIR/calibration.json (never reads truth.json)")
+    sp.add_argument("dataset", help="dataset folder")
+    sp.add_argument("--quiet", action="store_true")
+
+    sp = add("report", cmd_report, "calibration + truth -> DIR/report.json and tables")
+    sp.add_argument("dataset", help="dataset folder")
+    sp.add_argument("--quiet", action="store_true")
+
+    try:
+        from hw.cli import register
+    except ImportError:  # pragma: no cover - hardware commands unavailable
+        register = None
+    if register is not None:
+        register(sub)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``selfcal`` console script."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except CliError as exc:
+        print(f"selfcal {args.command}: error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        print(f"selfcal {args.command}: interrupted", file=sys.stderr)
+        return 130
+    except Exception as exc:  # noqa: BLE001 - user-facing summary of library errors
+        from calib.dataset import DatasetError
+        from scenarios.config import ConfigError
+
+        code = (
+            EXIT_BAD_INPUT
+            if isinstance(exc, (ValueError, DatasetError, ConfigError))
+            else EXIT_FAILED
+        )
+        print(f"selfcal {args.command}: error: {type(exc).__name__}: {exc}", file=sys.stderr)
+        return code
+
+
+if __name__ == "__main__":
+    sys.exit(main())

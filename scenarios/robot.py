@@ -1,0 +1,51 @@
+"""The one robot interface that the simulator (``sim``) and the hardware adapter (``hw``) implement.
+
+The acquisition loop talks only to this interface. Joint angles cross it in degrees (the unit of
+the controller, of ``joints.csv`` and of people at the robot); everything behind it is SI.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+__all__ = ["StereoPair", "Robot", "RobotError"]
+
+
+class RobotError(RuntimeError):
+    """A robot (simulated or real) refused or failed a command; the message names the cause."""
+
+
+@dataclass(frozen=True)
+class StereoPair:
+    """One synchronised stereo capture: RGB uint8 images of shape (H, W, 3)."""
+
+    left: np.ndarray
+    right: np.ndarray
+    meta: dict = field(default_factory=dict)
+
+
+@runtime_checkable
+class Robot(Protocol):
+    """A camera-equipped arm. Implementations: ``sim.sim_robot.SimRobot``, ``hw.acl_robot.AclRobot``."""
+
+    model_name: str
+    """Name of the nominal kinematic model (``models/robots/<name>.toml``)."""
+
+    def home(self) -> None:
+        """Move to (or find) the home posture."""
+
+    def move_to(self, joints_deg: np.ndarray) -> None:
+        """Move to joint angles (deg); raises ``ValueError`` naming the joint if out of range,
+        before anything moves, and ``RobotError`` if the move fails."""
+
+    def joints(self) -> np.ndarray:
+        """Joint angles read back from the encoders (deg), quantised as the encoders are."""
+
+    def capture(self) -> StereoPair:
+        """Capture a stereo pair at the current posture."""
+
+    def close(self) -> None:
+        """Release the robot (stop motion safely, close ports and renderers)."""

@@ -1,0 +1,107 @@
+"""Dataset folder: frames are written as they are taken, interrupted runs keep them and resume."""
+
+import numpy as np
+import pytest
+
+from calib.dataset import Dataset, DatasetError, DatasetInfo, DatasetWriter
+from scenarios.acquire import AcquisitionError, acquire
+from scenarios.robot import StereoPair
+
+
+def info(observation="images", m=5):
+    rng = np.random.default_rng(0)
+    return DatasetInfo(
+        robot_model="er4u-paper",
+        resolution=(64, 48),
+        dictionary="DICT_4X4_50",
+        scale_ids=(48, 49),
+        scale_length_m=0.2,
+        observation=observation,
+        planned_joints_deg=rng.uniform(-10, 10, (m, 5)),
+        validation_joints_deg=rng.uniform(-10, 10, (3, 5)),
+    )
+
+
+class FakeRobot:
+    """A Robot that fails on a chosen frame (to test interruption)."""
+
+    model_name = "er4u-paper"
+
+    def __init__(self, fail_at=None):
+        self.q = np.zeros(5)
+        self.fail_at = fail_at
+        self.moves = 0
+
+    def home(self):
+        self.q = np.zeros(5)
+
+    def move_to(self, joints_deg):
+        if self.fail_at is not None and self.moves == self.fail_at:
+            raise OSError("serial link lost")
+        self.moves += 1
+        self.q = np.asarray(joints_deg, dtype=float)
+
+    def joints(self):
+        return np.round(self.q, 3)
+
+    def capture(self):
+        img = np.full((48, 64, 3), int(abs(self.q[0]) * 10) % 255, np.uint8)
+        return StereoPair(img, img.copy())
+
+    def close(self):
+        pass
+
+
+def test_images_round_trip(tmp_path):
+    w = DatasetWriter(tmp_path, info())
+    assert acquire(FakeRobot(), w) == 5
+    ds = Dataset.open(tmp_path)
+    assert ds.indices.tolist() == [0, 1, 2, 3, 4]
+    np.testing.assert_allclose(ds.joints_deg, np.round(info().planned_joints_deg, 3), atol=1e-6)
+    imgs = list(ds.iter_images())
+    assert len(imgs) == 10 and imgs[0][2].shape == (48, 64)
+
+
+def test_interrupted_run_keeps_frames_and_resumes(tmp_path):
+    w = DatasetWriter(tmp_path, info())
+    with pytest.raises(AcquisitionError, match="3 frames are kept.*--resume"):
+        acquire(FakeRobot(fail_at=3), w)
+    assert Dataset.open(tmp_path).indices.tolist() == [0, 1, 2]
+    with pytest.raises(DatasetError, match="--resume"):
+        DatasetWriter(tmp_path, info())
+    w2 = DatasetWriter(tmp_path, info(), resume=True)
+    assert w2.n_done == 3
+    assert acquire(FakeRobot(), w2) == 2
+    assert Dataset.open(tmp_path).indices.tolist() == [0, 1, 2, 3, 4]
+
+
+def test_resume_with_other_scenario_is_refused(tmp_path):
+    DatasetWriter(tmp_path, info(m=5))
+    with pytest.raises(DatasetError, match="another scenario"):
+        DatasetWriter(tmp_path, info(m=6), resume=True)
+
+
+def test_partial_detection_rows_are_dropped_on_resume(tmp_path):
+    w = DatasetWriter(tmp_path, info("detections"))
+    c = np.arange(8.0).reshape(4, 2)
+    w.add_frame(0, np.zeros(5), detections={"left": {3: c}, "right": {3: c + 1}})
+    # a crash after writing detections of frame 1 but before its joints row:
+    with open(tmp_path / "detections.csv", "a") as fh:
+        fh.write("1,left,3,0,1.0,2.0\n1,left,3,1,1.0,")
+    w2 = DatasetWriter(tmp_path, info("detections"), resume=True)
+    assert w2.done == [0]
+    dets = Dataset.open(tmp_path).read_detections()
+    assert set(dets) == {(0, "left"), (0, "right")}
+    np.testing.assert_array_equal(dets[(0, "right")][3], c + 1)
+
+
+def test_missing_frame_is_a_clear_error(tmp_path):
+    acquire(FakeRobot(), DatasetWriter(tmp_path, info()))
+    (tmp_path / "frames" / "0002_right.png").unlink()
+    with pytest.raises(DatasetError, match="0002_right.png is missing"):
+        list(Dataset.open(tmp_path).iter_images())
+
+
+def test_not_a_dataset(tmp_path):
+    with pytest.raises(DatasetError, match="no dataset.json"):
+        Dataset.open(tmp_path)
