@@ -116,6 +116,12 @@ def gauge_fix(
     out = np.zeros((n + 1, 6))
     offsets = np.zeros(n)
     carry = np.eye(4)
+    if abs(G[0][0, 2]) > 0.999:
+        raise ValueError(
+            "the world frame's x-axis is (nearly) parallel to joint 1's axis: the MCPC base "
+            "parameters are singular there; express the chain in a rotated world frame (e.g. one "
+            "whose z-axis is close to joint 1's axis)"
+        )
     for i in range(n + 1):
         c, g = _decompose_conditioned(carry @ G[i], i > 0 and joint_types[i - 1] == "revolute")
         if i > 0:

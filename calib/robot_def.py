@@ -94,7 +94,10 @@ class RobotDef:
 
 
 def _vec3(table: dict, key: str, where: str) -> np.ndarray:
-    v = np.asarray(table.get(key, None), dtype=float) if key in table else None
+    try:
+        v = np.asarray(table[key], dtype=float) if key in table else None
+    except (TypeError, ValueError):
+        v = None
     if v is None or v.shape != (3,):
         raise RobotDefinitionError(f"{where}: '{key}' must be a list of 3 numbers")
     return v
