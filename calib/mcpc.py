@@ -36,6 +36,7 @@ __all__ = [
     "shape_matrices",
     "dh_to_mcpc",
     "gauge_fix",
+    "chain_transforms",
     "minimal_indices",
     "param_names",
     "param_is_angle",
@@ -69,12 +70,12 @@ class MCPCModel:
 
     def with_tool(self, T_flange_tool: np.ndarray) -> MCPCModel:
         """The same chain with ``T_flange_tool`` appended to the last shape matrix ``V_n``."""
-        G = _chain(self)
+        G = chain_transforms(self)
         return _from_chain([*G[:-1], G[-1] @ T_flange_tool], self.joint_types)
 
     def with_base(self, T_world_base: np.ndarray) -> MCPCModel:
         """The same chain placed at ``T_world_base`` (prepended to ``V_0``)."""
-        G = _chain(self)
+        G = chain_transforms(self)
         return _from_chain([T_world_base @ G[0], *G[1:]], self.joint_types)
 
 
@@ -96,7 +97,9 @@ def _decompose_conditioned(g: np.ndarray, free_offset: bool) -> tuple[float, np.
 
 
 def gauge_fix(
-    G: list[np.ndarray] | np.ndarray, joint_types: tuple[str, ...]
+    G: list[np.ndarray] | np.ndarray,
+    joint_types: tuple[str, ...],
+    offsets: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Exact MCPC form of the chain ``G_0 Q_1 G_1 ... Q_n G_n`` of rigid ``G_i``, ``Q_i = Rz(q_i)``.
 
@@ -104,7 +107,9 @@ def gauge_fix(
     about and translation along the joint axis; any translation for a prismatic joint) is pushed
     into ``G_{i+1}``, so the result satisfies the gauge described in the module docstring. Where a
     shape matrix would sit near the Euler singularity (``|beta| > 45 deg``), a constant multiple of
-    90 deg is moved into the preceding revolute joint's offset instead.
+    90 deg is moved into the preceding revolute joint's offset instead -- unless ``offsets`` (n,)
+    are given, which are then imposed (so that two models of nearly the same robot get directly
+    comparable parameters).
 
     Returns:
         ``(params (n + 1, 6), joint_offsets (n,))`` in rad and m.
@@ -114,7 +119,8 @@ def gauge_fix(
     if len(G) != n + 1:
         raise ValueError(f"need {n + 1} transforms for {n} joints, got {len(G)}")
     out = np.zeros((n + 1, 6))
-    offsets = np.zeros(n)
+    impose = offsets is not None
+    offsets = np.zeros(n) if offsets is None else np.asarray(offsets, dtype=float).copy()
     carry = np.eye(4)
     if abs(G[0][0, 2]) > 0.999:
         raise ValueError(
@@ -123,9 +129,13 @@ def gauge_fix(
             "whose z-axis is close to joint 1's axis)"
         )
     for i in range(n + 1):
-        c, g = _decompose_conditioned(carry @ G[i], i > 0 and joint_types[i - 1] == "revolute")
-        if i > 0:
-            offsets[i - 1] = c
+        revolute_before = i > 0 and joint_types[i - 1] == "revolute"
+        if impose:
+            g = rot_z(-offsets[i - 1]) @ carry @ G[i] if revolute_before else carry @ G[i]
+        else:
+            c, g = _decompose_conditioned(carry @ G[i], revolute_before)
+            if i > 0:
+                offsets[i - 1] = c
         a, b, gam = xyz_euler_from_matrix(g[:3, :3])
         if i == n:
             out[i, :3] = a, b, gam
@@ -142,7 +152,7 @@ def gauge_fix(
     return out, offsets
 
 
-def _chain(model: MCPCModel) -> list[np.ndarray]:
+def chain_transforms(model: MCPCModel) -> list[np.ndarray]:
     """The chain as ``G_0 Q_1 G_1 ...`` with offset-free ``Q_i`` (offsets folded into ``G_i``)."""
     V = shape_matrices(model.params)
     return [V[0]] + [rot_z(o) @ v for o, v in zip(model.joint_offsets, V[1:])]
