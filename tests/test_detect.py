@@ -1,0 +1,125 @@
+"""ArUco detection against synthetic images with exactly known corners (no rendering)."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from calib.detect import DuplicateMarkerWarning, detect_markers
+
+DICT = cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_4X4_50)
+
+
+def _pasted(placements, shape=(480, 640)) -> tuple[np.ndarray, dict[int, np.ndarray]]:
+    """White image with axis-aligned markers (id, x0, y0, side_px) pasted at integer pixels.
+
+    Black square pixels x0..x0+S-1 -> its outer corners lie on pixel edges, e.g. TL at
+    (x0 - 0.5, y0 - 0.5) in OpenCV coordinates (pixel centres at integers)."""
+    img = np.full(shape, 255, np.uint8)
+    truth = {}
+    for mid, x0, y0, S in placements:
+        img[y0 : y0 + S, x0 : x0 + S] = cv2.aruco.generateImageMarker(DICT, mid, S, borderBits=1)
+        truth[mid] = np.array(
+            [
+                [x0 - 0.5, y0 - 0.5],
+                [x0 + S - 0.5, y0 - 0.5],
+                [x0 + S - 0.5, y0 + S - 0.5],
+                [x0 - 0.5, y0 + S - 0.5],
+            ]
+        )
+    return img, truth
+
+
+def _warped(mid: int, H: np.ndarray, S: int = 72, k: int = 8) -> tuple[np.ndarray, np.ndarray]:
+    """Marker warped by homography H (marker-image px -> image px), rendered with k x k
+    supersampling and exact area averaging; returns (image, true corners)."""
+    q = 12  # white quiet zone, px
+    mk = np.full((S + 2 * q, S + 2 * q), 255, np.uint8)
+    mk[q : q + S, q : q + S] = cv2.aruco.generateImageMarker(DICT, mid, S, borderBits=1)
+    mk_hi = cv2.resize(mk, None, fx=k, fy=k, interpolation=cv2.INTER_NEAREST)
+    # high-res pixel centre X <-> low-res coordinate (X + 0.5) / k - 0.5 (same in both images)
+    B = np.array([[1 / k, 0, 0.5 / k - 0.5], [0, 1 / k, 0.5 / k - 0.5], [0, 0, 1]])
+    M = np.linalg.inv(B) @ H @ B
+    big = cv2.warpPerspective(
+        mk_hi, M, (640 * k, 480 * k), flags=cv2.INTER_NEAREST, borderValue=255
+    )
+    img = cv2.resize(big, (640, 480), interpolation=cv2.INTER_AREA)
+    c = np.array(
+        [
+            [q - 0.5, q - 0.5],
+            [q + S - 0.5, q - 0.5],
+            [q + S - 0.5, q + S - 0.5],
+            [q - 0.5, q + S - 0.5],
+        ]
+    )
+    return img, cv2.perspectiveTransform(c[None], H)[0]
+
+
+H_OBLIQUE = np.array([[0.9, 0.25, 140.0], [-0.2, 0.85, 120.0], [4e-4, 2e-4, 1.0]])
+
+
+def test_pasted_markers_exact_corners():
+    img, truth = _pasted([(7, 101, 57, 72), (23, 300, 200, 48), (0, 480, 330, 96)])
+    det = detect_markers(img)
+    assert set(det) == set(truth)
+    for mid, c in det.items():
+        assert c.shape == (4, 2) and c.dtype == np.float64
+        np.testing.assert_allclose(c, truth[mid], atol=0.1)
+
+
+def test_rgb_and_gray_agree():
+    img, _ = _pasted([(5, 200, 150, 60)])
+    rgb = np.repeat(img[:, :, None], 3, axis=2)
+    np.testing.assert_allclose(detect_markers(rgb)[5], detect_markers(img)[5])
+
+
+def test_oblique_supersampled_marker_subpixel():
+    img, truth = _warped(9, H_OBLIQUE)
+    det = detect_markers(img)
+    assert list(det) == [9]
+    np.testing.assert_allclose(det[9], truth, atol=0.05)
+
+
+@pytest.mark.parametrize("refine", ["subpix", "contour", "apriltag", "none"])
+def test_other_refine_methods_run(refine):
+    img, truth = _warped(9, H_OBLIQUE)
+    det = detect_markers(img, refine=refine)
+    assert np.abs(det[9] - truth).max() < 1.0  # within a pixel (biases: see calib/detect.py)
+
+
+def test_no_markers_gives_empty_dict():
+    assert detect_markers(np.full((240, 320), 255, np.uint8)) == {}
+    rng = np.random.default_rng(0)
+    assert detect_markers(rng.integers(0, 256, (240, 320, 3), dtype=np.uint8)) == {}
+
+
+def test_noise_robustness():
+    img, truth = _warped(9, H_OBLIQUE)
+    rng = np.random.default_rng(1)
+    errs = []
+    for _ in range(5):
+        noisy = np.clip(img + rng.normal(0.0, 5.0, img.shape), 0, 255).astype(np.uint8)
+        det = detect_markers(noisy)
+        assert list(det) == [9]
+        errs.append(det[9] - truth)
+    e = np.concatenate(errs)
+    assert np.sqrt((e**2).sum(axis=1).mean()) < 0.1  # px RMS at sigma = 5 grey levels
+
+
+def test_duplicate_ids_dropped_with_warning():
+    img, _ = _pasted([(3, 50, 50, 60), (3, 300, 200, 60), (4, 450, 50, 60)])
+    with pytest.warns(DuplicateMarkerWarning, match=r"\[3\]"):
+        det = detect_markers(img)
+    assert list(det) == [4]
+
+
+def test_bad_input_raises():
+    with pytest.raises(ValueError, match="uint8"):
+        detect_markers(np.zeros((10, 10), np.float32))
+    with pytest.raises(ValueError, match="shape"):
+        detect_markers(np.zeros((10, 10, 4), np.uint8))
+    with pytest.raises(ValueError, match="refine"):
+        detect_markers(np.zeros((10, 10), np.uint8), refine="magic")
+    with pytest.raises(ValueError, match="dictionary"):
+        detect_markers(np.zeros((10, 10), np.uint8), dictionary="DICT_NOPE")
