@@ -1,0 +1,190 @@
+"""The simulated camera-equipped SCORBOT: ``scenarios.robot.Robot`` backed by MuJoCo.
+
+Kinematic simulation: a move sets the joint positions directly (no dynamics) and runs
+``mj_forward``; the robot's geometry is the "actual" MCPC chain (``sim.actual``), so the images
+show the true robot while the joint read-back is what the encoders report (quantised to
+``counts_per_deg`` of the robot's TOML). ``truth_frame()`` gives the ground truth of the current
+posture for ``truth.json``.
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+import mujoco  # noqa: E402
+import numpy as np  # noqa: E402
+
+from calib.mcpc import MCPCModel  # noqa: E402
+from calib.robot_def import load_robot  # noqa: E402
+from scenarios.robot import RobotError, StereoPair  # noqa: E402
+from sim.actual import Truth, make_truth  # noqa: E402
+from sim.markers import MarkerField, make_marker_field  # noqa: E402
+from sim.mj_camera import T_world_cam_cv  # noqa: E402
+from sim.robot_mjcf import (  # noqa: E402
+    CAMERA_NAMES,
+    TOOL_SITE,
+    RigConfig,
+    nominal_camera_model,
+    scene_with_robot,
+)
+
+__all__ = ["SimRobot"]
+
+
+class SimRobot:
+    """A simulated robot with a wrist stereo rig photographing a marker field.
+
+    Args:
+        model_name: nominal robot model (``models/robots/<name>.toml``).
+        actual: the simulated robot's MCPC chain, tool = left camera (default: nominal, i.e.
+            ``dh_to_mcpc(robot).with_tool(robot.T_flange_cam)``); see ``sim.actual.perturb``.
+        rig: stereo rig (intrinsics, baseline); default ``RigConfig()``.
+        field: marker field; default ``make_marker_field()``.
+        image_sigma: std of additive Gaussian image noise (grey levels, 0-255).
+        seed: seed of the image-noise generator.
+
+    Starts at the home posture. Raises ``RobotDefinitionError`` for an unknown model name and
+    ``ValueError`` if ``actual`` does not fit the robot.
+    """
+
+    def __init__(
+        self,
+        model_name: str = "er4u-paper",
+        actual: MCPCModel | None = None,
+        rig: RigConfig | None = None,
+        field: MarkerField | None = None,
+        image_sigma: float = 0.0,
+        seed: int = 0,
+    ) -> None:
+        if not image_sigma >= 0:
+            raise ValueError(f"image_sigma must be >= 0 (grey levels), got {image_sigma}")
+        self.robot = load_robot(model_name)
+        self.model_name = self.robot.name
+        self.nominal = nominal_camera_model(self.robot)
+        self.actual = self.nominal if actual is None else actual
+        if self.actual.joint_types != self.robot.joint_types:
+            raise ValueError(
+                f"actual model joints {self.actual.joint_types} do not match {self.model_name}"
+            )
+        self.rig = RigConfig() if rig is None else rig
+        self.field = make_marker_field() if field is None else field
+        self.image_sigma = float(image_sigma)
+        self._rng = np.random.default_rng(seed)
+        spec = scene_with_robot(self.robot, self.actual, self.rig, self.field)
+        self.mj_model = spec.compile()
+        self.mj_data = mujoco.MjData(self.mj_model)
+        self._unit = np.where(
+            np.array([t == "revolute" for t in self.robot.joint_types]), np.pi / 180.0, 1e-3
+        )
+        self._renderer = None
+        self._n_captures = 0
+        self._closed = False
+        self.home()
+
+    # ------------------------------------------------------------------ Robot protocol
+    def home(self) -> None:
+        """Move to the home posture of the robot's TOML."""
+        self._set_q(self.robot.home)
+
+    def move_to(self, joints_deg: np.ndarray) -> None:
+        """Move to joint angles (deg; mm for a prismatic joint). Checks the shape and every
+        joint's range first: ``ValueError`` naming the joint and its range, nothing moves."""
+        self._check_open()
+        q_deg = np.asarray(joints_deg, dtype=float)
+        if q_deg.shape != (self.robot.n,):
+            raise ValueError(
+                f"{self.model_name}: move_to needs {self.robot.n} joint values (deg), "
+                f"got shape {q_deg.shape}"
+            )
+        q = q_deg * self._unit
+        self.robot.check_joints(q)
+        self._set_q(q)
+
+    def joints(self) -> np.ndarray:
+        """Joint angles (deg; mm for prismatic) as the encoders report them: the true position
+        rounded to the nearest encoder count."""
+        q = self.mj_data.qpos[: self.robot.n].copy()
+        cpu = self.robot.counts_per_unit
+        finite = np.isfinite(cpu)
+        q = np.where(
+            finite, np.round(q * np.where(finite, cpu, 1.0)) / np.where(finite, cpu, 1.0), q
+        )
+        return q / self._unit
+
+    def capture(self) -> StereoPair:
+        """Render the stereo pair at the current posture (uint8 RGB, H x W x 3 each), with the
+        configured Gaussian intensity noise."""
+        self._check_open()
+        if self._renderer is None:
+            from sim.render import StereoRenderer
+
+            self._renderer = StereoRenderer(
+                self.mj_model,
+                self.rig.intrinsics.width,
+                self.rig.intrinsics.height,
+                camera_names=CAMERA_NAMES,
+            )
+        left, right = self._renderer.render(self.mj_data, self.image_sigma, self._rng)
+        meta = {
+            "model_name": self.model_name,
+            "index": self._n_captures,
+            "joints_deg": self.joints().tolist(),
+            "image_sigma": self.image_sigma,
+        }
+        self._n_captures += 1
+        return StereoPair(left=left, right=right, meta=meta)
+
+    def close(self) -> None:
+        """Free the renderer (idempotent); later moves and captures raise ``RobotError``."""
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+        self._closed = True
+
+    # ------------------------------------------------------------------ ground truth
+    def true_joints(self) -> np.ndarray:
+        """The true joint positions (rad; m for prismatic), unquantised."""
+        return self.mj_data.qpos[: self.robot.n].copy()
+
+    def truth_frame(self) -> dict:
+        """Ground truth of the current posture: ``joints_rad`` / ``joints_deg`` (true, unquantised),
+        ``T_world_cam_left`` / ``T_world_cam_right`` (4, 4, OpenCV camera -> world, m) and
+        ``tool_tip_m`` (3,) in the world frame."""
+        q = self.true_joints()
+        m, d = self.mj_model, self.mj_data
+        return {
+            "joints_rad": q,
+            "joints_deg": q / self._unit,
+            "T_world_cam_left": T_world_cam_cv(m, d, CAMERA_NAMES[0]),
+            "T_world_cam_right": T_world_cam_cv(m, d, CAMERA_NAMES[1]),
+            "tool_tip_m": d.site(TOOL_SITE).xpos.copy(),
+        }
+
+    def truth(self, meta: dict | None = None) -> Truth:
+        """The ground-truth header of this robot (no frames; append ``truth_frame()`` records)."""
+        meta = {"image_sigma": self.image_sigma, **(meta or {})}
+        return make_truth(self.robot, self.nominal, self.actual, self.rig, self.field, meta)
+
+    # ------------------------------------------------------------------ internals
+    def _check_open(self) -> None:
+        if self._closed:
+            raise RobotError(f"SimRobot({self.model_name}) is closed")
+
+    def _set_q(self, q: np.ndarray) -> None:
+        self._check_open()
+        n = self.robot.n
+        self.mj_data.qpos[:n] = q
+        self.mj_data.qvel[:] = 0.0
+        self.mj_data.ctrl[:n] = q
+        mujoco.mj_forward(self.mj_model, self.mj_data)
+
+    def __enter__(self) -> SimRobot:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def __repr__(self) -> str:
+        return f"SimRobot({self.model_name!r}, image_sigma={self.image_sigma})"

@@ -1,0 +1,148 @@
+"""The simulated robot behind the ``scenarios.robot.Robot`` interface."""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+
+from calib.camera import project  # noqa: E402
+from calib.kinematics import fk_frames  # noqa: E402
+from calib.transforms import inv_pose  # noqa: E402
+from scenarios.robot import Robot, RobotError, StereoPair  # noqa: E402
+from sim.actual import apply_errors, perturb  # noqa: E402
+from sim.markers import make_marker_field  # noqa: E402
+from sim.robot_mjcf import nominal_camera_model  # noqa: E402
+from sim.sim_robot import SimRobot  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def sim():
+    from calib.robot_def import load_robot
+
+    robot = load_robot("er4u-paper")
+    actual = apply_errors(
+        perturb(nominal_camera_model(robot), seed=5, translation_m=1e-3, rotation_rad=1e-3),
+        {"beta2": 1e-3},
+    )
+    r = SimRobot("er4u-paper", actual=actual, image_sigma=0.0, seed=1)
+    yield r
+    r.close()
+
+
+def test_is_a_robot(sim):
+    assert isinstance(sim, Robot)
+    assert sim.model_name == "er4u-paper"
+
+
+def test_move_and_quantised_read_back(sim):
+    robot = sim.robot
+    cpd = robot.counts_per_unit * np.pi / 180  # counts per degree
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        q_deg = np.degrees(rng.uniform(robot.limits[:, 0], robot.limits[:, 1]))
+        sim.move_to(q_deg)
+        # the true posture is the command; the read-back is on the encoder grid, within half a count
+        np.testing.assert_allclose(np.degrees(sim.true_joints()), q_deg, atol=1e-12)
+        read = sim.joints()
+        counts = read * cpd
+        np.testing.assert_allclose(counts, np.round(counts), atol=1e-6)
+        assert np.all(np.abs(read - q_deg) <= 0.5 / cpd + 1e-9)
+    sim.home()
+    np.testing.assert_allclose(sim.true_joints(), robot.home, atol=1e-15)
+    # quantisation is visible: the home posture is not on the encoder grid of every joint
+    assert np.abs(sim.joints() - np.degrees(robot.home)).max() > 1e-4
+
+
+def test_out_of_range_is_refused_before_moving(sim):
+    sim.home()
+    before = sim.true_joints()
+    bad = np.degrees(sim.robot.home)
+    bad[1] = -40.0  # shoulder range is [-35, 130] deg
+    with pytest.raises(ValueError, match=r"joint 2 \(shoulder\).*\[-35\.00, 130\.00\] deg"):
+        sim.move_to(bad)
+    with pytest.raises(ValueError, match="5 joint values"):
+        sim.move_to([0.0, 0.0, 0.0])
+    nan = np.degrees(sim.robot.home)
+    nan[3] = np.nan
+    with pytest.raises(ValueError, match="joint 4"):
+        sim.move_to(nan)
+    np.testing.assert_array_equal(sim.true_joints(), before)
+
+
+def test_truth_frame_matches_fk_of_the_actual_robot(sim):
+    rng = np.random.default_rng(3)
+    T_cam_tip = inv_pose(sim.robot.T_flange_cam)
+    for _ in range(10):
+        q = rng.uniform(sim.robot.limits[:, 0], sim.robot.limits[:, 1])
+        sim.move_to(np.degrees(q))
+        fr = sim.truth_frame()
+        np.testing.assert_allclose(fr["joints_rad"], q, atol=1e-12)
+        T = fk_frames(sim.actual, fr["joints_rad"])[0, -1]
+        np.testing.assert_allclose(fr["T_world_cam_left"], T, atol=1e-9)
+        np.testing.assert_allclose(fr["T_world_cam_right"], T @ sim.rig.T_left_right, atol=1e-9)
+        np.testing.assert_allclose(fr["tool_tip_m"], (T @ T_cam_tip)[:3, 3], atol=1e-9)
+        # and it is the actual robot, not the nominal one
+        T_nom = fk_frames(sim.nominal, fr["joints_rad"])[0, -1]
+        assert np.abs(T_nom[:3, 3] - T[:3, 3]).max() > 1e-5
+    truth = sim.truth()
+    assert truth.robot_model == "er4u-paper" and truth.frames == []
+    np.testing.assert_array_equal(truth.true_params, sim.actual.params)
+
+
+def test_closed_robot_refuses():
+    r = SimRobot("er4u-vendor", field=make_marker_field(n_markers=4, seed=1))
+    r.close()
+    r.close()  # idempotent
+    with pytest.raises(RobotError, match="closed"):
+        r.move_to(np.degrees(r.robot.home))
+
+
+def test_bad_construction():
+    with pytest.raises(ValueError, match="unknown robot model"):
+        SimRobot("er4u-nonexistent")
+    with pytest.raises(ValueError, match="image_sigma"):
+        SimRobot(image_sigma=-1.0)
+
+
+@pytest.mark.render
+def test_capture_and_markers_visible_at_home(sim):
+    from calib.detect import detect_markers
+
+    sim.home()
+    pair = sim.capture()
+    assert isinstance(pair, StereoPair)
+    W, H = sim.rig.intrinsics.width, sim.rig.intrinsics.height
+    for img in (pair.left, pair.right):
+        assert img.shape == (H, W, 3) and img.dtype == np.uint8
+    assert pair.meta["model_name"] == "er4u-paper"
+    np.testing.assert_allclose(pair.meta["joints_deg"], sim.joints())
+    # markers are visible and where the TRUE camera pose says they are (within 1 px)
+    fr = sim.truth_frame()
+    corners = sim.field.corners_world()
+    for img, T_wc in ((pair.left, fr["T_world_cam_left"]), (pair.right, fr["T_world_cam_right"])):
+        found = detect_markers(img, sim.field.dictionary)
+        assert len(found) >= 3, sorted(found)
+        for mid, c in found.items():
+            row = sim.field.index_of(mid)
+            uv = project(sim.rig.intrinsics.K, inv_pose(T_wc), corners[row])
+            assert np.abs(uv - c).max() < 1.0, (mid, uv, c)
+    # a second capture without noise is identical
+    again = sim.capture()
+    np.testing.assert_array_equal(again.left, pair.left)
+    assert again.meta["index"] == pair.meta["index"] + 1
+
+
+@pytest.mark.render
+def test_capture_noise_is_seeded():
+    field = make_marker_field(n_markers=6, seed=2)
+    imgs = []
+    for seed in (7, 7, 8):
+        with SimRobot("er4u-paper", field=field, image_sigma=3.0, seed=seed) as r:
+            imgs.append(r.capture().left.astype(int))
+    np.testing.assert_array_equal(imgs[0], imgs[1])
+    diff = imgs[0] - imgs[2]
+    assert 2.0 < diff.std() < 6.0  # difference of two sigma-3 noises: ~4.2 before clipping
