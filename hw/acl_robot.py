@@ -1,0 +1,561 @@
+"""``AclRobot``: a real SCORBOT (Controller-A/B, or an ACL bridge/emulator) as a ``scenarios.robot.Robot``.
+
+Motion: joint targets (deg) are checked against the model's ranges *before any byte is sent*,
+converted to encoder counts (``hw.encoders``), written into one reserved position with ``DEFP`` /
+``SETPV pos axis value``, and run with ``MOVE pos`` (sent once, never retried). ``MOVE`` returns at
+once; completion is polled with ``PRINT MFLAG`` until 0 (or ``LISTPV POSITION`` until still) within a
+timeout, then the read-back is checked against the target.
+
+Safety:
+- a controller error that stops motion (any ``***`` line, ``AXIS DISABLED``) latches: motion is
+  refused with ``AclLatchedError`` naming the axis and the controller's text until
+  ``reset_errors()`` (which sends ``CON``);
+- on any exception or KeyboardInterrupt while the arm may be moving, the first bytes sent are
+  Ctrl-A (0x01) then ``CLRBUF``; ``close()`` sends them too;
+- queries (``LISTPV``, ``PRINT MFLAG``, ...) are retried a bounded number of times, motion commands
+  never.
+
+Configuration: ``AclRobot.from_config(config)`` with the ``[robot.hardware]`` table (see
+``DEFAULT_HARDWARE`` and ``docs/hardware.md``).
+"""
+
+from __future__ import annotations
+
+import re
+import time
+import warnings
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from calib.robot_def import RobotDef, load_robot
+from hw.acl_protocol import (
+    AclConnectionError,
+    AclControllerError,
+    AclErrorEvent,
+    AclLatchedError,
+    AclLink,
+    AclProtocolError,
+    AclReply,
+    AclVersion,
+    parse_listpv,
+    parse_mflag,
+    parse_show_speed,
+    parse_version,
+)
+from hw.cameras import StereoCamera
+from hw.encoders import EncoderTable
+from scenarios.robot import RobotError, StereoPair
+
+__all__ = ["AclRobot", "DEFAULT_HARDWARE", "hardware_config"]
+
+DEFAULT_HARDWARE: dict[str, Any] = {
+    "model": "er4u-vendor",  # nominal model (models/robots/<name>.toml); [robot] model also works
+    "port": "/dev/ttyUSB0",  # any pyserial URL: device, socket://host:port, loop://, pty path
+    "baudrate": 9600,
+    "bytesize": 8,
+    "parity": "N",
+    "stopbits": 1,
+    "xonxoff": True,
+    "echo": "auto",  # "auto" | true | false: what the controller does (not changed)
+    "cameras": ["0", "1"],  # left, right: device index, URL or image-sequence pattern
+    "camera_size": None,  # [width, height] to enforce, or none
+    "camera_sequence_mode": "latest",  # image sequences: "latest" (live/emulator) | "next"
+    "query_timeout_s": 2.0,
+    "home_timeout_s": 600.0,
+    "move_timeout_s": 120.0,
+    "poll_interval_s": 0.05,
+    "query_retries": 2,
+    "position_name": "SCP",  # the one ACL position the adapter reserves (DEFP)
+    "speed": None,  # SPEED 1..100 sent before the first motion, or none (leave as is)
+    "completion": "mflag",  # "mflag" (PRINT MFLAG until 0) | "listpv" (LISTPV until still)
+    "tolerance_counts": 10,  # read-back vs target after a move, per axis (motor counts)
+    "coff_on_close": False,
+    "encoders": None,  # table: counts_per_deg, home_deg, home_counts, differential
+}
+
+_HOME_DONE = re.compile(r"HOMING\s+COMPLETE", re.I)
+
+
+def hardware_config(config: Mapping[str, Any] | None) -> dict[str, Any]:
+    """The ``[robot.hardware]`` table with defaults filled in.
+
+    ``config`` is either a whole config (with ``robot.hardware``; ``robot.model`` is used as the
+    model if the table has none) or the hardware table itself.
+
+    Raises:
+        ValueError: unknown keys (the message lists the known ones) or bad values.
+    """
+    config = dict(config or {})
+    model = None
+    if isinstance(config.get("robot"), Mapping):
+        robot = config["robot"]
+        model = robot.get("model")
+        table = dict(robot.get("hardware") or {})
+    else:
+        table = config
+    unknown = set(table) - set(DEFAULT_HARDWARE)
+    if unknown:
+        raise ValueError(
+            f"unknown [robot.hardware] key(s) {sorted(unknown)}; known: {sorted(DEFAULT_HARDWARE)}"
+        )
+    out = dict(DEFAULT_HARDWARE)
+    if model is not None and "model" not in table:
+        out["model"] = model
+    out.update(table)
+    if out["completion"] not in ("mflag", "listpv"):
+        raise ValueError(f"completion must be 'mflag' or 'listpv', got {out['completion']!r}")
+    if out["echo"] not in ("auto", True, False):
+        raise ValueError(f"echo must be 'auto', true or false, got {out['echo']!r}")
+    if out["speed"] is not None and not 1 <= int(out["speed"]) <= 100:
+        raise ValueError(f"speed must be 1..100, got {out['speed']}")
+    if not re.fullmatch(r"[A-Za-z][A-Za-z0-9]{0,4}", str(out["position_name"])):
+        raise ValueError(
+            f"position_name must be 1-5 letters/digits starting with a letter, got "
+            f"{out['position_name']!r}"
+        )
+    return out
+
+
+class AclRobot:
+    """A SCORBOT driven through ACL; implements ``scenarios.robot.Robot``.
+
+    Args:
+        link: an open ``AclLink``.
+        robot: the nominal model (name or ``RobotDef``): joint ranges and ``model_name``.
+        encoders: counts <-> degrees (default: the ER-4u table).
+        cameras: a ``StereoCamera`` (or anything with ``capture() -> StereoPair`` and
+            ``close()``), or ``None`` (``capture()`` then raises).
+        Remaining arguments: see ``DEFAULT_HARDWARE``.
+
+    Not thread-safe: one caller at a time.
+    """
+
+    def __init__(
+        self,
+        link: AclLink,
+        *,
+        robot: RobotDef | str = "er4u-vendor",
+        encoders: EncoderTable | None = None,
+        cameras: Any | None = None,
+        position_name: str = "SCP",
+        speed: int | None = None,
+        home_timeout_s: float = 600.0,
+        move_timeout_s: float = 120.0,
+        poll_interval_s: float = 0.05,
+        query_retries: int = 2,
+        completion: str = "mflag",
+        tolerance_counts: int = 10,
+        coff_on_close: bool = False,
+        start_grace_s: float = 0.5,
+    ):
+        self.link = link
+        self.robot = load_robot(robot) if isinstance(robot, str) else robot
+        self.model_name = self.robot.name
+        self.encoders = encoders or EncoderTable.er4u()
+        if self.encoders.n != self.robot.n:
+            raise ValueError(
+                f"the encoder table has {self.encoders.n} axes but {self.robot.name} has "
+                f"{self.robot.n} joints"
+            )
+        if any(t != "revolute" for t in self.robot.joint_types):
+            raise ValueError(f"{self.robot.name}: AclRobot supports revolute joints only")
+        self.cameras = cameras
+        self.position_name = position_name.upper()
+        self.speed = speed
+        self.home_timeout_s = float(home_timeout_s)
+        self.move_timeout_s = float(move_timeout_s)
+        self.poll_interval_s = float(poll_interval_s)
+        self.query_retries = int(query_retries)
+        if completion not in ("mflag", "listpv"):
+            raise ValueError(f"completion must be 'mflag' or 'listpv', got {completion!r}")
+        self.completion = completion
+        self.tolerance_counts = int(tolerance_counts)
+        self.coff_on_close = bool(coff_on_close)
+        self.start_grace_s = float(start_grace_s)
+        self.latched_error: AclErrorEvent | None = None
+        self.abort_count = 0
+        self._may_move = False
+        self._control_checked = False
+        self._position_defined = False
+        self._speed_set = False
+        self._closed = False
+
+    # -- construction ----------------------------------------------------------------------------
+
+    @classmethod
+    def from_config(
+        cls,
+        config: Mapping[str, Any] | None,
+        *,
+        link: AclLink | None = None,
+        cameras: Any | None = None,
+        open_cameras: bool = True,
+        **overrides: Any,
+    ) -> AclRobot:
+        """Open the port and cameras named by a ``[robot.hardware]`` config (see ``hardware_config``).
+
+        ``link``/``cameras`` replace what the config would open; ``open_cameras=False`` skips them
+        (e.g. for ``hw joints``); ``overrides`` replace config keys.
+
+        Raises:
+            ValueError: bad config. AclConnectionError: the port cannot be opened.
+            CameraError: a camera cannot be opened.
+        """
+        cfg = hardware_config(config)
+        cfg.update(overrides)
+        encoders = EncoderTable.from_config(cfg["encoders"]) if cfg["encoders"] else None
+        if cfg["encoders"] is None and cfg["model"] != "er4u-vendor":
+            warnings.warn(
+                f"[robot.hardware] has no encoders table: using the ER-4u defaults, whose home "
+                f"posture is given in the er4u-vendor convention, with model {cfg['model']!r}",
+                stacklevel=2,
+            )
+        robot = load_robot(cfg["model"])
+        if link is None:
+            echo = None if cfg["echo"] == "auto" else bool(cfg["echo"])
+            link = AclLink.open(
+                str(cfg["port"]),
+                baudrate=int(cfg["baudrate"]),
+                bytesize=int(cfg["bytesize"]),
+                parity=str(cfg["parity"]),
+                stopbits=cfg["stopbits"],
+                xonxoff=bool(cfg["xonxoff"]),
+                echo=echo,
+                query_timeout_s=float(cfg["query_timeout_s"]),
+                retries=int(cfg["query_retries"]),
+            )
+        try:
+            if cameras is None and open_cameras and cfg["cameras"]:
+                size = tuple(cfg["camera_size"]) if cfg["camera_size"] else None
+                cameras = StereoCamera.from_sources(
+                    [str(c) for c in cfg["cameras"]],
+                    expected_size=size,  # type: ignore[arg-type]
+                    sequence_mode=str(cfg["camera_sequence_mode"]),
+                )
+            return cls(
+                link,
+                robot=robot,
+                encoders=encoders,
+                cameras=cameras,
+                position_name=str(cfg["position_name"]),
+                speed=None if cfg["speed"] is None else int(cfg["speed"]),
+                home_timeout_s=float(cfg["home_timeout_s"]),
+                move_timeout_s=float(cfg["move_timeout_s"]),
+                poll_interval_s=float(cfg["poll_interval_s"]),
+                query_retries=int(cfg["query_retries"]),
+                completion=str(cfg["completion"]),
+                tolerance_counts=int(cfg["tolerance_counts"]),
+                coff_on_close=bool(cfg["coff_on_close"]),
+            )
+        except BaseException:
+            link.close()
+            raise
+
+    @classmethod
+    def open(cls, port: str, **kwargs: Any) -> AclRobot:
+        """``from_config({"port": port, **kwargs})`` without cameras unless ``cameras`` is given."""
+        kwargs.setdefault("cameras", None)
+        cams = kwargs.pop("cameras")
+        return cls.from_config({"port": port, "cameras": cams or [], **kwargs})
+
+    def __enter__(self) -> AclRobot:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # -- helpers ---------------------------------------------------------------------------------
+
+    @property
+    def n(self) -> int:
+        return self.robot.n
+
+    def _axis_name(self, axis: int | None) -> str:
+        if axis is None:
+            return "no axis named"
+        if 1 <= axis <= self.n:
+            return f"axis {axis} ({self.robot.joint_names[axis - 1]})"
+        return f"axis {axis}"
+
+    def _check_open(self) -> None:
+        if self._closed:
+            raise RobotError("the robot connection is closed")
+
+    def _check_latch(self) -> None:
+        ev = self.latched_error
+        if ev is not None:
+            raise AclLatchedError(
+                f"motion refused: the controller reported '{ev.message}' ({self._axis_name(ev.axis)}); "
+                "check the arm, then call reset_errors() (sends CON)",
+                ev,
+            )
+
+    def _latch(self, ev: AclErrorEvent) -> None:
+        if self.latched_error is None:
+            self.latched_error = ev
+        self._control_checked = False
+
+    def _check_events(self, during: str, raise_errors: bool = True) -> None:
+        """Consume the link's error events: latch the latching ones, raise for any."""
+        events = self.link.pop_events()
+        first: AclErrorEvent | None = None
+        for ev in events:
+            if ev.latching:
+                self._latch(ev)
+            first = first or ev
+        if first is not None:
+            if raise_errors:
+                latched = (
+                    " (latched: motion refused until reset_errors())" if first.latching else ""
+                )
+                raise AclControllerError(
+                    f"controller reported '{first.message}' ({self._axis_name(first.axis)}) "
+                    f"during {during}{latched}",
+                    first,
+                )
+            warnings.warn(
+                f"controller reported '{first.message}' during {during}",
+                RuntimeWarning,
+                stacklevel=3,
+            )
+
+    def _command(self, cmd: str, timeout_s: float | None = None) -> AclReply:
+        reply = self.link.command(cmd, timeout_s=timeout_s)
+        self._check_events(cmd)
+        if reply.question is not None:
+            raise AclProtocolError(
+                f"the controller asks {reply.question!r} after {cmd!r}; the adapter does not answer "
+                "questions",
+                reply.raw,
+            )
+        return reply
+
+    def _query(self, cmd: str, parse: Any, raise_errors: bool = True) -> Any:
+        """A query with bounded retries; controller errors seen meanwhile are latched and (with
+        ``raise_errors``) raised, else warned about."""
+        try:
+            value = self.link.query(cmd, parse, retries=self.query_retries)
+        except AclControllerError:
+            self._check_events(cmd, raise_errors=True)  # raises the annotated error if any
+            raise
+        self._check_events(cmd, raise_errors=raise_errors)
+        return value
+
+    def _abort(self) -> list[str]:
+        """Ctrl-A then CLRBUF (first bytes sent); latches any error that shows up."""
+        self.abort_count += 1
+        problems = self.link.abort()
+        for ev in self.link.pop_events():
+            if ev.latching:
+                self._latch(ev)
+        return problems
+
+    def _fail(self, exc: BaseException, during: str) -> None:
+        """On failure while the arm may move: abort first, then annotate ``exc``."""
+        if not self._may_move:
+            return
+        self._may_move = False
+        problems = self._abort()
+        if hasattr(exc, "add_note"):
+            if problems:
+                exc.add_note(
+                    f"abort sequence (Ctrl-A, CLRBUF) after the failure in {during} could not be "
+                    f"delivered: {'; '.join(problems)} -- the arm may still be moving: use the "
+                    "emergency stop"
+                )
+            else:
+                exc.add_note(f"abort sequence (Ctrl-A, CLRBUF) sent after the failure in {during}")
+
+    def _prepare_motion(self) -> None:
+        """CON once, SPEED once, DEFP once; refuses on a latched error (before any byte)."""
+        self._check_latch()
+        self.link.drain()
+        self._check_events("the check before motion")
+        if not self._control_checked:
+            reply = self._command("CON")
+            if reply.lines and not any("ENABLED" in x.upper() for x in reply.lines):
+                raise AclProtocolError(f"unexpected reply to CON: {reply.lines}", reply.raw)
+            self._control_checked = True
+        if self.speed is not None and not self._speed_set:
+            self._command(f"SPEED {int(self.speed)}")
+            self._speed_set = True
+        if not self._position_defined:
+            self._command(f"DEFP {self.position_name}")
+            self._position_defined = True
+
+    # -- the Robot protocol ------------------------------------------------------------------------
+
+    def home(self) -> None:
+        """``HOME`` with the long timeout; returns after ``HOMING COMPLETE``.
+
+        Raises:
+            AclLatchedError: an earlier error is latched (nothing is sent).
+            AclControllerError: ``*** HOME FAILURE AXIS n`` or another controller error (latched).
+            AclTimeoutError / AclConnectionError: no completion in time / link lost (abort sent).
+        """
+        self._check_open()
+        self._check_latch()
+        try:
+            self._prepare_motion()
+            self._may_move = True
+            t0 = time.monotonic()
+            reply = self.link.command("HOME", timeout_s=self.home_timeout_s)
+            self._check_events("HOME")
+            if not any(_HOME_DONE.search(x) for x in reply.lines):
+                left = max(self.home_timeout_s - (time.monotonic() - t0), 0.1)
+                _, m = self.link.read_lines_until(_HOME_DONE, left)
+                self._check_events("HOME")
+                if m is None:
+                    raise AclProtocolError("HOME ended without HOMING COMPLETE")
+            self._may_move = False
+        except BaseException as exc:
+            self._fail(exc, "HOME")
+            raise
+
+    def move_to(self, joints_deg: np.ndarray) -> None:
+        """Move to joint angles (deg) and wait until the arm is still at them.
+
+        Raises:
+            ValueError: wrong length, non-finite or out-of-range joint (names the joint); nothing
+                is sent.
+            AclLatchedError: an earlier controller error is latched; nothing is sent.
+            AclControllerError: the controller reported an error (latched if it stops motion).
+            AclTimeoutError / AclProtocolError / AclConnectionError: no reply, garbled replies,
+                link lost; the abort sequence is sent first.
+            RobotError: the motion ended away from the target or took too long.
+        """
+        q = np.asarray(joints_deg, dtype=float)
+        if q.shape != (self.n,):
+            raise ValueError(f"joints_deg must have {self.n} values, got shape {q.shape}")
+        self.robot.check_joints(np.radians(q))  # ValueError naming the joint, before any byte
+        target = self.encoders.to_counts(q)
+        self._check_open()
+        self._check_latch()
+        try:
+            self._prepare_motion()
+            pos = self.position_name
+            for axis in range(1, self.n + 1):
+                self._command(f"SETPV {pos} {axis} {int(target[axis - 1])}")
+            self._may_move = True
+            self._command(f"MOVE {pos}")
+            self._wait_still(target)
+            self._may_move = False
+        except BaseException as exc:
+            self._fail(exc, f"MOVE to {np.round(q, 3).tolist()} deg")
+            raise
+
+    def _wait_still(self, target: np.ndarray) -> None:
+        t0 = time.monotonic()
+        deadline = t0 + self.move_timeout_s
+        prev: np.ndarray | None = None
+        while True:
+            if self.completion == "mflag":
+                still = self._query("PRINT MFLAG", parse_mflag) == 0
+                counts = self._read_counts() if still else None
+            else:
+                counts = self._read_counts()
+                still = prev is not None and np.array_equal(counts, prev)
+                prev = counts
+            if still and counts is not None:
+                err = np.abs(counts - target)
+                if np.all(err <= self.tolerance_counts):
+                    return
+                if time.monotonic() - t0 > self.start_grace_s:
+                    worst = int(np.argmax(err))
+                    raise RobotError(
+                        f"the arm stopped {int(err[worst])} counts from the target on "
+                        f"{self._axis_name(worst + 1)} (read {counts.tolist()}, target "
+                        f"{target.tolist()}, tolerance {self.tolerance_counts})"
+                    )
+            if time.monotonic() > deadline:
+                raise RobotError(
+                    f"the move did not finish within {self.move_timeout_s:g} s "
+                    "(move_timeout_s); the MOVE was not resent"
+                )
+            time.sleep(self.poll_interval_s)
+
+    def _read_counts(self, raise_errors: bool = True) -> np.ndarray:
+        lp = self._query("LISTPV POSITION", parse_listpv, raise_errors=raise_errors)
+        return lp.axis_counts(self.n)
+
+    def joints_counts(self) -> np.ndarray:
+        """Current encoder counts of axes 1..n (``LISTPV POSITION``)."""
+        self._check_open()
+        return self._read_counts(raise_errors=False)
+
+    def joints(self) -> np.ndarray:
+        """Joint angles (deg) from ``LISTPV POSITION``; errors seen meanwhile are latched, not raised."""
+        return self.encoders.to_degrees(self.joints_counts())
+
+    def capture(self) -> StereoPair:
+        """A stereo pair from the configured cameras (``RobotError`` if there are none)."""
+        self._check_open()
+        if self.cameras is None:
+            raise RobotError(
+                "no cameras configured for this robot: set [robot.hardware] cameras = [left, right]"
+            )
+        pair = self.cameras.capture()
+        return StereoPair(pair.left, pair.right, {**pair.meta, "robot": "acl"})
+
+    def close(self) -> None:
+        """Abort any motion (Ctrl-A, CLRBUF), optionally COFF, close port and cameras. Idempotent."""
+        if self._closed:
+            return
+        self._closed = True
+        try:
+            if self.link.is_open:
+                self._abort()
+                if self.coff_on_close:
+                    try:
+                        self.link.command("COFF", timeout_s=1.0)
+                    except (AclProtocolError, AclControllerError):
+                        pass
+        except Exception:  # noqa: BLE001 - closing must not raise over a dead link
+            pass
+        finally:
+            self.link.close()
+            if self.cameras is not None:
+                self.cameras.close()
+
+    # -- extras ------------------------------------------------------------------------------------
+
+    def reset_errors(self) -> None:
+        """Clear the latched error after checking the arm: ``CLRBUF``, ``CON``, unlatch.
+
+        Raises:
+            AclControllerError: the controller still reports an error.
+        """
+        self._check_open()
+        self.link.pop_events()
+        self._command("CLRBUF")
+        reply = self._command("CON")
+        if reply.lines and not any("ENABLED" in x.upper() for x in reply.lines):
+            raise AclProtocolError(f"unexpected reply to CON: {reply.lines}", reply.raw)
+        self.latched_error = None
+        self._control_checked = True
+
+    def abort(self) -> None:
+        """Send the abort sequence now (Ctrl-A, CLRBUF)."""
+        self._check_open()
+        self._may_move = False
+        self._abort()
+
+    def version(self) -> AclVersion:
+        """The controller's ``VER`` banner."""
+        self._check_open()
+        return self._query("VER", parse_version)
+
+    def show_speed(self) -> dict[str, int]:
+        """``SHOW SPEED`` as ``{"A": 50, ...}``."""
+        self._check_open()
+        return self._query("SHOW SPEED", parse_show_speed)
+
+    def connection_ok(self) -> bool:
+        """Whether a fresh prompt comes back for a bare CR."""
+        self._check_open()
+        try:
+            return self.link.resync()
+        except AclConnectionError:
+            return False
