@@ -151,7 +151,8 @@ scenario keys (TOML; every key has a default, units in the names):
   [target]       markers = 20; scale_length_mm = 200.0; marker_size_mm = 30.0; seed = 1
   [perturbation] seed = 1; translation_mm = 1.0; rotation_deg = 0.5; [perturbation.table] name = value
   [trajectory]   poses = 30; seed = 1; min_markers = 6
-  [noise]        render = true; image_sigma = 2.0 (0-255); pixel_sigma = 0.5 (px); seed = 1
+  [noise]        render = true; image_sigma = 2.0 (0-255); pixel_sigma = 0.5 (px); seed = 1;
+                 quantize_joints = true (encoder resolution of the simulated read-back)
   [validation]   poses = 20; seed = 2
 default scenario: scenarios/paper.toml
 """

@@ -96,6 +96,8 @@ class NoiseConfig:
     """Rendered path: Gaussian sensor noise on pixel intensities (0-255 scale)."""
     pixel_sigma: float = 0.5
     """Analytic path: Gaussian noise on the projected corners, px."""
+    quantize_joints: bool = True
+    """Simulated joint read-back at encoder resolution (false: exact, for noise-free tests)."""
     seed: int = 1
 
 

@@ -44,6 +44,8 @@ class SimRobot:
         field: marker field; default ``make_marker_field()``.
         image_sigma: std of additive Gaussian image noise (grey levels, 0-255).
         seed: seed of the image-noise generator.
+        quantize: report joints at encoder resolution (False: the exact angles, for noise-free
+            regression tests).
 
     Starts at the home posture. Raises ``RobotDefinitionError`` for an unknown model name and
     ``ValueError`` if ``actual`` does not fit the robot.
@@ -57,6 +59,7 @@ class SimRobot:
         field: MarkerField | None = None,
         image_sigma: float = 0.0,
         seed: int = 0,
+        quantize: bool = True,
     ) -> None:
         if not image_sigma >= 0:
             raise ValueError(f"image_sigma must be >= 0 (grey levels), got {image_sigma}")
@@ -71,6 +74,7 @@ class SimRobot:
         self.rig = RigConfig() if rig is None else rig
         self.field = make_marker_field() if field is None else field
         self.image_sigma = float(image_sigma)
+        self.quantize = bool(quantize)
         self._rng = np.random.default_rng(seed)
         spec = scene_with_robot(self.robot, self.actual, self.rig, self.field)
         self.mj_model = spec.compile()
@@ -107,7 +111,7 @@ class SimRobot:
         rounded to the nearest encoder count."""
         q = self.mj_data.qpos[: self.robot.n].copy()
         cpu = self.robot.counts_per_unit
-        finite = np.isfinite(cpu)
+        finite = np.isfinite(cpu) & self.quantize
         q = np.where(
             finite, np.round(q * np.where(finite, cpu, 1.0)) / np.where(finite, cpu, 1.0), q
         )

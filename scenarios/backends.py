@@ -1,0 +1,238 @@
+"""Backends behind the one Robot interface, chosen by ``[robot] backend`` in the scenario.
+
+``sim``: the simulated actual robot (nominal + injected errors) photographing a marker field;
+``hardware``: the ACL serial adapter (``hw``). Everything backend-specific lives here; the
+acquisition loop and the calibration only see a ``Robot`` and a dataset.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from calib.camera import Intrinsics
+from calib.dataset import DatasetInfo
+from calib.kinematics import fk_tool
+from calib.mcpc import MCPCModel, dh_to_mcpc, minimal_indices, param_is_angle, param_names
+from calib.robot_def import RobotDef, load_robot
+from calib.trajectory import check_not_degenerate, plan_postures
+from calib.transforms import trans
+from scenarios.acquire import AcquisitionHooks
+from scenarios.config import ConfigError, Scenario, scenario_to_dict
+from scenarios.robot import Robot
+
+__all__ = ["SimSetup", "sim_setup", "open_robot", "plan_dataset", "render_posture"]
+
+DICTIONARY = "DICT_4X4_50"
+
+
+@dataclass
+class SimSetup:
+    """Everything the simulator needs, derived from a scenario (deterministic per seeds)."""
+
+    robot: RobotDef
+    nominal: MCPCModel
+    actual: MCPCModel
+    intrinsics: Intrinsics
+    T_left_right: np.ndarray
+    field: object  # sim.markers.MarkerField
+    meta: dict = field(default_factory=dict)
+
+
+def _field_center(robot: RobotDef, nominal: MCPCModel) -> tuple[float, float]:
+    """Where the home posture's optical axis meets the table (z = 0): the field's centre."""
+    T = fk_tool(nominal, robot.home[None])[0]
+    p, z = T[:3, 3], T[:3, 2]
+    if z[2] > -0.2:
+        raise ConfigError(
+            f"{robot.name}: at the home posture the camera does not look down at the table; "
+            "cannot place the marker field"
+        )
+    hit = p - p[2] / z[2] * z
+    return float(hit[0]), float(hit[1])
+
+
+def _perturbation_table(s: Scenario, n: int) -> dict[str, float]:
+    names = param_names(minimal_indices(("revolute",) * n))
+    out = {}
+    for k, v in s.perturbation.table.items():
+        if k not in names:
+            raise ConfigError(
+                f"{s.source}: perturbation.table.{k}: unknown parameter; known: {', '.join(names)}"
+            )
+        is_angle = param_is_angle(minimal_indices(("revolute",) * n))[names.index(k)]
+        out[k] = float(v) * (np.pi / 180 if is_angle else 1e-3)
+    return out
+
+
+def sim_setup(s: Scenario) -> SimSetup:
+    """The simulated actual robot, rig and marker field of a scenario."""
+    from sim.actual import apply_errors, perturb
+    from sim.markers import make_marker_field
+
+    robot = load_robot(s.robot.model)
+    nominal = dh_to_mcpc(robot).with_tool(robot.T_flange_cam)
+    actual = perturb(
+        nominal,
+        seed=s.perturbation.seed,
+        translation_m=s.perturbation.translation_mm / 1000,
+        rotation_rad=np.radians(s.perturbation.rotation_deg),
+    )
+    table = _perturbation_table(s, robot.n)
+    if table:
+        actual = apply_errors(actual, table)
+    W, H = s.camera.resolution
+    intr = Intrinsics.centered(s.camera.fx, s.camera.mu, W, H)
+    field_ = make_marker_field(
+        n_markers=s.target.markers,
+        seed=s.target.seed,
+        center_xy_m=_field_center(robot, nominal),
+        size_m=s.target.marker_size_mm / 1000,
+        scale_length_m=s.target.scale_length_mm / 1000,
+        dictionary=DICTIONARY,
+    )
+    T_lr = trans(np.array([s.camera.baseline_mm / 1000, 0.0, 0.0]))
+    return SimSetup(robot, nominal, actual, intr, T_lr, field_)
+
+
+def plan_dataset(s: Scenario, setup: SimSetup | None = None) -> DatasetInfo:
+    """The dataset description: planned trajectory and validation postures (deg)."""
+    robot = load_robot(s.robot.model)
+    nominal = dh_to_mcpc(robot).with_tool(robot.T_flange_cam)
+    W, H = s.camera.resolution
+    intr = Intrinsics.centered(s.camera.fx, s.camera.mu, W, H)
+    T_lr = trans(np.array([s.camera.baseline_mm / 1000, 0.0, 0.0]))
+    if setup is not None:
+        fld = setup.field
+        pts, nrm = fld.centers_world(), fld.T_world_marker[:, :3, 2]
+        scale_ids = tuple(int(i) for i in fld.scale_ids)
+    else:
+        cx, cy = _field_center(robot, nominal)
+        g = np.linspace(-0.12, 0.12, 5)
+        pts = np.array([[cx + a, cy + b, 0.0] for a in g for b in g])
+        nrm = np.tile([0.0, 0.0, 1.0], (len(pts), 1))
+        scale_ids = (48, 49)
+    q = plan_postures(
+        robot,
+        nominal,
+        T_lr,
+        intr,
+        pts,
+        s.trajectory.poses,
+        seed=s.trajectory.seed,
+        min_visible=s.trajectory.min_markers,
+        normals_world=nrm,
+    )
+    check_not_degenerate(fk_tool(nominal, q))
+    qv = plan_postures(
+        robot,
+        nominal,
+        T_lr,
+        intr,
+        pts,
+        s.validation.poses,
+        seed=10_000 + s.validation.seed,
+        min_visible=0,
+        normals_world=nrm,
+    )
+    return DatasetInfo(
+        robot_model=robot.name,
+        backend=s.robot.backend,
+        resolution=(W, H),
+        dictionary=DICTIONARY,
+        scale_ids=scale_ids,
+        scale_length_m=s.target.scale_length_mm / 1000,
+        observation="images" if (s.noise.render or s.robot.backend == "hardware") else "detections",
+        planned_joints_deg=np.round(np.degrees(q), 6),
+        validation_joints_deg=np.round(np.degrees(qv), 6),
+        scenario=scenario_to_dict(s),
+    )
+
+
+def open_robot(
+    s: Scenario, out: Path, setup: SimSetup | None = None
+) -> tuple[Robot, AcquisitionHooks]:
+    """The scenario's robot and its simulator-only hooks (analytic detections, ground truth)."""
+    if s.robot.backend == "hardware":
+        from hw.acl_robot import open_hardware_robot
+
+        return open_hardware_robot(s), AcquisitionHooks()
+    from sim.actual import write_truth
+    from sim.analytic import project_markers
+    from sim.robot_mjcf import RigConfig
+    from sim.sim_robot import SimRobot
+
+    setup = setup or sim_setup(s)
+    rig = RigConfig(intrinsics=setup.intrinsics, T_left_right=setup.T_left_right)
+    robot = SimRobot(
+        setup.robot.name,
+        setup.actual,
+        rig,
+        setup.field,
+        image_sigma=s.noise.image_sigma,
+        seed=s.noise.seed,
+        quantize=s.noise.quantize_joints,
+    )
+    truth = robot.truth(meta={"scenario": scenario_to_dict(s)})
+    truth_path = Path(out) / "truth.json"
+    if truth_path.is_file():
+        from sim.actual import read_truth
+
+        truth.frames = read_truth(truth_path).frames
+    write_truth(truth_path, truth)
+    rng = np.random.default_rng(s.noise.seed + 7919)
+    fld = setup.field
+    corners, normals = fld.corners_world(), fld.T_world_marker[:, :3, 2]
+
+    def record_truth(index: int) -> None:
+        frame = robot.truth_frame()
+        frame["frame_index"] = index
+        truth.frames = [f for f in truth.frames if f.get("frame_index") != index]
+        truth.append_frame(frame)
+        write_truth(truth_path, truth)
+
+    def detect() -> dict:
+        fr = robot.truth_frame()
+        out_ = {}
+        for cam, T, intr in (
+            ("left", fr["T_world_cam_left"], rig.intrinsics),
+            ("right", fr["T_world_cam_right"], rig.right),
+        ):
+            out_[cam] = project_markers(
+                np.asarray(T),
+                intr,
+                fld.ids,
+                corners,
+                normals,
+                pixel_sigma=s.noise.pixel_sigma,
+                rng=rng,
+            )
+        return out_
+
+    hooks = AcquisitionHooks(detect=None if s.noise.render else detect, record_truth=record_truth)
+    return robot, hooks
+
+
+def render_posture(
+    robot: RobotDef, q: np.ndarray, out: Path, config: str | None = None
+) -> tuple[Path, Path]:
+    """Render the (nominal, unperturbed) robot's stereo pair at posture ``q`` (rad) into ``out``."""
+    import cv2
+
+    from scenarios.config import load_scenario
+    from sim.robot_mjcf import RigConfig
+    from sim.sim_robot import SimRobot
+
+    s = load_scenario(config, overrides={"robot": {"model": robot.name}})
+    setup = sim_setup(s)
+    rig = RigConfig(intrinsics=setup.intrinsics, T_left_right=setup.T_left_right)
+    out.mkdir(parents=True, exist_ok=True)
+    with SimRobot(robot.name, None, rig, setup.field) as sim:
+        sim.move_to(np.degrees(q))
+        pair = sim.capture()
+    paths = (out / "left.png", out / "right.png")
+    for p, img in zip(paths, (pair.left, pair.right)):
+        cv2.imwrite(str(p), cv2.cvtColor(img, cv2.COLOR_RGB2BGR))
+    return paths
