@@ -21,6 +21,7 @@ from calib.kinematics import fk_tool
 from calib.mcpc import MCPCModel, dh_to_mcpc, minimal_indices, param_is_angle, param_names
 from calib.robot_def import RobotDef, load_robot
 from calib.selfcal import Observations, SelfCalibrationResult, self_calibrate
+from calib.trajectory import check_not_degenerate
 from calib.transforms import inv_pose, rot_z
 
 __all__ = [
@@ -34,6 +35,7 @@ __all__ = [
 ]
 
 FORMAT = "scorbot-selfcal-calibration"
+MIN_POSTURES = 6
 
 
 class CalibrationError(ValueError):
@@ -124,11 +126,18 @@ def calibrate(root: str | Path, *, progress=None) -> CalibrationOutput:
     """
     ds = Dataset.open(root)
     robot = load_robot(ds.info.robot_model)
+    if len(ds.indices) < MIN_POSTURES:
+        raise CalibrationError(
+            f"{root}: {len(ds.indices)} postures; calibration needs at least {MIN_POSTURES} "
+            "(26 kinematic parameters from 6 pose values each, plus the camera's unknowns): "
+            "acquire more"
+        )
     dets = detect_dataset(ds, progress=progress)
     _check_scale_markers(ds, dets)
     obs = _observations(ds, dets)
     q = np.radians(ds.joints_deg)
     nominal = dh_to_mcpc(robot).with_tool(robot.T_flange_cam)
+    check_not_degenerate(fk_tool(nominal, q))
     W, H = ds.info.resolution
     sc = self_calibrate(
         obs,
