@@ -139,7 +139,10 @@ def cmd_report(args: argparse.Namespace) -> int:
 def cmd_run(args: argparse.Namespace) -> int:
     from scenarios.pipeline import run_all
 
-    run_all(_scenario(args.config), Path(args.out), resume=args.resume, quiet=args.quiet)
+    s = _scenario(args.config)
+    out = Path(args.out) if args.out else Path("runs") / Path(s.source).stem
+    # A run continues the dataset already in --out when it was taken with the same scenario.
+    run_all(s, out, resume=True, quiet=args.quiet)
     return 0
 
 
@@ -201,20 +204,29 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--out", required=True, help="output folder")
     sp.add_argument("--config", default=None, help="scenario TOML for camera and target settings")
 
-    for name, func, help_ in (
-        ("acquire", cmd_acquire, "drive the robot along the trajectory into a dataset folder"),
-        ("run", cmd_run, "acquire, calibrate and report in one go (the main job)"),
-    ):
-        sp = add(name, func, help_, CONFIG_HELP)
-        sp.add_argument(
-            "config",
-            nargs="?" if name == "run" else None,
-            default=None,
-            help="scenario TOML (default scenarios/paper.toml)",
-        )
-        sp.add_argument("--out", required=True, help="dataset/output folder")
-        sp.add_argument("--resume", action="store_true", help="continue an interrupted acquisition")
-        sp.add_argument("--quiet", action="store_true", help="no progress output")
+    sp = add(
+        "acquire",
+        cmd_acquire,
+        "drive the robot along the trajectory into a dataset folder",
+        CONFIG_HELP,
+    )
+    sp.add_argument("config", help="scenario TOML (e.g. scenarios/paper.toml)")
+    sp.add_argument("--out", required=True, help="dataset folder")
+    sp.add_argument("--resume", action="store_true", help="continue an interrupted acquisition")
+    sp.add_argument("--quiet", action="store_true", help="no progress output")
+
+    sp = add(
+        "run",
+        cmd_run,
+        "acquire, calibrate and report in one go (the main job); continues the dataset already "
+        "in --out if it was taken with the same scenario",
+        CONFIG_HELP,
+    )
+    sp.add_argument(
+        "config", nargs="?", default=None, help="scenario TOML (default scenarios/paper.toml)"
+    )
+    sp.add_argument("--out", default=None, help="output folder (default runs/<scenario name>)")
+    sp.add_argument("--quiet", action="store_true", help="no progress output")
 
     sp = add("calibrate", cmd_calibrate, "dataset -> DIR/calibration.json (never reads truth.json)")
     sp.add_argument("dataset", help="dataset folder")

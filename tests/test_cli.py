@@ -1,0 +1,96 @@
+"""The command line: JSON outputs, and bad input exits non-zero naming the problem."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from scenarios.cli import main
+
+
+def run(capsys, *argv):
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_fk_prints_table_ii_row_one(capsys):
+    code, out, _ = run(capsys, "fk", "--model", "er4u-paper", "--joints", "38.15,-30,45,-63.54,0")
+    assert code == 0
+    doc = json.loads(out)
+    np.testing.assert_allclose(doc["xyz_mm"], [315.60, 247.90, 190.30], atol=0.1)
+    assert abs(doc["pitch_deg"] - (-138.54)) < 1e-3 and abs(doc["roll_deg"]) < 1e-9
+
+
+def test_ik_round_trips_through_fk(capsys):
+    code, out, _ = run(
+        capsys,
+        "ik",
+        "--model",
+        "er4u-paper",
+        "--xyz",
+        "310.4,243.8,197.7",
+        "--pitch",
+        "-138.54",
+        "--roll",
+        "0",
+    )
+    assert code == 0
+    q = json.loads(out)["joints_deg"]
+    code, out, _ = run(capsys, "fk", "--joints", ",".join(f"{v:.9f}" for v in q))
+    doc = json.loads(out)
+    np.testing.assert_allclose(doc["xyz_mm"], [310.4, 243.8, 197.7], atol=1e-4)
+    assert abs(doc["pitch_deg"] + 138.54) < 1e-3
+
+
+def test_ik_unreachable_exits_nonzero(capsys):
+    code, out, err = run(capsys, "ik", "--xyz", "2000,0,0", "--pitch", "0")
+    assert code != 0 and out == ""
+    assert "unreachable" in err and "mm" in err
+
+
+@pytest.mark.parametrize(
+    "argv, words",
+    [
+        (
+            ["fk", "--model", "er9", "--joints", "0,0,0,0,0"],
+            ["unknown robot model 'er9'", "er4u-paper"],
+        ),
+        (["fk", "--joints", "0,zero,0,0,0"], ["--joints", "comma-separated numbers"]),
+        (["fk", "--joints", "0,0,0"], ["expected 5 numbers"]),
+        (
+            ["fk", "--joints", "0,140,0,0,0"],
+            ["joint 2 (shoulder)", "140.000 deg", "[-35.00, 130.00]"],
+        ),
+        (["ik", "--xyz", "1,2", "--pitch", "0"], ["--xyz", "expected 3 numbers"]),
+    ],
+)
+def test_bad_input_names_the_problem(capsys, argv, words):
+    code, out, err = run(capsys, *argv)
+    assert code == 2 and out == ""
+    for w in words:
+        assert w in err
+
+
+@pytest.mark.render
+def test_render_writes_the_stereo_pair(capsys, tmp_path):
+    import cv2
+
+    code, out, _ = run(
+        capsys, "render", "--joints", "38.15,-30,45,-63.54,0", "--out", str(tmp_path)
+    )
+    assert code == 0
+    paths = json.loads(out)
+    for key in ("left", "right"):
+        img = cv2.imread(paths[key])
+        assert img.shape == (480, 640, 3) and img.std() > 10
+
+
+def test_help_lists_scenario_keys(capsys):
+    with pytest.raises(SystemExit):
+        main(["run", "--help"])
+    out = capsys.readouterr().out
+    for key in ("scale_length_mm", "pixel_sigma", "backend", "baseline_mm", "[validation]"):
+        assert key in out
