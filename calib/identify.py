@@ -61,6 +61,7 @@ from calib.mcpc import (
 from calib.robot_def import RobotDef
 from calib.transforms import (
     inv_pose,
+    kabsch,
     make_pose,
     rot_x,
     rot_z,
@@ -121,13 +122,7 @@ def fit_rigid_transform(T_a: np.ndarray, T_b: np.ndarray, length_m: float = 0.1)
         ax = np.swapaxes(T[:, :3, :3], -1, -2) * length_m  # rows: scaled axes
         return np.concatenate([o, (o[:, None, :] + ax).reshape(-1, 3)], axis=0)
 
-    A, B = pts(T_a), pts(T_b)
-    ca, cb = A.mean(0), B.mean(0)
-    H = (B - cb).T @ (A - ca)
-    U, _, Vt = np.linalg.svd(H)
-    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(Vt.T @ U.T))])
-    R = Vt.T @ D @ U.T
-    return make_pose(R, ca - R @ cb)
+    return kabsch(pts(T_b), pts(T_a))
 
 
 def regauge(

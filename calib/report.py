@@ -16,26 +16,9 @@ import numpy as np
 
 from calib.kinematics import fk_tool
 from calib.mcpc import MCPCModel, minimal_indices, param_is_angle, param_names
+from calib.transforms import kabsch
 
-__all__ = ["kabsch", "tool_tips", "aligned_errors", "parameter_table", "format_table_iv"]
-
-
-def kabsch(A: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """Rigid ``T`` (4x4, no scale) minimising ``sum |R A_i + t - B_i|^2`` for points (k, 3)."""
-    A = np.asarray(A, dtype=float)
-    B = np.asarray(B, dtype=float)
-    if A.shape != B.shape or A.ndim != 2 or A.shape[1] != 3 or len(A) < 3:
-        raise ValueError(
-            f"kabsch needs two (k, 3) point sets with k >= 3, got {A.shape}, {B.shape}"
-        )
-    ca, cb = A.mean(0), B.mean(0)
-    U, _, Vt = np.linalg.svd((A - ca).T @ (B - cb))
-    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(Vt.T @ U.T))])
-    R = Vt.T @ D @ U.T
-    T = np.eye(4)
-    T[:3, :3] = R
-    T[:3, 3] = cb - R @ ca
-    return T
+__all__ = ["tool_tips", "aligned_errors", "parameter_table", "format_table_iv"]
 
 
 def tool_tips(model_cam: MCPCModel, q: np.ndarray, T_cam_tip: np.ndarray) -> np.ndarray:

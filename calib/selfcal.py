@@ -58,7 +58,7 @@ from calib.selfcal_init import (
     optical_axes_convergence,
     robust_triangulate,
 )
-from calib.transforms import inv_pose, make_pose, rot_y
+from calib.transforms import inv_pose, kabsch, make_pose, rot_y
 
 __all__ = [
     "Observations",
@@ -133,17 +133,10 @@ def scale_from_markers(
 
 
 def rigid_align(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, float]:
-    """Best proper rigid transform ``T`` (4, 4) with ``T @ A ~ B`` (Kabsch, no scale, no mirror)
+    """Best proper rigid transform ``T`` (4, 4) with ``T @ A ~ B`` (:func:`calib.transforms.kabsch`)
     for point sets (n, 3); returns ``(T, rms)`` with the RMS residual in the units of B."""
-    A = np.asarray(A, dtype=float)
-    B = np.asarray(B, dtype=float)
-    ca, cb = A.mean(axis=0), B.mean(axis=0)
-    H = (A - ca).T @ (B - cb)
-    U, _, Vt = np.linalg.svd(H)
-    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(Vt.T @ U.T)) or 1.0])
-    R = Vt.T @ D @ U.T
-    T = make_pose(R, cb - R @ ca)
-    rms = float(np.sqrt(np.mean(np.sum((A @ R.T + T[:3, 3] - B) ** 2, axis=1))))
+    T = kabsch(A, B)
+    rms = float(np.sqrt(np.mean(np.sum((np.asarray(A) @ T[:3, :3].T + T[:3, 3] - B) ** 2, axis=1))))
     return T, rms
 
 

@@ -22,6 +22,7 @@ __all__ = [
     "xyz_euler_from_matrix",
     "pose_from_vec",
     "vec_from_pose",
+    "kabsch",
 ]
 
 
@@ -128,3 +129,19 @@ def vec_from_pose(T: np.ndarray) -> np.ndarray:
     T = np.asarray(T, dtype=float)
     rv = Rotation.from_matrix(T[..., :3, :3].reshape(-1, 3, 3)).as_rotvec()
     return np.concatenate([rv.reshape(T.shape[:-2] + (3,)), T[..., :3, 3]], axis=-1)
+
+
+def kabsch(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """Best proper rigid ``T_b_a`` (4x4: rotation and translation, no scale, no mirror)
+    minimising ``sum |R A_i + t - B_i|^2`` over point sets (k, 3), k >= 3."""
+    A = np.asarray(A, dtype=float)
+    B = np.asarray(B, dtype=float)
+    if A.shape != B.shape or A.ndim != 2 or A.shape[1] != 3 or len(A) < 3:
+        raise ValueError(
+            f"kabsch needs two (k, 3) point sets with k >= 3, got {A.shape}, {B.shape}"
+        )
+    ca, cb = A.mean(axis=0), B.mean(axis=0)
+    U, _, Vt = np.linalg.svd((A - ca).T @ (B - cb))
+    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(Vt.T @ U.T)) or 1.0])
+    R = Vt.T @ D @ U.T
+    return make_pose(R, cb - R @ ca)
