@@ -32,6 +32,7 @@ __all__ = [
     "CalibrationOutput",
     "model_from_calibration",
     "FORMAT",
+    "METHODS",
 ]
 
 FORMAT = "scorbot-selfcal-calibration"
@@ -93,6 +94,8 @@ class CalibrationOutput:
     identification: IdentificationResult
     model: MCPCModel
     frames_used: np.ndarray
+    joint: object | None = None
+    """The :class:`calib.joint_refine.JointRefinementResult` when ``method="joint"``."""
 
 
 def _observations(ds: Dataset, dets: Detections) -> Observations:
@@ -116,14 +119,26 @@ def _mat(T: np.ndarray, digits: int = 9) -> list:
     return np.round(np.asarray(T, dtype=float), digits).tolist()
 
 
-def calibrate(root: str | Path, *, progress=None) -> CalibrationOutput:
+METHODS = ("two-stage", "joint")
+
+
+def calibrate(root: str | Path, *, progress=None, method: str = "joint") -> CalibrationOutput:
     """Run the whole calibration on the dataset in ``root`` (see the module docstring).
 
+    ``method``: ``"two-stage"`` (the paper: camera poses by bundle adjustment, then the
+    kinematics fitted to the poses) or ``"joint"`` (default: the two-stage result refined by the
+    one-step maximum-likelihood adjustment of :mod:`calib.joint_refine`). The document holds the
+    final method's result under the usual keys, ``method``, and a summary of every method run
+    under ``methods``.
+
     Raises:
+        ValueError: unknown ``method``.
         DatasetError: missing or damaged dataset files.
         CalibrationError / calib.selfcal.SelfCalibrationError / calib.identify.IdentificationError:
             data that cannot determine the answer (each message names the cause).
     """
+    if method not in METHODS:
+        raise ValueError(f"unknown calibration method {method!r}; use one of {METHODS}")
     ds = Dataset.open(root)
     robot = load_robot(ds.info.robot_model)
     if len(ds.indices) < MIN_POSTURES:
@@ -156,7 +171,16 @@ def calibrate(root: str | Path, *, progress=None) -> CalibrationOutput:
         )
     ident = identify(nominal, q[used], sc.T_world_cam[used, 0])
     doc = _document(ds, robot, sc, ident, used)
-    return CalibrationOutput(doc, sc, ident, ident.model, ds.indices[used])
+    out = CalibrationOutput(doc, sc, ident, ident.model, ds.indices[used])
+    if method == "joint":
+        from calib.joint_refine import refine_calibration
+
+        return refine_calibration(out, obs, q, robot, ds.info)
+    from calib.joint_refine import method_summary
+
+    doc["method"] = "two-stage"
+    doc["methods"] = {"two-stage": method_summary(doc)}
+    return out
 
 
 def _document(
