@@ -105,6 +105,14 @@ class DatasetInfo:
             raise DatasetError(f"{where}: missing or malformed entry {exc}") from exc
 
 
+def _resume_key(doc: dict) -> dict:
+    """What must match to resume a dataset: everything but how the hardware is reached (a
+    controller may come back on another port, cameras under other device names)."""
+    doc = json.loads(json.dumps(doc))
+    doc.get("scenario", {}).get("robot", {}).pop("hardware", None)
+    return doc
+
+
 def write_json_atomic(path: Path, data: dict) -> None:
     """Write JSON via a temporary file and rename, so readers never see a partial file."""
     path = Path(path)
@@ -158,8 +166,7 @@ class DatasetWriter:
                 "another --out folder"
             )
         if resume and meta.exists():
-            old = json.loads(meta.read_text())
-            if old != json.loads(json.dumps(info.to_json())):
+            if _resume_key(json.loads(meta.read_text())) != _resume_key(info.to_json()):
                 raise DatasetError(
                     f"{self.root}: cannot resume: the dataset was acquired with another scenario "
                     "(dataset.json differs); use a new --out folder"

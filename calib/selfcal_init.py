@@ -158,7 +158,7 @@ def fundamental_pairs(
         a, b = int(iu[s]), int(ju[s])
         common = np.flatnonzero(vis[a] & vis[b])
         p1, p2 = table[a, common], table[b, common]
-        F, _ = cv2.findFundamentalMat(p1, p2, cv2.USAC_MAGSAC, ransac_px, 0.9999, 10000)
+        F = _robust_cv(cv2.findFundamentalMat, p1, p2, cv2.USAC_MAGSAC, ransac_px, 0.9999, 10000)
         if F is None or F.shape != (3, 3):
             continue
         F = F / np.linalg.norm(F)
@@ -166,8 +166,14 @@ def fundamental_pairs(
         inl = d < ransac_px
         if inl.sum() < 8:
             continue
-        H, _ = cv2.findHomography(
-            p1, p2, cv2.USAC_MAGSAC, ransac_px, maxIters=10000, confidence=0.9999
+        H = _robust_cv(
+            cv2.findHomography,
+            p1,
+            p2,
+            cv2.USAC_MAGSAC,
+            ransac_px,
+            maxIters=10000,
+            confidence=0.9999,
         )
         n_h = int((_transfer(H, p1, p2) < ransac_px).sum()) if H is not None else 0
         out.append(PairEstimate(a, b, common, F, inl, n_h, bool(n_h >= 0.9 * inl.sum()), d))
@@ -484,7 +490,7 @@ def _pair_init(pair, table, fx, mu, cx, cy, thr_px):
     x2 = _normalise(table[b, pts], fx, mu, cx, cy)
     if len(pts) < 8:
         return None
-    E, _ = cv2.findEssentialMat(x1, x2, np.eye(3), cv2.USAC_MAGSAC, 0.9999, thr_px / fx)
+    E = _robust_cv(cv2.findEssentialMat, x1, x2, np.eye(3), cv2.USAC_MAGSAC, 0.9999, thr_px / fx)
     if E is None or E.shape != (3, 3):
         return None
     _, R, t, _ = cv2.recoverPose(E, x1, x2, np.eye(3))
@@ -504,17 +510,30 @@ def _pair_init(pair, table, fx, mu, cx, cy, thr_px):
     return T[1], pts[good], X[good], med, int(good.sum())
 
 
+def _robust_cv(fn, *args, **kw):
+    """First output of an OpenCV robust estimator, or None where it fails: OpenCV 5's USAC can
+    raise (e.g. ``!model.empty()``) on a degenerate sample instead of returning no model; for
+    one view pair that only means "no estimate from this pair"."""
+    try:
+        return fn(*args, **kw)[0]
+    except cv2.error:
+        return None
+
+
 def _pnp(Xw, uv, K, thr_px):
-    ok, rvec, tvec, inl = cv2.solvePnPRansac(
-        Xw,
-        uv,
-        K,
-        None,
-        iterationsCount=300,
-        reprojectionError=thr_px,
-        confidence=0.9999,
-        flags=cv2.SOLVEPNP_SQPNP,
-    )
+    try:
+        ok, rvec, tvec, inl = cv2.solvePnPRansac(
+            Xw,
+            uv,
+            K,
+            None,
+            iterationsCount=300,
+            reprojectionError=thr_px,
+            confidence=0.9999,
+            flags=cv2.SOLVEPNP_SQPNP,
+        )
+    except cv2.error:
+        return None
     if not ok or inl is None or len(inl) < 6:
         return None
     inl = inl.ravel()

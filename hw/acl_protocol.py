@@ -18,6 +18,7 @@ Units: counts and tenths as the controller prints them; conversion lives in ``hw
 
 from __future__ import annotations
 
+import os
 import re
 import time
 from collections import deque
@@ -601,9 +602,32 @@ def open_serial(
         )
     except (*_LINK_ERRORS, ValueError) as exc:
         raise AclConnectionError(
-            f"cannot open ACL port {url!r}: {exc} (check [robot.hardware] port: a device path, "
-            "socket://host:port or an emulator's pty path)"
+            f"cannot open ACL port {url!r}: {exc} (check [robot.hardware] port: {port_hint(url)})"
         ) from exc
+
+
+def port_hint(url: str) -> str:
+    """What to check when the ACL port ``url`` cannot be opened or does not answer."""
+    u = str(url)
+    if u.startswith("socket://"):
+        return (
+            f"is the ACL bridge or `selfcal emulate` running and listening at {u[9:]}? "
+            "(the emulator prints its tcp: address when it starts)"
+        )
+    if "://" in u:
+        return "a pyserial URL (socket://host:port, loop://, rfc2217://...) with a reachable end"
+    real = os.path.realpath(u)
+    if real.startswith("/dev/pts/") or "pts" in u:
+        return (
+            "an emulator's pseudo-terminal exists only while `selfcal emulate` runs and gets a new "
+            "path on every start: copy the pty: path it prints (or give it --pty-link for a "
+            "stable name)"
+        )
+    return (
+        "is the USB-RS-232 adapter plugged in (ls /dev/ttyUSB* /dev/serial/by-id/), may you open "
+        "it (group dialout), and is the controller on and in DIRECT mode at the configured baud "
+        "rate?"
+    )
 
 
 class AclLink:

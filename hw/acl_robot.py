@@ -43,12 +43,19 @@ from hw.acl_protocol import (
     parse_mflag,
     parse_show_speed,
     parse_version,
+    port_hint,
 )
 from hw.cameras import StereoCamera
 from hw.encoders import EncoderTable
 from scenarios.robot import RobotError, StereoPair
 
-__all__ = ["AclRobot", "DEFAULT_HARDWARE", "hardware_config"]
+__all__ = [
+    "AclRobot",
+    "DEFAULT_HARDWARE",
+    "hardware_config",
+    "default_encoders",
+    "open_hardware_robot",
+]
 
 DEFAULT_HARDWARE: dict[str, Any] = {
     "model": "er4u-vendor",  # nominal model (models/robots/<name>.toml); [robot] model also works
@@ -72,10 +79,21 @@ DEFAULT_HARDWARE: dict[str, Any] = {
     "completion": "mflag",  # "mflag" (PRINT MFLAG until 0) | "listpv" (LISTPV until still)
     "tolerance_counts": 10,  # read-back vs target after a move, per axis (motor counts)
     "coff_on_close": False,
+    "connect_check": True,  # on opening, a bare CR must bring a prompt (else a clear error)
     "encoders": None,  # table: counts_per_deg, home_deg, home_counts, differential
 }
 
 _HOME_DONE = re.compile(r"HOMING\s+COMPLETE", re.I)
+
+
+def default_encoders(robot: RobotDef | str) -> EncoderTable:
+    """The encoder table used when the config gives none: the vendor table
+    (``EncoderTable.er4u()``) for ``er4u-vendor``, else ``EncoderTable.for_robot(robot)``
+    (encoder zero at the model's TOML home posture, resolution from its ``[encoder]``)."""
+    robot = load_robot(robot) if isinstance(robot, str) else robot
+    if robot.name == "er4u-vendor":
+        return EncoderTable.er4u()
+    return EncoderTable.for_robot(robot)
 
 
 def hardware_config(config: Mapping[str, Any] | None) -> dict[str, Any]:
@@ -95,6 +113,17 @@ def hardware_config(config: Mapping[str, Any] | None) -> dict[str, Any]:
         table = dict(robot.get("hardware") or {})
     else:
         table = config
+    options = table.pop("options", None)
+    if options is not None:
+        if not isinstance(options, Mapping):
+            raise ValueError(f"[robot.hardware] options must be a table, got {options!r}")
+        clash = set(options) & set(table)
+        if clash:
+            raise ValueError(
+                f"[robot.hardware] key(s) {sorted(clash)} are given both directly and in options; "
+                "give each once"
+            )
+        table.update(options)
     unknown = set(table) - set(DEFAULT_HARDWARE)
     if unknown:
         raise ValueError(
@@ -205,14 +234,19 @@ class AclRobot:
         """
         cfg = hardware_config(config)
         cfg.update(overrides)
-        encoders = EncoderTable.from_config(cfg["encoders"]) if cfg["encoders"] else None
-        if cfg["encoders"] is None and cfg["model"] != "er4u-vendor":
+        robot = load_robot(cfg["model"])
+        encoders = default_encoders(robot)
+        if cfg["encoders"]:
+            encoders = EncoderTable.from_config(cfg["encoders"], base=encoders)
+        elif robot.name != "er4u-vendor":
             warnings.warn(
-                f"[robot.hardware] has no encoders table: using the ER-4u defaults, whose home "
-                f"posture is given in the er4u-vendor convention, with model {cfg['model']!r}",
+                f"[robot.hardware] has no encoders table: assuming the encoders read zero at "
+                f"{robot.name}'s home posture {np.round(encoders.home_deg, 3).tolist()} deg (its "
+                "TOML home_deg). On a real arm they read zero where HOME leaves it: give "
+                "[robot.hardware.options.encoders] home_deg in this model's convention",
                 stacklevel=2,
             )
-        robot = load_robot(cfg["model"])
+        opened = link is None
         if link is None:
             echo = None if cfg["echo"] == "auto" else bool(cfg["echo"])
             link = AclLink.open(
@@ -227,6 +261,15 @@ class AclRobot:
                 retries=int(cfg["query_retries"]),
             )
         try:
+            if (
+                opened
+                and cfg["connect_check"]
+                and not link.resync(timeout_s=float(cfg["query_timeout_s"]))
+            ):
+                raise AclConnectionError(
+                    f"ACL port {cfg['port']!r} opened but no prompt came back for a bare CR within "
+                    f"{float(cfg['query_timeout_s']):g} s: {port_hint(str(cfg['port']))}"
+                )
             if cameras is None and open_cameras and cfg["cameras"]:
                 size = tuple(cfg["camera_size"]) if cfg["camera_size"] else None
                 cameras = StereoCamera.from_sources(
@@ -358,15 +401,20 @@ class AclRobot:
             return
         self._may_move = False
         problems = self._abort()
+        if problems:
+            note = (
+                f"abort sequence (Ctrl-A, CLRBUF) after the failure in {during} could not be "
+                f"delivered: {'; '.join(problems)} -- the arm may still be moving: use the "
+                "emergency stop"
+            )
+        else:
+            note = f"abort sequence (Ctrl-A, CLRBUF) sent after the failure in {during}"
         if hasattr(exc, "add_note"):
-            if problems:
-                exc.add_note(
-                    f"abort sequence (Ctrl-A, CLRBUF) after the failure in {during} could not be "
-                    f"delivered: {'; '.join(problems)} -- the arm may still be moving: use the "
-                    "emergency stop"
-                )
-            else:
-                exc.add_note(f"abort sequence (Ctrl-A, CLRBUF) sent after the failure in {during}")
+            exc.add_note(note)
+        if isinstance(exc, RobotError) and exc.args and isinstance(exc.args[0], str):
+            # in the message too: callers that wrap the error (the acquisition loop, the CLI)
+            # print str(exc), and whether the arm was stopped must reach the person at the robot
+            exc.args = (f"{exc.args[0]} [{note}]", *exc.args[1:])
 
     def _prepare_motion(self) -> None:
         """CON once, SPEED once, DEFP once; refuses on a latched error (before any byte)."""
@@ -559,3 +607,63 @@ class AclRobot:
             return self.link.resync()
         except AclConnectionError:
             return False
+
+
+_SCENARIO_HW_KEYS = ("model", "port", "baudrate", "xonxoff", "cameras")
+
+
+def open_hardware_robot(scenario: Any) -> AclRobot:
+    """The scenario's robot on the hardware path: an ``AclRobot`` with its ``StereoCamera``.
+
+    From the scenario (``scenarios.config.Scenario``): ``robot.model`` (nominal model: joint ranges,
+    ``model_name``), ``robot.hardware.port`` / ``baudrate`` / ``xonxoff`` / ``cameras``,
+    ``robot.hardware.options`` (any further key of ``DEFAULT_HARDWARE``, e.g.
+    ``query_timeout_s``, ``speed``, ``encoders``) and ``camera.resolution`` (frames of another
+    size are refused). Without ``options.encoders`` the table is ``default_encoders(model)``.
+    On opening, the controller must answer a bare CR with a prompt (``connect_check``).
+
+    Raises:
+        ConfigError: an option that is unknown, belongs elsewhere, or contradicts the scenario
+            (the message names the scenario file and the key).
+        AclConnectionError: the port cannot be opened or nothing answers on it (the message
+            names the URL and what to check).
+        CameraError: a camera source cannot be opened or gives no frame.
+    """
+    from scenarios.config import ConfigError
+
+    hw = scenario.robot.hardware
+    where = f"{scenario.source}: [robot.hardware] options"
+    opts = dict(hw.options)
+    misplaced = sorted(set(opts) & set(_SCENARIO_HW_KEYS))
+    if misplaced:
+        raise ConfigError(
+            f"{where}: {misplaced} do not belong in options: give model in [robot] and "
+            "port, baudrate, xonxoff, cameras directly in [robot.hardware]"
+        )
+    size = [int(v) for v in scenario.camera.resolution]
+    if opts.get("camera_size") is not None and [int(v) for v in opts["camera_size"]] != size:
+        raise ConfigError(
+            f"{where}: camera_size {list(opts['camera_size'])} contradicts [camera] resolution "
+            f"{size}; drop camera_size (the resolution is enforced) or fix the resolution"
+        )
+    table = {
+        **opts,
+        "model": scenario.robot.model,
+        "port": hw.port,
+        "baudrate": hw.baudrate,
+        "xonxoff": hw.xonxoff,
+        "cameras": [str(c) for c in hw.cameras],
+        "camera_size": size,
+    }
+    try:
+        cfg = hardware_config(table)
+        if cfg["encoders"]:
+            EncoderTable.from_config(cfg["encoders"], base=default_encoders(cfg["model"]))
+    except ValueError as exc:
+        raise ConfigError(f"{where}: {exc}") from None
+    try:
+        return AclRobot.from_config(table)
+    except AclConnectionError as exc:
+        raise AclConnectionError(
+            f"{scenario.source}: [robot.hardware] port: {exc}", exc.raw, exc.events
+        ) from exc

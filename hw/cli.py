@@ -5,7 +5,8 @@
 - ``hw joints``  -> prints ``{"joints_deg": [...]}``
 - ``hw home``    -> HOME, then prints ``{"homed": true, "joints_deg": [...]}``
 - ``hw move --joints a,b,c,d,e`` -> moves, then prints ``{"joints_deg": [...]}`` (read back)
-- ``emulate [CONFIG]`` -> runs the ACL emulator (kinematic backend) until Ctrl-C
+- ``emulate [CONFIG]`` -> runs the ACL emulator until Ctrl-C: with a scenario TOML the arm is that
+  scenario's simulated robot (``sim.emulator_backend``), else a kinematic arm
 
 ``hw`` commands take ``--port URL`` (any pyserial URL) or ``--config FILE`` (TOML with a
 ``[robot.hardware]`` table), optionally ``--model NAME``. Each parser sets ``func`` (called as
@@ -31,7 +32,7 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
-__all__ = ["register", "load_toml", "EMULATOR_DEFAULTS"]
+__all__ = ["register", "load_toml", "EMULATOR_DEFAULTS", "emulator_from_config"]
 
 EMULATOR_DEFAULTS: dict[str, Any] = {
     "model": "er4u-vendor",
@@ -44,6 +45,8 @@ EMULATOR_DEFAULTS: dict[str, Any] = {
     "home_duration_s": 1.0,
     "frames_dir": None,
     "image_size": [640, 480],
+    "pty_link": None,
+    "scenario": None,
 }
 
 
@@ -83,8 +86,27 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--joints", required=True, help="comma-separated joint angles in deg: a,b,c,d,e")
     p.set_defaults(func=_cmd_move)
 
-    p = subparsers.add_parser("emulate", help="run the ACL controller emulator until Ctrl-C")
-    p.add_argument("config", nargs="?", help="optional TOML file with an [emulator] table")
+    p = subparsers.add_parser(
+        "emulate",
+        help="run the ACL controller emulator until Ctrl-C",
+        description="Run the ACL controller emulator until Ctrl-C. With a scenario TOML the arm is "
+        "that scenario's simulated robot (its injected errors, rendered stereo frames); with an "
+        "[emulator] TOML or nothing, a kinematic arm. Prints the pty path, the TCP address and "
+        "the [robot.hardware] table to paste into a scenario.",
+    )
+    p.add_argument(
+        "config",
+        nargs="?",
+        help="a scenario TOML (simulated robot) or a TOML with an [emulator] table",
+    )
+    p.add_argument("--tcp-port", type=int, default=None, help="TCP port on 127.0.0.1 (0: any)")
+    p.add_argument("--frames-dir", default=None, help="where the stereo frames are written")
+    p.add_argument(
+        "--pty-link",
+        default=None,
+        help="a symbolic link to the pty: a port name that survives restarts",
+    )
+    p.add_argument("--move-speed", type=float, default=None, help="joint speed, deg/s at SPEED 50")
     p.set_defaults(func=_cmd_emulate)
 
 
@@ -159,22 +181,8 @@ def _cmd_move(args: argparse.Namespace) -> int:
     return _run(args, body)
 
 
-def emulator_from_config(config: dict[str, Any] | None):
-    """An (unstarted) ``AclEmulator`` with the kinematic backend from an ``[emulator]`` table."""
-    from hw.emulator import AclEmulator, KinematicBackend
-
-    config = dict(config or {})
-    table = dict(config.get("emulator", {}))
-    model = table.pop("model", None) or config.get("robot", {}).get("model") or "er4u-vendor"
-    unknown = set(table) - set(EMULATOR_DEFAULTS)
-    if unknown:
-        raise ValueError(
-            f"unknown [emulator] key(s) {sorted(unknown)}; known: {sorted(EMULATOR_DEFAULTS)}"
-        )
-    cfg = {**EMULATOR_DEFAULTS, **table}
-    backend = KinematicBackend(model, image_size=tuple(cfg["image_size"]))
-    return AclEmulator(
-        backend,
+def _emulator_kwargs(cfg: dict[str, Any]) -> dict[str, Any]:
+    return dict(
         echo=bool(cfg["echo"]),
         line_end=str(cfg["line_end"]),
         move_speed_deg_s=float(cfg["move_speed_deg_s"]),
@@ -183,37 +191,116 @@ def emulator_from_config(config: dict[str, Any] | None):
         tcp_port=None if cfg["tcp_port"] is None else int(cfg["tcp_port"]),
         frames_dir=cfg["frames_dir"],
         home_duration_s=cfg["home_duration_s"],
+        pty_link=cfg["pty_link"],
     )
 
 
-def _cmd_emulate(args: argparse.Namespace, stop_event: threading.Event | None = None) -> int:
+def emulator_from_config(
+    config: dict[str, Any] | None,
+    *,
+    scenario: Any = None,
+    overrides: dict[str, Any] | None = None,
+):
+    """An (unstarted) ``AclEmulator`` from an ``[emulator]`` table.
+
+    The arm is the simulated robot of a scenario (``sim.emulator_backend.SimEmulatorBackend``)
+    when ``scenario`` (a ``Scenario``) is given or the table names one (``scenario = "path"``,
+    relative to the working directory), else the kinematic backend of ``model``. ``overrides``
+    replace table keys (from the command line).
+
+    Raises:
+        ValueError: unknown keys; ``ConfigError`` (a ``ValueError``) for a bad scenario.
+    """
+    from hw.emulator import AclEmulator, KinematicBackend
+
+    config = dict(config or {})
+    table = dict(config.get("emulator", {}))
+    table.update({k: v for k, v in (overrides or {}).items() if v is not None})
+    model = table.pop("model", None) or config.get("robot", {}).get("model")
+    unknown = set(table) - set(EMULATOR_DEFAULTS)
+    if unknown:
+        raise ValueError(
+            f"unknown [emulator] key(s) {sorted(unknown)}; known: {sorted(EMULATOR_DEFAULTS)}"
+        )
+    cfg = {**EMULATOR_DEFAULTS, **table}
+    if scenario is None and cfg["scenario"]:
+        from scenarios.config import load_scenario
+
+        scenario = load_scenario(cfg["scenario"])
+    if scenario is not None:
+        from sim.emulator_backend import SimEmulatorBackend
+
+        if model is not None and model != scenario.robot.model:
+            raise ValueError(
+                f"[emulator] model {model!r} contradicts the scenario's [robot] model "
+                f"{scenario.robot.model!r}: the simulated robot is the scenario's"
+            )
+        backend = SimEmulatorBackend.from_scenario(scenario, seed=scenario.noise.seed)
+    else:
+        backend = KinematicBackend(model or "er4u-vendor", image_size=tuple(cfg["image_size"]))
     try:
-        emu = emulator_from_config(load_toml(args.config) if args.config else None)
+        return AclEmulator(backend, **_emulator_kwargs(cfg))
+    except BaseException:
+        if hasattr(backend, "close"):
+            backend.close()
+        raise
+
+
+def _is_scenario_file(config: dict[str, Any]) -> bool:
+    """A TOML without an ``[emulator]`` table and with any other key is a scenario."""
+    return "emulator" not in config and bool(config)
+
+
+def _cmd_emulate(args: argparse.Namespace, stop_event: threading.Event | None = None) -> int:
+    overrides = {
+        "tcp_port": getattr(args, "tcp_port", None),
+        "frames_dir": getattr(args, "frames_dir", None),
+        "pty_link": getattr(args, "pty_link", None),
+        "move_speed_deg_s": getattr(args, "move_speed", None),
+    }
+    try:
+        config = load_toml(args.config) if args.config else None
+        scenario = None
+        if config is not None and _is_scenario_file(config):
+            from scenarios.config import load_scenario
+
+            scenario = load_scenario(args.config)
+        emu = emulator_from_config(
+            None if scenario is not None else config, scenario=scenario, overrides=overrides
+        )
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     stop = stop_event or threading.Event()
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGTERM, lambda *_: stop.set())
-    with emu:
-        left, right = emu.camera_sources if emu.frames_dir else (None, None)
-        print(f"ACL emulator, kinematic backend ({emu.backend.model_name})")
-        if emu.pty_path:
-            print(f"pty: {emu.pty_path}")
-        if emu.url:
-            print(f"tcp: {emu.url}")
-        if left:
-            print(f"cameras: {left} {right}")
-        print("config:")
-        print("[robot.hardware]")
-        print(f'port = "{emu.pty_path or emu.url}"')
-        if left:
-            print(f'cameras = ["{left}", "{right}"]')
-        print("Ctrl-C to stop", flush=True)
-        try:
-            while not stop.wait(0.2):
+    try:
+        with emu:
+            kind = (
+                "simulated robot of the scenario"
+                if type(emu.backend).__name__ == "SimEmulatorBackend"
+                else "kinematic backend"
+            )
+            print(f"ACL emulator, {kind} ({emu.backend.model_name})")
+            if emu.pty_path:
+                print(f"pty: {emu.pty_path}")
+            if emu.pty_link is not None:
+                print(f"pty link: {emu.pty_link}")
+            if emu.url:
+                print(f"tcp: {emu.url}")
+            if emu.frames_dir is not None:
+                left, right = emu.camera_sources
+                print(f"cameras: {left} {right}")
+            print("config:")
+            print(emu.hardware_snippet(), end="")
+            print("Ctrl-C to stop", flush=True)
+            try:
+                while not stop.wait(0.2):
+                    pass
+            except KeyboardInterrupt:
                 pass
-        except KeyboardInterrupt:
-            pass
+    finally:
+        if hasattr(emu.backend, "close"):
+            emu.backend.close()
     print("emulator stopped", flush=True)
     return 0

@@ -29,7 +29,9 @@ it for the stereo pair seen there. After every rest (and at start) the pair is w
 
 from __future__ import annotations
 
+import json
 import os
+import re
 import select
 import socket
 import tempfile
@@ -58,6 +60,7 @@ __all__ = [
 ]
 
 FAULT_KINDS = ("timeout", "garble", "drop", "impact", "disconnect", "home_failure")
+_FRAME_FILE = re.compile(r"\d{6}_(left|right)\.png")
 
 
 @runtime_checkable
@@ -72,6 +75,8 @@ class EmulatorBackend(Protocol):
 
     model_name: str
     limits_deg: np.ndarray
+    # optional: ``robot`` (a ``RobotDef``, for LISTPV's Cartesian line) and ``encoders`` (an
+    # ``EncoderTable``: the emulator's default table when it is given none)
 
     def set_joints_deg(self, joints_deg: np.ndarray) -> np.ndarray | None:
         """The arm has come to rest at ``joints_deg`` (n,) (deg, as commanded in encoder counts).
@@ -129,6 +134,8 @@ class Fault:
         at_fraction: ``impact``: fraction of the motion after which the arm hits.
         after_s: ``disconnect``: delay after the triggering command.
         execute: ``timeout``: whether the unanswered command still takes effect.
+        skip: let this many matching commands pass before the fault fires (e.g. ``on="MOVE",
+            skip=5``: the sixth MOVE).
     """
 
     kind: str
@@ -138,12 +145,15 @@ class Fault:
     at_fraction: float = 0.4
     after_s: float = 0.05
     execute: bool = True
+    skip: int = 0
 
     def __post_init__(self) -> None:
         if self.kind not in FAULT_KINDS:
             raise ValueError(f"unknown fault kind {self.kind!r}; known: {', '.join(FAULT_KINDS)}")
         if self.count == 0 or self.count < -1:
             raise ValueError(f"fault count must be positive or -1 (always), got {self.count}")
+        if self.skip < 0:
+            raise ValueError(f"fault skip must be >= 0, got {self.skip}")
         if not 0.0 <= self.at_fraction <= 1.0:
             raise ValueError(f"at_fraction must be in [0, 1], got {self.at_fraction}")
 
@@ -244,9 +254,15 @@ class AclEmulator:
         frames_dir: where stereo frames go (default: a fresh temporary directory).
         write_frames: write a stereo pair after every rest.
         home_duration_s: duration of HOME (default: a move to the home posture).
-        encoders: the encoder table (default ``EncoderTable.er4u()``).
+        encoders: the encoder table (default: the backend's ``encoders`` attribute if it has one,
+            else ``EncoderTable.er4u()``).
         control_on: initial CON state.
         xon_in_replies: sprinkle XON (0x11) bytes into replies, as Controller-A may.
+        pty_link: a path made a symbolic link to the pty (replaced on every start, removed on
+            stop and on a disconnect), so a config can name a port that survives restarts.
+
+    Frames left in ``frames_dir`` by an earlier run (``NNNNNN_left.png`` / ``_right.png``) are
+    deleted at start: the cameras read the newest index, which would otherwise be a stale one.
     """
 
     def __init__(
@@ -266,13 +282,16 @@ class AclEmulator:
         encoders: EncoderTable | None = None,
         control_on: bool = True,
         xon_in_replies: bool = False,
+        pty_link: str | Path | None = None,
     ):
         if line_end not in ("\r\n", "\r", "\n"):
             raise ValueError(f"line_end must be '\\r\\n', '\\r' or '\\n', got {line_end!r}")
         if move_speed_deg_s <= 0:
             raise ValueError(f"move_speed_deg_s must be positive, got {move_speed_deg_s}")
         self.backend: EmulatorBackend = backend if backend is not None else KinematicBackend()
-        self.encoders = encoders or EncoderTable.er4u()
+        self.encoders = encoders or getattr(self.backend, "encoders", None) or EncoderTable.er4u()
+        if not isinstance(self.encoders, EncoderTable):
+            raise TypeError(f"encoders must be an EncoderTable, got {type(self.encoders).__name__}")
         self.limits_deg = np.asarray(self.backend.limits_deg, dtype=float)
         if self.limits_deg.shape != (self.encoders.n, 2):
             raise ValueError(
@@ -302,6 +321,9 @@ class AclEmulator:
         if self.frames_dir is not None:
             self.frames_dir.mkdir(parents=True, exist_ok=True)
         self._want_pty = bool(pty)
+        self.pty_link = Path(pty_link) if pty_link is not None else None
+        if self.pty_link is not None and not self._want_pty:
+            raise ValueError("pty_link needs pty=True")
         self._want_tcp_port = tcp_port
 
         self._lock = threading.RLock()
@@ -336,6 +358,10 @@ class AclEmulator:
         if self._started:
             return self
         self._started = True
+        if self.frames_dir is not None and self._tmpdir is None:
+            for f in self.frames_dir.iterdir():
+                if _FRAME_FILE.fullmatch(f.name):
+                    f.unlink()
         with self._lock:
             self._arrive()
         if self._want_pty:
@@ -344,6 +370,8 @@ class AclEmulator:
             os.set_blocking(master, False)
             self._master_fd, self._slave_fd = master, slave
             self.pty_path = os.ttyname(slave)
+            if self.pty_link is not None:
+                self._make_link()
             sess = _Session(self, "pty", self._pty_write, self._pty_close)
             self._sessions.append(sess)
             self._spawn(self._pty_loop, sess)
@@ -356,9 +384,32 @@ class AclEmulator:
         self._spawn(self._tick_loop)
         return self
 
+    def _make_link(self) -> None:
+        link = self.pty_link
+        assert link is not None and self.pty_path is not None
+        if link.exists() and not link.is_symlink():
+            raise FileExistsError(
+                f"pty_link {link} exists and is not a symbolic link; not replacing it"
+            )
+        link.parent.mkdir(parents=True, exist_ok=True)
+        tmp = link.with_name(f".{link.name}.{os.getpid()}.tmp")
+        if tmp.is_symlink():
+            tmp.unlink()
+        os.symlink(self.pty_path, tmp)
+        os.replace(tmp, link)
+
+    def _remove_link(self) -> None:
+        link = self.pty_link
+        if link is not None and link.is_symlink() and os.readlink(link) == self.pty_path:
+            try:
+                link.unlink()
+            except OSError:
+                pass
+
     def stop(self) -> None:
         """Stop serving and close everything (idempotent)."""
         self._stop.set()
+        self._remove_link()
         for s in list(self._sessions):
             s.close()
         if self._server is not None:
@@ -398,6 +449,36 @@ class AclEmulator:
         if self.frames_dir is None:
             raise RuntimeError("the emulator writes no frames (write_frames=False, no frames_dir)")
         return (str(self.frames_dir / "%06d_left.png"), str(self.frames_dir / "%06d_right.png"))
+
+    @property
+    def port(self) -> str | None:
+        """The port a client should name: ``pty_link`` if set, else the pty path, else the URL."""
+        if self.pty_link is not None and self.pty_path is not None:
+            return str(self.pty_link)
+        return self.pty_path or self.url
+
+    def hardware_snippet(self, port: str | None = None) -> str:
+        """The ``[robot.hardware]`` TOML table that points a scenario (or ``selfcal hw --config``)
+        at this emulator: ``port`` (default ``self.port``), ``cameras`` (the frame sequences) and
+        the emulator's encoder table under ``[robot.hardware.options.encoders]``, so that the
+        adapter converts counts exactly as the emulated controller does."""
+        port = port or self.port
+        if port is None:
+            raise RuntimeError("the emulator is not started (no port yet)")
+        enc = self.encoders.to_config()
+        lines = [
+            f'# scenario: [robot] backend = "hardware", model = "{self.backend.model_name}"',
+            "[robot.hardware]",
+            f"port = {json.dumps(port)}",
+        ]
+        if self.frames_dir is not None:
+            left, right = self.camera_sources
+            lines.append(f"cameras = [{json.dumps(left)}, {json.dumps(right)}]")
+        lines += ["", "[robot.hardware.options.encoders]"]
+        for key in ("counts_per_deg", "home_deg", "home_counts", "differential"):
+            val = enc[key]
+            lines.append(f"{key} = {json.dumps(val) if val is not False else 'false'}")
+        return "\n".join(lines) + "\n"
 
     # -- transports ----------------------------------------------------------------------------
 
@@ -655,6 +736,7 @@ class AclEmulator:
 
     def _disconnect_all(self) -> None:
         self.disconnected = True
+        self._remove_link()
         for s in list(self._sessions):
             s.close()  # the pty (master and slave) is closed: its path disappears
 
@@ -674,6 +756,9 @@ class AclEmulator:
     def _take_fault(self, command: str) -> Fault | None:
         for f in self._faults:
             if f.matches(command):
+                if f.skip > 0:
+                    f.skip -= 1
+                    continue
                 if f.count > 0:
                     f.count -= 1
                     if f.count == 0:

@@ -23,9 +23,18 @@ from scenarios.acquire import AcquisitionHooks
 from scenarios.config import ConfigError, Scenario, scenario_to_dict
 from scenarios.robot import Robot
 
-__all__ = ["SimSetup", "sim_setup", "open_robot", "plan_dataset", "render_posture"]
+__all__ = [
+    "SimSetup",
+    "sim_setup",
+    "make_sim_robot",
+    "open_robot",
+    "plan_dataset",
+    "render_posture",
+]
 
 DICTIONARY = "DICT_4X4_50"
+SCALE_IDS = (48, 49)
+"""The scale bar's two markers: the dictionary's last two ids (as ``sim.markers`` places them)."""
 
 
 @dataclass
@@ -89,6 +98,7 @@ def sim_setup(s: Scenario) -> SimSetup:
         n_markers=s.target.markers,
         seed=s.target.seed,
         center_xy_m=_field_center(robot, nominal),
+        extent_m=(s.target.extent_mm / 1000, s.target.extent_mm / 1000),
         size_m=s.target.marker_size_mm / 1000,
         scale_length_m=s.target.scale_length_mm / 1000,
         dictionary=DICTIONARY,
@@ -104,16 +114,15 @@ def plan_dataset(s: Scenario, setup: SimSetup | None = None) -> DatasetInfo:
     W, H = s.camera.resolution
     intr = Intrinsics.centered(s.camera.fx, s.camera.mu, W, H)
     T_lr = trans(np.array([s.camera.baseline_mm / 1000, 0.0, 0.0]))
-    if setup is not None:
-        fld = setup.field
-        pts, nrm = fld.centers_world(), fld.T_world_marker[:, :3, 2]
-        scale_ids = tuple(int(i) for i in fld.scale_ids)
-    else:
-        cx, cy = _field_center(robot, nominal)
-        g = np.linspace(-0.12, 0.12, 5)
-        pts = np.array([[cx + a, cy + b, 0.0] for a in g for b in g])
-        nrm = np.tile([0.0, 0.0, 1.0], (len(pts), 1))
-        scale_ids = (48, 49)
+    # Planning sees only what a person at a real robot knows: the region the target covers
+    # (centred where the home posture looks, extent from the scenario), never the true marker
+    # positions, so the sim and hardware backends plan the same postures for one scenario.
+    cx, cy = _field_center(robot, nominal)
+    half = s.target.extent_mm / 2000.0
+    g = np.linspace(-half, half, 6)
+    pts = np.array([[cx + a, cy + b, 0.0] for a in g for b in g])
+    nrm = np.tile([0.0, 0.0, 1.0], (len(pts), 1))
+    scale_ids = tuple(int(i) for i in setup.field.scale_ids) if setup is not None else SCALE_IDS
     q = plan_postures(
         robot,
         nominal,
@@ -161,20 +170,10 @@ def open_robot(
         return open_hardware_robot(s), AcquisitionHooks()
     from sim.actual import write_truth
     from sim.analytic import project_markers
-    from sim.robot_mjcf import RigConfig
-    from sim.sim_robot import SimRobot
 
     setup = setup or sim_setup(s)
-    rig = RigConfig(intrinsics=setup.intrinsics, T_left_right=setup.T_left_right)
-    robot = SimRobot(
-        setup.robot.name,
-        setup.actual,
-        rig,
-        setup.field,
-        image_sigma=s.noise.image_sigma,
-        seed=s.noise.seed,
-        quantize=s.noise.quantize_joints,
-    )
+    robot = make_sim_robot(s, setup)
+    rig = robot.rig
     truth = robot.truth(meta={"scenario": scenario_to_dict(s)})
     truth_path = Path(out) / "truth.json"
     if truth_path.is_file():
@@ -213,6 +212,25 @@ def open_robot(
 
     hooks = AcquisitionHooks(detect=None if s.noise.render else detect, record_truth=record_truth)
     return robot, hooks
+
+
+def make_sim_robot(s: Scenario, setup: SimSetup | None = None):
+    """The scenario's simulated actual robot (``sim.sim_robot.SimRobot``): actual model, rig,
+    marker field, image noise and seeds as the scenario says."""
+    from sim.robot_mjcf import RigConfig
+    from sim.sim_robot import SimRobot
+
+    setup = setup or sim_setup(s)
+    rig = RigConfig(intrinsics=setup.intrinsics, T_left_right=setup.T_left_right)
+    return SimRobot(
+        setup.robot.name,
+        setup.actual,
+        rig,
+        setup.field,
+        image_sigma=s.noise.image_sigma,
+        seed=s.noise.seed,
+        quantize=s.noise.quantize_joints,
+    )
 
 
 def render_posture(

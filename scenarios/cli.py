@@ -125,7 +125,7 @@ def cmd_acquire(args: argparse.Namespace) -> int:
 def cmd_calibrate(args: argparse.Namespace) -> int:
     from scenarios.pipeline import run_calibrate
 
-    run_calibrate(Path(args.dataset), quiet=args.quiet)
+    run_calibrate(Path(args.dataset), quiet=args.quiet, method=args.method)
     return 0
 
 
@@ -142,14 +142,28 @@ def cmd_run(args: argparse.Namespace) -> int:
     s = _scenario(args.config)
     out = Path(args.out) if args.out else Path("runs") / Path(s.source).stem
     # A run continues the dataset already in --out when it was taken with the same scenario.
-    run_all(s, out, resume=True, quiet=args.quiet)
+    run_all(s, out, resume=True, quiet=args.quiet, method=args.method)
+    if args.rerun:
+        from scenarios.rerun_log import record_run
+
+        path = record_run(out, Path(args.rerun), spawn=args.spawn)
+        print(f"Rerun recording: {path} (open it with `rerun {path}`)")
+    elif args.spawn:
+        raise CliError("--spawn needs --rerun FILE.rrd")
     return 0
 
+
+METHODS = ("joint", "two-stage")
+METHOD_HELP = (
+    "joint (default): the paper's two-stage result refined by one-step maximum likelihood over "
+    "all images with the poses from the kinematic chain; two-stage: the paper's method alone"
+)
 
 CONFIG_HELP = """\
 scenario keys (TOML; every key has a default, units in the names):
   [robot]        model = "er4u-paper" | "er4u-vendor";  backend = "sim" | "hardware"
-  [robot.hardware] port (pyserial URL), baudrate, xonxoff, cameras = [left, right]
+  [robot.hardware] port (pyserial URL), baudrate, xonxoff, cameras = [left, right], options
+                 (see docs/hardware.md; `selfcal emulate SCENARIO` prints a ready snippet)
   [camera]       resolution = [640, 480]; fx = 800.0 (px); mu = 1.0; baseline_mm = 60.0
   [target]       markers = 20; scale_length_mm = 200.0; marker_size_mm = 30.0; seed = 1
   [perturbation] seed = 1; translation_mm = 1.0; rotation_deg = 0.5; [perturbation.table] name = value
@@ -227,20 +241,25 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sp.add_argument("--out", default=None, help="output folder (default runs/<scenario name>)")
     sp.add_argument("--quiet", action="store_true", help="no progress output")
+    sp.add_argument("--method", choices=METHODS, default="joint", help=METHOD_HELP)
+    sp.add_argument("--rerun", default=None, metavar="FILE.rrd", help="record the run for Rerun")
+    sp.add_argument("--spawn", action="store_true", help="with --rerun: also open the viewer")
 
     sp = add("calibrate", cmd_calibrate, "dataset -> DIR/calibration.json (never reads truth.json)")
     sp.add_argument("dataset", help="dataset folder")
     sp.add_argument("--quiet", action="store_true")
+    sp.add_argument("--method", choices=METHODS, default="joint", help=METHOD_HELP)
 
     sp = add("report", cmd_report, "calibration + truth -> DIR/report.json and tables")
     sp.add_argument("dataset", help="dataset folder")
     sp.add_argument("--quiet", action="store_true")
 
-    try:
-        from hw.cli import register
-    except ImportError:  # pragma: no cover - hardware commands unavailable
-        register = None
-    if register is not None:
+    from hw.cli import register as register_hw
+    from scenarios.paper_repro import register as register_paper
+    from scenarios.rerun_log import register as register_record
+    from scenarios.studies import register as register_study
+
+    for register in (register_hw, register_paper, register_study, register_record):
         register(sub)
     return p
 

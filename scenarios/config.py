@@ -64,6 +64,9 @@ class TargetConfig:
     scale_length_mm: float = 200.0
     """The one known distance (the paper's d) between the two scale markers' centres."""
     marker_size_mm: float = 30.0
+    extent_mm: float = 300.0
+    """Side of the square region (centred where the home posture looks) that holds the markers;
+    the trajectory planner keeps this region in view."""
     seed: int = 1
     """Layout of the (simulated) marker field."""
 
@@ -85,7 +88,8 @@ class TrajectoryConfig:
     poses: int = 30
     seed: int = 1
     min_markers: int = 6
-    """A pose is kept only if both cameras see at least this many markers (nominal prediction)."""
+    """A pose is kept only if both cameras see at least this many of 36 points spread over the
+    target region (nominal prediction), i.e. a good part of the marker field."""
 
 
 @dataclass(frozen=True)
@@ -201,6 +205,7 @@ def _validate(s: Scenario) -> None:
         (s.target.markers >= 4, "target.markers must be >= 4"),
         (s.target.scale_length_mm > 0, "target.scale_length_mm must be > 0"),
         (s.target.marker_size_mm > 0, "target.marker_size_mm must be > 0"),
+        (s.target.extent_mm > 0, "target.extent_mm must be > 0"),
         (s.perturbation.translation_mm >= 0, "perturbation.translation_mm must be >= 0"),
         (s.perturbation.rotation_deg >= 0, "perturbation.rotation_deg must be >= 0"),
         (s.trajectory.poses >= 3, "trajectory.poses must be >= 3"),

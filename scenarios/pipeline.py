@@ -53,12 +53,12 @@ def run_acquire(s: Scenario, out: Path, *, resume: bool = False, quiet: bool = F
     return out
 
 
-def run_calibrate(root: Path, *, quiet: bool = False) -> dict:
+def run_calibrate(root: Path, *, quiet: bool = False, method: str = "joint") -> dict:
     """Calibrate the dataset in ``root`` and write ``root/calibration.json``."""
     from calib.calibrate import calibrate
 
     t0 = time.perf_counter()
-    res = calibrate(root, progress=Progress("detect", enabled=not quiet))
+    res = calibrate(root, progress=Progress("detect", enabled=not quiet), method=method)
     doc = res.document
     doc["seconds"] = round(time.perf_counter() - t0, 3)
     write_json_atomic(Path(root) / "calibration.json", doc)
@@ -175,7 +175,13 @@ def run_report(root: Path, *, quiet: bool = False) -> dict:
         },
         "scale_factor": cal["scale"]["k"],
         "reprojection_rms_px": cal["reprojection_rms_px"],
-        "effective_corner_noise_px": cal["reprojection_rms_px"] / np.sqrt(2),
+        "effective_corner_noise_px": float(
+            cal.get("joint", {}).get("sigma_px", cal["reprojection_rms_px"] / np.sqrt(2))
+        ),
+        "effective_corner_noise_note": (
+            "per-coordinate corner noise estimated from the final residuals, corrected for the "
+            "fitted degrees of freedom"
+        ),
         "observation": ds.info.observation,
         "parameters": params,
         "parameters_note": (
@@ -230,11 +236,13 @@ def _markdown(r: dict) -> str:
     return "\n".join(lines)
 
 
-def run_all(s: Scenario, out: Path, *, resume: bool = False, quiet: bool = False) -> dict:
+def run_all(
+    s: Scenario, out: Path, *, resume: bool = False, quiet: bool = False, method: str = "joint"
+) -> dict:
     """Acquire, calibrate and (in simulation) report; prints a summary."""
     t0 = time.perf_counter()
     run_acquire(s, out, resume=resume, quiet=quiet)
-    cal = run_calibrate(out, quiet=quiet)
+    cal = run_calibrate(out, quiet=quiet, method=method)
     result = {"calibration": cal}
     if s.robot.backend == "sim":
         rep = run_report(out, quiet=True)

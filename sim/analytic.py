@@ -53,5 +53,8 @@ def project_markers(
         c = uv[k].copy()
         if pixel_sigma > 0:
             c += rng.normal(0.0, pixel_sigma, size=c.shape)
+            # like a detector, never report a corner outside the image
+            if not (np.all((c >= 0) & (c <= [intr.width - 1, intr.height - 1]))):
+                continue
         out[int(ids[k])] = c
     return out

@@ -104,9 +104,13 @@ def test_default_scenario_rendered(tmp_path):
 
 
 def test_analytic_path_with_half_pixel_noise(tmp_path):
+    """0.5 px corner noise, the default scenario's seeds. The Cramer-Rao bound of the tool-tip
+    RMS for these 30 postures is about 0.25 mm (4.6x below nominal), so the 5x factor holds for
+    this draw (0.18 mm) but not for every noise draw; tests/test_joint_refine.py checks the
+    estimator against the bound over several draws."""
     out, rep = run(tmp_path, "analytic", noise={"render": False, "pixel_sigma": 0.5})
     check_accuracy(rep)
-    assert 0.5 < rep["effective_corner_noise_px"] < 0.75
+    assert 0.45 < rep["effective_corner_noise_px"] < 0.55
 
 
 # ---------------------------------------------------------------- bad inputs

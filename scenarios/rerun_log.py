@@ -1,0 +1,464 @@
+"""Record a finished run into a Rerun ``.rrd`` file (post hoc, from the dataset folder).
+
+``record_run(dataset_dir, rrd_path)`` reads ``dataset.json``, ``joints.csv``, the images or
+detections, ``calibration.json`` and (simulation) ``truth.json``; acquisition is untouched. Logged
+(world frame = the simulator's world, metres; timeline ``frame`` = dataset frame index):
+
+- ``world/robot``: the robot's visual geometry (boxes, cylinders, capsules, spheres from the MJCF
+  built by ``sim.robot_mjcf`` for the true chain of ``truth.json``, else the nominal one) at every
+  frame, posed from MuJoCo's ``geom_xpos``/``geom_xmat``; ``world/scene``: table and markers.
+- ``world/estimate/cam_left|cam_right``: the self-calibrated camera poses (pinhole frusta with the
+  estimated intrinsics) with their images (images datasets) and detected corners;
+  ``world/truth/cam_left|cam_right``: the true camera frusta (simulation).
+- ``world/estimate/points``: marker corners triangulated from the estimated cameras, and
+  ``world/estimate/scale_bar`` between the two scale markers' centres (``world/truth/...`` alike).
+- ``errors/...`` scalars on the ``frame`` timeline: camera position / rotation error against the
+  truth, identification residual of the calibrated model per pose, reprojection RMS per pose; and
+  on the ``identification_iteration`` timeline the pose residual RMS before (0) and after (the
+  iteration count) identification. ``calibration.json`` holds no per-iteration history, which
+  ``notes`` says.
+
+The estimate lives in its reconstruction frame; it is registered to the world by the best rigid
+alignment (no scale) of the recovered left-camera centres onto the true ones (onto the nominal
+model's camera centres when there is no ``truth.json``, e.g. on hardware).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["record_run", "register"]
+
+_GT_COLOR = (40, 200, 80, 255)
+_EST_COLOR = (230, 60, 200, 255)
+
+
+def _quat_xyzw(R: np.ndarray) -> np.ndarray:
+    from scipy.spatial.transform import Rotation
+
+    return Rotation.from_matrix(np.asarray(R).reshape(-1, 3, 3)).as_quat()
+
+
+def _triangulate(
+    views: list[tuple[np.ndarray, np.ndarray]],
+) -> np.ndarray:
+    """Linear (DLT) triangulation from ``[(P (3, 4), uv (2,)), ...]``; needs >= 2 views."""
+    A = []
+    for P, (u, v) in views:
+        A.append(u * P[2] - P[0])
+        A.append(v * P[2] - P[1])
+    _, _, Vt = np.linalg.svd(np.asarray(A))
+    X = Vt[-1]
+    return X[:3] / X[3]
+
+
+class _Geometry:
+    """The robot + scene compiled with MuJoCo; geoms grouped for logging."""
+
+    def __init__(self, robot, model, rig, field) -> None:
+        os.environ.setdefault("MUJOCO_GL", "egl")
+        import mujoco
+
+        from sim.robot_mjcf import scene_with_robot
+
+        self.mujoco = mujoco
+        self.m = scene_with_robot(robot, model, rig, field).compile()
+        self.d = mujoco.MjData(self.m)
+        self.n = robot.n
+        m = self.m
+        self.static = [i for i in range(m.ngeom) if m.geom_bodyid[i] == 0]
+        self.moving = [i for i in range(m.ngeom) if m.geom_bodyid[i] != 0 and m.geom_group[i] == 2]
+
+    def _rgba(self, i: int) -> tuple[int, int, int, int]:
+        m = self.m
+        c = m.mat_rgba[m.geom_matid[i]] if m.geom_matid[i] >= 0 else m.geom_rgba[i]
+        return tuple(int(round(255 * float(x))) for x in c)
+
+    def set(self, q: np.ndarray) -> None:
+        self.d.qpos[: self.n] = q
+        self.mujoco.mj_kinematics(self.m, self.d)
+
+    def archetypes(self, ids: list[int]) -> dict[str, object]:
+        """Rerun archetypes for the geoms ``ids`` at the current posture, by shape."""
+        import rerun as rr
+
+        mj = self.mujoco.mjtGeom
+        m, d = self.m, self.d
+        groups: dict[str, list[int]] = {}
+        for i in ids:
+            t = m.geom_type[i]
+            key = {
+                mj.mjGEOM_BOX: "boxes",
+                mj.mjGEOM_PLANE: "boxes",
+                mj.mjGEOM_CYLINDER: "cylinders",
+                mj.mjGEOM_CAPSULE: "capsules",
+                mj.mjGEOM_SPHERE: "spheres",
+                mj.mjGEOM_ELLIPSOID: "spheres",
+            }.get(int(t))
+            if key is not None:
+                groups.setdefault(key, []).append(i)
+        out: dict[str, object] = {}
+        for key, g in groups.items():
+            pos = d.geom_xpos[g].copy()
+            R = d.geom_xmat[g].reshape(-1, 3, 3)
+            quat = _quat_xyzw(R)
+            size = m.geom_size[g].copy()
+            colors = [self._rgba(i) for i in g]
+            if key == "boxes":
+                half = size.copy()
+                for k, i in enumerate(g):
+                    if m.geom_type[i] == mj.mjGEOM_PLANE:
+                        half[k] = [size[k, 0] or 0.6, size[k, 1] or 0.6, 0.0005]
+                out[key] = rr.Boxes3D(
+                    centers=pos, half_sizes=half, quaternions=quat, colors=colors, fill_mode="solid"
+                )
+            elif key == "cylinders":
+                out[key] = rr.Cylinders3D(
+                    centers=pos,
+                    lengths=2 * size[:, 1],
+                    radii=size[:, 0],
+                    quaternions=quat,
+                    colors=colors,
+                    fill_mode="solid",
+                )
+            elif key == "capsules":
+                start = pos - R[:, :, 2] * size[:, 1:2]
+                out[key] = rr.Capsules3D(
+                    translations=start,
+                    lengths=2 * size[:, 1],
+                    radii=size[:, 0],
+                    quaternions=quat,
+                    colors=colors,
+                    fill_mode="solid",
+                )
+            else:
+                half = np.where(size > 0, size, size[:, :1])
+                out[key] = rr.Ellipsoids3D(
+                    centers=pos, half_sizes=half, quaternions=quat, colors=colors, fill_mode="solid"
+                )
+        return out
+
+
+def _log_camera(rec, path: str, T_world_cam: np.ndarray, intr, color, image=None, corners=None):
+    import rerun as rr
+
+    rec.log(
+        path,
+        rr.Transform3D(translation=T_world_cam[:3, 3], mat3x3=T_world_cam[:3, :3]),
+    )
+    rec.log(
+        path,
+        rr.Pinhole(
+            image_from_camera=intr.K,
+            resolution=[intr.width, intr.height],
+            camera_xyz=rr.ViewCoordinates.RDF,
+            image_plane_distance=0.05,
+            color=color,
+        ),
+    )
+    if image is not None:
+        rec.log(f"{path}/image", rr.EncodedImage(path=image))
+    if corners is not None:
+        ids = sorted(corners)
+        if ids:
+            uv = np.concatenate([corners[i] for i in ids])
+            lab = [f"{i}" if k == 0 else None for i in ids for k in range(4)]
+            rec.log(
+                f"{path}/image/corners",
+                rr.Points2D(uv, radii=1.5, colors=(255, 40, 40), labels=[x or "" for x in lab]),
+            )
+
+
+def record_run(dataset_dir: str | Path, rrd_path: str | Path | None, spawn: bool = False) -> Path:
+    """Record the finished run in ``dataset_dir`` into ``rrd_path`` (and/or a spawned viewer).
+
+    Needs ``dataset.json``, ``joints.csv`` and ``calibration.json``; ``truth.json`` is used when
+    present. Returns the ``.rrd`` path (``None`` only when ``spawn`` without a path).
+
+    Raises:
+        DatasetError: missing dataset or calibration files (the message names the fix).
+    """
+    import rerun as rr
+
+    from calib.calibrate import detect_dataset, model_from_calibration
+    from calib.camera import Intrinsics
+    from calib.dataset import Dataset, DatasetError
+    from calib.kinematics import fk_tool
+    from calib.mcpc import dh_to_mcpc
+    from calib.report import kabsch
+    from calib.robot_def import load_robot
+    from calib.transforms import inv_pose
+    from sim.markers import MarkerField
+    from sim.robot_mjcf import RigConfig
+
+    root = Path(dataset_dir)
+    ds = Dataset.open(root)
+    cal_path = root / "calibration.json"
+    if not cal_path.is_file():
+        raise DatasetError(f"{cal_path} is missing: run `selfcal calibrate {root}` first")
+    cal = json.loads(cal_path.read_text())
+    robot = load_robot(ds.info.robot_model)
+    nominal = dh_to_mcpc(robot).with_tool(robot.T_flange_cam)
+    truth = None
+    if (root / "truth.json").is_file():
+        from sim.actual import read_truth
+
+        truth = read_truth(root / "truth.json")
+
+    ci = cal["intrinsics"]
+    est_intr = Intrinsics(
+        ci["fx"], ci["mu"], ci["cx"], ci["cy"], int(ci["width"]), int(ci["height"])
+    )
+    T_lr_est = np.asarray(cal["rig"]["T_left_right_m"])
+    cp = cal["camera_poses"]
+    est_pose = {int(i): np.asarray(T) for i, T in zip(cp["frame_index"], cp["T_world_cam_left_m"])}
+    q_read = {int(i): np.radians(q) for i, q in zip(ds.indices, ds.joints_deg)}
+    true_frame = {
+        int(f["frame_index"]): f for f in (truth.frames if truth else []) if "frame_index" in f
+    }
+
+    # Register the reconstruction frame to the world (see module docstring).
+    common = sorted(set(est_pose) & (set(true_frame) if truth else set(q_read)))
+    A = np.array([est_pose[i][:3, 3] for i in common])
+    if truth is not None:
+        B = np.array([np.asarray(true_frame[i]["T_world_cam_left"])[:3, 3] for i in common])
+    else:
+        B = fk_tool(nominal, np.array([q_read[i] for i in common]))[:, :3, 3]
+    T_world_recon = kabsch(A, B) if len(common) >= 3 else np.eye(4)
+    est_world = {i: T_world_recon @ T for i, T in est_pose.items()}
+
+    # Detections (images: detect again; analytic: stored).
+    dets = detect_dataset(ds)
+
+    # Triangulated points from the estimated cameras (reconstruction frame -> world).
+    K = est_intr.K
+    P_of = {}
+    for i, T in est_pose.items():
+        P_of[(i, "left")] = K @ inv_pose(T)[:3]
+        P_of[(i, "right")] = K @ inv_pose(T @ T_lr_est)[:3]
+    views: dict[tuple[int, int], list] = {}
+    for (i, cam), markers in dets.items():
+        if (int(i), cam) not in P_of:
+            continue
+        for mid, c in markers.items():
+            for k in range(4):
+                views.setdefault((int(mid), k), []).append((P_of[(int(i), cam)], c[k]))
+    pts = {key: _triangulate(v) for key, v in views.items() if len(v) >= 2}
+    keys = sorted(pts)
+    X_recon = np.array([pts[k] for k in keys]) if keys else np.zeros((0, 3))
+    X_world = X_recon @ T_world_recon[:3, :3].T + T_world_recon[:3, 3]
+
+    # Per-pose reprojection RMS with the triangulated points.
+    def reproj_rms(i: int) -> float:
+        r = []
+        for cam in ("left", "right"):
+            for mid, c in dets.get((i, cam), {}).items():
+                for k in range(4):
+                    if (int(mid), k) in pts and (i, cam) in P_of:
+                        x = P_of[(i, cam)] @ np.append(pts[(int(mid), k)], 1.0)
+                        r.append(np.sum((x[:2] / x[2] - c[k]) ** 2))
+        return float(np.sqrt(np.mean(r))) if r else float("nan")
+
+    # Identification residual per pose (truth-free): calibrated model FK vs the camera pose.
+    est_model = model_from_calibration(cal)
+    fr_used = sorted(est_pose)
+    T_fk = fk_tool(est_model, np.array([q_read[i] for i in fr_used]))
+    ident_res = {}
+    for i, T in zip(fr_used, T_fk):
+        D = inv_pose(est_pose[i]) @ T
+        ang = np.degrees(np.arccos(np.clip((np.trace(D[:3, :3]) - 1) / 2, -1, 1)))
+        ident_res[i] = (float(np.linalg.norm(D[:3, 3]) * 1000), float(ang))
+
+    # Geometry: true chain when known, else nominal.
+    if truth is not None:
+        chain = truth.true_model
+        rig = RigConfig(intrinsics=truth.intrinsics_left, T_left_right=truth.T_left_right)
+        field = MarkerField.from_dict(truth.marker_field)
+    else:
+        from sim.markers import make_marker_field
+
+        chain, rig, field = nominal, RigConfig(), make_marker_field()
+    geo = _Geometry(robot, chain, rig, field)
+
+    rrd = Path(rrd_path) if rrd_path is not None else None
+    if rrd is None and not spawn:
+        raise ValueError("record_run needs an .rrd path, spawn=True, or both")
+    rec = rr.RecordingStream("scorbot-selfcal", recording_id=str(root.resolve()))
+    if spawn:
+        rec.spawn(connect=False)  # start the viewer; the sinks below connect to it
+    sinks = []
+    if rrd is not None:
+        rrd.parent.mkdir(parents=True, exist_ok=True)
+        sinks.append(rr.FileSink(str(rrd)))
+    if spawn:
+        sinks.append(rr.GrpcSink())
+    rec.set_sinks(*sinks)
+    rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+
+    # Static: scene, points, scale bar, trajectories, notes.
+    geo.set(robot.home)
+    for key, arch in geo.archetypes(geo.static if truth is not None else []).items():
+        rec.log(f"world/scene/{key}", arch, static=True)
+    if truth is not None:
+        rec.log(
+            "world/truth/marker_corners",
+            rr.Points3D(field.corners_world().reshape(-1, 3), radii=0.0015, colors=_GT_COLOR),
+            static=True,
+        )
+    if len(X_world):
+        rec.log(
+            "world/estimate/points",
+            rr.Points3D(
+                X_world,
+                radii=0.002,
+                colors=_EST_COLOR,
+                labels=[f"{m}:{k}" for m, k in keys],
+                show_labels=False,
+            ),
+            static=True,
+        )
+    sid = tuple(ds.info.scale_ids)
+    cen = {}
+    for mid in sid:
+        c = [pts[(mid, k)] for k in range(4) if (mid, k) in pts]
+        if len(c) == 4:
+            cen[mid] = np.mean(c, axis=0) @ T_world_recon[:3, :3].T + T_world_recon[:3, 3]
+    if len(cen) == 2:
+        length = np.linalg.norm(cen[sid[0]] - cen[sid[1]]) * 1000
+        rec.log(
+            "world/estimate/scale_bar",
+            rr.LineStrips3D(
+                [[cen[sid[0]], cen[sid[1]]]],
+                radii=0.002,
+                colors=_EST_COLOR,
+                labels=[f"d = {length:.2f} mm (known {ds.info.scale_length_m * 1000:.1f})"],
+            ),
+            static=True,
+        )
+    if truth is not None:
+        c_true = field.centers_world()
+        a, b = field.index_of(sid[0]), field.index_of(sid[1])
+        rec.log(
+            "world/truth/scale_bar",
+            rr.LineStrips3D([[c_true[a], c_true[b]]], radii=0.001, colors=_GT_COLOR),
+            static=True,
+        )
+    if est_world:
+        rec.log(
+            "world/estimate/camera_path",
+            rr.LineStrips3D(
+                [[est_world[i][:3, 3] for i in sorted(est_world)]], radii=0.0008, colors=_EST_COLOR
+            ),
+            static=True,
+        )
+    if truth is not None and true_frame:
+        rec.log(
+            "world/truth/camera_path",
+            rr.LineStrips3D(
+                [
+                    [
+                        np.asarray(true_frame[i]["T_world_cam_left"])[:3, 3]
+                        for i in sorted(true_frame)
+                    ]
+                ],
+                radii=0.0008,
+                colors=_GT_COLOR,
+            ),
+            static=True,
+        )
+    ident = cal.get("identification", {})
+    pr = ident.get("pose_residual_rms", {})
+    note = (
+        "# scorbot-selfcal run\n\n"
+        f"dataset `{root}`; {len(ds.indices)} frames, {len(est_pose)} registered; observation "
+        f"{ds.info.observation}; truth: {'yes' if truth else 'no (hardware?)'}.\n\n"
+        f"fx = {ci['fx']:.2f} px, mu = {ci['mu']:.5f}, reprojection RMS "
+        f"{cal.get('reprojection_rms_px', float('nan')):.3f} px.\n\n"
+        "Per-iteration residuals: calibration.json does not record them (only the pose residual "
+        "RMS before and after identification and the iteration count), so the "
+        "`identification_iteration` timeline holds just those two points.\n\n"
+        "The estimate is registered to the world by the best rigid alignment of the recovered "
+        "camera centres onto the "
+        f"{'true' if truth else 'nominal-model'} ones."
+    )
+    rec.log("notes", rr.TextDocument(note, media_type=rr.MediaType.MARKDOWN), static=True)
+    if pr:
+        for it, which in ((0, "before"), (max(int(ident.get("iterations", 1)), 1), "after")):
+            rec.set_time("identification_iteration", sequence=it)
+            rec.log("errors/identification/pose_residual_rms_mm", rr.Scalars(pr[which]["mm"]))
+            rec.log("errors/identification/pose_residual_rms_deg", rr.Scalars(pr[which]["deg"]))
+        rec.reset_time()
+
+    # Per frame.
+    for i, q in sorted(q_read.items()):
+        rec.set_time("frame", sequence=i)
+        fr = true_frame.get(i)
+        geo.set(np.asarray(fr["joints_rad"]) if fr is not None else q)
+        for key, arch in geo.archetypes(geo.moving).items():
+            rec.log(f"world/robot/{key}", arch)
+        rec.log("joints_deg", rr.Scalars(np.degrees(q)))
+        if fr is not None:
+            for cam, intr in (("left", truth.intrinsics_left), ("right", truth.intrinsics_right)):
+                _log_camera(
+                    rec,
+                    f"world/truth/cam_{cam}",
+                    np.asarray(fr[f"T_world_cam_{cam}"]),
+                    intr,
+                    _GT_COLOR,
+                )
+        if i in est_world:
+            for cam, T in (("left", est_world[i]), ("right", est_world[i] @ T_lr_est)):
+                img = None
+                if ds.info.observation == "images":
+                    img = ds.frame_paths(i)[0 if cam == "left" else 1]
+                _log_camera(
+                    rec,
+                    f"world/estimate/cam_{cam}",
+                    T,
+                    est_intr,
+                    _EST_COLOR,
+                    img,
+                    dets.get((i, cam), {}),
+                )
+            rec.log("errors/reprojection_rms_px", rr.Scalars(reproj_rms(i)))
+            rec.log("errors/identification/residual_mm", rr.Scalars(ident_res[i][0]))
+            rec.log("errors/identification/residual_deg", rr.Scalars(ident_res[i][1]))
+            if fr is not None:
+                Tt = np.asarray(fr["T_world_cam_left"])
+                D = inv_pose(Tt) @ est_world[i]
+                ang = np.degrees(np.arccos(np.clip((np.trace(D[:3, :3]) - 1) / 2, -1, 1)))
+                rec.log(
+                    "errors/camera_vs_truth/position_mm",
+                    rr.Scalars(float(np.linalg.norm(D[:3, 3]) * 1000)),
+                )
+                rec.log("errors/camera_vs_truth/rotation_deg", rr.Scalars(float(ang)))
+    rec.flush()
+    rec.disconnect()
+    return rrd
+
+
+def _cmd(args: argparse.Namespace) -> int:
+    path = record_run(Path(args.dataset), args.rrd, spawn=args.spawn)
+    if path is not None:
+        print(f"recorded {args.dataset} into {path} (view: rerun {path})")
+    return 0
+
+
+def register(subparsers) -> argparse.ArgumentParser:
+    """Add ``selfcal record DIR --rrd FILE [--spawn]`` to an argparse subparsers object."""
+    sp = subparsers.add_parser(
+        "record",
+        help="record a finished run into a Rerun .rrd file (robot, cameras, points, errors)",
+        description="Record a finished run (dataset folder with calibration.json; truth.json "
+        "used when present) into a Rerun .rrd file; --spawn also opens the viewer.",
+    )
+    sp.add_argument("dataset", help="dataset folder of a finished run")
+    sp.add_argument("--rrd", default=None, help="output .rrd file (required unless --spawn)")
+    sp.add_argument("--spawn", action="store_true", help="spawn the Rerun viewer")
+    sp.set_defaults(func=_cmd)
+    return sp
