@@ -8,7 +8,9 @@ plus the full SI model so it can be loaded back with :func:`model_from_calibrati
 
 from __future__ import annotations
 
+import os
 import warnings
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -55,19 +57,26 @@ def detect_dataset(ds: Dataset, progress=None) -> Detections:
     empty: list[str] = []
     if progress is not None:
         progress.start(2 * len(ds.indices))
-    for index, cam, img in ds.iter_images():
-        if img.shape[1] != ds.info.resolution[0] or img.shape[0] != ds.info.resolution[1]:
+    W, H = ds.info.resolution
+
+    def detect(item: tuple[int, str, np.ndarray]) -> tuple[int, str, dict]:
+        index, cam, img = item
+        if img.shape[1] != W or img.shape[0] != H:
             raise DatasetError(
                 f"frame {index:04d}_{cam}.png is {img.shape[1]}x{img.shape[0]} px but dataset.json "
-                f"says {ds.info.resolution[0]}x{ds.info.resolution[1]}"
+                f"says {W}x{H}"
             )
-        dets = detect_markers(img, dictionary=ds.info.dictionary)
-        if dets:
-            out[(index, cam)] = dets
-        else:
-            empty.append(f"{index:04d}_{cam}")
-        if progress is not None:
-            progress.advance()
+        return index, cam, detect_markers(img, dictionary=ds.info.dictionary)
+
+    # OpenCV releases the GIL: detect on every core, in order.
+    with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
+        for index, cam, dets in pool.map(detect, ds.iter_images()):
+            if dets:
+                out[(index, cam)] = dets
+            else:
+                empty.append(f"{index:04d}_{cam}")
+            if progress is not None:
+                progress.advance()
     if progress is not None:
         progress.finish()
     if empty:
