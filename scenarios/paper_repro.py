@@ -39,7 +39,13 @@ from pathlib import Path
 
 import numpy as np
 
-from scenarios.pipeline import TABLE_II_MM
+from scenarios.paper_data import (
+    PAPER_TABLE_III_MM,
+    PAPER_TABLE_IV,
+    TABLE_II_MM,
+    TABLE_II_THETA4_DEG,
+    table_ii_postures,
+)
 
 __all__ = [
     "PAPER_TABLE_III_MM",
@@ -50,43 +56,6 @@ __all__ = [
     "reproduce",
     "register",
 ]
-
-TABLE_II_THETA4_DEG = -63.54
-"""Table II's "Pitch (theta4)" column (the same in every row)."""
-
-PAPER_TABLE_III_MM = np.array(
-    [
-        [315.00, 248.00, 183.00],
-        [321.00, 252.50, 182.80],
-        [311.00, 244.00, 198.00],
-        [310.00, 244.00, 184.00],
-        [322.00, 240.20, 190.60],
-    ]
-)
-"""The paper's Table III "measured values" (mm), as printed."""
-
-PAPER_TABLE_IV = {
-    "desired_mm": TABLE_II_MM.copy(),
-    "measured_mm": np.array(
-        [
-            [315.00, 248.00, 190.00],
-            [321.00, 252.50, 183.00],
-            [311.00, 244.00, 198.00],
-            [310.00, 244.00, 184.00],
-            [322.00, 240.20, 190.60],
-        ]
-    ),
-    "error_mm": np.array(
-        [
-            [-0.60, 0.10, -0.30],
-            [0.20, 0.50, 0.20],
-            [0.60, 0.20, 0.70],
-            [0.30, 0.70, 0.40],
-            [0.20, 0.10, 0.30],
-        ]
-    ),
-}
-"""The paper's Table IV (desired = "0T5 desired values", measured, error), as printed."""
 
 AXES = ("x", "y", "z")
 
@@ -140,18 +109,6 @@ def paper_inconsistencies(tol_mm: float = 0.005) -> list[dict]:
                     }
                 )
     return out
-
-
-def table_ii_postures(robot) -> tuple[np.ndarray, float, float]:
-    """Joint postures (rad, (5, n)) reaching Table II's rows with the Cartesian tool pitch and
-    roll of row 1 held, and that pitch and roll (rad). Raises ``UnreachableError`` if not."""
-    from calib.ik import ik_nearest
-    from calib.kinematics import fk_dh
-    from calib.tool_pose import tool_pose
-
-    _, pitch, roll = tool_pose(fk_dh(robot, robot.home)[0, -1])
-    q = np.array([ik_nearest(robot, p / 1000, pitch, roll) for p in TABLE_II_MM])
-    return q, float(pitch), float(roll)
 
 
 def _theta4_held_distances(robot) -> np.ndarray:

@@ -16,20 +16,10 @@ import numpy as np
 from calib.dataset import Dataset, DatasetError, DatasetWriter, write_json_atomic
 from scenarios.acquire import acquire
 from scenarios.config import Scenario
+from scenarios.paper_data import TABLE_II_MM, table_ii_postures
 from scenarios.progress import Progress
 
-__all__ = ["run_acquire", "run_calibrate", "run_report", "run_all", "TABLE_II_MM"]
-
-TABLE_II_MM = np.array(
-    [
-        [315.60, 247.90, 190.30],
-        [320.80, 252.00, 182.80],
-        [310.40, 243.80, 197.70],
-        [309.70, 243.30, 183.60],
-        [321.80, 240.10, 190.30],
-    ]
-)
-"""The paper's Table II tool-tip positions (mm), expected values of the er4u-paper model."""
+__all__ = ["run_acquire", "run_calibrate", "run_report", "run_all"]
 
 
 def _say(quiet: bool, text: str) -> None:
@@ -71,18 +61,6 @@ def run_calibrate(root: Path, *, quiet: bool = False, method: str = "joint") -> 
         f"{doc['identification']['rank']}/{doc['identification']['n_params']}",
     )
     return doc
-
-
-def _table_ii_postures(robot) -> np.ndarray | None:
-    """Joint postures (rad) reaching the paper's Table II with the tool pitch of row 1 held."""
-    if robot.name != "er4u-paper":
-        return None
-    from calib.ik import ik_nearest
-    from calib.kinematics import fk_dh
-    from calib.tool_pose import tool_pose
-
-    _, pitch, roll = tool_pose(fk_dh(robot, robot.home)[0, -1])
-    return np.array([ik_nearest(robot, p / 1000, pitch, roll) for p in TABLE_II_MM])
 
 
 def run_report(root: Path, *, quiet: bool = False) -> dict:
@@ -135,7 +113,7 @@ def run_report(root: Path, *, quiet: bool = False) -> dict:
     params = parameter_table(est, std_si, truth_est, nominal_est)
 
     table_iv = []
-    q2 = _table_ii_postures(robot)
+    q2 = table_ii_postures(robot)[0] if robot.name == "er4u-paper" else None
     if q2 is not None:
         T_nom = err_nom["T_true_pred"]  # nominal frame -> true world
         p_des = tool_tips(truth.nominal_model, q2, T_cam_tip)

@@ -19,7 +19,7 @@ import pytest
 from calib.kinematics import fk_dh
 from calib.robot_def import load_robot
 from scenarios import paper_repro
-from scenarios.pipeline import TABLE_II_MM
+from scenarios.paper_data import TABLE_II_MM
 
 
 def test_table_ii_postures_reproduce_table_ii():

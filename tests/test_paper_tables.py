@@ -17,19 +17,10 @@ from calib.kinematics import fk_dh, fk_frames
 from calib.mcpc import dh_to_mcpc
 from calib.robot_def import load_robot
 from calib.tool_pose import tool_pose
+from scenarios.paper_data import TABLE_I_THETA_DEG, TABLE_II_MM, TABLE_II_THETA4_DEG
 
 DEG = np.pi / 180
-TABLE_I_THETA_DEG = np.array([38.15, -30.0, 45.0, -63.54, 0.0])
-TABLE_II_MM = np.array(
-    [
-        [315.60, 247.90, 190.30],
-        [320.80, 252.00, 182.80],
-        [310.40, 243.80, 197.70],
-        [309.70, 243.30, 183.60],
-        [321.80, 240.10, 190.30],
-    ]
-)
-THETA4 = -63.54 * DEG  # Table II "Pitch (theta4)"
+THETA4 = TABLE_II_THETA4_DEG * DEG  # Table II "Pitch (theta4)"
 THETA5 = 0.0  # Table II "Roll (theta5)"
 
 
