@@ -255,11 +255,12 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--quiet", action="store_true")
 
     from hw.cli import register as register_hw
+    from scenarios.deploy_cli import register as register_deploy
     from scenarios.paper_repro import register as register_paper
     from scenarios.rerun_log import register as register_record
     from scenarios.studies import register as register_study
 
-    for register in (register_hw, register_paper, register_study, register_record):
+    for register in (register_hw, register_paper, register_study, register_record, register_deploy):
         register(sub)
     return p
 

@@ -1,0 +1,230 @@
+"""Inverse kinematics with a calibrated model: joint commands that put the REAL tool where asked.
+
+The controller (and :func:`calib.ik.ik_nearest`) solves the nominal DH arm, so the real tool tip
+misses a Cartesian target by the arm's kinematic errors (~1 mm and more for the SCORBOT). With the
+calibrated chain of :func:`calib.export.deploy` (base frame -> tool tip, see that module for the
+frames), :func:`compensated_ik` finds the joint readings at which the *calibrated* chain reaches
+the target exactly; sending those to the controller as joint commands compensates the errors up to
+the calibration's own accuracy.
+
+Target: tool-tip position ``xyz_m`` in the robot's base frame (m) and the controller's Cartesian
+``pitch`` / ``roll`` (rad, :mod:`calib.tool_pose`) -- five numbers for five joints. For the
+calibrated arm the tool axis need not lie exactly in the vertical plane through the base axis and
+the tool point; pitch is measured in that plane (its out-of-plane component, fixed by the arm's
+geometry, is ignored, as :func:`calib.tool_pose.pitch_roll` does).
+
+Method: start from the nominal analytic IK (:func:`calib.ik.ik`, the requested branch or the
+in-range solution nearest ``reference``), then Levenberg-Marquardt / Newton on the calibrated chain
+(residual: position in m and pitch, roll in rad, central-difference Jacobian) until both are below
+``tol`` (default 1e-9 m / 1e-9 rad), and wrap the result into the joint ranges. Targets the nominal
+arm cannot reach are tried from the home posture too (the real arm may reach a little farther).
+
+Raises :class:`calib.ik.UnreachableError` (a ``ValueError``) saying how far the calibrated chain
+stays from the target or which joint range blocks it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from calib.export import DeployedModel, as_deployed
+from calib.ik import UnreachableError, ik, ik_nearest, wrap_into_range
+from calib.kinematics import fk_tool
+from calib.robot_def import RobotDef
+from calib.tool_pose import tool_pose
+
+__all__ = ["CompensatedIK", "compensated_ik", "solve_compensated", "tool_target_residual"]
+
+_ANGLE_SCALE_M = 0.1  # m per rad: weighs orientation against position in the damped steps
+_FD_STEP = 1e-6  # rad / m: central differences
+
+
+@dataclass(frozen=True)
+class CompensatedIK:
+    """Result of :func:`solve_compensated`.
+
+    Attributes:
+        joints: (n,) joint commands (rad / m) for the real robot, inside the joint ranges.
+        nominal_joints: (n,) what the nominal IK gives for the same target (rad / m).
+        branch: the nominal IK branch it started from (``"front/elbow-up"``, ...) or ``"home"``.
+        position_error_m: remaining tool-tip distance of the calibrated chain from the target.
+        angle_error_rad: remaining max(|pitch error|, |roll error|).
+        iterations: Newton / LM iterations used.
+    """
+
+    joints: np.ndarray
+    nominal_joints: np.ndarray | None
+    branch: str
+    position_error_m: float
+    angle_error_rad: float
+    iterations: int
+
+
+def _wrap(a):
+    return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
+
+
+def tool_target_residual(
+    dep: DeployedModel, q: np.ndarray, xyz_m: np.ndarray, pitch_rad: float, roll_rad: float
+) -> np.ndarray:
+    """``[dx, dy, dz (m), dpitch, droll (rad)]`` (m, 5) of the calibrated tool tip at joints ``q``
+    (m, n) against the target (angle differences wrapped to (-pi, pi])."""
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    T = fk_tool(dep.model, q)
+    xyz, pitch, roll = tool_pose(T, azimuth_rad=q[:, 0] + dep.model.joint_offsets[0])
+    return np.column_stack(
+        [xyz - np.asarray(xyz_m, float), _wrap(pitch - pitch_rad), _wrap(roll - roll_rad)]
+    )
+
+
+def _solve(dep, q0, xyz, pitch, roll, tol, max_iter=60):
+    """Damped Newton (LM) from ``q0``; returns (q, position error, angle error, iterations)."""
+    n = dep.n
+    w = np.array([1.0, 1.0, 1.0, _ANGLE_SCALE_M, _ANGLE_SCALE_M])
+    q = np.asarray(q0, dtype=float).copy()
+    r = tool_target_residual(dep, q, xyz, pitch, roll)[0]
+    lam = 1e-6
+    eye = np.eye(n)
+    iterations = 0
+    for _ in range(max_iter):
+        iterations += 1
+        qs = np.concatenate([q + _FD_STEP * eye, q - _FD_STEP * eye])
+        rs = tool_target_residual(dep, qs, xyz, pitch, roll)
+        J = ((rs[:n] - rs[n:]) / (2 * _FD_STEP)).T * w[:, None]  # (5, n)
+        rw = r * w
+        JtJ, g = J.T @ J, J.T @ rw
+        improved = False
+        for _ in range(30):
+            step = -np.linalg.solve(JtJ + lam * np.diag(np.diag(JtJ) + 1e-12), g)
+            q_new = q + step
+            r_new = tool_target_residual(dep, q_new, xyz, pitch, roll)[0]
+            if np.linalg.norm(r_new * w) <= np.linalg.norm(rw):
+                q, r = q_new, r_new
+                lam = max(lam / 10, 1e-12)
+                improved = True
+                break
+            lam *= 10
+        done = np.linalg.norm(r[:3]) < tol and np.max(np.abs(r[3:])) < tol
+        # stop when stuck, or once converged and the last step was at rounding level
+        if not improved or (done and np.max(np.abs(step)) < 1e-11):
+            break
+    return q, float(np.linalg.norm(r[:3])), float(np.max(np.abs(r[3:]))), iterations
+
+
+def _target_text(xyz, pitch, roll) -> str:
+    return (
+        f"target ({', '.join(f'{v * 1000:.3f}' for v in np.asarray(xyz, float))}) mm, pitch "
+        f"{np.degrees(pitch):.3f} deg, roll {np.degrees(roll):.3f} deg"
+    )
+
+
+def solve_compensated(
+    calibration,
+    robot: RobotDef,
+    xyz_m: np.ndarray,
+    pitch_rad: float,
+    roll_rad: float,
+    *,
+    reference: np.ndarray | None = None,
+    branch: str | None = None,
+    tol: float = 1e-9,
+) -> CompensatedIK:
+    """Joint commands reaching a Cartesian target with the calibrated model (module docstring).
+
+    ``calibration``: a ``calibration.json`` document, a :class:`calib.export.DeployedModel`, or an
+    MCPC model already base frame -> tool tip. ``xyz_m`` (3,) m in the robot's base frame,
+    ``pitch_rad`` / ``roll_rad`` as in :mod:`calib.tool_pose`. ``reference`` (default home): pick
+    the solution nearest this posture; ``branch``: start from that nominal IK branch only.
+
+    Raises:
+        UnreachableError: the calibrated chain cannot reach the target within ``tol`` (the message
+            and ``distance_m`` give the best remaining distance) or only outside the joint ranges.
+        ValueError: malformed target or unknown branch.
+    """
+    dep = as_deployed(calibration, robot)
+    xyz = np.asarray(xyz_m, dtype=float)
+    if xyz.shape != (3,) or not np.all(np.isfinite(xyz)):
+        raise ValueError(f"xyz_m must be a finite 3-vector (m), got {xyz_m!r}")
+    pitch, roll = float(pitch_rad), float(roll_rad)
+    ref = dep.home if reference is None else np.asarray(reference, dtype=float).reshape(dep.n)
+    sols = ik(robot, xyz, pitch, roll, reference=ref)
+    if branch is not None:
+        names = sorted({s.branch for s in sols})
+        sols = [s for s in sols if s.branch == branch]
+        if not sols:
+            raise ValueError(
+                f"branch {branch!r} has no nominal IK solution for this target; available: {names}"
+            )
+    # in-range nominal solutions first, nearest the reference first
+    sols.sort(key=lambda s: (not s.in_range, float(np.linalg.norm(s.joints - ref))))
+    seeds = [(s.joints, s.branch) for s in sols]
+    nominal = next((s.joints for s in sols if s.in_range), None)
+    if branch is None:
+        seeds.append((np.clip(ref, dep.limits[:, 0], dep.limits[:, 1]), "home"))
+    best_err, blocked = np.inf, []
+    for q0, name in seeds:
+        q, e_pos, e_ang, it = _solve(dep, q0, xyz, pitch, roll, tol)
+        if not (e_pos < tol and e_ang < tol):
+            best_err = min(best_err, e_pos + _ANGLE_SCALE_M * e_ang)
+            continue
+        bad = []
+        for j in range(dep.n):
+            q[j], ok = wrap_into_range(q[j], *dep.limits[j], reference=ref[j])
+            if not ok:
+                u, s = ("deg", 180 / np.pi) if dep.joint_types[j] == "revolute" else ("mm", 1e3)
+                lo, hi = dep.limits[j] * s
+                bad.append(
+                    f"joint {j + 1} ({dep.joint_names[j]}) = {q[j] * s:.3f} {u} outside "
+                    f"[{lo:.2f}, {hi:.2f}] {u}"
+                )
+        if bad:
+            blocked.append(f"{name}: " + "; ".join(bad))
+            continue
+        return CompensatedIK(q, nominal, name, e_pos, e_ang, it)
+    tgt = _target_text(xyz, pitch, roll)
+    if blocked:
+        raise UnreachableError(
+            f"{dep.robot_name} (calibrated): {tgt} is reachable only outside the joint ranges: "
+            + " | ".join(blocked),
+            distance_m=None,
+            blocked_by=tuple(blocked),
+        )
+    nominal_says = ""
+    if not sols:
+        try:
+            ik_nearest(robot, xyz, pitch, roll, reference=ref)
+        except UnreachableError as exc:
+            nominal_says = f" (nominal model: {exc})"
+    raise UnreachableError(
+        f"{dep.robot_name} (calibrated): {tgt} is out of reach: the calibrated chain stays "
+        f"{best_err * 1000:.3f} mm (position + {_ANGLE_SCALE_M * 1000:.0f} mm per rad of pitch/roll) "
+        f"from it; move the target closer or change the pitch{nominal_says}",
+        distance_m=float(best_err),
+    )
+
+
+def compensated_ik(
+    calibration,
+    robot: RobotDef,
+    xyz_m: np.ndarray,
+    pitch_rad: float,
+    roll_rad: float,
+    *,
+    reference: np.ndarray | None = None,
+    branch: str | None = None,
+    tol: float = 1e-9,
+) -> np.ndarray:
+    """Joint commands (n,) rad reaching the target with the calibrated model: the ``joints`` of
+    :func:`solve_compensated` (same arguments and errors)."""
+    return solve_compensated(
+        calibration,
+        robot,
+        xyz_m,
+        pitch_rad,
+        roll_rad,
+        reference=reference,
+        branch=branch,
+        tol=tol,
+    ).joints

@@ -1,0 +1,224 @@
+"""``selfcal export`` and ``selfcal ik --calibration``: deploy a calibrated model.
+
+- ``selfcal export DIR --format mjcf|urdf|toml --out FILE``: the calibration in ``DIR``
+  (``DIR/calibration.json``, or that file itself) as a MuJoCo model, a URDF or a parameter table,
+  all in the robot's base frame with the tool tip as tool (:mod:`calib.export`).
+- ``selfcal ik --calibration FILE --xyz X,Y,Z --pitch P [--roll R]``: joint commands (deg) that
+  reach the target with the calibrated model (:mod:`calib.compensate`); ``FILE`` is a
+  ``calibration.json``, its dataset folder or a TOML written by ``selfcal export --format toml``.
+
+:func:`register` adds ``export`` and extends an existing ``ik`` command with ``--calibration``
+(keeping its nominal behaviour without it), or adds ``ik`` when there is none.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["register", "cmd_export", "cmd_ik_calibrated", "load_calibration", "FORMATS"]
+
+FORMATS = {"mjcf": ".xml", "urdf": ".urdf", "toml": ".toml"}
+
+EXPORT_HELP = """\
+frames and units:
+  world / base_link = the robot's base frame: DH frame 0 of the IDENTIFIED joint axes 1 and 2
+  (z along joint 1's axis; for the nominal robot this is the nominal model's world);
+  tool = the tool tip (identified camera + the known camera-to-tip transform), z = tool axis;
+  joint values = the controller's joint readings. MJCF/URDF in m and rad, TOML in mm and deg.
+formats:
+  mjcf  the robot of models/scorbot_er4u/<robot>.xml with calibrated frames (same names)
+  urdf  base_link, link1..link<n>, tool_tip, cam_left, cam_right (kinematics only)
+  toml  MCPC parameters with std, joint offsets and the DH table where one exists
+see docs/deploy.md
+"""
+
+
+def _cli_error(text: str) -> Exception:
+    from scenarios.cli import CliError
+
+    return CliError(text)
+
+
+def _xyz_m(text: str) -> np.ndarray:
+    try:
+        v = np.array([float(x) for x in text.replace(" ", "").split(",") if x != ""])
+    except ValueError:
+        raise _cli_error(f"--xyz (mm): expected 3 comma-separated numbers, got {text!r}") from None
+    if v.shape != (3,) or not np.all(np.isfinite(v)):
+        raise _cli_error(f"--xyz (mm): expected 3 finite numbers, got {text!r}")
+    return v / 1000.0
+
+
+def _calibration_file(path: str) -> Path:
+    p = Path(path)
+    if p.is_dir():
+        p = p / "calibration.json"
+    if not p.is_file():
+        raise _cli_error(
+            f"{p} not found: give a dataset folder holding calibration.json (run `selfcal "
+            "calibrate DIR` first), the calibration.json itself or an exported .toml"
+        )
+    return p
+
+
+def load_calibration(path: str):
+    """The :class:`calib.export.DeployedModel` of a calibration.json, its folder or an exported
+    TOML parameter table.
+
+    Raises:
+        CliError: missing or unreadable file (the message says what to give instead).
+    """
+    from calib.export import DeployError, deploy, from_toml
+
+    p = _calibration_file(path)
+    try:
+        if p.suffix == ".toml":
+            dep = from_toml(p.read_text())
+            return dep
+        doc = json.loads(p.read_text())
+        return deploy(doc, source=str(p))
+    except json.JSONDecodeError as exc:
+        raise _cli_error(f"{p}: not valid JSON ({exc})") from None
+    except DeployError as exc:
+        raise _cli_error(f"{p}: {exc}") from None
+
+
+def cmd_export(args: argparse.Namespace) -> int:
+    """``selfcal export``: write the calibrated model in the chosen format."""
+    from calib.export import BASE_FRAME, TOOL_FRAME, to_toml, to_urdf
+    from calib.robot_def import load_robot
+
+    out = Path(args.out)
+    fmt = args.format
+    if fmt is None:
+        fmt = next((f for f, ext in FORMATS.items() if out.suffix == ext), None)
+        if fmt is None:
+            raise _cli_error(
+                f"--format is needed: the suffix of {out.name!r} names none of "
+                f"{', '.join(f'{f} ({e})' for f, e in FORMATS.items())}"
+            )
+    dep = load_calibration(args.calibration)
+    robot = load_robot(dep.robot_name)
+    if fmt == "mjcf":
+        from sim.export_mjcf import calibrated_mjcf
+
+        text = calibrated_mjcf(dep, robot)
+    elif fmt == "urdf":
+        text = to_urdf(dep)
+    else:
+        text = to_toml(dep, robot)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(text)
+    print(
+        json.dumps(
+            {
+                "out": str(out),
+                "format": fmt,
+                "robot_model": dep.robot_name,
+                "base_frame": BASE_FRAME,
+                "tool_frame": TOOL_FRAME,
+            }
+        )
+    )
+    return 0
+
+
+def cmd_ik_calibrated(args: argparse.Namespace) -> int:
+    """``selfcal ik --calibration FILE``: joint commands from the calibrated model, as JSON."""
+    from calib.compensate import solve_compensated
+    from calib.ik import UnreachableError
+    from calib.robot_def import load_robot
+
+    dep = load_calibration(args.calibration)
+    robot = load_robot(dep.robot_name)
+    xyz = _xyz_m(args.xyz)
+    pitch, roll = np.radians(args.pitch), np.radians(args.roll)
+    try:
+        res = solve_compensated(
+            dep, robot, xyz, pitch, roll, branch=getattr(args, "branch", None) or None
+        )
+    except UnreachableError as exc:
+        raise _cli_error(f"unreachable: {exc}") from None
+    except ValueError as exc:
+        raise _cli_error(str(exc)) from None
+    nominal = None if res.nominal_joints is None else np.degrees(res.nominal_joints)
+    print(
+        json.dumps(
+            {
+                "model": robot.name,
+                "calibration": str(args.calibration),
+                "joints_deg": np.round(np.degrees(res.joints), 6).tolist(),
+                "nominal_joints_deg": None if nominal is None else np.round(nominal, 6).tolist(),
+                "branch": res.branch,
+                "residual_mm": res.position_error_m * 1000.0,
+                "frame": "robot base frame (DH frame 0 of the identified joint axes 1 and 2), "
+                "tool tip",
+            }
+        )
+    )
+    return 0
+
+
+def _ik_dispatch(original):
+    def run(args: argparse.Namespace) -> int:
+        if getattr(args, "calibration", None):
+            return cmd_ik_calibrated(args)
+        if original is None:
+            raise _cli_error("--calibration is required (a calibration.json or exported .toml)")
+        return original(args)
+
+    return run
+
+
+def register(subparsers) -> None:
+    """Add ``export`` to the ``selfcal`` subcommands and ``--calibration`` to ``ik``.
+
+    Call it after the ``ik`` command exists (its nominal behaviour is kept without
+    ``--calibration``); without one, an ``ik`` command taking only ``--calibration`` is added.
+    """
+    sp = subparsers.add_parser(
+        "export",
+        help="calibrated model -> MJCF, URDF or TOML in the robot's base frame",
+        description="Export the calibrated robot (tool = tool tip, world = the robot's base "
+        "frame) for MuJoCo, URDF/ROS or as a parameter table.",
+        epilog=EXPORT_HELP,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    sp.add_argument(
+        "calibration", help="dataset folder with calibration.json, or the file (or exported .toml)"
+    )
+    sp.add_argument(
+        "--format",
+        choices=tuple(FORMATS),
+        default=None,
+        help="mjcf | urdf | toml (default: from the --out suffix .xml / .urdf / .toml)",
+    )
+    sp.add_argument("--out", required=True, help="output file")
+    sp.set_defaults(func=cmd_export)
+
+    ik = subparsers.choices.get("ik")
+    original = None
+    if ik is None:
+        ik = subparsers.add_parser(
+            "ik",
+            help="inverse kinematics with a calibrated model: joint commands (deg) as JSON",
+        )
+        ik.add_argument("--xyz", required=True, help="tool point in mm (robot base frame)")
+        ik.add_argument("--pitch", type=float, required=True, help="tool pitch in deg")
+        ik.add_argument("--roll", type=float, default=0.0, help="tool roll in deg (default 0)")
+        ik.add_argument("--branch", default=None, help="start from this nominal IK branch")
+    else:
+        original = ik.get_default("func")
+    ik.add_argument(
+        "--calibration",
+        default=None,
+        metavar="FILE",
+        help="solve with the calibrated model of FILE (calibration.json, its dataset folder or an "
+        "exported .toml) instead of --model: joint commands that put the real tool tip on the "
+        "target (xyz in the robot's base frame, see docs/deploy.md)",
+    )
+    ik.set_defaults(func=_ik_dispatch(original))

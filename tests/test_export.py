@@ -1,0 +1,355 @@
+"""Deployable exports of a calibration: base-frame chain, MJCF, URDF and TOML reproduce the model.
+
+Ground truth here is the calibrated model itself (calib.kinematics.fk_frames of the deployed
+chain): each export must reproduce its link frames and tool tip to 1e-9 m for random in-range
+joint readings. The base-frame construction is checked against the nominal robot, whose base frame
+and tool tip are known exactly (the DH frame 0 and the last DH frame).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import xml.etree.ElementTree as ET
+
+import mujoco
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from calib.export import (
+    FIXED_BY_BASE_FRAME,
+    DeployError,
+    deploy,
+    deploy_chain,
+    from_toml,
+    nominal_deployed_params,
+    to_toml,
+    to_urdf,
+)
+from calib.kinematics import fk_dh, fk_frames
+from calib.mcpc import minimal_indices, param_names
+from calib.robot_def import load_robot, models_dir
+from calib.transforms import make_pose, rot_x, rot_z, trans
+from scenarios.config import load_scenario
+from scenarios.deploy_cli import register
+from scenarios.pipeline import run_acquire, run_calibrate
+from sim.actual import perturb
+from sim.export_mjcf import calibrated_mjcf
+from sim.robot_mjcf import nominal_camera_model
+
+TOL_M = 1e-9
+ROBOT = load_robot("er4u-paper")
+
+
+@pytest.fixture(scope="module")
+def calibration(tmp_path_factory):
+    """A real calibration.json from a small analytic scenario (~3 s)."""
+    out = tmp_path_factory.mktemp("cal") / "ds"
+    s = load_scenario(
+        overrides={
+            "noise": {"render": False},
+            "trajectory": {"poses": 15},
+            "validation": {"poses": 4},
+        }
+    )
+    run_acquire(s, out, quiet=True)
+    run_calibrate(out, quiet=True)
+    return out, json.loads((out / "calibration.json").read_text())
+
+
+@pytest.fixture(scope="module")
+def deployed(calibration):
+    return deploy(calibration[1], source="test")
+
+
+def random_q(n: int, seed: int = 0) -> np.ndarray:
+    return np.random.default_rng(seed).uniform(ROBOT.limits[:, 0], ROBOT.limits[:, 1], (n, 5))
+
+
+# ----------------------------------------------------------------------------- base frame
+
+
+def test_nominal_robot_deploys_to_the_nominal_dh_chain_wherever_it_is_placed():
+    """The base frame of the nominal arm is its DH frame 0 and the tool its last DH frame, for any
+    placement of the arm in the source model's world (the construction sees only the axes)."""
+    q = random_q(50)
+    T_place = make_pose(Rotation.from_rotvec([0.3, -1.2, 2.0]).as_matrix(), [0.4, -0.1, 1.3])
+    for T in (np.eye(4), T_place):
+        dep = deploy_chain(nominal_camera_model(ROBOT).with_base(T), ROBOT)
+        assert np.abs(dep.T_world_base - T).max() < 1e-12
+        assert np.abs(dep.model.params - nominal_deployed_params(ROBOT)).max() < 1e-12
+        assert np.abs(dep.tool_tip(q) - fk_dh(ROBOT, q)[:, -1]).max() < 1e-12
+        # link frame k sits on joint k's axis: the origin of DH frame k - 1 lies on it too
+        F = dep.frames(q)[:, :-1]
+        dh_prev = np.concatenate(
+            [np.tile(np.eye(4), (len(q), 1, 1, 1)), fk_dh(ROBOT, q)[:, :-1]], 1
+        )
+        assert np.abs(F[..., :3, 2] - dh_prev[..., :3, 2]).max() < 1e-12
+        off = dh_prev[..., :3, 3] - F[..., :3, 3]
+        assert np.abs(np.cross(off, F[..., :3, 2])).max() < 1e-12
+        # the camera chain shares the link frames and ends at the nominal camera
+        cam = fk_frames(dep.camera_model(), q)
+        assert np.abs(cam[:, :-1] - dep.frames(q)[:, :-1]).max() < 1e-12
+        assert np.abs(cam[:, -1] - fk_dh(ROBOT, q)[:, -1] @ ROBOT.T_flange_cam).max() < 1e-12
+
+
+def test_deployed_chain_is_the_same_physical_robot(deployed, calibration):
+    """Placed back with T_world_base, the deployed chain gives the calibration's camera poses."""
+    from calib.calibrate import model_from_calibration
+
+    q = random_q(30, seed=1)
+    est = model_from_calibration(calibration[1])
+    cam_world = deployed.T_world_base @ fk_frames(deployed.camera_model(), q)[:, -1]
+    assert np.abs(cam_world - fk_frames(est, q)[:, -1]).max() < 1e-12
+    # and independent of the world the identified model happens to live in
+    T = make_pose(rot_x(0.7)[:3, :3], [0.2, 0.3, -0.5])
+    again = deploy_chain(est.with_base(T), ROBOT)
+    assert np.abs(again.tool_tip(q) - deployed.tool_tip(q)).max() < 1e-12
+
+
+def test_parameters_fixed_by_the_base_frame(deployed):
+    idx = dict(
+        zip(param_names(minimal_indices(ROBOT.joint_types)), minimal_indices(ROBOT.joint_types))
+    )
+    p = deployed.model.params.reshape(-1)
+    for name in ("alpha0", "beta0", "lx0", "ly0", "beta1"):
+        assert abs(p[idx[name]]) < 1e-12, name
+    assert abs(p[idx["ly1"]] - ROBOT.dh_d[0] * np.sin(p[idx["alpha1"]])) < 1e-12
+    assert set(FIXED_BY_BASE_FRAME) == {"alpha0", "beta0", "lx0", "ly0", "beta1", "ly1"}
+    # the calibrated arm differs from the nominal one (else the tests below prove little)
+    assert np.abs(deployed.model.params - nominal_deployed_params(ROBOT)).max() > 1e-4
+
+
+# ----------------------------------------------------------------------------- MJCF
+
+
+def _mj_frames(model: mujoco.MjModel, q: np.ndarray) -> np.ndarray:
+    """Bodies link1..link5, site tool_tip, cameras cam_left/right as (m, 8, 4, 4) world poses."""
+    data = mujoco.MjData(model)
+    out = np.tile(np.eye(4), (len(q), 8, 1, 1))
+    for i, qi in enumerate(q):
+        data.qpos[:] = qi
+        mujoco.mj_forward(model, data)  # mj_kinematics alone leaves the cameras unset
+        for k in range(5):
+            b = model.body(f"link{k + 1}").id
+            out[i, k, :3, :3] = data.xmat[b].reshape(3, 3)
+            out[i, k, :3, 3] = data.xpos[b]
+        s = model.site("tool_tip").id
+        out[i, 5, :3, :3] = data.site_xmat[s].reshape(3, 3)
+        out[i, 5, :3, 3] = data.site_xpos[s]
+        for j, name in enumerate(("cam_left", "cam_right")):
+            c = model.camera(name).id
+            # MuJoCo cameras look down -z, y up: back to OpenCV (x right, y down, z forward)
+            out[i, 6 + j, :3, :3] = data.cam_xmat[c].reshape(3, 3) @ np.diag([1.0, -1.0, -1.0])
+            out[i, 6 + j, :3, 3] = data.cam_xpos[c]
+    return out
+
+
+def test_mjcf_reproduces_calibrated_frames(deployed):
+    model = mujoco.MjModel.from_xml_string(calibrated_mjcf(deployed))
+    q = random_q(100, seed=2)
+    got = _mj_frames(model, q)
+    want = deployed.frames(q)  # link frames and tool tip
+    cam = fk_frames(deployed.camera_model(), q)[:, -1]
+    pos_err = max(
+        np.abs(got[:, :6, :3, 3] - want[:, :, :3, 3]).max(),
+        np.abs(got[:, 6, :3, 3] - cam[:, :3, 3]).max(),
+        np.abs(got[:, 7] - cam @ deployed.T_left_right).max(),
+    )
+    rot_err = np.abs(got[:, :6, :3, :3] - want[:, :, :3, :3]).max()
+    print(
+        f"MJCF vs calibrated model, 100 postures: position {pos_err:.2e} m, rotation {rot_err:.2e}"
+    )
+    assert pos_err < TOL_M and rot_err < 1e-9
+    assert np.abs(got[:, 6, :3, :3] - cam[:, :3, :3]).max() < 1e-9
+    # calibrated intrinsics carried into the camera
+    c = model.camera("cam_left").id
+    assert np.allclose(model.cam_intrinsic[c][:2], [deployed.intrinsics.fx, deployed.intrinsics.fy])
+
+
+def test_mjcf_matches_the_nominal_file_names_and_nominal_geometry():
+    """Same element names as models/scorbot_er4u/er4u-paper.xml (drop-in), and for the nominal
+    chain the same body frames as that file."""
+    original = mujoco.MjModel.from_xml_path(str(models_dir() / "scorbot_er4u" / "er4u-paper.xml"))
+    nominal = deploy_chain(nominal_camera_model(ROBOT), ROBOT)
+    exported = mujoco.MjModel.from_xml_string(calibrated_mjcf(nominal, ROBOT))
+
+    def names(m, kind, count):
+        return [getattr(m, kind)(i).name for i in range(count)]
+
+    for kind, attr in (("body", "nbody"), ("joint", "njnt"), ("site", "nsite")):
+        assert names(exported, kind, getattr(exported, attr)) == names(
+            original, kind, getattr(original, attr)
+        )
+    assert names(exported, "camera", exported.ncam) == names(original, "camera", original.ncam)
+    assert names(exported, "actuator", exported.nu) == names(original, "actuator", original.nu)
+    assert exported.ngeom == original.ngeom
+    assert np.abs(exported.body_pos - original.body_pos).max() < 1e-12
+    assert np.abs(np.abs((exported.body_quat * original.body_quat).sum(1)) - 1).max() < 1e-12
+    assert np.abs(exported.site_pos - original.site_pos).max() < 1e-12
+
+
+# ----------------------------------------------------------------------------- URDF
+
+
+def _origin(el: ET.Element) -> np.ndarray:
+    o = el.find("origin")
+    xyz = [float(v) for v in o.get("xyz").split()]
+    rpy = [float(v) for v in o.get("rpy").split()]
+    return make_pose(Rotation.from_euler("xyz", rpy).as_matrix(), xyz)  # R = Rz Ry Rx (URDF)
+
+
+def test_urdf_chain_reproduces_tool_tip(deployed):
+    root = ET.fromstring(to_urdf(deployed))
+    joints = {j.get("name"): j for j in root.findall("joint")}
+    links = {lk.get("name") for lk in root.findall("link")}
+    assert links == {
+        "base_link",
+        *(f"link{k}" for k in range(1, 6)),
+        "tool_tip",
+        "cam_left",
+        "cam_right",
+    }
+    movable = [joints[name] for name in ROBOT.joint_names]
+    for k, j in enumerate(movable):
+        assert j.get("type") == "revolute"
+        assert j.find("parent").get("link") == ("base_link" if k == 0 else f"link{k}")
+        assert j.find("child").get("link") == f"link{k + 1}"
+        assert j.find("axis").get("xyz") == "0 0 1"
+        lim = j.find("limit")
+        assert np.allclose(
+            [float(lim.get("lower")), float(lim.get("upper"))], ROBOT.limits[k], 0, 1e-15
+        )
+    q = random_q(100, seed=3)
+    want = deployed.frames(q)
+    cam = fk_frames(deployed.camera_model(), q)[:, -1]
+    worst = 0.0
+    for i in range(len(q)):
+        T = np.eye(4)
+        for k, j in enumerate(movable):
+            T = T @ _origin(j) @ rot_z(q[i, k])
+            worst = max(worst, np.abs(T - want[i, k]).max())
+        tip = T @ _origin(joints["tool_tip_joint"])
+        cam_left = T @ _origin(joints["cam_left_joint"])
+        worst = max(worst, np.abs(tip - want[i, -1]).max(), np.abs(cam_left - cam[i]).max())
+    print(f"URDF chain vs calibrated model, 100 postures: {worst:.2e} (m / rotation entries)")
+    assert worst < TOL_M
+
+
+# ----------------------------------------------------------------------------- TOML
+
+
+def test_toml_round_trips_to_the_same_model(deployed):
+    text = to_toml(deployed, ROBOT)
+    back = from_toml(text)
+    q = random_q(100, seed=4)
+    assert back.robot_name == ROBOT.name and back.joint_names == tuple(ROBOT.joint_names)
+    assert np.abs(back.model.params - deployed.model.params).max() < 1e-14
+    assert np.abs(back.model.joint_offsets - deployed.model.joint_offsets).max() < 1e-15
+    assert np.abs(back.tool_tip(q) - deployed.tool_tip(q)).max() < 1e-12
+    assert np.abs(back.T_tip_cam - deployed.T_tip_cam).max() < 1e-12
+    assert np.abs(back.limits - deployed.limits).max() < 1e-12
+    assert back.intrinsics == deployed.intrinsics
+    # std: every estimated parameter not fixed by the frame keeps its calibration.json value
+    assert set(back.std) == set(deployed.std) - set(FIXED_BY_BASE_FRAME)
+    for k, v in back.std.items():
+        assert v == pytest.approx(deployed.std[k], rel=1e-12)
+    # the perturbed arm's parallel axes have no DH table: the file says so instead
+    assert "no DH table" in text and "parallel" in text
+
+
+def test_toml_dh_table_of_the_nominal_robot():
+    """Where a DH table exists it is in the file and reproduces the tool tip."""
+    import tomllib
+
+    nominal = deploy_chain(nominal_camera_model(ROBOT), ROBOT)
+    d = tomllib.loads(to_toml(nominal, ROBOT))
+    rows = d["dh"]["rows"]
+    assert np.allclose([r["a_mm"] for r in rows], ROBOT.dh_a * 1000, atol=1e-9)
+    assert np.allclose([r["d_mm"] for r in rows], ROBOT.dh_d * 1000, atol=1e-9)
+    assert np.allclose([r["alpha_deg"] for r in rows], np.degrees(ROBOT.dh_alpha), atol=1e-9)
+    q = random_q(20, seed=5)
+    ft = d["dh"]["T_flange_tool"]
+    T_ft = make_pose(np.array(ft["R"]), np.array(ft["xyz_mm"]) / 1000)
+    for qi, want in zip(q, nominal.tool_tip(q)):
+        T = np.eye(4)
+        for r, qk in zip(rows, qi):
+            T = (
+                T
+                @ rot_z(qk + np.radians(r["theta_offset_deg"]))
+                @ trans([r["a_mm"] / 1000, 0, r["d_mm"] / 1000])
+                @ rot_x(np.radians(r["alpha_deg"]))
+            )
+        assert np.abs(T @ T_ft - want).max() < TOL_M
+
+
+def test_perturbed_arm_with_dh_table_round_trips():
+    """An arm perturbed off the nominal without parallel-axis trouble still round-trips exactly."""
+    model = perturb(nominal_camera_model(ROBOT), seed=3, translation_m=1e-3, rotation_rad=0.0)
+    dep = deploy_chain(model, ROBOT)
+    back = from_toml(to_toml(dep, ROBOT))
+    q = random_q(20, seed=6)
+    assert np.abs(back.tool_tip(q) - dep.tool_tip(q)).max() < 1e-12
+
+
+def test_bad_inputs_name_the_problem(tmp_path):
+    with pytest.raises(DeployError, match="calibration document"):
+        deploy({"format": "something else"})
+    with pytest.raises(DeployError, match="format"):
+        from_toml('format = "nope"\n')
+    with pytest.raises(DeployError, match="not valid TOML"):
+        from_toml("= =")
+    other = dataclasses.replace(ROBOT, joint_types=("revolute",) * 4 + ("prismatic",))
+    with pytest.raises(DeployError, match="do not match"):
+        deploy_chain(nominal_camera_model(ROBOT), other)
+
+
+# ----------------------------------------------------------------------------- CLI
+
+
+def _parser():
+    p = argparse.ArgumentParser(prog="selfcal")
+    sub = p.add_subparsers(dest="command", required=True)
+    register(sub)
+    return p
+
+
+@pytest.mark.parametrize("fmt", ["mjcf", "urdf", "toml"])
+def test_cli_export(calibration, tmp_path, capsys, fmt):
+    root, _ = calibration
+    out = tmp_path / f"robot.{ {'mjcf': 'xml', 'urdf': 'urdf', 'toml': 'toml'}[fmt] }"
+    args = _parser().parse_args(["export", str(root), "--out", str(out)])  # format from suffix
+    assert args.func(args) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["format"] == fmt and info["out"] == str(out)
+    dep = deploy(json.loads((root / "calibration.json").read_text()))
+    q = random_q(5, seed=7)
+    if fmt == "mjcf":
+        got = _mj_frames(mujoco.MjModel.from_xml_path(str(out)), q)[:, 5]
+    elif fmt == "toml":
+        got = from_toml(out.read_text()).tool_tip(q)
+    else:
+        root_el = ET.fromstring(out.read_text())
+        js = {j.get("name"): j for j in root_el.findall("joint")}
+        got = []
+        for qi in q:
+            T = np.eye(4)
+            for name, qk in zip(ROBOT.joint_names, qi):
+                T = T @ _origin(js[name]) @ rot_z(qk)
+            got.append(T @ _origin(js["tool_tip_joint"]))
+        got = np.array(got)
+    assert np.abs(got[:, :3, 3] - dep.tool_tip(q)[:, :3, 3]).max() < TOL_M
+
+
+def test_cli_export_errors(tmp_path):
+    from scenarios.cli import CliError
+
+    p = _parser()
+    args = p.parse_args(["export", str(tmp_path), "--out", str(tmp_path / "x.xml")])
+    with pytest.raises(CliError, match="calibration.json"):
+        args.func(args)
+    args = p.parse_args(["export", str(tmp_path), "--out", str(tmp_path / "x.bin")])
+    with pytest.raises(CliError, match="--format"):
+        args.func(args)
