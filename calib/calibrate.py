@@ -184,11 +184,25 @@ def calibrate(root: str | Path, *, progress=None, method: str = "joint") -> Cali
     if method == "joint":
         from calib.joint_refine import refine_calibration
 
-        return refine_calibration(out, obs, q, robot, ds.info)
-    from calib.joint_refine import method_summary
+        out = refine_calibration(out, obs, q, robot, ds.info)
+    else:
+        from calib.joint_refine import method_summary
 
-    doc["method"] = "two-stage"
-    doc["methods"] = {"two-stage": method_summary(doc)}
+        doc["method"] = "two-stage"
+        doc["methods"] = {"two-stage": method_summary(doc)}
+    from calib.bounds import BoundsError, bounds_block
+
+    try:
+        out.document["bounds"] = bounds_block(
+            out,
+            np.radians(ds.info.validation_joints_deg),
+            obs=obs,
+            q=q,
+            robot=robot,
+            ds_info=ds.info,
+        )
+    except BoundsError as exc:
+        out.document["bounds"] = {"error": str(exc)}
     return out
 
 

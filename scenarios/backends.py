@@ -107,33 +107,73 @@ def sim_setup(s: Scenario) -> SimSetup:
     return SimSetup(robot, nominal, actual, intr, T_lr, field_)
 
 
-def plan_dataset(s: Scenario, setup: SimSetup | None = None) -> DatasetInfo:
-    """The dataset description: planned trajectory and validation postures (deg)."""
+def planning_inputs(s: Scenario) -> dict:
+    """What trajectories are planned with: robot, nominal camera chain, rig, intrinsics and a 6 x 6
+    grid of points (with normals) over the target region.
+
+    Planning sees only what a person at a real robot knows: the region the target covers (centred
+    where the home posture looks, ``[target] extent_mm``), never the true marker positions, so
+    the sim and hardware backends plan the same postures for one scenario.
+    """
     robot = load_robot(s.robot.model)
     nominal = dh_to_mcpc(robot).with_tool(robot.T_flange_cam)
     W, H = s.camera.resolution
-    intr = Intrinsics.centered(s.camera.fx, s.camera.mu, W, H)
-    T_lr = trans(np.array([s.camera.baseline_mm / 1000, 0.0, 0.0]))
-    # Planning sees only what a person at a real robot knows: the region the target covers
-    # (centred where the home posture looks, extent from the scenario), never the true marker
-    # positions, so the sim and hardware backends plan the same postures for one scenario.
     cx, cy = _field_center(robot, nominal)
     half = s.target.extent_mm / 2000.0
     g = np.linspace(-half, half, 6)
     pts = np.array([[cx + a, cy + b, 0.0] for a in g for b in g])
-    nrm = np.tile([0.0, 0.0, 1.0], (len(pts), 1))
+    return {
+        "robot": robot,
+        "model_cam": nominal,
+        "T_left_right": trans(np.array([s.camera.baseline_mm / 1000, 0.0, 0.0])),
+        "intr": Intrinsics.centered(s.camera.fx, s.camera.mu, W, H),
+        "points_world": pts,
+        "normals_world": np.tile([0.0, 0.0, 1.0], (len(pts), 1)),
+        "min_visible": s.trajectory.min_markers,
+    }
+
+
+def plan_dataset(s: Scenario, setup: SimSetup | None = None) -> DatasetInfo:
+    """The dataset description: planned trajectory and validation postures (deg).
+
+    ``[trajectory] kind = "optimal"`` selects D-optimal postures (``calib.optimal_poses``)
+    instead of random ones, under the same visibility rule and without self-collision.
+    """
+    p = planning_inputs(s)
+    robot, nominal, T_lr, intr = p["robot"], p["model_cam"], p["T_left_right"], p["intr"]
+    pts, nrm = p["points_world"], p["normals_world"]
+    W, H = intr.width, intr.height
     scale_ids = tuple(int(i) for i in setup.field.scale_ids) if setup is not None else SCALE_IDS
-    q = plan_postures(
-        robot,
-        nominal,
-        T_lr,
-        intr,
-        pts,
-        s.trajectory.poses,
-        seed=s.trajectory.seed,
-        min_visible=s.trajectory.min_markers,
-        normals_world=nrm,
-    )
+    if s.trajectory.kind == "optimal":
+        from calib.optimal_poses import plan_optimal_postures
+        from scenarios.montecarlo import collision_checker
+
+        q = plan_optimal_postures(
+            robot,
+            nominal,
+            T_lr,
+            intr,
+            pts,
+            s.trajectory.poses,
+            seed=s.trajectory.seed,
+            min_visible=s.trajectory.min_markers,
+            normals_world=nrm,
+            pixel_sigma_px=s.noise.pixel_sigma,
+            corners_per_point=4 * s.target.markers / len(pts),
+            collision_ok=collision_checker(s.robot.model),
+        ).q
+    else:
+        q = plan_postures(
+            robot,
+            nominal,
+            T_lr,
+            intr,
+            pts,
+            s.trajectory.poses,
+            seed=s.trajectory.seed,
+            min_visible=s.trajectory.min_markers,
+            normals_world=nrm,
+        )
     check_not_degenerate(fk_tool(nominal, q))
     qv = plan_postures(
         robot,

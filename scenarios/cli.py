@@ -167,7 +167,7 @@ scenario keys (TOML; every key has a default, units in the names):
   [camera]       resolution = [640, 480]; fx = 800.0 (px); mu = 1.0; baseline_mm = 60.0
   [target]       markers = 20; scale_length_mm = 200.0; marker_size_mm = 30.0; seed = 1
   [perturbation] seed = 1; translation_mm = 1.0; rotation_deg = 0.5; [perturbation.table] name = value
-  [trajectory]   poses = 30; seed = 1; min_markers = 6
+  [trajectory]   poses = 30; seed = 1; min_markers = 6; kind = "random" | "optimal"
   [noise]        render = true; image_sigma = 2.0 (0-255); pixel_sigma = 0.5 (px); seed = 1;
                  quantize_joints = true (encoder resolution of the simulated read-back)
   [validation]   poses = 20; seed = 2
@@ -256,11 +256,19 @@ def build_parser() -> argparse.ArgumentParser:
 
     from hw.cli import register as register_hw
     from scenarios.deploy_cli import register as register_deploy
+    from scenarios.montecarlo import register as register_montecarlo
     from scenarios.paper_repro import register as register_paper
     from scenarios.rerun_log import register as register_record
     from scenarios.studies import register as register_study
 
-    for register in (register_hw, register_paper, register_study, register_record, register_deploy):
+    for register in (
+        register_hw,
+        register_paper,
+        register_study,
+        register_record,
+        register_deploy,
+        register_montecarlo,
+    ):
         register(sub)
     return p
 

@@ -87,6 +87,8 @@ class PerturbationConfig:
 class TrajectoryConfig:
     poses: int = 30
     seed: int = 1
+    kind: str = "random"
+    """"random" (postures drawn in a window around home) or "optimal" (D-optimal selection)."""
     min_markers: int = 6
     """A pose is kept only if both cameras see at least this many of 36 points spread over the
     target region (nominal prediction), i.e. a good part of the marker field."""
@@ -193,6 +195,10 @@ def _validate(s: Scenario) -> None:
     if s.robot.backend not in ("sim", "hardware"):
         raise ConfigError(
             f'{f}: robot.backend must be "sim" or "hardware", got {s.robot.backend!r}'
+        )
+    if s.trajectory.kind not in ("random", "optimal"):
+        raise ConfigError(
+            f'{f}: trajectory.kind must be "random" or "optimal", got {s.trajectory.kind!r}'
         )
     if len(s.camera.resolution) != 2 or min(s.camera.resolution) < 16:
         raise ConfigError(f"{f}: camera.resolution must be [width, height] in px, each >= 16")

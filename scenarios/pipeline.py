@@ -133,6 +133,11 @@ def run_report(root: Path, *, quiet: bool = False) -> dict:
                 }
             )
     ti = truth.intrinsics_left
+    bounds = cal.get("bounds", {})
+    if "tool_tip_rms_mm" in bounds:
+        bound_by_name = {b["name"]: b["bound"] for b in bounds.get("parameters", [])}
+        for row in params:
+            row["bound"] = bound_by_name.get(row["name"])
     report = {
         "validation": {
             "poses": int(len(qv)),
@@ -140,6 +145,7 @@ def run_report(root: Path, *, quiet: bool = False) -> dict:
                 "nominal": {"rms": err_nom["rms"], "max": err_nom["max"]},
                 "calibrated": {"rms": err_cal["rms"], "max": err_cal["max"]},
             },
+            "tool_tip_bound_mm": bounds.get("tool_tip_rms_mm", {}).get("bound"),
             "note": (
                 "tool-tip errors after the best rigid alignment (rotation and translation, no "
                 "scale) of the predicted positions to the true ones over the validation postures: "
@@ -191,6 +197,14 @@ def _markdown(r: dict) -> str:
         "|---|---|---|",
         f"| nominal | {v['nominal']['rms']:.3f} | {v['nominal']['max']:.3f} |",
         f"| calibrated | {v['calibrated']['rms']:.3f} | {v['calibrated']['max']:.3f} |",
+        "",
+        (
+            f"Cramér-Rao bound of the calibrated tool-tip RMS for this data: "
+            f"{r['validation']['tool_tip_bound_mm']:.3f} mm (any unbiased method; see "
+            "calibration.json `bounds`)."
+            if r["validation"].get("tool_tip_bound_mm") is not None
+            else "No Cramér-Rao bound was computed for this calibration."
+        ),
         "",
         f"fx = {fx['estimate']:.3f} px (truth {fx['truth']:.3f}), mu = {mu['estimate']:.6f} "
         f"(truth {mu['truth']:.6f}); scale factor k = {r['scale_factor']:.6g}; reprojection RMS "

@@ -1,0 +1,612 @@
+"""Cramer-Rao bounds of the one-step (joint) calibration model: parameters and the tool tip.
+
+The measurement model is the one :func:`calib.joint_refine.joint_refine` fits: every marker
+corner seen in camera ``c`` of configuration ``i`` is observed as ``proj(fx, mu, T_cam_world(i, c),
+X) + e`` with ``e ~ N(0, sigma^2 I_2)`` px, the left camera is the MCPC tool at the *true* joints
+``q_i + dq_i`` (read-back ``q_i``, read-back error ``dq_i ~ N(0, diag(joint_sigma^2))``), the
+right camera is rigidly attached (rig), the corners' 3-D positions are unknown, and the distance
+of the two scale markers' centres is known (a hard constraint). The Fisher information of all
+unknowns ``[fx, mu, rho_free, rig, dq, X]`` is ``J^T J`` of the whitened residuals (the joint
+refinement's own sparse Jacobian, rows divided by sigma; the ``dq`` prior rows make it the
+Bayesian/errors-in-variables information). The gauge is fixed like the joint refinement fixes it
+(six MCPC parameters of the world frame held, :func:`calib.joint_refine.choose_gauge`); nuisance
+parameters (intrinsics, rig, read-back errors, points) are marginalised by the inverse.
+
+Bounds given (:class:`CramerRao`):
+
+- every minimal MCPC parameter in the *reference-camera frame* (world = left camera of the
+  reference configuration, the frame of ``calibration.json`` and of the report's parameter
+  table; the uncertainty of that camera's pose -- including its read-back error -- is propagated);
+- ``fx``, ``mu``;
+- the RMS error of a camera-attached point (the tool tip) over validation postures *after the
+  best rigid alignment*, as :mod:`calib.report` measures it: ``sqrt(trace(P S P) / k)`` with ``S``
+  the (3k, 3k) covariance of the stacked predicted points and ``P`` the projector removing rigid
+  motions (first order; the metric is gauge invariant, so the held-parameter gauge can be used).
+
+For an unbiased estimator, ``E[rms^2] >= bound^2`` and ``E[(theta_j - theta_j*)^2] >= bound_j^2``.
+The bound is a property of the *data* (poses, visible corners, noise levels), not of the
+estimator: the two-stage method has the same bound and a larger achieved error.
+
+:func:`bounds_block` produces the ``bounds`` block of ``calibration.json``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from calib.camera import Intrinsics
+from calib.identify import express_in_frame, minimal_difference
+from calib.joint_refine import (
+    KinematicPoses,
+    _inverse_block,
+    _Problem,
+    choose_gauge,
+    encoder_sigma,
+)
+from calib.kinematics import fk_tool, identification_jacobian
+from calib.mcpc import MCPCModel, minimal_indices, param_is_angle, param_names
+from calib.transforms import inv_pose, skew
+
+__all__ = [
+    "BoundsError",
+    "FisherSetup",
+    "CramerRao",
+    "fisher_jacobian",
+    "cramer_rao",
+    "aligned_rms_from_covariance",
+    "aligned_error_dof",
+    "predicted_setup",
+    "setup_from_output",
+    "bounds_block",
+]
+
+
+class BoundsError(ValueError):
+    """The Fisher information is singular or the inputs are inconsistent; the message says why."""
+
+
+@dataclass(frozen=True)
+class FisherSetup:
+    """Everything the Fisher information of the joint model depends on (SI, px).
+
+    Attributes:
+        model: MCPC chain whose tool is the left camera (OpenCV frame), world frame arbitrary.
+        q: (m, n) joints (rad / m) of the configurations (read-back; the information is
+            evaluated there).
+        T_left_right: the right camera's pose in the left camera frame.
+        fx, mu, cx, cy: intrinsics (px).
+        X_world: (P, 3) corner positions in the model's world frame.
+        view: (k,) ``2 * config + camera`` of every observation; ``pidx``: (k,) its point index.
+        scale_points: two arrays of point indices (each marker's four corners) whose centres are
+            ``scale_distance_m`` apart.
+        pixel_sigma_px: corner noise per coordinate; ``joint_sigma``: (n,) read-back standard
+            deviation (rad / m) or None (read-back exact).
+        held: minimal parameters held beyond the gauge (e.g. unidentifiable ones).
+        ref_config: index into ``q`` of the reference configuration (world of the reported
+            parameters = its left camera).
+    """
+
+    model: MCPCModel
+    q: np.ndarray
+    T_left_right: np.ndarray
+    fx: float
+    mu: float
+    cx: float
+    cy: float
+    X_world: np.ndarray
+    view: np.ndarray
+    pidx: np.ndarray
+    scale_points: tuple[np.ndarray, np.ndarray]
+    scale_distance_m: float
+    pixel_sigma_px: float
+    joint_sigma: np.ndarray | None = None
+    held: tuple[str, ...] = ()
+    ref_config: int = 0
+    scale_sigma_m: float = 1e-7
+
+
+@dataclass
+class _Layout:
+    pose_model: KinematicPoses
+    names: tuple[str, ...]
+    held: dict[str, str]
+    free: np.ndarray  # mask over the minimal parameters
+    free_idx: np.ndarray  # flat indices of the free ones
+    kin_cols: np.ndarray  # columns of [fx, mu, rho_free] in x
+    dq_ref_cols: np.ndarray  # columns of the reference configuration's read-back errors (or [])
+
+
+def _layout(s: FisherSetup) -> _Layout:
+    idx = minimal_indices(s.model.joint_types)
+    names = tuple(param_names(idx))
+    gauge = choose_gauge(s.model)
+    held = {h: "gauge (world frame)" for h in gauge.held}
+    for h in s.held:
+        if h not in names:
+            raise BoundsError(f"held parameter {h!r} is not a minimal parameter; known: {names}")
+        held.setdefault(h, "held")
+    free = np.array([nm not in held for nm in names])
+    free_idx = idx[free]
+    use_dq = s.joint_sigma is not None
+    pm = KinematicPoses(s.model, s.q, free_idx, inv_pose(s.T_left_right), joint_corrections=use_dq)
+    kin_cols = np.r_[0, 1, 2 + np.arange(pm.k)]
+    n = s.model.n
+    dq_ref = 2 + pm.dq_cols[n * s.ref_config : n * (s.ref_config + 1)] if use_dq else np.zeros(0)
+    return _Layout(pm, names, held, free, free_idx, kin_cols, dq_ref.astype(np.int64))
+
+
+def fisher_jacobian(s: FisherSetup) -> tuple:
+    """The whitened Jacobian ``J`` (sparse, rows / sigma) with Fisher information ``J^T J``, the
+    unknowns ``x = [fx, mu, rho_free, rig (6), dq (n per configuration), X (3 P)]`` and the layout
+    (for :func:`cramer_rao`). Returns ``(J, layout)``."""
+    q = np.atleast_2d(np.asarray(s.q, dtype=float))
+    if q.shape[1] != s.model.n:
+        raise BoundsError(f"q must have shape (m, {s.model.n}), got {q.shape}")
+    if not (0 <= s.ref_config < len(q)):
+        raise BoundsError(
+            f"ref_config {s.ref_config} is not a configuration index (0..{len(q) - 1})"
+        )
+    if not (s.pixel_sigma_px > 0):
+        raise BoundsError(f"pixel_sigma_px must be > 0, got {s.pixel_sigma_px}")
+    X = np.asarray(s.X_world, dtype=float)
+    if not np.isfinite(X[np.unique(s.pidx)]).all():
+        raise BoundsError("an observed point has no (finite) position; drop its observations")
+    lay = _layout(s)
+    pm = lay.pose_model
+    use_dq = s.joint_sigma is not None
+    if use_dq:
+        js = np.broadcast_to(np.asarray(s.joint_sigma, dtype=float), (s.model.n,))
+        if not (np.all(np.isfinite(js)) and np.all(js > 0)):
+            raise BoundsError(f"joint_sigma must be positive and finite, got {s.joint_sigma}")
+        prior_cols = pm.dq_cols
+        prior_w = np.tile(s.pixel_sigma_px / js, len(q))
+    else:
+        prior_cols, prior_w = np.zeros(0, np.int64), np.zeros(0)
+    prob = _Problem(
+        pm,
+        np.asarray(s.view, dtype=np.int64),
+        np.asarray(s.pidx, dtype=np.int64),
+        np.zeros((len(s.view), 2)),
+        len(X),
+        s.cx,
+        s.cy,
+        s.scale_points,
+        s.scale_distance_m,
+        1.0 / s.scale_sigma_m,
+        prior_cols,
+        prior_w,
+    )
+    x = np.concatenate([[s.fx, s.mu], pm.initial_params(), X.ravel()])
+    J = prob.jac(x) / s.pixel_sigma_px
+    return J.tocsr(), lay
+
+
+def aligned_rms_from_covariance(points_m: np.ndarray, S: np.ndarray) -> float:
+    """RMS (m) of the errors of ``k`` points (k, 3) with stacked covariance ``S`` (3k, 3k) after
+    the best rigid alignment (first order: the rigid motions about the centroid are projected
+    out): ``sqrt(trace(P S P) / k)``."""
+    P_world = np.asarray(points_m, dtype=float)
+    k = len(P_world)
+    c = P_world - P_world.mean(axis=0)
+    rigid = np.concatenate([np.tile(np.eye(3), (k, 1)), -skew(c).reshape(-1, 3)], axis=1)
+    Q, _ = np.linalg.qr(rigid)
+    PS = S - Q @ (Q.T @ S)
+    tr = np.trace(PS) - np.trace(Q.T @ PS @ Q)
+    return float(np.sqrt(max(tr, 0.0) / k))
+
+
+def aligned_error_dof(points_m: np.ndarray, S: np.ndarray) -> float:
+    """Effective degrees of freedom ``nu = (sum l)^2 / sum l^2`` of the aligned squared error
+    (eigenvalues ``l`` of ``P S P``): ``k rms^2 / trace(P S P)`` of an efficient Gaussian
+    estimator is then approximately ``chi2(nu) / nu`` (Satterthwaite), which gives the sampling
+    interval of a Monte Carlo ratio achieved / bound."""
+    P_world = np.asarray(points_m, dtype=float)
+    k = len(P_world)
+    c = P_world - P_world.mean(axis=0)
+    rigid = np.concatenate([np.tile(np.eye(3), (k, 1)), -skew(c).reshape(-1, 3)], axis=1)
+    Q, _ = np.linalg.qr(rigid)
+    Pr = np.eye(3 * k) - Q @ Q.T
+    lam = np.clip(np.linalg.eigvalsh(Pr @ S @ Pr), 0.0, None)
+    return float(lam.sum() ** 2 / max(np.sum(lam**2), 1e-300))
+
+
+@dataclass
+class CramerRao:
+    """Cramer-Rao bounds of one data set (see the module docstring). SI units.
+
+    ``names``: minimal parameters (eq. 10 order); ``held``: name -> why (gauge or held);
+    ``std_ref`` (P,): bound of every minimal parameter in the reference-camera frame (NaN for
+    parameters held beyond the gauge); ``cov_ref`` (P, P) their covariance; ``model_ref`` the
+    setup's model in that frame. ``cov_free``: covariance of ``rho_free`` (``free_idx`` flat
+    indices of ``model``) in the held-parameter gauge. ``fx_std``, ``mu_std``.
+    """
+
+    model: MCPCModel
+    model_ref: MCPCModel
+    names: tuple[str, ...]
+    held: dict[str, str]
+    free_idx: np.ndarray
+    cov_free: np.ndarray
+    cov_ref: np.ndarray
+    std_ref: np.ndarray
+    fx_std: float
+    mu_std: float
+    pixel_sigma_px: float
+    n_observations: int
+    n_unknowns: int
+    extra: dict = field(default_factory=dict)
+
+    def tool_points(self, q: np.ndarray, T_cam_point: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Predicted points (k, 3) m and their stacked covariance (3k, 3k) m^2 at joints ``q``."""
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        T = fk_tool(self.model, q)
+        Jb = identification_jacobian(self.model, q)[:, :, self.free_idx]
+        pt = np.asarray(T_cam_point, dtype=float)[:3, 3]
+        Jp = (T[:, :3, :3] @ (Jb[:, :3] - skew(pt) @ Jb[:, 3:])).reshape(-1, len(self.free_idx))
+        P = (T @ np.asarray(T_cam_point, dtype=float))[:, :3, 3]
+        return P, Jp @ self.cov_free @ Jp.T
+
+    def aligned_tool_rms(self, q: np.ndarray, T_cam_point: np.ndarray) -> float:
+        """Bound (m) of the RMS error of a camera-attached point over postures ``q`` after the
+        best rigid alignment (the validation metric of :mod:`calib.report`)."""
+        P, S = self.tool_points(q, T_cam_point)
+        return aligned_rms_from_covariance(P, S)
+
+    def scaled(self, pixel_sigma_px: float) -> CramerRao:
+        """The bound for another corner noise with the read-back noise scaled alike (the whole
+        information scales by ``(sigma_old / sigma_new)^2``)."""
+        f = (float(pixel_sigma_px) / self.pixel_sigma_px) ** 2
+        import dataclasses
+
+        return dataclasses.replace(
+            self,
+            cov_free=self.cov_free * f,
+            cov_ref=self.cov_ref * f,
+            std_ref=self.std_ref * np.sqrt(f),
+            fx_std=self.fx_std * np.sqrt(f),
+            mu_std=self.mu_std * np.sqrt(f),
+            pixel_sigma_px=float(pixel_sigma_px),
+        )
+
+
+def cramer_rao(s: FisherSetup, *, rank_tol: float = 1e-10) -> CramerRao:
+    """Cramer-Rao bounds of the setup's data (see the module docstring).
+
+    Raises:
+        BoundsError: the Fisher information is singular (a parameter is not determined by these
+            data in this gauge: too few configurations, a joint that never moves, points seen
+            once, no scale markers).
+    """
+    J, lay = fisher_jacobian(s)
+    F = (J.T @ J).toarray() if J.shape[1] <= 3000 else None
+    if F is not None:
+        d = np.sqrt(np.maximum(np.diag(F), 1e-300))
+        ev = np.linalg.eigvalsh(F / np.outer(d, d))
+        if ev[0] <= rank_tol * ev[-1]:
+            raise BoundsError(
+                f"the Fisher information is singular (scaled eigenvalue ratio {ev[0] / ev[-1]:.2e}"
+                f", {int(np.sum(ev <= rank_tol * ev[-1]))} direction(s)): these data do not "
+                "determine every unknown -- check that every joint moves, that points are seen "
+                "in two views and that the scale markers are seen"
+            )
+    cols = np.r_[lay.kin_cols, lay.dq_ref_cols]
+    C = _inverse_block(J, cols)
+    nk = len(lay.kin_cols)
+    fx_std = float(np.sqrt(max(C[0, 0], 0.0)))
+    mu_std = float(np.sqrt(max(C[1, 1], 0.0)))
+    cov_free = C[2:nk, 2:nk]
+    # ---- the reference-camera frame: world = left camera at the reference configuration
+    model = s.model
+    idx = minimal_indices(model.joint_types)
+    q_ref = np.atleast_2d(np.asarray(s.q, dtype=float))[s.ref_config]
+
+    def to_ref(theta: np.ndarray, dq: np.ndarray) -> MCPCModel:
+        flat = model.params.reshape(-1).copy()
+        flat[lay.free_idx] = theta
+        mg = model.with_params(flat)
+        T = fk_tool(mg, (q_ref + dq)[None])[0]
+        return express_in_frame(mg, inv_pose(T), like=model)
+
+    theta0 = model.params.reshape(-1)[lay.free_idx]
+    n_dq = len(lay.dq_ref_cols)
+    z = np.r_[theta0, np.zeros(n_dq)]
+    k = len(theta0)
+    model_ref = to_ref(theta0, np.zeros(model.n))
+    H = np.empty((idx.size, len(z)))
+    h = 1e-7
+    for j in range(len(z)):
+        e = np.zeros(len(z))
+        e[j] = h
+        zp, zm = z + e, z - e
+        dqp = zp[k:] if n_dq else np.zeros(model.n)
+        dqm = zm[k:] if n_dq else np.zeros(model.n)
+        H[:, j] = minimal_difference(to_ref(zp[:k], dqp), to_ref(zm[:k], dqm)) / (2 * h)
+    Cz = C[2:, 2:]
+    cov_ref = H @ Cz @ H.T
+    std_ref = np.sqrt(np.clip(np.diag(cov_ref), 0.0, None))
+    for nm, why in lay.held.items():
+        if not why.startswith("gauge"):
+            std_ref[lay.names.index(nm)] = np.nan
+    return CramerRao(
+        model=model,
+        model_ref=model_ref,
+        names=lay.names,
+        held=lay.held,
+        free_idx=lay.free_idx,
+        cov_free=cov_free,
+        cov_ref=cov_ref,
+        std_ref=std_ref,
+        fx_std=fx_std,
+        mu_std=mu_std,
+        pixel_sigma_px=float(s.pixel_sigma_px),
+        n_observations=int(len(s.view)),
+        n_unknowns=int(J.shape[1]),
+    )
+
+
+# --------------------------------------------------------------------------------------------
+# Setups: predicted (planning, simulation) and from a calibration
+# --------------------------------------------------------------------------------------------
+
+
+def _visible_markers(
+    T_world_cam: np.ndarray,
+    intr: Intrinsics,
+    corners_world: np.ndarray,
+    normals_world: np.ndarray,
+    margin_px: float,
+    max_incidence_deg: float,
+) -> np.ndarray:
+    """(m, K) bool: all four corners in front and inside the image, face towards the camera."""
+    T_cw = inv_pose(T_world_cam)
+    Xc = np.einsum("mij,kcj->mkci", T_cw[:, :3, :3], corners_world) + T_cw[:, None, None, :3, 3]
+    z = Xc[..., 2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u = intr.fx * Xc[..., 0] / z + intr.cx
+        v = intr.fy * Xc[..., 1] / z + intr.cy
+    ok = (z > 0.01) & (u > margin_px) & (u < intr.width - 1 - margin_px)
+    ok &= (v > margin_px) & (v < intr.height - 1 - margin_px)
+    ok = ok.all(axis=-1)
+    to_cam = T_world_cam[:, None, :3, 3] - corners_world.mean(axis=1)[None]
+    cosang = np.einsum("mkj,kj->mk", to_cam, normals_world) / np.linalg.norm(to_cam, axis=-1)
+    return ok & (cosang > np.cos(np.radians(max_incidence_deg)))
+
+
+def predicted_setup(
+    model: MCPCModel,
+    q: np.ndarray,
+    T_left_right: np.ndarray,
+    intr: Intrinsics,
+    marker_ids: np.ndarray,
+    corners_world: np.ndarray,
+    normals_world: np.ndarray,
+    scale_ids: tuple[int, int],
+    scale_distance_m: float,
+    *,
+    pixel_sigma_px: float,
+    joint_sigma: np.ndarray | None = None,
+    ref_config: int = 0,
+    margin_px: float = 2.0,
+    max_incidence_deg: float = 75.0,
+) -> FisherSetup:
+    """The setup of a data set *before* it is taken: the corners (K markers, (K, 4, 3) m,
+    normals (K, 3)) predicted to be seen by the stereo pair at joints ``q`` (visibility as the
+    analytic simulator decides it: all four corners inside the image with ``margin_px``, marker
+    facing the camera within ``max_incidence_deg``). Points seen in fewer than two views are
+    dropped (they carry no information).
+
+    Raises:
+        BoundsError: a scale marker is not seen twice.
+    """
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    ids = np.asarray(marker_ids, dtype=np.int64)
+    TL = fk_tool(model, q)
+    TR = TL @ np.asarray(T_left_right, dtype=float)
+    vis = np.stack(
+        [
+            _visible_markers(T, intr, corners_world, normals_world, margin_px, max_incidence_deg)
+            for T in (TL, TR)
+        ],
+        axis=1,
+    )  # (m, 2, K)
+    n_views = vis.sum(axis=(0, 1))
+    keep = n_views >= 2
+    for sid in scale_ids:
+        hit = np.flatnonzero(ids == sid)
+        if hit.size == 0 or not keep[hit[0]]:
+            raise BoundsError(f"scale marker {sid} is not seen in two views at these postures")
+    kept = np.flatnonzero(keep)
+    remap = -np.ones(len(ids), np.int64)
+    remap[kept] = np.arange(len(kept))
+    cfg, cam, mk = np.nonzero(vis & keep[None, None])
+    view = np.repeat(2 * cfg + cam, 4)
+    pidx = (4 * remap[mk][:, None] + np.arange(4)).ravel()
+    X = corners_world[kept].reshape(-1, 3)
+    sp = tuple(4 * remap[np.flatnonzero(ids == sid)[0]] + np.arange(4) for sid in scale_ids)
+    return FisherSetup(
+        model=model,
+        q=q,
+        T_left_right=np.asarray(T_left_right, dtype=float),
+        fx=intr.fx,
+        mu=intr.mu,
+        cx=intr.cx,
+        cy=intr.cy,
+        X_world=X,
+        view=view,
+        pidx=pidx,
+        scale_points=sp,
+        scale_distance_m=float(scale_distance_m),
+        pixel_sigma_px=float(pixel_sigma_px),
+        joint_sigma=None if joint_sigma is None else np.asarray(joint_sigma, dtype=float),
+        ref_config=int(ref_config),
+    )
+
+
+def _two_stage_sigma(sc, n_used: int) -> float:
+    inl = np.asarray(sc.inlier, bool) & np.isfinite(sc.residuals).all(axis=1)
+    has_X = np.isfinite(sc.X_world).all(axis=1)
+    n_ba = 2 + 6 * (n_used - 1) + 5 + 3 * int(has_X.sum())
+    dof = max(2 * int(inl.sum()) - n_ba, 1)
+    return float(np.sqrt(np.sum(sc.residuals[inl] ** 2) / dof))
+
+
+def setup_from_output(
+    out,
+    obs,
+    q: np.ndarray,
+    robot,
+    ds_info,
+    *,
+    pixel_sigma_px: float | None = None,
+    joint_sigma: np.ndarray | None | str = "encoder",
+) -> FisherSetup:
+    """The setup of a calibrated data set, evaluated at the final estimate of ``out`` (a
+    :class:`calib.calibrate.CalibrationOutput`, joint or two-stage): its model, intrinsics, rig
+    and points, the configurations the calibration used, the camera stage's inlier observations
+    of reconstructed points, the reference configuration. ``obs``/``q`` as given to the
+    calibration; ``ds_info`` for the scale markers and ``d``.
+
+    ``pixel_sigma_px``: default the a-posteriori corner noise (joint: its residuals; two-stage:
+    the bundle adjustment's, dof-corrected). ``joint_sigma``: ``"encoder"`` (default, the robot's
+    encoder quantisation as the joint method models it), an (n,) array, or None (exact).
+    """
+    sc = out.selfcal
+    res = getattr(out, "joint", None)
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    if res is not None:
+        used = np.asarray(res.diagnostics.get("used_configs"), dtype=np.int64)
+        model, fx, mu = res.model, res.fx, res.mu
+        T_lr, X, ref = res.T_left_right, res.X_world, int(res.ref_config)
+        held = tuple(n for n, why in res.held_reason.items() if not why.startswith("gauge"))
+        sigma = res.sigma_px
+    else:
+        used = np.flatnonzero(sc.registered if sc.registered.ndim == 1 else sc.registered[:, 0])
+        ident = out.identification
+        model, fx, mu = ident.model, sc.fx, sc.mu
+        T_lr, X, ref = sc.T_left_right, sc.X_world, int(sc.ref_config)
+        held = tuple(ident.held)
+        sigma = _two_stage_sigma(sc, len(used))
+    if pixel_sigma_px is not None:
+        sigma = float(pixel_sigma_px)
+    if isinstance(joint_sigma, str):
+        if joint_sigma != "encoder":
+            raise ValueError(
+                f"joint_sigma must be 'encoder', an array or None, not {joint_sigma!r}"
+            )
+        joint_sigma = encoder_sigma(robot)
+    ids, pidx_all = obs.point_index()
+    X = np.asarray(X, dtype=float)
+    if len(X) != len(ids):
+        raise BoundsError("the observations and the calibration disagree on the points")
+    pos = -np.ones(obs.n_configs, np.int64)
+    pos[used] = np.arange(len(used))
+    has_X = np.isfinite(X).all(axis=1)
+    rows = (pos[obs.config] >= 0) & has_X[pidx_all] & np.asarray(sc.inlier, bool)
+    view = 2 * pos[obs.config] + obs.camera
+    # drop points seen in fewer than two views (no information), keep the scale markers
+    nv = np.zeros(len(ids), int)
+    key = np.unique(pidx_all[rows] * (2 * len(used)) + view[rows])
+    np.add.at(nv, key // (2 * len(used)), 1)
+    pts = has_X & (nv >= 2)
+    rows &= pts[pidx_all]
+    remap = -np.ones(len(ids), np.int64)
+    remap[pts] = np.arange(int(pts.sum()))
+    scale = []
+    for mk in ds_info.scale_ids:
+        want = 4 * int(mk) + np.arange(4)
+        at = np.searchsorted(ids, want)
+        if not (np.all(at < len(ids)) and np.array_equal(ids[np.minimum(at, len(ids) - 1)], want)):
+            raise BoundsError(f"scale marker {mk} is not observed")
+        if not pts[at].all():
+            raise BoundsError(f"scale marker {mk} is not reconstructed from two views")
+        scale.append(remap[at])
+    if pos[ref] < 0:
+        raise BoundsError(f"the reference configuration {ref} is not among the used ones")
+    return FisherSetup(
+        model=model,
+        q=q[used],
+        T_left_right=np.asarray(T_lr, dtype=float),
+        fx=float(fx),
+        mu=float(mu),
+        cx=float(sc.cx),
+        cy=float(sc.cy),
+        X_world=X[pts],
+        view=view[rows],
+        pidx=remap[pidx_all[rows]],
+        scale_points=(scale[0], scale[1]),
+        scale_distance_m=float(ds_info.scale_length_m),
+        pixel_sigma_px=float(sigma),
+        joint_sigma=None if joint_sigma is None else np.asarray(joint_sigma, dtype=float),
+        held=held,
+        ref_config=int(pos[ref]),
+    )
+
+
+def bounds_block(
+    out,
+    qv: np.ndarray,
+    *,
+    obs,
+    q: np.ndarray,
+    robot,
+    ds_info,
+    pixel_sigma_px: float | None = None,
+) -> dict:
+    """The ``bounds`` block of ``calibration.json`` for a calibration ``out`` (either method).
+
+    ``qv`` (k, n) rad: the validation postures (the dataset's ``validation_joints_deg``); the
+    tool tip is ``T_cam_tip = inv(robot.T_flange_cam)``, the point of the report. Keys:
+    ``tool_tip_rms_mm`` (bound of the aligned validation RMS), ``fx``/``mu`` (estimate, bound),
+    ``parameters`` (name, unit, estimate, std of the document, bound, held; reference-camera
+    frame like the document's parameters), the noise levels used and a note.
+    """
+    s = setup_from_output(out, obs, q, robot, ds_info, pixel_sigma_px=pixel_sigma_px)
+    cr = cramer_rao(s)
+    qv = np.atleast_2d(np.asarray(qv, dtype=float))
+    T_cam_tip = inv_pose(np.asarray(robot.T_flange_cam, dtype=float))
+    doc = out.document
+    std_doc = {p["name"]: p.get("std") for p in doc.get("parameters", [])}
+    idx = minimal_indices(cr.model_ref.joint_types)
+    ang = param_is_angle(idx)
+    params = []
+    for j, (name, k, a) in enumerate(zip(cr.names, idx, ang)):
+        sc_ = 180.0 / np.pi if a else 1000.0
+        b = cr.std_ref[j]
+        params.append(
+            {
+                "name": name,
+                "unit": "deg" if a else "mm",
+                "estimate": float(cr.model_ref.params.reshape(-1)[k] * sc_),
+                "std": std_doc.get(name),
+                "bound": float(b * sc_) if np.isfinite(b) else None,
+                "held": name in cr.held and not cr.held[name].startswith("gauge"),
+            }
+        )
+    return {
+        "kind": "cramer-rao",
+        "method_evaluated_at": doc.get("method", "joint" if out.joint is not None else "two-stage"),
+        "pixel_sigma_px": cr.pixel_sigma_px,
+        "joint_sigma_deg": None
+        if s.joint_sigma is None
+        else np.degrees(np.asarray(s.joint_sigma)).tolist(),
+        "observations": cr.n_observations,
+        "unknowns": cr.n_unknowns,
+        "tool_tip_rms_mm": {
+            "bound": 1000.0 * cr.aligned_tool_rms(qv, T_cam_tip),
+            "validation_poses": int(len(qv)),
+        },
+        "fx": {"estimate": float(s.fx), "bound": cr.fx_std},
+        "mu": {"estimate": float(s.mu), "bound": cr.mu_std},
+        "parameters": params,
+        "note": (
+            "Cramer-Rao bounds (standard deviations; tool tip: RMS over the validation postures "
+            "after the best rigid alignment, as the report measures it) from the Fisher "
+            "information of the one-step model (corners with Gaussian noise of pixel_sigma_px, "
+            "joint read-back errors of joint_sigma_deg, unknown points, known scale distance), "
+            "evaluated at the final estimate; parameters in the reference-camera frame. A "
+            "property of the data: the same for both methods, which differ in the error they "
+            "achieve. See docs/bounds.md."
+        ),
+    }
