@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from calib.dataset import Dataset, DatasetError, Detections
+from calib.dataset import Dataset, DatasetError, Detections, read_gray
 from calib.detect import detect_markers
 from calib.identify import IdentificationResult, identify, to_dh
 from calib.kinematics import fk_tool
@@ -59,8 +59,9 @@ def detect_dataset(ds: Dataset, progress=None) -> Detections:
         progress.start(2 * len(ds.indices))
     W, H = ds.info.resolution
 
-    def detect(item: tuple[int, str, np.ndarray]) -> tuple[int, str, dict]:
-        index, cam, img = item
+    def detect(item: tuple[int, str, Path]) -> tuple[int, str, dict]:
+        index, cam, path = item
+        img = read_gray(path, index)
         if img.shape[1] != W or img.shape[0] != H:
             raise DatasetError(
                 f"frame {index:04d}_{cam}.png is {img.shape[1]}x{img.shape[0]} px but dataset.json "
@@ -68,9 +69,9 @@ def detect_dataset(ds: Dataset, progress=None) -> Detections:
             )
         return index, cam, detect_markers(img, dictionary=ds.info.dictionary)
 
-    # OpenCV releases the GIL: detect on every core, in order.
+    # OpenCV releases the GIL while decoding and detecting: use every core, keep the order.
     with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
-        for index, cam, dets in pool.map(detect, ds.iter_images()):
+        for index, cam, dets in pool.map(detect, ds.image_paths()):
             if dets:
                 out[(index, cam)] = dets
             else:

@@ -234,6 +234,24 @@ class DatasetWriter:
         self.done.append(index)
 
 
+def _missing(path: Path, index: int) -> DatasetError:
+    return DatasetError(
+        f"frame {path.name} is missing or unreadable although joints.csv lists frame {index}; the "
+        f"dataset is damaged: re-acquire it (or remove frame {index}'s row from joints.csv to "
+        "calibrate without it)"
+    )
+
+
+def read_gray(path: Path, index: int) -> np.ndarray:
+    """A dataset image as gray uint8; raises DatasetError naming the frame if unreadable."""
+    import cv2
+
+    img = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+    if img is None:
+        raise _missing(path, index)
+    return img
+
+
 @dataclass(frozen=True)
 class Dataset:
     """A dataset opened for reading (frames are loaded lazily)."""
@@ -275,20 +293,21 @@ class Dataset:
         """Paths of a frame's left and right images."""
         return tuple(self.root / "frames" / f"{index:04d}_{c}.png" for c in CAMERAS)  # type: ignore[return-value]
 
-    def iter_images(self) -> Iterator[tuple[int, str, np.ndarray]]:
-        """Yield ``(index, camera, gray uint8 image)``; raises DatasetError for a missing frame."""
-        import cv2
-
+    def image_paths(self) -> list[tuple[int, str, Path]]:
+        """``(index, camera, path)`` of every image; raises DatasetError for a missing frame
+        before anything is read."""
+        out = []
         for i in self.indices:
             for cam, path in zip(CAMERAS, self.frame_paths(int(i))):
-                img = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE) if path.is_file() else None
-                if img is None:
-                    raise DatasetError(
-                        f"frame {path.name} is missing or unreadable although joints.csv lists "
-                        f"frame {i}; the dataset is damaged: re-acquire it (or remove frame {i}'s "
-                        "row from joints.csv to calibrate without it)"
-                    )
-                yield int(i), cam, img
+                if not path.is_file():
+                    raise _missing(path, int(i))
+                out.append((int(i), cam, path))
+        return out
+
+    def iter_images(self) -> Iterator[tuple[int, str, np.ndarray]]:
+        """Yield ``(index, camera, gray uint8 image)``; raises DatasetError for a missing frame."""
+        for i, cam, path in self.image_paths():
+            yield i, cam, read_gray(path, i)
 
     def read_detections(self) -> Detections:
         """Detections of the analytic path from ``detections.csv``."""
