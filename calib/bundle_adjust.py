@@ -1,6 +1,6 @@
 """Observation container, error classes and sparse bundle adjustment for the self-calibration stage.
 
-Frames and units (see docs/HELPERS.md): poses ``T_cam_world`` map world coordinates to the OpenCV
+Frames and units (see docs/DEVELOPING.md): poses ``T_cam_world`` map world coordinates to the OpenCV
 camera frame (x right, y down, z forward); pixels follow the OpenCV convention. Intrinsics are the
 paper's eq. 19 with a known principal point: ``K = [[fx, 0, cx], [0, mu fx, cy], [0, 0, 1]]``.
 
@@ -434,6 +434,22 @@ class RigPoses:
 
 
 # ------------------------------------------------------------------------ residual machinery
+def camera_points_and_jacobian(
+    fx: float, mu: float, T_cam_world: np.ndarray, X: np.ndarray, view: np.ndarray, pidx: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Points in the camera frame ``Xc`` (k, 3) for rows (view, point index) and the Jacobian of
+    their pixel projection w.r.t. ``Xc``, ``A`` (k, 2, 3) (px per m)."""
+    R = T_cam_world[view, :3, :3]
+    Xc = np.einsum("kij,kj->ki", R, X[pidx]) + T_cam_world[view, :3, 3]
+    xx, yy, z = Xc[:, 0], Xc[:, 1], Xc[:, 2]
+    A = np.zeros((len(Xc), 2, 3))
+    A[:, 0, 0] = fx / z
+    A[:, 0, 2] = -fx * xx / z**2
+    A[:, 1, 1] = mu * fx / z
+    A[:, 1, 2] = -mu * fx * yy / z**2
+    return Xc, A
+
+
 def reprojection_residuals(
     fx: float,
     mu: float,
@@ -528,14 +544,9 @@ class _Problem:
         T = self.model.poses(p)
         Jv = self.model.view_jacobian(p)
         R = T[self.view, :3, :3]
-        Xc = np.einsum("kij,kj->ki", R, X[self.pidx]) + T[self.view, :3, 3]
+        Xc, A = camera_points_and_jacobian(fx, mu, T, X, self.view, self.pidx)
         xx, yy, z = Xc[:, 0], Xc[:, 1], Xc[:, 2]
         k = len(self.view)
-        A = np.zeros((k, 2, 3))
-        A[:, 0, 0] = fx / z
-        A[:, 0, 2] = -fx * xx / z**2
-        A[:, 1, 1] = mu * fx / z
-        A[:, 1, 2] = -mu * fx * yy / z**2
         blocks = []
         if self.ni:
             Ji = np.zeros((k, 2, 2))

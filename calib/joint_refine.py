@@ -58,7 +58,12 @@ import scipy.linalg
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
-from calib.bundle_adjust import Observations, reprojection_residuals, so3_left_jacobian
+from calib.bundle_adjust import (
+    Observations,
+    camera_points_and_jacobian,
+    reprojection_residuals,
+    so3_left_jacobian,
+)
 from calib.identify import IdentificationResult, express_in_frame, minimal_difference
 from calib.kinematics import fk_frames, fk_tool, identification_jacobian
 from calib.mcpc import MCPCModel, minimal_indices, param_is_angle, param_names
@@ -369,14 +374,9 @@ class _Problem:
         T = self.model.poses(p)
         Jv = self.model.view_jacobian(p)
         R = T[self.view, :3, :3]
-        Xc = np.einsum("kij,kj->ki", R, X[self.pidx]) + T[self.view, :3, 3]
+        Xc, A = camera_points_and_jacobian(fx, mu, T, X, self.view, self.pidx)
         xx, yy, z = Xc[:, 0], Xc[:, 1], Xc[:, 2]
         k = self.k
-        A = np.zeros((k, 2, 3))
-        A[:, 0, 0] = fx / z
-        A[:, 0, 2] = -fx * xx / z**2
-        A[:, 1, 1] = mu * fx / z
-        A[:, 1, 2] = -mu * fx * yy / z**2
         Ji = np.zeros((k, 2, 2))
         Ji[:, 0, 0] = xx / z
         Ji[:, 1, 0] = mu * yy / z
