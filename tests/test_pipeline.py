@@ -16,7 +16,7 @@ import shutil
 import numpy as np
 import pytest
 
-from calib.calibrate import CalibrationError, calibrate
+from calib.calibrate import CalibrationError, NoMarkersWarning, calibrate
 from calib.dataset import DatasetError
 from calib.trajectory import DegenerateTrajectoryError
 from scenarios.config import load_scenario
@@ -132,7 +132,8 @@ def test_images_without_markers(tmp_path):
     for p in (out / "frames").glob("*.png"):
         cv2.imwrite(str(p), np.full((480, 640), 128, np.uint8))
     with pytest.raises(CalibrationError, match="no marker was detected"):
-        calibrate(out)
+        with pytest.warns(NoMarkersWarning, match="12 image"):
+            calibrate(out)
 
 
 @pytest.fixture(scope="module")
