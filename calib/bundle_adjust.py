@@ -434,20 +434,27 @@ class RigPoses:
 
 
 # ------------------------------------------------------------------------ residual machinery
-def camera_points_and_jacobian(
+def projection_blocks(
     fx: float, mu: float, T_cam_world: np.ndarray, X: np.ndarray, view: np.ndarray, pidx: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """Points in the camera frame ``Xc`` (k, 3) for rows (view, point index) and the Jacobian of
-    their pixel projection w.r.t. ``Xc``, ``A`` (k, 2, 3) (px per m)."""
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Jacobian blocks of the pixel projection for rows (view, point index), OpenCV model:
+    w.r.t. ``(fx, mu)`` (k, 2, 2), w.r.t. a camera-frame twist ``[v; w]`` of ``T_cam_world``
+    (k, 2, 6) and w.r.t. the world point (k, 2, 3); px per unit."""
     R = T_cam_world[view, :3, :3]
     Xc = np.einsum("kij,kj->ki", R, X[pidx]) + T_cam_world[view, :3, 3]
     xx, yy, z = Xc[:, 0], Xc[:, 1], Xc[:, 2]
-    A = np.zeros((len(Xc), 2, 3))
+    k = len(Xc)
+    A = np.zeros((k, 2, 3))
     A[:, 0, 0] = fx / z
     A[:, 0, 2] = -fx * xx / z**2
     A[:, 1, 1] = mu * fx / z
     A[:, 1, 2] = -mu * fx * yy / z**2
-    return Xc, A
+    Ji = np.zeros((k, 2, 2))
+    Ji[:, 0, 0] = xx / z
+    Ji[:, 1, 0] = mu * yy / z
+    Ji[:, 1, 1] = fx * yy / z
+    D = np.concatenate([np.broadcast_to(np.eye(3), (k, 3, 3)), -skew(Xc)], axis=2)
+    return Ji, A @ D, A @ R
 
 
 def reprojection_residuals(
@@ -543,22 +550,11 @@ class _Problem:
         fx, mu, p, X = self.unpack(x)
         T = self.model.poses(p)
         Jv = self.model.view_jacobian(p)
-        R = T[self.view, :3, :3]
-        Xc, A = camera_points_and_jacobian(fx, mu, T, X, self.view, self.pidx)
-        xx, yy, z = Xc[:, 0], Xc[:, 1], Xc[:, 2]
-        k = len(self.view)
-        blocks = []
-        if self.ni:
-            Ji = np.zeros((k, 2, 2))
-            Ji[:, 0, 0] = xx / z
-            Ji[:, 1, 0] = mu * yy / z
-            Ji[:, 1, 1] = fx * yy / z
-            blocks.append(Ji)
-        D = np.concatenate([np.broadcast_to(np.eye(3), (k, 3, 3)), -skew(Xc)], axis=2)  # (k,3,6)
-        blocks.append(A @ D @ Jv[self.view])
-        blocks.append(A @ R)
+        Ji, Jt, Jx = projection_blocks(fx, mu, T, X, self.view, self.pidx)
+        blocks = [Ji] if self.ni else []
+        blocks += [Jt @ Jv[self.view], Jx]
         data = np.concatenate(blocks, axis=2)[self.jmask]
-        return sp.csr_matrix((data, (self.jrows, self.jcols)), shape=(2 * k, self.n))
+        return sp.csr_matrix((data, (self.jrows, self.jcols)), shape=(2 * len(self.view), self.n))
 
 
 def _loss_weights(e2: np.ndarray, loss: str, f: float) -> tuple[np.ndarray, np.ndarray]:

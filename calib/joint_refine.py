@@ -60,7 +60,7 @@ from scipy.sparse.linalg import splu
 
 from calib.bundle_adjust import (
     Observations,
-    camera_points_and_jacobian,
+    projection_blocks,
     reprojection_residuals,
     so3_left_jacobian,
 )
@@ -373,16 +373,8 @@ class _Problem:
         fx, mu, p, X = self.unpack(x)
         T = self.model.poses(p)
         Jv = self.model.view_jacobian(p)
-        R = T[self.view, :3, :3]
-        Xc, A = camera_points_and_jacobian(fx, mu, T, X, self.view, self.pidx)
-        xx, yy, z = Xc[:, 0], Xc[:, 1], Xc[:, 2]
-        k = self.k
-        Ji = np.zeros((k, 2, 2))
-        Ji[:, 0, 0] = xx / z
-        Ji[:, 1, 0] = mu * yy / z
-        Ji[:, 1, 1] = fx * yy / z
-        D = np.concatenate([np.broadcast_to(np.eye(3), (k, 3, 3)), -skew(Xc)], axis=2)
-        blocks = np.concatenate([Ji, A @ D @ Jv[self.view], A @ R], axis=2)
+        Ji, Jt, Jx = projection_blocks(fx, mu, T, X, self.view, self.pidx)
+        blocks = np.concatenate([Ji, Jt @ Jv[self.view], Jx], axis=2)
         dist, u = self._scale(X)
         g = self.w * u / max(dist, 1e-300)
         sdata = np.concatenate(
