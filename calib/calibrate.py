@@ -162,7 +162,8 @@ def calibrate(root: str | Path, *, progress=None, method: str = "joint") -> Cali
     obs = _observations(ds, dets)
     q = np.radians(ds.joints_deg)
     nominal = dh_to_mcpc(robot).with_tool(robot.T_flange_cam)
-    check_not_degenerate(fk_tool(nominal, q))
+    T_nom = fk_tool(nominal, q)
+    check_not_degenerate(T_nom)
     W, H = ds.info.resolution
     sc = self_calibrate(
         obs,
@@ -170,14 +171,16 @@ def calibrate(root: str | Path, *, progress=None, method: str = "joint") -> Cali
         H,
         scale_markers=tuple(ds.info.scale_ids),
         scale_distance_m=ds.info.scale_length_m,
-        nominal_cam_positions=fk_tool(nominal, q)[:, :3, 3],
+        nominal_cam_positions=T_nom[:, :3, 3],
+        # The reconstruction frame becomes the world of the kinematic model: take a camera whose
+        # x-axis is far from parallel to joint 1's axis (MCPC's base parameters are singular there).
+        ref_scores=np.abs(T_nom[:, :3, 0] @ _joint1_axis(nominal)),
     )
     used = np.flatnonzero(sc.registered if sc.registered.ndim == 1 else sc.registered[:, 0])
-    if len(used) < 5:
+    if len(used) < MIN_POSTURES:
         raise CalibrationError(
-            f"only {len(used)} postures could be registered by the camera stage; kinematic "
-            "identification needs at least 5 (26 parameters from 6 values per posture): acquire "
-            "more postures that see the markers"
+            f"only {len(used)} postures could be registered by the camera stage; calibration "
+            f"needs at least {MIN_POSTURES}: acquire more postures that see the markers"
         )
     ident = identify(nominal, q[used], sc.T_world_cam[used, 0])
     doc = _document(ds, robot, sc, ident, used)
@@ -285,20 +288,7 @@ def _document(
         "reprojection_rms_px": sc.rms_px,
         "observations": {"inliers": sc.n_inliers, "outliers": sc.n_outliers},
         "hand_eye": {"T_flange_cam_m": _mat(T_flange_cam)},
-        "identification": {
-            "rank": int(ident.rank),
-            "n_params": int(ident.n_params),
-            "condition_number": float(ident.condition_number),
-            "observability_o1": float(ident.o1),
-            "observability_o3": float(ident.o3),
-            "held": {n: r for n, r in zip(ident.held, ident.held_reason)},
-            "iterations": int(ident.iterations),
-            "converged": bool(ident.converged),
-            "pose_residual_rms": {
-                "before": {"mm": ident.rms_t_mm_before, "deg": ident.rms_r_deg_before},
-                "after": {"mm": ident.rms_t_mm_after, "deg": ident.rms_r_deg_after},
-            },
-        },
+        "identification": identification_summary(ident),
         "parameters": params,
         "mcpc": {
             "joint_types": list(model.joint_types),
@@ -317,20 +307,61 @@ def _document(
     }
 
 
+def identification_summary(ident: IdentificationResult) -> dict:
+    """The ``identification`` block of calibration.json (rank, conditioning, held parameters with
+    their reasons, convergence, pose residuals before and after)."""
+    return {
+        "rank": int(ident.rank),
+        "n_params": int(ident.n_params),
+        "condition_number": float(ident.condition_number),
+        "observability_o1": float(ident.o1),
+        "observability_o3": float(ident.o3),
+        "held": {n: ident.held_reason[n] for n in ident.held},
+        "iterations": int(ident.iterations),
+        "converged": bool(ident.converged),
+        "pose_residual_rms": {
+            "before": {"mm": ident.rms_t_mm_before, "deg": ident.rms_r_deg_before},
+            "after": {"mm": ident.rms_t_mm_after, "deg": ident.rms_r_deg_after},
+        },
+    }
+
+
+def _joint1_axis(model: MCPCModel) -> np.ndarray:
+    """Joint 1's axis in the model's world frame (the z-axis of ``V_0``)."""
+    from calib.mcpc import shape_matrices
+
+    return shape_matrices(model.params[0])[:3, 2]
+
+
 def _last_link_to_tool(model: MCPCModel) -> np.ndarray:
     from calib.mcpc import shape_matrices
 
     return rot_z(model.joint_offsets[-1]) @ shape_matrices(model.params[-1])
 
 
-def model_from_calibration(doc: dict) -> MCPCModel:
+def model_from_calibration(doc: dict, where: str = "calibration.json") -> MCPCModel:
     """The identified MCPC model (tool = left camera, world = reconstruction frame) of a
-    ``calibration.json`` document."""
-    if doc.get("format") != FORMAT:
-        raise CalibrationError(f"not a {FORMAT} document (format = {doc.get('format')!r})")
-    m = doc["mcpc"]
-    return MCPCModel(
-        np.asarray(m["params_si"], dtype=float),
-        tuple(m["joint_types"]),
-        np.asarray(m["joint_offsets_rad"], dtype=float),
-    )
+    ``calibration.json`` document; raises CalibrationError naming what is missing or malformed."""
+    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
+        fmt = doc.get("format") if isinstance(doc, dict) else None
+        raise CalibrationError(f"{where}: not a {FORMAT} document (format = {fmt!r})")
+    try:
+        m = doc["mcpc"]
+        types = tuple(m["joint_types"])
+        params = np.asarray(m["params_si"], dtype=float)
+        offsets = np.asarray(m["joint_offsets_rad"], dtype=float)
+    except (KeyError, TypeError, ValueError) as exc:
+        raise CalibrationError(
+            f"{where}: missing or malformed 'mcpc' entry ({exc}); re-run `selfcal calibrate`"
+        ) from None
+    n = len(types)
+    if (
+        params.shape != (n + 1, 6)
+        or offsets.shape != (n,)
+        or not (np.isfinite(params).all() and np.isfinite(offsets).all())
+    ):
+        raise CalibrationError(
+            f"{where}: mcpc.params_si must be {n + 1} x 6 finite numbers and joint_offsets_rad "
+            f"{n}; got {params.shape} and {offsets.shape}: re-run `selfcal calibrate`"
+        )
+    return MCPCModel(params, types, offsets)

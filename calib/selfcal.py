@@ -13,8 +13,9 @@ Pipeline (:func:`self_calibrate`), pure functions over point correspondences:
 
 Frames, units and gauge of the result (:class:`SelfCalibrationResult`):
 
-- world frame = the left camera frame of configuration ``ref_config`` (the first configuration
-  with a registered view): ``T_world_cam[ref_config, 0] = I``;
+- world frame = the left camera frame of configuration ``ref_config`` (the registered
+  configuration with the lowest ``ref_scores``, by default the first registered one):
+  ``T_world_cam[ref_config, 0] = I``;
 - during the bundle adjustment the scale gauge is the stereo baseline ``|t(T_left_right)| = 1``;
   afterwards everything is multiplied by ``k = d / d_hat`` so that lengths are in metres
   (``is_metric``); without scale markers the units stay "baselines" and ``is_metric`` is False;
@@ -296,11 +297,20 @@ def _views_per_point(view, pidx, n_points):
     return np.bincount(key // (int(view.max()) + 1 if len(view) else 1), minlength=n_points)
 
 
+def _reference(registered: np.ndarray, scores: np.ndarray | None) -> int:
+    """The registered configuration with the lowest score (the first one without scores)."""
+    idx = np.flatnonzero(registered)
+    if scores is None:
+        return int(idx[0])
+    return int(idx[np.argmin(np.asarray(scores, dtype=float)[idx])])
+
+
 def self_calibrate(
     obs: Observations,
     width: int,
     height: int,
     *,
+    ref_scores: np.ndarray | None = None,
     scale_markers: tuple[int, int] | None = None,
     scale_distance_m: float | None = None,
     nominal_cam_positions: np.ndarray | None = None,
@@ -422,7 +432,7 @@ def self_calibrate(
         only_r = reg_v[1::2] & ~reg_v[0::2]
         TL[only_r] = inv_pose(T_rl) @ T[1::2][only_r]
         reg_c = reg_v[0::2] | reg_v[1::2]
-        ref_config = int(np.flatnonzero(reg_c)[0])
+        ref_config = _reference(reg_c, ref_scores)
         G = TL[ref_config].copy()
         s = 1.0 / np.linalg.norm(T_rl[:3, 3])
         TL = TL @ inv_pose(G)
@@ -431,7 +441,7 @@ def self_calibrate(
         X = (X @ G[:3, :3].T + G[:3, 3]) * s
     else:
         reg_c = reg_v[0::2] | reg_v[1::2]
-        ref_config = int(np.flatnonzero(reg_c)[0])
+        ref_config = _reference(reg_c, ref_scores)
         ref_view = 2 * ref_config if reg_v[2 * ref_config] else 2 * ref_config + 1
         G = T[ref_view].copy()
         T = T @ inv_pose(G)

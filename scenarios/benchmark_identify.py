@@ -5,7 +5,7 @@ camera poses in a random world frame with 0.05 mm / 0.02 deg noise. Prints the m
 iterations, the condition number and O1 index, and the RMS of the normalised parameter errors
 (error / reported std; ~1 when the std are honest).
 
-Run: ``cd /work/main && .venv/bin/python scenarios/benchmark_identify.py [--robot er4u-vendor]``
+Run: ``uv run python -m scenarios.benchmark_identify [--robot er4u-vendor]``
 """
 
 from __future__ import annotations

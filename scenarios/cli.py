@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from pathlib import Path
 
@@ -78,6 +79,9 @@ def cmd_ik(args: argparse.Namespace) -> int:
 
     robot = _robot(args.model)
     xyz = _floats(args.xyz, 3, "--xyz (mm)") / 1000.0
+    for name, val in (("--pitch", args.pitch), ("--roll", args.roll)):
+        if not (np.isfinite(val) and abs(val) <= 720.0):
+            raise CliError(f"{name}: expected an angle in deg within +-720, got {val}")
     pitch, roll = np.radians(args.pitch), np.radians(args.roll)
     try:
         if args.branch:
@@ -289,13 +293,12 @@ def main(argv: list[str] | None = None) -> int:
         from calib.dataset import DatasetError
         from scenarios.config import ConfigError
 
-        code = (
-            EXIT_BAD_INPUT
-            if isinstance(exc, (ValueError, DatasetError, ConfigError))
-            else EXIT_FAILED
-        )
-        print(f"selfcal {args.command}: error: {type(exc).__name__}: {exc}", file=sys.stderr)
-        return code
+        if os.environ.get("SELFCAL_DEBUG"):
+            raise
+        bad_input = isinstance(exc, (ValueError, DatasetError, ConfigError))
+        hint = "" if bad_input else " (set SELFCAL_DEBUG=1 for the traceback)"
+        print(f"selfcal {args.command}: error: {type(exc).__name__}: {exc}{hint}", file=sys.stderr)
+        return EXIT_BAD_INPUT if bad_input else EXIT_FAILED
 
 
 if __name__ == "__main__":

@@ -14,6 +14,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from calib.calibrate import MIN_POSTURES
+
 if sys.version_info >= (3, 11):
     import tomllib
 else:  # pragma: no cover
@@ -214,8 +216,14 @@ def _validate(s: Scenario) -> None:
         (s.target.extent_mm > 0, "target.extent_mm must be > 0"),
         (s.perturbation.translation_mm >= 0, "perturbation.translation_mm must be >= 0"),
         (s.perturbation.rotation_deg >= 0, "perturbation.rotation_deg must be >= 0"),
-        (s.trajectory.poses >= 3, "trajectory.poses must be >= 3"),
-        (s.trajectory.min_markers >= 1, "trajectory.min_markers must be >= 1"),
+        (
+            s.trajectory.poses >= MIN_POSTURES,
+            f"trajectory.poses must be >= {MIN_POSTURES} (what a calibration needs)",
+        ),
+        (
+            1 <= s.trajectory.min_markers <= 36,
+            "trajectory.min_markers must be 1..36 (the planner checks 36 points of the target region)",
+        ),
         (s.noise.image_sigma >= 0, "noise.image_sigma must be >= 0"),
         (s.noise.pixel_sigma >= 0, "noise.pixel_sigma must be >= 0"),
         (s.validation.poses >= 3, "validation.poses must be >= 3"),

@@ -84,10 +84,19 @@ def run_report(root: Path, *, quiet: bool = False) -> dict:
         )
     from sim.actual import read_truth
 
-    cal = json.loads(cal_path.read_text())
+    try:
+        cal = json.loads(cal_path.read_text())
+    except json.JSONDecodeError as exc:
+        raise DatasetError(
+            f"{cal_path}: not valid JSON ({exc}); re-run `selfcal calibrate`"
+        ) from None
     truth = read_truth(truth_path)
     robot = load_robot(ds.info.robot_model)
-    est = model_from_calibration(cal)
+    est = model_from_calibration(cal, str(cal_path))
+    if "camera_poses" not in cal or "parameters" not in cal:
+        raise DatasetError(
+            f"{cal_path}: incomplete calibration document; re-run `selfcal calibrate`"
+        )
     T_cam_tip = truth.T_cam_tip
     qv = np.radians(ds.info.validation_joints_deg)
 
@@ -104,7 +113,7 @@ def run_report(root: Path, *, quiet: bool = False) -> dict:
     T_recon_world = inv_pose(np.asarray(ref_truth[0]["T_world_cam_left"]))
     truth_est = express_in_frame(truth.true_model, T_recon_world, like=est)
     nominal_est = express_in_frame(truth.nominal_model, T_recon_world, like=est)
-    std = {p["name"]: (p["std"] or np.nan) for p in cal["parameters"]}
+    std = {p["name"]: (np.nan if p["std"] is None else p["std"]) for p in cal["parameters"]}
     std_si = {
         k: v * (np.pi / 180 if p["unit"] == "deg" else 1e-3)
         for p in cal["parameters"]

@@ -314,3 +314,22 @@ def test_canonical_base_removes_the_world_gauge() -> None:
     ce = express_in_frame(res.model, np.linalg.inv(canonical_base(res.model, robot)), like=true)
     e_mm, e_deg = split_errors(minimal_difference(ce, ca), true)
     assert e_mm < 1e-6 and e_deg < 1e-6
+
+
+def test_calibration_document_names_each_held_parameter_with_its_reason() -> None:
+    """calibration.json's identification.held maps each held name to *its* reason (explicit vs
+    unidentifiable), also when both kinds occur."""
+    from calib.calibrate import identification_summary
+
+    robot = load_robot("er4u-vendor")
+    nom = nominal(robot)
+    rng = np.random.default_rng(5)
+    q = configs(robot, rng, 30)
+    q[:, 4] = 0.3
+    with pytest.warns(IdentificationWarning):
+        res = identify(nom, q, fk_tool(perturbed(nom, rng), q), hold=["beta1"])
+    held = identification_summary(res)["held"]
+    assert held["beta1"] == "explicit"
+    for name in ("alpha4", "beta4", "lx4", "ly4"):
+        assert "unidentifiable" in held[name]
+    assert set(held) == {"beta1", "alpha4", "beta4", "lx4", "ly4"}
