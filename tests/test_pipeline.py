@@ -55,12 +55,17 @@ def test_noise_free_recovers_injected_parameters(noise_free):
     assert abs(rep["intrinsics"]["fx"]["estimate"] / 800.0 - 1) < 1e-8
 
 
-def test_calibration_ignores_truth_json(noise_free, tmp_path):
+def test_calibration_ignores_truth_json_and_the_scenario(noise_free, tmp_path):
     out, _ = noise_free
     copy = tmp_path / "copy"
     shutil.copytree(out, copy)
     (copy / "truth.json").unlink()
     (copy / "calibration.json").unlink()
+    # dataset.json echoes the scenario (which holds the true fx and the perturbation settings):
+    # the calibration must not need it either
+    meta = json.loads((copy / "dataset.json").read_text())
+    meta.pop("scenario")
+    (copy / "dataset.json").write_text(json.dumps(meta))
     run_calibrate(copy, quiet=True)
     a = json.loads((out / "calibration.json").read_text())
     b = json.loads((copy / "calibration.json").read_text())
