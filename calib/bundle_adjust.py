@@ -30,7 +30,6 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.optimize import least_squares
 from scipy.sparse.linalg import splu
 from scipy.spatial.transform import Rotation
 
@@ -526,6 +525,8 @@ class _Problem:
         cc = np.broadcast_to(ccols[:, None, :], rows.shape)
         m = np.broadcast_to(self.valid[:, None, :], rows.shape)
         self.jrows, self.jcols, self.jmask = rows[m], cc[m], m
+        self.n_o = self.ni + self.np_  # intrinsics + pose columns; the points follow
+        self.ocols = ccols[:, :-3]
 
     def unpack(self, x):
         if self.fixed is None:
@@ -546,15 +547,124 @@ class _Problem:
         r, _ = reprojection_residuals(fx, mu, self.cx, self.cy, T, X, self.view, self.pidx, self.uv)
         return r.ravel()
 
-    def jac(self, x):
+    def blocks(self, x):
+        """Jacobian blocks per observation: intrinsics + pose columns ``self.ocols`` (k, 2, c)
+        and the point block (k, 2, 3)."""
         fx, mu, p, X = self.unpack(x)
         T = self.model.poses(p)
         Jv = self.model.view_jacobian(p)
         Ji, Jt, Jx = projection_blocks(fx, mu, T, X, self.view, self.pidx)
-        blocks = [Ji] if self.ni else []
-        blocks += [Jt @ Jv[self.view], Jx]
-        data = np.concatenate(blocks, axis=2)[self.jmask]
+        Jp = Jt @ Jv[self.view]
+        return (np.concatenate([Ji, Jp], axis=2) if self.ni else Jp), Jx
+
+    def jac(self, x):
+        Jo, Jx = self.blocks(x)
+        data = np.concatenate([Jo, Jx], axis=2)[self.jmask]
         return sp.csr_matrix((data, (self.jrows, self.jcols)), shape=(2 * len(self.view), self.n))
+
+    def normal_equations(self, x, w, r):
+        """``J^T W J`` and ``J^T W r`` for per-observation weights ``w`` (k,) and residuals
+        ``r`` (k, 2): dense (n, n) up to ``_DENSE_MAX`` unknowns, else sparse."""
+        if self.n > _DENSE_MAX:
+            J = self.jac(x)
+            JtW = (J.T @ sp.diags(np.repeat(w, 2))).tocsr()
+            return (JtW @ J).tocsc(), JtW @ r.ravel()
+        Jo, Jx = self.blocks(x)
+        return dense_normal_equations(Jo, self.ocols, Jx, self.pidx, self.n_o, self.n_points, w, r)
+
+
+_DENSE_MAX = 1500
+"""Unknowns up to which the normal equations are formed and factored densely (LU); larger
+problems use sparse matrices and SuperLU."""
+
+
+def dense_normal_equations(
+    Jo: np.ndarray,
+    ocols: np.ndarray,
+    Jx: np.ndarray,
+    pidx: np.ndarray,
+    n_o: int,
+    n_points: int,
+    w: np.ndarray,
+    r: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Dense ``A = J^T W J`` (n, n) and ``g = J^T W r`` for a Jacobian whose two rows per
+    observation hold ``Jo`` (k, 2, c) in the columns ``ocols`` (k, c) (``-1`` = unused) of the
+    first ``n_o`` (global) unknowns and ``Jx`` (k, 2, 3) in the columns ``n_o + 3 pidx + (0..2)``
+    of the point; ``w`` (k,) per-observation weights, ``r`` (k, 2) residuals. The same numbers
+    as the sparse product, with dense BLAS for the global block and bincounts for the rest."""
+    k, _, c = Jo.shape
+    P = int(n_points)
+    n = n_o + 3 * P
+    oc = np.where(ocols >= 0, ocols, n_o)  # unused slots -> a dummy column, dropped below
+    A = np.zeros((n, n))
+    wJo = Jo * w[:, None, None]
+    if n_o * n_o > 50 * c * c:  # few global columns per observation: scatter the local blocks
+        L = np.matmul(wJo.transpose(0, 2, 1), Jo)
+        idx = oc[:, :, None] * (n_o + 1) + oc[:, None, :]
+        Aoo = np.bincount(idx.ravel(), L.ravel(), minlength=(n_o + 1) ** 2)
+        A[:n_o, :n_o] = Aoo.reshape(n_o + 1, n_o + 1)[:n_o, :n_o]
+        go = np.bincount(oc.ravel(), np.einsum("kra,kr->ka", wJo, r).ravel(), minlength=n_o + 1)
+    else:  # observations share most global columns (kinematic chain): dense product
+        D = np.zeros((k, 2, n_o + 1))
+        D[np.arange(k)[:, None, None], np.arange(2)[None, :, None], oc[:, None, :]] = Jo
+        D = D.reshape(2 * k, n_o + 1)[:, :n_o]
+        WD = D * np.repeat(w, 2)[:, None]
+        A[:n_o, :n_o] = WD.T @ D
+        go = WD.T @ r.ravel()
+    wJx = Jx * w[:, None, None]
+    C = np.matmul(Jo.transpose(0, 2, 1), wJx)  # (k, c, 3)
+    idx = (oc[:, :, None] * P + pidx[:, None, None]) * 3 + np.arange(3)
+    Aox = np.bincount(idx.ravel(), C.ravel(), minlength=(n_o + 1) * P * 3)
+    Aox = Aox.reshape(n_o + 1, 3 * P)[:n_o]
+    A[:n_o, n_o:] = Aox
+    A[n_o:, :n_o] = Aox.T
+    Xb = np.matmul(Jx.transpose(0, 2, 1), wJx)  # (k, 3, 3)
+    Axx = np.bincount(
+        (pidx[:, None] * 9 + np.arange(9)).ravel(), Xb.ravel(), minlength=9 * P
+    ).reshape(P, 3, 3)
+    blk = n_o + 3 * np.arange(P)[:, None] + np.arange(3)
+    A[blk[:, :, None], blk[:, None, :]] = Axx
+    g = np.empty(n)
+    g[:n_o] = go[:n_o]
+    g[n_o:] = np.bincount(
+        (3 * pidx[:, None] + np.arange(3)).ravel(),
+        np.einsum("kra,kr->ka", wJx, r).ravel(),
+        minlength=3 * P,
+    )
+    return A, g
+
+
+class DampedSolver:
+    """Solves ``(S A S + lam I) y = S g`` for the Marquardt-scaled normal equations
+    (``S = diag(A)^-1/2``) and returns ``x = S y``: dense LU for an ndarray ``A``, SuperLU
+    (COLAMD) for a sparse one. Raises ``RuntimeError`` when the damped matrix is singular."""
+
+    def __init__(self, A):
+        self.dense = isinstance(A, np.ndarray)
+        diag = np.diag(A) if self.dense else A.diagonal()
+        d = np.maximum(diag, 1e-12 * max(diag.max(), 1e-300))
+        self.s = 1.0 / np.sqrt(d)
+        if self.dense:
+            self.As = A * self.s[:, None] * self.s[None, :]
+        else:
+            S = sp.diags(self.s)
+            self.As = (S @ A @ S).tocsc()
+
+    def solve(self, g: np.ndarray, lam: float) -> np.ndarray:
+        gs = self.s * g
+        if self.dense:
+            M = self.As.copy()
+            M[np.diag_indices_from(M)] += lam
+            try:
+                y = np.linalg.solve(M, gs)
+            except np.linalg.LinAlgError as exc:
+                raise RuntimeError(str(exc)) from None
+            if not np.isfinite(y).all():
+                raise RuntimeError("singular damped normal equations")
+            return self.s * y
+        lu = splu((self.As + lam * sp.eye(len(gs), format="csc")).tocsc(), permc_spec="COLAMD")
+        return self.s * lu.solve(gs)
 
 
 def _loss_weights(e2: np.ndarray, loss: str, f: float) -> tuple[np.ndarray, np.ndarray]:
@@ -575,8 +685,8 @@ def _loss_weights(e2: np.ndarray, loss: str, f: float) -> tuple[np.ndarray, np.n
 
 
 def _levenberg_marquardt(prob, x0, loss, f_scale, max_nfev, tol):
-    """Levenberg-Marquardt (Nielsen damping, Marquardt diagonal scaling) with exact sparse solves
-    of the normal equations (SuperLU, COLAMD ordering). Robust losses are applied to each
+    """Levenberg-Marquardt (Nielsen damping, Marquardt diagonal scaling) with exact solves of the
+    normal equations (dense LU, or SuperLU with COLAMD ordering for large problems). Robust losses are applied to each
     observation's 2-D residual norm by iteratively reweighted least squares."""
     x = np.asarray(x0, dtype=float).copy()
     r = prob.fun(x).reshape(-1, 2)
@@ -585,23 +695,16 @@ def _levenberg_marquardt(prob, x0, loss, f_scale, max_nfev, tol):
     lam, nu = 1e-4, 2.0
     status, message = 0, "maximum number of function evaluations reached"
     while nfev < max_nfev:
-        J = prob.jac(x)
         w = _loss_weights(np.sum(r**2, axis=1), loss, f_scale)[1]
-        Wr = np.repeat(w, 2)
-        JtW = (J.T @ sp.diags(Wr)).tocsr()
-        A = (JtW @ J).tocsc()
-        g = JtW @ r.ravel()
+        A, g = prob.normal_equations(x, w, r)
         if np.max(np.abs(g)) * np.sqrt(len(x)) <= tol * max(cost, 1e-300) ** 0.5 * 1e-3:
             status, message = 1, "gradient tolerance reached"
             break
-        d = np.maximum(A.diagonal(), 1e-12 * max(A.diagonal().max(), 1e-300))
-        S = sp.diags(1.0 / np.sqrt(d))
-        As = (S @ A @ S).tocsc()
+        solver = DampedSolver(A)
         improved = False
         while nfev < max_nfev:
             try:
-                lu = splu((As + lam * sp.eye(len(x), format="csc")).tocsc(), permc_spec="COLAMD")
-                step = -(S @ lu.solve(S @ g))
+                step = -solver.solve(g, lam)
             except RuntimeError:  # singular: damp more
                 lam *= nu
                 nu *= 2
@@ -661,7 +764,8 @@ def bundle_adjust(
     points ``X`` (P, 3).
 
     Rows are observations ``(view, pidx, uv)``; every view used must have a pose in ``model``.
-    ``solver="lm"`` (default): Levenberg-Marquardt with exact sparse normal-equation solves and
+    ``solver="lm"`` (default): Levenberg-Marquardt with exact normal-equation solves (dense up to
+    ``_DENSE_MAX`` unknowns, else sparse) and
     the analytic Jacobian; robust ``loss`` (linear, soft_l1, huber, cauchy; scale ``f_scale_px``)
     on each observation's 2-D residual norm. ``solver="scipy"``:
     :func:`scipy.optimize.least_squares` (trf + lsmr, loss per coordinate), with the analytic
@@ -678,6 +782,8 @@ def bundle_adjust(
             prob, x0, loss, f_scale_px, max_nfev, tol
         )
     elif solver in ("lm", "scipy"):
+        from scipy.optimize import least_squares  # only this path needs it (import costs 0.2 s)
+
         kw = (
             dict(jac=prob.jac)
             if use_analytic

@@ -42,6 +42,7 @@ __all__ = [
     "REFINE_METHODS",
     "make_detector",
     "refine_corners_lines",
+    "refine_corners_lines_batch",
     "DuplicateMarkerWarning",
 ]
 
@@ -111,61 +112,144 @@ def refine_corners_lines(
     the profile across each edge (0.45 module, clamped to 1.5-6 px, inside the black border and
     the white quiet zone). Returns ``None`` if a side has too few usable profiles (contrast below
     ``min_contrast`` grey levels), or the result moved more than 2 px from ``corners``.
+    (One marker of :func:`refine_corners_lines_batch`.)
     """
-    c = np.asarray(corners, dtype=float).reshape(4, 2)
+    c = np.asarray(corners, dtype=float).reshape(1, 4, 2)
+    out = refine_corners_lines_batch(gray, c, n_modules, min_contrast)[0]
+    return None if np.isnan(out).any() else out
+
+
+_STEP = 0.25  # px between samples across an edge
+_REMAP_WIDTH = 4096  # cv2.remap maps must stay below 32767 px per dimension
+
+
+def _masked_median(v: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """Row-wise median of ``v`` (S, n) over ``valid`` entries (equals np.median of each row's
+    valid entries; rows need at least one)."""
+    srt = np.sort(np.where(valid, v, np.inf), axis=1)
+    cnt = valid.sum(axis=1)
+    rows = np.arange(len(v))
+    return 0.5 * (srt[rows, (cnt - 1) // 2] + srt[rows, cnt // 2])
+
+
+def _fit_lines(P: np.ndarray, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Total-least-squares lines through the valid points of each row of ``P`` (S, n, 2), then
+    twice: reject points beyond 3 MAD (+0.05 px) and refit. Returns unit normals (S, 2),
+    offsets (S,) (``n . x = d``) and a success mask (S,) (>= 4 points throughout)."""
+    ok = valid.sum(axis=1) >= 4
+    keep = valid.copy()
+
+    def tls(keep):
+        w = keep.astype(float)
+        cnt = np.maximum(w.sum(axis=1), 1.0)
+        m = np.einsum("sn,snk->sk", w, P) / cnt[:, None]
+        D = (P - m[:, None, :]) * w[..., None]
+        sxx = np.einsum("sn,sn->s", D[..., 0], D[..., 0])
+        syy = np.einsum("sn,sn->s", D[..., 1], D[..., 1])
+        sxy = np.einsum("sn,sn->s", D[..., 0], D[..., 1])
+        th = 0.5 * np.arctan2(2.0 * sxy, sxx - syy)  # direction of the line (largest spread)
+        n_line = np.stack([-np.sin(th), np.cos(th)], axis=1)
+        return m, n_line
+
+    for _ in range(2):
+        m, n_line = tls(keep)
+        res = np.einsum("snk,sk->sn", P - m[:, None, :], n_line)
+        med = _masked_median(res, keep | ~ok[:, None])
+        mad = 1.4826 * _masked_median(np.abs(res - med[:, None]), keep | ~ok[:, None])
+        keep &= np.abs(res) <= 3.0 * mad[:, None] + 0.05
+        ok &= keep.sum(axis=1) >= 4
+    m, n_line = tls(keep)
+    return n_line, np.einsum("sk,sk->s", n_line, m), ok
+
+
+def refine_corners_lines_batch(
+    gray: np.ndarray, corners: np.ndarray, n_modules: int, min_contrast: float = 20.0
+) -> np.ndarray:
+    """:func:`refine_corners_lines` for all markers of one image at once: ``corners`` (n, 4, 2)
+    -> (n, 4, 2), NaN rows for the markers it would return ``None`` for. All edge profiles of
+    all markers are sampled by one ``cv2.remap`` and the lines are fitted together."""
+    c = np.asarray(corners, dtype=float).reshape(-1, 4, 2)
+    n = len(c)
+    out = np.full((n, 4, 2), np.nan)
+    if n == 0:
+        return out
     g = gray if gray.dtype == np.float32 else gray.astype(np.float32)
-    centre = c.mean(axis=0)
-    side = float(np.mean(np.linalg.norm(np.roll(c, -1, axis=0) - c, axis=1)))
-    half_w = float(np.clip(0.45 * side / n_modules, 1.5, 6.0))
-    step = 0.25
-    offs = -half_w + step / 2 + step * np.arange(int(round(2 * half_w / step)))
-    n_end = max(1, len(offs) // 5)
-    lines = []
-    for k in range(4):
-        a, b = c[k], c[(k + 1) % 4]
-        length = float(np.linalg.norm(b - a))
-        if length < 4.0:
-            return None
-        t = (b - a) / length
-        nrm = np.array([-t[1], t[0]])
-        if nrm @ ((a + b) / 2 - centre) < 0:
-            nrm = -nrm  # outward: black (inside) -> white (quiet zone)
-        s = np.linspace(0.15, 0.85, max(8, int(0.7 * length)))
-        base = a + np.outer(s, b - a)
-        pts = (base[:, None, :] + offs[None, :, None] * nrm).astype(np.float32)
-        prof = cv2.remap(
-            g, pts[..., 0], pts[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
-        )
-        black = prof[:, :n_end].mean(axis=1, keepdims=True)
-        white = prof[:, -n_end:].mean(axis=1, keepdims=True)
-        contrast = (white - black)[:, 0]
-        ok = contrast > min_contrast
-        if ok.sum() < 4:
-            return None
-        frac_black = np.clip((white - prof) / np.maximum(white - black, 1e-6), -0.5, 1.5)
-        edge = -half_w + step * frac_black.sum(axis=1)  # exact for any symmetric blur
-        P = (base + edge[:, None] * nrm)[ok]
-        for _ in range(2):  # total least squares line, then reject outliers and refit
-            m = P.mean(axis=0)
-            n_line = np.linalg.svd(P - m)[2][1]
-            res = (P - m) @ n_line
-            mad = 1.4826 * float(np.median(np.abs(res - np.median(res))))
-            keep = np.abs(res) <= 3.0 * mad + 0.05
-            if keep.sum() < 4:
-                return None
-            P = P[keep]
-        m = P.mean(axis=0)
-        n_line = np.linalg.svd(P - m)[2][1]
-        lines.append((n_line, float(n_line @ m)))
-    out = np.empty((4, 2))
-    for k in range(4):  # corner k = side k-1 (ends at corner k) x side k (starts at corner k)
-        (n1, d1), (n2, d2) = lines[k - 1], lines[k]
-        A = np.array([n1, n2])
-        if abs(np.linalg.det(A)) < 1e-6:
-            return None
-        out[k] = np.linalg.solve(A, [d1, d2])
-    if np.abs(out - c).max() > 2.0:
-        return None
+    centre = c.mean(axis=1)  # (n, 2)
+    a = c  # side k runs from corner k to corner k+1
+    b = np.roll(c, -1, axis=1)
+    seg = b - a  # (n, 4, 2)
+    length = np.linalg.norm(seg, axis=2)  # (n, 4)
+    side = length.mean(axis=1)
+    half_w = np.clip(0.45 * side / n_modules, 1.5, 6.0)  # (n,)
+    n_off = np.round(2 * half_w / _STEP).astype(int)  # (n,)
+    n_end = np.maximum(1, n_off // 5)
+    good = (length >= 4.0).all(axis=1)
+    t = seg / np.where(length > 0, length, 1.0)[..., None]
+    nrm = np.stack([-t[..., 1], t[..., 0]], axis=2)
+    flip = np.einsum("nkj,nkj->nk", nrm, (a + b) / 2 - centre[:, None, :]) < 0
+    nrm[flip] *= -1.0  # outward: black (inside) -> white (quiet zone)
+    # profiles: one row per sample along a side, padded to the widest marker's offsets
+    n_s = np.maximum(8, (0.7 * length).astype(int))  # (n, 4)
+    n_s[~good] = 0
+    prof_side = np.repeat(np.arange(4 * n), n_s.ravel())  # side index (marker * 4 + k)
+    if len(prof_side) == 0:
+        return out
+    first = np.repeat(np.cumsum(n_s.ravel()) - n_s.ravel(), n_s.ravel())
+    j = np.arange(len(prof_side)) - first  # sample index along its side
+    ns_p = n_s.ravel()[prof_side]
+    s_p = 0.15 + 0.7 * j / np.maximum(ns_p - 1, 1)  # == np.linspace(0.15, 0.85, n_s)
+    mk = prof_side // 4
+    a_p = a.reshape(-1, 2)[prof_side]
+    base = a_p + s_p[:, None] * seg.reshape(-1, 2)[prof_side]  # (Np, 2)
+    nrm_p = nrm.reshape(-1, 2)[prof_side]
+    hw_p = half_w[mk]
+    no_p = n_off[mk]
+    ne_p = n_end[mk]
+    width = int(n_off.max())
+    col = np.arange(width)
+    offs = -hw_p[:, None] + _STEP / 2 + _STEP * col[None, :]  # (Np, width)
+    pts = (base[:, None, :] + offs[..., None] * nrm_p[:, None, :]).astype(np.float32)
+    flat = pts.reshape(-1, 2)
+    total = len(flat)
+    rows = -(-total // _REMAP_WIDTH)
+    grid = np.zeros((rows * _REMAP_WIDTH, 2), np.float32)
+    grid[:total] = flat
+    grid = grid.reshape(rows, _REMAP_WIDTH, 2)
+    prof = cv2.remap(
+        g, grid[..., 0], grid[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
+    )
+    prof = prof.reshape(-1)[:total].reshape(-1, width).astype(np.float64)
+    inside = col[None, :] < no_p[:, None]
+    prof = np.where(inside, prof, 0.0)
+    cs = np.cumsum(prof, axis=1)
+    r_idx = np.arange(len(prof))
+    black = cs[r_idx, ne_p - 1] / ne_p
+    white = (cs[r_idx, no_p - 1] - cs[r_idx, no_p - 1 - ne_p]) / ne_p
+    contrast = white - black
+    frac_black = np.clip((white[:, None] - prof) / np.maximum(contrast, 1e-6)[:, None], -0.5, 1.5)
+    edge = -hw_p + _STEP * np.where(inside, frac_black, 0.0).sum(axis=1)  # any symmetric blur
+    P = base + edge[:, None] * nrm_p  # (Np, 2)
+    # pad the edge points into (sides, max samples) for the line fits
+    S = 4 * n
+    max_s = int(n_s.max())
+    Ppad = np.zeros((S, max_s, 2))
+    valid = np.zeros((S, max_s), bool)
+    Ppad[prof_side, j] = P
+    valid[prof_side, j] = contrast > min_contrast
+    n_line, d_line, ok = _fit_lines(Ppad, valid)
+    ok = ok.reshape(n, 4) & good[:, None]
+    n_line = n_line.reshape(n, 4, 2)
+    d_line = d_line.reshape(n, 4)
+    # corner k = side k-1 (ends at corner k) x side k (starts at corner k)
+    n1, d1 = np.roll(n_line, 1, axis=1), np.roll(d_line, 1, axis=1)
+    det = n1[..., 0] * n_line[..., 1] - n1[..., 1] * n_line[..., 0]
+    ok_all = ok.all(axis=1) & (np.abs(det) >= 1e-6).all(axis=1)
+    dsafe = np.where(np.abs(det) >= 1e-6, det, 1.0)
+    x = (d1 * n_line[..., 1] - n1[..., 1] * d_line) / dsafe
+    y = (n1[..., 0] * d_line - d1 * n_line[..., 0]) / dsafe
+    res = np.stack([x, y], axis=2)
+    ok_all &= np.abs(res - c).max(axis=(1, 2)) <= 2.0
+    out[ok_all] = res[ok_all]
     return out
 
 
@@ -194,15 +278,9 @@ def detect_markers(
             DuplicateMarkerWarning,
             stacklevel=2,
         )
-    out: dict[int, np.ndarray] = {}
-    n_modules = int(_dictionary(dictionary).markerSize) + 2
-    for i, c in zip(ids.tolist(), corners, strict=True):
-        if i in dups:
-            continue
-        c = np.asarray(c, dtype=np.float64).reshape(4, 2)
-        if refine == "lines":
-            c = refine_corners_lines(gray, c, n_modules)
-            if c is None:
-                continue
-        out[int(i)] = c
-    return out
+    keep = [k for k, i in enumerate(ids.tolist()) if i not in dups]
+    c = np.asarray([corners[k] for k in keep], dtype=np.float64).reshape(-1, 4, 2)
+    if refine == "lines":
+        n_modules = int(_dictionary(dictionary).markerSize) + 2
+        c = refine_corners_lines_batch(gray, c, n_modules)
+    return {int(ids[k]): ck for k, ck in zip(keep, c, strict=True) if not np.isnan(ck).any()}

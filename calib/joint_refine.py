@@ -59,7 +59,10 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
 from calib.bundle_adjust import (
+    _DENSE_MAX,
+    DampedSolver,
     Observations,
+    dense_normal_equations,
     projection_blocks,
     reprojection_residuals,
     so3_left_jacobian,
@@ -352,6 +355,7 @@ class _Problem:
         self.jcols = np.concatenate([cc[self.jmask], srow_cols.ravel(), 2 + self.prior_cols])
         self.shape = (2 * k + 1 + E, self.n)
         self.n_pix = 2 * k
+        self.ocols = ccols[:, :-3]
 
     def unpack(self, x):
         return x[0], x[1], x[2 : 2 + self.np_], x[2 + self.np_ :].reshape(-1, 3)
@@ -369,19 +373,44 @@ class _Problem:
             [r.ravel(), [self.w * (dist - self.d)], self.prior_w * p[self.prior_cols]]
         )
 
-    def jac(self, x):
+    def _blocks(self, x):
         fx, mu, p, X = self.unpack(x)
         T = self.model.poses(p)
         Jv = self.model.view_jacobian(p)
         Ji, Jt, Jx = projection_blocks(fx, mu, T, X, self.view, self.pidx)
-        blocks = np.concatenate([Ji, Jt @ Jv[self.view], Jx], axis=2)
         dist, u = self._scale(X)
         g = self.w * u / max(dist, 1e-300)
         sdata = np.concatenate(
             [np.tile(g / len(self.sa), len(self.sa)), np.tile(-g / len(self.sb), len(self.sb))]
         )
+        return np.concatenate([Ji, Jt @ Jv[self.view]], axis=2), Jx, sdata
+
+    def jac(self, x):
+        Jo, Jx, sdata = self._blocks(x)
+        blocks = np.concatenate([Jo, Jx], axis=2)
         data = np.concatenate([blocks[self.jmask], sdata, self.prior_w])
         return sp.csr_matrix((data, (self.jrows, self.jcols)), shape=self.shape)
+
+    def normal_equations(self, x, w, r):
+        """``J^T W J`` and ``J^T W r`` with weights ``w`` (k,) on the observations (the scale
+        and prior rows unweighted): dense up to ``_DENSE_MAX`` unknowns, else sparse."""
+        if self.n > _DENSE_MAX:
+            J = self.jac(x)
+            wr = np.r_[np.repeat(w, 2), np.ones(self.shape[0] - self.n_pix)]
+            JtW = (J.T @ sp.diags(wr)).tocsr()
+            return (JtW @ J).tocsc(), JtW @ r
+        Jo, Jx, sdata = self._blocks(x)
+        k = len(self.view)
+        A, g = dense_normal_equations(
+            Jo, self.ocols, Jx, self.pidx, 2 + self.np_, self.n_points, w, r[: 2 * k].reshape(k, 2)
+        )
+        scols = self.jcols[len(self.jcols) - len(self.prior_w) - len(sdata) :][: len(sdata)]
+        A[np.ix_(scols, scols)] += np.outer(sdata, sdata)
+        g[scols] += sdata * r[2 * k]
+        pc = 2 + self.prior_cols
+        A[pc, pc] += self.prior_w**2
+        g[pc] += self.prior_w * r[2 * k + 1 :]
+        return A, g
 
 
 def _irls(e2: np.ndarray, loss: str, f: float) -> tuple[np.ndarray, np.ndarray]:
@@ -412,23 +441,17 @@ def _levenberg_marquardt(prob, x0, loss, f_scale, max_iter, tol):
     status, message = 0, "maximum number of iterations reached"
     while it < max_iter:
         it += 1
-        J = prob.jac(x)
         _, w = _cost_weights(r, loss, f_scale, prob.n_pix)
-        JtW = (J.T @ sp.diags(w)).tocsr()
-        A = (JtW @ J).tocsc()
-        g = JtW @ r
-        d = np.maximum(A.diagonal(), 1e-12 * max(A.diagonal().max(), 1e-300))
-        S = sp.diags(1.0 / np.sqrt(d))
-        As = (S @ A @ S).tocsc()
-        gs = S @ g
+        A, g = prob.normal_equations(x, w[: prob.n_pix : 2], r)
+        solver = DampedSolver(A)
+        gs = solver.s * g
         if np.max(np.abs(gs)) <= tol * 1e-3 * max(np.sqrt(2 * cost), 1e-300):
             status, message = 1, "gradient tolerance reached"
             break
         improved = False
         while True:
             try:
-                lu = splu((As + lam * sp.eye(len(x), format="csc")).tocsc(), permc_spec="COLAMD")
-                step = -(S @ lu.solve(gs))
+                step = -solver.solve(g, lam)
             except RuntimeError:
                 lam *= nu
                 nu *= 2
@@ -479,11 +502,15 @@ def _inverse_block(J: sp.csr_matrix, cols: np.ndarray) -> np.ndarray:
     """``(J^T J)^-1`` restricted to ``cols`` (exact sparse solve)."""
     JtJ = (J.T @ J).tocsc()
     dg = np.sqrt(np.maximum(JtJ.diagonal(), 1e-300))
-    Dinv = sp.diags(1.0 / dg)
-    lu = splu((Dinv @ JtJ @ Dinv).tocsc(), permc_spec="COLAMD")
     e = np.zeros((JtJ.shape[0], len(cols)))
     e[cols, np.arange(len(cols))] = 1.0
-    sol = lu.solve(e / dg[:, None]) / dg[:, None]
+    if JtJ.shape[0] <= _DENSE_MAX:  # dense LU: faster than SuperLU at this size
+        M = JtJ.toarray() / dg[:, None] / dg[None, :]
+        sol = np.linalg.solve(M, e / dg[:, None]) / dg[:, None]
+    else:
+        Dinv = sp.diags(1.0 / dg)
+        lu = splu((Dinv @ JtJ @ Dinv).tocsc(), permc_spec="COLAMD")
+        sol = lu.solve(e / dg[:, None]) / dg[:, None]
     out = sol[cols]
     return 0.5 * (out + out.T)
 
