@@ -33,14 +33,15 @@ import argparse
 import csv
 import dataclasses
 import json
-import os
 import sys
 import tempfile
 import time
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures import FIRST_COMPLETED, wait
 from pathlib import Path
 
 import numpy as np
+
+from scenarios.parallel import worker_pool
 
 __all__ = [
     "draw_one",
@@ -56,13 +57,6 @@ __all__ = [
     "register",
 ]
 
-_THREAD_VARS = (
-    "OPENBLAS_NUM_THREADS",
-    "OMP_NUM_THREADS",
-    "MKL_NUM_THREADS",
-    "NUMEXPR_NUM_THREADS",
-    "VECLIB_MAXIMUM_THREADS",
-)
 METHODS = ("joint", "two_stage")
 
 
@@ -195,13 +189,6 @@ def _evaluate(root: Path, pixel_sigma: float) -> dict:
 
 
 # ------------------------------------------------------------------------------ driver
-def _worker_init() -> None:
-    import signal
-
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    os.environ.setdefault("MUJOCO_GL", "egl")
-
-
 def _map(fn, items: list, jobs: int, on_result=None) -> list:
     """``[fn(x) for x in items]`` in ``jobs`` spawned processes (one BLAS thread each)."""
     if jobs <= 1 or len(items) <= 1:
@@ -211,18 +198,8 @@ def _map(fn, items: list, jobs: int, on_result=None) -> list:
             if on_result:
                 on_result(out[-1])
         return out
-    import multiprocessing as mp
-
-    saved = {v: os.environ.get(v) for v in _THREAD_VARS}
-    for v in _THREAD_VARS:
-        os.environ[v] = "1"
-    ex = ProcessPoolExecutor(
-        max_workers=min(jobs, len(items)),
-        mp_context=mp.get_context("spawn"),
-        initializer=_worker_init,
-    )
     results: dict = {}
-    try:
+    with worker_pool(min(jobs, len(items))) as ex:
         futs = {ex.submit(fn, x): i for i, x in enumerate(items)}
         pending = set(futs)
         while pending:
@@ -231,13 +208,6 @@ def _map(fn, items: list, jobs: int, on_result=None) -> list:
                 results[futs[f]] = f.result()
                 if on_result:
                     on_result(results[futs[f]])
-    finally:
-        ex.shutdown(wait=True, cancel_futures=True)
-        for v, val in saved.items():
-            if val is None:
-                os.environ.pop(v, None)
-            else:
-                os.environ[v] = val
     return [results[i] for i in range(len(items))]
 
 

@@ -32,11 +32,13 @@ import sys
 import tempfile
 import time
 from collections.abc import Callable
-from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from concurrent.futures import FIRST_COMPLETED, Future, wait
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+
+from scenarios.parallel import worker_pool
 
 __all__ = ["STUDIES", "Study", "run_one", "run_study", "load_runs", "summarize", "register"]
 
@@ -57,13 +59,6 @@ METRIC_KEYS = (
     "seconds",
 )
 COLUMNS = ("study", "key", *SETTING_KEYS, *METRIC_KEYS)
-_THREAD_VARS = (
-    "OPENBLAS_NUM_THREADS",
-    "OMP_NUM_THREADS",
-    "MKL_NUM_THREADS",
-    "NUMEXPR_NUM_THREADS",
-    "VECLIB_MAXIMUM_THREADS",
-)
 BASE = {
     "render": False,
     "pixel_sigma": 0.25,
@@ -136,13 +131,6 @@ def run_one(settings: dict) -> dict:
         row["status"] = f"failed: {type(exc).__name__}: {str(exc)[:200]}"
     row["seconds"] = round(time.perf_counter() - t0, 3)
     return row
-
-
-def _worker_init() -> None:
-    import signal
-
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C
-    os.environ.setdefault("MUJOCO_GL", "egl")
 
 
 def load_runs(path: Path) -> list[dict]:
@@ -363,17 +351,7 @@ def run_study(
 
 
 def _run_pool(todo: list[dict], jobs: int, record, quiet: bool) -> None:
-    import multiprocessing as mp
-
-    saved = {v: os.environ.get(v) for v in _THREAD_VARS}
-    for v in _THREAD_VARS:
-        os.environ[v] = "1"
-    ex = ProcessPoolExecutor(
-        max_workers=min(jobs, len(todo)),
-        mp_context=mp.get_context("spawn"),
-        initializer=_worker_init,
-    )
-    try:
+    with worker_pool(min(jobs, len(todo))) as ex:
         pending: set[Future] = {ex.submit(run_one, st) for st in todo}
         k = 0
         try:
@@ -396,13 +374,6 @@ def _run_pool(todo: list[dict], jobs: int, record, quiet: bool) -> None:
                     k += 1
                     record(row, k, len(todo))
             raise
-    finally:
-        ex.shutdown(wait=True, cancel_futures=True)
-        for v, val in saved.items():
-            if val is None:
-                os.environ.pop(v, None)
-            else:
-                os.environ[v] = val
 
 
 # ---------------------------------------------------------------------------------- outputs
