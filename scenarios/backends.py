@@ -133,6 +133,25 @@ def planning_inputs(s: Scenario) -> dict:
     }
 
 
+def plan_optimal(s: Scenario, *, collisions: bool = True, **kw):
+    """The D-optimal plan (:class:`calib.optimal_poses.OptimalPlan`, ``q`` rad) for scenario ``s``
+    over the planning grid of :func:`planning_inputs`, checked for self-collision with MuJoCo
+    (:mod:`sim.collision`), with ``corners_per_point = 4 * markers / 36``."""
+    from calib.optimal_poses import plan_optimal_postures
+    from sim.collision import collision_checker
+
+    inp = planning_inputs(s)
+    kw.setdefault("corners_per_point", 4.0 * s.target.markers / len(inp["points_world"]))
+    kw.setdefault("pixel_sigma_px", s.noise.pixel_sigma)
+    return plan_optimal_postures(
+        **inp,
+        n_poses=s.trajectory.poses,
+        seed=s.trajectory.seed,
+        collision_ok=collision_checker(s.robot.model) if collisions else None,
+        **kw,
+    )
+
+
 def plan_dataset(s: Scenario, setup: SimSetup | None = None) -> DatasetInfo:
     """The dataset description: planned trajectory and validation postures (deg).
 
@@ -145,23 +164,7 @@ def plan_dataset(s: Scenario, setup: SimSetup | None = None) -> DatasetInfo:
     W, H = intr.width, intr.height
     scale_ids = tuple(int(i) for i in setup.field.scale_ids) if setup is not None else SCALE_IDS
     if s.trajectory.kind == "optimal":
-        from calib.optimal_poses import plan_optimal_postures
-        from scenarios.montecarlo import collision_checker
-
-        q = plan_optimal_postures(
-            robot,
-            nominal,
-            T_lr,
-            intr,
-            pts,
-            s.trajectory.poses,
-            seed=s.trajectory.seed,
-            min_visible=s.trajectory.min_markers,
-            normals_world=nrm,
-            pixel_sigma_px=s.noise.pixel_sigma,
-            corners_per_point=4 * s.target.markers / len(pts),
-            collision_ok=collision_checker(s.robot.model),
-        ).q
+        q = plan_optimal(s).q
     else:
         q = plan_postures(
             robot,

@@ -23,8 +23,8 @@ Summary (``DIR/summary.md``, ``DIR/summary.json``, ``DIR/montecarlo.png``):
   efficient estimator would show with this many draws (``rms^2`` is a weighted sum of chi-squares;
   Satterthwaite's effective degrees of freedom).
 
-Also here (MuJoCo side of :mod:`calib.optimal_poses`): :func:`collision_checker` /
-:func:`collision_free`, and :func:`plan_optimal` (the optimal plan for a scenario).
+The collision check (:mod:`sim.collision`) and the optimal plan of a scenario
+(:func:`scenarios.backends.plan_optimal`) are re-exported here for the plan comparison.
 """
 
 from __future__ import annotations
@@ -41,7 +41,9 @@ from pathlib import Path
 
 import numpy as np
 
+from scenarios.backends import plan_optimal, planning_inputs
 from scenarios.parallel import worker_pool
+from sim.collision import collision_checker, collision_free
 
 __all__ = [
     "draw_one",
@@ -454,117 +456,7 @@ def plot(rows: list[dict], s: dict, path: Path) -> None:
     plt.close(fig)
 
 
-# ------------------------------------------------------------------------------ collisions
-def collision_checker(robot_name: str, *, table: bool = True, tolerance_m: float = 0.01):
-    """A callback ``ok(q (m, n) rad) -> (m,) bool`` for :mod:`calib.optimal_poses`: False where
-    the nominal robot's MuJoCo collision shapes (:mod:`sim.robot_mjcf`, group 3) of two
-    non-adjacent links penetrate by more than ``tolerance_m`` (the shapes are coarse), or, with
-    ``table``, where a link beyond the turret (arm, wrist, hand, camera rig) goes below the table
-    plane z = 0.
-
-    Adjacent (never checked): parent and child bodies, and two links joined through a link of
-    zero length (the SCORBOT wrist: joints 4 and 5 share their origin, so the forearm's capsule
-    and the hand overlap by construction). Bodies without a joint (the camera rig) belong to the
-    link they are fixed to. So the shapes cannot tell a camera touching the forearm near the
-    wrist (they overlap there at every posture); what is checked is arm against base, turret and
-    the other arm links, and everything against the table.
-    """
-    import mujoco
-
-    from calib.robot_def import load_robot
-    from sim.robot_mjcf import LINK_BODY_NAMES, nominal_camera_model, robot_spec
-
-    robot = load_robot(robot_name)
-    spec = robot_spec(robot, nominal_camera_model(robot))
-    if table:
-        g = spec.worldbody.add_geom()
-        g.name = "collision_table"
-        g.type = mujoco.mjtGeom.mjGEOM_PLANE
-        g.size = [2.0, 2.0, 0.01]
-    for g in spec.geoms:  # collision shapes collide with each other (and the table) only
-        on = g.group == 3 or g.name == "collision_table"
-        g.contype, g.conaffinity = (1, 1) if on else (0, 0)
-    m = spec.compile()
-    m.opt.disableflags &= ~int(mujoco.mjtDisableBit.mjDSBL_FILTERPARENT)  # parent-child: skip
-    d = mujoco.MjData(m)
-    d.qpos[: robot.n] = robot.home
-    mujoco.mj_forward(m, d)
-    links = [m.body(nm).id for nm in LINK_BODY_NAMES[: robot.n]]
-    origin = d.xpos[links]
-    skip = set()
-    for k in range(1, robot.n - 1):  # link k+1 (0-based k) of zero length joins k and k+2
-        if np.linalg.norm(origin[k + 1] - origin[k]) < 1e-3:
-            skip.add(frozenset((links[k - 1], links[k + 1])))
-
-    def link_of(b: int) -> int:  # bodies fixed to a link (no joint) belong to it
-        while b > 0 and m.body_jntnum[b] == 0 and m.body_parentid[b] > 0:
-            b = int(m.body_parentid[b])
-        return b
-
-    owner = np.array([link_of(b) for b in range(m.nbody)])
-    ground = {m.body("base").id, links[0]}  # the pedestal and turret stand on the table
-    table_id = m.geom("collision_table").id if table else -1
-    nq = robot.n
-
-    def ok(q: np.ndarray) -> np.ndarray:
-        q = np.atleast_2d(np.asarray(q, dtype=float))
-        res = np.ones(len(q), bool)
-        for i, qi in enumerate(q):
-            d.qpos[:nq] = qi
-            mujoco.mj_forward(m, d)
-            for c in d.contact[: d.ncon]:
-                g1, g2 = int(c.geom1), int(c.geom2)
-                b1, b2 = int(m.geom_bodyid[g1]), int(m.geom_bodyid[g2])
-                if table_id in (g1, g2):
-                    if (b2 if g1 == table_id else b1) in ground or c.dist >= 0:
-                        continue
-                elif (
-                    c.dist >= -tolerance_m
-                    or owner[b1] == owner[b2]
-                    or frozenset((int(owner[b1]), int(owner[b2]))) in skip
-                    or m.body_parentid[owner[b1]] == owner[b2]
-                    or m.body_parentid[owner[b2]] == owner[b1]
-                ):
-                    continue
-                res[i] = False
-                break
-        return res
-
-    return ok
-
-
-def collision_free(robot_name: str, q: np.ndarray) -> np.ndarray:
-    """(m,) bool: postures ``q`` (m, n) rad free of self-collision and table contact (see
-    :func:`collision_checker`; builds the checker each call -- keep one for many calls)."""
-    return collision_checker(robot_name)(q)
-
-
-# ------------------------------------------------------------------------------ optimal plans
-def planning_inputs(s) -> dict:
-    """What :func:`scenarios.backends.plan_dataset` plans with (the same function)."""
-    from scenarios.backends import planning_inputs as _planning_inputs
-
-    return _planning_inputs(s)
-
-
-def plan_optimal(s, *, collisions: bool = True, **kw):
-    """The D-optimal plan (:class:`calib.optimal_poses.OptimalPlan`, ``q`` rad) for scenario
-    ``s`` over the planning grid of :func:`scenarios.backends.plan_dataset`, with the MuJoCo
-    collision check and ``corners_per_point = 4 * markers / 36``."""
-    from calib.optimal_poses import plan_optimal_postures
-
-    inp = planning_inputs(s)
-    kw.setdefault("corners_per_point", 4.0 * s.target.markers / len(inp["points_world"]))
-    kw.setdefault("pixel_sigma_px", s.noise.pixel_sigma)
-    return plan_optimal_postures(
-        **inp,
-        n_poses=s.trajectory.poses,
-        seed=s.trajectory.seed,
-        collision_ok=collision_checker(s.robot.model) if collisions else None,
-        **kw,
-    )
-
-
+# ------------------------------------------------------------------------------ bounds of plans
 def predicted_bound(s, q: np.ndarray) -> dict:
     """The Cramer-Rao bounds (mm, deg) of a plan ``q`` (m, n) rad before acquisition, from the
     simulator's actual robot and marker field (:func:`calib.bounds.predicted_setup`): the
