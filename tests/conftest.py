@@ -1,5 +1,89 @@
-"""Shared test setup: headless rendering through MuJoCo's EGL backend unless told otherwise."""
+"""Shared test setup: headless rendering through MuJoCo's EGL backend, and the golden-file option.
 
+Tiers (see README): ``tests/unit`` pure functions, ``tests/integration`` whole paths on small data,
+``tests/slow`` rendering-heavy studies and Monte Carlo. ``uv run pytest`` runs the first two;
+``.ci/run`` runs all three.
+"""
+
+from __future__ import annotations
+
+import json
+import math
 import os
+from pathlib import Path
+
+import pytest
 
 os.environ.setdefault("MUJOCO_GL", "egl")
+
+GOLDEN_DIR = Path(__file__).resolve().parent / "golden"
+
+# Keys whose values are measurements of this machine, not results of the estimation.
+VOLATILE_KEYS = frozenset({"seconds"})
+
+
+def pytest_addoption(parser: pytest.Parser) -> None:
+    parser.addoption(
+        "--regen-golden",
+        action="store_true",
+        help="rewrite tests/golden/* from the current code instead of comparing against them",
+    )
+
+
+@pytest.fixture
+def golden(request: pytest.FixtureRequest):
+    """``golden(name, produced_dict)``: compare with tests/golden/<name> (or rewrite it)."""
+    regen = request.config.getoption("--regen-golden")
+
+    def check(name: str, produced: dict, *, rtol: float = 1e-6, atol: float = 1e-9) -> None:
+        path = GOLDEN_DIR / name
+        if regen:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_text(json.dumps(produced, indent=1, sort_keys=True) + "\n")
+            return
+        if not path.exists():
+            pytest.fail(f"{path} missing: run pytest with --regen-golden once to write it")
+        expected = json.loads(path.read_text())
+        problems = compare_json(expected, json.loads(json.dumps(produced)), rtol=rtol, atol=atol)
+        assert not problems, f"{name} differs from the golden file:\n" + "\n".join(problems[:40])
+
+    return check
+
+
+def compare_json(expected, actual, *, rtol: float, atol: float, path: str = "") -> list[str]:
+    """Differences between two JSON trees: numbers within ``atol + rtol * max(|a|, |b|)``.
+
+    Keys of ``expected`` must be present in ``actual`` (new keys are allowed); strings, booleans
+    and None must be equal; VOLATILE_KEYS are skipped.
+    """
+    out: list[str] = []
+    if isinstance(expected, dict):
+        if not isinstance(actual, dict):
+            return [f"{path}: expected an object, got {type(actual).__name__}"]
+        for k, v in expected.items():
+            if k in VOLATILE_KEYS:
+                continue
+            if k not in actual:
+                out.append(f"{path}.{k}: missing")
+                continue
+            out += compare_json(v, actual[k], rtol=rtol, atol=atol, path=f"{path}.{k}")
+        return out
+    if isinstance(expected, list):
+        if not isinstance(actual, list) or len(actual) != len(expected):
+            return [f"{path}: expected a list of {len(expected)}, got {actual!r:.60}"]
+        for i, (e, a) in enumerate(zip(expected, actual)):
+            out += compare_json(e, a, rtol=rtol, atol=atol, path=f"{path}[{i}]")
+        return out
+    numeric = (int, float)
+    if isinstance(expected, numeric) and not isinstance(expected, bool):
+        if not isinstance(actual, numeric) or isinstance(actual, bool):
+            return [f"{path}: expected a number, got {actual!r}"]
+        if math.isnan(expected) and math.isnan(actual):
+            return []
+        tol = atol + rtol * max(abs(expected), abs(actual))
+        if not abs(expected - actual) <= tol:
+            return [f"{path}: {actual!r} != golden {expected!r} (tolerance {tol:.3g})"]
+        return []
+    if expected != actual:
+        return [f"{path}: {actual!r} != golden {expected!r}"]
+    return []
