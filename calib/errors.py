@@ -1,0 +1,69 @@
+"""The one exception root of scorbot-selfcal and its four kinds.
+
+Every error the project raises on purpose derives from :class:`SelfCalError`. Its message names
+the file, key, row or quantity at fault; ``fix`` (optional) says what the user can do about it.
+The command line catches the root, prints ``message`` and ``fix`` and exits with the kind's
+``exit_code`` (README: "Exit codes"). The kinds keep the builtin they used to be (``ValueError``
+for bad input, ``RuntimeError`` otherwise) so ``except ValueError`` in callers still works.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "SelfCalError",
+    "InputError",
+    "EstimationError",
+    "SolverError",
+    "HardwareError",
+    "SelfCalWarning",
+    "EXIT_OK",
+    "EXIT_INTERNAL",
+    "EXIT_INTERRUPTED",
+]
+
+EXIT_OK = 0
+EXIT_INTERNAL = 1
+"""An error the project did not raise on purpose: a bug (``SELFCAL_DEBUG=1`` shows the trace)."""
+EXIT_INTERRUPTED = 130
+
+
+class SelfCalError(Exception):
+    """Root of every error raised on purpose. ``fix``: what the user can do, or None."""
+
+    exit_code: int = EXIT_INTERNAL
+
+    def __init__(self, message: str = "", *, fix: str | None = None) -> None:
+        super().__init__(message)
+        self.fix = fix
+
+    def __str__(self) -> str:
+        text = super().__str__()
+        return f"{text} (fix: {self.fix})" if self.fix else text
+
+
+class InputError(SelfCalError, ValueError):
+    """Bad input: a scenario, dataset, robot file, calibration file or command-line argument."""
+
+    exit_code = 2
+
+
+class EstimationError(SelfCalError, RuntimeError):
+    """The data cannot determine what was asked: too few views, degenerate geometry, no
+    convergence, a result worse than the nominal model."""
+
+    exit_code = 3
+
+
+class SolverError(EstimationError):
+    """The least-squares engine stopped on non-finite numbers or an unsolvable system; the
+    message names the residual or parameter block."""
+
+
+class HardwareError(SelfCalError, RuntimeError):
+    """The robot, its controller, the serial link or a camera failed."""
+
+    exit_code = 4
+
+
+class SelfCalWarning(UserWarning):
+    """Root of the project's warnings (something the user should know; never data)."""
