@@ -5,7 +5,7 @@ and in cv2.aruco's order (top-left, top-right, bottom-right, bottom-left of the 
 matching ``sim.markers.MarkerField.corners_world``.
 
 Refinement methods (measured on rendered views 0.25-0.4 m from the field, 136 corners, markers
-30-90 px wide; error = detection - analytic projection, see tests/test_projection.py):
+30-90 px wide; error = detection - analytic projection, see tests/integration/test_projection.py):
 
 =========  ========  ==================  ========
 method     RMS (px)  mean x, y (px)      max (px)

@@ -5,7 +5,7 @@ What is computed (all positions in mm, of the tool tip = origin of the last DH f
 - Table II: the nominal er4u-paper model's tool tip at the five Table II postures. The postures
   are solved by IK holding the CARTESIAN tool pitch/roll of Table II row 1 (-138.54 deg, 0 deg,
   what FK gives at Table I's joint angles). Table II's "Pitch (theta4) = -63.54 deg" read as the
-  joint angle makes row 2 unreachable by 7.324 mm (see ``tests/test_paper_tables.py``); the table
+  joint angle makes row 2 unreachable by 7.324 mm (see ``tests/unit/test_paper_tables.py``); the table
   lists that distance per row.
 - Tables III/IV: the simulated actual robot (nominal + injected errors) is driven along a
   trajectory whose first five frames ARE the Table II postures, then self-calibrated. "Measured by

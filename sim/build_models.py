@@ -9,7 +9,7 @@ Run ``python -m sim.build_models`` after changing ``models/robots/*.toml``, ``si
   (``make_marker_field()``), whose textures are written to ``assets/aruco_<id>.png``;
 - ``er4u.png``: a picture of the robot at ``home`` over the marker field, with both camera views.
 
-The XML files are derived artefacts: ``tests/test_mjcf.py`` regenerates them and compares. Every
+The XML files are derived artefacts: ``tests/integration/test_mjcf.py`` regenerates them and compares. Every
 pose that matters for kinematics or measurement (bodies, sites, cameras, named geoms such as the
 marker tiles, joint ranges, keyframes) is written with full float64 precision (MuJoCo's own writer
 keeps 6 significant digits), so the committed model reproduces the MCPC frames to 1e-15 m.

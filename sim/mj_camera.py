@@ -20,7 +20,7 @@ the "image centre" MuJoCo measures from is the geometric centre ``(W/2, H/2)`` i
 coordinates (pixel centres at half-integers), which is ``((W-1)/2, (H-1)/2)`` in OpenCV's
 (pixel centres at integers): the half-pixel offset is absorbed here. Reading the vertical sign
 off the MuJoCo source is error-prone (the frustum top/bottom assignment differs between
-renderers and versions); ``tests/test_projection.py`` pins it: a wrong sign shows up as a
+renderers and versions); ``tests/integration/test_projection.py`` pins it: a wrong sign shows up as a
 2 |cy - (H-1)/2| px error, a wrong half-pixel as a 0.5 px bias.
 
 MuJoCo stores intrinsics as float32: values that are not exactly representable are rounded

@@ -141,7 +141,7 @@ def add_scene(spec: mujoco.MjSpec, field: MarkerField, shadows: bool = False) ->
     bar.rgba = list(_BAR_RGBA)
 
     # marker tiles: thin boxes whose top face carries the texture (upright image: texture
-    # columns along marker +x, rows along marker -y; pinned by tests/test_projection.py)
+    # columns along marker +x, rows along marker -y; pinned by tests/integration/test_projection.py)
     tile = field.tile_size_m
     for row, mid in enumerate(field.ids):
         img = marker_texture_rgb(

@@ -27,7 +27,7 @@ from hw.emulator import AclEmulator, KinematicBackend
 from hw.encoders import ER4U_HOME_DEG, EncoderTable
 from scenarios.robot import Robot, RobotError, StereoPair
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 ENC = EncoderTable.er4u()
 HOME = np.array(ER4U_HOME_DEG)
 

@@ -12,6 +12,7 @@ from scenarios.pipeline import run_acquire, run_calibrate, run_report
 pytestmark = pytest.mark.render
 
 
+@pytest.mark.slow
 def test_default_scenario_rendered_matches_golden(tmp_path, golden):
     run_acquire(load_scenario(), tmp_path, quiet=True)
     run_calibrate(tmp_path, quiet=True)

@@ -100,6 +100,7 @@ def runs(tmp_path_factory, backend):
     }
 
 
+@pytest.mark.slow
 def test_same_scenario_but_the_flag(runs):
     a, b = scenario_to_dict(runs["s_hw"]), scenario_to_dict(runs["s_sim"])
     assert a["robot"]["backend"] == "hardware" and b["robot"]["backend"] == "sim"
@@ -107,6 +108,7 @@ def test_same_scenario_but_the_flag(runs):
     assert a == b
 
 
+@pytest.mark.slow
 def test_hardware_dataset_has_the_sim_format_and_no_truth(runs):
     hw, sim = runs["hw"], runs["sim"]
     assert not (hw / "truth.json").exists() and (sim / "truth.json").exists()
@@ -125,6 +127,7 @@ def test_hardware_dataset_has_the_sim_format_and_no_truth(runs):
     assert img.shape == (480, 640, 3) and img.std() > 10  # a rendered scene, not a blank frame
 
 
+@pytest.mark.slow
 def test_joints_are_the_encoder_readings_of_where_the_arm_rests(runs, backend):
     """joints.csv = the commanded targets in counts, read back; the simulated arm rests within
     the encoder resolution of them (so the dataset's joints carry real quantisation only)."""
@@ -139,6 +142,7 @@ def test_joints_are_the_encoder_readings_of_where_the_arm_rests(runs, backend):
     assert np.all(err.max(0) > enc.resolution_deg * 0.2)  # and the jitter is really there
 
 
+@pytest.mark.slow
 def test_calibrated_model_against_truth_and_the_sim_backend(runs, backend):
     """Calibrated tool-tip error of the hardware path within 1.5x the sim backend's on the same
     scenario, both measured on the union of the two datasets' validation postures (40, never
@@ -205,6 +209,7 @@ FAULTS = {
 }
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", list(FAULTS))
 def test_fault_stops_cleanly_and_resume_completes(kind, tmp_path, backend):
     fault, cause, link_alive = FAULTS[kind]

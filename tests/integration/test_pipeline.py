@@ -90,7 +90,7 @@ def test_non_parallel_axes_that_dh_cannot_represent(tmp_path):
     assert cal["dh"] is None and "2" in cal["dh_note"]
 
 
-def check_accuracy(rep, *, rms_max=0.4, factor=5.0, fx_rel=0.005):
+def check_accuracy(rep, *, rms_max: float, factor: float, fx_rel: float):
     tt = rep["validation"]["tool_tip_error_mm"]
     assert tt["calibrated"]["rms"] <= rms_max, tt
     assert tt["calibrated"]["rms"] * factor <= tt["nominal"]["rms"], tt
@@ -101,20 +101,21 @@ def check_accuracy(rep, *, rms_max=0.4, factor=5.0, fx_rel=0.005):
 
 @pytest.mark.render
 def test_default_scenario_rendered(tmp_path):
-    """The default scenario: rendered images with the default sensor noise."""
+    """The default scenario: rendered images with the default sensor noise. Achieves 0.064 mm
+    RMS (24x below nominal) and fx within 6e-5 (README); asserted at ~3x those."""
     out, rep = run(tmp_path, "default")
-    check_accuracy(rep)
+    check_accuracy(rep, rms_max=0.19, factor=8.0, fx_rel=2e-4)
     assert rep["observation"] == "images"
     assert len(rep["table_iv"]) == 5
 
 
 def test_analytic_path_with_half_pixel_noise(tmp_path):
-    """0.5 px corner noise, the default scenario's seeds. The Cramer-Rao bound of the tool-tip
-    RMS for these 30 postures is about 0.25 mm (4.6x below nominal), so the 5x factor holds for
-    this draw (0.18 mm) but not for every noise draw; tests/test_joint_refine.py checks the
-    estimator against the bound over several draws."""
+    """0.5 px corner noise, the default scenario's seeds: 0.10 mm RMS (15x below nominal; the
+    Cramer-Rao bound for these 30 postures is 0.23 mm, so this draw is a lucky one), asserted at
+    ~3x; tests/integration/test_joint_refine.py checks the estimator against the bound over
+    several draws."""
     out, rep = run(tmp_path, "analytic", noise={"render": False, "pixel_sigma": 0.5})
-    check_accuracy(rep)
+    check_accuracy(rep, rms_max=0.3, factor=5.0, fx_rel=2e-4)
     assert 0.45 < rep["effective_corner_noise_px"] < 0.55
 
 

@@ -88,9 +88,7 @@ def test_table_two_with_joint_four_fixed(robot):
             analytic = rho - (a2 + L)
             assert np.linalg.norm(tip - p) == pytest.approx(analytic, abs=1e-12)
             assert dist == pytest.approx(analytic, abs=1e-9)  # numeric optimum = analytic, 1e-6 mm
-            assert dist * 1000 == pytest.approx(7.324, abs=0.001)
-            assert rho * 1000 == pytest.approx(342.048, abs=0.001)
-            assert (a2 + L) * 1000 == pytest.approx(334.725, abs=0.001)
+            assert analytic > 5e-3  # row 2 is millimetres out of reach, not a rounding matter
         else:
             assert dist < 1e-9, f"row {i + 1}: nearest reachable point {dist * 1000:.6f} mm away"
             assert rho < a2 + L

@@ -30,6 +30,7 @@ def quick_poses(tmp_path_factory):
     return out
 
 
+@pytest.mark.slow
 def test_error_falls_as_poses_increase(quick_poses):
     rows = studies.load_runs(quick_poses / "runs.csv")
     assert len(rows) == 6
@@ -41,6 +42,7 @@ def test_error_falls_as_poses_increase(quick_poses):
     np.testing.assert_allclose(nom[8], nom[40], rtol=1e-9)
 
 
+@pytest.mark.slow
 def test_outputs_parse(quick_poses):
     with open(quick_poses / "runs.csv", newline="") as fh:
         header = next(csv.reader(fh))
@@ -50,6 +52,7 @@ def test_outputs_parse(quick_poses):
     assert "| calibrated | 8 | 3 | 0 |" in md and "| calibrated | 40 | 3 | 0 |" in md
 
 
+@pytest.mark.slow
 def test_resume_does_not_redo_finished_runs(quick_poses, monkeypatch):
     calls = []
     monkeypatch.setattr(studies, "run_one", lambda st: calls.append(st) or {})

@@ -350,6 +350,7 @@ def _robot_pixels(model, data, renderer, bodies: set[int]) -> dict[str, int]:
         ("er4u-vendor", ("link4", "link5", "rig")),  # wrist, gripper, rig never in view
     ],
 )
+@pytest.mark.slow
 def test_cameras_do_not_see_the_robot(name, hidden):
     """Home and random working postures (home +-30/20/20/30/90 deg): segmentation rendering of
     both cameras contains no pixel of the listed robot bodies. (The vendor home looks down near
