@@ -40,7 +40,6 @@ from calib.kinematics import fk_frames, fk_tool, identification_jacobian
 from calib.mcpc import MCPCModel, minimal_indices, param_names
 from calib.robot_def import RobotDef
 from calib.trajectory import (
-    DEFAULT_SPAN_DEG,
     DegenerateTrajectoryError,
     check_not_degenerate,
     plan_postures,
@@ -219,7 +218,7 @@ def plan_optimal_postures(
     seed: int,
     min_visible: int,
     normals_world: np.ndarray | None = None,
-    span_deg: tuple[float, ...] = DEFAULT_SPAN_DEG,
+    span: np.ndarray | None = None,
     n_candidates: int = 3000,
     collision_ok: Callable[[np.ndarray], np.ndarray] | None = None,
     pixel_sigma_px: float = 0.5,
@@ -260,7 +259,7 @@ def plan_optimal_postures(
         seed=seed,
         min_visible=min_visible,
         normals_world=normals_world,
-        span_deg=span_deg,
+        span=span,
     )
     rejected = 0
     if collision_ok is not None:

@@ -20,7 +20,14 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
-__all__ = ["RobotDef", "load_robot", "list_robots", "models_dir", "RobotDefinitionError"]
+__all__ = [
+    "RobotDef",
+    "SimulationGains",
+    "load_robot",
+    "list_robots",
+    "models_dir",
+    "RobotDefinitionError",
+]
 
 JOINT_TYPES = ("revolute", "prismatic")
 
@@ -39,6 +46,29 @@ def list_robots() -> list[str]:
     return sorted(p.stem for p in (models_dir() / "robots").glob("*.toml"))
 
 
+DEFAULT_SPAN_DEG = 45.0
+"""Planning half-window of a revolute joint whose robot file has no ``[planning] span_deg``."""
+DEFAULT_SPAN_MM = 100.0
+"""Planning half-window of a prismatic joint whose robot file has no ``[planning] span_deg``."""
+DEFAULT_KP, DEFAULT_KV, DEFAULT_ARMATURE = 200.0, 20.0, 0.05
+"""Simulation gains of a joint whose robot file has no ``[simulation]`` table (SI units)."""
+
+
+@dataclass(frozen=True)
+class SimulationGains:
+    """Per-joint MuJoCo position-actuator gains and joint armature (robot file ``[simulation]``).
+
+    Attributes:
+        kp: (n,) stiffness, N m/rad (N/m for a prismatic joint).
+        kv: (n,) damping, N m s/rad (N s/m).
+        armature: (n,) reflected rotor inertia, kg m^2 (kg).
+    """
+
+    kp: np.ndarray
+    kv: np.ndarray
+    armature: np.ndarray
+
+
 @dataclass(frozen=True)
 class RobotDef:
     """Nominal kinematics of a serial robot, SI units.
@@ -55,6 +85,10 @@ class RobotDef:
         home: (n,) home posture (rad or m).
         counts_per_unit: (n,) encoder counts per rad (or per m); used to quantise read-back.
         T_flange_cam: 4x4 pose of the left camera (OpenCV convention) in the flange (last DH) frame.
+        planning_span: (n,) half-width (rad or m) of the window around ``home`` in which the
+            trajectory planner draws postures (``[planning] span_deg``: deg, or mm for a
+            prismatic joint, like ``home_deg``).
+        simulation: actuator gains and armature for the MuJoCo model (``[simulation]``).
     """
 
     name: str
@@ -69,6 +103,8 @@ class RobotDef:
     home: np.ndarray
     counts_per_unit: np.ndarray
     T_flange_cam: np.ndarray
+    planning_span: np.ndarray
+    simulation: SimulationGains
 
     @property
     def n(self) -> int:
@@ -100,6 +136,23 @@ def _vec3(table: dict, key: str, where: str) -> np.ndarray:
         v = None
     if v is None or v.shape != (3,):
         raise RobotDefinitionError(f"{where}: '{key}' must be a list of 3 numbers")
+    return v
+
+
+def _per_joint(table: dict, key: str, n: int, where: str, *, default: np.ndarray) -> np.ndarray:
+    """``table[key]`` as n positive finite numbers (or ``default`` when the key is absent)."""
+    if not isinstance(table, dict):
+        raise RobotDefinitionError(f"{where} must be a table")
+    if key not in table:
+        return np.asarray(default, dtype=float)
+    try:
+        v = np.asarray(table[key], dtype=float)
+    except (TypeError, ValueError):
+        v = None
+    if v is None or v.shape != (n,) or not np.all(np.isfinite(v)) or np.any(v <= 0):
+        raise RobotDefinitionError(
+            f"{where}: '{key}' must be {n} positive numbers (one per joint), got {table[key]!r}"
+        )
     return v
 
 
@@ -169,6 +222,21 @@ def load_robot(name_or_path: str | Path) -> RobotDef:
     cpd = np.asarray(data.get("encoder", {}).get("counts_per_deg", [np.inf] * n), dtype=float)
     if cpd.shape != (n,) or np.any(cpd <= 0):
         raise RobotDefinitionError(f"{path}: encoder.counts_per_deg must be {n} positive numbers")
+    revolute = np.array([t == "revolute" for t in types])
+    planning_span = _per_joint(
+        data.get("planning", {}),
+        "span_deg",
+        n,
+        f"{path}: [planning]",
+        default=np.where(revolute, DEFAULT_SPAN_DEG, DEFAULT_SPAN_MM),
+    )
+    sim = data.get("simulation", {})
+    where_sim = f"{path}: [simulation]"
+    gains = SimulationGains(
+        kp=_per_joint(sim, "kp", n, where_sim, default=np.full(n, DEFAULT_KP)),
+        kv=_per_joint(sim, "kv", n, where_sim, default=np.full(n, DEFAULT_KV)),
+        armature=_per_joint(sim, "armature", n, where_sim, default=np.full(n, DEFAULT_ARMATURE)),
+    )
     mount = data.get("camera_mount")
     if not isinstance(mount, dict):
         raise RobotDefinitionError(f"{path}: needs a [camera_mount] table")
@@ -185,6 +253,8 @@ def load_robot(name_or_path: str | Path) -> RobotDef:
         home=home * unit_vec,
         counts_per_unit=cpd / unit_vec,
         T_flange_cam=_camera_mount(mount, f"{path}: [camera_mount]"),
+        planning_span=planning_span * unit_vec,
+        simulation=gains,
     )
     try:
         robot.check_joints(robot.home)

@@ -26,11 +26,6 @@ __all__ = [
     "check_not_degenerate",
 ]
 
-DEFAULT_SPAN_DEG = (60.0, 45.0, 60.0, 80.0, 270.0)
-"""Half-width of the sampling window around the home posture, per joint (deg). Wide windows
-give varied viewing directions: at 0.5 px corner noise, widening it from (25, 30, 40, 45, 90)
-lowered the Cramer-Rao bound of the tool tip and the achieved error about twofold."""
-
 
 class DegenerateTrajectoryError(ValueError):
     """The postures cannot calibrate the camera (e.g. all optical axes meet in one point)."""
@@ -81,7 +76,7 @@ def plan_postures(
     seed: int,
     min_visible: int,
     normals_world: np.ndarray | None = None,
-    span_deg: tuple[float, ...] = DEFAULT_SPAN_DEG,
+    span: np.ndarray | None = None,
     max_candidates: int = 200_000,
 ) -> np.ndarray:
     """Random in-range postures around home in which both cameras see ``min_visible`` points.
@@ -90,13 +85,16 @@ def plan_postures(
         model_cam: nominal MCPC model whose tool is the left camera (OpenCV frame).
         T_left_right: pose of the right camera in the left camera's frame.
         points_world: (k, 3) points on the target (m), e.g. marker centres.
+        span: (n,) half-width (rad, or m for a prismatic joint) of the window around home in
+            which postures are drawn; default ``robot.planning_span`` (robot file
+            ``[planning] span_deg``).
     Returns:
         (n_poses, n) joint vectors (rad), deterministic for a seed.
     Raises:
         DegenerateTrajectoryError: not enough such postures exist in the sampling window.
     """
     rng = np.random.default_rng(seed)
-    span = np.radians(np.asarray(span_deg, dtype=float))
+    span = robot.planning_span if span is None else np.asarray(span, dtype=float)
     lo = np.maximum(robot.limits[:, 0], robot.home - span)
     hi = np.minimum(robot.limits[:, 1], robot.home + span)
     found: list[np.ndarray] = []

@@ -1,13 +1,17 @@
-"""(Re)write the committed MJCF files of ``models/scorbot_er4u/`` from the robot TOML files.
+"""(Re)write the committed MJCF files of ``models/<folder>/`` from the robot TOML files.
+
+Which robots get files, where, and which folder gets the scene is data: each robot file's
+``[mjcf]`` table (``folder``, ``scene``, ``picture``, ``title``).
 
 Run ``python -m sim.build_models`` after changing ``models/robots/*.toml``, ``sim/robot_mjcf.py``,
 ``sim/scene.py`` or ``sim/markers.py``. It writes
 
-- ``er4u-paper.xml``, ``er4u-vendor.xml``: each robot alone, nominal (``robot_spec`` of
+- ``<name>.xml``: each robot alone, nominal (``robot_spec`` of
   ``dh_to_mcpc(robot).with_tool(robot.T_flange_cam)``);
-- ``scene.xml``: includes ``er4u-paper.xml`` and adds table, lights and the default marker field
-  (``make_marker_field()``), whose textures are written to ``assets/aruco_<id>.png``;
-- ``er4u.png``: a picture of the robot at ``home`` over the marker field, with both camera views.
+- ``scene.xml`` (the robot with ``scene = true``): includes its XML and adds table, lights and the
+  default marker field (``make_marker_field()``), whose textures are written to
+  ``assets/aruco_<id>.png``;
+- the ``picture``: the robot at ``home`` over the marker field, with both camera views.
 
 The XML files are derived artefacts: ``tests/integration/test_mjcf.py`` regenerates them and compares. Every
 pose that matters for kinematics or measurement (bodies, sites, cameras, named geoms such as the
@@ -22,22 +26,34 @@ import os
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 import argparse  # noqa: E402
+import sys  # noqa: E402
 import xml.etree.ElementTree as ET  # noqa: E402
+from dataclasses import dataclass  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import cv2  # noqa: E402
 import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
-from calib.robot_def import load_robot, models_dir  # noqa: E402
+from calib.robot_def import (  # noqa: E402
+    RobotDefinitionError,
+    list_robots,
+    load_robot,
+    models_dir,
+)
 from sim.markers import MarkerField, make_marker_field, marker_texture_rgb  # noqa: E402
 from sim.robot_mjcf import RigConfig, nominal_camera_model, robot_spec  # noqa: E402
 from sim.scene import PIXELS_PER_MODULE, scene_spec  # noqa: E402
 
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
 __all__ = [
-    "MODEL_DIR",
+    "MjcfEntry",
+    "mjcf_entries",
     "ROBOT_MODELS",
-    "SCENE_ROBOT",
     "nominal_camera_model",
     "robot_xml",
     "scene_xml",
@@ -46,10 +62,54 @@ __all__ = [
     "main",
 ]
 
-MODEL_DIR = models_dir() / "scorbot_er4u"
-ROBOT_MODELS = ("er4u-paper", "er4u-vendor")
-SCENE_ROBOT = "er4u-paper"
-PICTURE = "er4u.png"
+
+@dataclass(frozen=True)
+class MjcfEntry:
+    """A robot's generated MuJoCo files, from its robot file's ``[mjcf]`` table.
+
+    ``folder``: ``models/<folder>/`` holds ``<name>.xml``; ``scene``: this robot's folder also gets
+    ``scene.xml`` (the robot over the default marker field) and the picture ``picture``;
+    ``title``: the robot's name in the scene file's comment.
+    """
+
+    name: str
+    folder: Path
+    scene: bool
+    picture: str | None
+    title: str
+
+
+def mjcf_entries() -> list[MjcfEntry]:
+    """Every robot in ``models/robots`` whose file has an ``[mjcf]`` table (sorted by name)."""
+    out = []
+    for name in list_robots():
+        path = models_dir() / "robots" / f"{name}.toml"
+        table = tomllib.loads(path.read_text()).get("mjcf")
+        if table is None:
+            continue
+        try:
+            out.append(
+                MjcfEntry(
+                    name=name,
+                    folder=models_dir() / str(table["folder"]),
+                    scene=bool(table.get("scene", False)),
+                    picture=table.get("picture"),
+                    title=str(table.get("title", name)),
+                )
+            )
+        except KeyError as exc:
+            raise RobotDefinitionError(f"{path}: [mjcf] needs the key {exc}") from exc
+    scenes = [e for e in out if e.scene]
+    if len({e.folder for e in scenes}) != len(scenes):
+        raise RobotDefinitionError(
+            "two robots ask for scene.xml in the same folder: "
+            + ", ".join(f"{e.name} -> {e.folder}" for e in scenes)
+        )
+    return out
+
+
+ROBOT_MODELS = tuple(e.name for e in mjcf_entries())
+"""Robots with committed MJCF files."""
 
 
 def _fmt(x: float) -> str:
@@ -135,14 +195,16 @@ def _marker_assets(field: MarkerField) -> dict[str, np.ndarray]:
     }
 
 
-def scene_xml(field: MarkerField, robot_file: str, asset_dir: Path) -> str:
+def scene_xml(
+    field: MarkerField, robot_file: str, asset_dir: Path, title: str = "", model_name: str = "scene"
+) -> str:
     """MJCF text of the scene for ``field`` that includes ``robot_file``.
 
     The marker textures must already exist under ``asset_dir`` (the directory the scene file will
     live in) as returned by ``_marker_assets``; MuJoCo reads them while writing.
     """
     spec = scene_spec(field)
-    spec.modelname = "scorbot_er4u scene"
+    spec.modelname = model_name
     spec.modelfiledir = str(asset_dir)
     for tex in spec.textures:
         if tex.name.startswith("aruco_tex_"):
@@ -156,32 +218,38 @@ def scene_xml(field: MarkerField, robot_file: str, asset_dir: Path) -> str:
     text = f'{head}\n  <include file="{robot_file}"/>\n\n{rest}'
     return _header(
         text,
-        f"SCORBOT ER-4u scene: {robot_file} + table, lights and the default marker field "
+        f"{title or robot_file} scene: {robot_file} + table, lights and the default marker field "
         "(sim.markers.make_marker_field()). GENERATED by `python -m sim.build_models`; do not edit.",
     )
 
 
-def write_models(out_dir: Path = MODEL_DIR) -> list[Path]:
-    """Write the robot XML files, the marker textures and ``scene.xml`` into ``out_dir``.
+def write_models(out_dir: Path | None = None) -> list[Path]:
+    """Write every robot's XML file (robots with an ``[mjcf]`` table), the marker textures and
+    ``scene.xml`` into ``models/<folder>/`` (or all into ``out_dir``, for a check).
 
     Returns the paths written (the picture is separate: :func:`render_picture`).
     """
-    out_dir = Path(out_dir)
-    (out_dir / "assets").mkdir(parents=True, exist_ok=True)
     written: list[Path] = []
-    for name in ROBOT_MODELS:
-        p = out_dir / f"{name}.xml"
-        p.write_text(robot_xml(name))
-        written.append(p)
     field = make_marker_field()
-    for rel, img in _marker_assets(field).items():
-        p = out_dir / rel
-        if not cv2.imwrite(str(p), np.ascontiguousarray(img[:, :, ::-1])):
-            raise OSError(f"could not write {p}")
+    for e in mjcf_entries():
+        folder = Path(out_dir) if out_dir is not None else e.folder
+        folder.mkdir(parents=True, exist_ok=True)
+        p = folder / f"{e.name}.xml"
+        p.write_text(robot_xml(e.name))
         written.append(p)
-    p = out_dir / "scene.xml"
-    p.write_text(scene_xml(field, f"{SCENE_ROBOT}.xml", out_dir))
-    written.append(p)
+        if not e.scene:
+            continue
+        (folder / "assets").mkdir(parents=True, exist_ok=True)
+        for rel, img in _marker_assets(field).items():
+            p = folder / rel
+            if not cv2.imwrite(str(p), np.ascontiguousarray(img[:, :, ::-1])):
+                raise OSError(f"could not write {p}")
+            written.append(p)
+        p = folder / "scene.xml"
+        p.write_text(
+            scene_xml(field, f"{e.name}.xml", folder, e.title, model_name=f"{e.folder.name} scene")
+        )
+        written.append(p)
     return written
 
 
@@ -232,12 +300,17 @@ def render_picture(scene_path: Path, out_path: Path, width: int = 960, height: i
 def main(argv: list[str] | None = None) -> int:
     """CLI: ``python -m sim.build_models [--out DIR] [--no-picture]``."""
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--out", type=Path, default=MODEL_DIR, help="output directory")
-    ap.add_argument("--no-picture", action="store_true", help="skip rendering er4u.png")
+    ap.add_argument(
+        "--out", type=Path, default=None, help="write everything here (default: models/<folder>/)"
+    )
+    ap.add_argument("--no-picture", action="store_true", help="skip rendering the pictures")
     args = ap.parse_args(argv)
     written = write_models(args.out)
     if not args.no_picture:
-        written.append(render_picture(args.out / "scene.xml", args.out / PICTURE))
+        for e in mjcf_entries():
+            if e.scene and e.picture:
+                folder = args.out if args.out is not None else e.folder
+                written.append(render_picture(folder / "scene.xml", folder / e.picture))
     for p in written:
         print(f"wrote {p}")
     return 0

@@ -28,7 +28,7 @@ def collision_checker(robot_name: str, *, table: bool = True, tolerance_m: float
     import mujoco
 
     from calib.robot_def import load_robot
-    from sim.robot_mjcf import LINK_BODY_NAMES, nominal_camera_model, robot_spec
+    from sim.robot_mjcf import link_body_names, nominal_camera_model, robot_spec
 
     robot = load_robot(robot_name)
     spec = robot_spec(robot, nominal_camera_model(robot))
@@ -45,7 +45,7 @@ def collision_checker(robot_name: str, *, table: bool = True, tolerance_m: float
     d = mujoco.MjData(m)
     d.qpos[: robot.n] = robot.home
     mujoco.mj_forward(m, d)
-    links = [m.body(nm).id for nm in LINK_BODY_NAMES[: robot.n]]
+    links = [m.body(nm).id for nm in link_body_names(robot.n)]
     origin = d.xpos[links]
     skip = set()
     for k in range(1, robot.n - 1):  # link k+1 (0-based k) of zero length joins k and k+2

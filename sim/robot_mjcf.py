@@ -51,7 +51,7 @@ __all__ = [
     "scene_with_robot",
     "link_body_poses",
     "flange_in_last_link",
-    "LINK_BODY_NAMES",
+    "link_body_names",
     "RIG_BODY",
     "CAMERA_NAMES",
     "TOOL_SITE",
@@ -62,8 +62,12 @@ RIG_BODY = "rig"
 CAMERA_NAMES = ("cam_left", "cam_right")
 TOOL_SITE = "tool_tip"
 FLANGE_SITE = "flange"
-LINK_BODY_NAMES = tuple(f"link{k}" for k in range(1, 6))
-"""Body names of the ER-4u's five links (``link<k>`` in general)."""
+
+
+def link_body_names(n: int) -> tuple[str, ...]:
+    """Body names of an n-joint arm's links: ``link1`` ... ``link<n>``."""
+    return tuple(f"link{k + 1}" for k in range(n))
+
 
 _ORANGE = (0.93, 0.45, 0.06, 1.0)
 _GREY = (0.55, 0.56, 0.58, 1.0)
@@ -71,11 +75,6 @@ _DARK = (0.22, 0.22, 0.24, 1.0)
 _BLACK = (0.05, 0.05, 0.06, 1.0)
 _STEEL = (0.70, 0.72, 0.75, 1.0)
 
-# Actuator gains per joint (N m / rad, N m s / rad) and joint armature (kg m^2): stiff enough to hold
-# the arm against gravity within a few mrad, stable at the 2 ms time step.
-_KP = (500.0, 1000.0, 600.0, 100.0, 20.0)
-_KV = (40.0, 60.0, 40.0, 6.0, 1.0)
-_ARMATURE = (0.08, 0.08, 0.05, 0.01, 0.005)
 _DENSITY = 600.0  # kg/m^3 on the solid collision shapes (hollow aluminium/plastic links)
 
 
@@ -447,7 +446,7 @@ def add_robot(spec: mujoco.MjSpec, robot: RobotDef, model: MCPCModel, rig: RigCo
     parent = base
     links = []
     for k in range(n):
-        body = parent.add_body(name=f"link{k + 1}")
+        body = parent.add_body(name=link_body_names(n)[k])
         _set_pose(body, poses[k])
         j = body.add_joint()
         j.name = robot.joint_names[k]
@@ -460,7 +459,7 @@ def add_robot(spec: mujoco.MjSpec, robot: RobotDef, model: MCPCModel, rig: RigCo
         j.pos = [0.0, 0.0, 0.0]
         j.limited = mujoco.mjtLimited.mjLIMITED_TRUE
         j.range = [float(v) for v in robot.limits[k]]
-        j.armature = _ARMATURE[min(k, len(_ARMATURE) - 1)]
+        j.armature = float(robot.simulation.armature[k])
         links.append(body)
         parent = body
 
@@ -499,7 +498,7 @@ def add_robot(spec: mujoco.MjSpec, robot: RobotDef, model: MCPCModel, rig: RigCo
         a.name = robot.joint_names[k]
         a.target = robot.joint_names[k]
         a.trntype = mujoco.mjtTrn.mjTRN_JOINT
-        a.set_to_position(kp=_KP[min(k, 4)], kv=_KV[min(k, 4)])
+        a.set_to_position(kp=float(robot.simulation.kp[k]), kv=float(robot.simulation.kv[k]))
         a.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
         a.ctrlrange = [float(v) for v in robot.limits[k]]
 

@@ -53,7 +53,7 @@ class SimRobot:
 
     def __init__(
         self,
-        model_name: str = "er4u-paper",
+        model_name: str,
         actual: MCPCModel | None = None,
         rig: RigConfig | None = None,
         field: MarkerField | None = None,

@@ -19,7 +19,7 @@ from calib.kinematics import fk_dh, fk_frames  # noqa: E402
 from calib.robot_def import load_robot  # noqa: E402
 from calib.transforms import inv_pose, trans  # noqa: E402
 from sim.actual import apply_errors, perturb  # noqa: E402
-from sim.build_models import MODEL_DIR, ROBOT_MODELS, write_models  # noqa: E402
+from sim.build_models import ROBOT_MODELS, mjcf_entries, write_models  # noqa: E402
 from sim.markers import make_marker_field  # noqa: E402
 from sim.mj_camera import T_world_cam_cv, intrinsics_from_model  # noqa: E402
 from sim.robot_mjcf import (  # noqa: E402
@@ -30,6 +30,7 @@ from sim.robot_mjcf import (  # noqa: E402
     scene_with_robot,
 )
 
+MODEL_DIR = next(e.folder for e in mjcf_entries() if e.scene)  # the SCORBOT folder
 TOL = 1e-9  # m, and for rotation-matrix entries
 ROBOT_BODIES = ("base", "link1", "link2", "link3", "link4", "link5", "rig")
 

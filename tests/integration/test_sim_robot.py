@@ -105,7 +105,7 @@ def test_bad_construction():
     with pytest.raises(ValueError, match="unknown robot model"):
         SimRobot("er4u-nonexistent")
     with pytest.raises(ValueError, match="image_sigma"):
-        SimRobot(image_sigma=-1.0)
+        SimRobot("er4u-paper", image_sigma=-1.0)
 
 
 @pytest.mark.render
