@@ -37,6 +37,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from calib.camera import Intrinsics
+from calib.errors import EstimationError
 from calib.identify import express_in_frame, minimal_difference
 from calib.joint_refine import (
     KinematicPoses,
@@ -63,7 +64,7 @@ __all__ = [
 ]
 
 
-class BoundsError(ValueError):
+class BoundsError(EstimationError, ValueError):
     """The Fisher information is singular or the inputs are inconsistent; the message says why."""
 
 

@@ -33,6 +33,7 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 from scipy.spatial.transform import Rotation
 
+from calib.errors import EstimationError
 from calib.transforms import adjoint, make_pose, skew
 
 __all__ = [
@@ -59,7 +60,7 @@ _CAMERA_NAMES = {"left": LEFT, "right": RIGHT, "l": LEFT, "r": RIGHT, 0: LEFT, 1
 
 
 # ----------------------------------------------------------------------------------- errors
-class SelfCalibrationError(RuntimeError):
+class SelfCalibrationError(EstimationError):
     """Base class: the camera self-calibration cannot produce a trustworthy result."""
 
 

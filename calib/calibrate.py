@@ -18,6 +18,7 @@ import numpy as np
 
 from calib.dataset import Dataset, DatasetError, Detections, read_gray
 from calib.detect import detect_markers
+from calib.errors import EstimationError, InputError, SelfCalWarning
 from calib.identify import IdentificationResult, identify, to_dh
 from calib.kinematics import fk_tool
 from calib.mcpc import MCPCModel, dh_to_mcpc, minimal_indices, param_is_angle, param_names
@@ -28,6 +29,7 @@ from calib.transforms import inv_pose, rot_z
 
 __all__ = [
     "CalibrationError",
+    "CalibrationFileError",
     "NoMarkersWarning",
     "detect_dataset",
     "calibrate",
@@ -41,11 +43,17 @@ FORMAT = "scorbot-selfcal-calibration"
 MIN_POSTURES = 6
 
 
-class CalibrationError(ValueError):
-    """The dataset cannot be calibrated; the message names the cause and the fix."""
+class CalibrationError(EstimationError, ValueError):
+    """The dataset cannot be calibrated; the message names the cause and the fix. (Still a
+    ``ValueError``, as it always was.)"""
 
 
-class NoMarkersWarning(UserWarning):
+class CalibrationFileError(InputError, CalibrationError):
+    """A ``calibration.json`` that is not one or is damaged (bad input, exit code 2); still a
+    :class:`CalibrationError` for callers that catch that."""
+
+
+class NoMarkersWarning(SelfCalWarning):
     """Some images show no marker at all (they are skipped)."""
 
 
@@ -341,17 +349,20 @@ def _last_link_to_tool(model: MCPCModel) -> np.ndarray:
 
 def model_from_calibration(doc: dict, where: str = "calibration.json") -> MCPCModel:
     """The identified MCPC model (tool = left camera, world = reconstruction frame) of a
-    ``calibration.json`` document; raises CalibrationError naming what is missing or malformed."""
+    ``calibration.json`` document; raises CalibrationFileError naming what is missing or malformed."""
     if not isinstance(doc, dict) or doc.get("format") != FORMAT:
         fmt = doc.get("format") if isinstance(doc, dict) else None
-        raise CalibrationError(f"{where}: not a {FORMAT} document (format = {fmt!r})")
+        raise CalibrationFileError(
+            f"{where}: not a {FORMAT} document (format = {fmt!r})",
+            fix="give the calibration.json that `selfcal calibrate DIR` wrote into DIR",
+        )
     try:
         m = doc["mcpc"]
         types = tuple(m["joint_types"])
         params = np.asarray(m["params_si"], dtype=float)
         offsets = np.asarray(m["joint_offsets_rad"], dtype=float)
     except (KeyError, TypeError, ValueError) as exc:
-        raise CalibrationError(
+        raise CalibrationFileError(
             f"{where}: missing or malformed 'mcpc' entry ({exc}); re-run `selfcal calibrate`"
         ) from None
     n = len(types)
@@ -360,7 +371,7 @@ def model_from_calibration(doc: dict, where: str = "calibration.json") -> MCPCMo
         or offsets.shape != (n,)
         or not (np.isfinite(params).all() and np.isfinite(offsets).all())
     ):
-        raise CalibrationError(
+        raise CalibrationFileError(
             f"{where}: mcpc.params_si must be {n + 1} x 6 finite numbers and joint_offsets_rad "
             f"{n}; got {params.shape} and {offsets.shape}: re-run `selfcal calibrate`"
         )

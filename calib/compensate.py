@@ -29,6 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from calib.errors import InputError
 from calib.export import DeployedModel, as_deployed
 from calib.ik import UnreachableError, ik, ik_nearest, wrap_into_range
 from calib.kinematics import fk_tool
@@ -146,7 +147,7 @@ def solve_compensated(
     dep = as_deployed(calibration, robot)
     xyz = np.asarray(xyz_m, dtype=float)
     if xyz.shape != (3,) or not np.all(np.isfinite(xyz)):
-        raise ValueError(f"xyz_m must be a finite 3-vector (m), got {xyz_m!r}")
+        raise InputError(f"xyz_m must be a finite 3-vector (m), got {xyz_m!r}")
     pitch, roll = float(pitch_rad), float(roll_rad)
     ref = dep.home if reference is None else np.asarray(reference, dtype=float).reshape(dep.n)
     sols = ik(robot, xyz, pitch, roll, reference=ref)
@@ -154,7 +155,7 @@ def solve_compensated(
         names = sorted({s.branch for s in sols})
         sols = [s for s in sols if s.branch == branch]
         if not sols:
-            raise ValueError(
+            raise InputError(
                 f"branch {branch!r} has no nominal IK solution for this target; available: {names}"
             )
     # in-range nominal solutions first, nearest the reference first

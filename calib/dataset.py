@@ -26,6 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
+from calib.errors import InputError
+
 __all__ = [
     "DatasetError",
     "DatasetInfo",
@@ -44,7 +46,7 @@ Detections = dict[tuple[int, str], dict[int, np.ndarray]]
 """(frame index, camera) -> {marker id: (4, 2) corners in px, OpenCV convention}."""
 
 
-class DatasetError(ValueError):
+class DatasetError(InputError):
     """A dataset folder that is missing, damaged or inconsistent; the message says how to fix it."""
 
 

@@ -37,6 +37,8 @@ from functools import lru_cache
 import cv2
 import numpy as np
 
+from calib.errors import SelfCalWarning
+
 __all__ = [
     "detect_markers",
     "REFINE_METHODS",
@@ -55,7 +57,7 @@ REFINE_METHODS = {
 }
 
 
-class DuplicateMarkerWarning(UserWarning):
+class DuplicateMarkerWarning(SelfCalWarning):
     """An image showed the same marker id more than once; those detections were dropped."""
 
 

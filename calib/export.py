@@ -43,6 +43,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from calib.camera import Intrinsics
+from calib.errors import InputError
 from calib.identify import DHNotRepresentableWarning, canonical_base, regauge, to_dh
 from calib.kinematics import fk_frames
 from calib.mcpc import (
@@ -97,7 +98,7 @@ TOOL_FRAME = (
 )
 
 
-class DeployError(ValueError):
+class DeployError(InputError):
     """A calibration or parameter file that cannot be turned into a deployable model."""
 
 

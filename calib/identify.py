@@ -41,6 +41,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from calib.errors import EstimationError, SelfCalWarning
 from calib.identifiability import (
     O1_SCALE_M,
     O1_SCALE_RAD,
@@ -88,17 +89,17 @@ __all__ = [
 ]
 
 
-class IdentificationError(RuntimeError):
+class IdentificationError(EstimationError):
     """Identification cannot give a trustworthy answer (too few poses, rank deficiency that is not
     held, no convergence); the message says why and what to change."""
 
 
-class IdentificationWarning(UserWarning):
+class IdentificationWarning(SelfCalWarning):
     """Identification succeeded but something deserves attention (parameters held automatically,
     ill-conditioning, residuals much larger than the stated sigmas, base near Euler singularity)."""
 
 
-class DHNotRepresentableWarning(UserWarning):
+class DHNotRepresentableWarning(SelfCalWarning):
     """A model has (nearly but not exactly) parallel consecutive axes: no continuous DH table."""
 
 

@@ -25,6 +25,7 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.stats import qmc
 
+from calib.errors import InputError
 from calib.kinematics import fk_dh
 from calib.robot_def import RobotDef
 from calib.tool_pose import AXIS_EPS_M, pitch_roll, tool_rotation
@@ -46,7 +47,7 @@ _ANG_TOL = 1e-9  # rad: "exact" DH twists
 _RANGE_TOL = 1e-12  # rad: slack on joint ranges (as RobotDef.check_joints)
 
 
-class UnreachableError(ValueError):
+class UnreachableError(InputError):
     """No in-range joint solution exists for a Cartesian target.
 
     Attributes:
@@ -63,7 +64,7 @@ class UnreachableError(ValueError):
         self.blocked_by = blocked_by
 
 
-class IKStructureError(ValueError):
+class IKStructureError(InputError):
     """The robot's DH table does not have the 5-axis ER structure this solver handles."""
 
 

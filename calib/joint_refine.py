@@ -67,6 +67,7 @@ from calib.bundle_adjust import (
     reprojection_residuals,
     so3_left_jacobian,
 )
+from calib.errors import EstimationError
 from calib.identify import IdentificationResult, express_in_frame, minimal_difference
 from calib.kinematics import fk_frames, fk_tool, identification_jacobian
 from calib.mcpc import MCPCModel, minimal_indices, param_is_angle, param_names
@@ -93,7 +94,7 @@ _BASE_HELD = ("alpha0", "beta0", "lx0", "ly0")
 _GAUGE_LENGTH_M = 0.3  # angles are compared with lengths as displacements at this radius
 
 
-class JointRefinementError(RuntimeError):
+class JointRefinementError(EstimationError):
     """The joint refinement cannot give a trustworthy answer (gauge not fixed, no convergence,
     missing scale markers); the message names the cause and the fix."""
 

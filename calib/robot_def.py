@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from calib.errors import InputError
 from calib.transforms import make_pose
 
 if sys.version_info >= (3, 11):
@@ -32,7 +33,7 @@ __all__ = [
 JOINT_TYPES = ("revolute", "prismatic")
 
 
-class RobotDefinitionError(ValueError):
+class RobotDefinitionError(InputError):
     """A robot name that does not exist or a robot file that is malformed."""
 
 
@@ -115,7 +116,7 @@ class RobotDef:
         """Raise ``ValueError`` naming the first joint of ``q`` (rad, shape (..., n)) out of range."""
         q = np.atleast_2d(np.asarray(q, dtype=float))
         if q.shape[-1] != self.n:
-            raise ValueError(f"{self.name}: expected {self.n} joint values, got {q.shape[-1]}")
+            raise InputError(f"{self.name}: expected {self.n} joint values, got {q.shape[-1]}")
         for j in range(self.n):
             lo, hi = self.limits[j]
             bad = (q[..., j] < lo - 1e-12) | (q[..., j] > hi + 1e-12) | ~np.isfinite(q[..., j])
@@ -123,7 +124,7 @@ class RobotDef:
                 val = q[..., j][bad].flat[0]
                 scale = 180 / np.pi if self.joint_types[j] == "revolute" else 1000.0
                 unit = "deg" if self.joint_types[j] == "revolute" else "mm"
-                raise ValueError(
+                raise InputError(
                     f"joint {j + 1} ({self.joint_names[j]}) = {val * scale:.3f} {unit} is outside "
                     f"its range [{lo * scale:.2f}, {hi * scale:.2f}] {unit} for {self.name}"
                 )

@@ -12,6 +12,7 @@ import warnings
 import numpy as np
 
 from calib.camera import Intrinsics
+from calib.errors import EstimationError, SelfCalWarning
 from calib.kinematics import fk_tool
 from calib.mcpc import MCPCModel
 from calib.robot_def import RobotDef
@@ -27,11 +28,11 @@ __all__ = [
 ]
 
 
-class DegenerateTrajectoryError(ValueError):
+class DegenerateTrajectoryError(EstimationError, ValueError):
     """The postures cannot calibrate the camera (e.g. all optical axes meet in one point)."""
 
 
-class DegenerateTrajectoryWarning(UserWarning):
+class DegenerateTrajectoryWarning(SelfCalWarning):
     """The postures are close to a degenerate configuration; results will be poorly conditioned."""
 
 

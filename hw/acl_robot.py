@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from calib.errors import InputError
 from calib.robot_def import RobotDef, load_robot
 from hw.acl_protocol import (
     AclConnectionError,
@@ -116,17 +117,17 @@ def hardware_config(config: Mapping[str, Any] | None) -> dict[str, Any]:
     options = table.pop("options", None)
     if options is not None:
         if not isinstance(options, Mapping):
-            raise ValueError(f"[robot.hardware] options must be a table, got {options!r}")
+            raise InputError(f"[robot.hardware] options must be a table, got {options!r}")
         clash = set(options) & set(table)
         if clash:
-            raise ValueError(
+            raise InputError(
                 f"[robot.hardware] key(s) {sorted(clash)} are given both directly and in options; "
                 "give each once"
             )
         table.update(options)
     unknown = set(table) - set(DEFAULT_HARDWARE)
     if unknown:
-        raise ValueError(
+        raise InputError(
             f"unknown [robot.hardware] key(s) {sorted(unknown)}; known: {sorted(DEFAULT_HARDWARE)}"
         )
     out = dict(DEFAULT_HARDWARE)
@@ -134,13 +135,13 @@ def hardware_config(config: Mapping[str, Any] | None) -> dict[str, Any]:
         out["model"] = model
     out.update(table)
     if out["completion"] not in ("mflag", "listpv"):
-        raise ValueError(f"completion must be 'mflag' or 'listpv', got {out['completion']!r}")
+        raise InputError(f"completion must be 'mflag' or 'listpv', got {out['completion']!r}")
     if out["echo"] not in ("auto", True, False):
-        raise ValueError(f"echo must be 'auto', true or false, got {out['echo']!r}")
+        raise InputError(f"echo must be 'auto', true or false, got {out['echo']!r}")
     if out["speed"] is not None and not 1 <= int(out["speed"]) <= 100:
-        raise ValueError(f"speed must be 1..100, got {out['speed']}")
+        raise InputError(f"speed must be 1..100, got {out['speed']}")
     if not re.fullmatch(r"[A-Za-z][A-Za-z0-9]{0,4}", str(out["position_name"])):
-        raise ValueError(
+        raise InputError(
             f"position_name must be 1-5 letters/digits starting with a letter, got "
             f"{out['position_name']!r}"
         )
@@ -184,12 +185,12 @@ class AclRobot:
         self.model_name = self.robot.name
         self.encoders = encoders or EncoderTable.er4u()
         if self.encoders.n != self.robot.n:
-            raise ValueError(
+            raise InputError(
                 f"the encoder table has {self.encoders.n} axes but {self.robot.name} has "
                 f"{self.robot.n} joints"
             )
         if any(t != "revolute" for t in self.robot.joint_types):
-            raise ValueError(f"{self.robot.name}: AclRobot supports revolute joints only")
+            raise InputError(f"{self.robot.name}: AclRobot supports revolute joints only")
         self.cameras = cameras
         self.position_name = position_name.upper()
         self.speed = speed
@@ -198,7 +199,7 @@ class AclRobot:
         self.poll_interval_s = float(poll_interval_s)
         self.query_retries = int(query_retries)
         if completion not in ("mflag", "listpv"):
-            raise ValueError(f"completion must be 'mflag' or 'listpv', got {completion!r}")
+            raise InputError(f"completion must be 'mflag' or 'listpv', got {completion!r}")
         self.completion = completion
         self.tolerance_counts = int(tolerance_counts)
         self.coff_on_close = bool(coff_on_close)
@@ -476,7 +477,7 @@ class AclRobot:
         """
         q = np.asarray(joints_deg, dtype=float)
         if q.shape != (self.n,):
-            raise ValueError(f"joints_deg must have {self.n} values, got shape {q.shape}")
+            raise InputError(f"joints_deg must have {self.n} values, got shape {q.shape}")
         self.robot.check_joints(np.radians(q))  # ValueError naming the joint, before any byte
         target = self.encoders.to_counts(q)
         self._check_open()

@@ -26,6 +26,7 @@ from typing import Any
 import cv2
 import numpy as np
 
+from calib.errors import InputError
 from scenarios.robot import RobotError, StereoPair
 
 __all__ = ["CameraError", "Camera", "StereoCamera", "source_kind"]
@@ -95,13 +96,13 @@ class Camera:
         if expected_size is not None:
             w, h = (int(v) for v in expected_size)
             if w <= 0 or h <= 0:
-                raise ValueError(
+                raise InputError(
                     f"{name} camera: expected_size must be positive, got {expected_size}"
                 )
             expected_size = (w, h)
         self.expected_size = expected_size
         if sequence_mode not in ("latest", "next"):
-            raise ValueError(f"sequence_mode must be 'latest' or 'next', got {sequence_mode!r}")
+            raise InputError(f"sequence_mode must be 'latest' or 'next', got {sequence_mode!r}")
         self.sequence_mode = sequence_mode
         self.flush_frames = (
             (2 if self.kind == "device" else 0) if flush_frames is None else int(flush_frames)
@@ -245,7 +246,7 @@ class StereoCamera:
     ) -> StereoCamera:
         """Open ``[left, right]`` sources (strings as in ``[robot.hardware] cameras``)."""
         if isinstance(sources, (str, bytes)) or len(sources) != 2:
-            raise ValueError(
+            raise InputError(
                 f"cameras must be a list [left, right] of two sources, got {sources!r}"
             )
         kw = dict(

@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from calib.errors import InputError
 from scenarios.robot import RobotError
 
 if sys.version_info >= (3, 11):
@@ -54,11 +55,11 @@ def load_toml(path: str | Path) -> dict[str, Any]:
     """Read a TOML file; ``ValueError`` names the file on a missing file or a syntax error."""
     p = Path(path)
     if not p.is_file():
-        raise ValueError(f"config file not found: {p}")
+        raise InputError(f"config file not found: {p}")
     try:
         return tomllib.loads(p.read_text())
     except tomllib.TOMLDecodeError as exc:
-        raise ValueError(f"{p}: not valid TOML: {exc}") from exc
+        raise InputError(f"{p}: not valid TOML: {exc}") from exc
 
 
 def _add_conn_args(p: argparse.ArgumentParser) -> None:
@@ -164,7 +165,7 @@ def _parse_joints(text: str) -> np.ndarray:
     try:
         return np.array([float(x) for x in text.split(",") if x.strip()], dtype=float)
     except ValueError as exc:
-        raise ValueError(f"--joints must be comma-separated numbers (deg), got {text!r}") from exc
+        raise InputError(f"--joints must be comma-separated numbers (deg), got {text!r}") from exc
 
 
 def _cmd_move(args: argparse.Namespace) -> int:
@@ -219,7 +220,7 @@ def emulator_from_config(
     model = table.pop("model", None) or config.get("robot", {}).get("model")
     unknown = set(table) - set(EMULATOR_DEFAULTS)
     if unknown:
-        raise ValueError(
+        raise InputError(
             f"unknown [emulator] key(s) {sorted(unknown)}; known: {sorted(EMULATOR_DEFAULTS)}"
         )
     cfg = {**EMULATOR_DEFAULTS, **table}
@@ -231,7 +232,7 @@ def emulator_from_config(
         from sim.emulator_backend import SimEmulatorBackend
 
         if model is not None and model != scenario.robot.model:
-            raise ValueError(
+            raise InputError(
                 f"[emulator] model {model!r} contradicts the scenario's [robot] model "
                 f"{scenario.robot.model!r}: the simulated robot is the scenario's"
             )

@@ -47,6 +47,7 @@ from typing import Any, Protocol, runtime_checkable
 import cv2
 import numpy as np
 
+from calib.errors import InputError
 from calib.robot_def import RobotDef, load_robot
 from hw.encoders import EncoderTable
 from scenarios.robot import StereoPair
@@ -149,13 +150,13 @@ class Fault:
 
     def __post_init__(self) -> None:
         if self.kind not in FAULT_KINDS:
-            raise ValueError(f"unknown fault kind {self.kind!r}; known: {', '.join(FAULT_KINDS)}")
+            raise InputError(f"unknown fault kind {self.kind!r}; known: {', '.join(FAULT_KINDS)}")
         if self.count == 0 or self.count < -1:
-            raise ValueError(f"fault count must be positive or -1 (always), got {self.count}")
+            raise InputError(f"fault count must be positive or -1 (always), got {self.count}")
         if self.skip < 0:
-            raise ValueError(f"fault skip must be >= 0, got {self.skip}")
+            raise InputError(f"fault skip must be >= 0, got {self.skip}")
         if not 0.0 <= self.at_fraction <= 1.0:
-            raise ValueError(f"at_fraction must be in [0, 1], got {self.at_fraction}")
+            raise InputError(f"at_fraction must be in [0, 1], got {self.at_fraction}")
 
     def matches(self, command: str) -> bool:
         return self.on is None or command.startswith(" ".join(self.on.upper().split()))
@@ -285,16 +286,16 @@ class AclEmulator:
         pty_link: str | Path | None = None,
     ):
         if line_end not in ("\r\n", "\r", "\n"):
-            raise ValueError(f"line_end must be '\\r\\n', '\\r' or '\\n', got {line_end!r}")
+            raise InputError(f"line_end must be '\\r\\n', '\\r' or '\\n', got {line_end!r}")
         if move_speed_deg_s <= 0:
-            raise ValueError(f"move_speed_deg_s must be positive, got {move_speed_deg_s}")
+            raise InputError(f"move_speed_deg_s must be positive, got {move_speed_deg_s}")
         self.backend: EmulatorBackend = backend if backend is not None else KinematicBackend()
         self.encoders = encoders or getattr(self.backend, "encoders", None) or EncoderTable.er4u()
         if not isinstance(self.encoders, EncoderTable):
             raise TypeError(f"encoders must be an EncoderTable, got {type(self.encoders).__name__}")
         self.limits_deg = np.asarray(self.backend.limits_deg, dtype=float)
         if self.limits_deg.shape != (self.encoders.n, 2):
-            raise ValueError(
+            raise InputError(
                 f"backend limits_deg has shape {self.limits_deg.shape}, the encoder table has "
                 f"{self.encoders.n} axes"
             )
@@ -323,7 +324,7 @@ class AclEmulator:
         self._want_pty = bool(pty)
         self.pty_link = Path(pty_link) if pty_link is not None else None
         if self.pty_link is not None and not self._want_pty:
-            raise ValueError("pty_link needs pty=True")
+            raise InputError("pty_link needs pty=True")
         self._want_tcp_port = tcp_port
 
         self._lock = threading.RLock()

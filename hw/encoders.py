@@ -29,6 +29,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from calib.errors import InputError
+
 if TYPE_CHECKING:
     from calib.robot_def import RobotDef
 
@@ -67,25 +69,25 @@ class EncoderTable:
         home = np.asarray(self.home_deg, dtype=float).reshape(-1)
         hc = np.asarray(self.home_counts, dtype=float).reshape(-1)
         if n == 0:
-            raise ValueError("encoder table: counts_per_deg is empty")
+            raise InputError("encoder table: counts_per_deg is empty")
         if home.size != n or hc.size != n:
-            raise ValueError(
+            raise InputError(
                 f"encoder table: counts_per_deg ({n}), home_deg ({home.size}) and home_counts "
                 f"({hc.size}) must have one value per axis"
             )
         if not (np.all(np.isfinite(cpd)) and np.all(cpd != 0)):
-            raise ValueError(
+            raise InputError(
                 f"encoder table: counts_per_deg must be finite and non-zero, got {cpd}"
             )
         if not np.all(np.isfinite(home)):
-            raise ValueError(f"encoder table: home_deg must be finite, got {home}")
+            raise InputError(f"encoder table: home_deg must be finite, got {home}")
         if not np.all(hc == np.round(hc)):
-            raise ValueError(f"encoder table: home_counts must be integers, got {hc}")
+            raise InputError(f"encoder table: home_counts must be integers, got {hc}")
         diff = self.differential
         if diff is not None:
             diff = (int(diff[0]), int(diff[1]))
             if diff[0] == diff[1] or not all(0 <= d < n for d in diff):
-                raise ValueError(
+                raise InputError(
                     f"encoder table: differential must name two different axes in 1..{n}, "
                     f"got {tuple(d + 1 for d in diff)} (1-based)"
                 )
@@ -137,10 +139,10 @@ class EncoderTable:
         robot = load_robot(robot) if isinstance(robot, str) else robot
         n = robot.n
         if any(t != "revolute" for t in robot.joint_types):
-            raise ValueError(f"{robot.name}: encoder tables support revolute joints only")
+            raise InputError(f"{robot.name}: encoder tables support revolute joints only")
         res = np.abs(np.asarray(robot.counts_per_unit, dtype=float)) * np.pi / 180.0
         if not np.all(np.isfinite(res) & (res > 0)):
-            raise ValueError(
+            raise InputError(
                 f"{robot.name}: the model has no [encoder] counts_per_deg; give an encoder table "
                 "([robot.hardware.options.encoders] counts_per_deg, home_deg)"
             )
@@ -148,10 +150,10 @@ class EncoderTable:
             signs = ER4U_SIGNS if n == 5 else (1,) * n
         sg = np.sign(np.asarray(signs, dtype=float).reshape(-1))
         if sg.size != n or np.any(sg == 0):
-            raise ValueError(f"signs must be {n} values of +1 or -1, got {signs}")
+            raise InputError(f"signs must be {n} values of +1 or -1, got {signs}")
         if isinstance(differential, str):
             if differential != "auto":
-                raise ValueError(
+                raise InputError(
                     f"differential must be (pitch, roll), None or 'auto', got {differential!r}"
                 )
             differential = (3, 4) if n == 5 else None
@@ -188,7 +190,7 @@ class EncoderTable:
         cfg = dict(cfg or {})
         unknown = set(cfg) - _CONFIG_KEYS
         if unknown:
-            raise ValueError(
+            raise InputError(
                 f"unknown encoder config key(s) {sorted(unknown)}; known: {sorted(_CONFIG_KEYS)}"
             )
         cpd = np.asarray(cfg.get("counts_per_deg", base.counts_per_deg), dtype=float)
@@ -196,7 +198,7 @@ class EncoderTable:
         home = cfg.get("home_deg", base.home_deg if base.n == n else None)
         hc = cfg.get("home_counts", base.home_counts if base.n == n else np.zeros(n))
         if home is None:
-            raise ValueError(f"encoder config: home_deg is needed for a {n}-axis table")
+            raise InputError(f"encoder config: home_deg is needed for a {n}-axis table")
         diff = cfg.get("differential", "base")
         if isinstance(diff, str) and diff == "base":
             d = base.differential if base.n == n else None
@@ -205,7 +207,7 @@ class EncoderTable:
         else:
             vals = list(diff)
             if len(vals) != 2:
-                raise ValueError(
+                raise InputError(
                     "encoder config: differential must be [pitch_axis, roll_axis] (1-based) or false"
                 )
             d = (int(vals[0]) - 1, int(vals[1]) - 1)
@@ -231,9 +233,9 @@ class EncoderTable:
     def _check(self, x: np.ndarray, what: str) -> np.ndarray:
         x = np.asarray(x, dtype=float)
         if x.ndim == 0 or x.shape[-1] != self.n:
-            raise ValueError(f"{what} must have shape (..., {self.n}), got {x.shape}")
+            raise InputError(f"{what} must have shape (..., {self.n}), got {x.shape}")
         if not np.all(np.isfinite(x)):
-            raise ValueError(f"{what} must be finite, got {x}")
+            raise InputError(f"{what} must be finite, got {x}")
         return x
 
     def to_counts(self, joints_deg: np.ndarray) -> np.ndarray:

@@ -13,13 +13,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from calib.dataset import DatasetWriter
+from calib.errors import HardwareError
 from scenarios.progress import Progress
 from scenarios.robot import Robot
 
 __all__ = ["AcquisitionError", "AcquisitionHooks", "acquire"]
 
 
-class AcquisitionError(RuntimeError):
+class AcquisitionError(HardwareError):
     """Acquisition stopped; the message says how many frames are safe and how to resume."""
 
 

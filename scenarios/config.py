@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from calib.calibrate import MIN_POSTURES
+from calib.errors import InputError
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -24,7 +25,7 @@ else:  # pragma: no cover
 __all__ = ["Scenario", "ConfigError", "load_scenario", "default_scenario_path", "scenario_to_dict"]
 
 
-class ConfigError(ValueError):
+class ConfigError(InputError):
     """A scenario file that cannot be used; the message names the file, key and expected type."""
 
 

@@ -32,6 +32,8 @@ from pathlib import Path
 
 import numpy as np
 
+from calib.errors import InputError
+
 __all__ = ["record_run", "register"]
 
 _GT_COLOR = (40, 200, 80, 255)
@@ -287,7 +289,7 @@ def record_run(dataset_dir: str | Path, rrd_path: str | Path | None, spawn: bool
 
     rrd = Path(rrd_path) if rrd_path is not None else None
     if rrd is None and not spawn:
-        raise ValueError("record_run needs an .rrd path, spawn=True, or both")
+        raise InputError("record_run needs an .rrd path, spawn=True, or both")
     rec = rr.RecordingStream("scorbot-selfcal", recording_id=str(root.resolve()))
     if spawn:
         rec.spawn(connect=False)  # start the viewer; the sinks below connect to it

@@ -11,10 +11,12 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
+from calib.errors import HardwareError
+
 __all__ = ["StereoPair", "Robot", "RobotError"]
 
 
-class RobotError(RuntimeError):
+class RobotError(HardwareError):
     """A robot (simulated or real) refused or failed a command; the message names the cause."""
 
 

@@ -38,6 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
+from calib.errors import InputError
 from scenarios.parallel import worker_pool
 
 __all__ = ["STUDIES", "Study", "run_one", "run_study", "load_runs", "summarize", "register"]
@@ -284,9 +285,9 @@ def run_study(
             rows += run_study(n, Path(out) / n, budget=budget, jobs=jobs, quiet=quiet)
         return rows
     if name not in STUDIES:
-        raise ValueError(f"unknown study {name!r}; choose from {', '.join([*STUDIES, 'all'])}")
+        raise InputError(f"unknown study {name!r}; choose from {', '.join([*STUDIES, 'all'])}")
     if budget not in ("quick", "full"):
-        raise ValueError(f"budget must be 'quick' or 'full', got {budget!r}")
+        raise InputError(f"budget must be 'quick' or 'full', got {budget!r}")
     study = STUDIES[name]
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)

@@ -46,6 +46,7 @@ from pathlib import Path
 import numpy as np
 
 from calib.camera import Intrinsics
+from calib.errors import InputError
 from calib.mcpc import (
     COLUMNS,
     MCPCModel,
@@ -84,7 +85,7 @@ def param_index(name: str, n: int) -> int:
     """
     m = _NAME_RE.match(str(name))
     if m is None or int(m.group(2)) > n:
-        raise ValueError(
+        raise InputError(
             f"unknown MCPC parameter {name!r}: expected <column><frame> with column in "
             f"{COLUMNS} and frame in 0..{n}, e.g. 'beta2' or 'lx1'"
         )
@@ -100,7 +101,7 @@ def perturb(model: MCPCModel, *, seed: int, translation_m: float, rotation_rad: 
     """
     for what, v in (("translation_m", translation_m), ("rotation_rad", rotation_rad)):
         if not np.isfinite(v) or v < 0:
-            raise ValueError(f"{what} must be a finite non-negative number, got {v}")
+            raise InputError(f"{what} must be a finite non-negative number, got {v}")
     idx = minimal_indices(model.joint_types)
     scale = np.where(param_is_angle(idx), float(rotation_rad), float(translation_m))
     rng = np.random.default_rng(seed)
@@ -120,7 +121,7 @@ def apply_errors(model: MCPCModel, table: dict[str, float]) -> MCPCModel:
     for name, value in table.items():
         v = float(value)
         if not np.isfinite(v):
-            raise ValueError(f"error for {name!r} must be finite, got {value}")
+            raise InputError(f"error for {name!r} must be finite, got {value}")
         p[param_index(name, model.n)] += v
     return model.with_params(p)
 
@@ -289,7 +290,7 @@ def read_truth(path: str | Path) -> Truth:
     """
     doc = json.loads(Path(path).read_text())
     if doc.get("format") != TRUTH_FORMAT:
-        raise ValueError(f"{path}: not a '{TRUTH_FORMAT}' file (format={doc.get('format')!r})")
+        raise InputError(f"{path}: not a '{TRUTH_FORMAT}' file (format={doc.get('format')!r})")
     try:
         frames = []
         for fr in doc["frames"]:

@@ -23,6 +23,7 @@ from pathlib import Path  # noqa: E402
 import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
+from calib.errors import InputError  # noqa: E402
 from calib.export import BASE_FRAME, DeployedModel, as_deployed  # noqa: E402
 from calib.robot_def import RobotDef, load_robot  # noqa: E402
 from calib.transforms import inv_pose  # noqa: E402
@@ -49,7 +50,7 @@ def calibrated_spec(dep: DeployedModel, robot: RobotDef | None = None) -> mujoco
     """
     robot = load_robot(dep.robot_name) if robot is None else robot
     if tuple(robot.joint_names) != dep.joint_names or tuple(robot.joint_types) != dep.joint_types:
-        raise ValueError(
+        raise InputError(
             f"the calibrated model's joints {dep.joint_names} do not match {robot.name}'s "
             f"{robot.joint_names}: export with the robot the calibration was made for"
         )

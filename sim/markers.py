@@ -19,6 +19,8 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
+from calib.errors import InputError
+
 __all__ = [
     "MarkerField",
     "make_marker_field",
@@ -240,9 +242,9 @@ def make_marker_field(
     d = aruco_dictionary(dictionary)
     n_dict = d.bytesList.shape[0]
     if n_markers < 0 or n_markers + 2 > n_dict:
-        raise ValueError(f"{dictionary} has {n_dict} ids: at most {n_dict - 2} field markers")
+        raise InputError(f"{dictionary} has {n_dict} ids: at most {n_dict - 2} field markers")
     if not 0.0 <= raised_fraction <= 1.0:
-        raise ValueError("raised_fraction must lie in [0, 1]")
+        raise InputError("raised_fraction must lie in [0, 1]")
     nm = _modules(dictionary)
     tile = size_m * (nm + 2 * quiet_zone_modules) / nm
     cx0, cy0 = center_xy_m
@@ -279,7 +281,7 @@ def make_marker_field(
         if inside(ends) and clear_of_base(bar_poly):
             break
     else:
-        raise ValueError(
+        raise InputError(
             f"a scale bar of {scale_length_m} m does not fit in extent {extent_m}; "
             "enlarge extent_m or shorten scale_length_m"
         )
@@ -292,7 +294,7 @@ def make_marker_field(
     covered = float(np.sum((2 * halves) ** 2)) + 4 * bar_half_l * bar_half_w
     available = (extent_m[0] + tile) * (extent_m[1] + tile)
     if covered > _MAX_COVERAGE * available:
-        raise ValueError(
+        raise InputError(
             f"could not place {n_markers} markers of {size_m} m in extent {extent_m}: they would "
             f"cover {covered / available:.0%} of it (random placement jams above "
             f"{_MAX_COVERAGE:.0%}); use fewer or smaller markers or a larger extent"
@@ -328,7 +330,7 @@ def make_marker_field(
         if len(centres) == n_markers:
             break
     else:
-        raise ValueError(
+        raise InputError(
             f"could not place {n_markers} markers of {size_m} m in extent {extent_m}; "
             "use fewer or smaller markers or a larger extent"
         )

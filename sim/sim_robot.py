@@ -16,6 +16,7 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
+from calib.errors import InputError  # noqa: E402
 from calib.mcpc import MCPCModel  # noqa: E402
 from calib.robot_def import load_robot  # noqa: E402
 from scenarios.robot import RobotError, StereoPair  # noqa: E402
@@ -62,7 +63,7 @@ class SimRobot:
         quantize: bool = True,
     ) -> None:
         if not image_sigma >= 0:
-            raise ValueError(f"image_sigma must be >= 0 (grey levels), got {image_sigma}")
+            raise InputError(f"image_sigma must be >= 0 (grey levels), got {image_sigma}")
         self.robot = load_robot(model_name)
         self.model_name = self.robot.name
         self.nominal = nominal_camera_model(self.robot)
@@ -98,7 +99,7 @@ class SimRobot:
         self._check_open()
         q_deg = np.asarray(joints_deg, dtype=float)
         if q_deg.shape != (self.robot.n,):
-            raise ValueError(
+            raise InputError(
                 f"{self.model_name}: move_to needs {self.robot.n} joint values (deg), "
                 f"got shape {q_deg.shape}"
             )
