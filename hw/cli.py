@@ -26,7 +26,6 @@ from typing import Any
 import numpy as np
 
 from calib.errors import InputError
-from scenarios.robot import RobotError
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -127,22 +126,11 @@ def _print(obj: dict[str, Any]) -> None:
 
 
 def _run(args: argparse.Namespace, body) -> int:
-    try:
-        robot = _open_robot(args)
-    except (ValueError, RobotError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-    try:
-        with robot:
-            body(robot)
-        return 0
-    except ValueError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-    except RobotError as exc:
-        notes = "".join(f"\n  {n}" for n in getattr(exc, "__notes__", []))
-        print(f"error: {exc}{notes}", file=sys.stderr)
-        return 1
+    """Open the robot, run ``body(robot)``, close it. Errors propagate to the ``selfcal`` entry
+    point, which prints them and exits with their code (bad input 2, hardware fault 4)."""
+    with _open_robot(args) as robot:
+        body(robot)
+    return 0
 
 
 def _joints_list(robot) -> list[float]:
@@ -164,16 +152,12 @@ def _cmd_home(args: argparse.Namespace) -> int:
 def _parse_joints(text: str) -> np.ndarray:
     try:
         return np.array([float(x) for x in text.split(",") if x.strip()], dtype=float)
-    except ValueError as exc:
-        raise InputError(f"--joints must be comma-separated numbers (deg), got {text!r}") from exc
+    except ValueError:
+        raise InputError(f"--joints must be comma-separated numbers (deg), got {text!r}") from None
 
 
 def _cmd_move(args: argparse.Namespace) -> int:
-    try:
-        q = _parse_joints(args.joints)
-    except ValueError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
+    q = _parse_joints(args.joints)
 
     def body(r) -> None:
         r.move_to(q)
@@ -259,19 +243,15 @@ def _cmd_emulate(args: argparse.Namespace, stop_event: threading.Event | None = 
         "pty_link": getattr(args, "pty_link", None),
         "move_speed_deg_s": getattr(args, "move_speed", None),
     }
-    try:
-        config = load_toml(args.config) if args.config else None
-        scenario = None
-        if config is not None and _is_scenario_file(config):
-            from scenarios.config import load_scenario
+    config = load_toml(args.config) if args.config else None
+    scenario = None
+    if config is not None and _is_scenario_file(config):
+        from scenarios.config import load_scenario
 
-            scenario = load_scenario(args.config)
-        emu = emulator_from_config(
-            None if scenario is not None else config, scenario=scenario, overrides=overrides
-        )
-    except ValueError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
+        scenario = load_scenario(args.config)
+    emu = emulator_from_config(
+        None if scenario is not None else config, scenario=scenario, overrides=overrides
+    )
     stop = stop_event or threading.Event()
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGTERM, lambda *_: stop.set())

@@ -8,45 +8,24 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 from pathlib import Path
 
 import numpy as np
 
-__all__ = ["main", "build_parser"]
+from scenarios.cli_common import CliError, parse_floats, run_command
 
-EXIT_BAD_INPUT = 2
-EXIT_FAILED = 1
-
-
-class CliError(Exception):
-    """A user-facing error: printed without a traceback."""
-
-
-def _floats(text: str, count: int | None, what: str) -> np.ndarray:
-    try:
-        vals = np.array([float(x) for x in text.replace(" ", "").split(",") if x != ""])
-    except ValueError:
-        raise CliError(f"{what}: expected comma-separated numbers, got {text!r}") from None
-    if count is not None and len(vals) != count:
-        raise CliError(f"{what}: expected {count} numbers, got {len(vals)} in {text!r}")
-    if not np.all(np.isfinite(vals)):
-        raise CliError(f"{what}: numbers must be finite, got {text!r}")
-    return vals
+__all__ = ["main", "build_parser", "CliError"]
 
 
 def _robot(name: str):
-    from calib.robot_def import RobotDefinitionError, load_robot
+    from calib.robot_def import load_robot
 
-    try:
-        return load_robot(name)
-    except RobotDefinitionError as exc:
-        raise CliError(str(exc)) from None
+    return load_robot(name)  # RobotDefinitionError (bad input) names the known models
 
 
 def _joints_rad(robot, text: str) -> np.ndarray:
-    q = np.radians(_floats(text, robot.n, "--joints (deg)"))
+    q = np.radians(parse_floats(text, robot.n, "--joints (deg)"))
     try:
         robot.check_joints(q)
     except ValueError as exc:
@@ -78,7 +57,7 @@ def cmd_ik(args: argparse.Namespace) -> int:
     from calib.ik import UnreachableError, ik, ik_nearest
 
     robot = _robot(args.model)
-    xyz = _floats(args.xyz, 3, "--xyz (mm)") / 1000.0
+    xyz = parse_floats(args.xyz, 3, "--xyz (mm)") / 1000.0
     for name, val in (("--pitch", args.pitch), ("--roll", args.roll)):
         if not (np.isfinite(val) and abs(val) <= 720.0):
             raise CliError(f"{name}: expected an angle in deg within +-720, got {val}")
@@ -111,12 +90,9 @@ def cmd_render(args: argparse.Namespace) -> int:
 
 
 def _scenario(path: str | None):
-    from scenarios.config import ConfigError, load_scenario
+    from scenarios.config import load_scenario
 
-    try:
-        return load_scenario(path)
-    except ConfigError as exc:
-        raise CliError(str(exc)) from None
+    return load_scenario(path)  # ConfigError (bad input) names the file and the key
 
 
 def cmd_acquire(args: argparse.Namespace) -> int:
@@ -278,27 +254,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of the ``selfcal`` console script."""
+    """Entry point of the ``selfcal`` console script; returns the exit code (README "Exit
+    codes": 0 ok, 1 internal error, 2 bad input, 3 cannot calibrate, 4 hardware, 130 Ctrl-C)."""
     parser = build_parser()
     args = parser.parse_args(argv)
-    try:
-        return int(args.func(args) or 0)
-    except CliError as exc:
-        print(f"selfcal {args.command}: error: {exc}", file=sys.stderr)
-        return EXIT_BAD_INPUT
-    except KeyboardInterrupt:
-        print(f"selfcal {args.command}: interrupted", file=sys.stderr)
-        return 130
-    except Exception as exc:  # noqa: BLE001 - user-facing summary of library errors
-        from calib.dataset import DatasetError
-        from scenarios.config import ConfigError
-
-        if os.environ.get("SELFCAL_DEBUG"):
-            raise
-        bad_input = isinstance(exc, (ValueError, DatasetError, ConfigError))
-        hint = "" if bad_input else " (set SELFCAL_DEBUG=1 for the traceback)"
-        print(f"selfcal {args.command}: error: {type(exc).__name__}: {exc}{hint}", file=sys.stderr)
-        return EXIT_BAD_INPUT if bad_input else EXIT_FAILED
+    return run_command(args.func, args, f"selfcal {args.command}")
 
 
 if __name__ == "__main__":

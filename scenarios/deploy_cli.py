@@ -19,6 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
+from scenarios.cli_common import CliError, parse_floats
+
 __all__ = ["register", "cmd_export", "cmd_ik_calibrated", "load_calibration", "FORMATS"]
 
 FORMATS = {"mjcf": ".xml", "urdf": ".urdf", "toml": ".toml"}
@@ -37,20 +39,8 @@ see docs/deploy.md
 """
 
 
-def _cli_error(text: str) -> Exception:
-    from scenarios.cli import CliError
-
-    return CliError(text)
-
-
 def _xyz_m(text: str) -> np.ndarray:
-    try:
-        v = np.array([float(x) for x in text.replace(" ", "").split(",") if x != ""])
-    except ValueError:
-        raise _cli_error(f"--xyz (mm): expected 3 comma-separated numbers, got {text!r}") from None
-    if v.shape != (3,) or not np.all(np.isfinite(v)):
-        raise _cli_error(f"--xyz (mm): expected 3 finite numbers, got {text!r}")
-    return v / 1000.0
+    return parse_floats(text, 3, "--xyz (mm)") / 1000.0
 
 
 def _calibration_file(path: str) -> Path:
@@ -58,7 +48,7 @@ def _calibration_file(path: str) -> Path:
     if p.is_dir():
         p = p / "calibration.json"
     if not p.is_file():
-        raise _cli_error(
+        raise CliError(
             f"{p} not found: give a dataset folder holding calibration.json (run `selfcal "
             "calibrate DIR` first), the calibration.json itself or an exported .toml"
         )
@@ -82,9 +72,9 @@ def load_calibration(path: str):
         doc = json.loads(p.read_text())
         return deploy(doc, source=str(p))
     except json.JSONDecodeError as exc:
-        raise _cli_error(f"{p}: not valid JSON ({exc})") from None
+        raise CliError(f"{p}: not valid JSON ({exc})") from None
     except DeployError as exc:
-        raise _cli_error(f"{p}: {exc}") from None
+        raise CliError(f"{p}: {exc}") from None
 
 
 def cmd_export(args: argparse.Namespace) -> int:
@@ -97,7 +87,7 @@ def cmd_export(args: argparse.Namespace) -> int:
     if fmt is None:
         fmt = next((f for f, ext in FORMATS.items() if out.suffix == ext), None)
         if fmt is None:
-            raise _cli_error(
+            raise CliError(
                 f"--format is needed: the suffix of {out.name!r} names none of "
                 f"{', '.join(f'{f} ({e})' for f, e in FORMATS.items())}"
             )
@@ -142,9 +132,9 @@ def cmd_ik_calibrated(args: argparse.Namespace) -> int:
             dep, robot, xyz, pitch, roll, branch=getattr(args, "branch", None) or None
         )
     except UnreachableError as exc:
-        raise _cli_error(f"unreachable: {exc}") from None
+        raise CliError(f"unreachable: {exc}") from None
     except ValueError as exc:
-        raise _cli_error(str(exc)) from None
+        raise CliError(str(exc)) from None
     nominal = None if res.nominal_joints is None else np.degrees(res.nominal_joints)
     print(
         json.dumps(
@@ -168,7 +158,7 @@ def _ik_dispatch(original):
         if getattr(args, "calibration", None):
             return cmd_ik_calibrated(args)
         if original is None:
-            raise _cli_error("--calibration is required (a calibration.json or exported .toml)")
+            raise CliError("--calibration is required (a calibration.json or exported .toml)")
         return original(args)
 
     return run

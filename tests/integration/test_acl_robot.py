@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import signal
@@ -315,17 +314,10 @@ def test_hardware_config():
 # ---- CLI ------------------------------------------------------------------------------------------
 
 
-def _parser() -> argparse.ArgumentParser:
-    from hw.cli import register
-
-    parser = argparse.ArgumentParser(prog="selfcal")
-    register(parser.add_subparsers(dest="command", required=True))
-    return parser
-
-
 def _run_cli(argv, capsys):
-    args = _parser().parse_args(argv)
-    code = args.func(args)
+    from scenarios.cli import main
+
+    code = main(argv)
     out, err = capsys.readouterr()
     return code, out, err
 
@@ -351,7 +343,18 @@ def test_cli_hw_commands(emu, capsys, tmp_path):
     assert code == 2 and "joint 2 (shoulder)" in err and out == ""
     assert b"MOVE" not in emu.received[n_rx:]
     code, _, err = _run_cli(["hw", "joints", "--port", "/dev/nonexistent-tty"], capsys)
-    assert code == 2 and "/dev/nonexistent-tty" in err
+    assert code == 4 and "/dev/nonexistent-tty" in err  # a hardware fault (README "Exit codes")
+
+
+def test_cli_hardware_fault_exits_4(emu, capsys):
+    """An impact during `selfcal hw move` is a robot fault: exit code 4, the controller's text and
+    the axis on stderr, nothing on stdout."""
+    emu.inject_fault("impact", on="MOVE", axis=2, at_fraction=0.3)
+    code, out, err = _run_cli(
+        ["hw", "move", "--port", emu.pty_path, "--joints", "10,100,-80,-70,20"], capsys
+    )
+    assert code == 4 and out == ""
+    assert err.startswith("selfcal hw: error: ") and "axis 2" in err
 
 
 def test_cli_emulate_runs_until_ctrl_c(tmp_path):

@@ -1,0 +1,139 @@
+"""`selfcal` exit codes (README "Exit codes"): 2 bad input, 3 data that cannot determine the
+calibration, 1 an internal error, 130 Ctrl-C; each failure prints one `selfcal CMD: error:` line.
+
+The hardware fault (exit code 4) is tested against the ACL emulator in test_acl_robot.py.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import pytest
+
+from calib.errors import EstimationError, HardwareError, InputError, SelfCalError
+from scenarios import cli
+from scenarios.config import load_scenario
+from scenarios.pipeline import run_acquire
+
+
+def run(capsys, *argv):
+    code = cli.main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_the_kinds_carry_their_codes():
+    assert (InputError.exit_code, EstimationError.exit_code, HardwareError.exit_code) == (2, 3, 4)
+    # every class the project raises on purpose has the one root
+    from calib.calibrate import CalibrationError, CalibrationFileError
+    from calib.robot_def import RobotDefinitionError
+    from hw.acl_protocol import AclControllerError
+    from scenarios.config import ConfigError
+
+    assert issubclass(ConfigError, InputError) and issubclass(RobotDefinitionError, InputError)
+    assert issubclass(CalibrationError, EstimationError) and issubclass(
+        AclControllerError, HardwareError
+    )
+    assert CalibrationFileError.exit_code == 2 and issubclass(
+        CalibrationFileError, CalibrationError
+    )
+    assert all(issubclass(c, SelfCalError) for c in (ConfigError, CalibrationError))
+
+
+def test_bad_scenario_key_exits_2(capsys, tmp_path):
+    cfg = tmp_path / "bad.toml"
+    cfg.write_text("[camera]\nfocal_px = 800.0\n")
+    code, out, err = run(capsys, "run", cfg, "--out", tmp_path / "run", "--quiet")
+    assert code == 2 and out == ""
+    assert err.startswith("selfcal run: error: ") and "focal_px" in err and str(cfg) in err
+    assert not (tmp_path / "run").exists()
+
+
+@pytest.fixture(scope="module")
+def small_dataset(tmp_path_factory):
+    """6 postures on the analytic path (detections, no rendering)."""
+    out = tmp_path_factory.mktemp("exit") / "ds"
+    s = load_scenario(
+        overrides={
+            "noise": {"render": False},
+            "trajectory": {"poses": 6},
+            "validation": {"poses": 3},
+        }
+    )
+    run_acquire(s, out, quiet=True)
+    return out
+
+
+def _keep_rows(src, dst, keep):
+    shutil.copytree(src, dst)
+    for name in ("joints.csv", "detections.csv"):
+        lines = (dst / name).read_text().splitlines()
+        rows = [r for r in lines[1:] if keep(int(r.split(",")[0]))]
+        (dst / name).write_text("\n".join([lines[0], *rows]) + "\n")
+    return dst
+
+
+def test_too_few_postures_exits_3(capsys, small_dataset, tmp_path):
+    ds = _keep_rows(small_dataset, tmp_path / "few", lambda i: i < 3)
+    code, out, err = run(capsys, "calibrate", ds, "--quiet")
+    assert code == 3 and out == ""
+    assert err.startswith("selfcal calibrate: error: ") and "at least 6" in err
+    assert not (ds / "calibration.json").exists()
+
+
+def test_degenerate_postures_exit_3(capsys, small_dataset, tmp_path):
+    """Every frame at the first posture: the optical axes cannot determine the camera."""
+    ds = tmp_path / "same"
+    shutil.copytree(small_dataset, ds)
+    lines = (ds / "joints.csv").read_text().splitlines()
+    first = lines[1].split(",")[1:]
+    rows = [",".join([r.split(",")[0], *first]) for r in lines[1:]]
+    (ds / "joints.csv").write_text("\n".join([lines[0], *rows]) + "\n")
+    code, _, err = run(capsys, "calibrate", ds, "--quiet")
+    assert code == 3 and "selfcal calibrate: error: " in err
+
+
+def test_damaged_calibration_exits_2_with_the_fix(capsys, small_dataset, tmp_path):
+    ds = tmp_path / "damaged"
+    shutil.copytree(small_dataset, ds)
+    (ds / "calibration.json").write_text(json.dumps({"format": "something-else"}))
+    code, out, err = run(capsys, "export", ds, "--format", "urdf", "--out", tmp_path / "r.urdf")
+    assert code == 2 and out == ""
+    assert "selfcal export: error: " in err and "something-else" in err
+
+
+def test_internal_error_exits_1_with_the_debug_hint(capsys, monkeypatch):
+    def boom(args):
+        raise ZeroDivisionError("division by zero")
+
+    monkeypatch.setattr(cli, "cmd_fk", boom)
+    monkeypatch.delenv("SELFCAL_DEBUG", raising=False)
+    code, _, err = run(capsys, "fk", "--joints", "0,0,0,0,0")
+    assert code == 1
+    assert "ZeroDivisionError: division by zero" in err and "SELFCAL_DEBUG=1" in err
+    monkeypatch.setenv("SELFCAL_DEBUG", "1")
+    with pytest.raises(ZeroDivisionError):
+        cli.main(["fk", "--joints", "0,0,0,0,0"])
+
+
+def test_ctrl_c_exits_130(capsys, monkeypatch):
+    def interrupted(args):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cli, "cmd_fk", interrupted)
+    code, _, err = run(capsys, "fk", "--joints", "0,0,0,0,0")
+    assert code == 130 and "interrupted" in err
+
+
+def test_fix_is_printed_on_its_own_line(capsys, monkeypatch):
+    def bad(args):
+        raise InputError("the thing is wrong", fix="do the other thing")
+
+    monkeypatch.setattr(cli, "cmd_fk", bad)
+    code, _, err = run(capsys, "fk", "--joints", "0,0,0,0,0")
+    assert code == 2
+    assert err.splitlines() == [
+        "selfcal fk: error: the thing is wrong",
+        "selfcal fk: fix: do the other thing",
+    ]
