@@ -2,7 +2,7 @@
 
 - ``hw.acl_protocol``: ACL reply reader, parsers, the serial link (``AclLink``).
 - ``hw.encoders``: encoder counts <-> joint angles (``EncoderTable``).
-- ``hw.acl_robot``: ``AclRobot``, the ``scenarios.robot.Robot`` over ACL;
+- ``hw.acl_robot``: ``AclRobot``, the ``calib.robot.Robot`` over ACL;
   ``open_hardware_robot(scenario)`` for ``[robot] backend = "hardware"``.
 - ``hw.cameras``: ``StereoCamera`` over ``cv2.VideoCapture``.
 - ``hw.emulator``: ``AclEmulator`` (pty + TCP) with pluggable ``EmulatorBackend``.

@@ -29,7 +29,7 @@ from typing import Any, TypeVar
 import numpy as np
 import serial
 
-from scenarios.robot import RobotError
+from calib.robot import RobotError
 
 __all__ = [
     "CTRL_A",

@@ -1,4 +1,4 @@
-"""``AclRobot``: a real SCORBOT (Controller-A/B, or an ACL bridge/emulator) as a ``scenarios.robot.Robot``.
+"""``AclRobot``: a real SCORBOT (Controller-A/B, or an ACL bridge/emulator) as a ``calib.robot.Robot``.
 
 Motion: joint targets (deg) are checked against the model's ranges *before any byte is sent*,
 converted to encoder counts (``hw.encoders``), written into one reserved position with ``DEFP`` /
@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from calib.errors import InputError
+from calib.robot import RobotError, StereoPair
 from calib.robot_def import RobotDef, load_robot
 from hw.acl_protocol import (
     AclConnectionError,
@@ -48,7 +49,6 @@ from hw.acl_protocol import (
 )
 from hw.cameras import StereoCamera
 from hw.encoders import EncoderTable
-from scenarios.robot import RobotError, StereoPair
 
 __all__ = [
     "AclRobot",
@@ -149,7 +149,7 @@ def hardware_config(config: Mapping[str, Any] | None) -> dict[str, Any]:
 
 
 class AclRobot:
-    """A SCORBOT driven through ACL; implements ``scenarios.robot.Robot``.
+    """A SCORBOT driven through ACL; implements ``calib.robot.Robot``.
 
     Args:
         link: an open ``AclLink``.

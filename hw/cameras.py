@@ -27,7 +27,7 @@ import cv2
 import numpy as np
 
 from calib.errors import InputError
-from scenarios.robot import RobotError, StereoPair
+from calib.robot import RobotError, StereoPair
 
 __all__ = ["CameraError", "Camera", "StereoCamera", "source_kind"]
 

@@ -48,9 +48,9 @@ import cv2
 import numpy as np
 
 from calib.errors import InputError
+from calib.robot import StereoPair
 from calib.robot_def import RobotDef, load_robot
 from hw.encoders import EncoderTable
-from scenarios.robot import StereoPair
 
 __all__ = [
     "EmulatorBackend",

@@ -14,8 +14,8 @@ import numpy as np
 
 from calib.dataset import DatasetWriter
 from calib.errors import HardwareError
+from calib.robot import Robot
 from scenarios.progress import Progress
-from scenarios.robot import Robot
 
 __all__ = ["AcquisitionError", "AcquisitionHooks", "acquire"]
 

@@ -16,12 +16,12 @@ from calib.camera import Intrinsics
 from calib.dataset import DatasetInfo
 from calib.kinematics import fk_tool
 from calib.mcpc import MCPCModel, dh_to_mcpc, minimal_indices, param_is_angle, param_names
+from calib.robot import Robot
 from calib.robot_def import RobotDef, load_robot
 from calib.trajectory import check_not_degenerate, plan_postures
 from calib.transforms import trans
 from scenarios.acquire import AcquisitionHooks
 from scenarios.config import ConfigError, Scenario, scenario_to_dict
-from scenarios.robot import Robot
 
 __all__ = [
     "SimSetup",

@@ -28,9 +28,9 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 
 import numpy as np  # noqa: E402
 
+from calib.robot import StereoPair  # noqa: E402
 from calib.robot_def import RobotDef  # noqa: E402
 from hw.encoders import EncoderTable  # noqa: E402
-from scenarios.robot import StereoPair  # noqa: E402
 from sim.actual import Truth  # noqa: E402
 from sim.sim_robot import SimRobot  # noqa: E402
 

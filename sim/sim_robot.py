@@ -1,4 +1,4 @@
-"""The simulated camera-equipped SCORBOT: ``scenarios.robot.Robot`` backed by MuJoCo.
+"""The simulated camera-equipped SCORBOT: ``calib.robot.Robot`` backed by MuJoCo.
 
 Kinematic simulation: a move sets the joint positions directly (no dynamics) and runs
 ``mj_forward``; the robot's geometry is the "actual" MCPC chain (``sim.actual``), so the images
@@ -18,8 +18,8 @@ import numpy as np  # noqa: E402
 
 from calib.errors import InputError  # noqa: E402
 from calib.mcpc import MCPCModel  # noqa: E402
+from calib.robot import RobotError, StereoPair  # noqa: E402
 from calib.robot_def import load_robot  # noqa: E402
-from scenarios.robot import RobotError, StereoPair  # noqa: E402
 from sim.actual import Truth, make_truth  # noqa: E402
 from sim.markers import MarkerField, make_marker_field  # noqa: E402
 from sim.mj_camera import T_world_cam_cv  # noqa: E402

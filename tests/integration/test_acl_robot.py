@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from calib.robot import Robot, RobotError, StereoPair
 from hw.acl_protocol import (
     AclConnectionError,
     AclControllerError,
@@ -24,7 +25,6 @@ from hw.acl_robot import AclRobot, hardware_config
 from hw.cameras import StereoCamera
 from hw.emulator import AclEmulator, KinematicBackend
 from hw.encoders import ER4U_HOME_DEG, EncoderTable
-from scenarios.robot import Robot, RobotError, StereoPair
 
 ROOT = Path(__file__).resolve().parents[2]
 ENC = EncoderTable.er4u()

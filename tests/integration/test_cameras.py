@@ -6,11 +6,11 @@ import cv2
 import numpy as np
 import pytest
 
+from calib.robot import StereoPair
 from hw.acl_robot import AclRobot
 from hw.cameras import Camera, CameraError, StereoCamera, source_kind
 from hw.emulator import AclEmulator, KinematicBackend
 from hw.encoders import ER4U_HOME_DEG
-from scenarios.robot import StereoPair
 
 
 def _write(path, rgb):

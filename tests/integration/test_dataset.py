@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from calib.dataset import Dataset, DatasetError, DatasetInfo, DatasetWriter
+from calib.robot import StereoPair
 from scenarios.acquire import AcquisitionError, acquire
-from scenarios.robot import StereoPair
 
 
 def info(observation="images", m=5):

@@ -28,6 +28,7 @@ import tomllib
 from calib.calibrate import model_from_calibration
 from calib.dataset import Dataset
 from calib.report import aligned_errors, tool_tips
+from calib.robot import Robot
 from hw.acl_protocol import AclConnectionError
 from hw.acl_robot import AclRobot, open_hardware_robot
 from hw.emulator import AclEmulator, Fault
@@ -35,7 +36,6 @@ from hw.encoders import EncoderTable
 from scenarios.acquire import AcquisitionError
 from scenarios.config import ConfigError, default_scenario_path, load_scenario, scenario_to_dict
 from scenarios.pipeline import run_acquire, run_calibrate
-from scenarios.robot import Robot
 from sim.emulator_backend import SimEmulatorBackend
 
 FAST = 3000.0  # emulated joint speed, deg/s: the moves are not what is tested here

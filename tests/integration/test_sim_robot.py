@@ -1,4 +1,4 @@
-"""The simulated robot behind the ``scenarios.robot.Robot`` interface."""
+"""The simulated robot behind the ``calib.robot.Robot`` interface."""
 
 from __future__ import annotations
 
@@ -11,8 +11,8 @@ import pytest  # noqa: E402
 
 from calib.camera import project  # noqa: E402
 from calib.kinematics import fk_frames  # noqa: E402
+from calib.robot import Robot, RobotError, StereoPair  # noqa: E402
 from calib.transforms import inv_pose  # noqa: E402
-from scenarios.robot import Robot, RobotError, StereoPair  # noqa: E402
 from sim.actual import apply_errors, perturb  # noqa: E402
 from sim.markers import make_marker_field  # noqa: E402
 from sim.robot_mjcf import nominal_camera_model  # noqa: E402

@@ -1,7 +1,9 @@
 """The one robot interface that the simulator (``sim``) and the hardware adapter (``hw``) implement.
 
-The acquisition loop talks only to this interface. Joint angles cross it in degrees (the unit of
-the controller, of ``joints.csv`` and of people at the robot); everything behind it is SI.
+Declared here, in the lowest layer, so that ``sim`` and ``hw`` implement it without knowing each
+other or ``scenarios``; the acquisition loop (``scenarios.acquire``) talks only to it. Joint
+angles cross it in degrees (the unit of the controller, of ``joints.csv`` and of people at the
+robot); everything behind it is SI.
 """
 
 from __future__ import annotations
@@ -40,8 +42,8 @@ class Robot(Protocol):
         """Move to (or find) the home posture."""
 
     def move_to(self, joints_deg: np.ndarray) -> None:
-        """Move to joint angles (deg); raises ``ValueError`` naming the joint if out of range,
-        before anything moves, and ``RobotError`` if the move fails."""
+        """Move to joint angles (deg); raises ``InputError`` (a ``ValueError``) naming the joint
+        if out of range, before anything moves, and ``RobotError`` if the move fails."""
 
     def joints(self) -> np.ndarray:
         """Joint angles read back from the encoders (deg), quantised as the encoders are."""
