@@ -1,12 +1,17 @@
 """The real robot over a serial line (ACL), camera capture, and a controller emulator.
 
+Implements ``calib.robot.Robot``; imports only ``calib`` (never ``sim`` or ``scenarios``).
+
 - ``hw.acl_protocol``: ACL reply reader, parsers, the serial link (``AclLink``).
 - ``hw.encoders``: encoder counts <-> joint angles (``EncoderTable``).
-- ``hw.acl_robot``: ``AclRobot``, the ``calib.robot.Robot`` over ACL;
-  ``open_hardware_robot(scenario)`` for ``[robot] backend = "hardware"``.
+- ``hw.settings``: ``AclSettings``, the adapter's typed settings (the ``[robot.hardware]`` keys).
+- ``hw.acl_robot``: ``AclRobot``, the ``calib.robot.Robot`` over ACL
+  (``AclRobot.from_settings(settings)``).
 - ``hw.cameras``: ``StereoCamera`` over ``cv2.VideoCapture``.
 - ``hw.emulator``: ``AclEmulator`` (pty + TCP) with pluggable ``EmulatorBackend``.
-- ``hw.cli``: ``register(subparsers)`` for ``hw joints|home|move`` and ``emulate``.
 
-``sim.emulator_backend.SimEmulatorBackend`` puts a scenario's simulated robot behind the emulator.
+What needs a scenario or the simulator lives in ``scenarios``: ``scenarios.hardware``
+(``open_hardware_robot(scenario)`` for ``[robot] backend = "hardware"``), ``scenarios.hw_cli``
+(``selfcal hw joints|home|move`` and ``emulate``) and ``scenarios.emulator_backend``
+(``SimEmulatorBackend``: a scenario's simulated robot behind the emulator).
 """

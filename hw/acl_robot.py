@@ -15,8 +15,9 @@ Safety:
 - queries (``LISTPV``, ``PRINT MFLAG``, ...) are retried a bounded number of times, motion commands
   never.
 
-Configuration: ``AclRobot.from_config(config)`` with the ``[robot.hardware]`` table (see
-``DEFAULT_HARDWARE`` and ``docs/hardware.md``).
+Configuration: ``AclRobot.from_settings(settings)`` with typed ``hw.settings.AclSettings``, or
+``AclRobot.from_config(table)`` with a flat table of their keys (``docs/hardware.md``). Reading
+them from a scenario is ``scenarios.hardware``'s job.
 """
 
 from __future__ import annotations
@@ -49,40 +50,9 @@ from hw.acl_protocol import (
 )
 from hw.cameras import StereoCamera
 from hw.encoders import EncoderTable
+from hw.settings import AclSettings
 
-__all__ = [
-    "AclRobot",
-    "DEFAULT_HARDWARE",
-    "hardware_config",
-    "default_encoders",
-    "open_hardware_robot",
-]
-
-DEFAULT_HARDWARE: dict[str, Any] = {
-    "model": "er4u-vendor",  # nominal model (models/robots/<name>.toml); [robot] model also works
-    "port": "/dev/ttyUSB0",  # any pyserial URL: device, socket://host:port, loop://, pty path
-    "baudrate": 9600,
-    "bytesize": 8,
-    "parity": "N",
-    "stopbits": 1,
-    "xonxoff": True,
-    "echo": "auto",  # "auto" | true | false: what the controller does (not changed)
-    "cameras": ["0", "1"],  # left, right: device index, URL or image-sequence pattern
-    "camera_size": None,  # [width, height] to enforce, or none
-    "camera_sequence_mode": "latest",  # image sequences: "latest" (live/emulator) | "next"
-    "query_timeout_s": 2.0,
-    "home_timeout_s": 600.0,
-    "move_timeout_s": 120.0,
-    "poll_interval_s": 0.05,
-    "query_retries": 2,
-    "position_name": "SCP",  # the one ACL position the adapter reserves (DEFP)
-    "speed": None,  # SPEED 1..100 sent before the first motion, or none (leave as is)
-    "completion": "mflag",  # "mflag" (PRINT MFLAG until 0) | "listpv" (LISTPV until still)
-    "tolerance_counts": 10,  # read-back vs target after a move, per axis (motor counts)
-    "coff_on_close": False,
-    "connect_check": True,  # on opening, a bare CR must bring a prompt (else a clear error)
-    "encoders": None,  # table: counts_per_deg, home_deg, home_counts, differential
-}
+__all__ = ["AclRobot", "default_encoders"]
 
 _HOME_DONE = re.compile(r"HOMING\s+COMPLETE", re.I)
 
@@ -97,57 +67,6 @@ def default_encoders(robot: RobotDef | str) -> EncoderTable:
     return EncoderTable.for_robot(robot)
 
 
-def hardware_config(config: Mapping[str, Any] | None) -> dict[str, Any]:
-    """The ``[robot.hardware]`` table with defaults filled in.
-
-    ``config`` is either a whole config (with ``robot.hardware``; ``robot.model`` is used as the
-    model if the table has none) or the hardware table itself.
-
-    Raises:
-        ValueError: unknown keys (the message lists the known ones) or bad values.
-    """
-    config = dict(config or {})
-    model = None
-    if isinstance(config.get("robot"), Mapping):
-        robot = config["robot"]
-        model = robot.get("model")
-        table = dict(robot.get("hardware") or {})
-    else:
-        table = config
-    options = table.pop("options", None)
-    if options is not None:
-        if not isinstance(options, Mapping):
-            raise InputError(f"[robot.hardware] options must be a table, got {options!r}")
-        clash = set(options) & set(table)
-        if clash:
-            raise InputError(
-                f"[robot.hardware] key(s) {sorted(clash)} are given both directly and in options; "
-                "give each once"
-            )
-        table.update(options)
-    unknown = set(table) - set(DEFAULT_HARDWARE)
-    if unknown:
-        raise InputError(
-            f"unknown [robot.hardware] key(s) {sorted(unknown)}; known: {sorted(DEFAULT_HARDWARE)}"
-        )
-    out = dict(DEFAULT_HARDWARE)
-    if model is not None and "model" not in table:
-        out["model"] = model
-    out.update(table)
-    if out["completion"] not in ("mflag", "listpv"):
-        raise InputError(f"completion must be 'mflag' or 'listpv', got {out['completion']!r}")
-    if out["echo"] not in ("auto", True, False):
-        raise InputError(f"echo must be 'auto', true or false, got {out['echo']!r}")
-    if out["speed"] is not None and not 1 <= int(out["speed"]) <= 100:
-        raise InputError(f"speed must be 1..100, got {out['speed']}")
-    if not re.fullmatch(r"[A-Za-z][A-Za-z0-9]{0,4}", str(out["position_name"])):
-        raise InputError(
-            f"position_name must be 1-5 letters/digits starting with a letter, got "
-            f"{out['position_name']!r}"
-        )
-    return out
-
-
 class AclRobot:
     """A SCORBOT driven through ACL; implements ``calib.robot.Robot``.
 
@@ -157,7 +76,7 @@ class AclRobot:
         encoders: counts <-> degrees (default: the ER-4u table).
         cameras: a ``StereoCamera`` (or anything with ``capture() -> StereoPair`` and
             ``close()``), or ``None`` (``capture()`` then raises).
-        Remaining arguments: see ``DEFAULT_HARDWARE``.
+        Remaining arguments: see ``hw.settings.AclSettings``.
 
     Not thread-safe: one caller at a time.
     """
@@ -215,87 +134,98 @@ class AclRobot:
     # -- construction ----------------------------------------------------------------------------
 
     @classmethod
-    def from_config(
+    def from_settings(
         cls,
-        config: Mapping[str, Any] | None,
+        settings: AclSettings,
         *,
         link: AclLink | None = None,
         cameras: Any | None = None,
         open_cameras: bool = True,
-        **overrides: Any,
     ) -> AclRobot:
-        """Open the port and cameras named by a ``[robot.hardware]`` config (see ``hardware_config``).
+        """Open the port and cameras that ``settings`` name.
 
-        ``link``/``cameras`` replace what the config would open; ``open_cameras=False`` skips them
-        (e.g. for ``hw joints``); ``overrides`` replace config keys.
+        ``link``/``cameras`` replace what the settings would open; ``open_cameras=False`` skips
+        them (e.g. for ``hw joints``).
 
         Raises:
-            ValueError: bad config. AclConnectionError: the port cannot be opened.
-            CameraError: a camera cannot be opened.
+            InputError: a bad encoder table. AclConnectionError: the port cannot be opened or
+            nothing answers on it. CameraError: a camera cannot be opened.
         """
-        cfg = hardware_config(config)
-        cfg.update(overrides)
-        robot = load_robot(cfg["model"])
+        s = settings
+        robot = load_robot(s.model)
         encoders = default_encoders(robot)
-        if cfg["encoders"]:
-            encoders = EncoderTable.from_config(cfg["encoders"], base=encoders)
+        if s.encoders:
+            encoders = EncoderTable.from_config(s.encoders, base=encoders)
         elif robot.name != "er4u-vendor":
             warnings.warn(
                 f"[robot.hardware] has no encoders table: assuming the encoders read zero at "
                 f"{robot.name}'s home posture {np.round(encoders.home_deg, 3).tolist()} deg (its "
                 "TOML home_deg). On a real arm they read zero where HOME leaves it: give "
                 "[robot.hardware.options.encoders] home_deg in this model's convention",
-                stacklevel=2,
+                stacklevel=3,
             )
         opened = link is None
         if link is None:
-            echo = None if cfg["echo"] == "auto" else bool(cfg["echo"])
             link = AclLink.open(
-                str(cfg["port"]),
-                baudrate=int(cfg["baudrate"]),
-                bytesize=int(cfg["bytesize"]),
-                parity=str(cfg["parity"]),
-                stopbits=cfg["stopbits"],
-                xonxoff=bool(cfg["xonxoff"]),
-                echo=echo,
-                query_timeout_s=float(cfg["query_timeout_s"]),
-                retries=int(cfg["query_retries"]),
+                str(s.port),
+                baudrate=int(s.baudrate),
+                bytesize=int(s.bytesize),
+                parity=str(s.parity),
+                stopbits=s.stopbits,
+                xonxoff=bool(s.xonxoff),
+                echo=None if s.echo == "auto" else bool(s.echo),
+                query_timeout_s=float(s.query_timeout_s),
+                retries=int(s.query_retries),
             )
         try:
-            if (
-                opened
-                and cfg["connect_check"]
-                and not link.resync(timeout_s=float(cfg["query_timeout_s"]))
-            ):
+            if opened and s.connect_check and not link.resync(timeout_s=float(s.query_timeout_s)):
                 raise AclConnectionError(
-                    f"ACL port {cfg['port']!r} opened but no prompt came back for a bare CR within "
-                    f"{float(cfg['query_timeout_s']):g} s: {port_hint(str(cfg['port']))}"
+                    f"ACL port {s.port!r} opened but no prompt came back for a bare CR within "
+                    f"{float(s.query_timeout_s):g} s: {port_hint(str(s.port))}"
                 )
-            if cameras is None and open_cameras and cfg["cameras"]:
-                size = tuple(cfg["camera_size"]) if cfg["camera_size"] else None
+            if cameras is None and open_cameras and s.cameras:
                 cameras = StereoCamera.from_sources(
-                    [str(c) for c in cfg["cameras"]],
-                    expected_size=size,  # type: ignore[arg-type]
-                    sequence_mode=str(cfg["camera_sequence_mode"]),
+                    list(s.cameras),
+                    expected_size=s.camera_size,
+                    sequence_mode=str(s.camera_sequence_mode),
                 )
             return cls(
                 link,
                 robot=robot,
                 encoders=encoders,
                 cameras=cameras,
-                position_name=str(cfg["position_name"]),
-                speed=None if cfg["speed"] is None else int(cfg["speed"]),
-                home_timeout_s=float(cfg["home_timeout_s"]),
-                move_timeout_s=float(cfg["move_timeout_s"]),
-                poll_interval_s=float(cfg["poll_interval_s"]),
-                query_retries=int(cfg["query_retries"]),
-                completion=str(cfg["completion"]),
-                tolerance_counts=int(cfg["tolerance_counts"]),
-                coff_on_close=bool(cfg["coff_on_close"]),
+                position_name=str(s.position_name),
+                speed=None if s.speed is None else int(s.speed),
+                home_timeout_s=float(s.home_timeout_s),
+                move_timeout_s=float(s.move_timeout_s),
+                poll_interval_s=float(s.poll_interval_s),
+                query_retries=int(s.query_retries),
+                completion=str(s.completion),
+                tolerance_counts=int(s.tolerance_counts),
+                coff_on_close=bool(s.coff_on_close),
             )
         except BaseException:
             link.close()
             raise
+
+    @classmethod
+    def from_config(
+        cls,
+        table: Mapping[str, Any] | None,
+        *,
+        link: AclLink | None = None,
+        cameras: Any | None = None,
+        open_cameras: bool = True,
+        **overrides: Any,
+    ) -> AclRobot:
+        """:meth:`from_settings` of a flat table of ``AclSettings`` keys (``overrides`` replace
+        keys), e.g. ``{"port": "socket://127.0.0.1:5000", "cameras": []}``.
+
+        Raises:
+            InputError: unknown keys or bad values; and what :meth:`from_settings` raises.
+        """
+        settings = AclSettings.from_mapping({**(table or {}), **overrides})
+        return cls.from_settings(settings, link=link, cameras=cameras, open_cameras=open_cameras)
 
     @classmethod
     def open(cls, port: str, **kwargs: Any) -> AclRobot:
@@ -608,63 +538,3 @@ class AclRobot:
             return self.link.resync()
         except AclConnectionError:
             return False
-
-
-_SCENARIO_HW_KEYS = ("model", "port", "baudrate", "xonxoff", "cameras")
-
-
-def open_hardware_robot(scenario: Any) -> AclRobot:
-    """The scenario's robot on the hardware path: an ``AclRobot`` with its ``StereoCamera``.
-
-    From the scenario (``scenarios.config.Scenario``): ``robot.model`` (nominal model: joint ranges,
-    ``model_name``), ``robot.hardware.port`` / ``baudrate`` / ``xonxoff`` / ``cameras``,
-    ``robot.hardware.options`` (any further key of ``DEFAULT_HARDWARE``, e.g.
-    ``query_timeout_s``, ``speed``, ``encoders``) and ``camera.resolution`` (frames of another
-    size are refused). Without ``options.encoders`` the table is ``default_encoders(model)``.
-    On opening, the controller must answer a bare CR with a prompt (``connect_check``).
-
-    Raises:
-        ConfigError: an option that is unknown, belongs elsewhere, or contradicts the scenario
-            (the message names the scenario file and the key).
-        AclConnectionError: the port cannot be opened or nothing answers on it (the message
-            names the URL and what to check).
-        CameraError: a camera source cannot be opened or gives no frame.
-    """
-    from scenarios.config import ConfigError
-
-    hw = scenario.robot.hardware
-    where = f"{scenario.source}: [robot.hardware] options"
-    opts = dict(hw.options)
-    misplaced = sorted(set(opts) & set(_SCENARIO_HW_KEYS))
-    if misplaced:
-        raise ConfigError(
-            f"{where}: {misplaced} do not belong in options: give model in [robot] and "
-            "port, baudrate, xonxoff, cameras directly in [robot.hardware]"
-        )
-    size = [int(v) for v in scenario.camera.resolution]
-    if opts.get("camera_size") is not None and [int(v) for v in opts["camera_size"]] != size:
-        raise ConfigError(
-            f"{where}: camera_size {list(opts['camera_size'])} contradicts [camera] resolution "
-            f"{size}; drop camera_size (the resolution is enforced) or fix the resolution"
-        )
-    table = {
-        **opts,
-        "model": scenario.robot.model,
-        "port": hw.port,
-        "baudrate": hw.baudrate,
-        "xonxoff": hw.xonxoff,
-        "cameras": [str(c) for c in hw.cameras],
-        "camera_size": size,
-    }
-    try:
-        cfg = hardware_config(table)
-        if cfg["encoders"]:
-            EncoderTable.from_config(cfg["encoders"], base=default_encoders(cfg["model"]))
-    except ValueError as exc:
-        raise ConfigError(f"{where}: {exc}") from None
-    try:
-        return AclRobot.from_config(table)
-    except AclConnectionError as exc:
-        raise AclConnectionError(
-            f"{scenario.source}: [robot.hardware] port: {exc}", exc.raw, exc.events
-        ) from exc

@@ -208,7 +208,7 @@ def open_robot(
 ) -> tuple[Robot, AcquisitionHooks]:
     """The scenario's robot and its simulator-only hooks (analytic detections, ground truth)."""
     if s.robot.backend == "hardware":
-        from hw.acl_robot import open_hardware_robot
+        from scenarios.hardware import open_hardware_robot
 
         return open_hardware_robot(s), AcquisitionHooks()
     from sim.actual import write_truth

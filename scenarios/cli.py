@@ -234,8 +234,8 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("dataset", help="dataset folder")
     sp.add_argument("--quiet", action="store_true")
 
-    from hw.cli import register as register_hw
     from scenarios.deploy_cli import register as register_deploy
+    from scenarios.hw_cli import register as register_hw
     from scenarios.montecarlo import register as register_montecarlo
     from scenarios.paper_repro import register as register_paper
     from scenarios.rerun_log import register as register_record

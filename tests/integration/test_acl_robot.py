@@ -21,7 +21,7 @@ from hw.acl_protocol import (
     AclProtocolError,
     AclTimeoutError,
 )
-from hw.acl_robot import AclRobot, hardware_config
+from hw.acl_robot import AclRobot
 from hw.cameras import StereoCamera
 from hw.emulator import AclEmulator, KinematicBackend
 from hw.encoders import ER4U_HOME_DEG, EncoderTable
@@ -301,14 +301,21 @@ def test_capture_through_the_emulator_frames(emu):
         r2.capture()
 
 
-def test_hardware_config():
-    cfg = hardware_config({"robot": {"model": "er4u-paper", "hardware": {"port": "loop://"}}})
-    assert cfg["model"] == "er4u-paper" and cfg["port"] == "loop://" and cfg["baudrate"] == 9600
-    assert hardware_config(None)["cameras"] == ["0", "1"]
+def test_hardware_settings():
+    from hw.settings import AclSettings
+    from scenarios.hardware import hardware_settings
+
+    s = hardware_settings({"robot": {"model": "er4u-paper", "hardware": {"port": "loop://"}}})
+    assert s.model == "er4u-paper" and s.port == "loop://" and s.baudrate == 9600
+    assert hardware_settings(None).cameras == ("0", "1") == AclSettings().cameras
+    s = hardware_settings({"port": "x", "options": {"speed": 30}}, model="er4u-paper")
+    assert (s.port, s.speed, s.model) == ("x", 30, "er4u-paper")
     with pytest.raises(ValueError, match=r"unknown \[robot.hardware\] key"):
-        hardware_config({"prot": "x"})
+        hardware_settings({"prot": "x"})
     with pytest.raises(ValueError, match="position_name"):
-        hardware_config({"position_name": "TOO_LONG_NAME"})
+        AclSettings.from_mapping({"position_name": "TOO_LONG_NAME"})
+    with pytest.raises(ValueError, match="given both directly and in options"):
+        hardware_settings({"port": "x", "options": {"port": "y"}})
 
 
 # ---- CLI ------------------------------------------------------------------------------------------
@@ -362,7 +369,7 @@ def test_cli_emulate_runs_until_ctrl_c(tmp_path):
     cfg.write_text("[emulator]\nmove_speed_deg_s = 1000.0\nhome_duration_s = 0.05\n")
     code = (
         "import argparse, sys\n"
-        "from hw.cli import register\n"
+        "from scenarios.hw_cli import register\n"
         "p = argparse.ArgumentParser(); register(p.add_subparsers(dest='c'))\n"
         "a = p.parse_args(sys.argv[1:]); sys.exit(a.func(a))\n"
     )

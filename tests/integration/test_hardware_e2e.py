@@ -1,5 +1,5 @@
 """The hardware path end to end: ``[robot] backend = "hardware"`` against the ACL emulator whose arm
-is the scenario's simulated robot (``sim.emulator_backend.SimEmulatorBackend``).
+is the scenario's simulated robot (``scenarios.emulator_backend.SimEmulatorBackend``).
 
 The scenario is ``scenarios/paper.toml`` with the one flag switched and the ``[robot.hardware]``
 table the emulator prints; acquisition runs through ``AclRobot`` (serial dialogue on a pty,
@@ -30,13 +30,14 @@ from calib.dataset import Dataset
 from calib.report import aligned_errors, tool_tips
 from calib.robot import Robot
 from hw.acl_protocol import AclConnectionError
-from hw.acl_robot import AclRobot, open_hardware_robot
+from hw.acl_robot import AclRobot
 from hw.emulator import AclEmulator, Fault
 from hw.encoders import EncoderTable
 from scenarios.acquire import AcquisitionError
 from scenarios.config import ConfigError, default_scenario_path, load_scenario, scenario_to_dict
+from scenarios.emulator_backend import SimEmulatorBackend
+from scenarios.hardware import hardware_settings, open_hardware_robot
 from scenarios.pipeline import run_acquire, run_calibrate
-from sim.emulator_backend import SimEmulatorBackend
 
 FAST = 3000.0  # emulated joint speed, deg/s: the moves are not what is tested here
 FAULT_SECTIONS = {"trajectory": {"poses": 12}}
@@ -316,7 +317,7 @@ def test_open_hardware_robot_errors(tmp_path):
 def test_selfcal_emulate_with_a_scenario(tmp_path):
     """`selfcal emulate SCENARIO` serves the scenario's simulated robot and prints a table that
     connects to it."""
-    from hw.cli import register
+    from scenarios.hw_cli import register
 
     cfg = tmp_path / "scenario.toml"
     cfg.write_text('[robot]\nmodel = "er4u-paper"\n[trajectory]\nposes = 12\n')
@@ -343,7 +344,9 @@ def test_selfcal_emulate_with_a_scenario(tmp_path):
         snippet = text[text.index("[robot.hardware]") : text.index("Ctrl-C")]
         table = tomllib.loads(snippet)["robot"]["hardware"]
         assert table["port"] == pty and len(table["cameras"]) == 2
-        with AclRobot.from_config({"robot": {"model": "er4u-paper", "hardware": table}}) as r:
+        with AclRobot.from_settings(
+            hardware_settings({"robot": {"model": "er4u-paper", "hardware": table}})
+        ) as r:
             r.move_to(np.array([30.0, -20.0, 50.0, -60.0, 10.0]))
             np.testing.assert_allclose(r.joints(), [30, -20, 50, -60, 10], atol=0.02)
             pair = r.capture()

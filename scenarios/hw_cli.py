@@ -1,4 +1,5 @@
-"""Command-line subcommands for the hardware adapter, registered into the ``selfcal`` CLI.
+"""``selfcal hw ...`` and ``selfcal emulate``: the hardware adapter and the controller emulator on
+the command line (registered into ``scenarios.cli``).
 
 ``register(subparsers)`` adds:
 
@@ -6,11 +7,12 @@
 - ``hw home``    -> HOME, then prints ``{"homed": true, "joints_deg": [...]}``
 - ``hw move --joints a,b,c,d,e`` -> moves, then prints ``{"joints_deg": [...]}`` (read back)
 - ``emulate [CONFIG]`` -> runs the ACL emulator until Ctrl-C: with a scenario TOML the arm is that
-  scenario's simulated robot (``sim.emulator_backend``), else a kinematic arm
+  scenario's simulated robot (``scenarios.emulator_backend``), else a kinematic arm
 
 ``hw`` commands take ``--port URL`` (any pyserial URL) or ``--config FILE`` (TOML with a
 ``[robot.hardware]`` table), optionally ``--model NAME``. Each parser sets ``func`` (called as
-``func(args) -> int`` exit code).
+``func(args) -> int``); errors propagate to ``scenarios.cli_common.run_command``, which prints
+them and picks the exit code.
 """
 
 from __future__ import annotations
@@ -23,9 +25,13 @@ import threading
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from calib.errors import InputError
+from hw.acl_robot import AclRobot
+from hw.emulator import AclEmulator, KinematicBackend
+from scenarios.cli_common import parse_floats
+from scenarios.config import load_scenario
+from scenarios.emulator_backend import SimEmulatorBackend
+from scenarios.hardware import hardware_settings
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -51,7 +57,7 @@ EMULATOR_DEFAULTS: dict[str, Any] = {
 
 
 def load_toml(path: str | Path) -> dict[str, Any]:
-    """Read a TOML file; ``ValueError`` names the file on a missing file or a syntax error."""
+    """Read a TOML file; ``InputError`` names the file on a missing file or a syntax error."""
     p = Path(path)
     if not p.is_file():
         raise InputError(f"config file not found: {p}")
@@ -110,15 +116,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.set_defaults(func=_cmd_emulate)
 
 
-def _open_robot(args: argparse.Namespace):
-    from hw.acl_robot import AclRobot
-
-    if args.config:
-        config = load_toml(args.config)
-    else:
-        config = {"robot": {"hardware": {"port": args.port}}}
+def _open_robot(args: argparse.Namespace) -> AclRobot:
+    config = load_toml(args.config) if args.config else {"port": args.port}
     overrides = {"model": args.model} if args.model else {}
-    return AclRobot.from_config(config, open_cameras=False, **overrides)
+    return AclRobot.from_settings(hardware_settings(config, **overrides), open_cameras=False)
 
 
 def _print(obj: dict[str, Any]) -> None:
@@ -149,15 +150,8 @@ def _cmd_home(args: argparse.Namespace) -> int:
     return _run(args, body)
 
 
-def _parse_joints(text: str) -> np.ndarray:
-    try:
-        return np.array([float(x) for x in text.split(",") if x.strip()], dtype=float)
-    except ValueError:
-        raise InputError(f"--joints must be comma-separated numbers (deg), got {text!r}") from None
-
-
 def _cmd_move(args: argparse.Namespace) -> int:
-    q = _parse_joints(args.joints)
+    q = parse_floats(args.joints, None, "--joints (deg)")
 
     def body(r) -> None:
         r.move_to(q)
@@ -188,16 +182,14 @@ def emulator_from_config(
 ):
     """An (unstarted) ``AclEmulator`` from an ``[emulator]`` table.
 
-    The arm is the simulated robot of a scenario (``sim.emulator_backend.SimEmulatorBackend``)
+    The arm is the simulated robot of a scenario (``scenarios.emulator_backend.SimEmulatorBackend``)
     when ``scenario`` (a ``Scenario``) is given or the table names one (``scenario = "path"``,
     relative to the working directory), else the kinematic backend of ``model``. ``overrides``
     replace table keys (from the command line).
 
     Raises:
-        ValueError: unknown keys; ``ConfigError`` (a ``ValueError``) for a bad scenario.
+        InputError: unknown keys; ``ConfigError`` (an ``InputError``) for a bad scenario.
     """
-    from hw.emulator import AclEmulator, KinematicBackend
-
     config = dict(config or {})
     table = dict(config.get("emulator", {}))
     table.update({k: v for k, v in (overrides or {}).items() if v is not None})
@@ -209,12 +201,8 @@ def emulator_from_config(
         )
     cfg = {**EMULATOR_DEFAULTS, **table}
     if scenario is None and cfg["scenario"]:
-        from scenarios.config import load_scenario
-
         scenario = load_scenario(cfg["scenario"])
     if scenario is not None:
-        from sim.emulator_backend import SimEmulatorBackend
-
         if model is not None and model != scenario.robot.model:
             raise InputError(
                 f"[emulator] model {model!r} contradicts the scenario's [robot] model "
@@ -246,8 +234,6 @@ def _cmd_emulate(args: argparse.Namespace, stop_event: threading.Event | None = 
     config = load_toml(args.config) if args.config else None
     scenario = None
     if config is not None and _is_scenario_file(config):
-        from scenarios.config import load_scenario
-
         scenario = load_scenario(args.config)
     emu = emulator_from_config(
         None if scenario is not None else config, scenario=scenario, overrides=overrides

@@ -12,6 +12,9 @@ up to ``rest_jitter_counts`` per motor (seeded), converts that through the same 
 (differential wrist included) and lets the encoders read the commanded counts. The joint
 read-back therefore carries the encoder quantisation error exactly as on the real arm.
 
+It needs both lower layers (``sim`` for the arm, ``hw`` for the encoder table and the emulator's
+backend protocol), so it lives here, in ``scenarios``, which may import both.
+
 Threads: the emulator calls ``set_joints_deg`` and ``capture`` from its own threads; MuJoCo's
 offscreen GL context belongs to the thread that created it, so every call on the ``SimRobot``
 (moves, renders, truth) runs on one worker thread owned by this backend. Do not use the
@@ -20,28 +23,25 @@ offscreen GL context belongs to the thread that created it, so every call on the
 
 from __future__ import annotations
 
-import os
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
-os.environ.setdefault("MUJOCO_GL", "egl")
+import numpy as np
 
-import numpy as np  # noqa: E402
-
-from calib.robot import StereoPair  # noqa: E402
-from calib.robot_def import RobotDef  # noqa: E402
-from hw.encoders import EncoderTable  # noqa: E402
-from sim.actual import Truth  # noqa: E402
-from sim.sim_robot import SimRobot  # noqa: E402
+from calib.robot import StereoPair
+from calib.robot_def import RobotDef
+from hw.encoders import EncoderTable
+from scenarios.backends import make_sim_robot
+from scenarios.config import Scenario
+from sim.actual import Truth
+from sim.sim_robot import SimRobot
 
 __all__ = ["SimEmulatorBackend", "sim_robot_for_scenario"]
 
 
-def sim_robot_for_scenario(scenario: Any) -> SimRobot:
+def sim_robot_for_scenario(scenario: Scenario) -> SimRobot:
     """The scenario's simulated actual robot, built as the ``sim`` backend builds it
     (``scenarios.backends.make_sim_robot``)."""
-    from scenarios.backends import make_sim_robot
-
     return make_sim_robot(scenario)
 
 
@@ -95,7 +95,7 @@ class SimEmulatorBackend:
         self.rests: list[dict[str, np.ndarray]] = []
 
     @classmethod
-    def from_scenario(cls, scenario: Any, **kwargs: Any) -> SimEmulatorBackend:
+    def from_scenario(cls, scenario: Scenario, **kwargs: Any) -> SimEmulatorBackend:
         """Backend over ``sim_robot_for_scenario(scenario)``; ``kwargs`` go to the constructor."""
         return cls(sim_robot_for_scenario(scenario), **kwargs)
 
