@@ -22,8 +22,6 @@ from pathlib import Path
 
 import numpy as np
 
-os.environ.setdefault("MUJOCO_GL", "egl")
-
 
 def machine() -> str:
     """``N CPU(s), <model>`` from os.sched_getaffinity and /proc/cpuinfo."""

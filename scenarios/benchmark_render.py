@@ -18,16 +18,17 @@ import argparse
 import os
 import time
 
-os.environ.setdefault("MUJOCO_GL", "egl")
+import sim  # noqa: F401  (first: sim/__init__.py sets the MUJOCO_GL default before mujoco loads)
 
-import mujoco  # noqa: E402
-import numpy as np  # noqa: E402
+# isort: split
+import mujoco
+import numpy as np
 
-from calib.camera import Intrinsics  # noqa: E402
-from sim.markers import make_marker_field  # noqa: E402
-from sim.mj_camera import add_camera, look_at_cv  # noqa: E402
-from sim.render import StereoRenderer  # noqa: E402
-from sim.scene import scene_spec  # noqa: E402
+from calib.camera import Intrinsics
+from sim.markers import make_marker_field
+from sim.mj_camera import add_camera, look_at_cv
+from sim.render import StereoRenderer
+from sim.scene import scene_spec
 
 
 def build(width: int, height: int, samples: int) -> tuple[mujoco.MjModel, mujoco.MjData]:

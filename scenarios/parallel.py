@@ -22,7 +22,6 @@ def _worker_init() -> None:
     import signal
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C
-    os.environ.setdefault("MUJOCO_GL", "egl")
 
 
 @contextlib.contextmanager

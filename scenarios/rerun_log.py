@@ -27,12 +27,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 from pathlib import Path
 
 import numpy as np
 
 from calib.errors import InputError
+from sim.posed_geometry import PosedGeometry
 
 __all__ = ["record_run", "register"]
 
@@ -59,91 +59,46 @@ def _triangulate(
     return X[:3] / X[3]
 
 
-class _Geometry:
-    """The robot + scene compiled with MuJoCo; geoms grouped for logging."""
+def _archetypes(geo: PosedGeometry, ids: list[int]) -> dict[str, object]:
+    """Rerun archetypes for the geoms ``ids`` of ``geo`` at its current posture, by shape."""
+    import rerun as rr  # optional and slow to import (~0.6 s): only when recording
 
-    def __init__(self, robot, model, rig, field) -> None:
-        os.environ.setdefault("MUJOCO_GL", "egl")
-        import mujoco
-
-        from sim.robot_mjcf import scene_with_robot
-
-        self.mujoco = mujoco
-        self.m = scene_with_robot(robot, model, rig, field).compile()
-        self.d = mujoco.MjData(self.m)
-        self.n = robot.n
-        m = self.m
-        self.static = [i for i in range(m.ngeom) if m.geom_bodyid[i] == 0]
-        self.moving = [i for i in range(m.ngeom) if m.geom_bodyid[i] != 0 and m.geom_group[i] == 2]
-
-    def _rgba(self, i: int) -> tuple[int, int, int, int]:
-        m = self.m
-        c = m.mat_rgba[m.geom_matid[i]] if m.geom_matid[i] >= 0 else m.geom_rgba[i]
-        return tuple(int(round(255 * float(x))) for x in c)
-
-    def set(self, q: np.ndarray) -> None:
-        self.d.qpos[: self.n] = q
-        self.mujoco.mj_kinematics(self.m, self.d)
-
-    def archetypes(self, ids: list[int]) -> dict[str, object]:
-        """Rerun archetypes for the geoms ``ids`` at the current posture, by shape."""
-        import rerun as rr
-
-        mj = self.mujoco.mjtGeom
-        m, d = self.m, self.d
-        groups: dict[str, list[int]] = {}
-        for i in ids:
-            t = m.geom_type[i]
-            key = {
-                mj.mjGEOM_BOX: "boxes",
-                mj.mjGEOM_PLANE: "boxes",
-                mj.mjGEOM_CYLINDER: "cylinders",
-                mj.mjGEOM_CAPSULE: "capsules",
-                mj.mjGEOM_SPHERE: "spheres",
-                mj.mjGEOM_ELLIPSOID: "spheres",
-            }.get(int(t))
-            if key is not None:
-                groups.setdefault(key, []).append(i)
-        out: dict[str, object] = {}
-        for key, g in groups.items():
-            pos = d.geom_xpos[g].copy()
-            R = d.geom_xmat[g].reshape(-1, 3, 3)
-            quat = _quat_xyzw(R)
-            size = m.geom_size[g].copy()
-            colors = [self._rgba(i) for i in g]
-            if key == "boxes":
-                half = size.copy()
-                for k, i in enumerate(g):
-                    if m.geom_type[i] == mj.mjGEOM_PLANE:
-                        half[k] = [size[k, 0] or 0.6, size[k, 1] or 0.6, 0.0005]
-                out[key] = rr.Boxes3D(
-                    centers=pos, half_sizes=half, quaternions=quat, colors=colors, fill_mode="solid"
-                )
-            elif key == "cylinders":
-                out[key] = rr.Cylinders3D(
-                    centers=pos,
-                    lengths=2 * size[:, 1],
-                    radii=size[:, 0],
-                    quaternions=quat,
-                    colors=colors,
-                    fill_mode="solid",
-                )
-            elif key == "capsules":
-                start = pos - R[:, :, 2] * size[:, 1:2]
-                out[key] = rr.Capsules3D(
-                    translations=start,
-                    lengths=2 * size[:, 1],
-                    radii=size[:, 0],
-                    quaternions=quat,
-                    colors=colors,
-                    fill_mode="solid",
-                )
-            else:
-                half = np.where(size > 0, size, size[:, :1])
-                out[key] = rr.Ellipsoids3D(
-                    centers=pos, half_sizes=half, quaternions=quat, colors=colors, fill_mode="solid"
-                )
-        return out
+    out: dict[str, object] = {}
+    for key, g in geo.groups(ids).items():
+        quat = _quat_xyzw(g.R)
+        size = g.size
+        if key == "boxes":
+            half = size.copy()
+            for k in np.flatnonzero(g.is_plane):
+                half[k] = [size[k, 0] or 0.6, size[k, 1] or 0.6, 0.0005]
+            out[key] = rr.Boxes3D(
+                centers=g.pos, half_sizes=half, quaternions=quat, colors=g.rgba, fill_mode="solid"
+            )
+        elif key == "cylinders":
+            out[key] = rr.Cylinders3D(
+                centers=g.pos,
+                lengths=2 * size[:, 1],
+                radii=size[:, 0],
+                quaternions=quat,
+                colors=g.rgba,
+                fill_mode="solid",
+            )
+        elif key == "capsules":
+            start = g.pos - g.R[:, :, 2] * size[:, 1:2]
+            out[key] = rr.Capsules3D(
+                translations=start,
+                lengths=2 * size[:, 1],
+                radii=size[:, 0],
+                quaternions=quat,
+                colors=g.rgba,
+                fill_mode="solid",
+            )
+        else:
+            half = np.where(size > 0, size, size[:, :1])
+            out[key] = rr.Ellipsoids3D(
+                centers=g.pos, half_sizes=half, quaternions=quat, colors=g.rgba, fill_mode="solid"
+            )
+    return out
 
 
 def _log_camera(rec, path: str, T_world_cam: np.ndarray, intr, color, image=None, corners=None):
@@ -285,7 +240,7 @@ def record_run(dataset_dir: str | Path, rrd_path: str | Path | None, spawn: bool
         from sim.markers import make_marker_field
 
         chain, rig, field = nominal, RigConfig(), make_marker_field()
-    geo = _Geometry(robot, chain, rig, field)
+    geo = PosedGeometry(robot, chain, rig, field)
 
     rrd = Path(rrd_path) if rrd_path is not None else None
     if rrd is None and not spawn:
@@ -304,7 +259,7 @@ def record_run(dataset_dir: str | Path, rrd_path: str | Path | None, spawn: bool
 
     # Static: scene, points, scale bar, trajectories, notes.
     geo.set(robot.home)
-    for key, arch in geo.archetypes(geo.static if truth is not None else []).items():
+    for key, arch in _archetypes(geo, geo.static if truth is not None else []).items():
         rec.log(f"world/scene/{key}", arch, static=True)
     if truth is not None:
         rec.log(
@@ -401,7 +356,7 @@ def record_run(dataset_dir: str | Path, rrd_path: str | Path | None, spawn: bool
         rec.set_time("frame", sequence=i)
         fr = true_frame.get(i)
         geo.set(np.asarray(fr["joints_rad"]) if fr is not None else q)
-        for key, arch in geo.archetypes(geo.moving).items():
+        for key, arch in _archetypes(geo, geo.moving).items():
             rec.log(f"world/robot/{key}", arch)
         rec.log("joints_deg", rr.Scalars(np.degrees(q)))
         if fr is not None:

@@ -21,29 +21,20 @@ keeps 6 significant digits), so the committed model reproduces the MCPC frames t
 
 from __future__ import annotations
 
-import os
+import argparse
+import sys
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+from pathlib import Path
 
-os.environ.setdefault("MUJOCO_GL", "egl")
+import cv2
+import mujoco
+import numpy as np
 
-import argparse  # noqa: E402
-import sys  # noqa: E402
-import xml.etree.ElementTree as ET  # noqa: E402
-from dataclasses import dataclass  # noqa: E402
-from pathlib import Path  # noqa: E402
-
-import cv2  # noqa: E402
-import mujoco  # noqa: E402
-import numpy as np  # noqa: E402
-
-from calib.robot_def import (  # noqa: E402
-    RobotDefinitionError,
-    list_robots,
-    load_robot,
-    models_dir,
-)
-from sim.markers import MarkerField, make_marker_field, marker_texture_rgb  # noqa: E402
-from sim.robot_mjcf import RigConfig, nominal_camera_model, robot_spec  # noqa: E402
-from sim.scene import PIXELS_PER_MODULE, scene_spec  # noqa: E402
+from calib.robot_def import RobotDefinitionError, list_robots, load_robot, models_dir
+from sim.markers import MarkerField, make_marker_field, marker_texture_rgb
+from sim.robot_mjcf import RigConfig, nominal_camera_model, robot_spec
+from sim.scene import PIXELS_PER_MODULE, scene_spec
 
 if sys.version_info >= (3, 11):
     import tomllib

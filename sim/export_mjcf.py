@@ -14,21 +14,17 @@ from ``scene.xml`` instead of ``er4u-paper.xml``). Poses are written with full f
 
 from __future__ import annotations
 
-import os
+from pathlib import Path
 
-os.environ.setdefault("MUJOCO_GL", "egl")
+import mujoco
+import numpy as np
 
-from pathlib import Path  # noqa: E402
-
-import mujoco  # noqa: E402
-import numpy as np  # noqa: E402
-
-from calib.errors import InputError  # noqa: E402
-from calib.export import BASE_FRAME, DeployedModel, as_deployed  # noqa: E402
-from calib.robot_def import RobotDef, load_robot  # noqa: E402
-from calib.transforms import inv_pose  # noqa: E402
-from sim.build_models import precise_xml  # noqa: E402
-from sim.robot_mjcf import TOOL_SITE, RigConfig, robot_spec  # noqa: E402
+from calib.errors import InputError
+from calib.export import BASE_FRAME, DeployedModel, as_deployed
+from calib.robot_def import RobotDef, load_robot
+from calib.transforms import inv_pose
+from sim.build_models import precise_xml
+from sim.robot_mjcf import TOOL_SITE, RigConfig, robot_spec
 
 __all__ = ["calibrated_spec", "calibrated_mjcf", "write_calibrated_mjcf"]
 

@@ -18,14 +18,10 @@ positions were identical with 0 and 4 samples, so ``offsamples=0`` in
 
 from __future__ import annotations
 
-import os
+import mujoco
+import numpy as np
 
-os.environ.setdefault("MUJOCO_GL", "egl")
-
-import mujoco  # noqa: E402
-import numpy as np  # noqa: E402
-
-from sim.mj_camera import camera_id  # noqa: E402
+from sim.mj_camera import camera_id
 
 __all__ = ["StereoRenderer"]
 

@@ -27,21 +27,17 @@ collision shapes at a nominal density (approximate).
 
 from __future__ import annotations
 
-import os
+from dataclasses import dataclass, field
 
-os.environ.setdefault("MUJOCO_GL", "egl")
+import mujoco
+import numpy as np
 
-from dataclasses import dataclass, field  # noqa: E402
-
-import mujoco  # noqa: E402
-import numpy as np  # noqa: E402
-
-from calib.camera import Intrinsics  # noqa: E402
-from calib.mcpc import MCPCModel, dh_to_mcpc, shape_matrices  # noqa: E402
-from calib.robot_def import RobotDef  # noqa: E402
-from calib.transforms import inv_pose, rot_z, trans  # noqa: E402
-from sim.markers import MarkerField  # noqa: E402
-from sim.mj_camera import add_camera  # noqa: E402
+from calib.camera import Intrinsics
+from calib.mcpc import MCPCModel, dh_to_mcpc, shape_matrices
+from calib.robot_def import RobotDef
+from calib.transforms import inv_pose, rot_z, trans
+from sim.markers import MarkerField
+from sim.mj_camera import add_camera
 
 __all__ = [
     "RigConfig",

@@ -9,14 +9,10 @@ pixel data (``MjsTexture.data``); nothing is written to disk. Element names are 
 
 from __future__ import annotations
 
-import os
+import mujoco
+import numpy as np
 
-os.environ.setdefault("MUJOCO_GL", "egl")
-
-import mujoco  # noqa: E402
-import numpy as np  # noqa: E402
-
-from sim.markers import BLOCK_MARGIN_M, MARKER_THICKNESS_M, MarkerField, marker_texture_rgb  # noqa: E402
+from sim.markers import BLOCK_MARGIN_M, MARKER_THICKNESS_M, MarkerField, marker_texture_rgb
 
 __all__ = ["add_scene", "scene_spec", "configure_visual", "PIXELS_PER_MODULE"]
 

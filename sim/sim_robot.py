@@ -9,21 +9,17 @@ posture for ``truth.json``.
 
 from __future__ import annotations
 
-import os
+import mujoco
+import numpy as np
 
-os.environ.setdefault("MUJOCO_GL", "egl")
-
-import mujoco  # noqa: E402
-import numpy as np  # noqa: E402
-
-from calib.errors import InputError  # noqa: E402
-from calib.mcpc import MCPCModel  # noqa: E402
-from calib.robot import RobotError, StereoPair  # noqa: E402
-from calib.robot_def import load_robot  # noqa: E402
-from sim.actual import Truth, make_truth  # noqa: E402
-from sim.markers import MarkerField, make_marker_field  # noqa: E402
-from sim.mj_camera import T_world_cam_cv  # noqa: E402
-from sim.robot_mjcf import (  # noqa: E402
+from calib.errors import InputError
+from calib.mcpc import MCPCModel
+from calib.robot import RobotError, StereoPair
+from calib.robot_def import load_robot
+from sim.actual import Truth, make_truth
+from sim.markers import MarkerField, make_marker_field
+from sim.mj_camera import T_world_cam_cv
+from sim.robot_mjcf import (
     CAMERA_NAMES,
     TOOL_SITE,
     RigConfig,
