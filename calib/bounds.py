@@ -32,6 +32,7 @@ estimator: the two-stage method has the same bound and a larger achieved error.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -259,7 +260,6 @@ class CramerRao:
         """The bound for another corner noise with the read-back noise scaled alike (the whole
         information scales by ``(sigma_old / sigma_new)^2``)."""
         f = (float(pixel_sigma_px) / self.pixel_sigma_px) ** 2
-        import dataclasses
 
         return dataclasses.replace(
             self,

@@ -16,12 +16,21 @@ from pathlib import Path
 
 import numpy as np
 
+from calib.bounds import BoundsError, bounds_block
 from calib.dataset import Dataset, DatasetError, Detections, read_gray
 from calib.detect import detect_markers
 from calib.errors import EstimationError, InputError, SelfCalWarning
 from calib.identify import IdentificationResult, identify, to_dh
+from calib.joint_refine import method_summary, refine_calibration
 from calib.kinematics import fk_tool
-from calib.mcpc import MCPCModel, dh_to_mcpc, minimal_indices, param_is_angle, param_names
+from calib.mcpc import (
+    MCPCModel,
+    dh_to_mcpc,
+    minimal_indices,
+    param_is_angle,
+    param_names,
+    shape_matrices,
+)
 from calib.robot_def import RobotDef, load_robot
 from calib.selfcal import Observations, SelfCalibrationResult, self_calibrate
 from calib.trajectory import check_not_degenerate
@@ -194,15 +203,10 @@ def calibrate(root: str | Path, *, progress=None, method: str = "joint") -> Cali
     doc = _document(ds, robot, sc, ident, used)
     out = CalibrationOutput(doc, sc, ident, ident.model, ds.indices[used])
     if method == "joint":
-        from calib.joint_refine import refine_calibration
-
         out = refine_calibration(out, obs, q, robot, ds.info)
     else:
-        from calib.joint_refine import method_summary
-
         doc["method"] = "two-stage"
         doc["methods"] = {"two-stage": method_summary(doc)}
-    from calib.bounds import BoundsError, bounds_block
 
     try:
         out.document["bounds"] = bounds_block(
@@ -336,14 +340,10 @@ def identification_summary(ident: IdentificationResult) -> dict:
 
 def _joint1_axis(model: MCPCModel) -> np.ndarray:
     """Joint 1's axis in the model's world frame (the z-axis of ``V_0``)."""
-    from calib.mcpc import shape_matrices
-
     return shape_matrices(model.params[0])[:3, 2]
 
 
 def _last_link_to_tool(model: MCPCModel) -> np.ndarray:
-    from calib.mcpc import shape_matrices
-
     return rot_z(model.joint_offsets[-1]) @ shape_matrices(model.params[-1])
 
 

@@ -24,6 +24,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 from calib.errors import InputError
@@ -133,8 +134,6 @@ def _write_bytes_atomic(path: Path, data: bytes) -> None:
 
 
 def _encode_png(rgb: np.ndarray) -> bytes:
-    import cv2
-
     img = np.asarray(rgb)
     if img.ndim == 3:
         img = cv2.cvtColor(img, cv2.COLOR_RGB2BGR)
@@ -246,8 +245,6 @@ def _missing(path: Path, index: int) -> DatasetError:
 
 def read_gray(path: Path, index: int) -> np.ndarray:
     """A dataset image as gray uint8; raises DatasetError naming the frame if unreadable."""
-    import cv2
-
     img = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
     if img is None:
         raise _missing(path, index)

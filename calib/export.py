@@ -42,6 +42,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from calib.calibrate import CalibrationError, model_from_calibration
 from calib.camera import Intrinsics
 from calib.errors import InputError
 from calib.identify import DHNotRepresentableWarning, canonical_base, regauge, to_dh
@@ -255,8 +256,6 @@ def deploy(calibration: dict, robot: RobotDef | None = None, source: str = "") -
     Raises:
         DeployError: not a calibration document, or a robot that does not match it.
     """
-    from calib.calibrate import CalibrationError, model_from_calibration
-
     try:
         model_cam = model_from_calibration(calibration)
     except (CalibrationError, KeyError, TypeError, ValueError) as exc:

@@ -22,8 +22,6 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import least_squares
-from scipy.stats import qmc
 
 from calib.errors import InputError
 from calib.kinematics import fk_dh
@@ -346,6 +344,11 @@ def nearest_reachable(
     Raises:
         ValueError: malformed target, unknown joint, or a fixed value outside its joint's range.
     """
+    # Only this function needs them, and they cost ~0.3 s (optimize) and ~1 s (stats) to import,
+    # which `selfcal fk|ik` would otherwise pay (python -X importtime).
+    from scipy.optimize import least_squares
+    from scipy.stats import qmc
+
     p = np.asarray(xyz_m, dtype=float)
     if p.shape != (3,) or not np.all(np.isfinite(p)):
         raise ValueError(f"xyz_m must be a finite 3-vector (m), got {xyz_m!r}")

@@ -48,6 +48,7 @@ import cv2
 import numpy as np
 
 from calib.errors import InputError
+from calib.kinematics import fk_dh
 from calib.robot import StereoPair
 from calib.robot_def import RobotDef, load_robot
 from hw.encoders import EncoderTable
@@ -834,8 +835,6 @@ class AclEmulator:
     def _listpv_lines(self, name: str, counts: np.ndarray) -> list[str]:
         lines = [f"Position {name}", "  ".join(f"{a + 1}:{int(c)}" for a, c in enumerate(counts))]
         if self.robot is not None and self.n >= 5:
-            from calib.kinematics import fk_dh
-
             q = self.encoders.to_degrees(counts)
             p = fk_dh(self.robot, np.radians(q))[0, -1, :3, 3] * 1e4  # tenths of a mm
             pitch, roll = float(np.sum(q[1:4])) * 10, float(q[4]) * 10

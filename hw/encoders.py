@@ -25,14 +25,12 @@ from __future__ import annotations
 import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from calib.errors import InputError
-
-if TYPE_CHECKING:
-    from calib.robot_def import RobotDef
+from calib.robot_def import RobotDef, load_robot
 
 __all__ = ["EncoderTable", "ER4U_COUNTS_PER_DEG", "ER4U_HOME_DEG", "ER4U_SIGNS"]
 
@@ -134,8 +132,6 @@ class EncoderTable:
             ValueError: the model has no finite ``[encoder] counts_per_deg`` or a non-revolute
                 joint.
         """
-        from calib.robot_def import load_robot
-
         robot = load_robot(robot) if isinstance(robot, str) else robot
         n = robot.n
         if any(t != "revolute" for t in robot.joint_types):

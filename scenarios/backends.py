@@ -10,18 +10,27 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 from calib.camera import Intrinsics
 from calib.dataset import DatasetInfo
 from calib.kinematics import fk_tool
 from calib.mcpc import MCPCModel, dh_to_mcpc, minimal_indices, param_is_angle, param_names
+from calib.optimal_poses import plan_optimal_postures
 from calib.robot import Robot
 from calib.robot_def import RobotDef, load_robot
 from calib.trajectory import check_not_degenerate, plan_postures
 from calib.transforms import trans
 from scenarios.acquire import AcquisitionHooks
-from scenarios.config import ConfigError, Scenario, scenario_to_dict
+from scenarios.config import ConfigError, Scenario, load_scenario, scenario_to_dict
+from scenarios.hardware import open_hardware_robot
+from sim.actual import apply_errors, perturb, read_truth, write_truth
+from sim.analytic import project_markers
+from sim.collision import collision_checker
+from sim.markers import make_marker_field
+from sim.robot_mjcf import RigConfig
+from sim.sim_robot import SimRobot
 
 __all__ = [
     "SimSetup",
@@ -78,9 +87,6 @@ def _perturbation_table(s: Scenario, n: int) -> dict[str, float]:
 
 def sim_setup(s: Scenario) -> SimSetup:
     """The simulated actual robot, rig and marker field of a scenario."""
-    from sim.actual import apply_errors, perturb
-    from sim.markers import make_marker_field
-
     robot = load_robot(s.robot.model)
     nominal = dh_to_mcpc(robot).with_tool(robot.T_flange_cam)
     actual = perturb(
@@ -137,9 +143,6 @@ def plan_optimal(s: Scenario, *, collisions: bool = True, **kw):
     """The D-optimal plan (:class:`calib.optimal_poses.OptimalPlan`, ``q`` rad) for scenario ``s``
     over the planning grid of :func:`planning_inputs`, checked for self-collision with MuJoCo
     (:mod:`sim.collision`), with ``corners_per_point = 4 * markers / 36``."""
-    from calib.optimal_poses import plan_optimal_postures
-    from sim.collision import collision_checker
-
     inp = planning_inputs(s)
     kw.setdefault("corners_per_point", 4.0 * s.target.markers / len(inp["points_world"]))
     kw.setdefault("pixel_sigma_px", s.noise.pixel_sigma)
@@ -208,11 +211,7 @@ def open_robot(
 ) -> tuple[Robot, AcquisitionHooks]:
     """The scenario's robot and its simulator-only hooks (analytic detections, ground truth)."""
     if s.robot.backend == "hardware":
-        from scenarios.hardware import open_hardware_robot
-
         return open_hardware_robot(s), AcquisitionHooks()
-    from sim.actual import write_truth
-    from sim.analytic import project_markers
 
     setup = setup or sim_setup(s)
     robot = make_sim_robot(s, setup)
@@ -220,8 +219,6 @@ def open_robot(
     truth = robot.truth(meta={"scenario": scenario_to_dict(s)})
     truth_path = Path(out) / "truth.json"
     if truth_path.is_file():
-        from sim.actual import read_truth
-
         truth.frames = read_truth(truth_path).frames
     write_truth(truth_path, truth)
     rng = np.random.default_rng(s.noise.seed + 7919)
@@ -260,9 +257,6 @@ def open_robot(
 def make_sim_robot(s: Scenario, setup: SimSetup | None = None):
     """The scenario's simulated actual robot (``sim.sim_robot.SimRobot``): actual model, rig,
     marker field, image noise and seeds as the scenario says."""
-    from sim.robot_mjcf import RigConfig
-    from sim.sim_robot import SimRobot
-
     setup = setup or sim_setup(s)
     rig = RigConfig(intrinsics=setup.intrinsics, T_left_right=setup.T_left_right)
     return SimRobot(
@@ -280,12 +274,6 @@ def render_posture(
     robot: RobotDef, q: np.ndarray, out: Path, config: str | None = None
 ) -> tuple[Path, Path]:
     """Render the (nominal, unperturbed) robot's stereo pair at posture ``q`` (rad) into ``out``."""
-    import cv2
-
-    from scenarios.config import load_scenario
-    from sim.robot_mjcf import RigConfig
-    from sim.sim_robot import SimRobot
-
     s = load_scenario(config, overrides={"robot": {"model": robot.name}})
     setup = sim_setup(s)
     rig = RigConfig(intrinsics=setup.intrinsics, T_left_right=setup.T_left_right)

@@ -22,6 +22,16 @@ from pathlib import Path
 
 import numpy as np
 
+from calib.calibrate import detect_dataset
+from calib.dataset import Dataset
+from calib.identify import identify
+from calib.kinematics import fk_tool
+from calib.mcpc import dh_to_mcpc
+from calib.robot_def import load_robot
+from calib.selfcal import Observations, self_calibrate
+from scenarios.config import load_scenario
+from scenarios.pipeline import run_acquire, run_calibrate, run_report
+
 
 def machine() -> str:
     """``N CPU(s), <model>`` from os.sched_getaffinity and /proc/cpuinfo."""
@@ -38,16 +48,6 @@ def machine() -> str:
 
 
 def bench(poses: int, root: Path) -> dict:
-    from calib.calibrate import detect_dataset
-    from calib.dataset import Dataset
-    from calib.identify import identify
-    from calib.kinematics import fk_tool
-    from calib.mcpc import dh_to_mcpc
-    from calib.robot_def import load_robot
-    from calib.selfcal import Observations, self_calibrate
-    from scenarios.config import load_scenario
-    from scenarios.pipeline import run_acquire, run_calibrate, run_report
-
     s = load_scenario(None, {"trajectory": {"poses": poses}})
     t = {}
     t0 = time.perf_counter()

@@ -20,17 +20,17 @@ from pathlib import Path
 
 import numpy as np
 
+from calib.calibrate import calibrate
+from calib.dataset import Dataset
+from calib.joint_refine import aligned_tool_rms_bound
+from calib.mcpc import MCPCModel
+from calib.report import aligned_errors, tool_tips
+from scenarios.config import load_scenario
+from scenarios.pipeline import run_acquire
+from sim.actual import read_truth
+
 
 def run(poses: list[int], seeds: list[int], pixel_sigma: float) -> None:
-    from calib.calibrate import calibrate
-    from calib.dataset import Dataset
-    from calib.joint_refine import aligned_tool_rms_bound
-    from calib.mcpc import MCPCModel
-    from calib.report import aligned_errors, tool_tips
-    from scenarios.config import load_scenario
-    from scenarios.pipeline import run_acquire
-    from sim.actual import read_truth
-
     head = (
         f"{'poses':>5} {'seed':>4} {'obs':>6} {'unkn':>5} {'two-st s':>8} {'joint s':>7} "
         f"{'iter':>4} {'nominal':>7} {'2-stage':>7} {'joint':>6} {'CRB':>6} {'fx 2-st':>8} "

@@ -13,15 +13,24 @@ from pathlib import Path
 
 import numpy as np
 
+from calib.ik import UnreachableError, ik, ik_nearest
+from calib.kinematics import fk_tool
+from calib.mcpc import dh_to_mcpc
+from calib.robot_def import load_robot
+from calib.tool_pose import tool_pose
+from scenarios.backends import render_posture
 from scenarios.cli_common import CliError, parse_floats, run_command
+from scenarios.config import load_scenario
+from scenarios.deploy_cli import register as register_deploy
+from scenarios.hw_cli import register as register_hw
+from scenarios.montecarlo import register as register_montecarlo
+from scenarios.paper_repro import register as register_paper
+from scenarios.pipeline import run_acquire, run_all, run_calibrate, run_report
+from scenarios.rerun_log import record_run
+from scenarios.rerun_log import register as register_record
+from scenarios.studies import register as register_study
 
 __all__ = ["main", "build_parser", "CliError"]
-
-
-def _robot(name: str):
-    from calib.robot_def import load_robot
-
-    return load_robot(name)  # RobotDefinitionError (bad input) names the known models
 
 
 def _joints_rad(robot, text: str) -> np.ndarray:
@@ -34,11 +43,7 @@ def _joints_rad(robot, text: str) -> np.ndarray:
 
 
 def cmd_fk(args: argparse.Namespace) -> int:
-    from calib.kinematics import fk_tool
-    from calib.mcpc import dh_to_mcpc
-    from calib.tool_pose import tool_pose
-
-    robot = _robot(args.model)
+    robot = load_robot(args.model)
     q = _joints_rad(robot, args.joints)
     T = fk_tool(dh_to_mcpc(robot), q[None])[0]
     xyz, pitch, roll = tool_pose(T)
@@ -54,9 +59,7 @@ def cmd_fk(args: argparse.Namespace) -> int:
 
 
 def cmd_ik(args: argparse.Namespace) -> int:
-    from calib.ik import UnreachableError, ik, ik_nearest
-
-    robot = _robot(args.model)
+    robot = load_robot(args.model)
     xyz = parse_floats(args.xyz, 3, "--xyz (mm)") / 1000.0
     for name, val in (("--pitch", args.pitch), ("--roll", args.roll)):
         if not (np.isfinite(val) and abs(val) <= 720.0):
@@ -80,52 +83,34 @@ def cmd_ik(args: argparse.Namespace) -> int:
 
 
 def cmd_render(args: argparse.Namespace) -> int:
-    from scenarios.backends import render_posture
-
-    robot = _robot(args.model)
+    robot = load_robot(args.model)
     q = _joints_rad(robot, args.joints)
     paths = render_posture(robot, q, Path(args.out), config=args.config)
     print(json.dumps({"left": str(paths[0]), "right": str(paths[1])}))
     return 0
 
 
-def _scenario(path: str | None):
-    from scenarios.config import load_scenario
-
-    return load_scenario(path)  # ConfigError (bad input) names the file and the key
-
-
 def cmd_acquire(args: argparse.Namespace) -> int:
-    from scenarios.pipeline import run_acquire
-
-    run_acquire(_scenario(args.config), Path(args.out), resume=args.resume, quiet=args.quiet)
+    run_acquire(load_scenario(args.config), Path(args.out), resume=args.resume, quiet=args.quiet)
     return 0
 
 
 def cmd_calibrate(args: argparse.Namespace) -> int:
-    from scenarios.pipeline import run_calibrate
-
     run_calibrate(Path(args.dataset), quiet=args.quiet, method=args.method)
     return 0
 
 
 def cmd_report(args: argparse.Namespace) -> int:
-    from scenarios.pipeline import run_report
-
     run_report(Path(args.dataset), quiet=args.quiet)
     return 0
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    from scenarios.pipeline import run_all
-
-    s = _scenario(args.config)
+    s = load_scenario(args.config)
     out = Path(args.out) if args.out else Path("runs") / Path(s.source).stem
     # A run continues the dataset already in --out when it was taken with the same scenario.
     run_all(s, out, resume=True, quiet=args.quiet, method=args.method)
     if args.rerun:
-        from scenarios.rerun_log import record_run
-
         path = record_run(out, Path(args.rerun), spawn=args.spawn)
         print(f"Rerun recording: {path} (open it with `rerun {path}`)")
     elif args.spawn:
@@ -233,13 +218,6 @@ def build_parser() -> argparse.ArgumentParser:
     sp = add("report", cmd_report, "calibration + truth -> DIR/report.json and tables")
     sp.add_argument("dataset", help="dataset folder")
     sp.add_argument("--quiet", action="store_true")
-
-    from scenarios.deploy_cli import register as register_deploy
-    from scenarios.hw_cli import register as register_hw
-    from scenarios.montecarlo import register as register_montecarlo
-    from scenarios.paper_repro import register as register_paper
-    from scenarios.rerun_log import register as register_record
-    from scenarios.studies import register as register_study
 
     for register in (
         register_hw,

@@ -19,7 +19,12 @@ from pathlib import Path
 
 import numpy as np
 
+from calib.compensate import solve_compensated
+from calib.export import BASE_FRAME, TOOL_FRAME, DeployError, deploy, from_toml, to_toml, to_urdf
+from calib.ik import UnreachableError
+from calib.robot_def import load_robot
 from scenarios.cli_common import CliError, parse_floats
+from sim.export_mjcf import calibrated_mjcf
 
 __all__ = ["register", "cmd_export", "cmd_ik_calibrated", "load_calibration", "FORMATS"]
 
@@ -62,8 +67,6 @@ def load_calibration(path: str):
     Raises:
         CliError: missing or unreadable file (the message says what to give instead).
     """
-    from calib.export import DeployError, deploy, from_toml
-
     p = _calibration_file(path)
     try:
         if p.suffix == ".toml":
@@ -79,9 +82,6 @@ def load_calibration(path: str):
 
 def cmd_export(args: argparse.Namespace) -> int:
     """``selfcal export``: write the calibrated model in the chosen format."""
-    from calib.export import BASE_FRAME, TOOL_FRAME, to_toml, to_urdf
-    from calib.robot_def import load_robot
-
     out = Path(args.out)
     fmt = args.format
     if fmt is None:
@@ -94,8 +94,6 @@ def cmd_export(args: argparse.Namespace) -> int:
     dep = load_calibration(args.calibration)
     robot = load_robot(dep.robot_name)
     if fmt == "mjcf":
-        from sim.export_mjcf import calibrated_mjcf
-
         text = calibrated_mjcf(dep, robot)
     elif fmt == "urdf":
         text = to_urdf(dep)
@@ -119,10 +117,6 @@ def cmd_export(args: argparse.Namespace) -> int:
 
 def cmd_ik_calibrated(args: argparse.Namespace) -> int:
     """``selfcal ik --calibration FILE``: joint commands from the calibrated model, as JSON."""
-    from calib.compensate import solve_compensated
-    from calib.ik import UnreachableError
-    from calib.robot_def import load_robot
-
     dep = load_calibration(args.calibration)
     robot = load_robot(dep.robot_name)
     xyz = _xyz_m(args.xyz)

@@ -36,13 +36,28 @@ import json
 import sys
 import tempfile
 import time
+import warnings
 from concurrent.futures import FIRST_COMPLETED, wait
 from pathlib import Path
 
 import numpy as np
 
-from scenarios.backends import plan_optimal, planning_inputs
+from calib.bounds import aligned_error_dof, cramer_rao, predicted_setup, setup_from_output
+from calib.calibrate import _observations, calibrate, detect_dataset
+from calib.dataset import Dataset, DatasetWriter
+from calib.identify import express_in_frame, minimal_difference
+from calib.joint_refine import encoder_sigma
+from calib.mcpc import minimal_indices, param_is_angle
+from calib.report import aligned_errors, tool_tips
+from calib.robot_def import load_robot
+from calib.trajectory import plan_postures
+from calib.transforms import inv_pose
+from scenarios.acquire import acquire
+from scenarios.backends import open_robot, plan_dataset, plan_optimal, planning_inputs, sim_setup
+from scenarios.config import load_scenario
 from scenarios.parallel import worker_pool
+from scenarios.plotting import pyplot
+from sim.actual import read_truth
 from sim.collision import collision_checker, collision_free
 
 __all__ = [
@@ -64,8 +79,6 @@ METHODS = ("joint", "two_stage")
 
 # ------------------------------------------------------------------------------ one draw
 def _scenario(settings: dict):
-    from scenarios.config import load_scenario
-
     return load_scenario(
         settings.get("config"),
         {
@@ -83,10 +96,6 @@ def _scenario(settings: dict):
 
 def _acquire(settings: dict, root: Path):
     """The draw's dataset in ``root``: planned (or given) postures, dithered, analytic corners."""
-    from calib.dataset import DatasetWriter
-    from scenarios.acquire import acquire
-    from scenarios.backends import open_robot, plan_dataset, sim_setup
-
     s = _scenario(settings)
     setup = sim_setup(s)
     info = plan_dataset(s, setup)
@@ -117,8 +126,6 @@ def draw_one(settings: dict) -> dict:
     scenario's plan), ``quantize``, ``config``. Returns a flat row (mm / deg); never raises: a
     failed draw has ``status = "failed: ..."``.
     """
-    import warnings
-
     t0 = time.perf_counter()
     row: dict = {k: settings.get(k) for k in ("poses", "pixel_sigma", "seed", "dither")}
     row["plan"] = settings.get("plan", "random")
@@ -136,16 +143,6 @@ def draw_one(settings: dict) -> dict:
 
 
 def _evaluate(root: Path, pixel_sigma: float) -> dict:
-    from calib.bounds import aligned_error_dof, cramer_rao, setup_from_output
-    from calib.calibrate import _observations, calibrate, detect_dataset
-    from calib.dataset import Dataset
-    from calib.identify import express_in_frame, minimal_difference
-    from calib.mcpc import minimal_indices, param_is_angle
-    from calib.report import aligned_errors, tool_tips
-    from calib.robot_def import load_robot
-    from calib.transforms import inv_pose
-    from sim.actual import read_truth
-
     out = calibrate(root, method="joint")
     ds = Dataset.open(root)
     robot = load_robot(ds.info.robot_model)
@@ -298,7 +295,7 @@ def _boot(values: np.ndarray, stat, n: int = 2000, seed: int = 0) -> tuple[float
 def efficient_ratio_interval(n_draws: int, dof: float, level: float = 0.95) -> tuple[float, float]:
     """Interval of ``sqrt(mean of n_draws values of rms^2) / bound`` for an unbiased efficient
     estimator when ``rms^2 / bound^2 ~ chi2(dof) / dof`` (Satterthwaite): central ``level``."""
-    from scipy.stats import chi2
+    from scipy.stats import chi2  # ~1 s to import (python -X importtime); only this needs it
 
     nu = n_draws * dof
     a = (1 - level) / 2
@@ -410,10 +407,7 @@ def summary_markdown(s: dict) -> str:
 
 
 def plot(rows: list[dict], s: dict, path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     ok = [r for r in rows if r.get("status") == "ok"]
     if not ok:
@@ -461,12 +455,6 @@ def predicted_bound(s, q: np.ndarray) -> dict:
     """The Cramer-Rao bounds (mm, deg) of a plan ``q`` (m, n) rad before acquisition, from the
     simulator's actual robot and marker field (:func:`calib.bounds.predicted_setup`): the
     validation tool-tip RMS and the median parameter bound."""
-    from calib.bounds import cramer_rao, predicted_setup
-    from calib.joint_refine import encoder_sigma
-    from calib.mcpc import minimal_indices, param_is_angle
-    from calib.transforms import inv_pose
-    from scenarios.backends import plan_dataset, sim_setup
-
     setup = sim_setup(s)
     info = plan_dataset(s, setup)
     fld = setup.field
@@ -504,9 +492,6 @@ def compare_plans(
     """Random against D-optimal plans of the same size: predicted tool-tip bound (and median
     parameter bound) of each, per count and trajectory seed. Rows: count, seed, plan, bounds,
     the proxy's log det."""
-    from calib.trajectory import plan_postures
-    from scenarios.config import load_scenario
-
     rows = []
     for n in counts:
         for seed in seeds:
@@ -643,10 +628,7 @@ def _plans_markdown(res: dict) -> str:
 
 
 def _plot_plans(res: dict, path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     fig, ax = plt.subplots(figsize=(7, 4.5), constrained_layout=True)
     for kind, c in (("random", "tab:blue"), ("optimal", "tab:red")):

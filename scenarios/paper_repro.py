@@ -39,6 +39,15 @@ from pathlib import Path
 
 import numpy as np
 
+from calib.dataset import DatasetWriter
+from calib.ik import nearest_reachable
+from calib.kinematics import fk_dh
+from calib.report import aligned_errors, tool_tips
+from calib.robot_def import load_robot
+from calib.transforms import inv_pose, kabsch
+from scenarios.acquire import acquire
+from scenarios.backends import open_robot, plan_dataset, sim_setup
+from scenarios.config import ConfigError, load_scenario
 from scenarios.paper_data import (
     PAPER_TABLE_III_MM,
     PAPER_TABLE_IV,
@@ -46,6 +55,10 @@ from scenarios.paper_data import (
     TABLE_II_THETA4_DEG,
     table_ii_postures,
 )
+from scenarios.pipeline import run_calibrate, run_report
+from scenarios.plotting import pyplot
+from scenarios.progress import Progress
+from sim.actual import read_truth
 
 __all__ = [
     "PAPER_TABLE_III_MM",
@@ -113,8 +126,6 @@ def paper_inconsistencies(tol_mm: float = 0.005) -> list[dict]:
 
 def _theta4_held_distances(robot) -> np.ndarray:
     """Distance (mm) from each Table II row to the reachable set with theta4, theta5 as printed."""
-    from calib.ik import nearest_reachable
-
     fixed = {3: np.radians(TABLE_II_THETA4_DEG), 4: 0.0}
     return np.array([nearest_reachable(robot, p / 1000, fixed)[1] * 1000 for p in TABLE_II_MM])
 
@@ -122,11 +133,6 @@ def _theta4_held_distances(robot) -> np.ndarray:
 # ------------------------------------------------------------------------------------- run
 def _acquire_with_postures(s, root: Path, q_deg: np.ndarray, quiet: bool) -> None:
     """Acquire the scenario's dataset with ``q_deg`` (k, n) prepended to its trajectory."""
-    from calib.dataset import DatasetWriter
-    from scenarios.acquire import acquire
-    from scenarios.backends import open_robot, plan_dataset, sim_setup
-    from scenarios.progress import Progress
-
     setup = sim_setup(s)
     info = plan_dataset(s, setup)
     planned = np.vstack([np.round(q_deg, 6), info.planned_joints_deg])
@@ -147,8 +153,6 @@ def _camera_measured_tips(cal: dict, truth, frames: list[int]) -> tuple[np.ndarr
     as the reference frame, whose recovered pose is the identity) is favoured. Returns the tips
     (NaN for unregistered frames) and the RMS of that registration (mm).
     """
-    from calib.transforms import kabsch
-
     cp = cal["camera_poses"]
     pose_of = {int(i): np.asarray(T) for i, T in zip(cp["frame_index"], cp["T_world_cam_left_m"])}
     true_of = {int(f["frame_index"]): np.asarray(f["T_world_cam_left"]) for f in truth.frames}
@@ -179,14 +183,6 @@ def reproduce(out: str | Path, config: str | Path | None = None, *, quiet: bool 
     Raises:
         ConfigError: the scenario is not a simulated er4u-paper robot.
     """
-    from calib.kinematics import fk_dh
-    from calib.report import aligned_errors, tool_tips
-    from calib.robot_def import load_robot
-    from calib.transforms import inv_pose
-    from scenarios.config import ConfigError, load_scenario
-    from scenarios.pipeline import run_calibrate, run_report
-    from sim.actual import read_truth
-
     t0 = time.perf_counter()
     out = Path(out)
     s = load_scenario(config)
@@ -427,10 +423,7 @@ def _md_typos(typos: list[dict]) -> str:
 
 
 def _fig3(path: Path, rows: list[dict]) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     def grid(key: str) -> np.ndarray:
         a = np.zeros((5, 3))

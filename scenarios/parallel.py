@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import contextlib
+import multiprocessing as mp
 import os
+import signal
 from collections.abc import Iterator
 from concurrent.futures import ProcessPoolExecutor
 
@@ -19,8 +21,6 @@ _THREAD_VARS = (
 
 
 def _worker_init() -> None:
-    import signal
-
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C
 
 
@@ -29,8 +29,6 @@ def worker_pool(max_workers: int) -> Iterator[ProcessPoolExecutor]:
     """Spawned worker processes with one BLAS/OpenMP thread each (the workers, not BLAS, use the
     cores); they ignore Ctrl-C, which the parent handles. The parent's environment is restored and
     unfinished work cancelled on exit."""
-    import multiprocessing as mp
-
     saved = {v: os.environ.get(v) for v in _THREAD_VARS}
     for v in _THREAD_VARS:
         os.environ[v] = "1"

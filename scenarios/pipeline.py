@@ -13,11 +13,18 @@ from pathlib import Path
 
 import numpy as np
 
+from calib.calibrate import calibrate, model_from_calibration
 from calib.dataset import Dataset, DatasetError, DatasetWriter, write_json_atomic
+from calib.identify import express_in_frame
+from calib.report import aligned_errors, format_table_iv, parameter_table, tool_tips
+from calib.robot_def import load_robot
+from calib.transforms import inv_pose
 from scenarios.acquire import acquire
+from scenarios.backends import open_robot, plan_dataset, sim_setup
 from scenarios.config import Scenario
 from scenarios.paper_data import TABLE_II_MM, table_ii_postures
 from scenarios.progress import Progress
+from sim.actual import read_truth
 
 __all__ = ["run_acquire", "run_calibrate", "run_report", "run_all"]
 
@@ -29,8 +36,6 @@ def _say(quiet: bool, text: str) -> None:
 
 def run_acquire(s: Scenario, out: Path, *, resume: bool = False, quiet: bool = False) -> Path:
     """Acquire the scenario's dataset into ``out`` (resumable)."""
-    from scenarios.backends import open_robot, plan_dataset, sim_setup
-
     setup = sim_setup(s) if s.robot.backend == "sim" else None
     info = plan_dataset(s, setup)
     writer = DatasetWriter(out, info, resume=resume)
@@ -45,8 +50,6 @@ def run_acquire(s: Scenario, out: Path, *, resume: bool = False, quiet: bool = F
 
 def run_calibrate(root: Path, *, quiet: bool = False, method: str = "joint") -> dict:
     """Calibrate the dataset in ``root`` and write ``root/calibration.json``."""
-    from calib.calibrate import calibrate
-
     t0 = time.perf_counter()
     res = calibrate(root, progress=Progress("detect", enabled=not quiet), method=method)
     doc = res.document
@@ -65,12 +68,6 @@ def run_calibrate(root: Path, *, quiet: bool = False, method: str = "joint") -> 
 
 def run_report(root: Path, *, quiet: bool = False) -> dict:
     """Compare the calibration with the simulator's truth: ``root/report.json`` and ``report.md``."""
-    from calib.calibrate import model_from_calibration
-    from calib.identify import express_in_frame
-    from calib.report import aligned_errors, format_table_iv, parameter_table, tool_tips
-    from calib.robot_def import load_robot
-    from calib.transforms import inv_pose
-
     root = Path(root)
     ds = Dataset.open(root)
     cal_path = root / "calibration.json"
@@ -82,7 +79,6 @@ def run_report(root: Path, *, quiet: bool = False) -> dict:
             f"{truth_path} is missing: a report compares with ground truth, which only the "
             "simulator has (hardware datasets have no truth.json)"
         )
-    from sim.actual import read_truth
 
     try:
         cal = json.loads(cal_path.read_text())
@@ -223,8 +219,6 @@ def _markdown(r: dict) -> str:
         "",
     ]
     if r["table_iv"]:
-        from calib.report import format_table_iv
-
         lines += [
             "## The paper's Table II positions (like its Table IV)",
             "",

@@ -30,9 +30,21 @@ import json
 from pathlib import Path
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
+from calib.calibrate import detect_dataset, model_from_calibration
+from calib.camera import Intrinsics
+from calib.dataset import Dataset, DatasetError
 from calib.errors import InputError
+from calib.kinematics import fk_tool
+from calib.mcpc import dh_to_mcpc
+from calib.report import kabsch
+from calib.robot_def import load_robot
+from calib.transforms import inv_pose
+from sim.actual import read_truth
+from sim.markers import MarkerField, make_marker_field
 from sim.posed_geometry import PosedGeometry
+from sim.robot_mjcf import RigConfig
 
 __all__ = ["record_run", "register"]
 
@@ -41,8 +53,6 @@ _EST_COLOR = (230, 60, 200, 255)
 
 
 def _quat_xyzw(R: np.ndarray) -> np.ndarray:
-    from scipy.spatial.transform import Rotation
-
     return Rotation.from_matrix(np.asarray(R).reshape(-1, 3, 3)).as_quat()
 
 
@@ -61,7 +71,7 @@ def _triangulate(
 
 def _archetypes(geo: PosedGeometry, ids: list[int]) -> dict[str, object]:
     """Rerun archetypes for the geoms ``ids`` of ``geo`` at its current posture, by shape."""
-    import rerun as rr  # optional and slow to import (~0.6 s): only when recording
+    import rerun as rr  # optional, ~0.6 s to import: only when recording
 
     out: dict[str, object] = {}
     for key, g in geo.groups(ids).items():
@@ -102,7 +112,7 @@ def _archetypes(geo: PosedGeometry, ids: list[int]) -> dict[str, object]:
 
 
 def _log_camera(rec, path: str, T_world_cam: np.ndarray, intr, color, image=None, corners=None):
-    import rerun as rr
+    import rerun as rr  # optional, ~0.6 s to import: only when recording
 
     rec.log(
         path,
@@ -140,18 +150,7 @@ def record_run(dataset_dir: str | Path, rrd_path: str | Path | None, spawn: bool
     Raises:
         DatasetError: missing dataset or calibration files (the message names the fix).
     """
-    import rerun as rr
-
-    from calib.calibrate import detect_dataset, model_from_calibration
-    from calib.camera import Intrinsics
-    from calib.dataset import Dataset, DatasetError
-    from calib.kinematics import fk_tool
-    from calib.mcpc import dh_to_mcpc
-    from calib.report import kabsch
-    from calib.robot_def import load_robot
-    from calib.transforms import inv_pose
-    from sim.markers import MarkerField
-    from sim.robot_mjcf import RigConfig
+    import rerun as rr  # optional, ~0.6 s to import: only when recording
 
     root = Path(dataset_dir)
     ds = Dataset.open(root)
@@ -163,8 +162,6 @@ def record_run(dataset_dir: str | Path, rrd_path: str | Path | None, spawn: bool
     nominal = dh_to_mcpc(robot).with_tool(robot.T_flange_cam)
     truth = None
     if (root / "truth.json").is_file():
-        from sim.actual import read_truth
-
         truth = read_truth(root / "truth.json")
 
     ci = cal["intrinsics"]
@@ -237,8 +234,6 @@ def record_run(dataset_dir: str | Path, rrd_path: str | Path | None, spawn: bool
         rig = RigConfig(intrinsics=truth.intrinsics_left, T_left_right=truth.T_left_right)
         field = MarkerField.from_dict(truth.marker_field)
     else:
-        from sim.markers import make_marker_field
-
         chain, rig, field = nominal, RigConfig(), make_marker_field()
     geo = PosedGeometry(robot, chain, rig, field)
 

@@ -31,6 +31,7 @@ import os
 import sys
 import tempfile
 import time
+import warnings
 from collections.abc import Callable
 from concurrent.futures import FIRST_COMPLETED, Future, wait
 from dataclasses import dataclass
@@ -39,7 +40,10 @@ from pathlib import Path
 import numpy as np
 
 from calib.errors import InputError
+from scenarios.config import load_scenario
 from scenarios.parallel import worker_pool
+from scenarios.pipeline import run_acquire, run_calibrate, run_report
+from scenarios.plotting import pyplot
 
 __all__ = ["STUDIES", "Study", "run_one", "run_study", "load_runs", "summarize", "register"]
 
@@ -98,11 +102,6 @@ def run_one(settings: dict) -> dict:
 
     Never raises for a failed calibration: the row's ``status`` says ``failed: <reason>``.
     """
-    import warnings
-
-    from scenarios.config import load_scenario
-    from scenarios.pipeline import run_acquire, run_calibrate, run_report
-
     t0 = time.perf_counter()
     row = {k: settings[k] for k in SETTING_KEYS}
     try:
@@ -452,10 +451,7 @@ def _write_md(study: Study, res: dict, path: Path) -> None:
 
 
 def _plot(study: Study, res: dict, rows: list[dict], path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     fig, ax = plt.subplots(figsize=(7, 4.5), constrained_layout=True)
     colors = {"all": "tab:red", "True": "tab:blue", "False": "tab:orange"}

@@ -6,7 +6,11 @@ MuJoCo-free).
 
 from __future__ import annotations
 
+import mujoco
 import numpy as np
+
+from calib.robot_def import load_robot
+from sim.robot_mjcf import link_body_names, nominal_camera_model, robot_spec
 
 __all__ = ["collision_checker", "collision_free"]
 
@@ -25,11 +29,6 @@ def collision_checker(robot_name: str, *, table: bool = True, tolerance_m: float
     wrist (they overlap there at every posture); what is checked is arm against base, turret and
     the other arm links, and everything against the table.
     """
-    import mujoco
-
-    from calib.robot_def import load_robot
-    from sim.robot_mjcf import link_body_names, nominal_camera_model, robot_spec
-
     robot = load_robot(robot_name)
     spec = robot_spec(robot, nominal_camera_model(robot))
     if table:

@@ -38,6 +38,7 @@ from calib.robot_def import RobotDef
 from calib.transforms import inv_pose, rot_z, trans
 from sim.markers import MarkerField
 from sim.mj_camera import add_camera
+from sim.scene import scene_spec
 
 __all__ = [
     "RigConfig",
@@ -527,8 +528,6 @@ def scene_with_robot(
 ) -> mujoco.MjSpec:
     """The scene of ``sim.scene.scene_spec(field)`` (table, lights, markers; rendered at the rig's
     image size) with the robot added; names stay unprefixed (``cam_left``, ``tool_tip``, ...)."""
-    from sim.scene import scene_spec
-
     rig = RigConfig() if rig is None else rig
     spec = scene_spec(field, width=rig.intrinsics.width, height=rig.intrinsics.height, **scene_kw)
     spec.modelname = f"{robot.name}_scene"

@@ -19,6 +19,7 @@ from calib.robot_def import load_robot
 from sim.actual import Truth, make_truth
 from sim.markers import MarkerField, make_marker_field
 from sim.mj_camera import T_world_cam_cv
+from sim.render import StereoRenderer
 from sim.robot_mjcf import (
     CAMERA_NAMES,
     TOOL_SITE,
@@ -119,8 +120,6 @@ class SimRobot:
         configured Gaussian intensity noise."""
         self._check_open()
         if self._renderer is None:
-            from sim.render import StereoRenderer
-
             self._renderer = StereoRenderer(
                 self.mj_model,
                 self.rig.intrinsics.width,
