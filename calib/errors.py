@@ -36,9 +36,13 @@ class SelfCalError(Exception):
         super().__init__(message)
         self.fix = fix
 
+    @property
+    def message(self) -> str:
+        """The message alone, without the fix (to re-raise with more context, or to print)."""
+        return super().__str__()
+
     def __str__(self) -> str:
-        text = super().__str__()
-        return f"{text} (fix: {self.fix})" if self.fix else text
+        return f"{self.message} (fix: {self.fix})" if self.fix else self.message
 
 
 class InputError(SelfCalError, ValueError):

@@ -179,7 +179,9 @@ def load_robot(name_or_path: str | Path) -> RobotDef:
         path = models_dir() / "robots" / f"{name_or_path}.toml"
         if not path.is_file():
             raise RobotDefinitionError(
-                f"unknown robot model '{name_or_path}'; known models: {', '.join(list_robots())}"
+                f"unknown robot model '{name_or_path}'; known models: {', '.join(list_robots())}",
+                fix="give one of the known names or the path of a robot TOML file "
+                "(models/robots/<name>.toml)",
             )
     if not path.is_file():
         raise RobotDefinitionError(f"robot file not found: {path}")

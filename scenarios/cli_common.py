@@ -44,7 +44,7 @@ def parse_floats(text: str, count: int | None, what: str) -> np.ndarray:
 
 def report_error(name: str, exc: SelfCalError) -> None:
     """Print ``NAME: error: MESSAGE``, the fix and any notes to stderr."""
-    print(f"{name}: error: {Exception.__str__(exc)}", file=sys.stderr)
+    print(f"{name}: error: {exc.message}", file=sys.stderr)
     if exc.fix:
         print(f"{name}: fix: {exc.fix}", file=sys.stderr)
     for note in getattr(exc, "__notes__", []):

@@ -181,7 +181,8 @@ def _build(cls: type, data: dict, where: str, file: str) -> Any:
         if key not in names:
             raise ConfigError(
                 f"{file}: unknown key '{where}{key}'; allowed in "
-                f"[{where.rstrip('.') or 'top level'}]: {', '.join(sorted(names))}"
+                f"[{where.rstrip('.') or 'top level'}]: {', '.join(sorted(names))}",
+                fix="check the spelling; `selfcal run --help` lists every key with its default",
             )
         tp = hints[key]
         if isinstance(tp, type) and dataclasses.is_dataclass(tp):
@@ -257,8 +258,8 @@ def load_scenario(path: str | Path | None = None, overrides: dict | None = None)
     try:
         s = _build(Scenario, data, "", str(p))
     except ConfigError as exc:
-        msg = str(exc)
-        raise ConfigError(msg if msg.startswith(str(p)) else f"{p}: {msg}") from None
+        msg = exc.message
+        raise ConfigError(msg if msg.startswith(str(p)) else f"{p}: {msg}", fix=exc.fix) from None
     s = dataclasses.replace(s, source=str(p))
     _validate(s)
     return s

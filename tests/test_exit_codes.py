@@ -47,6 +47,7 @@ def test_bad_scenario_key_exits_2(capsys, tmp_path):
     code, out, err = run(capsys, "run", cfg, "--out", tmp_path / "run", "--quiet")
     assert code == 2 and out == ""
     assert err.startswith("selfcal run: error: ") and "focal_px" in err and str(cfg) in err
+    assert "selfcal run: fix: " in err  # on its own line, after the message
     assert not (tmp_path / "run").exists()
 
 
