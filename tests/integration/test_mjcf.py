@@ -3,26 +3,22 @@ XML is up to date, and the cameras see the marker field, not the robot."""
 
 from __future__ import annotations
 
-import os
+import warnings
+from pathlib import Path
 
-os.environ.setdefault("MUJOCO_GL", "egl")
+import mujoco
+import numpy as np
+import pytest
 
-import warnings  # noqa: E402
-from pathlib import Path  # noqa: E402
-
-import mujoco  # noqa: E402
-import numpy as np  # noqa: E402
-import pytest  # noqa: E402
-
-from calib.camera import Intrinsics  # noqa: E402
-from calib.kinematics import fk_dh, fk_frames  # noqa: E402
-from calib.robot_def import load_robot  # noqa: E402
-from calib.transforms import inv_pose, trans  # noqa: E402
-from sim.actual import apply_errors, perturb  # noqa: E402
-from sim.build_models import ROBOT_MODELS, mjcf_entries, write_models  # noqa: E402
-from sim.markers import make_marker_field  # noqa: E402
-from sim.mj_camera import T_world_cam_cv, intrinsics_from_model  # noqa: E402
-from sim.robot_mjcf import (  # noqa: E402
+from calib.camera import Intrinsics
+from calib.kinematics import fk_dh, fk_frames
+from calib.robot_def import load_robot
+from calib.transforms import inv_pose, trans
+from sim.actual import apply_errors, perturb
+from sim.build_models import ROBOT_MODELS, mjcf_entries, write_models
+from sim.markers import make_marker_field
+from sim.mj_camera import T_world_cam_cv, intrinsics_from_model
+from sim.robot_mjcf import (
     RigConfig,
     add_robot,
     nominal_camera_model,

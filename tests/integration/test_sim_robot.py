@@ -2,21 +2,17 @@
 
 from __future__ import annotations
 
-import os
+import numpy as np
+import pytest
 
-os.environ.setdefault("MUJOCO_GL", "egl")
-
-import numpy as np  # noqa: E402
-import pytest  # noqa: E402
-
-from calib.camera import project  # noqa: E402
-from calib.kinematics import fk_frames  # noqa: E402
-from calib.robot import Robot, RobotError, StereoPair  # noqa: E402
-from calib.transforms import inv_pose  # noqa: E402
-from sim.actual import apply_errors, perturb  # noqa: E402
-from sim.markers import make_marker_field  # noqa: E402
-from sim.robot_mjcf import nominal_camera_model  # noqa: E402
-from sim.sim_robot import SimRobot  # noqa: E402
+from calib.camera import project
+from calib.kinematics import fk_frames
+from calib.robot import Robot, RobotError, StereoPair
+from calib.transforms import inv_pose
+from sim.actual import apply_errors, perturb
+from sim.markers import make_marker_field
+from sim.robot_mjcf import nominal_camera_model
+from sim.sim_robot import SimRobot
 
 
 @pytest.fixture(scope="module")

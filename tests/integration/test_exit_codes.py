@@ -1,7 +1,8 @@
 """`selfcal` exit codes (README "Exit codes"): 2 bad input, 3 data that cannot determine the
 calibration, 1 an internal error, 130 Ctrl-C; each failure prints one `selfcal CMD: error:` line.
 
-The hardware fault (exit code 4) is tested against the ACL emulator in test_acl_robot.py.
+The hardware fault (exit code 4) is tested against the ACL emulator in test_acl_robot.py
+(test_cli_hardware_fault_exits_4).
 """
 
 from __future__ import annotations
