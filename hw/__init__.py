@@ -2,7 +2,9 @@
 
 Implements ``calib.robot.Robot``; imports only ``calib`` (never ``sim`` or ``scenarios``).
 
-- ``hw.acl_protocol``: ACL reply reader, parsers, the serial link (``AclLink``).
+- ``hw.acl_text``, ``hw.acl_errors``, ``hw.acl_reply``, ``hw.acl_parsers``, ``hw.acl_link``: ACL
+  text on the wire, the error types and error lines, the reply reader, the reply parsers, the
+  serial link (``AclLink``).
 - ``hw.encoders``: encoder counts <-> joint angles (``EncoderTable``).
 - ``hw.settings``: ``AclSettings``, the adapter's typed settings (the ``[robot.hardware]`` keys).
 - ``hw.acl_robot``: ``AclRobot``, the ``calib.robot.Robot`` over ACL

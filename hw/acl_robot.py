@@ -33,21 +33,16 @@ import numpy as np
 from calib.errors import InputError
 from calib.robot import RobotError, StereoPair
 from calib.robot_def import RobotDef, load_robot
-from hw.acl_protocol import (
+from hw.acl_errors import (
     AclConnectionError,
     AclControllerError,
     AclErrorEvent,
     AclLatchedError,
-    AclLink,
     AclProtocolError,
-    AclReply,
-    AclVersion,
-    parse_listpv,
-    parse_mflag,
-    parse_show_speed,
-    parse_version,
-    port_hint,
 )
+from hw.acl_link import AclLink, port_hint
+from hw.acl_parsers import AclVersion, parse_listpv, parse_mflag, parse_show_speed, parse_version
+from hw.acl_reply import AclReply
 from hw.cameras import StereoCamera
 from hw.encoders import EncoderTable
 from hw.settings import AclSettings

@@ -13,7 +13,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from calib.errors import InputError
-from hw.acl_protocol import AclConnectionError
+from hw.acl_errors import AclConnectionError
 from hw.acl_robot import AclRobot, default_encoders
 from hw.encoders import EncoderTable
 from hw.settings import AclSettings

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from calib.robot import Robot, RobotError, StereoPair
-from hw.acl_protocol import (
+from hw.acl_errors import (
     AclConnectionError,
     AclControllerError,
     AclLatchedError,

@@ -8,16 +8,9 @@ import time
 import numpy as np
 import pytest
 
-from hw.acl_protocol import (
-    AclConnectionError,
-    AclLink,
-    AclProtocolError,
-    AclTimeoutError,
-    parse_listpv,
-    parse_mflag,
-    parse_show_speed,
-    parse_version,
-)
+from hw.acl_errors import AclConnectionError, AclProtocolError, AclTimeoutError
+from hw.acl_link import AclLink
+from hw.acl_parsers import parse_listpv, parse_mflag, parse_show_speed, parse_version
 from hw.emulator import AclEmulator, EmulatorBackend, Fault, KinematicBackend
 from hw.encoders import EncoderTable
 

@@ -29,7 +29,7 @@ def test_the_kinds_carry_their_codes():
     # every class the project raises on purpose has the one root
     from calib.calibrate import CalibrationError, CalibrationFileError
     from calib.robot_def import RobotDefinitionError
-    from hw.acl_protocol import AclControllerError
+    from hw.acl_errors import AclControllerError
     from scenarios.config import ConfigError
 
     assert issubclass(ConfigError, InputError) and issubclass(RobotDefinitionError, InputError)

@@ -29,7 +29,7 @@ from calib.calibrate import model_from_calibration
 from calib.dataset import Dataset
 from calib.report import aligned_errors, tool_tips
 from calib.robot import Robot
-from hw.acl_protocol import AclConnectionError
+from hw.acl_errors import AclConnectionError
 from hw.acl_robot import AclRobot
 from hw.emulator import AclEmulator, Fault
 from hw.encoders import EncoderTable
