@@ -10,7 +10,10 @@ Implements ``calib.robot.Robot``; imports only ``calib`` (never ``sim`` or ``sce
 - ``hw.acl_robot``: ``AclRobot``, the ``calib.robot.Robot`` over ACL
   (``AclRobot.from_settings(settings)``).
 - ``hw.cameras``: ``StereoCamera`` over ``cv2.VideoCapture``.
-- ``hw.emulator``: ``AclEmulator`` (pty + TCP) with pluggable ``EmulatorBackend``.
+- ``hw.emulator``: ``AclEmulator`` (pty + TCP) with pluggable ``EmulatorBackend``
+  (``hw.emulator_backends``); its parts: ``hw.emulator_motion`` (the arm's motion),
+  ``hw.emulator_controller`` (state and dialogue), ``hw.emulator_faults`` (fault injection),
+  ``hw.emulator_transport`` (pty and TCP terminals).
 
 What needs a scenario or the simulator lives in ``scenarios``: ``scenarios.hardware``
 (``open_hardware_robot(scenario)`` for ``[robot] backend = "hardware"``), ``scenarios.hw_cli``

@@ -1,5 +1,5 @@
-"""The simulated robot behind the ACL controller emulator: ``hw.emulator.EmulatorBackend`` over
-``sim.sim_robot.SimRobot``.
+"""The simulated robot behind the ACL controller emulator: ``hw.emulator_backends.EmulatorBackend``
+over ``sim.sim_robot.SimRobot``.
 
 With it the hardware path (``[robot] backend = "hardware"``: ``hw.acl_robot.AclRobot`` over a
 serial port, ``hw.cameras`` reading image files) runs against the *simulated* actual robot of a

@@ -27,7 +27,8 @@ from typing import Any
 
 from calib.errors import InputError
 from hw.acl_robot import AclRobot
-from hw.emulator import AclEmulator, KinematicBackend
+from hw.emulator import AclEmulator
+from hw.emulator_backends import KinematicBackend
 from scenarios.cli_common import parse_floats
 from scenarios.config import load_scenario
 from scenarios.emulator_backend import SimEmulatorBackend

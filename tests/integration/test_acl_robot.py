@@ -23,7 +23,8 @@ from hw.acl_errors import (
 )
 from hw.acl_robot import AclRobot
 from hw.cameras import StereoCamera
-from hw.emulator import AclEmulator, KinematicBackend
+from hw.emulator import AclEmulator
+from hw.emulator_backends import KinematicBackend
 from hw.encoders import ER4U_HOME_DEG, EncoderTable
 
 ROOT = Path(__file__).resolve().parents[2]

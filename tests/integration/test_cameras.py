@@ -9,7 +9,8 @@ import pytest
 from calib.robot import StereoPair
 from hw.acl_robot import AclRobot
 from hw.cameras import Camera, CameraError, StereoCamera, source_kind
-from hw.emulator import AclEmulator, KinematicBackend
+from hw.emulator import AclEmulator
+from hw.emulator_backends import KinematicBackend
 from hw.encoders import ER4U_HOME_DEG
 
 

@@ -11,7 +11,9 @@ import pytest
 from hw.acl_errors import AclConnectionError, AclProtocolError, AclTimeoutError
 from hw.acl_link import AclLink
 from hw.acl_parsers import parse_listpv, parse_mflag, parse_show_speed, parse_version
-from hw.emulator import AclEmulator, EmulatorBackend, Fault, KinematicBackend
+from hw.emulator import AclEmulator
+from hw.emulator_backends import EmulatorBackend, KinematicBackend
+from hw.emulator_faults import Fault
 from hw.encoders import EncoderTable
 
 ENC = EncoderTable.er4u()
@@ -242,7 +244,7 @@ def test_fault_disconnect(emu):
     lk.close()
     # the pty of the same controller is gone too
     assert emu.disconnected
-    assert emu.pty_path is None or not os.path.exists(emu.pty_path) or not emu._sessions[0].alive
+    assert emu.pty_path is None or not os.path.exists(emu.pty_path) or not emu.terminals[0].alive
 
 
 def test_fault_home_failure(emu, link):

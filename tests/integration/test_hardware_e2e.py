@@ -31,7 +31,8 @@ from calib.report import aligned_errors, tool_tips
 from calib.robot import Robot
 from hw.acl_errors import AclConnectionError
 from hw.acl_robot import AclRobot
-from hw.emulator import AclEmulator, Fault
+from hw.emulator import AclEmulator
+from hw.emulator_faults import Fault
 from hw.encoders import EncoderTable
 from scenarios.acquire import AcquisitionError
 from scenarios.config import ConfigError, default_scenario_path, load_scenario, scenario_to_dict
