@@ -8,7 +8,8 @@ Implements ``calib.robot.Robot``; imports only ``calib`` (never ``sim`` or ``sce
 - ``hw.encoders``: encoder counts <-> joint angles (``EncoderTable``).
 - ``hw.settings``: ``AclSettings``, the adapter's typed settings (the ``[robot.hardware]`` keys).
 - ``hw.acl_robot``: ``AclRobot``, the ``calib.robot.Robot`` over ACL
-  (``AclRobot.from_settings(settings)``).
+  (``AclRobot.from_settings(settings)``), on ``hw.acl_guard.AclGuard`` (latched controller errors,
+  the abort sequence on failure).
 - ``hw.cameras``: ``StereoCamera`` over ``cv2.VideoCapture``.
 - ``hw.emulator``: ``AclEmulator`` (pty + TCP) with pluggable ``EmulatorBackend``
   (``hw.emulator_backends``); its parts: ``hw.emulator_motion`` (the arm's motion),
