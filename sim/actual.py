@@ -57,8 +57,9 @@ from calib.mcpc import (
 )
 from calib.robot_def import RobotDef
 from calib.transforms import inv_pose
+from sim.link_frames import flange_in_last_link
 from sim.markers import MarkerField
-from sim.robot_mjcf import RigConfig, flange_in_last_link
+from sim.robot_mjcf import RigConfig
 
 __all__ = [
     "TRUTH_FORMAT",
@@ -137,7 +138,7 @@ def error_table(nominal: MCPCModel, actual: MCPCModel) -> dict[str, float]:
 
 def true_hand_eye(robot: RobotDef, actual: MCPCModel) -> np.ndarray:
     """The actual robot's ``T_flange_cam`` (4, 4): the left camera (``V_n`` of ``actual``) seen from
-    the nominal flange on the last link (``sim.robot_mjcf.flange_in_last_link``)."""
+    the nominal flange on the last link (``sim.link_frames.flange_in_last_link``)."""
     return inv_pose(flange_in_last_link(robot, actual)) @ shape_matrices(actual.params[-1])
 
 

@@ -3,8 +3,9 @@
 Which robots get files, where, and which folder gets the scene is data: each robot file's
 ``[mjcf]`` table (``folder``, ``scene``, ``picture``, ``title``).
 
-Run ``python -m sim.build_models`` after changing ``models/robots/*.toml``, ``sim/robot_mjcf.py``,
-``sim/scene.py`` or ``sim/markers.py``. It writes
+Run ``python -m sim.build_models`` after changing ``models/robots/*.toml``, ``sim/robot_mjcf.py``
+(or the modules it builds from: ``sim/link_frames.py``, ``sim/robot_shapes.py``,
+``sim/mjcf_geoms.py``), ``sim/scene.py`` or ``sim/markers.py``. It writes
 
 - ``<name>.xml``: each robot alone, nominal (``robot_spec`` of
   ``dh_to_mcpc(robot).with_tool(robot.T_flange_cam)``);
@@ -32,8 +33,9 @@ import mujoco
 import numpy as np
 
 from calib.robot_def import RobotDefinitionError, list_robots, load_robot, models_dir
+from sim.link_frames import nominal_camera_model
 from sim.markers import MarkerField, make_marker_field, marker_texture_rgb
-from sim.robot_mjcf import RigConfig, nominal_camera_model, robot_spec
+from sim.robot_mjcf import RigConfig, robot_spec
 from sim.scene import PIXELS_PER_MODULE, scene_spec
 
 if sys.version_info >= (3, 11):

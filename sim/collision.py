@@ -10,7 +10,8 @@ import mujoco
 import numpy as np
 
 from calib.robot_def import load_robot
-from sim.robot_mjcf import link_body_names, nominal_camera_model, robot_spec
+from sim.link_frames import link_body_names, nominal_camera_model
+from sim.robot_mjcf import robot_spec
 
 __all__ = ["collision_checker", "collision_free"]
 

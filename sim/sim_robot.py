@@ -17,16 +17,11 @@ from calib.mcpc import MCPCModel
 from calib.robot import RobotError, StereoPair
 from calib.robot_def import load_robot
 from sim.actual import Truth, make_truth
+from sim.link_frames import nominal_camera_model
 from sim.markers import MarkerField, make_marker_field
 from sim.mj_camera import T_world_cam_cv
 from sim.render import StereoRenderer
-from sim.robot_mjcf import (
-    CAMERA_NAMES,
-    TOOL_SITE,
-    RigConfig,
-    nominal_camera_model,
-    scene_with_robot,
-)
+from sim.robot_mjcf import CAMERA_NAMES, TOOL_SITE, RigConfig, scene_with_robot
 
 __all__ = ["SimRobot"]
 

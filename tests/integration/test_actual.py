@@ -23,8 +23,9 @@ from sim.actual import (
     true_hand_eye,
     write_truth,
 )
+from sim.link_frames import nominal_camera_model
 from sim.markers import make_marker_field
-from sim.robot_mjcf import RigConfig, nominal_camera_model, robot_spec
+from sim.robot_mjcf import RigConfig, robot_spec
 
 
 @pytest.fixture(scope="module")

@@ -37,7 +37,7 @@ from scenarios.deploy_cli import register
 from scenarios.pipeline import run_acquire, run_calibrate
 from sim.actual import perturb
 from sim.export_mjcf import calibrated_mjcf
-from sim.robot_mjcf import nominal_camera_model
+from sim.link_frames import nominal_camera_model
 
 TOL_M = 1e-9
 ROBOT = load_robot("er4u-paper")

@@ -16,15 +16,10 @@ from calib.robot_def import load_robot
 from calib.transforms import inv_pose, trans
 from sim.actual import apply_errors, perturb
 from sim.build_models import ROBOT_MODELS, mjcf_entries, write_models
+from sim.link_frames import nominal_camera_model
 from sim.markers import make_marker_field
 from sim.mj_camera import T_world_cam_cv, intrinsics_from_model
-from sim.robot_mjcf import (
-    RigConfig,
-    add_robot,
-    nominal_camera_model,
-    robot_spec,
-    scene_with_robot,
-)
+from sim.robot_mjcf import RigConfig, add_robot, robot_spec, scene_with_robot
 
 MODEL_DIR = next(e.folder for e in mjcf_entries() if e.scene)  # the SCORBOT folder
 TOL = 1e-9  # m, and for rotation-matrix entries

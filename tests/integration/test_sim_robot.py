@@ -10,8 +10,8 @@ from calib.kinematics import fk_frames
 from calib.robot import Robot, RobotError, StereoPair
 from calib.transforms import inv_pose
 from sim.actual import apply_errors, perturb
+from sim.link_frames import nominal_camera_model
 from sim.markers import make_marker_field
-from sim.robot_mjcf import nominal_camera_model
 from sim.sim_robot import SimRobot
 
 
