@@ -23,7 +23,7 @@ from scenarios.cli_common import CliError, parse_floats, run_command
 from scenarios.config import load_scenario
 from scenarios.deploy_cli import register as register_deploy
 from scenarios.hw_cli import register as register_hw
-from scenarios.montecarlo import register as register_montecarlo
+from scenarios.montecarlo_cli import register as register_montecarlo
 from scenarios.paper_repro import register as register_paper
 from scenarios.pipeline import run_acquire, run_all, run_calibrate, run_report
 from scenarios.rerun_log import record_run

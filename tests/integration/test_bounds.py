@@ -38,8 +38,7 @@ from scenarios.config import load_scenario
 
 @pytest.fixture(scope="module")
 def tiny():
-    from scenarios.backends import sim_setup
-    from scenarios.montecarlo import planning_inputs
+    from scenarios.backends import planning_inputs, sim_setup
 
     s = load_scenario(None, {"noise": {"render": False}, "target": {"markers": 8}})
     setup = sim_setup(s)

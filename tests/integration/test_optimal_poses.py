@@ -21,8 +21,10 @@ from calib.kinematics import fk_tool
 from calib.optimal_poses import pose_information, select_d_optimal, visible_mask
 from calib.trajectory import plan_postures
 from calib.transforms import inv_pose, pose_from_vec
+from scenarios.backends import plan_optimal, planning_inputs
 from scenarios.config import load_scenario
-from scenarios.montecarlo import collision_checker, plan_optimal, planning_inputs, predicted_bound
+from scenarios.plan_comparison import predicted_bound
+from sim.collision import collision_checker
 
 
 @pytest.fixture(scope="module")
