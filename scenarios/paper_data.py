@@ -1,7 +1,7 @@
 """The seed paper's printed numbers, in one place (mm and degrees, as printed).
 
 Typos are kept as printed here on purpose (this module is the paper, not the truth);
-``scenarios.paper_repro.paper_inconsistencies`` finds and names them.
+``scenarios.paper_checks.paper_inconsistencies`` finds and names them.
 """
 
 from __future__ import annotations
@@ -19,7 +19,11 @@ __all__ = [
     "PAPER_TABLE_III_MM",
     "PAPER_TABLE_IV",
     "table_ii_postures",
+    "AXES",
 ]
+
+AXES = ("x", "y", "z")
+"""The position columns of Tables II-IV: p_x, p_y, p_z."""
 
 TABLE_I_THETA_DEG = np.array([38.15, -30.0, 45.0, -63.54, 0.0])
 """Table I's theta column: the posture of the paper's Fig. 2 (deg)."""

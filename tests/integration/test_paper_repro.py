@@ -20,12 +20,13 @@ import pytest
 from calib.kinematics import fk_dh
 from calib.robot_def import load_robot
 from scenarios import paper_repro
-from scenarios.paper_data import TABLE_II_MM, TABLE_II_THETA4_DEG
+from scenarios.paper_checks import paper_inconsistencies
+from scenarios.paper_data import TABLE_II_MM, TABLE_II_THETA4_DEG, table_ii_postures
 
 
 def test_table_ii_postures_reproduce_table_ii():
     robot = load_robot("er4u-paper")
-    q, pitch, roll = paper_repro.table_ii_postures(robot)
+    q, pitch, roll = table_ii_postures(robot)
     robot.check_joints(q)
     tips_mm = fk_dh(robot, q)[:, -1, :3, 3] * 1000
     np.testing.assert_allclose(tips_mm, TABLE_II_MM, atol=0.1)
@@ -34,7 +35,7 @@ def test_table_ii_postures_reproduce_table_ii():
 
 
 def test_paper_inconsistencies_found_from_the_tables():
-    found = {(t["position"], t["axis"], t["kind"]) for t in paper_repro.paper_inconsistencies()}
+    found = {(t["position"], t["axis"], t["kind"]) for t in paper_inconsistencies()}
     # Table IV row 1 p_z measured 190.00 vs Table III's 183.00; row 2 p_z 183.00 vs 182.80;
     # row 3 p_z printed error 0.70 while measured - desired = 198.00 - 197.70 = 0.30.
     assert found == {
