@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 from scenarios import studies
+from scenarios.study_runs import COLUMNS, load_runs
 
 
 @pytest.fixture(scope="module")
@@ -32,7 +33,7 @@ def quick_poses(tmp_path_factory):
 
 @pytest.mark.slow
 def test_error_falls_as_poses_increase(quick_poses):
-    rows = studies.load_runs(quick_poses / "runs.csv")
+    rows = load_runs(quick_poses / "runs.csv")
     assert len(rows) == 6
     assert all(r["status"] == "ok" for r in rows), [r["status"] for r in rows]
     med = {n: float(np.median([r["cal_rms_mm"] for r in rows if r["poses"] == n])) for n in (8, 40)}
@@ -46,7 +47,7 @@ def test_error_falls_as_poses_increase(quick_poses):
 def test_outputs_parse(quick_poses):
     with open(quick_poses / "runs.csv", newline="") as fh:
         header = next(csv.reader(fh))
-    assert tuple(header) == studies.COLUMNS
+    assert tuple(header) == COLUMNS
     assert (quick_poses / "poses.png").read_bytes()[:4] == b"\x89PNG"
     md = (quick_poses / "poses.md").read_text()
     assert "| calibrated | 8 | 3 | 0 |" in md and "| calibrated | 40 | 3 | 0 |" in md
@@ -59,7 +60,7 @@ def test_resume_does_not_redo_finished_runs(quick_poses, monkeypatch):
     rows = studies.run_study("poses", quick_poses, budget="quick", jobs=1, quiet=True)
     assert calls == []
     assert len(rows) == 6
-    assert len(studies.load_runs(quick_poses / "runs.csv")) == 6
+    assert len(load_runs(quick_poses / "runs.csv")) == 6
 
 
 def test_unknown_study_is_an_error(tmp_path):
