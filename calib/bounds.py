@@ -42,13 +42,13 @@ from calib.errors import EstimationError
 from calib.identify import express_in_frame, minimal_difference
 from calib.joint_refine import (
     KinematicPoses,
-    _inverse_block,
     _Problem,
     choose_gauge,
     encoder_sigma,
 )
 from calib.kinematics import fk_tool, identification_jacobian
 from calib.mcpc import MCPCModel, minimal_indices, param_is_angle, param_names
+from calib.solver import inverse_block
 from calib.transforms import inv_pose, skew
 
 __all__ = [
@@ -293,7 +293,7 @@ def cramer_rao(s: FisherSetup, *, rank_tol: float = 1e-10) -> CramerRao:
                 "in two views and that the scale markers are seen"
             )
     cols = np.r_[lay.kin_cols, lay.dq_ref_cols]
-    C = _inverse_block(J, cols)
+    C = inverse_block(J, cols)
     nk = len(lay.kin_cols)
     fx_std = float(np.sqrt(max(C[0, 0], 0.0)))
     mu_std = float(np.sqrt(max(C[1, 1], 0.0)))

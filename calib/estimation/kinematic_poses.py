@@ -1,0 +1,154 @@
+"""Camera poses from the kinematic chain: the pose model of the one-step refinement.
+
+Frames: ``T_world_cam`` of the left camera is the MCPC tool (OpenCV camera frame); the right camera
+is ``T_right_left @ T_left_world``. Views ``2 i`` (left) and ``2 i + 1`` (right). SI units.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from calib.estimation.pose_models import so3_left_jacobian
+from calib.kinematics import fk_frames, fk_tool, identification_jacobian
+from calib.mcpc import MCPCModel
+from calib.transforms import adjoint, inv_pose, make_pose, pose_from_vec, skew
+
+__all__ = ["KinematicPoses"]
+
+
+class KinematicPoses:
+    """Camera poses from the kinematic chain: a :class:`calib.estimation.pose_models.PoseModel`.
+
+    Configuration ``i`` (with ``active[i]``): left camera ``T_world_cam = fk_tool(model(rho), q_i)``
+    (the model's tool is the left camera, OpenCV frame), right camera ``T_right_world =
+    T_right_left @ T_left_world``. Views ``2 i`` (left) and ``2 i + 1`` (right); inactive
+    configurations have NaN poses and no parameters.
+
+    Parameters ``p = [rho_free (k), rig (6)]``: ``rho_free`` the *absolute* values (rad, m) of the
+    flat MCPC parameters ``free_idx`` (indices into ``model.params.reshape(-1)``, all others fixed
+    at ``model``'s values), ``rig = [w, v]`` the left-perturbation of ``T_right_left`` around
+    ``T0_right_left``: ``R = Rot(w) R0``, ``t = t0 + v``.
+
+    With ``joint_corrections=True`` the parameters continue with ``dq`` (n per active
+    configuration, rad / m): the poses use ``q_i + dq_i`` (errors in the joint read-back, e.g.
+    encoder quantisation; the caller adds a prior on ``dq``). ``dq_cols`` are their indices in ``p``.
+
+    ``view_jacobian`` is analytic: the identification Jacobian is the body twist ``xi`` of
+    ``T_world_cam`` (``dT = T xi^``), so ``T_cam_world`` moves by the camera-frame twist ``-xi``
+    (the bundle adjustment's convention); the right camera by ``Ad(T_right_left) (-xi)``. The joint
+    columns are the joint axes' twists in the tool frame.
+    """
+
+    def __init__(
+        self,
+        model: MCPCModel,
+        q: np.ndarray,
+        free_idx: np.ndarray,
+        T0_right_left: np.ndarray,
+        active: np.ndarray | None = None,
+        *,
+        joint_corrections: bool = False,
+    ):
+        self.model = model
+        self.q = np.atleast_2d(np.asarray(q, dtype=float))
+        if self.q.shape[1] != model.n:
+            raise ValueError(f"q must have shape (m, {model.n}) (rad), got {self.q.shape}")
+        self.free_idx = np.asarray(free_idx, dtype=np.int64)
+        if len(np.unique(self.free_idx)) != len(self.free_idx):
+            raise ValueError("free_idx contains duplicates")
+        self.rig0 = np.asarray(T0_right_left, dtype=float).copy()
+        m = len(self.q)
+        self.active = np.ones(m, bool) if active is None else np.asarray(active, bool).copy()
+        if self.active.shape != (m,):
+            raise ValueError(f"active must have shape ({m},)")
+        self.n_configs = m
+        self.n_views = 2 * m
+        self.k = len(self.free_idx)
+        act = np.flatnonzero(self.active)
+        n = model.n
+        self.n_dq = n * len(act) if joint_corrections else 0
+        self.dq_cols = self.k + 6 + np.arange(self.n_dq)
+        self.n_params = self.k + 6 + self.n_dq
+        q_cols = self.k + 6 + (n if joint_corrections else 0)
+        cols = -np.ones((self.n_views, q_cols), dtype=np.int64)
+        cols[2 * act, : self.k] = np.arange(self.k)
+        cols[2 * act + 1, : self.k + 6] = np.arange(self.k + 6)
+        if joint_corrections:
+            dq = self.dq_cols.reshape(len(act), n)
+            cols[2 * act, self.k + 6 :] = dq
+            cols[2 * act + 1, self.k + 6 :] = dq
+        self._cols = cols
+        self._act = act
+
+    def initial_params(self) -> np.ndarray:
+        return np.concatenate(
+            [self.model.params.reshape(-1)[self.free_idx], np.zeros(6 + self.n_dq)]
+        )
+
+    def joints(self, p: np.ndarray) -> np.ndarray:
+        """Joint vectors (m_active, n) used for the active configurations (read-back + dq)."""
+        q = self.q[self._act]
+        if self.n_dq:
+            q = q + p[self.dq_cols].reshape(q.shape)
+        return q
+
+    def view_columns(self) -> np.ndarray:
+        return self._cols
+
+    def param_instances(self) -> np.ndarray:
+        """(n_params,) the configuration of each joint correction ``dq``, -1 for the kinematic
+        and rig parameters (shared by all views)."""
+        inst = -np.ones(self.n_params, np.int64)
+        if self.n_dq:
+            inst[self.dq_cols] = np.repeat(self._act, self.model.n)
+        return inst
+
+    def kinematic_model(self, p: np.ndarray) -> MCPCModel:
+        """The MCPC model for parameters ``p``."""
+        flat = self.model.params.reshape(-1).copy()
+        flat[self.free_idx] = p[: self.k]
+        return self.model.with_params(flat)
+
+    def rig(self, p: np.ndarray) -> np.ndarray:
+        """``T_right_left`` (4, 4) for parameters ``p``."""
+        w, v = p[self.k : self.k + 3], p[self.k + 3 : self.k + 6]
+        return make_pose(
+            pose_from_vec(np.r_[w, 0, 0, 0])[:3, :3] @ self.rig0[:3, :3], self.rig0[:3, 3] + v
+        )
+
+    def poses(self, p: np.ndarray) -> np.ndarray:
+        T = np.full((self.n_views, 4, 4), np.nan)
+        act = self._act
+        TL = inv_pose(fk_tool(self.kinematic_model(p), self.joints(p)))
+        T[2 * act] = TL
+        T[2 * act + 1] = self.rig(p) @ TL
+        return T
+
+    def view_jacobian(self, p: np.ndarray) -> np.ndarray:
+        q_cols = self._cols.shape[1]
+        J = np.zeros((self.n_views, 6, q_cols))
+        act = self._act
+        mdl = self.kinematic_model(p)
+        qa = self.joints(p)
+        JL = -identification_jacobian(mdl, qa)[:, :, self.free_idx]
+        if self.n_dq:
+            F = fk_frames(mdl, qa)
+            X = inv_pose(F[:, -1:]) @ F[:, :-1]  # joint frames in the tool frame (m, n, 4, 4)
+            w = X[..., :3, 2]
+            tw = np.concatenate([np.cross(X[..., :3, 3], w), w], axis=-1)  # revolute
+            pris = np.array([t == "prismatic" for t in mdl.joint_types])
+            tw[:, pris] = np.concatenate([w[:, pris], 0 * w[:, pris]], axis=-1)
+            JL = np.concatenate([JL, np.zeros((len(act), 6, 6)), -np.swapaxes(tw, 1, 2)], axis=2)
+        else:
+            JL = np.concatenate([JL, np.zeros((len(act), 6, 6))], axis=2)
+        Trig = self.rig(p)
+        J[2 * act] = JL
+        J[2 * act + 1] = adjoint(Trig) @ JL
+        w = p[self.k : self.k + 3]
+        Jl = so3_left_jacobian(w)
+        Jr = np.zeros((6, 6))
+        Jr[:3, :3] = skew(Trig[:3, 3]) @ Jl
+        Jr[:3, 3:] = np.eye(3)
+        Jr[3:, :3] = Jl
+        J[2 * act + 1, :, self.k : self.k + 6] = Jr
+        return J

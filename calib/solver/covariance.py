@@ -1,0 +1,52 @@
+"""Covariance of selected parameter blocks after a solve: blocks of ``(J^T J)^-1``.
+
+The caller supplies the noise level: ``sigma^2 (J^T J)^-1`` with ``J`` the unweighted Jacobian of
+the residuals at the solution (each residual in units of its own standard deviation, or scaled
+by ``sigma^2`` when all rows share one unknown noise level). Nuisance unknowns (points, poses)
+are marginalised by the inverse.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.linalg import splu
+
+from calib.solver.linear import DENSE_MAX
+from calib.solver.problem import Problem
+
+__all__ = ["inverse_block", "covariance"]
+
+
+def inverse_block(J: sp.spmatrix | np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """``(J^T J)^-1`` restricted to the unknowns ``cols`` (len(cols), len(cols)), symmetrised.
+
+    Diagonally scaled exact solve: dense LU up to :data:`calib.solver.linear.DENSE_MAX`
+    unknowns, SuperLU (COLAMD) above. Raises ``RuntimeError``/``LinAlgError`` when ``J^T J`` is
+    singular (an unknown the residuals do not determine)."""
+    cols = np.asarray(cols, dtype=np.int64)
+    J = sp.csr_matrix(J)
+    JtJ = (J.T @ J).tocsc()
+    dg = np.sqrt(np.maximum(JtJ.diagonal(), 1e-300))
+    e = np.zeros((JtJ.shape[0], len(cols)))
+    e[cols, np.arange(len(cols))] = 1.0
+    if JtJ.shape[0] <= DENSE_MAX:  # dense LU: faster than SuperLU at this size
+        M = JtJ.toarray() / dg[:, None] / dg[None, :]
+        sol = np.linalg.solve(M, e / dg[:, None]) / dg[:, None]
+    else:
+        Dinv = sp.diags(1.0 / dg)
+        lu = splu((Dinv @ JtJ @ Dinv).tocsc(), permc_spec="COLAMD")
+        sol = lu.solve(e / dg[:, None]) / dg[:, None]
+    out = sol[cols]
+    return 0.5 * (out + out.T)
+
+
+def covariance(
+    problem: Problem, x: np.ndarray, blocks: Sequence[str], *, sigma2: float = 1.0
+) -> np.ndarray:
+    """``sigma2 (J^T J)^-1`` over the free coordinates of parameter ``blocks`` (in that order,
+    each block's coordinates in order) at unknowns ``x`` (e.g. ``SolverResult.x``)."""
+    cols = np.concatenate([problem.columns(b) for b in blocks])
+    return sigma2 * inverse_block(problem.jacobian(x), cols)

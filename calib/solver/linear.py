@@ -1,0 +1,289 @@
+"""The normal equations of a weighted problem and their damped, Marquardt-scaled solution.
+
+Three forms of ``A = J^T W J``, ``g = J^T W r`` (``W`` the per-row IRLS weights):
+
+- ``dense``: one (n, n) array, solved by LU; assembled from each residual block's per-row
+  ``(C, C)`` products by ``bincount`` (small problems, up to :data:`DENSE_MAX` unknowns);
+- ``sparse``: a CSC matrix from the sparse Jacobian, solved by SuperLU with COLAMD ordering;
+- ``schur``: the unknowns of one parameter block's *instances* (e.g. the camera poses) are
+  eliminated: ``A = [[U, W], [W^T, V]]`` with ``U`` block diagonal (one small block per instance,
+  since no residual row touches two instances), so each solve factors the instance blocks and the
+  reduced ``V - W^T U^-1 W`` (the kept unknowns, e.g. intrinsics, rig and points) only.
+
+Every form solves ``(S A S + lam I) y = S g`` with ``S = diag(A)^-1/2`` and returns ``S y``
+(Marquardt scaling, the damping of :mod:`calib.solver.lm`). Singular systems raise
+:class:`SingularSystem`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.linalg import splu
+
+from calib.solver.problem import Evaluation, Problem
+
+__all__ = ["DENSE_MAX", "SingularSystem", "NormalEquations", "assemble", "DampedSystem"]
+
+DENSE_MAX = 1500
+"""Unknowns up to which the normal equations are formed and factored densely (LU); larger
+problems use sparse matrices and SuperLU (or the Schur form when an elimination is asked for)."""
+
+_CHUNK = 8192  # residual rows per bincount pass (bounds the memory of the index arrays)
+
+
+class SingularSystem(RuntimeError):
+    """The damped normal equations could not be factored or gave a non-finite step."""
+
+
+@dataclass
+class NormalEquations:
+    """``A`` and ``g`` in one of the three forms (see the module docstring); ``n`` unknowns.
+
+    dense: ``A`` (n, n). sparse: ``A`` CSC. schur: ``U`` (I, s, s), ``W`` (I, s, nk), ``V``
+    (nk, nk), ``elim`` (I, s) unknown index per instance slot (``-1`` padding), ``kept`` (nk,)."""
+
+    kind: str
+    n: int
+    g: np.ndarray
+    A: np.ndarray | sp.csc_matrix | None = None
+    U: np.ndarray | None = None
+    W: np.ndarray | None = None
+    V: np.ndarray | None = None
+    elim: np.ndarray | None = None
+    kept: np.ndarray | None = None
+
+    def is_finite(self) -> bool:
+        """True when ``A`` and ``g`` hold no NaN/inf."""
+        if not np.isfinite(self.g).all():
+            return False
+        if self.kind == "sparse":
+            return bool(np.isfinite(self.A.data).all())
+        if self.kind == "dense":
+            return bool(np.isfinite(self.A).all())
+        return bool(np.isfinite(self.U).all() and np.isfinite(self.W).all())
+
+    def quadratic(self, x: np.ndarray) -> float:
+        """``x^T A x``."""
+        if self.kind != "schur":
+            return float(x @ (self.A @ x))
+        xe = np.where(self.elim >= 0, x[np.maximum(self.elim, 0)], 0.0)
+        xk = x[self.kept]
+        Ux = np.einsum("iab,ib->ia", self.U, xe)
+        Wx = np.einsum("iab,b->ia", self.W, xk)
+        return float(np.sum(xe * Ux) + 2.0 * np.sum(xe * Wx) + xk @ (self.V @ xk))
+
+
+def _stack(problem: Problem, ev: Evaluation) -> tuple[np.ndarray, np.ndarray]:
+    """All pieces of one evaluation side by side: J (k, d, C) and unknown indices G (k, C)."""
+    J = np.concatenate([pc.J for pc in ev.pieces], axis=2)
+    G = np.concatenate([problem.global_cols(pc) for pc in ev.pieces], axis=1)
+    return J, G
+
+
+def _chunks(k: int):
+    for a in range(0, k, _CHUNK):
+        yield slice(a, min(a + _CHUNK, k))
+
+
+def _sparse_normal(
+    problem: Problem, evals: Sequence[Evaluation], weights: Sequence[np.ndarray]
+) -> NormalEquations:
+    J = problem._sparse(evals, pattern=False)
+    wr = np.concatenate([np.repeat(w, ev.residuals.shape[1]) for w, ev in zip(weights, evals)])
+    r = np.concatenate([ev.residuals.ravel() for ev in evals])
+    JtW = (J.T @ sp.diags(wr)).tocsr()
+    return NormalEquations("sparse", problem.n, JtW @ r, A=(JtW @ J).tocsc())
+
+
+def _dense_normal(
+    problem: Problem, evals: Sequence[Evaluation], weights: Sequence[np.ndarray]
+) -> NormalEquations:
+    n = problem.n
+    A = np.zeros((n + 1) ** 2)
+    g = np.zeros(n + 1)
+    for ev, w in zip(evals, weights):
+        J, G = _stack(problem, ev)
+        G = np.where(G >= 0, G, n)  # unused -> a dummy column, dropped below
+        for sl in _chunks(len(G)):
+            Jc, Gc = J[sl], G[sl]
+            wJ = Jc * w[sl, None, None]
+            L = np.matmul(wJ.transpose(0, 2, 1), Jc)
+            A += np.bincount((Gc[:, :, None] * (n + 1) + Gc[:, None, :]).ravel(), L.ravel(), A.size)
+            gr = np.einsum("kda,kd->ka", wJ, ev.residuals[sl])
+            g += np.bincount(Gc.ravel(), gr.ravel(), n + 1)
+    return NormalEquations("dense", n, g[:n], A=A.reshape(n + 1, n + 1)[:n, :n])
+
+
+def _schur_layout(inst: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """From the instance of every unknown (-1 = kept): slot per unknown, kept index per unknown,
+    ``elim`` (I, s) and ``kept`` (nk,)."""
+    n = len(inst)
+    kept = np.flatnonzero(inst < 0)
+    e = np.flatnonzero(inst >= 0)
+    ids, inv = np.unique(inst[e], return_inverse=True)
+    counts = np.bincount(inv, minlength=len(ids))
+    s = int(counts.max()) if len(ids) else 1
+    order = np.argsort(inv, kind="stable")
+    slot = np.empty(len(e), np.int64)
+    starts = np.r_[0, np.cumsum(counts)[:-1]]
+    slot[order] = np.arange(len(e)) - np.repeat(starts, counts)
+    elim = -np.ones((len(ids), s), np.int64)
+    elim[inv, slot] = e
+    slot_of = np.full(n + 1, s, np.int64)
+    slot_of[e] = slot
+    inst_of = np.full(n + 1, len(ids), np.int64)
+    inst_of[e] = inv
+    kid = np.full(n + 1, len(kept), np.int64)
+    kid[kept] = np.arange(len(kept))
+    return np.stack([slot_of, inst_of, kid]), elim, kept, np.array([len(ids), s, len(kept)])
+
+
+def _schur_normal(
+    problem: Problem,
+    evals: Sequence[Evaluation],
+    weights: Sequence[np.ndarray],
+    inst: np.ndarray,
+) -> NormalEquations:
+    n = problem.n
+    (slot_of, inst_of, kid), elim, kept, (ni, s, nk) = _schur_layout(inst)
+    U = np.zeros((ni + 1) * (s + 1) * (s + 1))
+    W = np.zeros((ni + 1) * (s + 1) * (nk + 1))
+    V = np.zeros((nk + 1) ** 2)
+    ge = np.zeros((ni + 1) * (s + 1))
+    gk = np.zeros(nk + 1)
+    for ev, w, blk in zip(evals, weights, problem.residuals):
+        J, G = _stack(problem, ev)
+        G = np.where(G >= 0, G, n)
+        for sl in _chunks(len(G)):
+            Jc, Gc = J[sl], G[sl]
+            ic = inst_of[Gc]  # (k, C), ni = not eliminated
+            row_inst = ic.min(axis=1)
+            if np.any(np.where(ic < ni, ic, row_inst[:, None]) != row_inst[:, None]):
+                raise ValueError(
+                    f"residual block {blk.name!r} couples two instances of the eliminated "
+                    "block in one row; the Schur elimination does not apply"
+                )
+            wJ = Jc * w[sl, None, None]
+            L = np.matmul(wJ.transpose(0, 2, 1), Jc).ravel()
+            ka, kb = kid[Gc][:, :, None], kid[Gc][:, None, :]
+            sa, sb = slot_of[Gc][:, :, None], slot_of[Gc][:, None, :]
+            ri = row_inst[:, None, None] * (s + 1)
+            V += np.bincount((ka * (nk + 1) + kb).ravel(), L, V.size)
+            W += np.bincount(((ri + sa) * (nk + 1) + kb).ravel(), L, W.size)
+            U += np.bincount(((ri + sa) * (s + 1) + sb).ravel(), L, U.size)
+            gr = np.einsum("kda,kd->ka", wJ, ev.residuals[sl])
+            gk += np.bincount(kid[Gc].ravel(), gr.ravel(), nk + 1)
+            ge += np.bincount(
+                (row_inst[:, None] * (s + 1) + slot_of[Gc]).ravel(), gr.ravel(), ge.size
+            )
+    g = np.zeros(n + 1)
+    g[kept] = gk[:nk]
+    ge = ge.reshape(ni + 1, s + 1)[:ni, :s]
+    g[np.where(elim >= 0, elim, n)] = ge
+    return NormalEquations(
+        "schur",
+        n,
+        g[:n],
+        U=U.reshape(ni + 1, s + 1, s + 1)[:ni, :s, :s].copy(),
+        W=W.reshape(ni + 1, s + 1, nk + 1)[:ni, :s, :nk].copy(),
+        V=V.reshape(nk + 1, nk + 1)[:nk, :nk].copy(),
+        elim=elim,
+        kept=kept,
+    )
+
+
+def assemble(
+    problem: Problem,
+    evals: Sequence[Evaluation],
+    weights: Sequence[np.ndarray],
+    kind: str,
+    instances: np.ndarray | None = None,
+) -> NormalEquations:
+    """Normal equations of ``problem`` from Jacobian evaluations and per-row weights (k,) per
+    residual block. ``kind``: "dense", "sparse" or "schur" (``instances`` (n,) int: instance of
+    every unknown to eliminate, -1 kept; see :meth:`Problem.instance_of_columns`)."""
+    if kind == "dense":
+        return _dense_normal(problem, evals, weights)
+    if kind == "sparse":
+        return _sparse_normal(problem, evals, weights)
+    if kind == "schur":
+        if instances is None:
+            raise ValueError("the Schur form needs the instances of the eliminated unknowns")
+        return _schur_normal(problem, evals, weights, instances)
+    raise ValueError(f"unknown linear solver {kind!r}; use dense, sparse or schur")
+
+
+class DampedSystem:
+    """Solves ``(S A S + lam I) y = S g`` for the Marquardt-scaled normal equations
+    (``S = diag(A)^-1/2``, tiny diagonals lifted to ``1e-12 max diag``) and returns ``S y``."""
+
+    def __init__(self, ne: NormalEquations):
+        self.ne = ne
+        if ne.kind == "schur":
+            diag = np.zeros(ne.n)
+            e = ne.elim >= 0
+            diag[ne.elim[e]] = np.einsum("iaa->ia", ne.U)[e]
+            diag[ne.kept] = np.diag(ne.V)
+        else:
+            diag = np.diag(ne.A) if ne.kind == "dense" else ne.A.diagonal()
+        d = np.maximum(diag, 1e-12 * max(diag.max(initial=0.0), 1e-300))
+        self.s = 1.0 / np.sqrt(d)
+        if ne.kind == "dense":
+            self.As = ne.A * self.s[:, None] * self.s[None, :]
+        elif ne.kind == "sparse":
+            S = sp.diags(self.s)
+            self.As = (S @ ne.A @ S).tocsc()
+        else:
+            se = np.where(e, self.s[np.maximum(ne.elim, 0)], 1.0)
+            sk = self.s[ne.kept]
+            self.Us = ne.U * se[:, :, None] * se[:, None, :]
+            self.Ws = ne.W * se[:, :, None] * sk[None, None, :]
+            self.Vs = ne.V * sk[:, None] * sk[None, :]
+            self.se = se
+
+    def scaled_gradient(self) -> np.ndarray:
+        """``S g`` (n,)."""
+        return self.s * self.ne.g
+
+    def solve(self, lam: float) -> np.ndarray:
+        """The step ``x = S y`` for damping ``lam`` (not negated). Raises
+        :class:`SingularSystem` when the damped matrix cannot be factored."""
+        gs = self.s * self.ne.g
+        try:
+            if self.ne.kind == "dense":
+                M = self.As.copy()
+                M[np.diag_indices_from(M)] += lam
+                y = np.linalg.solve(M, gs)
+            elif self.ne.kind == "sparse":
+                M = (self.As + lam * sp.eye(len(gs), format="csc")).tocsc()
+                y = splu(M, permc_spec="COLAMD").solve(gs)
+            else:
+                y = self._solve_schur(gs, lam)
+        except (np.linalg.LinAlgError, RuntimeError) as exc:
+            raise SingularSystem(str(exc)) from None
+        if not np.isfinite(y).all():
+            raise SingularSystem("singular damped normal equations (non-finite step)")
+        return self.s * y
+
+    def _solve_schur(self, gs: np.ndarray, lam: float) -> np.ndarray:
+        ne = self.ne
+        ni, s, _ = self.Ws.shape
+        Ud = self.Us + lam * np.eye(s)
+        Ui = np.linalg.inv(Ud)
+        e = ne.elim >= 0
+        ge = np.where(e, gs[np.maximum(ne.elim, 0)], 0.0)
+        Z = np.matmul(Ui, self.Ws).reshape(ni * s, -1)
+        Wf = self.Ws.reshape(ni * s, -1)
+        S = self.Vs - Wf.T @ Z
+        S[np.diag_indices_from(S)] += lam
+        uge = np.einsum("iab,ib->ia", Ui, ge)
+        yk = np.linalg.solve(S, gs[ne.kept] - Wf.T @ uge.ravel())
+        ye = uge - np.einsum("iab,b->ia", Z.reshape(ni, s, -1), yk)
+        y = np.empty_like(gs)
+        y[ne.kept] = yk
+        y[ne.elim[e]] = ye[e]
+        return y
