@@ -40,7 +40,6 @@ from calib.solver import (
 )
 
 __all__ = [
-    "SCHUR_MIN_UNKNOWNS",
     "Observations",
     "point_id",
     "marker_corner",
@@ -59,10 +58,6 @@ __all__ = [
     "reprojection_residuals",
     "intrinsics_covariance",
 ]
-
-SCHUR_MIN_UNKNOWNS = 10**9
-"""Unknowns above which the engine eliminates the pose parameters by a Schur complement (the
-reduced system is the intrinsics, the rig and the points); below, it factors densely."""
 
 LEFT, RIGHT = 0, 1
 _CAMERA_NAMES = {"left": LEFT, "right": RIGHT, "l": LEFT, "r": RIGHT, 0: LEFT, 1: RIGHT}
@@ -311,8 +306,8 @@ def bundle_adjust(
     ``solver="lm"`` (default): the engine's Levenberg-Marquardt (:func:`calib.solver.solve`) with
     the analytic Jacobian, at most ``max_nfev`` trials, robust ``loss`` (linear, soft_l1, huber,
     cauchy; scale ``f_scale_px``) on each observation's 2-D residual norm; the pose parameters
-    are eliminated by a Schur complement when the pose model labels them per view
-    (``param_instances``). ``solver="scipy"``: :func:`scipy.optimize.least_squares` (trf + lsmr,
+    are eliminated by a Schur complement in large problems when the pose model labels them per
+    view (``param_instances``). ``solver="scipy"``: :func:`scipy.optimize.least_squares` (trf + lsmr,
     loss per coordinate), with the analytic Jacobian or -- when ``model.view_jacobian`` returns
     None -- finite differences restricted by ``jac_sparsity``.
 
@@ -333,7 +328,6 @@ def bundle_adjust(
             max_iterations=max_nfev,
             max_evaluations=max_nfev,
             eliminate="poses" if has_instances else None,
-            schur_min_unknowns=SCHUR_MIN_UNKNOWNS,
         )
         res = solve(prob.problem, opt)
         x, r, cost, nfev = res.x, res.residuals[prob.block.name], res.cost, res.nfev

@@ -212,12 +212,6 @@ class _Problem(_AdjustmentProblem):
         self.n_pix = 2 * len(self.view)
 
 
-LINEAR_SOLVER = "auto"
-"""Linear solver of the joint adjustment (:class:`calib.solver.SolverOptions`); with "auto"
-the engine eliminates the joint corrections (Schur) above :data:`SCHUR_MIN_UNKNOWNS`."""
-SCHUR_MIN_UNKNOWNS = 10**9
-
-
 def _scaled_min_singular(J: sp.csr_matrix) -> tuple[float, int]:
     """Smallest singular value of the unit-column-scaled J and the numerical rank (rtol 1e-9)."""
     JtJ = (J.T @ J).toarray()
@@ -459,9 +453,7 @@ def joint_refine(
         opt = SolverOptions(
             tol=tol if last else 1e-9,
             max_iterations=max_iter,
-            linear_solver=LINEAR_SOLVER,
-            eliminate="poses",
-            schur_min_unknowns=SCHUR_MIN_UNKNOWNS,
+            eliminate="poses",  # the joint corrections, in large problems (Schur)
         )
         sol = solve(prob.problem, opt)
         x, cost, status, message = sol.x, sol.cost, sol.status, sol.message

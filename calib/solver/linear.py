@@ -6,9 +6,10 @@ Three forms of ``A = J^T W J``, ``g = J^T W r`` (``W`` the per-row IRLS weights)
   ``(C, C)`` products by ``bincount`` (small problems, up to :data:`DENSE_MAX` unknowns);
 - ``sparse``: a CSC matrix from the sparse Jacobian, solved by SuperLU with COLAMD ordering;
 - ``schur``: the unknowns of one parameter block's *instances* (e.g. the camera poses) are
-  eliminated: ``A = [[U, W], [W^T, V]]`` with ``U`` block diagonal (one small block per instance,
-  since no residual row touches two instances), so each solve factors the instance blocks and the
-  reduced ``V - W^T U^-1 W`` (the kept unknowns, e.g. intrinsics, rig and points) only.
+  eliminated: the sparse ``A`` is split into ``[[U, W], [W^T, V]]`` with ``U`` block diagonal
+  (one small block per instance, since no residual row touches two instances), so each solve
+  factors the instance blocks and the dense reduced ``V - W^T U^-1 W`` (the kept unknowns, e.g.
+  intrinsics, rig and points) only: linear in the number of instances.
 
 Every form solves ``(S A S + lam I) y = S g`` with ``S = diag(A)^-1/2`` and returns ``S y``
 (Marquardt scaling, the damping of :mod:`calib.solver.lm`). Singular systems raise
@@ -148,52 +149,29 @@ def _schur_normal(
     weights: Sequence[np.ndarray],
     inst: np.ndarray,
 ) -> NormalEquations:
+    """The sparse ``J^T W J`` split into the instance blocks ``U``, the coupling ``W`` and the
+    kept block ``V`` (dense). Raises ``ValueError`` if a residual couples two instances."""
     n = problem.n
     (slot_of, inst_of, kid), elim, kept, (ni, s, nk) = _schur_layout(inst)
-    U = np.zeros((ni + 1) * (s + 1) * (s + 1))
-    W = np.zeros((ni + 1) * (s + 1) * (nk + 1))
-    V = np.zeros((nk + 1) ** 2)
-    ge = np.zeros((ni + 1) * (s + 1))
-    gk = np.zeros(nk + 1)
-    for ev, w, blk in zip(evals, weights, problem.residuals):
-        J, G = _stack(problem, ev)
-        G = np.where(G >= 0, G, n)
-        for sl in _chunks(len(G)):
-            Jc, Gc = J[sl], G[sl]
-            ic = inst_of[Gc]  # (k, C), ni = not eliminated
-            row_inst = ic.min(axis=1)
-            if np.any(np.where(ic < ni, ic, row_inst[:, None]) != row_inst[:, None]):
-                raise ValueError(
-                    f"residual block {blk.name!r} couples two instances of the eliminated "
-                    "block in one row; the Schur elimination does not apply"
-                )
-            wJ = Jc * w[sl, None, None]
-            L = np.matmul(wJ.transpose(0, 2, 1), Jc).ravel()
-            ka, kb = kid[Gc][:, :, None], kid[Gc][:, None, :]
-            sa, sb = slot_of[Gc][:, :, None], slot_of[Gc][:, None, :]
-            ri = row_inst[:, None, None] * (s + 1)
-            V += np.bincount((ka * (nk + 1) + kb).ravel(), L, V.size)
-            W += np.bincount(((ri + sa) * (nk + 1) + kb).ravel(), L, W.size)
-            U += np.bincount(((ri + sa) * (s + 1) + sb).ravel(), L, U.size)
-            gr = np.einsum("kda,kd->ka", wJ, ev.residuals[sl])
-            gk += np.bincount(kid[Gc].ravel(), gr.ravel(), nk + 1)
-            ge += np.bincount(
-                (row_inst[:, None] * (s + 1) + slot_of[Gc]).ravel(), gr.ravel(), ge.size
-            )
-    g = np.zeros(n + 1)
-    g[kept] = gk[:nk]
-    ge = ge.reshape(ni + 1, s + 1)[:ni, :s]
-    g[np.where(elim >= 0, elim, n)] = ge
-    return NormalEquations(
-        "schur",
-        n,
-        g[:n],
-        U=U.reshape(ni + 1, s + 1, s + 1)[:ni, :s, :s].copy(),
-        W=W.reshape(ni + 1, s + 1, nk + 1)[:ni, :s, :nk].copy(),
-        V=V.reshape(nk + 1, nk + 1)[:nk, :nk].copy(),
-        elim=elim,
-        kept=kept,
-    )
+    full = _sparse_normal(problem, evals, weights)
+    A = full.A.tocoo()
+    r, c, v = A.row, A.col, A.data
+    er, ec = inst[r] >= 0, inst[c] >= 0
+    ee = er & ec
+    if np.any(inst[r[ee]] != inst[c[ee]]):
+        raise ValueError(
+            "a residual block couples two instances of the eliminated parameter block; the "
+            "Schur elimination does not apply"
+        )
+    kk, ek = ~er & ~ec, er & ~ec
+    V = np.bincount(kid[r[kk]] * nk + kid[c[kk]], v[kk], nk * nk).reshape(nk, nk)
+    W = np.bincount(
+        (inst_of[r[ek]] * s + slot_of[r[ek]]) * nk + kid[c[ek]], v[ek], ni * s * nk
+    ).reshape(ni, s, nk)
+    U = np.bincount(
+        (inst_of[r[ee]] * s + slot_of[r[ee]]) * s + slot_of[c[ee]], v[ee], ni * s * s
+    ).reshape(ni, s, s)
+    return NormalEquations("schur", n, full.g, U=U, W=W, V=V, elim=elim, kept=kept)
 
 
 def assemble(

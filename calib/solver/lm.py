@@ -14,7 +14,8 @@ Every trial counts toward ``max_evaluations``: a residual evaluation, a failed f
 the damped system, a rejected step. NaN/inf at the start, in a Jacobian or in the normal
 equations raise :class:`calib.errors.SolverError` naming the residual block; a trial point with
 NaN/inf residuals is a rejected step, and if the loop ends on such rejections the error names
-the block that produced them.
+the block that produced them; if it ends on damped systems that cannot be factored, the
+error says so.
 """
 
 from __future__ import annotations
@@ -35,15 +36,16 @@ __all__ = ["SolverOptions", "SolverResult", "solve", "cost_and_weights"]
 class SolverOptions:
     """``tol`` (relative; see the module docstring), budgets, the linear solver ("auto", "dense",
     "sparse", "schur") and for "schur"/"auto" the parameter block whose instances are eliminated
-    (``eliminate``; "auto" eliminates it when that leaves at most :data:`DENSE_MAX` unknowns and
-    the problem has more than ``schur_min_unknowns``)."""
+    (``eliminate``; "auto" eliminates it when the problem has more than ``schur_min_unknowns``
+    and at most :data:`DENSE_MAX` are kept: below, dense LU is faster -- measured on the default
+    scenario's adjustments -- and above, the Schur form beats SuperLU, by 1.3x at 300 postures)."""
 
     tol: float = 1e-12
     max_iterations: int = 100
     max_evaluations: int = 10_000
     linear_solver: str = "auto"
     eliminate: str | None = None
-    schur_min_unknowns: int = 0
+    schur_min_unknowns: int = DENSE_MAX
     initial_damping: float = 1e-4
 
 
@@ -104,7 +106,8 @@ def solve(problem: Problem, options: SolverOptions | None = None) -> SolverResul
     Raises:
         SolverError: NaN/inf residuals at the start, in a Jacobian or in the normal equations,
             or the loop ended rejecting steps with NaN/inf residuals (the message names the
-            residual block and, for a Jacobian, the parameter block).
+            residual block and, for a Jacobian, the parameter block) or on damped systems that
+            cannot be factored.
         ValueError: an unknown linear solver or loss, or an elimination that does not apply.
     """
     opt = options or SolverOptions()
@@ -118,7 +121,8 @@ def solve(problem: Problem, options: SolverOptions | None = None) -> SolverResul
     it = 0
     lam, nu = opt.initial_damping, 2.0
     status, message = 0, "maximum number of iterations or evaluations reached"
-    bad_block: str | None = None
+    bad_block: str | None = None  # the block whose NaN/inf rejected the last trial
+    singular: str | None = None  # why the last trial's damped system could not be solved
     while it < opt.max_iterations and trials < opt.max_evaluations:
         it += 1
         jev = problem.evaluate(x, jacobian=True)
@@ -146,9 +150,10 @@ def solve(problem: Problem, options: SolverOptions | None = None) -> SolverResul
                 ev_new = problem.evaluate(x_new)
                 nfev += 1
                 bad_block = problem.nonfinite_block(ev_new)
-            except SingularSystem:
-                bad_block = None
-                ev_new = None
+            except SingularSystem as exc:
+                bad_block, ev_new, singular = None, None, str(exc)
+            if ev_new is not None:
+                singular = None
             if ev_new is not None and bad_block is None:
                 cost_new, _ = cost_and_weights(problem, ev_new)
                 predicted = -(ne.g @ step) - 0.5 * ne.quadratic(step)
@@ -175,6 +180,12 @@ def solve(problem: Problem, options: SolverOptions | None = None) -> SolverResul
             f"residual block {bad_block!r} gives NaN/inf residuals at every trial step after "
             f"{it} iterations ({trials} trials); the parameters it uses leave their valid range",
             fix="check the data and the initial values (e.g. points behind a camera)",
+        )
+    if singular is not None and status in (0, 3):
+        raise SolverError(
+            f"the damped normal equations cannot be solved ({singular}) after {it} iterations "
+            f"({trials} trials); residual blocks {[b.name for b in problem.residuals]}",
+            fix="hold the parameters the residuals do not determine (gauge) or check the data",
         )
     return SolverResult(
         x=x,

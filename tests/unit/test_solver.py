@@ -1,0 +1,205 @@
+"""The least-squares engine (calib.solver) on small problems with known answers."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.optimize import least_squares
+
+from calib.errors import SolverError
+from calib.solver import (
+    LOSSES,
+    Evaluation,
+    JacobianPiece,
+    Loss,
+    ParameterBlock,
+    Problem,
+    SolverOptions,
+    covariance,
+    solve,
+)
+from calib.solver import linear as linear_mod
+
+T = np.linspace(0.0, 2.0, 40)
+TRUE = np.array([2.0, -1.3, 0.5])  # y = a exp(b t) + c
+
+
+class ExpFit:
+    """Rows ``a exp(b t_i) + c - y_i`` over blocks ``ab`` (2) and ``c`` (1); optional faults."""
+
+    dim = 1
+
+    def __init__(self, y, loss=None, name="fit", nan_rows=False, nan_jac=False, nan_trials=False):
+        self.name, self.y, self.loss = name, y, loss or Loss()
+        self.nan_rows, self.nan_jac, self.nan_trials = nan_rows, nan_jac, nan_trials
+        self.calls = 0
+        self.start = None
+
+    def evaluate(self, values, jacobian):
+        self.calls += 1
+        (a, b), (c,) = values["ab"], values["c"]
+        e = np.exp(b * T)
+        r = (a * e + c - self.y)[:, None]
+        if self.start is None:
+            self.start = values["ab"].copy()
+        if self.nan_rows or (self.nan_trials and not np.array_equal(values["ab"], self.start)):
+            r = r.copy()
+            r[3] = np.nan
+        if not jacobian:
+            return Evaluation(r)
+        Jab = np.stack([e, a * T * e], axis=1)[:, None, :]
+        if self.nan_jac:
+            Jab = Jab.copy()
+            Jab[5, 0, 1] = np.inf
+        k = len(T)
+        return Evaluation(
+            r,
+            (
+                JacobianPiece("ab", Jab, np.broadcast_to(np.arange(2), (k, 2))),
+                JacobianPiece("c", np.ones((k, 1, 1)), np.zeros((k, 1), np.int64)),
+            ),
+        )
+
+
+def _data(seed=0, outliers=0):
+    rng = np.random.default_rng(seed)
+    y = TRUE[0] * np.exp(TRUE[1] * T) + TRUE[2] + 0.01 * rng.standard_normal(len(T))
+    y[:outliers] += 1.0
+    return y
+
+
+def _problem(block, start=(1.0, -0.5, 0.0), held_c=False):
+    return Problem(
+        [
+            ParameterBlock("ab", start[:2]),
+            ParameterBlock("c", start[2:], held=[held_c]),
+        ],
+        [block],
+    )
+
+
+def _scipy(y, loss="linear", x0=(1.0, -0.5, 0.0)):
+    def f(x):
+        return x[0] * np.exp(x[1] * T) + x[2] - y
+
+    def j(x):
+        e = np.exp(x[1] * T)
+        return np.stack([e, x[0] * T * e, np.ones_like(T)], axis=1)
+
+    return least_squares(f, x0, jac=j, method="trf", loss=loss, ftol=1e-15, xtol=1e-15, gtol=1e-15)
+
+
+# ---------------------------------------------------------------------------------- losses
+@pytest.mark.parametrize("kind", LOSSES)
+def test_irls_weight_is_the_derivative_of_the_loss(kind):
+    loss = Loss(kind, 0.7)
+    e2 = np.array([0.01, 0.3, 0.45, 2.0, 9.0])
+    h = 1e-6
+    rho_p, _ = loss.evaluate(e2 + h)
+    rho_m, _ = loss.evaluate(e2 - h)
+    _, w = loss.evaluate(e2)
+    np.testing.assert_allclose((rho_p - rho_m) / (2 * h), w, rtol=1e-7)
+
+
+def test_unknown_loss_and_bad_scale_raise():
+    with pytest.raises(ValueError, match="unknown loss"):
+        Loss("l2")
+    with pytest.raises(ValueError, match="scale"):
+        Loss("cauchy", 0.0)
+
+
+# ---------------------------------------------------------------------------- the minimum
+@pytest.mark.parametrize("loss", ["linear", "soft_l1", "cauchy"])
+def test_one_dimensional_rows_reach_scipys_minimum(loss):
+    """With d = 1 the row norm is the coordinate, so the robust cost is scipy's."""
+    y = _data(outliers=3)
+    res = solve(_problem(ExpFit(y, Loss(loss))))
+    ref = _scipy(y, loss)
+    assert res.converged
+    assert abs(res.cost - ref.cost) <= 6e-14 * ref.cost  # measured <= 1.7e-14
+    # the minimum is flat: x agrees to ~sqrt(eps) (measured <= 6.8e-8)
+    np.testing.assert_allclose(np.r_[res.values["ab"], res.values["c"]], ref.x, rtol=2e-7)
+
+
+def test_held_coordinate_stays_and_the_rest_fits():
+    y = _data() - TRUE[2] + 0.25  # offset 0.25, held at that value
+    res = solve(_problem(ExpFit(y), start=(1.0, -0.5, 0.25), held_c=True))
+    assert res.values["c"][0] == 0.25 and res.x.size == 2
+    np.testing.assert_allclose(res.values["ab"], TRUE[:2], atol=0.01)  # measured 0.0033
+
+
+def test_covariance_of_a_linear_problem_is_the_inverse_normal_matrix():
+    y = _data()
+    prob = _problem(ExpFit(y))
+    res = solve(prob)
+    C = covariance(prob, res.x, ["c", "ab"])
+    J = prob.jacobian(res.x).toarray()
+    ref = np.linalg.inv(J.T @ J)[np.ix_([2, 0, 1], [2, 0, 1])]
+    np.testing.assert_allclose(C, ref, rtol=1e-14)  # measured 3e-15
+
+
+# -------------------------------------------------------------------------- NaN and budget
+def test_nan_residual_at_the_start_names_the_block():
+    blk = ExpFit(_data(), name="curve", nan_rows=True)
+    with pytest.raises(SolverError, match="'curve'.*NaN/inf residuals at the start"):
+        solve(_problem(blk))
+    assert blk.calls == 1
+
+
+def test_nan_jacobian_names_residual_and_parameter_block():
+    blk = ExpFit(_data(), name="curve", nan_jac=True)
+    with pytest.raises(SolverError, match="'curve'.*Jacobian w.r.t. parameter block 'ab'"):
+        solve(_problem(blk))
+    assert blk.calls == 2  # the start, then the first Jacobian
+
+
+@pytest.mark.parametrize("budget", [5, 1000])
+def test_nan_at_every_trial_ends_within_the_budget(budget):
+    blk = ExpFit(_data(), name="curve", nan_trials=True)
+    with pytest.raises(SolverError, match="'curve' gives NaN/inf residuals at every trial"):
+        solve(_problem(blk), SolverOptions(max_evaluations=budget))
+    # start + Jacobian + trials: the budget, or the damping saturating (lam > 1e16) first
+    assert blk.calls <= 2 + min(budget - 1, 12)
+
+
+def test_unfactorable_system_ends_within_the_budget(monkeypatch):
+    def fail(self, lam):
+        raise linear_mod.SingularSystem("injected")
+
+    monkeypatch.setattr(linear_mod.DampedSystem, "solve", fail)
+    blk = ExpFit(_data())
+    with pytest.raises(SolverError, match="cannot be solved \\(injected\\)"):
+        solve(_problem(blk), SolverOptions(max_evaluations=8))
+    assert blk.calls == 2  # no residual evaluation after a failed factorisation
+
+
+def test_rank_deficient_problem_terminates_at_the_minimum():
+    """Residuals that see only a + c (a gauge freedom): the damping keeps the system solvable."""
+
+    class Sum:
+        dim, name, loss = 1, "sum", Loss()
+
+        def evaluate(self, values, jacobian):
+            a, c = values["ab"][0], values["c"][0]
+            r = np.array([[a + c - 3.0], [2 * (a + c) - 6.2]])
+            if not jacobian:
+                return Evaluation(r)
+            J = np.array([[[1.0]], [[2.0]]])
+            cols = np.zeros((2, 1), np.int64)
+            return Evaluation(r, (JacobianPiece("ab", J, cols), JacobianPiece("c", J, cols)))
+
+    prob = Problem([ParameterBlock("ab", [0.0, 0.0]), ParameterBlock("c", [0.0])], [Sum()])
+    res = solve(prob, SolverOptions(max_evaluations=200))
+    assert res.converged and res.trials <= 200
+    s = res.values["ab"][0] + res.values["c"][0]
+    assert abs(s - 3.08) < 1e-9  # least squares of a + c = 3, 2 (a + c) = 6.2
+
+
+def test_schur_refuses_rows_that_couple_two_instances():
+    y = _data()
+    prob = Problem(
+        [ParameterBlock("ab", [1.0, -0.5], instance=[0, 1]), ParameterBlock("c", [0.0])],
+        [ExpFit(y)],
+    )
+    with pytest.raises(ValueError, match="couples two instances"):
+        solve(prob, SolverOptions(linear_solver="schur", eliminate="ab"))
