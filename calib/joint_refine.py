@@ -52,30 +52,31 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.linalg
-import scipy.sparse as sp
 
 from calib.bundle_adjust import Observations
 from calib.bundle_adjust import _Problem as _AdjustmentProblem
 from calib.errors import EstimationError
+from calib.estimation.gauge import GaugeChoice, gauge_directions
 from calib.estimation.joint_report import (
     aligned_tool_rms_bound,
     encoder_sigma,
+    express_in_reference,
     joint_document,
     method_summary,
     tool_point_covariance,
 )
+from calib.estimation.joint_result import JointRefinementResult
 from calib.estimation.kinematic_poses import KinematicPoses
 from calib.estimation.reprojection import reprojection_residuals
 from calib.estimation.residuals import GaussianPriorBlock, ScaleDistanceBlock
-from calib.identify import IdentificationResult, express_in_frame, minimal_difference
+from calib.identify import IdentificationResult
 from calib.kinematics import fk_tool
 from calib.mcpc import MCPCModel, minimal_indices, param_is_angle, param_names
-from calib.solver import Loss, SolverOptions, inverse_block, solve
-from calib.transforms import inv_pose, pose_from_vec
+from calib.solver import Loss, SolverOptions, covariance, scaled_rank, solve
+from calib.transforms import inv_pose
 
 __all__ = [
     "JointRefinementError",
@@ -106,34 +107,6 @@ class JointRefinementError(EstimationError):
 # --------------------------------------------------------------------------------------------
 # Gauge
 # --------------------------------------------------------------------------------------------
-
-
-def gauge_directions(model: MCPCModel, eps: float = 1e-6) -> np.ndarray:
-    """(P, 6): derivative of the minimal parameters (eq. 10 order, SI) w.r.t. a change of world
-    frame ``T_new_old = exp([v; w])`` (central differences through :func:`express_in_frame`)."""
-    G = np.empty((minimal_indices(model.joint_types).size, 6))
-    for j in range(6):
-        xi = np.zeros(6)
-        xi[j] = eps
-        vec = np.r_[xi[3:], xi[:3]]  # pose_from_vec takes [rotvec, translation]
-        plus = express_in_frame(model, pose_from_vec(vec), like=model)
-        minus = express_in_frame(model, pose_from_vec(-vec), like=model)
-        G[:, j] = minimal_difference(plus, minus) / (2 * eps)
-    return G
-
-
-@dataclass(frozen=True)
-class GaugeChoice:
-    """The six MCPC parameters held to fix the world frame (see the module docstring).
-
-    ``held``: names; ``method``: ``"alpha1-90"`` (beta1, ly1 by the SCORBOT argument) or
-    ``"pivoted-qr"``; ``condition_number`` of the (unit-scaled) 6 x 6 block of the gauge
-    directions at the held parameters (finite and moderate = transversal to the gauge orbit).
-    """
-
-    held: tuple[str, ...]
-    method: str
-    condition_number: float
 
 
 def choose_gauge(model: MCPCModel, *, alpha1_tol_deg: float = 10.0) -> GaugeChoice:
@@ -212,77 +185,9 @@ class _Problem(_AdjustmentProblem):
         self.n_pix = 2 * len(self.view)
 
 
-def _scaled_min_singular(J: sp.csr_matrix) -> tuple[float, int]:
-    """Smallest singular value of the unit-column-scaled J and the numerical rank (rtol 1e-9)."""
-    JtJ = (J.T @ J).toarray()
-    dg = np.sqrt(np.maximum(np.diag(JtJ), 1e-300))
-    ev = np.linalg.eigvalsh(JtJ / np.outer(dg, dg))
-    s = np.sqrt(np.clip(ev, 0.0, None))[::-1]
-    return float(s[-1] / s[0]), int(np.sum(s > 1e-9 * s[0]))
-
-
 # --------------------------------------------------------------------------------------------
 # Driver
 # --------------------------------------------------------------------------------------------
-
-
-@dataclass
-class JointRefinementResult:
-    """Outcome of :func:`joint_refine`. SI units; world = left camera of ``ref_config``.
-
-    Attributes:
-        model: refined MCPC model (tool = left camera), world = the refined reference camera.
-        model_gauge: the same chain in the optimisation gauge (held parameters at their
-            two-stage values).
-        fx, mu, cx, cy: intrinsics (px); ``fx_std``, ``mu_std`` from the final Jacobian.
-        T_left_right: rig (right camera in the left camera frame, m).
-        T_world_cam: (m, 2, 4, 4) camera poses of all configurations (NaN if not active).
-        point_ids, X_world: reconstructed corners (P, 3) m (NaN: not in the adjustment).
-        names: the minimal parameter names (eq. 10 order); ``values`` in ``model``;
-            ``std``: standard deviations in the reference-camera frame (like the two-stage
-            report; nan for parameters held by the identifiability analysis);
-        covariance: (P, P) covariance of all minimal parameters in the reference-camera frame.
-        free: mask of the parameters estimated in the optimisation gauge; ``gauge``: the held
-            world-frame set; ``held_reason``: name -> why held.
-        rms_px: reprojection RMS (2-D norm) over the inliers; ``sigma_px``: a-posteriori noise
-            per coordinate; ``n_inliers``, ``n_outliers``.
-        iterations: LM iterations summed over rounds; ``rounds``; ``converged``; ``seconds``.
-        rank_min_singular: smallest relative singular value of the column-scaled Jacobian at
-            the start (gauge check), ``rank``/``n_unknowns``.
-    """
-
-    model: MCPCModel
-    model_gauge: MCPCModel
-    fx: float
-    mu: float
-    cx: float
-    cy: float
-    fx_std: float
-    mu_std: float
-    T_left_right: np.ndarray
-    T_world_cam: np.ndarray
-    ref_config: int
-    point_ids: np.ndarray
-    X_world: np.ndarray
-    names: tuple[str, ...]
-    values: np.ndarray
-    std: np.ndarray
-    covariance: np.ndarray
-    free: np.ndarray
-    gauge: GaugeChoice
-    held_reason: dict[str, str]
-    rms_px: float
-    sigma_px: float
-    n_inliers: int
-    n_outliers: int
-    iterations: int
-    rounds: int
-    converged: bool
-    seconds: float
-    rank_min_singular: float
-    rank: int
-    n_unknowns: int
-    diagnostics: dict = field(default_factory=dict)
 
 
 def joint_refine(
@@ -442,7 +347,7 @@ def joint_refine(
             x0,
         )
         if rank_info is None:
-            rank_info = _scaled_min_singular(prob.jac(x0))
+            rank_info = scaled_rank(prob.jac(x0))
             if rank_info[1] < prob.n:
                 raise JointRefinementError(
                     f"the joint problem is rank deficient ({rank_info[1]} of {prob.n} unknowns "
@@ -491,41 +396,22 @@ def joint_refine(
         )
 
     # ---- statistics at the solution (final least-squares Jacobian)
-    J = prob.jac(x)
-    rp = r[: prob.n_pix].reshape(-1, 2)
+    rp = sol.residuals["reprojection"]
+    prior_r = sol.residuals.get("prior", np.zeros((0, 1)))
     # 6 gauge dof are removed by the held parameters, the 7th (scale) by the hard scale row
     dof = max(len(r) - prob.n, 1)
-    sigma2 = float(np.sum(rp**2) + np.sum(r[prob.n_pix + 1 :] ** 2)) / dof
-    kin_cols = np.r_[0, 1, 2 + np.arange(pose_model.k)]
-    C = sigma2 * inverse_block(J, kin_cols)
+    sigma2 = float(np.sum(rp**2) + np.sum(prior_r**2)) / dof
+    C = covariance(
+        prob.problem, x, ["intrinsics", ("poses", np.arange(pose_model.k))], sigma2=sigma2
+    )
     fx_std = float(np.sqrt(max(C[0, 0], 0.0)))
     mu_std = float(np.sqrt(max(C[1, 1], 0.0)))
-    C_rho = C[2:, 2:]
 
     model_g = pose_model.kinematic_model(p)
     ref = int(sc.ref_config) if active_cfg[sc.ref_config] else int(used[0])
     q_act = pose_model.joints(p)  # read-back + estimated corrections, active configurations
     q_ref = q_act[np.searchsorted(np.flatnonzero(active_cfg), ref)][None]
-
-    def to_ref_frame(theta: np.ndarray) -> MCPCModel:
-        flat = model_g.params.reshape(-1).copy()
-        flat[free_idx] = theta
-        mg = model_g.with_params(flat)
-        T_w_ref = fk_tool(mg, q_ref)[0]
-        return express_in_frame(mg, inv_pose(T_w_ref), like=model0)
-
-    model_ref = to_ref_frame(p[: pose_model.k])
-    # covariance in the reference-camera frame: propagate through the re-expression
-    Hm = np.empty((idx.size, pose_model.k))
-    for j in range(pose_model.k):
-        h = 1e-7
-        e_ = np.zeros(pose_model.k)
-        e_[j] = h
-        Hm[:, j] = (
-            minimal_difference(to_ref_frame(p[: pose_model.k] + e_), model_ref)
-            - minimal_difference(to_ref_frame(p[: pose_model.k] - e_), model_ref)
-        ) / (2 * h)
-    cov_ref = Hm @ C_rho @ Hm.T
+    model_ref, cov_ref = express_in_reference(model_g, free_idx, q_ref, model0, C[2:, 2:])
     std = np.sqrt(np.clip(np.diag(cov_ref), 0.0, None))
     for nm, why in held_reason.items():
         if not why.startswith("gauge"):
@@ -544,7 +430,7 @@ def joint_refine(
     diag["cost"] = cost
     diag["status"] = int(status)
     diag["message"] = message
-    diag["scale_residual_m"] = float(r[prob.n_pix] / w_scale)
+    diag["scale_residual_m"] = float(sol.residuals["scale"][0, 0] / w_scale)
     diag["pixel_sigma_px"] = pixel_sigma_px
     diag["joint_sigma"] = None if not use_dq else js.tolist()
     if use_dq:

@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from calib.identify import to_dh
+from calib.identify import express_in_frame, minimal_difference, to_dh
 from calib.kinematics import fk_tool, identification_jacobian
 from calib.mcpc import MCPCModel, dh_to_mcpc, minimal_indices, param_is_angle, shape_matrices
 from calib.transforms import inv_pose, rot_z, skew
@@ -22,12 +22,46 @@ if TYPE_CHECKING:  # the result type only annotates; joint_refine imports this m
     from calib.joint_refine import JointRefinementResult
 
 __all__ = [
+    "express_in_reference",
     "tool_point_covariance",
     "encoder_sigma",
     "method_summary",
     "joint_document",
     "aligned_tool_rms_bound",
 ]
+
+
+def express_in_reference(
+    model_g: MCPCModel,
+    free_idx: np.ndarray,
+    q_ref: np.ndarray,
+    like: MCPCModel,
+    cov_free: np.ndarray,
+    h: float = 1e-7,
+) -> tuple[MCPCModel, np.ndarray]:
+    """The chain ``model_g`` (optimisation gauge) re-expressed with the world at its tool (left
+    camera) at joints ``q_ref`` (1, n), in ``like``'s joint-offset convention, and the
+    covariance ``cov_free`` of its free flat parameters ``free_idx`` propagated to all minimal
+    parameters of that frame (central differences, step ``h``). SI units."""
+    theta0 = model_g.params.reshape(-1)[free_idx]
+
+    def to_ref_frame(theta: np.ndarray) -> MCPCModel:
+        flat = model_g.params.reshape(-1).copy()
+        flat[free_idx] = theta
+        mg = model_g.with_params(flat)
+        return express_in_frame(mg, inv_pose(fk_tool(mg, q_ref)[0]), like=like)
+
+    model_ref = to_ref_frame(theta0)
+    k = len(free_idx)
+    Hm = np.empty((minimal_indices(like.joint_types).size, k))
+    for j in range(k):
+        e_ = np.zeros(k)
+        e_[j] = h
+        Hm[:, j] = (
+            minimal_difference(to_ref_frame(theta0 + e_), model_ref)
+            - minimal_difference(to_ref_frame(theta0 - e_), model_ref)
+        ) / (2 * h)
+    return model_ref, Hm @ cov_free @ Hm.T
 
 
 def tool_point_covariance(

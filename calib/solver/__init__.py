@@ -8,7 +8,7 @@
 - :mod:`calib.solver.covariance`: blocks of ``(J^T J)^-1`` after a solve.
 """
 
-from calib.solver.covariance import covariance, inverse_block
+from calib.solver.covariance import covariance, inverse_block, scaled_rank
 from calib.solver.linear import DENSE_MAX
 from calib.solver.lm import SolverOptions, SolverResult, cost_and_weights, solve
 from calib.solver.losses import LOSSES, Loss
@@ -28,5 +28,6 @@ __all__ = [
     "cost_and_weights",
     "covariance",
     "inverse_block",
+    "scaled_rank",
     "solve",
 ]

@@ -17,7 +17,7 @@ from scipy.sparse.linalg import splu
 from calib.solver.linear import DENSE_MAX
 from calib.solver.problem import Problem
 
-__all__ = ["inverse_block", "covariance"]
+__all__ = ["inverse_block", "covariance", "scaled_rank"]
 
 
 def inverse_block(J: sp.spmatrix | np.ndarray, cols: np.ndarray) -> np.ndarray:
@@ -44,9 +44,30 @@ def inverse_block(J: sp.spmatrix | np.ndarray, cols: np.ndarray) -> np.ndarray:
 
 
 def covariance(
-    problem: Problem, x: np.ndarray, blocks: Sequence[str], *, sigma2: float = 1.0
+    problem: Problem,
+    x: np.ndarray,
+    blocks: Sequence[str | tuple[str, np.ndarray]],
+    *,
+    sigma2: float = 1.0,
 ) -> np.ndarray:
     """``sigma2 (J^T J)^-1`` over the free coordinates of parameter ``blocks`` (in that order,
-    each block's coordinates in order) at unknowns ``x`` (e.g. ``SolverResult.x``)."""
-    cols = np.concatenate([problem.columns(b) for b in blocks])
-    return sigma2 * inverse_block(problem.jacobian(x), cols)
+    each block's coordinates in order; ``(name, idx)`` selects the free coordinates ``idx`` of a
+    block) at unknowns ``x`` (e.g. ``SolverResult.x``)."""
+    cols = []
+    for b in blocks:
+        name, idx = (b, None) if isinstance(b, str) else b
+        c = problem.columns(name)
+        cols.append(c if idx is None else c[np.asarray(idx, dtype=np.int64)])
+    return sigma2 * inverse_block(problem.jacobian(x), np.concatenate(cols))
+
+
+def scaled_rank(J: sp.spmatrix | np.ndarray, rtol: float = 1e-9) -> tuple[float, int]:
+    """``(s_min / s_max, rank)`` of the unit-column-scaled ``J``: the smallest relative singular
+    value and the numerical rank (singular values above ``rtol s_max``); dense eigenvalues of
+    ``J^T J``, for problems of a few thousand unknowns at most."""
+    J = sp.csr_matrix(J)
+    JtJ = (J.T @ J).toarray()
+    dg = np.sqrt(np.maximum(np.diag(JtJ), 1e-300))
+    ev = np.linalg.eigvalsh(JtJ / np.outer(dg, dg))
+    s = np.sqrt(np.clip(ev, 0.0, None))[::-1]
+    return float(s[-1] / s[0]), int(np.sum(s > rtol * s[0]))

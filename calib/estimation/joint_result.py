@@ -1,0 +1,71 @@
+"""The result type of the one-step refinement (:func:`calib.joint_refine.joint_refine`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from calib.estimation.gauge import GaugeChoice
+from calib.mcpc import MCPCModel
+
+__all__ = ["JointRefinementResult"]
+
+
+@dataclass
+class JointRefinementResult:
+    """Outcome of :func:`joint_refine`. SI units; world = left camera of ``ref_config``.
+
+    Attributes:
+        model: refined MCPC model (tool = left camera), world = the refined reference camera.
+        model_gauge: the same chain in the optimisation gauge (held parameters at their
+            two-stage values).
+        fx, mu, cx, cy: intrinsics (px); ``fx_std``, ``mu_std`` from the final Jacobian.
+        T_left_right: rig (right camera in the left camera frame, m).
+        T_world_cam: (m, 2, 4, 4) camera poses of all configurations (NaN if not active).
+        point_ids, X_world: reconstructed corners (P, 3) m (NaN: not in the adjustment).
+        names: the minimal parameter names (eq. 10 order); ``values`` in ``model``;
+            ``std``: standard deviations in the reference-camera frame (like the two-stage
+            report; nan for parameters held by the identifiability analysis);
+        covariance: (P, P) covariance of all minimal parameters in the reference-camera frame.
+        free: mask of the parameters estimated in the optimisation gauge; ``gauge``: the held
+            world-frame set; ``held_reason``: name -> why held.
+        rms_px: reprojection RMS (2-D norm) over the inliers; ``sigma_px``: a-posteriori noise
+            per coordinate; ``n_inliers``, ``n_outliers``.
+        iterations: LM iterations summed over rounds; ``rounds``; ``converged``; ``seconds``.
+        rank_min_singular: smallest relative singular value of the column-scaled Jacobian at
+            the start (gauge check), ``rank``/``n_unknowns``.
+    """
+
+    model: MCPCModel
+    model_gauge: MCPCModel
+    fx: float
+    mu: float
+    cx: float
+    cy: float
+    fx_std: float
+    mu_std: float
+    T_left_right: np.ndarray
+    T_world_cam: np.ndarray
+    ref_config: int
+    point_ids: np.ndarray
+    X_world: np.ndarray
+    names: tuple[str, ...]
+    values: np.ndarray
+    std: np.ndarray
+    covariance: np.ndarray
+    free: np.ndarray
+    gauge: GaugeChoice
+    held_reason: dict[str, str]
+    rms_px: float
+    sigma_px: float
+    n_inliers: int
+    n_outliers: int
+    iterations: int
+    rounds: int
+    converged: bool
+    seconds: float
+    rank_min_singular: float
+    rank: int
+    n_unknowns: int
+    diagnostics: dict = field(default_factory=dict)
