@@ -93,7 +93,7 @@ def _chunks(k: int):
 def _sparse_normal(
     problem: Problem, evals: Sequence[Evaluation], weights: Sequence[np.ndarray]
 ) -> NormalEquations:
-    J = problem._sparse(evals, pattern=False)
+    J = problem.sparse_jacobian(evals)
     wr = np.concatenate([np.repeat(w, ev.residuals.shape[1]) for w, ev in zip(weights, evals)])
     r = np.concatenate([ev.residuals.ravel() for ev in evals])
     JtW = (J.T @ sp.diags(wr)).tocsr()

@@ -86,6 +86,18 @@ def cost_and_weights(
     return 0.5 * total, weights
 
 
+def _overflowing(
+    problem: Problem, evals: Sequence[Evaluation], weights: Sequence[np.ndarray]
+) -> list[str]:
+    """Names of the residual blocks whose own normal equations are not finite."""
+    params = list(problem.parameters.values())
+    return [
+        blk.name
+        for blk, ev, w in zip(problem.residuals, evals, weights)
+        if not assemble(Problem(params, [blk]), [ev], [w], "sparse").is_finite()
+    ]
+
+
 def _linear_kind(problem: Problem, opt: SolverOptions) -> tuple[str, np.ndarray | None]:
     kind = opt.linear_solver
     inst = problem.instance_of_columns(opt.eliminate) if opt.eliminate else None
@@ -131,8 +143,8 @@ def solve(problem: Problem, options: SolverOptions | None = None) -> SolverResul
         ne = assemble(problem, jev, weights, kind, inst)
         if not ne.is_finite():
             raise SolverError(
-                f"the normal equations overflow (NaN/inf) at iteration {it}; residual blocks "
-                f"{[b.name for b in problem.residuals]} -- check the scale of the residuals",
+                f"the normal equations overflow (NaN/inf) at iteration {it} in residual blocks "
+                f"{_overflowing(problem, jev, weights)}",
                 fix="scale the residuals (e.g. divide by their standard deviation)",
             )
         system = DampedSystem(ne)

@@ -211,13 +211,15 @@ class Problem:
 
     def jacobian(self, x: np.ndarray) -> sp.csr_matrix:
         """Unweighted sparse Jacobian of :meth:`residual_vector` (rows, n)."""
-        return self._sparse(self.evaluate(x, jacobian=True), pattern=False)
+        return self.sparse_jacobian(self.evaluate(x, jacobian=True), pattern=False)
 
     def sparsity(self) -> sp.csr_matrix:
         """Jacobian sparsity pattern (ones) at ``x0``."""
-        return self._sparse(self.evaluate(self.x0, jacobian=True), pattern=True)
+        return self.sparse_jacobian(self.evaluate(self.x0, jacobian=True), pattern=True)
 
-    def _sparse(self, evals: Sequence[Evaluation], pattern: bool) -> sp.csr_matrix:
+    def sparse_jacobian(self, evals: Sequence[Evaluation], pattern: bool = False) -> sp.csr_matrix:
+        """Unweighted sparse Jacobian (rows, n) from evaluations with pieces (ones if
+        ``pattern``)."""
         rows, cols, data = [], [], []
         row0 = 0
         for ev in evals:

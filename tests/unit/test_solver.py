@@ -153,6 +153,25 @@ def test_nan_jacobian_names_residual_and_parameter_block():
     assert blk.calls == 2  # the start, then the first Jacobian
 
 
+@pytest.mark.filterwarnings("ignore:overflow encountered:RuntimeWarning")
+def test_overflowing_normal_equations_name_the_block():
+    """Finite residuals whose squares overflow: the error names the block that did it."""
+
+    class Huge(ExpFit):
+        def evaluate(self, values, jacobian):
+            ev = super().evaluate(values, jacobian)
+            pieces = tuple(JacobianPiece(p.block, p.J * 1e160, p.cols) for p in ev.pieces)
+            return Evaluation(ev.residuals * 1e160, pieces)
+
+    y = _data()
+    prob = Problem(
+        [ParameterBlock("ab", [1.0, -0.5]), ParameterBlock("c", [0.0])],
+        [ExpFit(y, name="sane"), Huge(y, name="huge")],
+    )
+    with pytest.raises(SolverError, match=r"overflow .* in residual blocks \['huge'\]"):
+        solve(prob)
+
+
 @pytest.mark.parametrize("budget", [5, 1000])
 def test_nan_at_every_trial_ends_within_the_budget(budget):
     blk = ExpFit(_data(), name="curve", nan_trials=True)
