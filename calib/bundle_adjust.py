@@ -20,7 +20,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.optimize import least_squares
 
 from calib.errors import EstimationError
 from calib.estimation.pose_models import FreePoses, PoseModel, RigPoses, so3_left_jacobian
@@ -333,6 +332,9 @@ def bundle_adjust(
         x, r, cost, nfev = res.x, res.residuals[prob.block.name], res.cost, res.nfev
         status, message = res.status, res.message
     else:
+        # optional heavy import (0.15 s): only the scipy path and pose models without Jacobian
+        from scipy.optimize import least_squares
+
         kw = (
             dict(jac=prob.jac)
             if use_analytic

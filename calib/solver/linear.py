@@ -2,8 +2,9 @@
 
 Three forms of ``A = J^T W J``, ``g = J^T W r`` (``W`` the per-row IRLS weights):
 
-- ``dense``: one (n, n) array, solved by LU; assembled from each residual block's per-row
-  ``(C, C)`` products by ``bincount`` (small problems, up to :data:`DENSE_MAX` unknowns);
+- ``dense``: one (n, n) array, solved by LU; assembled from the products of each residual
+  block's Jacobian pieces, by ``bincount`` or by one dense product per pair of pieces (small
+  problems, up to :data:`DENSE_MAX` unknowns);
 - ``sparse``: a CSC matrix from the sparse Jacobian, solved by SuperLU with COLAMD ordering;
 - ``schur``: the unknowns of one parameter block's *instances* (e.g. the camera poses) are
   eliminated: the sparse ``A`` is split into ``[[U, W], [W^T, V]]`` with ``U`` block diagonal
@@ -23,6 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.linalg.blas import dsyrk
 from scipy.sparse.linalg import splu
 
 from calib.solver.problem import Evaluation, Problem
@@ -78,13 +80,6 @@ class NormalEquations:
         return float(np.sum(xe * Ux) + 2.0 * np.sum(xe * Wx) + xk @ (self.V @ xk))
 
 
-def _stack(problem: Problem, ev: Evaluation) -> tuple[np.ndarray, np.ndarray]:
-    """All pieces of one evaluation side by side: J (k, d, C) and unknown indices G (k, C)."""
-    J = np.concatenate([pc.J for pc in ev.pieces], axis=2)
-    G = np.concatenate([problem.global_cols(pc) for pc in ev.pieces], axis=1)
-    return J, G
-
-
 def _chunks(k: int):
     for a in range(0, k, _CHUNK):
         yield slice(a, min(a + _CHUNK, k))
@@ -100,23 +95,70 @@ def _sparse_normal(
     return NormalEquations("sparse", problem.n, JtW @ r, A=(JtW @ J).tocsc())
 
 
+class _Piece:
+    """One Jacobian piece of a chunk of rows: ``J`` (k, d, c), weighted ``wJ``, unknown indices
+    ``G`` (k, c) (``n`` = dummy), its distinct unknowns ``U`` and, built once when needed, the
+    dense (k d, len(U)) forms of ``J`` and ``wJ``."""
+
+    def __init__(self, J: np.ndarray, w: np.ndarray, G: np.ndarray, n: int) -> None:
+        self.J, self.wJ, self.G, self.w = J, J * w[:, None, None], G, w
+        seen = np.zeros(n + 1, bool)
+        seen[G] = True
+        self.U = np.flatnonzero(seen)
+        self.local = (np.cumsum(seen) - 1)[G]
+        self._dense: dict[bool, np.ndarray] = {}
+
+    def dense(self, weighted: bool) -> np.ndarray:
+        """(k d, len(U)): ``wJ`` (weighted) or ``J`` with the rows' columns spread out."""
+        if weighted not in self._dense:
+            k, d, _ = self.J.shape
+            D = np.zeros((k, d, len(self.U)))
+            rows = (np.arange(k)[:, None, None], np.arange(d)[None, :, None])
+            D[(*rows, self.local[:, None, :])] = self.wJ if weighted else self.J
+            self._dense[weighted] = D.reshape(k * d, -1)
+        return self._dense[weighted]
+
+    def gram(self) -> np.ndarray:
+        """``J^T W J`` over ``U`` by a symmetric rank-k update (half a product's work)."""
+        X = self.dense(False) * np.repeat(np.sqrt(self.w), self.J.shape[1])[:, None]
+        C = dsyrk(1.0, X, trans=1)  # upper triangle (weights >= 0)
+        return np.triu(C) + np.triu(C, 1).T
+
+
+def _pair_products(M: np.ndarray, a: _Piece, b: _Piece) -> None:
+    """``M[a.G, b.G] += sum_rows a.wJ^T b.J``. Few distinct unknowns shared by many rows (a
+    kinematic chain, the intrinsics): one dense product; many unknowns, few per row (points,
+    poses): a scatter of the per-row products."""
+    ca, cb = a.J.shape[2], b.J.shape[2]
+    if len(a.U) * len(b.U) <= 50 * ca * cb:
+        M[np.ix_(a.U, b.U)] += a.gram() if a is b else a.dense(True).T @ b.dense(False)
+    else:
+        L = np.matmul(a.wJ.transpose(0, 2, 1), b.J)
+        nb = len(b.U)
+        idx = (a.local[:, :, None] * nb + b.local[:, None, :]).ravel()
+        M[np.ix_(a.U, b.U)] += np.bincount(idx, L.ravel(), len(a.U) * nb).reshape(-1, nb)
+
+
 def _dense_normal(
     problem: Problem, evals: Sequence[Evaluation], weights: Sequence[np.ndarray]
 ) -> NormalEquations:
+    """Dense ``A`` from the products of every pair of Jacobian pieces (a piece's columns in one
+    row are distinct), rows in chunks of :data:`_CHUNK`."""
     n = problem.n
-    A = np.zeros((n + 1) ** 2)
+    A = np.zeros((n + 1, n + 1))  # diagonal piece pairs (and a dummy row/column n)
+    B = np.zeros((n + 1, n + 1))  # pairs a < b, added with their transpose
     g = np.zeros(n + 1)
     for ev, w in zip(evals, weights):
-        J, G = _stack(problem, ev)
-        G = np.where(G >= 0, G, n)  # unused -> a dummy column, dropped below
-        for sl in _chunks(len(G)):
-            Jc, Gc = J[sl], G[sl]
-            wJ = Jc * w[sl, None, None]
-            L = np.matmul(wJ.transpose(0, 2, 1), Jc)
-            A += np.bincount((Gc[:, :, None] * (n + 1) + Gc[:, None, :]).ravel(), L.ravel(), A.size)
-            gr = np.einsum("kda,kd->ka", wJ, ev.residuals[sl])
-            g += np.bincount(Gc.ravel(), gr.ravel(), n + 1)
-    return NormalEquations("dense", n, g[:n], A=A.reshape(n + 1, n + 1)[:n, :n])
+        Gs = [np.where(G >= 0, G, n) for G in map(problem.global_cols, ev.pieces)]
+        for sl in _chunks(len(ev.residuals)):
+            ps = [_Piece(pc.J[sl], w[sl], G[sl], n) for pc, G in zip(ev.pieces, Gs)]
+            for i, a in enumerate(ps):
+                gr = np.einsum("kda,kd->ka", a.wJ, ev.residuals[sl])
+                g += np.bincount(a.G.ravel(), gr.ravel(), n + 1)
+                for b in ps[i:]:
+                    _pair_products(A if b is a else B, a, b)
+    A += B + B.T
+    return NormalEquations("dense", n, g[:n], A=A[:n, :n].copy())
 
 
 def _schur_layout(inst: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
