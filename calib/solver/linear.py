@@ -96,47 +96,54 @@ def _sparse_normal(
 
 
 class _Piece:
-    """One Jacobian piece of a chunk of rows: ``J`` (k, d, c), weighted ``wJ``, unknown indices
-    ``G`` (k, c) (``n`` = dummy), its distinct unknowns ``U`` and, built once when needed, the
-    dense (k d, len(U)) forms of ``J`` and ``wJ``."""
+    """One Jacobian piece of a chunk of rows: ``J`` (k, d, c) with the entries of unused columns
+    zeroed, weighted ``wJ``, unknown indices ``G`` (k, c) (unused -> a used one), its distinct
+    unknowns ``U`` (a slice when contiguous)."""
 
     def __init__(self, J: np.ndarray, w: np.ndarray, G: np.ndarray, n: int) -> None:
+        used = G >= 0
+        if not used.all():
+            J = np.where(used[:, None, :], J, 0.0)
+            G = np.where(used, G, G.max())
         self.J, self.wJ, self.G, self.w = J, J * w[:, None, None], G, w
-        seen = np.zeros(n + 1, bool)
+        seen = np.zeros(n, bool)
         seen[G] = True
-        self.U = np.flatnonzero(seen)
+        U = np.flatnonzero(seen)
+        self.nu = len(U)
+        self.U = slice(U[0], U[-1] + 1) if U[-1] - U[0] + 1 == len(U) else U
         self.local = (np.cumsum(seen) - 1)[G]
-        self._dense: dict[bool, np.ndarray] = {}
-
-    def dense(self, weighted: bool) -> np.ndarray:
-        """(k d, len(U)): ``wJ`` (weighted) or ``J`` with the rows' columns spread out."""
-        if weighted not in self._dense:
-            k, d, _ = self.J.shape
-            D = np.zeros((k, d, len(self.U)))
-            rows = (np.arange(k)[:, None, None], np.arange(d)[None, :, None])
-            D[(*rows, self.local[:, None, :])] = self.wJ if weighted else self.J
-            self._dense[weighted] = D.reshape(k * d, -1)
-        return self._dense[weighted]
 
     def gram(self) -> np.ndarray:
-        """``J^T W J`` over ``U`` by a symmetric rank-k update (half a product's work)."""
-        X = self.dense(False) * np.repeat(np.sqrt(self.w), self.J.shape[1])[:, None]
-        C = dsyrk(1.0, X, trans=1)  # upper triangle (weights >= 0)
+        """``J^T W J`` over ``U`` by a symmetric rank-k update of the (k d, len(U)) dense form
+        of ``sqrt(w) J`` (half a product's work)."""
+        k, d, _ = self.J.shape
+        X = np.zeros((k, d, self.nu))
+        rows = (np.arange(k)[:, None, None], np.arange(d)[None, :, None])
+        X[(*rows, self.local[:, None, :])] = self.J * np.sqrt(self.w)[:, None, None]
+        C = dsyrk(1.0, X.reshape(k * d, -1), trans=1)  # upper triangle (weights >= 0)
         return np.triu(C) + np.triu(C, 1).T
 
 
+def _block(a: _Piece, b: _Piece) -> tuple:
+    """Index of the (U_a, U_b) block of a matrix: two slices (a view) or ``np.ix_``."""
+    if isinstance(a.U, slice) and isinstance(b.U, slice):
+        return a.U, b.U
+    ua = np.arange(a.U.start, a.U.stop) if isinstance(a.U, slice) else a.U
+    ub = np.arange(b.U.start, b.U.stop) if isinstance(b.U, slice) else b.U
+    return np.ix_(ua, ub)
+
+
 def _pair_products(M: np.ndarray, a: _Piece, b: _Piece) -> None:
-    """``M[a.G, b.G] += sum_rows a.wJ^T b.J``. Few distinct unknowns shared by many rows (a
-    kinematic chain, the intrinsics): one dense product; many unknowns, few per row (points,
-    poses): a scatter of the per-row products."""
-    ca, cb = a.J.shape[2], b.J.shape[2]
-    if len(a.U) * len(b.U) <= 50 * ca * cb:
-        M[np.ix_(a.U, b.U)] += a.gram() if a is b else a.dense(True).T @ b.dense(False)
+    """``M[a.G, b.G] += sum_rows a.wJ^T b.J``. A piece with few distinct unknowns shared by
+    many rows (a kinematic chain: 28 of its 31 columns in every row) with itself: one symmetric
+    dense product; otherwise a scatter of the per-row products (measured: faster for poses,
+    points and every pair of different pieces)."""
+    if a is b and a.nu**2 <= 40 * a.J.shape[2] ** 2:
+        M[_block(a, a)] += a.gram()
     else:
         L = np.matmul(a.wJ.transpose(0, 2, 1), b.J)
-        nb = len(b.U)
-        idx = (a.local[:, :, None] * nb + b.local[:, None, :]).ravel()
-        M[np.ix_(a.U, b.U)] += np.bincount(idx, L.ravel(), len(a.U) * nb).reshape(-1, nb)
+        idx = (a.local[:, :, None] * b.nu + b.local[:, None, :]).ravel()
+        M[_block(a, b)] += np.bincount(idx, L.ravel(), a.nu * b.nu).reshape(a.nu, b.nu)
 
 
 def _dense_normal(
@@ -145,20 +152,24 @@ def _dense_normal(
     """Dense ``A`` from the products of every pair of Jacobian pieces (a piece's columns in one
     row are distinct), rows in chunks of :data:`_CHUNK`."""
     n = problem.n
-    A = np.zeros((n + 1, n + 1))  # diagonal piece pairs (and a dummy row/column n)
-    B = np.zeros((n + 1, n + 1))  # pairs a < b, added with their transpose
-    g = np.zeros(n + 1)
+    A = np.zeros((n, n))  # diagonal piece pairs
+    B = np.zeros((n, n))  # pairs a < b, added with their transpose
+    g = np.zeros(n)
     for ev, w in zip(evals, weights):
-        Gs = [np.where(G >= 0, G, n) for G in map(problem.global_cols, ev.pieces)]
+        Gs = [problem.global_cols(pc) for pc in ev.pieces]
         for sl in _chunks(len(ev.residuals)):
-            ps = [_Piece(pc.J[sl], w[sl], G[sl], n) for pc, G in zip(ev.pieces, Gs)]
+            ps = [
+                _Piece(pc.J[sl], w[sl], G[sl], n)
+                for pc, G in zip(ev.pieces, Gs)
+                if G[sl].max() >= 0
+            ]
             for i, a in enumerate(ps):
                 gr = np.einsum("kda,kd->ka", a.wJ, ev.residuals[sl])
-                g += np.bincount(a.G.ravel(), gr.ravel(), n + 1)
+                g += np.bincount(a.G.ravel(), gr.ravel(), n)
                 for b in ps[i:]:
                     _pair_products(A if b is a else B, a, b)
     A += B + B.T
-    return NormalEquations("dense", n, g[:n], A=A[:n, :n].copy())
+    return NormalEquations("dense", n, g, A=A)
 
 
 def _schur_layout(inst: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
