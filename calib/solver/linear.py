@@ -24,7 +24,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.linalg.blas import dsyrk
 from scipy.sparse.linalg import splu
 
 from calib.solver.problem import Evaluation, Problem
@@ -101,10 +100,10 @@ class _Piece:
     unknowns ``U`` (a slice when contiguous)."""
 
     def __init__(self, J: np.ndarray, w: np.ndarray, G: np.ndarray, n: int) -> None:
-        used = G >= 0
-        if not used.all():
-            J = np.where(used[:, None, :], J, 0.0)
-            G = np.where(used, G, G.max())
+        unused = G < 0
+        if unused.any():
+            J = np.where(unused[:, None, :], 0.0, J)
+            G = np.where(unused, G.max(), G)
         self.J, self.wJ, self.G, self.w = J, J * w[:, None, None], G, w
         seen = np.zeros(n, bool)
         seen[G] = True
@@ -112,6 +111,7 @@ class _Piece:
         self.nu = len(U)
         self.U = slice(U[0], U[-1] + 1) if U[-1] - U[0] + 1 == len(U) else U
         self.local = (np.cumsum(seen) - 1)[G]
+        self.shared = self.nu**2 <= 40 * J.shape[2] ** 2  # most columns in every row
 
     def gram(self) -> np.ndarray:
         """``J^T W J`` over ``U`` by a symmetric rank-k update of the (k d, len(U)) dense form
@@ -120,8 +120,8 @@ class _Piece:
         X = np.zeros((k, d, self.nu))
         rows = (np.arange(k)[:, None, None], np.arange(d)[None, :, None])
         X[(*rows, self.local[:, None, :])] = self.J * np.sqrt(self.w)[:, None, None]
-        C = dsyrk(1.0, X.reshape(k * d, -1), trans=1)  # upper triangle (weights >= 0)
-        return np.triu(C) + np.triu(C, 1).T
+        X = X.reshape(k * d, -1)
+        return X.T @ X  # numpy runs X^T X as a symmetric rank-k update (its own BLAS)
 
 
 def _block(a: _Piece, b: _Piece) -> tuple:
@@ -138,7 +138,7 @@ def _pair_products(M: np.ndarray, a: _Piece, b: _Piece) -> None:
     many rows (a kinematic chain: 28 of its 31 columns in every row) with itself: one symmetric
     dense product; otherwise a scatter of the per-row products (measured: faster for poses,
     points and every pair of different pieces)."""
-    if a is b and a.nu**2 <= 40 * a.J.shape[2] ** 2:
+    if a is b and a.shared:
         M[_block(a, a)] += a.gram()
     else:
         L = np.matmul(a.wJ.transpose(0, 2, 1), b.J)
@@ -146,14 +146,35 @@ def _pair_products(M: np.ndarray, a: _Piece, b: _Piece) -> None:
         M[_block(a, b)] += np.bincount(idx, L.ravel(), a.nu * b.nu).reshape(a.nu, b.nu)
 
 
+def _grouped(ps: list[_Piece], w: np.ndarray, n: int) -> list[_Piece]:
+    """At most two pieces: the shared ones side by side (if one of them is wide and they are
+    still shared together) and the others side by side (their columns are disjoint: different
+    parameter blocks)."""
+
+    def merged(group: list[_Piece]) -> list[_Piece]:
+        if len(group) < 2:
+            return group
+        J = np.concatenate([p.J for p in group], axis=2)
+        return [_Piece(J, w, np.concatenate([p.G for p in group], axis=1), n)]
+
+    if not any(p.shared and p.J.shape[2] >= 8 for p in ps):  # nothing wide: one scatter
+        return merged(ps)
+    shared = merged([p for p in ps if p.shared])
+    if not shared[0].shared:
+        return merged(ps)
+    return shared + merged([p for p in ps if not p.shared])
+
+
 def _dense_normal(
     problem: Problem, evals: Sequence[Evaluation], weights: Sequence[np.ndarray]
 ) -> NormalEquations:
-    """Dense ``A`` from the products of every pair of Jacobian pieces (a piece's columns in one
-    row are distinct), rows in chunks of :data:`_CHUNK`."""
+    """Dense ``A`` from the products of the Jacobian pieces (a piece's columns in one row are
+    distinct): a wide piece whose columns are shared by most rows (a kinematic chain) with
+    itself by a dense product, all other pieces together by one scatter, the cross pairs by
+    scatters; rows in chunks of :data:`_CHUNK`."""
     n = problem.n
     A = np.zeros((n, n))  # diagonal piece pairs
-    B = np.zeros((n, n))  # pairs a < b, added with their transpose
+    B = None  # pairs a < b, added with their transpose
     g = np.zeros(n)
     for ev, w in zip(evals, weights):
         Gs = [problem.global_cols(pc) for pc in ev.pieces]
@@ -163,12 +184,16 @@ def _dense_normal(
                 for pc, G in zip(ev.pieces, Gs)
                 if G[sl].max() >= 0
             ]
+            ps = _grouped(ps, w[sl], n)
             for i, a in enumerate(ps):
                 gr = np.einsum("kda,kd->ka", a.wJ, ev.residuals[sl])
                 g += np.bincount(a.G.ravel(), gr.ravel(), n)
                 for b in ps[i:]:
+                    if b is not a and B is None:
+                        B = np.zeros((n, n))
                     _pair_products(A if b is a else B, a, b)
-    A += B + B.T
+    if B is not None:
+        A += B + B.T
     return NormalEquations("dense", n, g, A=A)
 
 
