@@ -1,25 +1,23 @@
 """What the one-step refinement reports: calibration-document fields and covariance propagation.
 
-Works on a :class:`calib.joint_refine.JointRefinementResult` (SI units, world = the left camera
-of the reference configuration): the tool-point covariance and its aligned-RMS bound, the
-robot's encoder noise, and the calibration document with the joint result as the final one.
+Works on a :class:`calib.estimation.joint_result.JointRefinementResult` (SI units, world = the
+left camera of the reference configuration): the tool-point covariance and its aligned-RMS
+bound, the robot's encoder noise, and the calibration document with the joint result as the
+final one.
 """
 
 from __future__ import annotations
 
 import copy
 import warnings
-from typing import TYPE_CHECKING
 
 import numpy as np
 
+from calib.estimation.joint_result import JointRefinementResult
 from calib.identify import express_in_frame, minimal_difference, to_dh
 from calib.kinematics import fk_tool, identification_jacobian
 from calib.mcpc import MCPCModel, dh_to_mcpc, minimal_indices, param_is_angle, shape_matrices
 from calib.transforms import inv_pose, rot_z, skew
-
-if TYPE_CHECKING:  # the result type only annotates; joint_refine imports this module
-    from calib.joint_refine import JointRefinementResult
 
 __all__ = [
     "express_in_reference",
