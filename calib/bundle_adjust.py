@@ -306,9 +306,9 @@ def bundle_adjust(
     the analytic Jacobian, at most ``max_nfev`` trials, robust ``loss`` (linear, soft_l1, huber,
     cauchy; scale ``f_scale_px``) on each observation's 2-D residual norm; the pose parameters
     are eliminated by a Schur complement in large problems when the pose model labels them per
-    view (``param_instances``). ``solver="scipy"``: :func:`scipy.optimize.least_squares` (trf + lsmr,
-    loss per coordinate), with the analytic Jacobian or -- when ``model.view_jacobian`` returns
-    None -- finite differences restricted by ``jac_sparsity``.
+    view (``param_instances``). ``solver="scipy"``: :func:`scipy.optimize.least_squares` (trf +
+    lsmr, loss per coordinate), with the analytic Jacobian or -- when ``model.view_jacobian``
+    returns None -- finite differences restricted by ``jac_sparsity``.
 
     Raises:
         calib.errors.SolverError: NaN/inf residuals or Jacobians (the message names the block).

@@ -1,4 +1,5 @@
-"""Estimation problems built from residual blocks and handed to the one solver (:mod:`calib.solver`).
+"""Estimation problems built from residual blocks and handed to the one solver
+(:mod:`calib.solver`).
 
 - :mod:`calib.estimation.pose_models`: where camera poses come from (free, stereo rig);
 - :mod:`calib.estimation.kinematic_poses`: camera poses from the MCPC kinematic chain;

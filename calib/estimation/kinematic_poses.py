@@ -31,7 +31,8 @@ class KinematicPoses:
 
     With ``joint_corrections=True`` the parameters continue with ``dq`` (n per active
     configuration, rad / m): the poses use ``q_i + dq_i`` (errors in the joint read-back, e.g.
-    encoder quantisation; the caller adds a prior on ``dq``). ``dq_cols`` are their indices in ``p``.
+    encoder quantisation; the caller adds a prior on ``dq``). ``dq_cols`` are their indices in
+    ``p``.
 
     ``view_jacobian`` is analytic: the identification Jacobian is the body twist ``xi`` of
     ``T_world_cam`` (``dT = T xi^``), so ``T_cam_world`` moves by the camera-frame twist ``-xi``
