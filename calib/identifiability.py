@@ -159,7 +159,8 @@ def select_identifiable(
 def triangular_factor(A: np.ndarray) -> np.ndarray:
     """``R`` of ``A = Q R`` (Householder, shape (min(rows, cols), cols)): same singular values,
     normal equations and column dependencies as ``A``, but small."""
-    return np.linalg.qr(A, mode="r")
+    R: np.ndarray = np.linalg.qr(A, mode="r")  # type: ignore[assignment]  # mode "r": R only
+    return R
 
 
 def _scaled(A: np.ndarray) -> np.ndarray:

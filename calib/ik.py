@@ -252,7 +252,8 @@ def ik(
             violations = []
             for j in range(robot.n):
                 rj = None if ref_q is None else ref_q[j]
-                q[j], ok = wrap_into_range(q[j], *robot.limits[j], reference=rj)
+                lo, hi = robot.limits[j]
+                q[j], ok = wrap_into_range(q[j], lo, hi, reference=rj)
                 if not ok:
                     violations.append(_violation(robot, j, q[j]))
             # Guard against silent errors: the solution must reproduce the target.

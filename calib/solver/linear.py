@@ -63,20 +63,43 @@ class NormalEquations:
         if not np.isfinite(self.g).all():
             return False
         if self.kind == "sparse":
-            return bool(np.isfinite(self.A.data).all())
+            return bool(np.isfinite(self.sparse_A.data).all())
         if self.kind == "dense":
-            return bool(np.isfinite(self.A).all())
-        return bool(np.isfinite(self.U).all() and np.isfinite(self.W).all())
+            return bool(np.isfinite(self.dense_A).all())
+        U, W, _, _, _ = self.schur_parts
+        return bool(np.isfinite(U).all() and np.isfinite(W).all())
+
+    @property
+    def dense_A(self) -> np.ndarray:
+        """``A`` of the dense form."""
+        assert self.kind == "dense" and isinstance(self.A, np.ndarray)
+        return self.A
+
+    @property
+    def sparse_A(self) -> sp.csc_matrix:
+        """``A`` of the sparse form."""
+        assert self.kind == "sparse" and sp.issparse(self.A)
+        return self.A  # type: ignore[return-value]
+
+    @property
+    def schur_parts(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``(U, W, V, elim, kept)`` of the Schur form."""
+        U, W, V, elim, kept = self.U, self.W, self.V, self.elim, self.kept
+        assert U is not None and W is not None and V is not None
+        assert elim is not None and kept is not None
+        return U, W, V, elim, kept
 
     def quadratic(self, x: np.ndarray) -> float:
         """``x^T A x``."""
         if self.kind != "schur":
+            assert self.A is not None
             return float(x @ (self.A @ x))
-        xe = np.where(self.elim >= 0, x[np.maximum(self.elim, 0)], 0.0)
-        xk = x[self.kept]
-        Ux = np.einsum("iab,ib->ia", self.U, xe)
-        Wx = np.einsum("iab,b->ia", self.W, xk)
-        return float(np.sum(xe * Ux) + 2.0 * np.sum(xe * Wx) + xk @ (self.V @ xk))
+        U, W, V, elim, kept = self.schur_parts
+        xe = np.where(elim >= 0, x[np.maximum(elim, 0)], 0.0)
+        xk = x[kept]
+        Ux = np.einsum("iab,ib->ia", U, xe)
+        Wx = np.einsum("iab,b->ia", W, xk)
+        return float(np.sum(xe * Ux) + 2.0 * np.sum(xe * Wx) + xk @ (V @ xk))
 
 
 def _chunks(k: int):
@@ -117,10 +140,10 @@ class _Piece:
         """``J^T W J`` over ``U`` by a symmetric rank-k update of the (k d, len(U)) dense form
         of ``sqrt(w) J`` (half a product's work)."""
         k, d, _ = self.J.shape
-        X = np.zeros((k, d, self.nu))
+        X3 = np.zeros((k, d, self.nu))
         rows = (np.arange(k)[:, None, None], np.arange(d)[None, :, None])
-        X[(*rows, self.local[:, None, :])] = self.J * np.sqrt(self.w)[:, None, None]
-        X = X.reshape(k * d, -1)
+        X3[(*rows, self.local[:, None, :])] = self.J * np.sqrt(self.w)[:, None, None]
+        X = X3.reshape(k * d, -1)
         return X.T @ X  # numpy runs X^T X as a symmetric rank-k update (its own BLAS)
 
 
@@ -174,7 +197,7 @@ def _dense_normal(
     scatters; rows in chunks of :data:`_CHUNK`."""
     n = problem.n
     A = np.zeros((n, n))  # diagonal piece pairs
-    B = None  # pairs a < b, added with their transpose
+    B: np.ndarray | None = None  # pairs a < b, added with their transpose
     g = np.zeros(n)
     for ev, w in zip(evals, weights):
         Gs = [problem.global_cols(pc) for pc in ev.pieces]
@@ -189,9 +212,12 @@ def _dense_normal(
                 gr = np.einsum("kda,kd->ka", a.wJ, ev.residuals[sl])
                 g += np.bincount(a.G.ravel(), gr.ravel(), n)
                 for b in ps[i:]:
-                    if b is not a and B is None:
+                    if b is a:
+                        _pair_products(A, a, b)
+                        continue
+                    if B is None:
                         B = np.zeros((n, n))
-                    _pair_products(A if b is a else B, a, b)
+                    _pair_products(B, a, b)
     if B is not None:
         A += B + B.T
     return NormalEquations("dense", n, g, A=A)
@@ -232,7 +258,7 @@ def _schur_normal(
     n = problem.n
     (slot_of, inst_of, kid), elim, kept, (ni, s, nk) = _schur_layout(inst)
     full = _sparse_normal(problem, evals, weights)
-    A = full.A.tocoo()
+    A = full.sparse_A.tocoo()
     r, c, v = A.row, A.col, A.data
     er, ec = inst[r] >= 0, inst[c] >= 0
     ee = er & ec
@@ -280,25 +306,27 @@ class DampedSystem:
     def __init__(self, ne: NormalEquations):
         self.ne = ne
         if ne.kind == "schur":
+            U, W, V, elim, kept = ne.schur_parts
             diag = np.zeros(ne.n)
-            e = ne.elim >= 0
-            diag[ne.elim[e]] = np.einsum("iaa->ia", ne.U)[e]
-            diag[ne.kept] = np.diag(ne.V)
+            e = elim >= 0
+            diag[elim[e]] = np.einsum("iaa->ia", U)[e]
+            diag[kept] = np.diag(V)
         else:
-            diag = np.diag(ne.A) if ne.kind == "dense" else ne.A.diagonal()
+            diag = np.diag(ne.dense_A) if ne.kind == "dense" else ne.sparse_A.diagonal()
         d = np.maximum(diag, 1e-12 * max(diag.max(initial=0.0), 1e-300))
         self.s = 1.0 / np.sqrt(d)
+        self.As: np.ndarray | sp.csc_matrix
         if ne.kind == "dense":
-            self.As = ne.A * self.s[:, None] * self.s[None, :]
+            self.As = ne.dense_A * self.s[:, None] * self.s[None, :]
         elif ne.kind == "sparse":
             S = sp.diags(self.s)
-            self.As = (S @ ne.A @ S).tocsc()
+            self.As = (S @ ne.sparse_A @ S).tocsc()
         else:
-            se = np.where(e, self.s[np.maximum(ne.elim, 0)], 1.0)
-            sk = self.s[ne.kept]
-            self.Us = ne.U * se[:, :, None] * se[:, None, :]
-            self.Ws = ne.W * se[:, :, None] * sk[None, None, :]
-            self.Vs = ne.V * sk[:, None] * sk[None, :]
+            se = np.where(e, self.s[np.maximum(elim, 0)], 1.0)
+            sk = self.s[kept]
+            self.Us = U * se[:, :, None] * se[:, None, :]
+            self.Ws = W * se[:, :, None] * sk[None, None, :]
+            self.Vs = V * sk[:, None] * sk[None, :]
             self.se = se
 
     def scaled_gradient(self) -> np.ndarray:
@@ -311,12 +339,13 @@ class DampedSystem:
         gs = self.s * self.ne.g
         try:
             if self.ne.kind == "dense":
+                assert isinstance(self.As, np.ndarray)
                 M = self.As.copy()
                 M[np.diag_indices_from(M)] += lam
                 y = np.linalg.solve(M, gs)
             elif self.ne.kind == "sparse":
-                M = (self.As + lam * sp.eye(len(gs), format="csc")).tocsc()
-                y = splu(M, permc_spec="COLAMD").solve(gs)
+                Ms = (self.As + lam * sp.eye(len(gs), format="csc")).tocsc()
+                y = splu(Ms, permc_spec="COLAMD").solve(gs)
             else:
                 y = self._solve_schur(gs, lam)
         except (np.linalg.LinAlgError, RuntimeError) as exc:
@@ -326,20 +355,20 @@ class DampedSystem:
         return self.s * y
 
     def _solve_schur(self, gs: np.ndarray, lam: float) -> np.ndarray:
-        ne = self.ne
+        _, _, _, elim, kept = self.ne.schur_parts
         ni, s, _ = self.Ws.shape
         Ud = self.Us + lam * np.eye(s)
         Ui = np.linalg.inv(Ud)
-        e = ne.elim >= 0
-        ge = np.where(e, gs[np.maximum(ne.elim, 0)], 0.0)
+        e = elim >= 0
+        ge = np.where(e, gs[np.maximum(elim, 0)], 0.0)
         Z = np.matmul(Ui, self.Ws).reshape(ni * s, -1)
         Wf = self.Ws.reshape(ni * s, -1)
         S = self.Vs - Wf.T @ Z
         S[np.diag_indices_from(S)] += lam
         uge = np.einsum("iab,ib->ia", Ui, ge)
-        yk = np.linalg.solve(S, gs[ne.kept] - Wf.T @ uge.ravel())
+        yk = np.linalg.solve(S, gs[kept] - Wf.T @ uge.ravel())
         ye = uge - np.einsum("iab,b->ia", Z.reshape(ni, s, -1), yk)
         y = np.empty_like(gs)
-        y[ne.kept] = yk
-        y[ne.elim[e]] = ye[e]
+        y[kept] = yk
+        y[elim[e]] = ye[e]
         return y
