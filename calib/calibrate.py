@@ -17,10 +17,10 @@ from pathlib import Path
 import numpy as np
 
 from calib.bounds import BoundsError, bounds_block
-from calib.dataset import Dataset, DatasetError, Detections, read_gray
 from calib.detect import detect_markers
 from calib.errors import EstimationError, InputError, SelfCalWarning
 from calib.identify import IdentificationResult, identify, to_dh
+from calib.io.dataset import Dataset, DatasetError, Detections, read_gray
 from calib.joint_refine import method_summary, refine_calibration
 from calib.kinematics import fk_tool
 from calib.mcpc import (

@@ -12,8 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from calib.dataset import DatasetWriter
 from calib.errors import HardwareError
+from calib.io.dataset import DatasetWriter
 from calib.robot import Robot
 from scenarios.progress import Progress
 

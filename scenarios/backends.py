@@ -14,7 +14,7 @@ import cv2
 import numpy as np
 
 from calib.camera import Intrinsics
-from calib.dataset import DatasetInfo
+from calib.io.dataset import DatasetInfo
 from calib.kinematics import fk_tool
 from calib.mcpc import MCPCModel, dh_to_mcpc, minimal_indices, param_is_angle, param_names
 from calib.optimal_poses import plan_optimal_postures

@@ -23,8 +23,8 @@ from pathlib import Path
 import numpy as np
 
 from calib.calibrate import detect_dataset
-from calib.dataset import Dataset
 from calib.identify import identify
+from calib.io.dataset import Dataset
 from calib.kinematics import fk_tool
 from calib.mcpc import dh_to_mcpc
 from calib.robot_def import load_robot

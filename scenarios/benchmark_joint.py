@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from calib.calibrate import calibrate
-from calib.dataset import Dataset
+from calib.io.dataset import Dataset
 from calib.joint_refine import aligned_tool_rms_bound
 from calib.mcpc import MCPCModel
 from calib.report import aligned_errors, tool_tips

@@ -36,8 +36,8 @@ import numpy as np
 
 from calib.bounds import aligned_error_dof, cramer_rao, setup_from_output
 from calib.calibrate import _observations, calibrate, detect_dataset
-from calib.dataset import Dataset, DatasetWriter
 from calib.identify import express_in_frame, minimal_difference
+from calib.io.dataset import Dataset, DatasetWriter
 from calib.mcpc import minimal_indices, param_is_angle
 from calib.report import aligned_errors, tool_tips
 from calib.robot_def import load_robot

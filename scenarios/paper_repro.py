@@ -32,15 +32,14 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-from calib.dataset import DatasetWriter
 from calib.ik import nearest_reachable
+from calib.io.dataset import DatasetWriter, read_dataset_info
 from calib.kinematics import fk_dh
 from calib.report import aligned_errors, tool_tips
 from calib.robot_def import load_robot
@@ -144,9 +143,7 @@ def reproduce(out: str | Path, config: str | Path | None = None, *, quiet: bool 
     rep = run_report(root, quiet=True)
 
     truth = read_truth(root / "truth.json")
-    qv = np.radians(
-        np.asarray(json.loads((root / "dataset.json").read_text())["validation_joints_deg"])
-    )
+    qv = np.radians(read_dataset_info(root / "dataset.json").validation_joints_deg)
     T_cam_tip = truth.T_cam_tip
     p_true_v = tool_tips(truth.true_model, qv, T_cam_tip)
     to_nom = inv_pose(

@@ -14,8 +14,9 @@ from pathlib import Path
 import numpy as np
 
 from calib.calibrate import calibrate, model_from_calibration
-from calib.dataset import Dataset, DatasetError, DatasetWriter, write_json_atomic
 from calib.identify import express_in_frame
+from calib.io.dataset import Dataset, DatasetError, DatasetWriter
+from calib.io.jsonfile import write_json_atomic
 from calib.report import aligned_errors, format_table_iv, parameter_table, tool_tips
 from calib.robot_def import load_robot
 from calib.transforms import inv_pose

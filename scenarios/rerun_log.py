@@ -34,8 +34,8 @@ from scipy.spatial.transform import Rotation
 
 from calib.calibrate import detect_dataset, model_from_calibration
 from calib.camera import Intrinsics
-from calib.dataset import Dataset, DatasetError
 from calib.errors import InputError
+from calib.io.dataset import Dataset, DatasetError
 from calib.kinematics import fk_tool
 from calib.mcpc import dh_to_mcpc
 from calib.report import kabsch

@@ -19,6 +19,7 @@ import pytest
 from calib.compensate import compensated_ik, solve_compensated, tool_target_residual
 from calib.export import deploy, deploy_chain
 from calib.ik import UnreachableError, ik_nearest
+from calib.io.dataset import read_dataset_info
 from calib.kinematics import fk_dh
 from calib.mcpc import dh_to_mcpc
 from calib.robot_def import load_robot
@@ -83,8 +84,7 @@ def test_compensation_at_table_ii_positions(noisy):
     e_nom, e_cmp, _ = _table(cal, truth)
     val = rep["validation"]["tool_tip_error_mm"]
     # the calibrated model's error in the base frame on the held-out validation postures
-    ds = json.loads((out / "dataset.json").read_text())
-    qv = np.radians(np.asarray(ds["validation_joints_deg"], float))
+    qv = np.radians(read_dataset_info(out / "dataset.json").validation_joints_deg)
     dep, actual = deploy(cal), deploy_chain(truth.true_model, ROBOT, truth.T_cam_tip)
     e_val = np.linalg.norm(dep.tool_tip(qv)[:, :3, 3] - actual.tool_tip(qv)[:, :3, 3], axis=1) * 1e3
     _print("Table II, paper scenario (analytic corners, 0.5 px, quantised joints)", e_nom, e_cmp)

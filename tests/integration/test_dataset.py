@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from calib.dataset import Dataset, DatasetError, DatasetInfo, DatasetWriter
+from calib.io.dataset import Dataset, DatasetError, DatasetInfo, DatasetWriter
 from calib.robot import StereoPair
 from scenarios.acquire import AcquisitionError, acquire
 

@@ -26,7 +26,7 @@ import pytest
 import tomllib
 
 from calib.calibrate import model_from_calibration
-from calib.dataset import Dataset
+from calib.io.dataset import Dataset
 from calib.report import aligned_errors, tool_tips
 from calib.robot import Robot
 from hw.acl_errors import AclConnectionError

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from calib.calibrate import calibrate
-from calib.dataset import Dataset
+from calib.io.dataset import Dataset
 from calib.joint_refine import (
     KinematicPoses,
     aligned_tool_rms_bound,

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from calib.calibrate import CalibrationError, NoMarkersWarning, calibrate
-from calib.dataset import DatasetError
+from calib.io.dataset import DatasetError
 from calib.trajectory import DegenerateTrajectoryError
 from scenarios.config import load_scenario
 from scenarios.pipeline import run_acquire, run_calibrate, run_report

@@ -52,7 +52,7 @@ def test_record_passes_rrd_verify(small_run, tmp_path):
 
 
 def test_record_needs_a_calibration(tmp_path, small_run):
-    from calib.dataset import DatasetError
+    from calib.io.dataset import DatasetError
 
     ds = tmp_path / "ds"
     shutil.copytree(small_run, ds)

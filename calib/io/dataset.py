@@ -18,7 +18,6 @@ partial rows of the frame that was being written.
 from __future__ import annotations
 
 import csv
-import json
 import os
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -28,6 +27,14 @@ import cv2
 import numpy as np
 
 from calib.errors import InputError
+from calib.io.jsonfile import (
+    SCHEMA_KEY,
+    Fields,
+    check_header,
+    dumps,
+    load_json,
+    write_json_atomic,
+)
 
 __all__ = [
     "DatasetError",
@@ -35,13 +42,20 @@ __all__ = [
     "DatasetWriter",
     "Dataset",
     "Detections",
-    "write_json_atomic",
+    "read_dataset_info",
+    "write_dataset_info",
+    "read_gray",
     "CAMERAS",
+    "FORMAT",
+    "SCHEMA_VERSION",
 ]
 
 FORMAT = "scorbot-selfcal-dataset"
-VERSION = 1
+SCHEMA_VERSION = 1
+"""The newest ``dataset.json`` schema this code reads and the one it writes."""
 CAMERAS = ("left", "right")
+OBSERVATIONS = ("images", "detections")
+_FIX = "give a dataset folder written by `selfcal acquire CONFIG --out DIR`, or re-acquire it"
 
 Detections = dict[tuple[int, str], dict[int, np.ndarray]]
 """(frame index, camera) -> {marker id: (4, 2) corners in px, OpenCV convention}."""
@@ -67,9 +81,10 @@ class DatasetInfo:
     scenario: dict = field(default_factory=dict)
 
     def to_json(self) -> dict:
+        """The ``dataset.json`` document (the one writer: :func:`write_dataset_info`)."""
         return {
             "format": FORMAT,
-            "version": VERSION,
+            SCHEMA_KEY: SCHEMA_VERSION,
             "robot_model": self.robot_model,
             "backend": self.backend,
             "camera": {"resolution": list(self.resolution)},
@@ -86,42 +101,71 @@ class DatasetInfo:
 
     @classmethod
     def from_json(cls, d: dict, where: str) -> DatasetInfo:
-        if d.get("format") != FORMAT:
-            raise DatasetError(f"{where}: not a {FORMAT} file (format = {d.get('format')!r})")
-        if d.get("version") != VERSION:
-            raise DatasetError(f"{where}: dataset version {d.get('version')} is not supported")
-        try:
-            tgt = d["target"]
-            return cls(
-                robot_model=str(d["robot_model"]),
-                backend=str(d.get("backend", "sim")),
-                resolution=tuple(int(x) for x in d["camera"]["resolution"]),
-                dictionary=str(tgt["dictionary"]),
-                scale_ids=tuple(int(x) for x in tgt["scale_marker_ids"]),
-                scale_length_m=float(tgt["scale_length_mm"]) / 1000.0,
-                observation=str(d["observation"]),
-                planned_joints_deg=np.asarray(d["trajectory_joints_deg"], dtype=float),
-                validation_joints_deg=np.asarray(d.get("validation_joints_deg", []), dtype=float),
-                scenario=dict(d.get("scenario", {})),
-            )
-        except (KeyError, TypeError, ValueError) as exc:
-            raise DatasetError(f"{where}: missing or malformed entry {exc}") from exc
+        """Parse a ``dataset.json`` document read from ``where`` (the one reader:
+        :func:`read_dataset_info`).
+
+        Raises:
+            DatasetError: another format, a newer schema_version, a missing or malformed key
+                (the message names ``where`` and the key).
+        """
+        check_header(d, where, fmt=FORMAT, version=SCHEMA_VERSION, fix=_FIX, error=DatasetError)
+        f = Fields(d, where, _FIX, error=DatasetError)
+        tgt, cam = f.sub("target"), f.sub("camera")
+        resolution = cam.ints("resolution")
+        if len(resolution) != 2:
+            raise cam.bad("resolution", "[width, height]", list(resolution))
+        scale_ids = tgt.ints("scale_marker_ids")
+        if len(scale_ids) != 2:
+            raise tgt.bad("scale_marker_ids", "two marker ids", list(scale_ids))
+        planned = f.array("trajectory_joints_deg", (None, None))
+        valid = np.zeros((0,))
+        if f.has("validation_joints_deg") and f.raw("validation_joints_deg") != []:
+            valid = f.array("validation_joints_deg", (None, planned.shape[1]))
+        observation = f.str("observation")
+        if observation not in OBSERVATIONS:
+            raise f.bad("observation", f"one of {OBSERVATIONS}", observation)
+        scenario = f.raw("scenario") if f.has("scenario") else {}
+        if not isinstance(scenario, dict):
+            raise f.bad("scenario", "an object", scenario)
+        return cls(
+            robot_model=f.str("robot_model"),
+            backend=f.str("backend") if f.has("backend") else "sim",
+            resolution=(resolution[0], resolution[1]),
+            dictionary=tgt.str("dictionary"),
+            scale_ids=(scale_ids[0], scale_ids[1]),
+            scale_length_m=tgt.float("scale_length_mm") / 1000.0,
+            observation=observation,
+            planned_joints_deg=planned,
+            validation_joints_deg=valid,
+            scenario=scenario,
+        )
 
 
-def _resume_key(doc: dict) -> dict:
+def read_dataset_info(path: str | Path) -> DatasetInfo:
+    """Read ``dataset.json`` at ``path`` (the one reader of that file).
+
+    Raises:
+        DatasetError: missing or unreadable file, not JSON, another format, a newer
+            schema_version, a missing or malformed key (named).
+    """
+    doc = load_json(path, fix=_FIX, error=DatasetError)
+    return DatasetInfo.from_json(doc, str(path))
+
+
+def write_dataset_info(path: str | Path, info: DatasetInfo) -> Path:
+    """Write ``info`` as ``dataset.json`` at ``path`` (atomically; the one writer)."""
+    return write_json_atomic(path, info.to_json())
+
+
+def _resume_key(info: DatasetInfo) -> str:
     """What must match to resume a dataset: everything but how the hardware is reached (a
     controller may come back on another port, cameras under other device names)."""
-    doc = json.loads(json.dumps(doc))
-    doc.get("scenario", {}).get("robot", {}).pop("hardware", None)
-    return doc
-
-
-def write_json_atomic(path: Path, data: dict) -> None:
-    """Write JSON via a temporary file and rename, so readers never see a partial file."""
-    path = Path(path)
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    tmp.write_text(json.dumps(data, indent=1))
-    os.replace(tmp, path)
+    doc = info.to_json()
+    scenario = {**doc["scenario"]}
+    if isinstance(scenario.get("robot"), dict):
+        scenario["robot"] = {k: v for k, v in scenario["robot"].items() if k != "hardware"}
+    doc["scenario"] = scenario
+    return dumps(doc)
 
 
 def _write_bytes_atomic(path: Path, data: bytes) -> None:
@@ -167,14 +211,14 @@ class DatasetWriter:
                 "another --out folder"
             )
         if resume and meta.exists():
-            if _resume_key(json.loads(meta.read_text())) != _resume_key(info.to_json()):
+            if _resume_key(read_dataset_info(meta)) != _resume_key(info):
                 raise DatasetError(
                     f"{self.root}: cannot resume: the dataset was acquired with another scenario "
                     "(dataset.json differs); use a new --out folder"
                 )
         self.root.mkdir(parents=True, exist_ok=True)
         (self.root / "frames").mkdir(exist_ok=True)
-        write_json_atomic(meta, info.to_json())
+        write_dataset_info(meta, info)
         n = info.planned_joints_deg.shape[1]
         self._joints = self.root / "joints.csv"
         self._dets = self.root / "detections.csv"
@@ -270,10 +314,7 @@ class Dataset:
                 f"{root}: no dataset.json; is this a dataset folder? (create one with "
                 "`selfcal acquire CONFIG --out DIR`)"
             )
-        try:
-            info = DatasetInfo.from_json(json.loads(meta.read_text()), str(meta))
-        except json.JSONDecodeError as exc:
-            raise DatasetError(f"{meta}: not valid JSON ({exc})") from exc
+        info = read_dataset_info(meta)
         rows = _read_csv_rows(root / "joints.csv")
         if not rows:
             raise DatasetError(f"{root}: joints.csv holds no frames; acquire first")

@@ -1,0 +1,9 @@
+"""The project's file formats.
+
+Each file is a frozen dataclass with one writer and one reader, and starts with ``format`` and
+``schema_version`` (:mod:`calib.io.jsonfile`):
+
+- :mod:`calib.io.dataset`: the dataset folder (:class:`~calib.io.dataset.Dataset`;
+  ``dataset.json`` as :class:`~calib.io.dataset.DatasetInfo`; the
+  :class:`~calib.io.dataset.DatasetWriter`).
+"""

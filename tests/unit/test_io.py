@@ -1,0 +1,116 @@
+"""The file formats (dataset.json so far): one writer, one reader.
+
+Round trips are byte-identical (write -> read -> write); a file of another format, of a newer
+schema_version, or lacking a key is an InputError naming the file and the key.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from calib.errors import InputError
+from calib.io.dataset import DatasetError, DatasetInfo, read_dataset_info, write_dataset_info
+
+
+def dataset_info() -> DatasetInfo:
+    rng = np.random.default_rng(3)
+    return DatasetInfo(
+        robot_model="er4u-paper",
+        resolution=(640, 480),
+        dictionary="DICT_4X4_50",
+        scale_ids=(48, 49),
+        scale_length_m=0.2037,
+        observation="detections",
+        planned_joints_deg=np.round(rng.uniform(-90, 90, (7, 5)), 6),
+        validation_joints_deg=np.round(rng.uniform(-90, 90, (3, 5)), 6),
+        backend="sim",
+        scenario={"noise": {"pixel_sigma": 0.5}, "robot": {"model": "er4u-paper"}},
+    )
+
+
+# name -> (value, writer, reader, error kind)
+FILES = {
+    "dataset.json": (dataset_info, write_dataset_info, read_dataset_info, DatasetError),
+}
+
+
+@pytest.mark.parametrize("name", FILES)
+def test_write_read_write_is_byte_identical(tmp_path, name):
+    make, write, read, _ = FILES[name]
+    a, b = tmp_path / "a" / name, tmp_path / "b" / name
+    a.parent.mkdir(), b.parent.mkdir()
+    write(a, make())
+    write(b, read(a))
+    assert a.read_bytes() == b.read_bytes()
+    doc = json.loads(a.read_text())
+    assert doc["schema_version"] == 1 and list(doc)[:2] == ["format", "schema_version"]
+
+
+def _valid_doc(tmp_path: Path, name: str) -> dict:
+    make, write, _, _ = FILES[name]
+    return json.loads(write(tmp_path / name, make()).read_text())
+
+
+@pytest.mark.parametrize("name", FILES)
+def test_a_newer_schema_version_names_the_file_and_the_upgrade(tmp_path, name):
+    _, _, read, kind = FILES[name]
+    doc = _valid_doc(tmp_path, name)
+    doc["schema_version"] = 99
+    (tmp_path / name).write_text(json.dumps(doc))
+    with pytest.raises(kind, match=f"{name}: schema_version 99 is newer") as err:
+        read(tmp_path / name)
+    assert isinstance(err.value, InputError) and "upgrade scorbot-selfcal" in str(err.value.fix)
+
+
+@pytest.mark.parametrize("name", FILES)
+def test_an_unknown_format_names_the_file_and_the_key(tmp_path, name):
+    _, _, read, kind = FILES[name]
+    doc = _valid_doc(tmp_path, name)
+    doc["format"] = "something-else"
+    (tmp_path / name).write_text(json.dumps(doc))
+    with pytest.raises(kind, match=f"{name}: not a .* file \\(format = 'something-else'\\)"):
+        read(tmp_path / name)
+
+
+# a nested key each file cannot do without
+MISSING = {
+    "dataset.json": ("target", "scale_length_mm"),
+}
+
+
+@pytest.mark.parametrize("name", FILES)
+def test_a_missing_key_names_the_file_and_the_key(tmp_path, name):
+    _, _, read, kind = FILES[name]
+    doc = _valid_doc(tmp_path, name)
+    outer, inner = MISSING[name]
+    del doc[outer][inner]
+    (tmp_path / name).write_text(json.dumps(doc))
+    with pytest.raises(kind, match=f"{name}: missing key '{outer}.{inner}'") as err:
+        read(tmp_path / name)
+    assert err.value.fix  # what to do about it
+
+
+@pytest.mark.parametrize("name", FILES)
+def test_malformed_values_and_non_json_are_input_errors(tmp_path, name):
+    _, _, read, kind = FILES[name]
+    (tmp_path / name).write_text("{not json")
+    with pytest.raises(kind, match="not valid JSON"):
+        read(tmp_path / name)
+    doc = _valid_doc(tmp_path, name)
+    doc["schema_version"] = "one"
+    (tmp_path / name).write_text(json.dumps(doc))
+    with pytest.raises(kind, match="schema_version must be a positive integer"):
+        read(tmp_path / name)
+
+
+def test_files_written_before_schema_version_read_as_version_1(tmp_path):
+    """dataset.json used to carry "version": 1."""
+    doc = _valid_doc(tmp_path, "dataset.json")
+    del doc["schema_version"]
+    doc["version"] = 1
+    (tmp_path / "dataset.json").write_text(json.dumps(doc))
+    assert read_dataset_info(tmp_path / "dataset.json").robot_model == "er4u-paper"
