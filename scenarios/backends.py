@@ -7,6 +7,7 @@ acquisition loop and the calibration only see a ``Robot`` and a dataset.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -15,6 +16,7 @@ import numpy as np
 
 from calib.camera import Intrinsics
 from calib.io.dataset import DatasetInfo
+from calib.io.truth import read_truth, write_truth
 from calib.kinematics import fk_tool
 from calib.mcpc import MCPCModel, dh_to_mcpc, minimal_indices, param_is_angle, param_names
 from calib.optimal_poses import plan_optimal_postures
@@ -25,7 +27,7 @@ from calib.transforms import trans
 from scenarios.acquire import AcquisitionHooks
 from scenarios.config import ConfigError, Scenario, load_scenario, scenario_to_dict
 from scenarios.hardware import open_hardware_robot
-from sim.actual import apply_errors, perturb, read_truth, write_truth
+from sim.actual import apply_errors, perturb
 from sim.analytic import project_markers
 from sim.collision import collision_checker
 from sim.markers import make_marker_field
@@ -219,17 +221,15 @@ def open_robot(
     truth = robot.truth(meta={"scenario": scenario_to_dict(s)})
     truth_path = Path(out) / "truth.json"
     if truth_path.is_file():
-        truth.frames = read_truth(truth_path).frames
+        truth = dataclasses.replace(truth, frames=read_truth(truth_path).frames)
     write_truth(truth_path, truth)
     rng = np.random.default_rng(s.noise.seed + 7919)
     fld = setup.field
     corners, normals = fld.corners_world(), fld.T_world_marker[:, :3, 2]
 
     def record_truth(index: int) -> None:
-        frame = robot.truth_frame()
-        frame["frame_index"] = index
-        truth.frames = [f for f in truth.frames if f.get("frame_index") != index]
-        truth.append_frame(frame)
+        nonlocal truth
+        truth = truth.with_frame(robot.truth_frame(), frame_index=index)
         write_truth(truth_path, truth)
 
     def detect() -> dict:

@@ -22,12 +22,12 @@ import numpy as np
 
 from calib.calibrate import calibrate
 from calib.io.dataset import Dataset
+from calib.io.truth import read_truth
 from calib.joint_refine import aligned_tool_rms_bound
 from calib.mcpc import MCPCModel
 from calib.report import aligned_errors, tool_tips
 from scenarios.config import load_scenario
 from scenarios.pipeline import run_acquire
-from sim.actual import read_truth
 
 
 def run(poses: list[int], seeds: list[int], pixel_sigma: float) -> None:

@@ -28,12 +28,12 @@ from typing import Any
 
 import numpy as np
 
+from calib.io.truth import Truth
 from calib.robot import StereoPair
 from calib.robot_def import RobotDef
 from hw.encoders import EncoderTable
 from scenarios.backends import make_sim_robot
 from scenarios.config import Scenario
-from sim.actual import Truth
 from sim.sim_robot import SimRobot
 
 __all__ = ["SimEmulatorBackend", "sim_robot_for_scenario"]

@@ -38,6 +38,7 @@ from calib.bounds import aligned_error_dof, cramer_rao, setup_from_output
 from calib.calibrate import _observations, calibrate, detect_dataset
 from calib.identify import express_in_frame, minimal_difference
 from calib.io.dataset import Dataset, DatasetWriter
+from calib.io.truth import read_truth
 from calib.mcpc import minimal_indices, param_is_angle
 from calib.report import aligned_errors, tool_tips
 from calib.robot_def import load_robot
@@ -48,7 +49,6 @@ from scenarios.config import load_scenario
 from scenarios.montecarlo_report import plot, summary_markdown
 from scenarios.montecarlo_stats import summarize
 from scenarios.parallel import worker_pool
-from sim.actual import read_truth
 
 __all__ = ["draw_one", "run_montecarlo", "write_csv"]
 
@@ -135,12 +135,12 @@ def _evaluate(root: Path, pixel_sigma: float) -> dict:
     row["joint_fx_err_px"] = out.joint.fx - truth.intrinsics_left.fx
     row["two_stage_fx_err_px"] = out.selfcal.fx - truth.intrinsics_left.fx
     # parameters in the reference-camera frame (the true one for the truth, like selfcal report)
-    frames = {int(f["frame_index"]): f for f in truth.frames}
+    frames = {f.frame_index: f for f in truth.frames}
     idx = minimal_indices(out.model.joint_types)
     scale = np.where(param_is_angle(idx), 180.0 / np.pi, 1000.0)
     for k, mdl in models.items():
         ref = out.joint.ref_config if k == "joint" else out.selfcal.ref_config
-        T = inv_pose(np.asarray(frames[int(ds.indices[ref])]["T_world_cam_left"]))
+        T = inv_pose(frames[int(ds.indices[ref])].T_world_cam_left)
         err = minimal_difference(mdl, express_in_frame(truth.true_model, T, like=mdl)) * scale
         for name, e in zip(out.joint.names, err):
             row[f"{k}_err_{name}"] = float(e)

@@ -40,6 +40,7 @@ import numpy as np
 
 from calib.ik import nearest_reachable
 from calib.io.dataset import DatasetWriter, read_dataset_info
+from calib.io.truth import Truth, read_truth
 from calib.kinematics import fk_dh
 from calib.report import aligned_errors, tool_tips
 from calib.robot_def import load_robot
@@ -59,7 +60,6 @@ from scenarios.paper_data import (
 from scenarios.paper_report import write_outputs
 from scenarios.pipeline import run_calibrate, run_report
 from scenarios.progress import Progress
-from sim.actual import read_truth
 
 __all__ = ["reproduce", "register"]
 
@@ -85,7 +85,7 @@ def _acquire_with_postures(s, root: Path, q_deg: np.ndarray, quiet: bool) -> Non
         robot.close()
 
 
-def _camera_measured_tips(cal: dict, truth, frames: list[int]) -> tuple[np.ndarray, float]:
+def _camera_measured_tips(cal: dict, truth: Truth, frames: list[int]) -> tuple[np.ndarray, float]:
     """Tool tips (m, simulator world) from the self-calibrated camera poses of ``frames``.
 
     The reconstruction frame is registered to the simulator's world by the best rigid alignment
@@ -95,7 +95,7 @@ def _camera_measured_tips(cal: dict, truth, frames: list[int]) -> tuple[np.ndarr
     """
     cp = cal["camera_poses"]
     pose_of = {int(i): np.asarray(T) for i, T in zip(cp["frame_index"], cp["T_world_cam_left_m"])}
-    true_of = {int(f["frame_index"]): np.asarray(f["T_world_cam_left"]) for f in truth.frames}
+    true_of = {f.frame_index: f.T_world_cam_left for f in truth.frames}
     common = sorted(set(pose_of) & set(true_of))
     A = np.array([pose_of[i][:3, 3] for i in common])
     B = np.array([true_of[i][:3, 3] for i in common])
@@ -163,9 +163,9 @@ def reproduce(out: str | Path, config: str | Path | None = None, *, quiet: bool 
     np.testing.assert_allclose(true_mm, [r["true_mm"] for r in rep["table_iv"]], atol=1e-6)
     site = np.array(
         [
-            f["tool_tip_m"]
-            for f in sorted(truth.frames, key=lambda f: f["frame_index"])
-            if f["frame_index"] < 5
+            f.tool_tip_m
+            for f in sorted(truth.frames, key=lambda f: f.frame_index or 0)
+            if f.frame_index is not None and f.frame_index < 5
         ]
     )
     np.testing.assert_allclose(nom(site), true_mm, atol=1e-6)

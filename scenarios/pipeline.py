@@ -17,6 +17,7 @@ from calib.calibrate import calibrate, model_from_calibration
 from calib.identify import express_in_frame
 from calib.io.dataset import Dataset, DatasetError, DatasetWriter
 from calib.io.jsonfile import write_json_atomic
+from calib.io.truth import read_truth
 from calib.report import aligned_errors, format_table_iv, parameter_table, tool_tips
 from calib.robot_def import load_robot
 from calib.transforms import inv_pose
@@ -25,7 +26,6 @@ from scenarios.backends import open_robot, plan_dataset, sim_setup
 from scenarios.config import Scenario
 from scenarios.paper_data import TABLE_II_MM, table_ii_postures
 from scenarios.progress import Progress
-from sim.actual import read_truth
 
 __all__ = ["run_acquire", "run_calibrate", "run_report", "run_all"]
 
@@ -104,10 +104,10 @@ def run_report(root: Path, *, quiet: bool = False) -> dict:
     # Truth in the estimate's world frame: the reconstruction frame is the true left camera of
     # the reference frame, so the transform is known exactly in simulation.
     ref = int(cal["camera_poses"]["reference_frame_index"])
-    ref_truth = [f for f in truth.frames if f.get("frame_index") == ref]
-    if not ref_truth:
+    ref_truth = truth.frame(ref)
+    if ref_truth is None:
         raise DatasetError(f"{truth_path} lacks frame {ref}; the dataset and truth disagree")
-    T_recon_world = inv_pose(np.asarray(ref_truth[0]["T_world_cam_left"]))
+    T_recon_world = inv_pose(ref_truth.T_world_cam_left)
     truth_est = express_in_frame(truth.true_model, T_recon_world, like=est)
     nominal_est = express_in_frame(truth.nominal_model, T_recon_world, like=est)
     std = {p["name"]: (np.nan if p["std"] is None else p["std"]) for p in cal["parameters"]}

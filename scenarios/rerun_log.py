@@ -36,12 +36,12 @@ from calib.calibrate import detect_dataset, model_from_calibration
 from calib.camera import Intrinsics
 from calib.errors import InputError
 from calib.io.dataset import Dataset, DatasetError
+from calib.io.truth import read_truth
 from calib.kinematics import fk_tool
 from calib.mcpc import dh_to_mcpc
 from calib.report import kabsch
 from calib.robot_def import load_robot
 from calib.transforms import inv_pose
-from sim.actual import read_truth
 from sim.markers import MarkerField, make_marker_field
 from sim.posed_geometry import PosedGeometry
 from sim.robot_mjcf import RigConfig
@@ -160,9 +160,7 @@ def record_run(dataset_dir: str | Path, rrd_path: str | Path | None, spawn: bool
     cal = json.loads(cal_path.read_text())
     robot = load_robot(ds.info.robot_model)
     nominal = dh_to_mcpc(robot).with_tool(robot.T_flange_cam)
-    truth = None
-    if (root / "truth.json").is_file():
-        truth = read_truth(root / "truth.json")
+    truth = read_truth(root / "truth.json") if (root / "truth.json").is_file() else None
 
     ci = cal["intrinsics"]
     est_intr = Intrinsics(
@@ -173,14 +171,14 @@ def record_run(dataset_dir: str | Path, rrd_path: str | Path | None, spawn: bool
     est_pose = {int(i): np.asarray(T) for i, T in zip(cp["frame_index"], cp["T_world_cam_left_m"])}
     q_read = {int(i): np.radians(q) for i, q in zip(ds.indices, ds.joints_deg)}
     true_frame = {
-        int(f["frame_index"]): f for f in (truth.frames if truth else []) if "frame_index" in f
+        f.frame_index: f for f in (truth.frames if truth else ()) if f.frame_index is not None
     }
 
     # Register the reconstruction frame to the world (see module docstring).
     common = sorted(set(est_pose) & (set(true_frame) if truth else set(q_read)))
     A = np.array([est_pose[i][:3, 3] for i in common])
     if truth is not None:
-        B = np.array([np.asarray(true_frame[i]["T_world_cam_left"])[:3, 3] for i in common])
+        B = np.array([true_frame[i].T_world_cam_left[:3, 3] for i in common])
     else:
         B = fk_tool(nominal, np.array([q_read[i] for i in common]))[:, :3, 3]
     T_world_recon = kabsch(A, B) if len(common) >= 3 else np.eye(4)
@@ -312,12 +310,7 @@ def record_run(dataset_dir: str | Path, rrd_path: str | Path | None, spawn: bool
         rec.log(
             "world/truth/camera_path",
             rr.LineStrips3D(
-                [
-                    [
-                        np.asarray(true_frame[i]["T_world_cam_left"])[:3, 3]
-                        for i in sorted(true_frame)
-                    ]
-                ],
+                [[true_frame[i].T_world_cam_left[:3, 3] for i in sorted(true_frame)]],
                 radii=0.0008,
                 colors=_GT_COLOR,
             ),
@@ -350,7 +343,7 @@ def record_run(dataset_dir: str | Path, rrd_path: str | Path | None, spawn: bool
     for i, q in sorted(q_read.items()):
         rec.set_time("frame", sequence=i)
         fr = true_frame.get(i)
-        geo.set(np.asarray(fr["joints_rad"]) if fr is not None else q)
+        geo.set(fr.joints_rad if fr is not None else q)
         for key, arch in _archetypes(geo, geo.moving).items():
             rec.log(f"world/robot/{key}", arch)
         rec.log("joints_deg", rr.Scalars(np.degrees(q)))
@@ -359,7 +352,7 @@ def record_run(dataset_dir: str | Path, rrd_path: str | Path | None, spawn: bool
                 _log_camera(
                     rec,
                     f"world/truth/cam_{cam}",
-                    np.asarray(fr[f"T_world_cam_{cam}"]),
+                    fr.T_world_cam_left if cam == "left" else fr.T_world_cam_right,
                     intr,
                     _GT_COLOR,
                 )
@@ -381,7 +374,7 @@ def record_run(dataset_dir: str | Path, rrd_path: str | Path | None, spawn: bool
             rec.log("errors/identification/residual_mm", rr.Scalars(ident_res[i][0]))
             rec.log("errors/identification/residual_deg", rr.Scalars(ident_res[i][1]))
             if fr is not None:
-                Tt = np.asarray(fr["T_world_cam_left"])
+                Tt = fr.T_world_cam_left
                 D = inv_pose(Tt) @ est_world[i]
                 ang = np.degrees(np.arccos(np.clip((np.trace(D[:3, :3]) - 1) / 2, -1, 1)))
                 rec.log(

@@ -4,55 +4,24 @@ Errors are added to the MCPC parameters (``calib.mcpc``; rad and m), so they inc
 express, e.g. a small ``beta`` between the parallel shoulder and elbow axes. The chain's tool is the
 left camera (OpenCV frame), so errors of the last shape matrix are hand-eye errors.
 
-``truth.json`` (written by :func:`write_truth`, read by :func:`read_truth`) records everything a
-simulated run knows and a calibration must recover or may use. All lengths in metres, angles in
-radians unless a key says ``_deg``; poses are 4x4 row-major nested lists ``T_a_b`` (b -> a)::
-
-    {
-      "format": "scorbot-selfcal truth v1",
-      "robot_model": "er4u-paper",                  # models/robots/<name>.toml
-      "joints": {"names": [...], "types": ["revolute", ...], "offsets_rad": [...]},
-      "mcpc": {
-        "columns": ["alpha", "beta", "gamma", "lx", "ly", "lz"],
-        "units": ["rad", "rad", "rad", "m", "m", "m"],
-        "nominal": [[...6...], ...],                # (n + 1, 6), tool = left camera
-        "true": [[...6...], ...],                   # the simulated robot
-        "errors": {"alpha0": ..., ...}              # true - nominal on the minimal set (eq. 10)
-      },
-      "cameras": {
-        "left": {"fx": 800, "mu": 1, "cx": 319.5, "cy": 239.5, "width": 640, "height": 480},
-        "right": {...},
-        "T_left_right": [[...]]                     # right camera in the left camera frame
-      },
-      "T_flange_cam": [[...]],                      # TRUE hand-eye (left camera in the flange)
-      "T_flange_cam_nominal": [[...]],              # from the robot TOML
-      "T_cam_tip": [[...]],                         # known rig -> tool tip (= inv(nominal hand-eye))
-      "marker_field": {...},                        # sim.markers.MarkerField.to_dict()
-      "frames": [                                   # one per capture, from SimRobot.truth_frame()
-        {"index": 0, "joints_rad": [...], "joints_deg": [...],
-         "T_world_cam_left": [[...]], "T_world_cam_right": [[...]], "tool_tip_m": [x, y, z]}
-      ],
-      "meta": {...}                                 # free-form: seed, error magnitudes, ...
-    }
+The ground truth of a simulated run (:func:`make_truth`) is a :class:`calib.io.truth.Truth`,
+written as ``truth.json`` by :func:`calib.io.truth.write_truth` and read by
+:func:`calib.io.truth.read_truth` (its layout is in :mod:`calib.io.truth`).
 """
 
 from __future__ import annotations
 
-import json
 import re
-from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
-from calib.camera import Intrinsics
 from calib.errors import InputError
+from calib.io.truth import Truth, error_table
 from calib.mcpc import (
     COLUMNS,
     MCPCModel,
     minimal_indices,
     param_is_angle,
-    param_names,
     shape_matrices,
 )
 from calib.robot_def import RobotDef
@@ -62,19 +31,15 @@ from sim.markers import MarkerField
 from sim.robot_mjcf import RigConfig
 
 __all__ = [
-    "TRUTH_FORMAT",
     "param_index",
     "perturb",
     "apply_errors",
     "error_table",
     "true_hand_eye",
-    "Truth",
     "make_truth",
-    "write_truth",
-    "read_truth",
+    "marker_field_of",
 ]
 
-TRUTH_FORMAT = "scorbot-selfcal truth v1"
 _NAME_RE = re.compile(r"^(alpha|beta|gamma|lx|ly|lz)(\d+)$")
 
 
@@ -127,80 +92,10 @@ def apply_errors(model: MCPCModel, table: dict[str, float]) -> MCPCModel:
     return model.with_params(p)
 
 
-def error_table(nominal: MCPCModel, actual: MCPCModel) -> dict[str, float]:
-    """``actual - nominal`` on the minimal identifiable set, keyed by parameter name (rad, m)."""
-    if nominal.joint_types != actual.joint_types:
-        raise ValueError("nominal and actual models have different joint types")
-    idx = minimal_indices(nominal.joint_types)
-    d = (actual.params - nominal.params).reshape(-1)[idx]
-    return {k: float(v) for k, v in zip(param_names(idx), d, strict=True)}
-
-
 def true_hand_eye(robot: RobotDef, actual: MCPCModel) -> np.ndarray:
     """The actual robot's ``T_flange_cam`` (4, 4): the left camera (``V_n`` of ``actual``) seen from
     the nominal flange on the last link (``sim.link_frames.flange_in_last_link``)."""
     return inv_pose(flange_in_last_link(robot, actual)) @ shape_matrices(actual.params[-1])
-
-
-def _intr_dict(i: Intrinsics) -> dict:
-    return {"fx": i.fx, "mu": i.mu, "cx": i.cx, "cy": i.cy, "width": i.width, "height": i.height}
-
-
-def _intr_from(d: dict) -> Intrinsics:
-    return Intrinsics(
-        float(d["fx"]),
-        float(d["mu"]),
-        float(d["cx"]),
-        float(d["cy"]),
-        int(d["width"]),
-        int(d["height"]),
-    )
-
-
-@dataclass(eq=False)
-class Truth:
-    """Ground truth of one simulated run (see the module docstring for the JSON layout)."""
-
-    robot_model: str
-    joint_names: tuple[str, ...]
-    joint_types: tuple[str, ...]
-    joint_offsets_rad: np.ndarray
-    nominal_params: np.ndarray
-    true_params: np.ndarray
-    intrinsics_left: Intrinsics
-    intrinsics_right: Intrinsics
-    T_left_right: np.ndarray
-    T_flange_cam: np.ndarray
-    T_flange_cam_nominal: np.ndarray
-    T_cam_tip: np.ndarray
-    marker_field: dict
-    frames: list[dict] = field(default_factory=list)
-    meta: dict = field(default_factory=dict)
-
-    @property
-    def nominal_model(self) -> MCPCModel:
-        """The nominal MCPC chain (tool = left camera)."""
-        return MCPCModel(self.nominal_params.copy(), self.joint_types, self.joint_offsets_rad)
-
-    @property
-    def true_model(self) -> MCPCModel:
-        """The simulated robot's MCPC chain."""
-        return MCPCModel(self.true_params.copy(), self.joint_types, self.joint_offsets_rad)
-
-    @property
-    def errors(self) -> dict[str, float]:
-        """``true - nominal`` on the minimal set, by parameter name (rad, m)."""
-        return error_table(self.nominal_model, self.true_model)
-
-    def markers(self) -> MarkerField:
-        """The marker field as a :class:`sim.markers.MarkerField`."""
-        return MarkerField.from_dict(self.marker_field)
-
-    def append_frame(self, frame: dict) -> None:
-        """Record one capture (a dict from ``SimRobot.truth_frame()``); sets ``index``."""
-        rec = dict(frame)
-        rec["index"] = len(self.frames)
-        self.frames.append(rec)
 
 
 def make_truth(
@@ -232,90 +127,6 @@ def make_truth(
     )
 
 
-def _jsonable(x):
-    if isinstance(x, np.ndarray):
-        return x.tolist()
-    if isinstance(x, np.generic):
-        return x.item()
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, list | tuple):
-        return [_jsonable(v) for v in x]
-    return x
-
-
-_FRAME_ARRAYS = ("joints_rad", "joints_deg", "T_world_cam_left", "T_world_cam_right", "tool_tip_m")
-
-
-def write_truth(path: str | Path, truth: Truth) -> Path:
-    """Write ``truth`` as JSON to ``path`` (parent directories are created); returns the path."""
-    idx = minimal_indices(truth.joint_types)
-    doc = {
-        "format": TRUTH_FORMAT,
-        "robot_model": truth.robot_model,
-        "joints": {
-            "names": list(truth.joint_names),
-            "types": list(truth.joint_types),
-            "offsets_rad": truth.joint_offsets_rad,
-        },
-        "mcpc": {
-            "columns": list(COLUMNS),
-            "units": ["rad", "rad", "rad", "m", "m", "m"],
-            "nominal": truth.nominal_params,
-            "true": truth.true_params,
-            "minimal_names": param_names(idx),
-            "errors": truth.errors,
-        },
-        "cameras": {
-            "left": _intr_dict(truth.intrinsics_left),
-            "right": _intr_dict(truth.intrinsics_right),
-            "T_left_right": truth.T_left_right,
-        },
-        "T_flange_cam": truth.T_flange_cam,
-        "T_flange_cam_nominal": truth.T_flange_cam_nominal,
-        "T_cam_tip": truth.T_cam_tip,
-        "marker_field": truth.marker_field,
-        "frames": truth.frames,
-        "meta": truth.meta,
-    }
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(_jsonable(doc), indent=1))
-    return path
-
-
-def read_truth(path: str | Path) -> Truth:
-    """Read a ``truth.json`` written by :func:`write_truth`.
-
-    Raises ``ValueError`` for another format and ``KeyError`` naming a missing key.
-    """
-    doc = json.loads(Path(path).read_text())
-    if doc.get("format") != TRUTH_FORMAT:
-        raise InputError(f"{path}: not a '{TRUTH_FORMAT}' file (format={doc.get('format')!r})")
-    try:
-        frames = []
-        for fr in doc["frames"]:
-            rec = dict(fr)
-            for k in _FRAME_ARRAYS:
-                if k in rec:
-                    rec[k] = np.asarray(rec[k], dtype=float)
-            frames.append(rec)
-        return Truth(
-            robot_model=doc["robot_model"],
-            joint_names=tuple(doc["joints"]["names"]),
-            joint_types=tuple(doc["joints"]["types"]),
-            joint_offsets_rad=np.asarray(doc["joints"]["offsets_rad"], float),
-            nominal_params=np.asarray(doc["mcpc"]["nominal"], float),
-            true_params=np.asarray(doc["mcpc"]["true"], float),
-            intrinsics_left=_intr_from(doc["cameras"]["left"]),
-            intrinsics_right=_intr_from(doc["cameras"]["right"]),
-            T_left_right=np.asarray(doc["cameras"]["T_left_right"], float),
-            T_flange_cam=np.asarray(doc["T_flange_cam"], float),
-            T_flange_cam_nominal=np.asarray(doc["T_flange_cam_nominal"], float),
-            T_cam_tip=np.asarray(doc["T_cam_tip"], float),
-            marker_field=doc["marker_field"],
-            frames=frames,
-            meta=doc.get("meta", {}),
-        )
-    except KeyError as e:
-        raise KeyError(f"{path}: truth file lacks key {e.args[0]!r}") from None
+def marker_field_of(truth: Truth) -> MarkerField:
+    """The marker field of a simulated run's truth as a :class:`sim.markers.MarkerField`."""
+    return MarkerField.from_dict(truth.marker_field)

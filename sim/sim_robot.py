@@ -13,10 +13,11 @@ import mujoco
 import numpy as np
 
 from calib.errors import InputError
+from calib.io.truth import Truth
 from calib.mcpc import MCPCModel
 from calib.robot import RobotError, StereoPair
 from calib.robot_def import load_robot
-from sim.actual import Truth, make_truth
+from sim.actual import make_truth
 from sim.link_frames import nominal_camera_model
 from sim.markers import MarkerField, make_marker_field
 from sim.mj_camera import T_world_cam_cv

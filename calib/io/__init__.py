@@ -6,4 +6,5 @@ Each file is a frozen dataclass with one writer and one reader, and starts with 
 - :mod:`calib.io.dataset`: the dataset folder (:class:`~calib.io.dataset.Dataset`;
   ``dataset.json`` as :class:`~calib.io.dataset.DatasetInfo`; the
   :class:`~calib.io.dataset.DatasetWriter`).
+- :mod:`calib.io.truth`: ``truth.json`` (simulation only) as :class:`~calib.io.truth.Truth`.
 """

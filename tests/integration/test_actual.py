@@ -8,20 +8,19 @@ import mujoco
 import numpy as np
 import pytest
 
+from calib.io.truth import TRUTH_FORMAT, TruthFileError, read_truth, write_truth
 from calib.kinematics import fk_frames
 from calib.mcpc import minimal_indices, param_is_angle
 from calib.robot_def import load_robot
 from calib.transforms import inv_pose, trans
 from sim.actual import (
-    TRUTH_FORMAT,
     apply_errors,
     error_table,
     make_truth,
+    marker_field_of,
     param_index,
     perturb,
-    read_truth,
     true_hand_eye,
-    write_truth,
 )
 from sim.link_frames import nominal_camera_model
 from sim.markers import make_marker_field
@@ -134,17 +133,18 @@ def test_truth_json_round_trip(tmp_path, paper):
     field = make_marker_field(n_markers=5, seed=3)
     truth = make_truth(robot, nom, act, rig, field, meta={"seed": 2, "translation_m": 1e-3})
     rng = np.random.default_rng(0)
-    for _ in range(3):
+    for k in range(3):
         q = rng.uniform(robot.limits[:, 0], robot.limits[:, 1])
         T = fk_frames(act, q)[0, -1]
-        truth.append_frame(
+        truth = truth.with_frame(
             {
                 "joints_rad": q,
                 "joints_deg": np.degrees(q),
                 "T_world_cam_left": T,
                 "T_world_cam_right": T @ rig.T_left_right,
                 "tool_tip_m": (T @ truth.T_cam_tip)[:3, 3],
-            }
+            },
+            frame_index=10 + k,
         )
     path = write_truth(tmp_path / "run" / "truth.json", truth)
     doc = json.loads(path.read_text())
@@ -166,19 +166,19 @@ def test_truth_json_round_trip(tmp_path, paper):
     assert back.intrinsics_left == rig.intrinsics and back.intrinsics_right == rig.right
     assert back.errors == truth.errors and back.meta == truth.meta
     np.testing.assert_array_equal(back.true_model.params, act.params)
-    np.testing.assert_array_equal(back.markers().T_world_marker, field.T_world_marker)
+    np.testing.assert_array_equal(marker_field_of(back).T_world_marker, field.T_world_marker)
     assert len(back.frames) == 3
     for a, b in zip(back.frames, truth.frames, strict=True):
-        assert a["index"] == b["index"]
+        assert a.index == b.index and a.frame_index == b.frame_index
         for k in ("joints_rad", "T_world_cam_left", "T_world_cam_right", "tool_tip_m"):
-            np.testing.assert_array_equal(a[k], b[k])
+            np.testing.assert_array_equal(getattr(a, k), getattr(b, k))
 
 
 def test_read_truth_rejects_other_files(tmp_path):
     p = tmp_path / "x.json"
     p.write_text(json.dumps({"format": "something else"}))
-    with pytest.raises(ValueError, match="not a"):
+    with pytest.raises(TruthFileError, match="not a"):
         read_truth(p)
     p.write_text(json.dumps({"format": TRUTH_FORMAT, "robot_model": "x"}))
-    with pytest.raises(KeyError, match="lacks key"):
+    with pytest.raises(TruthFileError, match="missing key 'joints'"):
         read_truth(p)

@@ -20,6 +20,7 @@ from calib.compensate import compensated_ik, solve_compensated, tool_target_resi
 from calib.export import deploy, deploy_chain
 from calib.ik import UnreachableError, ik_nearest
 from calib.io.dataset import read_dataset_info
+from calib.io.truth import read_truth
 from calib.kinematics import fk_dh
 from calib.mcpc import dh_to_mcpc
 from calib.robot_def import load_robot
@@ -27,7 +28,6 @@ from calib.tool_pose import tool_pose
 from scenarios.config import load_scenario
 from scenarios.deploy_cli import register
 from scenarios.pipeline import TABLE_II_MM, run_acquire, run_calibrate, run_report
-from sim.actual import read_truth
 
 ROBOT = load_robot("er4u-paper")
 _, PITCH, ROLL = tool_pose(fk_dh(ROBOT, ROBOT.home)[0, -1])  # Table II row 1's tool pitch / roll

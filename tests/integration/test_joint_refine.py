@@ -15,6 +15,7 @@ import pytest
 
 from calib.calibrate import calibrate
 from calib.io.dataset import Dataset
+from calib.io.truth import read_truth
 from calib.joint_refine import (
     KinematicPoses,
     aligned_tool_rms_bound,
@@ -135,8 +136,6 @@ def noisy_results(tmp_path_factory):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             out = calibrate(root)
-        from sim.actual import read_truth
-
         truth = read_truth(root / "truth.json")
         qv = np.radians(Dataset.open(root).info.validation_joints_deg)
         p_true = tool_tips(truth.true_model, qv, truth.T_cam_tip)

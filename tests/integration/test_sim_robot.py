@@ -85,7 +85,7 @@ def test_truth_frame_matches_fk_of_the_actual_robot(sim):
         T_nom = fk_frames(sim.nominal, fr["joints_rad"])[0, -1]
         assert np.abs(T_nom[:3, 3] - T[:3, 3]).max() > 1e-5
     truth = sim.truth()
-    assert truth.robot_model == "er4u-paper" and truth.frames == []
+    assert truth.robot_model == "er4u-paper" and truth.frames == ()
     np.testing.assert_array_equal(truth.true_params, sim.actual.params)
 
 

@@ -1,4 +1,4 @@
-"""The file formats (dataset.json so far): one writer, one reader.
+"""The file formats (dataset.json, truth.json so far): one writer, one reader.
 
 Round trips are byte-identical (write -> read -> write); a file of another format, of a newer
 schema_version, or lacking a key is an InputError naming the file and the key.
@@ -12,8 +12,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from calib.camera import Intrinsics
 from calib.errors import InputError
 from calib.io.dataset import DatasetError, DatasetInfo, read_dataset_info, write_dataset_info
+from calib.io.truth import Truth, TruthFileError, read_truth, write_truth
+from calib.mcpc import MCPCModel, dh_to_mcpc
+from calib.robot_def import load_robot
 
 
 def dataset_info() -> DatasetInfo:
@@ -32,10 +36,46 @@ def dataset_info() -> DatasetInfo:
     )
 
 
+def truth() -> Truth:
+    robot = load_robot("er4u-paper")
+    nom = dh_to_mcpc(robot).with_tool(robot.T_flange_cam)
+    rng = np.random.default_rng(4)
+    act = MCPCModel(nom.params + rng.normal(0, 1e-3, nom.params.shape), nom.joint_types,
+                    nom.joint_offsets)  # fmt: skip
+    t = Truth(
+        robot_model=robot.name,
+        joint_names=tuple(robot.joint_names),
+        joint_types=nom.joint_types,
+        joint_offsets_rad=np.asarray(nom.joint_offsets, float),
+        nominal_params=nom.params,
+        true_params=act.params,
+        intrinsics_left=Intrinsics(800, 1, 319.5, 239.5, 640, 480),  # ints on purpose
+        intrinsics_right=Intrinsics(801.5, 0.999, 319.5, 239.5, 640, 480),
+        T_left_right=np.eye(4),
+        T_flange_cam=robot.T_flange_cam,
+        T_flange_cam_nominal=robot.T_flange_cam,
+        T_cam_tip=np.linalg.inv(robot.T_flange_cam),
+        marker_field={"dictionary": "DICT_4X4_50", "ids": [1, 2], "size_m": 0.03},
+        meta={"seed": np.int64(7), "scale": np.float64(0.25)},
+    )
+    for k in range(3):
+        q = rng.uniform(-1, 1, 5)
+        rec = {
+            "joints_rad": q,
+            "joints_deg": np.degrees(q),
+            "T_world_cam_left": np.eye(4),
+            "T_world_cam_right": np.eye(4),
+            "tool_tip_m": rng.normal(size=3),
+        }
+        t = t.with_frame(rec, frame_index=k)
+    return t
+
+
 # name -> (value, writer, reader, error kind)
 FILES = {
     "dataset.json": (dataset_info, write_dataset_info, read_dataset_info, DatasetError),
-}
+    "truth.json": (truth, write_truth, read_truth, TruthFileError),
+}  # fmt: skip
 
 
 @pytest.mark.parametrize("name", FILES)
@@ -79,6 +119,7 @@ def test_an_unknown_format_names_the_file_and_the_key(tmp_path, name):
 # a nested key each file cannot do without
 MISSING = {
     "dataset.json": ("target", "scale_length_mm"),
+    "truth.json": ("cameras", "T_left_right"),
 }
 
 
@@ -108,9 +149,11 @@ def test_malformed_values_and_non_json_are_input_errors(tmp_path, name):
 
 
 def test_files_written_before_schema_version_read_as_version_1(tmp_path):
-    """dataset.json used to carry "version": 1."""
-    doc = _valid_doc(tmp_path, "dataset.json")
-    del doc["schema_version"]
-    doc["version"] = 1
-    (tmp_path / "dataset.json").write_text(json.dumps(doc))
-    assert read_dataset_info(tmp_path / "dataset.json").robot_model == "er4u-paper"
+    """dataset.json used to carry "version": 1, truth.json nothing."""
+    for name in FILES:
+        doc = _valid_doc(tmp_path, name)
+        del doc["schema_version"]
+        if name != "truth.json":
+            doc["version"] = 1
+        (tmp_path / name).write_text(json.dumps(doc))
+        FILES[name][2](tmp_path / name)
