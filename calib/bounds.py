@@ -27,7 +27,7 @@ For an unbiased estimator, ``E[rms^2] >= bound^2`` and ``E[(theta_j - theta_j*)^
 The bound is a property of the *data* (poses, visible corners, noise levels), not of the
 estimator: the two-stage method has the same bound and a larger achieved error.
 
-:func:`bounds_block` produces the ``bounds`` block of ``calibration.json``.
+:func:`calib.results.with_bounds` puts the bounds into the calibration result.
 """
 
 from __future__ import annotations
@@ -47,7 +47,7 @@ from calib.joint_refine import (
     encoder_sigma,
 )
 from calib.kinematics import fk_tool, identification_jacobian
-from calib.mcpc import MCPCModel, minimal_indices, param_is_angle, param_names
+from calib.mcpc import MCPCModel, minimal_indices, param_names
 from calib.solver import inverse_block
 from calib.transforms import inv_pose, skew
 
@@ -61,7 +61,6 @@ __all__ = [
     "aligned_error_dof",
     "predicted_setup",
     "setup_from_output",
-    "bounds_block",
 ]
 
 
@@ -543,71 +542,3 @@ def setup_from_output(
         held=held,
         ref_config=int(pos[ref]),
     )
-
-
-def bounds_block(
-    out,
-    qv: np.ndarray,
-    *,
-    obs,
-    q: np.ndarray,
-    robot,
-    ds_info,
-    pixel_sigma_px: float | None = None,
-) -> dict:
-    """The ``bounds`` block of ``calibration.json`` for a calibration ``out`` (either method).
-
-    ``qv`` (k, n) rad: the validation postures (the dataset's ``validation_joints_deg``); the
-    tool tip is ``T_cam_tip = inv(robot.T_flange_cam)``, the point of the report. Keys:
-    ``tool_tip_rms_mm`` (bound of the aligned validation RMS), ``fx``/``mu`` (estimate, bound),
-    ``parameters`` (name, unit, estimate, std of the document, bound, held; reference-camera
-    frame like the document's parameters), the noise levels used and a note.
-    """
-    s = setup_from_output(out, obs, q, robot, ds_info, pixel_sigma_px=pixel_sigma_px)
-    cr = cramer_rao(s)
-    qv = np.atleast_2d(np.asarray(qv, dtype=float))
-    T_cam_tip = inv_pose(np.asarray(robot.T_flange_cam, dtype=float))
-    doc = out.document
-    std_doc = {p["name"]: p.get("std") for p in doc.get("parameters", [])}
-    idx = minimal_indices(cr.model_ref.joint_types)
-    ang = param_is_angle(idx)
-    params = []
-    for j, (name, k, a) in enumerate(zip(cr.names, idx, ang)):
-        sc_ = 180.0 / np.pi if a else 1000.0
-        b = cr.std_ref[j]
-        params.append(
-            {
-                "name": name,
-                "unit": "deg" if a else "mm",
-                "estimate": float(cr.model_ref.params.reshape(-1)[k] * sc_),
-                "std": std_doc.get(name),
-                "bound": float(b * sc_) if np.isfinite(b) else None,
-                "held": name in cr.held and not cr.held[name].startswith("gauge"),
-            }
-        )
-    return {
-        "kind": "cramer-rao",
-        "method_evaluated_at": doc.get("method", "joint" if out.joint is not None else "two-stage"),
-        "pixel_sigma_px": cr.pixel_sigma_px,
-        "joint_sigma_deg": None
-        if s.joint_sigma is None
-        else np.degrees(np.asarray(s.joint_sigma)).tolist(),
-        "observations": cr.n_observations,
-        "unknowns": cr.n_unknowns,
-        "tool_tip_rms_mm": {
-            "bound": 1000.0 * cr.aligned_tool_rms(qv, T_cam_tip),
-            "validation_poses": int(len(qv)),
-        },
-        "fx": {"estimate": float(s.fx), "bound": cr.fx_std},
-        "mu": {"estimate": float(s.mu), "bound": cr.mu_std},
-        "parameters": params,
-        "note": (
-            "Cramer-Rao bounds (standard deviations; tool tip: RMS over the validation postures "
-            "after the best rigid alignment, as the report measures it) from the Fisher "
-            "information of the one-step model (corners with Gaussian noise of pixel_sigma_px, "
-            "joint read-back errors of joint_sigma_deg, unknown points, known scale distance), "
-            "evaluated at the final estimate; parameters in the reference-camera frame. A "
-            "property of the data: the same for both methods, which differ in the error they "
-            "achieve. See docs/bounds.md."
-        ),
-    }

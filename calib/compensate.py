@@ -134,8 +134,9 @@ def solve_compensated(
 ) -> CompensatedIK:
     """Joint commands reaching a Cartesian target with the calibrated model (module docstring).
 
-    ``calibration``: a ``calibration.json`` document, a :class:`calib.export.DeployedModel`, or an
-    MCPC model already base frame -> tool tip. ``xyz_m`` (3,) m in the robot's base frame,
+    ``calibration``: a :class:`calib.io.calibration.CalibrationResult`, a
+    :class:`calib.export.DeployedModel`, or an MCPC model already base frame -> tool tip.
+    ``xyz_m`` (3,) m in the robot's base frame,
     ``pitch_rad`` / ``roll_rad`` as in :mod:`calib.tool_pose`. ``reference`` (default home): pick
     the solution nearest this posture; ``branch``: start from that nominal IK branch only.
 

@@ -1,6 +1,6 @@
-"""A calibrated robot users can deploy: the identified chain in the robot's base frame, as TOML / URDF.
+"""A calibrated robot users can deploy: the identified chain in the robot's base frame.
 
-``calibration.json`` describes the robot as :func:`calib.calibrate.model_from_calibration` gives it:
+``calibration.json`` describes the robot as :attr:`calib.io.calibration.CalibrationResult.model`:
 an MCPC chain whose *world* is the reconstruction frame (the left camera at one frame of the
 trajectory) and whose *tool* is the left camera (OpenCV frame). Neither is what a user commands.
 :func:`deploy` re-expresses the same physical chain as
@@ -35,17 +35,16 @@ from __future__ import annotations
 
 import math
 import sys
-import warnings
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from calib.calibrate import CalibrationError, model_from_calibration
 from calib.camera import Intrinsics
 from calib.errors import InputError
-from calib.identify import DHNotRepresentableWarning, canonical_base, regauge, to_dh
+from calib.identify import DHTable, canonical_base, dh_table, regauge
+from calib.io.calibration import CalibrationResult
 from calib.kinematics import fk_frames
 from calib.mcpc import (
     MCPCModel,
@@ -77,6 +76,8 @@ __all__ = [
     "nominal_offsets",
     "nominal_deployed_params",
     "body_poses",
+    "float_text",
+    "as_rigid",
     "to_toml",
     "from_toml",
     "to_urdf",
@@ -159,15 +160,10 @@ class DeployedModel:
         """Tool-tip poses ``T_base_tip`` (m, 4, 4) for joint readings ``q`` (m, n) rad."""
         return fk_frames(self.model, q)[:, -1]
 
-    def dh(self, robot: RobotDef) -> tuple[object | None, str | None]:
+    def dh(self, robot: RobotDef) -> tuple[DHTable | None, str | None]:
         """``(DHTable, None)`` for this chain, or ``(None, reason)`` when no sound DH table exists
-        (nearly parallel consecutive axes; :func:`calib.identify.to_dh`)."""
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always", DHNotRepresentableWarning)
-            dh = to_dh(self.model, robot)
-        if dh is None:
-            return None, "; ".join(str(w.message) for w in caught) or "not representable"
-        return dh, None
+        (nearly parallel consecutive axes; :func:`calib.identify.dh_table`)."""
+        return dh_table(self.model, robot)
 
 
 # --------------------------------------------------------------------------------------------
@@ -175,7 +171,7 @@ class DeployedModel:
 # --------------------------------------------------------------------------------------------
 
 
-def _rigid(T, what: str) -> np.ndarray:
+def as_rigid(T, what: str) -> np.ndarray:
     """``T`` as a float 4x4 with its rotation re-orthonormalised (JSON rounds to 9 digits)."""
     T = np.asarray(T, dtype=float)
     if T.shape != (4, 4) or not np.all(np.isfinite(T)):
@@ -209,7 +205,7 @@ def deploy_chain(
             f"{robot.joint_types}: wrong robot model for this calibration?"
         )
     T_cam_tip = (
-        inv_pose(robot.T_flange_cam) if T_cam_tip is None else _rigid(T_cam_tip, "T_cam_tip")
+        inv_pose(robot.T_flange_cam) if T_cam_tip is None else as_rigid(T_cam_tip, "T_cam_tip")
     )
     try:
         T_world_base = canonical_base(model_cam, robot)
@@ -247,53 +243,46 @@ def nominal_deployed_params(robot: RobotDef) -> np.ndarray:
     return regauge(G, robot.joint_types, nominal_offsets(robot)).params
 
 
-def deploy(calibration: dict, robot: RobotDef | None = None, source: str = "") -> DeployedModel:
-    """The deployable model of a ``calibration.json`` document (see :func:`deploy_chain`).
+def deploy(
+    calibration: CalibrationResult, robot: RobotDef | None = None, source: str = ""
+) -> DeployedModel:
+    """The deployable model of a calibration result (``calibration.json`` read by
+    :func:`calib.io.calibration.read_calibration`; see :func:`deploy_chain`).
 
-    ``robot`` defaults to the document's ``robot_model``. The calibrated stereo intrinsics and the
-    rig, and the parameters' standard deviations, are carried along.
+    ``robot`` defaults to the calibration's ``robot_model``. The calibrated stereo intrinsics
+    and the rig, and the parameters' standard deviations, are carried along.
 
     Raises:
-        DeployError: not a calibration document, or a robot that does not match it.
+        DeployError: a robot that does not match the calibration, or a rig that is not rigid.
     """
-    try:
-        model_cam = model_from_calibration(calibration)
-    except (CalibrationError, KeyError, TypeError, ValueError) as exc:
-        raise DeployError(f"not a usable calibration document: {exc}") from exc
     if robot is None:
-        robot = load_robot(calibration["robot_model"])
-    elif calibration.get("robot_model") not in (None, robot.name):
+        robot = load_robot(calibration.robot_model)
+    elif calibration.robot_model != robot.name:
         raise DeployError(
-            f"the calibration is of robot {calibration['robot_model']!r}, not {robot.name!r}"
+            f"the calibration is of robot {calibration.robot_model!r}, not {robot.name!r}"
         )
-    std = {}
-    for p in calibration.get("parameters", []):
-        if p.get("std") is not None:
-            std[p["name"]] = float(p["std"]) * (math.pi / 180 if p["unit"] == "deg" else 1e-3)
-    intr, T_lr = None, None
-    if "intrinsics" in calibration:
-        i = calibration["intrinsics"]
-        intr = Intrinsics(
-            float(i["fx"]), float(i["mu"]), float(i["cx"]), float(i["cy"]), int(i["width"]),
-            int(i["height"]),
-        )  # fmt: skip
-    if "rig" in calibration:
-        T_lr = _rigid(calibration["rig"]["T_left_right_m"], "rig.T_left_right_m")
+    T_lr = as_rigid(calibration.T_left_right_m, "rig.T_left_right_m")
     return deploy_chain(
-        model_cam, robot, std=std, intrinsics=intr, T_left_right=T_lr, source=source
+        calibration.model,
+        robot,
+        std=calibration.std_si(),
+        intrinsics=calibration.pinhole,
+        T_left_right=T_lr,
+        source=source,
     )
 
 
 def as_deployed(calibration, robot: RobotDef | None = None) -> DeployedModel:
-    """Accept a :class:`DeployedModel`, a ``calibration.json`` dict, or an :class:`MCPCModel` that
-    is ALREADY base frame -> tool tip (e.g. ``dh_to_mcpc(robot)`` for the nominal robot).
+    """Accept a :class:`DeployedModel`, a :class:`calib.io.calibration.CalibrationResult`, or an
+    :class:`MCPCModel` that is ALREADY base frame -> tool tip (e.g. ``dh_to_mcpc(robot)`` for
+    the nominal robot).
 
     Raises:
         DeployError: anything else, or an MCPC model without ``robot``.
     """
     if isinstance(calibration, DeployedModel):
         return calibration
-    if isinstance(calibration, dict):
+    if isinstance(calibration, CalibrationResult):
         return deploy(calibration, robot)
     if isinstance(calibration, MCPCModel):
         if robot is None:
@@ -306,7 +295,7 @@ def as_deployed(calibration, robot: RobotDef | None = None) -> DeployedModel:
             np.array(robot.T_flange_cam, float),
         )  # fmt: skip
     raise DeployError(
-        f"expected a calibration.json document, a DeployedModel or an MCPCModel, got "
+        f"expected a CalibrationResult (read_calibration), a DeployedModel or an MCPCModel, got "
         f"{type(calibration).__name__}"
     )
 
@@ -323,19 +312,22 @@ def body_poses(model: MCPCModel) -> np.ndarray:
     return out
 
 
-# --------------------------------------------------------------------------------------------
-# TOML
-# --------------------------------------------------------------------------------------------
-
-
-def _f(x: float) -> str:
-    """Shortest TOML float that reads back as exactly ``x``."""
+def float_text(x: float) -> str:
+    """Shortest text that reads back as exactly ``x`` (TOML and URDF: ``nan``, ``inf``)."""
     x = float(x)
     if math.isnan(x):
         return "nan"
     if math.isinf(x):
         return "inf" if x > 0 else "-inf"
     return repr(x + 0.0)
+
+
+# --------------------------------------------------------------------------------------------
+# TOML
+# --------------------------------------------------------------------------------------------
+
+
+_f = float_text
 
 
 def _arr(v) -> str:
@@ -466,7 +458,7 @@ def to_toml(dep: DeployedModel, robot: RobotDef | None = None) -> str:
 
 def _pose_from(t: dict, what: str) -> np.ndarray:
     try:
-        return _rigid(
+        return as_rigid(
             make_pose(np.asarray(t["R"], float), np.asarray(t["xyz_mm"], float) / 1000), what
         )
     except (KeyError, TypeError, ValueError) as exc:

@@ -85,6 +85,7 @@ __all__ = [
     "wrap_params",
     "minimal_difference",
     "to_dh",
+    "dh_table",
     "canonical_base",
 ]
 
@@ -242,6 +243,8 @@ class IdentificationResult:
         rms_t_mm_before/after: RMS of the tool position error norm (mm) before/after.
         rms_r_deg_before/after: RMS of the tool rotation error angle (deg) before/after.
         iterations: Jacobian evaluations; converged: the Gauss-Newton step met ``tol``.
+        warnings: what it warned about, one sentence each (also emitted as
+            :class:`IdentificationWarning` for people; here as data, so nobody has to catch them).
     """
 
     model: MCPCModel
@@ -267,6 +270,7 @@ class IdentificationResult:
     iterations: int
     converged: bool
     residuals: np.ndarray = field(repr=False)
+    warnings: tuple[str, ...] = ()
 
     @property
     def held(self) -> tuple[str, ...]:
@@ -343,6 +347,13 @@ def _rms(y: np.ndarray) -> tuple[float, float]:
     return t, r
 
 
+def _note(notes: list[str], text: str) -> None:
+    """Record ``text`` for :attr:`IdentificationResult.warnings` and warn the caller of
+    :func:`identify` (an :class:`IdentificationWarning`)."""
+    notes.append(text)
+    warnings.warn(text, IdentificationWarning, stacklevel=3)
+
+
 def identify(
     model: MCPCModel,
     q: np.ndarray,
@@ -387,6 +398,7 @@ def identify(
             ``auto_hold=False``, or no convergence within ``max_iter``.
     """
     q, T_meas = _check_inputs(model, q, T_world_cam)
+    notes: list[str] = []
     m = q.shape[0]
     idx = minimal_indices(model.joint_types)
     names = tuple(param_names(idx))
@@ -407,12 +419,11 @@ def identify(
     model = regauge(chain_transforms(model), model.joint_types, model.joint_offsets)
     start = initial_base(model, q, T_meas) if place_base else model
     if abs(start.params[0, 1]) > np.radians(80.0):
-        warnings.warn(
+        _note(
+            notes,
             f"beta0 = {np.degrees(start.params[0, 1]):.1f} deg: joint 1's axis is nearly along the "
             "world x axis, where V_0's Euler angles are singular; express the measurements in a "
             "frame whose x axis is not along joint 1 (e.g. the nominal base frame) for reliable std",
-            IdentificationWarning,
-            stacklevel=2,
         )
 
     ana = analyse_identifiability(
@@ -426,10 +437,9 @@ def identify(
                 "cannot be identified from these configurations (e.g. a joint that never moves); "
                 "add them to hold=, pass auto_hold=True, or move every joint"
             )
-        warnings.warn(
+        _note(
+            notes,
             f"held at nominal, not identifiable from these configurations: {list(ana.unidentifiable)}",
-            IdentificationWarning,
-            stacklevel=2,
         )
         held_reason.update({nm: "unidentifiable from this data" for nm in ana.unidentifiable})
     estimated = ana.identifiable.copy()
@@ -510,22 +520,20 @@ def identify(
             "is not unique -- hold more parameters or use better-spread configurations"
         )
     if cond > cond_warn:
-        warnings.warn(
+        _note(
+            notes,
             f"ill-conditioned identification: condition number {cond:.3g} > {cond_warn:g}; "
             "std will be large for some parameters -- spread the configurations more",
-            IdentificationWarning,
-            stacklevel=2,
         )
     dof = N - p
     sigma0 = float(np.sqrt(cost / dof))
     cov_s = (Vt.T / s**2) @ Vt
     cov = sigma0**2 * cov_s / np.outer(scale, scale)
     if sigma0 > 10.0:
-        warnings.warn(
+        _note(
+            notes,
             f"residuals are {sigma0:.3g} times the stated sigmas: outliers, wrong sigmas, or a "
             "model that does not fit (e.g. joint compliance, wrong camera pairing)",
-            IdentificationWarning,
-            stacklevel=2,
         )
     phys = np.where(param_is_angle(est), O1_SCALE_RAD, O1_SCALE_M)
     s_phys = np.linalg.svd(R * (scale * phys), compute_uv=False)
@@ -561,6 +569,7 @@ def identify(
         iterations=it,
         converged=converged,
         residuals=y,
+        warnings=tuple(notes),
     )
 
 
@@ -630,7 +639,32 @@ def to_dh(
     Raises:
         ValueError: prismatic joints (not supported) or a joint count different from ``robot``'s.
     """
-    return _dh_impl(model, robot, parallel_tol_deg, exact_parallel_rad, frame0_only=False)
+    table, why = dh_table(
+        model, robot, parallel_tol_deg=parallel_tol_deg, exact_parallel_rad=exact_parallel_rad
+    )
+    if why is not None:
+        warnings.warn(why, DHNotRepresentableWarning, stacklevel=2)
+    return table
+
+
+def dh_table(
+    model: MCPCModel,
+    robot: RobotDef,
+    *,
+    parallel_tol_deg: float = 1.0,
+    exact_parallel_rad: float = 1e-9,
+) -> tuple[DHTable | None, str | None]:
+    """:func:`to_dh` without the warning: ``(table, None)``, or ``(None, why)`` naming the
+    nearly parallel joints and their angle when no sound DH table exists.
+
+    Raises:
+        ValueError: prismatic joints (not supported) or a joint count different from ``robot``'s.
+    """
+    out = _dh_impl(model, robot, parallel_tol_deg, exact_parallel_rad, frame0_only=False)
+    if isinstance(out, str):
+        return None, out
+    assert isinstance(out, DHTable)
+    return out, None
 
 
 def canonical_base(
@@ -649,12 +683,10 @@ def canonical_base(
     Raises:
         ValueError: prismatic joints, or axes 1 and 2 nearly parallel.
     """
-    with warnings.catch_warnings():
-        warnings.simplefilter("error", DHNotRepresentableWarning)
-        try:
-            return _dh_impl(model, robot, parallel_tol_deg, 1e-9, frame0_only=True)
-        except DHNotRepresentableWarning as exc:
-            raise ValueError(f"no canonical base frame: {exc}") from exc
+    out = _dh_impl(model, robot, parallel_tol_deg, 1e-9, frame0_only=True)
+    if isinstance(out, str):
+        raise ValueError(f"no canonical base frame: {out}")
+    return out
 
 
 def _dh_impl(
@@ -663,7 +695,9 @@ def _dh_impl(
     parallel_tol_deg: float,
     exact_parallel_rad: float,
     frame0_only: bool,
-) -> DHTable | np.ndarray | None:
+) -> DHTable | np.ndarray | str:
+    """The DH table (or, ``frame0_only``, DH frame 0 as ``T_world_base``), or the reason why
+    none exists (a string naming the nearly parallel axes)."""
     if any(t != "revolute" for t in model.joint_types):
         raise ValueError("to_dh supports revolute joints only")
     n = model.n
@@ -676,14 +710,11 @@ def _dh_impl(
     for k in range(1 if frame0_only else n - 1):
         s = np.linalg.norm(np.cross(z[k], z[k + 1]))
         if np.sin(exact_parallel_rad) <= s < tol:
-            warnings.warn(
+            return (
                 f"axes of joints {k + 1} and {k + 2} are {np.degrees(np.arcsin(s)):.4g} deg from "
                 f"parallel (< {parallel_tol_deg} deg): no continuous DH table exists; use the MCPC "
-                "parameters (beta) instead",
-                DHNotRepresentableWarning,
-                stacklevel=2,
+                "parameters (beta) instead"
             )
-            return None
 
     def normal(k: int, origin_prev: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Common normal of axes k+1, k+2 (0-based k): (unit x, foot on axis k+1, point on k+2)."""

@@ -50,7 +50,6 @@ kinematic block (points, rig and intrinsics are nuisance parameters, marginalise
 
 from __future__ import annotations
 
-import dataclasses
 import time
 
 import numpy as np
@@ -64,8 +63,6 @@ from calib.estimation.joint_report import (
     aligned_tool_rms_bound,
     encoder_sigma,
     express_in_reference,
-    joint_document,
-    method_summary,
     tool_point_covariance,
 )
 from calib.estimation.joint_result import JointRefinementResult
@@ -88,8 +85,6 @@ __all__ = [
     "joint_refine",
     "tool_point_covariance",
     "encoder_sigma",
-    "method_summary",
-    "joint_document",
     "refine_calibration",
     "aligned_tool_rms_bound",
 ]
@@ -473,12 +468,15 @@ def joint_refine(
     )
 
 
-def refine_calibration(out, obs: Observations, q: np.ndarray, robot, ds_info, **kw):
-    """Run :func:`joint_refine` on a two-stage :class:`calib.calibrate.CalibrationOutput` and
-    return a new one whose document and model are the joint result (``joint`` set), with both
-    methods summarised in ``document["methods"]``. ``ds_info``: the dataset's info (scale
+def refine_calibration(
+    out, obs: Observations, q: np.ndarray, robot, ds_info, **kw
+) -> JointRefinementResult:
+    """Run :func:`joint_refine` from a two-stage :class:`calib.calibrate.CalibrationOutput`
+    (its camera stage and identification); ``diagnostics["used_configs"]`` holds the
+    configurations it started from (the registered ones). ``ds_info``: the dataset's info (scale
     markers and distance). Keyword arguments go to :func:`joint_refine`; by default the joint
-    read-back is modelled with the robot's encoder resolution (:func:`encoder_sigma`)."""
+    read-back is modelled with the robot's encoder resolution (:func:`encoder_sigma`).
+    :func:`calib.results.with_joint` makes it the calibration result."""
     sc, ident = out.selfcal, out.identification
     used = np.flatnonzero(sc.registered if sc.registered.ndim == 1 else sc.registered[:, 0])
     kw.setdefault("joint_sigma", encoder_sigma(robot))
@@ -493,7 +491,4 @@ def refine_calibration(out, obs: Observations, q: np.ndarray, robot, ds_info, **
         **kw,
     )
     res.diagnostics["used_configs"] = used
-    doc = joint_document(out.document, res, robot)
-    doc["method"] = "joint"
-    doc["methods"] = {"two-stage": method_summary(out.document), "joint": method_summary(doc)}
-    return dataclasses.replace(out, document=doc, model=res.model, joint=res)
+    return res

@@ -56,7 +56,7 @@ def bench(poses: int, root: Path) -> dict:
 
     ds = Dataset.open(root)
     t0 = time.perf_counter()
-    dets = detect_dataset(ds)
+    dets = detect_dataset(ds).detections
     t["detect"] = time.perf_counter() - t0
 
     robot = load_robot(ds.info.robot_model)
@@ -91,7 +91,7 @@ def bench(poses: int, root: Path) -> dict:
     t["report"] = time.perf_counter() - t0
     return {
         "poses": poses,
-        "frames_used": cal["dataset"]["frames_used"],
+        "frames_used": cal.dataset.frames_used,
         "times": t,
         "fx_err": rep["intrinsics"]["fx"]["estimate"] - rep["intrinsics"]["fx"]["truth"],
         "cal_rms": rep["validation"]["tool_tip_error_mm"]["calibrated"]["rms"],

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from calib.calibrate import calibrate
+from calib.calibrate import calibrate_detailed
 from calib.io.dataset import Dataset
 from calib.io.truth import read_truth
 from calib.joint_refine import aligned_tool_rms_bound
@@ -53,14 +53,14 @@ def run(poses: list[int], seeds: list[int], pixel_sigma: float) -> None:
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore")
                     t0 = time.perf_counter()
-                    out = calibrate(root, method="joint")
+                    out = calibrate_detailed(root, method="joint")
                     total = time.perf_counter() - t0
                 jr = out.joint
                 truth = read_truth(root / "truth.json")
                 qv = np.radians(Dataset.open(root).info.validation_joints_deg)
                 p_true = tool_tips(truth.true_model, qv, truth.T_cam_tip)
                 two = MCPCModel(
-                    np.asarray(out.document["methods"]["two-stage"]["mcpc_params_si"]),
+                    out.result.methods["two-stage"].mcpc_params_si,
                     out.model.joint_types,
                     out.model.joint_offsets,
                 )
@@ -69,7 +69,7 @@ def run(poses: list[int], seeds: list[int], pixel_sigma: float) -> None:
                     return aligned_errors(tool_tips(model, qv, truth.T_cam_tip), p_true)["rms"]
 
                 crb = 1000 * aligned_tool_rms_bound(jr, qv, truth.T_cam_tip)
-                fx2 = out.document["methods"]["two-stage"]["intrinsics"]["fx"]
+                fx2 = out.result.methods["two-stage"].intrinsics.fx
                 print(
                     f"{n:5d} {seed:4d} {jr.n_inliers:6d} {jr.n_unknowns:5d} "
                     f"{total - jr.seconds:8.2f} {jr.seconds:7.2f} {jr.iterations:4d} "

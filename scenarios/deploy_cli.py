@@ -22,6 +22,7 @@ import numpy as np
 from calib.compensate import solve_compensated
 from calib.export import BASE_FRAME, TOOL_FRAME, DeployError, deploy, from_toml, to_toml, to_urdf
 from calib.ik import UnreachableError
+from calib.io.calibration import read_calibration
 from calib.robot_def import load_robot
 from scenarios.cli_common import CliError, parse_floats
 from sim.export_mjcf import calibrated_mjcf
@@ -65,17 +66,14 @@ def load_calibration(path: str):
     TOML parameter table.
 
     Raises:
-        CliError: missing or unreadable file (the message says what to give instead).
+        CliError: missing file or unusable TOML (the message says what to give instead).
+        CalibrationFileError: a damaged or foreign calibration.json (named, with the fix).
     """
     p = _calibration_file(path)
     try:
         if p.suffix == ".toml":
-            dep = from_toml(p.read_text())
-            return dep
-        doc = json.loads(p.read_text())
-        return deploy(doc, source=str(p))
-    except json.JSONDecodeError as exc:
-        raise CliError(f"{p}: not valid JSON ({exc})") from None
+            return from_toml(p.read_text())
+        return deploy(read_calibration(p), source=str(p))
     except DeployError as exc:
         raise CliError(f"{p}: {exc}") from None
 

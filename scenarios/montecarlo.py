@@ -35,7 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from calib.bounds import aligned_error_dof, cramer_rao, setup_from_output
-from calib.calibrate import _observations, calibrate, detect_dataset
+from calib.calibrate import calibrate_detailed, detect_dataset, observations_of
 from calib.identify import express_in_frame, minimal_difference
 from calib.io.dataset import Dataset, DatasetWriter
 from calib.io.truth import read_truth
@@ -119,7 +119,7 @@ def draw_one(settings: dict) -> dict:
 
 
 def _evaluate(root: Path, pixel_sigma: float) -> dict:
-    out = calibrate(root, method="joint")
+    out = calibrate_detailed(root, method="joint")
     ds = Dataset.open(root)
     robot = load_robot(ds.info.robot_model)
     truth = read_truth(root / "truth.json")
@@ -145,7 +145,7 @@ def _evaluate(root: Path, pixel_sigma: float) -> dict:
         for name, e in zip(out.joint.names, err):
             row[f"{k}_err_{name}"] = float(e)
     # the bound at this draw's joint estimate, with the true noise levels
-    obs = _observations(ds, detect_dataset(ds))
+    obs = observations_of(ds, detect_dataset(ds).detections)
     q = np.radians(ds.joints_deg)
     s = setup_from_output(out, obs, q, robot, ds.info, pixel_sigma_px=pixel_sigma)
     cr = cramer_rao(s)

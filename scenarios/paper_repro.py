@@ -39,6 +39,7 @@ from pathlib import Path
 import numpy as np
 
 from calib.ik import nearest_reachable
+from calib.io.calibration import CalibrationResult
 from calib.io.dataset import DatasetWriter, read_dataset_info
 from calib.io.truth import Truth, read_truth
 from calib.kinematics import fk_dh
@@ -85,7 +86,9 @@ def _acquire_with_postures(s, root: Path, q_deg: np.ndarray, quiet: bool) -> Non
         robot.close()
 
 
-def _camera_measured_tips(cal: dict, truth: Truth, frames: list[int]) -> tuple[np.ndarray, float]:
+def _camera_measured_tips(
+    cal: CalibrationResult, truth: Truth, frames: list[int]
+) -> tuple[np.ndarray, float]:
     """Tool tips (m, simulator world) from the self-calibrated camera poses of ``frames``.
 
     The reconstruction frame is registered to the simulator's world by the best rigid alignment
@@ -93,8 +96,8 @@ def _camera_measured_tips(cal: dict, truth: Truth, frames: list[int]) -> tuple[n
     as the reference frame, whose recovered pose is the identity) is favoured. Returns the tips
     (NaN for unregistered frames) and the RMS of that registration (mm).
     """
-    cp = cal["camera_poses"]
-    pose_of = {int(i): np.asarray(T) for i, T in zip(cp["frame_index"], cp["T_world_cam_left_m"])}
+    cp = cal.camera_poses
+    pose_of = dict(zip(cp.frame_index, cp.T_world_cam_left_m))
     true_of = {f.frame_index: f.T_world_cam_left for f in truth.frames}
     common = sorted(set(pose_of) & set(true_of))
     A = np.array([pose_of[i][:3, 3] for i in common])
@@ -226,8 +229,8 @@ def reproduce(out: str | Path, config: str | Path | None = None, *, quiet: bool 
         "camera_error_rms_mm": float(np.sqrt(np.mean(np.sum((measured - true_mm) ** 2, axis=1)))),
         "camera_registration_rms_mm": reg_rms,
         "table_i_posture_fk_mm": (fk_dh(robot, robot.home)[0, -1, :3, 3] * 1000).tolist(),
-        "fx_px": {"estimate": cal["intrinsics"]["fx"], "truth": rep["intrinsics"]["fx"]["truth"]},
-        "reprojection_rms_px": cal["reprojection_rms_px"],
+        "fx_px": {"estimate": cal.intrinsics.fx, "truth": rep["intrinsics"]["fx"]["truth"]},
+        "reprojection_rms_px": cal.reprojection_rms_px,
         "observation": rep["observation"],
         "seconds": round(time.perf_counter() - t0, 2),
     }

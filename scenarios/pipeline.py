@@ -6,15 +6,15 @@ never opens ``truth.json``; ``report`` does, and only in simulation.
 
 from __future__ import annotations
 
-import json
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-from calib.calibrate import calibrate, model_from_calibration
+from calib.calibrate import calibrate
 from calib.identify import express_in_frame
+from calib.io.calibration import CalibrationResult, read_calibration, write_calibration
 from calib.io.dataset import Dataset, DatasetError, DatasetWriter
 from calib.io.jsonfile import write_json_atomic
 from calib.io.truth import read_truth
@@ -49,22 +49,22 @@ def run_acquire(s: Scenario, out: Path, *, resume: bool = False, quiet: bool = F
     return out
 
 
-def run_calibrate(root: Path, *, quiet: bool = False, method: str = "joint") -> dict:
-    """Calibrate the dataset in ``root`` and write ``root/calibration.json``."""
-    t0 = time.perf_counter()
+def run_calibrate(root: Path, *, quiet: bool = False, method: str = "joint") -> CalibrationResult:
+    """Calibrate the dataset in ``root`` and write ``root/calibration.json``; returns the
+    result. Its warnings are printed (unless ``quiet``)."""
     res = calibrate(root, progress=Progress("detect", enabled=not quiet), method=method)
-    doc = res.document
-    doc["seconds"] = round(time.perf_counter() - t0, 3)
-    write_json_atomic(Path(root) / "calibration.json", doc)
-    i = doc["intrinsics"]
+    write_calibration(Path(root) / "calibration.json", res)
+    i = res.intrinsics
+    for text in res.warnings:
+        _say(quiet, f"warning: {text}")
     _say(
         quiet,
-        f"calibrated {doc['dataset']['frames_used']}/{doc['dataset']['frames']} frames in "
-        f"{doc['seconds']:.1f} s: fx = {i['fx']:.2f} px, mu = {i['mu']:.5f}, "
-        f"reprojection RMS {doc['reprojection_rms_px']:.3f} px, identification rank "
-        f"{doc['identification']['rank']}/{doc['identification']['n_params']}",
+        f"calibrated {res.dataset.frames_used}/{res.dataset.frames} frames in "
+        f"{res.seconds:.1f} s: fx = {i.fx:.2f} px, mu = {i.mu:.5f}, "
+        f"reprojection RMS {res.reprojection_rms_px:.3f} px, identification rank "
+        f"{res.identification.rank}/{res.identification.n_params}",
     )
-    return doc
+    return res
 
 
 def run_report(root: Path, *, quiet: bool = False) -> dict:
@@ -80,20 +80,10 @@ def run_report(root: Path, *, quiet: bool = False) -> dict:
             f"{truth_path} is missing: a report compares with ground truth, which only the "
             "simulator has (hardware datasets have no truth.json)"
         )
-
-    try:
-        cal = json.loads(cal_path.read_text())
-    except json.JSONDecodeError as exc:
-        raise DatasetError(
-            f"{cal_path}: not valid JSON ({exc}); re-run `selfcal calibrate`"
-        ) from None
+    cal = read_calibration(cal_path)
     truth = read_truth(truth_path)
     robot = load_robot(ds.info.robot_model)
-    est = model_from_calibration(cal, str(cal_path))
-    if "camera_poses" not in cal or "parameters" not in cal:
-        raise DatasetError(
-            f"{cal_path}: incomplete calibration document; re-run `selfcal calibrate`"
-        )
+    est = cal.model
     T_cam_tip = truth.T_cam_tip
     qv = np.radians(ds.info.validation_joints_deg)
 
@@ -103,19 +93,14 @@ def run_report(root: Path, *, quiet: bool = False) -> dict:
 
     # Truth in the estimate's world frame: the reconstruction frame is the true left camera of
     # the reference frame, so the transform is known exactly in simulation.
-    ref = int(cal["camera_poses"]["reference_frame_index"])
+    ref = cal.camera_poses.reference_frame_index
     ref_truth = truth.frame(ref)
     if ref_truth is None:
         raise DatasetError(f"{truth_path} lacks frame {ref}; the dataset and truth disagree")
     T_recon_world = inv_pose(ref_truth.T_world_cam_left)
     truth_est = express_in_frame(truth.true_model, T_recon_world, like=est)
     nominal_est = express_in_frame(truth.nominal_model, T_recon_world, like=est)
-    std = {p["name"]: (np.nan if p["std"] is None else p["std"]) for p in cal["parameters"]}
-    std_si = {
-        k: v * (np.pi / 180 if p["unit"] == "deg" else 1e-3)
-        for p in cal["parameters"]
-        for k, v in [(p["name"], std[p["name"]])]
-    }
+    std_si = {p.name: np.nan if p.std is None else p.std * p.to_si for p in cal.parameters}
     params = parameter_table(est, std_si, truth_est, nominal_est)
 
     table_iv = []
@@ -139,9 +124,9 @@ def run_report(root: Path, *, quiet: bool = False) -> dict:
                 }
             )
     ti = truth.intrinsics_left
-    bounds = cal.get("bounds", {})
-    if "tool_tip_rms_mm" in bounds:
-        bound_by_name = {b["name"]: b["bound"] for b in bounds.get("parameters", [])}
+    bounds = cal.bounds
+    if bounds is not None:
+        bound_by_name = {b.name: b.bound for b in bounds.parameters}
         for row in params:
             row["bound"] = bound_by_name.get(row["name"])
     report = {
@@ -151,7 +136,7 @@ def run_report(root: Path, *, quiet: bool = False) -> dict:
                 "nominal": {"rms": err_nom["rms"], "max": err_nom["max"]},
                 "calibrated": {"rms": err_cal["rms"], "max": err_cal["max"]},
             },
-            "tool_tip_bound_mm": bounds.get("tool_tip_rms_mm", {}).get("bound"),
+            "tool_tip_bound_mm": None if bounds is None else bounds.tool_tip_rms_bound_mm,
             "note": (
                 "tool-tip errors after the best rigid alignment (rotation and translation, no "
                 "scale) of the predicted positions to the true ones over the validation postures: "
@@ -160,13 +145,13 @@ def run_report(root: Path, *, quiet: bool = False) -> dict:
             ),
         },
         "intrinsics": {
-            "fx": {"estimate": cal["intrinsics"]["fx"], "truth": ti.fx},
-            "mu": {"estimate": cal["intrinsics"]["mu"], "truth": ti.mu},
+            "fx": {"estimate": cal.intrinsics.fx, "truth": ti.fx},
+            "mu": {"estimate": cal.intrinsics.mu, "truth": ti.mu},
         },
-        "scale_factor": cal["scale"]["k"],
-        "reprojection_rms_px": cal["reprojection_rms_px"],
+        "scale_factor": cal.scale.k,
+        "reprojection_rms_px": cal.reprojection_rms_px,
         "effective_corner_noise_px": float(
-            cal.get("joint", {}).get("sigma_px", cal["reprojection_rms_px"] / np.sqrt(2))
+            cal.reprojection_rms_px / np.sqrt(2) if cal.joint is None else cal.joint.sigma_px
         ),
         "effective_corner_noise_note": (
             "per-coordinate corner noise estimated from the final residuals, corrected for the "
@@ -248,7 +233,7 @@ def run_all(
             f"tool-tip error on {rep['validation']['poses']} validation postures: nominal "
             f"{v['nominal']['rms']:.3f} mm RMS (max {v['nominal']['max']:.3f}), calibrated "
             f"{v['calibrated']['rms']:.3f} mm RMS (max {v['calibrated']['max']:.3f}); "
-            f"fx {cal['intrinsics']['fx']:.2f} px; total {time.perf_counter() - t0:.1f} s; "
+            f"fx {cal.intrinsics.fx:.2f} px; total {time.perf_counter() - t0:.1f} s; "
             f"details in {out}/report.md"
         )
     return result

@@ -26,15 +26,14 @@ model's camera centres when there is no ``truth.json``, e.g. on hardware).
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from calib.calibrate import detect_dataset, model_from_calibration
-from calib.camera import Intrinsics
+from calib.calibrate import detect_dataset
 from calib.errors import InputError
+from calib.io.calibration import read_calibration
 from calib.io.dataset import Dataset, DatasetError
 from calib.io.truth import read_truth
 from calib.kinematics import fk_tool
@@ -157,18 +156,15 @@ def record_run(dataset_dir: str | Path, rrd_path: str | Path | None, spawn: bool
     cal_path = root / "calibration.json"
     if not cal_path.is_file():
         raise DatasetError(f"{cal_path} is missing: run `selfcal calibrate {root}` first")
-    cal = json.loads(cal_path.read_text())
+    cal = read_calibration(cal_path)
     robot = load_robot(ds.info.robot_model)
     nominal = dh_to_mcpc(robot).with_tool(robot.T_flange_cam)
     truth = read_truth(root / "truth.json") if (root / "truth.json").is_file() else None
 
-    ci = cal["intrinsics"]
-    est_intr = Intrinsics(
-        ci["fx"], ci["mu"], ci["cx"], ci["cy"], int(ci["width"]), int(ci["height"])
-    )
-    T_lr_est = np.asarray(cal["rig"]["T_left_right_m"])
-    cp = cal["camera_poses"]
-    est_pose = {int(i): np.asarray(T) for i, T in zip(cp["frame_index"], cp["T_world_cam_left_m"])}
+    est_intr = cal.pinhole
+    T_lr_est = cal.T_left_right_m
+    cp = cal.camera_poses
+    est_pose = dict(zip(cp.frame_index, cp.T_world_cam_left_m))
     q_read = {int(i): np.radians(q) for i, q in zip(ds.indices, ds.joints_deg)}
     true_frame = {
         f.frame_index: f for f in (truth.frames if truth else ()) if f.frame_index is not None
@@ -185,7 +181,7 @@ def record_run(dataset_dir: str | Path, rrd_path: str | Path | None, spawn: bool
     est_world = {i: T_world_recon @ T for i, T in est_pose.items()}
 
     # Detections (images: detect again; analytic: stored).
-    dets = detect_dataset(ds)
+    dets = detect_dataset(ds).detections
 
     # Triangulated points from the estimated cameras (reconstruction frame -> world).
     K = est_intr.K
@@ -217,7 +213,7 @@ def record_run(dataset_dir: str | Path, rrd_path: str | Path | None, spawn: bool
         return float(np.sqrt(np.mean(r))) if r else float("nan")
 
     # Identification residual per pose (truth-free): calibrated model FK vs the camera pose.
-    est_model = model_from_calibration(cal)
+    est_model = cal.model
     fr_used = sorted(est_pose)
     T_fk = fk_tool(est_model, np.array([q_read[i] for i in fr_used]))
     ident_res = {}
@@ -316,14 +312,14 @@ def record_run(dataset_dir: str | Path, rrd_path: str | Path | None, spawn: bool
             ),
             static=True,
         )
-    ident = cal.get("identification", {})
-    pr = ident.get("pose_residual_rms", {})
+    ident = cal.identification
+    pr = {"before": ident.before, "after": ident.after}
     note = (
         "# scorbot-selfcal run\n\n"
         f"dataset `{root}`; {len(ds.indices)} frames, {len(est_pose)} registered; observation "
         f"{ds.info.observation}; truth: {'yes' if truth else 'no (hardware?)'}.\n\n"
-        f"fx = {ci['fx']:.2f} px, mu = {ci['mu']:.5f}, reprojection RMS "
-        f"{cal.get('reprojection_rms_px', float('nan')):.3f} px.\n\n"
+        f"fx = {est_intr.fx:.2f} px, mu = {est_intr.mu:.5f}, reprojection RMS "
+        f"{cal.reprojection_rms_px:.3f} px.\n\n"
         "Per-iteration residuals: calibration.json does not record them (only the pose residual "
         "RMS before and after identification and the iteration count), so the "
         "`identification_iteration` timeline holds just those two points.\n\n"
@@ -332,12 +328,11 @@ def record_run(dataset_dir: str | Path, rrd_path: str | Path | None, spawn: bool
         f"{'true' if truth else 'nominal-model'} ones."
     )
     rec.log("notes", rr.TextDocument(note, media_type=rr.MediaType.MARKDOWN), static=True)
-    if pr:
-        for it, which in ((0, "before"), (max(int(ident.get("iterations", 1)), 1), "after")):
-            rec.set_time("identification_iteration", sequence=it)
-            rec.log("errors/identification/pose_residual_rms_mm", rr.Scalars(pr[which]["mm"]))
-            rec.log("errors/identification/pose_residual_rms_deg", rr.Scalars(pr[which]["deg"]))
-        rec.reset_time()
+    for it, which in ((0, "before"), (max(ident.iterations, 1), "after")):
+        rec.set_time("identification_iteration", sequence=it)
+        rec.log("errors/identification/pose_residual_rms_mm", rr.Scalars(pr[which].mm))
+        rec.log("errors/identification/pose_residual_rms_deg", rr.Scalars(pr[which].deg))
+    rec.reset_time()
 
     # Per frame.
     for i, q in sorted(q_read.items()):

@@ -88,11 +88,11 @@ def run_one(settings: dict) -> dict:
             nom_max_mm=v["nominal"]["max"],
             fx_err_px=rep["intrinsics"]["fx"]["estimate"] - rep["intrinsics"]["fx"]["truth"],
             mu_err=rep["intrinsics"]["mu"]["estimate"] - rep["intrinsics"]["mu"]["truth"],
-            reproj_rms_px=cal["reprojection_rms_px"],
-            eff_noise_px=cal["reprojection_rms_px"] / math.sqrt(2),
-            frames=cal["dataset"]["frames"],
-            frames_used=cal["dataset"]["frames_used"],
-            rank=cal["identification"]["rank"],
+            reproj_rms_px=cal.reprojection_rms_px,
+            eff_noise_px=cal.reprojection_rms_px / math.sqrt(2),
+            frames=cal.dataset.frames,
+            frames_used=cal.dataset.frames_used,
+            rank=cal.identification.rank,
         )
     except Exception as exc:  # noqa: BLE001 - a study records failures instead of stopping
         row["status"] = f"failed: {type(exc).__name__}: {str(exc)[:200]}"

@@ -64,8 +64,9 @@ def calibrated_spec(dep: DeployedModel, robot: RobotDef | None = None) -> mujoco
 
 
 def calibrated_mjcf(calibration, robot: RobotDef | None = None) -> str:
-    """MJCF text of the calibrated robot: ``calibration`` is a ``calibration.json`` document or a
-    :class:`calib.export.DeployedModel` (see the module docstring)."""
+    """MJCF text of the calibrated robot: ``calibration`` is a
+    :class:`calib.io.calibration.CalibrationResult` or a :class:`calib.export.DeployedModel` (see
+    the module docstring)."""
     dep = as_deployed(calibration, robot)
     spec = calibrated_spec(dep, robot)
     spec.compile()  # validates; to_xml reflects the compiled spec

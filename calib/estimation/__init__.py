@@ -5,7 +5,7 @@
 - :mod:`calib.estimation.kinematic_poses`: camera poses from the MCPC kinematic chain;
 - :mod:`calib.estimation.reprojection`: the projection and the image-observation residual block;
 - :mod:`calib.estimation.residuals`: a known scene distance and Gaussian priors;
-- :mod:`calib.estimation.joint_report`: the one-step refinement's report and covariances.
+- :mod:`calib.estimation.joint_report`: the one-step refinement's covariances.
 
 The drivers stay where callers import them: :func:`calib.bundle_adjust.bundle_adjust` and
 :func:`calib.joint_refine.joint_refine`.

@@ -1,4 +1,4 @@
-"""The project's file formats.
+"""The project's file formats: the dataset folder, ``calibration.json`` and ``truth.json``.
 
 Each file is a frozen dataclass with one writer and one reader, and starts with ``format`` and
 ``schema_version`` (:mod:`calib.io.jsonfile`):
@@ -6,5 +6,7 @@ Each file is a frozen dataclass with one writer and one reader, and starts with 
 - :mod:`calib.io.dataset`: the dataset folder (:class:`~calib.io.dataset.Dataset`;
   ``dataset.json`` as :class:`~calib.io.dataset.DatasetInfo`; the
   :class:`~calib.io.dataset.DatasetWriter`).
+- :mod:`calib.io.calibration`: ``calibration.json`` as
+  :class:`~calib.io.calibration.CalibrationResult` (blocks in :mod:`calib.io.calibration_blocks`).
 - :mod:`calib.io.truth`: ``truth.json`` (simulation only) as :class:`~calib.io.truth.Truth`.
 """

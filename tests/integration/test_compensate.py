@@ -53,7 +53,7 @@ def noise_free(tmp_path_factory):
     return _run(tmp_path_factory, "nf", {"noise": nf, "trajectory": {"poses": 12}})
 
 
-def _table(cal: dict, truth) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _table(cal, truth) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Actual tool-tip errors (mm) at Table II for nominal and compensated commands, and the
     compensated joints (rad)."""
     dep = deploy(cal)

@@ -27,7 +27,8 @@ def run(capsys, *argv):
 def test_the_kinds_carry_their_codes():
     assert (InputError.exit_code, EstimationError.exit_code, HardwareError.exit_code) == (2, 3, 4)
     # every class the project raises on purpose has the one root
-    from calib.calibrate import CalibrationError, CalibrationFileError
+    from calib.calibrate import CalibrationError
+    from calib.io.calibration import CalibrationFileError
     from calib.robot_def import RobotDefinitionError
     from hw.acl_errors import AclControllerError
     from scenarios.config import ConfigError
@@ -36,9 +37,7 @@ def test_the_kinds_carry_their_codes():
     assert issubclass(CalibrationError, EstimationError) and issubclass(
         AclControllerError, HardwareError
     )
-    assert CalibrationFileError.exit_code == 2 and issubclass(
-        CalibrationFileError, CalibrationError
-    )
+    assert CalibrationFileError.exit_code == 2 and issubclass(CalibrationFileError, InputError)
     assert all(issubclass(c, SelfCalError) for c in (ConfigError, CalibrationError))
 
 

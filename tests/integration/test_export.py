@@ -21,6 +21,7 @@ from scipy.spatial.transform import Rotation
 from calib.export import (
     FIXED_BY_BASE_FRAME,
     DeployError,
+    as_deployed,
     deploy,
     deploy_chain,
     from_toml,
@@ -28,6 +29,7 @@ from calib.export import (
     to_toml,
     to_urdf,
 )
+from calib.io.calibration import read_calibration
 from calib.kinematics import fk_dh, fk_frames
 from calib.mcpc import minimal_indices, param_names
 from calib.robot_def import load_robot, models_dir
@@ -45,7 +47,8 @@ ROBOT = load_robot("er4u-paper")
 
 @pytest.fixture(scope="module")
 def calibration(tmp_path_factory):
-    """A real calibration.json from a small analytic scenario (~3 s)."""
+    """A real calibration (folder, result read back from calibration.json) from a small analytic
+    scenario (~3 s)."""
     out = tmp_path_factory.mktemp("cal") / "ds"
     s = load_scenario(
         overrides={
@@ -56,7 +59,7 @@ def calibration(tmp_path_factory):
     )
     run_acquire(s, out, quiet=True)
     run_calibrate(out, quiet=True)
-    return out, json.loads((out / "calibration.json").read_text())
+    return out, read_calibration(out)
 
 
 @pytest.fixture(scope="module")
@@ -97,10 +100,8 @@ def test_nominal_robot_deploys_to_the_nominal_dh_chain_wherever_it_is_placed():
 
 def test_deployed_chain_is_the_same_physical_robot(deployed, calibration):
     """Placed back with T_world_base, the deployed chain gives the calibration's camera poses."""
-    from calib.calibrate import model_from_calibration
-
     q = random_q(30, seed=1)
-    est = model_from_calibration(calibration[1])
+    est = calibration[1].model
     cam_world = deployed.T_world_base @ fk_frames(deployed.camera_model(), q)[:, -1]
     assert np.abs(cam_world - fk_frames(est, q)[:, -1]).max() < 1e-12
     # and independent of the world the identified model happens to live in
@@ -295,8 +296,8 @@ def test_perturbed_arm_with_dh_table_round_trips():
 
 
 def test_bad_inputs_name_the_problem(tmp_path):
-    with pytest.raises(DeployError, match="calibration document"):
-        deploy({"format": "something else"})
+    with pytest.raises(DeployError, match="CalibrationResult"):
+        as_deployed({"format": "something else"})
     with pytest.raises(DeployError, match="format"):
         from_toml('format = "nope"\n')
     with pytest.raises(DeployError, match="not valid TOML"):
@@ -324,7 +325,7 @@ def test_cli_export(calibration, tmp_path, capsys, fmt):
     assert args.func(args) == 0
     info = json.loads(capsys.readouterr().out)
     assert info["format"] == fmt and info["out"] == str(out)
-    dep = deploy(json.loads((root / "calibration.json").read_text()))
+    dep = deploy(read_calibration(root))
     q = random_q(5, seed=7)
     if fmt == "mjcf":
         got = _mj_frames(mujoco.MjModel.from_xml_path(str(out)), q)[:, 5]

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 
+from calib.io.calibration import read_calibration
+from calib.io.jsonfile import dumps
 from scenarios.config import load_scenario
 from scenarios.pipeline import run_acquire, run_calibrate, run_report
 
@@ -11,7 +13,11 @@ from scenarios.pipeline import run_acquire, run_calibrate, run_report
 def test_default_scenario_analytic_matches_golden(tmp_path, golden):
     s = load_scenario(overrides={"noise": {"render": False}})
     run_acquire(s, tmp_path, quiet=True)
-    run_calibrate(tmp_path, quiet=True)
+    result = run_calibrate(tmp_path, quiet=True)
     run_report(tmp_path, quiet=True)
-    golden("analytic/calibration.json", json.loads((tmp_path / "calibration.json").read_text()))
+    text = (tmp_path / "calibration.json").read_text()
+    golden("analytic/calibration.json", json.loads(text))
     golden("analytic/report.json", json.loads((tmp_path / "report.json").read_text()))
+    # the file is the result, and reading it back gives the same text
+    assert text == dumps(result.to_json()) == dumps(read_calibration(tmp_path).to_json())
+    assert result.dataset.skipped_images == () and result.bounds is not None

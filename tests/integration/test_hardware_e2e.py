@@ -25,7 +25,7 @@ import numpy as np
 import pytest
 import tomllib
 
-from calib.calibrate import model_from_calibration
+from calib.io.calibration import read_calibration
 from calib.io.dataset import Dataset
 from calib.report import aligned_errors, tool_tips
 from calib.robot import Robot
@@ -57,7 +57,7 @@ def scenario_file(path: Path, snippet: str, extra: str = "") -> Path:
 
 def truth_errors(root: Path, truth, q_rad: np.ndarray) -> dict:
     """Tool-tip errors (mm, after rigid alignment) of the calibrated and nominal models at ``q``."""
-    est = model_from_calibration(json.loads((root / "calibration.json").read_text()))
+    est = read_calibration(root).model
     p_true = tool_tips(truth.true_model, q_rad, truth.T_cam_tip)
     return {
         "calibrated": aligned_errors(tool_tips(est, q_rad, truth.T_cam_tip), p_true)["rms"],
@@ -168,7 +168,7 @@ def test_calibrated_model_against_truth_and_the_sim_backend(runs, backend):
     )
     assert e_hw["calibrated"] <= 1.5 * e_sim["calibrated"]
     assert e_hw["calibrated"] * 5 <= e_hw["nominal"]
-    fx = runs["doc_hw"]["intrinsics"]["fx"]
+    fx = runs["doc_hw"].intrinsics.fx
     assert abs(fx / truth.intrinsics_left.fx - 1) < 0.005
 
 

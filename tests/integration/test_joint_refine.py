@@ -7,13 +7,13 @@ docstring of scenarios/benchmark_joint.py.
 
 from __future__ import annotations
 
-import json
 import warnings
 
 import numpy as np
 import pytest
 
-from calib.calibrate import calibrate
+from calib.calibrate import calibrate, calibrate_detailed
+from calib.io.calibration import read_calibration
 from calib.io.dataset import Dataset
 from calib.io.truth import read_truth
 from calib.joint_refine import (
@@ -108,22 +108,22 @@ def noise_free(tmp_path_factory):
 def test_noise_free_recovers_injected_parameters(noise_free):
     cal = run_calibrate(noise_free, quiet=True)
     rep = run_report(noise_free, quiet=True)
-    assert cal["method"] == "joint" and set(cal["methods"]) == {"two-stage", "joint"}
-    assert cal["joint"]["rank"] == cal["joint"]["n_unknowns"]
+    assert cal.method == "joint" and set(cal.methods) == {"two-stage", "joint"}
+    assert cal.joint is not None and cal.joint.rank == cal.joint.n_unknowns
     # in the estimate's gauge (world = reference camera, known exactly in simulation)
     for p in rep["parameters"]:
         assert abs(p["estimate"] - p["truth"]) < 1e-6, (p["name"], p["estimate"], p["truth"])
     assert rep["validation"]["tool_tip_error_mm"]["calibrated"]["rms"] < 1e-3
-    assert abs(cal["intrinsics"]["fx"] - 800.0) < 1e-4
-    assert json.loads((noise_free / "calibration.json").read_text())["method"] == "joint"
+    assert abs(cal.intrinsics.fx - 800.0) < 1e-4
+    assert read_calibration(noise_free).method == "joint"
 
 
 def test_two_stage_method_and_bad_method(noise_free):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         out = calibrate(noise_free, method="two-stage")
-    assert out.joint is None and out.document["method"] == "two-stage"
-    assert set(out.document["methods"]) == {"two-stage"}
+    assert out.joint is None and out.method == "two-stage"
+    assert set(out.methods) == {"two-stage"}
     with pytest.raises(ValueError, match="method"):
         calibrate(noise_free, method="one-step")
 
@@ -135,12 +135,12 @@ def noisy_results(tmp_path_factory):
         root = _dataset(tmp_path_factory, f"n{seed}", {"pixel_sigma": 0.5, "seed": seed})
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            out = calibrate(root)
+            out = calibrate_detailed(root)
         truth = read_truth(root / "truth.json")
         qv = np.radians(Dataset.open(root).info.validation_joints_deg)
         p_true = tool_tips(truth.true_model, qv, truth.T_cam_tip)
         two = MCPCModel(
-            np.asarray(out.document["methods"]["two-stage"]["mcpc_params_si"]),
+            out.result.methods["two-stage"].mcpc_params_si,
             out.model.joint_types,
             out.model.joint_offsets,
         )
@@ -155,7 +155,7 @@ def noisy_results(tmp_path_factory):
                 "two_stage": err(two),
                 "joint": err(out.model),
                 "crb": 1000 * aligned_tool_rms_bound(out.joint, qv, truth.T_cam_tip),
-                "fx": out.document["intrinsics"]["fx"],
+                "fx": out.result.intrinsics.fx,
                 "fx_true": truth.intrinsics_left.fx,
             }
         )
@@ -180,7 +180,7 @@ def test_noisy_joint_beats_two_stage_and_meets_accuracy(noisy_results):
 def test_fk_tool_world_is_reference_camera(noise_free):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        out = calibrate(noise_free)
+        out = calibrate_detailed(noise_free)
     ref = out.joint.ref_config
     q_ref = np.radians(Dataset.open(noise_free).joints_deg[ref : ref + 1])
     np.testing.assert_allclose(fk_tool(out.model, q_ref)[0], np.eye(4), atol=1e-9)

@@ -16,8 +16,9 @@ import shutil
 import numpy as np
 import pytest
 
-from calib.calibrate import CalibrationError, NoMarkersWarning, calibrate
-from calib.io.dataset import DatasetError
+from calib.calibrate import CalibrationError, NoMarkersWarning, calibrate, detect_dataset
+from calib.io.calibration import read_calibration
+from calib.io.dataset import Dataset, DatasetError
 from calib.trajectory import DegenerateTrajectoryError
 from scenarios.config import load_scenario
 from scenarios.pipeline import run_acquire, run_calibrate, run_report
@@ -86,8 +87,8 @@ def test_non_parallel_axes_that_dh_cannot_represent(tmp_path):
     # flips the sign of beta; the size of the misalignment is gauge-invariant
     assert abs(abs(p["beta2"]["truth"] - p["beta2"]["nominal"]) - 0.2) < 1e-9
     assert abs(p["beta2"]["estimate"] - p["beta2"]["truth"]) < 1e-6
-    cal = json.loads((out / "calibration.json").read_text())
-    assert cal["dh"] is None and "2" in cal["dh_note"]
+    cal = read_calibration(out)
+    assert cal.dh is None and cal.dh_note is not None and "2" in cal.dh_note
 
 
 def check_accuracy(rep, *, rms_max: float, factor: float, fx_rel: float):
@@ -135,8 +136,15 @@ def test_images_without_markers(tmp_path):
     run_acquire(scenario(trajectory={"poses": 6}, validation={"poses": 3}), out, quiet=True)
     import cv2
 
+    blank = np.full((480, 640), 128, np.uint8)
+    # one blank image: skipped, named in the result's data (and a warning for people)
+    cv2.imwrite(str(out / "frames" / "0003_left.png"), blank)
+    with pytest.warns(NoMarkersWarning, match="1 image"):
+        found = detect_dataset(Dataset.open(out))
+    assert found.skipped_images == ("0003_left",)
+    assert (3, "left") not in found.detections and (3, "right") in found.detections
     for p in (out / "frames").glob("*.png"):
-        cv2.imwrite(str(p), np.full((480, 640), 128, np.uint8))
+        cv2.imwrite(str(p), blank)
     with pytest.raises(CalibrationError, match="no marker was detected"):
         with pytest.warns(NoMarkersWarning, match="12 image"):
             calibrate(out)

@@ -319,7 +319,7 @@ def test_canonical_base_removes_the_world_gauge() -> None:
 def test_calibration_document_names_each_held_parameter_with_its_reason() -> None:
     """calibration.json's identification.held maps each held name to *its* reason (explicit vs
     unidentifiable), also when both kinds occur."""
-    from calib.calibrate import identification_summary
+    from calib.results import identification_summary
 
     robot = load_robot("er4u-vendor")
     nom = nominal(robot)
@@ -328,8 +328,10 @@ def test_calibration_document_names_each_held_parameter_with_its_reason() -> Non
     q[:, 4] = 0.3
     with pytest.warns(IdentificationWarning):
         res = identify(nom, q, fk_tool(perturbed(nom, rng), q), hold=["beta1"])
-    held = identification_summary(res)["held"]
+    held = identification_summary(res).held
     assert held["beta1"] == "explicit"
     for name in ("alpha4", "beta4", "lx4", "ly4"):
         assert "unidentifiable" in held[name]
     assert set(held) == {"beta1", "alpha4", "beta4", "lx4", "ly4"}
+    # what it warned about is data on the result too (nobody has to catch the warning)
+    assert any("not identifiable" in w and "alpha4" in w for w in res.warnings)

@@ -1,4 +1,4 @@
-"""The file formats (dataset.json, truth.json so far): one writer, one reader.
+"""The three file formats (dataset.json, calibration.json, truth.json): one writer, one reader.
 
 Round trips are byte-identical (write -> read -> write); a file of another format, of a newer
 schema_version, or lacking a key is an InputError naming the file and the key.
@@ -14,10 +14,18 @@ import pytest
 
 from calib.camera import Intrinsics
 from calib.errors import InputError
+from calib.io.calibration import (
+    CalibrationFileError,
+    CalibrationResult,
+    read_calibration,
+    write_calibration,
+)
 from calib.io.dataset import DatasetError, DatasetInfo, read_dataset_info, write_dataset_info
 from calib.io.truth import Truth, TruthFileError, read_truth, write_truth
 from calib.mcpc import MCPCModel, dh_to_mcpc
 from calib.robot_def import load_robot
+
+GOLDEN = Path(__file__).resolve().parents[1] / "golden"
 
 
 def dataset_info() -> DatasetInfo:
@@ -71,9 +79,16 @@ def truth() -> Truth:
     return t
 
 
+def golden_calibration() -> CalibrationResult:
+    doc = json.loads((GOLDEN / "analytic" / "calibration.json").read_text())
+    return CalibrationResult.from_json(doc, "golden")
+
+
 # name -> (value, writer, reader, error kind)
 FILES = {
     "dataset.json": (dataset_info, write_dataset_info, read_dataset_info, DatasetError),
+    "calibration.json": (golden_calibration, write_calibration, read_calibration,
+                         CalibrationFileError),
     "truth.json": (truth, write_truth, read_truth, TruthFileError),
 }  # fmt: skip
 
@@ -88,6 +103,17 @@ def test_write_read_write_is_byte_identical(tmp_path, name):
     assert a.read_bytes() == b.read_bytes()
     doc = json.loads(a.read_text())
     assert doc["schema_version"] == 1 and list(doc)[:2] == ["format", "schema_version"]
+
+
+def test_calibration_keeps_every_key_and_number_of_the_golden_file(tmp_path):
+    """Reading and writing loses nothing: the golden document comes back key for key (plus the
+    keys this schema adds), every number bit for bit."""
+    golden = json.loads((GOLDEN / "analytic" / "calibration.json").read_text())
+    path = write_calibration(tmp_path / "calibration.json", golden_calibration())
+    back = json.loads(path.read_text())
+    assert set(back) - set(golden) == {"warnings"}
+    assert back["dataset"].pop("skipped_images") == [] and back.pop("warnings") == []
+    assert back == golden
 
 
 def _valid_doc(tmp_path: Path, name: str) -> dict:
@@ -119,6 +145,7 @@ def test_an_unknown_format_names_the_file_and_the_key(tmp_path, name):
 # a nested key each file cannot do without
 MISSING = {
     "dataset.json": ("target", "scale_length_mm"),
+    "calibration.json": ("intrinsics", "fx"),
     "truth.json": ("cameras", "T_left_right"),
 }
 
@@ -149,7 +176,7 @@ def test_malformed_values_and_non_json_are_input_errors(tmp_path, name):
 
 
 def test_files_written_before_schema_version_read_as_version_1(tmp_path):
-    """dataset.json used to carry "version": 1, truth.json nothing."""
+    """dataset.json and calibration.json used to carry "version": 1, truth.json nothing."""
     for name in FILES:
         doc = _valid_doc(tmp_path, name)
         del doc["schema_version"]
@@ -157,3 +184,23 @@ def test_files_written_before_schema_version_read_as_version_1(tmp_path):
             doc["version"] = 1
         (tmp_path / name).write_text(json.dumps(doc))
         FILES[name][2](tmp_path / name)
+
+
+def test_calibration_result_gives_the_model_and_si_std():
+    res = golden_calibration()
+    doc = json.loads((GOLDEN / "analytic" / "calibration.json").read_text())
+    np.testing.assert_array_equal(res.model.params, np.asarray(doc["mcpc"]["params_si"]))
+    assert res.model.joint_types == tuple(doc["mcpc"]["joint_types"])
+    p = doc["parameters"][0]
+    assert res.std_si()[p["name"]] == pytest.approx(p["std"] * np.pi / 180, rel=1e-15)
+    assert res.pinhole.fx == doc["intrinsics"]["fx"]
+
+
+def test_calibration_mcpc_shape_is_checked(tmp_path):
+    doc = json.loads((GOLDEN / "analytic" / "calibration.json").read_text())
+    doc["mcpc"]["params_si"] = doc["mcpc"]["params_si"][:-1]
+    (tmp_path / "calibration.json").write_text(json.dumps(doc))
+    with pytest.raises(CalibrationFileError, match="key 'mcpc.params_si' must be an array"):
+        read_calibration(tmp_path)
+    with pytest.raises(CalibrationFileError, match="missing"):
+        read_calibration(tmp_path / "nowhere")
