@@ -20,7 +20,9 @@ from pathlib import Path
 import numpy as np
 
 from calib.compensate import solve_compensated
-from calib.export import BASE_FRAME, TOOL_FRAME, DeployError, deploy, from_toml, to_toml, to_urdf
+from calib.export import BASE_FRAME, TOOL_FRAME, DeployError, deploy
+from calib.export_toml import from_toml, to_toml
+from calib.export_urdf import to_urdf
 from calib.ik import UnreachableError
 from calib.io.calibration import read_calibration
 from calib.robot_def import load_robot

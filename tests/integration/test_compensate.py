@@ -18,6 +18,7 @@ import pytest
 
 from calib.compensate import compensated_ik, solve_compensated, tool_target_residual
 from calib.export import deploy, deploy_chain
+from calib.export_toml import to_toml
 from calib.ik import UnreachableError, ik_nearest
 from calib.io.dataset import read_dataset_info
 from calib.io.truth import read_truth
@@ -171,7 +172,6 @@ def test_cli_ik_with_calibration(noise_free, capsys, tmp_path, with_nominal_ik):
         args = parser.parse_args(argv)
         assert args.func(args) == "nominal"
     # the exported parameter table gives the same commands
-    from calib.export import to_toml
 
     toml_path = tmp_path / "robot.toml"
     toml_path.write_text(to_toml(deploy(cal), ROBOT))

@@ -24,11 +24,10 @@ from calib.export import (
     as_deployed,
     deploy,
     deploy_chain,
-    from_toml,
     nominal_deployed_params,
-    to_toml,
-    to_urdf,
 )
+from calib.export_toml import from_toml, to_toml
+from calib.export_urdf import to_urdf
 from calib.io.calibration import read_calibration
 from calib.kinematics import fk_dh, fk_frames
 from calib.mcpc import minimal_indices, param_names
