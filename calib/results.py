@@ -20,7 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from calib.bounds import BoundsError, cramer_rao, setup_from_output
+from calib.bounds import BoundsError, cramer_rao
+from calib.bounds_setup import setup_from_output
 from calib.estimation.joint_result import JointRefinementResult
 from calib.identify import IdentificationResult, dh_table
 from calib.io.calibration import CalibrationResult

@@ -34,7 +34,8 @@ from pathlib import Path
 
 import numpy as np
 
-from calib.bounds import aligned_error_dof, cramer_rao, setup_from_output
+from calib.bounds import aligned_error_dof, cramer_rao
+from calib.bounds_setup import setup_from_output
 from calib.calibrate import calibrate_detailed, detect_dataset, observations_of
 from calib.identify import express_in_frame, minimal_difference
 from calib.io.dataset import Dataset, DatasetWriter

@@ -14,7 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from calib.bounds import cramer_rao, predicted_setup
+from calib.bounds import cramer_rao
+from calib.bounds_setup import predicted_setup
 from calib.joint_refine import encoder_sigma
 from calib.mcpc import minimal_indices, param_is_angle
 from calib.trajectory import plan_postures
@@ -29,7 +30,7 @@ __all__ = ["predicted_bound", "compare_plans", "run_plan_comparison", "plans_mar
 
 def predicted_bound(s, q: np.ndarray) -> dict:
     """The Cramer-Rao bounds (mm, deg) of a plan ``q`` (m, n) rad before acquisition, from the
-    simulator's actual robot and marker field (:func:`calib.bounds.predicted_setup`): the
+    simulator's actual robot and marker field (:func:`calib.bounds_setup.predicted_setup`): the
     validation tool-tip RMS and the median parameter bound."""
     setup = sim_setup(s)
     info = plan_dataset(s, setup)
