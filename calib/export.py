@@ -242,7 +242,7 @@ def deploy(
         raise DeployError(
             f"the calibration is of robot {calibration.robot_model!r}, not {robot.name!r}"
         )
-    T_lr = as_rigid(calibration.T_left_right_m, "rig.T_left_right_m")
+    T_lr = as_rigid(calibration.rig.T_left_right_m, "rig.T_left_right_m")
     return deploy_chain(
         calibration.model,
         robot,

@@ -30,16 +30,19 @@ from calib.io.calibration_blocks import (
     CameraPoses,
     DatasetUse,
     DHRow,
+    HandEye,
     IdentificationSummary,
     JointSummary,
     MethodSummary,
     ObservationCounts,
     ParameterEstimate,
     PoseResidualRMS,
+    PoseResiduals,
+    Rig,
     ScaleEstimate,
     matrix,
 )
-from calib.io.calibration_bounds import BoundParameter, Bounds, EstimateBound
+from calib.io.calibration_bounds import BoundParameter, Bounds, EstimateBound, ToolTipBound
 from calib.io.dataset import Dataset, DatasetInfo
 from calib.mcpc import MCPCModel, dh_to_mcpc, minimal_indices, param_is_angle, shape_matrices
 from calib.robot_def import RobotDef
@@ -103,10 +106,11 @@ def _last_link_to_tool(model: MCPCModel) -> np.ndarray:
     return rot_z(model.joint_offsets[-1]) @ shape_matrices(model.params[-1])
 
 
-def hand_eye(model: MCPCModel, robot: RobotDef) -> np.ndarray:
+def hand_eye(model: MCPCModel, robot: RobotDef) -> HandEye:
     """The identified ``T_flange_cam`` (4, 4) m: the last shape matrix of ``model`` (tool = left
     camera) relative to the nominal flange of joint n, rounded like the file stores it."""
-    return matrix(inv_pose(_last_link_to_tool(dh_to_mcpc(robot))) @ _last_link_to_tool(model))
+    T = inv_pose(_last_link_to_tool(dh_to_mcpc(robot))) @ _last_link_to_tool(model)
+    return HandEye(matrix(T))
 
 
 def dh_rows(model: MCPCModel, robot: RobotDef) -> tuple[tuple[DHRow, ...] | None, str | None]:
@@ -134,8 +138,10 @@ def identification_summary(ident: IdentificationResult) -> IdentificationSummary
         held={n: ident.held_reason[n] for n in ident.held},
         iterations=int(ident.iterations),
         converged=bool(ident.converged),
-        before=PoseResidualRMS(float(ident.rms_t_mm_before), float(ident.rms_r_deg_before)),
-        after=PoseResidualRMS(float(ident.rms_t_mm_after), float(ident.rms_r_deg_after)),
+        pose_residual_rms=PoseResiduals(
+            before=PoseResidualRMS(float(ident.rms_t_mm_before), float(ident.rms_r_deg_before)),
+            after=PoseResidualRMS(float(ident.rms_t_mm_after), float(ident.rms_r_deg_after)),
+        ),
     )
 
 
@@ -143,10 +149,10 @@ def method_summary(result: CalibrationResult) -> MethodSummary:
     """What ``result``'s final method estimated (an entry of ``methods``)."""
     return MethodSummary(
         intrinsics=result.intrinsics,
-        T_left_right_m=result.T_left_right_m,
+        rig=result.rig,
         reprojection_rms_px=result.reprojection_rms_px,
         observations=result.observations,
-        T_flange_cam_m=result.T_flange_cam_m,
+        hand_eye=result.hand_eye,
         parameters=result.parameters,
         mcpc_params_si=result.params_si,
     )
@@ -181,7 +187,7 @@ def two_stage_result(
             fx_std=float(sc.fx_std),
             mu_std=float(sc.mu_std),
         ),
-        T_left_right_m=matrix(sc.T_left_right),
+        rig=Rig(matrix(sc.T_left_right)),
         scale=ScaleEstimate(
             d_mm=ds.info.scale_length_m * 1000,
             d_hat=float(sc.d_hat),
@@ -191,7 +197,7 @@ def two_stage_result(
         ),
         reprojection_rms_px=float(sc.rms_px),
         observations=ObservationCounts(int(sc.n_inliers), int(sc.n_outliers)),
-        T_flange_cam_m=hand_eye(model, robot),
+        hand_eye=hand_eye(model, robot),
         identification=identification_summary(ident),
         parameters=parameter_table(model, ident.names, ident.std, ident.held),
         joint_types=tuple(model.joint_types),
@@ -261,10 +267,10 @@ def with_joint(
             fx_std=float(res.fx_std),
             mu_std=float(res.mu_std),
         ),
-        T_left_right_m=matrix(res.T_left_right),
+        rig=Rig(matrix(res.T_left_right)),
         reprojection_rms_px=float(res.rms_px),
         observations=ObservationCounts(int(res.n_inliers), int(res.n_outliers)),
-        T_flange_cam_m=hand_eye(model, robot),
+        hand_eye=hand_eye(model, robot),
         parameters=parameter_table(model, res.names, res.std, held),
         joint_offsets_rad=np.asarray(model.joint_offsets, dtype=float).copy(),
         params_si=np.asarray(model.params, dtype=float).copy(),
@@ -349,8 +355,7 @@ def _bounds(
         joint_sigma_deg=None if js is None else tuple(float(x) for x in np.degrees(js)),
         observations=int(cr.n_observations),
         unknowns=int(cr.n_unknowns),
-        tool_tip_rms_bound_mm=1000.0 * cr.aligned_tool_rms(qv, T_cam_tip),
-        validation_poses=int(len(qv)),
+        tool_tip_rms_mm=ToolTipBound(1000.0 * cr.aligned_tool_rms(qv, T_cam_tip), int(len(qv))),
         fx=EstimateBound(float(s.fx), float(cr.fx_std)),
         mu=EstimateBound(float(s.mu), float(cr.mu_std)),
         parameters=tuple(params),

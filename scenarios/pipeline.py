@@ -136,7 +136,7 @@ def run_report(root: Path, *, quiet: bool = False) -> dict:
                 "nominal": {"rms": err_nom["rms"], "max": err_nom["max"]},
                 "calibrated": {"rms": err_cal["rms"], "max": err_cal["max"]},
             },
-            "tool_tip_bound_mm": None if bounds is None else bounds.tool_tip_rms_bound_mm,
+            "tool_tip_bound_mm": None if bounds is None else bounds.tool_tip_rms_mm.bound,
             "note": (
                 "tool-tip errors after the best rigid alignment (rotation and translation, no "
                 "scale) of the predicted positions to the true ones over the validation postures: "

@@ -162,7 +162,7 @@ def record_run(dataset_dir: str | Path, rrd_path: str | Path | None, spawn: bool
     truth = read_truth(root / "truth.json") if (root / "truth.json").is_file() else None
 
     est_intr = cal.pinhole
-    T_lr_est = cal.T_left_right_m
+    T_lr_est = cal.rig.T_left_right_m
     cp = cal.camera_poses
     est_pose = dict(zip(cp.frame_index, cp.T_world_cam_left_m))
     q_read = {int(i): np.radians(q) for i, q in zip(ds.indices, ds.joints_deg)}
@@ -313,7 +313,7 @@ def record_run(dataset_dir: str | Path, rrd_path: str | Path | None, spawn: bool
             static=True,
         )
     ident = cal.identification
-    pr = {"before": ident.before, "after": ident.after}
+    pr = {"before": ident.pose_residual_rms.before, "after": ident.pose_residual_rms.after}
     note = (
         "# scorbot-selfcal run\n\n"
         f"dataset `{root}`; {len(ds.indices)} frames, {len(est_pose)} registered; observation "

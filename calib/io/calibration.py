@@ -26,11 +26,13 @@ from calib.io.calibration_blocks import (
     CameraPoses,
     DatasetUse,
     DHRow,
+    HandEye,
     IdentificationSummary,
     JointSummary,
     MethodSummary,
     ObservationCounts,
     ParameterEstimate,
+    Rig,
     ScaleEstimate,
 )
 from calib.io.calibration_bounds import Bounds
@@ -73,9 +75,9 @@ class CalibrationResult:
     Attributes:
         robot_model: ``models/robots/<name>.toml`` of the calibrated robot.
         dataset: frames, frames used, images skipped (no marker).
-        intrinsics, T_left_right_m (right camera in the left camera frame, m), scale,
-            reprojection_rms_px (2-D RMS over the inliers), observations, T_flange_cam_m (the
-            identified hand-eye: left camera in the nominal flange, m): of the final method.
+        intrinsics, rig (right camera in the left camera frame, m), scale,
+            reprojection_rms_px (2-D RMS over the inliers), observations, hand_eye (the
+            identified left camera in the nominal flange, m): of the final method.
         identification: the two-stage kinematic fit (the start of the joint method).
         parameters: the minimal MCPC parameters (mm / deg) in the reference-camera frame.
         joint_types, joint_offsets_rad (n,), params_si (n + 1, 6): the identified MCPC chain
@@ -93,11 +95,11 @@ class CalibrationResult:
     robot_model: str
     dataset: DatasetUse
     intrinsics: CameraIntrinsics
-    T_left_right_m: np.ndarray
+    rig: Rig
     scale: ScaleEstimate
     reprojection_rms_px: float
     observations: ObservationCounts
-    T_flange_cam_m: np.ndarray
+    hand_eye: HandEye
     identification: IdentificationSummary
     parameters: tuple[ParameterEstimate, ...]
     joint_types: tuple[str, ...]
@@ -144,11 +146,11 @@ class CalibrationResult:
             "dataset": self.dataset.to_json(),
             "world_frame": self.world_frame,
             "intrinsics": self.intrinsics.to_json(),
-            "rig": {"T_left_right_m": self.T_left_right_m.tolist()},
+            "rig": self.rig.to_json(),
             "scale": self.scale.to_json(),
             "reprojection_rms_px": self.reprojection_rms_px,
             "observations": self.observations.to_json(),
-            "hand_eye": {"T_flange_cam_m": self.T_flange_cam_m.tolist()},
+            "hand_eye": self.hand_eye.to_json(),
             "identification": self.identification.to_json(),
             "parameters": [p.to_json() for p in self.parameters],
             "mcpc": {
@@ -206,11 +208,11 @@ class CalibrationResult:
             robot_model=f.str("robot_model"),
             dataset=DatasetUse.from_json(f.sub("dataset")),
             intrinsics=CameraIntrinsics.from_json(f.sub("intrinsics")),
-            T_left_right_m=f.sub("rig").array("T_left_right_m", (4, 4)),
+            rig=Rig.from_json(f.sub("rig")),
             scale=ScaleEstimate.from_json(f.sub("scale")),
             reprojection_rms_px=f.float("reprojection_rms_px"),
             observations=ObservationCounts.from_json(f.sub("observations")),
-            T_flange_cam_m=f.sub("hand_eye").array("T_flange_cam_m", (4, 4)),
+            hand_eye=HandEye.from_json(f.sub("hand_eye")),
             identification=IdentificationSummary.from_json(f.sub("identification")),
             parameters=tuple(ParameterEstimate.from_json(p) for p in f.items("parameters")),
             joint_types=types,

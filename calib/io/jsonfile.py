@@ -239,11 +239,13 @@ class Fields:
 
         return self._convert(key, want, conv)
 
+    def floats(self, key: str) -> tuple[float, ...]:
+        """A required list of numbers."""
+        return self._convert(key, "a list of numbers", lambda v: tuple(map(_float, v)))
+
     def opt_floats(self, key: str) -> tuple[float, ...] | None:
         """A list of numbers that may be null or absent."""
-        if self.doc.get(key) is None:
-            return None
-        return self._convert(key, "a list of numbers", lambda v: tuple(map(_float, v)))
+        return None if self.doc.get(key) is None else self.floats(key)
 
 
 def _exact(kind: type) -> Callable[[Any], Any]:
