@@ -794,7 +794,6 @@ def synthetic_stereo_scene(
     """
     rng = np.random.default_rng(seed)
     intr = Intrinsics.centered(fx, mu, width, height)
-    K = intr.K
     centres = np.c_[
         rng.uniform(-field_m / 2, field_m / 2, (n_markers, 2)), rng.uniform(0, relief_m, n_markers)
     ]
@@ -842,7 +841,7 @@ def synthetic_stereo_scene(
     rows = []
     for i in range(n_configs):
         for c in range(2):
-            uvp = project(K, Tcw[i, c], X).reshape(n_markers, 4, 2)
+            uvp = project(intr, Tcw[i, c], X).reshape(n_markers, 4, 2)
             uvp = uvp + noise_px * rng.standard_normal(uvp.shape)
             z = (X @ Tcw[i, c, :3, :3].T + Tcw[i, c, :3, 3])[:, 2].reshape(n_markers, 4)
             inside = (

@@ -22,7 +22,6 @@ from scipy.stats import chi2
 
 from calib.bounds import aligned_error_dof, aligned_rms_from_covariance, cramer_rao
 from calib.bounds_setup import predicted_setup
-from calib.camera import project
 from calib.identify import express_in_frame, minimal_difference
 from calib.joint_refine import encoder_sigma
 from calib.kinematics import fk_tool, identification_jacobian
@@ -107,7 +106,9 @@ def _brute_force(st):
         K = np.array([[fx, 0, st.cx], [0, fx * mu, st.cy], [0, 0, 1.0]])
         T_lw = inv_pose(fk_tool(mdl, st.q + dq))
         T_cw = np.stack([T_lw, T_rl @ T_lw], axis=1).reshape(-1, 4, 4)
-        uv = project(K, T_cw[st.view], X[st.pidx])
+        Xc = np.einsum("kij,kj->ki", T_cw[st.view, :3, :3], X[st.pidx]) + T_cw[st.view, :3, 3]
+        uvw = Xc @ K.T  # the pinhole written out: independent of calib.camera
+        uv = uvw[:, :2] / uvw[:, 2:]
         ca = X[st.scale_points[0]].mean(axis=0)
         cb = X[st.scale_points[1]].mean(axis=0)
         scale = (np.linalg.norm(ca - cb) - st.scale_distance_m) / st.scale_sigma_m

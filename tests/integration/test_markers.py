@@ -161,6 +161,6 @@ def test_rendered_top_view_matches_corner_order():
     det = detect_markers(img, f.dictionary)
     assert len(det) >= 15
     assert set(f.scale_ids) <= set(det)
-    P = project(intr.K, inv_pose(T_world_cam_cv(model, data, "top")), f.corners_world())
+    P = project(intr, inv_pose(T_world_cam_cv(model, data, "top")), f.corners_world())
     for mid, c in det.items():
         assert np.abs(c - P[f.index_of(mid)]).max() < 0.5, mid

@@ -44,8 +44,8 @@ def test_pose_information_matches_finite_differences(inp):
 
     def f(xi):  # body twist [v; w] of the left camera
         T = TL @ pose_from_vec(np.r_[xi[3:], xi[:3]])
-        uL = project(intr.K, inv_pose(T), pts[vL])
-        uR = project(intr.K, inv_pose(T @ T_lr), pts[vR])
+        uL = project(intr, inv_pose(T), pts[vL])
+        uR = project(intr, inv_pose(T @ T_lr), pts[vR])
         return np.r_[uL.ravel(), uR.ravel()]
 
     h = 1e-7

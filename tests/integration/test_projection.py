@@ -94,8 +94,8 @@ def test_rendered_corners_match_projection(rig):
     corners_world = field.corners_world()
     errors = []
     for name, img in zip(names, images, strict=True):
-        K = intrinsics_from_model(model, name).K
-        predicted = project(K, inv_pose(T_world_cam_cv(model, data, name)), corners_world)
+        cam = intrinsics_from_model(model, name)
+        predicted = project(cam, inv_pose(T_world_cam_cv(model, data, name)), corners_world)
         det = detect_markers(img, field.dictionary)
         assert len(det) >= 4, f"{name}: only {len(det)} markers detected"
         for mid, c in det.items():

@@ -124,7 +124,7 @@ def test_capture_and_markers_visible_at_home(sim):
         assert len(found) >= 3, sorted(found)
         for mid, c in found.items():
             row = sim.field.index_of(mid)
-            uv = project(sim.rig.intrinsics.K, inv_pose(T_wc), corners[row])
+            uv = project(sim.rig.intrinsics, inv_pose(T_wc), corners[row])
             assert np.abs(uv - c).max() < 1.0, (mid, uv, c)
     # a second capture without noise is identical
     again = sim.capture()

@@ -365,4 +365,4 @@ def test_projection_consistency_of_synthetic_scene():
     (cfg, cam), markers = next(iter(sc.detections.items()))
     mk, uv = next(iter(markers.items()))
     Tcw = inv_pose(sc.T_world_cam[cfg, cam])
-    np.testing.assert_allclose(uv, project(sc.intrinsics.K, Tcw, sc.X_world[4 * mk : 4 * mk + 4]))
+    np.testing.assert_allclose(uv, project(sc.intrinsics, Tcw, sc.X_world[4 * mk : 4 * mk + 4]))
