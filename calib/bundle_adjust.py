@@ -1,10 +1,10 @@
-"""Observation container, error classes and sparse bundle adjustment for the self-calibration stage.
+"""Error classes and sparse bundle adjustment for the self-calibration stage.
 
 Frames and units (see docs/DEVELOPING.md): poses ``T_cam_world`` map world coordinates to the OpenCV
 camera frame (x right, y down, z forward); pixels follow the OpenCV convention. Intrinsics are the
 paper's eq. 19 with a known principal point: ``K = [[fx, 0, cx], [0, mu fx, cy], [0, 0, 1]]``.
 
-Views are indexed ``view = 2 * config + camera`` with ``camera`` 0 = left, 1 = right.
+Views are indexed by the pose model (:class:`calib.observations.ViewLayout` for the rig models).
 
 The adjustment is a problem for the one least-squares engine (:mod:`calib.solver`): parameter
 blocks ``intrinsics`` (fx, mu; held with ``fix_intrinsics``), ``poses`` (a pose model's
@@ -15,7 +15,7 @@ live in :mod:`calib.estimation`; they are re-exported here.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -39,9 +39,6 @@ from calib.solver import (
 )
 
 __all__ = [
-    "Observations",
-    "point_id",
-    "marker_corner",
     "SelfCalibrationError",
     "InsufficientDataError",
     "DegenerateConfigurationError",
@@ -57,9 +54,6 @@ __all__ = [
     "reprojection_residuals",
     "intrinsics_covariance",
 ]
-
-LEFT, RIGHT = 0, 1
-_CAMERA_NAMES = {"left": LEFT, "right": RIGHT, "l": LEFT, "r": RIGHT, 0: LEFT, 1: RIGHT}
 
 
 # ----------------------------------------------------------------------------------- errors
@@ -82,120 +76,6 @@ class ScaleMarkerError(SelfCalibrationError):
 
 class ConvergenceError(SelfCalibrationError):
     """An optimisation did not converge or ended with implausible residuals."""
-
-
-# ----------------------------------------------------------------------------- observations
-def point_id(marker_id: np.ndarray | int, corner: np.ndarray | int) -> np.ndarray | int:
-    """Point id ``4 * marker_id + corner`` (corner 0..3 in ArUco order)."""
-    return (
-        4 * np.asarray(marker_id) + np.asarray(corner)
-        if np.ndim(marker_id)
-        else (4 * int(marker_id) + int(corner))
-    )
-
-
-def marker_corner(pid: np.ndarray | int) -> tuple[np.ndarray, np.ndarray] | tuple[int, int]:
-    """Inverse of :func:`point_id`: ``(marker_id, corner)``."""
-    if np.ndim(pid):
-        return np.divmod(np.asarray(pid), 4)
-    return divmod(int(pid), 4)
-
-
-@dataclass(frozen=True)
-class Observations:
-    """2-D observations of 3-D points, one row per (view, point).
-
-    ``config`` (k,) int in ``0..n_configs-1``; ``camera`` (k,) int, 0 = left, 1 = right;
-    ``point`` (k,) int point id ``4 * marker_id + corner``; ``uv`` (k, 2) float pixels (OpenCV).
-    The view index used everywhere else is ``view = 2 * config + camera``.
-    """
-
-    config: np.ndarray
-    camera: np.ndarray
-    point: np.ndarray
-    uv: np.ndarray
-    n_configs: int
-
-    def __post_init__(self) -> None:
-        cfg = np.asarray(self.config, dtype=np.int64).reshape(-1)
-        cam = np.asarray(self.camera, dtype=np.int64).reshape(-1)
-        pt = np.asarray(self.point, dtype=np.int64).reshape(-1)
-        uv = np.asarray(self.uv, dtype=float).reshape(-1, 2)
-        k = len(cfg)
-        if not (len(cam) == len(pt) == len(uv) == k):
-            raise ValueError(
-                f"Observations arrays differ in length: config {k}, camera {len(cam)}, "
-                f"point {len(pt)}, uv {len(uv)}; give one row per observation"
-            )
-        if k and (cfg.min() < 0 or cfg.max() >= self.n_configs):
-            raise ValueError(f"config indices must lie in 0..{self.n_configs - 1}")
-        if k and not np.isin(cam, (LEFT, RIGHT)).all():
-            raise ValueError("camera must be 0 (left) or 1 (right)")
-        if k and pt.min() < 0:
-            raise ValueError("point ids must be >= 0 (4 * marker_id + corner)")
-        if not np.isfinite(uv).all():
-            raise ValueError("uv contains NaN/inf; drop undetected corners instead")
-        key = (2 * cfg + cam) * (int(pt.max()) + 1 if k else 1) + pt
-        if len(np.unique(key)) != k:
-            raise ValueError("a point is observed twice in the same view; deduplicate detections")
-        for name, val in (("config", cfg), ("camera", cam), ("point", pt), ("uv", uv)):
-            val.setflags(write=False)
-            object.__setattr__(self, name, val)
-
-    @classmethod
-    def from_corners(
-        cls,
-        detections: Mapping[tuple[int, int | str], Mapping[int, np.ndarray]],
-        n_configs: int | None = None,
-    ) -> Observations:
-        """Build from ``{(config, camera): {marker_id: corners (4, 2) px}}``.
-
-        ``camera`` is 0/1 or "left"/"right". ``n_configs`` defaults to the largest config + 1
-        (configurations without any detection are allowed and stay unregistered).
-        """
-        cfg, cam, pt, uv = [], [], [], []
-        for (c, camera), markers in detections.items():
-            if camera not in _CAMERA_NAMES:
-                raise ValueError(f"camera {camera!r} is not 0/1/'left'/'right'")
-            for mid, corners in markers.items():
-                corners = np.asarray(corners, dtype=float)
-                if corners.shape != (4, 2):
-                    raise ValueError(
-                        f"marker {mid} in view {(c, camera)}: corners must have shape (4, 2), "
-                        f"got {corners.shape}"
-                    )
-                cfg.extend([int(c)] * 4)
-                cam.extend([_CAMERA_NAMES[camera]] * 4)
-                pt.extend(4 * int(mid) + np.arange(4))
-                uv.append(corners)
-        if n_configs is None:
-            n_configs = max(cfg) + 1 if cfg else 0
-        uv_arr = np.concatenate(uv) if uv else np.zeros((0, 2))
-        return cls(np.array(cfg), np.array(cam), np.array(pt), uv_arr, int(n_configs))
-
-    @property
-    def view(self) -> np.ndarray:
-        """View index ``2 * config + camera`` (k,)."""
-        return 2 * self.config + self.camera
-
-    @property
-    def n_views(self) -> int:
-        return 2 * self.n_configs
-
-    def __len__(self) -> int:
-        return len(self.config)
-
-    def point_index(self) -> tuple[np.ndarray, np.ndarray]:
-        """``(point_ids (P,), index (k,))``: the distinct point ids, sorted, and each row's index
-        into them."""
-        ids, inv = np.unique(self.point, return_inverse=True)
-        return ids, inv
-
-    def subset(self, mask: np.ndarray) -> Observations:
-        """Rows selected by a boolean mask or index array."""
-        return Observations(
-            self.config[mask], self.camera[mask], self.point[mask], self.uv[mask], self.n_configs
-        )
 
 
 @dataclass

@@ -21,7 +21,6 @@ from typing import NamedTuple
 
 import numpy as np
 
-from calib.detect import detect_markers
 from calib.errors import EstimationError, SelfCalWarning
 from calib.identify import identify
 from calib.io.calibration import CalibrationResult
@@ -32,6 +31,7 @@ from calib.mcpc import MCPCModel, dh_to_mcpc, shape_matrices
 from calib.results import CalibrationOutput, two_stage_result, with_bounds, with_joint
 from calib.robot_def import load_robot
 from calib.selfcal import Observations, self_calibrate
+from calib.target.aruco_detect import detect_markers
 from calib.trajectory import check_not_degenerate
 
 __all__ = [

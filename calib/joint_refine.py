@@ -55,7 +55,6 @@ import time
 import numpy as np
 import scipy.linalg
 
-from calib.bundle_adjust import Observations
 from calib.bundle_adjust import _Problem as _AdjustmentProblem
 from calib.errors import EstimationError
 from calib.estimation.gauge import GaugeChoice, gauge_directions
@@ -72,6 +71,7 @@ from calib.estimation.residuals import GaussianPriorBlock, ScaleDistanceBlock
 from calib.identify import IdentificationResult
 from calib.kinematics import fk_tool
 from calib.mcpc import MCPCModel, minimal_indices, param_is_angle, param_names
+from calib.observations import Observations
 from calib.solver import Loss, SolverOptions, covariance, scaled_rank, solve
 from calib.transforms import inv_pose
 

@@ -39,17 +39,15 @@ from calib.bundle_adjust import (
     DegenerateConfigurationError,
     FreePoses,
     InsufficientDataError,
-    Observations,
     RigPoses,
     ScaleMarkerError,
     SelfCalibrationError,
     bundle_adjust,
     intrinsics_covariance,
-    marker_corner,
-    point_id,
     reprojection_residuals,
 )
 from calib.camera import Intrinsics, centered_principal_point, project
+from calib.observations import Observations
 from calib.selfcal_init import (
     _RAYLEIGH_MEDIAN,
     _ray_angle,
@@ -63,8 +61,6 @@ from calib.transforms import inv_pose, kabsch, make_pose, rot_y
 
 __all__ = [
     "Observations",
-    "point_id",
-    "marker_corner",
     "SelfCalibrationError",
     "InsufficientDataError",
     "DegenerateConfigurationError",

@@ -30,10 +30,10 @@ from calib.bundle_adjust import (
     DegenerateConfigurationError,
     FreePoses,
     InsufficientDataError,
-    Observations,
     bundle_adjust,
     reprojection_residuals,
 )
+from calib.observations import Observations
 from calib.transforms import make_pose
 
 __all__ = [

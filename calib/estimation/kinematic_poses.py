@@ -1,7 +1,8 @@
 """Camera poses from the kinematic chain: the pose model of the one-step refinement.
 
-Frames: ``T_world_cam`` of the left camera is the MCPC tool (OpenCV camera frame); the right camera
-is ``T_right_left @ T_left_world``. Views ``2 i`` (left) and ``2 i + 1`` (right). SI units.
+Frames: ``T_world_cam`` of the rig's first camera (the left one) is the MCPC tool (OpenCV camera
+frame); camera ``c`` of the rig is ``T_cam_first @ T_first_world``. Views are indexed by
+:class:`calib.observations.ViewLayout`. SI units.
 """
 
 from __future__ import annotations
@@ -11,6 +12,7 @@ import numpy as np
 from calib.estimation.pose_models import so3_left_jacobian
 from calib.kinematics import fk_frames, fk_tool, identification_jacobian
 from calib.mcpc import MCPCModel
+from calib.observations import ViewLayout
 from calib.transforms import adjoint, inv_pose, make_pose, pose_from_vec, skew
 
 __all__ = ["KinematicPoses"]
@@ -19,15 +21,16 @@ __all__ = ["KinematicPoses"]
 class KinematicPoses:
     """Camera poses from the kinematic chain: a :class:`calib.estimation.pose_models.PoseModel`.
 
-    Configuration ``i`` (with ``active[i]``): left camera ``T_world_cam = fk_tool(model(rho), q_i)``
-    (the model's tool is the left camera, OpenCV frame), right camera ``T_right_world =
-    T_right_left @ T_left_world``. Views ``2 i`` (left) and ``2 i + 1`` (right); inactive
+    Configuration ``i`` (with ``active[i]``): first camera ``T_world_cam = fk_tool(model(rho),
+    q_i)`` (the model's tool is the first camera, OpenCV frame), camera ``c`` of the rig
+    ``T_cam_world = T_cam_first @ T_first_world`` (stereo: ``T_right_left``). Inactive
     configurations have NaN poses and no parameters.
 
-    Parameters ``p = [rho_free (k), rig (6)]``: ``rho_free`` the *absolute* values (rad, m) of the
-    flat MCPC parameters ``free_idx`` (indices into ``model.params.reshape(-1)``, all others fixed
-    at ``model``'s values), ``rig = [w, v]`` the left-perturbation of ``T_right_left`` around
-    ``T0_right_left``: ``R = Rot(w) R0``, ``t = t0 + v``.
+    Parameters ``p = [rho_free (k), rig (6 per further camera)]``: ``rho_free`` the *absolute*
+    values (rad, m) of the flat MCPC parameters ``free_idx`` (indices into
+    ``model.params.reshape(-1)``, all others fixed at ``model``'s values), each ``rig = [w, v]``
+    the left-perturbation of ``T_cam_first`` around ``T0_cam_first``: ``R = Rot(w) R0``,
+    ``t = t0 + v``.
 
     With ``joint_corrections=True`` the parameters continue with ``dq`` (n per active
     configuration, rad / m): the poses use ``q_i + dq_i`` (errors in the joint read-back, e.g.
@@ -35,8 +38,8 @@ class KinematicPoses:
     ``p``.
 
     ``view_jacobian`` is analytic: the identification Jacobian is the body twist ``xi`` of
-    ``T_world_cam`` (``dT = T xi^``), so ``T_cam_world`` moves by the camera-frame twist ``-xi``
-    (the bundle adjustment's convention); the right camera by ``Ad(T_right_left) (-xi)``. The joint
+    ``T_world_cam``  (``dT = T xi^``), so ``T_cam_world`` moves by the camera-frame twist ``-xi``
+    (the bundle adjustment's convention); camera ``c`` by ``Ad(T_cam_first) (-xi)``. The joint
     columns are the joint axes' twists in the tool frame.
     """
 
@@ -45,7 +48,7 @@ class KinematicPoses:
         model: MCPCModel,
         q: np.ndarray,
         free_idx: np.ndarray,
-        T0_right_left: np.ndarray,
+        T0_cam_first: np.ndarray,
         active: np.ndarray | None = None,
         *,
         joint_corrections: bool = False,
@@ -57,33 +60,43 @@ class KinematicPoses:
         self.free_idx = np.asarray(free_idx, dtype=np.int64)
         if len(np.unique(self.free_idx)) != len(self.free_idx):
             raise ValueError("free_idx contains duplicates")
-        self.rig0 = np.asarray(T0_right_left, dtype=float).copy()
+        self.rigs0 = np.asarray(T0_cam_first, dtype=float).reshape(-1, 4, 4).copy()
         m = len(self.q)
         self.active = np.ones(m, bool) if active is None else np.asarray(active, bool).copy()
         if self.active.shape != (m,):
             raise ValueError(f"active must have shape ({m},)")
         self.n_configs = m
-        self.n_views = 2 * m
+        self.layout = ViewLayout(m, 1 + len(self.rigs0))
+        self.n_views = self.layout.n_views
         self.k = len(self.free_idx)
         act = np.flatnonzero(self.active)
         n = model.n
+        n_rig = 6 * len(self.rigs0)
         self.n_dq = n * len(act) if joint_corrections else 0
-        self.dq_cols = self.k + 6 + np.arange(self.n_dq)
-        self.n_params = self.k + 6 + self.n_dq
-        q_cols = self.k + 6 + (n if joint_corrections else 0)
-        cols = -np.ones((self.n_views, q_cols), dtype=np.int64)
-        cols[2 * act, : self.k] = np.arange(self.k)
-        cols[2 * act + 1, : self.k + 6] = np.arange(self.k + 6)
+        self.dq_cols = self.k + n_rig + np.arange(self.n_dq)
+        self.n_params = self.k + n_rig + self.n_dq
+        width = self.k + (6 if n_rig else 0) + (n if joint_corrections else 0)
+        cols = -np.ones((self.n_views, width), dtype=np.int64)
+        by = self.layout.by_frame(cols)
+        by[act, :, : self.k] = np.arange(self.k)
+        for c in range(1, self.layout.n_cameras):
+            by[act, c, self.k : self.k + 6] = self._rig_cols(c)
         if joint_corrections:
-            dq = self.dq_cols.reshape(len(act), n)
-            cols[2 * act, self.k + 6 :] = dq
-            cols[2 * act + 1, self.k + 6 :] = dq
+            dq = self.dq_cols.reshape(len(act), 1, n)
+            by[act, :, width - n :] = dq
         self._cols = cols
         self._act = act
 
+    def _rig_cols(self, c: int) -> np.ndarray:
+        """Indices in ``p`` of camera ``c``'s (>= 1) rig parameters ``[w, v]``."""
+        return self.k + 6 * (c - 1) + np.arange(6)
+
     def initial_params(self) -> np.ndarray:
         return np.concatenate(
-            [self.model.params.reshape(-1)[self.free_idx], np.zeros(6 + self.n_dq)]
+            [
+                self.model.params.reshape(-1)[self.free_idx],
+                np.zeros(6 * len(self.rigs0) + self.n_dq),
+            ]
         )
 
     def joints(self, p: np.ndarray) -> np.ndarray:
@@ -110,28 +123,37 @@ class KinematicPoses:
         flat[self.free_idx] = p[: self.k]
         return self.model.with_params(flat)
 
-    def rig(self, p: np.ndarray) -> np.ndarray:
-        """``T_right_left`` (4, 4) for parameters ``p``."""
-        w, v = p[self.k : self.k + 3], p[self.k + 3 : self.k + 6]
+    def rig(self, p: np.ndarray, c: int = 1) -> np.ndarray:
+        """``T_cam_first`` (4, 4) of camera ``c`` (default the second: ``T_right_left``)."""
+        wv = p[self._rig_cols(c)]
+        rig0 = self.rigs0[c - 1]
         return make_pose(
-            pose_from_vec(np.r_[w, 0, 0, 0])[:3, :3] @ self.rig0[:3, :3], self.rig0[:3, 3] + v
+            pose_from_vec(np.r_[wv[:3], 0, 0, 0])[:3, :3] @ rig0[:3, :3], rig0[:3, 3] + wv[3:]
         )
+
+    def rigs(self, p: np.ndarray) -> np.ndarray:
+        """``T_cam_first`` (N - 1, 4, 4) of every further camera."""
+        return np.stack([self.rig(p, c) for c in range(1, self.layout.n_cameras)])
 
     def poses(self, p: np.ndarray) -> np.ndarray:
         T = np.full((self.n_views, 4, 4), np.nan)
+        by = self.layout.by_frame(T)
         act = self._act
         TL = inv_pose(fk_tool(self.kinematic_model(p), self.joints(p)))
-        T[2 * act] = TL
-        T[2 * act + 1] = self.rig(p) @ TL
+        by[act, 0] = TL
+        for c in range(1, self.layout.n_cameras):
+            by[act, c] = self.rig(p, c) @ TL
         return T
 
     def view_jacobian(self, p: np.ndarray) -> np.ndarray:
-        q_cols = self._cols.shape[1]
-        J = np.zeros((self.n_views, 6, q_cols))
+        width = self._cols.shape[1]
+        J = np.zeros((self.n_views, 6, width))
+        by = self.layout.by_frame(J)
         act = self._act
         mdl = self.kinematic_model(p)
         qa = self.joints(p)
-        JL = -identification_jacobian(mdl, qa)[:, :, self.free_idx]
+        JL = np.zeros((len(act), 6, width))
+        JL[..., : self.k] = -identification_jacobian(mdl, qa)[:, :, self.free_idx]
         if self.n_dq:
             F = fk_frames(mdl, qa)
             X = inv_pose(F[:, -1:]) @ F[:, :-1]  # joint frames in the tool frame (m, n, 4, 4)
@@ -139,17 +161,15 @@ class KinematicPoses:
             tw = np.concatenate([np.cross(X[..., :3, 3], w), w], axis=-1)  # revolute
             pris = np.array([t == "prismatic" for t in mdl.joint_types])
             tw[:, pris] = np.concatenate([w[:, pris], 0 * w[:, pris]], axis=-1)
-            JL = np.concatenate([JL, np.zeros((len(act), 6, 6)), -np.swapaxes(tw, 1, 2)], axis=2)
-        else:
-            JL = np.concatenate([JL, np.zeros((len(act), 6, 6))], axis=2)
-        Trig = self.rig(p)
-        J[2 * act] = JL
-        J[2 * act + 1] = adjoint(Trig) @ JL
-        w = p[self.k : self.k + 3]
-        Jl = so3_left_jacobian(w)
-        Jr = np.zeros((6, 6))
-        Jr[:3, :3] = skew(Trig[:3, 3]) @ Jl
-        Jr[:3, 3:] = np.eye(3)
-        Jr[3:, :3] = Jl
-        J[2 * act + 1, :, self.k : self.k + 6] = Jr
+            JL[..., width - mdl.n :] = -np.swapaxes(tw, 1, 2)
+        by[act, 0] = JL
+        for c in range(1, self.layout.n_cameras):
+            Trig = self.rig(p, c)
+            Jl = so3_left_jacobian(p[self._rig_cols(c)][:3])
+            Jr = np.zeros((6, 6))
+            Jr[:3, :3] = skew(Trig[:3, 3]) @ Jl
+            Jr[:3, 3:] = np.eye(3)
+            Jr[3:, :3] = Jl
+            by[act, c] = adjoint(Trig) @ JL
+            by[act, c, :, self.k : self.k + 6] = Jr
         return J

@@ -7,15 +7,15 @@ derivative of each view pose as a left-perturbation twist in the camera frame
 (``view_jacobian(p) -> (V, 6, q)``, twist order ``[v; w]`` as in :mod:`calib.transforms`): a change
 ``dp`` moves camera coordinates by ``dXc = dv + dw x Xc`` with ``[dv; dw] = J_v dp``.
 :class:`FreePoses` (one 6-dof pose per view) and :class:`RigPoses` (one pose per configuration plus
-a shared left->right rig transform) are the two models provided here; the kinematic chain
+a shared transform per further camera of the rig) are the two models provided here; the kinematic chain
 (:class:`calib.estimation.kinematic_poses.KinematicPoses`) implements the same methods. If
 ``view_jacobian`` returns ``None`` the adjustment falls back to finite differences restricted by
 ``jac_sparsity``. The pose model also owns the gauge: the models here fix one camera at the
 identity and one baseline length to 1. ``param_instances()`` (optional) labels the parameters
 that belong to one configuration or view only, so the solver can eliminate them (Schur).
 
-Frames: ``T_cam_world`` maps world coordinates to the OpenCV camera frame; views are indexed
-``view = 2 * config + camera`` (0 = left, 1 = right).
+Frames: ``T_cam_world`` maps world coordinates to the OpenCV camera frame; views are indexed by
+:class:`calib.observations.ViewLayout` (the cameras of configuration 0, then of 1, ...).
 """
 
 from __future__ import annotations
@@ -25,6 +25,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from calib.observations import ViewLayout
 from calib.transforms import adjoint, make_pose, skew
 
 __all__ = ["so3_left_jacobian", "PoseModel", "FreePoses", "RigPoses"]
@@ -179,49 +180,63 @@ class FreePoses:
 
 
 class RigPoses:
-    """Stereo-rig poses: per configuration the left camera pose ``T_left_world``, and one shared
-    rig transform ``T_right_left`` (left-camera coordinates -> right-camera coordinates), so that
-    ``T_right_world = T_right_left @ T_left_world``.
+    """Rig poses: per configuration the first camera's pose ``T_first_world``, and one shared
+    transform per further camera ``T_cam_first`` (first-camera coordinates -> camera ``c``), so
+    that ``T_cam_world = T_cam_first @ T_first_world``. The stereo pair: first = left, one
+    transform ``T_right_left``.
 
-    Gauge: the left camera of configuration ``ref_config`` is the identity (the world frame) and
-    ``|t(T_right_left)|`` (the stereo baseline) keeps its initial value. Configurations with
-    ``registered == False`` have no parameters and NaN poses.
+    Gauge: the first camera of configuration ``ref_config`` is the identity (the world frame) and
+    ``|t(T_cam_first)|`` of the second camera (the stereo baseline) keeps its initial value.
+    Configurations with ``registered == False`` have no parameters and NaN poses.
     Parameter layout: for each registered non-reference configuration ``[w (3), v (3)]`` of the
-    left camera, then the rig ``[w (3), a, b]`` (rotation, translation direction).
+    first camera, then the second camera's ``[w (3), a, b]`` (rotation, translation direction),
+    then ``[w (3), v (3)]`` of each further camera.
     """
 
     def __init__(
         self,
-        T0_left_world: np.ndarray,
-        T0_right_left: np.ndarray,
+        T0_first_world: np.ndarray,
+        T0_cam_first: np.ndarray,
         registered: np.ndarray,
         ref_config: int,
     ):
-        T0 = np.asarray(T0_left_world, dtype=float).copy()
+        T0 = np.asarray(T0_first_world, dtype=float).copy()
         reg = np.asarray(registered, dtype=bool).copy()
         if not reg[ref_config]:
             raise ValueError("ref_config must be registered")
         if not np.allclose(T0[ref_config], np.eye(4), atol=1e-9):
-            raise ValueError("the reference configuration's left pose must be the identity")
+            raise ValueError("the reference configuration's first pose must be the identity")
         self.T0 = T0
-        self.rig0 = np.asarray(T0_right_left, dtype=float).copy()
+        self.rigs0 = np.asarray(T0_cam_first, dtype=float).reshape(-1, 4, 4).copy()
+        if len(self.rigs0) == 0:
+            raise ValueError(
+                "a rig pose model needs at least two cameras (the baseline fixes the scale); "
+                "for one camera use FreePoses"
+            )
         self.registered = reg
         self.ref_config = int(ref_config)
         self.n_configs = len(T0)
-        self.n_views = 2 * self.n_configs
-        self.baseline = float(np.linalg.norm(self.rig0[:3, 3]))
+        self.layout = ViewLayout(self.n_configs, 1 + len(self.rigs0))
+        self.n_views = self.layout.n_views
+        self.baseline = float(np.linalg.norm(self.rigs0[0, :3, 3]))
         if self.baseline <= 0:
             raise ValueError("the rig baseline must be non-zero")
-        self.basis = _tangent_basis(self.rig0[:3, 3] / self.baseline)
+        self.basis = _tangent_basis(self.rigs0[0, :3, 3] / self.baseline)
         self.cfg_idx = np.flatnonzero(reg & (np.arange(self.n_configs) != ref_config))
-        self.n_params = 6 * len(self.cfg_idx) + 5
-        self.rig_cols = np.arange(6 * len(self.cfg_idx), self.n_params)
-        cols = -np.ones((self.n_views, 11), dtype=np.int64)
+        start = 6 * len(self.cfg_idx)
+        self.rig_cols_all = []
+        for c in range(len(self.rigs0)):
+            n = 5 if c == 0 else 6
+            self.rig_cols_all.append(np.arange(start, start + n))
+            start += n
+        self.n_params = start
+        width = 6 + max(len(rc) for rc in self.rig_cols_all)
+        cols = -np.ones((self.n_views, width), dtype=np.int64)
+        by = self.layout.by_frame(cols)
         for j, c in enumerate(self.cfg_idx):
-            cols[2 * c, :6] = np.arange(6 * j, 6 * j + 6)
-            cols[2 * c + 1, :6] = np.arange(6 * j, 6 * j + 6)
-        for c in np.flatnonzero(reg):
-            cols[2 * c + 1, 6:] = self.rig_cols
+            by[c, :, :6] = np.arange(6 * j, 6 * j + 6)
+        for c, rc in enumerate(self.rig_cols_all, start=1):
+            by[reg, c, 6 : 6 + len(rc)] = rc
         self._cols = cols
 
     def initial_params(self) -> np.ndarray:
@@ -231,24 +246,29 @@ class RigPoses:
         return self._cols
 
     def param_instances(self) -> np.ndarray:
-        """(n_params,) the configuration of each left-camera pose parameter, -1 for the rig."""
+        """(n_params,) the configuration of each first-camera pose parameter, -1 for the rig."""
         inst = -np.ones(self.n_params, np.int64)
         inst[: 6 * len(self.cfg_idx)] = np.repeat(self.cfg_idx, 6)
         return inst
 
-    def _rig(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        q = p[self.rig_cols]
-        s = self.rig0[:3, 3] + self.basis @ q[3:5] * self.baseline
+    def _rig(self, p: np.ndarray, c: int = 0) -> tuple[np.ndarray, np.ndarray]:
+        """``T_cam_first`` of camera ``c + 1`` and its twist Jacobian (6, params)."""
+        q = p[self.rig_cols_all[c]]
+        rig0 = self.rigs0[c]
+        if c > 0:
+            T, J = _LocalPoseBlock.evaluate(rig0[None], q[None, :3], q[None, 3:6])
+            return T[0], J[0]
+        s = rig0[:3, 3] + self.basis @ q[3:5] * self.baseline
         ns = np.linalg.norm(s)
         t = s / ns * self.baseline
         u = t / self.baseline
-        T, J = _LocalPoseBlock.evaluate(self.rig0[None], q[None, :3], (t - self.rig0[:3, 3])[None])
+        T, J = _LocalPoseBlock.evaluate(rig0[None], q[None, :3], (t - rig0[:3, 3])[None])
         Jr = J[0].copy()
         Jr[:, 3:] = 0.0
         Jr[:3, 3:5] = (np.eye(3) - np.outer(u, u)) / ns * self.baseline**2 @ self.basis
         return T[0], Jr[:, :5]
 
-    def _left(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _first(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         TL = np.full((self.n_configs, 4, 4), np.nan)
         JL = np.zeros((self.n_configs, 6, 6))
         TL[self.ref_config] = np.eye(4)
@@ -259,22 +279,30 @@ class RigPoses:
         return TL, JL
 
     def rig(self, p: np.ndarray) -> np.ndarray:
-        """``T_right_left`` (4, 4) for parameters ``p``."""
+        """``T_cam_first`` (4, 4) of the second camera (stereo: ``T_right_left``)."""
         return self._rig(p)[0]
 
+    def rigs(self, p: np.ndarray) -> np.ndarray:
+        """``T_cam_first`` (N - 1, 4, 4) of every further camera."""
+        return np.stack([self._rig(p, c)[0] for c in range(len(self.rigs0))])
+
     def poses(self, p: np.ndarray) -> np.ndarray:
-        TL, _ = self._left(p)
+        TL, _ = self._first(p)
         T = np.empty((self.n_views, 4, 4))
-        T[0::2] = TL
-        T[1::2] = self._rig(p)[0] @ TL
+        by = self.layout.by_frame(T)
+        by[:, 0] = TL
+        for c in range(len(self.rigs0)):
+            by[:, c + 1] = self._rig(p, c)[0] @ TL
         return T
 
     def view_jacobian(self, p: np.ndarray) -> np.ndarray:
-        _, JL = self._left(p)
-        Trig, Jrig = self._rig(p)
-        J = np.zeros((self.n_views, 6, 11))
-        J[0::2, :, :6] = JL
-        J[1::2, :, :6] = adjoint(Trig) @ JL
-        J[1::2, :, 6:] = Jrig
-        J[1::2][~self.registered] = 0.0
+        _, JL = self._first(p)
+        J = np.zeros((self.n_views, 6, self._cols.shape[1]))
+        by = self.layout.by_frame(J)
+        by[:, 0, :, :6] = JL
+        for c in range(len(self.rigs0)):
+            Trig, Jrig = self._rig(p, c)
+            by[:, c + 1, :, :6] = adjoint(Trig) @ JL
+            by[:, c + 1, :, 6 : 6 + Jrig.shape[1]] = Jrig
+            by[~self.registered, c + 1] = 0.0
         return J

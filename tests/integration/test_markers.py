@@ -140,7 +140,7 @@ def test_rendered_top_view_matches_corner_order():
     import mujoco
 
     from calib.camera import Intrinsics, project
-    from calib.detect import detect_markers
+    from calib.target.aruco_detect import detect_markers
     from calib.transforms import inv_pose
     from sim.mj_camera import T_world_cam_cv, add_camera
     from sim.render import StereoRenderer

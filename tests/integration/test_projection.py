@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from calib.camera import Intrinsics, project
-from calib.detect import detect_markers
+from calib.target.aruco_detect import detect_markers
 from calib.transforms import inv_pose
 from sim.markers import make_marker_field
 from sim.mj_camera import T_world_cam_cv, add_camera, intrinsics_from_model, look_at_cv

@@ -106,7 +106,7 @@ def test_bad_construction():
 
 @pytest.mark.render
 def test_capture_and_markers_visible_at_home(sim):
-    from calib.detect import detect_markers
+    from calib.target.aruco_detect import detect_markers
 
     sim.home()
     pair = sim.capture()

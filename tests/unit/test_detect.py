@@ -6,7 +6,7 @@ import cv2
 import numpy as np
 import pytest
 
-from calib.detect import DuplicateMarkerWarning, detect_markers
+from calib.target.aruco_detect import DuplicateMarkerWarning, detect_markers
 
 DICT = cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_4X4_50)
 
@@ -85,7 +85,9 @@ def test_oblique_supersampled_marker_subpixel():
 def test_other_refine_methods_run(refine):
     img, truth = _warped(9, H_OBLIQUE)
     det = detect_markers(img, refine=refine)
-    assert np.abs(det[9] - truth).max() < 1.0  # within a pixel (biases: see calib/detect.py)
+    assert (
+        np.abs(det[9] - truth).max() < 1.0
+    )  # within a pixel (biases: see calib/target/aruco_detect.py)
 
 
 def test_no_markers_gives_empty_dict():

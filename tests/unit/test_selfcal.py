@@ -17,13 +17,12 @@ from calib.selfcal import (
     _look_at,
     cheirality_fraction,
     choose_scale_sign,
-    marker_corner,
-    point_id,
     rigid_align,
     self_calibrate,
     synthetic_stereo_scene,
 )
 from calib.selfcal_init import focal_from_fundamentals
+from calib.target import feature_id, marker_features
 from calib.transforms import inv_pose, make_pose, pose_from_vec, skew
 
 W, H = 640, 480
@@ -51,25 +50,6 @@ def _truth_in_result_frame(sc, res):
 def noisy30():
     sc = synthetic_stereo_scene(30, seed=11, noise_px=0.5)
     return sc, _calibrate(sc)
-
-
-# ----------------------------------------------------------------------------- observations
-def test_observations_from_corners_and_ids():
-    det = {(0, "left"): {3: np.arange(8.0).reshape(4, 2)}, (2, 1): {5: np.ones((4, 2))}}
-    obs = Observations.from_corners(det)
-    assert obs.n_configs == 3 and len(obs) == 8
-    np.testing.assert_array_equal(obs.point[:4], 4 * 3 + np.arange(4))
-    np.testing.assert_array_equal(obs.view, [0] * 4 + [5] * 4)
-    assert point_id(7, 2) == 30 and marker_corner(30) == (7, 2)
-    mk, cn = marker_corner(np.array([30, 4]))
-    np.testing.assert_array_equal(mk, [7, 1])
-    np.testing.assert_array_equal(cn, [2, 0])
-    with pytest.raises(ValueError, match="twice"):
-        Observations(np.zeros(2, int), np.zeros(2, int), np.array([4, 4]), np.zeros((2, 2)), 1)
-    with pytest.raises(ValueError, match="NaN"):
-        Observations.from_corners({(0, 0): {1: np.full((4, 2), np.nan)}})
-    with pytest.raises(ValueError, match="shape"):
-        Observations.from_corners({(0, 0): {1: np.zeros((3, 2))}})
 
 
 # ------------------------------------------------------------------------------- jacobians
@@ -201,7 +181,7 @@ def test_gross_outliers_rejected():
     obs = sc.observations()
     bad = np.zeros(len(obs), bool)
     for cfg, cam, mk, corner in sc.outlier_rows:
-        bad |= (obs.config == cfg) & (obs.camera == cam) & (obs.point == 4 * mk + corner)
+        bad |= (obs.config == cfg) & (obs.camera == cam) & (obs.point == feature_id(mk, corner))
     modelled = np.isfinite(res.residuals).all(axis=1)
     assert bad.sum() >= 20
     assert not (res.inlier & bad).any()  # every injected 20 px outlier is rejected
@@ -365,4 +345,4 @@ def test_projection_consistency_of_synthetic_scene():
     (cfg, cam), markers = next(iter(sc.detections.items()))
     mk, uv = next(iter(markers.items()))
     Tcw = inv_pose(sc.T_world_cam[cfg, cam])
-    np.testing.assert_allclose(uv, project(sc.intrinsics, Tcw, sc.X_world[4 * mk : 4 * mk + 4]))
+    np.testing.assert_allclose(uv, project(sc.intrinsics, Tcw, sc.X_world[marker_features(mk)]))
