@@ -11,43 +11,20 @@ from __future__ import annotations
 import numpy as np
 
 from calib.bounds import BoundsError, FisherSetup
-from calib.camera import Intrinsics
+from calib.camera import Rig, Visibility
 from calib.joint_refine import encoder_sigma
 from calib.kinematics import fk_tool
 from calib.mcpc import MCPCModel
-from calib.transforms import inv_pose
+from calib.observations import ViewLayout
+from calib.target import CORNERS_PER_MARKER, marker_features
 
 __all__ = ["predicted_setup", "setup_from_output"]
-
-
-def _visible_markers(
-    T_world_cam: np.ndarray,
-    intr: Intrinsics,
-    corners_world: np.ndarray,
-    normals_world: np.ndarray,
-    margin_px: float,
-    max_incidence_deg: float,
-) -> np.ndarray:
-    """(m, K) bool: all four corners in front and inside the image, face towards the camera."""
-    T_cw = inv_pose(T_world_cam)
-    Xc = np.einsum("mij,kcj->mkci", T_cw[:, :3, :3], corners_world) + T_cw[:, None, None, :3, 3]
-    z = Xc[..., 2]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        u = intr.fx * Xc[..., 0] / z + intr.cx
-        v = intr.fy * Xc[..., 1] / z + intr.cy
-    ok = (z > 0.01) & (u > margin_px) & (u < intr.width - 1 - margin_px)
-    ok &= (v > margin_px) & (v < intr.height - 1 - margin_px)
-    ok = ok.all(axis=-1)
-    to_cam = T_world_cam[:, None, :3, 3] - corners_world.mean(axis=1)[None]
-    cosang = np.einsum("mkj,kj->mk", to_cam, normals_world) / np.linalg.norm(to_cam, axis=-1)
-    return ok & (cosang > np.cos(np.radians(max_incidence_deg)))
 
 
 def predicted_setup(
     model: MCPCModel,
     q: np.ndarray,
-    T_left_right: np.ndarray,
-    intr: Intrinsics,
+    rig: Rig,
     marker_ids: np.ndarray,
     corners_world: np.ndarray,
     normals_world: np.ndarray,
@@ -57,29 +34,22 @@ def predicted_setup(
     pixel_sigma_px: float,
     joint_sigma: np.ndarray | None = None,
     ref_config: int = 0,
-    margin_px: float = 2.0,
-    max_incidence_deg: float = 75.0,
+    visibility: Visibility | None = None,
 ) -> FisherSetup:
     """The setup of a data set *before* it is taken: the corners (K markers, (K, 4, 3) m,
-    normals (K, 3)) predicted to be seen by the stereo pair at joints ``q`` (visibility as the
-    analytic simulator decides it: all four corners inside the image with ``margin_px``, marker
-    facing the camera within ``max_incidence_deg``). Points seen in fewer than two views are
-    dropped (they carry no information).
+    normals (K, 3)) predicted to be seen by the cameras of the stereo ``rig`` (the model's tool is
+    its first camera) at joints ``q`` (``visibility`` default: as the analytic simulator decides
+    it, :class:`calib.camera.Visibility`). Points seen in fewer than two views are dropped (they
+    carry no information).
 
     Raises:
         BoundsError: a scale marker is not seen twice.
     """
     q = np.atleast_2d(np.asarray(q, dtype=float))
     ids = np.asarray(marker_ids, dtype=np.int64)
-    TL = fk_tool(model, q)
-    TR = TL @ np.asarray(T_left_right, dtype=float)
-    vis = np.stack(
-        [
-            _visible_markers(T, intr, corners_world, normals_world, margin_px, max_incidence_deg)
-            for T in (TL, TR)
-        ],
-        axis=1,
-    )  # (m, 2, K)
+    intr = rig.cameras[0]
+    rule = visibility or Visibility()
+    vis = rig.visible_markers(rule, fk_tool(model, q), corners_world, normals_world)  # (m, N, K)
     n_views = vis.sum(axis=(0, 1))
     keep = n_views >= 2
     for sid in scale_ids:
@@ -90,14 +60,15 @@ def predicted_setup(
     remap = -np.ones(len(ids), np.int64)
     remap[kept] = np.arange(len(kept))
     cfg, cam, mk = np.nonzero(vis & keep[None, None])
-    view = np.repeat(2 * cfg + cam, 4)
-    pidx = (4 * remap[mk][:, None] + np.arange(4)).ravel()
+    # point index: the target's feature mapping over the kept markers' positions in the list
+    view = np.repeat(ViewLayout(len(q), rig.n_cameras).view(cfg, cam), CORNERS_PER_MARKER)
+    pidx = marker_features(remap[mk]).ravel()
     X = corners_world[kept].reshape(-1, 3)
-    sp = tuple(4 * remap[np.flatnonzero(ids == sid)[0]] + np.arange(4) for sid in scale_ids)
+    sp = tuple(marker_features(remap[np.flatnonzero(ids == sid)[0]]) for sid in scale_ids)
     return FisherSetup(
         model=model,
         q=q,
-        T_left_right=np.asarray(T_left_right, dtype=float),
+        T_left_right=rig.T_first_cam[1],
         fx=intr.fx,
         mu=intr.mu,
         cx=intr.cx,

@@ -8,11 +8,11 @@ weighting. (The bound of the tool tip is what the report measures; it is evaluat
 with the full model of :mod:`calib.bounds`, not optimised directly.)
 
 Information proxy (cheap, additive over postures): the two-stage view. Posture ``i`` measures the
-left camera's pose; its precision is predicted from the planning grid -- the target-region points
-each camera of the stereo pair sees at that posture (the same visibility test as the random
-planner, :func:`calib.trajectory.visible_counts`), each worth ``corners_per_point`` corners of
-``pixel_sigma_px`` noise -- as the pose-from-known-points Fisher information of the stereo pair
-``I_i`` (6 x 6, in the left camera's body twist), plus the read-back noise propagated through the
+first camera's pose; its precision is predicted from the planning grid -- the target-region points
+each camera of the rig sees at that posture (the same visibility rule as the random planner,
+:data:`calib.trajectory.PLANNING_VISIBILITY`), each worth ``corners_per_point`` corners of
+``pixel_sigma_px`` noise -- as the pose-from-known-points Fisher information of the rig ``I_i``
+(6 x 6, in the first camera's body twist), plus the read-back noise propagated through the
 chain: ``Sigma_i = I_i^-1 + J_q diag(joint_sigma^2) J_q^T``. The information about the kinematic
 parameters is then ``F = sum_i J_i^T Sigma_i^-1 J_i`` with ``J_i`` the identification Jacobian
 (:func:`calib.kinematics.identification_jacobian`) at the posture. It ignores what the
@@ -22,7 +22,7 @@ postures; the bound of a plan is computed with :mod:`calib.bounds`.
 Selection: greedy (each step adds the candidate with the largest ``log det(I + L^T F^-1 L)``,
 ``Sigma^-1 = L L^T``, the determinant lemma) from a slightly regularised start, then exchange
 passes (swap a chosen posture for a candidate while ``log det F`` grows). Candidates are random
-in-range postures of the planner's sampling window in which both cameras see ``min_visible`` grid
+in-range postures of the planner's sampling window in which every camera sees ``min_visible`` grid
 points (:func:`calib.trajectory.plan_postures`), minus those the optional ``collision_ok``
 callback rejects (self-collision; the MuJoCo check lives outside ``calib``).
 """
@@ -34,22 +34,21 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from calib.camera import Intrinsics
+from calib.camera import CameraModel, Rig
 from calib.joint_refine import choose_gauge, encoder_sigma
 from calib.kinematics import fk_frames, fk_tool, identification_jacobian
 from calib.mcpc import MCPCModel, minimal_indices, param_names
 from calib.robot_def import RobotDef
 from calib.trajectory import (
+    PLANNING_VISIBILITY,
     DegenerateTrajectoryError,
     check_not_degenerate,
     plan_postures,
-    visible_counts,
 )
 from calib.transforms import adjoint, inv_pose, skew
 
 __all__ = [
     "OptimalPlan",
-    "visible_mask",
     "pose_information",
     "kinematic_information",
     "select_d_optimal",
@@ -73,32 +72,16 @@ class OptimalPlan:
     exchanges: int
 
 
-def visible_mask(
-    T_world_cam: np.ndarray,
-    intr: Intrinsics,
-    points_world: np.ndarray,
-    normals_world: np.ndarray | None = None,
+def _camera_info(
+    T_world_cam: np.ndarray, camera: CameraModel, X: np.ndarray, vis: np.ndarray
 ) -> np.ndarray:
-    """(m, k) bool: which points each camera sees, point by point with
-    :func:`calib.trajectory.visible_counts` (same criteria as the planner)."""
-    pts = np.asarray(points_world, dtype=float)
-    cols = []
-    for j in range(len(pts)):
-        nj = None if normals_world is None else normals_world[j : j + 1]
-        cols.append(visible_counts(T_world_cam, intr, pts[j : j + 1], nj) > 0)
-    return np.stack(cols, axis=1)
-
-
-def _camera_info(T_world_cam: np.ndarray, intr: Intrinsics, X: np.ndarray, vis: np.ndarray):
-    """(m, 6, 6) information on the camera body twist ``[v; w]`` per unit pixel variance."""
+    """(m, 6, 6) information on the camera body twist ``[v; w]`` per unit pixel variance from
+    the points ``X`` (k, 3) m visible (``vis`` (m, k)) from poses ``T_world_cam`` (m, 4, 4)."""
     T_cw = inv_pose(T_world_cam)
     Xc = np.einsum("mij,kj->mki", T_cw[:, :3, :3], X) + T_cw[:, None, :3, 3]
-    x, y, z = Xc[..., 0], Xc[..., 1], np.where(vis, Xc[..., 2], 1.0)
-    A = np.zeros(Xc.shape[:2] + (2, 3))
-    A[..., 0, 0] = intr.fx / z
-    A[..., 0, 2] = -intr.fx * x / z**2
-    A[..., 1, 1] = intr.fy / z
-    A[..., 1, 2] = -intr.fy * y / z**2
+    Xs = Xc.copy()
+    Xs[..., 2] = np.where(vis, Xc[..., 2], 1.0)  # finite Jacobians where not seen (weight 0)
+    _, A, _ = camera.project_jacobians(Xs)
     D = np.concatenate([np.broadcast_to(-np.eye(3), Xc.shape[:2] + (3, 3)), skew(Xc)], axis=-1)
     G = A @ D * vis[..., None, None]  # (m, k, 2, 6)
     return np.einsum("mkai,mkaj->mij", G, G)
@@ -106,8 +89,7 @@ def _camera_info(T_world_cam: np.ndarray, intr: Intrinsics, X: np.ndarray, vis: 
 
 def pose_information(
     model_cam: MCPCModel,
-    T_left_right: np.ndarray,
-    intr: Intrinsics,
+    rig: Rig,
     q: np.ndarray,
     points_world: np.ndarray,
     normals_world: np.ndarray | None = None,
@@ -116,20 +98,21 @@ def pose_information(
     corners_per_point: float = 1.0,
     joint_sigma: np.ndarray | None = None,
 ) -> np.ndarray:
-    """(m, 6, 6) inverse covariance of the left camera's pose (body twist ``[v; w]``, m / rad)
-    predicted at joints ``q`` (m, n): stereo pose-from-points information of the visible grid
+    """(m, 6, 6) inverse covariance of the first camera's pose (body twist ``[v; w]``, m / rad)
+    predicted at joints ``q`` (m, n): the rig's pose-from-points information of the visible grid
     points (each ``corners_per_point`` corners of ``pixel_sigma_px``), with the read-back noise
     ``joint_sigma`` (n,) propagated through the chain when given."""
     q = np.atleast_2d(np.asarray(q, dtype=float))
-    TL = fk_tool(model_cam, q)
-    T_lr = np.asarray(T_left_right, dtype=float)
-    TR = TL @ T_lr
+    T_first = fk_tool(model_cam, q)
     X = np.asarray(points_world, dtype=float)
     w = corners_per_point / pixel_sigma_px**2
-    IL = _camera_info(TL, intr, X, visible_mask(TL, intr, X, normals_world))
-    AdR = adjoint(inv_pose(T_lr))  # right body twist = Ad(T_right_left) left body twist
-    IR = AdR.T @ _camera_info(TR, intr, X, visible_mask(TR, intr, X, normals_world)) @ AdR
-    info = w * (IL + IR)
+    T = rig.T_world_cams(T_first)
+    vis = rig.visible_points(PLANNING_VISIBILITY, T_first, X, normals_world)
+    total = _camera_info(T[:, 0], rig.cameras[0], X, vis[:, 0])
+    for c in range(1, rig.n_cameras):
+        Ad = adjoint(inv_pose(rig.T_first_cam[c]))  # camera body twist = Ad first body twist
+        total = total + Ad.T @ _camera_info(T[:, c], rig.cameras[c], X, vis[:, c]) @ Ad
+    info = w * total
     scale = np.maximum(np.trace(info, axis1=1, axis2=2) / 6, 1e-300)
     info = info + 1e-9 * scale[:, None, None] * np.eye(6)
     if joint_sigma is None:
@@ -210,8 +193,7 @@ def select_d_optimal(
 def plan_optimal_postures(
     robot: RobotDef,
     model_cam: MCPCModel,
-    T_left_right: np.ndarray,
-    intr: Intrinsics,
+    rig: Rig,
     points_world: np.ndarray,
     n_poses: int,
     *,
@@ -252,8 +234,7 @@ def plan_optimal_postures(
     pool = plan_postures(
         robot,
         model_cam,
-        T_left_right,
-        intr,
+        rig,
         points_world,
         max(n_candidates, n_poses),
         seed=seed,
@@ -279,8 +260,7 @@ def plan_optimal_postures(
     free = np.array([nm not in held for nm in names])
     W = pose_information(
         model_cam,
-        T_left_right,
-        intr,
+        rig,
         pool,
         points_world,
         normals_world,

@@ -1,5 +1,5 @@
-"""Calibration trajectories: postures that keep the target in view of both cameras from varied
-directions, and the check for the degenerate trajectory of self-calibration.
+"""Calibration trajectories: postures that keep the target in view of every camera of the rig from
+varied directions, and the check for the degenerate trajectory of self-calibration.
 
 Planning uses only the nominal model and a rough description of where the target is (points on it,
 world frame, m); it runs on the acquisition side and never sees the calibration's unknowns.
@@ -11,18 +11,19 @@ import warnings
 
 import numpy as np
 
-from calib.camera import Intrinsics
+from calib.camera import CameraModel, Rig, Visibility
 from calib.errors import EstimationError, SelfCalWarning
 from calib.kinematics import fk_tool
 from calib.mcpc import MCPCModel
 from calib.robot_def import RobotDef
-from calib.transforms import inv_pose
 
 __all__ = [
+    "PLANNING_VISIBILITY",
     "DegenerateTrajectoryError",
     "DegenerateTrajectoryWarning",
     "visible_counts",
     "plan_postures",
+    "optical_axes_convergence",
     "axes_convergence_m",
     "check_not_degenerate",
 ]
@@ -36,41 +37,31 @@ class DegenerateTrajectoryWarning(SelfCalWarning):
     """The postures are close to a degenerate configuration; results will be poorly conditioned."""
 
 
+PLANNING_VISIBILITY = Visibility(
+    margin_px=12.0, min_depth_m=0.12, max_depth_m=0.9, max_incidence_deg=65.0
+)
+"""What the planner asks of a target point: well inside the image, at a working distance, facing
+the camera (stricter than what the simulator reports, so planned views are robust)."""
+
+
 def visible_counts(
     T_world_cam: np.ndarray,
-    intr: Intrinsics,
+    camera: CameraModel,
     points_world: np.ndarray,
     normals_world: np.ndarray | None = None,
     *,
-    depth_m: tuple[float, float] = (0.12, 0.9),
-    margin_px: float = 12.0,
-    max_incidence_deg: float = 65.0,
+    rule: Visibility = PLANNING_VISIBILITY,
 ) -> np.ndarray:
-    """How many target points each camera (m, 4, 4) sees: in front, inside the image with a margin,
-    within the depth range and (with normals) facing the camera. Returns (m,) int."""
-    T_cam_world = inv_pose(T_world_cam)
-    Xc = (
-        np.einsum("mij,kj->mki", T_cam_world[:, :3, :3], points_world) + T_cam_world[:, None, :3, 3]
-    )
-    z = Xc[..., 2]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        u = intr.fx * Xc[..., 0] / z + intr.cx
-        v = intr.fy * Xc[..., 1] / z + intr.cy
-    ok = (z > depth_m[0]) & (z < depth_m[1])
-    ok &= (u > margin_px) & (u < intr.width - 1 - margin_px)
-    ok &= (v > margin_px) & (v < intr.height - 1 - margin_px)
-    if normals_world is not None:
-        to_cam = T_world_cam[:, None, :3, 3] - points_world[None]
-        cosang = np.einsum("mkj,kj->mk", to_cam, normals_world) / np.linalg.norm(to_cam, axis=-1)
-        ok &= cosang > np.cos(np.radians(max_incidence_deg))
-    return ok.sum(axis=1)
+    """How many target points (k, 3) m (unit ``normals_world`` (k, 3) or None) each camera pose
+    ``T_world_cam`` (m, 4, 4) sees by ``rule`` (:class:`calib.camera.Visibility`). Returns (m,)
+    int."""
+    return rule.points(camera, T_world_cam, points_world, normals_world).sum(axis=1)
 
 
 def plan_postures(
     robot: RobotDef,
     model_cam: MCPCModel,
-    T_left_right: np.ndarray,
-    intr: Intrinsics,
+    rig: Rig,
     points_world: np.ndarray,
     n_poses: int,
     *,
@@ -80,11 +71,12 @@ def plan_postures(
     span: np.ndarray | None = None,
     max_candidates: int = 200_000,
 ) -> np.ndarray:
-    """Random in-range postures around home in which both cameras see ``min_visible`` points.
+    """Random in-range postures around home in which every camera of ``rig`` sees
+    ``min_visible`` points (:data:`PLANNING_VISIBILITY`).
 
     Args:
-        model_cam: nominal MCPC model whose tool is the left camera (OpenCV frame).
-        T_left_right: pose of the right camera in the left camera's frame.
+        model_cam: nominal MCPC model whose tool is the rig's first camera (OpenCV frame).
+        rig: the cameras and their extrinsics.
         points_world: (k, 3) points on the target (m), e.g. marker centres.
         span: (n,) half-width (rad, or m for a prismatic joint) of the window around home in
             which postures are drawn; default ``robot.planning_span`` (robot file
@@ -103,35 +95,43 @@ def plan_postures(
     while sum(len(f) for f in found) < n_poses and tried < max_candidates:
         q = rng.uniform(lo, hi, size=(4096, robot.n))
         tried += len(q)
-        T_left = fk_tool(model_cam, q)
-        T_right = T_left @ T_left_right
-        ok = visible_counts(T_left, intr, points_world, normals_world) >= min_visible
-        ok &= visible_counts(T_right, intr, points_world, normals_world) >= min_visible
-        found.append(q[ok])
+        seen = rig.visible_points(
+            PLANNING_VISIBILITY, fk_tool(model_cam, q), points_world, normals_world
+        )
+        found.append(q[(seen.sum(axis=2) >= min_visible).all(axis=1)])
     allq = np.concatenate(found) if found else np.zeros((0, robot.n))
     if len(allq) < n_poses:
         raise DegenerateTrajectoryError(
-            f"only {len(allq)} of {n_poses} postures found in which both cameras see "
+            f"only {len(allq)} of {n_poses} postures found in which every camera sees "
             f"{min_visible} target points; lower trajectory.min_markers, move the target, or "
             "widen the sampling window"
         )
     return allq[:n_poses]
 
 
-def axes_convergence_m(T_world_cam: np.ndarray) -> float:
-    """RMS distance (m) of the cameras' optical axes from the point nearest to all of them.
+def optical_axes_convergence(T_world_cam: np.ndarray) -> tuple[np.ndarray, float]:
+    """Point (3,) closest (least squares) to all optical axes of ``T_world_cam`` (n, 4, 4) (poses
+    with NaN are skipped) and the RMS distance of the axes from it (units of the poses).
 
     Near zero means every optical axis passes through one point: then the focal length cannot be
     recovered from the images (a known critical motion of self-calibration).
     """
-    c = T_world_cam[:, :3, 3]
-    d = T_world_cam[:, :3, 2]
-    P = np.eye(3)[None] - d[:, :, None] * d[:, None, :]
+    T = np.asarray(T_world_cam, dtype=float).reshape(-1, 4, 4)
+    T = T[np.isfinite(T).all(axis=(1, 2))]
+    C = T[:, :3, 3]
+    d = T[:, :3, 2]
+    P = np.eye(3) - d[:, :, None] * d[:, None, :]
     A = P.sum(axis=0)
-    b = np.einsum("mij,mj->i", P, c)
-    x = np.linalg.lstsq(A, b, rcond=None)[0]
-    r = np.einsum("mij,mj->mi", P, x[None] - c)
-    return float(np.sqrt(np.mean(np.sum(r**2, axis=1))))
+    b = np.einsum("nij,nj->i", P, C)
+    p = np.linalg.lstsq(A, b, rcond=None)[0]
+    r = np.einsum("nij,nj->ni", P, p - C)
+    return p, float(np.sqrt(np.mean(np.sum(r**2, axis=1))))
+
+
+def axes_convergence_m(T_world_cam: np.ndarray) -> float:
+    """RMS distance (m) of the cameras' optical axes from the point nearest to all of them
+    (:func:`optical_axes_convergence`)."""
+    return optical_axes_convergence(T_world_cam)[1]
 
 
 def check_not_degenerate(

@@ -14,7 +14,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from calib.camera import Intrinsics
+from calib.camera import Intrinsics, Rig
 from calib.io.dataset import DatasetInfo
 from calib.io.truth import read_truth, write_truth
 from calib.kinematics import fk_tool
@@ -22,6 +22,7 @@ from calib.mcpc import MCPCModel, dh_to_mcpc, minimal_indices, param_is_angle, p
 from calib.optimal_poses import plan_optimal_postures
 from calib.robot import Robot
 from calib.robot_def import RobotDef, load_robot
+from calib.target import CORNERS_PER_MARKER
 from calib.trajectory import check_not_degenerate, plan_postures
 from calib.transforms import trans
 from scenarios.acquire import AcquisitionHooks
@@ -116,8 +117,8 @@ def sim_setup(s: Scenario) -> SimSetup:
 
 
 def planning_inputs(s: Scenario) -> dict:
-    """What trajectories are planned with: robot, nominal camera chain, rig, intrinsics and a 6 x 6
-    grid of points (with normals) over the target region.
+    """What trajectories are planned with: robot, nominal camera chain, the camera rig (nominal
+    intrinsics and baseline) and a 6 x 6 grid of points (with normals) over the target region.
 
     Planning sees only what a person at a real robot knows: the region the target covers (centred
     where the home posture looks, ``[target] extent_mm``), never the true marker positions, so
@@ -133,8 +134,10 @@ def planning_inputs(s: Scenario) -> dict:
     return {
         "robot": robot,
         "model_cam": nominal,
-        "T_left_right": trans(np.array([s.camera.baseline_mm / 1000, 0.0, 0.0])),
-        "intr": Intrinsics.centered(s.camera.fx, s.camera.mu, W, H),
+        "rig": Rig.stereo(
+            Intrinsics.centered(s.camera.fx, s.camera.mu, W, H),
+            trans(np.array([s.camera.baseline_mm / 1000, 0.0, 0.0])),
+        ),
         "points_world": pts,
         "normals_world": np.tile([0.0, 0.0, 1.0], (len(pts), 1)),
         "min_visible": s.trajectory.min_markers,
@@ -144,9 +147,10 @@ def planning_inputs(s: Scenario) -> dict:
 def plan_optimal(s: Scenario, *, collisions: bool = True, **kw):
     """The D-optimal plan (:class:`calib.optimal_poses.OptimalPlan`, ``q`` rad) for scenario ``s``
     over the planning grid of :func:`planning_inputs`, checked for self-collision with MuJoCo
-    (:mod:`sim.collision`), with ``corners_per_point = 4 * markers / 36``."""
+    (:mod:`sim.collision`), with ``corners_per_point = corners of the markers / 36``."""
     inp = planning_inputs(s)
-    kw.setdefault("corners_per_point", 4.0 * s.target.markers / len(inp["points_world"]))
+    corners = CORNERS_PER_MARKER * s.target.markers
+    kw.setdefault("corners_per_point", corners / len(inp["points_world"]))
     kw.setdefault("pixel_sigma_px", s.noise.pixel_sigma)
     return plan_optimal_postures(
         **inp,
@@ -164,9 +168,9 @@ def plan_dataset(s: Scenario, setup: SimSetup | None = None) -> DatasetInfo:
     instead of random ones, under the same visibility rule and without self-collision.
     """
     p = planning_inputs(s)
-    robot, nominal, T_lr, intr = p["robot"], p["model_cam"], p["T_left_right"], p["intr"]
+    robot, nominal, rig = p["robot"], p["model_cam"], p["rig"]
     pts, nrm = p["points_world"], p["normals_world"]
-    W, H = intr.width, intr.height
+    W, H = rig.cameras[0].width, rig.cameras[0].height
     scale_ids = tuple(int(i) for i in setup.field.scale_ids) if setup is not None else SCALE_IDS
     if s.trajectory.kind == "optimal":
         q = plan_optimal(s).q
@@ -174,8 +178,7 @@ def plan_dataset(s: Scenario, setup: SimSetup | None = None) -> DatasetInfo:
         q = plan_postures(
             robot,
             nominal,
-            T_lr,
-            intr,
+            rig,
             pts,
             s.trajectory.poses,
             seed=s.trajectory.seed,
@@ -186,8 +189,7 @@ def plan_dataset(s: Scenario, setup: SimSetup | None = None) -> DatasetInfo:
     qv = plan_postures(
         robot,
         nominal,
-        T_lr,
-        intr,
+        rig,
         pts,
         s.validation.poses,
         seed=10_000 + s.validation.seed,

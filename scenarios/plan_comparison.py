@@ -16,6 +16,7 @@ import numpy as np
 
 from calib.bounds import cramer_rao
 from calib.bounds_setup import predicted_setup
+from calib.camera import Rig
 from calib.joint_refine import encoder_sigma
 from calib.mcpc import minimal_indices, param_is_angle
 from calib.trajectory import plan_postures
@@ -38,8 +39,7 @@ def predicted_bound(s, q: np.ndarray) -> dict:
     st = predicted_setup(
         setup.actual,
         q,
-        setup.T_left_right,
-        setup.intrinsics,
+        Rig.stereo(setup.intrinsics, setup.T_left_right),
         fld.ids,
         fld.corners_world(),
         fld.T_world_marker[:, :3, 2],
@@ -83,8 +83,7 @@ def compare_plans(
             q_rand = plan_postures(
                 inp["robot"],
                 inp["model_cam"],
-                inp["T_left_right"],
-                inp["intr"],
+                inp["rig"],
                 inp["points_world"],
                 n,
                 seed=seed,

@@ -22,6 +22,7 @@ from scipy.stats import chi2
 
 from calib.bounds import aligned_error_dof, aligned_rms_from_covariance, cramer_rao
 from calib.bounds_setup import predicted_setup
+from calib.camera import Rig
 from calib.identify import express_in_frame, minimal_difference
 from calib.joint_refine import encoder_sigma
 from calib.kinematics import fk_tool, identification_jacobian
@@ -41,8 +42,7 @@ def tiny():
     q = plan_postures(
         inp["robot"],
         inp["model_cam"],
-        inp["T_left_right"],
-        inp["intr"],
+        inp["rig"],
         inp["points_world"],
         7,
         seed=3,
@@ -53,8 +53,7 @@ def tiny():
     st = predicted_setup(
         setup.actual,
         q,
-        setup.T_left_right,
-        setup.intrinsics,
+        Rig.stereo(setup.intrinsics, setup.T_left_right),
         fld.ids,
         fld.corners_world(),
         fld.T_world_marker[:, :3, 2],

@@ -18,8 +18,8 @@ import pytest
 
 from calib.camera import project
 from calib.kinematics import fk_tool
-from calib.optimal_poses import pose_information, select_d_optimal, visible_mask
-from calib.trajectory import plan_postures
+from calib.optimal_poses import pose_information, select_d_optimal
+from calib.trajectory import PLANNING_VISIBILITY, plan_postures
 from calib.transforms import inv_pose, pose_from_vec
 from scenarios.backends import plan_optimal, planning_inputs
 from scenarios.config import load_scenario
@@ -33,13 +33,14 @@ def inp():
 
 
 def test_pose_information_matches_finite_differences(inp):
-    model, intr, T_lr = inp["model_cam"], inp["intr"], inp["T_left_right"]
+    model, rig = inp["model_cam"], inp["rig"]
+    intr, T_lr = rig.cameras[0], rig.T_first_cam[1]
     pts, nrm = inp["points_world"], inp["normals_world"]
     q = inp["robot"].home[None] + np.radians([[5.0, 3.0, -4.0, 6.0, 20.0]])
-    W = pose_information(model, T_lr, intr, q, pts, nrm, pixel_sigma_px=1.0)[0]
+    W = pose_information(model, rig, q, pts, nrm, pixel_sigma_px=1.0)[0]
     TL = fk_tool(model, q)[0]
-    vL = visible_mask(TL[None], intr, pts, nrm)[0]
-    vR = visible_mask((TL @ T_lr)[None], intr, pts, nrm)[0]
+    vL = PLANNING_VISIBILITY.points(intr, TL[None], pts, nrm)[0]
+    vR = PLANNING_VISIBILITY.points(intr, (TL @ T_lr)[None], pts, nrm)[0]
     assert vL.sum() >= 6 and vR.sum() >= 6
 
     def f(xi):  # body twist [v; w] of the left camera
@@ -82,8 +83,7 @@ def test_optimal_postures_lower_the_tool_tip_bound(inp):
     q_rand = plan_postures(
         inp["robot"],
         inp["model_cam"],
-        inp["T_left_right"],
-        inp["intr"],
+        inp["rig"],
         inp["points_world"],
         10,
         seed=1,

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from calib.camera import Intrinsics
+from calib.camera import Intrinsics, Rig
 from calib.kinematics import fk_tool
 from calib.mcpc import dh_to_mcpc
 from calib.robot_def import load_robot
@@ -33,15 +33,14 @@ def test_planned_postures_are_in_range_and_see_the_target():
     model = dh_to_mcpc(robot).with_tool(robot.T_flange_cam)
     pts, nrm = field_points()
     T_lr = trans(np.array([0.06, 0.0, 0.0]))
-    q = plan_postures(robot, model, T_lr, INTR, pts, 25, seed=3, min_visible=6, normals_world=nrm)
+    rig = Rig.stereo(INTR, T_lr)
+    q = plan_postures(robot, model, rig, pts, 25, seed=3, min_visible=6, normals_world=nrm)
     assert q.shape == (25, 5)
     robot.check_joints(q)
     T = fk_tool(model, q)
     assert np.all(visible_counts(T, INTR, pts, nrm) >= 6)
     assert np.all(visible_counts(T @ T_lr, INTR, pts, nrm) >= 6)
-    again = plan_postures(
-        robot, model, T_lr, INTR, pts, 25, seed=3, min_visible=6, normals_world=nrm
-    )
+    again = plan_postures(robot, model, rig, pts, 25, seed=3, min_visible=6, normals_world=nrm)
     np.testing.assert_array_equal(q, again)
     assert check_not_degenerate(T) > 0.01
 
@@ -52,8 +51,9 @@ def test_impossible_visibility_is_an_error():
     pts = np.array([[-2.0, -2.0, 0.0]])  # behind the robot, far away
     with pytest.raises(DegenerateTrajectoryError, match="min_markers"):
         plan_postures(
-            robot, model, np.eye(4), INTR, pts, 5, seed=0, min_visible=1, max_candidates=8192
-        )
+            robot, model, Rig.stereo(INTR, trans(np.array([0.06, 0.0, 0.0]))), pts, 5,
+            seed=0, min_visible=1, max_candidates=8192,
+        )  # fmt: skip
 
 
 def look_at(eye, target):
