@@ -1,23 +1,24 @@
 """Cramer-Rao bounds of the one-step (joint) calibration model: parameters and the tool tip.
 
-The measurement model is the one :func:`calib.joint_refine.joint_refine` fits: every marker
-corner seen in camera ``c`` of configuration ``i`` is observed as ``proj(fx, mu, T_cam_world(i, c),
-X) + e`` with ``e ~ N(0, sigma^2 I_2)`` px, the left camera is the MCPC tool at the *true* joints
-``q_i + dq_i`` (read-back ``q_i``, read-back error ``dq_i ~ N(0, diag(joint_sigma^2))``), the
-right camera is rigidly attached (rig), the corners' 3-D positions are unknown, and the distance
-of the two scale markers' centres is known (a hard constraint). The Fisher information of all
-unknowns ``[fx, mu, rho_free, rig, dq, X]`` is ``J^T J`` of the whitened residuals (the joint
-refinement's own sparse Jacobian, rows divided by sigma; the ``dq`` prior rows make it the
-Bayesian/errors-in-variables information). The gauge is fixed like the joint refinement fixes it
-(six MCPC parameters of the world frame held, :func:`calib.joint_refine.choose_gauge`); nuisance
-parameters (intrinsics, rig, read-back errors, points) are marginalised by the inverse.
+The measurement model is the one :func:`calib.joint_refine.joint_refine` fits: every marker corner
+seen in camera ``c`` of configuration ``i`` is observed as ``proj(camera, T_cam_world(i, c), X) +
+e`` (the camera model's projection, :mod:`calib.camera`) with ``e ~ N(0, sigma^2 I_2)`` px, the left
+camera is the MCPC tool at the *true* joints ``q_i + dq_i`` (read-back ``q_i``, read-back error
+``dq_i ~ N(0, diag(joint_sigma^2))``), the right camera is rigidly attached (rig), the corners' 3-D
+positions are unknown, and the distance of the two scale markers' centres is known (a hard
+constraint). The Fisher information of all unknowns ``[camera's free parameters (fx, mu), rho_free,
+rig, dq, X]`` is ``J^T J`` of the whitened residuals (the joint refinement's own sparse Jacobian,
+rows divided by sigma; the ``dq`` prior rows make it the Bayesian/errors-in-variables information).
+The gauge is fixed like the joint refinement fixes it (six MCPC parameters of the world frame held,
+:func:`calib.joint_refine.choose_gauge`); nuisance parameters (intrinsics, rig, read-back errors,
+points) are marginalised by the inverse.
 
 Bounds given (:class:`CramerRao`):
 
 - every minimal MCPC parameter in the *reference-camera frame* (world = left camera of the
   reference configuration, the frame of ``calibration.json`` and of the report's parameter
   table; the uncertainty of that camera's pose -- including its read-back error -- is propagated);
-- ``fx``, ``mu``;
+- every free camera parameter (``fx``, ``mu``);
 - the RMS error of a camera-attached point (the tool tip) over validation postures *after the
   best rigid alignment*, as :mod:`calib.report` measures it: ``sqrt(trace(P S P) / k)`` with ``S``
   the (3k, 3k) covariance of the stacked predicted points and ``P`` the projector removing rigid
@@ -38,6 +39,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from calib.camera import CameraModel
 from calib.errors import EstimationError
 from calib.identify import express_in_frame, minimal_difference
 from calib.joint_refine import KinematicPoses, _Problem, choose_gauge
@@ -69,10 +71,12 @@ class FisherSetup:
         model: MCPC chain whose tool is the left camera (OpenCV frame), world frame arbitrary.
         q: (m, n) joints (rad / m) of the configurations (read-back; the information is
             evaluated there).
-        T_left_right: the right camera's pose in the left camera frame.
-        fx, mu, cx, cy: intrinsics (px).
+        camera: the camera model (its free parameters are unknowns), shared by every camera
+            of the rig.
+        T_first_cam: (N, 4, 4) the rig: each camera's pose in the first camera's frame (m).
         X_world: (P, 3) corner positions in the model's world frame.
-        view: (k,) ``2 * config + camera`` of every observation; ``pidx``: (k,) its point index.
+        view: (k,) view of every observation (:class:`calib.observations.ViewLayout` over the
+            configurations of ``q``); ``pidx``: (k,) its point index.
         scale_points: two arrays of point indices (each marker's four corners) whose centres are
             ``scale_distance_m`` apart.
         pixel_sigma_px: corner noise per coordinate; ``joint_sigma``: (n,) read-back standard
@@ -84,11 +88,8 @@ class FisherSetup:
 
     model: MCPCModel
     q: np.ndarray
-    T_left_right: np.ndarray
-    fx: float
-    mu: float
-    cx: float
-    cy: float
+    camera: CameraModel
+    T_first_cam: np.ndarray
     X_world: np.ndarray
     view: np.ndarray
     pidx: np.ndarray
@@ -100,6 +101,21 @@ class FisherSetup:
     ref_config: int = 0
     scale_sigma_m: float = 1e-7
 
+    @property
+    def fx(self) -> float:
+        """The pinhole's focal length (px)."""
+        return self.camera.fx  # type: ignore[attr-defined]
+
+    @property
+    def mu(self) -> float:
+        """The pinhole's aspect ratio."""
+        return self.camera.mu  # type: ignore[attr-defined]
+
+    @property
+    def T_left_right(self) -> np.ndarray:
+        """The second (right) camera's pose in the first (left) camera frame (m)."""
+        return self.T_first_cam[1]
+
 
 @dataclass
 class _Layout:
@@ -108,7 +124,8 @@ class _Layout:
     held: dict[str, str]
     free: np.ndarray  # mask over the minimal parameters
     free_idx: np.ndarray  # flat indices of the free ones
-    kin_cols: np.ndarray  # columns of [fx, mu, rho_free] in x
+    n_camera: int  # the camera's free parameters: the first columns of x
+    kin_cols: np.ndarray  # columns of [camera's free parameters, rho_free] in x
     dq_ref_cols: np.ndarray  # columns of the reference configuration's read-back errors (or [])
 
 
@@ -124,17 +141,20 @@ def _layout(s: FisherSetup) -> _Layout:
     free = np.array([nm not in held for nm in names])
     free_idx = idx[free]
     use_dq = s.joint_sigma is not None
-    pm = KinematicPoses(s.model, s.q, free_idx, inv_pose(s.T_left_right), joint_corrections=use_dq)
-    kin_cols = np.r_[0, 1, 2 + np.arange(pm.k)]
+    pm = KinematicPoses(
+        s.model, s.q, free_idx, inv_pose(s.T_first_cam[1:]), joint_corrections=use_dq
+    )
+    nc = s.camera.n_free
+    kin_cols = np.arange(nc + pm.k)
     n = s.model.n
-    dq_ref = 2 + pm.dq_cols[n * s.ref_config : n * (s.ref_config + 1)] if use_dq else np.zeros(0)
-    return _Layout(pm, names, held, free, free_idx, kin_cols, dq_ref.astype(np.int64))
+    dq_ref = nc + pm.dq_cols[n * s.ref_config : n * (s.ref_config + 1)] if use_dq else np.zeros(0)
+    return _Layout(pm, names, held, free, free_idx, nc, kin_cols, dq_ref.astype(np.int64))
 
 
 def fisher_jacobian(s: FisherSetup) -> tuple:
     """The whitened Jacobian ``J`` (sparse, rows / sigma) with Fisher information ``J^T J``, the
-    unknowns ``x = [fx, mu, rho_free, rig (6), dq (n per configuration), X (3 P)]`` and the layout
-    (for :func:`cramer_rao`). Returns ``(J, layout)``."""
+    unknowns ``x = [camera's free parameters, rho_free, rig (6 per further camera), dq (n per
+    configuration), X (3 P)]`` and the layout (for :func:`cramer_rao`). Returns ``(J, layout)``."""
     q = np.atleast_2d(np.asarray(s.q, dtype=float))
     if q.shape[1] != s.model.n:
         raise BoundsError(f"q must have shape (m, {s.model.n}), got {q.shape}")
@@ -159,20 +179,19 @@ def fisher_jacobian(s: FisherSetup) -> tuple:
     else:
         prior_cols, prior_w = np.zeros(0, np.int64), np.zeros(0)
     prob = _Problem(
+        s.camera,
         pm,
         np.asarray(s.view, dtype=np.int64),
         np.asarray(s.pidx, dtype=np.int64),
         np.zeros((len(s.view), 2)),
         len(X),
-        s.cx,
-        s.cy,
         s.scale_points,
         s.scale_distance_m,
         1.0 / s.scale_sigma_m,
         prior_cols,
         prior_w,
     )
-    x = np.concatenate([[s.fx, s.mu], pm.initial_params(), X.ravel()])
+    x = np.concatenate([s.camera.free_values(), pm.initial_params(), X.ravel()])
     J = prob.jac(x) / s.pixel_sigma_px
     return J.tocsr(), lay
 
@@ -214,7 +233,8 @@ class CramerRao:
     ``std_ref`` (P,): bound of every minimal parameter in the reference-camera frame (NaN for
     parameters held beyond the gauge); ``cov_ref`` (P, P) their covariance; ``model_ref`` the
     setup's model in that frame. ``cov_free``: covariance of ``rho_free`` (``free_idx`` flat
-    indices of ``model``) in the held-parameter gauge. ``fx_std``, ``mu_std``.
+    indices of ``model``) in the held-parameter gauge. ``camera_std``: the bound of every free
+    camera parameter by name (``fx_std``, ``mu_std`` the pinhole's).
     """
 
     model: MCPCModel
@@ -225,12 +245,21 @@ class CramerRao:
     cov_free: np.ndarray
     cov_ref: np.ndarray
     std_ref: np.ndarray
-    fx_std: float
-    mu_std: float
+    camera_std: dict[str, float]
     pixel_sigma_px: float
     n_observations: int
     n_unknowns: int
     extra: dict = field(default_factory=dict)
+
+    @property
+    def fx_std(self) -> float:
+        """Bound of the pinhole's ``fx`` (px)."""
+        return self.camera_std["fx"]
+
+    @property
+    def mu_std(self) -> float:
+        """Bound of the pinhole's ``mu``."""
+        return self.camera_std["mu"]
 
     def tool_points(self, q: np.ndarray, T_cam_point: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Predicted points (k, 3) m and their stacked covariance (3k, 3k) m^2 at joints ``q``."""
@@ -252,14 +281,12 @@ class CramerRao:
         """The bound for another corner noise with the read-back noise scaled alike (the whole
         information scales by ``(sigma_old / sigma_new)^2``)."""
         f = (float(pixel_sigma_px) / self.pixel_sigma_px) ** 2
-
         return dataclasses.replace(
             self,
             cov_free=self.cov_free * f,
             cov_ref=self.cov_ref * f,
             std_ref=self.std_ref * np.sqrt(f),
-            fx_std=self.fx_std * np.sqrt(f),
-            mu_std=self.mu_std * np.sqrt(f),
+            camera_std={k: v * np.sqrt(f) for k, v in self.camera_std.items()},
             pixel_sigma_px=float(pixel_sigma_px),
         )
 
@@ -286,10 +313,9 @@ def cramer_rao(s: FisherSetup, *, rank_tol: float = 1e-10) -> CramerRao:
             )
     cols = np.r_[lay.kin_cols, lay.dq_ref_cols]
     C = inverse_block(J, cols)
-    nk = len(lay.kin_cols)
-    fx_std = float(np.sqrt(max(C[0, 0], 0.0)))
-    mu_std = float(np.sqrt(max(C[1, 1], 0.0)))
-    cov_free = C[2:nk, 2:nk]
+    nk, nc = len(lay.kin_cols), lay.n_camera
+    camera_std = {name: float(np.sqrt(max(C[i, i], 0.0))) for i, name in enumerate(s.camera.free)}
+    cov_free = C[nc:nk, nc:nk]
     # ---- the reference-camera frame: world = left camera at the reference configuration
     model = s.model
     idx = minimal_indices(model.joint_types)
@@ -316,7 +342,7 @@ def cramer_rao(s: FisherSetup, *, rank_tol: float = 1e-10) -> CramerRao:
         dqp = zp[k:] if n_dq else np.zeros(model.n)
         dqm = zm[k:] if n_dq else np.zeros(model.n)
         H[:, j] = minimal_difference(to_ref(zp[:k], dqp), to_ref(zm[:k], dqm)) / (2 * h)
-    Cz = C[2:, 2:]
+    Cz = C[nc:, nc:]
     cov_ref = H @ Cz @ H.T
     std_ref = np.sqrt(np.clip(np.diag(cov_ref), 0.0, None))
     for nm, why in lay.held.items():
@@ -331,8 +357,7 @@ def cramer_rao(s: FisherSetup, *, rank_tol: float = 1e-10) -> CramerRao:
         cov_free=cov_free,
         cov_ref=cov_ref,
         std_ref=std_ref,
-        fx_std=fx_std,
-        mu_std=mu_std,
+        camera_std=camera_std,
         pixel_sigma_px=float(s.pixel_sigma_px),
         n_observations=int(len(s.view)),
         n_unknowns=int(J.shape[1]),

@@ -1,9 +1,10 @@
 """The :class:`calib.bounds.FisherSetup` of a data set: predicted before it is taken (planning,
 simulation) or taken from a calibration (the bounds of ``calibration.json``).
 
-Both give the corners seen in each view (``view = 2 * config + camera``, ``pidx`` into the
-points), the points, the scale markers' corners and the noise levels; :func:`calib.bounds.cramer_rao`
-turns a setup into bounds. SI units, px.
+Both give the corners seen in each view (views: :class:`calib.observations.ViewLayout` over the
+setup's configurations; ``pidx`` into the points, by the target's feature mapping), the points, the
+scale markers' corners and the noise levels; :func:`calib.bounds.cramer_rao` turns a setup into
+bounds. SI units, px.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ from calib.camera import Rig, Visibility
 from calib.joint_refine import encoder_sigma
 from calib.kinematics import fk_tool
 from calib.mcpc import MCPCModel
-from calib.observations import ViewLayout
+from calib.observations import ViewLayout, views_per_point
 from calib.target import CORNERS_PER_MARKER, marker_features
 
 __all__ = ["predicted_setup", "setup_from_output"]
@@ -37,17 +38,23 @@ def predicted_setup(
     visibility: Visibility | None = None,
 ) -> FisherSetup:
     """The setup of a data set *before* it is taken: the corners (K markers, (K, 4, 3) m,
-    normals (K, 3)) predicted to be seen by the cameras of the stereo ``rig`` (the model's tool is
+    normals (K, 3)) predicted to be seen by the cameras of ``rig`` (the model's tool is
     its first camera) at joints ``q`` (``visibility`` default: as the analytic simulator decides
     it, :class:`calib.camera.Visibility`). Points seen in fewer than two views are dropped (they
     carry no information).
 
     Raises:
-        BoundsError: a scale marker is not seen twice.
+        BoundsError: a scale marker is not seen twice, or the rig's cameras differ (the model
+            has one camera shared by the rig).
     """
     q = np.atleast_2d(np.asarray(q, dtype=float))
     ids = np.asarray(marker_ids, dtype=np.int64)
-    intr = rig.cameras[0]
+    camera = rig.cameras[0]
+    if any(c != camera for c in rig.cameras[1:]):
+        raise BoundsError(
+            "the rig's cameras have different models; the estimation (and so this bound) has "
+            "one camera model shared by the rig"
+        )
     rule = visibility or Visibility()
     vis = rig.visible_markers(rule, fk_tool(model, q), corners_world, normals_world)  # (m, N, K)
     n_views = vis.sum(axis=(0, 1))
@@ -68,11 +75,8 @@ def predicted_setup(
     return FisherSetup(
         model=model,
         q=q,
-        T_left_right=rig.T_first_cam[1],
-        fx=intr.fx,
-        mu=intr.mu,
-        cx=intr.cx,
-        cy=intr.cy,
+        camera=camera,
+        T_first_cam=rig.T_first_cam,
         X_world=X,
         view=view,
         pidx=pidx,
@@ -82,14 +86,6 @@ def predicted_setup(
         joint_sigma=None if joint_sigma is None else np.asarray(joint_sigma, dtype=float),
         ref_config=int(ref_config),
     )
-
-
-def _two_stage_sigma(sc, n_used: int) -> float:
-    inl = np.asarray(sc.inlier, bool) & np.isfinite(sc.residuals).all(axis=1)
-    has_X = np.isfinite(sc.X_world).all(axis=1)
-    n_ba = 2 + 6 * (n_used - 1) + 5 + 3 * int(has_X.sum())
-    dof = max(2 * int(inl.sum()) - n_ba, 1)
-    return float(np.sqrt(np.sum(sc.residuals[inl] ** 2) / dof))
 
 
 def setup_from_output(
@@ -103,7 +99,7 @@ def setup_from_output(
     joint_sigma: np.ndarray | None | str = "encoder",
 ) -> FisherSetup:
     """The setup of a calibrated data set, evaluated at the final estimate of ``out`` (a
-    :class:`calib.calibrate.CalibrationOutput`, joint or two-stage): its model, intrinsics, rig
+    :class:`calib.calibrate.CalibrationOutput`, joint or two-stage): its model, camera, rig
     and points, the configurations the calibration used, the camera stage's inlier observations
     of reconstructed points, the reference configuration. ``obs``/``q`` as given to the
     calibration; ``ds_info`` for the scale markers and ``d``.
@@ -117,17 +113,17 @@ def setup_from_output(
     q = np.atleast_2d(np.asarray(q, dtype=float))
     if res is not None:
         used = np.asarray(res.diagnostics.get("used_configs"), dtype=np.int64)
-        model, fx, mu = res.model, res.fx, res.mu
-        T_lr, X, ref = res.T_left_right, res.X_world, int(res.ref_config)
+        model, camera = res.model, res.camera
+        T_first_cam, X, ref = res.T_first_cam, res.X_world, int(res.ref_config)
         held = tuple(n for n, why in res.held_reason.items() if not why.startswith("gauge"))
         sigma = res.sigma_px
     else:
         used = np.flatnonzero(sc.registered if sc.registered.ndim == 1 else sc.registered[:, 0])
         ident = out.identification
-        model, fx, mu = ident.model, sc.fx, sc.mu
-        T_lr, X, ref = sc.T_left_right, sc.X_world, int(sc.ref_config)
+        model, camera = ident.model, sc.camera
+        T_first_cam, X, ref = sc.T_first_cam, sc.X_world, int(sc.ref_config)
         held = tuple(ident.held)
-        sigma = _two_stage_sigma(sc, len(used))
+        sigma = sc.pixel_sigma_px(len(used))
     if pixel_sigma_px is not None:
         sigma = float(pixel_sigma_px)
     if isinstance(joint_sigma, str):
@@ -144,18 +140,16 @@ def setup_from_output(
     pos[used] = np.arange(len(used))
     has_X = np.isfinite(X).all(axis=1)
     rows = (pos[obs.config] >= 0) & has_X[pidx_all] & np.asarray(sc.inlier, bool)
-    view = 2 * pos[obs.config] + obs.camera
+    view = ViewLayout(len(used), obs.n_cameras).view(pos[obs.config], obs.camera)
     # drop points seen in fewer than two views (no information), keep the scale markers
-    nv = np.zeros(len(ids), int)
-    key = np.unique(pidx_all[rows] * (2 * len(used)) + view[rows])
-    np.add.at(nv, key // (2 * len(used)), 1)
+    nv = views_per_point(view[rows], pidx_all[rows], len(ids))
     pts = has_X & (nv >= 2)
     rows &= pts[pidx_all]
     remap = -np.ones(len(ids), np.int64)
     remap[pts] = np.arange(int(pts.sum()))
     scale = []
     for mk in ds_info.scale_ids:
-        want = 4 * int(mk) + np.arange(4)
+        want = marker_features(int(mk))
         at = np.searchsorted(ids, want)
         if not (np.all(at < len(ids)) and np.array_equal(ids[np.minimum(at, len(ids) - 1)], want)):
             raise BoundsError(f"scale marker {mk} is not observed")
@@ -167,11 +161,8 @@ def setup_from_output(
     return FisherSetup(
         model=model,
         q=q[used],
-        T_left_right=np.asarray(T_lr, dtype=float),
-        fx=float(fx),
-        mu=float(mu),
-        cx=float(sc.cx),
-        cy=float(sc.cy),
+        camera=camera,
+        T_first_cam=np.asarray(T_first_cam, dtype=float),
         X_world=X[pts],
         view=view[rows],
         pidx=remap[pidx_all[rows]],

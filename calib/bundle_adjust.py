@@ -1,16 +1,16 @@
-"""Error classes and sparse bundle adjustment for the self-calibration stage.
+"""Sparse bundle adjustment: camera parameters, camera poses and 3-D points from image observations.
 
 Frames and units (see docs/DEVELOPING.md): poses ``T_cam_world`` map world coordinates to the OpenCV
-camera frame (x right, y down, z forward); pixels follow the OpenCV convention. Intrinsics are the
-paper's eq. 19 with a known principal point: ``K = [[fx, 0, cx], [0, mu fx, cy], [0, 0, 1]]``.
-
-Views are indexed by the pose model (:class:`calib.observations.ViewLayout` for the rig models).
+camera frame (x right, y down, z forward); pixels follow the OpenCV convention. The camera is a
+:class:`calib.camera.CameraModel` (the paper's pinhole, eq. 19, with a known principal point);
+its free parameters are adjusted, the rest stay fixed. Views are indexed by the pose model (for the
+rig models :class:`calib.observations.ViewLayout`).
 
 The adjustment is a problem for the one least-squares engine (:mod:`calib.solver`): parameter
-blocks ``intrinsics`` (fx, mu; held with ``fix_intrinsics``), ``poses`` (a pose model's
-parameters, :mod:`calib.estimation.pose_models`) and ``points``, and one residual block
-(:class:`calib.estimation.reprojection.ReprojectionBlock`). The pose models and the projection
-live in :mod:`calib.estimation`; they are re-exported here.
+blocks ``intrinsics`` (the camera's free parameters; held with ``fix_intrinsics``), ``poses`` (a
+pose model's parameters, :mod:`calib.estimation.pose_models`) and ``points``, and one residual
+block (:class:`calib.estimation.reprojection.ReprojectionBlock`). The pose models and the
+projection live in :mod:`calib.estimation` and :mod:`calib.camera`.
 """
 
 from __future__ import annotations
@@ -21,13 +21,9 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
-from calib.errors import EstimationError
-from calib.estimation.pose_models import FreePoses, PoseModel, RigPoses, so3_left_jacobian
-from calib.estimation.reprojection import (
-    ReprojectionBlock,
-    projection_blocks,
-    reprojection_residuals,
-)
+from calib.camera import CameraModel
+from calib.estimation.pose_models import PoseModel
+from calib.estimation.reprojection import ReprojectionBlock
 from calib.solver import (
     Loss,
     ParameterBlock,
@@ -39,89 +35,59 @@ from calib.solver import (
 )
 
 __all__ = [
-    "SelfCalibrationError",
-    "InsufficientDataError",
-    "DegenerateConfigurationError",
-    "ScaleMarkerError",
-    "ConvergenceError",
-    "so3_left_jacobian",
-    "PoseModel",
-    "FreePoses",
-    "RigPoses",
     "BundleResult",
     "bundle_adjust",
-    "projection_blocks",
-    "reprojection_residuals",
     "intrinsics_covariance",
 ]
 
 
-# ----------------------------------------------------------------------------------- errors
-class SelfCalibrationError(EstimationError):
-    """Base class: the camera self-calibration cannot produce a trustworthy result."""
-
-
-class InsufficientDataError(SelfCalibrationError):
-    """Too few views, shared points or correspondences for a step of the pipeline."""
-
-
-class DegenerateConfigurationError(SelfCalibrationError):
-    """The viewing geometry does not determine the unknowns (e.g. optical axes through one point,
-    pure rotation, planar scene)."""
-
-
-class ScaleMarkerError(SelfCalibrationError):
-    """The scale markers are missing from the reconstruction or the distance is invalid."""
-
-
-class ConvergenceError(SelfCalibrationError):
-    """An optimisation did not converge or ended with implausible residuals."""
-
-
 @dataclass
 class BundleResult:
-    """Output of :func:`bundle_adjust` (in the pose model's gauge)."""
+    """Output of :func:`bundle_adjust` (in the pose model's gauge): the adjusted ``camera``, pose
+    parameters, poses ``T_cam_world`` (V, 4, 4), points ``X`` (P, 3), residuals (k, 2) px of the
+    rows passed in, the solver's cost/evaluations/status, the final Jacobian (columns: the
+    ``n_intrinsics`` free camera parameters unless fixed, then poses, then points)."""
 
-    fx: float
-    mu: float
+    camera: CameraModel
     pose_params: np.ndarray
-    T_cam_world: np.ndarray  # (V, 4, 4)
-    X: np.ndarray  # (P, 3)
-    residuals: np.ndarray  # (k, 2) px for the rows passed in
+    T_cam_world: np.ndarray
+    X: np.ndarray
+    residuals: np.ndarray
     cost: float
     nfev: int
     status: int
     message: str
     jac: sp.csr_matrix | None = field(default=None, repr=False)
-    n_intrinsics: int = 2
+    n_intrinsics: int = 0
 
 
 class _Problem:
-    """The bundle adjustment as a :class:`calib.solver.Problem` over ``x = [fx, mu (unless
-    fixed), p, X (3 P)]`` with the ``reprojection`` block first, then ``extra`` residual blocks
-    over the same parameter blocks; ``fun``/``jac``/``sparsity`` serve
+    """The bundle adjustment as a :class:`calib.solver.Problem` over ``x = [camera's free
+    parameters (unless fixed), p, X (3 P)]`` with the ``reprojection`` block first, then
+    ``extra`` residual blocks over the same parameter blocks; ``fun``/``jac``/``sparsity`` serve
     ``scipy.optimize.least_squares``."""
 
     def __init__(
         self,
+        camera: CameraModel,
         model: PoseModel,
         view: np.ndarray,
         pidx: np.ndarray,
         uv: np.ndarray,
         n_points: int,
-        cx: float,
-        cy: float,
-        fixed_fx_mu: tuple[float, float] | None,
+        *,
+        fix_intrinsics: bool = False,
         loss: Loss | None = None,
         x0: np.ndarray | None = None,
         extra: Sequence[ResidualBlock] = (),
     ) -> None:
+        self.camera = camera
         self.model = model
-        self.block = ReprojectionBlock(model, view, pidx, uv, cx, cy, loss)
+        self.block = ReprojectionBlock(camera, model, view, pidx, uv, loss)
         self.view, self.pidx, self.uv = self.block.view, self.block.pidx, self.block.uv
-        self.cx, self.cy = float(cx), float(cy)
         self.n_points = int(n_points)
-        self.ni = 0 if fixed_fx_mu is not None else 2
+        n_cam = camera.n_free
+        self.ni = 0 if fix_intrinsics else n_cam
         self.np_ = model.n_params
         x = np.zeros(self.ni + self.np_ + 3 * self.n_points) if x0 is None else np.asarray(x0)
         inst = getattr(model, "param_instances", None)
@@ -129,8 +95,8 @@ class _Problem:
             [
                 ParameterBlock(
                     "intrinsics",
-                    x[:2] if fixed_fx_mu is None else fixed_fx_mu,
-                    held=np.full(2, fixed_fx_mu is not None),
+                    camera.free_values() if fix_intrinsics else x[:n_cam],
+                    held=np.full(n_cam, fix_intrinsics),
                 ),
                 ParameterBlock(
                     "poses",
@@ -143,11 +109,10 @@ class _Problem:
         )
         self.n = self.problem.n
 
-    def unpack(self, x: np.ndarray) -> tuple[float, float, np.ndarray, np.ndarray]:
-        """``(fx, mu, p, X (P, 3))`` for unknowns ``x``."""
+    def unpack(self, x: np.ndarray) -> tuple[CameraModel, np.ndarray, np.ndarray]:
+        """``(camera, p, X (P, 3))`` for unknowns ``x``."""
         v = self.problem.values(x)
-        fx, mu = v["intrinsics"]
-        return fx, mu, v["poses"], v["points"].reshape(-1, 3)
+        return self.camera.with_free_values(v["intrinsics"]), v["poses"], v["points"].reshape(-1, 3)
 
     def fun(self, x: np.ndarray) -> np.ndarray:
         return self.problem.residual_vector(x)
@@ -166,10 +131,7 @@ def bundle_adjust(
     view: np.ndarray,
     pidx: np.ndarray,
     uv: np.ndarray,
-    fx0: float,
-    mu0: float,
-    cx: float,
-    cy: float,
+    camera: CameraModel,
     *,
     fix_intrinsics: bool = False,
     loss: str = "soft_l1",
@@ -178,17 +140,17 @@ def bundle_adjust(
     tol: float = 1e-12,
     solver: str = "lm",
 ) -> BundleResult:
-    """Sparse bundle adjustment of ``fx, mu`` (unless fixed), the pose-model parameters and the
-    points ``X`` (P, 3).
+    """Sparse bundle adjustment of ``camera``'s free parameters (unless ``fix_intrinsics``), the
+    pose-model parameters (start ``p0``) and the points ``X`` (P, 3) m (start ``X0``).
 
     Rows are observations ``(view, pidx, uv)``; every view used must have a pose in ``model``.
     ``solver="lm"`` (default): the engine's Levenberg-Marquardt (:func:`calib.solver.solve`) with
     the analytic Jacobian, at most ``max_nfev`` trials, robust ``loss`` (linear, soft_l1, huber,
-    cauchy; scale ``f_scale_px``) on each observation's 2-D residual norm; the pose parameters
-    are eliminated by a Schur complement in large problems when the pose model labels them per
-    view (``param_instances``). ``solver="scipy"``: :func:`scipy.optimize.least_squares` (trf +
-    lsmr, loss per coordinate), with the analytic Jacobian or -- when ``model.view_jacobian``
-    returns None -- finite differences restricted by ``jac_sparsity``.
+    cauchy; scale ``f_scale_px``) on each observation's 2-D residual norm; the pose parameters are
+    eliminated by a Schur complement in large problems when the pose model labels them per view
+    (``param_instances``). ``solver="scipy"``: :func:`scipy.optimize.least_squares` (trf + lsmr,
+    loss per coordinate), with the analytic Jacobian or -- when ``model.view_jacobian`` returns None
+    -- finite differences restricted by ``jac_sparsity``.
 
     Raises:
         calib.errors.SolverError: NaN/inf residuals or Jacobians (the message names the block).
@@ -196,9 +158,20 @@ def bundle_adjust(
     """
     if solver not in ("lm", "scipy"):
         raise ValueError(f"solver must be 'lm' or 'scipy', got {solver!r}")
-    fixed = (float(fx0), float(mu0)) if fix_intrinsics else None
-    x0 = np.concatenate([[] if fix_intrinsics else [fx0, mu0], p0, np.asarray(X0).ravel()])
-    prob = _Problem(model, view, pidx, uv, len(X0), cx, cy, fixed, Loss(loss, f_scale_px), x0)
+    x0 = np.concatenate(
+        [[] if fix_intrinsics else camera.free_values(), p0, np.asarray(X0).ravel()]
+    )
+    prob = _Problem(
+        camera,
+        model,
+        view,
+        pidx,
+        uv,
+        len(X0),
+        fix_intrinsics=fix_intrinsics,
+        loss=Loss(loss, f_scale_px),
+        x0=x0,
+    )
     use_analytic = model.view_jacobian(p0) is not None
     if solver == "lm" and use_analytic:
         has_instances = prob.problem.parameters["poses"].instance is not None
@@ -237,22 +210,21 @@ def bundle_adjust(
         )
         x, r, cost, nfev = ls.x, ls.fun.reshape(-1, 2), float(ls.cost), int(ls.nfev)
         status, message = int(ls.status), str(ls.message)
-    fx, mu, p, X = prob.unpack(x)
+    cam, p, X = prob.unpack(x)
     T = model.poses(p)
     J = prob.jac(x) if use_analytic else None
-    return BundleResult(
-        float(fx), float(mu), p.copy(), T, X.copy(), r, cost, nfev, status, message, J, prob.ni
-    )
+    return BundleResult(cam, p.copy(), T, X.copy(), r, cost, nfev, status, message, J, prob.ni)
 
 
 def intrinsics_covariance(
-    J: sp.csr_matrix, residuals: np.ndarray, n_intrinsics: int = 2
+    J: sp.csr_matrix, residuals: np.ndarray, n_intrinsics: int
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Covariance of the first ``n_intrinsics`` parameters ``(fx, mu)`` from the Jacobian:
-    ``sigma^2 (J^T J)^-1`` with ``sigma^2 = |r|^2 / (rows - cols)`` (px^2).
+    """Covariance of the first ``n_intrinsics`` parameters (the camera's free ones, e.g. ``fx,
+    mu``) from the Jacobian: ``sigma^2 (J^T J)^-1`` with ``sigma^2 = |r|^2 / (rows - cols)``
+    (px^2).
 
-    Returns ``(cov (2, 2), cov_unit (2, 2))`` where ``cov_unit`` assumes 1 px noise per coordinate
-    (a purely geometric measure of how well the views determine fx and mu).
+    Returns ``(cov, cov_unit)`` (n_intrinsics, n_intrinsics) where ``cov_unit`` assumes 1 px noise
+    per coordinate (a purely geometric measure of how well the views determine the camera).
     """
     dof = max(J.shape[0] - J.shape[1], 1)
     sigma2 = float(np.sum(np.asarray(residuals) ** 2) / dof)

@@ -56,6 +56,7 @@ import numpy as np
 import scipy.linalg
 
 from calib.bundle_adjust import _Problem as _AdjustmentProblem
+from calib.camera import CameraModel
 from calib.errors import EstimationError
 from calib.estimation.gauge import GaugeChoice, gauge_directions
 from calib.estimation.joint_report import (
@@ -66,13 +67,14 @@ from calib.estimation.joint_report import (
 )
 from calib.estimation.joint_result import JointRefinementResult
 from calib.estimation.kinematic_poses import KinematicPoses
-from calib.estimation.reprojection import reprojection_residuals
+from calib.estimation.reprojection import reprojection_residuals, robust_sigma
 from calib.estimation.residuals import GaussianPriorBlock, ScaleDistanceBlock
 from calib.identify import IdentificationResult
 from calib.kinematics import fk_tool
 from calib.mcpc import MCPCModel, minimal_indices, param_is_angle, param_names
-from calib.observations import Observations
+from calib.observations import Observations, views_per_point
 from calib.solver import Loss, SolverOptions, covariance, scaled_rank, solve
+from calib.target import marker_features
 from calib.transforms import inv_pose
 
 __all__ = [
@@ -89,7 +91,6 @@ __all__ = [
     "aligned_tool_rms_bound",
 ]
 
-_RAYLEIGH_MEDIAN = 1.1774  # median of |r| for 2-D Gaussian noise with unit sigma per axis
 _BASE_HELD = ("alpha0", "beta0", "lx0", "ly0")
 _GAUGE_LENGTH_M = 0.3  # angles are compared with lengths as displacements at this radius
 
@@ -149,7 +150,8 @@ def choose_gauge(model: MCPCModel, *, alpha1_tol_deg: float = 10.0) -> GaugeChoi
 
 
 class _Problem(_AdjustmentProblem):
-    """The joint refinement as a :class:`calib.solver.Problem` over ``x = [fx, mu, p, X (3 P)]``:
+    """The joint refinement as a :class:`calib.solver.Problem` over ``x = [camera's free
+    parameters, p, X (3 P)]``:
     residual blocks ``reprojection`` (2 k px, robust ``loss``), ``scale`` (1 row, see
     :class:`calib.estimation.residuals.ScaleDistanceBlock`) and ``prior`` (``prior_w *
     p[prior_cols]``, zero-mean Gaussian priors; absent when empty). Parameter blocks
@@ -158,13 +160,12 @@ class _Problem(_AdjustmentProblem):
 
     def __init__(
         self,
+        camera: CameraModel,
         model: KinematicPoses,
         view: np.ndarray,
         pidx: np.ndarray,
         uv: np.ndarray,
         n_points: int,
-        cx: float,
-        cy: float,
         scale_idx: tuple[np.ndarray, np.ndarray],
         d_m: float,
         w_scale: float,
@@ -176,7 +177,7 @@ class _Problem(_AdjustmentProblem):
         extra = [ScaleDistanceBlock(scale_idx[0], scale_idx[1], d_m, w_scale)]
         if len(prior_cols):
             extra.append(GaussianPriorBlock("poses", prior_cols, prior_w))
-        super().__init__(model, view, pidx, uv, n_points, cx, cy, None, loss, x0, extra)
+        super().__init__(camera, model, view, pidx, uv, n_points, loss=loss, x0=x0, extra=extra)
         self.n_pix = 2 * len(self.view)
 
 
@@ -263,7 +264,7 @@ def joint_refine(
     active = cand & np.asarray(sc.inlier, bool)
     scale_pts = []
     for mk in scale_markers:
-        want = 4 * int(mk) + np.arange(4)
+        want = marker_features(int(mk))
         pos = np.searchsorted(ids, want)
         if not (
             np.all(pos < len(ids)) and np.array_equal(ids[np.minimum(pos, len(ids) - 1)], want)
@@ -279,14 +280,11 @@ def joint_refine(
     X = np.where(has_X[:, None], sc.X_world, np.nan)
     use_dq = joint_sigma is not None
     pose_model = KinematicPoses(
-        model0, q, free_idx, inv_pose(sc.T_left_right), active_cfg, joint_corrections=use_dq
+        model0, q, free_idx, inv_pose(sc.T_first_cam[1:]), active_cfg, joint_corrections=use_dq
     )
     p = pose_model.initial_params()
     if pixel_sigma_px is None:
-        inl = np.asarray(sc.inlier, bool) & np.isfinite(sc.residuals).all(axis=1)
-        n_ba = 2 + 6 * (len(used) - 1) + 5 + 3 * int(has_X.sum())
-        dof_ba = max(2 * int(inl.sum()) - n_ba, 1)
-        pixel_sigma_px = float(np.sqrt(np.sum(sc.residuals[inl] ** 2) / dof_ba))
+        pixel_sigma_px = sc.pixel_sigma_px(len(used))
     pixel_sigma_px = max(float(pixel_sigma_px), float(min_pixel_sigma_px))
     if use_dq:
         js = np.broadcast_to(np.asarray(joint_sigma, dtype=float), (model0.n,))
@@ -296,14 +294,12 @@ def joint_refine(
         prior_w = np.tile(pixel_sigma_px / js, len(used))
     else:
         prior_cols, prior_w = np.zeros(0, np.int64), np.zeros(0)
-    fx, mu = float(sc.fx), float(sc.mu)
+    camera = sc.camera
     w_scale = 1.0 / float(scale_sigma_m)
 
     def select(act):
         """Rows and points of the adjustment: points seen in two inlier views."""
-        nviews = np.zeros(len(ids), int)
-        key = np.unique(pidx_all[act] * (2 * m) + view_all[act])
-        np.add.at(nviews, key // (2 * m), 1)
+        nviews = views_per_point(view_all[act], pidx_all[act], len(ids))
         pts_used = has_X & (nviews >= 2)
         for sp_ in scale_pts:
             if not pts_used[sp_].all():
@@ -324,15 +320,14 @@ def joint_refine(
     for rnd in range(rounds + 1):
         last = rnd == rounds
         act, pts_used, remap = select(active)
-        x0 = np.concatenate([[fx, mu], p, X[pts_used].ravel()])
+        x0 = np.concatenate([camera.free_values(), p, X[pts_used].ravel()])
         prob = _Problem(
+            camera,
             pose_model,
             view_all[act],
             remap[pidx_all[act]],
             obs.uv[act],
             int(pts_used.sum()),
-            sc.cx,
-            sc.cy,
             (remap[scale_pts[0]], remap[scale_pts[1]]),
             scale_distance_m,
             w_scale,
@@ -359,8 +354,8 @@ def joint_refine(
         x, cost, status, message = sol.x, sol.cost, sol.status, sol.message
         r = np.concatenate([v.ravel() for v in sol.residuals.values()])
         total_it += sol.iterations
-        fx, mu, p, Xu = prob.unpack(x)
-        fx, mu, p = float(fx), float(mu), p.copy()
+        camera, p, Xu = prob.unpack(x)
+        p = p.copy()
         X = np.full_like(X, np.nan)
         X[pts_used] = Xu
         if last:
@@ -371,12 +366,12 @@ def joint_refine(
         ok = cand & np.isfinite(X[pidx_all]).all(axis=1)
         e = np.full(len(obs), np.inf)
         rr, zz = reprojection_residuals(
-            fx, mu, sc.cx, sc.cy, T, np.nan_to_num(X), view_all[ok], pidx_all[ok], obs.uv[ok]
+            camera, T, np.nan_to_num(X), view_all[ok], pidx_all[ok], obs.uv[ok]
         )
         e[ok] = np.where(zz > 0, np.linalg.norm(rr, axis=1), np.inf)
         n_res = 2 * int(act.sum())
         dof = max(n_res + len(prior_cols) + 1 - prob.n, 1)
-        sigma = float(np.median(e[act]) / _RAYLEIGH_MEDIAN) * np.sqrt(n_res / dof)
+        sigma = robust_sigma(e[act]) * np.sqrt(n_res / dof)
         thr = max(outlier_px, 4.5 * sigma)
         new_active = ok & (e < thr)
         if np.array_equal(new_active, active) and rnd > 0:
@@ -399,14 +394,14 @@ def joint_refine(
     C = covariance(
         prob.problem, x, ["intrinsics", ("poses", np.arange(pose_model.k))], sigma2=sigma2
     )
-    fx_std = float(np.sqrt(max(C[0, 0], 0.0)))
-    mu_std = float(np.sqrt(max(C[1, 1], 0.0)))
+    n_cam = camera.n_free
+    cam_std = dict(zip(camera.free, np.sqrt(np.clip(np.diag(C)[:n_cam], 0.0, None)).tolist()))
 
     model_g = pose_model.kinematic_model(p)
     ref = int(sc.ref_config) if active_cfg[sc.ref_config] else int(used[0])
     q_act = pose_model.joints(p)  # read-back + estimated corrections, active configurations
     q_ref = q_act[np.searchsorted(np.flatnonzero(active_cfg), ref)][None]
-    model_ref, cov_ref = express_in_reference(model_g, free_idx, q_ref, model0, C[2:, 2:])
+    model_ref, cov_ref = express_in_reference(model_g, free_idx, q_ref, model0, C[n_cam:, n_cam:])
     std = np.sqrt(np.clip(np.diag(cov_ref), 0.0, None))
     for nm, why in held_reason.items():
         if not why.startswith("gauge"):
@@ -414,11 +409,9 @@ def joint_refine(
 
     T_ref_world = inv_pose(fk_tool(model_g, q_ref)[0])
     X_ref = X @ T_ref_world[:3, :3].T + T_ref_world[:3, 3]
-    T_rl = pose_model.rig(p)
-    T_wc = np.full((m, 2, 4, 4), np.nan)
-    TL = fk_tool(model_ref, q_act)
-    T_wc[active_cfg, 0] = TL
-    T_wc[active_cfg, 1] = TL @ inv_pose(T_rl)
+    T_first_cam = np.concatenate([np.eye(4)[None], inv_pose(pose_model.rigs(p))])
+    T_wc = np.full((m, len(T_first_cam), 4, 4), np.nan)
+    T_wc[active_cfg] = fk_tool(model_ref, q_act)[:, None] @ T_first_cam
 
     e_fin = np.linalg.norm(rp, axis=1)
     rms = float(np.sqrt(np.mean(e_fin**2)))
@@ -435,13 +428,10 @@ def joint_refine(
     return JointRefinementResult(
         model=model_ref,
         model_gauge=model_g,
-        fx=fx,
-        mu=mu,
-        cx=float(sc.cx),
-        cy=float(sc.cy),
-        fx_std=fx_std,
-        mu_std=mu_std,
-        T_left_right=inv_pose(T_rl),
+        camera=camera,
+        fx_std=cam_std["fx"],
+        mu_std=cam_std["mu"],
+        T_first_cam=T_first_cam,
         T_world_cam=T_wc,
         ref_config=ref,
         point_ids=ids,

@@ -12,7 +12,8 @@ import time
 
 import numpy as np
 
-from calib.selfcal import self_calibrate, synthetic_stereo_scene
+from calib.selfcal import self_calibrate
+from calib.selfcal_synthetic import synthetic_stereo_scene
 
 
 def run(configs: list[int], noise_px: float, outlier_fraction: float, seed: int) -> None:

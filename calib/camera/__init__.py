@@ -12,7 +12,7 @@ pinhole; see :mod:`calib.camera.model`.
 """
 
 from calib.camera.model import CameraModel, perspective, perspective_jacobian, project
-from calib.camera.pinhole import Intrinsics, Pinhole, centered_principal_point
+from calib.camera.pinhole import Intrinsics, Pinhole, PinholeValues, centered_principal_point
 from calib.camera.rig import STEREO_NAMES, Rig
 from calib.camera.visibility import Visibility
 
@@ -20,6 +20,7 @@ __all__ = [
     "CameraModel",
     "Intrinsics",
     "Pinhole",
+    "PinholeValues",
     "Rig",
     "STEREO_NAMES",
     "Visibility",

@@ -7,10 +7,11 @@ ray through the pixel at unit depth.
 
 A :class:`CameraModel` is central: a point projects through its normalised coordinates. Every
 model is the chain ``X_cam -> perspective -> [lens] -> pixels``; :func:`perspective` (and
-:func:`perspective_jacobian`) is the first link for all of them. The pinhole (:class:`calib.camera.pinhole.Pinhole`) has no lens term; a
-distortion model (Brown-Conrady, Kannala-Brandt) is a new class that holds a pinhole and inserts
-its map between :func:`perspective` and :meth:`Pinhole.pixels` (chain rule for the Jacobians),
-so the estimation code, which only sees this interface, does not change.
+:func:`perspective_jacobian`) is the first link for all of them. The pinhole
+(:class:`calib.camera.pinhole.Pinhole`) has no lens term; a distortion model (Brown-Conrady,
+Kannala-Brandt) is a new class that holds a pinhole and inserts its map between
+:func:`perspective` and :meth:`Pinhole.pixels` (chain rule for the Jacobians), so the estimation
+code, which only sees this interface, does not change.
 
 Parameters carry OpenCV's names (``fx``, ``cx``, ``cy``, later ``k1`` ...; the paper's aspect
 ratio ``mu = fy / fx``). ``free`` selects the ones an estimation adjusts; the others stay at their

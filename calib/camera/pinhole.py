@@ -16,7 +16,7 @@ import numpy as np
 
 from calib.camera.model import CameraModel, perspective, perspective_jacobian
 
-__all__ = ["Pinhole", "Intrinsics", "centered_principal_point"]
+__all__ = ["Pinhole", "Intrinsics", "PinholeValues", "centered_principal_point"]
 
 
 def centered_principal_point(width: int, height: int) -> tuple[float, float]:
@@ -117,3 +117,35 @@ class Pinhole(CameraModel):
 
 Intrinsics = Pinhole
 """The name the rest of the project has used for the pinhole camera (same class)."""
+
+
+class PinholeValues:
+    """Mixin for results that hold a :class:`Pinhole` as ``camera``: its values under the names
+    the paper and the documents use (``fx``, ``mu`` px and ratio, ``cx``, ``cy``, ``width``,
+    ``height`` px)."""
+
+    camera: Pinhole
+
+    @property
+    def fx(self) -> float:
+        return self.camera.fx
+
+    @property
+    def mu(self) -> float:
+        return self.camera.mu
+
+    @property
+    def cx(self) -> float:
+        return self.camera.cx
+
+    @property
+    def cy(self) -> float:
+        return self.camera.cy
+
+    @property
+    def width(self) -> int:
+        return self.camera.width
+
+    @property
+    def height(self) -> int:
+        return self.camera.height

@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from calib.camera import Pinhole, PinholeValues
 from calib.estimation.gauge import GaugeChoice
 from calib.mcpc import MCPCModel
 
@@ -13,16 +14,19 @@ __all__ = ["JointRefinementResult"]
 
 
 @dataclass
-class JointRefinementResult:
+class JointRefinementResult(PinholeValues):
     """Outcome of :func:`joint_refine`. SI units; world = left camera of ``ref_config``.
 
     Attributes:
         model: refined MCPC model (tool = left camera), world = the refined reference camera.
         model_gauge: the same chain in the optimisation gauge (held parameters at their
             two-stage values).
-        fx, mu, cx, cy: intrinsics (px); ``fx_std``, ``mu_std`` from the final Jacobian.
-        T_left_right: rig (right camera in the left camera frame, m).
-        T_world_cam: (m, 2, 4, 4) camera poses of all configurations (NaN if not active).
+        camera: the refined camera, shared by every camera of the rig (``fx``, ``mu``, ``cx``,
+            ``cy`` its values, px); ``fx_std``, ``mu_std``
+            from the final Jacobian.
+        T_first_cam: (N, 4, 4) the rig: each camera's pose in the first camera frame (m);
+            ``T_left_right`` the second's.
+        T_world_cam: (m, N, 4, 4) camera poses of all configurations (NaN if not active).
         point_ids, X_world: reconstructed corners (P, 3) m (NaN: not in the adjustment).
         names: the minimal parameter names (eq. 10 order); ``values`` in ``model``;
             ``std``: standard deviations in the reference-camera frame (like the two-stage
@@ -39,13 +43,10 @@ class JointRefinementResult:
 
     model: MCPCModel
     model_gauge: MCPCModel
-    fx: float
-    mu: float
-    cx: float
-    cy: float
+    camera: Pinhole
     fx_std: float
     mu_std: float
-    T_left_right: np.ndarray
+    T_first_cam: np.ndarray
     T_world_cam: np.ndarray
     ref_config: int
     point_ids: np.ndarray
@@ -69,3 +70,10 @@ class JointRefinementResult:
     rank: int
     n_unknowns: int
     diagnostics: dict = field(default_factory=dict)
+
+    @property
+    def T_left_right(self) -> np.ndarray:
+        """Pose (4, 4) of the second (right) camera in the first (left) camera frame (m)."""
+        if len(self.T_first_cam) < 2:
+            return np.full((4, 4), np.nan)
+        return self.T_first_cam[1]

@@ -7,11 +7,11 @@ derivative of each view pose as a left-perturbation twist in the camera frame
 (``view_jacobian(p) -> (V, 6, q)``, twist order ``[v; w]`` as in :mod:`calib.transforms`): a change
 ``dp`` moves camera coordinates by ``dXc = dv + dw x Xc`` with ``[dv; dw] = J_v dp``.
 :class:`FreePoses` (one 6-dof pose per view) and :class:`RigPoses` (one pose per configuration plus
-a shared transform per further camera of the rig) are the two models provided here; the kinematic chain
-(:class:`calib.estimation.kinematic_poses.KinematicPoses`) implements the same methods. If
+a shared transform per further camera of the rig) are the two models provided here; the kinematic
+chain (:class:`calib.estimation.kinematic_poses.KinematicPoses`) implements the same methods. If
 ``view_jacobian`` returns ``None`` the adjustment falls back to finite differences restricted by
-``jac_sparsity``. The pose model also owns the gauge: the models here fix one camera at the
-identity and one baseline length to 1. ``param_instances()`` (optional) labels the parameters
+``jac_sparsity``. The pose model also owns the gauge: the models here fix one camera at the identity
+and one baseline length to 1. ``param_instances()`` (optional) labels the parameters
 that belong to one configuration or view only, so the solver can eliminate them (Schur).
 
 Frames: ``T_cam_world`` maps world coordinates to the OpenCV camera frame; views are indexed by
@@ -95,7 +95,7 @@ class FreePoses:
 
     Gauge: view ``ref_view`` is fixed at the identity (no parameters) and the translation of
     ``scale_view`` keeps its initial norm (2 parameters: a direction), i.e. the distance between
-    the two camera centres is fixed (1 after :func:`calib.selfcal_init` normalisation). Views with
+    the two camera centres is fixed (1 after :func:`calib.selfcal_adjust.gauge`). Views with
     ``registered == False`` have no parameters and NaN poses.
     Parameter layout: for each registered non-reference view in order, ``[w (3), v (3)]`` (or
     ``[w (3), a, b]`` for ``scale_view``).

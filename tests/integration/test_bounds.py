@@ -102,7 +102,7 @@ def _brute_force(st):
 
     def residuals(z):
         fx, mu, mdl, T_rl, dq, X = unpack(z)
-        K = np.array([[fx, 0, st.cx], [0, fx * mu, st.cy], [0, 0, 1.0]])
+        K = np.array([[fx, 0, st.camera.cx], [0, fx * mu, st.camera.cy], [0, 0, 1.0]])
         T_lw = inv_pose(fk_tool(mdl, st.q + dq))
         T_cw = np.stack([T_lw, T_rl @ T_lw], axis=1).reshape(-1, 4, 4)
         Xc = np.einsum("kij,kj->ki", T_cw[st.view, :3, :3], X[st.pidx]) + T_cw[st.view, :3, 3]

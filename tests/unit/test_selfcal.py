@@ -5,8 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from calib.bundle_adjust import FreePoses, RigPoses, _Problem, bundle_adjust
+from calib.bundle_adjust import _Problem, bundle_adjust
 from calib.camera import project
+from calib.estimation.focal import focal_from_fundamentals
+from calib.estimation.pose_models import FreePoses, RigPoses
+from calib.estimation.scale_sign import cheirality_fraction, choose_scale_sign, rigid_align
 from calib.selfcal import (
     ConvergenceError,
     DegenerateConfigurationError,
@@ -14,14 +17,9 @@ from calib.selfcal import (
     Observations,
     ScaleMarkerError,
     SelfCalibrationError,
-    _look_at,
-    cheirality_fraction,
-    choose_scale_sign,
-    rigid_align,
     self_calibrate,
-    synthetic_stereo_scene,
 )
-from calib.selfcal_init import focal_from_fundamentals
+from calib.selfcal_synthetic import look_at, synthetic_stereo_scene
 from calib.target import feature_id, marker_features
 from calib.transforms import inv_pose, make_pose, pose_from_vec, skew
 
@@ -68,9 +66,7 @@ def _small_problem(rig: bool, seed=0):
     else:
         model = FreePoses(Tcw.reshape(-1, 4, 4), np.ones(16, bool), 0, 1)
     p = rng.normal(scale=0.05, size=model.n_params)
-    prob = _Problem(
-        model, obs.view, pidx, obs.uv, len(ids), sc.intrinsics.cx, sc.intrinsics.cy, None
-    )
+    prob = _Problem(sc.intrinsics, model, obs.view, pidx, obs.uv, len(ids))
     x = np.concatenate([[810.0, 1.01], p, (Xw + rng.normal(scale=1e-3, size=Xw.shape)).ravel()])
     return prob, x
 
@@ -109,16 +105,13 @@ class _NoJacobian:
 def test_pluggable_pose_model_finite_difference_path_agrees():
     prob, x = _small_problem(True, seed=3)
     model = prob.model
-    kw = dict(
-        view=prob.view, pidx=prob.pidx, uv=prob.uv, cx=prob.cx, cy=prob.cy, loss="linear", tol=1e-12
-    )
+    cam = prob.camera.with_free_values(x[:2])
+    kw = dict(view=prob.view, pidx=prob.pidx, uv=prob.uv, camera=cam, loss="linear", tol=1e-12)
     p0, X0 = x[2 : 2 + model.n_params], x[2 + model.n_params :].reshape(-1, 3)
-    a = bundle_adjust(model, p0, X0, fx0=x[0], mu0=x[1], max_nfev=50, **kw)
-    b = bundle_adjust(
-        _NoJacobian(model), p0, X0, fx0=x[0], mu0=x[1], max_nfev=400, solver="scipy", **kw
-    )
+    a = bundle_adjust(model, p0, X0, max_nfev=50, **kw)
+    b = bundle_adjust(_NoJacobian(model), p0, X0, max_nfev=400, solver="scipy", **kw)
     assert b.jac is None
-    assert abs(a.fx - 800.0) < 1e-6 and abs(b.fx - 800.0) < 1e-4
+    assert abs(a.camera.fx - 800.0) < 1e-6 and abs(b.camera.fx - 800.0) < 1e-4
     np.testing.assert_allclose(b.T_cam_world, a.T_cam_world, atol=1e-6)
 
 
@@ -313,7 +306,7 @@ def test_pure_rotation_is_reported():
     C = np.array([0.02, -0.01, 0.3])
     T = np.stack(
         [
-            _look_at(C, np.r_[rng.uniform(-0.08, 0.08, 2), 0.04], rng.uniform(-0.5, 0.5))
+            look_at(C, np.r_[rng.uniform(-0.08, 0.08, 2), 0.04], rng.uniform(-0.5, 0.5))
             for _ in range(12)
         ]
     )
