@@ -41,7 +41,7 @@ def run(configs: list[int], noise_px: float, outlier_fraction: float, seed: int)
         d = res.diagnostics
         fx_err = 100.0 * (res.fx / sc.intrinsics.fx - 1.0)
         print(
-            f"{m:7d} {2 * m:5d} {len(obs):6d} {d['t_focal_s']:7.2f} {d['t_init_s']:6.2f} "
+            f"{m:7d} {obs.n_views:5d} {len(obs):6d} {d['t_focal_s']:7.2f} {d['t_init_s']:6.2f} "
             f"{d['t_ba_s']:6.2f} {total:7.2f} {fx_err:8.3f} {res.fx_std:7.3f} "
             f"{res.rms_px:6.3f} {res.n_outliers:4d}/{len(sc.outlier_rows):<4d} "
             f"{int(res.registered.sum()):3d}/{m:<3d}"

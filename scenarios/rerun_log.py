@@ -32,14 +32,19 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from calib.calibrate import detect_dataset
+from calib.camera import Rig
 from calib.errors import InputError
+from calib.estimation.reprojection import reprojection_residuals
+from calib.estimation.triangulation import triangulate
 from calib.io.calibration import read_calibration
 from calib.io.dataset import Dataset, DatasetError
 from calib.io.truth import read_truth
 from calib.kinematics import fk_tool
 from calib.mcpc import dh_to_mcpc
+from calib.observations import Observations
 from calib.report import kabsch
 from calib.robot_def import load_robot
+from calib.target import CORNERS_PER_MARKER, marker_corner, marker_features
 from calib.transforms import inv_pose
 from sim.markers import MarkerField, make_marker_field
 from sim.posed_geometry import PosedGeometry
@@ -53,19 +58,6 @@ _EST_COLOR = (230, 60, 200, 255)
 
 def _quat_xyzw(R: np.ndarray) -> np.ndarray:
     return Rotation.from_matrix(np.asarray(R).reshape(-1, 3, 3)).as_quat()
-
-
-def _triangulate(
-    views: list[tuple[np.ndarray, np.ndarray]],
-) -> np.ndarray:
-    """Linear (DLT) triangulation from ``[(P (3, 4), uv (2,)), ...]``; needs >= 2 views."""
-    A = []
-    for P, (u, v) in views:
-        A.append(u * P[2] - P[0])
-        A.append(v * P[2] - P[1])
-    _, _, Vt = np.linalg.svd(np.asarray(A))
-    X = Vt[-1]
-    return X[:3] / X[3]
 
 
 def _archetypes(geo: PosedGeometry, ids: list[int]) -> dict[str, object]:
@@ -133,7 +125,7 @@ def _log_camera(rec, path: str, T_world_cam: np.ndarray, intr, color, image=None
         ids = sorted(corners)
         if ids:
             uv = np.concatenate([corners[i] for i in ids])
-            lab = [f"{i}" if k == 0 else None for i in ids for k in range(4)]
+            lab = [f"{i}" if k == 0 else None for i in ids for k in range(len(corners[i]))]
             rec.log(
                 f"{path}/image/corners",
                 rr.Points2D(uv, radii=1.5, colors=(255, 40, 40), labels=[x or "" for x in lab]),
@@ -184,33 +176,25 @@ def record_run(dataset_dir: str | Path, rrd_path: str | Path | None, spawn: bool
     dets = detect_dataset(ds).detections
 
     # Triangulated points from the estimated cameras (reconstruction frame -> world).
-    K = est_intr.K
-    P_of = {}
-    for i, T in est_pose.items():
-        P_of[(i, "left")] = K @ inv_pose(T)[:3]
-        P_of[(i, "right")] = K @ inv_pose(T @ T_lr_est)[:3]
-    views: dict[tuple[int, int], list] = {}
-    for (i, cam), markers in dets.items():
-        if (int(i), cam) not in P_of:
-            continue
-        for mid, c in markers.items():
-            for k in range(4):
-                views.setdefault((int(mid), k), []).append((P_of[(int(i), cam)], c[k]))
-    pts = {key: _triangulate(v) for key, v in views.items() if len(v) >= 2}
-    keys = sorted(pts)
-    X_recon = np.array([pts[k] for k in keys]) if keys else np.zeros((0, 3))
+    frames = sorted(est_pose)
+    row = {i: k for k, i in enumerate(frames)}
+    obs = Observations.from_corners(
+        {(row[int(i)], cam): m for (i, cam), m in dets.items() if int(i) in row}, len(frames)
+    )
+    T_first_world = inv_pose(np.stack([est_pose[i] for i in frames]).reshape(-1, 4, 4))
+    T_cw = obs.layout.by_view(Rig.stereo(est_intr, T_lr_est).T_cams_world(T_first_world))
+    ids, pidx = obs.point_index()
+    X_all, n_seen = triangulate(T_cw, obs.view, pidx, est_intr.unproject(obs.uv), len(ids))
+    ok = n_seen >= 2
+    keys, X_recon = ids[ok], X_all[ok]
     X_world = X_recon @ T_world_recon[:3, :3].T + T_world_recon[:3, 3]
+    r, _ = reprojection_residuals(est_intr, T_cw, X_all, obs.view, pidx, obs.uv)
+    err2 = np.sum(r**2, axis=1)
 
     # Per-pose reprojection RMS with the triangulated points.
     def reproj_rms(i: int) -> float:
-        r = []
-        for cam in ("left", "right"):
-            for mid, c in dets.get((i, cam), {}).items():
-                for k in range(4):
-                    if (int(mid), k) in pts and (i, cam) in P_of:
-                        x = P_of[(i, cam)] @ np.append(pts[(int(mid), k)], 1.0)
-                        r.append(np.sum((x[:2] / x[2] - c[k]) ** 2))
-        return float(np.sqrt(np.mean(r))) if r else float("nan")
+        rows = (obs.config == row.get(i, -1)) & ok[pidx]
+        return float(np.sqrt(np.mean(err2[rows]))) if rows.any() else float("nan")
 
     # Identification residual per pose (truth-free): calibrated model FK vs the camera pose.
     est_model = cal.model
@@ -263,7 +247,7 @@ def record_run(dataset_dir: str | Path, rrd_path: str | Path | None, spawn: bool
                 X_world,
                 radii=0.002,
                 colors=_EST_COLOR,
-                labels=[f"{m}:{k}" for m, k in keys],
+                labels=[f"{m}:{k}" for m, k in zip(*marker_corner(keys))],
                 show_labels=False,
             ),
             static=True,
@@ -271,9 +255,9 @@ def record_run(dataset_dir: str | Path, rrd_path: str | Path | None, spawn: bool
     sid = tuple(ds.info.scale_ids)
     cen = {}
     for mid in sid:
-        c = [pts[(mid, k)] for k in range(4) if (mid, k) in pts]
-        if len(c) == 4:
-            cen[mid] = np.mean(c, axis=0) @ T_world_recon[:3, :3].T + T_world_recon[:3, 3]
+        c = X_world[np.isin(keys, marker_features(mid))]
+        if len(c) == CORNERS_PER_MARKER:
+            cen[mid] = c.mean(axis=0)
     if len(cen) == 2:
         length = np.linalg.norm(cen[sid[0]] - cen[sid[1]]) * 1000
         rec.log(
