@@ -39,9 +39,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from calib.alignment import express_in_frame, minimal_difference
 from calib.camera import CameraModel
 from calib.errors import EstimationError
-from calib.identify import express_in_frame, minimal_difference
 from calib.joint_refine import KinematicPoses, _Problem, choose_gauge
 from calib.kinematics import fk_tool, identification_jacobian
 from calib.mcpc import MCPCModel, minimal_indices, param_names

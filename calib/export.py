@@ -6,7 +6,7 @@ trajectory) and whose *tool* is the left camera (OpenCV frame). Neither is what 
 :func:`deploy` re-expresses the same physical chain as
 
 - world = the robot's **base frame**: DH frame 0 of the *identified* joint axes 1 and 2
-  (:func:`calib.identify.canonical_base`): z along joint 1's axis (pointing like the nominal
+  (:func:`calib.dh_table.canonical_base`): z along joint 1's axis (pointing like the nominal
   base z), the origin on that axis at the nominal height ``d_1`` below the common normal of axes 1
   and 2, x such that DH row 1 has the nominal ``offset_1`` at joint reading 0. For the nominal
   robot this IS the nominal base frame; for the identified robot it is the same construction on
@@ -41,9 +41,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from calib.alignment import regauge
 from calib.camera import Intrinsics
+from calib.dh_table import DHTable, canonical_base, dh_table
 from calib.errors import InputError
-from calib.identify import DHTable, canonical_base, dh_table, regauge
 from calib.io.calibration import CalibrationResult
 from calib.kinematics import fk_frames
 from calib.mcpc import MCPCModel, chain_transforms, dh_to_mcpc, shape_matrices
@@ -71,7 +72,7 @@ FIXED_BY_BASE_FRAME = ("alpha0", "beta0", "lx0", "ly0", "beta1", "ly1")
 the nominal ``d1``) for a robot whose first two joints are revolute: they carry no information."""
 
 BASE_FRAME = (
-    "robot base = DH frame 0 of the identified joint axes 1 and 2 (calib.identify.canonical_base): "
+    "robot base = DH frame 0 of the identified joint axes 1 and 2 (calib.dh_table.canonical_base): "
     "z along joint 1's axis, origin on it at the nominal d1 below the common normal of axes 1 and "
     "2, x such that DH row 1 has the nominal offset at joint reading 0"
 )
@@ -143,7 +144,7 @@ class DeployedModel:
 
     def dh(self, robot: RobotDef) -> tuple[DHTable | None, str | None]:
         """``(DHTable, None)`` for this chain, or ``(None, reason)`` when no sound DH table exists
-        (nearly parallel consecutive axes; :func:`calib.identify.dh_table`)."""
+        (nearly parallel consecutive axes; :func:`calib.dh_table.dh_table`)."""
         return dh_table(self.model, robot)
 
 

@@ -26,9 +26,9 @@ V_n``: measured on a perturbed SCORBOT, phi = 0.5 rad changes ly2, ly3 by ~0.5 m
 intrinsic to the robot when the world frame is arbitrary; only joint 1's zero (the world's
 azimuth) and the base height along axis 1 are truly unobservable, the rest is intrinsic geometry
 written in a world-dependent way. Two ways to compare models one to one:
-- :func:`express_in_frame` / :func:`align_truth`: re-express one model in the other's world frame
+- :func:`calib.alignment.express_in_frame` / :func:`calib.alignment.align_truth`: re-express one model in the other's world frame
   and joint-offset convention (simulation: the true world transform is known);
-- :func:`canonical_base`: express both in a frame attached to axes 1 and 2 (DH frame 0); the
+- :func:`calib.dh_table.canonical_base`: express both in a frame attached to axes 1 and 2 (DH frame 0); the
   parameters there do not depend on the measurement frame at all.
 
 Units: SI inside (m, rad); result fields ending in ``_mm`` / ``_deg`` are for reports.
@@ -41,6 +41,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from calib.alignment import fit_rigid_transform, regauge
 from calib.errors import EstimationError, SelfCalWarning
 from calib.identifiability import (
     O1_SCALE_M,
@@ -50,43 +51,24 @@ from calib.identifiability import (
     pose_sigmas,
     triangular_factor,
 )
-from calib.kinematics import fk_frames, fk_tool, identification_jacobian, pose_error
+from calib.kinematics import fk_tool, identification_jacobian, pose_error
 from calib.mcpc import (
     MCPCModel,
     chain_transforms,
-    gauge_fix,
     minimal_indices,
     param_is_angle,
     param_names,
 )
-from calib.robot_def import RobotDef
 from calib.transforms import (
-    inv_pose,
-    kabsch,
-    make_pose,
-    rot_x,
-    rot_z,
     skew,
-    trans,
 )
 
 __all__ = [
     "IdentificationError",
     "IdentificationWarning",
-    "DHNotRepresentableWarning",
     "IdentificationResult",
-    "DHTable",
-    "fit_rigid_transform",
     "initial_base",
     "identify",
-    "express_in_frame",
-    "align_truth",
-    "regauge",
-    "wrap_params",
-    "minimal_difference",
-    "to_dh",
-    "dh_table",
-    "canonical_base",
 ]
 
 
@@ -98,110 +80,6 @@ class IdentificationError(EstimationError):
 class IdentificationWarning(SelfCalWarning):
     """Identification succeeded but something deserves attention (parameters held automatically,
     ill-conditioning, residuals much larger than the stated sigmas, base near Euler singularity)."""
-
-
-class DHNotRepresentableWarning(SelfCalWarning):
-    """A model has (nearly but not exactly) parallel consecutive axes: no continuous DH table."""
-
-
-# --------------------------------------------------------------------------------------------
-# Rigid alignment and gauge
-# --------------------------------------------------------------------------------------------
-
-
-def fit_rigid_transform(T_a: np.ndarray, T_b: np.ndarray, length_m: float = 0.1) -> np.ndarray:
-    """Least-squares rigid ``T_a_b`` with ``T_a_b @ T_b[i] ~ T_a[i]`` (poses (m, 4, 4) in two frames).
-
-    Closed form (Kabsch/Umeyama without scale) on virtual points: each pose contributes its origin
-    and the three points ``origin + length_m * axis``, so positions and orientations both count
-    (an orientation error of 1 rad weighs like ``length_m`` metres).
-    """
-    T_a = np.asarray(T_a, dtype=float).reshape(-1, 4, 4)
-    T_b = np.asarray(T_b, dtype=float).reshape(-1, 4, 4)
-
-    def pts(T: np.ndarray) -> np.ndarray:
-        o = T[:, :3, 3]
-        ax = np.swapaxes(T[:, :3, :3], -1, -2) * length_m  # rows: scaled axes
-        return np.concatenate([o, (o[:, None, :] + ax).reshape(-1, 3)], axis=0)
-
-    return kabsch(pts(T_b), pts(T_a))
-
-
-def regauge(
-    chain: list[np.ndarray], joint_types: tuple[str, ...], joint_offsets: np.ndarray
-) -> MCPCModel:
-    """The MCPC model of the chain ``G_0 Q_1 G_1 ... Q_n G_n`` using *given* joint offsets.
-
-    Same gauge as :func:`calib.mcpc.gauge_fix` (gamma_i = lz_i = 0 for i < n), but the constant
-    offsets are imposed rather than chosen for conditioning, so two models of (nearly) the same
-    robot get comparable parameters. Angles are wrapped to (-pi, pi].
-    """
-    params, offsets = gauge_fix(chain, tuple(joint_types), offsets=joint_offsets)
-    return MCPCModel(wrap_params(params), tuple(joint_types), offsets)
-
-
-def wrap_params(params: np.ndarray) -> np.ndarray:
-    """Parameters (n + 1, 6) with the angle columns wrapped to (-pi, pi] (same chain)."""
-    p = np.array(params, dtype=float, copy=True)
-    p[:, :3] = -((-p[:, :3] + np.pi) % (2 * np.pi) - np.pi)
-    return p
-
-
-def minimal_difference(a: MCPCModel, b: MCPCModel) -> np.ndarray:
-    """``a - b`` over the minimal parameters (eq. 10 order, SI), angles wrapped to (-pi, pi].
-
-    Raises:
-        ValueError: different joint types or joint offsets (re-express one with
-            :func:`express_in_frame` ``like=`` the other first).
-    """
-    if a.joint_types != b.joint_types:
-        raise ValueError("models have different joint types")
-    if not np.allclose(a.joint_offsets, b.joint_offsets, atol=1e-12):
-        raise ValueError(
-            "models use different joint offsets, so their parameters are not comparable; "
-            "re-express one with express_in_frame(model, T, like=other)"
-        )
-    idx = minimal_indices(a.joint_types)
-    d = a.params.reshape(-1)[idx] - b.params.reshape(-1)[idx]
-    ang = param_is_angle(idx)
-    d[ang] = (d[ang] + np.pi) % (2 * np.pi) - np.pi
-    return d
-
-
-def express_in_frame(
-    model: MCPCModel, T_new_old: np.ndarray, *, like: MCPCModel | None = None
-) -> MCPCModel:
-    """The same physical chain with its world frame changed: ``T_new_tool = T_new_old T_old_tool``.
-
-    Without ``like`` this is ``model.with_base(T_new_old)`` (joint offsets re-chosen for
-    conditioning); with ``like`` the joint offsets of ``like`` are imposed (:func:`regauge`), so the
-    result's minimal parameters are directly comparable with ``like``'s.
-    """
-    T_new_old = np.asarray(T_new_old, dtype=float)
-    if like is None:
-        return model.with_base(T_new_old)
-    G = chain_transforms(model)
-    return regauge([T_new_old @ G[0], *G[1:]], model.joint_types, like.joint_offsets)
-
-
-def align_truth(
-    true_model: MCPCModel,
-    est_model: MCPCModel,
-    q_ref: np.ndarray,
-    *,
-    length_m: float = 0.1,
-) -> MCPCModel:
-    """The true model expressed in the estimate's world frame, in the estimate's offset convention.
-
-    The world transform is the best rigid fit (:func:`fit_rigid_transform`) between the two models'
-    tool poses at ``q_ref`` (m, n) rad -- use configurations where both models are meaningful, e.g.
-    the measurement configurations (if a joint never moved there, the two models only agree for that
-    joint value). When the true world -> measurement transform is known (simulation), prefer
-    ``express_in_frame(true_model, T_meas_trueworld, like=est_model)``: it does not mix estimation
-    error into the alignment. See the module docstring for which parameters are gauge.
-    """
-    T = fit_rigid_transform(fk_tool(est_model, q_ref), fk_tool(true_model, q_ref), length_m)
-    return express_in_frame(true_model, T, like=est_model)
 
 
 def initial_base(model: MCPCModel, q: np.ndarray, T_world_cam: np.ndarray) -> MCPCModel:
@@ -570,241 +448,4 @@ def identify(
         converged=converged,
         residuals=y,
         warnings=tuple(notes),
-    )
-
-
-# --------------------------------------------------------------------------------------------
-# DH equivalent
-# --------------------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class DHTable:
-    """Standard-DH equivalent of an MCPC model (SI units).
-
-    ``T_world_cam(q) = T_world_base @ prod_i A_i(q_i) @ T_flange_tool`` with
-    ``A_i = Rz(q_i + offset_i) Tz(d_i) Tx(a_i) Rx(alpha_i)``.
-
-    Attributes:
-        offset, d, a, alpha: (n,) DH rows (rad, m, m, rad).
-        T_world_base: DH frame 0 in the model's world frame.
-        T_flange_tool: the tool (camera) in the last DH frame.
-    """
-
-    offset: np.ndarray
-    d: np.ndarray
-    a: np.ndarray
-    alpha: np.ndarray
-    T_world_base: np.ndarray
-    T_flange_tool: np.ndarray
-
-    def rows(self) -> list[tuple[float, float, float, float]]:
-        """``[(offset, d, a, alpha), ...]`` per joint (rad, m, m, rad)."""
-        return [tuple(float(v) for v in r) for r in zip(self.offset, self.d, self.a, self.alpha)]
-
-
-def _angle_about(u: np.ndarray, v: np.ndarray, axis: np.ndarray) -> float:
-    """Signed angle (rad) rotating unit ``u`` to unit ``v`` about unit ``axis`` (both normal to it)."""
-    return float(np.arctan2(np.cross(u, v) @ axis, u @ v))
-
-
-def _wrap(a: float) -> float:
-    return float((a + np.pi) % (2 * np.pi) - np.pi)
-
-
-def to_dh(
-    model: MCPCModel,
-    robot: RobotDef,
-    *,
-    parallel_tol_deg: float = 1.0,
-    exact_parallel_rad: float = 1e-9,
-) -> DHTable | None:
-    """The standard-DH table equivalent to ``model`` (revolute joints), or None where none is sound.
-
-    Frames follow the usual construction on the joint axes at ``q = 0``: ``z_i`` = axis ``i + 1``,
-    ``x_i`` along the common normal of axes ``i`` and ``i + 1`` (sign chosen closest to the nominal
-    table of ``robot``). The free choices are fixed like the nominal table: DH frame 0 is placed so
-    that row 1 has the nominal ``offset_1`` and ``d_1`` (both are gauge with an arbitrary world,
-    see the module docstring), the last frame is the nominal last row on top of frame ``n - 1``, and
-    the remainder goes to ``T_flange_tool``. For exactly parallel consecutive axes (angle below
-    ``exact_parallel_rad``) the common normal is taken through the previous origin (``d_i = 0``).
-
-    Parallel axes: DH is discontinuous there. For two axes at a small angle ``theta`` the common
-    normal lies at a distance ~ (offset) / theta along the axes, so ``d`` jumps from 0 to huge values
-    and back as ``theta`` passes through zero: a 0.01 deg misalignment of the SCORBOT's parallel
-    joints 2, 3, 4 cannot be written as a small DH change. Such models return ``None`` and a
-    :class:`DHNotRepresentableWarning` naming the joints and the angle; the MCPC ``beta`` (like
-    Hayati's parameter) is the continuous description.
-
-    Raises:
-        ValueError: prismatic joints (not supported) or a joint count different from ``robot``'s.
-    """
-    table, why = dh_table(
-        model, robot, parallel_tol_deg=parallel_tol_deg, exact_parallel_rad=exact_parallel_rad
-    )
-    if why is not None:
-        warnings.warn(why, DHNotRepresentableWarning, stacklevel=2)
-    return table
-
-
-def dh_table(
-    model: MCPCModel,
-    robot: RobotDef,
-    *,
-    parallel_tol_deg: float = 1.0,
-    exact_parallel_rad: float = 1e-9,
-) -> tuple[DHTable | None, str | None]:
-    """:func:`to_dh` without the warning: ``(table, None)``, or ``(None, why)`` naming the
-    nearly parallel joints and their angle when no sound DH table exists.
-
-    Raises:
-        ValueError: prismatic joints (not supported) or a joint count different from ``robot``'s.
-    """
-    out = _dh_impl(model, robot, parallel_tol_deg, exact_parallel_rad, frame0_only=False)
-    if isinstance(out, str):
-        return None, out
-    assert isinstance(out, DHTable)
-    return out, None
-
-
-def canonical_base(
-    model: MCPCModel, robot: RobotDef, *, parallel_tol_deg: float = 1.0
-) -> np.ndarray:
-    """``T_world_base`` of a world-independent frame attached to the robot's first two axes.
-
-    z = joint 1's axis; x and the origin are those of DH frame 0 as in :func:`to_dh` (from the
-    common normal of axes 1 and 2 at q = 0, with the nominal ``offset_1`` and ``d_1``). Expressing
-    a model there, ``express_in_frame(model, inv_pose(canonical_base(model, robot)), like=ref)``,
-    removes the world gauge: the resulting parameters no longer depend on the measurement frame,
-    so models identified in different reconstruction frames can be compared one to one (what is
-    lost is exactly what is unobservable with an unknown scene: joint 1's zero and the height of
-    the base along axis 1). Needs axes 1 and 2 not nearly parallel (true for the SCORBOT).
-
-    Raises:
-        ValueError: prismatic joints, or axes 1 and 2 nearly parallel.
-    """
-    out = _dh_impl(model, robot, parallel_tol_deg, 1e-9, frame0_only=True)
-    if isinstance(out, str):
-        raise ValueError(f"no canonical base frame: {out}")
-    return out
-
-
-def _dh_impl(
-    model: MCPCModel,
-    robot: RobotDef,
-    parallel_tol_deg: float,
-    exact_parallel_rad: float,
-    frame0_only: bool,
-) -> DHTable | np.ndarray | str:
-    """The DH table (or, ``frame0_only``, DH frame 0 as ``T_world_base``), or the reason why
-    none exists (a string naming the nearly parallel axes)."""
-    if any(t != "revolute" for t in model.joint_types):
-        raise ValueError("to_dh supports revolute joints only")
-    n = model.n
-    if robot.n != n:
-        raise ValueError(f"model has {n} joints, robot {robot.name} has {robot.n}")
-    F = fk_frames(model, np.zeros((1, n)))[0]
-    z = [F[k, :3, 2] for k in range(n)]  # axis k+1 direction
-    p = [F[k, :3, 3] for k in range(n)]  # a point on axis k+1
-    tol = np.sin(np.radians(parallel_tol_deg))
-    for k in range(1 if frame0_only else n - 1):
-        s = np.linalg.norm(np.cross(z[k], z[k + 1]))
-        if np.sin(exact_parallel_rad) <= s < tol:
-            return (
-                f"axes of joints {k + 1} and {k + 2} are {np.degrees(np.arcsin(s)):.4g} deg from "
-                f"parallel (< {parallel_tol_deg} deg): no continuous DH table exists; use the MCPC "
-                "parameters (beta) instead"
-            )
-
-    def normal(k: int, origin_prev: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Common normal of axes k+1, k+2 (0-based k): (unit x, foot on axis k+1, point on k+2)."""
-        zi, zj = z[k], z[k + 1]
-        c = np.cross(zi, zj)
-        if np.linalg.norm(c) < np.sin(exact_parallel_rad):
-            base = p[k] if origin_prev is None else origin_prev
-            w = p[k + 1] - base
-            w = w - (w @ zi) * zi
-            if np.linalg.norm(w) < 1e-12:
-                raise ValueError(f"axes of joints {k + 1} and {k + 2} coincide: DH undefined")
-            return w / np.linalg.norm(w), base, base + w
-        # closest points P = p_k + t zi, Q = p_{k+1} + u zj
-        b = zi @ zj
-        w0 = p[k] - p[k + 1]
-        dd, e = zi @ w0, zj @ w0
-        den = 1.0 - b * b
-        t = (b * e - dd) / den
-        u = (e - b * dd) / den
-        P, Q = p[k] + t * zi, p[k + 1] + u * zj
-        return c / np.linalg.norm(c), P, Q
-
-    def row(x_prev, z_prev, o_prev, x_i, z_i, foot, o_i) -> tuple[float, float, float, float]:
-        th = _angle_about(x_prev, x_i, z_prev)
-        d = float((foot - o_prev) @ z_prev)
-        a = float((o_i - foot) @ x_i)
-        al = _angle_about(z_prev, z_i, x_i)
-        return th, d, a, al
-
-    def closeness(r: tuple[float, float, float, float], i: int) -> float:
-        return (
-            abs(_wrap(r[0] - robot.dh_offset[i]))
-            + abs(_wrap(r[3] - robot.dh_alpha[i]))
-            + abs(r[2] - robot.dh_a[i]) / 0.1
-        )
-
-    offs, ds, as_, als = [], [], [], []
-    # frame 1 from axes 1, 2 -- it fixes frame 0 (nominal offset_1 and d_1)
-    x1, foot, o1 = normal(0, None)
-    z0 = z[0]
-    best = None
-    for sgn in (1.0, -1.0):
-        xi = sgn * x1
-        # x0: xi rotated about z0 by -offset_1 (Rodrigues), so row 1 has the nominal offset
-        c, s_ = np.cos(-robot.dh_offset[0]), np.sin(-robot.dh_offset[0])
-        x0 = c * xi + s_ * np.cross(z0, xi) + (1 - c) * (z0 @ xi) * z0
-        o0 = foot - robot.dh_d[0] * z0
-        r = row(x0, z0, o0, xi, z[1], foot, o1)
-        if best is None or closeness(r, 0) < closeness(best[0], 0):
-            best = (r, x0, o0, xi, o1)
-    r, x0, o0, x_prev, o_prev = best
-    T_world_base = make_pose(np.column_stack([x0, np.cross(z0, x0), z0]), o0)
-    if frame0_only:
-        return T_world_base
-    offs.append(r[0])
-    ds.append(r[1])
-    as_.append(r[2])
-    als.append(r[3])  # noqa: E702
-    z_prev = z[1]
-    for k in range(1, n - 1):
-        xk, foot, ok = normal(k, o_prev)
-        best = None
-        for sgn in (1.0, -1.0):
-            r = row(x_prev, z_prev, o_prev, sgn * xk, z[k + 1], foot, ok)
-            if best is None or closeness(r, k) < closeness(best[0], k):
-                best = (r, sgn * xk)
-        r, x_prev = best
-        o_prev, z_prev = ok, z[k + 1]
-        offs.append(r[0])
-        ds.append(r[1])
-        as_.append(r[2])
-        als.append(r[3])  # noqa: E702
-    # last row: nominal, on top of frame n-1
-    offs.append(float(robot.dh_offset[-1]))
-    ds.append(float(robot.dh_d[-1]))
-    as_.append(float(robot.dh_a[-1]))
-    als.append(float(robot.dh_alpha[-1]))
-    T_prev = make_pose(np.column_stack([x_prev, np.cross(z_prev, x_prev), z_prev]), o_prev)
-    A_n = (
-        rot_z(offs[-1])
-        @ trans(np.array([0.0, 0.0, ds[-1]]))
-        @ trans(np.array([as_[-1], 0.0, 0.0]))
-        @ rot_x(als[-1])
-    )
-    T_flange_tool = inv_pose(T_prev @ A_n) @ F[n]
-    return DHTable(
-        offset=np.array([_wrap(v) for v in offs]),
-        d=np.array(ds),
-        a=np.array(as_),
-        alpha=np.array([_wrap(v) for v in als]),
-        T_world_base=T_world_base,
-        T_flange_tool=T_flange_tool,
     )

@@ -22,8 +22,9 @@ import numpy as np
 
 from calib.bounds import BoundsError, cramer_rao
 from calib.bounds_setup import setup_from_output
+from calib.dh_table import dh_table
 from calib.estimation.joint_result import JointRefinementResult
-from calib.identify import IdentificationResult, dh_table
+from calib.identify import IdentificationResult
 from calib.io.calibration import CalibrationResult
 from calib.io.calibration_blocks import (
     CameraIntrinsics,
@@ -115,7 +116,7 @@ def hand_eye(model: MCPCModel, robot: RobotDef) -> HandEye:
 
 def dh_rows(model: MCPCModel, robot: RobotDef) -> tuple[tuple[DHRow, ...] | None, str | None]:
     """The standard-DH table of ``model`` in mm / deg, or ``(None, why)`` when none is sound
-    (:func:`calib.identify.dh_table`)."""
+    (:func:`calib.dh_table.dh_table`)."""
     table, why = dh_table(model, robot)
     if table is None:
         return None, why or "not representable"

@@ -16,7 +16,8 @@ import time
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from calib.identify import express_in_frame, identify, minimal_difference
+from calib.alignment import express_in_frame, minimal_difference
+from calib.identify import identify
 from calib.kinematics import fk_tool
 from calib.mcpc import dh_to_mcpc, minimal_indices, param_is_angle
 from calib.robot_def import load_robot

@@ -34,10 +34,10 @@ from pathlib import Path
 
 import numpy as np
 
+from calib.alignment import express_in_frame, minimal_difference
 from calib.bounds import aligned_error_dof, cramer_rao
 from calib.bounds_setup import setup_from_output
 from calib.calibrate import calibrate_detailed, detect_dataset, observations_of
-from calib.identify import express_in_frame, minimal_difference
 from calib.io.dataset import Dataset, DatasetWriter
 from calib.io.truth import read_truth
 from calib.mcpc import minimal_indices, param_is_angle

@@ -12,8 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
+from calib.alignment import express_in_frame
 from calib.calibrate import calibrate
-from calib.identify import express_in_frame
 from calib.io.calibration import CalibrationResult, read_calibration, write_calibration
 from calib.io.dataset import Dataset, DatasetError, DatasetWriter
 from calib.io.jsonfile import write_json_atomic

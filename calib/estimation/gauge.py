@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from calib.identify import express_in_frame, minimal_difference
+from calib.alignment import express_in_frame, minimal_difference
 from calib.mcpc import MCPCModel, minimal_indices
 from calib.transforms import pose_from_vec
 

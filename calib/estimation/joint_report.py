@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from calib.alignment import express_in_frame, minimal_difference
 from calib.estimation.joint_result import JointRefinementResult
-from calib.identify import express_in_frame, minimal_difference
 from calib.kinematics import fk_tool, identification_jacobian
 from calib.mcpc import MCPCModel, minimal_indices
 from calib.transforms import inv_pose, skew

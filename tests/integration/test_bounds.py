@@ -20,10 +20,10 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 
+from calib.alignment import express_in_frame, minimal_difference
 from calib.bounds import aligned_error_dof, aligned_rms_from_covariance, cramer_rao
 from calib.bounds_setup import predicted_setup
 from calib.camera import Rig
-from calib.identify import express_in_frame, minimal_difference
 from calib.joint_refine import encoder_sigma
 from calib.kinematics import fk_tool, identification_jacobian
 from calib.mcpc import minimal_indices

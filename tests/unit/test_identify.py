@@ -13,19 +13,9 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from calib.identify import (
-    DHNotRepresentableWarning,
-    IdentificationError,
-    IdentificationWarning,
-    align_truth,
-    canonical_base,
-    express_in_frame,
-    fit_rigid_transform,
-    identify,
-    initial_base,
-    minimal_difference,
-    to_dh,
-)
+from calib.alignment import align_truth, express_in_frame, fit_rigid_transform, minimal_difference
+from calib.dh_table import DHNotRepresentableWarning, canonical_base, to_dh
+from calib.identify import IdentificationError, IdentificationWarning, identify, initial_base
 from calib.kinematics import fk_dh, fk_tool, pose_error
 from calib.mcpc import MCPCModel, dh_to_mcpc, minimal_indices, param_is_angle, param_names
 from calib.robot_def import RobotDef, load_robot
