@@ -71,7 +71,7 @@ def predicted_setup(
     view = np.repeat(ViewLayout(len(q), rig.n_cameras).view(cfg, cam), CORNERS_PER_MARKER)
     pidx = marker_features(remap[mk]).ravel()
     X = corners_world[kept].reshape(-1, 3)
-    sp = tuple(marker_features(remap[np.flatnonzero(ids == sid)[0]]) for sid in scale_ids)
+    sa, sb = (marker_features(remap[np.flatnonzero(ids == sid)[0]]) for sid in scale_ids)
     return FisherSetup(
         model=model,
         q=q,
@@ -80,7 +80,7 @@ def predicted_setup(
         X_world=X,
         view=view,
         pidx=pidx,
-        scale_points=sp,
+        scale_points=(sa, sb),
         scale_distance_m=float(scale_distance_m),
         pixel_sigma_px=float(pixel_sigma_px),
         joint_sigma=None if joint_sigma is None else np.asarray(joint_sigma, dtype=float),

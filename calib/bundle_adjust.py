@@ -17,11 +17,12 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Generic
 
 import numpy as np
 import scipy.sparse as sp
 
-from calib.camera import CameraModel
+from calib.camera.model import C
 from calib.estimation.pose_models import PoseModel
 from calib.estimation.reprojection import ReprojectionBlock
 from calib.solver import (
@@ -42,13 +43,13 @@ __all__ = [
 
 
 @dataclass
-class BundleResult:
+class BundleResult(Generic[C]):
     """Output of :func:`bundle_adjust` (in the pose model's gauge): the adjusted ``camera``, pose
     parameters, poses ``T_cam_world`` (V, 4, 4), points ``X`` (P, 3), residuals (k, 2) px of the
     rows passed in, the solver's cost/evaluations/status, the final Jacobian (columns: the
     ``n_intrinsics`` free camera parameters unless fixed, then poses, then points)."""
 
-    camera: CameraModel
+    camera: C
     pose_params: np.ndarray
     T_cam_world: np.ndarray
     X: np.ndarray
@@ -61,7 +62,7 @@ class BundleResult:
     n_intrinsics: int = 0
 
 
-class _Problem:
+class _Problem(Generic[C]):
     """The bundle adjustment as a :class:`calib.solver.Problem` over ``x = [camera's free
     parameters (unless fixed), p, X (3 P)]`` with the ``reprojection`` block first, then
     ``extra`` residual blocks over the same parameter blocks; ``fun``/``jac``/``sparsity`` serve
@@ -69,7 +70,7 @@ class _Problem:
 
     def __init__(
         self,
-        camera: CameraModel,
+        camera: C,
         model: PoseModel,
         view: np.ndarray,
         pidx: np.ndarray,
@@ -109,7 +110,7 @@ class _Problem:
         )
         self.n = self.problem.n
 
-    def unpack(self, x: np.ndarray) -> tuple[CameraModel, np.ndarray, np.ndarray]:
+    def unpack(self, x: np.ndarray) -> tuple[C, np.ndarray, np.ndarray]:
         """``(camera, p, X (P, 3))`` for unknowns ``x``."""
         v = self.problem.values(x)
         return self.camera.with_free_values(v["intrinsics"]), v["poses"], v["points"].reshape(-1, 3)
@@ -131,7 +132,7 @@ def bundle_adjust(
     view: np.ndarray,
     pidx: np.ndarray,
     uv: np.ndarray,
-    camera: CameraModel,
+    camera: C,
     *,
     fix_intrinsics: bool = False,
     loss: str = "soft_l1",
@@ -139,7 +140,7 @@ def bundle_adjust(
     max_nfev: int = 100,
     tol: float = 1e-12,
     solver: str = "lm",
-) -> BundleResult:
+) -> BundleResult[C]:
     """Sparse bundle adjustment of ``camera``'s free parameters (unless ``fix_intrinsics``), the
     pose-model parameters (start ``p0``) and the points ``X`` (P, 3) m (start ``X0``).
 

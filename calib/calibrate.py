@@ -129,7 +129,9 @@ def observations_of(ds: Dataset, dets: Detections) -> Observations:
     """The detections as :class:`calib.selfcal.Observations`, configurations numbered by their
     position in ``ds.indices``."""
     pos = {int(i): k for k, i in enumerate(ds.indices)}
-    remapped = {(pos[i], cam): m for (i, cam), m in dets.items() if i in pos}
+    remapped: dict[tuple[int, int | str], dict[int, np.ndarray]] = {
+        (pos[i], cam): m for (i, cam), m in dets.items() if i in pos
+    }
     return Observations.from_corners(remapped, n_configs=len(ds.indices))
 
 
@@ -193,7 +195,7 @@ def calibrate_detailed(
         obs,
         W,
         H,
-        scale_markers=tuple(ds.info.scale_ids),
+        scale_markers=ds.info.scale_ids,
         scale_distance_m=ds.info.scale_length_m,
         nominal_cam_positions=T_nom[:, :3, 3],
         # The reconstruction frame becomes the world of the kinematic model: take a camera whose

@@ -173,7 +173,7 @@ def solve_compensated(
             continue
         bad = []
         for j in range(dep.n):
-            q[j], ok = wrap_into_range(q[j], *dep.limits[j], reference=ref[j])
+            q[j], ok = wrap_into_range(q[j], dep.limits[j, 0], dep.limits[j, 1], reference=ref[j])
             if not ok:
                 u, s = ("deg", 180 / np.pi) if dep.joint_types[j] == "revolute" else ("mm", 1e3)
                 lo, hi = dep.limits[j] * s

@@ -46,7 +46,10 @@ class DHTable:
 
     def rows(self) -> list[tuple[float, float, float, float]]:
         """``[(offset, d, a, alpha), ...]`` per joint (rad, m, m, rad)."""
-        return [tuple(float(v) for v in r) for r in zip(self.offset, self.d, self.a, self.alpha)]
+        return [
+            (float(o), float(d), float(a), float(al))
+            for o, d, a, al in zip(self.offset, self.d, self.a, self.alpha)
+        ]
 
 
 def _angle_about(u: np.ndarray, v: np.ndarray, axis: np.ndarray) -> float:
@@ -132,7 +135,7 @@ def canonical_base(
     out = _dh_impl(model, robot, parallel_tol_deg, 1e-9, frame0_only=True)
     if isinstance(out, str):
         raise ValueError(f"no canonical base frame: {out}")
-    return out
+    return out.T_world_base if isinstance(out, DHTable) else out
 
 
 def _dh_impl(
@@ -201,17 +204,16 @@ def _dh_impl(
     # frame 1 from axes 1, 2 -- it fixes frame 0 (nominal offset_1 and d_1)
     x1, foot, o1 = normal(0, None)
     z0 = z[0]
-    best = None
+    first = []
     for sgn in (1.0, -1.0):
         xi = sgn * x1
         # x0: xi rotated about z0 by -offset_1 (Rodrigues), so row 1 has the nominal offset
         c, s_ = np.cos(-robot.dh_offset[0]), np.sin(-robot.dh_offset[0])
         x0 = c * xi + s_ * np.cross(z0, xi) + (1 - c) * (z0 @ xi) * z0
         o0 = foot - robot.dh_d[0] * z0
-        r = row(x0, z0, o0, xi, z[1], foot, o1)
-        if best is None or closeness(r, 0) < closeness(best[0], 0):
-            best = (r, x0, o0, xi, o1)
-    r, x0, o0, x_prev, o_prev = best
+        first.append((row(x0, z0, o0, xi, z[1], foot, o1), x0, o0, xi, o1))
+    # the closer of the two signs to the nominal row (the first on a tie)
+    r, x0, o0, x_prev, o_prev = min(first, key=lambda c: closeness(c[0], 0))
     T_world_base = make_pose(np.column_stack([x0, np.cross(z0, x0), z0]), o0)
     if frame0_only:
         return T_world_base
@@ -222,12 +224,11 @@ def _dh_impl(
     z_prev = z[1]
     for k in range(1, n - 1):
         xk, foot, ok = normal(k, o_prev)
-        best = None
-        for sgn in (1.0, -1.0):
-            r = row(x_prev, z_prev, o_prev, sgn * xk, z[k + 1], foot, ok)
-            if best is None or closeness(r, k) < closeness(best[0], k):
-                best = (r, sgn * xk)
-        r, x_prev = best
+        rows = [
+            (row(x_prev, z_prev, o_prev, sgn * xk, z[k + 1], foot, ok), sgn * xk)
+            for sgn in (1.0, -1.0)
+        ]
+        r, x_prev = min(rows, key=lambda c: closeness(c[0], k))
         o_prev, z_prev = ok, z[k + 1]
         offs.append(r[0])
         ds.append(r[1])

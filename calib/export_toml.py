@@ -131,15 +131,15 @@ def to_toml(dep: DeployedModel, robot: RobotDef | None = None) -> str:
     L += ["[base_in_reconstruction]  # the base frame in the calibration's world frame"]
     L += _pose_lines(dep.T_world_base) + [""]
     if dep.intrinsics is not None:
-        i = dep.intrinsics
+        cam = dep.intrinsics
         L += [
             "[camera]  # calibrated pinhole intrinsics (px, OpenCV), both cameras",
-            f"fx = {_f(i.fx)}",
-            f"mu = {_f(i.mu)}",
-            f"cx = {_f(i.cx)}",
-            f"cy = {_f(i.cy)}",
-            f"width = {int(i.width)}",
-            f"height = {int(i.height)}",
+            f"fx = {_f(cam.fx)}",
+            f"mu = {_f(cam.mu)}",
+            f"cx = {_f(cam.cx)}",
+            f"cy = {_f(cam.cy)}",
+            f"width = {int(cam.width)}",
+            f"height = {int(cam.height)}",
             "",
         ]
         if dep.T_left_right is not None:
@@ -148,7 +148,7 @@ def to_toml(dep: DeployedModel, robot: RobotDef | None = None) -> str:
     dh, note = dep.dh(robot)
     L.append("[dh]  # standard DH, A_i = Rz(q_i + theta_offset_i) Tz(d_i) Tx(a_i) Rx(alpha_i)")
     if dh is None:
-        L.append(f"note = {_s('no DH table: ' + note)}")
+        L.append(f"note = {_s(f'no DH table: {note}')}")
         L.append("")
     else:
         L.append("note = " + _s("DH frame 0 = the base frame; T_flange_tool = tool tip in frame n"))

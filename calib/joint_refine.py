@@ -73,7 +73,7 @@ from calib.identify import IdentificationResult
 from calib.kinematics import fk_tool
 from calib.mcpc import MCPCModel, minimal_indices, param_is_angle, param_names
 from calib.observations import Observations, views_per_point
-from calib.solver import Loss, SolverOptions, covariance, scaled_rank, solve
+from calib.solver import Loss, ResidualBlock, SolverOptions, covariance, scaled_rank, solve
 from calib.target import marker_features
 from calib.transforms import inv_pose
 
@@ -174,7 +174,7 @@ class _Problem(_AdjustmentProblem):
         loss: Loss | None = None,
         x0: np.ndarray | None = None,
     ) -> None:
-        extra = [ScaleDistanceBlock(scale_idx[0], scale_idx[1], d_m, w_scale)]
+        extra: list[ResidualBlock] = [ScaleDistanceBlock(scale_idx[0], scale_idx[1], d_m, w_scale)]
         if len(prior_cols):
             extra.append(GaussianPriorBlock("poses", prior_cols, prior_w))
         super().__init__(camera, model, view, pidx, uv, n_points, loss=loss, x0=x0, extra=extra)
@@ -315,7 +315,7 @@ def joint_refine(
     total_it = 0
     converged = False
     diag: dict = {}
-    rank_info = None
+    rank_info: tuple[float, int] | None = None
     status, message = 0, ""
     for rnd in range(rounds + 1):
         last = rnd == rounds
@@ -425,6 +425,7 @@ def joint_refine(
         dq = p[pose_model.dq_cols].reshape(-1, model0.n)
         diag["joint_correction_rms"] = np.sqrt(np.mean(dq**2, axis=0)).tolist()
     diag["gauge_condition_number"] = gauge.condition_number
+    assert rank_info is not None  # set in the first round (there is always one)
     return JointRefinementResult(
         model=model_ref,
         model_gauge=model_g,

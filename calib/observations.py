@@ -63,11 +63,11 @@ class ViewLayout:
 
     def frame_any(self, per_view: np.ndarray) -> np.ndarray:
         """(m,) bool: some camera of the frame has ``per_view`` (V,) set."""
-        return self.by_frame(per_view).any(axis=1)
+        return np.asarray(self.by_frame(per_view).any(axis=1))
 
     def frame_all(self, per_view: np.ndarray) -> np.ndarray:
         """(m,) bool: every camera of the frame has ``per_view`` (V,) set."""
-        return self.by_frame(per_view).all(axis=1)
+        return np.asarray(self.by_frame(per_view).all(axis=1))
 
     def per_view(self, per_frame: np.ndarray) -> np.ndarray:
         """(V, ...) each frame's entry repeated for its cameras, from ``per_frame`` (m, ...)."""

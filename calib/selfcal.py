@@ -240,7 +240,7 @@ def self_calibrate(
     rms, cov, cov_unit = _check_fit(
         fit, rec, obs, init, r_all, max_nfev, max_fx_rel_std_per_px, diag
     )
-    if scale_markers is not None:
+    if scale_markers is not None and scale_distance_m is not None:  # both or neither (checked)
         check_scale_markers_seen(obs, fit.active, scale_markers)
         X_out = np.where(rec.has_X[:, None], rec.X, np.nan)
         sc = scale_from_markers(
@@ -371,7 +371,7 @@ def _result(
     Tv = rec.poses()
     Tv[:, :3, 3] *= k
     if rec.rig:
-        T_rigs = rec.T_rigs.copy()
+        T_rigs = rec.rig_poses()[1].copy()
         T_rigs[:, :3, 3] *= k
         registered = rec.reg_c
     else:

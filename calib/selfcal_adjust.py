@@ -21,7 +21,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from calib.bundle_adjust import BundleResult, bundle_adjust
-from calib.camera import CameraModel
+from calib.camera import Pinhole
 from calib.estimation.pose_models import FreePoses, RigPoses
 from calib.estimation.reprojection import reprojection_residuals, robust_sigma
 from calib.estimation.selfcal_errors import ConvergenceError, InsufficientDataError
@@ -79,7 +79,7 @@ class Reconstruction:
 
     layout: ViewLayout
     rig: bool
-    camera: CameraModel
+    camera: Pinhole
     T: np.ndarray | None
     T_first: np.ndarray | None
     T_rigs: np.ndarray | None
@@ -98,11 +98,12 @@ class Reconstruction:
     def poses(self) -> np.ndarray:
         """``T_cam_world`` (V, 4, 4) of every view, NaN where not registered."""
         if not self.rig:
-            return np.where(self.reg_v[:, None, None], self.T, np.nan)
+            return np.where(self.reg_v[:, None, None], self._free(), np.nan)
+        T_first, T_rigs = self.rig_poses()
         Tv = np.empty((self.layout.n_views, 4, 4))
         by = self.layout.by_frame(Tv)
-        by[:, 0] = self.T_first
-        for c, T_rig in enumerate(self.T_rigs, start=1):
+        by[:, 0] = T_first
+        for c, T_rig in enumerate(T_rigs, start=1):
             by[:, c] = T_rig @ self.T_first
         Tv[~self.view_ok()] = np.nan
         return Tv
@@ -110,8 +111,18 @@ class Reconstruction:
     def pose_model(self) -> RigPoses | FreePoses:
         """The pose model of the next adjustment, started at the current poses."""
         if self.rig:
-            return RigPoses(self.T_first, self.T_rigs, self.reg_c, self.ref_config)
+            return RigPoses(*self.rig_poses(), self.reg_c, self.ref_config)
         return FreePoses(self.poses(), self.reg_v, self.ref_view, self.scale_view)
+
+    def rig_poses(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(T_first, T_rigs)`` of the rig model."""
+        assert self.T_first is not None and self.T_rigs is not None, "not a rig reconstruction"
+        return self.T_first, self.T_rigs
+
+    def _free(self) -> np.ndarray:
+        """``T`` of the free-pose model."""
+        assert self.T is not None, "a rig reconstruction has no per-view poses"
+        return self.T
 
 
 def gauge(
@@ -123,7 +134,10 @@ def gauge(
 ) -> Reconstruction:
     """The initial reconstruction in the adjustment's gauge (module docstring); the reference
     configuration is the registered one with the lowest ``ref_scores`` (default: the first)."""
-    T = init.T_cam_world.copy()
+    T_views = init.T_cam_world.copy()
+    T: np.ndarray | None
+    T_first: np.ndarray | None
+    T_rigs: np.ndarray | None
     reg_v = init.registered.copy()
     X = init.X.copy()
     has_X = np.isfinite(X).all(axis=1)
@@ -133,9 +147,9 @@ def gauge(
     ref_cam = int(np.flatnonzero(reg_ref)[0])
     ref_view = int(layout.view(ref_config, ref_cam))
     if rig:
-        T_rigs = rig_from_views(T, reg_v, layout)
+        T_rigs = rig_from_views(T_views, reg_v, layout)
         T_first = np.full((layout.n_frames, 4, 4), np.nan)
-        by, reg = layout.by_frame(T), layout.by_frame(reg_v)
+        by, reg = layout.by_frame(T_views), layout.by_frame(reg_v)
         done = np.zeros(layout.n_frames, bool)
         for c in range(layout.n_cameras):  # from the first camera registered in the frame
             take = reg[:, c] & ~done
@@ -148,8 +162,8 @@ def gauge(
         T_rigs[:, :3, 3] *= s
         T, scale_view = None, -1
     else:
-        G = T[ref_view].copy()
-        T = T @ inv_pose(G)
+        G = T_views[ref_view].copy()
+        T = T_views @ inv_pose(G)
         same = [int(layout.view(ref_config, c)) for c in range(ref_cam + 1, layout.n_cameras)]
         same = [v for v in same if reg_v[v]]
         others = np.flatnonzero(reg_v & (np.arange(layout.n_views) != ref_view))
@@ -300,7 +314,7 @@ def adjust(
         rec.camera = res.camera
         rec.X = rec.X.copy()
         rec.X[used] = res.X
-        if rec.rig:
+        if isinstance(model, RigPoses):
             first = rec.layout.of_camera(res.T_cam_world, 0)
             rec.T_first = np.where(rec.reg_c[:, None, None], first, np.nan)
             rec.T_rigs = model.rigs(res.pose_params)

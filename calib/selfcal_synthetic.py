@@ -97,12 +97,12 @@ def synthetic_stereo_scene(
     ang = rng.uniform(0, 2 * np.pi, n_markers)
     h = marker_size_m / 2
     local = np.array([[-h, h], [h, h], [h, -h], [-h, -h]])
-    X = np.zeros((n_markers, CORNERS_PER_MARKER, 3))
+    corners = np.zeros((n_markers, CORNERS_PER_MARKER, 3))
     for i in range(n_markers):
         c, s = np.cos(ang[i]), np.sin(ang[i])
-        X[i, :, :2] = centres[i, :2] + local @ np.array([[c, s], [-s, c]])
-        X[i, :, 2] = centres[i, 2]
-    X = X.reshape(-1, 3)
+        corners[i, :, :2] = centres[i, :2] + local @ np.array([[c, s], [-s, c]])
+        corners[i, :, 2] = centres[i, 2]
+    X = corners.reshape(-1, 3)
     if vergence_distance_m is None and not fixate:
         toe = 0.02
         T_lr = make_pose(
@@ -135,7 +135,7 @@ def synthetic_stereo_scene(
         Twc[i, 1] = Twc[i, 0] @ T_lr
     Tcw = inv_pose(Twc)
     det: dict = {}
-    rows = []
+    rows: list[tuple[int, int, int, int]] = []
     for i in range(n_configs):
         for c in range(2):
             uvp = project(intr, Tcw[i, c], X).reshape(n_markers, CORNERS_PER_MARKER, 2)

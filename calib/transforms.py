@@ -8,6 +8,7 @@ with arbitrary leading batch dimensions.
 from __future__ import annotations
 
 import numpy as np
+import numpy.typing as npt
 from scipy.spatial.transform import Rotation
 
 __all__ = [
@@ -65,7 +66,7 @@ def trans(xyz: np.ndarray) -> np.ndarray:
     return T
 
 
-def make_pose(R: np.ndarray, p: np.ndarray) -> np.ndarray:
+def make_pose(R: npt.ArrayLike, p: npt.ArrayLike) -> np.ndarray:
     """Pose from rotation ``R`` (..., 3, 3) and translation ``p`` (..., 3)."""
     R = np.asarray(R, dtype=float)
     p = np.asarray(p, dtype=float)

@@ -22,7 +22,7 @@ values. The estimation works with the free parameters only (:meth:`free_values`,
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from typing import ClassVar
+from typing import ClassVar, TypeVar
 
 import numpy as np
 
@@ -52,6 +52,10 @@ def perspective_jacobian(X_cam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return xn, J
 
 
+C = TypeVar("C", bound="CameraModel")
+"""A camera model type: what a method returns for a model of the same class."""
+
+
 class CameraModel(ABC):
     """A central camera model (see the module docstring).
 
@@ -71,7 +75,7 @@ class CameraModel(ABC):
         """All parameter values (len(names),), in ``names`` order (px or unitless)."""
 
     @abstractmethod
-    def with_values(self, values: np.ndarray) -> CameraModel:
+    def with_values(self: C, values: np.ndarray) -> C:
         """The same model with all parameters replaced by ``values`` (len(names),)."""
 
     @abstractmethod
@@ -112,7 +116,7 @@ class CameraModel(ABC):
         """The free parameters' values (n_free,), in ``free`` order."""
         return self.values()[self.free_index]
 
-    def with_free_values(self, free_values: np.ndarray) -> CameraModel:
+    def with_free_values(self: C, free_values: np.ndarray) -> C:
         """The same model with the free parameters set to ``free_values`` (n_free,)."""
         v = self.values()
         v[self.free_index] = np.asarray(free_values, dtype=float).reshape(-1)

@@ -24,7 +24,9 @@ __all__ = [
 ]
 
 
-def _essentials(F: np.ndarray, fx: np.ndarray, mu: np.ndarray, cx: float, cy: float):
+def _essentials(
+    F: np.ndarray, fx: np.ndarray | float, mu: np.ndarray | float, cx: float, cy: float
+) -> np.ndarray:
     F = np.asarray(F, dtype=float).reshape(-1, 3, 3)
     fx = np.atleast_1d(np.asarray(fx, dtype=float)).ravel()
     mu = np.atleast_1d(np.asarray(mu, dtype=float)).ravel()

@@ -233,8 +233,8 @@ class RigPoses:
         width = 6 + max(len(rc) for rc in self.rig_cols_all)
         cols = -np.ones((self.n_views, width), dtype=np.int64)
         by = self.layout.by_frame(cols)
-        for j, c in enumerate(self.cfg_idx):
-            by[c, :, :6] = np.arange(6 * j, 6 * j + 6)
+        for j, cfg in enumerate(self.cfg_idx):
+            by[cfg, :, :6] = np.arange(6 * j, 6 * j + 6)
         for c, rc in enumerate(self.rig_cols_all, start=1):
             by[reg, c, 6 : 6 + len(rc)] = rc
         self._cols = cols

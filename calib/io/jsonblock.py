@@ -49,7 +49,7 @@ class JsonBlock:
         """
         hints = _hints(cls)
         kw = {}
-        for fl in dataclasses.fields(cls):  # type: ignore[arg-type]
+        for fl in dataclasses.fields(cls):
             has_default = (
                 fl.default is not dataclasses.MISSING
                 or fl.default_factory is not dataclasses.MISSING
@@ -60,8 +60,14 @@ class JsonBlock:
         return cls(**kw)
 
 
-@functools.cache
 def _hints(cls: type) -> dict[str, Any]:
+    """The resolved field types of ``cls`` (cached per class). The plain ``type`` parameter
+    also keeps mypy from checking a block class against ``Hashable`` through its instances."""
+    return _cached_hints(cls)
+
+
+@functools.cache
+def _cached_hints(cls: type) -> dict[str, Any]:
     return typing.get_type_hints(cls)
 
 

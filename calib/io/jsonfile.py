@@ -11,6 +11,7 @@ the file and the key, and whose ``fix`` says what to do.
 
 from __future__ import annotations
 
+import builtins
 import json
 import os
 from collections.abc import Callable
@@ -185,45 +186,45 @@ class Fields:
         """A required string."""
         return self._convert(key, "a string", _exact(str))
 
-    def opt_str(self, key: str) -> str | None:
+    def opt_str(self, key: builtins.str) -> builtins.str | None:
         """A string that may be null or absent."""
         return None if self.doc.get(key) is None else self.str(key)
 
-    def int(self, key: str) -> int:
+    def int(self, key: builtins.str) -> builtins.int:
         """A required integer."""
         return self._convert(key, "an integer", _int)
 
-    def float(self, key: str) -> float:
+    def float(self, key: builtins.str) -> builtins.float:
         """A required number (NaN allowed)."""
         return self._convert(key, "a number", _float)
 
-    def opt_float(self, key: str) -> float | None:
+    def opt_float(self, key: builtins.str) -> builtins.float | None:
         """A number that may be null or absent."""
         return None if self.doc.get(key) is None else self.float(key)
 
-    def bool(self, key: str) -> bool:
+    def bool(self, key: builtins.str) -> builtins.bool:
         """A required true/false."""
         return self._convert(key, "true or false", _exact(bool))
 
-    def strs(self, key: str) -> tuple[str, ...]:
+    def strs(self, key: builtins.str) -> tuple[builtins.str, ...]:
         """A required list of strings."""
         return self._convert(key, "a list of strings", lambda v: tuple(map(_exact(str), v)))
 
-    def ints(self, key: str) -> tuple[int, ...]:
+    def ints(self, key: builtins.str) -> tuple[builtins.int, ...]:
         """A required list of integers."""
         return self._convert(key, "a list of integers", lambda v: tuple(map(_int, v)))
 
-    def str_map(self, key: str) -> dict[str, str]:
+    def str_map(self, key: builtins.str) -> dict[builtins.str, builtins.str]:
         """A required object of strings (name -> text)."""
 
-        def conv(v: Any) -> dict[str, str]:
+        def conv(v: Any) -> dict[builtins.str, builtins.str]:
             if not isinstance(v, dict):
                 raise TypeError
             return {str(k): _exact(str)(x) for k, x in v.items()}
 
         return self._convert(key, "an object of strings", conv)
 
-    def array(self, key: str, shape: tuple[int | None, ...]) -> np.ndarray:
+    def array(self, key: builtins.str, shape: tuple[builtins.int | None, ...]) -> np.ndarray:
         """A required array of numbers of ``shape`` (None: any length on that axis)."""
         want = "an array of shape (" + ", ".join("n" if s is None else str(s) for s in shape) + ")"
 
@@ -239,11 +240,11 @@ class Fields:
 
         return self._convert(key, want, conv)
 
-    def floats(self, key: str) -> tuple[float, ...]:
+    def floats(self, key: builtins.str) -> tuple[builtins.float, ...]:
         """A required list of numbers."""
         return self._convert(key, "a list of numbers", lambda v: tuple(map(_float, v)))
 
-    def opt_floats(self, key: str) -> tuple[float, ...] | None:
+    def opt_floats(self, key: builtins.str) -> tuple[builtins.float, ...] | None:
         """A list of numbers that may be null or absent."""
         return None if self.doc.get(key) is None else self.floats(key)
 

@@ -79,7 +79,7 @@ class NormalEquations:
     def sparse_A(self) -> sp.csc_matrix:
         """``A`` of the sparse form."""
         assert self.kind == "sparse" and sp.issparse(self.A)
-        return self.A  # type: ignore[return-value]
+        return self.A
 
     @property
     def schur_parts(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -142,7 +142,8 @@ class _Piece:
         k, d, _ = self.J.shape
         X3 = np.zeros((k, d, self.nu))
         rows = (np.arange(k)[:, None, None], np.arange(d)[None, :, None])
-        X3[(*rows, self.local[:, None, :])] = self.J * np.sqrt(self.w)[:, None, None]
+        idx = (*rows, self.local[:, None, :])  # a tuple index (no star in [] before 3.11)
+        X3[idx] = self.J * np.sqrt(self.w)[:, None, None]
         X = X3.reshape(k * d, -1)
         return X.T @ X  # numpy runs X^T X as a symmetric rank-k update (its own BLAS)
 

@@ -45,7 +45,7 @@ def marker_corner(fid: np.ndarray | int) -> tuple[np.ndarray, np.ndarray] | tupl
 
 def marker_features(marker: np.ndarray | int) -> np.ndarray:
     """The feature ids (..., 4) of markers ``marker`` (...,), corners in order."""
-    return feature_id(np.asarray(marker)[..., None], np.arange(CORNERS_PER_MARKER))
+    return np.asarray(feature_id(np.asarray(marker)[..., None], np.arange(CORNERS_PER_MARKER)))
 
 
 def markers_to_features(markers: Mapping[int, np.ndarray], where: str = "") -> Features:

@@ -216,9 +216,9 @@ def refine_corners_lines_batch(
     rows = -(-total // _REMAP_WIDTH)
     grid = np.zeros((rows * _REMAP_WIDTH, 2), np.float32)
     grid[:total] = flat
-    grid = grid.reshape(rows, _REMAP_WIDTH, 2)
+    maps = grid.reshape(rows, _REMAP_WIDTH, 2)
     prof = cv2.remap(
-        g, grid[..., 0], grid[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
+        g, maps[..., 0], maps[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
     )
     prof = prof.reshape(-1)[:total].reshape(-1, width).astype(np.float64)
     inside = col[None, :] < no_p[:, None]
