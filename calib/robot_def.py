@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from calib.errors import InputError
+from calib.robot_encoder import EncoderSpec, encoder_spec
 from calib.transforms import make_pose
 
 if sys.version_info >= (3, 11):
@@ -90,6 +91,8 @@ class RobotDef:
             trajectory planner draws postures (``[planning] span_deg``: deg, or mm for a
             prismatic joint, like ``home_deg``).
         simulation: actuator gains and armature for the MuJoCo model (``[simulation]``).
+        encoder: the controller's encoder table (``[encoder]``, :mod:`calib.robot_encoder`), or
+            ``None`` for a robot without encoder data.
     """
 
     name: str
@@ -106,6 +109,7 @@ class RobotDef:
     T_flange_cam: np.ndarray
     planning_span: np.ndarray
     simulation: SimulationGains
+    encoder: EncoderSpec | None = None
 
     @property
     def n(self) -> int:
@@ -225,6 +229,10 @@ def load_robot(name_or_path: str | Path) -> RobotDef:
     cpd = np.asarray(data.get("encoder", {}).get("counts_per_deg", [np.inf] * n), dtype=float)
     if cpd.shape != (n,) or np.any(cpd <= 0):
         raise RobotDefinitionError(f"{path}: encoder.counts_per_deg must be {n} positive numbers")
+    try:
+        encoder = encoder_spec(data.get("encoder", {}), cpd / unit_vec, home * unit_vec, unit_vec)
+    except InputError as exc:
+        raise RobotDefinitionError(f"{path}: [encoder] {exc.message}", fix=exc.fix) from None
     revolute = np.array([t == "revolute" for t in types])
     planning_span = _per_joint(
         data.get("planning", {}),
@@ -258,6 +266,7 @@ def load_robot(name_or_path: str | Path) -> RobotDef:
         T_flange_cam=_camera_mount(mount, f"{path}: [camera_mount]"),
         planning_span=planning_span * unit_vec,
         simulation=gains,
+        encoder=encoder,
     )
     try:
         robot.check_joints(robot.home)

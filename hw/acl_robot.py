@@ -39,7 +39,7 @@ from hw.acl_link import AclLink, port_hint
 from hw.acl_parsers import AclVersion, parse_listpv, parse_mflag, parse_show_speed, parse_version
 from hw.cameras import StereoCamera
 from hw.encoders import EncoderTable
-from hw.settings import AclSettings
+from hw.settings import DEFAULT_MODEL, AclSettings
 
 __all__ = ["AclRobot", "default_encoders"]
 
@@ -47,12 +47,8 @@ _HOME_DONE = re.compile(r"HOMING\s+COMPLETE", re.I)
 
 
 def default_encoders(robot: RobotDef | str) -> EncoderTable:
-    """The encoder table used when the config gives none: the vendor table
-    (``EncoderTable.er4u()``) for ``er4u-vendor``, else ``EncoderTable.for_robot(robot)``
-    (encoder zero at the model's TOML home posture, resolution from its ``[encoder]``)."""
-    robot = load_robot(robot) if isinstance(robot, str) else robot
-    if robot.name == "er4u-vendor":
-        return EncoderTable.er4u()
+    """The encoder table used when the config gives none: ``EncoderTable.for_robot(robot)``, from
+    the model's ``[encoder]`` (encoder zero at its ``zero_deg``, else at its home posture)."""
     return EncoderTable.for_robot(robot)
 
 
@@ -62,7 +58,7 @@ class AclRobot(AclGuard):
     Args:
         link: an open ``AclLink``.
         robot: the nominal model (name or ``RobotDef``): joint ranges and ``model_name``.
-        encoders: counts <-> degrees (default: the ER-4u table).
+        encoders: counts <-> degrees (default: ``default_encoders(robot)``).
         cameras: a ``StereoCamera`` (or anything with ``capture() -> StereoPair`` and
             ``close()``), or ``None`` (``capture()`` then raises).
         Remaining arguments: see ``hw.settings.AclSettings``.
@@ -74,7 +70,7 @@ class AclRobot(AclGuard):
         self,
         link: AclLink,
         *,
-        robot: RobotDef | str = "er4u-vendor",
+        robot: RobotDef | str = DEFAULT_MODEL,
         encoders: EncoderTable | None = None,
         cameras: Any | None = None,
         position_name: str = "SCP",
@@ -92,7 +88,7 @@ class AclRobot(AclGuard):
             link, load_robot(robot) if isinstance(robot, str) else robot, query_retries
         )
         self.model_name = self.robot.name
-        self.encoders = encoders or EncoderTable.er4u()
+        self.encoders = encoders or default_encoders(self.robot)
         if self.encoders.n != self.robot.n:
             raise InputError(
                 f"the encoder table has {self.encoders.n} axes but {self.robot.name} has "
@@ -140,12 +136,13 @@ class AclRobot(AclGuard):
         encoders = default_encoders(robot)
         if s.encoders:
             encoders = EncoderTable.from_config(s.encoders, base=encoders)
-        elif robot.name != "er4u-vendor":
+        elif robot.encoder is not None and not robot.encoder.zero_stated:
             warnings.warn(
                 f"[robot.hardware] has no encoders table: assuming the encoders read zero at "
                 f"{robot.name}'s home posture {np.round(encoders.home_deg, 3).tolist()} deg (its "
                 "TOML home_deg). On a real arm they read zero where HOME leaves it: give "
-                "[robot.hardware.options.encoders] home_deg in this model's convention",
+                "[robot.hardware.options.encoders] home_deg in this model's convention (or "
+                f"[encoder] zero_deg in models/robots/{robot.name}.toml)",
                 stacklevel=3,
             )
         opened = link is None

@@ -71,7 +71,7 @@ class AclEmulator(AclController):
         write_frames: write a stereo pair after every rest.
         home_duration_s: duration of HOME (default: a move to the home posture).
         encoders: the encoder table (default: the backend's ``encoders`` attribute if it has one,
-            else ``EncoderTable.er4u()``).
+            else ``EncoderTable.for_robot`` of its ``robot``).
         control_on: initial CON state.
         xon_in_replies: sprinkle XON (0x11) bytes into replies, as Controller-A may.
         pty_link: a path made a symbolic link to the pty (replaced on every start, removed on

@@ -13,6 +13,7 @@ import numpy as np
 
 from calib.robot import StereoPair
 from calib.robot_def import RobotDef, load_robot
+from hw.settings import DEFAULT_MODEL
 
 __all__ = ["EmulatorBackend", "KinematicBackend"]
 
@@ -52,7 +53,7 @@ class KinematicBackend:
 
     def __init__(
         self,
-        robot: str | RobotDef = "er4u-vendor",
+        robot: str | RobotDef = DEFAULT_MODEL,
         image_size: tuple[int, int] = (640, 480),
         limits_deg: np.ndarray | None = None,
     ):

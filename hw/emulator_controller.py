@@ -57,7 +57,15 @@ class AclController(ArmMotion):
         if move_speed_deg_s <= 0:
             raise InputError(f"move_speed_deg_s must be positive, got {move_speed_deg_s}")
         backend = backend if backend is not None else KinematicBackend()
-        encoders = encoders or getattr(backend, "encoders", None) or EncoderTable.er4u()
+        encoders = encoders or getattr(backend, "encoders", None)
+        if encoders is None:
+            robot = getattr(backend, "robot", None)
+            if robot is None:
+                raise InputError(
+                    "the emulator needs an encoder table: the backend has neither an `encoders` "
+                    "table nor a `robot` model to build one from"
+                )
+            encoders = EncoderTable.for_robot(robot)
         if not isinstance(encoders, EncoderTable):
             raise TypeError(f"encoders must be an EncoderTable, got {type(encoders).__name__}")
         super().__init__(backend, encoders, move_speed_deg_s)

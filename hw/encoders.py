@@ -10,19 +10,14 @@ counts ``pitch = (enc4 - enc5) / 2`` and ``roll = (enc4 + enc5) / 2``, so
 ``enc4 = pitch + roll`` and ``enc5 = roll - pitch``; ``counts_per_deg`` of the pitch and roll axes
 is in those (half-sum / half-difference) counts per joint degree.
 
-Defaults (``EncoderTable.er4u()``), from ``shared/hardware/acl-notes.md``: -12770, -10216, +10216
-counts per +90 deg for base, shoulder, elbow and 2511 for each wrist motor; encoder zero = the
-vendor home posture (0, 120.28, -95.02, -88.81, 0) deg of the ``er4u-vendor`` model. The wrist signs
-are not settled by the sources: override them from the config if the arm disagrees.
-
-``EncoderTable.for_robot(model)``: the table of any model from its TOML (zero at its ``home_deg``,
-resolution from ``[encoder] counts_per_deg``), used by the simulated-robot emulator backend and by
-the adapter when the config gives no table.
+The numbers live in the robot file's ``[encoder]`` table (keys: :mod:`calib.robot_encoder`;
+ER-4u: ``models/robots/er4u-vendor.toml``). ``EncoderTable.for_robot(model)`` builds the table of a
+model from it; the simulated-robot emulator backend and the adapter (when the config gives no
+table) use it, and a config's ``encoders`` table overrides it key by key (``from_config``).
 """
 
 from __future__ import annotations
 
-import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -32,14 +27,7 @@ import numpy as np
 from calib.errors import InputError
 from calib.robot_def import RobotDef, load_robot
 
-__all__ = ["EncoderTable", "ER4U_COUNTS_PER_DEG", "ER4U_HOME_DEG", "ER4U_SIGNS"]
-
-ER4U_COUNTS_PER_DEG = (-12770 / 90, -10216 / 90, 10216 / 90, 2511 / 90, 2511 / 90)
-"""Signed counts per joint degree of the ER-4u (base, shoulder, elbow, pitch, roll)."""
-ER4U_HOME_DEG = (0.0, 120.28, -95.02, -88.81, 0.0)
-"""Joint angles (deg, ``er4u-vendor`` DH convention) at which the ER-4u encoders read zero."""
-ER4U_SIGNS = (-1, -1, 1, 1, 1)
-"""Sign of counts per positive DH angle on the ER-4u (base and shoulder count down)."""
+__all__ = ["EncoderTable"]
 
 _CONFIG_KEYS = {"counts_per_deg", "home_deg", "home_counts", "differential"}
 
@@ -59,7 +47,7 @@ class EncoderTable:
     counts_per_deg: np.ndarray
     home_deg: np.ndarray
     home_counts: np.ndarray
-    differential: tuple[int, int] | None = (3, 4)
+    differential: tuple[int, int] | None = None
 
     def __post_init__(self) -> None:
         cpd = np.asarray(self.counts_per_deg, dtype=float).reshape(-1)
@@ -99,90 +87,43 @@ class EncoderTable:
         return int(self.counts_per_deg.size)
 
     @classmethod
-    def er4u(cls) -> EncoderTable:
-        """The ER-4u defaults of the notes (see the module docstring)."""
-        return cls(np.array(ER4U_COUNTS_PER_DEG), np.array(ER4U_HOME_DEG), np.zeros(5), (3, 4))
-
-    @classmethod
-    def for_robot(
-        cls,
-        robot: RobotDef | str,
-        *,
-        signs: Any = None,
-        differential: tuple[int, int] | None | str = "auto",
-    ) -> EncoderTable:
-        """Table of a robot model: encoder zero at the model's home posture (TOML ``home_deg``),
-        resolution from its TOML ``[encoder] counts_per_deg``.
-
-        The TOML's ``counts_per_deg`` is the read-back resolution: counts per degree of joint
-        motion (``sim.sim_robot`` quantises to ``1 / counts_per_deg``). On a differential wrist one
-        joint degree moves *each* motor by ``c`` counts, so ``(e4 -/+ e5)`` changes by ``2 c``
-        per degree of pitch and of roll alike: the resolution is ``2 c`` for both axes and the
-        table's value is ``c`` = TOML / 2. Pitch and roll must therefore have the same TOML value;
-        if they differ the pitch value is used (ER-4u: 55.80 = 2 x 2511/90, the vendor's 2511
-        counts per 90 deg per motor) and a ``UserWarning`` names the file.
-
-        Args:
-            robot: model name or ``RobotDef``.
-            signs: (n,) +1/-1 per axis (default: ``ER4U_SIGNS`` for a 5-axis arm, else +1).
-            differential: 0-based (pitch, roll) axes of a differential wrist, ``None``, or
-                ``"auto"`` (= (3, 4) for a 5-axis arm).
+    def for_robot(cls, robot: RobotDef | str) -> EncoderTable:
+        """The table of a robot model, from its file's ``[encoder]`` (:mod:`calib.robot_encoder`):
+        signed counts per degree, encoder zero (``zero_deg``, else the home posture), the
+        differential wrist; all counts read zero at that posture.
 
         Raises:
-            ValueError: the model has no finite ``[encoder] counts_per_deg`` or a non-revolute
+            InputError: the model has no finite ``[encoder] counts_per_deg``, or a non-revolute
                 joint.
         """
         robot = load_robot(robot) if isinstance(robot, str) else robot
-        n = robot.n
         if any(t != "revolute" for t in robot.joint_types):
             raise InputError(f"{robot.name}: encoder tables support revolute joints only")
-        res = np.abs(np.asarray(robot.counts_per_unit, dtype=float)) * np.pi / 180.0
-        if not np.all(np.isfinite(res) & (res > 0)):
+        enc = robot.encoder
+        if enc is None:
             raise InputError(
-                f"{robot.name}: the model has no [encoder] counts_per_deg; give an encoder table "
-                "([robot.hardware.options.encoders] counts_per_deg, home_deg)"
+                f"{robot.name}: the model has no [encoder] counts_per_deg",
+                fix="give an encoder table ([robot.hardware.options.encoders] counts_per_deg, "
+                f"home_deg) or add [encoder] to models/robots/{robot.name}.toml",
             )
-        if signs is None:
-            signs = ER4U_SIGNS if n == 5 else (1,) * n
-        sg = np.sign(np.asarray(signs, dtype=float).reshape(-1))
-        if sg.size != n or np.any(sg == 0):
-            raise InputError(f"signs must be {n} values of +1 or -1, got {signs}")
-        if isinstance(differential, str):
-            if differential != "auto":
-                raise InputError(
-                    f"differential must be (pitch, roll), None or 'auto', got {differential!r}"
-                )
-            differential = (3, 4) if n == 5 else None
-        cpd = sg * res
-        if differential is not None:
-            p, r = differential
-            if not np.isclose(res[p], res[r], rtol=1e-6):
-                warnings.warn(
-                    f"models/robots/{robot.name}.toml: [encoder] counts_per_deg gives "
-                    f"{res[p]:g} for {robot.joint_names[p]} and {res[r]:g} for "
-                    f"{robot.joint_names[r]}, but the differential wrist has one resolution for "
-                    f"both (2 x the counts per degree of each motor); using {res[p]:g} for both "
-                    f"-- set both to {res[p]:g} in the TOML",
-                    UserWarning,
-                    stacklevel=2,
-                )
-            cpd[p] = sg[p] * res[p] / 2.0
-            cpd[r] = sg[r] * res[p] / 2.0
+        cpd = enc.counts_per_unit * np.pi / 180.0
         # the TOML states degrees with a few decimals: drop the rad <-> deg round-off
-        return cls(np.round(cpd, 9), np.round(np.degrees(robot.home), 9), np.zeros(n), differential)
+        return cls(
+            np.round(cpd, 9),
+            np.round(np.degrees(enc.zero), 9),
+            np.zeros(robot.n),
+            enc.differential,
+        )
 
     @classmethod
-    def from_config(
-        cls, cfg: Mapping[str, Any] | None, base: EncoderTable | None = None
-    ) -> EncoderTable:
+    def from_config(cls, cfg: Mapping[str, Any] | None, base: EncoderTable) -> EncoderTable:
         """Table from a config dict (keys ``counts_per_deg``, ``home_deg``, ``home_counts``,
         ``differential`` = [pitch axis, roll axis] 1-based or ``false``), missing keys taken from
-        ``base`` (default: the ER-4u table).
+        ``base`` (e.g. ``for_robot(model)``).
 
         Raises:
             ValueError: unknown keys or malformed values (the message names them).
         """
-        base = base or cls.er4u()
         cfg = dict(cfg or {})
         unknown = set(cfg) - _CONFIG_KEYS
         if unknown:

@@ -16,7 +16,10 @@ from typing import Any
 
 from calib.errors import InputError
 
-__all__ = ["AclSettings", "DEFAULT_HARDWARE"]
+__all__ = ["AclSettings", "DEFAULT_HARDWARE", "DEFAULT_MODEL"]
+
+DEFAULT_MODEL = "er4u-vendor"
+"""The model (``models/robots/<name>.toml``) of an ACL controller's arm when none is named."""
 
 _POSITION_NAME = re.compile(r"[A-Za-z][A-Za-z0-9]{0,4}")
 
@@ -25,7 +28,7 @@ _POSITION_NAME = re.compile(r"[A-Za-z][A-Za-z0-9]{0,4}")
 class AclSettings:
     """The ACL adapter's settings (units in the names). Raises :class:`InputError` on bad values."""
 
-    model: str = "er4u-vendor"
+    model: str = DEFAULT_MODEL
     """Nominal model (``models/robots/<name>.toml``): joint ranges and ``model_name``."""
     port: str = "/dev/ttyUSB0"
     """Any pyserial URL: device, ``socket://host:port``, ``loop://``, pty path."""

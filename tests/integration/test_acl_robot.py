@@ -25,18 +25,20 @@ from hw.acl_robot import AclRobot
 from hw.cameras import StereoCamera
 from hw.emulator import AclEmulator
 from hw.emulator_backends import KinematicBackend
-from hw.encoders import ER4U_HOME_DEG, EncoderTable
+from hw.encoders import EncoderTable
 
 ROOT = Path(__file__).resolve().parents[2]
-ENC = EncoderTable.er4u()
-HOME = np.array(ER4U_HOME_DEG)
+ENC = EncoderTable.for_robot("er4u-vendor")  # the [encoder] table of models/robots/er4u-vendor.toml
+HOME = ENC.home_deg
 
 
 # ---- encoders -------------------------------------------------------------------------------------
 
 
 def test_encoder_defaults_match_the_notes():
-    # counts per +90 deg from the vendor parameter files, signs as in the notes
+    # the vendor home posture reads zero; counts per +90 deg from the vendor parameter files,
+    # signs as in the notes (docs/hardware.md "Encoder table")
+    np.testing.assert_array_equal(HOME, [0.0, 120.28, -95.02, -88.81, 0.0])
     for axis, counts in ((0, -12770), (1, -10216), (2, 10216)):
         q = HOME.copy()
         q[axis] += 90.0
@@ -69,17 +71,17 @@ def test_encoder_round_trips():
 
 def test_encoder_config_overrides_and_validation():
     t = EncoderTable.from_config(
-        {"counts_per_deg": [100, 100, 100, 10, 10], "home_counts": [5, 0, 0, 2, -2]}
+        {"counts_per_deg": [100, 100, 100, 10, 10], "home_counts": [5, 0, 0, 2, -2]}, ENC
     )
     np.testing.assert_allclose(t.home_deg, HOME)
     np.testing.assert_array_equal(t.to_counts(HOME), [5, 0, 0, 2, -2])
-    assert EncoderTable.from_config(t.to_config()).to_config() == t.to_config()
-    plain = EncoderTable.from_config({"differential": False})
+    assert EncoderTable.from_config(t.to_config(), ENC).to_config() == t.to_config()
+    plain = EncoderTable.from_config({"differential": False}, ENC)
     np.testing.assert_array_equal(plain.to_counts(HOME + [0, 0, 0, 90, 0]), [0, 0, 0, 2511, 0])
     with pytest.raises(ValueError, match="unknown encoder config"):
-        EncoderTable.from_config({"cpd": [1]})
+        EncoderTable.from_config({"cpd": [1]}, ENC)
     with pytest.raises(ValueError, match="non-zero"):
-        EncoderTable.from_config({"counts_per_deg": [1, 0, 1, 1, 1]})
+        EncoderTable.from_config({"counts_per_deg": [1, 0, 1, 1, 1]}, ENC)
     with pytest.raises(ValueError, match="shape"):
         ENC.to_counts(np.zeros(4))
 

@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 
 from calib.robot import StereoPair
+from calib.robot_def import load_robot
 from hw.acl_robot import AclRobot
 from hw.cameras import Camera, CameraError, StereoCamera, source_kind
 from hw.emulator import AclEmulator
 from hw.emulator_backends import KinematicBackend
-from hw.encoders import ER4U_HOME_DEG
 
 
 def _write(path, rgb):
@@ -120,7 +120,7 @@ def test_robot_capture_sees_the_posture_it_moved_to():
     ) as emu:
         cfg = {"port": emu.pty_path, "cameras": list(emu.camera_sources), "camera_size": [80, 60]}
         with AclRobot.from_config(cfg) as robot:
-            home = np.array(ER4U_HOME_DEG)
+            home = np.degrees(load_robot("er4u-vendor").home)
             for base in (0.0, 25.0, -40.0):
                 robot.move_to(home + [base, 0, 0, 0, 0])
                 pair = robot.capture()

@@ -16,7 +16,7 @@ from hw.emulator_backends import EmulatorBackend, KinematicBackend
 from hw.emulator_faults import Fault
 from hw.encoders import EncoderTable
 
-ENC = EncoderTable.er4u()
+ENC = EncoderTable.for_robot("er4u-vendor")
 
 
 @pytest.fixture

@@ -258,14 +258,16 @@ def test_fault_stops_cleanly_and_resume_completes(kind, tmp_path, backend):
 
 
 def test_encoder_table_of_a_model():
-    """``for_robot``: zero at the TOML home, the differential wrist at one resolution (55.8 counts
-    per degree of pitch and of roll, i.e. 27.9 per motor), the vendor table for er4u-vendor."""
+    """``for_robot``: the vendor table (docs/hardware.md) for er4u-vendor; for er4u-paper zero at
+    the TOML home, the differential wrist at one resolution (55.8 counts per degree of pitch and
+    of roll, i.e. 27.9 per motor)."""
     with warnings.catch_warnings():
-        warnings.simplefilter("error")  # the TOMLs now agree with the differential wrist
+        warnings.simplefilter("error")
         vendor = EncoderTable.for_robot("er4u-vendor")
-    ref = EncoderTable.er4u()
-    np.testing.assert_allclose(vendor.counts_per_deg, ref.counts_per_deg, rtol=1e-4)
-    np.testing.assert_allclose(vendor.home_deg, ref.home_deg)
+    per_90 = np.array([-12770, -10216, 10216, 2511, 2511])
+    np.testing.assert_allclose(vendor.counts_per_deg * 90, per_90, rtol=1e-12)
+    np.testing.assert_array_equal(vendor.home_deg, [0.0, 120.28, -95.02, -88.81, 0.0])
+    assert vendor.differential == (3, 4)
     np.testing.assert_allclose(vendor.resolution_deg[3:], 1 / 55.8)
     paper = EncoderTable.for_robot("er4u-paper")
     home = np.array([38.15, -30.0, 45.0, -63.54, 0.0])

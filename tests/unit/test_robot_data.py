@@ -54,3 +54,40 @@ def test_bad_values_name_file_table_and_key(tmp_path, table, key, value):
         RobotDefinitionError, match=rf"variant.toml: \[{table}\]: '{key}' must be 5"
     ):
         load_robot(p)
+
+
+def test_encoder_tables_come_from_the_file():
+    """er4u-vendor states the controller's table (docs/hardware.md: counts per 90 deg, signs,
+    zero at the vendor home); er4u-paper derives it from its read-back resolution, zero at home."""
+    vendor = load_robot("er4u-vendor").encoder
+    assert vendor is not None and vendor.zero_stated and vendor.differential == (3, 4)
+    per_90 = vendor.counts_per_unit * np.radians(90.0)
+    np.testing.assert_allclose(per_90, [-12770, -10216, 10216, 2511, 2511], rtol=1e-12)
+    np.testing.assert_allclose(np.degrees(vendor.zero), [0.0, 120.28, -95.02, -88.81, 0.0])
+    paper = load_robot("er4u-paper")
+    assert paper.encoder is not None and not paper.encoder.zero_stated
+    np.testing.assert_allclose(paper.encoder.zero, paper.home)
+    per_deg = paper.encoder.counts_per_unit * np.radians(1.0)
+    np.testing.assert_allclose(per_deg, [-141.89, -113.51, 113.51, 27.9, 27.9], rtol=1e-12)
+
+
+def test_a_robot_without_encoder_data_is_valid(tmp_path):
+    robot = load_robot(_variant(tmp_path, drop=("encoder",)))
+    assert robot.encoder is None and not np.isfinite(robot.counts_per_unit).any()
+
+
+@pytest.mark.parametrize(
+    "lines,match",
+    [
+        ("signs = [1, 0, 1, 1, 1]", "signs must be"),
+        ("differential_joints = [4, 4]", "differential_joints must be"),
+        ("zero_deg = [0.0, 1.0]", "zero_deg must be 5"),
+        ("counts_per_degree = [1, 1, 1, 1, 1]", "unknown key"),
+        ("differential_joints = [3, 4]", "counts_per_deg gives 113.51 and 55.8"),
+    ],
+)
+def test_bad_encoder_keys_name_file_and_key(tmp_path, lines, match):
+    text = "[encoder]\ncounts_per_deg = [141.89, 113.51, 113.51, 55.80, 55.80]\n" + lines + "\n"
+    p = _variant(tmp_path, drop=("encoder",), append=text)
+    with pytest.raises(RobotDefinitionError, match=rf"variant.toml: \[encoder\] {match}"):
+        load_robot(p)
