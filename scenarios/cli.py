@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -29,6 +30,7 @@ from scenarios.pipeline import run_acquire, run_all, run_calibrate, run_report
 from scenarios.rerun_log import record_run
 from scenarios.rerun_log import register as register_record
 from scenarios.studies import register as register_study
+from scenarios.threads import DEFAULT_THREADS, THREADS_ENV, limit_threads
 
 __all__ = ["main", "build_parser", "CliError"]
 
@@ -147,6 +149,14 @@ def build_parser() -> argparse.ArgumentParser:
         description="Vision-based self-calibration testbench for camera-equipped robot arms "
         "(SCORBOT ER-4u). Millimetres and degrees on the command line.",
     )
+    p.add_argument(
+        "--threads",
+        type=int,
+        default=None,
+        metavar="N",
+        help=f"BLAS/OpenMP threads per process, also per worker of --jobs (default ${THREADS_ENV} "
+        f"or {DEFAULT_THREADS})",
+    )
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     def add(name: str, func, help_: str, epilog: str | None = None) -> argparse.ArgumentParser:
@@ -236,7 +246,20 @@ def main(argv: list[str] | None = None) -> int:
     codes": 0 ok, 1 internal error, 2 bad input, 3 cannot calibrate, 4 hardware, 130 Ctrl-C)."""
     parser = build_parser()
     args = parser.parse_args(argv)
-    return run_command(args.func, args, f"selfcal {args.command}")
+    return run_command(_limited(args.func), args, f"selfcal {args.command}")
+
+
+def _limited(
+    func: Callable[[argparse.Namespace], int | None],
+) -> Callable[[argparse.Namespace], int | None]:
+    """``func`` after limiting the BLAS/OpenMP threads to ``--threads`` (a bad value is an
+    ``InputError`` that :func:`run_command` reports like any other)."""
+
+    def run(args: argparse.Namespace) -> int | None:
+        limit_threads(args.threads)
+        return func(args)
+
+    return run
 
 
 if __name__ == "__main__":

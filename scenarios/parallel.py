@@ -9,31 +9,32 @@ import signal
 from collections.abc import Iterator
 from concurrent.futures import ProcessPoolExecutor
 
+from scenarios.threads import THREAD_VARS, THREADS_ENV, limit_threads, thread_count
+
 __all__ = ["worker_pool"]
 
-_THREAD_VARS = (
-    "OPENBLAS_NUM_THREADS",
-    "OMP_NUM_THREADS",
-    "MKL_NUM_THREADS",
-    "NUMEXPR_NUM_THREADS",
-    "VECLIB_MAXIMUM_THREADS",
-)
 
-
-def _worker_init() -> None:
+def _worker_init(threads: int) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C
+    limit_threads(threads)
 
 
 @contextlib.contextmanager
-def worker_pool(max_workers: int) -> Iterator[ProcessPoolExecutor]:
-    """Spawned worker processes with one BLAS/OpenMP thread each (the workers, not BLAS, use the
-    cores); they ignore Ctrl-C, which the parent handles. The parent's environment is restored and
-    unfinished work cancelled on exit."""
-    saved = {v: os.environ.get(v) for v in _THREAD_VARS}
-    for v in _THREAD_VARS:
-        os.environ[v] = "1"
+def worker_pool(max_workers: int, threads: int | None = None) -> Iterator[ProcessPoolExecutor]:
+    """Spawned worker processes with ``threads`` BLAS/OpenMP threads each (default
+    :func:`scenarios.threads.thread_count`: ``SELFCAL_THREADS`` or 1; the workers, not BLAS, use
+    the cores); they ignore Ctrl-C, which the parent handles. The parent's environment is
+    restored and unfinished work cancelled on exit."""
+    n = thread_count(threads)
+    names = (THREADS_ENV, *THREAD_VARS)
+    saved = {v: os.environ.get(v) for v in names}
+    for v in names:  # the limit holds from the worker's first import on
+        os.environ[v] = str(n)
     ex = ProcessPoolExecutor(
-        max_workers=max_workers, mp_context=mp.get_context("spawn"), initializer=_worker_init
+        max_workers=max_workers,
+        mp_context=mp.get_context("spawn"),
+        initializer=_worker_init,
+        initargs=(n,),
     )
     try:
         yield ex
