@@ -11,22 +11,49 @@ from __future__ import annotations
 import json
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from calib.bounds import cramer_rao
+from calib.bounds import FisherSetup, cramer_rao
 from calib.bounds_setup import predicted_setup
 from calib.camera import Rig
 from calib.joint_refine import encoder_sigma
 from calib.mcpc import minimal_indices, param_is_angle
 from calib.trajectory import plan_postures
 from calib.transforms import inv_pose
-from scenarios.backends import plan_dataset, plan_optimal, planning_inputs, sim_setup
+from scenarios.backends import SimSetup, plan_dataset, plan_optimal, planning_inputs, sim_setup
 from scenarios.config import load_scenario
 from scenarios.montecarlo import run_montecarlo, write_csv
 from scenarios.plotting import pyplot
 
-__all__ = ["predicted_bound", "compare_plans", "run_plan_comparison", "plans_markdown"]
+__all__ = [
+    "sim_fisher_setup",
+    "predicted_bound",
+    "compare_plans",
+    "run_plan_comparison",
+    "plans_markdown",
+]
+
+
+def sim_fisher_setup(
+    setup: SimSetup, q: np.ndarray, scale_length_m: float, **kwargs: Any
+) -> FisherSetup:
+    """:func:`calib.bounds_setup.predicted_setup` of postures ``q`` (m, n) rad with the
+    simulator's actual robot, stereo rig and marker field of ``setup`` and the scale markers
+    ``scale_length_m`` (m) apart; ``kwargs`` go to ``predicted_setup`` (noise, reference)."""
+    fld = setup.field
+    return predicted_setup(
+        setup.actual,
+        q,
+        Rig.stereo(setup.intrinsics, setup.T_left_right),
+        fld.ids,
+        fld.corners_world(),
+        fld.T_world_marker[:, :3, 2],
+        tuple(int(i) for i in fld.scale_ids),
+        scale_length_m,
+        **kwargs,
+    )
 
 
 def predicted_bound(s, q: np.ndarray) -> dict:
@@ -35,15 +62,9 @@ def predicted_bound(s, q: np.ndarray) -> dict:
     validation tool-tip RMS and the median parameter bound."""
     setup = sim_setup(s)
     info = plan_dataset(s, setup)
-    fld = setup.field
-    st = predicted_setup(
-        setup.actual,
+    st = sim_fisher_setup(
+        setup,
         q,
-        Rig.stereo(setup.intrinsics, setup.T_left_right),
-        fld.ids,
-        fld.corners_world(),
-        fld.T_world_marker[:, :3, 2],
-        tuple(int(i) for i in fld.scale_ids),
         s.target.scale_length_mm / 1000,
         pixel_sigma_px=s.noise.pixel_sigma,
         joint_sigma=encoder_sigma(setup.robot) if s.noise.quantize_joints else None,
@@ -203,6 +224,13 @@ def plans_markdown(res: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
+_ACHIEVED = (
+    ("joint_rms_mm", "s", 9, "one-step achieved (Monte Carlo RMS)"),
+    ("two_stage_rms_mm", "^", 8, "two-stage achieved"),
+)
+"""The Monte Carlo results :func:`_plot_plans` marks: key, marker, size, label."""
+
+
 def _plot_plans(res: dict, path: Path) -> None:
     plt = pyplot()
 
@@ -216,24 +244,15 @@ def _plot_plans(res: dict, path: Path) -> None:
         )
         ax.plot(ns, med, "-", color=c, label=f"{kind} postures: bound (median over seeds)")
         mc = [v for v in res["montecarlo"].values() if v["plan"] == kind and v["joint_rms_mm"]]
-        if mc:
+        for key, marker, size, what in _ACHIEVED if mc else ():
             ax.plot(
                 [v["poses"] for v in mc],
-                [v["joint_rms_mm"] for v in mc],
-                "s",
+                [v[key] for v in mc],
+                marker,
                 color=c,
                 mfc="none",
-                ms=9,
-                label=f"{kind}: one-step achieved (Monte Carlo RMS)",
-            )
-            ax.plot(
-                [v["poses"] for v in mc],
-                [v["two_stage_rms_mm"] for v in mc],
-                "^",
-                color=c,
-                mfc="none",
-                ms=8,
-                label=f"{kind}: two-stage achieved",
+                ms=size,
+                label=f"{kind}: {what}",
             )
     ax.set_yscale("log")
     ax.set_xlabel("calibration postures")

@@ -22,14 +22,13 @@ from scipy.stats import chi2
 
 from calib.alignment import express_in_frame, minimal_difference
 from calib.bounds import aligned_error_dof, aligned_rms_from_covariance, cramer_rao
-from calib.bounds_setup import predicted_setup
-from calib.camera import Rig
 from calib.joint_refine import encoder_sigma
 from calib.kinematics import fk_tool, identification_jacobian
 from calib.mcpc import minimal_indices
 from calib.trajectory import plan_postures
 from calib.transforms import inv_pose, kabsch, pose_from_vec, skew
 from scenarios.config import load_scenario
+from scenarios.plan_comparison import sim_fisher_setup
 
 
 @pytest.fixture(scope="module")
@@ -49,15 +48,9 @@ def tiny():
         min_visible=6,
         normals_world=inp["normals_world"],
     )
-    fld = setup.field
-    st = predicted_setup(
-        setup.actual,
+    st = sim_fisher_setup(
+        setup,
         q,
-        Rig.stereo(setup.intrinsics, setup.T_left_right),
-        fld.ids,
-        fld.corners_world(),
-        fld.T_world_marker[:, :3, 2],
-        tuple(int(i) for i in fld.scale_ids),
         0.2,
         pixel_sigma_px=0.5,
         joint_sigma=encoder_sigma(setup.robot) * 20,  # large enough to matter
