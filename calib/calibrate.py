@@ -27,7 +27,7 @@ from calib.io.calibration import CalibrationResult
 from calib.io.dataset import Dataset, DatasetError, Detections, read_gray
 from calib.joint_refine import refine_calibration
 from calib.kinematics import fk_tool
-from calib.mcpc import MCPCModel, dh_to_mcpc, shape_matrices
+from calib.mcpc import MCPCModel, nominal_mcpc, shape_matrices
 from calib.results import CalibrationOutput, two_stage_result, with_bounds, with_joint
 from calib.robot_def import load_robot
 from calib.selfcal import Observations, self_calibrate
@@ -187,7 +187,7 @@ def calibrate_detailed(
     _check_scale_markers(ds, dets)
     obs = observations_of(ds, dets)
     q = np.radians(ds.joints_deg)
-    nominal = dh_to_mcpc(robot).with_tool(robot.T_flange_cam)
+    nominal = nominal_mcpc(robot).with_tool(robot.T_flange_cam)
     T_nom = fk_tool(nominal, q)
     check_not_degenerate(T_nom)
     W, H = ds.info.resolution

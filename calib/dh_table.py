@@ -195,9 +195,9 @@ def _dh_impl(
 
     def closeness(r: tuple[float, float, float, float], i: int) -> float:
         return (
-            abs(_wrap(r[0] - robot.dh_offset[i]))
-            + abs(_wrap(r[3] - robot.dh_alpha[i]))
-            + abs(r[2] - robot.dh_a[i]) / 0.1
+            abs(_wrap(r[0] - robot.dh.offset[i]))
+            + abs(_wrap(r[3] - robot.dh.alpha[i]))
+            + abs(r[2] - robot.dh.a[i]) / 0.1
         )
 
     offs, ds, as_, als = [], [], [], []
@@ -208,9 +208,9 @@ def _dh_impl(
     for sgn in (1.0, -1.0):
         xi = sgn * x1
         # x0: xi rotated about z0 by -offset_1 (Rodrigues), so row 1 has the nominal offset
-        c, s_ = np.cos(-robot.dh_offset[0]), np.sin(-robot.dh_offset[0])
+        c, s_ = np.cos(-robot.dh.offset[0]), np.sin(-robot.dh.offset[0])
         x0 = c * xi + s_ * np.cross(z0, xi) + (1 - c) * (z0 @ xi) * z0
-        o0 = foot - robot.dh_d[0] * z0
+        o0 = foot - robot.dh.d[0] * z0
         first.append((row(x0, z0, o0, xi, z[1], foot, o1), x0, o0, xi, o1))
     # the closer of the two signs to the nominal row (the first on a tie)
     r, x0, o0, x_prev, o_prev = min(first, key=lambda c: closeness(c[0], 0))
@@ -235,10 +235,10 @@ def _dh_impl(
         as_.append(r[2])
         als.append(r[3])  # noqa: E702
     # last row: nominal, on top of frame n-1
-    offs.append(float(robot.dh_offset[-1]))
-    ds.append(float(robot.dh_d[-1]))
-    as_.append(float(robot.dh_a[-1]))
-    als.append(float(robot.dh_alpha[-1]))
+    offs.append(float(robot.dh.offset[-1]))
+    ds.append(float(robot.dh.d[-1]))
+    as_.append(float(robot.dh.a[-1]))
+    als.append(float(robot.dh.alpha[-1]))
     T_prev = make_pose(np.column_stack([x_prev, np.cross(z_prev, x_prev), z_prev]), o_prev)
     A_n = (
         rot_z(offs[-1])

@@ -47,7 +47,7 @@ from calib.dh_table import DHTable, canonical_base, dh_table
 from calib.errors import InputError
 from calib.io.calibration import CalibrationResult
 from calib.kinematics import fk_frames
-from calib.mcpc import MCPCModel, chain_transforms, dh_to_mcpc, shape_matrices
+from calib.mcpc import MCPCModel, chain_transforms, nominal_mcpc, shape_matrices
 from calib.robot_def import RobotDef, load_robot
 from calib.transforms import inv_pose, make_pose, rot_z
 
@@ -212,16 +212,16 @@ def deploy_chain(
 
 def nominal_offsets(robot: RobotDef) -> np.ndarray:
     """The constant joint offsets (n,) rad of the deployed chains: those of the nominal camera
-    chain ``dh_to_mcpc(robot).with_tool(robot.T_flange_cam)``, so the link frames are the nominal
+    chain ``nominal_mcpc(robot).with_tool(robot.T_flange_cam)``, so the link frames are the nominal
     MJCF's body frames (``sim.robot_mjcf``) and the camera's shape matrix stays far from the Euler
     singularity."""
-    return dh_to_mcpc(robot).with_tool(robot.T_flange_cam).joint_offsets
+    return nominal_mcpc(robot).with_tool(robot.T_flange_cam).joint_offsets
 
 
 def nominal_deployed_params(robot: RobotDef) -> np.ndarray:
     """MCPC parameters (n + 1, 6) of the NOMINAL robot, base frame -> tool tip (= last DH frame),
     in the offset convention of :func:`nominal_offsets`: the reference for deviations."""
-    G = chain_transforms(dh_to_mcpc(robot))
+    G = chain_transforms(nominal_mcpc(robot))
     return regauge(G, robot.joint_types, nominal_offsets(robot)).params
 
 
@@ -256,7 +256,7 @@ def deploy(
 
 def as_deployed(calibration, robot: RobotDef | None = None) -> DeployedModel:
     """Accept a :class:`DeployedModel`, a :class:`calib.io.calibration.CalibrationResult`, or an
-    :class:`MCPCModel` that is ALREADY base frame -> tool tip (e.g. ``dh_to_mcpc(robot)`` for
+    :class:`MCPCModel` that is ALREADY base frame -> tool tip (e.g. ``nominal_mcpc(robot)`` for
     the nominal robot).
 
     Raises:

@@ -4,7 +4,7 @@ Input: joint read-backs ``q`` (m, n) rad and measured poses ``T_world_cam`` (m, 
 (the left camera, OpenCV convention) in an arbitrary but fixed *world* frame (e.g. the bundle
 adjustment's reconstruction frame), metres. The model is an :class:`~calib.mcpc.MCPCModel` whose
 ``V_0`` maps that world frame to joint 1 and whose ``V_n`` maps the last link to the camera, e.g.
-``dh_to_mcpc(robot).with_tool(robot.T_flange_cam)`` placed with :func:`initial_base`.
+``nominal_mcpc(robot).with_tool(robot.T_flange_cam)`` placed with :func:`initial_base`.
 
 Estimation: Gauss-Newton with Levenberg-Marquardt fallback on the minimal parameter set
 (``calib.mcpc.minimal_indices``, 26 parameters for 5 revolute joints). Each iteration solves the

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from calib.errors import InputError
-from calib.kinematics import fk_dh
+from calib.kinematics import fk_nominal
 from calib.robot_def import RobotDef
 from calib.tool_pose import AXIS_EPS_M, pitch_roll, tool_rotation
 
@@ -94,8 +94,10 @@ def check_er_structure(robot: RobotDef) -> None:
     problems = []
     if robot.n != 5 or any(t != "revolute" for t in robot.joint_types):
         problems.append(f"needs 5 revolute joints, has {robot.joint_types}")
+    elif robot.dh is None or robot.dh.convention != "dh":
+        problems.append(f"needs a standard-DH table, has a {robot.convention} description")
     else:
-        al, a, d = robot.dh_alpha, robot.dh_a, robot.dh_d
+        al, a, d = robot.dh.alpha, robot.dh.a, robot.dh.d
         for name, val in (("a4", a[3]), ("a5", a[4]), ("d2", d[1]), ("d3", d[2]), ("d4", d[3])):
             if abs(val) > _LEN_TOL:
                 problems.append(f"{name} = {val * 1000:.6g} mm must be 0")
@@ -170,18 +172,18 @@ def _branch_frames(robot: RobotDef, p: np.ndarray, pitch: float, reference: np.n
         az = float(np.arctan2(p[1], p[0]))
     else:  # on the base axis: the convention uses the arm's joint-1 direction
         ref = robot.home if reference is None else reference
-        az = float(ref[0] + robot.dh_offset[0])
+        az = float(ref[0] + robot.dh.offset[0])
     r_hat = np.array([np.cos(az), np.sin(az), 0.0])
     z_tool = np.cos(pitch) * r_hat + np.sin(pitch) * _UP
-    wrist = p - robot.dh_d[4] * z_tool
+    wrist = p - robot.dh.d[4] * z_tool
     return az, r_hat, wrist
 
 
 def _planar(robot: RobotDef, q1: float, wrist: np.ndarray) -> tuple[float, float, float]:
     """Wrist centre in joint-1's frame: ``(x1, y1, reach excess (m, >= 0))``."""
-    A1 = fk_dh(robot, np.array([[q1, 0.0, 0.0, 0.0, 0.0]]))[0, 0]
+    A1 = fk_nominal(robot, np.array([[q1, 0.0, 0.0, 0.0, 0.0]]))[0, 0]
     w1 = A1[:3, :3].T @ (wrist - A1[:3, 3])
-    a2, a3 = robot.dh_a[1], robot.dh_a[2]
+    a2, a3 = robot.dh.a[1], robot.dh.a[2]
     rho = np.hypot(w1[0], w1[1])
     excess = max(rho - (a2 + a3), abs(a2 - a3) - rho, 0.0)
     return float(w1[0]), float(w1[1]), float(excess)
@@ -210,8 +212,8 @@ def ik(
     p, pitch, roll = _as_target(xyz_m, pitch_rad, roll_rad)
     ref_q = None if reference is None else np.asarray(reference, dtype=float).reshape(robot.n)
     az, r_hat, wrist = _branch_frames(robot, p, pitch, ref_q)
-    a2, a3 = robot.dh_a[1], robot.dh_a[2]
-    off = robot.dh_offset
+    a2, a3 = robot.dh.a[1], robot.dh.a[2]
+    off = robot.dh.offset
     h = np.cross(_UP, r_hat)
     z_goal = tool_rotation(pitch, roll, r_hat)[:, 2]
     out: list[IKSolution] = []
@@ -231,7 +233,7 @@ def ik(
             th3 = sgn * th3_abs
             th2 = np.arctan2(y, x) - np.arctan2(a3 * np.sin(th3), a2 + a3 * np.cos(th3))
             q = np.array([q1, th2 - off[1], th3 - off[2], 0.0, 0.0])
-            F = fk_dh(robot, q[None])[0]
+            F = fk_nominal(robot, q[None])[0]
             pitch0, roll0 = pitch_roll(F[4, :3, :3], r_hat)
             # d(pitch)/d(q4): joint-4 axis (z of frame 3) along r_hat x up = -h; d(roll)/d(q5): +-1.
             s4 = -float(F[2, :3, 2] @ h)
@@ -257,7 +259,7 @@ def ik(
                 if not ok:
                     violations.append(_violation(robot, j, q[j]))
             # Guard against silent errors: the solution must reproduce the target.
-            T = fk_dh(robot, q[None])[0, -1]
+            T = fk_nominal(robot, q[None])[0, -1]
             if np.linalg.norm(T[:3, 3] - p) > 1e-9 or np.linalg.norm(T[:3, 2] - z_goal) > 1e-9:
                 raise RuntimeError(
                     f"{robot.name}: IK branch {name} does not reproduce the target "
@@ -269,7 +271,7 @@ def ik(
 
 def _reach_excess(robot: RobotDef, p: np.ndarray, pitch: float, reference) -> float:
     az, _, wrist = _branch_frames(robot, p, pitch, reference)
-    return min(_planar(robot, th - robot.dh_offset[0], wrist)[2] for th in (az, az + np.pi))
+    return min(_planar(robot, th - robot.dh.offset[0], wrist)[2] for th in (az, az + np.pi))
 
 
 def ik_nearest(
@@ -300,11 +302,11 @@ def ik_nearest(
     if not sols:
         p, pitch, _ = _as_target(xyz_m, pitch_rad, roll_rad)
         dist = _reach_excess(robot, p, pitch, ref)
-        reach = (robot.dh_a[1] + robot.dh_a[2]) * 1000
+        reach = (robot.dh.a[1] + robot.dh.a[2]) * 1000
         raise UnreachableError(
             f"{robot.name}: {tgt} is out of reach: the wrist centre (tool point minus "
-            f"d5 = {robot.dh_d[4] * 1000:.2f} mm along the tool axis) lies {dist * 1000:.3f} mm "
-            f"outside the shoulder-elbow workspace (reach {abs(robot.dh_a[1] - robot.dh_a[2]) * 1000:.1f}"
+            f"d5 = {robot.dh.d[4] * 1000:.2f} mm along the tool axis) lies {dist * 1000:.3f} mm "
+            f"outside the shoulder-elbow workspace (reach {abs(robot.dh.a[1] - robot.dh.a[2]) * 1000:.1f}"
             f" to {reach:.1f} mm); move the target closer or change the pitch",
             distance_m=dist,
         )
@@ -362,7 +364,7 @@ def nearest_reachable(
     robot.check_joints(q0)  # names a fixed joint outside its range
     free = np.array([j for j in range(robot.n) if j not in fixed_idx], dtype=int)
     if free.size == 0:
-        return q0, float(np.linalg.norm(fk_dh(robot, q0[None])[0, -1, :3, 3] - p))
+        return q0, float(np.linalg.norm(fk_nominal(robot, q0[None])[0, -1, :3, 3] - p))
     lo, hi = robot.limits[free, 0], robot.limits[free, 1]
     rev = np.array([t == "revolute" for t in robot.joint_types])
 
@@ -372,10 +374,10 @@ def nearest_reachable(
         return q
 
     def resid(x: np.ndarray) -> np.ndarray:
-        return fk_dh(robot, full(x)[None])[0, -1, :3, 3] - p
+        return fk_nominal(robot, full(x)[None])[0, -1, :3, 3] - p
 
     def jac(x: np.ndarray) -> np.ndarray:
-        F = fk_dh(robot, full(x)[None])[0]
+        F = fk_nominal(robot, full(x)[None])[0]
         frames = np.concatenate([np.eye(4)[None], F[:-1]])  # frame before each joint
         tip = F[-1, :3, 3]
         z, o = frames[:, :3, 2], frames[:, :3, 3]

@@ -15,6 +15,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from calib.mcpc import MCPCModel, shape_matrices
+from calib.robot_chain import chain_frames, dh_frames
 from calib.robot_def import RobotDef
 from calib.transforms import inv_pose, rot_x, rot_y, rot_z, trans
 
@@ -22,7 +23,7 @@ __all__ = [
     "motion_matrices",
     "fk_frames",
     "fk_tool",
-    "fk_dh",
+    "fk_nominal",
     "pose_error",
     "identification_jacobian",
 ]
@@ -69,25 +70,17 @@ def fk_tool(model: MCPCModel, q: np.ndarray) -> np.ndarray:
     return fk_frames(model, q)[:, -1]
 
 
-def fk_dh(robot: RobotDef, q: np.ndarray) -> np.ndarray:
-    """Standard-DH frames 1..n (m, n, 4, 4) straight from the DH table, for cross-checks."""
-    q = np.atleast_2d(np.asarray(q, dtype=float))
-    rev = np.array([t == "revolute" for t in robot.joint_types])
-    theta = robot.dh_offset + np.where(rev, q, 0.0)
-    d = robot.dh_d + np.where(rev, 0.0, q)
-    zeros = np.zeros_like(d)
-    A = (
-        rot_z(theta)
-        @ trans(np.stack([zeros, zeros, d], axis=-1))
-        @ trans(np.stack([np.broadcast_to(robot.dh_a, d.shape), zeros, zeros], axis=-1))
-        @ rot_x(np.broadcast_to(robot.dh_alpha, d.shape))
-    )
-    out = np.empty_like(A)
-    P = np.eye(4)
-    for k in range(robot.n):
-        P = P @ A[:, k]
-        out[:, k] = P
-    return out
+def fk_nominal(robot: RobotDef, q: np.ndarray) -> np.ndarray:
+    """The robot's own frames 1..n (m, n, 4, 4) for joint vectors ``q`` (m, n), in its base frame.
+
+    A cross-check of the MCPC chain computed straight from the robot's description: for a DH or
+    modified-DH robot from its table rows (:func:`calib.robot_chain.dh_frames`: DH frames
+    ``A_1 ... A_k``, or Craig's frames), for a URDF robot from the chain ``G_0 Q_1 ...``
+    (:func:`calib.robot_chain.chain_frames`: frame k on joint k's axis). Frame n is the flange.
+    """
+    if robot.dh is not None:
+        return dh_frames(robot.dh, robot.joint_types, q)
+    return chain_frames(robot.chain, robot.joint_types, q)
 
 
 def pose_error(T_model: np.ndarray, T_actual: np.ndarray) -> np.ndarray:

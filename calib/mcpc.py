@@ -1,4 +1,5 @@
-"""Zhuang's MCPC parameterisation (paper eqs. 1-5, 10) and its exact conversion from DH.
+"""Zhuang's MCPC parameterisation (paper eqs. 1-5, 10) and its exact conversion from a robot's
+nominal chain (DH, modified DH or URDF).
 
 A chain of ``n`` joints is ``T = V_0 Q_1 V_1 Q_2 ... Q_n V_n`` with motion matrices
 ``Q_i = Rz(q_i + o_i)`` (revolute, ``o_i`` the nominal joint offset, a fixed constant) or
@@ -34,7 +35,7 @@ __all__ = [
     "COLUMNS",
     "MCPCModel",
     "shape_matrices",
-    "dh_to_mcpc",
+    "nominal_mcpc",
     "gauge_fix",
     "chain_transforms",
     "minimal_indices",
@@ -158,26 +159,22 @@ def chain_transforms(model: MCPCModel) -> list[np.ndarray]:
     return [V[0]] + [rot_z(o) @ v for o, v in zip(model.joint_offsets, V[1:])]
 
 
-def dh_to_mcpc(
+def nominal_mcpc(
     robot: RobotDef,
     T_world_base: np.ndarray | None = None,
     T_flange_tool: np.ndarray | None = None,
 ) -> MCPCModel:
-    """Exact MCPC form of a robot's nominal DH chain, optionally with base and tool transforms.
+    """Exact MCPC form of a robot's nominal chain ``robot.chain`` (``G_0 Q_1 G_1 ... Q_n G_n``,
+    from its DH, modified-DH or URDF description), optionally with base and tool transforms (m):
+    ``T_world_base @ G_0 ...  G_n @ T_flange_tool``.
 
-    The resulting chain gives the same tool pose as the DH chain for every joint vector, and each
-    MCPC joint frame lies on the same joint axis as the corresponding DH frame.
+    The resulting chain gives the same tool pose as the nominal chain for every joint vector, and
+    each MCPC joint frame lies on the same joint axis as the corresponding nominal joint frame.
     """
-    S = (
-        rot_z(robot.dh_offset)
-        @ trans(np.column_stack([np.zeros(robot.n), np.zeros(robot.n), robot.dh_d]))
-        @ trans(np.column_stack([robot.dh_a, np.zeros(robot.n), np.zeros(robot.n)]))
-        @ rot_x(robot.dh_alpha)
-    )
+    G = robot.chain
     base = np.eye(4) if T_world_base is None else np.asarray(T_world_base, dtype=float)
     tool = np.eye(4) if T_flange_tool is None else np.asarray(T_flange_tool, dtype=float)
-    G = [base, *S[:-1], S[-1] @ tool]
-    return _from_chain(G, robot.joint_types)
+    return _from_chain([base @ G[0], *G[1:-1], G[-1] @ tool], robot.joint_types)
 
 
 def _from_chain(G: list[np.ndarray], joint_types: tuple[str, ...]) -> MCPCModel:

@@ -45,7 +45,7 @@ from calib.io.calibration_blocks import (
 )
 from calib.io.calibration_bounds import BoundParameter, Bounds, EstimateBound, ToolTipBound
 from calib.io.dataset import Dataset, DatasetInfo
-from calib.mcpc import MCPCModel, dh_to_mcpc, minimal_indices, param_is_angle, shape_matrices
+from calib.mcpc import MCPCModel, minimal_indices, nominal_mcpc, param_is_angle, shape_matrices
 from calib.robot_def import RobotDef
 from calib.selfcal import Observations, SelfCalibrationResult
 from calib.transforms import inv_pose, rot_z
@@ -110,7 +110,7 @@ def _last_link_to_tool(model: MCPCModel) -> np.ndarray:
 def hand_eye(model: MCPCModel, robot: RobotDef) -> HandEye:
     """The identified ``T_flange_cam`` (4, 4) m: the last shape matrix of ``model`` (tool = left
     camera) relative to the nominal flange of joint n, rounded like the file stores it."""
-    T = inv_pose(_last_link_to_tool(dh_to_mcpc(robot))) @ _last_link_to_tool(model)
+    T = inv_pose(_last_link_to_tool(nominal_mcpc(robot))) @ _last_link_to_tool(model)
     return HandEye(matrix(T))
 
 

@@ -1,20 +1,26 @@
 """Robot definitions: the nominal kinematics of a robot, read from its one data file.
 
-Each robot is a TOML file ``models/robots/<name>.toml`` holding a standard DH table (mm, deg at
-that edge), joint ranges, a home posture, encoder resolution and the wrist-camera mount. This module
-converts everything to SI (m, rad) on load; nothing else reads those files.
+Each robot is a TOML file ``models/robots/<name>.toml`` holding its kinematics -- a standard DH
+table (``convention = "dh"``, the default), a modified-DH table (``convention = "mdh"``, Craig) or a
+``[urdf]`` table naming a URDF file and its base and tool links -- plus joint ranges, a home posture,
+encoder resolution and the wrist-camera mount (mm, deg at that edge). A URDF file can also be
+loaded directly (:mod:`calib.robot_urdf`). This module converts everything to SI (m, rad) on load
+and to the convention-free chain ``G_0 Q_1 G_1 ... Q_n G_n`` of :mod:`calib.robot_chain`; nothing
+else reads those files.
 """
 
 from __future__ import annotations
 
 import sys
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
 from calib.errors import InputError
+from calib.robot_chain import CONVENTIONS, DHParams, dh_chain
 from calib.robot_encoder import EncoderSpec, encoder_spec
+from calib.robot_urdf import urdf_chain, urdf_home
 from calib.transforms import make_pose
 
 if sys.version_info >= (3, 11):
@@ -24,7 +30,9 @@ else:  # pragma: no cover
 
 __all__ = [
     "RobotDef",
+    "DHParams",
     "SimulationGains",
+    "with_dh",
     "load_robot",
     "list_robots",
     "models_dir",
@@ -32,6 +40,8 @@ __all__ = [
 ]
 
 JOINT_TYPES = ("revolute", "prismatic")
+MIN_JOINTS, MAX_JOINTS = 3, 7
+"""Joint counts a robot file may have."""
 
 
 class RobotDefinitionError(InputError):
@@ -79,14 +89,17 @@ class RobotDef:
         name: robot name (file stem).
         joint_names: one name per joint.
         joint_types: ``"revolute"`` or ``"prismatic"`` per joint.
-        dh_alpha, dh_a, dh_d, dh_offset: standard DH table (rad, m, m, rad):
-            ``A_i = Q_i(q_i) Rz(offset_i) Tz(d_i) Tx(a_i) Rx(alpha_i)`` with ``Q_i = Rz(q_i)`` for a
-            revolute joint (offset: zero offset of the joint angle) and ``Q_i = Tz(q_i)`` for a
-            prismatic one (offset: its constant theta, key ``theta_deg``).
+        chain: (n + 1, 4, 4) the fixed transforms ``G_0 .. G_n`` (m) of the nominal chain
+            ``T_base_flange(q) = G_0 Q_1(q_1) G_1 ... Q_n(q_n) G_n``, ``Q_i = Rz(q_i)`` (revolute)
+            or ``Tz(q_i)`` (prismatic); see :mod:`calib.robot_chain`.
+        dh: the DH or modified-DH table the chain was built from (:class:`DHParams`, rad and m;
+            ``offset`` is a revolute joint's zero offset or a prismatic joint's constant theta,
+            key ``theta_deg``), or None for a robot from a URDF.
         limits: (n, 2) joint ranges (rad or m).
         home: (n,) home posture (rad or m).
         counts_per_unit: (n,) encoder counts per rad (or per m); used to quantise read-back.
-        T_flange_cam: 4x4 pose of the left camera (OpenCV convention) in the flange (last DH) frame.
+        T_flange_cam: 4x4 pose of the left camera (OpenCV convention) in the flange frame (the
+            chain's end: the last DH frame, Craig's frame n, or the URDF tool link).
         planning_span: (n,) half-width (rad or m) of the window around ``home`` in which the
             trajectory planner draws postures (``[planning] span_deg``: deg, or mm for a
             prismatic joint, like ``home_deg``).
@@ -99,10 +112,8 @@ class RobotDef:
     description: str
     joint_names: tuple[str, ...]
     joint_types: tuple[str, ...]
-    dh_alpha: np.ndarray
-    dh_a: np.ndarray
-    dh_d: np.ndarray
-    dh_offset: np.ndarray
+    chain: np.ndarray
+    dh: DHParams | None
     limits: np.ndarray
     home: np.ndarray
     counts_per_unit: np.ndarray
@@ -115,6 +126,11 @@ class RobotDef:
     def n(self) -> int:
         """Number of joints."""
         return len(self.joint_types)
+
+    @property
+    def convention(self) -> str:
+        """How the kinematics were given: ``"dh"``, ``"mdh"`` or ``"urdf"``."""
+        return "urdf" if self.dh is None else self.dh.convention
 
     def check_joints(self, q: np.ndarray) -> None:
         """Raise ``ValueError`` naming the first joint of ``q`` (rad, shape (..., n)) out of range."""
@@ -172,27 +188,68 @@ def _camera_mount(table: dict, where: str) -> np.ndarray:
     return make_pose(R, p)
 
 
-def load_robot(name_or_path: str | Path) -> RobotDef:
-    """Load a robot by name (``models/robots/<name>.toml``) or from a TOML path.
-
-    Raises:
-        RobotDefinitionError: unknown name (the message lists the known ones) or malformed file.
-    """
+def _resolve(name_or_path: str | Path) -> Path:
     path = Path(name_or_path)
-    if path.suffix != ".toml":
+    if path.suffix not in (".toml", ".urdf"):
         path = models_dir() / "robots" / f"{name_or_path}.toml"
         if not path.is_file():
             raise RobotDefinitionError(
                 f"unknown robot model '{name_or_path}'; known models: {', '.join(list_robots())}",
-                fix="give one of the known names or the path of a robot TOML file "
-                "(models/robots/<name>.toml)",
+                fix="give one of the known names, the path of a robot TOML file "
+                "(models/robots/<name>.toml) or of a URDF file",
             )
     if not path.is_file():
         raise RobotDefinitionError(f"robot file not found: {path}")
+    return path
+
+
+def load_robot(name_or_path: str | Path) -> RobotDef:
+    """Load a robot by name (``models/robots/<name>.toml``), from a robot TOML path, or from a URDF
+    path (``.urdf``: :func:`calib.robot_urdf.urdf_robot_defaults` says how the base and tool links,
+    the home posture and the camera mount are chosen then).
+
+    Raises:
+        RobotDefinitionError: unknown name (the message lists the known ones) or malformed file
+            (the message names the file and the key).
+    """
+    path = _resolve(name_or_path)
+    if path.suffix == ".urdf":
+        return _from_urdf_file(path)
     try:
         data = tomllib.loads(path.read_text())
     except tomllib.TOMLDecodeError as exc:
         raise RobotDefinitionError(f"{path}: not valid TOML: {exc}") from exc
+    if "urdf" in data:
+        kin = _urdf_kinematics(data["urdf"], path)
+    else:
+        kin = _table_kinematics(data, path)
+    mount = data.get("camera_mount")
+    if not isinstance(mount, dict):
+        raise RobotDefinitionError(
+            f"{path}: needs a [camera_mount] table",
+            fix=f"add [camera_mount] with xyz_mm, x_axis and z_axis to {path}",
+        )
+    return _assemble(path, data, kin, _camera_mount(mount, f"{path}: [camera_mount]"))
+
+
+@dataclass(frozen=True)
+class _Kinematics:
+    names: tuple[str, ...]
+    types: tuple[str, ...]
+    limits: np.ndarray
+    chain: np.ndarray
+    dh: DHParams | None
+
+
+def _table_kinematics(data: dict, path: Path) -> _Kinematics:
+    """Joints and chain from the ``[[joint]]`` tables of a DH or modified-DH robot file."""
+    convention = data.get("convention", "dh")
+    if convention not in CONVENTIONS:
+        raise RobotDefinitionError(
+            f"{path}: convention must be one of {CONVENTIONS}, got {convention!r}",
+            fix=f'set convention = "dh" (standard DH) or "mdh" (modified DH, Craig) in {path}, '
+            "or give a [urdf] table",
+        )
     joints = data.get("joint")
     if not isinstance(joints, list) or not joints:
         raise RobotDefinitionError(f"{path}: needs at least one [[joint]] table")
@@ -221,7 +278,50 @@ def load_robot(name_or_path: str | Path) -> RobotDef:
         if not lo < hi:
             raise RobotDefinitionError(f"{where}: range must be [lower, upper] with lower < upper")
         lim.append((lo * unit, hi * unit))
+    dh = DHParams(convention, np.array(alpha), np.array(a), np.array(d), np.array(off))
+    return _Kinematics(tuple(names), tuple(types), np.array(lim), dh_chain(dh), dh)
+
+
+def _urdf_kinematics(table: object, path: Path) -> _Kinematics:
+    """Joints and chain from a robot file's ``[urdf]`` table (``file``, ``base_link``,
+    ``tool_link``; the file relative to the robot file)."""
+    if not isinstance(table, dict) or "file" not in table:
+        raise RobotDefinitionError(
+            f"{path}: [urdf] must be a table with the key 'file'",
+            fix=f'write [urdf] file = "arm.urdf", base_link = ..., tool_link = ... in {path}',
+        )
+    if "joint" in table or "convention" in table:
+        raise RobotDefinitionError(f"{path}: [urdf] robots take their joints from the URDF")
+    urdf_path = (path.parent / str(table["file"])).resolve()
+    if not urdf_path.is_file():
+        raise RobotDefinitionError(
+            f"{path}: [urdf] file {urdf_path} not found",
+            fix=f"set [urdf] file in {path} to a URDF path relative to {path.parent}",
+        )
+    base, tool = table.get("base_link"), table.get("tool_link")
+    ch = urdf_chain(urdf_path, base_link=base, tool_link=tool)
+    return _Kinematics(ch.joint_names, ch.joint_types, ch.limits, ch.chain, None)
+
+
+def _from_urdf_file(path: Path) -> RobotDef:
+    """A robot straight from a URDF file (:func:`calib.robot_urdf.urdf_robot_defaults`)."""
+    ch = urdf_chain(path)
+    kin = _Kinematics(ch.joint_names, ch.joint_types, ch.limits, ch.chain, None)
+    data = {"name": path.stem, "description": f"{ch.name} (URDF {path.name}, {ch.base_link} -> "
+            f"{ch.tool_link})", "home_deg": list(urdf_home(ch.joint_types, ch.limits))}  # fmt: skip
+    return _assemble(path, data, kin, np.eye(4))
+
+
+def _assemble(path: Path, data: dict, kin: _Kinematics, T_flange_cam: np.ndarray) -> RobotDef:
+    """The :class:`RobotDef` from the kinematics and the file's other tables (home, encoder,
+    planning, simulation)."""
+    types = kin.types
     n = len(types)
+    if not MIN_JOINTS <= n <= MAX_JOINTS:
+        raise RobotDefinitionError(
+            f"{path}: {n} joints; a robot needs {MIN_JOINTS} to {MAX_JOINTS}",
+            fix=f"describe a serial arm of {MIN_JOINTS} to {MAX_JOINTS} moving joints in {path}",
+        )
     unit_vec = np.array([np.pi / 180 if t == "revolute" else 1e-3 for t in types])
     home = np.asarray(data.get("home_deg", [0.0] * n), dtype=float)
     if home.shape != (n,):
@@ -248,22 +348,17 @@ def load_robot(name_or_path: str | Path) -> RobotDef:
         kv=_per_joint(sim, "kv", n, where_sim, default=np.full(n, DEFAULT_KV)),
         armature=_per_joint(sim, "armature", n, where_sim, default=np.full(n, DEFAULT_ARMATURE)),
     )
-    mount = data.get("camera_mount")
-    if not isinstance(mount, dict):
-        raise RobotDefinitionError(f"{path}: needs a [camera_mount] table")
     robot = RobotDef(
         name=str(data.get("name", path.stem)),
         description=str(data.get("description", "")),
-        joint_names=tuple(names),
-        joint_types=tuple(types),
-        dh_alpha=np.array(alpha),
-        dh_a=np.array(a),
-        dh_d=np.array(d),
-        dh_offset=np.array(off),
-        limits=np.array(lim),
+        joint_names=kin.names,
+        joint_types=types,
+        chain=kin.chain,
+        dh=kin.dh,
+        limits=kin.limits,
         home=home * unit_vec,
         counts_per_unit=cpd / unit_vec,
-        T_flange_cam=_camera_mount(mount, f"{path}: [camera_mount]"),
+        T_flange_cam=T_flange_cam,
         planning_span=planning_span * unit_vec,
         simulation=gains,
         encoder=encoder,
@@ -273,3 +368,10 @@ def load_robot(name_or_path: str | Path) -> RobotDef:
     except ValueError as exc:
         raise RobotDefinitionError(f"{path}: home posture: {exc}") from exc
     return robot
+
+
+def with_dh(robot: RobotDef, dh: DHParams) -> RobotDef:
+    """A copy of ``robot`` whose nominal chain is the table ``dh`` (e.g. a perturbed table)."""
+    if dh.n != robot.n:
+        raise ValueError(f"{robot.name} has {robot.n} joints, the table {dh.n} rows")
+    return replace(robot, dh=dh, chain=dh_chain(dh))

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from calib.errors import InputError
-from calib.kinematics import fk_dh
+from calib.kinematics import fk_nominal
 from calib.robot_def import RobotDef, load_robot
 from hw.emulator_backends import EmulatorBackend, KinematicBackend
 from hw.emulator_faults import Fault, drop, garble, take_fault
@@ -226,7 +226,7 @@ class AclController(ArmMotion):
         lines = [f"Position {name}", "  ".join(f"{a + 1}:{int(c)}" for a, c in enumerate(counts))]
         if self.robot is not None and self.n >= 5:
             q = self.encoders.to_degrees(counts)
-            p = fk_dh(self.robot, np.radians(q))[0, -1, :3, 3] * 1e4  # tenths of a mm
+            p = fk_nominal(self.robot, np.radians(q))[0, -1, :3, 3] * 1e4  # tenths of a mm
             pitch, roll = float(np.sum(q[1:4])) * 10, float(q[4]) * 10
             vals = [*(int(round(v)) for v in p), int(round(pitch)), int(round(roll))]
             lines.append("  ".join(f"{k}:{v}" for k, v in zip("XYZPR", vals, strict=True)))

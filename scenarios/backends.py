@@ -18,7 +18,7 @@ from calib.camera import Intrinsics, Rig
 from calib.io.dataset import DatasetInfo
 from calib.io.truth import read_truth, write_truth
 from calib.kinematics import fk_tool
-from calib.mcpc import MCPCModel, dh_to_mcpc, minimal_indices, param_is_angle, param_names
+from calib.mcpc import MCPCModel, minimal_indices, nominal_mcpc, param_is_angle, param_names
 from calib.optimal_poses import plan_optimal_postures
 from calib.robot import Robot
 from calib.robot_def import RobotDef, load_robot
@@ -91,7 +91,7 @@ def _perturbation_table(s: Scenario, n: int) -> dict[str, float]:
 def sim_setup(s: Scenario) -> SimSetup:
     """The simulated actual robot, rig and marker field of a scenario."""
     robot = load_robot(s.robot.model)
-    nominal = dh_to_mcpc(robot).with_tool(robot.T_flange_cam)
+    nominal = nominal_mcpc(robot).with_tool(robot.T_flange_cam)
     actual = perturb(
         nominal,
         seed=s.perturbation.seed,
@@ -125,7 +125,7 @@ def planning_inputs(s: Scenario) -> dict:
     the sim and hardware backends plan the same postures for one scenario.
     """
     robot = load_robot(s.robot.model)
-    nominal = dh_to_mcpc(robot).with_tool(robot.T_flange_cam)
+    nominal = nominal_mcpc(robot).with_tool(robot.T_flange_cam)
     W, H = s.camera.resolution
     cx, cy = _field_center(robot, nominal)
     half = s.target.extent_mm / 2000.0

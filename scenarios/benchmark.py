@@ -26,7 +26,7 @@ from calib.calibrate import detect_dataset
 from calib.identify import identify
 from calib.io.dataset import Dataset
 from calib.kinematics import fk_tool
-from calib.mcpc import dh_to_mcpc
+from calib.mcpc import nominal_mcpc
 from calib.robot_def import load_robot
 from calib.selfcal import Observations, self_calibrate
 from scenarios.config import load_scenario
@@ -60,7 +60,7 @@ def bench(poses: int, root: Path) -> dict:
     t["detect"] = time.perf_counter() - t0
 
     robot = load_robot(ds.info.robot_model)
-    nominal = dh_to_mcpc(robot).with_tool(robot.T_flange_cam)
+    nominal = nominal_mcpc(robot).with_tool(robot.T_flange_cam)
     q = np.radians(ds.joints_deg)
     pos = {int(i): k for k, i in enumerate(ds.indices)}
     obs = Observations.from_corners(

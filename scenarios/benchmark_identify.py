@@ -19,7 +19,7 @@ from scipy.spatial.transform import Rotation
 from calib.alignment import express_in_frame, minimal_difference
 from calib.identify import identify
 from calib.kinematics import fk_tool
-from calib.mcpc import dh_to_mcpc, minimal_indices, param_is_angle
+from calib.mcpc import minimal_indices, nominal_mcpc, param_is_angle
 from calib.robot_def import load_robot
 from calib.transforms import make_pose, pose_from_vec
 
@@ -27,7 +27,7 @@ from calib.transforms import make_pose, pose_from_vec
 def run(robot_name: str, sizes: tuple[int, ...], repeats: int) -> None:
     """Print one line per number of poses."""
     robot = load_robot(robot_name)
-    nom = dh_to_mcpc(robot).with_tool(robot.T_flange_cam)
+    nom = nominal_mcpc(robot).with_tool(robot.T_flange_cam)
     idx = minimal_indices(nom.joint_types)
     ang = param_is_angle(idx)
     st, sr = 0.05e-3, np.radians(0.02)

@@ -17,8 +17,8 @@ from collections.abc import Callable
 import numpy as np
 
 from calib.ik import ik, ik_nearest, nearest_reachable
-from calib.kinematics import fk_dh, fk_frames, identification_jacobian
-from calib.mcpc import dh_to_mcpc
+from calib.kinematics import fk_frames, fk_nominal, identification_jacobian
+from calib.mcpc import nominal_mcpc
 from calib.robot_def import load_robot
 from calib.tool_pose import tool_pose
 
@@ -45,7 +45,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
 
     robot = load_robot(args.robot)
-    model = dh_to_mcpc(robot).with_tool(robot.T_flange_cam)
+    model = nominal_mcpc(robot).with_tool(robot.T_flange_cam)
     rng = np.random.default_rng(0)
     q = rng.uniform(robot.limits[:, 0], robot.limits[:, 1], (args.m, robot.n))
 
@@ -53,16 +53,16 @@ def main(argv: list[str] | None = None) -> int:
     t_fk = _time(lambda: fk_frames(model, q), args.repeat)
     t_jac = _time(lambda: identification_jacobian(model, q), args.repeat)
     t_both = _time(lambda: (fk_frames(model, q), identification_jacobian(model, q)), args.repeat)
-    t_dh = _time(lambda: fk_dh(robot, q), args.repeat)
+    t_dh = _time(lambda: fk_nominal(robot, q), args.repeat)
     rows += [
         (f"fk_frames, {args.m} configs", t_fk, ""),
         (f"identification_jacobian, {args.m} configs", t_jac, "(includes its own FK)"),
         (f"fk_frames + jacobian, {args.m} configs", t_both, f"target < {TARGET_MS:.0f} ms"),
-        (f"fk_dh, {args.m} configs", t_dh, ""),
+        (f"fk_nominal, {args.m} configs", t_dh, ""),
     ]
 
     qs = q[: args.ik_targets]
-    poses = [tool_pose(T, azimuth_rad=a) for T, a in zip(fk_dh(robot, qs)[:, -1], qs[:, 0])]
+    poses = [tool_pose(T, azimuth_rad=a) for T, a in zip(fk_nominal(robot, qs)[:, -1], qs[:, 0])]
     poses = [(x, p, r) for x, p, r in poses if np.hypot(x[0], x[1]) > 1e-3]
     k = len(poses)
     t_ik = _time(lambda: [ik(robot, x, p, r) for x, p, r in poses], 3) / k

@@ -16,7 +16,7 @@ import numpy as np
 
 from calib.ik import UnreachableError, ik, ik_nearest
 from calib.kinematics import fk_tool
-from calib.mcpc import dh_to_mcpc
+from calib.mcpc import nominal_mcpc
 from calib.robot_def import load_robot
 from calib.tool_pose import tool_pose
 from scenarios.backends import render_posture
@@ -47,7 +47,7 @@ def _joints_rad(robot, text: str) -> np.ndarray:
 def cmd_fk(args: argparse.Namespace) -> int:
     robot = load_robot(args.model)
     q = _joints_rad(robot, args.joints)
-    T = fk_tool(dh_to_mcpc(robot), q[None])[0]
+    T = fk_tool(nominal_mcpc(robot), q[None])[0]
     xyz, pitch, roll = tool_pose(T)
     out = {
         "model": robot.name,

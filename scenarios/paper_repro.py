@@ -42,7 +42,7 @@ from calib.ik import nearest_reachable
 from calib.io.calibration import CalibrationResult
 from calib.io.dataset import DatasetWriter, read_dataset_info
 from calib.io.truth import Truth, read_truth
-from calib.kinematics import fk_dh
+from calib.kinematics import fk_nominal
 from calib.report import aligned_errors, tool_tips
 from calib.robot_def import load_robot
 from calib.transforms import inv_pose, kabsch
@@ -136,7 +136,7 @@ def reproduce(out: str | Path, config: str | Path | None = None, *, quiet: bool 
         )
     robot = load_robot(s.robot.model)
     q5, pitch, roll = table_ii_postures(robot)
-    nominal_mm = fk_dh(robot, q5)[:, -1, :3, 3] * 1000
+    nominal_mm = fk_nominal(robot, q5)[:, -1, :3, 3] * 1000
     theta4_dist = _theta4_held_distances(robot)
 
     root = out / "run"
@@ -228,7 +228,7 @@ def reproduce(out: str | Path, config: str | Path | None = None, *, quiet: bool 
         },
         "camera_error_rms_mm": float(np.sqrt(np.mean(np.sum((measured - true_mm) ** 2, axis=1)))),
         "camera_registration_rms_mm": reg_rms,
-        "table_i_posture_fk_mm": (fk_dh(robot, robot.home)[0, -1, :3, 3] * 1000).tolist(),
+        "table_i_posture_fk_mm": (fk_nominal(robot, robot.home)[0, -1, :3, 3] * 1000).tolist(),
         "fx_px": {"estimate": cal.intrinsics.fx, "truth": rep["intrinsics"]["fx"]["truth"]},
         "reprojection_rms_px": cal.reprojection_rms_px,
         "observation": rep["observation"],

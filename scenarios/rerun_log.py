@@ -40,7 +40,7 @@ from calib.io.calibration import read_calibration
 from calib.io.dataset import Dataset, DatasetError
 from calib.io.truth import read_truth
 from calib.kinematics import fk_tool
-from calib.mcpc import dh_to_mcpc
+from calib.mcpc import nominal_mcpc
 from calib.observations import Observations
 from calib.report import kabsch
 from calib.robot_def import load_robot
@@ -150,7 +150,7 @@ def record_run(dataset_dir: str | Path, rrd_path: str | Path | None, spawn: bool
         raise DatasetError(f"{cal_path} is missing: run `selfcal calibrate {root}` first")
     cal = read_calibration(cal_path)
     robot = load_robot(ds.info.robot_model)
-    nominal = dh_to_mcpc(robot).with_tool(robot.T_flange_cam)
+    nominal = nominal_mcpc(robot).with_tool(robot.T_flange_cam)
     truth = read_truth(root / "truth.json") if (root / "truth.json").is_file() else None
 
     est_intr = cal.pinhole

@@ -8,7 +8,7 @@ Run ``python -m sim.build_models`` after changing ``models/robots/*.toml``, ``si
 ``sim/mjcf_geoms.py``), ``sim/scene.py`` or ``sim/markers.py``. It writes
 
 - ``<name>.xml``: each robot alone, nominal (``robot_spec`` of
-  ``dh_to_mcpc(robot).with_tool(robot.T_flange_cam)``);
+  ``nominal_mcpc(robot).with_tool(robot.T_flange_cam)``);
 - ``scene.xml`` (the robot with ``scene = true``): includes its XML and adds table, lights and the
   default marker field (``make_marker_field()``), whose textures are written to
   ``assets/aruco_<id>.png``;

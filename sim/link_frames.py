@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from calib.mcpc import MCPCModel, dh_to_mcpc, shape_matrices
+from calib.mcpc import MCPCModel, nominal_mcpc, shape_matrices
 from calib.robot_def import RobotDef
 from calib.transforms import inv_pose, rot_z
 
@@ -38,8 +38,8 @@ def _motion_offset(model: MCPCModel, k: int) -> np.ndarray:
 
 def nominal_camera_model(robot: RobotDef) -> MCPCModel:
     """The nominal MCPC chain with the left camera (OpenCV frame) as its tool:
-    ``dh_to_mcpc(robot).with_tool(robot.T_flange_cam)``."""
-    return dh_to_mcpc(robot).with_tool(robot.T_flange_cam)
+    ``nominal_mcpc(robot).with_tool(robot.T_flange_cam)``."""
+    return nominal_mcpc(robot).with_tool(robot.T_flange_cam)
 
 
 def link_body_poses(model: MCPCModel) -> np.ndarray:
@@ -56,7 +56,7 @@ def link_body_poses(model: MCPCModel) -> np.ndarray:
 def flange_in_last_link(robot: RobotDef, model: MCPCModel) -> np.ndarray:
     """Pose (4, 4) of the nominal flange (last DH frame) in the last link's body frame.
 
-    The nominal camera chain ``dh_to_mcpc(robot).with_tool(robot.T_flange_cam)`` puts the camera at
+    The nominal camera chain ``nominal_mcpc(robot).with_tool(robot.T_flange_cam)`` puts the camera at
     ``V_n`` and so the flange at ``V_n inv(T_flange_cam)``; a different constant offset of the last
     joint in ``model`` (from the gauge fix) rotates the link frame about its axis.
     """

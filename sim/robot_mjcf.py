@@ -10,7 +10,7 @@ Layout (like a MuJoCo Menagerie arm):
   about its z axis (a slide along z for a prismatic joint), so ``qpos`` = the joint readings ``q``;
 - a body ``rig`` on the last link at the last shape matrix ``V_n``: the MCPC tool frame, which is
   the LEFT camera's OpenCV frame because the model passed in carries the camera as its tool
-  (``dh_to_mcpc(robot).with_tool(robot.T_flange_cam)``, possibly perturbed). It holds the cameras
+  (``nominal_mcpc(robot).with_tool(robot.T_flange_cam)``, possibly perturbed). It holds the cameras
   ``cam_left`` (at the rig origin) and ``cam_right`` (at ``RigConfig.T_left_right``), and the site
   ``tool_tip`` at the known rig-to-tip transform ``T_cam_tip = inv(robot.T_flange_cam)``, so at
   nominal the tool tip is the flange (last DH frame origin, the point of the paper's Table II);
@@ -198,7 +198,7 @@ def robot_spec(robot: RobotDef, model: MCPCModel, rig: RigConfig | None = None) 
     """A new ``MjSpec`` holding only the robot (and its stereo rig) for the MCPC chain ``model``.
 
     ``model``'s tool must be the left camera's OpenCV frame, e.g.
-    ``dh_to_mcpc(robot).with_tool(robot.T_flange_cam)`` (possibly perturbed).
+    ``nominal_mcpc(robot).with_tool(robot.T_flange_cam)`` (possibly perturbed).
     """
     spec = mujoco.MjSpec()
     spec.modelname = robot.name

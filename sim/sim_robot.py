@@ -33,7 +33,7 @@ class SimRobot:
     Args:
         model_name: nominal robot model (``models/robots/<name>.toml``).
         actual: the simulated robot's MCPC chain, tool = left camera (default: nominal, i.e.
-            ``dh_to_mcpc(robot).with_tool(robot.T_flange_cam)``); see ``sim.actual.perturb``.
+            ``nominal_mcpc(robot).with_tool(robot.T_flange_cam)``); see ``sim.actual.perturb``.
         rig: stereo rig (intrinsics, baseline); default ``RigConfig()``.
         field: marker field; default ``make_marker_field()``.
         image_sigma: std of additive Gaussian image noise (grey levels, 0-255).

@@ -22,8 +22,8 @@ from calib.export_toml import to_toml
 from calib.ik import UnreachableError, ik_nearest
 from calib.io.dataset import read_dataset_info
 from calib.io.truth import read_truth
-from calib.kinematics import fk_dh
-from calib.mcpc import dh_to_mcpc
+from calib.kinematics import fk_nominal
+from calib.mcpc import nominal_mcpc
 from calib.robot_def import load_robot
 from calib.tool_pose import tool_pose
 from scenarios.config import load_scenario
@@ -31,7 +31,9 @@ from scenarios.deploy_cli import register
 from scenarios.pipeline import TABLE_II_MM, run_acquire, run_calibrate, run_report
 
 ROBOT = load_robot("er4u-paper")
-_, PITCH, ROLL = tool_pose(fk_dh(ROBOT, ROBOT.home)[0, -1])  # Table II row 1's tool pitch / roll
+_, PITCH, ROLL = tool_pose(
+    fk_nominal(ROBOT, ROBOT.home)[0, -1]
+)  # Table II row 1's tool pitch / roll
 
 
 def _run(tmp_path_factory, name: str, overrides: dict):
@@ -113,7 +115,7 @@ def test_noise_free_calibration_compensates_exactly(noise_free):
 def test_nominal_model_gives_the_nominal_ik():
     """With the nominal chain as 'calibration' the result is the analytic IK (to 1e-9 rad)."""
     for p in TABLE_II_MM / 1000.0:
-        q = compensated_ik(dh_to_mcpc(ROBOT), ROBOT, p, PITCH, ROLL)
+        q = compensated_ik(nominal_mcpc(ROBOT), ROBOT, p, PITCH, ROLL)
         assert np.abs(q - ik_nearest(ROBOT, p, PITCH, ROLL)).max() < 1e-9
 
 

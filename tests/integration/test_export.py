@@ -29,7 +29,7 @@ from calib.export import (
 from calib.export_toml import from_toml, to_toml
 from calib.export_urdf import to_urdf
 from calib.io.calibration import read_calibration
-from calib.kinematics import fk_dh, fk_frames
+from calib.kinematics import fk_frames, fk_nominal
 from calib.mcpc import minimal_indices, param_names
 from calib.robot_def import load_robot, models_dir
 from calib.transforms import make_pose, rot_x, rot_z, trans
@@ -82,11 +82,11 @@ def test_nominal_robot_deploys_to_the_nominal_dh_chain_wherever_it_is_placed():
         dep = deploy_chain(nominal_camera_model(ROBOT).with_base(T), ROBOT)
         assert np.abs(dep.T_world_base - T).max() < 1e-12
         assert np.abs(dep.model.params - nominal_deployed_params(ROBOT)).max() < 1e-12
-        assert np.abs(dep.tool_tip(q) - fk_dh(ROBOT, q)[:, -1]).max() < 1e-12
+        assert np.abs(dep.tool_tip(q) - fk_nominal(ROBOT, q)[:, -1]).max() < 1e-12
         # link frame k sits on joint k's axis: the origin of DH frame k - 1 lies on it too
         F = dep.frames(q)[:, :-1]
         dh_prev = np.concatenate(
-            [np.tile(np.eye(4), (len(q), 1, 1, 1)), fk_dh(ROBOT, q)[:, :-1]], 1
+            [np.tile(np.eye(4), (len(q), 1, 1, 1)), fk_nominal(ROBOT, q)[:, :-1]], 1
         )
         assert np.abs(F[..., :3, 2] - dh_prev[..., :3, 2]).max() < 1e-12
         off = dh_prev[..., :3, 3] - F[..., :3, 3]
@@ -94,7 +94,7 @@ def test_nominal_robot_deploys_to_the_nominal_dh_chain_wherever_it_is_placed():
         # the camera chain shares the link frames and ends at the nominal camera
         cam = fk_frames(dep.camera_model(), q)
         assert np.abs(cam[:, :-1] - dep.frames(q)[:, :-1]).max() < 1e-12
-        assert np.abs(cam[:, -1] - fk_dh(ROBOT, q)[:, -1] @ ROBOT.T_flange_cam).max() < 1e-12
+        assert np.abs(cam[:, -1] - fk_nominal(ROBOT, q)[:, -1] @ ROBOT.T_flange_cam).max() < 1e-12
 
 
 def test_deployed_chain_is_the_same_physical_robot(deployed, calibration):
@@ -116,7 +116,7 @@ def test_parameters_fixed_by_the_base_frame(deployed):
     p = deployed.model.params.reshape(-1)
     for name in ("alpha0", "beta0", "lx0", "ly0", "beta1"):
         assert abs(p[idx[name]]) < 1e-12, name
-    assert abs(p[idx["ly1"]] - ROBOT.dh_d[0] * np.sin(p[idx["alpha1"]])) < 1e-12
+    assert abs(p[idx["ly1"]] - ROBOT.dh.d[0] * np.sin(p[idx["alpha1"]])) < 1e-12
     assert set(FIXED_BY_BASE_FRAME) == {"alpha0", "beta0", "lx0", "ly0", "beta1", "ly1"}
     # the calibrated arm differs from the nominal one (else the tests below prove little)
     assert np.abs(deployed.model.params - nominal_deployed_params(ROBOT)).max() > 1e-4
@@ -267,9 +267,9 @@ def test_toml_dh_table_of_the_nominal_robot():
     nominal = deploy_chain(nominal_camera_model(ROBOT), ROBOT)
     d = tomllib.loads(to_toml(nominal, ROBOT))
     rows = d["dh"]["rows"]
-    assert np.allclose([r["a_mm"] for r in rows], ROBOT.dh_a * 1000, atol=1e-9)
-    assert np.allclose([r["d_mm"] for r in rows], ROBOT.dh_d * 1000, atol=1e-9)
-    assert np.allclose([r["alpha_deg"] for r in rows], np.degrees(ROBOT.dh_alpha), atol=1e-9)
+    assert np.allclose([r["a_mm"] for r in rows], ROBOT.dh.a * 1000, atol=1e-9)
+    assert np.allclose([r["d_mm"] for r in rows], ROBOT.dh.d * 1000, atol=1e-9)
+    assert np.allclose([r["alpha_deg"] for r in rows], np.degrees(ROBOT.dh.alpha), atol=1e-9)
     q = random_q(20, seed=5)
     ft = d["dh"]["T_flange_tool"]
     T_ft = make_pose(np.array(ft["R"]), np.array(ft["xyz_mm"]) / 1000)

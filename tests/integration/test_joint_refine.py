@@ -22,7 +22,7 @@ from calib.joint_refine import (
     gauge_directions,
 )
 from calib.kinematics import fk_tool
-from calib.mcpc import MCPCModel, dh_to_mcpc, minimal_indices, param_names
+from calib.mcpc import MCPCModel, minimal_indices, nominal_mcpc, param_names
 from calib.report import aligned_errors, tool_tips
 from calib.robot_def import load_robot
 from calib.transforms import make_pose, rot_x
@@ -35,7 +35,7 @@ NOISE_SEEDS = (1, 2, 3)
 def _nominal() -> MCPCModel:
     robot = load_robot("er4u-paper")
     base = make_pose(rot_x(0.3)[:3, :3], [0.1, -0.2, 0.05])
-    return dh_to_mcpc(robot, base, robot.T_flange_cam)
+    return nominal_mcpc(robot, base, robot.T_flange_cam)
 
 
 def _dataset(tmp_path_factory, name: str, noise: dict):

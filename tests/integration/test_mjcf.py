@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from calib.camera import Intrinsics
-from calib.kinematics import fk_dh, fk_frames
+from calib.kinematics import fk_frames, fk_nominal
 from calib.robot_def import load_robot
 from calib.transforms import inv_pose, trans
 from sim.actual import apply_errors, perturb
@@ -138,7 +138,7 @@ def test_flange_site_is_last_dh_frame(name):
     model = robot_spec(robot, models["nominal"]).compile()
     data = mujoco.MjData(model)
     q = _random_q(robot, 50, seed=3)
-    dh = fk_dh(robot, q)[:, -1]
+    dh = fk_nominal(robot, q)[:, -1]
     for i in range(q.shape[0]):
         data.qpos[:] = q[i]
         mujoco.mj_forward(model, data)

@@ -17,7 +17,7 @@ import json
 import numpy as np
 import pytest
 
-from calib.kinematics import fk_dh
+from calib.kinematics import fk_nominal
 from calib.robot_def import load_robot
 from scenarios import paper_repro
 from scenarios.paper_checks import paper_inconsistencies
@@ -28,7 +28,7 @@ def test_table_ii_postures_reproduce_table_ii():
     robot = load_robot("er4u-paper")
     q, pitch, roll = table_ii_postures(robot)
     robot.check_joints(q)
-    tips_mm = fk_dh(robot, q)[:, -1, :3, 3] * 1000
+    tips_mm = fk_nominal(robot, q)[:, -1, :3, 3] * 1000
     np.testing.assert_allclose(tips_mm, TABLE_II_MM, atol=0.1)
     assert np.degrees(pitch) == pytest.approx(-138.54, abs=1e-6)
     assert roll == pytest.approx(0.0, abs=1e-9)
@@ -69,7 +69,7 @@ def test_paper_outputs_exist_and_parse(paper_out):
     dist = [float(r["theta4_held_distance_mm"]) for r in rows_ii]
     # the row-2 caveat: distance from the shoulder axis minus the arm's reach with theta4 held
     robot = load_robot("er4u-paper")
-    a1, d1, a2, a3, d5 = robot.dh_a[0], robot.dh_d[0], robot.dh_a[1], robot.dh_a[2], robot.dh_d[4]
+    a1, d1, a2, a3, d5 = robot.dh.a[0], robot.dh.d[0], robot.dh.a[1], robot.dh.a[2], robot.dh.d[4]
     th4 = np.radians(TABLE_II_THETA4_DEG)
     reach = a2 + np.hypot(a3 + d5 * np.sin(th4), d5 * np.cos(th4))
     p = TABLE_II_MM[1] / 1000

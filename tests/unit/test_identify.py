@@ -6,7 +6,6 @@ camera poses expressed in a random world frame. Tolerances are stated in each te
 
 from __future__ import annotations
 
-import dataclasses
 import warnings
 
 import numpy as np
@@ -16,9 +15,9 @@ from scipy.spatial.transform import Rotation
 from calib.alignment import align_truth, express_in_frame, fit_rigid_transform, minimal_difference
 from calib.dh_table import DHNotRepresentableWarning, canonical_base, to_dh
 from calib.identify import IdentificationError, IdentificationWarning, identify, initial_base
-from calib.kinematics import fk_dh, fk_tool, pose_error
-from calib.mcpc import MCPCModel, dh_to_mcpc, minimal_indices, param_is_angle, param_names
-from calib.robot_def import RobotDef, load_robot
+from calib.kinematics import fk_nominal, fk_tool, pose_error
+from calib.mcpc import MCPCModel, minimal_indices, nominal_mcpc, param_is_angle, param_names
+from calib.robot_def import DHParams, RobotDef, load_robot, with_dh
 from calib.transforms import make_pose, pose_from_vec
 
 ROBOTS = ["er4u-paper", "er4u-vendor"]
@@ -26,7 +25,7 @@ MM, DEG = 1e-3, np.pi / 180
 
 
 def nominal(robot: RobotDef) -> MCPCModel:
-    return dh_to_mcpc(robot).with_tool(robot.T_flange_cam)
+    return nominal_mcpc(robot).with_tool(robot.T_flange_cam)
 
 
 def perturbed(model: MCPCModel, rng: np.random.Generator) -> MCPCModel:
@@ -114,9 +113,9 @@ def test_to_dh_nominal_and_parallel_preserving_perturbation(name: str) -> None:
     placed = nominal(robot).with_base(T_w)
     dh = to_dh(placed, robot)
     assert dh is not None
-    for got, want in ((dh.offset, robot.dh_offset), (dh.alpha, robot.dh_alpha)):
+    for got, want in ((dh.offset, robot.dh.offset), (dh.alpha, robot.dh.alpha)):
         assert np.allclose(got, want, atol=1e-9)
-    assert np.allclose(dh.d, robot.dh_d, atol=1e-9) and np.allclose(dh.a, robot.dh_a, atol=1e-9)
+    assert np.allclose(dh.d, robot.dh.d, atol=1e-9) and np.allclose(dh.a, robot.dh.a, atol=1e-9)
     assert np.allclose(dh.T_world_base, T_w, atol=1e-9)
     assert np.allclose(dh.T_flange_tool, robot.T_flange_cam, atol=1e-9)
     idx = minimal_indices(placed.joint_types)
@@ -127,9 +126,9 @@ def test_to_dh_nominal_and_parallel_preserving_perturbation(name: str) -> None:
     model = placed.with_params(p)
     dh = to_dh(model, robot)
     assert dh is not None
-    rdh = dataclasses.replace(robot, dh_offset=dh.offset, dh_d=dh.d, dh_a=dh.a, dh_alpha=dh.alpha)
+    rdh = with_dh(robot, DHParams("dh", dh.alpha, dh.a, dh.d, dh.offset))
     q = configs(robot, rng, 10)
-    T_dh = dh.T_world_base @ fk_dh(rdh, q)[:, -1] @ dh.T_flange_tool
+    T_dh = dh.T_world_base @ fk_nominal(rdh, q)[:, -1] @ dh.T_flange_tool
     assert np.abs(T_dh - fk_tool(model, q)).max() < 1e-9
 
 

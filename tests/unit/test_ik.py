@@ -1,6 +1,6 @@
 """Tool pose convention and inverse kinematics (calib.tool_pose, calib.ik).
 
-Ground truth: forward kinematics straight from the DH table (``fk_dh``) and the MCPC chain
+Ground truth: forward kinematics straight from the DH table (``fk_nominal``) and the MCPC chain
 (``fk_frames``); the geometric definitions of pitch and roll written out independently here.
 """
 
@@ -22,9 +22,9 @@ from calib.ik import (
     nearest_reachable,
     wrap_into_range,
 )
-from calib.kinematics import fk_dh, fk_frames
-from calib.mcpc import dh_to_mcpc
-from calib.robot_def import load_robot
+from calib.kinematics import fk_frames, fk_nominal
+from calib.mcpc import nominal_mcpc
+from calib.robot_def import load_robot, with_dh
 from calib.tool_pose import tool_frame, tool_pose
 
 ROBOTS = ("er4u-paper", "er4u-vendor")
@@ -39,8 +39,8 @@ def _angle_diff(a, b):
 def fk_pose(robot, q):
     """(xyz, pitch, roll) of the MCPC tool frame, azimuth hint = joint 1 direction."""
     q = np.atleast_2d(q)
-    T = fk_frames(dh_to_mcpc(robot), q)[:, -1]
-    return tool_pose(T, azimuth_rad=q[:, 0] + robot.dh_offset[0])
+    T = fk_frames(nominal_mcpc(robot), q)[:, -1]
+    return tool_pose(T, azimuth_rad=q[:, 0] + robot.dh.offset[0])
 
 
 # --------------------------------------------------------------------------------------------
@@ -52,11 +52,11 @@ def test_zero_posture_pitch_of_both_models():
     """Paper model at theta = 0: tool axis straight down (pitch -90). Vendor: horizontal (0)."""
     for name, want in (("er4u-paper", -90.0), ("er4u-vendor", 0.0)):
         robot = _CACHE[name]
-        T = fk_dh(robot, np.zeros(5))[0, -1]
+        T = fk_nominal(robot, np.zeros(5))[0, -1]
         _, pitch, roll = tool_pose(T)
         assert abs(np.degrees(pitch) - want) < 1e-9, name
         assert abs(np.degrees(roll)) < 1e-9, name
-    z = fk_dh(_CACHE["er4u-paper"], np.zeros(5))[0, -1, :3, 2]
+    z = fk_nominal(_CACHE["er4u-paper"], np.zeros(5))[0, -1, :3, 2]
     np.testing.assert_allclose(z, [0, 0, -1], atol=1e-15)
 
 
@@ -64,7 +64,7 @@ def test_table_one_cartesian_pitch_is_not_joint_four():
     """Table II's "Pitch (theta4)" = -63.54 deg is joint 4's angle: the Cartesian pitch of the
     tool axis at Table I's posture is theta2 + theta3 + theta4 - 90 = -138.54 deg (down, back)."""
     robot = _CACHE["er4u-paper"]
-    _, pitch, _ = tool_pose(fk_dh(robot, robot.home)[0, -1])
+    _, pitch, _ = tool_pose(fk_nominal(robot, robot.home)[0, -1])
     assert abs(np.degrees(pitch) - (-30 + 45 - 63.54 - 90)) < 1e-9
 
 
@@ -75,14 +75,14 @@ def test_pitch_roll_match_geometric_definition(name, u):
     offset5 on the front branch (tool point on joint 1's x side), + 180 deg on the back branch."""
     robot = _CACHE[name]
     q = robot.limits[:, 0] + np.array(u) * (robot.limits[:, 1] - robot.limits[:, 0])
-    F = fk_dh(robot, q)[0]
+    F = fk_nominal(robot, q)[0]
     p, z = F[-1, :3, 3], F[-1, :3, 2]
     assume(np.hypot(p[0], p[1]) > 1e-3)
     r_hat = np.array([p[0], p[1], 0.0]) / np.hypot(p[0], p[1])
     _, pitch, roll = tool_pose(F[-1])
     assert abs(_angle_diff(pitch, np.arctan2(z[2], z @ r_hat))) < 1e-12
     front = F[0, :3, 0] @ r_hat > 0  # DH x1 is the joint-1 direction
-    want_roll = q[4] + robot.dh_offset[4] + (0.0 if front else np.pi)
+    want_roll = q[4] + robot.dh.offset[4] + (0.0 if front else np.pi)
     assert abs(_angle_diff(roll, want_roll)) < 1e-9
 
 
@@ -177,7 +177,7 @@ def test_ik_branches_near_the_base_axis():
     # Roll on the back branch is theta5 + 180 deg.
     assert abs(_angle_diff(back[4], 0.3 - np.pi)) < 1e-12
     # Elbow-up: the elbow (DH frame 2 origin) lies above the shoulder->wrist line.
-    F = fk_dh(robot, back)[0]
+    F = fk_nominal(robot, back)[0]
     s, e, w = F[0, :3, 3], F[1, :3, 3], F[2, :3, 3]
     t = np.dot(e - s, w - s) / np.dot(w - s, w - s)
     assert e[2] > (s + t * (w - s))[2]
@@ -234,7 +234,7 @@ def test_out_of_reach_target_says_how_far():
     """Ground truth: the wrist centre (tool point - d5 * tool axis) at distance rho from the
     shoulder axis point; the arm reaches a2 + a3. Tool axis straight down (pitch -90 deg)."""
     robot = _CACHE["er4u-paper"]
-    a1, d1, a2, a3, d5 = robot.dh_a[0], robot.dh_d[0], robot.dh_a[1], robot.dh_a[2], robot.dh_d[4]
+    a1, d1, a2, a3, d5 = robot.dh.a[0], robot.dh.d[0], robot.dh.a[1], robot.dh.a[2], robot.dh.d[4]
     xyz = np.array([0.3, 0.4, 0.9])
     wrist = xyz + np.array([0, 0, d5])
     rho = np.hypot(np.hypot(wrist[0], wrist[1]) - a1, wrist[2] - d1)
@@ -264,10 +264,11 @@ def test_range_blocked_target_names_joint_and_range():
 def test_ik_rejects_other_structures():
     robot = _CACHE["er4u-paper"]
     check_er_structure(robot)
-    bad = dataclasses.replace(robot, dh_a=robot.dh_a + np.array([0, 0, 0, 0.01, 0]))
+    bad = with_dh(robot, dataclasses.replace(robot.dh, a=robot.dh.a + np.array([0, 0, 0, 0.01, 0])))
     with pytest.raises(IKStructureError, match=r"a4 = 10 mm must be 0"):
         ik(bad, np.array([0.3, 0.2, 0.2]), 0.0, 0.0)
-    bad = dataclasses.replace(robot, dh_alpha=robot.dh_alpha + np.array([0, 0.1, 0, 0, 0]))
+    dh = robot.dh
+    bad = with_dh(robot, dataclasses.replace(dh, alpha=dh.alpha + np.array([0, 0.1, 0, 0, 0])))
     with pytest.raises(IKStructureError, match="alpha2"):
         ik(bad, np.array([0.3, 0.2, 0.2]), 0.0, 0.0)
 
@@ -288,19 +289,19 @@ def test_ik_rejects_bad_target():
 def test_nearest_reachable_finds_reachable_point_and_respects_fixed_joints():
     robot = _CACHE["er4u-vendor"]
     q_true = np.array([30.0, 60.0, -40.0, -50.0, 10.0]) * DEG
-    p = fk_dh(robot, q_true)[0, -1, :3, 3]
+    p = fk_nominal(robot, q_true)[0, -1, :3, 3]
     q, dist = nearest_reachable(robot, p, {"pitch": q_true[3], 4: q_true[4]})
     assert dist < 1e-12
     assert q[3] == q_true[3] and q[4] == q_true[4]
     robot.check_joints(q)
-    np.testing.assert_allclose(fk_dh(robot, q)[0, -1, :3, 3], p, atol=1e-12)
+    np.testing.assert_allclose(fk_nominal(robot, q)[0, -1, :3, 3], p, atol=1e-12)
 
 
 def test_nearest_reachable_out_of_reach_distance_is_analytic():
     """All joints free, target far along +x at shoulder height: nearest point is the stretched arm,
     distance = |p - shoulder| - (a2 + a3 + d5) (the tool axis can align with the arm)."""
     robot = _CACHE["er4u-vendor"]
-    a1, d1, a2, a3, d5 = robot.dh_a[0], robot.dh_d[0], robot.dh_a[1], robot.dh_a[2], robot.dh_d[4]
+    a1, d1, a2, a3, d5 = robot.dh.a[0], robot.dh.d[0], robot.dh.a[1], robot.dh.a[2], robot.dh.d[4]
     p = np.array([1.0, 0.0, d1])
     q, dist = nearest_reachable(robot, p, {})
     assert dist == pytest.approx(1.0 - a1 - (a2 + a3 + d5), abs=1e-9)

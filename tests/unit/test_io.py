@@ -22,7 +22,7 @@ from calib.io.calibration import (
 )
 from calib.io.dataset import DatasetError, DatasetInfo, read_dataset_info, write_dataset_info
 from calib.io.truth import Truth, TruthFileError, read_truth, write_truth
-from calib.mcpc import MCPCModel, dh_to_mcpc
+from calib.mcpc import MCPCModel, nominal_mcpc
 from calib.robot_def import load_robot
 
 GOLDEN = Path(__file__).resolve().parents[1] / "golden"
@@ -46,7 +46,7 @@ def dataset_info() -> DatasetInfo:
 
 def truth() -> Truth:
     robot = load_robot("er4u-paper")
-    nom = dh_to_mcpc(robot).with_tool(robot.T_flange_cam)
+    nom = nominal_mcpc(robot).with_tool(robot.T_flange_cam)
     rng = np.random.default_rng(4)
     act = MCPCModel(nom.params + rng.normal(0, 1e-3, nom.params.shape), nom.joint_types,
                     nom.joint_offsets)  # fmt: skip

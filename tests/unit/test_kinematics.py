@@ -1,6 +1,6 @@
 """Kinematics acceptance tests: DH vs MCPC, identification Jacobian, gauge fixing, identifiability.
 
-Ground truth is the DH table itself (``fk_dh``), central finite differences, and chains of random
+Ground truth is the DH table itself (``fk_nominal``), central finite differences, and chains of random
 rigid transforms multiplied out directly. Tolerances are stated per test.
 """
 
@@ -14,8 +14,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from calib.kinematics import fk_dh, fk_frames, fk_tool, identification_jacobian, pose_error
-from calib.mcpc import MCPCModel, dh_to_mcpc, gauge_fix, minimal_indices
+from calib.kinematics import fk_frames, fk_nominal, fk_tool, identification_jacobian, pose_error
+from calib.mcpc import MCPCModel, gauge_fix, minimal_indices, nominal_mcpc
 from calib.robot_def import RobotDefinitionError, list_robots, load_robot
 from calib.tool_pose import tool_pose
 from calib.transforms import make_pose, rot_z
@@ -57,7 +57,7 @@ seeds = st.integers(min_value=0, max_value=2**32 - 1)
 
 def _check_same_robot(robot, model: MCPCModel, T_base: np.ndarray, T_tool: np.ndarray, q):
     """Tool frames equal (1e-12) and each MCPC link frame sits on the DH joint axis (1e-12)."""
-    dh = T_base @ fk_dh(robot, q)  # DH frames 1..n, in world
+    dh = T_base @ fk_nominal(robot, q)  # DH frames 1..n, in world
     mc = fk_frames(model, q)  # MCPC link frames F_1..F_n, then the tool
     np.testing.assert_allclose(mc[:, -1], dh[:, -1] @ T_tool, rtol=0, atol=1e-12)
     # Joint k's axis is the z-axis of DH frame k-1 (frame 0 = base).
@@ -75,7 +75,7 @@ def test_dh_and_mcpc_agree(seed, name):
     robot = _robot(name)
     rng = np.random.default_rng(seed)
     q = random_q(robot, rng, 8)
-    _check_same_robot(robot, dh_to_mcpc(robot), np.eye(4), np.eye(4), q)
+    _check_same_robot(robot, nominal_mcpc(robot), np.eye(4), np.eye(4), q)
 
 
 @SETTINGS
@@ -87,16 +87,16 @@ def test_dh_and_mcpc_agree_with_base_and_tool(seed, name):
     Tb, Tt = random_pose(rng, 1.0), random_pose(rng, 0.2)
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # a gimbal-lock warning from the Euler split would fail
-        _check_same_robot(robot, dh_to_mcpc(robot, Tb, Tt), Tb, Tt, q)
-        _check_same_robot(robot, dh_to_mcpc(robot).with_base(Tb).with_tool(Tt), Tb, Tt, q)
-        _check_same_robot(robot, dh_to_mcpc(robot).with_tool(Tt).with_base(Tb), Tb, Tt, q)
+        _check_same_robot(robot, nominal_mcpc(robot, Tb, Tt), Tb, Tt, q)
+        _check_same_robot(robot, nominal_mcpc(robot).with_base(Tb).with_tool(Tt), Tb, Tt, q)
+        _check_same_robot(robot, nominal_mcpc(robot).with_tool(Tt).with_base(Tb), Tb, Tt, q)
 
 
 def test_camera_tool_matches_dh(robot):
     q = random_q(robot, np.random.default_rng(1), 20)
-    model = dh_to_mcpc(robot).with_tool(robot.T_flange_cam)
+    model = nominal_mcpc(robot).with_tool(robot.T_flange_cam)
     np.testing.assert_allclose(
-        fk_tool(model, q), fk_dh(robot, q)[:, -1] @ robot.T_flange_cam, rtol=0, atol=1e-12
+        fk_tool(model, q), fk_nominal(robot, q)[:, -1] @ robot.T_flange_cam, rtol=0, atol=1e-12
     )
 
 
@@ -118,7 +118,7 @@ def _perturbed(model: MCPCModel, rng: np.random.Generator) -> MCPCModel:
 def test_identification_jacobian_matches_finite_differences(seed, name, camera):
     robot = _robot(name)
     rng = np.random.default_rng(seed)
-    model = dh_to_mcpc(robot)
+    model = nominal_mcpc(robot)
     if camera:
         model = model.with_tool(robot.T_flange_cam)
     model = _perturbed(model, rng)
@@ -182,7 +182,7 @@ def test_minimal_set_has_26_parameters(robot):
 @pytest.mark.parametrize("camera", [False, True])
 def test_minimal_jacobian_has_full_rank(robot, camera):
     """26 minimal columns over 30 random postures: rank 26; all 36 columns: still rank 26."""
-    model = dh_to_mcpc(robot)
+    model = nominal_mcpc(robot)
     if camera:
         model = model.with_tool(robot.T_flange_cam)
     q = random_q(robot, np.random.default_rng(7), 30)
@@ -206,7 +206,7 @@ def test_vendor_home_pose():
     robot = load_robot("er4u-vendor")
     q = np.array([0.0, 120.28, -95.02, -88.81, 0.0]) * DEG
     np.testing.assert_allclose(robot.home, q, atol=1e-12)
-    T = fk_tool(dh_to_mcpc(robot), q)[0]
+    T = fk_tool(nominal_mcpc(robot), q)[0]
     xyz, pitch, roll = tool_pose(T)
     np.testing.assert_allclose(xyz * 1000, [169.1, 0.0, 504.2], atol=0.5)
     assert abs(np.degrees(pitch) - (-63.5)) < 0.1
@@ -237,4 +237,4 @@ def test_out_of_range_joint_names_joint_and_range():
 
 def test_fk_rejects_wrong_joint_count(robot):
     with pytest.raises(ValueError, match=r"shape \(m, 5\)"):
-        fk_frames(dh_to_mcpc(robot), np.zeros((3, 4)))
+        fk_frames(nominal_mcpc(robot), np.zeros((3, 4)))

@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from calib.ik import ik_nearest, nearest_reachable
-from calib.kinematics import fk_dh, fk_frames
-from calib.mcpc import dh_to_mcpc
+from calib.kinematics import fk_frames, fk_nominal
+from calib.mcpc import nominal_mcpc
 from calib.robot_def import load_robot
 from calib.tool_pose import tool_pose
 from scenarios.paper_data import TABLE_I_THETA_DEG, TABLE_II_MM, TABLE_II_THETA4_DEG
@@ -30,9 +30,9 @@ def robot():
 
 
 def test_table_one_dh_matches_the_model(robot):
-    np.testing.assert_allclose(np.degrees(robot.dh_alpha), [90, 0, 0, 90, 0])
-    np.testing.assert_allclose(robot.dh_a * 1000, [101.25, 220, 220, 0, 0])
-    np.testing.assert_allclose(robot.dh_d * 1000, [334.25, 0, 0, 0, 137.35])
+    np.testing.assert_allclose(np.degrees(robot.dh.alpha), [90, 0, 0, 90, 0])
+    np.testing.assert_allclose(robot.dh.a * 1000, [101.25, 220, 220, 0, 0])
+    np.testing.assert_allclose(robot.dh.d * 1000, [334.25, 0, 0, 0, 137.35])
     np.testing.assert_allclose(np.degrees(robot.home), TABLE_I_THETA_DEG)
 
 
@@ -40,9 +40,9 @@ def test_table_one_posture_gives_table_two_row_one(robot):
     """FK at Table I's theta column puts the tool point at Table II row 1 within 0.1 mm (the
     table prints 0.1 mm; the model gives (315.618, 247.921, 190.251) mm)."""
     q = TABLE_I_THETA_DEG * DEG
-    for T in (fk_frames(dh_to_mcpc(robot), q)[0, -1], fk_dh(robot, q)[0, -1]):
+    for T in (fk_frames(nominal_mcpc(robot), q)[0, -1], fk_nominal(robot, q)[0, -1]):
         np.testing.assert_allclose(T[:3, 3] * 1000, TABLE_II_MM[0], atol=0.1)
-    _, pitch, roll = tool_pose(fk_dh(robot, q)[0, -1])
+    _, pitch, roll = tool_pose(fk_nominal(robot, q)[0, -1])
     assert abs(np.degrees(pitch) - (-138.54)) < 1e-9  # Cartesian pitch, not -63.54
     assert abs(roll) < 1e-12
 
@@ -51,7 +51,7 @@ def _fixed_wrist_reach(robot, theta4: float) -> tuple[float, float]:
     """With joint 4 fixed at ``theta4`` the elbow-to-tool vector is rigid. In frame 3 it is
     ``(a3 + d5 sin theta4, -d5 cos theta4)`` (elbow at (-a3, 0), tool at A4(theta4) Tz(d5)).
     Returns its length L and the elbow angle theta3 that aligns it with the upper arm."""
-    a3, d5 = robot.dh_a[2], robot.dh_d[4]
+    a3, d5 = robot.dh.a[2], robot.dh.d[4]
     v = np.array([a3 + d5 * np.sin(theta4), -d5 * np.cos(theta4)])
     return float(np.hypot(*v)), float(-np.arctan2(v[1], v[0]))
 
@@ -69,7 +69,7 @@ def test_table_two_with_joint_four_fixed(robot):
     x-difference between rows 1 and 2). The paper's Table II is therefore inconsistent with its own
     Table I model: its row 2 cannot be reached with the printed pitch theta4 = -63.54 deg.
     """
-    a1, d1, a2 = robot.dh_a[0], robot.dh_d[0], robot.dh_a[1]
+    a1, d1, a2 = robot.dh.a[0], robot.dh.d[0], robot.dh.a[1]
     fixed = {3: THETA4, 4: THETA5}
     L, th3_stretch = _fixed_wrist_reach(robot, THETA4)
     for i, p_mm in enumerate(TABLE_II_MM):
@@ -77,14 +77,16 @@ def test_table_two_with_joint_four_fixed(robot):
         q, dist = nearest_reachable(robot, p, fixed)
         robot.check_joints(q)
         assert q[3] == THETA4 and q[4] == THETA5
-        np.testing.assert_allclose(np.linalg.norm(fk_dh(robot, q)[0, -1, :3, 3] - p), dist, atol=0)
+        np.testing.assert_allclose(
+            np.linalg.norm(fk_nominal(robot, q)[0, -1, :3, 3] - p), dist, atol=0
+        )
         rho = np.hypot(np.hypot(p[0], p[1]) - a1, p[2] - d1)
         if i == 1:
             # Analytic witness: the stretched posture aimed at row 2, checked to be in range.
             th2 = np.arctan2(p[2] - d1, np.hypot(p[0], p[1]) - a1)
             q_star = np.array([np.arctan2(p[1], p[0]), th2, th3_stretch, THETA4, THETA5])
             robot.check_joints(q_star)
-            tip = fk_dh(robot, q_star)[0, -1, :3, 3]
+            tip = fk_nominal(robot, q_star)[0, -1, :3, 3]
             analytic = rho - (a2 + L)
             assert np.linalg.norm(tip - p) == pytest.approx(analytic, abs=1e-12)
             assert dist == pytest.approx(analytic, abs=1e-9)  # numeric optimum = analytic, 1e-6 mm
@@ -97,11 +99,11 @@ def test_table_two_with_joint_four_fixed(robot):
 def test_table_two_with_cartesian_pitch_of_row_one(robot):
     """Holding instead the Cartesian tool pitch and roll that FK gives at Table I's posture
     (-138.54 deg, 0), all five rows have an in-range IK solution that reproduces them."""
-    _, pitch, roll = tool_pose(fk_dh(robot, robot.home)[0, -1])
+    _, pitch, roll = tool_pose(fk_nominal(robot, robot.home)[0, -1])
     for p_mm in TABLE_II_MM:
         q = ik_nearest(robot, p_mm / 1000, pitch, roll)
         robot.check_joints(q)
-        xyz, p2, r2 = tool_pose(fk_dh(robot, q)[0, -1])
+        xyz, p2, r2 = tool_pose(fk_nominal(robot, q)[0, -1])
         np.testing.assert_allclose(xyz * 1000, p_mm, atol=1e-6)
         assert abs(p2 - pitch) < 1e-9 and abs(r2 - roll) < 1e-9
         # The branch nearest home is Table I's elbow configuration (theta3 within 10 deg of 45).

@@ -15,7 +15,7 @@ import pytest
 from calib.camera import project
 from calib.estimation.kinematic_poses import KinematicPoses
 from calib.estimation.pose_models import RigPoses
-from calib.mcpc import dh_to_mcpc, minimal_indices
+from calib.mcpc import minimal_indices, nominal_mcpc
 from calib.observations import Observations
 from calib.robot_def import load_robot
 from calib.selfcal import self_calibrate
@@ -68,7 +68,7 @@ def test_kinematic_poses_jacobian(n_cameras):
     rng = np.random.default_rng(3)
     robot = load_robot("er4u-paper")
     base = make_pose(rot_x(0.3)[:3, :3], [0.1, -0.2, 0.05])
-    model = dh_to_mcpc(robot, base, robot.T_flange_cam)
+    model = nominal_mcpc(robot, base, robot.T_flange_cam)
     idx = minimal_indices(model.joint_types)
     q = rng.uniform(-1.0, 1.0, (3, model.n))
     rig1 = pose_from_vec(np.r_[0.01, -0.02, 0.005, -0.06, 0.001, 0.002])

@@ -5,7 +5,7 @@ import pytest
 
 from calib.camera import Intrinsics, Rig
 from calib.kinematics import fk_tool
-from calib.mcpc import dh_to_mcpc
+from calib.mcpc import nominal_mcpc
 from calib.robot_def import load_robot
 from calib.trajectory import (
     DegenerateTrajectoryError,
@@ -30,7 +30,7 @@ def field_points(n=20, seed=0):
 
 def test_planned_postures_are_in_range_and_see_the_target():
     robot = load_robot("er4u-paper")
-    model = dh_to_mcpc(robot).with_tool(robot.T_flange_cam)
+    model = nominal_mcpc(robot).with_tool(robot.T_flange_cam)
     pts, nrm = field_points()
     T_lr = trans(np.array([0.06, 0.0, 0.0]))
     rig = Rig.stereo(INTR, T_lr)
@@ -47,7 +47,7 @@ def test_planned_postures_are_in_range_and_see_the_target():
 
 def test_impossible_visibility_is_an_error():
     robot = load_robot("er4u-paper")
-    model = dh_to_mcpc(robot).with_tool(robot.T_flange_cam)
+    model = nominal_mcpc(robot).with_tool(robot.T_flange_cam)
     pts = np.array([[-2.0, -2.0, 0.0]])  # behind the robot, far away
     with pytest.raises(DegenerateTrajectoryError, match="min_markers"):
         plan_postures(

@@ -1,0 +1,216 @@
+"""A URDF's serial chain from a base link to a tool link, as the fixed transforms of
+:mod:`calib.robot_chain` (parsed with yourdfpy; meshes are not loaded).
+
+Each moving joint ``k`` of the path has its origin ``O_k`` (parent link -> joint frame) and a unit
+axis ``a_k`` in the joint frame; the child link is ``O_k Rot(a_k, q_k)``. With ``R_k`` the rotation
+taking z onto ``a_k``, ``Rot(a_k, q) = R_k Rz(q) R_k^T``, so the chain's fixed transforms are
+``G_0 = F_0 O_1 R_1``, ``G_k = R_k^T F_k O_{k+1} R_{k+1}`` and ``G_n = R_n^T F_n`` where ``F_k`` is
+the product of the fixed joints between moving joints k and k + 1 (and after the last one, up to
+the tool link). A prismatic joint slides along ``a_k`` the same way.
+
+Choosing the links when a URDF is given without names (:func:`urdf_chain` with None): the base is
+the URDF's root link; the tool is the leaf link reached through the most moving joints. When
+several leaves tie (e.g. two gripper fingers) the call fails and asks for ``tool_link``.
+
+Joints: ``revolute`` and ``prismatic`` (limits from ``<limit>``), ``continuous`` (revolute with
+limits +-360 deg), ``fixed`` (folded into ``G``). A ``floating`` or ``planar`` joint, or a mimic
+joint, in the chain is refused.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from calib.errors import InputError
+from calib.transforms import inv_pose
+
+__all__ = ["UrdfError", "UrdfChain", "urdf_chain", "urdf_home", "CONTINUOUS_LIMIT"]
+
+CONTINUOUS_LIMIT = 2 * np.pi
+"""Range (+-, rad) given to a URDF ``continuous`` joint."""
+
+
+class UrdfError(InputError):
+    """A URDF that does not describe a usable serial chain between the named links."""
+
+
+@dataclass(frozen=True, eq=False)
+class UrdfChain:
+    """The moving joints between ``base_link`` and ``tool_link`` of a URDF (SI units).
+
+    Attributes:
+        name: the URDF's robot name.
+        base_link, tool_link: the chain's ends (the chain's base and flange frames).
+        joint_names, joint_types: per moving joint (``"revolute"`` or ``"prismatic"``).
+        limits: (n, 2) joint ranges (rad or m).
+        chain: (n + 1, 4, 4) the fixed transforms ``G_0 .. G_n`` (m).
+    """
+
+    name: str
+    base_link: str
+    tool_link: str
+    joint_names: tuple[str, ...]
+    joint_types: tuple[str, ...]
+    limits: np.ndarray
+    chain: np.ndarray
+
+
+def _z_onto(axis: np.ndarray) -> np.ndarray:
+    """4x4 rotation taking the z axis onto the unit vector ``axis``."""
+    z = np.array([0.0, 0.0, 1.0])
+    c = np.cross(z, axis)
+    s, cos = np.linalg.norm(c), float(z @ axis)
+    T = np.eye(4)
+    if s < 1e-15:
+        if cos < 0:
+            T[:3, :3] = np.diag([1.0, -1.0, -1.0])  # Rx(pi)
+        return T
+    T[:3, :3] = Rotation.from_rotvec(c / s * np.arctan2(s, cos)).as_matrix()
+    return T
+
+
+def _load(path: Path):
+    import yourdfpy  # heavy (trimesh); only needed when a URDF is read
+
+    try:
+        return yourdfpy.URDF.load(
+            str(path),
+            build_scene_graph=False,
+            load_meshes=False,
+            build_collision_scene_graph=False,
+            load_collision_meshes=False,
+        ).robot
+    except Exception as exc:  # yourdfpy raises lxml, ValueError, ... on malformed files
+        raise UrdfError(
+            f"{path}: not a readable URDF ({type(exc).__name__}: {exc})",
+            fix=f"check that {path} is a valid URDF (XML with <robot>, <link> and <joint>)",
+        ) from exc
+
+
+def _default_links(path: Path, joints: list, links: list[str]) -> tuple[str, str]:
+    children = {j.child for j in joints}
+    roots = [name for name in links if name not in children]
+    if len(roots) != 1:
+        raise UrdfError(
+            f"{path}: {len(roots)} root links ({', '.join(roots)}); cannot choose the base link",
+            fix="name base_link and tool_link in a robot TOML's [urdf] table",
+        )
+    parents = {j.parent for j in joints}
+    by_child = {j.child: j for j in joints}
+    depth = {}
+    for leaf in (name for name in links if name not in parents):
+        k, link = 0, leaf
+        while link in by_child:
+            k += by_child[link].type != "fixed"
+            link = by_child[link].parent
+        depth[leaf] = k
+    best = max(depth.values())
+    tools = sorted(name for name, k in depth.items() if k == best)
+    if len(tools) != 1:
+        raise UrdfError(
+            f"{path}: the leaf links {', '.join(tools)} all end {best} moving joints from the "
+            "root; cannot choose the tool link",
+            fix="name base_link and tool_link in a robot TOML's [urdf] table",
+        )
+    return roots[0], tools[0]
+
+
+def urdf_chain(
+    path: str | Path, *, base_link: str | None = None, tool_link: str | None = None
+) -> UrdfChain:
+    """The serial chain of the URDF ``path`` from ``base_link`` to ``tool_link`` (defaults: the
+    module docstring).
+
+    Raises:
+        UrdfError: unreadable file, a link that does not exist, a tool link not below the base
+            link, a floating or planar joint or a mimic joint in the chain, a zero joint axis, or
+            a revolute/prismatic joint without a valid ``<limit>``.
+    """
+    path = Path(path)
+    robot = _load(path)
+    joints = list(robot.joints)
+    links = [link.name for link in robot.links]
+    if base_link is None or tool_link is None:
+        b, t = _default_links(path, joints, links)
+        base_link = b if base_link is None else base_link
+        tool_link = t if tool_link is None else tool_link
+    for key, link in (("base_link", base_link), ("tool_link", tool_link)):
+        if link not in links:
+            raise UrdfError(
+                f"{path}: no link named {link!r} (links: {', '.join(links)})",
+                fix=f"set [urdf] {key} to one of the URDF's link names",
+            )
+    by_child = {j.child: j for j in joints}
+    path_joints, link = [], tool_link
+    while link != base_link:
+        if link not in by_child:
+            raise UrdfError(
+                f"{path}: link {tool_link!r} is not below link {base_link!r}",
+                fix="set [urdf] base_link to an ancestor of tool_link",
+            )
+        path_joints.append(by_child[link])
+        link = by_child[link].parent
+    path_joints.reverse()
+    G, names, types, limits = [], [], [], []
+    T = np.eye(4)
+    for j in path_joints:
+        origin = np.eye(4) if j.origin is None else np.asarray(j.origin, dtype=float)
+        if j.type == "fixed":
+            T = T @ origin
+            continue
+        where = f"{path}: joint {j.name!r}"
+        if j.type in ("floating", "planar"):
+            raise UrdfError(
+                f"{where} is {j.type}: a serial arm's chain needs revolute, continuous, "
+                "prismatic or fixed joints",
+                fix=f"choose base_link/tool_link so that the chain avoids {j.name!r}",
+            )
+        if j.mimic is not None:
+            raise UrdfError(
+                f"{where} mimics joint {j.mimic.joint!r}: coupled joints are not supported",
+                fix=f"end the chain (tool_link) before {j.name!r} or make it independent",
+            )
+        axis = np.array([1.0, 0.0, 0.0]) if j.axis is None else np.asarray(j.axis, float)
+        if not np.linalg.norm(axis) > 0:
+            raise UrdfError(f"{where}: zero joint axis", fix=f"give {j.name!r} a unit <axis>")
+        R = _z_onto(axis / np.linalg.norm(axis))
+        G.append(T @ origin @ R)
+        T = inv_pose(R)
+        names.append(str(j.name))
+        if j.type == "continuous":
+            types.append("revolute")
+            limits.append((-CONTINUOUS_LIMIT, CONTINUOUS_LIMIT))
+            continue
+        types.append("revolute" if j.type == "revolute" else "prismatic")
+        lim = j.limit
+        lo = None if lim is None else lim.lower
+        hi = None if lim is None else lim.upper
+        if lo is None or hi is None or not float(lo) < float(hi):
+            raise UrdfError(
+                f"{where}: needs <limit lower=... upper=...> with lower < upper",
+                fix=f"add the joint range to {j.name!r} in {path}",
+            )
+        limits.append((float(lo), float(hi)))
+    G.append(T)
+    return UrdfChain(
+        name=str(robot.name),
+        base_link=base_link,
+        tool_link=tool_link,
+        joint_names=tuple(names),
+        joint_types=tuple(types),
+        limits=np.array(limits, dtype=float).reshape(-1, 2),
+        chain=np.array(G),
+    )
+
+
+def urdf_home(joint_types: tuple[str, ...], limits: np.ndarray) -> np.ndarray:
+    """Home posture (deg for revolute, mm for prismatic joints, like ``home_deg``) of a robot
+    loaded straight from a URDF: joint value 0, or the middle of the range where 0 is outside."""
+    lim = np.asarray(limits, dtype=float)
+    q = np.where((lim[:, 0] <= 0) & (lim[:, 1] >= 0), 0.0, lim.mean(axis=1))
+    unit = np.array([180 / np.pi if t == "revolute" else 1000.0 for t in joint_types])
+    return q * unit
