@@ -1,0 +1,133 @@
+"""Robots from a URDF (calib.robot_urdf through load_robot).
+
+Ground truth: the same arm written independently in modified DH (models/robots/kr6-r900.toml) and
+in URDF (tests/data/kr6_r900.urdf, joint axes along x and y, extra fixed frames).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from calib.errors import InputError
+from calib.kinematics import fk_frames, fk_nominal
+from calib.mcpc import nominal_mcpc
+from calib.robot_def import RobotDefinitionError, load_robot
+from calib.robot_urdf import CONTINUOUS_LIMIT, UrdfError
+
+DATA = Path(__file__).resolve().parents[1] / "data"
+URDF = DATA / "kr6_r900.urdf"
+
+
+def _q(robot, m=100, seed=0):
+    return np.random.default_rng(seed).uniform(robot.limits[:, 0], robot.limits[:, 1], (m, robot.n))
+
+
+@pytest.mark.parametrize("source", [DATA / "kr6_urdf.toml", URDF])
+def test_urdf_and_modified_dh_give_the_same_arm(source):
+    """Flange poses equal at 100 random postures (achieved 8e-16 m; tolerance 1e-14), and the
+    MCPC model built from the URDF equals them too; joint ranges equal."""
+    mdh, urdf = load_robot("kr6-r900"), load_robot(source)
+    assert urdf.convention == "urdf" and urdf.dh is None and urdf.joint_types == mdh.joint_types
+    np.testing.assert_allclose(urdf.limits, mdh.limits, rtol=0, atol=1e-15)
+    q = _q(mdh)
+    want = fk_nominal(mdh, q)[:, -1]
+    assert np.abs(fk_nominal(urdf, q)[:, -1] - want).max() < 1e-14
+    assert np.abs(fk_frames(nominal_mcpc(urdf), q)[:, -1] - want).max() < 1e-14
+
+
+def test_a_toml_beside_the_urdf_adds_home_and_camera():
+    mdh, urdf = load_robot("kr6-r900"), load_robot(DATA / "kr6_urdf.toml")
+    assert urdf.name == "kr6-urdf" and urdf.joint_names[0] == "joint_a1"
+    np.testing.assert_allclose(urdf.home, mdh.home)
+    np.testing.assert_allclose(urdf.T_flange_cam, mdh.T_flange_cam)
+
+
+def test_direct_urdf_defaults():
+    """Root link as base, the leaf six moving joints away (tool0, not the fixed leaf "base") as
+    tool; home at joint zero; the camera at the flange."""
+    robot = load_robot(URDF)
+    assert robot.name == "kr6_r900" and "base_link -> tool0" in robot.description
+    np.testing.assert_array_equal(robot.home, np.zeros(6))
+    np.testing.assert_array_equal(robot.T_flange_cam, np.eye(4))
+
+
+def _variant(tmp_path, old, new, toml_extra=None):
+    text = URDF.read_text()
+    assert old in text
+    p = tmp_path / "arm.urdf"
+    p.write_text(text.replace(old, new))
+    if toml_extra is None:
+        return p
+    t = (DATA / "kr6_urdf.toml").read_text().replace('file = "kr6_r900.urdf"', 'file = "arm.urdf"')
+    for key, value in toml_extra.items():
+        t = t.replace(f'{key} = "{"base_link" if key == "base_link" else "tool0"}"', value)
+    tp = tmp_path / "arm.toml"
+    tp.write_text(t)
+    return tp
+
+
+def test_continuous_joint_is_revolute_with_wide_limits(tmp_path):
+    p = _variant(
+        tmp_path,
+        '<joint name="joint_a6" type="revolute">',
+        '<joint name="joint_a6" type="continuous">',
+    )
+    robot = load_robot(p)
+    assert robot.joint_types[5] == "revolute"
+    np.testing.assert_array_equal(robot.limits[5], [-CONTINUOUS_LIMIT, CONTINUOUS_LIMIT])
+
+
+_A3 = '<joint name="joint_a3" type="revolute">'
+_A3_LIMIT = '<limit lower="-2.0943951023931953" upper="2.722713633111154"'
+
+
+@pytest.mark.parametrize(
+    "old,new,links,match,fix",
+    [
+        (_A3, _A3.replace("revolute", "floating"), {}, r"joint 'joint_a3' is floating", "joint_a3"),
+        (_A3, _A3.replace("revolute", "planar"), {}, r"joint 'joint_a3' is planar", "joint_a3"),
+        (_A3_LIMIT, '<mimic joint="joint_a2"/>' + _A3_LIMIT, {},
+         r"joint 'joint_a3' mimics joint 'joint_a2'", "joint_a3"),
+        ("", "", {"tool_link": 'tool_link = "tool9"'},
+         r"no link named 'tool9' \(links: base_link,", "[urdf] tool_link"),
+        ("", "", {"base_link": 'base_link = "link_3"', "tool_link": 'tool_link = "link_1"'},
+         r"link 'link_1' is not below link 'link_3'", "[urdf] base_link"),
+    ],
+)  # fmt: skip
+def test_bad_chains_are_refused_with_a_fix(tmp_path, old, new, links, match, fix):
+    p = _variant(tmp_path, old, new, toml_extra=links or None)
+    with pytest.raises(UrdfError, match=r"arm.urdf: " + match) as exc:
+        load_robot(p)
+    assert fix in exc.value.fix
+
+
+def test_too_few_joints_is_refused(tmp_path):
+    p = _variant(tmp_path, "", "", toml_extra={"tool_link": 'tool_link = "link_2"'})
+    (tmp_path / "arm.toml").write_text(
+        (tmp_path / "arm.toml")
+        .read_text()
+        .replace("home_deg = [35.0, -77.0, 113.0, 0.0, 54.0, 0.0]", "")
+    )
+    with pytest.raises(RobotDefinitionError, match=r"arm.toml: 2 joints; a robot needs 3 to 7"):
+        load_robot(p)
+
+
+def test_ambiguous_tool_link_asks_for_a_name(tmp_path):
+    extra = (
+        '<link name="camera_link"/>\n  <joint name="link_6-camera" type="fixed">\n'
+        '    <parent link="link_6"/>\n    <child link="camera_link"/>\n  </joint>\n</robot>'
+    )
+    p = _variant(tmp_path, "</robot>", extra)
+    with pytest.raises(UrdfError, match=r"leaf links camera_link, tool0 all end 6 moving") as exc:
+        load_robot(p)
+    assert "tool_link" in exc.value.fix
+
+
+def test_unreadable_urdf(tmp_path):
+    p = tmp_path / "broken.urdf"
+    p.write_text("solid cube\nfacet normal 0 0 1\n")
+    with pytest.raises(InputError, match="broken.urdf: not a readable URDF"):
+        load_robot(p)
