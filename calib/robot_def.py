@@ -32,6 +32,8 @@ __all__ = [
     "RobotDef",
     "DHParams",
     "SimulationGains",
+    "MjcfSettings",
+    "MJCF_SHAPES",
     "with_dh",
     "load_robot",
     "list_robots",
@@ -81,6 +83,54 @@ class SimulationGains:
     armature: np.ndarray
 
 
+MJCF_SHAPES = ("capsules", "scorbot")
+"""Link geometry of a generated MuJoCo model: simple capsules between the joint frames (any arm),
+or the SCORBOT's hand-made layout (turret, beams, wrist, gripper)."""
+
+
+@dataclass(frozen=True)
+class MjcfSettings:
+    """Where and how ``python -m sim.build_models`` writes a robot's MuJoCo files (``[mjcf]``).
+
+    Attributes:
+        folder: ``models/<folder>/`` holds ``<name>.xml``.
+        title: the robot's name in the scene file's comment.
+        scene: this robot's folder also gets ``scene.xml`` (the robot over the default marker
+            field) and the picture.
+        picture: file name of the rendered picture in the folder, or None.
+        shapes: link geometry, one of :data:`MJCF_SHAPES`.
+    """
+
+    folder: str
+    title: str
+    scene: bool = False
+    picture: str | None = None
+    shapes: str = "capsules"
+
+
+def _mjcf(table: object, where: str, name: str) -> MjcfSettings | None:
+    if table is None:
+        return None
+    if not isinstance(table, dict) or "folder" not in table:
+        raise RobotDefinitionError(
+            f"{where} needs the key 'folder'", fix=f'add folder = "<dir under models/>" to {where}'
+        )
+    shapes = table.get("shapes", "capsules")
+    if shapes not in MJCF_SHAPES:
+        raise RobotDefinitionError(
+            f"{where}: shapes must be one of {MJCF_SHAPES}, got {shapes!r}",
+            fix=f'set shapes = "capsules" in {where}',
+        )
+    picture = table.get("picture")
+    return MjcfSettings(
+        folder=str(table["folder"]),
+        title=str(table.get("title", name)),
+        scene=bool(table.get("scene", False)),
+        picture=None if picture is None else str(picture),
+        shapes=str(shapes),
+    )
+
+
 @dataclass(frozen=True)
 class RobotDef:
     """Nominal kinematics of a serial robot, SI units.
@@ -106,6 +156,7 @@ class RobotDef:
         simulation: actuator gains and armature for the MuJoCo model (``[simulation]``).
         encoder: the controller's encoder table (``[encoder]``, :mod:`calib.robot_encoder`), or
             ``None`` for a robot without encoder data.
+        mjcf: the generated MuJoCo files' settings (``[mjcf]``), or None when none are committed.
     """
 
     name: str
@@ -121,6 +172,7 @@ class RobotDef:
     planning_span: np.ndarray
     simulation: SimulationGains
     encoder: EncoderSpec | None = None
+    mjcf: MjcfSettings | None = None
 
     @property
     def n(self) -> int:
@@ -362,6 +414,7 @@ def _assemble(path: Path, data: dict, kin: _Kinematics, T_flange_cam: np.ndarray
         planning_span=planning_span * unit_vec,
         simulation=gains,
         encoder=encoder,
+        mjcf=_mjcf(data.get("mjcf"), f"{path}: [mjcf]", str(data.get("name", path.stem))),
     )
     try:
         robot.check_joints(robot.home)

@@ -23,7 +23,6 @@ keeps 6 significant digits), so the committed model reproduces the MCPC frames t
 from __future__ import annotations
 
 import argparse
-import sys
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
@@ -37,11 +36,6 @@ from sim.link_frames import nominal_camera_model
 from sim.markers import MarkerField, make_marker_field, marker_texture_rgb
 from sim.robot_mjcf import RigConfig, robot_spec
 from sim.scene import PIXELS_PER_MODULE, scene_spec
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
 
 __all__ = [
     "MjcfEntry",
@@ -73,25 +67,13 @@ class MjcfEntry:
 
 
 def mjcf_entries() -> list[MjcfEntry]:
-    """Every robot in ``models/robots`` whose file has an ``[mjcf]`` table (sorted by name)."""
+    """Every robot in ``models/robots`` whose file has an ``[mjcf]`` table (sorted by name), read
+    through :func:`calib.robot_def.load_robot` (``RobotDef.mjcf``)."""
     out = []
     for name in list_robots():
-        path = models_dir() / "robots" / f"{name}.toml"
-        table = tomllib.loads(path.read_text()).get("mjcf")
-        if table is None:
-            continue
-        try:
-            out.append(
-                MjcfEntry(
-                    name=name,
-                    folder=models_dir() / str(table["folder"]),
-                    scene=bool(table.get("scene", False)),
-                    picture=table.get("picture"),
-                    title=str(table.get("title", name)),
-                )
-            )
-        except KeyError as exc:
-            raise RobotDefinitionError(f"{path}: [mjcf] needs the key {exc}") from exc
+        m = load_robot(name).mjcf
+        if m is not None:
+            out.append(MjcfEntry(name, models_dir() / m.folder, m.scene, m.picture, m.title))
     scenes = [e for e in out if e.scene]
     if len({e.folder for e in scenes}) != len(scenes):
         raise RobotDefinitionError(
@@ -216,16 +198,22 @@ def scene_xml(
     )
 
 
+def _folder(entry: MjcfEntry, out_dir: Path | None) -> Path:
+    return (
+        entry.folder if out_dir is None else Path(out_dir) / entry.folder.relative_to(models_dir())
+    )
+
+
 def write_models(out_dir: Path | None = None) -> list[Path]:
     """Write every robot's XML file (robots with an ``[mjcf]`` table), the marker textures and
-    ``scene.xml`` into ``models/<folder>/`` (or all into ``out_dir``, for a check).
+    ``scene.xml`` into ``models/<folder>/`` (or ``out_dir/<folder>/``, for a check).
 
     Returns the paths written (the picture is separate: :func:`render_picture`).
     """
     written: list[Path] = []
     field = make_marker_field()
     for e in mjcf_entries():
-        folder = Path(out_dir) if out_dir is not None else e.folder
+        folder = _folder(e, out_dir)
         folder.mkdir(parents=True, exist_ok=True)
         p = folder / f"{e.name}.xml"
         p.write_text(robot_xml(e.name))
@@ -294,7 +282,10 @@ def main(argv: list[str] | None = None) -> int:
     """CLI: ``python -m sim.build_models [--out DIR] [--no-picture]``."""
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument(
-        "--out", type=Path, default=None, help="write everything here (default: models/<folder>/)"
+        "--out",
+        type=Path,
+        default=None,
+        help="write into DIR/<folder>/ (default: models/<folder>/)",
     )
     ap.add_argument("--no-picture", action="store_true", help="skip rendering the pictures")
     args = ap.parse_args(argv)
@@ -302,7 +293,7 @@ def main(argv: list[str] | None = None) -> int:
     if not args.no_picture:
         for e in mjcf_entries():
             if e.scene and e.picture:
-                folder = args.out if args.out is not None else e.folder
+                folder = _folder(e, args.out)
                 written.append(render_picture(folder / "scene.xml", folder / e.picture))
     for p in written:
         print(f"wrote {p}")

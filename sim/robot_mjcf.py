@@ -18,8 +18,10 @@ Layout (like a MuJoCo Menagerie arm):
   it relative to the last link); under injected errors the rig (camera + tip) moves relative to it;
 - position actuators ``<joint name>`` (ctrlrange = joint range) and a keyframe ``home``.
 
-The shapes are laid out from the chain itself (``sim.robot_shapes``, geoms through
-``sim.mjcf_geoms``); the body poses come from ``sim.link_frames``. Self-collisions are off
+The shapes are laid out from the chain itself (geoms through ``sim.mjcf_geoms``): the robot
+file's ``[mjcf] shapes`` picks the SCORBOT's hand-made layout (``"scorbot"``, ``sim.robot_shapes``)
+or simple capsules between the joint frames for any arm (``"capsules"``, the default,
+``sim.capsule_shapes``); the body poses come from ``sim.link_frames``. Self-collisions are off
 (collision geoms have ``contype=2, conaffinity=1``: they touch the table but not each other);
 inertias come from the collision shapes at a nominal density (approximate).
 """
@@ -35,6 +37,7 @@ from calib.camera import Intrinsics
 from calib.mcpc import MCPCModel
 from calib.robot_def import RobotDef
 from calib.transforms import inv_pose, trans
+from sim.capsule_shapes import link_radius, shape_capsule_base, shape_capsule_links
 from sim.link_frames import flange_in_last_link, link_body_names, link_body_poses, next_joint
 from sim.markers import MarkerField
 from sim.mj_camera import add_camera
@@ -121,9 +124,15 @@ def add_robot(spec: mujoco.MjSpec, robot: RobotDef, model: MCPCModel, rig: RigCo
     poses = link_body_poses(model)
 
     base = spec.worldbody.add_body(name="base")
-    p1, _ = next_joint(model, 0)
-    h_base = float(np.clip(0.3 * p1[2], 0.04, 0.12))
-    shape_base(b, base, model, h_base)
+    scorbot = robot.mjcf is not None and robot.mjcf.shapes == "scorbot"
+    T_link_flange = flange_in_last_link(robot, model)
+    r_link = link_radius(model, T_link_flange)
+    if scorbot:
+        p1, _ = next_joint(model, 0)
+        h_base = float(np.clip(0.3 * p1[2], 0.04, 0.12))
+        shape_base(b, base, model, h_base)
+    else:
+        shape_capsule_base(b, base, model, r_link)
 
     parent = base
     links = []
@@ -146,21 +155,23 @@ def add_robot(spec: mujoco.MjSpec, robot: RobotDef, model: MCPCModel, rig: RigCo
         parent = body
 
     # shapes, from the kinematics
-    shape_turret(b, links[0], model, h_base)
-    if n >= 2:
-        shape_arm(b, links[1], model, 1, width=0.036, height=0.03, r_joint=0.048)
-    if n >= 3:
-        shape_arm(b, links[2], model, 2, width=0.03, height=0.026, r_joint=0.042)
-    if n >= 4:
-        shape_wrist(b, links[3], model, 3)
-
     T_cam_tip = inv_pose(robot.T_flange_cam)
     V_n = poses[n]
-    tip_in_link = (V_n @ T_cam_tip)[:3, 3]
-    shape_hand(b, links[-1], tip_in_link, V_n[:3, 3])
+    if scorbot:
+        shape_turret(b, links[0], model, h_base)
+        if n >= 2:
+            shape_arm(b, links[1], model, 1, width=0.036, height=0.03, r_joint=0.048)
+        if n >= 3:
+            shape_arm(b, links[2], model, 2, width=0.03, height=0.026, r_joint=0.042)
+        if n >= 4:
+            shape_wrist(b, links[3], model, 3)
+        tip_in_link = (V_n @ T_cam_tip)[:3, 3]
+        shape_hand(b, links[-1], tip_in_link, V_n[:3, 3])
+    else:
+        shape_capsule_links(b, links, model, T_link_flange, r_link)
 
     flange = links[-1].add_site(name=FLANGE_SITE)
-    set_pose(flange, flange_in_last_link(robot, model))
+    set_pose(flange, T_link_flange)
     flange.size = [0.004, 0.0, 0.0]
     flange.group = 4
 
