@@ -83,7 +83,7 @@ class SimulationGains:
     armature: np.ndarray
 
 
-MJCF_SHAPES = ("capsules", "scorbot")
+MJCF_SHAPES = ("capsules", "turret")
 """Link geometry of a generated MuJoCo model: simple capsules between the joint frames (any arm),
 or the SCORBOT's hand-made layout (turret, beams, wrist, gripper)."""
 

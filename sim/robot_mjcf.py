@@ -19,7 +19,7 @@ Layout (like a MuJoCo Menagerie arm):
 - position actuators ``<joint name>`` (ctrlrange = joint range) and a keyframe ``home``.
 
 The shapes are laid out from the chain itself (geoms through ``sim.mjcf_geoms``): the robot
-file's ``[mjcf] shapes`` picks the SCORBOT's hand-made layout (``"scorbot"``, ``sim.robot_shapes``)
+file's ``[mjcf] shapes`` picks the SCORBOT's hand-made layout (``"turret"``, ``sim.robot_shapes``)
 or simple capsules between the joint frames for any arm (``"capsules"``, the default,
 ``sim.capsule_shapes``); the body poses come from ``sim.link_frames``. Self-collisions are off
 (collision geoms have ``contype=2, conaffinity=1``: they touch the table but not each other);
@@ -124,10 +124,10 @@ def add_robot(spec: mujoco.MjSpec, robot: RobotDef, model: MCPCModel, rig: RigCo
     poses = link_body_poses(model)
 
     base = spec.worldbody.add_body(name="base")
-    scorbot = robot.mjcf is not None and robot.mjcf.shapes == "scorbot"
+    turret = robot.mjcf is not None and robot.mjcf.shapes == "turret"
     T_link_flange = flange_in_last_link(robot, model)
     r_link = link_radius(model, T_link_flange)
-    if scorbot:
+    if turret:
         p1, _ = next_joint(model, 0)
         h_base = float(np.clip(0.3 * p1[2], 0.04, 0.12))
         shape_base(b, base, model, h_base)
@@ -157,7 +157,7 @@ def add_robot(spec: mujoco.MjSpec, robot: RobotDef, model: MCPCModel, rig: RigCo
     # shapes, from the kinematics
     T_cam_tip = inv_pose(robot.T_flange_cam)
     V_n = poses[n]
-    if scorbot:
+    if turret:
         shape_turret(b, links[0], model, h_base)
         if n >= 2:
             shape_arm(b, links[1], model, 1, width=0.036, height=0.03, r_joint=0.048)
