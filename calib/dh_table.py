@@ -1,4 +1,11 @@
-"""Standard-DH equivalent of an MCPC model, and the world-independent base frame on axes 1 and 2.
+"""DH table of an MCPC model in the robot's own convention, and the world-independent base frame.
+
+The table is standard DH for a robot given in standard DH and modified DH (Craig) for one given in
+modified DH; a URDF robot has none. Both come from one construction on the identified joint axes:
+the common normals of consecutive axes. The modified table is the standard one shifted by a row
+(``alpha_{i-1}, a_{i-1}`` of the modified row i are ``alpha_{i-1}, a_{i-1}`` of the standard row
+i - 1, since ``Rx`` and ``Tx`` commute), so a modified-DH robot is handled through its standard
+"view" (:func:`standard_view`).
 
 DH is discontinuous at parallel consecutive axes; where a model is near that, no table is returned
 and the reason names the joints (the MCPC parameters stay the continuous description).
@@ -13,11 +20,18 @@ import numpy as np
 
 from calib.errors import SelfCalWarning
 from calib.kinematics import fk_frames
-from calib.mcpc import MCPCModel
-from calib.robot_def import RobotDef
+from calib.mcpc import MCPCModel, nominal_mcpc
+from calib.robot_def import DHParams, RobotDef
 from calib.transforms import inv_pose, make_pose, rot_x, rot_z, trans
 
-__all__ = ["DHNotRepresentableWarning", "DHTable", "to_dh", "dh_table", "canonical_base"]
+__all__ = [
+    "DHNotRepresentableWarning",
+    "DHTable",
+    "to_dh",
+    "dh_table",
+    "canonical_base",
+    "standard_view",
+]
 
 
 class DHNotRepresentableWarning(SelfCalWarning):
@@ -26,15 +40,18 @@ class DHNotRepresentableWarning(SelfCalWarning):
 
 @dataclass(frozen=True)
 class DHTable:
-    """Standard-DH equivalent of an MCPC model (SI units).
+    """DH or modified-DH equivalent of an MCPC model (SI units).
 
     ``T_world_cam(q) = T_world_base @ prod_i A_i(q_i) @ T_flange_tool`` with
-    ``A_i = Rz(q_i + offset_i) Tz(d_i) Tx(a_i) Rx(alpha_i)``.
+    ``A_i = Rz(q_i + offset_i) Tz(d_i) Tx(a_i) Rx(alpha_i)`` (``convention = "dh"``) or
+    ``A_i = Rx(alpha_i) Tx(a_i) Rz(q_i + offset_i) Tz(d_i)`` (``"mdh"``: row i holds
+    ``alpha_{i-1}, a_{i-1}``).
 
     Attributes:
-        offset, d, a, alpha: (n,) DH rows (rad, m, m, rad).
-        T_world_base: DH frame 0 in the model's world frame.
-        T_flange_tool: the tool (camera) in the last DH frame.
+        offset, d, a, alpha: (n,) rows (rad, m, m, rad).
+        T_world_base: (DH or Craig's) frame 0 in the model's world frame.
+        T_flange_tool: the tool (camera) in the last frame (the flange).
+        convention: ``"dh"`` or ``"mdh"``.
     """
 
     offset: np.ndarray
@@ -43,6 +60,11 @@ class DHTable:
     alpha: np.ndarray
     T_world_base: np.ndarray
     T_flange_tool: np.ndarray
+    convention: str = "dh"
+
+    def params(self) -> DHParams:
+        """The rows as :class:`calib.robot_chain.DHParams` (for :func:`calib.robot_chain.dh_frames`)."""
+        return DHParams(self.convention, self.alpha, self.a, self.d, self.offset)
 
     def rows(self) -> list[tuple[float, float, float, float]]:
         """``[(offset, d, a, alpha), ...]`` per joint (rad, m, m, rad)."""
@@ -67,8 +89,10 @@ def to_dh(
     *,
     parallel_tol_deg: float = 1.0,
     exact_parallel_rad: float = 1e-9,
+    convention: str | None = None,
 ) -> DHTable | None:
-    """The standard-DH table equivalent to ``model`` (revolute joints), or None where none is sound.
+    """The DH table equivalent to ``model`` (revolute joints) in ``convention`` (default: the
+    robot's own, ``robot.convention``), or None where none is sound.
 
     Frames follow the usual construction on the joint axes at ``q = 0``: ``z_i`` = axis ``i + 1``,
     ``x_i`` along the common normal of axes ``i`` and ``i + 1`` (sign chosen closest to the nominal
@@ -77,23 +101,55 @@ def to_dh(
     see the module docstring), the last frame is the nominal last row on top of frame ``n - 1``, and
     the remainder goes to ``T_flange_tool``. For exactly parallel consecutive axes (angle below
     ``exact_parallel_rad``) the common normal is taken through the previous origin (``d_i = 0``).
+    A modified-DH table is the same construction on the robot's standard view
+    (:func:`standard_view`), shifted by a row; its first row keeps the nominal ``alpha_0, a_0``.
 
     Parallel axes: DH is discontinuous there. For two axes at a small angle ``theta`` the common
     normal lies at a distance ~ (offset) / theta along the axes, so ``d`` jumps from 0 to huge values
     and back as ``theta`` passes through zero: a 0.01 deg misalignment of the SCORBOT's parallel
     joints 2, 3, 4 cannot be written as a small DH change. Such models return ``None`` and a
     :class:`DHNotRepresentableWarning` naming the joints and the angle; the MCPC ``beta`` (like
-    Hayati's parameter) is the continuous description.
+    Hayati's parameter) is the continuous description. A URDF robot has no table: None and a
+    warning saying so.
 
     Raises:
         ValueError: prismatic joints (not supported) or a joint count different from ``robot``'s.
     """
     table, why = dh_table(
-        model, robot, parallel_tol_deg=parallel_tol_deg, exact_parallel_rad=exact_parallel_rad
+        model,
+        robot,
+        parallel_tol_deg=parallel_tol_deg,
+        exact_parallel_rad=exact_parallel_rad,
+        convention=convention,
     )
     if why is not None:
         warnings.warn(why, DHNotRepresentableWarning, stacklevel=2)
     return table
+
+
+NO_TABLE_FOR_URDF = (
+    "the robot is described by a URDF, not a DH table, so none is given; the MCPC parameters and "
+    "the URDF / MJCF exports describe the calibrated chain"
+)
+
+
+def standard_view(robot: RobotDef) -> tuple[DHParams, np.ndarray] | None:
+    """The robot's table as standard DH, and standard frame 0 in the robot's base frame.
+
+    Standard DH: the table itself and the identity. Modified DH: rows ``offset_i, d_i`` with
+    ``a_i, alpha_i`` of modified row ``i + 1`` (zero for the last row), frame 0 at
+    ``Rx(alpha_0) Tx(a_0)`` -- the same chain, since ``Rx`` and ``Tx`` commute. None for a URDF
+    robot.
+    """
+    dh = robot.dh
+    if dh is None:
+        return None
+    if dh.convention == "dh":
+        return dh, np.eye(4)
+    view = DHParams(
+        "dh", np.append(dh.alpha[1:], 0.0), np.append(dh.a[1:], 0.0), dh.d.copy(), dh.offset.copy()
+    )
+    return view, rot_x(dh.alpha[0]) @ trans(np.array([dh.a[0], 0.0, 0.0]))
 
 
 def dh_table(
@@ -102,18 +158,68 @@ def dh_table(
     *,
     parallel_tol_deg: float = 1.0,
     exact_parallel_rad: float = 1e-9,
+    convention: str | None = None,
 ) -> tuple[DHTable | None, str | None]:
     """:func:`to_dh` without the warning: ``(table, None)``, or ``(None, why)`` naming the
-    nearly parallel joints and their angle when no sound DH table exists.
+    nearly parallel joints and their angle when no sound DH table exists, or saying that a URDF
+    robot has none. ``convention``: ``"dh"`` or ``"mdh"`` (default: the robot's own).
 
     Raises:
-        ValueError: prismatic joints (not supported) or a joint count different from ``robot``'s.
+        ValueError: prismatic joints (not supported), a joint count different from ``robot``'s or
+            an unknown convention.
     """
-    out = _dh_impl(model, robot, parallel_tol_deg, exact_parallel_rad, frame0_only=False)
+    view = standard_view(robot)
+    if view is None:
+        return None, NO_TABLE_FOR_URDF
+    convention = robot.convention if convention is None else convention
+    if convention not in ("dh", "mdh"):
+        raise ValueError(f"convention must be 'dh' or 'mdh', got {convention!r}")
+    nominal, frame0 = view
+    out = _dh_impl(model, nominal, parallel_tol_deg, exact_parallel_rad)
     if isinstance(out, str):
         return None, out
-    assert isinstance(out, DHTable)
-    return out, None
+    if convention == "dh":
+        return out, None
+    if robot.dh is not None and robot.dh.convention == "mdh":
+        first = (robot.dh.alpha[:1], robot.dh.a[:1])
+    else:  # a standard-DH robot asked for a modified table: Craig's frame 0 = DH frame 0
+        first, frame0 = (np.zeros(1), np.zeros(1)), np.eye(4)
+    return (
+        DHTable(
+            offset=out.offset,
+            d=out.d,
+            a=np.concatenate([first[1], out.a[:-1]]),
+            alpha=np.concatenate([first[0], out.alpha[:-1]]),
+            T_world_base=out.T_world_base @ inv_pose(frame0),
+            T_flange_tool=_last_frame_shift(out) @ out.T_flange_tool,
+            convention="mdh",
+        ),
+        None,
+    )
+
+
+def _last_frame_shift(table: DHTable) -> np.ndarray:
+    """Standard frame n -> Craig's frame n: undo the last standard row's ``Tx(a_n) Rx(alpha_n)``
+    (zero for a modified-DH robot's view)."""
+    return trans(np.array([table.a[-1], 0.0, 0.0])) @ rot_x(table.alpha[-1])
+
+
+def _axes_frame(model: MCPCModel, parallel_tol_deg: float) -> np.ndarray:
+    """The frame on axes 1 and 2 at q = 0 (world, m): z = axis 1, x = the unit common normal
+    ``z_1 x z_2``, origin = the normal's foot on axis 1."""
+    F = fk_frames(model, np.zeros((1, model.n)))[0]
+    z1, z2, p1, p2 = F[0, :3, 2], F[1, :3, 2], F[0, :3, 3], F[1, :3, 3]
+    c = np.cross(z1, z2)
+    s = float(np.linalg.norm(c))
+    if s < np.sin(np.radians(parallel_tol_deg)):
+        raise ValueError(
+            f"axes of joints 1 and 2 are {np.degrees(np.arcsin(min(s, 1.0))):.4g} deg from "
+            f"parallel (< {parallel_tol_deg} deg): their common normal is undefined"
+        )
+    b, w0 = z1 @ z2, p1 - p2
+    t = (b * (z2 @ w0) - z1 @ w0) / (1.0 - b * b)
+    x = c / s
+    return make_pose(np.column_stack([x, np.cross(z1, x), z1]), p1 + t * z1)
 
 
 def canonical_base(
@@ -121,42 +227,47 @@ def canonical_base(
 ) -> np.ndarray:
     """``T_world_base`` of a world-independent frame attached to the robot's first two axes.
 
-    z = joint 1's axis; x and the origin are those of DH frame 0 as in :func:`to_dh` (from the
-    common normal of axes 1 and 2 at q = 0, with the nominal ``offset_1`` and ``d_1``). Expressing
-    a model there, ``express_in_frame(model, inv_pose(canonical_base(model, robot)), like=ref)``,
-    removes the world gauge: the resulting parameters no longer depend on the measurement frame,
-    so models identified in different reconstruction frames can be compared one to one (what is
-    lost is exactly what is unobservable with an unknown scene: joint 1's zero and the height of
-    the base along axis 1). Needs axes 1 and 2 not nearly parallel (true for the SCORBOT).
+    The frame on the model's axes 1 and 2 (z = axis 1, x along their common normal, origin at its
+    foot on axis 1) composed with the inverse of the same frame of the NOMINAL robot in its base
+    frame: for the nominal robot it IS the nominal base frame (for a DH robot DH frame 0, with the
+    nominal ``offset_1`` and ``d_1``), for an identified one the same construction on the measured
+    axes -- for any robot description. Expressing a model there,
+    ``express_in_frame(model, inv_pose(canonical_base(model, robot)), like=ref)``, removes the
+    world gauge: the resulting parameters no longer depend on the measurement frame, so models
+    identified in different reconstruction frames can be compared one to one (what is lost is
+    exactly what is unobservable with an unknown scene: joint 1's zero and the height of the base
+    along axis 1). Needs axes 1 and 2 not nearly parallel (true for the SCORBOT and 6-axis arms).
 
     Raises:
         ValueError: prismatic joints, or axes 1 and 2 nearly parallel.
     """
-    out = _dh_impl(model, robot, parallel_tol_deg, 1e-9, frame0_only=True)
-    if isinstance(out, str):
-        raise ValueError(f"no canonical base frame: {out}")
-    return out.T_world_base if isinstance(out, DHTable) else out
+    if any(t != "revolute" for t in model.joint_types[:2]):
+        raise ValueError("no canonical base frame: joints 1 and 2 must be revolute")
+    nominal = _axes_frame(nominal_mcpc(robot), parallel_tol_deg)
+    try:
+        return _axes_frame(model, parallel_tol_deg) @ inv_pose(nominal)
+    except ValueError as exc:
+        raise ValueError(f"no canonical base frame: {exc}") from exc
 
 
 def _dh_impl(
     model: MCPCModel,
-    robot: RobotDef,
+    nominal: DHParams,
     parallel_tol_deg: float,
     exact_parallel_rad: float,
-    frame0_only: bool,
-) -> DHTable | np.ndarray | str:
-    """The DH table (or, ``frame0_only``, DH frame 0 as ``T_world_base``), or the reason why
-    none exists (a string naming the nearly parallel axes)."""
+) -> DHTable | str:
+    """The standard-DH table, or the reason why none exists (a string naming the nearly parallel
+    axes). ``nominal``: the robot's standard-DH rows (free choices and signs follow them)."""
     if any(t != "revolute" for t in model.joint_types):
         raise ValueError("to_dh supports revolute joints only")
     n = model.n
-    if robot.n != n:
-        raise ValueError(f"model has {n} joints, robot {robot.name} has {robot.n}")
+    if nominal.n != n:
+        raise ValueError(f"model has {n} joints, the robot's table {nominal.n}")
     F = fk_frames(model, np.zeros((1, n)))[0]
     z = [F[k, :3, 2] for k in range(n)]  # axis k+1 direction
     p = [F[k, :3, 3] for k in range(n)]  # a point on axis k+1
     tol = np.sin(np.radians(parallel_tol_deg))
-    for k in range(1 if frame0_only else n - 1):
+    for k in range(n - 1):
         s = np.linalg.norm(np.cross(z[k], z[k + 1]))
         if np.sin(exact_parallel_rad) <= s < tol:
             return (
@@ -195,9 +306,9 @@ def _dh_impl(
 
     def closeness(r: tuple[float, float, float, float], i: int) -> float:
         return (
-            abs(_wrap(r[0] - robot.dh.offset[i]))
-            + abs(_wrap(r[3] - robot.dh.alpha[i]))
-            + abs(r[2] - robot.dh.a[i]) / 0.1
+            abs(_wrap(r[0] - nominal.offset[i]))
+            + abs(_wrap(r[3] - nominal.alpha[i]))
+            + abs(r[2] - nominal.a[i]) / 0.1
         )
 
     offs, ds, as_, als = [], [], [], []
@@ -208,15 +319,13 @@ def _dh_impl(
     for sgn in (1.0, -1.0):
         xi = sgn * x1
         # x0: xi rotated about z0 by -offset_1 (Rodrigues), so row 1 has the nominal offset
-        c, s_ = np.cos(-robot.dh.offset[0]), np.sin(-robot.dh.offset[0])
+        c, s_ = np.cos(-nominal.offset[0]), np.sin(-nominal.offset[0])
         x0 = c * xi + s_ * np.cross(z0, xi) + (1 - c) * (z0 @ xi) * z0
-        o0 = foot - robot.dh.d[0] * z0
+        o0 = foot - nominal.d[0] * z0
         first.append((row(x0, z0, o0, xi, z[1], foot, o1), x0, o0, xi, o1))
     # the closer of the two signs to the nominal row (the first on a tie)
     r, x0, o0, x_prev, o_prev = min(first, key=lambda c: closeness(c[0], 0))
     T_world_base = make_pose(np.column_stack([x0, np.cross(z0, x0), z0]), o0)
-    if frame0_only:
-        return T_world_base
     offs.append(r[0])
     ds.append(r[1])
     as_.append(r[2])
@@ -235,10 +344,10 @@ def _dh_impl(
         as_.append(r[2])
         als.append(r[3])  # noqa: E702
     # last row: nominal, on top of frame n-1
-    offs.append(float(robot.dh.offset[-1]))
-    ds.append(float(robot.dh.d[-1]))
-    as_.append(float(robot.dh.a[-1]))
-    als.append(float(robot.dh.alpha[-1]))
+    offs.append(float(nominal.offset[-1]))
+    ds.append(float(nominal.d[-1]))
+    as_.append(float(nominal.a[-1]))
+    als.append(float(nominal.alpha[-1]))
     T_prev = make_pose(np.column_stack([x_prev, np.cross(z_prev, x_prev), z_prev]), o_prev)
     A_n = (
         rot_z(offs[-1])

@@ -5,12 +5,13 @@ an MCPC chain whose *world* is the reconstruction frame (the left camera at one 
 trajectory) and whose *tool* is the left camera (OpenCV frame). Neither is what a user commands.
 :func:`deploy` re-expresses the same physical chain as
 
-- world = the robot's **base frame**: DH frame 0 of the *identified* joint axes 1 and 2
-  (:func:`calib.dh_table.canonical_base`): z along joint 1's axis (pointing like the nominal
-  base z), the origin on that axis at the nominal height ``d_1`` below the common normal of axes 1
-  and 2, x such that DH row 1 has the nominal ``offset_1`` at joint reading 0. For the nominal
-  robot this IS the nominal base frame; for the identified robot it is the same construction on
-  the measured axes. It is fixed by the arm alone (no scene, no camera), so every calibration of
+- world = the robot's **base frame**, built on the *identified* joint axes 1 and 2
+  (:func:`calib.dh_table.canonical_base`): the frame on their common normal, placed relative to it
+  as the nominal base frame is on the nominal axes. For a DH robot that is DH frame 0: z along
+  joint 1's axis, the origin on that axis at the nominal height ``d_1`` below the common normal
+  of axes 1 and 2, x such that DH row 1 has the nominal ``offset_1`` at joint reading 0; for a
+  modified-DH or URDF robot its own base frame. For the nominal robot this IS the nominal base
+  frame; for the identified robot it is the same construction on the measured axes. It is fixed by the arm alone (no scene, no camera), so every calibration of
   the same arm gives the same frame up to estimation error. What it cannot carry is exactly what a
   camera looking at an unknown scene cannot observe: where the base sits on the user's table
   (azimuth of joint 1's zero and base height relative to a workcell) -- register that separately;
@@ -28,7 +29,8 @@ Exports of a :class:`DeployedModel` (pure functions returning text; MJCF is in
 
 - :func:`calib.export_toml.to_toml` / :func:`calib.export_toml.from_toml`: parameter table
   (mm / deg) that round-trips to the model, with standard deviations from the calibration and the
-  DH table where one exists;
+  DH table in the robot's own convention (standard or modified DH; none for a URDF robot) where
+  one exists;
 - :func:`calib.export_urdf.to_urdf`: links ``base_link``, ``link1..link<n>``, ``tool_tip``,
   ``cam_left``, ``cam_right``, revolute joints named like the robot's joints (the MJCF's), full
   float precision.
@@ -143,8 +145,9 @@ class DeployedModel:
         return fk_frames(self.model, q)[:, -1]
 
     def dh(self, robot: RobotDef) -> tuple[DHTable | None, str | None]:
-        """``(DHTable, None)`` for this chain, or ``(None, reason)`` when no sound DH table exists
-        (nearly parallel consecutive axes; :func:`calib.dh_table.dh_table`)."""
+        """``(DHTable, None)`` for this chain in the robot's own convention (standard or modified
+        DH), or ``(None, reason)`` when no sound table exists (nearly parallel consecutive axes)
+        or the robot comes from a URDF (:func:`calib.dh_table.dh_table`)."""
         return dh_table(self.model, robot)
 
 

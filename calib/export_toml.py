@@ -62,7 +62,7 @@ def to_toml(dep: DeployedModel, robot: RobotDef | None = None) -> str:
     precision: these define the model), ``[[parameters]]`` (the minimal identifiable set with the
     nominal value, the deviation and the calibration's std), ``[tool_camera]`` (left camera in the
     tool-tip frame), ``[base_in_reconstruction]``, ``[camera]`` (intrinsics, rig) and ``[dh]`` (the
-    DH table, or a note why there is none).
+    DH table in the robot's own convention, standard or modified DH, or a note why there is none).
     """
     robot = load_robot(dep.robot_name) if robot is None else robot
     m = dep.model
@@ -146,12 +146,25 @@ def to_toml(dep: DeployedModel, robot: RobotDef | None = None) -> str:
             L += ["[camera.T_left_right]  # right camera in the left camera's frame"]
             L += _pose_lines(dep.T_left_right) + [""]
     dh, note = dep.dh(robot)
-    L.append("[dh]  # standard DH, A_i = Rz(q_i + theta_offset_i) Tz(d_i) Tx(a_i) Rx(alpha_i)")
     if dh is None:
+        L.append("[dh]  # the DH table in the robot's own convention (DH or modified DH)")
         L.append(f"note = {_s(f'no DH table: {note}')}")
         L.append("")
+    elif dh.convention == "mdh":
+        L.append(
+            "[dh]  # modified DH (Craig), A_i = Rx(alpha_{i-1}) Tx(a_{i-1}) Rz(q_i + "
+            "theta_offset_i) Tz(d_i); row i holds alpha_{i-1} and a_{i-1}"
+        )
+        L.append('convention = "mdh"')
+        L.append(
+            "note = "
+            + _s("T_world_base = frame 0 in the base frame; T_flange_tool = tool tip in frame n")
+        )
     else:
+        L.append("[dh]  # standard DH, A_i = Rz(q_i + theta_offset_i) Tz(d_i) Tx(a_i) Rx(alpha_i)")
+        L.append('convention = "dh"')
         L.append("note = " + _s("DH frame 0 = the base frame; T_flange_tool = tool tip in frame n"))
+    if dh is not None:
         rows = ", ".join(
             f"{{theta_offset_deg = {_f(o * deg)}, d_mm = {_f(d * 1000)}, a_mm = {_f(a * 1000)}, "
             f"alpha_deg = {_f(al * deg)}}}"
@@ -159,6 +172,9 @@ def to_toml(dep: DeployedModel, robot: RobotDef | None = None) -> str:
         )
         L.append(f"rows = [{rows}]")
         L.append("")
+        if dh.convention == "mdh":
+            L.append("[dh.T_world_base]")
+            L += _pose_lines(dh.T_world_base) + [""]
         L.append("[dh.T_flange_tool]")
         L += _pose_lines(dh.T_flange_tool) + [""]
     return "\n".join(L)

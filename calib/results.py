@@ -115,9 +115,10 @@ def hand_eye(model: MCPCModel, robot: RobotDef) -> HandEye:
 
 
 def dh_rows(model: MCPCModel, robot: RobotDef) -> tuple[tuple[DHRow, ...] | None, str | None]:
-    """The standard-DH table of ``model`` in mm / deg, or ``(None, why)`` when none is sound
+    """The standard-DH table of ``model`` in mm / deg (for a modified-DH robot too), or
+    ``(None, why)`` when none is sound or the robot comes from a URDF
     (:func:`calib.dh_table.dh_table`)."""
-    table, why = dh_table(model, robot)
+    table, why = dh_table(model, robot, convention="dh")
     if table is None:
         return None, why or "not representable"
     rows = tuple(
