@@ -10,17 +10,19 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from scipy.spatial.transform import Rotation
 
+from calib.dh_table import dh_table
 from calib.kinematics import fk_frames, fk_nominal
 from calib.mcpc import nominal_mcpc
-from calib.robot_chain import DHParams, chain_frames, dh_chain
-from calib.robot_def import RobotDefinitionError, list_robots, load_robot, models_dir
-from calib.transforms import rot_x, rot_z, trans
+from calib.robot_chain import DHParams, chain_frames, dh_chain, dh_frames
+from calib.robot_def import RobotDefinitionError, list_robots, load_robot, models_dir, with_dh
+from calib.transforms import make_pose, rot_x, rot_z, trans
 
 DEG = np.pi / 180
 
 
-def _q(robot, rng, m):
+def _q(robot, m, rng):
     return rng.uniform(robot.limits[:, 0], robot.limits[:, 1], (m, robot.n))
 
 
@@ -29,7 +31,7 @@ def test_nominal_mcpc_reproduces_the_description(name):
     """MCPC tool pose = the table's flange, and every MCPC joint frame lies on the table's joint
     axis, at 50 random postures (achieved 2.2e-16 m; tolerance 1e-14, a few dozen roundings)."""
     robot = load_robot(name)
-    q = _q(robot, np.random.default_rng(0), 50)
+    q = _q(robot, 50, np.random.default_rng(0))
     own = fk_nominal(robot, q)
     mcpc = fk_frames(nominal_mcpc(robot), q)
     assert np.abs(mcpc[:, -1] - own[:, -1]).max() < 1e-14
@@ -88,7 +90,7 @@ def test_kr6_home_matches_the_datasheet_dimensions():
     np.testing.assert_allclose(F[5, :3, 3] * 1000, [25 + 420 + 80, 0, 890], atol=1e-9)
     np.testing.assert_allclose(F[5, :3, 2], [1, 0, 0], atol=1e-12)
     # spherical wrist: axes 4, 5, 6 meet in the wrist centre at any posture
-    q = _q(robot, np.random.default_rng(1), 20)
+    q = _q(robot, 20, np.random.default_rng(1))
     W = fk_nominal(robot, q)
     assert np.abs(W[:, 4, :3, 3] - W[:, 3, :3, 3]).max() < 1e-12
 
@@ -115,3 +117,40 @@ def test_joint_count_outside_3_to_7_is_refused(tmp_path, n):
     p.write_text(row * n + mount)
     with pytest.raises(RobotDefinitionError, match=f"arm.toml: {n} joints; a robot needs 3 to 7"):
         load_robot(p)
+
+
+def _with_tilted_last_row(robot):
+    """A standard-DH robot whose last row has a non-zero a and alpha (the flange off the last
+    axis): exercises the shift between the standard and Craig's last frame."""
+    dh = robot.dh
+    return with_dh(
+        robot, DHParams("dh", np.r_[dh.alpha[:-1], 0.3], np.r_[dh.a[:-1], 0.02], dh.d, dh.offset)
+    )
+
+
+@pytest.mark.parametrize("convention", ["dh", "mdh"])
+@pytest.mark.parametrize("name", [*list_robots(), "er4u-paper+tilted-flange"])
+def test_dh_table_in_either_convention_reproduces_the_model(name, convention):
+    """Every table robot, placed at a random pose with its lengths perturbed by +-1 mm (axes keep
+    their directions, so parallel axes stay parallel): the table's own product, with its base and
+    tool transforms, gives the model's tool pose (tolerance 1e-12 m, achieved ~1e-15); the nominal
+    model in its own convention gives back the file's rows (1e-12)."""
+    robot = load_robot(name.split("+")[0])
+    if name.endswith("+tilted-flange"):
+        robot = _with_tilted_last_row(robot)
+    rng = np.random.default_rng(7)
+    T_w = make_pose(Rotation.from_rotvec(rng.normal(size=3)).as_matrix(), rng.uniform(-1, 1, 3))
+    model = nominal_mcpc(robot, T_w, robot.T_flange_cam)
+    p = model.params.copy()
+    p[:, 3:5] += rng.uniform(-1e-3, 1e-3, (robot.n + 1, 2)) * (p[:, 3:5] != 0)
+    model = model.with_params(p)
+    table, why = dh_table(model, robot, convention=convention)
+    assert why is None and table.convention == convention
+    q = _q(robot, 20, rng)
+    F = dh_frames(table.params(), robot.joint_types, q)[:, -1]
+    got = table.T_world_base @ F @ table.T_flange_tool
+    assert np.abs(got - fk_frames(model, q)[:, -1]).max() < 1e-12
+    if convention == robot.convention:
+        own, _ = dh_table(nominal_mcpc(robot), robot)
+        for k in ("alpha", "a", "d", "offset"):
+            assert np.abs(getattr(own, k) - getattr(robot.dh, k)).max() < 1e-12, k
