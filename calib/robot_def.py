@@ -88,6 +88,10 @@ MJCF_SHAPES = ("capsules", "turret")
 or the SCORBOT's hand-made layout (turret, beams, wrist, gripper)."""
 
 
+DEFAULT_PICTURE_VIEW = (0.3, 0.2, 0.2, 1.0, -60.0, -18.0)
+"""Overview camera of a robot picture whose ``[mjcf]`` table has no ``picture_view``."""
+
+
 @dataclass(frozen=True)
 class MjcfSettings:
     """Where and how ``python -m sim.build_models`` writes a robot's MuJoCo files (``[mjcf]``).
@@ -99,6 +103,8 @@ class MjcfSettings:
             field) and the picture.
         picture: file name of the rendered picture in the folder, or None.
         shapes: link geometry, one of :data:`MJCF_SHAPES`.
+        view: the picture's overview camera ``(lookat x, y, z (m), distance (m), azimuth (deg),
+            elevation (deg))`` (key ``picture_view``).
     """
 
     folder: str
@@ -106,6 +112,7 @@ class MjcfSettings:
     scene: bool = False
     picture: str | None = None
     shapes: str = "capsules"
+    view: tuple[float, ...] = DEFAULT_PICTURE_VIEW
 
 
 def _mjcf(table: object, where: str, name: str) -> MjcfSettings | None:
@@ -122,12 +129,22 @@ def _mjcf(table: object, where: str, name: str) -> MjcfSettings | None:
             fix=f'set shapes = "capsules" in {where}',
         )
     picture = table.get("picture")
+    try:
+        view = tuple(float(v) for v in table.get("picture_view", DEFAULT_PICTURE_VIEW))
+    except (TypeError, ValueError):
+        view = ()
+    if len(view) != 6 or not np.all(np.isfinite(view)):
+        raise RobotDefinitionError(
+            f"{where}: picture_view must be 6 numbers (lookat x, y, z m, distance m, azimuth deg, "
+            f"elevation deg), got {table.get('picture_view')!r}"
+        )
     return MjcfSettings(
         folder=str(table["folder"]),
         title=str(table.get("title", name)),
         scene=bool(table.get("scene", False)),
         picture=None if picture is None else str(picture),
         shapes=str(shapes),
+        view=view,
     )
 
 
@@ -257,12 +274,20 @@ def _resolve(name_or_path: str | Path) -> Path:
 
 def load_robot(name_or_path: str | Path) -> RobotDef:
     """Load a robot by name (``models/robots/<name>.toml``), from a robot TOML path, or from a URDF
-    path (``.urdf``: :func:`calib.robot_urdf.urdf_robot_defaults` says how the base and tool links,
-    the home posture and the camera mount are chosen then).
+    path.
+
+    A URDF alone: the chain runs from the root link to the leaf link reached through the most
+    moving joints (:mod:`calib.robot_urdf`; an ambiguous choice is an error asking for a robot TOML
+    with ``[urdf] base_link`` and ``tool_link``), the name is the file stem, home is joint value 0
+    (or the middle of a range that excludes 0, :func:`calib.robot_urdf.urdf_home`), the camera sits
+    at the flange (the tool link) looking along its z axis, and the tables a robot TOML may add
+    (encoder, planning, simulation, MJCF) take their defaults.
 
     Raises:
         RobotDefinitionError: unknown name (the message lists the known ones) or malformed file
             (the message names the file and the key).
+        calib.robot_urdf.UrdfError: a URDF without the named links, with a floating, planar or
+            mimic joint in the chain, or otherwise unusable (an :class:`InputError` too).
     """
     path = _resolve(name_or_path)
     if path.suffix == ".urdf":
@@ -356,7 +381,7 @@ def _urdf_kinematics(table: object, path: Path) -> _Kinematics:
 
 
 def _from_urdf_file(path: Path) -> RobotDef:
-    """A robot straight from a URDF file (:func:`calib.robot_urdf.urdf_robot_defaults`)."""
+    """A robot straight from a URDF file, with the defaults :func:`load_robot` describes."""
     ch = urdf_chain(path)
     kin = _Kinematics(ch.joint_names, ch.joint_types, ch.limits, ch.chain, None)
     data = {"name": path.stem, "description": f"{ch.name} (URDF {path.name}, {ch.base_link} -> "

@@ -31,7 +31,13 @@ import cv2
 import mujoco
 import numpy as np
 
-from calib.robot_def import RobotDefinitionError, list_robots, load_robot, models_dir
+from calib.robot_def import (
+    DEFAULT_PICTURE_VIEW,
+    RobotDefinitionError,
+    list_robots,
+    load_robot,
+    models_dir,
+)
 from sim.link_frames import nominal_camera_model
 from sim.markers import MarkerField, make_marker_field, marker_texture_rgb
 from sim.robot_mjcf import RigConfig, robot_spec
@@ -64,6 +70,7 @@ class MjcfEntry:
     scene: bool
     picture: str | None
     title: str
+    view: tuple[float, ...] = DEFAULT_PICTURE_VIEW
 
 
 def mjcf_entries() -> list[MjcfEntry]:
@@ -73,7 +80,9 @@ def mjcf_entries() -> list[MjcfEntry]:
     for name in list_robots():
         m = load_robot(name).mjcf
         if m is not None:
-            out.append(MjcfEntry(name, models_dir() / m.folder, m.scene, m.picture, m.title))
+            out.append(
+                MjcfEntry(name, models_dir() / m.folder, m.scene, m.picture, m.title, m.view)
+            )
     scenes = [e for e in out if e.scene]
     if len({e.folder for e in scenes}) != len(scenes):
         raise RobotDefinitionError(
@@ -234,9 +243,16 @@ def write_models(out_dir: Path | None = None) -> list[Path]:
     return written
 
 
-def render_picture(scene_path: Path, out_path: Path, width: int = 960, height: int = 720) -> Path:
+def render_picture(
+    scene_path: Path,
+    out_path: Path,
+    width: int = 960,
+    height: int = 720,
+    view: tuple[float, ...] = DEFAULT_PICTURE_VIEW,
+) -> Path:
     """Render the robot of ``scene_path`` at its ``home`` keyframe over the marker field, with the
-    left and right camera views underneath; writes a PNG to ``out_path``."""
+    left and right camera views underneath; writes a PNG to ``out_path``. ``view``: the overview
+    camera (lookat x, y, z in m, distance m, azimuth and elevation deg; ``[mjcf] picture_view``)."""
     model = mujoco.MjModel.from_xml_path(str(scene_path))
     model.vis.global_.offwidth = max(width, int(model.vis.global_.offwidth))
     model.vis.global_.offheight = max(height, int(model.vis.global_.offheight))
@@ -244,8 +260,8 @@ def render_picture(scene_path: Path, out_path: Path, width: int = 960, height: i
     mujoco.mj_resetDataKeyframe(model, data, model.key("home").id)
     mujoco.mj_forward(model, data)
     cam = mujoco.MjvCamera()
-    cam.lookat[:] = [0.3, 0.2, 0.2]
-    cam.distance, cam.azimuth, cam.elevation = 1.0, -60.0, -18.0
+    cam.lookat[:] = view[:3]
+    cam.distance, cam.azimuth, cam.elevation = view[3:6]
     with mujoco.Renderer(model, height, width) as r:
         r.update_scene(data, cam)
         main_img = r.render().copy()
@@ -294,7 +310,9 @@ def main(argv: list[str] | None = None) -> int:
         for e in mjcf_entries():
             if e.scene and e.picture:
                 folder = _folder(e, args.out)
-                written.append(render_picture(folder / "scene.xml", folder / e.picture))
+                written.append(
+                    render_picture(folder / "scene.xml", folder / e.picture, view=e.view)
+                )
     for p in written:
         print(f"wrote {p}")
     return 0
