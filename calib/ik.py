@@ -25,7 +25,7 @@ import numpy as np
 
 from calib.errors import InputError
 from calib.kinematics import fk_nominal
-from calib.robot_def import RobotDef
+from calib.robot_def import DHParams, RobotDef
 from calib.tool_pose import AXIS_EPS_M, pitch_roll, tool_rotation
 
 __all__ = [
@@ -118,6 +118,16 @@ def check_er_structure(robot: RobotDef) -> None:
         )
 
 
+def _table(robot: RobotDef) -> DHParams:
+    """The robot's standard-DH table, which the closed form reads (:func:`check_er_structure`)."""
+    if robot.dh is None or robot.dh.convention != "dh":
+        raise IKStructureError(
+            f"{robot.name}: the analytic IK needs a standard-DH table, the robot has a "
+            f"{robot.convention} description"
+        )
+    return robot.dh
+
+
 def _wrap_pi(a: float) -> float:
     w = (a + np.pi) % (2 * np.pi) - np.pi
     return w + 2 * np.pi if w <= -np.pi else w
@@ -172,10 +182,10 @@ def _branch_frames(robot: RobotDef, p: np.ndarray, pitch: float, reference: np.n
         az = float(np.arctan2(p[1], p[0]))
     else:  # on the base axis: the convention uses the arm's joint-1 direction
         ref = robot.home if reference is None else reference
-        az = float(ref[0] + robot.dh.offset[0])
+        az = float(ref[0] + _table(robot).offset[0])
     r_hat = np.array([np.cos(az), np.sin(az), 0.0])
     z_tool = np.cos(pitch) * r_hat + np.sin(pitch) * _UP
-    wrist = p - robot.dh.d[4] * z_tool
+    wrist = p - _table(robot).d[4] * z_tool
     return az, r_hat, wrist
 
 
@@ -183,7 +193,7 @@ def _planar(robot: RobotDef, q1: float, wrist: np.ndarray) -> tuple[float, float
     """Wrist centre in joint-1's frame: ``(x1, y1, reach excess (m, >= 0))``."""
     A1 = fk_nominal(robot, np.array([[q1, 0.0, 0.0, 0.0, 0.0]]))[0, 0]
     w1 = A1[:3, :3].T @ (wrist - A1[:3, 3])
-    a2, a3 = robot.dh.a[1], robot.dh.a[2]
+    a2, a3 = _table(robot).a[1], _table(robot).a[2]
     rho = np.hypot(w1[0], w1[1])
     excess = max(rho - (a2 + a3), abs(a2 - a3) - rho, 0.0)
     return float(w1[0]), float(w1[1]), float(excess)
@@ -212,8 +222,8 @@ def ik(
     p, pitch, roll = _as_target(xyz_m, pitch_rad, roll_rad)
     ref_q = None if reference is None else np.asarray(reference, dtype=float).reshape(robot.n)
     az, r_hat, wrist = _branch_frames(robot, p, pitch, ref_q)
-    a2, a3 = robot.dh.a[1], robot.dh.a[2]
-    off = robot.dh.offset
+    a2, a3 = _table(robot).a[1], _table(robot).a[2]
+    off = _table(robot).offset
     h = np.cross(_UP, r_hat)
     z_goal = tool_rotation(pitch, roll, r_hat)[:, 2]
     out: list[IKSolution] = []
@@ -271,7 +281,7 @@ def ik(
 
 def _reach_excess(robot: RobotDef, p: np.ndarray, pitch: float, reference) -> float:
     az, _, wrist = _branch_frames(robot, p, pitch, reference)
-    return min(_planar(robot, th - robot.dh.offset[0], wrist)[2] for th in (az, az + np.pi))
+    return min(_planar(robot, th - _table(robot).offset[0], wrist)[2] for th in (az, az + np.pi))
 
 
 def ik_nearest(
@@ -302,11 +312,11 @@ def ik_nearest(
     if not sols:
         p, pitch, _ = _as_target(xyz_m, pitch_rad, roll_rad)
         dist = _reach_excess(robot, p, pitch, ref)
-        reach = (robot.dh.a[1] + robot.dh.a[2]) * 1000
+        reach = (_table(robot).a[1] + _table(robot).a[2]) * 1000
         raise UnreachableError(
             f"{robot.name}: {tgt} is out of reach: the wrist centre (tool point minus "
-            f"d5 = {robot.dh.d[4] * 1000:.2f} mm along the tool axis) lies {dist * 1000:.3f} mm "
-            f"outside the shoulder-elbow workspace (reach {abs(robot.dh.a[1] - robot.dh.a[2]) * 1000:.1f}"
+            f"d5 = {_table(robot).d[4] * 1000:.2f} mm along the tool axis) lies {dist * 1000:.3f} mm "
+            f"outside the shoulder-elbow workspace (reach {abs(_table(robot).a[1] - _table(robot).a[2]) * 1000:.1f}"
             f" to {reach:.1f} mm); move the target closer or change the pitch",
             distance_m=dist,
         )
