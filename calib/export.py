@@ -74,9 +74,10 @@ FIXED_BY_BASE_FRAME = ("alpha0", "beta0", "lx0", "ly0", "beta1", "ly1")
 the nominal ``d1``) for a robot whose first two joints are revolute: they carry no information."""
 
 BASE_FRAME = (
-    "robot base = DH frame 0 of the identified joint axes 1 and 2 (calib.dh_table.canonical_base): "
-    "z along joint 1's axis, origin on it at the nominal d1 below the common normal of axes 1 and "
-    "2, x such that DH row 1 has the nominal offset at joint reading 0"
+    "robot base = the nominal base frame rebuilt on the identified joint axes 1 and 2 "
+    "(calib.dh_table.canonical_base); for a standard-DH robot DH frame 0: z along joint 1's axis, "
+    "origin on it at the nominal d1 below the common normal of axes 1 and 2, x such that DH row 1 "
+    "has the nominal offset at joint reading 0"
 )
 TOOL_FRAME = (
     "tool tip: the identified left camera composed with the known T_cam_tip = "
