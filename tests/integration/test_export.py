@@ -397,7 +397,7 @@ def _arm_q(robot, m: int, seed: int) -> np.ndarray:
     return rng.uniform(robot.limits[:, 0], robot.limits[:, 1], (m, robot.n))
 
 
-@pytest.mark.parametrize("name", ARMS)
+@pytest.mark.parametrize("name", ARMS, ids=["mdh", "urdf"])
 def test_any_arm_nominal_deploys_to_its_own_base_and_flange(name):
     """The base frame of the nominal arm is its own base frame and the tool tip its flange, for
     any placement (1e-12; achieved ~1e-15)."""
@@ -410,7 +410,7 @@ def test_any_arm_nominal_deploys_to_its_own_base_and_flange(name):
         assert np.abs(dep.tool_tip(q) - fk_nominal(robot, q)[:, -1]).max() < 1e-12
 
 
-@pytest.mark.parametrize("name", ARMS)
+@pytest.mark.parametrize("name", ARMS, ids=["mdh", "urdf"])
 def test_any_arm_exports_reproduce_the_calibrated_frames(name, tmp_path):
     """A perturbed 6-axis arm: deployed chain, MJCF, URDF (also read back through yourdfpy as a
     robot) and TOML reproduce its frames at 50 random postures (1e-9 m; achieved ~1e-15)."""

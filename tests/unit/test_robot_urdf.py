@@ -25,7 +25,7 @@ def _q(robot, m=100, seed=0):
     return np.random.default_rng(seed).uniform(robot.limits[:, 0], robot.limits[:, 1], (m, robot.n))
 
 
-@pytest.mark.parametrize("source", [DATA / "kr6_urdf.toml", URDF])
+@pytest.mark.parametrize("source", [DATA / "kr6_urdf.toml", URDF], ids=["toml", "urdf"])
 def test_urdf_and_modified_dh_give_the_same_arm(source):
     """Flange poses equal at 100 random postures (achieved 8e-16 m; tolerance 1e-14), and the
     MCPC model built from the URDF equals them too; joint ranges equal."""
