@@ -17,11 +17,12 @@ from calib.dh_table import DHNotRepresentableWarning, canonical_base, to_dh
 from calib.identify import IdentificationError, IdentificationWarning, identify, initial_base
 from calib.kinematics import fk_nominal, fk_tool, pose_error
 from calib.mcpc import MCPCModel, minimal_indices, nominal_mcpc, param_is_angle, param_names
-from calib.robot_def import DHParams, RobotDef, list_robots, load_robot, with_dh
+from calib.robot_def import DHParams, RobotDef, list_robots, load_robot, models_dir, with_dh
 from calib.transforms import make_pose, pose_from_vec
 
 ROBOTS = ["er4u-paper", "er4u-vendor"]
 MM, DEG = 1e-3, np.pi / 180
+URDF_ARM = str(models_dir().parent / "tests" / "data" / "kr6_r900.urdf")
 
 
 def nominal(robot: RobotDef) -> MCPCModel:
@@ -62,11 +63,11 @@ def identify_clean(*args, **kwargs):
         return identify(*args, **kwargs)
 
 
-@pytest.mark.parametrize("name", list_robots())
+@pytest.mark.parametrize("name", [*list_robots(), URDF_ARM], ids=lambda n: n.split("/")[-1])
 def test_noise_free_recovers_every_parameter(name: str) -> None:
-    """Every robot file (DH, modified DH; 5 and 6 joints): tolerance 1e-6 mm / 1e-6 deg on every
-    minimal parameter; 1e-6 mm on held-out poses (the acceptance of issue #13; achieved ~1e-12 mm and
-    ~1e-13 deg)."""
+    """Every robot file (DH, modified DH; 5 and 6 joints) and a URDF: tolerance 1e-6 mm /
+    1e-6 deg on every minimal parameter; 1e-6 mm on held-out poses (the acceptance of issue #13;
+    achieved ~1e-12 mm and ~1e-13 deg)."""
     robot = load_robot(name)
     rng = np.random.default_rng(11)
     nom = nominal(robot)
