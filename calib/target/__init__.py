@@ -5,7 +5,11 @@
 - :mod:`calib.target.aruco`: :class:`ArucoField` and the id <-> (marker, corner) mapping;
 - :mod:`calib.target.aruco_detect`: the ArUco corner detector with sub-pixel refinement.
 
-A printed board (chessboard, ChArUco, AprilGrid) is a new :class:`Target` next to the field.
+- :mod:`calib.target.boards`: printed boards of known geometry (:class:`Chessboard`,
+  :class:`Charuco`, :class:`CirclesGrid`, :class:`AprilGrid`), their feature ids and generated
+  images; :mod:`calib.target.board_detect` their OpenCV detectors.
+
+A target is declared in a target TOML (:mod:`calib.io.target_toml`).
 """
 
 from calib.target.aruco import (
@@ -17,10 +21,17 @@ from calib.target.aruco import (
     markers_to_features,
 )
 from calib.target.base import Features, Target
+from calib.target.boards import AprilGrid, Board, BoardImage, Charuco, Chessboard, CirclesGrid
 
 __all__ = [
     "CORNERS_PER_MARKER",
+    "AprilGrid",
     "ArucoField",
+    "Board",
+    "BoardImage",
+    "Charuco",
+    "Chessboard",
+    "CirclesGrid",
     "Features",
     "Target",
     "feature_id",

@@ -41,6 +41,8 @@ from calib.errors import SelfCalWarning
 
 __all__ = [
     "detect_markers",
+    "aruco_dictionary",
+    "to_gray",
     "REFINE_METHODS",
     "make_detector",
     "refine_corners_lines",
@@ -61,7 +63,9 @@ class DuplicateMarkerWarning(SelfCalWarning):
     """An image showed the same marker id more than once; those detections were dropped."""
 
 
-def _dictionary(name: str) -> cv2.aruco.Dictionary:
+def aruco_dictionary(name: str) -> cv2.aruco.Dictionary:
+    """The predefined cv2.aruco dictionary ``name`` (e.g. ``DICT_5X5_100``); ``ValueError``
+    naming the valid ones otherwise."""
     code = getattr(cv2.aruco, name, None) if name.startswith("DICT_") else None
     if not isinstance(code, int):
         valid = sorted(n for n in dir(cv2.aruco) if n.startswith("DICT_"))
@@ -89,10 +93,12 @@ def make_detector(
     p.relativeCornerRefinmentWinSize = 0.5
     p.cornerRefinementMaxIterations = 100
     p.cornerRefinementMinAccuracy = 0.001
-    return cv2.aruco.ArucoDetector(_dictionary(dictionary), p)
+    return cv2.aruco.ArucoDetector(aruco_dictionary(dictionary), p)
 
 
-def _to_gray(image: np.ndarray) -> np.ndarray:
+def to_gray(image: np.ndarray) -> np.ndarray:
+    """A uint8 RGB (H, W, 3), (H, W, 1) or gray (H, W) image as gray (H, W); ``ValueError``
+    otherwise."""
     img = np.asarray(image)
     if img.dtype != np.uint8:
         raise ValueError(f"image must be uint8, got {img.dtype}; convert with np.clip(...).astype")
@@ -267,7 +273,7 @@ def detect_markers(
     border) is dropped rather than returned with less accurate corners.
     Raises ``ValueError`` for a bad image, dictionary or refine method.
     """
-    gray = _to_gray(image)
+    gray = to_gray(image)
     corners, ids, _rejected = make_detector(dictionary, refine).detectMarkers(gray)
     if ids is None or len(ids) == 0:
         return {}
@@ -283,6 +289,6 @@ def detect_markers(
     keep = [k for k, i in enumerate(ids.tolist()) if i not in dups]
     c = np.asarray([corners[k] for k in keep], dtype=np.float64).reshape(-1, 4, 2)
     if refine == "lines":
-        n_modules = int(_dictionary(dictionary).markerSize) + 2
+        n_modules = int(aruco_dictionary(dictionary).markerSize) + 2
         c = refine_corners_lines_batch(gray, c, n_modules)
     return {int(ids[k]): ck for k, ck in zip(keep, c, strict=True) if not np.isnan(ck).any()}

@@ -1,0 +1,144 @@
+"""The target TOML: what the cameras photograph, declared in one small file.
+
+One table of keys per file (lengths in mm, counts as ``[columns, rows]``); ``type`` chooses the
+target and the keys it takes (every key of a type is required unless marked optional; an unknown
+key is an error naming the file and the key):
+
+============  ==================================================================================
+type          keys
+============  ==================================================================================
+field         ``dictionary`` (optional, ``"DICT_4X4_50"``): ArUco markers at unknown positions
+chessboard    ``inner_corners = [cols, rows]`` (one odd, one even), ``square_mm``
+charuco       ``inner_corners = [cols, rows]``, ``square_mm``, ``marker_mm``, ``dictionary``
+circles       ``pattern = [cols, rows]`` (circles per row, rows), ``spacing_mm``,
+              ``diameter_mm`` (optional, default ``spacing_mm``)
+aprilgrid     ``tags = [cols, rows]``, ``tag_mm``, ``spacing_ratio`` (gap / tag, Kalibr's)
+============  ==================================================================================
+
+Examples: ``models/targets/*.toml`` (docs/targets.md). :func:`load_target` returns a
+:class:`calib.target.Target` (a :class:`calib.target.boards.Board` for the boards) in SI units.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from calib.errors import InputError
+from calib.io.jsonfile import Fields
+from calib.target import ArucoField, Target
+from calib.target.aruco_detect import aruco_dictionary
+from calib.target.boards import AprilGrid, Charuco, Chessboard, CirclesGrid
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+__all__ = ["TargetFileError", "load_target", "parse_target", "TARGET_TYPES"]
+
+TARGET_TYPES: dict[str, tuple[set[str], set[str]]] = {
+    # type: (required keys, optional keys), besides "type"
+    "field": (set(), {"dictionary"}),
+    "chessboard": ({"inner_corners", "square_mm"}, set()),
+    "charuco": ({"inner_corners", "square_mm", "marker_mm", "dictionary"}, set()),
+    "circles": ({"pattern", "spacing_mm"}, {"diameter_mm"}),
+    "aprilgrid": ({"tags", "tag_mm", "spacing_ratio"}, set()),
+}
+_FIX = "see docs/targets.md for the keys of each target type and models/targets/ for examples"
+
+
+class TargetFileError(InputError):
+    """A target TOML that is missing, not TOML, or declares a target badly (names file + key)."""
+
+
+def load_target(path: str | Path) -> Target:
+    """The target declared in the TOML file ``path``.
+
+    Raises :class:`TargetFileError` naming the file and the key at fault."""
+    p = Path(path)
+    try:
+        doc = tomllib.loads(p.read_text())
+    except FileNotFoundError:
+        raise TargetFileError(f"{p}: no such target file", fix=_FIX) from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise TargetFileError(f"{p}: not a valid TOML file ({exc})", fix=_FIX) from None
+    return parse_target(doc, str(p))
+
+
+def _pair(f: Fields, key: str, odd_even: bool = False) -> tuple[int, int]:
+    v = f.ints(key)
+    if len(v) != 2 or min(v) < 2:
+        raise f.bad(key, "[columns, rows], each at least 2", list(v))
+    if odd_even and (v[0] + v[1]) % 2 == 0:
+        raise f.bad(
+            key,
+            "one odd and one even count (a board symmetric under a half turn has no "
+            "orientation of its own)",
+            list(v),
+        )
+    return v[0], v[1]
+
+
+def _mm(f: Fields, key: str) -> float:
+    v = f.float(key)
+    if not v > 0:
+        raise f.bad(key, "a length > 0 (mm)", v)
+    return v / 1000.0
+
+
+def _dictionary(f: Fields) -> str:
+    name = f.str("dictionary")
+    try:
+        aruco_dictionary(name)
+    except ValueError:
+        raise f.bad("dictionary", "a cv2.aruco dictionary such as DICT_5X5_100", name) from None
+    return name
+
+
+def parse_target(doc: dict, where: str) -> Target:
+    """The target of a parsed target TOML document read from ``where`` (see the module
+    docstring). Raises :class:`TargetFileError` naming ``where`` and the key."""
+    f = Fields(doc, where, _FIX, error=TargetFileError)
+    kind = f.str("type")
+    if kind not in TARGET_TYPES:
+        raise f.bad("type", f"one of {sorted(TARGET_TYPES)}", kind)
+    required, optional = TARGET_TYPES[kind]
+    unknown = sorted(set(doc) - required - optional - {"type"})
+    if unknown:
+        raise TargetFileError(
+            f"{where}: unknown key(s) {unknown} for type = {kind!r}; allowed: "
+            f"{sorted(required | optional)}",
+            fix=_FIX,
+        )
+    for key in sorted(required):
+        f.raw(key)  # missing key: the error names it
+    if kind == "field":
+        return ArucoField(dictionary=_dictionary(f) if f.has("dictionary") else "DICT_4X4_50")
+    if kind == "chessboard":
+        return Chessboard(_pair(f, "inner_corners", odd_even=True), _mm(f, "square_mm"), where)
+    if kind == "charuco":
+        square, marker = _mm(f, "square_mm"), _mm(f, "marker_mm")
+        if not marker < square:
+            raise f.bad("marker_mm", f"smaller than square_mm ({square * 1000:g})", marker * 1000)
+        cols, rows = _pair(f, "inner_corners")
+        name = _dictionary(f)
+        need, have = (cols + 1) * (rows + 1) // 2, len(aruco_dictionary(name).bytesList)
+        if need > have:
+            raise f.bad("dictionary", f"a dictionary of at least {need} markers", name)
+        return Charuco((cols, rows), square, marker, name, where)
+    if kind == "circles":
+        spacing = _mm(f, "spacing_mm")
+        diameter = _mm(f, "diameter_mm") if f.has("diameter_mm") else spacing
+        if not diameter < spacing * 2**0.5:
+            raise f.bad(
+                "diameter_mm",
+                f"smaller than spacing_mm * sqrt(2) ({spacing * 1000 * 2**0.5:.3g}): neighbouring "
+                "circles would touch",
+                diameter * 1000,
+            )
+        return CirclesGrid(_pair(f, "pattern"), spacing, diameter, where)
+    ratio = f.float("spacing_ratio")
+    if not 0 < ratio <= 2:
+        raise f.bad("spacing_ratio", "a number in (0, 2] (gap / tag side)", ratio)
+    return AprilGrid(_pair(f, "tags"), _mm(f, "tag_mm"), ratio, where)

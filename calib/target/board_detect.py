@@ -1,0 +1,128 @@
+"""Board detection with OpenCV into :class:`calib.target.base.Features` (ids and pixels).
+
+Pixels follow the OpenCV convention (x right, y down, pixel centres at integers); ids are the
+boards' feature ids (:mod:`calib.target.boards`). An image in which the board is not found gives
+empty features.
+
+- chessboard: ``cv2.findChessboardCorners`` + ``cv2.cornerSubPix`` (0.02 px RMS on blurred
+  synthetic views, tests/unit/test_boards.py), falling back to ``cv2.findChessboardCornersSB``
+  (more robust, but 0.15-0.3 px RMS on the same views); the corner order is then made the
+  board's own (:func:`orient_chessboard`): OpenCV may return the grid mirrored or turned by 180
+  degrees, which the printed colours and the handedness of a board seen from its front decide;
+- ChArUco: ``cv2.aruco.CharucoDetector.detectBoard`` (partial views: each corner has its id);
+- asymmetric circle grid: ``cv2.findCirclesGrid`` with ``CALIB_CB_ASYMMETRIC_GRID`` and a blob
+  detector that accepts large circles;
+- AprilGrid: the ArUco detector with the AprilTag 36h11 dictionary and the edge-line corner
+  refinement of :mod:`calib.target.aruco_detect`; ids beyond the grid are dropped.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from calib.target.aruco import markers_to_features
+from calib.target.aruco_detect import detect_markers, to_gray
+from calib.target.base import Features
+
+__all__ = [
+    "detect_chessboard",
+    "orient_chessboard",
+    "detect_charuco",
+    "detect_circles",
+    "detect_aprilgrid",
+]
+
+_EMPTY = Features(np.zeros(0, np.int64), np.zeros((0, 2)))
+_SUBPIX = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 100, 1e-3)
+
+
+def _sample(gray: np.ndarray, uv: np.ndarray, r: int = 1) -> float:
+    """Mean grey level of the (2 r + 1)^2 pixels around ``uv`` (clipped to the image)."""
+    H, W = gray.shape
+    u = int(np.clip(round(uv[0]), r, W - 1 - r))
+    v = int(np.clip(round(uv[1]), r, H - 1 - r))
+    return float(gray[v - r : v + r + 1, u - r : u + r + 1].mean())
+
+
+def orient_chessboard(gray: np.ndarray, uv: np.ndarray, cols: int, rows: int) -> np.ndarray:
+    """The corners ``uv`` (cols * rows, 2) of a detected chessboard (row-major in OpenCV's
+    order) re-ordered into the board's own order (:class:`calib.target.boards.Chessboard`):
+    right-handed as seen from the printed side (``x`` step cross ``y`` step > 0 in the image) and
+    with the black outer square diagonally outside corner 0."""
+    g = np.asarray(uv, dtype=float).reshape(rows, cols, 2)
+    dx, dy = g[0, 1] - g[0, 0], g[1, 0] - g[0, 0]
+    if dx[0] * dy[1] - dx[1] * dy[0] < 0:  # mirrored order
+        g = g[:, ::-1]
+    p0, px, py, pxy = g[0, 0], g[0, 1], g[1, 0], g[1, 1]
+    outer = p0 + 0.5 * (p0 - pxy)  # the outer square diagonally beyond corner 0
+    edge = 0.5 * (p0 + px) + 0.5 * (p0 - py)  # the outer square beside it (other colour)
+    r = max(1, int(0.15 * min(np.linalg.norm(px - p0), np.linalg.norm(py - p0))))
+    if _sample(gray, outer, r) > _sample(gray, edge, r):
+        g = g[::-1, ::-1]  # turned by 180 degrees
+    return g.reshape(-1, 2)
+
+
+def detect_chessboard(image: np.ndarray, inner_corners: tuple[int, int]) -> Features:
+    """All inner corners of a chessboard of ``inner_corners = (cols, rows)``, or none."""
+    gray = to_gray(image)
+    cols, rows = inner_corners
+    ok, corners = cv2.findChessboardCorners(
+        gray, (cols, rows), flags=cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
+    )
+    if ok:
+        corners = cv2.cornerSubPix(gray, corners, (5, 5), (-1, -1), _SUBPIX)
+    else:
+        ok, corners = cv2.findChessboardCornersSB(
+            gray, (cols, rows), flags=cv2.CALIB_CB_NORMALIZE_IMAGE | cv2.CALIB_CB_EXHAUSTIVE
+        )
+        if not ok:
+            return _EMPTY
+    uv = orient_chessboard(gray, np.asarray(corners, dtype=float).reshape(-1, 2), cols, rows)
+    return Features(np.arange(cols * rows), uv)
+
+
+def detect_charuco(image: np.ndarray, board: cv2.aruco.CharucoBoard) -> Features:
+    """The corners of the ChArUco ``board`` found (any subset, each with its id)."""
+    gray = to_gray(image)
+    detector = cv2.aruco.CharucoDetector(board)
+    corners, ids, _, _ = detector.detectBoard(gray)
+    if ids is None or len(ids) == 0:
+        return _EMPTY
+    return Features(np.asarray(ids).reshape(-1), np.asarray(corners, dtype=float).reshape(-1, 2))
+
+
+def _blob_detector() -> cv2.SimpleBlobDetector:
+    """Dark round blobs of any size above 20 px^2 (OpenCV's default caps blobs at 5000 px^2)."""
+    p = cv2.SimpleBlobDetector.Params()
+    p.minArea = 20.0
+    p.maxArea = 1e7
+    p.minDistBetweenBlobs = 1.0
+    p.filterByConvexity = True
+    p.minConvexity = 0.8
+    p.filterByInertia = True
+    p.minInertiaRatio = 0.1
+    return cv2.SimpleBlobDetector.create(p)
+
+
+def detect_circles(image: np.ndarray, pattern: tuple[int, int]) -> Features:
+    """All circle centres of an asymmetric grid ``pattern = (cols, rows)``, or none."""
+    gray = to_gray(image)
+    ok, centres = cv2.findCirclesGrid(
+        gray,
+        tuple(pattern),
+        flags=cv2.CALIB_CB_ASYMMETRIC_GRID,
+        blobDetector=_blob_detector(),
+    )
+    if not ok or centres is None:
+        return _EMPTY
+    uv = np.asarray(centres, dtype=float).reshape(-1, 2)
+    return Features(np.arange(len(uv)), uv)
+
+
+def detect_aprilgrid(image: np.ndarray, tags: tuple[int, int]) -> Features:
+    """The corners of the AprilGrid's tags found (any subset; tag ids beyond the grid's
+    ``cols * rows`` are ignored)."""
+    n = int(tags[0]) * int(tags[1])
+    found = detect_markers(image, dictionary="DICT_APRILTAG_36h11", refine="lines")
+    return markers_to_features({k: c for k, c in found.items() if 0 <= k < n})
