@@ -66,7 +66,8 @@ class _Problem(Generic[C]):
     """The bundle adjustment as a :class:`calib.solver.Problem` over ``x = [camera's free
     parameters (unless fixed), p, X (3 P)]`` with the ``reprojection`` block first, then
     ``extra`` residual blocks over the same parameter blocks; ``fun``/``jac``/``sparsity`` serve
-    ``scipy.optimize.least_squares``."""
+    ``scipy.optimize.least_squares``. ``fixed_points`` (P, 3): the points are known (a board's)
+    and held, ``x`` then ends with the poses."""
 
     def __init__(
         self,
@@ -81,6 +82,7 @@ class _Problem(Generic[C]):
         loss: Loss | None = None,
         x0: np.ndarray | None = None,
         extra: Sequence[ResidualBlock] = (),
+        fixed_points: np.ndarray | None = None,
     ) -> None:
         self.camera = camera
         self.model = model
@@ -104,7 +106,13 @@ class _Problem(Generic[C]):
                     x[self.ni : self.ni + self.np_],
                     instance=inst() if inst is not None else None,
                 ),
-                ParameterBlock("points", x[self.ni + self.np_ :]),
+                ParameterBlock("points", x[self.ni + self.np_ :])
+                if fixed_points is None
+                else ParameterBlock(
+                    "points",
+                    np.asarray(fixed_points, dtype=float).ravel(),
+                    held=np.ones(3 * self.n_points, bool),
+                ),
             ],
             [self.block, *extra],
         )
@@ -135,6 +143,7 @@ def bundle_adjust(
     camera: C,
     *,
     fix_intrinsics: bool = False,
+    fix_points: bool = False,
     loss: str = "soft_l1",
     f_scale_px: float = 1.0,
     max_nfev: int = 100,
@@ -142,7 +151,8 @@ def bundle_adjust(
     solver: str = "lm",
 ) -> BundleResult[C]:
     """Sparse bundle adjustment of ``camera``'s free parameters (unless ``fix_intrinsics``), the
-    pose-model parameters (start ``p0``) and the points ``X`` (P, 3) m (start ``X0``).
+    pose-model parameters (start ``p0``) and the points ``X`` (P, 3) m (start ``X0``; held at
+    ``X0`` with ``fix_points``: a board's known geometry, whose frame is then the world).
 
     Rows are observations ``(view, pidx, uv)``; every view used must have a pose in ``model``.
     ``solver="lm"`` (default): the engine's Levenberg-Marquardt (:func:`calib.solver.solve`) with
@@ -160,7 +170,11 @@ def bundle_adjust(
     if solver not in ("lm", "scipy"):
         raise ValueError(f"solver must be 'lm' or 'scipy', got {solver!r}")
     x0 = np.concatenate(
-        [[] if fix_intrinsics else camera.free_values(), p0, np.asarray(X0).ravel()]
+        [
+            [] if fix_intrinsics else camera.free_values(),
+            p0,
+            [] if fix_points else np.asarray(X0).ravel(),
+        ]
     )
     prob = _Problem(
         camera,
@@ -172,6 +186,7 @@ def bundle_adjust(
         fix_intrinsics=fix_intrinsics,
         loss=Loss(loss, f_scale_px),
         x0=x0,
+        fixed_points=np.asarray(X0) if fix_points else None,
     )
     use_analytic = model.view_jacobian(p0) is not None
     if solver == "lm" and use_analytic:

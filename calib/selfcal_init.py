@@ -39,7 +39,11 @@ from calib.estimation.epipolar import (
 from calib.estimation.focal import focal_from_fundamentals
 from calib.estimation.pose_models import FreePoses
 from calib.estimation.reprojection import reprojection_residuals, robust_sigma
-from calib.estimation.selfcal_errors import DegenerateConfigurationError, InsufficientDataError
+from calib.estimation.selfcal_errors import (
+    PLANAR_FIX,
+    DegenerateConfigurationError,
+    InsufficientDataError,
+)
 from calib.estimation.triangulation import ray_angle, triangulate
 from calib.observations import Observations
 from calib.transforms import make_pose
@@ -83,12 +87,14 @@ def initialise(
                 "every view pair, including the pairs of cameras of one frame, is explained by "
                 "a homography: the marker corners are (nearly) coplanar, so neither fx nor the "
                 "poses can be initialised from fundamental matrices. Put markers at different "
-                "heights (relief >= ~10 % of the field size)"
+                "heights (relief >= ~10 % of the field size)",
+                fix=PLANAR_FIX,
             )
         raise DegenerateConfigurationError(
             "every view pair is explained by a homography (no parallax): the camera centres do "
             "not move enough between configurations (pure rotation) or the scene is planar; "
-            "translate the camera between configurations and add relief to the marker field"
+            "translate the camera between configurations and add relief to the marker field",
+            fix=PLANAR_FIX,
         )
     sigma_epi = epipolar_sigma(useful)
     if 3.0 * sigma_epi > ransac_px:  # noisier than the RANSAC threshold assumes: redo
@@ -250,7 +256,8 @@ def initial_reconstruction(
             f"triangulation angle {np.rad2deg(best_angle):.2f} deg < {min_angle_deg} deg, "
             f"{len(cands)} candidate pairs): the camera centres barely move (pure rotation) or "
             "the scene is planar; move the camera between configurations and add markers at "
-            "different heights"
+            "different heights",
+            fix=PLANAR_FIX,
         )
     pair, (T_b, pts, Xp, _, _) = best
     T = np.full((V, 4, 4), np.nan)

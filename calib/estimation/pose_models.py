@@ -28,7 +28,7 @@ from scipy.spatial.transform import Rotation
 from calib.observations import ViewLayout
 from calib.transforms import adjoint, make_pose, skew
 
-__all__ = ["so3_left_jacobian", "PoseModel", "FreePoses", "RigPoses"]
+__all__ = ["so3_left_jacobian", "PoseModel", "FreePoses", "ViewPoses", "RigPoses"]
 
 
 def so3_left_jacobian(w: np.ndarray) -> np.ndarray:
@@ -176,6 +176,47 @@ class FreePoses:
         s = np.flatnonzero(idx == self.scale_view)[0]
         J[self.scale_view, :, 3:] = 0.0
         J[self.scale_view, :3, 3:5] = dv_dab[s]
+        return J
+
+
+class ViewPoses:
+    """One independent pose per registered view and no gauge: the world frame and the scale are
+    fixed by something else, e.g. the known points of a board (its frame is the world).
+    Parameter layout: ``[w (3), v (3)]`` of each registered view in order; views with
+    ``registered == False`` have no parameters and NaN poses."""
+
+    def __init__(self, T0_cam_world: np.ndarray, registered: np.ndarray):
+        self.T0 = np.asarray(T0_cam_world, dtype=float).copy()
+        self.registered = np.asarray(registered, dtype=bool).copy()
+        self.n_views = len(self.T0)
+        idx = np.flatnonzero(self.registered)
+        cols = -np.ones((self.n_views, 6), dtype=np.int64)
+        cols[idx] = 6 * np.arange(len(idx))[:, None] + np.arange(6)
+        self._idx, self._cols = idx, cols
+        self.n_params = 6 * len(idx)
+
+    def initial_params(self) -> np.ndarray:
+        return np.zeros(self.n_params)
+
+    def view_columns(self) -> np.ndarray:
+        return self._cols
+
+    def param_instances(self) -> np.ndarray:
+        """(n_params,) the view each parameter belongs to."""
+        return np.repeat(self._idx, 6)
+
+    def _evaluate(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        wv = np.asarray(p, dtype=float).reshape(-1, 6)
+        return _LocalPoseBlock.evaluate(self.T0[self._idx], wv[:, :3], wv[:, 3:])
+
+    def poses(self, p: np.ndarray) -> np.ndarray:
+        T = np.full((self.n_views, 4, 4), np.nan)
+        T[self._idx] = self._evaluate(p)[0]
+        return T
+
+    def view_jacobian(self, p: np.ndarray) -> np.ndarray:
+        J = np.zeros((self.n_views, 6, 6))
+        J[self._idx] = self._evaluate(p)[1]
         return J
 
 

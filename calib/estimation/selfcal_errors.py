@@ -9,6 +9,7 @@ from __future__ import annotations
 from calib.errors import EstimationError
 
 __all__ = [
+    "PLANAR_FIX",
     "SelfCalibrationError",
     "InsufficientDataError",
     "DegenerateConfigurationError",
@@ -36,3 +37,12 @@ class ScaleMarkerError(SelfCalibrationError):
 
 class ConvergenceError(SelfCalibrationError):
     """An optimisation did not converge or ended with implausible residuals."""
+
+
+PLANAR_FIX = (
+    "if the markers are a printed board (all of them in one plane), declare the board with a "
+    'target TOML of its type (type = "charuco", "chessboard", "circles" or "aprilgrid"; see '
+    "docs/targets.md) instead of an unknown field: a board's known geometry calibrates the camera "
+    "without relief"
+)
+"""The fix of every error that finds the marker field planar."""

@@ -63,8 +63,32 @@ def orient_chessboard(gray: np.ndarray, uv: np.ndarray, cols: int, rows: int) ->
     return g.reshape(-1, 2)
 
 
+def _pattern_continues(gray: np.ndarray, uv: np.ndarray, cols: int, rows: int) -> bool:
+    """Whether the chessboard pattern goes on beyond the detected grid ``uv`` (cols * rows, 2):
+    a quarter square into the quiet zone (one square beyond the outer corner lines) the printed
+    board is white, but a larger board than the declared one shows further squares there."""
+    g = np.asarray(uv, dtype=float).reshape(rows, cols, 2)
+    H, W = gray.shape
+    inner = 0.25 * (g[:-1, :-1] + g[1:, 1:] + g[:-1, 1:] + g[1:, :-1]).reshape(-1, 2)
+    step = float(np.median(np.linalg.norm(np.diff(g, axis=1), axis=2)))
+    r = max(1, int(0.15 * step))
+    levels = np.array([_sample(gray, p, r) for p in inner])
+    thr = 0.5 * (np.percentile(levels, 10) + np.percentile(levels, 90))
+    for side in (g, g[::-1], g.transpose(1, 0, 2), g.transpose(1, 0, 2)[::-1]):
+        edge, out = side[0], side[0] - side[1]  # corner line and the outward step per corner
+        mid = 0.5 * (edge[:-1] + edge[1:]) + 1.25 * 0.5 * (out[:-1] + out[1:])
+        inside = (
+            (mid[:, 0] > r) & (mid[:, 0] < W - 1 - r) & (mid[:, 1] > r) & (mid[:, 1] < H - 1 - r)
+        )
+        dark = sum(_sample(gray, p, r) < thr for p in mid[inside])
+        if dark >= 2 and dark >= 0.25 * len(mid):
+            return True
+    return False
+
+
 def detect_chessboard(image: np.ndarray, inner_corners: tuple[int, int]) -> Features:
-    """All inner corners of a chessboard of ``inner_corners = (cols, rows)``, or none."""
+    """All inner corners of a chessboard of ``inner_corners = (cols, rows)``, or none (also when
+    the grid found is part of a larger chessboard: OpenCV finds sub-grids)."""
     gray = to_gray(image)
     cols, rows = inner_corners
     ok, corners = cv2.findChessboardCorners(
@@ -78,8 +102,10 @@ def detect_chessboard(image: np.ndarray, inner_corners: tuple[int, int]) -> Feat
         )
         if not ok:
             return _EMPTY
-    uv = orient_chessboard(gray, np.asarray(corners, dtype=float).reshape(-1, 2), cols, rows)
-    return Features(np.arange(cols * rows), uv)
+    uv = np.asarray(corners, dtype=float).reshape(-1, 2)
+    if _pattern_continues(gray, uv, cols, rows):
+        return _EMPTY  # a part of a larger board: not the declared one
+    return Features(np.arange(cols * rows), orient_chessboard(gray, uv, cols, rows))
 
 
 def detect_charuco(image: np.ndarray, board: cv2.aruco.CharucoBoard) -> Features:

@@ -297,8 +297,10 @@ def test_optical_axes_through_one_point_is_reported():
 
 def test_planar_marker_field_is_reported():
     sc = synthetic_stereo_scene(10, seed=1, relief_m=0.0)
-    with pytest.raises(DegenerateConfigurationError, match="coplanar"):
+    with pytest.raises(DegenerateConfigurationError, match="coplanar") as info:
         _calibrate(sc)
+    # a planar target declared as a field: the fix says to declare the board
+    assert "declare the board with a target TOML" in str(info.value.fix)
 
 
 def test_pure_rotation_is_reported():

@@ -1,0 +1,297 @@
+"""Camera calibration from a board of known geometry (Zhang), refined on the one solver.
+
+Route: the views in which the board is found (:class:`calib.target.boards.Board`, at least
+``board.min_features`` features) -> ``cv2.calibrateCamera`` (Zhang's planar homographies and
+OpenCV's refinement) as the initial guess of the camera and of every board pose -> the project's
+bundle adjustment (:func:`calib.bundle_adjust.bundle_adjust`) over the camera's free parameters
+and one pose per view (:class:`calib.estimation.pose_models.ViewPoses`) with the board's points
+held at their declared positions: the board frame is the world and its geometry gives the scale
+(no known distance is needed). A robust pass (soft-L1) is followed by a plain least-squares pass
+on the inliers; the covariance of the free camera parameters is ``sigma^2 (J^T J)^-1`` at the
+solution.
+
+Frames and units: ``T_cam_board`` maps board coordinates (m, :mod:`calib.target.boards`) to the
+OpenCV camera frame; pixels in the OpenCV convention. Today's camera is the pinhole
+(:class:`calib.camera.Pinhole`: ``fx``, ``mu``, ``cx``, ``cy``); the OpenCV initial guess is taken
+with OpenCV's distortion terms held at zero.
+
+Bad input: images without the board are skipped with a :class:`BoardNotFoundWarning` that names
+and counts them, and :class:`BoardInputError` follows when fewer than ``min_views`` remain; a fit
+whose residuals show that the declared geometry is not the printed one raises
+:class:`BoardMismatchError` naming the target file and its keys.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from calib.bundle_adjust import bundle_adjust, intrinsics_covariance
+from calib.camera import Pinhole
+from calib.errors import InputError, SelfCalWarning
+from calib.estimation.pose_models import ViewPoses
+from calib.estimation.reprojection import robust_sigma
+from calib.target.base import Features
+from calib.target.boards import Board
+from calib.transforms import make_pose
+
+__all__ = [
+    "BoardCalibration",
+    "BoardInputError",
+    "BoardMismatchError",
+    "BoardNotFoundWarning",
+    "OpenCVCalibration",
+    "calibrate_board",
+    "opencv_calibration",
+]
+
+_FIX_FILES = "see docs/targets.md"
+
+
+class BoardInputError(InputError):
+    """Too few images show the board to calibrate from (the message names them)."""
+
+
+class BoardMismatchError(InputError):
+    """The detections do not fit the board's declared geometry (the message names the target
+    file and its keys)."""
+
+
+class BoardNotFoundWarning(SelfCalWarning):
+    """Some images do not show the board (or too little of it); they are skipped."""
+
+
+@dataclass(frozen=True)
+class OpenCVCalibration:
+    """``cv2.calibrateCameraExtended`` on the same views: ``camera`` (pinhole), the standard
+    deviations ``std`` of OpenCV's own parameters (``fx``, ``fy``, ``cx``, ``cy`` px), the board
+    poses ``T_cam_board`` (n, 4, 4) of the views it was given and its reprojection ``rms_px``
+    (OpenCV's: the root mean square of the 2-D reprojection error over all points)."""
+
+    camera: Pinhole
+    std: dict[str, float]
+    T_cam_board: np.ndarray
+    rms_px: float
+
+
+@dataclass
+class BoardCalibration:
+    """Result of :func:`calibrate_board`.
+
+    ``camera``: the estimated camera (its ``free`` parameters adjusted); ``std`` / ``cov``: the
+    free parameters' standard deviations and covariance (fitted noise); ``T_cam_board`` (V, 4,
+    4) for every view given (NaN where not used), ``used`` (V,) bool; ``residuals`` (k, 2) px
+    (projected - observed) of the rows ``view``, ``feature`` of the final pass, ``inlier`` (k,);
+    ``rms_px``: the 2-D RMS over the inliers (``rms_all_px`` over every row, as OpenCV
+    reports it); ``sigma_px``: the fitted noise per coordinate;
+    ``skipped``: names of the views without the board; ``opencv``: the initial guess."""
+
+    camera: Pinhole
+    std: dict[str, float]
+    cov: np.ndarray
+    T_cam_board: np.ndarray
+    used: np.ndarray
+    view: np.ndarray
+    feature: np.ndarray
+    residuals: np.ndarray
+    inlier: np.ndarray
+    rms_px: float
+    rms_all_px: float
+    sigma_px: float
+    skipped: tuple[str, ...]
+    opencv: OpenCVCalibration
+    diagnostics: dict = field(default_factory=dict)
+
+
+def _pose(rvec: np.ndarray, tvec: np.ndarray) -> np.ndarray:
+    return make_pose(cv2.Rodrigues(np.asarray(rvec, dtype=float))[0], np.ravel(tvec))
+
+
+def opencv_calibration(
+    board: Board,
+    features: Sequence[Features],
+    width: int,
+    height: int,
+    free: Sequence[str] = ("fx", "mu", "cx", "cy"),
+) -> OpenCVCalibration:
+    """``cv2.calibrateCameraExtended`` for the pinhole with parameters ``free`` (the others at
+    the image centre / aspect 1) and no distortion, from the views ``features``."""
+    flags = (
+        cv2.CALIB_ZERO_TANGENT_DIST
+        | cv2.CALIB_FIX_K1
+        | cv2.CALIB_FIX_K2
+        | cv2.CALIB_FIX_K3
+        | cv2.CALIB_USE_INTRINSIC_GUESS
+    )
+    if "mu" not in free:
+        flags |= cv2.CALIB_FIX_ASPECT_RATIO
+    if "cx" not in free or "cy" not in free:
+        flags |= cv2.CALIB_FIX_PRINCIPAL_POINT
+    obj = [board.points(f.ids).astype(np.float32) for f in features]
+    img = [f.uv.astype(np.float32).reshape(-1, 1, 2) for f in features]
+    guess = Pinhole.centered(max(width, height), 1.0, width, height)
+    # the initial focal length from the homographies (OpenCV's own initialisation)
+    K0 = cv2.initCameraMatrix2D(obj, img, (width, height), aspectRatio=1.0)
+    K0[0, 2], K0[1, 2] = guess.cx, guess.cy
+    out = cv2.calibrateCameraExtended(
+        obj, img, (width, height), K0, np.zeros(5), flags=flags,
+        criteria=(cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 200, 1e-12),
+    )  # fmt: skip
+    rms, K, _dist, rvecs, tvecs, std_int = out[0], out[1], out[2], out[3], out[4], out[5]
+    fx, fy = float(K[0, 0]), float(K[1, 1])
+    s = np.ravel(std_int)
+    camera = Pinhole(fx, fy / fx, float(K[0, 2]), float(K[1, 2]), width, height, tuple(free))
+    T = np.stack([_pose(r, t) for r, t in zip(rvecs, tvecs, strict=True)])
+    std = {"fx": float(s[0]), "fy": float(s[1]), "cx": float(s[2]), "cy": float(s[3])}
+    return OpenCVCalibration(camera, std, T, float(rms))
+
+
+def _usable(
+    board: Board, features: Sequence[Features], names: Sequence[str] | None, min_views: int
+) -> tuple[np.ndarray, tuple[str, ...]]:
+    """(V,) which views show enough of the board, and the names of the others (warned);
+    :class:`BoardInputError` when fewer than ``min_views`` remain."""
+    names = [f"view {i}" for i in range(len(features))] if names is None else list(names)
+    ok = np.array([len(f) >= board.min_features for f in features], dtype=bool)
+    skipped = tuple(n for n, k in zip(names, ok, strict=True) if not k)
+    if skipped:
+        more = " ..." if len(skipped) > 8 else ""
+        warnings.warn(
+            f"{len(skipped)} of {len(features)} image(s) do not show the {board.describe()} "
+            f"(fewer than {board.min_features} features) and are skipped: "
+            f"{', '.join(skipped[:8])}{more}",
+            BoardNotFoundWarning,
+            stacklevel=3,
+        )
+    if ok.sum() < min_views:
+        hint = (
+            "check the target file's keys (inner_corners, pattern or tags are counted as "
+            "[columns, rows] of inner corners / circles / tags) and that the images show the "
+            "whole board"
+            if not ok.any()
+            else "add images that show the board"
+        )
+        raise BoardInputError(
+            f"only {int(ok.sum())} of {len(features)} image(s) show the {board.describe()}; "
+            f"calibration needs at least {min_views}",
+            fix=hint,
+        )
+    return ok, skipped
+
+
+def calibrate_board(
+    board: Board,
+    features: Sequence[Features],
+    width: int,
+    height: int,
+    *,
+    free: Sequence[str] = ("fx", "mu", "cx", "cy"),
+    names: Sequence[str] | None = None,
+    min_views: int = 3,
+    outlier_px: float = 3.0,
+    mismatch_px: float = 3.0,
+    max_nfev: int = 200,
+) -> BoardCalibration:
+    """Calibrate the camera (parameters ``free``) and the board pose of every view from the
+    board's detected ``features`` (one per image; ``names`` for messages) in ``width`` x
+    ``height`` px images (see the module docstring).
+
+    Raises:
+        BoardInputError: fewer than ``min_views`` views show the board.
+        BoardMismatchError: the inlier residuals exceed ``mismatch_px`` (RMS, 2-D) or more than
+            a quarter of the features are outliers: the declared geometry is not the board's.
+    """
+    ok, skipped = _usable(board, features, names, min_views)
+    idx = np.flatnonzero(ok).tolist()
+    _check_ids(board, [features[i] for i in idx])
+    cv_res = opencv_calibration(board, [features[i] for i in idx], width, height, free)
+    V = len(features)
+    T0 = np.full((V, 4, 4), np.nan)
+    T0[idx] = cv_res.T_cam_board
+    view = np.concatenate([np.full(len(features[i]), i) for i in idx])
+    fid = np.concatenate([features[i].ids for i in idx])
+    uv = np.concatenate([features[i].uv for i in idx])
+    pts_ids, pidx = np.unique(fid, return_inverse=True)
+    X = board.points(pts_ids)
+    model = ViewPoses(T0, ok)
+    camera = cv_res.camera
+    active = np.ones(len(view), bool)
+    res = None
+    for loss in ("soft_l1", "linear"):
+        res = bundle_adjust(
+            model, model.initial_params(), X, view[active], pidx[active], uv[active], camera,
+            fix_points=True, loss=loss, f_scale_px=1.0, max_nfev=max_nfev,
+        )  # fmt: skip
+        camera = res.camera
+        model = ViewPoses(np.where(ok[:, None, None], res.T_cam_world, np.nan), ok)
+        if loss == "soft_l1":  # reclassify every row with the robust estimate
+            e = _errors(camera, res.T_cam_world, X, view, pidx, uv)
+            sigma = robust_sigma(e[active])
+            active = e < max(outlier_px, 4.5 * sigma)
+    assert res is not None and res.jac is not None  # the analytic Jacobian of ViewPoses
+    e_all = _errors(camera, res.T_cam_world, X, view, pidx, uv)
+    rms = float(np.sqrt(np.mean(e_all[active] ** 2)))
+    _check_geometry(board, rms, active, mismatch_px)
+    cov, _ = intrinsics_covariance(res.jac, res.residuals, res.n_intrinsics)
+    std = dict(zip(camera.free, np.sqrt(np.clip(np.diag(cov), 0, None)).tolist(), strict=True))
+    r_out = np.full((len(view), 2), np.nan)
+    r_out[active] = res.residuals
+    dof = max(res.residuals.size - res.jac.shape[1], 1)
+    T = np.where(ok[:, None, None], res.T_cam_world, np.nan)
+    return BoardCalibration(
+        camera=camera, std=std, cov=cov, T_cam_board=T, used=ok, view=view,
+        feature=fid, residuals=r_out, inlier=active, rms_px=rms,
+        rms_all_px=float(np.sqrt(np.mean(e_all**2))),
+        sigma_px=float(np.sqrt(np.sum(res.residuals**2) / dof)), skipped=skipped,
+        opencv=cv_res, diagnostics={"nfev": res.nfev, "status": res.status},
+    )  # fmt: skip
+
+
+def _errors(camera, T_cam_world, X, view, pidx, uv) -> np.ndarray:
+    """2-D reprojection error (k,) px of every row; inf behind the camera."""
+    T = T_cam_world[view]
+    Xc = np.einsum("kij,kj->ki", T[:, :3, :3], X[pidx]) + T[:, :3, 3]
+    e = np.linalg.norm(camera.project(Xc) - uv, axis=1)
+    return np.where(Xc[:, 2] > 0, e, np.inf)
+
+
+_KEYS = {
+    "Chessboard": "inner_corners, square_mm",
+    "Charuco": "inner_corners, square_mm, marker_mm, dictionary",
+    "CirclesGrid": "pattern, spacing_mm",
+    "AprilGrid": "tags, tag_mm, spacing_ratio",
+}
+
+
+def _mismatch(board: Board, what: str) -> BoardMismatchError:
+    keys = _KEYS.get(type(board).__name__, "its keys")
+    return BoardMismatchError(
+        f"the detections do not fit the {board.describe()}: {what}; the declared geometry is "
+        "not the printed board's",
+        fix=f"check {keys} in {board.source or 'the target file'} against the printed board "
+        f"(and that the lens has no strong distortion); {_FIX_FILES}",
+    )
+
+
+def _check_ids(board: Board, features: Sequence[Features]) -> None:
+    """:class:`BoardMismatchError` for feature ids the declared board does not have."""
+    ids = np.unique(np.concatenate([f.ids for f in features]))
+    bad = ids[np.isnan(board.points(ids)).any(axis=1)]
+    if len(bad):
+        raise _mismatch(board, f"feature ids {bad[:8].tolist()} are not on the declared board")
+
+
+def _check_geometry(board: Board, rms: float, active: np.ndarray, mismatch_px: float) -> None:
+    """:class:`BoardMismatchError` when the fit shows the declared geometry is not the board's."""
+    frac_out = 1.0 - float(np.mean(active))
+    if rms <= mismatch_px and frac_out <= 0.25:
+        return
+    raise _mismatch(
+        board,
+        f"reprojection RMS {rms:.2f} px over the inliers (limit {mismatch_px:g} px), "
+        f"{100 * frac_out:.0f} % of the features rejected as outliers",
+    )

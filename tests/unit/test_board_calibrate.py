@@ -1,0 +1,141 @@
+"""Camera calibration from a board of known geometry (calib.board_calibrate)."""
+
+from __future__ import annotations
+
+import warnings
+
+import cv2
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from calib.board_calibrate import (
+    BoardInputError,
+    BoardMismatchError,
+    BoardNotFoundWarning,
+    calibrate_board,
+)
+from calib.camera import Pinhole
+from calib.target import Board, Charuco, Chessboard, Features
+from calib.transforms import make_pose
+
+CAMERA = Pinhole(800.0, 1.01, 330.0, 235.0, 640, 480, free=("fx", "mu", "cx", "cy"))
+NAMES = ("fx", "mu", "cx", "cy")
+
+
+def board_poses(board: Board, n: int, seed: int) -> list[np.ndarray]:
+    """``T_cam_board`` of ``n`` views of the board's centre from 0.35-0.55 m, tilted up to 35
+    degrees about x and y and turned about the optical axis."""
+    rng = np.random.default_rng(seed)
+    c = board.layout()[1].mean(axis=0)
+    out = []
+    for _ in range(n):
+        ang = [rng.uniform(-35, 35), rng.uniform(-35, 35), rng.uniform(-180, 180)]
+        R = Rotation.from_euler("xyz", ang, degrees=True).as_matrix()
+        t = np.array([*rng.normal(0, 0.02, 2), rng.uniform(0.35, 0.55)]) - R @ c
+        out.append(make_pose(R, t))
+    return out
+
+
+def analytic_views(board, camera, poses, sigma_px, seed):
+    """Features of the board seen at ``poses``: exact projections + Gaussian noise, in-image
+    only."""
+    rng = np.random.default_rng(seed)
+    ids, pts = board.layout()
+    out = []
+    for T in poses:
+        uv = camera.project(pts @ T[:3, :3].T + T[:3, 3])
+        ok = camera.in_image(uv, 2.0)
+        out.append(Features(ids[ok], uv[ok] + rng.normal(0, sigma_px, (int(ok.sum()), 2))))
+    return out
+
+
+def image_views(board, camera, poses, blur_px=0.7):
+    """Images of the printed board seen by ``camera`` at ``poses`` (pinhole: the board image
+    warped by the plane's homography), blurred like optics."""
+    bi = board.image(px_per_mm=6.0)
+    x0, y0 = bi.extent_m[:2]
+    s = 1.0 / bi.px_per_m
+    A = np.array([[s, 0, x0 + 0.5 * s], [0, s, y0 + 0.5 * s], [0, 0, 1.0]])  # px -> board m
+    out = []
+    for T in poses:
+        H = camera.K @ np.column_stack([T[:3, 0], T[:3, 1], T[:3, 3]]) @ A
+        img = cv2.warpPerspective(
+            bi.pixels, H, (camera.width, camera.height), flags=cv2.INTER_AREA, borderValue=128
+        )
+        out.append(cv2.GaussianBlur(img, (0, 0), blur_px))
+    return out
+
+
+def _quiet(fn, *a, **kw):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", BoardNotFoundWarning)
+        return fn(*a, **kw)
+
+
+def test_analytic_views_give_the_camera_within_its_uncertainty():
+    board = Charuco((11, 8), 0.02, 0.015)
+    poses = board_poses(board, 12, seed=1)
+    res = calibrate_board(board, analytic_views(board, CAMERA, poses, 0.1, seed=2), 640, 480)
+    for n in NAMES:
+        assert abs(getattr(res.camera, n) - getattr(CAMERA, n)) < 3 * res.std[n], n
+    # the fitted noise is the simulated one (0.1 px per coordinate; measured 0.1006)
+    assert res.sigma_px == pytest.approx(0.1, rel=0.1)
+    T = np.stack(poses)
+    np.testing.assert_allclose(res.T_cam_board[:, :3, 3], T[:, :3, 3], atol=2e-3)
+
+
+def test_board_images_against_opencv():
+    """The same board images through OpenCV: intrinsics within 2 sigma of
+    cv2.calibrateCamera's and a reprojection RMS no higher."""
+    board = Charuco((11, 8), 0.02, 0.015)
+    poses = board_poses(board, 10, seed=3)
+    feats = [board.detect(img) for img in image_views(board, CAMERA, poses)]
+    res = _quiet(calibrate_board, board, feats, 640, 480)
+    cv = res.opencv
+    for n in ("fx", "cx", "cy"):
+        assert abs(getattr(res.camera, n) - getattr(cv.camera, n)) < 2 * cv.std[n], n
+    assert abs(res.camera.fy - cv.camera.fy) < 2 * cv.std["fy"]
+    assert res.rms_all_px <= cv.rms_px * (1 + 1e-6)
+    # and the truth within 3 sigma (detection errors of the rendered corners, not noise)
+    for n in NAMES:
+        assert abs(getattr(res.camera, n) - getattr(CAMERA, n)) < 3 * res.std[n], n
+
+
+def test_images_without_the_board_are_named_counted_and_skipped():
+    board = Chessboard((9, 6), 0.025)
+    poses = board_poses(board, 6, seed=4)
+    feats = analytic_views(board, CAMERA, poses, 0.1, seed=5)
+    feats[2] = Features(np.zeros(0, np.int64), np.zeros((0, 2)))
+    feats[4] = Features(np.zeros(0, np.int64), np.zeros((0, 2)))
+    names = [f"{i:04d}_cam0" for i in range(6)]
+    with pytest.warns(BoardNotFoundWarning, match=r"2 of 6 image.*0002_cam0, 0004_cam0"):
+        res = calibrate_board(board, feats, 640, 480, names=names)
+    assert res.skipped == ("0002_cam0", "0004_cam0")
+    assert not res.used[2] and np.isnan(res.T_cam_board[2]).all()
+    with pytest.raises(BoardInputError, match="only 2 of 3 image"):
+        _quiet(calibrate_board, board, feats[:3], 640, 480, names=names[:3])
+
+
+def test_a_chessboard_declared_with_the_wrong_corner_count_is_not_found():
+    printed = Chessboard((9, 6), 0.025)
+    declared = Chessboard((7, 6), 0.025, source="board.toml")
+    imgs = image_views(printed, CAMERA, board_poses(printed, 4, seed=6))
+    feats = [declared.detect(img) for img in imgs]
+    with pytest.raises(BoardInputError, match="board.toml") as info:
+        _quiet(calibrate_board, declared, feats, 640, 480)
+    assert "inner_corners" in str(info.value.fix)
+
+
+def test_detections_that_do_not_fit_the_declared_geometry_are_refused():
+    printed = Charuco((11, 8), 0.02, 0.015)
+    poses = board_poses(printed, 8, seed=7)
+    feats = analytic_views(printed, CAMERA, poses, 0.1, seed=8)
+    # declared with 12 x 8 inner corners: the same corner ids sit elsewhere on the board
+    declared = Charuco((12, 8), 0.02, 0.015, source="board.toml")
+    with pytest.raises(BoardMismatchError, match="reprojection RMS") as info:
+        calibrate_board(declared, feats, 640, 480)
+    assert "inner_corners" in str(info.value.fix) and "board.toml" in str(info.value.fix)
+    # declared with 9 x 8: ids the declared board does not have
+    with pytest.raises(BoardMismatchError, match="not on the declared board"):
+        calibrate_board(Charuco((9, 8), 0.02, 0.015), feats, 640, 480)
