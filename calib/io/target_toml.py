@@ -35,7 +35,7 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
-__all__ = ["TargetFileError", "load_target", "parse_target", "TARGET_TYPES"]
+__all__ = ["TargetFileError", "load_target", "parse_target", "target_document", "TARGET_TYPES"]
 
 TARGET_TYPES: dict[str, tuple[set[str], set[str]]] = {
     # type: (required keys, optional keys), besides "type"
@@ -142,3 +142,41 @@ def parse_target(doc: dict, where: str) -> Target:
     if not 0 < ratio <= 2:
         raise f.bad("spacing_ratio", "a number in (0, 2] (gap / tag side)", ratio)
     return AprilGrid(_pair(f, "tags"), _mm(f, "tag_mm"), ratio, where)
+
+
+_DOCUMENT: dict[type, tuple[str, tuple[tuple[str, str], ...]]] = {
+    # class: (type, ((TOML key, attribute), ...)); keys ending in _mm hold attributes in m
+    ArucoField: ("field", (("dictionary", "dictionary"),)),
+    Chessboard: ("chessboard", (("inner_corners", "inner_corners"), ("square_mm", "square_m"))),
+    Charuco: (
+        "charuco",
+        (
+            ("inner_corners", "inner_corners"),
+            ("square_mm", "square_m"),
+            ("marker_mm", "marker_m"),
+            ("dictionary", "dictionary"),
+        ),
+    ),
+    CirclesGrid: (
+        "circles",
+        (("pattern", "pattern"), ("spacing_mm", "spacing_m"), ("diameter_mm", "diameter_m")),
+    ),
+    AprilGrid: (
+        "aprilgrid",
+        (("tags", "tags"), ("tag_mm", "tag_m"), ("spacing_ratio", "spacing_ratio")),
+    ),
+}
+
+
+def target_document(target: Target) -> dict:
+    """The target TOML document (keys in mm) that declares ``target``: the inverse of
+    :func:`parse_target` (``parse_target(target_document(t), ...)`` equals ``t`` up to its
+    ``source``). Raises ``TypeError`` for a target without a TOML form."""
+    if type(target) not in _DOCUMENT:
+        raise TypeError(f"no target TOML for {type(target).__name__}")
+    kind, keys = _DOCUMENT[type(target)]
+    doc: dict = {"type": kind}
+    for key, attr in keys:
+        v = getattr(target, attr)
+        doc[key] = list(v) if isinstance(v, tuple) else v * 1000.0 if key.endswith("_mm") else v
+    return doc

@@ -28,6 +28,8 @@ never opens it. All lengths in metres, angles in radians unless a key says ``_de
       "T_flange_cam_nominal": [[...]],              # from the robot TOML
       "T_cam_tip": [[...]],                         # known rig -> tool tip (= inv(nominal hand-eye))
       "marker_field": {...},                        # sim.markers.MarkerField.to_dict()
+      "board": {"target": {...}, "T_world_board": [[...]]},  # only with a board in the scene:
+                                                    # its target TOML keys and TRUE pose
       "frames": [                                   # one per capture
         {"index": 0, "frame_index": 0, "joints_rad": [...], "joints_deg": [...],
          "T_world_cam_left": [[...]], "T_world_cam_right": [[...]], "tool_tip_m": [x, y, z]}
@@ -140,7 +142,9 @@ class Truth:
     ``nominal_params`` / ``true_params`` (n + 1, 6): MCPC chains with the left camera as tool;
     ``T_flange_cam``: the true hand-eye, ``T_flange_cam_nominal`` the robot file's,
     ``T_cam_tip`` the known rigid camera -> tool-tip transform; ``marker_field``: the scene as
-    ``sim.markers.MarkerField.to_dict()``; ``meta``: free-form (seed, error magnitudes, ...).
+    ``sim.markers.MarkerField.to_dict()``; ``meta``: free-form (seed, error magnitudes, ...);
+    ``board``: a board of known geometry in the scene, ``{"target": its target TOML keys
+    (:func:`calib.io.target_toml.target_document`), "T_world_board": its true pose}``, or None.
     """
 
     robot_model: str
@@ -158,6 +162,14 @@ class Truth:
     marker_field: dict
     frames: tuple[TruthFrame, ...] = ()
     meta: dict = dataclasses.field(default_factory=dict)
+    board: dict | None = None
+
+    @property
+    def T_world_board(self) -> np.ndarray | None:
+        """The true pose (4, 4; board -> world, m) of the board in the scene, or None."""
+        if self.board is None:
+            return None
+        return np.asarray(self.board["T_world_board"], dtype=float)
 
     @property
     def nominal_model(self) -> MCPCModel:
@@ -189,7 +201,7 @@ class Truth:
     def to_json(self) -> dict:
         """The ``truth.json`` document."""
         idx = minimal_indices(self.joint_types)
-        return {
+        doc = {
             "format": TRUTH_FORMAT,
             SCHEMA_KEY: SCHEMA_VERSION,
             "robot_model": self.robot_model,
@@ -218,6 +230,9 @@ class Truth:
             "frames": [f.to_json() for f in self.frames],
             "meta": _jsonable(self.meta),
         }
+        if self.board is not None:
+            doc["board"] = _jsonable(self.board)
+        return doc
 
     @classmethod
     def from_json(cls, doc: dict, where: str = "truth.json") -> Truth:
@@ -238,6 +253,12 @@ class Truth:
             raise f.bad("marker_field", "an object", marker_field)
         if not isinstance(meta, dict):
             raise f.bad("meta", "an object", meta)
+        board = None
+        if f.has("board"):
+            b = f.sub("board")
+            board = {"target": b.raw("target"), "T_world_board": b.array("T_world_board", (4, 4))}
+            if not isinstance(board["target"], dict):
+                raise b.bad("target", "an object (the target TOML's keys)", board["target"])
         return cls(
             robot_model=f.str("robot_model"),
             joint_names=joints.strs("names"),
@@ -254,6 +275,7 @@ class Truth:
             marker_field=marker_field,
             frames=tuple(TruthFrame.from_json(fr, n) for fr in f.items("frames")),
             meta=meta,
+            board=board,
         )
 
 

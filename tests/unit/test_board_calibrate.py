@@ -7,7 +7,6 @@ import warnings
 import cv2
 import numpy as np
 import pytest
-from scipy.spatial.transform import Rotation
 
 from calib.board_calibrate import (
     BoardInputError,
@@ -16,25 +15,11 @@ from calib.board_calibrate import (
     calibrate_board,
 )
 from calib.camera import Pinhole
-from calib.target import Board, Charuco, Chessboard, Features
-from calib.transforms import make_pose
+from calib.target import Charuco, Chessboard, Features
+from calib.target.board_views import random_board_poses
 
 CAMERA = Pinhole(800.0, 1.01, 330.0, 235.0, 640, 480, free=("fx", "mu", "cx", "cy"))
 NAMES = ("fx", "mu", "cx", "cy")
-
-
-def board_poses(board: Board, n: int, seed: int) -> list[np.ndarray]:
-    """``T_cam_board`` of ``n`` views of the board's centre from 0.35-0.55 m, tilted up to 35
-    degrees about x and y and turned about the optical axis."""
-    rng = np.random.default_rng(seed)
-    c = board.layout()[1].mean(axis=0)
-    out = []
-    for _ in range(n):
-        ang = [rng.uniform(-35, 35), rng.uniform(-35, 35), rng.uniform(-180, 180)]
-        R = Rotation.from_euler("xyz", ang, degrees=True).as_matrix()
-        t = np.array([*rng.normal(0, 0.02, 2), rng.uniform(0.35, 0.55)]) - R @ c
-        out.append(make_pose(R, t))
-    return out
 
 
 def analytic_views(board, camera, poses, sigma_px, seed):
@@ -75,7 +60,7 @@ def _quiet(fn, *a, **kw):
 
 def test_analytic_views_give_the_camera_within_its_uncertainty():
     board = Charuco((11, 8), 0.02, 0.015)
-    poses = board_poses(board, 12, seed=1)
+    poses = random_board_poses(board, 12, seed=1)
     res = calibrate_board(board, analytic_views(board, CAMERA, poses, 0.1, seed=2), 640, 480)
     for n in NAMES:
         assert abs(getattr(res.camera, n) - getattr(CAMERA, n)) < 3 * res.std[n], n
@@ -89,7 +74,7 @@ def test_board_images_against_opencv():
     """The same board images through OpenCV: intrinsics within 2 sigma of
     cv2.calibrateCamera's and a reprojection RMS no higher."""
     board = Charuco((11, 8), 0.02, 0.015)
-    poses = board_poses(board, 10, seed=3)
+    poses = random_board_poses(board, 10, seed=3)
     feats = [board.detect(img) for img in image_views(board, CAMERA, poses)]
     res = _quiet(calibrate_board, board, feats, 640, 480)
     cv = res.opencv
@@ -104,7 +89,7 @@ def test_board_images_against_opencv():
 
 def test_images_without_the_board_are_named_counted_and_skipped():
     board = Chessboard((9, 6), 0.025)
-    poses = board_poses(board, 6, seed=4)
+    poses = random_board_poses(board, 6, seed=4)
     feats = analytic_views(board, CAMERA, poses, 0.1, seed=5)
     feats[2] = Features(np.zeros(0, np.int64), np.zeros((0, 2)))
     feats[4] = Features(np.zeros(0, np.int64), np.zeros((0, 2)))
@@ -120,7 +105,7 @@ def test_images_without_the_board_are_named_counted_and_skipped():
 def test_a_chessboard_declared_with_the_wrong_corner_count_is_not_found():
     printed = Chessboard((9, 6), 0.025)
     declared = Chessboard((7, 6), 0.025, source="board.toml")
-    imgs = image_views(printed, CAMERA, board_poses(printed, 4, seed=6))
+    imgs = image_views(printed, CAMERA, random_board_poses(printed, 4, seed=6))
     feats = [declared.detect(img) for img in imgs]
     with pytest.raises(BoardInputError, match="board.toml") as info:
         _quiet(calibrate_board, declared, feats, 640, 480)
@@ -129,7 +114,7 @@ def test_a_chessboard_declared_with_the_wrong_corner_count_is_not_found():
 
 def test_detections_that_do_not_fit_the_declared_geometry_are_refused():
     printed = Charuco((11, 8), 0.02, 0.015)
-    poses = board_poses(printed, 8, seed=7)
+    poses = random_board_poses(printed, 8, seed=7)
     feats = analytic_views(printed, CAMERA, poses, 0.1, seed=8)
     # declared with 12 x 8 inner corners: the same corner ids sit elsewhere on the board
     declared = Charuco((12, 8), 0.02, 0.015, source="board.toml")

@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 import pytest
 
-from calib.io.target_toml import TargetFileError, load_target, parse_target
+from calib.io.target_toml import TargetFileError, load_target, parse_target, target_document
 from calib.target import AprilGrid, ArucoField, Board, Charuco, Chessboard, CirclesGrid
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -178,3 +178,10 @@ def test_missing_and_malformed_files(tmp_path):
     bad.write_text("type = ")
     with pytest.raises(TargetFileError, match="bad.toml: not a valid TOML"):
         load_target(bad)
+
+
+@pytest.mark.parametrize("path", EXAMPLES, ids=lambda p: p.stem)
+def test_target_document_declares_the_same_target(path):
+    target = load_target(path)
+    again = parse_target(target_document(target), str(path))
+    assert again == target

@@ -21,9 +21,11 @@ from calib.io.calibration import (
     write_calibration,
 )
 from calib.io.dataset import DatasetError, DatasetInfo, read_dataset_info, write_dataset_info
+from calib.io.target_toml import parse_target, target_document
 from calib.io.truth import Truth, TruthFileError, read_truth, write_truth
 from calib.mcpc import MCPCModel, nominal_mcpc
 from calib.robot_def import load_robot
+from calib.target import Charuco
 
 GOLDEN = Path(__file__).resolve().parents[1] / "golden"
 
@@ -65,6 +67,10 @@ def truth() -> Truth:
         T_cam_tip=np.linalg.inv(robot.T_flange_cam),
         marker_field={"dictionary": "DICT_4X4_50", "ids": [1, 2], "size_m": 0.03},
         meta={"seed": np.int64(7), "scale": np.float64(0.25)},
+        board={
+            "target": target_document(Charuco((11, 8), 0.02, 0.015, "DICT_5X5_100")),
+            "T_world_board": np.diag([1.0, -1.0, -1.0, 1.0]),
+        },
     )
     for k in range(3):
         q = rng.uniform(-1, 1, 5)
@@ -204,3 +210,11 @@ def test_calibration_mcpc_shape_is_checked(tmp_path):
         read_calibration(tmp_path)
     with pytest.raises(CalibrationFileError, match="missing"):
         read_calibration(tmp_path / "nowhere")
+
+
+def test_truth_holds_the_true_board_pose_and_its_target(tmp_path):
+    back = read_truth(write_truth(tmp_path / "truth.json", truth()))
+    np.testing.assert_array_equal(back.T_world_board, np.diag([1.0, -1.0, -1.0, 1.0]))
+    assert back.board is not None
+    board = parse_target(back.board["target"], "truth.json")
+    assert board == Charuco((11, 8), 0.02, 0.015, "DICT_5X5_100", source="truth.json")
