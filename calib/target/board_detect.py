@@ -10,8 +10,9 @@ empty features.
   board's own (:func:`orient_chessboard`): OpenCV may return the grid mirrored or turned by 180
   degrees, which the printed colours and the handedness of a board seen from its front decide;
 - ChArUco: ``cv2.aruco.CharucoDetector.detectBoard`` (partial views: each corner has its id);
-- asymmetric circle grid: ``cv2.findCirclesGrid`` with ``CALIB_CB_ASYMMETRIC_GRID`` and a blob
-  detector that accepts large circles;
+- asymmetric circle grid: ``cv2.findCirclesGrid`` with ``CALIB_CB_ASYMMETRIC_GRID``, then with
+  a blob detector that accepts large circles (OpenCV's default one, which finds the grid more
+  often under strong perspective, ignores blobs above 5000 px^2);
 - AprilGrid: the ArUco detector with the AprilTag 36h11 dictionary and the edge-line corner
   refinement of :mod:`calib.target.aruco_detect`; ids beyond the grid are dropped.
 """
@@ -134,12 +135,12 @@ def _blob_detector() -> cv2.SimpleBlobDetector:
 def detect_circles(image: np.ndarray, pattern: tuple[int, int]) -> Features:
     """All circle centres of an asymmetric grid ``pattern = (cols, rows)``, or none."""
     gray = to_gray(image)
-    ok, centres = cv2.findCirclesGrid(
-        gray,
-        tuple(pattern),
-        flags=cv2.CALIB_CB_ASYMMETRIC_GRID,
-        blobDetector=_blob_detector(),
-    )
+    flags = cv2.CALIB_CB_ASYMMETRIC_GRID
+    ok, centres = cv2.findCirclesGrid(gray, tuple(pattern), flags=flags)
+    if not ok:  # OpenCV's default blob detector ignores blobs above 5000 px^2
+        ok, centres = cv2.findCirclesGrid(
+            gray, tuple(pattern), flags=flags, blobDetector=_blob_detector()
+        )
     if not ok or centres is None:
         return _EMPTY
     uv = np.asarray(centres, dtype=float).reshape(-1, 2)

@@ -17,7 +17,7 @@ import pytest
 
 from calib.board_calibrate import calibrate_board
 from calib.camera import Pinhole
-from calib.target import Charuco
+from calib.target import AprilGrid, Board, Charuco, Chessboard, CirclesGrid
 from calib.target.board_views import random_board_poses
 from calib.transforms import inv_pose, make_pose
 from sim.board_scene import board_scene_spec
@@ -32,10 +32,10 @@ CAMERA = Pinhole(800.0, 1.0, (W - 1) / 2 + 12, (H - 1) / 2 - 8, W, H)
 NAMES = ("fx", "mu", "cx", "cy")
 
 
-@pytest.fixture(scope="module")
-def rendered():
-    poses = random_board_poses(BOARD, 12, seed=13)
-    spec = board_scene_spec(BOARD, T_WORLD_BOARD, (W, H))
+def render_views(board: Board, poses: list[np.ndarray], image_sigma: float, seed: int):
+    """(images, the camera MuJoCo renders with, true T_cam_board (n, 4, 4)) of ``board`` lying
+    at ``T_WORLD_BOARD`` seen by ``CAMERA`` from ``poses`` (T_cam_board)."""
+    spec = board_scene_spec(board, T_WORLD_BOARD, (W, H))
     names = tuple(f"cam{i}" for i in range(len(poses)))
     for name, T in zip(names, poses, strict=True):
         add_camera(spec.worldbody, name, CAMERA, T_WORLD_BOARD @ inv_pose(T))
@@ -43,12 +43,49 @@ def rendered():
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
     with StereoRenderer(model, W, H, camera_names=names) as r:
-        images = r.render_all(data, image_sigma=3.0, rng=np.random.default_rng(13))
+        images = r.render_all(data, image_sigma=image_sigma, rng=np.random.default_rng(seed))
     truth = intrinsics_from_model(model, names[0])
     T_cam_board = np.stack(
         [inv_pose(T_world_cam_cv(model, data, n)) @ T_WORLD_BOARD for n in names]
     )
     return images, truth, T_cam_board
+
+
+@pytest.fixture(scope="module")
+def rendered():
+    return render_views(BOARD, random_board_poses(BOARD, 12, seed=13), 3.0, 13)
+
+
+@pytest.mark.parametrize(
+    "board",
+    [
+        Chessboard((9, 6), 0.025),
+        BOARD,
+        CirclesGrid((4, 11), 0.02, 0.012),
+        AprilGrid((6, 6), 0.025, 0.3),
+    ],
+    ids=lambda b: type(b).__name__,
+)
+def test_every_board_type_is_seen_where_it_is_in_the_scene(board):
+    """Four views (tilts up to 30 deg) of each board type: a whole-board detector finds every
+    feature of the views that hold the whole board, the others their visible part; corners
+    agree with the analytic projection. Measured RMS (max) px: chessboard 0.064 (0.12), ChArUco
+    0.058 (0.14), circles 0.069 (0.11), AprilGrid 0.078 (0.25); mean below 0.006 px."""
+    images, truth, T_cam_board = render_views(
+        board, random_board_poses(board, 4, seed=5, tilt_deg=30.0), 0.0, 5
+    )
+    _, pts = board.layout()
+    e = []
+    for img, T in zip(images, T_cam_board, strict=True):
+        f = board.detect(img)
+        if truth.in_image(truth.project(pts @ T[:3, :3].T + T[:3, 3]), 5.0).all():
+            assert len(f) >= 0.9 * board.n_features  # the whole board is in view
+        if len(f):
+            e.append(f.uv - truth.project(board.points(f.ids) @ T[:3, :3].T + T[:3, 3]))
+    e = np.concatenate(e)
+    assert len(e) >= 2 * board.n_features  # two of the four views hold the whole board
+    assert np.sqrt(np.mean(np.sum(e**2, axis=1))) < 0.2
+    assert np.abs(e.mean(axis=0)).max() < 0.02
 
 
 def test_rendered_corners_match_the_projection(rendered):
