@@ -1,0 +1,142 @@
+"""Robot calibration with a board of known geometry: camera, hand-eye and kinematics.
+
+The known-board counterpart of the self-calibration route (one camera on the flange, a board
+somewhere in the scene):
+
+1. :func:`calib.board_calibrate.calibrate_board` -- the camera and the board pose of every frame
+   (Zhang via ``cv2.calibrateCamera``, then the bundle adjustment with the board held);
+2. :func:`calib.identify.identify` -- the minimal MCPC parameters (tool = camera) fitted to the
+   camera poses in the board frame (the two-stage method of the paper; ``place_base`` finds the
+   robot's base in the board frame);
+3. the one-step refinement: the same bundle adjustment (:func:`calib.bundle_adjust.bundle_adjust`)
+   with the camera poses taken from the kinematic chain
+   (:class:`calib.estimation.kinematic_poses.KinematicPoses`) and the board's points held at
+   their declared positions. The board fixes the world frame (the board frame) and the scale, so
+   no parameter is held for a gauge and no known distance is needed; only the parameters the
+   identification found unidentifiable stay held. With ``joint_sigma`` (e.g. the encoder
+   quantisation, :func:`calib.estimation.joint_report.encoder_sigma`) every frame gets joint
+   corrections with a zero-mean Gaussian prior (errors in variables, as
+   :mod:`calib.joint_refine` explains); without, the read-back is taken as exact.
+
+Frames: the world is the board frame (m); the model's tool is the OpenCV camera frame. SI units.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from calib.board_calibrate import BoardCalibration, calibrate_board
+from calib.bundle_adjust import _Problem as _AdjustmentProblem
+from calib.camera import Pinhole
+from calib.errors import EstimationError
+from calib.estimation.kinematic_poses import KinematicPoses
+from calib.estimation.residuals import GaussianPriorBlock
+from calib.identify import IdentificationResult, identify
+from calib.mcpc import MCPCModel, minimal_indices, param_names
+from calib.solver import Loss, SolverOptions, covariance, solve
+from calib.target.base import Features
+from calib.target.boards import Board
+from calib.transforms import inv_pose
+
+__all__ = ["BoardRobotCalibration", "calibrate_robot_with_board"]
+
+
+@dataclass
+class BoardRobotCalibration:
+    """Result of :func:`calibrate_robot_with_board`: the refined kinematic ``model`` (world =
+    board frame, tool = camera) and ``camera``; ``camera_std`` of its free parameters; the stages
+    it started from (``board``: the camera stage, ``identification``: the two-stage model);
+    ``used`` (m,) the frames in the adjustment; ``rms_px`` the final reprojection RMS (2-D);
+    ``held``: minimal parameters held (unidentifiable from the frames)."""
+
+    model: MCPCModel
+    camera: Pinhole
+    camera_std: dict[str, float]
+    board: BoardCalibration
+    identification: IdentificationResult
+    used: np.ndarray
+    rms_px: float
+    held: tuple[str, ...]
+
+
+def calibrate_robot_with_board(
+    board: Board,
+    features: Sequence[Features],
+    q: np.ndarray,
+    nominal: MCPCModel,
+    width: int,
+    height: int,
+    *,
+    free: Sequence[str] = ("fx", "mu", "cx", "cy"),
+    names: Sequence[str] | None = None,
+    joint_sigma: float | np.ndarray | None = None,
+    max_iter: int = 100,
+) -> BoardRobotCalibration:
+    """Calibrate the camera and the robot from the board ``features`` of one camera image per
+    frame and the joint read-backs ``q`` (m, n) rad; ``nominal``: the nominal MCPC model with the
+    camera as tool (its world frame need not be the board's); ``joint_sigma`` (rad / m, scalar
+    or (n,)): the read-back's standard deviation, or None for exact read-back. See the module
+    docstring.
+
+    Raises:
+        calib.board_calibrate.BoardInputError / BoardMismatchError: as :func:`calibrate_board`.
+        calib.identify.IdentificationError: too few frames for the kinematics.
+        EstimationError: the refinement did not converge.
+    """
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    if len(q) != len(features):
+        raise ValueError(f"{len(features)} images but {len(q)} joint rows; give one row per image")
+    cam_stage = calibrate_board(board, features, width, height, free=free, names=names)
+    used = cam_stage.used.copy()
+    T_board_cam = inv_pose(cam_stage.T_cam_board[used])
+    ident = identify(nominal, q[used], T_board_cam)
+    idx = minimal_indices(nominal.joint_types)
+    held = tuple(n for n, est in zip(param_names(idx), ident.estimated, strict=True) if not est)
+    free_idx = idx[ident.estimated]
+    poses = KinematicPoses(
+        ident.model,
+        q,
+        free_idx,
+        np.zeros((0, 4, 4)),
+        used,
+        joint_corrections=joint_sigma is not None,
+    )
+    view = cam_stage.view[cam_stage.inlier]
+    ids, pidx = np.unique(cam_stage.feature[cam_stage.inlier], return_inverse=True)
+    uv = np.concatenate([features[i].uv for i in np.flatnonzero(used).tolist()])[cam_stage.inlier]
+    extra = []
+    if joint_sigma is not None:
+        js = np.broadcast_to(np.asarray(joint_sigma, dtype=float), (nominal.n,))
+        w = np.tile(cam_stage.sigma_px / js, int(used.sum()))  # px per rad (m) of correction
+        extra.append(GaussianPriorBlock("poses", poses.dq_cols, w))
+    x0 = np.concatenate([cam_stage.camera.free_values(), poses.initial_params()])
+    prob = _AdjustmentProblem(
+        cam_stage.camera, poses, view, pidx, uv, len(ids), loss=Loss("linear"), x0=x0,
+        extra=extra, fixed_points=board.points(ids),
+    )  # fmt: skip
+    sol = solve(prob.problem, SolverOptions(tol=1e-12, max_iterations=max_iter, eliminate="poses"))
+    if sol.status <= 0:
+        raise EstimationError(
+            f"the refinement of kinematics and camera on the board did not converge within "
+            f"{max_iter} iterations ({sol.message})",
+            fix="check the joint read-back (units, order of the rows) against the images",
+        )
+    camera, p, _ = prob.unpack(sol.x)
+    r = sol.residuals[prob.block.name]
+    dof = max(sum(v.size for v in sol.residuals.values()) - prob.n, 1)
+    sigma2 = float(sum(np.sum(v**2) for v in sol.residuals.values())) / dof
+    cov = covariance(prob.problem, sol.x, ["intrinsics"], sigma2=sigma2)
+    std = dict(zip(camera.free, np.sqrt(np.clip(np.diag(cov), 0, None)).tolist(), strict=True))
+    return BoardRobotCalibration(
+        model=poses.kinematic_model(p),
+        camera=camera,
+        camera_std=std,
+        board=cam_stage,
+        identification=ident,
+        used=used,
+        rms_px=float(np.sqrt(np.mean(np.sum(r**2, axis=1)))),
+        held=held,
+    )
