@@ -15,12 +15,14 @@ from pathlib import Path
 import numpy as np
 
 from calib.ik import UnreachableError, ik, ik_nearest
+from calib.ik_numeric import ToolTarget, ik_robot
 from calib.kinematics import fk_tool
 from calib.mcpc import nominal_mcpc
 from calib.robot_def import load_robot
 from calib.tool_pose import tool_pose
 from scenarios.backends import render_posture
 from scenarios.cli_common import CliError, parse_floats, run_command
+from scenarios.cli_pose import POSE_HELP, add_pose_args, is_er, orientation_json, parse_pose_args
 from scenarios.config import load_scenario
 from scenarios.deploy_cli import register as register_deploy
 from scenarios.hw_cli import register as register_hw
@@ -48,39 +50,57 @@ def cmd_fk(args: argparse.Namespace) -> int:
     robot = load_robot(args.model)
     q = _joints_rad(robot, args.joints)
     T = fk_tool(nominal_mcpc(robot), q[None])[0]
-    xyz, pitch, roll = tool_pose(T)
     out = {
         "model": robot.name,
         "joints_deg": np.round(np.degrees(q), 6).tolist(),
-        "xyz_mm": np.round(np.asarray(xyz) * 1000, 4).tolist(),
-        "pitch_deg": round(float(np.degrees(pitch)), 4),
-        "roll_deg": round(float(np.degrees(roll)), 4),
+        "xyz_mm": np.round(T[:3, 3] * 1000, 4).tolist(),
     }
+    if is_er(robot):
+        _, pitch, roll = tool_pose(T)
+        out["pitch_deg"] = round(float(np.degrees(pitch)), 4)
+        out["roll_deg"] = round(float(np.degrees(roll)), 4)
+    out.update(orientation_json(T[:3, :3]))
     print(json.dumps(out))
     return 0
 
 
+def _ik_er(robot, pose, branch: str | None) -> np.ndarray:
+    """The closed-form IK of a 5-axis ER-type arm (pitch and roll)."""
+    xyz, pitch, roll = pose.xyz_m, pose.pitch_rad, pose.roll_rad
+    if not branch:
+        return ik_nearest(robot, xyz, pitch, roll, reference=pose.reference)
+    sols = ik(robot, xyz, pitch, roll, reference=pose.reference)
+    pick = [s for s in sols if s.branch == branch]
+    if not pick:
+        names = sorted({s.branch for s in sols})
+        raise CliError(f"--branch {branch!r}: no such solution; available: {names}")
+    if not pick[0].in_range:
+        raise CliError(f"branch {branch}: {'; '.join(pick[0].violations)}")
+    return pick[0].joints
+
+
 def cmd_ik(args: argparse.Namespace) -> int:
     robot = load_robot(args.model)
-    xyz = parse_floats(args.xyz, 3, "--xyz (mm)") / 1000.0
-    for name, val in (("--pitch", args.pitch), ("--roll", args.roll)):
-        if not (np.isfinite(val) and abs(val) <= 720.0):
-            raise CliError(f"{name}: expected an angle in deg within +-720, got {val}")
-    pitch, roll = np.radians(args.pitch), np.radians(args.roll)
+    pose = parse_pose_args(args, robot)
+    out: dict = {"model": robot.name}
     try:
-        if args.branch:
-            sols = [s for s in ik(robot, xyz, pitch, roll) if s.branch == args.branch]
-            if not sols:
-                names = sorted({s.branch for s in ik(robot, xyz, pitch, roll)})
-                raise CliError(f"--branch {args.branch!r}: no such solution; available: {names}")
-            if not sols[0].in_range:
-                raise CliError(f"branch {args.branch}: {sols[0].violation}")
-            q = sols[0].joints
+        if pose.pitch_rad is not None:
+            q = _ik_er(robot, pose, args.branch)
+            out["solver"] = "analytic"
         else:
-            q = ik_nearest(robot, xyz, pitch, roll)
+            if args.branch:
+                raise CliError("--branch needs --pitch (the ER-4u's closed-form IK branches)")
+            res = ik_robot(
+                robot, ToolTarget.checked(pose.xyz_m, pose.rotation), reference=pose.reference
+            )
+            q = res.joints
+            out["solver"] = "numeric"
+            out["position_error_mm"] = res.position_error_m * 1000.0
+            out["angle_error_deg"] = float(np.degrees(res.angle_error_rad))
     except UnreachableError as exc:
         raise CliError(f"unreachable: {exc}") from None
-    print(json.dumps({"model": robot.name, "joints_deg": np.round(np.degrees(q), 6).tolist()}))
+    out["joints_deg"] = np.round(np.degrees(q), 6).tolist()
+    print(json.dumps(out))
     return 0
 
 
@@ -170,19 +190,23 @@ def build_parser() -> argparse.ArgumentParser:
         sp.set_defaults(func=func)
         return sp
 
-    sp = add("fk", cmd_fk, "forward kinematics: print the tool pose as JSON")
+    sp = add(
+        "fk",
+        cmd_fk,
+        "forward kinematics: print the tool pose as JSON (xyz_mm, rpy_deg, quat_wxyz; pitch_deg "
+        "and roll_deg for an ER-type arm)",
+        POSE_HELP,
+    )
     sp.add_argument("--model", default="er4u-paper", help="robot model name (default er4u-paper)")
     sp.add_argument(
         "--joints", required=True, help="joint angles in deg, e.g. 38.15,-30,45,-63.54,0"
     )
 
-    sp = add("ik", cmd_ik, "inverse kinematics: print joint angles (deg) as JSON")
-    sp.add_argument("--model", default="er4u-paper")
-    sp.add_argument("--xyz", required=True, help="tool point in mm, e.g. 320.8,252.0,182.8")
-    sp.add_argument("--pitch", type=float, required=True, help="tool pitch in deg")
-    sp.add_argument("--roll", type=float, default=0.0, help="tool roll in deg (default 0)")
+    sp = add("ik", cmd_ik, "inverse kinematics: print joint angles (deg) as JSON", POSE_HELP)
+    sp.add_argument("--model", default="er4u-paper", help="robot model name (default er4u-paper)")
+    add_pose_args(sp, xyz_help="tool point in mm, e.g. 320.8,252.0,182.8")
     sp.add_argument(
-        "--branch", default=None, help="a specific solution branch (default: nearest home)"
+        "--branch", default=None, help="with --pitch: a specific solution branch (default: nearest)"
     )
 
     sp = add(

@@ -120,7 +120,9 @@ def cmd_ik_calibrated(args: argparse.Namespace) -> int:
     dep = load_calibration(args.calibration)
     robot = load_robot(dep.robot_name)
     xyz = _xyz_m(args.xyz)
-    pitch, roll = np.radians(args.pitch), np.radians(args.roll)
+    if args.pitch is None:
+        raise CliError("--calibration needs --pitch [--roll] (the ER-4u's tool orientation)")
+    pitch, roll = np.radians(args.pitch), np.radians(args.roll or 0.0)
     try:
         res = solve_compensated(
             dep, robot, xyz, pitch, roll, branch=getattr(args, "branch", None) or None

@@ -94,3 +94,33 @@ def test_help_lists_scenario_keys(capsys):
     out = capsys.readouterr().out
     for key in ("scale_length_mm", "pixel_sigma", "backend", "baseline_mm", "[validation]"):
         assert key in out
+
+
+def test_fk_ik_round_trip_of_a_six_axis_arm(capsys):
+    """UR5e: fk prints the orientation as rpy and quaternion; ik takes either back."""
+    q = [10.0, -95.0, 100.0, -95.0, -85.0, 20.0]
+    code, out, _ = run(capsys, "fk", "--model", "ur5e", "--joints", ",".join(map(str, q)))
+    assert code == 0
+    doc = json.loads(out)
+    assert "pitch_deg" not in doc  # the ER convention only for ER-type arms
+    xyz = ",".join(f"{v:.6f}" for v in doc["xyz_mm"])
+    for opt, val in (("--rpy-deg", doc["rpy_deg"]), ("--quat", doc["quat_wxyz"])):
+        vals = ",".join(f"{v:.9f}" for v in val)
+        # "--key=value": the values may start with a minus sign
+        code, out, _ = run(capsys, "ik", "--model", "ur5e", f"--xyz={xyz}", f"{opt}={vals}")
+        assert code == 0, opt
+        res = json.loads(out)
+        assert res["solver"] == "numeric"
+        # fk rounds xyz to 1e-4 mm and rpy to 1e-6 deg: the posture comes back to ~1e-5 deg
+        np.testing.assert_allclose(res["joints_deg"], q, atol=1e-4)
+
+
+def test_ik_pitch_roll_is_refused_for_a_six_axis_arm(capsys):
+    code, out, err = run(capsys, "ik", "--model", "ur5e", "--xyz=-400,-133,400", "--pitch", "0")
+    assert code == 2 and out == ""
+    assert "--rpy-deg" in err and "ur5e" in err
+
+
+def test_ik_needs_exactly_one_orientation(capsys):
+    code, _, err = run(capsys, "ik", "--xyz", "300,0,200", "--pitch", "0", "--rpy-deg", "0,0,0")
+    assert code == 2 and "exactly one tool orientation" in err
