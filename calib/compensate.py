@@ -13,6 +13,11 @@ calibrated arm the tool axis need not lie exactly in the vertical plane through 
 the tool point; pitch is measured in that plane (its out-of-plane component, fixed by the arm's
 geometry, is ignored, as :func:`calib.tool_pose.pitch_roll` does).
 
+Any arm (:func:`solve_compensated_pose`): the target is a tool-tip position and optionally a full
+orientation (:class:`calib.ik_numeric.ToolTarget`); the nominal numerical IK gives the start and
+:func:`calib.ik_numeric.solve_ik` solves the calibrated chain. The ER-type arm's pitch/roll target
+(:func:`solve_compensated`) works as follows.
+
 Method: start from the nominal analytic IK (:func:`calib.ik.ik`, the requested branch or the
 in-range solution nearest ``reference``), then Levenberg-Marquardt / Newton on the calibrated chain
 (residual: position in m and pitch, roll in rad, central-difference Jacobian) until both are below
@@ -32,13 +37,19 @@ import numpy as np
 from calib.errors import InputError
 from calib.export import DeployedModel, as_deployed
 from calib.ik import UnreachableError, ik, ik_nearest, wrap_into_range
+from calib.ik_numeric import ANGLE_SCALE_M, ToolTarget, damped_least_squares, ik_robot, solve_ik
 from calib.kinematics import fk_tool
 from calib.robot_def import RobotDef
 from calib.tool_pose import tool_pose
 
-__all__ = ["CompensatedIK", "compensated_ik", "solve_compensated", "tool_target_residual"]
+__all__ = [
+    "CompensatedIK",
+    "compensated_ik",
+    "solve_compensated",
+    "solve_compensated_pose",
+    "tool_target_residual",
+]
 
-_ANGLE_SCALE_M = 0.1  # m per rad: weighs orientation against position in the damped steps
 _FD_STEP = 1e-6  # rad / m: central differences
 
 
@@ -81,37 +92,28 @@ def tool_target_residual(
 
 
 def _solve(dep, q0, xyz, pitch, roll, tol, max_iter=60):
-    """Damped Newton (LM) from ``q0``; returns (q, position error, angle error, iterations)."""
+    """Damped Newton (LM, :func:`calib.ik_numeric.damped_least_squares`) from ``q0`` on the
+    pitch/roll residual, central-difference Jacobian; returns (q, position error, angle error,
+    iterations)."""
     n = dep.n
-    w = np.array([1.0, 1.0, 1.0, _ANGLE_SCALE_M, _ANGLE_SCALE_M])
-    q = np.asarray(q0, dtype=float).copy()
-    r = tool_target_residual(dep, q, xyz, pitch, roll)[0]
-    lam = 1e-6
+    w = np.array([1.0, 1.0, 1.0, ANGLE_SCALE_M, ANGLE_SCALE_M])
     eye = np.eye(n)
-    iterations = 0
-    for _ in range(max_iter):
-        iterations += 1
+
+    def residual(q):
+        return tool_target_residual(dep, q, xyz, pitch, roll)[0] * w
+
+    def jacobian(q):
         qs = np.concatenate([q + _FD_STEP * eye, q - _FD_STEP * eye])
         rs = tool_target_residual(dep, qs, xyz, pitch, roll)
-        J = ((rs[:n] - rs[n:]) / (2 * _FD_STEP)).T * w[:, None]  # (5, n)
-        rw = r * w
-        JtJ, g = J.T @ J, J.T @ rw
-        improved = False
-        for _ in range(30):
-            step = -np.linalg.solve(JtJ + lam * np.diag(np.diag(JtJ) + 1e-12), g)
-            q_new = q + step
-            r_new = tool_target_residual(dep, q_new, xyz, pitch, roll)[0]
-            if np.linalg.norm(r_new * w) <= np.linalg.norm(rw):
-                q, r = q_new, r_new
-                lam = max(lam / 10, 1e-12)
-                improved = True
-                break
-            lam *= 10
-        done = np.linalg.norm(r[:3]) < tol and np.max(np.abs(r[3:])) < tol
-        # stop when stuck, or once converged and the last step was at rounding level
-        if not improved or (done and np.max(np.abs(step)) < 1e-11):
-            break
-    return q, float(np.linalg.norm(r[:3])), float(np.max(np.abs(r[3:]))), iterations
+        return ((rs[:n] - rs[n:]) / (2 * _FD_STEP)).T * w[:, None]  # (5, n)
+
+    def converged(r):
+        return np.linalg.norm(r[:3]) < tol and np.max(np.abs(r[3:] / w[3:])) < tol
+
+    q, r, iterations = damped_least_squares(
+        residual, jacobian, q0, None, converged, max_iter=max_iter
+    )
+    return q, float(np.linalg.norm(r[:3])), float(np.max(np.abs(r[3:] / w[3:]))), iterations
 
 
 def _target_text(xyz, pitch, roll) -> str:
@@ -169,7 +171,7 @@ def solve_compensated(
     for q0, name in seeds:
         q, e_pos, e_ang, it = _solve(dep, q0, xyz, pitch, roll, tol)
         if not (e_pos < tol and e_ang < tol):
-            best_err = min(best_err, e_pos + _ANGLE_SCALE_M * e_ang)
+            best_err = min(best_err, e_pos + ANGLE_SCALE_M * e_ang)
             continue
         bad = []
         for j in range(dep.n):
@@ -201,7 +203,7 @@ def solve_compensated(
             nominal_says = f" (nominal model: {exc})"
     raise UnreachableError(
         f"{dep.robot_name} (calibrated): {tgt} is out of reach: the calibrated chain stays "
-        f"{best_err * 1000:.3f} mm (position + {_ANGLE_SCALE_M * 1000:.0f} mm per rad of pitch/roll) "
+        f"{best_err * 1000:.3f} mm (position + {ANGLE_SCALE_M * 1000:.0f} mm per rad of pitch/roll) "
         f"from it; move the target closer or change the pitch{nominal_says}",
         distance_m=float(best_err),
     )
@@ -230,3 +232,44 @@ def compensated_ik(
         branch=branch,
         tol=tol,
     ).joints
+
+
+def solve_compensated_pose(
+    calibration,
+    robot: RobotDef,
+    target: ToolTarget,
+    *,
+    reference: np.ndarray | None = None,
+    tol: float = 1e-9,
+) -> CompensatedIK:
+    """Joint commands reaching a tool pose (or tool point) with the calibrated model, any arm.
+
+    ``calibration`` as in :func:`solve_compensated`; ``target`` in the robot's base frame, tool
+    tip (:class:`calib.ik_numeric.ToolTarget`: position, optional full orientation). The nominal
+    numerical IK (:func:`calib.ik_numeric.ik_robot`, nearest ``reference``, default home) gives
+    the first start; then :func:`calib.ik_numeric.solve_ik` on the calibrated chain (starts: that
+    solution, home, seeded random in-range postures). ``branch`` of the result names the start
+    (``"nominal"``, ``"home"``, ``"random <k>"``).
+
+    Raises:
+        UnreachableError: the calibrated chain cannot reach the target within ``tol``.
+    """
+    dep = as_deployed(calibration, robot)
+    ref = dep.home if reference is None else np.asarray(reference, dtype=float).reshape(dep.n)
+    try:
+        nominal: np.ndarray | None = ik_robot(robot, target, reference=ref).joints
+    except UnreachableError:
+        nominal = None
+    res = solve_ik(
+        dep.model,
+        dep.limits,
+        target,
+        reference=ref if nominal is None else nominal,
+        home=dep.home,
+        tol=tol,
+        name=f"{dep.robot_name} (calibrated)",
+    )
+    start = "nominal" if (res.start == "reference" and nominal is not None) else res.start
+    return CompensatedIK(
+        res.joints, nominal, start, res.position_error_m, res.angle_error_rad, res.iterations
+    )

@@ -84,6 +84,11 @@ def parse_pose_args(args: argparse.Namespace, robot: RobotDef) -> PoseArgs:
             pitch/roll for a robot that is not an ER-type arm.
     """
     xyz = parse_floats(args.xyz, 3, "--xyz (mm)") / 1000.0
+    # a parser built elsewhere (only --xyz/--pitch/--roll) keeps working
+    for key in ("rpy_deg", "quat", "roll", "reference"):
+        if not hasattr(args, key):
+            setattr(args, key, None)
+    args.position_only = getattr(args, "position_only", False)
     given = [
         name
         for name, v in (

@@ -3,8 +3,10 @@
 - ``selfcal export DIR --format mjcf|urdf|toml --out FILE``: the calibration in ``DIR``
   (``DIR/calibration.json``, or that file itself) as a MuJoCo model, a URDF or a parameter table,
   all in the robot's base frame with the tool tip as tool (:mod:`calib.export`).
-- ``selfcal ik --calibration FILE --xyz X,Y,Z --pitch P [--roll R]``: joint commands (deg) that
-  reach the target with the calibrated model (:mod:`calib.compensate`); ``FILE`` is a
+- ``selfcal ik --calibration FILE --xyz X,Y,Z --pitch P [--roll R]`` (an ER-type arm) or
+  ``--rpy-deg R,P,Y`` / ``--quat W,X,Y,Z`` / ``--position-only`` (any arm,
+  :mod:`scenarios.cli_pose`): joint commands (deg) that reach the target with the calibrated
+  model (:mod:`calib.compensate`); ``FILE`` is a
   ``calibration.json``, its dataset folder or a TOML written by ``selfcal export --format toml``.
 
 :func:`register` adds ``export`` and extends an existing ``ik`` command with ``--calibration``
@@ -19,14 +21,16 @@ from pathlib import Path
 
 import numpy as np
 
-from calib.compensate import solve_compensated
+from calib.compensate import solve_compensated, solve_compensated_pose
 from calib.export import BASE_FRAME, TOOL_FRAME, DeployError, deploy
 from calib.export_toml import from_toml, to_toml
 from calib.export_urdf import to_urdf
 from calib.ik import UnreachableError
+from calib.ik_numeric import ToolTarget
 from calib.io.calibration import read_calibration
 from calib.robot_def import load_robot
-from scenarios.cli_common import CliError, parse_floats
+from scenarios.cli_common import CliError
+from scenarios.cli_pose import add_pose_args, parse_pose_args
 from sim.export_mjcf import calibrated_mjcf
 
 __all__ = ["register", "cmd_export", "cmd_ik_calibrated", "load_calibration", "FORMATS"]
@@ -45,10 +49,6 @@ formats:
   toml  MCPC parameters with std, joint offsets and the DH table where one exists
 see docs/deploy.md
 """
-
-
-def _xyz_m(text: str) -> np.ndarray:
-    return parse_floats(text, 3, "--xyz (mm)") / 1000.0
 
 
 def _calibration_file(path: str) -> Path:
@@ -119,14 +119,21 @@ def cmd_ik_calibrated(args: argparse.Namespace) -> int:
     """``selfcal ik --calibration FILE``: joint commands from the calibrated model, as JSON."""
     dep = load_calibration(args.calibration)
     robot = load_robot(dep.robot_name)
-    xyz = _xyz_m(args.xyz)
-    if args.pitch is None:
-        raise CliError("--calibration needs --pitch [--roll] (the ER-4u's tool orientation)")
-    pitch, roll = np.radians(args.pitch), np.radians(args.roll or 0.0)
+    pose = parse_pose_args(args, robot)
     try:
-        res = solve_compensated(
-            dep, robot, xyz, pitch, roll, branch=getattr(args, "branch", None) or None
-        )
+        if pose.pitch_rad is not None:
+            res = solve_compensated(
+                dep,
+                robot,
+                pose.xyz_m,
+                pose.pitch_rad,
+                pose.roll_rad,
+                reference=pose.reference,
+                branch=getattr(args, "branch", None) or None,
+            )
+        else:
+            target = ToolTarget.checked(pose.xyz_m, pose.rotation)
+            res = solve_compensated_pose(dep, robot, target, reference=pose.reference)
     except UnreachableError as exc:
         raise CliError(f"unreachable: {exc}") from None
     except ValueError as exc:
@@ -141,6 +148,7 @@ def cmd_ik_calibrated(args: argparse.Namespace) -> int:
                 "nominal_joints_deg": None if nominal is None else np.round(nominal, 6).tolist(),
                 "branch": res.branch,
                 "residual_mm": res.position_error_m * 1000.0,
+                "residual_deg": float(np.degrees(res.angle_error_rad)),
                 "frame": "robot base frame (DH frame 0 of the identified joint axes 1 and 2), "
                 "tool tip",
             }
@@ -193,10 +201,8 @@ def register(subparsers) -> None:
             "ik",
             help="inverse kinematics with a calibrated model: joint commands (deg) as JSON",
         )
-        ik.add_argument("--xyz", required=True, help="tool point in mm (robot base frame)")
-        ik.add_argument("--pitch", type=float, required=True, help="tool pitch in deg")
-        ik.add_argument("--roll", type=float, default=0.0, help="tool roll in deg (default 0)")
-        ik.add_argument("--branch", default=None, help="start from this nominal IK branch")
+        add_pose_args(ik, xyz_help="tool point in mm (robot base frame)")
+        ik.add_argument("--branch", default=None, help="with --pitch: start from this branch")
     else:
         original = ik.get_default("func")
     ik.add_argument(
