@@ -8,6 +8,7 @@ world frame, m); it runs on the acquisition side and never sees the calibration'
 from __future__ import annotations
 
 import warnings
+from collections.abc import Callable
 
 import numpy as np
 
@@ -70,9 +71,11 @@ def plan_postures(
     normals_world: np.ndarray | None = None,
     span: np.ndarray | None = None,
     max_candidates: int = 200_000,
+    collision_ok: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> np.ndarray:
     """Random in-range postures around home in which every camera of ``rig`` sees
-    ``min_visible`` points (:data:`PLANNING_VISIBILITY`).
+    ``min_visible`` points (:data:`PLANNING_VISIBILITY`) and, with ``collision_ok``, that are
+    free of self-collision (e.g. :meth:`calib.self_collision.CapsuleChain.ok`).
 
     Args:
         model_cam: nominal MCPC model whose tool is the rig's first camera (OpenCV frame).
@@ -81,6 +84,9 @@ def plan_postures(
         span: (n,) half-width (rad, or m for a prismatic joint) of the window around home in
             which postures are drawn; default ``robot.planning_span`` (robot file
             ``[planning] span_deg``).
+        collision_ok: ``(m, n) rad -> (m,) bool``, False for a posture in collision; None: no
+            check. Rejected postures are dropped from the random sequence, so a check that passes
+            every drawn posture leaves the plan unchanged.
     Returns:
         (n_poses, n) joint vectors (rad), deterministic for a seed.
     Raises:
@@ -98,13 +104,17 @@ def plan_postures(
         seen = rig.visible_points(
             PLANNING_VISIBILITY, fk_tool(model_cam, q), points_world, normals_world
         )
-        found.append(q[(seen.sum(axis=2) >= min_visible).all(axis=1)])
+        keep = (seen.sum(axis=2) >= min_visible).all(axis=1)
+        if collision_ok is not None and keep.any():
+            keep[keep] = np.asarray(collision_ok(q[keep]), dtype=bool)
+        found.append(q[keep])
     allq = np.concatenate(found) if found else np.zeros((0, robot.n))
     if len(allq) < n_poses:
         raise DegenerateTrajectoryError(
             f"only {len(allq)} of {n_poses} postures found in which every camera sees "
-            f"{min_visible} target points; lower trajectory.min_markers, move the target, or "
-            "widen the sampling window"
+            f"{min_visible} target points"
+            + ("" if collision_ok is None else " without self-collision")
+            + "; lower trajectory.min_markers, move the target, or widen the sampling window"
         )
     return allq[:n_poses]
 

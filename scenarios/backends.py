@@ -22,8 +22,9 @@ from calib.mcpc import MCPCModel, minimal_indices, nominal_mcpc, param_is_angle,
 from calib.optimal_poses import plan_optimal_postures
 from calib.robot import Robot
 from calib.robot_def import RobotDef, load_robot
+from calib.self_collision import CapsuleChain
 from calib.target import CORNERS_PER_MARKER
-from calib.trajectory import check_not_degenerate, plan_postures
+from calib.trajectory import PLANNING_VISIBILITY, check_not_degenerate, plan_postures
 from calib.transforms import trans
 from scenarios.acquire import AcquisitionHooks
 from scenarios.config import ConfigError, Scenario, load_scenario, scenario_to_dict
@@ -31,6 +32,7 @@ from scenarios.hardware import open_hardware_robot
 from sim.actual import apply_errors, perturb
 from sim.analytic import project_markers
 from sim.collision import collision_checker
+from sim.kinematic_robot import KinematicRobot
 from sim.markers import make_marker_field
 from sim.robot_mjcf import RigConfig
 from sim.sim_robot import SimRobot
@@ -39,6 +41,7 @@ __all__ = [
     "SimSetup",
     "sim_setup",
     "make_sim_robot",
+    "make_kinematic_robot",
     "open_robot",
     "plan_dataset",
     "render_posture",
@@ -63,27 +66,39 @@ class SimSetup:
 
 
 def _field_center(robot: RobotDef, nominal: MCPCModel) -> tuple[float, float]:
-    """Where the home posture's optical axis meets the table (z = 0): the field's centre."""
+    """Where the home posture's optical axis meets the table (z = 0): the field's centre.
+
+    Any arm: the home camera pose (``nominal``: base -> camera) decides; the table must lie in
+    front of the camera at a working distance of the planner's visibility rule
+    (:data:`calib.trajectory.PLANNING_VISIBILITY`, depth along the optical axis).
+    """
     T = fk_tool(nominal, robot.home[None])[0]
     p, z = T[:3, 3], T[:3, 2]
-    if z[2] > -0.2:
+    rule = PLANNING_VISIBILITY
+    depth = -p[2] / z[2] if z[2] < -1e-9 else np.inf
+    if not rule.min_depth_m <= depth <= rule.max_depth_m:
+        seen = "does not look down at the table" if z[2] >= -1e-9 else f"sees it {depth:.2f} m away"
         raise ConfigError(
-            f"{robot.name}: at the home posture the camera does not look down at the table; "
-            "cannot place the marker field"
+            f"{robot.name}: at the home posture the camera {seen}; the marker field is placed "
+            f"where the home optical axis meets the table, {rule.min_depth_m:.2f} to "
+            f"{rule.max_depth_m:.2f} m in front of the camera",
+            fix=f"choose a home posture (home_deg in models/robots/{robot.name}.toml) whose "
+            "camera looks down at the table in front of the robot",
         )
-    hit = p - p[2] / z[2] * z
+    hit = p + depth * z
     return float(hit[0]), float(hit[1])
 
 
-def _perturbation_table(s: Scenario, n: int) -> dict[str, float]:
-    names = param_names(minimal_indices(("revolute",) * n))
+def _perturbation_table(s: Scenario, joint_types: tuple[str, ...]) -> dict[str, float]:
+    idx = minimal_indices(joint_types)
+    names = param_names(idx)
     out = {}
     for k, v in s.perturbation.table.items():
         if k not in names:
             raise ConfigError(
                 f"{s.source}: perturbation.table.{k}: unknown parameter; known: {', '.join(names)}"
             )
-        is_angle = param_is_angle(minimal_indices(("revolute",) * n))[names.index(k)]
+        is_angle = param_is_angle(idx)[names.index(k)]
         out[k] = float(v) * (np.pi / 180 if is_angle else 1e-3)
     return out
 
@@ -98,7 +113,7 @@ def sim_setup(s: Scenario) -> SimSetup:
         translation_m=s.perturbation.translation_mm / 1000,
         rotation_rad=np.radians(s.perturbation.rotation_deg),
     )
-    table = _perturbation_table(s, robot.n)
+    table = _perturbation_table(s, robot.joint_types)
     if table:
         actual = apply_errors(actual, table)
     W, H = s.camera.resolution
@@ -118,7 +133,8 @@ def sim_setup(s: Scenario) -> SimSetup:
 
 def planning_inputs(s: Scenario) -> dict:
     """What trajectories are planned with: robot, nominal camera chain, the camera rig (nominal
-    intrinsics and baseline) and a 6 x 6 grid of points (with normals) over the target region.
+    intrinsics and baseline), a 6 x 6 grid of points (with normals) over the target region and
+    the self-collision check (:class:`calib.self_collision.CapsuleChain` of the nominal arm).
 
     Planning sees only what a person at a real robot knows: the region the target covers (centred
     where the home posture looks, ``[target] extent_mm``), never the true marker positions, so
@@ -141,6 +157,7 @@ def planning_inputs(s: Scenario) -> dict:
         "points_world": pts,
         "normals_world": np.tile([0.0, 0.0, 1.0], (len(pts), 1)),
         "min_visible": s.trajectory.min_markers,
+        "collision_ok": CapsuleChain(nominal_mcpc(robot), robot.T_flange_cam).ok,
     }
 
 
@@ -149,6 +166,7 @@ def plan_optimal(s: Scenario, *, collisions: bool = True, **kw):
     over the planning grid of :func:`planning_inputs`, checked for self-collision with MuJoCo
     (:mod:`sim.collision`), with ``corners_per_point = corners of the markers / 36``."""
     inp = planning_inputs(s)
+    inp.pop("collision_ok")  # the MuJoCo shapes below check it
     corners = CORNERS_PER_MARKER * s.target.markers
     kw.setdefault("corners_per_point", corners / len(inp["points_world"]))
     kw.setdefault("pixel_sigma_px", s.noise.pixel_sigma)
@@ -184,6 +202,7 @@ def plan_dataset(s: Scenario, setup: SimSetup | None = None) -> DatasetInfo:
             seed=s.trajectory.seed,
             min_visible=s.trajectory.min_markers,
             normals_world=nrm,
+            collision_ok=p["collision_ok"],
         )
     check_not_degenerate(fk_tool(nominal, q))
     qv = plan_postures(
@@ -195,6 +214,7 @@ def plan_dataset(s: Scenario, setup: SimSetup | None = None) -> DatasetInfo:
         seed=10_000 + s.validation.seed,
         min_visible=0,
         normals_world=nrm,
+        collision_ok=p["collision_ok"],
     )
     return DatasetInfo(
         robot_model=robot.name,
@@ -218,7 +238,8 @@ def open_robot(
         return open_hardware_robot(s), AcquisitionHooks()
 
     setup = setup or sim_setup(s)
-    robot = make_sim_robot(s, setup)
+    # the analytic path needs no images: the MuJoCo-free simulator serves any serial arm
+    robot = make_sim_robot(s, setup) if s.noise.render else make_kinematic_robot(s, setup)
     rig = robot.rig
     truth = robot.truth(meta={"scenario": scenario_to_dict(s)})
     truth_path = Path(out) / "truth.json"
@@ -269,6 +290,16 @@ def make_sim_robot(s: Scenario, setup: SimSetup | None = None):
         image_sigma=s.noise.image_sigma,
         seed=s.noise.seed,
         quantize=s.noise.quantize_joints,
+    )
+
+
+def make_kinematic_robot(s: Scenario, setup: SimSetup | None = None) -> KinematicRobot:
+    """The scenario's simulated actual robot for the analytic path
+    (:class:`sim.kinematic_robot.KinematicRobot`: forward kinematics, no MuJoCo, no images)."""
+    setup = setup or sim_setup(s)
+    rig = RigConfig(intrinsics=setup.intrinsics, T_left_right=setup.T_left_right)
+    return KinematicRobot(
+        setup.robot.name, setup.actual, rig, setup.field, quantize=s.noise.quantize_joints
     )
 
 

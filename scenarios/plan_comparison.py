@@ -110,6 +110,7 @@ def compare_plans(
                 seed=seed,
                 min_visible=inp["min_visible"],
                 normals_world=inp["normals_world"],
+                collision_ok=inp["collision_ok"],
             )
             plan = plan_optimal(s)
             for kind, q in (("random", q_rand), ("optimal", plan.q)):

@@ -13,13 +13,10 @@ import mujoco
 import numpy as np
 
 from calib.errors import InputError
-from calib.io.truth import Truth
 from calib.mcpc import MCPCModel
-from calib.robot import RobotError, StereoPair
-from calib.robot_def import load_robot
-from sim.actual import make_truth
-from sim.link_frames import nominal_camera_model
-from sim.markers import MarkerField, make_marker_field
+from calib.robot import StereoPair
+from sim.kinematic_robot import KinematicRobot
+from sim.markers import MarkerField
 from sim.mj_camera import T_world_cam_cv
 from sim.render import StereoRenderer
 from sim.robot_mjcf import CAMERA_NAMES, TOOL_SITE, RigConfig, scene_with_robot
@@ -27,7 +24,7 @@ from sim.robot_mjcf import CAMERA_NAMES, TOOL_SITE, RigConfig, scene_with_robot
 __all__ = ["SimRobot"]
 
 
-class SimRobot:
+class SimRobot(KinematicRobot):
     """A simulated robot with a wrist stereo rig photographing a marker field.
 
     Args:
@@ -57,59 +54,15 @@ class SimRobot:
     ) -> None:
         if not image_sigma >= 0:
             raise InputError(f"image_sigma must be >= 0 (grey levels), got {image_sigma}")
-        self.robot = load_robot(model_name)
-        self.model_name = self.robot.name
-        self.nominal = nominal_camera_model(self.robot)
-        self.actual = self.nominal if actual is None else actual
-        if self.actual.joint_types != self.robot.joint_types:
-            raise ValueError(
-                f"actual model joints {self.actual.joint_types} do not match {self.model_name}"
-            )
-        self.rig = RigConfig() if rig is None else rig
-        self.field = make_marker_field() if field is None else field
+        super().__init__(model_name, actual, rig, field, quantize)
         self.image_sigma = float(image_sigma)
-        self.quantize = bool(quantize)
         self._rng = np.random.default_rng(seed)
         spec = scene_with_robot(self.robot, self.actual, self.rig, self.field)
         self.mj_model = spec.compile()
         self.mj_data = mujoco.MjData(self.mj_model)
-        self._unit = np.where(
-            np.array([t == "revolute" for t in self.robot.joint_types]), np.pi / 180.0, 1e-3
-        )
         self._renderer = None
         self._n_captures = 0
-        self._closed = False
         self.home()
-
-    # ------------------------------------------------------------------ Robot protocol
-    def home(self) -> None:
-        """Move to the home posture of the robot's TOML."""
-        self._set_q(self.robot.home)
-
-    def move_to(self, joints_deg: np.ndarray) -> None:
-        """Move to joint angles (deg; mm for a prismatic joint). Checks the shape and every
-        joint's range first: ``ValueError`` naming the joint and its range, nothing moves."""
-        self._check_open()
-        q_deg = np.asarray(joints_deg, dtype=float)
-        if q_deg.shape != (self.robot.n,):
-            raise InputError(
-                f"{self.model_name}: move_to needs {self.robot.n} joint values (deg), "
-                f"got shape {q_deg.shape}"
-            )
-        q = q_deg * self._unit
-        self.robot.check_joints(q)
-        self._set_q(q)
-
-    def joints(self) -> np.ndarray:
-        """Joint angles (deg; mm for prismatic) as the encoders report them: the true position
-        rounded to the nearest encoder count."""
-        q = self.mj_data.qpos[: self.robot.n].copy()
-        cpu = self.robot.counts_per_unit
-        finite = np.isfinite(cpu) & self.quantize
-        q = np.where(
-            finite, np.round(q * np.where(finite, cpu, 1.0)) / np.where(finite, cpu, 1.0), q
-        )
-        return q / self._unit
 
     def capture(self) -> StereoPair:
         """Render the stereo pair at the current posture (uint8 RGB, H x W x 3 each), with the
@@ -140,10 +93,6 @@ class SimRobot:
         self._closed = True
 
     # ------------------------------------------------------------------ ground truth
-    def true_joints(self) -> np.ndarray:
-        """The true joint positions (rad; m for prismatic), unquantised."""
-        return self.mj_data.qpos[: self.robot.n].copy()
-
     def truth_frame(self) -> dict:
         """Ground truth of the current posture: ``joints_rad`` / ``joints_deg`` (true, unquantised),
         ``T_world_cam_left`` / ``T_world_cam_right`` (4, 4, OpenCV camera -> world, m) and
@@ -158,29 +107,13 @@ class SimRobot:
             "tool_tip_m": d.site(TOOL_SITE).xpos.copy(),
         }
 
-    def truth(self, meta: dict | None = None) -> Truth:
-        """The ground-truth header of this robot (no frames; append ``truth_frame()`` records)."""
-        meta = {"image_sigma": self.image_sigma, **(meta or {})}
-        return make_truth(self.robot, self.nominal, self.actual, self.rig, self.field, meta)
-
-    # ------------------------------------------------------------------ internals
-    def _check_open(self) -> None:
-        if self._closed:
-            raise RobotError(f"SimRobot({self.model_name}) is closed")
-
     def _set_q(self, q: np.ndarray) -> None:
-        self._check_open()
+        super()._set_q(q)
         n = self.robot.n
         self.mj_data.qpos[:n] = q
         self.mj_data.qvel[:] = 0.0
         self.mj_data.ctrl[:n] = q
         mujoco.mj_forward(self.mj_model, self.mj_data)
-
-    def __enter__(self) -> SimRobot:
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.close()
 
     def __repr__(self) -> str:
         return f"SimRobot({self.model_name!r}, image_sigma={self.image_sigma})"
