@@ -148,7 +148,7 @@ METHOD_HELP = (
 
 CONFIG_HELP = """\
 scenario keys (TOML; every key has a default, units in the names):
-  [robot]        model = "er4u-paper" | "er4u-vendor";  backend = "sim" | "hardware"
+  [robot]        model = "er4u-paper" | "er4u-vendor" | "ur5e";  backend = "sim" | "hardware"
   [robot.hardware] port (pyserial URL), baudrate, xonxoff, cameras = [left, right], options
                  (see docs/hardware.md; `selfcal emulate SCENARIO` prints a ready snippet)
   [camera]       resolution = [640, 480]; fx = 800.0 (px); mu = 1.0; baseline_mm = 60.0

@@ -1,6 +1,7 @@
 """The Monte Carlo of ``selfcal montecarlo``: achieved error against the Cramer-Rao bound.
 
-ONE truth -- the default scenario (``scenarios/paper.toml``) on the analytic path: perturbation
+ONE truth -- the default scenario (``scenarios/paper.toml``, or ``config``: any robot's scenario)
+on the analytic path: perturbation
 seed 1, trajectory seed 1 (the same calibration and validation postures), the same marker field --
 and many noise draws (``[noise] seed`` = draw index): Gaussian corner noise, and, with ``dither``
 (default), the encoder quantisation residue too: each draw moves the robot to the planned postures
@@ -201,8 +202,12 @@ def run_montecarlo(
     jobs: int = 2,
     first_seed: int = 1,
     quiet: bool = False,
+    config: str | Path | None = None,
 ) -> tuple[list[dict], dict]:
     """Run ``draws`` noise draws (seeds ``first_seed ..``); returns ``(rows, summary)``.
+
+    ``config``: the scenario TOML of the truth (default ``scenarios/paper.toml``), e.g.
+    ``scenarios/ur5e.toml`` for another robot; always on the analytic path.
 
     With ``out``: writes ``runs.csv``, ``summary.json``, ``summary.md`` and ``montecarlo.png``
     there. ``joints_deg``: planned postures to use instead of the scenario's random plan (e.g.
@@ -216,6 +221,7 @@ def run_montecarlo(
         "dither": dither,
         "plan": plan,
         "joints_deg": None if joints_deg is None else np.asarray(joints_deg).tolist(),
+        "config": None if config is None else str(config),
     }
     items = [{**base, "seed": first_seed + i} for i in range(draws)]
     t0 = time.perf_counter()

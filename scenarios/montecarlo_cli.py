@@ -25,13 +25,15 @@ def _cmd(args: argparse.Namespace) -> int:
         dither=not args.no_dither,
         jobs=args.jobs,
         quiet=args.quiet,
+        config=args.config,
     )
     print(summary_markdown(s))
     return 0
 
 
 def register(subparsers) -> argparse.ArgumentParser:
-    """Add ``selfcal montecarlo --draws N --out DIR [--jobs N] [--poses P] [--pixel-sigma S]``."""
+    """Add ``selfcal montecarlo --draws N --out DIR [--jobs N] [--poses P] [--pixel-sigma S]
+    [--config SCENARIO]``."""
     sp = subparsers.add_parser(
         "montecarlo",
         help="Monte Carlo of both calibration methods against the Cramer-Rao bound",
@@ -45,6 +47,11 @@ def register(subparsers) -> argparse.ArgumentParser:
     sp.add_argument("--jobs", type=int, default=2, help="worker processes (1 = in-process)")
     sp.add_argument("--poses", type=int, default=30, help="calibration postures (default 30)")
     sp.add_argument("--pixel-sigma", type=float, default=0.5, help="corner noise, px")
+    sp.add_argument(
+        "--config",
+        default=None,
+        help="scenario TOML of the truth (default scenarios/paper.toml; e.g. scenarios/ur5e.toml)",
+    )
     sp.add_argument(
         "--no-dither",
         action="store_true",

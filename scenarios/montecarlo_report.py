@@ -21,7 +21,8 @@ def summary_markdown(s: dict) -> str:
     lines = [
         "# Monte Carlo: achieved error against the Cramer-Rao bound",
         "",
-        f"Default scenario, analytic path, one truth (perturbation seed {st.get('perturb_seed')}, "
+        f"{'Default scenario' if not st.get('config') else 'Scenario ' + str(st['config'])}, "
+        f"analytic path, one truth (perturbation seed {st.get('perturb_seed')}, "
         f"trajectory seed {st.get('traj_seed')}, plan {st.get('plan')}, {st.get('poses')} poses), "
         f"{s['ok']} noise draws ({s['failed']} failed), corner noise {st.get('pixel_sigma')} px, "
         f"read-back dithered: {st.get('dither')}.",
