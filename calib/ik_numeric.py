@@ -165,6 +165,18 @@ def damped_least_squares(
     return q, r, iterations
 
 
+def _reach_bound(model: MCPCModel, limits: np.ndarray) -> float:
+    """An upper bound (m) of the tool point's distance from the world origin: the lengths of the
+    shape matrices' translations plus each prismatic joint's largest travel."""
+    lengths = np.linalg.norm(model.params[:, 3:], axis=1).sum()
+    travel = sum(
+        float(np.max(np.abs(limits[j])))
+        for j, t in enumerate(model.joint_types)
+        if t == "prismatic"
+    )
+    return float(lengths + travel)
+
+
 def _errors(r: np.ndarray) -> tuple[float, float]:
     return float(np.linalg.norm(r[:3])), float(np.linalg.norm(r[3:]) / ANGLE_SCALE_M)
 
@@ -213,20 +225,32 @@ def solve_ik(
         e_pos, e_ang = _errors(r)
         return e_pos < tol and e_ang < tol
 
+    reach = _reach_bound(model, limits)
+    far = float(np.linalg.norm(target.position)) - reach
+    if far > tol:
+        raise UnreachableError(
+            f"{name}: tool target {target.describe()} is out of reach: {far * 1000:.3f} mm "
+            f"beyond the arm's longest possible reach ({reach * 1000:.1f} mm from the base "
+            "origin, the sum of its link lengths); move the target closer",
+            distance_m=far,
+        )
     rev = [t == "revolute" for t in model.joint_types]
     ref = None if reference is None else np.asarray(reference, dtype=float).reshape(model.n)
     best = np.inf
     for label, q0 in starts:
         q, r, it = damped_least_squares(residual, jacobian, q0, None, converged)
-        if converged(r):
-            wrapped = [
-                wrap_into_range(v, l_, h_, None if ref is None else ref[j]) if rev[j] else (v, True)
-                for j, (v, l_, h_) in enumerate(zip(q, lo, hi))
-            ]
-            qw = np.clip([w for w, _ in wrapped], lo, hi)
-            rw = residual(qw)
-            if all(ok for _, ok in wrapped) and converged(rw):
-                return NumericIK(qw, *_errors(rw), label, it)
+        if not converged(r):
+            # not even without the ranges: the projected solve would not get there either
+            best = min(best, float(np.linalg.norm(r)))
+            continue
+        wrapped = [
+            wrap_into_range(v, l_, h_, None if ref is None else ref[j]) if rev[j] else (v, True)
+            for j, (v, l_, h_) in enumerate(zip(q, lo, hi))
+        ]
+        qw = np.clip([w for w, _ in wrapped], lo, hi)
+        rw = residual(qw)
+        if all(ok for _, ok in wrapped) and converged(rw):
+            return NumericIK(qw, *_errors(rw), label, it)
         q, r, it = damped_least_squares(residual, jacobian, q0, limits, converged)
         if converged(r):
             return NumericIK(q, *_errors(r), label, it)

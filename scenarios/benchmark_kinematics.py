@@ -4,6 +4,9 @@ Target (foundation issue): FK of all frames plus the identification Jacobian for
 configurations in under 50 ms on 2 cores. Run:
 
     .venv/bin/python -m scenarios.benchmark_kinematics [--robot er4u-paper] [--m 1000] [--repeat 7]
+
+Any robot (``--robot ur5e``): the numerical IK's time, success rate and precision on the full tool
+poses of ``--ik-targets`` random in-range postures; the ER-4u's closed form too for ER-type arms.
 """
 
 from __future__ import annotations
@@ -15,12 +18,15 @@ import time
 from collections.abc import Callable
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
-from calib.ik import ik, ik_nearest, nearest_reachable
-from calib.kinematics import fk_frames, fk_nominal, identification_jacobian
+from calib.ik import UnreachableError, ik, ik_nearest, nearest_reachable
+from calib.ik_numeric import ToolTarget, ik_robot
+from calib.kinematics import fk_frames, fk_nominal, fk_tool, identification_jacobian
 from calib.mcpc import nominal_mcpc
 from calib.robot_def import load_robot
 from calib.tool_pose import tool_pose
+from scenarios.cli_pose import is_er
 
 TARGET_MS = 50.0
 
@@ -34,6 +40,52 @@ def _time(fn: Callable[[], object], repeat: int) -> float:
         fn()
         ts.append(time.perf_counter() - t0)
     return 1000.0 * float(np.median(ts))
+
+
+def _analytic_ik_rows(robot, qs: np.ndarray) -> list[tuple[str, float, str]]:
+    """The ER-4u's closed-form IK (``calib.ik``)."""
+    poses = [tool_pose(T, azimuth_rad=a) for T, a in zip(fk_nominal(robot, qs)[:, -1], qs[:, 0])]
+    poses = [(x, p, r) for x, p, r in poses if np.hypot(x[0], x[1]) > 1e-3]
+    k = len(poses)
+    t_ik = _time(lambda: [ik(robot, x, p, r) for x, p, r in poses], 3) / k
+    reachable = [(x, p, r) for x, p, r in poses if any(s.in_range for s in ik(robot, x, p, r))]
+
+    def _ikn():
+        for x, p, r in reachable:
+            ik_nearest(robot, x, p, r)
+
+    t_ikn = _time(_ikn, 3) / max(len(reachable), 1)
+    fixed = {3: robot.home[3], 4: robot.home[4]}
+    t_nr = _time(lambda: [nearest_reachable(robot, x, fixed) for x, _, _ in poses[:5]], 1) / 5
+    return [
+        ("ik (all branches), per target", t_ik, f"mean over {k} targets"),
+        ("ik_nearest, per target", t_ikn, f"mean over {len(reachable)} targets"),
+        ("nearest_reachable (2 fixed), per target", t_nr, "26 least-squares starts"),
+    ]
+
+
+def _numeric_ik_rows(robot, qs: np.ndarray) -> list[tuple[str, float, str]]:
+    """The numerical IK of any arm (``calib.ik_numeric``) on the full tool poses of random
+    in-range postures: time per target, success rate and the worst pose errors."""
+    model = nominal_mcpc(robot)
+    T = fk_tool(model, qs)
+    solved, e_pos, e_ang = 0, 0.0, 0.0
+    t0 = time.perf_counter()
+    for Ti in T:
+        try:
+            res = ik_robot(robot, ToolTarget(Ti[:3, 3], Ti[:3, :3]))
+        except UnreachableError:
+            continue
+        T2 = fk_tool(model, res.joints[None])[0]
+        solved += 1
+        e_pos = max(e_pos, float(np.linalg.norm(T2[:3, 3] - Ti[:3, 3])))
+        e_ang = max(
+            e_ang,
+            float(np.linalg.norm(Rotation.from_matrix(T2[:3, :3].T @ Ti[:3, :3]).as_rotvec())),
+        )
+    t = 1000.0 * (time.perf_counter() - t0) / len(T)
+    note = f"{solved}/{len(T)} solved; worst {e_pos:.1e} m, {e_ang:.1e} rad"
+    return [("ik_robot (numeric, full pose), per target", t, note)]
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -62,24 +114,9 @@ def main(argv: list[str] | None = None) -> int:
     ]
 
     qs = q[: args.ik_targets]
-    poses = [tool_pose(T, azimuth_rad=a) for T, a in zip(fk_nominal(robot, qs)[:, -1], qs[:, 0])]
-    poses = [(x, p, r) for x, p, r in poses if np.hypot(x[0], x[1]) > 1e-3]
-    k = len(poses)
-    t_ik = _time(lambda: [ik(robot, x, p, r) for x, p, r in poses], 3) / k
-    reachable = [(x, p, r) for x, p, r in poses if any(s.in_range for s in ik(robot, x, p, r))]
-
-    def _ikn():
-        for x, p, r in reachable:
-            ik_nearest(robot, x, p, r)
-
-    t_ikn = _time(_ikn, 3) / max(len(reachable), 1)
-    fixed = {3: robot.home[3], 4: robot.home[4]}
-    t_nr = _time(lambda: [nearest_reachable(robot, x, fixed) for x, _, _ in poses[:5]], 1) / 5
-    rows += [
-        ("ik (all branches), per target", t_ik, f"mean over {k} targets"),
-        ("ik_nearest, per target", t_ikn, f"mean over {len(reachable)} targets"),
-        ("nearest_reachable (2 fixed), per target", t_nr, "26 least-squares starts"),
-    ]
+    if is_er(robot):
+        rows += _analytic_ik_rows(robot, qs)
+    rows += _numeric_ik_rows(robot, qs)
 
     print(
         f"robot {robot.name}, numpy {np.__version__}, {platform.python_implementation()} "

@@ -68,11 +68,14 @@ def test_reference_selects_the_nearby_solution():
 
 def test_unreachable_target_raises_with_distance():
     robot = _CACHE["ur5e"]
-    with pytest.raises(UnreachableError) as err:
+    # beyond the sum of the link lengths (1.3123 m): refused at once, by how much
+    with pytest.raises(UnreachableError, match="longest possible reach") as err:
         ik_robot(robot, ToolTarget(np.array([2.0, 0.0, 0.5])))
-    reach = 0.425 + 0.3922 + 0.1333 + 0.0997 + 0.0996  # generous upper bound of the reach (m)
-    assert err.value.distance_m > 2.0 - reach - 0.1625
-    assert "out of reach" in str(err.value)
+    assert err.value.distance_m == pytest.approx(np.hypot(2.0, 0.5) - 1.3123, abs=1e-9)
+    # within that bound but beyond the arm's real reach (about 0.95 m from the shoulder)
+    with pytest.raises(UnreachableError, match="starts") as err:
+        ik_robot(robot, ToolTarget(np.array([1.1, 0.0, 0.1625])))
+    assert err.value.distance_m > 0.1
 
 
 def test_joint_ranges_are_respected():
