@@ -25,10 +25,18 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from calib.errors import InputError
-from calib.ik import UnreachableError, wrap_into_range
+from calib.ik import (
+    IKStructureError,
+    UnreachableError,
+    check_er_structure,
+    ik_nearest,
+    wrap_into_range,
+)
 from calib.kinematics import fk_frames
 from calib.mcpc import MCPCModel, nominal_mcpc
 from calib.robot_def import RobotDef
+from calib.tool_pose import tool_pose
+from calib.transforms import make_pose
 
 __all__ = [
     "ANGLE_SCALE_M",
@@ -272,11 +280,42 @@ def ik_robot(
     model: MCPCModel | None = None,
     tol: float = 1e-10,
 ) -> NumericIK:
-    """:func:`solve_ik` for a robot definition: its nominal chain base frame -> flange (last DH
-    frame) unless ``model`` is given, its joint ranges, starts ``reference`` (default home) and
-    home. Works for any serial arm (the ER-4u's analytic :func:`calib.ik.ik_nearest` is faster)."""
-    model = nominal_mcpc(robot) if model is None else model
+    """Joint values reaching ``target`` (base frame, tool = flange = last DH frame) for a robot
+    definition, nearest ``reference`` (default home). Any serial arm.
+
+    Without ``model`` (the nominal chain) and for an ER-type arm with a full orientation, the
+    closed-form IK (:func:`calib.ik.ik_nearest`) is tried first (``start = "analytic"``); otherwise,
+    or when it finds no solution reproducing the target within ``tol``, :func:`solve_ik` on
+    ``model`` (default the nominal chain ``nominal_mcpc(robot)``) with starts ``reference`` and home.
+    """
     ref = robot.home if reference is None else np.asarray(reference, dtype=float)
+    if model is None:
+        model = nominal_mcpc(robot)
+        fast = _analytic(robot, model, target, ref, tol)
+        if fast is not None:
+            return fast
     return solve_ik(
         model, robot.limits, target, reference=ref, home=robot.home, tol=tol, name=robot.name
     )
+
+
+def _analytic(
+    robot: RobotDef, model: MCPCModel, target: ToolTarget, ref: np.ndarray, tol: float
+) -> NumericIK | None:
+    """The ER-4u closed form for a full pose target, or None (not an ER-type arm, no
+    orientation, no in-range solution, or the pose is not one the 5-axis arm can take)."""
+    if target.rotation is None:
+        return None
+    try:
+        check_er_structure(robot)
+        offset0 = robot.dh.offset[0] if robot.dh is not None else 0.0  # an ER arm has a DH table
+        T = make_pose(target.rotation, target.position)
+        _, pitch, roll = tool_pose(T[None], azimuth_rad=np.array([ref[0] + offset0]))
+        q = ik_nearest(robot, target.position, float(pitch[0]), float(roll[0]), reference=ref)
+    except (IKStructureError, UnreachableError, ValueError):
+        return None
+    r = pose_residual(model, q, target)[0]
+    e_pos, e_ang = _errors(r)
+    if e_pos < tol and e_ang < tol:
+        return NumericIK(q, e_pos, e_ang, "analytic", 0)
+    return None

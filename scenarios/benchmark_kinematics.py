@@ -21,7 +21,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from calib.ik import UnreachableError, ik, ik_nearest, nearest_reachable
-from calib.ik_numeric import ToolTarget, ik_robot
+from calib.ik_numeric import ToolTarget, ik_robot, solve_ik
 from calib.kinematics import fk_frames, fk_nominal, fk_tool, identification_jacobian
 from calib.mcpc import nominal_mcpc
 from calib.robot_def import load_robot
@@ -85,7 +85,15 @@ def _numeric_ik_rows(robot, qs: np.ndarray) -> list[tuple[str, float, str]]:
         )
     t = 1000.0 * (time.perf_counter() - t0) / len(T)
     note = f"{solved}/{len(T)} solved; worst {e_pos:.1e} m, {e_ang:.1e} rad"
-    return [("ik_robot (numeric, full pose), per target", t, note)]
+    rows = [("ik_robot (full pose), per target", t, note + " (closed form first on an ER arm)")]
+    t0 = time.perf_counter()
+    for Ti in T[:50]:
+        try:
+            solve_ik(model, robot.limits, ToolTarget(Ti[:3, 3], Ti[:3, :3]), reference=robot.home)
+        except UnreachableError:
+            pass
+    t = 1000.0 * (time.perf_counter() - t0) / len(T[:50])
+    return rows + [("solve_ik (numeric only, full pose), per target", t, "first 50 targets")]
 
 
 def main(argv: list[str] | None = None) -> int:

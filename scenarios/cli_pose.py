@@ -29,8 +29,9 @@ __all__ = ["POSE_HELP", "PoseArgs", "add_pose_args", "parse_pose_args", "is_er",
 POSE_HELP = """\
 tool orientation (exactly one):
   --rpy-deg R,P,Y   roll, pitch, yaw (deg) about the fixed base axes x, y, z: R = Rz(Y) Ry(P) Rx(R)
-                    (URDF/ROS convention); any robot; solved numerically (damped least squares)
-  --quat W,X,Y,Z    unit quaternion, scalar first; any robot; solved numerically
+                    (URDF/ROS convention); any robot; solved numerically (damped least squares;
+                    an ER-type arm tries its closed form first)
+  --quat W,X,Y,Z    unit quaternion, scalar first; any robot; solved like --rpy-deg
   --pitch P [--roll R]  the ER-4u controller's Cartesian pitch and roll (deg); 5-axis ER-type arms
                     only (closed-form IK)
   --position-only   the tool point alone, any orientation

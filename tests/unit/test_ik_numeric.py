@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 from calib.ik import UnreachableError
-from calib.ik_numeric import ToolTarget, ik_robot, pose_jacobian, pose_residual
+from calib.ik_numeric import ToolTarget, ik_robot, pose_jacobian, pose_residual, solve_ik
 from calib.kinematics import fk_tool
 from calib.mcpc import nominal_mcpc
 from calib.robot_def import list_robots, load_robot
@@ -29,19 +29,43 @@ def _posture(robot, u):
     return lo + np.asarray(u) * (hi - lo)
 
 
+def _assert_same_pose(model, q, T):
+    T2 = fk_tool(model, q[None])[0]
+    assert np.linalg.norm(T2[:3, 3] - T[:3, 3]) < TOL
+    assert np.linalg.norm(Rotation.from_matrix(T2[:3, :3].T @ T[:3, :3]).as_rotvec()) < TOL
+
+
 @pytest.mark.parametrize("name", ROBOTS)
 @settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(u=st.lists(st.floats(0.0, 1.0), min_size=7, max_size=7))
 def test_ik_of_fk_reproduces_the_pose(name, u):
+    """Both the dispatch (closed form first for an ER-type arm) and the numerical solver."""
     robot = _CACHE[name]
     model = nominal_mcpc(robot)
     q = _posture(robot, u[: robot.n])
     T = fk_tool(model, q[None])[0]
-    res = ik_robot(robot, ToolTarget(T[:3, 3], T[:3, :3]))
-    T2 = fk_tool(model, res.joints[None])[0]
-    assert np.linalg.norm(T2[:3, 3] - T[:3, 3]) < TOL
-    assert np.linalg.norm(Rotation.from_matrix(T2[:3, :3].T @ T[:3, :3]).as_rotvec()) < TOL
+    target = ToolTarget(T[:3, 3], T[:3, :3])
+    res = ik_robot(robot, target)
+    _assert_same_pose(model, res.joints, T)
     robot.check_joints(res.joints)
+    num = solve_ik(model, robot.limits, target, reference=robot.home, home=robot.home)
+    _assert_same_pose(model, num.joints, T)
+    robot.check_joints(num.joints)
+
+
+@pytest.mark.parametrize("name", ["er4u-paper", "er4u-vendor"])
+def test_er_type_arms_take_the_closed_form(name):
+    robot = _CACHE[name]
+    q = robot.home + np.radians(3.0)
+    robot.check_joints(q)
+    T = fk_tool(nominal_mcpc(robot), q[None])[0]
+    res = ik_robot(robot, ToolTarget(T[:3, 3], T[:3, :3]))
+    assert res.start == "analytic"
+    np.testing.assert_allclose(res.joints, q, atol=1e-9)
+    # an orientation the 5-axis arm cannot take goes to the numerical solver, which says so
+    R = Rotation.from_rotvec([0.3, 0.2, 0.1]).as_matrix() @ T[:3, :3]
+    with pytest.raises(UnreachableError):
+        ik_robot(robot, ToolTarget(T[:3, 3], R))
 
 
 @pytest.mark.parametrize("name", ROBOTS)
@@ -88,8 +112,6 @@ def test_joint_ranges_are_respected():
     T = fk_tool(model, q[None])[0]
     limits = robot.limits.copy()
     limits[0] = np.radians([-20.0, 20.0])
-    from calib.ik_numeric import solve_ik
-
     with pytest.raises(UnreachableError):
         solve_ik(model, limits, ToolTarget(T[:3, 3], T[:3, :3]), n_random=8)
 
