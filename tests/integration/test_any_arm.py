@@ -19,11 +19,15 @@ from scenarios.backends import plan_dataset, planning_inputs
 from scenarios.config import ConfigError, load_scenario
 from scenarios.pipeline import run_all
 
-UR5E = Path(__file__).resolve().parents[2] / "scenarios" / "ur5e.toml"
+ROOT = Path(__file__).resolve().parents[2]
+UR5E = ROOT / "scenarios" / "ur5e.toml"
+SCENARIOS = [UR5E]
+"""One scenario per robot other than the ER-4u; a new robot is one more scenario here."""
 
 
-def test_field_is_centred_on_the_home_optical_axis():
-    s = load_scenario(UR5E)
+@pytest.mark.parametrize("path", SCENARIOS, ids=lambda p: p.stem)
+def test_field_is_centred_on_the_home_optical_axis(path):
+    s = load_scenario(path)
     inp = planning_inputs(s)
     robot, model = inp["robot"], inp["model_cam"]
     T = fk_tool(model, robot.home[None])[0]
@@ -37,7 +41,7 @@ def test_field_is_centred_on_the_home_optical_axis():
 
 
 def test_home_camera_not_facing_the_table_is_refused(tmp_path):
-    text = (Path(__file__).resolve().parents[2] / "models/robots/ur5e.toml").read_text()
+    text = (ROOT / "models/robots/ur5e.toml").read_text()
     # wrist_2 at 0 instead of -90: the camera looks sideways, never at the table
     text = text.replace(
         "home_deg = [0.0, -100.0, 110.0, -100.0, -90.0, 0.0]",
@@ -51,8 +55,9 @@ def test_home_camera_not_facing_the_table_is_refused(tmp_path):
     assert "home_deg" in err.value.fix
 
 
-def test_planned_postures_are_in_range_visible_and_collision_free():
-    s = load_scenario(UR5E)
+@pytest.mark.parametrize("path", SCENARIOS, ids=lambda p: p.stem)
+def test_planned_postures_are_in_range_visible_and_collision_free(path):
+    s = load_scenario(path)
     info = plan_dataset(s)
     inp = planning_inputs(s)
     robot = inp["robot"]
@@ -66,12 +71,13 @@ def test_planned_postures_are_in_range_visible_and_collision_free():
     assert (seen.sum(axis=2) >= s.trajectory.min_markers).all()
 
 
-def test_ur5e_pipeline_calibrates_on_the_analytic_path(tmp_path):
-    """Perturbation -> synthetic corners -> calibration -> validation, 6-axis arm, 30 poses."""
-    s = load_scenario(UR5E)
+@pytest.mark.parametrize("path", SCENARIOS, ids=lambda p: p.stem)
+def test_pipeline_calibrates_on_the_analytic_path(tmp_path, path):
+    """Perturbation -> synthetic corners -> calibration -> validation, 30 poses."""
+    s = load_scenario(path)
     run_all(s, tmp_path / "run", quiet=True)
     rep = json.loads((tmp_path / "run" / "report.json").read_text())["validation"]
     err = rep["tool_tip_error_mm"]
-    # measured: nominal 1.51 mm, calibrated 0.084 mm RMS, Cramer-Rao bound 0.167 mm
+    # measured (ur5e): nominal 1.51 mm, calibrated 0.084 mm RMS, Cramer-Rao bound 0.167 mm
     assert err["calibrated"]["rms"] < err["nominal"]["rms"] / 5
     assert err["calibrated"]["rms"] < 3 * rep["tool_tip_bound_mm"]

@@ -28,10 +28,11 @@ def test_one_draw_runs_and_is_near_the_bound():
 
 
 @pytest.mark.slow
-def test_ur5e_reaches_the_tool_tip_bound():
-    """Measured (30 draws, 2 jobs, ~70 s): joint ratio 1.008 (95 % CI 0.91 - 1.10), two-stage
-    7.3, bound 0.164 mm, nominal 1.51 mm."""
-    rows, summary = run_montecarlo(30, None, jobs=2, quiet=True, config=UR5E)
+@pytest.mark.parametrize("path", [UR5E], ids=lambda p: p.stem)
+def test_reaches_the_tool_tip_bound(path):
+    """Measured (ur5e, 30 draws, 2 jobs, ~70 s): joint ratio 1.008 (95 % CI 0.91 - 1.10),
+    two-stage 7.3, bound 0.164 mm, nominal 1.51 mm."""
+    rows, summary = run_montecarlo(30, None, jobs=2, quiet=True, config=path)
     ok = [r for r in rows if r["status"] == "ok"]
     assert len(ok) == 30, [r["status"] for r in rows if r["status"] != "ok"]
     ratio = summary["joint"]["tool_tip_ratio"]
