@@ -124,3 +124,23 @@ def test_ik_pitch_roll_is_refused_for_a_six_axis_arm(capsys):
 def test_ik_needs_exactly_one_orientation(capsys):
     code, _, err = run(capsys, "ik", "--xyz", "300,0,200", "--pitch", "0", "--rpy-deg", "0,0,0")
     assert code == 2 and "exactly one tool orientation" in err
+
+
+def test_ik_reference_and_position_only_for_a_six_axis_arm(capsys):
+    """--reference picks the solution branch nearest the current posture; --position-only frees
+    the orientation."""
+    q = [30.0, -60.0, -100.0, -110.0, 80.0, 40.0]  # elbow on the other side of home's
+    code, out, _ = run(capsys, "fk", "--model", "ur5e", "--joints", ",".join(map(str, q)))
+    doc = json.loads(out)
+    xyz = ",".join(f"{v:.6f}" for v in doc["xyz_mm"])
+    rpy = ",".join(f"{v:.9f}" for v in doc["rpy_deg"])
+    ref = ",".join(str(v + 2.0) for v in q)
+    argv = ["ik", "--model", "ur5e", f"--xyz={xyz}", f"--rpy-deg={rpy}", f"--reference={ref}"]
+    code, out, _ = run(capsys, *argv)
+    assert code == 0
+    np.testing.assert_allclose(json.loads(out)["joints_deg"], q, atol=1e-4)
+    code, out, _ = run(capsys, "ik", "--model", "ur5e", f"--xyz={xyz}", "--position-only")
+    assert code == 0
+    q2 = json.loads(out)["joints_deg"]
+    code, out, _ = run(capsys, "fk", "--model", "ur5e", "--joints", ",".join(map(str, q2)))
+    np.testing.assert_allclose(json.loads(out)["xyz_mm"], doc["xyz_mm"], atol=1e-3)
