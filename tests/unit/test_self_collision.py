@@ -30,7 +30,7 @@ def test_segment_distance_matches_dense_sampling(a0, a1, b0, b1):
     assert d >= brute - step - 1e-12
 
 
-@pytest.mark.parametrize("name", ["er4u-paper", "er4u-vendor", "ur5e"])
+@pytest.mark.parametrize("name", ["er4u-paper", "er4u-vendor", "ur5e", "kr6-r900"])
 def test_home_is_free(name):
     robot = load_robot(name)
     chain = CapsuleChain(nominal_mcpc(robot), robot.T_flange_cam)
