@@ -13,7 +13,11 @@ from calib.robot_def import load_robot
 from sim.link_frames import link_body_names, nominal_camera_model
 from sim.robot_mjcf import robot_spec
 
-__all__ = ["collision_checker", "collision_free"]
+__all__ = ["SHORT_LINK_M", "collision_checker", "collision_free"]
+
+SHORT_LINK_M = 0.05
+"""A link whose frame origins lie closer than this (m) joins its two neighbours into one rigid
+piece: their collision shapes meet at the joint by construction."""
 
 
 def collision_checker(robot_name: str, *, table: bool = True, tolerance_m: float = 0.01):
@@ -23,9 +27,10 @@ def collision_checker(robot_name: str, *, table: bool = True, tolerance_m: float
     ``table``, where a link beyond the turret (arm, wrist, hand, camera rig) goes below the table
     plane z = 0.
 
-    Adjacent (never checked): parent and child bodies, and two links joined through a link of
-    zero length (the SCORBOT wrist: joints 4 and 5 share their origin, so the forearm's capsule
-    and the hand overlap by construction). Bodies without a joint (the camera rig) belong to the
+    Adjacent (never checked): parent and child bodies, and two links joined through a link shorter
+    than :data:`SHORT_LINK_M` (the SCORBOT wrist: joints 4 and 5 share their origin, so the
+    forearm's capsule and the hand overlap by construction; the KR 6 R900's 35 mm elbow offset
+    between the upper arm and the forearm roll). Bodies without a joint (the camera rig) belong to the
     link they are fixed to. So the shapes cannot tell a camera touching the forearm near the
     wrist (they overlap there at every posture); what is checked is arm against base, turret and
     the other arm links, and everything against the table.
@@ -48,8 +53,8 @@ def collision_checker(robot_name: str, *, table: bool = True, tolerance_m: float
     links = [m.body(nm).id for nm in link_body_names(robot.n)]
     origin = d.xpos[links]
     skip = set()
-    for k in range(1, robot.n - 1):  # link k+1 (0-based k) of zero length joins k and k+2
-        if np.linalg.norm(origin[k + 1] - origin[k]) < 1e-3:
+    for k in range(1, robot.n - 1):  # a short link k+1 (0-based k) joins links k and k+2
+        if np.linalg.norm(origin[k + 1] - origin[k]) < SHORT_LINK_M:
             skip.add(frozenset((links[k - 1], links[k + 1])))
 
     def link_of(b: int) -> int:  # bodies fixed to a link (no joint) belong to it

@@ -13,9 +13,10 @@ import pytest
 
 from calib.kinematics import fk_tool
 from calib.mcpc import nominal_mcpc
+from calib.robot_def import load_robot
 from calib.self_collision import CapsuleChain
 from calib.trajectory import PLANNING_VISIBILITY
-from scenarios.backends import plan_dataset, planning_inputs
+from scenarios.backends import plan_dataset, plan_optimal, planning_inputs
 from scenarios.config import ConfigError, load_scenario
 from scenarios.pipeline import run_all
 
@@ -69,6 +70,15 @@ def test_planned_postures_are_in_range_visible_and_collision_free(path):
         PLANNING_VISIBILITY, fk_tool(inp["model_cam"], q), inp["points_world"], inp["normals_world"]
     )
     assert (seen.sum(axis=2) >= s.trajectory.min_markers).all()
+
+
+@pytest.mark.parametrize("path", SCENARIOS, ids=lambda p: p.stem)
+def test_optimal_postures_are_found(path):
+    """The D-optimal plan with MuJoCo's self-collision check of the generated model."""
+    s = load_scenario(path)
+    plan = plan_optimal(s, n_candidates=600)
+    assert plan.q.shape == (s.trajectory.poses, load_robot(s.robot.model).n)
+    assert planning_inputs(s)["collision_ok"](plan.q).all()
 
 
 @pytest.mark.parametrize("path", SCENARIOS, ids=lambda p: p.stem)
