@@ -69,6 +69,7 @@ __all__ = [
     "IdentificationResult",
     "initial_base",
     "identify",
+    "pose_error_jacobian",
 ]
 
 
@@ -207,7 +208,7 @@ def _so3_left_jacobian_inv(phi: np.ndarray) -> np.ndarray:
     return np.eye(3) - 0.5 * K + coef * (K @ K)
 
 
-def _residual_jacobian(J: np.ndarray, y: np.ndarray) -> np.ndarray:
+def pose_error_jacobian(J: np.ndarray, y: np.ndarray) -> np.ndarray:
     """Exact ``-d y / d params`` of ``y = pose_error(T_model, T_meas)`` from the tool Jacobian ``J``.
 
     ``J`` (m, 6, p) gives the model's tool-frame twist per parameter, ``y`` (m, 6) the current error.
@@ -332,7 +333,7 @@ def identify(
 
     def weighted_jacobian(mx: MCPCModel, y: np.ndarray) -> np.ndarray:
         J = identification_jacobian(mx, q)[:, :, est]
-        return (_residual_jacobian(J, y) / sig[:, :, None]).reshape(N, p)
+        return (pose_error_jacobian(J, y) / sig[:, :, None]).reshape(N, p)
 
     x = start.params.reshape(-1).copy()
     mx, y, r = evaluate(x)

@@ -6,6 +6,8 @@
 - :mod:`calib.estimation.reprojection`: the image-observation residual block (the projection is
   the camera model's, :mod:`calib.camera`);
 - :mod:`calib.estimation.residuals`: a known scene distance and Gaussian priors;
+- :mod:`calib.estimation.tracker`: tracker measurements of the tool (positions, poses, distances
+  between tool positions) on the MCPC chain;
 - :mod:`calib.estimation.joint_report`: the one-step refinement's covariances;
 - the self-calibration's pieces: :mod:`calib.estimation.epipolar` (fundamental matrices between
   view pairs), :mod:`calib.estimation.focal` (fx, mu of the paper's pinhole from them),

@@ -1,0 +1,467 @@
+"""Kinematic identification from tracker measurements: positions, poses and distances of the tool.
+
+Input: joint readings ``q`` (m, n) rad (m for prismatic joints) with, per row, the measured
+position of a tool point (m) and optionally the orientation of a tool frame, in the tracker's
+frame; and/or distances (m) between the tool point at two configurations. Output: the MCPC chain
+(:mod:`calib.mcpc`) whose ``V_0`` holds the tracker-to-base transform and whose ``V_n`` holds the
+tool point's offset on the flange (and the measured tool frame's orientation, for poses).
+
+Steps:
+1. Placement (:func:`initial_placement`): the nominal chain is placed in the tracker frame by a
+   closed-form rigid fit alternated with a linear fit of the tool point on the flange. The
+   estimation works in that placed base frame (the *fit frame*): there the base parameters are
+   small and far from the MCPC Euler singularity whatever the tracker's axes are. The result
+   keeps ``T_meas_fit`` (tracker <- fit frame) and predicts in the tracker frame.
+2. Identifiability: the residual blocks' weighted, column-scaled Jacobian of all minimal
+   parameters at the start (:mod:`calib.estimation.tracker`); parameters are offered base first,
+   then the tool point's offset, the internal frames and last the tool orientation
+   (:data:`priority_order`), and a parameter is kept when it adds to the span of those kept
+   (:func:`calib.identifiability.select_identifiable`, pivoted QR when that does not reproduce the
+   SVD rank). Positions alone cannot see the orientation of the tool frame: three parameters of
+   ``V_n`` come out unidentifiable, numerically. Distances alone cannot see the tracker frame.
+3. Too few measurements: the count of parameters these kinds of measurement identify on this
+   chain (the rank at well-spread random configurations) must be below the number of equations;
+   otherwise :class:`TrackerIdentificationError` says how many rows are needed.
+4. Levenberg-Marquardt of the one solver (:func:`calib.solver.solve`) on the identifiable set,
+   the rest held at nominal; standard deviations ``sigma0^2 (J^T J)^-1`` with the a-posteriori
+   ``sigma0`` (1 when the stated sigmas are right).
+
+Units: SI inside; result fields ending in ``_mm`` / ``_deg`` are for reports.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from calib.alignment import regauge
+from calib.errors import EstimationError, InputError
+from calib.estimation.tracker import (
+    ChainLayout,
+    TrackerDistanceBlock,
+    TrackerPoseBlock,
+    TrackerPositionBlock,
+)
+from calib.identifiability import select_identifiable, triangular_factor
+from calib.identify import IdentificationWarning
+from calib.kinematics import fk_tool
+from calib.mcpc import MCPCModel, chain_transforms, minimal_indices, param_is_angle, param_names
+from calib.solver import ParameterBlock, Problem, SolverOptions, covariance, scaled_rank, solve
+from calib.transforms import inv_pose, kabsch, make_pose
+
+__all__ = [
+    "TrackerMeasurements",
+    "TrackerResult",
+    "TrackerIdentificationError",
+    "initial_placement",
+    "priority_order",
+    "identify_tracker",
+]
+
+
+class TrackerIdentificationError(EstimationError):
+    """The tracker data cannot determine the chain (too few rows, no convergence); the message
+    says how many rows are needed or what to change."""
+
+
+@dataclass(frozen=True)
+class TrackerMeasurements:
+    """Tracker data in the tracker frame, SI units.
+
+    Attributes:
+        q: (m, n) joint readings of the position/pose rows (rad, m); (0, n) when there are none.
+        xyz: (m, 3) measured tool-point positions (m).
+        R: (m, 3, 3) measured tool-frame orientations, or None (positions only).
+        q_a, q_b: (k, n) joint readings of the two ends of each distance (or None).
+        d: (k,) measured distances (m) between the tool point at ``q_a`` and ``q_b`` (or None).
+    """
+
+    q: np.ndarray
+    xyz: np.ndarray
+    R: np.ndarray | None = None
+    q_a: np.ndarray | None = None
+    q_b: np.ndarray | None = None
+    d: np.ndarray | None = None
+
+    @property
+    def m(self) -> int:
+        """Number of position / pose rows."""
+        return int(len(self.q))
+
+    @property
+    def k(self) -> int:
+        """Number of distances."""
+        return 0 if self.d is None else int(len(self.d))
+
+    def equations(self) -> int:
+        """Scalar equations: 3 per position, 6 per pose, 1 per distance."""
+        return (6 if self.R is not None else 3) * self.m + self.k
+
+    def check(self, n: int) -> None:
+        """Raise :class:`calib.errors.InputError` for shapes that do not fit ``n`` joints or
+        non-finite numbers (the readers in :mod:`calib.io.tracker` name file, row and column)."""
+        arrays = {"q": (self.q, (self.m, n)), "xyz": (self.xyz, (self.m, 3))}
+        if self.R is not None:
+            arrays["R"] = (self.R, (self.m, 3, 3))
+        if self.d is not None:
+            arrays |= {"q_a": (self.q_a, (self.k, n)), "q_b": (self.q_b, (self.k, n))}
+        for key, (a, shape) in arrays.items():
+            a = np.asarray(a) if a is not None else None
+            if a is None or a.shape != shape:
+                raise InputError(
+                    f"tracker data: {key} must have shape {shape}, got "
+                    f"{None if a is None else a.shape}"
+                )
+            if not np.all(np.isfinite(a)):
+                raise InputError(f"tracker data: {key} holds NaN or inf")
+        if self.m + self.k == 0:
+            raise InputError("tracker data: no measurements")
+
+
+# --------------------------------------------------------------------------------------------
+# Placement
+# --------------------------------------------------------------------------------------------
+
+
+def initial_placement(
+    model: MCPCModel, q: np.ndarray, xyz: np.ndarray, *, iterations: int = 50
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(T_meas_base (4, 4), s (3,))``: the rigid placement of ``model`` in the tracker frame and
+    the tool point ``s`` in its tool frame (m) that best fit the positions ``xyz`` (m, 3) at
+    ``q`` (m, n), by alternating the closed-form rigid fit (Kabsch) with the linear
+    least-squares tool point (a fixed-point start for the estimation, not an estimate)."""
+    T = fk_tool(model, q)
+    s = np.zeros(3)
+    B = np.eye(4)
+    for _ in range(iterations):
+        x = T[:, :3, :3] @ s + T[:, :3, 3]
+        B = kabsch(x, xyz) if len(q) >= 3 else make_pose(np.eye(3), np.mean(xyz - x, axis=0))
+        rhs = (xyz - B[:3, 3]) @ B[:3, :3] - T[:, :3, 3]  # R_i s = B^-1 p_i - t_i
+        s_new = np.linalg.lstsq(T[:, :3, :3].reshape(-1, 3), rhs.reshape(-1), rcond=None)[0]
+        done = np.linalg.norm(s_new - s) <= 1e-12
+        s = s_new
+        if done:
+            break
+    return B, s
+
+
+def _mean_rotation(R: np.ndarray) -> np.ndarray:
+    U, _, Vt = np.linalg.svd(np.sum(R, axis=0))
+    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))])
+    return U @ D @ Vt
+
+
+# --------------------------------------------------------------------------------------------
+# Identifiability
+# --------------------------------------------------------------------------------------------
+
+
+def priority_order(joint_types: tuple[str, ...]) -> np.ndarray:
+    """Positions (into the minimal set) in the order they are offered for estimation: ``V_0``,
+    the lengths of ``V_n`` (the tool point), ``V_1 .. V_{n-1}``, the angles of ``V_n``."""
+    n = len(joint_types)
+    idx = minimal_indices(joint_types)
+    frame = idx // 6
+    group = np.where(frame == 0, 0, np.where(frame == n, np.where(param_is_angle(idx), 3, 1), 2))
+    return np.argsort(group, kind="stable")
+
+
+def _blocks(layout: ChainLayout, meas: TrackerMeasurements, sig: tuple[float, float, float]):
+    st, sr, sd = sig
+    blocks: list = []
+    if meas.m and meas.R is not None:
+        T = make_pose(meas.R, meas.xyz)
+        blocks.append(TrackerPoseBlock(layout, meas.q, T, st, sr))
+    elif meas.m:
+        blocks.append(TrackerPositionBlock(layout, meas.q, meas.xyz, st))
+    if meas.k:
+        blocks.append(TrackerDistanceBlock(layout, meas.q_a, meas.q_b, meas.d, sd))
+    return blocks
+
+
+def _problem(model: MCPCModel, free_flat: np.ndarray, blocks: list) -> Problem:
+    held = np.ones(6 * (model.n + 1), bool)
+    held[free_flat] = False
+    return Problem([ParameterBlock("mcpc", model.params.reshape(-1), held=held)], blocks)
+
+
+def _selection(
+    model: MCPCModel, meas: TrackerMeasurements, sig, considered: np.ndarray, rank_rtol: float
+) -> tuple[np.ndarray, int]:
+    """Mask (over the minimal set) of the identifiable parameters among ``considered``, and the
+    rank of the considered columns."""
+    idx = minimal_indices(model.joint_types)
+    cons = np.flatnonzero(considered)
+    layout = ChainLayout.whole(model)
+    prob = _problem(model, np.sort(idx[cons]), _blocks(layout, meas, sig))
+    J = prob.jacobian(prob.x0).toarray()
+    # problem columns follow the flat order of the free parameters: back to the minimal order
+    flat_sorted = np.sort(idx[cons])
+    J = J[:, np.searchsorted(flat_sorted, idx[cons])]
+    col = np.linalg.norm(J, axis=0)
+    # columns that are zero up to rounding (e.g. the base for distances) stay zero
+    col = np.where(col > 1e-10 * col.max(initial=0.0), col, np.inf)
+    A = triangular_factor(J / col)
+    pos = {k: i for i, k in enumerate(cons)}
+    order = np.array([pos[k] for k in priority_order(model.joint_types) if k in pos], int)
+    keep, rank, _ = select_identifiable(A, order, rank_rtol)
+    mask = np.zeros(idx.size, bool)
+    mask[cons[keep]] = True
+    return mask, rank
+
+
+def _structural(
+    model: MCPCModel, meas: TrackerMeasurements, sig, considered: np.ndarray, rank_rtol: float
+) -> tuple[np.ndarray, int]:
+    """Which (mask) and how many of the considered parameters these kinds of measurement
+    identify on this chain: the selection at well-spread random configurations (revolute joints
+    over a full turn, prismatic ones over the data's range +- 0.1 m), deterministic."""
+    rng = np.random.default_rng(0)
+    p = int(considered.sum())
+    rows = 2 * p + 10
+    data_q = np.concatenate([a for a in (meas.q, meas.q_a, meas.q_b) if a is not None and len(a)])
+    lo, hi = data_q.min(axis=0) - 0.1, data_q.max(axis=0) + 0.1
+    rev = np.array([t == "revolute" for t in model.joint_types])
+
+    def draw(k: int) -> np.ndarray:
+        return np.where(
+            rev, rng.uniform(-np.pi, np.pi, (k, model.n)), rng.uniform(lo, hi, (k, model.n))
+        )
+
+    q = draw(rows)
+    T = fk_tool(model, q)
+    fake = TrackerMeasurements(
+        q=q if meas.m else q[:0],
+        xyz=T[:, :3, 3] if meas.m else np.zeros((0, 3)),
+        R=T[:, :3, :3] if meas.R is not None else None,
+        q_a=draw(rows) if meas.k else None,
+        q_b=draw(rows) if meas.k else None,
+        d=np.ones(rows) if meas.k else None,
+    )
+    return _selection(model, fake, sig, considered, rank_rtol)
+
+
+def _kinds(meas: TrackerMeasurements) -> tuple[str, ...]:
+    on = (("position", meas.m and meas.R is None), ("pose", meas.m and meas.R is not None))
+    return tuple(k for k, b in (*on, ("distance", meas.k)) if b)
+
+
+# --------------------------------------------------------------------------------------------
+# Result and driver
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class TrackerResult:
+    """Outcome of :func:`identify_tracker`. SI units unless a name says otherwise.
+
+    Attributes:
+        model: identified chain in the fit frame (tool = the tool point, or the measured tool
+            frame for poses).
+        T_meas_fit: (4, 4) tracker frame <- fit frame (constant; see the module docstring).
+        names: minimal parameter names (eq. 10 order); values (rad, m); std (nan when held).
+        estimated: mask of the identifiable (estimated) parameters; held_reason: name -> why.
+        rank: numerical rank of the considered parameters' Jacobian at the start; n_params:
+            their number; condition_number: of the column-scaled weighted Jacobian of the
+            estimated set at the solution.
+        sigma0: a-posteriori standard deviation of unit weight.
+        rms_mm: RMS of the position residual norms (mm) of the position / pose rows (nan if none);
+        rms_deg: RMS rotation error (deg) of the pose rows (nan if none); rms_distance_mm.
+        kinds: the measurement kinds used (``position``, ``pose``, ``distance``).
+        iterations, converged, warnings: of the solve; n_rows, n_distances, n_equations.
+    """
+
+    model: MCPCModel
+    T_meas_fit: np.ndarray
+    names: tuple[str, ...]
+    values: np.ndarray
+    std: np.ndarray
+    estimated: np.ndarray
+    held_reason: dict[str, str]
+    covariance: np.ndarray
+    rank: int
+    n_params: int
+    condition_number: float
+    sigma0: float
+    rms_mm: float
+    rms_deg: float
+    rms_distance_mm: float
+    kinds: tuple[str, ...]
+    iterations: int
+    converged: bool
+    n_rows: int
+    n_distances: int
+    n_equations: int
+    residuals: dict[str, np.ndarray] = field(repr=False, default_factory=dict)
+    warnings: tuple[str, ...] = ()
+
+    @property
+    def identifiable(self) -> tuple[str, ...]:
+        """Names of the estimated parameters."""
+        return tuple(n for n, e in zip(self.names, self.estimated) if e)
+
+    @property
+    def held(self) -> tuple[str, ...]:
+        """Names of the parameters held at nominal."""
+        return tuple(n for n, e in zip(self.names, self.estimated) if not e)
+
+    def predict(self, q: np.ndarray) -> np.ndarray:
+        """Tool-point positions (m, 3) in the tracker frame (m) at joints ``q`` (m, n)."""
+        T = self.T_meas_fit @ fk_tool(self.model, np.atleast_2d(q))
+        return T[:, :3, 3]
+
+    def predict_poses(self, q: np.ndarray) -> np.ndarray:
+        """Tool poses ``T_tracker_tool`` (m, 4, 4) at joints ``q`` (m, n)."""
+        return self.T_meas_fit @ fk_tool(self.model, np.atleast_2d(q))
+
+
+def identify_tracker(
+    model: MCPCModel,
+    meas: TrackerMeasurements,
+    *,
+    sigma_t_m: float = 1e-4,
+    sigma_r_rad: float = 1e-4,
+    sigma_d_m: float = 1e-4,
+    hold: tuple[str, ...] | list[str] = (),
+    rank_rtol: float = 1e-9,
+    max_iterations: int = 100,
+    tol: float = 1e-14,
+) -> TrackerResult:
+    """Identify the minimal MCPC parameters from tracker measurements (module docstring).
+
+    Args:
+        model: nominal chain (e.g. ``dh_to_mcpc(robot)``; its tool is the flange: the tool point
+            and the tracker frame are estimated).
+        meas: the measurements (:class:`TrackerMeasurements`, SI, tracker frame).
+        sigma_t_m, sigma_r_rad, sigma_d_m: standard deviations of a position coordinate, a
+            rotation-vector coordinate and a distance (they weight the kinds against each
+            other; the std are scaled by the a-posteriori ``sigma0``).
+        hold: minimal parameter names held at nominal.
+
+    Raises:
+        InputError: malformed measurements or unknown ``hold`` names.
+        TrackerIdentificationError: too few measurements (the message says how many are
+            needed) or no convergence.
+    """
+    meas.check(model.n)
+    idx = minimal_indices(model.joint_types)
+    names = tuple(param_names(idx))
+    unknown = [h for h in hold if h not in names]
+    if unknown:
+        raise InputError(f"cannot hold {unknown}: not minimal parameters; valid names: {names}")
+    notes: list[str] = []
+    sig = (float(sigma_t_m), float(sigma_r_rad), float(sigma_d_m))
+
+    # 1. placement: work in the placed nominal base frame ("fit frame")
+    if meas.m:
+        B, s = initial_placement(model, meas.q, meas.xyz)
+        start = model.with_tool(make_pose(np.eye(3), s))
+        if meas.R is not None:
+            Tt = fk_tool(start, meas.q)
+            Rm = B[:3, :3].T @ meas.R
+            start = start.with_tool(
+                make_pose(_mean_rotation(np.swapaxes(Tt[:, :3, :3], 1, 2) @ Rm), np.zeros(3))
+            )
+    else:
+        B = np.eye(4)
+        start = model
+    start = regauge(chain_transforms(start), start.joint_types, start.joint_offsets)
+    Binv = inv_pose(B)
+    local = TrackerMeasurements(
+        q=meas.q,
+        xyz=meas.xyz @ Binv[:3, :3].T + Binv[:3, 3],
+        R=None if meas.R is None else Binv[:3, :3] @ meas.R,
+        q_a=meas.q_a,
+        q_b=meas.q_b,
+        d=meas.d,
+    )
+
+    # 2./3. identifiability and the count of equations
+    considered = np.array([nm not in set(hold) for nm in names])
+    struct_mask, p_struct = _structural(start, local, sig, considered, rank_rtol)
+    n_eq = meas.equations()
+    if n_eq <= p_struct:
+        per = 6 if meas.R is not None else 3 if meas.m else 1
+        what = "poses" if meas.R is not None else "positions" if meas.m else "distances"
+        need = (p_struct - (n_eq - per * (meas.m if meas.m else meas.k))) // per + 1
+        raise TrackerIdentificationError(
+            f"too few measurements: {n_eq} equations for the {p_struct} parameters that "
+            f"{what} identify on this robot; need at least {need} {what} "
+            f"(more than {p_struct} equations), better 3 times that",
+            fix=f"measure at least {need} well-spread configurations that move every joint",
+        )
+    mask, rank = _selection(start, local, sig, considered, rank_rtol)
+    held_reason = {h: "explicit" for h in hold}
+    kinds = _kinds(meas)
+    for nm, c, ok in zip(names, considered, struct_mask):
+        if c and not ok:
+            held_reason[nm] = f"not identifiable from {' and '.join(kinds)} measurements"
+    lost = [nm for nm, c, k in zip(names, considered, mask) if c and not k]
+    lost = [nm for nm in lost if nm not in held_reason]
+    if rank < p_struct:
+        text = (
+            f"rank {rank} < {p_struct}: {lost} cannot be identified from these configurations "
+            "(e.g. a joint that never moves); held at nominal"
+        )
+        notes.append(text)
+        warnings.warn(text, IdentificationWarning, stacklevel=2)
+    for nm in lost:
+        held_reason[nm] = "unidentifiable from this data"
+
+    # 4. estimation
+    est_flat = np.sort(idx[mask])
+    blocks = _blocks(ChainLayout.whole(start), local, sig)
+    prob = _problem(start, est_flat, blocks)
+    sol = solve(prob, SolverOptions(tol=tol, max_iterations=max_iterations))
+    if not sol.converged:
+        raise TrackerIdentificationError(
+            f"no convergence in {max_iterations} iterations ({sol.message})",
+            fix="check the joint/measurement pairing and the units (--joint-units)",
+        )
+    fit = start.with_params(sol.values["mcpc"])
+    J = prob.jacobian(sol.x)
+    dof = max(J.shape[0] - prob.n, 1)
+    sigma0 = float(np.sqrt(2.0 * sol.cost / dof))
+    cov_flat = covariance(prob, sol.x, ["mcpc"], sigma2=max(sigma0, 1e-300) ** 2)
+    inv_cond, _ = scaled_rank(J)
+    final = regauge(chain_transforms(fit), fit.joint_types, fit.joint_offsets)
+    order = np.searchsorted(est_flat, idx[mask])  # minimal order of the estimated ones
+    std = np.full(idx.size, np.nan)
+    std[mask] = np.sqrt(np.clip(np.diag(cov_flat), 0.0, None))[order]
+
+    rms_mm = rms_deg = rms_d = float("nan")
+    res = {b.name: sol.residuals[b.name] / np.reshape(b.w, (len(b.w), -1)) for b in blocks}
+    if meas.m:
+        r = res[blocks[0].name]
+        rms_mm = float(np.sqrt(np.mean(np.sum(r[:, :3] ** 2, axis=1)))) * 1e3
+        if meas.R is not None:
+            rms_deg = float(np.degrees(np.sqrt(np.mean(np.sum(r[:, 3:] ** 2, axis=1)))))
+    if meas.k:
+        rms_d = float(np.sqrt(np.mean(res[blocks[-1].name] ** 2))) * 1e3
+    return TrackerResult(
+        model=final,
+        T_meas_fit=B,
+        names=names,
+        values=final.params.reshape(-1)[idx],
+        std=std,
+        estimated=mask,
+        held_reason=held_reason,
+        covariance=cov_flat[np.ix_(order, order)],
+        rank=rank,
+        n_params=int(considered.sum()),
+        condition_number=float(1.0 / inv_cond) if inv_cond > 0 else float("inf"),
+        sigma0=sigma0,
+        rms_mm=rms_mm,
+        rms_deg=rms_deg,
+        rms_distance_mm=rms_d,
+        kinds=kinds,
+        iterations=sol.iterations,
+        converged=sol.converged,
+        n_rows=meas.m,
+        n_distances=meas.k,
+        n_equations=n_eq,
+        residuals=res,
+        warnings=tuple(notes),
+    )

@@ -1,0 +1,171 @@
+"""Tracker residual blocks (analytic Jacobians) and the identification from tracker data."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+from calib.alignment import express_in_frame
+from calib.estimation.tracker import (
+    ChainLayout,
+    TrackerDistanceBlock,
+    TrackerPoseBlock,
+    TrackerPositionBlock,
+)
+from calib.identify import IdentificationWarning
+from calib.kinematics import fk_tool
+from calib.mcpc import chain_transforms, minimal_indices, param_is_angle
+from calib.robot_def import load_robot
+from calib.solver import ParameterBlock, Problem
+from calib.tracker_identify import (
+    TrackerIdentificationError,
+    TrackerMeasurements,
+    identify_tracker,
+)
+from calib.transforms import inv_pose, pose_from_vec
+from scenarios.tracker_sim import INDUSTRIAL_DH, UR5E_DH, dh_robot, make_case, measure
+
+ROBOTS = {
+    "ur5e": lambda: dh_robot("ur5e", **UR5E_DH),
+    "industrial": lambda: dh_robot("industrial", **INDUSTRIAL_DH),
+    "er4u-paper": lambda: load_robot("er4u-paper"),
+}
+
+
+def _layout_problem(case, with_frame_point: bool):
+    """A problem over part of the MCPC parameters (block 'kin', every other one), and with
+    ``with_frame_point`` a tracker frame and a tool point block."""
+    model = case.true
+    P = 6 * (model.n + 1)
+    free = np.arange(0, P, 2)
+    coords = -np.ones(P, np.int64)
+    coords[free] = np.arange(free.size)
+    blocks = [ParameterBlock("kin", model.params.reshape(-1)[free] + 1e-3)]
+    kw = {}
+    if with_frame_point:
+        kw = dict(frame="frame", frame0=pose_from_vec([0.3, -0.2, 0.1, 0.5, 0.2, -0.1]))
+        kw |= dict(point="point")
+        blocks += [
+            ParameterBlock("frame", [0.02, -0.01, 0.03, 0.01, 0.0, -0.02]),
+            ParameterBlock("point", [0.01, 0.02, 0.05]),
+        ]
+    return ChainLayout(model, "kin", coords, **kw), blocks
+
+
+@pytest.mark.parametrize("with_frame_point", [False, True])
+def test_tracker_blocks_jacobians_match_finite_differences(with_frame_point):
+    case = make_case(ROBOTS["ur5e"]())
+    layout, params = _layout_problem(case, with_frame_point)
+    q = case.configurations(5, 1)
+    q2 = case.configurations(5, 2)
+    T = fk_tool(case.true, q) @ pose_from_vec([0.01, 0.02, -0.01, 0.002, 0.0, 0.001])
+    blocks = [
+        TrackerPositionBlock(layout, q, T[:, :3, 3] + 0.01, 1e-4),
+        TrackerPoseBlock(layout, q, T, 1e-4, 1e-3),
+        TrackerDistanceBlock(layout, q, q2, np.full(5, 0.4), 1e-4),
+    ]
+    prob = Problem(params, blocks)
+    x = prob.x0
+    J = prob.jacobian(x).toarray()
+    eps = 1e-7
+    num = np.column_stack(
+        [
+            (prob.residual_vector(x + eps * e) - prob.residual_vector(x - eps * e)) / (2 * eps)
+            for e in np.eye(prob.n)
+        ]
+    )
+    # measured: relative agreement 2.1e-9 (central differences, step 1e-7)
+    assert np.abs(J - num).max() <= 6e-9 * np.abs(num).max()
+
+
+@pytest.mark.parametrize("name", list(ROBOTS))
+def test_noise_free_positions_recover_every_identifiable_parameter(name):
+    robot = ROBOTS[name]()
+    case = make_case(robot, seed=3)
+    q = case.configurations(60, 5)
+    xyz, _ = measure(case, q, 0.0, 1)
+    res = identify_tracker(case.nominal, TrackerMeasurements(q, xyz))
+    n = robot.n
+    # found numerically: positions do not see the orientation of the tool frame
+    assert set(res.held) == {f"alpha{n}", f"beta{n}", f"gamma{n}"}
+    assert res.rank == res.n_params - 3 == res.estimated.sum()
+    # the truth in the estimate's world frame and joint-offset convention (gauge alignment)
+    truth = express_in_frame(case.true, inv_pose(res.T_meas_fit), like=res.model)
+    idx = minimal_indices(robot.joint_types)
+    err = truth.params.reshape(-1)[idx] - res.values
+    err = np.where(param_is_angle(idx), np.degrees(err), err * 1e3)  # deg, mm
+    inner = res.estimated & (idx // 6 < n)
+    # measured: <= 2e-12 mm / deg on the three robots
+    assert np.abs(err[inner]).max() <= 1e-6
+    # V_n: the tool point on the last link is what positions determine
+    tool_err = chain_transforms(truth)[-1][:3, 3] - chain_transforms(res.model)[-1][:3, 3]
+    assert np.abs(tool_err).max() * 1e3 <= 1e-6
+    q_new = case.configurations(40, 6)
+    assert np.abs(res.predict(q_new) - fk_tool(case.true, q_new)[:, :3, 3]).max() <= 1e-9
+
+
+def test_noise_free_poses_identify_every_minimal_parameter():
+    case = make_case(ROBOTS["industrial"](), seed=2)
+    q = case.configurations(30, 5)
+    xyz, R = measure(case, q, 0.0, 1, poses=True)
+    res = identify_tracker(case.nominal, TrackerMeasurements(q, xyz, R))
+    assert res.held == () and res.rank == res.n_params == 30
+    truth = express_in_frame(case.true, inv_pose(res.T_meas_fit), like=res.model)
+    idx = minimal_indices(case.robot.joint_types)
+    err = truth.params.reshape(-1)[idx] - res.values
+    err = np.where(param_is_angle(idx), np.degrees(err), err * 1e3)
+    assert np.abs(err).max() <= 1e-6  # measured ~1e-12
+
+
+def test_noisy_positions_reach_the_noise_floor_on_held_out_configurations():
+    case = make_case(ROBOTS["ur5e"](), seed=4)
+    sigma = 1e-4
+    q = case.configurations(100, 7)
+    xyz, _ = measure(case, q, sigma, 8)
+    res = identify_tracker(case.nominal, TrackerMeasurements(q, xyz), sigma_t_m=sigma)
+    q_new = case.configurations(300, 9)
+    x_new, _ = measure(case, q_new, sigma, 10)
+    e = np.linalg.norm(res.predict(q_new) - x_new, axis=1)
+    floor = np.sqrt(3) * sigma  # RMS norm of the measurement noise alone
+    rms = float(np.sqrt(np.mean(e**2)))
+    # measured: 1.035 x the floor (the model's own error ~ sigma sqrt(p / N) adds in quadrature)
+    assert floor <= rms <= 1.1 * floor
+    assert 0.85 <= res.sigma0 <= 1.15  # measured 1.04
+
+
+def test_too_few_positions_say_how_many_are_needed():
+    case = make_case(ROBOTS["ur5e"]())
+    q = case.configurations(8, 1)
+    xyz, _ = measure(case, q, 0.0, 1)
+    with pytest.raises(TrackerIdentificationError, match="need at least 10 positions") as exc:
+        identify_tracker(case.nominal, TrackerMeasurements(q, xyz))
+    assert exc.value.exit_code == 3 and "27 parameters" in str(exc.value)
+
+
+def test_a_joint_that_never_moves_is_held_with_a_warning():
+    case = make_case(ROBOTS["ur5e"]())
+    q = case.configurations(40, 1)
+    q[:, 5] = 0.3
+    xyz, _ = measure(case, q, 0.0, 1)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        res = identify_tracker(case.nominal, TrackerMeasurements(q, xyz))
+    assert any(issubclass(w.category, IdentificationWarning) for w in caught)
+    assert res.held_reason["alpha6"].startswith("not identifiable from position")
+    data_held = [k for k, v in res.held_reason.items() if v == "unidentifiable from this data"]
+    assert data_held and all(nm.endswith("5") for nm in data_held)  # joint 6's axis
+    assert res.rms_mm < 1e-6
+
+
+def test_distances_and_positions_combine():
+    case = make_case(ROBOTS["ur5e"](), seed=5)
+    q = case.configurations(30, 1)
+    xyz, _ = measure(case, q, 0.0, 1)
+    qa, qb = case.configurations(10, 2), case.configurations(10, 3)
+    d = np.linalg.norm(fk_tool(case.true, qa)[:, :3, 3] - fk_tool(case.true, qb)[:, :3, 3], axis=1)
+    meas = TrackerMeasurements(q, xyz, q_a=qa, q_b=qb, d=d)
+    res = identify_tracker(case.nominal, meas)
+    assert res.kinds == ("position", "distance")
+    assert res.rms_mm < 1e-9 and res.rms_distance_mm < 1e-9
