@@ -33,6 +33,7 @@ from scenarios.rerun_log import record_run
 from scenarios.rerun_log import register as register_record
 from scenarios.studies import register as register_study
 from scenarios.threads import DEFAULT_THREADS, THREADS_ENV, limit_threads
+from scenarios.tracker_cli import register as register_tracker
 
 __all__ = ["main", "build_parser", "CliError"]
 
@@ -260,6 +261,7 @@ def build_parser() -> argparse.ArgumentParser:
         register_record,
         register_deploy,
         register_montecarlo,
+        register_tracker,
     ):
         register(sub)
     return p

@@ -1,0 +1,310 @@
+"""Tracker measurement files: the readers of ``MEASUREMENTS.csv``, the distances file and the
+joints file, and the writer of predicted positions.
+
+Formats (text, one row per line, ``#`` comment lines and blank lines skipped; a header line
+names the columns; cells separated by commas, or by whitespace when the header has no comma):
+
+- measurements: ``j1 .. jn`` (joint readings) and ``x_mm, y_mm, z_mm`` (the tool point in the
+  tracker frame, mm), optionally ``qw, qx, qy, qz`` (the measured tool frame's orientation in the
+  tracker frame, unit quaternion, scalar first: then every row is a pose); other columns are
+  ignored (and listed by :attr:`Table.ignored`).
+- distances: ``a_j1 .. a_jn``, ``b_j1 .. b_jn`` (the two configurations) and ``d_mm``.
+- joints (for predictions): ``j1 .. jn``, or no header and ``n`` numbers per row.
+- predictions (written): ``x_mm,y_mm,z_mm``, one row per joints row, in order.
+
+Joint units: ``deg`` (revolute joints in degrees, prismatic in mm) or ``rad`` (radians and
+metres). Every problem is an :class:`InputError` naming the file, the row (1-based data row and
+the file's line) and the column, with a fix. Values out of the robot's joint ranges are refused;
+when the other unit would put them in range, or when degrees were declared and every revolute
+reading is within +-2 pi over many rows with a spread of more than 0.5, the message says the
+unit is probably wrong. Units: SI in the returned arrays.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from calib.errors import InputError
+from calib.tracker_identify import TrackerMeasurements
+
+__all__ = [
+    "JOINT_UNITS",
+    "Table",
+    "read_table",
+    "read_measurements",
+    "read_distances",
+    "read_joints",
+    "joints_to_si",
+    "positions_csv",
+    "write_positions",
+    "TrackerFileError",
+]
+
+JOINT_UNITS = ("deg", "rad")
+XYZ = ("x_mm", "y_mm", "z_mm")
+QUAT = ("qw", "qx", "qy", "qz")
+_MIN_ROWS_FOR_UNIT_GUESS = 5
+
+
+class TrackerFileError(InputError):
+    """A tracker measurement, distances or joints file that cannot be used (exit code 2)."""
+
+
+@dataclass(frozen=True)
+class Table:
+    """A parsed numeric table: ``columns`` (header names, or ``c1..`` without a header),
+    ``values`` (rows, columns) float, ``lines`` (rows,) the 1-based file line of each row,
+    ``path`` for messages, ``ignored`` columns the caller did not use."""
+
+    path: str
+    columns: tuple[str, ...]
+    values: np.ndarray
+    lines: np.ndarray
+    ignored: tuple[str, ...] = ()
+    has_header: bool = True
+
+    def where(self, row: int, col: str | None = None) -> str:
+        """``FILE row R (line L)[, column C]`` for data row index ``row`` (0-based)."""
+        w = f"{self.path} row {row + 1} (line {self.lines[row]})"
+        return f"{w}, column {col}" if col else w
+
+    def column(self, name: str) -> np.ndarray:
+        return self.values[:, self.columns.index(name)]
+
+
+def _split(line: str, comma: bool) -> list[str]:
+    return [c.strip() for c in line.split(",")] if comma else line.split()
+
+
+def read_table(path: str | Path, *, header: bool | None = None) -> Table:
+    """Read a numeric table (module docstring). ``header``: True (required), False (none) or
+    None (a first line with any non-numeric cell is the header).
+
+    Raises:
+        TrackerFileError: missing/unreadable file, no data rows, a row with another number of
+            cells than the header, a cell that is not a number or a NaN/inf (row and column
+            named).
+    """
+    p = Path(path)
+    try:
+        text = p.read_text()
+    except OSError as exc:
+        raise TrackerFileError(
+            f"{p}: cannot be read ({exc.strerror or exc})", fix="give an existing text file"
+        ) from None
+    rows = [
+        (i + 1, ln)
+        for i, ln in enumerate(text.splitlines())
+        if ln.strip() and ln.lstrip()[0] != "#"
+    ]
+    if not rows:
+        raise TrackerFileError(f"{p}: no data", fix="one header line and one row per measurement")
+    comma = "," in rows[0][1]
+    first = _split(rows[0][1], comma)
+
+    def numeric(c: str) -> bool:
+        try:
+            float(c)
+            return True
+        except ValueError:
+            return False
+
+    has_header = header if header is not None else not all(numeric(c) for c in first)
+    if has_header:
+        cols = tuple(first)
+        dup = sorted({c for c in cols if cols.count(c) > 1})
+        if dup:
+            raise TrackerFileError(
+                f"{p}: column(s) {dup} appear twice in the header", fix="give every column once"
+            )
+        data = rows[1:]
+    else:
+        cols = tuple(f"c{i + 1}" for i in range(len(first)))
+        data = rows
+    if not data:
+        raise TrackerFileError(f"{p}: a header but no data rows", fix="one row per measurement")
+    vals = np.empty((len(data), len(cols)))
+    for r, (line_no, ln) in enumerate(data):
+        cells = _split(ln, comma)
+        where = f"{p} row {r + 1} (line {line_no})"
+        if len(cells) != len(cols):
+            raise TrackerFileError(
+                f"{where}: {len(cells)} cells, but the {'header' if has_header else 'first row'} "
+                f"has {len(cols)}",
+                fix="give one value per column in every row (no missing or extra cells)",
+            )
+        for c, cell in enumerate(cells):
+            try:
+                v = float(cell)
+            except ValueError:
+                raise TrackerFileError(
+                    f"{where}, column {cols[c]}: {cell!r} is not a number",
+                    fix="write plain decimal numbers (a dot as decimal separator, no units)",
+                ) from None
+            if not np.isfinite(v):
+                raise TrackerFileError(
+                    f"{where}, column {cols[c]}: {cell} is not finite",
+                    fix="remove the row or replace the value with the measured number",
+                )
+            vals[r, c] = v
+    return Table(str(p), cols, vals, np.array([ln for ln, _ in data]), has_header=has_header)
+
+
+def joints_to_si(
+    table: Table, cols: list[str], robot, units: str, what: str = "joints"
+) -> np.ndarray:
+    """Joint columns ``cols`` of ``table`` in SI (rad, m) for ``robot`` (a
+    :class:`calib.robot_def.RobotDef`), declared in ``units``; refuses values out of the joint
+    ranges and units that are probably wrong (module docstring)."""
+    if units not in JOINT_UNITS:
+        raise TrackerFileError(f"--joint-units must be deg or rad, got {units!r}")
+    raw = np.column_stack([table.column(c) for c in cols])
+    rev = np.array([t == "revolute" for t in robot.joint_types])
+    scale = np.where(rev, np.pi / 180.0, 1e-3) if units == "deg" else np.ones(robot.n)
+    other = "rad" if units == "deg" else "deg"
+    alt = np.where(rev, np.pi / 180.0, 1e-3) if other == "deg" else np.ones(robot.n)
+    q, q_alt = raw * scale, raw * alt
+    lo, hi = robot.limits[:, 0] - 1e-9, robot.limits[:, 1] + 1e-9
+    fix_units = f"declare --joint-units {other}"
+    if units == "deg" and rev.any() and len(raw) >= _MIN_ROWS_FOR_UNIT_GUESS:
+        r = raw[:, rev]
+        if np.abs(r).max() <= 2 * np.pi and np.ptp(r, axis=0).max() > 0.5:
+            raise TrackerFileError(
+                f"{table.path}: {what} declared in degrees, but every revolute reading of the "
+                f"{len(raw)} rows is within +-2 pi (largest {np.abs(r).max():.3f}) and they "
+                f"spread by up to {np.ptp(r, axis=0).max():.3f}: these look like radians",
+                fix=fix_units,
+            )
+    bad = (q < lo) | (q > hi)
+    if bad.any():
+        row, j = (int(v) for v in np.argwhere(bad)[0])
+        unit = ("deg" if rev[j] else "mm") if units == "deg" else ("rad" if rev[j] else "m")
+        show = np.degrees(robot.limits[j]) if units == "deg" and rev[j] else robot.limits[j]
+        show = show * 1e3 if units == "deg" and not rev[j] else show
+        alt_ok = bool(np.all((q_alt >= lo) & (q_alt <= hi)))
+        hint = (
+            f" -- in {other} every row would be in range: the unit is probably wrong"
+            if alt_ok
+            else ""
+        )
+        raise TrackerFileError(
+            f"{table.where(row, cols[j])}: {raw[row, j]:g} {unit} is outside joint {j + 1}'s "
+            f"range [{show[0]:g}, {show[1]:g}] {unit} of robot {robot.name}{hint}",
+            fix=fix_units if alt_ok else "check the joint units, the column order and the robot",
+        )
+    return q
+
+
+def _joint_names(prefix: str, n: int) -> list[str]:
+    return [f"{prefix}j{i + 1}" for i in range(n)]
+
+
+def _check_joint_columns(table: Table, prefix: str, robot) -> list[str]:
+    present = sorted(
+        (c for c in table.columns if c.startswith(prefix + "j") and c[len(prefix) + 1 :].isdigit()),
+        key=lambda c: int(c[len(prefix) + 1 :]),
+    )
+    want = _joint_names(prefix, robot.n)
+    if present != want:
+        raise TrackerFileError(
+            f"{table.path}: {len(present)} joint columns ({', '.join(present) or 'none'}) do "
+            f"not match robot {robot.name}, which has {robot.n} joints ({', '.join(want)})",
+            fix=f"give exactly the columns {', '.join(want)} (or choose the right --robot)",
+        )
+    return want
+
+
+def _require(table: Table, cols: tuple[str, ...], layout: str) -> None:
+    missing = [c for c in cols if c not in table.columns]
+    if missing:
+        raise TrackerFileError(
+            f"{table.path}: missing column(s) {', '.join(missing)}; the header has "
+            f"{', '.join(table.columns)}",
+            fix=f"the header must name {layout}",
+        )
+
+
+def read_measurements(path: str | Path, robot, units: str) -> tuple[TrackerMeasurements, Table]:
+    """``MEASUREMENTS.csv`` (module docstring) for ``robot`` as SI tracker data (positions, or
+    poses when the quaternion columns are present), and the parsed table."""
+    t = read_table(path, header=True)
+    layout = f"j1..j{robot.n}, x_mm, y_mm, z_mm and optionally qw, qx, qy, qz"
+    jcols = _check_joint_columns(t, "", robot)
+    _require(t, XYZ, layout)
+    has_q = [c in t.columns for c in QUAT]
+    if any(has_q) and not all(has_q):
+        _require(t, QUAT, layout)
+    q = joints_to_si(t, jcols, robot, units)
+    xyz = np.column_stack([t.column(c) for c in XYZ]) / 1e3
+    R = None
+    if all(has_q):
+        quat = np.column_stack([t.column(c) for c in QUAT])
+        nrm = np.linalg.norm(quat, axis=1)
+        bad = np.flatnonzero(np.abs(nrm - 1.0) > 1e-3)
+        if bad.size:
+            raise TrackerFileError(
+                f"{t.where(int(bad[0]), 'qw..qz')}: the quaternion has norm {nrm[bad[0]]:.6f}, "
+                "not 1",
+                fix="give unit quaternions (qw, qx, qy, qz), scalar first",
+            )
+        R = Rotation.from_quat(quat[:, [1, 2, 3, 0]] / nrm[:, None]).as_matrix()
+    used = set(jcols) | set(XYZ) | (set(QUAT) if R is not None else set())
+    t = Table(t.path, t.columns, t.values, t.lines, tuple(c for c in t.columns if c not in used))
+    return TrackerMeasurements(q, xyz, R), t
+
+
+def read_distances(
+    path: str | Path, robot, units: str
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The distances file: ``(q_a, q_b, d)`` in SI ((k, n), (k, n), (k,) m)."""
+    t = read_table(path, header=True)
+    a = _check_joint_columns(t, "a_", robot)
+    b = _check_joint_columns(t, "b_", robot)
+    _require(t, ("d_mm",), f"a_j1..a_j{robot.n}, b_j1..b_j{robot.n} and d_mm")
+    d = t.column("d_mm") / 1e3
+    neg = np.flatnonzero(d <= 0)
+    if neg.size:
+        raise TrackerFileError(
+            f"{t.where(int(neg[0]), 'd_mm')}: a distance must be positive",
+            fix="give the measured distance in mm",
+        )
+    both = Table(t.path, t.columns, t.values, t.lines)
+    return (
+        joints_to_si(both, a, robot, units, "a_ joints"),
+        joints_to_si(both, b, robot, units, "b_ joints"),
+        d,
+    )
+
+
+def read_joints(path: str | Path, robot, units: str) -> np.ndarray:
+    """A joints file (header ``j1..jn`` or none) as (rows, n) SI joint values."""
+    t = read_table(path)
+    if not t.has_header:
+        if len(t.columns) != robot.n:
+            raise TrackerFileError(
+                f"{t.path}: {len(t.columns)} numbers per row, but robot {robot.name} has "
+                f"{robot.n} joints",
+                fix=f"give {robot.n} joint values per row (or the header j1..j{robot.n})",
+            )
+        t = Table(t.path, tuple(_joint_names("", robot.n)), t.values, t.lines)
+    cols = _check_joint_columns(t, "", robot)
+    return joints_to_si(t, cols, robot, units)
+
+
+def positions_csv(xyz_m: np.ndarray) -> str:
+    """Predicted positions (m, 3) m as CSV text: header ``x_mm,y_mm,z_mm``, 6 decimals (nm)."""
+    lines = [",".join(XYZ)] + [f"{x:.6f},{y:.6f},{z:.6f}" for x, y, z in np.asarray(xyz_m) * 1e3]
+    return "\n".join(lines) + "\n"
+
+
+def write_positions(path: str | Path, xyz_m: np.ndarray) -> Path:
+    """Write :func:`positions_csv` to ``path`` (via a temporary file and rename)."""
+    p = Path(path)
+    tmp = p.with_suffix(p.suffix + ".tmp")
+    tmp.write_text(positions_csv(xyz_m))
+    tmp.replace(p)
+    return p

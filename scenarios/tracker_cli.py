@@ -1,0 +1,191 @@
+"""``selfcal identify`` and ``selfcal predict``: kinematic calibration from tracker measurements.
+
+- ``selfcal identify MEASUREMENTS.csv --robot ROBOT --joint-units deg|rad --out DIR
+  [--distances FILE]``: fit the robot's MCPC chain, the tracker-to-base transform and the tool
+  point to the measured tool-point positions (or poses); writes ``DIR/calibration.json``
+  (:mod:`calib.io.tracker_calibration`) and ``DIR/residuals.csv``; prints the fit RMS.
+- ``selfcal predict DIR --joints FILE --joint-units deg|rad [--out predicted.csv]``: the tool
+  point in the tracker frame for every joints row (stdout without ``--out``).
+
+File formats: :mod:`calib.io.tracker` and docs/tracker.md.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from calib.io.tracker import (
+    JOINT_UNITS,
+    positions_csv,
+    read_distances,
+    read_joints,
+    read_measurements,
+    write_positions,
+)
+from calib.io.tracker_calibration import (
+    from_result,
+    is_tracker_calibration,
+    read_tracker_calibration,
+    write_tracker_calibration,
+)
+from calib.mcpc import dh_to_mcpc
+from calib.robot_def import load_robot
+from calib.tracker_identify import TrackerMeasurements, identify_tracker
+from scenarios.cli_common import CliError
+
+__all__ = ["register", "cmd_identify", "cmd_predict"]
+
+IDENTIFY_HELP = """\
+MEASUREMENTS.csv: header j1..jn,x_mm,y_mm,z_mm (tool point in the tracker frame, mm), optionally
+qw,qx,qy,qz (tool orientation, unit quaternion): one row per measured configuration.
+--distances FILE: header a_j1..a_jn,b_j1..b_jn,d_mm: the distance between the tool point at two
+configurations (ball bar, a known length).
+--joint-units deg: revolute joints in degrees, prismatic in mm; rad: radians and metres.
+writes DIR/calibration.json (estimates with std, the identifiable set, rank, condition number)
+and DIR/residuals.csv; see docs/tracker.md
+"""
+
+
+def _out_dir(path: str) -> Path:
+    out = Path(path)
+    if out.exists() and not out.is_dir():
+        raise CliError(f"--out {out}: exists and is not a folder", fix="give a folder")
+    cal = out / "calibration.json"
+    if cal.exists() and not is_tracker_calibration(cal):
+        raise CliError(
+            f"{cal} exists and is not a tracker calibration (it would be overwritten)",
+            fix="give another --out folder",
+        )
+    out.mkdir(parents=True, exist_ok=True)
+    return out
+
+
+def _residuals_csv(table, res) -> str:
+    r = next(iter(res.residuals.values()))[:, :3] * 1e3
+    lines = ["row,line,dx_mm,dy_mm,dz_mm,error_mm"]
+    for i, (line, e) in enumerate(zip(table.lines, r)):
+        lines.append(f"{i + 1},{line},{e[0]:.6f},{e[1]:.6f},{e[2]:.6f},{np.linalg.norm(e):.6f}")
+    return "\n".join(lines) + "\n"
+
+
+def cmd_identify(args: argparse.Namespace) -> int:
+    robot = load_robot(args.robot)
+    meas, table = read_measurements(args.measurements, robot, args.joint_units)
+    if args.distances:
+        qa, qb, d = read_distances(args.distances, robot, args.joint_units)
+        meas = TrackerMeasurements(meas.q, meas.xyz, meas.R, qa, qb, d)
+    for name, v in (("--sigma-mm", args.sigma_mm), ("--sigma-deg", args.sigma_deg)):
+        if not (np.isfinite(v) and v > 0):
+            raise CliError(f"{name} must be a positive number, got {v}")
+    out = _out_dir(args.out)
+    hold = tuple(h for h in (args.hold or "").replace(" ", "").split(",") if h)
+    res = identify_tracker(
+        dh_to_mcpc(robot),
+        meas,
+        sigma_t_m=args.sigma_mm / 1e3,
+        sigma_r_rad=np.radians(args.sigma_deg),
+        sigma_d_m=args.sigma_mm / 1e3,
+        hold=hold,
+    )
+    files = {"measurements": str(args.measurements), "distances": args.distances}
+    sigmas = {
+        "position_mm": args.sigma_mm,
+        "rotation_deg": args.sigma_deg,
+        "distance_mm": args.sigma_mm,
+    }
+    cal = from_result(
+        res,
+        robot=robot.name,
+        robot_source=str(args.robot),
+        joint_names=robot.joint_names,
+        joint_limits=robot.limits,
+        joint_units=args.joint_units,
+        sigmas=sigmas,
+        files=files,
+    )
+    path = write_tracker_calibration(out / "calibration.json", cal)
+    if meas.m:
+        (out / "residuals.csv").write_text(_residuals_csv(table, res))
+    kinds = " + ".join(res.kinds)
+    if meas.m:
+        what = "poses" if meas.R is not None else "positions"
+        print(f"fit RMS {res.rms_mm:.4f} mm over {meas.m} {what}", end="")
+        print(f", {res.rms_deg:.4f} deg" if meas.R is not None else "")
+    if meas.k:
+        print(f"distance RMS {res.rms_distance_mm:.4f} mm over {meas.k} distances")
+    print(
+        f"{kinds}: rank {res.rank}/{res.n_params}, condition number {res.condition_number:.3g}, "
+        f"sigma0 {res.sigma0:.3g} (1 when --sigma-mm is the noise)"
+    )
+    held = ", ".join(f"{k} ({v})" for k, v in res.held_reason.items()) or "none"
+    print(f"held at nominal: {held}")
+    if table.ignored:
+        print(f"ignored columns of {table.path}: {', '.join(table.ignored)}")
+    for w in res.warnings:
+        print(f"warning: {w}", file=sys.stderr)
+    print(f"wrote {path}")
+    return 0
+
+
+def cmd_predict(args: argparse.Namespace) -> int:
+    src = Path(args.calibration)
+    path = src / "calibration.json" if src.is_dir() else src
+    if not path.is_file():
+        raise CliError(
+            f"{path} not found",
+            fix="give the folder `selfcal identify --out DIR` wrote, or its calibration.json",
+        )
+    cal = read_tracker_calibration(path)
+    q = read_joints(args.joints, cal, args.joint_units)
+    xyz = cal.predict(q)
+    if args.out:
+        write_positions(args.out, xyz)
+        print(f"wrote {len(xyz)} positions to {args.out}", file=sys.stderr)
+    else:
+        sys.stdout.write(positions_csv(xyz))
+    return 0
+
+
+def register(sub) -> None:
+    """Add ``identify`` and ``predict`` to the ``selfcal`` sub-command parsers ``sub``."""
+    sp = sub.add_parser(
+        "identify",
+        help="fit the kinematics to tracker measurements -> DIR/calibration.json",
+        description="fit the kinematics, the tracker frame and the tool point to tracker "
+        "measurements of a tool point (positions, poses, distances)",
+        epilog=IDENTIFY_HELP,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    sp.set_defaults(func=cmd_identify)
+    sp.add_argument("measurements", help="MEASUREMENTS.csv (see below)")
+    sp.add_argument("--robot", required=True, help="robot name, robot TOML or URDF path")
+    sp.add_argument("--joint-units", required=True, choices=JOINT_UNITS)
+    sp.add_argument("--out", required=True, help="output folder")
+    sp.add_argument("--distances", default=None, help="distances CSV (see below)")
+    sp.add_argument(
+        "--sigma-mm", type=float, default=0.1, help="position / distance noise, mm (0.1)"
+    )
+    sp.add_argument(
+        "--sigma-deg", type=float, default=0.01, help="orientation noise of poses, deg (0.01)"
+    )
+    sp.add_argument("--hold", default=None, help="parameters held at nominal, e.g. beta1,ly1")
+
+    sp = sub.add_parser(
+        "predict",
+        help="tool-point positions in the tracker frame for new joint rows (CSV x_mm,y_mm,z_mm)",
+        description="predict the tool point (tracker frame, mm) for every row of a joints file "
+        "with a calibration written by `selfcal identify`; CSV on stdout or --out",
+    )
+    sp.set_defaults(func=cmd_predict)
+    sp.add_argument("calibration", help="the DIR of `selfcal identify` (or its calibration.json)")
+    sp.add_argument(
+        "--joints",
+        required=True,
+        help="joints file: header j1..jn, or n numbers per row, comma- or whitespace-separated",
+    )
+    sp.add_argument("--joint-units", required=True, choices=JOINT_UNITS)
+    sp.add_argument("--out", default=None, help="predicted.csv (default: stdout)")

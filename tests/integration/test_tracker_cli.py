@@ -1,0 +1,227 @@
+"""``selfcal identify`` / ``selfcal predict`` end to end, and every kind of bad input."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from calib.kinematics import fk_tool
+from calib.robot_def import load_robot
+from scenarios.cli import main
+from scenarios.tracker_sim import UR5E_DH, make_case, measure
+
+SIGMA = 1e-4
+
+
+def _ur5e_toml(path) -> str:
+    """A UR5e-like robot file (standard DH) written where the test wants it."""
+    rows = []
+    for i, (al, a, d) in enumerate(zip(UR5E_DH["alpha_deg"], UR5E_DH["a_mm"], UR5E_DH["d_mm"])):
+        rows.append(
+            f'[[joint]]\nname = "j{i + 1}"\ntype = "revolute"\nalpha_deg = {al}\na_mm = {a}\n'
+            f"d_mm = {d}\noffset_deg = 0.0\nrange_deg = [-360.0, 360.0]\n"
+        )
+    text = (
+        'name = "ur5e-test"\nhome_deg = [0, -90, 0, -90, 0, 0]\n'
+        + "\n".join(rows)
+        + "\n[camera_mount]\nxyz_mm = [0, 0, 0]\nx_axis = [1, 0, 0]\nz_axis = [0, 0, 1]\n"
+    )
+    path.write_text(text)
+    return str(path)
+
+
+def _write(path, header, rows, fmt="{:.6f}", sep=","):
+    lines = [sep.join(header)] if header else []
+    lines += [sep.join(fmt.format(v) if not isinstance(v, str) else v for v in r) for r in rows]
+    path.write_text("\n".join(lines) + "\n")
+    return str(path)
+
+
+def _measurements(tmp_path, robot, m=40, seed=2, poses=False, units="deg"):
+    case = make_case(robot, seed=seed)
+    q = case.configurations(m, 3)
+    xyz, R = measure(case, q, SIGMA, 1, poses=poses)
+    qq = np.degrees(q) if units == "deg" else q
+    header = [f"j{i + 1}" for i in range(robot.n)] + ["x_mm", "y_mm", "z_mm"]
+    rows = np.column_stack([qq, xyz * 1e3])
+    if poses:
+        from scipy.spatial.transform import Rotation
+
+        quat = Rotation.from_matrix(R).as_quat()[:, [3, 0, 1, 2]]
+        header += ["qw", "qx", "qy", "qz"]
+        rows = np.column_stack([rows, quat])
+    return case, header, rows
+
+
+def _run(argv, capsys):
+    code = main(argv)
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+@pytest.fixture
+def er4u():
+    return load_robot("er4u-paper")
+
+
+def test_identify_then_predict_round_trip(tmp_path, capsys, er4u):
+    case, header, rows = _measurements(tmp_path, er4u)
+    meas = _write(tmp_path / "m.csv", header, rows)
+    out = tmp_path / "cal"
+    code, text, err = _run(
+        ["identify", meas, "--robot", "er4u-paper", "--joint-units", "deg", "--out", str(out)],
+        capsys,
+    )
+    assert code == 0, err
+    assert "fit RMS" in text and "rank 23/26" in text
+    doc = json.loads((out / "calibration.json").read_text())
+    assert doc["format"] == "scorbot-selfcal-tracker-calibration" and doc["schema_version"] == 1
+    assert set(doc["identifiable"]) | {"alpha5", "beta5", "gamma5"} == {
+        p["name"] for p in doc["parameters"]
+    }
+    assert all(p["std"] > 0 for p in doc["parameters"] if p["estimated"])
+    assert len((out / "residuals.csv").read_text().splitlines()) == 41
+    # held-out rows: header-less, whitespace-separated joints file; stdout
+    q_new = case.configurations(25, 11)
+    _write(tmp_path / "j.txt", None, np.degrees(q_new), sep=" ")
+    argv = ["predict", str(out), "--joints", str(tmp_path / "j.txt"), "--joint-units", "deg"]
+    code, text, err = _run(argv, capsys)
+    assert code == 0, err
+    lines = text.splitlines()
+    assert lines[0] == "x_mm,y_mm,z_mm" and len(lines) == 26
+    pred = np.array([[float(v) for v in ln.split(",")] for ln in lines[1:]])
+    truth = fk_tool(case.true, q_new)[:, :3, 3] * 1e3
+    # the model's own error ~ sigma sqrt(p / N); measured max 0.084 mm
+    assert np.abs(pred - truth).max() < 0.25
+    # the same with a header and --out, in radians
+    _write(tmp_path / "j.csv", [f"j{i + 1}" for i in range(5)], q_new, fmt="{:.12f}")
+    target = tmp_path / "predicted.csv"
+    argv = ["predict", str(out / "calibration.json"), "--joints", str(tmp_path / "j.csv")]
+    code, _, err = _run([*argv, "--joint-units", "rad", "--out", str(target)], capsys)
+    assert code == 0, err
+    again = np.loadtxt(target, delimiter=",", skiprows=1)
+    assert np.allclose(again, pred, atol=1e-5)
+
+
+def test_poses_and_a_robot_file_path(tmp_path, capsys):
+    robot_path = _ur5e_toml(tmp_path / "ur5e.toml")
+    robot = load_robot(robot_path)
+    _, header, rows = _measurements(tmp_path, robot, m=30, poses=True)
+    meas = _write(tmp_path / "m.csv", header, rows, fmt="{:.9f}")
+    argv = ["identify", meas, "--robot", robot_path, "--joint-units", "deg"]
+    code, text, err = _run([*argv, "--out", str(tmp_path / "o")], capsys)
+    assert code == 0, err
+    assert "over 30 poses" in text and "rank 30/30" in text
+
+
+def test_distances_file_combines_with_positions(tmp_path, capsys, er4u):
+    case, header, rows = _measurements(tmp_path, er4u)
+    meas = _write(tmp_path / "m.csv", header, rows)
+    qa, qb = case.configurations(8, 5), case.configurations(8, 6)
+    d = np.linalg.norm(fk_tool(case.true, qa)[:, :3, 3] - fk_tool(case.true, qb)[:, :3, 3], axis=1)
+    head = [f"a_j{i + 1}" for i in range(5)] + [f"b_j{i + 1}" for i in range(5)] + ["d_mm"]
+    dist = _write(
+        tmp_path / "d.csv", head, np.column_stack([np.degrees(qa), np.degrees(qb), d * 1e3])
+    )
+    argv = ["identify", meas, "--robot", "er4u-paper", "--joint-units", "deg", "--distances", dist]
+    code, text, err = _run([*argv, "--out", str(tmp_path / "o")], capsys)
+    assert code == 0, err
+    assert "distance RMS" in text and "position + distance" in text
+
+
+def _identify_fails(tmp_path, capsys, header, rows, units="deg", fmt="{:.6f}"):
+    meas = _write(tmp_path / "bad.csv", header, rows, fmt=fmt)
+    argv = ["identify", meas, "--robot", "er4u-paper", "--joint-units", units]
+    code, _, err = _run([*argv, "--out", str(tmp_path / "o")], capsys)
+    assert "fix:" in err
+    return code, err
+
+
+def test_joint_column_count_not_matching_the_robot(tmp_path, capsys, er4u):
+    _, header, rows = _measurements(tmp_path, er4u)
+    header = ["j1", "j2", "j3", "j4", "j5", "j6", "x_mm", "y_mm", "z_mm"]
+    rows = np.column_stack([rows[:, :5], np.zeros(len(rows)), rows[:, 5:]])
+    code, err = _identify_fails(tmp_path, capsys, header, rows)
+    assert code == 2 and "j1, j2, j3, j4, j5, j6" in err and "has 5 joints" in err
+
+
+def test_radians_declared_as_degrees(tmp_path, capsys, er4u):
+    _, header, rows = _measurements(tmp_path, er4u, units="rad")
+    code, err = _identify_fails(tmp_path, capsys, header, rows)
+    assert code == 2 and "look like radians" in err and "--joint-units rad" in err
+
+
+def test_degrees_declared_as_radians(tmp_path, capsys, er4u):
+    _, header, rows = _measurements(tmp_path, er4u, units="deg")
+    code, err = _identify_fails(tmp_path, capsys, header, rows, units="rad")
+    assert code == 2 and "unit is probably wrong" in err and "--joint-units deg" in err
+    assert "row 1 (line 2), column j" in err
+
+
+@pytest.mark.parametrize("bad", ["nan", "inf", "-inf"])
+@pytest.mark.parametrize("col", [2, 6])  # a joint and a coordinate
+def test_nan_or_inf_anywhere_names_row_and_column(tmp_path, capsys, er4u, bad, col):
+    _, header, rows = _measurements(tmp_path, er4u)
+    cells = [[f"{v:.6f}" for v in r] for r in rows]
+    cells[6][col] = bad
+    code, err = _identify_fails(tmp_path, capsys, header, cells, fmt="{}")
+    assert code == 2 and f"row 7 (line 8), column {header[col]}" in err and "not finite" in err
+
+
+def test_non_numeric_cell(tmp_path, capsys, er4u):
+    _, header, rows = _measurements(tmp_path, er4u)
+    cells = [[f"{v:.6f}" for v in r] for r in rows]
+    cells[3][7] = "12,5mm".replace(",", ";")
+    code, err = _identify_fails(tmp_path, capsys, header, cells, fmt="{}")
+    assert code == 2 and "row 4 (line 5), column z_mm: '12;5mm' is not a number" in err
+
+
+def test_missing_column(tmp_path, capsys, er4u):
+    _, header, rows = _measurements(tmp_path, er4u)
+    code, err = _identify_fails(tmp_path, capsys, header[:-1], rows[:, :-1])
+    assert code == 2 and "missing column(s) z_mm" in err
+
+
+def test_missing_cell(tmp_path, capsys, er4u):
+    _, header, rows = _measurements(tmp_path, er4u)
+    cells = [[f"{v:.6f}" for v in r] for r in rows]
+    cells[9] = cells[9][:-1]
+    code, err = _identify_fails(tmp_path, capsys, header, cells, fmt="{}")
+    assert code == 2 and "row 10 (line 11): 7 cells, but the header has 8" in err
+
+
+def test_quaternion_that_is_not_unit(tmp_path, capsys, er4u):
+    _, header, rows = _measurements(tmp_path, er4u, poses=True)
+    rows[4, -4:] *= 1.1
+    code, err = _identify_fails(tmp_path, capsys, header, rows)
+    assert code == 2 and "row 5 (line 6)" in err and "norm 1.1" in err
+
+
+def test_too_few_measurements_say_how_many_are_needed(tmp_path, capsys, er4u):
+    _, header, rows = _measurements(tmp_path, er4u, m=6)
+    code, err = _identify_fails(tmp_path, capsys, header, rows)
+    assert code == 3 and "need at least 8 positions" in err
+
+
+def test_predict_bad_joints_and_bad_calibration(tmp_path, capsys, er4u):
+    _, header, rows = _measurements(tmp_path, er4u)
+    meas = _write(tmp_path / "m.csv", header, rows)
+    out = tmp_path / "cal"
+    argv = ["identify", meas, "--robot", "er4u-paper", "--joint-units", "deg"]
+    assert _run([*argv, "--out", str(out)], capsys)[0] == 0
+    _write(tmp_path / "j.txt", None, np.zeros((3, 4)), sep=" ")
+    argv = ["predict", str(out), "--joints", str(tmp_path / "j.txt"), "--joint-units", "deg"]
+    code, _, err = _run(argv, capsys)
+    assert code == 2 and "4 numbers per row, but robot er4u-paper has 5 joints" in err
+    (tmp_path / "other").mkdir()
+    (tmp_path / "other" / "calibration.json").write_text('{"format": "something-else"}')
+    argv = ["predict", str(tmp_path / "other"), "--joints", str(tmp_path / "j.txt")]
+    code, _, err = _run([*argv, "--joint-units", "deg"], capsys)
+    assert code == 2 and "not a scorbot-selfcal-tracker-calibration file" in err
+    # never overwrite a calibration of another kind
+    argv = ["identify", meas, "--robot", "er4u-paper", "--joint-units", "deg"]
+    code, _, err = _run([*argv, "--out", str(tmp_path / "other")], capsys)
+    assert code == 2 and "is not a tracker calibration" in err
+    assert "something-else" in (tmp_path / "other" / "calibration.json").read_text()
