@@ -93,33 +93,34 @@ def pose_error(T_model: np.ndarray, T_actual: np.ndarray) -> np.ndarray:
     return np.concatenate([E[..., :3, 3], rv.reshape(E.shape[:-2] + (3,))], axis=-1)
 
 
-def identification_jacobian(model: MCPCModel, q: np.ndarray) -> np.ndarray:
+def identification_jacobian(
+    model: MCPCModel, q: np.ndarray, frames: np.ndarray | None = None
+) -> np.ndarray:
     """Analytic Jacobian of the tool pose error w.r.t. every MCPC parameter (eqs. 6-13).
 
     Returns shape (m, 6, 6 (n + 1)): rows ``[d; delta]`` in the tool frame, columns the flat
     parameters ``params.reshape(-1)`` (select the minimal set with ``mcpc.minimal_indices``).
-    Units: rows m and rad, columns per rad (angles) and per m (lengths).
+    Units: rows m and rad, columns per rad (angles) and per m (lengths). ``frames``: the
+    :func:`fk_frames` of ``model`` at ``q`` when the caller has them already.
     """
     q = _check_q(model, q)
     m, n = q.shape[0], model.n
-    frames = fk_frames(model, q)
+    frames = fk_frames(model, q) if frames is None else frames
     p = model.params
     # World frame in which each shape matrix V_k starts: F_0 = I, F_k for k >= 1.
     start = np.empty((m, n + 1, 4, 4))
     start[:, 0] = np.eye(4)
     start[:, 1:] = frames[:, :n]
-    A1 = start @ rot_x(p[:, 0])  # after Rx(alpha): beta acts here
-    A2 = A1 @ rot_y(p[:, 1])  # after Ry(beta): gamma acts here
-    A3 = A2 @ rot_z(p[:, 2])  # after Rz(gamma): translations act here
-    Tinv = inv_pose(frames[:, n])[:, None]  # (m, 1, 4, 4)
-    J = np.empty((m, 6, n + 1, 6))
-    for col, (A, axis) in enumerate(((start, 0), (A1, 1), (A2, 2))):
-        X = Tinv @ A  # action frame expressed in the tool frame
-        w = X[..., :3, axis]  # rotation axis in tool frame
-        J[:, 3:, :, col] = np.moveaxis(w, -1, 1)
-        J[:, :3, :, col] = np.moveaxis(np.cross(X[..., :3, 3], w), -1, 1)
-    X = Tinv @ A3
-    for axis in range(3):
-        J[:, :3, :, 3 + axis] = np.moveaxis(X[..., :3, axis], -1, 1)
-        J[:, 3:, :, 3 + axis] = 0.0
-    return J.reshape(m, 6, 6 * (n + 1))
+    # The frames where each parameter acts, expressed in the tool frame: X0 = T^-1 start (alpha
+    # acts about its x axis), X1 = X0 Rx(alpha) (beta, y), X2 = X1 Ry(beta) (gamma, z),
+    # X3 = X2 Rz(gamma) (the translations, along its axes).
+    X = inv_pose(frames[:, n])[:, None] @ start  # (m, n + 1, 4, 4)
+    J = np.empty((m, n + 1, 6, 6))  # (config, frame, column, row [d; delta])
+    for col, R in enumerate((rot_x(p[:, 0]), rot_y(p[:, 1]), rot_z(p[:, 2]))):
+        w = X[..., :3, col]  # rotation axis in the tool frame
+        J[:, :, col, 3:] = w
+        J[:, :, col, :3] = np.cross(X[..., :3, 3], w)
+        X = X @ R
+    J[:, :, 3:, :3] = np.swapaxes(X[..., :3, :3], -1, -2)
+    J[:, :, 3:, 3:] = 0.0
+    return np.transpose(J, (0, 3, 1, 2)).reshape(m, 6, 6 * (n + 1))

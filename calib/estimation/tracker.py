@@ -33,7 +33,7 @@ import numpy as np
 
 from calib.estimation.pose_models import so3_left_jacobian
 from calib.identify import pose_error_jacobian
-from calib.kinematics import fk_tool, identification_jacobian, pose_error
+from calib.kinematics import fk_frames, identification_jacobian, pose_error
 from calib.mcpc import MCPCModel
 from calib.solver import Evaluation, JacobianPiece, Loss
 from calib.transforms import adjoint, inv_pose, make_pose, pose_from_vec, skew
@@ -115,7 +115,8 @@ class ChainLayout:
         """Tool points ``y`` (m, 3) in the tracker frame at joints ``q`` (m, n) and, when
         ``jacobian``, their derivatives ``(block, dy (m, 3, c), block coordinates (c,))``."""
         mdl = self.chain(values)
-        T = fk_tool(mdl, q)
+        frames = fk_frames(mdl, q)
+        T = frames[:, -1]
         s = self.tool_point(values)
         x = T[:, :3, :3] @ s + T[:, :3, 3]
         Tf = self.tracker_frame(values)
@@ -123,7 +124,7 @@ class ChainLayout:
         if not jacobian:
             return y, []
         sel, cols = self._kin_columns()
-        J = identification_jacobian(mdl, q)[:, :, sel]
+        J = identification_jacobian(mdl, q, frames)[:, :, sel]
         RfR = Tf[:3, :3] @ T[:, :3, :3]  # (m, 3, 3)
         pieces = [(self.block, RfR @ (J[:, :3] - skew(s) @ J[:, 3:]), cols)]
         if self.point is not None:
@@ -142,11 +143,12 @@ class ChainLayout:
         ``jacobian``, their body twists ``[v; w]`` per unknown ``(block, (m, 6, c), coords)``."""
         mdl = self.chain(values)
         Tf = self.tracker_frame(values)
-        T = Tf @ fk_tool(mdl, q)
+        frames = fk_frames(mdl, q)
+        T = Tf @ frames[:, -1]
         if not jacobian:
             return T, []
         sel, cols = self._kin_columns()
-        pieces = [(self.block, identification_jacobian(mdl, q)[:, :, sel], cols)]
+        pieces = [(self.block, identification_jacobian(mdl, q, frames)[:, :, sel], cols)]
         if self.frame is not None:
             Jl = so3_left_jacobian(values[self.frame][:3])
             spatial = np.zeros((6, 6))  # [e_t; phi] per [dw, dv]

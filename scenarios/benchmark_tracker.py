@@ -1,0 +1,203 @@
+"""Benchmark: tracker identification (``calib.tracker_identify``) against pybotics, the anchor.
+
+The same simulated 6-axis positions for both (:mod:`scenarios.tracker_sim`: a UR5e-like arm with
+every minimal MCPC parameter moved within +-1 mm / +-0.2 deg, a tool point 30, -20, 80 mm on the
+flange, a tracker frame ~2 m away; 0.1 mm Gaussian noise per coordinate), N = 30, 100, 300
+training configurations and 300 held-out ones, uniform within +-170 deg. pybotics runs in its own
+environment (it pins numpy < 2) through ``uv run`` (:mod:`scenarios.pybotics_fit`); without uv or
+pybotics the table says so and shows the project's numbers alone.
+
+Reported: the held-out position error (RMS of the distance between the predicted and the measured
+tool point, mm; the noise alone gives sqrt(3) x 0.1 = 0.173 mm) and against the noise-free truth;
+the fit time (best of ``repeats``, BLAS single-threaded for both; ours: the whole
+:func:`identify_tracker` with placement and identifiability analysis; pybotics: its
+``least_squares`` call from the same start).
+
+Run: ``uv run python -m scenarios.benchmark_tracker [--write-docs]`` (rewrites the table in
+docs/tracker.md).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from calib.kinematics import fk_tool
+from calib.robot_def import RobotDef
+from calib.tracker_identify import TrackerMeasurements, identify_tracker, initial_placement
+from calib.transforms import rot_x, trans
+from scenarios.benchmark import machine
+from scenarios.tracker_sim import UR5E_DH, TrackerCase, dh_robot, make_case, measure
+
+__all__ = ["run", "mdh_table", "main"]
+
+SIGMA_M = 1e-4
+SIZES = (30, 100, 300)
+N_TEST = 300
+DOC = Path(__file__).resolve().parents[1] / "docs" / "tracker.md"
+BEGIN, END = "<!-- benchmark_tracker begin -->", "<!-- benchmark_tracker end -->"
+PYBOTICS_CMD = ["uv", "run", "--no-project", "--python", "3.11", "--with", "pybotics"]
+PYBOTICS_CMD += ["--with", "numpy<2", "python"]
+
+
+def mdh_table(robot: RobotDef) -> tuple[np.ndarray, np.ndarray]:
+    """pybotics' modified-DH rows ``(alpha rad, a mm, theta rad, d mm)`` of a standard-DH
+    revolute robot, and the tail ``Tx(a_n) Rx(alpha_n)`` (4, 4, mm) that maps pybotics' last
+    frame to the standard-DH flange: ``A_1 .. A_n = MDH_1 .. MDH_n Tx(a_n) Rx(alpha_n)``."""
+    alpha = np.r_[0.0, robot.dh_alpha[:-1]]
+    a = np.r_[0.0, robot.dh_a[:-1]] * 1e3
+    mdh = np.column_stack([alpha, a, robot.dh_offset, robot.dh_d * 1e3])
+    tail = trans(np.array([robot.dh_a[-1] * 1e3, 0.0, 0.0])) @ rot_x(robot.dh_alpha[-1])
+    return mdh, tail
+
+
+def _ours(case: TrackerCase, q, xyz, q_test, repeats: int):
+    meas = TrackerMeasurements(q, xyz)
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        res = identify_tracker(case.nominal, meas, sigma_t_m=SIGMA_M)
+        times.append(time.perf_counter() - t0)
+    return res.predict(q_test), min(times)
+
+
+def _pybotics(case: TrackerCase, q, xyz, q_test, repeats: int, workdir: Path):
+    """``(predictions (M, 3) m, best seconds, version)`` or ``(None, None, why)``."""
+    if shutil.which("uv") is None:
+        return None, None, "uv not found"
+    mdh, tail = mdh_table(case.robot)
+    B, s = initial_placement(case.nominal, q, xyz)
+    world0 = B.copy()
+    world0[:3, 3] *= 1e3
+    tool0 = (tail @ trans(s * 1e3))[:3, 3]
+    src, dst = workdir / "in.npz", workdir / "out.npz"
+    np.savez(
+        src,
+        mdh=mdh,
+        world0=world0,
+        tool0=tool0,
+        q_train=q,
+        xyz_train=xyz * 1e3,
+        q_test=q_test,
+        repeats=repeats,
+    )
+    script = Path(__file__).with_name("pybotics_fit.py")
+    try:
+        subprocess.run(
+            [*PYBOTICS_CMD, str(script), str(src), str(dst)],
+            check=True,
+            capture_output=True,
+            text=True,
+            timeout=3600,
+        )
+    except (subprocess.CalledProcessError, subprocess.TimeoutExpired, OSError) as exc:
+        tail_err = getattr(exc, "stderr", "") or str(exc)
+        return None, None, f"pybotics did not run: {tail_err.strip().splitlines()[-1:]}"
+    out = np.load(dst)
+    return out["pred_test"] / 1e3, float(out["seconds"].min()), f"pybotics {out['version']}"
+
+
+def _rms(a: np.ndarray, b: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(np.sum((a - b) ** 2, axis=1)))) * 1e3
+
+
+def run(sizes=SIZES, repeats_ours: int = 10, repeats_pybotics: int = 3, pybotics: bool = True):
+    """One row per N: dict of the numbers (mm, s) and the pybotics version line."""
+    robot = dh_robot("ur5e-like", **UR5E_DH)
+    rows, note = [], "pybotics not run"
+    with tempfile.TemporaryDirectory() as tmp:
+        for n in sizes:
+            case = make_case(robot, seed=n)
+            q, q_test = case.configurations(n, 10 + n), case.configurations(N_TEST, 20 + n)
+            xyz, _ = measure(case, q, SIGMA_M, 30 + n)
+            xyz_test, _ = measure(case, q_test, SIGMA_M, 40 + n)
+            truth = fk_tool(case.true, q_test)[:, :3, 3]
+            B, s = initial_placement(case.nominal, q, xyz)  # nominal: placed, not calibrated
+            nominal = (B @ fk_tool(case.nominal, q_test) @ trans(s))[:, :3, 3]
+            pred, t_ours = _ours(case, q, xyz, q_test, repeats_ours)
+            row = {
+                "N": n,
+                "nominal_mm": _rms(nominal, xyz_test),
+                "ours_mm": _rms(pred, xyz_test),
+                "ours_truth_mm": _rms(pred, truth),
+                "ours_s": t_ours,
+                "pyb_mm": None,
+                "pyb_truth_mm": None,
+                "pyb_s": None,
+            }
+            if pybotics:
+                p, t, note = _pybotics(case, q, xyz, q_test, repeats_pybotics, Path(tmp))
+                if p is not None:
+                    row |= {"pyb_mm": _rms(p, xyz_test), "pyb_truth_mm": _rms(p, truth), "pyb_s": t}
+            rows.append(row)
+            print(row, file=sys.stderr)
+    return rows, note
+
+
+def table(rows, note: str) -> str:
+    """The markdown table of :func:`run`'s rows."""
+
+    def f(v, fmt):
+        return "n/a" if v is None else format(v, fmt)
+
+    out = [
+        f"UR5e-like arm, 0.1 mm noise, {N_TEST} held-out configurations; {note}; {machine()}.",
+        "",
+        "| N | nominal held-out mm | ours held-out mm (vs truth) | pybotics held-out mm (vs truth) "
+        "| ours fit ms | pybotics fit ms | speed-up |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        speed = None if r["pyb_s"] is None else r["pyb_s"] / r["ours_s"]
+        out.append(
+            f"| {r['N']} | {r['nominal_mm']:.3f} | {r['ours_mm']:.3f} ({r['ours_truth_mm']:.3f}) "
+            f"| {f(r['pyb_mm'], '.3f')} ({f(r['pyb_truth_mm'], '.3f')}) "
+            f"| {r['ours_s'] * 1e3:.1f} | {f(None if r['pyb_s'] is None else r['pyb_s'] * 1e3, '.0f')} "
+            f"| {f(speed, '.0f')}x |"
+        )
+    return "\n".join(out)
+
+
+def write_docs(text: str, path: Path = DOC) -> None:
+    """Replace the block between the benchmark markers of docs/tracker.md with ``text``."""
+    doc = path.read_text()
+    i, j = doc.index(BEGIN) + len(BEGIN), doc.index(END)
+    path.write_text(doc[:i] + "\n" + text + "\n" + doc[j:])
+
+
+THREAD_VARS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the benchmark with single-threaded BLAS for both sides (re-executing itself when the
+    environment does not say so: the matrices are small, threads only add overhead)."""
+    argv = sys.argv[1:] if argv is None else argv
+    if any(os.environ.get(v) != "1" for v in THREAD_VARS):
+        env = {**os.environ, **dict.fromkeys(THREAD_VARS, "1")}
+        cmd = [sys.executable, "-m", "scenarios.benchmark_tracker", *argv]
+        return subprocess.run(cmd, env=env, check=False).returncode
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--no-pybotics", action="store_true", help="the project's numbers alone")
+    ap.add_argument(
+        "--write-docs", action="store_true", help="rewrite the table in docs/tracker.md"
+    )
+    args = ap.parse_args(argv)
+    rows, note = run(pybotics=not args.no_pybotics)
+    note += "; BLAS single-threaded"
+    text = table(rows, note)
+    print(text)
+    if args.write_docs:
+        write_docs(text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
