@@ -64,10 +64,11 @@ class BundleResult(Generic[C]):
 
 class _Problem(Generic[C]):
     """The bundle adjustment as a :class:`calib.solver.Problem` over ``x = [camera's free
-    parameters (unless fixed), p, X (3 P)]`` with the ``reprojection`` block first, then
-    ``extra`` residual blocks over the same parameter blocks; ``fun``/``jac``/``sparsity`` serve
-    ``scipy.optimize.least_squares``. ``fixed_points`` (P, 3): the points are known (a board's)
-    and held, ``x`` then ends with the poses."""
+    parameters (unless fixed), p, X (3 P)]`` (then the ``extra_params`` blocks, e.g. a tracker
+    frame) with the ``reprojection`` block first, then ``extra`` residual blocks over the same
+    parameter blocks; ``fun``/``jac``/``sparsity`` serve ``scipy.optimize.least_squares``.
+    ``fixed_points`` (P, 3): the points are known (a board's) and held, ``x`` then ends with the
+    poses."""
 
     def __init__(
         self,
@@ -83,6 +84,7 @@ class _Problem(Generic[C]):
         x0: np.ndarray | None = None,
         extra: Sequence[ResidualBlock] = (),
         fixed_points: np.ndarray | None = None,
+        extra_params: Sequence[ParameterBlock] = (),
     ) -> None:
         self.camera = camera
         self.model = model
@@ -113,6 +115,7 @@ class _Problem(Generic[C]):
                     np.asarray(fixed_points, dtype=float).ravel(),
                     held=np.ones(3 * self.n_points, bool),
                 ),
+                *extra_params,
             ],
             [self.block, *extra],
         )

@@ -73,8 +73,17 @@ from calib.identify import IdentificationResult
 from calib.kinematics import fk_tool
 from calib.mcpc import MCPCModel, minimal_indices, param_is_angle, param_names
 from calib.observations import Observations, views_per_point
-from calib.solver import Loss, ResidualBlock, SolverOptions, covariance, scaled_rank, solve
+from calib.solver import (
+    Loss,
+    ParameterBlock,
+    ResidualBlock,
+    SolverOptions,
+    covariance,
+    scaled_rank,
+    solve,
+)
 from calib.target import marker_features
+from calib.tracker_identify import TrackerMeasurements, tracker_terms
 from calib.transforms import inv_pose
 
 __all__ = [
@@ -173,11 +182,13 @@ class _Problem(_AdjustmentProblem):
         prior_w: np.ndarray,
         loss: Loss | None = None,
         x0: np.ndarray | None = None,
+        tracker: tuple[list, list] = ([], []),
     ) -> None:
         extra: list[ResidualBlock] = [ScaleDistanceBlock(scale_idx[0], scale_idx[1], d_m, w_scale)]
         if len(prior_cols):
             extra.append(GaussianPriorBlock("poses", prior_cols, prior_w))
-        super().__init__(camera, model, view, pidx, uv, n_points, loss=loss, x0=x0, extra=extra)
+        kw = dict(loss=loss, x0=x0, extra=[*extra, *tracker[0]], extra_params=tracker[1])
+        super().__init__(camera, model, view, pidx, uv, n_points, **kw)
         self.n_pix = 2 * len(self.view)
 
 
@@ -205,6 +216,8 @@ def joint_refine(
     max_rounds: int = 5,
     max_iter: int = 100,
     tol: float = 1e-12,
+    tracker: TrackerMeasurements | None = None,
+    tracker_sigma_m: float = 1e-4,
 ) -> JointRefinementResult:
     """Refine kinematics, intrinsics, rig and points together from the corner observations.
 
@@ -228,6 +241,9 @@ def joint_refine(
             pass) or ``"linear"`` (plain least squares on the two-stage inliers only).
         robust_scale_px, outlier_px: soft-L1 scale; minimum outlier threshold (the threshold is
             ``max(outlier_px, 4.5 sigma)``).
+        tracker, tracker_sigma_m: tracker positions / distances of the tool point (joints rad,
+            m) with their noise, estimated with the rest (:func:`tracker_terms`: tracker frame
+            and tool point are new unknowns; residuals scaled to pixels of ``pixel_sigma_px``).
 
     Raises:
         JointRefinementError: the scale markers are not reconstructed, the gauge is not fixed
@@ -296,6 +312,9 @@ def joint_refine(
         prior_cols, prior_w = np.zeros(0, np.int64), np.zeros(0)
     camera = sc.camera
     w_scale = 1.0 / float(scale_sigma_m)
+    trk = ([], [])
+    if tracker is not None:
+        trk = tracker_terms(tracker, model0, free_idx, "poses", tracker_sigma_m / pixel_sigma_px)
 
     def select(act):
         """Rows and points of the adjustment: points seen in two inlier views."""
@@ -335,9 +354,10 @@ def joint_refine(
             prior_w,
             Loss("linear" if last else loss, robust_scale_px),
             x0,
+            trk,
         )
         if rank_info is None:
-            rank_info = scaled_rank(prob.jac(x0))
+            rank_info = scaled_rank(prob.jac(prob.problem.x0))
             if rank_info[1] < prob.n:
                 raise JointRefinementError(
                     f"the joint problem is rank deficient ({rank_info[1]} of {prob.n} unknowns "
@@ -356,6 +376,7 @@ def joint_refine(
         total_it += sol.iterations
         camera, p, Xu = prob.unpack(x)
         p = p.copy()
+        trk = (trk[0], [ParameterBlock(b.name, sol.values[b.name]) for b in trk[1]])
         X = np.full_like(X, np.nan)
         X[pts_used] = Xu
         if last:
@@ -387,10 +408,9 @@ def joint_refine(
 
     # ---- statistics at the solution (final least-squares Jacobian)
     rp = sol.residuals["reprojection"]
-    prior_r = sol.residuals.get("prior", np.zeros((0, 1)))
     # 6 gauge dof are removed by the held parameters, the 7th (scale) by the hard scale row
     dof = max(len(r) - prob.n, 1)
-    sigma2 = float(np.sum(rp**2) + np.sum(prior_r**2)) / dof
+    sigma2 = sum(float(np.sum(v**2)) for k, v in sol.residuals.items() if k != "scale") / dof
     C = covariance(
         prob.problem, x, ["intrinsics", ("poses", np.arange(pose_model.k))], sigma2=sigma2
     )
@@ -425,6 +445,10 @@ def joint_refine(
         dq = p[pose_model.dq_cols].reshape(-1, model0.n)
         diag["joint_correction_rms"] = np.sqrt(np.mean(dq**2, axis=0)).tolist()
     diag["gauge_condition_number"] = gauge.condition_number
+    for b in trk[0]:  # tracker residuals back in m, RMS of the rows' norms
+        res_m = sol.residuals[b.name] * tracker_sigma_m / pixel_sigma_px
+        diag[f"{b.name}_rms_m"] = float(np.sqrt(np.mean(np.sum(res_m**2, axis=1))))
+    diag |= {f"{b.name}": sol.values[b.name].tolist() for b in trk[1]}
     assert rank_info is not None  # set in the first round (there is always one)
     return JointRefinementResult(
         model=model_ref,

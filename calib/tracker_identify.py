@@ -48,7 +48,7 @@ from calib.identifiability import select_identifiable, triangular_factor
 from calib.identify import IdentificationWarning
 from calib.kinematics import fk_tool
 from calib.mcpc import MCPCModel, chain_transforms, minimal_indices, param_is_angle, param_names
-from calib.solver import ParameterBlock, Problem, SolverOptions, covariance, scaled_rank, solve
+from calib.solver import ParameterBlock, Problem, SolverOptions, solve
 from calib.transforms import inv_pose, kabsch, make_pose
 
 __all__ = [
@@ -58,6 +58,7 @@ __all__ = [
     "initial_placement",
     "priority_order",
     "identify_tracker",
+    "tracker_terms",
 ]
 
 
@@ -140,7 +141,7 @@ def initial_placement(
         B = kabsch(x, xyz) if len(q) >= 3 else make_pose(np.eye(3), np.mean(xyz - x, axis=0))
         rhs = (xyz - B[:3, 3]) @ B[:3, :3] - T[:, :3, 3]  # R_i s = B^-1 p_i - t_i
         s_new = np.linalg.lstsq(T[:, :3, :3].reshape(-1, 3), rhs.reshape(-1), rcond=None)[0]
-        done = np.linalg.norm(s_new - s) <= 1e-12
+        done = np.linalg.norm(s_new - s) <= 1e-9  # a start: 1 nm is plenty
         s = s_new
         if done:
             break
@@ -187,6 +188,17 @@ def _problem(model: MCPCModel, free_flat: np.ndarray, blocks: list) -> Problem:
     return Problem([ParameterBlock("mcpc", model.params.reshape(-1), held=held)], blocks)
 
 
+def _dense_jacobian(blocks: list, values: dict, flat: np.ndarray) -> np.ndarray:
+    """The weighted Jacobian (rows, len(flat)) of the blocks (over a whole-chain layout) w.r.t.
+    the flat MCPC parameters ``flat``, dense: small problems need no sparse assembly."""
+    out = []
+    for b in blocks:
+        (piece,) = b.evaluate(values, True).pieces
+        k, d, c = piece.J.shape
+        out.append(piece.J.reshape(k * d, c)[:, flat])
+    return np.vstack(out)
+
+
 def _selection(
     model: MCPCModel, meas: TrackerMeasurements, sig, considered: np.ndarray, rank_rtol: float
 ) -> tuple[np.ndarray, int]:
@@ -194,12 +206,8 @@ def _selection(
     rank of the considered columns."""
     idx = minimal_indices(model.joint_types)
     cons = np.flatnonzero(considered)
-    layout = ChainLayout.whole(model)
-    prob = _problem(model, np.sort(idx[cons]), _blocks(layout, meas, sig))
-    J = prob.jacobian(prob.x0).toarray()
-    # problem columns follow the flat order of the free parameters: back to the minimal order
-    flat_sorted = np.sort(idx[cons])
-    J = J[:, np.searchsorted(flat_sorted, idx[cons])]
+    blocks = _blocks(ChainLayout.whole(model), meas, sig)
+    J = _dense_jacobian(blocks, {"mcpc": model.params.reshape(-1)}, idx[cons])
     col = np.linalg.norm(J, axis=0)
     # columns that are zero up to rounding (e.g. the base for distances) stay zero
     col = np.where(col > 1e-10 * col.max(initial=0.0), col, np.inf)
@@ -220,7 +228,7 @@ def _structural(
     over a full turn, prismatic ones over the data's range +- 0.1 m), deterministic."""
     rng = np.random.default_rng(0)
     p = int(considered.sum())
-    rows = 2 * p + 10
+    rows = p + 10
     data_q = np.concatenate([a for a in (meas.q, meas.q_a, meas.q_b) if a is not None and len(a)])
     lo, hi = data_q.min(axis=0) - 0.1, data_q.max(axis=0) + 0.1
     rev = np.array([t == "revolute" for t in model.joint_types])
@@ -327,7 +335,7 @@ def identify_tracker(
     hold: tuple[str, ...] | list[str] = (),
     rank_rtol: float = 1e-9,
     max_iterations: int = 100,
-    tol: float = 1e-14,
+    tol: float = 1e-12,
 ) -> TrackerResult:
     """Identify the minimal MCPC parameters from tracker measurements (module docstring).
 
@@ -367,7 +375,6 @@ def identify_tracker(
     else:
         B = np.eye(4)
         start = model
-    start = regauge(chain_transforms(start), start.joint_types, start.joint_offsets)
     Binv = inv_pose(B)
     local = TrackerMeasurements(
         q=meas.q,
@@ -421,11 +428,15 @@ def identify_tracker(
             fix="check the joint/measurement pairing and the units (--joint-units)",
         )
     fit = start.with_params(sol.values["mcpc"])
-    J = prob.jacobian(sol.x)
-    dof = max(J.shape[0] - prob.n, 1)
+    J = _dense_jacobian(blocks, sol.values, est_flat)
+    dof = max(J.shape[0] - J.shape[1], 1)
     sigma0 = float(np.sqrt(2.0 * sol.cost / dof))
-    cov_flat = covariance(prob, sol.x, ["mcpc"], sigma2=max(sigma0, 1e-300) ** 2)
-    inv_cond, _ = scaled_rank(J)
+    col = np.linalg.norm(J, axis=0)
+    R = triangular_factor(J / col)  # column-scaled: the condition number and the covariance
+    sv = np.linalg.svd(R, compute_uv=False)
+    Rinv = np.linalg.inv(R)
+    cov_flat = max(sigma0, 1e-300) ** 2 * (Rinv @ Rinv.T) / np.outer(col, col)
+    inv_cond = float(sv[-1] / sv[0])
     final = regauge(chain_transforms(fit), fit.joint_types, fit.joint_offsets)
     order = np.searchsorted(est_flat, idx[mask])  # minimal order of the estimated ones
     std = np.full(idx.size, np.nan)
@@ -465,3 +476,42 @@ def identify_tracker(
         residuals=res,
         warnings=tuple(notes),
     )
+
+
+def tracker_terms(
+    meas: TrackerMeasurements,
+    model: MCPCModel,
+    free_idx: np.ndarray,
+    block: str,
+    sigma: float,
+) -> tuple[list, list[ParameterBlock]]:
+    """Residual and parameter blocks that add tracker positions and distances to another
+    problem (e.g. the joint refinement over images): its parameter block ``block`` holds the
+    flat MCPC parameters ``free_idx`` of ``model`` as its first coordinates (the others fixed at
+    ``model``'s values). New unknowns: the tracker frame (block ``tracker_frame``, only with
+    positions; started at :func:`initial_placement`) and the tool point in ``model``'s tool
+    frame (``tool_point``, m). ``sigma``: the residuals' scale (m per unit of residual).
+
+    Raises:
+        InputError: pose rows (their tool frame would need its own 6-dof offset; give positions).
+    """
+    if meas.R is not None:
+        raise InputError(
+            "tracker poses cannot be combined with images yet",
+            fix="give the tracker's positions (x_mm, y_mm, z_mm) without the quaternion",
+        )
+    coords = -np.ones(6 * (model.n + 1), np.int64)
+    coords[np.asarray(free_idx)] = np.arange(len(free_idx))
+    frame0, s0, params = np.eye(4), np.zeros(3), []
+    if meas.m:
+        frame0, s0 = initial_placement(model, meas.q, meas.xyz)
+        params.append(ParameterBlock("tracker_frame", np.zeros(6)))
+    params.append(ParameterBlock("tool_point", s0))
+    frame = "tracker_frame" if meas.m else None
+    layout = ChainLayout(model, block, coords, frame=frame, frame0=frame0, point="tool_point")
+    blocks: list = []
+    if meas.m:
+        blocks.append(TrackerPositionBlock(layout, meas.q, meas.xyz, sigma))
+    if meas.k:
+        blocks.append(TrackerDistanceBlock(layout, meas.q_a, meas.q_b, meas.d, sigma))
+    return blocks, params
