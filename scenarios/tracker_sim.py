@@ -20,7 +20,15 @@ from calib.robot_def import RobotDef, SimulationGains
 from calib.transforms import make_pose, pose_from_vec
 from sim.actual import perturb
 
-__all__ = ["dh_robot", "UR5E_DH", "INDUSTRIAL_DH", "TrackerCase", "make_case", "measure"]
+__all__ = [
+    "dh_robot",
+    "UR5E_DH",
+    "INDUSTRIAL_DH",
+    "RRPRR_DH",
+    "TrackerCase",
+    "make_case",
+    "measure",
+]
 
 UR5E_DH = {
     "alpha_deg": [90.0, 0.0, 0.0, 90.0, -90.0, 0.0],
@@ -39,6 +47,15 @@ INDUSTRIAL_DH = {
 numbers are illustrative (sized like a 10 kg payload arm), not a vendor's table."""
 
 
+RRPRR_DH = {
+    "alpha_deg": [90.0, 0.0, -90.0, 90.0, 0.0],
+    "a_mm": [50.0, 300.0, 0.0, 0.0, 0.0],
+    "d_mm": [400.0, 0.0, 200.0, 0.0, 80.0],
+    "prismatic": (2,),
+}
+"""A 5-joint arm whose third joint is prismatic (illustrative numbers)."""
+
+
 def dh_robot(
     name: str,
     alpha_deg: list[float],
@@ -46,21 +63,26 @@ def dh_robot(
     d_mm: list[float],
     offset_deg: list[float] | None = None,
     range_deg: float = 170.0,
+    prismatic: tuple[int, ...] = (),
 ) -> RobotDef:
-    """A revolute arm from a standard-DH table (mm, deg), each joint in ``+-range_deg``, home at
-    zero, no encoder quantisation; the camera mount is the flange (unused by the tracker)."""
+    """An arm from a standard-DH table (mm, deg): revolute joints in ``+-range_deg``, the
+    0-based joints ``prismatic`` sliding 0 .. 300 mm (their ``d_mm`` is the constant part); home
+    at zero, no encoder quantisation; the camera mount is the flange (unused by the tracker)."""
     n = len(alpha_deg)
     off = np.zeros(n) if offset_deg is None else np.radians(offset_deg)
+    types = tuple("prismatic" if i in prismatic else "revolute" for i in range(n))
+    limits = np.tile(np.radians([-range_deg, range_deg]), (n, 1))
+    limits[list(prismatic)] = (0.0, 0.3)
     return RobotDef(
         name=name,
         description=f"{name} (standard DH, built in code)",
         joint_names=tuple(f"j{i + 1}" for i in range(n)),
-        joint_types=("revolute",) * n,
+        joint_types=types,
         dh_alpha=np.radians(alpha_deg),
         dh_a=np.asarray(a_mm, dtype=float) / 1e3,
         dh_d=np.asarray(d_mm, dtype=float) / 1e3,
         dh_offset=off,
-        limits=np.tile(np.radians([-range_deg, range_deg]), (n, 1)),
+        limits=limits,
         home=np.zeros(n),
         counts_per_unit=np.full(n, np.inf),
         T_flange_cam=np.eye(4),

@@ -25,12 +25,13 @@ from calib.tracker_identify import (
     identify_tracker,
 )
 from calib.transforms import inv_pose, pose_from_vec
-from scenarios.tracker_sim import INDUSTRIAL_DH, UR5E_DH, dh_robot, make_case, measure
+from scenarios.tracker_sim import INDUSTRIAL_DH, RRPRR_DH, UR5E_DH, dh_robot, make_case, measure
 
 ROBOTS = {
     "ur5e": lambda: dh_robot("ur5e", **UR5E_DH),
     "industrial": lambda: dh_robot("industrial", **INDUSTRIAL_DH),
     "er4u-paper": lambda: load_robot("er4u-paper"),
+    "rrprr": lambda: dh_robot("rrprr", **RRPRR_DH),
 }
 
 

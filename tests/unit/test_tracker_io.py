@@ -1,0 +1,91 @@
+"""Tracker files: joint units of prismatic joints, separators, the tracker calibration.json."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from calib.io.tracker import TrackerFileError, joints_to_si, read_joints, read_table
+from calib.io.tracker_calibration import (
+    TrackerCalibrationFileError,
+    from_result,
+    read_tracker_calibration,
+    write_tracker_calibration,
+)
+from calib.tracker_identify import TrackerMeasurements, identify_tracker
+from scenarios.tracker_sim import RRPRR_DH, dh_robot, make_case, measure
+
+
+def rrprr():
+    return dh_robot("rrprr", **RRPRR_DH)
+
+
+def test_prismatic_joints_are_mm_with_degrees_and_m_with_radians(tmp_path):
+    robot = rrprr()
+    (tmp_path / "deg.txt").write_text("10 20 150 30 40\n-10 -20 250.5 -30 -40\n")
+    (tmp_path / "rad.csv").write_text("j1,j2,j3,j4,j5\n0.1,0.2,0.15,0.3,0.4\n")
+    q = read_joints(tmp_path / "deg.txt", robot, "deg")
+    np.testing.assert_allclose(q[:, 2], [0.15, 0.2505])
+    np.testing.assert_allclose(q[0, [0, 1, 3, 4]], np.radians([10, 20, 30, 40]))
+    q = read_joints(tmp_path / "rad.csv", robot, "rad")
+    np.testing.assert_allclose(q[0], [0.1, 0.2, 0.15, 0.3, 0.4])
+    # 150 m is out of the prismatic range: the message names the row, column and mm
+    (tmp_path / "bad.csv").write_text("j1,j2,j3,j4,j5\n0.1,0.2,150,0.3,0.4\n")
+    with pytest.raises(TrackerFileError, match=r"row 1 \(line 2\), column j3: 150 m is outside"):
+        read_joints(tmp_path / "bad.csv", robot, "rad")
+
+
+def test_comments_blank_lines_and_whitespace(tmp_path):
+    (tmp_path / "t.txt").write_text("# a comment\n\nj1 j2\n 1.5  2\n\n3 4e-1\n")
+    t = read_table(tmp_path / "t.txt")
+    assert t.columns == ("j1", "j2") and t.has_header
+    np.testing.assert_allclose(t.values, [[1.5, 2.0], [3.0, 0.4]])
+    assert t.lines.tolist() == [4, 6]
+    with pytest.raises(TrackerFileError, match="--joint-units must be deg or rad"):
+        joints_to_si(t, ["j1", "j2"], rrprr(), "grad")
+
+
+def _calibration(tmp_path):
+    robot = rrprr()
+    case = make_case(robot, seed=2)
+    q = case.configurations(40, 1)
+    xyz, _ = measure(case, q, 1e-4, 2)
+    res = identify_tracker(case.nominal, TrackerMeasurements(q, xyz))
+    cal = from_result(
+        res,
+        robot=robot.name,
+        robot_source="rrprr",
+        joint_names=robot.joint_names,
+        joint_limits=robot.limits,
+        joint_units="deg",
+        sigmas={"position_mm": 0.1},
+        files={"measurements": "m.csv"},
+    )
+    return res, q, write_tracker_calibration(tmp_path / "calibration.json", cal)
+
+
+def test_tracker_calibration_round_trip(tmp_path):
+    res, q, path = _calibration(tmp_path)
+    cal = read_tracker_calibration(path)
+    np.testing.assert_allclose(cal.predict(q), res.predict(q), atol=1e-12)
+    assert cal.identifiable == res.identifiable and cal.rank == res.rank
+    assert set(cal.held) == {"alpha5", "beta5", "gamma5"}
+    ang = np.array([u == "deg" for u in cal.units])
+    np.testing.assert_allclose(cal.values[~ang], res.values[~ang] * 1e3)
+    np.testing.assert_allclose(cal.std[ang], np.degrees(res.std[ang]))
+
+
+def test_newer_or_damaged_tracker_calibration_is_refused(tmp_path):
+    _, _, path = _calibration(tmp_path)
+    doc = json.loads(path.read_text())
+    doc["schema_version"] = 2
+    path.write_text(json.dumps(doc))
+    with pytest.raises(TrackerCalibrationFileError, match="newer than this scorbot-selfcal"):
+        read_tracker_calibration(path)
+    doc["schema_version"] = 1
+    del doc["mcpc"]["params"]
+    path.write_text(json.dumps(doc))
+    with pytest.raises(TrackerCalibrationFileError, match="missing key 'mcpc.params'"):
+        read_tracker_calibration(path)
