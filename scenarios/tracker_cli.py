@@ -64,8 +64,9 @@ def _out_dir(path: str) -> Path:
     return out
 
 
-def _residuals_csv(table, res) -> str:
-    r = next(iter(res.residuals.values()))[:, :3] * 1e3
+def _residuals_csv(table, res, meas: TrackerMeasurements) -> str:
+    """Model minus measurement of every position / pose row, tracker frame, mm."""
+    r = (res.predict(meas.q) - meas.xyz) * 1e3
     lines = ["row,line,dx_mm,dy_mm,dz_mm,error_mm"]
     for i, (line, e) in enumerate(zip(table.lines, r)):
         lines.append(f"{i + 1},{line},{e[0]:.6f},{e[1]:.6f},{e[2]:.6f},{np.linalg.norm(e):.6f}")
@@ -109,7 +110,7 @@ def cmd_identify(args: argparse.Namespace) -> int:
     )
     path = write_tracker_calibration(out / "calibration.json", cal)
     if meas.m:
-        (out / "residuals.csv").write_text(_residuals_csv(table, res))
+        (out / "residuals.csv").write_text(_residuals_csv(table, res, meas))
     kinds = " + ".join(res.kinds)
     if meas.m:
         what = "poses" if meas.R is not None else "positions"

@@ -82,7 +82,10 @@ def test_identify_then_predict_round_trip(tmp_path, capsys, er4u):
         p["name"] for p in doc["parameters"]
     }
     assert all(p["std"] > 0 for p in doc["parameters"] if p["estimated"])
-    assert len((out / "residuals.csv").read_text().splitlines()) == 41
+    res = np.loadtxt(out / "residuals.csv", delimiter=",", skiprows=1)
+    assert res.shape == (40, 6) and res[:, 1].tolist() == list(range(2, 42))
+    fit_rms = float(text.split("fit RMS ")[1].split(" mm")[0])
+    assert np.sqrt(np.mean(res[:, 5] ** 2)) == pytest.approx(fit_rms, abs=1e-4)
     # held-out rows: header-less, whitespace-separated joints file; stdout
     q_new = case.configurations(25, 11)
     _write(tmp_path / "j.txt", None, np.degrees(q_new), sep=" ")
