@@ -4,8 +4,11 @@ from __future__ import annotations
 
 import json
 
+import hypothesis.strategies as st
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis.extra.numpy import arrays
 
 from calib.io.tracker import TrackerFileError, joints_to_si, read_joints, read_table
 from calib.io.tracker_calibration import (
@@ -89,3 +92,25 @@ def test_newer_or_damaged_tracker_calibration_is_refused(tmp_path):
     path.write_text(json.dumps(doc))
     with pytest.raises(TrackerCalibrationFileError, match="missing key 'mcpc.params'"):
         read_tracker_calibration(path)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    values=arrays(
+        float,
+        st.tuples(st.integers(1, 6), st.integers(1, 5)),
+        elements=st.floats(-1e6, 1e6, allow_nan=False, allow_infinity=False),
+    ),
+    sep=st.sampled_from([",", ", ", " ", "\t", "   "]),
+    header=st.booleans(),
+)
+def test_read_table_round_trips_any_numbers_and_separators(tmp_path_factory, values, sep, header):
+    path = tmp_path_factory.mktemp("t") / "t.txt"
+    cols = [f"c{i + 1}" for i in range(values.shape[1])]
+    lines = ([sep.join(cols)] if header else []) + [
+        sep.join(repr(float(v)) for v in r) for r in values
+    ]
+    path.write_text("\n".join(lines) + "\n")
+    t = read_table(path, header=header)
+    assert t.columns == tuple(cols) and t.has_header == header
+    np.testing.assert_array_equal(t.values, values)
