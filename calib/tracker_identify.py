@@ -36,7 +36,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from calib.alignment import regauge
+from calib.alignment import wrap_params
 from calib.errors import EstimationError, InputError
 from calib.estimation.tracker import (
     ChainLayout,
@@ -47,7 +47,7 @@ from calib.estimation.tracker import (
 from calib.identifiability import select_identifiable, triangular_factor
 from calib.identify import IdentificationWarning
 from calib.kinematics import fk_tool
-from calib.mcpc import MCPCModel, chain_transforms, minimal_indices, param_is_angle, param_names
+from calib.mcpc import MCPCModel, minimal_indices, param_is_angle, param_names
 from calib.solver import ParameterBlock, Problem, SolverOptions, solve
 from calib.transforms import inv_pose, kabsch, make_pose
 
@@ -365,7 +365,9 @@ def identify_tracker(
     # 1. placement: work in the placed nominal base frame ("fit frame")
     if meas.m:
         B, s = initial_placement(model, meas.q, meas.xyz)
-        start = model.with_tool(make_pose(np.eye(3), s))
+        params = model.params.copy()
+        params[-1, 3:] += s  # V_n Trans(s) = Rx Ry Rz Trans(l + s): still in the gauge
+        start = model.with_params(params)
         if meas.R is not None:
             Tt = fk_tool(start, meas.q)
             Rm = B[:3, :3].T @ meas.R
@@ -437,7 +439,7 @@ def identify_tracker(
     Rinv = np.linalg.inv(R)
     cov_flat = max(sigma0, 1e-300) ** 2 * (Rinv @ Rinv.T) / np.outer(col, col)
     inv_cond = float(sv[-1] / sv[0])
-    final = regauge(chain_transforms(fit), fit.joint_types, fit.joint_offsets)
+    final = fit.with_params(wrap_params(fit.params))  # LM moved minimal parameters only
     order = np.searchsorted(est_flat, idx[mask])  # minimal order of the estimated ones
     std = np.full(idx.size, np.nan)
     std[mask] = np.sqrt(np.clip(np.diag(cov_flat), 0.0, None))[order]
