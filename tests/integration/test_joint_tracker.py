@@ -79,6 +79,19 @@ def test_images_and_tracker_together_beat_either_alone(case):
     # measured 0.144 mm (the noise alone: sqrt(3) x 0.1 = 0.173 mm)
     assert both.diagnostics["tracker_positions_rms_m"] < 2 * np.sqrt(3) * SIGMA_M
 
+    # a few ball-bar distances between tool-tip positions instead (no tracker frame)
+    rng = np.random.default_rng(3)
+    a = rng.integers(0, len(q), 15)
+    b = (a + rng.integers(1, len(q), 15)) % len(q)
+    tips = tool_tips(truth.true_model, q, truth.T_cam_tip)
+    d = np.linalg.norm(tips[a] - tips[b], axis=1) + rng.normal(0.0, SIGMA_M, 15)
+    dist = TrackerMeasurements(q[:0], np.zeros((0, 3)), q_a=q[a], q_b=q[b], d=d)
+    with_d = refine_calibration(out, obs, q, robot, ds.info, tracker=dist, tracker_sigma_m=SIGMA_M)
+    e_dist = err(with_d.model, trans(np.array(with_d.diagnostics["tool_point"])))
+    print(f"images + 15 distances: {e_dist:.4f} mm")
+    assert e_dist <= e_images  # measured 0.090 mm
+    assert with_d.rank == with_d.n_unknowns and "tracker_frame" not in with_d.diagnostics
+
 
 def test_tracker_poses_are_refused_in_the_joint_estimate(case):
     root, ds, truth, q, meas, out, obs, qv = case
