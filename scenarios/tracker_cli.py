@@ -50,6 +50,12 @@ and DIR/residuals.csv; see docs/tracker.md
 """
 
 
+TRUST_HELP = (
+    "skip the check that degrees look like radians (every revolute reading within +-2 pi): "
+    "for data whose joints really stay within +-6.3 deg; the range check stays"
+)
+
+
 def _out_dir(path: str) -> Path:
     out = Path(path)
     if out.exists() and not out.is_dir():
@@ -75,9 +81,10 @@ def _residuals_csv(table, res, meas: TrackerMeasurements) -> str:
 
 def cmd_identify(args: argparse.Namespace) -> int:
     robot = load_robot(args.robot)
-    meas, table = read_measurements(args.measurements, robot, args.joint_units)
+    guess = not args.trust_units
+    meas, table = read_measurements(args.measurements, robot, args.joint_units, guess=guess)
     if args.distances:
-        qa, qb, d = read_distances(args.distances, robot, args.joint_units)
+        qa, qb, d = read_distances(args.distances, robot, args.joint_units, guess=guess)
         meas = TrackerMeasurements(meas.q, meas.xyz, meas.R, qa, qb, d)
     for name, v in (("--sigma-mm", args.sigma_mm), ("--sigma-deg", args.sigma_deg)):
         if not (np.isfinite(v) and v > 0):
@@ -141,7 +148,7 @@ def cmd_predict(args: argparse.Namespace) -> int:
             fix="give the folder `selfcal identify --out DIR` wrote, or its calibration.json",
         )
     cal = read_tracker_calibration(path)
-    q = read_joints(args.joints, cal, args.joint_units)
+    q = read_joints(args.joints, cal, args.joint_units, guess=not args.trust_units)
     xyz = cal.predict(q)
     if args.out:
         write_positions(args.out, xyz)
@@ -174,6 +181,7 @@ def register(sub) -> None:
         "--sigma-deg", type=float, default=0.01, help="orientation noise of poses, deg (0.01)"
     )
     sp.add_argument("--hold", default=None, help="parameters held at nominal, e.g. beta1,ly1")
+    sp.add_argument("--trust-units", action="store_true", help=TRUST_HELP)
 
     sp = sub.add_parser(
         "predict",
@@ -190,3 +198,4 @@ def register(sub) -> None:
     )
     sp.add_argument("--joint-units", required=True, choices=JOINT_UNITS)
     sp.add_argument("--out", default=None, help="predicted.csv (default: stdout)")
+    sp.add_argument("--trust-units", action="store_true", help=TRUST_HELP)

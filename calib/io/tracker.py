@@ -155,11 +155,17 @@ def read_table(path: str | Path, *, header: bool | None = None) -> Table:
 
 
 def joints_to_si(
-    table: Table, cols: list[str], robot, units: str, what: str = "joints"
+    table: Table,
+    cols: list[str],
+    robot,
+    units: str,
+    what: str = "joints",
+    *,
+    guess: bool = True,
 ) -> np.ndarray:
     """Joint columns ``cols`` of ``table`` in SI (rad, m) for ``robot`` (a
     :class:`calib.robot_def.RobotDef`), declared in ``units``; refuses values out of the joint
-    ranges and units that are probably wrong (module docstring)."""
+    ranges and (unless ``guess`` is False) degrees that look like radians (module docstring)."""
     if units not in JOINT_UNITS:
         raise TrackerFileError(f"--joint-units must be deg or rad, got {units!r}")
     raw = np.column_stack([table.column(c) for c in cols])
@@ -170,14 +176,14 @@ def joints_to_si(
     q, q_alt = raw * scale, raw * alt
     lo, hi = robot.limits[:, 0] - 1e-9, robot.limits[:, 1] + 1e-9
     fix_units = f"declare --joint-units {other}"
-    if units == "deg" and rev.any() and len(raw) >= _MIN_ROWS_FOR_UNIT_GUESS:
+    if guess and units == "deg" and rev.any() and len(raw) >= _MIN_ROWS_FOR_UNIT_GUESS:
         r = raw[:, rev]
         if np.abs(r).max() <= 2 * np.pi and np.ptp(r, axis=0).max() > 0.5:
             raise TrackerFileError(
                 f"{table.path}: {what} declared in degrees, but every revolute reading of the "
                 f"{len(raw)} rows is within +-2 pi (largest {np.abs(r).max():.3f}) and they "
                 f"spread by up to {np.ptp(r, axis=0).max():.3f}: these look like radians",
-                fix=fix_units,
+                fix=f"{fix_units} (or --trust-units if every joint really stays within +-6.3 deg)",
             )
     bad = (q < lo) | (q > hi)
     if bad.any():
@@ -228,7 +234,9 @@ def _require(table: Table, cols: tuple[str, ...], layout: str) -> None:
         )
 
 
-def read_measurements(path: str | Path, robot, units: str) -> tuple[TrackerMeasurements, Table]:
+def read_measurements(
+    path: str | Path, robot, units: str, *, guess: bool = True
+) -> tuple[TrackerMeasurements, Table]:
     """``MEASUREMENTS.csv`` (module docstring) for ``robot`` as SI tracker data (positions, or
     poses when the quaternion columns are present), and the parsed table."""
     t = read_table(path, header=True)
@@ -238,7 +246,7 @@ def read_measurements(path: str | Path, robot, units: str) -> tuple[TrackerMeasu
     has_q = [c in t.columns for c in QUAT]
     if any(has_q) and not all(has_q):
         _require(t, QUAT, layout)
-    q = joints_to_si(t, jcols, robot, units)
+    q = joints_to_si(t, jcols, robot, units, guess=guess)
     xyz = np.column_stack([t.column(c) for c in XYZ]) / 1e3
     R = None
     if all(has_q):
@@ -258,7 +266,7 @@ def read_measurements(path: str | Path, robot, units: str) -> tuple[TrackerMeasu
 
 
 def read_distances(
-    path: str | Path, robot, units: str
+    path: str | Path, robot, units: str, *, guess: bool = True
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The distances file: ``(q_a, q_b, d)`` in SI ((k, n), (k, n), (k,) m)."""
     t = read_table(path, header=True)
@@ -274,13 +282,13 @@ def read_distances(
         )
     both = Table(t.path, t.columns, t.values, t.lines)
     return (
-        joints_to_si(both, a, robot, units, "a_ joints"),
-        joints_to_si(both, b, robot, units, "b_ joints"),
+        joints_to_si(both, a, robot, units, "a_ joints", guess=guess),
+        joints_to_si(both, b, robot, units, "b_ joints", guess=guess),
         d,
     )
 
 
-def read_joints(path: str | Path, robot, units: str) -> np.ndarray:
+def read_joints(path: str | Path, robot, units: str, *, guess: bool = True) -> np.ndarray:
     """A joints file (header ``j1..jn`` or none) as (rows, n) SI joint values."""
     t = read_table(path)
     if not t.has_header:
@@ -292,7 +300,7 @@ def read_joints(path: str | Path, robot, units: str) -> np.ndarray:
             )
         t = Table(t.path, tuple(_joint_names("", robot.n)), t.values, t.lines)
     cols = _check_joint_columns(t, "", robot)
-    return joints_to_si(t, cols, robot, units)
+    return joints_to_si(t, cols, robot, units, guess=guess)
 
 
 def positions_csv(xyz_m: np.ndarray) -> str:

@@ -156,6 +156,21 @@ def test_radians_declared_as_degrees(tmp_path, capsys, er4u):
     assert code == 2 and "look like radians" in err and "--joint-units rad" in err
 
 
+def test_trust_units_accepts_small_motions_in_degrees(tmp_path, capsys, er4u):
+    case = make_case(er4u, seed=2)
+    # every reading within +-6.3: looks like radians, but is degrees
+    q_deg = np.random.default_rng(1).uniform(-5.0, 5.0, (40, 5))
+    xyz, _ = measure(case, np.radians(q_deg), 0.0, 1)  # noise-free: the motion is small
+    header = [f"j{i + 1}" for i in range(5)] + ["x_mm", "y_mm", "z_mm"]
+    meas = _write(tmp_path / "m.csv", header, np.column_stack([q_deg, xyz * 1e3]))
+    argv = ["identify", meas, "--robot", "er4u-paper", "--joint-units", "deg"]
+    code, _, err = _run([*argv, "--out", str(tmp_path / "o")], capsys)
+    assert code == 2 and "--trust-units" in err
+    code, text, err = _run([*argv, "--trust-units", "--out", str(tmp_path / "o")], capsys)
+    assert code == 0, err
+    assert "fit RMS" in text
+
+
 def test_degrees_declared_as_radians(tmp_path, capsys, er4u):
     _, header, rows = _measurements(tmp_path, er4u, units="deg")
     code, err = _identify_fails(tmp_path, capsys, header, rows, units="rad")
