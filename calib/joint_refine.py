@@ -182,12 +182,13 @@ class _Problem(_AdjustmentProblem):
         prior_w: np.ndarray,
         loss: Loss | None = None,
         x0: np.ndarray | None = None,
-        tracker: tuple[list, list] = ([], []),
+        tracker: tuple[list, list[ParameterBlock]] = ([], []),
     ) -> None:
         extra: list[ResidualBlock] = [ScaleDistanceBlock(scale_idx[0], scale_idx[1], d_m, w_scale)]
         if len(prior_cols):
             extra.append(GaussianPriorBlock("poses", prior_cols, prior_w))
-        kw = dict(loss=loss, x0=x0, extra=[*extra, *tracker[0]], extra_params=tracker[1])
+        extra += tracker[0]
+        kw: dict = {"loss": loss, "x0": x0, "extra": extra, "extra_params": tracker[1]}
         super().__init__(camera, model, view, pidx, uv, n_points, **kw)
         self.n_pix = 2 * len(self.view)
 
@@ -312,7 +313,7 @@ def joint_refine(
         prior_cols, prior_w = np.zeros(0, np.int64), np.zeros(0)
     camera = sc.camera
     w_scale = 1.0 / float(scale_sigma_m)
-    trk = ([], [])
+    trk: tuple[list, list[ParameterBlock]] = ([], [])
     if tracker is not None:
         trk = tracker_terms(tracker, model0, free_idx, "poses", tracker_sigma_m / pixel_sigma_px)
 

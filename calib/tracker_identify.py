@@ -100,17 +100,26 @@ class TrackerMeasurements:
         """Scalar equations: 3 per position, 6 per pose, 1 per distance."""
         return (6 if self.R is not None else 3) * self.m + self.k
 
+    def distances(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(q_a, q_b, d)`` of the distance rows ((k, n), (k, n), (k,)); empty when none."""
+        if self.q_a is None or self.q_b is None or self.d is None:
+            n = self.q.shape[1]
+            return np.zeros((0, n)), np.zeros((0, n)), np.zeros(0)
+        return self.q_a, self.q_b, self.d
+
     def check(self, n: int) -> None:
         """Raise :class:`calib.errors.InputError` for shapes that do not fit ``n`` joints or
         non-finite numbers (the readers in :mod:`calib.io.tracker` name file, row and column)."""
-        arrays = {"q": (self.q, (self.m, n)), "xyz": (self.xyz, (self.m, 3))}
+        arrays: dict[str, tuple[np.ndarray | None, tuple[int, ...]]] = {
+            "q": (self.q, (self.m, n)),
+            "xyz": (self.xyz, (self.m, 3)),
+        }
         if self.R is not None:
             arrays["R"] = (self.R, (self.m, 3, 3))
         if self.d is not None:
             arrays |= {"q_a": (self.q_a, (self.k, n)), "q_b": (self.q_b, (self.k, n))}
         for key, (a, shape) in arrays.items():
-            a = np.asarray(a) if a is not None else None
-            if a is None or a.shape != shape:
+            if a is None or np.shape(a) != shape:
                 raise InputError(
                     f"tracker data: {key} must have shape {shape}, got "
                     f"{None if a is None else a.shape}"
@@ -178,7 +187,7 @@ def _blocks(layout: ChainLayout, meas: TrackerMeasurements, sig: tuple[float, fl
     elif meas.m:
         blocks.append(TrackerPositionBlock(layout, meas.q, meas.xyz, st))
     if meas.k:
-        blocks.append(TrackerDistanceBlock(layout, meas.q_a, meas.q_b, meas.d, sd))
+        blocks.append(TrackerDistanceBlock(layout, *meas.distances(), sd))
     return blocks
 
 
@@ -515,5 +524,5 @@ def tracker_terms(
     if meas.m:
         blocks.append(TrackerPositionBlock(layout, meas.q, meas.xyz, sigma))
     if meas.k:
-        blocks.append(TrackerDistanceBlock(layout, meas.q_a, meas.q_b, meas.d, sigma))
+        blocks.append(TrackerDistanceBlock(layout, *meas.distances(), sigma))
     return blocks, params

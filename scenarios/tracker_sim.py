@@ -11,6 +11,7 @@ with Gaussian noise. Robots are robot files (``models/robots``) or standard-DH t
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -30,14 +31,14 @@ __all__ = [
     "measure",
 ]
 
-UR5E_DH = {
+UR5E_DH: dict[str, Any] = {
     "alpha_deg": [90.0, 0.0, 0.0, 90.0, -90.0, 0.0],
     "a_mm": [0.0, -425.0, -392.2, 0.0, 0.0, 0.0],
     "d_mm": [162.5, 0.0, 0.0, 133.3, 99.7, 99.6],
 }
 """A UR5e-like arm in standard DH (Universal Robots' published DH parameters of the UR5e)."""
 
-INDUSTRIAL_DH = {
+INDUSTRIAL_DH: dict[str, Any] = {
     "alpha_deg": [-90.0, 0.0, -90.0, 90.0, -90.0, 0.0],
     "a_mm": [150.0, 610.0, 110.0, 0.0, 0.0, 0.0],
     "d_mm": [450.0, 0.0, 0.0, 620.0, 15.0, 100.0],
@@ -47,7 +48,7 @@ INDUSTRIAL_DH = {
 numbers are illustrative (sized like a 10 kg payload arm), not a vendor's table."""
 
 
-RRPRR_DH = {
+RRPRR_DH: dict[str, Any] = {
     "alpha_deg": [90.0, 0.0, -90.0, 90.0, 0.0],
     "a_mm": [50.0, 300.0, 0.0, 0.0, 0.0],
     "d_mm": [400.0, 0.0, 200.0, 0.0, 80.0],
