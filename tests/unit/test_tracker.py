@@ -15,7 +15,7 @@ from calib.estimation.tracker import (
     TrackerPositionBlock,
 )
 from calib.identify import IdentificationWarning
-from calib.kinematics import fk_tool
+from calib.kinematics import fk_dh, fk_tool
 from calib.mcpc import chain_transforms, minimal_indices, param_is_angle
 from calib.robot_def import load_robot
 from calib.solver import ParameterBlock, Problem
@@ -24,7 +24,8 @@ from calib.tracker_identify import (
     TrackerMeasurements,
     identify_tracker,
 )
-from calib.transforms import inv_pose, pose_from_vec
+from calib.transforms import inv_pose, pose_from_vec, rot_x, rot_z, trans
+from scenarios.benchmark_tracker import BEGIN, END, mdh_table, run, table, write_docs
 from scenarios.tracker_sim import INDUSTRIAL_DH, RRPRR_DH, UR5E_DH, dh_robot, make_case, measure
 
 ROBOTS = {
@@ -170,3 +171,25 @@ def test_distances_and_positions_combine():
     res = identify_tracker(case.nominal, meas)
     assert res.kinds == ("position", "distance")
     assert res.rms_mm < 1e-9 and res.rms_distance_mm < 1e-9
+
+
+def test_benchmark_mdh_table_and_a_run_without_pybotics(tmp_path):
+    robot = ROBOTS["industrial"]()
+    mdh, tail = mdh_table(robot)
+    q = make_case(robot).configurations(5, 1)
+    for qi, F in zip(q, fk_dh(robot, q)[:, -1]):
+        T = np.eye(4)
+        for (alpha, a, theta, d), qj in zip(mdh, qi):  # Craig: Rx(alpha) Tx(a) Rz(theta) Tz(d)
+            T = T @ rot_x(alpha) @ trans(np.array([a, 0, 0])) @ rot_z(theta + qj)
+            T = T @ trans(np.array([0, 0, d]))
+        T = T @ tail
+        np.testing.assert_allclose(T[:3, :3], F[:3, :3], atol=1e-12)
+        np.testing.assert_allclose(T[:3, 3], F[:3, 3] * 1e3, atol=1e-9)
+    rows, note = run(sizes=(30,), repeats_ours=1, pybotics=False)
+    text = table(rows, note)
+    assert "| 30 |" in text and "n/a" in text
+    assert rows[0]["ours_mm"] < 0.25 < 2.0 < rows[0]["nominal_mm"]  # measured 0.19, 2.03
+    doc = tmp_path / "doc.md"
+    doc.write_text(f"intro\n{BEGIN}\nold\n{END}\nrest\n")
+    write_docs(text, doc)
+    assert doc.read_text() == f"intro\n{BEGIN}\n{text}\n{END}\nrest\n"
