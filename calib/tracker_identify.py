@@ -150,7 +150,7 @@ def initial_placement(
         B = kabsch(x, xyz) if len(q) >= 3 else make_pose(np.eye(3), np.mean(xyz - x, axis=0))
         rhs = (xyz - B[:3, 3]) @ B[:3, :3] - T[:, :3, 3]  # R_i s = B^-1 p_i - t_i
         s_new = np.linalg.lstsq(T[:, :3, :3].reshape(-1, 3), rhs.reshape(-1), rcond=None)[0]
-        done = np.linalg.norm(s_new - s) <= 1e-9  # a start: 1 nm is plenty
+        done = np.linalg.norm(s_new - s) <= 1e-6  # a start for LM: 1 um is plenty
         s = s_new
         if done:
             break
