@@ -20,7 +20,6 @@ docs/tracker.md).
 from __future__ import annotations
 
 import argparse
-import os
 import shutil
 import subprocess
 import sys
@@ -35,6 +34,7 @@ from calib.robot_def import RobotDef
 from calib.tracker_identify import TrackerMeasurements, identify_tracker, initial_placement
 from calib.transforms import rot_x, trans
 from scenarios.benchmark import machine
+from scenarios.threads import limit_threads
 from scenarios.tracker_sim import UR5E_DH, TrackerCase, dh_robot, make_case, measure
 
 __all__ = ["run", "mdh_table", "main"]
@@ -173,17 +173,10 @@ def write_docs(text: str, path: Path = DOC) -> None:
     path.write_text(doc[:i] + "\n" + text + "\n" + doc[j:])
 
 
-THREAD_VARS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
-
-
 def main(argv: list[str] | None = None) -> int:
-    """Run the benchmark with single-threaded BLAS for both sides (re-executing itself when the
-    environment does not say so: the matrices are small, threads only add overhead)."""
-    argv = sys.argv[1:] if argv is None else argv
-    if any(os.environ.get(v) != "1" for v in THREAD_VARS):
-        env = {**os.environ, **dict.fromkeys(THREAD_VARS, "1")}
-        cmd = [sys.executable, "-m", "scenarios.benchmark_tracker", *argv]
-        return subprocess.run(cmd, env=env, check=False).returncode
+    """Run the benchmark with one BLAS thread for both sides (``limit_threads(1)``, which the
+    pybotics process inherits): the matrices are small, threads only add overhead."""
+    limit_threads(1)
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--no-pybotics", action="store_true", help="the project's numbers alone")
     ap.add_argument(
