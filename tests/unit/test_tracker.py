@@ -17,7 +17,7 @@ from calib.estimation.tracker import (
 from calib.identify import IdentificationWarning
 from calib.kinematics import fk_dh, fk_tool
 from calib.mcpc import chain_transforms, minimal_indices, param_is_angle
-from calib.robot_def import load_robot
+from calib.robot_def import list_robots, load_robot
 from calib.solver import ParameterBlock, Problem
 from calib.tracker_identify import (
     TrackerIdentificationError,
@@ -31,9 +31,10 @@ from scenarios.tracker_sim import INDUSTRIAL_DH, RRPRR_DH, UR5E_DH, dh_robot, ma
 ROBOTS = {
     "ur5e": lambda: dh_robot("ur5e", **UR5E_DH),
     "industrial": lambda: dh_robot("industrial", **INDUSTRIAL_DH),
-    "er4u-paper": lambda: load_robot("er4u-paper"),
     "rrprr": lambda: dh_robot("rrprr", **RRPRR_DH),
 }
+# and every robot file of the project (the reference robots)
+ROBOTS |= {name: (lambda name=name: load_robot(name)) for name in list_robots()}
 
 
 def _layout_problem(case, with_frame_point: bool):
