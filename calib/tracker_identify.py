@@ -367,7 +367,10 @@ def identify_tracker(
     names = tuple(param_names(idx))
     unknown = [h for h in hold if h not in names]
     if unknown:
-        raise InputError(f"cannot hold {unknown}: not minimal parameters; valid names: {names}")
+        raise InputError(
+            f"cannot hold {unknown}: not minimal parameters of this robot",
+            fix=f"name parameters among {', '.join(names)}",
+        )
     notes: list[str] = []
     sig = (float(sigma_t_m), float(sigma_r_rad), float(sigma_d_m))
 

@@ -243,3 +243,16 @@ def test_predict_bad_joints_and_bad_calibration(tmp_path, capsys, er4u):
     code, _, err = _run([*argv, "--out", str(tmp_path / "other")], capsys)
     assert code == 2 and "is not a tracker calibration" in err
     assert "something-else" in (tmp_path / "other" / "calibration.json").read_text()
+
+
+def test_hold_names_parameters_and_refuses_unknown_ones(tmp_path, capsys, er4u):
+    _, header, rows = _measurements(tmp_path, er4u)
+    meas = _write(tmp_path / "m.csv", header, rows)
+    argv = ["identify", meas, "--robot", "er4u-paper", "--joint-units", "deg"]
+    code, text, err = _run([*argv, "--hold", "lx1,ly2", "--out", str(tmp_path / "o")], capsys)
+    assert code == 0, err
+    doc = json.loads((tmp_path / "o" / "calibration.json").read_text())
+    held = {p["name"]: p["held"] for p in doc["parameters"] if not p["estimated"]}
+    assert held["lx1"] == held["ly2"] == "explicit" and "rank 21/24" in text
+    code, _, err = _run([*argv, "--hold", "zeta9", "--out", str(tmp_path / "o")], capsys)
+    assert code == 2 and "cannot hold ['zeta9']" in err
