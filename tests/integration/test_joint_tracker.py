@@ -58,8 +58,11 @@ def test_images_and_tracker_together_beat_either_alone(case):
     root, ds, truth, q, meas, out, obs, qv = case
     robot = load_robot(ds.info.robot_model)
     p_true = tool_tips(truth.true_model, qv, truth.T_cam_tip)
-    images = refine_calibration(out, obs, q, robot, ds.info)
-    both = refine_calibration(out, obs, q, robot, ds.info, tracker=meas, tracker_sigma_m=SIGMA_M)
+    kw = {"loss": "linear"}  # projected corners: no outliers, one plain least-squares pass
+    images = refine_calibration(out, obs, q, robot, ds.info, **kw)
+    both = refine_calibration(
+        out, obs, q, robot, ds.info, tracker=meas, tracker_sigma_m=SIGMA_M, **kw
+    )
     alone = identify_tracker(dh_to_mcpc(robot), meas, sigma_t_m=SIGMA_M)
 
     def err(model, T_cam_tip):
@@ -86,7 +89,9 @@ def test_images_and_tracker_together_beat_either_alone(case):
     tips = tool_tips(truth.true_model, q, truth.T_cam_tip)
     d = np.linalg.norm(tips[a] - tips[b], axis=1) + rng.normal(0.0, SIGMA_M, 15)
     dist = TrackerMeasurements(q[:0], np.zeros((0, 3)), q_a=q[a], q_b=q[b], d=d)
-    with_d = refine_calibration(out, obs, q, robot, ds.info, tracker=dist, tracker_sigma_m=SIGMA_M)
+    with_d = refine_calibration(
+        out, obs, q, robot, ds.info, tracker=dist, tracker_sigma_m=SIGMA_M, **kw
+    )
     e_dist = err(with_d.model, trans(np.array(with_d.diagnostics["tool_point"])))
     print(f"images + 15 distances: {e_dist:.4f} mm")
     assert e_dist <= e_images  # measured 0.090 mm
