@@ -349,7 +349,7 @@ def identify_tracker(
     """Identify the minimal MCPC parameters from tracker measurements (module docstring).
 
     Args:
-        model: nominal chain (e.g. ``dh_to_mcpc(robot)``; its tool is the flange: the tool point
+        model: nominal chain (e.g. ``nominal_mcpc(robot)``; its tool is the flange: the tool point
             and the tracker frame are estimated).
         meas: the measurements (:class:`TrackerMeasurements`, SI, tracker frame).
         sigma_t_m, sigma_r_rad, sigma_d_m: standard deviations of a position coordinate, a

@@ -49,13 +49,19 @@ PYBOTICS_CMD += ["--with", "numpy<2", "python"]
 
 
 def mdh_table(robot: RobotDef) -> tuple[np.ndarray, np.ndarray]:
-    """pybotics' modified-DH rows ``(alpha rad, a mm, theta rad, d mm)`` of a standard-DH
-    revolute robot, and the tail ``Tx(a_n) Rx(alpha_n)`` (4, 4, mm) that maps pybotics' last
-    frame to the standard-DH flange: ``A_1 .. A_n = MDH_1 .. MDH_n Tx(a_n) Rx(alpha_n)``."""
-    alpha = np.r_[0.0, robot.dh_alpha[:-1]]
-    a = np.r_[0.0, robot.dh_a[:-1]] * 1e3
-    mdh = np.column_stack([alpha, a, robot.dh_offset, robot.dh_d * 1e3])
-    tail = trans(np.array([robot.dh_a[-1] * 1e3, 0.0, 0.0])) @ rot_x(robot.dh_alpha[-1])
+    """pybotics' modified-DH rows ``(alpha rad, a mm, theta rad, d mm)`` of a revolute robot with
+    a DH or modified-DH table, and the tail (4, 4, mm) that maps pybotics' last frame to the
+    robot's flange: for standard DH ``A_1 .. A_n = MDH_1 .. MDH_n Tx(a_n) Rx(alpha_n)``; for a
+    modified-DH table the rows themselves and no tail."""
+    dh = robot.dh
+    if dh is None:
+        raise ValueError(f"{robot.name} has no DH table (pybotics needs one)")
+    if dh.convention == "mdh":
+        return np.column_stack([dh.alpha, dh.a * 1e3, dh.offset, dh.d * 1e3]), np.eye(4)
+    alpha = np.r_[0.0, dh.alpha[:-1]]
+    a = np.r_[0.0, dh.a[:-1]] * 1e3
+    mdh = np.column_stack([alpha, a, dh.offset, dh.d * 1e3])
+    tail = trans(np.array([dh.a[-1] * 1e3, 0.0, 0.0])) @ rot_x(dh.alpha[-1])
     return mdh, tail
 
 

@@ -32,7 +32,7 @@ from calib.io.tracker_calibration import (
     read_tracker_calibration,
     write_tracker_calibration,
 )
-from calib.mcpc import dh_to_mcpc
+from calib.mcpc import nominal_mcpc
 from calib.robot_def import load_robot
 from calib.tracker_identify import TrackerMeasurements, identify_tracker
 from scenarios.cli_common import CliError
@@ -92,7 +92,7 @@ def cmd_identify(args: argparse.Namespace) -> int:
     out = _out_dir(args.out)
     hold = tuple(h for h in (args.hold or "").replace(" ", "").split(",") if h)
     res = identify_tracker(
-        dh_to_mcpc(robot),
+        nominal_mcpc(robot),
         meas,
         sigma_t_m=args.sigma_mm / 1e3,
         sigma_r_rad=np.radians(args.sigma_deg),

@@ -16,7 +16,8 @@ from typing import Any
 import numpy as np
 
 from calib.kinematics import fk_tool
-from calib.mcpc import MCPCModel, dh_to_mcpc
+from calib.mcpc import MCPCModel, nominal_mcpc
+from calib.robot_chain import DHParams, dh_chain
 from calib.robot_def import RobotDef, SimulationGains
 from calib.transforms import make_pose, pose_from_vec
 from sim.actual import perturb
@@ -24,7 +25,6 @@ from sim.actual import perturb
 __all__ = [
     "dh_robot",
     "UR5E_DH",
-    "INDUSTRIAL_DH",
     "RRPRR_DH",
     "TrackerCase",
     "make_case",
@@ -37,16 +37,6 @@ UR5E_DH: dict[str, Any] = {
     "d_mm": [162.5, 0.0, 0.0, 133.3, 99.7, 99.6],
 }
 """A UR5e-like arm in standard DH (Universal Robots' published DH parameters of the UR5e)."""
-
-INDUSTRIAL_DH: dict[str, Any] = {
-    "alpha_deg": [-90.0, 0.0, -90.0, 90.0, -90.0, 0.0],
-    "a_mm": [150.0, 610.0, 110.0, 0.0, 0.0, 0.0],
-    "d_mm": [450.0, 0.0, 0.0, 620.0, 15.0, 100.0],
-    "offset_deg": [0.0, -90.0, 0.0, 0.0, 0.0, 0.0],
-}
-"""A 6-axis industrial arm with a spherical wrist and a small wrist offset (d5 = 15 mm); the
-numbers are illustrative (sized like a 10 kg payload arm), not a vendor's table."""
-
 
 RRPRR_DH: dict[str, Any] = {
     "alpha_deg": [90.0, 0.0, -90.0, 90.0, 0.0],
@@ -72,6 +62,8 @@ def dh_robot(
     n = len(alpha_deg)
     off = np.zeros(n) if offset_deg is None else np.radians(offset_deg)
     types = tuple("prismatic" if i in prismatic else "revolute" for i in range(n))
+    a, d = np.asarray(a_mm, dtype=float) / 1e3, np.asarray(d_mm, dtype=float) / 1e3
+    dh = DHParams("dh", np.radians(alpha_deg), a, d, off)
     limits = np.tile(np.radians([-range_deg, range_deg]), (n, 1))
     limits[list(prismatic)] = (0.0, 0.3)
     return RobotDef(
@@ -79,10 +71,8 @@ def dh_robot(
         description=f"{name} (standard DH, built in code)",
         joint_names=tuple(f"j{i + 1}" for i in range(n)),
         joint_types=types,
-        dh_alpha=np.radians(alpha_deg),
-        dh_a=np.asarray(a_mm, dtype=float) / 1e3,
-        dh_d=np.asarray(d_mm, dtype=float) / 1e3,
-        dh_offset=off,
+        chain=dh_chain(dh),
+        dh=dh,
         limits=limits,
         home=np.zeros(n),
         counts_per_unit=np.full(n, np.inf),
@@ -121,7 +111,7 @@ def make_case(
     """The nominal chain of ``robot`` moved by uniform errors (every minimal parameter, within
     ``+-translation_mm`` / ``+-rotation_deg``), with the tool point ``tool_mm`` on the flange and
     a tracker frame ~2 m away, rotated arbitrarily (deterministic for ``seed``)."""
-    nominal = dh_to_mcpc(robot)
+    nominal = nominal_mcpc(robot)
     rng = np.random.default_rng(seed + 1000)
     T_tracker_base = pose_from_vec(
         np.r_[rng.uniform(-np.pi, np.pi, 3) * 0.5, rng.uniform(-2.0, 2.0, 3)]

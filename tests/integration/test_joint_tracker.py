@@ -22,7 +22,7 @@ from calib.io.dataset import Dataset
 from calib.io.truth import read_truth
 from calib.joint_refine import refine_calibration
 from calib.kinematics import fk_tool
-from calib.mcpc import dh_to_mcpc
+from calib.mcpc import nominal_mcpc
 from calib.report import aligned_errors, tool_tips
 from calib.robot_def import load_robot
 from calib.tracker_identify import TrackerMeasurements, identify_tracker
@@ -63,7 +63,7 @@ def test_images_and_tracker_together_beat_either_alone(case):
     both = refine_calibration(
         out, obs, q, robot, ds.info, tracker=meas, tracker_sigma_m=SIGMA_M, **kw
     )
-    alone = identify_tracker(dh_to_mcpc(robot), meas, sigma_t_m=SIGMA_M)
+    alone = identify_tracker(nominal_mcpc(robot), meas, sigma_t_m=SIGMA_M)
 
     def err(model, T_cam_tip):
         return aligned_errors(tool_tips(model, qv, T_cam_tip), p_true)["rms"]

@@ -15,7 +15,7 @@ from calib.estimation.tracker import (
     TrackerPositionBlock,
 )
 from calib.identify import IdentificationWarning
-from calib.kinematics import fk_dh, fk_tool
+from calib.kinematics import fk_nominal, fk_tool
 from calib.mcpc import chain_transforms, minimal_indices, param_is_angle
 from calib.robot_def import list_robots, load_robot
 from calib.solver import ParameterBlock, Problem
@@ -26,11 +26,10 @@ from calib.tracker_identify import (
 )
 from calib.transforms import inv_pose, pose_from_vec, rot_x, rot_z, trans
 from scenarios.benchmark_tracker import BEGIN, END, mdh_table, run, table, write_docs
-from scenarios.tracker_sim import INDUSTRIAL_DH, RRPRR_DH, UR5E_DH, dh_robot, make_case, measure
+from scenarios.tracker_sim import RRPRR_DH, UR5E_DH, dh_robot, make_case, measure
 
 ROBOTS = {
     "ur5e": lambda: dh_robot("ur5e", **UR5E_DH),
-    "industrial": lambda: dh_robot("industrial", **INDUSTRIAL_DH),
     "rrprr": lambda: dh_robot("rrprr", **RRPRR_DH),
 }
 # and every robot file of the project (the reference robots)
@@ -110,7 +109,7 @@ def test_noise_free_positions_recover_every_identifiable_parameter(name):
 
 
 def test_noise_free_poses_identify_every_minimal_parameter():
-    case = make_case(ROBOTS["industrial"](), seed=2)
+    case = make_case(ROBOTS["kr6-r900"](), seed=2)
     q = case.configurations(30, 5)
     xyz, R = measure(case, q, 0.0, 1, poses=True)
     res = identify_tracker(case.nominal, TrackerMeasurements(q, xyz, R))
@@ -175,17 +174,17 @@ def test_distances_and_positions_combine():
 
 
 def test_benchmark_mdh_table_and_a_run_without_pybotics(tmp_path):
-    robot = ROBOTS["industrial"]()
-    mdh, tail = mdh_table(robot)
-    q = make_case(robot).configurations(5, 1)
-    for qi, F in zip(q, fk_dh(robot, q)[:, -1]):
-        T = np.eye(4)
-        for (alpha, a, theta, d), qj in zip(mdh, qi):  # Craig: Rx(alpha) Tx(a) Rz(theta) Tz(d)
-            T = T @ rot_x(alpha) @ trans(np.array([a, 0, 0])) @ rot_z(theta + qj)
-            T = T @ trans(np.array([0, 0, d]))
-        T = T @ tail
-        np.testing.assert_allclose(T[:3, :3], F[:3, :3], atol=1e-12)
-        np.testing.assert_allclose(T[:3, 3], F[:3, 3] * 1e3, atol=1e-9)
+    for robot in (ROBOTS["ur5e"](), ROBOTS["kr6-r900"]()):  # standard and modified DH
+        mdh, tail = mdh_table(robot)
+        q = make_case(robot).configurations(5, 1)
+        for qi, F in zip(q, fk_nominal(robot, q)[:, -1]):
+            T = np.eye(4)
+            for (alpha, a, theta, d), qj in zip(mdh, qi):  # Craig: Rx Tx Rz Tz
+                T = T @ rot_x(alpha) @ trans(np.array([a, 0, 0])) @ rot_z(theta + qj)
+                T = T @ trans(np.array([0, 0, d]))
+            T = T @ tail
+            np.testing.assert_allclose(T[:3, :3], F[:3, :3], atol=1e-12)
+            np.testing.assert_allclose(T[:3, 3], F[:3, 3] * 1e3, atol=1e-9)
     rows, note = run(sizes=(30,), repeats_ours=1, pybotics=False)
     text = table(rows, note)
     assert "| 30 |" in text and "n/a" in text
