@@ -69,6 +69,7 @@ from calib.estimation.joint_result import JointRefinementResult
 from calib.estimation.kinematic_poses import KinematicPoses
 from calib.estimation.reprojection import reprojection_residuals, robust_sigma
 from calib.estimation.residuals import GaussianPriorBlock, ScaleDistanceBlock
+from calib.estimation.tracker import TrackerMeasurements, tracker_terms
 from calib.identify import IdentificationResult
 from calib.kinematics import fk_tool
 from calib.mcpc import MCPCModel, minimal_indices, param_is_angle, param_names
@@ -83,7 +84,6 @@ from calib.solver import (
     solve,
 )
 from calib.target import marker_features
-from calib.tracker_identify import TrackerMeasurements, tracker_terms
 from calib.transforms import inv_pose
 
 __all__ = [

@@ -41,15 +41,19 @@ from calib.errors import EstimationError, InputError
 from calib.estimation.tracker import (
     ChainLayout,
     TrackerDistanceBlock,
+    TrackerMeasurements,
     TrackerPoseBlock,
     TrackerPositionBlock,
+    initial_placement,
+    mean_rotation,
+    tracker_terms,
 )
 from calib.identifiability import select_identifiable, triangular_factor
 from calib.identify import IdentificationWarning
 from calib.kinematics import fk_tool
 from calib.mcpc import MCPCModel, minimal_indices, param_is_angle, param_names
 from calib.solver import ParameterBlock, Problem, SolverOptions, solve
-from calib.transforms import inv_pose, kabsch, make_pose
+from calib.transforms import inv_pose, make_pose
 
 __all__ = [
     "TrackerMeasurements",
@@ -65,102 +69,6 @@ __all__ = [
 class TrackerIdentificationError(EstimationError):
     """The tracker data cannot determine the chain (too few rows, no convergence); the message
     says how many rows are needed or what to change."""
-
-
-@dataclass(frozen=True)
-class TrackerMeasurements:
-    """Tracker data in the tracker frame, SI units.
-
-    Attributes:
-        q: (m, n) joint readings of the position/pose rows (rad, m); (0, n) when there are none.
-        xyz: (m, 3) measured tool-point positions (m).
-        R: (m, 3, 3) measured tool-frame orientations, or None (positions only).
-        q_a, q_b: (k, n) joint readings of the two ends of each distance (or None).
-        d: (k,) measured distances (m) between the tool point at ``q_a`` and ``q_b`` (or None).
-    """
-
-    q: np.ndarray
-    xyz: np.ndarray
-    R: np.ndarray | None = None
-    q_a: np.ndarray | None = None
-    q_b: np.ndarray | None = None
-    d: np.ndarray | None = None
-
-    @property
-    def m(self) -> int:
-        """Number of position / pose rows."""
-        return int(len(self.q))
-
-    @property
-    def k(self) -> int:
-        """Number of distances."""
-        return 0 if self.d is None else int(len(self.d))
-
-    def equations(self) -> int:
-        """Scalar equations: 3 per position, 6 per pose, 1 per distance."""
-        return (6 if self.R is not None else 3) * self.m + self.k
-
-    def distances(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``(q_a, q_b, d)`` of the distance rows ((k, n), (k, n), (k,)); empty when none."""
-        if self.q_a is None or self.q_b is None or self.d is None:
-            n = self.q.shape[1]
-            return np.zeros((0, n)), np.zeros((0, n)), np.zeros(0)
-        return self.q_a, self.q_b, self.d
-
-    def check(self, n: int) -> None:
-        """Raise :class:`calib.errors.InputError` for shapes that do not fit ``n`` joints or
-        non-finite numbers (the readers in :mod:`calib.io.tracker` name file, row and column)."""
-        arrays: dict[str, tuple[np.ndarray | None, tuple[int, ...]]] = {
-            "q": (self.q, (self.m, n)),
-            "xyz": (self.xyz, (self.m, 3)),
-        }
-        if self.R is not None:
-            arrays["R"] = (self.R, (self.m, 3, 3))
-        if self.d is not None:
-            arrays |= {"q_a": (self.q_a, (self.k, n)), "q_b": (self.q_b, (self.k, n))}
-        for key, (a, shape) in arrays.items():
-            if a is None or np.shape(a) != shape:
-                raise InputError(
-                    f"tracker data: {key} must have shape {shape}, got "
-                    f"{None if a is None else a.shape}"
-                )
-            if not np.all(np.isfinite(a)):
-                raise InputError(f"tracker data: {key} holds NaN or inf")
-        if self.m + self.k == 0:
-            raise InputError("tracker data: no measurements")
-
-
-# --------------------------------------------------------------------------------------------
-# Placement
-# --------------------------------------------------------------------------------------------
-
-
-def initial_placement(
-    model: MCPCModel, q: np.ndarray, xyz: np.ndarray, *, iterations: int = 50
-) -> tuple[np.ndarray, np.ndarray]:
-    """``(T_meas_base (4, 4), s (3,))``: the rigid placement of ``model`` in the tracker frame and
-    the tool point ``s`` in its tool frame (m) that best fit the positions ``xyz`` (m, 3) at
-    ``q`` (m, n), by alternating the closed-form rigid fit (Kabsch) with the linear
-    least-squares tool point (a fixed-point start for the estimation, not an estimate)."""
-    T = fk_tool(model, q)
-    s = np.zeros(3)
-    B = np.eye(4)
-    for _ in range(iterations):
-        x = T[:, :3, :3] @ s + T[:, :3, 3]
-        B = kabsch(x, xyz) if len(q) >= 3 else make_pose(np.eye(3), np.mean(xyz - x, axis=0))
-        rhs = (xyz - B[:3, 3]) @ B[:3, :3] - T[:, :3, 3]  # R_i s = B^-1 p_i - t_i
-        s_new = np.linalg.lstsq(T[:, :3, :3].reshape(-1, 3), rhs.reshape(-1), rcond=None)[0]
-        done = np.linalg.norm(s_new - s) <= 1e-6  # a start for LM: 1 um is plenty
-        s = s_new
-        if done:
-            break
-    return B, s
-
-
-def _mean_rotation(R: np.ndarray) -> np.ndarray:
-    U, _, Vt = np.linalg.svd(np.sum(R, axis=0))
-    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))])
-    return U @ D @ Vt
 
 
 # --------------------------------------------------------------------------------------------
@@ -384,7 +292,7 @@ def identify_tracker(
             Tt = fk_tool(start, meas.q)
             Rm = B[:3, :3].T @ meas.R
             start = start.with_tool(
-                make_pose(_mean_rotation(np.swapaxes(Tt[:, :3, :3], 1, 2) @ Rm), np.zeros(3))
+                make_pose(mean_rotation(np.swapaxes(Tt[:, :3, :3], 1, 2) @ Rm), np.zeros(3))
             )
     else:
         B = np.eye(4)
@@ -490,42 +398,3 @@ def identify_tracker(
         residuals=res,
         warnings=tuple(notes),
     )
-
-
-def tracker_terms(
-    meas: TrackerMeasurements,
-    model: MCPCModel,
-    free_idx: np.ndarray,
-    block: str,
-    sigma: float,
-) -> tuple[list, list[ParameterBlock]]:
-    """Residual and parameter blocks that add tracker positions and distances to another
-    problem (e.g. the joint refinement over images): its parameter block ``block`` holds the
-    flat MCPC parameters ``free_idx`` of ``model`` as its first coordinates (the others fixed at
-    ``model``'s values). New unknowns: the tracker frame (block ``tracker_frame``, only with
-    positions; started at :func:`initial_placement`) and the tool point in ``model``'s tool
-    frame (``tool_point``, m). ``sigma``: the residuals' scale (m per unit of residual).
-
-    Raises:
-        InputError: pose rows (their tool frame would need its own 6-dof offset; give positions).
-    """
-    if meas.R is not None:
-        raise InputError(
-            "tracker poses cannot be combined with images yet",
-            fix="give the tracker's positions (x_mm, y_mm, z_mm) without the quaternion",
-        )
-    coords = -np.ones(6 * (model.n + 1), np.int64)
-    coords[np.asarray(free_idx)] = np.arange(len(free_idx))
-    frame0, s0, params = np.eye(4), np.zeros(3), []
-    if meas.m:
-        frame0, s0 = initial_placement(model, meas.q, meas.xyz)
-        params.append(ParameterBlock("tracker_frame", np.zeros(6)))
-    params.append(ParameterBlock("tool_point", s0))
-    frame = "tracker_frame" if meas.m else None
-    layout = ChainLayout(model, block, coords, frame=frame, frame0=frame0, point="tool_point")
-    blocks: list = []
-    if meas.m:
-        blocks.append(TrackerPositionBlock(layout, meas.q, meas.xyz, sigma))
-    if meas.k:
-        blocks.append(TrackerDistanceBlock(layout, *meas.distances(), sigma))
-    return blocks, params

@@ -29,7 +29,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from calib.errors import InputError
-from calib.tracker_identify import TrackerMeasurements
+from calib.estimation.tracker import TrackerMeasurements
 
 __all__ = [
     "JOINT_UNITS",
