@@ -91,8 +91,9 @@ def cmd_identify(args: argparse.Namespace) -> int:
             raise CliError(f"{name} must be a positive number, got {v}")
     out = _out_dir(args.out)
     hold = tuple(h for h in (args.hold or "").replace(" ", "").split(",") if h)
+    nominal = nominal_mcpc(robot)
     res = identify_tracker(
-        nominal_mcpc(robot),
+        nominal,
         meas,
         sigma_t_m=args.sigma_mm / 1e3,
         sigma_r_rad=np.radians(args.sigma_deg),
@@ -107,6 +108,7 @@ def cmd_identify(args: argparse.Namespace) -> int:
     }
     cal = from_result(
         res,
+        nominal,
         robot=robot.name,
         robot_source=str(args.robot),
         joint_names=robot.joint_names,
@@ -131,6 +133,8 @@ def cmd_identify(args: argparse.Namespace) -> int:
     )
     held = ", ".join(f"{k} ({v})" for k, v in res.held_reason.items()) or "none"
     print(f"held at nominal: {held}")
+    tool = ", ".join(f"{v:.3f}" for v in cal.tool_point_mm)
+    print(f"tool point in the nominal flange frame: ({tool}) mm")
     if table.ignored:
         print(f"ignored columns of {table.path}: {', '.join(table.ignored)}")
     for w in res.warnings:

@@ -12,7 +12,7 @@ frame. Keys:
 - ``parameters``: one entry per minimal parameter: ``name``, ``value``, ``std`` (null when held),
   ``unit`` (mm or deg), ``estimated``, ``held`` (why, or null);
 - ``identifiable`` (names), ``rank``, ``n_params``, ``condition_number``, ``sigma0``;
-- ``tool_point_mm`` (the tool point in the last link's frame, after its joint offset) and
+- ``tool_point_mm`` (the identified tool point in the robot's nominal flange frame, mm) and
   ``T_tracker_joint1`` (4 x 4, m: the frame on joint 1's axis in which joint 1 turns, in the
   tracker frame);
 - ``fit``: RMS of the position error (mm), rotation error (deg), distance error (mm), the row and
@@ -31,6 +31,7 @@ from calib.io.jsonfile import Fields, check_header, load_json, write_json_atomic
 from calib.kinematics import fk_tool
 from calib.mcpc import COLUMNS, MCPCModel, chain_transforms, minimal_indices, param_is_angle
 from calib.tracker_identify import TrackerResult
+from calib.transforms import inv_pose
 
 __all__ = [
     "FORMAT",
@@ -64,6 +65,7 @@ class TrackerCalibration:
     joint_limits: np.ndarray
     model: MCPCModel
     T_meas_fit: np.ndarray
+    tool_point_mm: np.ndarray
     joint_units: str
     names: tuple[str, ...]
     values: np.ndarray
@@ -138,7 +140,7 @@ class TrackerCalibration:
                 }
                 for nm, v, s, u in zip(self.names, self.values, self.std, self.units)
             ],
-            "tool_point_mm": (G[-1][:3, 3] * 1e3).tolist(),
+            "tool_point_mm": self.tool_point_mm.tolist(),
             "T_tracker_joint1": (self.T_meas_fit @ G[0]).tolist(),
             "mcpc": {
                 "columns": list(COLUMNS),
@@ -172,6 +174,7 @@ class TrackerCalibration:
             joint_limits=rb.array("joint_limits_si", (n, 2)),
             model=model,
             T_meas_fit=mc.array("T_meas_fit", (4, 4)),
+            tool_point_mm=f.array("tool_point_mm", (3,)),
             joint_units=f.str("joint_units"),
             names=tuple(p.str("name") for p in params),
             values=np.array([p.float("value") for p in params]),
@@ -191,6 +194,7 @@ class TrackerCalibration:
 
 def from_result(
     res: TrackerResult,
+    nominal: MCPCModel,
     *,
     robot: str,
     robot_source: str,
@@ -200,10 +204,15 @@ def from_result(
     sigmas: dict,
     files: dict,
 ) -> TrackerCalibration:
-    """The file's content for an identification result (values and std to mm / deg)."""
+    """The file's content for an identification result (values and std to mm / deg); the tool
+    point is expressed in the flange frame of ``nominal`` (the model the identification started
+    from, same joint offsets)."""
     idx = minimal_indices(res.model.joint_types)
     ang = param_is_angle(idx)
     k = np.where(ang, 180.0 / np.pi, 1e3)
+    if not np.allclose(nominal.joint_offsets, res.model.joint_offsets):
+        raise ValueError("nominal and identified models use different joint offsets")
+    G_id = chain_transforms(res.model)
 
     def num(x: float) -> float | None:
         return None if not np.isfinite(x) else float(x)
@@ -225,6 +234,7 @@ def from_result(
         joint_limits=np.asarray(joint_limits, dtype=float),
         model=res.model,
         T_meas_fit=res.T_meas_fit,
+        tool_point_mm=(inv_pose(chain_transforms(nominal)[-1]) @ G_id[-1][:, 3])[:3] * 1e3,
         joint_units=joint_units,
         names=res.names,
         values=res.values * k,

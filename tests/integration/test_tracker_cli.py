@@ -78,6 +78,10 @@ def test_identify_then_predict_round_trip(tmp_path, capsys, er4u):
     assert code == 0, err
     assert "fit RMS" in text and "rank 23/26" in text
     doc = json.loads((out / "calibration.json").read_text())
+    tool = ", ".join(f"{v:.3f}" for v in doc["tool_point_mm"])
+    assert f"tool point in the nominal flange frame: ({tool}) mm" in text
+    # the true tool point sits on the true flange, which is within ~1 mm of the nominal one
+    assert np.abs(np.array(doc["tool_point_mm"]) - case.tool_m * 1e3).max() < 3.0
     assert doc["format"] == "scorbot-selfcal-tracker-calibration" and doc["schema_version"] == 1
     assert set(doc["identifiable"]) | {"alpha5", "beta5", "gamma5"} == {
         p["name"] for p in doc["parameters"]

@@ -58,6 +58,7 @@ def _calibration(tmp_path):
     res = identify_tracker(case.nominal, TrackerMeasurements(q, xyz))
     cal = from_result(
         res,
+        case.nominal,
         robot=robot.name,
         robot_source="rrprr",
         joint_names=robot.joint_names,
