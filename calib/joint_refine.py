@@ -69,20 +69,12 @@ from calib.estimation.joint_result import JointRefinementResult
 from calib.estimation.kinematic_poses import KinematicPoses
 from calib.estimation.reprojection import reprojection_residuals, robust_sigma
 from calib.estimation.residuals import GaussianPriorBlock, ScaleDistanceBlock
-from calib.estimation.tracker import TrackerMeasurements, tracker_terms
+from calib.estimation.tracker import TrackerMeasurements, restarted, tracker_report, tracker_terms
 from calib.identify import IdentificationResult
 from calib.kinematics import fk_tool
 from calib.mcpc import MCPCModel, minimal_indices, param_is_angle, param_names
 from calib.observations import Observations, views_per_point
-from calib.solver import (
-    Loss,
-    ParameterBlock,
-    ResidualBlock,
-    SolverOptions,
-    covariance,
-    scaled_rank,
-    solve,
-)
+from calib.solver import Loss, ResidualBlock, SolverOptions, covariance, scaled_rank, solve
 from calib.target import marker_features
 from calib.transforms import inv_pose
 
@@ -182,7 +174,7 @@ class _Problem(_AdjustmentProblem):
         prior_w: np.ndarray,
         loss: Loss | None = None,
         x0: np.ndarray | None = None,
-        tracker: tuple[list, list[ParameterBlock]] = ([], []),
+        tracker: tuple[list, list] = ([], []),
     ) -> None:
         extra: list[ResidualBlock] = [ScaleDistanceBlock(scale_idx[0], scale_idx[1], d_m, w_scale)]
         if len(prior_cols):
@@ -219,6 +211,7 @@ def joint_refine(
     tol: float = 1e-12,
     tracker: TrackerMeasurements | None = None,
     tracker_sigma_m: float = 1e-4,
+    tracker_sigma_rad: float = 1e-4,
 ) -> JointRefinementResult:
     """Refine kinematics, intrinsics, rig and points together from the corner observations.
 
@@ -242,9 +235,9 @@ def joint_refine(
             pass) or ``"linear"`` (plain least squares on the two-stage inliers only).
         robust_scale_px, outlier_px: soft-L1 scale; minimum outlier threshold (the threshold is
             ``max(outlier_px, 4.5 sigma)``).
-        tracker, tracker_sigma_m: tracker positions / distances of the tool point (joints rad,
-            m) with their noise, estimated with the rest (:func:`tracker_terms`: tracker frame
-            and tool point are new unknowns; residuals scaled to pixels of ``pixel_sigma_px``).
+        tracker, tracker_sigma_m, tracker_sigma_rad: tracker positions, poses or distances
+            (joints rad, m) with their noise, estimated with the rest (:func:`tracker_terms`:
+            tracker frame and tool point / frame are new unknowns; residuals in pixels).
 
     Raises:
         JointRefinementError: the scale markers are not reconstructed, the gauge is not fixed
@@ -313,9 +306,10 @@ def joint_refine(
         prior_cols, prior_w = np.zeros(0, np.int64), np.zeros(0)
     camera = sc.camera
     w_scale = 1.0 / float(scale_sigma_m)
-    trk: tuple[list, list[ParameterBlock]] = ([], [])
+    trk: tuple[list, list] = ([], [])
     if tracker is not None:
-        trk = tracker_terms(tracker, model0, free_idx, "poses", tracker_sigma_m / pixel_sigma_px)
+        s_px = (tracker_sigma_m / pixel_sigma_px, tracker_sigma_rad / pixel_sigma_px)
+        trk = tracker_terms(tracker, model0, free_idx, "poses", *s_px)
 
     def select(act):
         """Rows and points of the adjustment: points seen in two inlier views."""
@@ -377,7 +371,7 @@ def joint_refine(
         total_it += sol.iterations
         camera, p, Xu = prob.unpack(x)
         p = p.copy()
-        trk = (trk[0], [ParameterBlock(b.name, sol.values[b.name]) for b in trk[1]])
+        trk = (trk[0], restarted(trk[1], sol.values))
         X = np.full_like(X, np.nan)
         X[pts_used] = Xu
         if last:
@@ -446,10 +440,7 @@ def joint_refine(
         dq = p[pose_model.dq_cols].reshape(-1, model0.n)
         diag["joint_correction_rms"] = np.sqrt(np.mean(dq**2, axis=0)).tolist()
     diag["gauge_condition_number"] = gauge.condition_number
-    for b in trk[0]:  # tracker residuals back in m, RMS of the rows' norms
-        res_m = sol.residuals[b.name] * tracker_sigma_m / pixel_sigma_px
-        diag[f"{b.name}_rms_m"] = float(np.sqrt(np.mean(np.sum(res_m**2, axis=1))))
-    diag |= {f"{b.name}": sol.values[b.name].tolist() for b in trk[1]}
+    diag |= tracker_report(*trk, sol.values, sol.residuals, tracker_sigma_m / pixel_sigma_px)
     assert rank_info is not None  # set in the first round (there is always one)
     return JointRefinementResult(
         model=model_ref,

@@ -48,6 +48,8 @@ __all__ = [
     "initial_placement",
     "mean_rotation",
     "tracker_terms",
+    "restarted",
+    "tracker_report",
     "ChainLayout",
     "TrackerPositionBlock",
     "TrackerPoseBlock",
@@ -70,6 +72,9 @@ class ChainLayout:
         point: name of the 3-vector block of the tool point in the model's tool frame (m), or
             None (``point0`` fixed).
         point0: (3,) the fixed tool point when ``point`` is None (m).
+        tool: name of the 6-vector block ``[w, v]`` of the measured tool frame in the model's
+            tool frame (for poses), perturbing ``tool0`` like ``frame``; or None (``tool0``).
+        tool0: (4, 4) ``T0_modeltool_measuredtool``.
     """
 
     model: MCPCModel
@@ -79,6 +84,8 @@ class ChainLayout:
     frame0: np.ndarray = field(default_factory=lambda: np.eye(4))
     point: str | None = None
     point0: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    tool: str | None = None
+    tool0: np.ndarray = field(default_factory=lambda: np.eye(4))
 
     def __post_init__(self) -> None:
         c = np.asarray(self.coords, dtype=np.int64).reshape(-1)
@@ -86,6 +93,7 @@ class ChainLayout:
             raise ValueError(f"coords must have {6 * (self.model.n + 1)} entries, got {c.size}")
         object.__setattr__(self, "coords", c)
         object.__setattr__(self, "frame0", np.asarray(self.frame0, dtype=float))
+        object.__setattr__(self, "tool0", np.asarray(self.tool0, dtype=float))
         object.__setattr__(self, "point0", np.asarray(self.point0, dtype=float).reshape(3))
 
     @classmethod
@@ -104,11 +112,11 @@ class ChainLayout:
 
     def tracker_frame(self, values: Mapping[str, np.ndarray]) -> np.ndarray:
         """``T_tracker_world`` (4, 4) at the parameter values."""
-        if self.frame is None:
-            return np.eye(4)
-        wv = values[self.frame]
-        R = pose_from_vec(np.r_[wv[:3], 0.0, 0.0, 0.0])[:3, :3] @ self.frame0[:3, :3]
-        return make_pose(R, self.frame0[:3, 3] + wv[3:])
+        return np.eye(4) if self.frame is None else _perturbed(self.frame0, values[self.frame])
+
+    def tool_frame(self, values: Mapping[str, np.ndarray]) -> np.ndarray:
+        """``T_modeltool_measuredtool`` (4, 4) at the parameter values."""
+        return self.tool0 if self.tool is None else _perturbed(self.tool0, values[self.tool])
 
     def tool_point(self, values: Mapping[str, np.ndarray]) -> np.ndarray:
         """The tool point (3,) in the model's tool frame (m)."""
@@ -151,21 +159,41 @@ class ChainLayout:
         """Tool poses ``T_tracker_tool`` (m, 4, 4) at joints ``q`` (m, n) and, when
         ``jacobian``, their body twists ``[v; w]`` per unknown ``(block, (m, 6, c), coords)``."""
         mdl = self.chain(values)
-        Tf = self.tracker_frame(values)
+        Tf, Tt = self.tracker_frame(values), self.tool_frame(values)
         frames = fk_frames(mdl, q)
-        T = Tf @ frames[:, -1]
+        T = Tf @ frames[:, -1] @ Tt
         if not jacobian:
             return T, []
         sel, cols = self._kin_columns()
-        pieces = [(self.block, identification_jacobian(mdl, q, frames)[:, :, sel], cols)]
+        to_tool = adjoint(inv_pose(Tt))  # model-tool twists -> measured-tool twists
+        J = to_tool @ identification_jacobian(mdl, q, frames)[:, :, sel]
+        pieces = [(self.block, J, cols)]
         if self.frame is not None:
-            Jl = so3_left_jacobian(values[self.frame][:3])
-            spatial = np.zeros((6, 6))  # [e_t; phi] per [dw, dv]
-            spatial[:3, :3] = skew(Tf[:3, 3]) @ Jl
-            spatial[:3, 3:] = np.eye(3)
-            spatial[3:, :3] = Jl
+            spatial = _spatial_jacobian(Tf, values[self.frame])
             pieces.append((self.frame, adjoint(inv_pose(T)) @ spatial, np.arange(6)))
+        if self.tool is not None:
+            spatial = _spatial_jacobian(Tt, values[self.tool])
+            pieces.append(
+                (self.tool, np.broadcast_to(to_tool @ spatial, J.shape[:2] + (6,)), np.arange(6))
+            )
         return T, pieces
+
+
+def _perturbed(T0: np.ndarray, wv: np.ndarray) -> np.ndarray:
+    """``[Rot(w) R0, t0 + v]`` for ``wv = [w (rad), v (m)]``."""
+    R = pose_from_vec(np.r_[wv[:3], 0.0, 0.0, 0.0])[:3, :3] @ T0[:3, :3]
+    return make_pose(R, T0[:3, 3] + wv[3:])
+
+
+def _spatial_jacobian(T: np.ndarray, wv: np.ndarray) -> np.ndarray:
+    """(6, 6): the twist ``[e_t; phi]`` with ``dT = [e]^ T`` of ``T = _perturbed(T0, wv)`` per
+    ``[dw, dv]``: ``phi = J_l(w) dw`` and ``e_t = dv - phi x t``."""
+    Jl = so3_left_jacobian(wv[:3])
+    out = np.zeros((6, 6))
+    out[:3, :3] = skew(T[:3, 3]) @ Jl
+    out[:3, 3:] = np.eye(3)
+    out[3:, :3] = Jl
+    return out
 
 
 def _pieces(
@@ -387,34 +415,80 @@ def tracker_terms(
     free_idx: np.ndarray,
     block: str,
     sigma: float,
+    sigma_r: float | None = None,
 ) -> tuple[list, list[ParameterBlock]]:
-    """Residual and parameter blocks that add tracker positions and distances to another
+    """Residual and parameter blocks that add tracker positions, poses and distances to another
     problem (e.g. the joint refinement over images): its parameter block ``block`` holds the
     flat MCPC parameters ``free_idx`` of ``model`` as its first coordinates (the others fixed at
-    ``model``'s values). New unknowns: the tracker frame (block ``tracker_frame``, only with
-    positions; started at :func:`initial_placement`) and the tool point in ``model``'s tool
-    frame (``tool_point``, m). ``sigma``: the residuals' scale (m per unit of residual).
-
-    Raises:
-        InputError: pose rows (their tool frame would need its own 6-dof offset; give positions).
+    ``model``'s values). New unknowns: the tracker frame (block ``tracker_frame``, with positions
+    or poses; started at :func:`initial_placement`), the tool point in ``model``'s tool frame
+    (``tool_point``, m; positions and distances) and, for poses, the measured tool frame in
+    ``model``'s tool frame (``tool_frame``, ``[w, v]``). ``sigma``: the residuals' scale (m per
+    unit of residual), ``sigma_r`` that of the rotations of poses (rad per unit).
     """
-    if meas.R is not None:
-        raise InputError(
-            "tracker poses cannot be combined with images yet",
-            fix="give the tracker's positions (x_mm, y_mm, z_mm) without the quaternion",
-        )
     coords = -np.ones(6 * (model.n + 1), np.int64)
     coords[np.asarray(free_idx)] = np.arange(len(free_idx))
-    frame0, s0, params = np.eye(4), np.zeros(3), []
+    frame0, tool0, params = np.eye(4), np.eye(4), []
     if meas.m:
         frame0, s0 = initial_placement(model, meas.q, meas.xyz)
         params.append(ParameterBlock("tracker_frame", np.zeros(6)))
-    params.append(ParameterBlock("tool_point", s0))
-    frame = "tracker_frame" if meas.m else None
-    layout = ChainLayout(model, block, coords, frame=frame, frame0=frame0, point="tool_point")
+        tool0 = make_pose(np.eye(3), s0)
+    poses = meas.m > 0 and meas.R is not None
+    if poses:
+        R = fk_tool(model, meas.q)[:, :3, :3]
+        R_tool = mean_rotation(np.swapaxes(R, 1, 2) @ frame0[:3, :3].T @ meas.R)
+        tool0 = make_pose(R_tool, tool0[:3, 3])
+        params.append(ParameterBlock("tool_frame", np.zeros(6)))
+    if meas.k or not poses:
+        params.append(ParameterBlock("tool_point", tool0[:3, 3]))
+    layout = ChainLayout(
+        model,
+        block,
+        coords,
+        frame="tracker_frame" if meas.m else None,
+        frame0=frame0,
+        point="tool_point" if meas.k or not poses else None,
+        tool="tool_frame" if poses else None,
+        tool0=tool0,
+    )
     blocks: list = []
-    if meas.m:
+    if poses:
+        T = make_pose(np.asarray(meas.R), meas.xyz)
+        if sigma_r is None:
+            raise ValueError("tracker poses need sigma_r (rad per unit of residual)")
+        blocks.append(TrackerPoseBlock(layout, meas.q, T, sigma, sigma_r))
+    elif meas.m:
         blocks.append(TrackerPositionBlock(layout, meas.q, meas.xyz, sigma))
     if meas.k:
         blocks.append(TrackerDistanceBlock(layout, *meas.distances(), sigma))
     return blocks, params
+
+
+def restarted(
+    params: list[ParameterBlock], values: Mapping[str, np.ndarray]
+) -> list[ParameterBlock]:
+    """The parameter blocks ``params`` started at ``values`` instead (e.g. a solution's, for the
+    next round of an adjustment)."""
+    return [ParameterBlock(p.name, values[p.name], p.held, p.instance) for p in params]
+
+
+def tracker_report(
+    blocks: list,
+    params: list[ParameterBlock],
+    values: Mapping[str, np.ndarray],
+    residuals: Mapping[str, np.ndarray],
+    scale_m: float,
+) -> dict:
+    """What :func:`tracker_terms` estimated: ``<block>_rms_m``, the RMS (m) of the translation
+    part of each tracker residual block's rows (``residuals`` in units of ``scale_m`` m), and the
+    estimated ``tracker_frame`` (``T_tracker_world``, 4 x 4, m), ``tool_frame``
+    (``T_modeltool_measuredtool``) and ``tool_point`` (m), as lists."""
+    out: dict = {}
+    for b in blocks:
+        r = residuals[b.name][:, :3] * scale_m
+        out[f"{b.name}_rms_m"] = float(np.sqrt(np.mean(np.sum(r**2, axis=1))))
+    if blocks:
+        lay = blocks[0].layout
+        get = {lay.frame: lay.tracker_frame, lay.tool: lay.tool_frame, lay.point: lay.tool_point}
+        out |= {p.name: get[p.name](values).tolist() for p in params}
+    return out

@@ -38,7 +38,7 @@ ROBOTS |= {name: (lambda name=name: load_robot(name)) for name in list_robots()}
 
 def _layout_problem(case, with_frame_point: bool):
     """A problem over part of the MCPC parameters (block 'kin', every other one), and with
-    ``with_frame_point`` a tracker frame and a tool point block."""
+    ``with_frame_point`` a tracker frame, a tool point and a tool frame block."""
     model = case.true
     P = 6 * (model.n + 1)
     free = np.arange(0, P, 2)
@@ -48,10 +48,11 @@ def _layout_problem(case, with_frame_point: bool):
     kw = {}
     if with_frame_point:
         kw = dict(frame="frame", frame0=pose_from_vec([0.3, -0.2, 0.1, 0.5, 0.2, -0.1]))
-        kw |= dict(point="point")
+        kw |= dict(point="point", tool="tool", tool0=pose_from_vec([1.0, 0.5, -2.0, 0, 0, 0.1]))
         blocks += [
             ParameterBlock("frame", [0.02, -0.01, 0.03, 0.01, 0.0, -0.02]),
             ParameterBlock("point", [0.01, 0.02, 0.05]),
+            ParameterBlock("tool", [0.1, -0.2, 0.05, 0.01, 0.03, -0.02]),
         ]
     return ChainLayout(model, "kin", coords, **kw), blocks
 
