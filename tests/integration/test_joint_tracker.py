@@ -51,15 +51,16 @@ def case(tmp_path_factory):
         out = calibrate_detailed(root, method="two-stage")
     obs = observations_of(ds, detect_dataset(ds)[0])
     qv = np.radians(ds.info.validation_joints_deg)
-    return root, ds, truth, q, meas, out, obs, qv
+    robot = load_robot(ds.info.robot_model)
+    # projected corners: no outliers, one plain least-squares pass
+    images = refine_calibration(out, obs, q, robot, ds.info, loss="linear")
+    return ds, truth, q, meas, out, obs, qv, robot, images
 
 
 def test_images_and_tracker_together_beat_either_alone(case):
-    root, ds, truth, q, meas, out, obs, qv = case
-    robot = load_robot(ds.info.robot_model)
+    ds, truth, q, meas, out, obs, qv, robot, images = case
     p_true = tool_tips(truth.true_model, qv, truth.T_cam_tip)
-    kw = {"loss": "linear"}  # projected corners: no outliers, one plain least-squares pass
-    images = refine_calibration(out, obs, q, robot, ds.info, **kw)
+    kw = {"loss": "linear"}
     both = refine_calibration(
         out, obs, q, robot, ds.info, tracker=meas, tracker_sigma_m=SIGMA_M, **kw
     )
@@ -99,8 +100,7 @@ def test_images_and_tracker_together_beat_either_alone(case):
 
 
 def test_images_and_tracker_poses_together_beat_either_alone(case):
-    root, ds, truth, q, meas, out, obs, qv = case
-    robot = load_robot(ds.info.robot_model)
+    ds, truth, q, meas, out, obs, qv, robot, images = case
     p_true = tool_tips(truth.true_model, qv, truth.T_cam_tip)
     # the tracker's frame on the tool: at the tip, turned against the camera frame
     T_cam_probe = truth.T_cam_tip @ pose_from_vec([0.3, -0.5, 1.2, 0.0, 0.0, 0.0])
@@ -112,7 +112,6 @@ def test_images_and_tracker_poses_together_beat_either_alone(case):
     )
     poses = TrackerMeasurements(q, T[:, :3, 3], T[:, :3, :3])
     kw = {"loss": "linear", "tracker_sigma_m": SIGMA_M, "tracker_sigma_rad": SIGMA_RAD}
-    images = refine_calibration(out, obs, q, robot, ds.info, loss="linear")
     both = refine_calibration(out, obs, q, robot, ds.info, tracker=poses, **kw)
     alone = identify_tracker(nominal_mcpc(robot), poses, sigma_t_m=SIGMA_M, sigma_r_rad=SIGMA_RAD)
     e_images = aligned_errors(tool_tips(images.model, qv, truth.T_cam_tip), p_true)["rms"]
