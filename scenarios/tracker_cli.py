@@ -50,6 +50,7 @@ and DIR/residuals.csv; see docs/tracker.md
 """
 
 
+UNITS_HELP = "deg: revolute joints in degrees, prismatic in mm; rad: radians and metres"
 TRUST_HELP = (
     "skip the check that degrees look like radians (every revolute reading within +-2 pi): "
     "for data whose joints really stay within +-6.3 deg; the range check stays"
@@ -175,7 +176,7 @@ def register(sub) -> None:
     sp.set_defaults(func=cmd_identify)
     sp.add_argument("measurements", help="MEASUREMENTS.csv (see below)")
     sp.add_argument("--robot", required=True, help="robot name, robot TOML or URDF path")
-    sp.add_argument("--joint-units", required=True, choices=JOINT_UNITS)
+    sp.add_argument("--joint-units", required=True, choices=JOINT_UNITS, help=UNITS_HELP)
     sp.add_argument("--out", required=True, help="output folder")
     sp.add_argument("--distances", default=None, help="distances CSV (see below)")
     sp.add_argument(
@@ -200,6 +201,6 @@ def register(sub) -> None:
         required=True,
         help="joints file: header j1..jn, or n numbers per row, comma- or whitespace-separated",
     )
-    sp.add_argument("--joint-units", required=True, choices=JOINT_UNITS)
+    sp.add_argument("--joint-units", required=True, choices=JOINT_UNITS, help=UNITS_HELP)
     sp.add_argument("--out", default=None, help="predicted.csv (default: stdout)")
     sp.add_argument("--trust-units", action="store_true", help=TRUST_HELP)
