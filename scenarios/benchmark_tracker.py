@@ -1,6 +1,6 @@
 """Benchmark: tracker identification (``calib.tracker_identify``) against pybotics, the anchor.
 
-The same simulated 6-axis positions for both (:mod:`scenarios.tracker_sim`: a UR5e-like arm with
+The same simulated 6-axis positions for both (:mod:`scenarios.tracker_sim`: the UR5e with
 every minimal MCPC parameter moved within +-1 mm / +-0.2 deg, a tool point 30, -20, 80 mm on the
 flange, a tracker frame ~2 m away; 0.1 mm Gaussian noise per coordinate), N = 30, 100, 300
 training configurations and 300 held-out ones, uniform within +-170 deg. pybotics runs in its own
@@ -30,12 +30,12 @@ from pathlib import Path
 import numpy as np
 
 from calib.kinematics import fk_tool
-from calib.robot_def import RobotDef
+from calib.robot_def import RobotDef, load_robot
 from calib.tracker_identify import TrackerMeasurements, identify_tracker, initial_placement
 from calib.transforms import rot_x, trans
 from scenarios.benchmark import machine
 from scenarios.threads import limit_threads
-from scenarios.tracker_sim import UR5E_DH, TrackerCase, dh_robot, make_case, measure
+from scenarios.tracker_sim import TrackerCase, make_case, measure
 
 __all__ = ["run", "mdh_table", "main"]
 
@@ -117,7 +117,7 @@ def _rms(a: np.ndarray, b: np.ndarray) -> float:
 
 def run(sizes=SIZES, repeats_ours: int = 10, repeats_pybotics: int = 3, pybotics: bool = True):
     """One row per N: dict of the numbers (mm, s) and the pybotics version line."""
-    robot = dh_robot("ur5e-like", **UR5E_DH)
+    robot = load_robot("ur5e")
     rows, note = [], "pybotics not run"
     with tempfile.TemporaryDirectory() as tmp:
         for n in sizes:
@@ -155,7 +155,7 @@ def table(rows, note: str) -> str:
         return "n/a" if v is None else format(v, fmt)
 
     out = [
-        f"UR5e-like arm, 0.1 mm noise, {N_TEST} held-out configurations; {note}; {machine()}.",
+        f"UR5e (models/robots/ur5e.toml), 0.1 mm noise, {N_TEST} held-out configurations; {note}; {machine()}.",
         "",
         "| N | nominal held-out mm | ours held-out mm (vs truth) | pybotics held-out mm (vs truth) "
         "| ours fit ms | pybotics fit ms | speed-up |",

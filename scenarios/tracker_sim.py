@@ -24,19 +24,11 @@ from sim.actual import perturb
 
 __all__ = [
     "dh_robot",
-    "UR5E_DH",
     "RRPRR_DH",
     "TrackerCase",
     "make_case",
     "measure",
 ]
-
-UR5E_DH: dict[str, Any] = {
-    "alpha_deg": [90.0, 0.0, 0.0, 90.0, -90.0, 0.0],
-    "a_mm": [0.0, -425.0, -392.2, 0.0, 0.0, 0.0],
-    "d_mm": [162.5, 0.0, 0.0, 133.3, 99.7, 99.6],
-}
-"""A UR5e-like arm in standard DH (Universal Robots' published DH parameters of the UR5e)."""
 
 RRPRR_DH: dict[str, Any] = {
     "alpha_deg": [90.0, 0.0, -90.0, 90.0, 0.0],

@@ -9,28 +9,11 @@ import numpy as np
 import pytest
 
 from calib.kinematics import fk_tool
-from calib.robot_def import load_robot
+from calib.robot_def import load_robot, models_dir
 from scenarios.cli import main
-from scenarios.tracker_sim import UR5E_DH, make_case, measure
+from scenarios.tracker_sim import make_case, measure
 
 SIGMA = 1e-4
-
-
-def _ur5e_toml(path) -> str:
-    """A UR5e-like robot file (standard DH) written where the test wants it."""
-    rows = []
-    for i, (al, a, d) in enumerate(zip(UR5E_DH["alpha_deg"], UR5E_DH["a_mm"], UR5E_DH["d_mm"])):
-        rows.append(
-            f'[[joint]]\nname = "j{i + 1}"\ntype = "revolute"\nalpha_deg = {al}\na_mm = {a}\n'
-            f"d_mm = {d}\noffset_deg = 0.0\nrange_deg = [-360.0, 360.0]\n"
-        )
-    text = (
-        'name = "ur5e-test"\nhome_deg = [0, -90, 0, -90, 0, 0]\n'
-        + "\n".join(rows)
-        + "\n[camera_mount]\nxyz_mm = [0, 0, 0]\nx_axis = [1, 0, 0]\nz_axis = [0, 0, 1]\n"
-    )
-    path.write_text(text)
-    return str(path)
 
 
 def _write(path, header, rows, fmt="{:.6f}", sep=","):
@@ -114,7 +97,7 @@ def test_identify_then_predict_round_trip(tmp_path, capsys, er4u):
 
 
 def test_poses_and_a_robot_file_path(tmp_path, capsys):
-    robot_path = _ur5e_toml(tmp_path / "ur5e.toml")
+    robot_path = str(models_dir() / "robots" / "ur5e.toml")
     robot = load_robot(robot_path)
     _, header, rows = _measurements(tmp_path, robot, m=30, poses=True)
     meas = _write(tmp_path / "m.csv", header, rows, fmt="{:.9f}")

@@ -26,10 +26,9 @@ from calib.tracker_identify import (
 )
 from calib.transforms import inv_pose, pose_from_vec, rot_x, rot_z, trans
 from scenarios.benchmark_tracker import BEGIN, END, mdh_table, run, table, write_docs
-from scenarios.tracker_sim import RRPRR_DH, UR5E_DH, dh_robot, make_case, measure
+from scenarios.tracker_sim import RRPRR_DH, dh_robot, make_case, measure
 
 ROBOTS = {
-    "ur5e": lambda: dh_robot("ur5e", **UR5E_DH),
     "rrprr": lambda: dh_robot("rrprr", **RRPRR_DH),
 }
 # and every robot file of the project (the reference robots)
