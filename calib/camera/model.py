@@ -60,11 +60,13 @@ class CameraModel(ABC):
     """A central camera model (see the module docstring).
 
     Attributes every model has: ``names`` (class attribute: all parameter names in order),
+    ``model_name`` (class attribute: ``"pinhole"``, ``"opencv"``, ``"fisheye"``),
     ``free`` (the names an estimation adjusts, a subset of ``names`` in ``names`` order),
     ``width``, ``height`` (image size, px).
     """
 
     names: ClassVar[tuple[str, ...]]
+    model_name: ClassVar[str]
     free: tuple[str, ...]
     width: int
     height: int

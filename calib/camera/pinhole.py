@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
@@ -29,7 +30,8 @@ class Pinhole(CameraModel):
     """Pinhole intrinsics: focal length ``fx`` (px), aspect ratio ``mu`` (fy = mu fx), principal
     point ``(cx, cy)`` (px, OpenCV convention), image size (px) and the ``free`` parameters."""
 
-    names = ("fx", "mu", "cx", "cy")
+    names: ClassVar[tuple[str, ...]] = ("fx", "mu", "cx", "cy")
+    model_name: ClassVar[str] = "pinhole"
 
     fx: float
     mu: float

@@ -1,0 +1,94 @@
+"""Camera models by name: build one from OpenCV-named values, read its values back by those names.
+
+Model names (the scenario's and dataset's ``camera.model``): ``"pinhole"``
+(:class:`calib.camera.pinhole.Pinhole`), ``"opencv"`` (:class:`calib.camera.distorted.BrownConrady`),
+``"fisheye"`` (:class:`calib.camera.distorted.Fisheye`). Values by OpenCV's names: ``fx``, ``fy``,
+``cx``, ``cy`` (px) and the lens coefficients (``k1`` ...); the estimation's parameter ``mu`` is
+``fy / fx``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+from calib.camera.distorted import BrownConrady, Fisheye, LensCamera
+from calib.camera.model import CameraModel
+from calib.camera.pinhole import Pinhole
+
+__all__ = ["MODELS", "camera_model", "model_name", "opencv_values", "with_pinhole", "lens_names"]
+
+MODELS: dict[str, type[CameraModel]] = {
+    "pinhole": Pinhole,
+    "opencv": BrownConrady,
+    "fisheye": Fisheye,
+}
+"""Camera model classes by name."""
+
+
+def lens_names(model: str) -> tuple[str, ...]:
+    """The lens coefficient names of ``model`` (none for the pinhole).
+
+    Raises ``ValueError`` for an unknown model name."""
+    if model not in MODELS:
+        raise ValueError(f"unknown camera model {model!r}; use one of {sorted(MODELS)}")
+    cls = MODELS[model]
+    return cls.lens_names if issubclass(cls, LensCamera) else ()
+
+
+def camera_model(
+    model: str,
+    *,
+    fx: float,
+    mu: float,
+    cx: float,
+    cy: float,
+    width: int,
+    height: int,
+    coeffs: Mapping[str, float] | None = None,
+    free: Sequence[str] = ("fx", "mu"),
+) -> CameraModel:
+    """The camera ``model`` with pinhole values (px, ``mu = fy / fx``), image size (px), lens
+    coefficients by name (missing ones zero) and ``free`` parameter names.
+
+    Raises ``ValueError`` naming an unknown model, coefficient or free parameter."""
+    names = lens_names(model)
+    coeffs = dict(coeffs or {})
+    unknown = sorted(set(coeffs) - set(names))
+    if unknown:
+        raise ValueError(f"camera model {model!r} has no coefficient(s) {unknown}; it has {names}")
+    cls = MODELS[model]
+    allowed = cls.names
+    bad = [n for n in free if n not in allowed]
+    if bad:
+        raise ValueError(
+            f"camera model {model!r} has no parameter(s) {bad} to free; it has {allowed}"
+        )
+    free_t = tuple(n for n in allowed if n in free)  # names order
+    if cls is Pinhole:
+        return Pinhole(float(fx), float(mu), float(cx), float(cy), int(width), int(height), free_t)
+    c = tuple(float(coeffs.get(n, 0.0)) for n in names)
+    return cls(float(fx), float(mu), float(cx), float(cy), int(width), int(height), free_t, c)  # type: ignore[call-arg]
+
+
+def model_name(camera: CameraModel) -> str:
+    """The name of ``camera``'s model (``"pinhole"``, ``"opencv"``, ``"fisheye"``)."""
+    return camera.model_name
+
+
+def opencv_values(camera: CameraModel) -> dict[str, float]:
+    """``fx``, ``fy``, ``cx``, ``cy`` (px) and the lens coefficients of ``camera`` by OpenCV's
+    names."""
+    fx, mu, cx, cy = (float(v) for v in camera.values()[:4])
+    out = {"fx": fx, "fy": fx * mu, "cx": cx, "cy": cy}
+    if isinstance(camera, LensCamera):
+        out.update(zip(camera.lens_names, (float(c) for c in camera.coeffs)))
+    return out
+
+
+def with_pinhole(template: CameraModel, pinhole: Pinhole) -> CameraModel:
+    """A camera of ``template``'s model and ``free`` selection with ``pinhole``'s values and no
+    distortion (the self-calibration's start: its initialisation is a pinhole)."""
+    if isinstance(template, LensCamera):
+        return type(template).from_pinhole(pinhole, (), template.free)
+    return Pinhole(pinhole.fx, pinhole.mu, pinhole.cx, pinhole.cy, pinhole.width,
+                   pinhole.height, template.free)  # fmt: skip
