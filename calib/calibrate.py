@@ -21,10 +21,11 @@ from typing import NamedTuple
 
 import numpy as np
 
+from calib.camera import Pinhole, camera_model, centered_principal_point
 from calib.errors import EstimationError, SelfCalWarning
 from calib.identify import identify
 from calib.io.calibration import CalibrationResult
-from calib.io.dataset import Dataset, DatasetError, Detections, read_gray
+from calib.io.dataset import Dataset, DatasetError, DatasetInfo, Detections, read_gray
 from calib.joint_refine import refine_calibration
 from calib.kinematics import fk_tool
 from calib.mcpc import MCPCModel, nominal_mcpc, shape_matrices
@@ -195,6 +196,7 @@ def calibrate_detailed(
         obs,
         W,
         H,
+        camera=dataset_camera(ds.info),
         scale_markers=ds.info.scale_ids,
         scale_distance_m=ds.info.scale_length_m,
         nominal_cam_positions=T_nom[:, :3, 3],
@@ -221,6 +223,16 @@ def calibrate_detailed(
     result = with_bounds(result, out, obs=obs, q=q, robot=robot, ds_info=ds.info)
     result = dataclasses.replace(result, seconds=round(time.perf_counter() - t0, 3))
     return dataclasses.replace(out, result=result)
+
+
+def dataset_camera(info: DatasetInfo) -> Pinhole:
+    """The camera model and free parameters the dataset asks to estimate (values: a centred
+    pinhole of the dataset's resolution, no distortion; the self-calibration sets fx, mu)."""
+    W, H = info.resolution
+    cx, cy = centered_principal_point(W, H)
+    cam = camera_model(info.camera_model, fx=1.0, mu=1.0, cx=cx, cy=cy, width=W, height=H,
+                       free=info.camera_free)  # fmt: skip
+    return cam
 
 
 def _joint1_axis(model: MCPCModel) -> np.ndarray:

@@ -178,17 +178,7 @@ def two_stage_result(
     result = CalibrationResult(
         robot_model=robot.name,
         dataset=DatasetUse(int(len(ds.indices)), int(len(used)), tuple(skipped_images)),
-        intrinsics=CameraIntrinsics(
-            fx=float(sc.fx),
-            fy=float(sc.fx * sc.mu),
-            mu=float(sc.mu),
-            cx=float(sc.cx),
-            cy=float(sc.cy),
-            width=int(sc.width),
-            height=int(sc.height),
-            fx_std=float(sc.fx_std),
-            mu_std=float(sc.mu_std),
-        ),
+        intrinsics=CameraIntrinsics.of(sc.camera, sc.camera_std),
         rig=Rig(matrix(sc.T_left_right)),
         scale=ScaleEstimate(
             d_mm=ds.info.scale_length_m * 1000,
@@ -261,14 +251,7 @@ def with_joint(
     )
     out = dataclasses.replace(
         result,
-        intrinsics=dataclasses.replace(
-            result.intrinsics,
-            fx=float(res.fx),
-            fy=float(res.fx * res.mu),
-            mu=float(res.mu),
-            fx_std=float(res.fx_std),
-            mu_std=float(res.mu_std),
-        ),
+        intrinsics=CameraIntrinsics.of(res.camera, res.camera_std),
         rig=Rig(matrix(res.T_left_right)),
         reprojection_rms_px=float(res.rms_px),
         observations=ObservationCounts(int(res.n_inliers), int(res.n_outliers)),

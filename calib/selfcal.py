@@ -39,7 +39,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from calib.bundle_adjust import intrinsics_covariance
-from calib.camera import Pinhole, PinholeValues
+from calib.camera import Pinhole, PinholeValues, with_pinhole
 from calib.estimation.scale_sign import (
     SignChoice,
     check_scale_markers_seen,
@@ -129,6 +129,13 @@ class SelfCalibrationResult(PinholeValues):
         return self.camera
 
     @property
+    def camera_std(self) -> dict[str, float]:
+        """Standard deviation of every free camera parameter by name (``cov_fx_mu`` is the
+        covariance of all of them, in ``camera.free`` order; px or unitless)."""
+        d = np.sqrt(np.clip(np.diag(self.cov_fx_mu), 0.0, None))
+        return dict(zip(self.camera.free, (float(v) for v in d), strict=True))
+
+    @property
     def K(self) -> np.ndarray:
         return self.camera.K
 
@@ -174,6 +181,7 @@ def self_calibrate(
     scale_distance_m: float | None = None,
     nominal_cam_positions: np.ndarray | None = None,
     rig: bool = True,
+    camera: Pinhole | None = None,
     fx_guess: float | None = None,
     mu_guess: float = 1.0,
     fx_bounds: tuple[float, float] | None = None,
@@ -195,7 +203,10 @@ def self_calibrate(
     their centres, m) makes the result metric. ``nominal_cam_positions`` (m, 3) first-camera
     positions (or (m, N, 3) every camera) from the nominal robot model in the robot frame: used
     to choose the sign of ``k`` (:func:`calib.estimation.scale_sign.choose_scale_sign`);
-    cheirality must then hold. ``rig``: model the camera rig as rigid (default).
+    cheirality must then hold. ``rig``: model the camera rig as rigid (default). ``camera``: the
+    model and free parameters to estimate (:mod:`calib.camera`; its values are ignored): the
+    initialisation is the pinhole (principal point at the centre, no distortion), the bundle
+    adjustment then frees ``camera.free`` (default: a pinhole with ``fx``, ``mu`` free).
     ``fx_guess``/``mu_guess`` skip the fundamental-matrix estimate of fx/mu (use when it is
     degenerate). Thresholds in px: ``ransac_px`` (epipolar/PnP RANSAC), ``outlier_px`` (minimum
     rejection threshold; the actual one is ``max(outlier_px, 4.5 sigma)``), ``robust_scale_px``
@@ -221,6 +232,8 @@ def self_calibrate(
     )
     diag = dict(init.diagnostics)
     rec = gauge(init, obs.layout, rig=rig, ref_scores=ref_scores)
+    if camera is not None:
+        rec.camera = with_pinhole(camera, rec.camera)
     t0 = time.perf_counter()
     fit = adjust(
         rec,
@@ -400,8 +413,8 @@ def _result(
         rms_px=rms,
         n_inliers=int(a.sum()),
         n_outliers=int((modelled & ~a).sum()),
-        fx_std=float(np.sqrt(max(cov[names.index("fx"), names.index("fx")], 0.0))),
-        mu_std=float(np.sqrt(max(cov[names.index("mu"), names.index("mu")], 0.0))),
+        fx_std=_std(cov, names, "fx"),
+        mu_std=_std(cov, names, "mu"),
         cov_fx_mu=cov,
         cov_fx_mu_unit=cov_unit,
         ref_config=rec.ref_config,
@@ -414,3 +427,11 @@ def _result(
         mu_init=float(init.camera_init.mu),
         diagnostics=diag,
     )
+
+
+def _std(cov: np.ndarray, names: list[str], name: str) -> float:
+    """Standard deviation of free parameter ``name`` (NaN when it is held)."""
+    if name not in names:
+        return float("nan")
+    i = names.index(name)
+    return float(np.sqrt(max(cov[i, i], 0.0)))

@@ -75,6 +75,7 @@ def synthetic_stereo_scene(
     outlier_fraction: float = 0.0,
     outlier_px: float = 20.0,
     T_world_left: np.ndarray | None = None,
+    camera: Intrinsics | None = None,
 ) -> SyntheticScene:
     """Random marker field + stereo rig views, projected with :func:`calib.camera.project`.
 
@@ -85,12 +86,14 @@ def synthetic_stereo_scene(
     ``baseline_m`` along the left x axis (slightly misaligned, or toed-in to meet at
     ``vergence_distance_m``). ``fixate``: every configuration aims both cameras at the field
     centre from the vergence distance (optical axes through one point -- degenerate for fx).
-    ``T_world_left`` (m, 4, 4) overrides the sampled left-camera poses.
+    ``T_world_left`` (m, 4, 4) overrides the sampled left-camera poses; ``camera`` (a
+    :class:`calib.camera.Pinhole` or a camera with a lens) overrides ``fx``, ``mu``, ``width``,
+    ``height`` and the centred principal point.
     Markers with a corner outside the image or behind the camera are dropped. Gaussian noise
     ``noise_px`` per coordinate; ``outlier_fraction`` of the corners displaced by ``outlier_px``.
     """
     rng = np.random.default_rng(seed)
-    intr = Intrinsics.centered(fx, mu, width, height)
+    intr = Intrinsics.centered(fx, mu, width, height) if camera is None else camera
     centres = np.c_[
         rng.uniform(-field_m / 2, field_m / 2, (n_markers, 2)), rng.uniform(0, relief_m, n_markers)
     ]

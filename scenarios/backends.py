@@ -116,8 +116,7 @@ def sim_setup(s: Scenario) -> SimSetup:
     table = _perturbation_table(s, robot.joint_types)
     if table:
         actual = apply_errors(actual, table)
-    W, H = s.camera.resolution
-    intr = Intrinsics.centered(s.camera.fx, s.camera.mu, W, H)
+    intr = s.camera.true_model()
     field_ = make_marker_field(
         n_markers=s.target.markers,
         seed=s.target.seed,
@@ -227,6 +226,8 @@ def plan_dataset(s: Scenario, setup: SimSetup | None = None) -> DatasetInfo:
         planned_joints_deg=np.round(np.degrees(q), 6),
         validation_joints_deg=np.round(np.degrees(qv), 6),
         scenario=scenario_to_dict(s),
+        camera_model=s.camera.model,
+        camera_free=tuple(s.camera.free),
     )
 
 

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from calib.calibrate import MIN_POSTURES
+from calib.camera import MODELS, CameraModel, camera_model, centered_principal_point, lens_names
 from calib.errors import InputError
 
 if sys.version_info >= (3, 11):
@@ -58,6 +59,27 @@ class CameraConfig:
     mu: float = 1.0
     """Aspect ratio: fy = mu * fx."""
     baseline_mm: float = 60.0
+    model: str = "pinhole"
+    """Camera model of both cameras: "pinhole", "opencv" (Brown-Conrady k1, k2, p1, p2, k3,
+    k4-k6) or "fisheye" (Kannala-Brandt k1-k4); OpenCV's conventions and names."""
+    principal_point_offset_px: list[float] = field(default_factory=lambda: [0.0, 0.0])
+    """True principal point minus the image centre ((W - 1) / 2, (H - 1) / 2), px (simulation)."""
+    distortion: dict = field(default_factory=dict)
+    """True lens coefficients by OpenCV name, e.g. {k1 = -0.25, p1 = 1e-3} (simulation; the
+    others are zero). The calibration starts from no distortion."""
+    free: list[str] = field(default_factory=lambda: ["fx", "mu"])
+    """Parameters the calibration estimates, by name (fx, mu = fy / fx, cx, cy and the model's
+    lens coefficients); the others stay at their start (the image centre, no distortion)."""
+
+    def true_model(self) -> CameraModel:
+        """The simulated camera (principal point offset, lens) with the ``free`` selection."""
+        W, H = self.resolution
+        cx, cy = centered_principal_point(W, H)
+        dx, dy = self.principal_point_offset_px
+        return camera_model(
+            self.model, fx=self.fx, mu=self.mu, cx=cx + dx, cy=cy + dy, width=W, height=H,
+            coeffs=self.distortion, free=self.free,
+        )  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -208,6 +230,7 @@ def _validate(s: Scenario) -> None:
         raise ConfigError(f"{f}: camera.resolution must be [width, height] in px, each >= 16")
     if len(s.robot.hardware.cameras) != 2:
         raise ConfigError(f"{f}: robot.hardware.cameras must list two cameras: [left, right]")
+    _validate_camera(s)
     checks = [
         (s.camera.fx > 0, "camera.fx must be > 0 (px)"),
         (s.camera.mu > 0, "camera.mu must be > 0"),
@@ -236,6 +259,35 @@ def _validate(s: Scenario) -> None:
     for k, v in s.perturbation.table.items():
         if not isinstance(v, (int, float)) or isinstance(v, bool):
             raise ConfigError(f"{f}: perturbation.table.{k}: expected number, got {v!r}")
+
+
+def _validate_camera(s: Scenario) -> None:
+    f, c = s.source, s.camera
+    if c.model not in MODELS:
+        raise ConfigError(
+            f"{f}: camera.model must be one of {', '.join(sorted(MODELS))}, got {c.model!r}"
+        )
+    if len(c.principal_point_offset_px) != 2:
+        raise ConfigError(f"{f}: camera.principal_point_offset_px must be [dx, dy] in px")
+    known = lens_names(c.model)
+    for k, v in c.distortion.items():
+        if k not in known:
+            raise ConfigError(
+                f"{f}: unknown key 'camera.distortion.{k}'; the {c.model!r} model has "
+                f"{', '.join(known) or 'no lens coefficients'}",
+                fix='set camera.model = "opencv" or "fisheye" for a lens, or remove the key',
+            )
+        if not isinstance(v, (int, float)) or isinstance(v, bool):
+            raise ConfigError(f"{f}: camera.distortion.{k}: expected number, got {v!r}")
+    names = MODELS[c.model].names
+    for n in c.free:
+        if n not in names:
+            raise ConfigError(
+                f"{f}: camera.free: {n!r} is not a parameter of the {c.model!r} model; "
+                f"use names of {', '.join(names)}"
+            )
+    if "fx" not in c.free or len(set(c.free)) != len(c.free):
+        raise ConfigError(f"{f}: camera.free must list distinct names and include 'fx'")
 
 
 def load_scenario(path: str | Path | None = None, overrides: dict | None = None) -> Scenario:

@@ -14,6 +14,7 @@ import numpy as np
 
 from calib.alignment import express_in_frame
 from calib.calibrate import calibrate
+from calib.camera import CameraModel
 from calib.io.calibration import CalibrationResult, read_calibration, write_calibration
 from calib.io.dataset import Dataset, DatasetError, DatasetWriter
 from calib.io.jsonfile import write_json_atomic
@@ -147,6 +148,7 @@ def run_report(root: Path, *, quiet: bool = False) -> dict:
         "intrinsics": {
             "fx": {"estimate": cal.intrinsics.fx, "truth": ti.fx},
             "mu": {"estimate": cal.intrinsics.mu, "truth": ti.mu},
+            **_camera_rows(cal.intrinsics.camera(), cal.intrinsics.std, ti),
         },
         "scale_factor": cal.scale.k,
         "reprojection_rms_px": cal.reprojection_rms_px,
@@ -174,6 +176,18 @@ def run_report(root: Path, *, quiet: bool = False) -> dict:
         (root / "table_iv.md").write_text(md_iv)
     _say(quiet, md)
     return report
+
+
+def _camera_rows(est: CameraModel, std: dict[str, float], truth: CameraModel) -> dict:
+    """Every free camera parameter but fx, mu: ``{name: {estimate, truth, std}}`` (truth of a
+    parameter the true model does not have: 0, no lens term)."""
+    true = dict(zip(truth.names, truth.values().tolist()))
+    vals = dict(zip(est.names, est.values().tolist()))
+    return {
+        n: {"estimate": vals[n], "truth": true.get(n, 0.0), "std": std.get(n)}
+        for n in est.free
+        if n not in ("fx", "mu")
+    }
 
 
 def _markdown(r: dict) -> str:

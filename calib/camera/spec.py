@@ -17,7 +17,7 @@ from calib.camera.pinhole import Pinhole
 
 __all__ = ["MODELS", "camera_model", "model_name", "opencv_values", "with_pinhole", "lens_names"]
 
-MODELS: dict[str, type[CameraModel]] = {
+MODELS: dict[str, type[Pinhole]] = {
     "pinhole": Pinhole,
     "opencv": BrownConrady,
     "fisheye": Fisheye,
@@ -46,7 +46,7 @@ def camera_model(
     height: int,
     coeffs: Mapping[str, float] | None = None,
     free: Sequence[str] = ("fx", "mu"),
-) -> CameraModel:
+) -> Pinhole:
     """The camera ``model`` with pinhole values (px, ``mu = fy / fx``), image size (px), lens
     coefficients by name (missing ones zero) and ``free`` parameter names.
 
@@ -85,7 +85,7 @@ def opencv_values(camera: CameraModel) -> dict[str, float]:
     return out
 
 
-def with_pinhole(template: CameraModel, pinhole: Pinhole) -> CameraModel:
+def with_pinhole(template: Pinhole, pinhole: Pinhole) -> Pinhole:
     """A camera of ``template``'s model and ``free`` selection with ``pinhole``'s values and no
     distortion (the self-calibration's start: its initialisation is a pinhole)."""
     if isinstance(template, LensCamera):

@@ -22,8 +22,8 @@ class JointRefinementResult(PinholeValues):
         model_gauge: the same chain in the optimisation gauge (held parameters at their
             two-stage values).
         camera: the refined camera, shared by every camera of the rig (``fx``, ``mu``, ``cx``,
-            ``cy`` its values, px); ``fx_std``, ``mu_std``
-            from the final Jacobian.
+            ``cy`` its values, px); ``fx_std``, ``mu_std`` (NaN when held) and ``camera_std``
+            (every free parameter by name) from the final Jacobian.
         T_first_cam: (N, 4, 4) the rig: each camera's pose in the first camera frame (m);
             ``T_left_right`` the second's.
         T_world_cam: (m, N, 4, 4) camera poses of all configurations (NaN if not active).
@@ -70,6 +70,8 @@ class JointRefinementResult(PinholeValues):
     rank: int
     n_unknowns: int
     diagnostics: dict = field(default_factory=dict)
+    camera_std: dict[str, float] = field(default_factory=dict)
+    """Standard deviation of every free camera parameter by name (px or unitless)."""
 
     @property
     def T_left_right(self) -> np.ndarray:

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from calib.camera import Intrinsics
+from calib.camera import MODELS, Intrinsics, camera_model, opencv_values
 from calib.io.jsonblock import JsonBlock
 from calib.io.jsonfile import Fields
 
@@ -60,9 +60,11 @@ class DatasetUse(JsonBlock):
 
 @dataclass(frozen=True)
 class CameraIntrinsics(JsonBlock):
-    """``intrinsics``: the pinhole of both cameras (px): ``fy = mu fx``, principal point
-    ``(cx, cy)`` (OpenCV, pixel centres at integers), image size, and the standard deviations of
-    ``fx`` and ``mu``."""
+    """``intrinsics``: the camera of both cameras (px): ``fy = mu fx``, principal point
+    ``(cx, cy)`` (OpenCV, pixel centres at integers), image size, the standard deviations of
+    ``fx`` and ``mu``; the ``model`` (``pinhole``, ``opencv``, ``fisheye``), its lens
+    coefficients by OpenCV name (``distortion``), the estimated (``free``) parameters and their
+    standard deviations by name (``std``)."""
 
     fx: float
     fy: float
@@ -73,10 +75,35 @@ class CameraIntrinsics(JsonBlock):
     height: int
     fx_std: float
     mu_std: float
+    model: str = field(default="pinhole", metadata={"choices": tuple(MODELS)})
+    free: tuple[str, ...] = ("fx", "mu")
+    distortion: dict[str, float] = field(default_factory=dict)
+    std: dict[str, float] = field(default_factory=dict)
 
     def pinhole(self) -> Intrinsics:
-        """As :class:`calib.camera.Intrinsics`."""
+        """The pinhole part as :class:`calib.camera.Intrinsics` (no lens)."""
         return Intrinsics(self.fx, self.mu, self.cx, self.cy, self.width, self.height)
+
+    def camera(self) -> Intrinsics:
+        """The estimated camera (its ``model``, lens and ``free`` selection)."""
+        return camera_model(
+            self.model, fx=self.fx, mu=self.mu, cx=self.cx, cy=self.cy, width=self.width,
+            height=self.height, coeffs=self.distortion, free=self.free,
+        )  # fmt: skip
+
+    @classmethod
+    def of(cls, camera: Intrinsics, std: dict[str, float]) -> CameraIntrinsics:
+        """The block of ``camera`` with the standard deviations ``std`` of its free parameters
+        by name."""
+        nan = float("nan")
+        return cls(
+            fx=float(camera.fx), fy=float(camera.fx * camera.mu), mu=float(camera.mu),
+            cx=float(camera.cx), cy=float(camera.cy), width=int(camera.width),
+            height=int(camera.height), fx_std=float(std.get("fx", nan)),
+            mu_std=float(std.get("mu", nan)), model=camera.model_name, free=tuple(camera.free),
+            distortion={k: v for k, v in opencv_values(camera).items() if k[0] in "kp"},
+            std={k: float(v) for k, v in std.items()},
+        )  # fmt: skip
 
 
 @dataclass(frozen=True, eq=False)

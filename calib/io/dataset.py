@@ -26,6 +26,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from calib.camera import MODELS
 from calib.errors import InputError
 from calib.io.jsonfile import (
     SCHEMA_KEY,
@@ -79,6 +80,10 @@ class DatasetInfo:
     validation_joints_deg: np.ndarray
     backend: str = "sim"
     scenario: dict = field(default_factory=dict)
+    camera_model: str = "pinhole"
+    """The cameras' model by name (:data:`calib.camera.MODELS`)."""
+    camera_free: tuple[str, ...] = ("fx", "mu")
+    """The camera parameters the calibration estimates (OpenCV names; ``mu = fy / fx``)."""
 
     def to_json(self) -> dict:
         """The ``dataset.json`` document (the one writer: :func:`write_dataset_info`)."""
@@ -87,7 +92,11 @@ class DatasetInfo:
             SCHEMA_KEY: SCHEMA_VERSION,
             "robot_model": self.robot_model,
             "backend": self.backend,
-            "camera": {"resolution": list(self.resolution)},
+            "camera": {
+                "resolution": list(self.resolution),
+                "model": self.camera_model,
+                "free": list(self.camera_free),
+            },
             "target": {
                 "dictionary": self.dictionary,
                 "scale_marker_ids": list(self.scale_ids),
@@ -124,6 +133,12 @@ class DatasetInfo:
         observation = f.str("observation")
         if observation not in OBSERVATIONS:
             raise f.bad("observation", f"one of {OBSERVATIONS}", observation)
+        model = cam.str("model") if cam.has("model") else "pinhole"
+        if model not in MODELS:
+            raise cam.bad("model", f"one of {tuple(MODELS)}", model)
+        free = cam.strs("free") if cam.has("free") else ("fx", "mu")
+        if not set(free) <= set(MODELS[model].names) or "fx" not in free:
+            raise cam.bad("free", f"names of {MODELS[model].names} including fx", list(free))
         scenario = f.raw("scenario") if f.has("scenario") else {}
         if not isinstance(scenario, dict):
             raise f.bad("scenario", "an object", scenario)
@@ -138,6 +153,8 @@ class DatasetInfo:
             planned_joints_deg=planned,
             validation_joints_deg=valid,
             scenario=scenario,
+            camera_model=model,
+            camera_free=tuple(free),
         )
 
 

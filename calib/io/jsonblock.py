@@ -3,7 +3,7 @@
 :class:`JsonBlock` writes one key per field, in field order, and reads it back through
 :class:`calib.io.jsonfile.Fields` (so a missing or malformed key names the file and the key),
 both driven by the field's declared type: ``float``, ``int``, ``str``, ``bool``, their
-``| None`` forms, ``tuple[X, ...]`` of those or of blocks, ``dict[str, str]``, nested blocks,
+``| None`` forms, ``tuple[X, ...]`` of those or of blocks, ``dict[str, str]``, ``dict[str, float]``, nested blocks,
 and ``np.ndarray`` with ``field(metadata={"shape": (4, 4)})`` (None: any length on that axis).
 A ``str`` field may list its allowed values in ``metadata={"choices": (...)}``. A field with a
 default may be absent from a file (files of an older schema). Numbers are coerced to the
@@ -99,8 +99,8 @@ def _dump(v: Any, hint: Any) -> Any:
     origin, args = typing.get_origin(t), typing.get_args(t)
     if origin is tuple and len(args) == 2 and args[1] is Ellipsis:
         return [_dump(x, args[0]) for x in v]
-    if origin is dict and args == (str, str):
-        return {str(k): str(x) for k, x in v.items()}
+    if origin is dict and args in ((str, str), (str, float)):
+        return {str(k): args[1](x) for k, x in v.items()}
     raise TypeError(f"no JSON form for fields of type {hint}")
 
 
@@ -131,4 +131,6 @@ def _load(f: Fields, key: str, hint: Any, meta: typing.Mapping[str, Any]) -> Any
             return lists[item](key)
     if origin is dict and args == (str, str):
         return f.str_map(key)
+    if origin is dict and args == (str, float):
+        return f.float_map(key)
     raise TypeError(f"no JSON form for fields of type {hint}")

@@ -216,13 +216,19 @@ class Fields:
 
     def str_map(self, key: builtins.str) -> dict[builtins.str, builtins.str]:
         """A required object of strings (name -> text)."""
+        return self._map(key, "an object of strings", _exact(str))
 
-        def conv(v: Any) -> dict[builtins.str, builtins.str]:
+    def float_map(self, key: builtins.str) -> dict[builtins.str, builtins.float]:
+        """A required object of numbers (name -> value)."""
+        return self._map(key, "an object of numbers", _float)
+
+    def _map(self, key: builtins.str, want: builtins.str, item: Callable[[Any], Any]) -> Any:
+        def conv(v: Any) -> dict[builtins.str, Any]:
             if not isinstance(v, dict):
                 raise TypeError
-            return {str(k): _exact(str)(x) for k, x in v.items()}
+            return {str(k): item(x) for k, x in v.items()}
 
-        return self._convert(key, "an object of strings", conv)
+        return self._convert(key, want, conv)
 
     def array(self, key: builtins.str, shape: tuple[builtins.int | None, ...]) -> np.ndarray:
         """A required array of numbers of ``shape`` (None: any length on that axis)."""

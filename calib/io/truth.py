@@ -49,7 +49,7 @@ from typing import Any
 
 import numpy as np
 
-from calib.camera import Intrinsics
+from calib.camera import MODELS, Intrinsics, camera_model, lens_names, opencv_values
 from calib.errors import InputError
 from calib.io.jsonfile import SCHEMA_KEY, Fields, check_header, load_json, write_json_atomic
 from calib.mcpc import COLUMNS, MCPCModel, minimal_indices, param_names
@@ -280,6 +280,7 @@ class Truth:
 
 
 def _intr_json(i: Intrinsics) -> dict:
+    lens = {k: v for k, v in opencv_values(i).items() if k[0] in "kp"}
     return {
         "fx": float(i.fx),
         "mu": float(i.mu),
@@ -287,13 +288,20 @@ def _intr_json(i: Intrinsics) -> dict:
         "cy": float(i.cy),
         "width": int(i.width),
         "height": int(i.height),
+        "model": i.model_name,
+        **lens,
     }
 
 
 def _intr_from(f: Fields) -> Intrinsics:
-    return Intrinsics(
-        f.float("fx"), f.float("mu"), f.float("cx"), f.float("cy"), f.int("width"), f.int("height")
-    )
+    model = f.str("model") if f.has("model") else "pinhole"
+    if model not in MODELS:
+        raise f.bad("model", f"one of {tuple(MODELS)}", model)
+    lens = {n: f.float(n) for n in lens_names(model) if f.has(n)}
+    return camera_model(
+        model, fx=f.float("fx"), mu=f.float("mu"), cx=f.float("cx"), cy=f.float("cy"),
+        width=f.int("width"), height=f.int("height"), coeffs=lens,
+    )  # fmt: skip
 
 
 def _jsonable(x: Any) -> Any:

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from calib.camera import Intrinsics
+from calib.camera import BrownConrady, Intrinsics
 from calib.errors import InputError
 from calib.io.calibration import (
     CalibrationFileError,
@@ -43,6 +43,8 @@ def dataset_info() -> DatasetInfo:
         validation_joints_deg=np.round(rng.uniform(-90, 90, (3, 5)), 6),
         backend="sim",
         scenario={"noise": {"pixel_sigma": 0.5}, "robot": {"model": "er4u-paper"}},
+        camera_model="opencv",
+        camera_free=("fx", "mu", "cx", "cy", "k1", "k2", "p1", "p2"),
     )
 
 
@@ -60,7 +62,9 @@ def truth() -> Truth:
         nominal_params=nom.params,
         true_params=act.params,
         intrinsics_left=Intrinsics(800, 1, 319.5, 239.5, 640, 480),  # ints on purpose
-        intrinsics_right=Intrinsics(801.5, 0.999, 319.5, 239.5, 640, 480),
+        intrinsics_right=BrownConrady(
+            801.5, 0.999, 331.5, 231.5, 640, 480, coeffs=(-0.25, 0.1, 1e-3, -5e-4, 0, 0, 0, 0)
+        ),
         T_left_right=np.eye(4),
         T_flange_cam=robot.T_flange_cam,
         T_flange_cam_nominal=robot.T_flange_cam,
@@ -119,6 +123,9 @@ def test_calibration_keeps_every_key_and_number_of_the_golden_file(tmp_path):
     back = json.loads(path.read_text())
     assert set(back) - set(golden) == {"warnings"}
     assert back["dataset"].pop("skipped_images") == [] and back.pop("warnings") == []
+    added = {"model": "pinhole", "free": ["fx", "mu"], "distortion": {}, "std": {}}
+    for doc in (back, *back["methods"].values()):  # the camera model's keys (#12), defaults
+        assert {k: doc["intrinsics"].pop(k) for k in added} == added
     assert back == golden
 
 

@@ -1,0 +1,128 @@
+"""The configured camera model and free parameters through estimation and files (#12): scenario
+keys, dataset.json, calibration.json, and the self-calibration freeing the lens.
+
+The self-calibration tests use synthetic stereo scenes (30 configurations, 0.5 px noise) and
+check every free parameter within 3 sigma of truth, sigma from the adjustment's covariance
+(measured over 6 seeds: |z| <= 2.6 for the Brown-Conrady lens, <= 1.6 for the fisheye over 4).
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from calib.calibrate import dataset_camera
+from calib.camera import BrownConrady, Fisheye, camera_model
+from calib.io.calibration_blocks import CameraIntrinsics
+from calib.io.dataset import DatasetError, DatasetInfo
+from calib.io.jsonfile import Fields
+from calib.selfcal import self_calibrate
+from calib.selfcal_synthetic import synthetic_stereo_scene
+from scenarios.config import ConfigError, load_scenario
+
+LENS = "k1 = -0.25, k2 = 0.1, p1 = 1e-3, p2 = -5e-4"
+FREE = ["fx", "mu", "cx", "cy", "k1", "k2", "p1", "p2"]
+
+
+def _write(tmp_path, text):
+    p = tmp_path / "s.toml"
+    p.write_text(text)
+    return p
+
+
+def test_scenario_camera_keys_build_the_true_camera(tmp_path):
+    s = load_scenario(_write(tmp_path, f"""[camera]
+model = "opencv"
+principal_point_offset_px = [12.0, -8.0]
+distortion = {{ {LENS} }}
+free = {json.dumps(FREE)}
+"""))  # fmt: skip
+    cam = s.camera.true_model()
+    assert isinstance(cam, BrownConrady) and cam.free == tuple(FREE)
+    assert (cam.cx, cam.cy) == (331.5, 231.5)
+    assert cam.coeffs == (-0.25, 0.1, 1e-3, -5e-4, 0.0, 0.0, 0.0, 0.0)
+    default = load_scenario().camera
+    assert default.model == "pinhole" and default.free == ["fx", "mu"]
+    assert default.true_model().values().tolist() == [800.0, 1.0, 319.5, 239.5]
+
+
+@pytest.mark.parametrize(
+    "text, words",
+    [
+        ('model = "opencv"\ndistortion = { k7 = 0.1 }', ["s.toml", "camera.distortion.k7"]),
+        ("distortion = { k1 = 0.1 }", ["camera.distortion.k1", "'pinhole' model"]),
+        ('model = "fisheye"\ndistortion = { p1 = 0.1 }', ["camera.distortion.p1"]),
+        ('model = "opencv"\ndistortion = { k1 = "big" }', ["camera.distortion.k1", "number"]),
+        ('free = ["fx", "k1"]', ["camera.free", "'k1'", "pinhole"]),
+        ('free = ["mu"]', ["camera.free", "'fx'"]),
+        ('model = "stereographic"', ["camera.model", "stereographic"]),
+        ("principal_point_offset_px = [1.0]", ["camera.principal_point_offset_px"]),
+        ("lens = 1", ["unknown key 'camera.lens'"]),
+    ],
+)
+def test_bad_camera_keys_name_file_and_key(tmp_path, text, words):
+    with pytest.raises(ConfigError) as e:
+        load_scenario(_write(tmp_path, f"[camera]\n{text}\n"))
+    for w in words:
+        assert w in str(e.value)
+
+
+def _info(**kw) -> DatasetInfo:
+    return DatasetInfo("er4u-paper", (640, 480), "DICT_4X4_50", (48, 49), 0.2, "detections",
+                       np.zeros((6, 5)), np.zeros((0,)), **kw)  # fmt: skip
+
+
+def test_dataset_names_the_model_and_free_parameters():
+    info = _info(camera_model="fisheye", camera_free=("fx", "mu", "k1"))
+    doc = info.to_json()
+    assert doc["camera"] == {
+        "resolution": [640, 480],
+        "model": "fisheye",
+        "free": ["fx", "mu", "k1"],
+    }
+    back = DatasetInfo.from_json(doc, "dataset.json")
+    assert (back.camera_model, back.camera_free) == ("fisheye", ("fx", "mu", "k1"))
+    cam = dataset_camera(back)
+    assert isinstance(cam, Fisheye) and cam.free == ("fx", "mu", "k1") and cam.cx == 319.5
+    del doc["camera"]["model"], doc["camera"]["free"]  # an older dataset: the pinhole
+    old = DatasetInfo.from_json(doc, "dataset.json")
+    assert (old.camera_model, old.camera_free) == ("pinhole", ("fx", "mu"))
+    doc["camera"]["free"] = ["fx", "p1"]
+    with pytest.raises(DatasetError, match=r"dataset\.json.*camera\.free"):
+        DatasetInfo.from_json(doc, "dataset.json")
+
+
+def test_calibration_block_records_the_camera_by_opencv_names():
+    cam = camera_model("opencv", fx=801.0, mu=0.99, cx=331.0, cy=232.0, width=640, height=480,
+                       coeffs={"k1": -0.24, "p2": -4e-4}, free=FREE)  # fmt: skip
+    std = dict(zip(FREE, np.linspace(0.1, 0.8, 8).tolist()))
+    block = CameraIntrinsics.of(cam, std)
+    doc = json.loads(json.dumps(block.to_json()))
+    assert doc["model"] == "opencv" and doc["free"] == FREE and doc["std"] == std
+    assert doc["distortion"]["k1"] == -0.24 and doc["fy"] == pytest.approx(801.0 * 0.99)
+    assert list(doc["distortion"]) == ["k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6"]
+    back = CameraIntrinsics.from_json(Fields(doc, "calibration.json", "fix"))
+    assert back == block and back.camera() == cam
+
+
+@pytest.mark.parametrize(
+    "model, fx, coeffs, free, seed",
+    [
+        ("opencv", 800.0, {"k1": -0.25, "k2": 0.1, "p1": 1e-3, "p2": -5e-4}, FREE, 3),
+        ("fisheye", 500.0, {"k1": 0.05, "k2": -0.02}, FREE[:6], 1),
+    ],
+)
+def test_self_calibration_frees_the_configured_lens(model, fx, coeffs, free, seed):
+    truth = camera_model(model, fx=fx, mu=1.0, cx=331.5, cy=231.5, width=640, height=480,
+                         coeffs=coeffs, free=free)  # fmt: skip
+    start = camera_model(model, fx=1.0, mu=1.0, cx=319.5, cy=239.5, width=640, height=480,
+                         free=free)  # fmt: skip
+    sc = synthetic_stereo_scene(30, seed=seed, noise_px=0.5, camera=truth)
+    res = self_calibrate(sc.observations(), 640, 480, scale_markers=sc.scale_markers,
+                         scale_distance_m=sc.scale_distance_m, camera=start)  # fmt: skip
+    assert type(res.camera) is type(truth) and res.camera.free == truth.free
+    z = (res.camera.free_values() - truth.free_values()) / np.sqrt(np.diag(res.cov_fx_mu))
+    assert np.all(np.abs(z) < 3.0), dict(zip(free, z.round(2)))
+    assert set(res.camera_std) == set(free) and res.rms_px < 0.5 * np.sqrt(2) * 1.1
