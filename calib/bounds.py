@@ -253,13 +253,13 @@ class CramerRao:
 
     @property
     def fx_std(self) -> float:
-        """Bound of the pinhole's ``fx`` (px)."""
-        return self.camera_std["fx"]
+        """Bound of the pinhole's ``fx`` (px; NaN when held)."""
+        return self.camera_std.get("fx", float("nan"))
 
     @property
     def mu_std(self) -> float:
-        """Bound of the pinhole's ``mu``."""
-        return self.camera_std["mu"]
+        """Bound of the pinhole's ``mu`` (NaN when held)."""
+        return self.camera_std.get("mu", float("nan"))
 
     def tool_points(self, q: np.ndarray, T_cam_point: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Predicted points (k, 3) m and their stacked covariance (3k, 3k) m^2 at joints ``q``."""

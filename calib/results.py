@@ -344,4 +344,5 @@ def _bounds(
         fx=EstimateBound(float(s.fx), float(cr.fx_std)),
         mu=EstimateBound(float(s.mu), float(cr.mu_std)),
         parameters=tuple(params),
+        camera={k: float(v) for k, v in cr.camera_std.items()},
     )

@@ -23,6 +23,7 @@ import numpy as np
 
 from calib.compensate import solve_compensated, solve_compensated_pose
 from calib.export import BASE_FRAME, TOOL_FRAME, DeployError, deploy
+from calib.export_camera import to_camera_info_yaml, to_opencv_yaml
 from calib.export_toml import from_toml, to_toml
 from calib.export_urdf import to_urdf
 from calib.ik import UnreachableError
@@ -35,7 +36,9 @@ from sim.export_mjcf import calibrated_mjcf
 
 __all__ = ["register", "cmd_export", "cmd_ik_calibrated", "load_calibration", "FORMATS"]
 
-FORMATS = {"mjcf": ".xml", "urdf": ".urdf", "toml": ".toml"}
+FORMATS = {"mjcf": ".xml", "urdf": ".urdf", "toml": ".toml", "opencv": ".yml",
+           "camera_info": ".yaml"}  # fmt: skip
+CAMERA_FORMATS = ("opencv", "camera_info")
 
 EXPORT_HELP = """\
 frames and units:
@@ -47,6 +50,10 @@ formats:
   mjcf  the robot of models/scorbot_er4u/<robot>.xml with calibrated frames (same names)
   urdf  base_link, link1..link<n>, tool_tip, cam_left, cam_right (kinematics only)
   toml  MCPC parameters with std, joint offsets and the DH table where one exists
+  opencv       the estimated camera as cv2.FileStorage YAML (camera_matrix,
+               distortion_coefficients, image_width, image_height, distortion_model)
+  camera_info  the estimated camera as ROS camera_info YAML (K, D with distortion_model
+               plumb_bob / rational_polynomial / equidistant, R = I, P = [K | 0])
 see docs/deploy.md
 """
 
@@ -91,6 +98,8 @@ def cmd_export(args: argparse.Namespace) -> int:
                 f"--format is needed: the suffix of {out.name!r} names none of "
                 f"{', '.join(f'{f} ({e})' for f, e in FORMATS.items())}"
             )
+    if fmt in CAMERA_FORMATS:
+        return _export_camera(args.calibration, fmt, out, args.camera_name)
     dep = load_calibration(args.calibration)
     robot = load_robot(dep.robot_name)
     if fmt == "mjcf":
@@ -112,6 +121,19 @@ def cmd_export(args: argparse.Namespace) -> int:
             }
         )
     )
+    return 0
+
+
+def _export_camera(path: str, fmt: str, out: Path, camera_name: str) -> int:
+    """Write the calibration's estimated camera (shared by the rig's cameras) as ``fmt``."""
+    p = _calibration_file(path)
+    if p.suffix == ".toml":
+        raise CliError(f"{p}: --format {fmt} needs a calibration.json (a .toml holds no camera)")
+    cam = read_calibration(p).intrinsics.camera()
+    text = to_opencv_yaml(cam) if fmt == "opencv" else to_camera_info_yaml(cam, camera_name)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(text)
+    print(json.dumps({"out": str(out), "format": fmt, "camera_model": cam.model_name}))
     return 0
 
 
@@ -176,7 +198,8 @@ def register(subparsers) -> None:
     """
     sp = subparsers.add_parser(
         "export",
-        help="calibrated model -> MJCF, URDF or TOML in the robot's base frame",
+        help="calibrated model -> MJCF, URDF or TOML in the robot's base frame; camera -> OpenCV "
+        "or ROS camera_info YAML",
         description="Export the calibrated robot (tool = tool tip, world = the robot's base "
         "frame) for MuJoCo, URDF/ROS or as a parameter table.",
         epilog=EXPORT_HELP,
@@ -189,7 +212,11 @@ def register(subparsers) -> None:
         "--format",
         choices=tuple(FORMATS),
         default=None,
-        help="mjcf | urdf | toml (default: from the --out suffix .xml / .urdf / .toml)",
+        help="mjcf | urdf | toml | opencv | camera_info (default: from the --out suffix "
+        ".xml / .urdf / .toml / .yml / .yaml)",
+    )
+    sp.add_argument(
+        "--camera-name", default="camera", help="camera_name of a camera_info file (default camera)"
     )
     sp.add_argument("--out", required=True, help="output file")
     sp.set_defaults(func=cmd_export)

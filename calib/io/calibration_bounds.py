@@ -59,8 +59,8 @@ BOUNDS_NOTE = (
 class Bounds(JsonBlock):
     """``bounds``: Cramer-Rao bounds of this data set (:mod:`calib.bounds`), evaluated at the
     final estimate of ``method_evaluated_at``: the noise levels used (corner px per coordinate,
-    read-back deg per joint or None), the counts, the tool-tip bound, ``fx`` / ``mu`` and every
-    parameter."""
+    read-back deg per joint or None), the counts, the tool-tip bound, ``fx`` / ``mu``, every
+    parameter and every free camera parameter (``camera``, by OpenCV name)."""
 
     kind: str = "cramer-rao"
     method_evaluated_at: str
@@ -73,3 +73,5 @@ class Bounds(JsonBlock):
     mu: EstimateBound
     parameters: tuple[BoundParameter, ...]
     note: str = BOUNDS_NOTE
+    camera: dict[str, float] = field(default_factory=dict)
+    """The bound of every free camera parameter by name (px or unitless)."""

@@ -1,0 +1,126 @@
+"""Export of the estimated camera (calib.export_camera, ``selfcal export --format
+opencv|camera_info``): read back with cv2.FileStorage, the same projection through OpenCV."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import shutil
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from calib.camera import BrownConrady, Fisheye, Pinhole
+from calib.export_camera import to_camera_info_yaml, to_opencv_yaml
+from calib.io.calibration import read_calibration, write_calibration
+from calib.io.calibration_blocks import CameraIntrinsics
+from scenarios.deploy_cli import register
+
+GOLDEN = Path(__file__).resolve().parents[1] / "golden" / "analytic" / "calibration.json"
+
+CAMERAS = {
+    "pinhole": Pinhole(801.25, 0.995, 331.5, 231.25, 640, 480),
+    "plumb_bob": BrownConrady(801.25, 0.995, 331.5, 231.25, 640, 480,
+                              coeffs=(-0.25, 0.1, 1e-3, -5e-4, 0.01, 0, 0, 0)),
+    "rational_polynomial": BrownConrady(801.25, 0.995, 331.5, 231.25, 640, 480,
+                                        coeffs=(-0.25, 0.1, 1e-3, -5e-4, 0.01, 0.02, 0, 0.001)),
+    "equidistant": Fisheye(401.5, 1.0, 331.5, 231.25, 640, 480,
+                           coeffs=(0.05, -0.02, 0.003, -0.001)),
+}  # fmt: skip
+
+
+def _read(text: str) -> cv2.FileStorage:
+    fs = cv2.FileStorage(text, cv2.FILE_STORAGE_READ | cv2.FILE_STORAGE_MEMORY)
+    assert fs.isOpened()
+    return fs
+
+
+def _data(fs: cv2.FileStorage, key: str) -> np.ndarray:
+    node = fs.getNode(key)
+    rows, cols = int(node.getNode("rows").real()), int(node.getNode("cols").real())
+    d = node.getNode("data")
+    return np.array([d.at(i).real() for i in range(d.size())]).reshape(rows, cols)
+
+
+def _opencv_projection(model: str, K: np.ndarray, D: np.ndarray, X: np.ndarray) -> np.ndarray:
+    z = np.zeros(3)
+    if model == "equidistant" or model == "fisheye":
+        return cv2.fisheye.projectPoints(X.reshape(-1, 1, 3), z, z, K, D)[0].reshape(-1, 2)
+    return cv2.projectPoints(X, z, z, K, D)[0].reshape(-1, 2)
+
+
+def _check_same_projection(cam, got: np.ndarray) -> None:
+    """A round trip loses nothing: OpenCV projects like the model, within the rounding of
+    tests/unit/test_camera_lens.py (1.5 eps of |uv| + |c| + f measured; 3x that here)."""
+    uv = cam.project(X)
+    scale = np.abs(uv) + np.abs([cam.cx, cam.cy]) + [cam.fx, cam.fy]
+    assert np.all(np.abs(got - uv) <= 4.5 * np.finfo(float).eps * scale)
+
+
+X = np.c_[np.random.default_rng(0).uniform(-0.35, 0.35, (20, 2)), np.ones(20)] * 0.7
+
+
+@pytest.mark.parametrize("kind", CAMERAS)
+def test_opencv_yaml_reads_back_and_projects_the_same(kind):
+    cam = CAMERAS[kind]
+    fs = _read(to_opencv_yaml(cam))
+    K, D = fs.getNode("camera_matrix").mat(), fs.getNode("distortion_coefficients").mat()
+    assert (fs.getNode("image_width").real(), fs.getNode("image_height").real()) == (640, 480)
+    np.testing.assert_array_equal(K, cam.K)
+    assert D.shape == (1, {"pinhole": 5, "plumb_bob": 5, "rational_polynomial": 8,
+                           "equidistant": 4}[kind])  # fmt: skip
+    assert fs.getNode("distortion_model").string() == kind.replace("pinhole", "plumb_bob")
+    _check_same_projection(cam, _opencv_projection(kind, K, D, X))
+
+
+@pytest.mark.parametrize("kind", CAMERAS)
+def test_camera_info_yaml_reads_back(kind):
+    cam = CAMERAS[kind]
+    fs = _read(to_camera_info_yaml(cam, "left"))
+    assert fs.getNode("camera_name").string() == "left"
+    assert (fs.getNode("image_width").real(), fs.getNode("image_height").real()) == (640, 480)
+    model = fs.getNode("distortion_model").string()
+    assert model == kind.replace("pinhole", "plumb_bob")
+    K, D = _data(fs, "camera_matrix"), _data(fs, "distortion_coefficients")
+    np.testing.assert_array_equal(K, cam.K)
+    np.testing.assert_array_equal(_data(fs, "rectification_matrix"), np.eye(3))
+    np.testing.assert_array_equal(_data(fs, "projection_matrix"), np.c_[cam.K, np.zeros(3)])
+    _check_same_projection(cam, _opencv_projection(model, K, D, X))
+
+
+def _parser():
+    p = argparse.ArgumentParser(prog="selfcal")
+    register(p.add_subparsers(dest="command", required=True))
+    return p
+
+
+@pytest.mark.parametrize("fmt, suffix", [("opencv", "yml"), ("camera_info", "yaml")])
+def test_cli_exports_the_calibrated_camera(tmp_path, capsys, fmt, suffix):
+    doc = json.loads(GOLDEN.read_text())
+    shutil.copy(GOLDEN, tmp_path / "calibration.json")
+    lens = CAMERAS["plumb_bob"]
+    res = read_calibration(tmp_path)
+    write_calibration(tmp_path / "calibration.json",
+                      dataclasses.replace(res, intrinsics=CameraIntrinsics.of(lens, {})))  # fmt: skip
+    out = tmp_path / f"cam.{suffix}"
+    args = _parser().parse_args(["export", str(tmp_path), "--out", str(out)])  # from the suffix
+    assert args.func(args) == 0
+    assert json.loads(capsys.readouterr().out) == {
+        "out": str(out),
+        "format": fmt,
+        "camera_model": "opencv",
+    }
+    fs = _read(out.read_text())
+    K = fs.getNode("camera_matrix").mat() if fmt == "opencv" else _data(fs, "camera_matrix")
+    np.testing.assert_array_equal(K, lens.K)
+    assert doc["intrinsics"]["fx"] != lens.fx  # the file's camera, not the golden one
+    toml = tmp_path / "robot.toml"
+    toml.write_text("x = 1\n")
+    from scenarios.cli import CliError
+
+    args = _parser().parse_args(["export", str(toml), "--format", fmt, "--out", str(out)])
+    with pytest.raises(CliError, match="needs a calibration.json"):
+        args.func(args)
