@@ -34,6 +34,7 @@ import mujoco
 import numpy as np
 
 from calib.camera import Intrinsics
+from sim.lens import source_pinhole
 
 __all__ = [
     "R_CV_TO_MJ",
@@ -67,11 +68,14 @@ def add_camera(
 
     The rendered image (``intr.width`` x ``intr.height``) obeys the OpenCV pinhole model with
     ``K = intr.K`` and the OpenCV camera pose ``T_body_cam`` (camera coords -> body coords, m).
-    Renderers must use an image of exactly ``intr.width`` x ``intr.height`` pixels.
+    Renderers must use an image of exactly ``intr.width`` x ``intr.height`` pixels. A camera
+    with a lens is rendered as its source pinhole (:func:`sim.lens.source_pinhole`), which
+    :class:`sim.render.StereoRenderer` remaps to the lens camera's image.
 
     Raises ``ValueError`` for a non-rigid pose, non-positive focal lengths or image size.
     """
     T = _check_pose(T_body_cam, "T_body_cam")
+    intr = source_pinhole(intr)
     if not (intr.fx > 0 and intr.fy > 0):
         raise ValueError(f"focal lengths must be positive, got fx={intr.fx}, fy={intr.fy}")
     if intr.width <= 0 or intr.height <= 0:

@@ -18,9 +18,13 @@ positions were identical with 0 and 4 samples, so ``offsamples=0`` in
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import mujoco
 import numpy as np
 
+from calib.camera import Pinhole
+from sim.lens import LensRemap, needs_remap
 from sim.mj_camera import camera_id
 
 __all__ = ["StereoRenderer"]
@@ -29,9 +33,12 @@ __all__ = ["StereoRenderer"]
 class StereoRenderer:
     """Render the stereo pair seen by two (or more) named cameras of ``model``.
 
-    ``width`` x ``height`` must match the cameras' intrinsics (``sim.mj_camera.add_camera``) and
-    fit the model's offscreen buffer (``visual/global offwidth/offheight``). Multisample
-    anti-aliasing uses ``model.vis.quality.offsamples`` samples.
+    ``width`` x ``height`` (the output images) must match the cameras' intrinsics
+    (``sim.mj_camera.add_camera``) and the rendered images fit the model's offscreen buffer
+    (``visual/global offwidth/offheight``). ``lenses``: the true camera model of each camera
+    (``camera_names`` order; None: pinholes as built): a camera with a lens is rendered as its
+    source pinhole and remapped (:mod:`sim.lens`). Multisample anti-aliasing uses
+    ``model.vis.quality.offsamples`` samples.
 
     Raises ``ValueError`` for a size mismatch and ``KeyError`` for an unknown camera.
     """
@@ -43,49 +50,62 @@ class StereoRenderer:
         height: int,
         camera_names: tuple[str, ...] = ("cam_left", "cam_right"),
         max_geom: int = 2000,
+        lenses: Sequence[Pinhole] | None = None,
     ) -> None:
         self._gl = None
         self._ctx = None
-        if width > model.vis.global_.offwidth or height > model.vis.global_.offheight:
-            raise ValueError(
-                f"image {width}x{height} exceeds the offscreen buffer "
-                f"{model.vis.global_.offwidth}x{model.vis.global_.offheight}; "
-                "build the spec with sim.scene.configure_visual(spec, width, height)"
-            )
         self.model = model
         self.width, self.height = int(width), int(height)
         self.camera_names = tuple(camera_names)
+        if lenses is not None and len(lenses) != len(self.camera_names):
+            raise ValueError(f"{len(lenses)} lenses for {len(self.camera_names)} cameras")
+        self._remaps = [
+            LensRemap(c) if c is not None and needs_remap(c) else None for c in (lenses or ())
+        ] or [None] * len(self.camera_names)
+        sizes = [
+            (self.width, self.height) if m is None else (m.source.width, m.source.height)
+            for m in self._remaps
+        ]
         self._cams = []
-        for name in self.camera_names:
+        for name, size in zip(self.camera_names, sizes, strict=True):
             cid = camera_id(model, name)
             res = tuple(int(v) for v in model.cam_resolution[cid])
-            if res != (self.width, self.height):
+            if res != size:
                 raise ValueError(
                     f"camera {name!r} was built for {res[0]}x{res[1]} pixels, renderer is "
-                    f"{self.width}x{self.height}: the intrinsics would not hold"
+                    f"{size[0]}x{size[1]}: the intrinsics would not hold"
                 )
             cam = mujoco.MjvCamera()
             cam.type = mujoco.mjtCamera.mjCAMERA_FIXED
             cam.fixedcamid = cid
             self._cams.append(cam)
+        gw, gh = max(w for w, _ in sizes), max(h for _, h in sizes)
+        if gw > model.vis.global_.offwidth or gh > model.vis.global_.offheight:
+            raise ValueError(
+                f"image {gw}x{gh} exceeds the offscreen buffer "
+                f"{model.vis.global_.offwidth}x{model.vis.global_.offheight}; "
+                "build the spec with sim.scene.configure_visual(spec, width, height)"
+            )
         self._opt = mujoco.MjvOption()
         self._scene = mujoco.MjvScene(model, maxgeom=max_geom)
-        self._rect = mujoco.MjrRect(0, 0, self.width, self.height)
-        self._gl = mujoco.GLContext(self.width, self.height)
+        self._rects = [mujoco.MjrRect(0, 0, w, h) for w, h in sizes]
+        self._gl = mujoco.GLContext(gw, gh)
         self._gl.make_current()
         self._ctx = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_100)
         mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, self._ctx)
-        self._buf = np.empty((self.height, self.width, 3), dtype=np.uint8)
+        self._bufs = [np.empty((h, w, 3), dtype=np.uint8) for w, h in sizes]
 
     @property
     def samples(self) -> int:
         """Multisample count actually granted by the GL driver (0: no anti-aliasing)."""
         return int(self._ctx.offSamples) if self._ctx is not None else 0
 
-    def _render_one(self) -> np.ndarray:
-        mujoco.mjr_render(self._rect, self._scene, self._ctx)
-        mujoco.mjr_readPixels(self._buf, None, self._rect, self._ctx)
-        return np.flipud(self._buf).copy()  # GL rows start at the bottom
+    def _render_one(self, k: int) -> np.ndarray:
+        rect, buf, remap = self._rects[k], self._bufs[k], self._remaps[k]
+        mujoco.mjr_render(rect, self._scene, self._ctx)
+        mujoco.mjr_readPixels(buf, None, rect, self._ctx)
+        img = np.flipud(buf)  # GL rows start at the bottom
+        return img.copy() if remap is None else remap(np.ascontiguousarray(img))
 
     def render_all(
         self, data: mujoco.MjData, image_sigma: float = 0.0, rng: np.random.Generator | None = None
@@ -110,7 +130,7 @@ class StereoRenderer:
             else:  # same geometry, different viewpoint (and headlight)
                 mujoco.mjv_updateCamera(self.model, data, cam, self._scene)
                 mujoco.mjv_makeLights(self.model, data, self._scene)
-            out.append(self._render_one())
+            out.append(self._render_one(k))
         if image_sigma > 0:
             rng = np.random.default_rng() if rng is None else rng
             out = [_add_noise(img, image_sigma, rng) for img in out]

@@ -38,6 +38,7 @@ from calib.mcpc import MCPCModel
 from calib.robot_def import RobotDef
 from calib.transforms import inv_pose, trans
 from sim.capsule_shapes import link_radius, shape_capsule_base, shape_capsule_links
+from sim.lens import source_pinhole
 from sim.link_frames import flange_in_last_link, link_body_names, link_body_poses, next_joint
 from sim.markers import MarkerField
 from sim.mj_camera import add_camera
@@ -201,8 +202,9 @@ def add_robot(spec: mujoco.MjSpec, robot: RobotDef, model: MCPCModel, rig: RigCo
     key.ctrl = [float(v) for v in robot.home]
 
     g = spec.visual.global_
-    g.offwidth = max(int(g.offwidth), rig.intrinsics.width, rig.right.width)
-    g.offheight = max(int(g.offheight), rig.intrinsics.height, rig.right.height)
+    rendered = (source_pinhole(rig.intrinsics), source_pinhole(rig.right))  # lens: larger
+    g.offwidth = max(int(g.offwidth), *(c.width for c in rendered))
+    g.offheight = max(int(g.offheight), *(c.height for c in rendered))
 
 
 def robot_spec(robot: RobotDef, model: MCPCModel, rig: RigConfig | None = None) -> mujoco.MjSpec:

@@ -74,6 +74,7 @@ class SimRobot(KinematicRobot):
                 self.rig.intrinsics.width,
                 self.rig.intrinsics.height,
                 camera_names=CAMERA_NAMES,
+                lenses=(self.rig.intrinsics, self.rig.right),
             )
         left, right = self._renderer.render(self.mj_data, self.image_sigma, self._rng)
         meta = {
