@@ -12,6 +12,7 @@ The result is built in :mod:`calib.results`.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import os
 import time
 import warnings
@@ -21,7 +22,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from calib.camera import Pinhole, camera_model, centered_principal_point
+from calib.camera import LensCamera, Pinhole, camera_model, centered_principal_point
+from calib.camera.undistort import Undistorter
 from calib.errors import EstimationError, SelfCalWarning
 from calib.identify import identify
 from calib.io.calibration import CalibrationResult
@@ -78,9 +80,12 @@ def skipped_images_message(skipped: tuple[str, ...], dictionary: str) -> str:
     )
 
 
-def detect_dataset(ds: Dataset, progress=None) -> MarkerDetections:
+def detect_dataset(ds: Dataset, progress=None, lens: LensCamera | None = None) -> MarkerDetections:
     """Marker corners of every image (images path) or the stored detections (analytic path),
     and the images that show no marker (for people also a :class:`NoMarkersWarning`).
+    ``lens``: a camera with a lens (an estimate): detect on the images undistorted with it and
+    map the corners back (:class:`calib.camera.undistort.Undistorter`; the straight-edge corner
+    refinement is biased on bent edges).
 
     Raises:
         DatasetError: a missing or unreadable image, or one whose size is not dataset.json's.
@@ -93,6 +98,7 @@ def detect_dataset(ds: Dataset, progress=None) -> MarkerDetections:
     if progress is not None:
         progress.start(2 * len(ds.indices))
     W, H = ds.info.resolution
+    flat = None if lens is None else Undistorter(lens)
 
     def detect(item: tuple[int, str, Path]) -> tuple[int, str, dict]:
         index, cam, path = item
@@ -102,7 +108,10 @@ def detect_dataset(ds: Dataset, progress=None) -> MarkerDetections:
                 f"frame {index:04d}_{cam}.png is {img.shape[1]}x{img.shape[0]} px but dataset.json "
                 f"says {W}x{H}"
             )
-        return index, cam, detect_markers(img, dictionary=ds.info.dictionary)
+        if flat is None:
+            return index, cam, detect_markers(img, dictionary=ds.info.dictionary)
+        dets = detect_markers(flat.image(img), dictionary=ds.info.dictionary)
+        return index, cam, {k: flat.distorted(c) for k, c in dets.items()}
 
     # OpenCV releases the GIL while decoding and detecting: use every core, keep the order.
     with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
@@ -192,10 +201,10 @@ def calibrate_detailed(
     T_nom = fk_tool(nominal, q)
     check_not_degenerate(T_nom)
     W, H = ds.info.resolution
-    sc = self_calibrate(
-        obs,
-        W,
-        H,
+    camera_stage = functools.partial(
+        self_calibrate,
+        width=W,
+        height=H,
         camera=dataset_camera(ds.info),
         scale_markers=ds.info.scale_ids,
         scale_distance_m=ds.info.scale_length_m,
@@ -204,6 +213,13 @@ def calibrate_detailed(
         # x-axis is far from parallel to joint 1's axis (MCPC's base parameters are singular there).
         ref_scores=np.abs(T_nom[:, :3, 0] @ _joint1_axis(nominal)),
     )
+    sc = camera_stage(obs)
+    if isinstance(sc.camera, LensCamera) and ds.info.observation == "images":
+        # the lens bends the marker edges: detect again through the estimated lens, refit
+        dets, skipped = detect_dataset(ds, lens=sc.camera)
+        _check_scale_markers(ds, dets)
+        obs = observations_of(ds, dets)
+        sc = camera_stage(obs)
     used = np.flatnonzero(sc.registered if sc.registered.ndim == 1 else sc.registered[:, 0])
     if len(used) < MIN_POSTURES:
         raise CalibrationError(

@@ -157,6 +157,11 @@ def _evaluate(root: Path, pixel_sigma: float) -> dict:
     s2 = setup_from_output(two, obs, q, robot, ds.info, pixel_sigma_px=pixel_sigma)
     row["bound_tip_two_stage_mm"] = 1000.0 * cramer_rao(s2).aligned_tool_rms(qv, truth.T_cam_tip)
     row["bound_fx_px"] = cr.fx_std
+    true_cam = dict(zip(truth.intrinsics_left.names, truth.intrinsics_left.values().tolist()))
+    est_cam = dict(zip(out.joint.camera.names, out.joint.camera.values().tolist()))
+    for name, b in cr.camera_std.items():  # every free camera parameter (px or unitless)
+        row[f"joint_cam_err_{name}"] = est_cam[name] - true_cam.get(name, 0.0)
+        row[f"bound_cam_{name}"] = float(b)
     row["sigma_hat_px"] = out.joint.sigma_px
     row["outliers"] = out.joint.n_outliers
     for name, b in zip(cr.names, cr.std_ref * scale):
@@ -211,7 +216,8 @@ def run_montecarlo(
 
     With ``out``: writes ``runs.csv``, ``summary.json``, ``summary.md`` and ``montecarlo.png``
     there. ``joints_deg``: planned postures to use instead of the scenario's random plan (e.g.
-    from :func:`plan_optimal`; ``plan`` names them in the output).
+    from :func:`plan_optimal`; ``plan`` names them in the output). ``config``: the scenario
+    file of the truth (default ``scenarios/paper.toml``).
     """
     base = {
         "poses": poses if joints_deg is None else len(joints_deg),
