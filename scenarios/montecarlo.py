@@ -216,8 +216,7 @@ def run_montecarlo(
 
     With ``out``: writes ``runs.csv``, ``summary.json``, ``summary.md`` and ``montecarlo.png``
     there. ``joints_deg``: planned postures to use instead of the scenario's random plan (e.g.
-    from :func:`plan_optimal`; ``plan`` names them in the output). ``config``: the scenario
-    file of the truth (default ``scenarios/paper.toml``).
+    from :func:`plan_optimal`; ``plan`` names them in the output).
     """
     base = {
         "poses": poses if joints_deg is None else len(joints_deg),
