@@ -3,8 +3,9 @@ Jacobians against finite differences and noise-free self-calibration (exact reco
 
 The scenes are the synthetic stereo scenes (calib.selfcal_synthetic) with the right camera dropped
 (one camera) or a third camera added above the pair (three cameras); noise-free corners must give
-the truth to rounding (measured: fx, mu 3.4e-15 relative; poses and rig 1e-14; RMS 1.4e-13 px;
-tolerances about 3x that).
+the truth to rounding. Rounding depends on the BLAS thread count (the CLI limits it in-process, so
+it depends on test order too); worst measured over 1 and 2 threads: fx, mu 2.0e-14 relative, rig
+1.7e-15 m, poses 2.1e-13, RMS 1.5e-12 px; tolerances about 3x that.
 """
 
 from __future__ import annotations
@@ -111,16 +112,16 @@ def test_noise_free_self_calibration_with_one_and_three_cameras(n_cameras):
         scale_distance_m=sc.scale_distance_m,
         rig=n_cameras > 1,
     )
-    assert abs(res.fx / 820.0 - 1) < 1e-14 and abs(res.mu / 1.02 - 1) < 1e-14
+    assert abs(res.fx / 820.0 - 1) < 6e-14 and abs(res.mu / 1.02 - 1) < 6e-14
     assert res.T_world_cam.shape == (12, n_cameras, 4, 4)
     assert res.T_first_cam.shape == (n_cameras, 4, 4)
-    np.testing.assert_allclose(res.T_first_cam, T_first_cam, rtol=0, atol=3e-14)
+    np.testing.assert_allclose(res.T_first_cam, T_first_cam, rtol=0, atol=6e-15)
     G = inv_pose(sc.T_world_cam[res.ref_config, 0])
     T_true = G @ sc.T_world_cam[:, :1] @ T_first_cam
     reg = res.registered
     assert reg.sum() >= 10
-    np.testing.assert_allclose(res.T_world_cam[reg], T_true[reg], rtol=0, atol=3e-14)
-    assert res.rms_px < 5e-13 and res.n_outliers == 0
+    np.testing.assert_allclose(res.T_world_cam[reg], T_true[reg], rtol=0, atol=6e-13)
+    assert res.rms_px < 5e-12 and res.n_outliers == 0
     if n_cameras == 1:
         assert np.isnan(res.T_left_right).all()
 
