@@ -281,7 +281,8 @@ def load_robot(name_or_path: str | Path) -> RobotDef:
     with ``[urdf] base_link`` and ``tool_link``), the name is the file stem, home is joint value 0
     (or the middle of a range that excludes 0, :func:`calib.robot_urdf.urdf_home`), the camera sits
     at the flange (the tool link) looking along its z axis, and the tables a robot TOML may add
-    (encoder, planning, simulation, MJCF) take their defaults.
+    (encoder, planning, simulation, MJCF) take their defaults. A robot TOML without
+    ``[camera_mount]`` (a robot measured by a tracker only) also has its camera at the flange.
 
     Raises:
         RobotDefinitionError: unknown name (the message lists the known ones) or malformed file
@@ -301,10 +302,13 @@ def load_robot(name_or_path: str | Path) -> RobotDef:
     else:
         kin = _table_kinematics(data, path)
     mount = data.get("camera_mount")
+    if mount is None:  # no camera (e.g. tracker measurements): at the flange, like a bare URDF
+        return _assemble(path, data, kin, np.eye(4))
     if not isinstance(mount, dict):
         raise RobotDefinitionError(
-            f"{path}: needs a [camera_mount] table",
-            fix=f"add [camera_mount] with xyz_mm, x_axis and z_axis to {path}",
+            f"{path}: camera_mount must be a table",
+            fix=f"write [camera_mount] with xyz_mm, x_axis and z_axis in {path}, or leave it out "
+            "for a camera at the flange looking along its z axis",
         )
     return _assemble(path, data, kin, _camera_mount(mount, f"{path}: [camera_mount]"))
 

@@ -154,3 +154,13 @@ def test_dh_table_in_either_convention_reproduces_the_model(name, convention):
         own, _ = dh_table(nominal_mcpc(robot), robot)
         for k in ("alpha", "a", "d", "offset"):
             assert np.abs(getattr(own, k) - getattr(robot.dh, k)).max() < 1e-12, k
+
+
+def test_camera_mount_is_optional_and_then_the_flange(tmp_path):
+    row = "[[joint]]\nalpha_deg = 90.0\na_mm = 100.0\nd_mm = 0.0\nrange_deg = [-90.0, 90.0]\n"
+    p = tmp_path / "arm.toml"
+    p.write_text(row * 4)
+    np.testing.assert_array_equal(load_robot(p).T_flange_cam, np.eye(4))
+    p.write_text('camera_mount = "flange"\n' + row * 4)
+    with pytest.raises(RobotDefinitionError, match="camera_mount must be a table"):
+        load_robot(p)
