@@ -27,7 +27,7 @@ from calib.camera.undistort import Undistorter
 from calib.errors import EstimationError, SelfCalWarning
 from calib.identify import identify
 from calib.io.calibration import CalibrationResult
-from calib.io.dataset import Dataset, DatasetError, DatasetInfo, Detections, read_gray
+from calib.io.dataset import CAMERAS, Dataset, DatasetError, DatasetInfo, Detections, read_gray
 from calib.joint_refine import refine_calibration
 from calib.kinematics import fk_tool
 from calib.mcpc import MCPCModel, nominal_mcpc, shape_matrices
@@ -186,7 +186,15 @@ def calibrate_detailed(
         raise ValueError(f"unknown calibration method {method!r}; use one of {METHODS}")
     t0 = time.perf_counter()
     ds = Dataset.open(root)
-    robot = load_robot(ds.info.robot_model)
+    robot = load_robot(ds.robot_source)
+    if ds.info.board is not None or ds.info.cameras != CAMERAS:
+        raise CalibrationError(
+            f"{root}: the self-calibration takes the stereo pair (left, right) and the ArUco "
+            f"field; this dataset has cameras {list(ds.info.cameras)} and target "
+            f"{ds.info.target_type!r}",
+            fix="calibrate a board dataset with `selfcal calibrate DIR` (it dispatches on the "
+            "target)",
+        )
     if len(ds.indices) < MIN_POSTURES:
         raise CalibrationError(
             f"{root}: {len(ds.indices)} postures; calibration needs at least {MIN_POSTURES} "

@@ -2,12 +2,19 @@
 
 Layout of ``DIR``::
 
-    dataset.json        robot model, camera resolution, target (dictionary, scale ids, d), the
-                        planned trajectory and validation postures (deg), observation kind
+    dataset.json        robot model, the cameras (name and resolution of each, N >= 1), the target
+                        (the ArUco field with its scale marker ids and d, or a board by its
+                        target TOML keys), the planned trajectory and validation postures (deg),
+                        observation kind, image suffix
     joints.csv          one row per frame taken: index, joint read-back (deg)
-    frames/NNNN_left.png, frames/NNNN_right.png    rendered or captured stereo pairs (images path)
+    frames/NNNN_CAMERA.png   one image per camera and frame (images path; CAMERA is the camera's
+                        name, the suffix dataset.json's ``image_suffix``)
     detections.csv      index, camera, marker_id, corner, u_px, v_px (analytic path, no images)
     truth.json          simulation only; never read by the calibration
+
+Schema 2 (written) lists ``cameras`` as ``[{"name": ..., "resolution": [W, H]}, ...]`` and gives
+the target a ``type``; schema 1 (still read) had one ``camera.resolution`` shared by the stereo
+pair ``left``/``right`` and an ArUco field as the target.
 
 A frame counts as taken once its row is in ``joints.csv``: images are written first (atomically,
 via a temporary file and rename), detections are appended and flushed, and the joints row comes
@@ -36,6 +43,7 @@ from calib.io.jsonfile import (
     load_json,
     write_json_atomic,
 )
+from calib.io.target_toml import parse_target
 
 __all__ = [
     "DatasetError",
@@ -52,9 +60,10 @@ __all__ = [
 ]
 
 FORMAT = "scorbot-selfcal-dataset"
-SCHEMA_VERSION = 1
-"""The newest ``dataset.json`` schema this code reads and the one it writes."""
+SCHEMA_VERSION = 2
+"""The newest ``dataset.json`` schema this code reads and the one it writes (1 is still read)."""
 CAMERAS = ("left", "right")
+"""The cameras of a schema-1 dataset (and the simulator's stereo pair)."""
 OBSERVATIONS = ("images", "detections")
 _FIX = "give a dataset folder written by `selfcal acquire CONFIG --out DIR`, or re-acquire it"
 
@@ -84,6 +93,42 @@ class DatasetInfo:
     """The cameras' model by name (:data:`calib.camera.MODELS`)."""
     camera_free: tuple[str, ...] = ("fx", "mu")
     """The camera parameters the calibration estimates (OpenCV names; ``mu = fy / fx``)."""
+    cameras: tuple[str, ...] = CAMERAS
+    """The cameras' names, the first one the rig's reference."""
+    resolutions: tuple[tuple[int, int], ...] | None = None
+    """(width, height) px of each camera; None: ``resolution`` for all of them."""
+    board: dict | None = None
+    """The target TOML document (mm) of a board; None: the ArUco field (``dictionary``,
+    ``scale_ids`` and ``scale_length_m`` are then the field's; unused for a board)."""
+    image_suffix: str = ".png"
+
+    def __post_init__(self) -> None:
+        if not self.cameras or len(set(self.cameras)) != len(self.cameras):
+            raise DatasetError(f"cameras must be distinct names, got {list(self.cameras)}")
+        if self.resolutions is not None and len(self.resolutions) != len(self.cameras):
+            raise DatasetError("give one resolution per camera")
+
+    @property
+    def target_type(self) -> str:
+        """``"field"`` or the board's ``type`` (``"chessboard"``, ``"charuco"``, ...)."""
+        return "field" if self.board is None else str(self.board["type"])
+
+    def resolution_of(self, camera: str) -> tuple[int, int]:
+        """(width, height) px of ``camera``."""
+        if self.resolutions is None:
+            return self.resolution
+        return self.resolutions[self.cameras.index(camera)]
+
+    def target_json(self) -> dict:
+        """The ``target`` section of ``dataset.json``."""
+        if self.board is not None:
+            return dict(self.board)
+        return {
+            "type": "field",
+            "dictionary": self.dictionary,
+            "scale_marker_ids": list(self.scale_ids),
+            "scale_length_mm": self.scale_length_m * 1000.0,
+        }
 
     def to_json(self) -> dict:
         """The ``dataset.json`` document (the one writer: :func:`write_dataset_info`)."""
@@ -92,17 +137,18 @@ class DatasetInfo:
             SCHEMA_KEY: SCHEMA_VERSION,
             "robot_model": self.robot_model,
             "backend": self.backend,
-            "camera": {
-                "resolution": list(self.resolution),
-                "model": self.camera_model,
-                "free": list(self.camera_free),
-            },
-            "target": {
-                "dictionary": self.dictionary,
-                "scale_marker_ids": list(self.scale_ids),
-                "scale_length_mm": self.scale_length_m * 1000.0,
-            },
+            "cameras": [
+                {
+                    "name": c,
+                    "resolution": list(self.resolution_of(c)),
+                    "model": self.camera_model,
+                    "free": list(self.camera_free),
+                }
+                for c in self.cameras
+            ],
+            "target": self.target_json(),
             "observation": self.observation,
+            "image_suffix": self.image_suffix,
             "trajectory_joints_deg": np.asarray(self.planned_joints_deg).tolist(),
             "validation_joints_deg": np.asarray(self.validation_joints_deg).tolist(),
             "scenario": self.scenario,
@@ -117,15 +163,38 @@ class DatasetInfo:
             DatasetError: another format, a newer schema_version, a missing or malformed key
                 (the message names ``where`` and the key).
         """
-        check_header(d, where, fmt=FORMAT, version=SCHEMA_VERSION, fix=_FIX, error=DatasetError)
+        version = check_header(
+            d, where, fmt=FORMAT, version=SCHEMA_VERSION, fix=_FIX, error=DatasetError
+        )
         f = Fields(d, where, _FIX, error=DatasetError)
-        tgt, cam = f.sub("target"), f.sub("camera")
-        resolution = cam.ints("resolution")
-        if len(resolution) != 2:
-            raise cam.bad("resolution", "[width, height]", list(resolution))
-        scale_ids = tgt.ints("scale_marker_ids")
-        if len(scale_ids) != 2:
-            raise tgt.bad("scale_marker_ids", "two marker ids", list(scale_ids))
+        tgt = f.sub("target")
+        if version == 1:
+            cam_blocks = [f.sub("camera")]
+            cams, res = CAMERAS, (_resolution(cam_blocks[0]),) * 2
+            kind = "field"
+        else:
+            entries = cam_blocks = f.items("cameras")
+            if not entries:
+                raise f.bad("cameras", "a list of at least one camera", [])
+            cams = tuple(c.str("name") for c in entries)
+            if len(set(cams)) != len(cams) or not all(_name_ok(c) for c in cams):
+                raise f.bad("cameras", "distinct camera names of letters, digits, - and _", cams)
+            res = tuple(_resolution(c) for c in entries)
+            kind = tgt.str("type")
+        board = None
+        dictionary, scale, length = "", (0, 0), 0.0
+        if kind == "field":
+            scale_ids = tgt.ints("scale_marker_ids")
+            if len(scale_ids) != 2:
+                raise tgt.bad("scale_marker_ids", "two marker ids", list(scale_ids))
+            dictionary, scale = tgt.str("dictionary"), (scale_ids[0], scale_ids[1])
+            length = tgt.float("scale_length_mm") / 1000.0
+        else:
+            board = dict(tgt.doc)
+            try:
+                parse_target(board, f"{where}: target")
+            except InputError as exc:
+                raise DatasetError(str(exc), fix=_FIX) from None
         planned = f.array("trajectory_joints_deg", (None, None))
         valid = np.zeros((0,))
         if f.has("validation_joints_deg") and f.raw("validation_joints_deg") != []:
@@ -133,29 +202,55 @@ class DatasetInfo:
         observation = f.str("observation")
         if observation not in OBSERVATIONS:
             raise f.bad("observation", f"one of {OBSERVATIONS}", observation)
-        model = cam.str("model") if cam.has("model") else "pinhole"
-        if model not in MODELS:
-            raise cam.bad("model", f"one of {tuple(MODELS)}", model)
-        free = cam.strs("free") if cam.has("free") else ("fx", "mu")
-        if not set(free) <= set(MODELS[model].names) or "fx" not in free:
-            raise cam.bad("free", f"names of {MODELS[model].names} including fx", list(free))
+        models = {_camera_model(c) for c in cam_blocks}
+        if len(models) != 1:
+            raise f.bad("cameras", "cameras of one model and one set of free parameters (per-"
+                        "camera models are not supported yet)", sorted(models))  # fmt: skip
+        model, free = models.pop()
         scenario = f.raw("scenario") if f.has("scenario") else {}
         if not isinstance(scenario, dict):
             raise f.bad("scenario", "an object", scenario)
+        suffix = f.str("image_suffix") if f.has("image_suffix") else ".png"
         return cls(
             robot_model=f.str("robot_model"),
             backend=f.str("backend") if f.has("backend") else "sim",
-            resolution=(resolution[0], resolution[1]),
-            dictionary=tgt.str("dictionary"),
-            scale_ids=(scale_ids[0], scale_ids[1]),
-            scale_length_m=tgt.float("scale_length_mm") / 1000.0,
+            resolution=res[0],
+            dictionary=dictionary,
+            scale_ids=scale,
+            scale_length_m=length,
             observation=observation,
             planned_joints_deg=planned,
             validation_joints_deg=valid,
             scenario=scenario,
             camera_model=model,
             camera_free=tuple(free),
+            cameras=cams,
+            resolutions=None if len(set(res)) == 1 else res,
+            board=board,
+            image_suffix=suffix,
         )
+
+
+def _name_ok(name: str) -> bool:
+    return bool(name) and all(ch.isalnum() or ch in "-_" for ch in name)
+
+
+def _camera_model(cam: Fields) -> tuple[str, tuple[str, ...]]:
+    """A camera entry's model and free parameters (default: the pinhole with fx, mu free)."""
+    model = cam.str("model") if cam.has("model") else "pinhole"
+    if model not in MODELS:
+        raise cam.bad("model", f"one of {tuple(MODELS)}", model)
+    free = cam.strs("free") if cam.has("free") else ("fx", "mu")
+    if not set(free) <= set(MODELS[model].names) or "fx" not in free:
+        raise cam.bad("free", f"names of {MODELS[model].names} including fx", list(free))
+    return model, tuple(free)
+
+
+def _resolution(cam: Fields) -> tuple[int, int]:
+    resolution = cam.ints("resolution")
+    if len(resolution) != 2 or min(resolution) < 1:
+        raise cam.bad("resolution", "[width, height]", list(resolution))
+    return resolution[0], resolution[1]
 
 
 def read_dataset_info(path: str | Path) -> DatasetInfo:
@@ -269,21 +364,25 @@ class DatasetWriter:
         left: np.ndarray | None = None,
         right: np.ndarray | None = None,
         detections: dict[str, dict[int, np.ndarray]] | None = None,
+        images: dict[str, np.ndarray] | None = None,
     ) -> None:
-        """Store frame ``index``: images (images path) or detections (analytic path), then joints."""
+        """Store frame ``index``: images (images path: ``images`` by camera name, or ``left`` and
+        ``right``) or detections (analytic path), then joints."""
         if self.info.observation == "images":
-            if left is None or right is None:
-                raise DatasetError("an images dataset needs both left and right images per frame")
-            for cam, img in (("left", left), ("right", right)):
-                _write_bytes_atomic(
-                    self.root / "frames" / f"{index:04d}_{cam}.png", _encode_png(img)
-                )
+            images = dict(images or {})
+            images.update({c: v for c, v in (("left", left), ("right", right)) if v is not None})
+            missing = [c for c in self.info.cameras if images.get(c) is None]
+            if missing:
+                raise DatasetError(f"frame {index}: no image of camera(s) {missing}")
+            for cam in self.info.cameras:
+                path = self.root / "frames" / f"{index:04d}_{cam}.png"
+                _write_bytes_atomic(path, _encode_png(images[cam]))
         else:
             if detections is None:
                 raise DatasetError("a detections dataset needs the detections of each frame")
             with open(self._dets, "a", newline="") as fh:
                 w = csv.writer(fh)
-                for cam in CAMERAS:
+                for cam in self.info.cameras:
                     for mid, c in sorted(detections.get(cam, {}).items()):
                         for k in range(4):
                             w.writerow([index, cam, mid, k, f"{c[k, 0]:.6f}", f"{c[k, 1]:.6f}"])
@@ -346,16 +445,26 @@ class Dataset:
             raise DatasetError(f"{root / 'joints.csv'}: rows do not match the robot's joint count")
         return cls(root=root, info=info, indices=idx, joints_deg=q)
 
-    def frame_paths(self, index: int) -> tuple[Path, Path]:
-        """Paths of a frame's left and right images."""
-        return tuple(self.root / "frames" / f"{index:04d}_{c}.png" for c in CAMERAS)  # type: ignore[return-value]
+    @property
+    def robot_source(self) -> str | Path:
+        """What :func:`calib.robot_def.load_robot` takes for ``info.robot_model``: a model name,
+        or a robot file (a relative path is relative to the dataset folder)."""
+        ref = self.info.robot_model
+        if Path(ref).suffix in (".toml", ".urdf"):
+            return Path(ref) if Path(ref).is_absolute() else self.root / ref
+        return ref
+
+    def frame_paths(self, index: int) -> tuple[Path, ...]:
+        """Paths of a frame's images, one per camera in ``info.cameras`` order."""
+        suffix = self.info.image_suffix
+        return tuple(self.root / "frames" / f"{index:04d}_{c}{suffix}" for c in self.info.cameras)
 
     def image_paths(self) -> list[tuple[int, str, Path]]:
         """``(index, camera, path)`` of every image; raises DatasetError for a missing frame
         before anything is read."""
         out = []
         for i in self.indices:
-            for cam, path in zip(CAMERAS, self.frame_paths(int(i))):
+            for cam, path in zip(self.info.cameras, self.frame_paths(int(i))):
                 if not path.is_file():
                     raise _missing(path, int(i))
                 out.append((int(i), cam, path))

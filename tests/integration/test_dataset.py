@@ -1,5 +1,7 @@
 """Dataset folder: frames are written as they are taken, interrupted runs keep them and resume."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -105,3 +107,18 @@ def test_missing_frame_is_a_clear_error(tmp_path):
 def test_not_a_dataset(tmp_path):
     with pytest.raises(DatasetError, match="no dataset.json"):
         Dataset.open(tmp_path)
+
+
+def test_one_camera_dataset_writes_and_reads_its_frames(tmp_path):
+    one = dataclasses.replace(info(m=2), cameras=("cam0",))
+    w = DatasetWriter(tmp_path, one)
+    img = np.full((48, 64), 7, np.uint8)
+    with pytest.raises(DatasetError, match=r"no image of camera\(s\) \['cam0'\]"):
+        w.add_frame(0, np.zeros(5), left=img, right=img)
+    for i in range(2):
+        w.add_frame(i, np.zeros(5), images={"cam0": img})
+    ds = Dataset.open(tmp_path)
+    got = list(ds.iter_images())
+    assert [(i, c) for i, c, _ in got] == [(0, "cam0"), (1, "cam0")]
+    assert ds.frame_paths(1) == (tmp_path / "frames" / "0001_cam0.png",)
+    np.testing.assert_array_equal(got[0][2], img)

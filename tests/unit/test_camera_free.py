@@ -77,20 +77,22 @@ def _info(**kw) -> DatasetInfo:
 def test_dataset_names_the_model_and_free_parameters():
     info = _info(camera_model="fisheye", camera_free=("fx", "mu", "k1"))
     doc = info.to_json()
-    assert doc["camera"] == {
-        "resolution": [640, 480],
-        "model": "fisheye",
-        "free": ["fx", "mu", "k1"],
-    }
+    assert [c.pop("name") for c in doc["cameras"]] == ["left", "right"]  # schema 2: per camera
+    assert all(c == {"resolution": [640, 480], "model": "fisheye", "free": ["fx", "mu", "k1"]}
+               for c in doc["cameras"])  # fmt: skip
+    for c, name in zip(doc["cameras"], ("left", "right")):
+        c["name"] = name
     back = DatasetInfo.from_json(doc, "dataset.json")
     assert (back.camera_model, back.camera_free) == ("fisheye", ("fx", "mu", "k1"))
     cam = dataset_camera(back)
     assert isinstance(cam, Fisheye) and cam.free == ("fx", "mu", "k1") and cam.cx == 319.5
-    del doc["camera"]["model"], doc["camera"]["free"]  # an older dataset: the pinhole
+    for c in doc["cameras"]:  # an older dataset: the pinhole
+        del c["model"], c["free"]
     old = DatasetInfo.from_json(doc, "dataset.json")
     assert (old.camera_model, old.camera_free) == ("pinhole", ("fx", "mu"))
-    doc["camera"]["free"] = ["fx", "p1"]
-    with pytest.raises(DatasetError, match=r"dataset\.json.*camera\.free"):
+    for c in doc["cameras"]:
+        c["free"] = ["fx", "p1"]
+    with pytest.raises(DatasetError, match=r"dataset\.json.*cameras\[0\]\.free"):
         DatasetInfo.from_json(doc, "dataset.json")
 
 

@@ -6,6 +6,7 @@ schema_version, or lacking a key is an InputError naming the file and the key.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -112,7 +113,8 @@ def test_write_read_write_is_byte_identical(tmp_path, name):
     write(b, read(a))
     assert a.read_bytes() == b.read_bytes()
     doc = json.loads(a.read_text())
-    assert doc["schema_version"] == 1 and list(doc)[:2] == ["format", "schema_version"]
+    want = {"dataset.json": 2}.get(name, 1)
+    assert doc["schema_version"] == want and list(doc)[:2] == ["format", "schema_version"]
 
 
 def test_calibration_keeps_every_key_and_number_of_the_golden_file(tmp_path):
@@ -193,6 +195,8 @@ def test_files_written_before_schema_version_read_as_version_1(tmp_path):
     """dataset.json and calibration.json used to carry "version": 1, truth.json nothing."""
     for name in FILES:
         doc = _valid_doc(tmp_path, name)
+        if name == "dataset.json":
+            doc = _dataset_v1(doc)
         del doc["schema_version"]
         if name != "truth.json":
             doc["version"] = 1
@@ -226,3 +230,60 @@ def test_truth_holds_the_true_board_pose_and_its_target(tmp_path):
     assert back.board is not None
     board = parse_target(back.board["target"], "truth.json")
     assert board == Charuco((11, 8), 0.02, 0.015, "DICT_5X5_100", source="truth.json")
+
+
+def _dataset_v1(doc: dict) -> dict:
+    """A schema-2 dataset.json of the stereo pair and the field as schema 1 wrote it."""
+    doc = {**doc, "schema_version": 1}
+    cams = doc.pop("cameras")
+    doc.pop("image_suffix")
+    doc["camera"] = {k: cams[0][k] for k in ("resolution", "model", "free")}
+    doc["target"] = {k: v for k, v in doc["target"].items() if k != "type"}
+    return doc
+
+
+def test_dataset_schema_1_reads_as_the_stereo_pair_and_the_field(tmp_path):
+    info = dataset_info()
+    doc = _dataset_v1(_valid_doc(tmp_path, "dataset.json"))
+    (tmp_path / "v1.json").write_text(json.dumps(doc))
+    old = read_dataset_info(tmp_path / "v1.json")
+    assert old.cameras == ("left", "right") and old.target_type == "field"
+    assert old.to_json() == info.to_json()  # rewritten as schema 2, nothing lost
+
+
+def test_dataset_of_one_camera_and_a_board_round_trips(tmp_path):
+    board = {"type": "chessboard", "inner_corners": [11, 8], "square_mm": 15.0}
+    info = dataclasses.replace(dataset_info(), cameras=("cam0",), board=board, dictionary="",
+                               image_suffix=".jpg")  # fmt: skip
+    back = read_dataset_info(write_dataset_info(tmp_path / "dataset.json", info))
+    assert back.cameras == ("cam0",) and back.board == board and back.image_suffix == ".jpg"
+    assert back.target_type == "chessboard" and back.resolution_of("cam0") == (640, 480)
+    doc = json.loads((tmp_path / "dataset.json").read_text())
+    assert doc["cameras"] == [{"name": "cam0", "resolution": [640, 480], "model": "opencv",
+                               "free": list(info.camera_free)}]  # fmt: skip
+    doc["target"]["square_mm"] = -1
+    (tmp_path / "bad.json").write_text(json.dumps(doc))
+    with pytest.raises(DatasetError, match="bad.json: target.*square_mm"):
+        read_dataset_info(tmp_path / "bad.json")
+
+
+def test_dataset_cameras_of_two_sizes_and_bad_names(tmp_path):
+    info = dataclasses.replace(dataset_info(), cameras=("a", "b"),
+                               resolutions=((640, 480), (1280, 960)))  # fmt: skip
+    back = read_dataset_info(write_dataset_info(tmp_path / "dataset.json", info))
+    assert back.resolution_of("b") == (1280, 960) and back.resolution == (640, 480)
+    doc = json.loads((tmp_path / "dataset.json").read_text())
+    doc["cameras"][1]["name"] = "a/b"
+    (tmp_path / "bad.json").write_text(json.dumps(doc))
+    with pytest.raises(DatasetError, match="bad.json: key 'cameras'"):
+        read_dataset_info(tmp_path / "bad.json")
+
+
+def test_dataset_cameras_of_different_models_are_refused_for_now(tmp_path):
+    info = dataclasses.replace(dataset_info(), cameras=("a", "b"))
+    doc = json.loads(write_dataset_info(tmp_path / "dataset.json", info).read_text())
+    doc["cameras"][1]["model"] = "pinhole"
+    doc["cameras"][1]["free"] = ["fx", "mu"]
+    (tmp_path / "bad.json").write_text(json.dumps(doc))
+    with pytest.raises(DatasetError, match="bad.json: key 'cameras' must be cameras of one model"):
+        read_dataset_info(tmp_path / "bad.json")
