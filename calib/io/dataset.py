@@ -168,6 +168,8 @@ class DatasetInfo:
         )
         f = Fields(d, where, _FIX, error=DatasetError)
         tgt = f.sub("target")
+        cams: tuple[str, ...]
+        res: tuple[tuple[int, int], ...]
         if version == 1:
             cam_blocks = [f.sub("camera")]
             cams, res = CAMERAS, (_resolution(cam_blocks[0]),) * 2
