@@ -27,8 +27,10 @@ from scenarios.config import load_scenario
 from scenarios.deploy_cli import register as register_deploy
 from scenarios.hw_cli import register as register_hw
 from scenarios.montecarlo_cli import register as register_montecarlo
+from scenarios.own_data import calibrate_any
+from scenarios.own_data import register as register_own_data
 from scenarios.paper_repro import register as register_paper
-from scenarios.pipeline import run_acquire, run_all, run_calibrate, run_report
+from scenarios.pipeline import run_acquire, run_all, run_report
 from scenarios.rerun_log import record_run
 from scenarios.rerun_log import register as register_record
 from scenarios.studies import register as register_study
@@ -119,7 +121,7 @@ def cmd_acquire(args: argparse.Namespace) -> int:
 
 
 def cmd_calibrate(args: argparse.Namespace) -> int:
-    run_calibrate(Path(args.dataset), quiet=args.quiet, method=args.method)
+    calibrate_any(Path(args.dataset), quiet=args.quiet, method=args.method)
     return 0
 
 
@@ -245,7 +247,12 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--rerun", default=None, metavar="FILE.rrd", help="record the run for Rerun")
     sp.add_argument("--spawn", action="store_true", help="with --rerun: also open the viewer")
 
-    sp = add("calibrate", cmd_calibrate, "dataset -> DIR/calibration.json (never reads truth.json)")
+    sp = add(
+        "calibrate",
+        cmd_calibrate,
+        "dataset -> DIR/calibration.json (never reads truth.json); the ArUco field: "
+        "self-calibration, a board: the board calibration (--method applies to the field)",
+    )
     sp.add_argument("dataset", help="dataset folder")
     sp.add_argument("--quiet", action="store_true")
     sp.add_argument("--method", choices=METHODS, default="joint", help=METHOD_HELP)
@@ -262,6 +269,7 @@ def build_parser() -> argparse.ArgumentParser:
         register_deploy,
         register_montecarlo,
         register_tracker,
+        register_own_data,
     ):
         register(sub)
     return p

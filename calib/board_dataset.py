@@ -1,0 +1,137 @@
+"""A dataset whose target is a board: detection per image and the robot calibration with it.
+
+``selfcal calibrate`` dispatches here when ``dataset.json``'s target is a board (chessboard,
+ChArUco, circles, AprilGrid). Every image of the first camera is read and searched with the
+target's detector (:meth:`calib.target.Target.detect`); images without the board are named,
+counted and skipped by :func:`calib.board_calibrate.calibrate_board` (an error when too few
+remain); :func:`calib.board_robot.calibrate_robot_with_board` then estimates camera, hand-eye,
+board pose and kinematics (scale from the board, no known distance). The reference of
+``selfcal evaluate`` -- the nominal kinematics with only the hand-eye and the board pose fitted
+to the same camera poses -- is stored beside. Nothing here reads truth.
+"""
+
+from __future__ import annotations
+
+import os
+import warnings
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import numpy as np
+
+from calib.board_robot import calibrate_robot_with_board
+from calib.errors import EstimationError, SelfCalWarning
+from calib.estimation.joint_report import encoder_sigma
+from calib.identify import identify
+from calib.io.board_calibration import BoardCalibrationResult
+from calib.io.dataset import Dataset, DatasetError, read_gray
+from calib.io.target_toml import parse_target
+from calib.mcpc import minimal_indices, nominal_mcpc, param_names
+from calib.robot_def import load_robot
+from calib.target.base import Features
+from calib.target.boards import Board
+from calib.transforms import inv_pose
+
+__all__ = ["dataset_board", "detect_board", "calibrate_board_dataset"]
+
+
+def dataset_board(ds: Dataset) -> Board:
+    """The board ``ds`` declares (DatasetError when its target is the field)."""
+    if ds.info.board is None:
+        raise DatasetError(f"{ds.root}: the dataset's target is the ArUco field, not a board")
+    board = parse_target(ds.info.board, f"{ds.root / 'dataset.json'}: target")
+    assert isinstance(board, Board)
+    return board
+
+
+def detect_board(ds: Dataset, board: Board, camera: str) -> tuple[list[Features], list[str]]:
+    """The board's features in ``camera``'s image of every frame (in ``ds.indices`` order) and
+    the images' file names (for messages).
+
+    Raises:
+        DatasetError: a missing or unreadable image, or one whose size is not dataset.json's
+            (the message names the file).
+    """
+    W, H = ds.info.resolution_of(camera)
+    k = ds.info.cameras.index(camera)
+    paths = [(int(i), ds.frame_paths(int(i))[k]) for i in ds.indices]
+
+    def detect(item: tuple[int, Path]) -> Features:
+        index, path = item
+        img = read_gray(path, index)
+        if img.shape[1] != W or img.shape[0] != H:
+            raise DatasetError(
+                f"{path}: {img.shape[1]}x{img.shape[0]} px but dataset.json gives camera "
+                f"{camera} {W}x{H} px",
+                fix="give every image of one camera the same size (the camera's native one)",
+            )
+        return board.detect(img)
+
+    # OpenCV releases the GIL while decoding and detecting: use every core, keep the order.
+    with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
+        feats = list(pool.map(detect, paths))
+    return feats, [p.name for _, p in paths]
+
+
+def calibrate_board_dataset(root: str | Path) -> BoardCalibrationResult:
+    """Calibrate camera, hand-eye, board pose and kinematics from the board dataset in ``root``
+    (module docstring). SI inside; the result is written by
+    :func:`calib.io.board_calibration.write_board_calibration`.
+
+    Raises:
+        DatasetError: missing or damaged dataset files, or a dataset of more than one camera.
+        calib.board_calibrate.BoardInputError / BoardMismatchError: too few images show the board,
+            or its declared geometry does not match the detections.
+        calib.identify.IdentificationError, EstimationError: data that cannot determine it.
+    """
+    ds = Dataset.open(root)
+    if len(ds.info.cameras) != 1:
+        raise DatasetError(
+            f"{ds.root}: {len(ds.info.cameras)} cameras; the board calibration takes one",
+            fix="import the images of one camera per dataset (one --images option)",
+        )
+    cam = ds.info.cameras[0]
+    robot = load_robot(ds.robot_source)
+    board = dataset_board(ds)
+    feats, names = detect_board(ds, board, cam)
+    nominal = nominal_mcpc(robot).with_tool(robot.T_flange_cam)
+    q = np.radians(ds.joints_deg)
+    W, H = ds.info.resolution_of(cam)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        res = calibrate_robot_with_board(
+            board, feats, q, nominal, W, H, names=names, joint_sigma=encoder_sigma(robot)
+        )
+        used = res.used
+        T_board_cam = inv_pose(res.board.T_cam_board[used])
+        ref = identify(nominal, q[used], T_board_cam, hold=_chain_names(nominal.joint_types))
+    notes = []
+    for w in caught:
+        if issubclass(w.category, SelfCalWarning):
+            notes.append(str(w.message))
+        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    if not np.isfinite(res.model.params).all():
+        raise EstimationError("the board calibration gave non-finite parameters")
+    return BoardCalibrationResult(
+        robot_model=ds.info.robot_model,
+        target=dict(ds.info.board or {}),
+        camera_names=(cam,),
+        cameras=(res.camera,),
+        camera_std=(res.camera_std,),
+        model=res.model,
+        nominal_model=ref.model,
+        reprojection_rms_px=res.rms_px,
+        frames=len(ds.indices),
+        frames_used=int(used.sum()),
+        skipped_images=res.board.skipped,
+        held=res.held,
+        warnings=tuple(dict.fromkeys(notes)),
+    )
+
+
+def _chain_names(joint_types: tuple[str, ...]) -> tuple[str, ...]:
+    """The minimal parameters of the joints' chain: all but the base (row 0) and the tool
+    (row n), i.e. what the nominal reference keeps at the drawing's values."""
+    n = len(joint_types)
+    idx = minimal_indices(joint_types)
+    return tuple(param_names(np.array([k for k in idx if k // 6 not in (0, n)])))

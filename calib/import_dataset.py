@@ -1,0 +1,288 @@
+"""``selfcal import``: your own images and joint readings as a dataset folder.
+
+Inputs: a robot (model name, robot TOML or URDF; a URDF with ``base_link`` / ``tool_link`` gets
+a small robot TOML in the dataset that names them), the images of N >= 1 cameras (a glob per
+camera name), a joints file (:mod:`calib.io.joints_file`) and a target TOML. Rows of the joints
+file match the images in sorted file-name order, or through its ``image`` column (the file name
+every camera's folder holds for that frame). Checked, each an :class:`calib.errors.InputError`
+naming the file and the fix: row and image counts, joint units, one image size per camera, the
+target found in enough images (the others are named, counted and skipped with an
+:class:`ImportWarning`), and the board's declared geometry against the detections
+(:func:`calib.board_calibrate.calibrate_board`). Writes ``dataset.json`` (schema 2, no truth),
+``joints.csv`` (deg), ``frames/NNNN_CAMERA.EXT`` (copies or symbolic links) and ``sources.csv``
+(where every frame came from).
+"""
+
+from __future__ import annotations
+
+import csv
+import glob
+import os
+import shutil
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from calib.board_calibrate import calibrate_board
+from calib.errors import InputError, SelfCalWarning
+from calib.io.dataset import DatasetInfo, write_dataset_info
+from calib.io.joints_file import read_joints_file
+from calib.io.target_toml import load_target, target_document
+from calib.robot_def import RobotDef, load_robot
+from calib.target.base import Features
+from calib.target.boards import Board
+
+__all__ = ["ImportError_", "TargetNotFoundWarning", "CameraImages", "import_dataset", "MIN_FRAMES"]
+
+MIN_FRAMES = 6
+"""Fewest frames that show the target for a dataset to be imported (as the calibration)."""
+
+
+class ImportError_(InputError):  # noqa: N801 (ImportError is Python's)
+    """Inputs of ``selfcal import`` that do not fit together (names the file and the fix)."""
+
+
+class TargetNotFoundWarning(SelfCalWarning):
+    """Images in which the target is not found (named and counted; their frames are skipped)."""
+
+
+@dataclass(frozen=True)
+class CameraImages:
+    """One ``--images NAME=GLOB``: the camera's name and its image files (sorted by name)."""
+
+    name: str
+    pattern: str
+    files: tuple[Path, ...]
+
+    @classmethod
+    def parse(cls, spec: str, default_name: str = "cam0") -> CameraImages:
+        """``NAME=GLOB`` (or a bare ``GLOB`` for a camera called ``default_name``)."""
+        name, sep, pattern = spec.partition("=")
+        if not sep:
+            name, pattern = default_name, spec
+        name = name.strip()
+        if not name or not all(ch.isalnum() or ch in "-_" for ch in name):
+            raise ImportError_(
+                f"--images {spec!r}: camera name {name!r}",
+                fix="name each camera with letters, digits, - or _: --images 'cam0=DIR/*.png'",
+            )
+        files = tuple(sorted((Path(p) for p in glob.glob(os.path.expanduser(pattern))),
+                             key=lambda p: p.name))  # fmt: skip
+        files = tuple(p for p in files if p.is_file())
+        if not files:
+            raise ImportError_(f"--images {spec!r}: no file matches {pattern!r}",
+                               fix="check the folder and the pattern (quote it)")  # fmt: skip
+        return cls(name, pattern, files)
+
+
+def _robot(
+    spec: str, base_link: str | None, tool_link: str | None, out: Path
+) -> tuple[RobotDef, str]:
+    """The robot and how dataset.json names it (a model name, or a file in the dataset)."""
+    p = Path(spec)
+    if p.suffix not in (".toml", ".urdf"):
+        if base_link or tool_link:
+            raise ImportError_("--base-link / --tool-link name links of a URDF",
+                               fix="give --robot FILE.urdf with them")  # fmt: skip
+        return load_robot(spec), spec
+    if not p.is_file():
+        raise ImportError_(f"--robot {spec}: no such file",
+                           fix="give a model name, a robot TOML or a URDF file")  # fmt: skip
+    (out / "robot").mkdir(parents=True, exist_ok=True)
+    if p.suffix == ".toml" or not (base_link or tool_link):
+        if base_link or tool_link:
+            raise ImportError_("--base-link / --tool-link apply to a URDF only",
+                               fix="name the links in the robot TOML's [urdf] table")  # fmt: skip
+        shutil.copy2(p, out / "robot" / p.name)
+        rel = f"robot/{p.name}"
+    else:
+        shutil.copy2(p, out / "robot" / p.name)
+        links = "".join(f'{k} = "{v}"\n' for k, v in (("base_link", base_link),
+                                                       ("tool_link", tool_link)) if v)  # fmt: skip
+        (out / "robot" / f"{p.stem}.toml").write_text(
+            f'name = "{p.stem}"\ndescription = "{p.name}, chain named by selfcal import"\n\n'
+            f'[urdf]\nfile = "{p.name}"\n{links}\n'
+            "# the camera at the tool link, looking along its z axis (the nominal hand-eye)\n"
+            "[camera_mount]\nxyz_mm = [0.0, 0.0, 0.0]\nx_axis = [1.0, 0.0, 0.0]\n"
+            "z_axis = [0.0, 0.0, 1.0]\n"
+        )
+        rel = f"robot/{p.stem}.toml"
+    return load_robot(out / rel), rel
+
+
+def _sizes(cam: CameraImages, files: Sequence[Path]) -> tuple[tuple[int, int], list[np.ndarray]]:
+    """The images (gray) and their one size; two sizes are an error naming both files."""
+    imgs, first = [], None
+    for f in files:
+        img = cv2.imread(str(f), cv2.IMREAD_GRAYSCALE)
+        if img is None:
+            raise ImportError_(f"{f}: not a readable image", fix="remove it or convert it to PNG")
+        size = (img.shape[1], img.shape[0])
+        if first is None:
+            first = (f, size)
+        elif size != first[1]:
+            raise ImportError_(
+                f"camera {cam.name}: {first[0]} is {first[1][0]}x{first[1][1]} px but {f} is "
+                f"{size[0]}x{size[1]} px",
+                fix="give every image of one camera at the camera's native size (or give the "
+                "other size as another camera)",
+            )
+        imgs.append(img)
+    assert first is not None
+    return first[1], imgs
+
+
+def import_dataset(
+    robot: str,
+    images: Sequence[CameraImages],
+    joints: str | Path,
+    joint_units: str,
+    target: str | Path,
+    out: str | Path,
+    *,
+    base_link: str | None = None,
+    tool_link: str | None = None,
+    link: bool = False,
+) -> DatasetInfo:
+    """Check the inputs and write the dataset folder ``out`` (module docstring); returns its
+    ``dataset.json`` content.
+
+    Raises:
+        ImportError_, calib.io.joints_file.JointsFileError, calib.board_calibrate
+        .BoardInputError / BoardMismatchError, calib.robot_def.RobotDefinitionError: bad input
+        (each names the file and the fix).
+    """
+    out = Path(out)
+    if (out / "dataset.json").exists():
+        raise ImportError_(f"{out} already holds a dataset", fix="choose another --out folder")
+    names = [c.name for c in images]
+    if not images or len(set(names)) != len(names):
+        raise ImportError_(f"camera names {names}", fix="give each --images a distinct NAME=")
+    tgt = load_target(target)
+    if not isinstance(tgt, Board):
+        raise ImportError_(
+            f"{target}: type = 'field'; import takes a board of known geometry",
+            fix="declare the printed board (docs/targets.md); field datasets come from "
+            "`selfcal acquire`",
+        )
+    out.mkdir(parents=True, exist_ok=True)
+    rob, robot_ref = _robot(robot, base_link, tool_link, out)
+    rows = read_joints_file(joints, tuple(rob.joint_types), joint_units)
+    files = _match(images, rows.images, len(rows.q), Path(joints))
+    suffixes = {f.suffix.lower() for fs in files.values() for f in fs}
+    if len(suffixes) != 1:
+        raise ImportError_(f"images of several kinds {sorted(suffixes)}",
+                           fix="convert the images to one format (e.g. PNG)")  # fmt: skip
+    sizes, feats = {}, {}
+    for cam in images:
+        sizes[cam.name], imgs = _sizes(cam, files[cam.name])
+        feats[cam.name] = [tgt.detect(img) for img in imgs]
+    seen = np.zeros(len(rows.q), bool)
+    for cam in images:
+        seen |= [len(f) >= tgt.min_features for f in feats[cam.name]]
+    _warn_not_found(tgt, images, files, feats)
+    if seen.sum() < MIN_FRAMES:
+        raise ImportError_(
+            f"the {tgt.describe()} is found in {int(seen.sum())} of {len(seen)} frames; "
+            f"calibration needs at least {MIN_FRAMES}",
+            fix="check the target file's keys against the printed board and add images that show "
+            "the whole board",
+        )
+    for cam in images:  # the declared geometry against the detections (names the target keys)
+        ok = [f for f in feats[cam.name] if len(f) >= tgt.min_features]
+        if len(ok) >= 3:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                calibrate_board(tgt, ok, *sizes[cam.name], free=("fx", "mu", "cx", "cy"))
+    keep = np.flatnonzero(seen)
+    (out / "frames").mkdir(exist_ok=True)
+    suffix = suffixes.pop()
+    with open(out / "sources.csv", "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["index", "camera", "source"])
+        for k, r in enumerate(keep):
+            for cam in images:
+                src = files[cam.name][r].resolve()
+                dst = out / "frames" / f"{k:04d}_{cam.name}{suffix}"
+                if link:
+                    dst.symlink_to(src)
+                else:
+                    shutil.copy2(src, dst)
+                w.writerow([k, cam.name, str(src)])
+    q_deg = np.degrees(rows.q[keep])
+    with open(out / "joints.csv", "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["index"] + [f"q{j + 1}_deg" for j in range(rob.n)])
+        for k, q in enumerate(q_deg):
+            w.writerow([k] + [f"{v:.9f}" for v in q])
+    res = tuple(sizes[c] for c in names)
+    info = DatasetInfo(
+        robot_model=robot_ref,
+        resolution=res[0],
+        dictionary="",
+        scale_ids=(0, 0),
+        scale_length_m=0.0,
+        observation="images",
+        planned_joints_deg=q_deg,
+        validation_joints_deg=np.zeros((0,)),
+        backend="import",
+        scenario={"import": {"joints": str(joints), "joint_units": joint_units,
+                             "target": str(target), "images": {c.name: c.pattern for c in images}}},
+        cameras=tuple(names),
+        resolutions=None if len(set(res)) == 1 else res,
+        board=target_document(tgt),
+        image_suffix=suffix,
+    )  # fmt: skip
+    write_dataset_info(out / "dataset.json", info)
+    return info
+
+
+def _match(
+    images: Sequence[CameraImages], column: tuple[str, ...] | None, n_rows: int, joints: Path
+) -> dict[str, list[Path]]:
+    """Every camera's image file of every joints row (sorted order, or the ``image`` column)."""
+    out: dict[str, list[Path]] = {}
+    for cam in images:
+        if column is None:
+            if len(cam.files) != n_rows:
+                raise ImportError_(
+                    f"{joints} has {n_rows} joint rows but camera {cam.name} has "
+                    f"{len(cam.files)} images ({cam.pattern})",
+                    fix="give one row per image (rows match the images in sorted file-name "
+                    "order), or add an image column naming each row's file",
+                )
+            out[cam.name] = list(cam.files)
+            continue
+        by_name = {f.name: f for f in cam.files}
+        missing = [n for n in column if n not in by_name]
+        if missing:
+            raise ImportError_(
+                f"{joints}: the image column names {len(missing)} file(s) that camera "
+                f"{cam.name} ({cam.pattern}) lacks, e.g. {missing[0]!r}",
+                fix="name files of the --images folders in the image column (file names only)",
+            )
+        out[cam.name] = [by_name[n] for n in column]
+    return out
+
+
+def _warn_not_found(
+    board: Board,
+    images: Sequence[CameraImages],
+    files: dict[str, list[Path]],
+    feats: dict[str, list[Features]],
+) -> None:
+    missed = [str(f) for c in images for f, ft in zip(files[c.name], feats[c.name], strict=True)
+              if len(ft) < board.min_features]  # fmt: skip
+    if missed:
+        total = sum(len(v) for v in files.values())
+        more = " ..." if len(missed) > 8 else ""
+        warnings.warn(
+            f"the {board.describe()} is not found in {len(missed)} of {total} image(s), skipped: "
+            f"{', '.join(missed[:8])}{more}",
+            TargetNotFoundWarning,
+            stacklevel=3,
+        )

@@ -1,0 +1,184 @@
+"""``calibration.json`` of a robot calibrated with a board: its typed form, writer and reader.
+
+Written by ``selfcal calibrate`` for a dataset whose target is a board (the field's calibration
+keeps :mod:`calib.io.calibration`). The world frame is the board frame (its features' points,
+m); the MCPC chain's tool is the first camera (OpenCV frame). Keys (units in the names)::
+
+    format, schema_version, robot_model, world_frame
+    target            the board's target TOML keys (mm)
+    cameras           [{name, resolution, model, parameters: {fx, fy, cx, cy, ...} (px, OpenCV
+                       names), std: {name: px or 1 for mu}, T_first_camera}]
+    mcpc              joint_types, joint_offsets_rad, params_si (n + 1, 6), columns, tool
+    nominal_mcpc      the nominal kinematics with only hand-eye and board pose fitted (the
+                      reference of ``selfcal evaluate``), same keys
+    reprojection_rms_px, dataset {frames, frames_used, skipped_images}, held, warnings
+
+:func:`read_board_calibration` is the one reader; :func:`calibration_kind` tells the two
+``calibration.json`` kinds apart.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from calib.camera import Pinhole
+from calib.errors import InputError
+from calib.io.jsonfile import SCHEMA_KEY, Fields, check_header, load_json, write_json_atomic
+from calib.mcpc import COLUMNS, MCPCModel
+
+__all__ = [
+    "BoardCalibrationFileError",
+    "BoardCalibrationResult",
+    "FORMAT",
+    "SCHEMA_VERSION",
+    "calibration_kind",
+    "read_board_calibration",
+    "write_board_calibration",
+]
+
+FORMAT = "scorbot-selfcal-board-calibration"
+SCHEMA_VERSION = 1
+WORLD_FRAME = "the board frame (the target's declared feature points, m)"
+_FIX = "re-run `selfcal calibrate DATASET` to write DATASET/calibration.json again"
+
+
+class BoardCalibrationFileError(InputError):
+    """A board ``calibration.json`` that is damaged or newer than this code (names file, key)."""
+
+
+def _model_json(m: MCPCModel, tool: str) -> dict:
+    return {
+        "joint_types": list(m.joint_types),
+        "joint_offsets_rad": np.asarray(m.joint_offsets, float).tolist(),
+        "params_si": m.params.tolist(),
+        "columns": list(COLUMNS),
+        "tool": tool,
+    }
+
+
+def _model_from(f: Fields) -> MCPCModel:
+    types = f.strs("joint_types")
+    n = len(types)
+    return MCPCModel(f.array("params_si", (n + 1, 6)), types, f.array("joint_offsets_rad", (n,)))
+
+
+def camera_json(name: str, cam: Pinhole, std: dict[str, float]) -> dict:
+    """One ``cameras`` entry: OpenCV names (``fy`` besides ``mu``), the first camera's frame."""
+    params = {"fx": cam.fx, "fy": cam.fy, "cx": cam.cx, "cy": cam.cy, "mu": cam.mu}
+    return {
+        "name": name,
+        "resolution": [cam.width, cam.height],
+        "model": "pinhole",
+        "parameters": params,
+        "free": list(cam.free),
+        "std": {k: float(v) for k, v in std.items()},
+        "T_first_camera": np.eye(4).tolist(),
+    }
+
+
+@dataclass(frozen=True, eq=False)
+class BoardCalibrationResult:
+    """The content of a board ``calibration.json`` (module docstring; SI inside)."""
+
+    robot_model: str
+    target: dict
+    camera_names: tuple[str, ...]
+    cameras: tuple[Pinhole, ...]
+    camera_std: tuple[dict[str, float], ...]
+    model: MCPCModel
+    nominal_model: MCPCModel
+    reprojection_rms_px: float
+    frames: int
+    frames_used: int
+    skipped_images: tuple[str, ...] = ()
+    held: tuple[str, ...] = ()
+    warnings: tuple[str, ...] = ()
+
+    def to_json(self) -> dict:
+        """The document (key order fixed)."""
+        return {
+            "format": FORMAT,
+            SCHEMA_KEY: SCHEMA_VERSION,
+            "robot_model": self.robot_model,
+            "world_frame": WORLD_FRAME,
+            "target": dict(self.target),
+            "cameras": [
+                camera_json(n, c, s)
+                for n, c, s in zip(self.camera_names, self.cameras, self.camera_std)
+            ],
+            "mcpc": _model_json(self.model, f"camera {self.camera_names[0]} (OpenCV frame)"),
+            "nominal_mcpc": _model_json(self.nominal_model, "the same camera, nominal chain"),
+            "reprojection_rms_px": self.reprojection_rms_px,
+            "dataset": {
+                "frames": self.frames,
+                "frames_used": self.frames_used,
+                "skipped_images": list(self.skipped_images),
+            },
+            "held": list(self.held),
+            "warnings": list(self.warnings),
+        }
+
+    @classmethod
+    def from_json(cls, doc: dict, where: str) -> BoardCalibrationResult:
+        """Parse a document read from ``where``; raises BoardCalibrationFileError."""
+        err = BoardCalibrationFileError
+        check_header(doc, where, fmt=FORMAT, version=SCHEMA_VERSION, fix=_FIX, error=err)
+        f = Fields(doc, where, _FIX, error=err)
+        cams, names, stds = [], [], []
+        for c in f.items("cameras"):
+            if c.str("model") != "pinhole":
+                raise c.bad("model", "pinhole", c.raw("model"))
+            p, (w, h) = c.sub("parameters"), c.ints("resolution")
+            cams.append(Pinhole(p.float("fx"), p.float("fy") / p.float("fx"), p.float("cx"),
+                                p.float("cy"), w, h, c.strs("free")))  # fmt: skip
+            names.append(c.str("name"))
+            s = c.sub("std")
+            stds.append({k: s.float(k) for k in s.doc})
+        d = f.sub("dataset")
+        return cls(
+            robot_model=f.str("robot_model"),
+            target=dict(f.sub("target").doc),
+            camera_names=tuple(names),
+            cameras=tuple(cams),
+            camera_std=tuple(stds),
+            model=_model_from(f.sub("mcpc")),
+            nominal_model=_model_from(f.sub("nominal_mcpc")),
+            reprojection_rms_px=f.float("reprojection_rms_px"),
+            frames=d.int("frames"),
+            frames_used=d.int("frames_used"),
+            skipped_images=d.strs("skipped_images"),
+            held=f.strs("held"),
+            warnings=f.strs("warnings"),
+        )
+
+
+def write_board_calibration(path: str | Path, result: BoardCalibrationResult) -> Path:
+    """Write ``result`` at ``path`` (atomically; the one writer)."""
+    return write_json_atomic(path, result.to_json())
+
+
+def _path(path: str | Path) -> Path:
+    p = Path(path)
+    p = p / "calibration.json" if p.is_dir() else p
+    if not p.is_file():
+        raise BoardCalibrationFileError(
+            f"{p} is missing", fix="run `selfcal calibrate DATASET` first, or give its folder"
+        )
+    return p
+
+
+def calibration_kind(path: str | Path) -> str:
+    """``"board"`` or ``"field"``: which kind of ``calibration.json`` ``path`` (or
+    ``path/calibration.json``) holds, by its ``format``."""
+    doc = load_json(_path(path), fix=_FIX, error=BoardCalibrationFileError)
+    return "board" if doc.get("format") == FORMAT else "field"
+
+
+def read_board_calibration(path: str | Path) -> BoardCalibrationResult:
+    """Read the board ``calibration.json`` at ``path`` (or ``path/calibration.json``)."""
+    p = _path(path)
+    return BoardCalibrationResult.from_json(load_json(p, fix=_FIX, error=BoardCalibrationFileError),
+                                            str(p))  # fmt: skip

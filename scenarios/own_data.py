@@ -1,0 +1,127 @@
+"""``selfcal import`` and ``selfcal evaluate``, and the target dispatch of ``selfcal calibrate``.
+
+Your own data (docs/own-data.md): images of N >= 1 cameras, joint readings and a printed board
+become a dataset folder (:mod:`calib.import_dataset`); ``calibrate`` runs the self-calibration
+for the ArUco field and the board calibration (:mod:`calib.board_dataset`) for a board;
+``evaluate`` predicts a held-out dataset with the calibration (:mod:`calib.evaluate`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from calib.board_dataset import calibrate_board_dataset
+from calib.evaluate import evaluate_board, write_evaluation
+from calib.import_dataset import CameraImages, import_dataset
+from calib.io.board_calibration import (
+    BoardCalibrationResult,
+    calibration_kind,
+    read_board_calibration,
+    write_board_calibration,
+)
+from calib.io.dataset import Dataset
+from calib.io.joints_file import JOINT_UNITS
+from scenarios.cli_common import CliError
+from scenarios.pipeline import run_calibrate
+
+__all__ = ["calibrate_any", "register"]
+
+
+def _say(quiet: bool, text: str) -> None:
+    if not quiet:
+        print(text, file=sys.stderr)
+
+
+def calibrate_any(root: Path, *, quiet: bool = False, method: str = "joint") -> None:
+    """Calibrate the dataset in ``root`` by its target and write ``root/calibration.json``:
+    the field -> :func:`scenarios.pipeline.run_calibrate`; a board -> the board calibration."""
+    info = Dataset.open(root).info
+    if info.board is None:
+        run_calibrate(root, quiet=quiet, method=method)
+        return
+    res = calibrate_board_dataset(root)
+    write_board_calibration(Path(root) / "calibration.json", res)
+    for text in res.warnings:
+        _say(quiet, f"warning: {text}")
+    _say(quiet, summary(res))
+
+
+def summary(res: BoardCalibrationResult) -> str:
+    """One line on a board calibration."""
+    c = res.cameras[0]
+    return (
+        f"calibrated {res.frames_used}/{res.frames} frames with the {res.target['type']}: "
+        f"fx = {c.fx:.2f} px, fy = {c.fy:.2f} px, cx = {c.cx:.2f} px, cy = {c.cy:.2f} px, "
+        f"reprojection RMS {res.reprojection_rms_px:.3f} px"
+    )
+
+
+def cmd_import(args: argparse.Namespace) -> int:
+    cams = [CameraImages.parse(s, default_name=f"cam{k}") for k, s in enumerate(args.images)]
+    info = import_dataset(
+        args.robot, cams, args.joints, args.joint_units, args.target, args.out,
+        base_link=args.base_link, tool_link=args.tool_link, link=args.link,
+    )  # fmt: skip
+    n = len(info.planned_joints_deg)
+    print(f"imported {n} frames of {len(info.cameras)} camera(s) into {args.out}")
+    return 0
+
+
+def cmd_evaluate(args: argparse.Namespace) -> int:
+    cal_path = Path(args.calibration)
+    if calibration_kind(cal_path) != "board":
+        raise CliError(
+            f"{cal_path}: a self-calibration of the ArUco field; evaluate takes a board "
+            "calibration (its calibration.json holds no scene points yet)",
+            fix="calibrate a board dataset (`selfcal import ... --target BOARD.toml`) first",
+        )
+    cal = read_board_calibration(cal_path)
+    ev = evaluate_board(cal, str(cal_path), args.dataset)
+    out = Path(args.out) if args.out else Path(args.dataset) / "evaluation.json"
+    write_evaluation(out, ev)
+    print(ev.line())
+    return 0
+
+
+IMPORT_HELP = """\
+joints file: CSV with the header j1,...,jn (optionally an image column with the file name), or
+n numbers per row without a header (comma or whitespace); rows match the images in sorted
+file-name order, or by the image column. Target TOML: docs/targets.md. See docs/own-data.md.
+"""
+
+
+def register(subparsers) -> None:
+    """Add ``import`` and ``evaluate`` to the ``selfcal`` subcommands."""
+    sp = subparsers.add_parser(
+        "import",
+        help="your own images + joint readings + board -> a dataset folder (no truth)",
+        description="Check and import your own data as a dataset folder.",
+        epilog=IMPORT_HELP,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    sp.add_argument("--robot", required=True, help="model name, robot TOML or URDF file")
+    sp.add_argument("--base-link", default=None, help="a URDF's base link (default: its root)")
+    sp.add_argument("--tool-link", default=None, help="a URDF's tool link (default: its leaf)")
+    sp.add_argument(
+        "--images", action="append", required=True, metavar="NAME=GLOB",
+        help="one camera's images, e.g. 'cam0=DIR/*.png' (quote it; repeat per camera)",
+    )  # fmt: skip
+    sp.add_argument("--joints", required=True, help="joints file (CSV)")
+    sp.add_argument("--joint-units", required=True, choices=JOINT_UNITS)
+    sp.add_argument("--target", required=True, help="target TOML (docs/targets.md)")
+    sp.add_argument("--out", required=True, help="new dataset folder")
+    sp.add_argument("--link", action="store_true", help="link the images instead of copying")
+    sp.set_defaults(func=cmd_import)
+
+    sp = subparsers.add_parser(
+        "evaluate",
+        help="held-out check: predict DATASET2's features with the calibration",
+        description="Predict every detected feature of DATASET2 from its joint readings with the "
+        "calibrated model and with the nominal kinematics; write evaluation.json.",
+    )
+    sp.add_argument("calibration", help="calibrated dataset folder (or its calibration.json)")
+    sp.add_argument("dataset", help="held-out dataset folder (same robot, camera and board)")
+    sp.add_argument("--out", default=None, help="default DATASET/evaluation.json")
+    sp.set_defaults(func=cmd_evaluate)
