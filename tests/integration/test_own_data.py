@@ -10,19 +10,25 @@ Measured (seeds below): board detection 0.04 px RMS against the true projections
 
 from __future__ import annotations
 
+import argparse
 import json
 import shutil
+from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
 from synthetic_board import CAMERA, TARGET_TOML, make_lab, write_lab_data
 
+from calib.calibrate import CalibrationError, calibrate
 from calib.import_dataset import CameraImages, ImportError_, TargetNotFoundWarning, import_dataset
 from calib.io.board_calibration import read_board_calibration
 from calib.io.dataset import Dataset
 from calib.io.joints_file import JointsFileError
+from calib.robot_def import load_robot
 from scenarios.cli import main
+from scenarios.cli_common import CliError
+from scenarios.own_data import cmd_evaluate
 
 
 @pytest.fixture(scope="module")
@@ -130,3 +136,31 @@ def test_images_without_the_board_are_named_and_skipped_until_too_few_remain(lab
     with pytest.warns(TargetNotFoundWarning), pytest.raises(ImportError_, match="in 0 of 2") as e:
         import_dataset("kr6-r900", cams, two, "rad", b98, tmp_path / "o3")
     assert "target file's keys" in e.value.fix
+
+
+def test_a_urdf_robot_with_named_links(lab, tmp_path):
+    root, (ci, cj), _ = lab
+    urdf = Path(__file__).resolve().parents[1] / "data" / "kr6_r900.urdf"
+    assert main(["import", "--robot", str(urdf), "--base-link", "base_link", "--tool-link",
+                 "flange", "--images", f"cam0={ci}/*.png", "--joints", str(cj), "--joint-units",
+                 "rad", "--target", str(root / "board.toml"), "--out", str(tmp_path / "u"),
+                 "--link"]) == 0  # fmt: skip
+    ds = Dataset.open(tmp_path / "u")
+    assert ds.info.robot_model == "robot/kr6_r900.toml"
+    robot = load_robot(ds.robot_source)  # the dataset's own copy, wherever the folder goes
+    assert robot.n == 6 and robot.name == "kr6_r900"
+    with pytest.raises(ImportError_, match="apply to a URDF only"):
+        import_dataset("models/robots/kr6-r900.toml", [CameraImages.parse(f"{ci}/*.png")], cj,
+                       "rad", root / "board.toml", tmp_path / "v", tool_link="flange")  # fmt: skip
+
+
+def test_evaluate_and_self_calibration_refuse_what_they_cannot_do(lab, tmp_path):
+    root, (ci, cj), _ = lab
+    golden = Path(__file__).resolve().parents[1] / "golden" / "analytic" / "calibration.json"
+    with pytest.raises(CliError, match="self-calibration of the ArUco field") as err:
+        cmd_evaluate(argparse.Namespace(calibration=str(golden), dataset=str(root), out=None))
+    assert err.value.fix
+    import_dataset("kr6-r900", [CameraImages.parse(f"{ci}/*.png")], cj, "rad",
+                   root / "board.toml", tmp_path / "one", link=True)  # fmt: skip
+    with pytest.raises(CalibrationError, match=r"cameras \['cam0'\] and target 'chessboard'"):
+        calibrate(tmp_path / "one")
