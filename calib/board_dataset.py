@@ -32,7 +32,7 @@ from calib.target.base import Features
 from calib.target.boards import Board
 from calib.transforms import inv_pose
 
-__all__ = ["dataset_board", "detect_board", "calibrate_board_dataset"]
+__all__ = ["dataset_board", "detect_board", "calibrate_board_dataset", "chain_param_names"]
 
 
 def dataset_board(ds: Dataset) -> Board:
@@ -104,7 +104,7 @@ def calibrate_board_dataset(root: str | Path) -> BoardCalibrationResult:
         )
         used = res.used
         T_board_cam = inv_pose(res.board.T_cam_board[used])
-        ref = identify(nominal, q[used], T_board_cam, hold=_chain_names(nominal.joint_types))
+        ref = identify(nominal, q[used], T_board_cam, hold=chain_param_names(nominal.joint_types))
     notes = []
     for w in caught:
         if issubclass(w.category, SelfCalWarning):
@@ -129,7 +129,7 @@ def calibrate_board_dataset(root: str | Path) -> BoardCalibrationResult:
     )
 
 
-def _chain_names(joint_types: tuple[str, ...]) -> tuple[str, ...]:
+def chain_param_names(joint_types: tuple[str, ...]) -> tuple[str, ...]:
     """The minimal parameters of the joints' chain: all but the base (row 0) and the tool
     (row n), i.e. what the nominal reference keeps at the drawing's values."""
     n = len(joint_types)

@@ -27,6 +27,7 @@ from calib.camera.undistort import Undistorter
 from calib.errors import EstimationError, SelfCalWarning
 from calib.identify import identify
 from calib.io.calibration import CalibrationResult
+from calib.io.calibration_blocks import ScenePoints
 from calib.io.dataset import CAMERAS, Dataset, DatasetError, DatasetInfo, Detections, read_gray
 from calib.joint_refine import refine_calibration
 from calib.kinematics import fk_tool
@@ -245,6 +246,11 @@ def calibrate_detailed(
         result = with_joint(result, res, robot)
         out = CalibrationOutput(result, sc, ident, res.model, ds.indices[used], res)
     result = with_bounds(result, out, obs=obs, q=q, robot=robot, ds_info=ds.info)
+    final = out.joint if out.joint is not None else sc  # the points of the final method
+    ids, X = final.point_ids, final.X_world
+    ok = np.isfinite(X).all(axis=1)
+    scene = ScenePoints(tuple(int(i) for i in ids[ok]), np.asarray(X[ok], dtype=float))
+    result = dataclasses.replace(result, scene=scene)
     result = dataclasses.replace(result, seconds=round(time.perf_counter() - t0, 3))
     return dataclasses.replace(out, result=result)
 

@@ -26,7 +26,7 @@ from calib.kinematics import fk_tool
 from calib.mcpc import MCPCModel
 from calib.transforms import inv_pose
 
-__all__ = ["EVAL_FORMAT", "Evaluation", "evaluate_board", "write_evaluation"]
+__all__ = ["EVAL_FORMAT", "Evaluation", "evaluate_board", "rms_px", "write_evaluation"]
 
 EVAL_FORMAT = "scorbot-selfcal-evaluation"
 
@@ -66,7 +66,8 @@ class Evaluation:
         )
 
 
-def _rms(e: np.ndarray) -> float:
+def rms_px(e: np.ndarray) -> float:
+    """2-D RMS (px) of residuals (k, 2)."""
     return float(np.sqrt(np.mean(np.sum(e**2, axis=-1))))
 
 
@@ -115,7 +116,7 @@ def evaluate_board(cal: BoardCalibrationResult, cal_where: str, root: str | Path
             Xc = X @ T[k][f, :3, :3].T + T[k][f, :3, 3]
             e = camera.project(Xc) - ft.uv
             errs[k].append(e)
-            row[f"{k}_px"] = _rms(e)
+            row[f"{k}_px"] = rms_px(e)
         per.append(row)
     if skipped:
         warnings.warn(f"the {board.describe()} is not found in {len(skipped)} of {len(names)} "
@@ -124,7 +125,7 @@ def evaluate_board(cal: BoardCalibrationResult, cal_where: str, root: str | Path
     if not per:
         raise InputError(f"{ds.root}: no image shows the {board.describe()}",
                          fix="give held-out images that show the board")  # fmt: skip
-    rms = {k: _rms(np.concatenate(v)) for k, v in errs.items()}
+    rms = {k: rms_px(np.concatenate(v)) for k, v in errs.items()}
     return Evaluation(rms, tuple(per), tuple(skipped), str(ds.root), cal_where)
 
 

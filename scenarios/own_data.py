@@ -14,6 +14,7 @@ from pathlib import Path
 
 from calib.board_dataset import calibrate_board_dataset
 from calib.evaluate import evaluate_board, write_evaluation
+from calib.evaluate_field import evaluate_field
 from calib.import_dataset import CameraImages, import_dataset
 from calib.io.board_calibration import (
     BoardCalibrationResult,
@@ -21,9 +22,9 @@ from calib.io.board_calibration import (
     read_board_calibration,
     write_board_calibration,
 )
+from calib.io.calibration import read_calibration
 from calib.io.dataset import Dataset
 from calib.io.joints_file import JOINT_UNITS
-from scenarios.cli_common import CliError
 from scenarios.pipeline import run_calibrate
 
 __all__ = ["calibrate_any", "register"]
@@ -71,14 +72,11 @@ def cmd_import(args: argparse.Namespace) -> int:
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
     cal_path = Path(args.calibration)
-    if calibration_kind(cal_path) != "board":
-        raise CliError(
-            f"{cal_path}: a self-calibration of the ArUco field; evaluate takes a board "
-            "calibration (its calibration.json holds no scene points yet)",
-            fix="calibrate a board dataset (`selfcal import ... --target BOARD.toml`) first",
-        )
-    cal = read_board_calibration(cal_path)
-    ev = evaluate_board(cal, str(cal_path), args.dataset)
+    cal_dir = cal_path if cal_path.is_dir() else cal_path.parent
+    if calibration_kind(cal_path) == "board":
+        ev = evaluate_board(read_board_calibration(cal_path), str(cal_path), args.dataset)
+    else:
+        ev = evaluate_field(read_calibration(cal_path), cal_dir, args.dataset)
     out = Path(args.out) if args.out else Path(args.dataset) / "evaluation.json"
     write_evaluation(out, ev)
     print(ev.line())

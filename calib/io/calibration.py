@@ -34,6 +34,7 @@ from calib.io.calibration_blocks import (
     ParameterEstimate,
     Rig,
     ScaleEstimate,
+    ScenePoints,
 )
 from calib.io.calibration_bounds import Bounds
 from calib.io.jsonfile import SCHEMA_KEY, Fields, check_header, load_json, write_json_atomic
@@ -90,6 +91,8 @@ class CalibrationResult:
             when none were computed).
         warnings: what a person should know about this calibration, one sentence each.
         seconds: wall time of the calibration (s), or None.
+        scene: the calibrated marker corners in the world frame (what ``selfcal evaluate``
+            predicts), or None (files written before it existed).
     """
 
     robot_model: str
@@ -115,6 +118,7 @@ class CalibrationResult:
     bounds_error: str | None = None
     warnings: tuple[str, ...] = ()
     seconds: float | None = None
+    scene: ScenePoints | None = None
     world_frame: str = WORLD_FRAME
     tool: str = TOOL
     columns: tuple[str, ...] = field(default=tuple(COLUMNS))
@@ -175,6 +179,8 @@ class CalibrationResult:
         doc["warnings"] = list(self.warnings)
         if self.seconds is not None:
             doc["seconds"] = self.seconds
+        if self.scene is not None:
+            doc["scene"] = self.scene.to_json()
         return doc
 
     @classmethod
@@ -203,6 +209,7 @@ class CalibrationResult:
         if bounds is not None and bounds.has("error"):
             bounds_error, bounds = bounds.str("error"), None
         joint = f.maybe_sub("joint")
+        scene = f.maybe_sub("scene")
         methods = f.sub("methods")
         return cls(
             robot_model=f.str("robot_model"),
@@ -228,6 +235,7 @@ class CalibrationResult:
             bounds_error=bounds_error,
             warnings=f.strs("warnings") if f.has("warnings") else (),
             seconds=f.opt_float("seconds"),
+            scene=None if scene is None else ScenePoints.from_json(scene),
             world_frame=f.str("world_frame"),
             tool=m.str("tool"),
             columns=m.strs("columns"),

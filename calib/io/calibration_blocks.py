@@ -217,6 +217,16 @@ class CameraPoses(JsonBlock):
 
 
 @dataclass(frozen=True, eq=False)
+class ScenePoints(JsonBlock):
+    """``scene``: the calibrated target points (marker corners, feature ids of
+    :mod:`calib.target.aruco`) ``X_world_m`` (P, 3) m in the world frame of the final method
+    (the frame of ``camera_poses`` and ``mcpc``); what ``selfcal evaluate`` predicts."""
+
+    point_ids: tuple[int, ...]
+    X_world_m: np.ndarray = field(metadata={"shape": (None, 3)})
+
+
+@dataclass(frozen=True, eq=False)
 class MethodSummary(JsonBlock):
     """``methods[name]``: what one method (``two-stage`` or ``joint``) estimated: intrinsics, rig,
     reprojection RMS (px), observation counts, hand-eye, the parameters and the MCPC parameters
