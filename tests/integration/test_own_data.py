@@ -20,11 +20,12 @@ import numpy as np
 import pytest
 from synthetic_board import CAMERA, TARGET_TOML, make_lab, write_lab_data
 
+from calib.board_dataset import calibrate_board_dataset
 from calib.calibrate import CalibrationError, calibrate
 from calib.errors import InputError
 from calib.import_dataset import CameraImages, ImportError_, TargetNotFoundWarning, import_dataset
 from calib.io.board_calibration import read_board_calibration
-from calib.io.dataset import Dataset
+from calib.io.dataset import Dataset, DatasetError
 from calib.io.joints_file import JointsFileError
 from calib.robot_def import load_robot
 from scenarios.cli import main
@@ -169,3 +170,26 @@ def test_evaluate_and_self_calibration_refuse_what_they_cannot_do(lab, tmp_path)
                    root / "board.toml", tmp_path / "one", link=True)  # fmt: skip
     with pytest.raises(CalibrationError, match=r"cameras \['cam0'\] and target 'chessboard'"):
         calibrate(tmp_path / "one")
+
+
+def test_two_cameras_import_into_one_dataset(lab, tmp_path):
+    root, (ci, cj), (hi, _) = lab
+    small = tmp_path / "small"
+    small.mkdir()
+    for f in sorted(hi.glob("*.png")):  # a second camera of another size
+        img = cv2.imread(str(f), cv2.IMREAD_GRAYSCALE)
+        cv2.imwrite(str(small / f.name), cv2.resize(img, (400, 300), interpolation=cv2.INTER_AREA))
+    ten = tmp_path / "ten.csv"
+    ten.write_text("\n".join(cj.read_text().splitlines()[:11]) + "\n")
+    cams = [
+        CameraImages.parse(f"left={ci}/img_00[0-9].png"),
+        CameraImages.parse(f"right={small}/*.png"),
+    ]
+    info = import_dataset(
+        "kr6-r900", cams, ten, "rad", root / "board.toml", tmp_path / "two", link=True
+    )
+    ds = Dataset.open(tmp_path / "two")
+    assert ds.info.cameras == ("left", "right") and info.resolution_of("right") == (400, 300)
+    assert [c for _, c, _ in ds.image_paths()][:2] == ["left", "right"]
+    with pytest.raises(DatasetError, match="2 cameras; the board calibration takes one"):
+        calibrate_board_dataset(tmp_path / "two")
