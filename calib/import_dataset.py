@@ -27,7 +27,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from calib.board_calibrate import calibrate_board
+from calib.board_calibrate import BoardMismatchError, calibrate_board
 from calib.errors import InputError, SelfCalWarning
 from calib.io.dataset import DatasetInfo, write_dataset_info
 from calib.io.joints_file import read_joints_file
@@ -36,10 +36,19 @@ from calib.robot_def import RobotDef, load_robot
 from calib.target.base import Features
 from calib.target.boards import Board
 
-__all__ = ["ImportError_", "TargetNotFoundWarning", "CameraImages", "import_dataset", "MIN_FRAMES"]
+__all__ = [
+    "ImportError_",
+    "TargetNotFoundWarning",
+    "CameraImages",
+    "check_geometry",
+    "import_dataset",
+    "MIN_FRAMES",
+]
 
 MIN_FRAMES = 6
 """Fewest frames that show the target for a dataset to be imported (as the calibration)."""
+MISMATCH_PX = 3.0
+"""Reprojection RMS (px, 2-D) above which the declared board does not fit the detections."""
 
 
 class ImportError_(InputError):  # noqa: N801 (ImportError is Python's)
@@ -192,12 +201,8 @@ def import_dataset(
             fix="check the target file's keys against the printed board and add images that show "
             "the whole board",
         )
-    for cam in images:  # the declared geometry against the detections (names the target keys)
-        ok = [f for f in feats[cam.name] if len(f) >= tgt.min_features]
-        if len(ok) >= 3:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                calibrate_board(tgt, ok, *sizes[cam.name], free=("fx", "mu", "cx", "cy"))
+    for cam in images:
+        check_geometry(tgt, feats[cam.name], sizes[cam.name])
     keep = np.flatnonzero(seen)
     (out / "frames").mkdir(exist_ok=True)
     suffix = suffixes.pop()
@@ -239,6 +244,38 @@ def import_dataset(
     )  # fmt: skip
     write_dataset_info(out / "dataset.json", info)
     return info
+
+
+def check_geometry(board: Board, features: Sequence[Features], size: tuple[int, int]) -> None:
+    """The declared geometry against the detections of one camera (``size`` (W, H) px).
+
+    The pinhole board calibration (:func:`calib.board_calibrate.calibrate_board`) judges it; when
+    it finds a mismatch, OpenCV's lens model (k1, k2, p1, p2, k3 free) gets a second say, so that
+    a strongly distorting lens is not mistaken for a wrong board.
+
+    Raises:
+        calib.board_calibrate.BoardMismatchError: naming the target file and its keys.
+    """
+    ok = [f for f in features if len(f) >= board.min_features]
+    if len(ok) < 3:
+        return
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            calibrate_board(board, ok, *size, free=("fx", "mu", "cx", "cy"))
+    except BoardMismatchError:
+        if not _fits_with_lens(board, ok, size):
+            raise
+
+
+def _fits_with_lens(board: Board, features: Sequence[Features], size: tuple[int, int]) -> bool:
+    """Whether OpenCV's calibration with its lens model fits ``features`` within MISMATCH_PX."""
+    if any(not np.isin(f.ids, board.layout()[0]).all() for f in features):
+        return False  # ids the declared board does not have
+    obj = [board.points(f.ids).astype(np.float32) for f in features]
+    img = [f.uv.astype(np.float32).reshape(-1, 1, 2) for f in features]
+    rms = float(cv2.calibrateCamera(obj, img, size, None, None)[0])  # RMS of the 2-D point errors
+    return rms < MISMATCH_PX
 
 
 def _match(
