@@ -193,3 +193,14 @@ def test_two_cameras_import_into_one_dataset(lab, tmp_path):
     assert [c for _, c, _ in ds.image_paths()][:2] == ["left", "right"]
     with pytest.raises(DatasetError, match="2 cameras; the board calibration takes one"):
         calibrate_board_dataset(tmp_path / "two")
+
+
+def test_import_errors_exit_2_with_the_fix(lab, tmp_path, capsys):
+    root, (ci, cj), _ = lab
+    code = main(["import", "--robot", "kr6-r900", "--images", f"cam0={ci}/*.png", "--joints",
+                 str(cj), "--joint-units", "deg", "--target", str(root / "board.toml"), "--out",
+                 str(tmp_path / "o")])  # fmt: skip
+    err = capsys.readouterr().err
+    assert code == 2
+    assert "selfcal import: error:" in err and "joints.csv" in err
+    assert "selfcal import: fix: declare --joint-units rad" in err
