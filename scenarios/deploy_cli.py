@@ -22,12 +22,13 @@ from pathlib import Path
 import numpy as np
 
 from calib.compensate import solve_compensated, solve_compensated_pose
-from calib.export import BASE_FRAME, TOOL_FRAME, DeployError, deploy
+from calib.export import BASE_FRAME, TOOL_FRAME, DeployError, deploy, deploy_chain
 from calib.export_camera import to_camera_info_yaml, to_opencv_yaml
 from calib.export_toml import from_toml, to_toml
 from calib.export_urdf import to_urdf
 from calib.ik import UnreachableError
 from calib.ik_numeric import ToolTarget
+from calib.io.board_calibration import calibration_kind, read_board_calibration
 from calib.io.calibration import read_calibration
 from calib.robot_def import load_robot
 from scenarios.cli_common import CliError
@@ -82,6 +83,12 @@ def load_calibration(path: str):
     try:
         if p.suffix == ".toml":
             return from_toml(p.read_text())
+        if calibration_kind(p) == "board":  # world = the board frame, tool = the camera
+            cal = read_board_calibration(p)
+            ref = Path(cal.robot_model)
+            src = p.parent / ref if ref.suffix in (".toml", ".urdf") else cal.robot_model
+            return deploy_chain(cal.model, load_robot(src), intrinsics=cal.cameras[0],
+                                source=str(p))  # fmt: skip
         return deploy(read_calibration(p), source=str(p))
     except DeployError as exc:
         raise CliError(f"{p}: {exc}") from None

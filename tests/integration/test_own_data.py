@@ -23,12 +23,14 @@ from synthetic_board import CAMERA, TARGET_TOML, make_lab, write_lab_data
 from calib.board_dataset import calibrate_board_dataset
 from calib.calibrate import CalibrationError, calibrate
 from calib.errors import InputError
+from calib.export import deploy_chain, nominal_deployed_params
 from calib.import_dataset import CameraImages, ImportError_, TargetNotFoundWarning, import_dataset
 from calib.io.board_calibration import read_board_calibration
 from calib.io.dataset import Dataset, DatasetError
 from calib.io.joints_file import JointsFileError
 from calib.robot_def import load_robot
 from scenarios.cli import main
+from scenarios.deploy_cli import load_calibration
 from scenarios.own_data import cmd_evaluate
 
 
@@ -75,6 +77,15 @@ def test_import_calibrate_evaluate(lab, capsys):
     assert len(ev["images"]) == 10 and all(
         i["calibrated_px"] < i["nominal_px"] for i in ev["images"]
     )
+    # the calibrated robot (base -> tool tip) exports like a self-calibrated one
+    assert main(["export", str(root / "ds"), "--out", str(root / "kr6.urdf")]) == 0
+    assert "<robot" in (root / "kr6.urdf").read_text()
+    assert main(["export", str(root / "ds"), "--out", str(root / "kr6.toml")]) == 0
+    dep = load_calibration(str(root / "kr6.toml"))
+    robot = load_robot("kr6-r900")
+    direct = deploy_chain(cal.model, robot).model.params
+    np.testing.assert_allclose(dep.model.params, direct, atol=1e-8)  # TOML's printed digits
+    assert np.abs(direct - nominal_deployed_params(robot)).max() > 1e-4  # calibrated, not nominal
 
 
 def test_joint_rows_matched_through_the_image_column(lab, tmp_path):
