@@ -172,8 +172,12 @@ def _path(path: str | Path) -> Path:
 
 def calibration_kind(path: str | Path) -> str:
     """``"board"`` or ``"field"``: which kind of ``calibration.json`` ``path`` (or
-    ``path/calibration.json``) holds, by its ``format``."""
-    doc = load_json(_path(path), fix=_FIX, error=BoardCalibrationFileError)
+    ``path/calibration.json``) holds, by its ``format`` (``"field"`` for a missing or damaged
+    file, so that the field's reader reports it)."""
+    try:
+        doc = load_json(_path(path), fix=_FIX, error=BoardCalibrationFileError)
+    except BoardCalibrationFileError:
+        return "field"  # missing or damaged: the field's reader says so in its own words
     return "board" if doc.get("format") == FORMAT else "field"
 
 
