@@ -2,7 +2,7 @@
 
 Inputs: a robot (model name, robot TOML or URDF; a URDF with ``base_link`` / ``tool_link`` gets
 a small robot TOML in the dataset that names them), the images of N >= 1 cameras (a glob per
-camera name), a joints file (:mod:`calib.io.joints_file`) and a target TOML. Rows of the joints
+camera name), a joints file (:func:`calib.io.tracker.read_joint_rows`, the one joints reader) and a target TOML. Rows of the joints
 file match the images in sorted file-name order, or through its ``image`` column (the file name
 every camera's folder holds for that frame). Checked, each an :class:`calib.errors.InputError`
 naming the file and the fix: row and image counts, joint units, one image size per camera, the
@@ -30,8 +30,8 @@ import numpy as np
 from calib.board_calibrate import BoardMismatchError, calibrate_board
 from calib.errors import InputError, SelfCalWarning
 from calib.io.dataset import DatasetInfo, write_dataset_info
-from calib.io.joints_file import read_joints_file
 from calib.io.target_toml import load_target, target_document
+from calib.io.tracker import read_joint_rows
 from calib.robot_def import RobotDef, load_robot
 from calib.target.base import Features
 from calib.target.boards import Board
@@ -156,12 +156,13 @@ def import_dataset(
     base_link: str | None = None,
     tool_link: str | None = None,
     link: bool = False,
+    trust_units: bool = False,
 ) -> DatasetInfo:
     """Check the inputs and write the dataset folder ``out`` (module docstring); returns its
-    ``dataset.json`` content.
+    ``dataset.json`` content. ``trust_units``: skip the radians-looking check of degrees.
 
     Raises:
-        ImportError_, calib.io.joints_file.JointsFileError, calib.board_calibrate
+        ImportError_, calib.io.tracker.TrackerFileError, calib.board_calibrate
         .BoardInputError / BoardMismatchError, calib.robot_def.RobotDefinitionError: bad input
         (each names the file and the fix).
     """
@@ -180,7 +181,7 @@ def import_dataset(
         )
     out.mkdir(parents=True, exist_ok=True)
     rob, robot_ref = _robot(robot, base_link, tool_link, out)
-    rows = read_joints_file(joints, tuple(rob.joint_types), joint_units)
+    rows = read_joint_rows(joints, rob, joint_units, guess=not trust_units)
     files = _match(images, rows.images, len(rows.q), Path(joints))
     suffixes = {f.suffix.lower() for fs in files.values() for f in fs}
     if len(suffixes) != 1:

@@ -24,7 +24,7 @@ from calib.io.board_calibration import (
 )
 from calib.io.calibration import read_calibration
 from calib.io.dataset import Dataset
-from calib.io.joints_file import JOINT_UNITS
+from calib.io.tracker import JOINT_UNITS
 from scenarios.pipeline import run_calibrate
 
 __all__ = ["calibrate_any", "register"]
@@ -64,6 +64,7 @@ def cmd_import(args: argparse.Namespace) -> int:
     info = import_dataset(
         args.robot, cams, args.joints, args.joint_units, args.target, args.out,
         base_link=args.base_link, tool_link=args.tool_link, link=args.link,
+        trust_units=args.trust_units,
     )  # fmt: skip
     n = len(info.planned_joints_deg)
     print(f"imported {n} frames of {len(info.cameras)} camera(s) into {args.out}")
@@ -111,6 +112,10 @@ def register(subparsers) -> None:
     sp.add_argument("--target", required=True, help="target TOML (docs/targets.md)")
     sp.add_argument("--out", required=True, help="new dataset folder")
     sp.add_argument("--link", action="store_true", help="link the images instead of copying")
+    sp.add_argument(
+        "--trust-units", action="store_true",
+        help="degrees that stay within +-6.3 deg are degrees (skip the radians-looking check)",
+    )  # fmt: skip
     sp.set_defaults(func=cmd_import)
 
     sp = subparsers.add_parser(

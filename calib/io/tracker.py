@@ -9,7 +9,8 @@ names the columns; cells separated by commas, or by whitespace when the header h
   tracker frame, unit quaternion, scalar first: then every row is a pose); other columns are
   ignored (and listed by :attr:`Table.ignored`).
 - distances: ``a_j1 .. a_jn``, ``b_j1 .. b_jn`` (the two configurations) and ``d_mm``.
-- joints (for predictions): ``j1 .. jn``, or no header and ``n`` numbers per row.
+- joints (for predictions and ``selfcal import``): ``j1 .. jn``, optionally an ``image`` column
+  (the image's file name, text), or no header and ``n`` numbers per row.
 - predictions (written): ``x_mm,y_mm,z_mm``, one row per joints row, in order.
 
 Joint units: ``deg`` (revolute joints in degrees, prismatic in mm) or ``rad`` (radians and
@@ -22,7 +23,7 @@ unit is probably wrong. Units: SI in the returned arrays.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -38,6 +39,8 @@ __all__ = [
     "read_measurements",
     "read_distances",
     "read_joints",
+    "read_joint_rows",
+    "JointRows",
     "joints_to_si",
     "positions_csv",
     "write_positions",
@@ -66,6 +69,8 @@ class Table:
     lines: np.ndarray
     ignored: tuple[str, ...] = ()
     has_header: bool = True
+    texts: dict[str, tuple[str, ...]] = field(default_factory=dict)
+    """Columns read as text (``read_table(text_columns=...)``), by name; NaN in ``values``."""
 
     def where(self, row: int, col: str | None = None) -> str:
         """``FILE row R (line L)[, column C]`` for data row index ``row`` (0-based)."""
@@ -80,9 +85,12 @@ def _split(line: str, comma: bool) -> list[str]:
     return [c.strip() for c in line.split(",")] if comma else line.split()
 
 
-def read_table(path: str | Path, *, header: bool | None = None) -> Table:
+def read_table(
+    path: str | Path, *, header: bool | None = None, text_columns: tuple[str, ...] = ()
+) -> Table:
     """Read a numeric table (module docstring). ``header``: True (required), False (none) or
-    None (a first line with any non-numeric cell is the header).
+    None (a first line with any non-numeric cell is the header); ``text_columns``: header names of
+    columns kept as text (e.g. an image file name; :attr:`Table.texts`).
 
     Raises:
         TrackerFileError: missing/unreadable file, no data rows, a row with another number of
@@ -127,7 +135,9 @@ def read_table(path: str | Path, *, header: bool | None = None) -> Table:
         data = rows
     if not data:
         raise TrackerFileError(f"{p}: a header but no data rows", fix="one row per measurement")
-    vals = np.empty((len(data), len(cols)))
+    vals = np.full((len(data), len(cols)), np.nan)
+    is_text = [has_header and c in text_columns for c in cols]
+    texts: dict[str, list[str]] = {c: [] for c, t in zip(cols, is_text, strict=True) if t}
     for r, (line_no, ln) in enumerate(data):
         cells = _split(ln, comma)
         where = f"{p} row {r + 1} (line {line_no})"
@@ -138,6 +148,9 @@ def read_table(path: str | Path, *, header: bool | None = None) -> Table:
                 fix="give one value per column in every row (no missing or extra cells)",
             )
         for c, cell in enumerate(cells):
+            if is_text[c]:
+                texts[cols[c]].append(cell)
+                continue
             try:
                 v = float(cell)
             except ValueError:
@@ -151,7 +164,9 @@ def read_table(path: str | Path, *, header: bool | None = None) -> Table:
                     fix="remove the row or replace the value with the measured number",
                 )
             vals[r, c] = v
-    return Table(str(p), cols, vals, np.array([ln for ln, _ in data]), has_header=has_header)
+    lines = np.array([ln for ln, _ in data])
+    text_cols = {c: tuple(v) for c, v in texts.items()}
+    return Table(str(p), cols, vals, lines, has_header=has_header, texts=text_cols)
 
 
 def joints_to_si(
@@ -288,9 +303,21 @@ def read_distances(
     )
 
 
-def read_joints(path: str | Path, robot, units: str, *, guess: bool = True) -> np.ndarray:
-    """A joints file (header ``j1..jn`` or none) as (rows, n) SI joint values."""
-    t = read_table(path)
+@dataclass(frozen=True)
+class JointRows:
+    """A joints file read by :func:`read_joint_rows`: ``q`` (rows, n) SI joint values,
+    ``images`` the ``image`` column (file names) or None, ``lines`` (rows,) 1-based file lines."""
+
+    q: np.ndarray
+    images: tuple[str, ...] | None
+    lines: np.ndarray
+
+
+def read_joint_rows(path: str | Path, robot, units: str, *, guess: bool = True) -> JointRows:
+    """A joints file: a header ``j1..jn`` (any order; optionally an ``image`` column holding a
+    file name, kept as text) or none (``n`` numbers per row), in ``units`` for ``robot``; SI out
+    (the checks of :func:`joints_to_si`)."""
+    t = read_table(path, text_columns=("image",))
     if not t.has_header:
         if len(t.columns) != robot.n:
             raise TrackerFileError(
@@ -300,7 +327,13 @@ def read_joints(path: str | Path, robot, units: str, *, guess: bool = True) -> n
             )
         t = Table(t.path, tuple(_joint_names("", robot.n)), t.values, t.lines)
     cols = _check_joint_columns(t, "", robot)
-    return joints_to_si(t, cols, robot, units, guess=guess)
+    q = joints_to_si(t, cols, robot, units, guess=guess)
+    return JointRows(q, t.texts.get("image"), t.lines)
+
+
+def read_joints(path: str | Path, robot, units: str, *, guess: bool = True) -> np.ndarray:
+    """A joints file (header ``j1..jn`` or none) as (rows, n) SI joint values."""
+    return read_joint_rows(path, robot, units, guess=guess).q
 
 
 def positions_csv(xyz_m: np.ndarray) -> str:

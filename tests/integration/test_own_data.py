@@ -27,7 +27,7 @@ from calib.export import deploy_chain, nominal_deployed_params
 from calib.import_dataset import CameraImages, ImportError_, TargetNotFoundWarning, import_dataset
 from calib.io.board_calibration import read_board_calibration
 from calib.io.dataset import Dataset, DatasetError
-from calib.io.joints_file import JointsFileError
+from calib.io.tracker import TrackerFileError
 from calib.robot_def import load_robot
 from scenarios.cli import main
 from scenarios.deploy_cli import load_calibration
@@ -109,7 +109,7 @@ def test_import_checks_counts_units_and_sizes(lab, tmp_path):
     short.write_text("\n".join(cj.read_text().splitlines()[:-1]) + "\n")
     with pytest.raises(ImportError_, match="short.csv has 19 joint rows but camera cam0 has 20"):
         import_dataset("kr6-r900", cams, short, "rad", board, tmp_path / "o1")
-    with pytest.raises(JointsFileError, match="holds radians, not degrees"):
+    with pytest.raises(TrackerFileError, match="look like radians"):
         import_dataset("kr6-r900", cams, cj, "deg", board, tmp_path / "o2")
     sizes = tmp_path / "sizes"
     shutil.copytree(ci, sizes)

@@ -1,0 +1,65 @@
+"""The joints file of `selfcal import` through the one joints reader (calib/io/tracker.py
+read_joint_rows): the image column kept as text, rows in file order, SI out, and the unit and
+shape errors naming the file."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from calib.io.tracker import TrackerFileError, read_joint_rows, read_joints
+from calib.robot_def import load_robot
+
+ROBOT = load_robot("kr6-r900")
+Q_DEG = np.array(
+    [
+        [35.0, -77.0, 113.0, 0.0, 54.0, 0.0],
+        [40.0, -70.0, 105.0, 10.0, 50.0, 20.0],
+        [30.0, -80.0, 118.0, -12.0, 60.0, -30.0],
+        [45.0, -75.0, 110.0, 5.0, 45.0, 45.0],
+        [25.0, -72.0, 100.0, -5.0, 58.0, -10.0],
+    ]
+)
+
+
+def write(tmp_path, text, name="joints.csv"):
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+def test_image_column_anywhere_kept_as_text(tmp_path):
+    head = "j3,image,j1,j2,j4,j5,j6"
+    rows = [f"{r[2]},shot {k}.png,{r[0]},{r[1]},{r[3]},{r[4]},{r[5]}" for k, r in enumerate(Q_DEG)]
+    p = write(tmp_path, "\n".join(["# robot log", head, *rows]) + "\n")
+    got = read_joint_rows(p, ROBOT, "deg")
+    np.testing.assert_allclose(got.q, np.radians(Q_DEG), rtol=1e-15)
+    assert got.images == tuple(f"shot {k}.png" for k in range(5)) and got.lines.tolist()[0] == 3
+    np.testing.assert_array_equal(read_joints(p, ROBOT, "deg"), got.q)
+
+
+@pytest.mark.parametrize("sep", [",", " ", "\t"])
+def test_headerless_rows_in_radians(tmp_path, sep):
+    p = write(tmp_path, "\n".join(sep.join(repr(float(v)) for v in r) for r in np.radians(Q_DEG)))
+    got = read_joint_rows(p, ROBOT, "rad")
+    np.testing.assert_allclose(got.q, np.radians(Q_DEG), rtol=1e-15)
+    assert got.images is None
+
+
+def test_units_declared_wrong_name_the_file_and_the_fix(tmp_path):
+    rad = write(
+        tmp_path, "\n".join(",".join(repr(float(v)) for v in r) for r in np.radians(Q_DEG)), "r.csv"
+    )
+    with pytest.raises(TrackerFileError, match="r.csv: .*look like radians") as err:
+        read_joint_rows(rad, ROBOT, "deg")
+    assert "--joint-units rad" in err.value.fix
+    deg = write(tmp_path, "\n".join(",".join(repr(float(v)) for v in r) for r in Q_DEG), "d.csv")
+    with pytest.raises(TrackerFileError, match="d.csv row 1 .*the unit is probably wrong") as err:
+        read_joint_rows(deg, ROBOT, "rad")
+    assert "--joint-units deg" in err.value.fix
+
+
+def test_a_short_row_is_named(tmp_path):
+    p = write(tmp_path, "j1,j2,j3,j4,j5,j6,image\n35,-77,113,0,54,0,a.png\n35,-77,113,0,54,b.png\n")
+    with pytest.raises(TrackerFileError, match="row 2 \\(line 3\\): 6 cells"):
+        read_joint_rows(p, ROBOT, "deg")
