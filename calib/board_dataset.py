@@ -91,6 +91,12 @@ def calibrate_board_dataset(root: str | Path) -> BoardCalibrationResult:
             fix="import the images of one camera per dataset (one --images option)",
         )
     cam = ds.info.cameras[0]
+    if ds.info.camera_model != "pinhole":
+        raise DatasetError(
+            f"{ds.root}: camera model {ds.info.camera_model!r}; the board calibration estimates "
+            "the pinhole (fx, mu, cx, cy) for now",
+            fix="set the cameras' model to pinhole in dataset.json (selfcal import does)",
+        )
     robot = load_robot(ds.robot_source)
     board = dataset_board(ds)
     feats, names = detect_board(ds, board, cam)
@@ -100,7 +106,15 @@ def calibrate_board_dataset(root: str | Path) -> BoardCalibrationResult:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         res = calibrate_robot_with_board(
-            board, feats, q, nominal, W, H, names=names, joint_sigma=encoder_sigma(robot)
+            board,
+            feats,
+            q,
+            nominal,
+            W,
+            H,
+            names=names,
+            joint_sigma=encoder_sigma(robot),
+            free=ds.info.camera_free,
         )
         used = res.used
         T_board_cam = inv_pose(res.board.T_cam_board[used])

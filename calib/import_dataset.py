@@ -47,6 +47,8 @@ __all__ = [
 
 MIN_FRAMES = 6
 """Fewest frames that show the target for a dataset to be imported (as the calibration)."""
+BOARD_FREE = ("fx", "mu", "cx", "cy")
+"""The camera parameters an imported dataset's board calibration estimates (pinhole)."""
 MISMATCH_PX = 3.0
 """Reprojection RMS (px, 2-D) above which the declared board does not fit the detections."""
 
@@ -242,6 +244,8 @@ def import_dataset(
         resolutions=None if len(set(res)) == 1 else res,
         board=target_document(tgt),
         image_suffix=suffix,
+        camera_model="pinhole",
+        camera_free=BOARD_FREE,
     )  # fmt: skip
     write_dataset_info(out / "dataset.json", info)
     return info
