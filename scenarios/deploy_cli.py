@@ -136,7 +136,10 @@ def _export_camera(path: str, fmt: str, out: Path, camera_name: str) -> int:
     p = _calibration_file(path)
     if p.suffix == ".toml":
         raise CliError(f"{p}: --format {fmt} needs a calibration.json (a .toml holds no camera)")
-    cam = read_calibration(p).intrinsics.camera()
+    if calibration_kind(p) == "board":
+        cam = read_board_calibration(p).cameras[0]
+    else:
+        cam = read_calibration(p).intrinsics.camera()
     text = to_opencv_yaml(cam) if fmt == "opencv" else to_camera_info_yaml(cam, camera_name)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(text)

@@ -82,6 +82,10 @@ def test_import_calibrate_evaluate(lab, capsys):
     assert "<robot" in (root / "kr6.urdf").read_text()
     assert main(["export", str(root / "ds"), "--out", str(root / "kr6.toml")]) == 0
     dep = load_calibration(str(root / "kr6.toml"))
+    assert main(["export", str(root / "ds"), "--format", "opencv", "--out",
+                 str(root / "cam0.yml")]) == 0  # fmt: skip
+    fs = cv2.FileStorage(str(root / "cam0.yml"), cv2.FILE_STORAGE_READ)
+    np.testing.assert_allclose(fs.getNode("camera_matrix").mat(), cam.K, rtol=1e-9)
     robot = load_robot("kr6-r900")
     direct = deploy_chain(cal.model, robot).model.params
     np.testing.assert_allclose(dep.model.params, direct, atol=1e-8)  # TOML's printed digits
