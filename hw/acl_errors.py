@@ -11,7 +11,7 @@ import re
 from dataclasses import dataclass
 
 from calib.robot import RobotError
-from hw.acl_text import LINE_SPLIT
+from hw.acl_text import LINE_SPLIT, MAX_INT_DIGITS
 
 __all__ = [
     "AclProtocolError",
@@ -112,6 +112,13 @@ _PLAIN_ERRORS = (
 )
 
 
+def _axis_number(digits: str | None) -> int | None:
+    """The axis an error line names; ``None`` if it names none or a number no axis can have."""
+    if not digits or len(digits.lstrip("0")) > MAX_INT_DIGITS:
+        return None
+    return int(digits)
+
+
 def parse_error_line(line: str) -> AclErrorEvent | None:
     """Recognise one controller error line (``*** ...`` or a known plain message), else ``None``."""
     text = line.strip().lstrip(">").strip()
@@ -122,21 +129,21 @@ def parse_error_line(line: str) -> AclErrorEvent | None:
         am = _AXIS_ERR_RE.match(msg)
         if am:
             kind = _AXIS_ERRORS[re.sub(r"\s+", " ", am.group("what").upper())]
-            return AclErrorEvent(kind, message, axis=int(am.group("axis")))
+            return AclErrorEvent(kind, message, axis=_axis_number(am.group("axis")))
         if re.match(r"^TRAJECTORY\s+ERROR", msg, re.I):
             return AclErrorEvent("trajectory_error", message)
         for rx, kind in _PLAIN_ERRORS:
             pm = rx.match(msg)
             if pm:
                 gd = pm.groupdict()
-                axis = int(gd["axis"]) if gd.get("axis") else None
+                axis = _axis_number(gd.get("axis"))
                 return AclErrorEvent(kind, message, axis=axis, position=gd.get("pos") or None)
         return AclErrorEvent("controller_error", message)
     for rx, kind in _PLAIN_ERRORS:
         pm = rx.match(text)
         if pm:
             gd = pm.groupdict()
-            axis = int(gd["axis"]) if gd.get("axis") else None
+            axis = _axis_number(gd.get("axis"))
             return AclErrorEvent(kind, text, axis=axis, position=gd.get("pos") or None)
     return None
 

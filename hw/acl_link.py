@@ -249,7 +249,12 @@ class AclLink:
                 raise
             now = time.monotonic()
             if data:
-                asm.feed(data)
+                try:
+                    asm.feed(data)
+                except AclProtocolError as exc:
+                    self._dirty = True
+                    self.events.extend(exc.events)
+                    raise
                 settle_until = None
             st = asm.status
             if st == ReplyAssembler.COMPLETE:

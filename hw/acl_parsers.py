@@ -12,7 +12,7 @@ import numpy as np
 
 from hw.acl_errors import AclControllerError, AclProtocolError
 from hw.acl_reply import AclReply
-from hw.acl_text import quote_bytes
+from hw.acl_text import MAX_INT_DIGITS, quote_bytes
 
 __all__ = [
     "ListPV",
@@ -28,6 +28,17 @@ _JOINT_LINE = re.compile(r"^\s*\d+\s*:\s*-?\d+(?:\s+\d+\s*:\s*-?\d+)*\s*$")
 _JOINT_PAIR = re.compile(r"(\d+)\s*:\s*(-?\d+)")
 _CART_LINE = re.compile(r"^\s*[XYZPR]\s*:\s*-?\d+(?:\s+[XYZPR]\s*:\s*-?\d+)*\s*$", re.I)
 _CART_PAIR = re.compile(r"([XYZPR])\s*:\s*(-?\d+)", re.I)
+
+
+def _reply_int(digits: str, reply: AclReply) -> int:
+    """An integer the controller printed; more than ``MAX_INT_DIGITS`` digits is a garbled reply."""
+    if len(digits.lstrip("+-").lstrip("0")) > MAX_INT_DIGITS:
+        raise AclProtocolError(
+            f"a number of {len(digits)} digits in the reply to {reply.command!r} (at most "
+            f"{MAX_INT_DIGITS} expected): {quote_bytes(reply.raw)}",
+            reply.raw,
+        )
+    return int(digits)
 
 
 def _raise_reply_errors(reply: AclReply) -> None:
@@ -98,13 +109,13 @@ def parse_listpv(reply: AclReply) -> ListPV:
             name = hm.group("name")
         elif _JOINT_LINE.match(line):
             for a, v in _JOINT_PAIR.findall(line):
-                ax = int(a)
+                ax = _reply_int(a, reply)
                 if ax in counts or ax < 1:
                     raise AclProtocolError(
                         f"LISTPV reply repeats or misnumbers axis {ax}: {quote_bytes(reply.raw)}",
                         reply.raw,
                     )
-                counts[ax] = int(v)
+                counts[ax] = _reply_int(v, reply)
         elif _CART_LINE.match(line):
             for k, v in _CART_PAIR.findall(line):
                 k = k.upper()
@@ -112,7 +123,7 @@ def parse_listpv(reply: AclReply) -> ListPV:
                     raise AclProtocolError(
                         f"LISTPV reply repeats {k}: {quote_bytes(reply.raw)}", reply.raw
                     )
-                cart[k] = int(v)
+                cart[k] = _reply_int(v, reply)
         else:
             raise AclProtocolError(
                 f"unexpected line {line!r} in the reply to {reply.command!r}: "
@@ -141,7 +152,7 @@ def parse_mflag(reply: AclReply) -> int:
             f"{quote_bytes(reply.raw)}",
             reply.raw,
         )
-    return int(reply.lines[0])
+    return _reply_int(reply.lines[0].strip(), reply)
 
 
 def parse_show_speed(reply: AclReply) -> dict[str, int]:
@@ -151,7 +162,7 @@ def parse_show_speed(reply: AclReply) -> dict[str, int]:
     for line in reply.lines:
         m = re.fullmatch(r"GROUP\s+(\w)\s+SPEED\s+IS\s*:?\s*(\d+)", line.strip(), re.I)
         if m:
-            out[m.group(1).upper()] = int(m.group(2))
+            out[m.group(1).upper()] = _reply_int(m.group(2), reply)
         elif line.strip().upper().rstrip(".") not in ("O.K", "OK"):
             raise AclProtocolError(
                 f"unexpected line {line!r} in the reply to SHOW SPEED: {quote_bytes(reply.raw)}",

@@ -75,17 +75,42 @@ class ReplyAssembler:
 
     INCOMPLETE, COMPLETE, MAYBE = "incomplete", "complete", "maybe"
 
+    MAX_REPLY_BYTES = 65536
+    """Cap on one reply: a longer one is a runaway or a wrong baud rate, never an ACL answer."""
+    MAX_LINE_CHARS = 1024
+    """Cap on one line (ACL prints lines of at most a few dozen characters)."""
+
     def __init__(self, command: str | None, expect_echo: bool = False):
         self.command = command
         self.expect_echo = bool(expect_echo) and bool(command)
         self.raw = bytearray()
         self._status = self.INCOMPLETE
         self._analysis: dict[str, Any] = {}
+        # incremental state: the filtered text not yet split into complete lines, and what the
+        # complete lines gave (each line is analysed once: linear time in the reply length)
+        self._pending = ""
+        self._lines: list[str] = []
+        self._errors: list[AclErrorEvent] = []
+        self._echoed = False
+        self._content_seen = False
+        self._want = _norm_cmd(command) if command else None
 
     def feed(self, data: bytes) -> str:
-        """Add received bytes; returns the new status."""
+        """Add received bytes; returns the new status.
+
+        Raises:
+            AclProtocolError: the reply exceeds ``MAX_REPLY_BYTES`` or a line ``MAX_LINE_CHARS``.
+        """
         if data:
             self.raw += data
+            if len(self.raw) > self.MAX_REPLY_BYTES:
+                raise AclProtocolError(
+                    f"reply to {self.command!r} longer than {self.MAX_REPLY_BYTES} bytes without "
+                    f"a prompt: {quote_bytes(bytes(self.raw))}",
+                    bytes(self.raw),
+                    tuple(self._errors),
+                )
+            self._pending += bytes(b for b in data if b not in IGNORED_BYTES).decode("latin-1")
             self._analyse()
         return self._status
 
@@ -106,61 +131,68 @@ class ReplyAssembler:
             if b not in IGNORED_BYTES and (b >= 0x7F or (b < 0x20 and b not in _ALLOWED_CONTROL))
         )
 
+    def _take_line(self, raw_line: str) -> None:
+        before, ev = split_error(raw_line)
+        if ev is not None:
+            self._errors.append(ev)
+        line = LEADING_PROMPT.sub("", before).strip()
+        if not line:
+            return
+        if (
+            self._want is not None
+            and not self._echoed
+            and not self._content_seen
+            and _norm_cmd(line) == self._want
+        ):
+            self._echoed = True
+            return
+        self._content_seen = True
+        self._lines.append(line)
+
     def _analyse(self) -> None:
-        text = self.text
-        parts = LINE_SPLIT.split(text)
-        complete_lines, tail = parts[:-1], parts[-1]
-        want = _norm_cmd(self.command) if self.command else None
-        lines: list[str] = []
-        errors: list[AclErrorEvent] = []
-        echoed = False
-        content_seen = False
-        for raw_line in complete_lines:
-            before, ev = split_error(raw_line)
-            if ev is not None:
-                errors.append(ev)
-            line = LEADING_PROMPT.sub("", before).strip()
-            if not line:
-                continue
-            if want is not None and not echoed and not content_seen and _norm_cmd(line) == want:
-                echoed = True
-                continue
-            content_seen = True
-            lines.append(line)
+        # a "\r" ending the pending text may be the first half of "\r\n": taking the line now
+        # leaves an empty line after it, which is skipped like any blank line
+        parts = LINE_SPLIT.split(self._pending)
+        for raw_line in parts[:-1]:
+            self._take_line(raw_line)
+        tail = parts[-1]
+        self._pending = tail
+        if len(tail) > self.MAX_LINE_CHARS:
+            raise AclProtocolError(
+                f"a line of the reply to {self.command!r} is longer than {self.MAX_LINE_CHARS} "
+                f"characters: {quote_bytes(bytes(self.raw))}",
+                bytes(self.raw),
+                tuple(self._errors),
+            )
         status = self.INCOMPLETE
+        body = ""
         question = None
         same_line = False
         # an error line whose line end has not arrived yet: wait for the rest of it
         tail_has_error = "***" in tail and split_error(tail)[1] is not None
-        if not tail_has_error:
-            echo_ok = echoed or not self.expect_echo
+        if not tail_has_error and ">" in tail:
+            echo_ok = self._echoed or not self.expect_echo
             if _QUESTION.search(tail):
                 status, question = self.COMPLETE, tail.strip()
             elif _PROMPT_ALONE.match(tail):
                 if echo_ok:
                     # a prompt that is the very first thing received may be a stale one (the
                     # echo or reply can still follow): confirm it by a quiet period
-                    nothing_before = not echoed and not lines and not errors
+                    nothing_before = not self._echoed and not self._lines and not self._errors
                     status = self.MAYBE if nothing_before else self.COMPLETE
             else:
                 m = _PROMPT_SAME_LINE.match(tail)
                 if m and echo_ok:
                     status, same_line = self.MAYBE, True
                     body = LEADING_PROMPT.sub("", m.group("body")).strip()
-                    if body:
-                        lines.append(body)
         self._status = status
-        self._analysis = dict(
-            lines=tuple(lines),
-            errors=tuple(errors),
-            echoed=echoed,
-            question=question,
-            same_line=same_line,
-        )
+        # the complete lines are copied only when asked for (result): copying them on every
+        # byte would make the reader quadratic again
+        self._analysis = dict(body=body, question=question, same_line=same_line)
 
     def events(self) -> tuple[AclErrorEvent, ...]:
         """Error events seen so far (complete lines only)."""
-        return tuple(self._analysis.get("errors", ()))
+        return tuple(self._errors)
 
     def result(self) -> AclReply:
         """The reply (call once ``status`` is complete, or accepted ``maybe``).
@@ -175,13 +207,14 @@ class ReplyAssembler:
                 f"garbled reply to {self.command!r}: {len(bad)} invalid byte(s) "
                 f"{quote_bytes(bad, 40)} in {quote_bytes(bytes(self.raw))}",
                 bytes(self.raw),
-                a.get("errors", ()),
+                tuple(self._errors),
             )
+        body = a.get("body", "")
         return AclReply(
             command=self.command or "",
-            lines=a.get("lines", ()),
-            errors=a.get("errors", ()),
-            echoed=a.get("echoed", False),
+            lines=(*self._lines, body) if body else tuple(self._lines),
+            errors=tuple(self._errors),
+            echoed=self._echoed,
             question=a.get("question"),
             prompt_same_line=a.get("same_line", False),
             raw=bytes(self.raw),

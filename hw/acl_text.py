@@ -7,13 +7,27 @@ from __future__ import annotations
 
 import re
 
-__all__ = ["CTRL_A", "XON", "XOFF", "IGNORED_BYTES", "LINE_SPLIT", "LEADING_PROMPT", "quote_bytes"]
+__all__ = [
+    "CTRL_A",
+    "XON",
+    "XOFF",
+    "IGNORED_BYTES",
+    "LINE_SPLIT",
+    "LEADING_PROMPT",
+    "quote_bytes",
+    "MAX_INT_DIGITS",
+]
 
 CTRL_A = 0x01
 XON = 0x11
 XOFF = 0x13
 IGNORED_BYTES = bytes([0x00, XON, XOFF])
 """Bytes dropped wherever they appear in a reply: NUL and the XON/XOFF flow control."""
+
+MAX_INT_DIGITS = 18
+"""Most digits an ACL integer can have (encoder counts, tenths, axis numbers fit in 64 bits); the
+reply parsers treat a longer number as garbled instead of converting it (Python refuses
+conversions above 4300 digits with a bare ``ValueError``)."""
 
 LINE_SPLIT = re.compile(r"\r\n|\r|\n")
 LEADING_PROMPT = re.compile(r"^\s*>+\s*")
