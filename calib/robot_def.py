@@ -11,7 +11,6 @@ else reads those files.
 
 from __future__ import annotations
 
-import sys
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -21,12 +20,8 @@ from calib.errors import InputError
 from calib.robot_chain import CONVENTIONS, DHParams, dh_chain
 from calib.robot_encoder import EncoderSpec, encoder_spec
 from calib.robot_urdf import urdf_chain, urdf_home
+from calib.tomlfile import read_toml
 from calib.transforms import make_pose
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
 
 __all__ = [
     "RobotDef",
@@ -224,8 +219,10 @@ def _vec3(table: dict, key: str, where: str) -> np.ndarray:
         v = np.asarray(table[key], dtype=float) if key in table else None
     except (TypeError, ValueError):
         v = None
-    if v is None or v.shape != (3,):
-        raise RobotDefinitionError(f"{where}: '{key}' must be a list of 3 numbers")
+    if v is None or v.shape != (3,) or not np.all(np.isfinite(v)):
+        raise RobotDefinitionError(
+            f"{where}: '{key}' must be a list of 3 finite numbers, got {table.get(key)!r}"
+        )
     return v
 
 
@@ -250,6 +247,8 @@ def _camera_mount(table: dict, where: str) -> np.ndarray:
     p = _vec3(table, "xyz_mm", where) / 1000.0
     x = _vec3(table, "x_axis", where)
     z = _vec3(table, "z_axis", where)
+    if not np.linalg.norm(x) > 0 or not np.linalg.norm(z) > 0:
+        raise RobotDefinitionError(f"{where}: camera x_axis and z_axis must be non-zero vectors")
     x, z = x / np.linalg.norm(x), z / np.linalg.norm(z)
     if abs(x @ z) > 1e-9:
         raise RobotDefinitionError(f"{where}: camera x_axis and z_axis must be orthogonal")
@@ -293,10 +292,7 @@ def load_robot(name_or_path: str | Path) -> RobotDef:
     path = _resolve(name_or_path)
     if path.suffix == ".urdf":
         return _from_urdf_file(path)
-    try:
-        data = tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as exc:
-        raise RobotDefinitionError(f"{path}: not valid TOML: {exc}") from exc
+    data = read_toml(path, RobotDefinitionError)
     if "urdf" in data:
         kin = _urdf_kinematics(data["urdf"], path)
     else:
@@ -344,13 +340,12 @@ def _table_kinematics(data: dict, path: Path) -> _Kinematics:
             ang = np.pi / 180
             names.append(str(jt.get("name", f"joint{i + 1}")))
             types.append(kind)
-            alpha.append(float(jt["alpha_deg"]) * ang)
-            a.append(float(jt["a_mm"]) / 1000)
-            d.append(float(jt["d_mm"]) / 1000)
+            alpha.append(_finite(jt, "alpha_deg", where) * ang)
+            a.append(_finite(jt, "a_mm", where) / 1000)
+            d.append(_finite(jt, "d_mm", where) / 1000)
             unit = ang if kind == "revolute" else 1 / 1000
-            off.append(
-                float(jt.get("offset_deg" if kind == "revolute" else "theta_deg", 0.0)) * ang
-            )
+            off_key = "offset_deg" if kind == "revolute" else "theta_deg"
+            off.append(_finite(jt, off_key, where, 0.0) * ang)
             lo, hi = (float(x) for x in jt["range_deg" if kind == "revolute" else "range_mm"])
         except KeyError as exc:
             raise RobotDefinitionError(f"{where}: missing key {exc}") from exc
@@ -359,8 +354,39 @@ def _table_kinematics(data: dict, path: Path) -> _Kinematics:
         if not lo < hi:
             raise RobotDefinitionError(f"{where}: range must be [lower, upper] with lower < upper")
         lim.append((lo * unit, hi * unit))
+    if all(t == "revolute" for t in types) and not np.any(a) and not np.any(d):
+        raise RobotDefinitionError(
+            f"{path}: every joint has a_mm = 0 and d_mm = 0: the arm has no length, so the "
+            "camera never moves and nothing can be calibrated",
+            fix=f"give the link lengths (a_mm, d_mm) of the arm's DH table in {path}",
+        )
     dh = DHParams(convention, np.array(alpha), np.array(a), np.array(d), np.array(off))
     return _Kinematics(tuple(names), tuple(types), np.array(lim), dh_chain(dh), dh)
+
+
+def _floats(value: object) -> np.ndarray | None:
+    """``value`` as a float array, or None if it is not numbers."""
+    try:
+        return np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        return None
+
+
+def _finite(table: dict, key: str, where: str, default: float | None = None) -> float:
+    """``table[key]`` as a finite float (``default`` when absent and one is given).
+
+    Raises:
+        KeyError: absent without a default. RobotDefinitionError: not a finite number.
+    """
+    if key not in table and default is not None:
+        return default
+    v = table[key]
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(float(v)):
+        raise RobotDefinitionError(
+            f"{where}: '{key}' must be a finite number, got {v!r}",
+            fix=f"write the value of '{key}' as a plain number ({where})",
+        )
+    return float(v)
 
 
 def _urdf_kinematics(table: object, path: Path) -> _Kinematics:
@@ -404,11 +430,14 @@ def _assemble(path: Path, data: dict, kin: _Kinematics, T_flange_cam: np.ndarray
             fix=f"describe a serial arm of {MIN_JOINTS} to {MAX_JOINTS} moving joints in {path}",
         )
     unit_vec = np.array([np.pi / 180 if t == "revolute" else 1e-3 for t in types])
-    home = np.asarray(data.get("home_deg", [0.0] * n), dtype=float)
-    if home.shape != (n,):
-        raise RobotDefinitionError(f"{path}: home_deg must have {n} values")
-    cpd = np.asarray(data.get("encoder", {}).get("counts_per_deg", [np.inf] * n), dtype=float)
-    if cpd.shape != (n,) or np.any(cpd <= 0):
+    home = _floats(data.get("home_deg", [0.0] * n))
+    if home is None or home.shape != (n,) or not np.all(np.isfinite(home)):
+        raise RobotDefinitionError(f"{path}: home_deg must have {n} finite values")
+    if not isinstance(data.get("encoder", {}), dict):
+        raise RobotDefinitionError(f"{path}: encoder must be a table [encoder]")
+    cpd = _floats(data.get("encoder", {}).get("counts_per_deg", [np.inf] * n))
+    # inf: no quantisation; NaN refused
+    if cpd is None or cpd.shape != (n,) or not np.all(cpd > 0):
         raise RobotDefinitionError(f"{path}: encoder.counts_per_deg must be {n} positive numbers")
     try:
         encoder = encoder_spec(data.get("encoder", {}), cpd / unit_vec, home * unit_vec, unit_vec)

@@ -8,7 +8,6 @@ An unknown key or a value of the wrong type is an error naming the file, the key
 from __future__ import annotations
 
 import dataclasses
-import sys
 import typing
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -17,11 +16,7 @@ from typing import Any
 from calib.calibrate import MIN_POSTURES
 from calib.camera import MODELS, CameraModel, camera_model, centered_principal_point, lens_names
 from calib.errors import InputError
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
+from calib.tomlfile import read_toml
 
 __all__ = ["Scenario", "ConfigError", "load_scenario", "default_scenario_path", "scenario_to_dict"]
 
@@ -152,6 +147,98 @@ class Scenario:
     """Where this scenario came from (not a key of the file)."""
 
 
+@dataclass(frozen=True)
+class Range:
+    """The valid values of one numeric scenario key: ``lo <= value <= hi`` (finite)."""
+
+    lo: float
+    hi: float
+    unit: str
+    why: str
+
+
+RANGES: dict[str, Range] = {
+    # key (a list's elements and a table's values share the key of the list or table)
+    "robot.hardware.baudrate": Range(50, 4_000_000, "baud", "serial rates pyserial opens"),
+    "camera.resolution": Range(16, 16384, "px", "width and height of an image"),
+    "camera.fx": Range(10.0, 1e5, "px", "focal length of a real camera (fov 0.4 .. 175 deg at 640 px)"),
+    "camera.mu": Range(0.2, 5.0, "", "fy / fx of a real sensor"),
+    "camera.baseline_mm": Range(1.0, 2000.0, "mm", "stereo baseline of a rig on a wrist"),
+    "camera.principal_point_offset_px": Range(-5000.0, 5000.0, "px", "offset from the image centre"),
+    "camera.distortion": Range(-100.0, 100.0, "", "lens coefficients (OpenCV scale)"),
+    "target.markers": Range(4, 250, "", "markers of the ArUco dictionary (at least 4)"),
+    "target.scale_length_mm": Range(10.0, 10_000.0, "mm", "a distance a person can measure well"),
+    "target.marker_size_mm": Range(1.0, 1000.0, "mm", "printed marker side"),
+    "target.extent_mm": Range(10.0, 10_000.0, "mm", "side of the marker region"),
+    "target.seed": Range(0, 2**32 - 1, "", "random seed (numpy)"),
+    "perturbation.seed": Range(0, 2**32 - 1, "", "random seed (numpy)"),
+    "perturbation.translation_mm": Range(0.0, 100.0, "mm", "injected length errors"),
+    "perturbation.rotation_deg": Range(0.0, 30.0, "deg", "injected angle errors"),
+    "perturbation.table": Range(-100.0, 100.0, "deg or mm", "explicit injected errors"),
+    "trajectory.poses": Range(MIN_POSTURES, 10_000, "", "calibration postures"),
+    "trajectory.seed": Range(0, 2**32 - 1, "", "random seed (numpy)"),
+    "trajectory.min_markers": Range(1, 36, "", "points of the 36 the planner checks"),
+    "noise.image_sigma": Range(0.0, 64.0, "grey levels", "sensor noise on 0-255 images"),
+    "noise.pixel_sigma": Range(0.0, 20.0, "px", "corner noise (beyond 20 px no marker is found)"),
+    "noise.seed": Range(0, 2**32 - 1, "", "random seed (numpy)"),
+    "validation.poses": Range(3, 10_000, "", "held-out postures"),
+    "validation.seed": Range(0, 2**32 - 1, "", "random seed (numpy)"),
+}  # fmt: skip
+"""Every numeric scenario key's valid range; ``load_scenario`` refuses a value outside it (or
+NaN, infinite) naming file, key, value and range. docs/scenarios.md shows this table
+(:func:`ranges_markdown`; a test keeps them equal)."""
+
+
+_UNRANGED = {"robot.hardware.options"}
+"""Tables passed through to another reader that checks them (the hardware adapter's settings)."""
+
+
+def _fmt(x: float) -> str:
+    """A number for messages and the docs table: integers in full, others in ``%g``."""
+    x = float(x)
+    return str(int(x)) if x.is_integer() and abs(x) < 1e15 else f"{x:g}"
+
+
+def ranges_markdown() -> str:
+    """:data:`RANGES` as the Markdown table of docs/scenarios.md."""
+    rows = ["| key | valid range | unit | why |", "|---|---|---|---|"]
+    for key, r in RANGES.items():
+        rows.append(f"| `{key}` | {_fmt(r.lo)} .. {_fmt(r.hi)} | {r.unit} | {r.why} |")
+    return "\n".join(rows) + "\n"
+
+
+def _numeric_leaves(d: dict, prefix: str = ""):
+    """(key, value) of every number in the scenario as plain data (lists and tables of numbers
+    under the key of the list or table)."""
+    for k, v in d.items():
+        key = f"{prefix}{k}"
+        if key in _UNRANGED:
+            continue
+        if isinstance(v, dict) and key not in RANGES:
+            yield from _numeric_leaves(v, key + ".")
+        elif isinstance(v, dict):
+            yield from ((f"{key}.{kk}", key, vv) for kk, vv in v.items())
+        elif isinstance(v, list):
+            yield from ((f"{key}[{i}]", key, vv) for i, vv in enumerate(v))
+        else:
+            yield key, key, v
+
+
+def _check_ranges(s: Scenario) -> None:
+    for name, key, v in _numeric_leaves(scenario_to_dict(s)):
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            continue
+        r = RANGES[key]
+        if not r.lo <= v <= r.hi:  # NaN fails too
+            unit = f" {r.unit}" if r.unit else ""
+            raise ConfigError(
+                f"{s.source}: {name} = {_fmt(v)} is outside its valid range "
+                f"{_fmt(r.lo)} .. {_fmt(r.hi)}{unit} ({r.why})",
+                fix=f"set {name} within {_fmt(r.lo)} .. {_fmt(r.hi)} (docs/scenarios.md lists "
+                "every range)",
+            )
+
+
 def default_scenario_path() -> Path:
     """``scenarios/paper.toml``, the default scenario."""
     return Path(__file__).resolve().parent / "paper.toml"
@@ -231,34 +318,10 @@ def _validate(s: Scenario) -> None:
     if len(s.robot.hardware.cameras) != 2:
         raise ConfigError(f"{f}: robot.hardware.cameras must list two cameras: [left, right]")
     _validate_camera(s)
-    checks = [
-        (s.camera.fx > 0, "camera.fx must be > 0 (px)"),
-        (s.camera.mu > 0, "camera.mu must be > 0"),
-        (s.camera.baseline_mm > 0, "camera.baseline_mm must be > 0"),
-        (s.target.markers >= 4, "target.markers must be >= 4"),
-        (s.target.scale_length_mm > 0, "target.scale_length_mm must be > 0"),
-        (s.target.marker_size_mm > 0, "target.marker_size_mm must be > 0"),
-        (s.target.extent_mm > 0, "target.extent_mm must be > 0"),
-        (s.perturbation.translation_mm >= 0, "perturbation.translation_mm must be >= 0"),
-        (s.perturbation.rotation_deg >= 0, "perturbation.rotation_deg must be >= 0"),
-        (
-            s.trajectory.poses >= MIN_POSTURES,
-            f"trajectory.poses must be >= {MIN_POSTURES} (what a calibration needs)",
-        ),
-        (
-            1 <= s.trajectory.min_markers <= 36,
-            "trajectory.min_markers must be 1..36 (the planner checks 36 points of the target region)",
-        ),
-        (s.noise.image_sigma >= 0, "noise.image_sigma must be >= 0"),
-        (s.noise.pixel_sigma >= 0, "noise.pixel_sigma must be >= 0"),
-        (s.validation.poses >= 3, "validation.poses must be >= 3"),
-    ]
-    for ok, msg in checks:
-        if not ok:
-            raise ConfigError(f"{f}: {msg}")
     for k, v in s.perturbation.table.items():
         if not isinstance(v, (int, float)) or isinstance(v, bool):
             raise ConfigError(f"{f}: perturbation.table.{k}: expected number, got {v!r}")
+    _check_ranges(s)
 
 
 def _validate_camera(s: Scenario) -> None:
@@ -301,10 +364,7 @@ def load_scenario(path: str | Path | None = None, overrides: dict | None = None)
     p = Path(path) if path is not None else default_scenario_path()
     if not p.is_file():
         raise ConfigError(f"scenario file not found: {p} (give a path to a .toml scenario)")
-    try:
-        data = tomllib.loads(p.read_text())
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"{p}: not valid TOML: {exc}") from exc
+    data = read_toml(p, ConfigError)
     if overrides:
         data = _merge(data, overrides)
     try:

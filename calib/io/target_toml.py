@@ -21,7 +21,6 @@ Examples: ``models/targets/*.toml`` (docs/targets.md). :func:`load_target` retur
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 from calib.errors import InputError
@@ -29,11 +28,7 @@ from calib.io.jsonfile import Fields
 from calib.target import ArucoField, Target
 from calib.target.aruco_detect import aruco_dictionary
 from calib.target.boards import AprilGrid, Charuco, Chessboard, CirclesGrid
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
+from calib.tomlfile import read_toml
 
 __all__ = ["TargetFileError", "load_target", "parse_target", "target_document", "TARGET_TYPES"]
 
@@ -57,12 +52,7 @@ def load_target(path: str | Path) -> Target:
 
     Raises :class:`TargetFileError` naming the file and the key at fault."""
     p = Path(path)
-    try:
-        doc = tomllib.loads(p.read_text())
-    except FileNotFoundError:
-        raise TargetFileError(f"{p}: no such target file", fix=_FIX) from None
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise TargetFileError(f"{p}: not a valid TOML file ({exc})", fix=_FIX) from None
+    doc = read_toml(p, TargetFileError, _FIX, what="target file")
     return parse_target(doc, str(p))
 
 

@@ -44,7 +44,7 @@ def test_a_file_states_only_changes(tmp_path):
         ("[trajectory]\nposes = 2.5\n", ["trajectory.poses", "integer"]),
         ("[camera]\nresolution = [640]\n", ["camera.resolution"]),
         ("[robot]\nbackend = 'robot'\n", ["robot.backend", "hardware"]),
-        ("[camera\nfx = 1\n", ["not valid TOML"]),
+        ("[camera\nfx = 1\n", ["not a valid TOML"]),
         ("[robot.hardware]\ncameras = [0, 1]\n", ["robot.hardware.cameras[0]", "string"]),
     ],
 )
