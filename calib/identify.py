@@ -42,7 +42,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from calib.alignment import fit_rigid_transform, regauge
-from calib.errors import EstimationError, SelfCalWarning
+from calib.errors import EstimationError, InputError, SelfCalWarning
 from calib.identifiability import (
     O1_SCALE_M,
     O1_SCALE_RAD,
@@ -179,16 +179,23 @@ def _check_inputs(
     q = np.atleast_2d(np.asarray(q, dtype=float))
     T = np.asarray(T_world_cam, dtype=float)
     if q.ndim != 2 or q.shape[1] != model.n:
-        raise ValueError(f"q must have shape (m, {model.n}) (rad), got {np.shape(q)}")
+        raise InputError(f"q must have shape (m, {model.n}) (rad), got {np.shape(q)}")
     if T.shape != (q.shape[0], 4, 4):
-        raise ValueError(f"T_world_cam must have shape ({q.shape[0]}, 4, 4), got {T.shape}")
-    if not (np.all(np.isfinite(q)) and np.all(np.isfinite(T))):
-        raise ValueError("q and T_world_cam must be finite (drop failed poses before identifying)")
+        raise InputError(f"T_world_cam must have shape ({q.shape[0]}, 4, 4), got {T.shape}")
+    bad = np.flatnonzero(~(np.isfinite(q).all(axis=1) & np.isfinite(T).all(axis=(1, 2))))
+    if bad.size:
+        raise InputError(
+            f"q and T_world_cam must be finite: poses {bad.tolist()[:20]} hold NaN or inf",
+            fix="drop failed poses before identifying",
+        )
+    if not np.all(np.isfinite(model.params)):
+        raise InputError("the nominal model holds NaN or inf parameters",
+                         fix="check the robot file the model comes from")  # fmt: skip
     R = T[:, :3, :3]
     err = np.abs(np.swapaxes(R, -1, -2) @ R - np.eye(3)).max(axis=(1, 2))
     if np.any(err > 1e-6) or np.any(np.linalg.det(R) < 0):
         bad = int(np.argmax(err))
-        raise ValueError(
+        raise InputError(
             f"T_world_cam[{bad}] is not a rigid transform (R^T R - I up to {err[bad]:.2g})"
         )
     return q, T

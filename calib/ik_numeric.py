@@ -213,11 +213,32 @@ def solve_ik(
             plus :data:`ANGLE_SCALE_M` times the angle error.
     """
     limits = np.asarray(limits, dtype=float)
+    if (
+        limits.shape != (model.n, 2)
+        or not np.all(np.isfinite(limits))
+        or np.any(limits[:, 0] > limits[:, 1])
+    ):
+        raise InputError(
+            f"{name}: joint ranges must be {model.n} finite [lower, upper] pairs, got "
+            f"{limits.tolist()}",
+            fix=f"check the joint ranges in {name}'s robot file",
+        )
+    if not np.all(np.isfinite(model.params)):
+        raise InputError(
+            f"{name}: the kinematic model holds NaN or inf parameters",
+            fix="check the robot file or calibration.json the model comes from",
+        )
     lo, hi = limits[:, 0], limits[:, 1]
     starts: list[tuple[str, np.ndarray]] = []
     for label, q in (("reference", reference), ("home", home)):
         if q is not None:
-            starts.append((label, np.asarray(q, dtype=float).reshape(model.n)))
+            q = np.asarray(q, dtype=float).reshape(model.n)
+            if not np.all(np.isfinite(q)):
+                raise InputError(
+                    f"{name}: the {label} posture for IK holds NaN or inf: {q.tolist()}",
+                    fix="read the joints again (a failed read-back gives NaN)",
+                )
+            starts.append((label, q))
     rng = np.random.default_rng(seed)
     starts += [(f"random {k}", rng.uniform(lo, hi)) for k in range(n_random)]
     if not starts:

@@ -271,6 +271,9 @@ def identify_tracker(
             needed) or no convergence.
     """
     meas.check(model.n)
+    if not np.all(np.isfinite(model.params)):
+        raise InputError("the nominal model holds NaN or inf parameters",
+                         fix="check the robot file the model comes from")  # fmt: skip
     idx = minimal_indices(model.joint_types)
     names = tuple(param_names(idx))
     unknown = [h for h in hold if h not in names]
