@@ -31,6 +31,7 @@ from hw.emulator import AclEmulator
 from hw.emulator_backends import KinematicBackend
 from scenarios.cli_common import parse_floats
 from scenarios.config import load_scenario
+from scenarios.emulate_faults import CLI_FAULTS, acquisition_fault, choose_fault
 from scenarios.emulator_backend import SimEmulatorBackend
 from scenarios.hardware import hardware_settings
 
@@ -114,6 +115,20 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="a symbolic link to the pty: a port name that survives restarts",
     )
     p.add_argument("--move-speed", type=float, default=None, help="joint speed, deg/s at SPEED 50")
+    p.add_argument(
+        "--fault",
+        choices=[*CLI_FAULTS, "random"],
+        default=None,
+        help="inject one fault into the acquisition (docs/hardware.md, 'Rehearsing faults')",
+    )
+    p.add_argument(
+        "--fault-at",
+        type=int,
+        default=None,
+        metavar="N",
+        help="the acquisition frame (0-based) the fault hits (default: drawn from --seed)",
+    )
+    p.add_argument("--seed", type=int, default=0, help="seed of a random fault kind or frame")
     p.set_defaults(func=_cmd_emulate)
 
 
@@ -232,6 +247,13 @@ def _cmd_emulate(args: argparse.Namespace, stop_event: threading.Event | None = 
         "pty_link": getattr(args, "pty_link", None),
         "move_speed_deg_s": getattr(args, "move_speed", None),
     }
+    fault, fault_text = None, None
+    if getattr(args, "fault", None):
+        kind, at = choose_fault(args.fault, args.fault_at, args.seed)
+        fault = acquisition_fault(kind, at)
+        fault_text = f"fault: {kind} at acquisition frame {at} (seed {args.seed})"
+    elif getattr(args, "fault_at", None) is not None:
+        raise InputError("--fault-at needs --fault", fix="add --fault timeout|garble|impact|...")
     config = load_toml(args.config) if args.config else None
     scenario = None
     if config is not None and _is_scenario_file(config):
@@ -239,6 +261,8 @@ def _cmd_emulate(args: argparse.Namespace, stop_event: threading.Event | None = 
     emu = emulator_from_config(
         None if scenario is not None else config, scenario=scenario, overrides=overrides
     )
+    if fault is not None:
+        emu.inject_fault(fault)
     stop = stop_event or threading.Event()
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGTERM, lambda *_: stop.set())
@@ -259,6 +283,8 @@ def _cmd_emulate(args: argparse.Namespace, stop_event: threading.Event | None = 
             if emu.frames_dir is not None:
                 left, right = emu.camera_sources
                 print(f"cameras: {left} {right}")
+            if fault_text:
+                print(fault_text)
             print("config:")
             print(emu.hardware_snippet(), end="")
             print("Ctrl-C to stop", flush=True)

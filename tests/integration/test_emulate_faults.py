@@ -1,0 +1,112 @@
+"""``selfcal emulate --fault KIND --fault-at N`` (issue #15): a person at the robot rehearses each
+fault through the command line; the acquisition against that emulator stops at frame N with the
+cause, keeps the frames taken before and nothing of frame N (docs/hardware.md, "Rehearsing
+faults"). The same faults injected through the Python API, with resume and calibration, are in
+test_hardware_e2e.py (slow)."""
+
+from __future__ import annotations
+
+import argparse
+import io
+import threading
+import time
+from contextlib import redirect_stdout
+
+import pytest
+import tomllib
+
+from calib.errors import InputError
+from calib.io.dataset import Dataset
+from scenarios.acquire import AcquisitionError
+from scenarios.config import default_scenario_path, load_scenario
+from scenarios.emulate_faults import CLI_FAULTS, acquisition_fault, choose_fault
+from scenarios.hw_cli import register
+from scenarios.pipeline import run_acquire
+
+AT = 2
+ABORTED = "abort sequence (Ctrl-A, CLRBUF) sent"
+CAUSE = {  # what docs/hardware.md ("Rehearsing faults") says the user sees
+    "timeout": ("no prompt from the controller within 0.5 s", ABORTED),
+    "garble": ("garbled reply", "after 3 attempts", ABORTED),
+    "impact": ("IMPACT PROTECTION axis 2", ABORTED),
+    "disconnect": ("serial link lost", "could not be delivered", "emergency stop"),
+}
+
+
+def _emulate(argv: list[str]):
+    parser = argparse.ArgumentParser(prog="selfcal")
+    register(parser.add_subparsers(dest="command", required=True))
+    args = parser.parse_args(["emulate", *argv])
+    stop, buf, rc = threading.Event(), io.StringIO(), []
+
+    def serve() -> None:
+        with redirect_stdout(buf):
+            rc.append(args.func(args, stop))
+
+    th = threading.Thread(target=serve)
+    th.start()
+    deadline = time.monotonic() + 60
+    while "Ctrl-C" not in buf.getvalue():
+        assert th.is_alive() and time.monotonic() < deadline, buf.getvalue()
+        time.sleep(0.02)
+    return th, stop, buf, rc
+
+
+# timeout and garble wait for reply timeouts (about 3 s each on 2 busy cores): slow tier
+@pytest.mark.parametrize(
+    "kind",
+    [
+        pytest.param(k, marks=pytest.mark.slow) if k in ("timeout", "garble") else k
+        for k in CLI_FAULTS
+    ],
+)
+def test_emulate_fault_on_the_command_line_stops_the_acquisition(kind, tmp_path):
+    scen = tmp_path / "scenario.toml"
+    scen.write_text('[robot]\nmodel = "er4u-paper"\n[noise]\nrender = false\n')
+    th, stop, buf, rc = _emulate(
+        [str(scen), "--fault", kind, "--fault-at", str(AT), "--move-speed", "3000",
+         "--frames-dir", str(tmp_path / "frames"), "--pty-link", str(tmp_path / "tty")]
+    )  # fmt: skip
+    try:
+        text = buf.getvalue()
+        assert f"fault: {kind} at acquisition frame {AT}" in text
+        snippet = text[text.index("[robot.hardware]") : text.index("Ctrl-C")]
+        assert tomllib.loads(snippet)["robot"]["hardware"]["port"] == str(tmp_path / "tty")
+        hw = tmp_path / "hw.toml"
+        hw.write_text(
+            default_scenario_path().read_text().replace('backend = "sim"', 'backend = "hardware"')
+            + "\n" + snippet
+            + "\n[robot.hardware.options]\nquery_timeout_s = 0.5\npoll_interval_s = 0.01\n"
+        )  # fmt: skip
+        s = load_scenario(hw, {"trajectory": {"poses": 6}})
+        out = tmp_path / "ds"
+        with pytest.raises(AcquisitionError) as ei:
+            run_acquire(s, out, quiet=True)
+        msg = str(ei.value)
+        assert f"stopped at frame {AT} of 6" in msg, msg
+        for words in CAUSE[kind]:
+            assert words in msg, (words, msg)
+        assert "--resume" in msg
+        assert Dataset.open(out).indices.tolist() == list(range(AT))
+        assert len(list((out / "frames").glob("*.png"))) == 2 * AT
+    finally:
+        stop.set()
+        th.join(timeout=20)
+    assert rc == [0] and "emulator stopped" in buf.getvalue()
+
+
+def test_random_fault_is_drawn_from_the_seed_and_bad_options_are_input_errors():
+    draws = {choose_fault("random", None, seed) for seed in range(40)}
+    assert {k for k, _ in draws} == set(CLI_FAULTS)
+    assert all(1 <= n <= 9 for _, n in draws)
+    assert choose_fault("random", None, 7) == choose_fault("random", None, 7)
+    assert choose_fault("impact", 4, 7) == ("impact", 4)
+    with pytest.raises(InputError, match="--fault-at"):
+        acquisition_fault("impact", -1)
+    with pytest.raises(InputError, match="unknown --fault"):
+        acquisition_fault("smoke", 1)
+    parser = argparse.ArgumentParser(prog="selfcal")
+    register(parser.add_subparsers(dest="command", required=True))
+    args = parser.parse_args(["emulate", "--fault-at", "3"])
+    with pytest.raises(InputError, match="--fault-at needs --fault"):
+        args.func(args, threading.Event())
