@@ -87,3 +87,38 @@ def compare_json(expected, actual, *, rtol: float, atol: float, path: str = "") 
     if expected != actual:
         return [f"{path}: {actual!r} != golden {expected!r}"]
     return []
+
+
+def start_emulate_cli(argv: list[str], timeout_s: float = 60.0):
+    """Run ``selfcal emulate ARGV`` in a thread until it prints ``Ctrl-C``.
+
+    Returns (thread, stop event, its stdout buffer, [exit code once stopped]); set the event and
+    join the thread to stop it.
+    """
+    import argparse
+    import io
+    import threading
+    import time
+    from contextlib import redirect_stdout
+
+    from scenarios.hw_cli import register
+
+    parser = argparse.ArgumentParser(prog="selfcal")
+    register(parser.add_subparsers(dest="command", required=True))
+    args = parser.parse_args(["emulate", *argv])
+    stop, buf, rc = threading.Event(), io.StringIO(), []
+
+    def serve() -> None:
+        with redirect_stdout(buf):
+            rc.append(args.func(args, stop))
+
+    th = threading.Thread(target=serve)
+    th.start()
+    deadline = time.monotonic() + timeout_s
+    while "Ctrl-C" not in buf.getvalue():
+        if not th.is_alive() or time.monotonic() > deadline:
+            stop.set()
+            th.join(timeout=10)
+            raise AssertionError(f"selfcal emulate did not start: {buf.getvalue()}")
+        time.sleep(0.02)
+    return th, stop, buf, rc

@@ -7,13 +7,11 @@ test_hardware_e2e.py (slow)."""
 from __future__ import annotations
 
 import argparse
-import io
 import threading
-import time
-from contextlib import redirect_stdout
 
 import pytest
 import tomllib
+from conftest import start_emulate_cli
 
 from calib.errors import InputError
 from calib.io.dataset import Dataset
@@ -33,25 +31,6 @@ CAUSE = {  # what docs/hardware.md ("Rehearsing faults") says the user sees
 }
 
 
-def _emulate(argv: list[str]):
-    parser = argparse.ArgumentParser(prog="selfcal")
-    register(parser.add_subparsers(dest="command", required=True))
-    args = parser.parse_args(["emulate", *argv])
-    stop, buf, rc = threading.Event(), io.StringIO(), []
-
-    def serve() -> None:
-        with redirect_stdout(buf):
-            rc.append(args.func(args, stop))
-
-    th = threading.Thread(target=serve)
-    th.start()
-    deadline = time.monotonic() + 60
-    while "Ctrl-C" not in buf.getvalue():
-        assert th.is_alive() and time.monotonic() < deadline, buf.getvalue()
-        time.sleep(0.02)
-    return th, stop, buf, rc
-
-
 # timeout and garble wait for reply timeouts (about 3 s each on 2 busy cores): slow tier
 @pytest.mark.parametrize(
     "kind",
@@ -63,7 +42,7 @@ def _emulate(argv: list[str]):
 def test_emulate_fault_on_the_command_line_stops_the_acquisition(kind, tmp_path):
     scen = tmp_path / "scenario.toml"
     scen.write_text('[robot]\nmodel = "er4u-paper"\n[noise]\nrender = false\n')
-    th, stop, buf, rc = _emulate(
+    th, stop, buf, rc = start_emulate_cli(
         [str(scen), "--fault", kind, "--fault-at", str(AT), "--move-speed", "3000",
          "--frames-dir", str(tmp_path / "frames"), "--pty-link", str(tmp_path / "tty")]
     )  # fmt: skip

@@ -11,19 +11,16 @@ clear error, keep the frames taken so far, and let ``resume`` finish the dataset
 
 from __future__ import annotations
 
-import argparse
-import io
 import json
-import threading
 import time
 import warnings
-from contextlib import redirect_stdout
 from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
 import tomllib
+from conftest import start_emulate_cli
 
 from calib.io.calibration import read_calibration
 from calib.io.dataset import Dataset
@@ -320,26 +317,10 @@ def test_open_hardware_robot_errors(tmp_path):
 def test_selfcal_emulate_with_a_scenario(tmp_path):
     """`selfcal emulate SCENARIO` serves the scenario's simulated robot and prints a table that
     connects to it."""
-    from scenarios.hw_cli import register
-
     cfg = tmp_path / "scenario.toml"
     cfg.write_text('[robot]\nmodel = "er4u-paper"\n[trajectory]\nposes = 12\n')
-    parser = argparse.ArgumentParser(prog="selfcal")
-    register(parser.add_subparsers(dest="command", required=True))
-    args = parser.parse_args(["emulate", str(cfg), "--frames-dir", str(tmp_path / "frames")])
-    stop, buf, rc = threading.Event(), io.StringIO(), []
-
-    def serve() -> None:
-        with redirect_stdout(buf):
-            rc.append(args.func(args, stop))
-
-    th = threading.Thread(target=serve)
-    th.start()
+    th, stop, buf, rc = start_emulate_cli([str(cfg), "--frames-dir", str(tmp_path / "frames")], 30)
     try:
-        deadline = time.monotonic() + 30
-        while "Ctrl-C" not in buf.getvalue():
-            assert th.is_alive() and time.monotonic() < deadline, buf.getvalue()
-            time.sleep(0.02)
         text = buf.getvalue()
         assert "simulated robot of the scenario (er4u-paper)" in text
         pty = next(x.split(": ", 1)[1] for x in text.splitlines() if x.startswith("pty: "))
