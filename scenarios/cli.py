@@ -30,7 +30,7 @@ from scenarios.montecarlo_cli import register as register_montecarlo
 from scenarios.own_data import calibrate_any
 from scenarios.own_data import register as register_own_data
 from scenarios.paper_repro import register as register_paper
-from scenarios.pipeline import run_acquire, run_all, run_report
+from scenarios.pipeline import report_summary, run_acquire, run_all, run_report
 from scenarios.rerun_log import record_run
 from scenarios.rerun_log import register as register_record
 from scenarios.studies import register as register_study
@@ -126,7 +126,8 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
 
 
 def cmd_report(args: argparse.Namespace) -> int:
-    run_report(Path(args.dataset), quiet=args.quiet)
+    report = run_report(Path(args.dataset), quiet=args.quiet)
+    print(report_summary(report, Path(args.dataset)), flush=True)
     return 0
 
 

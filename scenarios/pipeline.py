@@ -28,7 +28,7 @@ from scenarios.config import Scenario
 from scenarios.paper_data import TABLE_II_MM, table_ii_postures
 from scenarios.progress import Progress
 
-__all__ = ["run_acquire", "run_calibrate", "run_report", "run_all"]
+__all__ = ["run_acquire", "run_calibrate", "run_report", "report_summary", "run_all"]
 
 
 def _say(quiet: bool, text: str) -> None:
@@ -176,6 +176,20 @@ def run_report(root: Path, *, quiet: bool = False) -> dict:
         (root / "table_iv.md").write_text(md_iv)
     _say(quiet, md)
     return report
+
+
+def report_summary(report: dict, root: Path) -> str:
+    """The one line ``selfcal report`` prints on success: validation tool-tip errors (mm RMS,
+    calibrated and nominal, and the bound when computed) and where the report is."""
+    v = report["validation"]
+    t = v["tool_tip_error_mm"]
+    bound = v.get("tool_tip_bound_mm")
+    b = "" if bound is None else f", bound {bound:.3f} mm"
+    return (
+        f"report: tool-tip error {t['calibrated']['rms']:.3f} mm RMS calibrated, "
+        f"{t['nominal']['rms']:.3f} mm nominal over {v['poses']} validation postures{b}; "
+        f"{Path(root) / 'report.json'}"
+    )
 
 
 def _camera_rows(est: CameraModel, std: dict[str, float], truth: CameraModel) -> dict:

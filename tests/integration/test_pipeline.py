@@ -10,6 +10,7 @@ joint-1 zero and the height along axis 1, beta1 and ly1 would absorb the arbitra
 
 from __future__ import annotations
 
+import argparse
 import json
 import shutil
 
@@ -20,6 +21,7 @@ from calib.calibrate import CalibrationError, NoMarkersWarning, calibrate, detec
 from calib.io.calibration import read_calibration
 from calib.io.dataset import Dataset, DatasetError
 from calib.trajectory import DegenerateTrajectoryError
+from scenarios.cli import cmd_report
 from scenarios.config import load_scenario
 from scenarios.pipeline import run_acquire, run_calibrate, run_report
 
@@ -54,6 +56,19 @@ def test_noise_free_recovers_injected_parameters(noise_free):
     tt = rep["validation"]["tool_tip_error_mm"]
     assert tt["calibrated"]["rms"] < 1e-3 and tt["nominal"]["rms"] > 0.5
     assert abs(rep["intrinsics"]["fx"]["estimate"] / 800.0 - 1) < 1e-8
+
+
+def test_selfcal_report_prints_its_summary_line(noise_free, capsys):
+    """`selfcal report DIR` prints one summary line on stdout (issue #15: it printed nothing)."""
+    out, rep = noise_free
+    # the command's function, not cli.main: main limits the BLAS threads of this process
+    assert cmd_report(argparse.Namespace(dataset=str(out), quiet=True)) == 0
+    lines = capsys.readouterr().out.splitlines()
+    t = rep["validation"]["tool_tip_error_mm"]
+    assert lines == [
+        f"report: tool-tip error {t['calibrated']['rms']:.3f} mm RMS calibrated, "
+        f"{t['nominal']['rms']:.3f} mm nominal over 20 validation postures; {out / 'report.json'}"
+    ]
 
 
 def test_calibration_ignores_truth_json_and_the_scenario(noise_free, tmp_path):
