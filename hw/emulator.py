@@ -31,7 +31,6 @@ terminals and writes the frames.
 from __future__ import annotations
 
 import json
-import os
 import re
 import tempfile
 import threading
@@ -40,10 +39,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-import cv2
-import numpy as np
-
 from calib.errors import InputError
+from calib.io.atomic import write_image_atomic
 from calib.robot import StereoPair
 from hw.emulator_backends import EmulatorBackend
 from hw.emulator_controller import AclController
@@ -245,11 +242,5 @@ class AclEmulator(AclController):
     def _write_pair(self, pair: StereoPair) -> None:
         i = self._frame_index
         for side, img in (("right", pair.right), ("left", pair.left)):  # right first: see cameras
-            img = np.asarray(img)
-            bgr = cv2.cvtColor(img, cv2.COLOR_RGB2BGR) if img.ndim == 3 else img
-            final = self.frames_dir / f"{i:06d}_{side}.png"
-            tmp = self.frames_dir / f".tmp_{side}.png"
-            if not cv2.imwrite(str(tmp), bgr):
-                raise OSError(f"cannot write {tmp}")
-            os.replace(tmp, final)
+            write_image_atomic(self.frames_dir / f"{i:06d}_{side}.png", img)
         self._frame_index = i + 1

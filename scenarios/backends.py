@@ -11,10 +11,10 @@ import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import cv2
 import numpy as np
 
 from calib.camera import Intrinsics, Rig
+from calib.io.atomic import write_image_atomic
 from calib.io.dataset import DatasetInfo
 from calib.io.truth import read_truth, write_truth
 from calib.kinematics import fk_tool
@@ -317,5 +317,5 @@ def render_posture(
         pair = sim.capture()
     paths = (out / "left.png", out / "right.png")
     for p, img in zip(paths, (pair.left, pair.right)):
-        cv2.imwrite(str(p), cv2.cvtColor(img, cv2.COLOR_RGB2BGR))
+        write_image_atomic(p, img)
     return paths

@@ -28,6 +28,7 @@ from calib.export_toml import from_toml, to_toml
 from calib.export_urdf import to_urdf
 from calib.ik import UnreachableError
 from calib.ik_numeric import ToolTarget
+from calib.io.atomic import write_text_atomic
 from calib.io.board_calibration import calibration_kind, read_board_calibration
 from calib.io.calibration import read_calibration
 from calib.robot_def import load_robot
@@ -116,7 +117,7 @@ def cmd_export(args: argparse.Namespace) -> int:
     else:
         text = to_toml(dep, robot)
     out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(text)
+    write_text_atomic(out, text)
     print(
         json.dumps(
             {
@@ -142,7 +143,7 @@ def _export_camera(path: str, fmt: str, out: Path, camera_name: str) -> int:
         cam = read_calibration(p).intrinsics.camera()
     text = to_opencv_yaml(cam) if fmt == "opencv" else to_camera_info_yaml(cam, camera_name)
     out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(text)
+    write_text_atomic(out, text)
     print(json.dumps({"out": str(out), "format": fmt, "camera_model": cam.model_name}))
     return 0
 

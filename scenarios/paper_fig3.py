@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from scenarios.paper_data import AXES
-from scenarios.plotting import pyplot
+from scenarios.plotting import pyplot, save_figure
 
 __all__ = ["fig3"]
 
@@ -82,5 +82,5 @@ def fig3(path: Path, rows: list[dict]) -> None:
     for a in axs[0, 1], axs[1, 0]:
         a.legend(fontsize=8)
     fig.suptitle("Tool-tip position errors per position and axis (paper Fig. 3 and simulation)")
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)

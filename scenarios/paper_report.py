@@ -6,9 +6,11 @@
 from __future__ import annotations
 
 import csv
+import io
 import json
 from pathlib import Path
 
+from calib.io.atomic import write_text_atomic
 from scenarios.paper_data import AXES, TABLE_II_THETA4_DEG
 from scenarios.paper_fig3 import fig3
 
@@ -16,11 +18,12 @@ __all__ = ["write_outputs"]
 
 
 def _write_csv(path: Path, rows: list[dict]) -> None:
-    with open(path, "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        w.writeheader()
-        for r in rows:
-            w.writerow({k: (f"{v:.4f}" if isinstance(v, float) else v) for k, v in r.items()})
+    fh = io.StringIO(newline="")
+    w = csv.DictWriter(fh, fieldnames=list(rows[0]))
+    w.writeheader()
+    for r in rows:
+        w.writerow({k: (f"{v:.4f}" if isinstance(v, float) else v) for k, v in r.items()})
+    write_text_atomic(path, fh.getvalue())
 
 
 def _md_table_ii(rows: list[dict], pitch_deg: float, fk_table_i: list[float]) -> str:
@@ -147,9 +150,9 @@ def write_outputs(out: Path, summary: dict) -> None:
     md_ii = _md_table_ii(rows_ii, summary["cartesian_pitch_deg"], summary["table_i_posture_fk_mm"])
     md_iv = _md_table_iv(summary["table_iv"], summary["paper_typos"])
     md_typos = _md_typos(summary["paper_typos"])
-    (out / "table_ii.md").write_text(md_ii)
-    (out / "table_iv.md").write_text(md_iv)
-    (out / "paper_typos.md").write_text(md_typos)
+    write_text_atomic(out / "table_ii.md", md_ii)
+    write_text_atomic(out / "table_iv.md", md_iv)
+    write_text_atomic(out / "paper_typos.md", md_typos)
     fig3(out / "fig3.png", summary["table_iv"])
     v = summary["validation"]
     head = [
@@ -169,5 +172,7 @@ def write_outputs(out: Path, summary: dict) -> None:
         "the truth over the validation postures). Fig. 3: fig3.png.",
         "",
     ]
-    (out / "paper.md").write_text("\n".join(head) + "\n" + md_ii + "\n" + md_iv + "\n" + md_typos)
-    (out / "paper.json").write_text(json.dumps(summary, indent=1))
+    write_text_atomic(
+        out / "paper.md", "\n".join(head) + "\n" + md_ii + "\n" + md_iv + "\n" + md_typos
+    )
+    write_text_atomic(out / "paper.json", json.dumps(summary, indent=1))

@@ -15,6 +15,7 @@ import numpy as np
 from calib.alignment import express_in_frame
 from calib.calibrate import calibrate
 from calib.camera import CameraModel
+from calib.io.atomic import write_text_atomic
 from calib.io.calibration import CalibrationResult, read_calibration, write_calibration
 from calib.io.dataset import Dataset, DatasetError, DatasetWriter
 from calib.io.jsonfile import write_json_atomic
@@ -170,10 +171,10 @@ def run_report(root: Path, *, quiet: bool = False) -> dict:
     }
     write_json_atomic(root / "report.json", report)
     md = _markdown(report)
-    (root / "report.md").write_text(md)
+    write_text_atomic(root / "report.md", md)
     if table_iv:
         md_iv = format_table_iv(table_iv)
-        (root / "table_iv.md").write_text(md_iv)
+        write_text_atomic(root / "table_iv.md", md_iv)
     _say(quiet, md)
     return report
 

@@ -18,6 +18,7 @@ import numpy as np
 from calib.bounds import FisherSetup, cramer_rao
 from calib.bounds_setup import predicted_setup
 from calib.camera import Rig
+from calib.io.atomic import write_text_atomic
 from calib.joint_refine import encoder_sigma
 from calib.mcpc import minimal_indices, param_is_angle
 from calib.trajectory import plan_postures
@@ -25,7 +26,7 @@ from calib.transforms import inv_pose
 from scenarios.backends import SimSetup, plan_dataset, plan_optimal, planning_inputs, sim_setup
 from scenarios.config import load_scenario
 from scenarios.montecarlo import run_montecarlo, write_csv
-from scenarios.plotting import pyplot
+from scenarios.plotting import pyplot, save_figure
 
 __all__ = [
     "sim_fisher_setup",
@@ -176,8 +177,8 @@ def run_plan_comparison(
             }
     res = {"bounds": [{k: v for k, v in r.items() if k != "q_deg"} for r in rows], "montecarlo": mc}
     write_csv(res["bounds"], out / "plans.csv")
-    (out / "plans.json").write_text(json.dumps(res, indent=2))
-    (out / "plans.md").write_text(plans_markdown(res))
+    write_text_atomic(out / "plans.json", json.dumps(res, indent=2))
+    write_text_atomic(out / "plans.md", plans_markdown(res))
     _plot_plans(res, out / "optimal_poses.png")
     return res
 
@@ -261,5 +262,5 @@ def _plot_plans(res: dict, path: Path) -> None:
     ax.set_title("D-optimal against random postures (0.5 px, encoder read-back)")
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=7)
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)

@@ -2,9 +2,13 @@
 
 from __future__ import annotations
 
+from pathlib import Path
 from types import ModuleType
+from typing import Any
 
-__all__ = ["pyplot"]
+from calib.io.atomic import write_with_atomic
+
+__all__ = ["pyplot", "save_figure"]
 
 
 def pyplot() -> ModuleType:
@@ -19,3 +23,11 @@ def pyplot() -> ModuleType:
     import matplotlib.pyplot as plt  # optional and slow: see the docstring
 
     return plt
+
+
+def save_figure(fig: Any, path: str | Path, **kwargs: Any) -> Path:
+    """``fig.savefig`` to ``path`` atomically (:mod:`calib.io.atomic`), in the format of its
+    extension."""
+    path = Path(path)
+    fmt = path.suffix.lstrip(".") or "png"
+    return write_with_atomic(path, lambda tmp: fig.savefig(tmp, format=fmt, **kwargs))

@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from calib.io.atomic import write_text_atomic
 from calib.io.tracker import (
     JOINT_UNITS,
     positions_csv,
@@ -120,7 +121,7 @@ def cmd_identify(args: argparse.Namespace) -> int:
     )
     path = write_tracker_calibration(out / "calibration.json", cal)
     if meas.m:
-        (out / "residuals.csv").write_text(_residuals_csv(table, res, meas))
+        write_text_atomic(out / "residuals.csv", _residuals_csv(table, res, meas))
     kinds = " + ".join(res.kinds)
     if meas.m:
         what = "poses" if meas.R is not None else "positions"

@@ -21,6 +21,7 @@ import numpy as np
 
 from calib.errors import InputError
 from calib.export import BASE_FRAME, DeployedModel, as_deployed
+from calib.io.atomic import write_text_atomic
 from calib.robot_def import RobotDef, load_robot
 from calib.transforms import inv_pose
 from sim.build_models import precise_xml
@@ -84,5 +85,5 @@ def write_calibrated_mjcf(path: str | Path, calibration, robot: RobotDef | None 
     """Write :func:`calibrated_mjcf` to ``path`` (parent folders created); returns the path."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(calibrated_mjcf(calibration, robot))
+    write_text_atomic(path, calibrated_mjcf(calibration, robot))
     return path

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import builtins
 import json
-import os
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -21,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from calib.errors import InputError
+from calib.io.atomic import write_text_atomic
 
 __all__ = [
     "SCHEMA_KEY",
@@ -45,11 +45,7 @@ def dumps(doc: dict) -> str:
 def write_json_atomic(path: str | Path, doc: dict) -> Path:
     """Write ``doc`` (:func:`dumps`) via a temporary file and rename, so readers never see a
     partial file; returns the path."""
-    path = Path(path)
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    tmp.write_text(dumps(doc))
-    os.replace(tmp, path)
-    return path
+    return write_text_atomic(path, dumps(doc))
 
 
 def load_json(path: str | Path, *, fix: str, error: type[InputError] = InputError) -> dict:

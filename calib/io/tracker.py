@@ -31,6 +31,7 @@ from scipy.spatial.transform import Rotation
 
 from calib.errors import InputError
 from calib.estimation.tracker import TrackerMeasurements
+from calib.io.atomic import write_text_atomic
 
 __all__ = [
     "JOINT_UNITS",
@@ -344,8 +345,4 @@ def positions_csv(xyz_m: np.ndarray) -> str:
 
 def write_positions(path: str | Path, xyz_m: np.ndarray) -> Path:
     """Write :func:`positions_csv` to ``path`` (via a temporary file and rename)."""
-    p = Path(path)
-    tmp = p.with_suffix(p.suffix + ".tmp")
-    tmp.write_text(positions_csv(xyz_m))
-    tmp.replace(p)
-    return p
+    return write_text_atomic(path, positions_csv(xyz_m))
