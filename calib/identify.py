@@ -194,9 +194,9 @@ def _check_inputs(
     R = T[:, :3, :3]
     err = np.abs(np.swapaxes(R, -1, -2) @ R - np.eye(3)).max(axis=(1, 2))
     if np.any(err > 1e-6) or np.any(np.linalg.det(R) < 0):
-        bad = int(np.argmax(err))
+        worst = int(np.argmax(err))
         raise InputError(
-            f"T_world_cam[{bad}] is not a rigid transform (R^T R - I up to {err[bad]:.2g})"
+            f"T_world_cam[{worst}] is not a rigid transform (R^T R - I up to {err[worst]:.2g})"
         )
     return q, T
 
