@@ -30,7 +30,6 @@ import sys
 import tempfile
 import time
 import warnings
-from concurrent.futures import FIRST_COMPLETED, wait
 from pathlib import Path
 
 import numpy as np
@@ -50,7 +49,8 @@ from scenarios.backends import open_robot, plan_dataset, sim_setup
 from scenarios.config import load_scenario
 from scenarios.montecarlo_report import plot, summary_markdown
 from scenarios.montecarlo_stats import summarize
-from scenarios.parallel import worker_pool
+from scenarios.parallel import run_tasks
+from scenarios.progress import TaskCounts
 
 __all__ = ["draw_one", "run_montecarlo", "write_csv"]
 
@@ -171,26 +171,40 @@ def _evaluate(root: Path, pixel_sigma: float) -> dict:
 
 
 # ------------------------------------------------------------------------------ driver
-def _map(fn, items: list, jobs: int, on_result=None) -> list:
-    """``[fn(x) for x in items]`` in ``jobs`` spawned processes (one BLAS thread each)."""
-    if jobs <= 1 or len(items) <= 1:
-        out = []
-        for x in items:
-            out.append(fn(x))
-            if on_result:
-                on_result(out[-1])
-        return out
+def _map(
+    fn,
+    items: list,
+    jobs: int,
+    on_result=None,
+    cluster: str | None = None,
+    retries: int = 2,
+    counts: TaskCounts | None = None,
+) -> list:
+    """``[fn(x) for x in items]`` in ``jobs`` spawned processes (one BLAS thread each) or on the
+    Dask scheduler at ``cluster`` (:func:`scenarios.parallel.run_tasks`); a task that fails on
+    every try gives a ``failed: ...`` row."""
     results: dict = {}
-    with worker_pool(min(jobs, len(items))) as ex:
-        futs = {ex.submit(fn, x): i for i, x in enumerate(items)}
-        pending = set(futs)
-        while pending:
-            done, pending = wait(pending, return_when=FIRST_COMPLETED)
-            for f in done:
-                results[futs[f]] = f.result()
-                if on_result:
-                    on_result(results[futs[f]])
+    for i, row in run_tasks(
+        fn,
+        items,
+        jobs=jobs,
+        error_row=_failed_draw,
+        cluster=cluster,
+        retries=retries,
+        counts=counts,
+    ):
+        results[i] = row
+        if on_result:
+            on_result(row)
     return [results[i] for i in range(len(items))]
+
+
+def _failed_draw(settings: dict, exc: BaseException) -> dict:
+    row: dict = {k: settings.get(k) for k in ("poses", "pixel_sigma", "seed", "dither")}
+    row["plan"] = settings.get("plan", "random")
+    row["status"] = f"failed: {type(exc).__name__}: {str(exc)[:200]}"
+    row["seconds"] = None
+    return row
 
 
 def run_montecarlo(
@@ -208,6 +222,8 @@ def run_montecarlo(
     first_seed: int = 1,
     quiet: bool = False,
     config: str | Path | None = None,
+    cluster: str | None = None,
+    retries: int = 2,
 ) -> tuple[list[dict], dict]:
     """Run ``draws`` noise draws (seeds ``first_seed ..``); returns ``(rows, summary)``.
 
@@ -216,7 +232,8 @@ def run_montecarlo(
 
     With ``out``: writes ``runs.csv``, ``summary.json``, ``summary.md`` and ``montecarlo.png``
     there. ``joints_deg``: planned postures to use instead of the scenario's random plan (e.g.
-    from :func:`plan_optimal`; ``plan`` names them in the output).
+    from :func:`plan_optimal`; ``plan`` names them in the output). ``cluster``: a Dask scheduler
+    address to run the draws on instead of ``jobs`` local processes (docs/cluster.md).
     """
     base = {
         "poses": poses if joints_deg is None else len(joints_deg),
@@ -230,11 +247,12 @@ def run_montecarlo(
     }
     items = [{**base, "seed": first_seed + i} for i in range(draws)]
     t0 = time.perf_counter()
-    k = [0]
+    counts = TaskCounts(draws)
 
     def say(row):
-        k[0] += 1
+        counts.finish(failed=row["status"] != "ok")
         if not quiet:
+            took = "" if row["seconds"] is None else f" ({row['seconds']:.1f} s)"
             msg = (
                 f"joint {row['joint_tip_rms_mm']:.3f} mm, two-stage {row['two_stage_tip_rms_mm']:.3f}"
                 f" mm, bound {row['bound_tip_rms_mm']:.3f} mm"
@@ -242,11 +260,11 @@ def run_montecarlo(
                 else row["status"]
             )
             print(
-                f"  [{k[0]}/{draws}] seed {row['seed']}: {msg} ({row['seconds']:.1f} s)",
+                f"  [{counts.line()}] seed {row['seed']}: {msg}{took}",
                 file=sys.stderr,
             )
 
-    rows = _map(draw_one, items, max(1, int(jobs)), say)
+    rows = _map(draw_one, items, max(1, int(jobs)), say, cluster, retries, counts)
     summary = summarize(rows)
     summary["settings"] = {k: v for k, v in base.items() if k != "joints_deg"}
     summary["seconds"] = round(time.perf_counter() - t0, 1)

@@ -1,10 +1,11 @@
-"""``selfcal montecarlo --draws N --out DIR [--jobs 2] [--plans]``: the command of
+"""``selfcal montecarlo --draws N --out DIR [--jobs 2 | --cluster ADDRESS] [--plans]``: the command of
 :mod:`scenarios.montecarlo` (and, with ``--plans``, :mod:`scenarios.plan_comparison`)."""
 
 from __future__ import annotations
 
 import argparse
 
+from scenarios.cluster import add_cluster_args
 from scenarios.montecarlo import run_montecarlo
 from scenarios.montecarlo_report import summary_markdown
 from scenarios.plan_comparison import plans_markdown, run_plan_comparison
@@ -14,7 +15,9 @@ __all__ = ["register"]
 
 def _cmd(args: argparse.Namespace) -> int:
     if args.plans:
-        res = run_plan_comparison(args.out, draws=args.draws, jobs=args.jobs, quiet=args.quiet)
+        res = run_plan_comparison(
+            args.out, draws=args.draws, jobs=args.jobs, quiet=args.quiet, cluster=args.cluster
+        )
         print(plans_markdown(res))
         return 0
     _, s = run_montecarlo(
@@ -26,25 +29,29 @@ def _cmd(args: argparse.Namespace) -> int:
         jobs=args.jobs,
         quiet=args.quiet,
         config=args.config,
+        cluster=args.cluster,
+        retries=args.retries,
     )
     print(summary_markdown(s))
     return 0
 
 
 def register(subparsers) -> argparse.ArgumentParser:
-    """Add ``selfcal montecarlo --draws N --out DIR [--jobs N] [--poses P] [--pixel-sigma S]
-    [--config SCENARIO]``."""
+    """Add ``selfcal montecarlo --draws N --out DIR [--jobs N | --cluster ADDRESS] [--poses P]
+    [--pixel-sigma S] [--config SCENARIO]``."""
     sp = subparsers.add_parser(
         "montecarlo",
         help="Monte Carlo of both calibration methods against the Cramer-Rao bound",
         description="One truth (default scenario, analytic path), many noise draws: achieved "
         "tool-tip and parameter errors of the two-stage and the one-step method against the "
         "Cramer-Rao bound. Writes DIR/runs.csv, summary.md, summary.json, montecarlo.png. "
-        "See docs/bounds.md.",
+        "The draws run in local worker processes or, with --cluster, on a Dask cluster. "
+        "See docs/bounds.md and docs/cluster.md.",
     )
     sp.add_argument("--draws", type=int, default=100, help="noise draws (default 100)")
     sp.add_argument("--out", required=True, help="output folder")
     sp.add_argument("--jobs", type=int, default=2, help="worker processes (1 = in-process)")
+    add_cluster_args(sp)
     sp.add_argument("--poses", type=int, default=30, help="calibration postures (default 30)")
     sp.add_argument("--pixel-sigma", type=float, default=0.5, help="corner noise, px")
     sp.add_argument(

@@ -1,4 +1,7 @@
-"""Worker processes for scenario scripts that run many calibrations (studies, Monte Carlo)."""
+"""Where the many calibrations of a study or Monte Carlo run execute: in this process, in a pool
+of local worker processes (the default, :func:`worker_pool`), or on a Dask distributed cluster
+(``--cluster ADDRESS``, :mod:`scenarios.cluster`). :func:`run_tasks` is the one entry point; it
+yields each task's result row as it arrives, in completion order."""
 
 from __future__ import annotations
 
@@ -6,12 +9,19 @@ import contextlib
 import multiprocessing as mp
 import os
 import signal
-from collections.abc import Iterator
-from concurrent.futures import ProcessPoolExecutor
+import sys
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
 
+from scenarios.cluster import DEFAULT_RETRIES, cluster_tasks
+from scenarios.progress import TaskCounts
 from scenarios.threads import THREAD_VARS, THREADS_ENV, limit_threads, thread_count
 
-__all__ = ["worker_pool"]
+__all__ = ["ErrorRow", "run_tasks", "worker_pool"]
+
+ErrorRow = Callable[[dict, BaseException], dict]
+"""``error_row(item, exc)``: the result row recording that the task for ``item`` failed."""
 
 
 def _worker_init(threads: int) -> None:
@@ -45,3 +55,72 @@ def worker_pool(max_workers: int, threads: int | None = None) -> Iterator[Proces
                 os.environ.pop(v, None)
             else:
                 os.environ[v] = val
+
+
+def run_tasks(
+    fn: Callable[[dict], dict],
+    items: Sequence[dict],
+    *,
+    jobs: int,
+    error_row: ErrorRow,
+    cluster: str | None = None,
+    retries: int = DEFAULT_RETRIES,
+    counts: TaskCounts | None = None,
+) -> Iterator[tuple[int, dict]]:
+    """``(index, fn(items[index]))`` for every item, in the order the results arrive.
+
+    Runs in this process (``jobs`` 1 or a single item), in ``jobs`` local worker processes, or,
+    with ``cluster`` (a Dask scheduler address such as ``tcp://host:8786``), as one Dask task per
+    item (:func:`scenarios.cluster.cluster_tasks`; ``retries`` extra tries of a task that raised).
+    A task that raises gives ``error_row(item, exc)`` instead of its row, so no item is dropped.
+    ``counts.running`` is kept up to date (tasks on the workers now). A local pool whose worker
+    died (``BrokenProcessPool``) stops the batch: the rows yielded so far stand.
+    """
+    if cluster is not None:
+        yield from cluster_tasks(
+            cluster, fn, items, error_row=error_row, retries=retries, counts=counts
+        )
+        return
+    counts = counts or TaskCounts(len(items))
+    if jobs <= 1 or len(items) <= 1:
+        for i, x in enumerate(items):
+            counts.running = 1
+            try:
+                row = fn(x)
+            except Exception as exc:  # noqa: BLE001 - recorded as the item's row
+                row = error_row(x, exc)
+            counts.running = 0
+            yield i, row
+        return
+    workers = min(jobs, len(items))
+    with worker_pool(workers) as ex:
+        futs: dict[Future, int] = {ex.submit(fn, x): i for i, x in enumerate(items)}
+        pending = set(futs)
+        try:
+            while pending:
+                counts.running = min(len(pending), workers)
+                finished, pending = wait(pending, return_when=FIRST_COMPLETED)
+                for f in finished:
+                    counts.running = min(len(pending), workers)
+                    yield futs[f], _outcome(f, items[futs[f]], error_row)
+        except KeyboardInterrupt:
+            for f in pending:
+                f.cancel()
+            print("interrupted: waiting for the running task(s) to finish ...", file=sys.stderr)
+            for f in pending:
+                if not f.cancelled():
+                    try:
+                        row = f.result()
+                    except Exception:  # noqa: BLE001
+                        continue
+                    yield futs[f], row
+            raise
+
+
+def _outcome(f: Future, item: dict, error_row: ErrorRow) -> dict:
+    try:
+        return f.result()
+    except BrokenProcessPool:
+        raise
+    except Exception as exc:  # noqa: BLE001 - recorded as the item's row
+        return error_row(item, exc)

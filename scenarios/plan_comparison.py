@@ -140,11 +140,13 @@ def run_plan_comparison(
     mc_counts=(10, 30),
     jobs: int = 2,
     quiet: bool = False,
+    cluster: str | None = None,
 ) -> dict:
     """Random against D-optimal postures: the predicted tool-tip bound for every count and
     trajectory seed (:func:`compare_plans`), and a Monte Carlo of ``draws`` noise draws for each
     plan kind at ``mc_counts`` (trajectory seed 1). Writes ``plans.csv``, ``plans.json``,
-    ``plans.md`` and ``optimal_poses.png`` into ``out``; returns the JSON content."""
+    ``plans.md`` and ``optimal_poses.png`` into ``out``; returns the JSON content. ``cluster``: a
+    Dask scheduler address for the Monte Carlo draws (docs/cluster.md)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     rows = compare_plans(counts, seeds=seeds)
@@ -164,6 +166,7 @@ def run_plan_comparison(
                 traj_seed=seeds[0],
                 jobs=jobs,
                 quiet=True,
+                cluster=cluster,
             )
             mc[f"{n}_{kind}"] = {
                 "poses": n,

@@ -1,4 +1,5 @@
-"""A small progress bar for the command line (stderr), silent when not a terminal unless asked."""
+"""A small progress bar for the command line (stderr), silent when not a terminal unless asked;
+and :class:`TaskCounts`, the state of a batch of tasks (done / total, running, failed, time left)."""
 
 from __future__ import annotations
 
@@ -6,7 +7,7 @@ import sys
 import time
 from typing import TextIO
 
-__all__ = ["Progress"]
+__all__ = ["Progress", "TaskCounts"]
 
 
 class Progress:
@@ -51,3 +52,36 @@ class Progress:
         elif self.enabled and dt > 1.0:
             self.stream.write(f"{self.label}: {self.done}/{self.total} in {dt:.1f} s\n")
         self.stream.flush()
+
+
+class TaskCounts:
+    """Counts of a batch of ``total`` tasks run by worker processes (studies, Monte Carlo).
+
+    ``finish(failed=...)`` when a task's result arrives; ``running`` is set by the runner (tasks on
+    the workers now). :meth:`line` is the state as text, with the time left estimated from the mean
+    wall time per task finished so far in this batch.
+    """
+
+    def __init__(self, total: int) -> None:
+        self.total = total
+        self.done = 0
+        self.failed = 0
+        self.running = 0
+        self.t0 = time.perf_counter()
+
+    def finish(self, failed: bool = False) -> None:
+        """One more task finished (``failed``: its result is an error)."""
+        self.done += 1
+        self.failed += int(failed)
+
+    def seconds_left(self) -> float | None:
+        """Estimated wall time until the batch is done (s); None before the first result."""
+        if self.done == 0:
+            return None
+        return (time.perf_counter() - self.t0) / self.done * (self.total - self.done)
+
+    def line(self) -> str:
+        """E.g. ``"12/40 done, 2 running, 0 failed, ~31 s left"``."""
+        left = self.seconds_left()
+        eta = "" if left is None else f", ~{left:.0f} s left"
+        return f"{self.done}/{self.total} done, {self.running} running, {self.failed} failed{eta}"

@@ -1,4 +1,5 @@
-"""``selfcal study NAME --budget quick|full --out DIR [--jobs N]``: many calibrations, in parallel.
+"""``selfcal study NAME --budget quick|full --out DIR [--jobs N | --cluster ADDRESS]``: many
+calibrations, in parallel.
 
 Each run is one simulated calibration (acquire -> calibrate -> report in a temporary folder) of
 the default scenario (``scenarios/paper.toml``) with a few settings changed; its result is one row
@@ -17,8 +18,10 @@ Studies (x = the swept setting; seeds vary the perturbation, the trajectory and 
 - ``all``: the four above, each in ``DIR/<name>/``.
 
 Runs are keyed by their complete settings: an interrupted study (Ctrl-C) keeps every finished row,
-and running it again does only the missing runs. Workers are ``spawn``-ed processes with one BLAS
-/ OpenMP thread each.
+and running it again does only the missing runs, locally or on a cluster whichever ran the first
+part. Workers are ``spawn``-ed processes with one BLAS / OpenMP thread each, or, with
+``--cluster ADDRESS``, the workers of a Dask distributed scheduler (``scenarios.cluster``,
+docs/cluster.md).
 
 The parts: ``scenarios.study_runs`` (one run, ``runs.csv``), ``scenarios.study_defs`` (the
 studies), ``scenarios.study_summary`` (``<name>.md``, ``<name>.png``); here the driver and the
@@ -32,13 +35,15 @@ import csv
 import os
 import sys
 import time
-from concurrent.futures import FIRST_COMPLETED, Future, wait
+from collections.abc import Callable
 from pathlib import Path
 
 from calib.errors import InputError
-from scenarios.parallel import worker_pool
+from scenarios.cluster import DEFAULT_RETRIES, add_cluster_args
+from scenarios.parallel import run_tasks
+from scenarios.progress import TaskCounts
 from scenarios.study_defs import STUDIES
-from scenarios.study_runs import COLUMNS, load_runs, run_one, settings_key
+from scenarios.study_runs import COLUMNS, failed_row, load_runs, run_one, settings_key
 from scenarios.study_summary import summarize
 
 __all__ = ["run_study", "register"]
@@ -60,19 +65,36 @@ def run_study(
     budget: str = "quick",
     jobs: int | None = None,
     quiet: bool = False,
+    cluster: str | None = None,
+    retries: int = DEFAULT_RETRIES,
+    task: Callable[[dict], dict] | None = None,
 ) -> list[dict]:
     """Run (or resume) study ``name`` into ``out``; returns all its rows (old and new).
 
     Writes ``out/runs.csv`` (a row per finished run, flushed at once), ``out/<name>.png`` and
-    ``out/<name>.md``. ``jobs`` worker processes (default: the CPU count; 1 runs in-process).
+    ``out/<name>.md``. ``jobs`` worker processes (default: the CPU count; 1 runs in-process), or,
+    with ``cluster`` (a Dask scheduler address), one Dask task per run (``retries`` extra tries of
+    a task that raised; see :mod:`scenarios.cluster`). ``task`` computes one row from a run's
+    settings (default :func:`scenarios.study_runs.run_one`); a task that fails on every try is
+    recorded as a ``failed: ...`` row (:func:`scenarios.study_runs.failed_row`). Resuming works
+    the same whichever ran the finished rows: a run whose key is in ``runs.csv`` is not run again.
 
     Raises:
-        ValueError: unknown study or budget.
+        InputError: unknown study or budget; no Dask or no scheduler with ``cluster``.
     """
     if name == "all":
         rows = []
         for n in STUDIES:
-            rows += run_study(n, Path(out) / n, budget=budget, jobs=jobs, quiet=quiet)
+            rows += run_study(
+                n,
+                Path(out) / n,
+                budget=budget,
+                jobs=jobs,
+                quiet=quiet,
+                cluster=cluster,
+                retries=retries,
+                task=task,
+            )
         return rows
     if name not in STUDIES:
         raise InputError(f"unknown study {name!r}; choose from {', '.join([*STUDIES, 'all'])}")
@@ -96,36 +118,33 @@ def run_study(
             done = {r["key"] for r in rows}
             todo = [st for st in phase(budget, rows) if settings_key(st) not in done]
             todo = list({settings_key(st): st for st in todo}.values())
+            where = f"on {cluster}" if cluster else f"{min(jobs, max(1, len(todo)))} process(es)"
             if not quiet:
                 print(
-                    f"study {name}: {len(todo)} run(s) to do ({len(done)} done before)",
+                    f"study {name}: {len(todo)} run(s) to do ({len(done)} done before), {where}",
                     file=sys.stderr,
                 )
-
-            def record(row: dict, k: int, n: int) -> None:
+            counts = TaskCounts(len(todo))
+            for _, row in run_tasks(
+                task or run_one,
+                todo,
+                jobs=jobs,
+                error_row=failed_row,
+                cluster=cluster if todo else None,
+                retries=retries,
+                counts=counts,
+            ):
                 row = {"study": name, "key": settings_key(row), **row}
                 writer.writerow([_fmt(row.get(c)) for c in COLUMNS])
                 fh.flush()
                 rows.append(row)
+                counts.finish(failed=row["status"] != "ok")
                 if not quiet:
-                    msg = (
-                        f"cal {row['cal_rms_mm']:.3f} mm, nominal {row['nom_rms_mm']:.3f} mm"
-                        if row["status"] == "ok"
-                        else row["status"]
-                    )
-                    print(
-                        f"  [{k}/{n}] {row['key']}: {msg} ({row['seconds']:.1f} s)", file=sys.stderr
-                    )
-
-            if jobs == 1 or len(todo) <= 1:
-                for k, st in enumerate(todo, 1):
-                    record(run_one(st), k, len(todo))
-            elif todo:
-                _run_pool(todo, jobs, record, quiet)
+                    _say(row, counts)
     except KeyboardInterrupt:
         print(
             f"study {name}: interrupted; finished runs are kept in {csv_path}; run the same "
-            "command again to resume",
+            "command again (with or without --cluster) to resume",
             file=sys.stderr,
         )
         raise
@@ -141,47 +160,40 @@ def run_study(
     return rows
 
 
-def _run_pool(todo: list[dict], jobs: int, record, quiet: bool) -> None:
-    with worker_pool(min(jobs, len(todo))) as ex:
-        pending: set[Future] = {ex.submit(run_one, st) for st in todo}
-        k = 0
-        try:
-            while pending:
-                finished, pending = wait(pending, return_when=FIRST_COMPLETED)
-                for f in finished:
-                    k += 1
-                    record(f.result(), k, len(todo))
-        except KeyboardInterrupt:
-            for f in pending:
-                f.cancel()
-            if not quiet:
-                print("interrupted: waiting for the running run(s) to finish ...", file=sys.stderr)
-            for f in pending:
-                if not f.cancelled():
-                    try:
-                        row = f.result()
-                    except Exception:  # noqa: BLE001
-                        continue
-                    k += 1
-                    record(row, k, len(todo))
-            raise
+def _say(row: dict, counts: TaskCounts) -> None:
+    msg = (
+        f"cal {row['cal_rms_mm']:.3f} mm, nominal {row['nom_rms_mm']:.3f} mm"
+        if row["status"] == "ok"
+        else row["status"]
+    )
+    took = "" if row.get("seconds") is None else f" ({row['seconds']:.1f} s)"
+    print(f"  [{counts.line()}] {row['key']}: {msg}{took}", file=sys.stderr)
 
 
 # --------------------------------------------------------------------------------------- CLI
 def _cmd(args: argparse.Namespace) -> int:
-    run_study(args.name, Path(args.out), budget=args.budget, jobs=args.jobs, quiet=args.quiet)
+    run_study(
+        args.name,
+        Path(args.out),
+        budget=args.budget,
+        jobs=args.jobs,
+        quiet=args.quiet,
+        cluster=args.cluster,
+        retries=args.retries,
+    )
     return 0
 
 
 def register(subparsers) -> argparse.ArgumentParser:
-    """Add ``selfcal study NAME --budget quick|full --out DIR [--jobs N]``."""
+    """Add ``selfcal study NAME --budget quick|full --out DIR [--jobs N | --cluster ADDRESS]``."""
     sp = subparsers.add_parser(
         "study",
         help="run many calibrations (seeds x settings) in parallel: CSV + plots",
-        description="Run a study of many simulated calibrations in parallel, resumable: "
+        description="Run a study of many simulated calibrations in parallel (local worker "
+        "processes, or a Dask cluster with --cluster), resumable: "
         "DIR/runs.csv (one row per run), DIR/NAME.png and DIR/NAME.md. Studies: "
         + ", ".join([*STUDIES, "all"])
-        + ". See docs/studies.md.",
+        + ". See docs/studies.md and docs/cluster.md.",
     )
     sp.add_argument("name", choices=[*STUDIES, "all"], help="which study")
     sp.add_argument(
@@ -197,6 +209,7 @@ def register(subparsers) -> argparse.ArgumentParser:
         default=None,
         help="worker processes (default: CPU count; 1 = in-process)",
     )
+    add_cluster_args(sp)
     sp.add_argument("--quiet", action="store_true")
     sp.set_defaults(func=_cmd)
     return sp

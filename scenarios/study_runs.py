@@ -20,7 +20,15 @@ from pathlib import Path
 from scenarios.config import load_scenario
 from scenarios.pipeline import run_acquire, run_calibrate, run_report
 
-__all__ = ["SETTING_KEYS", "METRIC_KEYS", "COLUMNS", "settings_key", "run_one", "load_runs"]
+__all__ = [
+    "SETTING_KEYS",
+    "METRIC_KEYS",
+    "COLUMNS",
+    "settings_key",
+    "run_one",
+    "failed_row",
+    "load_runs",
+]
 
 SETTING_KEYS = ("render", "pixel_sigma", "image_sigma", "poses", "perturb_scale", "seed")
 METRIC_KEYS = (
@@ -95,9 +103,19 @@ def run_one(settings: dict) -> dict:
             rank=cal.identification.rank,
         )
     except Exception as exc:  # noqa: BLE001 - a study records failures instead of stopping
-        row["status"] = f"failed: {type(exc).__name__}: {str(exc)[:200]}"
+        row["status"] = _failure(exc)
     row["seconds"] = round(time.perf_counter() - t0, 3)
     return row
+
+
+def _failure(exc: BaseException) -> str:
+    return f"failed: {type(exc).__name__}: {str(exc)[:200]}"
+
+
+def failed_row(settings: dict, exc: BaseException) -> dict:
+    """The row of a run whose task failed outside :func:`run_one` (e.g. its worker died on every
+    try): the settings, ``status = "failed: <error>"`` and no metrics."""
+    return {**{k: settings[k] for k in SETTING_KEYS}, "status": _failure(exc), "seconds": None}
 
 
 def load_runs(path: Path) -> list[dict]:

@@ -1,0 +1,116 @@
+"""Benchmark: the same 40-run study in this process, in the local pool of 2 worker processes, and
+on a Dask ``LocalCluster`` of 1 and 2 worker processes (``--cluster``, :mod:`scenarios.cluster`).
+
+The study: ``--runs`` calibrations (default 40) of the default scenario on the analytic path,
+``--poses`` postures (default 8), 0.5 px corner noise, seeds 1 .. runs -- each a task of
+:func:`scenarios.study_runs.run_one` through :func:`scenarios.parallel.run_tasks`, the path of
+``selfcal study``. Per configuration: wall time from the first submission to the last row (the
+cluster is started before the clock, its start-up time is reported apart; the pool's process
+start is inside), the speed-up against in-process, and the overhead per task,
+``(wall x workers - sum of the tasks' own seconds) / runs``: worker time not spent computing
+(dispatch, pickling, imports in a fresh worker, idle tail). It checks that every configuration
+gives the same rows (all but ``seconds``) and reports the load average (the machine may be shared).
+
+Run: ``uv run python -m scenarios.benchmark_cluster [--runs 40] [--poses 8] [--write-doc]``
+(``--write-doc`` replaces the table in docs/cluster.md). Needs the ``[cluster]`` extra.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import time
+from pathlib import Path
+
+from scenarios.cluster import distributed_module
+from scenarios.parallel import run_tasks
+from scenarios.study_defs import BASE
+from scenarios.study_runs import failed_row, run_one
+from scenarios.threads import limit_threads
+
+DOC = Path(__file__).resolve().parent.parent / "docs" / "cluster.md"
+BEGIN, END = "<!-- benchmark_cluster:begin -->", "<!-- benchmark_cluster:end -->"
+
+
+def _time(items: list[dict], **where) -> tuple[float, list[dict]]:
+    t0 = time.perf_counter()
+    got = dict(run_tasks(run_one, items, error_row=failed_row, **where))
+    return time.perf_counter() - t0, [got[i] for i in range(len(items))]
+
+
+def run(runs: int, poses: int) -> str:
+    """The markdown table (and a few lines around it) of one benchmark."""
+    distributed = distributed_module()
+    items = [{**BASE, "pixel_sigma": 0.5, "poses": poses, "seed": s} for s in range(1, runs + 1)]
+    results = []  # (label, workers, wall, start-up, rows, load before, load after)
+    configs: list[tuple[str, int, dict]] = [
+        ("in-process (jobs 1)", 1, {"jobs": 1}),
+        ("local pool, 2 processes (jobs 2)", 2, {"jobs": 2}),
+        ("LocalCluster, 1 worker process", 1, {}),
+        ("LocalCluster, 2 worker processes", 2, {}),
+    ]
+    for label, workers, where in configs:
+        load0 = os.getloadavg()[0]
+        if where:
+            wall, rows = _time(items, **where)
+            start = None
+        else:
+            t0 = time.perf_counter()
+            with distributed.LocalCluster(
+                n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None
+            ) as lc:
+                start = time.perf_counter() - t0
+                wall, rows = _time(items, jobs=workers, cluster=lc.scheduler_address)
+        results.append((label, workers, wall, start, rows, load0, os.getloadavg()[0]))
+        print(f"{label}: {wall:.1f} s", flush=True)
+    ref = [{k: v for k, v in r.items() if k != "seconds"} for r in results[0][4]]
+    same = all(
+        [{k: v for k, v in r.items() if k != "seconds"} for r in res[4]] == ref for res in results
+    )
+    ok = sum(r["status"] == "ok" for r in results[0][4])
+    base_wall = results[0][2]
+    lines = [
+        f"{runs} runs (`run_one`: {poses} poses, 0.5 px, seeds 1..{runs}; {ok} ok), "
+        f"{os.cpu_count()} cores, Python {platform.python_version()}, "
+        f"dask distributed {distributed.__version__}; rows identical in every configuration "
+        f"(all but `seconds`): {'yes' if same else 'NO'}.",
+        "",
+        "| configuration | wall s | s / run | speed-up | overhead / task s | start-up s "
+        "| load before / after |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for label, workers, wall, start, rows, l0, l1 in results:
+        busy = sum(r["seconds"] or 0.0 for r in rows)
+        over = (wall * workers - busy) / runs
+        st = "" if start is None else f"{start:.1f}"
+        lines.append(
+            f"| {label} | {wall:.1f} | {wall / runs:.2f} | {base_wall / wall:.2f} | "
+            f"{over:.2f} | {st} | {l0:.1f} / {l1:.1f} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def write_doc(table: str, doc: Path = DOC) -> None:
+    """Replace the text between the benchmark markers of ``doc`` with ``table``."""
+    text = doc.read_text()
+    head, rest = text.split(BEGIN, 1)
+    _, tail = rest.split(END, 1)
+    doc.write_text(f"{head}{BEGIN}\n{table}{END}{tail}")
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--runs", type=int, default=40)
+    ap.add_argument("--poses", type=int, default=8)
+    ap.add_argument("--write-doc", action="store_true", help=f"update the table in {DOC.name}")
+    args = ap.parse_args(argv)
+    limit_threads()  # in-process runs with the workers' thread limit, as `selfcal` does
+    table = run(args.runs, args.poses)
+    print(table)
+    if args.write_doc:
+        write_doc(table)
+
+
+if __name__ == "__main__":
+    main()

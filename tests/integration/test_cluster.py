@@ -1,0 +1,169 @@
+"""``--cluster ADDRESS``: studies and Monte Carlo runs as tasks on a Dask distributed cluster.
+
+Claims: the optional extra is imported only with ``--cluster`` and its absence is an InputError
+naming the install command; a task that raises on every try becomes a ``failed: ...`` row (none
+dropped); and (slow tier, a ``LocalCluster`` of 2 worker processes) a study half done by the local
+pool and finished on the cluster, with one worker killed in the middle of a run, has every row
+once and the cluster's rows equal the local pool's bit for bit (all but the wall time
+``seconds``); the workers run with the project's thread limit; Monte Carlo draws are the same
+numbers on the cluster as in the local pool.
+"""
+
+from __future__ import annotations
+
+import csv
+import functools
+import os
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import cloudpickle
+import pytest
+from distributed import LocalCluster
+from threadpoolctl import threadpool_info
+
+from calib.errors import InputError
+from scenarios.cli import main
+from scenarios.cluster import cluster_tasks
+from scenarios.montecarlo import run_montecarlo
+from scenarios.studies import run_study
+from scenarios.study_runs import failed_row, run_one, settings_key
+
+# The tasks below run on the workers, which cannot import this test module: send them by value.
+cloudpickle.register_pickle_by_value(sys.modules[__name__])
+
+
+def _always_fails(calls: Path, settings: dict) -> dict:
+    with open(calls, "a") as fh:
+        fh.write(settings_key(settings) + "\n")
+    raise RuntimeError("this run always fails")
+
+
+def _kill_first(marker: Path, settings: dict) -> dict:
+    """The first task to get here kills its own worker process mid-run; every other one runs."""
+    try:
+        fd = os.open(marker, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
+    except FileExistsError:
+        return run_one(settings)
+    os.write(fd, settings_key(settings).encode())
+    os.close(fd)
+    os.kill(os.getpid(), signal.SIGKILL)
+    raise AssertionError("unreachable")
+
+
+def _pools(_: dict) -> dict:
+    import scipy.linalg  # noqa: F401  (its own OpenBLAS loads here, after the limit)
+
+    return {"pools": threadpool_info(), "env": os.environ.get("OPENBLAS_NUM_THREADS")}
+
+
+def _without_seconds(row: dict) -> dict:
+    return {k: v for k, v in row.items() if k != "seconds"}
+
+
+# ---------------------------------------------------------------------------- default tier
+def test_the_local_path_imports_no_dask():
+    code = "import sys, scenarios.cli; print(sorted(m for m in ('dask', 'distributed') if m in sys.modules))"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"
+
+
+def test_without_the_extra_cluster_is_an_input_error(tmp_path, monkeypatch, capsys):
+    monkeypatch.setitem(sys.modules, "distributed", None)  # import distributed -> ImportError
+    with pytest.raises(InputError) as err:
+        run_study("noise", tmp_path, cluster="tcp://127.0.0.1:1", quiet=True)
+    assert "scorbot-selfcal[cluster]" in err.value.fix
+    code = main(["montecarlo", "--draws", "2", "--out", str(tmp_path), "--cluster", "tcp://x:1"])
+    assert code == 2  # bad input
+    assert "uv sync --extra cluster" in capsys.readouterr().err
+
+
+def test_a_task_failing_on_every_try_is_recorded(tmp_path):
+    calls = tmp_path / "calls.txt"
+    with LocalCluster(n_workers=1, threads_per_worker=2, processes=False) as lc:
+        rows = run_study(
+            "noise",
+            tmp_path / "out",
+            cluster=lc.scheduler_address,
+            retries=1,
+            task=functools.partial(_always_fails, calls),
+            quiet=True,
+        )
+    assert len(rows) == 6  # the quick noise study: 3 sigmas x 2 seeds
+    assert all(r["status"] == "failed: RuntimeError: this run always fails" for r in rows), rows
+    tried = calls.read_text().split("\n")[:-1]
+    assert sorted(tried) == sorted(2 * [r["key"] for r in rows])  # 1 try + 1 retry each
+    with open(tmp_path / "out" / "runs.csv", newline="") as fh:
+        on_disk = list(csv.DictReader(fh))
+    assert [r["status"] for r in on_disk] == [r["status"] for r in rows]
+
+
+def test_the_failed_row_keeps_the_settings():
+    st = {"render": False, "pixel_sigma": 0.5, "image_sigma": 2.0, "poses": 8}
+    row = failed_row({**st, "perturb_scale": 1.0, "seed": 3}, MemoryError("out of memory"))
+    assert row["status"] == "failed: MemoryError: out of memory"
+    assert row["seed"] == 3 and row["seconds"] is None
+
+
+# ------------------------------------------------------------------------------- slow tier
+@pytest.fixture(scope="module")
+def cluster():
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True) as lc:
+        yield lc.scheduler_address
+
+
+@pytest.fixture(scope="module")
+def local_study(tmp_path_factory):
+    out = tmp_path_factory.mktemp("local")
+    return out, run_study("noise", out, jobs=2, quiet=True)
+
+
+@pytest.mark.slow
+def test_a_study_resumed_on_the_cluster_with_a_killed_worker_equals_the_local_one(
+    cluster, local_study, tmp_path
+):
+    local_out, local_rows = local_study
+    assert len(local_rows) == 6 and all(r["status"] == "ok" for r in local_rows)
+    lines = (local_out / "runs.csv").read_text().splitlines(keepends=True)
+    out = tmp_path / "study"
+    out.mkdir()
+    (out / "runs.csv").write_text("".join(lines[:4]))  # the header and 3 runs done locally
+    marker = tmp_path / "killed"
+    rows = run_study(
+        "noise", out, cluster=cluster, task=functools.partial(_kill_first, marker), quiet=True
+    )
+    killed = marker.read_text()
+    assert killed in {r["key"] for r in rows[3:]}  # one of the cluster's runs died once
+    assert len(rows) == 6 and all(r["status"] == "ok" for r in rows), rows
+    by_key = {r["key"]: _without_seconds(r) for r in local_rows}
+    for r in rows[3:]:  # computed on the cluster: bit-identical to the local pool's
+        assert _without_seconds(r) == by_key[r["key"]]
+    got = sorted((out / "runs.csv").read_text().splitlines())
+    want = sorted(lines_ := [ln.rstrip("\n") for ln in lines])
+    assert len(got) == len(want) == 7  # header + 6 runs, none twice
+
+    def strip(ln: str) -> str:  # the wall time is the last column
+        return ln.rsplit(",", 1)[0]
+
+    assert sorted(map(strip, got)) == sorted(map(strip, lines_))
+
+
+@pytest.mark.slow
+def test_cluster_workers_have_the_thread_limit(cluster):
+    res = [r for _, r in cluster_tasks(cluster, _pools, [{}, {}], error_row=failed_row)]
+    for r in res:
+        assert r["env"] == "1"
+        assert r["pools"] and all(p["num_threads"] == 1 for p in r["pools"]), r["pools"]
+
+
+@pytest.mark.slow
+def test_monte_carlo_draws_are_the_same_on_the_cluster(cluster):
+    kw = {"poses": 12, "first_seed": 5, "quiet": True}
+    # Against the local pool (one BLAS thread per process, as on the cluster); this test
+    # process may have several BLAS threads, whose sums round differently (~1e-8 relative).
+    here, _ = run_montecarlo(2, jobs=2, **kw)
+    there, _ = run_montecarlo(2, cluster=cluster, **kw)
+    assert all(r["status"] == "ok" for r in here), here
+    assert [_without_seconds(r) for r in there] == [_without_seconds(r) for r in here]
