@@ -6,9 +6,10 @@ The study: ``--runs`` calibrations (default 40) of the default scenario on the a
 :func:`scenarios.study_runs.run_one` through :func:`scenarios.parallel.run_tasks`, the path of
 ``selfcal study``. Per configuration: wall time from the first submission to the last row (the
 cluster is started before the clock, its start-up time is reported apart; the pool's process
-start is inside), the speed-up against in-process, and the overhead per task,
-``(wall x workers - sum of the tasks' own seconds) / runs``: worker time not spent computing
-(dispatch, pickling, imports in a fresh worker, idle tail). It checks that every configuration
+start is inside), the speed-up from 1 to 2 processes, the cluster's overhead per task against
+the local path with as many processes, ``(wall_cluster - wall_local) x workers / runs``, and the
+worker time not spent computing per task, ``(wall x workers - sum of the tasks' own seconds) /
+runs`` (dispatch, pickling, imports in a fresh worker, the idle tail). It checks that every configuration
 gives the same rows (all but ``seconds``) and reports the load average (the machine may be shared).
 
 Run: ``uv run python -m scenarios.benchmark_cluster [--runs 40] [--poses 8] [--write-doc]``
@@ -69,24 +70,25 @@ def run(runs: int, poses: int) -> str:
         [{k: v for k, v in r.items() if k != "seconds"} for r in res[4]] == ref for res in results
     )
     ok = sum(r["status"] == "ok" for r in results[0][4])
-    base_wall = results[0][2]
     lines = [
         f"{runs} runs (`run_one`: {poses} poses, 0.5 px, seeds 1..{runs}; {ok} ok), "
         f"{os.cpu_count()} cores, Python {platform.python_version()}, "
         f"dask distributed {distributed.__version__}; rows identical in every configuration "
-        f"(all but `seconds`): {'yes' if same else 'NO'}.",
+        f"(all but `seconds`): {'yes' if same else 'NO'}. Local with 1 process is in-process "
+        "(`--jobs 1`).",
         "",
-        "| configuration | wall s | s / run | speed-up | overhead / task s | start-up s "
-        "| load before / after |",
+        "| configuration | wall s | speed-up 1 -> 2 | cluster - local, s / task | worker time "
+        "not computing, s / task | start-up s | load before / after |",
         "|---|---|---|---|---|---|---|",
     ]
-    for label, workers, wall, start, rows, l0, l1 in results:
+    for k, (label, workers, wall, start, rows, l0, l1) in enumerate(results):
         busy = sum(r["seconds"] or 0.0 for r in rows)
-        over = (wall * workers - busy) / runs
+        idle = (wall * workers - busy) / runs
+        speed = "" if workers == 1 else f"{results[k - 1][2] / wall:.2f}"
+        extra = "" if start is None else f"{(wall - results[k - 2][2]) * workers / runs:+.2f}"
         st = "" if start is None else f"{start:.1f}"
         lines.append(
-            f"| {label} | {wall:.1f} | {wall / runs:.2f} | {base_wall / wall:.2f} | "
-            f"{over:.2f} | {st} | {l0:.1f} / {l1:.1f} |"
+            f"| {label} | {wall:.1f} | {speed} | {extra} | {idle:.2f} | {st} | {l0:.1f} / {l1:.1f} |"
         )
     return "\n".join(lines) + "\n"
 

@@ -50,7 +50,9 @@ def register(subparsers) -> argparse.ArgumentParser:
     )
     sp.add_argument("--draws", type=int, default=100, help="noise draws (default 100)")
     sp.add_argument("--out", required=True, help="output folder")
-    sp.add_argument("--jobs", type=int, default=2, help="worker processes (1 = in-process)")
+    sp.add_argument(
+        "--jobs", type=int, default=2, help="worker processes (1 = in-process; not with --cluster)"
+    )
     add_cluster_args(sp)
     sp.add_argument("--poses", type=int, default=30, help="calibration postures (default 30)")
     sp.add_argument("--pixel-sigma", type=float, default=0.5, help="corner noise, px")

@@ -207,7 +207,7 @@ def register(subparsers) -> argparse.ArgumentParser:
         "--jobs",
         type=int,
         default=None,
-        help="worker processes (default: CPU count; 1 = in-process)",
+        help="worker processes (default: CPU count; 1 = in-process; not with --cluster)",
     )
     add_cluster_args(sp)
     sp.add_argument("--quiet", action="store_true")
