@@ -6,7 +6,7 @@ The study: ``--runs`` calibrations (default 40) of the default scenario on the a
 :func:`scenarios.study_runs.run_one` through :func:`scenarios.parallel.run_tasks`, the path of
 ``selfcal study``. Per configuration: wall time from the first submission to the last row (the
 cluster is started before the clock, its start-up time is reported apart; the pool's process
-start is inside), the speed-up from 1 to 2 processes, the cluster's overhead per task against
+start is inside; every configuration runs twice, in order and back, and the means are shown), the speed-up from 1 to 2 processes, the cluster's overhead per task against
 the local path with as many processes, ``(wall_cluster - wall_local) x workers / runs``, and the
 worker time not spent computing per task, ``(wall x workers - sum of the tasks' own seconds) /
 runs`` (dispatch, pickling, imports in a fresh worker, the idle tail). It checks that every configuration
@@ -44,18 +44,21 @@ def run(runs: int, poses: int) -> str:
     """The markdown table (and a few lines around it) of one benchmark."""
     distributed = distributed_module()
     items = [{**BASE, "pixel_sigma": 0.5, "poses": poses, "seed": s} for s in range(1, runs + 1)]
-    results = []  # (label, workers, wall, start-up, rows, load before, load after)
+    results = []  # (label, workers, mean wall, mean start-up, rows, min load, max load, busy)
     configs: list[tuple[str, int, dict]] = [
         ("in-process (jobs 1)", 1, {"jobs": 1}),
         ("local pool, 2 processes (jobs 2)", 2, {"jobs": 2}),
         ("LocalCluster, 1 worker process", 1, {}),
         ("LocalCluster, 2 worker processes", 2, {}),
     ]
-    for label, workers, where in configs:
+    timed: dict[int, list] = {k: [] for k in range(len(configs))}
+    order = list(range(len(configs)))
+    for k in order + order[::-1]:  # there and back: a drifting load weighs on every one alike
+        label, workers, where = configs[k]
         load0 = os.getloadavg()[0]
         if where:
             wall, rows = _time(items, **where)
-            start = None
+            start = 0.0
         else:
             t0 = time.perf_counter()
             with distributed.LocalCluster(
@@ -63,11 +66,28 @@ def run(runs: int, poses: int) -> str:
             ) as lc:
                 start = time.perf_counter() - t0
                 wall, rows = _time(items, jobs=workers, cluster=lc.scheduler_address)
-        results.append((label, workers, wall, start, rows, load0, os.getloadavg()[0]))
+        timed[k].append((wall, start, rows, load0, os.getloadavg()[0]))
         print(f"{label}: {wall:.1f} s", flush=True)
+    for k, (label, workers, where) in enumerate(configs):
+        t = timed[k]
+        rows = [r for x in t for r in x[2]]  # both passes: their seconds are summed below
+        results.append(
+            (
+                label,
+                workers,
+                sum(x[0] for x in t) / len(t),
+                None if where else sum(x[1] for x in t) / len(t),
+                rows[:runs],
+                min(x[3] for x in t),
+                max(x[4] for x in t),
+                sum(r["seconds"] or 0.0 for r in rows) / len(t),
+            )
+        )
     ref = [{k: v for k, v in r.items() if k != "seconds"} for r in results[0][4]]
     same = all(
-        [{k: v for k, v in r.items() if k != "seconds"} for r in res[4]] == ref for res in results
+        [{k: v for k, v in r.items() if k != "seconds"} for r in x[2]] == ref
+        for t in timed.values()
+        for x in t
     )
     ok = sum(r["status"] == "ok" for r in results[0][4])
     lines = [
@@ -75,20 +95,20 @@ def run(runs: int, poses: int) -> str:
         f"{os.cpu_count()} cores, Python {platform.python_version()}, "
         f"dask distributed {distributed.__version__}; rows identical in every configuration "
         f"(all but `seconds`): {'yes' if same else 'NO'}. Local with 1 process is in-process "
-        "(`--jobs 1`).",
+        "(`--jobs 1`). Each configuration ran twice (in the order of the table, then back) and "
+        "the times are the means.",
         "",
         "| configuration | wall s | speed-up 1 -> 2 | cluster - local, s / task | worker time "
-        "not computing, s / task | start-up s | load before / after |",
+        "not computing, s / task | start-up s | load (1-min average) |",
         "|---|---|---|---|---|---|---|",
     ]
-    for k, (label, workers, wall, start, rows, l0, l1) in enumerate(results):
-        busy = sum(r["seconds"] or 0.0 for r in rows)
+    for k, (label, workers, wall, start, _, l0, l1, busy) in enumerate(results):
         idle = (wall * workers - busy) / runs
         speed = "" if workers == 1 else f"{results[k - 1][2] / wall:.2f}"
         extra = "" if start is None else f"{(wall - results[k - 2][2]) * workers / runs:+.2f}"
         st = "" if start is None else f"{start:.1f}"
         lines.append(
-            f"| {label} | {wall:.1f} | {speed} | {extra} | {idle:.2f} | {st} | {l0:.1f} / {l1:.1f} |"
+            f"| {label} | {wall:.1f} | {speed} | {extra} | {idle:.2f} | {st} | {l0:.1f} .. {l1:.1f} |"
         )
     return "\n".join(lines) + "\n"
 

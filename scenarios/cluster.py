@@ -17,6 +17,7 @@ here, only when a cluster is asked for. How to start a scheduler and workers: do
 from __future__ import annotations
 
 import argparse
+import sys
 import uuid
 from collections.abc import Callable, Iterator, Sequence
 from types import ModuleType
@@ -126,7 +127,14 @@ def cluster_tasks(
             for i, x in enumerate(items)
         }
         counts = counts or TaskCounts(len(items))
-        slots = max(1, sum(client.nthreads().values()))
+        slots = sum(client.nthreads().values())
+        if slots == 0:
+            print(
+                f"no Dask worker is connected to {address} yet: the tasks wait for one "
+                "(dask worker ADDRESS, docs/cluster.md)",
+                file=sys.stderr,
+            )
+        slots = max(1, slots)
         finished = distributed.as_completed(futs, loop=client.loop)
         try:
             for f in finished:
