@@ -9,7 +9,9 @@ cluster is started before the clock, its start-up time is reported apart; the po
 start is inside; every configuration runs twice, in order and back, and the means are shown), the speed-up from 1 to 2 processes, the cluster's overhead per task against
 the local path with as many processes, ``(wall_cluster - wall_local) x workers / runs``, and the
 worker time not spent computing per task, ``(wall x workers - sum of the tasks' own seconds) /
-runs`` (dispatch, pickling, imports in a fresh worker, the idle tail). It checks that every configuration
+runs`` (dispatch, pickling, imports in a fresh worker, the idle tail), and the CPU seconds per
+task of the process that ran it (all its threads: a Dask worker's own threads count), which a
+shared machine's load does not inflate the way it inflates wall times. It checks that every configuration
 gives the same rows (all but ``seconds``) and reports the load average (the machine may be shared).
 
 Run: ``uv run python -m scenarios.benchmark_cluster [--runs 40] [--poses 8] [--write-doc]``
@@ -31,12 +33,23 @@ from scenarios.study_runs import failed_row, run_one
 from scenarios.threads import limit_threads
 
 DOC = Path(__file__).resolve().parent.parent / "docs" / "cluster.md"
+VOLATILE = ("seconds", "cpu_s")
+"""Row keys that measure this machine (wall and CPU time), not the calibration."""
 BEGIN, END = "<!-- benchmark_cluster:begin -->", "<!-- benchmark_cluster:end -->"
+
+
+def cpu_timed(settings: dict) -> dict:
+    """:func:`run_one` with ``cpu_s``: the CPU seconds its process spent meanwhile (every thread,
+    so a Dask worker's own threads count too)."""
+    c0 = time.process_time()
+    row = run_one(settings)
+    row["cpu_s"] = time.process_time() - c0
+    return row
 
 
 def _time(items: list[dict], **where) -> tuple[float, list[dict]]:
     t0 = time.perf_counter()
-    got = dict(run_tasks(run_one, items, error_row=failed_row, **where))
+    got = dict(run_tasks(cpu_timed, items, error_row=failed_row, **where))
     return time.perf_counter() - t0, [got[i] for i in range(len(items))]
 
 
@@ -44,7 +57,7 @@ def run(runs: int, poses: int) -> str:
     """The markdown table (and a few lines around it) of one benchmark."""
     distributed = distributed_module()
     items = [{**BASE, "pixel_sigma": 0.5, "poses": poses, "seed": s} for s in range(1, runs + 1)]
-    results = []  # (label, workers, mean wall, mean start-up, rows, min load, max load, busy)
+    results = []  # label, workers, mean wall, start-up, rows, min/max load, busy, CPU per task
     configs: list[tuple[str, int, dict]] = [
         ("in-process (jobs 1)", 1, {"jobs": 1}),
         ("local pool, 2 processes (jobs 2)", 2, {"jobs": 2}),
@@ -81,11 +94,12 @@ def run(runs: int, poses: int) -> str:
                 min(x[3] for x in t),
                 max(x[4] for x in t),
                 sum(r["seconds"] or 0.0 for r in rows) / len(t),
+                sum(r.get("cpu_s") or 0.0 for r in rows) / len(t) / runs,
             )
         )
-    ref = [{k: v for k, v in r.items() if k != "seconds"} for r in results[0][4]]
+    ref = [{k: v for k, v in r.items() if k not in VOLATILE} for r in results[0][4]]
     same = all(
-        [{k: v for k, v in r.items() if k != "seconds"} for r in x[2]] == ref
+        [{k: v for k, v in r.items() if k not in VOLATILE} for r in x[2]] == ref
         for t in timed.values()
         for x in t
     )
@@ -99,16 +113,16 @@ def run(runs: int, poses: int) -> str:
         "the times are the means.",
         "",
         "| configuration | wall s | speed-up 1 -> 2 | cluster - local, s / task | worker time "
-        "not computing, s / task | start-up s | load (1-min average) |",
-        "|---|---|---|---|---|---|---|",
+        "not computing, s / task | CPU s / task | start-up s | load (1-min average) |",
+        "|---|---|---|---|---|---|---|---|",
     ]
-    for k, (label, workers, wall, start, _, l0, l1, busy) in enumerate(results):
+    for k, (label, workers, wall, start, _, l0, l1, busy, cpu) in enumerate(results):
         idle = (wall * workers - busy) / runs
         speed = "" if workers == 1 else f"{results[k - 1][2] / wall:.2f}"
         extra = "" if start is None else f"{(wall - results[k - 2][2]) * workers / runs:+.2f}"
         st = "" if start is None else f"{start:.1f}"
         lines.append(
-            f"| {label} | {wall:.1f} | {speed} | {extra} | {idle:.2f} | {st} | {l0:.1f} .. {l1:.1f} |"
+            f"| {label} | {wall:.1f} | {speed} | {extra} | {idle:.2f} | {cpu:.2f} | {st} | {l0:.1f} .. {l1:.1f} |"
         )
     return "\n".join(lines) + "\n"
 
