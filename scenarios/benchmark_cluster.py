@@ -26,6 +26,7 @@ import platform
 import time
 from pathlib import Path
 
+from calib.io.atomic import write_text_atomic
 from scenarios.cluster import distributed_module
 from scenarios.parallel import run_tasks
 from scenarios.study_defs import BASE
@@ -132,7 +133,7 @@ def write_doc(table: str, doc: Path = DOC) -> None:
     text = doc.read_text()
     head, rest = text.split(BEGIN, 1)
     _, tail = rest.split(END, 1)
-    doc.write_text(f"{head}{BEGIN}\n{table}{END}{tail}")
+    write_text_atomic(doc, f"{head}{BEGIN}\n{table}{END}{tail}")
 
 
 def main(argv: list[str] | None = None) -> None:
