@@ -109,6 +109,7 @@ def test_calibration_block_records_the_camera_by_opencv_names():
     assert back == block and back.camera() == cam
 
 
+@pytest.mark.slow  # 13-16 s each; the lens acceptance tests cover the same path end to end
 @pytest.mark.parametrize(
     "model, fx, coeffs, free, seed",
     [
