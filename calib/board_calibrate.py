@@ -11,9 +11,12 @@ on the inliers; the covariance of the free camera parameters is ``sigma^2 (J^T J
 solution.
 
 Frames and units: ``T_cam_board`` maps board coordinates (m, :mod:`calib.target.boards`) to the
-OpenCV camera frame; pixels in the OpenCV convention. Today's camera is the pinhole
-(:class:`calib.camera.Pinhole`: ``fx``, ``mu``, ``cx``, ``cy``); the OpenCV initial guess is taken
-with OpenCV's distortion terms held at zero.
+OpenCV camera frame; pixels in the OpenCV convention. The camera is any model of
+:data:`calib.camera.MODELS` -- the pinhole (``fx``, ``mu``, ``cx``, ``cy``), Brown-Conrady
+(``"opencv"``: plus ``k1, k2, p1, p2, k3 ...``) or the fisheye -- with its ``free`` parameters:
+OpenCV's calibration (``cv2.calibrateCamera`` / ``cv2.fisheye.calibrate``, the held parameters
+fixed by its flags) gives the initial intrinsics and distortion, the bundle adjustment refines
+every free parameter (the lens Jacobians of :mod:`calib.camera.lens`).
 
 Bad input: images without the board are skipped with a :class:`BoardNotFoundWarning` that names
 and counts them, and :class:`BoardInputError` follows when fewer than ``min_views`` remain; a fit
@@ -31,7 +34,8 @@ import cv2
 import numpy as np
 
 from calib.bundle_adjust import bundle_adjust, intrinsics_covariance
-from calib.camera import Pinhole
+from calib.camera import MODELS, CameraModel, camera_model, lens_names
+from calib.camera.pinhole import centered_principal_point
 from calib.errors import InputError, SelfCalWarning
 from calib.estimation.pose_models import ViewPoses
 from calib.estimation.reprojection import robust_sigma
@@ -67,12 +71,13 @@ class BoardNotFoundWarning(SelfCalWarning):
 
 @dataclass(frozen=True)
 class OpenCVCalibration:
-    """``cv2.calibrateCameraExtended`` on the same views: ``camera`` (pinhole), the standard
-    deviations ``std`` of OpenCV's own parameters (``fx``, ``fy``, ``cx``, ``cy`` px), the board
+    """OpenCV's calibration on the same views: ``camera`` (the model asked for), the standard
+    deviations ``std`` of OpenCV's own parameters (``fx``, ``fy``, ``cx``, ``cy`` px, the lens
+    coefficients; none from ``cv2.fisheye``), the board
     poses ``T_cam_board`` (n, 4, 4) of the views it was given and its reprojection ``rms_px``
     (OpenCV's: the root mean square of the 2-D reprojection error over all points)."""
 
-    camera: Pinhole
+    camera: CameraModel
     std: dict[str, float]
     T_cam_board: np.ndarray
     rms_px: float
@@ -90,7 +95,7 @@ class BoardCalibration:
     reports it); ``sigma_px``: the fitted noise per coordinate;
     ``skipped``: names of the views without the board; ``opencv``: the initial guess."""
 
-    camera: Pinhole
+    camera: CameraModel
     std: dict[str, float]
     cov: np.ndarray
     T_cam_board: np.ndarray
@@ -111,42 +116,86 @@ def _pose(rvec: np.ndarray, tvec: np.ndarray) -> np.ndarray:
     return make_pose(cv2.Rodrigues(np.asarray(rvec, dtype=float))[0], np.ravel(tvec))
 
 
+_CV_STD_NAMES = ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6")
+"""The first entries of ``calibrateCameraExtended``'s ``stdDeviationsIntrinsics``, in order."""
+
+
+def _opencv_flags(model: str, free: Sequence[str]) -> int:
+    """``cv2.calibrateCamera`` flags (Brown-Conrady) or ``cv2.fisheye.calibrate`` flags that
+    hold every parameter of ``model`` not in ``free``."""
+    if model == "fisheye":  # OpenCV 5 keeps the fisheye flags in cv2, 4.x in cv2.fisheye
+        flag = lambda n: getattr(cv2.fisheye, n, None) or getattr(cv2, n)  # noqa: E731
+        flags = flag("CALIB_RECOMPUTE_EXTRINSIC") | flag("CALIB_FIX_SKEW")
+        flags |= flag("CALIB_USE_INTRINSIC_GUESS")
+        for k in ("k1", "k2", "k3", "k4"):
+            if k not in free:
+                flags |= flag(f"CALIB_FIX_{k.upper()}")
+        if "cx" not in free or "cy" not in free:
+            flags |= flag("CALIB_FIX_PRINCIPAL_POINT")
+        return flags
+    flags = cv2.CALIB_USE_INTRINSIC_GUESS
+    fix = {"k1": cv2.CALIB_FIX_K1, "k2": cv2.CALIB_FIX_K2, "k3": cv2.CALIB_FIX_K3,
+           "k4": cv2.CALIB_FIX_K4, "k5": cv2.CALIB_FIX_K5, "k6": cv2.CALIB_FIX_K6}  # fmt: skip
+    for k, f in fix.items():
+        if k not in free:
+            flags |= f
+    if any(k in free for k in ("k4", "k5", "k6")):
+        flags |= cv2.CALIB_RATIONAL_MODEL
+    if "p1" not in free or "p2" not in free:  # OpenCV frees both tangential terms or neither
+        flags |= cv2.CALIB_ZERO_TANGENT_DIST
+    if "mu" not in free:
+        flags |= cv2.CALIB_FIX_ASPECT_RATIO
+    if "cx" not in free or "cy" not in free:
+        flags |= cv2.CALIB_FIX_PRINCIPAL_POINT
+    return flags
+
+
 def opencv_calibration(
     board: Board,
     features: Sequence[Features],
     width: int,
     height: int,
     free: Sequence[str] = ("fx", "mu", "cx", "cy"),
+    model: str = "pinhole",
 ) -> OpenCVCalibration:
-    """``cv2.calibrateCameraExtended`` for the pinhole with parameters ``free`` (the others at
-    the image centre / aspect 1) and no distortion, from the views ``features``."""
-    flags = (
-        cv2.CALIB_ZERO_TANGENT_DIST
-        | cv2.CALIB_FIX_K1
-        | cv2.CALIB_FIX_K2
-        | cv2.CALIB_FIX_K3
-        | cv2.CALIB_USE_INTRINSIC_GUESS
-    )
-    if "mu" not in free:
-        flags |= cv2.CALIB_FIX_ASPECT_RATIO
-    if "cx" not in free or "cy" not in free:
-        flags |= cv2.CALIB_FIX_PRINCIPAL_POINT
+    """OpenCV's calibration of the camera ``model`` (``"pinhole"``, ``"opencv"``,
+    ``"fisheye"``; :data:`calib.camera.MODELS`) with parameters ``free`` from the views
+    ``features``: ``cv2.calibrateCameraExtended`` (the pinhole with its distortion held at zero,
+    or Brown-Conrady) or ``cv2.fisheye.calibrate``, every parameter not in ``free`` held (the
+    principal point at the image centre, aspect 1, lens coefficients 0)."""
+    if model not in MODELS:
+        raise ValueError(f"unknown camera model {model!r}; use one of {sorted(MODELS)}")
     obj = [board.points(f.ids).astype(np.float32) for f in features]
     img = [f.uv.astype(np.float32).reshape(-1, 1, 2) for f in features]
-    guess = Pinhole.centered(max(width, height), 1.0, width, height)
+    cx0, cy0 = centered_principal_point(width, height)
     # the initial focal length from the homographies (OpenCV's own initialisation)
     K0 = cv2.initCameraMatrix2D(obj, img, (width, height), aspectRatio=1.0)
-    K0[0, 2], K0[1, 2] = guess.cx, guess.cy
-    out = cv2.calibrateCameraExtended(
-        obj, img, (width, height), K0, np.zeros(5), flags=flags,
-        criteria=(cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 200, 1e-12),
-    )  # fmt: skip
-    rms, K, _dist, rvecs, tvecs, std_int = out[0], out[1], out[2], out[3], out[4], out[5]
+    K0[0, 2], K0[1, 2] = cx0, cy0
+    criteria = (cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 200, 1e-12)
+    names = lens_names(model)
+    flags = _opencv_flags(model, free)
+    if model == "fisheye":
+        out = cv2.fisheye.calibrate(
+            [o.reshape(1, -1, 3).astype(np.float64) for o in obj],  # the shapes it accepts
+            [i.reshape(1, -1, 2).astype(np.float64) for i in img], (width, height), K0,
+            np.zeros(4),
+            flags=flags, criteria=criteria,
+        )  # fmt: skip
+        rms, K, dist, rvecs, tvecs = out[0], out[1], np.ravel(out[2]), out[3], out[4]
+        std = {}  # cv2.fisheye gives no standard deviations
+    else:
+        dist0 = np.zeros(8 if flags & cv2.CALIB_RATIONAL_MODEL else 5)
+        out = cv2.calibrateCameraExtended(
+            obj, img, (width, height), K0, dist0, flags=flags, criteria=criteria,
+        )  # fmt: skip
+        rms, K, dist, rvecs, tvecs = out[0], out[1], np.ravel(out[2]), out[3], out[4]
+        s = np.ravel(out[5])
+        std = {n: float(v) for n, v in zip(_CV_STD_NAMES[: 4 + len(names)], s, strict=False)}
     fx, fy = float(K[0, 0]), float(K[1, 1])
-    s = np.ravel(std_int)
-    camera = Pinhole(fx, fy / fx, float(K[0, 2]), float(K[1, 2]), width, height, tuple(free))
+    coeffs = {n: float(dist[k]) if k < len(dist) else 0.0 for k, n in enumerate(names)}
+    camera = camera_model(model, fx=fx, mu=fy / fx, cx=float(K[0, 2]), cy=float(K[1, 2]),
+                          width=width, height=height, coeffs=coeffs, free=tuple(free))  # fmt: skip
     T = np.stack([_pose(r, t) for r, t in zip(rvecs, tvecs, strict=True)])
-    std = {"fx": float(s[0]), "fy": float(s[1]), "cx": float(s[2]), "cy": float(s[3])}
     return OpenCVCalibration(camera, std, T, float(rms))
 
 
@@ -190,13 +239,15 @@ def calibrate_board(
     height: int,
     *,
     free: Sequence[str] = ("fx", "mu", "cx", "cy"),
+    model: str = "pinhole",
     names: Sequence[str] | None = None,
     min_views: int = 3,
     outlier_px: float = 3.0,
     mismatch_px: float = 3.0,
     max_nfev: int = 200,
 ) -> BoardCalibration:
-    """Calibrate the camera (parameters ``free``) and the board pose of every view from the
+    """Calibrate the camera ``model`` (parameters ``free``, OpenCV names; the others held at
+    the image centre, aspect 1, no distortion) and the board pose of every view from the
     board's detected ``features`` (one per image; ``names`` for messages) in ``width`` x
     ``height`` px images (see the module docstring).
 
@@ -208,7 +259,7 @@ def calibrate_board(
     ok, skipped = _usable(board, features, names, min_views)
     idx = np.flatnonzero(ok).tolist()
     _check_ids(board, [features[i] for i in idx])
-    cv_res = opencv_calibration(board, [features[i] for i in idx], width, height, free)
+    cv_res = opencv_calibration(board, [features[i] for i in idx], width, height, free, model)
     V = len(features)
     T0 = np.full((V, 4, 4), np.nan)
     T0[idx] = cv_res.T_cam_board

@@ -4,8 +4,9 @@
 ChArUco, circles, AprilGrid). Every image of the first camera is read and searched with the
 target's detector (:meth:`calib.target.Target.detect`); images without the board are named,
 counted and skipped by :func:`calib.board_calibrate.calibrate_board` (an error when too few
-remain); :func:`calib.board_robot.calibrate_robot_with_board` then estimates camera, hand-eye,
-board pose and kinematics (scale from the board, no known distance). The reference of
+remain); :func:`calib.board_robot.calibrate_robot_with_board` then estimates the camera (the
+model and free parameters dataset.json declares, e.g. OpenCV's lens model), hand-eye, board pose
+and kinematics (scale from the board, no known distance). The reference of
 ``selfcal evaluate`` -- the nominal kinematics with only the hand-eye and the board pose fitted
 to the same camera poses -- is stored beside. Nothing here reads truth.
 """
@@ -91,12 +92,6 @@ def calibrate_board_dataset(root: str | Path) -> BoardCalibrationResult:
             fix="import the images of one camera per dataset (one --images option)",
         )
     cam = ds.info.cameras[0]
-    if ds.info.camera_model != "pinhole":
-        raise DatasetError(
-            f"{ds.root}: camera model {ds.info.camera_model!r}; the board calibration estimates "
-            "the pinhole (fx, mu, cx, cy) for now",
-            fix="set the cameras' model to pinhole in dataset.json (selfcal import does)",
-        )
     robot = load_robot(ds.robot_source)
     board = dataset_board(ds)
     feats, names = detect_board(ds, board, cam)
@@ -115,6 +110,7 @@ def calibrate_board_dataset(root: str | Path) -> BoardCalibrationResult:
             names=names,
             joint_sigma=encoder_sigma(robot),
             free=ds.info.camera_free,
+            model=ds.info.camera_model,
         )
         used = res.used
         T_board_cam = inv_pose(res.board.T_cam_board[used])

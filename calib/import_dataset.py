@@ -28,6 +28,7 @@ import cv2
 import numpy as np
 
 from calib.board_calibrate import BoardMismatchError, calibrate_board
+from calib.camera import MODELS
 from calib.errors import InputError, SelfCalWarning
 from calib.io.dataset import DatasetInfo, write_dataset_info
 from calib.io.target_toml import load_target, target_document
@@ -47,8 +48,16 @@ __all__ = [
 
 MIN_FRAMES = 6
 """Fewest frames that show the target for a dataset to be imported (as the calibration)."""
-BOARD_FREE = ("fx", "mu", "cx", "cy")
-"""The camera parameters an imported dataset's board calibration estimates (pinhole)."""
+DEFAULT_MODEL = "opencv"
+"""The camera model an imported dataset declares unless told: a real lens distorts (k1 of -0.15
+to -0.3 is ordinary), and a pinhole fitted to its images is biased."""
+DEFAULT_FREE: dict[str, tuple[str, ...]] = {
+    "pinhole": ("fx", "mu", "cx", "cy"),
+    "opencv": ("fx", "mu", "cx", "cy", "k1", "k2", "p1", "p2"),
+    "fisheye": ("fx", "mu", "cx", "cy", "k1", "k2", "k3", "k4"),
+}
+"""The camera parameters the board calibration estimates by model, unless told (OpenCV names;
+``k3`` only on request: it rarely improves an ordinary lens and trades off with ``k1, k2``)."""
 MISMATCH_PX = 3.0
 """Reprojection RMS (px, 2-D) above which the declared board does not fit the detections."""
 
@@ -159,9 +168,14 @@ def import_dataset(
     tool_link: str | None = None,
     link: bool = False,
     trust_units: bool = False,
+    camera_model: str = DEFAULT_MODEL,
+    free: Sequence[str] | None = None,
 ) -> DatasetInfo:
     """Check the inputs and write the dataset folder ``out`` (module docstring); returns its
     ``dataset.json`` content. ``trust_units``: skip the radians-looking check of degrees.
+    ``camera_model`` (``"pinhole"``, ``"opencv"``, ``"fisheye"``) and ``free`` (OpenCV names;
+    default :data:`DEFAULT_FREE` of the model): what the board calibration estimates, recorded
+    in every camera entry of dataset.json.
 
     Raises:
         ImportError_, calib.io.tracker.TrackerFileError, calib.board_calibrate
@@ -169,6 +183,7 @@ def import_dataset(
         (each names the file and the fix).
     """
     out = Path(out)
+    model, free_t = _camera_choice(camera_model, free)
     if (out / "dataset.json").exists():
         raise ImportError_(f"{out} already holds a dataset", fix="choose another --out folder")
     names = [c.name for c in images]
@@ -205,7 +220,7 @@ def import_dataset(
             "the whole board",
         )
     for cam in images:
-        check_geometry(tgt, feats[cam.name], sizes[cam.name])
+        check_geometry(tgt, feats[cam.name], sizes[cam.name], model, free_t)
     keep = np.flatnonzero(seen)
     (out / "frames").mkdir(exist_ok=True)
     suffix = suffixes.pop()
@@ -244,19 +259,41 @@ def import_dataset(
         resolutions=None if len(set(res)) == 1 else res,
         board=target_document(tgt),
         image_suffix=suffix,
-        camera_model="pinhole",
-        camera_free=BOARD_FREE,
+        camera_model=model,
+        camera_free=free_t,
     )  # fmt: skip
     write_dataset_info(out / "dataset.json", info)
     return info
 
 
-def check_geometry(board: Board, features: Sequence[Features], size: tuple[int, int]) -> None:
+def _camera_choice(model: str, free: Sequence[str] | None) -> tuple[str, tuple[str, ...]]:
+    """The camera ``model`` and its ``free`` names (default :data:`DEFAULT_FREE`), checked."""
+    if model not in MODELS:
+        raise ImportError_(f"camera model {model!r}", fix=f"use one of {', '.join(MODELS)}")
+    names = MODELS[model].names
+    free_t = DEFAULT_FREE[model] if free is None else tuple(free)
+    bad = [n for n in free_t if n not in names]
+    if bad or "fx" not in free_t:
+        raise ImportError_(
+            f"free camera parameters {list(free_t)} for the {model} model",
+            fix=f"give --free a comma list of {', '.join(names)} that includes fx",
+        )
+    return model, tuple(n for n in names if n in free_t)
+
+
+def check_geometry(
+    board: Board,
+    features: Sequence[Features],
+    size: tuple[int, int],
+    model: str = "pinhole",
+    free: Sequence[str] = DEFAULT_FREE["pinhole"],
+) -> None:
     """The declared geometry against the detections of one camera (``size`` (W, H) px).
 
-    The pinhole board calibration (:func:`calib.board_calibrate.calibrate_board`) judges it; when
-    it finds a mismatch, OpenCV's lens model (k1, k2, p1, p2, k3 free) gets a second say, so that
-    a strongly distorting lens is not mistaken for a wrong board.
+    The board calibration of the camera ``model`` with parameters ``free``
+    (:func:`calib.board_calibrate.calibrate_board`) judges it; when it finds a mismatch, OpenCV's
+    lens model (k1, k2, p1, p2, k3 free) gets a second say, so that a strongly distorting lens is
+    not mistaken for a wrong board.
 
     Raises:
         calib.board_calibrate.BoardMismatchError: naming the target file and its keys.
@@ -267,7 +304,7 @@ def check_geometry(board: Board, features: Sequence[Features], size: tuple[int, 
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            calibrate_board(board, ok, *size, free=("fx", "mu", "cx", "cy"))
+            calibrate_board(board, ok, *size, free=free, model=model)
     except BoardMismatchError:
         if not _fits_with_lens(board, ok, size):
             raise

@@ -13,9 +13,10 @@ import sys
 from pathlib import Path
 
 from calib.board_dataset import calibrate_board_dataset
+from calib.camera import MODELS, opencv_values
 from calib.evaluate import evaluate_board, write_evaluation
 from calib.evaluate_field import evaluate_field
-from calib.import_dataset import CameraImages, import_dataset
+from calib.import_dataset import DEFAULT_FREE, DEFAULT_MODEL, CameraImages, import_dataset
 from calib.io.board_calibration import (
     BoardCalibrationResult,
     calibration_kind,
@@ -52,9 +53,12 @@ def calibrate_any(root: Path, *, quiet: bool = False, method: str = "joint") -> 
 def summary(res: BoardCalibrationResult) -> str:
     """One line on a board calibration."""
     c = res.cameras[0]
+    v = opencv_values(c)
+    lens = "".join(f", {n} = {v[n]:.4g}" for n in c.free if n in v and n[0] in "kp")
     return (
-        f"calibrated {res.frames_used}/{res.frames} frames with the {res.target['type']}: "
-        f"fx = {c.fx:.2f} px, fy = {c.fy:.2f} px, cx = {c.cx:.2f} px, cy = {c.cy:.2f} px, "
+        f"calibrated {res.frames_used}/{res.frames} frames with the {res.target['type']} "
+        f"({c.model_name} camera): fx = {v['fx']:.2f} px, fy = {v['fy']:.2f} px, "
+        f"cx = {v['cx']:.2f} px, cy = {v['cy']:.2f} px{lens}, "
         f"reprojection RMS {res.reprojection_rms_px:.3f} px"
     )
 
@@ -64,7 +68,8 @@ def cmd_import(args: argparse.Namespace) -> int:
     info = import_dataset(
         args.robot, cams, args.joints, args.joint_units, args.target, args.out,
         base_link=args.base_link, tool_link=args.tool_link, link=args.link,
-        trust_units=args.trust_units,
+        trust_units=args.trust_units, camera_model=args.camera_model,
+        free=None if args.free is None else [n.strip() for n in args.free.split(",") if n.strip()],
     )  # fmt: skip
     n = len(info.planned_joints_deg)
     print(f"imported {n} frames of {len(info.cameras)} camera(s) into {args.out}")
@@ -115,6 +120,17 @@ def register(subparsers) -> None:
     sp.add_argument(
         "--trust-units", action="store_true",
         help="degrees that stay within +-6.3 deg are degrees (skip the radians-looking check)",
+    )  # fmt: skip
+    sp.add_argument(
+        "--camera-model", default=DEFAULT_MODEL, choices=tuple(MODELS),
+        help="the cameras' model (default opencv: Brown-Conrady distortion, what a real lens "
+        "needs; a pinhole fitted to a distorting lens is biased; fisheye for wide angles)",
+    )  # fmt: skip
+    sp.add_argument(
+        "--free", default=None, metavar="NAMES",
+        help="comma list of the camera parameters to estimate, OpenCV names (default: "
+        + "; ".join(f"{m}: {','.join(f)}" for m, f in DEFAULT_FREE.items())
+        + "; k3 only on request)",
     )  # fmt: skip
     sp.set_defaults(func=cmd_import)
 

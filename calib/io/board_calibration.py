@@ -6,8 +6,10 @@ m); the MCPC chain's tool is the first camera (OpenCV frame). Keys (units in the
 
     format, schema_version, robot_model, world_frame
     target            the board's target TOML keys (mm)
-    cameras           [{name, resolution, model, parameters: {fx, fy, cx, cy, ...} (px, OpenCV
-                       names), std: {name: px or 1 for mu}, T_first_camera}]
+    cameras           [{name, resolution, model ("pinhole", "opencv", "fisheye"), parameters:
+                       {fx, fy, cx, cy (px), mu, k1, k2, p1, p2, k3 ... (the model's lens
+                       coefficients, OpenCV names)}, free, std: {free name: px or 1},
+                       T_first_camera}]
     mcpc              joint_types, joint_offsets_rad, params_si (n + 1, 6), columns, tool
     nominal_mcpc      the nominal kinematics with only hand-eye and board pose fitted (the
                       reference of ``selfcal evaluate``), same keys
@@ -24,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from calib.camera import Pinhole
+from calib.camera import MODELS, CameraModel, camera_model, lens_names, opencv_values
 from calib.errors import InputError
 from calib.io.jsonfile import SCHEMA_KEY, Fields, check_header, load_json, write_json_atomic
 from calib.mcpc import COLUMNS, MCPCModel
@@ -65,13 +67,16 @@ def _model_from(f: Fields) -> MCPCModel:
     return MCPCModel(f.array("params_si", (n + 1, 6)), types, f.array("joint_offsets_rad", (n,)))
 
 
-def camera_json(name: str, cam: Pinhole, std: dict[str, float]) -> dict:
-    """One ``cameras`` entry: OpenCV names (``fy`` besides ``mu``), the first camera's frame."""
-    params = {"fx": cam.fx, "fy": cam.fy, "cx": cam.cx, "cy": cam.cy, "mu": cam.mu}
+def camera_json(name: str, cam: CameraModel, std: dict[str, float]) -> dict:
+    """One ``cameras`` entry: its model, every parameter by OpenCV's name (``fx, fy, cx, cy``
+    px, ``mu`` besides, then the lens coefficients ``k1, k2, p1, p2, k3 ...``), the free ones'
+    std, the first camera's frame."""
+    params = opencv_values(cam)
+    params["mu"] = float(cam.values()[1])
     return {
         "name": name,
         "resolution": [cam.width, cam.height],
-        "model": "pinhole",
+        "model": cam.model_name,
         "parameters": params,
         "free": list(cam.free),
         "std": {k: float(v) for k, v in std.items()},
@@ -86,7 +91,7 @@ class BoardCalibrationResult:
     robot_model: str
     target: dict
     camera_names: tuple[str, ...]
-    cameras: tuple[Pinhole, ...]
+    cameras: tuple[CameraModel, ...]
     camera_std: tuple[dict[str, float], ...]
     model: MCPCModel
     nominal_model: MCPCModel
@@ -129,11 +134,17 @@ class BoardCalibrationResult:
         f = Fields(doc, where, _FIX, error=err)
         cams, names, stds = [], [], []
         for c in f.items("cameras"):
-            if c.str("model") != "pinhole":
-                raise c.bad("model", "pinhole", c.raw("model"))
+            model = c.str("model")
+            if model not in MODELS:
+                raise c.bad("model", f"one of {tuple(MODELS)}", model)
             p, (w, h) = c.sub("parameters"), c.ints("resolution")
-            cams.append(Pinhole(p.float("fx"), p.float("fy") / p.float("fx"), p.float("cx"),
-                                p.float("cy"), w, h, c.strs("free")))  # fmt: skip
+            coeffs = {k: p.float(k) for k in lens_names(model)}
+            try:
+                cams.append(camera_model(model, fx=p.float("fx"), mu=p.float("fy") / p.float("fx"),
+                                         cx=p.float("cx"), cy=p.float("cy"), width=w, height=h,
+                                         coeffs=coeffs, free=c.strs("free")))  # fmt: skip
+            except ValueError as e:
+                raise c.bad("free", f"parameter names of the {model} model", c.raw("free")) from e
             names.append(c.str("name"))
             s = c.sub("std")
             stds.append({k: s.float(k) for k in s.doc})

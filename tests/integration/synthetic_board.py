@@ -1,8 +1,9 @@
 """A synthetic "real" dataset for ``selfcal import``: a 6-axis arm (the KR 6 R900), one camera on
 its flange and a printed 11x8 chessboard, as a lab would hand them over: PNG images, a joints file
-in radians and a target TOML. No simulator: the board's generated image is drawn into each camera
-image through the true camera and poses (``cv2.warpPerspective``, the homography of the board
-plane), then blurred slightly and given pixel noise. The true robot is the nominal one with every
+in radians and a target TOML. No simulator: the board's generated image is drawn through the true poses
+into the lens camera's source pinhole image (``cv2.warpPerspective``, the homography of the board
+plane), the lens (k1 = -0.2 ...) is applied by the exact inverse remap of
+:class:`sim.lens.LensRemap`, and the image is blurred slightly and given pixel noise. The true robot is the nominal one with every
 MCPC parameter perturbed (1 mm, 0.3 deg standard deviation).
 """
 
@@ -14,21 +15,28 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from calib.camera import Pinhole, Rig
+from calib.camera import BrownConrady, Pinhole, Rig
 from calib.kinematics import fk_tool
 from calib.mcpc import MCPCModel, nominal_mcpc
 from calib.robot_def import load_robot
 from calib.target import Chessboard
 from calib.trajectory import plan_postures
 from calib.transforms import inv_pose, make_pose
+from sim.lens import LensRemap
 
 ROBOT = "kr6-r900"
 BOARD = Chessboard((11, 8), 0.015)
 TARGET_TOML = 'type = "chessboard"\ninner_corners = [11, 8]\nsquare_mm = 15.0\n'
 W, H = 800, 600
-CAMERA = Pinhole(
-    1000.0, 1.002, W / 2 - 0.5 + 12.0, H / 2 - 0.5 - 8.0, W, H, ("fx", "mu", "cx", "cy")
+FREE = ("fx", "mu", "cx", "cy", "k1", "k2", "p1", "p2")
+CAMERA = BrownConrady.from_pinhole(
+    Pinhole(1000.0, 1.002, W / 2 - 0.5 + 12.0, H / 2 - 0.5 - 8.0, W, H),
+    (-0.2, 0.08, 5e-4, -3e-4, 0.0, 0.0, 0.0, 0.0),
+    FREE,
 )
+"""The true camera: an ordinary lens (k1 = -0.2) and the principal point (+12, -8) px off
+centre."""
+_REMAP = LensRemap(CAMERA)
 
 
 @dataclass(frozen=True)
@@ -68,8 +76,11 @@ def render(lab: Lab, q: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     img = BOARD.image(px_per_mm=6.0)
     ppm, (x0, y0) = img.px_per_m, img.extent_m[:2]
     A = np.array([[1 / ppm, 0, x0 + 0.5 / ppm], [0, 1 / ppm, y0 + 0.5 / ppm], [0, 0, 1]])
-    Hm = CAMERA.K @ np.column_stack([T[:3, 0], T[:3, 1], T[:3, 3]]) @ A
-    out = cv2.warpPerspective(img.pixels, Hm, (W, H), flags=cv2.INTER_AREA, borderValue=170)
+    Hm = _REMAP.source.K @ np.column_stack([T[:3, 0], T[:3, 1], T[:3, 3]]) @ A
+    src = _REMAP.source
+    out = cv2.warpPerspective(img.pixels, Hm, (src.width, src.height), flags=cv2.INTER_AREA,
+                              borderValue=170)  # fmt: skip
+    out = _REMAP(out)  # the lens: an exact inverse remap of the pinhole image
     out = cv2.GaussianBlur(out.astype(float), (0, 0), 0.8) + rng.normal(0, 2.0, (H, W))
     return np.clip(np.round(out), 0, 255).astype(np.uint8)
 
