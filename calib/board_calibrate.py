@@ -185,11 +185,11 @@ def opencv_calibration(
         std = {}  # cv2.fisheye gives no standard deviations
     else:
         dist0 = np.zeros(8 if flags & cv2.CALIB_RATIONAL_MODEL else 5)
-        out = cv2.calibrateCameraExtended(
+        ext = cv2.calibrateCameraExtended(
             obj, img, (width, height), K0, dist0, flags=flags, criteria=criteria,
         )  # fmt: skip
-        rms, K, dist, rvecs, tvecs = out[0], out[1], np.ravel(out[2]), out[3], out[4]
-        s = np.ravel(out[5])
+        rms, K, dist, rvecs, tvecs = ext[0], ext[1], np.ravel(ext[2]), ext[3], ext[4]
+        s = np.ravel(ext[5])
         std = {n: float(v) for n, v in zip(_CV_STD_NAMES[: 4 + len(names)], s, strict=False)}
     fx, fy = float(K[0, 0]), float(K[1, 1])
     coeffs = {n: float(dist[k]) if k < len(dist) else 0.0 for k, n in enumerate(names)}
@@ -268,17 +268,17 @@ def calibrate_board(
     uv = np.concatenate([features[i].uv for i in idx])
     pts_ids, pidx = np.unique(fid, return_inverse=True)
     X = board.points(pts_ids)
-    model = ViewPoses(T0, ok)
+    poses = ViewPoses(T0, ok)
     camera = cv_res.camera
     active = np.ones(len(view), bool)
     res = None
     for loss in ("soft_l1", "linear"):
         res = bundle_adjust(
-            model, model.initial_params(), X, view[active], pidx[active], uv[active], camera,
+            poses, poses.initial_params(), X, view[active], pidx[active], uv[active], camera,
             fix_points=True, loss=loss, f_scale_px=1.0, max_nfev=max_nfev,
         )  # fmt: skip
         camera = res.camera
-        model = ViewPoses(np.where(ok[:, None, None], res.T_cam_world, np.nan), ok)
+        poses = ViewPoses(np.where(ok[:, None, None], res.T_cam_world, np.nan), ok)
         if loss == "soft_l1":  # reclassify every row with the robust estimate
             e = _errors(camera, res.T_cam_world, X, view, pidx, uv)
             sigma = robust_sigma(e[active])
