@@ -141,6 +141,7 @@ def _plot(study: Study, res: dict, rows: list[dict], path: Path) -> None:
     ax.set_ylabel("validation tool-tip RMS error (mm)")
     ax.set_title(f"study '{study.name}': error after calibration vs {study.x}")
     ax.grid(alpha=0.3, which="both")
-    ax.legend(fontsize=8)
+    if ax.get_legend_handles_labels()[0]:  # nothing to label when every run failed
+        ax.legend(fontsize=8)
     fig.savefig(path, dpi=110)
     plt.close(fig)
