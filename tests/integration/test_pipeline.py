@@ -117,10 +117,10 @@ def check_accuracy(rep, *, rms_max: float, factor: float, fx_rel: float):
 
 @pytest.mark.render
 def test_default_scenario_rendered(tmp_path):
-    """The default scenario: rendered images with the default sensor noise. Achieves 0.064 mm
-    RMS (24x below nominal) and fx within 6e-5 (README); asserted at ~3x those."""
+    """The default scenario: rendered images with the default sensor noise. Achieves 0.035 mm
+    RMS (45x below nominal) and fx within 1.1e-4 (README); asserted at ~3x those."""
     out, rep = run(tmp_path, "default")
-    check_accuracy(rep, rms_max=0.19, factor=8.0, fx_rel=2e-4)
+    check_accuracy(rep, rms_max=0.11, factor=15.0, fx_rel=3.3e-4)
     assert rep["observation"] == "images"
     assert len(rep["table_iv"]) == 5
 
