@@ -211,11 +211,17 @@ def _sides_clean(
 
 
 def refine_corners_lines_batch(
-    gray: np.ndarray, corners: np.ndarray, n_modules: int, min_contrast: float = 20.0
+    gray: np.ndarray,
+    corners: np.ndarray,
+    n_modules: int,
+    min_contrast: float = 20.0,
+    *,
+    screen: bool = True,
 ) -> np.ndarray:
     """:func:`refine_corners_lines` for all markers of one image at once: ``corners`` (n, 4, 2)
     -> (n, 4, 2), NaN rows for the markers it would return ``None`` for. All edge profiles of
-    all markers are sampled by one ``cv2.remap`` and the lines are fitted together."""
+    all markers are sampled by one ``cv2.remap`` and the lines are fitted together.
+    ``screen=False`` skips the occlusion check (:data:`MAX_LEVEL_DROP`)."""
     c = np.asarray(corners, dtype=float).reshape(-1, 4, 2)
     n = len(c)
     out = np.full((n, 4, 2), np.nan)
@@ -285,7 +291,9 @@ def refine_corners_lines_batch(
     Ppad[prof_side, j] = P
     valid[prof_side, j] = contrast > min_contrast
     n_line, d_line, ok = _fit_lines(Ppad, valid)
-    ok = ok.reshape(n, 4) & good[:, None] & _sides_clean(prof_side, j, white, black, valid, n_s)
+    ok = ok.reshape(n, 4) & good[:, None]
+    if screen:  # occluded or bordered by a foreign edge: see MAX_LEVEL_DROP
+        ok &= _sides_clean(prof_side, j, white, black, valid, n_s)
     n_line = n_line.reshape(n, 4, 2)
     d_line = d_line.reshape(n, 4)
     # corner k = side k-1 (ends at corner k) x side k (starts at corner k)
@@ -319,7 +327,11 @@ def foreshortening(corners: np.ndarray) -> np.ndarray:
 
 
 def detect_markers(
-    image: np.ndarray, dictionary: str = "DICT_4X4_50", refine: str = "lines"
+    image: np.ndarray,
+    dictionary: str = "DICT_4X4_50",
+    refine: str = "lines",
+    *,
+    screen: bool = True,
 ) -> dict[int, np.ndarray]:
     """Detect ArUco markers in an RGB (H, W, 3) or gray (H, W) uint8 image.
 
@@ -329,7 +341,8 @@ def detect_markers(
     ``refine="lines"`` a marker whose sides cannot be fitted (too little contrast anywhere
     along a side, an uneven quiet zone or border: occluded, see :data:`MAX_LEVEL_DROP`) or
     that is seen too obliquely (:data:`MIN_ASPECT`) is dropped rather than returned with less
-    accurate corners.
+    accurate corners; ``screen=False`` keeps the occluded and oblique ones (for
+    ``scenarios/diagnose_render.py``'s before/after comparison).
     Raises ``ValueError`` for a bad image, dictionary or refine method.
     """
     gray = to_gray(image)
@@ -349,6 +362,7 @@ def detect_markers(
     c = np.asarray([corners[k] for k in keep], dtype=np.float64).reshape(-1, 4, 2)
     if refine == "lines":
         n_modules = int(aruco_dictionary(dictionary).markerSize) + 2
-        c = refine_corners_lines_batch(gray, c, n_modules)
-        c[foreshortening(c) < MIN_ASPECT] = np.nan
+        c = refine_corners_lines_batch(gray, c, n_modules, screen=screen)
+        if screen:
+            c[foreshortening(c) < MIN_ASPECT] = np.nan
     return {int(ids[k]): ck for k, ck in zip(keep, c, strict=True) if not np.isnan(ck).any()}
