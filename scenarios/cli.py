@@ -25,6 +25,7 @@ from scenarios.cli_common import CliError, parse_floats, run_command
 from scenarios.cli_pose import POSE_HELP, add_pose_args, is_er, orientation_json, parse_pose_args
 from scenarios.config import load_scenario
 from scenarios.deploy_cli import register as register_deploy
+from scenarios.diagnose_render import register as register_diagnose
 from scenarios.hw_cli import register as register_hw
 from scenarios.montecarlo_cli import register as register_montecarlo
 from scenarios.own_data import calibrate_any
@@ -271,6 +272,7 @@ def build_parser() -> argparse.ArgumentParser:
         register_montecarlo,
         register_tracker,
         register_own_data,
+        register_diagnose,
     ):
         register(sub)
     return p

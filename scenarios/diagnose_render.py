@@ -8,11 +8,12 @@ per viewing angle and per corner index, for each corner refinement method asked 
 the camera poses MuJoCo renders from against the actual MCPC chain at the true joint angles, and
 the reported (quantised) joint angles against the true ones.
 
-``python -m scenarios.diagnose_render [scenario.toml]`` or ``selfcal diagnose render``.
+``selfcal diagnose render [scenario.toml]`` or ``python -m scenarios.diagnose_render``.
 """
 
 from __future__ import annotations
 
+import argparse
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -27,7 +28,7 @@ from scenarios.config import load_scenario
 from sim.mj_camera import intrinsics_from_model
 from sim.robot_mjcf import CAMERA_NAMES
 
-__all__ = ["CornerOffsets", "measure", "summarise", "format_table", "plot", "main"]
+__all__ = ["CornerOffsets", "measure", "summarise", "format_table", "plot", "main", "register"]
 
 SIZE_BINS_PX = (0.0, 25.0, 35.0, 50.0, np.inf)
 ANGLE_BINS_DEG = (0.0, 30.0, 45.0, 55.0, 65.0, 90.0)
@@ -238,12 +239,32 @@ def main(
     return "\n\n".join(parts)
 
 
-if __name__ == "__main__":
-    import argparse
-
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def _add_args(ap: argparse.ArgumentParser) -> None:
     ap.add_argument("config", nargs="?", default=None, help="scenario TOML (default: paper.toml)")
     ap.add_argument("--figure", type=Path, default=Path("docs/render_corners.png"))
     ap.add_argument("--refine", nargs="+", default=["lines", "lines-unscreened", "subpix"])
-    a = ap.parse_args()
+
+
+def _cmd(a: argparse.Namespace) -> int:
     print(main(a.config, tuple(a.refine), a.figure))
+    return 0
+
+
+def register(subparsers) -> argparse.ArgumentParser:
+    """Add ``selfcal diagnose render [scenario.toml] [--figure PNG] [--refine M ...]``."""
+    sp = subparsers.add_parser("diagnose", help="diagnostics of the simulated pipeline")
+    sub = sp.add_subparsers(dest="what", required=True)
+    r = sub.add_parser(
+        "render",
+        help="rendered corners against their analytic projection (docs/accuracy.md)",
+        description=__doc__.splitlines()[0],
+    )
+    _add_args(r)
+    r.set_defaults(func=_cmd)
+    return sp
+
+
+if __name__ == "__main__":
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    _add_args(ap)
+    raise SystemExit(_cmd(ap.parse_args()))

@@ -27,3 +27,11 @@ def test_rendered_corners_match_the_analytic_projection():
     assert abs(o.scale_error()) < 1e-3  # marker sizes agree (measured -1.7e-4)
     rows = {r[0]: r for r in summarise(o, 640, 480)}
     assert all(rows[f"corner {j}"][4] <= 0.1 for j in range(4))
+
+
+def test_selfcal_diagnose_render_parses():
+    from scenarios.cli import build_parser
+    from scenarios.diagnose_render import _cmd
+
+    a = build_parser().parse_args(["diagnose", "render", "x.toml", "--refine", "lines"])
+    assert a.func is _cmd and a.config == "x.toml" and a.refine == ["lines"]
