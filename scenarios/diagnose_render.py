@@ -200,7 +200,7 @@ def format_table(method: str, rows: list) -> str:
 
 def plot(results: dict[str, CornerOffsets], path: Path) -> None:
     """Offset magnitude against marker size and viewing angle, one colour per method (PNG)."""
-    from scenarios.plotting import pyplot
+    from scenarios.plotting import pyplot, save_figure
 
     plt = pyplot()
     fig, ax = plt.subplots(1, 2, figsize=(10, 4))
@@ -212,7 +212,7 @@ def plot(results: dict[str, CornerOffsets], path: Path) -> None:
     ax[1].set(xlabel="viewing angle (deg)", yscale="log")
     ax[0].legend()
     fig.tight_layout()
-    fig.savefig(path, dpi=100)
+    save_figure(fig, path, dpi=100)
     plt.close(fig)
 
 
