@@ -197,7 +197,7 @@ def _sides_clean(
     S, max_s = valid.shape
     has = np.zeros((S, max_s), bool)
     has[prof_side, j] = True
-    rows = has | ~has.any(axis=1)[:, None]
+    rows = has | ~np.any(has, axis=1, keepdims=True)
     w = np.zeros((S, max_s))
     w[prof_side, j] = white
     b = np.zeros((S, max_s))
