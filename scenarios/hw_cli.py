@@ -20,12 +20,12 @@ from __future__ import annotations
 import argparse
 import json
 import signal
-import sys
 import threading
 from pathlib import Path
 from typing import Any
 
 from calib.errors import InputError
+from calib.tomlfile import read_toml
 from hw.acl_robot import AclRobot
 from hw.emulator import AclEmulator
 from hw.emulator_backends import KinematicBackend
@@ -34,11 +34,6 @@ from scenarios.config import load_scenario
 from scenarios.emulate_faults import CLI_FAULTS, acquisition_fault, choose_fault
 from scenarios.emulator_backend import SimEmulatorBackend
 from scenarios.hardware import hardware_settings
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
 
 __all__ = ["register", "load_toml", "EMULATOR_DEFAULTS", "emulator_from_config"]
 
@@ -59,14 +54,9 @@ EMULATOR_DEFAULTS: dict[str, Any] = {
 
 
 def load_toml(path: str | Path) -> dict[str, Any]:
-    """Read a TOML file; ``InputError`` names the file on a missing file or a syntax error."""
-    p = Path(path)
-    if not p.is_file():
-        raise InputError(f"config file not found: {p}")
-    try:
-        return tomllib.loads(p.read_text())
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"{p}: not valid TOML: {exc}") from exc
+    """Read a TOML file; ``InputError`` names the file on a missing or unreadable file or a
+    syntax error (:func:`calib.tomlfile.read_toml`, the reader of every TOML input)."""
+    return read_toml(path, InputError, what="config file")
 
 
 def _add_conn_args(p: argparse.ArgumentParser) -> None:
