@@ -21,7 +21,10 @@ Steps:
    ``V_n`` come out unidentifiable, numerically. Distances alone cannot see the tracker frame.
 3. Too few measurements: the count of parameters these kinds of measurement identify on this
    chain (the rank at well-spread random configurations) must be below the number of equations;
-   otherwise :class:`TrackerIdentificationError` says how many rows are needed.
+   otherwise :class:`TrackerIdentificationError` says how many rows are needed. When the data
+   reach that rank their selection is the structural one; only for poorly excited data does the
+   selection also run at the well-spread configurations (which parameters the kinds cannot see,
+   which these configurations miss).
 4. Levenberg-Marquardt of the one solver (:func:`calib.solver.solve`) on the identifiable set,
    the rest held at nominal; standard deviations ``sigma0^2 (J^T J)^-1`` with the a-posteriori
    ``sigma0`` (1 when the stated sigmas are right).
@@ -99,15 +102,10 @@ def _blocks(layout: ChainLayout, meas: TrackerMeasurements, sig: tuple[float, fl
     return blocks
 
 
-def _problem(model: MCPCModel, free_flat: np.ndarray, blocks: list) -> Problem:
-    held = np.ones(6 * (model.n + 1), bool)
-    held[free_flat] = False
-    return Problem([ParameterBlock("mcpc", model.params.reshape(-1), held=held)], blocks)
-
-
 def _dense_jacobian(blocks: list, values: dict, flat: np.ndarray) -> np.ndarray:
-    """The weighted Jacobian (rows, len(flat)) of the blocks (over a whole-chain layout) w.r.t.
-    the flat MCPC parameters ``flat``, dense: small problems need no sparse assembly."""
+    """The weighted Jacobian (rows, len(flat)) of the blocks w.r.t. the coordinates ``flat`` of
+    their chain block (over a whole-chain layout: the flat MCPC parameters), dense: small
+    problems need no sparse assembly."""
     out = []
     for b in blocks:
         (piece,) = b.evaluate(values, True).pieces
@@ -116,35 +114,44 @@ def _dense_jacobian(blocks: list, values: dict, flat: np.ndarray) -> np.ndarray:
     return np.vstack(out)
 
 
-def _selection(
-    model: MCPCModel, meas: TrackerMeasurements, sig, considered: np.ndarray, rank_rtol: float
-) -> tuple[np.ndarray, int]:
-    """Mask (over the minimal set) of the identifiable parameters among ``considered``, and the
-    rank of the considered columns."""
+def _scaled_factor(
+    model: MCPCModel, meas: TrackerMeasurements, sig, cons: np.ndarray
+) -> np.ndarray:
+    """The triangular factor of the blocks' weighted Jacobian w.r.t. the minimal parameters
+    ``cons`` (positions into the minimal set), each column scaled to unit norm (columns that are
+    zero up to rounding, e.g. the base for distances, stay zero)."""
     idx = minimal_indices(model.joint_types)
-    cons = np.flatnonzero(considered)
     blocks = _blocks(ChainLayout.whole(model), meas, sig)
     J = _dense_jacobian(blocks, {"mcpc": model.params.reshape(-1)}, idx[cons])
     col = np.linalg.norm(J, axis=0)
-    # columns that are zero up to rounding (e.g. the base for distances) stay zero
     col = np.where(col > 1e-10 * col.max(initial=0.0), col, np.inf)
-    A = triangular_factor(J / col)
+    return triangular_factor(J / col)
+
+
+def _numerical_rank(A: np.ndarray, rank_rtol: float) -> int:
+    """Singular values above ``rank_rtol`` sigma_max (the rule of :func:`select_identifiable`)."""
+    s = np.linalg.svd(A, compute_uv=False)
+    return int(np.sum(s > rank_rtol * s[0])) if s.size else 0
+
+
+def _select(
+    model: MCPCModel, A: np.ndarray, cons: np.ndarray, rank_rtol: float
+) -> tuple[np.ndarray, int]:
+    """Mask (over the minimal set) of the columns of ``A`` (the minimal parameters ``cons``)
+    kept when they are offered in :func:`priority_order`, and the rank of ``A``."""
     pos = {k: i for i, k in enumerate(cons)}
     order = np.array([pos[k] for k in priority_order(model.joint_types) if k in pos], int)
     keep, rank, _ = select_identifiable(A, order, rank_rtol)
-    mask = np.zeros(idx.size, bool)
+    mask = np.zeros(minimal_indices(model.joint_types).size, bool)
     mask[cons[keep]] = True
     return mask, rank
 
 
-def _structural(
-    model: MCPCModel, meas: TrackerMeasurements, sig, considered: np.ndarray, rank_rtol: float
-) -> tuple[np.ndarray, int]:
-    """Which (mask) and how many of the considered parameters these kinds of measurement
-    identify on this chain: the selection at well-spread random configurations (revolute joints
-    over a full turn, prismatic ones over the data's range +- 0.1 m), deterministic."""
+def _spread(model: MCPCModel, meas: TrackerMeasurements, p: int) -> TrackerMeasurements:
+    """Noise-free measurements of the same kinds at ``p + 10`` well-spread random
+    configurations (revolute joints over a full turn, prismatic ones over the data's range
+    +- 0.1 m), deterministic: what these kinds of measurement identify on this chain."""
     rng = np.random.default_rng(0)
-    p = int(considered.sum())
     rows = p + 10
     data_q = np.concatenate([a for a in (meas.q, meas.q_a, meas.q_b) if a is not None and len(a)])
     lo, hi = data_q.min(axis=0) - 0.1, data_q.max(axis=0) + 0.1
@@ -157,7 +164,7 @@ def _structural(
 
     q = draw(rows)
     T = fk_tool(model, q)
-    fake = TrackerMeasurements(
+    return TrackerMeasurements(
         q=q if meas.m else q[:0],
         xyz=T[:, :3, 3] if meas.m else np.zeros((0, 3)),
         R=T[:, :3, :3] if meas.R is not None else None,
@@ -165,7 +172,6 @@ def _structural(
         q_b=draw(rows) if meas.k else None,
         d=np.ones(rows) if meas.k else None,
     )
-    return _selection(model, fake, sig, considered, rank_rtol)
 
 
 def _kinds(meas: TrackerMeasurements) -> tuple[str, ...]:
@@ -312,7 +318,9 @@ def identify_tracker(
 
     # 2./3. identifiability and the count of equations
     considered = np.array([nm not in set(hold) for nm in names])
-    struct_mask, p_struct = _structural(start, local, sig, considered, rank_rtol)
+    cons = np.flatnonzero(considered)
+    A_spread = _scaled_factor(start, _spread(start, local, cons.size), sig, cons)
+    p_struct = _numerical_rank(A_spread, rank_rtol)
     n_eq = meas.equations()
     if n_eq <= p_struct:
         per = 6 if meas.R is not None else 3 if meas.m else 1
@@ -324,7 +332,12 @@ def identify_tracker(
             f"(more than {p_struct} equations), better 3 times that",
             fix=f"measure at least {need} well-spread configurations that move every joint",
         )
-    mask, rank = _selection(start, local, sig, considered, rank_rtol)
+    mask, rank = _select(start, _scaled_factor(start, local, sig, cons), cons, rank_rtol)
+    # Data that reach the structural rank keep the structural set: a structural dependency
+    # holds at every configuration, so the ordered selection rejects the same columns. Only
+    # poorly excited data need the selection at the well-spread configurations to tell the
+    # parameters the kinds cannot see from those these configurations miss.
+    struct_mask = mask if rank == p_struct else _select(start, A_spread, cons, rank_rtol)[0]
     held_reason = {h: "explicit" for h in hold}
     kinds = _kinds(meas)
     for nm, c, ok in zip(names, considered, struct_mask):
@@ -343,17 +356,22 @@ def identify_tracker(
         held_reason[nm] = "unidentifiable from this data"
 
     # 4. estimation
+    # the chain's unknowns are the estimated parameters alone (the held ones are constants of
+    # the layout, their Jacobian columns never formed)
     est_flat = np.sort(idx[mask])
-    blocks = _blocks(ChainLayout.whole(start), local, sig)
-    prob = _problem(start, est_flat, blocks)
+    coords = np.full(6 * (start.n + 1), -1, np.int64)
+    coords[est_flat] = np.arange(est_flat.size)
+    layout = ChainLayout(start, "mcpc", coords)
+    blocks = _blocks(layout, local, sig)
+    prob = Problem([ParameterBlock("mcpc", start.params.reshape(-1)[est_flat])], blocks)
     sol = solve(prob, SolverOptions(tol=tol, max_iterations=max_iterations))
     if not sol.converged:
         raise TrackerIdentificationError(
             f"no convergence in {max_iterations} iterations ({sol.message})",
             fix="check the joint/measurement pairing and the units (--joint-units)",
         )
-    fit = start.with_params(sol.values["mcpc"])
-    J = _dense_jacobian(blocks, sol.values, est_flat)
+    fit = layout.chain(sol.values)
+    J = _dense_jacobian(blocks, sol.values, np.arange(est_flat.size))
     dof = max(J.shape[0] - J.shape[1], 1)
     sigma0 = float(np.sqrt(2.0 * sol.cost / dof))
     col = np.linalg.norm(J, axis=0)

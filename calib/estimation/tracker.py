@@ -388,13 +388,15 @@ def initial_placement(
     ``q`` (m, n), by alternating the closed-form rigid fit (Kabsch) with the linear
     least-squares tool point (a fixed-point start for the estimation, not an estimate)."""
     T = fk_tool(model, q)
+    R, t = T[:, :3, :3], T[:, :3, 3]
     s = np.zeros(3)
     B = np.eye(4)
     for _ in range(iterations):
-        x = T[:, :3, :3] @ s + T[:, :3, 3]
+        x = R @ s + t
         B = kabsch(x, xyz) if len(q) >= 3 else make_pose(np.eye(3), np.mean(xyz - x, axis=0))
-        rhs = (xyz - B[:3, 3]) @ B[:3, :3] - T[:, :3, 3]  # R_i s = B^-1 p_i - t_i
-        s_new = np.linalg.lstsq(T[:, :3, :3].reshape(-1, 3), rhs.reshape(-1), rcond=None)[0]
+        rhs = (xyz - B[:3, 3]) @ B[:3, :3] - t  # R_i s = B^-1 p_i - t_i
+        # least squares over the rows: the normal matrix sum R_i^T R_i is m I
+        s_new = np.einsum("kji,kj->i", R, rhs) / len(q)
         done = np.linalg.norm(s_new - s) <= 1e-6  # a start for LM: 1 um is plenty
         s = s_new
         if done:
