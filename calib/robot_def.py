@@ -29,6 +29,7 @@ __all__ = [
     "SimulationGains",
     "MjcfSettings",
     "MJCF_SHAPES",
+    "MJCF_FIELDS",
     "with_dh",
     "load_robot",
     "list_robots",
@@ -82,6 +83,9 @@ MJCF_SHAPES = ("capsules", "turret")
 """Link geometry of a generated MuJoCo model: simple capsules between the joint frames (any arm),
 or the SCORBOT's hand-made layout (turret, beams, wrist, gripper)."""
 
+MJCF_FIELDS = ("default", "home")
+"""Where a generated scene's marker field lies (``[mjcf] field``, :class:`MjcfSettings`)."""
+
 
 DEFAULT_PICTURE_VIEW = (0.3, 0.2, 0.2, 1.0, -60.0, -18.0)
 """Overview camera of a robot picture whose ``[mjcf]`` table has no ``picture_view``."""
@@ -100,6 +104,9 @@ class MjcfSettings:
         shapes: link geometry, one of :data:`MJCF_SHAPES`.
         view: the picture's overview camera ``(lookat x, y, z (m), distance (m), azimuth (deg),
             elevation (deg))`` (key ``picture_view``).
+        field: where the scene's marker field lies, one of :data:`MJCF_FIELDS`: ``"default"``
+            (``sim.markers.make_marker_field()``'s centre) or ``"home"`` (centred where the home
+            camera's optical axis meets the table, as the scenarios place it).
     """
 
     folder: str
@@ -108,6 +115,7 @@ class MjcfSettings:
     picture: str | None = None
     shapes: str = "capsules"
     view: tuple[float, ...] = DEFAULT_PICTURE_VIEW
+    field: str = "default"
 
 
 def _mjcf(table: object, where: str, name: str) -> MjcfSettings | None:
@@ -133,6 +141,12 @@ def _mjcf(table: object, where: str, name: str) -> MjcfSettings | None:
             f"{where}: picture_view must be 6 numbers (lookat x, y, z m, distance m, azimuth deg, "
             f"elevation deg), got {table.get('picture_view')!r}"
         )
+    field = table.get("field", "default")
+    if field not in MJCF_FIELDS:
+        raise RobotDefinitionError(
+            f"{where}: field must be one of {MJCF_FIELDS}, got {field!r}",
+            fix=f'set field = "home" in {where} to centre the marker field on the home view',
+        )
     return MjcfSettings(
         folder=str(table["folder"]),
         title=str(table.get("title", name)),
@@ -140,6 +154,7 @@ def _mjcf(table: object, where: str, name: str) -> MjcfSettings | None:
         picture=None if picture is None else str(picture),
         shapes=str(shapes),
         view=view,
+        field=str(field),
     )
 
 

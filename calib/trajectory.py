@@ -13,7 +13,7 @@ from collections.abc import Callable
 import numpy as np
 
 from calib.camera import CameraModel, Rig, Visibility
-from calib.errors import EstimationError, SelfCalWarning
+from calib.errors import EstimationError, InputError, SelfCalWarning
 from calib.kinematics import fk_tool
 from calib.mcpc import MCPCModel
 from calib.robot_def import RobotDef
@@ -23,6 +23,7 @@ __all__ = [
     "DegenerateTrajectoryError",
     "DegenerateTrajectoryWarning",
     "visible_counts",
+    "home_target_center",
     "plan_postures",
     "optical_axes_convergence",
     "axes_convergence_m",
@@ -43,6 +44,31 @@ PLANNING_VISIBILITY = Visibility(
 )
 """What the planner asks of a target point: well inside the image, at a working distance, facing
 the camera (stricter than what the simulator reports, so planned views are robust)."""
+
+
+def home_target_center(robot: RobotDef, model_cam: MCPCModel) -> tuple[float, float]:
+    """Where the home posture's optical axis meets the table (z = 0), ``(x, y)`` m in the world
+    (base) frame: the centre of the target field, for any arm.
+
+    ``model_cam``: the nominal chain whose tool is the (left) camera. The table must lie in front
+    of the camera at a working distance of :data:`PLANNING_VISIBILITY` (depth along the optical
+    axis); otherwise :class:`InputError` names the robot file's ``home_deg``.
+    """
+    T = fk_tool(model_cam, robot.home[None])[0]
+    p, z = T[:3, 3], T[:3, 2]
+    rule = PLANNING_VISIBILITY
+    depth = -p[2] / z[2] if z[2] < -1e-9 else np.inf
+    if not rule.min_depth_m <= depth <= rule.max_depth_m:
+        seen = "does not look down at the table" if z[2] >= -1e-9 else f"sees it {depth:.2f} m away"
+        raise InputError(
+            f"{robot.name}: at the home posture the camera {seen}; the marker field is placed "
+            f"where the home optical axis meets the table, {rule.min_depth_m:.2f} to "
+            f"{rule.max_depth_m:.2f} m in front of the camera",
+            fix=f"choose a home posture (home_deg in models/robots/{robot.name}.toml) whose "
+            "camera looks down at the table in front of the robot",
+        )
+    hit = p + depth * z
+    return float(hit[0]), float(hit[1])
 
 
 def visible_counts(

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from calib.camera import Intrinsics, Rig
+from calib.errors import InputError
 from calib.io.atomic import write_image_atomic
 from calib.io.dataset import DatasetInfo
 from calib.io.truth import read_truth, write_truth
@@ -24,7 +25,11 @@ from calib.robot import Robot
 from calib.robot_def import RobotDef, load_robot
 from calib.self_collision import CapsuleChain
 from calib.target import CORNERS_PER_MARKER
-from calib.trajectory import PLANNING_VISIBILITY, check_not_degenerate, plan_postures
+from calib.trajectory import (
+    check_not_degenerate,
+    home_target_center,
+    plan_postures,
+)
 from calib.transforms import trans
 from scenarios.acquire import AcquisitionHooks
 from scenarios.config import ConfigError, Scenario, load_scenario, scenario_to_dict
@@ -66,27 +71,12 @@ class SimSetup:
 
 
 def _field_center(robot: RobotDef, nominal: MCPCModel) -> tuple[float, float]:
-    """Where the home posture's optical axis meets the table (z = 0): the field's centre.
-
-    Any arm: the home camera pose (``nominal``: base -> camera) decides; the table must lie in
-    front of the camera at a working distance of the planner's visibility rule
-    (:data:`calib.trajectory.PLANNING_VISIBILITY`, depth along the optical axis).
-    """
-    T = fk_tool(nominal, robot.home[None])[0]
-    p, z = T[:3, 3], T[:3, 2]
-    rule = PLANNING_VISIBILITY
-    depth = -p[2] / z[2] if z[2] < -1e-9 else np.inf
-    if not rule.min_depth_m <= depth <= rule.max_depth_m:
-        seen = "does not look down at the table" if z[2] >= -1e-9 else f"sees it {depth:.2f} m away"
-        raise ConfigError(
-            f"{robot.name}: at the home posture the camera {seen}; the marker field is placed "
-            f"where the home optical axis meets the table, {rule.min_depth_m:.2f} to "
-            f"{rule.max_depth_m:.2f} m in front of the camera",
-            fix=f"choose a home posture (home_deg in models/robots/{robot.name}.toml) whose "
-            "camera looks down at the table in front of the robot",
-        )
-    hit = p + depth * z
-    return float(hit[0]), float(hit[1])
+    """The field's centre: where the home posture's optical axis meets the table
+    (:func:`calib.trajectory.home_target_center`; ``nominal``: base -> camera)."""
+    try:
+        return home_target_center(robot, nominal)
+    except InputError as exc:
+        raise ConfigError(exc.message, fix=exc.fix) from exc
 
 
 def _perturbation_table(s: Scenario, joint_types: tuple[str, ...]) -> dict[str, float]:

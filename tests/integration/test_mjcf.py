@@ -381,13 +381,17 @@ def test_cameras_do_not_see_the_robot(name, hidden):
 
 
 @pytest.mark.render
-def test_generic_arm_wrist_camera_sees_the_target_not_the_arm():
-    """The KR 6 R900 (capsule links) over the default marker field: at home and at postures
-    within its planning window, both wrist cameras see marker tiles (>= 2 % of the image; measured
-    6-27 %, 15-19 % at home) and no pixel of the wrist links or the rig."""
-    robot = load_robot("kr6-r900")
+@pytest.mark.parametrize("name", ["kr6-r900", "ur5e"])
+def test_generic_arm_wrist_camera_sees_the_target_not_the_arm(name):
+    """The KR 6 R900 and the UR5e (capsule links) over their committed scenes' marker field (the
+    default one; for the UR5e centred on the home view, ``[mjcf] field = "home"``): at home and at
+    postures within the planning window, both wrist cameras see marker tiles (>= 2 % of the
+    image; measured KR 6 6-27 %, 15-19 % at home; UR5e 21-31 %, 24-31 % at home) and no pixel of the wrist
+    links or the rig."""
+    robot = load_robot(name)
+    entry = next(e for e in mjcf_entries() if e.name == name)
     model = scene_with_robot(
-        robot, nominal_camera_model(robot), None, make_marker_field()
+        robot, nominal_camera_model(robot), None, entry.marker_field()
     ).compile()
     data = mujoco.MjData(model)
     markers = {g for g in range(model.ngeom) if (model.geom(g).name or "").startswith("aruco_")}

@@ -47,3 +47,10 @@ def test_an_arm_of_zero_length_blames_the_robot_file(tmp_path):
     with pytest.raises(RobotDefinitionError, match="a_mm = 0 and d_mm = 0") as err:
         load_robot(p)
     assert str(p) in str(err.value) and "marker" not in str(err.value)
+
+
+def test_an_unknown_scene_field_placement_names_file_table_and_key(tmp_path):
+    p = _with(tmp_path, r'^folder = "scorbot_er4u"$', 'folder = "scorbot_er4u"\nfield = "behind"')
+    with pytest.raises(RobotDefinitionError, match="field must be one of") as err:
+        load_robot(p)
+    assert str(p) in str(err.value) and "[mjcf]" in str(err.value) and "home" in err.value.fix
