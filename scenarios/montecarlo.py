@@ -30,6 +30,7 @@ import sys
 import tempfile
 import time
 import warnings
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -47,6 +48,7 @@ from calib.transforms import inv_pose
 from scenarios.acquire import acquire
 from scenarios.backends import open_robot, plan_dataset, sim_setup
 from scenarios.config import load_scenario
+from scenarios.montecarlo_journal import JOURNAL, DrawJournal, draw_key
 from scenarios.montecarlo_report import plot, summary_markdown
 from scenarios.montecarlo_stats import summarize
 from scenarios.parallel import run_tasks
@@ -171,34 +173,6 @@ def _evaluate(root: Path, pixel_sigma: float) -> dict:
 
 
 # ------------------------------------------------------------------------------ driver
-def _map(
-    fn,
-    items: list,
-    jobs: int,
-    on_result=None,
-    cluster: str | None = None,
-    retries: int = 2,
-    counts: TaskCounts | None = None,
-) -> list:
-    """``[fn(x) for x in items]`` in ``jobs`` spawned processes (one BLAS thread each) or on the
-    Dask scheduler at ``cluster`` (:func:`scenarios.parallel.run_tasks`); a task that fails on
-    every try gives a ``failed: ...`` row."""
-    results: dict = {}
-    for i, row in run_tasks(
-        fn,
-        items,
-        jobs=jobs,
-        error_row=_failed_draw,
-        cluster=cluster,
-        retries=retries,
-        counts=counts,
-    ):
-        results[i] = row
-        if on_result:
-            on_result(row)
-    return [results[i] for i in range(len(items))]
-
-
 def _failed_draw(settings: dict, exc: BaseException) -> dict:
     row: dict = {k: settings.get(k) for k in ("poses", "pixel_sigma", "seed", "dither")}
     row["plan"] = settings.get("plan", "random")
@@ -224,16 +198,22 @@ def run_montecarlo(
     config: str | Path | None = None,
     cluster: str | None = None,
     retries: int = 2,
+    task: Callable[[dict], dict] | None = None,
 ) -> tuple[list[dict], dict]:
     """Run ``draws`` noise draws (seeds ``first_seed ..``); returns ``(rows, summary)``.
 
     ``config``: the scenario TOML of the truth (default ``scenarios/paper.toml``), e.g.
     ``scenarios/ur5e.toml`` for another robot; always on the analytic path.
 
-    With ``out``: writes ``runs.csv``, ``summary.json``, ``summary.md`` and ``montecarlo.png``
-    there. ``joints_deg``: planned postures to use instead of the scenario's random plan (e.g.
-    from :func:`plan_optimal`; ``plan`` names them in the output). ``cluster``: a Dask scheduler
-    address to run the draws on instead of ``jobs`` local processes (docs/cluster.md).
+    With ``out``: each draw's row goes to the journal ``draws.jsonl`` as it arrives
+    (:mod:`scenarios.montecarlo_journal`), and draws already there are not run again: an
+    interrupted run resumes, locally or on a cluster whichever ran the first part; at the end
+    ``runs.csv``, ``summary.json``, ``summary.md`` and ``montecarlo.png``. ``joints_deg``:
+    planned postures to use instead of the scenario's random plan (e.g. from
+    :func:`plan_optimal`; ``plan`` names them in the output). ``cluster``: a Dask scheduler
+    address to run the draws on instead of ``jobs`` local processes (docs/cluster.md; ``retries``
+    extra tries of a task that raised). ``task``: computes one row from a draw's settings
+    (default :func:`draw_one`); a task that fails on every try gives a ``failed: ...`` row.
     """
     base = {
         "poses": poses if joints_deg is None else len(joints_deg),
@@ -246,8 +226,18 @@ def run_montecarlo(
         "config": None if config is None else str(config),
     }
     items = [{**base, "seed": first_seed + i} for i in range(draws)]
+    keys = [draw_key(x) for x in items]
+    journal = None if out is None else DrawJournal(Path(out) / JOURNAL)
+    done = {} if journal is None else journal.load()
+    todo = [i for i, k in enumerate(keys) if k not in done]
     t0 = time.perf_counter()
-    counts = TaskCounts(draws)
+    counts = TaskCounts(len(todo))
+    if not quiet and journal is not None and len(todo) < draws:
+        print(
+            f"montecarlo: {draws - len(todo)} of {draws} draws done before ({journal.path}); "
+            f"{len(todo)} to do",
+            file=sys.stderr,
+        )
 
     def say(row):
         counts.finish(failed=row["status"] != "ok")
@@ -264,7 +254,29 @@ def run_montecarlo(
                 file=sys.stderr,
             )
 
-    rows = _map(draw_one, items, max(1, int(jobs)), say, cluster, retries, counts)
+    try:
+        for i, row in run_tasks(
+            task or draw_one,
+            [items[i] for i in todo],
+            jobs=max(1, int(jobs)),
+            error_row=_failed_draw,
+            cluster=cluster if todo else None,
+            retries=retries,
+            counts=counts,
+        ):
+            done[keys[todo[i]]] = row
+            if journal is not None:
+                journal.append(keys[todo[i]], row)
+            say(row)
+    except KeyboardInterrupt:
+        if journal is not None:
+            print(
+                f"montecarlo: interrupted; finished draws are kept in {journal.path}; run the "
+                "same command again (with or without --cluster) to resume",
+                file=sys.stderr,
+            )
+        raise
+    rows = [done[k] for k in keys]
     summary = summarize(rows)
     summary["settings"] = {k: v for k, v in base.items() if k != "joints_deg"}
     summary["seconds"] = round(time.perf_counter() - t0, 1)

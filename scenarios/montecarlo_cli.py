@@ -44,12 +44,18 @@ def register(subparsers) -> argparse.ArgumentParser:
         help="Monte Carlo of both calibration methods against the Cramer-Rao bound",
         description="One truth (default scenario, analytic path), many noise draws: achieved "
         "tool-tip and parameter errors of the two-stage and the one-step method against the "
-        "Cramer-Rao bound. Writes DIR/runs.csv, summary.md, summary.json, montecarlo.png. "
+        "Cramer-Rao bound. Writes DIR/runs.csv, summary.md, summary.json, montecarlo.png; "
+        "each finished draw goes to DIR/draws.jsonl at once, and the same command again "
+        "resumes an interrupted run. "
         "The draws run in local worker processes or, with --cluster, on a Dask cluster. "
         "See docs/bounds.md and docs/cluster.md.",
     )
     sp.add_argument("--draws", type=int, default=100, help="noise draws (default 100)")
-    sp.add_argument("--out", required=True, help="output folder")
+    sp.add_argument(
+        "--out",
+        required=True,
+        help="output folder; the draws finished there (DIR/draws.jsonl) are not run again",
+    )
     sp.add_argument(
         "--jobs", type=int, default=2, help="worker processes (1 = in-process; not with --cluster)"
     )

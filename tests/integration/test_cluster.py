@@ -6,13 +6,16 @@ dropped); and (slow tier, a ``LocalCluster`` of 2 worker processes) a study half
 pool and finished on the cluster, with one worker killed in the middle of a run, has every row
 once and the cluster's rows equal the local pool's bit for bit (all but the wall time
 ``seconds``); the workers run with the project's thread limit; Monte Carlo draws are the same
-numbers on the cluster as in the local pool.
+numbers on the cluster as in the local pool, and a Monte Carlo interrupted on the cluster,
+resumed in the local pool, interrupted again and finished on the cluster has every draw once,
+none recomputed once written, equal to an uninterrupted local run.
 """
 
 from __future__ import annotations
 
 import csv
 import functools
+import json
 import os
 import signal
 import subprocess
@@ -27,7 +30,8 @@ from threadpoolctl import threadpool_info
 from calib.errors import InputError
 from scenarios.cli import main
 from scenarios.cluster import cluster_tasks
-from scenarios.montecarlo import run_montecarlo
+from scenarios.montecarlo import draw_one, run_montecarlo
+from scenarios.montecarlo_journal import JOURNAL, DrawJournal
 from scenarios.studies import run_study
 from scenarios.study_runs import failed_row, run_one, settings_key
 
@@ -158,12 +162,68 @@ def test_cluster_workers_have_the_thread_limit(cluster):
         assert r["pools"] and all(p["num_threads"] == 1 for p in r["pools"]), r["pools"]
 
 
+MC = {"poses": 12, "first_seed": 5, "quiet": True}
+
+
+@pytest.fixture(scope="module")
+def local_draws():
+    # The local pool (one BLAS thread per process, as on the cluster); this test process may
+    # have several BLAS threads, whose sums round differently (~1e-8 relative).
+    rows, _ = run_montecarlo(3, jobs=2, **MC)
+    assert all(r["status"] == "ok" for r in rows), rows
+    return rows
+
+
 @pytest.mark.slow
-def test_monte_carlo_draws_are_the_same_on_the_cluster(cluster):
-    kw = {"poses": 12, "first_seed": 5, "quiet": True}
-    # Against the local pool (one BLAS thread per process, as on the cluster); this test
-    # process may have several BLAS threads, whose sums round differently (~1e-8 relative).
-    here, _ = run_montecarlo(2, jobs=2, **kw)
-    there, _ = run_montecarlo(2, cluster=cluster, **kw)
-    assert all(r["status"] == "ok" for r in here), here
-    assert [_without_seconds(r) for r in there] == [_without_seconds(r) for r in here]
+def test_monte_carlo_draws_are_the_same_on_the_cluster(cluster, local_draws):
+    there, _ = run_montecarlo(2, cluster=cluster, **MC)
+    assert [_without_seconds(r) for r in there] == [_without_seconds(r) for r in local_draws[:2]]
+
+
+def _logged_draw(calls: Path, settings: dict) -> dict:
+    with open(calls, "a") as fh:
+        fh.write(f"{settings['seed']}\n")
+    return draw_one(settings)
+
+
+@pytest.mark.slow
+def test_monte_carlo_interrupted_on_the_cluster_resumes_locally_and_back(
+    cluster, local_draws, tmp_path, monkeypatch
+):
+    """Ctrl-C once a draw is written (on the cluster, then in the local pool), then the same
+    command to the end on the cluster: every draw once in the journal, none computed again once
+    written, and the rows those of an uninterrupted local run bit for bit."""
+    out = tmp_path / "mc"
+    appended = []
+    append = DrawJournal.append
+
+    def interrupt_after(n: int):
+        def hook(self, key, row):
+            append(self, key, row)
+            appended.append(row["seed"])
+            if len(appended) == n:
+                raise KeyboardInterrupt
+
+        monkeypatch.setattr(DrawJournal, "append", hook)
+
+    def calls(phase: str) -> list[int]:
+        p = tmp_path / phase
+        return [int(s) for s in p.read_text().split()] if p.exists() else []
+
+    interrupt_after(1)
+    task = functools.partial(_logged_draw, tmp_path / "cluster1")
+    with pytest.raises(KeyboardInterrupt):
+        run_montecarlo(3, out, cluster=cluster, task=task, **MC)
+    interrupt_after(2)
+    task = functools.partial(_logged_draw, tmp_path / "local")
+    with pytest.raises(KeyboardInterrupt):
+        run_montecarlo(3, out, jobs=2, task=task, **MC)
+    monkeypatch.setattr(DrawJournal, "append", append)
+    task = functools.partial(_logged_draw, tmp_path / "cluster2")
+    rows, _ = run_montecarlo(3, out, cluster=cluster, task=task, **MC)
+    first, second = appended
+    assert first not in calls("local") + calls("cluster2")
+    assert second not in calls("cluster2") and second != first
+    lines = (out / JOURNAL).read_text().splitlines()
+    assert sorted(json.loads(ln)["row"]["seed"] for ln in lines) == [5, 6, 7]
+    assert [_without_seconds(r) for r in rows] == [_without_seconds(r) for r in local_draws]
