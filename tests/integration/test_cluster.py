@@ -17,6 +17,7 @@ import csv
 import functools
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -84,7 +85,7 @@ def test_without_the_extra_cluster_is_an_input_error(tmp_path, monkeypatch, caps
     assert "uv sync --extra cluster" in capsys.readouterr().err
 
 
-def test_a_task_failing_on_every_try_is_recorded(tmp_path):
+def test_a_task_failing_on_every_try_is_recorded(tmp_path, capsys):
     calls = tmp_path / "calls.txt"
     with LocalCluster(n_workers=1, threads_per_worker=2, processes=False) as lc:
         rows = run_study(
@@ -93,8 +94,13 @@ def test_a_task_failing_on_every_try_is_recorded(tmp_path):
             cluster=lc.scheduler_address,
             retries=1,
             task=functools.partial(_always_fails, calls),
-            quiet=True,
         )
+    # progress per row: done / total, running (the worker's 2 threads), failed, time left
+    progress = re.findall(
+        r"\[(\d+)/6 done, (\d) running, (\d) failed, ~\d+ s left\]", capsys.readouterr().err
+    )
+    assert [(int(d), int(f)) for d, _, f in progress] == [(k, k) for k in range(1, 7)]
+    assert progress[0][1] == "2" and progress[-1][1] == "0"
     assert len(rows) == 6  # the quick noise study: 3 sigmas x 2 seeds
     assert all(r["status"] == "failed: RuntimeError: this run always fails" for r in rows), rows
     tried = calls.read_text().split("\n")[:-1]
