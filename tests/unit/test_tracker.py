@@ -25,7 +25,7 @@ from calib.tracker_identify import (
     identify_tracker,
 )
 from calib.transforms import inv_pose, pose_from_vec, rot_x, rot_z, trans
-from scenarios.benchmark_tracker import BEGIN, END, mdh_table, run, table, write_docs
+from scenarios.benchmark_tracker import BEGIN, END, combine, mdh_table, run, table, write_docs
 from scenarios.tracker_sim import RRPRR_DH, dh_robot, make_case, measure
 
 ROBOTS = {
@@ -189,6 +189,15 @@ def test_benchmark_mdh_table_and_a_run_without_pybotics(tmp_path):
     text = table(rows, note)
     assert "| 30 |" in text and "n/a" in text
     assert rows[0]["ours_mm"] < 0.25 < 2.0 < rows[0]["nominal_mm"]  # measured 0.19, 2.03
+    # several rounds: median times and speed-up with its range, pybotics's best held-out error
+    times = [(0.004, 0.6, 0.70), (0.006, 0.9, 0.65), (0.005, 0.5, 0.66)]
+    rounds = [
+        [{**rows[0], "ours_s": t, "pyb_s": p, "pyb_mm": e, "pyb_truth_mm": e}] for t, p, e in times
+    ]
+    (row,) = combine(rounds)
+    assert row["ours_s"] == 0.005 and row["pyb_s"] == 0.6 and row["pyb_mm"] == 0.65
+    assert row["speed_ups"] == [100.0, 150.0, 150.0]
+    assert "| 150x (100-150x) |" in table([row], note)
     doc = tmp_path / "doc.md"
     doc.write_text(f"intro\n{BEGIN}\nold\n{END}\nrest\n")
     write_docs(text, doc)
