@@ -192,12 +192,16 @@ def test_benchmark_mdh_table_and_a_run_without_pybotics(tmp_path):
     # several rounds: median times and speed-up with its range, pybotics's best held-out error
     times = [(0.004, 0.6, 0.70), (0.006, 0.9, 0.65), (0.005, 0.5, 0.66)]
     rounds = [
-        [{**rows[0], "ours_s": t, "pyb_s": p, "pyb_mm": e, "pyb_truth_mm": e}] for t, p, e in times
-    ]
+        [{**rows[0], "ours_s": t, "pyb_s": p, "pyb_mm": e, "pyb_truth_mm": e}
+         | {"ours_cpu_s": t / 2, "pyb_cpu_s": p / 4}]
+        for t, p, e in times
+    ]  # fmt: skip
     (row,) = combine(rounds)
     assert row["ours_s"] == 0.005 and row["pyb_s"] == 0.6 and row["pyb_mm"] == 0.65
+    assert row["ours_cpu_s"] == 0.0025 and row["pyb_cpu_s"] == 0.15
     assert row["speed_ups"] == [100.0, 150.0, 150.0]
-    assert "| 150x (100-150x) |" in table([row], note)
+    assert row["cpu_speed_ups"] == [50.0, 75.0, 75.0]
+    assert "| 5.0 (2.5) | 600 (150) | 150x (100-150x) | 75x (50-75x) |" in table([row], note)
     doc = tmp_path / "doc.md"
     doc.write_text(f"intro\n{BEGIN}\nold\n{END}\nrest\n")
     write_docs(text, doc)
