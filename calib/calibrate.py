@@ -32,6 +32,7 @@ from calib.io.dataset import CAMERAS, Dataset, DatasetError, DatasetInfo, Detect
 from calib.joint_refine import refine_calibration
 from calib.kinematics import fk_tool
 from calib.mcpc import MCPCModel, nominal_mcpc, shape_matrices
+from calib.quality import assess_calibration
 from calib.results import CalibrationOutput, two_stage_result, with_bounds, with_joint
 from calib.robot_def import load_robot
 from calib.selfcal import Observations, self_calibrate
@@ -40,6 +41,7 @@ from calib.trajectory import check_not_degenerate
 
 __all__ = [
     "CalibrationError",
+    "CalibrationFailedError",
     "NoMarkersWarning",
     "MarkerDetections",
     "skipped_images_message",
@@ -58,6 +60,22 @@ METHODS = ("two-stage", "joint")
 class CalibrationError(EstimationError, ValueError):
     """The dataset cannot be calibrated; the message names the cause and the fix. (Still a
     ``ValueError``, as it always was.)"""
+
+
+class CalibrationFailedError(CalibrationError):
+    """A calibration that ran to the end but failed a check of :mod:`calib.quality` (worse
+    than the nominal model, swapped cameras): the message lists the failures and their likely
+    causes; the result is written all the same, marked ``"status": "failed"``."""
+
+    @classmethod
+    def of(cls, failures: tuple[str, ...], where: str | Path) -> CalibrationFailedError:
+        """The error for the ``failures`` of the calibration written to ``where``."""
+        lines = "".join(f"\n  - {f}" for f in failures)
+        return cls(
+            f"the calibration FAILED {len(failures)} check(s); {where} is written but marked "
+            f'failed ("status": "failed"):{lines}',
+            fix="remove the cause named above and calibrate again; do not use this calibration",
+        )
 
 
 class NoMarkersWarning(SelfCalWarning):
@@ -254,7 +272,8 @@ def calibrate_detailed(
     ids, X = final.point_ids, final.X_world
     ok = np.isfinite(X).all(axis=1)
     scene = ScenePoints(tuple(int(i) for i in ids[ok]), np.asarray(X[ok], dtype=float))
-    result = dataclasses.replace(result, scene=scene)
+    failures = assess_calibration(dataclasses.replace(out, result=result), obs, q, nominal)
+    result = dataclasses.replace(result, scene=scene, failures=failures)
     result = dataclasses.replace(result, seconds=round(time.perf_counter() - t0, 3))
     return dataclasses.replace(out, result=result)
 

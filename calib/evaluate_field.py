@@ -10,20 +10,18 @@ The nominal reference is the nominal chain with only its base (the world placeme
 
 from __future__ import annotations
 
-import warnings
 from pathlib import Path
 
 import numpy as np
 
-from calib.board_dataset import chain_param_names
 from calib.calibrate import detect_dataset
 from calib.errors import InputError
 from calib.evaluate import Evaluation, rms_px
-from calib.identify import identify
 from calib.io.calibration import CalibrationResult
 from calib.io.dataset import CAMERAS, Dataset
 from calib.kinematics import fk_tool
 from calib.mcpc import MCPCModel, nominal_mcpc
+from calib.quality import nominal_with_fitted_base_and_tool
 from calib.robot_def import load_robot
 from calib.target.aruco import markers_to_features
 from calib.transforms import inv_pose
@@ -40,11 +38,7 @@ def nominal_reference(cal: CalibrationResult, cal_root: Path) -> MCPCModel:
     row = {int(i): k for k, i in enumerate(ds.indices)}
     poses = cal.camera_poses
     q = np.radians(ds.joints_deg[[row[i] for i in poses.frame_index]])
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # parameters the few base/tool poses leave undetermined
-        ref = identify(nominal, q, poses.T_world_cam_left_m,
-                       hold=chain_param_names(nominal.joint_types))  # fmt: skip
-    return ref.model
+    return nominal_with_fitted_base_and_tool(nominal, q, poses.T_world_cam_left_m)
 
 
 def evaluate_field(cal: CalibrationResult, cal_root: str | Path, root: str | Path) -> Evaluation:

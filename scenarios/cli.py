@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from calib.calibrate import CalibrationFailedError
 from calib.ik import UnreachableError, ik, ik_nearest
 from calib.ik_numeric import ToolTarget, ik_robot
 from calib.kinematics import fk_tool
@@ -129,6 +130,9 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
 def cmd_report(args: argparse.Namespace) -> int:
     report = run_report(Path(args.dataset), quiet=args.quiet)
     print(report_summary(report, Path(args.dataset)), flush=True)
+    if report["failures"]:
+        where = Path(args.dataset) / "report.json"
+        raise CalibrationFailedError.of(tuple(report["failures"]), where)
     return 0
 
 

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from calib.alignment import express_in_frame
-from calib.calibrate import calibrate
+from calib.calibrate import CalibrationFailedError, calibrate
 from calib.camera import CameraModel
 from calib.io.atomic import write_text_atomic
 from calib.io.calibration import CalibrationResult, read_calibration, write_calibration
@@ -53,9 +53,14 @@ def run_acquire(s: Scenario, out: Path, *, resume: bool = False, quiet: bool = F
 
 def run_calibrate(root: Path, *, quiet: bool = False, method: str = "joint") -> CalibrationResult:
     """Calibrate the dataset in ``root`` and write ``root/calibration.json``; returns the
-    result. Its warnings are printed (unless ``quiet``)."""
+    result. Its warnings are printed (unless ``quiet``).
+
+    Raises:
+        CalibrationFailedError: the calibration failed a check of :mod:`calib.quality`; it is
+            written all the same, marked failed.
+    """
     res = calibrate(root, progress=Progress("detect", enabled=not quiet), method=method)
-    write_calibration(Path(root) / "calibration.json", res)
+    path = write_calibration(Path(root) / "calibration.json", res)
     i = res.intrinsics
     for text in res.warnings:
         _say(quiet, f"warning: {text}")
@@ -66,6 +71,8 @@ def run_calibrate(root: Path, *, quiet: bool = False, method: str = "joint") -> 
         f"reprojection RMS {res.reprojection_rms_px:.3f} px, identification rank "
         f"{res.identification.rank}/{res.identification.n_params}",
     )
+    if res.failed:
+        raise CalibrationFailedError.of(res.failures, path)
     return res
 
 
@@ -131,7 +138,17 @@ def run_report(root: Path, *, quiet: bool = False) -> dict:
         bound_by_name = {b.name: b.bound for b in bounds.parameters}
         for row in params:
             row["bound"] = bound_by_name.get(row["name"])
+    failures = list(cal.failures)
+    if err_cal["rms"] > err_nom["rms"]:
+        failures.append(
+            f"the calibrated model predicts the validation tool tips worse than the nominal model "
+            f"({err_cal['rms']:.3f} mm RMS against {err_nom['rms']:.3f} mm over "
+            f"{len(qv)} held-out postures): the calibration is wrong (see calibration.json "
+            "failures and warnings for the likely causes)"
+        )
     report = {
+        "status": "failed" if failures else "ok",
+        "failures": failures,
         "validation": {
             "poses": int(len(qv)),
             "tool_tip_error_mm": {
@@ -252,7 +269,12 @@ def run_all(
     """Acquire, calibrate and (in simulation) report; prints a summary."""
     t0 = time.perf_counter()
     run_acquire(s, out, resume=resume, quiet=quiet)
-    cal = run_calibrate(out, quiet=quiet, method=method)
+    try:
+        cal = run_calibrate(out, quiet=quiet, method=method)
+    except CalibrationFailedError:
+        if s.robot.backend == "sim":
+            run_report(out, quiet=True)  # report.json marked failed as well
+        raise
     result = {"calibration": cal}
     if s.robot.backend == "sim":
         rep = run_report(out, quiet=True)
@@ -265,4 +287,6 @@ def run_all(
             f"fx {cal.intrinsics.fx:.2f} px; total {time.perf_counter() - t0:.1f} s; "
             f"details in {out}/report.md"
         )
+        if rep["failures"]:
+            raise CalibrationFailedError.of(tuple(rep["failures"]), out / "report.json")
     return result

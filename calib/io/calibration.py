@@ -90,6 +90,8 @@ class CalibrationResult:
         bounds: Cramer-Rao bounds, or None with the reason in ``bounds_error`` (None as well
             when none were computed).
         warnings: what a person should know about this calibration, one sentence each.
+        failures: why this calibration must not be used, one sentence each with the likely
+            causes (:mod:`calib.quality`); empty: ``status`` ``"ok"``, else ``"failed"``.
         seconds: wall time of the calibration (s), or None.
         scene: the calibrated marker corners in the world frame (what ``selfcal evaluate``
             predicts), or None (files written before it existed).
@@ -117,6 +119,7 @@ class CalibrationResult:
     bounds: Bounds | None = None
     bounds_error: str | None = None
     warnings: tuple[str, ...] = ()
+    failures: tuple[str, ...] = ()
     seconds: float | None = None
     scene: ScenePoints | None = None
     world_frame: str = WORLD_FRAME
@@ -124,6 +127,11 @@ class CalibrationResult:
     columns: tuple[str, ...] = field(default=tuple(COLUMNS))
 
     # ------------------------------------------------------------------ derived values
+    @property
+    def failed(self) -> bool:
+        """True when a check of :mod:`calib.quality` failed (``failures`` says why)."""
+        return bool(self.failures)
+
     @property
     def model(self) -> MCPCModel:
         """The identified MCPC chain: tool = left camera (OpenCV frame), world = the
@@ -177,6 +185,8 @@ class CalibrationResult:
         elif self.bounds_error is not None:
             doc["bounds"] = {"error": self.bounds_error}
         doc["warnings"] = list(self.warnings)
+        doc["status"] = "failed" if self.failures else "ok"
+        doc["failures"] = list(self.failures)
         if self.seconds is not None:
             doc["seconds"] = self.seconds
         if self.scene is not None:
@@ -234,12 +244,22 @@ class CalibrationResult:
             bounds=None if bounds is None else Bounds.from_json(bounds),
             bounds_error=bounds_error,
             warnings=f.strs("warnings") if f.has("warnings") else (),
+            failures=_failures(f),
             seconds=f.opt_float("seconds"),
             scene=None if scene is None else ScenePoints.from_json(scene),
             world_frame=f.str("world_frame"),
             tool=m.str("tool"),
             columns=m.strs("columns"),
         )
+
+
+def _failures(f: Fields) -> tuple[str, ...]:
+    """``failures``, checked against ``status`` (files written before either: ok)."""
+    failures = f.strs("failures") if f.has("failures") else ()
+    status = f.str("status") if f.has("status") else "ok"
+    if status not in ("ok", "failed") or (status == "failed") != bool(failures):
+        raise f.bad("status", "'ok' with no failures or 'failed' with the failures", status)
+    return failures
 
 
 def write_calibration(path: str | Path, result: CalibrationResult) -> Path:

@@ -123,8 +123,9 @@ def test_calibration_keeps_every_key_and_number_of_the_golden_file(tmp_path):
     golden = json.loads((GOLDEN / "analytic" / "calibration.json").read_text())
     path = write_calibration(tmp_path / "calibration.json", golden_calibration())
     back = json.loads(path.read_text())
-    assert set(back) - set(golden) == {"warnings"}
+    assert set(back) - set(golden) == {"warnings", "status", "failures"}
     assert back["dataset"].pop("skipped_images") == [] and back.pop("warnings") == []
+    assert back.pop("status") == "ok" and back.pop("failures") == []  # #15: a checked result
     added = {"model": "pinhole", "free": ["fx", "mu"], "distortion": {}, "std": {}}
     for doc in (back, *back["methods"].values()):  # the camera model's keys (#12), defaults
         assert {k: doc["intrinsics"].pop(k) for k in added} == added

@@ -1,0 +1,131 @@
+"""A calibration that runs to the end but must not be used is reported as FAILED (issue #15):
+exit status 3, ``"status": "failed"`` in calibration.json and report.json, the likely causes.
+
+Swapped left and right images are invisible to every fit (same reprojection RMS to 1e-12 px);
+before this check `selfcal calibrate` exited 0 and the report showed 58.3 mm RMS calibrated
+against 1.58 mm nominal (30 analytic postures, scenarios/paper.toml with render = false).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import shutil
+
+import numpy as np
+import pytest
+
+from calib.calibrate import calibrate_detailed, detect_dataset, observations_of
+from calib.io.calibration import CalibrationFileError, CalibrationResult, read_calibration
+from calib.io.dataset import Dataset
+from calib.mcpc import nominal_mcpc
+from calib.quality import assess_calibration, baseline_angle_deg, rig_direction_failure
+from calib.robot_def import load_robot
+from calib.transforms import make_pose
+from scenarios import cli
+from scenarios.config import load_scenario
+from scenarios.pipeline import run_acquire
+
+
+def run(capsys, *argv):
+    code = cli.main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory):
+    """12 postures on the analytic path (detections, no rendering), 5 validation postures."""
+    out = tmp_path_factory.mktemp("quality") / "ds"
+    s = load_scenario(
+        overrides={
+            "noise": {"render": False},
+            "trajectory": {"poses": 12},
+            "validation": {"poses": 5},
+        }
+    )
+    run_acquire(s, out, quiet=True)
+    return out
+
+
+def swapped(src, dst):
+    """A copy of the dataset ``src`` with the left and right cameras' detections swapped."""
+    shutil.copytree(src, dst)
+    lines = (dst / "detections.csv").read_text().splitlines()
+    swap = {"left": "right", "right": "left"}
+    rows = []
+    for line in lines[1:]:
+        cells = line.split(",")
+        rows.append(",".join([cells[0], swap[cells[1]], *cells[2:]]))
+    (dst / "detections.csv").write_text("\n".join([lines[0], *rows]) + "\n")
+    return dst
+
+
+def test_a_good_calibration_is_ok(capsys, dataset, tmp_path):
+    ds = tmp_path / "good"
+    shutil.copytree(dataset, ds)
+    assert run(capsys, "calibrate", ds, "--quiet")[0] == 0
+    assert json.loads((ds / "calibration.json").read_text())["status"] == "ok"
+    code, out, _ = run(capsys, "report", ds, "--quiet")
+    assert code == 0 and out.startswith("report: ")
+    assert json.loads((ds / "report.json").read_text())["status"] == "ok"
+
+
+def test_swapped_cameras_fail_naming_the_swap(capsys, dataset, tmp_path):
+    ds = swapped(dataset, tmp_path / "swapped")
+    code, out, err = run(capsys, "calibrate", ds, "--quiet")
+    assert code == 3 and out == ""
+    assert err.startswith("selfcal calibrate: error: the calibration FAILED 1 check(s)")
+    assert "180 deg from the declared direction" in err and "likely swapped" in err
+    assert "selfcal calibrate: fix: " in err
+    doc = json.loads((ds / "calibration.json").read_text())
+    assert doc["status"] == "failed" and "swapped" in doc["failures"][0]
+    assert read_calibration(ds).failed
+    # the report: the validation error says it too (measured 44.4 mm calibrated, 1.69 mm nominal)
+    code, out, err = run(capsys, "report", ds, "--quiet")
+    assert code == 3 and out.startswith("report: ")
+    rep = json.loads((ds / "report.json").read_text())
+    assert rep["status"] == "failed" and len(rep["failures"]) == 2
+    v = rep["validation"]["tool_tip_error_mm"]
+    assert v["calibrated"]["rms"] > 10 * v["nominal"]["rms"]
+    assert "worse than the nominal model" in rep["failures"][1]
+
+
+def test_a_model_worse_than_the_nominal_one_fails(dataset):
+    """The calibrated model replaced by the nominal chain with a 20 mm error in one link: it
+    reprojects worse than the nominal chain whose base and camera mount are fitted."""
+    out = calibrate_detailed(dataset, method="two-stage")
+    assert out.result.failures == ()
+    ds = Dataset.open(dataset)
+    robot = load_robot(ds.robot_source)
+    nominal = nominal_mcpc(robot).with_tool(robot.T_flange_cam)
+    obs = observations_of(ds, detect_dataset(ds).detections)
+    q = np.radians(ds.joints_deg)
+    params = out.model.params.copy()
+    params[2, 3] += 0.02  # lx2 + 20 mm
+    bad = dataclasses.replace(out, model=dataclasses.replace(out.model, params=params))
+    failures = assess_calibration(bad, obs, q, nominal)
+    assert len(failures) == 1 and "worse than the nominal model" in failures[0]
+    assert assess_calibration(out, obs, q, nominal) == ()
+
+
+@pytest.mark.parametrize(
+    ("t_mm", "failed"),
+    [((60, 0, 0), False), ((-60, 0, 0), True), ((40, 44, 0), False), ((-1, 60, 0), True)],
+)
+def test_the_baseline_direction_is_checked_against_plus_x(t_mm, failed):
+    T = make_pose(np.eye(3), np.array(t_mm, dtype=float) / 1000.0)
+    assert (rig_direction_failure(T) is not None) == failed
+    assert np.isnan(baseline_angle_deg(np.eye(4)))  # no baseline: no verdict
+
+
+def test_status_and_failures_must_agree(dataset, tmp_path):
+    ds = tmp_path / "cal"
+    shutil.copytree(dataset, ds)
+    cli.main(["calibrate", str(ds), "--quiet"])
+    doc = json.loads((ds / "calibration.json").read_text())
+    assert CalibrationResult.from_json(doc).failures == ()
+    with pytest.raises(CalibrationFileError, match="status"):
+        CalibrationResult.from_json({**doc, "status": "failed"})
+    old = {k: v for k, v in doc.items() if k not in ("status", "failures")}
+    assert CalibrationResult.from_json(old).failures == ()  # files from before: ok
