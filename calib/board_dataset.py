@@ -74,10 +74,13 @@ def detect_board(ds: Dataset, board: Board, camera: str) -> tuple[list[Features]
     return feats, [p.name for _, p in paths]
 
 
-def calibrate_board_dataset(root: str | Path) -> BoardCalibrationResult:
+def calibrate_board_dataset(
+    root: str | Path, *, allow_missing_frames: bool = False
+) -> BoardCalibrationResult:
     """Calibrate camera, hand-eye, board pose and kinematics from the board dataset in ``root``
     (module docstring). SI inside; the result is written by
-    :func:`calib.io.board_calibration.write_board_calibration`.
+    :func:`calib.io.board_calibration.write_board_calibration`. ``allow_missing_frames``: see
+    :meth:`calib.io.dataset.Dataset.check_complete`.
 
     Raises:
         DatasetError: missing or damaged dataset files, or a dataset of more than one camera.
@@ -86,6 +89,7 @@ def calibrate_board_dataset(root: str | Path) -> BoardCalibrationResult:
         calib.identify.IdentificationError, EstimationError: data that cannot determine it.
     """
     ds = Dataset.open(root)
+    incomplete = ds.check_complete(allow_missing=allow_missing_frames)
     if len(ds.info.cameras) != 1:
         raise DatasetError(
             f"{ds.root}: {len(ds.info.cameras)} cameras; the board calibration takes one",
@@ -115,7 +119,7 @@ def calibrate_board_dataset(root: str | Path) -> BoardCalibrationResult:
         used = res.used
         T_board_cam = inv_pose(res.board.T_cam_board[used])
         ref = identify(nominal, q[used], T_board_cam, hold=chain_param_names(nominal.joint_types))
-    notes = []
+    notes = list(incomplete)
     for w in caught:
         if issubclass(w.category, SelfCalWarning):
             notes.append(str(w.message))

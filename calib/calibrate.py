@@ -25,6 +25,7 @@ import numpy as np
 from calib.camera import LensCamera, Pinhole, camera_model, centered_principal_point
 from calib.camera.undistort import Undistorter
 from calib.errors import EstimationError, SelfCalWarning
+from calib.frame_checks import check_distinct_frames
 from calib.identify import identify
 from calib.io.calibration import CalibrationResult
 from calib.io.calibration_blocks import ScenePoints
@@ -179,16 +180,20 @@ def _check_scale_markers(ds: Dataset, dets: Detections) -> None:
             )
 
 
-def calibrate(root: str | Path, *, progress=None, method: str = "joint") -> CalibrationResult:
+def calibrate(
+    root: str | Path, *, progress=None, method: str = "joint", allow_missing_frames: bool = False
+) -> CalibrationResult:
     """The calibration of the dataset in ``root``: the result of :func:`calibrate_detailed`.
 
     Raises: as :func:`calibrate_detailed`.
     """
-    return calibrate_detailed(root, progress=progress, method=method).result
+    return calibrate_detailed(
+        root, progress=progress, method=method, allow_missing_frames=allow_missing_frames
+    ).result
 
 
 def calibrate_detailed(
-    root: str | Path, *, progress=None, method: str = "joint"
+    root: str | Path, *, progress=None, method: str = "joint", allow_missing_frames: bool = False
 ) -> CalibrationOutput:
     """Run the whole calibration on the dataset in ``root`` (see the module docstring) and keep
     the live estimates behind the result.
@@ -197,11 +202,13 @@ def calibrate_detailed(
     kinematics fitted to the poses) or ``"joint"`` (default: the two-stage result refined by the
     one-step maximum-likelihood adjustment of :mod:`calib.joint_refine`). The result holds the
     final method's estimate, ``method``, a summary of every method run under ``methods``, the
-    Cramer-Rao bounds (or why none), the images skipped, the warnings and the wall time.
+    Cramer-Rao bounds (or why none), the images skipped, the warnings and the wall time, and the
+    failures of :mod:`calib.quality` (the result is then marked failed). A planned frame without
+    a whole ``joints.csv`` row is an error, or with ``allow_missing_frames`` a warning naming it.
 
     Raises:
         ValueError: unknown ``method``.
-        DatasetError: missing or damaged dataset files.
+        DatasetError: missing or damaged dataset files, frames without joints rows (listed).
         CalibrationError / calib.selfcal.SelfCalibrationError / calib.identify.IdentificationError:
             data that cannot determine the answer (each message names the cause).
     """
@@ -209,6 +216,7 @@ def calibrate_detailed(
         raise ValueError(f"unknown calibration method {method!r}; use one of {METHODS}")
     t0 = time.perf_counter()
     ds = Dataset.open(root)
+    incomplete = ds.check_complete(allow_missing=allow_missing_frames)
     robot = load_robot(ds.robot_source)
     if ds.info.board is not None or ds.info.cameras != CAMERAS:
         raise CalibrationError(
@@ -225,6 +233,7 @@ def calibrate_detailed(
             "acquire more"
         )
     dets, skipped = detect_dataset(ds, progress=progress)
+    check_distinct_frames(ds.indices, ds.joints_deg, dets, ds.info.cameras, str(ds.root))
     _check_scale_markers(ds, dets)
     obs = observations_of(ds, dets)
     q = np.radians(ds.joints_deg)
@@ -258,7 +267,10 @@ def calibrate_detailed(
             f"needs at least {MIN_POSTURES}: acquire more postures that see the markers"
         )
     ident = identify(nominal, q[used], sc.T_world_cam[used, 0])
-    notes = [skipped_images_message(skipped, ds.info.dictionary)] if skipped else []
+    notes = [
+        *incomplete,
+        *([skipped_images_message(skipped, ds.info.dictionary)] if skipped else []),
+    ]
     result = two_stage_result(
         ds, robot, sc, ident, used, skipped_images=skipped, warnings=[*notes, *ident.warnings]
     )

@@ -123,7 +123,8 @@ def cmd_acquire(args: argparse.Namespace) -> int:
 
 
 def cmd_calibrate(args: argparse.Namespace) -> int:
-    calibrate_any(Path(args.dataset), quiet=args.quiet, method=args.method)
+    calibrate_any(Path(args.dataset), quiet=args.quiet, method=args.method,
+                  allow_missing_frames=args.allow_missing_frames)  # fmt: skip
     return 0
 
 
@@ -262,6 +263,12 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("dataset", help="dataset folder")
     sp.add_argument("--quiet", action="store_true")
     sp.add_argument("--method", choices=METHODS, default="joint", help=METHOD_HELP)
+    sp.add_argument(
+        "--allow-missing-frames",
+        action="store_true",
+        help="calibrate without the planned frames that have no whole joints.csv row (listed in "
+        "a warning); without it they are an error",
+    )
 
     sp = add("report", cmd_report, "calibration + truth -> DIR/report.json and tables")
     sp.add_argument("dataset", help="dataset folder")

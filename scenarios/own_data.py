@@ -36,14 +36,16 @@ def _say(quiet: bool, text: str) -> None:
         print(text, file=sys.stderr)
 
 
-def calibrate_any(root: Path, *, quiet: bool = False, method: str = "joint") -> None:
+def calibrate_any(
+    root: Path, *, quiet: bool = False, method: str = "joint", allow_missing_frames: bool = False
+) -> None:
     """Calibrate the dataset in ``root`` by its target and write ``root/calibration.json``:
     the field -> :func:`scenarios.pipeline.run_calibrate`; a board -> the board calibration."""
     info = Dataset.open(root).info
     if info.board is None:
-        run_calibrate(root, quiet=quiet, method=method)
+        run_calibrate(root, quiet=quiet, method=method, allow_missing_frames=allow_missing_frames)
         return
-    res = calibrate_board_dataset(root)
+    res = calibrate_board_dataset(root, allow_missing_frames=allow_missing_frames)
     write_board_calibration(Path(root) / "calibration.json", res)
     for text in res.warnings:
         _say(quiet, f"warning: {text}")

@@ -51,7 +51,9 @@ def run_acquire(s: Scenario, out: Path, *, resume: bool = False, quiet: bool = F
     return out
 
 
-def run_calibrate(root: Path, *, quiet: bool = False, method: str = "joint") -> CalibrationResult:
+def run_calibrate(
+    root: Path, *, quiet: bool = False, method: str = "joint", allow_missing_frames: bool = False
+) -> CalibrationResult:
     """Calibrate the dataset in ``root`` and write ``root/calibration.json``; returns the
     result. Its warnings are printed (unless ``quiet``).
 
@@ -59,7 +61,8 @@ def run_calibrate(root: Path, *, quiet: bool = False, method: str = "joint") -> 
         CalibrationFailedError: the calibration failed a check of :mod:`calib.quality`; it is
             written all the same, marked failed.
     """
-    res = calibrate(root, progress=Progress("detect", enabled=not quiet), method=method)
+    res = calibrate(root, progress=Progress("detect", enabled=not quiet), method=method,
+                    allow_missing_frames=allow_missing_frames)  # fmt: skip
     path = write_calibration(Path(root) / "calibration.json", res)
     i = res.intrinsics
     for text in res.warnings:

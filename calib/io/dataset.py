@@ -54,6 +54,7 @@ __all__ = [
     "read_dataset_info",
     "write_dataset_info",
     "read_gray",
+    "read_joints_csv",
     "CAMERAS",
     "FORMAT",
     "SCHEMA_VERSION",
@@ -400,9 +401,59 @@ class DatasetWriter:
 def _missing(path: Path, index: int) -> DatasetError:
     return DatasetError(
         f"frame {path.name} is missing or unreadable although joints.csv lists frame {index}; the "
-        f"dataset is damaged: re-acquire it (or remove frame {index}'s row from joints.csv to "
-        "calibrate without it)"
+        f"dataset is damaged: re-acquire it (or remove frame {index}'s row from joints.csv and "
+        "calibrate with --allow-missing-frames)"
     )
+
+
+def _frame_list(indices: tuple[int, ...] | list[int]) -> str:
+    """``frame 3`` / ``frames 3, 4, 7`` (at most 20 listed)."""
+    more = f" ... ({len(indices)} in all)" if len(indices) > 20 else ""
+    word = "frame" if len(indices) == 1 else "frames"
+    return f"{word} {', '.join(str(i) for i in indices[:20])}{more}"
+
+
+def read_joints_csv(path: Path, n_joints: int) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
+    """The frames of a dataset's ``joints.csv``: indices (m,), joint read-back (m, n) deg, and
+    the cut-off rows left out (a last line without its newline -- an interrupted write -- or a
+    row of fewer than ``n_joints`` values), one description each naming line and frame.
+
+    Raises:
+        DatasetError: a value that is not a number, NaN or inf, too many values, a frame index
+            twice (each naming the file, line and frame).
+    """
+    text = path.read_text() if path.is_file() else ""
+    lines = text.splitlines()
+    cut: list[str] = []
+    idx: list[int] = []
+    q: list[list[float]] = []
+    for no, line in enumerate(lines[1:], start=2):
+        cells = next(csv.reader([line]), [])
+        if not cells:
+            continue
+        where = f"{path}: line {no} (frame {cells[0]!r})"
+        last = no == len(lines) and not text.endswith("\n")
+        if last or len(cells) < n_joints + 1:
+            why = "no newline: an interrupted write" if last else f"{len(cells) - 1} values"
+            cut.append(f"line {no} (frame {cells[0]}: {why}; the robot has {n_joints} joints)")
+            continue
+        if len(cells) > n_joints + 1:
+            raise DatasetError(f"{where}: {len(cells) - 1} values, the robot has {n_joints} "
+                               "joints", fix="give index and one value (deg) per joint")  # fmt: skip
+        try:
+            i, vals = int(cells[0]), [float(v) for v in cells[1:]]
+        except ValueError as exc:
+            raise DatasetError(f"{where}: not a number ({exc})", fix=_FIX) from None
+        bad = [f"q{j + 1}_deg = {v}" for j, v in enumerate(vals) if not np.isfinite(v)]
+        if bad:
+            raise DatasetError(f"{where}: {', '.join(bad)}: joint readings must be finite",
+                               fix="re-read the joints of that frame or remove the frame's "
+                               "row and calibrate with --allow-missing-frames")  # fmt: skip
+        if i in idx:
+            raise DatasetError(f"{where}: frame {i} appears twice", fix=_FIX)
+        idx.append(i)
+        q.append(vals)
+    return np.array(idx, dtype=int), np.array(q, dtype=float).reshape(-1, n_joints), tuple(cut)
 
 
 def read_gray(path: Path, index: int) -> np.ndarray:
@@ -421,6 +472,10 @@ class Dataset:
     info: DatasetInfo
     indices: np.ndarray
     joints_deg: np.ndarray
+    missing: tuple[int, ...] = ()
+    """Planned frames without a whole ``joints.csv`` row (:meth:`check_complete`)."""
+    truncated: tuple[str, ...] = ()
+    """The cut-off rows of ``joints.csv``, one description each (line, frame, what is wrong)."""
 
     @classmethod
     def open(cls, root: str | Path) -> Dataset:
@@ -433,19 +488,36 @@ class Dataset:
                 "`selfcal acquire CONFIG --out DIR`)"
             )
         info = read_dataset_info(meta)
-        rows = _read_csv_rows(root / "joints.csv")
-        if not rows:
+        idx, q, cut = read_joints_csv(root / "joints.csv", info.planned_joints_deg.shape[1])
+        if not len(idx) and not cut:
             raise DatasetError(f"{root}: joints.csv holds no frames; acquire first")
-        try:
-            idx = np.array([int(r[0]) for r in rows])
-            q = np.array([[float(v) for v in r[1:]] for r in rows])
-        except (ValueError, IndexError) as exc:
-            raise DatasetError(f"{root / 'joints.csv'}: malformed row ({exc})") from exc
-        if len(set(idx.tolist())) != len(idx):
-            raise DatasetError(f"{root / 'joints.csv'}: duplicate frame indices")
-        if q.ndim != 2 or q.shape[1] != info.planned_joints_deg.shape[1]:
-            raise DatasetError(f"{root / 'joints.csv'}: rows do not match the robot's joint count")
-        return cls(root=root, info=info, indices=idx, joints_deg=q)
+        missing = sorted(set(range(len(info.planned_joints_deg))) - set(idx.tolist()))
+        return cls(root=root, info=info, indices=idx, joints_deg=q, missing=tuple(missing),
+                   truncated=cut)  # fmt: skip
+
+    def check_complete(self, *, allow_missing: bool = False) -> tuple[str, ...]:
+        """Every planned frame has its ``joints.csv`` row, whole: nothing, or (``allow_missing``)
+        the warning sentence naming the frames without one, which the calibration leaves out.
+
+        Raises:
+            DatasetError: frames without a row or with a cut-off row, listed by index (and line),
+                unless ``allow_missing``.
+        """
+        if not self.missing and not self.truncated:
+            return ()
+        path = self.root / "joints.csv"
+        text = f"{path}: {_frame_list(self.missing)} of the {len(self.info.planned_joints_deg)} "
+        text += "planned have no row (never acquired, or rows lost)"
+        if self.truncated:
+            text += "; cut-off rows: " + "; ".join(self.truncated)
+        if not allow_missing:
+            raise DatasetError(
+                text,
+                fix="complete the acquisition with `selfcal acquire CONFIG --out DIR --resume` "
+                "or restore the rows; to calibrate without these frames give "
+                "--allow-missing-frames",
+            )
+        return (text + ": calibrated without them (--allow-missing-frames)",)
 
     @property
     def robot_source(self) -> str | Path:

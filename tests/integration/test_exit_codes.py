@@ -77,7 +77,9 @@ def _keep_rows(src, dst, keep):
 
 def test_too_few_postures_exits_3(capsys, small_dataset, tmp_path):
     ds = _keep_rows(small_dataset, tmp_path / "few", lambda i: i < 3)
-    code, out, err = run(capsys, "calibrate", ds, "--quiet")
+    code, out, err = run(capsys, "calibrate", ds, "--quiet")  # rows removed: named (#15)
+    assert code == 2 and "frames 3, 4, 5 of the 6 planned have no row" in err
+    code, out, err = run(capsys, "calibrate", ds, "--quiet", "--allow-missing-frames")
     assert code == 3 and out == ""
     assert err.startswith("selfcal calibrate: error: ") and "at least 6" in err
     assert not (ds / "calibration.json").exists()
@@ -89,7 +91,10 @@ def test_degenerate_postures_exit_3(capsys, small_dataset, tmp_path):
     shutil.copytree(small_dataset, ds)
     lines = (ds / "joints.csv").read_text().splitlines()
     first = lines[1].split(",")[1:]
-    rows = [",".join([r.split(",")[0], *first]) for r in lines[1:]]
+    # the same posture, each row 0.001 deg apart in the last joint (equal rows would be named as
+    # copies, #15): the axes still meet in one point
+    rows = [",".join([r.split(",")[0], *first[:-1], f"{float(first[-1]) + k * 1e-3:.6f}"])
+            for k, r in enumerate(lines[1:])]  # fmt: skip
     (ds / "joints.csv").write_text("\n".join([lines[0], *rows]) + "\n")
     code, _, err = run(capsys, "calibrate", ds, "--quiet")
     assert code == 3 and "selfcal calibrate: error: " in err

@@ -14,6 +14,7 @@ import shutil
 
 import numpy as np
 import pytest
+from analytic_dataset import acquire_analytic, run
 
 from calib.calibrate import calibrate_detailed, detect_dataset, observations_of
 from calib.io.calibration import CalibrationFileError, CalibrationResult, read_calibration
@@ -23,29 +24,12 @@ from calib.quality import assess_calibration, baseline_angle_deg, rig_direction_
 from calib.robot_def import load_robot
 from calib.transforms import make_pose
 from scenarios import cli
-from scenarios.config import load_scenario
-from scenarios.pipeline import run_acquire
-
-
-def run(capsys, *argv):
-    code = cli.main([str(a) for a in argv])
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 @pytest.fixture(scope="module")
 def dataset(tmp_path_factory):
     """12 postures on the analytic path (detections, no rendering), 5 validation postures."""
-    out = tmp_path_factory.mktemp("quality") / "ds"
-    s = load_scenario(
-        overrides={
-            "noise": {"render": False},
-            "trajectory": {"poses": 12},
-            "validation": {"poses": 5},
-        }
-    )
-    run_acquire(s, out, quiet=True)
-    return out
+    return acquire_analytic(tmp_path_factory.mktemp("quality") / "ds", 12, 5)
 
 
 def swapped(src, dst):

@@ -1,0 +1,99 @@
+"""Frames that must not be calibrated together: copies and stale readings (issue #15).
+
+Two frames of one dataset are never alike: every posture is taken once, and the camera noise
+alone moves a corner by a tenth of a pixel between two images of one posture. So two frames whose
+marker corners agree (the same markers in every camera, corners within :data:`NEAR_PX`), or whose
+joint readings are equal to the last digit, are a copy of one frame, a camera that delivered an
+old image, or a joint read-back that did not change. Before this check a copied frame cost a
+full calibration and then failed with an error naming no frame (or, on the analytic path, was
+weighted twice without a word).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from calib.io.dataset import DatasetError, Detections
+
+__all__ = ["NEAR_PX", "alike_frames", "check_distinct_frames"]
+
+NEAR_PX = 0.05
+"""Largest RMS difference (px) of the corners of two frames that counts as the same image. Two
+postures of a 30-pose default-scenario dataset differ by at least 54 px RMS over the markers they
+both see (analytic path, scenarios/paper.toml with render = false); a copied frame by 0."""
+
+
+def _signature(dets: Detections, index: int, cameras: tuple[str, ...]):
+    """(the markers seen, by camera) and the corners (flat, px) of frame ``index``."""
+    keys = tuple((c, m) for c in cameras for m in sorted(dets.get((index, c), {})))
+    if not keys:
+        return keys, np.zeros(0)
+    return keys, np.concatenate([dets[(index, c)][m].reshape(-1) for c, m in keys])
+
+
+def alike_frames(
+    indices: np.ndarray, joints_deg: np.ndarray, dets: Detections, cameras: tuple[str, ...]
+) -> list[str]:
+    """One sentence per pair of frames (by index) that are alike: the same corners (RMS
+    difference at most :data:`NEAR_PX` px over the same markers in every camera) or the same
+    joint readings (deg, equal to the file's last digit)."""
+    out: list[str] = []
+    idx = [int(i) for i in indices]
+    q = np.asarray(joints_deg, dtype=float)
+    groups: dict[tuple, list[int]] = {}
+    corners = {}
+    for k, i in enumerate(idx):
+        keys, c = _signature(dets, i, cameras)
+        corners[k] = c
+        if keys:
+            groups.setdefault(keys, []).append(k)
+    same_images: set[tuple[int, int]] = set()
+    for members in groups.values():
+        if len(members) < 2:
+            continue
+        C = np.stack([corners[k] for k in members])
+        d = np.sqrt(np.mean((C[:, None, :] - C[None, :, :]) ** 2, axis=2))
+        for a, b in zip(*np.nonzero(np.triu(d <= NEAR_PX, k=1))):
+            ka, kb = members[a], members[b]
+            same_images.add((ka, kb))
+            dq = float(np.max(np.abs(q[ka] - q[kb])))
+            how = "identical" if d[a, b] == 0.0 else f"within {d[a, b]:.3f} px RMS"
+            if dq == 0.0:
+                why = f"and the same joint readings: frame {idx[kb]} is a copy of frame {idx[ka]}"
+            else:
+                why = (
+                    f"although their joint readings differ by up to {dq:.3g} deg: a camera "
+                    "delivered an old image, or an image file was copied"
+                )
+            out.append(f"frames {idx[ka]} and {idx[kb]} show the same corners ({how}) {why}")
+    for a in range(len(idx)):
+        for b in np.flatnonzero(np.all(q[a + 1 :] == q[a], axis=1)) + a + 1:
+            if (a, int(b)) not in same_images:
+                out.append(
+                    f"frames {idx[a]} and {idx[b]} have the same joint readings but different "
+                    "images: a joints.csv row was copied, or the joint read-back did not change "
+                    "while the robot moved"
+                )
+    return out
+
+
+def check_distinct_frames(
+    indices: np.ndarray,
+    joints_deg: np.ndarray,
+    dets: Detections,
+    cameras: tuple[str, ...],
+    where: str,
+) -> None:
+    """Raise a :class:`calib.io.dataset.DatasetError` naming every pair of alike frames
+    (:func:`alike_frames`) of the dataset ``where``; nothing when there is none."""
+    pairs = alike_frames(indices, joints_deg, dets, cameras)
+    if not pairs:
+        return
+    more = f"\n  ... ({len(pairs)} pairs in all)" if len(pairs) > 10 else ""
+    raise DatasetError(
+        f"{where}: {len(pairs)} pair(s) of frames are alike (each posture is taken once):"
+        + "".join(f"\n  - {p}" for p in pairs[:10])
+        + more,
+        fix="remove the copied frames' rows from joints.csv (and calibrate with "
+        "--allow-missing-frames), or re-acquire them",
+    )
