@@ -25,7 +25,7 @@ import numpy as np
 from calib.camera import LensCamera, Pinhole, camera_model, centered_principal_point
 from calib.camera.undistort import Undistorter
 from calib.errors import EstimationError, SelfCalWarning
-from calib.frame_checks import check_distinct_frames
+from calib.frame_checks import check_distinct_frames, check_read_back
 from calib.identify import identify
 from calib.io.calibration import CalibrationResult
 from calib.io.calibration_blocks import ScenePoints
@@ -73,8 +73,8 @@ class CalibrationFailedError(CalibrationError):
         """The error for the ``failures`` of the calibration written to ``where``."""
         lines = "".join(f"\n  - {f}" for f in failures)
         return cls(
-            f"the calibration FAILED {len(failures)} check(s); {where} is written but marked "
-            f'failed ("status": "failed"):{lines}',
+            f"the calibration FAILED {len(failures)} check(s) and is marked failed in {where} "
+            f'("status": "failed"):{lines}',
             fix="remove the cause named above and calibrate again; do not use this calibration",
         )
 
@@ -234,6 +234,9 @@ def calibrate_detailed(
         )
     dets, skipped = detect_dataset(ds, progress=progress)
     check_distinct_frames(ds.indices, ds.joints_deg, dets, ds.info.cameras, str(ds.root))
+    check_read_back(
+        ds.indices, ds.joints_deg, ds.info.planned_joints_deg, str(ds.root / "joints.csv")
+    )
     _check_scale_markers(ds, dets)
     obs = observations_of(ds, dets)
     q = np.radians(ds.joints_deg)

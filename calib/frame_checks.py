@@ -1,4 +1,4 @@
-"""Frames that must not be calibrated together: copies and stale readings (issue #15).
+"""Frames that must not be calibrated together, or whose joints do not belong to them (#15).
 
 Two frames of one dataset are never alike: every posture is taken once, and the camera noise
 alone moves a corner by a tenth of a pixel between two images of one posture. So two frames whose
@@ -7,6 +7,10 @@ joint readings are equal to the last digit, are a copy of one frame, a camera th
 old image, or a joint read-back that did not change. Before this check a copied frame cost a
 full calibration and then failed with an error naming no frame (or, on the analytic path, was
 weighted twice without a word).
+
+A frame's joint read-back rests within the encoder resolution of its planned posture; one far
+from it (:data:`READBACK_DEG`) is a joints row of another frame, joints in radians where
+``joints.csv`` declares degrees (before: an IdentificationError), or a robot that stopped short.
 """
 
 from __future__ import annotations
@@ -15,7 +19,7 @@ import numpy as np
 
 from calib.io.dataset import DatasetError, Detections
 
-__all__ = ["NEAR_PX", "alike_frames", "check_distinct_frames"]
+__all__ = ["NEAR_PX", "READBACK_DEG", "alike_frames", "check_distinct_frames", "check_read_back"]
 
 NEAR_PX = 0.05
 """Largest RMS difference (px) of the corners of two frames that counts as the same image. Two
@@ -96,4 +100,48 @@ def check_distinct_frames(
         + more,
         fix="remove the copied frames' rows from joints.csv (and calibrate with "
         "--allow-missing-frames), or re-acquire them",
+    )
+
+
+READBACK_DEG = 5.0
+"""Largest difference (deg, or mm for a prismatic joint) between a frame's joint read-back and
+its planned posture that is accepted. The read-back rests within the encoder resolution of the
+target (0.0072 deg for the ER-4u's base, tests/integration/test_hardware_e2e.py); an imported
+dataset plans exactly what it read."""
+
+
+def check_read_back(
+    indices: np.ndarray, joints_deg: np.ndarray, planned_deg: np.ndarray, where: str
+) -> None:
+    """Raise a :class:`calib.io.dataset.DatasetError` when frames read joints more than
+    :data:`READBACK_DEG` away from their planned postures (``indices`` into ``planned_deg``):
+    joints in radians where ``joints.csv`` declares degrees, rows or columns out of order, a
+    robot that did not reach the posture. Frames outside the plan are not checked."""
+    idx = np.asarray(indices, dtype=int)
+    ok = (idx >= 0) & (idx < len(planned_deg))
+    if not ok.any() or np.shape(planned_deg)[1:] != np.shape(joints_deg)[1:]:
+        return
+    q, plan = np.asarray(joints_deg, dtype=float)[ok], np.asarray(planned_deg, dtype=float)[idx[ok]]
+    dev = np.abs(q - plan).max(axis=1)
+    far = np.flatnonzero(dev > READBACK_DEG)
+    if not len(far):
+        return
+    k = int(far[np.argmax(dev[far])])
+    j = int(np.argmax(np.abs(q[k] - plan[k])))
+    example = (f"frame {idx[ok][k]}: q{j + 1}_deg = {q[k, j]:.4f} read, {plan[k, j]:.4f} "
+               "planned")  # fmt: skip
+    if len(far) == len(q) and np.abs(np.degrees(q) - plan).max() <= READBACK_DEG:
+        raise DatasetError(
+            f"{where}: the joint readings look like radians: every frame is within "
+            f"{READBACK_DEG:g} deg of its planned posture once read as radians, none as "
+            f"degrees ({example})",
+            fix="write joints.csv in degrees (its columns are qN_deg), e.g. re-import with "
+            "--joint-units rad",
+        )
+    frames = ", ".join(str(i) for i in idx[ok][far][:20]) + (" ..." if len(far) > 20 else "")
+    raise DatasetError(
+        f"{where}: {len(far)} frame(s) read joints more than {READBACK_DEG:g} deg from their "
+        f"planned postures (frames {frames}; worst {example}): the rows do not belong to "
+        "these frames (rows or columns out of order), or the robot did not reach the posture",
+        fix="restore joints.csv as acquired, or re-acquire those frames",
     )

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 from scenarios import cli
@@ -23,3 +24,12 @@ def acquire_analytic(out: Path, poses: int, validation: int) -> Path:
                  "validation": {"poses": validation}}  # fmt: skip
     run_acquire(load_scenario(overrides=overrides), out, quiet=True)
     return out
+
+
+def plan_same_postures(root: Path, rows: list[str]) -> None:
+    """Make ``root/dataset.json`` plan the postures of the joints.csv ``rows`` (``index,q...``
+    text, in frame order): a test that edits the read-back edits the plan with it, or the
+    calibration names the frames whose joints left their planned postures (#15)."""
+    doc = json.loads((root / "dataset.json").read_text())
+    doc["trajectory_joints_deg"] = [[float(v) for v in r.split(",")[1:]] for r in rows]
+    (root / "dataset.json").write_text(json.dumps(doc))

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from analytic_dataset import acquire_analytic, run
 
-from calib.calibrate import detect_dataset
+from calib.calibrate import calibrate, detect_dataset
 from calib.frame_checks import NEAR_PX, alike_frames
 from calib.io.dataset import Dataset, DatasetError
 
@@ -159,3 +159,33 @@ def test_distinct_frames_are_not_named(dataset):
     dets = detect_dataset(ds).detections
     assert alike_frames(ds.indices, ds.joints_deg, dets, ds.info.cameras) == []
     assert NEAR_PX < 0.1  # far below the 54 px that separate two postures (see NEAR_PX)
+
+
+def test_joints_in_radians_where_degrees_are_declared(capsys, dataset, tmp_path):
+    """Before: an IdentificationError that blamed the data, not the unit."""
+
+    def to_radians(text):
+        lines = text.splitlines()
+        rows = [r.split(",") for r in lines[1:]]
+        rows = [[c[0], *(f"{np.radians(float(v)):.9f}" for v in c[1:])] for c in rows]
+        return "\n".join([lines[0], *(",".join(c) for c in rows)]) + "\n"
+
+    ds = edited(dataset, tmp_path / "rad", joints=to_radians)
+    code, out, err = run(capsys, "calibrate", ds, "--quiet")
+    assert code == 2 and out == ""
+    assert "joints.csv: the joint readings look like radians" in err
+    assert "selfcal calibrate: fix: write joints.csv in degrees" in err
+
+
+def test_joints_rows_of_other_frames_are_named(dataset, tmp_path):
+    def swap_rows(text):  # frames 2 and 6 exchange their joints (the indices stay)
+        lines = text.splitlines()
+        a, b = lines[3].split(","), lines[7].split(",")
+        lines[3], lines[7] = ",".join([a[0], *b[1:]]), ",".join([b[0], *a[1:]])
+        return "\n".join(lines) + "\n"
+
+    ds = edited(dataset, tmp_path / "swap", joints=swap_rows)
+    with pytest.raises(DatasetError, match=r"2 frame\(s\) read joints more than 5 deg from their "
+                       r"planned postures \(frames 2, 6; worst frame [26]: q\d_deg = ") as exc:  # fmt: skip
+        calibrate(ds)
+    assert "rows or columns out of order" in str(exc.value)

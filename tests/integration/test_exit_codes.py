@@ -11,6 +11,7 @@ import json
 import shutil
 
 import pytest
+from analytic_dataset import plan_same_postures
 
 from calib.errors import EstimationError, HardwareError, InputError, SelfCalError
 from scenarios import cli
@@ -96,6 +97,7 @@ def test_degenerate_postures_exit_3(capsys, small_dataset, tmp_path):
     rows = [",".join([r.split(",")[0], *first[:-1], f"{float(first[-1]) + k * 1e-3:.6f}"])
             for k, r in enumerate(lines[1:])]  # fmt: skip
     (ds / "joints.csv").write_text("\n".join([lines[0], *rows]) + "\n")
+    plan_same_postures(ds, rows)
     code, _, err = run(capsys, "calibrate", ds, "--quiet")
     assert code == 3 and "selfcal calibrate: error: " in err
 

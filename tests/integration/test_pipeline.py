@@ -16,6 +16,7 @@ import shutil
 
 import numpy as np
 import pytest
+from analytic_dataset import plan_same_postures
 
 from calib.calibrate import CalibrationError, NoMarkersWarning, calibrate, detect_dataset
 from calib.io.calibration import read_calibration
@@ -213,5 +214,6 @@ def test_degenerate_trajectory(small_analytic, tmp_path):
     rows = [",".join([r.split(",")[0], *first[:-1], f"{float(first[-1]) + k * 1e-3:.6f}"])
             for k, r in enumerate(lines[1:])]  # fmt: skip
     (ds / "joints.csv").write_text("\n".join([lines[0], *rows]) + "\n")
+    plan_same_postures(ds, rows)
     with pytest.raises(DegenerateTrajectoryError, match="one point"):
         calibrate(ds)
