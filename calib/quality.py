@@ -129,8 +129,9 @@ def nominal_fit_failure(calibrated_px: float, nominal_px: float) -> str | None:
         f"({calibrated_px:.3f} px RMS against {nominal_px:.3f} px with the nominal chain, its "
         "base and camera mount fitted): the estimation went wrong; likely causes: joint "
         "readings in another unit or order than joints.csv declares, frames whose images and "
-        "joints do not belong together, a robot file that is not this robot, or too few and "
-        "too similar postures"
+        "joints do not belong together, a robot file that is not this robot, too few and too "
+        "similar postures, or the two-stage method where it misses (use the default --method "
+        "joint)"
     )
 
 

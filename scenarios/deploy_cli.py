@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from calib.calibrate import CalibrationFailedError
 from calib.compensate import solve_compensated, solve_compensated_pose
 from calib.export import BASE_FRAME, TOOL_FRAME, DeployError, deploy, deploy_chain
 from calib.export_camera import to_camera_info_yaml, to_opencv_yaml
@@ -30,7 +31,7 @@ from calib.ik import UnreachableError
 from calib.ik_numeric import ToolTarget
 from calib.io.atomic import write_text_atomic
 from calib.io.board_calibration import calibration_kind, read_board_calibration
-from calib.io.calibration import read_calibration
+from calib.io.calibration import CalibrationResult, read_calibration
 from calib.robot_def import load_robot
 from scenarios.cli_common import CliError
 from scenarios.cli_pose import add_pose_args, parse_pose_args
@@ -90,9 +91,16 @@ def load_calibration(path: str):
             src = p.parent / ref if ref.suffix in (".toml", ".urdf") else cal.robot_model
             return deploy_chain(cal.model, load_robot(src), intrinsics=cal.cameras[0],
                                 source=str(p))  # fmt: skip
-        return deploy(read_calibration(p), source=str(p))
+        return deploy(_usable(read_calibration(p), p), source=str(p))
     except DeployError as exc:
         raise CliError(f"{p}: {exc}") from None
+
+
+def _usable(cal: CalibrationResult, path: Path) -> CalibrationResult:
+    """``cal`` read from ``path``, unless it is marked failed (#15): then its failures, exit 3."""
+    if cal.failed:
+        raise CalibrationFailedError.of(cal.failures, path)
+    return cal
 
 
 def cmd_export(args: argparse.Namespace) -> int:
@@ -140,7 +148,7 @@ def _export_camera(path: str, fmt: str, out: Path, camera_name: str) -> int:
     if calibration_kind(p) == "board":
         cam = read_board_calibration(p).cameras[0]
     else:
-        cam = read_calibration(p).intrinsics.camera()
+        cam = _usable(read_calibration(p), p).intrinsics.camera()
     text = to_opencv_yaml(cam) if fmt == "opencv" else to_camera_info_yaml(cam, camera_name)
     out.parent.mkdir(parents=True, exist_ok=True)
     write_text_atomic(out, text)
