@@ -46,12 +46,28 @@ class Evaluation:
     dataset: str
     calibration: str
 
+    @property
+    def failures(self) -> tuple[str, ...]:
+        """The held-out check failed: the calibrated model predicts worse than the nominal one
+        (one sentence), else empty (#15)."""
+        cal, nom = self.rms.get("calibrated", np.nan), self.rms.get("nominal", np.nan)
+        if not cal > nom:
+            return ()
+        return (
+            f"the calibrated model predicts the held-out images of {self.dataset} worse than the "
+            f"nominal model ({cal:.3f} px RMS against {nom:.3f} px): the calibration is wrong "
+            "for this robot and camera (see its failures and warnings), or the two datasets do "
+            "not show the same robot, camera and target",
+        )
+
     def to_json(self) -> dict:
         return {
             "format": EVAL_FORMAT,
             SCHEMA_KEY: 1,
             "calibration": self.calibration,
             "dataset": self.dataset,
+            "status": "failed" if self.failures else "ok",
+            "failures": list(self.failures),
             "reprojection_rms_px": dict(self.rms),
             "images": list(self.images),
             "skipped_images": list(self.skipped),

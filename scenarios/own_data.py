@@ -13,6 +13,7 @@ import sys
 from pathlib import Path
 
 from calib.board_dataset import calibrate_board_dataset
+from calib.calibrate import CalibrationFailedError
 from calib.camera import MODELS, opencv_values
 from calib.evaluate import evaluate_board, write_evaluation
 from calib.evaluate_field import evaluate_field
@@ -88,6 +89,8 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else Path(args.dataset) / "evaluation.json"
     write_evaluation(out, ev)
     print(ev.line())
+    if ev.failures:
+        raise CalibrationFailedError.of(ev.failures, out)
     return 0
 
 

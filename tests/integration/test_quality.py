@@ -17,6 +17,7 @@ import pytest
 from analytic_dataset import acquire_analytic, run
 
 from calib.calibrate import calibrate_detailed, detect_dataset, observations_of
+from calib.evaluate import Evaluation
 from calib.io.calibration import CalibrationFileError, CalibrationResult, read_calibration
 from calib.io.dataset import Dataset
 from calib.mcpc import nominal_mcpc
@@ -137,3 +138,22 @@ def test_the_two_stage_method_worse_than_nominal_on_the_kr6_fails(capsys, tmp_pa
     rep = json.loads((tmp_path / "kr6" / "report.json").read_text())
     v = rep["validation"]["tool_tip_error_mm"]
     assert rep["status"] == "failed" and v["calibrated"]["rms"] > v["nominal"]["rms"]
+    # held out: another trajectory of the same robot and field, as a user would check it
+    # (measured: 13.85 px RMS calibrated against 7.32 px nominal)
+    cfg.write_text(cfg.read_text() + "[trajectory]\nseed = 2\n")
+    assert run(capsys, "acquire", cfg, "--out", tmp_path / "held", "--quiet")[0] == 0
+    code, out, err = run(capsys, "evaluate", tmp_path / "kr6", tmp_path / "held")
+    assert code == 3 and out.startswith("held-out reprojection RMS")
+    assert "predicts the held-out images of" in err and "worse than the nominal model" in err
+    ev = json.loads((tmp_path / "held" / "evaluation.json").read_text())
+    assert ev["status"] == "failed"
+    assert ev["reprojection_rms_px"]["calibrated"] > ev["reprojection_rms_px"]["nominal"]
+
+
+def test_a_held_out_check_worse_than_nominal_fails():
+    ev = Evaluation({"nominal": 1.5, "calibrated": 2.5}, (), (), "DATASET2", "CAL")
+    assert (
+        ev.to_json()["status"] == "failed" and "DATASET2 worse than the nominal" in ev.failures[0]
+    )
+    ok = Evaluation({"nominal": 2.5, "calibrated": 0.5}, (), (), "DATASET2", "CAL")
+    assert ok.failures == () and ok.to_json()["status"] == "ok"
