@@ -364,6 +364,8 @@ def _table_kinematics(data: dict, path: Path) -> _Kinematics:
             lo, hi = (float(x) for x in jt["range_deg" if kind == "revolute" else "range_mm"])
         except KeyError as exc:
             raise RobotDefinitionError(f"{where}: missing key {exc}") from exc
+        except RobotDefinitionError:
+            raise  # already names file, joint and key, with its fix (not wrapped again, #15)
         except (TypeError, ValueError) as exc:
             raise RobotDefinitionError(f"{where}: bad value ({exc})") from exc
         if not lo < hi:

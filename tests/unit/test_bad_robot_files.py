@@ -40,6 +40,9 @@ def test_non_finite_values_name_file_and_key(tmp_path, pattern, repl, key):
     with pytest.raises(RobotDefinitionError) as err:
         load_robot(p)
     assert str(p) in str(err.value) and key in str(err.value)
+    # one message, said once (before, #15: "joint 1: bad value (FILE: joint 1: 'a_mm' must be ...
+    # (fix: ...))" with the fix inside the message)
+    assert str(err.value.message).count(str(p)) == 1 and "bad value" not in str(err.value)
 
 
 def test_an_arm_of_zero_length_blames_the_robot_file(tmp_path):
