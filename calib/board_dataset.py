@@ -23,6 +23,7 @@ import numpy as np
 from calib.board_robot import calibrate_robot_with_board
 from calib.errors import EstimationError, SelfCalWarning
 from calib.estimation.joint_report import encoder_sigma
+from calib.frame_checks import check_distinct_frames
 from calib.identify import identify
 from calib.io.board_calibration import BoardCalibrationResult
 from calib.io.dataset import Dataset, DatasetError, read_gray
@@ -83,7 +84,8 @@ def calibrate_board_dataset(
     :meth:`calib.io.dataset.Dataset.check_complete`.
 
     Raises:
-        DatasetError: missing or damaged dataset files, or a dataset of more than one camera.
+        DatasetError: missing or damaged dataset files, a dataset of more than one camera, or
+            frames that are copies of each other (:mod:`calib.frame_checks`).
         calib.board_calibrate.BoardInputError / BoardMismatchError: too few images show the board,
             or its declared geometry does not match the detections.
         calib.identify.IdentificationError, EstimationError: data that cannot determine it.
@@ -99,6 +101,8 @@ def calibrate_board_dataset(
     robot = load_robot(ds.robot_source)
     board = dataset_board(ds)
     feats, names = detect_board(ds, board, cam)
+    seen = {(int(i), cam): dict(zip(f.ids.tolist(), f.uv)) for i, f in zip(ds.indices, feats)}
+    check_distinct_frames(ds.indices, ds.joints_deg, seen, (cam,), str(ds.root))
     nominal = nominal_mcpc(robot).with_tool(robot.T_flange_cam)
     q = np.radians(ds.joints_deg)
     W, H = ds.info.resolution_of(cam)

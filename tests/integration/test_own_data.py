@@ -262,3 +262,16 @@ def test_a_pinhole_calibration_of_the_same_lens_is_clearly_worse(lab, capsys):
     rms = json.loads((root / "pin2" / "evaluation.json").read_text())["reprojection_rms_px"]
     # measured 2.04 px, 17x the lens model's 0.121 px (test_import_calibrate_evaluate)
     assert rms["calibrated"] > 3 * 0.4
+
+
+def test_a_stale_image_is_named_before_the_board_calibration(lab, tmp_path, capsys):
+    """A camera that delivered frame 3's image again at frame 11 (#15): named, exit 2."""
+    root, (ci, cj), _ = lab
+    stale = tmp_path / "stale"
+    shutil.copytree(ci, stale)
+    shutil.copy(stale / "img_003.png", stale / "img_011.png")
+    cams = [CameraImages.parse(f"cam0={stale}/*.png")]
+    import_dataset("kr6-r900", cams, cj, "rad", root / "board.toml", tmp_path / "ds")
+    assert main(["calibrate", str(tmp_path / "ds"), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "frames 3 and 11 show the same corners (identical) although their joint readings" in err
