@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import re
 import shutil
 
 import numpy as np
@@ -72,7 +73,7 @@ def test_swapped_cameras_fail_naming_the_swap(capsys, dataset, tmp_path):
     rep = json.loads((ds / "report.json").read_text())
     assert rep["status"] == "failed" and len(rep["failures"]) == 2
     v = rep["validation"]["tool_tip_error_mm"]
-    assert v["calibrated"]["rms"] > 10 * v["nominal"]["rms"]
+    assert 20 < v["calibrated"]["rms"] < 60 and v["nominal"]["rms"] < 3  # about one baseline
     assert "worse than the nominal model" in rep["failures"][1]
 
 
@@ -135,9 +136,11 @@ def test_the_two_stage_method_worse_than_nominal_on_the_kr6_fails(capsys, tmp_pa
     code, _, err = run(capsys, "run", cfg, "--out", tmp_path / "kr6", "--quiet",
                        "--method", "two-stage")  # fmt: skip
     assert code == 3 and "reprojects the calibration images worse than the nominal model" in err
+    px = re.search(r"\(([\d.]+) px RMS against ([\d.]+) px with the nominal chain", err)
+    assert 7.5 < float(px[1]) < 15 and 4 < float(px[2]) < 9.5, px[0]
     rep = json.loads((tmp_path / "kr6" / "report.json").read_text())
     v = rep["validation"]["tool_tip_error_mm"]
-    assert rep["status"] == "failed" and v["calibrated"]["rms"] > v["nominal"]["rms"]
+    assert rep["status"] == "failed" and 3 < v["calibrated"]["rms"] < 12 and v["nominal"]["rms"] < 3
     # held out: another trajectory of the same robot and field, as a user would check it
     # (measured: 13.85 px RMS calibrated against 7.32 px nominal)
     cfg.write_text(cfg.read_text() + "[trajectory]\nseed = 2\n")
