@@ -218,6 +218,12 @@ def calibrate_detailed(
     ds = Dataset.open(root)
     incomplete = ds.check_complete(allow_missing=allow_missing_frames)
     robot = load_robot(ds.robot_source)
+    if ds.info.board is None and ds.info.cameras == CAMERAS[::-1]:
+        raise DatasetError(
+            f"{ds.root / 'dataset.json'}: cameras are listed as {list(ds.info.cameras)}; the "
+            "first is the rig's reference and must be the left one",
+            fix="list the cameras as left, right in dataset.json (each with its own resolution)",
+        )
     if ds.info.board is not None or ds.info.cameras != CAMERAS:
         raise CalibrationError(
             f"{root}: the self-calibration takes the stereo pair (left, right) and the ArUco "

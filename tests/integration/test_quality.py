@@ -160,3 +160,15 @@ def test_a_held_out_check_worse_than_nominal_fails():
     )
     ok = Evaluation({"nominal": 2.5, "calibrated": 0.5}, (), (), "DATASET2", "CAL")
     assert ok.failures == () and ok.to_json()["status"] == "ok"
+
+
+def test_cameras_listed_right_first_are_named(capsys, dataset, tmp_path):
+    """Before: `the self-calibration takes the stereo pair` with the fix of a board dataset."""
+    ds = tmp_path / "order"
+    shutil.copytree(dataset, ds)
+    doc = json.loads((ds / "dataset.json").read_text())
+    doc["cameras"] = doc["cameras"][::-1]
+    (ds / "dataset.json").write_text(json.dumps(doc))
+    code, out, err = run(capsys, "calibrate", ds, "--quiet")
+    assert code == 2 and "cameras are listed as ['right', 'left']" in err
+    assert "fix: list the cameras as left, right" in err
