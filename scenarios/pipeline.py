@@ -52,14 +52,20 @@ def run_acquire(s: Scenario, out: Path, *, resume: bool = False, quiet: bool = F
 
 
 def run_calibrate(
-    root: Path, *, quiet: bool = False, method: str = "joint", allow_missing_frames: bool = False
+    root: Path,
+    *,
+    quiet: bool = False,
+    method: str = "joint",
+    allow_missing_frames: bool = False,
+    raise_failed: bool = True,
 ) -> CalibrationResult:
     """Calibrate the dataset in ``root`` and write ``root/calibration.json``; returns the
-    result. Its warnings are printed (unless ``quiet``).
+    result. Its warnings are printed (unless ``quiet``). ``raise_failed=False``: return a
+    calibration marked failed as well (studies, which measure it against the truth).
 
     Raises:
         CalibrationFailedError: the calibration failed a check of :mod:`calib.quality`; it is
-            written all the same, marked failed.
+            written all the same, marked failed (unless ``raise_failed`` is False).
     """
     res = calibrate(root, progress=Progress("detect", enabled=not quiet), method=method,
                     allow_missing_frames=allow_missing_frames)  # fmt: skip
@@ -74,7 +80,7 @@ def run_calibrate(
         f"reprojection RMS {res.reprojection_rms_px:.3f} px, identification rank "
         f"{res.identification.rank}/{res.identification.n_params}",
     )
-    if res.failed:
+    if res.failed and raise_failed:
         raise CalibrationFailedError.of(res.failures, path)
     return res
 

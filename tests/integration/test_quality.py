@@ -17,7 +17,12 @@ import numpy as np
 import pytest
 from analytic_dataset import acquire_analytic, run
 
-from calib.calibrate import calibrate_detailed, detect_dataset, observations_of
+from calib.calibrate import (
+    CalibrationFailedError,
+    calibrate_detailed,
+    detect_dataset,
+    observations_of,
+)
 from calib.evaluate import Evaluation
 from calib.io.calibration import CalibrationFileError, CalibrationResult, read_calibration
 from calib.io.dataset import Dataset
@@ -26,6 +31,7 @@ from calib.quality import assess_calibration, baseline_angle_deg, rig_direction_
 from calib.robot_def import load_robot
 from calib.transforms import make_pose
 from scenarios import cli
+from scenarios.pipeline import run_calibrate
 
 
 @pytest.fixture(scope="module")
@@ -172,3 +178,13 @@ def test_cameras_listed_right_first_are_named(capsys, dataset, tmp_path):
     code, out, err = run(capsys, "calibrate", ds, "--quiet")
     assert code == 2 and "cameras are listed as ['right', 'left']" in err
     assert "fix: list the cameras as left, right" in err
+
+
+def test_studies_keep_a_failed_calibration_to_measure_it(dataset, tmp_path):
+    """Studies and Monte Carlo measure every draw against the truth: run_calibrate returns the
+    calibration marked failed instead of raising (raise_failed=False)."""
+    ds = swapped(dataset, tmp_path / "swapped")
+    res = run_calibrate(ds, quiet=True, raise_failed=False)
+    assert res.failed and read_calibration(ds).failures == res.failures
+    with pytest.raises(CalibrationFailedError, match="likely swapped"):
+        run_calibrate(ds, quiet=True)
