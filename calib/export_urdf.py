@@ -31,7 +31,9 @@ def _fixed(root: ET.Element, name: str, parent: str, child: str, T: np.ndarray) 
     _origin(j, T)
 
 
-def to_urdf(dep: DeployedModel, *, effort: float = 10.0, velocity: float = 1.0) -> str:
+def to_urdf(
+    dep: DeployedModel, *, effort: float = 10.0, velocity: float = 1.0, calibrated: bool = True
+) -> str:
     """A URDF of the calibrated chain (kinematics only: no visuals, no inertias).
 
     ``base_link`` is the base frame; joint ``k`` (named like the robot's joint, e.g. ``shoulder``)
@@ -42,13 +44,14 @@ def to_urdf(dep: DeployedModel, *, effort: float = 10.0, velocity: float = 1.0) 
     OpenCV/ROS optical convention: z forward, x right, y down; on the last link) and, when the
     calibration has the rig, ``cam_right`` (on ``cam_left``). ``effort`` (N m) and ``velocity``
     (rad/s) are placeholders the URDF format requires; the controller enforces the real ones.
+    ``calibrated=False``: ``dep`` is the nominal robot (named so, robot name without suffix).
     """
     m = dep.model
     n = m.n
-    root = ET.Element("robot", name=f"{dep.robot_name}_calibrated")
+    root = ET.Element("robot", name=dep.robot_name + ("_calibrated" if calibrated else ""))
     root.append(
         ET.Comment(
-            f" Calibrated {dep.robot_name} (scorbot-selfcal calib.export; source: "
+            f" {'Calibrated' if calibrated else 'Nominal'} {dep.robot_name} (scorbot-selfcal calib.export; source: "
             f"{dep.source or 'n/a'}). base_link = {BASE_FRAME}. tool_tip = {TOOL_FRAME}. "
             "Metres and radians. "
         )

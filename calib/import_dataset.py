@@ -20,7 +20,7 @@ import glob
 import os
 import shutil
 import warnings
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -134,9 +134,13 @@ def _robot(
     return load_robot(out / rel), rel
 
 
-def _sizes(cam: CameraImages, files: Sequence[Path]) -> tuple[tuple[int, int], list[np.ndarray]]:
-    """The images (gray) and their one size; two sizes are an error naming both files."""
-    imgs, first = [], None
+def _detect(
+    cam: CameraImages, files: Sequence[Path], target: Board
+) -> tuple[tuple[int, int], list[Features]]:
+    """The target's features in every image (read gray, one at a time, so memory does not grow
+    with the number of images) and the camera's one image size; two sizes are an error naming
+    both files."""
+    feats, first = [], None
     for f in files:
         img = cv2.imread(str(f), cv2.IMREAD_GRAYSCALE)
         if img is None:
@@ -151,9 +155,9 @@ def _sizes(cam: CameraImages, files: Sequence[Path]) -> tuple[tuple[int, int], l
                 fix="give every image of one camera at the camera's native size (or give the "
                 "other size as another camera)",
             )
-        imgs.append(img)
+        feats.append(target.detect(img))
     assert first is not None
-    return first[1], imgs
+    return first[1], feats
 
 
 def import_dataset(
@@ -170,12 +174,16 @@ def import_dataset(
     trust_units: bool = False,
     camera_model: str = DEFAULT_MODEL,
     free: Sequence[str] | None = None,
+    source: dict | None = None,
+    labels: Mapping[Path, str] | None = None,
 ) -> DatasetInfo:
     """Check the inputs and write the dataset folder ``out`` (module docstring); returns its
     ``dataset.json`` content. ``trust_units``: skip the radians-looking check of degrees.
     ``camera_model`` (``"pinhole"``, ``"opencv"``, ``"fisheye"``) and ``free`` (OpenCV names;
     default :data:`DEFAULT_FREE` of the model): what the board calibration estimates, recorded
-    in every camera entry of dataset.json.
+    in every camera entry of dataset.json. ``source`` (default: the joints file, its units, the
+    target and the image patterns) is recorded as dataset.json's ``scenario.import``; ``labels``
+    names an image file's origin in ``sources.csv`` (default: its resolved path).
 
     Raises:
         ImportError_, calib.io.tracker.TrackerFileError, calib.board_calibrate
@@ -206,8 +214,7 @@ def import_dataset(
                            fix="convert the images to one format (e.g. PNG)")  # fmt: skip
     sizes, feats = {}, {}
     for cam in images:
-        sizes[cam.name], imgs = _sizes(cam, files[cam.name])
-        feats[cam.name] = [tgt.detect(img) for img in imgs]
+        sizes[cam.name], feats[cam.name] = _detect(cam, files[cam.name], tgt)
     seen = np.zeros(len(rows.q), bool)
     for cam in images:
         seen |= [len(f) >= tgt.min_features for f in feats[cam.name]]
@@ -235,7 +242,8 @@ def import_dataset(
                     dst.symlink_to(src)
                 else:
                     shutil.copy2(src, dst)
-                w.writerow([k, cam.name, str(src)])
+                label = labels.get(files[cam.name][r]) if labels else None
+                w.writerow([k, cam.name, label or str(src)])
     q_deg = np.degrees(rows.q[keep])
     with open(out / "joints.csv", "w", newline="") as fh:
         w = csv.writer(fh)
@@ -253,8 +261,8 @@ def import_dataset(
         planned_joints_deg=q_deg,
         validation_joints_deg=np.zeros((0,)),
         backend="import",
-        scenario={"import": {"joints": str(joints), "joint_units": joint_units,
-                             "target": str(target), "images": {c.name: c.pattern for c in images}}},
+        scenario={"import": source or {"joints": str(joints), "joint_units": joint_units,
+                  "target": str(target), "images": {c.name: c.pattern for c in images}}},
         cameras=tuple(names),
         resolutions=None if len(set(res)) == 1 else res,
         board=target_document(tgt),

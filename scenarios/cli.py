@@ -35,6 +35,7 @@ from scenarios.paper_repro import register as register_paper
 from scenarios.pipeline import report_summary, run_acquire, run_all, run_report
 from scenarios.rerun_log import record_run
 from scenarios.rerun_log import register as register_record
+from scenarios.ros_cli import export_run
 from scenarios.studies import register as register_study
 from scenarios.threads import DEFAULT_THREADS, THREADS_ENV, limit_threads
 from scenarios.tracker_cli import register as register_tracker
@@ -142,6 +143,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else Path("runs") / Path(s.source).stem
     # A run continues the dataset already in --out when it was taken with the same scenario.
     run_all(s, out, resume=True, quiet=args.quiet, method=args.method)
+    if args.bag:
+        export_run(out, args.bag, args.quiet)
     if args.rerun:
         path = record_run(out, Path(args.rerun), spawn=args.spawn)
         print(f"Rerun recording: {path} (open it with `rerun {path}`)")
@@ -253,6 +256,8 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--method", choices=METHODS, default="joint", help=METHOD_HELP)
     sp.add_argument("--rerun", default=None, metavar="FILE.rrd", help="record the run for Rerun")
     sp.add_argument("--spawn", action="store_true", help="with --rerun: also open the viewer")
+    sp.add_argument("--bag", default=None, metavar="OUT",
+                    help="also write the dataset as a ROS bag (docs/ros.md)")  # fmt: skip
 
     sp = add(
         "calibrate",

@@ -35,6 +35,8 @@ from calib.io.calibration import CalibrationResult, read_calibration
 from calib.robot_def import load_robot
 from scenarios.cli_common import CliError
 from scenarios.cli_pose import add_pose_args, parse_pose_args
+from scenarios.ros_cli import BAG_FORMATS, cmd_export_bag
+from scenarios.ros_cli import add_export_args as add_bag_export_args
 from sim.export_mjcf import calibrated_mjcf
 
 __all__ = ["register", "cmd_export", "cmd_ik_calibrated", "load_calibration", "FORMATS"]
@@ -105,8 +107,14 @@ def _usable(cal: CalibrationResult, path: Path) -> CalibrationResult:
 
 def cmd_export(args: argparse.Namespace) -> int:
     """``selfcal export``: write the calibrated model in the chosen format."""
+    if args.bag:
+        return cmd_export_bag(args)
+    if not args.out:
+        raise CliError("export needs --out FILE (or --bag OUT to write a dataset as a ROS bag)")
     out = Path(args.out)
     fmt = args.format
+    if fmt in BAG_FORMATS:
+        raise CliError(f"--format {fmt} writes a ROS bag: give --bag OUT instead of --out")
     if fmt is None:
         fmt = next((f for f, ext in FORMATS.items() if out.suffix == ext), None)
         if fmt is None:
@@ -229,15 +237,16 @@ def register(subparsers) -> None:
     )
     sp.add_argument(
         "--format",
-        choices=tuple(FORMATS),
+        choices=tuple(FORMATS) + BAG_FORMATS,
         default=None,
         help="mjcf | urdf | toml | opencv | camera_info (default: from the --out suffix "
-        ".xml / .urdf / .toml / .yml / .yaml)",
+        ".xml / .urdf / .toml / .yml / .yaml); with --bag: ros1 | ros2 | mcap",
     )
     sp.add_argument(
         "--camera-name", default="camera", help="camera_name of a camera_info file (default camera)"
     )
-    sp.add_argument("--out", required=True, help="output file")
+    sp.add_argument("--out", default=None, help="output file")
+    add_bag_export_args(sp)
     sp.set_defaults(func=cmd_export)
 
     ik = subparsers.choices.get("ik")

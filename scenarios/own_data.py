@@ -27,7 +27,10 @@ from calib.io.board_calibration import (
 from calib.io.calibration import read_calibration
 from calib.io.dataset import Dataset
 from calib.io.tracker import JOINT_UNITS
+from scenarios.cli_common import CliError
 from scenarios.pipeline import run_calibrate
+from scenarios.ros_cli import add_import_args as add_bag_import_args
+from scenarios.ros_cli import cmd_import_bag
 
 __all__ = ["calibrate_any", "register"]
 
@@ -67,11 +70,15 @@ def summary(res: BoardCalibrationResult) -> str:
 
 
 def cmd_import(args: argparse.Namespace) -> int:
+    if args.bag:
+        return cmd_import_bag(args)
+    if not args.images or not args.joints or not args.joint_units:
+        raise CliError("import needs --images, --joints and --joint-units (or --bag)")
     cams = [CameraImages.parse(s, default_name=f"cam{k}") for k, s in enumerate(args.images)]
     info = import_dataset(
         args.robot, cams, args.joints, args.joint_units, args.target, args.out,
         base_link=args.base_link, tool_link=args.tool_link, link=args.link,
-        trust_units=args.trust_units, camera_model=args.camera_model,
+        trust_units=args.trust_units, camera_model=args.camera_model or DEFAULT_MODEL,
         free=None if args.free is None else [n.strip() for n in args.free.split(",") if n.strip()],
     )  # fmt: skip
     n = len(info.planned_joints_deg)
@@ -114,11 +121,11 @@ def register(subparsers) -> None:
     sp.add_argument("--base-link", default=None, help="a URDF's base link (default: its root)")
     sp.add_argument("--tool-link", default=None, help="a URDF's tool link (default: its leaf)")
     sp.add_argument(
-        "--images", action="append", required=True, metavar="NAME=GLOB",
+        "--images", action="append", default=None, metavar="NAME=GLOB",
         help="one camera's images, e.g. 'cam0=DIR/*.png' (quote it; repeat per camera)",
     )  # fmt: skip
-    sp.add_argument("--joints", required=True, help="joints file (CSV)")
-    sp.add_argument("--joint-units", required=True, choices=JOINT_UNITS)
+    sp.add_argument("--joints", default=None, help="joints file (CSV)")
+    sp.add_argument("--joint-units", default=None, choices=JOINT_UNITS)
     sp.add_argument("--target", required=True, help="target TOML (docs/targets.md)")
     sp.add_argument("--out", required=True, help="new dataset folder")
     sp.add_argument("--link", action="store_true", help="link the images instead of copying")
@@ -127,9 +134,10 @@ def register(subparsers) -> None:
         help="degrees that stay within +-6.3 deg are degrees (skip the radians-looking check)",
     )  # fmt: skip
     sp.add_argument(
-        "--camera-model", default=DEFAULT_MODEL, choices=tuple(MODELS),
+        "--camera-model", default=None, choices=tuple(MODELS),
         help="the cameras' model (default opencv: Brown-Conrady distortion, what a real lens "
-        "needs; a pinhole fitted to a distorting lens is biased; fisheye for wide angles)",
+        "needs; a pinhole fitted to a distorting lens is biased; fisheye for wide angles; "
+        "with --bag: from a calibrated camera_info if there is one)",
     )  # fmt: skip
     sp.add_argument(
         "--free", default=None, metavar="NAMES",
@@ -137,6 +145,7 @@ def register(subparsers) -> None:
         + "; ".join(f"{m}: {','.join(f)}" for m, f in DEFAULT_FREE.items())
         + "; k3 only on request)",
     )  # fmt: skip
+    add_bag_import_args(sp)
     sp.set_defaults(func=cmd_import)
 
     sp = subparsers.add_parser(

@@ -1,0 +1,413 @@
+"""``selfcal import --bag``: a ROS bag (:mod:`calib.io.rosbag`) as a dataset folder.
+
+Two streaming passes over the bag, so memory does not grow with it:
+
+1. the joint topic (``sensor_msgs/JointState``, names matched to the robot's chain, other joints
+   ignored) and each camera's ``camera_info`` (the image topic's sibling);
+2. the image topics: an image taken at rest (:mod:`calib.bag_rest`) is decoded and staged as a
+   PNG at once, any other is only counted (one warning line).
+
+Then the cameras' images are paired into frames (one rest, one image of each camera), the joints
+interpolated at the first camera's stamp, and :func:`calib.import_dataset.import_dataset` checks
+and writes the dataset exactly as for image files and a joints file. ``dataset.json`` records the
+bag, its format, the topics and the rest rule (``scenario.import``), ``sources.csv`` each image's
+``BAG#TOPIC@STAMP_NS``.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from calib.bag_rest import EMPTY, GAP, MOVING, NS, OUTSIDE, REST, JointTrack, RestRule
+from calib.errors import SelfCalWarning
+from calib.import_dataset import DEFAULT_MODEL, CameraImages, ImportError_, import_dataset
+from calib.io.dataset import DatasetInfo
+from calib.io.rosbag import (
+    IMAGE_TYPES,
+    INFO_TYPE,
+    JOINT_TYPE,
+    BagError,
+    BagReader,
+    CameraInfo,
+    decode_image,
+    stamp_ns,
+)
+from calib.robot_def import load_robot
+from calib.robot_urdf import urdf_chain
+
+__all__ = [
+    "Chain",
+    "ImageTopic",
+    "MovingImagesWarning",
+    "import_bag",
+    "read_joint_track",
+    "MODEL_OF",
+]
+
+MODEL_OF = {"plumb_bob": "opencv", "rational_polynomial": "opencv", "equidistant": "fisheye"}
+"""The camera model of a calibrated CameraInfo's ``distortion_model``."""
+_STAGE = ".bag-staging"
+
+
+class MovingImagesWarning(SelfCalWarning):
+    """Images of the bag skipped because the arm moved (or the joint messages do not cover them);
+    counted in one line."""
+
+
+@dataclass(frozen=True)
+class ImageTopic:
+    """One ``--image-topic NAME=TOPIC``: the camera's name and its image topic."""
+
+    name: str
+    topic: str
+
+    @classmethod
+    def parse(cls, spec: str, default_name: str = "cam0") -> ImageTopic:
+        """``NAME=/topic`` (or a bare ``/topic`` for a camera called ``default_name``)."""
+        name, sep, topic = spec.partition("=")
+        if not sep:
+            name, topic = default_name, spec
+        name, topic = name.strip(), topic.strip()
+        if not name or not all(ch.isalnum() or ch in "-_" for ch in name) or not topic:
+            raise ImportError_(f"--image-topic {spec!r}",
+                               fix="give NAME=/topic, the name of letters, digits, - or _: "
+                               "--image-topic cam0=/camera/image_raw")  # fmt: skip
+        return cls(name, topic)
+
+    @property
+    def info_topic(self) -> str:
+        """The sibling ``camera_info`` topic (``/ns/image_raw`` -> ``/ns/camera_info``;
+        ``/ns/image_raw/compressed`` -> ``/ns/camera_info``)."""
+        parts = self.topic.rstrip("/").split("/")
+        if parts[-1] == "compressed":
+            parts = parts[:-1]
+        return "/".join(parts[:-1] + ["camera_info"])
+
+
+def _secs(t: int) -> str:
+    return f"{t / NS:.3f} s"
+
+
+def read_joint_track(reader: BagReader, topic: str, chain: Chain) -> JointTrack:
+    """The joint readings of ``topic`` in the order of the robot's ``chain`` (matched by name;
+    messages naming none of the chain's joints, e.g. a gripper's, are ignored).
+
+    Raises:
+        BagError: the topic is missing or not a JointState (lists the bag's topics), or its
+            messages lack chain joints (lists both sets of names).
+    """
+    reader.require(topic, (JOINT_TYPE,), "--joint-topic")
+    ts: list[int] = []
+    qs: list[np.ndarray] = []
+    seen: set[str] = set()
+    for _t, _m, msg in reader.messages([topic]):
+        names = list(msg.name)
+        seen.update(names)
+        idx = {n: k for k, n in enumerate(names)}
+        have = [n in idx for n in chain.joint_names]
+        if not any(have):
+            continue  # another joint group on the same topic (e.g. the gripper)
+        pos = np.asarray(msg.position, float)
+        if not all(have) or len(pos) != len(names):
+            seen = set(names)
+            break
+        ts.append(stamp_ns(msg))
+        qs.append(pos[[idx[n] for n in chain.joint_names]])
+    else:
+        if ts:
+            return JointTrack(np.array(ts, np.int64), np.array(qs), chain.joint_types)
+    missing = [n for n in chain.joint_names if n not in seen]
+    raise BagError(
+        f"{reader.path}: topic {topic}: JointState names {sorted(seen) or 'no joint'}, but robot "
+        f"{chain.name}'s chain is {list(chain.joint_names)} (missing: {missing or 'positions'})",
+        fix="give the --robot whose URDF/TOML names the joints the driver publishes, or the "
+        "--joint-topic of the arm's joints",
+    )
+
+
+@dataclass(frozen=True)
+class Chain:
+    """The robot's joints as the bag must name them: robot name, joint names and types."""
+
+    name: str
+    joint_names: tuple[str, ...]
+    joint_types: tuple[str, ...]
+
+    @classmethod
+    def of(cls, robot: str, base_link: str | None, tool_link: str | None) -> Chain:
+        """The chain of ``--robot`` (a model name, robot TOML or URDF, with a URDF's links)."""
+        if Path(robot).suffix == ".urdf" and (base_link or tool_link):
+            ch = urdf_chain(Path(robot), base_link=base_link, tool_link=tool_link)
+            return cls(Path(robot).stem, tuple(ch.joint_names), tuple(ch.joint_types))
+        rob = load_robot(robot)
+        return cls(rob.name, tuple(rob.joint_names), tuple(rob.joint_types))
+
+
+def _camera_infos(reader: BagReader, cams: Sequence[ImageTopic]) -> dict[str, CameraInfo | None]:
+    """Each camera's first calibrated CameraInfo (None when the topic is absent or uncalibrated:
+    K all zeros)."""
+    topics = {c.info_topic: c.name for c in cams if reader.topics.get(c.info_topic) == INFO_TYPE}
+    out: dict[str, CameraInfo | None] = {c.name: None for c in cams}
+    for t, _m, msg in reader.messages(list(topics)):
+        info = CameraInfo.from_msg(msg)
+        if out[topics[t]] is None and info.calibrated:
+            out[topics[t]] = info
+        if all(v is not None for v in out.values()):
+            break
+    return out
+
+
+def _model(infos: dict[str, CameraInfo | None], given: str | None, bag: Path) -> str:
+    """The camera model: given, else the calibrated CameraInfos' (one for all), else opencv."""
+    if given is not None:
+        return given
+    models = {n: MODEL_OF.get(i.distortion_model) for n, i in infos.items() if i is not None}
+    unknown = [n for n, m in models.items() if m is None]
+    if unknown or len(set(models.values())) > 1:
+        raise ImportError_(
+            f"{bag}: camera_info distortion models "
+            f"{ {n: i.distortion_model for n, i in infos.items() if i is not None} }",
+            fix="give --camera-model (opencv, fisheye or pinhole) for all cameras",
+        )
+    return next(iter(models.values()), None) or DEFAULT_MODEL
+
+
+@dataclass
+class _Staged:
+    """The images at rest of one camera: stamps (ns) and staged files."""
+
+    stamps: list[int]
+    files: list[Path]
+
+
+def _stage_images(
+    reader: BagReader, cams: Sequence[ImageTopic], track: JointTrack, rule: RestRule,
+    joint_topic: str, stage: Path,
+) -> tuple[dict[str, _Staged], dict[str, int], int]:  # fmt: skip
+    """Pass 2: decode and stage every image at rest; count the others by reason."""
+    by_topic = {c.topic: c.name for c in cams}
+    staged = {c.name: _Staged([], []) for c in cams}
+    for c in cams:
+        (stage / c.name).mkdir(parents=True)
+    counts = {MOVING: 0, GAP: 0, OUTSIDE: 0}
+    total = 0
+    for topic, msgtype, msg in reader.messages(list(by_topic)):
+        total += 1
+        t = stamp_ns(msg)
+        st = track.status(t, rule)
+        if st == EMPTY:
+            a, b = track.largest_gap(t)
+            raise BagError(
+                f"{reader.path}: no message on {joint_topic} within +-{rule.window_s / 2:g} s of "
+                f"the image at {_secs(t)} on {topic} (the joint messages pause from {a:.3f} s to "
+                f"{b:.3f} s)",
+                fix="record the joint topic without pauses (check the driver's publish rate and "
+                "dropped messages), or give the --joint-topic the driver publishes continuously",
+            )
+        if st != REST:
+            counts[st] += 1
+            continue
+        s = staged[by_topic[topic]]
+        img = decode_image(msg, msgtype, f"{reader.path}: topic {topic}")
+        path = stage / by_topic[topic] / f"raw_{len(s.files):07d}.png"
+        if not cv2.imwrite(str(path), img):  # pragma: no cover
+            raise ImportError_(f"{path}: cannot write the staged image", fix="check the disk")
+        s.stamps.append(t)
+        s.files.append(path)
+    return staged, counts, total
+
+
+def _pair(
+    staged: dict[str, _Staged], names: Sequence[str], track: JointTrack, rule: RestRule
+) -> list[list[int]]:
+    """Frames: per frame the staged image index of every camera (``names`` order), the first
+    camera's images in stamp order, each other camera's nearest unused image of the same rest."""
+    ref = staged[names[0]]
+    used = {n: np.zeros(len(staged[n].stamps), bool) for n in names[1:]}
+    order = {n: np.argsort(staged[n].stamps, kind="stable") for n in names[1:]}
+    sorted_t = {n: np.asarray(staged[n].stamps, np.int64)[order[n]] for n in names[1:]}
+    frames = []
+    for i in np.argsort(ref.stamps, kind="stable"):
+        t = ref.stamps[i]
+        frame = [int(i)]
+        for n in names[1:]:
+            st, k0 = sorted_t[n], int(np.searchsorted(sorted_t[n], t))
+            cand = sorted(
+                range(max(k0 - 50, 0), min(k0 + 50, len(st))), key=lambda k: abs(st[k] - t)
+            )
+            pick = next((int(order[n][k]) for k in cand if not used[n][order[n][k]]
+                         and track.same_rest(t, int(st[k]), rule)), None)  # fmt: skip
+            if pick is None:
+                break
+            frame.append(pick)
+        else:
+            for n, k in zip(names[1:], frame[1:]):
+                used[n][k] = True
+            frames.append(frame)
+    return frames
+
+
+def _per_rest(frames: list[list[int]], stamps: list[int], track: JointTrack, rule: RestRule,
+              n: int | None) -> list[list[int]]:  # fmt: skip
+    """At most ``n`` frames of each rest (evenly spread over it); all when ``n`` is None."""
+    if n is None or not frames:
+        return frames
+    groups: list[list[list[int]]] = [[frames[0]]]
+    for f in frames[1:]:
+        if track.same_rest(stamps[groups[-1][-1][0]], stamps[f[0]], rule):
+            groups[-1].append(f)
+        else:
+            groups.append([f])
+    keep = []
+    for g in groups:
+        idx = np.unique(np.round(np.linspace(0, len(g) - 1, min(n, len(g)))).astype(int))
+        keep += [g[k] for k in idx]
+    return keep
+
+
+def import_bag(
+    bag: str | Path,
+    image_topics: Sequence[ImageTopic],
+    joint_topic: str,
+    robot: str,
+    target: str | Path,
+    out: str | Path,
+    *,
+    rule: RestRule | None = None,
+    per_rest: int | None = None,
+    base_link: str | None = None,
+    tool_link: str | None = None,
+    camera_model: str | None = None,
+    free: Sequence[str] | None = None,
+) -> DatasetInfo:
+    """Import the bag ``bag`` as the dataset folder ``out`` (module docstring); returns its
+    ``dataset.json`` content. ``robot``, ``target``, ``base_link``, ``tool_link``, ``free``: as
+    :func:`calib.import_dataset.import_dataset`; ``camera_model`` None: from the calibrated
+    CameraInfos (plumb_bob / rational_polynomial -> opencv, equidistant -> fisheye), else opencv.
+    ``rule``: the rest test (default :class:`calib.bag_rest.RestRule`). ``per_rest``: keep at most this many frames of each rest (None: all).
+
+    Raises:
+        calib.io.rosbag.BagError: a missing topic, chain joints missing from the JointState, no
+            joint message near an image, an unsupported image encoding, no image at rest (each
+            names the bag, the topic and the fix); the errors of ``import_dataset``.
+    """
+    bag, out = Path(bag), Path(out)
+    rule = RestRule() if rule is None else rule
+    names = [c.name for c in image_topics]
+    if not image_topics or len(set(names)) != len(names):
+        raise ImportError_(f"camera names {names}", fix="give each --image-topic a distinct NAME=")
+    if (out / "dataset.json").exists():
+        raise ImportError_(f"{out} already holds a dataset", fix="choose another --out folder")
+    if Path(robot).suffix in (".toml", ".urdf") and not Path(robot).is_file():
+        raise ImportError_(f"--robot {robot}: no such file",
+                           fix="give a model name, a robot TOML or a URDF file")  # fmt: skip
+    chain = Chain.of(robot, base_link, tool_link)
+    stage = out / _STAGE
+    made_out = not out.exists()
+    try:
+        with BagReader(bag) as reader:
+            for c in image_topics:
+                reader.require(c.topic, IMAGE_TYPES, "--image-topic")
+            track = read_joint_track(reader, joint_topic, chain)
+            infos = _camera_infos(reader, image_topics)
+            model = _model(infos, camera_model, bag)
+            if stage.exists():
+                shutil.rmtree(stage)
+            staged, counts, total = _stage_images(reader, image_topics, track, rule, joint_topic,
+                                                  stage)  # fmt: skip
+            fmt = reader.format
+        topics = ", ".join(c.topic for c in image_topics)
+        at_rest = sum(len(s.files) for s in staged.values())
+        if at_rest == 0:
+            raise BagError(
+                f"{bag}: none of the {total} images on {topics} was taken at rest ({counts[MOVING]}"
+                f" while moving, {counts[GAP]} at a pause of {joint_topic}, {counts[OUTSIDE]} "
+                f"outside its recording; rest test: {rule.to_json()})",
+                fix="record stop-and-go motion that rests at least 1 s at every posture "
+                "(docs/ros.md), or loosen --rest-speed / shorten --rest-window",
+            )
+        frames = _pair(staged, names, track, rule)
+        frames = _per_rest(frames, staged[names[0]].stamps, track, rule, per_rest)
+        _warn_skipped(bag, counts, total, at_rest, frames, len(names))
+        files = _name_frames(staged, names, frames, stage)
+        n = len(chain.joint_names)
+        q = np.array([track.at(staged[names[0]].stamps[f[0]]) for f in frames]).reshape(-1, n)
+        joints = stage / "joints.csv"
+        lines = ["image," + ",".join(f"j{j + 1}" for j in range(n))]
+        lines += [
+            f"{k:06d}.png," + ",".join(repr(float(v)) for v in row) for k, row in enumerate(q)
+        ]
+        joints.write_text("\n".join(lines) + "\n")
+        labels = {files[n][k]: f"{bag.resolve()}#{c.topic}@{staged[n].stamps[f[j]]}"
+                  for j, (n, c) in enumerate(zip(names, image_topics))
+                  for k, f in enumerate(frames)}  # fmt: skip
+        source = {
+            "bag": str(bag.resolve()), "format": fmt, "joint_topic": joint_topic,
+            "image_topics": {c.name: c.topic for c in image_topics},
+            "joint_names": list(chain.joint_names), "rest": rule.to_json(),
+            "camera_info": {n: None if i is None else i.to_json() for n, i in infos.items()},
+            "images": {"total": total, "at_rest": at_rest, "frames": len(frames), **counts},
+            "target": str(target),
+        }  # fmt: skip
+        cams = [CameraImages(n, c.topic, tuple(files[n])) for n, c in zip(names, image_topics)]
+        info = import_dataset(robot, cams, joints, "rad", target, out, base_link=base_link,
+                              tool_link=tool_link, link=True, trust_units=True,
+                              camera_model=model, free=free, source=source, labels=labels)  # fmt: skip
+        for link in (out / "frames").iterdir():
+            if link.is_symlink():
+                os.replace(link.resolve(), link)  # the staged file becomes the frame
+        return info
+    except BaseException:
+        if made_out and out.exists() and not (out / "dataset.json").exists():
+            shutil.rmtree(out)
+        raise
+    finally:
+        if stage.exists():
+            shutil.rmtree(stage)
+
+
+def _name_frames(
+    staged: dict[str, _Staged], names: Sequence[str], frames: list[list[int]], stage: Path
+) -> dict[str, list[Path]]:
+    """Rename each frame's staged images to ``NNNNNN.png`` (one name across the cameras, the
+    joints file's image column) and delete the unused ones."""
+    out: dict[str, list[Path]] = {n: [] for n in names}
+    for k, f in enumerate(frames):
+        for n, i in zip(names, f):
+            dst = stage / n / f"{k:06d}.png"
+            os.replace(staged[n].files[i], dst)
+            out[n].append(dst)
+    for n in names:
+        for p in (stage / n).glob("raw_*.png"):
+            p.unlink()
+    return out
+
+
+def _warn_skipped(bag: Path, counts: dict[str, int], total: int, at_rest: int,
+                  frames: list[list[int]], n_cams: int) -> None:  # fmt: skip
+    skipped = total - at_rest
+    unpaired = at_rest - len(frames) * n_cams
+    if not skipped and not unpaired:
+        return
+    parts = [f"{counts[MOVING]} taken while the arm moved"]
+    if counts[GAP]:
+        parts.append(f"{counts[GAP]} at a pause of the joint messages")
+    if counts[OUTSIDE]:
+        parts.append(f"{counts[OUTSIDE]} outside the joint recording")
+    if unpaired:
+        parts.append(f"{unpaired} at rest but not in a frame (no image of every camera in that "
+                     "rest, or beyond --per-rest)")  # fmt: skip
+    warnings.warn(
+        f"{bag}: {skipped + unpaired} of {total} images skipped: {', '.join(parts)}; "
+        f"{len(frames)} frame(s) at rest kept",
+        MovingImagesWarning,
+        stacklevel=3,
+    )

@@ -1,0 +1,96 @@
+"""ROS bags on the command line (docs/ros.md): the ``--bag`` options of ``selfcal import``,
+``selfcal export`` and ``selfcal run``. Degrees and seconds at this edge, SI inside."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+
+from calib.bag_export import JOINT_TOPIC, export_bag
+from calib.bag_import import ImageTopic, import_bag
+from calib.bag_rest import RestRule
+from calib.io.rosbag import FORMATS as BAG_FORMATS
+from scenarios.cli_common import CliError
+
+__all__ = ["BAG_FORMATS", "add_import_args", "cmd_import_bag", "add_export_args",
+           "cmd_export_bag", "export_run"]  # fmt: skip
+
+_RULE = RestRule()
+
+
+def add_import_args(sp: argparse.ArgumentParser) -> None:
+    """``--bag`` and its options on ``selfcal import`` (instead of ``--images`` / ``--joints``)."""
+    g = sp.add_argument_group("from a ROS bag (docs/ros.md; needs scorbot-selfcal[ros])")
+    g.add_argument("--bag", default=None, metavar="PATH",
+                   help="ROS 1 .bag, ROS 2 bag folder (sqlite3 or mcap) or .mcap file")  # fmt: skip
+    g.add_argument(
+        "--image-topic", action="append", default=None, metavar="NAME=TOPIC",
+        help="one camera's Image or CompressedImage topic, e.g. cam0=/camera/image_raw (repeat "
+        "per camera); its camera_info is the sibling topic",
+    )  # fmt: skip
+    g.add_argument("--joint-topic", default=JOINT_TOPIC,
+                   help=f"JointState topic (default {JOINT_TOPIC})")  # fmt: skip
+    g.add_argument("--rest-window", type=float, default=_RULE.window_s, metavar="S",
+                   help=f"window centred on an image in which the arm must rest (default "
+                   f"{_RULE.window_s:g} s)")  # fmt: skip
+    g.add_argument("--rest-speed", type=float, default=np.degrees(_RULE.speed_rad_s),
+                   metavar="DEG_PER_S", help="joint speed below which the arm rests, over the "
+                   f"window (default {np.degrees(_RULE.speed_rad_s):g} deg/s; mm/s for a "
+                   "prismatic joint)")  # fmt: skip
+    g.add_argument("--max-gap", type=float, default=_RULE.max_gap_s, metavar="S",
+                   help="longest pause of the joint messages within the window (default "
+                   f"{_RULE.max_gap_s:g} s)")  # fmt: skip
+    g.add_argument("--per-rest", type=int, default=None, metavar="N",
+                   help="keep at most N frames of each rest (default: all)")  # fmt: skip
+
+
+def cmd_import_bag(args: argparse.Namespace) -> int:
+    """``selfcal import --bag``."""
+    if args.images or args.joints:
+        raise CliError("--bag replaces --images and --joints: give one or the other")
+    if not args.image_topic:
+        raise CliError("--bag needs --image-topic NAME=TOPIC (one per camera)")
+    for name, v in (("--rest-window", args.rest_window), ("--rest-speed", args.rest_speed),
+                    ("--max-gap", args.max_gap)):  # fmt: skip
+        if not v > 0:
+            raise CliError(f"{name} {v}: give a positive number")
+    if args.per_rest is not None and args.per_rest < 1:
+        raise CliError(f"--per-rest {args.per_rest}: give 1 or more")
+    rule = RestRule(window_s=args.rest_window, speed_rad_s=float(np.radians(args.rest_speed)),
+                    speed_m_s=args.rest_speed / 1e3, max_gap_s=args.max_gap)  # fmt: skip
+    topics = [ImageTopic.parse(s, default_name=f"cam{k}") for k, s in enumerate(args.image_topic)]
+    free = None if args.free is None else [n.strip() for n in args.free.split(",") if n.strip()]
+    info = import_bag(args.bag, topics, args.joint_topic, args.robot, args.target, args.out,
+                      rule=rule, per_rest=args.per_rest, base_link=args.base_link,
+                      tool_link=args.tool_link, camera_model=args.camera_model, free=free)  # fmt: skip
+    n = len(info.planned_joints_deg)
+    print(f"imported {n} frames of {len(info.cameras)} camera(s) from {args.bag} into {args.out}")
+    return 0
+
+
+def add_export_args(sp: argparse.ArgumentParser) -> None:
+    """``--bag OUT`` on ``selfcal export`` (``--format ros1|ros2|mcap`` then names the format)."""
+    sp.add_argument("--bag", default=None, metavar="OUT",
+                    help="write the DATASET as a ROS bag instead (--format ros1 | ros2 | mcap; "
+                    "default: ros1 for OUT.bag, else ros2); see docs/ros.md")  # fmt: skip
+
+
+def cmd_export_bag(args: argparse.Namespace) -> int:
+    """``selfcal export DATASET --bag OUT [--format ros1|ros2|mcap]``."""
+    if args.out:
+        raise CliError("--bag writes the dataset as a bag; --out exports a calibration: give one")
+    if args.format is not None and args.format not in BAG_FORMATS:
+        raise CliError(f"--format {args.format} with --bag: use one of {', '.join(BAG_FORMATS)}")
+    res = export_bag(args.calibration, args.bag, args.format)
+    print(json.dumps(res.to_json()))
+    return 0
+
+
+def export_run(dataset: Path, bag: str, quiet: bool) -> None:
+    """``selfcal run --bag OUT``: the run's dataset as a bag (format from OUT's suffix)."""
+    res = export_bag(dataset, bag)
+    if not quiet:
+        print(f"ROS bag ({res.format}): {res.path} ({res.frames} frames)")
