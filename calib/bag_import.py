@@ -336,7 +336,7 @@ def import_bag(
             )
         frames = _pair(staged, names, track, rule)
         frames = _per_rest(frames, staged[names[0]].stamps, track, rule, per_rest)
-        _warn_skipped(bag, counts, total, at_rest, frames, len(names))
+        _warn_skipped(bag, rule, counts, total, at_rest, frames, len(names))
         files = _name_frames(staged, names, frames, stage)
         n = len(chain.joint_names)
         q = np.array([track.at(staged[names[0]].stamps[f[0]]) for f in frames]).reshape(-1, n)
@@ -391,13 +391,13 @@ def _name_frames(
     return out
 
 
-def _warn_skipped(bag: Path, counts: dict[str, int], total: int, at_rest: int,
+def _warn_skipped(bag: Path, rule: RestRule, counts: dict[str, int], total: int, at_rest: int,
                   frames: list[list[int]], n_cams: int) -> None:  # fmt: skip
     skipped = total - at_rest
     unpaired = at_rest - len(frames) * n_cams
     if not skipped and not unpaired:
         return
-    parts = [f"{counts[MOVING]} taken while the arm moved"]
+    parts = [f"{counts[MOVING]} with the arm moving within +-{rule.window_s / 2:g} s"]
     if counts[GAP]:
         parts.append(f"{counts[GAP]} at a pause of the joint messages")
     if counts[OUTSIDE]:

@@ -1,0 +1,325 @@
+"""`selfcal import --bag` on bags written with rosbags directly (not through the project's export),
+as a lab's recording looks: stop-and-go motion, joint stamps with jitter, the driver's joint order
+shuffled in every message plus a gripper joint, a camera streaming while the arm moves; and every
+bad input, each an error naming the bag, the topic and the fix.
+
+The arm rests at postures of the synthetic lab (tests/integration/synthetic_board.py) and moves
+between them on a cosine profile. Every image at rest over the whole window around it (0.5 s by
+default) must be kept with its joints within 1e-6 rad (measured 2.3e-7 rad: the readings carry
+1e-7 rad noise), and every image taken while moving skipped. An image at rest within half a window
+of a move is kept when the move's first milliseconds stay below the speed threshold.
+"""
+
+from __future__ import annotations
+
+import csv
+import warnings
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+from synthetic_board import TARGET_TOML, make_lab, postures, render
+
+from calib.bag_import import MovingImagesWarning
+from calib.errors import InputError
+from calib.io.dataset import Dataset
+from scenarios.cli import main
+
+rosbags = pytest.importorskip("rosbags")
+from rosbags.rosbag1 import Writer as Writer1  # noqa: E402
+from rosbags.rosbag2 import StoragePlugin  # noqa: E402
+from rosbags.rosbag2 import Writer as Writer2  # noqa: E402
+from rosbags.typesys import Stores, get_typestore  # noqa: E402
+
+ROBOT = "kr6-r900"
+CHAIN = ["a1", "a2", "a3", "a4", "a5", "a6"]
+NS = 1_000_000_000
+REST_S, MOVE_S, WINDOW_S = 1.6, 1.2, 0.5
+
+
+class RawBag:
+    """A bag written with rosbags alone: ROS 1 (``.bag``) or ROS 2 (a folder, sqlite3 or mcap)."""
+
+    def __init__(self, path: Path, kind: str = "ros1") -> None:
+        self.ros1 = kind == "ros1"
+        self.ts = get_typestore(Stores.ROS1_NOETIC if self.ros1 else Stores.ROS2_HUMBLE)
+        if self.ros1:
+            self.w = Writer1(path)
+        else:
+            plugin = StoragePlugin.MCAP if kind == "mcap" else StoragePlugin.SQLITE3
+            self.w = Writer2(path, version=8, storage_plugin=plugin)
+        self.w.open()
+        self.conns: dict[str, object] = {}
+        self.T = self.ts.types
+
+    def header(self, t: int):
+        stamp = self.T["builtin_interfaces/msg/Time"](sec=t // NS, nanosec=t % NS)
+        extra = {"seq": 0} if self.ros1 else {}
+        return self.T["std_msgs/msg/Header"](stamp=stamp, frame_id="cam", **extra)
+
+    def put(self, topic: str, msgtype: str, t: int, msg) -> None:
+        if topic not in self.conns:
+            self.conns[topic] = self.w.add_connection(topic, msgtype, typestore=self.ts)
+        ser = self.ts.serialize_ros1 if self.ros1 else self.ts.serialize_cdr
+        self.w.write(self.conns[topic], t, ser(msg, msgtype))
+
+    def joints(self, topic: str, t: int, names: list[str], q) -> None:
+        msg = self.T["sensor_msgs/msg/JointState"](
+            header=self.header(t), name=names, position=np.asarray(q, float),
+            velocity=np.zeros(0), effort=np.zeros(0))  # fmt: skip
+        self.put(topic, "sensor_msgs/msg/JointState", t, msg)
+
+    def image(self, topic: str, t: int, img: np.ndarray, encoding: str = "mono8") -> None:
+        h, w = img.shape[:2]
+        msg = self.T["sensor_msgs/msg/Image"](
+            header=self.header(t), height=h, width=w, encoding=encoding, is_bigendian=0,
+            step=img.nbytes // h, data=np.frombuffer(img.tobytes(), np.uint8))  # fmt: skip
+        self.put(topic, "sensor_msgs/msg/Image", t, msg)
+
+    def compressed(self, topic: str, t: int, img: np.ndarray, fmt: str = "png") -> None:
+        data = np.frombuffer(cv2.imencode(f".{fmt}", img)[1].tobytes(), np.uint8)
+        msg = self.T["sensor_msgs/msg/CompressedImage"](header=self.header(t), format=fmt,
+                                                        data=data)  # fmt: skip
+        self.put(topic, "sensor_msgs/msg/CompressedImage", t, msg)
+
+    def close(self) -> None:
+        self.w.close()
+
+
+def stop_and_go(rests: np.ndarray, t0: int):
+    """The motion: rest k over [a_k, b_k], a cosine move to rest k + 1; returns a, b (ns), q(t)
+    (rad) and the rests' true extent lo, hi (the first starts, the last ends, at rest)."""
+    a = t0 + np.arange(len(rests)) * int((REST_S + MOVE_S) * NS)
+    b = a + int(REST_S * NS)
+    lo, hi = a.copy(), b.copy()
+    lo[0], hi[-1] = t0 - 100 * NS, hi[-1] + 100 * NS  # at rest before the first and after the last
+
+    def q(t: int) -> np.ndarray:
+        k = int(np.clip(np.searchsorted(a, t, side="right") - 1, 0, len(rests) - 1))
+        if t <= b[k] or k == len(rests) - 1:
+            return rests[k]
+        s = (1 - np.cos(np.pi * min((t - b[k]) / (MOVE_S * NS), 1.0))) / 2
+        return rests[k] + (rests[k + 1] - rests[k]) * s
+
+    return a, b, q, lo, hi
+
+
+def write_joints(bag: RawBag, q, start: int, end: int, rng, rate_hz=200.0, jitter_s=1.5e-3,
+                 topic="/joint_states", names=CHAIN) -> None:  # fmt: skip
+    """JointState at ``rate_hz`` with stamp jitter, names shuffled in every message plus a
+    gripper joint, readings with 1e-7 rad noise."""
+    period = int(NS / rate_hz)
+    for t in range(start, end, period):
+        ts = t + int(rng.uniform(-jitter_s, jitter_s) * NS)
+        vals = dict(zip(CHAIN, q(ts) + rng.normal(0, 1e-7, 6), strict=True))
+        vals["gripper_finger_joint"] = 0.02
+        order = [n for n in names if n in vals] + ["gripper_finger_joint"]
+        rng.shuffle(order)
+        bag.joints(topic, ts, order, [vals[n] for n in order])
+
+
+@pytest.fixture(scope="module")
+def lab(tmp_path_factory):
+    root = tmp_path_factory.mktemp("rosimport")
+    world = make_lab(seed=0)
+    rests = postures(world, 7, seed=3)
+    rng = np.random.default_rng(5)
+    pictures = [render(world, q, rng) for q in rests]
+    (root / "board.toml").write_text(TARGET_TOML)
+    return root, rests, pictures
+
+
+def _import(bag: Path, out: Path, root: Path, *topics: str, extra=()) -> int:
+    args = ["import", "--bag", str(bag), "--robot", ROBOT, "--target", str(root / "board.toml"),
+            "--out", str(out), "--joint-topic", "/joint_states", *extra]  # fmt: skip
+    for t in topics:
+        args += ["--image-topic", t]
+    return main(args)
+
+
+def _stamps(out: Path) -> dict[str, list[int]]:
+    rows = list(csv.DictReader((out / "sources.csv").open()))
+    got: dict[str, list[int]] = {}
+    for r in rows:
+        got.setdefault(r["camera"], []).append(int(r["source"].rsplit("@", 1)[1]))
+    return got
+
+
+def test_stop_and_go_recording(lab, tmp_path):
+    root, rests, pictures = lab
+    rng = np.random.default_rng(11)
+    t0 = 100 * NS
+    a, b, q, lo, hi = stop_and_go(rests, t0)
+    bag = RawBag(tmp_path / "lab.bag")
+    write_joints(bag, q, t0 - NS // 2, int(b[-1]) + NS // 2, rng)
+    cam = t0 + int(0.037 * NS) + np.arange(int((b[-1] - t0) / NS * 5)) * (NS // 5)  # 5 Hz
+    rest_of = [int(np.searchsorted(a, t, side="right") - 1) for t in cam]
+    moving = np.array([t > b[k] for t, k in zip(cam, rest_of, strict=True)])
+    h = int(WINDOW_S / 2 * NS)
+    full = np.array([lo[k] + h <= t <= hi[k] - h for t, k in zip(cam, rest_of, strict=True)])
+    for t, k, mv in zip(cam, rest_of, moving, strict=True):
+        # a moving image is never decoded by the import: any content does (the last rest's)
+        bag.image("/camera/image_raw", int(t), pictures[k] if not mv else pictures[k] // 2)
+    bag.close()
+    out = tmp_path / "ds"
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert _import(tmp_path / "lab.bag", out, root, "cam0=/camera/image_raw") == 0
+    lines = [str(w.message) for w in caught if issubclass(w.category, MovingImagesWarning)]
+    kept = _stamps(out)["cam0"]
+    assert len(lines) == 1 and f"{len(cam) - len(kept)} of {len(cam)} images skipped" in lines[0]
+    assert set(cam[full].tolist()) <= set(kept)  # every image at rest over the whole window
+    assert not set(cam[moving].tolist()) & set(kept)  # no image taken while moving
+    assert moving.sum() > 30 and full.sum() > 25 and (~moving & ~full).sum() > 5
+    # the rest images within half a window of a move: kept while the move's first
+    # milliseconds stay below the speed threshold (measured 6 of 18)
+    assert len(kept) < full.sum() + (~moving & ~full).sum()
+    ds = Dataset.open(out)
+    rest_at = dict(zip(cam.tolist(), rest_of, strict=True))
+    want = np.array([rests[rest_at[t]] for t in kept])
+    err = np.abs(np.radians(ds.joints_deg) - want).max()
+    assert err < 1e-6  # measured 2.3e-7 rad (the readings' 1e-7 rad noise, interpolated)
+    rec = ds.info.scenario["import"]
+    assert rec["bag"].endswith("lab.bag") and rec["format"] == "ros1"
+    assert rec["joint_names"] == CHAIN and rec["images"]["moving"] == len(cam) - len(kept)
+    # frames are pixel for pixel the recorded images
+    img = cv2.imread(str(ds.frame_paths(int(ds.indices[0]))[0]), cv2.IMREAD_UNCHANGED)
+    assert np.array_equal(img, pictures[rest_at[kept[0]]])
+
+
+def test_two_cameras_raw_and_compressed(lab, tmp_path):
+    """A frame is one rest with an image of every camera: cam0 raw rgb8 at 5 Hz, cam1 png
+    CompressedImage at 3 Hz, in a ROS 2 mcap bag."""
+    root, rests, pictures = lab
+    rests, pictures = rests[:3], pictures[:3]
+    rng = np.random.default_rng(12)
+    t0 = 50 * NS
+    a, b, q, lo, hi = stop_and_go(rests, t0)
+    bag = RawBag(tmp_path / "two", "mcap")
+    write_joints(bag, q, t0 - NS // 2, int(b[-1]) + NS // 2, rng)
+    h = int(WINDOW_S / 2 * NS)
+    full, at_rest = [], []  # per camera and rest: images at rest over the whole window; at all
+    for name, hz, off in (("cam0", 5, 0.011), ("cam1", 3, 0.05)):
+        stamps = t0 + int(off * NS) + np.arange(int((b[-1] - t0) / NS * hz)) * (NS // hz)
+        n_full, n_rest = np.zeros(len(rests), int), np.zeros(len(rests), int)
+        for t in stamps:
+            k = int(np.searchsorted(a, t, side="right") - 1)
+            img = pictures[k]
+            if name == "cam0":
+                bag.image("/cam0/image_raw", int(t), np.dstack([img] * 3), "rgb8")
+            else:
+                bag.compressed("/cam1/image_raw/compressed", int(t), img)
+            n_full[k] += lo[k] + h <= t <= hi[k] - h
+            n_rest[k] += t <= hi[k]
+        full.append(n_full)
+        at_rest.append(n_rest)
+    bag.close()
+    out = tmp_path / "ds"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", MovingImagesWarning)
+        assert _import(tmp_path / "two", out, root, "cam0=/cam0/image_raw",
+                       "cam1=/cam1/image_raw/compressed") == 0  # fmt: skip
+    got = _stamps(out)
+    rest = [int(np.searchsorted(a, t, side="right") - 1) for t in got["cam0"]]
+    assert rest == [int(np.searchsorted(a, t, side="right") - 1) for t in got["cam1"]]
+    assert all(t <= hi[k] for c in got.values() for t, k in zip(c, rest, strict=True))
+    per_rest = np.bincount(rest, minlength=len(rests))
+    assert (per_rest >= np.minimum(*full)).all() and (per_rest <= np.minimum(*at_rest)).all()
+    ds = Dataset.open(out)
+    assert ds.info.cameras == ("cam0", "cam1")
+    p0, p1 = ds.frame_paths(int(ds.indices[0]))
+    assert cv2.imread(str(p0), cv2.IMREAD_UNCHANGED).shape == (600, 800, 3)  # rgb8 -> colour PNG
+    assert np.array_equal(cv2.imread(str(p1), cv2.IMREAD_UNCHANGED), pictures[rest[0]])
+
+
+# --- bad input: each error names the bag, the topic and the fix ---------------------------------
+
+
+def _small_bag(path: Path, *, names=CHAIN, pause=None, encoding="mono8", moving=False):
+    """Two rests of 2 s with images at 4 Hz (64x48, no board: these errors come first)."""
+    rests = np.array([np.zeros(6), np.full(6, 0.2)])
+    t0 = 10 * NS
+    a, b, q, lo, hi = stop_and_go(rests, t0)
+    if moving:
+
+        def q(t):  # noqa: E306 - always moving
+            return np.full(6, 0.3 * (t - t0) / NS)
+
+    bag = RawBag(path)
+    rng = np.random.default_rng(1)
+    period = NS // 100
+    for t in range(t0, int(b[-1]), period):
+        if pause and pause[0] <= t < pause[1]:
+            continue
+        bag.joints("/joint_states", t, list(names), q(t)[: len(names)])
+    bag.joints("/gripper/joint_states", t0, ["gripper_finger_joint"], [0.0])
+    img = rng.integers(0, 255, (48, 64), np.uint8)
+    for t in range(t0 + NS // 3, int(b[-1]) - NS // 3, NS // 4):
+        bag.image("/cam/image_raw", t, img if encoding != "bayer_rggb8" else img, encoding)
+    bag.close()
+    return t0
+
+
+def _error(bag: Path, tmp_path: Path, root: Path, capsys, topic="cam0=/cam/image_raw", extra=()):
+    assert _import(bag, tmp_path / "out", root, topic, extra=extra) == 2
+    assert not (tmp_path / "out").exists()  # nothing half-written
+    err = capsys.readouterr().err
+    assert str(bag) in err and "fix:" in err
+    return err
+
+
+def test_missing_topic_lists_the_bags_topics(lab, tmp_path, capsys):
+    root = lab[0]
+    _small_bag(tmp_path / "s.bag")
+    err = _error(tmp_path / "s.bag", tmp_path, root, capsys, "cam0=/camera/image_raw")
+    assert "topic /camera/image_raw is not in the bag" in err
+    assert "image topics: /cam/image_raw; joint topics: /gripper/joint_states, /joint_states" in err
+    assert "give --image-topic one of the topics listed" in err
+    err = _error(tmp_path / "s.bag", tmp_path, root, capsys, extra=["--joint-topic", "/js"])
+    assert "topic /js is not in the bag" in err and "--joint-topic" in err
+
+
+def test_chain_joints_missing(lab, tmp_path, capsys):
+    root = lab[0]
+    _small_bag(tmp_path / "s.bag", names=CHAIN[:5])
+    err = _error(tmp_path / "s.bag", tmp_path, root, capsys)
+    assert "topic /joint_states" in err and "missing: ['a6']" in err
+    assert "['a1', 'a2', 'a3', 'a4', 'a5']" in err and str(CHAIN) in err and "--robot" in err
+
+
+def test_no_joint_message_within_the_window(lab, tmp_path, capsys):
+    root = lab[0]
+    t0 = 10 * NS
+    _small_bag(tmp_path / "s.bag", pause=(t0 + NS // 2, t0 + 3 * NS // 2))
+    err = _error(tmp_path / "s.bag", tmp_path, root, capsys)
+    assert "no message on /joint_states within +-0.25 s of the image at" in err
+    assert "on /cam/image_raw" in err and "pause from 10.490 s to 11.500 s" in err
+    assert "record the joint topic without pauses" in err
+
+
+def test_unsupported_encoding(lab, tmp_path, capsys):
+    root = lab[0]
+    _small_bag(tmp_path / "s.bag", encoding="bayer_rggb8")
+    err = _error(tmp_path / "s.bag", tmp_path, root, capsys)
+    assert "topic /cam/image_raw: image encoding 'bayer_rggb8' is not supported" in err
+    assert "mono8, mono16, rgb8 or bgr8" in err
+
+
+def test_no_image_at_rest(lab, tmp_path, capsys):
+    root = lab[0]
+    _small_bag(tmp_path / "s.bag", moving=True)
+    err = _error(tmp_path / "s.bag", tmp_path, root, capsys)
+    assert "none of the" in err and "images on /cam/image_raw was taken at rest" in err
+    assert "while moving" in err and "record stop-and-go motion" in err
+
+
+def test_not_a_bag(tmp_path):
+    from calib.io.rosbag import bag_format
+
+    (tmp_path / "x.bag").write_text("hello")
+    with pytest.raises(InputError, match="not a ROS bag"):
+        bag_format(tmp_path / "x.bag")
+    (tmp_path / "d").mkdir()
+    with pytest.raises(InputError, match="without metadata.yaml"):
+        bag_format(tmp_path / "d")
