@@ -3,7 +3,7 @@
 Two streaming passes over the bag, so memory does not grow with it:
 
 1. the joint topic (``sensor_msgs/JointState``, names matched to the robot's chain, other joints
-   ignored) and each camera's ``camera_info`` (the image topic's sibling);
+   ignored) and each camera's ``camera_info`` (the image topic's sibling), kept compactly;
 2. the image topics: an image taken at rest (:mod:`calib.bag_rest`) is decoded and staged as a
    PNG at once, any other is only counted (one warning line).
 
@@ -19,6 +19,7 @@ from __future__ import annotations
 import os
 import shutil
 import warnings
+from array import array
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -96,19 +97,32 @@ def _secs(t: int) -> str:
     return f"{t / NS:.3f} s"
 
 
-def read_joint_track(reader: BagReader, topic: str, chain: Chain) -> JointTrack:
-    """The joint readings of ``topic`` in the order of the robot's ``chain`` (matched by name;
-    messages naming none of the chain's joints, e.g. a gripper's, are ignored).
+def read_joint_track(
+    reader: BagReader, topic: str, chain: Chain, cams: Sequence[ImageTopic] = ()
+) -> tuple[JointTrack, dict[str, CameraInfo | None]]:
+    """One pass over the joint topic and the cameras' ``camera_info`` topics: the joint readings
+    in the order of the robot's ``chain`` (matched by name; messages naming none of the chain's
+    joints, e.g. a gripper's, are ignored) and each camera's first calibrated CameraInfo (None
+    when its topic is absent or uncalibrated: K all zeros).
 
     Raises:
         BagError: the topic is missing or not a JointState (lists the bag's topics), or its
             messages lack chain joints (lists both sets of names).
     """
     reader.require(topic, (JOINT_TYPE,), "--joint-topic")
-    ts: list[int] = []
-    qs: list[np.ndarray] = []
+    infos = {c.info_topic: c.name for c in cams if reader.topics.get(c.info_topic) == INFO_TYPE}
+    found: dict[str, CameraInfo | None] = {c.name: None for c in cams}
+    ts, qs = array("q"), array("d")  # compact: 8 bytes a number however long the recording
     seen: set[str] = set()
-    for _t, _m, msg in reader.messages([topic]):
+    bad = False
+    for t, _m, msg in reader.messages([topic, *infos]):
+        if t != topic:
+            info = CameraInfo.from_msg(msg)
+            if found[infos[t]] is None and info.calibrated:
+                found[infos[t]] = info
+            continue
+        if bad:
+            continue
         names = list(msg.name)
         seen.update(names)
         idx = {n: k for k, n in enumerate(names)}
@@ -117,13 +131,13 @@ def read_joint_track(reader: BagReader, topic: str, chain: Chain) -> JointTrack:
             continue  # another joint group on the same topic (e.g. the gripper)
         pos = np.asarray(msg.position, float)
         if not all(have) or len(pos) != len(names):
-            seen = set(names)
-            break
+            seen, bad = set(names), True
+            continue
         ts.append(stamp_ns(msg))
-        qs.append(pos[[idx[n] for n in chain.joint_names]])
-    else:
-        if ts:
-            return JointTrack(np.array(ts, np.int64), np.array(qs), chain.joint_types)
+        qs.extend(pos[[idx[n] for n in chain.joint_names]])
+    if ts and not bad:
+        q = np.frombuffer(qs, float).reshape(len(ts), len(chain.joint_names))
+        return JointTrack(np.frombuffer(ts, np.int64), q, chain.joint_types), found
     missing = [n for n in chain.joint_names if n not in seen]
     raise BagError(
         f"{reader.path}: topic {topic}: JointState names {sorted(seen) or 'no joint'}, but robot "
@@ -149,20 +163,6 @@ class Chain:
             return cls(Path(robot).stem, tuple(ch.joint_names), tuple(ch.joint_types))
         rob = load_robot(robot)
         return cls(rob.name, tuple(rob.joint_names), tuple(rob.joint_types))
-
-
-def _camera_infos(reader: BagReader, cams: Sequence[ImageTopic]) -> dict[str, CameraInfo | None]:
-    """Each camera's first calibrated CameraInfo (None when the topic is absent or uncalibrated:
-    K all zeros)."""
-    topics = {c.info_topic: c.name for c in cams if reader.topics.get(c.info_topic) == INFO_TYPE}
-    out: dict[str, CameraInfo | None] = {c.name: None for c in cams}
-    for t, _m, msg in reader.messages(list(topics)):
-        info = CameraInfo.from_msg(msg)
-        if out[topics[t]] is None and info.calibrated:
-            out[topics[t]] = info
-        if all(v is not None for v in out.values()):
-            break
-    return out
 
 
 def _model(infos: dict[str, CameraInfo | None], given: str | None, bag: Path) -> str:
@@ -316,8 +316,7 @@ def import_bag(
         with BagReader(bag) as reader:
             for c in image_topics:
                 reader.require(c.topic, IMAGE_TYPES, "--image-topic")
-            track = read_joint_track(reader, joint_topic, chain)
-            infos = _camera_infos(reader, image_topics)
+            track, infos = read_joint_track(reader, joint_topic, chain, image_topics)
             model = _model(infos, camera_model, bag)
             if stage.exists():
                 shutil.rmtree(stage)
@@ -330,7 +329,7 @@ def import_bag(
             raise BagError(
                 f"{bag}: none of the {total} images on {topics} was taken at rest ({counts[MOVING]}"
                 f" while moving, {counts[GAP]} at a pause of {joint_topic}, {counts[OUTSIDE]} "
-                f"outside its recording; rest test: {rule.to_json()})",
+                f"outside its recording; rest test: {rule.describe()})",
                 fix="record stop-and-go motion that rests at least 1 s at every posture "
                 "(docs/ros.md), or loosen --rest-speed / shorten --rest-window",
             )

@@ -36,7 +36,12 @@ class RestRule:
     def to_json(self) -> dict:
         """The rule at the file edge: s, deg/s (mm/s for a prismatic joint)."""
         return {"window_s": self.window_s, "speed_deg_s": float(np.degrees(self.speed_rad_s)),
-                "speed_mm_s": self.speed_m_s * 1e3, "max_gap_s": self.max_gap_s}  # fmt: skip
+                "speed_mm_s": float(self.speed_m_s * 1e3), "max_gap_s": self.max_gap_s}  # fmt: skip
+
+    def describe(self) -> str:
+        """The rule in words (s, deg/s)."""
+        return (f"{self.window_s:g} s window, {np.degrees(self.speed_rad_s):g} deg/s, pauses up "
+                f"to {self.max_gap_s:g} s")  # fmt: skip
 
 
 class JointTrack:

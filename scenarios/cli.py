@@ -141,6 +141,9 @@ def cmd_report(args: argparse.Namespace) -> int:
 def cmd_run(args: argparse.Namespace) -> int:
     s = load_scenario(args.config)
     out = Path(args.out) if args.out else Path("runs") / Path(s.source).stem
+    if args.bag and not s.noise.render:
+        raise CliError(f"--bag: {s.source} takes no images ([noise] render = false), a bag needs "
+                       "them; set render = true")  # fmt: skip
     # A run continues the dataset already in --out when it was taken with the same scenario.
     run_all(s, out, resume=True, quiet=args.quiet, method=args.method)
     if args.bag:

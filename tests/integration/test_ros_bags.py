@@ -137,3 +137,44 @@ def test_exported_bag_content(lab, tmp_path):
     assert step.max() < 0.03 * span  # measured 0.019 (1.875 x the mean speed over 1 s at 100 Hz)
     truth_words = ("truth", "perturb", "seed")
     assert not any(w in urdf.lower() for w in truth_words)
+
+
+def test_cli_refuses_mixed_options(lab, tmp_path, capsys):
+    root, _ = lab
+    code = main(["export", str(root / "ds"), "--bag", str(tmp_path / "a.bag"), "--out", "x.urdf"])
+    assert code == 2 and "give one" in capsys.readouterr().err
+    code = main(["export", str(root / "ds"), "--format", "mcap", "--out", str(tmp_path / "x")])
+    assert code == 2 and "give --bag OUT instead of --out" in capsys.readouterr().err
+    code = main(["export", str(root / "ds"), "--bag", str(tmp_path / "b"), "--format", "urdf"])
+    assert code == 2 and "use one of ros1, ros2, mcap" in capsys.readouterr().err
+    code = _import(root, tmp_path / "a.bag", tmp_path / "o", "--images", "x/*.png")
+    assert code == 2 and "--bag replaces --images and --joints" in capsys.readouterr().err
+    code = main(["run", "scenarios/ur5e.toml", "--out", str(tmp_path / "r"), "--bag",
+                 str(tmp_path / "r.bag")])  # fmt: skip
+    assert code == 2 and "render = false" in capsys.readouterr().err
+    assert not (tmp_path / "r").exists()
+
+
+def test_analytic_dataset_has_no_images_for_a_bag(tmp_path, capsys):
+    assert main(["acquire", "scenarios/ur5e.toml", "--out", str(tmp_path / "d"), "--quiet"]) == 0
+    assert main(["export", str(tmp_path / "d"), "--bag", str(tmp_path / "d.bag")]) == 2
+    err = capsys.readouterr().err
+    assert "holds detections (the analytic path)" in err and "render = true" in err
+    assert not (tmp_path / "d.bag").exists()
+
+
+@pytest.mark.slow
+@pytest.mark.render
+def test_run_writes_its_bag(tmp_path, capsys):
+    """`selfcal run --bag`: the rendered stereo run's images and joint readings as a ROS 2 bag."""
+    out, bag = tmp_path / "run", tmp_path / "run_bag"
+    assert main(["run", "scenarios/paper.toml", "--out", str(out), "--bag", str(bag),
+                 "--quiet"]) == 0  # fmt: skip
+    ds = Dataset.open(out)
+    with BagReader(bag) as r:
+        assert bag_format(bag) == "ros2"
+        assert {"/left/image_raw", "/right/image_raw", "/joint_states"} <= set(r.topics)
+        imgs = [m for _, _, m in r.messages(["/left/image_raw"])]
+    assert len(imgs) == len(ds.indices)
+    first = cv2.imread(str(ds.frame_paths(int(ds.indices[0]))[0]), cv2.IMREAD_UNCHANGED)
+    assert np.array_equal(np.asarray(imgs[0].data).reshape(first.shape), first)
