@@ -15,6 +15,7 @@ never goes into the bag (``truth.json`` is not read).
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -82,7 +83,11 @@ def nominal_urdf(ds: Dataset) -> str:
 def _dh_urdf(robot: RobotDef) -> str:
     dep = deploy_chain(nominal_mcpc(robot).with_tool(robot.T_flange_cam), robot,
                        source="nominal robot model")  # fmt: skip
-    return to_urdf(dep, calibrated=False)
+    with warnings.catch_warnings():
+        # a nominal frame at exactly +-90 deg pitch: scipy's rpy sets the third angle to zero and
+        # still represents the rotation; its warning would only puzzle the user
+        warnings.filterwarnings("ignore", "Gimbal lock detected", UserWarning)
+        return to_urdf(dep, calibrated=False)
 
 
 def _camera_infos(ds: Dataset) -> dict[str, CameraInfo]:

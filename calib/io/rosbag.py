@@ -32,6 +32,8 @@ __all__ = [
     "BagReader",
     "BagWriter",
     "CameraInfo",
+    "COMPRESSED_TYPE",
+    "RAW_TYPE",
     "FORMATS",
     "IMAGE_TYPES",
     "INFO_TYPE",
