@@ -188,6 +188,7 @@ def test_stop_and_go_recording(lab, tmp_path):
     assert np.array_equal(img, pictures[rest_at[kept[0]]])
 
 
+@pytest.mark.slow  # 5 s: two cameras' detections and geometry checks
 def test_two_cameras_raw_and_compressed(lab, tmp_path):
     """A frame is one rest with an image of every camera: cam0 raw rgb8 at 5 Hz, cam1 png
     CompressedImage at 3 Hz, in a ROS 2 mcap bag."""
