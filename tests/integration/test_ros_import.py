@@ -232,6 +232,15 @@ def test_two_cameras_raw_and_compressed(lab, tmp_path):
     p0, p1 = ds.frame_paths(int(ds.indices[0]))
     assert cv2.imread(str(p0), cv2.IMREAD_UNCHANGED).shape == (600, 800, 3)  # rgb8 -> colour PNG
     assert np.array_equal(cv2.imread(str(p1), cv2.IMREAD_UNCHANGED), pictures[rest[0]])
+    # --per-rest 2: two frames of each rest
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", MovingImagesWarning)
+        assert _import(tmp_path / "two", tmp_path / "ds2", root, "cam0=/cam0/image_raw",
+                       "cam1=/cam1/image_raw/compressed", extra=["--per-rest", "2"]) == 0  # fmt: skip
+    got = _stamps(tmp_path / "ds2")["cam0"]
+    assert (
+        np.bincount([int(np.searchsorted(a, t, side="right") - 1) for t in got]).tolist() == [2] * 3
+    )
 
 
 # --- bad input: each error names the bag, the topic and the fix ---------------------------------
