@@ -191,17 +191,19 @@ class _Staged:
 def _stage_images(
     reader: BagReader, cams: Sequence[ImageTopic], track: JointTrack, rule: RestRule,
     joint_topic: str, stage: Path,
-) -> tuple[dict[str, _Staged], dict[str, int], int]:  # fmt: skip
-    """Pass 2: decode and stage every image at rest; count the others by reason."""
+) -> tuple[dict[str, _Staged], dict[str, int], int, tuple[int, int]]:  # fmt: skip
+    """Pass 2: decode and stage every image at rest; count the others by reason; the first and
+    last image stamps."""
     by_topic = {c.topic: c.name for c in cams}
     staged = {c.name: _Staged([], []) for c in cams}
     for c in cams:
         (stage / c.name).mkdir(parents=True)
     counts = {MOVING: 0, GAP: 0, OUTSIDE: 0}
-    total = 0
+    total, first, last = 0, 2**63 - 1, -(2**63)
     for topic, msgtype, msg in reader.messages(list(by_topic)):
         total += 1
         t = stamp_ns(msg)
+        first, last = min(first, t), max(last, t)
         st = track.status(t, rule)
         if st == EMPTY:
             a, b = track.largest_gap(t)
@@ -222,7 +224,7 @@ def _stage_images(
             raise ImportError_(f"{path}: cannot write the staged image", fix="check the disk")
         s.stamps.append(t)
         s.files.append(path)
-    return staged, counts, total
+    return staged, counts, total, (first, last)
 
 
 def _pair(
@@ -320,11 +322,19 @@ def import_bag(
             model = _model(infos, camera_model, bag)
             if stage.exists():
                 shutil.rmtree(stage)
-            staged, counts, total = _stage_images(reader, image_topics, track, rule, joint_topic,
+            staged, counts, total, span = _stage_images(reader, image_topics, track, rule, joint_topic,
                                                   stage)  # fmt: skip
             fmt = reader.format
         topics = ", ".join(c.topic for c in image_topics)
         at_rest = sum(len(s.files) for s in staged.values())
+        if total and counts[OUTSIDE] == total:
+            raise BagError(
+                f"{bag}: the {total} images on {topics} ({_secs(span[0])} to {_secs(span[1])}) lie "
+                f"outside the joint messages on {joint_topic} ({_secs(int(track.t[0]))} to "
+                f"{_secs(int(track.t[-1]))})",
+                fix="stamp images and joints by one clock (check use_sim_time and the camera "
+                "driver's time source), and record the joints for as long as the camera",
+            )
         if at_rest == 0:
             raise BagError(
                 f"{bag}: none of the {total} images on {topics} was taken at rest ({counts[MOVING]}"

@@ -246,7 +246,7 @@ def test_two_cameras_raw_and_compressed(lab, tmp_path):
 # --- bad input: each error names the bag, the topic and the fix ---------------------------------
 
 
-def _small_bag(path: Path, *, names=CHAIN, pause=None, encoding="mono8", moving=False):
+def _small_bag(path: Path, *, names=CHAIN, pause=None, encoding="mono8", moving=False, clock=0):
     """Two rests of 2 s with images at 4 Hz (64x48, no board: these errors come first)."""
     rests = np.array([np.zeros(6), np.full(6, 0.2)])
     t0 = 10 * NS
@@ -265,7 +265,7 @@ def _small_bag(path: Path, *, names=CHAIN, pause=None, encoding="mono8", moving=
         bag.joints("/joint_states", t, list(names), q(t)[: len(names)])
     bag.joints("/gripper/joint_states", t0, ["gripper_finger_joint"], [0.0])
     img = rng.integers(0, 255, (48, 64), np.uint8)
-    for t in range(t0 + NS // 3, int(b[-1]) - NS // 3, NS // 4):
+    for t in range(t0 + NS // 3 + clock, int(b[-1]) - NS // 3 + clock, NS // 4):
         bag.image("/cam/image_raw", t, img if encoding != "bayer_rggb8" else img, encoding)
     bag.close()
     return t0
@@ -322,6 +322,16 @@ def test_no_image_at_rest(lab, tmp_path, capsys):
     err = _error(tmp_path / "s.bag", tmp_path, root, capsys)
     assert "none of the" in err and "images on /cam/image_raw was taken at rest" in err
     assert "while moving" in err and "record stop-and-go motion" in err
+
+
+def test_images_and_joints_on_two_clocks(lab, tmp_path, capsys):
+    root = lab[0]
+    _small_bag(tmp_path / "s.bag", clock=1000 * NS)
+    err = _error(tmp_path / "s.bag", tmp_path, root, capsys)
+    assert (
+        "the 15 images on /cam/image_raw (1010.333 s to 1013.833 s) lie outside the joint " in err
+    )
+    assert "messages on /joint_states (10.000 s to 14.390 s)" in err and "one clock" in err
 
 
 def test_not_a_bag(tmp_path):
