@@ -8,7 +8,7 @@ Two streaming passes over the bag, so memory does not grow with it:
    PNG at once, any other is only counted (one warning line).
 
 Then the cameras' images are paired into frames (one rest, one image of each camera), the joints
-interpolated at the first camera's stamp, and :func:`calib.import_dataset.import_dataset` checks
+interpolated at the first camera's stamp (header stamps; the recording time for a zero one), and :func:`calib.import_dataset.import_dataset` checks
 and writes the dataset exactly as for image files and a joints file. ``dataset.json`` records the
 bag, its format, the topics and the rest rule (``scenario.import``), ``sources.csv`` each image's
 ``BAG#TOPIC@STAMP_NS``.
@@ -39,7 +39,6 @@ from calib.io.rosbag import (
     BagReader,
     CameraInfo,
     decode_image,
-    stamp_ns,
 )
 from calib.robot_def import load_robot
 from calib.robot_urdf import urdf_chain
@@ -115,7 +114,7 @@ def read_joint_track(
     ts, qs = array("q"), array("d")  # compact: 8 bytes a number however long the recording
     seen: set[str] = set()
     bad = False
-    for t, _m, msg in reader.messages([topic, *infos]):
+    for t, _m, msg, stamp in reader.timed([topic, *infos]):
         if t != topic:
             info = CameraInfo.from_msg(msg)
             if found[infos[t]] is None and info.calibrated:
@@ -133,7 +132,7 @@ def read_joint_track(
         if not all(have) or len(pos) != len(names):
             seen, bad = set(names), True
             continue
-        ts.append(stamp_ns(msg))
+        ts.append(stamp)
         qs.extend(pos[[idx[n] for n in chain.joint_names]])
     if ts and not bad:
         q = np.frombuffer(qs, float).reshape(len(ts), len(chain.joint_names))
@@ -200,9 +199,8 @@ def _stage_images(
         (stage / c.name).mkdir(parents=True)
     counts = {MOVING: 0, GAP: 0, OUTSIDE: 0}
     total, first, last = 0, 2**63 - 1, -(2**63)
-    for topic, msgtype, msg in reader.messages(list(by_topic)):
+    for topic, msgtype, msg, t in reader.timed(list(by_topic)):
         total += 1
-        t = stamp_ns(msg)
         first, last = min(first, t), max(last, t)
         st = track.status(t, rule)
         if st == EMPTY:

@@ -218,7 +218,7 @@ def import_dataset(
     seen = np.zeros(len(rows.q), bool)
     for cam in images:
         seen |= [len(f) >= tgt.min_features for f in feats[cam.name]]
-    _warn_not_found(tgt, images, files, feats)
+    _warn_not_found(tgt, images, files, feats, labels or {})
     if seen.sum() < MIN_FRAMES:
         raise ImportError_(
             f"the {tgt.describe()} is found in {int(seen.sum())} of {len(seen)} frames; "
@@ -361,8 +361,9 @@ def _warn_not_found(
     images: Sequence[CameraImages],
     files: dict[str, list[Path]],
     feats: dict[str, list[Features]],
+    labels: Mapping[Path, str],
 ) -> None:
-    missed = [str(f) for c in images for f, ft in zip(files[c.name], feats[c.name], strict=True)
+    missed = [labels.get(f, str(f)) for c in images for f, ft in zip(files[c.name], feats[c.name], strict=True)
               if len(ft) < board.min_features]  # fmt: skip
     if missed:
         total = sum(len(v) for v in files.values())

@@ -261,16 +261,23 @@ class BagReader(_Closing):
     def messages(self, topics: Sequence[str]) -> Iterator[tuple[str, str, Any]]:
         """``(topic, msgtype, message)`` of ``topics`` in the bag's time order, deserialised one
         at a time."""
+        for topic, msgtype, msg, _t in self.timed(topics):
+            yield topic, msgtype, msg
+
+    def timed(self, topics: Sequence[str]) -> Iterator[tuple[str, str, Any, int]]:
+        """As :meth:`messages`, with each message's stamp (ns): its header stamp, or the time
+        it was recorded when it has no header or a zero stamp (some drivers publish those)."""
         conns = [c for c in self._reader.connections if c.topic in set(topics)]
         if not conns:
             return
-        for conn, _t, raw in self._reader.messages(connections=conns):
+        for conn, t, raw in self._reader.messages(connections=conns):
             try:
                 msg = self._reader.deserialize(raw, conn.msgtype)
             except Exception as exc:  # rosbags' serde errors have no common root
                 raise BagError(f"{self.path}: topic {conn.topic}: a message that cannot be "
                                f"decoded ({exc})", fix="re-record the topic") from None  # fmt: skip
-            yield conn.topic, conn.msgtype, msg
+            stamp = stamp_ns(msg) if hasattr(msg, "header") else 0
+            yield conn.topic, conn.msgtype, msg, stamp or int(t)
 
 
 class BagWriter(_Closing):

@@ -24,6 +24,7 @@ from synthetic_board import TARGET_TOML, make_lab, postures, render
 from calib.bag_import import MovingImagesWarning
 from calib.errors import InputError
 from calib.io.dataset import Dataset
+from calib.io.rosbag import BagReader
 from scenarios.cli import main
 
 rosbags = pytest.importorskip("rosbags")
@@ -64,9 +65,9 @@ class RawBag:
         ser = self.ts.serialize_ros1 if self.ros1 else self.ts.serialize_cdr
         self.w.write(self.conns[topic], t, ser(msg, msgtype))
 
-    def joints(self, topic: str, t: int, names: list[str], q) -> None:
+    def joints(self, topic: str, t: int, names: list[str], q, stamp: int | None = None) -> None:
         msg = self.T["sensor_msgs/msg/JointState"](
-            header=self.header(t), name=names, position=np.asarray(q, float),
+            header=self.header(t if stamp is None else stamp), name=names, position=np.asarray(q, float),
             velocity=np.zeros(0), effort=np.zeros(0))  # fmt: skip
         self.put(topic, "sensor_msgs/msg/JointState", t, msg)
 
@@ -246,7 +247,8 @@ def test_two_cameras_raw_and_compressed(lab, tmp_path):
 # --- bad input: each error names the bag, the topic and the fix ---------------------------------
 
 
-def _small_bag(path: Path, *, names=CHAIN, pause=None, encoding="mono8", moving=False, clock=0):
+def _small_bag(path: Path, *, names=CHAIN, pause=None, encoding="mono8", moving=False, clock=0,
+               zero_stamps=False):  # fmt: skip
     """Two rests of 2 s with images at 4 Hz (64x48, no board: these errors come first)."""
     rests = np.array([np.zeros(6), np.full(6, 0.2)])
     t0 = 10 * NS
@@ -262,7 +264,7 @@ def _small_bag(path: Path, *, names=CHAIN, pause=None, encoding="mono8", moving=
     for t in range(t0, int(b[-1]), period):
         if pause and pause[0] <= t < pause[1]:
             continue
-        bag.joints("/joint_states", t, list(names), q(t)[: len(names)])
+        bag.joints("/joint_states", t, list(names), q(t)[: len(names)], 0 if zero_stamps else None)
     bag.joints("/gripper/joint_states", t0, ["gripper_finger_joint"], [0.0])
     img = rng.integers(0, 255, (48, 64), np.uint8)
     for t in range(t0 + NS // 3 + clock, int(b[-1]) - NS // 3 + clock, NS // 4):
@@ -332,6 +334,20 @@ def test_images_and_joints_on_two_clocks(lab, tmp_path, capsys):
         "the 15 images on /cam/image_raw (1010.333 s to 1013.833 s) lie outside the joint " in err
     )
     assert "messages on /joint_states (10.000 s to 14.390 s)" in err and "one clock" in err
+
+
+def test_zero_header_stamps_are_taken_at_their_recording_time(lab, tmp_path, capsys):
+    root = lab[0]
+    _small_bag(tmp_path / "s.bag", zero_stamps=True)
+    with BagReader(tmp_path / "s.bag") as r:
+        got = [(m.header.stamp.sec, s) for _, _, m, s in r.timed(["/joint_states"])]
+    assert got[:2] == [(0, 10 * NS), (0, 10 * NS + NS // 100)]
+    # the joints cover the images: the import gets as far as looking for the board in them
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # 6 images taken while moving; no board in any image
+        assert _import(tmp_path / "s.bag", tmp_path / "o", root, "cam0=/cam/image_raw") == 2
+    err = capsys.readouterr().err
+    assert "is found in 0 of 9 frames" in err
 
 
 def test_not_a_bag(tmp_path):
