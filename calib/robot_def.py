@@ -11,6 +11,7 @@ else reads those files.
 
 from __future__ import annotations
 
+import importlib.resources
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -47,7 +48,12 @@ class RobotDefinitionError(InputError):
 
 
 def models_dir() -> Path:
-    """The repository's ``models/`` folder."""
+    """The robot models folder: ``calib/models`` inside an installed wheel (package data, found
+    through :mod:`importlib.resources`; pyproject ``force-include``), else ``models/`` of the source
+    checkout next to this package. Never the working directory."""
+    packaged = Path(str(importlib.resources.files("calib"))) / "models"
+    if (packaged / "robots").is_dir():
+        return packaged
     return Path(__file__).resolve().parents[1] / "models"
 
 

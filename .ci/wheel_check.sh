@@ -1,0 +1,40 @@
+#!/usr/bin/env bash
+# The wheel works outside the checkout (#16): build it, install it into a fresh venv, and from an
+# empty folder run `selfcal fk` and a short analytic `selfcal run` (12 poses, no rendering). The
+# robot models travel as package data (pyproject force-include -> calib/models). Needs only the
+# package registry (or uv's cache) for the dependencies; about 10 s with a warm cache.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+repo=$(pwd)
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+
+echo "== uv build --wheel"
+uv build --wheel --quiet -o "$work/dist"
+wheel=$(ls "$work"/dist/*.whl)
+for f in $(cd models && find . -type f | sed 's|^\./||'); do
+    unzip -l "$wheel" "calib/models/$f" >/dev/null || { echo "wheel lacks calib/models/$f"; exit 1; }
+done
+echo "== install into a fresh venv"
+uv venv --quiet "$work/venv"
+uv pip install --quiet --python "$work/venv" "$wheel"
+
+mkdir "$work/empty"
+cd "$work/empty"
+echo "== selfcal fk (from an empty folder)"
+"$work/venv/bin/selfcal" fk --joints 0,0,0,0,0 | tee fk.json
+grep -q '"xyz_mm": \[541.25' fk.json
+echo "== selfcal run (analytic, 12 poses)"
+cat > quick.toml <<'TOML'
+[noise]
+render = false
+[trajectory]
+poses = 12
+[validation]
+poses = 5
+TOML
+"$work/venv/bin/selfcal" run quick.toml --out run
+test -s run/calibration.json && test -s run/report.md
+# nothing of the checkout was used: the installed package is outside $repo
+"$work/venv/bin/python" -c "import calib.robot_def as r, sys; d = r.models_dir(); print('models:', d); sys.exit(str(d).startswith('$repo'))"
+echo "wheel check ok"
