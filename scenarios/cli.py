@@ -22,7 +22,16 @@ from calib.mcpc import nominal_mcpc
 from calib.robot_def import load_robot
 from calib.tool_pose import tool_pose
 from scenarios.backends import render_posture
-from scenarios.cli_common import CliError, parse_floats, run_command
+from scenarios.cli_common import (
+    EXIT_USAGE,
+    CliError,
+    SelfcalParser,
+    add_verbosity,
+    leaf_parsers,
+    note_written,
+    parse_floats,
+    run_command,
+)
 from scenarios.cli_pose import POSE_HELP, add_pose_args, is_er, orientation_json, parse_pose_args
 from scenarios.config import load_scenario
 from scenarios.deploy_cli import register as register_deploy
@@ -50,6 +59,11 @@ def _joints_rad(robot, text: str) -> np.ndarray:
     except ValueError as exc:
         raise CliError(str(exc)) from None
     return q
+
+
+def _existing(root: Path, *names: str) -> list[Path]:
+    """The files ``root/NAME`` that exist (what a command wrote among those it may write)."""
+    return [root / n for n in names if (root / n).is_file()]
 
 
 def cmd_fk(args: argparse.Namespace) -> int:
@@ -114,23 +128,27 @@ def cmd_render(args: argparse.Namespace) -> int:
     robot = load_robot(args.model)
     q = _joints_rad(robot, args.joints)
     paths = render_posture(robot, q, Path(args.out), config=args.config)
+    note_written(args, *paths)
     print(json.dumps({"left": str(paths[0]), "right": str(paths[1])}))
     return 0
 
 
 def cmd_acquire(args: argparse.Namespace) -> int:
     run_acquire(load_scenario(args.config), Path(args.out), resume=args.resume, quiet=args.quiet)
+    note_written(args, args.out)
     return 0
 
 
 def cmd_calibrate(args: argparse.Namespace) -> int:
     calibrate_any(Path(args.dataset), quiet=args.quiet, method=args.method,
                   allow_missing_frames=args.allow_missing_frames)  # fmt: skip
+    note_written(args, Path(args.dataset) / "calibration.json")
     return 0
 
 
 def cmd_report(args: argparse.Namespace) -> int:
     report = run_report(Path(args.dataset), quiet=args.quiet)
+    note_written(args, *_existing(Path(args.dataset), "report.json", "report.md", "table_iv.md"))
     print(report_summary(report, Path(args.dataset)), flush=True)
     if report["failures"]:
         where = Path(args.dataset) / "report.json"
@@ -148,8 +166,10 @@ def cmd_run(args: argparse.Namespace) -> int:
     run_all(s, out, resume=True, quiet=args.quiet, method=args.method)
     if args.bag:
         export_run(out, args.bag, args.quiet)
+    note_written(args, out)
     if args.rerun:
         path = record_run(out, Path(args.rerun), spawn=args.spawn)
+        note_written(args, path)
         print(f"Rerun recording: {path} (open it with `rerun {path}`)")
     elif args.spawn:
         raise CliError("--spawn needs --rerun FILE.rrd")
@@ -180,7 +200,7 @@ default scenario: scenarios/paper.toml
 
 def build_parser() -> argparse.ArgumentParser:
     """The ``selfcal`` argument parser."""
-    p = argparse.ArgumentParser(
+    p = SelfcalParser(
         prog="selfcal",
         description="Vision-based self-calibration testbench for camera-equipped robot arms "
         "(SCORBOT ER-4u). Millimetres and degrees on the command line.",
@@ -193,6 +213,7 @@ def build_parser() -> argparse.ArgumentParser:
         help=f"BLAS/OpenMP threads per process, also per worker of --jobs (default ${THREADS_ENV} "
         f"or {DEFAULT_THREADS})",
     )
+    add_verbosity(p, top=True)
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     def add(name: str, func, help_: str, epilog: str | None = None) -> argparse.ArgumentParser:
@@ -242,7 +263,6 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("config", help="scenario TOML (e.g. scenarios/paper.toml)")
     sp.add_argument("--out", required=True, help="dataset folder")
     sp.add_argument("--resume", action="store_true", help="continue an interrupted acquisition")
-    sp.add_argument("--quiet", action="store_true", help="no progress output")
 
     sp = add(
         "run",
@@ -255,7 +275,6 @@ def build_parser() -> argparse.ArgumentParser:
         "config", nargs="?", default=None, help="scenario TOML (default scenarios/paper.toml)"
     )
     sp.add_argument("--out", default=None, help="output folder (default runs/<scenario name>)")
-    sp.add_argument("--quiet", action="store_true", help="no progress output")
     sp.add_argument("--method", choices=METHODS, default="joint", help=METHOD_HELP)
     sp.add_argument("--rerun", default=None, metavar="FILE.rrd", help="record the run for Rerun")
     sp.add_argument("--spawn", action="store_true", help="with --rerun: also open the viewer")
@@ -269,7 +288,6 @@ def build_parser() -> argparse.ArgumentParser:
         "self-calibration, a board: the board calibration (--method applies to the field)",
     )
     sp.add_argument("dataset", help="dataset folder")
-    sp.add_argument("--quiet", action="store_true")
     sp.add_argument("--method", choices=METHODS, default="joint", help=METHOD_HELP)
     sp.add_argument(
         "--allow-missing-frames",
@@ -280,7 +298,6 @@ def build_parser() -> argparse.ArgumentParser:
 
     sp = add("report", cmd_report, "calibration + truth -> DIR/report.json and tables")
     sp.add_argument("dataset", help="dataset folder")
-    sp.add_argument("--quiet", action="store_true")
 
     for register in (
         register_hw,
@@ -294,15 +311,21 @@ def build_parser() -> argparse.ArgumentParser:
         register_diagnose,
     ):
         register(sub)
+    for leaf in leaf_parsers(p):
+        add_verbosity(leaf)
     return p
 
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``selfcal`` console script; returns the exit code (README "Exit
-    codes": 0 ok, 1 internal error, 2 bad input, 3 cannot calibrate, 4 hardware, 130 Ctrl-C)."""
+    codes": 0 ok, 1 internal error, 2 bad input or usage, 3 cannot calibrate, 4 hardware, 130
+    Ctrl-C)."""
     parser = build_parser()
-    args = parser.parse_args(argv)
-    return run_command(_limited(args.func), args, f"selfcal {args.command}")
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # --help (0) or a usage error (2, printed by SelfcalParser)
+        return exc.code if isinstance(exc.code, int) else EXIT_USAGE
+    return run_command(_limited(args.func), args)
 
 
 def _limited(

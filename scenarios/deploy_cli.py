@@ -33,7 +33,7 @@ from calib.io.atomic import write_text_atomic
 from calib.io.board_calibration import calibration_kind, read_board_calibration
 from calib.io.calibration import CalibrationResult, read_calibration
 from calib.robot_def import load_robot
-from scenarios.cli_common import CliError
+from scenarios.cli_common import CliError, note_written
 from scenarios.cli_pose import add_pose_args, parse_pose_args
 from scenarios.ros_cli import BAG_FORMATS, cmd_export_bag
 from scenarios.ros_cli import add_export_args as add_bag_export_args
@@ -123,6 +123,7 @@ def cmd_export(args: argparse.Namespace) -> int:
                 f"{', '.join(f'{f} ({e})' for f, e in FORMATS.items())}"
             )
     if fmt in CAMERA_FORMATS:
+        note_written(args, out)
         return _export_camera(args.calibration, fmt, out, args.camera_name)
     dep = load_calibration(args.calibration)
     robot = load_robot(dep.robot_name)
@@ -134,6 +135,7 @@ def cmd_export(args: argparse.Namespace) -> int:
         text = to_toml(dep, robot)
     out.parent.mkdir(parents=True, exist_ok=True)
     write_text_atomic(out, text)
+    note_written(args, out)
     print(
         json.dumps(
             {

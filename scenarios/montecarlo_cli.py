@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 
+from scenarios.cli_common import note_written
 from scenarios.cluster import add_cluster_args
 from scenarios.montecarlo import run_montecarlo
 from scenarios.montecarlo_report import summary_markdown
@@ -19,6 +20,7 @@ def _cmd(args: argparse.Namespace) -> int:
             args.out, draws=args.draws, jobs=args.jobs, quiet=args.quiet, cluster=args.cluster
         )
         print(plans_markdown(res))
+        note_written(args, args.out)
         return 0
     _, s = run_montecarlo(
         args.draws,
@@ -33,6 +35,7 @@ def _cmd(args: argparse.Namespace) -> int:
         retries=args.retries,
     )
     print(summary_markdown(s))
+    note_written(args, args.out)
     return 0
 
 
@@ -78,6 +81,5 @@ def register(subparsers) -> argparse.ArgumentParser:
         help="instead: random against D-optimal postures (bounds for 10/20/30 poses, 3 "
         "trajectory seeds; Monte Carlo of --draws draws at 10 and 30 poses)",
     )
-    sp.add_argument("--quiet", action="store_true")
     sp.set_defaults(func=_cmd)
     return sp

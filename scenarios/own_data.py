@@ -27,10 +27,13 @@ from calib.io.board_calibration import (
 from calib.io.calibration import read_calibration
 from calib.io.dataset import Dataset
 from calib.io.tracker import JOINT_UNITS
-from scenarios.cli_common import CliError
+from scenarios.cli_common import CliError, note_written
+from scenarios.cli_log import get_logger
 from scenarios.pipeline import run_calibrate
 from scenarios.ros_cli import add_import_args as add_bag_import_args
 from scenarios.ros_cli import cmd_import_bag
+
+_log = get_logger(__name__)
 
 __all__ = ["calibrate_any", "register"]
 
@@ -52,7 +55,7 @@ def calibrate_any(
     res = calibrate_board_dataset(root, allow_missing_frames=allow_missing_frames)
     write_board_calibration(Path(root) / "calibration.json", res)
     for text in res.warnings:
-        _say(quiet, f"warning: {text}")
+        _log.warning("%s", text)
     _say(quiet, summary(res))
 
 
@@ -82,6 +85,7 @@ def cmd_import(args: argparse.Namespace) -> int:
         free=None if args.free is None else [n.strip() for n in args.free.split(",") if n.strip()],
     )  # fmt: skip
     n = len(info.planned_joints_deg)
+    note_written(args, args.out)
     print(f"imported {n} frames of {len(info.cameras)} camera(s) into {args.out}")
     return 0
 
@@ -95,6 +99,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         ev = evaluate_field(read_calibration(cal_path), cal_dir, args.dataset)
     out = Path(args.out) if args.out else Path(args.dataset) / "evaluation.json"
     write_evaluation(out, ev)
+    note_written(args, out)
     print(ev.line())
     if ev.failures:
         raise CalibrationFailedError.of(ev.failures, out)

@@ -48,6 +48,7 @@ from calib.robot_def import load_robot
 from calib.transforms import inv_pose, kabsch
 from scenarios.acquire import acquire
 from scenarios.backends import open_robot, plan_dataset, sim_setup
+from scenarios.cli_common import note_written
 from scenarios.config import ConfigError, load_scenario
 from scenarios.paper_checks import paper_inconsistencies
 from scenarios.paper_data import (
@@ -251,6 +252,7 @@ def reproduce(out: str | Path, config: str | Path | None = None, *, quiet: bool 
 # ------------------------------------------------------------------------------------- CLI
 def _cmd(args: argparse.Namespace) -> int:
     reproduce(Path(args.out), args.config, quiet=args.quiet)
+    note_written(args, args.out)
     return 0
 
 
@@ -267,6 +269,5 @@ def register(subparsers) -> argparse.ArgumentParser:
         "config", nargs="?", default=None, help="scenario TOML (default scenarios/paper.toml)"
     )
     sp.add_argument("--out", required=True, help="output folder")
-    sp.add_argument("--quiet", action="store_true", help="no progress output")
     sp.set_defaults(func=_cmd)
     return sp

@@ -25,9 +25,12 @@ from calib.robot_def import load_robot
 from calib.transforms import inv_pose
 from scenarios.acquire import acquire
 from scenarios.backends import open_robot, plan_dataset, sim_setup
+from scenarios.cli_log import get_logger
 from scenarios.config import Scenario
 from scenarios.paper_data import TABLE_II_MM, table_ii_postures
 from scenarios.progress import Progress
+
+_log = get_logger(__name__)
 
 __all__ = ["run_acquire", "run_calibrate", "run_report", "report_summary", "run_all"]
 
@@ -72,7 +75,7 @@ def run_calibrate(
     path = write_calibration(Path(root) / "calibration.json", res)
     i = res.intrinsics
     for text in res.warnings:
-        _say(quiet, f"warning: {text}")
+        _log.warning("%s", text)
     _say(
         quiet,
         f"calibrated {res.dataset.frames_used}/{res.dataset.frames} frames in "

@@ -46,6 +46,7 @@ from calib.report import kabsch
 from calib.robot_def import load_robot
 from calib.target import CORNERS_PER_MARKER, marker_corner, marker_features
 from calib.transforms import inv_pose
+from scenarios.cli_common import note_written
 from sim.markers import MarkerField, make_marker_field
 from sim.posed_geometry import PosedGeometry
 from sim.robot_mjcf import RigConfig
@@ -369,6 +370,7 @@ def record_run(dataset_dir: str | Path, rrd_path: str | Path | None, spawn: bool
 def _cmd(args: argparse.Namespace) -> int:
     path = record_run(Path(args.dataset), args.rrd, spawn=args.spawn)
     if path is not None:
+        note_written(args, path)
         print(f"recorded {args.dataset} into {path} (view: rerun {path})")
     return 0
 

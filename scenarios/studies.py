@@ -39,6 +39,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from calib.errors import InputError
+from scenarios.cli_common import note_written
 from scenarios.cluster import DEFAULT_RETRIES, add_cluster_args
 from scenarios.parallel import run_tasks
 from scenarios.progress import TaskCounts
@@ -181,6 +182,7 @@ def _cmd(args: argparse.Namespace) -> int:
         cluster=args.cluster,
         retries=args.retries,
     )
+    note_written(args, args.out)
     return 0
 
 
@@ -210,6 +212,5 @@ def register(subparsers) -> argparse.ArgumentParser:
         help="worker processes (default: CPU count; 1 = in-process; not with --cluster)",
     )
     add_cluster_args(sp)
-    sp.add_argument("--quiet", action="store_true")
     sp.set_defaults(func=_cmd)
     return sp

@@ -36,7 +36,8 @@ from calib.io.tracker_calibration import (
 from calib.mcpc import nominal_mcpc
 from calib.robot_def import load_robot
 from calib.tracker_identify import TrackerMeasurements, identify_tracker
-from scenarios.cli_common import CliError
+from scenarios.cli_common import CliError, note_written
+from scenarios.cli_log import get_logger
 
 __all__ = ["register", "cmd_identify", "cmd_predict"]
 
@@ -120,8 +121,10 @@ def cmd_identify(args: argparse.Namespace) -> int:
         files=files,
     )
     path = write_tracker_calibration(out / "calibration.json", cal)
+    note_written(args, path)
     if meas.m:
         write_text_atomic(out / "residuals.csv", _residuals_csv(table, res, meas))
+        note_written(args, out / "residuals.csv")
     kinds = " + ".join(res.kinds)
     if meas.m:
         what = "poses" if meas.R is not None else "positions"
@@ -140,7 +143,7 @@ def cmd_identify(args: argparse.Namespace) -> int:
     if table.ignored:
         print(f"ignored columns of {table.path}: {', '.join(table.ignored)}")
     for w in res.warnings:
-        print(f"warning: {w}", file=sys.stderr)
+        get_logger(__name__).warning("%s", w)
     print(f"wrote {path}")
     return 0
 
@@ -158,6 +161,7 @@ def cmd_predict(args: argparse.Namespace) -> int:
     xyz = cal.predict(q)
     if args.out:
         write_positions(args.out, xyz)
+        note_written(args, args.out)
         print(f"wrote {len(xyz)} positions to {args.out}", file=sys.stderr)
     else:
         sys.stdout.write(positions_csv(xyz))

@@ -364,7 +364,7 @@ def test_cli_hardware_fault_exits_4(emu, capsys):
         ["hw", "move", "--port", emu.pty_path, "--joints", "10,100,-80,-70,20"], capsys
     )
     assert code == 4 and out == ""
-    assert err.startswith("selfcal hw: error: ") and "axis 2" in err
+    assert err.startswith("selfcal: error: ") and "axis 2" in err
 
 
 def test_cli_emulate_runs_until_ctrl_c(tmp_path):

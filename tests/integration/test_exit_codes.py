@@ -1,5 +1,6 @@
 """`selfcal` exit codes (README "Exit codes"): 2 bad input, 3 data that cannot determine the
-calibration, 1 an internal error, 130 Ctrl-C; each failure prints one `selfcal CMD: error:` line.
+calibration, 1 an internal error, 130 Ctrl-C; each failure prints one line
+`selfcal: error: <what> -- <fix>` and no traceback unless -v.
 
 The hardware fault (exit code 4) is tested against the ACL emulator in test_acl_robot.py
 (test_cli_hardware_fault_exits_4).
@@ -47,8 +48,8 @@ def test_bad_scenario_key_exits_2(capsys, tmp_path):
     cfg.write_text("[camera]\nfocal_px = 800.0\n")
     code, out, err = run(capsys, "run", cfg, "--out", tmp_path / "run", "--quiet")
     assert code == 2 and out == ""
-    assert err.startswith("selfcal run: error: ") and "focal_px" in err and str(cfg) in err
-    assert "selfcal run: fix: " in err  # on its own line, after the message
+    assert err.startswith("selfcal: error: ") and "focal_px" in err and str(cfg) in err
+    assert len(err.splitlines()) == 1 and " -- " in err  # the fix on the same line
     assert not (tmp_path / "run").exists()
 
 
@@ -82,7 +83,7 @@ def test_too_few_postures_exits_3(capsys, small_dataset, tmp_path):
     assert code == 2 and "frames 3, 4, 5 of the 6 planned have no row" in err
     code, out, err = run(capsys, "calibrate", ds, "--quiet", "--allow-missing-frames")
     assert code == 3 and out == ""
-    assert err.startswith("selfcal calibrate: error: ") and "at least 6" in err
+    assert err.startswith("selfcal: error: ") and "at least 6" in err
     assert not (ds / "calibration.json").exists()
 
 
@@ -99,7 +100,7 @@ def test_degenerate_postures_exit_3(capsys, small_dataset, tmp_path):
     (ds / "joints.csv").write_text("\n".join([lines[0], *rows]) + "\n")
     plan_same_postures(ds, rows)
     code, _, err = run(capsys, "calibrate", ds, "--quiet")
-    assert code == 3 and "selfcal calibrate: error: " in err
+    assert code == 3 and err.startswith("selfcal: error: ")
 
 
 def test_damaged_calibration_exits_2_with_the_fix(capsys, small_dataset, tmp_path):
@@ -108,7 +109,7 @@ def test_damaged_calibration_exits_2_with_the_fix(capsys, small_dataset, tmp_pat
     (ds / "calibration.json").write_text(json.dumps({"format": "something-else"}))
     code, out, err = run(capsys, "export", ds, "--format", "urdf", "--out", tmp_path / "r.urdf")
     assert code == 2 and out == ""
-    assert "selfcal export: error: " in err and "something-else" in err
+    assert err.startswith("selfcal: error: ") and "something-else" in err
 
 
 def test_internal_error_exits_1_with_the_debug_hint(capsys, monkeypatch):
@@ -118,8 +119,11 @@ def test_internal_error_exits_1_with_the_debug_hint(capsys, monkeypatch):
     monkeypatch.setattr(cli, "cmd_fk", boom)
     monkeypatch.delenv("SELFCAL_DEBUG", raising=False)
     code, _, err = run(capsys, "fk", "--joints", "0,0,0,0,0")
-    assert code == 1
-    assert "ZeroDivisionError: division by zero" in err and "SELFCAL_DEBUG=1" in err
+    assert code == 1 and len(err.splitlines()) == 1 and "Traceback" not in err
+    assert err.startswith("selfcal: error: internal error ZeroDivisionError: division by zero")
+    assert "-v for the traceback" in err
+    code, _, err = run(capsys, "fk", "--joints", "0,0,0,0,0", "-v")
+    assert code == 1 and "Traceback (most recent call last)" in err and "in boom" in err
     monkeypatch.setenv("SELFCAL_DEBUG", "1")
     with pytest.raises(ZeroDivisionError):
         cli.main(["fk", "--joints", "0,0,0,0,0"])
@@ -134,14 +138,45 @@ def test_ctrl_c_exits_130(capsys, monkeypatch):
     assert code == 130 and "interrupted" in err
 
 
-def test_fix_is_printed_on_its_own_line(capsys, monkeypatch):
+def test_fix_follows_the_message_on_one_line(capsys, monkeypatch):
     def bad(args):
         raise InputError("the thing is wrong", fix="do the other thing")
 
     monkeypatch.setattr(cli, "cmd_fk", bad)
     code, _, err = run(capsys, "fk", "--joints", "0,0,0,0,0")
     assert code == 2
+    assert err.splitlines() == ["selfcal: error: the thing is wrong -- do the other thing"]
+    code, _, err = run(capsys, "-v", "fk", "--joints", "0,0,0,0,0")  # -v: with the traceback
+    assert code == 2 and "Traceback" in err
+    assert err.splitlines()[-1] == "selfcal: error: the thing is wrong -- do the other thing"
+
+
+def test_usage_errors_exit_2_in_the_same_style(capsys):
+    code, out, err = run(capsys, "fk")  # --joints is required
+    assert code == 2 and out == ""
+    last = err.splitlines()[-1]
+    assert last.startswith("selfcal: error: the following arguments are required: --joints")
+    assert last.endswith("-- see `selfcal fk --help`")
+
+
+def test_python_warnings_become_counted_log_lines(capsys, monkeypatch):
+    import warnings
+
+    from calib.errors import SelfCalWarning
+
+    def warn(args):
+        warnings.warn("the first thing", SelfCalWarning, stacklevel=1)
+        warnings.warn("the second thing", RuntimeWarning, stacklevel=1)
+        warnings.warn("the first thing", SelfCalWarning, stacklevel=1)  # repeated: once
+        return 0
+
+    monkeypatch.setattr(cli, "cmd_fk", warn)
+    code, out, err = run(capsys, "fk", "--joints", "0,0,0,0,0")
+    assert code == 0 and out == ""
     assert err.splitlines() == [
-        "selfcal fk: error: the thing is wrong",
-        "selfcal fk: fix: do the other thing",
+        "selfcal: warning: the first thing",
+        "selfcal: warning: the second thing [RuntimeWarning]",
+        err.splitlines()[-1],
     ]
+    assert err.splitlines()[-1].startswith("selfcal: done in ")
+    assert err.splitlines()[-1].endswith("nothing written; 2 warnings")

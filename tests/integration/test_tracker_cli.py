@@ -126,7 +126,7 @@ def _identify_fails(tmp_path, capsys, header, rows, units="deg", fmt="{:.6f}"):
     meas = _write(tmp_path / "bad.csv", header, rows, fmt=fmt)
     argv = ["identify", meas, "--robot", "er4u-paper", "--joint-units", units]
     code, _, err = _run([*argv, "--out", str(tmp_path / "o")], capsys)
-    assert "fix:" in err
+    assert err.startswith("selfcal: error: ") and " -- " in err  # the fix after " -- "
     return code, err
 
 
