@@ -7,9 +7,10 @@ message naming the problem (and how to fix it) on bad input.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import numpy as np
@@ -17,6 +18,7 @@ import numpy as np
 from calib.calibrate import CalibrationFailedError
 from calib.ik import UnreachableError, ik, ik_nearest
 from calib.ik_numeric import ToolTarget, ik_robot
+from calib.io.dataset import Dataset
 from calib.kinematics import fk_tool
 from calib.mcpc import nominal_mcpc
 from calib.robot_def import load_robot
@@ -26,6 +28,9 @@ from scenarios.cli_common import (
     EXIT_USAGE,
     CliError,
     SelfcalParser,
+    add_deprecated,
+    add_json,
+    add_scenario_arg,
     add_verbosity,
     leaf_parsers,
     note_written,
@@ -33,7 +38,8 @@ from scenarios.cli_common import (
     run_command,
 )
 from scenarios.cli_pose import POSE_HELP, add_pose_args, is_er, orientation_json, parse_pose_args
-from scenarios.config import load_scenario
+from scenarios.config import DEFAULT_ROBOT, load_scenario
+from scenarios.deploy_cli import CALIBRATED_FRAME, load_calibration
 from scenarios.deploy_cli import register as register_deploy
 from scenarios.diagnose_render import register as register_diagnose
 from scenarios.hw_cli import register as register_hw
@@ -66,10 +72,26 @@ def _existing(root: Path, *names: str) -> list[Path]:
     return [root / n for n in names if (root / n).is_file()]
 
 
+def _robot_name(args: argparse.Namespace) -> str:
+    """``--robot`` or the default robot (:data:`scenarios.config.DEFAULT_ROBOT`)."""
+    return args.robot or DEFAULT_ROBOT
+
+
 def cmd_fk(args: argparse.Namespace) -> int:
-    robot = load_robot(args.model)
+    if args.calibration:
+        dep = load_calibration(args.calibration)
+        if args.robot and args.robot != dep.robot_name:
+            raise CliError(
+                f"--robot {args.robot} contradicts the calibration's robot {dep.robot_name} "
+                f"({args.calibration})",
+                fix="leave out --robot: the calibration names its robot",
+            )
+        robot, model = load_robot(dep.robot_name), dep.model
+    else:
+        robot = load_robot(_robot_name(args))
+        model = nominal_mcpc(robot)
     q = _joints_rad(robot, args.joints)
-    T = fk_tool(nominal_mcpc(robot), q[None])[0]
+    T = fk_tool(model, q[None])[0]
     out = {
         "model": robot.name,
         "joints_deg": np.round(np.degrees(q), 6).tolist(),
@@ -80,6 +102,9 @@ def cmd_fk(args: argparse.Namespace) -> int:
         out["pitch_deg"] = round(float(np.degrees(pitch)), 4)
         out["roll_deg"] = round(float(np.degrees(roll)), 4)
     out.update(orientation_json(T[:3, :3]))
+    if args.calibration:
+        out["calibration"] = str(args.calibration)
+        out["frame"] = CALIBRATED_FRAME
     print(json.dumps(out))
     return 0
 
@@ -100,7 +125,7 @@ def _ik_er(robot, pose, branch: str | None) -> np.ndarray:
 
 
 def cmd_ik(args: argparse.Namespace) -> int:
-    robot = load_robot(args.model)
+    robot = load_robot(_robot_name(args))
     pose = parse_pose_args(args, robot)
     out: dict = {"model": robot.name}
     try:
@@ -125,55 +150,109 @@ def cmd_ik(args: argparse.Namespace) -> int:
 
 
 def cmd_render(args: argparse.Namespace) -> int:
-    robot = load_robot(args.model)
+    scenario = args.scenario
+    model = args.robot or (load_scenario(scenario).robot.model if scenario else DEFAULT_ROBOT)
+    robot = load_robot(model)
     q = _joints_rad(robot, args.joints)
-    paths = render_posture(robot, q, Path(args.out), config=args.config)
+    paths = render_posture(robot, q, Path(args.out), config=scenario)
     note_written(args, *paths)
     print(json.dumps({"left": str(paths[0]), "right": str(paths[1])}))
     return 0
 
 
+def _scenario_out(args: argparse.Namespace, s) -> Path:
+    """``--out`` or ``runs/<scenario file stem>``."""
+    return Path(args.out) if args.out else Path("runs") / Path(s.source).stem
+
+
 def cmd_acquire(args: argparse.Namespace) -> int:
-    run_acquire(load_scenario(args.config), Path(args.out), resume=args.resume, quiet=args.quiet)
-    note_written(args, args.out)
+    s = load_scenario(args.config)
+    out = _scenario_out(args, s)
+    run_acquire(s, out, resume=args.resume, quiet=args.quiet)
+    note_written(args, out)
+    if args.json:
+        print(json.dumps({"dataset": str(out), "frames": len(Dataset.open(out).indices)}))
     return 0
 
 
+def _calibration_json(path: Path) -> dict:
+    """The headline numbers of a written calibration.json (``--json`` of calibrate and run)."""
+    doc = json.loads(path.read_text())
+    ident = doc.get("identification") or {}
+    return {
+        "calibration": str(path),
+        "robot_model": doc.get("robot_model"),
+        "method": doc.get("method"),
+        "reprojection_rms_px": doc.get("reprojection_rms_px"),
+        "rank": ident.get("rank"),
+        "n_params": ident.get("n_params"),
+        "warnings": doc.get("warnings", []),
+        "seconds": doc.get("seconds"),
+    }
+
+
 def cmd_calibrate(args: argparse.Namespace) -> int:
-    calibrate_any(Path(args.dataset), quiet=args.quiet, method=args.method,
-                  allow_missing_frames=args.allow_missing_frames)  # fmt: skip
-    note_written(args, Path(args.dataset) / "calibration.json")
+    root = Path(args.dataset)
+    with _stdout_to_stderr(args.json):
+        calibrate_any(root, quiet=args.quiet, method=args.method,
+                      allow_missing_frames=args.allow_missing_frames)  # fmt: skip
+    note_written(args, root / "calibration.json")
+    if args.json:
+        print(json.dumps(_calibration_json(root / "calibration.json")))
     return 0
 
 
 def cmd_report(args: argparse.Namespace) -> int:
-    report = run_report(Path(args.dataset), quiet=args.quiet)
-    note_written(args, *_existing(Path(args.dataset), "report.json", "report.md", "table_iv.md"))
-    print(report_summary(report, Path(args.dataset)), flush=True)
+    root = Path(args.dataset)
+    report = run_report(root, quiet=args.quiet or args.json)
+    note_written(args, *_existing(root, "report.json", "report.md", "table_iv.md"))
+    if args.json:
+        print(json.dumps(report))
+    else:
+        print(report_summary(report, root), flush=True)
     if report["failures"]:
-        where = Path(args.dataset) / "report.json"
-        raise CalibrationFailedError.of(tuple(report["failures"]), where)
+        raise CalibrationFailedError.of(tuple(report["failures"]), root / "report.json")
     return 0
 
 
 def cmd_run(args: argparse.Namespace) -> int:
     s = load_scenario(args.config)
-    out = Path(args.out) if args.out else Path("runs") / Path(s.source).stem
+    out = _scenario_out(args, s)
+    if args.spawn and not args.rrd:
+        raise CliError("--spawn needs --rrd FILE.rrd", fix="add --rrd run.rrd")
     if args.bag and not s.noise.render:
         raise CliError(f"--bag: {s.source} takes no images ([noise] render = false), a bag needs "
                        "them; set render = true")  # fmt: skip
     # A run continues the dataset already in --out when it was taken with the same scenario.
-    run_all(s, out, resume=True, quiet=args.quiet, method=args.method)
+    with _stdout_to_stderr(args.json):
+        result = run_all(s, out, resume=True, quiet=args.quiet, method=args.method)
     if args.bag:
-        export_run(out, args.bag, args.quiet)
+        with _stdout_to_stderr(args.json):
+            export_run(out, args.bag, args.quiet)
+        note_written(args, args.bag)
     note_written(args, out)
-    if args.rerun:
-        path = record_run(out, Path(args.rerun), spawn=args.spawn)
+    doc: dict = {"out": str(out), **_calibration_json(out / "calibration.json")}
+    if "report" in result:
+        doc["validation"] = result["report"]["validation"]
+    if args.rrd:
+        path = record_run(out, Path(args.rrd), spawn=args.spawn)
         note_written(args, path)
-        print(f"Rerun recording: {path} (open it with `rerun {path}`)")
-    elif args.spawn:
-        raise CliError("--spawn needs --rerun FILE.rrd")
+        doc["rrd"] = str(path)
+        if not args.json:
+            print(f"Rerun recording: {path} (open it with `rerun {path}`)")
+    if args.json:
+        print(json.dumps(doc))
     return 0
+
+
+@contextlib.contextmanager
+def _stdout_to_stderr(active: bool) -> Iterator[None]:
+    """With ``--json`` stdout carries the JSON alone: the human summary lines go to stderr."""
+    if not active:
+        yield
+        return
+    with contextlib.redirect_stdout(sys.stderr):
+        yield
 
 
 METHODS = ("joint", "two-stage")
@@ -227,6 +306,10 @@ def build_parser() -> argparse.ArgumentParser:
         sp.set_defaults(func=func)
         return sp
 
+    robot_help = (
+        f"robot model name, robot TOML or URDF file (default {DEFAULT_ROBOT}: the [robot] model "
+        "of the default scenario)"
+    )
     sp = add(
         "fk",
         cmd_fk,
@@ -234,25 +317,41 @@ def build_parser() -> argparse.ArgumentParser:
         "and roll_deg for an ER-type arm)",
         POSE_HELP,
     )
-    sp.add_argument("--model", default="er4u-paper", help="robot model name (default er4u-paper)")
+    sp.add_argument("--robot", default=None, help=robot_help)
+    add_deprecated(sp, "--model", "--robot", dest="robot")
     sp.add_argument(
         "--joints", required=True, help="joint angles in deg, e.g. 38.15,-30,45,-63.54,0"
     )
+    sp.add_argument(
+        "--calibration",
+        default=None,
+        metavar="DIR",
+        help="the calibrated model of DIR (calibration.json, its dataset folder or an exported "
+        ".toml) instead of the nominal one: the tool tip in the robot's base frame",
+    )
+    add_json(sp, always=True)
 
     sp = add("ik", cmd_ik, "inverse kinematics: print joint angles (deg) as JSON", POSE_HELP)
-    sp.add_argument("--model", default="er4u-paper", help="robot model name (default er4u-paper)")
+    sp.add_argument("--robot", default=None, help=robot_help)
+    add_deprecated(sp, "--model", "--robot", dest="robot")
     add_pose_args(sp, xyz_help="tool point in mm, e.g. 320.8,252.0,182.8")
     sp.add_argument(
         "--branch", default=None, help="with --pitch: a specific solution branch (default: nearest)"
     )
+    add_json(sp, always=True)
 
     sp = add(
-        "render", cmd_render, "render the stereo pair at a posture: DIR/left.png, DIR/right.png"
+        "render",
+        cmd_render,
+        "render the stereo pair at a posture: OUT/left.png, OUT/right.png; prints their paths as "
+        "JSON",
     )
-    sp.add_argument("--model", default="er4u-paper")
+    add_scenario_arg(sp, "for the robot, camera and target")
+    sp.add_argument("--robot", default=None, help="robot model (default: the scenario's)")
+    add_deprecated(sp, "--model", "--robot", dest="robot")
     sp.add_argument("--joints", required=True, help="joint angles in deg")
-    sp.add_argument("--out", required=True, help="output folder")
-    sp.add_argument("--config", default=None, help="scenario TOML for camera and target settings")
+    sp.add_argument("--out", default="render", help="output folder (default ./render)")
+    add_json(sp, always=True)
 
     sp = add(
         "acquire",
@@ -261,8 +360,11 @@ def build_parser() -> argparse.ArgumentParser:
         CONFIG_HELP,
     )
     sp.add_argument("config", help="scenario TOML (e.g. scenarios/paper.toml)")
-    sp.add_argument("--out", required=True, help="dataset folder")
+    sp.add_argument(
+        "--out", default=None, help="dataset folder (default runs/<scenario file name>)"
+    )
     sp.add_argument("--resume", action="store_true", help="continue an interrupted acquisition")
+    add_json(sp)
 
     sp = add(
         "run",
@@ -274,10 +376,12 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument(
         "config", nargs="?", default=None, help="scenario TOML (default scenarios/paper.toml)"
     )
-    sp.add_argument("--out", default=None, help="output folder (default runs/<scenario name>)")
+    sp.add_argument("--out", default=None, help="output folder (default runs/<scenario file name>)")
     sp.add_argument("--method", choices=METHODS, default="joint", help=METHOD_HELP)
-    sp.add_argument("--rerun", default=None, metavar="FILE.rrd", help="record the run for Rerun")
-    sp.add_argument("--spawn", action="store_true", help="with --rerun: also open the viewer")
+    sp.add_argument("--rrd", default=None, metavar="FILE.rrd", help="record the run for Rerun")
+    add_deprecated(sp, "--rerun", "--rrd", dest="rrd")
+    sp.add_argument("--spawn", action="store_true", help="with --rrd: also open the viewer")
+    add_json(sp)
     sp.add_argument("--bag", default=None, metavar="OUT",
                     help="also write the dataset as a ROS bag (docs/ros.md)")  # fmt: skip
 
@@ -287,7 +391,7 @@ def build_parser() -> argparse.ArgumentParser:
         "dataset -> DIR/calibration.json (never reads truth.json); the ArUco field: "
         "self-calibration, a board: the board calibration (--method applies to the field)",
     )
-    sp.add_argument("dataset", help="dataset folder")
+    sp.add_argument("dataset", help="dataset folder (the output goes into it)")
     sp.add_argument("--method", choices=METHODS, default="joint", help=METHOD_HELP)
     sp.add_argument(
         "--allow-missing-frames",
@@ -295,9 +399,16 @@ def build_parser() -> argparse.ArgumentParser:
         help="calibrate without the planned frames that have no whole joints.csv row (listed in "
         "a warning); without it they are an error",
     )
+    add_json(sp)
 
-    sp = add("report", cmd_report, "calibration + truth -> DIR/report.json and tables")
+    sp = add(
+        "report",
+        cmd_report,
+        "calibration + truth -> DIR/report.json, report.md (the output goes into the dataset "
+        "folder)",
+    )
     sp.add_argument("dataset", help="dataset folder")
+    add_json(sp)
 
     for register in (
         register_hw,

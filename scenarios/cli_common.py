@@ -35,6 +35,8 @@ __all__ = [
     "note_written",
     "add_verbosity",
     "add_deprecated",
+    "add_json",
+    "add_scenario_arg",
     "leaf_parsers",
     "EXIT_USAGE",
 ]
@@ -144,6 +146,31 @@ def add_deprecated(p: argparse.ArgumentParser, old: str, new: str, dest: str, **
         old, dest=dest, action=_DeprecatedOption, new=new, help=argparse.SUPPRESS,
         default=argparse.SUPPRESS, **kwargs,
     )  # fmt: skip
+
+
+def add_json(p: argparse.ArgumentParser, *, always: bool = False) -> None:
+    """``--json``: the command's result as one JSON object on stdout (its notes go to stderr).
+    ``always``: the command prints JSON anyway (the flag is accepted for one grammar)."""
+    p.add_argument(
+        "--json",
+        action="store_true",
+        help="the result as JSON on stdout (this command always prints JSON)"
+        if always
+        else "the result as one JSON object on stdout (notes and progress on stderr)",
+    )
+
+
+def add_scenario_arg(p: argparse.ArgumentParser, what: str) -> None:
+    """The optional positional ``SCENARIO`` (``args.scenario``, None: the default scenario),
+    with ``--config`` as its deprecated spelling."""
+    p.set_defaults(scenario=None)  # first: set_defaults also resets the defaults of actions
+    p.add_argument(
+        "scenario",
+        nargs="?",
+        default=argparse.SUPPRESS,  # keeps a value given by the old --config
+        help=f"scenario TOML {what} (default scenarios/paper.toml)",
+    )
+    add_deprecated(p, "--config", "the positional SCENARIO", dest="scenario")
 
 
 def _debug(args: argparse.Namespace) -> tuple[bool, bool]:

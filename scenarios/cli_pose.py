@@ -35,7 +35,7 @@ tool orientation (exactly one):
   --pitch P [--roll R]  the ER-4u controller's Cartesian pitch and roll (deg); 5-axis ER-type arms
                     only (closed-form IK)
   --position-only   the tool point alone, any orientation
-the tool is the last DH frame (flange) of --model; xyz in mm in the robot's base frame.
+the tool is the last DH frame (flange) of --robot; xyz in mm in the robot's base frame.
 values starting with a minus sign need the form --xyz=-400,-133,400 (or --rpy-deg=-180,0,90).
 """
 

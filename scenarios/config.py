@@ -18,7 +18,14 @@ from calib.camera import MODELS, CameraModel, camera_model, centered_principal_p
 from calib.errors import InputError
 from calib.tomlfile import read_toml
 
-__all__ = ["Scenario", "ConfigError", "load_scenario", "default_scenario_path", "scenario_to_dict"]
+__all__ = [
+    "Scenario",
+    "ConfigError",
+    "load_scenario",
+    "default_scenario_path",
+    "scenario_to_dict",
+    "DEFAULT_ROBOT",
+]
 
 
 class ConfigError(InputError):
@@ -37,9 +44,15 @@ class HardwareConfig:
     """Further adapter settings passed through to the hardware adapter (see docs/hardware.md)."""
 
 
+DEFAULT_ROBOT = "er4u-paper"
+"""The robot of the default scenario (``scenarios/paper.toml``) and of every command that takes
+``--robot`` without one given (fk, ik, render); the hardware commands take it from their config
+(``[robot] model``) or the same default."""
+
+
 @dataclass(frozen=True)
 class RobotConfig:
-    model: str = "er4u-paper"
+    model: str = DEFAULT_ROBOT
     """Nominal kinematics by name (models/robots/<name>.toml)."""
     backend: str = "sim"
     """"sim" or "hardware"."""

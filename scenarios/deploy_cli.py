@@ -39,7 +39,17 @@ from scenarios.ros_cli import BAG_FORMATS, cmd_export_bag
 from scenarios.ros_cli import add_export_args as add_bag_export_args
 from sim.export_mjcf import calibrated_mjcf
 
-__all__ = ["register", "cmd_export", "cmd_ik_calibrated", "load_calibration", "FORMATS"]
+__all__ = [
+    "register",
+    "cmd_export",
+    "cmd_ik_calibrated",
+    "load_calibration",
+    "FORMATS",
+    "CALIBRATED_FRAME",
+]
+
+CALIBRATED_FRAME = "robot base frame (DH frame 0 of the identified joint axes 1 and 2), tool tip"
+"""The frame of a calibrated model's tool pose (``fk``/``ik --calibration``)."""
 
 FORMATS = {"mjcf": ".xml", "urdf": ".urdf", "toml": ".toml", "opencv": ".yml",
            "camera_info": ".yaml"}  # fmt: skip
@@ -109,12 +119,18 @@ def cmd_export(args: argparse.Namespace) -> int:
     """``selfcal export``: write the calibrated model in the chosen format."""
     if args.bag:
         return cmd_export_bag(args)
-    if not args.out:
-        raise CliError("export needs --out FILE (or --bag OUT to write a dataset as a ROS bag)")
-    out = Path(args.out)
     fmt = args.format
     if fmt in BAG_FORMATS:
         raise CliError(f"--format {fmt} writes a ROS bag: give --bag OUT instead of --out")
+    if args.out is None:
+        if fmt is None:
+            raise CliError(
+                "give --format or --out (its suffix names the format), or --bag OUT to write a "
+                "dataset as a ROS bag",
+                fix="e.g. --format urdf (writes DIR/calibrated.urdf)",
+            )
+        args.out = str(_calibration_file(args.calibration).parent / f"calibrated{FORMATS[fmt]}")
+    out = Path(args.out)
     if fmt is None:
         fmt = next((f for f, ext in FORMATS.items() if out.suffix == ext), None)
         if fmt is None:
@@ -200,8 +216,7 @@ def cmd_ik_calibrated(args: argparse.Namespace) -> int:
                 "branch": res.branch,
                 "residual_mm": res.position_error_m * 1000.0,
                 "residual_deg": float(np.degrees(res.angle_error_rad)),
-                "frame": "robot base frame (DH frame 0 of the identified joint axes 1 and 2), "
-                "tool tip",
+                "frame": CALIBRATED_FRAME,
             }
         )
     )
@@ -247,7 +262,11 @@ def register(subparsers) -> None:
     sp.add_argument(
         "--camera-name", default="camera", help="camera_name of a camera_info file (default camera)"
     )
-    sp.add_argument("--out", default=None, help="output file")
+    sp.add_argument(
+        "--out",
+        default=None,
+        help="output file (default calibrated.<format suffix> next to the calibration.json)",
+    )
     add_bag_export_args(sp)
     sp.set_defaults(func=cmd_export)
 
@@ -267,7 +286,7 @@ def register(subparsers) -> None:
         default=None,
         metavar="FILE",
         help="solve with the calibrated model of FILE (calibration.json, its dataset folder or an "
-        "exported .toml) instead of --model: joint commands that put the real tool tip on the "
+        "exported .toml) instead of --robot: joint commands that put the real tool tip on the "
         "target (xyz in the robot's base frame, see docs/deploy.md)",
     )
     ik.set_defaults(func=_ik_dispatch(original))

@@ -29,7 +29,7 @@ from calib.tomlfile import read_toml
 from hw.acl_robot import AclRobot
 from hw.emulator import AclEmulator
 from hw.emulator_backends import KinematicBackend
-from scenarios.cli_common import parse_floats
+from scenarios.cli_common import add_deprecated, add_json, parse_floats
 from scenarios.config import load_scenario
 from scenarios.emulate_faults import CLI_FAULTS, acquisition_fault, choose_fault
 from scenarios.emulator_backend import SimEmulatorBackend
@@ -63,7 +63,14 @@ def _add_conn_args(p: argparse.ArgumentParser) -> None:
     g = p.add_mutually_exclusive_group(required=True)
     g.add_argument("--port", help="pyserial URL: /dev/ttyUSB0, socket://host:port, a pty path")
     g.add_argument("--config", help="TOML file with a [robot.hardware] table")
-    p.add_argument("--model", help="robot model name (default: from the config or er4u-vendor)")
+    p.add_argument(
+        "--robot",
+        default=None,
+        help="robot model name (default: the config's [robot] model, else er4u-vendor, the "
+        "controller's encoder zero; hw.settings.DEFAULT_MODEL)",
+    )
+    add_deprecated(p, "--model", "--robot", dest="robot")
+    add_json(p, always=True)
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -124,7 +131,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def _open_robot(args: argparse.Namespace) -> AclRobot:
     config = load_toml(args.config) if args.config else {"port": args.port}
-    overrides = {"model": args.model} if args.model else {}
+    overrides = {"model": args.robot} if args.robot else {}
     return AclRobot.from_settings(hardware_settings(config, **overrides), open_cameras=False)
 
 

@@ -1,11 +1,11 @@
-"""``selfcal montecarlo --draws N --out DIR [--jobs 2 | --cluster ADDRESS] [--plans]``: the command of
+"""``selfcal montecarlo [SCENARIO] --draws N [--out DIR] [--jobs 2 | --cluster ADDRESS] [--plans]``: the command of
 :mod:`scenarios.montecarlo` (and, with ``--plans``, :mod:`scenarios.plan_comparison`)."""
 
 from __future__ import annotations
 
 import argparse
 
-from scenarios.cli_common import note_written
+from scenarios.cli_common import add_scenario_arg, note_written
 from scenarios.cluster import add_cluster_args
 from scenarios.montecarlo import run_montecarlo
 from scenarios.montecarlo_report import summary_markdown
@@ -15,6 +15,7 @@ __all__ = ["register"]
 
 
 def _cmd(args: argparse.Namespace) -> int:
+    args.out = args.out or ("runs/montecarlo-plans" if args.plans else "runs/montecarlo")
     if args.plans:
         res = run_plan_comparison(
             args.out, draws=args.draws, jobs=args.jobs, quiet=args.quiet, cluster=args.cluster
@@ -30,7 +31,7 @@ def _cmd(args: argparse.Namespace) -> int:
         dither=not args.no_dither,
         jobs=args.jobs,
         quiet=args.quiet,
-        config=args.config,
+        config=args.scenario,
         cluster=args.cluster,
         retries=args.retries,
     )
@@ -40,8 +41,8 @@ def _cmd(args: argparse.Namespace) -> int:
 
 
 def register(subparsers) -> argparse.ArgumentParser:
-    """Add ``selfcal montecarlo --draws N --out DIR [--jobs N | --cluster ADDRESS] [--poses P]
-    [--pixel-sigma S] [--config SCENARIO]``."""
+    """Add ``selfcal montecarlo [SCENARIO] [--draws N] [--out DIR] [--jobs N | --cluster ADDRESS]
+    [--poses P] [--pixel-sigma S]``."""
     sp = subparsers.add_parser(
         "montecarlo",
         help="Monte Carlo of both calibration methods against the Cramer-Rao bound",
@@ -54,10 +55,12 @@ def register(subparsers) -> argparse.ArgumentParser:
         "See docs/bounds.md and docs/cluster.md.",
     )
     sp.add_argument("--draws", type=int, default=100, help="noise draws (default 100)")
+    add_scenario_arg(sp, "of the truth (e.g. scenarios/ur5e.toml)")
     sp.add_argument(
         "--out",
-        required=True,
-        help="output folder; the draws finished there (DIR/draws.jsonl) are not run again",
+        default=None,
+        help="output folder (default runs/montecarlo, with --plans runs/montecarlo-plans); the "
+        "draws finished there (DIR/draws.jsonl) are not run again",
     )
     sp.add_argument(
         "--jobs", type=int, default=2, help="worker processes (1 = in-process; not with --cluster)"
@@ -65,11 +68,6 @@ def register(subparsers) -> argparse.ArgumentParser:
     add_cluster_args(sp)
     sp.add_argument("--poses", type=int, default=30, help="calibration postures (default 30)")
     sp.add_argument("--pixel-sigma", type=float, default=0.5, help="corner noise, px")
-    sp.add_argument(
-        "--config",
-        default=None,
-        help="scenario TOML of the truth (default scenarios/paper.toml; e.g. scenarios/ur5e.toml)",
-    )
     sp.add_argument(
         "--no-dither",
         action="store_true",

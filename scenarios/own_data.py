@@ -78,6 +78,7 @@ def cmd_import(args: argparse.Namespace) -> int:
     if not args.images or not args.joints or not args.joint_units:
         raise CliError("import needs --images, --joints and --joint-units (or --bag)")
     cams = [CameraImages.parse(s, default_name=f"cam{k}") for k, s in enumerate(args.images)]
+    args.out = args.out or f"runs/import-{Path(args.joints).stem}"
     info = import_dataset(
         args.robot, cams, args.joints, args.joint_units, args.target, args.out,
         base_link=args.base_link, tool_link=args.tool_link, link=args.link,
@@ -132,7 +133,9 @@ def register(subparsers) -> None:
     sp.add_argument("--joints", default=None, help="joints file (CSV)")
     sp.add_argument("--joint-units", default=None, choices=JOINT_UNITS)
     sp.add_argument("--target", required=True, help="target TOML (docs/targets.md)")
-    sp.add_argument("--out", required=True, help="new dataset folder")
+    sp.add_argument(
+        "--out", default=None, help="new dataset folder (default runs/import-<joints file name>)"
+    )
     sp.add_argument("--link", action="store_true", help="link the images instead of copying")
     sp.add_argument(
         "--trust-units", action="store_true",

@@ -257,7 +257,7 @@ def _cmd(args: argparse.Namespace) -> int:
 
 
 def register(subparsers) -> argparse.ArgumentParser:
-    """Add ``selfcal paper [CONFIG] --out DIR [--quiet]`` to an argparse subparsers object."""
+    """Add ``selfcal paper [CONFIG] [--out DIR]`` to an argparse subparsers object."""
     sp = subparsers.add_parser(
         "paper",
         help="reproduce the paper's Tables II-IV and Fig. 3 in simulation",
@@ -268,6 +268,6 @@ def register(subparsers) -> argparse.ArgumentParser:
     sp.add_argument(
         "config", nargs="?", default=None, help="scenario TOML (default scenarios/paper.toml)"
     )
-    sp.add_argument("--out", required=True, help="output folder")
+    sp.add_argument("--out", default="runs/paper", help="output folder (default runs/paper)")
     sp.set_defaults(func=_cmd)
     return sp

@@ -368,7 +368,8 @@ def record_run(dataset_dir: str | Path, rrd_path: str | Path | None, spawn: bool
 
 
 def _cmd(args: argparse.Namespace) -> int:
-    path = record_run(Path(args.dataset), args.rrd, spawn=args.spawn)
+    rrd = args.rrd or (None if args.spawn else Path(args.dataset) / "run.rrd")
+    path = record_run(Path(args.dataset), rrd, spawn=args.spawn)
     if path is not None:
         note_written(args, path)
         print(f"recorded {args.dataset} into {path} (view: rerun {path})")
@@ -384,7 +385,11 @@ def register(subparsers) -> argparse.ArgumentParser:
         "used when present) into a Rerun .rrd file; --spawn also opens the viewer.",
     )
     sp.add_argument("dataset", help="dataset folder of a finished run")
-    sp.add_argument("--rrd", default=None, help="output .rrd file (required unless --spawn)")
+    sp.add_argument(
+        "--rrd",
+        default=None,
+        help="output .rrd file (default DATASET/run.rrd; with --spawn and no --rrd: the viewer only)",
+    )
     sp.add_argument("--spawn", action="store_true", help="spawn the Rerun viewer")
     sp.set_defaults(func=_cmd)
     return sp

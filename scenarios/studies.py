@@ -173,6 +173,7 @@ def _say(row: dict, counts: TaskCounts) -> None:
 
 # --------------------------------------------------------------------------------------- CLI
 def _cmd(args: argparse.Namespace) -> int:
+    args.out = args.out or f"runs/study-{args.name}"
     run_study(
         args.name,
         Path(args.out),
@@ -204,7 +205,11 @@ def register(subparsers) -> argparse.ArgumentParser:
         default="quick",
         help="quick: a handful of runs (seconds); full: minutes",
     )
-    sp.add_argument("--out", required=True, help="output folder (resumes what is there)")
+    sp.add_argument(
+        "--out",
+        default=None,
+        help="output folder, resumes what is there (default runs/study-NAME)",
+    )
     sp.add_argument(
         "--jobs",
         type=int,

@@ -92,7 +92,7 @@ def cmd_identify(args: argparse.Namespace) -> int:
     for name, v in (("--sigma-mm", args.sigma_mm), ("--sigma-deg", args.sigma_deg)):
         if not (np.isfinite(v) and v > 0):
             raise CliError(f"{name} must be a positive number, got {v}")
-    out = _out_dir(args.out)
+    out = _out_dir(args.out or f"runs/identify-{Path(args.measurements).stem}")
     hold = tuple(h for h in (args.hold or "").replace(" ", "").split(",") if h)
     nominal = nominal_mcpc(robot)
     res = identify_tracker(
@@ -182,7 +182,11 @@ def register(sub) -> None:
     sp.add_argument("measurements", help="MEASUREMENTS.csv (see below)")
     sp.add_argument("--robot", required=True, help="robot name, robot TOML or URDF path")
     sp.add_argument("--joint-units", required=True, choices=JOINT_UNITS, help=UNITS_HELP)
-    sp.add_argument("--out", required=True, help="output folder")
+    sp.add_argument(
+        "--out",
+        default=None,
+        help="output folder (default runs/identify-<measurements file name>)",
+    )
     sp.add_argument("--distances", default=None, help="distances CSV (see below)")
     sp.add_argument(
         "--sigma-mm", type=float, default=0.1, help="position / distance noise, mm (0.1)"

@@ -17,7 +17,7 @@ def run(capsys, *argv):
 
 
 def test_fk_prints_table_ii_row_one(capsys):
-    code, out, _ = run(capsys, "fk", "--model", "er4u-paper", "--joints", "38.15,-30,45,-63.54,0")
+    code, out, _ = run(capsys, "fk", "--robot", "er4u-paper", "--joints", "38.15,-30,45,-63.54,0")
     assert code == 0
     doc = json.loads(out)
     np.testing.assert_allclose(doc["xyz_mm"], [315.60, 247.90, 190.30], atol=0.1)
@@ -28,7 +28,7 @@ def test_ik_round_trips_through_fk(capsys):
     code, out, _ = run(
         capsys,
         "ik",
-        "--model",
+        "--robot",
         "er4u-paper",
         "--xyz",
         "310.4,243.8,197.7",
@@ -55,7 +55,7 @@ def test_ik_unreachable_exits_nonzero(capsys):
     "argv, words",
     [
         (
-            ["fk", "--model", "er9", "--joints", "0,0,0,0,0"],
+            ["fk", "--robot", "er9", "--joints", "0,0,0,0,0"],
             ["unknown robot model 'er9'", "er4u-paper"],
         ),
         (["fk", "--joints", "0,zero,0,0,0"], ["--joints", "comma-separated numbers"]),
@@ -98,7 +98,7 @@ def test_help_lists_scenario_keys(capsys):
 def test_fk_ik_round_trip_of_a_six_axis_arm(capsys):
     """UR5e: fk prints the orientation as rpy and quaternion; ik takes either back."""
     q = [10.0, -95.0, 100.0, -95.0, -85.0, 20.0]
-    code, out, _ = run(capsys, "fk", "--model", "ur5e", "--joints", ",".join(map(str, q)))
+    code, out, _ = run(capsys, "fk", "--robot", "ur5e", "--joints", ",".join(map(str, q)))
     assert code == 0
     doc = json.loads(out)
     assert "pitch_deg" not in doc  # the ER convention only for ER-type arms
@@ -106,7 +106,7 @@ def test_fk_ik_round_trip_of_a_six_axis_arm(capsys):
     for opt, val in (("--rpy-deg", doc["rpy_deg"]), ("--quat", doc["quat_wxyz"])):
         vals = ",".join(f"{v:.9f}" for v in val)
         # "--key=value": the values may start with a minus sign
-        code, out, _ = run(capsys, "ik", "--model", "ur5e", f"--xyz={xyz}", f"{opt}={vals}")
+        code, out, _ = run(capsys, "ik", "--robot", "ur5e", f"--xyz={xyz}", f"{opt}={vals}")
         assert code == 0, opt
         res = json.loads(out)
         assert res["solver"] == "numeric"
@@ -115,7 +115,7 @@ def test_fk_ik_round_trip_of_a_six_axis_arm(capsys):
 
 
 def test_ik_pitch_roll_is_refused_for_a_six_axis_arm(capsys):
-    code, out, err = run(capsys, "ik", "--model", "ur5e", "--xyz=-400,-133,400", "--pitch", "0")
+    code, out, err = run(capsys, "ik", "--robot", "ur5e", "--xyz=-400,-133,400", "--pitch", "0")
     assert code == 2 and out == ""
     assert "--rpy-deg" in err and "ur5e" in err
 
@@ -129,17 +129,17 @@ def test_ik_reference_and_position_only_for_a_six_axis_arm(capsys):
     """--reference picks the solution branch nearest the current posture; --position-only frees
     the orientation."""
     q = [30.0, -60.0, -100.0, -110.0, 80.0, 40.0]  # elbow on the other side of home's
-    code, out, _ = run(capsys, "fk", "--model", "ur5e", "--joints", ",".join(map(str, q)))
+    code, out, _ = run(capsys, "fk", "--robot", "ur5e", "--joints", ",".join(map(str, q)))
     doc = json.loads(out)
     xyz = ",".join(f"{v:.6f}" for v in doc["xyz_mm"])
     rpy = ",".join(f"{v:.9f}" for v in doc["rpy_deg"])
     ref = ",".join(str(v + 2.0) for v in q)
-    argv = ["ik", "--model", "ur5e", f"--xyz={xyz}", f"--rpy-deg={rpy}", f"--reference={ref}"]
+    argv = ["ik", "--robot", "ur5e", f"--xyz={xyz}", f"--rpy-deg={rpy}", f"--reference={ref}"]
     code, out, _ = run(capsys, *argv)
     assert code == 0
     np.testing.assert_allclose(json.loads(out)["joints_deg"], q, atol=1e-4)
-    code, out, _ = run(capsys, "ik", "--model", "ur5e", f"--xyz={xyz}", "--position-only")
+    code, out, _ = run(capsys, "ik", "--robot", "ur5e", f"--xyz={xyz}", "--position-only")
     assert code == 0
     q2 = json.loads(out)["joints_deg"]
-    code, out, _ = run(capsys, "fk", "--model", "ur5e", "--joints", ",".join(map(str, q2)))
+    code, out, _ = run(capsys, "fk", "--robot", "ur5e", "--joints", ",".join(map(str, q2)))
     np.testing.assert_allclose(json.loads(out)["xyz_mm"], doc["xyz_mm"], atol=1e-3)
