@@ -11,11 +11,13 @@ The result is built in :mod:`calib.results`.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import functools
 import os
 import time
 import warnings
+from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import NamedTuple
@@ -262,20 +264,29 @@ def calibrate_detailed(
         # x-axis is far from parallel to joint 1's axis (MCPC's base parameters are singular there).
         ref_scores=np.abs(T_nom[:, :3, 0] @ _joint1_axis(nominal)),
     )
-    sc = camera_stage(obs)
+    with _stage(progress, "camera stage (bundle adjustment)") as st:
+        sc = camera_stage(obs)
+        st(f"reprojection RMS {sc.rms_px:.3f} px")
     if isinstance(sc.camera, LensCamera) and ds.info.observation == "images":
         # the lens bends the marker edges: detect again through the estimated lens, refit
-        dets, skipped = detect_dataset(ds, lens=sc.camera)
-        _check_scale_markers(ds, dets)
-        obs = observations_of(ds, dets)
-        sc = camera_stage(obs)
+        with _stage(progress, "camera stage again through the estimated lens") as st:
+            dets, skipped = detect_dataset(ds, lens=sc.camera)
+            _check_scale_markers(ds, dets)
+            obs = observations_of(ds, dets)
+            sc = camera_stage(obs)
+            st(f"reprojection RMS {sc.rms_px:.3f} px")
     used = np.flatnonzero(sc.registered if sc.registered.ndim == 1 else sc.registered[:, 0])
     if len(used) < MIN_POSTURES:
         raise CalibrationError(
             f"only {len(used)} postures could be registered by the camera stage; calibration "
             f"needs at least {MIN_POSTURES}: acquire more postures that see the markers"
         )
-    ident = identify(nominal, q[used], sc.T_world_cam[used, 0])
+    with _stage(progress, "kinematic identification") as st:
+        ident = identify(nominal, q[used], sc.T_world_cam[used, 0])
+        st(
+            f"tool RMS {ident.rms_t_mm_after:.3f} mm / {ident.rms_r_deg_after:.4f} deg, "
+            f"rank {ident.rank}/{ident.n_params}"
+        )
     notes = [
         *incomplete,
         *([skipped_images_message(skipped, ds.info.dictionary)] if skipped else []),
@@ -285,10 +296,13 @@ def calibrate_detailed(
     )
     out = CalibrationOutput(result, sc, ident, ident.model, ds.indices[used])
     if method == "joint":
-        res = refine_calibration(out, obs, q, robot, ds.info)
+        with _stage(progress, "one-step refinement (all images)") as st:
+            res = refine_calibration(out, obs, q, robot, ds.info)
+            st(f"reprojection RMS {res.rms_px:.3f} px, sigma {res.sigma_px:.3f} px")
         result = with_joint(result, res, robot)
         out = CalibrationOutput(result, sc, ident, res.model, ds.indices[used], res)
-    result = with_bounds(result, out, obs=obs, q=q, robot=robot, ds_info=ds.info)
+    with _stage(progress, "Cramer-Rao bounds"):
+        result = with_bounds(result, out, obs=obs, q=q, robot=robot, ds_info=ds.info)
     final = out.joint if out.joint is not None else sc  # the points of the final method
     ids, X = final.point_ids, final.X_world
     ok = np.isfinite(X).all(axis=1)
@@ -297,6 +311,19 @@ def calibrate_detailed(
     result = dataclasses.replace(result, scene=scene, failures=failures)
     result = dataclasses.replace(result, seconds=round(time.perf_counter() - t0, 3))
     return dataclasses.replace(out, result=result)
+
+
+@contextlib.contextmanager
+def _stage(progress, label: str) -> Iterator[Callable[[str], None]]:
+    """One calibration stage as ``progress.step(label)`` when the progress object has steps
+    (``scenarios.progress.Progress``); yields a function that records the stage's result (its
+    cost) for the step's last line. Without such an object: nothing is shown."""
+    step = getattr(progress, "step", None)
+    if step is None:
+        yield lambda text: None
+        return
+    with step(label) as st:
+        yield st.result
 
 
 def dataset_camera(info: DatasetInfo) -> Pinhole:

@@ -48,6 +48,7 @@ from scenarios.own_data import calibrate_any
 from scenarios.own_data import register as register_own_data
 from scenarios.paper_repro import register as register_paper
 from scenarios.pipeline import report_summary, run_acquire, run_all, run_report
+from scenarios.progress import Progress
 from scenarios.rerun_log import record_run
 from scenarios.rerun_log import register as register_record
 from scenarios.ros_cli import export_run
@@ -154,7 +155,10 @@ def cmd_render(args: argparse.Namespace) -> int:
     model = args.robot or (load_scenario(scenario).robot.model if scenario else DEFAULT_ROBOT)
     robot = load_robot(model)
     q = _joints_rad(robot, args.joints)
-    paths = render_posture(robot, q, Path(args.out), config=scenario)
+    bar = Progress("render", enabled=not args.quiet)
+    with bar.step("render the stereo pair (the first render builds the scene: ~15 s)") as st:
+        paths = render_posture(robot, q, Path(args.out), config=scenario)
+        st.result(f"{paths[0].name}, {paths[1].name}")
     note_written(args, *paths)
     print(json.dumps({"left": str(paths[0]), "right": str(paths[1])}))
     return 0
@@ -204,9 +208,10 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
 
 def cmd_report(args: argparse.Namespace) -> int:
     root = Path(args.dataset)
-    report = run_report(root, quiet=args.quiet or args.json)
+    as_json = getattr(args, "json", False)  # a namespace built by a caller may lack it
+    report = run_report(root, quiet=args.quiet or as_json)
     note_written(args, *_existing(root, "report.json", "report.md", "table_iv.md"))
-    if args.json:
+    if as_json:
         print(json.dumps(report))
     else:
         print(report_summary(report, root), flush=True)

@@ -72,7 +72,9 @@ class _Handler(logging.Handler):
             self.log.warnings += 1
         level = record.levelname.lower()
         prefix = "selfcal: " if level == "info" else f"selfcal: {level}: "
-        print(prefix + text, file=sys.stderr, flush=True)
+        # on a terminal, a progress bar may be drawn on the current line: erase it first
+        clear = "\r\033[K" if getattr(sys.stderr, "isatty", lambda: False)() else ""
+        print(clear + prefix + text, file=sys.stderr, flush=True)
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:

@@ -34,6 +34,7 @@ from scenarios.config import load_scenario
 from scenarios.emulate_faults import CLI_FAULTS, acquisition_fault, choose_fault
 from scenarios.emulator_backend import SimEmulatorBackend
 from scenarios.hardware import hardware_settings
+from scenarios.progress import Progress
 
 __all__ = ["register", "load_toml", "EMULATOR_DEFAULTS", "emulator_from_config"]
 
@@ -157,7 +158,8 @@ def _cmd_joints(args: argparse.Namespace) -> int:
 
 def _cmd_home(args: argparse.Namespace) -> int:
     def body(r) -> None:
-        r.home()
+        with Progress("hw", enabled=not args.quiet).step("homing (minutes on a real arm)"):
+            r.home()
         _print({"homed": True, "joints_deg": _joints_list(r)})
 
     return _run(args, body)
@@ -167,7 +169,8 @@ def _cmd_move(args: argparse.Namespace) -> int:
     q = parse_floats(args.joints, None, "--joints (deg)")
 
     def body(r) -> None:
-        r.move_to(q)
+        with Progress("hw", enabled=not args.quiet).step(f"moving to {args.joints} deg"):
+            r.move_to(q)
         _print({"joints_deg": _joints_list(r)})
 
     return _run(args, body)

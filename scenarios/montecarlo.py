@@ -52,7 +52,7 @@ from scenarios.montecarlo_journal import JOURNAL, DrawJournal, draw_key
 from scenarios.montecarlo_report import plot, summary_markdown
 from scenarios.montecarlo_stats import summarize
 from scenarios.parallel import run_tasks
-from scenarios.progress import TaskCounts
+from scenarios.progress import Progress, TaskCounts
 
 __all__ = ["draw_one", "run_montecarlo", "write_csv"]
 
@@ -238,21 +238,19 @@ def run_montecarlo(
             f"{len(todo)} to do",
             file=sys.stderr,
         )
+    bar = Progress("Monte Carlo", enabled=not quiet, counts=counts)
+    bar.start(len(todo))
 
     def say(row):
         counts.finish(failed=row["status"] != "ok")
-        if not quiet:
-            took = "" if row["seconds"] is None else f" ({row['seconds']:.1f} s)"
-            msg = (
-                f"joint {row['joint_tip_rms_mm']:.3f} mm, two-stage {row['two_stage_tip_rms_mm']:.3f}"
-                f" mm, bound {row['bound_tip_rms_mm']:.3f} mm"
-                if row["status"] == "ok"
-                else row["status"]
-            )
-            print(
-                f"  [{counts.line()}] seed {row['seed']}: {msg}{took}",
-                file=sys.stderr,
-            )
+        took = "" if row["seconds"] is None else f" ({row['seconds']:.1f} s)"
+        msg = (
+            f"joint {row['joint_tip_rms_mm']:.3f} mm, two-stage {row['two_stage_tip_rms_mm']:.3f}"
+            f" mm, bound {row['bound_tip_rms_mm']:.3f} mm"
+            if row["status"] == "ok"
+            else row["status"]
+        )
+        bar.advance(note=f"seed {row['seed']}: {msg}{took}")
 
     try:
         for i, row in run_tasks(
@@ -276,6 +274,7 @@ def run_montecarlo(
                 file=sys.stderr,
             )
         raise
+    bar.finish()
     rows = [done[k] for k in keys]
     summary = summarize(rows)
     summary["settings"] = {k: v for k, v in base.items() if k != "joints_deg"}

@@ -1,57 +1,38 @@
-"""A small progress bar for the command line (stderr), silent when not a terminal unless asked;
-and :class:`TaskCounts`, the state of a batch of tasks (done / total, running, failed, time left)."""
+"""Progress on the command line: the one mechanism for every step that can take more than a
+couple of seconds (render, detect, the calibration stages, homing and moving the robot, studies
+and Monte Carlo).
+
+- :class:`Progress` -- a counted stage (``start(total)``, ``advance(note=...)``, ``finish()``):
+  a bar with done/total, elapsed time and time left on stderr when it is a terminal; elsewhere
+  one line at the end of a stage that took over a second. Notes (a finished study run, say) are
+  printed as lines above the bar. ``step(label)`` is a stage of one piece (a calibration stage,
+  homing): ``label ...`` while it runs, then ``label: <result> (1.2 s)``.
+- :class:`TaskCounts` -- the state of a batch of tasks on worker processes (done / total,
+  running, failed, time left); a :class:`Progress` of a batch shows it.
+
+Off with ``enabled=False`` (``-q``). Progress writes to stderr only, so stdout keeps the results.
+"""
 
 from __future__ import annotations
 
 import sys
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from typing import TextIO
 
-__all__ = ["Progress", "TaskCounts"]
+__all__ = ["Progress", "Step", "TaskCounts", "format_seconds"]
+
+CLEAR = "\r\033[K"
+"""Carriage return and erase-to-end-of-line: a bar is redrawn in place."""
 
 
-class Progress:
-    """Progress of one stage: ``start(total)``, ``advance()``, ``finish()``.
-
-    Draws a bar on a terminal; elsewhere prints one line at the end of stages that took over a second.
-    """
-
-    def __init__(self, label: str, stream: TextIO | None = None, enabled: bool = True) -> None:
-        self.label = label
-        self.stream = stream or sys.stderr
-        self.enabled = enabled
-        self.tty = enabled and hasattr(self.stream, "isatty") and self.stream.isatty()
-        self.total = 0
-        self.done = 0
-        self.t0 = time.perf_counter()
-
-    def start(self, total: int, done: int = 0) -> None:
-        self.total, self.done, self.t0 = total, done, time.perf_counter()
-        self._draw()
-
-    def advance(self, k: int = 1) -> None:
-        self.done += k
-        self._draw()
-
-    def _draw(self) -> None:
-        if not self.tty or self.total <= 0:
-            return
-        width = 30
-        fill = int(width * self.done / self.total)
-        dt = time.perf_counter() - self.t0
-        self.stream.write(
-            f"\r{self.label:<12} [{'#' * fill}{'.' * (width - fill)}] {self.done}/{self.total} {dt:5.1f}s"
-        )
-        self.stream.flush()
-
-    def finish(self) -> None:
-        dt = time.perf_counter() - self.t0
-        if self.tty:
-            self._draw()
-            self.stream.write("\n")
-        elif self.enabled and dt > 1.0:
-            self.stream.write(f"{self.label}: {self.done}/{self.total} in {dt:.1f} s\n")
-        self.stream.flush()
+def format_seconds(s: float) -> str:
+    """``"42 s"``, ``"3 min 05 s"``: a duration for people."""
+    if s < 60:
+        return f"{s:.0f} s"
+    m, sec = divmod(int(round(s)), 60)
+    return f"{m} min {sec:02d} s"
 
 
 class TaskCounts:
@@ -85,3 +66,120 @@ class TaskCounts:
         left = self.seconds_left()
         eta = "" if left is None else f", ~{left:.0f} s left"
         return f"{self.done}/{self.total} done, {self.running} running, {self.failed} failed{eta}"
+
+
+class Step:
+    """A running :meth:`Progress.step`: :meth:`result` sets the text shown when it ends (e.g.
+    the stage's cost)."""
+
+    def __init__(self) -> None:
+        self.text = "done"
+
+    def result(self, text: str) -> None:
+        """What the step achieved, e.g. ``"reprojection RMS 0.41 px"``."""
+        self.text = text
+
+
+class Progress:
+    """Progress of one stage: ``start(total)``, ``advance()``, ``finish()``; or ``step(label)``.
+
+    Draws a bar on a terminal; elsewhere prints one line at the end of stages that took over a
+    second. ``counts``: the batch's :class:`TaskCounts` (its running and failed tasks are shown).
+    """
+
+    def __init__(
+        self,
+        label: str,
+        stream: TextIO | None = None,
+        enabled: bool = True,
+        counts: TaskCounts | None = None,
+    ) -> None:
+        self.label = label
+        self.stream = stream or sys.stderr
+        self.enabled = enabled
+        self.tty = enabled and hasattr(self.stream, "isatty") and self.stream.isatty()
+        self.counts = counts
+        self.total = 0
+        self.done = 0
+        self.t0 = time.perf_counter()
+        self.start_done = 0
+
+    # ----------------------------------------------------------------- counted stages
+    def start(self, total: int, done: int = 0) -> None:
+        """A stage of ``total`` pieces, ``done`` of them already (a resumed acquisition)."""
+        self.total, self.done, self.t0 = total, done, time.perf_counter()
+        self.start_done = done
+        self._draw()
+
+    def advance(self, k: int = 1, note: str | None = None) -> None:
+        """``k`` more pieces done; ``note``: a line to print above the bar (or alone)."""
+        self.done += k
+        if note is not None and self.enabled:
+            if self.tty:
+                self.stream.write(CLEAR)
+            prefix = "" if self.tty or self.counts is None else f"[{self.counts.line()}] "
+            self.stream.write(f"  {prefix}{note}\n")
+        self._draw()
+
+    def seconds_left(self) -> float | None:
+        """Time left (s) from the pace so far in this stage; None before the first piece."""
+        if self.counts is not None:
+            return self.counts.seconds_left()
+        new = self.done - self.start_done
+        if new <= 0:
+            return None
+        return (time.perf_counter() - self.t0) / new * (self.total - self.done)
+
+    def bar(self, width: int = 30) -> str:
+        """The bar as text, e.g. ``"detect  [#####.....] 12/60  3.1 s, ~12 s left"``."""
+        fill = int(width * self.done / self.total) if self.total > 0 else 0
+        dt = time.perf_counter() - self.t0
+        left = self.seconds_left()
+        eta = "" if left is None or self.done >= self.total else f", ~{format_seconds(left)} left"
+        extra = ""
+        if self.counts is not None:
+            extra = f", {self.counts.running} running, {self.counts.failed} failed"
+        return (
+            f"{self.label:<12} [{'#' * fill}{'.' * (width - fill)}] {self.done}/{self.total} "
+            f"{dt:5.1f} s{extra}{eta}"
+        )
+
+    def _draw(self) -> None:
+        if not self.tty or self.total <= 0:
+            return
+        self.stream.write(CLEAR + self.bar())
+        self.stream.flush()
+
+    def finish(self) -> None:
+        """End the stage: the final bar on a terminal; elsewhere one line if it took > 1 s."""
+        dt = time.perf_counter() - self.t0
+        if self.tty:
+            self._draw()
+            self.stream.write("\n")
+        elif self.enabled and dt > 1.0:
+            self.stream.write(f"{self.label}: {self.done}/{self.total} in {dt:.1f} s\n")
+        self.stream.flush()
+
+    # ----------------------------------------------------------------- one-piece steps
+    @contextmanager
+    def step(self, label: str) -> Iterator[Step]:
+        """A stage of one piece (a calibration stage, homing the robot): ``label ...`` on a
+        terminal while it runs, then ``label: <result> (t s)``; elsewhere that line alone when it
+        took over a second."""
+        st = Step()
+        t0 = time.perf_counter()
+        if self.tty:
+            self.stream.write(CLEAR + f"{label} ...")
+            self.stream.flush()
+        ok = False
+        try:
+            yield st
+            ok = True
+        finally:
+            dt = time.perf_counter() - t0
+            text = st.text if ok else "failed"
+            if self.tty:
+                self.stream.write(CLEAR + f"{label}: {text} ({dt:.1f} s)\n")
+            elif self.enabled and dt > 1.0:
+                self.stream.write(f"{label}: {text} ({dt:.1f} s)\n")
+            self.stream.flush()

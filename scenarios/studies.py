@@ -42,7 +42,7 @@ from calib.errors import InputError
 from scenarios.cli_common import note_written
 from scenarios.cluster import DEFAULT_RETRIES, add_cluster_args
 from scenarios.parallel import run_tasks
-from scenarios.progress import TaskCounts
+from scenarios.progress import Progress, TaskCounts
 from scenarios.study_defs import STUDIES
 from scenarios.study_runs import COLUMNS, failed_row, load_runs, run_one, settings_key
 from scenarios.study_summary import summarize
@@ -126,6 +126,8 @@ def run_study(
                     file=sys.stderr,
                 )
             counts = TaskCounts(len(todo))
+            bar = Progress(f"study {name}", enabled=not quiet, counts=counts)
+            bar.start(len(todo))
             for _, row in run_tasks(
                 task or run_one,
                 todo,
@@ -140,8 +142,8 @@ def run_study(
                 fh.flush()
                 rows.append(row)
                 counts.finish(failed=row["status"] != "ok")
-                if not quiet:
-                    _say(row, counts)
+                bar.advance(note=_note(row))
+            bar.finish()
     except KeyboardInterrupt:
         print(
             f"study {name}: interrupted; finished runs are kept in {csv_path}; run the same "
@@ -161,14 +163,15 @@ def run_study(
     return rows
 
 
-def _say(row: dict, counts: TaskCounts) -> None:
+def _note(row: dict) -> str:
+    """One finished run, for the progress display."""
     msg = (
         f"cal {row['cal_rms_mm']:.3f} mm, nominal {row['nom_rms_mm']:.3f} mm"
         if row["status"] == "ok"
         else row["status"]
     )
     took = "" if row.get("seconds") is None else f" ({row['seconds']:.1f} s)"
-    print(f"  [{counts.line()}] {row['key']}: {msg}{took}", file=sys.stderr)
+    return f"{row['key']}: {msg}{took}"
 
 
 # --------------------------------------------------------------------------------------- CLI

@@ -1,0 +1,44 @@
+"""Every calibration stage shows up on a terminal with its cost (#16 item 3): detection as a bar,
+then the camera stage, the identification, the one-step refinement and the bounds as steps."""
+
+from __future__ import annotations
+
+import io
+import re
+
+from calib.calibrate import calibrate
+from scenarios.config import load_scenario
+from scenarios.pipeline import run_acquire
+from scenarios.progress import Progress
+
+
+class Tty(io.StringIO):
+    def isatty(self) -> bool:
+        return True
+
+
+def test_each_stage_with_its_cost(tmp_path):
+    s = load_scenario(
+        overrides={
+            "noise": {"render": False},
+            "trajectory": {"poses": 8},
+            "validation": {"poses": 3},
+        }
+    )
+    run_acquire(s, tmp_path / "ds", quiet=True)
+    tty = Tty()
+    res = calibrate(tmp_path / "ds", progress=Progress("detect", stream=tty))
+    lines = [seg for seg in re.split(r"\r\x1b\[K|\n", tty.getvalue()) if seg]
+    done = [ln for ln in lines if not ln.endswith(" ...")]
+    names = [ln.split(":")[0] for ln in done]
+    assert names == [
+        "camera stage (bundle adjustment)",
+        "kinematic identification",
+        "one-step refinement (all images)",
+        "Cramer-Rao bounds",
+    ]
+    assert f"reprojection RMS {res.methods['two-stage'].reprojection_rms_px:.3f} px" in done[0]
+    assert re.search(
+        r"tool RMS \d+\.\d{3} mm / \d+\.\d{4} deg, rank \d+/\d+ \(\d+\.\d s\)", done[1]
+    )
+    assert f"reprojection RMS {res.reprojection_rms_px:.3f} px" in done[2]
