@@ -207,6 +207,7 @@ def plan_dataset(s: Scenario, setup: SimSetup | None = None) -> DatasetInfo:
     )
     return DatasetInfo(
         robot_model=robot.name,
+        encoder_model=robot.name,  # the read-back: quantised (sim) or counts (hardware) by it
         backend=s.robot.backend,
         resolution=(W, H),
         dictionary=DICTIONARY,

@@ -16,6 +16,7 @@ from typing import Any
 from calib.calibrate import MIN_POSTURES
 from calib.camera import MODELS, CameraModel, camera_model, centered_principal_point, lens_names
 from calib.errors import InputError
+from calib.robot_def import DEFAULT_ROBOT
 from calib.tomlfile import read_toml
 
 __all__ = [
@@ -42,12 +43,6 @@ class HardwareConfig:
     """Left and right camera: device index, stream URL or image-sequence pattern."""
     options: dict = field(default_factory=dict)
     """Further adapter settings passed through to the hardware adapter (see docs/hardware.md)."""
-
-
-DEFAULT_ROBOT = "er4u-paper"
-"""The robot of the default scenario (``scenarios/paper.toml``) and of every command that takes
-``--robot`` without one given (fk, ik, render); the hardware commands take it from their config
-(``[robot] model``) or the same default."""
 
 
 @dataclass(frozen=True)

@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Any
 
 from calib.errors import InputError
+from calib.robot_def import DEFAULT_ROBOT
 from calib.tomlfile import read_toml
 from hw.acl_robot import AclRobot
 from hw.emulator import AclEmulator
@@ -39,7 +40,7 @@ from scenarios.progress import Progress
 __all__ = ["register", "load_toml", "EMULATOR_DEFAULTS", "emulator_from_config"]
 
 EMULATOR_DEFAULTS: dict[str, Any] = {
-    "model": "er4u-vendor",
+    "model": DEFAULT_ROBOT,
     "pty": True,
     "tcp_port": 0,
     "echo": True,
@@ -67,8 +68,9 @@ def _add_conn_args(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--robot",
         default=None,
-        help="robot model name (default: the config's [robot] model, else er4u-vendor, the "
-        "controller's encoder zero; hw.settings.DEFAULT_MODEL)",
+        help="robot model name: its [encoder] table turns the controller's counts into joint "
+        f"angles (default: the config's [robot] model, else {DEFAULT_ROBOT}; a real ER-4u: "
+        "er4u-vendor)",
     )
     add_deprecated(p, "--model", "--robot", dest="robot")
     add_json(p, always=True)
@@ -132,7 +134,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def _open_robot(args: argparse.Namespace) -> AclRobot:
     config = load_toml(args.config) if args.config else {"port": args.port}
-    overrides = {"model": args.robot} if args.robot else {}
+    robot = config.get("robot") if isinstance(config.get("robot"), dict) else {}
+    named = robot.get("model") or (robot.get("hardware") or {}).get("model")
+    # the one default (calib.robot_def.DEFAULT_ROBOT) unless the command line or config names one
+    overrides = {"model": args.robot or (None if named else DEFAULT_ROBOT)}
+    overrides = {k: v for k, v in overrides.items() if v}
     return AclRobot.from_settings(hardware_settings(config, **overrides), open_cameras=False)
 
 
@@ -148,19 +154,24 @@ def _run(args: argparse.Namespace, body) -> int:
     return 0
 
 
+def _state(robot) -> dict[str, Any]:
+    """The robot's model (whose encoder table converted the counts) and its joints (deg)."""
+    return {"robot": robot.model_name, "joints_deg": _joints_list(robot)}
+
+
 def _joints_list(robot) -> list[float]:
     return [round(float(x), 4) for x in robot.joints()]
 
 
 def _cmd_joints(args: argparse.Namespace) -> int:
-    return _run(args, lambda r: _print({"joints_deg": _joints_list(r)}))
+    return _run(args, lambda r: _print(_state(r)))
 
 
 def _cmd_home(args: argparse.Namespace) -> int:
     def body(r) -> None:
         with Progress("hw", enabled=not args.quiet).step("homing (minutes on a real arm)"):
             r.home()
-        _print({"homed": True, "joints_deg": _joints_list(r)})
+        _print({"homed": True, **_state(r)})
 
     return _run(args, body)
 
@@ -171,7 +182,7 @@ def _cmd_move(args: argparse.Namespace) -> int:
     def body(r) -> None:
         with Progress("hw", enabled=not args.quiet).step(f"moving to {args.joints} deg"):
             r.move_to(q)
-        _print({"joints_deg": _joints_list(r)})
+        _print(_state(r))
 
     return _run(args, body)
 
@@ -226,7 +237,7 @@ def emulator_from_config(
             )
         backend = SimEmulatorBackend.from_scenario(scenario, seed=scenario.noise.seed)
     else:
-        backend = KinematicBackend(model or "er4u-vendor", image_size=tuple(cfg["image_size"]))
+        backend = KinematicBackend(model or DEFAULT_ROBOT, image_size=tuple(cfg["image_size"]))
     try:
         return AclEmulator(backend, **_emulator_kwargs(cfg))
     except BaseException:

@@ -102,6 +102,22 @@ class DatasetInfo:
     """The target TOML document (mm) of a board; None: the ArUco field (``dictionary``,
     ``scale_ids`` and ``scale_length_m`` are then the field's; unused for a board)."""
     image_suffix: str = ".png"
+    encoder_model: str | None = None
+    """The robot file whose ``[encoder]`` table turned the joint read-back into ``joints.csv``
+    (the controller's counts on hardware, the quantisation in simulation); None: not recorded
+    (an imported or older dataset). It must be ``robot_model``: :meth:`check_encoder_model`."""
+
+    def check_encoder_model(self, where: str | Path) -> None:
+        """Raise :class:`DatasetError` when the joint angles were converted with another robot
+        file's encoder table than the robot being calibrated (same counts, other angles)."""
+        if self.encoder_model is not None and self.encoder_model != self.robot_model:
+            raise DatasetError(
+                f"{where}: joints.csv was read with the encoder table of {self.encoder_model!r} "
+                f"but the dataset's robot_model is {self.robot_model!r}: the same encoder "
+                "counts are other joint angles under the two",
+                fix=f"acquire again with [robot] model = {self.robot_model!r}, or set "
+                f"robot_model back to {self.encoder_model!r} in dataset.json",
+            )
 
     def __post_init__(self) -> None:
         if not self.cameras or len(set(self.cameras)) != len(self.cameras):
@@ -137,6 +153,7 @@ class DatasetInfo:
             "format": FORMAT,
             SCHEMA_KEY: SCHEMA_VERSION,
             "robot_model": self.robot_model,
+            **({} if self.encoder_model is None else {"encoder_model": self.encoder_model}),
             "backend": self.backend,
             "cameras": [
                 {
@@ -231,6 +248,7 @@ class DatasetInfo:
             resolutions=None if len(set(res)) == 1 else res,
             board=board,
             image_suffix=suffix,
+            encoder_model=f.str("encoder_model") if f.has("encoder_model") else None,
         )
 
 
@@ -276,6 +294,7 @@ def _resume_key(info: DatasetInfo) -> str:
     """What must match to resume a dataset: everything but how the hardware is reached (a
     controller may come back on another port, cameras under other device names)."""
     doc = info.to_json()
+    doc.pop("encoder_model", None)  # = robot_model when recorded; older datasets lack it
     scenario = {**doc["scenario"]}
     if isinstance(scenario.get("robot"), dict):
         scenario["robot"] = {k: v for k, v in scenario["robot"].items() if k != "hardware"}
@@ -488,6 +507,7 @@ class Dataset:
                 "`selfcal acquire CONFIG --out DIR`)"
             )
         info = read_dataset_info(meta)
+        info.check_encoder_model(meta)
         idx, q, cut = read_joints_csv(root / "joints.csv", info.planned_joints_deg.shape[1])
         if not len(idx) and not cut:
             raise DatasetError(f"{root}: joints.csv holds no frames; acquire first")

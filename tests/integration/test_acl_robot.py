@@ -334,16 +334,21 @@ def _run_cli(argv, capsys):
 
 def test_cli_hw_commands(emu, capsys, tmp_path):
     code, out, _ = _run_cli(
-        ["hw", "move", "--port", emu.pty_path, "--joints", "10,100,-80,-70,20"], capsys
-    )
-    assert code == 0
+        ["hw", "move", "--port", emu.pty_path, "--robot", "er4u-vendor", "--joints",
+         "10,100,-80,-70,20"], capsys,
+    )  # fmt: skip
+    assert code == 0 and json.loads(out)["robot"] == "er4u-vendor"
     q = np.array(json.loads(out)["joints_deg"])
     assert np.all(np.abs(q - [10, 100, -80, -70, 20]) <= 1.0 / np.abs(ENC.counts_per_deg) + 1e-4)
     cfg = tmp_path / "hw.toml"
-    cfg.write_text(f'[robot.hardware]\nport = "{emu.pty_path}"\ncameras = []\n')
+    cfg.write_text(
+        f'[robot]\nmodel = "er4u-vendor"\n[robot.hardware]\nport = "{emu.pty_path}"\ncameras = []\n'
+    )
     code, out, _ = _run_cli(["hw", "joints", "--config", str(cfg)], capsys)
     assert code == 0 and np.allclose(json.loads(out)["joints_deg"], q)
-    code, out, _ = _run_cli(["hw", "home", "--port", emu.pty_path], capsys)
+    code, out, _ = _run_cli(
+        ["hw", "home", "--port", emu.pty_path, "--robot", "er4u-vendor"], capsys
+    )
     assert code == 0 and json.loads(out)["homed"] is True
     np.testing.assert_allclose(json.loads(out)["joints_deg"], HOME, atol=1e-4)
     n_rx = len(emu.received)
@@ -361,15 +366,34 @@ def test_cli_hardware_fault_exits_4(emu, capsys):
     the axis on stderr, nothing on stdout."""
     emu.inject_fault("impact", on="MOVE", axis=2, at_fraction=0.3)
     code, out, err = _run_cli(
-        ["hw", "move", "--port", emu.pty_path, "--joints", "10,100,-80,-70,20"], capsys
-    )
+        ["hw", "move", "--port", emu.pty_path, "--robot", "er4u-vendor", "--joints",
+         "10,100,-80,-70,20"], capsys,
+    )  # fmt: skip
     assert code == 4 and out == ""
     assert err.startswith("selfcal: error: ") and "axis 2" in err
 
 
+def test_cli_hw_and_emulate_share_the_one_default_robot(capsys):
+    """`selfcal emulate` and `selfcal hw` without a model both take calib.robot_def.DEFAULT_ROBOT
+    (the default scenario's): the same encoder counts are the same joint angles."""
+    from calib.robot_def import DEFAULT_ROBOT, load_robot
+    from scenarios.hw_cli import emulator_from_config
+
+    emu = emulator_from_config(None, overrides={"tcp_port": None, "home_duration_s": 0.02})
+    with emu:
+        assert emu.backend.model_name == DEFAULT_ROBOT
+        code, out, _ = _run_cli(["hw", "home", "--port", emu.pty_path], capsys)
+    doc = json.loads(out)
+    assert code == 0 and doc["robot"] == DEFAULT_ROBOT
+    home = np.degrees(load_robot(DEFAULT_ROBOT).home)
+    np.testing.assert_allclose(doc["joints_deg"], home, atol=1e-4)
+
+
 def test_cli_emulate_runs_until_ctrl_c(tmp_path):
     cfg = tmp_path / "emu.toml"
-    cfg.write_text("[emulator]\nmove_speed_deg_s = 1000.0\nhome_duration_s = 0.05\n")
+    cfg.write_text(
+        '[emulator]\nmodel = "er4u-vendor"\nmove_speed_deg_s = 1000.0\nhome_duration_s = 0.05\n'
+    )
     code = (
         "import argparse, sys\n"
         "from scenarios.hw_cli import register\n"

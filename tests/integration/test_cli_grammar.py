@@ -103,3 +103,19 @@ def test_spawn_without_rrd_is_bad_input(quick_run, capsys):
     root, cfg = quick_run
     code, _, err = run(capsys, "run", cfg, "--out", root / "r", "--spawn")
     assert code == 2 and "--spawn needs --rrd" in err and not (root / "r").exists()
+
+
+def test_dataset_records_its_encoder_model_and_a_mismatch_is_refused(tmp_path, capsys):
+    from scenarios.pipeline import run_acquire
+
+    s = load_scenario(overrides={"noise": {"render": False}, "trajectory": {"poses": 6}})
+    run_acquire(s, tmp_path / "ds", quiet=True)
+    meta = tmp_path / "ds" / "dataset.json"
+    doc = json.loads(meta.read_text())
+    assert doc["robot_model"] == doc["encoder_model"] == DEFAULT_ROBOT
+    doc["robot_model"] = "er4u-vendor"  # other kinematics, but the angles are er4u-paper's
+    meta.write_text(json.dumps(doc))
+    code, out, err = run(capsys, "calibrate", tmp_path / "ds")
+    assert code == 2 and out == ""
+    assert err.startswith("selfcal: error: ") and "encoder table of 'er4u-paper'" in err
+    assert "robot_model is 'er4u-vendor'" in err and " -- acquire again with" in err
