@@ -4,8 +4,9 @@
 from __future__ import annotations
 
 import argparse
+import json
 
-from scenarios.cli_common import add_scenario_arg, note_written
+from scenarios.cli_common import add_json, add_scenario_arg, note_written
 from scenarios.cluster import add_cluster_args
 from scenarios.montecarlo import run_montecarlo
 from scenarios.montecarlo_report import summary_markdown
@@ -20,7 +21,7 @@ def _cmd(args: argparse.Namespace) -> int:
         res = run_plan_comparison(
             args.out, draws=args.draws, jobs=args.jobs, quiet=args.quiet, cluster=args.cluster
         )
-        print(plans_markdown(res))
+        print(json.dumps(res, default=str) if args.json else plans_markdown(res))
         note_written(args, args.out)
         return 0
     _, s = run_montecarlo(
@@ -35,7 +36,7 @@ def _cmd(args: argparse.Namespace) -> int:
         cluster=args.cluster,
         retries=args.retries,
     )
-    print(summary_markdown(s))
+    print(json.dumps(s) if args.json else summary_markdown(s))
     note_written(args, args.out)
     return 0
 
@@ -79,5 +80,6 @@ def register(subparsers) -> argparse.ArgumentParser:
         help="instead: random against D-optimal postures (bounds for 10/20/30 poses, 3 "
         "trajectory seeds; Monte Carlo of --draws draws at 10 and 30 poses)",
     )
+    add_json(sp)
     sp.set_defaults(func=_cmd)
     return sp

@@ -9,6 +9,7 @@ for the ArUco field and the board calibration (:mod:`calib.board_dataset`) for a
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 from pathlib import Path
 
@@ -27,7 +28,7 @@ from calib.io.board_calibration import (
 from calib.io.calibration import read_calibration
 from calib.io.dataset import Dataset
 from calib.io.tracker import JOINT_UNITS
-from scenarios.cli_common import CliError, note_written
+from scenarios.cli_common import CliError, add_json, note_written
 from scenarios.cli_log import get_logger
 from scenarios.pipeline import run_calibrate
 from scenarios.ros_cli import add_import_args as add_bag_import_args
@@ -73,12 +74,13 @@ def summary(res: BoardCalibrationResult) -> str:
 
 
 def cmd_import(args: argparse.Namespace) -> int:
+    source = args.bag or args.joints
+    args.out = args.out or (f"runs/import-{Path(source).stem}" if source else None)
     if args.bag:
         return cmd_import_bag(args)
     if not args.images or not args.joints or not args.joint_units:
         raise CliError("import needs --images, --joints and --joint-units (or --bag)")
     cams = [CameraImages.parse(s, default_name=f"cam{k}") for k, s in enumerate(args.images)]
-    args.out = args.out or f"runs/import-{Path(args.joints).stem}"
     info = import_dataset(
         args.robot, cams, args.joints, args.joint_units, args.target, args.out,
         base_link=args.base_link, tool_link=args.tool_link, link=args.link,
@@ -87,7 +89,10 @@ def cmd_import(args: argparse.Namespace) -> int:
     )  # fmt: skip
     n = len(info.planned_joints_deg)
     note_written(args, args.out)
-    print(f"imported {n} frames of {len(info.cameras)} camera(s) into {args.out}")
+    if args.json:
+        print(json.dumps({"dataset": str(args.out), "frames": n, "cameras": list(info.cameras)}))
+    else:
+        print(f"imported {n} frames of {len(info.cameras)} camera(s) into {args.out}")
     return 0
 
 
@@ -101,7 +106,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else Path(args.dataset) / "evaluation.json"
     write_evaluation(out, ev)
     note_written(args, out)
-    print(ev.line())
+    print(json.dumps({"evaluation": str(out), **ev.to_json()}) if args.json else ev.line())
     if ev.failures:
         raise CalibrationFailedError.of(ev.failures, out)
     return 0
@@ -154,6 +159,7 @@ def register(subparsers) -> None:
         + "; k3 only on request)",
     )  # fmt: skip
     add_bag_import_args(sp)
+    add_json(sp)
     sp.set_defaults(func=cmd_import)
 
     sp = subparsers.add_parser(
@@ -162,6 +168,7 @@ def register(subparsers) -> None:
         description="Predict every detected feature of DATASET2 from its joint readings with the "
         "calibrated model and with the nominal kinematics; write evaluation.json.",
     )
+    add_json(sp)
     sp.add_argument("calibration", help="calibrated dataset folder (or its calibration.json)")
     sp.add_argument("dataset", help="held-out dataset folder (same robot, camera and board)")
     sp.add_argument("--out", default=None, help="default DATASET/evaluation.json")

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import json
 import sys
 import time
 from pathlib import Path
@@ -48,7 +49,7 @@ from calib.robot_def import load_robot
 from calib.transforms import inv_pose, kabsch
 from scenarios.acquire import acquire
 from scenarios.backends import open_robot, plan_dataset, sim_setup
-from scenarios.cli_common import note_written
+from scenarios.cli_common import add_json, note_written
 from scenarios.config import ConfigError, load_scenario
 from scenarios.paper_checks import paper_inconsistencies
 from scenarios.paper_data import (
@@ -251,7 +252,9 @@ def reproduce(out: str | Path, config: str | Path | None = None, *, quiet: bool 
 
 # ------------------------------------------------------------------------------------- CLI
 def _cmd(args: argparse.Namespace) -> int:
-    reproduce(Path(args.out), args.config, quiet=args.quiet)
+    summary = reproduce(Path(args.out), args.config, quiet=args.quiet)
+    if args.json:
+        print(json.dumps(summary, default=str))
     note_written(args, args.out)
     return 0
 
@@ -269,5 +272,6 @@ def register(subparsers) -> argparse.ArgumentParser:
         "config", nargs="?", default=None, help="scenario TOML (default scenarios/paper.toml)"
     )
     sp.add_argument("--out", default="runs/paper", help="output folder (default runs/paper)")
+    add_json(sp)
     sp.set_defaults(func=_cmd)
     return sp

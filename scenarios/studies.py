@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import json
 import os
 import sys
 import time
@@ -39,7 +40,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from calib.errors import InputError
-from scenarios.cli_common import note_written
+from scenarios.cli_common import add_json, note_written
 from scenarios.cluster import DEFAULT_RETRIES, add_cluster_args
 from scenarios.parallel import run_tasks
 from scenarios.progress import Progress, TaskCounts
@@ -177,7 +178,7 @@ def _note(row: dict) -> str:
 # --------------------------------------------------------------------------------------- CLI
 def _cmd(args: argparse.Namespace) -> int:
     args.out = args.out or f"runs/study-{args.name}"
-    run_study(
+    rows = run_study(
         args.name,
         Path(args.out),
         budget=args.budget,
@@ -187,6 +188,9 @@ def _cmd(args: argparse.Namespace) -> int:
         retries=args.retries,
     )
     note_written(args, args.out)
+    if args.json:
+        ok = sum(r.get("status") == "ok" for r in rows)
+        print(json.dumps({"study": args.name, "out": str(args.out), "runs": len(rows), "ok": ok}))
     return 0
 
 
@@ -220,5 +224,6 @@ def register(subparsers) -> argparse.ArgumentParser:
         help="worker processes (default: CPU count; 1 = in-process; not with --cluster)",
     )
     add_cluster_args(sp)
+    add_json(sp)
     sp.set_defaults(func=_cmd)
     return sp

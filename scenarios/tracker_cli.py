@@ -13,6 +13,7 @@ File formats: :mod:`calib.io.tracker` and docs/tracker.md.
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 from pathlib import Path
 
@@ -36,7 +37,7 @@ from calib.io.tracker_calibration import (
 from calib.mcpc import nominal_mcpc
 from calib.robot_def import load_robot
 from calib.tracker_identify import TrackerMeasurements, identify_tracker
-from scenarios.cli_common import CliError, note_written
+from scenarios.cli_common import CliError, add_json, note_written
 from scenarios.cli_log import get_logger
 
 __all__ = ["register", "cmd_identify", "cmd_predict"]
@@ -126,6 +127,9 @@ def cmd_identify(args: argparse.Namespace) -> int:
         write_text_atomic(out / "residuals.csv", _residuals_csv(table, res, meas))
         note_written(args, out / "residuals.csv")
     kinds = " + ".join(res.kinds)
+    if args.json:
+        print(json.dumps(_identify_json(res, meas, cal, path)))
+        return 0
     if meas.m:
         what = "poses" if meas.R is not None else "positions"
         print(f"fit RMS {res.rms_mm:.4f} mm over {meas.m} {what}", end="")
@@ -146,6 +150,24 @@ def cmd_identify(args: argparse.Namespace) -> int:
         get_logger(__name__).warning("%s", w)
     print(f"wrote {path}")
     return 0
+
+
+def _identify_json(res, meas: TrackerMeasurements, cal, path: Path) -> dict:
+    """``selfcal identify --json``: the fit's headline numbers (mm, deg)."""
+    return {
+        "calibration": str(path),
+        "kinds": list(res.kinds),
+        "rms_mm": res.rms_mm if meas.m else None,
+        "rms_deg": res.rms_deg if meas.R is not None else None,
+        "rms_distance_mm": res.rms_distance_mm if meas.k else None,
+        "rank": res.rank,
+        "n_params": res.n_params,
+        "condition_number": res.condition_number,
+        "sigma0": res.sigma0,
+        "held": dict(res.held_reason),
+        "tool_point_mm": [float(v) for v in cal.tool_point_mm],
+        "warnings": list(res.warnings),
+    }
 
 
 def cmd_predict(args: argparse.Namespace) -> int:
@@ -196,6 +218,7 @@ def register(sub) -> None:
     )
     sp.add_argument("--hold", default=None, help="parameters held at nominal, e.g. beta1,ly1")
     sp.add_argument("--trust-units", action="store_true", help=TRUST_HELP)
+    add_json(sp)
 
     sp = sub.add_parser(
         "predict",

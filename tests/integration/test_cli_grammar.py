@@ -119,3 +119,15 @@ def test_dataset_records_its_encoder_model_and_a_mismatch_is_refused(tmp_path, c
     assert code == 2 and out == ""
     assert err.startswith("selfcal: error: ") and "encoder table of 'er4u-paper'" in err
     assert "robot_model is 'er4u-vendor'" in err and " -- acquire again with" in err
+
+
+def test_montecarlo_json_and_where_it_wrote(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # --out defaults to runs/montecarlo
+    code, out, err = run(
+        capsys, "montecarlo", "--draws", "2", "--jobs", "1", "--poses", "8", "--json", "-q"
+    )
+    assert code == 0
+    doc = json.loads(out)
+    assert doc == json.loads((tmp_path / "runs/montecarlo/summary.json").read_text())
+    last = err.splitlines()[-1]
+    assert last.startswith("selfcal: wrote runs/montecarlo/ (") and "summary.json" in last
