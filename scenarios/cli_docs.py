@@ -12,6 +12,7 @@ import os
 import sys
 from pathlib import Path
 
+from calib.io.atomic import write_text_atomic
 from scenarios.cli import build_parser
 from scenarios.cli_common import leaf_parsers
 
@@ -95,7 +96,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     text = cli_markdown()
     if args.write:
-        DOC.write_text(text)
+        write_text_atomic(DOC, text)
         print(f"wrote {DOC}")
         return 0
     if not DOC.is_file() or DOC.read_text() != text:

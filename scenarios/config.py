@@ -16,7 +16,6 @@ from typing import Any
 from calib.calibrate import MIN_POSTURES
 from calib.camera import MODELS, CameraModel, camera_model, centered_principal_point, lens_names
 from calib.errors import InputError
-from calib.robot_def import DEFAULT_ROBOT
 from calib.tomlfile import read_toml
 
 __all__ = [
@@ -43,6 +42,15 @@ class HardwareConfig:
     """Left and right camera: device index, stream URL or image-sequence pattern."""
     options: dict = field(default_factory=dict)
     """Further adapter settings passed through to the hardware adapter (see docs/hardware.md)."""
+
+
+DEFAULT_ROBOT = "er4u-paper"
+"""The one default robot model (and so encoder table) of every ``selfcal`` command and scenario
+that names none: the [robot] model of the default scenario (``scenarios/paper.toml``), fk, ik,
+render, the ``hw`` commands and ``selfcal emulate``. A real ER-4u controller's encoders read zero
+at the vendor home: give ``--robot er4u-vendor`` (or ``[robot] model = "er4u-vendor"``) for it
+(docs/hardware.md). The ``hw`` library's own default for callers that name no model is
+``hw.settings.DEFAULT_MODEL`` (the ACL controller's arm, er4u-vendor)."""
 
 
 @dataclass(frozen=True)

@@ -25,13 +25,12 @@ from pathlib import Path
 from typing import Any
 
 from calib.errors import InputError
-from calib.robot_def import DEFAULT_ROBOT
 from calib.tomlfile import read_toml
 from hw.acl_robot import AclRobot
 from hw.emulator import AclEmulator
 from hw.emulator_backends import KinematicBackend
 from scenarios.cli_common import add_deprecated, add_json, parse_floats
-from scenarios.config import load_scenario
+from scenarios.config import DEFAULT_ROBOT, load_scenario
 from scenarios.emulate_faults import CLI_FAULTS, acquisition_fault, choose_fault
 from scenarios.emulator_backend import SimEmulatorBackend
 from scenarios.hardware import hardware_settings
@@ -136,7 +135,7 @@ def _open_robot(args: argparse.Namespace) -> AclRobot:
     config = load_toml(args.config) if args.config else {"port": args.port}
     robot = config.get("robot") if isinstance(config.get("robot"), dict) else {}
     named = robot.get("model") or (robot.get("hardware") or {}).get("model")
-    # the one default (calib.robot_def.DEFAULT_ROBOT) unless the command line or config names one
+    # the one default (scenarios.config.DEFAULT_ROBOT) unless the command line or config names one
     overrides = {"model": args.robot or (None if named else DEFAULT_ROBOT)}
     overrides = {k: v for k, v in overrides.items() if v}
     return AclRobot.from_settings(hardware_settings(config, **overrides), open_cameras=False)

@@ -374,9 +374,10 @@ def test_cli_hardware_fault_exits_4(emu, capsys):
 
 
 def test_cli_hw_and_emulate_share_the_one_default_robot(capsys):
-    """`selfcal emulate` and `selfcal hw` without a model both take calib.robot_def.DEFAULT_ROBOT
+    """`selfcal emulate` and `selfcal hw` without a model both take scenarios.config.DEFAULT_ROBOT
     (the default scenario's): the same encoder counts are the same joint angles."""
-    from calib.robot_def import DEFAULT_ROBOT, load_robot
+    from calib.robot_def import load_robot
+    from scenarios.config import DEFAULT_ROBOT
     from scenarios.hw_cli import emulator_from_config
 
     emu = emulator_from_config(None, overrides={"tcp_port": None, "home_duration_s": 0.02})
