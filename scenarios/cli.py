@@ -156,7 +156,7 @@ def cmd_render(args: argparse.Namespace) -> int:
     robot = load_robot(model)
     q = _joints_rad(robot, args.joints)
     bar = Progress("render", enabled=not args.quiet)
-    with bar.step("render the stereo pair (the first render builds the scene: ~15 s)") as st:
+    with bar.step("render the stereo pair") as st:
         paths = render_posture(robot, q, Path(args.out), config=scenario)
         st.result(f"{paths[0].name}, {paths[1].name}")
     note_written(args, *paths)
