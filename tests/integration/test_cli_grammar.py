@@ -131,3 +131,16 @@ def test_montecarlo_json_and_where_it_wrote(tmp_path, capsys, monkeypatch):
     assert doc == json.loads((tmp_path / "runs/montecarlo/summary.json").read_text())
     last = err.splitlines()[-1]
     assert last.startswith("selfcal: wrote runs/montecarlo/ (") and "summary.json" in last
+
+
+def test_record_defaults_to_a_file_in_the_dataset(tmp_path, capsys):
+    """`selfcal record DIR` without --rrd writes DIR/run.rrd (it used to end in a bare ValueError
+    about spawn=True)."""
+    from scenarios.pipeline import run_acquire, run_calibrate
+
+    s = load_scenario(overrides={"noise": {"render": False}, "trajectory": {"poses": 6}})
+    run_acquire(s, tmp_path / "ds", quiet=True)
+    run_calibrate(tmp_path / "ds", quiet=True, method="two-stage")
+    code, out, err = run(capsys, "record", tmp_path / "ds")
+    assert code == 0 and (tmp_path / "ds" / "run.rrd").stat().st_size > 0
+    assert err.splitlines()[-1].startswith(f"selfcal: wrote {tmp_path / 'ds' / 'run.rrd'} in ")
