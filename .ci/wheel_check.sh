@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The wheel works outside the checkout (#16): build it, install it into a fresh venv, and from an
-# empty folder run `selfcal fk` and a short analytic `selfcal run` (12 poses, no rendering). The
+# empty folder run `selfcal fk`, a short analytic `selfcal run` (12 poses) and `selfcal render`. The
 # robot models travel as package data (pyproject force-include -> calib/models). Needs only the
 # package registry (or uv's cache) for the dependencies; about 10 s with a warm cache.
 set -euo pipefail
@@ -35,6 +35,9 @@ poses = 5
 TOML
 "$work/venv/bin/selfcal" run quick.toml --out run
 test -s run/calibration.json && test -s run/report.md
+echo "== selfcal render (MuJoCo scene and marker textures from the package data)"
+MUJOCO_GL=${MUJOCO_GL:-egl} "$work/venv/bin/selfcal" render --joints 38.15,-30,45,-63.54,0
+test -s render/left.png && test -s render/right.png
 # nothing of the checkout was used: the installed package is outside $repo
 "$work/venv/bin/python" -c "import calib.robot_def as r, sys; d = r.models_dir(); print('models:', d); sys.exit(str(d).startswith('$repo'))"
 echo "wheel check ok"
