@@ -364,7 +364,7 @@ def build_parser() -> argparse.ArgumentParser:
         "drive the robot along the trajectory into a dataset folder",
         CONFIG_HELP,
     )
-    sp.add_argument("config", help="scenario TOML (e.g. scenarios/paper.toml)")
+    sp.add_argument("config", metavar="SCENARIO", help="scenario TOML (e.g. scenarios/paper.toml)")
     sp.add_argument(
         "--out", default=None, help="dataset folder (default runs/<scenario file name>)"
     )
@@ -379,7 +379,11 @@ def build_parser() -> argparse.ArgumentParser:
         CONFIG_HELP,
     )
     sp.add_argument(
-        "config", nargs="?", default=None, help="scenario TOML (default scenarios/paper.toml)"
+        "config",
+        nargs="?",
+        default=None,
+        metavar="SCENARIO",
+        help="scenario TOML (default scenarios/paper.toml)",
     )
     sp.add_argument("--out", default=None, help="output folder (default runs/<scenario file name>)")
     sp.add_argument("--method", choices=METHODS, default="joint", help=METHOD_HELP)

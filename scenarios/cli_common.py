@@ -167,6 +167,7 @@ def add_scenario_arg(p: argparse.ArgumentParser, what: str) -> None:
     p.add_argument(
         "scenario",
         nargs="?",
+        metavar="SCENARIO",
         default=argparse.SUPPRESS,  # keeps a value given by the old --config
         help=f"scenario TOML {what} (default scenarios/paper.toml)",
     )

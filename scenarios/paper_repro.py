@@ -269,7 +269,11 @@ def register(subparsers) -> argparse.ArgumentParser:
         "the run itself in DIR/run.",
     )
     sp.add_argument(
-        "config", nargs="?", default=None, help="scenario TOML (default scenarios/paper.toml)"
+        "config",
+        nargs="?",
+        default=None,
+        metavar="SCENARIO",
+        help="scenario TOML (default scenarios/paper.toml)",
     )
     sp.add_argument("--out", default="runs/paper", help="output folder (default runs/paper)")
     add_json(sp)
