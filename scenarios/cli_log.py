@@ -77,13 +77,27 @@ class _Handler(logging.Handler):
         print(clear + prefix + text, file=sys.stderr, flush=True)
 
 
-def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
-    """``warnings.showwarning`` replacement: the warning as a ``selfcal: warning:`` log line
-    (no source path, no code line); the category only when it is not one of the project's."""
-    plain = issubclass(category, SelfCalWarning) or category is UserWarning
-    tag = "" if plain else f" [{category.__name__}]"
-    text = str(message)
-    get_logger("warnings").warning("%s%s", text, tag)
+def _is_printer(impl) -> bool:
+    """Whether ``impl`` is the warnings module's own printing ``_showwarnmsg_impl`` (and not the
+    recorder of an enclosing ``warnings.catch_warnings(record=True)``)."""
+    return getattr(impl, "__module__", None) == "warnings" and (
+        getattr(impl, "__name__", None) == "_showwarnmsg_impl"
+    )
+
+
+def _warning_router(recorder):
+    """A ``warnings.showwarning`` replacement: the warning as a ``selfcal: warning:`` log line
+    (no source path, no code line; the category only when it is not one of the project's), also
+    handed to ``recorder`` (an enclosing ``catch_warnings(record=True)``) when there is one."""
+
+    def show(message, category, filename, lineno, file=None, line=None) -> None:
+        plain = issubclass(category, SelfCalWarning) or category is UserWarning
+        tag = "" if plain else f" [{category.__name__}]"
+        get_logger("warnings").warning("%s%s", str(message), tag)
+        if recorder is not None:
+            recorder(warnings.WarningMessage(message, category, filename, lineno, file, line))
+
+    return show
 
 
 @contextmanager
@@ -103,8 +117,10 @@ def command_logging(*, verbose: bool = False, quiet: bool = False) -> Iterator[C
     root.setLevel(level)
     root.propagate = False
     try:
+        outer = getattr(warnings, "_showwarnmsg_impl", None)
+        recorder = None if outer is None or _is_printer(outer) else outer
         with warnings.catch_warnings():
-            warnings.showwarning = _show_warning
+            warnings.showwarning = _warning_router(recorder)
             yield log
     finally:
         root.removeHandler(handler)

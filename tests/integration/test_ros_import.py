@@ -277,7 +277,7 @@ def _error(bag: Path, tmp_path: Path, root: Path, capsys, topic="cam0=/cam/image
     assert _import(bag, tmp_path / "out", root, topic, extra=extra) == 2
     assert not (tmp_path / "out").exists()  # nothing half-written
     err = capsys.readouterr().err
-    assert str(bag) in err and "fix:" in err
+    assert str(bag) in err and " -- " in err  # the fix after the message
     return err
 
 
