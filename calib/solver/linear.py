@@ -244,7 +244,7 @@ def _schur_layout(inst: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray,
     s = int(counts.max()) if len(ids) else 1
     order = np.argsort(inv, kind="stable")
     slot = np.empty(len(e), np.int64)
-    starts = np.r_[0, np.cumsum(counts)[:-1]]
+    starts = np.cumsum(counts) - counts
     slot[order] = np.arange(len(e)) - np.repeat(starts, counts)
     elim = -np.ones((len(ids), s), np.int64)
     elim[inv, slot] = e
@@ -422,7 +422,11 @@ class DampedSystem:
 
     def _solve_schur(self, gs: np.ndarray, lam: float) -> np.ndarray:
         _, _, _, elim, kept = self.ne.schur_parts
-        ni, s, _ = self.Ws.shape
+        ni, s, nk = self.Ws.shape
+        if ni == 0:  # nothing eliminated: the kept block alone
+            y = np.empty_like(gs)
+            y[kept] = np.linalg.solve(self.Vs + lam * np.eye(nk), gs[kept])
+            return y
         Ud = self.Us + lam * np.eye(s)
         Ui = np.linalg.inv(Ud)
         e = elim >= 0

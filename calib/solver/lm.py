@@ -105,7 +105,8 @@ def _linear_kind(problem: Problem, opt: SolverOptions) -> tuple[str, np.ndarray 
     inst = problem.instance_of_columns(opt.eliminate) if opt.eliminate else None
     if kind == "auto":
         kept = problem.n if inst is None else int(np.sum(inst < 0))
-        if inst is not None and kept <= DENSE_MAX and problem.n > opt.schur_min_unknowns:
+        eliminated = inst is not None and kept < problem.n
+        if eliminated and kept <= DENSE_MAX and problem.n > opt.schur_min_unknowns:
             kind = "schur"
         else:
             kind = "dense" if problem.n <= DENSE_MAX else "sparse"

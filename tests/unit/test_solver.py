@@ -224,6 +224,21 @@ def test_schur_refuses_rows_that_couple_two_instances():
         solve(prob, SolverOptions(linear_solver="schur", eliminate="ab"))
 
 
+def test_an_elimination_with_nothing_to_eliminate_solves_densely():
+    """A block that declares instances but has none free (all held): "auto" does not take the
+    Schur form, and an explicit "schur" still solves (an empty elimination)."""
+    y = _data()
+    blocks = [
+        ParameterBlock("ab", [1.0, -0.5], instance=[0, 1], held=[True, True]),
+        ParameterBlock("c", [0.0]),
+    ]
+    prob = Problem(blocks, [ExpFit(y)])
+    auto = solve(prob, SolverOptions(eliminate="ab"))
+    schur = solve(prob, SolverOptions(linear_solver="schur", eliminate="ab"))
+    assert auto.linear_solver == "dense" and auto.converged and schur.converged
+    assert schur.x == pytest.approx(auto.x, rel=1e-9)
+
+
 def test_scaled_rank_above_dense_max_matches_the_dense_eigenvalues(monkeypatch):
     """The Lanczos path (problems above DENSE_MAX unknowns) gives the dense path's smallest
     relative singular value (measured: 3e-15 relative) and rank, and a rank-deficient Jacobian
