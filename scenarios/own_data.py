@@ -11,24 +11,14 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from calib.board_dataset import calibrate_board_dataset
-from calib.calibrate import CalibrationFailedError
-from calib.camera import MODELS, opencv_values
-from calib.evaluate import evaluate_board, write_evaluation
-from calib.evaluate_field import evaluate_field
-from calib.import_dataset import DEFAULT_FREE, DEFAULT_MODEL, CameraImages, import_dataset
-from calib.io.board_calibration import (
-    BoardCalibrationResult,
-    calibration_kind,
-    read_board_calibration,
-    write_board_calibration,
-)
-from calib.io.calibration import read_calibration
-from calib.io.dataset import Dataset
-from calib.io.tracker import JOINT_UNITS
-from scenarios.pipeline import run_calibrate
+if TYPE_CHECKING:
+    from calib.io.board_calibration import BoardCalibrationResult
 
+
+# Heavy modules (scipy, OpenCV, MuJoCo, the pipeline) are imported by the functions that use
+# them, so that `selfcal --help` builds every command's parser without loading them.
 __all__ = ["calibrate_any", "register"]
 
 
@@ -42,6 +32,11 @@ def calibrate_any(
 ) -> None:
     """Calibrate the dataset in ``root`` by its target and write ``root/calibration.json``:
     the field -> :func:`scenarios.pipeline.run_calibrate`; a board -> the board calibration."""
+    from calib.board_dataset import calibrate_board_dataset
+    from calib.io.board_calibration import write_board_calibration
+    from calib.io.dataset import Dataset
+    from scenarios.pipeline import run_calibrate
+
     info = Dataset.open(root).info
     if info.board is None:
         run_calibrate(root, quiet=quiet, method=method, allow_missing_frames=allow_missing_frames)
@@ -55,6 +50,8 @@ def calibrate_any(
 
 def summary(res: BoardCalibrationResult) -> str:
     """One line on a board calibration."""
+    from calib.camera import opencv_values
+
     c = res.cameras[0]
     v = opencv_values(c)
     lens = "".join(f", {n} = {v[n]:.4g}" for n in c.free if n in v and n[0] in "kp")
@@ -67,6 +64,8 @@ def summary(res: BoardCalibrationResult) -> str:
 
 
 def cmd_import(args: argparse.Namespace) -> int:
+    from calib.import_dataset import CameraImages, import_dataset
+
     cams = [CameraImages.parse(s, default_name=f"cam{k}") for k, s in enumerate(args.images)]
     info = import_dataset(
         args.robot, cams, args.joints, args.joint_units, args.target, args.out,
@@ -80,6 +79,12 @@ def cmd_import(args: argparse.Namespace) -> int:
 
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
+    from calib.calibrate import CalibrationFailedError
+    from calib.evaluate import evaluate_board, write_evaluation
+    from calib.evaluate_field import evaluate_field
+    from calib.io.board_calibration import calibration_kind, read_board_calibration
+    from calib.io.calibration import read_calibration
+
     cal_path = Path(args.calibration)
     cal_dir = cal_path if cal_path.is_dir() else cal_path.parent
     if calibration_kind(cal_path) == "board":
@@ -103,6 +108,10 @@ file-name order, or by the image column. Target TOML: docs/targets.md. See docs/
 
 def register(subparsers) -> None:
     """Add ``import`` and ``evaluate`` to the ``selfcal`` subcommands."""
+    from calib.camera import MODELS
+    from calib.import_dataset import DEFAULT_FREE, DEFAULT_MODEL
+    from calib.io.tracker import JOINT_UNITS
+
     sp = subparsers.add_parser(
         "import",
         help="your own images + joint readings + board -> a dataset folder (no truth)",
