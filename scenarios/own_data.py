@@ -108,9 +108,7 @@ file-name order, or by the image column. Target TOML: docs/targets.md. See docs/
 
 def register(subparsers) -> None:
     """Add ``import`` and ``evaluate`` to the ``selfcal`` subcommands."""
-    from calib.camera import MODELS
-    from calib.import_dataset import DEFAULT_FREE, DEFAULT_MODEL
-    from calib.io.tracker import JOINT_UNITS
+    from calib.choices import CAMERA_MODELS, DEFAULT_FREE, DEFAULT_MODEL, JOINT_UNITS
 
     sp = subparsers.add_parser(
         "import",
@@ -136,7 +134,7 @@ def register(subparsers) -> None:
         help="degrees that stay within +-6.3 deg are degrees (skip the radians-looking check)",
     )  # fmt: skip
     sp.add_argument(
-        "--camera-model", default=DEFAULT_MODEL, choices=tuple(MODELS),
+        "--camera-model", default=DEFAULT_MODEL, choices=CAMERA_MODELS,
         help="the cameras' model (default opencv: Brown-Conrady distortion, what a real lens "
         "needs; a pinhole fitted to a distorting lens is biased; fisheye for wide angles)",
     )  # fmt: skip

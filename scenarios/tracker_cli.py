@@ -167,7 +167,7 @@ def cmd_predict(args: argparse.Namespace) -> int:
 
 def register(sub) -> None:
     """Add ``identify`` and ``predict`` to the ``selfcal`` sub-command parsers ``sub``."""
-    from calib.io.tracker import JOINT_UNITS
+    from calib.choices import JOINT_UNITS
 
     sp = sub.add_parser(
         "identify",

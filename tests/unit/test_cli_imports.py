@@ -9,6 +9,7 @@ import subprocess
 import sys
 
 HEAVY = ("mujoco", "matplotlib", "scipy.stats", "sim", "scenarios.pipeline", "scenarios.backends")
+PARSER_HEAVY = ("scipy", "cv2")  # also not needed to build the parser
 
 
 def _loaded(code: str) -> list[str]:
@@ -22,7 +23,7 @@ def _loaded(code: str) -> list[str]:
 def test_importing_the_cli_and_building_its_parser_loads_no_heavy_module():
     mods = _loaded("import scenarios.cli as c\nc.build_parser()")
     assert "scenarios.cli" in mods  # the probe did import it
-    assert [m for m in HEAVY if m in mods] == []
+    assert [m for m in HEAVY + PARSER_HEAVY if m in mods] == []
 
 
 def test_fk_loads_no_simulator_or_plotting():
@@ -33,3 +34,13 @@ def test_fk_loads_no_simulator_or_plotting():
     )
     assert "calib.kinematics" in mods  # fk ran
     assert [m for m in HEAVY if m in mods] == []
+
+
+def test_the_light_choices_name_the_camera_models():
+    from calib.camera import MODELS
+    from calib.choices import CAMERA_MODELS, DEFAULT_FREE, DEFAULT_MODEL
+
+    assert CAMERA_MODELS == tuple(MODELS) == tuple(DEFAULT_FREE)
+    assert DEFAULT_MODEL in MODELS
+    for name, free in DEFAULT_FREE.items():
+        assert set(free) <= set(MODELS[name].names)
