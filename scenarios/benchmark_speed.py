@@ -39,6 +39,8 @@ from pathlib import Path
 
 import numpy as np
 
+from calib.io.atomic import write_text_atomic
+
 ROOT = Path(__file__).resolve().parent.parent
 BEGIN, END = "<!-- benchmark_speed: begin -->", "<!-- benchmark_speed: end -->"
 TOLERANCE = 1.3
@@ -258,7 +260,7 @@ def write_block(path: Path, block: str) -> None:
         raise SystemExit(f"{path}: no {BEGIN} ... {END} markers to write between")
     head, rest = text.split(BEGIN, 1)
     tail = rest.split(END, 1)[1]
-    path.write_text(f"{head}{BEGIN}\n{block}\n{END}{tail}")
+    write_text_atomic(path, f"{head}{BEGIN}\n{block}\n{END}{tail}")
 
 
 def main(argv: list[str] | None = None) -> int:
