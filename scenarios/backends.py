@@ -17,7 +17,13 @@ from calib.camera import Intrinsics, Rig
 from calib.errors import InputError
 from calib.io.atomic import write_image_atomic
 from calib.io.dataset import DatasetInfo
-from calib.io.truth import read_truth, write_truth
+from calib.io.truth import (
+    TRUTH_JOURNAL,
+    append_truth_frame,
+    read_truth,
+    with_journal,
+    write_truth,
+)
 from calib.kinematics import fk_tool
 from calib.mcpc import MCPCModel, minimal_indices, nominal_mcpc, param_is_angle, param_names
 from calib.optimal_poses import plan_optimal_postures
@@ -234,9 +240,12 @@ def open_robot(
     rig = robot.rig
     truth = robot.truth(meta={"scenario": scenario_to_dict(s)})
     truth_path = Path(out) / "truth.json"
+    journal = Path(out) / TRUTH_JOURNAL
     if truth_path.is_file():
         truth = dataclasses.replace(truth, frames=read_truth(truth_path).frames)
+    truth = with_journal(truth, journal)  # frames of a killed acquisition
     write_truth(truth_path, truth)
+    journal.unlink(missing_ok=True)
     rng = np.random.default_rng(s.noise.seed + 7919)
     fld = setup.field
     corners, normals = fld.corners_world(), fld.T_world_marker[:, :3, 2]
@@ -244,7 +253,11 @@ def open_robot(
     def record_truth(index: int) -> None:
         nonlocal truth
         truth = truth.with_frame(robot.truth_frame(), frame_index=index)
+        append_truth_frame(journal, truth.frames[-1])  # O(1); truth.json once, in finish()
+
+    def finish() -> None:
         write_truth(truth_path, truth)
+        journal.unlink(missing_ok=True)
 
     def detect() -> dict:
         fr = robot.truth_frame()
@@ -264,7 +277,9 @@ def open_robot(
             )
         return out_
 
-    hooks = AcquisitionHooks(detect=None if s.noise.render else detect, record_truth=record_truth)
+    hooks = AcquisitionHooks(
+        detect=None if s.noise.render else detect, record_truth=record_truth, finish=finish
+    )
     return robot, hooks
 
 

@@ -14,31 +14,22 @@ from pathlib import Path
 
 import numpy as np
 
-from calib.calibrate import CalibrationFailedError
-from calib.ik import UnreachableError, ik, ik_nearest
-from calib.ik_numeric import ToolTarget, ik_robot
-from calib.kinematics import fk_tool
-from calib.mcpc import nominal_mcpc
-from calib.robot_def import load_robot
-from calib.tool_pose import tool_pose
-from scenarios.backends import render_posture
 from scenarios.cli_common import CliError, parse_floats, run_command
 from scenarios.cli_pose import POSE_HELP, add_pose_args, is_er, orientation_json, parse_pose_args
-from scenarios.config import load_scenario
 from scenarios.deploy_cli import register as register_deploy
 from scenarios.diagnose_render import register as register_diagnose
 from scenarios.hw_cli import register as register_hw
 from scenarios.montecarlo_cli import register as register_montecarlo
-from scenarios.own_data import calibrate_any
 from scenarios.own_data import register as register_own_data
 from scenarios.paper_repro import register as register_paper
-from scenarios.pipeline import report_summary, run_acquire, run_all, run_report
-from scenarios.rerun_log import record_run
 from scenarios.rerun_log import register as register_record
 from scenarios.ros_cli import export_run
 from scenarios.studies import register as register_study
 from scenarios.threads import DEFAULT_THREADS, THREADS_ENV, limit_threads
 from scenarios.tracker_cli import register as register_tracker
+
+# The modules a command runs are imported by that command (`selfcal --help` and `selfcal fk`
+# stay fast): scipy, OpenCV, MuJoCo, matplotlib load only where used.
 
 __all__ = ["main", "build_parser", "CliError"]
 
@@ -53,6 +44,11 @@ def _joints_rad(robot, text: str) -> np.ndarray:
 
 
 def cmd_fk(args: argparse.Namespace) -> int:
+    from calib.kinematics import fk_tool
+    from calib.mcpc import nominal_mcpc
+    from calib.robot_def import load_robot
+    from calib.tool_pose import tool_pose
+
     robot = load_robot(args.model)
     q = _joints_rad(robot, args.joints)
     T = fk_tool(nominal_mcpc(robot), q[None])[0]
@@ -72,6 +68,8 @@ def cmd_fk(args: argparse.Namespace) -> int:
 
 def _ik_er(robot, pose, branch: str | None) -> np.ndarray:
     """The closed-form IK of a 5-axis ER-type arm (pitch and roll)."""
+    from calib.ik import ik, ik_nearest
+
     xyz, pitch, roll = pose.xyz_m, pose.pitch_rad, pose.roll_rad
     if not branch:
         return ik_nearest(robot, xyz, pitch, roll, reference=pose.reference)
@@ -86,6 +84,10 @@ def _ik_er(robot, pose, branch: str | None) -> np.ndarray:
 
 
 def cmd_ik(args: argparse.Namespace) -> int:
+    from calib.ik import UnreachableError
+    from calib.ik_numeric import ToolTarget, ik_robot
+    from calib.robot_def import load_robot
+
     robot = load_robot(args.model)
     pose = parse_pose_args(args, robot)
     out: dict = {"model": robot.name}
@@ -111,6 +113,9 @@ def cmd_ik(args: argparse.Namespace) -> int:
 
 
 def cmd_render(args: argparse.Namespace) -> int:
+    from calib.robot_def import load_robot
+    from scenarios.backends import render_posture
+
     robot = load_robot(args.model)
     q = _joints_rad(robot, args.joints)
     paths = render_posture(robot, q, Path(args.out), config=args.config)
@@ -119,17 +124,25 @@ def cmd_render(args: argparse.Namespace) -> int:
 
 
 def cmd_acquire(args: argparse.Namespace) -> int:
+    from scenarios.config import load_scenario
+    from scenarios.pipeline import run_acquire
+
     run_acquire(load_scenario(args.config), Path(args.out), resume=args.resume, quiet=args.quiet)
     return 0
 
 
 def cmd_calibrate(args: argparse.Namespace) -> int:
+    from scenarios.own_data import calibrate_any
+
     calibrate_any(Path(args.dataset), quiet=args.quiet, method=args.method,
                   allow_missing_frames=args.allow_missing_frames)  # fmt: skip
     return 0
 
 
 def cmd_report(args: argparse.Namespace) -> int:
+    from calib.calibrate import CalibrationFailedError
+    from scenarios.pipeline import report_summary, run_report
+
     report = run_report(Path(args.dataset), quiet=args.quiet)
     print(report_summary(report, Path(args.dataset)), flush=True)
     if report["failures"]:
@@ -139,6 +152,10 @@ def cmd_report(args: argparse.Namespace) -> int:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
+    from scenarios.config import load_scenario
+    from scenarios.pipeline import run_all
+    from scenarios.rerun_log import record_run
+
     s = load_scenario(args.config)
     out = Path(args.out) if args.out else Path("runs") / Path(s.source).stem
     if args.bag and not s.noise.render:

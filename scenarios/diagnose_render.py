@@ -19,15 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-from calib.camera import project
-from calib.kinematics import fk_tool
-from calib.target.aruco_detect import detect_markers
-from calib.transforms import inv_pose
-from scenarios.backends import make_sim_robot, plan_dataset, sim_setup
-from scenarios.config import load_scenario
-from sim.mj_camera import intrinsics_from_model
-from sim.robot_mjcf import CAMERA_NAMES
-
+# Heavy modules (scipy, OpenCV, MuJoCo, the pipeline) are imported by the functions that use
+# them, so that `selfcal --help` builds every command's parser without loading them.
 __all__ = ["CornerOffsets", "measure", "summarise", "format_table", "plot", "main", "register"]
 
 SIZE_BINS_PX = (0.0, 25.0, 35.0, 50.0, np.inf)
@@ -71,6 +64,15 @@ def measure(
     ``refine`` (see :data:`calib.target.aruco_detect.REFINE_METHODS`; suffix ``-unscreened``:
     keep occluded and oblique markers, the detector before issue #14), every detected corner's
     offset from its analytic projection. ``max_poses`` limits the postures (None: all)."""
+    from calib.camera import project
+    from calib.kinematics import fk_tool
+    from calib.target.aruco_detect import detect_markers
+    from calib.transforms import inv_pose
+    from scenarios.backends import make_sim_robot, plan_dataset, sim_setup
+    from scenarios.config import load_scenario
+    from sim.mj_camera import intrinsics_from_model
+    from sim.robot_mjcf import CAMERA_NAMES
+
     s = load_scenario(config, overrides={"noise": {"image_sigma": 0.0, "render": True}})
     setup = sim_setup(s)
     info = plan_dataset(s, setup)
@@ -223,6 +225,8 @@ def main(
     max_poses: int | None = None,
 ) -> str:
     """Measure, write the figure (if ``figure``) and return the Markdown report."""
+    from scenarios.config import load_scenario
+
     s = load_scenario(config)
     res = measure(config, refine, max_poses)
     W, H = s.camera.true_model().width, s.camera.true_model().height

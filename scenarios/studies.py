@@ -37,16 +37,25 @@ import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from calib.errors import InputError
-from scenarios.cluster import DEFAULT_RETRIES, add_cluster_args
-from scenarios.parallel import run_tasks
-from scenarios.progress import TaskCounts
-from scenarios.study_defs import STUDIES
-from scenarios.study_runs import COLUMNS, failed_row, load_runs, run_one, settings_key
-from scenarios.study_summary import summarize
+from scenarios.cluster import DEFAULT_RETRIES
+
+if TYPE_CHECKING:
+    from scenarios.progress import TaskCounts
 
 __all__ = ["run_study", "register"]
+
+# The runs (calibrations, the simulator) are imported by the functions that use them, so that
+# `selfcal --help` builds this command's parser without them.
+
+
+def run_one(settings: dict) -> dict:
+    """One run of a study: :func:`scenarios.study_runs.run_one` (imported when a study runs)."""
+    from scenarios.study_runs import run_one as run
+
+    return run(settings)
 
 
 # ------------------------------------------------------------------------------------ driver
@@ -82,6 +91,12 @@ def run_study(
     Raises:
         InputError: unknown study or budget; no Dask or no scheduler with ``cluster``.
     """
+    from scenarios.parallel import run_tasks
+    from scenarios.progress import TaskCounts
+    from scenarios.study_defs import STUDIES
+    from scenarios.study_runs import COLUMNS, failed_row, load_runs, settings_key
+    from scenarios.study_summary import summarize
+
     if name == "all":
         rows = []
         for n in STUDIES:
@@ -186,6 +201,9 @@ def _cmd(args: argparse.Namespace) -> int:
 
 def register(subparsers) -> argparse.ArgumentParser:
     """Add ``selfcal study NAME --budget quick|full --out DIR [--jobs N | --cluster ADDRESS]``."""
+    from scenarios.cluster import add_cluster_args
+    from scenarios.study_defs import STUDIES
+
     sp = subparsers.add_parser(
         "study",
         help="run many calibrations (seeds x settings) in parallel: CSV + plots",

@@ -23,7 +23,15 @@ from calib.io.calibration import (
 )
 from calib.io.dataset import DatasetError, DatasetInfo, read_dataset_info, write_dataset_info
 from calib.io.target_toml import parse_target, target_document
-from calib.io.truth import Truth, TruthFileError, read_truth, write_truth
+from calib.io.truth import (
+    TRUTH_JOURNAL,
+    Truth,
+    TruthFileError,
+    append_truth_frame,
+    read_truth,
+    with_journal,
+    write_truth,
+)
 from calib.mcpc import MCPCModel, nominal_mcpc
 from calib.robot_def import load_robot
 from calib.target import Charuco
@@ -288,3 +296,21 @@ def test_dataset_cameras_of_different_models_are_refused_for_now(tmp_path):
     (tmp_path / "bad.json").write_text(json.dumps(doc))
     with pytest.raises(DatasetError, match="bad.json: key 'cameras' must be cameras of one model"):
         read_dataset_info(tmp_path / "bad.json")
+
+
+def test_truth_journal_folds_frames_back_and_ignores_a_partial_line(tmp_path):
+    """A killed acquisition leaves its frames in the journal: they come back in order, the same
+    as recorded one by one, and a half-written last line is dropped."""
+    full = truth()
+    start = dataclasses.replace(full, frames=full.frames[:1])
+    journal = tmp_path / TRUTH_JOURNAL
+    for fr in full.frames[1:]:
+        append_truth_frame(journal, fr)
+    with open(journal, "a") as fh:
+        fh.write('{"index": 3, "frame_in')  # killed mid-line
+    back = with_journal(start, journal)
+    assert [f.to_json() for f in back.frames] == [f.to_json() for f in full.frames]
+    assert with_journal(start, tmp_path / "none.jsonl") is start
+    journal.write_text("not json\n")
+    with pytest.raises(TruthFileError, match="line 1"):
+        with_journal(start, journal)
