@@ -32,8 +32,10 @@ class CornerOffsets:
     """One row per detected corner: offset ``d`` (n, 2) px (detected - analytic), analytic
     position ``uv`` (n, 2) px, marker side ``size_px`` (n,), viewing angle ``angle_deg`` (n,)
     (marker normal vs direction to the camera), ``corner`` (n,) index 0-3, ``marker`` (n,) id,
-    ``image`` (n,) image index; ``pose_err_m`` the largest camera-position difference between
-    MuJoCo and the actual chain (m), ``joint_quant_rad`` the largest |reported - true| angle."""
+    ``image`` (n,) image index, ``sigma`` (n,) the detector's own noise estimate of the corner
+    (px per coordinate, NaN if it gives none); ``pose_err_m`` the largest camera-position
+    difference between MuJoCo and the actual chain (m), ``joint_quant_rad`` the largest
+    |reported - true| angle."""
 
     d: np.ndarray
     uv: np.ndarray
@@ -42,6 +44,7 @@ class CornerOffsets:
     corner: np.ndarray
     marker: np.ndarray
     image: np.ndarray
+    sigma: np.ndarray
     pose_err_m: float
     joint_quant_rad: float
     intrinsics_err_px: float
@@ -54,6 +57,17 @@ class CornerOffsets:
         r = (c - c.mean(axis=1, keepdims=True)).reshape(-1, 2)
         return float(np.einsum("ij,ij->", self.d, r) / np.einsum("ij,ij->", r, r))
 
+    def noise_check(self) -> tuple[float, float]:
+        """(achieved, predicted) per-coordinate corner RMS (px): the offsets against the
+        detector's own noise estimate (:func:`calib.target.aruco_detect.detect_markers_noise`),
+        over the corners that have one."""
+        ok = np.isfinite(self.sigma)
+        if not ok.any():
+            return float("nan"), float("nan")
+        return float(np.sqrt(np.mean(self.d[ok] ** 2))), float(
+            np.sqrt(np.mean(self.sigma[ok] ** 2))
+        )
+
 
 def measure(
     config: str | Path | None = None,
@@ -62,11 +76,11 @@ def measure(
 ) -> dict[str, CornerOffsets]:
     """Render the scenario's planned postures noise-free and measure, per refinement method in
     ``refine`` (see :data:`calib.target.aruco_detect.REFINE_METHODS`; suffix ``-unscreened``:
-    keep occluded and oblique markers, the detector before issue #14), every detected corner's
-    offset from its analytic projection. ``max_poses`` limits the postures (None: all)."""
+    keep occluded and oblique markers and refine the lines once, the detector before issue #14),
+    every detected corner's offset from its analytic projection. ``max_poses`` limits the postures (None: all)."""
     from calib.camera import project
     from calib.kinematics import fk_tool
-    from calib.target.aruco_detect import detect_markers
+    from calib.target.aruco_detect import detect_markers_noise
     from calib.transforms import inv_pose
     from scenarios.backends import make_sim_robot, plan_dataset, sim_setup
     from scenarios.config import load_scenario
@@ -116,17 +130,20 @@ def measure(
                 for m in refine:
                     screen = not m.endswith("-unscreened")
                     method = m.removesuffix("-unscreened")
-                    found = detect_markers(img, fld.dictionary, method, screen=screen)
+                    found, noise = detect_markers_noise(
+                        img, fld.dictionary, method, screen=screen, passes=None if screen else 1
+                    )
                     for mid, det in found.items():
                         k = fld.index_of(mid)
                         side = np.linalg.norm(uv[k] - np.roll(uv[k], -1, axis=0), axis=1).mean()
                         for j in range(4):
                             rows[m].append(
-                                (*(det[j] - uv[k, j]), *uv[k, j], side, ang[k], j, mid, 2 * i + c)
-                            )
+                                (*(det[j] - uv[k, j]), *uv[k, j], side, ang[k], j, mid, 2 * i + c,
+                                 noise.get(mid, np.nan))
+                            )  # fmt: skip
     out = {}
     for m, r in rows.items():
-        a = np.asarray(r, dtype=float).reshape(-1, 9)
+        a = np.asarray(r, dtype=float).reshape(-1, 10)
         out[m] = CornerOffsets(
             d=a[:, 0:2],
             uv=a[:, 2:4],
@@ -135,6 +152,7 @@ def measure(
             corner=a[:, 6].astype(int),
             marker=a[:, 7].astype(int),
             image=a[:, 8].astype(int),
+            sigma=a[:, 9],
             pose_err_m=pose_err,
             joint_quant_rad=quant,
             intrinsics_err_px=intr_err,
@@ -236,7 +254,15 @@ def main(
         f"reported (quantised) vs true joints: {np.degrees(first.joint_quant_rad):.4f} deg max; "
         f"MuJoCo's intrinsics vs the true camera: {first.intrinsics_err_px:.1e} px max",
     ]
-    parts += [f"{m}: marker scale error {o.scale_error():+.1e} (relative)" for m, o in res.items()]
+    for m, o in res.items():
+        line = f"{m}: marker scale error {o.scale_error():+.1e} (relative)"
+        got, want = o.noise_check()
+        if np.isfinite(want):
+            line += (
+                f"; corner error {got:.4f} px per coordinate, the detector's noise estimate "
+                f"{want:.4f} px"
+            )
+        parts.append(line)
     parts += [format_table(m, summarise(o, W, H)) for m, o in res.items()]
     if figure is not None:
         plot(res, Path(figure))
