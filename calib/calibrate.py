@@ -37,7 +37,7 @@ from calib.quality import assess_calibration
 from calib.results import CalibrationOutput, two_stage_result, with_bounds, with_joint
 from calib.robot_def import load_robot
 from calib.selfcal import Observations, self_calibrate
-from calib.target.aruco_detect import detect_markers
+from calib.target.aruco_detect import detect_markers, detect_markers_noise
 from calib.trajectory import check_not_degenerate
 
 __all__ = [
@@ -84,11 +84,14 @@ class NoMarkersWarning(SelfCalWarning):
 
 
 class MarkerDetections(NamedTuple):
-    """What :func:`detect_dataset` found: the corners, and the images that show no marker
-    (``NNNN_left`` / ``NNNN_right``; skipped)."""
+    """What :func:`detect_dataset` found: the corners, the images that show no marker
+    (``NNNN_left`` / ``NNNN_right``; skipped) and the detector's own estimate of the corner
+    noise (px per coordinate, RMS over the detections; None when it has none: stored
+    detections, images undistorted through a lens)."""
 
     detections: Detections
     skipped_images: tuple[str, ...]
+    corner_sigma_px: float | None = None
 
 
 def skipped_images_message(skipped: tuple[str, ...], dictionary: str) -> str:
@@ -119,12 +122,13 @@ def detect_dataset(ds: Dataset, progress=None, lens: LensCamera | None = None) -
     screen = not isinstance(dataset_camera(ds.info), LensCamera)
     out: Detections = {}
     empty: list[str] = []
+    noise: list[float] = []
     if progress is not None:
         progress.start(2 * len(ds.indices))
     W, H = ds.info.resolution
     flat = None if lens is None else Undistorter(lens)
 
-    def detect(item: tuple[int, str, Path]) -> tuple[int, str, dict]:
+    def detect(item: tuple[int, str, Path]) -> tuple[int, str, dict, dict]:
         index, cam, path = item
         img = read_gray(path, index)
         if img.shape[1] != W or img.shape[0] != H:
@@ -133,13 +137,14 @@ def detect_dataset(ds: Dataset, progress=None, lens: LensCamera | None = None) -
                 f"says {W}x{H}"
             )
         if flat is None:
-            return index, cam, detect_markers(img, dictionary=ds.info.dictionary, screen=screen)
+            return index, cam, *detect_markers_noise(img, ds.info.dictionary, screen=screen)
         dets = detect_markers(flat.image(img), dictionary=ds.info.dictionary, screen=False)
-        return index, cam, {k: flat.distorted(c) for k, c in dets.items()}
+        return index, cam, {k: flat.distorted(c) for k, c in dets.items()}, {}
 
     # OpenCV releases the GIL while decoding and detecting: use every core, keep the order.
     with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
-        for index, cam, dets in pool.map(detect, ds.image_paths()):
+        for index, cam, dets, sig in pool.map(detect, ds.image_paths()):
+            noise += sig.values()
             if dets:
                 out[(index, cam)] = dets
             else:
@@ -156,7 +161,8 @@ def detect_dataset(ds: Dataset, progress=None, lens: LensCamera | None = None) -
             f"no marker was detected in any image of {ds.root}; check the target dictionary "
             f"({ds.info.dictionary}), the lighting and that the camera sees the marker field"
         )
-    return MarkerDetections(out, tuple(empty))
+    sigma = float(np.sqrt(np.mean(np.square(noise)))) if noise else None
+    return MarkerDetections(out, tuple(empty), sigma)
 
 
 def observations_of(ds: Dataset, dets: Detections) -> Observations:
@@ -238,7 +244,7 @@ def calibrate_detailed(
             "(26 kinematic parameters from 6 pose values each, plus the camera's unknowns): "
             "acquire more"
         )
-    dets, skipped = detect_dataset(ds, progress=progress)
+    dets, skipped, corner_sigma = detect_dataset(ds, progress=progress)
     check_distinct_frames(ds.indices, ds.joints_deg, dets, ds.info.cameras, str(ds.root))
     check_read_back(
         ds.indices, ds.joints_deg, ds.info.planned_joints_deg, str(ds.root / "joints.csv")
@@ -265,7 +271,7 @@ def calibrate_detailed(
     sc = camera_stage(obs)
     if isinstance(sc.camera, LensCamera) and ds.info.observation == "images":
         # the lens bends the marker edges: detect again through the estimated lens, refit
-        dets, skipped = detect_dataset(ds, lens=sc.camera)
+        dets, skipped, corner_sigma = detect_dataset(ds, lens=sc.camera)
         _check_scale_markers(ds, dets)
         obs = observations_of(ds, dets)
         sc = camera_stage(obs)
@@ -288,7 +294,12 @@ def calibrate_detailed(
         res = refine_calibration(out, obs, q, robot, ds.info)
         result = with_joint(result, res, robot)
         out = CalibrationOutput(result, sc, ident, res.model, ds.indices[used], res)
-    result = with_bounds(result, out, obs=obs, q=q, robot=robot, ds_info=ds.info)
+    # the bound's corner noise: the detector's own estimate where it has one (it excludes a
+    # bias of whole sides, which the fit residuals would carry into the bound), else residuals
+    result = with_bounds(
+        result, out, obs=obs, q=q, robot=robot, ds_info=ds.info, pixel_sigma_px=corner_sigma,
+        pixel_sigma_source="detector",
+    )  # fmt: skip
     final = out.joint if out.joint is not None else sc  # the points of the final method
     ids, X = final.point_ids, final.X_world
     ok = np.isfinite(X).all(axis=1)

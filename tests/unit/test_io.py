@@ -138,6 +138,7 @@ def test_calibration_keeps_every_key_and_number_of_the_golden_file(tmp_path):
     for doc in (back, *back["methods"].values()):  # the camera model's keys (#12), defaults
         assert {k: doc["intrinsics"].pop(k) for k in added} == added
     assert back["bounds"].pop("camera") == {}
+    assert back["bounds"].pop("pixel_sigma_source") == "residuals"  # (#14) an older file's
     assert back == golden
 
 
