@@ -35,7 +35,8 @@ class CornerOffsets:
     ``image`` (n,) image index, ``sigma`` (n,) the detector's own noise estimate of the corner
     (px per coordinate, NaN if it gives none); ``pose_err_m`` the largest camera-position
     difference between MuJoCo and the actual chain (m), ``joint_quant_rad`` the largest
-    |reported - true| angle."""
+    |reported - true| angle, ``joint_err`` (m, n) reported - true per posture and joint and
+    ``joint_step`` (n,) one encoder count (rad)."""
 
     d: np.ndarray
     uv: np.ndarray
@@ -47,6 +48,8 @@ class CornerOffsets:
     sigma: np.ndarray
     pose_err_m: float
     joint_quant_rad: float
+    joint_err: np.ndarray
+    joint_step: np.ndarray
     intrinsics_err_px: float
 
     def scale_error(self) -> float:
@@ -73,11 +76,13 @@ def measure(
     config: str | Path | None = None,
     refine: tuple[str, ...] = ("lines",),
     max_poses: int | None = None,
+    msaa: int | None = None,
 ) -> dict[str, CornerOffsets]:
     """Render the scenario's planned postures noise-free and measure, per refinement method in
     ``refine`` (see :data:`calib.target.aruco_detect.REFINE_METHODS`; suffix ``-unscreened``:
     keep occluded and oblique markers and refine the lines once, the detector before issue #14),
-    every detected corner's offset from its analytic projection. ``max_poses`` limits the postures (None: all)."""
+    every detected corner's offset from its analytic projection. ``max_poses`` limits the postures (None: all); ``msaa`` sets the renderer's multisample count (None: the
+    scene's, 4)."""
     from calib.camera import project
     from calib.kinematics import fk_tool
     from calib.target.aruco_detect import detect_markers_noise
@@ -95,8 +100,10 @@ def measure(
     corners_w = fld.corners_world()
     normals = fld.T_world_marker[:, :3, 2]
     rows: dict[str, list] = {m: [] for m in refine}
-    pose_err, quant = 0.0, 0.0
+    pose_err, quant, jerr = 0.0, 0.0, []
     with make_sim_robot(s, setup) as robot:
+        if msaa is not None:
+            robot.mj_model.vis.quality.offsamples = int(msaa)
         cams = (robot.rig.intrinsics, robot.rig.right)
         intr_err = 0.0
         for name, cam in zip(CAMERA_NAMES, cams, strict=True):
@@ -112,7 +119,8 @@ def measure(
             pose_err = max(
                 pose_err, float(np.abs(T_chain[:3, 3] - fr["T_world_cam_left"][:3, 3]).max())
             )
-            quant = max(quant, float(np.abs(np.radians(robot.joints()) - fr["joints_rad"]).max()))
+            jerr.append(np.radians(robot.joints()) - fr["joints_rad"])
+            quant = max(quant, float(np.abs(jerr[-1]).max()))
             pair = robot.capture()
             for c, (img, key, intr) in enumerate(
                 zip(
@@ -155,6 +163,8 @@ def measure(
             sigma=a[:, 9],
             pose_err_m=pose_err,
             joint_quant_rad=quant,
+            joint_err=np.asarray(jerr),
+            joint_step=1.0 / np.asarray(setup.robot.counts_per_unit, dtype=float),
             intrinsics_err_px=intr_err,
         )
     return out
@@ -236,23 +246,38 @@ def plot(results: dict[str, CornerOffsets], path: Path) -> None:
     plt.close(fig)
 
 
+def _readback_line(o: CornerOffsets) -> str:
+    """Per joint: the read-back rounding error's RMS in units of the uniform model's
+    ``step / sqrt(12)`` (the calibration's read-back prior) and its largest value in half steps."""
+    rms = np.sqrt(np.mean(o.joint_err**2, axis=0)) / (o.joint_step / np.sqrt(12.0))
+    half = np.abs(o.joint_err).max(axis=0) / (o.joint_step / 2.0)
+    return (
+        "read-back - true joints per joint: RMS / (step / sqrt 12) "
+        f"{' '.join(f'{v:.2f}' for v in rms)}; max / (step / 2) "
+        f"{' '.join(f'{v:.2f}' for v in half)}; mean / step "
+        f"{' '.join(f'{v:+.2f}' for v in o.joint_err.mean(axis=0) / o.joint_step)}"
+    )
+
+
 def main(
     config: str | Path | None = None,
     refine: tuple[str, ...] = ("lines", "lines-unscreened", "subpix"),
     figure: Path | None = None,
     max_poses: int | None = None,
+    msaa: int | None = None,
 ) -> str:
     """Measure, write the figure (if ``figure``) and return the Markdown report."""
     from scenarios.config import load_scenario
 
     s = load_scenario(config)
-    res = measure(config, refine, max_poses)
+    res = measure(config, refine, max_poses, msaa)
     W, H = s.camera.true_model().width, s.camera.true_model().height
     first = next(iter(res.values()))
     parts = [
         f"camera pose MuJoCo vs actual chain: {first.pose_err_m * 1e3:.2e} mm; "
         f"reported (quantised) vs true joints: {np.degrees(first.joint_quant_rad):.4f} deg max; "
         f"MuJoCo's intrinsics vs the true camera: {first.intrinsics_err_px:.1e} px max",
+        _readback_line(first),
     ]
     for m, o in res.items():
         line = f"{m}: marker scale error {o.scale_error():+.1e} (relative)"
@@ -273,10 +298,11 @@ def _add_args(ap: argparse.ArgumentParser) -> None:
     ap.add_argument("config", nargs="?", default=None, help="scenario TOML (default: paper.toml)")
     ap.add_argument("--figure", type=Path, default=Path("docs/render_corners.png"))
     ap.add_argument("--refine", nargs="+", default=["lines", "lines-unscreened", "subpix"])
+    ap.add_argument("--msaa", type=int, default=None, help="multisample count (default: 4)")
 
 
 def _cmd(a: argparse.Namespace) -> int:
-    print(main(a.config, tuple(a.refine), a.figure))
+    print(main(a.config, tuple(a.refine), a.figure, msaa=a.msaa))
     return 0
 
 

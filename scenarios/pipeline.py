@@ -6,6 +6,7 @@ never opens ``truth.json``; ``report`` does, and only in simulation.
 
 from __future__ import annotations
 
+import dataclasses
 import sys
 import time
 from pathlib import Path
@@ -29,7 +30,14 @@ from scenarios.config import Scenario
 from scenarios.paper_data import TABLE_II_MM, table_ii_postures
 from scenarios.progress import Progress
 
-__all__ = ["run_acquire", "run_calibrate", "run_report", "report_summary", "run_all"]
+__all__ = [
+    "run_acquire",
+    "run_calibrate",
+    "run_report",
+    "report_summary",
+    "run_all",
+    "dithered",
+]
 
 
 def _say(quiet: bool, text: str) -> None:
@@ -37,10 +45,32 @@ def _say(quiet: bool, text: str) -> None:
         print(text, file=sys.stderr)
 
 
-def run_acquire(s: Scenario, out: Path, *, resume: bool = False, quiet: bool = False) -> Path:
-    """Acquire the scenario's dataset into ``out`` (resumable)."""
+def dithered(planned_deg: np.ndarray, robot, seed: int) -> np.ndarray:
+    """The postures ``planned_deg`` (m, n) deg moved by a uniform random fraction of one
+    encoder count of ``robot`` (draw ``seed``), within the joint limits: in a Monte Carlo the
+    read-back rounding errors become a fresh uniform draw instead of the same in every draw."""
+    rng = np.random.default_rng(int(seed) + 104_729)
+    cpd = np.asarray(robot.counts_per_unit, dtype=float) * np.pi / 180.0
+    q = np.asarray(planned_deg, dtype=float)
+    lo, hi = np.degrees(robot.limits).T
+    return np.clip(q + rng.uniform(-0.5, 0.5, q.shape) / cpd, lo, hi)
+
+
+def run_acquire(
+    s: Scenario,
+    out: Path,
+    *,
+    resume: bool = False,
+    quiet: bool = False,
+    dither_seed: int | None = None,
+) -> Path:
+    """Acquire the scenario's dataset into ``out`` (resumable). ``dither_seed`` (simulation):
+    move the planned postures by a random fraction of an encoder count (:func:`dithered`)."""
     setup = sim_setup(s) if s.robot.backend == "sim" else None
     info = plan_dataset(s, setup)
+    if dither_seed is not None and setup is not None:
+        q = dithered(np.asarray(info.planned_joints_deg), setup.robot, dither_seed)
+        info = dataclasses.replace(info, planned_joints_deg=q)
     writer = DatasetWriter(out, info, resume=resume)
     robot, hooks = open_robot(s, out, setup)
     try:
