@@ -172,7 +172,7 @@ def observations_of(ds: Dataset, dets: Detections) -> Observations:
     remapped: dict[tuple[int, int | str], dict[int, np.ndarray]] = {
         (pos[i], cam): m for (i, cam), m in dets.items() if i in pos
     }
-    return Observations.from_corners(remapped, n_configs=len(ds.indices))
+    return Observations.from_corners(remapped, n_configs=len(ds.indices), cameras=ds.info.cameras)
 
 
 def _check_scale_markers(ds: Dataset, dets: Detections) -> None:
@@ -230,9 +230,9 @@ def calibrate_detailed(
             "first is the rig's reference and must be the left one",
             fix="list the cameras as left, right in dataset.json (each with its own resolution)",
         )
-    if ds.info.board is not None or ds.info.cameras != CAMERAS:
+    if ds.info.board is not None or (len(ds.info.cameras) != 1 and ds.info.cameras != CAMERAS):
         raise CalibrationError(
-            f"{root}: the self-calibration takes the stereo pair (left, right) and the ArUco "
+            f"{root}: the self-calibration takes one camera or a stereo pair and the ArUco "
             f"field; this dataset has cameras {list(ds.info.cameras)} and target "
             f"{ds.info.target_type!r}",
             fix="calibrate a board dataset with `selfcal calibrate DIR` (it dispatches on the "
@@ -263,6 +263,7 @@ def calibrate_detailed(
         camera=dataset_camera(ds.info),
         scale_markers=ds.info.scale_ids,
         scale_distance_m=ds.info.scale_length_m,
+        rig=len(ds.info.cameras) > 1,  # one camera: views from two configurations (the paper's)
         nominal_cam_positions=T_nom[:, :3, 3],
         # The reconstruction frame becomes the world of the kinematic model: take a camera whose
         # x-axis is far from parallel to joint 1's axis (MCPC's base parameters are singular there).
@@ -281,7 +282,20 @@ def calibrate_detailed(
             f"only {len(used)} postures could be registered by the camera stage; calibration "
             f"needs at least {MIN_POSTURES}: acquire more postures that see the markers"
         )
-    ident = identify(nominal, q[used], sc.T_world_cam[used, 0])
+    # One camera sees its pose less well than a stereo pair (depth from one view): on
+    # scenarios/mono.toml the pose residuals are 11.9x identify's default sigmas (stereo: within
+    # them), so both are scaled by 10 (the estimate does not change, only the warning's scale),
+    # and its Gauss-Newton may need more steps (a Monte Carlo draw of mono.toml took 152).
+    mono = len(ds.info.cameras) == 1
+    s_pose = 10.0 if mono else 1.0
+    ident = identify(
+        nominal,
+        q[used],
+        sc.T_world_cam[used, 0],
+        sigma_t_m=1e-4 * s_pose,
+        sigma_r_rad=1e-3 * s_pose,
+        max_iter=200 if mono else 50,
+    )
     notes = [
         *incomplete,
         *([skipped_images_message(skipped, ds.info.dictionary)] if skipped else []),

@@ -137,7 +137,6 @@ def planning_inputs(s: Scenario) -> dict:
     """
     robot = load_robot(s.robot.model)
     nominal = nominal_mcpc(robot).with_tool(robot.T_flange_cam)
-    W, H = s.camera.resolution
     cx, cy = _field_center(robot, nominal)
     half = s.target.extent_mm / 2000.0
     g = np.linspace(-half, half, 6)
@@ -145,15 +144,23 @@ def planning_inputs(s: Scenario) -> dict:
     return {
         "robot": robot,
         "model_cam": nominal,
-        "rig": Rig.stereo(
-            Intrinsics.centered(s.camera.fx, s.camera.mu, W, H),
-            trans(np.array([s.camera.baseline_mm / 1000, 0.0, 0.0])),
-        ),
+        "rig": _planning_rig(s),
         "points_world": pts,
         "normals_world": np.tile([0.0, 0.0, 1.0], (len(pts), 1)),
         "min_visible": s.trajectory.min_markers,
         "collision_ok": CapsuleChain(nominal_mcpc(robot), robot.T_flange_cam).ok,
     }
+
+
+def _planning_rig(s: Scenario) -> Rig:
+    """The cameras the plan must serve: the nominal stereo pair, or its left camera alone."""
+    W, H = s.camera.resolution
+    rig = Rig.stereo(
+        Intrinsics.centered(s.camera.fx, s.camera.mu, W, H),
+        trans(np.array([s.camera.baseline_mm / 1000, 0.0, 0.0])),
+    )
+    n = s.camera.count
+    return Rig(rig.cameras[:n], rig.T_first_cam[:n], rig.names[:n])
 
 
 def plan_optimal(s: Scenario, *, collisions: bool = True, **kw):
@@ -224,6 +231,7 @@ def plan_dataset(s: Scenario, setup: SimSetup | None = None) -> DatasetInfo:
         scenario=scenario_to_dict(s),
         camera_model=s.camera.model,
         camera_free=tuple(s.camera.free),
+        cameras=s.camera.names,
     )
 
 
