@@ -238,6 +238,12 @@ def calibrate_detailed(
             fix="calibrate a board dataset with `selfcal calibrate DIR` (it dispatches on the "
             "target)",
         )
+    if ds.info.camera_models is not None:
+        raise CalibrationError(
+            f"{root}: the cameras have different models; the self-calibration of the field "
+            "estimates one camera model shared by the rig",
+            fix="give every camera the same model and free parameters in dataset.json",
+        )
     if len(ds.indices) < MIN_POSTURES:
         raise CalibrationError(
             f"{root}: {len(ds.indices)} postures; calibration needs at least {MIN_POSTURES} "

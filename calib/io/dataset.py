@@ -102,12 +102,23 @@ class DatasetInfo:
     """The target TOML document (mm) of a board; None: the ArUco field (``dictionary``,
     ``scale_ids`` and ``scale_length_m`` are then the field's; unused for a board)."""
     image_suffix: str = ".png"
+    camera_models: tuple[tuple[str, tuple[str, ...]], ...] | None = None
+    """(model, free parameters) of each camera; None: ``camera_model`` and ``camera_free`` for
+    all of them."""
 
     def __post_init__(self) -> None:
         if not self.cameras or len(set(self.cameras)) != len(self.cameras):
             raise DatasetError(f"cameras must be distinct names, got {list(self.cameras)}")
         if self.resolutions is not None and len(self.resolutions) != len(self.cameras):
             raise DatasetError("give one resolution per camera")
+        if self.camera_models is not None and len(self.camera_models) != len(self.cameras):
+            raise DatasetError("give one camera model per camera")
+
+    def model_of(self, camera: str) -> tuple[str, tuple[str, ...]]:
+        """(model name, free parameters) of ``camera``."""
+        if self.camera_models is None:
+            return self.camera_model, tuple(self.camera_free)
+        return self.camera_models[self.cameras.index(camera)]
 
     @property
     def target_type(self) -> str:
@@ -142,8 +153,8 @@ class DatasetInfo:
                 {
                     "name": c,
                     "resolution": list(self.resolution_of(c)),
-                    "model": self.camera_model,
-                    "free": list(self.camera_free),
+                    "model": self.model_of(c)[0],
+                    "free": list(self.model_of(c)[1]),
                 }
                 for c in self.cameras
             ],
@@ -205,11 +216,8 @@ class DatasetInfo:
         observation = f.str("observation")
         if observation not in OBSERVATIONS:
             raise f.bad("observation", f"one of {OBSERVATIONS}", observation)
-        models = {_camera_model(c) for c in cam_blocks}
-        if len(models) != 1:
-            raise f.bad("cameras", "cameras of one model and one set of free parameters (per-"
-                        "camera models are not supported yet)", sorted(models))  # fmt: skip
-        model, free = models.pop()
+        per_camera = tuple(_camera_model(c) for c in cam_blocks)
+        model, free = per_camera[0]
         scenario = f.raw("scenario") if f.has("scenario") else {}
         if not isinstance(scenario, dict):
             raise f.bad("scenario", "an object", scenario)
@@ -231,6 +239,7 @@ class DatasetInfo:
             resolutions=None if len(set(res)) == 1 else res,
             board=board,
             image_suffix=suffix,
+            camera_models=None if len(set(per_camera)) == 1 else per_camera,
         )
 
 

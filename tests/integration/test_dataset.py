@@ -139,3 +139,23 @@ def test_a_frame_that_cannot_be_written_stops_the_acquisition_at_that_frame(tmp_
     with pytest.raises(AcquisitionError, match="stopped at frame 2 of 5: disk full.*2 frames"):
         acquire(FakeRobot(), w)
     assert Dataset.open(tmp_path).indices.tolist() == [0, 1]
+
+
+def test_each_camera_keeps_its_own_model_and_free_parameters(tmp_path):
+    """dataset.json holds a model per camera; a field dataset of mixed models is refused by
+    the self-calibration (it shares one model across the rig)."""
+    from calib.calibrate import CalibrationError, calibrate
+    from calib.io.dataset import read_dataset_info, write_dataset_info
+
+    models = (("opencv", ("fx", "mu", "cx", "cy", "k1", "k2")), ("pinhole", ("fx", "mu")))
+    mixed = dataclasses.replace(info(m=6), cameras=("left", "right"), camera_models=models)
+    write_dataset_info(tmp_path / "dataset.json", mixed)
+    back = read_dataset_info(tmp_path / "dataset.json")
+    assert back.camera_models == models and back.model_of("right") == models[1]
+    same = dataclasses.replace(info(), cameras=("a", "b"))
+    assert same.camera_models is None and same.model_of("b") == ("pinhole", ("fx", "mu"))
+    w = DatasetWriter(tmp_path / "ds", dataclasses.replace(mixed, observation="detections"))
+    for i in range(6):
+        w.add_frame(i, np.zeros(5), detections={})
+    with pytest.raises(CalibrationError, match="different models"):
+        calibrate(tmp_path / "ds")

@@ -289,14 +289,15 @@ def test_dataset_cameras_of_two_sizes_and_bad_names(tmp_path):
         read_dataset_info(tmp_path / "bad.json")
 
 
-def test_dataset_cameras_of_different_models_are_refused_for_now(tmp_path):
+def test_dataset_cameras_of_different_models_are_read_per_camera(tmp_path):
     info = dataclasses.replace(dataset_info(), cameras=("a", "b"))
     doc = json.loads(write_dataset_info(tmp_path / "dataset.json", info).read_text())
     doc["cameras"][1]["model"] = "pinhole"
     doc["cameras"][1]["free"] = ["fx", "mu"]
-    (tmp_path / "bad.json").write_text(json.dumps(doc))
-    with pytest.raises(DatasetError, match="bad.json: key 'cameras' must be cameras of one model"):
-        read_dataset_info(tmp_path / "bad.json")
+    (tmp_path / "mixed.json").write_text(json.dumps(doc))
+    back = read_dataset_info(tmp_path / "mixed.json")
+    assert back.model_of("b") == ("pinhole", ("fx", "mu"))
+    assert back.model_of("a") == (info.camera_model, tuple(info.camera_free))
 
 
 def test_truth_journal_folds_frames_back_and_ignores_a_partial_line(tmp_path):
