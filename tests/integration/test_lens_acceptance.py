@@ -100,3 +100,30 @@ def test_mono_self_calibration_frees_the_lens():
     z = (res.camera.free_values() - truth.free_values()) / np.sqrt(np.diag(res.cov_fx_mu))
     print("\nmono z-scores:", dict(zip(free, z.round(2))))
     assert np.all(np.abs(z) < 3.0)
+
+
+@pytest.mark.slow
+def test_mono_monte_carlo_tool_tip_within_1_3x_the_bound():
+    """scenarios/mono.toml (one camera + the field), 10 analytic draws (the 30-draw table in
+    docs/cameras.md: 1.115x). Measured on these 10: 1.242."""
+    from scenarios.montecarlo import run_montecarlo
+
+    rows, summary = run_montecarlo(10, None, jobs=2, quiet=True, config=MONO_TOML)
+    assert all(r["status"] == "ok" for r in rows), [r["status"] for r in rows]
+    ratio = summary["joint"]["tool_tip_ratio"]
+    print(f"\nmono Monte Carlo (10 draws): joint tool-tip ratio {ratio:.3f}")
+    assert ratio <= 1.3
+
+
+@pytest.mark.slow
+def test_mono_charuco_monte_carlo_tool_tip_within_1_3x_the_bound():
+    """One camera + ChArUco (scenarios/board_montecarlo.py), 10 draws (the 30-draw table in
+    docs/cameras.md: 0.982x); every camera parameter's error RMS / bound below 1.5. Measured
+    on these 10: 0.945, camera ratios 0.73 .. 1.35."""
+    from scenarios.board_montecarlo import run_board_montecarlo
+
+    r = run_board_montecarlo(10, jobs=2)
+    print(f"\nChArUco Monte Carlo (10 draws): tool tip {r['tip_ratio']:.3f}, cameras",
+          {k: round(v, 2) for k, v in r["camera_ratio"].items()})  # fmt: skip
+    assert r["tip_ratio"] <= 1.3
+    assert all(v < 1.5 for v in r["camera_ratio"].values()), r["camera_ratio"]
