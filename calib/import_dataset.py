@@ -252,7 +252,7 @@ def import_dataset(
         planned_joints_deg=q_deg,
         validation_joints_deg=np.zeros((0,)),
         backend="import",
-        scenario={"import": source or {"joints": str(joints), "joint_units": joint_units,
+        provenance={"import": source or {"joints": str(joints), "joint_units": joint_units,
                   "target": str(target), "images": {c.name: c.pattern for c in images}}},
         cameras=tuple(names),
         resolutions=None if len(set(res)) == 1 else res,

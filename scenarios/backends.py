@@ -16,7 +16,7 @@ import numpy as np
 from calib.camera import Intrinsics, Rig
 from calib.errors import InputError
 from calib.io.atomic import write_image_atomic
-from calib.io.dataset import DatasetInfo
+from calib.io.dataset import DatasetInfo, scenario_digest
 from calib.io.truth import (
     TRUTH_JOURNAL,
     append_truth_frame,
@@ -228,7 +228,7 @@ def plan_dataset(s: Scenario, setup: SimSetup | None = None) -> DatasetInfo:
         observation="images" if (s.noise.render or s.robot.backend == "hardware") else "detections",
         planned_joints_deg=np.round(np.degrees(q), 6),
         validation_joints_deg=np.round(np.degrees(qv), 6),
-        scenario=scenario_to_dict(s),
+        provenance={"scenario_sha256": scenario_digest(scenario_to_dict(s))},
         camera_model=s.camera.model,
         camera_free=tuple(s.camera.free),
         cameras=s.camera.names,

@@ -72,17 +72,21 @@ def test_selfcal_report_prints_its_summary_line(noise_free, capsys):
     ]
 
 
-def test_calibration_ignores_truth_json_and_the_scenario(noise_free, tmp_path):
+def test_dataset_carries_no_truth_and_calibrates_identically_without_truth_json(
+    noise_free, tmp_path
+):
+    """dataset.json holds nothing the calibration must not know (no scenario: no true camera, no
+    perturbation, no seeds); truth lives in truth.json alone, and without it the calibration
+    gives the same numbers."""
     out, _ = noise_free
+    meta = json.loads((out / "dataset.json").read_text())
+    truth = json.loads((out / "truth.json").read_text())
+    assert "scenario" not in meta and set(meta["provenance"]) == {"scenario_sha256"}
+    assert "scenario" in truth["meta"]  # the whole scenario, seeds included, is truth's
     copy = tmp_path / "copy"
     shutil.copytree(out, copy)
     (copy / "truth.json").unlink()
     (copy / "calibration.json").unlink()
-    # dataset.json echoes the scenario (which holds the true fx and the perturbation settings):
-    # the calibration must not need it either
-    meta = json.loads((copy / "dataset.json").read_text())
-    meta.pop("scenario")
-    (copy / "dataset.json").write_text(json.dumps(meta))
     run_calibrate(copy, quiet=True)
     a = json.loads((out / "calibration.json").read_text())
     b = json.loads((copy / "calibration.json").read_text())

@@ -21,7 +21,13 @@ from calib.io.calibration import (
     read_calibration,
     write_calibration,
 )
-from calib.io.dataset import DatasetError, DatasetInfo, read_dataset_info, write_dataset_info
+from calib.io.dataset import (
+    DatasetError,
+    DatasetInfo,
+    read_dataset_info,
+    scenario_digest,
+    write_dataset_info,
+)
 from calib.io.target_toml import parse_target, target_document
 from calib.io.truth import (
     TRUTH_JOURNAL,
@@ -51,7 +57,7 @@ def dataset_info() -> DatasetInfo:
         planned_joints_deg=np.round(rng.uniform(-90, 90, (7, 5)), 6),
         validation_joints_deg=np.round(rng.uniform(-90, 90, (3, 5)), 6),
         backend="sim",
-        scenario={"noise": {"pixel_sigma": 0.5}, "robot": {"model": "er4u-paper"}},
+        provenance={"scenario_sha256": "0" * 64},
         camera_model="opencv",
         camera_free=("fx", "mu", "cx", "cy", "k1", "k2", "p1", "p2"),
     )
@@ -316,3 +322,21 @@ def test_truth_journal_folds_frames_back_and_ignores_a_partial_line(tmp_path):
     journal.write_text("not json\n")
     with pytest.raises(TruthFileError, match="line 1"):
         with_journal(start, journal)
+
+
+def test_dataset_written_with_the_whole_scenario_reads_and_keeps_only_its_digest(tmp_path):
+    """Datasets from before ``provenance`` held the whole scenario (the true camera, the seeds):
+    they still read, the scenario is reduced to its digest (what resuming compares), and the
+    digest ignores how the hardware is reached."""
+    scenario = {"camera": {"fx": 800.0}, "noise": {"seed": 1},
+                "robot": {"model": "er4u-paper", "hardware": {"port": "/dev/ttyUSB0"}}}  # fmt: skip
+    doc = json.loads(write_dataset_info(tmp_path / "dataset.json", dataset_info()).read_text())
+    assert "scenario" not in doc and doc["provenance"] == {"scenario_sha256": "0" * 64}
+    del doc["provenance"]
+    doc["scenario"] = scenario
+    (tmp_path / "old.json").write_text(json.dumps(doc))
+    old = read_dataset_info(tmp_path / "old.json")
+    moved = {**scenario, "robot": {**scenario["robot"], "hardware": {"port": "socket://x:1"}}}
+    assert old.provenance == {"scenario_sha256": scenario_digest(moved)}
+    assert scenario_digest(scenario) != scenario_digest({**scenario, "noise": {"seed": 2}})
+    assert "800" not in json.dumps(old.to_json()["provenance"])
