@@ -135,7 +135,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     from scenarios.own_data import calibrate_any
 
     calibrate_any(Path(args.dataset), quiet=args.quiet, method=args.method,
-                  allow_missing_frames=args.allow_missing_frames)  # fmt: skip
+                  allow_missing_frames=args.allow_missing_frames, figures=True)  # fmt: skip
     return 0
 
 
@@ -143,7 +143,7 @@ def cmd_report(args: argparse.Namespace) -> int:
     from calib.calibrate import CalibrationFailedError
     from scenarios.pipeline import report_summary, run_report
 
-    report = run_report(Path(args.dataset), quiet=args.quiet)
+    report = run_report(Path(args.dataset), quiet=args.quiet, figures=True)
     print(report_summary(report, Path(args.dataset)), flush=True)
     if report["failures"]:
         where = Path(args.dataset) / "report.json"
@@ -295,7 +295,13 @@ def build_parser() -> argparse.ArgumentParser:
         "a warning); without it they are an error",
     )
 
-    sp = add("report", cmd_report, "calibration + truth -> DIR/report.json and tables")
+    sp = add(
+        "report",
+        cmd_report,
+        "calibration (+ truth.json in simulation) -> DIR/report.json, report.md, validation.csv "
+        "and DIR/figures/*.png; without truth (real data): the fit, a held-out check (DIR/"
+        "evaluation.json or leave every 5th pose out), the sigmas and the identifiability",
+    )
     sp.add_argument("dataset", help="dataset folder")
     sp.add_argument("--quiet", action="store_true")
 

@@ -230,18 +230,17 @@ def format_table(method: str, rows: list) -> str:
 
 def plot(results: dict[str, CornerOffsets], path: Path) -> None:
     """Offset magnitude against marker size and viewing angle, one colour per method (PNG)."""
-    from scenarios.plotting import pyplot, save_figure
+    from scenarios.plotting import legend_outside, pyplot, save_figure
 
     plt = pyplot()
-    fig, ax = plt.subplots(1, 2, figsize=(10, 4))
+    fig, ax = plt.subplots(1, 2, figsize=(11, 4), constrained_layout=True)
     for m, o in results.items():
         e = np.linalg.norm(o.d, axis=1)
         ax[0].scatter(o.size_px, e, s=4, alpha=0.5, label=m)
         ax[1].scatter(o.angle_deg, e, s=4, alpha=0.5, label=m)
     ax[0].set(xlabel="marker side (px)", ylabel="|detected - analytic| (px)", yscale="log")
-    ax[1].set(xlabel="viewing angle (deg)", yscale="log")
-    ax[0].legend()
-    fig.tight_layout()
+    ax[1].set(xlabel="viewing angle (deg)", ylabel="|detected - analytic| (px)", yscale="log")
+    legend_outside(ax[1])
     save_figure(fig, path, dpi=100)
     plt.close(fig)
 

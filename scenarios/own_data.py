@@ -32,21 +32,32 @@ def _say(quiet: bool, text: str) -> None:
 
 
 def calibrate_any(
-    root: Path, *, quiet: bool = False, method: str = "joint", allow_missing_frames: bool = False
+    root: Path,
+    *,
+    quiet: bool = False,
+    method: str = "joint",
+    allow_missing_frames: bool = False,
+    figures: bool = False,
 ) -> None:
     """Calibrate the dataset in ``root`` by its target and write ``root/calibration.json``:
-    the field -> :func:`scenarios.pipeline.run_calibrate`; a board -> the board calibration."""
+    the field -> :func:`scenarios.pipeline.run_calibrate`; a board -> the board calibration.
+    ``figures``: also ``root/figures/reprojection.png``."""
     from calib.board_dataset import calibrate_board_dataset
+    from calib.evaluate import evaluate_board
     from calib.io.board_calibration import write_board_calibration
     from calib.io.dataset import Dataset
-    from scenarios.pipeline import run_calibrate
+    from scenarios.pipeline import reprojection_figures, run_calibrate
 
     info = Dataset.open(root).info
     if info.board is None:
-        run_calibrate(root, quiet=quiet, method=method, allow_missing_frames=allow_missing_frames)
+        run_calibrate(root, quiet=quiet, method=method, allow_missing_frames=allow_missing_frames,
+                      figures=figures)  # fmt: skip
         return
     res = calibrate_board_dataset(root, allow_missing_frames=allow_missing_frames)
     write_board_calibration(Path(root) / "calibration.json", res)
+    if figures:
+        ev = evaluate_board(res, str(Path(root) / "calibration.json"), root)
+        _say(quiet, f"figure: {reprojection_figures(root, ev)}")
     for text in res.warnings:
         _say(quiet, f"warning: {text}")
     _say(quiet, summary(res))

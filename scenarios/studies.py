@@ -95,7 +95,7 @@ def run_study(
     from scenarios.progress import TaskCounts
     from scenarios.study_defs import STUDIES
     from scenarios.study_runs import COLUMNS, failed_row, load_runs, settings_key
-    from scenarios.study_summary import summarize
+    from scenarios.study_summary import plotted, summarize, worse_than_nominal
 
     if name == "all":
         rows = []
@@ -165,11 +165,14 @@ def run_study(
         raise
     finally:
         fh.close()
-    summarize(name, rows, out)
+    res = summarize(name, rows, out)
+    for text in worse_than_nominal(study, res):
+        print(f"warning: study {name}: {text}", file=sys.stderr)
     if not quiet:
+        drawn = f"plot {out / (name + '.png')}" if plotted(res) else "one setting: table only"
         print(
-            f"study {name}: {len(rows)} run(s) in {csv_path}; plot {out / (name + '.png')}; "
-            f"{time.perf_counter() - t0:.1f} s",
+            f"study {name}: {len(rows)} run(s) in {csv_path}; table {out / (name + '.md')}; "
+            f"{drawn}; {time.perf_counter() - t0:.1f} s",
             file=sys.stderr,
         )
     return rows
