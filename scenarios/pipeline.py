@@ -21,9 +21,14 @@ import numpy as np
 from calib.alignment import express_in_frame
 from calib.calibrate import CalibrationFailedError, calibrate
 from calib.camera import CameraModel
-from calib.evaluate import Evaluation
+from calib.evaluate import Evaluation, evaluate_board
 from calib.evaluate_field import evaluate_field
 from calib.io.atomic import write_text_atomic
+from calib.io.board_calibration import (
+    BoardCalibrationResult,
+    calibration_kind,
+    read_board_calibration,
+)
 from calib.io.calibration import CalibrationResult, read_calibration, write_calibration
 from calib.io.dataset import Dataset, DatasetError, DatasetWriter
 from calib.io.jsonfile import write_json_atomic
@@ -42,7 +47,13 @@ from scenarios.job_figures import (
 )
 from scenarios.paper_data import TABLE_II_MM, table_ii_postures
 from scenarios.progress import Progress
-from scenarios.report_fit import figure_links, fit_markdown, fit_report, parameter_markdown
+from scenarios.report_fit import (
+    board_fit_report,
+    figure_links,
+    fit_markdown,
+    fit_report,
+    parameter_markdown,
+)
 
 __all__ = [
     "run_acquire",
@@ -150,6 +161,8 @@ def run_report(root: Path, *, quiet: bool = False, figures: bool = False) -> dic
     cal_path = root / "calibration.json"
     if not cal_path.is_file():
         raise DatasetError(f"{cal_path} is missing: run `selfcal calibrate {root}` first")
+    if calibration_kind(cal_path) == "board":
+        return _board_report(root, read_board_calibration(cal_path), quiet=quiet, figures=figures)
     cal = read_calibration(cal_path)
     truth_path = root / "truth.json"
     if not truth_path.is_file():
@@ -273,8 +286,17 @@ def run_report(root: Path, *, quiet: bool = False, figures: bool = False) -> dic
 def _report_without_truth(
     root: Path, cal: CalibrationResult, *, quiet: bool, figures: bool
 ) -> dict:
-    report = fit_report(root, cal)
     drawn = [reprojection_figures(root, evaluate_field(cal, root, root))] if figures else []
+    return _write_fit_report(root, fit_report(root, cal), drawn, quiet=quiet)
+
+
+def _board_report(root: Path, cal: BoardCalibrationResult, *, quiet: bool, figures: bool) -> dict:
+    ev = evaluate_board(cal, str(root / "calibration.json"), root) if figures else None
+    drawn = [] if ev is None else [reprojection_figures(root, ev)]
+    return _write_fit_report(root, board_fit_report(root, cal), drawn, quiet=quiet)
+
+
+def _write_fit_report(root: Path, report: dict, drawn: list[Path], *, quiet: bool) -> dict:
     report["figures"] = [str(p.relative_to(root)) for p in drawn]
     failures = list(report.get("failures", []))
     rms = report["held_out"].get("reprojection_rms_px")

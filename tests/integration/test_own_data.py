@@ -99,6 +99,18 @@ def test_import_calibrate_evaluate(lab, capsys):
     assert len(ev["images"]) == 10 and all(
         i["calibrated_px"] < i["nominal_px"] for i in ev["images"]
     )
+    # `selfcal report` on the imported dataset (no truth): the fit, a leave-poses-out check
+    # (every 5th of 20 frames held out), the camera's sigmas and the held parameters
+    assert main(["report", str(root / "ds"), "--quiet"]) == 0
+    rep = json.loads((root / "ds" / "report.json").read_text())
+    h = rep["held_out"]
+    assert rep["kind"] == "fit" and h["source"] == "leave-poses-out", h
+    assert h["held_out_frames"] == [0, 5, 10, 15]
+    # measured: held out like the second dataset above, at the noise floor
+    assert h["reprojection_rms_px"]["calibrated"] < 0.4 < 1.5 < h["reprojection_rms_px"]["nominal"]
+    assert all(rep["intrinsics"][n]["std"] > 0 for n in FREE)
+    assert (root / "ds" / "figures" / "reprojection.png").is_file()
+    assert "## Held-out reprojection" in (root / "ds" / "report.md").read_text()
     # the calibrated robot (base -> tool tip) exports like a self-calibrated one
     assert main(["export", str(root / "ds"), "--out", str(root / "kr6.urdf")]) == 0
     assert "<robot" in (root / "kr6.urdf").read_text()
