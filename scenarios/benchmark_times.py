@@ -30,6 +30,7 @@ import tempfile
 import time
 from pathlib import Path
 
+from calib.io.atomic import write_text_atomic
 from calib.tomlfile import read_toml
 
 __all__ = ["measure_tests", "measure_first_run", "MEASUREMENTS"]
@@ -102,8 +103,7 @@ def write(sections: dict[str, dict], path: Path = MEASUREMENTS) -> Path:
              "# The README's stated times are checked against it (tests/unit/test_measurements.py)."]  # fmt: skip
     for name, table in sections.items():
         lines += ["", f"[{name}]"] + [f"{k} = {_toml_value(v)}" for k, v in table.items()]
-    path.write_text("\n".join(lines) + "\n")
-    return path
+    return write_text_atomic(path, "\n".join(lines) + "\n")
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -11,9 +11,11 @@ and predicts the other.
 from __future__ import annotations
 
 import csv
+import io
 from collections.abc import Iterable
 from pathlib import Path
 
+from calib.io.atomic import write_text_atomic
 from calib.io.dataset import Dataset, DatasetError
 
 __all__ = ["subset_dataset", "OUTPUTS"]
@@ -47,9 +49,10 @@ def subset_dataset(root: str | Path, indices: Iterable[int], out: str | Path) ->
             (out / entry.name).symlink_to(entry.resolve())
     rows = {int(i): q for i, q in zip(src.indices, src.joints_deg, strict=True)}
     n = src.joints_deg.shape[1]
-    with open(out / "joints.csv", "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(["index"] + [f"q{j + 1}_deg" for j in range(n)])
-        for i in keep:
-            w.writerow([i] + [repr(float(v)) for v in rows[i]])
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(["index"] + [f"q{j + 1}_deg" for j in range(n)])
+    for i in keep:
+        w.writerow([i] + [repr(float(v)) for v in rows[i]])
+    write_text_atomic(out / "joints.csv", buf.getvalue())
     return Dataset.open(out)
