@@ -11,12 +11,41 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+from calib.tomlfile import read_toml
+
 ROOT = Path(__file__).resolve().parents[2]
 README = ROOT / "README.md"
 
 
 def _readme() -> str:
     return " ".join(README.read_text().split())
+
+
+def _minutes(seconds: float) -> str:
+    return f"{seconds / 60:.1f} min"
+
+
+def stated_times(m: dict) -> list[str]:
+    """The sentences of the README that carry the measured times, from the measurement file."""
+    t, r = m["tests"], m["first_run"]
+    return [
+        f"`uv run pytest` ran {t['passed'] + t['failed']} tests"
+        + (f" ({t['failed']} failed)" if t["failed"] else "")
+        + f" in {_minutes(t['seconds'])} ({t['cpus']} cores, load average "
+        f"{t['load_1min_before']} before the run; {t['date']})",
+        f"the first `uv run selfcal run` took {r['first_wall_s']:.0f} s from start to exit, "
+        f"{r['first_printed_total_s']:.1f} s of it as the run prints it",
+        f"a later one {r['second_wall_s']:.0f} s ({r['second_printed_total_s']:.1f} s printed; "
+        f"{r['cpus']} cores, load average {r['load_1min_before']}; {r['date']})",
+        f"total {r['first_printed_total_s']:.1f} s; details in runs/paper/report.md",
+    ]
+
+
+def test_readme_times_are_the_measured_ones():
+    m = read_toml(ROOT / "docs" / "measurements.toml")
+    text = _readme()
+    missing = [s for s in stated_times(m) if s not in text]
+    assert missing == []
 
 
 def _accuracy_rows() -> list[list[str]]:
