@@ -23,6 +23,7 @@ import cv2
 import numpy as np
 
 from calib.camera import CameraModel, Pinhole
+from calib.choices import JOINT_TOPIC
 from calib.export import deploy_chain
 from calib.export_camera import camera_matrix, distortion
 from calib.export_urdf import to_urdf
@@ -37,7 +38,6 @@ __all__ = ["BagExport", "export_bag", "nominal_urdf", "bag_format_for", "T0_NS",
 
 T0_NS = 1_700_000_000 * 1_000_000_000
 """Stamp of the first image (ns since the Unix epoch; a fixed date keeps bags reproducible)."""
-JOINT_TOPIC = "/joint_states"
 _NS = 1_000_000_000
 
 

@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from calib.board_rig import calibrate_board_rig
 from calib.board_robot import calibrate_robot_with_board
 from calib.errors import EstimationError, SelfCalWarning
 from calib.estimation.joint_report import encoder_sigma
@@ -84,7 +85,7 @@ def calibrate_board_dataset(
     :meth:`calib.io.dataset.Dataset.check_complete`.
 
     Raises:
-        DatasetError: missing or damaged dataset files, a dataset of more than one camera, or
+        DatasetError: missing or damaged dataset files, or
             frames that are copies of each other (:mod:`calib.frame_checks`).
         calib.board_calibrate.BoardInputError / BoardMismatchError: too few images show the board,
             or its declared geometry does not match the detections.
@@ -92,17 +93,24 @@ def calibrate_board_dataset(
     """
     ds = Dataset.open(root)
     incomplete = ds.check_complete(allow_missing=allow_missing_frames)
-    if len(ds.info.cameras) != 1:
-        raise DatasetError(
-            f"{ds.root}: {len(ds.info.cameras)} cameras; the board calibration takes one",
-            fix="import the images of one camera per dataset (one --images option)",
-        )
     cam = ds.info.cameras[0]
     robot = load_robot(ds.robot_source)
     board = dataset_board(ds)
     feats, names = detect_board(ds, board, cam)
     seen = {(int(i), cam): dict(zip(f.ids.tolist(), f.uv)) for i, f in zip(ds.indices, feats)}
     check_distinct_frames(ds.indices, ds.joints_deg, seen, (cam,), str(ds.root))
+    rig = None
+    if len(ds.info.cameras) > 1:  # every camera its own model; the extrinsics to the first
+        detected = [(feats, names)] + [detect_board(ds, board, c) for c in ds.info.cameras[1:]]
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", SelfCalWarning)  # named again below for camera 0
+            rig = calibrate_board_rig(
+                board, [d[0] for d in detected],
+                [ds.info.resolution_of(c) for c in ds.info.cameras],
+                [ds.info.model_of(c)[0] for c in ds.info.cameras],
+                [ds.info.model_of(c)[1] for c in ds.info.cameras], names=[d[1] for d in detected],
+            )  # fmt: skip
+    model_name, free = ds.info.model_of(cam)
     nominal = nominal_mcpc(robot).with_tool(robot.T_flange_cam)
     q = np.radians(ds.joints_deg)
     W, H = ds.info.resolution_of(cam)
@@ -117,8 +125,8 @@ def calibrate_board_dataset(
             H,
             names=names,
             joint_sigma=encoder_sigma(robot),
-            free=ds.info.camera_free,
-            model=ds.info.camera_model,
+            free=free,
+            model=model_name,
         )
         used = res.used
         T_board_cam = inv_pose(res.board.T_cam_board[used])
@@ -133,9 +141,10 @@ def calibrate_board_dataset(
     return BoardCalibrationResult(
         robot_model=ds.info.robot_model,
         target=dict(ds.info.board or {}),
-        camera_names=(cam,),
-        cameras=(res.camera,),
-        camera_std=(res.camera_std,),
+        camera_names=tuple(ds.info.cameras),
+        cameras=(res.camera,) + (() if rig is None else rig.cameras[1:]),
+        camera_std=(res.camera_std,) + (() if rig is None else rig.std[1:]),
+        T_first_cam=None if rig is None else rig.T_first_cam,
         model=res.model,
         nominal_model=ref.model,
         reprojection_rms_px=res.rms_px,

@@ -45,7 +45,7 @@ from calib.errors import EstimationError
 from calib.joint_refine import KinematicPoses, _Problem, choose_gauge
 from calib.kinematics import fk_tool, identification_jacobian
 from calib.mcpc import MCPCModel, minimal_indices, param_names
-from calib.solver import inverse_block
+from calib.solver import inverse_block, scaled_rank
 from calib.transforms import inv_pose, skew
 
 __all__ = [
@@ -300,17 +300,15 @@ def cramer_rao(s: FisherSetup, *, rank_tol: float = 1e-10) -> CramerRao:
             once, no scale markers).
     """
     J, lay = fisher_jacobian(s)
-    F = (J.T @ J).toarray() if J.shape[1] <= 3000 else None
-    if F is not None:
-        d = np.sqrt(np.maximum(np.diag(F), 1e-300))
-        ev = np.linalg.eigvalsh(F / np.outer(d, d))
-        if ev[0] <= rank_tol * ev[-1]:
-            raise BoundsError(
-                f"the Fisher information is singular (scaled eigenvalue ratio {ev[0] / ev[-1]:.2e}"
-                f", {int(np.sum(ev <= rank_tol * ev[-1]))} direction(s)): these data do not "
-                "determine every unknown -- check that every joint moves, that points are seen "
-                "in two views and that the scale markers are seen"
-            )
+    # the scaled eigenvalue ratio of J^T J (dense up to DENSE_MAX unknowns, Lanczos above)
+    ratio, rank = scaled_rank(J, rtol=float(np.sqrt(rank_tol)))
+    if ratio**2 <= rank_tol:
+        raise BoundsError(
+            f"the Fisher information is singular (scaled eigenvalue ratio {ratio**2:.2e}, "
+            f"{J.shape[1] - rank} direction(s)): these data do not determine every unknown -- "
+            "check that every joint moves, that points are seen in two views and that the scale "
+            "markers are seen"
+        )
     cols = np.r_[lay.kin_cols, lay.dq_ref_cols]
     C = inverse_block(J, cols)
     nk, nc = len(lay.kin_cols), lay.n_camera

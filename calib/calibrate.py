@@ -39,7 +39,7 @@ from calib.quality import assess_calibration
 from calib.results import CalibrationOutput, two_stage_result, with_bounds, with_joint
 from calib.robot_def import load_robot
 from calib.selfcal import Observations, self_calibrate
-from calib.target.aruco_detect import detect_markers
+from calib.target.aruco_detect import detect_markers, detect_markers_noise
 from calib.trajectory import check_not_degenerate
 
 __all__ = [
@@ -86,11 +86,14 @@ class NoMarkersWarning(SelfCalWarning):
 
 
 class MarkerDetections(NamedTuple):
-    """What :func:`detect_dataset` found: the corners, and the images that show no marker
-    (``NNNN_left`` / ``NNNN_right``; skipped)."""
+    """What :func:`detect_dataset` found: the corners, the images that show no marker
+    (``NNNN_left`` / ``NNNN_right``; skipped) and the detector's own estimate of the corner
+    noise (px per coordinate, RMS over the detections; None when it has none: stored
+    detections, images undistorted through a lens)."""
 
     detections: Detections
     skipped_images: tuple[str, ...]
+    corner_sigma_px: float | None = None
 
 
 def skipped_images_message(skipped: tuple[str, ...], dictionary: str) -> str:
@@ -121,12 +124,13 @@ def detect_dataset(ds: Dataset, progress=None, lens: LensCamera | None = None) -
     screen = not isinstance(dataset_camera(ds.info), LensCamera)
     out: Detections = {}
     empty: list[str] = []
+    noise: list[float] = []
     if progress is not None:
         progress.start(2 * len(ds.indices))
     W, H = ds.info.resolution
     flat = None if lens is None else Undistorter(lens)
 
-    def detect(item: tuple[int, str, Path]) -> tuple[int, str, dict]:
+    def detect(item: tuple[int, str, Path]) -> tuple[int, str, dict, dict]:
         index, cam, path = item
         img = read_gray(path, index)
         if img.shape[1] != W or img.shape[0] != H:
@@ -135,13 +139,14 @@ def detect_dataset(ds: Dataset, progress=None, lens: LensCamera | None = None) -
                 f"says {W}x{H}"
             )
         if flat is None:
-            return index, cam, detect_markers(img, dictionary=ds.info.dictionary, screen=screen)
+            return index, cam, *detect_markers_noise(img, ds.info.dictionary, screen=screen)
         dets = detect_markers(flat.image(img), dictionary=ds.info.dictionary, screen=False)
-        return index, cam, {k: flat.distorted(c) for k, c in dets.items()}
+        return index, cam, {k: flat.distorted(c) for k, c in dets.items()}, {}
 
     # OpenCV releases the GIL while decoding and detecting: use every core, keep the order.
     with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
-        for index, cam, dets in pool.map(detect, ds.image_paths()):
+        for index, cam, dets, sig in pool.map(detect, ds.image_paths()):
+            noise += sig.values()
             if dets:
                 out[(index, cam)] = dets
             else:
@@ -158,7 +163,8 @@ def detect_dataset(ds: Dataset, progress=None, lens: LensCamera | None = None) -
             f"no marker was detected in any image of {ds.root}; check the target dictionary "
             f"({ds.info.dictionary}), the lighting and that the camera sees the marker field"
         )
-    return MarkerDetections(out, tuple(empty))
+    sigma = float(np.sqrt(np.mean(np.square(noise)))) if noise else None
+    return MarkerDetections(out, tuple(empty), sigma)
 
 
 def observations_of(ds: Dataset, dets: Detections) -> Observations:
@@ -168,7 +174,7 @@ def observations_of(ds: Dataset, dets: Detections) -> Observations:
     remapped: dict[tuple[int, int | str], dict[int, np.ndarray]] = {
         (pos[i], cam): m for (i, cam), m in dets.items() if i in pos
     }
-    return Observations.from_corners(remapped, n_configs=len(ds.indices))
+    return Observations.from_corners(remapped, n_configs=len(ds.indices), cameras=ds.info.cameras)
 
 
 def _check_scale_markers(ds: Dataset, dets: Detections) -> None:
@@ -226,13 +232,19 @@ def calibrate_detailed(
             "first is the rig's reference and must be the left one",
             fix="list the cameras as left, right in dataset.json (each with its own resolution)",
         )
-    if ds.info.board is not None or ds.info.cameras != CAMERAS:
+    if ds.info.board is not None or (len(ds.info.cameras) != 1 and ds.info.cameras != CAMERAS):
         raise CalibrationError(
-            f"{root}: the self-calibration takes the stereo pair (left, right) and the ArUco "
+            f"{root}: the self-calibration takes one camera or a stereo pair and the ArUco "
             f"field; this dataset has cameras {list(ds.info.cameras)} and target "
             f"{ds.info.target_type!r}",
             fix="calibrate a board dataset with `selfcal calibrate DIR` (it dispatches on the "
             "target)",
+        )
+    if ds.info.camera_models is not None:
+        raise CalibrationError(
+            f"{root}: the cameras have different models; the self-calibration of the field "
+            "estimates one camera model shared by the rig",
+            fix="give every camera the same model and free parameters in dataset.json",
         )
     if len(ds.indices) < MIN_POSTURES:
         raise CalibrationError(
@@ -240,7 +252,7 @@ def calibrate_detailed(
             "(26 kinematic parameters from 6 pose values each, plus the camera's unknowns): "
             "acquire more"
         )
-    dets, skipped = detect_dataset(ds, progress=progress)
+    dets, skipped, corner_sigma = detect_dataset(ds, progress=progress)
     check_distinct_frames(ds.indices, ds.joints_deg, dets, ds.info.cameras, str(ds.root))
     check_read_back(
         ds.indices, ds.joints_deg, ds.info.planned_joints_deg, str(ds.root / "joints.csv")
@@ -259,6 +271,7 @@ def calibrate_detailed(
         camera=dataset_camera(ds.info),
         scale_markers=ds.info.scale_ids,
         scale_distance_m=ds.info.scale_length_m,
+        rig=len(ds.info.cameras) > 1,  # one camera: views from two configurations (the paper's)
         nominal_cam_positions=T_nom[:, :3, 3],
         # The reconstruction frame becomes the world of the kinematic model: take a camera whose
         # x-axis is far from parallel to joint 1's axis (MCPC's base parameters are singular there).
@@ -270,7 +283,7 @@ def calibrate_detailed(
     if isinstance(sc.camera, LensCamera) and ds.info.observation == "images":
         # the lens bends the marker edges: detect again through the estimated lens, refit
         with _stage(progress, "camera stage again through the estimated lens") as st:
-            dets, skipped = detect_dataset(ds, lens=sc.camera)
+            dets, skipped, corner_sigma = detect_dataset(ds, lens=sc.camera)
             _check_scale_markers(ds, dets)
             obs = observations_of(ds, dets)
             sc = camera_stage(obs)
@@ -281,8 +294,21 @@ def calibrate_detailed(
             f"only {len(used)} postures could be registered by the camera stage; calibration "
             f"needs at least {MIN_POSTURES}: acquire more postures that see the markers"
         )
+    # One camera sees its pose less well than a stereo pair (depth from one view): on
+    # scenarios/mono.toml the pose residuals are 11.9x identify's default sigmas (stereo: within
+    # them), so both are scaled by 10 (the estimate does not change, only the warning's scale),
+    # and its Gauss-Newton may need more steps (a Monte Carlo draw of mono.toml took 152).
+    mono = len(ds.info.cameras) == 1
+    s_pose = 10.0 if mono else 1.0
     with _stage(progress, "kinematic identification") as st:
-        ident = identify(nominal, q[used], sc.T_world_cam[used, 0])
+        ident = identify(
+            nominal,
+            q[used],
+            sc.T_world_cam[used, 0],
+            sigma_t_m=1e-4 * s_pose,
+            sigma_r_rad=1e-3 * s_pose,
+            max_iter=200 if mono else 50,
+        )
         st(
             f"tool RMS {ident.rms_t_mm_after:.3f} mm / {ident.rms_r_deg_after:.4f} deg, "
             f"rank {ident.rank}/{ident.n_params}"
@@ -301,8 +327,13 @@ def calibrate_detailed(
             st(f"reprojection RMS {res.rms_px:.3f} px, sigma {res.sigma_px:.3f} px")
         result = with_joint(result, res, robot)
         out = CalibrationOutput(result, sc, ident, res.model, ds.indices[used], res)
+    # the bound's corner noise: the detector's own estimate where it has one (it excludes a
+    # bias of whole sides, which the fit residuals would carry into the bound), else residuals
     with _stage(progress, "Cramer-Rao bounds"):
-        result = with_bounds(result, out, obs=obs, q=q, robot=robot, ds_info=ds.info)
+        result = with_bounds(
+            result, out, obs=obs, q=q, robot=robot, ds_info=ds.info, pixel_sigma_px=corner_sigma,
+            pixel_sigma_source="detector",
+        )  # fmt: skip
     final = out.joint if out.joint is not None else sc  # the points of the final method
     ids, X = final.point_ids, final.X_world
     ok = np.isfinite(X).all(axis=1)

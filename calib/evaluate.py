@@ -12,7 +12,7 @@ The board must not have moved between the two datasets (its pose is part of the 
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -21,12 +21,19 @@ from calib.board_dataset import dataset_board, detect_board
 from calib.errors import InputError, SelfCalWarning
 from calib.io.board_calibration import BoardCalibrationResult
 from calib.io.dataset import Dataset
-from calib.io.jsonfile import SCHEMA_KEY, write_json_atomic
+from calib.io.jsonfile import SCHEMA_KEY, Fields, check_header, load_json, write_json_atomic
 from calib.kinematics import fk_tool
 from calib.mcpc import MCPCModel
 from calib.transforms import inv_pose
 
-__all__ = ["EVAL_FORMAT", "Evaluation", "evaluate_board", "rms_px", "write_evaluation"]
+__all__ = [
+    "EVAL_FORMAT",
+    "Evaluation",
+    "evaluate_board",
+    "rms_px",
+    "read_evaluation",
+    "write_evaluation",
+]
 
 EVAL_FORMAT = "scorbot-selfcal-evaluation"
 
@@ -38,13 +45,16 @@ class EvaluationWarning(SelfCalWarning):
 @dataclass(frozen=True)
 class Evaluation:
     """``rms`` by model (``nominal``, ``calibrated``) over every feature (px, 2-D); ``images``:
-    per image its file, feature count and RMS by model; ``skipped``: images without the board."""
+    per image its file, feature count and RMS by model; ``skipped``: images without the board;
+    ``residuals``: by model, every feature's predicted - detected (k, 2) px in the order of
+    ``images`` (not written to ``evaluation.json``; figures draw them)."""
 
     rms: dict[str, float]
     images: tuple[dict, ...]
     skipped: tuple[str, ...]
     dataset: str
     calibration: str
+    residuals: dict[str, np.ndarray] = field(default_factory=dict, compare=False, repr=False)
 
     @property
     def failures(self) -> tuple[str, ...]:
@@ -141,10 +151,26 @@ def evaluate_board(cal: BoardCalibrationResult, cal_where: str, root: str | Path
     if not per:
         raise InputError(f"{ds.root}: no image shows the {board.describe()}",
                          fix="give held-out images that show the board")  # fmt: skip
-    rms = {k: rms_px(np.concatenate(v)) for k, v in errs.items()}
-    return Evaluation(rms, tuple(per), tuple(skipped), str(ds.root), cal_where)
+    res = {k: np.concatenate(v) for k, v in errs.items()}
+    rms = {k: rms_px(v) for k, v in res.items()}
+    return Evaluation(rms, tuple(per), tuple(skipped), str(ds.root), cal_where, res)
 
 
 def write_evaluation(path: str | Path, ev: Evaluation) -> Path:
-    """Write ``evaluation.json`` (atomically)."""
+    """Write ``evaluation.json`` (atomically; the one writer)."""
     return write_json_atomic(path, ev.to_json())
+
+
+def read_evaluation(path: str | Path) -> Evaluation:
+    """Read the ``evaluation.json`` at ``path`` (the one reader; no residuals).
+
+    Raises:
+        InputError: missing or unreadable, another format, a newer schema, a missing key (named).
+    """
+    fix = "re-run `selfcal evaluate CALIBRATION_DIR DATASET2`"
+    doc = load_json(path, fix=fix)
+    check_header(doc, str(path), fmt=EVAL_FORMAT, version=1, fix=fix)
+    f = Fields(doc, str(path), fix)
+    images = tuple(dict(i.doc) for i in f.items("images"))
+    return Evaluation(dict(f.float_map("reprojection_rms_px")), images,
+                      f.strs("skipped_images"), f.str("dataset"), f.str("calibration"))  # fmt: skip

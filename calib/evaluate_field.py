@@ -82,5 +82,6 @@ def evaluate_field(cal: CalibrationResult, cal_root: str | Path, root: str | Pat
     if not per:
         raise InputError(f"{ds.root}: no image shows a calibrated marker",
                          fix="give held-out images of the same marker field")  # fmt: skip
-    rms = {k: rms_px(np.concatenate(v)) for k, v in errs.items()}
-    return Evaluation(rms, tuple(per), (), str(ds.root), str(cal_root))
+    res = {k: np.concatenate(v) for k, v in errs.items()}
+    rms = {k: rms_px(v) for k, v in res.items()}
+    return Evaluation(rms, tuple(per), (), str(ds.root), str(cal_root), res)

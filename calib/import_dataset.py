@@ -29,6 +29,7 @@ import numpy as np
 
 from calib.board_calibrate import BoardMismatchError, calibrate_board
 from calib.camera import MODELS
+from calib.choices import DEFAULT_FREE, DEFAULT_MODEL
 from calib.errors import InputError, SelfCalWarning
 from calib.io.dataset import DatasetInfo, write_dataset_info
 from calib.io.target_toml import load_target, target_document
@@ -48,16 +49,6 @@ __all__ = [
 
 MIN_FRAMES = 6
 """Fewest frames that show the target for a dataset to be imported (as the calibration)."""
-DEFAULT_MODEL = "opencv"
-"""The camera model an imported dataset declares unless told: a real lens distorts (k1 of -0.15
-to -0.3 is ordinary), and a pinhole fitted to its images is biased."""
-DEFAULT_FREE: dict[str, tuple[str, ...]] = {
-    "pinhole": ("fx", "mu", "cx", "cy"),
-    "opencv": ("fx", "mu", "cx", "cy", "k1", "k2", "p1", "p2"),
-    "fisheye": ("fx", "mu", "cx", "cy", "k1", "k2", "k3", "k4"),
-}
-"""The camera parameters the board calibration estimates by model, unless told (OpenCV names;
-``k3`` only on request: it rarely improves an ordinary lens and trades off with ``k1, k2``)."""
 MISMATCH_PX = 3.0
 """Reprojection RMS (px, 2-D) above which the declared board does not fit the detections."""
 
@@ -261,7 +252,7 @@ def import_dataset(
         planned_joints_deg=q_deg,
         validation_joints_deg=np.zeros((0,)),
         backend="import",
-        scenario={"import": source or {"joints": str(joints), "joint_units": joint_units,
+        provenance={"import": source or {"joints": str(joints), "joint_units": joint_units,
                   "target": str(target), "images": {c.name: c.pattern for c in images}}},
         cameras=tuple(names),
         resolutions=None if len(set(res)) == 1 else res,

@@ -281,10 +281,13 @@ def with_bounds(
     robot: RobotDef,
     ds_info: DatasetInfo,
     pixel_sigma_px: float | None = None,
+    pixel_sigma_source: str = "residuals",
 ) -> CalibrationResult:
     """``result`` with the Cramer-Rao bounds of its data, evaluated at the final estimate of
     ``out`` (either method); when the Fisher information cannot be formed or inverted, with
-    ``bounds_error`` and a warning saying why instead.
+    ``bounds_error`` and a warning saying why instead. ``pixel_sigma_px``: the corner noise
+    (px per coordinate; None: from the final fit's residuals), ``pixel_sigma_source`` where it
+    comes from (:data:`calib.io.calibration_bounds.SIGMA_SOURCES`).
 
     The tool-tip bound is over the dataset's validation postures (``validation_joints_deg``) for
     the tip ``T_cam_tip = inv(robot.T_flange_cam)``, the point of the report, after the best
@@ -293,6 +296,8 @@ def with_bounds(
     """
     try:
         bounds = _bounds(result, out, obs, q, robot, ds_info, pixel_sigma_px)
+        if pixel_sigma_px is not None:
+            bounds = dataclasses.replace(bounds, pixel_sigma_source=pixel_sigma_source)
     except BoundsError as exc:
         return dataclasses.replace(
             result,

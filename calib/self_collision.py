@@ -45,12 +45,15 @@ def segment_distances(a0, a1, b0, b1) -> np.ndarray:
     f = np.sum(d2 * r, -1)
     c = np.sum(d1 * r, -1)
     b = np.sum(d1 * d2, -1)
-    tiny = 1e-18
+    tiny = 1e-300
     a_ = np.maximum(a, tiny)
     e_ = np.maximum(e, tiny)
     denom = a * e - b * b
-    # general case: closest points of the lines, s clamped, then t for that s, clamped
-    s = np.where(denom > tiny, np.clip((b * f - c * e) / np.maximum(denom, tiny), 0.0, 1.0), 0.0)
+    # general case: closest points of the lines, s clamped, then t for that s, clamped; lines
+    # closer to parallel than the rounding of ``denom`` (relative 1e-14) take s = 0, the
+    # endpoint candidates below then give the minimum
+    skew = denom > 1e-14 * a * e
+    s = np.where(skew, np.clip((b * f - c * e) / np.where(skew, denom, 1.0), 0.0, 1.0), 0.0)
     t = (b * s + f) / e_
     s = np.where(
         t < 0.0, np.clip(-c / a_, 0.0, 1.0), np.where(t > 1.0, np.clip((b - c) / a_, 0, 1), s)
@@ -63,7 +66,14 @@ def segment_distances(a0, a1, b0, b1) -> np.ndarray:
     t = np.where(a <= tiny, np.where(e <= tiny, 0.0, np.clip(f / e_, 0.0, 1.0)), t)
     p = a0 + s[..., None] * d1
     q = b0 + t[..., None] * d2
-    return np.linalg.norm(p - q, axis=-1)
+    d = np.linalg.norm(p - q, axis=-1)
+    # every endpoint against the other segment: each candidate is a distance between points of
+    # the two segments, so the minimum never undercuts the true one, and it is exact where the
+    # closed form above is ill-conditioned (near-parallel or nearly point-like segments)
+    for x, y0, dy, ee in ((a0, b0, d2, e_), (a1, b0, d2, e_), (b0, a0, d1, a_), (b1, a0, d1, a_)):
+        u = np.clip(np.sum((x - y0) * dy, -1) / ee, 0.0, 1.0)
+        d = np.minimum(d, np.linalg.norm(x - (y0 + u[..., None] * dy), axis=-1))
+    return d
 
 
 @dataclass(frozen=True)

@@ -2,12 +2,15 @@
 
 The loop knows nothing of the backend: the simulator and the hardware adapter are both ``Robot``s.
 Observers that only a simulator has (analytic corner projections, ground truth) are passed in as
-optional callbacks by the caller.
+optional callbacks by the caller. Images are encoded and written by one worker thread while the
+robot moves to and captures the next posture (PNG encoding releases the GIL); at most one frame
+is in flight, and a frame is complete on disk before the next one is handed over.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -30,11 +33,13 @@ class AcquisitionHooks:
 
     ``detect``: returns ``{"left": {id: (4,2)}, "right": {...}}`` for the current posture (analytic
     path; without it the loop captures images). ``record_truth(index)``: store ground truth of the
-    frame just taken (simulation only).
+    frame just taken (simulation only). ``finish()``: called once when the loop ends, also on
+    an error (writes what the hooks kept, e.g. ``truth.json``).
     """
 
     detect: Callable[[], dict[str, dict[int, np.ndarray]]] | None = None
     record_truth: Callable[[int], None] | None = None
+    finish: Callable[[], None] | None = None
 
 
 def acquire(
@@ -53,32 +58,59 @@ def acquire(
     """
     hooks = hooks or AcquisitionHooks()
     plan = writer.info.planned_joints_deg
-    todo = [i for i in range(len(plan)) if i not in set(writer.done)]
+    done = set(writer.done)
+    todo = [i for i in range(len(plan)) if i not in done]
     taken = 0
     if progress is not None:
         progress.start(len(plan), done=len(plan) - len(todo))
-    for i in todo:
+    pending: list[tuple[int, Future]] = []  # the frame the worker is writing
+
+    def settle() -> None:
+        """Wait for the frame in flight; its failure stops the acquisition at that frame."""
+        while pending:
+            j, fut = pending.pop()
+            try:
+                fut.result()
+            except (Exception, KeyboardInterrupt) as exc:
+                raise _stopped(j, len(plan), writer, exc) from exc
+
+    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="frame-writer") as pool:
         try:
-            robot.move_to(plan[i])
-            q = robot.joints()
-            if hooks.detect is not None:
-                writer.add_frame(i, q, detections=hooks.detect())
-            else:
-                pair = robot.capture()
-                writer.add_frame(i, q, left=pair.left, right=pair.right)
-            if hooks.record_truth is not None:
-                hooks.record_truth(i)
-        except ValueError:
-            raise
-        except (Exception, KeyboardInterrupt) as exc:
-            raise AcquisitionError(
-                f"acquisition stopped at frame {i} of {len(plan)}: {exc}. "
-                f"{writer.n_done} frames are kept in {writer.root}; continue with "
-                f"`selfcal acquire CONFIG --out {writer.root} --resume`"
-            ) from exc
-        taken += 1
-        if progress is not None:
-            progress.advance()
+            for i in todo:
+                try:
+                    robot.move_to(plan[i])
+                    q = robot.joints()
+                    if hooks.detect is not None:
+                        writer.add_frame(i, q, detections=hooks.detect())
+                    else:
+                        pair = robot.capture()
+                        settle()  # the previous frame is on disk before this one is handed over
+                        fut = pool.submit(writer.add_frame, i, q, left=pair.left, right=pair.right)
+                        pending.append((i, fut))
+                    if hooks.record_truth is not None:
+                        hooks.record_truth(i)
+                except (ValueError, AcquisitionError):
+                    raise
+                except (Exception, KeyboardInterrupt) as exc:
+                    settle()
+                    raise _stopped(i, len(plan), writer, exc) from exc
+                taken += 1
+                if progress is not None:
+                    progress.advance()
+            settle()
+        finally:
+            for _, fut in pending:  # an error elsewhere: let the frame in flight land
+                fut.exception()
+            if hooks.finish is not None:
+                hooks.finish()
     if progress is not None:
         progress.finish()
     return taken
+
+
+def _stopped(i: int, n: int, writer: DatasetWriter, exc: BaseException) -> AcquisitionError:
+    return AcquisitionError(
+        f"acquisition stopped at frame {i} of {n}: {exc}. "
+        f"{writer.n_done} frames are kept in {writer.root}; continue with "
+        f"`selfcal acquire CONFIG --out {writer.root} --resume`"
+    )

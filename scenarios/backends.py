@@ -16,8 +16,14 @@ import numpy as np
 from calib.camera import Intrinsics, Rig
 from calib.errors import InputError
 from calib.io.atomic import write_image_atomic
-from calib.io.dataset import DatasetInfo
-from calib.io.truth import read_truth, write_truth
+from calib.io.dataset import DatasetInfo, scenario_digest
+from calib.io.truth import (
+    TRUTH_JOURNAL,
+    append_truth_frame,
+    read_truth,
+    with_journal,
+    write_truth,
+)
 from calib.kinematics import fk_tool
 from calib.mcpc import MCPCModel, minimal_indices, nominal_mcpc, param_is_angle, param_names
 from calib.optimal_poses import plan_optimal_postures
@@ -131,7 +137,6 @@ def planning_inputs(s: Scenario) -> dict:
     """
     robot = load_robot(s.robot.model)
     nominal = nominal_mcpc(robot).with_tool(robot.T_flange_cam)
-    W, H = s.camera.resolution
     cx, cy = _field_center(robot, nominal)
     half = s.target.extent_mm / 2000.0
     g = np.linspace(-half, half, 6)
@@ -139,15 +144,23 @@ def planning_inputs(s: Scenario) -> dict:
     return {
         "robot": robot,
         "model_cam": nominal,
-        "rig": Rig.stereo(
-            Intrinsics.centered(s.camera.fx, s.camera.mu, W, H),
-            trans(np.array([s.camera.baseline_mm / 1000, 0.0, 0.0])),
-        ),
+        "rig": _planning_rig(s),
         "points_world": pts,
         "normals_world": np.tile([0.0, 0.0, 1.0], (len(pts), 1)),
         "min_visible": s.trajectory.min_markers,
         "collision_ok": CapsuleChain(nominal_mcpc(robot), robot.T_flange_cam).ok,
     }
+
+
+def _planning_rig(s: Scenario) -> Rig:
+    """The cameras the plan must serve: the nominal stereo pair, or its left camera alone."""
+    W, H = s.camera.resolution
+    rig = Rig.stereo(
+        Intrinsics.centered(s.camera.fx, s.camera.mu, W, H),
+        trans(np.array([s.camera.baseline_mm / 1000, 0.0, 0.0])),
+    )
+    n = s.camera.count
+    return Rig(rig.cameras[:n], rig.T_first_cam[:n], rig.names[:n])
 
 
 def plan_optimal(s: Scenario, *, collisions: bool = True, **kw):
@@ -216,9 +229,10 @@ def plan_dataset(s: Scenario, setup: SimSetup | None = None) -> DatasetInfo:
         observation="images" if (s.noise.render or s.robot.backend == "hardware") else "detections",
         planned_joints_deg=np.round(np.degrees(q), 6),
         validation_joints_deg=np.round(np.degrees(qv), 6),
-        scenario=scenario_to_dict(s),
+        provenance={"scenario_sha256": scenario_digest(scenario_to_dict(s))},
         camera_model=s.camera.model,
         camera_free=tuple(s.camera.free),
+        cameras=s.camera.names,
     )
 
 
@@ -235,9 +249,12 @@ def open_robot(
     rig = robot.rig
     truth = robot.truth(meta={"scenario": scenario_to_dict(s)})
     truth_path = Path(out) / "truth.json"
+    journal = Path(out) / TRUTH_JOURNAL
     if truth_path.is_file():
         truth = dataclasses.replace(truth, frames=read_truth(truth_path).frames)
+    truth = with_journal(truth, journal)  # frames of a killed acquisition
     write_truth(truth_path, truth)
+    journal.unlink(missing_ok=True)
     rng = np.random.default_rng(s.noise.seed + 7919)
     fld = setup.field
     corners, normals = fld.corners_world(), fld.T_world_marker[:, :3, 2]
@@ -245,7 +262,11 @@ def open_robot(
     def record_truth(index: int) -> None:
         nonlocal truth
         truth = truth.with_frame(robot.truth_frame(), frame_index=index)
+        append_truth_frame(journal, truth.frames[-1])  # O(1); truth.json once, in finish()
+
+    def finish() -> None:
         write_truth(truth_path, truth)
+        journal.unlink(missing_ok=True)
 
     def detect() -> dict:
         fr = robot.truth_frame()
@@ -265,7 +286,9 @@ def open_robot(
             )
         return out_
 
-    hooks = AcquisitionHooks(detect=None if s.noise.render else detect, record_truth=record_truth)
+    hooks = AcquisitionHooks(
+        detect=None if s.noise.render else detect, record_truth=record_truth, finish=finish
+    )
     return robot, hooks
 
 

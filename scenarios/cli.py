@@ -15,15 +15,6 @@ from pathlib import Path
 
 import numpy as np
 
-from calib.calibrate import CalibrationFailedError
-from calib.ik import UnreachableError, ik, ik_nearest
-from calib.ik_numeric import ToolTarget, ik_robot
-from calib.io.dataset import Dataset
-from calib.kinematics import fk_tool
-from calib.mcpc import nominal_mcpc
-from calib.robot_def import load_robot
-from calib.tool_pose import tool_pose
-from scenarios.backends import render_posture
 from scenarios.cli_common import (
     EXIT_USAGE,
     CliError,
@@ -38,23 +29,23 @@ from scenarios.cli_common import (
     run_command,
 )
 from scenarios.cli_pose import POSE_HELP, add_pose_args, is_er, orientation_json, parse_pose_args
-from scenarios.config import DEFAULT_ROBOT, load_scenario
+from scenarios.defaults import DEFAULT_ROBOT
 from scenarios.deploy_cli import CALIBRATED_FRAME, load_calibration
 from scenarios.deploy_cli import register as register_deploy
 from scenarios.diagnose_render import register as register_diagnose
 from scenarios.hw_cli import register as register_hw
 from scenarios.montecarlo_cli import register as register_montecarlo
-from scenarios.own_data import calibrate_any
 from scenarios.own_data import register as register_own_data
 from scenarios.paper_repro import register as register_paper
-from scenarios.pipeline import report_summary, run_acquire, run_all, run_report
 from scenarios.progress import Progress
-from scenarios.rerun_log import record_run
 from scenarios.rerun_log import register as register_record
 from scenarios.ros_cli import export_run
 from scenarios.studies import register as register_study
 from scenarios.threads import DEFAULT_THREADS, THREADS_ENV, limit_threads
 from scenarios.tracker_cli import register as register_tracker
+
+# The modules a command runs are imported by that command (`selfcal --help` and `selfcal fk`
+# stay fast): scipy, OpenCV, MuJoCo, matplotlib load only where used.
 
 __all__ = ["main", "build_parser", "CliError"]
 
@@ -79,6 +70,11 @@ def _robot_name(args: argparse.Namespace) -> str:
 
 
 def cmd_fk(args: argparse.Namespace) -> int:
+    from calib.kinematics import fk_tool
+    from calib.mcpc import nominal_mcpc
+    from calib.robot_def import load_robot
+    from calib.tool_pose import tool_pose
+
     if args.calibration:
         dep = load_calibration(args.calibration)
         if args.robot and args.robot != dep.robot_name:
@@ -112,6 +108,8 @@ def cmd_fk(args: argparse.Namespace) -> int:
 
 def _ik_er(robot, pose, branch: str | None) -> np.ndarray:
     """The closed-form IK of a 5-axis ER-type arm (pitch and roll)."""
+    from calib.ik import ik, ik_nearest
+
     xyz, pitch, roll = pose.xyz_m, pose.pitch_rad, pose.roll_rad
     if not branch:
         return ik_nearest(robot, xyz, pitch, roll, reference=pose.reference)
@@ -126,6 +124,10 @@ def _ik_er(robot, pose, branch: str | None) -> np.ndarray:
 
 
 def cmd_ik(args: argparse.Namespace) -> int:
+    from calib.ik import UnreachableError
+    from calib.ik_numeric import ToolTarget, ik_robot
+    from calib.robot_def import load_robot
+
     robot = load_robot(_robot_name(args))
     pose = parse_pose_args(args, robot)
     out: dict = {"model": robot.name}
@@ -151,6 +153,10 @@ def cmd_ik(args: argparse.Namespace) -> int:
 
 
 def cmd_render(args: argparse.Namespace) -> int:
+    from calib.robot_def import load_robot
+    from scenarios.backends import render_posture
+    from scenarios.config import load_scenario
+
     scenario = args.scenario
     model = args.robot or (load_scenario(scenario).robot.model if scenario else DEFAULT_ROBOT)
     robot = load_robot(model)
@@ -170,6 +176,10 @@ def _scenario_out(args: argparse.Namespace, s) -> Path:
 
 
 def cmd_acquire(args: argparse.Namespace) -> int:
+    from calib.io.dataset import Dataset
+    from scenarios.config import load_scenario
+    from scenarios.pipeline import run_acquire
+
     s = load_scenario(args.config)
     out = _scenario_out(args, s)
     run_acquire(s, out, resume=args.resume, quiet=args.quiet)
@@ -196,10 +206,12 @@ def _calibration_json(path: Path) -> dict:
 
 
 def cmd_calibrate(args: argparse.Namespace) -> int:
+    from scenarios.own_data import calibrate_any
+
     root = Path(args.dataset)
     with _stdout_to_stderr(args.json):
         calibrate_any(root, quiet=args.quiet, method=args.method,
-                      allow_missing_frames=args.allow_missing_frames)  # fmt: skip
+                      allow_missing_frames=args.allow_missing_frames, figures=True)  # fmt: skip
     note_written(args, root / "calibration.json")
     if args.json:
         print(json.dumps(_calibration_json(root / "calibration.json")))
@@ -207,9 +219,12 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
 
 
 def cmd_report(args: argparse.Namespace) -> int:
+    from calib.calibrate import CalibrationFailedError
+    from scenarios.pipeline import report_summary, run_report
+
     root = Path(args.dataset)
     as_json = getattr(args, "json", False)  # a namespace built by a caller may lack it
-    report = run_report(root, quiet=args.quiet or as_json)
+    report = run_report(root, quiet=args.quiet or as_json, figures=True)
     note_written(args, *_existing(root, "report.json", "report.md", "table_iv.md"))
     if as_json:
         print(json.dumps(report))
@@ -221,6 +236,10 @@ def cmd_report(args: argparse.Namespace) -> int:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
+    from scenarios.config import load_scenario
+    from scenarios.pipeline import run_all
+    from scenarios.rerun_log import record_run
+
     s = load_scenario(args.config)
     out = _scenario_out(args, s)
     if args.spawn and not args.rrd:
@@ -413,8 +432,9 @@ def build_parser() -> argparse.ArgumentParser:
     sp = add(
         "report",
         cmd_report,
-        "calibration + truth -> DIR/report.json, report.md (the output goes into the dataset "
-        "folder)",
+        "calibration (+ truth.json in simulation) -> DIR/report.json, report.md, validation.csv "
+        "and DIR/figures/*.png; without truth (real data): the fit, a held-out check (DIR/"
+        "evaluation.json or leave every 5th pose out), the sigmas and the identifiability",
     )
     sp.add_argument("dataset", help="dataset folder")
     add_json(sp)

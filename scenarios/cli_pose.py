@@ -16,13 +16,16 @@ from __future__ import annotations
 
 import argparse
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
-from calib.ik import IKStructureError, check_er_structure
-from calib.robot_def import RobotDef
 from scenarios.cli_common import CliError, parse_floats
+
+if TYPE_CHECKING:
+    from calib.robot_def import RobotDef
+
+# scipy (Rotation) and calib.ik are imported where used: `selfcal --help` loads this module
 
 __all__ = ["POSE_HELP", "PoseArgs", "add_pose_args", "parse_pose_args", "is_er", "orientation_json"]
 
@@ -70,6 +73,8 @@ def add_pose_args(sp: argparse.ArgumentParser, *, xyz_help: str) -> None:
 
 def is_er(robot: RobotDef) -> bool:
     """Whether the robot has the 5-axis ER structure of the closed-form IK."""
+    from calib.ik import IKStructureError, check_er_structure  # lazy: see the imports
+
     try:
         check_er_structure(robot)
     except IKStructureError:
@@ -128,6 +133,8 @@ def parse_pose_args(args: argparse.Namespace, robot: RobotDef) -> PoseArgs:
                 fix="give the orientation with --rpy-deg R,P,Y or --quat W,X,Y,Z",
             )
         return PoseArgs(xyz, float(np.radians(args.pitch)), float(np.radians(roll)), None, ref)
+    from scipy.spatial.transform import Rotation  # lazy: see the imports
+
     rotation = None
     if args.rpy_deg is not None:
         rpy = parse_floats(args.rpy_deg, 3, "--rpy-deg")
@@ -143,6 +150,8 @@ def parse_pose_args(args: argparse.Namespace, robot: RobotDef) -> PoseArgs:
 
 def orientation_json(R: np.ndarray) -> dict:
     """``rpy_deg`` (fixed-axis x, y, z, as ``--rpy-deg``) and ``quat_wxyz`` of a rotation."""
+    from scipy.spatial.transform import Rotation  # lazy: see the imports
+
     rot = Rotation.from_matrix(np.asarray(R, dtype=float))
     x, y, z, w = rot.as_quat()
     q = np.array([w, x, y, z]) * (1.0 if w >= 0 else -1.0)

@@ -17,6 +17,7 @@ from calib.calibrate import MIN_POSTURES
 from calib.camera import MODELS, CameraModel, camera_model, centered_principal_point, lens_names
 from calib.errors import InputError
 from calib.tomlfile import read_toml
+from scenarios.defaults import DEFAULT_ROBOT
 
 __all__ = [
     "Scenario",
@@ -44,15 +45,6 @@ class HardwareConfig:
     """Further adapter settings passed through to the hardware adapter (see docs/hardware.md)."""
 
 
-DEFAULT_ROBOT = "er4u-paper"
-"""The one default robot model (and so encoder table) of every ``selfcal`` command and scenario
-that names none: the [robot] model of the default scenario (``scenarios/paper.toml``), fk, ik,
-render, the ``hw`` commands and ``selfcal emulate``. A real ER-4u controller's encoders read zero
-at the vendor home: give ``--robot er4u-vendor`` (or ``[robot] model = "er4u-vendor"``) for it
-(docs/hardware.md). The ``hw`` library's own default for callers that name no model is
-``hw.settings.DEFAULT_MODEL`` (the ACL controller's arm, er4u-vendor)."""
-
-
 @dataclass(frozen=True)
 class RobotConfig:
     model: str = DEFAULT_ROBOT
@@ -70,6 +62,10 @@ class CameraConfig:
     mu: float = 1.0
     """Aspect ratio: fy = mu * fx."""
     baseline_mm: float = 60.0
+    count: int = 2
+    """Cameras the calibration uses: 2 (the wrist stereo pair, ``left`` and ``right``) or 1 (the
+    ``left`` camera alone, the paper's own one-camera setup: its "stereo images" are views from
+    two configurations)."""
     model: str = "pinhole"
     """Camera model of both cameras: "pinhole", "opencv" (Brown-Conrady k1, k2, p1, p2, k3,
     k4-k6) or "fisheye" (Kannala-Brandt k1-k4); OpenCV's conventions and names."""
@@ -81,6 +77,11 @@ class CameraConfig:
     free: list[str] = field(default_factory=lambda: ["fx", "mu"])
     """Parameters the calibration estimates, by name (fx, mu = fy / fx, cx, cy and the model's
     lens coefficients); the others stay at their start (the image centre, no distortion)."""
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """The dataset's camera names: ``("left", "right")`` or ``("left",)``."""
+        return ("left", "right")[: self.count]
 
     def true_model(self) -> CameraModel:
         """The simulated camera (principal point offset, lens) with the ``free`` selection."""
@@ -180,6 +181,7 @@ RANGES: dict[str, Range] = {
     "camera.fx": Range(10.0, 1e5, "px", "focal length of a real camera (fov 0.4 .. 175 deg at 640 px)"),
     "camera.mu": Range(0.2, 5.0, "", "fy / fx of a real sensor"),
     "camera.baseline_mm": Range(1.0, 2000.0, "mm", "stereo baseline of a rig on a wrist"),
+    "camera.count": Range(1, 2, "", "one wrist camera or the stereo pair"),
     "camera.principal_point_offset_px": Range(-5000.0, 5000.0, "px", "offset from the image centre"),
     "camera.distortion": Range(-100.0, 100.0, "", "lens coefficients (OpenCV scale)"),
     "target.markers": Range(4, 250, "", "markers of the ArUco dictionary (at least 4)"),

@@ -18,27 +18,20 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from calib.calibrate import CalibrationFailedError
-from calib.compensate import solve_compensated, solve_compensated_pose
-from calib.export import BASE_FRAME, TOOL_FRAME, DeployError, deploy, deploy_chain
-from calib.export_camera import to_camera_info_yaml, to_opencv_yaml
-from calib.export_toml import from_toml, to_toml
-from calib.export_urdf import to_urdf
-from calib.ik import UnreachableError
-from calib.ik_numeric import ToolTarget
-from calib.io.atomic import write_text_atomic
-from calib.io.board_calibration import calibration_kind, read_board_calibration
-from calib.io.calibration import CalibrationResult, read_calibration
-from calib.robot_def import load_robot
 from scenarios.cli_common import CliError, note_written
 from scenarios.cli_pose import add_pose_args, parse_pose_args
 from scenarios.ros_cli import BAG_FORMATS, cmd_export_bag
 from scenarios.ros_cli import add_export_args as add_bag_export_args
-from sim.export_mjcf import calibrated_mjcf
 
+if TYPE_CHECKING:
+    from calib.io.calibration import CalibrationResult
+
+# Heavy modules (scipy, OpenCV, MuJoCo, the pipeline) are imported by the functions that use
+# them, so that `selfcal --help` builds every command's parser without loading them.
 __all__ = [
     "register",
     "cmd_export",
@@ -93,6 +86,12 @@ def load_calibration(path: str):
         CliError: missing file or unusable TOML (the message says what to give instead).
         CalibrationFileError: a damaged or foreign calibration.json (named, with the fix).
     """
+    from calib.export import DeployError, deploy, deploy_chain
+    from calib.export_toml import from_toml
+    from calib.io.board_calibration import calibration_kind, read_board_calibration
+    from calib.io.calibration import read_calibration
+    from calib.robot_def import load_robot
+
     p = _calibration_file(path)
     try:
         if p.suffix == ".toml":
@@ -110,6 +109,8 @@ def load_calibration(path: str):
 
 def _usable(cal: CalibrationResult, path: Path) -> CalibrationResult:
     """``cal`` read from ``path``, unless it is marked failed (#15): then its failures, exit 3."""
+    from calib.calibrate import CalibrationFailedError
+
     if cal.failed:
         raise CalibrationFailedError.of(cal.failures, path)
     return cal
@@ -119,6 +120,13 @@ def cmd_export(args: argparse.Namespace) -> int:
     """``selfcal export``: write the calibrated model in the chosen format."""
     if args.bag:
         return cmd_export_bag(args)
+    from calib.export import BASE_FRAME, TOOL_FRAME
+    from calib.export_toml import to_toml
+    from calib.export_urdf import to_urdf
+    from calib.io.atomic import write_text_atomic
+    from calib.robot_def import load_robot
+    from sim.export_mjcf import calibrated_mjcf
+
     fmt = args.format
     if fmt in BAG_FORMATS:
         raise CliError(f"--format {fmt} writes a ROS bag: give --bag OUT instead of --out")
@@ -168,6 +176,11 @@ def cmd_export(args: argparse.Namespace) -> int:
 
 def _export_camera(path: str, fmt: str, out: Path, camera_name: str) -> int:
     """Write the calibration's estimated camera (shared by the rig's cameras) as ``fmt``."""
+    from calib.export_camera import to_camera_info_yaml, to_opencv_yaml
+    from calib.io.atomic import write_text_atomic
+    from calib.io.board_calibration import calibration_kind, read_board_calibration
+    from calib.io.calibration import read_calibration
+
     p = _calibration_file(path)
     if p.suffix == ".toml":
         raise CliError(f"{p}: --format {fmt} needs a calibration.json (a .toml holds no camera)")
@@ -184,6 +197,11 @@ def _export_camera(path: str, fmt: str, out: Path, camera_name: str) -> int:
 
 def cmd_ik_calibrated(args: argparse.Namespace) -> int:
     """``selfcal ik --calibration FILE``: joint commands from the calibrated model, as JSON."""
+    from calib.compensate import solve_compensated, solve_compensated_pose
+    from calib.ik import UnreachableError
+    from calib.ik_numeric import ToolTarget
+    from calib.robot_def import load_robot
+
     dep = load_calibration(args.calibration)
     robot = load_robot(dep.robot_name)
     pose = parse_pose_args(args, robot)

@@ -19,15 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-from calib.camera import project
-from calib.kinematics import fk_tool
-from calib.target.aruco_detect import detect_markers
-from calib.transforms import inv_pose
-from scenarios.backends import make_sim_robot, plan_dataset, sim_setup
-from scenarios.config import load_scenario
-from sim.mj_camera import intrinsics_from_model
-from sim.robot_mjcf import CAMERA_NAMES
-
+# Heavy modules (scipy, OpenCV, MuJoCo, the pipeline) are imported by the functions that use
+# them, so that `selfcal --help` builds every command's parser without loading them.
 __all__ = ["CornerOffsets", "measure", "summarise", "format_table", "plot", "main", "register"]
 
 SIZE_BINS_PX = (0.0, 25.0, 35.0, 50.0, np.inf)
@@ -39,8 +32,11 @@ class CornerOffsets:
     """One row per detected corner: offset ``d`` (n, 2) px (detected - analytic), analytic
     position ``uv`` (n, 2) px, marker side ``size_px`` (n,), viewing angle ``angle_deg`` (n,)
     (marker normal vs direction to the camera), ``corner`` (n,) index 0-3, ``marker`` (n,) id,
-    ``image`` (n,) image index; ``pose_err_m`` the largest camera-position difference between
-    MuJoCo and the actual chain (m), ``joint_quant_rad`` the largest |reported - true| angle."""
+    ``image`` (n,) image index, ``sigma`` (n,) the detector's own noise estimate of the corner
+    (px per coordinate, NaN if it gives none); ``pose_err_m`` the largest camera-position
+    difference between MuJoCo and the actual chain (m), ``joint_quant_rad`` the largest
+    |reported - true| angle, ``joint_err`` (m, n) reported - true per posture and joint and
+    ``joint_step`` (n,) one encoder count (rad)."""
 
     d: np.ndarray
     uv: np.ndarray
@@ -49,8 +45,11 @@ class CornerOffsets:
     corner: np.ndarray
     marker: np.ndarray
     image: np.ndarray
+    sigma: np.ndarray
     pose_err_m: float
     joint_quant_rad: float
+    joint_err: np.ndarray
+    joint_step: np.ndarray
     intrinsics_err_px: float
 
     def scale_error(self) -> float:
@@ -61,16 +60,38 @@ class CornerOffsets:
         r = (c - c.mean(axis=1, keepdims=True)).reshape(-1, 2)
         return float(np.einsum("ij,ij->", self.d, r) / np.einsum("ij,ij->", r, r))
 
+    def noise_check(self) -> tuple[float, float]:
+        """(achieved, predicted) per-coordinate corner RMS (px): the offsets against the
+        detector's own noise estimate (:func:`calib.target.aruco_detect.detect_markers_noise`),
+        over the corners that have one."""
+        ok = np.isfinite(self.sigma)
+        if not ok.any():
+            return float("nan"), float("nan")
+        return float(np.sqrt(np.mean(self.d[ok] ** 2))), float(
+            np.sqrt(np.mean(self.sigma[ok] ** 2))
+        )
+
 
 def measure(
     config: str | Path | None = None,
     refine: tuple[str, ...] = ("lines",),
     max_poses: int | None = None,
+    msaa: int | None = None,
 ) -> dict[str, CornerOffsets]:
     """Render the scenario's planned postures noise-free and measure, per refinement method in
     ``refine`` (see :data:`calib.target.aruco_detect.REFINE_METHODS`; suffix ``-unscreened``:
-    keep occluded and oblique markers, the detector before issue #14), every detected corner's
-    offset from its analytic projection. ``max_poses`` limits the postures (None: all)."""
+    keep occluded and oblique markers and refine the lines once, the detector before issue #14),
+    every detected corner's offset from its analytic projection. ``max_poses`` limits the postures (None: all); ``msaa`` sets the renderer's multisample count (None: the
+    scene's, 4)."""
+    from calib.camera import project
+    from calib.kinematics import fk_tool
+    from calib.target.aruco_detect import detect_markers_noise
+    from calib.transforms import inv_pose
+    from scenarios.backends import make_sim_robot, plan_dataset, sim_setup
+    from scenarios.config import load_scenario
+    from sim.mj_camera import intrinsics_from_model
+    from sim.robot_mjcf import CAMERA_NAMES
+
     s = load_scenario(config, overrides={"noise": {"image_sigma": 0.0, "render": True}})
     setup = sim_setup(s)
     info = plan_dataset(s, setup)
@@ -79,8 +100,10 @@ def measure(
     corners_w = fld.corners_world()
     normals = fld.T_world_marker[:, :3, 2]
     rows: dict[str, list] = {m: [] for m in refine}
-    pose_err, quant = 0.0, 0.0
+    pose_err, quant, jerr = 0.0, 0.0, []
     with make_sim_robot(s, setup) as robot:
+        if msaa is not None:
+            robot.mj_model.vis.quality.offsamples = int(msaa)
         cams = (robot.rig.intrinsics, robot.rig.right)
         intr_err = 0.0
         for name, cam in zip(CAMERA_NAMES, cams, strict=True):
@@ -96,7 +119,8 @@ def measure(
             pose_err = max(
                 pose_err, float(np.abs(T_chain[:3, 3] - fr["T_world_cam_left"][:3, 3]).max())
             )
-            quant = max(quant, float(np.abs(np.radians(robot.joints()) - fr["joints_rad"]).max()))
+            jerr.append(np.radians(robot.joints()) - fr["joints_rad"])
+            quant = max(quant, float(np.abs(jerr[-1]).max()))
             pair = robot.capture()
             for c, (img, key, intr) in enumerate(
                 zip(
@@ -114,17 +138,20 @@ def measure(
                 for m in refine:
                     screen = not m.endswith("-unscreened")
                     method = m.removesuffix("-unscreened")
-                    found = detect_markers(img, fld.dictionary, method, screen=screen)
+                    found, noise = detect_markers_noise(
+                        img, fld.dictionary, method, screen=screen, passes=None if screen else 1
+                    )
                     for mid, det in found.items():
                         k = fld.index_of(mid)
                         side = np.linalg.norm(uv[k] - np.roll(uv[k], -1, axis=0), axis=1).mean()
                         for j in range(4):
                             rows[m].append(
-                                (*(det[j] - uv[k, j]), *uv[k, j], side, ang[k], j, mid, 2 * i + c)
-                            )
+                                (*(det[j] - uv[k, j]), *uv[k, j], side, ang[k], j, mid, 2 * i + c,
+                                 noise.get(mid, np.nan))
+                            )  # fmt: skip
     out = {}
     for m, r in rows.items():
-        a = np.asarray(r, dtype=float).reshape(-1, 9)
+        a = np.asarray(r, dtype=float).reshape(-1, 10)
         out[m] = CornerOffsets(
             d=a[:, 0:2],
             uv=a[:, 2:4],
@@ -133,8 +160,11 @@ def measure(
             corner=a[:, 6].astype(int),
             marker=a[:, 7].astype(int),
             image=a[:, 8].astype(int),
+            sigma=a[:, 9],
             pose_err_m=pose_err,
             joint_quant_rad=quant,
+            joint_err=np.asarray(jerr),
+            joint_step=1.0 / np.asarray(setup.robot.counts_per_unit, dtype=float),
             intrinsics_err_px=intr_err,
         )
     return out
@@ -200,20 +230,32 @@ def format_table(method: str, rows: list) -> str:
 
 def plot(results: dict[str, CornerOffsets], path: Path) -> None:
     """Offset magnitude against marker size and viewing angle, one colour per method (PNG)."""
-    from scenarios.plotting import pyplot, save_figure
+    from scenarios.plotting import legend_outside, pyplot, save_figure
 
     plt = pyplot()
-    fig, ax = plt.subplots(1, 2, figsize=(10, 4))
+    fig, ax = plt.subplots(1, 2, figsize=(11, 4), constrained_layout=True)
     for m, o in results.items():
         e = np.linalg.norm(o.d, axis=1)
         ax[0].scatter(o.size_px, e, s=4, alpha=0.5, label=m)
         ax[1].scatter(o.angle_deg, e, s=4, alpha=0.5, label=m)
     ax[0].set(xlabel="marker side (px)", ylabel="|detected - analytic| (px)", yscale="log")
-    ax[1].set(xlabel="viewing angle (deg)", yscale="log")
-    ax[0].legend()
-    fig.tight_layout()
+    ax[1].set(xlabel="viewing angle (deg)", ylabel="|detected - analytic| (px)", yscale="log")
+    legend_outside(ax[1])
     save_figure(fig, path, dpi=100)
     plt.close(fig)
+
+
+def _readback_line(o: CornerOffsets) -> str:
+    """Per joint: the read-back rounding error's RMS in units of the uniform model's
+    ``step / sqrt(12)`` (the calibration's read-back prior) and its largest value in half steps."""
+    rms = np.sqrt(np.mean(o.joint_err**2, axis=0)) / (o.joint_step / np.sqrt(12.0))
+    half = np.abs(o.joint_err).max(axis=0) / (o.joint_step / 2.0)
+    return (
+        "read-back - true joints per joint: RMS / (step / sqrt 12) "
+        f"{' '.join(f'{v:.2f}' for v in rms)}; max / (step / 2) "
+        f"{' '.join(f'{v:.2f}' for v in half)}; mean / step "
+        f"{' '.join(f'{v:+.2f}' for v in o.joint_err.mean(axis=0) / o.joint_step)}"
+    )
 
 
 def main(
@@ -221,18 +263,30 @@ def main(
     refine: tuple[str, ...] = ("lines", "lines-unscreened", "subpix"),
     figure: Path | None = None,
     max_poses: int | None = None,
+    msaa: int | None = None,
 ) -> str:
     """Measure, write the figure (if ``figure``) and return the Markdown report."""
+    from scenarios.config import load_scenario
+
     s = load_scenario(config)
-    res = measure(config, refine, max_poses)
+    res = measure(config, refine, max_poses, msaa)
     W, H = s.camera.true_model().width, s.camera.true_model().height
     first = next(iter(res.values()))
     parts = [
         f"camera pose MuJoCo vs actual chain: {first.pose_err_m * 1e3:.2e} mm; "
         f"reported (quantised) vs true joints: {np.degrees(first.joint_quant_rad):.4f} deg max; "
         f"MuJoCo's intrinsics vs the true camera: {first.intrinsics_err_px:.1e} px max",
+        _readback_line(first),
     ]
-    parts += [f"{m}: marker scale error {o.scale_error():+.1e} (relative)" for m, o in res.items()]
+    for m, o in res.items():
+        line = f"{m}: marker scale error {o.scale_error():+.1e} (relative)"
+        got, want = o.noise_check()
+        if np.isfinite(want):
+            line += (
+                f"; corner error {got:.4f} px per coordinate, the detector's noise estimate "
+                f"{want:.4f} px"
+            )
+        parts.append(line)
     parts += [format_table(m, summarise(o, W, H)) for m, o in res.items()]
     if figure is not None:
         plot(res, Path(figure))
@@ -243,10 +297,11 @@ def _add_args(ap: argparse.ArgumentParser) -> None:
     ap.add_argument("config", nargs="?", default=None, help="scenario TOML (default: paper.toml)")
     ap.add_argument("--figure", type=Path, default=Path("docs/render_corners.png"))
     ap.add_argument("--refine", nargs="+", default=["lines", "lines-unscreened", "subpix"])
+    ap.add_argument("--msaa", type=int, default=None, help="multisample count (default: 4)")
 
 
 def _cmd(a: argparse.Namespace) -> int:
-    print(main(a.config, tuple(a.refine), a.figure))
+    print(main(a.config, tuple(a.refine), a.figure, msaa=a.msaa))
     return 0
 
 

@@ -19,7 +19,7 @@ from hw.encoders import EncoderTable
 from hw.settings import AclSettings
 from scenarios.config import ConfigError, Scenario
 
-__all__ = ["hardware_settings", "open_hardware_robot"]
+__all__ = ["hardware_settings", "scenario_settings", "open_hardware_robot"]
 
 _SCENARIO_HW_KEYS = ("model", "port", "baudrate", "xonxoff", "cameras")
 
@@ -58,22 +58,13 @@ def hardware_settings(config: Mapping[str, Any] | None, **overrides: Any) -> Acl
     return AclSettings.from_mapping(table)
 
 
-def open_hardware_robot(scenario: Scenario) -> AclRobot:
-    """The scenario's robot on the hardware path: an ``AclRobot`` with its ``StereoCamera``.
-
-    From the scenario: ``robot.model`` (nominal model: joint ranges, ``model_name``),
-    ``robot.hardware.port`` / ``baudrate`` / ``xonxoff`` / ``cameras``, ``robot.hardware.options``
-    (any further ``AclSettings`` key, e.g. ``query_timeout_s``, ``speed``, ``encoders``) and
-    ``camera.resolution`` (frames of another size are refused). Without ``options.encoders`` the
-    table is ``default_encoders(model)``. On opening, the controller must answer a bare CR with a
-    prompt (``connect_check``).
+def scenario_settings(scenario: Scenario) -> AclSettings:
+    """The adapter settings of a hardware scenario, checked as :func:`open_hardware_robot` opens
+    them (without opening anything).
 
     Raises:
         ConfigError: an option that is unknown, belongs elsewhere, or contradicts the scenario
             (the message names the scenario file and the key).
-        AclConnectionError: the port cannot be opened or nothing answers on it (the message
-            names the URL and what to check).
-        CameraError: a camera source cannot be opened or gives no frame.
     """
     hw = scenario.robot.hardware
     where = f"{scenario.source}: [robot.hardware] options"
@@ -105,6 +96,27 @@ def open_hardware_robot(scenario: Scenario) -> AclRobot:
             EncoderTable.from_config(settings.encoders, base=default_encoders(settings.model))
     except ValueError as exc:  # InputError, or a value of the wrong type
         raise ConfigError(f"{where}: {exc}") from None
+    return settings
+
+
+def open_hardware_robot(scenario: Scenario) -> AclRobot:
+    """The scenario's robot on the hardware path: an ``AclRobot`` with its ``StereoCamera``.
+
+    From the scenario: ``robot.model`` (nominal model: joint ranges, ``model_name``),
+    ``robot.hardware.port`` / ``baudrate`` / ``xonxoff`` / ``cameras``, ``robot.hardware.options``
+    (any further ``AclSettings`` key, e.g. ``query_timeout_s``, ``speed``, ``encoders``) and
+    ``camera.resolution`` (frames of another size are refused). Without ``options.encoders`` the
+    table is ``default_encoders(model)``. On opening, the controller must answer a bare CR with a
+    prompt (``connect_check``).
+
+    Raises:
+        ConfigError: an option that is unknown, belongs elsewhere, or contradicts the scenario
+            (the message names the scenario file and the key).
+        AclConnectionError: the port cannot be opened or nothing answers on it (the message
+            names the URL and what to check).
+        CameraError: a camera source cannot be opened or gives no frame.
+    """
+    settings = scenario_settings(scenario)
     try:
         return AclRobot.from_settings(settings)
     except AclConnectionError as exc:

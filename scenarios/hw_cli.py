@@ -22,20 +22,18 @@ import json
 import signal
 import threading
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from calib.errors import InputError
-from calib.tomlfile import read_toml
-from hw.acl_robot import AclRobot
-from hw.emulator import AclEmulator
-from hw.emulator_backends import KinematicBackend
 from scenarios.cli_common import add_deprecated, add_json, parse_floats
-from scenarios.config import DEFAULT_ROBOT, load_scenario
-from scenarios.emulate_faults import CLI_FAULTS, acquisition_fault, choose_fault
-from scenarios.emulator_backend import SimEmulatorBackend
-from scenarios.hardware import hardware_settings
+from scenarios.defaults import DEFAULT_ROBOT
 from scenarios.progress import Progress
 
+if TYPE_CHECKING:
+    from hw.acl_robot import AclRobot
+
+# Heavy modules (scipy, OpenCV, MuJoCo, the pipeline) are imported by the functions that use
+# them, so that `selfcal --help` builds every command's parser without loading them.
 __all__ = ["register", "load_toml", "EMULATOR_DEFAULTS", "emulator_from_config"]
 
 EMULATOR_DEFAULTS: dict[str, Any] = {
@@ -57,6 +55,8 @@ EMULATOR_DEFAULTS: dict[str, Any] = {
 def load_toml(path: str | Path) -> dict[str, Any]:
     """Read a TOML file; ``InputError`` names the file on a missing or unreadable file or a
     syntax error (:func:`calib.tomlfile.read_toml`, the reader of every TOML input)."""
+    from calib.tomlfile import read_toml
+
     return read_toml(path, InputError, what="config file")
 
 
@@ -77,6 +77,8 @@ def _add_conn_args(p: argparse.ArgumentParser) -> None:
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``hw {joints,home,move}`` and ``emulate`` to an argparse subparsers object."""
+    from scenarios.emulate_faults import CLI_FAULTS
+
     hw = subparsers.add_parser("hw", help="the real robot over ACL (serial)")
     hw_sub = hw.add_subparsers(dest="hw_command", required=True)
 
@@ -132,6 +134,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _open_robot(args: argparse.Namespace) -> AclRobot:
+    from hw.acl_robot import AclRobot
+    from scenarios.hardware import hardware_settings
+
     config = load_toml(args.config) if args.config else {"port": args.port}
     robot = config.get("robot") if isinstance(config.get("robot"), dict) else {}
     named = robot.get("model") or (robot.get("hardware") or {}).get("model")
@@ -216,6 +221,11 @@ def emulator_from_config(
     Raises:
         InputError: unknown keys; ``ConfigError`` (an ``InputError``) for a bad scenario.
     """
+    from hw.emulator import AclEmulator
+    from hw.emulator_backends import KinematicBackend
+    from scenarios.config import load_scenario
+    from scenarios.emulator_backend import SimEmulatorBackend
+
     config = dict(config or {})
     table = dict(config.get("emulator", {}))
     table.update({k: v for k, v in (overrides or {}).items() if v is not None})
@@ -251,6 +261,9 @@ def _is_scenario_file(config: dict[str, Any]) -> bool:
 
 
 def _cmd_emulate(args: argparse.Namespace, stop_event: threading.Event | None = None) -> int:
+    from scenarios.config import load_scenario
+    from scenarios.emulate_faults import acquisition_fault, choose_fault
+
     overrides = {
         "tcp_port": getattr(args, "tcp_port", None),
         "frames_dir": getattr(args, "frames_dir", None),

@@ -52,6 +52,7 @@ from scenarios.montecarlo_journal import JOURNAL, DrawJournal, draw_key
 from scenarios.montecarlo_report import plot, summary_markdown
 from scenarios.montecarlo_stats import summarize
 from scenarios.parallel import run_tasks
+from scenarios.pipeline import dithered
 from scenarios.progress import Progress, TaskCounts
 
 __all__ = ["draw_one", "run_montecarlo", "write_csv"]
@@ -83,11 +84,7 @@ def _acquire(settings: dict, root: Path):
     if settings.get("joints_deg") is not None:
         planned = np.asarray(settings["joints_deg"], dtype=float)
     if settings.get("dither", True):
-        rng = np.random.default_rng(int(settings["seed"]) + 104_729)
-        cpd = np.asarray(setup.robot.counts_per_unit, dtype=float) * np.pi / 180.0
-        planned = planned + rng.uniform(-0.5, 0.5, planned.shape) / cpd
-        lo, hi = np.degrees(setup.robot.limits).T
-        planned = np.clip(planned, lo, hi)
+        planned = dithered(planned, setup.robot, int(settings["seed"]))
     info = dataclasses.replace(info, planned_joints_deg=planned)
     writer = DatasetWriter(root, info)
     robot, hooks = open_robot(s, root, setup)

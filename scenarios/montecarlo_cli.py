@@ -7,15 +7,17 @@ import argparse
 import json
 
 from scenarios.cli_common import add_json, add_scenario_arg, note_written
-from scenarios.cluster import add_cluster_args
-from scenarios.montecarlo import run_montecarlo
-from scenarios.montecarlo_report import summary_markdown
-from scenarios.plan_comparison import plans_markdown, run_plan_comparison
 
+# Heavy modules (scipy, OpenCV, MuJoCo, the pipeline) are imported by the functions that use
+# them, so that `selfcal --help` builds every command's parser without loading them.
 __all__ = ["register"]
 
 
 def _cmd(args: argparse.Namespace) -> int:
+    from scenarios.montecarlo import run_montecarlo
+    from scenarios.montecarlo_report import summary_markdown
+    from scenarios.plan_comparison import plans_markdown, run_plan_comparison
+
     args.out = args.out or ("runs/montecarlo-plans" if args.plans else "runs/montecarlo")
     if args.plans:
         res = run_plan_comparison(
@@ -44,6 +46,8 @@ def _cmd(args: argparse.Namespace) -> int:
 def register(subparsers) -> argparse.ArgumentParser:
     """Add ``selfcal montecarlo [SCENARIO] [--draws N] [--out DIR] [--jobs N | --cluster ADDRESS]
     [--poses P] [--pixel-sigma S]``."""
+    from scenarios.cluster import add_cluster_args
+
     sp = subparsers.add_parser(
         "montecarlo",
         help="Monte Carlo of both calibration methods against the Cramer-Rao bound",

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from scenarios.montecarlo_stats import METHODS
-from scenarios.plotting import pyplot
+from scenarios.plotting import legend_outside, pyplot
 
 __all__ = ["summary_markdown", "plot"]
 
@@ -77,7 +77,7 @@ def plot(rows: list[dict], s: dict, path: Path) -> None:
     ok = [r for r in rows if r.get("status") == "ok"]
     if not ok:
         return
-    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4.2), constrained_layout=True)
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(14, 4.2), constrained_layout=True)
     b = s["tool_tip_bound_mm"]
     bins = np.linspace(0, max(max(r["two_stage_tip_rms_mm"] for r in ok), 3 * b), 30)
     for m, c in (("joint", "tab:red"), ("two_stage", "tab:blue")):
@@ -92,7 +92,7 @@ def plot(rows: list[dict], s: dict, path: Path) -> None:
     a1.set_xlabel("validation tool-tip RMS after alignment (mm)")
     a1.set_ylabel("draws")
     a1.set_title(f"{len(ok)} noise draws, one truth")
-    a1.legend(fontsize=8)
+    legend_outside(a1)
     names = list(s["joint"]["param_ratios"])
     x = np.arange(len(names))
     a2.bar(
@@ -110,6 +110,6 @@ def plot(rows: list[dict], s: dict, path: Path) -> None:
     a2.set_xticks(x, names, rotation=90, fontsize=7)
     a2.set_ylabel("RMS error / bound")
     a2.set_title("parameters (reference-camera frame)")
-    a2.legend(fontsize=8)
+    legend_outside(a2)
     fig.savefig(path, dpi=110)
     plt.close(fig)

@@ -12,27 +12,19 @@ import argparse
 import json
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from calib.board_dataset import calibrate_board_dataset
-from calib.calibrate import CalibrationFailedError
-from calib.camera import MODELS, opencv_values
-from calib.evaluate import evaluate_board, write_evaluation
-from calib.evaluate_field import evaluate_field
-from calib.import_dataset import DEFAULT_FREE, DEFAULT_MODEL, CameraImages, import_dataset
-from calib.io.board_calibration import (
-    BoardCalibrationResult,
-    calibration_kind,
-    read_board_calibration,
-    write_board_calibration,
-)
-from calib.io.calibration import read_calibration
-from calib.io.dataset import Dataset
-from calib.io.tracker import JOINT_UNITS
 from scenarios.cli_common import CliError, add_json, note_written
 from scenarios.cli_log import get_logger
-from scenarios.pipeline import run_calibrate
 from scenarios.ros_cli import add_import_args as add_bag_import_args
 from scenarios.ros_cli import cmd_import_bag
+
+if TYPE_CHECKING:
+    from calib.io.board_calibration import BoardCalibrationResult
+
+
+# Heavy modules (scipy, OpenCV, MuJoCo, the pipeline) are imported by the functions that use
+# them, so that `selfcal --help` builds every command's parser without loading them.
 
 _log = get_logger(__name__)
 
@@ -45,16 +37,32 @@ def _say(quiet: bool, text: str) -> None:
 
 
 def calibrate_any(
-    root: Path, *, quiet: bool = False, method: str = "joint", allow_missing_frames: bool = False
+    root: Path,
+    *,
+    quiet: bool = False,
+    method: str = "joint",
+    allow_missing_frames: bool = False,
+    figures: bool = False,
 ) -> None:
     """Calibrate the dataset in ``root`` by its target and write ``root/calibration.json``:
-    the field -> :func:`scenarios.pipeline.run_calibrate`; a board -> the board calibration."""
+    the field -> :func:`scenarios.pipeline.run_calibrate`; a board -> the board calibration.
+    ``figures``: also ``root/figures/reprojection.png``."""
+    from calib.board_dataset import calibrate_board_dataset
+    from calib.evaluate import evaluate_board
+    from calib.io.board_calibration import write_board_calibration
+    from calib.io.dataset import Dataset
+    from scenarios.pipeline import reprojection_figures, run_calibrate
+
     info = Dataset.open(root).info
     if info.board is None:
-        run_calibrate(root, quiet=quiet, method=method, allow_missing_frames=allow_missing_frames)
+        run_calibrate(root, quiet=quiet, method=method, allow_missing_frames=allow_missing_frames,
+                      figures=figures)  # fmt: skip
         return
     res = calibrate_board_dataset(root, allow_missing_frames=allow_missing_frames)
     write_board_calibration(Path(root) / "calibration.json", res)
+    if figures:
+        ev = evaluate_board(res, str(Path(root) / "calibration.json"), root)
+        _say(quiet, f"figure: {reprojection_figures(root, ev)}")
     for text in res.warnings:
         _log.warning("%s", text)
     _say(quiet, summary(res))
@@ -62,6 +70,8 @@ def calibrate_any(
 
 def summary(res: BoardCalibrationResult) -> str:
     """One line on a board calibration."""
+    from calib.camera import opencv_values
+
     c = res.cameras[0]
     v = opencv_values(c)
     lens = "".join(f", {n} = {v[n]:.4g}" for n in c.free if n in v and n[0] in "kp")
@@ -80,6 +90,10 @@ def cmd_import(args: argparse.Namespace) -> int:
         return cmd_import_bag(args)
     if not args.images or not args.joints or not args.joint_units:
         raise CliError("import needs --images, --joints and --joint-units (or --bag)")
+
+    from calib.choices import DEFAULT_MODEL
+    from calib.import_dataset import CameraImages, import_dataset
+
     cams = [CameraImages.parse(s, default_name=f"cam{k}") for k, s in enumerate(args.images)]
     info = import_dataset(
         args.robot, cams, args.joints, args.joint_units, args.target, args.out,
@@ -97,6 +111,12 @@ def cmd_import(args: argparse.Namespace) -> int:
 
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
+    from calib.calibrate import CalibrationFailedError
+    from calib.evaluate import evaluate_board, write_evaluation
+    from calib.evaluate_field import evaluate_field
+    from calib.io.board_calibration import calibration_kind, read_board_calibration
+    from calib.io.calibration import read_calibration
+
     cal_path = Path(args.calibration)
     cal_dir = cal_path if cal_path.is_dir() else cal_path.parent
     if calibration_kind(cal_path) == "board":
@@ -121,6 +141,8 @@ file-name order, or by the image column. Target TOML: docs/targets.md. See docs/
 
 def register(subparsers) -> None:
     """Add ``import`` and ``evaluate`` to the ``selfcal`` subcommands."""
+    from calib.choices import CAMERA_MODELS, DEFAULT_FREE, JOINT_UNITS
+
     sp = subparsers.add_parser(
         "import",
         help="your own images + joint readings + board -> a dataset folder (no truth)",
@@ -147,7 +169,7 @@ def register(subparsers) -> None:
         help="degrees that stay within +-6.3 deg are degrees (skip the radians-looking check)",
     )  # fmt: skip
     sp.add_argument(
-        "--camera-model", default=None, choices=tuple(MODELS),
+        "--camera-model", default=None, choices=CAMERA_MODELS,
         help="the cameras' model (default opencv: Brown-Conrady distortion, what a real lens "
         "needs; a pinhole fitted to a distorting lens is biased; fisheye for wide angles; "
         "with --bag: from a calibrated camera_info if there is one)",

@@ -5,16 +5,26 @@ paper's Fig. 3 beside the simulation's (and what the paper could not show: error
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from scenarios.paper_data import AXES
-from scenarios.plotting import pyplot, save_figure
+from scenarios.plotting import legend_outside, pyplot, save_figure
 
-__all__ = ["fig3"]
+__all__ = ["fig3", "fig3_figure"]
 
 
 def fig3(path: Path, rows: list[dict]) -> None:
+    """Draw :func:`fig3_figure` of ``rows`` into ``path``."""
+    fig = fig3_figure(rows)
+    save_figure(fig, path, dpi=110)
+    pyplot().close(fig)
+
+
+def fig3_figure(rows: list[dict]) -> Any:
+    """The figure of ``fig3.png``: ``rows`` are the Table IV rows of ``selfcal paper`` (one per
+    position and axis, errors in mm). Legends beside the panels, outside the data."""
     plt = pyplot()
 
     def grid(key: str) -> np.ndarray:
@@ -23,7 +33,7 @@ def fig3(path: Path, rows: list[dict]) -> None:
             a[r["position"] - 1, AXES.index(r["axis"][-1])] = r[key]
         return a
 
-    fig, axs = plt.subplots(2, 2, figsize=(12, 8), constrained_layout=True)
+    fig, axs = plt.subplots(2, 2, figsize=(14, 8), constrained_layout=True)
     pos = np.arange(1, 6)
     w = 0.26
     colors = ("tab:blue", "tab:orange", "tab:green")
@@ -51,7 +61,7 @@ def fig3(path: Path, rows: list[dict]) -> None:
             xytext=(8, -30),
             fontsize=8,
         )
-    axs[0, 0].legend(fontsize=8)
+    legend_outside(axs[0, 0])
     bars(
         axs[0, 1],
         grid("error_measured_minus_desired"),
@@ -77,10 +87,9 @@ def fig3(path: Path, rows: list[dict]) -> None:
     ax.set_title(
         "(d) ours, against the simulator's truth (what the paper could not show)", fontsize=10
     )
-    ax.legend(fontsize=8, loc="center right", framealpha=0.9)
+    legend_outside(ax)
     ax.grid(axis="y", alpha=0.3, which="both")
     for a in axs[0, 1], axs[1, 0]:
-        a.legend(fontsize=8)
+        legend_outside(a)
     fig.suptitle("Tool-tip position errors per position and axis (paper Fig. 3 and simulation)")
-    save_figure(fig, path, dpi=110)
-    plt.close(fig)
+    return fig

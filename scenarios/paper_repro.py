@@ -36,39 +36,28 @@ import json
 import sys
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from calib.ik import nearest_reachable
-from calib.io.calibration import CalibrationResult
-from calib.io.dataset import DatasetWriter, read_dataset_info
-from calib.io.truth import Truth, read_truth
-from calib.kinematics import fk_nominal
-from calib.report import aligned_errors, tool_tips
-from calib.robot_def import load_robot
-from calib.transforms import inv_pose, kabsch
-from scenarios.acquire import acquire
-from scenarios.backends import open_robot, plan_dataset, sim_setup
 from scenarios.cli_common import add_json, note_written
-from scenarios.config import ConfigError, load_scenario
-from scenarios.paper_checks import paper_inconsistencies
-from scenarios.paper_data import (
-    AXES,
-    PAPER_TABLE_III_MM,
-    PAPER_TABLE_IV,
-    TABLE_II_MM,
-    TABLE_II_THETA4_DEG,
-    table_ii_postures,
-)
-from scenarios.paper_report import write_outputs
-from scenarios.pipeline import run_calibrate, run_report
 from scenarios.progress import Progress
 
+if TYPE_CHECKING:
+    from calib.io.calibration import CalibrationResult
+    from calib.io.truth import Truth
+
+
+# Heavy modules (scipy, OpenCV, MuJoCo, the pipeline) are imported by the functions that use
+# them, so that `selfcal --help` builds every command's parser without loading them.
 __all__ = ["reproduce", "register"]
 
 
 def _theta4_held_distances(robot) -> np.ndarray:
     """Distance (mm) from each Table II row to the reachable set with theta4, theta5 as printed."""
+    from calib.ik import nearest_reachable
+    from scenarios.paper_data import TABLE_II_MM, TABLE_II_THETA4_DEG
+
     fixed = {3: np.radians(TABLE_II_THETA4_DEG), 4: 0.0}
     return np.array([nearest_reachable(robot, p / 1000, fixed)[1] * 1000 for p in TABLE_II_MM])
 
@@ -76,6 +65,10 @@ def _theta4_held_distances(robot) -> np.ndarray:
 # ------------------------------------------------------------------------------------- run
 def _acquire_with_postures(s, root: Path, q_deg: np.ndarray, quiet: bool) -> None:
     """Acquire the scenario's dataset with ``q_deg`` (k, n) prepended to its trajectory."""
+    from calib.io.dataset import DatasetWriter
+    from scenarios.acquire import acquire
+    from scenarios.backends import open_robot, plan_dataset, sim_setup
+
     setup = sim_setup(s)
     info = plan_dataset(s, setup)
     planned = np.vstack([np.round(q_deg, 6), info.planned_joints_deg])
@@ -98,6 +91,8 @@ def _camera_measured_tips(
     as the reference frame, whose recovered pose is the identity) is favoured. Returns the tips
     (NaN for unregistered frames) and the RMS of that registration (mm).
     """
+    from calib.transforms import kabsch
+
     cp = cal.camera_poses
     pose_of = dict(zip(cp.frame_index, cp.T_world_cam_left_m))
     true_of = {f.frame_index: f.T_world_cam_left for f in truth.frames}
@@ -128,6 +123,24 @@ def reproduce(out: str | Path, config: str | Path | None = None, *, quiet: bool 
     Raises:
         ConfigError: the scenario is not a simulated er4u-paper robot.
     """
+    from calib.io.dataset import read_dataset_info
+    from calib.io.truth import read_truth
+    from calib.kinematics import fk_nominal
+    from calib.report import aligned_errors, tool_tips
+    from calib.robot_def import load_robot
+    from calib.transforms import inv_pose
+    from scenarios.config import ConfigError, load_scenario
+    from scenarios.paper_checks import paper_inconsistencies
+    from scenarios.paper_data import (
+        AXES,
+        PAPER_TABLE_III_MM,
+        PAPER_TABLE_IV,
+        TABLE_II_MM,
+        table_ii_postures,
+    )
+    from scenarios.paper_report import write_outputs
+    from scenarios.pipeline import run_calibrate, run_report
+
     t0 = time.perf_counter()
     out = Path(out)
     s = load_scenario(config)

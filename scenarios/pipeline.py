@@ -1,11 +1,17 @@
 """The commands behind ``selfcal acquire | calibrate | report | run``.
 
 Data flows one way: robot -> dataset on disk -> calibration.json -> report.json. ``calibrate``
-never opens ``truth.json``; ``report`` does, and only in simulation.
+never opens ``truth.json``; ``report`` does when there is one (simulation: tool-tip errors on the
+validation postures, ``validation.csv``, parameters against truth), and without it reports what
+the data says (:mod:`scenarios.report_fit`). With ``figures=True`` (the commands) they also draw
+``DIR/figures/*.png`` (:mod:`scenarios.job_figures`).
 """
 
 from __future__ import annotations
 
+import csv
+import dataclasses
+import io
 import sys
 import time
 from pathlib import Path
@@ -15,7 +21,14 @@ import numpy as np
 from calib.alignment import express_in_frame
 from calib.calibrate import CalibrationFailedError, calibrate
 from calib.camera import CameraModel
+from calib.evaluate import Evaluation, evaluate_board
+from calib.evaluate_field import evaluate_field
 from calib.io.atomic import write_text_atomic
+from calib.io.board_calibration import (
+    BoardCalibrationResult,
+    calibration_kind,
+    read_board_calibration,
+)
 from calib.io.calibration import CalibrationResult, read_calibration, write_calibration
 from calib.io.dataset import Dataset, DatasetError, DatasetWriter
 from calib.io.jsonfile import write_json_atomic
@@ -27,12 +40,32 @@ from scenarios.acquire import acquire
 from scenarios.backends import open_robot, plan_dataset, sim_setup
 from scenarios.cli_log import get_logger
 from scenarios.config import Scenario
+from scenarios.job_figures import (
+    parameter_figure,
+    reprojection_figure,
+    tool_tip_figure,
+    write_figure,
+)
 from scenarios.paper_data import TABLE_II_MM, table_ii_postures
 from scenarios.progress import Progress
+from scenarios.report_fit import (
+    board_fit_report,
+    figure_links,
+    fit_markdown,
+    fit_report,
+    parameter_markdown,
+)
 
 _log = get_logger(__name__)
 
-__all__ = ["run_acquire", "run_calibrate", "run_report", "report_summary", "run_all"]
+__all__ = [
+    "run_acquire",
+    "run_calibrate",
+    "run_report",
+    "report_summary",
+    "run_all",
+    "dithered",
+]
 
 
 def _say(quiet: bool, text: str) -> None:
@@ -40,10 +73,32 @@ def _say(quiet: bool, text: str) -> None:
         print(text, file=sys.stderr)
 
 
-def run_acquire(s: Scenario, out: Path, *, resume: bool = False, quiet: bool = False) -> Path:
-    """Acquire the scenario's dataset into ``out`` (resumable)."""
+def dithered(planned_deg: np.ndarray, robot, seed: int) -> np.ndarray:
+    """The postures ``planned_deg`` (m, n) deg moved by a uniform random fraction of one
+    encoder count of ``robot`` (draw ``seed``), within the joint limits: in a Monte Carlo the
+    read-back rounding errors become a fresh uniform draw instead of the same in every draw."""
+    rng = np.random.default_rng(int(seed) + 104_729)
+    cpd = np.asarray(robot.counts_per_unit, dtype=float) * np.pi / 180.0
+    q = np.asarray(planned_deg, dtype=float)
+    lo, hi = np.degrees(robot.limits).T
+    return np.clip(q + rng.uniform(-0.5, 0.5, q.shape) / cpd, lo, hi)
+
+
+def run_acquire(
+    s: Scenario,
+    out: Path,
+    *,
+    resume: bool = False,
+    quiet: bool = False,
+    dither_seed: int | None = None,
+) -> Path:
+    """Acquire the scenario's dataset into ``out`` (resumable). ``dither_seed`` (simulation):
+    move the planned postures by a random fraction of an encoder count (:func:`dithered`)."""
     setup = sim_setup(s) if s.robot.backend == "sim" else None
     info = plan_dataset(s, setup)
+    if dither_seed is not None and setup is not None:
+        q = dithered(np.asarray(info.planned_joints_deg), setup.robot, dither_seed)
+        info = dataclasses.replace(info, planned_joints_deg=q)
     writer = DatasetWriter(out, info, resume=resume)
     robot, hooks = open_robot(s, out, setup)
     try:
@@ -61,10 +116,12 @@ def run_calibrate(
     method: str = "joint",
     allow_missing_frames: bool = False,
     raise_failed: bool = True,
+    figures: bool = False,
 ) -> CalibrationResult:
     """Calibrate the dataset in ``root`` and write ``root/calibration.json``; returns the
     result. Its warnings are printed (unless ``quiet``). ``raise_failed=False``: return a
     calibration marked failed as well (studies, which measure it against the truth).
+    ``figures``: also ``root/figures/reprojection.png`` (:func:`reprojection_figures`).
 
     Raises:
         CalibrationFailedError: the calibration failed a check of :mod:`calib.quality`; it is
@@ -73,6 +130,8 @@ def run_calibrate(
     res = calibrate(root, progress=Progress("detect", enabled=not quiet), method=method,
                     allow_missing_frames=allow_missing_frames)  # fmt: skip
     path = write_calibration(Path(root) / "calibration.json", res)
+    if figures:
+        _say(quiet, f"figure: {reprojection_figures(root, evaluate_field(res, root, root))}")
     i = res.intrinsics
     for text in res.warnings:
         _log.warning("%s", text)
@@ -88,20 +147,29 @@ def run_calibrate(
     return res
 
 
-def run_report(root: Path, *, quiet: bool = False) -> dict:
-    """Compare the calibration with the simulator's truth: ``root/report.json`` and ``report.md``."""
+def reprojection_figures(root: Path, ev: Evaluation) -> Path:
+    """``root/figures/reprojection.png`` from the dataset's own images predicted from their
+    joint readings (``ev``: :func:`calib.evaluate_field.evaluate_field` of the dataset with
+    its calibration)."""
+    return write_figure(reprojection_figure(ev, "calibration images"), root, "reprojection.png")
+
+
+def run_report(root: Path, *, quiet: bool = False, figures: bool = False) -> dict:
+    """``root/report.json`` and ``report.md``: with ``truth.json`` (simulation) the calibration
+    against the truth and ``root/validation.csv`` (per validation posture); without it the fit,
+    a held-out check, the sigmas and the identifiability (:mod:`scenarios.report_fit`).
+    ``figures``: also the figures (:mod:`scenarios.job_figures`), linked from ``report.md``."""
     root = Path(root)
     ds = Dataset.open(root)
     cal_path = root / "calibration.json"
     if not cal_path.is_file():
         raise DatasetError(f"{cal_path} is missing: run `selfcal calibrate {root}` first")
+    if calibration_kind(cal_path) == "board":
+        return _board_report(root, read_board_calibration(cal_path), quiet=quiet, figures=figures)
+    cal = read_calibration(cal_path)
     truth_path = root / "truth.json"
     if not truth_path.is_file():
-        raise DatasetError(
-            f"{truth_path} is missing: a report compares with ground truth, which only the "
-            "simulator has (hardware datasets have no truth.json)"
-        )
-    cal = read_calibration(cal_path)
+        return _report_without_truth(root, cal, quiet=quiet, figures=figures)
     truth = read_truth(truth_path)
     robot = load_robot(ds.info.robot_model)
     est = cal.model
@@ -198,6 +266,16 @@ def run_report(root: Path, *, quiet: bool = False) -> dict:
         ),
         "table_iv": table_iv,
     }
+    write_text_atomic(root / "validation.csv", _validation_csv(qv, err_nom, err_cal))
+    drawn = []
+    if figures:
+        drawn = [
+            write_figure(tool_tip_figure(err_nom["errors_mm"], err_cal["errors_mm"]), root,
+                         "tool_tip_errors.png"),
+            reprojection_figures(root, evaluate_field(cal, root, root)),
+            write_figure(parameter_figure(params), root, "parameters.png"),
+        ]  # fmt: skip
+    report["figures"] = [str(p.relative_to(root)) for p in drawn]
     write_json_atomic(root / "report.json", report)
     md = _markdown(report)
     write_text_atomic(root / "report.md", md)
@@ -208,9 +286,68 @@ def run_report(root: Path, *, quiet: bool = False) -> dict:
     return report
 
 
+def _report_without_truth(
+    root: Path, cal: CalibrationResult, *, quiet: bool, figures: bool
+) -> dict:
+    drawn = [reprojection_figures(root, evaluate_field(cal, root, root))] if figures else []
+    return _write_fit_report(root, fit_report(root, cal), drawn, quiet=quiet)
+
+
+def _board_report(root: Path, cal: BoardCalibrationResult, *, quiet: bool, figures: bool) -> dict:
+    ev = evaluate_board(cal, str(root / "calibration.json"), root) if figures else None
+    drawn = [] if ev is None else [reprojection_figures(root, ev)]
+    return _write_fit_report(root, board_fit_report(root, cal), drawn, quiet=quiet)
+
+
+def _write_fit_report(root: Path, report: dict, drawn: list[Path], *, quiet: bool) -> dict:
+    report["figures"] = [str(p.relative_to(root)) for p in drawn]
+    failures = list(report.get("failures", []))
+    rms = report["held_out"].get("reprojection_rms_px")
+    if rms is not None and rms["calibrated"] > rms["nominal"]:
+        failures.append(
+            f"the held-out reprojection of the calibrated model ({rms['calibrated']:.3f} px) is "
+            f"worse than the nominal reference's ({rms['nominal']:.3f} px): do not use it"
+        )
+    report["status"], report["failures"] = ("failed" if failures else "ok"), failures
+    write_json_atomic(root / "report.json", report)
+    md = fit_markdown(report, report["figures"])
+    write_text_atomic(root / "report.md", md)
+    _say(quiet, md)
+    return report
+
+
+def _validation_csv(qv: np.ndarray, err_nom: dict, err_cal: dict) -> str:
+    """``validation.csv``: per validation posture its joints (deg) and the tool-tip error
+    vectors and norms (mm, after the best rigid alignment) of the nominal and calibrated model."""
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    n = qv.shape[1] if qv.ndim == 2 else 0
+    axes = ("x", "y", "z")
+    w.writerow(["posture", *(f"q{j + 1}_deg" for j in range(n)),
+                *(f"nominal_e{a}_mm" for a in axes), "nominal_mm",
+                *(f"calibrated_e{a}_mm" for a in axes), "calibrated_mm"])  # fmt: skip
+    for k in range(len(qv)):
+        row: list = [k + 1, *(f"{v:.6f}" for v in np.degrees(qv[k]))]
+        for e in (err_nom["errors_mm"][k], err_cal["errors_mm"][k]):
+            row += [f"{v:.6f}" for v in e] + [f"{np.linalg.norm(e):.6f}"]
+        w.writerow(row)
+    return buf.getvalue()
+
+
 def report_summary(report: dict, root: Path) -> str:
     """The one line ``selfcal report`` prints on success: validation tool-tip errors (mm RMS,
-    calibrated and nominal, and the bound when computed) and where the report is."""
+    calibrated and nominal, and the bound when computed) and where the report is; without truth
+    the held-out reprojection RMS (px)."""
+    if report.get("kind") == "fit":
+        h = report["held_out"]
+        if "error" in h:
+            held = f"no held-out check ({h['error']})"
+        else:
+            r = h["reprojection_rms_px"]
+            held = (f"held-out reprojection {r['calibrated']:.3f} px RMS calibrated, "
+                    f"{r['nominal']:.3f} px nominal over {h['images']} images ({h['source']})")  # fmt: skip
+        return (f"report (no truth): fit {report['fit']['reprojection_rms_px']:.3f} px RMS; "
+                f"{held}; {Path(root) / 'report.json'}")  # fmt: skip
     v = report["validation"]
     t = v["tool_tip_error_mm"]
     bound = v.get("tool_tip_bound_mm")
@@ -259,7 +396,14 @@ def _markdown(r: dict) -> str:
         f"(truth {mu['truth']:.6f}); scale factor k = {r['scale_factor']:.6g}; reprojection RMS "
         f"{r['reprojection_rms_px']:.3f} px ({r['observation']}).",
         "",
-        r["validation"]["note"] + ".",
+        r["validation"]["note"] + ". Per posture: validation.csv.",
+        "",
+        "## Parameters",
+        "",
+        parameter_markdown(r["parameters"], truth=True),
+        "",
+        r["parameters_note"] + ".",
+        *figure_links(r.get("figures", [])),
         "",
     ]
     if r["table_iv"]:
@@ -276,20 +420,30 @@ def _markdown(r: dict) -> str:
 
 
 def run_all(
-    s: Scenario, out: Path, *, resume: bool = False, quiet: bool = False, method: str = "joint"
+    s: Scenario,
+    out: Path,
+    *,
+    resume: bool = False,
+    quiet: bool = False,
+    method: str = "joint",
+    figures: bool = True,
 ) -> dict:
-    """Acquire, calibrate and (in simulation) report; prints a summary."""
+    """Acquire, calibrate and (in simulation) report; prints a summary. ``figures``: the
+    report's figures in ``out/figures/``."""
     t0 = time.perf_counter()
     run_acquire(s, out, resume=resume, quiet=quiet)
+    # without truth (hardware) there is no report: the calibration draws what it can
     try:
-        cal = run_calibrate(out, quiet=quiet, method=method)
+        cal = run_calibrate(
+            out, quiet=quiet, method=method, figures=figures and s.robot.backend != "sim"
+        )
     except CalibrationFailedError:
         if s.robot.backend == "sim":
             run_report(out, quiet=True)  # report.json marked failed as well
         raise
     result = {"calibration": cal}
     if s.robot.backend == "sim":
-        rep = run_report(out, quiet=True)
+        rep = run_report(out, quiet=True, figures=figures)
         result["report"] = rep
         v = rep["validation"]["tool_tip_error_mm"]
         print(
@@ -299,6 +453,8 @@ def run_all(
             f"fx {cal.intrinsics.fx:.2f} px; total {time.perf_counter() - t0:.1f} s; "
             f"details in {out}/report.md"
         )
+        for f in rep["figures"]:
+            _say(quiet, f"figure: {out / f}")
         if rep["failures"]:
             raise CalibrationFailedError.of(tuple(rep["failures"]), out / "report.json")
     return result

@@ -26,7 +26,7 @@ from calib.transforms import inv_pose
 from scenarios.backends import SimSetup, plan_dataset, plan_optimal, planning_inputs, sim_setup
 from scenarios.config import load_scenario
 from scenarios.montecarlo import run_montecarlo, write_csv
-from scenarios.plotting import pyplot, save_figure
+from scenarios.plotting import legend_outside, pyplot, save_figure
 
 __all__ = [
     "sim_fisher_setup",
@@ -239,7 +239,7 @@ _ACHIEVED = (
 def _plot_plans(res: dict, path: Path) -> None:
     plt = pyplot()
 
-    fig, ax = plt.subplots(figsize=(7, 4.5), constrained_layout=True)
+    fig, ax = plt.subplots(figsize=(10, 4.5), constrained_layout=True)
     for kind, c in (("random", "tab:blue"), ("optimal", "tab:red")):
         rr = [x for x in res["bounds"] if x["plan"] == kind]
         ns = sorted({x["poses"] for x in rr})
@@ -264,6 +264,6 @@ def _plot_plans(res: dict, path: Path) -> None:
     ax.set_ylabel("validation tool-tip RMS after alignment (mm)")
     ax.set_title("D-optimal against random postures (0.5 px, encoder read-back)")
     ax.grid(alpha=0.3, which="both")
-    ax.legend(fontsize=7)
+    legend_outside(ax, fontsize=7)
     save_figure(fig, path, dpi=110)
     plt.close(fig)

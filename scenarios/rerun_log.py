@@ -27,30 +27,18 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
-from calib.calibrate import detect_dataset
-from calib.camera import Rig
 from calib.errors import InputError
-from calib.estimation.reprojection import reprojection_residuals
-from calib.estimation.triangulation import triangulate
-from calib.io.calibration import read_calibration
-from calib.io.dataset import Dataset, DatasetError
-from calib.io.truth import read_truth
-from calib.kinematics import fk_tool
-from calib.mcpc import nominal_mcpc
-from calib.observations import Observations
-from calib.report import kabsch
-from calib.robot_def import load_robot
-from calib.target import CORNERS_PER_MARKER, marker_corner, marker_features
-from calib.transforms import inv_pose
 from scenarios.cli_common import note_written
-from sim.markers import MarkerField, make_marker_field
-from sim.posed_geometry import PosedGeometry
-from sim.robot_mjcf import RigConfig
 
+if TYPE_CHECKING:
+    from sim.posed_geometry import PosedGeometry
+
+# Heavy modules (scipy, OpenCV, MuJoCo, the pipeline) are imported by the functions that use
+# them, so that `selfcal --help` builds every command's parser without loading them.
 __all__ = ["record_run", "register"]
 
 _GT_COLOR = (40, 200, 80, 255)
@@ -58,11 +46,14 @@ _EST_COLOR = (230, 60, 200, 255)
 
 
 def _quat_xyzw(R: np.ndarray) -> np.ndarray:
+    from scipy.spatial.transform import Rotation
+
     return Rotation.from_matrix(np.asarray(R).reshape(-1, 3, 3)).as_quat()
 
 
 def _archetypes(geo: PosedGeometry, ids: list[int]) -> dict[str, object]:
     """Rerun archetypes for the geoms ``ids`` of ``geo`` at its current posture, by shape."""
+
     import rerun as rr  # optional, ~0.6 s to import: only when recording
 
     out: dict[str, object] = {}
@@ -143,6 +134,24 @@ def record_run(dataset_dir: str | Path, rrd_path: str | Path | None, spawn: bool
         DatasetError: missing dataset or calibration files (the message names the fix).
     """
     import rerun as rr  # optional, ~0.6 s to import: only when recording
+
+    from calib.calibrate import detect_dataset
+    from calib.camera import Rig
+    from calib.estimation.reprojection import reprojection_residuals
+    from calib.estimation.triangulation import triangulate
+    from calib.io.calibration import read_calibration
+    from calib.io.dataset import Dataset, DatasetError
+    from calib.io.truth import read_truth
+    from calib.kinematics import fk_tool
+    from calib.mcpc import nominal_mcpc
+    from calib.observations import Observations
+    from calib.report import kabsch
+    from calib.robot_def import load_robot
+    from calib.target import CORNERS_PER_MARKER, marker_corner, marker_features
+    from calib.transforms import inv_pose
+    from sim.markers import MarkerField, make_marker_field
+    from sim.posed_geometry import PosedGeometry
+    from sim.robot_mjcf import RigConfig
 
     root = Path(dataset_dir)
     ds = Dataset.open(root)

@@ -9,10 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
-from calib.bag_export import JOINT_TOPIC, export_bag
-from calib.bag_import import ImageTopic, import_bag
 from calib.bag_rest import RestRule
-from calib.io.rosbag import FORMATS as BAG_FORMATS
+from calib.choices import BAG_FORMATS, JOINT_TOPIC
 from scenarios.cli_common import CliError
 
 __all__ = ["BAG_FORMATS", "add_import_args", "cmd_import_bag", "add_export_args",
@@ -49,6 +47,8 @@ def add_import_args(sp: argparse.ArgumentParser) -> None:
 
 def cmd_import_bag(args: argparse.Namespace) -> int:
     """``selfcal import --bag``."""
+    from calib.bag_import import ImageTopic, import_bag
+
     if args.images or args.joints:
         raise CliError("--bag replaces --images and --joints: give one or the other")
     if not args.image_topic:
@@ -80,6 +80,8 @@ def add_export_args(sp: argparse.ArgumentParser) -> None:
 
 def cmd_export_bag(args: argparse.Namespace) -> int:
     """``selfcal export DATASET --bag OUT [--format ros1|ros2|mcap]``."""
+    from calib.bag_export import export_bag
+
     if args.out:
         raise CliError("--bag writes the dataset as a bag; --out exports a calibration: give one")
     if args.format is not None and args.format not in BAG_FORMATS:
@@ -91,6 +93,8 @@ def cmd_export_bag(args: argparse.Namespace) -> int:
 
 def export_run(dataset: Path, bag: str, quiet: bool) -> None:
     """``selfcal run --bag OUT``: the run's dataset as a bag (format from OUT's suffix)."""
+    from calib.bag_export import export_bag
+
     res = export_bag(dataset, bag)
     if not quiet:
         print(f"ROS bag ({res.format}): {res.path} ({res.frames} frames)")

@@ -38,17 +38,27 @@ import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from calib.errors import InputError
 from scenarios.cli_common import add_json, note_written
-from scenarios.cluster import DEFAULT_RETRIES, add_cluster_args
-from scenarios.parallel import run_tasks
-from scenarios.progress import Progress, TaskCounts
-from scenarios.study_defs import STUDIES
-from scenarios.study_runs import COLUMNS, failed_row, load_runs, run_one, settings_key
-from scenarios.study_summary import summarize
+from scenarios.cluster import DEFAULT_RETRIES
+from scenarios.progress import Progress
+
+if TYPE_CHECKING:
+    pass
 
 __all__ = ["run_study", "register"]
+
+# The runs (calibrations, the simulator) are imported by the functions that use them, so that
+# `selfcal --help` builds this command's parser without them.
+
+
+def run_one(settings: dict) -> dict:
+    """One run of a study: :func:`scenarios.study_runs.run_one` (imported when a study runs)."""
+    from scenarios.study_runs import run_one as run
+
+    return run(settings)
 
 
 # ------------------------------------------------------------------------------------ driver
@@ -84,6 +94,12 @@ def run_study(
     Raises:
         InputError: unknown study or budget; no Dask or no scheduler with ``cluster``.
     """
+    from scenarios.parallel import run_tasks
+    from scenarios.progress import TaskCounts
+    from scenarios.study_defs import STUDIES
+    from scenarios.study_runs import COLUMNS, failed_row, load_runs, settings_key
+    from scenarios.study_summary import plotted, summarize, worse_than_nominal
+
     if name == "all":
         rows = []
         for n in STUDIES:
@@ -154,11 +170,14 @@ def run_study(
         raise
     finally:
         fh.close()
-    summarize(name, rows, out)
+    res = summarize(name, rows, out)
+    for text in worse_than_nominal(study, res):
+        print(f"warning: study {name}: {text}", file=sys.stderr)
     if not quiet:
+        drawn = f"plot {out / (name + '.png')}" if plotted(res) else "one setting: table only"
         print(
-            f"study {name}: {len(rows)} run(s) in {csv_path}; plot {out / (name + '.png')}; "
-            f"{time.perf_counter() - t0:.1f} s",
+            f"study {name}: {len(rows)} run(s) in {csv_path}; table {out / (name + '.md')}; "
+            f"{drawn}; {time.perf_counter() - t0:.1f} s",
             file=sys.stderr,
         )
     return rows
@@ -196,6 +215,9 @@ def _cmd(args: argparse.Namespace) -> int:
 
 def register(subparsers) -> argparse.ArgumentParser:
     """Add ``selfcal study NAME --budget quick|full --out DIR [--jobs N | --cluster ADDRESS]``."""
+    from scenarios.cluster import add_cluster_args
+    from scenarios.study_defs import STUDIES
+
     sp = subparsers.add_parser(
         "study",
         help="run many calibrations (seeds x settings) in parallel: CSV + plots",

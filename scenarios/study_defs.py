@@ -11,8 +11,8 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from scenarios.study_runs import settings_key
-
+# Heavy modules (scipy, OpenCV, MuJoCo, the pipeline) are imported by the functions that use
+# them, so that `selfcal --help` builds every command's parser without loading them.
 __all__ = ["BASE", "Study", "STUDIES"]
 
 BASE = {
@@ -85,6 +85,8 @@ def _observation_rendered(budget, _rows):
 
 
 def _observation_analytic(budget, rows):
+    from scenarios.study_runs import settings_key
+
     out = []
     for st in _observation_rendered(budget, rows):
         match = [r for r in rows if r["key"] == settings_key(st) and r["status"] == "ok"]

@@ -1,17 +1,23 @@
 """The outputs of a study (``scenarios.studies``): ``<name>.md`` and ``<name>.png`` from its
 rows: the median and inter-quartile range over seeds of the validation tool-tip RMS per setting.
+
+A study whose runs cover one setting only (the quick ``observation`` study) gets the table and no
+plot: a curve of one point says nothing a table does not. Where the calibrated median is worse
+than the nominal model's (the ``noise`` study at high noise), ``<name>.md`` says so and
+:func:`worse_than_nominal` names the settings for the command to warn about.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from scenarios.plotting import pyplot
+from scenarios.plotting import legend_outside, pyplot, save_figure
 from scenarios.study_defs import STUDIES, Study
 
-__all__ = ["summarize"]
+__all__ = ["summarize", "study_figure", "worse_than_nominal", "plotted"]
 
 
 def _stats(v: list[float]) -> tuple[float, float, float]:
@@ -52,8 +58,31 @@ def summarize(name: str, rows: list[dict], out: str | Path) -> dict:
             else:
                 res.setdefault(s, {})[x] = {"n": 0, "failed": c["failed"]}
     _write_md(study, res, out / f"{name}.md")
-    _plot(study, res, rows, out / f"{name}.png")
+    png = out / f"{name}.png"
+    if plotted(res):
+        fig = study_figure(study, res, rows)
+        save_figure(fig, png, dpi=110)
+        pyplot().close(fig)
+    else:
+        png.unlink(missing_ok=True)  # a plot of an earlier, wider run of the study is stale
     return res
+
+
+def plotted(res: dict) -> bool:
+    """Whether a study's table ``res`` (of :func:`summarize`) is drawn: it has results at two
+    or more settings."""
+    return len({x for xs in res.values() for x, c in xs.items() if c["n"]}) >= 2
+
+
+def worse_than_nominal(study: Study, res: dict) -> list[str]:
+    """One sentence per setting where the calibrated median is above the nominal model's."""
+    return [
+        f"{_series_label(study, s)} at {study.x} = {x}: calibrated median {c['cal_median']:.3f} "
+        f"mm is worse than the nominal model's {c['nom_median']:.3f} mm"
+        for s, xs in res.items()
+        for x, c in xs.items()
+        if c["n"] and c["cal_median"] > c["nom_median"]
+    ]
 
 
 def _series_label(study: Study, s: str) -> str:
@@ -84,13 +113,21 @@ def _write_md(study: Study, res: dict, path: Path) -> None:
                 )
             else:
                 lines.append(f"| {_series_label(study, s)} | {x} | 0 | {c['failed']} | | | | | |")
+    worse = worse_than_nominal(study, res)
+    if worse:
+        lines += ["", "**Warning**: calibration made the model worse here:", ""]
+        lines += [f"- {w}" for w in worse]
+    if not plotted(res):
+        lines += ["", "One setting only: a table, no plot."]
     path.write_text("\n".join(lines) + "\n")
 
 
-def _plot(study: Study, res: dict, rows: list[dict], path: Path) -> None:
+def study_figure(study: Study, res: dict, rows: list[dict]) -> Any:
+    """The figure of ``<name>.png``: medians, inter-quartile ranges and runs against the swept
+    setting, and the nominal model's median; the legend beside the axes."""
     plt = pyplot()
 
-    fig, ax = plt.subplots(figsize=(7, 4.5), constrained_layout=True)
+    fig, ax = plt.subplots(figsize=(9, 4.5), constrained_layout=True)
     colors = {"all": "tab:red", "True": "tab:blue", "False": "tab:orange"}
     offsets = {"True": -0.1, "False": 0.1} if study.series else {"all": 0.0}
     nom_x, nom_y = [], []
@@ -142,6 +179,5 @@ def _plot(study: Study, res: dict, rows: list[dict], path: Path) -> None:
     ax.set_title(f"study '{study.name}': error after calibration vs {study.x}")
     ax.grid(alpha=0.3, which="both")
     if ax.get_legend_handles_labels()[0]:  # nothing to label when every run failed
-        ax.legend(fontsize=8)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+        legend_outside(ax)
+    return fig

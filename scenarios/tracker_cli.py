@@ -16,30 +16,18 @@ import argparse
 import json
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from calib.io.atomic import write_text_atomic
-from calib.io.tracker import (
-    JOINT_UNITS,
-    positions_csv,
-    read_distances,
-    read_joints,
-    read_measurements,
-    write_positions,
-)
-from calib.io.tracker_calibration import (
-    from_result,
-    is_tracker_calibration,
-    read_tracker_calibration,
-    write_tracker_calibration,
-)
-from calib.mcpc import nominal_mcpc
-from calib.robot_def import load_robot
-from calib.tracker_identify import TrackerMeasurements, identify_tracker
 from scenarios.cli_common import CliError, add_json, note_written
 from scenarios.cli_log import get_logger
 
+if TYPE_CHECKING:
+    from calib.tracker_identify import TrackerMeasurements
+
+# Heavy modules (scipy, OpenCV, MuJoCo, the pipeline) are imported by the functions that use
+# them, so that `selfcal --help` builds every command's parser without loading them.
 __all__ = ["register", "cmd_identify", "cmd_predict"]
 
 IDENTIFY_HELP = """\
@@ -61,6 +49,8 @@ TRUST_HELP = (
 
 
 def _out_dir(path: str) -> Path:
+    from calib.io.tracker_calibration import is_tracker_calibration
+
     out = Path(path)
     if out.exists() and not out.is_dir():
         raise CliError(f"--out {out}: exists and is not a folder", fix="give a folder")
@@ -76,6 +66,7 @@ def _out_dir(path: str) -> Path:
 
 def _residuals_csv(table, res, meas: TrackerMeasurements) -> str:
     """Model minus measurement of every position / pose row, tracker frame, mm."""
+
     r = (res.predict(meas.q) - meas.xyz) * 1e3
     lines = ["row,line,dx_mm,dy_mm,dz_mm,error_mm"]
     for i, (line, e) in enumerate(zip(table.lines, r)):
@@ -84,6 +75,13 @@ def _residuals_csv(table, res, meas: TrackerMeasurements) -> str:
 
 
 def cmd_identify(args: argparse.Namespace) -> int:
+    from calib.io.atomic import write_text_atomic
+    from calib.io.tracker import read_distances, read_measurements
+    from calib.io.tracker_calibration import from_result, write_tracker_calibration
+    from calib.mcpc import nominal_mcpc
+    from calib.robot_def import load_robot
+    from calib.tracker_identify import TrackerMeasurements, identify_tracker
+
     robot = load_robot(args.robot)
     guess = not args.trust_units
     meas, table = read_measurements(args.measurements, robot, args.joint_units, guess=guess)
@@ -171,6 +169,9 @@ def _identify_json(res, meas: TrackerMeasurements, cal, path: Path) -> dict:
 
 
 def cmd_predict(args: argparse.Namespace) -> int:
+    from calib.io.tracker import positions_csv, read_joints, write_positions
+    from calib.io.tracker_calibration import read_tracker_calibration
+
     src = Path(args.calibration)
     path = src / "calibration.json" if src.is_dir() else src
     if not path.is_file():
@@ -192,6 +193,8 @@ def cmd_predict(args: argparse.Namespace) -> int:
 
 def register(sub) -> None:
     """Add ``identify`` and ``predict`` to the ``selfcal`` sub-command parsers ``sub``."""
+    from calib.choices import JOINT_UNITS
+
     sp = sub.add_parser(
         "identify",
         help="fit the kinematics to tracker measurements -> DIR/calibration.json",

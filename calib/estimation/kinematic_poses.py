@@ -133,7 +133,8 @@ class KinematicPoses:
 
     def rigs(self, p: np.ndarray) -> np.ndarray:
         """``T_cam_first`` (N - 1, 4, 4) of every further camera."""
-        return np.stack([self.rig(p, c) for c in range(1, self.layout.n_cameras)])
+        rigs = [self.rig(p, c) for c in range(1, self.layout.n_cameras)]
+        return np.stack(rigs) if rigs else np.zeros((0, 4, 4))
 
     def poses(self, p: np.ndarray) -> np.ndarray:
         T = np.full((self.n_views, 4, 4), np.nan)

@@ -67,10 +67,12 @@ def _model_from(f: Fields) -> MCPCModel:
     return MCPCModel(f.array("params_si", (n + 1, 6)), types, f.array("joint_offsets_rad", (n,)))
 
 
-def camera_json(name: str, cam: CameraModel, std: dict[str, float]) -> dict:
+def camera_json(
+    name: str, cam: CameraModel, std: dict[str, float], T_first_camera: np.ndarray | None = None
+) -> dict:
     """One ``cameras`` entry: its model, every parameter by OpenCV's name (``fx, fy, cx, cy``
     px, ``mu`` besides, then the lens coefficients ``k1, k2, p1, p2, k3 ...``), the free ones'
-    std, the first camera's frame."""
+    std, its pose in the first camera's frame (m; default the identity)."""
     params = opencv_values(cam)
     params["mu"] = float(cam.values()[1])
     return {
@@ -80,7 +82,7 @@ def camera_json(name: str, cam: CameraModel, std: dict[str, float]) -> dict:
         "parameters": params,
         "free": list(cam.free),
         "std": {k: float(v) for k, v in std.items()},
-        "T_first_camera": np.eye(4).tolist(),
+        "T_first_camera": (np.eye(4) if T_first_camera is None else T_first_camera).tolist(),
     }
 
 
@@ -101,6 +103,8 @@ class BoardCalibrationResult:
     skipped_images: tuple[str, ...] = ()
     held: tuple[str, ...] = ()
     warnings: tuple[str, ...] = ()
+    T_first_cam: np.ndarray | None = None
+    """(N, 4, 4) every camera's pose in the first camera's frame (m); None: one camera."""
 
     def to_json(self) -> dict:
         """The document (key order fixed)."""
@@ -111,8 +115,10 @@ class BoardCalibrationResult:
             "world_frame": WORLD_FRAME,
             "target": dict(self.target),
             "cameras": [
-                camera_json(n, c, s)
-                for n, c, s in zip(self.camera_names, self.cameras, self.camera_std)
+                camera_json(n, c, s, None if self.T_first_cam is None else self.T_first_cam[k])
+                for k, (n, c, s) in enumerate(
+                    zip(self.camera_names, self.cameras, self.camera_std, strict=True)
+                )
             ],
             "mcpc": _model_json(self.model, f"camera {self.camera_names[0]} (OpenCV frame)"),
             "nominal_mcpc": _model_json(self.nominal_model, "the same camera, nominal chain"),
@@ -132,8 +138,9 @@ class BoardCalibrationResult:
         err = BoardCalibrationFileError
         check_header(doc, where, fmt=FORMAT, version=SCHEMA_VERSION, fix=_FIX, error=err)
         f = Fields(doc, where, _FIX, error=err)
-        cams, names, stds = [], [], []
+        cams, names, stds, Ts = [], [], [], []
         for c in f.items("cameras"):
+            Ts.append(c.array("T_first_camera", (4, 4)))
             model = c.str("model")
             if model not in MODELS:
                 raise c.bad("model", f"one of {tuple(MODELS)}", model)
@@ -163,6 +170,7 @@ class BoardCalibrationResult:
             skipped_images=d.strs("skipped_images"),
             held=f.strs("held"),
             warnings=f.strs("warnings"),
+            T_first_cam=np.stack(Ts) if len(Ts) > 1 else None,
         )
 
 

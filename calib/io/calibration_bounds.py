@@ -12,7 +12,17 @@ from dataclasses import dataclass, field
 from calib.io.calibration_blocks import UNITS
 from calib.io.jsonblock import JsonBlock
 
-__all__ = ["EstimateBound", "ToolTipBound", "BoundParameter", "Bounds", "BOUNDS_NOTE"]
+__all__ = [
+    "EstimateBound",
+    "ToolTipBound",
+    "BoundParameter",
+    "Bounds",
+    "BOUNDS_NOTE",
+    "SIGMA_SOURCES",
+]
+
+SIGMA_SOURCES = ("residuals", "detector")
+"""The possible sources of the bounds' corner noise (:attr:`Bounds.pixel_sigma_source`)."""
 
 
 @dataclass(frozen=True)
@@ -75,3 +85,9 @@ class Bounds(JsonBlock):
     note: str = BOUNDS_NOTE
     camera: dict[str, float] = field(default_factory=dict)
     """The bound of every free camera parameter by name (px or unitless)."""
+    pixel_sigma_source: str = field(default="residuals", metadata={"choices": SIGMA_SOURCES})
+    """Where ``pixel_sigma_px`` comes from: ``"detector"``, the marker detector's own estimate
+    from the scatter of the edge points about the fitted marker sides
+    (:func:`calib.target.aruco_detect.detect_markers_noise`; a bias that shifts whole sides or
+    a model error does not enter it, docs/accuracy.md), or ``"residuals"``, the final fit's
+    residuals, dof-corrected (stored detections, images detected through a lens)."""

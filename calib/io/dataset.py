@@ -5,7 +5,8 @@ Layout of ``DIR``::
     dataset.json        robot model, the cameras (name and resolution of each, N >= 1), the target
                         (the ArUco field with its scale marker ids and d, or a board by its
                         target TOML keys), the planned trajectory and validation postures (deg),
-                        observation kind, image suffix
+                        observation kind, image suffix, provenance (the scenario's digest or the
+                        imported files): nothing the calibration must not know
     joints.csv          one row per frame taken: index, joint read-back (deg)
     frames/NNNN_CAMERA.png   one image per camera and frame (images path; CAMERA is the camera's
                         name, the suffix dataset.json's ``image_suffix``)
@@ -16,6 +17,10 @@ Schema 2 (written) lists ``cameras`` as ``[{"name": ..., "resolution": [W, H]}, 
 the target a ``type``; schema 1 (still read) had one ``camera.resolution`` shared by the stereo
 pair ``left``/``right`` and an ArUco field as the target.
 
+Datasets written before ``provenance`` existed carry the whole acquiring scenario under
+``scenario`` (with the simulator's true camera and its seeds); the reader keeps only its digest
+(:func:`scenario_digest`), so such a dataset still resumes with the same scenario.
+
 A frame counts as taken once its row is in ``joints.csv``: images are written first (atomically,
 via a temporary file and rename), detections are appended and flushed, and the joints row comes
 last. An interrupted acquisition therefore keeps every complete frame, and a resumed one drops any
@@ -25,6 +30,8 @@ partial rows of the frame that was being written.
 from __future__ import annotations
 
 import csv
+import hashlib
+import json
 import os
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -55,6 +62,7 @@ __all__ = [
     "write_dataset_info",
     "read_gray",
     "read_joints_csv",
+    "scenario_digest",
     "CAMERAS",
     "FORMAT",
     "SCHEMA_VERSION",
@@ -89,7 +97,11 @@ class DatasetInfo:
     planned_joints_deg: np.ndarray
     validation_joints_deg: np.ndarray
     backend: str = "sim"
-    scenario: dict = field(default_factory=dict)
+    provenance: dict = field(default_factory=dict)
+    """How the dataset was made, without what the calibration must not know: a simulated or
+    hardware acquisition ``{"scenario_sha256": scenario_digest(...)}`` (what resuming compares),
+    an import the files it read. Never the scenario itself (true camera, seeds): truth lives in
+    ``truth.json`` alone."""
     camera_model: str = "pinhole"
     """The cameras' model by name (:data:`calib.camera.MODELS`)."""
     camera_free: tuple[str, ...] = ("fx", "mu")
@@ -102,6 +114,9 @@ class DatasetInfo:
     """The target TOML document (mm) of a board; None: the ArUco field (``dictionary``,
     ``scale_ids`` and ``scale_length_m`` are then the field's; unused for a board)."""
     image_suffix: str = ".png"
+    camera_models: tuple[tuple[str, tuple[str, ...]], ...] | None = None
+    """(model, free parameters) of each camera; None: ``camera_model`` and ``camera_free`` for
+    all of them."""
     encoder_model: str | None = None
     """The robot file whose ``[encoder]`` table turned the joint read-back into ``joints.csv``
     (the controller's counts on hardware, the quantisation in simulation); None: not recorded
@@ -124,6 +139,14 @@ class DatasetInfo:
             raise DatasetError(f"cameras must be distinct names, got {list(self.cameras)}")
         if self.resolutions is not None and len(self.resolutions) != len(self.cameras):
             raise DatasetError("give one resolution per camera")
+        if self.camera_models is not None and len(self.camera_models) != len(self.cameras):
+            raise DatasetError("give one camera model per camera")
+
+    def model_of(self, camera: str) -> tuple[str, tuple[str, ...]]:
+        """(model name, free parameters) of ``camera``."""
+        if self.camera_models is None:
+            return self.camera_model, tuple(self.camera_free)
+        return self.camera_models[self.cameras.index(camera)]
 
     @property
     def target_type(self) -> str:
@@ -159,8 +182,8 @@ class DatasetInfo:
                 {
                     "name": c,
                     "resolution": list(self.resolution_of(c)),
-                    "model": self.camera_model,
-                    "free": list(self.camera_free),
+                    "model": self.model_of(c)[0],
+                    "free": list(self.model_of(c)[1]),
                 }
                 for c in self.cameras
             ],
@@ -169,7 +192,7 @@ class DatasetInfo:
             "image_suffix": self.image_suffix,
             "trajectory_joints_deg": np.asarray(self.planned_joints_deg).tolist(),
             "validation_joints_deg": np.asarray(self.validation_joints_deg).tolist(),
-            "scenario": self.scenario,
+            "provenance": self.provenance,
         }
 
     @classmethod
@@ -222,14 +245,16 @@ class DatasetInfo:
         observation = f.str("observation")
         if observation not in OBSERVATIONS:
             raise f.bad("observation", f"one of {OBSERVATIONS}", observation)
-        models = {_camera_model(c) for c in cam_blocks}
-        if len(models) != 1:
-            raise f.bad("cameras", "cameras of one model and one set of free parameters (per-"
-                        "camera models are not supported yet)", sorted(models))  # fmt: skip
-        model, free = models.pop()
-        scenario = f.raw("scenario") if f.has("scenario") else {}
-        if not isinstance(scenario, dict):
-            raise f.bad("scenario", "an object", scenario)
+        per_camera = tuple(_camera_model(c) for c in cam_blocks)
+        model, free = per_camera[0]
+        provenance = f.raw("provenance") if f.has("provenance") else {}
+        if not isinstance(provenance, dict):
+            raise f.bad("provenance", "an object", provenance)
+        if f.has("scenario"):  # written before provenance existed: keep only the digest
+            scenario = f.raw("scenario")
+            if not isinstance(scenario, dict):
+                raise f.bad("scenario", "an object", scenario)
+            provenance = {**provenance, "scenario_sha256": scenario_digest(scenario)}
         suffix = f.str("image_suffix") if f.has("image_suffix") else ".png"
         return cls(
             robot_model=f.str("robot_model"),
@@ -241,13 +266,14 @@ class DatasetInfo:
             observation=observation,
             planned_joints_deg=planned,
             validation_joints_deg=valid,
-            scenario=scenario,
+            provenance=provenance,
             camera_model=model,
             camera_free=tuple(free),
             cameras=cams,
             resolutions=None if len(set(res)) == 1 else res,
             board=board,
             image_suffix=suffix,
+            camera_models=None if len(set(per_camera)) == 1 else per_camera,
             encoder_model=f.str("encoder_model") if f.has("encoder_model") else None,
         )
 
@@ -290,15 +316,22 @@ def write_dataset_info(path: str | Path, info: DatasetInfo) -> Path:
     return write_json_atomic(path, info.to_json())
 
 
+def scenario_digest(scenario: dict) -> str:
+    """SHA-256 (hex) of an acquiring scenario as plain data (``scenarios.config.scenario_to_dict``)
+    without how the hardware is reached (``robot.hardware``: a controller may come back on another
+    port, cameras under other device names). What ``dataset.json`` keeps of the scenario: it tells
+    whether a resumed acquisition uses the same one and reveals none of its values."""
+    doc = json.loads(json.dumps(scenario))  # JSON types: tuples -> lists, as once stored
+    if isinstance(doc.get("robot"), dict):
+        doc["robot"] = {k: v for k, v in doc["robot"].items() if k != "hardware"}
+    return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()
+
+
 def _resume_key(info: DatasetInfo) -> str:
-    """What must match to resume a dataset: everything but how the hardware is reached (a
-    controller may come back on another port, cameras under other device names)."""
+    """What must match to resume a dataset: all of ``dataset.json`` (the scenario by its digest,
+    which leaves out how the hardware is reached)."""
     doc = info.to_json()
     doc.pop("encoder_model", None)  # = robot_model when recorded; older datasets lack it
-    scenario = {**doc["scenario"]}
-    if isinstance(scenario.get("robot"), dict):
-        scenario["robot"] = {k: v for k, v in scenario["robot"].items() if k != "hardware"}
-    doc["scenario"] = scenario
     return dumps(doc)
 
 

@@ -25,6 +25,7 @@ from typing import Any, TypeVar
 import cv2
 import numpy as np
 
+from calib.choices import BAG_FORMATS
 from calib.errors import InputError
 
 __all__ = [
@@ -45,7 +46,7 @@ __all__ = [
     "stamp_ns",
 ]
 
-FORMATS = ("ros1", "ros2", "mcap")
+FORMATS = BAG_FORMATS
 """Bag formats: ROS 1 ``.bag``, ROS 2 folder with sqlite3 storage, ROS 2 mcap (folder or file)."""
 RAW_TYPE = "sensor_msgs/msg/Image"
 COMPRESSED_TYPE = "sensor_msgs/msg/CompressedImage"

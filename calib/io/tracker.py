@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from calib.choices import JOINT_UNITS
 from calib.errors import InputError
 from calib.estimation.tracker import TrackerMeasurements
 from calib.io.atomic import write_text_atomic
@@ -48,7 +49,6 @@ __all__ = [
     "TrackerFileError",
 ]
 
-JOINT_UNITS = ("deg", "rad")
 XYZ = ("x_mm", "y_mm", "z_mm")
 QUAT = ("qw", "qx", "qy", "qz")
 _MIN_ROWS_FOR_UNIT_GUESS = 5

@@ -38,11 +38,17 @@ never opens it. All lengths in metres, angles in radians unless a key says ``_de
     }
 
 Files from before ``schema_version`` existed are read as version 1.
+
+During an acquisition the frames go to the journal ``truth_frames.jsonl`` beside it (one frame
+object a line, appended: O(1) a frame; :func:`append_truth_frame`) and ``truth.json`` is written
+once at the start and once at the end; a resumed acquisition folds a journal left by a killed
+one back in (:func:`with_journal`).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import json
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -322,6 +328,43 @@ def write_truth(path: str | Path, truth: Truth) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     return write_json_atomic(path, truth.to_json())
+
+
+TRUTH_JOURNAL = "truth_frames.jsonl"
+"""The journal of an acquisition's truth frames, beside ``truth.json`` (see the module docstring)."""
+
+
+def append_truth_frame(path: str | Path, frame: TruthFrame) -> None:
+    """Append ``frame`` as one JSON line to the journal at ``path`` (flushed)."""
+    with open(path, "a") as fh:
+        fh.write(json.dumps(frame.to_json()) + "\n")
+        fh.flush()
+
+
+def with_journal(truth: Truth, path: str | Path) -> Truth:
+    """``truth`` with the frames of the journal at ``path`` added in order (as
+    :meth:`Truth.with_frame`; a trailing partial line, from a killed process, is ignored).
+
+    Raises:
+        TruthFileError: a complete line that is not a frame object (named by its line number).
+    """
+    path = Path(path)
+    if not path.is_file():
+        return truth
+    text = path.read_text()
+    n = len(truth.joint_types)
+    for k, line in enumerate(text.splitlines(keepends=True)):
+        if not line.endswith("\n"):
+            break
+        where = f"{path} line {k + 1}"
+        try:
+            doc = json.loads(line)
+        except json.JSONDecodeError as exc:
+            raise TruthFileError(f"{where}: not JSON ({exc})", fix=_FIX) from None
+        fr = TruthFrame.from_json(Fields(doc, where, _FIX, error=TruthFileError), n)
+        record = {k_: getattr(fr, k_) for k_ in _FRAME_ARRAYS}
+        truth = truth.with_frame(record, frame_index=fr.frame_index)
+    return truth
 
 
 def read_truth(path: str | Path) -> Truth:

@@ -12,7 +12,7 @@ from collections.abc import Sequence
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.linalg import splu
+from scipy.sparse.linalg import ArpackError, eigsh, splu
 
 from calib.solver.linear import DENSE_MAX
 from calib.solver.problem import Problem
@@ -63,11 +63,24 @@ def covariance(
 
 def scaled_rank(J: sp.spmatrix | np.ndarray, rtol: float = 1e-9) -> tuple[float, int]:
     """``(s_min / s_max, rank)`` of the unit-column-scaled ``J``: the smallest relative singular
-    value and the numerical rank (singular values above ``rtol s_max``); dense eigenvalues of
-    ``J^T J``, for problems of a few thousand unknowns at most."""
+    value and the numerical rank (singular values above ``rtol s_max``), from the eigenvalues of
+    ``J^T J``: all of them densely up to :data:`calib.solver.linear.DENSE_MAX` unknowns; above,
+    only the largest and (shift-invert Lanczos on the sparse matrix, linear in the postures of a
+    bundle adjustment) the smallest, and all densely only when that one is below the rank
+    threshold (a rank-deficient problem, which the callers refuse)."""
     J = sp.csr_matrix(J)
-    JtJ = (J.T @ J).toarray()
-    dg = np.sqrt(np.maximum(np.diag(JtJ), 1e-300))
-    ev = np.linalg.eigvalsh(JtJ / np.outer(dg, dg))
+    JtJ = (J.T @ J).tocsc()
+    dg = np.sqrt(np.maximum(JtJ.diagonal(), 1e-300))
+    if JtJ.shape[0] > DENSE_MAX:
+        Dinv = sp.diags(1.0 / dg)
+        M = (Dinv @ JtJ @ Dinv).tocsc()
+        try:
+            top = eigsh(M, k=1, which="LA", return_eigenvectors=False)[0]
+            low = eigsh(M, k=1, sigma=0.0, which="LM", return_eigenvectors=False)[0]
+        except (RuntimeError, ArpackError):  # singular at the shift: rank deficient
+            top = low = 0.0
+        if top > 0 and low > (rtol**2) * top:
+            return float(np.sqrt(low / top)), int(JtJ.shape[0])
+    ev = np.linalg.eigvalsh(JtJ.toarray() / np.outer(dg, dg))
     s = np.sqrt(np.clip(ev, 0.0, None))[::-1]
     return float(s[-1] / s[0]), int(np.sum(s > rtol * s[0]))

@@ -7,10 +7,11 @@ Three forms of ``A = J^T W J``, ``g = J^T W r`` (``W`` the per-row IRLS weights)
   problems, up to :data:`DENSE_MAX` unknowns);
 - ``sparse``: a CSC matrix from the sparse Jacobian, solved by SuperLU with COLAMD ordering;
 - ``schur``: the unknowns of one parameter block's *instances* (e.g. the camera poses) are
-  eliminated: the sparse ``A`` is split into ``[[U, W], [W^T, V]]`` with ``U`` block diagonal
-  (one small block per instance, since no residual row touches two instances), so each solve
-  factors the instance blocks and the dense reduced ``V - W^T U^-1 W`` (the kept unknowns, e.g.
-  intrinsics, rig and points) only: linear in the number of instances.
+  eliminated: ``A`` is assembled straight from the Jacobian pieces as ``[[U, W], [W^T, V]]``
+  with ``U`` block diagonal (one small block per instance, since no residual row touches two
+  instances), so each solve factors the instance blocks and the dense reduced
+  ``V - W^T U^-1 W`` (the kept unknowns, e.g. intrinsics, rig and points) only: assembly and
+  solve linear in the number of instances.
 
 Every form solves ``(S A S + lam I) y = S g`` with ``S = diag(A)^-1/2`` and returns ``S y``
 (Marquardt scaling, the damping of :mod:`calib.solver.lm`). Singular systems raise
@@ -66,8 +67,8 @@ class NormalEquations:
             return bool(np.isfinite(self.sparse_A.data).all())
         if self.kind == "dense":
             return bool(np.isfinite(self.dense_A).all())
-        U, W, _, _, _ = self.schur_parts
-        return bool(np.isfinite(U).all() and np.isfinite(W).all())
+        U, W, V, _, _ = self.schur_parts
+        return bool(np.isfinite(U).all() and np.isfinite(W).all() and np.isfinite(V).all())
 
     @property
     def dense_A(self) -> np.ndarray:
@@ -189,6 +190,20 @@ def _grouped(ps: list[_Piece], w: np.ndarray, n: int) -> list[_Piece]:
     return shared + merged([p for p in ps if not p.shared])
 
 
+def _accumulate(A: np.ndarray, B: np.ndarray | None, pieces: list[_Piece]) -> np.ndarray | None:
+    """Adds the products of ``pieces`` (one chunk of rows) to ``A`` (pairs of a piece with
+    itself) and ``B`` (pairs a < b, allocated on first use; the caller adds ``B + B^T``)."""
+    for i, a in enumerate(pieces):
+        for b in pieces[i:]:
+            if b is a:
+                _pair_products(A, a, b)
+                continue
+            if B is None:
+                B = np.zeros_like(A)
+            _pair_products(B, a, b)
+    return B
+
+
 def _dense_normal(
     problem: Problem, evals: Sequence[Evaluation], weights: Sequence[np.ndarray]
 ) -> NormalEquations:
@@ -209,16 +224,10 @@ def _dense_normal(
                 if G[sl].max() >= 0
             ]
             ps = _grouped(ps, w[sl], n)
-            for i, a in enumerate(ps):
+            for a in ps:
                 gr = np.einsum("kda,kd->ka", a.wJ, ev.residuals[sl])
                 g += np.bincount(a.G.ravel(), gr.ravel(), n)
-                for b in ps[i:]:
-                    if b is a:
-                        _pair_products(A, a, b)
-                        continue
-                    if B is None:
-                        B = np.zeros((n, n))
-                    _pair_products(B, a, b)
+            B = _accumulate(A, B, ps)
     if B is not None:
         A += B + B.T
     return NormalEquations("dense", n, g, A=A)
@@ -235,7 +244,7 @@ def _schur_layout(inst: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray,
     s = int(counts.max()) if len(ids) else 1
     order = np.argsort(inv, kind="stable")
     slot = np.empty(len(e), np.int64)
-    starts = np.r_[0, np.cumsum(counts)[:-1]]
+    starts = np.cumsum(counts) - counts
     slot[order] = np.arange(len(e)) - np.repeat(starts, counts)
     elim = -np.ones((len(ids), s), np.int64)
     elim[inv, slot] = e
@@ -248,35 +257,91 @@ def _schur_layout(inst: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray,
     return np.stack([slot_of, inst_of, kid]), elim, kept, np.array([len(ids), s, len(kept)])
 
 
+def _split_columns(
+    J: np.ndarray, G: np.ndarray, keep: np.ndarray
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """The columns of a piece (``J`` (k, d, c), ``G`` (k, c)) where ``keep`` (k, c): the others
+    zeroed / ``-1``, columns never kept dropped; None when nothing is kept."""
+    used = keep.any(axis=0)
+    if not used.any():
+        return None
+    J, G, keep = J[:, :, used], G[:, used], keep[:, used]
+    if not keep.all():
+        J = np.where(keep[:, None, :], J, 0.0)
+        G = np.where(keep, G, -1)
+    return J, G
+
+
+def _side_by_side(parts: list[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
+    if len(parts) == 1:
+        return parts[0]
+    return np.concatenate([p[0] for p in parts], axis=2), np.concatenate([p[1] for p in parts], 1)
+
+
 def _schur_normal(
     problem: Problem,
     evals: Sequence[Evaluation],
     weights: Sequence[np.ndarray],
     inst: np.ndarray,
 ) -> NormalEquations:
-    """The sparse ``J^T W J`` split into the instance blocks ``U``, the coupling ``W`` and the
-    kept block ``V`` (dense). Raises ``ValueError`` if a residual couples two instances."""
+    """``J^T W J`` straight from the Jacobian pieces as the instance blocks ``U`` (by per-row
+    products scattered into (I, s, s)), the coupling ``W`` (into (I, s, nk)) and the kept block
+    ``V`` (dense, as :func:`_dense_normal` over the kept columns): linear in the number of
+    instances. Raises ``ValueError`` if a residual row couples two instances."""
     n = problem.n
     (slot_of, inst_of, kid), elim, kept, (ni, s, nk) = _schur_layout(inst)
-    full = _sparse_normal(problem, evals, weights)
-    A = full.sparse_A.tocoo()
-    r, c, v = A.row, A.col, A.data
-    er, ec = inst[r] >= 0, inst[c] >= 0
-    ee = er & ec
-    if np.any(inst[r[ee]] != inst[c[ee]]):
-        raise ValueError(
-            "a residual block couples two instances of the eliminated parameter block; the "
-            "Schur elimination does not apply"
-        )
-    kk, ek = ~er & ~ec, er & ~ec
-    V = np.bincount(kid[r[kk]] * nk + kid[c[kk]], v[kk], nk * nk).reshape(nk, nk)
-    W = np.bincount(
-        (inst_of[r[ek]] * s + slot_of[r[ek]]) * nk + kid[c[ek]], v[ek], ni * s * nk
-    ).reshape(ni, s, nk)
-    U = np.bincount(
-        (inst_of[r[ee]] * s + slot_of[r[ee]]) * s + slot_of[c[ee]], v[ee], ni * s * s
-    ).reshape(ni, s, s)
-    return NormalEquations("schur", n, full.g, U=U, W=W, V=V, elim=elim, kept=kept)
+    inst_x = np.append(inst, -1)  # index -1 (no column) -> not eliminated
+    U = np.zeros(ni * s * s)
+    W = np.zeros(ni * s * nk)
+    V = np.zeros((nk, nk))
+    B: np.ndarray | None = None
+    g = np.zeros(n)
+    for ev, w in zip(evals, weights):
+        Gs = [problem.global_cols(pc) for pc in ev.pieces]
+        for sl in _chunks(len(ev.residuals)):
+            ws = w[sl]
+            e_parts: list[tuple[np.ndarray, np.ndarray]] = []
+            k_parts: list[tuple[np.ndarray, np.ndarray]] = []
+            for pc, Gf in zip(ev.pieces, Gs):
+                J, G = pc.J[sl], Gf[sl]
+                valid = G >= 0
+                if not valid.any():
+                    continue
+                gr = np.einsum("kda,kd->ka", J * ws[:, None, None], ev.residuals[sl])
+                g += np.bincount(G[valid], gr[valid], n)
+                is_e = valid & (inst_x[G] >= 0)
+                for parts, mask, G2 in ((e_parts, is_e, G), (k_parts, valid & ~is_e, kid[G])):
+                    part = _split_columns(J, G2, mask)
+                    if part is not None:
+                        parts.append(part)
+            kps = [_Piece(J, ws, G, nk) for J, G in k_parts]
+            B = _accumulate(V, B, _grouped(kps, ws, nk) if kps else [])
+            if not e_parts:
+                continue
+            Je, Ge = _side_by_side(e_parts)
+            valid = Ge >= 0
+            ie = np.where(valid, inst_of[Ge], -1)
+            row = ie.max(axis=1)
+            if np.any(valid & (ie != row[:, None])):
+                raise ValueError(
+                    "a residual block couples two instances of the eliminated parameter block; "
+                    "the Schur elimination does not apply"
+                )
+            base = np.maximum(row, 0)[:, None] * s + np.where(valid, slot_of[Ge], 0)  # (k, ce)
+            wJe = Je * ws[:, None, None]
+            L = np.matmul(wJe.transpose(0, 2, 1), Je)
+            U += np.bincount((base[:, :, None] * s + base[:, None, :] % s).ravel(), L.ravel(),
+                             ni * s * s)  # fmt: skip
+            if k_parts:
+                Jk, Kk = _side_by_side(k_parts)
+                L = np.matmul(wJe.transpose(0, 2, 1), Jk)
+                idx = base[:, :, None] * nk + np.where(Kk >= 0, Kk, 0)[:, None, :]
+                W += np.bincount(idx.ravel(), L.ravel(), ni * s * nk)
+    if B is not None:
+        V += B + B.T
+    return NormalEquations(
+        "schur", n, g, U=U.reshape(ni, s, s), W=W.reshape(ni, s, nk), V=V, elim=elim, kept=kept
+    )
 
 
 def assemble(
@@ -357,7 +422,11 @@ class DampedSystem:
 
     def _solve_schur(self, gs: np.ndarray, lam: float) -> np.ndarray:
         _, _, _, elim, kept = self.ne.schur_parts
-        ni, s, _ = self.Ws.shape
+        ni, s, nk = self.Ws.shape
+        if ni == 0:  # nothing eliminated: the kept block alone
+            y = np.empty_like(gs)
+            y[kept] = np.linalg.solve(self.Vs + lam * np.eye(nk), gs[kept])
+            return y
         Ud = self.Us + lam * np.eye(s)
         Ui = np.linalg.inv(Ud)
         e = elim >= 0

@@ -38,9 +38,17 @@ import cv2
 import numpy as np
 
 from calib.errors import SelfCalWarning
+from calib.target.marker_sides import (
+    MAX_LEVEL_DROP,
+    MAX_SIDE_SPREAD,
+    corner_sigma,
+    fit_lines,
+    sides_clean,
+)
 
 __all__ = [
     "detect_markers",
+    "detect_markers_noise",
     "aruco_dictionary",
     "to_gray",
     "REFINE_METHODS",
@@ -51,6 +59,8 @@ __all__ = [
     "foreshortening",
     "MIN_ASPECT",
     "MAX_LEVEL_DROP",
+    "MAX_SIDE_SPREAD",
+    "REFINE_PASSES",
 ]
 
 REFINE_METHODS = {
@@ -131,83 +141,15 @@ def refine_corners_lines(
 
 
 _STEP = 0.25  # px between samples across an edge
+
+REFINE_PASSES = 2
+"""Line refinements in a row: the first samples its edge profiles across the sides through the
+``subpix`` corners, which can be 0.1-0.5 px off on small or oblique markers, so the profile
+window is off-centre on the edge and the blur it cuts off biases the edge estimate; the second
+pass centres the profiles on the first pass's sides (rendered default scenario, noise-free,
+``python -m scenarios.diagnose_render``: corner RMS 0.038 -> 0.027 px with the side screening
+unchanged; a third pass changes nothing measurable)."""
 _REMAP_WIDTH = 4096  # cv2.remap maps must stay below 32767 px per dimension
-
-
-def _masked_median(v: np.ndarray, valid: np.ndarray) -> np.ndarray:
-    """Row-wise median of ``v`` (S, n) over ``valid`` entries (equals np.median of each row's
-    valid entries; rows need at least one)."""
-    srt = np.sort(np.where(valid, v, np.inf), axis=1)
-    cnt = valid.sum(axis=1)
-    rows = np.arange(len(v))
-    return 0.5 * (srt[rows, (cnt - 1) // 2] + srt[rows, cnt // 2])
-
-
-def _fit_lines(P: np.ndarray, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Total-least-squares lines through the valid points of each row of ``P`` (S, n, 2), then
-    twice: reject points beyond 3 MAD (+0.05 px) and refit. Returns unit normals (S, 2),
-    offsets (S,) (``n . x = d``) and a success mask (S,) (>= 4 points throughout)."""
-    ok = valid.sum(axis=1) >= 4
-    keep = valid.copy()
-
-    def tls(keep):
-        w = keep.astype(float)
-        cnt = np.maximum(w.sum(axis=1), 1.0)
-        m = np.einsum("sn,snk->sk", w, P) / cnt[:, None]
-        D = (P - m[:, None, :]) * w[..., None]
-        sxx = np.einsum("sn,sn->s", D[..., 0], D[..., 0])
-        syy = np.einsum("sn,sn->s", D[..., 1], D[..., 1])
-        sxy = np.einsum("sn,sn->s", D[..., 0], D[..., 1])
-        th = 0.5 * np.arctan2(2.0 * sxy, sxx - syy)  # direction of the line (largest spread)
-        n_line = np.stack([-np.sin(th), np.cos(th)], axis=1)
-        return m, n_line
-
-    for _ in range(2):
-        m, n_line = tls(keep)
-        res = np.einsum("snk,sk->sn", P - m[:, None, :], n_line)
-        med = _masked_median(res, keep | ~ok[:, None])
-        mad = 1.4826 * _masked_median(np.abs(res - med[:, None]), keep | ~ok[:, None])
-        keep &= np.abs(res) <= 3.0 * mad[:, None] + 0.05
-        ok &= keep.sum(axis=1) >= 4
-    m, n_line = tls(keep)
-    return n_line, np.einsum("sk,sk->s", n_line, m), ok
-
-
-MAX_LEVEL_DROP = 0.2
-"""Largest drop of a side's quiet-zone (white) level, or rise of its black-border level, below
-(above) the side's median, as a fraction of the side's median contrast, before the marker is
-rejected as occluded or bordered by a foreign edge (measured on the rendered default scenario,
-``python -m scenarios.diagnose_render``: neighbouring raised supports that cover a corner raise
-the affected side to 0.3-1; unoccluded sides stay below 0.05 without and 0.1 with 2 grey levels
-of image noise)."""
-
-
-def _sides_clean(
-    prof_side: np.ndarray,
-    j: np.ndarray,
-    white: np.ndarray,
-    black: np.ndarray,
-    valid: np.ndarray,
-    n_s: np.ndarray,
-) -> np.ndarray:
-    """(n, 4) bool: every profile of each side had contrast (``valid`` (S, max_s)) and the
-    side's white and black levels stay within :data:`MAX_LEVEL_DROP` of their medians.
-    ``prof_side``/``j``: side and sample index of each profile; ``white``/``black``: its levels;
-    ``n_s`` (n, 4): profiles per side."""
-    S, max_s = valid.shape
-    has = np.zeros((S, max_s), bool)
-    has[prof_side, j] = True
-    rows = has | ~np.any(has, axis=1, keepdims=True)
-    w = np.zeros((S, max_s))
-    w[prof_side, j] = white
-    b = np.zeros((S, max_s))
-    b[prof_side, j] = black
-    w_med, b_med = _masked_median(w, rows), _masked_median(b, rows)
-    c_med = np.maximum(w_med - b_med, 1e-6)
-    drop = (w_med - np.where(has, w, np.inf).min(axis=1)) / c_med
-    rise = (np.where(has, b, -np.inf).max(axis=1) - b_med) / c_med
-    full = valid.sum(axis=1) == n_s.ravel()
-    return (full & (drop <= MAX_LEVEL_DROP) & (rise <= MAX_LEVEL_DROP)).reshape(n_s.shape)
 
 
 def refine_corners_lines_batch(
@@ -217,17 +159,52 @@ def refine_corners_lines_batch(
     min_contrast: float = 20.0,
     *,
     screen: bool = True,
+    passes: int | None = None,
 ) -> np.ndarray:
     """:func:`refine_corners_lines` for all markers of one image at once: ``corners`` (n, 4, 2)
     -> (n, 4, 2), NaN rows for the markers it would return ``None`` for. All edge profiles of
     all markers are sampled by one ``cv2.remap`` and the lines are fitted together.
-    ``screen=False`` skips the occlusion check (:data:`MAX_LEVEL_DROP`)."""
+    ``screen=False`` skips the occlusion checks (:data:`MAX_LEVEL_DROP`,
+    :data:`MAX_SIDE_SPREAD`). ``passes``: refinements in a row, each centring its edge profiles
+    on the previous one's sides (None: :data:`REFINE_PASSES`)."""
+    p = REFINE_PASSES if passes is None else passes
+    return _refine_batch(gray, corners, n_modules, min_contrast, screen, p)[0]
+
+
+def _refine_batch(
+    gray: np.ndarray,
+    corners: np.ndarray,
+    n_modules: int,
+    min_contrast: float,
+    screen: bool,
+    passes: int,
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`refine_corners_lines_batch` and the corners' predicted noise (n,) px per coordinate
+    of the last pass (:func:`corner_sigma`; NaN where the refinement failed)."""
     c = np.asarray(corners, dtype=float).reshape(-1, 4, 2)
+    g = gray if gray.dtype == np.float32 else gray.astype(np.float32)
+    cur = c.copy()
+    sigma = np.full(len(c), np.nan)
+    for _ in range(max(int(passes), 1)):
+        ok = ~np.isnan(cur).any(axis=(1, 2))
+        cur[ok], sigma[ok] = _refine_pass(g, cur[ok], n_modules, min_contrast, screen)
+    bad = ~(np.abs(cur - c).max(axis=(1, 2)) <= 2.0)  # moved too far (or failed)
+    cur[bad], sigma[bad] = np.nan, np.nan
+    return cur, sigma
+
+
+def _refine_pass(
+    g: np.ndarray, corners: np.ndarray, n_modules: int, min_contrast: float, screen: bool
+) -> tuple[np.ndarray, np.ndarray]:
+    """One pass of :func:`refine_corners_lines_batch`: edge profiles across the sides of
+    ``corners`` (n, 4, 2) in the float32 image ``g``, lines fitted, corners intersected;
+    NaN rows for markers that fail (or moved more than 2 px). Also the corners' predicted
+    noise (n,) px (:func:`corner_sigma`)."""
+    c = corners
     n = len(c)
     out = np.full((n, 4, 2), np.nan)
     if n == 0:
-        return out
-    g = gray if gray.dtype == np.float32 else gray.astype(np.float32)
+        return out, np.zeros(0)
     centre = c.mean(axis=1)  # (n, 2)
     a = c  # side k runs from corner k to corner k+1
     b = np.roll(c, -1, axis=1)
@@ -247,7 +224,7 @@ def refine_corners_lines_batch(
     n_s[~good] = 0
     prof_side = np.repeat(np.arange(4 * n), n_s.ravel())  # side index (marker * 4 + k)
     if len(prof_side) == 0:
-        return out
+        return out, np.full(n, np.nan)
     first = np.repeat(np.cumsum(n_s.ravel()) - n_s.ravel(), n_s.ravel())
     j = np.arange(len(prof_side)) - first  # sample index along its side
     ns_p = n_s.ravel()[prof_side]
@@ -290,10 +267,10 @@ def refine_corners_lines_batch(
     valid = np.zeros((S, max_s), bool)
     Ppad[prof_side, j] = P
     valid[prof_side, j] = contrast > min_contrast
-    n_line, d_line, ok = _fit_lines(Ppad, valid)
+    n_line, d_line, ok, kept = fit_lines(Ppad, valid)
     ok = ok.reshape(n, 4) & good[:, None]
     if screen:  # occluded or bordered by a foreign edge: see MAX_LEVEL_DROP
-        ok &= _sides_clean(prof_side, j, white, black, valid, n_s)
+        ok &= sides_clean(prof_side, j, white, black, valid, n_s)
     n_line = n_line.reshape(n, 4, 2)
     d_line = d_line.reshape(n, 4)
     # corner k = side k-1 (ends at corner k) x side k (starts at corner k)
@@ -306,7 +283,9 @@ def refine_corners_lines_batch(
     res = np.stack([x, y], axis=2)
     ok_all &= np.abs(res - c).max(axis=(1, 2)) <= 2.0
     out[ok_all] = res[ok_all]
-    return out
+    sigma = np.full(n, np.nan)
+    sigma[ok_all] = corner_sigma(Ppad, kept, n_line, res)[ok_all]
+    return out, sigma
 
 
 MIN_ASPECT = 0.5
@@ -332,6 +311,7 @@ def detect_markers(
     refine: str = "lines",
     *,
     screen: bool = True,
+    passes: int | None = None,
 ) -> dict[int, np.ndarray]:
     """Detect ArUco markers in an RGB (H, W, 3) or gray (H, W) uint8 image.
 
@@ -339,16 +319,33 @@ def detect_markers(
     order. An image without markers gives ``{}``. An id seen more than once is dropped entirely
     with a :class:`DuplicateMarkerWarning` (we never guess which detection is right). With
     ``refine="lines"`` a marker whose sides cannot be fitted (too little contrast anywhere
-    along a side, an uneven quiet zone or border: occluded, see :data:`MAX_LEVEL_DROP`) or
-    that is seen too obliquely (:data:`MIN_ASPECT`) is dropped rather than returned with less
-    accurate corners; ``screen=False`` keeps the occluded and oblique ones (for
-    ``scenarios/diagnose_render.py``'s before/after comparison).
+    along a side, an uneven quiet zone or border, a side bordered by a foreign surface:
+    occluded, see :data:`MAX_LEVEL_DROP` and :data:`MAX_SIDE_SPREAD`) or that is seen too
+    obliquely (:data:`MIN_ASPECT`) is dropped rather than returned with less accurate corners;
+    ``screen=False`` keeps the occluded and oblique ones; ``passes`` (None:
+    :data:`REFINE_PASSES`) the line refinements in a row (``screen=False, passes=1`` is the
+    detector before issue #14, for ``scenarios/diagnose_render.py``'s comparison).
     Raises ``ValueError`` for a bad image, dictionary or refine method.
     """
+    return detect_markers_noise(image, dictionary, refine, screen=screen, passes=passes)[0]
+
+
+def detect_markers_noise(
+    image: np.ndarray,
+    dictionary: str = "DICT_4X4_50",
+    refine: str = "lines",
+    *,
+    screen: bool = True,
+    passes: int | None = None,
+) -> tuple[dict[int, np.ndarray], dict[int, float]]:
+    """:func:`detect_markers` and the detector's own noise estimate of every marker's corners:
+    ``{id: sigma}`` px per coordinate, from the scatter of its sides' edge points about their
+    fitted lines (``refine="lines"``; other methods: an empty dict). A bias that shifts a whole
+    side does not enter it (docs/accuracy.md, "The bound's pixel sigma")."""
     gray = to_gray(image)
     corners, ids, _rejected = make_detector(dictionary, refine).detectMarkers(gray)
     if ids is None or len(ids) == 0:
-        return {}
+        return {}, {}
     ids = np.asarray(ids).reshape(-1)
     uniq, counts = np.unique(ids, return_counts=True)
     dups = set(uniq[counts > 1].tolist())
@@ -356,13 +353,21 @@ def detect_markers(
         warnings.warn(
             f"marker ids {sorted(dups)} detected more than once in one image; dropped them",
             DuplicateMarkerWarning,
-            stacklevel=2,
+            stacklevel=3,
         )
     keep = [k for k, i in enumerate(ids.tolist()) if i not in dups]
     c = np.asarray([corners[k] for k in keep], dtype=np.float64).reshape(-1, 4, 2)
+    sigma = np.full(len(c), np.nan)
     if refine == "lines":
         n_modules = int(aruco_dictionary(dictionary).markerSize) + 2
-        c = refine_corners_lines_batch(gray, c, n_modules, screen=screen)
+        p = REFINE_PASSES if passes is None else passes
+        c, sigma = _refine_batch(gray, c, n_modules, 20.0, screen, p)
         if screen:
             c[foreshortening(c) < MIN_ASPECT] = np.nan
-    return {int(ids[k]): ck for k, ck in zip(keep, c, strict=True) if not np.isnan(ck).any()}
+    found = {int(ids[k]): ck for k, ck in zip(keep, c, strict=True) if not np.isnan(ck).any()}
+    noise = {
+        int(ids[k]): float(sk)
+        for k, ck, sk in zip(keep, c, sigma, strict=True)
+        if not np.isnan(ck).any() and np.isfinite(sk)
+    }
+    return found, noise

@@ -23,8 +23,9 @@ from calib.io.truth import read_truth
 from calib.kinematics import fk_tool
 from calib.mcpc import nominal_mcpc
 from calib.robot_def import load_robot
-from calib.target import Charuco, Features
-from calib.transforms import inv_pose, make_pose
+from calib.target import Charuco
+from calib.transforms import inv_pose
+from scenarios.board_montecarlo import board_pose, board_views
 from scenarios.config import load_scenario
 from scenarios.pipeline import run_acquire
 
@@ -36,25 +37,8 @@ def scene(tmp_path_factory):
     out = tmp_path_factory.mktemp("board_robot")
     run_acquire(load_scenario(overrides={"noise": {"render": False}}), out, quiet=True)
     ds, truth = Dataset.open(out), read_truth(out / "truth.json")
-    centre = np.asarray(truth.marker_field["T_world_marker_m"])[:, :3, 3].mean(axis=0)
-    _, pts = BOARD.layout()
-    size = pts.max(axis=0) + pts.min(axis=0)  # the corners' extent plus one square each side
-    # printed face up (board z down), board centre at the field's centre
-    T_world_board = make_pose(
-        np.diag([1.0, -1.0, -1.0]), [centre[0] - size[0] / 2, centre[1] + size[1] / 2, 0.0]
-    )
-    cam = truth.intrinsics_left
-    ids, pts = BOARD.layout()
-    rng = np.random.default_rng(0)
-    feats = []
-    for i in ds.indices:
-        frame = truth.frame(int(i))
-        assert frame is not None
-        T = inv_pose(frame.T_world_cam_left) @ T_world_board
-        Xc = pts @ T[:3, :3].T + T[:3, 3]
-        uv = cam.project(Xc)
-        ok = cam.in_image(uv, 2.0) & (Xc[:, 2] > 0)
-        feats.append(Features(ids[ok], uv[ok] + rng.normal(0, 0.1, (int(ok.sum()), 2))))
+    T_world_board = board_pose(truth, BOARD)
+    feats, _ = board_views(truth, ds.indices, truth.intrinsics_left, T_world_board, 0.1, 0, BOARD)
     return ds, truth, T_world_board, feats
 
 

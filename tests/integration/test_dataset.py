@@ -122,3 +122,40 @@ def test_one_camera_dataset_writes_and_reads_its_frames(tmp_path):
     assert [(i, c) for i, c, _ in got] == [(0, "cam0"), (1, "cam0")]
     assert ds.frame_paths(1) == (tmp_path / "frames" / "0001_cam0.png",)
     np.testing.assert_array_equal(got[0][2], img)
+
+
+def test_a_frame_that_cannot_be_written_stops_the_acquisition_at_that_frame(tmp_path, monkeypatch):
+    """Frames are written by a worker thread while the robot moves on: a write failure still
+    names its own frame and keeps the frames before it."""
+    w = DatasetWriter(tmp_path, info())
+    real = w.add_frame
+
+    def add_frame(index, *a, **k):
+        if index == 2:
+            raise OSError("disk full")
+        real(index, *a, **k)
+
+    monkeypatch.setattr(w, "add_frame", add_frame)
+    with pytest.raises(AcquisitionError, match="stopped at frame 2 of 5: disk full.*2 frames"):
+        acquire(FakeRobot(), w)
+    assert Dataset.open(tmp_path).indices.tolist() == [0, 1]
+
+
+def test_each_camera_keeps_its_own_model_and_free_parameters(tmp_path):
+    """dataset.json holds a model per camera; a field dataset of mixed models is refused by
+    the self-calibration (it shares one model across the rig)."""
+    from calib.calibrate import CalibrationError, calibrate
+    from calib.io.dataset import read_dataset_info, write_dataset_info
+
+    models = (("opencv", ("fx", "mu", "cx", "cy", "k1", "k2")), ("pinhole", ("fx", "mu")))
+    mixed = dataclasses.replace(info(m=6), cameras=("left", "right"), camera_models=models)
+    write_dataset_info(tmp_path / "dataset.json", mixed)
+    back = read_dataset_info(tmp_path / "dataset.json")
+    assert back.camera_models == models and back.model_of("right") == models[1]
+    same = dataclasses.replace(info(), cameras=("a", "b"))
+    assert same.camera_models is None and same.model_of("b") == ("pinhole", ("fx", "mu"))
+    w = DatasetWriter(tmp_path / "ds", dataclasses.replace(mixed, observation="detections"))
+    for i in range(6):
+        w.add_frame(i, np.zeros(5), detections={})
+    with pytest.raises(CalibrationError, match="different models"):
+        calibrate(tmp_path / "ds")

@@ -22,10 +22,11 @@ from scenarios.config import load_scenario
 from scenarios.pipeline import run_acquire, run_calibrate, run_report
 
 LENS_TOML = Path(__file__).resolve().parents[2] / "scenarios" / "lens.toml"
+MONO_TOML = LENS_TOML.with_name("mono.toml")
 
 
-def _z_scores(tmp_path: Path, render: bool) -> dict[str, float]:
-    s = load_scenario(LENS_TOML, overrides={"noise": {"render": render}})
+def _z_scores(tmp_path: Path, render: bool, config: Path = LENS_TOML) -> dict[str, float]:
+    s = load_scenario(config, overrides={"noise": {"render": render}})
     run_acquire(s, tmp_path, quiet=True)
     result = run_calibrate(tmp_path, quiet=True)
     report = run_report(tmp_path, quiet=True)
@@ -45,6 +46,18 @@ def test_every_free_camera_parameter_within_3_sigma(tmp_path, render):
         f"\nz-scores ({'rendered' if render else 'analytic'}):",
         {k: round(v, 2) for k, v in z.items()},
     )
+    assert all(abs(v) < 3.0 for v in z.values()), z
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("render", [False, True], ids=["analytic", "rendered"])
+def test_mono_scenario_every_free_camera_parameter_within_3_sigma(tmp_path, render):
+    """scenarios/mono.toml: the left camera alone through the whole pipeline (acquire, the
+    self-calibration from views of different configurations, the joint refinement, the report).
+    Measured |z| <= 2.0 analytic (p1), <= 1.3 rendered."""
+    z = _z_scores(tmp_path, render, MONO_TOML)
+    print(f"\nmono z-scores ({'rendered' if render else 'analytic'}):",
+          {k: round(v, 2) for k, v in z.items()})  # fmt: skip
     assert all(abs(v) < 3.0 for v in z.values()), z
 
 
@@ -87,3 +100,30 @@ def test_mono_self_calibration_frees_the_lens():
     z = (res.camera.free_values() - truth.free_values()) / np.sqrt(np.diag(res.cov_fx_mu))
     print("\nmono z-scores:", dict(zip(free, z.round(2))))
     assert np.all(np.abs(z) < 3.0)
+
+
+@pytest.mark.slow
+def test_mono_monte_carlo_tool_tip_within_1_3x_the_bound():
+    """scenarios/mono.toml (one camera + the field), 10 analytic draws (the 30-draw table in
+    docs/cameras.md: 1.115x). Measured on these 10: 1.242."""
+    from scenarios.montecarlo import run_montecarlo
+
+    rows, summary = run_montecarlo(10, None, jobs=2, quiet=True, config=MONO_TOML)
+    assert all(r["status"] == "ok" for r in rows), [r["status"] for r in rows]
+    ratio = summary["joint"]["tool_tip_ratio"]
+    print(f"\nmono Monte Carlo (10 draws): joint tool-tip ratio {ratio:.3f}")
+    assert ratio <= 1.3
+
+
+@pytest.mark.slow
+def test_mono_charuco_monte_carlo_tool_tip_within_1_3x_the_bound():
+    """One camera + ChArUco (scenarios/board_montecarlo.py), 10 draws (the 30-draw table in
+    docs/cameras.md: 0.982x); every camera parameter's error RMS / bound below 1.5. Measured
+    on these 10: 0.945, camera ratios 0.73 .. 1.35."""
+    from scenarios.board_montecarlo import run_board_montecarlo
+
+    r = run_board_montecarlo(10, jobs=2)
+    print(f"\nChArUco Monte Carlo (10 draws): tool tip {r['tip_ratio']:.3f}, cameras",
+          {k: round(v, 2) for k, v in r["camera_ratio"].items()})  # fmt: skip
+    assert r["tip_ratio"] <= 1.3
+    assert all(v < 1.5 for v in r["camera_ratio"].values()), r["camera_ratio"]

@@ -91,7 +91,7 @@ def test_round_trip(lab, tmp_path, fmt, capsys):
     dq = np.abs(np.radians(a.joints_deg) - np.radians(b.joints_deg)).max()
     assert dq <= 1e-9  # measured 0 (the same printed digits)
     # the calibrated camera of the dataset travelled as camera_info and chose the model
-    rec = b.info.scenario["import"]
+    rec = b.info.provenance["import"]
     assert rec["format"] == fmt and rec["image_topics"] == {"cam0": "/cam0/image_raw"}
     assert rec["camera_info"]["cam0"]["distortion_model"] == "plumb_bob"
     np.testing.assert_allclose(

@@ -181,7 +181,7 @@ def test_stop_and_go_recording(lab, tmp_path):
     want = np.array([rests[rest_at[t]] for t in kept])
     err = np.abs(np.radians(ds.joints_deg) - want).max()
     assert err < 1e-6  # measured 2.3e-7 rad (the readings' 1e-7 rad noise, interpolated)
-    rec = ds.info.scenario["import"]
+    rec = ds.info.provenance["import"]
     assert rec["bag"].endswith("lab.bag") and rec["format"] == "ros1"
     assert rec["joint_names"] == CHAIN and rec["images"]["moving"] == len(cam) - len(kept)
     # frames are pixel for pixel the recorded images

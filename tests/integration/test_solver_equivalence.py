@@ -9,8 +9,6 @@ as they are handed to the engine, moved away from their minimum, and solved agai
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 import pytest
 from scipy.optimize import least_squares
@@ -19,6 +17,7 @@ import calib.bundle_adjust as bundle_adjust
 import calib.joint_refine as joint_refine
 from calib.calibrate import calibrate
 from calib.solver import Problem, SolverOptions, solve
+from scenarios.benchmark_speed import off_minimum as _perturbed
 from scenarios.config import load_scenario
 from scenarios.pipeline import run_acquire
 
@@ -50,20 +49,6 @@ def captured(tmp_path_factory):
     finally:
         mp.undo()
     return {k: v[-1] for k, v in seen.items()}
-
-
-def _perturbed(problem: Problem, seed: int) -> Problem:
-    """The same residual blocks, started off the minimum: intrinsics by 1e-2 relative, every
-    other coordinate by 1e-2 (rad; m in the joint problem, baseline units in the adjustment)."""
-    rng = np.random.default_rng(seed)
-    blocks = []
-    for p in problem.parameters.values():
-        scale = 1e-2 * (np.abs(p.value) if p.name == "intrinsics" else 1.0)
-        v = p.value + scale * rng.standard_normal(p.size)
-        if p.held is not None:
-            v[p.held] = p.value[p.held]
-        blocks.append(dataclasses.replace(p, value=v))
-    return Problem(blocks, problem.residuals)
 
 
 def _scipy_cost(problem: Problem) -> float:

@@ -61,3 +61,20 @@ def test_bad_files_name_the_problem(tmp_path, text, words):
 def test_missing_file(tmp_path):
     with pytest.raises(ConfigError, match="not found"):
         load_scenario(tmp_path / "nope.toml")
+
+
+def test_one_camera_scenario_plans_a_one_camera_dataset(tmp_path):
+    """scenarios/mono.toml: ``camera.count = 1`` makes the dataset hold the left camera alone
+    (the plan then only needs that camera to see the field); 3 cameras are out of range."""
+    from pathlib import Path
+
+    from scenarios.backends import plan_dataset
+
+    mono = Path(__file__).resolve().parents[2] / "scenarios" / "mono.toml"
+    s = load_scenario(mono, overrides={"noise": {"render": False}, "trajectory": {"poses": 6}})
+    assert s.camera.count == 1 and s.camera.names == ("left",)
+    info = plan_dataset(s)
+    assert info.cameras == ("left",) and info.camera_model == "opencv"
+    assert load_scenario().camera.names == ("left", "right")
+    with pytest.raises(ConfigError, match="camera.count"):
+        load_scenario(write(tmp_path, "[camera]\ncount = 3\n"))

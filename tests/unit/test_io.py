@@ -21,9 +21,23 @@ from calib.io.calibration import (
     read_calibration,
     write_calibration,
 )
-from calib.io.dataset import DatasetError, DatasetInfo, read_dataset_info, write_dataset_info
+from calib.io.dataset import (
+    DatasetError,
+    DatasetInfo,
+    read_dataset_info,
+    scenario_digest,
+    write_dataset_info,
+)
 from calib.io.target_toml import parse_target, target_document
-from calib.io.truth import Truth, TruthFileError, read_truth, write_truth
+from calib.io.truth import (
+    TRUTH_JOURNAL,
+    Truth,
+    TruthFileError,
+    append_truth_frame,
+    read_truth,
+    with_journal,
+    write_truth,
+)
 from calib.mcpc import MCPCModel, nominal_mcpc
 from calib.robot_def import load_robot
 from calib.target import Charuco
@@ -43,7 +57,7 @@ def dataset_info() -> DatasetInfo:
         planned_joints_deg=np.round(rng.uniform(-90, 90, (7, 5)), 6),
         validation_joints_deg=np.round(rng.uniform(-90, 90, (3, 5)), 6),
         backend="sim",
-        scenario={"noise": {"pixel_sigma": 0.5}, "robot": {"model": "er4u-paper"}},
+        provenance={"scenario_sha256": "0" * 64},
         camera_model="opencv",
         camera_free=("fx", "mu", "cx", "cy", "k1", "k2", "p1", "p2"),
     )
@@ -130,6 +144,7 @@ def test_calibration_keeps_every_key_and_number_of_the_golden_file(tmp_path):
     for doc in (back, *back["methods"].values()):  # the camera model's keys (#12), defaults
         assert {k: doc["intrinsics"].pop(k) for k in added} == added
     assert back["bounds"].pop("camera") == {}
+    assert back["bounds"].pop("pixel_sigma_source") == "residuals"  # (#14) an older file's
     assert back == golden
 
 
@@ -280,11 +295,48 @@ def test_dataset_cameras_of_two_sizes_and_bad_names(tmp_path):
         read_dataset_info(tmp_path / "bad.json")
 
 
-def test_dataset_cameras_of_different_models_are_refused_for_now(tmp_path):
+def test_dataset_cameras_of_different_models_are_read_per_camera(tmp_path):
     info = dataclasses.replace(dataset_info(), cameras=("a", "b"))
     doc = json.loads(write_dataset_info(tmp_path / "dataset.json", info).read_text())
     doc["cameras"][1]["model"] = "pinhole"
     doc["cameras"][1]["free"] = ["fx", "mu"]
-    (tmp_path / "bad.json").write_text(json.dumps(doc))
-    with pytest.raises(DatasetError, match="bad.json: key 'cameras' must be cameras of one model"):
-        read_dataset_info(tmp_path / "bad.json")
+    (tmp_path / "mixed.json").write_text(json.dumps(doc))
+    back = read_dataset_info(tmp_path / "mixed.json")
+    assert back.model_of("b") == ("pinhole", ("fx", "mu"))
+    assert back.model_of("a") == (info.camera_model, tuple(info.camera_free))
+
+
+def test_truth_journal_folds_frames_back_and_ignores_a_partial_line(tmp_path):
+    """A killed acquisition leaves its frames in the journal: they come back in order, the same
+    as recorded one by one, and a half-written last line is dropped."""
+    full = truth()
+    start = dataclasses.replace(full, frames=full.frames[:1])
+    journal = tmp_path / TRUTH_JOURNAL
+    for fr in full.frames[1:]:
+        append_truth_frame(journal, fr)
+    with open(journal, "a") as fh:
+        fh.write('{"index": 3, "frame_in')  # killed mid-line
+    back = with_journal(start, journal)
+    assert [f.to_json() for f in back.frames] == [f.to_json() for f in full.frames]
+    assert with_journal(start, tmp_path / "none.jsonl") is start
+    journal.write_text("not json\n")
+    with pytest.raises(TruthFileError, match="line 1"):
+        with_journal(start, journal)
+
+
+def test_dataset_written_with_the_whole_scenario_reads_and_keeps_only_its_digest(tmp_path):
+    """Datasets from before ``provenance`` held the whole scenario (the true camera, the seeds):
+    they still read, the scenario is reduced to its digest (what resuming compares), and the
+    digest ignores how the hardware is reached."""
+    scenario = {"camera": {"fx": 800.0}, "noise": {"seed": 1},
+                "robot": {"model": "er4u-paper", "hardware": {"port": "/dev/ttyUSB0"}}}  # fmt: skip
+    doc = json.loads(write_dataset_info(tmp_path / "dataset.json", dataset_info()).read_text())
+    assert "scenario" not in doc and doc["provenance"] == {"scenario_sha256": "0" * 64}
+    del doc["provenance"]
+    doc["scenario"] = scenario
+    (tmp_path / "old.json").write_text(json.dumps(doc))
+    old = read_dataset_info(tmp_path / "old.json")
+    moved = {**scenario, "robot": {**scenario["robot"], "hardware": {"port": "socket://x:1"}}}
+    assert old.provenance == {"scenario_sha256": scenario_digest(moved)}
+    assert scenario_digest(scenario) != scenario_digest({**scenario, "noise": {"seed": 2}})
+    assert "800" not in json.dumps(old.to_json()["provenance"])

@@ -222,3 +222,40 @@ def test_schur_refuses_rows_that_couple_two_instances():
     )
     with pytest.raises(ValueError, match="couples two instances"):
         solve(prob, SolverOptions(linear_solver="schur", eliminate="ab"))
+
+
+def test_an_elimination_with_nothing_to_eliminate_solves_densely():
+    """A block that declares instances but has none free (all held): "auto" does not take the
+    Schur form, and an explicit "schur" still solves (an empty elimination)."""
+    y = _data()
+    blocks = [
+        ParameterBlock("ab", [1.0, -0.5], instance=[0, 1], held=[True, True]),
+        ParameterBlock("c", [0.0]),
+    ]
+    prob = Problem(blocks, [ExpFit(y)])
+    auto = solve(prob, SolverOptions(eliminate="ab"))
+    schur = solve(prob, SolverOptions(linear_solver="schur", eliminate="ab"))
+    assert auto.linear_solver == "dense" and auto.converged and schur.converged
+    assert schur.x == pytest.approx(auto.x, rel=1e-9)
+
+
+def test_scaled_rank_above_dense_max_matches_the_dense_eigenvalues(monkeypatch):
+    """The Lanczos path (problems above DENSE_MAX unknowns) gives the dense path's smallest
+    relative singular value (measured: 3e-15 relative) and rank, and a rank-deficient Jacobian
+    still reports its rank."""
+    import importlib
+
+    import scipy.sparse as sp
+
+    cov_mod = importlib.import_module("calib.solver.covariance")  # the package exports a function
+
+    rng = np.random.default_rng(3)
+    J = sp.random(400, 80, density=0.05, random_state=4, format="csr")
+    J = (J + sp.vstack([sp.eye(80)] * 5) * 1e-2) @ sp.diags(rng.uniform(0.1, 10.0, 80))
+    dense = cov_mod.scaled_rank(J)
+    monkeypatch.setattr(cov_mod, "DENSE_MAX", 10)
+    lanczos = cov_mod.scaled_rank(J)
+    assert lanczos[1] == dense[1] == 80
+    assert lanczos[0] == pytest.approx(dense[0], rel=1e-10)
+    J_def = sp.hstack([J, sp.csr_matrix((400, 1))]).tocsr()  # an unknown no row sees
+    assert cov_mod.scaled_rank(J_def) == (0.0, 80)

@@ -1,0 +1,46 @@
+"""`selfcal --help` and `selfcal fk` stay light: the parser's modules import the heavy libraries
+only in the commands that use them (issue 17). Checked in a fresh interpreter by sys.modules,
+not by timing."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+HEAVY = ("mujoco", "matplotlib", "scipy.stats", "sim", "scenarios.pipeline", "scenarios.backends")
+PARSER_HEAVY = ("scipy", "cv2")  # also not needed to build the parser
+
+
+def _loaded(code: str) -> list[str]:
+    probe = f"{code}\nimport json, sys\nprint(json.dumps(sorted(sys.modules)))"
+    out = subprocess.run(
+        [sys.executable, "-c", probe], capture_output=True, text=True, check=True
+    ).stdout
+    return json.loads(out.strip().splitlines()[-1])
+
+
+def test_importing_the_cli_and_building_its_parser_loads_no_heavy_module():
+    mods = _loaded("import scenarios.cli as c\nc.build_parser()")
+    assert "scenarios.cli" in mods  # the probe did import it
+    assert [m for m in HEAVY + PARSER_HEAVY if m in mods] == []
+
+
+def test_fk_loads_no_simulator_or_plotting():
+    mods = _loaded(
+        "import contextlib, io\nimport scenarios.cli as c\n"
+        "with contextlib.redirect_stdout(io.StringIO()):\n"
+        "    c.main(['fk', '--joints', '0,0,0,0,0'])"
+    )
+    assert "calib.kinematics" in mods  # fk ran
+    assert [m for m in HEAVY if m in mods] == []
+
+
+def test_the_light_choices_name_the_camera_models():
+    from calib.camera import MODELS
+    from calib.choices import CAMERA_MODELS, DEFAULT_FREE, DEFAULT_MODEL
+
+    assert CAMERA_MODELS == tuple(MODELS) == tuple(DEFAULT_FREE)
+    assert DEFAULT_MODEL in MODELS
+    for name, free in DEFAULT_FREE.items():
+        assert set(free) <= set(MODELS[name].names)

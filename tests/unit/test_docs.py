@@ -1,0 +1,130 @@
+"""The README and docs/*.md say only what runs: every code block that is a command or a config
+is parsed (TOML by its reader: a scenario by `load_scenario`, a target by `parse_target`; every
+`selfcal ...` line by the real argparse parser), the cheap commands of the README's command table
+are run, and the docs cite nothing outside the repository.
+
+Every fenced block names its kind: ``toml`` (a config), ``sh`` (commands), ``text`` (output,
+diagrams), ``python`` or ``json`` (examples of code and file contents).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import re
+import shlex
+from pathlib import Path
+
+import pytest
+
+from calib.io.target_toml import parse_target
+from calib.tomlfile import parse_toml
+from scenarios.cli import build_parser, main
+from scenarios.config import load_scenario
+from scenarios.hardware import scenario_settings
+
+ROOT = Path(__file__).resolve().parents[2]
+DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+KINDS = ("toml", "sh", "text", "python", "json")
+FENCE = re.compile(r"^```(\w*)\n(.*?)^```", re.S | re.M)
+
+
+def blocks(kind: str) -> list[tuple[str, str]]:
+    """``(where, body)`` of every fenced block of ``kind`` in the docs."""
+    out = []
+    for doc in DOCS:
+        text = doc.read_text()
+        for m in FENCE.finditer(text):
+            if m.group(1) == kind:
+                line = text[: m.start()].count("\n") + 1
+                out.append((f"{doc.relative_to(ROOT)}:{line}", m.group(2)))
+    return out
+
+
+def test_every_block_names_its_kind():
+    untagged = [
+        f"{doc.relative_to(ROOT)}: ```{m.group(1)}"
+        for doc in DOCS
+        for m in FENCE.finditer(doc.read_text())
+        if m.group(1) not in KINDS
+    ]
+    assert untagged == []
+
+
+@pytest.mark.parametrize(("where", "body"), blocks("toml"), ids=lambda v: str(v)[:40])
+def test_toml_blocks_are_read_by_their_reader(where, body, tmp_path):
+    doc = parse_toml(body, where)
+    if "type" in doc:
+        parse_target(doc, where)  # a target TOML (docs/targets.md)
+        return
+    path = tmp_path / "scenario.toml"
+    path.write_text(body)
+    s = load_scenario(path)
+    if s.robot.backend == "hardware":  # checked as `selfcal acquire` does before opening the port
+        scenario_settings(s)
+
+
+def commands() -> list[tuple[str, list[str]]]:
+    """Every ``selfcal`` command line of the ``sh`` blocks (after ``uv run`` and environment
+    assignments; continuation lines joined; comments dropped)."""
+    out = []
+    for where, body in blocks("sh"):
+        for line in body.replace("\\\n", " ").splitlines():
+            argv = shlex.split(line, comments=True)
+            while argv and re.fullmatch(r"\w+=.*", argv[0]):
+                argv = argv[1:]
+            if argv[:2] == ["uv", "run"]:
+                argv = argv[2:]
+            if argv[:1] == ["selfcal"]:
+                out.append((where, argv[1:]))
+    return out
+
+
+@pytest.mark.parametrize(("where", "argv"), commands(), ids=lambda v: str(v)[:50])
+def test_selfcal_lines_parse(where, argv):
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err):
+        try:
+            build_parser().parse_args(argv)
+        except SystemExit:
+            pytest.fail(f"{where}: selfcal {shlex.join(argv)}: {err.getvalue()}")
+
+
+def table_commands(name: str) -> list[list[str]]:
+    """The README command table's ``selfcal NAME ...`` examples without placeholders."""
+    text = (ROOT / "README.md").read_text()
+    found = re.findall(r"^\| `selfcal (" + name + r" [^`]*)`", text, re.M)
+    return [shlex.split(c) for c in found if "..." not in c and "|" not in c]
+
+
+@pytest.mark.parametrize("argv", table_commands("fk") + table_commands("ik"), ids=" ".join)
+def test_readme_table_fk_and_ik_examples_run(argv, capsys):
+    assert main(argv) == 0
+    assert capsys.readouterr().out.startswith("{")
+
+
+def test_there_are_commands_to_check():
+    assert len(commands()) >= 15 and len(table_commands("fk") + table_commands("ik")) >= 3
+
+
+OUTSIDE = re.compile(r"^\.\./|/\.\./|/work/|\.library|^shared/")
+
+
+def test_docs_cite_nothing_outside_the_repository():
+    """No link leaves the repository (no web page, no sibling folder); every repository path
+    named in backticks exists."""
+    tops = {p.name for p in ROOT.iterdir() if p.is_dir() and not p.name.startswith(".")}
+    bad = []
+    for doc in DOCS:
+        prose = FENCE.sub("", doc.read_text())
+        for target in re.findall(r"\]\(([^)\s]+)\)", prose):
+            path = target.split("#")[0]
+            if re.match(r"\w+://", path) or OUTSIDE.search(path):
+                bad.append(f"{doc.name}: link {target}")
+            elif path and not (doc.parent / path).exists():
+                bad.append(f"{doc.name}: link {target} (no such file)")
+        for path in re.findall(r"`([\w.-]+(?:/[\w.-]+)+)`", prose):
+            first = path.split("/")[0]
+            if OUTSIDE.search(path) or (first in tops and not (ROOT / path).exists()):
+                bad.append(f"{doc.name}: `{path}` is not in the repository")
+    assert bad == []

@@ -1,0 +1,89 @@
+"""Every plot keeps its legend off the data and labels its axes; a study of one setting makes a
+table, not a plot; a study where calibrating made things worse says so.
+
+The figures are drawn from rows shaped like the real ones (``selfcal paper``'s Table IV rows, a
+study's ``runs.csv`` rows), with values spread like the measured ones.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from scenarios.paper_fig3 import fig3_figure
+from scenarios.plotting import figure_problems, legend_overlaps, pyplot, unlabelled_axes
+from scenarios.study_defs import STUDIES
+from scenarios.study_summary import study_figure, summarize, worse_than_nominal
+
+
+def test_the_legend_check_sees_a_legend_over_data():
+    """The check can fail: a legend placed on top of the data is reported."""
+    plt = pyplot()
+    fig, ax = plt.subplots()
+    ax.plot([0.0, 1.0], [0.0, 1.0], label="a diagonal through the middle")
+    ax.legend(loc="center")
+    ax.set_xlabel("x")
+    try:
+        assert legend_overlaps(fig) and unlabelled_axes(fig) == ["axes: x or y label missing"]
+    finally:
+        plt.close(fig)
+
+
+def test_fig3_legends_cover_no_bar():
+    rng = np.random.default_rng(1)
+    rows = []
+    for pos in range(1, 6):
+        for ax in "xyz":
+            e = rng.normal(0, 1.5)
+            rows.append({
+                "position": pos, "axis": f"p_{ax}",
+                "paper_error_printed": e, "paper_error_recomputed": e + (pos == 2) * 0.3,
+                "error_measured_minus_desired": rng.normal(0, 1.5),
+                "calibrated_error_minus_true": rng.normal(0, 0.05),
+                "nominal_error_desired_minus_true": rng.normal(0, 1.5),
+                "camera_error_measured_minus_true": rng.normal(0, 0.1),
+            })  # fmt: skip
+    assert figure_problems(fig3_figure(rows)) == []
+
+
+def study_rows(name: str, xs: list[float], worse_at: float | None = None) -> list[dict]:
+    study = STUDIES[name]
+    rows = []
+    for x in xs:
+        for seed in (1, 2, 3):
+            cal = 0.1 * (1 + x) * (1 + 0.1 * seed)
+            nom = 1.5 if x != worse_at else 0.5 * cal
+            rows.append({"study": name, "key": f"{x}-{seed}", "status": "ok", study.x: x,
+                         "seed": seed, "cal_rms_mm": cal, "nom_rms_mm": nom,
+                         "eff_noise_px": x})  # fmt: skip
+    return rows
+
+
+def test_study_plot_legend_covers_no_data(tmp_path):
+    rows = study_rows("noise", [0.0, 0.5, 2.0])
+    res = summarize("noise", rows, tmp_path)
+    assert (tmp_path / "noise.png").is_file()
+    assert figure_problems(study_figure(STUDIES["noise"], res, rows)) == []
+
+
+def test_study_of_one_setting_is_a_table_not_a_plot(tmp_path):
+    (tmp_path / "noise.png").write_bytes(b"stale")
+    summarize("noise", study_rows("noise", [0.5]), tmp_path)
+    assert not (tmp_path / "noise.png").exists()
+    md = (tmp_path / "noise.md").read_text()
+    assert "| calibrated | 0.5 | 3 | 0 |" in md and "One setting only: a table, no plot." in md
+
+
+def test_study_says_where_calibration_made_the_model_worse(tmp_path):
+    rows = study_rows("noise", [0.0, 2.0], worse_at=2.0)
+    res = summarize("noise", rows, tmp_path)
+    worse = worse_than_nominal(STUDIES["noise"], res)
+    assert len(worse) == 1 and worse[0].startswith("calibrated at pixel_sigma = 2.0")
+    assert "**Warning**" in (tmp_path / "noise.md").read_text()
+    assert worse_than_nominal(STUDIES["noise"], summarize("noise", rows[:3], tmp_path)) == []
+
+
+@pytest.mark.parametrize("xs", [[0.25, 0.5], [1.0, 2.0, 4.0]])
+def test_the_study_plot_is_drawn_from_two_settings_on(tmp_path, xs):
+    summarize("perturbation", study_rows("perturbation", xs), tmp_path)
+    assert (tmp_path / "perturbation.png").read_bytes()[:4] == b"\x89PNG"
