@@ -10,7 +10,6 @@ default rendered scenario plus the five postures, ~10 s) must leave parseable ta
 
 from __future__ import annotations
 
-import argparse
 import csv
 import json
 
@@ -19,7 +18,7 @@ import pytest
 
 from calib.kinematics import fk_nominal
 from calib.robot_def import load_robot
-from scenarios import paper_repro
+from scenarios.cli import main as cli_main
 from scenarios.paper_checks import paper_inconsistencies
 from scenarios.paper_data import TABLE_II_MM, TABLE_II_THETA4_DEG, table_ii_postures
 
@@ -48,10 +47,8 @@ def test_paper_inconsistencies_found_from_the_tables():
 @pytest.fixture(scope="module")
 def paper_out(tmp_path_factory):
     out = tmp_path_factory.mktemp("paper")
-    parser = argparse.ArgumentParser()
-    paper_repro.register(parser.add_subparsers())
-    args = parser.parse_args(["paper", "--out", str(out), "--quiet"])
-    assert args.func(args) == 0
+    # through the real parser: -q/--quiet is the CLI's, not the paper command's
+    assert cli_main(["paper", "--out", str(out), "--quiet"]) == 0
     return out
 
 

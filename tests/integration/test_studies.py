@@ -9,25 +9,21 @@ the same command again must do no run at all (every run is keyed by its settings
 
 from __future__ import annotations
 
-import argparse
 import csv
 
 import numpy as np
 import pytest
 
 from scenarios import studies
+from scenarios.cli import main as cli_main
 from scenarios.study_runs import COLUMNS, load_runs
 
 
 @pytest.fixture(scope="module")
 def quick_poses(tmp_path_factory):
     out = tmp_path_factory.mktemp("study")
-    parser = argparse.ArgumentParser()
-    studies.register(parser.add_subparsers())
-    args = parser.parse_args(
-        ["study", "poses", "--budget", "quick", "--out", str(out), "--jobs", "2", "--quiet"]
-    )
-    assert args.func(args) == 0
+    argv = ["study", "poses", "--budget", "quick", "--out", str(out), "--jobs", "2", "--quiet"]
+    assert cli_main(argv) == 0  # through the real parser: -q/--quiet is the CLI's, not study's
     return out
 
 
