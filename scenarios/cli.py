@@ -287,17 +287,19 @@ METHOD_HELP = (
 
 CONFIG_HELP = """\
 scenario keys (TOML; every key has a default, units in the names):
-  [robot]        model = "er4u-paper" | "er4u-vendor" | "ur5e";  backend = "sim" | "hardware"
+  [robot]        model = a robot of models/robots (er4u-paper, er4u-vendor, ur5e, kr6-r900);
+                 backend = "sim" | "hardware"
   [robot.hardware] port (pyserial URL), baudrate, xonxoff, cameras = [left, right], options
                  (see docs/hardware.md; `selfcal emulate SCENARIO` prints a ready snippet)
-  [camera]       resolution = [640, 480]; fx = 800.0 (px); mu = 1.0; baseline_mm = 60.0
+  [camera]       resolution = [640, 480]; fx = 800.0 (px); mu = 1.0; baseline_mm = 60.0; count = 2;
+                 model = "pinhole" | "opencv" | "fisheye"; free = [...]; cx, cy, k1 ... (docs/cameras.md)
   [target]       markers = 20; scale_length_mm = 200.0; marker_size_mm = 30.0; seed = 1
   [perturbation] seed = 1; translation_mm = 1.0; rotation_deg = 0.5; [perturbation.table] name = value
   [trajectory]   poses = 30; seed = 1; min_markers = 6; kind = "random" | "optimal"
   [noise]        render = true; image_sigma = 2.0 (0-255); pixel_sigma = 0.5 (px); seed = 1;
                  quantize_joints = true (encoder resolution of the simulated read-back)
   [validation]   poses = 20; seed = 2
-default scenario: scenarios/paper.toml
+every key and its valid range: docs/scenarios.md; default scenario: scenarios/paper.toml
 """
 
 
