@@ -135,12 +135,20 @@ def run_calibrate(
     i = res.intrinsics
     for text in res.warnings:
         _log.warning("%s", text)
+    ident, joint = res.identification, res.joint
+    if joint is None:  # the two-stage method: its identification is the result
+        fitted = f"identification rank {ident.rank}/{ident.n_params}"
+    else:  # the one-step refinement fits the chain less the world frame's gauge
+        gauge = len(joint.gauge_held)
+        fitted = (
+            f"{ident.n_params - gauge} kinematic parameters fitted ({gauge} fixed by the world "
+            f"frame's gauge), rank {joint.rank}/{joint.n_unknowns} of the one-step refinement"
+        )
     _say(
         quiet,
         f"calibrated {res.dataset.frames_used}/{res.dataset.frames} frames in "
         f"{res.seconds:.1f} s: fx = {i.fx:.2f} px, mu = {i.mu:.5f}, "
-        f"reprojection RMS {res.reprojection_rms_px:.3f} px, identification rank "
-        f"{res.identification.rank}/{res.identification.n_params}",
+        f"reprojection RMS {res.reprojection_rms_px:.3f} px, {fitted}",
     )
     if res.failed and raise_failed:
         raise CalibrationFailedError.of(res.failures, path)
