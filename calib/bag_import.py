@@ -30,7 +30,7 @@ import numpy as np
 from calib.bag_rest import EMPTY, GAP, MOVING, NS, OUTSIDE, REST, JointTrack, RestRule
 from calib.errors import SelfCalWarning
 from calib.import_dataset import DEFAULT_MODEL, CameraImages, ImportError_, import_dataset
-from calib.io.dataset import DatasetInfo
+from calib.io.dataset_info import DatasetInfo
 from calib.io.rosbag import (
     IMAGE_TYPES,
     INFO_TYPE,

@@ -31,7 +31,8 @@ from calib.frame_checks import check_distinct_frames, check_read_back
 from calib.identify import identify
 from calib.io.calibration import CalibrationResult
 from calib.io.calibration_blocks import ScenePoints
-from calib.io.dataset import CAMERAS, Dataset, DatasetError, DatasetInfo, Detections, read_gray
+from calib.io.dataset import Dataset, DatasetError, Detections, read_gray
+from calib.io.dataset_info import CAMERAS, DatasetInfo
 from calib.joint_refine import refine_calibration
 from calib.kinematics import fk_tool
 from calib.mcpc import MCPCModel, nominal_mcpc, shape_matrices

@@ -18,7 +18,8 @@ from calib.calibrate import detect_dataset
 from calib.errors import InputError
 from calib.evaluate import Evaluation, rms_px
 from calib.io.calibration import CalibrationResult
-from calib.io.dataset import CAMERAS, Dataset
+from calib.io.dataset import Dataset
+from calib.io.dataset_info import CAMERAS
 from calib.kinematics import fk_tool
 from calib.mcpc import MCPCModel, nominal_mcpc
 from calib.quality import nominal_with_fitted_base_and_tool

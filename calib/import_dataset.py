@@ -31,7 +31,7 @@ from calib.board_calibrate import BoardMismatchError, calibrate_board
 from calib.camera import MODELS
 from calib.choices import DEFAULT_FREE, DEFAULT_MODEL
 from calib.errors import InputError, SelfCalWarning
-from calib.io.dataset import DatasetInfo, write_dataset_info
+from calib.io.dataset_info import DatasetInfo, write_dataset_info
 from calib.io.target_toml import load_target, target_document
 from calib.io.tracker import read_joint_rows
 from calib.robot_def import RobotDef, load_robot

@@ -44,7 +44,8 @@ from calib.io.calibration_blocks import (
     matrix,
 )
 from calib.io.calibration_bounds import BoundParameter, Bounds, EstimateBound, ToolTipBound
-from calib.io.dataset import Dataset, DatasetInfo
+from calib.io.dataset import Dataset
+from calib.io.dataset_info import DatasetInfo
 from calib.mcpc import MCPCModel, minimal_indices, nominal_mcpc, param_is_angle, shape_matrices
 from calib.robot_def import RobotDef
 from calib.selfcal import Observations, SelfCalibrationResult

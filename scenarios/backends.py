@@ -16,7 +16,7 @@ import numpy as np
 from calib.camera import Intrinsics, Rig
 from calib.errors import InputError
 from calib.io.atomic import write_image_atomic
-from calib.io.dataset import DatasetInfo, scenario_digest
+from calib.io.dataset_info import DatasetInfo, scenario_digest
 from calib.io.truth import (
     TRUTH_JOURNAL,
     append_truth_frame,

@@ -123,7 +123,7 @@ def reproduce(out: str | Path, config: str | Path | None = None, *, quiet: bool 
     Raises:
         ConfigError: the scenario is not a simulated er4u-paper robot.
     """
-    from calib.io.dataset import read_dataset_info
+    from calib.io.dataset_info import read_dataset_info
     from calib.io.truth import read_truth
     from calib.kinematics import fk_nominal
     from calib.report import aligned_errors, tool_tips

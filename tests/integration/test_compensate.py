@@ -20,7 +20,7 @@ from calib.compensate import compensated_ik, solve_compensated, tool_target_resi
 from calib.export import deploy, deploy_chain
 from calib.export_toml import to_toml
 from calib.ik import UnreachableError, ik_nearest
-from calib.io.dataset import read_dataset_info
+from calib.io.dataset_info import read_dataset_info
 from calib.io.truth import read_truth
 from calib.kinematics import fk_nominal
 from calib.mcpc import nominal_mcpc

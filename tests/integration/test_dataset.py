@@ -5,7 +5,8 @@ import dataclasses
 import numpy as np
 import pytest
 
-from calib.io.dataset import Dataset, DatasetError, DatasetInfo, DatasetWriter
+from calib.io.dataset import Dataset, DatasetError, DatasetWriter
+from calib.io.dataset_info import DatasetInfo
 from calib.robot import StereoPair
 from scenarios.acquire import AcquisitionError, acquire
 
@@ -145,7 +146,7 @@ def test_each_camera_keeps_its_own_model_and_free_parameters(tmp_path):
     """dataset.json holds a model per camera; a field dataset of mixed models is refused by
     the self-calibration (it shares one model across the rig)."""
     from calib.calibrate import CalibrationError, calibrate
-    from calib.io.dataset import read_dataset_info, write_dataset_info
+    from calib.io.dataset_info import read_dataset_info, write_dataset_info
 
     models = (("opencv", ("fx", "mu", "cx", "cy", "k1", "k2")), ("pinhole", ("fx", "mu")))
     mixed = dataclasses.replace(info(m=6), cameras=("left", "right"), camera_models=models)

@@ -16,7 +16,7 @@ import pytest
 from calib.calibrate import dataset_camera
 from calib.camera import BrownConrady, Fisheye, camera_model
 from calib.io.calibration_blocks import CameraIntrinsics
-from calib.io.dataset import DatasetError, DatasetInfo
+from calib.io.dataset_info import DatasetError, DatasetInfo
 from calib.io.jsonfile import Fields
 from calib.selfcal import self_calibrate
 from calib.selfcal_synthetic import synthetic_stereo_scene

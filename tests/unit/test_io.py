@@ -21,7 +21,7 @@ from calib.io.calibration import (
     read_calibration,
     write_calibration,
 )
-from calib.io.dataset import (
+from calib.io.dataset_info import (
     DatasetError,
     DatasetInfo,
     read_dataset_info,
