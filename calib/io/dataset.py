@@ -344,6 +344,10 @@ class Dataset:
                 )
             except (ValueError, IndexError) as exc:
                 raise DatasetError(f"{path}: malformed row {r} ({exc})") from exc
+            if not 0 <= k < 4:
+                raise DatasetError(
+                    f"{path}: malformed row {r} (corner {k}: a marker has corners 0-3)"
+                )
             if i not in keep:
                 continue
             buf.setdefault((i, cam, mid), np.full((4, 2), np.nan))[k] = (u, v)
