@@ -18,11 +18,19 @@ from pathlib import Path
 import numpy as np
 
 from calib.errors import InputError
-from calib.robot_chain import CONVENTIONS, DHParams, dh_chain
+from calib.robot_chain import DHParams, dh_chain
 from calib.robot_encoder import EncoderSpec, encoder_spec
+from calib.robot_toml import (
+    Kinematics,
+    RobotDefinitionError,
+    camera_mount,
+    floats,
+    per_joint,
+    table_kinematics,
+    urdf_kinematics,
+)
 from calib.robot_urdf import urdf_chain, urdf_home
 from calib.tomlfile import read_toml
-from calib.transforms import make_pose
 
 __all__ = [
     "RobotDef",
@@ -35,16 +43,11 @@ __all__ = [
     "load_robot",
     "list_robots",
     "models_dir",
-    "RobotDefinitionError",
+    "RobotDefinitionError",  # defined with the file parsing (calib.robot_toml); load_robot raises it
 ]
 
-JOINT_TYPES = ("revolute", "prismatic")
 MIN_JOINTS, MAX_JOINTS = 3, 7
 """Joint counts a robot file may have."""
-
-
-class RobotDefinitionError(InputError):
-    """A robot name that does not exist or a robot file that is malformed."""
 
 
 def models_dir() -> Path:
@@ -235,48 +238,6 @@ class RobotDef:
                 )
 
 
-def _vec3(table: dict, key: str, where: str) -> np.ndarray:
-    try:
-        v = np.asarray(table[key], dtype=float) if key in table else None
-    except (TypeError, ValueError):
-        v = None
-    if v is None or v.shape != (3,) or not np.all(np.isfinite(v)):
-        raise RobotDefinitionError(
-            f"{where}: '{key}' must be a list of 3 finite numbers, got {table.get(key)!r}"
-        )
-    return v
-
-
-def _per_joint(table: dict, key: str, n: int, where: str, *, default: np.ndarray) -> np.ndarray:
-    """``table[key]`` as n positive finite numbers (or ``default`` when the key is absent)."""
-    if not isinstance(table, dict):
-        raise RobotDefinitionError(f"{where} must be a table")
-    if key not in table:
-        return np.asarray(default, dtype=float)
-    try:
-        v = np.asarray(table[key], dtype=float)
-    except (TypeError, ValueError):
-        v = None
-    if v is None or v.shape != (n,) or not np.all(np.isfinite(v)) or np.any(v <= 0):
-        raise RobotDefinitionError(
-            f"{where}: '{key}' must be {n} positive numbers (one per joint), got {table[key]!r}"
-        )
-    return v
-
-
-def _camera_mount(table: dict, where: str) -> np.ndarray:
-    p = _vec3(table, "xyz_mm", where) / 1000.0
-    x = _vec3(table, "x_axis", where)
-    z = _vec3(table, "z_axis", where)
-    if not np.linalg.norm(x) > 0 or not np.linalg.norm(z) > 0:
-        raise RobotDefinitionError(f"{where}: camera x_axis and z_axis must be non-zero vectors")
-    x, z = x / np.linalg.norm(x), z / np.linalg.norm(z)
-    if abs(x @ z) > 1e-9:
-        raise RobotDefinitionError(f"{where}: camera x_axis and z_axis must be orthogonal")
-    R = np.column_stack([x, np.cross(z, x), z])
-    return make_pose(R, p)
-
-
 def _resolve(name_or_path: str | Path) -> Path:
     path = Path(name_or_path)
     if path.suffix not in (".toml", ".urdf"):
@@ -315,9 +276,9 @@ def load_robot(name_or_path: str | Path) -> RobotDef:
         return _from_urdf_file(path)
     data = read_toml(path, RobotDefinitionError)
     if "urdf" in data:
-        kin = _urdf_kinematics(data["urdf"], path)
+        kin = urdf_kinematics(data["urdf"], path)
     else:
-        kin = _table_kinematics(data, path)
+        kin = table_kinematics(data, path)
     mount = data.get("camera_mount")
     if mount is None:  # no camera (e.g. tracker measurements): at the flange, like a bare URDF
         return _assemble(path, data, kin, np.eye(4))
@@ -327,122 +288,19 @@ def load_robot(name_or_path: str | Path) -> RobotDef:
             fix=f"write [camera_mount] with xyz_mm, x_axis and z_axis in {path}, or leave it out "
             "for a camera at the flange looking along its z axis",
         )
-    return _assemble(path, data, kin, _camera_mount(mount, f"{path}: [camera_mount]"))
-
-
-@dataclass(frozen=True)
-class _Kinematics:
-    names: tuple[str, ...]
-    types: tuple[str, ...]
-    limits: np.ndarray
-    chain: np.ndarray
-    dh: DHParams | None
-
-
-def _table_kinematics(data: dict, path: Path) -> _Kinematics:
-    """Joints and chain from the ``[[joint]]`` tables of a DH or modified-DH robot file."""
-    convention = data.get("convention", "dh")
-    if convention not in CONVENTIONS:
-        raise RobotDefinitionError(
-            f"{path}: convention must be one of {CONVENTIONS}, got {convention!r}",
-            fix=f'set convention = "dh" (standard DH) or "mdh" (modified DH, Craig) in {path}, '
-            "or give a [urdf] table",
-        )
-    joints = data.get("joint")
-    if not isinstance(joints, list) or not joints:
-        raise RobotDefinitionError(f"{path}: needs at least one [[joint]] table")
-    names, types, alpha, a, d, off, lim = [], [], [], [], [], [], []
-    for i, jt in enumerate(joints):
-        where = f"{path}: joint {i + 1}"
-        kind = jt.get("type", "revolute")
-        if kind not in JOINT_TYPES:
-            raise RobotDefinitionError(f"{where}: type must be one of {JOINT_TYPES}, got {kind!r}")
-        try:
-            ang = np.pi / 180
-            names.append(str(jt.get("name", f"joint{i + 1}")))
-            types.append(kind)
-            alpha.append(_finite(jt, "alpha_deg", where) * ang)
-            a.append(_finite(jt, "a_mm", where) / 1000)
-            d.append(_finite(jt, "d_mm", where) / 1000)
-            unit = ang if kind == "revolute" else 1 / 1000
-            off_key = "offset_deg" if kind == "revolute" else "theta_deg"
-            off.append(_finite(jt, off_key, where, 0.0) * ang)
-            lo, hi = (float(x) for x in jt["range_deg" if kind == "revolute" else "range_mm"])
-        except KeyError as exc:
-            raise RobotDefinitionError(f"{where}: missing key {exc}") from exc
-        except RobotDefinitionError:
-            raise  # already names file, joint and key, with its fix (not wrapped again, #15)
-        except (TypeError, ValueError) as exc:
-            raise RobotDefinitionError(f"{where}: bad value ({exc})") from exc
-        if not lo < hi:
-            raise RobotDefinitionError(f"{where}: range must be [lower, upper] with lower < upper")
-        lim.append((lo * unit, hi * unit))
-    if all(t == "revolute" for t in types) and not np.any(a) and not np.any(d):
-        raise RobotDefinitionError(
-            f"{path}: every joint has a_mm = 0 and d_mm = 0: the arm has no length, so the "
-            "camera never moves and nothing can be calibrated",
-            fix=f"give the link lengths (a_mm, d_mm) of the arm's DH table in {path}",
-        )
-    dh = DHParams(convention, np.array(alpha), np.array(a), np.array(d), np.array(off))
-    return _Kinematics(tuple(names), tuple(types), np.array(lim), dh_chain(dh), dh)
-
-
-def _floats(value: object) -> np.ndarray | None:
-    """``value`` as a float array, or None if it is not numbers."""
-    try:
-        return np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        return None
-
-
-def _finite(table: dict, key: str, where: str, default: float | None = None) -> float:
-    """``table[key]`` as a finite float (``default`` when absent and one is given).
-
-    Raises:
-        KeyError: absent without a default. RobotDefinitionError: not a finite number.
-    """
-    if key not in table and default is not None:
-        return default
-    v = table[key]
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(float(v)):
-        raise RobotDefinitionError(
-            f"{where}: '{key}' must be a finite number, got {v!r}",
-            fix=f"write the value of '{key}' as a plain number ({where})",
-        )
-    return float(v)
-
-
-def _urdf_kinematics(table: object, path: Path) -> _Kinematics:
-    """Joints and chain from a robot file's ``[urdf]`` table (``file``, ``base_link``,
-    ``tool_link``; the file relative to the robot file)."""
-    if not isinstance(table, dict) or "file" not in table:
-        raise RobotDefinitionError(
-            f"{path}: [urdf] must be a table with the key 'file'",
-            fix=f'write [urdf] file = "arm.urdf", base_link = ..., tool_link = ... in {path}',
-        )
-    if "joint" in table or "convention" in table:
-        raise RobotDefinitionError(f"{path}: [urdf] robots take their joints from the URDF")
-    urdf_path = (path.parent / str(table["file"])).resolve()
-    if not urdf_path.is_file():
-        raise RobotDefinitionError(
-            f"{path}: [urdf] file {urdf_path} not found",
-            fix=f"set [urdf] file in {path} to a URDF path relative to {path.parent}",
-        )
-    base, tool = table.get("base_link"), table.get("tool_link")
-    ch = urdf_chain(urdf_path, base_link=base, tool_link=tool)
-    return _Kinematics(ch.joint_names, ch.joint_types, ch.limits, ch.chain, None)
+    return _assemble(path, data, kin, camera_mount(mount, f"{path}: [camera_mount]"))
 
 
 def _from_urdf_file(path: Path) -> RobotDef:
     """A robot straight from a URDF file, with the defaults :func:`load_robot` describes."""
     ch = urdf_chain(path)
-    kin = _Kinematics(ch.joint_names, ch.joint_types, ch.limits, ch.chain, None)
+    kin = Kinematics(ch.joint_names, ch.joint_types, ch.limits, ch.chain, None)
     data = {"name": path.stem, "description": f"{ch.name} (URDF {path.name}, {ch.base_link} -> "
             f"{ch.tool_link})", "home_deg": list(urdf_home(ch.joint_types, ch.limits))}  # fmt: skip
     return _assemble(path, data, kin, np.eye(4))
 
 
-def _assemble(path: Path, data: dict, kin: _Kinematics, T_flange_cam: np.ndarray) -> RobotDef:
+def _assemble(path: Path, data: dict, kin: Kinematics, T_flange_cam: np.ndarray) -> RobotDef:
     """The :class:`RobotDef` from the kinematics and the file's other tables (home, encoder,
     planning, simulation)."""
     types = kin.types
@@ -453,12 +311,12 @@ def _assemble(path: Path, data: dict, kin: _Kinematics, T_flange_cam: np.ndarray
             fix=f"describe a serial arm of {MIN_JOINTS} to {MAX_JOINTS} moving joints in {path}",
         )
     unit_vec = np.array([np.pi / 180 if t == "revolute" else 1e-3 for t in types])
-    home = _floats(data.get("home_deg", [0.0] * n))
+    home = floats(data.get("home_deg", [0.0] * n))
     if home is None or home.shape != (n,) or not np.all(np.isfinite(home)):
         raise RobotDefinitionError(f"{path}: home_deg must have {n} finite values")
     if not isinstance(data.get("encoder", {}), dict):
         raise RobotDefinitionError(f"{path}: encoder must be a table [encoder]")
-    cpd = _floats(data.get("encoder", {}).get("counts_per_deg", [np.inf] * n))
+    cpd = floats(data.get("encoder", {}).get("counts_per_deg", [np.inf] * n))
     # inf: no quantisation; NaN refused
     if cpd is None or cpd.shape != (n,) or not np.all(cpd > 0):
         raise RobotDefinitionError(f"{path}: encoder.counts_per_deg must be {n} positive numbers")
@@ -467,7 +325,7 @@ def _assemble(path: Path, data: dict, kin: _Kinematics, T_flange_cam: np.ndarray
     except InputError as exc:
         raise RobotDefinitionError(f"{path}: [encoder] {exc.message}", fix=exc.fix) from None
     revolute = np.array([t == "revolute" for t in types])
-    planning_span = _per_joint(
+    planning_span = per_joint(
         data.get("planning", {}),
         "span_deg",
         n,
@@ -477,9 +335,9 @@ def _assemble(path: Path, data: dict, kin: _Kinematics, T_flange_cam: np.ndarray
     sim = data.get("simulation", {})
     where_sim = f"{path}: [simulation]"
     gains = SimulationGains(
-        kp=_per_joint(sim, "kp", n, where_sim, default=np.full(n, DEFAULT_KP)),
-        kv=_per_joint(sim, "kv", n, where_sim, default=np.full(n, DEFAULT_KV)),
-        armature=_per_joint(sim, "armature", n, where_sim, default=np.full(n, DEFAULT_ARMATURE)),
+        kp=per_joint(sim, "kp", n, where_sim, default=np.full(n, DEFAULT_KP)),
+        kv=per_joint(sim, "kv", n, where_sim, default=np.full(n, DEFAULT_KV)),
+        armature=per_joint(sim, "armature", n, where_sim, default=np.full(n, DEFAULT_ARMATURE)),
     )
     robot = RobotDef(
         name=str(data.get("name", path.stem)),
