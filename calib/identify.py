@@ -59,6 +59,7 @@ from calib.mcpc import (
     param_is_angle,
     param_names,
 )
+from calib.results_base import ParameterEstimates
 from calib.transforms import (
     skew,
 )
@@ -100,21 +101,16 @@ def initial_base(model: MCPCModel, q: np.ndarray, T_world_cam: np.ndarray) -> MC
 
 
 @dataclass(frozen=True)
-class IdentificationResult:
+class IdentificationResult(ParameterEstimates):
     """Outcome of :func:`identify`. SI units unless a name says otherwise.
 
     Attributes:
+        names, values, std, estimated, held_reason (``"explicit"`` or ``"unidentifiable from
+            this data"``), covariance, rank, n_params: :class:`~calib.results_base.ParameterEstimates`
+            (the rank of the scaled Jacobian at the start).
         model: identified model, world = measurement frame of ``T_world_cam``.
         initial_model: the starting model (after base placement).
-        names: minimal parameter names, eq. 10 order (``alpha0 .. ly5, lz5``).
-        values: identified values of all minimal parameters (rad, m); held ones at their start.
-        std: standard deviations (rad, m); ``nan`` for held parameters.
-        estimated: boolean mask of estimated parameters; ``held = ~estimated``.
-        held_reason: name -> why it was held (``"explicit"`` or ``"unidentifiable from this data"``).
-        covariance: (p, p) covariance of the estimated parameters (order of ``names[estimated]``).
         identifiability: the analysis at the start (rank, singular values, indices).
-        rank / n_params: numerical rank of the scaled Jacobian of all non-explicitly-held minimal
-            parameters / their number.
         condition_number, o1, o3, singular_values: of the estimated set at the solution
             (see :mod:`calib.identifiability` for the scaling and index definitions).
         sigma0: a-posteriori standard deviation of unit weight, sqrt(r^T W r / (6m - p)); ~1 when
@@ -128,15 +124,7 @@ class IdentificationResult:
 
     model: MCPCModel
     initial_model: MCPCModel
-    names: tuple[str, ...]
-    values: np.ndarray
-    std: np.ndarray
-    estimated: np.ndarray
-    held_reason: dict[str, str]
-    covariance: np.ndarray
     identifiability: Identifiability
-    rank: int
-    n_params: int
     condition_number: float
     o1: float
     o3: float
@@ -151,26 +139,18 @@ class IdentificationResult:
     residuals: np.ndarray = field(repr=False)
     warnings: tuple[str, ...] = ()
 
-    @property
-    def held(self) -> tuple[str, ...]:
-        """Names of the parameters held at their starting (nominal) values."""
-        return tuple(n for n, e in zip(self.names, self.estimated) if not e)
-
     def summary(self) -> str:
         """Human-readable table: parameter, value, std (mm / deg)."""
-        idx = minimal_indices(self.model.joint_types)
-        ang = param_is_angle(idx)
-        lines = [
-            f"rank {self.rank}/{self.n_params}, cond {self.condition_number:.3g}, O1 {self.o1:.3g}, "
-            f"O3 {self.o3:.3g}, sigma0 {self.sigma0:.3g}, iterations {self.iterations}",
-            f"RMS before {self.rms_t_mm_before:.4f} mm / {self.rms_r_deg_before:.4f} deg, "
-            f"after {self.rms_t_mm_after:.6f} mm / {self.rms_r_deg_after:.6f} deg",
-        ]
-        for nm, v, s, a in zip(self.names, self.values, self.std, ang):
-            k, u = (np.degrees(1.0), "deg") if a else (1000.0, "mm")
-            note = f"  held: {self.held_reason[nm]}" if nm in self.held_reason else ""
-            lines.append(f"{nm:>7s} {v * k:12.5f} +- {s * k:9.5f} {u}{note}")
-        return "\n".join(lines)
+        ang = param_is_angle(minimal_indices(self.model.joint_types))
+        return "\n".join(
+            [
+                f"rank {self.rank}/{self.n_params}, cond {self.condition_number:.3g}, O1 {self.o1:.3g}, "
+                f"O3 {self.o3:.3g}, sigma0 {self.sigma0:.3g}, iterations {self.iterations}",
+                f"RMS before {self.rms_t_mm_before:.4f} mm / {self.rms_r_deg_before:.4f} deg, "
+                f"after {self.rms_t_mm_after:.6f} mm / {self.rms_r_deg_after:.6f} deg",
+                *self.table(ang),
+            ]
+        )
 
 
 def _check_inputs(

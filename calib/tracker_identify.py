@@ -55,6 +55,7 @@ from calib.identifiability import select_identifiable, triangular_factor
 from calib.identify import IdentificationWarning
 from calib.kinematics import fk_tool
 from calib.mcpc import MCPCModel, minimal_indices, param_is_angle, param_names
+from calib.results_base import ParameterEstimates
 from calib.solver import ParameterBlock, Problem, SolverOptions, solve
 from calib.transforms import inv_pose, make_pose
 
@@ -185,18 +186,18 @@ def _kinds(meas: TrackerMeasurements) -> tuple[str, ...]:
 
 
 @dataclass(frozen=True)
-class TrackerResult:
+class TrackerResult(ParameterEstimates):
     """Outcome of :func:`identify_tracker`. SI units unless a name says otherwise.
 
     Attributes:
+        names, values, std, estimated, held_reason, covariance, rank, n_params:
+            :class:`~calib.results_base.ParameterEstimates` (the rank of the considered
+            parameters' Jacobian at the start).
         model: identified chain in the fit frame (tool = the tool point, or the measured tool
             frame for poses).
         T_meas_fit: (4, 4) tracker frame <- fit frame (constant; see the module docstring).
-        names: minimal parameter names (eq. 10 order); values (rad, m); std (nan when held).
-        estimated: mask of the identifiable (estimated) parameters; held_reason: name -> why.
-        rank: numerical rank of the considered parameters' Jacobian at the start; n_params:
-            their number; condition_number: of the column-scaled weighted Jacobian of the
-            estimated set at the solution.
+        condition_number: of the column-scaled weighted Jacobian of the estimated set at the
+            solution.
         sigma0: a-posteriori standard deviation of unit weight.
         rms_mm: RMS of the position residual norms (mm) of the position / pose rows (nan if none);
         rms_deg: RMS rotation error (deg) of the pose rows (nan if none); rms_distance_mm.
@@ -206,14 +207,6 @@ class TrackerResult:
 
     model: MCPCModel
     T_meas_fit: np.ndarray
-    names: tuple[str, ...]
-    values: np.ndarray
-    std: np.ndarray
-    estimated: np.ndarray
-    held_reason: dict[str, str]
-    covariance: np.ndarray
-    rank: int
-    n_params: int
     condition_number: float
     sigma0: float
     rms_mm: float
@@ -227,16 +220,6 @@ class TrackerResult:
     n_equations: int
     residuals: dict[str, np.ndarray] = field(repr=False, default_factory=dict)
     warnings: tuple[str, ...] = ()
-
-    @property
-    def identifiable(self) -> tuple[str, ...]:
-        """Names of the estimated parameters."""
-        return tuple(n for n, e in zip(self.names, self.estimated) if e)
-
-    @property
-    def held(self) -> tuple[str, ...]:
-        """Names of the parameters held at nominal."""
-        return tuple(n for n, e in zip(self.names, self.estimated) if not e)
 
     def predict(self, q: np.ndarray) -> np.ndarray:
         """Tool-point positions (m, 3) in the tracker frame (m) at joints ``q`` (m, n)."""
