@@ -21,7 +21,16 @@ import numpy as np
 
 # Heavy modules (scipy, OpenCV, MuJoCo, the pipeline) are imported by the functions that use
 # them, so that `selfcal --help` builds every command's parser without loading them.
-__all__ = ["CornerOffsets", "measure", "summarise", "format_table", "plot", "main", "register"]
+__all__ = [
+    "CornerOffsets",
+    "measure",
+    "summarise",
+    "format_table",
+    "plot",
+    "main",
+    "figure_path",
+    "register",
+]
 
 SIZE_BINS_PX = (0.0, 25.0, 35.0, 50.0, np.inf)
 ANGLE_BINS_DEG = (0.0, 30.0, 45.0, 55.0, 65.0, 90.0)
@@ -293,20 +302,52 @@ def main(
     return "\n\n".join(parts)
 
 
+DEFAULT_OUT = Path("runs") / "diagnose-render"
+"""The output folder when ``--out`` is not given (relative to the working directory, like the
+other commands' ``runs/...`` defaults)."""
+FIGURE_NAME = "render_corners.png"
+
+
+def figure_path(out: str | Path | None, figure: str | Path | None) -> Path:
+    """Where the figure goes: ``figure`` when given, else ``OUT/figures/render_corners.png``
+    (``OUT`` = ``out`` or :data:`DEFAULT_OUT`), like the figures of ``selfcal run``."""
+    if figure is not None:
+        return Path(figure)
+    return Path(out if out is not None else DEFAULT_OUT) / "figures" / FIGURE_NAME
+
+
 def _add_args(ap: argparse.ArgumentParser) -> None:
     ap.add_argument("config", nargs="?", default=None, help="scenario TOML (default: paper.toml)")
-    ap.add_argument("--figure", type=Path, default=Path("docs/render_corners.png"))
+    ap.add_argument(
+        "--out",
+        default=None,
+        metavar="DIR",
+        help=f"output folder (default {DEFAULT_OUT}); the figure goes to DIR/figures/{FIGURE_NAME}",
+    )
+    ap.add_argument(
+        "--figure",
+        type=Path,
+        default=None,
+        metavar="PNG",
+        help=f"write the figure here instead of DIR/figures/{FIGURE_NAME} (e.g. "
+        f"docs/{FIGURE_NAME} to update the docs' figure)",
+    )
     ap.add_argument("--refine", nargs="+", default=["lines", "lines-unscreened", "subpix"])
     ap.add_argument("--msaa", type=int, default=None, help="multisample count (default: 4)")
 
 
 def _cmd(a: argparse.Namespace) -> int:
-    print(main(a.config, tuple(a.refine), a.figure, msaa=a.msaa))
+    figure = figure_path(a.out, a.figure)
+    print(main(a.config, tuple(a.refine), figure, msaa=a.msaa))
+    from scenarios.cli_common import note_written
+
+    note_written(a, figure)
     return 0
 
 
 def register(subparsers) -> argparse.ArgumentParser:
-    """Add ``selfcal diagnose render [scenario.toml] [--figure PNG] [--refine M ...]``."""
+    """Add ``selfcal diagnose render [scenario.toml] [--out DIR] [--figure PNG] [--refine M
+    ...]``."""
     sp = subparsers.add_parser("diagnose", help="diagnostics of the simulated pipeline")
     sub = sp.add_subparsers(dest="what", required=True)
     r = sub.add_parser(

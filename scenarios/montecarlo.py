@@ -47,6 +47,7 @@ from calib.robot_def import load_robot
 from calib.transforms import inv_pose
 from scenarios.acquire import acquire
 from scenarios.backends import open_robot, plan_dataset, sim_setup
+from scenarios.cli_log import get_logger
 from scenarios.config import load_scenario
 from scenarios.montecarlo_journal import JOURNAL, DrawJournal, draw_key
 from scenarios.montecarlo_report import plot, summary_markdown
@@ -54,6 +55,7 @@ from scenarios.montecarlo_stats import summarize
 from scenarios.parallel import run_tasks
 from scenarios.pipeline import dithered
 from scenarios.progress import Progress, TaskCounts
+from scenarios.row_checks import check_fields
 
 __all__ = ["draw_one", "run_montecarlo", "write_csv"]
 
@@ -127,7 +129,7 @@ def _evaluate(root: Path, pixel_sigma: float) -> dict:
     qv = np.radians(ds.info.validation_joints_deg)
     p_true = tool_tips(truth.true_model, qv, truth.T_cam_tip)
     models = {"joint": out.model, "two_stage": out.identification.model}
-    row: dict = {}
+    row: dict = check_fields(out.result.failures)  # the checks `selfcal calibrate` reports
     for k, mdl in models.items():
         row[f"{k}_tip_rms_mm"] = aligned_errors(tool_tips(mdl, qv, truth.T_cam_tip), p_true)["rms"]
     row["nominal_tip_rms_mm"] = aligned_errors(
@@ -247,6 +249,8 @@ def run_montecarlo(
             if row["status"] == "ok"
             else row["status"]
         )
+        if row.get("checks") == "failed":
+            msg += ", checks FAILED"
         bar.advance(note=f"seed {row['seed']}: {msg}{took}")
 
     try:
@@ -276,6 +280,13 @@ def run_montecarlo(
     summary = summarize(rows)
     summary["settings"] = {k: v for k, v in base.items() if k != "joints_deg"}
     summary["seconds"] = round(time.perf_counter() - t0, 1)
+    if summary["checks_failed"]:
+        get_logger(__name__).warning(
+            "montecarlo: %d of %d draws' calibrations FAILED their reliability checks (runs.csv "
+            "columns checks, failed_checks)",
+            summary["checks_failed"],
+            len(rows),
+        )
     if out is not None:
         out = Path(out)
         out.mkdir(parents=True, exist_ok=True)

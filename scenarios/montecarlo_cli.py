@@ -10,7 +10,15 @@ from scenarios.cli_common import add_json, add_scenario_arg, note_written
 
 # Heavy modules (scipy, OpenCV, MuJoCo, the pipeline) are imported by the functions that use
 # them, so that `selfcal --help` builds every command's parser without loading them.
-__all__ = ["register"]
+__all__ = ["register", "SEED_HELP"]
+
+SEED_HELP = (
+    "seed of the truth and the draws (default 1), overriding the scenario's [perturbation] and "
+    "[trajectory] seeds: the perturbation and the calibration postures take seed S, the noise "
+    "draws seeds S, S+1, ..., S+draws-1 ([noise] seed); with --plans the trajectory seeds S, "
+    "S+1, S+2. The same S gives the same rows; the marker field ([target] seed) and the "
+    "validation postures ([validation] seed) stay the scenario's"
+)
 
 
 def _cmd(args: argparse.Namespace) -> int:
@@ -19,9 +27,15 @@ def _cmd(args: argparse.Namespace) -> int:
     from scenarios.plan_comparison import plans_markdown, run_plan_comparison
 
     args.out = args.out or ("runs/montecarlo-plans" if args.plans else "runs/montecarlo")
+    seed = 1 if args.seed is None else args.seed
     if args.plans:
         res = run_plan_comparison(
-            args.out, draws=args.draws, jobs=args.jobs, quiet=args.quiet, cluster=args.cluster
+            args.out,
+            draws=args.draws,
+            jobs=args.jobs,
+            quiet=args.quiet,
+            cluster=args.cluster,
+            seeds=(seed, seed + 1, seed + 2),
         )
         print(json.dumps(res, default=str) if args.json else plans_markdown(res))
         note_written(args, args.out)
@@ -31,6 +45,9 @@ def _cmd(args: argparse.Namespace) -> int:
         args.out,
         poses=args.poses,
         pixel_sigma=args.pixel_sigma,
+        traj_seed=seed,
+        perturb_seed=seed,
+        first_seed=seed,
         dither=not args.no_dither,
         jobs=args.jobs,
         quiet=args.quiet,
@@ -73,6 +90,13 @@ def register(subparsers) -> argparse.ArgumentParser:
     add_cluster_args(sp)
     sp.add_argument("--poses", type=int, default=30, help="calibration postures (default 30)")
     sp.add_argument("--pixel-sigma", type=float, default=0.5, help="corner noise, px")
+    sp.add_argument(
+        "--seed",
+        type=int,
+        default=None,
+        metavar="S",
+        help=SEED_HELP,
+    )
     sp.add_argument(
         "--no-dither",
         action="store_true",

@@ -16,7 +16,10 @@ __all__ = ["summary_markdown", "plot"]
 
 def summary_markdown(s: dict) -> str:
     if not s.get("ok"):
-        return f"# Monte Carlo\n\nno successful draw ({s.get('failed', 0)} failed)\n"
+        return (
+            f"# Monte Carlo\n\nno successful draw ({s.get('failed', 0)} failed); reliability "
+            f"checks: {s.get('checks_failed', 0)} of {s.get('draws', 0)} draws failed them\n"
+        )
     st = s.get("settings", {})
     lines = [
         "# Monte Carlo: achieved error against the Cramer-Rao bound",
@@ -26,6 +29,9 @@ def summary_markdown(s: dict) -> str:
         f"trajectory seed {st.get('traj_seed')}, plan {st.get('plan')}, {st.get('poses')} poses), "
         f"{s['ok']} noise draws ({s['failed']} failed), corner noise {st.get('pixel_sigma')} px, "
         f"read-back dithered: {st.get('dither')}.",
+        "",
+        f"Reliability checks (of the final, joint calibration; runs.csv columns checks and "
+        f"failed_checks): {s.get('checks_failed', 0)} of {s['draws']} draws failed them.",
         "",
         f"Tool-tip bound (aligned RMS over the validation postures): "
         f"{s['tool_tip_bound_mm']:.4f} mm (spread over draws {100 * s['bound_spread']:.1f} %); "

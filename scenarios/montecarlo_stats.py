@@ -39,6 +39,8 @@ def summarize(rows: list[dict]) -> dict:
     """Ratios achieved / bound with 95 % intervals for both methods (see the module docstring)."""
     ok = [r for r in rows if r.get("status") == "ok"]
     res: dict = {"draws": len(rows), "ok": len(ok), "failed": len(rows) - len(ok)}
+    # draws whose (joint) calibration failed the reliability checks (scenarios.row_checks)
+    res["checks_failed"] = sum(r.get("checks") == "failed" for r in rows)
     if not ok:
         return res
     bound = float(np.median([r["bound_tip_rms_mm"] for r in ok]))

@@ -144,7 +144,7 @@ def run_plan_comparison(
 ) -> dict:
     """Random against D-optimal postures: the predicted tool-tip bound for every count and
     trajectory seed (:func:`compare_plans`), and a Monte Carlo of ``draws`` noise draws for each
-    plan kind at ``mc_counts`` (trajectory seed 1). Writes ``plans.csv``, ``plans.json``,
+    plan kind at ``mc_counts`` (trajectory, perturbation and first noise seed ``seeds[0]``). Writes ``plans.csv``, ``plans.json``,
     ``plans.md`` and ``optimal_poses.png`` into ``out``; returns the JSON content. ``cluster``: a
     Dask scheduler address for the Monte Carlo draws (docs/cluster.md)."""
     out = Path(out)
@@ -164,6 +164,8 @@ def run_plan_comparison(
                 joints_deg=np.asarray(r[0]["q_deg"]),
                 plan=kind,
                 traj_seed=seeds[0],
+                perturb_seed=seeds[0],
+                first_seed=seeds[0],
                 jobs=jobs,
                 quiet=True,
                 cluster=cluster,

@@ -42,6 +42,7 @@ from typing import TYPE_CHECKING
 
 from calib.errors import InputError
 from scenarios.cli_common import add_json, note_written
+from scenarios.cli_log import get_logger
 from scenarios.cluster import DEFAULT_RETRIES
 from scenarios.progress import Progress
 
@@ -80,6 +81,7 @@ def run_study(
     cluster: str | None = None,
     retries: int = DEFAULT_RETRIES,
     task: Callable[[dict], dict] | None = None,
+    seed: int = 1,
 ) -> list[dict]:
     """Run (or resume) study ``name`` into ``out``; returns all its rows (old and new).
 
@@ -90,12 +92,15 @@ def run_study(
     settings (default :func:`scenarios.study_runs.run_one`); a task that fails on every try is
     recorded as a ``failed: ...`` row (:func:`scenarios.study_runs.failed_row`). Resuming works
     the same whichever ran the finished rows: a run whose key is in ``runs.csv`` is not run again.
+    ``seed``: the first seed of every setting (its runs take ``seed``, ``seed + 1``, ...: the
+    perturbation, trajectory and noise seeds of each run); the same seed gives the same rows.
 
     Raises:
         InputError: unknown study or budget; no Dask or no scheduler with ``cluster``.
     """
     from scenarios.parallel import run_tasks
     from scenarios.progress import TaskCounts
+    from scenarios.row_checks import count_check_failures
     from scenarios.study_defs import STUDIES
     from scenarios.study_runs import COLUMNS, failed_row, load_runs, settings_key
     from scenarios.study_summary import plotted, summarize, worse_than_nominal
@@ -112,6 +117,7 @@ def run_study(
                 cluster=cluster,
                 retries=retries,
                 task=task,
+                seed=seed,
             )
         return rows
     if name not in STUDIES:
@@ -125,6 +131,8 @@ def run_study(
     rows = [r for r in load_runs(csv_path) if r.get("study") == name]
     jobs = max(1, int(jobs or os.cpu_count() or 1))
     new_file = not csv_path.is_file()
+    if not new_file:
+        _upgrade_columns(csv_path, COLUMNS, load_runs)
     fh = open(csv_path, "a", newline="")
     writer = csv.writer(fh)
     if new_file:
@@ -134,7 +142,7 @@ def run_study(
     try:
         for phase in study.phases:
             done = {r["key"] for r in rows}
-            todo = [st for st in phase(budget, rows) if settings_key(st) not in done]
+            todo = [st for st in phase(budget, rows, seed) if settings_key(st) not in done]
             todo = list({settings_key(st): st for st in todo}.values())
             where = f"on {cluster}" if cluster else f"{min(jobs, max(1, len(todo)))} process(es)"
             if not quiet:
@@ -173,14 +181,40 @@ def run_study(
     res = summarize(name, rows, out)
     for text in worse_than_nominal(study, res):
         print(f"warning: study {name}: {text}", file=sys.stderr)
+    checks = count_check_failures(rows)
+    if checks:
+        get_logger(__name__).warning(
+            "study %s: %d of %d calibration(s) FAILED their reliability checks (runs.csv "
+            "columns checks, failed_checks)",
+            name,
+            checks,
+            len(rows),
+        )
     if not quiet:
         drawn = f"plot {out / (name + '.png')}" if plotted(res) else "one setting: table only"
         print(
-            f"study {name}: {len(rows)} run(s) in {csv_path}; table {out / (name + '.md')}; "
-            f"{drawn}; {time.perf_counter() - t0:.1f} s",
+            f"study {name}: {len(rows)} run(s) in {csv_path}, {checks} failed the checks; table "
+            f"{out / (name + '.md')}; {drawn}; {time.perf_counter() - t0:.1f} s",
             file=sys.stderr,
         )
     return rows
+
+
+def _upgrade_columns(csv_path: Path, columns: tuple[str, ...], load_runs) -> None:
+    """Rewrite ``csv_path`` with the header ``columns`` when it was written with other columns
+    (a study begun before a column was added): its rows keep their values, new cells are empty."""
+    with open(csv_path, newline="") as fh:
+        header = next(csv.reader(fh), [])
+    if tuple(header) == tuple(columns):
+        return
+    rows = load_runs(csv_path)
+    tmp = csv_path.with_suffix(".csv.tmp")
+    with open(tmp, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(columns)
+        for r in rows:
+            w.writerow([_fmt(r.get(c)) for c in columns])
+    os.replace(tmp, csv_path)
 
 
 def _note(row: dict) -> str:
@@ -190,6 +224,8 @@ def _note(row: dict) -> str:
         if row["status"] == "ok"
         else row["status"]
     )
+    if row.get("checks") == "failed":
+        msg += ", checks FAILED"
     took = "" if row.get("seconds") is None else f" ({row['seconds']:.1f} s)"
     return f"{row['key']}: {msg}{took}"
 
@@ -205,11 +241,16 @@ def _cmd(args: argparse.Namespace) -> int:
         quiet=args.quiet,
         cluster=args.cluster,
         retries=args.retries,
+        seed=1 if args.seed is None else args.seed,
     )
     note_written(args, args.out)
     if args.json:
+        from scenarios.row_checks import count_check_failures
+
         ok = sum(r.get("status") == "ok" for r in rows)
-        print(json.dumps({"study": args.name, "out": str(args.out), "runs": len(rows), "ok": ok}))
+        doc = {"study": args.name, "out": str(args.out), "runs": len(rows), "ok": ok}
+        doc["checks_failed"] = count_check_failures(rows)
+        print(json.dumps(doc))
     return 0
 
 
@@ -244,6 +285,17 @@ def register(subparsers) -> argparse.ArgumentParser:
         type=int,
         default=None,
         help="worker processes (default: CPU count; 1 = in-process; not with --cluster)",
+    )
+    sp.add_argument(
+        "--seed",
+        type=int,
+        default=None,
+        metavar="S",
+        help="first seed of every setting (default 1): its runs take seeds S, S+1, ..., each "
+        "overriding the scenario's [perturbation], [trajectory] and [noise] seeds (the marker "
+        "field and the validation postures stay the scenario's); the same S gives the same rows. "
+        "Rows already in --out (other seeds too) are kept and pooled in the summary: give "
+        "another --out for a separate set",
     )
     add_cluster_args(sp)
     add_json(sp)

@@ -19,6 +19,7 @@ from pathlib import Path
 
 from scenarios.config import load_scenario
 from scenarios.pipeline import run_acquire, run_calibrate, run_report
+from scenarios.row_checks import check_fields
 
 __all__ = [
     "SETTING_KEYS",
@@ -45,7 +46,13 @@ METRIC_KEYS = (
     "frames_used",
     "rank",
     "seconds",
+    "checks",
+    "failed_checks",
 )
+"""``checks``: ``"passed"`` or ``"failed"``, the reliability checks of the calibration
+(:mod:`calib.quality`, what ``selfcal calibrate`` reports as FAILED and ``calibration.json``
+records as ``status``); empty for a run that did not finish. ``failed_checks``: the failures,
+one sentence each, joined by `` | ``."""
 COLUMNS = ("study", "key", *SETTING_KEYS, *METRIC_KEYS)
 
 
@@ -101,6 +108,7 @@ def run_one(settings: dict) -> dict:
             frames=cal.dataset.frames,
             frames_used=cal.dataset.frames_used,
             rank=cal.identification.rank,
+            **check_fields(cal.failures),
         )
     except Exception as exc:  # noqa: BLE001 - a study records failures instead of stopping
         row["status"] = _failure(exc)
@@ -127,10 +135,14 @@ def load_runs(path: Path) -> list[dict]:
         for r in csv.DictReader(fh):
             out: dict = {}
             for k, v in r.items():
+                if k is None:  # cells beyond the header (a row of a newer layout): dropped
+                    continue
                 if k in ("study", "key", "status") or v is None:
                     out[k] = v
                 elif v == "":
                     out[k] = None
+                elif k in ("checks", "failed_checks"):
+                    out[k] = v
                 elif k == "render":
                     out[k] = v == "True"
                 else:

@@ -27,14 +27,18 @@ def _stats(v: list[float]) -> tuple[float, float, float]:
 
 def summarize(name: str, rows: list[dict], out: str | Path) -> dict:
     """Write ``out/<name>.md`` and ``out/<name>.png`` from the study's rows; returns the table
-    ``{series: {x: {n, failed, cal_median, cal_q25, cal_q75, nom_median, x_eff}}}``."""
+    ``{series: {x: {n, failed, checks_failed, cal_median, cal_q25, cal_q75, nom_median,
+    x_eff}}}`` (``checks_failed``: runs whose calibration failed its reliability checks)."""
     study = STUDIES[name]
     out = Path(out)
     table: dict = {}
     for r in rows:
         s = str(r.get(study.series)) if study.series else "all"
         x = r[study.x]
-        cell = table.setdefault(s, {}).setdefault(x, {"cal": [], "nom": [], "eff": [], "failed": 0})
+        cell = table.setdefault(s, {}).setdefault(
+            x, {"cal": [], "nom": [], "eff": [], "failed": 0, "checks_failed": 0}
+        )
+        cell["checks_failed"] += int(r.get("checks") == "failed")
         if r["status"] == "ok" and r["cal_rms_mm"] is not None:
             cell["cal"].append(r["cal_rms_mm"])
             cell["nom"].append(r["nom_rms_mm"])
@@ -49,6 +53,7 @@ def summarize(name: str, rows: list[dict], out: str | Path) -> dict:
                 res.setdefault(s, {})[x] = {
                     "n": len(c["cal"]),
                     "failed": c["failed"],
+                    "checks_failed": c["checks_failed"],
                     "cal_median": m,
                     "cal_q25": q1,
                     "cal_q75": q3,
@@ -56,7 +61,11 @@ def summarize(name: str, rows: list[dict], out: str | Path) -> dict:
                     "eff_noise_median": float(np.median(c["eff"])),
                 }
             else:
-                res.setdefault(s, {})[x] = {"n": 0, "failed": c["failed"]}
+                res.setdefault(s, {})[x] = {
+                    "n": 0,
+                    "failed": c["failed"],
+                    "checks_failed": c["checks_failed"],
+                }
     _write_md(study, res, out / f"{name}.md")
     png = out / f"{name}.png"
     if plotted(res):
@@ -97,11 +106,14 @@ def _write_md(study: Study, res: dict, path: Path) -> None:
         "",
         "Validation tool-tip RMS error (mm, 20 held-out postures, after rigid alignment): median "
         "and inter-quartile range over seeds; the nominal model's median is over the same "
-        "(successful) runs. Failed runs are listed in runs.csv with their reason.",
+        "(successful) runs. Failed runs are listed in runs.csv with their reason. Checks "
+        "failed: finished runs whose calibration failed its reliability checks (marked FAILED "
+        "by `selfcal calibrate`; runs.csv columns checks and failed_checks), counted in the "
+        "statistics all the same.",
         "",
         f"| series | {study.x} | runs ok | failed | calibrated median | q25 | q75 | nominal median "
-        "| effective corner noise (px) |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "| effective corner noise (px) | checks failed |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for s, xs in res.items():
         for x, c in xs.items():
@@ -109,10 +121,17 @@ def _write_md(study: Study, res: dict, path: Path) -> None:
                 lines.append(
                     f"| {_series_label(study, s)} | {x} | {c['n']} | {c['failed']} | "
                     f"{c['cal_median']:.3f} | {c['cal_q25']:.3f} | {c['cal_q75']:.3f} | "
-                    f"{c['nom_median']:.3f} | {c['eff_noise_median']:.3f} |"
+                    f"{c['nom_median']:.3f} | {c['eff_noise_median']:.3f} | "
+                    f"{c.get('checks_failed', 0)} |"
                 )
             else:
-                lines.append(f"| {_series_label(study, s)} | {x} | 0 | {c['failed']} | | | | | |")
+                lines.append(
+                    f"| {_series_label(study, s)} | {x} | 0 | {c['failed']} | | | | | | "
+                    f"{c.get('checks_failed', 0)} |"
+                )
+    total = sum(c.get("checks_failed", 0) for xs in res.values() for c in xs.values())
+    runs = sum(c["n"] + c["failed"] for xs in res.values() for c in xs.values())
+    lines += ["", f"Reliability checks: {total} of {runs} run(s) failed them."]
     worse = worse_than_nominal(study, res)
     if worse:
         lines += ["", "**Warning**: calibration made the model worse here:", ""]

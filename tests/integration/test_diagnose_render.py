@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -45,3 +47,18 @@ def test_selfcal_diagnose_render_parses():
 
     a = build_parser().parse_args(["diagnose", "render", "x.toml", "--refine", "lines"])
     assert a.func is _cmd and a.config == "x.toml" and a.refine == ["lines"]
+
+
+def test_diagnose_render_figure_goes_into_the_output_folder():
+    """The figure's default is inside the output folder (like run's DIR/figures/*.png), never a
+    path relative to where the command runs from such as docs/; --figure still overrides it."""
+    from scenarios.cli import build_parser
+    from scenarios.diagnose_render import DEFAULT_OUT, figure_path
+
+    p = build_parser()
+    a = p.parse_args(["diagnose", "render"])
+    assert figure_path(a.out, a.figure) == DEFAULT_OUT / "figures" / "render_corners.png"
+    a = p.parse_args(["diagnose", "render", "--out", "/tmp/d"])
+    assert figure_path(a.out, a.figure) == Path("/tmp/d/figures/render_corners.png")
+    a = p.parse_args(["diagnose", "render", "--out", "/tmp/d", "--figure", "docs/x.png"])
+    assert figure_path(a.out, a.figure) == Path("docs/x.png")
