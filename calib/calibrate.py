@@ -41,6 +41,7 @@ from calib.results import CalibrationOutput, two_stage_result, with_bounds, with
 from calib.robot_def import load_robot
 from calib.selfcal import Observations, self_calibrate
 from calib.target.aruco_detect import detect_markers, detect_markers_noise
+from calib.tracker_join import TrackerInput, tracker_source
 from calib.trajectory import check_not_degenerate
 
 __all__ = [
@@ -190,19 +191,33 @@ def _check_scale_markers(ds: Dataset, dets: Detections) -> None:
 
 
 def calibrate(
-    root: str | Path, *, progress=None, method: str = "joint", allow_missing_frames: bool = False
+    root: str | Path,
+    *,
+    progress=None,
+    method: str = "joint",
+    allow_missing_frames: bool = False,
+    tracker: TrackerInput | None = None,
 ) -> CalibrationResult:
     """The calibration of the dataset in ``root``: the result of :func:`calibrate_detailed`.
 
     Raises: as :func:`calibrate_detailed`.
     """
     return calibrate_detailed(
-        root, progress=progress, method=method, allow_missing_frames=allow_missing_frames
+        root,
+        progress=progress,
+        method=method,
+        allow_missing_frames=allow_missing_frames,
+        tracker=tracker,
     ).result
 
 
 def calibrate_detailed(
-    root: str | Path, *, progress=None, method: str = "joint", allow_missing_frames: bool = False
+    root: str | Path,
+    *,
+    progress=None,
+    method: str = "joint",
+    allow_missing_frames: bool = False,
+    tracker: TrackerInput | None = None,
 ) -> CalibrationOutput:
     """Run the whole calibration on the dataset in ``root`` (see the module docstring) and keep
     the live estimates behind the result.
@@ -214,15 +229,25 @@ def calibrate_detailed(
     Cramer-Rao bounds (or why none), the images skipped, the warnings and the wall time, and the
     failures of :mod:`calib.quality` (the result is then marked failed). A planned frame without
     a whole ``joints.csv`` row is an error, or with ``allow_missing_frames`` a warning naming it.
+    ``tracker``: tracker measurements of the same robot estimated with the images in the one-step
+    refinement (method ``joint`` only; :mod:`calib.tracker_join`); the result records them
+    (``CalibrationResult.tracker``).
 
     Raises:
         ValueError: unknown ``method``.
+        CalibrationError: ``tracker`` with the two-stage method.
         DatasetError: missing or damaged dataset files, frames without joints rows (listed).
         CalibrationError / calib.selfcal.SelfCalibrationError / calib.identify.IdentificationError:
             data that cannot determine the answer (each message names the cause).
     """
     if method not in METHODS:
         raise ValueError(f"unknown calibration method {method!r}; use one of {METHODS}")
+    if tracker is not None and method != "joint":
+        raise CalibrationError(
+            "tracker measurements join the images in the one-step refinement; the two-stage "
+            "method has none",
+            fix="use the default method (joint) with tracker measurements",
+        )
     t0 = time.perf_counter()
     ds = Dataset.open(root)
     incomplete = ds.check_complete(allow_missing=allow_missing_frames)
@@ -324,9 +349,13 @@ def calibrate_detailed(
     out = CalibrationOutput(result, sc, ident, ident.model, ds.indices[used])
     if method == "joint":
         with _stage(progress, "one-step refinement (all images)") as st:
-            res = refine_calibration(out, obs, q, robot, ds.info)
+            kw = {} if tracker is None else tracker.refine_kwargs()
+            res = refine_calibration(out, obs, q, robot, ds.info, **kw)
             st(f"reprojection RMS {res.rms_px:.3f} px, sigma {res.sigma_px:.3f} px")
         result = with_joint(result, res, robot)
+        if tracker is not None:
+            src = tracker_source(tracker, res.diagnostics, res.model, res.model_gauge)
+            result = dataclasses.replace(result, tracker=src)
         out = CalibrationOutput(result, sc, ident, res.model, ds.indices[used], res)
     # the bound's corner noise: the detector's own estimate where it has one (it excludes a
     # bias of whole sides, which the fit residuals would carry into the bound), else residuals

@@ -42,6 +42,7 @@ from scenarios.rerun_log import register as register_record
 from scenarios.ros_cli import export_run
 from scenarios.studies import register as register_study
 from scenarios.threads import DEFAULT_THREADS, THREADS_ENV, limit_threads
+from scenarios.tracker_cli import add_tracker_args
 from scenarios.tracker_cli import register as register_tracker
 
 # The modules a command runs are imported by that command (`selfcal --help` and `selfcal fk`
@@ -202,6 +203,7 @@ def _calibration_json(path: Path) -> dict:
         "n_params": ident.get("n_params"),
         "warnings": doc.get("warnings", []),
         "seconds": doc.get("seconds"),
+        "sources": doc.get("sources", ["images"]),
     }
 
 
@@ -211,7 +213,8 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     root = Path(args.dataset)
     with _stdout_to_stderr(args.json):
         calibrate_any(root, quiet=args.quiet, method=args.method,
-                      allow_missing_frames=args.allow_missing_frames, figures=True)  # fmt: skip
+                      allow_missing_frames=args.allow_missing_frames, figures=True,
+                      tracker_args=args)  # fmt: skip
     note_written(args, root / "calibration.json")
     if args.json:
         print(json.dumps(_calibration_json(root / "calibration.json")))
@@ -429,6 +432,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="calibrate without the planned frames that have no whole joints.csv row (listed in "
         "a warning); without it they are an error",
     )
+    add_tracker_args(sp)
     add_json(sp)
 
     sp = add(

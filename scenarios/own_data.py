@@ -43,20 +43,48 @@ def calibrate_any(
     method: str = "joint",
     allow_missing_frames: bool = False,
     figures: bool = False,
+    tracker_args: argparse.Namespace | None = None,
 ) -> None:
     """Calibrate the dataset in ``root`` by its target and write ``root/calibration.json``:
     the field -> :func:`scenarios.pipeline.run_calibrate`; a board -> the board calibration.
-    ``figures``: also ``root/figures/reprojection.png``."""
+    ``figures``: also ``root/figures/reprojection.png``. ``tracker_args``: the parsed tracker
+    options of ``selfcal calibrate`` (:func:`scenarios.tracker_cli.add_tracker_args`): tracker
+    measurements estimated with the field's images."""
     from calib.board_dataset import calibrate_board_dataset
     from calib.evaluate import evaluate_board
     from calib.io.board_calibration import write_board_calibration
     from calib.io.dataset import Dataset
     from scenarios.pipeline import reprojection_figures, run_calibrate
 
-    info = Dataset.open(root).info
+    ds = Dataset.open(root)
+    info = ds.info
+    tracker = None
+    if tracker_args is not None and tracker_args.tracker:
+        from calib.robot_def import load_robot
+        from scenarios.tracker_cli import tracker_input, tracker_summary
+
+        if info.board is not None:
+            raise CliError(
+                f"{root}: --tracker joins the self-calibration of the ArUco field; this dataset "
+                "has a board",
+                fix="calibrate the board dataset without --tracker",
+            )
+        if method != "joint":
+            raise CliError(
+                "--tracker needs the one-step method (--method joint, the default)",
+                fix="leave out --method two-stage",
+            )
+        tracker = tracker_input(tracker_args, load_robot(ds.robot_source))
+    elif tracker_args is not None:
+        from scenarios.tracker_cli import tracker_input
+
+        tracker_input(tracker_args, None)  # options that need --tracker are errors
     if info.board is None:
-        run_calibrate(root, quiet=quiet, method=method, allow_missing_frames=allow_missing_frames,
-                      figures=figures)  # fmt: skip
+        res = run_calibrate(root, quiet=quiet, method=method,
+                            allow_missing_frames=allow_missing_frames, figures=figures,
+                            tracker=tracker)  # fmt: skip
+        if res.tracker is not None:
+            _say(quiet, tracker_summary(res.tracker))
         return
     res = calibrate_board_dataset(root, allow_missing_frames=allow_missing_frames)
     write_board_calibration(Path(root) / "calibration.json", res)

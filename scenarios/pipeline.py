@@ -117,18 +117,20 @@ def run_calibrate(
     allow_missing_frames: bool = False,
     raise_failed: bool = True,
     figures: bool = False,
+    tracker=None,
 ) -> CalibrationResult:
     """Calibrate the dataset in ``root`` and write ``root/calibration.json``; returns the
     result. Its warnings are printed (unless ``quiet``). ``raise_failed=False``: return a
     calibration marked failed as well (studies, which measure it against the truth).
     ``figures``: also ``root/figures/reprojection.png`` (:func:`reprojection_figures`).
+    ``tracker``: a :class:`calib.tracker_join.TrackerInput` estimated with the images.
 
     Raises:
         CalibrationFailedError: the calibration failed a check of :mod:`calib.quality`; it is
             written all the same, marked failed (unless ``raise_failed`` is False).
     """
     res = calibrate(root, progress=Progress("detect", enabled=not quiet), method=method,
-                    allow_missing_frames=allow_missing_frames)  # fmt: skip
+                    allow_missing_frames=allow_missing_frames, tracker=tracker)  # fmt: skip
     path = write_calibration(Path(root) / "calibration.json", res)
     if figures:
         _say(quiet, f"figure: {reprojection_figures(root, evaluate_field(res, root, root))}")

@@ -28,7 +28,15 @@ if TYPE_CHECKING:
 
 # Heavy modules (scipy, OpenCV, MuJoCo, the pipeline) are imported by the functions that use
 # them, so that `selfcal --help` builds every command's parser without loading them.
-__all__ = ["register", "cmd_identify", "cmd_predict"]
+__all__ = [
+    "register",
+    "cmd_identify",
+    "cmd_predict",
+    "add_tracker_args",
+    "tracker_input",
+    "tracker_summary",
+    "read_tracker_files",
+]
 
 IDENTIFY_HELP = """\
 MEASUREMENTS.csv: header j1..jn,x_mm,y_mm,z_mm (tool point in the tracker frame, mm), optionally
@@ -74,23 +82,132 @@ def _residuals_csv(table, res, meas: TrackerMeasurements) -> str:
     return "\n".join(lines) + "\n"
 
 
+def read_tracker_files(measurements, distances, robot, units: str, *, guess: bool = True):
+    """``(TrackerMeasurements, Table)``: the measurements file (positions or poses) and, when
+    given, the distances file of ``robot`` (:mod:`calib.io.tracker`, joints in ``units``)."""
+    from calib.io.tracker import read_distances, read_measurements
+    from calib.tracker_identify import TrackerMeasurements
+
+    meas, table = read_measurements(measurements, robot, units, guess=guess)
+    if distances:
+        qa, qb, d = read_distances(distances, robot, units, guess=guess)
+        meas = TrackerMeasurements(meas.q, meas.xyz, meas.R, qa, qb, d)
+    return meas, table
+
+
+def _check_sigmas(*named: tuple[str, float]) -> None:
+    for name, v in named:
+        if not (np.isfinite(v) and v > 0):
+            raise CliError(f"{name} must be a positive number, got {v}")
+
+
+def add_tracker_args(sp: argparse.ArgumentParser) -> None:
+    """``selfcal calibrate``'s options for tracker measurements estimated with the images."""
+    from calib.choices import JOINT_UNITS
+
+    sp.add_argument(
+        "--tracker",
+        default=None,
+        metavar="FILE",
+        help="tracker measurements of the same robot to estimate with the images in one "
+        "calibration (method joint): header j1..jn,x_mm,y_mm,z_mm (tool point in the tracker "
+        "frame), optionally qw,qx,qy,qz (poses), one row per measured configuration, as "
+        "`selfcal identify` reads (docs/tracker.md); calibration.json then records both sources "
+        "and the tracker frame and tool point estimated with the kinematics",
+    )
+    sp.add_argument(
+        "--tracker-distances",
+        default=None,
+        metavar="FILE",
+        help="ball-bar distances too (header a_j1..a_jn,b_j1..b_jn,d_mm; docs/tracker.md)",
+    )
+    sp.add_argument(
+        "--joint-units",
+        default=None,
+        choices=JOINT_UNITS,
+        help=f"of the tracker files' joints (needed with --tracker): {UNITS_HELP}",
+    )
+    sp.add_argument(
+        "--tracker-sigma-mm",
+        type=float,
+        default=0.1,
+        help="tracker position / distance noise, mm (0.1); weighs the tracker against the images",
+    )
+    sp.add_argument(
+        "--tracker-sigma-deg",
+        type=float,
+        default=0.01,
+        help="orientation noise of tracker poses, deg (0.01)",
+    )
+
+
+def tracker_input(args: argparse.Namespace, robot):
+    """The :class:`calib.tracker_join.TrackerInput` of ``selfcal calibrate``'s tracker options
+    for ``robot``, or None without ``--tracker``.
+
+    Raises:
+        CliError: ``--tracker-distances`` or ``--joint-units`` without ``--tracker``, no
+            ``--joint-units`` with it, or a noise that is not a positive number.
+        InputError: a file that cannot be read (named with row and column).
+    """
+    from calib.tracker_join import TrackerInput
+
+    if not args.tracker:
+        for opt, v in (("--tracker-distances", args.tracker_distances),
+                       ("--joint-units", args.joint_units)):  # fmt: skip
+            if v:
+                raise CliError(
+                    f"{opt} needs --tracker FILE", fix=f"add --tracker or leave out {opt}"
+                )
+        return None
+    if args.joint_units is None:
+        raise CliError(
+            "--tracker needs --joint-units deg|rad (the units of the tracker file's joints)",
+            fix="add --joint-units deg (degrees, prismatic mm) or --joint-units rad",
+        )
+    _check_sigmas(
+        ("--tracker-sigma-mm", args.tracker_sigma_mm),
+        ("--tracker-sigma-deg", args.tracker_sigma_deg),
+    )
+    meas, _ = read_tracker_files(args.tracker, args.tracker_distances, robot, args.joint_units)
+    return TrackerInput(
+        meas,
+        joint_units=args.joint_units,
+        file=str(args.tracker),
+        distances_file=None if args.tracker_distances is None else str(args.tracker_distances),
+        sigma_m=args.tracker_sigma_mm / 1e3,
+        sigma_rad=float(np.radians(args.tracker_sigma_deg)),
+    )
+
+
+def tracker_summary(src) -> str:
+    """One line on the tracker part of a calibration (``CalibrationResult.tracker``)."""
+    what = " + ".join(
+        f"{src.rows} {k}" if k != "distances" else f"{src.distances} distances" for k in src.kinds
+    )
+    fit = ", ".join(f"{k} {v:.4f} mm" for k, v in src.rms_mm.items())
+    point = ""
+    if src.tool_point_mm is not None:
+        point = (
+            "; tool point in the left camera frame ("
+            + ", ".join(f"{v:.3f}" for v in src.tool_point_mm)
+            + ") mm"
+        )
+    return f"tracker: {what} estimated with the images, fit RMS {fit}{point}"
+
+
 def cmd_identify(args: argparse.Namespace) -> int:
     from calib.io.atomic import write_text_atomic
-    from calib.io.tracker import read_distances, read_measurements
     from calib.io.tracker_calibration import from_result, write_tracker_calibration
     from calib.mcpc import nominal_mcpc
     from calib.robot_def import load_robot
-    from calib.tracker_identify import TrackerMeasurements, identify_tracker
+    from calib.tracker_identify import identify_tracker
 
     robot = load_robot(args.robot)
-    guess = not args.trust_units
-    meas, table = read_measurements(args.measurements, robot, args.joint_units, guess=guess)
-    if args.distances:
-        qa, qb, d = read_distances(args.distances, robot, args.joint_units, guess=guess)
-        meas = TrackerMeasurements(meas.q, meas.xyz, meas.R, qa, qb, d)
-    for name, v in (("--sigma-mm", args.sigma_mm), ("--sigma-deg", args.sigma_deg)):
-        if not (np.isfinite(v) and v > 0):
-            raise CliError(f"{name} must be a positive number, got {v}")
+    meas, table = read_tracker_files(
+        args.measurements, args.distances, robot, args.joint_units, guess=not args.trust_units
+    )
+    _check_sigmas(("--sigma-mm", args.sigma_mm), ("--sigma-deg", args.sigma_deg))
     out = _out_dir(args.out or f"runs/identify-{Path(args.measurements).stem}")
     hold = tuple(h for h in (args.hold or "").replace(" ", "").split(",") if h)
     nominal = nominal_mcpc(robot)

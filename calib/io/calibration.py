@@ -37,6 +37,7 @@ from calib.io.calibration_blocks import (
     ScenePoints,
 )
 from calib.io.calibration_bounds import Bounds
+from calib.io.calibration_tracker import SOURCES, TrackerSource
 from calib.io.jsonfile import SCHEMA_KEY, Fields, check_header, load_json, write_json_atomic
 from calib.mcpc import COLUMNS, MCPCModel
 
@@ -95,6 +96,8 @@ class CalibrationResult:
         seconds: wall time of the calibration (s), or None.
         scene: the calibrated marker corners in the world frame (what ``selfcal evaluate``
             predicts), or None (files written before it existed).
+        tracker: the tracker measurements estimated with the images (``sources`` then lists
+            both), or None (images alone).
     """
 
     robot_model: str
@@ -122,6 +125,7 @@ class CalibrationResult:
     failures: tuple[str, ...] = ()
     seconds: float | None = None
     scene: ScenePoints | None = None
+    tracker: TrackerSource | None = None
     world_frame: str = WORLD_FRAME
     tool: str = TOOL
     columns: tuple[str, ...] = field(default=tuple(COLUMNS))
@@ -178,6 +182,9 @@ class CalibrationResult:
         }
         if self.joint is not None:
             doc["joint"] = self.joint.to_json()
+        if self.tracker is not None:
+            doc["sources"] = list(SOURCES)
+            doc["tracker"] = self.tracker.to_json()
         doc["method"] = self.method
         doc["methods"] = {k: m.to_json() for k, m in self.methods.items()}
         if self.bounds is not None:
@@ -219,6 +226,7 @@ class CalibrationResult:
         if bounds is not None and bounds.has("error"):
             bounds_error, bounds = bounds.str("error"), None
         joint = f.maybe_sub("joint")
+        tracker = f.maybe_sub("tracker")
         scene = f.maybe_sub("scene")
         methods = f.sub("methods")
         return cls(
@@ -247,6 +255,7 @@ class CalibrationResult:
             failures=_failures(f),
             seconds=f.opt_float("seconds"),
             scene=None if scene is None else ScenePoints.from_json(scene),
+            tracker=None if tracker is None else TrackerSource.from_json(tracker),
             world_frame=f.str("world_frame"),
             tool=m.str("tool"),
             columns=m.strs("columns"),
