@@ -42,8 +42,8 @@ Generated from the parser by `python -m scenarios.cli_docs --write` (do not edit
   `fk`, `ik`, `render`, `export` and `hw` always print JSON.
 - `-v/--verbose` adds tracebacks and debug messages, `-q/--quiet` drops progress bars and notes;
   both are accepted before or after the command.
-- Progress bars (done/total, time left) are drawn on stderr only when it is a terminal and
-  without `-q`.
+- Progress bars (done/total, time left; drawn by `rich`) are drawn on stderr only when it is a
+  terminal and without `-q`; elsewhere a stage that took over a second prints one line.
 - Millimetres and degrees on the command line and in files, SI units inside.
 
 ## Messages and exit codes

@@ -1,16 +1,20 @@
 """Progress on the command line: the one mechanism for every step that can take more than a
-couple of seconds (render, detect, the calibration stages, homing and moving the robot, studies
-and Monte Carlo).
+couple of seconds (render, detect, the calibration stages, homing and moving the robot,
+acquisition, studies and Monte Carlo).
 
 - :class:`Progress` -- a counted stage (``start(total)``, ``advance(note=...)``, ``finish()``):
-  a bar with done/total, elapsed time and time left on stderr when it is a terminal; elsewhere
-  one line at the end of a stage that took over a second. Notes (a finished study run, say) are
-  printed as lines above the bar. ``step(label)`` is a stage of one piece (a calibration stage,
-  homing): ``label ...`` while it runs, then ``label: <result> (1.2 s)``.
+  a bar with done/total, elapsed time and time left on stderr when it is a terminal, drawn by
+  `rich <https://rich.readthedocs.io>`_ (``rich.progress``; imported when a bar is first drawn,
+  never when the command line is parsed); elsewhere one line at the end of a stage that took
+  over a second. Notes (a finished study run, say) are printed as lines above the bar.
+  ``step(label)`` is a stage of one piece (a calibration stage, homing): a ``rich`` spinner with
+  ``label ...`` while it runs, then ``label: <result> (1.2 s)``.
 - :class:`TaskCounts` -- the state of a batch of tasks on worker processes (done / total,
   running, failed, time left); a :class:`Progress` of a batch shows it.
 
 Off with ``enabled=False`` (``-q``). Progress writes to stderr only, so stdout keeps the results.
+The bar is redrawn when a piece is done (no drawing thread: a stage an error ends leaves no
+display running over the error message).
 """
 
 from __future__ import annotations
@@ -83,8 +87,9 @@ class Step:
 class Progress:
     """Progress of one stage: ``start(total)``, ``advance()``, ``finish()``; or ``step(label)``.
 
-    Draws a bar on a terminal; elsewhere prints one line at the end of stages that took over a
-    second. ``counts``: the batch's :class:`TaskCounts` (its running and failed tasks are shown).
+    Draws a ``rich`` bar on a terminal; elsewhere prints one line at the end of stages that took
+    over a second. ``counts``: the batch's :class:`TaskCounts` (its running and failed tasks and
+    its time left are shown).
     """
 
     def __init__(
@@ -103,22 +108,29 @@ class Progress:
         self.done = 0
         self.t0 = time.perf_counter()
         self.start_done = 0
+        self._bar = None  # the rich.progress.Progress of a counted stage on a terminal
+        self._task = None
 
     # ----------------------------------------------------------------- counted stages
     def start(self, total: int, done: int = 0) -> None:
         """A stage of ``total`` pieces, ``done`` of them already (a resumed acquisition)."""
         self.total, self.done, self.t0 = total, done, time.perf_counter()
         self.start_done = done
+        if self.tty and total > 0:
+            self._start_bar()
         self._draw()
 
     def advance(self, k: int = 1, note: str | None = None) -> None:
         """``k`` more pieces done; ``note``: a line to print above the bar (or alone)."""
         self.done += k
         if note is not None and self.enabled:
-            if self.tty:
-                self.stream.write(CLEAR)
-            prefix = "" if self.tty or self.counts is None else f"[{self.counts.line()}] "
-            self.stream.write(f"  {prefix}{note}\n")
+            if self._bar is not None:
+                self._bar.console.print(f"  {note}", markup=False, highlight=False)
+            else:
+                if self.tty:
+                    self.stream.write(CLEAR)
+                prefix = "" if self.tty or self.counts is None else f"[{self.counts.line()}] "
+                self.stream.write(f"  {prefix}{note}\n")
         self._draw()
 
     def seconds_left(self) -> float | None:
@@ -130,47 +142,74 @@ class Progress:
             return None
         return (time.perf_counter() - self.t0) / new * (self.total - self.done)
 
-    def bar(self, width: int = 30) -> str:
-        """The bar as text, e.g. ``"detect  [#####.....] 12/60  3.1 s, ~12 s left"``."""
-        fill = int(width * self.done / self.total) if self.total > 0 else 0
+    def state(self) -> str:
+        """The text beside the bar: elapsed time, the batch's running and failed tasks, the time
+        left, e.g. ``"3.1 s, 2 running, 0 failed, ~12 s left"``."""
         dt = time.perf_counter() - self.t0
         left = self.seconds_left()
         eta = "" if left is None or self.done >= self.total else f", ~{format_seconds(left)} left"
         extra = ""
         if self.counts is not None:
             extra = f", {self.counts.running} running, {self.counts.failed} failed"
-        return (
-            f"{self.label:<12} [{'#' * fill}{'.' * (width - fill)}] {self.done}/{self.total} "
-            f"{dt:5.1f} s{extra}{eta}"
+        return f"{dt:5.1f} s{extra}{eta}"
+
+    def _start_bar(self) -> None:
+        """The ``rich`` bar of this stage on ``self.stream`` (rich imported here, not when the
+        command line is parsed). Redrawn on every :meth:`advance` (no refresh thread), the
+        cursor left visible."""
+        from rich.console import Console
+        from rich.progress import BarColumn, MofNCompleteColumn, TextColumn
+        from rich.progress import Progress as RichProgress
+
+        console = Console(file=self.stream, force_terminal=True, highlight=False)
+        bar = RichProgress(
+            TextColumn("{task.description:<12}"),
+            BarColumn(bar_width=30, complete_style="cyan", finished_style="green"),
+            MofNCompleteColumn(),
+            TextColumn("{task.fields[state]}"),
+            console=console,
+            auto_refresh=False,
+            redirect_stdout=False,
+            redirect_stderr=False,
         )
+        self._task = bar.add_task(
+            self.label, total=self.total, completed=self.done, state=self.state()
+        )
+        bar.start()
+        console.show_cursor(True)
+        self._bar = bar
 
     def _draw(self) -> None:
-        if not self.tty or self.total <= 0:
+        if self._bar is None:
             return
-        self.stream.write(CLEAR + self.bar())
-        self.stream.flush()
+        self._bar.update(self._task, completed=self.done, state=self.state(), refresh=True)
 
     def finish(self) -> None:
         """End the stage: the final bar on a terminal; elsewhere one line if it took > 1 s."""
         dt = time.perf_counter() - self.t0
-        if self.tty:
+        if self._bar is not None:
             self._draw()
-            self.stream.write("\n")
-        elif self.enabled and dt > 1.0:
+            self._bar.stop()
+            self._bar = None
+        elif self.enabled and not self.tty and dt > 1.0:
             self.stream.write(f"{self.label}: {self.done}/{self.total} in {dt:.1f} s\n")
         self.stream.flush()
 
     # ----------------------------------------------------------------- one-piece steps
     @contextmanager
     def step(self, label: str) -> Iterator[Step]:
-        """A stage of one piece (a calibration stage, homing the robot): ``label ...`` on a
-        terminal while it runs, then ``label: <result> (t s)``; elsewhere that line alone when it
-        took over a second."""
+        """A stage of one piece (a calibration stage, homing the robot): a ``rich`` spinner and
+        ``label ...`` on a terminal while it runs, then ``label: <result> (t s)``; elsewhere that
+        line alone when it took over a second."""
         st = Step()
         t0 = time.perf_counter()
+        status = None
         if self.tty:
-            self.stream.write(CLEAR + f"{label} ...")
-            self.stream.flush()
+            from rich.console import Console
+
+            console = Console(file=self.stream, force_terminal=True, highlight=False)
+            status = console.status(f"{label} ...")
+            status.start()
         ok = False
         try:
             yield st
@@ -178,8 +217,9 @@ class Progress:
         finally:
             dt = time.perf_counter() - t0
             text = st.text if ok else "failed"
-            if self.tty:
-                self.stream.write(CLEAR + f"{label}: {text} ({dt:.1f} s)\n")
+            if status is not None:
+                status.stop()
+                self.stream.write(f"{label}: {text} ({dt:.1f} s)\n")
             elif self.enabled and dt > 1.0:
                 self.stream.write(f"{label}: {text} ({dt:.1f} s)\n")
             self.stream.flush()

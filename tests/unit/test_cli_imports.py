@@ -8,7 +8,15 @@ import json
 import subprocess
 import sys
 
-HEAVY = ("mujoco", "matplotlib", "scipy.stats", "sim", "scenarios.pipeline", "scenarios.backends")
+HEAVY = (
+    "mujoco",
+    "matplotlib",
+    "scipy.stats",
+    "sim",
+    "scenarios.pipeline",
+    "scenarios.backends",
+    "rich",  # the progress bars import it when they first draw (scenarios.progress)
+)
 PARSER_HEAVY = ("scipy", "cv2")  # also not needed to build the parser
 
 

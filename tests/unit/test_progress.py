@@ -1,10 +1,11 @@
-"""The one progress mechanism (scenarios.progress.Progress): a bar with done/total and the time
-left on a terminal, notes above it, one-piece steps with their result; silent elsewhere for short
-stages and always with enabled=False (-q)."""
+"""The one progress mechanism (scenarios.progress.Progress): a bar (drawn by rich) with
+done/total and the time left on a terminal, notes above it, one-piece steps with their result;
+silent elsewhere for short stages and always with enabled=False (-q)."""
 
 from __future__ import annotations
 
 import io
+import re
 
 from scenarios import progress
 from scenarios.progress import Progress, TaskCounts, format_seconds
@@ -13,6 +14,11 @@ from scenarios.progress import Progress, TaskCounts, format_seconds
 class Tty(io.StringIO):
     def isatty(self) -> bool:
         return True
+
+
+def plain(text: str) -> str:
+    """``text`` without terminal control sequences (colours, cursor moves, line erases)."""
+    return re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", text)
 
 
 def clock(monkeypatch, start=100.0):
@@ -28,12 +34,15 @@ def test_bar_shows_done_total_and_time_left(monkeypatch):
     p.start(10)
     now[0] += 4.0
     p.advance(2)  # 2 pieces in 4 s: 8 left at 2 s each
-    assert p.bar().startswith("detect       [######........................] 2/10   4.0 s")
-    assert p.bar().endswith("~16 s left")
+    assert p.state() == "  4.0 s, ~16 s left"
+    last = plain(tty.getvalue()).split("\r")[-1]
+    assert last.startswith("detect ") and " 2/10   4.0 s, ~16 s left" in last
     p.advance(8)
     p.finish()
-    assert "10/10" in tty.getvalue() and tty.getvalue().endswith("\n")
-    assert "left" not in tty.getvalue().rsplit("\r", 1)[-1]  # no time left once done
+    text = plain(tty.getvalue())
+    assert text.endswith("\n")
+    final = text.rstrip("\n").split("\r")[-1]
+    assert "10/10" in final and "left" not in final  # no time left once done
 
 
 def test_resumed_stage_estimates_from_the_new_pieces_only(monkeypatch):
@@ -56,13 +65,16 @@ def test_notes_go_above_the_bar_and_batches_show_their_counts(monkeypatch):
     counts.finish()
     counts.running = 2
     p.advance(note="seed 1: cal 0.1 mm")
-    text = tty.getvalue()
-    assert "\r\033[K  seed 1: cal 0.1 mm\n" in text
+    text = plain(tty.getvalue())
+    assert "\r  seed 1: cal 0.1 mm\n" in text  # the bar's line erased, the note, the bar again
     assert text.endswith("1/4  10.0 s, 2 running, 0 failed, ~30 s left")
-    plain = io.StringIO()  # not a terminal: the note alone, with the batch state
-    q = Progress("study noise", stream=plain, counts=counts)
+    p.finish()
+    plain_stream = io.StringIO()  # not a terminal: the note alone, with the batch state
+    q = Progress("study noise", stream=plain_stream, counts=counts)
     q.advance(note="seed 2: failed")
-    assert plain.getvalue() == "  [1/4 done, 2 running, 0 failed, ~30 s left] seed 2: failed\n"
+    assert (
+        plain_stream.getvalue() == "  [1/4 done, 2 running, 0 failed, ~30 s left] seed 2: failed\n"
+    )
 
 
 def test_step_reports_its_result_and_time(monkeypatch):
@@ -72,17 +84,17 @@ def test_step_reports_its_result_and_time(monkeypatch):
     with p.step("camera stage") as st:
         now[0] += 2.5
         st.result("reprojection RMS 0.412 px")
-    assert tty.getvalue() == (
-        "\r\033[Kcamera stage ...\r\033[Kcamera stage: reprojection RMS 0.412 px (2.5 s)\n"
-    )
-    plain = io.StringIO()
-    p = Progress("calibrate", stream=plain)
+    text = plain(tty.getvalue())
+    assert "camera stage ..." in text  # the spinner's line while it runs
+    assert text.endswith("camera stage: reprojection RMS 0.412 px (2.5 s)\n")
+    plain_stream = io.StringIO()
+    p = Progress("calibrate", stream=plain_stream)
     with p.step("quick"):
         now[0] += 0.2  # under a second: nothing off a terminal
     with p.step("slow") as st:
         now[0] += 3.0
         st.result("ok")
-    assert plain.getvalue() == "slow: ok (3.0 s)\n"
+    assert plain_stream.getvalue() == "slow: ok (3.0 s)\n"
 
 
 def test_disabled_progress_prints_nothing(monkeypatch):
@@ -100,3 +112,24 @@ def test_disabled_progress_prints_nothing(monkeypatch):
 
 def test_format_seconds():
     assert format_seconds(42.4) == "42 s" and format_seconds(185) == "3 min 05 s"
+
+
+def test_a_stage_an_error_ends_leaves_no_display_running(monkeypatch):
+    """No refresh thread: after an unfinished stage nothing more is written (an error message
+    printed after it stays the last line); a step that raises says so."""
+    import threading
+
+    clock(monkeypatch)
+    tty = Tty()
+    before = threading.active_count()
+    p = Progress("acquire", stream=tty)
+    p.start(5)
+    p.advance()
+    assert threading.active_count() == before
+    written = tty.getvalue()
+    try:
+        with p.step("homing"):
+            raise RuntimeError("cable")
+    except RuntimeError:
+        pass
+    assert plain(tty.getvalue()[len(written) :]).endswith("homing: failed (0.0 s)\n")
