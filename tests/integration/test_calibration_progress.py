@@ -28,7 +28,8 @@ def test_each_stage_with_its_cost(tmp_path):
     run_acquire(s, tmp_path / "ds", quiet=True)
     tty = Tty()
     res = calibrate(tmp_path / "ds", progress=Progress("detect", stream=tty))
-    lines = [seg for seg in re.split(r"\r\x1b\[K|\n", tty.getvalue()) if seg]
+    text = re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", tty.getvalue())  # rich's colours and cursor
+    lines = [seg for seg in re.split(r"[\r\n]", text) if seg.strip()]
     done = [ln for ln in lines if not ln.endswith(" ...")]
     names = [ln.split(":")[0] for ln in done]
     assert names == [
