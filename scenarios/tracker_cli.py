@@ -131,12 +131,14 @@ def add_tracker_args(sp: argparse.ArgumentParser) -> None:
         "--tracker-sigma-mm",
         type=float,
         default=0.1,
+        metavar="MM",
         help="tracker position / distance noise, mm (0.1); weighs the tracker against the images",
     )
     sp.add_argument(
         "--tracker-sigma-deg",
         type=float,
         default=0.01,
+        metavar="DEG",
         help="orientation noise of tracker poses, deg (0.01)",
     )
 
