@@ -20,7 +20,7 @@ import os
 import shutil
 import warnings
 from array import array
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -164,8 +164,16 @@ class Chain:
         return cls(rob.name, tuple(rob.joint_names), tuple(rob.joint_types))
 
 
-def _model(infos: dict[str, CameraInfo | None], given: str | None, bag: Path) -> str:
-    """The camera model: given, else the calibrated CameraInfos' (one for all), else opencv."""
+def _model(
+    infos: dict[str, CameraInfo | None], given: str | Mapping[str, str] | None, bag: Path
+) -> str | dict[str, str]:
+    """The camera model: given, else the calibrated CameraInfos' (one for all), else opencv;
+    ``given`` by camera name: the cameras it leaves out by their CameraInfos."""
+    if isinstance(given, Mapping):
+        rest = {n: i for n, i in infos.items() if n not in given}
+        one = _model(rest, None, bag)
+        assert isinstance(one, str)
+        return {**dict.fromkeys(rest, one), **given}
     if given is not None:
         return given
     models = {n: MODEL_OF.get(i.distortion_model) for n, i in infos.items() if i is not None}
@@ -285,13 +293,14 @@ def import_bag(
     per_rest: int | None = None,
     base_link: str | None = None,
     tool_link: str | None = None,
-    camera_model: str | None = None,
-    free: Sequence[str] | None = None,
+    camera_model: str | Mapping[str, str] | None = None,
+    free: Sequence[str] | Mapping[str, Sequence[str]] | None = None,
 ) -> DatasetInfo:
     """Import the bag ``bag`` as the dataset folder ``out`` (module docstring); returns its
     ``dataset.json`` content. ``robot``, ``target``, ``base_link``, ``tool_link``, ``free``: as
-    :func:`calib.import_dataset.import_dataset`; ``camera_model`` None: from the calibrated
-    CameraInfos (plumb_bob / rational_polynomial -> opencv, equidistant -> fisheye), else opencv.
+    :func:`calib.import_dataset.import_dataset`; ``camera_model`` None (or a camera it does not
+    name): from the calibrated CameraInfos (plumb_bob / rational_polynomial -> opencv,
+    equidistant -> fisheye), else opencv.
     ``rule``: the rest test (default :class:`calib.bag_rest.RestRule`). ``per_rest``: keep at most this many frames of each rest (None: all).
 
     Raises:

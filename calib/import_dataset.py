@@ -29,6 +29,7 @@ import numpy as np
 
 from calib.board_calibrate import BoardMismatchError, calibrate_board
 from calib.camera import MODELS
+from calib.camera_choice import for_cameras
 from calib.choices import DEFAULT_FREE, DEFAULT_MODEL
 from calib.errors import InputError, SelfCalWarning
 from calib.io.dataset_info import DatasetInfo, write_dataset_info
@@ -163,8 +164,8 @@ def import_dataset(
     tool_link: str | None = None,
     link: bool = False,
     trust_units: bool = False,
-    camera_model: str = DEFAULT_MODEL,
-    free: Sequence[str] | None = None,
+    camera_model: str | Mapping[str, str] = DEFAULT_MODEL,
+    free: Sequence[str] | Mapping[str, Sequence[str]] | None = None,
     source: dict | None = None,
     labels: Mapping[Path, str] | None = None,
 ) -> DatasetInfo:
@@ -172,7 +173,9 @@ def import_dataset(
     ``dataset.json`` content. ``trust_units``: skip the radians-looking check of degrees.
     ``camera_model`` (``"pinhole"``, ``"opencv"``, ``"fisheye"``) and ``free`` (OpenCV names;
     default :data:`DEFAULT_FREE` of the model): what the board calibration estimates, recorded
-    in every camera entry of dataset.json. ``source`` (default: the joints file, its units, the
+    in every camera entry of dataset.json; either may map camera names to each camera's own
+    (a camera the mapping leaves out gets :data:`DEFAULT_MODEL` and its model's default free
+    set). ``source`` (default: the joints file, its units, the
     target and the image patterns) is recorded as dataset.json's ``scenario.import``; ``labels``
     names an image file's origin in ``sources.csv`` (default: its resolved path).
 
@@ -182,12 +185,12 @@ def import_dataset(
         (each names the file and the fix).
     """
     out = Path(out)
-    model, free_t = _camera_choice(camera_model, free)
-    if (out / "dataset.json").exists():
-        raise ImportError_(f"{out} already holds a dataset", fix="choose another --out folder")
     names = [c.name for c in images]
     if not images or len(set(names)) != len(names):
         raise ImportError_(f"camera names {names}", fix="give each --images a distinct NAME=")
+    choice = _camera_choices(names, camera_model, free)
+    if (out / "dataset.json").exists():
+        raise ImportError_(f"{out} already holds a dataset", fix="choose another --out folder")
     tgt = load_target(target)
     if not isinstance(tgt, Board):
         raise ImportError_(
@@ -218,7 +221,7 @@ def import_dataset(
             "the whole board",
         )
     for cam in images:
-        check_geometry(tgt, feats[cam.name], sizes[cam.name], model, free_t)
+        check_geometry(tgt, feats[cam.name], sizes[cam.name], *choice[cam.name])
     keep = np.flatnonzero(seen)
     (out / "frames").mkdir(exist_ok=True)
     suffix = suffixes.pop()
@@ -258,24 +261,48 @@ def import_dataset(
         resolutions=None if len(set(res)) == 1 else res,
         board=target_document(tgt),
         image_suffix=suffix,
-        camera_model=model,
-        camera_free=free_t,
+        camera_model=choice[names[0]][0],
+        camera_free=choice[names[0]][1],
+        camera_models=None if len(set(choice.values())) == 1 else tuple(choice.values()),
     )  # fmt: skip
     write_dataset_info(out / "dataset.json", info)
     return info
 
 
-def _camera_choice(model: str, free: Sequence[str] | None) -> tuple[str, tuple[str, ...]]:
-    """The camera ``model`` and its ``free`` names (default :data:`DEFAULT_FREE`), checked."""
+def _camera_choices(
+    cameras: Sequence[str],
+    model: str | Mapping[str, str],
+    free: Sequence[str] | Mapping[str, Sequence[str]] | None,
+) -> dict[str, tuple[str, tuple[str, ...]]]:
+    """Every camera's (model, free names), from one choice for all or a mapping by camera name
+    (``import_dataset``'s ``camera_model`` and ``free``), each checked."""
+    models = for_cameras(model, cameras, "--camera-model", "--images") if isinstance(
+        model, Mapping) else dict.fromkeys(cameras, model)  # fmt: skip
+    frees = for_cameras(free, cameras, "--free", "--images") if isinstance(
+        free, Mapping) else dict.fromkeys(cameras, free)  # fmt: skip
+    model_of = {c: models.get(c, DEFAULT_MODEL) for c in cameras}
+    free_of = {c: None if (f := frees.get(c)) is None else tuple(f) for c in cameras}
+    per = len(set(model_of.values())) > 1 or len(set(free_of.values())) > 1
+    return {c: _camera_choice(model_of[c], free_of[c], c if per else None)
+            for c in cameras}  # fmt: skip
+
+
+def _camera_choice(
+    model: str, free: Sequence[str] | None, camera: str | None = None
+) -> tuple[str, tuple[str, ...]]:
+    """The camera ``model`` and its ``free`` names (default :data:`DEFAULT_FREE`), checked;
+    ``camera``: the camera they are for (named in the messages), None: every camera."""
+    which = "" if camera is None else f"camera {camera}: "
     if model not in MODELS:
-        raise ImportError_(f"camera model {model!r}", fix=f"use one of {', '.join(MODELS)}")
+        raise ImportError_(f"{which}camera model {model!r}", fix=f"use one of {', '.join(MODELS)}")
     names = MODELS[model].names
     free_t = DEFAULT_FREE[model] if free is None else tuple(free)
     bad = [n for n in free_t if n not in names]
     if bad or "fx" not in free_t:
+        opt = "--free" if camera is None else f"--free '{camera}=...'"
         raise ImportError_(
-            f"free camera parameters {list(free_t)} for the {model} model",
-            fix=f"give --free a comma list of {', '.join(names)} that includes fx",
+            f"{which}free camera parameters {list(free_t)} for the {model} model",
+            fix=f"give {opt} a comma list of {', '.join(names)} that includes fx",
         )
     return model, tuple(n for n in names if n in free_t)
 

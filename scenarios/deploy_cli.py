@@ -148,7 +148,7 @@ def cmd_export(args: argparse.Namespace) -> int:
             )
     if fmt in CAMERA_FORMATS:
         note_written(args, out)
-        return _export_camera(args.calibration, fmt, out, args.camera_name)
+        return _export_camera(args.calibration, fmt, out, args.camera_name, args.camera)
     dep = load_calibration(args.calibration)
     robot = load_robot(dep.robot_name)
     if fmt == "mjcf":
@@ -174,8 +174,11 @@ def cmd_export(args: argparse.Namespace) -> int:
     return 0
 
 
-def _export_camera(path: str, fmt: str, out: Path, camera_name: str) -> int:
-    """Write the calibration's estimated camera (shared by the rig's cameras) as ``fmt``."""
+def _export_camera(
+    path: str, fmt: str, out: Path, camera_name: str, camera: str | None = None
+) -> int:
+    """Write the calibration's estimated camera as ``fmt``: a self-calibration's (shared by the
+    rig's cameras), a board calibration's camera ``camera`` (None: the first) under its model."""
     from calib.export_camera import to_camera_info_yaml, to_opencv_yaml
     from calib.io.atomic import write_text_atomic
     from calib.io.board_calibration import calibration_kind, read_board_calibration
@@ -185,7 +188,11 @@ def _export_camera(path: str, fmt: str, out: Path, camera_name: str) -> int:
     if p.suffix == ".toml":
         raise CliError(f"{p}: --format {fmt} needs a calibration.json (a .toml holds no camera)")
     if calibration_kind(p) == "board":
-        cam = read_board_calibration(p).cameras[0]
+        board = read_board_calibration(p)
+        if camera is not None and camera not in board.camera_names:
+            raise CliError(f"--camera {camera}: {p} calibrates the cameras "
+                           f"{', '.join(board.camera_names)}")  # fmt: skip
+        cam = board.cameras[0 if camera is None else board.camera_names.index(camera)]
     else:
         cam = _usable(read_calibration(p), p).intrinsics.camera()
     text = to_opencv_yaml(cam) if fmt == "opencv" else to_camera_info_yaml(cam, camera_name)
@@ -280,6 +287,11 @@ def register(subparsers) -> None:
     sp.add_argument(
         "--camera-name", default="camera", help="camera_name of a camera_info file (default camera)"
     )
+    sp.add_argument(
+        "--camera", default=None, metavar="NAME",
+        help="with --format opencv | camera_info: the camera of a board calibration's rig to "
+        "export, under its own model (default: the first)",
+    )  # fmt: skip
     sp.add_argument(
         "--out",
         default=None,

@@ -119,15 +119,15 @@ def cmd_import(args: argparse.Namespace) -> int:
     if not args.images or not args.joints or not args.joint_units:
         raise CliError("import needs --images, --joints and --joint-units (or --bag)")
 
-    from calib.choices import DEFAULT_MODEL
+    from calib.camera_choice import camera_options
     from calib.import_dataset import CameraImages, import_dataset
 
     cams = [CameraImages.parse(s, default_name=f"cam{k}") for k, s in enumerate(args.images)]
+    models, frees = camera_options(args.camera_model, args.free, [c.name for c in cams], "--images")
     info = import_dataset(
         args.robot, cams, args.joints, args.joint_units, args.target, args.out,
         base_link=args.base_link, tool_link=args.tool_link, link=args.link,
-        trust_units=args.trust_units, camera_model=args.camera_model or DEFAULT_MODEL,
-        free=None if args.free is None else [n.strip() for n in args.free.split(",") if n.strip()],
+        trust_units=args.trust_units, camera_model=models, free=frees,
     )  # fmt: skip
     n = len(info.planned_joints_deg)
     note_written(args, args.out)
@@ -197,16 +197,19 @@ def register(subparsers) -> None:
         help="degrees that stay within +-6.3 deg are degrees (skip the radians-looking check)",
     )  # fmt: skip
     sp.add_argument(
-        "--camera-model", default=None, choices=CAMERA_MODELS,
-        help="the cameras' model (default opencv: Brown-Conrady distortion, what a real lens "
-        "needs; a pinhole fitted to a distorting lens is biased; fisheye for wide angles; "
-        "with --bag: from a calibrated camera_info if there is one)",
+        "--camera-model", action="append", default=None, metavar="[NAME=]MODEL",
+        help=f"the cameras' model, one of {', '.join(CAMERA_MODELS)} (default opencv: "
+        "Brown-Conrady distortion, what a real lens needs; a pinhole fitted to a distorting "
+        "lens is biased; fisheye for wide angles; with --bag: from a calibrated camera_info if "
+        "there is one); NAME= sets one camera's (repeat per camera, e.g. cam1=fisheye), a bare "
+        "MODEL every camera not named",
     )  # fmt: skip
     sp.add_argument(
-        "--free", default=None, metavar="NAMES",
+        "--free", action="append", default=None, metavar="[NAME=]NAMES",
         help="comma list of the camera parameters to estimate, OpenCV names (default: "
         + "; ".join(f"{m}: {','.join(f)}" for m, f in DEFAULT_FREE.items())
-        + "; k3 only on request)",
+        + "; k3 only on request); NAME= sets one camera's (repeat per camera, e.g. "
+        "'cam1=fx,mu,cx,cy,k1,k2,k3,k4'), a bare list every camera not named",
     )  # fmt: skip
     add_bag_import_args(sp)
     add_json(sp)

@@ -48,6 +48,7 @@ def add_import_args(sp: argparse.ArgumentParser) -> None:
 def cmd_import_bag(args: argparse.Namespace) -> int:
     """``selfcal import --bag``."""
     from calib.bag_import import ImageTopic, import_bag
+    from calib.camera_choice import camera_options
 
     if args.images or args.joints:
         raise CliError("--bag replaces --images and --joints: give one or the other")
@@ -62,10 +63,11 @@ def cmd_import_bag(args: argparse.Namespace) -> int:
     rule = RestRule(window_s=args.rest_window, speed_rad_s=float(np.radians(args.rest_speed)),
                     speed_m_s=args.rest_speed / 1e3, max_gap_s=args.max_gap)  # fmt: skip
     topics = [ImageTopic.parse(s, default_name=f"cam{k}") for k, s in enumerate(args.image_topic)]
-    free = None if args.free is None else [n.strip() for n in args.free.split(",") if n.strip()]
+    models, free = camera_options(args.camera_model, args.free, [c.name for c in topics],
+                                  "--image-topic")  # fmt: skip
     info = import_bag(args.bag, topics, args.joint_topic, args.robot, args.target, args.out,
                       rule=rule, per_rest=args.per_rest, base_link=args.base_link,
-                      tool_link=args.tool_link, camera_model=args.camera_model, free=free)  # fmt: skip
+                      tool_link=args.tool_link, camera_model=models, free=free)  # fmt: skip
     n = len(info.planned_joints_deg)
     print(f"imported {n} frames of {len(info.cameras)} camera(s) from {args.bag} into {args.out}")
     return 0

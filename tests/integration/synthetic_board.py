@@ -70,18 +70,21 @@ def postures(lab: Lab, n: int, seed: int) -> np.ndarray:
     return plan_postures(robot, lab.true_model, rig, X, n, seed=seed, min_visible=len(X), span=span)
 
 
-def render(lab: Lab, q: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """The camera's gray image of the board at posture ``q`` (rad)."""
+def render(
+    lab: Lab, q: np.ndarray, rng: np.random.Generator, remap: LensRemap = _REMAP
+) -> np.ndarray:
+    """The camera's gray image of the board at posture ``q`` (rad); ``remap``: the lens of
+    another camera (``LensRemap(camera)``; default :data:`CAMERA`'s)."""
     T = inv_pose(fk_tool(lab.true_model, q[None])[0]) @ lab.T_world_board
     img = BOARD.image(px_per_mm=6.0)
     ppm, (x0, y0) = img.px_per_m, img.extent_m[:2]
     A = np.array([[1 / ppm, 0, x0 + 0.5 / ppm], [0, 1 / ppm, y0 + 0.5 / ppm], [0, 0, 1]])
-    Hm = _REMAP.source.K @ np.column_stack([T[:3, 0], T[:3, 1], T[:3, 3]]) @ A
-    src = _REMAP.source
+    Hm = remap.source.K @ np.column_stack([T[:3, 0], T[:3, 1], T[:3, 3]]) @ A
+    src = remap.source
     out = cv2.warpPerspective(img.pixels, Hm, (src.width, src.height), flags=cv2.INTER_AREA,
                               borderValue=170)  # fmt: skip
-    out = _REMAP(out)  # the lens: an exact inverse remap of the pinhole image
-    out = cv2.GaussianBlur(out.astype(float), (0, 0), 0.8) + rng.normal(0, 2.0, (H, W))
+    out = remap(out)  # the lens: an exact inverse remap of the pinhole image
+    out = cv2.GaussianBlur(out.astype(float), (0, 0), 0.8) + rng.normal(0, 2.0, out.shape)
     return np.clip(np.round(out), 0, 255).astype(np.uint8)
 
 

@@ -27,7 +27,9 @@ from synthetic_board import (
     CAMERA,
     FREE,
     TARGET_TOML,
+    H,
     Lab,
+    W,
     make_lab,
     postures,
     render,
@@ -36,6 +38,8 @@ from synthetic_board import (
 
 from calib.board_dataset import calibrate_board_dataset
 from calib.calibrate import CalibrationError, calibrate
+from calib.camera import Fisheye, Pinhole
+from calib.choices import DEFAULT_FREE
 from calib.errors import InputError
 from calib.export import deploy_chain, nominal_deployed_params
 from calib.identify import IdentificationWarning
@@ -48,6 +52,7 @@ from calib.transforms import inv_pose, make_pose
 from scenarios.cli import main
 from scenarios.deploy_cli import load_calibration
 from scenarios.own_data import cmd_evaluate
+from sim.lens import LensRemap
 
 
 @pytest.fixture(scope="module")
@@ -278,6 +283,79 @@ def test_two_cameras_import_into_one_dataset(lab, tmp_path):
     assert dt < 0.5e-3 and angle < 0.25
     write_board_calibration(tmp_path / "cal.json", res)
     assert np.allclose(read_board_calibration(tmp_path / "cal.json").T_first_cam, res.T_first_cam)
+
+
+FISHEYE = Fisheye.from_pinhole(
+    Pinhole(700.0, 0.998, W / 2 - 0.5 - 6.0, H / 2 - 0.5 + 10.0, W, H),
+    (0.05, -0.02, 0.01, -0.005),
+    DEFAULT_FREE["fisheye"],
+)
+"""A second camera of another model: a wider fisheye lens (Kannala-Brandt)."""
+
+
+def test_cameras_of_different_models_import_and_calibrate(lab, tmp_path, capsys):
+    """cam0 the lab's opencv camera, cam1 a fisheye 40 mm to its right, turned 4.6 deg: imported
+    with per-camera --camera-model / --free, the board rig calibration estimates each camera
+    under its own model; calibration.json and the OpenCV YAML export keep them apart. Measured
+    (seeds below): cam0 |z| <= 1.79 (p1), cam1 |z| <= 2.29 (fx; its lens k1..k4 <= 0.44),
+    extrinsic errors 0.098 mm, 0.078 deg."""
+    root, (ci, cj), _ = lab
+    world = make_lab(seed=0)
+    T_first_1 = make_pose(Rotation.from_euler("y", -4.6, degrees=True).as_matrix(),
+                          [0.04, 0.0, 0.0])  # fmt: skip
+    right = Lab(world.true_model.with_tool(T_first_1), world.T_world_board)
+    rng, remap = np.random.default_rng(6), LensRemap(FISHEYE)
+    (tmp_path / "fish").mkdir()
+    for k, q in enumerate(postures(world, 20, seed=1)):  # write_lab_data's postures
+        cv2.imwrite(str(tmp_path / "fish" / f"img_{k:03d}.png"), render(right, q, rng, remap))
+    fish_free = ",".join(DEFAULT_FREE["fisheye"])
+    argv = ["import", "--robot", "kr6-r900", "--images", f"cam0={ci}/*.png", "--images",
+            f"cam1={tmp_path / 'fish'}/*.png", "--joints", str(cj), "--joint-units", "rad",
+            "--target", str(root / "board.toml"), "--link"]  # fmt: skip
+    assert main([*argv, "--out", str(tmp_path / "two"), "--camera-model", "cam1=fisheye",
+                 "--free", f"cam1={fish_free}"]) == 0  # fmt: skip
+    for extra in (["--camera-model", "cam2=fisheye"], ["--free", f"cam3={fish_free}"]):
+        assert main([*argv, "--out", str(tmp_path / "bad"), *extra]) == 2
+        err = capsys.readouterr().err
+        assert f"{extra[0]} names camera(s) cam{extra[1][3]}" in err and "cam0, cam1" in err
+    # a bare --free that fits cam0's model but not cam1's: the message names cam1
+    assert main([*argv, "--out", str(tmp_path / "bad"), "--camera-model", "cam1=fisheye",
+                 "--free", ",".join(FREE)]) == 2  # fmt: skip
+    err = capsys.readouterr().err
+    assert "camera cam1: free camera parameters" in err and "--free 'cam1=...'" in err
+    info = Dataset.open(tmp_path / "two").info
+    assert info.model_of("cam0") == ("opencv", FREE)
+    assert info.model_of("cam1") == ("fisheye", DEFAULT_FREE["fisheye"])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", IdentificationWarning)
+        res = calibrate_board_dataset(tmp_path / "two")
+    z = {}
+    for name, cam, std, truth in zip(res.camera_names, res.cameras, res.camera_std,
+                                     (CAMERA, FISHEYE), strict=True):  # fmt: skip
+        assert type(cam) is type(truth) and cam.free == truth.free
+        est = cam.free_values() - truth.free_values()
+        z |= {f"{name}.{n}": e / std[n] for n, e in zip(truth.free, est, strict=True)}
+    d = inv_pose(res.T_first_cam[1]) @ T_first_1
+    angle = np.degrees(np.linalg.norm(Rotation.from_matrix(d[:3, :3]).as_rotvec()))
+    dt = np.linalg.norm(res.T_first_cam[1][:3, 3] - T_first_1[:3, 3])
+    print("\nopencv + fisheye, z:", {k: round(float(v), 2) for k, v in z.items()},
+          f"extrinsic errors {1e3 * dt:.4f} mm, {angle:.4f} deg")  # fmt: skip
+    assert all(abs(v) < 3.0 for v in z.values()), z
+    assert dt < 0.3e-3 and angle < 0.2  # measured 0.098 mm, 0.078 deg
+    write_board_calibration(tmp_path / "two" / "calibration.json", res)
+    doc = json.loads((tmp_path / "two" / "calibration.json").read_text())
+    assert [c["model"] for c in doc["cameras"]] == ["opencv", "fisheye"]
+    assert {"p1", "p2"} <= set(doc["cameras"][0]["parameters"])
+    assert "p1" not in doc["cameras"][1]["parameters"]
+    assert doc["cameras"][1]["parameters"]["k4"] == pytest.approx(res.cameras[1].coefficient("k4"))
+    for cam, model in (("cam0", "plumb_bob"), ("cam1", "equidistant")):
+        out = tmp_path / f"{cam}.yml"
+        assert main(["export", str(tmp_path / "two"), "--format", "opencv", "--camera", cam,
+                     "--out", str(out)]) == 0  # fmt: skip
+        fs = cv2.FileStorage(str(out), cv2.FILE_STORAGE_READ)
+        assert fs.getNode("distortion_model").string() == model
+        k = res.camera_names.index(cam)
+        assert np.allclose(fs.getNode("camera_matrix").mat(), res.cameras[k].K)
 
 
 def test_import_errors_exit_2_with_the_fix(lab, tmp_path, capsys):

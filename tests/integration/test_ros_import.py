@@ -237,7 +237,10 @@ def test_two_cameras_raw_and_compressed(lab, tmp_path):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", MovingImagesWarning)
         assert _import(tmp_path / "two", tmp_path / "ds2", root, "cam0=/cam0/image_raw",
-                       "cam1=/cam1/image_raw/compressed", extra=["--per-rest", "2"]) == 0  # fmt: skip
+                       "cam1=/cam1/image_raw/compressed",
+                       extra=["--per-rest", "2", "--camera-model", "cam1=pinhole"]) == 0  # fmt: skip
+    info = Dataset.open(tmp_path / "ds2").info  # the per-camera choice passed through
+    assert info.model_of("cam0")[0] == "opencv" and info.model_of("cam1")[0] == "pinhole"
     got = _stamps(tmp_path / "ds2")["cam0"]
     assert (
         np.bincount([int(np.searchsorted(a, t, side="right") - 1) for t in got]).tolist() == [2] * 3
@@ -279,6 +282,14 @@ def _error(bag: Path, tmp_path: Path, root: Path, capsys, topic="cam0=/cam/image
     err = capsys.readouterr().err
     assert str(bag) in err and " -- " in err  # the fix after the message
     return err
+
+
+def test_a_camera_option_for_a_camera_the_bag_import_lacks(tmp_path, capsys):
+    assert _import(tmp_path / "none.bag", tmp_path / "out", tmp_path, "cam0=/cam/image_raw",
+                   extra=["--free", "cam9=fx,mu"]) == 2  # fmt: skip
+    assert "--free names camera(s) cam9, but the --image-topic cameras are cam0" in (
+        capsys.readouterr().err
+    )
 
 
 def test_missing_topic_lists_the_bags_topics(lab, tmp_path, capsys):
