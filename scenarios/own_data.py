@@ -20,6 +20,7 @@ from scenarios.ros_cli import add_import_args as add_bag_import_args
 from scenarios.ros_cli import cmd_import_bag
 
 if TYPE_CHECKING:
+    from calib.camera import CameraModel
     from calib.io.board_calibration import BoardCalibrationResult
 
 
@@ -97,17 +98,27 @@ def calibrate_any(
 
 
 def summary(res: BoardCalibrationResult) -> str:
-    """One line on a board calibration."""
+    """One line on a board calibration, and one more per further camera of a rig."""
+    c = res.cameras[0]
+    lines = [
+        f"calibrated {res.frames_used}/{res.frames} frames with the {res.target['type']} "
+        f"({c.model_name} camera): {_camera_text(c)}, "
+        f"reprojection RMS {res.reprojection_rms_px:.3f} px"
+    ]
+    for name, cam in zip(res.camera_names[1:], res.cameras[1:], strict=True):
+        lines.append(f"camera {name} ({cam.model_name}): {_camera_text(cam)}")
+    return "\n".join(lines)
+
+
+def _camera_text(c: CameraModel) -> str:
+    """A camera's pixel map and free lens coefficients by OpenCV name."""
     from calib.camera import opencv_values
 
-    c = res.cameras[0]
     v = opencv_values(c)
     lens = "".join(f", {n} = {v[n]:.4g}" for n in c.free if n in v and n[0] in "kp")
     return (
-        f"calibrated {res.frames_used}/{res.frames} frames with the {res.target['type']} "
-        f"({c.model_name} camera): fx = {v['fx']:.2f} px, fy = {v['fy']:.2f} px, "
-        f"cx = {v['cx']:.2f} px, cy = {v['cy']:.2f} px{lens}, "
-        f"reprojection RMS {res.reprojection_rms_px:.3f} px"
+        f"fx = {v['fx']:.2f} px, fy = {v['fy']:.2f} px, "
+        f"cx = {v['cx']:.2f} px, cy = {v['cy']:.2f} px{lens}"
     )
 
 

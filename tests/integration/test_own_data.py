@@ -51,7 +51,7 @@ from calib.robot_def import load_robot
 from calib.transforms import inv_pose, make_pose
 from scenarios.cli import main
 from scenarios.deploy_cli import load_calibration
-from scenarios.own_data import cmd_evaluate
+from scenarios.own_data import cmd_evaluate, summary
 from sim.lens import LensRemap
 
 
@@ -342,6 +342,8 @@ def test_cameras_of_different_models_import_and_calibrate(lab, tmp_path, capsys)
           f"extrinsic errors {1e3 * dt:.4f} mm, {angle:.4f} deg")  # fmt: skip
     assert all(abs(v) < 3.0 for v in z.values()), z
     assert dt < 0.3e-3 and angle < 0.2  # measured 0.098 mm, 0.078 deg
+    line = summary(res).splitlines()[1]  # selfcal calibrate's line on the second camera
+    assert line.startswith("camera cam1 (fisheye): fx = ") and "k4 = " in line
     write_board_calibration(tmp_path / "two" / "calibration.json", res)
     doc = json.loads((tmp_path / "two" / "calibration.json").read_text())
     assert [c["model"] for c in doc["cameras"]] == ["opencv", "fisheye"]
