@@ -12,7 +12,6 @@ Pose error (paper eqs. 6-9): ``T_actual = T_model (I + dT)`` to first order, wit
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from calib.mcpc import MCPCModel, shape_matrices
 from calib.robot_chain import chain_frames, dh_frames
@@ -88,6 +87,8 @@ def pose_error(T_model: np.ndarray, T_actual: np.ndarray) -> np.ndarray:
 
     ``d`` in metres, ``delta`` a rotation vector in radians (exact, not only first order).
     """
+    from scipy.spatial.transform import Rotation  # lazy (0.5 s): `selfcal fk` needs no scipy
+
     E = inv_pose(T_model) @ np.asarray(T_actual, dtype=float)
     rv = Rotation.from_matrix(E[..., :3, :3].reshape(-1, 3, 3)).as_rotvec()
     return np.concatenate([E[..., :3, 3], rv.reshape(E.shape[:-2] + (3,))], axis=-1)

@@ -23,7 +23,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from calib.errors import InputError
 from calib.transforms import inv_pose
@@ -61,6 +60,8 @@ class UrdfChain:
 
 def _z_onto(axis: np.ndarray) -> np.ndarray:
     """4x4 rotation taking the z axis onto the unit vector ``axis``."""
+    from scipy.spatial.transform import Rotation  # lazy (0.5 s): `selfcal fk` loads no scipy
+
     z = np.array([0.0, 0.0, 1.0])
     c = np.cross(z, axis)
     s, cos = np.linalg.norm(c), float(z @ axis)

@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 import numpy.typing as npt
-from scipy.spatial.transform import Rotation
+
+# scipy.spatial.transform is imported inside the functions that use it: importing it costs
+# 0.5 s (scipy.spatial loads scipy.sparse), and `selfcal fk` needs none of them (issue 17).
 
 __all__ = [
     "rot_x",
@@ -21,6 +23,8 @@ __all__ = [
     "adjoint",
     "skew",
     "xyz_euler_from_matrix",
+    "rpy_from_matrix",
+    "quat_from_matrix",
     "pose_from_vec",
     "vec_from_pose",
     "kabsch",
@@ -106,20 +110,99 @@ def adjoint(T: np.ndarray) -> np.ndarray:
     return A
 
 
-def xyz_euler_from_matrix(R: np.ndarray) -> np.ndarray:
-    """Angles ``(a, b, g)`` (rad) with ``R = Rx(a) Ry(b) Rz(g)``; shape (..., 3).
+# A middle Euler angle within this of +-90 deg (rad) is a gimbal lock (xyz_euler_from_matrix,
+# rpy_from_matrix): the third angle is set to 0, as scipy's Rotation.as_euler does.
+GIMBAL_EPS = 1e-7
 
-    Singular at ``b = +-90 deg``; MCPC frames stay far from it.
-    """
+
+def _quat_xyzw(R: np.ndarray) -> np.ndarray:
+    """Unit quaternions ``(x, y, z, w)`` of rotations (..., 3, 3), sign not canonical: Markley's
+    method (from the largest of the diagonal and the trace), as scipy's ``Rotation.from_matrix``
+    for orthonormal matrices."""
     R = np.asarray(R, dtype=float)
-    flat = R.reshape(-1, 3, 3)
-    # scipy's intrinsic "XYZ" is exactly Rx(a) Ry(b) Rz(g).
-    eul = Rotation.from_matrix(flat).as_euler("XYZ")
-    return eul.reshape(R.shape[:-2] + (3,))
+    t = R[..., 0, 0] + R[..., 1, 1] + R[..., 2, 2]
+    choice = np.argmax(np.stack([R[..., 0, 0], R[..., 1, 1], R[..., 2, 2], t], axis=-1), axis=-1)
+    s01, s02, s12 = (
+        R[..., 1, 0] + R[..., 0, 1],
+        R[..., 2, 0] + R[..., 0, 2],
+        R[..., 2, 1] + R[..., 1, 2],
+    )
+    v = (R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0], R[..., 1, 0] - R[..., 0, 1])
+    cases = np.stack(  # (..., case, (x, y, z, w))
+        [
+            np.stack([1 - t + 2 * R[..., 0, 0], s01, s02, v[0]], axis=-1),
+            np.stack([s01, 1 - t + 2 * R[..., 1, 1], s12, v[1]], axis=-1),
+            np.stack([s02, s12, 1 - t + 2 * R[..., 2, 2], v[2]], axis=-1),
+            np.stack([v[0], v[1], v[2], 1 + t], axis=-1),
+        ],
+        axis=-2,
+    )
+    q = np.take_along_axis(cases, choice[..., None, None], axis=-2)[..., 0, :]
+    return q / np.linalg.norm(q, axis=-1, keepdims=True)
+
+
+def _tait_bryan(q: np.ndarray, axes: tuple[int, int, int], extrinsic: bool) -> np.ndarray:
+    """Euler angles (rad, (..., 3), in the order of ``axes``) of quaternions ``(x, y, z, w)`` for a
+    sequence of three different axes (0 = x, 1 = y, 2 = z), about fixed axes (``extrinsic``) or
+    moving ones. The direct method of Bernardes and Viollet (PLoS ONE 17(11), 2022), which scipy's
+    ``Rotation.as_euler`` uses: the middle angle in [-pi/2, pi/2], the others in [-pi, pi]."""
+    i, j, k = axes if extrinsic else axes[::-1]
+    sign = (i - j) * (j - k) * (k - i) // 2
+    w = q[..., 3]
+    a, b = w - q[..., j], q[..., i] + sign * q[..., k]
+    c, d = q[..., j] + w, sign * q[..., k] - q[..., i]
+    middle = 2 * np.arctan2(np.hypot(c, d), np.hypot(a, b))
+    half_sum, half_diff = np.arctan2(b, a), np.arctan2(d, c)
+    at_0, at_pi = np.abs(middle) <= GIMBAL_EPS, np.abs(middle - np.pi) <= GIMBAL_EPS
+    lock = at_0 | at_pi
+    # at a gimbal lock the last angle is 0 and the first takes the whole rotation
+    locked = np.where(at_0, 2 * half_sum, 2 * half_diff * (-1 if extrinsic else 1))
+    if extrinsic:
+        first = np.where(lock, locked, half_sum - half_diff)
+        last = np.where(lock, 0.0, (half_sum + half_diff) * sign)
+    else:
+        first = np.where(lock, locked, half_sum + half_diff) * sign
+        last = np.where(lock, 0.0, half_sum - half_diff)
+    angles = np.stack([first, middle - np.pi / 2, last], axis=-1)
+    return np.where(
+        angles < -np.pi, angles + 2 * np.pi, np.where(angles > np.pi, angles - 2 * np.pi, angles)
+    )
+
+
+def xyz_euler_from_matrix(R: np.ndarray) -> np.ndarray:
+    """Angles ``(a, b, g)`` (rad) with ``R = Rx(a) Ry(b) Rz(g)`` (scipy's intrinsic ``"XYZ"``);
+    shape (..., 3).
+
+    Singular at ``b = +-90 deg`` (within ``GIMBAL_EPS``: then ``g = 0``); MCPC frames stay far
+    from it. Plain numpy: ``selfcal fk`` loads no scipy (issue 17).
+    """
+    return _tait_bryan(_quat_xyzw(R), (0, 1, 2), extrinsic=False)
+
+
+def rpy_from_matrix(R: np.ndarray) -> np.ndarray:
+    """Roll, pitch, yaw ``(r, p, y)`` (rad) about the fixed axes x, y, z: ``R = Rz(y) Ry(p) Rx(r)``
+    (the URDF/ROS convention, scipy's extrinsic ``"xyz"``), of rotations (..., 3, 3); shape (..., 3).
+
+    At a gimbal lock (pitch within ``GIMBAL_EPS`` of +-90 deg) yaw is 0 and roll takes the whole
+    rotation about the vertical. Plain numpy.
+    """
+    return _tait_bryan(_quat_xyzw(R), (0, 1, 2), extrinsic=True)
+
+
+def quat_from_matrix(R: np.ndarray) -> np.ndarray:
+    """Unit quaternions ``(w, x, y, z)`` (scalar first, ``w >= 0``) of rotations (..., 3, 3).
+
+    Plain numpy; the method of scipy's ``Rotation.from_matrix`` for orthonormal matrices.
+    """
+    q = _quat_xyzw(R)
+    q = np.concatenate([q[..., 3:], q[..., :3]], axis=-1)
+    return np.where(q[..., :1] < 0, -q, q)
 
 
 def pose_from_vec(v: np.ndarray) -> np.ndarray:
     """Pose from ``[rotvec (rad), translation (m)]`` vectors of shape (..., 6)."""
+    from scipy.spatial.transform import Rotation  # lazy: see the imports
+
     v = np.asarray(v, dtype=float)
     R = Rotation.from_rotvec(v.reshape(-1, 6)[:, :3]).as_matrix().reshape(v.shape[:-1] + (3, 3))
     return make_pose(R, v[..., 3:])
@@ -127,6 +210,8 @@ def pose_from_vec(v: np.ndarray) -> np.ndarray:
 
 def vec_from_pose(T: np.ndarray) -> np.ndarray:
     """Inverse of :func:`pose_from_vec`: ``[rotvec, translation]`` (..., 6)."""
+    from scipy.spatial.transform import Rotation  # lazy: see the imports
+
     T = np.asarray(T, dtype=float)
     rv = Rotation.from_matrix(T[..., :3, :3].reshape(-1, 3, 3)).as_rotvec()
     return np.concatenate([rv.reshape(T.shape[:-2] + (3,)), T[..., :3, 3]], axis=-1)

@@ -150,12 +150,10 @@ def parse_pose_args(args: argparse.Namespace, robot: RobotDef) -> PoseArgs:
 
 def orientation_json(R: np.ndarray) -> dict:
     """``rpy_deg`` (fixed-axis x, y, z, as ``--rpy-deg``) and ``quat_wxyz`` of a rotation."""
-    from scipy.spatial.transform import Rotation  # lazy: see the imports
+    # numpy only (calib.transforms), so that `selfcal fk` loads no scipy (issue 17)
+    from calib.transforms import quat_from_matrix, rpy_from_matrix
 
-    rot = Rotation.from_matrix(np.asarray(R, dtype=float))
-    x, y, z, w = rot.as_quat()
-    q = np.array([w, x, y, z]) * (1.0 if w >= 0 else -1.0)
     return {
-        "rpy_deg": np.round(rot.as_euler("xyz", degrees=True), 6).tolist(),
-        "quat_wxyz": np.round(q, 9).tolist(),
+        "rpy_deg": np.round(np.degrees(rpy_from_matrix(R)), 6).tolist(),
+        "quat_wxyz": np.round(quat_from_matrix(R), 9).tolist(),
     }

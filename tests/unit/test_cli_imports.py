@@ -8,6 +8,8 @@ import json
 import subprocess
 import sys
 
+import pytest
+
 HEAVY = (
     "mujoco",
     "matplotlib",
@@ -34,14 +36,23 @@ def test_importing_the_cli_and_building_its_parser_loads_no_heavy_module():
     assert [m for m in HEAVY + PARSER_HEAVY if m in mods] == []
 
 
-def test_fk_loads_no_simulator_or_plotting():
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["fk", "--joints", "0,0,0,0,0"],  # the ER-4u (DH table), with pitch and roll
+        ["fk", "--robot", "ur5e", "--joints", "10,-20,30,-40,50,60"],  # 6 axes: no pitch, roll
+    ],
+)
+def test_fk_loads_no_scipy_simulator_or_plotting(argv):
+    """`selfcal fk` (0.5 s of its 0.84 s was importing scipy.spatial) needs numpy only."""
     mods = _loaded(
-        "import contextlib, io\nimport scenarios.cli as c\n"
-        "with contextlib.redirect_stdout(io.StringIO()):\n"
-        "    c.main(['fk', '--joints', '0,0,0,0,0'])"
+        "import contextlib, io, sys\nimport scenarios.cli as c\n"
+        "with contextlib.redirect_stdout(io.StringIO()) as out:\n"
+        f"    code = c.main({argv!r})\n"
+        "assert code == 0 and 'quat_wxyz' in out.getvalue(), out.getvalue()"
     )
     assert "calib.kinematics" in mods  # fk ran
-    assert [m for m in HEAVY if m in mods] == []
+    assert [m for m in HEAVY + PARSER_HEAVY if m in mods] == []
 
 
 def test_the_light_choices_name_the_camera_models():

