@@ -33,6 +33,7 @@ from calib.io.calibration import CalibrationResult
 from calib.io.calibration_blocks import ScenePoints
 from calib.io.dataset import Dataset, DatasetError, Detections, read_gray
 from calib.io.dataset_info import CAMERAS, DatasetInfo
+from calib.io.frame_cache import FrameCache
 from calib.joint_refine import refine_calibration
 from calib.kinematics import fk_tool
 from calib.mcpc import MCPCModel, nominal_mcpc, shape_matrices
@@ -107,7 +108,12 @@ def skipped_images_message(skipped: tuple[str, ...], dictionary: str) -> str:
     )
 
 
-def detect_dataset(ds: Dataset, progress=None, lens: LensCamera | None = None) -> MarkerDetections:
+def detect_dataset(
+    ds: Dataset,
+    progress=None,
+    lens: LensCamera | None = None,
+    cache: FrameCache | None = None,
+) -> MarkerDetections:
     """Marker corners of every image (images path) or the stored detections (analytic path),
     and the images that show no marker (for people also a :class:`NoMarkersWarning`).
     ``lens``: a camera with a lens (an estimate): detect on the images undistorted with it and
@@ -116,6 +122,9 @@ def detect_dataset(ds: Dataset, progress=None, lens: LensCamera | None = None) -
     (:func:`calib.target.aruco_detect.detect_markers`, docs/accuracy.md) runs only for a dataset
     camera without a lens: on bent or resampled edges its level test drops markers unevenly
     (rendered lens scenario: worst camera-parameter z 3.05 with it, 1.78 without).
+    ``cache``: the images already in memory (the others are read from the files) and the
+    detections of an earlier call on the same dataset (reused, and the new ones added; not
+    through a lens): :class:`calib.io.frame_cache.FrameCache`.
 
     Raises:
         DatasetError: a missing or unreadable image, or one whose size is not dataset.json's.
@@ -134,14 +143,22 @@ def detect_dataset(ds: Dataset, progress=None, lens: LensCamera | None = None) -
 
     def detect(item: tuple[int, str, Path]) -> tuple[int, str, dict, dict]:
         index, cam, path = item
-        img = read_gray(path, index)
+        key = (index, cam, screen)
+        if flat is None and cache is not None and key in cache.detections:
+            dets, sig = cache.detections[key]
+            return index, cam, {k: c.copy() for k, c in dets.items()}, dict(sig)
+        img = cache.images.get((index, cam)) if cache is not None else None
+        img = read_gray(path, index) if img is None else img
         if img.shape[1] != W or img.shape[0] != H:
             raise DatasetError(
                 f"frame {index:04d}_{cam}.png is {img.shape[1]}x{img.shape[0]} px but dataset.json "
                 f"says {W}x{H}"
             )
         if flat is None:
-            return index, cam, *detect_markers_noise(img, ds.info.dictionary, screen=screen)
+            dets, sig = detect_markers_noise(img, ds.info.dictionary, screen=screen)
+            if cache is not None:
+                cache.detections[key] = ({k: c.copy() for k, c in dets.items()}, dict(sig))
+            return index, cam, dets, sig
         dets = detect_markers(flat.image(img), dictionary=ds.info.dictionary, screen=False)
         return index, cam, {k: flat.distorted(c) for k, c in dets.items()}, {}
 
@@ -197,6 +214,7 @@ def calibrate(
     method: str = "joint",
     allow_missing_frames: bool = False,
     tracker: TrackerInput | None = None,
+    cache: FrameCache | None = None,
 ) -> CalibrationResult:
     """The calibration of the dataset in ``root``: the result of :func:`calibrate_detailed`.
 
@@ -208,6 +226,7 @@ def calibrate(
         method=method,
         allow_missing_frames=allow_missing_frames,
         tracker=tracker,
+        cache=cache,
     ).result
 
 
@@ -218,6 +237,7 @@ def calibrate_detailed(
     method: str = "joint",
     allow_missing_frames: bool = False,
     tracker: TrackerInput | None = None,
+    cache: FrameCache | None = None,
 ) -> CalibrationOutput:
     """Run the whole calibration on the dataset in ``root`` (see the module docstring) and keep
     the live estimates behind the result.
@@ -232,6 +252,7 @@ def calibrate_detailed(
     ``tracker``: tracker measurements of the same robot estimated with the images in the one-step
     refinement (method ``joint`` only; :mod:`calib.tracker_join`); the result records them
     (``CalibrationResult.tracker``).
+    ``cache``: images and detections already in memory (:func:`detect_dataset`).
 
     Raises:
         ValueError: unknown ``method``.
@@ -278,7 +299,7 @@ def calibrate_detailed(
             "(26 kinematic parameters from 6 pose values each, plus the camera's unknowns): "
             "acquire more"
         )
-    dets, skipped, corner_sigma = detect_dataset(ds, progress=progress)
+    dets, skipped, corner_sigma = detect_dataset(ds, progress=progress, cache=cache)
     check_distinct_frames(ds.indices, ds.joints_deg, dets, ds.info.cameras, str(ds.root))
     check_read_back(
         ds.indices, ds.joints_deg, ds.info.planned_joints_deg, str(ds.root / "joints.csv")
@@ -309,7 +330,7 @@ def calibrate_detailed(
     if isinstance(sc.camera, LensCamera) and ds.info.observation == "images":
         # the lens bends the marker edges: detect again through the estimated lens, refit
         with _stage(progress, "camera stage again through the estimated lens") as st:
-            dets, skipped, corner_sigma = detect_dataset(ds, lens=sc.camera)
+            dets, skipped, corner_sigma = detect_dataset(ds, lens=sc.camera, cache=cache)
             _check_scale_markers(ds, dets)
             obs = observations_of(ds, dets)
             sc = camera_stage(obs)

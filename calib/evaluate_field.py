@@ -20,6 +20,7 @@ from calib.evaluate import Evaluation, rms_px
 from calib.io.calibration import CalibrationResult
 from calib.io.dataset import Dataset
 from calib.io.dataset_info import CAMERAS
+from calib.io.frame_cache import FrameCache
 from calib.kinematics import fk_tool
 from calib.mcpc import MCPCModel, nominal_mcpc
 from calib.quality import nominal_with_fitted_base_and_tool
@@ -42,9 +43,15 @@ def nominal_reference(cal: CalibrationResult, cal_root: Path) -> MCPCModel:
     return nominal_with_fitted_base_and_tool(nominal, q, poses.T_world_cam_left_m)
 
 
-def evaluate_field(cal: CalibrationResult, cal_root: str | Path, root: str | Path) -> Evaluation:
+def evaluate_field(
+    cal: CalibrationResult,
+    cal_root: str | Path,
+    root: str | Path,
+    cache: FrameCache | None = None,
+) -> Evaluation:
     """Predict the field dataset ``root`` with the field calibration ``cal`` of the dataset in
-    ``cal_root`` (module docstring).
+    ``cal_root`` (module docstring). ``cache``: ``root``'s images and detections already in
+    memory (:func:`calib.calibrate.detect_dataset`).
 
     Raises:
         InputError: the calibration holds no scene points (written before they were stored),
@@ -57,7 +64,7 @@ def evaluate_field(cal: CalibrationResult, cal_root: str | Path, root: str | Pat
     if ds.info.board is not None or ds.info.cameras != CAMERAS:
         raise InputError(f"{ds.root}: not a stereo dataset of the ArUco field",
                          fix="evaluate on a dataset acquired like the calibration's")  # fmt: skip
-    dets = detect_dataset(ds).detections
+    dets = detect_dataset(ds, cache=cache).detections
     scene = dict(zip(cal.scene.point_ids, cal.scene.X_world_m, strict=True))
     models = {"nominal": nominal_reference(cal, Path(cal_root)), "calibrated": cal.model}
     row = {int(i): k for k, i in enumerate(ds.indices)}

@@ -4,7 +4,9 @@ The loop knows nothing of the backend: the simulator and the hardware adapter ar
 Observers that only a simulator has (analytic corner projections, ground truth) are passed in as
 optional callbacks by the caller. Images are encoded and written by one worker thread while the
 robot moves to and captures the next posture (PNG encoding releases the GIL); at most one frame
-is in flight, and a frame is complete on disk before the next one is handed over.
+is in flight, and a frame is complete on disk before the next one is handed over. With a
+:class:`calib.io.frame_cache.FrameCache` the same worker also keeps each image on disk as the
+gray pixels the calibration would read back (``selfcal run`` calibrates from memory).
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ import numpy as np
 
 from calib.errors import HardwareError
 from calib.io.dataset import DatasetWriter
+from calib.io.frame_cache import FrameCache
 from calib.robot import Robot
 from scenarios.progress import Progress
 
@@ -48,8 +51,10 @@ def acquire(
     *,
     hooks: AcquisitionHooks | None = None,
     progress: Progress | None = None,
+    keep: FrameCache | None = None,
 ) -> int:
     """Take every planned frame that the dataset does not hold yet; returns frames taken now.
+    ``keep``: also keep the images taken in memory (:meth:`FrameCache.add`).
 
     Raises:
         AcquisitionError: a robot or camera failure; every frame taken before it is kept on disk
@@ -64,6 +69,13 @@ def acquire(
     if progress is not None:
         progress.start(len(plan), done=len(plan) - len(todo))
     pending: list[tuple[int, Future]] = []  # the frame the worker is writing
+    cameras = writer.info.cameras
+
+    def store(i: int, q: np.ndarray, left: np.ndarray, right: np.ndarray | None) -> None:
+        """Write frame ``i`` (the worker thread), then keep its images."""
+        writer.add_frame(i, q, left=left, right=right)
+        if keep is not None:
+            keep.add(i, {c: v for c, v in (("left", left), ("right", right)) if c in cameras})
 
     def settle() -> None:
         """Wait for the frame in flight; its failure stops the acquisition at that frame."""
@@ -85,7 +97,7 @@ def acquire(
                     else:
                         pair = robot.capture()
                         settle()  # the previous frame is on disk before this one is handed over
-                        fut = pool.submit(writer.add_frame, i, q, left=pair.left, right=pair.right)
+                        fut = pool.submit(store, i, q, pair.left, pair.right)
                         pending.append((i, fut))
                     if hooks.record_truth is not None:
                         hooks.record_truth(i)

@@ -305,6 +305,7 @@ def make_sim_robot(s: Scenario, setup: SimSetup | None = None):
         image_sigma=s.noise.image_sigma,
         seed=s.noise.seed,
         quantize=s.noise.quantize_joints,
+        msaa=s.noise.msaa,
     )
 
 

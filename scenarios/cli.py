@@ -300,7 +300,8 @@ scenario keys (TOML; every key has a default, units in the names):
   [perturbation] seed = 1; translation_mm = 1.0; rotation_deg = 0.5; [perturbation.table] name = value
   [trajectory]   poses = 30; seed = 1; min_markers = 6; kind = "random" | "optimal"
   [noise]        render = true; image_sigma = 2.0 (0-255); pixel_sigma = 0.5 (px); seed = 1;
-                 quantize_joints = true (encoder resolution of the simulated read-back)
+                 quantize_joints = true (encoder resolution of the simulated read-back);
+                 msaa = 4 (anti-aliasing samples of the rendered images; 0: off, faster)
   [validation]   poses = 20; seed = 2
 every key and its valid range: docs/scenarios.md; default scenario: scenarios/paper.toml
 """

@@ -31,6 +31,7 @@ from calib.io.board_calibration import (
 )
 from calib.io.calibration import CalibrationResult, read_calibration, write_calibration
 from calib.io.dataset import Dataset, DatasetError, DatasetWriter
+from calib.io.frame_cache import FrameCache
 from calib.io.jsonfile import write_json_atomic
 from calib.io.truth import read_truth
 from calib.report import aligned_errors, format_table_iv, parameter_table, tool_tips
@@ -91,9 +92,11 @@ def run_acquire(
     resume: bool = False,
     quiet: bool = False,
     dither_seed: int | None = None,
+    keep: FrameCache | None = None,
 ) -> Path:
     """Acquire the scenario's dataset into ``out`` (resumable). ``dither_seed`` (simulation):
-    move the planned postures by a random fraction of an encoder count (:func:`dithered`)."""
+    move the planned postures by a random fraction of an encoder count (:func:`dithered`).
+    ``keep``: also keep the images in memory for :func:`run_calibrate` (:class:`FrameCache`)."""
     setup = sim_setup(s) if s.robot.backend == "sim" else None
     info = plan_dataset(s, setup)
     if dither_seed is not None and setup is not None:
@@ -102,7 +105,9 @@ def run_acquire(
     writer = DatasetWriter(out, info, resume=resume)
     robot, hooks = open_robot(s, out, setup)
     try:
-        n = acquire(robot, writer, hooks=hooks, progress=Progress("acquire", enabled=not quiet))
+        n = acquire(
+            robot, writer, hooks=hooks, progress=Progress("acquire", enabled=not quiet), keep=keep
+        )
     finally:
         robot.close()
     _say(quiet, f"acquired {n} new frame(s); {writer.n_done} in {out}")
@@ -118,22 +123,26 @@ def run_calibrate(
     raise_failed: bool = True,
     figures: bool = False,
     tracker=None,
+    cache: FrameCache | None = None,
 ) -> CalibrationResult:
     """Calibrate the dataset in ``root`` and write ``root/calibration.json``; returns the
     result. Its warnings are printed (unless ``quiet``). ``raise_failed=False``: return a
     calibration marked failed as well (studies, which measure it against the truth).
     ``figures``: also ``root/figures/reprojection.png`` (:func:`reprojection_figures`).
     ``tracker``: a :class:`calib.tracker_join.TrackerInput` estimated with the images.
+    ``cache``: the images the acquisition of this run kept in memory (the rest is read); the
+    detections are added to it.
 
     Raises:
         CalibrationFailedError: the calibration failed a check of :mod:`calib.quality`; it is
             written all the same, marked failed (unless ``raise_failed`` is False).
     """
     res = calibrate(root, progress=Progress("detect", enabled=not quiet), method=method,
-                    allow_missing_frames=allow_missing_frames, tracker=tracker)  # fmt: skip
+                    allow_missing_frames=allow_missing_frames, tracker=tracker,
+                    cache=cache)  # fmt: skip
     path = write_calibration(Path(root) / "calibration.json", res)
     if figures:
-        _say(quiet, f"figure: {reprojection_figures(root, evaluate_field(res, root, root))}")
+        _say(quiet, f"figure: {reprojection_figures(root, evaluate_field(res, root, root, cache))}")
     i = res.intrinsics
     for text in res.warnings:
         _log.warning("%s", text)
@@ -164,11 +173,14 @@ def reprojection_figures(root: Path, ev: Evaluation) -> Path:
     return write_figure(reprojection_figure(ev, "calibration images"), root, "reprojection.png")
 
 
-def run_report(root: Path, *, quiet: bool = False, figures: bool = False) -> dict:
+def run_report(
+    root: Path, *, quiet: bool = False, figures: bool = False, cache: FrameCache | None = None
+) -> dict:
     """``root/report.json`` and ``report.md``: with ``truth.json`` (simulation) the calibration
     against the truth and ``root/validation.csv`` (per validation posture); without it the fit,
     a held-out check, the sigmas and the identifiability (:mod:`scenarios.report_fit`).
-    ``figures``: also the figures (:mod:`scenarios.job_figures`), linked from ``report.md``."""
+    ``figures``: also the figures (:mod:`scenarios.job_figures`), linked from ``report.md``.
+    ``cache``: the dataset's images and detections already in memory (:class:`FrameCache`)."""
     root = Path(root)
     ds = Dataset.open(root)
     cal_path = root / "calibration.json"
@@ -179,7 +191,7 @@ def run_report(root: Path, *, quiet: bool = False, figures: bool = False) -> dic
     cal = read_calibration(cal_path)
     truth_path = root / "truth.json"
     if not truth_path.is_file():
-        return _report_without_truth(root, cal, quiet=quiet, figures=figures)
+        return _report_without_truth(root, cal, quiet=quiet, figures=figures, cache=cache)
     truth = read_truth(truth_path)
     robot = load_robot(ds.info.robot_model)
     est = cal.model
@@ -282,7 +294,7 @@ def run_report(root: Path, *, quiet: bool = False, figures: bool = False) -> dic
         drawn = [
             write_figure(tool_tip_figure(err_nom["errors_mm"], err_cal["errors_mm"]), root,
                          "tool_tip_errors.png"),
-            reprojection_figures(root, evaluate_field(cal, root, root)),
+            reprojection_figures(root, evaluate_field(cal, root, root, cache)),
             write_figure(parameter_figure(params), root, "parameters.png"),
         ]  # fmt: skip
     report["figures"] = [str(p.relative_to(root)) for p in drawn]
@@ -297,9 +309,9 @@ def run_report(root: Path, *, quiet: bool = False, figures: bool = False) -> dic
 
 
 def _report_without_truth(
-    root: Path, cal: CalibrationResult, *, quiet: bool, figures: bool
+    root: Path, cal: CalibrationResult, *, quiet: bool, figures: bool, cache: FrameCache | None
 ) -> dict:
-    drawn = [reprojection_figures(root, evaluate_field(cal, root, root))] if figures else []
+    drawn = [reprojection_figures(root, evaluate_field(cal, root, root, cache))] if figures else []
     return _write_fit_report(root, fit_report(root, cal), drawn, quiet=quiet)
 
 
@@ -441,11 +453,16 @@ def run_all(
     """Acquire, calibrate and (in simulation) report; prints a summary. ``figures``: the
     report's figures in ``out/figures/``."""
     t0 = time.perf_counter()
-    run_acquire(s, out, resume=resume, quiet=quiet)
+    kept = FrameCache()  # calibration and report: the images taken now from memory, detected once
+    run_acquire(s, out, resume=resume, quiet=quiet, keep=kept)
     # without truth (hardware) there is no report: the calibration draws what it can
     try:
         cal = run_calibrate(
-            out, quiet=quiet, method=method, figures=figures and s.robot.backend != "sim"
+            out,
+            quiet=quiet,
+            method=method,
+            figures=figures and s.robot.backend != "sim",
+            cache=kept,
         )
     except CalibrationFailedError:
         if s.robot.backend == "sim":
@@ -453,7 +470,7 @@ def run_all(
         raise
     result = {"calibration": cal}
     if s.robot.backend == "sim":
-        rep = run_report(out, quiet=True, figures=figures)
+        rep = run_report(out, quiet=True, figures=figures, cache=kept)
         result["report"] = rep
         v = rep["validation"]["tool_tip_error_mm"]
         print(

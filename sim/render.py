@@ -27,7 +27,7 @@ from calib.camera import Pinhole
 from sim.lens import LensRemap, needs_remap
 from sim.mj_camera import camera_id
 
-__all__ = ["StereoRenderer"]
+__all__ = ["StereoRenderer", "noise_field", "apply_noise"]
 
 
 class StereoRenderer:
@@ -172,9 +172,20 @@ class StereoRenderer:
             pass
 
 
+def noise_field(shape: tuple[int, ...], sigma: float, rng: np.random.Generator) -> np.ndarray:
+    """Gaussian sensor noise of std ``sigma`` (grey levels), float32 of ``shape``: the draws of
+    one image, in the order :meth:`StereoRenderer.render_all` takes them from ``rng``."""
+    z = rng.standard_normal(size=shape, dtype=np.float32)
+    z *= np.float32(sigma)
+    return z
+
+
+def apply_noise(img: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """``img`` (uint8) plus the noise field ``z`` (float32, consumed), rounded and clipped."""
+    z += img
+    np.rint(z, out=z)
+    return np.clip(z, 0, 255).astype(np.uint8)
+
+
 def _add_noise(img: np.ndarray, sigma: float, rng: np.random.Generator) -> np.ndarray:
-    noisy = rng.standard_normal(size=img.shape, dtype=np.float32)
-    noisy *= np.float32(sigma)
-    noisy += img
-    np.rint(noisy, out=noisy)
-    return np.clip(noisy, 0, 255).astype(np.uint8)
+    return apply_noise(img, noise_field(img.shape, sigma, rng))

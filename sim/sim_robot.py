@@ -9,6 +9,8 @@ posture for ``truth.json``.
 
 from __future__ import annotations
 
+from concurrent.futures import Future, ThreadPoolExecutor
+
 import mujoco
 import numpy as np
 
@@ -18,7 +20,7 @@ from calib.robot import StereoPair
 from sim.kinematic_robot import KinematicRobot
 from sim.markers import MarkerField
 from sim.mj_camera import T_world_cam_cv
-from sim.render import StereoRenderer
+from sim.render import StereoRenderer, apply_noise, noise_field
 from sim.robot_mjcf import CAMERA_NAMES, TOOL_SITE, RigConfig, scene_with_robot
 
 __all__ = ["SimRobot"]
@@ -37,6 +39,12 @@ class SimRobot(KinematicRobot):
         seed: seed of the image-noise generator.
         quantize: report joints at encoder resolution (False: the exact angles, for noise-free
             regression tests).
+        msaa: multisample anti-aliasing samples of the renderer (0: off; None: the scene's, 4).
+
+    The noise of the next capture is drawn by a worker thread while the robot moves and renders
+    (the draws are most of the noise's cost): the same draws from the same generator in the same
+    order as drawing them inside :meth:`capture`, so the images are those of one seed whatever
+    the timing.
 
     Starts at the home posture. Raises ``RobotDefinitionError`` for an unknown model name and
     ``ValueError`` if ``actual`` does not fit the robot.
@@ -51,18 +59,41 @@ class SimRobot(KinematicRobot):
         image_sigma: float = 0.0,
         seed: int = 0,
         quantize: bool = True,
+        msaa: int | None = None,
     ) -> None:
         if not image_sigma >= 0:
             raise InputError(f"image_sigma must be >= 0 (grey levels), got {image_sigma}")
         super().__init__(model_name, actual, rig, field, quantize)
-        self.image_sigma = float(image_sigma)
+        self._sigma = float(image_sigma)
         self._rng = np.random.default_rng(seed)
-        spec = scene_with_robot(self.robot, self.actual, self.rig, self.field)
+        scene_kw = {} if msaa is None else {"offsamples": int(msaa)}
+        spec = scene_with_robot(self.robot, self.actual, self.rig, self.field, **scene_kw)
         self.mj_model = spec.compile()
         self.mj_data = mujoco.MjData(self.mj_model)
         self._renderer = None
         self._n_captures = 0
+        self._noise_pool: ThreadPoolExecutor | None = None
+        self._next_noise: Future | None = None  # the next capture's draws, (left, right)
         self.home()
+
+    @property
+    def image_sigma(self) -> float:
+        """Std of the Gaussian image noise (grey levels, 0-255), fixed at construction."""
+        return self._sigma
+
+    def _draw_noise(self, shapes: list[tuple[int, ...]]) -> list[np.ndarray]:
+        return [noise_field(shape, self._sigma, self._rng) for shape in shapes]
+
+    def _noise(self, shapes: list[tuple[int, ...]]) -> list[np.ndarray]:
+        """This capture's noise fields (drawn ahead when possible) and the next one's started."""
+        ahead, self._next_noise = self._next_noise, None
+        z = ahead.result() if ahead is not None else self._draw_noise(shapes)
+        if [f.shape for f in z] != shapes:  # pragma: no cover - one renderer, fixed sizes
+            raise RuntimeError(f"noise drawn for images {[f.shape for f in z]}, got {shapes}")
+        if self._noise_pool is None:
+            self._noise_pool = ThreadPoolExecutor(1, thread_name_prefix="image-noise")
+        self._next_noise = self._noise_pool.submit(self._draw_noise, shapes)
+        return z
 
     def capture(self) -> StereoPair:
         """Render the stereo pair at the current posture (uint8 RGB, H x W x 3 each), with the
@@ -76,7 +107,10 @@ class SimRobot(KinematicRobot):
                 camera_names=CAMERA_NAMES,
                 lenses=(self.rig.intrinsics, self.rig.right),
             )
-        left, right = self._renderer.render(self.mj_data, self.image_sigma, self._rng)
+        left, right = self._renderer.render(self.mj_data)
+        if self._sigma > 0:
+            z = self._noise([left.shape, right.shape])
+            left, right = apply_noise(left, z[0]), apply_noise(right, z[1])
         meta = {
             "model_name": self.model_name,
             "index": self._n_captures,
@@ -88,6 +122,9 @@ class SimRobot(KinematicRobot):
 
     def close(self) -> None:
         """Free the renderer (idempotent); later moves and captures raise ``RobotError``."""
+        if self._noise_pool is not None:
+            self._noise_pool.shutdown(wait=True, cancel_futures=True)
+            self._noise_pool, self._next_noise = None, None
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None
@@ -117,4 +154,4 @@ class SimRobot(KinematicRobot):
         mujoco.mj_forward(self.mj_model, self.mj_data)
 
     def __repr__(self) -> str:
-        return f"SimRobot({self.model_name!r}, image_sigma={self.image_sigma})"
+        return f"SimRobot({self.model_name!r}, image_sigma={self._sigma})"

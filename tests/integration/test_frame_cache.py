@@ -1,0 +1,92 @@
+"""`selfcal run` keeps what its acquisition took: the images in memory are the pixels read back
+from the PNGs, the detections are made once, and the image noise drawn ahead by a worker thread is
+the seeded stream (issue 17)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from calib.calibrate import detect_dataset
+from calib.io.dataset import Dataset, read_gray
+from calib.io.frame_cache import FrameCache
+from scenarios.config import load_scenario
+from scenarios.pipeline import run_acquire
+from sim.markers import make_marker_field
+from sim.render import apply_noise, noise_field
+from sim.sim_robot import SimRobot
+
+pytestmark = pytest.mark.render
+
+
+@pytest.fixture(scope="module")
+def acquired(tmp_path_factory):
+    """A small rendered dataset (6 postures) and the images its acquisition kept."""
+    s = load_scenario(None, {"trajectory": {"poses": 6}, "validation": {"poses": 3}})
+    out = tmp_path_factory.mktemp("kept")
+    cache = FrameCache()
+    run_acquire(s, out, quiet=True, keep=cache)
+    return out, cache
+
+
+def test_kept_images_are_the_pixels_read_back(acquired):
+    out, cache = acquired
+    ds = Dataset.open(out)
+    paths = ds.image_paths()
+    assert len(paths) == 12 and set(cache.images) == {(i, c) for i, c, _ in paths}
+    for index, cam, path in paths:
+        np.testing.assert_array_equal(cache.images[(index, cam)], read_gray(path, index))
+
+
+def test_kept_frames_stop_at_the_memory_budget(acquired):
+    out, cache = acquired
+    small = FrameCache(max_bytes=3 * 640 * 480)
+    for (index, cam), img in sorted(cache.images.items()):
+        small.add(index, {cam: img})
+    assert len(small.images) == 3 and small.nbytes == 3 * 640 * 480
+
+
+def test_detections_from_memory_and_reused_equal_those_from_the_files(acquired):
+    out, cache = acquired
+    ds = Dataset.open(out)
+    files = detect_dataset(ds)
+    cache.detections.clear()
+    first = detect_dataset(ds, cache=cache)  # from the images in memory, filling the cache
+    assert len(cache.detections) == 12
+    again = detect_dataset(ds, cache=cache)  # from the cache alone
+    for got in (first, again):
+        assert got.skipped_images == files.skipped_images
+        assert got.corner_sigma_px == files.corner_sigma_px
+        assert got.detections.keys() == files.detections.keys()
+        for k, markers in files.detections.items():
+            assert got.detections[k].keys() == markers.keys()
+            for m, c in markers.items():
+                np.testing.assert_array_equal(got.detections[k][m], c)
+
+
+def test_noise_drawn_ahead_is_the_seeded_stream():
+    """Three captures with noise equal the clean renders plus the generator's draws in order."""
+    field = make_marker_field(n_markers=6, seed=2)
+    postures = ([0, 0, 0, -90, 0], [10, -5, 5, -80, 20], [-10, 5, -5, -100, -20])
+    with SimRobot("er4u-paper", field=field, image_sigma=3.0, seed=7) as noisy:
+        got = []
+        for q in postures:
+            noisy.move_to(np.array(q, float))
+            pair = noisy.capture()
+            got += [pair.left, pair.right]
+    rng = np.random.default_rng(7)
+    with SimRobot("er4u-paper", field=field, image_sigma=0.0) as clean:
+        for k, q in enumerate(postures):
+            clean.move_to(np.array(q, float))
+            pair = clean.capture()
+            for j, img in enumerate((pair.left, pair.right)):
+                want = apply_noise(img, noise_field(img.shape, 3.0, rng))
+                np.testing.assert_array_equal(got[2 * k + j], want)
+
+
+def test_msaa_is_the_renderers_sample_count():
+    field = make_marker_field(n_markers=6, seed=2)
+    for msaa, granted in ((0, 0), (None, 4)):
+        with SimRobot("er4u-paper", field=field, msaa=msaa) as r:
+            r.capture()
+            assert r._renderer.samples == granted
