@@ -1,5 +1,6 @@
 """Speed benchmark of issue 17: command start-up, `selfcal run`, `calibrate` against the pose
-count, and the bundle adjustment against ``scipy.optimize.least_squares``.
+count, the bundle adjustment against ``scipy.optimize.least_squares`` and the identification
+against pybotics.
 
 Measures, in one run on this machine:
 
@@ -10,15 +11,21 @@ Measures, in one run on this machine:
 - the bundle adjustment's last plain least-squares pass (captured inside ``calibrate`` at
   ``--ba-poses``), started off its minimum and solved by the engine (Schur elimination of the
   poses) and by ``least_squares`` (trf, sparse Jacobian, lsmr): the speed ratio at the final
-  costs (both printed).
+  costs (both printed);
+- with ``--with-pybotics`` (implied by ``--write-docs`` and ``--write-readme``, so the published
+  table has it): the kinematic identification from tracker positions (UR5e, ``--pybotics-n``
+  configurations, 0.1 mm noise) by the project (:func:`calib.tracker_identify.identify_tracker`)
+  and by pybotics in its own environment, the way :mod:`scenarios.benchmark_tracker` runs it
+  (``uv run --with pybotics``): fit times (best of repeats, wall and CPU), their ratio and both
+  held-out errors (equal accuracy is part of the comparison).
 
 Writes the table to docs/performance.md (``--write-docs``) and into README.md between the
 ``benchmark_speed`` markers (``--write-readme``); ``--check`` exits 1 when a measured figure is
 more than 1.3x off the one the README states. The 1-minute load average before and after each
 part is printed and written with the table: the machines are shared.
 
-Run: ``MUJOCO_GL=egl uv run python -m scenarios.benchmark_speed [--write-docs] [--write-readme]
-[--check]``.
+Run: ``MUJOCO_GL=egl uv run python -m scenarios.benchmark_speed [--with-pybotics] [--write-docs]
+[--write-readme] [--check]``.
 """
 
 from __future__ import annotations
@@ -157,6 +164,29 @@ def ba_against_scipy(poses: int, root: Path) -> dict:
     return row
 
 
+def pybotics_ratio(n: int, repeats_ours: int = 10, repeats_pybotics: int = 3) -> dict:
+    """The tracker identification at ``n`` configurations, the project against pybotics (in its
+    own environment): one row of :func:`scenarios.benchmark_tracker.run` and its note (the
+    pybotics version, or why it did not run)."""
+    from scenarios.benchmark_tracker import run as tracker_run
+
+    rows, note = tracker_run(
+        sizes=(n,), repeats_ours=repeats_ours, repeats_pybotics=repeats_pybotics
+    )
+    row = rows[0] | {"note": note}
+    if row["pyb_s"] is not None:
+        print(
+            f"identification, {n} tracker positions: ours {row['ours_s']:.4f} s (CPU "
+            f"{row['ours_cpu_s']:.4f}), held-out {row['ours_mm']:.3f} mm; {note} "
+            f"{row['pyb_s']:.3f} s (CPU {row['pyb_cpu_s']:.3f}), held-out {row['pyb_mm']:.3f} mm; "
+            f"ratio {row['pyb_s'] / row['ours_s']:.0f}x wall, "
+            f"{row['pyb_cpu_s'] / row['ours_cpu_s']:.0f}x CPU"
+        )
+    else:
+        print(f"identification, {n} tracker positions: ours {row['ours_s']:.4f} s; {note}")
+    return row
+
+
 def measure(args: argparse.Namespace) -> dict:
     """Every figure of the table, with the load average around each part."""
     script = Path(sys.executable).parent / "selfcal"  # the installed console script
@@ -177,6 +207,9 @@ def measure(args: argparse.Namespace) -> dict:
         fig["calibrate"] = calibrate_scaling(args.poses, root)
         fig["load"].append(load())
         fig["ba"] = ba_against_scipy(args.ba_poses, root)
+        fig["load"].append(load())
+    if args.with_pybotics:
+        fig["pybotics"] = pybotics_ratio(args.pybotics_n)
         fig["load"].append(load())
     return fig
 
@@ -214,7 +247,25 @@ def table(fig: dict) -> str:
         f"{b['scipy_cost']:.6g}; {b['scipy'] / b['engine']:.1f}x the engine's time) | "
         f"{b['scipy']:.2f} |",
     ]
+    if "pybotics" in fig:
+        lines += _pybotics_lines(fig["pybotics"])
     return "\n".join(lines)
+
+
+def _pybotics_lines(r: dict) -> list[str]:
+    """The identification rows: ours, and pybotics with the ratio (or why it is missing)."""
+    what = f"identification from tracker positions, UR5e, {r['N']} configurations"
+    lines = [
+        f"| {what}: ours (`identify_tracker`, best of 10; CPU {r['ours_cpu_s']:.4f} s; "
+        f"held-out {r['ours_mm']:.3f} mm) | {r['ours_s']:.4f} |"
+    ]
+    if r["pyb_s"] is None:
+        return lines + [f"| same, pybotics: not measured ({r['note']}) | n/a |"]
+    return lines + [
+        f"| same, {r['note']} `least_squares` in its own environment (best of 3; CPU "
+        f"{r['pyb_cpu_s']:.3f} s; held-out {r['pyb_mm']:.3f} mm; {r['pyb_s'] / r['ours_s']:.0f}x "
+        f"ours' time, {r['pyb_cpu_s'] / r['ours_cpu_s']:.0f}x by CPU) | {r['pyb_s']:.3f} |"
+    ]
 
 
 def figures_of(text: str) -> dict[str, float]:
@@ -269,10 +320,18 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--ba-poses", type=int, default=300)
     ap.add_argument("--repeat", type=int, default=5, help="runs of --help and fk (median)")
     ap.add_argument("--skip-run", action="store_true", help="leave out `selfcal run`")
+    ap.add_argument(
+        "--with-pybotics",
+        action="store_true",
+        help="also the identification against pybotics (its own environment, through uv); "
+        "implied by --write-docs and --write-readme",
+    )
+    ap.add_argument("--pybotics-n", type=int, default=100, help="tracker configurations")
     ap.add_argument("--write-docs", action="store_true", help="write docs/performance.md")
     ap.add_argument("--write-readme", action="store_true", help="write the README block")
     ap.add_argument("--check", action="store_true", help="exit 1 if > 1.3x off the README")
     args = ap.parse_args(argv)
+    args.with_pybotics = args.with_pybotics or args.write_docs or args.write_readme
     from scenarios.threads import limit_threads
 
     limit_threads(None)
