@@ -26,7 +26,7 @@ def gray_of_png(image: np.ndarray) -> np.ndarray:
     writer stores from ``image`` (uint8 RGB (H, W, 3), or gray (H, W)), without encoding or
     decoding it."""
     img = np.asarray(image)
-    if img.dtype != np.uint8 or img.ndim not in (2, 3) or (img.ndim == 3 and img.shape[2] != 3):
+    if not _is_png_rgb_or_gray(img):
         raise ValueError(
             f"expected a uint8 RGB (H, W, 3) or gray (H, W) image, got {img.dtype} {img.shape}"
         )
@@ -38,6 +38,10 @@ def gray_of_png(image: np.ndarray) -> np.ndarray:
     acc += img[..., 2] * np.uint32(wb)
     acc >>= 15
     return acc.astype(np.uint8)
+
+
+def _is_png_rgb_or_gray(img: np.ndarray) -> bool:
+    return img.dtype == np.uint8 and (img.ndim == 2 or (img.ndim == 3 and img.shape[2] == 3))
 
 
 @dataclass
@@ -57,8 +61,11 @@ class FrameCache:
     nbytes: int = 0
 
     def add(self, index: int, images: dict[str, np.ndarray]) -> None:
-        """Keep frame ``index``'s images (uint8 RGB or gray, by camera) while they fit."""
+        """Keep frame ``index``'s images (uint8 RGB or gray, by camera) while they fit; an image
+        of another kind (say 16 bits from a camera) is left to be read from its file."""
         for cam, img in images.items():
+            if not _is_png_rgb_or_gray(img):
+                continue
             gray = gray_of_png(img)
             if self.nbytes + gray.nbytes > self.max_bytes:
                 return

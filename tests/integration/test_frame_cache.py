@@ -44,6 +44,9 @@ def test_kept_frames_stop_at_the_memory_budget(acquired):
     for (index, cam), img in sorted(cache.images.items()):
         small.add(index, {cam: img})
     assert len(small.images) == 3 and small.nbytes == 3 * 640 * 480
+    other = FrameCache()
+    other.add(0, {"left": np.zeros((4, 4), np.uint16), "right": np.zeros((4, 4, 4), np.uint8)})
+    assert other.images == {}  # kinds gray_of_png does not reproduce: read from the files
 
 
 def test_detections_from_memory_and_reused_equal_those_from_the_files(acquired):
