@@ -38,7 +38,7 @@ from calib.trajectory import (
 )
 from calib.transforms import trans
 from scenarios.acquire import AcquisitionHooks
-from scenarios.config import ConfigError, Scenario, load_scenario, scenario_to_dict
+from scenarios.config import ConfigError, NoiseConfig, Scenario, load_scenario, scenario_to_dict
 from scenarios.hardware import open_hardware_robot
 from sim.actual import apply_errors, perturb
 from sim.analytic import project_markers
@@ -229,11 +229,20 @@ def plan_dataset(s: Scenario, setup: SimSetup | None = None) -> DatasetInfo:
         observation="images" if (s.noise.render or s.robot.backend == "hardware") else "detections",
         planned_joints_deg=np.round(np.degrees(q), 6),
         validation_joints_deg=np.round(np.degrees(qv), 6),
-        provenance={"scenario_sha256": scenario_digest(scenario_to_dict(s))},
+        provenance={"scenario_sha256": scenario_digest(_digested(s))},
         camera_model=s.camera.model,
         camera_free=tuple(s.camera.free),
         cameras=s.camera.names,
     )
+
+
+def _digested(s: Scenario) -> dict:
+    """The scenario as its dataset's digest sees it: ``noise.msaa`` at its default is left out,
+    so a dataset rendered before the key existed (with that default) still resumes."""
+    d = scenario_to_dict(s)
+    if s.noise.msaa == NoiseConfig.msaa:
+        del d["noise"]["msaa"]
+    return d
 
 
 def open_robot(
