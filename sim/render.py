@@ -10,7 +10,8 @@ llvmpipe via EGL, default LP_NUM_THREADS = 2): about 20-35 ms per stereo pair wi
 (llvmpipe grants at most 4 samples; 8 or 16 fall back to 4) and 9-16 ms without MSAA. Almost all
 of it is llvmpipe rasterisation + the multisample resolve, which ``mjr_readPixels`` waits for;
 ``mjv_updateScene`` takes 0.04 ms and the vertical flip 0.1 ms. Sensor noise (``image_sigma``)
-costs another 5-13 ms per image (Gaussian draws). MSAA smooths only polygon silhouettes: marker
+costs another 5-13 ms per image (Gaussian draws; ``sim.sim_robot.SimRobot`` draws the next
+capture's on a worker thread). MSAA smooths only polygon silhouettes: marker
 corners are texture edges, filtered by (mipmapped, bilinear) texture sampling, and their detected
 positions were identical with 0 and 4 samples, so ``offsamples=0`` in
 ``sim.scene.configure_visual`` is a legitimate 2-3x speed-up when silhouettes do not matter.
