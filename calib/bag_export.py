@@ -59,10 +59,11 @@ class BagExport:
 
 
 def bag_format_for(out: str | Path, fmt: str | None) -> str:
-    """``fmt``, or from ``out``: ``.bag`` -> ros1, anything else -> ros2 (a bag folder)."""
+    """``fmt``, or from ``out``: ``.bag`` -> ros1, ``.mcap`` -> mcap (a bare file), anything
+    else -> ros2 (a bag folder)."""
     if fmt is not None:
         return fmt
-    return "ros1" if Path(out).suffix == ".bag" else "ros2"
+    return {".bag": "ros1", ".mcap": "mcap"}.get(Path(out).suffix, "ros2")
 
 
 def nominal_urdf(ds: Dataset) -> str:

@@ -139,7 +139,7 @@ def read_joint_track(
         return JointTrack(np.frombuffer(ts, np.int64), q, chain.joint_types), found
     missing = [n for n in chain.joint_names if n not in seen]
     raise BagError(
-        f"{reader.path}: topic {topic}: JointState names {sorted(seen) or 'no joint'}, but robot "
+        f"{reader.label}: topic {topic}: JointState names {sorted(seen) or 'no joint'}, but robot "
         f"{chain.name}'s chain is {list(chain.joint_names)} (missing: {missing or 'positions'})",
         fix="give the --robot whose URDF/TOML names the joints the driver publishes, or the "
         "--joint-topic of the arm's joints",
@@ -165,7 +165,7 @@ class Chain:
 
 
 def _model(
-    infos: dict[str, CameraInfo | None], given: str | Mapping[str, str] | None, bag: Path
+    infos: dict[str, CameraInfo | None], given: str | Mapping[str, str] | None, bag: str
 ) -> str | dict[str, str]:
     """The camera model: given, else the calibrated CameraInfos' (one for all), else opencv;
     ``given`` by camera name: the cameras it leaves out by their CameraInfos."""
@@ -193,6 +193,7 @@ class _Staged:
 
     stamps: list[int]
     files: list[Path]
+    bags: list[Path]
 
 
 def _stage_images(
@@ -202,19 +203,19 @@ def _stage_images(
     """Pass 2: decode and stage every image at rest; count the others by reason; the first and
     last image stamps."""
     by_topic = {c.topic: c.name for c in cams}
-    staged = {c.name: _Staged([], []) for c in cams}
+    staged = {c.name: _Staged([], [], []) for c in cams}
     for c in cams:
         (stage / c.name).mkdir(parents=True)
     counts = {MOVING: 0, GAP: 0, OUTSIDE: 0}
     total, first, last = 0, 2**63 - 1, -(2**63)
-    for topic, msgtype, msg, t in reader.timed(list(by_topic)):
+    for topic, msgtype, msg, t, src in reader.timed_in(list(by_topic)):
         total += 1
         first, last = min(first, t), max(last, t)
         st = track.status(t, rule)
         if st == EMPTY:
             a, b = track.largest_gap(t)
             raise BagError(
-                f"{reader.path}: no message on {joint_topic} within +-{rule.window_s / 2:g} s of "
+                f"{reader.label}: no message on {joint_topic} within +-{rule.window_s / 2:g} s of "
                 f"the image at {_secs(t)} on {topic} (the joint messages pause from {a:.3f} s to "
                 f"{b:.3f} s)",
                 fix="record the joint topic without pauses (check the driver's publish rate and "
@@ -224,12 +225,13 @@ def _stage_images(
             counts[st] += 1
             continue
         s = staged[by_topic[topic]]
-        img = decode_image(msg, msgtype, f"{reader.path}: topic {topic}")
+        img = decode_image(msg, msgtype, f"{src}: topic {topic}")
         path = stage / by_topic[topic] / f"raw_{len(s.files):07d}.png"
         if not cv2.imwrite(str(path), img):  # pragma: no cover
             raise ImportError_(f"{path}: cannot write the staged image", fix="check the disk")
         s.stamps.append(t)
         s.files.append(path)
+        s.bags.append(src)
     return staged, counts, total, (first, last)
 
 
@@ -282,7 +284,7 @@ def _per_rest(frames: list[list[int]], stamps: list[int], track: JointTrack, rul
 
 
 def import_bag(
-    bag: str | Path,
+    bag: str | Path | Sequence[str | Path],
     image_topics: Sequence[ImageTopic],
     joint_topic: str,
     robot: str,
@@ -296,7 +298,8 @@ def import_bag(
     camera_model: str | Mapping[str, str] | None = None,
     free: Sequence[str] | Mapping[str, Sequence[str]] | None = None,
 ) -> DatasetInfo:
-    """Import the bag ``bag`` as the dataset folder ``out`` (module docstring); returns its
+    """Import the bag ``bag`` (a path, or the paths of a split ROS 1 recording read as one bag:
+    :class:`calib.io.rosbag.BagReader`) as the dataset folder ``out`` (module docstring); returns its
     ``dataset.json`` content. ``robot``, ``target``, ``base_link``, ``tool_link``, ``free``: as
     :func:`calib.import_dataset.import_dataset`; ``camera_model`` None (or a camera it does not
     name): from the calibrated CameraInfos (plumb_bob / rational_polynomial -> opencv,
@@ -308,7 +311,8 @@ def import_bag(
             joint message near an image, an unsupported image encoding, no image at rest (each
             names the bag, the topic and the fix); the errors of ``import_dataset``.
     """
-    bag, out = Path(bag), Path(out)
+    bags = [Path(bag)] if isinstance(bag, (str, Path)) else [Path(b) for b in bag]
+    out = Path(out)
     rule = RestRule() if rule is None else rule
     names = [c.name for c in image_topics]
     if not image_topics or len(set(names)) != len(names):
@@ -322,11 +326,12 @@ def import_bag(
     stage = out / _STAGE
     made_out = not out.exists()
     try:
-        with BagReader(bag) as reader:
+        with BagReader(bags) as reader:
+            where = reader.label
             for c in image_topics:
                 reader.require(c.topic, IMAGE_TYPES, "--image-topic")
             track, infos = read_joint_track(reader, joint_topic, chain, image_topics)
-            model = _model(infos, camera_model, bag)
+            model = _model(infos, camera_model, where)
             if stage.exists():
                 shutil.rmtree(stage)
             staged, counts, total, span = _stage_images(reader, image_topics, track, rule, joint_topic,
@@ -336,7 +341,7 @@ def import_bag(
         at_rest = sum(len(s.files) for s in staged.values())
         if total and counts[OUTSIDE] == total:
             raise BagError(
-                f"{bag}: the {total} images on {topics} ({_secs(span[0])} to {_secs(span[1])}) lie "
+                f"{where}: the {total} images on {topics} ({_secs(span[0])} to {_secs(span[1])}) lie "
                 f"outside the joint messages on {joint_topic} ({_secs(int(track.t[0]))} to "
                 f"{_secs(int(track.t[-1]))})",
                 fix="stamp images and joints by one clock (check use_sim_time and the camera "
@@ -344,7 +349,7 @@ def import_bag(
             )
         if at_rest == 0:
             raise BagError(
-                f"{bag}: none of the {total} images on {topics} was taken at rest ({counts[MOVING]}"
+                f"{where}: none of the {total} images on {topics} was taken at rest ({counts[MOVING]}"
                 f" while moving, {counts[GAP]} at a pause of {joint_topic}, {counts[OUTSIDE]} "
                 f"outside its recording; rest test: {rule.describe()})",
                 fix="record stop-and-go motion that rests at least 1 s at every posture "
@@ -352,7 +357,7 @@ def import_bag(
             )
         frames = _pair(staged, names, track, rule)
         frames = _per_rest(frames, staged[names[0]].stamps, track, rule, per_rest)
-        _warn_skipped(bag, rule, counts, total, at_rest, frames, len(names))
+        _warn_skipped(where, rule, counts, total, at_rest, frames, len(names))
         files = _name_frames(staged, names, frames, stage)
         n = len(chain.joint_names)
         q = np.array([track.at(staged[names[0]].stamps[f[0]]) for f in frames]).reshape(-1, n)
@@ -362,11 +367,12 @@ def import_bag(
             f"{k:06d}.png," + ",".join(repr(float(v)) for v in row) for k, row in enumerate(q)
         ]
         joints.write_text("\n".join(lines) + "\n")
-        labels = {files[n][k]: f"{bag.resolve()}#{c.topic}@{staged[n].stamps[f[j]]}"
+        labels = {files[n][k]: f"{staged[n].bags[f[j]].resolve()}#{c.topic}@{staged[n].stamps[f[j]]}"
                   for j, (n, c) in enumerate(zip(names, image_topics))
                   for k, f in enumerate(frames)}  # fmt: skip
         source = {
-            "bag": str(bag.resolve()), "format": fmt, "joint_topic": joint_topic,
+            "bag": str(bags[0].resolve()) if len(bags) == 1 else [str(b.resolve()) for b in bags],
+            "format": fmt, "joint_topic": joint_topic,
             "image_topics": {c.name: c.topic for c in image_topics},
             "joint_names": list(chain.joint_names), "rest": rule.to_json(),
             "camera_info": {n: None if i is None else i.to_json() for n, i in infos.items()},
@@ -407,7 +413,7 @@ def _name_frames(
     return out
 
 
-def _warn_skipped(bag: Path, rule: RestRule, counts: dict[str, int], total: int, at_rest: int,
+def _warn_skipped(bag: str, rule: RestRule, counts: dict[str, int], total: int, at_rest: int,
                   frames: list[list[int]], n_cams: int) -> None:  # fmt: skip
     skipped = total - at_rest
     unpaired = at_rest - len(frames) * n_cams

@@ -123,7 +123,7 @@ def _camera_text(c: CameraModel) -> str:
 
 
 def cmd_import(args: argparse.Namespace) -> int:
-    source = args.bag or args.joints
+    source = args.bag[0] if args.bag else args.joints
     args.out = args.out or (f"runs/import-{Path(source).stem}" if source else None)
     if args.bag:
         return cmd_import_bag(args)

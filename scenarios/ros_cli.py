@@ -4,7 +4,9 @@
 from __future__ import annotations
 
 import argparse
+import glob
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -13,7 +15,7 @@ from calib.bag_rest import RestRule
 from calib.choices import BAG_FORMATS, JOINT_TOPIC
 from scenarios.cli_common import CliError
 
-__all__ = ["BAG_FORMATS", "add_import_args", "cmd_import_bag", "add_export_args",
+__all__ = ["BAG_FORMATS", "add_import_args", "bag_paths", "cmd_import_bag", "add_export_args",
            "cmd_export_bag", "export_run"]  # fmt: skip
 
 _RULE = RestRule()
@@ -22,8 +24,10 @@ _RULE = RestRule()
 def add_import_args(sp: argparse.ArgumentParser) -> None:
     """``--bag`` and its options on ``selfcal import`` (instead of ``--images`` / ``--joints``)."""
     g = sp.add_argument_group("from a ROS bag (docs/ros.md; needs scorbot-selfcal[ros])")
-    g.add_argument("--bag", default=None, metavar="PATH",
-                   help="ROS 1 .bag, ROS 2 bag folder (sqlite3 or mcap) or .mcap file")  # fmt: skip
+    g.add_argument("--bag", action="append", default=None, metavar="PATH",
+                   help="ROS 1 .bag, ROS 2 bag folder (sqlite3 or mcap) or .mcap file; the "
+                   "files of a split ROS 1 recording as one bag: repeat --bag or give a quoted "
+                   "glob ('rec_*.bag')")  # fmt: skip
     g.add_argument(
         "--image-topic", action="append", default=None, metavar="NAME=TOPIC",
         help="one camera's Image or CompressedImage topic, e.g. cam0=/camera/image_raw (repeat "
@@ -65,19 +69,44 @@ def cmd_import_bag(args: argparse.Namespace) -> int:
     topics = [ImageTopic.parse(s, default_name=f"cam{k}") for k, s in enumerate(args.image_topic)]
     models, free = camera_options(args.camera_model, args.free, [c.name for c in topics],
                                   "--image-topic")  # fmt: skip
-    info = import_bag(args.bag, topics, args.joint_topic, args.robot, args.target, args.out,
+    bags = bag_paths(args.bag)
+    info = import_bag(bags if len(bags) > 1 else bags[0], topics, args.joint_topic, args.robot,
+                      args.target, args.out,
                       rule=rule, per_rest=args.per_rest, base_link=args.base_link,
                       tool_link=args.tool_link, camera_model=models, free=free)  # fmt: skip
     n = len(info.planned_joints_deg)
-    print(f"imported {n} frames of {len(info.cameras)} camera(s) from {args.bag} into {args.out}")
+    src = str(bags[0]) if len(bags) == 1 else f"{len(bags)} bag files ({bags[0]} ...)"
+    print(f"imported {n} frames of {len(info.cameras)} camera(s) from {src} into {args.out}")
     return 0
+
+
+def bag_paths(specs: list[str]) -> list[Path]:
+    """The bags of the ``--bag`` options: each a path, or a glob (``'rec_*.bag'``) expanded in
+    natural order (``rec_2`` before ``rec_10``); a glob that matches nothing is an error."""
+    out: list[Path] = []
+    for spec in specs:
+        p = Path(spec).expanduser()
+        if p.exists() or not any(ch in spec for ch in "*?["):
+            out.append(p)
+            continue
+        found = sorted(glob.glob(str(p)), key=_natural)
+        if not found:
+            raise CliError(f"--bag {spec}: no file matches the pattern; give the bag files of "
+                           "the recording (quote the glob)")  # fmt: skip
+        out += [Path(f) for f in found]
+    return list(dict.fromkeys(out))
+
+
+def _natural(name: str) -> list:
+    return [int(t) if t.isdigit() else t for t in re.split(r"(\d+)", name)]
 
 
 def add_export_args(sp: argparse.ArgumentParser) -> None:
     """``--bag OUT`` on ``selfcal export`` (``--format ros1|ros2|mcap`` then names the format)."""
     sp.add_argument("--bag", default=None, metavar="OUT",
                     help="write the DATASET as a ROS bag instead (--format ros1 | ros2 | mcap; "
-                    "default: ros1 for OUT.bag, else ros2); see docs/ros.md")  # fmt: skip
+                    "default: ros1 for OUT.bag, mcap (one bare file) for OUT.mcap, else ros2); "
+                    "see docs/ros.md")  # fmt: skip
 
 
 def cmd_export_bag(args: argparse.Namespace) -> int:

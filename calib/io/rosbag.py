@@ -16,6 +16,8 @@ time is deserialised, so memory does not grow with the bag.
 
 from __future__ import annotations
 
+import os
+import shutil
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -212,25 +214,45 @@ class _Closing:
 
 
 class BagReader(_Closing):
-    """A bag opened for streaming reads (a context manager).
+    """A bag opened for streaming reads (a context manager): one bag, or the files of one ROS 1
+    recording split by ``rosbag record --split`` (``name_0.bag``, ``name_1.bag``, ...) read as
+    one bag, their messages merged in time order.
 
-    ``topics``: topic -> message type of every topic in the bag.
+    ``topics``: topic -> message type of every topic in the bag; ``path``: the (first) bag;
+    ``paths``: all of them; ``label``: how messages name the bag (its path, or the first and last
+    file of a split recording and their count).
     """
 
-    def __init__(self, path: str | Path) -> None:
-        self.path = Path(path)
-        self.format = bag_format(self.path)
+    def __init__(self, path: str | Path | Sequence[str | Path]) -> None:
+        many = [path] if isinstance(path, (str, Path)) else list(path)
+        if not many:
+            raise BagError("no bag given", fix="give --bag PATH (repeat it for the files of a "
+                           "split recording)")  # fmt: skip
+        self.paths = tuple(dict.fromkeys(Path(p) for p in many))
+        self.path = self.paths[0]
+        self.label = (str(self.path) if len(self.paths) == 1 else
+                      f"{self.paths[0]} ... {self.paths[-1].name} ({len(self.paths)} files)")  # fmt: skip
+        formats = {p: bag_format(p) for p in self.paths}
+        self.format = formats[self.path]
         rb = _rosbags()
-        if self.format == "ros1" and self.path.suffix != ".bag":
-            raise BagError(f"{self.path}: a ROS 1 bag without the .bag suffix",
-                           fix=f"rename it to {self.path.with_suffix('.bag').name}")  # fmt: skip
+        for p, fmt in formats.items():
+            if fmt == "ros1" and p.suffix != ".bag":
+                raise BagError(f"{p}: a ROS 1 bag without the .bag suffix",
+                               fix=f"rename it to {p.with_suffix('.bag').name}")  # fmt: skip
+        if len(self.paths) > 1 and set(formats.values()) != {"ros1"}:
+            kinds = ", ".join(f"{p.name} ({f})" for p, f in formats.items())
+            raise BagError(f"several bags given ({kinds}): only the files of a split ROS 1 "
+                           "recording are read as one bag",
+                           fix="give one ROS 2 bag folder (it holds all its split files) or "
+                           "one .mcap, or only the .bag files of one recording")  # fmt: skip
         try:
-            self._reader = rb.highlevel.AnyReader([self.path])
+            self._reader = rb.highlevel.AnyReader(list(self.paths))
             self._reader.open()
         except Exception as exc:  # rosbags' reader errors have no common root
-            raise BagError(f"{self.path}: cannot open the {self.format} bag ({exc})",
+            raise BagError(f"{self.label}: cannot open the {self.format} bag ({exc})",
                            fix="check that the recording finished (a ROS 2 bag folder needs "
-                           "its metadata.yaml; `ros2 bag reindex` rebuilds it)") from None  # fmt: skip
+                           "its metadata.yaml; `ros2 bag reindex` rebuilds it; a ROS 1 bag "
+                           "`rosbag reindex`)") from None  # fmt: skip
         self.topics: dict[str, str] = {c.topic: c.msgtype for c in self._reader.connections}
 
     def close(self) -> None:
@@ -251,10 +273,10 @@ class BagReader(_Closing):
         have = (f"image topics: {', '.join(self.of_type(*IMAGE_TYPES)) or 'none'}; joint topics: "
                 f"{', '.join(self.of_type(JOINT_TYPE)) or 'none'}")  # fmt: skip
         if topic not in self.topics:
-            raise BagError(f"{self.path}: topic {topic} is not in the bag ({have})",
+            raise BagError(f"{self.label}: topic {topic} is not in the bag ({have})",
                            fix=f"give {option} one of the topics listed")  # fmt: skip
         if self.topics[topic] not in msgtypes:
-            raise BagError(f"{self.path}: topic {topic} holds {self.topics[topic]}, not "
+            raise BagError(f"{self.label}: topic {topic} holds {self.topics[topic]}, not "
                            f"{' or '.join(msgtypes)} ({have})",
                            fix=f"give {option} one of the topics listed")  # fmt: skip
         return self.topics[topic]
@@ -268,6 +290,12 @@ class BagReader(_Closing):
     def timed(self, topics: Sequence[str]) -> Iterator[tuple[str, str, Any, int]]:
         """As :meth:`messages`, with each message's stamp (ns): its header stamp, or the time
         it was recorded when it has no header or a zero stamp (some drivers publish those)."""
+        for topic, msgtype, msg, stamp, _file in self.timed_in(topics):
+            yield topic, msgtype, msg, stamp
+
+    def timed_in(self, topics: Sequence[str]) -> Iterator[tuple[str, str, Any, int, Path]]:
+        """As :meth:`timed`, with the bag file each message was read from (one of
+        :attr:`paths`; the bag folder for ROS 2)."""
         conns = [c for c in self._reader.connections if c.topic in set(topics)]
         if not conns:
             return
@@ -275,15 +303,17 @@ class BagReader(_Closing):
             try:
                 msg = self._reader.deserialize(raw, conn.msgtype)
             except Exception as exc:  # rosbags' serde errors have no common root
-                raise BagError(f"{self.path}: topic {conn.topic}: a message that cannot be "
+                raise BagError(f"{self.label}: topic {conn.topic}: a message that cannot be "
                                f"decoded ({exc})", fix="re-record the topic") from None  # fmt: skip
             stamp = stamp_ns(msg) if hasattr(msg, "header") else 0
-            yield conn.topic, conn.msgtype, msg, stamp or int(t)
+            owner = getattr(getattr(conn, "owner", None), "path", None)
+            yield conn.topic, conn.msgtype, msg, stamp or int(t), Path(owner or self.path)
 
 
 class BagWriter(_Closing):
     """A new bag of ``fmt`` (:data:`FORMATS`) at ``path`` (a ``.bag`` file for ros1, a folder for
-    ros2 and mcap); a context manager. Topics are added on first use."""
+    ros2, a bare ``.mcap`` file for mcap when ``path`` ends in ``.mcap``, else an mcap bag
+    folder); a context manager. Topics are added on first use."""
 
     def __init__(self, path: str | Path, fmt: str) -> None:
         if fmt not in FORMATS:
@@ -296,19 +326,29 @@ class BagWriter(_Closing):
         self._ros1 = fmt == "ros1"
         store = ts.Stores.ROS1_NOETIC if self._ros1 else ts.Stores.ROS2_HUMBLE
         self._ts = ts.get_typestore(store)
+        # a bare .mcap: rosbags writes a bag folder; its one .mcap file is moved out on close
+        self._bare = fmt == "mcap" and self.path.suffix == ".mcap"
+        self._folder = self.path.with_name(f".{self.path.name}.part") if self._bare else self.path
+        if self._bare and self._folder.exists():
+            shutil.rmtree(self._folder)  # left by an interrupted export
         if self._ros1:
             self._w = rb.rosbag1.Writer(self.path)
         else:
             plugin = rb.rosbag2.StoragePlugin
-            self._w = rb.rosbag2.Writer(self.path, version=8, storage_plugin=(
+            self._w = rb.rosbag2.Writer(self._folder, version=8, storage_plugin=(
                 plugin.MCAP if fmt == "mcap" else plugin.SQLITE3))  # fmt: skip
         self._w.open()
         self._conns: dict[str, Any] = {}
         self._T = self._ts.types
 
     def close(self) -> None:
-        """Finish the bag (its index and metadata)."""
+        """Finish the bag (its index and metadata; a bare ``.mcap`` keeps its summary and
+        drops the folder's metadata.yaml)."""
         self._w.close()
+        if self._bare:
+            (data,) = self._folder.glob("*.mcap")
+            os.replace(data, self.path)
+            shutil.rmtree(self._folder)
 
     def _header(self, stamp: int, frame_id: str) -> Any:
         t = self._T["builtin_interfaces/msg/Time"](sec=stamp // 1_000_000_000,

@@ -66,15 +66,21 @@ def _import(root: Path, bag: Path, out: Path, *extra: str) -> int:
                  *extra])  # fmt: skip
 
 
-@pytest.mark.parametrize("fmt", ["ros1", "ros2", "mcap"])
+@pytest.mark.parametrize("fmt", ["ros1", "ros2", "mcap", "mcap-file"])
 def test_round_trip(lab, tmp_path, fmt, capsys):
     root, cal = lab
-    bag = tmp_path / ("ds.bag" if fmt == "ros1" else "ds_bag")
-    assert main(["export", str(root / "ds"), "--bag", str(bag), "--format", fmt]) == 0
+    name = {"ros1": "ds.bag", "mcap-file": "ds.mcap"}.get(fmt, "ds_bag")
+    bag = tmp_path / name
+    fmt, bare = fmt.removesuffix("-file"), fmt.endswith("-file")
+    given = [] if bare else ["--format", fmt]  # OUT.mcap alone says mcap
+    assert main(["export", str(root / "ds"), "--bag", str(bag), *given]) == 0
     assert json.loads(capsys.readouterr().out)["frames"] == 8
     assert bag_format(bag) == fmt
+    # OUT.mcap is one bare file (no folder, nothing left beside it); other mcap OUT a folder
+    assert bag.is_file() == (bare or fmt == "ros1")
+    assert sorted(p.name for p in tmp_path.iterdir()) == [name]
     src = bag
-    if fmt == "mcap":  # the bare .mcap file inside the folder reads as well
+    if fmt == "mcap" and not bare:  # the bare .mcap file inside the folder reads as well
         (src,) = bag.glob("*.mcap")
         assert bag_format(src) == "mcap"
     with warnings.catch_warnings():

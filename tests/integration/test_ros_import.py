@@ -189,6 +189,86 @@ def test_stop_and_go_recording(lab, tmp_path):
     assert np.array_equal(img, pictures[rest_at[kept[0]]])
 
 
+class SplitBag(RawBag):
+    """A ROS 1 recording split like ``rosbag record --split``: message k goes to the file whose
+    time span holds its recording time (``cuts``: the first stamp of every file but the first)."""
+
+    def __init__(self, paths: list[Path], cuts: list[int]) -> None:
+        self.parts = [RawBag(p) for p in paths]
+        self.cuts, self.ros1, self.ts, self.T = cuts, True, self.parts[0].ts, self.parts[0].T
+
+    def put(self, topic: str, msgtype: str, t: int, msg) -> None:
+        self.parts[int(np.searchsorted(self.cuts, t, side="right"))].put(topic, msgtype, t, msg)
+
+    def close(self) -> None:
+        for p in self.parts:
+            p.close()
+
+
+def _recording(bag: RawBag, rests, pictures, t0: int) -> None:
+    """A stop-and-go recording of ``rests`` with a 5 Hz camera (deterministic)."""
+    rng = np.random.default_rng(21)
+    a, b, q, _, _ = stop_and_go(rests, t0)
+    write_joints(bag, q, t0 - NS // 2, int(b[-1]) + NS // 2, rng)
+    for t in t0 + int(0.037 * NS) + np.arange(int((b[-1] - t0) / NS * 5)) * (NS // 5):
+        k = int(np.searchsorted(a, t, side="right") - 1)
+        bag.image("/camera/image_raw", int(t), pictures[k] if t <= b[k] else pictures[k] // 2)
+    bag.close()
+
+
+def test_split_recording_reads_as_one_bag(lab, tmp_path):
+    """`rosbag record --split` files (rec_0.bag, rec_1.bag, rec_2.bag; cut in the middle of
+    rests and of moves) import as the same dataset as the recording in one file, given as a
+    glob or as repeated --bag in any order; sources.csv names the file of every image."""
+    root, rests, pictures = lab
+    rests, pictures, t0 = rests[:4], pictures[:4], 100 * NS
+    _recording(RawBag(tmp_path / "whole.bag"), rests, pictures, t0)
+    cuts = [t0 + int(2.0 * NS), t0 + int(6.5 * NS)]  # inside rest 0; inside the move 2 -> 3
+    parts = [tmp_path / f"rec_{k}.bag" for k in range(3)]
+    _recording(SplitBag(parts, cuts), rests, pictures, t0)
+    with BagReader(parts) as r:  # every file holds part of the recording
+        assert r.label.endswith("rec_2.bag (3 files)")
+        files = {f.name for *_, f in r.timed_in(["/camera/image_raw", "/joint_states"])}
+    assert files == {p.name for p in parts}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", MovingImagesWarning)
+        assert _import(tmp_path / "whole.bag", tmp_path / "one", root, "cam0=/camera/image_raw",
+                       extra=["--per-rest", "2"]) == 0  # fmt: skip
+        assert _import(tmp_path / "rec_*.bag", tmp_path / "glob", root, "cam0=/camera/image_raw",
+                       extra=["--per-rest", "2"]) == 0  # fmt: skip
+        args = ["--per-rest", "2", "--bag", str(parts[2]), "--bag", str(parts[0])]
+        assert _import(parts[1], tmp_path / "any", root, "cam0=/camera/image_raw", extra=args) == 0
+    one = Dataset.open(tmp_path / "one")
+    assert len(one.indices) == 8
+    for name in ("glob", "any"):
+        ds = Dataset.open(tmp_path / name)
+        assert _stamps(tmp_path / name) == _stamps(tmp_path / "one")
+        np.testing.assert_array_equal(ds.joints_deg, one.joints_deg)
+        for (_, _, pa), (_, _, pb) in zip(one.image_paths(), ds.image_paths(), strict=True):
+            assert np.array_equal(cv2.imread(str(pa), cv2.IMREAD_UNCHANGED),
+                                  cv2.imread(str(pb), cv2.IMREAD_UNCHANGED))  # fmt: skip
+        rec = ds.info.provenance["import"]
+        assert sorted(Path(b).name for b in rec["bag"]) == [p.name for p in parts]
+    src = [r["source"] for r in csv.DictReader((tmp_path / "glob" / "sources.csv").open())]
+    assert {Path(s.split("#")[0]).name for s in src} == {"rec_0.bag", "rec_1.bag", "rec_2.bag"}
+
+
+def test_split_recording_errors(lab, tmp_path, capsys):
+    root = lab[0]
+    code = _import(tmp_path / "none_*.bag", tmp_path / "o", root, "cam0=/camera/image_raw")
+    assert code == 2 and "--bag " in (err := capsys.readouterr().err)
+    assert "no file matches the pattern" in err
+    _small_bag(tmp_path / "s.bag")
+    b2 = RawBag(tmp_path / "r2", "ros2")
+    b2.joints("/joint_states", 10 * NS, CHAIN, np.zeros(6))
+    b2.close()
+    code = _import(tmp_path / "s.bag", tmp_path / "o", root, "cam0=/cam/image_raw",
+                   extra=["--bag", str(tmp_path / "r2")])  # fmt: skip
+    err = capsys.readouterr().err
+    assert code == 2 and "only the files of a split ROS 1 recording are read as one bag" in err
+    assert "s.bag (ros1)" in err and "r2 (ros2)" in err
+
+
 @pytest.mark.slow  # 5 s: two cameras' detections and geometry checks
 def test_two_cameras_raw_and_compressed(lab, tmp_path):
     """A frame is one rest with an image of every camera: cam0 raw rgb8 at 5 Hz, cam1 png
