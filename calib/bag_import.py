@@ -46,7 +46,9 @@ from calib.robot_urdf import urdf_chain
 __all__ = [
     "Chain",
     "ImageTopic",
+    "CameraInfoWarning",
     "MovingImagesWarning",
+    "initial_values",
     "import_bag",
     "read_joint_track",
     "MODEL_OF",
@@ -54,7 +56,17 @@ __all__ = [
 
 MODEL_OF = {"plumb_bob": "opencv", "rational_polynomial": "opencv", "equidistant": "fisheye"}
 """The camera model of a calibrated CameraInfo's ``distortion_model``."""
+D_NAMES = {
+    "plumb_bob": ("k1", "k2", "p1", "p2", "k3"),
+    "rational_polynomial": ("k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6"),
+    "equidistant": ("k1", "k2", "k3", "k4"),
+}
+"""The OpenCV names of a CameraInfo's ``D``, by ``distortion_model``."""
 _STAGE = ".bag-staging"
+
+
+class CameraInfoWarning(SelfCalWarning):
+    """A calibrated CameraInfo that cannot initialise the camera (another image size)."""
 
 
 class MovingImagesWarning(SelfCalWarning):
@@ -185,6 +197,45 @@ def _model(
             fix="give --camera-model (opencv, fisheye or pinhole) for all cameras",
         )
     return next(iter(models.values()), None) or DEFAULT_MODEL
+
+
+def initial_values(info: CameraInfo, model: str) -> dict[str, float]:
+    """The camera a calibrated CameraInfo describes, by OpenCV's names (px): ``fx``, ``fy``,
+    ``cx``, ``cy`` from K and, when ``model`` is the one of its ``distortion_model``
+    (:data:`MODEL_OF`), the lens coefficients from D (a pinhole, or another lens, takes K only)."""
+    K = info.K
+    out = {"fx": K[0], "fy": K[4], "cx": K[2], "cy": K[5]}
+    if MODEL_OF.get(info.distortion_model) == model:
+        out.update(zip(D_NAMES[info.distortion_model], info.D))
+    return {k: float(v) for k, v in out.items()}
+
+
+def _initial(infos: dict[str, CameraInfo | None], cams: Sequence[ImageTopic],
+             model: str | Mapping[str, str], files: dict[str, list[Path]],
+             where: str) -> dict[str, dict] | None:  # fmt: skip
+    """dataset.json's initial camera of every camera with a calibrated CameraInfo of its images'
+    size (another size: a :class:`CameraInfoWarning`, and no initial camera)."""
+    out: dict[str, dict] = {}
+    for c in cams:
+        info = infos[c.name]
+        if info is None:
+            continue
+        img = cv2.imread(str(files[c.name][0]), cv2.IMREAD_UNCHANGED)
+        assert img is not None  # staged by this import
+        size = (int(img.shape[1]), int(img.shape[0]))
+        if size != (info.width, info.height) or info.K[0] <= 0 or info.K[4] <= 0:
+            warnings.warn(
+                f"{where}: topic {c.info_topic}: the camera_info describes a {info.width}x"
+                f"{info.height} px camera (fx {info.K[0]:g}, fy {info.K[4]:g}) but the images on "
+                f"{c.topic} are {size[0]}x{size[1]} px: not used as the initial camera",
+                CameraInfoWarning,
+                stacklevel=3,
+            )
+            continue
+        out[c.name] = {"source": "camera_info", "where": f"{where}#{c.info_topic}",
+                       "values": initial_values(info, model if isinstance(model, str)
+                                                 else model[c.name])}  # fmt: skip
+    return out or None
 
 
 @dataclass
@@ -380,9 +431,11 @@ def import_bag(
             "target": str(target),
         }  # fmt: skip
         cams = [CameraImages(n, c.topic, tuple(files[n])) for n, c in zip(names, image_topics)]
+        initial = _initial(infos, image_topics, model, files, where) if frames else None
         info = import_dataset(robot, cams, joints, "rad", target, out, base_link=base_link,
                               tool_link=tool_link, link=True, trust_units=True,
-                              camera_model=model, free=free, source=source, labels=labels)  # fmt: skip
+                              camera_model=model, free=free, source=source, labels=labels,
+                              initial=initial)  # fmt: skip
         for link in (out / "frames").iterdir():
             if link.is_symlink():
                 os.replace(link.resolve(), link)  # the staged file becomes the frame

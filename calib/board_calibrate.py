@@ -34,7 +34,7 @@ import cv2
 import numpy as np
 
 from calib.bundle_adjust import bundle_adjust, intrinsics_covariance
-from calib.camera import MODELS, CameraModel, camera_model, lens_names
+from calib.camera import MODELS, CameraModel, LensCamera, Pinhole, camera_model, lens_names
 from calib.camera.pinhole import centered_principal_point
 from calib.errors import InputError, SelfCalWarning
 from calib.estimation.pose_models import ViewPoses
@@ -48,6 +48,7 @@ __all__ = [
     "BoardInputError",
     "BoardMismatchError",
     "BoardNotFoundWarning",
+    "InitialCameraWarning",
     "OpenCVCalibration",
     "calibrate_board",
     "opencv_calibration",
@@ -67,6 +68,11 @@ class BoardMismatchError(InputError):
 
 class BoardNotFoundWarning(SelfCalWarning):
     """Some images do not show the board (or too little of it); they are skipped."""
+
+
+class InitialCameraWarning(SelfCalWarning):
+    """A given initial camera (a ROS CameraInfo's calibration) fits the views worse than the
+    calibration's own start, which is used instead."""
 
 
 @dataclass(frozen=True)
@@ -157,12 +163,15 @@ def opencv_calibration(
     height: int,
     free: Sequence[str] = ("fx", "mu", "cx", "cy"),
     model: str = "pinhole",
+    initial: Pinhole | None = None,
 ) -> OpenCVCalibration:
     """OpenCV's calibration of the camera ``model`` (``"pinhole"``, ``"opencv"``,
     ``"fisheye"``; :data:`calib.camera.MODELS`) with parameters ``free`` from the views
     ``features``: ``cv2.calibrateCameraExtended`` (the pinhole with its distortion held at zero,
     or Brown-Conrady) or ``cv2.fisheye.calibrate``, every parameter not in ``free`` held (the
-    principal point at the image centre, aspect 1, lens coefficients 0)."""
+    principal point at the image centre, aspect 1, lens coefficients 0). ``initial``: a camera
+    of ``model`` to start from instead (its K and lens coefficients; the held parameters keep its
+    values)."""
     if model not in MODELS:
         raise ValueError(f"unknown camera model {model!r}; use one of {sorted(MODELS)}")
     obj = [board.points(f.ids).astype(np.float32) for f in features]
@@ -174,17 +183,27 @@ def opencv_calibration(
     criteria = (cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 200, 1e-12)
     names = lens_names(model)
     flags = _opencv_flags(model, free)
+    guess = np.zeros(len(names))
+    if initial is not None:
+        if initial.model_name != model:
+            raise ValueError(f"initial camera {initial.model_name!r}, model {model!r}")
+        K0 = np.array(initial.K, dtype=np.float64)
+        if isinstance(initial, LensCamera):
+            guess = np.asarray(initial.coeffs, float)[: len(names)]
+        if model == "opencv" and np.any(guess[5:8] != 0):
+            flags |= cv2.CALIB_RATIONAL_MODEL  # keep its k4-k6 (held unless free)
     if model == "fisheye":
         out = cv2.fisheye.calibrate(
             [o.reshape(1, -1, 3).astype(np.float64) for o in obj],  # the shapes it accepts
             [i.reshape(1, -1, 2).astype(np.float64) for i in img], (width, height), K0,
-            np.zeros(4),
+            guess[:4].copy(),
             flags=flags, criteria=criteria,
         )  # fmt: skip
         rms, K, dist, rvecs, tvecs = out[0], out[1], np.ravel(out[2]), out[3], out[4]
         std = {}  # cv2.fisheye gives no standard deviations
     else:
         dist0 = np.zeros(8 if flags & cv2.CALIB_RATIONAL_MODEL else 5)
+        dist0[: min(len(dist0), len(guess))] = guess[: len(dist0)]
         ext = cv2.calibrateCameraExtended(
             obj, img, (width, height), K0, dist0, flags=flags, criteria=criteria,
         )  # fmt: skip
@@ -245,11 +264,16 @@ def calibrate_board(
     outlier_px: float = 3.0,
     mismatch_px: float = 3.0,
     max_nfev: int = 200,
+    initial: Pinhole | None = None,
 ) -> BoardCalibration:
     """Calibrate the camera ``model`` (parameters ``free``, OpenCV names; the others held at
     the image centre, aspect 1, no distortion) and the board pose of every view from the
     board's detected ``features`` (one per image; ``names`` for messages) in ``width`` x
-    ``height`` px images (see the module docstring).
+    ``height`` px images (see the module docstring). ``initial``: a camera of ``model`` to
+    start from (a ROS CameraInfo's calibration): OpenCV's calibration runs from it and from its
+    own start, and the start that fits the views better (OpenCV's RMS; the initial camera on a
+    tie) goes on to the refinement; the other way round an :class:`InitialCameraWarning` says
+    so. ``diagnostics["start"]`` says which: ``"initial"`` or ``"opencv"``.
 
     Raises:
         BoardInputError: fewer than ``min_views`` views show the board.
@@ -260,6 +284,21 @@ def calibrate_board(
     idx = np.flatnonzero(ok).tolist()
     _check_ids(board, [features[i] for i in idx])
     cv_res = opencv_calibration(board, [features[i] for i in idx], width, height, free, model)
+    start = "opencv"
+    if initial is not None:
+        cv_init = opencv_calibration(board, [features[i] for i in idx], width, height, free,
+                                     model, initial)  # fmt: skip
+        if cv_init.rms_px <= cv_res.rms_px * (1 + 1e-9) or not np.isfinite(cv_res.rms_px):
+            cv_res, start = cv_init, "initial"
+        else:
+            warnings.warn(
+                f"the initial camera (fx = {initial.fx:.1f} px) fits the {board.describe()} "
+                f"worse than OpenCV's own start (RMS {cv_init.rms_px:.3f} px vs "
+                f"{cv_res.rms_px:.3f} px after OpenCV's calibration): started from OpenCV's "
+                "(check the camera_info of the recording: another lens or resolution?)",
+                InitialCameraWarning,
+                stacklevel=2,
+            )
     V = len(features)
     T0 = np.full((V, 4, 4), np.nan)
     T0[idx] = cv_res.T_cam_board
@@ -298,7 +337,7 @@ def calibrate_board(
         feature=fid, residuals=r_out, inlier=active, rms_px=rms,
         rms_all_px=float(np.sqrt(np.mean(e_all**2))),
         sigma_px=float(np.sqrt(np.sum(res.residuals**2) / dof)), skipped=skipped,
-        opencv=cv_res, diagnostics={"nfev": res.nfev, "status": res.status},
+        opencv=cv_res, diagnostics={"nfev": res.nfev, "status": res.status, "start": start},
     )  # fmt: skip
 
 

@@ -109,6 +109,7 @@ def calibrate_board_dataset(
                 [ds.info.resolution_of(c) for c in ds.info.cameras],
                 [ds.info.model_of(c)[0] for c in ds.info.cameras],
                 [ds.info.model_of(c)[1] for c in ds.info.cameras], names=[d[1] for d in detected],
+                initials=[ds.info.initial_camera(c) for c in ds.info.cameras],
             )  # fmt: skip
     model_name, free = ds.info.model_of(cam)
     nominal = nominal_mcpc(robot).with_tool(robot.T_flange_cam)
@@ -127,6 +128,7 @@ def calibrate_board_dataset(
             joint_sigma=encoder_sigma(robot),
             free=free,
             model=model_name,
+            initial=ds.info.initial_camera(cam),
         )
         used = res.used
         T_board_cam = inv_pose(res.board.T_cam_board[used])

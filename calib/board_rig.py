@@ -25,7 +25,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from calib.board_calibrate import BoardCalibration, calibrate_board
-from calib.camera import CameraModel
+from calib.camera import CameraModel, Pinhole
 from calib.errors import EstimationError, InputError
 from calib.estimation.pose_models import RigPoses, _LocalPoseBlock
 from calib.estimation.reprojection import ReprojectionBlock
@@ -121,10 +121,13 @@ def calibrate_board_rig(
     *,
     names: Sequence[Sequence[str]] | None = None,
     max_iter: int = 100,
+    initials: Sequence[Pinhole | None] | None = None,
 ) -> BoardRigCalibration:
     """Calibrate N cameras (``features[c]``: one :class:`Features` per frame, the frames in the
     same order for every camera; ``sizes[c]`` (width, height) px; ``models[c]``, ``frees[c]``
-    its model and free parameters) and their extrinsics to the first (module docstring).
+    its model and free parameters; ``initials[c]``: a camera to start from, as
+    :func:`calib.board_calibrate.calibrate_board`'s ``initial``) and their extrinsics to the first
+    (module docstring).
 
     Raises:
         InputError: fewer than two cameras, unequal frame counts, or a camera that never sees
@@ -148,6 +151,7 @@ def calibrate_board_rig(
             free=frees[c],
             model=models[c],
             names=None if names is None else names[c],
+            initial=None if initials is None else initials[c],
         )  # fmt: skip
         for c in range(n)
     )

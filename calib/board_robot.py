@@ -30,7 +30,7 @@ import numpy as np
 
 from calib.board_calibrate import BoardCalibration, calibrate_board
 from calib.bundle_adjust import _Problem as _AdjustmentProblem
-from calib.camera import CameraModel
+from calib.camera import CameraModel, Pinhole
 from calib.errors import EstimationError
 from calib.estimation.kinematic_poses import KinematicPoses
 from calib.estimation.residuals import GaussianPriorBlock
@@ -75,13 +75,15 @@ def calibrate_robot_with_board(
     names: Sequence[str] | None = None,
     joint_sigma: float | np.ndarray | None = None,
     max_iter: int = 100,
+    initial: Pinhole | None = None,
 ) -> BoardRobotCalibration:
     """Calibrate the camera and the robot from the board ``features`` of one camera image per
     frame and the joint read-backs ``q`` (m, n) rad; ``model``, ``free``: the camera model
     (:data:`calib.camera.MODELS`) and its parameters to estimate (OpenCV names; with a lens the
     refinement adjusts its coefficients too); ``nominal``: the nominal MCPC model with the
     camera as tool (its world frame need not be the board's); ``joint_sigma`` (rad / m, scalar
-    or (n,)): the read-back's standard deviation, or None for exact read-back. See the module
+    or (n,)): the read-back's standard deviation, or None for exact read-back; ``initial``: a
+    camera to start from (:func:`calib.board_calibrate.calibrate_board`). See the module
     docstring.
 
     Raises:
@@ -92,7 +94,8 @@ def calibrate_robot_with_board(
     q = np.atleast_2d(np.asarray(q, dtype=float))
     if len(q) != len(features):
         raise ValueError(f"{len(features)} images but {len(q)} joint rows; give one row per image")
-    cam_stage = calibrate_board(board, features, width, height, free=free, model=model, names=names)
+    cam_stage = calibrate_board(board, features, width, height, free=free, model=model, names=names,
+                                initial=initial)  # fmt: skip
     used = cam_stage.used.copy()
     T_board_cam = inv_pose(cam_stage.T_cam_board[used])
     ident = identify(nominal, q[used], T_board_cam)

@@ -27,6 +27,7 @@ import numpy as np
 from calib.camera import LensCamera, Pinhole, camera_model, centered_principal_point
 from calib.camera.undistort import Undistorter
 from calib.errors import EstimationError, SelfCalWarning
+from calib.estimation.selfcal_errors import SelfCalibrationError
 from calib.frame_checks import check_distinct_frames, check_read_back
 from calib.identify import identify
 from calib.io.calibration import CalibrationResult
@@ -40,13 +41,15 @@ from calib.mcpc import MCPCModel, nominal_mcpc, shape_matrices
 from calib.quality import assess_calibration
 from calib.results import CalibrationOutput, two_stage_result, with_bounds, with_joint
 from calib.robot_def import load_robot
-from calib.selfcal import Observations, self_calibrate
+from calib.selfcal import Observations, SelfCalibrationResult, self_calibrate
 from calib.target.aruco_detect import detect_markers, detect_markers_noise
 from calib.tracker_join import TrackerInput, tracker_source
 from calib.trajectory import check_not_degenerate
 
 __all__ = [
     "CalibrationError",
+    "InitialCameraWarning",
+    "fit_cost",
     "CalibrationFailedError",
     "NoMarkersWarning",
     "MarkerDetections",
@@ -324,8 +327,9 @@ def calibrate_detailed(
         # x-axis is far from parallel to joint 1's axis (MCPC's base parameters are singular there).
         ref_scores=np.abs(T_nom[:, :3, 0] @ _joint1_axis(nominal)),
     )
+    initial = ds.info.initial_camera(ds.info.cameras[0])
     with _stage(progress, "camera stage (bundle adjustment)") as st:
-        sc = camera_stage(obs)
+        sc, start = _camera_stage(camera_stage, obs, initial)
         st(f"reprojection RMS {sc.rms_px:.3f} px")
     if isinstance(sc.camera, LensCamera) and ds.info.observation == "images":
         # the lens bends the marker edges: detect again through the estimated lens, refit
@@ -333,7 +337,7 @@ def calibrate_detailed(
             dets, skipped, corner_sigma = detect_dataset(ds, lens=sc.camera, cache=cache)
             _check_scale_markers(ds, dets)
             obs = observations_of(ds, dets)
-            sc = camera_stage(obs)
+            sc = camera_stage(obs, initial=initial if start == "initial" else None)
             st(f"reprojection RMS {sc.rms_px:.3f} px")
     used = np.flatnonzero(sc.registered if sc.registered.ndim == 1 else sc.registered[:, 0])
     if len(used) < MIN_POSTURES:
@@ -406,6 +410,56 @@ def _stage(progress, label: str) -> Iterator[Callable[[str], None]]:
         return
     with step(label) as st:
         yield st.result
+
+
+class InitialCameraWarning(SelfCalWarning):
+    """The dataset's initial camera (a ROS CameraInfo's) fitted the images worse than the
+    self-calibration's own start, which is used instead."""
+
+
+def fit_cost(sc: SelfCalibrationResult, threshold_px: float = 3.0) -> float:
+    """The camera stage's fit as one number comparable across starts: the sum over every
+    observation row of ``min(|r|^2, threshold^2)`` (px^2; an unmodelled row counts the
+    threshold), so that a fit rejecting more rows as outliers does not look better for it."""
+    e2 = np.sum(np.square(sc.residuals), axis=1)
+    return float(np.sum(np.minimum(np.nan_to_num(e2, nan=np.inf), threshold_px**2)))
+
+
+def _camera_stage(
+    stage: Callable[..., SelfCalibrationResult], obs: Observations, initial: Pinhole | None
+) -> tuple[SelfCalibrationResult, str]:
+    """The camera stage from the self-calibration's own start (``"own"``) and, with an
+    ``initial`` camera, from it (``"initial"``): the start whose fit costs less
+    (:func:`fit_cost`; the initial camera on a tie) wins, the other way round an
+    :class:`InitialCameraWarning` says so. One that fails leaves the other; both failing
+    raises the own start's error."""
+    if initial is None:
+        return stage(obs), "own"
+    fits: dict[str, SelfCalibrationResult] = {}
+    errors: dict[str, SelfCalibrationError] = {}
+    for name, cam in (("initial", initial), ("own", None)):
+        try:
+            fits[name] = stage(obs, initial=cam)
+        except SelfCalibrationError as exc:
+            errors[name] = exc
+    if not fits:
+        raise errors["own"]
+    if "initial" in fits and (
+        "own" not in fits or fit_cost(fits["initial"]) <= fit_cost(fits["own"]) * (1 + 1e-9)
+    ):
+        return fits["initial"], "initial"
+    why = (f"failed: {errors['initial']}" if "initial" in errors else
+           f"fit cost {fit_cost(fits['initial']):.1f} px^2 vs {fit_cost(fits['own']):.1f} px^2 "
+           f"(RMS {fits['initial'].rms_px:.3f} px vs {fits['own'].rms_px:.3f} px)")  # fmt: skip
+    warnings.warn(
+        f"the initial camera (fx = {initial.fx:.1f} px, from the dataset's camera entry "
+        f"'initial') fits the images worse than the self-calibration's own start ({why}): "
+        "started from its own (check the camera_info of the recording: another lens or "
+        "resolution?)",
+        InitialCameraWarning,
+        stacklevel=3,
+    )
+    return fits["own"], "own"
 
 
 def dataset_camera(info: DatasetInfo) -> Pinhole:

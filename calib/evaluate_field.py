@@ -55,21 +55,24 @@ def evaluate_field(
 
     Raises:
         InputError: the calibration holds no scene points (written before they were stored),
-            DATASET2 is not a stereo field dataset, or no image shows a calibrated marker.
+            DATASET2 is not a one-camera or stereo field dataset, or no image shows a
+            calibrated marker.
     """
     if cal.scene is None:
         raise InputError(f"{cal_root}: calibration.json holds no scene points",
                          fix=f"re-run `selfcal calibrate {cal_root}` with this version")  # fmt: skip
     ds = Dataset.open(root)
-    if ds.info.board is not None or ds.info.cameras != CAMERAS:
-        raise InputError(f"{ds.root}: not a stereo dataset of the ArUco field",
+    if ds.info.board is not None or (ds.info.cameras != CAMERAS and len(ds.info.cameras) != 1):
+        raise InputError(f"{ds.root}: not a one-camera or stereo dataset of the ArUco field",
                          fix="evaluate on a dataset acquired like the calibration's")  # fmt: skip
     dets = detect_dataset(ds, cache=cache).detections
     scene = dict(zip(cal.scene.point_ids, cal.scene.X_world_m, strict=True))
     models = {"nominal": nominal_reference(cal, Path(cal_root)), "calibrated": cal.model}
     row = {int(i): k for k, i in enumerate(ds.indices)}
     q = np.radians(ds.joints_deg)
-    T_cam = {"left": np.eye(4), "right": cal.rig.T_left_right_m}
+    T_cam = {ds.info.cameras[0]: np.eye(4)}  # one camera (any name), or the pair
+    if len(ds.info.cameras) == 2:
+        T_cam["right"] = cal.rig.T_left_right_m
     T = {k: fk_tool(m, q) for k, m in models.items()}
     camera = cal.pinhole
     errs: dict[str, list[np.ndarray]] = {k: [] for k in models}

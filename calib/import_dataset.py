@@ -2,7 +2,8 @@
 
 Inputs: a robot (model name, robot TOML or URDF; a URDF with ``base_link`` / ``tool_link`` gets
 a small robot TOML in the dataset that names them), the images of N >= 1 cameras (a glob per
-camera name), a joints file (:func:`calib.io.tracker.read_joint_rows`, the one joints reader) and a target TOML. Rows of the joints
+camera name), a joints file (:func:`calib.io.tracker.read_joint_rows`, the one joints reader) and a
+target TOML (a board, or a marker field with its one known distance: :mod:`calib.import_field`). Rows of the joints
 file match the images in sorted file-name order, or through its ``image`` column (the file name
 every camera's folder holds for that frame). Checked, each an :class:`calib.errors.InputError`
 naming the file and the fix: row and image counts, joint units, one image size per camera, the
@@ -32,10 +33,12 @@ from calib.camera import MODELS
 from calib.camera_choice import for_cameras
 from calib.choices import DEFAULT_FREE, DEFAULT_MODEL
 from calib.errors import InputError, SelfCalWarning
+from calib.import_field import MIN_FIELD_FEATURES, FieldTarget, field_target
 from calib.io.dataset_info import DatasetInfo, write_dataset_info
 from calib.io.target_toml import load_target, target_document
 from calib.io.tracker import read_joint_rows
 from calib.robot_def import RobotDef, load_robot
+from calib.target import ArucoField
 from calib.target.base import Features
 from calib.target.boards import Board
 
@@ -127,7 +130,7 @@ def _robot(
 
 
 def _detect(
-    cam: CameraImages, files: Sequence[Path], target: Board
+    cam: CameraImages, files: Sequence[Path], target: Board | FieldTarget
 ) -> tuple[tuple[int, int], list[Features]]:
     """The target's features in every image (read gray, one at a time, so memory does not grow
     with the number of images) and the camera's one image size; two sizes are an error naming
@@ -147,7 +150,7 @@ def _detect(
                 fix="give every image of one camera at the camera's native size (or give the "
                 "other size as another camera)",
             )
-        feats.append(target.detect(img))
+        feats.append((target.field if isinstance(target, FieldTarget) else target).detect(img))
     assert first is not None
     return first[1], feats
 
@@ -168,6 +171,7 @@ def import_dataset(
     free: Sequence[str] | Mapping[str, Sequence[str]] | None = None,
     source: dict | None = None,
     labels: Mapping[Path, str] | None = None,
+    initial: Mapping[str, dict] | None = None,
 ) -> DatasetInfo:
     """Check the inputs and write the dataset folder ``out`` (module docstring); returns its
     ``dataset.json`` content. ``trust_units``: skip the radians-looking check of degrees.
@@ -177,7 +181,9 @@ def import_dataset(
     (a camera the mapping leaves out gets :data:`DEFAULT_MODEL` and its model's default free
     set). ``source`` (default: the joints file, its units, the
     target and the image patterns) is recorded as dataset.json's ``scenario.import``; ``labels``
-    names an image file's origin in ``sources.csv`` (default: its resolved path).
+    names an image file's origin in ``sources.csv`` (default: its resolved path); ``initial``:
+    camera name -> the camera to start the calibration from (dataset.json's ``initial``:
+    :attr:`calib.io.dataset.DatasetInfo.camera_initial`).
 
     Raises:
         ImportError_, calib.io.tracker.TrackerFileError, calib.board_calibrate
@@ -191,13 +197,13 @@ def import_dataset(
     choice = _camera_choices(names, camera_model, free)
     if (out / "dataset.json").exists():
         raise ImportError_(f"{out} already holds a dataset", fix="choose another --out folder")
-    tgt = load_target(target)
-    if not isinstance(tgt, Board):
-        raise ImportError_(
-            f"{target}: type = 'field'; import takes a board of known geometry",
-            fix="declare the printed board (docs/targets.md); field datasets come from "
-            "`selfcal acquire`",
-        )
+    loaded = load_target(target)
+    tgt: Board | FieldTarget
+    if isinstance(loaded, ArucoField):
+        tgt = field_target(target, loaded, names)
+    else:
+        assert isinstance(loaded, Board)  # every other target type is a board
+        tgt = loaded
     out.mkdir(parents=True, exist_ok=True)
     rob, robot_ref = _robot(robot, base_link, tool_link, out)
     rows = read_joint_rows(joints, rob, joint_units, guess=not trust_units)
@@ -211,7 +217,7 @@ def import_dataset(
         sizes[cam.name], feats[cam.name] = _detect(cam, files[cam.name], tgt)
     seen = np.zeros(len(rows.q), bool)
     for cam in images:
-        seen |= [len(f) >= tgt.min_features for f in feats[cam.name]]
+        seen |= [len(f) >= _min_features(tgt) for f in feats[cam.name]]
     _warn_not_found(tgt, images, files, feats, labels or {})
     if seen.sum() < MIN_FRAMES:
         raise ImportError_(
@@ -220,8 +226,11 @@ def import_dataset(
             fix="check the target file's keys against the printed board and add images that show "
             "the whole board",
         )
+    if isinstance(tgt, FieldTarget):
+        tgt.check_scale_seen(feats)
     for cam in images:
-        check_geometry(tgt, feats[cam.name], sizes[cam.name], *choice[cam.name])
+        if isinstance(tgt, Board):
+            check_geometry(tgt, feats[cam.name], sizes[cam.name], *choice[cam.name])
     keep = np.flatnonzero(seen)
     (out / "frames").mkdir(exist_ok=True)
     suffix = suffixes.pop()
@@ -248,9 +257,9 @@ def import_dataset(
     info = DatasetInfo(
         robot_model=robot_ref,
         resolution=res[0],
-        dictionary="",
-        scale_ids=(0, 0),
-        scale_length_m=0.0,
+        dictionary="" if isinstance(tgt, Board) else tgt.field.dictionary,
+        scale_ids=(0, 0) if isinstance(tgt, Board) else tgt.scale_ids,
+        scale_length_m=0.0 if isinstance(tgt, Board) else tgt.scale_length_m,
         observation="images",
         planned_joints_deg=q_deg,
         validation_joints_deg=np.zeros((0,)),
@@ -259,11 +268,12 @@ def import_dataset(
                   "target": str(target), "images": {c.name: c.pattern for c in images}}},
         cameras=tuple(names),
         resolutions=None if len(set(res)) == 1 else res,
-        board=target_document(tgt),
+        board=target_document(tgt) if isinstance(tgt, Board) else None,
         image_suffix=suffix,
         camera_model=choice[names[0]][0],
         camera_free=choice[names[0]][1],
         camera_models=None if len(set(choice.values())) == 1 else tuple(choice.values()),
+        camera_initial=tuple((initial or {}).get(c) for c in names) if initial else None,
     )  # fmt: skip
     write_dataset_info(out / "dataset.json", info)
     return info
@@ -374,15 +384,19 @@ def _match(
     return out
 
 
+def _min_features(target: Board | FieldTarget) -> int:
+    return target.min_features if isinstance(target, Board) else MIN_FIELD_FEATURES
+
+
 def _warn_not_found(
-    board: Board,
+    board: Board | FieldTarget,
     images: Sequence[CameraImages],
     files: dict[str, list[Path]],
     feats: dict[str, list[Features]],
     labels: Mapping[Path, str],
 ) -> None:
     missed = [labels.get(f, str(f)) for c in images for f, ft in zip(files[c.name], feats[c.name], strict=True)
-              if len(ft) < board.min_features]  # fmt: skip
+              if len(ft) < _min_features(board)]  # fmt: skip
     if missed:
         total = sum(len(v) for v in files.values())
         more = " ..." if len(missed) > 8 else ""

@@ -321,6 +321,8 @@ def _bounds(
     s = setup_from_output(out, obs, q, robot, ds_info, pixel_sigma_px=pixel_sigma_px)
     cr = cramer_rao(s)
     qv = np.atleast_2d(np.radians(np.asarray(ds_info.validation_joints_deg, dtype=float)))
+    if qv.size == 0:  # an imported dataset plans no validation postures: the calibration's own
+        qv = np.atleast_2d(np.asarray(q, dtype=float))
     T_cam_tip = inv_pose(np.asarray(robot.T_flange_cam, dtype=float))
     std_of = {p.name: p.std for p in result.parameters}
     idx = minimal_indices(cr.model_ref.joint_types)

@@ -33,13 +33,14 @@ problem and what to change; no silently wrong numbers are returned.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from calib.bundle_adjust import intrinsics_covariance
-from calib.camera import Pinhole, PinholeValues, with_pinhole
+from calib.camera import LensCamera, Pinhole, PinholeValues, with_pinhole
 from calib.estimation.scale_sign import (
     SignChoice,
     check_scale_markers_seen,
@@ -170,6 +171,17 @@ class SelfCalibrationResult(PinholeValues):
         return {int(i): x for i, x in zip(self.point_ids[ok], self.X_world[ok], strict=True)}
 
 
+def with_values(template: Pinhole, values: Pinhole) -> Pinhole:
+    """A camera of ``template``'s model and ``free`` selection with ``values``' pinhole values and
+    lens coefficients (a lens of another model, or none, starts at zero)."""
+    pin = Pinhole(values.fx, values.mu, values.cx, values.cy, values.width, values.height)
+    if not isinstance(template, LensCamera):
+        return with_pinhole(template, pin)
+    same = isinstance(values, LensCamera) and type(values) is type(template)
+    coeffs = tuple(values.coeffs) if isinstance(values, LensCamera) and same else ()
+    return type(template).from_pinhole(pin, tuple(coeffs), template.free)
+
+
 # --------------------------------------------------------------------------------- pipeline
 def self_calibrate(
     obs: Observations,
@@ -182,6 +194,7 @@ def self_calibrate(
     nominal_cam_positions: np.ndarray | None = None,
     rig: bool = True,
     camera: Pinhole | None = None,
+    initial: Pinhole | None = None,
     fx_guess: float | None = None,
     mu_guess: float = 1.0,
     fx_bounds: tuple[float, float] | None = None,
@@ -207,6 +220,9 @@ def self_calibrate(
     model and free parameters to estimate (:mod:`calib.camera`; its values are ignored): the
     initialisation is the pinhole (principal point at the centre, no distortion), the bundle
     adjustment then frees ``camera.free`` (default: a pinhole with ``fx``, ``mu`` free).
+    ``initial``: a calibrated camera of ``camera``'s model (a ROS CameraInfo's calibration):
+    its fx and mu replace the fundamental-matrix estimate, and all its values (principal point,
+    lens) start the bundle adjustment, which frees ``camera.free`` from there.
     ``fx_guess``/``mu_guess`` skip the fundamental-matrix estimate of fx/mu (use when it is
     degenerate). Thresholds in px: ``ransac_px`` (epipolar/PnP RANSAC), ``outlier_px`` (minimum
     rejection threshold; the actual one is ``max(outlier_px, 4.5 sigma)``), ``robust_scale_px``
@@ -218,8 +234,18 @@ def self_calibrate(
     """
     t_start = time.perf_counter()
     _check_input(obs, width, height, scale_markers, scale_distance_m, rig, min_configs)
+    seen = obs
+    if initial is not None:
+        # initialise on the pixels the initial camera's lens-free, centred pinhole would see, so
+        # the pinhole initialisation meets no lens; the adjustment then takes the real pixels
+        xn = initial.unproject(obs.uv)
+        c = Pinhole.centered(initial.fx, initial.mu, width, height)
+        seen = dataclasses.replace(obs, uv=np.column_stack([c.fx * xn[:, 0] + c.cx,
+                                                            c.fy * xn[:, 1] + c.cy]))  # fmt: skip
+        if fx_guess is None:
+            fx_guess, mu_guess = initial.fx, initial.mu
     init = initialise(
-        obs,
+        seen,
         width,
         height,
         fx_guess=fx_guess,
@@ -232,7 +258,9 @@ def self_calibrate(
     )
     diag = dict(init.diagnostics)
     rec = gauge(init, obs.layout, rig=rig, ref_scores=ref_scores)
-    if camera is not None:
+    if initial is not None:
+        rec.camera = initial if camera is None else with_values(camera, initial)
+    elif camera is not None:
         rec.camera = with_pinhole(camera, rec.camera)
     t0 = time.perf_counter()
     fit = adjust(

@@ -36,7 +36,8 @@ class EstimateBound(JsonBlock):
 @dataclass(frozen=True)
 class ToolTipBound(JsonBlock):
     """The bound (mm) of the tool tip's RMS error over ``validation_poses`` postures after the
-    best rigid alignment (as the report measures it)."""
+    best rigid alignment (as the report measures it); a dataset without validation postures (an
+    imported one) gives it over its calibration postures."""
 
     bound: float
     validation_poses: int

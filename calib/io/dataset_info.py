@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from calib.camera import MODELS
+from calib.camera import MODELS, Pinhole, camera_model, lens_names
 from calib.errors import InputError
 from calib.io.jsonfile import (
     SCHEMA_KEY,
@@ -105,6 +105,12 @@ class DatasetInfo:
     """The robot file whose ``[encoder]`` table turned the joint read-back into ``joints.csv``
     (the controller's counts on hardware, the quantisation in simulation); None: not recorded
     (an imported or older dataset). It must be ``robot_model``: :meth:`check_encoder_model`."""
+    camera_initial: tuple[dict | None, ...] | None = None
+    """Per camera, a calibration to start from instead of the calibration's own initial guess
+    (a ROS bag's calibrated CameraInfo): ``{"source": "camera_info", "where": ..., "values":
+    {OpenCV name: value}}`` (``fx``, ``fy``, ``cx``, ``cy`` px, lens coefficients of the camera's
+    model), or None for a camera without one; None: no camera has one. A guess, not truth: the
+    calibration frees the camera's ``free`` parameters from it (docs/ros.md)."""
 
     def check_encoder_model(self, where: str | Path) -> None:
         """Raise :class:`DatasetError` when the joint angles were converted with another robot
@@ -125,6 +131,27 @@ class DatasetInfo:
             raise DatasetError("give one resolution per camera")
         if self.camera_models is not None and len(self.camera_models) != len(self.cameras):
             raise DatasetError("give one camera model per camera")
+        if self.camera_initial is not None and len(self.camera_initial) != len(self.cameras):
+            raise DatasetError("give one initial camera (or null) per camera")
+
+    def initial_of(self, camera: str) -> dict | None:
+        """The initial camera of ``camera`` (:attr:`camera_initial`), or None."""
+        if self.camera_initial is None:
+            return None
+        return self.camera_initial[self.cameras.index(camera)]
+
+    def initial_camera(self, camera: str) -> Pinhole | None:
+        """The initial camera of ``camera`` as its model with its free parameters (values: px,
+        the lens coefficients; ``mu = fy / fx``), or None when it has none."""
+        doc = self.initial_of(camera)
+        if doc is None:
+            return None
+        v = {k: float(x) for k, x in doc["values"].items()}
+        model, free = self.model_of(camera)
+        W, H = self.resolution_of(camera)
+        coeffs = {k: x for k, x in v.items() if k in lens_names(model)}
+        return camera_model(model, fx=v["fx"], mu=v["fy"] / v["fx"], cx=v["cx"], cy=v["cy"],
+                            width=W, height=H, coeffs=coeffs, free=free)  # fmt: skip
 
     def model_of(self, camera: str) -> tuple[str, tuple[str, ...]]:
         """(model name, free parameters) of ``camera``."""
@@ -168,6 +195,7 @@ class DatasetInfo:
                     "resolution": list(self.resolution_of(c)),
                     "model": self.model_of(c)[0],
                     "free": list(self.model_of(c)[1]),
+                    **({} if self.initial_of(c) is None else {"initial": self.initial_of(c)}),
                 }
                 for c in self.cameras
             ],
@@ -230,6 +258,7 @@ class DatasetInfo:
         if observation not in OBSERVATIONS:
             raise f.bad("observation", f"one of {OBSERVATIONS}", observation)
         per_camera = tuple(_camera_model(c) for c in cam_blocks)
+        initial = tuple(_initial(c, m) for c, (m, _) in zip(cam_blocks, per_camera, strict=True))
         model, free = per_camera[0]
         provenance = f.raw("provenance") if f.has("provenance") else {}
         if not isinstance(provenance, dict):
@@ -259,6 +288,7 @@ class DatasetInfo:
             image_suffix=suffix,
             camera_models=None if len(set(per_camera)) == 1 else per_camera,
             encoder_model=f.str("encoder_model") if f.has("encoder_model") else None,
+            camera_initial=None if all(i is None for i in initial) else initial,
         )
 
 
@@ -275,6 +305,25 @@ def _camera_model(cam: Fields) -> tuple[str, tuple[str, ...]]:
     if not set(free) <= set(MODELS[model].names) or "fx" not in free:
         raise cam.bad("free", f"names of {MODELS[model].names} including fx", list(free))
     return model, tuple(free)
+
+
+def _initial(cam: Fields, model: str) -> dict | None:
+    """A camera entry's ``initial`` camera (checked: positive fx, fy; the model's names)."""
+    if not cam.has("initial"):
+        return None
+    doc = cam.raw("initial")
+    vals = doc.get("values") if isinstance(doc, dict) else None
+    names = {"fx", "fy", "cx", "cy", *MODELS[model].names}
+    if (
+        not isinstance(vals, dict)
+        or not isinstance(doc.get("source"), str)
+        or not {"fx", "fy", "cx", "cy"} <= set(vals) <= names
+        or not all(isinstance(v, (int, float)) and np.isfinite(v) for v in vals.values())
+        or not (vals["fx"] > 0 and vals["fy"] > 0)
+    ):
+        raise cam.bad("initial", f'{{"source": ..., "values": {{fx, fy, cx, cy and lens '
+                      f"coefficients of {model}}}}} with fx, fy > 0", doc)  # fmt: skip
+    return dict(doc)
 
 
 def _resolution(cam: Fields) -> tuple[int, int]:

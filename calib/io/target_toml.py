@@ -7,7 +7,9 @@ key is an error naming the file and the key):
 ============  ==================================================================================
 type          keys
 ============  ==================================================================================
-field         ``dictionary`` (optional, ``"DICT_4X4_50"``): ArUco markers at unknown positions
+field         ``dictionary`` (optional, ``"DICT_4X4_50"``): ArUco markers at unknown positions;
+              the one known distance, required by ``selfcal import``: ``scale_marker_ids = [a,
+              b]`` and ``scale_length_mm`` (the distance of the two markers' centres)
 chessboard    ``inner_corners = [cols, rows]`` (one odd, one even), ``square_mm``
 charuco       ``inner_corners = [cols, rows]``, ``square_mm``, ``marker_mm``, ``dictionary``
 circles       ``pattern = [cols, rows]`` (circles per row, rows), ``spacing_mm``,
@@ -30,11 +32,12 @@ from calib.target.aruco_detect import aruco_dictionary
 from calib.target.boards import AprilGrid, Charuco, Chessboard, CirclesGrid
 from calib.tomlfile import read_toml
 
-__all__ = ["TargetFileError", "load_target", "parse_target", "target_document", "TARGET_TYPES"]
+__all__ = ["TargetFileError", "load_target", "parse_target", "target_document", "TARGET_TYPES",
+           "load_field_scale"]  # fmt: skip
 
 TARGET_TYPES: dict[str, tuple[set[str], set[str]]] = {
     # type: (required keys, optional keys), besides "type"
-    "field": (set(), {"dictionary"}),
+    "field": (set(), {"dictionary", "scale_marker_ids", "scale_length_mm"}),
     "chessboard": ({"inner_corners", "square_mm"}, set()),
     "charuco": ({"inner_corners", "square_mm", "marker_mm", "dictionary"}, set()),
     "circles": ({"pattern", "spacing_mm"}, {"diameter_mm"}),
@@ -54,6 +57,29 @@ def load_target(path: str | Path) -> Target:
     p = Path(path)
     doc = read_toml(p, TargetFileError, _FIX, what="target file")
     return parse_target(doc, str(p))
+
+
+def load_field_scale(path: str | Path) -> tuple[tuple[int, int], float]:
+    """The field's one known distance declared in the target TOML ``path`` (``type = "field"``):
+    the two marker ids and the distance of their centres (m).
+
+    Raises :class:`TargetFileError` naming the file and the key (missing, not two distinct
+    ids >= 0, not a length > 0)."""
+    p = Path(path)
+    doc = read_toml(p, TargetFileError, _FIX, what="target file")
+    f = Fields(doc, str(p), _FIX, error=TargetFileError)
+    for key in ("scale_marker_ids", "scale_length_mm"):
+        if not f.has(key):
+            raise TargetFileError(
+                f"{p}: the field declares no {key}; the self-calibration of a marker field takes "
+                "its scale from one known distance",
+                fix="add scale_marker_ids = [A, B] (two marker ids) and scale_length_mm (the "
+                "distance of their centres, measured) to the target file; docs/targets.md",
+            )
+    ids = f.ints("scale_marker_ids")
+    if len(ids) != 2 or ids[0] == ids[1] or min(ids) < 0:
+        raise f.bad("scale_marker_ids", "two distinct marker ids [A, B]", list(ids))
+    return (ids[0], ids[1]), _mm(f, "scale_length_mm")
 
 
 def _pair(f: Fields, key: str, odd_even: bool = False) -> tuple[int, int]:

@@ -11,17 +11,20 @@ relative, hence one thread).
 
 from __future__ import annotations
 
+import dataclasses
 import json
+import shutil
 import warnings
 from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
-from synthetic_board import TARGET_TOML, make_lab, write_lab_data
+from synthetic_board import CAMERA, TARGET_TOML, make_lab, write_lab_data
 from threadpoolctl import threadpool_limits
 
 from calib.board_dataset import calibrate_board_dataset
+from calib.camera import BrownConrady, Pinhole, opencv_values
 from calib.import_dataset import CameraImages, import_dataset
 from calib.io.board_calibration import write_board_calibration
 from calib.io.dataset import Dataset
@@ -111,6 +114,68 @@ def test_round_trip(lab, tmp_path, fmt, capsys):
     np.testing.assert_allclose(vb, va, rtol=1e-9, atol=0)  # measured: identical
     np.testing.assert_allclose(got.model.params, cal.model.params, rtol=1e-9, atol=0)
     assert got.reprojection_rms_px == pytest.approx(cal.reprojection_rms_px, rel=1e-9)
+
+
+def _through_camera_info(root: Path, cal, camera, tmp_path: Path, name: str):
+    """The lab's dataset exported with ``camera`` in its camera_info, imported again and
+    calibrated: (the dataset, the calibration, the warnings' messages)."""
+    ds = tmp_path / f"{name}_ds"
+    shutil.copytree(root / "ds", ds)
+    write_board_calibration(ds / "calibration.json", dataclasses.replace(cal, cameras=(camera,)))
+    assert main(["export", str(ds), "--bag", str(tmp_path / f"{name}.bag")]) == 0
+    assert _import(root, tmp_path / f"{name}.bag", tmp_path / name) == 0
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        got = _calibrate(tmp_path / name)
+    return Dataset.open(tmp_path / name), got, [str(w.message) for w in caught]
+
+
+def test_camera_info_initialises_the_camera(lab, tmp_path, capsys):
+    """A calibrated camera_info starts the board calibration (dataset.json records it as the
+    camera's initial camera): with the true camera the result is the same as from OpenCV's own
+    start; a poor one (fx 25 % off, principal point 40 px off, the lens' signs flipped) does
+    not make it worse."""
+    root, cal = lab
+    truth = np.asarray(CAMERA.values())
+    ds, good, notes = _through_camera_info(root, cal, CAMERA, tmp_path, "true")
+    init = ds.info.initial_of("cam0")
+    assert init is not None and init["source"] == "camera_info"
+    assert init["where"].endswith("true.bag#/cam0/camera_info")
+    want = opencv_values(CAMERA)
+    assert init["values"] == pytest.approx({k: want[k] for k in init["values"]}, rel=1e-15)
+    assert not [n for n in notes if "initial camera" in n]  # its start was taken
+    base = cal.cameras[0].values()  # the calibration of the images' import: OpenCV's start
+    err_base = np.abs(base - truth)[:8]
+    err_good = np.abs(good.cameras[0].values() - truth)[:8]
+    print("true camera_info: error", err_good, "own start", err_base)
+    assert (err_good <= err_base * (1 + 1e-6) + 1e-12).all()
+    assert good.reprojection_rms_px <= cal.reprojection_rms_px * (1 + 1e-9)
+    poor = BrownConrady.from_pinhole(
+        Pinhole(1250.0, 0.97, CAMERA.cx + 40, CAMERA.cy - 30, CAMERA.width, CAMERA.height),
+        (0.2, -0.1, 0.01, 0.01, 0.0, 0.0, 0.0, 0.0), CAMERA.free,
+    )  # fmt: skip
+    _, bad, notes = _through_camera_info(root, cal, poor, tmp_path, "poor")
+    # measured: OpenCV's calibration converges from the poor start too (it is kept: no
+    # warning), to the same estimate within 5e-12 px
+    assert not [n for n in notes if "initial camera" in n]
+    assert bad.reprojection_rms_px <= cal.reprojection_rms_px * (1 + 1e-9)
+    np.testing.assert_allclose(bad.cameras[0].values(), base, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(bad.model.params, cal.model.params, rtol=1e-9, atol=1e-12)
+
+
+def test_uncalibrated_camera_info_is_ignored(lab, tmp_path):
+    root, _ = lab
+    shutil.copytree(root / "ds", tmp_path / "ds", ignore=shutil.ignore_patterns("calibration.json"))
+    assert main(["export", str(tmp_path / "ds"), "--bag", str(tmp_path / "u.bag")]) == 0
+    with BagReader(tmp_path / "u.bag") as r:
+        (info, *_) = [CameraInfo.from_msg(m) for _, _, m in r.messages(["/cam0/camera_info"])]
+    assert not any(info.K) and not info.calibrated
+    assert _import(root, tmp_path / "u.bag", tmp_path / "u") == 0
+    ds = Dataset.open(tmp_path / "u")
+    assert ds.info.camera_initial is None and ds.info.provenance["import"]["camera_info"] == {
+        "cam0": None
+    }
+    assert "initial" not in json.loads((tmp_path / "u" / "dataset.json").read_text())["cameras"][0]
 
 
 def test_exported_bag_content(lab, tmp_path):
