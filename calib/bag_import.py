@@ -3,7 +3,9 @@
 Two streaming passes over the bag, so memory does not grow with it:
 
 1. the joint topic (``sensor_msgs/JointState``, names matched to the robot's chain, other joints
-   ignored) and each camera's ``camera_info`` (the image topic's sibling), kept compactly;
+   ignored), each camera's ``camera_info`` (the image topic's sibling; a calibrated one becomes
+   the camera's initial camera in dataset.json) and ``/tf_static`` / ``/tf`` (a hand-eye hint:
+   :mod:`calib.bag_tf`), kept compactly;
 2. the image topics: an image taken at rest (:mod:`calib.bag_rest`) is decoded and staged as a
    PNG at once, any other is only counted (one warning line).
 
@@ -28,6 +30,7 @@ import cv2
 import numpy as np
 
 from calib.bag_rest import EMPTY, GAP, MOVING, NS, OUTSIDE, REST, JointTrack, RestRule
+from calib.bag_tf import TF_TOPICS, TF_TYPE, TfTree
 from calib.errors import SelfCalWarning
 from calib.import_dataset import DEFAULT_MODEL, CameraImages, ImportError_, import_dataset
 from calib.io.dataset_info import DatasetInfo
@@ -109,12 +112,14 @@ def _secs(t: int) -> str:
 
 
 def read_joint_track(
-    reader: BagReader, topic: str, chain: Chain, cams: Sequence[ImageTopic] = ()
-) -> tuple[JointTrack, dict[str, CameraInfo | None]]:
+    reader: BagReader, topic: str, chain: Chain, cams: Sequence[ImageTopic] = (),
+    tf: TfTree | None = None,
+) -> tuple[JointTrack, dict[str, CameraInfo | None]]:  # fmt: skip
     """One pass over the joint topic and the cameras' ``camera_info`` topics: the joint readings
     in the order of the robot's ``chain`` (matched by name; messages naming none of the chain's
     joints, e.g. a gripper's, are ignored) and each camera's first calibrated CameraInfo (None
-    when its topic is absent or uncalibrated: K all zeros).
+    when its topic is absent or uncalibrated: K all zeros). ``tf``: fed the bag's ``/tf_static``
+    and ``/tf`` messages in the same pass.
 
     Raises:
         BagError: the topic is missing or not a JointState (lists the bag's topics), or its
@@ -126,7 +131,12 @@ def read_joint_track(
     ts, qs = array("q"), array("d")  # compact: 8 bytes a number however long the recording
     seen: set[str] = set()
     bad = False
-    for t, _m, msg, stamp in reader.timed([topic, *infos]):
+    tf_topics = [t for t in TF_TOPICS if tf is not None and reader.topics.get(t) == TF_TYPE]
+    for t, _m, msg, stamp in reader.timed([topic, *infos, *tf_topics]):
+        if t in tf_topics:
+            assert tf is not None
+            tf.add(msg, static=t == "/tf_static")
+            continue
         if t != topic:
             info = CameraInfo.from_msg(msg)
             if found[infos[t]] is None and info.calibrated:
@@ -250,17 +260,19 @@ class _Staged:
 def _stage_images(
     reader: BagReader, cams: Sequence[ImageTopic], track: JointTrack, rule: RestRule,
     joint_topic: str, stage: Path,
-) -> tuple[dict[str, _Staged], dict[str, int], int, tuple[int, int]]:  # fmt: skip
+) -> tuple[dict[str, _Staged], dict[str, int], int, tuple[int, int], dict[str, str]]:  # fmt: skip
     """Pass 2: decode and stage every image at rest; count the others by reason; the first and
-    last image stamps."""
+    last image stamps; each camera's frame_id (of its first image)."""
     by_topic = {c.topic: c.name for c in cams}
     staged = {c.name: _Staged([], [], []) for c in cams}
     for c in cams:
         (stage / c.name).mkdir(parents=True)
     counts = {MOVING: 0, GAP: 0, OUTSIDE: 0}
     total, first, last = 0, 2**63 - 1, -(2**63)
+    frame_ids: dict[str, str] = {}
     for topic, msgtype, msg, t, src in reader.timed_in(list(by_topic)):
         total += 1
+        frame_ids.setdefault(by_topic[topic], str(msg.header.frame_id))
         first, last = min(first, t), max(last, t)
         st = track.status(t, rule)
         if st == EMPTY:
@@ -283,7 +295,7 @@ def _stage_images(
         s.stamps.append(t)
         s.files.append(path)
         s.bags.append(src)
-    return staged, counts, total, (first, last)
+    return staged, counts, total, (first, last), frame_ids
 
 
 def _pair(
@@ -381,12 +393,13 @@ def import_bag(
             where = reader.label
             for c in image_topics:
                 reader.require(c.topic, IMAGE_TYPES, "--image-topic")
-            track, infos = read_joint_track(reader, joint_topic, chain, image_topics)
+            tf = TfTree()
+            track, infos = read_joint_track(reader, joint_topic, chain, image_topics, tf)
             model = _model(infos, camera_model, where)
             if stage.exists():
                 shutil.rmtree(stage)
-            staged, counts, total, span = _stage_images(reader, image_topics, track, rule, joint_topic,
-                                                  stage)  # fmt: skip
+            staged, counts, total, span, frame_ids = _stage_images(
+                reader, image_topics, track, rule, joint_topic, stage)  # fmt: skip
             fmt = reader.format
         topics = ", ".join(c.topic for c in image_topics)
         at_rest = sum(len(s.files) for s in staged.values())
@@ -429,6 +442,7 @@ def import_bag(
             "camera_info": {n: None if i is None else i.to_json() for n, i in infos.items()},
             "images": {"total": total, "at_rest": at_rest, "frames": len(frames), **counts},
             "target": str(target),
+            "tf": tf.hint(frame_ids) if tf.messages else None,
         }  # fmt: skip
         cams = [CameraImages(n, c.topic, tuple(files[n])) for n, c in zip(names, image_topics)]
         initial = _initial(infos, image_topics, model, files, where) if frames else None

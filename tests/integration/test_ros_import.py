@@ -182,7 +182,7 @@ def test_stop_and_go_recording(lab, tmp_path):
     err = np.abs(np.radians(ds.joints_deg) - want).max()
     assert err < 1e-6  # measured 2.3e-7 rad (the readings' 1e-7 rad noise, interpolated)
     rec = ds.info.provenance["import"]
-    assert rec["bag"].endswith("lab.bag") and rec["format"] == "ros1"
+    assert rec["bag"].endswith("lab.bag") and rec["format"] == "ros1" and rec["tf"] is None
     assert rec["joint_names"] == CHAIN and rec["images"]["moving"] == len(cam) - len(kept)
     # frames are pixel for pixel the recorded images
     img = cv2.imread(str(ds.frame_paths(int(ds.indices[0]))[0]), cv2.IMREAD_UNCHANGED)
@@ -251,6 +251,54 @@ def test_split_recording_reads_as_one_bag(lab, tmp_path):
         assert sorted(Path(b).name for b in rec["bag"]) == [p.name for p in parts]
     src = [r["source"] for r in csv.DictReader((tmp_path / "glob" / "sources.csv").open())]
     assert {Path(s.split("#")[0]).name for s in src} == {"rec_0.bag", "rec_1.bag", "rec_2.bag"}
+
+
+def _tf(bag: RawBag, topic: str, t: int, edges) -> None:
+    """A TFMessage of ``edges``: (parent, child, xyz m, quaternion xyzw)."""
+    T = bag.T
+    trs = [T["geometry_msgs/msg/TransformStamped"](
+        header=T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](sec=t // NS,
+                                        nanosec=t % NS), frame_id=parent),
+        child_frame_id=child,
+        transform=T["geometry_msgs/msg/Transform"](
+            translation=T["geometry_msgs/msg/Vector3"](x=p[0], y=p[1], z=p[2]),
+            rotation=T["geometry_msgs/msg/Quaternion"](x=r[0], y=r[1], z=r[2], w=r[3])))
+        for parent, child, p, r in edges]  # fmt: skip
+    bag.put(topic, "tf2_msgs/msg/TFMessage", t, T["tf2_msgs/msg/TFMessage"](transforms=trs))
+
+
+def test_tf_records_where_the_camera_is_attached(lab, tmp_path):
+    """/tf_static (tool0 -> camera_link -> cam, the images' frame_id) and /tf (the arm's links
+    moving, world -> base_link constant): the import records the camera rigidly on tool0 with the
+    composed transform, a hint in dataset.json's provenance; a bag without tf records none."""
+    from scipy.spatial.transform import Rotation
+
+    root, rests, pictures = lab
+    bag = RawBag(tmp_path / "tf", "ros2")
+    t0 = 100 * NS
+    q_a = Rotation.from_euler("z", 90, degrees=True).as_quat()
+    q_b = Rotation.from_euler("xyz", [-90, 0, -90], degrees=True).as_quat()
+    _tf(bag, "/tf_static", t0 - NS, [("tool0", "camera_link", (0.01, 0.02, 0.05), q_a),
+                                     ("camera_link", "cam", (0.0, 0.0, 0.0), q_b)])  # fmt: skip
+    for k in range(40):  # the arm's links move; the base stands still on /tf
+        t = t0 - NS + k * NS // 4
+        turn = Rotation.from_euler("z", 3 * k, degrees=True).as_quat()
+        _tf(bag, "/tf", t, [("world", "base_link", (0.0, 0.0, 0.0), (0, 0, 0, 1)),
+                            ("base_link", "link1", (0, 0, 0.3), turn),
+                            ("link1", "tool0", (0.4, 0, 0), turn)])  # fmt: skip
+    _recording(bag, rests[:4], pictures[:4], t0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", MovingImagesWarning)
+        assert _import(tmp_path / "tf", tmp_path / "ds", root, "cam0=/camera/image_raw",
+                       extra=["--per-rest", "2"]) == 0  # fmt: skip
+    hint = Dataset.open(tmp_path / "ds").info.provenance["import"]["tf"]["cam0"]
+    assert hint["frame"] == "cam" and hint["rigidly_on"] == "tool0"
+    assert hint["path"] == ["cam", "camera_link", "tool0"]
+    R = Rotation.from_quat(q_a).as_matrix() @ Rotation.from_quat(q_b).as_matrix()
+    np.testing.assert_allclose(np.array(hint["T_parent_camera"])[:3, :3], R, atol=1e-12)
+    np.testing.assert_allclose(np.array(hint["T_parent_camera"])[:3, 3], [0.01, 0.02, 0.05],
+                               atol=1e-12)  # fmt: skip
+    assert Dataset.open(tmp_path / "ds").info.initial_of("cam0") is None  # no camera_info
 
 
 def test_split_recording_errors(lab, tmp_path, capsys):
