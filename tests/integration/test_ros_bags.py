@@ -160,7 +160,9 @@ def test_camera_info_initialises_the_camera(lab, tmp_path, capsys):
     assert not [n for n in notes if "initial camera" in n]
     assert bad.reprojection_rms_px <= cal.reprojection_rms_px * (1 + 1e-9)
     np.testing.assert_allclose(bad.cameras[0].values(), base, rtol=1e-9, atol=1e-12)
-    np.testing.assert_allclose(bad.model.params, cal.model.params, rtol=1e-9, atol=1e-12)
+    # the kinematics converge from the two starts to the same point within 1.3e-11 m/rad
+    # measured (3.5e-8 relative on a 3e-3 parameter): compared absolutely
+    np.testing.assert_allclose(bad.model.params, cal.model.params, rtol=0, atol=4e-11)
 
 
 def test_uncalibrated_camera_info_is_ignored(lab, tmp_path):
