@@ -25,7 +25,7 @@ from calib.board_robot import calibrate_robot_with_board
 from calib.errors import EstimationError, SelfCalWarning
 from calib.estimation.joint_report import encoder_sigma
 from calib.frame_checks import check_distinct_frames
-from calib.identify import identify
+from calib.identify import IdentificationError, IdentificationWarning, identify
 from calib.io.board_calibration import BoardCalibrationResult
 from calib.io.dataset import Dataset, DatasetError, read_gray
 from calib.io.target_toml import parse_target
@@ -117,21 +117,31 @@ def calibrate_board_dataset(
     W, H = ds.info.resolution_of(cam)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        res = calibrate_robot_with_board(
-            board,
-            feats,
-            q,
-            nominal,
-            W,
-            H,
-            names=names,
-            joint_sigma=encoder_sigma(robot),
-            free=free,
-            model=model_name,
-            initial=ds.info.initial_camera(cam),
-        )
-        used = res.used
-        T_board_cam = inv_pose(res.board.T_cam_board[used])
+        try:
+            res = calibrate_robot_with_board(
+                board,
+                feats,
+                q,
+                nominal,
+                W,
+                H,
+                names=names,
+                joint_sigma=encoder_sigma(robot),
+                free=free,
+                model=model_name,
+                initial=ds.info.initial_camera(cam),
+            )
+        except IdentificationError as exc:
+            raise IdentificationError(
+                f"{ds.root}: the camera poses the board gives do not fit one robot: {exc.message}",
+                fix=f"check that every joints row belongs to its image ({ds.root}/sources.csv "
+                "names each frame's file), that the board did not move and that --robot is this "
+                "arm",
+            ) from exc
+    used = res.used
+    T_board_cam = inv_pose(res.board.T_cam_board[used])
+    with warnings.catch_warnings():  # the nominal reference misfits by design: not a note
+        warnings.simplefilter("ignore", IdentificationWarning)
         ref = identify(nominal, q[used], T_board_cam, hold=chain_param_names(nominal.joint_types))
     notes = list(incomplete)
     for w in caught:

@@ -19,9 +19,11 @@ from __future__ import annotations
 import csv
 import glob
 import os
+import re
 import shutil
 import warnings
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -38,15 +40,18 @@ from calib.io.dataset_info import DatasetInfo, write_dataset_info
 from calib.io.target_toml import load_target, target_document
 from calib.io.tracker import read_joint_rows
 from calib.robot_def import RobotDef, load_robot
+from calib.robot_urdf import urdf_chain
 from calib.target import ArucoField
 from calib.target.base import Features
 from calib.target.boards import Board
+from calib.tomlfile import read_toml
 
 __all__ = [
     "ImportError_",
     "TargetNotFoundWarning",
     "CameraImages",
     "check_geometry",
+    "name_order",
     "import_dataset",
     "MIN_FRAMES",
 ]
@@ -65,9 +70,16 @@ class TargetNotFoundWarning(SelfCalWarning):
     """Images in which the target is not found (named and counted; their frames are skipped)."""
 
 
+def name_order(name: str) -> tuple[list[str | int], str]:
+    """Sort key of an image file name: numbers by value (``img_2`` before ``img_10``, as a
+    camera's unpadded counter means them), the rest as text."""
+    return [int(t) if k % 2 else t for k, t in enumerate(re.split(r"(\d+)", name))], name
+
+
 @dataclass(frozen=True)
 class CameraImages:
-    """One ``--images NAME=GLOB``: the camera's name and its image files (sorted by name)."""
+    """One ``--images NAME=GLOB``: the camera's name and its image files (sorted by name,
+    :func:`name_order`)."""
 
     name: str
     pattern: str
@@ -86,7 +98,7 @@ class CameraImages:
                 fix="name each camera with letters, digits, - or _: --images 'cam0=DIR/*.png'",
             )
         files = tuple(sorted((Path(p) for p in glob.glob(os.path.expanduser(pattern))),
-                             key=lambda p: p.name))  # fmt: skip
+                             key=lambda p: name_order(p.name)))  # fmt: skip
         files = tuple(p for p in files if p.is_file())
         if not files:
             raise ImportError_(f"--images {spec!r}: no file matches {pattern!r}",
@@ -107,12 +119,18 @@ def _robot(
     if not p.is_file():
         raise ImportError_(f"--robot {spec}: no such file",
                            fix="give a model name, a robot TOML or a URDF file")  # fmt: skip
+    if p.suffix == ".urdf":  # errors name the user's file, not the dataset's copy
+        urdf_chain(p, base_link=base_link, tool_link=tool_link)
     (out / "robot").mkdir(parents=True, exist_ok=True)
     if p.suffix == ".toml" or not (base_link or tool_link):
         if base_link or tool_link:
             raise ImportError_("--base-link / --tool-link apply to a URDF only",
                                fix="name the links in the robot TOML's [urdf] table")  # fmt: skip
+        if p.suffix == ".toml":
+            load_robot(p)  # errors name the user's file, not the dataset's copy
         shutil.copy2(p, out / "robot" / p.name)
+        if p.suffix == ".toml":
+            _copy_urdf_of(p, out / "robot")
         rel = f"robot/{p.name}"
     else:
         shutil.copy2(p, out / "robot" / p.name)
@@ -127,6 +145,34 @@ def _robot(
         )
         rel = f"robot/{p.stem}.toml"
     return load_robot(out / rel), rel
+
+
+@contextmanager
+def _removed_on_failure(out: Path) -> Iterator[None]:
+    """Remove ``out`` when the block fails and ``out`` did not exist before it."""
+    created = not out.exists()
+    try:
+        yield
+    except BaseException:
+        if created:
+            shutil.rmtree(out, ignore_errors=True)
+        raise
+
+
+def _copy_urdf_of(toml: Path, folder: Path) -> None:
+    """Copy the URDF that the robot TOML ``toml`` names in ``[urdf] file`` next to its copy in
+    ``folder`` (the copy's ``file`` then names it without a folder), so the dataset can move."""
+    table = read_toml(toml).get("urdf")
+    if not isinstance(table, dict) or "file" not in table:
+        return
+    given = str(table["file"])
+    src = (toml.parent / given).resolve()
+    shutil.copy2(src, folder / src.name)
+    if given != src.name:
+        text = (folder / toml.name).read_text()
+        (folder / toml.name).write_text(
+            re.sub(r'(?m)^(\s*file\s*=\s*)(["\']).*?\2', lambda m: f'{m[1]}"{src.name}"', text)
+        )
 
 
 def _detect(
@@ -183,100 +229,102 @@ def import_dataset(
     target and the image patterns) is recorded as dataset.json's ``scenario.import``; ``labels``
     names an image file's origin in ``sources.csv`` (default: its resolved path); ``initial``:
     camera name -> the camera to start the calibration from (dataset.json's ``initial``:
-    :attr:`calib.io.dataset.DatasetInfo.camera_initial`).
+    :attr:`calib.io.dataset.DatasetInfo.camera_initial`). A failed import leaves no folder
+    behind that it created.
 
     Raises:
         ImportError_, calib.io.tracker.TrackerFileError, calib.board_calibrate
         .BoardInputError / BoardMismatchError, calib.robot_def.RobotDefinitionError: bad input
         (each names the file and the fix).
     """
-    out = Path(out)
-    names = [c.name for c in images]
-    if not images or len(set(names)) != len(names):
-        raise ImportError_(f"camera names {names}", fix="give each --images a distinct NAME=")
-    choice = _camera_choices(names, camera_model, free)
-    if (out / "dataset.json").exists():
-        raise ImportError_(f"{out} already holds a dataset", fix="choose another --out folder")
-    loaded = load_target(target)
-    tgt: Board | FieldTarget
-    if isinstance(loaded, ArucoField):
-        tgt = field_target(target, loaded, names)
-    else:
-        assert isinstance(loaded, Board)  # every other target type is a board
-        tgt = loaded
-    out.mkdir(parents=True, exist_ok=True)
-    rob, robot_ref = _robot(robot, base_link, tool_link, out)
-    rows = read_joint_rows(joints, rob, joint_units, guess=not trust_units)
-    files = _match(images, rows.images, len(rows.q), Path(joints))
-    suffixes = {f.suffix.lower() for fs in files.values() for f in fs}
-    if len(suffixes) != 1:
-        raise ImportError_(f"images of several kinds {sorted(suffixes)}",
-                           fix="convert the images to one format (e.g. PNG)")  # fmt: skip
-    sizes, feats = {}, {}
-    for cam in images:
-        sizes[cam.name], feats[cam.name] = _detect(cam, files[cam.name], tgt)
-    seen = np.zeros(len(rows.q), bool)
-    for cam in images:
-        seen |= [len(f) >= _min_features(tgt) for f in feats[cam.name]]
-    _warn_not_found(tgt, images, files, feats, labels or {})
-    if seen.sum() < MIN_FRAMES:
-        raise ImportError_(
-            f"the {tgt.describe()} is found in {int(seen.sum())} of {len(seen)} frames; "
-            f"calibration needs at least {MIN_FRAMES}",
-            fix="check the target file's keys against the printed board and add images that show "
-            "the whole board",
-        )
-    if isinstance(tgt, FieldTarget):
-        tgt.check_scale_seen(feats)
-    for cam in images:
-        if isinstance(tgt, Board):
-            check_geometry(tgt, feats[cam.name], sizes[cam.name], *choice[cam.name])
-    keep = np.flatnonzero(seen)
-    (out / "frames").mkdir(exist_ok=True)
-    suffix = suffixes.pop()
-    with open(out / "sources.csv", "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(["index", "camera", "source"])
-        for k, r in enumerate(keep):
-            for cam in images:
-                src = files[cam.name][r].resolve()
-                dst = out / "frames" / f"{k:04d}_{cam.name}{suffix}"
-                if link:
-                    dst.symlink_to(src)
-                else:
-                    shutil.copy2(src, dst)
-                label = labels.get(files[cam.name][r]) if labels else None
-                w.writerow([k, cam.name, label or str(src)])
-    q_deg = np.degrees(rows.q[keep])
-    with open(out / "joints.csv", "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(["index"] + [f"q{j + 1}_deg" for j in range(rob.n)])
-        for k, q in enumerate(q_deg):
-            w.writerow([k] + [f"{v:.9f}" for v in q])
-    res = tuple(sizes[c] for c in names)
-    info = DatasetInfo(
-        robot_model=robot_ref,
-        resolution=res[0],
-        dictionary="" if isinstance(tgt, Board) else tgt.field.dictionary,
-        scale_ids=(0, 0) if isinstance(tgt, Board) else tgt.scale_ids,
-        scale_length_m=0.0 if isinstance(tgt, Board) else tgt.scale_length_m,
-        observation="images",
-        planned_joints_deg=q_deg,
-        validation_joints_deg=np.zeros((0,)),
-        backend="import",
-        provenance={"import": source or {"joints": str(joints), "joint_units": joint_units,
-                  "target": str(target), "images": {c.name: c.pattern for c in images}}},
-        cameras=tuple(names),
-        resolutions=None if len(set(res)) == 1 else res,
-        board=target_document(tgt) if isinstance(tgt, Board) else None,
-        image_suffix=suffix,
-        camera_model=choice[names[0]][0],
-        camera_free=choice[names[0]][1],
-        camera_models=None if len(set(choice.values())) == 1 else tuple(choice.values()),
-        camera_initial=tuple((initial or {}).get(c) for c in names) if initial else None,
-    )  # fmt: skip
-    write_dataset_info(out / "dataset.json", info)
-    return info
+    with _removed_on_failure(Path(out)):
+        out = Path(out)
+        names = [c.name for c in images]
+        if not images or len(set(names)) != len(names):
+            raise ImportError_(f"camera names {names}", fix="give each --images a distinct NAME=")
+        choice = _camera_choices(names, camera_model, free)
+        if (out / "dataset.json").exists():
+            raise ImportError_(f"{out} already holds a dataset", fix="choose another --out folder")
+        loaded = load_target(target)
+        tgt: Board | FieldTarget
+        if isinstance(loaded, ArucoField):
+            tgt = field_target(target, loaded, names)
+        else:
+            assert isinstance(loaded, Board)  # every other target type is a board
+            tgt = loaded
+        out.mkdir(parents=True, exist_ok=True)
+        rob, robot_ref = _robot(robot, base_link, tool_link, out)
+        rows = read_joint_rows(joints, rob, joint_units, guess=not trust_units)
+        files = _match(images, rows.images, len(rows.q), Path(joints))
+        suffixes = {f.suffix.lower() for fs in files.values() for f in fs}
+        if len(suffixes) != 1:
+            raise ImportError_(f"images of several kinds {sorted(suffixes)}",
+                               fix="convert the images to one format (e.g. PNG)")  # fmt: skip
+        sizes, feats = {}, {}
+        for cam in images:
+            sizes[cam.name], feats[cam.name] = _detect(cam, files[cam.name], tgt)
+        seen = np.zeros(len(rows.q), bool)
+        for cam in images:
+            seen |= [len(f) >= _min_features(tgt) for f in feats[cam.name]]
+        _warn_not_found(tgt, images, files, feats, labels or {})
+        if seen.sum() < MIN_FRAMES:
+            raise ImportError_(
+                f"the {tgt.describe()} is found in {int(seen.sum())} of {len(seen)} frames; "
+                f"calibration needs at least {MIN_FRAMES}",
+                fix="check the target file's keys against the printed board and add images that show "
+                "the whole board",
+            )
+        if isinstance(tgt, FieldTarget):
+            tgt.check_scale_seen(feats)
+        for cam in images:
+            if isinstance(tgt, Board):
+                check_geometry(tgt, feats[cam.name], sizes[cam.name], *choice[cam.name])
+        keep = np.flatnonzero(seen)
+        (out / "frames").mkdir(exist_ok=True)
+        suffix = suffixes.pop()
+        with open(out / "sources.csv", "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(["index", "camera", "source"])
+            for k, r in enumerate(keep):
+                for cam in images:
+                    src = files[cam.name][r].resolve()
+                    dst = out / "frames" / f"{k:04d}_{cam.name}{suffix}"
+                    if link:
+                        dst.symlink_to(src)
+                    else:
+                        shutil.copy2(src, dst)
+                    label = labels.get(files[cam.name][r]) if labels else None
+                    w.writerow([k, cam.name, label or str(src)])
+        q_deg = np.degrees(rows.q[keep])
+        with open(out / "joints.csv", "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(["index"] + [f"q{j + 1}_deg" for j in range(rob.n)])
+            for k, q in enumerate(q_deg):
+                w.writerow([k] + [f"{v:.9f}" for v in q])
+        res = tuple(sizes[c] for c in names)
+        info = DatasetInfo(
+            robot_model=robot_ref,
+            resolution=res[0],
+            dictionary="" if isinstance(tgt, Board) else tgt.field.dictionary,
+            scale_ids=(0, 0) if isinstance(tgt, Board) else tgt.scale_ids,
+            scale_length_m=0.0 if isinstance(tgt, Board) else tgt.scale_length_m,
+            observation="images",
+            planned_joints_deg=q_deg,
+            validation_joints_deg=np.zeros((0,)),
+            backend="import",
+            provenance={"import": source or {"joints": str(joints), "joint_units": joint_units,
+                      "target": str(target), "images": {c.name: c.pattern for c in images}}},
+            cameras=tuple(names),
+            resolutions=None if len(set(res)) == 1 else res,
+            board=target_document(tgt) if isinstance(tgt, Board) else None,
+            image_suffix=suffix,
+            camera_model=choice[names[0]][0],
+            camera_free=choice[names[0]][1],
+            camera_models=None if len(set(choice.values())) == 1 else tuple(choice.values()),
+            camera_initial=tuple((initial or {}).get(c) for c in names) if initial else None,
+        )  # fmt: skip
+        write_dataset_info(out / "dataset.json", info)
+        return info
 
 
 def _camera_choices(
@@ -368,7 +416,7 @@ def _match(
                     f"{joints} has {n_rows} joint rows but camera {cam.name} has "
                     f"{len(cam.files)} images ({cam.pattern})",
                     fix="give one row per image (rows match the images in sorted file-name "
-                    "order), or add an image column naming each row's file",
+                    "order, numbers by value), or add an image column naming each row's file",
                 )
             out[cam.name] = list(cam.files)
             continue

@@ -277,6 +277,8 @@ def load_robot(name_or_path: str | Path) -> RobotDef:
     data = read_toml(path, RobotDefinitionError)
     if "urdf" in data:
         kin = urdf_kinematics(data["urdf"], path)
+        if "home_deg" not in data:  # as for a bare URDF: 0, or mid-range where 0 is outside
+            data = {**data, "home_deg": list(urdf_home(kin.types, kin.limits))}
     else:
         kin = table_kinematics(data, path)
     mount = data.get("camera_mount")

@@ -92,32 +92,48 @@ def _load(path: Path):
         ) from exc
 
 
-def _default_links(path: Path, joints: list, links: list[str]) -> tuple[str, str]:
+_NAME_LINKS = (
+    "name the links: --base-link / --tool-link on the command line, or base_link / tool_link "
+    "in a robot TOML's [urdf] table"
+)
+
+
+def _default_base(path: Path, joints: list, links: list[str]) -> str:
+    """The URDF's one root link (the default base link)."""
     children = {j.child for j in joints}
     roots = [name for name in links if name not in children]
     if len(roots) != 1:
         raise UrdfError(
             f"{path}: {len(roots)} root links ({', '.join(roots)}); cannot choose the base link",
-            fix="name base_link and tool_link in a robot TOML's [urdf] table",
+            fix=_NAME_LINKS,
         )
+    return roots[0]
+
+
+def _default_tool(path: Path, joints: list, links: list[str], base_link: str) -> str:
+    """The leaf link below ``base_link`` reached through the most moving joints (the default
+    tool link); a tie (e.g. two gripper fingers) is an error naming the candidates."""
     parents = {j.parent for j in joints}
     by_child = {j.child: j for j in joints}
     depth = {}
     for leaf in (name for name in links if name not in parents):
         k, link = 0, leaf
-        while link in by_child:
+        while link in by_child and link != base_link:
             k += by_child[link].type != "fixed"
             link = by_child[link].parent
-        depth[leaf] = k
+        if link == base_link:
+            depth[leaf] = k
+    if not depth:
+        raise UrdfError(f"{path}: no leaf link below link {base_link!r}", fix=_NAME_LINKS)
     best = max(depth.values())
     tools = sorted(name for name, k in depth.items() if k == best)
     if len(tools) != 1:
         raise UrdfError(
-            f"{path}: the leaf links {', '.join(tools)} all end {best} moving joints from the "
-            "root; cannot choose the tool link",
-            fix="name base_link and tool_link in a robot TOML's [urdf] table",
+            f"{path}: the leaf links {', '.join(tools)} all end {best} moving joints below "
+            f"{base_link!r}; cannot choose the tool link",
+            fix=f"{_NAME_LINKS} (e.g. the flange or hand link the leaves hang from)",
         )
-    return roots[0], tools[0]
+    return tools[0]
 
 
 def urdf_chain(
@@ -135,23 +151,24 @@ def urdf_chain(
     robot = _load(path)
     joints = list(robot.joints)
     links = [link.name for link in robot.links]
-    if base_link is None or tool_link is None:
-        b, t = _default_links(path, joints, links)
-        base_link = b if base_link is None else base_link
-        tool_link = t if tool_link is None else tool_link
     for key, link in (("base_link", base_link), ("tool_link", tool_link)):
-        if link not in links:
+        if link is not None and link not in links:
             raise UrdfError(
                 f"{path}: no link named {link!r} (links: {', '.join(links)})",
-                fix=f"set [urdf] {key} to one of the URDF's link names",
+                fix=f"give --{key.replace('_', '-')} (or [urdf] {key}) one of the URDF's link "
+                "names",
             )
+    if base_link is None:
+        base_link = _default_base(path, joints, links)
+    if tool_link is None:
+        tool_link = _default_tool(path, joints, links, base_link)
     by_child = {j.child: j for j in joints}
     path_joints, link = [], tool_link
     while link != base_link:
         if link not in by_child:
             raise UrdfError(
                 f"{path}: link {tool_link!r} is not below link {base_link!r}",
-                fix="set [urdf] base_link to an ancestor of tool_link",
+                fix="give --base-link (or [urdf] base_link) an ancestor of the tool link",
             )
         path_joints.append(by_child[link])
         link = by_child[link].parent

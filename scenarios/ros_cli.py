@@ -13,7 +13,7 @@ import numpy as np
 
 from calib.bag_rest import RestRule
 from calib.choices import BAG_FORMATS, JOINT_TOPIC
-from scenarios.cli_common import CliError
+from scenarios.cli_common import CliError, note_written
 
 __all__ = ["BAG_FORMATS", "add_import_args", "bag_paths", "cmd_import_bag", "add_export_args",
            "cmd_export_bag", "export_run"]  # fmt: skip
@@ -75,6 +75,7 @@ def cmd_import_bag(args: argparse.Namespace) -> int:
                       rule=rule, per_rest=args.per_rest, base_link=args.base_link,
                       tool_link=args.tool_link, camera_model=models, free=free)  # fmt: skip
     n = len(info.planned_joints_deg)
+    note_written(args, args.out)
     src = str(bags[0]) if len(bags) == 1 else f"{len(bags)} bag files ({bags[0]} ...)"
     print(f"imported {n} frames of {len(info.cameras)} camera(s) from {src} into {args.out}")
     return 0
@@ -118,6 +119,7 @@ def cmd_export_bag(args: argparse.Namespace) -> int:
     if args.format is not None and args.format not in BAG_FORMATS:
         raise CliError(f"--format {args.format} with --bag: use one of {', '.join(BAG_FORMATS)}")
     res = export_bag(args.calibration, args.bag, args.format)
+    note_written(args, args.bag)
     print(json.dumps(res.to_json()))
     return 0
 

@@ -92,6 +92,9 @@ def test_import_calibrate_evaluate(lab, capsys):
     for n in FREE:  # measured |error| / sigma <= 1.8 (p1; k1 1.5)
         assert abs(got[n] - truth[n]) < 3 * std[n], n
     assert cal.reprojection_rms_px < 0.35  # measured 0.122 px
+    # the nominal reference misfits the perturbed robot by design: that is not a warning of a
+    # calibration at the noise floor (it was noted as "residuals are N times the stated sigmas")
+    assert not [w for w in cal.warnings if "stated sigmas" in w], cal.warnings
     capsys.readouterr()
     assert main(["evaluate", str(root / "ds"), str(root / "ds2")]) == 0
     line = capsys.readouterr().out
@@ -382,8 +385,10 @@ def test_a_pinhole_calibration_of_the_same_lens_is_clearly_worse(lab, capsys):
     assert main(["calibrate", str(root / "pin"), "--quiet"]) == 0
     err = capsys.readouterr().err  # it misfits: the warning as one log line, counted at the end
     assert "selfcal: warning: " in err and "times the stated sigmas" in err
-    last = err.splitlines()[-1]  # the two stages' misfits, each once
-    assert "UserWarning" not in err and ".py:" not in err and last.endswith("2 warnings")
+    # the pose identification's misfit, once; the nominal reference (nominal kinematics, only
+    # hand-eye and board fitted) misfits by design and is no note of the calibration
+    last = err.splitlines()[-1]
+    assert "UserWarning" not in err and ".py:" not in err and last.endswith("1 warning")
     assert last.startswith("selfcal: wrote ") and "calibration.json" in last
     assert main(["evaluate", str(root / "pin"), str(root / "pin2")]) == 0
     rms = json.loads((root / "pin2" / "evaluation.json").read_text())["reprojection_rms_px"]
