@@ -19,23 +19,32 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
+from scipy.optimize import least_squares
 
+from calib.alignment import fit_rigid_transform
 from calib.board_rig import calibrate_board_rig
 from calib.board_robot import calibrate_robot_with_board
 from calib.errors import EstimationError, SelfCalWarning
 from calib.estimation.joint_report import encoder_sigma
 from calib.frame_checks import check_distinct_frames
-from calib.identify import IdentificationError, IdentificationWarning, identify
+from calib.identify import IdentificationError, identify
 from calib.io.board_calibration import BoardCalibrationResult
 from calib.io.dataset import Dataset, DatasetError, read_gray
 from calib.io.target_toml import parse_target
-from calib.mcpc import minimal_indices, nominal_mcpc, param_names
-from calib.robot_def import load_robot
+from calib.kinematics import fk_tool
+from calib.mcpc import MCPCModel, minimal_indices, nominal_mcpc, param_names
+from calib.robot_def import RobotDef, load_robot
 from calib.target.base import Features
 from calib.target.boards import Board
-from calib.transforms import inv_pose
+from calib.transforms import inv_pose, pose_from_vec
 
-__all__ = ["dataset_board", "detect_board", "calibrate_board_dataset", "chain_param_names"]
+__all__ = [
+    "dataset_board",
+    "detect_board",
+    "calibrate_board_dataset",
+    "chain_param_names",
+    "nominal_reference",
+]
 
 
 def dataset_board(ds: Dataset) -> Board:
@@ -140,9 +149,7 @@ def calibrate_board_dataset(
             ) from exc
     used = res.used
     T_board_cam = inv_pose(res.board.T_cam_board[used])
-    with warnings.catch_warnings():  # the nominal reference misfits by design: not a note
-        warnings.simplefilter("ignore", IdentificationWarning)
-        ref = identify(nominal, q[used], T_board_cam, hold=chain_param_names(nominal.joint_types))
+    ref = nominal_reference(robot, q[used], T_board_cam)
     notes = list(incomplete)
     for w in caught:
         if issubclass(w.category, SelfCalWarning):
@@ -158,7 +165,7 @@ def calibrate_board_dataset(
         camera_std=(res.camera_std,) + (() if rig is None else rig.std[1:]),
         T_first_cam=None if rig is None else rig.T_first_cam,
         model=res.model,
-        nominal_model=ref.model,
+        nominal_model=ref,
         reprojection_rms_px=res.rms_px,
         frames=len(ds.indices),
         frames_used=int(used.sum()),
@@ -166,6 +173,43 @@ def calibrate_board_dataset(
         held=res.held,
         warnings=tuple(dict.fromkeys(notes)),
     )
+
+
+def nominal_reference(robot: RobotDef, q: np.ndarray, T_board_cam: np.ndarray) -> MCPCModel:
+    """The nominal kinematics best placed on the camera poses ``T_board_cam`` (m, 4, 4) at the
+    joints ``q`` (m, n) rad: ``T_board_cam ~ B fk_flange(q) C`` with the board pose ``B`` (board
+    <- base) and the hand-eye ``C`` (flange <- camera) free, 6 dof each (the reference of ``selfcal
+    evaluate``'s "nominal"), by least squares on each pose's origin and axis tips at 0.1 m. It
+    starts from the better of two guesses: alternating closed-form rigid fits
+    (:func:`calib.alignment.fit_rigid_transform`) from the robot file's camera mount, and an
+    identification with every chain parameter held (which cannot turn the board about joint 1's
+    axis nor shift it along that axis)."""
+    F = fk_tool(nominal_mcpc(robot), q)  # base <- flange
+    tips = np.array([[0, 0, 0, 1], [0.1, 0, 0, 1], [0, 0.1, 0, 1], [0, 0, 0.1, 1]], float).T
+
+    def residuals(B: np.ndarray, C: np.ndarray) -> np.ndarray:
+        return ((B @ F @ C - T_board_cam) @ tips)[:, :3].ravel()
+
+    C = np.asarray(robot.T_flange_cam, dtype=float)
+    for _ in range(20):
+        B = fit_rigid_transform(T_board_cam, F @ C)
+        C = inv_pose(fit_rigid_transform(inv_pose(T_board_cam), inv_pose(B @ F)))
+    nominal = nominal_mcpc(robot).with_tool(robot.T_flange_cam)
+    with warnings.catch_warnings():  # the nominal misfits by design: not a note
+        warnings.simplefilter("ignore", SelfCalWarning)
+        held = identify(nominal, q, T_board_cam, hold=chain_param_names(nominal.joint_types))
+    Fh = fk_tool(held.model, q)
+    Bh = fit_rigid_transform(Fh, F @ C)  # the held fit as B, C: Fh ~ Bh F C_h
+    Ch = inv_pose(fit_rigid_transform(inv_pose(Fh), inv_pose(Bh @ F)))
+    starts = [(B, C), (Bh, Ch)]
+    B0, C0 = min(starts, key=lambda bc: float(np.sum(residuals(*bc) ** 2)))
+
+    def unpack(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return pose_from_vec(x[:6]) @ B0, C0 @ pose_from_vec(x[6:])
+
+    sol = least_squares(lambda x: residuals(*unpack(x)), np.zeros(12), method="lm", xtol=1e-12)
+    B, C = unpack(sol.x)
+    return nominal_mcpc(robot, T_world_base=B, T_flange_tool=C)
 
 
 def chain_param_names(joint_types: tuple[str, ...]) -> tuple[str, ...]:

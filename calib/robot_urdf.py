@@ -93,8 +93,8 @@ def _load(path: Path):
 
 
 _NAME_LINKS = (
-    "name the links: --base-link / --tool-link on the command line, or base_link / tool_link "
-    "in a robot TOML's [urdf] table"
+    "name the links: --base-link / --tool-link (selfcal import), or a robot TOML beside the URDF "
+    'with [urdf] file = "ARM.urdf", base_link = "...", tool_link = "..." given as --robot'
 )
 
 
