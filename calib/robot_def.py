@@ -21,10 +21,12 @@ from calib.errors import InputError
 from calib.robot_chain import DHParams, dh_chain
 from calib.robot_encoder import EncoderSpec, encoder_spec
 from calib.robot_toml import (
+    TOP_KEYS,
     Kinematics,
     RobotDefinitionError,
     camera_mount,
     floats,
+    known_keys,
     per_joint,
     table_kinematics,
     urdf_kinematics,
@@ -275,6 +277,7 @@ def load_robot(name_or_path: str | Path) -> RobotDef:
     if path.suffix == ".urdf":
         return _from_urdf_file(path)
     data = read_toml(path, RobotDefinitionError)
+    known_keys(data, TOP_KEYS, str(path), path)
     if "urdf" in data:
         kin = urdf_kinematics(data["urdf"], path)
         if "home_deg" not in data:  # as for a bare URDF: 0, or mid-range where 0 is outside

@@ -17,6 +17,8 @@ from calib.robot_urdf import urdf_chain
 from calib.transforms import make_pose
 
 __all__ = [
+    "TOP_KEYS",
+    "known_keys",
     "JOINT_TYPES",
     "Kinematics",
     "RobotDefinitionError",
@@ -93,6 +95,27 @@ class Kinematics:
     dh: DHParams | None
 
 
+TOP_KEYS = frozenset({"name", "description", "source", "convention", "home_deg", "joint", "urdf",
+                      "camera_mount", "encoder", "planning", "simulation", "mjcf"})  # fmt: skip
+"""The keys a robot TOML may hold at its top level."""
+_JOINT_KEYS = {
+    "revolute": frozenset({"name", "type", "alpha_deg", "a_mm", "d_mm", "offset_deg", "range_deg"}),
+    "prismatic": frozenset({"name", "type", "alpha_deg", "a_mm", "d_mm", "theta_deg", "range_mm"}),
+}
+
+
+def known_keys(table: dict, known: frozenset[str], where: str, path: Path) -> None:
+    """Refuse keys a robot file's ``table`` may not hold (a misspelt or invented key was silently
+    ignored before, e.g. a ``[flange]`` table: the flange offset is the last joint's ``d_mm``)."""
+    unknown = sorted(set(table) - known)
+    if unknown:
+        raise RobotDefinitionError(
+            f"{where}: unknown key(s) {unknown}",
+            fix=f"use only {', '.join(sorted(known))} there (docs/tracker.md, models/robots/*.toml "
+            f"show robot files); edit {path}",
+        )
+
+
 def table_kinematics(data: dict, path: Path) -> Kinematics:
     """Joints and chain from the ``[[joint]]`` tables of a DH or modified-DH robot file."""
     convention = data.get("convention", "dh")
@@ -111,6 +134,7 @@ def table_kinematics(data: dict, path: Path) -> Kinematics:
         kind = jt.get("type", "revolute")
         if kind not in JOINT_TYPES:
             raise RobotDefinitionError(f"{where}: type must be one of {JOINT_TYPES}, got {kind!r}")
+        known_keys(jt, _JOINT_KEYS[kind], where, path)
         try:
             ang = np.pi / 180
             names.append(str(jt.get("name", f"joint{i + 1}")))

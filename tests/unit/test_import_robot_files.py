@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from calib.import_dataset import CameraImages, ImportError_, import_dataset, name_order
-from calib.robot_def import load_robot
+from calib.robot_def import RobotDefinitionError, load_robot
 from calib.robot_urdf import UrdfError, urdf_chain
 
 _ARM = [  # Panda-like: franka_description's joint origins (xyz m, rpy rad) and limits (rad)
@@ -136,3 +136,34 @@ def test_a_robot_toml_brings_its_urdf_into_the_dataset(arm, tmp_path):
         _import(toml, out, tmp_path)
     assert sorted(p.name for p in (out / "robot").iterdir()) == ["arm7.urdf", "robot.toml"]
     assert load_robot(out / "robot" / "robot.toml").n == 7
+
+
+_MDH = """name = "arm7-mdh"
+convention = "mdh"
+home_deg = [0.0, -17.0, 0.0, -126.0, 0.0, 112.0, 45.0]
+""" + "".join(
+    f'[[joint]]\nname = "{n}"\nalpha_deg = {np.degrees(r[0]):.1f}\na_mm = {1e3 * x[0]:.1f}\n'
+    f"d_mm = {1e3 * (x[2] - x[1]):.1f}\nrange_deg = [{np.degrees(lo):.1f}, {np.degrees(hi):.1f}]\n"
+    for n, x, r, lo, hi in _ARM
+)
+
+
+@pytest.mark.parametrize(
+    ("edit", "key"),
+    [
+        (lambda t: t + "[flange]\nd_mm = 107.0\n", "'flange'"),  # an invented table
+        (lambda t: t.replace("d_mm = 316.0", "d_mm = 316.0\ntheta_deg = 0.0", 1), "'theta_deg'"),
+        (lambda t: "nmae = 'x'\n" + t, "'nmae'"),
+    ],
+)
+def test_a_robot_toml_with_an_unknown_key_is_refused(tmp_path, edit, key):
+    """A key the robot file may not hold (before: silently ignored, e.g. a [flange] table left
+    the 107 mm flange out of the chain without a word)."""
+    good = tmp_path / "arm.toml"
+    good.write_text(_MDH)
+    assert load_robot(good).n == 7
+    bad = tmp_path / "bad.toml"
+    bad.write_text(edit(_MDH))
+    with pytest.raises(RobotDefinitionError, match=f"unknown key.*{key}") as e:
+        load_robot(bad)
+    assert str(bad) in str(e.value) and e.value.fix and "name" in e.value.fix
