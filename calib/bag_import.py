@@ -330,7 +330,8 @@ def _pair(
 
 def _per_rest(frames: list[list[int]], stamps: list[int], track: JointTrack, rule: RestRule,
               n: int | None) -> list[list[int]]:  # fmt: skip
-    """At most ``n`` frames of each rest (evenly spread over it); all when ``n`` is None."""
+    """At most ``n`` frames of each rest, evenly spread over it (``n`` = 1: its middle frame,
+    the one farthest from the motions before and after); all when ``n`` is None."""
     if n is None or not frames:
         return frames
     groups: list[list[list[int]]] = [[frames[0]]]
@@ -341,7 +342,10 @@ def _per_rest(frames: list[list[int]], stamps: list[int], track: JointTrack, rul
             groups.append([f])
     keep = []
     for g in groups:
-        idx = np.unique(np.round(np.linspace(0, len(g) - 1, min(n, len(g)))).astype(int))
+        if n == 1:
+            idx = np.array([(len(g) - 1) // 2])
+        else:
+            idx = np.unique(np.round(np.linspace(0, len(g) - 1, min(n, len(g)))).astype(int))
         keep += [g[k] for k in idx]
     return keep
 
@@ -355,7 +359,7 @@ def import_bag(
     out: str | Path,
     *,
     rule: RestRule | None = None,
-    per_rest: int | None = None,
+    per_rest: int | None = 1,
     base_link: str | None = None,
     tool_link: str | None = None,
     camera_model: str | Mapping[str, str] | None = None,
@@ -367,7 +371,7 @@ def import_bag(
     :func:`calib.import_dataset.import_dataset`; ``camera_model`` None (or a camera it does not
     name): from the calibrated CameraInfos (plumb_bob / rational_polynomial -> opencv,
     equidistant -> fisheye), else opencv.
-    ``rule``: the rest test (default :class:`calib.bag_rest.RestRule`). ``per_rest``: keep at most this many frames of each rest (None: all).
+    ``rule``: the rest test (default :class:`calib.bag_rest.RestRule`). ``per_rest``: keep at most this many frames of each rest (default 1, its middle frame: a frame is one posture, and calibrate refuses two frames of one posture as copies; None: all).
 
     Raises:
         calib.io.rosbag.BagError: a missing topic, chain joints missing from the JointState, no

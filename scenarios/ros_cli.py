@@ -45,8 +45,10 @@ def add_import_args(sp: argparse.ArgumentParser) -> None:
     g.add_argument("--max-gap", type=float, default=_RULE.max_gap_s, metavar="S",
                    help="longest pause of the joint messages within the window (default "
                    f"{_RULE.max_gap_s:g} s)")  # fmt: skip
-    g.add_argument("--per-rest", type=int, default=None, metavar="N",
-                   help="keep at most N frames of each rest (default: all)")  # fmt: skip
+    g.add_argument("--per-rest", default="1", metavar="N|all",
+                   help="keep at most N frames of each rest (default 1: the middle image of "
+                   "each rest, one frame per posture; `calibrate` refuses two frames of one "
+                   "posture as copies); all: every image at rest")  # fmt: skip
 
 
 def cmd_import_bag(args: argparse.Namespace) -> int:
@@ -62,8 +64,7 @@ def cmd_import_bag(args: argparse.Namespace) -> int:
                     ("--max-gap", args.max_gap)):  # fmt: skip
         if not v > 0:
             raise CliError(f"{name} {v}: give a positive number")
-    if args.per_rest is not None and args.per_rest < 1:
-        raise CliError(f"--per-rest {args.per_rest}: give 1 or more")
+    per_rest = None if args.per_rest == "all" else _count(args.per_rest)
     rule = RestRule(window_s=args.rest_window, speed_rad_s=float(np.radians(args.rest_speed)),
                     speed_m_s=args.rest_speed / 1e3, max_gap_s=args.max_gap)  # fmt: skip
     topics = [ImageTopic.parse(s, default_name=f"cam{k}") for k, s in enumerate(args.image_topic)]
@@ -72,13 +73,24 @@ def cmd_import_bag(args: argparse.Namespace) -> int:
     bags = bag_paths(args.bag)
     info = import_bag(bags if len(bags) > 1 else bags[0], topics, args.joint_topic, args.robot,
                       args.target, args.out,
-                      rule=rule, per_rest=args.per_rest, base_link=args.base_link,
+                      rule=rule, per_rest=per_rest, base_link=args.base_link,
                       tool_link=args.tool_link, camera_model=models, free=free)  # fmt: skip
     n = len(info.planned_joints_deg)
     note_written(args, args.out)
     src = str(bags[0]) if len(bags) == 1 else f"{len(bags)} bag files ({bags[0]} ...)"
     print(f"imported {n} frames of {len(info.cameras)} camera(s) from {src} into {args.out}")
     return 0
+
+
+def _count(text: str) -> int:
+    """``--per-rest``'s number (1 or more)."""
+    try:
+        n = int(text)
+    except ValueError:
+        n = 0
+    if n < 1:
+        raise CliError(f"--per-rest {text}: give a number of 1 or more, or all")
+    return n
 
 
 def bag_paths(specs: list[str]) -> list[Path]:

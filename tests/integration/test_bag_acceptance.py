@@ -105,15 +105,10 @@ def test_one_frame_per_rest_imports_and_calibrates(recording, tmp_path, capsys):
     assert cal.reprojection_rms_px < 0.3  # measured 0.117 px
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="calib/bag_import.py keeps every image at rest by default (and docs/ros.md suggests "
-    "--per-rest 2), but calibrate's frame check (calib/frame_checks.py) refuses two images of "
-    "one rest as copies: same joint readings, corners within NEAR_PX = 0.05 px (measured "
-    "0.008 px apart here, 0.012-0.016 px on a 2064x1544 lab, with independent sensor noise). An imported bag is refused unless "
-    "--per-rest 1 (session 5 acceptance, for the ROS bag owner, #20)",
-)
 def test_the_default_import_of_a_bag_calibrates(recording, tmp_path):
+    """The import keeps one frame per rest by default (its middle image): with every image at
+    rest, calibrate refused two images of one rest as copies (same joint readings, corners
+    0.008 px apart)."""
     bag, target = recording
     out = tmp_path / "ds"
     assert _import(bag, target, out) == 0
