@@ -7,12 +7,15 @@ length, poses, rig, points, scale), identify (MCPC least squares), report (again
 self-calibrate + identify + the output document), a cross-check of the sum. Prints a Markdown
 table with the machine (CPU count, CPU model). Not a test.
 
-Run: ``MUJOCO_GL=egl .venv/bin/python scenarios/benchmark.py [--poses 10 30 100 300]``.
+Run: ``MUJOCO_GL=egl uv run python -m scenarios.benchmark [--poses 10 30 100 300] [--write-doc]``;
+``--write-doc`` writes the table, with the date, the command and the load average, into
+docs/performance.md between the ``benchmark_stages`` markers.
 """
 
 from __future__ import annotations
 
 import argparse
+import datetime
 import os
 import platform
 import tempfile
@@ -117,10 +120,15 @@ def table(results: list[dict]) -> str:
     return "\n".join(lines)
 
 
+COMMAND = "MUJOCO_GL=egl uv run python -m scenarios.benchmark --write-doc"
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--poses", type=int, nargs="+", default=[10, 30, 100, 300])
+    ap.add_argument("--write-doc", action="store_true", help="write docs/performance.md's table")
     args = ap.parse_args()
+    load_before = os.getloadavg()[0]
     results = []
     with tempfile.TemporaryDirectory(prefix="selfcal-bench-") as d, warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -131,13 +139,19 @@ def main() -> None:
                 + ", ".join(f"{k} {v:.2f} s" for k, v in results[-1]["times"].items()),
                 flush=True,
             )
-    print()
-    print(
-        f"Machine: {machine()}; default scenario (rendered 640x480 stereo, 20 markers), "
-        "MUJOCO_GL=" + os.environ.get("MUJOCO_GL", "")
+    when = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    head = (
+        f"Measured {when} with `{COMMAND}` ({machine()}; 1-minute load average "
+        f"{load_before:.1f} before, {os.getloadavg()[0]:.1f} after; default scenario: rendered "
+        "640x480 stereo, 20 markers; MUJOCO_GL=" + os.environ.get("MUJOCO_GL", "") + ")."
     )
+    block = head + "\n\n" + table(results)
     print()
-    print(table(results))
+    print(block)
+    if args.write_doc:
+        from scenarios.benchmark_speed import ROOT, write_block
+
+        write_block(ROOT / "docs" / "performance.md", block, "benchmark_stages")
 
 
 if __name__ == "__main__":

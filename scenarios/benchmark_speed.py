@@ -305,13 +305,16 @@ def linear_growth(rows: list[dict]) -> str:
     )
 
 
-def write_block(path: Path, block: str) -> None:
+def write_block(path: Path, block: str, name: str = "benchmark_speed") -> None:
+    """Replace what stands between ``<!-- NAME: begin -->`` and ``<!-- NAME: end -->`` in
+    ``path`` by ``block``; no markers is an error naming the file."""
+    begin, end = f"<!-- {name}: begin -->", f"<!-- {name}: end -->"
     text = path.read_text()
-    if BEGIN not in text:
-        raise SystemExit(f"{path}: no {BEGIN} ... {END} markers to write between")
-    head, rest = text.split(BEGIN, 1)
-    tail = rest.split(END, 1)[1]
-    write_text_atomic(path, f"{head}{BEGIN}\n{block}\n{END}{tail}")
+    if begin not in text or end not in text:
+        raise SystemExit(f"{path}: no {begin} ... {end} markers to write between")
+    head, rest = text.split(begin, 1)
+    tail = rest.split(end, 1)[1]
+    write_text_atomic(path, f"{head}{begin}\n{block}\n{end}{tail}")
 
 
 def main(argv: list[str] | None = None) -> int:
