@@ -149,7 +149,7 @@ def main() -> None:
     print()
     print(block)
     if args.write_doc:
-        from scenarios.benchmark_speed import ROOT, write_block
+        from scenarios.doc_blocks import ROOT, write_block
 
         write_block(ROOT / "docs" / "performance.md", block, "benchmark_stages")
 
