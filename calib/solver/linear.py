@@ -9,9 +9,10 @@ Three forms of ``A = J^T W J``, ``g = J^T W r`` (``W`` the per-row IRLS weights)
 - ``schur``: the unknowns of one parameter block's *instances* (e.g. the camera poses) are
   eliminated: ``A`` is assembled straight from the Jacobian pieces as ``[[U, W], [W^T, V]]``
   with ``U`` block diagonal (one small block per instance, since no residual row touches two
-  instances), so each solve factors the instance blocks and the dense reduced
-  ``V - W^T U^-1 W`` (the kept unknowns, e.g. intrinsics, rig and points) only: assembly and
-  solve linear in the number of instances.
+  instances; :mod:`calib.solver.schur`, its structure built once per solve), so each solve
+  factors the instance blocks (Cholesky) and the dense reduced ``V - W^T U^-1 W`` (the kept
+  unknowns, e.g. intrinsics, rig and points) only: assembly and solve linear in the number of
+  instances.
 
 Every form solves ``(S A S + lam I) y = S g`` with ``S = diag(A)^-1/2`` and returns ``S y``
 (Marquardt scaling, the damping of :mod:`calib.solver.lm`). Singular systems raise
@@ -28,6 +29,7 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
 from calib.solver.problem import Evaluation, Problem
+from calib.solver.schur import SchurAssembler
 
 __all__ = ["DENSE_MAX", "SingularSystem", "NormalEquations", "assemble", "DampedSystem"]
 
@@ -233,135 +235,30 @@ def _dense_normal(
     return NormalEquations("dense", n, g, A=A)
 
 
-def _schur_layout(inst: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """From the instance of every unknown (-1 = kept): slot per unknown, kept index per unknown,
-    ``elim`` (I, s) and ``kept`` (nk,)."""
-    n = len(inst)
-    kept = np.flatnonzero(inst < 0)
-    e = np.flatnonzero(inst >= 0)
-    ids, inv = np.unique(inst[e], return_inverse=True)
-    counts = np.bincount(inv, minlength=len(ids))
-    s = int(counts.max()) if len(ids) else 1
-    order = np.argsort(inv, kind="stable")
-    slot = np.empty(len(e), np.int64)
-    starts = np.cumsum(counts) - counts
-    slot[order] = np.arange(len(e)) - np.repeat(starts, counts)
-    elim = -np.ones((len(ids), s), np.int64)
-    elim[inv, slot] = e
-    slot_of = np.full(n + 1, s, np.int64)
-    slot_of[e] = slot
-    inst_of = np.full(n + 1, len(ids), np.int64)
-    inst_of[e] = inv
-    kid = np.full(n + 1, len(kept), np.int64)
-    kid[kept] = np.arange(len(kept))
-    return np.stack([slot_of, inst_of, kid]), elim, kept, np.array([len(ids), s, len(kept)])
-
-
-def _split_columns(
-    J: np.ndarray, G: np.ndarray, keep: np.ndarray
-) -> tuple[np.ndarray, np.ndarray] | None:
-    """The columns of a piece (``J`` (k, d, c), ``G`` (k, c)) where ``keep`` (k, c): the others
-    zeroed / ``-1``, columns never kept dropped; None when nothing is kept."""
-    used = keep.any(axis=0)
-    if not used.any():
-        return None
-    J, G, keep = J[:, :, used], G[:, used], keep[:, used]
-    if not keep.all():
-        J = np.where(keep[:, None, :], J, 0.0)
-        G = np.where(keep, G, -1)
-    return J, G
-
-
-def _side_by_side(parts: list[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
-    if len(parts) == 1:
-        return parts[0]
-    return np.concatenate([p[0] for p in parts], axis=2), np.concatenate([p[1] for p in parts], 1)
-
-
-def _schur_normal(
-    problem: Problem,
-    evals: Sequence[Evaluation],
-    weights: Sequence[np.ndarray],
-    inst: np.ndarray,
-) -> NormalEquations:
-    """``J^T W J`` straight from the Jacobian pieces as the instance blocks ``U`` (by per-row
-    products scattered into (I, s, s)), the coupling ``W`` (into (I, s, nk)) and the kept block
-    ``V`` (dense, as :func:`_dense_normal` over the kept columns): linear in the number of
-    instances. Raises ``ValueError`` if a residual row couples two instances."""
-    n = problem.n
-    (slot_of, inst_of, kid), elim, kept, (ni, s, nk) = _schur_layout(inst)
-    inst_x = np.append(inst, -1)  # index -1 (no column) -> not eliminated
-    U = np.zeros(ni * s * s)
-    W = np.zeros(ni * s * nk)
-    V = np.zeros((nk, nk))
-    B: np.ndarray | None = None
-    g = np.zeros(n)
-    for ev, w in zip(evals, weights):
-        Gs = [problem.global_cols(pc) for pc in ev.pieces]
-        for sl in _chunks(len(ev.residuals)):
-            ws = w[sl]
-            e_parts: list[tuple[np.ndarray, np.ndarray]] = []
-            k_parts: list[tuple[np.ndarray, np.ndarray]] = []
-            for pc, Gf in zip(ev.pieces, Gs):
-                J, G = pc.J[sl], Gf[sl]
-                valid = G >= 0
-                if not valid.any():
-                    continue
-                gr = np.einsum("kda,kd->ka", J * ws[:, None, None], ev.residuals[sl])
-                g += np.bincount(G[valid], gr[valid], n)
-                is_e = valid & (inst_x[G] >= 0)
-                for parts, mask, G2 in ((e_parts, is_e, G), (k_parts, valid & ~is_e, kid[G])):
-                    part = _split_columns(J, G2, mask)
-                    if part is not None:
-                        parts.append(part)
-            kps = [_Piece(J, ws, G, nk) for J, G in k_parts]
-            B = _accumulate(V, B, _grouped(kps, ws, nk) if kps else [])
-            if not e_parts:
-                continue
-            Je, Ge = _side_by_side(e_parts)
-            valid = Ge >= 0
-            ie = np.where(valid, inst_of[Ge], -1)
-            row = ie.max(axis=1)
-            if np.any(valid & (ie != row[:, None])):
-                raise ValueError(
-                    "a residual block couples two instances of the eliminated parameter block; "
-                    "the Schur elimination does not apply"
-                )
-            base = np.maximum(row, 0)[:, None] * s + np.where(valid, slot_of[Ge], 0)  # (k, ce)
-            wJe = Je * ws[:, None, None]
-            L = np.matmul(wJe.transpose(0, 2, 1), Je)
-            U += np.bincount((base[:, :, None] * s + base[:, None, :] % s).ravel(), L.ravel(),
-                             ni * s * s)  # fmt: skip
-            if k_parts:
-                Jk, Kk = _side_by_side(k_parts)
-                L = np.matmul(wJe.transpose(0, 2, 1), Jk)
-                idx = base[:, :, None] * nk + np.where(Kk >= 0, Kk, 0)[:, None, :]
-                W += np.bincount(idx.ravel(), L.ravel(), ni * s * nk)
-    if B is not None:
-        V += B + B.T
-    return NormalEquations(
-        "schur", n, g, U=U.reshape(ni, s, s), W=W.reshape(ni, s, nk), V=V, elim=elim, kept=kept
-    )
-
-
 def assemble(
     problem: Problem,
     evals: Sequence[Evaluation],
     weights: Sequence[np.ndarray],
     kind: str,
     instances: np.ndarray | None = None,
+    schur: SchurAssembler | None = None,
 ) -> NormalEquations:
     """Normal equations of ``problem`` from Jacobian evaluations and per-row weights (k,) per
     residual block. ``kind``: "dense", "sparse" or "schur" (``instances`` (n,) int: instance of
-    every unknown to eliminate, -1 kept; see :meth:`Problem.instance_of_columns`)."""
+    every unknown to eliminate, -1 kept; see :meth:`Problem.instance_of_columns`; or ``schur``,
+    an assembler of the problem that keeps its structure from one call to the next)."""
     if kind == "dense":
         return _dense_normal(problem, evals, weights)
     if kind == "sparse":
         return _sparse_normal(problem, evals, weights)
     if kind == "schur":
-        if instances is None:
-            raise ValueError("the Schur form needs the instances of the eliminated unknowns")
-        return _schur_normal(problem, evals, weights, instances)
+        if schur is None:
+            if instances is None:
+                raise ValueError("the Schur form needs the instances of the eliminated unknowns")
+            schur = SchurAssembler(problem, instances)
+        g, U, W, V = schur.assemble(evals, weights)
+        lay = schur.layout
+        return NormalEquations("schur", problem.n, g, U=U, W=W, V=V, elim=lay.elim, kept=lay.kept)
     raise ValueError(f"unknown linear solver {kind!r}; use dense, sparse or schur")
 
 
@@ -428,16 +325,29 @@ class DampedSystem:
             y[kept] = np.linalg.solve(self.Vs + lam * np.eye(nk), gs[kept])
             return y
         Ud = self.Us + lam * np.eye(s)
-        Ui = np.linalg.inv(Ud)
         e = elim >= 0
         ge = np.where(e, gs[np.maximum(elim, 0)], 0.0)
-        Z = np.matmul(Ui, self.Ws).reshape(ni * s, -1)
-        Wf = self.Ws.reshape(ni * s, -1)
-        S = self.Vs - Wf.T @ Z
-        S[np.diag_indices_from(S)] += lam
-        uge = np.einsum("iab,ib->ia", Ui, ge)
-        yk = np.linalg.solve(S, gs[kept] - Wf.T @ uge.ravel())
-        ye = uge - np.einsum("iab,b->ia", Z.reshape(ni, s, -1), yk)
+        try:  # U_i = L_i L_i^T: the reduced matrix by a symmetric product of L_i^-1 W_i
+            Li = np.linalg.inv(np.linalg.cholesky(Ud))
+        except np.linalg.LinAlgError:  # not positive definite in floating point: LU
+            Li = None
+        if Li is not None:
+            Y = np.matmul(Li, self.Ws).reshape(ni * s, -1)
+            S = self.Vs - Y.T @ Y
+            lge = np.einsum("iab,ib->ia", Li, ge).ravel()
+            S[np.diag_indices_from(S)] += lam
+            yk = np.linalg.solve(S, gs[kept] - Y.T @ lge)
+            t = lge - Y @ yk
+            ye = np.einsum("iba,ib->ia", Li, t.reshape(ni, s))
+        else:
+            Ui = np.linalg.inv(Ud)
+            Z = np.matmul(Ui, self.Ws).reshape(ni * s, -1)
+            Wf = self.Ws.reshape(ni * s, -1)
+            S = self.Vs - Wf.T @ Z
+            S[np.diag_indices_from(S)] += lam
+            uge = np.einsum("iab,ib->ia", Ui, ge)
+            yk = np.linalg.solve(S, gs[kept] - Wf.T @ uge.ravel())
+            ye = uge - np.einsum("iab,b->ia", Z.reshape(ni, s, -1), yk)
         y = np.empty_like(gs)
         y[kept] = yk
         y[elim[e]] = ye[e]

@@ -28,6 +28,7 @@ import numpy as np
 from calib.errors import SolverError
 from calib.solver.linear import DENSE_MAX, DampedSystem, SingularSystem, assemble
 from calib.solver.problem import Evaluation, Problem
+from calib.solver.schur import SchurAssembler
 
 __all__ = ["SolverOptions", "SolverResult", "solve", "cost_and_weights"]
 
@@ -127,6 +128,7 @@ def solve(problem: Problem, options: SolverOptions | None = None) -> SolverResul
     """
     opt = options or SolverOptions()
     kind, inst = _linear_kind(problem, opt)
+    schur = SchurAssembler(problem, inst) if kind == "schur" and inst is not None else None
     tol = opt.tol
     x = problem.x0.copy()
     evals = problem.evaluate(x)
@@ -143,7 +145,7 @@ def solve(problem: Problem, options: SolverOptions | None = None) -> SolverResul
         jev = problem.evaluate(x, jacobian=True)
         problem.check_finite(jev, f"iteration {it}")
         _, weights = cost_and_weights(problem, jev)
-        ne = assemble(problem, jev, weights, kind, inst)
+        ne = assemble(problem, jev, weights, kind, inst, schur)
         if not ne.is_finite():
             raise SolverError(
                 f"the normal equations overflow (NaN/inf) at iteration {it} in residual blocks "

@@ -1,0 +1,144 @@
+"""The Schur-form assembly (calib.solver.schur) against the dense normal equations, on residual
+blocks with every column kind: instance columns, constant and varying kept columns, a column that
+is an instance's unknown in some rows and a shared one in others, unused (-1) and held entries,
+rows without instance columns, and a one-row block."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from calib.solver import Evaluation, JacobianPiece, Loss, ParameterBlock, Problem
+from calib.solver.linear import assemble
+from calib.solver.schur import SchurAssembler
+
+N_INST, N_PTS = 5, 7
+
+
+class Fixed:
+    """A residual block that returns stored residuals and Jacobian pieces (values replaceable)."""
+
+    def __init__(self, name, residuals, pieces):
+        self.name, self.dim, self.loss = name, residuals.shape[1], Loss()
+        self.residuals, self.pieces = residuals, pieces
+
+    def evaluate(self, values, jacobian):
+        return Evaluation(self.residuals, tuple(self.pieces) if jacobian else ())
+
+
+def _blocks(rng, k=60, d=2):
+    """Four residual blocks over ``a`` (4 shared), ``p`` (3 per instance + 2 shared, one held)
+    and ``x`` (3 per point)."""
+    inst = rng.integers(0, N_INST, k)
+    pts = rng.integers(0, N_PTS, k)
+    a_cols = np.broadcast_to(np.arange(4), (k, 4)).copy()
+    a_cols[rng.random((k, 4)) < 0.2] = -1  # some rows do not use some shared columns
+    p_cols = 3 * inst[:, None] + np.arange(3)
+    mixed = rng.random(k) < 0.3  # column 2: the instance's third unknown or a shared one
+    p_cols[mixed, 2] = 15 + rng.integers(0, 2, int(mixed.sum()))
+    p_cols[rng.random(k) < 0.1, 0] = -1
+    x_cols = 3 * pts[:, None] + np.arange(3)
+    x_cols[rng.random(k) < 0.05] = -1  # rows that see no point
+    main = Fixed(
+        "main",
+        rng.standard_normal((k, d)),
+        [
+            JacobianPiece("a", rng.standard_normal((k, d, 4)), a_cols),
+            JacobianPiece("p", rng.standard_normal((k, d, 3)), p_cols),
+            JacobianPiece("x", rng.standard_normal((k, d, 3)), x_cols),
+        ],
+    )
+    one = Fixed(  # one row over several points (every column is "constant")
+        "one",
+        rng.standard_normal((1, 1)),
+        [JacobianPiece("x", rng.standard_normal((1, 1, 6)), np.array([[0, 1, 2, 9, 10, 11]]))],
+    )
+    m = 2 * N_INST
+    prior_cols = rng.integers(0, 17, (m, 1))
+    prior = Fixed(  # one unknown per row, instance or shared (a prior)
+        "prior", rng.standard_normal((m, 1)), [JacobianPiece("p", np.ones((m, 1, 1)), prior_cols)]
+    )
+    only_a = Fixed(  # rows without instance columns
+        "only_a",
+        rng.standard_normal((8, 3)),
+        [JacobianPiece("a", rng.standard_normal((8, 3, 2)), np.array([[3, 1]]))],
+    )
+    return [main, one, prior, only_a]
+
+
+def _problem(rng):
+    held = np.zeros(17, bool)
+    held[4] = True  # an instance unknown held: its entries are no columns
+    instance = np.concatenate([np.repeat(np.arange(N_INST), 3), [-1, -1]])
+    params = [
+        ParameterBlock("a", rng.standard_normal(4)),
+        ParameterBlock("p", rng.standard_normal(17), held=held, instance=instance),
+        ParameterBlock("x", rng.standard_normal(3 * N_PTS)),
+    ]
+    return Problem(params, _blocks(rng))
+
+
+def _full(ne):
+    """The (n, n) matrix of a Schur-form NormalEquations."""
+    U, W, V, elim, kept = ne.schur_parts
+    A = np.zeros((ne.n, ne.n))
+    for i in range(len(elim)):
+        e = elim[i] >= 0
+        ei = elim[i][e]
+        A[np.ix_(ei, ei)] = U[i][np.ix_(e, e)]
+        A[np.ix_(ei, kept)] = W[i][e]
+        A[np.ix_(kept, ei)] = W[i][e].T
+    A[np.ix_(kept, kept)] = V
+    return A
+
+
+def _weights(rng, evals):
+    return [rng.uniform(0.2, 1.0, len(ev.residuals)) for ev in evals]
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1))
+def test_schur_assembly_is_the_dense_normal_matrix(seed):
+    rng = np.random.default_rng(seed)
+    prob = _problem(rng)
+    evals = prob.evaluate(prob.x0, jacobian=True)
+    w = _weights(rng, evals)
+    dense = assemble(prob, evals, w, "dense")
+    schur = assemble(prob, evals, w, "schur", prob.instance_of_columns("p"))
+    scale = np.abs(dense.dense_A).max()
+    np.testing.assert_allclose(_full(schur), dense.dense_A, rtol=0, atol=1e-13 * scale)
+    np.testing.assert_allclose(schur.g, dense.g, rtol=0, atol=1e-13 * np.abs(dense.g).max())
+
+
+def test_the_structure_is_reused_and_rebuilt_when_the_columns_change():
+    rng = np.random.default_rng(7)
+    prob = _problem(rng)
+    asm = SchurAssembler(prob, prob.instance_of_columns("p"))
+    for it in range(3):
+        main = prob.residuals[0]
+        main.pieces = [
+            JacobianPiece(pc.block, rng.standard_normal(pc.J.shape), pc.cols) for pc in main.pieces
+        ]
+        if it == 2:  # a new column pattern: the points of the rows move
+            pc = main.pieces[2]
+            main.pieces[2] = JacobianPiece("x", pc.J, np.roll(pc.cols, 3, axis=0))
+        evals = prob.evaluate(prob.x0, jacobian=True)
+        w = _weights(rng, evals)
+        schur = assemble(prob, evals, w, "schur", schur=asm)
+        dense = assemble(prob, evals, w, "dense")
+        scale = np.abs(dense.dense_A).max()
+        np.testing.assert_allclose(_full(schur), dense.dense_A, rtol=0, atol=1e-13 * scale)
+
+
+def test_a_row_that_couples_two_instances_is_refused():
+    rng = np.random.default_rng(3)
+    prob = _problem(rng)
+    main = prob.residuals[0]
+    cols = main.pieces[1].cols.copy()
+    cols[0] = [0, 1, 3]  # instance 0 and instance 1 in one row
+    main.pieces[1] = JacobianPiece("p", main.pieces[1].J, cols)
+    evals = prob.evaluate(prob.x0, jacobian=True)
+    with pytest.raises(ValueError, match="couples two instances"):
+        assemble(prob, evals, _weights(rng, evals), "schur", prob.instance_of_columns("p"))
