@@ -15,7 +15,8 @@ projection live in :mod:`calib.estimation` and :mod:`calib.camera`.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import functools
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Generic
 
@@ -46,8 +47,9 @@ __all__ = [
 class BundleResult(Generic[C]):
     """Output of :func:`bundle_adjust` (in the pose model's gauge): the adjusted ``camera``, pose
     parameters, poses ``T_cam_world`` (V, 4, 4), points ``X`` (P, 3), residuals (k, 2) px of the
-    rows passed in, the solver's cost/evaluations/status, the final Jacobian (columns: the
-    ``n_intrinsics`` free camera parameters unless fixed, then poses, then points)."""
+    rows passed in, the solver's cost/evaluations/status, the final Jacobian :attr:`jac`
+    (columns: the ``n_intrinsics`` free camera parameters unless fixed, then poses, then points;
+    evaluated on first use: most adjustments never ask for it)."""
 
     camera: C
     pose_params: np.ndarray
@@ -58,8 +60,13 @@ class BundleResult(Generic[C]):
     nfev: int
     status: int
     message: str
-    jac: sp.csr_matrix | None = field(default=None, repr=False)
+    jacobian: Callable[[], sp.csr_matrix] | None = field(default=None, repr=False)
     n_intrinsics: int = 0
+
+    @functools.cached_property
+    def jac(self) -> sp.csr_matrix | None:
+        """The final sparse Jacobian (rows: residuals raveled), None without an analytic one."""
+        return None if self.jacobian is None else self.jacobian()
 
 
 class _Problem(Generic[C]):
@@ -231,7 +238,7 @@ def bundle_adjust(
         status, message = int(ls.status), str(ls.message)
     cam, p, X = prob.unpack(x)
     T = model.poses(p)
-    J = prob.jac(x) if use_analytic else None
+    J = functools.partial(prob.jac, x.copy()) if use_analytic else None
     return BundleResult(cam, p.copy(), T, X.copy(), r, cost, nfev, status, message, J, prob.ni)
 
 
