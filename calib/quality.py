@@ -101,22 +101,20 @@ def model_reprojection_rms_px(
     ``T_first_cam`` (N, 4, 4) m and the points ``X_world`` (P, 3) m of ``point_ids``.
     Observations of points without a finite position are left out; NaN when none remains."""
     T_world_first = fk_tool(model, q)
-    where = {int(i): k for k, i in enumerate(np.asarray(point_ids))}
-    k = np.array([where.get(int(p), -1) for p in obs.point])
+    ids = np.asarray(point_ids)
+    k = -np.ones(len(obs.point), np.int64)  # index of each observation's point in point_ids
+    if len(ids):
+        order = np.argsort(ids, kind="stable")
+        pos = np.minimum(np.searchsorted(ids[order], obs.point), len(ids) - 1)
+        k = np.where(ids[order][pos] == obs.point, order[pos], -1)
     keep = k >= 0
     keep[keep] = np.isfinite(X_world[k[keep]]).all(axis=1)
     if not keep.any():
         return float("nan")
-    sq = []
-    for c in np.unique(obs.config[keep]):
-        for cam in np.unique(obs.camera[keep]):
-            rows = keep & (obs.config == c) & (obs.camera == cam)
-            if not rows.any():
-                continue
-            T_cam_world = inv_pose(T_world_first[c] @ T_first_cam[cam])
-            X = X_world[k[rows]] @ T_cam_world[:3, :3].T + T_cam_world[:3, 3]
-            sq.append(np.sum((camera.project(X) - obs.uv[rows]) ** 2, axis=1))
-    return float(np.sqrt(np.mean(np.concatenate(sq))))
+    T_cam_world = inv_pose(T_world_first[:, None] @ np.asarray(T_first_cam)[None])  # (m, N)
+    T = T_cam_world[obs.config[keep], obs.camera[keep]]  # per observation
+    X = np.einsum("kij,kj->ki", T[:, :3, :3], X_world[k[keep]]) + T[:, :3, 3]
+    return float(np.sqrt(np.mean(np.sum((camera.project(X) - obs.uv[keep]) ** 2, axis=1))))
 
 
 def nominal_fit_failure(calibrated_px: float, nominal_px: float) -> str | None:
