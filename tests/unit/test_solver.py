@@ -259,3 +259,21 @@ def test_scaled_rank_above_dense_max_matches_the_dense_eigenvalues(monkeypatch):
     assert lanczos[0] == pytest.approx(dense[0], rel=1e-10)
     J_def = sp.hstack([J, sp.csr_matrix((400, 1))]).tocsr()  # an unknown no row sees
     assert cov_mod.scaled_rank(J_def) == (0.0, 80)
+
+
+def test_normal_matrix_with_dense_columns_is_jtj():
+    """The split product (dense columns by BLAS, the rest sparse) is ``J^T J``; also without
+    dense columns and with only dense ones."""
+    import importlib
+
+    import scipy.sparse as sp
+
+    cov_mod = importlib.import_module("calib.solver.covariance")
+    rng = np.random.default_rng(5)
+    S = sp.random(300, 40, density=0.03, random_state=6, format="csr")
+    D = sp.csr_matrix(rng.standard_normal((300, 4)) * (rng.random((300, 1)) < 0.6))
+    for J in (sp.hstack([S[:, :20], D, S[:, 20:]]).tocsr(), S, D):
+        ref = (J.T @ J).toarray()
+        got = cov_mod.normal_matrix(J)
+        assert sp.issparse(got) and got.format == "csc"
+        np.testing.assert_allclose(got.toarray(), ref, rtol=0, atol=1e-14 * np.abs(ref).max())
