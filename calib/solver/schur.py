@@ -125,31 +125,28 @@ class _Columns:
         self.off.append(np.flatnonzero(~used))
 
     def freeze(self) -> None:
-        """Group the sources by piece (slices where contiguous) and stack the zero entries."""
+        """Cut the sources into runs of consecutive columns of one piece (copied as slices) and
+        stack the zero entries."""
         self.c = len(self.src)
         self.Gm = np.stack(self.G, axis=1) if self.G else np.zeros((self.k, 0), np.int64)
-        self.by_piece: list[tuple[int, slice | np.ndarray, slice | np.ndarray]] = []
-        src = np.array(self.src, np.int64).reshape(-1, 2)
-        for p in np.unique(src[:, 0]):
-            dst = np.flatnonzero(src[:, 0] == p)
-            self.by_piece.append((int(p), _as_slice(src[dst, 1]), _as_slice(dst)))
+        self.runs: list[tuple[int, slice, slice]] = []
+        for dst, (p, col) in enumerate(self.src):
+            if self.runs and self.runs[-1][0] == p and self.runs[-1][1].stop == col:
+                _, a, b = self.runs.pop()
+                self.runs.append((p, slice(a.start, col + 1), slice(b.start, dst + 1)))
+            else:
+                self.runs.append((p, slice(col, col + 1), slice(dst, dst + 1)))
         self.zr = np.concatenate([o for o in self.off] or [np.zeros(0, np.int64)])
         self.zc = np.repeat(np.arange(self.c), [len(o) for o in self.off]).astype(np.int64)
 
     def gather(self, Js: Sequence[np.ndarray], sw: np.ndarray) -> np.ndarray:
         X = np.empty((self.k + 1, self.d, self.c))
         X[self.k] = 0.0
-        for p, s, dst in self.by_piece:
-            X[: self.k, :, dst] = Js[p][:, :, s] * sw
+        for p, src, dst in self.runs:
+            np.multiply(Js[p][:, :, src], sw, out=X[: self.k, :, dst])
         if len(self.zr):
             X[self.zr, :, self.zc] = 0.0
         return X
-
-
-def _as_slice(idx: np.ndarray) -> slice | np.ndarray:
-    if len(idx) and np.array_equal(idx, np.arange(idx[0], idx[0] + len(idx))):
-        return slice(int(idx[0]), int(idx[0]) + len(idx))
-    return idx
 
 
 class _BlockPlan:
