@@ -4,6 +4,7 @@
   (batches of homogeneous rows with Jacobian pieces) laid out as one unknown vector;
 - :mod:`calib.solver.losses`: robust losses on each row's norm (IRLS);
 - :mod:`calib.solver.linear`: dense, sparse and Schur-complement normal equations, damped solves;
+- :mod:`calib.solver.schur`: the Schur form's assembly, its structure built once per solve;
 - :mod:`calib.solver.lm`: the LM loop, its options, budget and result;
 - :mod:`calib.solver.covariance`: blocks of ``(J^T J)^-1`` after a solve.
 """
