@@ -5,7 +5,8 @@ against pybotics.
 Measures, in one run on this machine:
 
 - ``selfcal --help`` and ``selfcal fk`` as whole processes (median of ``--repeat`` runs);
-- ``selfcal run`` of the default scenario (rendered, 30 poses) as a whole process;
+- ``selfcal run`` of the default scenario (rendered, 30 poses) as a whole process, and again
+  beside a process that spins one core (the ratio to the quiet run: #17 asks for <= 1.5x);
 - ``calibrate`` in-process on analytic-path datasets of the default scenario with 30, 100, 300
   and 1000 poses (``[trajectory] poses``), wall and CPU seconds, and the acquisition of each;
 - the bundle adjustment's last plain least-squares pass (captured inside ``calibrate`` at
@@ -187,6 +188,18 @@ def pybotics_ratio(n: int, repeats_ours: int = 10, repeats_pybotics: int = 3) ->
     return row
 
 
+def beside_a_busy_process(argv: list[str]) -> tuple[float, float]:
+    """:func:`process_seconds` of ``argv`` once while another process spins one core (a
+    CPU-bound neighbour on the shared machine: #17 asks for at most 1.5x the quiet time)."""
+    busy = subprocess.Popen([sys.executable, "-c", "while True: pass"])
+    try:
+        time.sleep(0.5)  # the neighbour runs before the command starts
+        return process_seconds(argv, 1)
+    finally:
+        busy.kill()
+        busy.wait()
+
+
 def measure(args: argparse.Namespace) -> dict:
     """Every figure of the table, with the load average around each part."""
     script = Path(sys.executable).parent / "selfcal"  # the installed console script
@@ -203,6 +216,11 @@ def measure(args: argparse.Namespace) -> dict:
             fig["run"] = process_seconds([*selfcal, "run", "--quiet", "--out", str(root / "run")],
                                          1)  # fmt: skip
             print(f"selfcal run (default scenario) {fig['run']} s (wall, CPU)")
+            fig["load"].append(load())
+            fig["run_loaded"] = beside_a_busy_process(
+                [*selfcal, "run", "--quiet", "--out", str(root / "run-loaded")]
+            )
+            print(f"selfcal run beside a CPU-bound process {fig['run_loaded']} s (wall, CPU)")
             fig["load"].append(load())
         fig["calibrate"] = calibrate_scaling(args.poses, root)
         fig["load"].append(load())
@@ -231,6 +249,10 @@ def table(fig: dict) -> str:
     if "run" in fig:
         lines.append(f"| `selfcal run` default scenario (rendered, 30 poses; process; CPU "
                      f"{fig['run'][1]:.2f} s) | {fig['run'][0]:.2f} |")  # fmt: skip
+    if "run_loaded" in fig:
+        r = fig["run_loaded"][0] / fig["run"][0]
+        lines.append(f"| same, beside a CPU-bound process (CPU {fig['run_loaded'][1]:.2f} s; "
+                     f"{r:.2f}x the quiet run) | {fig['run_loaded'][0]:.2f} |")  # fmt: skip
     for r in fig["calibrate"]:
         lines.append(
             f"| `calibrate`, analytic, {r['poses']} poses ({r['used']} used; in-process wall, "
