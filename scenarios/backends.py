@@ -17,6 +17,7 @@ from calib.camera import Intrinsics, Rig
 from calib.errors import InputError
 from calib.io.atomic import write_image_atomic
 from calib.io.dataset_info import DatasetInfo, scenario_digest
+from calib.io.target_toml import target_document
 from calib.io.truth import (
     TRUTH_JOURNAL,
     append_truth_frame,
@@ -38,10 +39,18 @@ from calib.trajectory import (
 )
 from calib.transforms import trans
 from scenarios.acquire import AcquisitionHooks
-from scenarios.config import ConfigError, NoiseConfig, Scenario, load_scenario, scenario_to_dict
+from scenarios.config import (
+    ConfigError,
+    NoiseConfig,
+    Scenario,
+    load_scenario,
+    scenario_board,
+    scenario_to_dict,
+)
 from scenarios.hardware import open_hardware_robot
 from sim.actual import apply_errors, perturb
 from sim.analytic import project_markers
+from sim.board_scene import board_on_table
 from sim.collision import collision_checker
 from sim.kinematic_robot import KinematicRobot
 from sim.markers import make_marker_field
@@ -74,6 +83,10 @@ class SimSetup:
     T_left_right: np.ndarray
     field: object  # sim.markers.MarkerField
     meta: dict = field(default_factory=dict)
+    board: object = None
+    """``[target] board`` (calib.target.boards.Board) or None: the marker field."""
+    T_world_board: np.ndarray | None = None
+    """The board's true pose on the table (board -> world, m; ``sim.board_scene.board_on_table``)."""
 
 
 def _field_center(robot: RobotDef, nominal: MCPCModel) -> tuple[float, float]:
@@ -123,7 +136,10 @@ def sim_setup(s: Scenario) -> SimSetup:
         dictionary=DICTIONARY,
     )
     T_lr = trans(np.array([s.camera.baseline_mm / 1000, 0.0, 0.0]))
-    return SimSetup(robot, nominal, actual, intr, T_lr, field_)
+    board = scenario_board(s)
+    T_world_board = None if board is None else board_on_table(board, _field_center(robot, nominal))
+    return SimSetup(robot, nominal, actual, intr, T_lr, field_, board=board,
+                    T_world_board=T_world_board)  # fmt: skip
 
 
 def planning_inputs(s: Scenario) -> dict:
@@ -132,15 +148,23 @@ def planning_inputs(s: Scenario) -> dict:
     the self-collision check (:class:`calib.self_collision.CapsuleChain` of the nominal arm).
 
     Planning sees only what a person at a real robot knows: the region the target covers (centred
-    where the home posture looks, ``[target] extent_mm``), never the true marker positions, so
-    the sim and hardware backends plan the same postures for one scenario.
+    where the home posture looks, ``[target] extent_mm``; a board's own extent, its corner
+    features' span), never the true marker positions, so the sim and hardware backends plan the
+    same postures for one scenario.
     """
     robot = load_robot(s.robot.model)
     nominal = nominal_mcpc(robot).with_tool(robot.T_flange_cam)
     cx, cy = _field_center(robot, nominal)
-    half = s.target.extent_mm / 2000.0
-    g = np.linspace(-half, half, 6)
-    pts = np.array([[cx + a, cy + b, 0.0] for a in g for b in g])
+    board = scenario_board(s)
+    if board is None:
+        half_x = half_y = s.target.extent_mm / 2000.0
+    else:  # the span of the board's features, centred where the home posture looks
+        _, pts_b = board.layout()
+        half_x, half_y = (pts_b[:, :2].max(axis=0) - pts_b[:, :2].min(axis=0)) / 2
+    pts = np.array(
+        [[cx + a, cy + b, 0.0] for a in np.linspace(-half_x, half_x, 6)
+         for b in np.linspace(-half_y, half_y, 6)]
+    )  # fmt: skip
     return {
         "robot": robot,
         "model_cam": nominal,
@@ -233,15 +257,19 @@ def plan_dataset(s: Scenario, setup: SimSetup | None = None) -> DatasetInfo:
         camera_model=s.camera.model,
         camera_free=tuple(s.camera.free),
         cameras=s.camera.names,
+        board=None if (board := scenario_board(s)) is None else target_document(board),
     )
 
 
 def _digested(s: Scenario) -> dict:
-    """The scenario as its dataset's digest sees it: ``noise.msaa`` at its default is left out,
-    so a dataset rendered before the key existed (with that default) still resumes."""
+    """The scenario as its dataset's digest sees it: ``noise.msaa`` at its default and an empty
+    ``target.board`` (the marker field) are left out, so a dataset acquired before the keys
+    existed (with those defaults) still resumes."""
     d = scenario_to_dict(s)
     if s.noise.msaa == NoiseConfig.msaa:
         del d["noise"]["msaa"]
+    if not s.target.board:
+        del d["target"]["board"]
     return d
 
 
@@ -315,6 +343,7 @@ def make_sim_robot(s: Scenario, setup: SimSetup | None = None):
         seed=s.noise.seed,
         quantize=s.noise.quantize_joints,
         msaa=s.noise.msaa,
+        board=None if setup.board is None else (setup.board, setup.T_world_board),
     )
 
 

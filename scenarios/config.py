@@ -24,6 +24,8 @@ __all__ = [
     "ConfigError",
     "load_scenario",
     "default_scenario_path",
+    "scenario_board",
+    "board_path",
     "scenario_to_dict",
     "DEFAULT_ROBOT",
 ]
@@ -106,6 +108,12 @@ class TargetConfig:
     the trajectory planner keeps this region in view."""
     seed: int = 1
     """Layout of the (simulated) marker field."""
+    board: str = ""
+    """A board of known geometry instead of the marker field: the path of its target TOML
+    (``models/targets/*.toml``, docs/targets.md), relative to the scenario file. Empty: the ArUco
+    field of the keys above (the self-calibration). With a board the simulator puts it on the
+    table where the home posture looks, the planner keeps it in view, and the calibration is the
+    board route (:mod:`calib.board_dataset`); it needs rendered images."""
 
 
 @dataclass(frozen=True)
@@ -342,6 +350,7 @@ def _validate(s: Scenario) -> None:
     if len(s.robot.hardware.cameras) != 2:
         raise ConfigError(f"{f}: robot.hardware.cameras must list two cameras: [left, right]")
     _validate_camera(s)
+    scenario_board(s)  # a bad target file is an error naming it and the key
     for k, v in s.perturbation.table.items():
         if not isinstance(v, (int, float)) or isinstance(v, bool):
             raise ConfigError(f"{f}: perturbation.table.{k}: expected number, got {v!r}")
@@ -375,6 +384,54 @@ def _validate_camera(s: Scenario) -> None:
             )
     if "fx" not in c.free or len(set(c.free)) != len(c.free):
         raise ConfigError(f"{f}: camera.free must list distinct names and include 'fx'")
+
+
+def board_path(s: Scenario) -> Path | None:
+    """The target TOML of ``[target] board`` (relative to the scenario file), or None."""
+    if not s.target.board:
+        return None
+    base = Path(s.source).parent if s.source != "<defaults>" else Path.cwd()
+    return base / s.target.board
+
+
+def scenario_board(s: Scenario):
+    """The board of ``[target] board`` (:class:`calib.target.boards.Board`, SI) or None: the
+    ArUco field.
+
+    Raises:
+        ConfigError: naming the scenario file and ``target.board``: the file is missing, is not
+            a target TOML (its own error, naming its key, follows), declares the field, or the
+            scenario takes no images.
+    """
+    path = board_path(s)
+    if path is None:
+        return None
+    from calib.io.target_toml import TargetFileError, load_target  # OpenCV: only when used
+    from calib.target.boards import Board
+
+    key = f"{s.source}: target.board = {s.target.board!r}"
+    if not path.is_file():
+        raise ConfigError(
+            f"{key}: no such file {path}",
+            fix="give the path of a target TOML relative to the scenario file, e.g. "
+            '"../models/targets/charuco.toml" (docs/targets.md)',
+        )
+    try:
+        board = load_target(path)
+    except TargetFileError as exc:
+        raise ConfigError(f"{key}: {exc.message}", fix=exc.fix) from None
+    if not isinstance(board, Board):
+        raise ConfigError(
+            f"{key}: {path} declares the ArUco field, not a board",
+            fix="leave target.board out for the marker field ([target] markers, ...), or give a "
+            "board's target TOML (chessboard, charuco, circles, aprilgrid)",
+        )
+    if s.robot.backend == "sim" and not s.noise.render:
+        raise ConfigError(
+            f"{key}: a board is simulated with rendered images, but noise.render = false",
+            fix="set [noise] render = true (the analytic path projects the marker field only)",
+        )
+    return board
 
 
 def load_scenario(path: str | Path | None = None, overrides: dict | None = None) -> Scenario:

@@ -18,7 +18,7 @@ from calib.target.boards import Board
 from calib.transforms import make_pose
 from sim.scene import configure_visual
 
-__all__ = ["add_board", "board_scene_spec", "BOARD_THICKNESS_M"]
+__all__ = ["add_board", "board_on_table", "board_scene_spec", "BOARD_THICKNESS_M"]
 
 BOARD_THICKNESS_M = 0.003
 """Thickness of the board tile (m); its printed face is the board's z = 0 plane."""
@@ -31,6 +31,16 @@ def _T_board_face(extent_m: tuple[float, float, float, float]) -> np.ndarray:
     x right, y up the page, z out of the print) of an image covering ``extent_m``."""
     x0, y0, x1, y1 = extent_m
     return make_pose(_FLIP_X, np.array([(x0 + x1) / 2, (y0 + y1) / 2, 0.0]))
+
+
+def board_on_table(board: Board, centre_xy_m: tuple[float, float]) -> np.ndarray:
+    """``T_world_board`` (4, 4; board -> world, m) of ``board`` lying printed face up on the
+    table (world z = 0 plane, its tile :data:`BOARD_THICKNESS_M` thick) with the centre of its
+    printed image at ``centre_xy_m``: board x along world x, board y along world -y, board z
+    (into the board) down."""
+    x0, y0, x1, y1 = board.image(1.0).extent_m
+    cx, cy = centre_xy_m
+    return make_pose(_FLIP_X, np.array([cx - (x0 + x1) / 2, cy + (y0 + y1) / 2, BOARD_THICKNESS_M]))
 
 
 def add_board(

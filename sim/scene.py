@@ -62,11 +62,14 @@ def _matte(mat: mujoco.MjsMaterial) -> None:
     mat.reflectance = 0.0
 
 
-def add_scene(spec: mujoco.MjSpec, field: MarkerField, shadows: bool = False) -> None:
+def add_scene(
+    spec: mujoco.MjSpec, field: MarkerField, shadows: bool = False, markers: bool = True
+) -> None:
     """Add table, lights, blocks, scale bar and marker tiles for ``field`` to ``spec``.
 
     Does not touch existing elements and adds no robot. Lighting is even and from above (two
-    directional lights + the headlight); ``shadows`` turns on shadow casting for the key light.
+    directional lights + the headlight); ``shadows`` turns on shadow casting for the key light;
+    ``markers=False``: table and lights only (a scene for a board, :mod:`sim.board_scene`).
     Raises ``ValueError`` if ``spec`` already holds scene elements (e.g. called twice).
     """
     if any(g.name == "table" for g in spec.geoms):
@@ -111,6 +114,8 @@ def add_scene(spec: mujoco.MjSpec, field: MarkerField, shadows: bool = False) ->
         light.ambient = [0.0] * 3
         light.specular = [0.0] * 3
         light.castshadow = bool(cast)
+    if not markers:
+        return
 
     # blocks under raised markers, the scale bar under the scale markers
     scale_rows = {field.index_of(i) for i in field.scale_ids}
@@ -178,11 +183,13 @@ def scene_spec(
     height: int = 480,
     offsamples: int = 4,
     shadows: bool = False,
+    markers: bool = True,
 ) -> mujoco.MjSpec:
     """A new ``MjSpec`` holding only the scene for ``field`` (no robot, no cameras), with the
-    visual settings for ``width`` x ``height`` offscreen rendering."""
+    visual settings for ``width`` x ``height`` offscreen rendering; ``markers``: as
+    :func:`add_scene`."""
     spec = mujoco.MjSpec()
     spec.modelname = "scorbot_selfcal_scene"
     configure_visual(spec, width, height, offsamples)
-    add_scene(spec, field, shadows=shadows)
+    add_scene(spec, field, shadows=shadows, markers=markers)
     return spec

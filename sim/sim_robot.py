@@ -9,14 +9,19 @@ posture for ``truth.json``.
 
 from __future__ import annotations
 
+import dataclasses
 from concurrent.futures import Future, ThreadPoolExecutor
 
 import mujoco
 import numpy as np
 
 from calib.errors import InputError
+from calib.io.target_toml import target_document
+from calib.io.truth import Truth
 from calib.mcpc import MCPCModel
 from calib.robot import StereoPair
+from calib.target.boards import Board
+from sim.board_scene import add_board
 from sim.kinematic_robot import KinematicRobot
 from sim.markers import MarkerField
 from sim.mj_camera import T_world_cam_cv
@@ -39,6 +44,9 @@ class SimRobot(KinematicRobot):
         seed: seed of the image-noise generator.
         quantize: report joints at encoder resolution (False: the exact angles, for noise-free
             regression tests).
+        board: ``(board, T_world_board)``: a board of known geometry on the table instead of
+            the marker field (``sim.board_scene``; ``field`` then only fills ``truth.json``'s
+            ``marker_field``), recorded in ``truth()`` under ``board``.
         msaa: multisample anti-aliasing samples of the renderer (0: off; None: the scene's, 4).
 
     The noise of the next capture is drawn by a worker thread while the robot moves and renders
@@ -60,14 +68,20 @@ class SimRobot(KinematicRobot):
         seed: int = 0,
         quantize: bool = True,
         msaa: int | None = None,
+        board: tuple[Board, np.ndarray] | None = None,
     ) -> None:
         if not image_sigma >= 0:
             raise InputError(f"image_sigma must be >= 0 (grey levels), got {image_sigma}")
         super().__init__(model_name, actual, rig, field, quantize)
         self._sigma = float(image_sigma)
         self._rng = np.random.default_rng(seed)
+        self.board = board
         scene_kw = {} if msaa is None else {"offsamples": int(msaa)}
-        spec = scene_with_robot(self.robot, self.actual, self.rig, self.field, **scene_kw)
+        spec = scene_with_robot(
+            self.robot, self.actual, self.rig, self.field, markers=board is None, **scene_kw
+        )
+        if board is not None:
+            add_board(spec, board[0], board[1])
         self.mj_model = spec.compile()
         self.mj_data = mujoco.MjData(self.mj_model)
         self._renderer = None
@@ -131,6 +145,15 @@ class SimRobot(KinematicRobot):
         self._closed = True
 
     # ------------------------------------------------------------------ ground truth
+    def truth(self, meta: dict | None = None) -> Truth:
+        """The ground-truth header, with the board's target keys and true pose when there is
+        one (:class:`calib.io.truth.Truth` ``board``)."""
+        truth = super().truth(meta)
+        if self.board is None:
+            return truth
+        doc = {"target": target_document(self.board[0]), "T_world_board": self.board[1]}
+        return dataclasses.replace(truth, board=doc)
+
     def truth_frame(self) -> dict:
         """Ground truth of the current posture: ``joints_rad`` / ``joints_deg`` (true, unquantised),
         ``T_world_cam_left`` / ``T_world_cam_right`` (4, 4, OpenCV camera -> world, m) and
