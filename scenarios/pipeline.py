@@ -316,6 +316,11 @@ def _report_without_truth(
 
 
 def _board_report(root: Path, cal: BoardCalibrationResult, *, quiet: bool, figures: bool) -> dict:
+    if (root / "truth.json").is_file():  # a simulated board: against the truth
+        from scenarios.report_board import write_board_truth_report
+
+        truth = read_truth(root / "truth.json")
+        return write_board_truth_report(root, cal, truth, quiet=quiet, figures=figures)
     ev = evaluate_board(cal, str(root / "calibration.json"), root) if figures else None
     drawn = [] if ev is None else [reprojection_figures(root, ev)]
     return _write_fit_report(root, board_fit_report(root, cal), drawn, quiet=quiet)
@@ -452,6 +457,10 @@ def run_all(
 ) -> dict:
     """Acquire, calibrate and (in simulation) report; prints a summary. ``figures``: the
     report's figures in ``out/figures/``."""
+    if s.target.board:  # a board of known geometry: the board route
+        from scenarios.report_board import run_all_board
+
+        return run_all_board(s, out, resume=resume, quiet=quiet, figures=figures)
     t0 = time.perf_counter()
     kept = FrameCache()  # calibration and report: the images taken now from memory, detected once
     run_acquire(s, out, resume=resume, quiet=quiet, keep=kept)

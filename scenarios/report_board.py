@@ -1,0 +1,286 @@
+"""``selfcal run`` and ``selfcal report`` for a simulated board (``[target] board``): the board
+calibration against ``truth.json``.
+
+The scenario's dataset holds rendered images of a board of known geometry (:mod:`sim.board_scene`);
+``calibrate`` is the board route (:mod:`calib.board_dataset`: camera, hand-eye, board pose and
+kinematics, the board frame the world), and the report compares it with the truth:
+
+- tool tip at the validation postures after the best rigid alignment, calibrated and nominal
+  (as the field's report, :func:`calib.report.aligned_errors`);
+- the camera's pose in the board frame at the validation postures (no alignment: the board is
+  the frame): the calibrated chain, and the reference with only hand-eye and board pose fitted
+  to the nominal chain (``calibration.json`` ``nominal_mcpc``);
+- every free camera parameter: estimate, truth, standard deviation and ``z = (estimate - truth)
+  / std``;
+- the hand-eye (the chain's last shape matrix, last link -> camera) and every minimal
+  kinematic parameter, the truth expressed in the board frame and the estimate's joint-offset
+  convention (:func:`calib.alignment.express_in_frame`).
+
+Units: mm and deg in the report, px for the camera.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from calib.alignment import express_in_frame
+from calib.evaluate import evaluate_board
+from calib.io.atomic import write_text_atomic
+from calib.io.board_calibration import BoardCalibrationResult, read_board_calibration
+from calib.io.dataset import Dataset, DatasetError
+from calib.io.jsonfile import write_json_atomic
+from calib.io.truth import Truth
+from calib.kinematics import fk_tool
+from calib.mcpc import MCPCModel, shape_matrices
+from calib.report import aligned_errors, parameter_table, tool_tips
+from calib.transforms import inv_pose
+from scenarios.config import Scenario
+from scenarios.job_figures import (
+    parameter_figure,
+    reprojection_figure,
+    tool_tip_figure,
+    write_figure,
+)
+from scenarios.report_fit import figure_links, parameter_markdown
+
+__all__ = ["board_truth_report", "run_all_board", "pose_errors"]
+
+
+def pose_errors(T_pred: np.ndarray, T_true: np.ndarray) -> dict:
+    """Position (mm) and rotation (deg) errors of the poses ``T_pred`` (m, 4, 4) against
+    ``T_true``: RMS and max of each."""
+    dp = np.linalg.norm(T_pred[:, :3, 3] - T_true[:, :3, 3], axis=1) * 1000.0
+    dR = np.einsum("kji,kjl->kil", T_true[:, :3, :3], T_pred[:, :3, :3])
+    da = np.degrees(Rotation.from_matrix(dR).magnitude())
+    return {
+        "position_mm": {"rms": float(np.sqrt(np.mean(dp**2))), "max": float(dp.max())},
+        "rotation_deg": {"rms": float(np.sqrt(np.mean(da**2))), "max": float(da.max())},
+    }
+
+
+def _camera_rows(cal: BoardCalibrationResult, truth: Truth) -> dict:
+    """Per free parameter of the first camera: estimate, truth, std and z (a parameter the true
+    model lacks: truth 0, no lens term)."""
+    est, std = cal.cameras[0], cal.camera_std[0]
+    true = dict(zip(truth.intrinsics_left.names, truth.intrinsics_left.values().tolist()))
+    vals = dict(zip(est.names, est.values().tolist()))
+    rows = {}
+    for n in est.free:
+        t, s = true.get(n, 0.0), std.get(n)
+        z = None if not s else (vals[n] - t) / s
+        rows[n] = {"estimate": vals[n], "truth": t, "std": s, "z": z}
+    return rows
+
+
+def _hand_eye(est: MCPCModel, true: MCPCModel, nominal: MCPCModel) -> dict:
+    """The last link -> camera transform (the chain's last shape matrix) of the estimate and of
+    the nominal chain against the truth (all in the estimate's convention): mm and deg."""
+    V = [shape_matrices(m.params)[-1][None] for m in (est, nominal, true)]
+    return {
+        "calibrated": pose_errors(V[0], V[2]),
+        "nominal": pose_errors(V[1], V[2]),
+    }
+
+
+def _same_branch(m: MCPCModel, like: MCPCModel) -> MCPCModel:
+    """``m`` with each angle (alpha, beta, gamma) within 180 deg of ``like``'s (the same rotation
+    written on the same branch, so that differences read small)."""
+    p = m.params.copy()
+    d = p[:, :3] - like.params[:, :3]
+    p[:, :3] = like.params[:, :3] + (d + np.pi) % (2 * np.pi) - np.pi
+    return m.with_params(p)
+
+
+def board_truth_report(root: Path, cal: BoardCalibrationResult, truth: Truth) -> dict:
+    """The report (module docstring) of the board calibration ``cal`` of the simulated dataset
+    in ``root`` against ``truth``; ``status`` "failed" when the calibrated tool tip is worse
+    than the nominal one at the validation postures."""
+    T_world_board = truth.T_world_board
+    if T_world_board is None:
+        raise DatasetError(
+            f"{root / 'truth.json'} holds no board but calibration.json is a board calibration",
+            fix="acquire the dataset again with the scenario's [target] board",
+        )
+    ds = Dataset.open(root)
+    qv = np.radians(ds.info.validation_joints_deg)
+    T_cam_tip = truth.T_cam_tip
+    p_true = tool_tips(truth.true_model, qv, T_cam_tip)
+    err_nom = aligned_errors(tool_tips(truth.nominal_model, qv, T_cam_tip), p_true)
+    err_cal = aligned_errors(tool_tips(cal.model, qv, T_cam_tip), p_true)
+    T_board_world = inv_pose(T_world_board)
+    T_true = T_board_world @ fk_tool(truth.true_model, qv)
+    true_est = _same_branch(
+        express_in_frame(truth.true_model, T_board_world, like=cal.model), cal.model
+    )
+    nominal_est = _same_branch(
+        express_in_frame(truth.nominal_model, T_board_world, like=cal.model), cal.model
+    )
+    params = parameter_table(cal.model, {}, true_est, nominal_est)
+    failures: list[str] = []
+    if err_cal["rms"] > err_nom["rms"]:
+        failures.append(
+            f"the calibrated model predicts the validation tool tips worse than the nominal model "
+            f"({err_cal['rms']:.3f} mm RMS against {err_nom['rms']:.3f} mm over {len(qv)} "
+            "held-out postures): the calibration is wrong"
+        )
+    return {
+        "kind": "board-truth",
+        "status": "failed" if failures else "ok",
+        "failures": failures,
+        "target": cal.target,
+        "validation": {
+            "poses": int(len(qv)),
+            "tool_tip_error_mm": {
+                "nominal": {"rms": err_nom["rms"], "max": err_nom["max"]},
+                "calibrated": {"rms": err_cal["rms"], "max": err_cal["max"]},
+            },
+            "tool_tip_bound_mm": None,
+            "note": (
+                "tool-tip errors after the best rigid alignment (rotation and translation, no "
+                "scale) of the predicted positions to the true ones over the validation postures"
+            ),
+            "camera_pose_in_board": {
+                "calibrated": pose_errors(fk_tool(cal.model, qv), T_true),
+                "nominal": pose_errors(fk_tool(cal.nominal_model, qv), T_true),
+                "note": (
+                    "the camera's pose in the board frame predicted from the joint readings "
+                    "(no alignment); nominal: the nominal chain with only hand-eye and board "
+                    "pose fitted (calibration.json nominal_mcpc)"
+                ),
+            },
+        },
+        "camera": _camera_rows(cal, truth),
+        "hand_eye": _hand_eye(cal.model, true_est, nominal_est),
+        "reprojection_rms_px": cal.reprojection_rms_px,
+        "frames": {"planned": cal.frames, "used": cal.frames_used},
+        "parameters": params,
+        "parameters_note": (
+            "truth expressed in the board frame and the estimate's joint-offset convention; the "
+            "board calibration gives no kinematic sigma"
+        ),
+    }
+
+
+def _num(x: float | None, fmt: str) -> str:
+    return "" if x is None else format(x, fmt)
+
+
+def _markdown(r: dict) -> str:
+    v = r["validation"]
+    t = v["tool_tip_error_mm"]
+    cp = v["camera_pose_in_board"]
+    he = r["hand_eye"]
+    cam = [
+        f"| {n} | {c['estimate']:.6g} | {c['truth']:.6g} | {_num(c['std'], '.3g')} | "
+        f"{_num(c['z'], '+.2f')} |"
+        for n, c in r["camera"].items()
+    ]
+    return "\n".join(
+        [
+            f"# Calibration report ({r['target']['type']} board)",
+            "",
+            f"Validation postures: {v['poses']} (never used to calibrate).",
+            "",
+            "| model | tool-tip RMS (mm) | max (mm) | camera pose in the board: position RMS (mm)"
+            " | rotation RMS (deg) |",
+            "|---|---|---|---|---|",
+            *(
+                f"| {k} | {t[k]['rms']:.3f} | {t[k]['max']:.3f} | "
+                f"{cp[k]['position_mm']['rms']:.3f} | {cp[k]['rotation_deg']['rms']:.4f} |"
+                for k in ("nominal", "calibrated")
+            ),
+            "",
+            f"Hand-eye (last link -> camera) against the truth: calibrated "
+            f"{he['calibrated']['position_mm']['rms']:.3f} mm / "
+            f"{he['calibrated']['rotation_deg']['rms']:.4f} deg, nominal "
+            f"{he['nominal']['position_mm']['rms']:.3f} mm / "
+            f"{he['nominal']['rotation_deg']['rms']:.4f} deg. Reprojection RMS "
+            f"{r['reprojection_rms_px']:.3f} px over {r['frames']['used']}/"
+            f"{r['frames']['planned']} frames.",
+            "",
+            "## Camera",
+            "",
+            "| parameter | estimate | truth | std | z |",
+            "|---|---|---|---|---|",
+            *cam,
+            "",
+            "## Kinematic parameters",
+            "",
+            parameter_markdown(r["parameters"], truth=True),
+            "",
+            r["parameters_note"] + ".",
+            *figure_links(r.get("figures", [])),
+            "",
+        ]
+    )
+
+
+def write_board_truth_report(
+    root: Path, cal: BoardCalibrationResult, truth: Truth, *, quiet: bool, figures: bool
+) -> dict:
+    """:func:`board_truth_report` written as ``root/report.json`` and ``report.md`` (and with
+    ``figures`` the tool-tip, reprojection and parameter figures in ``root/figures``)."""
+    report = board_truth_report(root, cal, truth)
+    drawn: list[Path] = []
+    if figures:
+        ds = Dataset.open(root)
+        qv = np.radians(ds.info.validation_joints_deg)
+        p_true = tool_tips(truth.true_model, qv, truth.T_cam_tip)
+        e = [
+            aligned_errors(tool_tips(m, qv, truth.T_cam_tip), p_true)["errors_mm"]
+            for m in (truth.nominal_model, cal.model)
+        ]
+        ev = evaluate_board(cal, str(root / "calibration.json"), root)
+        drawn = [
+            write_figure(tool_tip_figure(e[0], e[1]), root, "tool_tip_errors.png"),
+            write_figure(reprojection_figure(ev, "calibration images"), root, "reprojection.png"),
+            write_figure(parameter_figure(report["parameters"]), root, "parameters.png"),
+        ]
+    report["figures"] = [str(p.relative_to(root)) for p in drawn]
+    write_json_atomic(root / "report.json", report)
+    md = _markdown(report)
+    write_text_atomic(root / "report.md", md)
+    if not quiet:
+        print(md, file=sys.stderr)
+    return report
+
+
+def run_all_board(
+    s: Scenario, out: Path, *, resume: bool = False, quiet: bool = False, figures: bool = True
+) -> dict:
+    """``selfcal run`` of a board scenario: acquire (rendered), the board calibration, and in
+    simulation the report against the truth; prints a summary line.
+
+    Raises:
+        CalibrationFailedError: the report found the calibration worse than nominal.
+    """
+    from calib.calibrate import CalibrationFailedError
+    from scenarios.own_data import calibrate_any
+    from scenarios.pipeline import run_acquire, run_report
+
+    t0 = time.perf_counter()
+    run_acquire(s, out, resume=resume, quiet=quiet)
+    calibrate_any(out, quiet=quiet, figures=figures and s.robot.backend != "sim")
+    cal = read_board_calibration(out / "calibration.json")
+    result: dict = {"calibration": cal}
+    if s.robot.backend != "sim":
+        return result
+    rep = run_report(out, quiet=True, figures=figures)
+    result["report"] = rep
+    v = rep["validation"]["tool_tip_error_mm"]
+    zs = [abs(c["z"]) for c in rep["camera"].values() if c["z"] is not None]
+    print(
+        f"tool-tip error on {rep['validation']['poses']} validation postures: nominal "
+        f"{v['nominal']['rms']:.3f} mm RMS (max {v['nominal']['max']:.3f}), calibrated "
+        f"{v['calibrated']['rms']:.3f} mm RMS (max {v['calibrated']['max']:.3f}); camera "
+        f"parameters within {max(zs, default=float('nan')):.2f} sigma of the truth; total "
+        f"{time.perf_counter() - t0:.1f} s; details in {out}/report.md"
+    )
+    if rep["failures"]:
+        raise CalibrationFailedError.of(tuple(rep["failures"]), out / "report.json")
+    return result
