@@ -296,7 +296,9 @@ scenario keys (TOML; every key has a default, units in the names):
                  (see docs/hardware.md; `selfcal emulate SCENARIO` prints a ready snippet)
   [camera]       resolution = [640, 480]; fx = 800.0 (px); mu = 1.0; baseline_mm = 60.0; count = 2;
                  model = "pinhole" | "opencv" | "fisheye"; free = [...]; cx, cy, k1 ... (docs/cameras.md)
-  [target]       markers = 20; scale_length_mm = 200.0; marker_size_mm = 30.0; seed = 1
+  [target]       markers = 20; scale_length_mm = 200.0; marker_size_mm = 30.0; seed = 1;
+                 board = "TARGET.toml" (a printed board instead of the markers, path relative to
+                 the scenario: docs/scenarios.md; example scenarios/mono-charuco.toml)
   [perturbation] seed = 1; translation_mm = 1.0; rotation_deg = 0.5; [perturbation.table] name = value
   [trajectory]   poses = 30; seed = 1; min_markers = 6; kind = "random" | "optimal"
   [noise]        render = true; image_sigma = 2.0 (0-255); pixel_sigma = 0.5 (px); seed = 1;

@@ -391,7 +391,7 @@ def board_path(s: Scenario) -> Path | None:
     if not s.target.board:
         return None
     base = Path(s.source).parent if s.source != "<defaults>" else Path.cwd()
-    return base / s.target.board
+    return (base / s.target.board).resolve()
 
 
 def scenario_board(s: Scenario):

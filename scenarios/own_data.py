@@ -12,22 +12,13 @@ import argparse
 import json
 import sys
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from scenarios.cli_common import CliError, add_json, note_written
-from scenarios.cli_log import get_logger
 from scenarios.ros_cli import add_import_args as add_bag_import_args
 from scenarios.ros_cli import cmd_import_bag
 
-if TYPE_CHECKING:
-    from calib.camera import CameraModel
-    from calib.io.board_calibration import BoardCalibrationResult
-
-
 # Heavy modules (scipy, OpenCV, MuJoCo, the pipeline) are imported by the functions that use
 # them, so that `selfcal --help` builds every command's parser without loading them.
-
-_log = get_logger(__name__)
 
 __all__ = ["calibrate_any", "register"]
 
@@ -51,11 +42,9 @@ def calibrate_any(
     ``figures``: also ``root/figures/reprojection.png``. ``tracker_args``: the parsed tracker
     options of ``selfcal calibrate`` (:func:`scenarios.tracker_cli.add_tracker_args`): tracker
     measurements estimated with the field's images."""
-    from calib.board_dataset import calibrate_board_dataset
-    from calib.evaluate import evaluate_board
-    from calib.io.board_calibration import write_board_calibration
     from calib.io.dataset import Dataset
-    from scenarios.pipeline import reprojection_figures, run_calibrate
+    from scenarios.board_run import calibrate_board_run
+    from scenarios.pipeline import run_calibrate
 
     ds = Dataset.open(root)
     info = ds.info
@@ -87,39 +76,8 @@ def calibrate_any(
         if res.tracker is not None:
             _say(quiet, tracker_summary(res.tracker))
         return
-    res = calibrate_board_dataset(root, allow_missing_frames=allow_missing_frames)
-    write_board_calibration(Path(root) / "calibration.json", res)
-    if figures:
-        ev = evaluate_board(res, str(Path(root) / "calibration.json"), root)
-        _say(quiet, f"figure: {reprojection_figures(root, ev)}")
-    for text in res.warnings:
-        _log.warning("%s", text)
-    _say(quiet, summary(res))
-
-
-def summary(res: BoardCalibrationResult) -> str:
-    """One line on a board calibration, and one more per further camera of a rig."""
-    c = res.cameras[0]
-    lines = [
-        f"calibrated {res.frames_used}/{res.frames} frames with the {res.target['type']} "
-        f"({c.model_name} camera): {_camera_text(c)}, "
-        f"reprojection RMS {res.reprojection_rms_px:.3f} px"
-    ]
-    for name, cam in zip(res.camera_names[1:], res.cameras[1:], strict=True):
-        lines.append(f"camera {name} ({cam.model_name}): {_camera_text(cam)}")
-    return "\n".join(lines)
-
-
-def _camera_text(c: CameraModel) -> str:
-    """A camera's pixel map and free lens coefficients by OpenCV name."""
-    from calib.camera import opencv_values
-
-    v = opencv_values(c)
-    lens = "".join(f", {n} = {v[n]:.4g}" for n in c.free if n in v and n[0] in "kp")
-    return (
-        f"fx = {v['fx']:.2f} px, fy = {v['fy']:.2f} px, "
-        f"cx = {v['cx']:.2f} px, cy = {v['cy']:.2f} px{lens}"
-    )
+    calibrate_board_run(root, quiet=quiet, allow_missing_frames=allow_missing_frames,
+                        figures=figures)  # fmt: skip
 
 
 def cmd_import(args: argparse.Namespace) -> int:

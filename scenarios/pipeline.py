@@ -317,7 +317,7 @@ def _report_without_truth(
 
 def _board_report(root: Path, cal: BoardCalibrationResult, *, quiet: bool, figures: bool) -> dict:
     if (root / "truth.json").is_file():  # a simulated board: against the truth
-        from scenarios.report_board import write_board_truth_report
+        from scenarios.board_run import write_board_truth_report
 
         truth = read_truth(root / "truth.json")
         return write_board_truth_report(root, cal, truth, quiet=quiet, figures=figures)
@@ -457,13 +457,13 @@ def run_all(
 ) -> dict:
     """Acquire, calibrate and (in simulation) report; prints a summary. ``figures``: the
     report's figures in ``out/figures/``."""
-    if s.target.board:  # a board of known geometry: the board route
-        from scenarios.report_board import run_all_board
-
-        return run_all_board(s, out, resume=resume, quiet=quiet, figures=figures)
     t0 = time.perf_counter()
     kept = FrameCache()  # calibration and report: the images taken now from memory, detected once
     run_acquire(s, out, resume=resume, quiet=quiet, keep=kept)
+    if s.target.board:  # a board of known geometry: the board route (scenarios/board_run.py)
+        from scenarios.board_run import calibrate_and_report_board
+
+        return calibrate_and_report_board(s, out, quiet=quiet, figures=figures, t0=t0)
     # without truth (hardware) there is no report: the calibration draws what it can
     try:
         cal = run_calibrate(

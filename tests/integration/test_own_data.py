@@ -49,9 +49,10 @@ from calib.io.dataset import Dataset
 from calib.io.tracker import TrackerFileError
 from calib.robot_def import load_robot
 from calib.transforms import inv_pose, make_pose
+from scenarios.board_run import summary
 from scenarios.cli import main
 from scenarios.deploy_cli import load_calibration
-from scenarios.own_data import cmd_evaluate, summary
+from scenarios.own_data import cmd_evaluate
 from sim.lens import LensRemap
 
 

@@ -57,7 +57,10 @@ def test_toml_blocks_are_read_by_their_reader(where, body, tmp_path):
     if "type" in doc:
         parse_target(doc, where)  # a target TOML (docs/targets.md)
         return
-    path = tmp_path / "scenario.toml"
+    # as a file of scenarios/ beside the repository's models/ (a [target] board is relative)
+    (tmp_path / "models").symlink_to(ROOT / "models")
+    path = tmp_path / "scenarios" / "scenario.toml"
+    path.parent.mkdir()
     path.write_text(body)
     s = load_scenario(path)
     if s.robot.backend == "hardware":  # checked as `selfcal acquire` does before opening the port

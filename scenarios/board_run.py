@@ -1,5 +1,5 @@
-"""``selfcal run`` and ``selfcal report`` for a simulated board (``[target] board``): the board
-calibration against ``truth.json``.
+"""``selfcal calibrate`` of a board dataset, and ``selfcal run`` / ``report`` of a simulated
+board (``[target] board``): the board calibration against ``truth.json``.
 
 The scenario's dataset holds rendered images of a board of known geometry (:mod:`sim.board_scene`);
 ``calibrate`` is the board route (:mod:`calib.board_dataset`: camera, hand-eye, board pose and
@@ -29,16 +29,18 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from calib.alignment import express_in_frame
+from calib.camera import CameraModel, opencv_values
 from calib.evaluate import evaluate_board
 from calib.io.atomic import write_text_atomic
-from calib.io.board_calibration import BoardCalibrationResult, read_board_calibration
+from calib.io.board_calibration import BoardCalibrationResult, write_board_calibration
 from calib.io.dataset import Dataset, DatasetError
 from calib.io.jsonfile import write_json_atomic
-from calib.io.truth import Truth
+from calib.io.truth import Truth, read_truth
 from calib.kinematics import fk_tool
 from calib.mcpc import MCPCModel, shape_matrices
 from calib.report import aligned_errors, parameter_table, tool_tips
 from calib.transforms import inv_pose
+from scenarios.cli_log import get_logger
 from scenarios.config import Scenario
 from scenarios.job_figures import (
     parameter_figure,
@@ -48,7 +50,16 @@ from scenarios.job_figures import (
 )
 from scenarios.report_fit import figure_links, parameter_markdown
 
-__all__ = ["board_truth_report", "run_all_board", "pose_errors"]
+__all__ = [
+    "board_truth_report",
+    "calibrate_and_report_board",
+    "calibrate_board_run",
+    "pose_errors",
+    "summary",
+    "write_board_truth_report",
+]
+
+_log = get_logger(__name__)
 
 
 def pose_errors(T_pred: np.ndarray, T_true: np.ndarray) -> dict:
@@ -250,27 +261,68 @@ def write_board_truth_report(
     return report
 
 
-def run_all_board(
-    s: Scenario, out: Path, *, resume: bool = False, quiet: bool = False, figures: bool = True
+def calibrate_board_run(
+    root: Path, *, quiet: bool = False, allow_missing_frames: bool = False, figures: bool = False
+) -> BoardCalibrationResult:
+    """``selfcal calibrate`` of a board dataset: :func:`calib.board_dataset.calibrate_board_dataset`
+    written as ``root/calibration.json``, its warnings logged and a one-line summary printed
+    (unless ``quiet``); ``figures``: also ``root/figures/reprojection.png``."""
+    from calib.board_dataset import calibrate_board_dataset
+
+    res = calibrate_board_dataset(root, allow_missing_frames=allow_missing_frames)
+    write_board_calibration(Path(root) / "calibration.json", res)
+    if figures:
+        ev = evaluate_board(res, str(Path(root) / "calibration.json"), root)
+        path = write_figure(reprojection_figure(ev, "calibration images"), root, "reprojection.png")
+        _say(quiet, f"figure: {path}")
+    for text in res.warnings:
+        _log.warning("%s", text)
+    _say(quiet, summary(res))
+    return res
+
+
+def summary(res: BoardCalibrationResult) -> str:
+    """One line on a board calibration, and one more per further camera of a rig."""
+    c = res.cameras[0]
+    lines = [
+        f"calibrated {res.frames_used}/{res.frames} frames with the {res.target['type']} "
+        f"({c.model_name} camera): {_camera_text(c)}, "
+        f"reprojection RMS {res.reprojection_rms_px:.3f} px"
+    ]
+    for name, cam in zip(res.camera_names[1:], res.cameras[1:], strict=True):
+        lines.append(f"camera {name} ({cam.model_name}): {_camera_text(cam)}")
+    return "\n".join(lines)
+
+
+def _camera_text(c: CameraModel) -> str:
+    """A camera's pixel map and free lens coefficients by OpenCV name."""
+    v = opencv_values(c)
+    lens = "".join(f", {n} = {v[n]:.4g}" for n in c.free if n in v and n[0] in "kp")
+    return (
+        f"fx = {v['fx']:.2f} px, fy = {v['fy']:.2f} px, "
+        f"cx = {v['cx']:.2f} px, cy = {v['cy']:.2f} px{lens}"
+    )
+
+
+def calibrate_and_report_board(
+    s: Scenario, out: Path, *, quiet: bool = False, figures: bool = True, t0: float | None = None
 ) -> dict:
-    """``selfcal run`` of a board scenario: acquire (rendered), the board calibration, and in
-    simulation the report against the truth; prints a summary line.
+    """The rest of ``selfcal run`` for a board scenario once acquired in ``out``: the board
+    calibration and in simulation the report against the truth; prints a summary line (total
+    time since ``t0``, :func:`time.perf_counter`).
 
     Raises:
         CalibrationFailedError: the report found the calibration worse than nominal.
     """
     from calib.calibrate import CalibrationFailedError
-    from scenarios.own_data import calibrate_any
-    from scenarios.pipeline import run_acquire, run_report
 
-    t0 = time.perf_counter()
-    run_acquire(s, out, resume=resume, quiet=quiet)
-    calibrate_any(out, quiet=quiet, figures=figures and s.robot.backend != "sim")
-    cal = read_board_calibration(out / "calibration.json")
+    t0 = time.perf_counter() if t0 is None else t0
+    cal = calibrate_board_run(out, quiet=quiet, figures=figures and s.robot.backend != "sim")
     result: dict = {"calibration": cal}
     if s.robot.backend != "sim":
         return result
-    rep = run_report(out, quiet=True, figures=figures)
+    truth = read_truth(out / "truth.json")
+    rep = write_board_truth_report(out, cal, truth, quiet=True, figures=figures)
     result["report"] = rep
     v = rep["validation"]["tool_tip_error_mm"]
     zs = [abs(c["z"]) for c in rep["camera"].values() if c["z"] is not None]
@@ -284,3 +336,8 @@ def run_all_board(
     if rep["failures"]:
         raise CalibrationFailedError.of(tuple(rep["failures"]), out / "report.json")
     return result
+
+
+def _say(quiet: bool, text: str) -> None:
+    if not quiet:
+        print(text, file=sys.stderr)

@@ -1,0 +1,63 @@
+"""``[target] board``: a board of known geometry chosen by its target TOML, relative to the
+scenario file; every misuse is an error naming the scenario file and the key."""
+
+from pathlib import Path
+
+import pytest
+
+from calib.io.target_toml import load_target, target_document
+from scenarios.config import ConfigError, load_scenario, scenario_board
+
+ROOT = Path(__file__).resolve().parents[2]
+CHARUCO = ROOT / "models" / "targets" / "charuco.toml"
+
+
+def write(tmp_path, text, name="s.toml"):
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+def test_the_example_scenario_reads_the_board_of_its_target_file():
+    s = load_scenario(ROOT / "scenarios" / "mono-charuco.toml")
+    assert s.target.board == "../models/targets/charuco.toml"
+    assert target_document(scenario_board(s)) == target_document(load_target(CHARUCO))
+    assert s.camera.count == 1 and s.camera.model == "opencv"
+
+
+def test_without_the_key_the_target_is_the_field():
+    assert scenario_board(load_scenario()) is None
+    assert scenario_board(load_scenario(ROOT / "scenarios" / "mono.toml")) is None
+
+
+def test_the_path_is_relative_to_the_scenario_file(tmp_path):
+    (tmp_path / "boards").mkdir()
+    (tmp_path / "boards" / "b.toml").write_text(CHARUCO.read_text())
+    sub = tmp_path / "scenarios"
+    sub.mkdir()
+    s = load_scenario(write(sub, '[target]\nboard = "../boards/b.toml"\n'))
+    assert target_document(scenario_board(s)) == target_document(load_target(CHARUCO))
+
+
+@pytest.mark.parametrize(
+    "target, extra, words",
+    [
+        ("missing.toml", "", ["s.toml", "target.board", "no such file"]),
+        ("field.toml", "", ["s.toml", "target.board", "ArUco field, not a board"]),
+        ("bad.toml", "", ["s.toml", "target.board", "bad.toml", "square_mm"]),
+        ("unknown.toml", "", ["s.toml", "target.board", "unknown.toml", "spacing_mm"]),
+        ("good.toml", "[noise]\nrender = false\n", ["target.board", "noise.render = false"]),
+    ],
+)
+def test_a_bad_board_names_the_scenario_file_and_the_key(tmp_path, target, extra, words):
+    (tmp_path / "field.toml").write_text('type = "field"\n')
+    (tmp_path / "bad.toml").write_text('type = "chessboard"\ninner_corners = [11, 8]\n')
+    (tmp_path / "unknown.toml").write_text(
+        'type = "chessboard"\ninner_corners = [11, 8]\nsquare_mm = 15.0\nspacing_mm = 3.0\n'
+    )
+    (tmp_path / "good.toml").write_text(CHARUCO.read_text())
+    with pytest.raises(ConfigError) as e:
+        load_scenario(write(tmp_path, f'[target]\nboard = "{target}"\n{extra}'))
+    text = str(e.value) + str(e.value.fix or "")
+    for w in words:
+        assert w in text, (w, text)
