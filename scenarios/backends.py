@@ -365,7 +365,8 @@ def render_posture(
     setup = sim_setup(s)
     rig = RigConfig(intrinsics=setup.intrinsics, T_left_right=setup.T_left_right)
     out.mkdir(parents=True, exist_ok=True)
-    with SimRobot(robot.name, None, rig, setup.field) as sim:
+    board = None if setup.board is None else (setup.board, setup.T_world_board)
+    with SimRobot(robot.name, None, rig, setup.field, board=board) as sim:
         sim.move_to(np.degrees(q))
         pair = sim.capture()
     paths = (out / "left.png", out / "right.png")

@@ -429,7 +429,9 @@ def scenario_board(s: Scenario):
     if s.robot.backend == "sim" and not s.noise.render:
         raise ConfigError(
             f"{key}: a board is simulated with rendered images, but noise.render = false",
-            fix="set [noise] render = true (the analytic path projects the marker field only)",
+            fix="set [noise] render = true (the analytic path, also `selfcal montecarlo`'s, "
+            "projects the marker field only; the board's Monte Carlo is `uv run python -m "
+            "scenarios.board_montecarlo`)",
         )
     return board
 
