@@ -11,7 +11,7 @@ kinematics, the board frame the world), and the report compares it with the trut
   the frame): the calibrated chain, and the reference with only hand-eye and board pose fitted
   to the nominal chain (``calibration.json`` ``nominal_mcpc``);
 - every free camera parameter: estimate, truth, standard deviation and ``z = (estimate - truth)
-  / std``;
+  / std``; of a stereo rig also the second camera's and its pose in the first camera's frame;
 - the hand-eye (the chain's last shape matrix, last link -> camera) and every minimal
   kinematic parameter, the truth expressed in the board frame and the estimate's joint-offset
   convention (:func:`calib.alignment.express_in_frame`).
@@ -74,18 +74,31 @@ def pose_errors(T_pred: np.ndarray, T_true: np.ndarray) -> dict:
     }
 
 
-def _camera_rows(cal: BoardCalibrationResult, truth: Truth) -> dict:
-    """Per free parameter of the first camera: estimate, truth, std and z (a parameter the true
-    model lacks: truth 0, no lens term)."""
-    est, std = cal.cameras[0], cal.camera_std[0]
-    true = dict(zip(truth.intrinsics_left.names, truth.intrinsics_left.values().tolist()))
+def _camera_rows(est: CameraModel, std: dict[str, float], true: CameraModel) -> dict:
+    """Per free parameter of ``est``: estimate, truth, std and z (a parameter the true model
+    lacks: truth 0, no lens term)."""
+    t_vals = dict(zip(true.names, true.values().tolist()))
     vals = dict(zip(est.names, est.values().tolist()))
     rows = {}
     for n in est.free:
-        t, s = true.get(n, 0.0), std.get(n)
+        t, s = t_vals.get(n, 0.0), std.get(n)
         z = None if not s else (vals[n] - t) / s
         rows[n] = {"estimate": vals[n], "truth": t, "std": s, "z": z}
     return rows
+
+
+def _rig_rows(cal: BoardCalibrationResult, truth: Truth) -> dict:
+    """The further camera of a simulated stereo rig (truth: the right camera): its parameters
+    as :func:`_camera_rows` and its pose in the first camera's frame against the truth."""
+    if cal.T_first_cam is None or len(cal.cameras) < 2:
+        return {}
+    name = cal.camera_names[1]
+    return {
+        name: {
+            "camera": _camera_rows(cal.cameras[1], cal.camera_std[1], truth.intrinsics_right),
+            "extrinsics": pose_errors(cal.T_first_cam[1][None], truth.T_left_right[None]),
+        }
+    }
 
 
 def _hand_eye(est: MCPCModel, true: MCPCModel, nominal: MCPCModel) -> dict:
@@ -165,7 +178,8 @@ def board_truth_report(root: Path, cal: BoardCalibrationResult, truth: Truth) ->
                 ),
             },
         },
-        "camera": _camera_rows(cal, truth),
+        "camera": _camera_rows(cal.cameras[0], cal.camera_std[0], truth.intrinsics_left),
+        "rig": _rig_rows(cal, truth),
         "hand_eye": _hand_eye(cal.model, true_est, nominal_est),
         "reprojection_rms_px": cal.reprojection_rms_px,
         "frames": {"planned": cal.frames, "used": cal.frames_used},
@@ -181,16 +195,33 @@ def _num(x: float | None, fmt: str) -> str:
     return "" if x is None else format(x, fmt)
 
 
+def _camera_markdown(rows: dict) -> list[str]:
+    return [
+        "| parameter | estimate | truth | std | z |",
+        "|---|---|---|---|---|",
+        *(
+            f"| {n} | {c['estimate']:.6g} | {c['truth']:.6g} | {_num(c['std'], '.3g')} | "
+            f"{_num(c['z'], '+.2f')} |"
+            for n, c in rows.items()
+        ),
+    ]
+
+
 def _markdown(r: dict) -> str:
     v = r["validation"]
     t = v["tool_tip_error_mm"]
     cp = v["camera_pose_in_board"]
     he = r["hand_eye"]
-    cam = [
-        f"| {n} | {c['estimate']:.6g} | {c['truth']:.6g} | {_num(c['std'], '.3g')} | "
-        f"{_num(c['z'], '+.2f')} |"
-        for n, c in r["camera"].items()
-    ]
+    cam = _camera_markdown(r["camera"])
+    for name, k in r["rig"].items():
+        e = k["extrinsics"]
+        cam += [
+            "",
+            f"Camera {name}: pose in the first camera's frame "
+            f"{e['position_mm']['rms']:.3f} mm / {e['rotation_deg']['rms']:.4f} deg from the truth.",
+            "",
+            *_camera_markdown(k["camera"]),
+        ]
     return "\n".join(
         [
             f"# Calibration report ({r['target']['type']} board)",
@@ -216,8 +247,6 @@ def _markdown(r: dict) -> str:
             "",
             "## Camera",
             "",
-            "| parameter | estimate | truth | std | z |",
-            "|---|---|---|---|---|",
             *cam,
             "",
             "## Kinematic parameters",
@@ -325,7 +354,8 @@ def calibrate_and_report_board(
     rep = write_board_truth_report(out, cal, truth, quiet=True, figures=figures)
     result["report"] = rep
     v = rep["validation"]["tool_tip_error_mm"]
-    zs = [abs(c["z"]) for c in rep["camera"].values() if c["z"] is not None]
+    rows = [rep["camera"], *(k["camera"] for k in rep["rig"].values())]
+    zs = [abs(c["z"]) for r in rows for c in r.values() if c["z"] is not None]
     print(
         f"tool-tip error on {rep['validation']['poses']} validation postures: nominal "
         f"{v['nominal']['rms']:.3f} mm RMS (max {v['nominal']['max']:.3f}), calibrated "
