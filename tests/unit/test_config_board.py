@@ -82,3 +82,18 @@ def test_commands_that_draw_the_field_refuse_a_board(argv, words, tmp_path, caps
     for w in words:
         assert w in err, (w, err)
     assert not (tmp_path / "out").exists()
+
+
+def test_the_field_keeps_the_digest_of_datasets_made_before_the_key():
+    """An empty target.board is left out of the dataset's scenario digest (datasets acquired
+    before the key existed still resume); a board changes it."""
+    from calib.io.dataset_info import scenario_digest
+    from scenarios.backends import _digested
+    from scenarios.config import scenario_to_dict
+
+    s = load_scenario(None)
+    before = scenario_to_dict(s)
+    del before["noise"]["msaa"], before["target"]["board"]  # as written before the keys existed
+    assert scenario_digest(_digested(s)) == scenario_digest(before)
+    board = load_scenario(ROOT / "scenarios" / "mono-charuco.toml")
+    assert "board" in _digested(board)["target"]
