@@ -122,12 +122,14 @@ def _sparse_normal(
 
 class _Piece:
     """One Jacobian piece of a chunk of rows: ``J`` (k, d, c) with the entries of unused columns
-    zeroed, weighted ``wJ``, unknown indices ``G`` (k, c) (unused -> a used one), its distinct
-    unknowns ``U`` (a slice when contiguous)."""
+    zeroed, weighted ``wJ``, unknown indices ``G`` (k, c) (unused -> a used one; ``G_raw`` keeps
+    the ``-1``), its distinct unknowns ``U`` (a slice when contiguous)."""
 
     def __init__(self, J: np.ndarray, w: np.ndarray, G: np.ndarray, n: int) -> None:
+        self.G_raw = G  # with its -1 slots, for merging
         unused = G < 0
-        if unused.any():
+        self.unused = unused if unused.any() else None
+        if self.unused is not None:
             J = np.where(unused[:, None, :], 0.0, J)
             G = np.where(unused, G.max(), G)
         self.J, self.wJ, self.G, self.w = J, J * w[:, None, None], G, w
@@ -144,9 +146,16 @@ class _Piece:
         of ``sqrt(w) J`` (half a product's work)."""
         k, d, _ = self.J.shape
         X3 = np.zeros((k, d, self.nu))
-        rows = (np.arange(k)[:, None, None], np.arange(d)[None, :, None])
-        idx = (*rows, self.local[:, None, :])  # a tuple index (no star in [] before 3.11)
-        X3[idx] = self.J * np.sqrt(self.w)[:, None, None]
+        sJ = self.J * np.sqrt(self.w)[:, None, None]
+        if self.unused is None:
+            rows = (np.arange(k)[:, None, None], np.arange(d)[None, :, None])
+            idx = (*rows, self.local[:, None, :])  # a tuple index (no star in [] before 3.11)
+            X3[idx] = sJ
+        else:
+            # an unused slot points at a used column (maybe of the same row): writing its zero
+            # there could overwrite that column's entry, so only the used slots are written
+            kk, cc = np.nonzero(~self.unused)
+            X3[kk, :, self.local[kk, cc]] = sJ[kk, :, cc]
         X = X3.reshape(k * d, -1)
         return X.T @ X  # numpy runs X^T X as a symmetric rank-k update (its own BLAS)
 
@@ -182,7 +191,7 @@ def _grouped(ps: list[_Piece], w: np.ndarray, n: int) -> list[_Piece]:
         if len(group) < 2:
             return group
         J = np.concatenate([p.J for p in group], axis=2)
-        return [_Piece(J, w, np.concatenate([p.G for p in group], axis=1), n)]
+        return [_Piece(J, w, np.concatenate([p.G_raw for p in group], axis=1), n)]
 
     if not any(p.shared and p.J.shape[2] >= 8 for p in ps):  # nothing wide: one scatter
         return merged(ps)
