@@ -6,7 +6,9 @@ target's detector (:meth:`calib.target.Target.detect`); images without the board
 counted and skipped by :func:`calib.board_calibrate.calibrate_board` (an error when too few
 remain); :func:`calib.board_robot.calibrate_robot_with_board` then estimates the camera (the
 model and free parameters dataset.json declares, e.g. OpenCV's lens model), hand-eye, board pose
-and kinematics (scale from the board, no known distance). The reference of
+and kinematics (scale from the board, no known distance). With several cameras
+(:func:`calib.board_rig.calibrate_board_rig` gives their start) every camera's model and pose in
+the first camera's frame join that refinement. The reference of
 ``selfcal evaluate`` -- the nominal kinematics with only the hand-eye and the board pose fitted
 to the same camera poses -- is stored beside. Nothing here reads truth.
 """
@@ -108,9 +110,10 @@ def calibrate_board_dataset(
     feats, names = detect_board(ds, board, cam)
     seen = {(int(i), cam): dict(zip(f.ids.tolist(), f.uv)) for i, f in zip(ds.indices, feats)}
     check_distinct_frames(ds.indices, ds.joints_deg, seen, (cam,), str(ds.root))
-    rig = None
+    rig, others = None, []
     if len(ds.info.cameras) > 1:  # every camera its own model; the extrinsics to the first
-        detected = [(feats, names)] + [detect_board(ds, board, c) for c in ds.info.cameras[1:]]
+        others = [detect_board(ds, board, c) for c in ds.info.cameras[1:]]
+        detected = [(feats, names), *others]
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", SelfCalWarning)  # named again below for camera 0
             rig = calibrate_board_rig(
@@ -139,6 +142,8 @@ def calibrate_board_dataset(
                 free=free,
                 model=model_name,
                 initial=ds.info.initial_camera(cam),
+                rig=rig,
+                rig_features=[o[0] for o in others],
             )
         except IdentificationError as exc:
             raise IdentificationError(
@@ -161,9 +166,9 @@ def calibrate_board_dataset(
         robot_model=ds.info.robot_model,
         target=dict(ds.info.board or {}),
         camera_names=tuple(ds.info.cameras),
-        cameras=(res.camera,) + (() if rig is None else rig.cameras[1:]),
-        camera_std=(res.camera_std,) + (() if rig is None else rig.std[1:]),
-        T_first_cam=None if rig is None else rig.T_first_cam,
+        cameras=res.cameras,
+        camera_std=res.cameras_std,
+        T_first_cam=None if rig is None else res.T_first_cam,
         model=res.model,
         nominal_model=ref,
         reprojection_rms_px=res.rms_px,

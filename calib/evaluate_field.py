@@ -1,9 +1,11 @@
 """The held-out check of a field self-calibration (``selfcal evaluate`` for the ArUco field).
 
 As :mod:`calib.evaluate` for a board, with the calibrated marker corners (``calibration.json``
-``scene``, world = the reconstruction frame of the calibration) as the target and the stereo
-rig of the calibration: every marker corner detected in DATASET2 is predicted from the frame's
-joint readings with the calibrated chain (tool = left camera) and the rig -- nothing re-fitted.
+``scene``, world = the reconstruction frame of the calibration) as the target and the rig of the
+calibration (one camera, or the stereo pair): every marker corner detected in every camera of
+DATASET2 is predicted from the frame's joint readings with the calibrated chain (tool = left
+camera), the calibrated camera model (its lens included; the field's cameras share one) and the
+right camera's pose in the left one's frame -- nothing re-fitted.
 The nominal reference is the nominal chain with only its base (the world placement) and tool
 (the hand-eye) fitted to the calibration's camera poses of the calibration dataset.
 """
@@ -65,6 +67,13 @@ def evaluate_field(
     if ds.info.board is not None or (ds.info.cameras != CAMERAS and len(ds.info.cameras) != 1):
         raise InputError(f"{ds.root}: not a one-camera or stereo dataset of the ArUco field",
                          fix="evaluate on a dataset acquired like the calibration's")  # fmt: skip
+    T_lr = np.asarray(cal.rig.T_left_right_m, dtype=float)
+    if len(ds.info.cameras) > 1 and not np.isfinite(T_lr).all():
+        raise InputError(
+            f"{ds.root}: a stereo dataset, but the calibration in {cal_root} is of one camera "
+            "(it has no right camera to predict)",
+            fix="evaluate on a one-camera dataset, or calibrate a stereo dataset",
+        )
     dets = detect_dataset(ds, cache=cache).detections
     scene = dict(zip(cal.scene.point_ids, cal.scene.X_world_m, strict=True))
     models = {"nominal": nominal_reference(cal, Path(cal_root)), "calibrated": cal.model}
@@ -72,10 +81,10 @@ def evaluate_field(
     q = np.radians(ds.joints_deg)
     T_cam = {ds.info.cameras[0]: np.eye(4)}  # one camera (any name), or the pair
     if len(ds.info.cameras) == 2:
-        T_cam["right"] = cal.rig.T_left_right_m
+        T_cam["right"] = T_lr
     T = {k: fk_tool(m, q) for k, m in models.items()}
-    camera = cal.pinhole
-    errs: dict[str, list[np.ndarray]] = {k: [] for k in models}
+    camera = cal.intrinsics.camera()
+    errs: list[dict[str, np.ndarray]] = []
     per = []
     for (index, cam), markers in sorted(dets.items()):
         ft = markers_to_features(markers, where=f"frame {index} {cam}")
@@ -83,16 +92,16 @@ def evaluate_field(
         if not keep.any():
             continue
         X = np.array([scene[int(i)] for i in ft.ids[keep]])
-        out = {"image": f"{index:04d}_{cam}", "index": index, "features": int(keep.sum())}
+        out = {"image": f"{index:04d}_{cam}", "index": index, "camera": cam,
+               "features": int(keep.sum())}  # fmt: skip
+        e: dict[str, np.ndarray] = {}
         for k in models:
             Tc = inv_pose(T[k][row[index]] @ T_cam[cam])
-            e = camera.project(X @ Tc[:3, :3].T + Tc[:3, 3]) - ft.uv[keep]
-            errs[k].append(e)
-            out[f"{k}_px"] = rms_px(e)
+            e[k] = camera.project(X @ Tc[:3, :3].T + Tc[:3, 3]) - ft.uv[keep]
+            out[f"{k}_px"] = rms_px(e[k])
         per.append(out)
+        errs.append(e)
     if not per:
         raise InputError(f"{ds.root}: no image shows a calibrated marker",
                          fix="give held-out images of the same marker field")  # fmt: skip
-    res = {k: np.concatenate(v) for k, v in errs.items()}
-    rms = {k: rms_px(v) for k, v in res.items()}
-    return Evaluation(rms, tuple(per), (), str(ds.root), str(cal_root), res)
+    return Evaluation.of(per, errs, (), str(ds.root), str(cal_root))
