@@ -7,9 +7,10 @@ detections, ``calibration.json`` and (simulation) ``truth.json``; acquisition is
 - ``world/robot``: the robot's visual geometry (boxes, cylinders, capsules, spheres from the MJCF
   built by ``sim.robot_mjcf`` for the true chain of ``truth.json``, else the nominal one) at every
   frame, posed from MuJoCo's ``geom_xpos``/``geom_xmat``; ``world/scene``: table and markers.
-- ``world/estimate/cam_left|cam_right``: the self-calibrated camera poses (pinhole frusta with the
-  estimated intrinsics) with their images (images datasets) and detected corners;
-  ``world/truth/cam_left|cam_right``: the true camera frusta (simulation).
+- ``world/estimate/cam_<name>``: one entity per camera of the dataset's rig (``cam_left`` for
+  one camera, ``cam_left`` and ``cam_right`` for the stereo pair): the self-calibrated camera
+  poses (frusta with the estimated intrinsics) with their images (images datasets) and detected
+  corners; ``world/truth/cam_<name>``: the true camera frusta (simulation).
 - ``world/estimate/points``: marker corners triangulated from the estimated cameras, and
   ``world/estimate/scale_bar`` between the two scale markers' centres (``world/truth/...`` alike).
 - ``errors/...`` scalars on the ``frame`` timeline: camera position / rotation error against the
@@ -163,8 +164,16 @@ def record_run(dataset_dir: str | Path, rrd_path: str | Path | None, spawn: bool
     nominal = nominal_mcpc(robot).with_tool(robot.T_flange_cam)
     truth = read_truth(root / "truth.json") if (root / "truth.json").is_file() else None
 
-    est_intr = cal.pinhole
-    T_lr_est = cal.rig.T_left_right_m
+    est_intr = cal.intrinsics.camera()  # the estimated model, its lens included
+    cams = tuple(ds.info.cameras)  # ("left",) or ("left", "right")
+    T_first_cam = np.stack([np.eye(4), cal.rig.T_left_right_m][: len(cams)])
+    if not np.isfinite(T_first_cam).all():
+        raise DatasetError(
+            f"{cal_path}: the dataset has cameras {list(cams)} but the calibration has no "
+            "right camera (a one-camera calibration)",
+            fix=f"run `selfcal calibrate {root}` again",
+        )
+    rig_est = Rig(tuple(est_intr for _ in cams), T_first_cam, cams)
     cp = cal.camera_poses
     est_pose = dict(zip(cp.frame_index, cp.T_world_cam_left_m))
     q_read = {int(i): np.radians(q) for i, q in zip(ds.indices, ds.joints_deg)}
@@ -189,10 +198,12 @@ def record_run(dataset_dir: str | Path, rrd_path: str | Path | None, spawn: bool
     frames = sorted(est_pose)
     row = {i: k for k, i in enumerate(frames)}
     obs = Observations.from_corners(
-        {(row[int(i)], cam): m for (i, cam), m in dets.items() if int(i) in row}, len(frames)
+        {(row[int(i)], cam): m for (i, cam), m in dets.items() if int(i) in row},
+        len(frames),
+        cameras=cams,
     )
     T_first_world = inv_pose(np.stack([est_pose[i] for i in frames]).reshape(-1, 4, 4))
-    T_cw = obs.layout.by_view(Rig.stereo(est_intr, T_lr_est).T_cams_world(T_first_world))
+    T_cw = obs.layout.by_view(rig_est.T_cams_world(T_first_world))
     ids, pidx = obs.point_index()
     X_all, n_seen = triangulate(T_cw, obs.view, pidx, est_intr.unproject(obs.uv), len(ids))
     ok = n_seen >= 2
@@ -337,19 +348,19 @@ def record_run(dataset_dir: str | Path, rrd_path: str | Path | None, spawn: bool
             rec.log(f"world/robot/{key}", arch)
         rec.log("joints_deg", rr.Scalars(np.degrees(q)))
         if fr is not None:
-            for cam, intr in (("left", truth.intrinsics_left), ("right", truth.intrinsics_right)):
+            for cam in cams:
+                left = cam == "left"
                 _log_camera(
                     rec,
                     f"world/truth/cam_{cam}",
-                    fr.T_world_cam_left if cam == "left" else fr.T_world_cam_right,
-                    intr,
+                    fr.T_world_cam_left if left else fr.T_world_cam_right,
+                    truth.intrinsics_left if left else truth.intrinsics_right,
                     _GT_COLOR,
                 )
         if i in est_world:
-            for cam, T in (("left", est_world[i]), ("right", est_world[i] @ T_lr_est)):
-                img = None
-                if ds.info.observation == "images":
-                    img = ds.frame_paths(i)[0 if cam == "left" else 1]
+            for c, cam in enumerate(cams):
+                T = est_world[i] @ T_first_cam[c]
+                img = ds.frame_paths(i)[c] if ds.info.observation == "images" else None
                 _log_camera(
                     rec,
                     f"world/estimate/cam_{cam}",

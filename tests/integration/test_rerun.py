@@ -2,7 +2,9 @@
 
 A 10-pose rendered run (images, so the recording holds images and detected corners) is recorded
 post hoc and must pass ``rerun rrd verify`` (the CLI shipped with rerun-sdk). Skipped only when
-the ``rerun`` executable is missing from the environment.
+the ``rerun`` executable is missing from the environment. The recording holds one camera entity
+per camera of the rig: both of the stereo pair, and the one of ``scenarios/mono.toml`` (read back
+with rerun-sdk's ``RrdReader``).
 """
 
 from __future__ import annotations
@@ -16,8 +18,24 @@ from pathlib import Path
 import pytest
 
 from scenarios import rerun_log
+from scenarios.cli import main
 from scenarios.config import load_scenario
 from scenarios.pipeline import run_acquire, run_calibrate
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+def _camera_entities(rrd: Path) -> dict[str, set[str]]:
+    """The camera entities of the recording in ``rrd`` by kind (``estimate``, ``truth``): the
+    names after ``cam_`` of the entity paths ``/world/<kind>/cam_<name>``."""
+    from rerun.chunk import RrdReader
+
+    out: dict[str, set[str]] = {"estimate": set(), "truth": set()}
+    for chunk in RrdReader(rrd).stream().to_chunks():
+        parts = str(chunk.entity_path).strip("/").split("/")
+        if len(parts) >= 3 and parts[0] == "world" and parts[2].startswith("cam_"):
+            out.setdefault(parts[1], set()).add(parts[2][4:])
+    return out
 
 
 def _rerun_exe() -> str | None:
@@ -49,6 +67,19 @@ def test_record_passes_rrd_verify(small_run, tmp_path):
     )
     assert res.returncode == 0, res.stdout + res.stderr
     assert "verified without error" in (res.stdout + res.stderr)
+    assert _camera_entities(rrd) == {"estimate": {"left", "right"}, "truth": {"left", "right"}}
+
+
+def test_one_camera_run_records_one_camera_entity(tmp_path):
+    """`selfcal run scenarios/mono.toml --rrd X.rrd` (its camera and lens; the analytic path and
+    fewer poses here, for time) writes the recording with one camera, not a right one."""
+    toml = tmp_path / "mono.toml"
+    toml.write_text((REPO / "scenarios" / "mono.toml").read_text() + "\n[noise]\nrender = false\n"
+                    "\n[trajectory]\nposes = 16\n\n[validation]\nposes = 5\n")  # fmt: skip
+    rrd = tmp_path / "mono.rrd"
+    assert main(["run", str(toml), "--out", str(tmp_path / "run"), "--rrd", str(rrd)]) == 0
+    assert rrd.stat().st_size > 10_000
+    assert _camera_entities(rrd) == {"estimate": {"left"}, "truth": {"left"}}
 
 
 def test_record_needs_a_calibration(tmp_path, small_run):
