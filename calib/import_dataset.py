@@ -31,7 +31,7 @@ import cv2
 import numpy as np
 
 from calib.board_calibrate import BoardMismatchError, calibrate_board
-from calib.camera import MODELS
+from calib.camera import MODELS, canonical_free
 from calib.camera_choice import for_cameras
 from calib.choices import DEFAULT_FREE, DEFAULT_MODEL
 from calib.errors import InputError, SelfCalWarning
@@ -354,13 +354,16 @@ def _camera_choice(
     if model not in MODELS:
         raise ImportError_(f"{which}camera model {model!r}", fix=f"use one of {', '.join(MODELS)}")
     names = MODELS[model].names
-    free_t = DEFAULT_FREE[model] if free is None else tuple(free)
+    try:
+        free_t = DEFAULT_FREE[model] if free is None else canonical_free(free)
+    except ValueError as e:
+        raise ImportError_(str(e), fix="give --free either fy or mu") from None
     bad = [n for n in free_t if n not in names]
     if bad or "fx" not in free_t:
         opt = "--free" if camera is None else f"--free '{camera}=...'"
         raise ImportError_(
             f"{which}free camera parameters {list(free_t)} for the {model} model",
-            fix=f"give {opt} a comma list of {', '.join(names)} that includes fx",
+            fix=f"give {opt} a comma list of {', '.join(names)} (fy for mu) that includes fx",
         )
     return model, tuple(n for n in names if n in free_t)
 

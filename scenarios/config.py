@@ -77,8 +77,15 @@ class CameraConfig:
     """True lens coefficients by OpenCV name, e.g. {k1 = -0.25, p1 = 1e-3} (simulation; the
     others are zero). The calibration starts from no distortion."""
     free: list[str] = field(default_factory=lambda: ["fx", "mu"])
-    """Parameters the calibration estimates, by name (fx, mu = fy / fx, cx, cy and the model's
-    lens coefficients); the others stay at their start (the image centre, no distortion)."""
+    """Parameters the calibration estimates, by name (fx, mu = fy / fx or its OpenCV name fy,
+    cx, cy and the model's lens coefficients); the others stay at their start (the image centre,
+    no distortion). ``fy`` is read as ``mu`` (the one parametrisation the estimation uses)."""
+
+    def __post_init__(self) -> None:
+        free = list(self.free)
+        if "mu" not in free:  # both named: the validation says so with the file's name
+            free = ["mu" if n == "fy" else n for n in free]
+        object.__setattr__(self, "free", free)
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -376,6 +383,12 @@ def _validate_camera(s: Scenario) -> None:
         if not isinstance(v, (int, float)) or isinstance(v, bool):
             raise ConfigError(f"{f}: camera.distortion.{k}: expected number, got {v!r}")
     names = MODELS[c.model].names
+    if "fy" in c.free:  # left by CameraConfig only when mu is named as well
+        raise ConfigError(
+            f"{f}: camera.free names both 'fy' and 'mu'; fy is OpenCV's name for the same "
+            "freedom (mu = fy / fx with fx free)",
+            fix="keep one of them in camera.free",
+        )
     for n in c.free:
         if n not in names:
             raise ConfigError(

@@ -178,7 +178,7 @@ def register(subparsers) -> None:
         help="comma list of the camera parameters to estimate, OpenCV names (default: "
         + "; ".join(f"{m}: {','.join(f)}" for m, f in DEFAULT_FREE.items())
         + "; k3 only on request); NAME= sets one camera's (repeat per camera, e.g. "
-        "'cam1=fx,mu,cx,cy,k1,k2,k3,k4'), a bare list every camera not named",
+        "'cam1=fx,mu,cx,cy,k1,k2,k3,k4'), a bare list every camera not named; fy may stand for mu",
     )  # fmt: skip
     add_bag_import_args(sp)
     add_json(sp)

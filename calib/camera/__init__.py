@@ -18,11 +18,21 @@ from calib.camera.distorted import BrownConrady, Fisheye, LensCamera
 from calib.camera.model import CameraModel, perspective, perspective_jacobian, project
 from calib.camera.pinhole import Intrinsics, Pinhole, PinholeValues, centered_principal_point
 from calib.camera.rig import STEREO_NAMES, Rig
-from calib.camera.spec import MODELS, camera_model, lens_names, opencv_values, with_pinhole
+from calib.camera.spec import (
+    FREE_ALIASES,
+    MODELS,
+    camera_model,
+    canonical_free,
+    lens_names,
+    opencv_values,
+    with_pinhole,
+)
 from calib.camera.visibility import Visibility
 
 __all__ = [
+    "FREE_ALIASES",
     "MODELS",
+    "canonical_free",
     "BrownConrady",
     "CameraModel",
     "Fisheye",

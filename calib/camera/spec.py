@@ -4,7 +4,9 @@ Model names (the scenario's and dataset's ``camera.model``): ``"pinhole"``
 (:class:`calib.camera.pinhole.Pinhole`), ``"opencv"`` (:class:`calib.camera.distorted.BrownConrady`),
 ``"fisheye"`` (:class:`calib.camera.distorted.Fisheye`). Values by OpenCV's names: ``fx``, ``fy``,
 ``cx``, ``cy`` (px) and the lens coefficients (``k1`` ...); the estimation's parameter ``mu`` is
-``fy / fx``.
+``fy / fx``. A ``free`` selection may name ``fy`` for ``mu`` (:func:`canonical_free`): with
+``fx`` free (it always is), freeing ``fy`` and freeing the aspect ratio are the same
+parametrisation of ``(fx, fy)``.
 """
 
 from __future__ import annotations
@@ -15,7 +17,16 @@ from calib.camera.distorted import BrownConrady, Fisheye, LensCamera
 from calib.camera.model import CameraModel
 from calib.camera.pinhole import Pinhole
 
-__all__ = ["MODELS", "camera_model", "model_name", "opencv_values", "with_pinhole", "lens_names"]
+__all__ = [
+    "FREE_ALIASES",
+    "MODELS",
+    "camera_model",
+    "canonical_free",
+    "model_name",
+    "opencv_values",
+    "with_pinhole",
+    "lens_names",
+]
 
 MODELS: dict[str, type[Pinhole]] = {
     "pinhole": Pinhole,
@@ -23,6 +34,28 @@ MODELS: dict[str, type[Pinhole]] = {
     "fisheye": Fisheye,
 }
 """Camera model classes by name."""
+
+
+FREE_ALIASES = {"fy": "mu"}
+"""OpenCV names a ``free`` selection may use for the estimation's parameters: ``fy`` frees the
+aspect ratio ``mu = fy / fx`` (``calibration.json`` reports both ``fy`` and ``mu``)."""
+
+
+def canonical_free(free: Sequence[str]) -> tuple[str, ...]:
+    """``free`` with every alias of :data:`FREE_ALIASES` replaced by the parameter it names
+    (``["fx", "fy", "cx"]`` -> ``("fx", "mu", "cx")``), the order kept.
+
+    Raises ``ValueError`` when a selection names both an alias and its parameter."""
+    out = []
+    for n in free:
+        target = FREE_ALIASES.get(n, n)
+        if n != target and target in free:
+            raise ValueError(
+                f"free camera parameters name both {n!r} and {target!r}; {n!r} is OpenCV's name "
+                f"for the same freedom ({target} = fy / fx with fx free): give one of them"
+            )
+        out.append(target)
+    return tuple(out)
 
 
 def lens_names(model: str) -> tuple[str, ...]:
@@ -48,7 +81,8 @@ def camera_model(
     free: Sequence[str] = ("fx", "mu"),
 ) -> Pinhole:
     """The camera ``model`` with pinhole values (px, ``mu = fy / fx``), image size (px), lens
-    coefficients by name (missing ones zero) and ``free`` parameter names.
+    coefficients by name (missing ones zero) and ``free`` parameter names (``fy`` for ``mu``
+    accepted, :func:`canonical_free`).
 
     Raises ``ValueError`` naming an unknown model, coefficient or free parameter."""
     names = lens_names(model)
@@ -58,6 +92,7 @@ def camera_model(
         raise ValueError(f"camera model {model!r} has no coefficient(s) {unknown}; it has {names}")
     cls = MODELS[model]
     allowed = cls.names
+    free = canonical_free(free)
     bad = [n for n in free if n not in allowed]
     if bad:
         raise ValueError(

@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from calib.camera import MODELS, Pinhole, camera_model, lens_names
+from calib.camera import MODELS, Pinhole, camera_model, canonical_free, lens_names
 from calib.errors import InputError
 from calib.io.jsonfile import (
     SCHEMA_KEY,
@@ -302,6 +302,10 @@ def _camera_model(cam: Fields) -> tuple[str, tuple[str, ...]]:
     if model not in MODELS:
         raise cam.bad("model", f"one of {tuple(MODELS)}", model)
     free = cam.strs("free") if cam.has("free") else ("fx", "mu")
+    try:
+        free = canonical_free(free)  # fy: OpenCV's name for freeing mu
+    except ValueError:
+        raise cam.bad("free", "fy or mu, not both", list(free)) from None
     if not set(free) <= set(MODELS[model].names) or "fx" not in free:
         raise cam.bad("free", f"names of {MODELS[model].names} including fx", list(free))
     return model, tuple(free)

@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 
 from calib.calibrate import dataset_camera
-from calib.camera import BrownConrady, Fisheye, camera_model
+from calib.camera import BrownConrady, Fisheye, camera_model, canonical_free
+from calib.import_dataset import ImportError_, _camera_choice
 from calib.io.calibration_blocks import CameraIntrinsics
 from calib.io.dataset_info import DatasetError, DatasetInfo
 from calib.io.jsonfile import Fields
@@ -60,6 +61,7 @@ free = {json.dumps(FREE)}
         ('model = "stereographic"', ["camera.model", "stereographic"]),
         ("principal_point_offset_px = [1.0]", ["camera.principal_point_offset_px"]),
         ("lens = 1", ["unknown key 'camera.lens'"]),
+        ('free = ["fx", "fy", "mu"]', ["camera.free", "'fy' and 'mu'"]),
     ],
 )
 def test_bad_camera_keys_name_file_and_key(tmp_path, text, words):
@@ -67,6 +69,35 @@ def test_bad_camera_keys_name_file_and_key(tmp_path, text, words):
         load_scenario(_write(tmp_path, f"[camera]\n{text}\n"))
     for w in words:
         assert w in str(e.value)
+
+
+def test_fy_by_its_opencv_name_frees_the_aspect_ratio(tmp_path):
+    """`free = ["fx", "fy", ...]` is the issue's OpenCV form of `["fx", "mu", ...]`: the same
+    parametrisation (mu = fy / fx, fx free), in the scenario, camera_model, the import's --free
+    and dataset.json; calibration.json reports fy by that name (and mu)."""
+    s = load_scenario(_write(tmp_path, '[camera]\nmodel = "opencv"\nfree = ["fx", "fy", "k1"]\n'))
+    assert s.camera.free == ["fx", "mu", "k1"] and s.camera.true_model().free == ("fx", "mu", "k1")
+    assert canonical_free(["cx", "fy", "fx"]) == ("cx", "mu", "fx")
+    with pytest.raises(ValueError, match="'fy' and 'mu'"):
+        canonical_free(["fx", "fy", "mu"])
+    cam = camera_model("pinhole", fx=800.0, mu=1.01, cx=320.0, cy=240.0, width=640, height=480,
+                       free=["fy", "fx"])  # fmt: skip
+    assert cam.free == ("fx", "mu")
+    assert CameraIntrinsics.of(cam, {"fx": 0.1, "mu": 1e-4}).fy == pytest.approx(808.0)
+    assert _camera_choice("opencv", ["fx", "fy", "cx", "cy"]) == (
+        "opencv",
+        ("fx", "mu", "cx", "cy"),
+    )
+    with pytest.raises(ImportError_, match="'fy' and 'mu'"):
+        _camera_choice("opencv", ["fx", "fy", "mu"])
+    doc = _info(camera_model="opencv", camera_free=("fx", "mu")).to_json()
+    for c in doc["cameras"]:
+        c["free"] = ["fx", "fy", "k1"]
+    assert DatasetInfo.from_json(doc, "dataset.json").camera_free == ("fx", "mu", "k1")
+    for c in doc["cameras"]:
+        c["free"] = ["fx", "fy", "mu"]
+    with pytest.raises(DatasetError, match=r"cameras\[0\]\.free"):
+        DatasetInfo.from_json(doc, "dataset.json")
 
 
 def _info(**kw) -> DatasetInfo:
