@@ -27,8 +27,8 @@ MARGIN_PX = 3
 
 
 def needs_remap(camera: Pinhole) -> bool:
-    """True for a camera with a lens (MuJoCo cannot render it directly)."""
-    return isinstance(camera, LensCamera)
+    """True for a camera with a lens or a skew (MuJoCo cannot render either directly)."""
+    return isinstance(camera, LensCamera) or camera.skew != 0.0
 
 
 def _rays(camera: Pinhole) -> np.ndarray:

@@ -2,8 +2,8 @@
 
 Each model is the chain ``X_cam -> perspective -> lens -> Pinhole.pixels`` (see
 :mod:`calib.camera.model`); the Jacobians follow by the chain rule from the three links'.
-Parameters, in order: the pinhole's ``fx`` (px), ``mu = fy / fx``, ``cx``, ``cy`` (px), then the
-lens coefficients by OpenCV's names and in OpenCV's order:
+Parameters, in order: the pinhole's ``fx`` (px), ``mu = fy / fx``, ``cx``, ``cy``, ``skew`` (px),
+then the lens coefficients by OpenCV's names and in OpenCV's order:
 
 - :class:`BrownConrady` (model name ``"opencv"``): ``k1, k2, p1, p2, k3, k4, k5, k6``
   (``k4 .. k6`` the rational model's denominator; zero and held by default);
@@ -64,14 +64,15 @@ class LensCamera(Pinhole):
         the pinhole's)."""
         return cls(
             pinhole.fx, pinhole.mu, pinhole.cx, pinhole.cy, pinhole.width, pinhole.height,
-            pinhole.free if free is None else tuple(free), tuple(coeffs),
+            pinhole.free if free is None else tuple(free), tuple(coeffs), skew=pinhole.skew,
         )  # fmt: skip
 
     @property
     def pinhole(self) -> Pinhole:  # the lens-free camera
         """The pixel map (its ``free``: the pinhole parameters among this model's)."""
         free = tuple(n for n in self.free if n in Pinhole.names)
-        return Pinhole(self.fx, self.mu, self.cx, self.cy, self.width, self.height, free)
+        return Pinhole(self.fx, self.mu, self.cx, self.cy, self.width, self.height, free,
+                       skew=self.skew)  # fmt: skip
 
     def coefficient(self, name: str) -> float:
         """The lens coefficient ``name`` (e.g. ``"k1"``)."""
@@ -79,11 +80,12 @@ class LensCamera(Pinhole):
 
     # ------------------------------------------------------------ the CameraModel interface
     def values(self) -> np.ndarray:
-        return np.array([self.fx, self.mu, self.cx, self.cy, *self.coeffs], dtype=float)
+        return np.array([self.fx, self.mu, self.cx, self.cy, self.skew, *self.coeffs], dtype=float)
 
     def with_values(self, values: np.ndarray):
         v = [float(x) for x in np.asarray(values, dtype=float).reshape(len(self.names))]
-        return dataclasses.replace(self, fx=v[0], mu=v[1], cx=v[2], cy=v[3], coeffs=tuple(v[4:]))
+        return dataclasses.replace(self, fx=v[0], mu=v[1], cx=v[2], cy=v[3], skew=v[4],
+                                   coeffs=tuple(v[5:]))  # fmt: skip
 
     def project_jacobians(self, X_cam: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         xn, J_persp = perspective_jacobian(X_cam)
@@ -107,7 +109,7 @@ class LensCamera(Pinhole):
 class BrownConrady(LensCamera):
     """OpenCV's default camera model: pinhole + radial-tangential (rational) distortion."""
 
-    names = ("fx", "mu", "cx", "cy", "k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6")
+    names = ("fx", "mu", "cx", "cy", "skew", "k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6")
     lens_names = ("k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6")
     model_name = "opencv"
     lens: ClassVar[LensMap] = staticmethod(brown_conrady)  # type: ignore[assignment]
@@ -122,9 +124,9 @@ class BrownConrady(LensCamera):
 
 @dataclass(frozen=True)
 class Fisheye(LensCamera):
-    """OpenCV's fisheye camera model (``cv2.fisheye``, without its skew ``alpha``)."""
+    """OpenCV's fisheye camera model (``cv2.fisheye``; its skew ``alpha`` is ``skew / fx``)."""
 
-    names = ("fx", "mu", "cx", "cy", "k1", "k2", "k3", "k4")
+    names = ("fx", "mu", "cx", "cy", "skew", "k1", "k2", "k3", "k4")
     lens_names = ("k1", "k2", "k3", "k4")
     model_name = "fisheye"
     lens: ClassVar[LensMap] = staticmethod(kannala_brandt)  # type: ignore[assignment]

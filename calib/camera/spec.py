@@ -79,10 +79,11 @@ def camera_model(
     height: int,
     coeffs: Mapping[str, float] | None = None,
     free: Sequence[str] = ("fx", "mu"),
+    skew: float = 0.0,
 ) -> Pinhole:
     """The camera ``model`` with pinhole values (px, ``mu = fy / fx``), image size (px), lens
-    coefficients by name (missing ones zero) and ``free`` parameter names (``fy`` for ``mu``
-    accepted, :func:`canonical_free`).
+    coefficients by name (missing ones zero), ``free`` parameter names (``fy`` for ``mu``
+    accepted, :func:`canonical_free`) and ``skew`` (px, ``K[0, 1]``).
 
     Raises ``ValueError`` naming an unknown model, coefficient or free parameter."""
     names = lens_names(model)
@@ -100,9 +101,11 @@ def camera_model(
         )
     free_t = tuple(n for n in allowed if n in free)  # names order
     if cls is Pinhole:
-        return Pinhole(float(fx), float(mu), float(cx), float(cy), int(width), int(height), free_t)
+        return Pinhole(float(fx), float(mu), float(cx), float(cy), int(width), int(height), free_t,
+                       skew=float(skew))  # fmt: skip
     c = tuple(float(coeffs.get(n, 0.0)) for n in names)
-    return cls(float(fx), float(mu), float(cx), float(cy), int(width), int(height), free_t, c)  # type: ignore[call-arg]
+    return cls(float(fx), float(mu), float(cx), float(cy), int(width), int(height), free_t,
+               coeffs=c, skew=float(skew))  # type: ignore[call-arg]  # fmt: skip
 
 
 def model_name(camera: CameraModel) -> str:
@@ -111,10 +114,10 @@ def model_name(camera: CameraModel) -> str:
 
 
 def opencv_values(camera: CameraModel) -> dict[str, float]:
-    """``fx``, ``fy``, ``cx``, ``cy`` (px) and the lens coefficients of ``camera`` by OpenCV's
-    names."""
-    fx, mu, cx, cy = (float(v) for v in camera.values()[:4])
-    out = {"fx": fx, "fy": fx * mu, "cx": cx, "cy": cy}
+    """``fx``, ``fy``, ``cx``, ``cy``, ``skew`` (px, ``K[0, 1]``) and the lens coefficients of
+    ``camera`` by OpenCV's names."""
+    fx, mu, cx, cy, skew = (float(v) for v in camera.values()[:5])
+    out = {"fx": fx, "fy": fx * mu, "cx": cx, "cy": cy, "skew": skew}
     if isinstance(camera, LensCamera):
         out.update(zip(camera.lens_names, (float(c) for c in camera.coeffs)))
     return out
@@ -126,4 +129,4 @@ def with_pinhole(template: Pinhole, pinhole: Pinhole) -> Pinhole:
     if isinstance(template, LensCamera):
         return type(template).from_pinhole(pinhole, (), template.free)
     return Pinhole(pinhole.fx, pinhole.mu, pinhole.cx, pinhole.cy, pinhole.width,
-                   pinhole.height, template.free)  # fmt: skip
+                   pinhole.height, template.free, skew=pinhole.skew)  # fmt: skip

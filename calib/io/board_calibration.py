@@ -7,8 +7,8 @@ m); the MCPC chain's tool is the first camera (OpenCV frame). Keys (units in the
     format, schema_version, robot_model, world_frame
     target            the board's target TOML keys (mm)
     cameras           [{name, resolution, model ("pinhole", "opencv", "fisheye"), parameters:
-                       {fx, fy, cx, cy (px), mu, k1, k2, p1, p2, k3 ... (the model's lens
-                       coefficients, OpenCV names)}, free, std: {free name: px or 1},
+                       {fx, fy, cx, cy, skew (px), mu, k1, k2, p1, p2, k3 ... (the model's
+                       lens coefficients, OpenCV names)}, free, std: {free name: px or 1},
                        T_first_camera}]
     mcpc              joint_types, joint_offsets_rad, params_si (n + 1, 6), columns, tool
     nominal_mcpc      the nominal kinematics with only hand-eye and board pose fitted (the
@@ -149,7 +149,8 @@ class BoardCalibrationResult:
             try:
                 cams.append(camera_model(model, fx=p.float("fx"), mu=p.float("fy") / p.float("fx"),
                                          cx=p.float("cx"), cy=p.float("cy"), width=w, height=h,
-                                         coeffs=coeffs, free=c.strs("free")))  # fmt: skip
+                                         coeffs=coeffs, free=c.strs("free"),
+                                         skew=p.float("skew") if p.has("skew") else 0.0))  # fmt: skip
             except ValueError as e:
                 raise c.bad("free", f"parameter names of the {model} model", c.raw("free")) from e
             names.append(c.str("name"))

@@ -64,7 +64,7 @@ class CameraIntrinsics(JsonBlock):
     ``(cx, cy)`` (OpenCV, pixel centres at integers), image size, the standard deviations of
     ``fx`` and ``mu``; the ``model`` (``pinhole``, ``opencv``, ``fisheye``), its lens
     coefficients by OpenCV name (``distortion``), the estimated (``free``) parameters and their
-    standard deviations by name (``std``)."""
+    standard deviations by name (``std``), the ``skew`` (px, ``K[0, 1]``; 0 unless freed)."""
 
     fx: float
     fy: float
@@ -79,16 +79,25 @@ class CameraIntrinsics(JsonBlock):
     free: tuple[str, ...] = ("fx", "mu")
     distortion: dict[str, float] = field(default_factory=dict)
     std: dict[str, float] = field(default_factory=dict)
+    skew: float = 0.0
+
+    def to_json(self) -> dict:
+        """The JSON object; ``skew`` only when nonzero (files stay as they were without it)."""
+        doc = super().to_json()
+        if doc["skew"] == 0.0:
+            del doc["skew"]
+        return doc
 
     def pinhole(self) -> Intrinsics:
         """The pinhole part as :class:`calib.camera.Intrinsics` (no lens)."""
-        return Intrinsics(self.fx, self.mu, self.cx, self.cy, self.width, self.height)
+        return Intrinsics(self.fx, self.mu, self.cx, self.cy, self.width, self.height,
+                          skew=self.skew)  # fmt: skip
 
     def camera(self) -> Intrinsics:
         """The estimated camera (its ``model``, lens and ``free`` selection)."""
         return camera_model(
             self.model, fx=self.fx, mu=self.mu, cx=self.cx, cy=self.cy, width=self.width,
-            height=self.height, coeffs=self.distortion, free=self.free,
+            height=self.height, coeffs=self.distortion, free=self.free, skew=self.skew,
         )  # fmt: skip
 
     @classmethod
@@ -102,7 +111,7 @@ class CameraIntrinsics(JsonBlock):
             height=int(camera.height), fx_std=float(std.get("fx", nan)),
             mu_std=float(std.get("mu", nan)), model=camera.model_name, free=tuple(camera.free),
             distortion={k: v for k, v in opencv_values(camera).items() if k[0] in "kp"},
-            std={k: float(v) for k, v in std.items()},
+            std={k: float(v) for k, v in std.items()}, skew=float(camera.skew),
         )  # fmt: skip
 
 

@@ -296,6 +296,7 @@ def _intr_json(i: Intrinsics) -> dict:
         "height": int(i.height),
         "model": i.model_name,
         **lens,
+        **({"skew": float(i.skew)} if i.skew else {}),
     }
 
 
@@ -307,6 +308,7 @@ def _intr_from(f: Fields) -> Intrinsics:
     return camera_model(
         model, fx=f.float("fx"), mu=f.float("mu"), cx=f.float("cx"), cy=f.float("cy"),
         width=f.int("width"), height=f.int("height"), coeffs=lens,
+        skew=f.float("skew") if f.has("skew") else 0.0,
     )  # fmt: skip
 
 

@@ -194,3 +194,31 @@ def test_fisheye_from_analytic_views():
     got = dict(zip(true.names, res.camera.values(), strict=True))
     for n, v in zip(true.names, true.values(), strict=True):  # measured |error| / sigma <= 1.8
         assert abs(got[n] - v) < 3 * res.std[n], n
+
+
+def test_a_free_skew_is_estimated_and_exported_as_k01():
+    """``skew`` (K[0, 1], px) is a free parameter when named: OpenCV's calibration starts it
+    at 0 and the bundle adjustment frees it. A camera with skew 1.5 px: every parameter within
+    3 sigma (measured |z| <= 2.1, skew std 0.105 px, 14 sigma from zero). The exports carry it
+    as K[0, 1] and calibration.json's camera entry names it."""
+    import json
+
+    from calib.export_camera import to_camera_info_yaml, to_opencv_yaml
+    from calib.io.board_calibration import camera_json
+
+    free = (*NAMES, "skew")
+    true = Pinhole(800.0, 1.01, 330.0, 235.0, 640, 480, free=free, skew=1.5)
+    board = Charuco((11, 8), 0.02, 0.015)
+    views = analytic_views(board, true, random_board_poses(board, 12, seed=1), 0.1, seed=2)
+    res = calibrate_board(board, views, 640, 480, free=free)
+    assert res.camera.free == free
+    z = {n: (getattr(res.camera, n) - getattr(true, n)) / res.std[n] for n in free}
+    print("skew z:", {k: round(v, 2) for k, v in z.items()}, "std", res.std["skew"])
+    assert all(abs(v) < 3 for v in z.values()), z
+    assert abs(res.camera.skew) > 5 * res.std["skew"]  # found: 14 sigma from zero
+    mode = cv2.FILE_STORAGE_READ | cv2.FILE_STORAGE_MEMORY
+    fs = cv2.FileStorage(to_opencv_yaml(res.camera), mode)
+    assert fs.getNode("camera_matrix").mat()[0, 1] == pytest.approx(res.camera.skew, abs=1e-12)
+    assert f"data: [{res.camera.fx!r}, {res.camera.skew!r}," in to_camera_info_yaml(res.camera)
+    doc = json.loads(json.dumps(camera_json("cam0", res.camera, res.std)))
+    assert doc["parameters"]["skew"] == res.camera.skew == opencv_values(res.camera)["skew"]

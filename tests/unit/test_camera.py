@@ -5,7 +5,7 @@ Tolerances are about 3x what the code achieves (measured over thousands of rando
 projection vs cv2.projectPoints 2 eps of the terms summed (fx |x/z| + |cx|); central differences
 (step h = 1e-5 of the depth, or of the parameter): 5e-10 of the point's largest entry (point);
 for the parameters, in which the projection is linear, the rounding of the differenced pixels,
-0.93 eps (|uv| + |J p|) / h;
+0.93 eps (|uv| + sum |J p|) / h (the terms summed: fx x, skew y, cx);
 unproject(project(X)) 1.7 eps of the same terms divided by the focal length.
 """
 
@@ -24,7 +24,9 @@ EPS = np.finfo(float).eps
 
 
 @st.composite
-def cameras(draw, free=("fx", "mu", "cx", "cy")):
+def cameras(draw, free=("fx", "mu", "cx", "cy"), skewed=False):
+    """A random pinhole; ``skewed``: maybe with a skew ``K[0, 1]`` of up to 2 % of fx (the
+    comparisons with cv2.projectPoints, which ignores it, draw none)."""
     W = draw(st.integers(16, 8192))
     H = draw(st.integers(16, 8192))
     return Pinhole(
@@ -35,6 +37,7 @@ def cameras(draw, free=("fx", "mu", "cx", "cy")):
         W,
         H,
         free,
+        skew=draw(st.one_of(st.just(0.0), st.floats(-100.0, 100.0))) if skewed else 0.0,
     )
 
 
@@ -55,7 +58,7 @@ def test_pinhole_matches_opencv_project_points(cam, seed):
 
 
 @settings(max_examples=100, deadline=None)
-@given(cameras(), st.integers(0, 2**32 - 1))
+@given(cameras(skewed=True), st.integers(0, 2**32 - 1))
 def test_pinhole_jacobians_match_central_differences(cam, seed):
     X = _points(seed, 10)
     uv, J_point, J_par = cam.project_jacobians(X)
@@ -64,7 +67,8 @@ def test_pinhole_jacobians_match_central_differences(cam, seed):
     scale = np.abs(J_point).max(axis=(1, 2))[:, None, None]  # per point
     assert np.all(np.abs(fd_point - J_point) <= 1.5e-9 * scale)
     # the projection is linear in each parameter: the difference is rounding only
-    rounding = EPS * (np.abs(uv)[..., None] + np.abs(J_par * cam.values())) / h
+    terms = np.abs(J_par * cam.values()).sum(axis=-1, keepdims=True)
+    rounding = EPS * (np.abs(uv)[..., None] + terms) / h
     assert np.all(np.abs(fd_par - J_par) <= 3 * rounding)
 
 
@@ -89,12 +93,14 @@ def central_differences(cam, X: np.ndarray, rel_h: float):
 
 
 @settings(max_examples=200, deadline=None)
-@given(cameras(), st.integers(0, 2**32 - 1))
+@given(cameras(skewed=True), st.integers(0, 2**32 - 1))
 def test_unproject_inverts_project(cam, seed):
     X = _points(seed)
     xn0 = X[:, :2] / X[:, 2:]
     f = np.array([cam.fx, cam.fy])
-    scale = (np.abs(xn0) * f + np.abs([cam.cx, cam.cy])) / f  # the terms rounded, in xn units
+    terms = np.abs(xn0) * f + np.abs([cam.cx, cam.cy])
+    terms[:, 0] += np.abs(cam.skew * xn0[:, 1]) + terms[:, 1] * abs(cam.skew) / cam.fy
+    scale = terms / f  # the terms rounded, in xn units (the skew carries y's into x)
     assert np.all(np.abs(cam.unproject(cam.project(X)) - xn0) <= 5 * EPS * scale)
     # and the ray through a pixel projects back onto it, at any depth
     uv = np.array([[0.0, 0.0], [cam.width - 1.0, cam.height - 1.0], [cam.cx, cam.cy]])
@@ -105,7 +111,7 @@ def test_unproject_inverts_project(cam, seed):
 
 def test_free_selection_and_parameter_names():
     cam = Pinhole.centered(800.0, 1.02, 640, 480)
-    assert cam.names == ("fx", "mu", "cx", "cy") and cam.free == ("fx", "mu")
+    assert cam.names == ("fx", "mu", "cx", "cy", "skew") and cam.free == ("fx", "mu")
     assert (cam.cx, cam.cy) == (319.5, 239.5) and cam.fy == pytest.approx(816.0)
     np.testing.assert_array_equal(cam.free_values(), [800.0, 1.02])
     moved = cam.with_free_values([810.0, 0.99])

@@ -46,7 +46,7 @@ free = {json.dumps(FREE)}
     assert cam.coeffs == (-0.25, 0.1, 1e-3, -5e-4, 0.0, 0.0, 0.0, 0.0)
     default = load_scenario().camera
     assert default.model == "pinhole" and default.free == ["fx", "mu"]
-    assert default.true_model().values().tolist() == [800.0, 1.0, 319.5, 239.5]
+    assert default.true_model().values().tolist() == [800.0, 1.0, 319.5, 239.5, 0.0]  # skew 0
 
 
 @pytest.mark.parametrize(
@@ -138,6 +138,13 @@ def test_calibration_block_records_the_camera_by_opencv_names():
     assert list(doc["distortion"]) == ["k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6"]
     back = CameraIntrinsics.from_json(Fields(doc, "calibration.json", "fix"))
     assert back == block and back.camera() == cam
+    skewed = camera_model("pinhole", fx=801.0, mu=0.99, cx=331.0, cy=232.0, width=640,
+                          height=480, free=["fx", "mu", "skew"], skew=0.75)  # fmt: skip
+    doc = json.loads(json.dumps(CameraIntrinsics.of(skewed, {}).to_json()))
+    assert doc["skew"] == 0.75 and "skew" not in doc["distortion"]
+    assert CameraIntrinsics.from_json(Fields(doc, "calibration.json", "fix")).camera() == skewed
+    del doc["skew"]  # a file written before the skew: 0
+    assert CameraIntrinsics.from_json(Fields(doc, "calibration.json", "fix")).skew == 0.0
 
 
 @pytest.mark.slow  # 13-16 s each; the lens acceptance tests cover the same path end to end

@@ -31,7 +31,9 @@ EPS = np.finfo(float).eps
 
 
 @st.composite
-def lens_cameras(draw, kind):
+def lens_cameras(draw, kind, skewed=False):
+    """A random lens camera of ``kind``; ``skewed``: with a skew ``K[0, 1]`` of up to 2 % of fx
+    (cv2.projectPoints ignores it, so the comparisons with OpenCV draw none)."""
     W = draw(st.integers(64, 4000))
     H = draw(st.integers(64, 4000))
     pin = (
@@ -40,6 +42,7 @@ def lens_cameras(draw, kind):
         draw(st.floats(0.0, float(W))),
         draw(st.floats(0.0, float(H))),
     )
+    skew = draw(st.floats(-0.02, 0.02)) * pin[0] if skewed else 0.0
     if kind == "opencv":
         c = (
             draw(st.floats(-0.4, 0.4)),
@@ -49,9 +52,9 @@ def lens_cameras(draw, kind):
             draw(st.floats(-0.05, 0.05)),
             *(draw(st.floats(0.0, 0.1)) for _ in range(3)),
         )
-        return BrownConrady(*pin, W, H, BrownConrady.names, c)
+        return BrownConrady(*pin, W, H, BrownConrady.names, c, skew=skew)
     c = tuple(draw(st.floats(-a, a)) for a in (0.1, 0.05, 0.01, 0.005))
-    return Fisheye(*pin, W, H, Fisheye.names, c)
+    return Fisheye(*pin, W, H, Fisheye.names, c, skew=skew)
 
 
 RMAX = {"opencv": 0.5, "fisheye": 1.5}  # normalised radius inside which the maps are invertible
@@ -91,7 +94,7 @@ def test_lens_projection_matches_opencv_and_unprojects(kind, tol, tol_back, data
 @settings(max_examples=60, deadline=None)
 @given(data=st.data(), seed=st.integers(0, 2**32 - 1))
 def test_lens_jacobians_match_central_differences(kind, tol_pt, tol_par, data, seed):
-    cam = data.draw(lens_cameras(kind))
+    cam = data.draw(lens_cameras(kind, skewed=data.draw(st.booleans())))
     _, X = _points(cam, seed)
     uv, J_point, J_par = cam.project_jacobians(X)
     np.testing.assert_array_equal(uv, cam.project(X))
@@ -123,7 +126,7 @@ def test_lens_restricts_jacobian_to_the_free_parameters():
     X = np.array([[0.1, -0.2, 1.0], [0.3, 0.1, 2.0]])
     _, _, J = cam.project_jacobians(X)
     _, _, Jf = cam.project_free(X)
-    np.testing.assert_array_equal(Jf, J[..., [0, 3, 4]])
+    np.testing.assert_array_equal(Jf, J[..., [0, 3, 5]])
     moved = cam.with_free_values(cam.free_values() + [1.0, 2.0, 0.01])
     assert (moved.fx, moved.cy, moved.coefficient("k1")) == (801.0, 242.0, pytest.approx(-0.19))
     with pytest.raises(ValueError, match="k7"):
@@ -136,7 +139,7 @@ def test_models_by_name_and_opencv_values():
     assert isinstance(cam, BrownConrady) and cam.free == ("fx", "k1")
     vals = opencv_values(cam)
     assert vals["fy"] == pytest.approx(808.0) and vals["k1"] == -0.25 and vals["p2"] == -5e-4
-    assert list(vals)[:4] == ["fx", "fy", "cx", "cy"]
+    assert list(vals)[:5] == ["fx", "fy", "cx", "cy", "skew"] and vals["skew"] == 0.0
     np.testing.assert_array_equal(cam.dist_coeffs, [-0.25, 0, 0, -5e-4, 0])
     with pytest.raises(ValueError, match="k5"):
         camera_model("fisheye", fx=1, mu=1, cx=0, cy=0, width=2, height=2, coeffs={"k5": 0.1})
