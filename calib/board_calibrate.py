@@ -131,8 +131,9 @@ def _opencv_flags(model: str, free: Sequence[str]) -> int:
     hold every parameter of ``model`` not in ``free``."""
     if model == "fisheye":  # OpenCV 5 keeps the fisheye flags in cv2, 4.x in cv2.fisheye
         flag = lambda n: getattr(cv2.fisheye, n, None) or getattr(cv2, n)  # noqa: E731
-        flags = flag("CALIB_RECOMPUTE_EXTRINSIC") | flag("CALIB_FIX_SKEW")
-        flags |= flag("CALIB_USE_INTRINSIC_GUESS")
+        flags = flag("CALIB_RECOMPUTE_EXTRINSIC") | flag("CALIB_USE_INTRINSIC_GUESS")
+        if "skew" not in free:  # its alpha = skew / fx; calibrateCamera has no skew
+            flags |= flag("CALIB_FIX_SKEW")
         for k in ("k1", "k2", "k3", "k4"):
             if k not in free:
                 flags |= flag(f"CALIB_FIX_{k.upper()}")
@@ -213,7 +214,8 @@ def opencv_calibration(
     fx, fy = float(K[0, 0]), float(K[1, 1])
     coeffs = {n: float(dist[k]) if k < len(dist) else 0.0 for k, n in enumerate(names)}
     camera = camera_model(model, fx=fx, mu=fy / fx, cx=float(K[0, 2]), cy=float(K[1, 2]),
-                          width=width, height=height, coeffs=coeffs, free=tuple(free))  # fmt: skip
+                          width=width, height=height, coeffs=coeffs, free=tuple(free),
+                          skew=float(K[0, 1]))  # fmt: skip
     T = np.stack([_pose(r, t) for r, t in zip(rvecs, tvecs, strict=True)])
     return OpenCVCalibration(camera, std, T, float(rms))
 
