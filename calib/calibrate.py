@@ -140,7 +140,7 @@ def detect_dataset(
     empty: list[str] = []
     noise: list[float] = []
     if progress is not None:
-        progress.start(2 * len(ds.indices))
+        progress.start(len(ds.indices) * len(ds.info.cameras))  # one image per camera
     W, H = ds.info.resolution
     flat = None if lens is None else Undistorter(lens)
 

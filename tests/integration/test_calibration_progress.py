@@ -43,3 +43,37 @@ def test_each_stage_with_its_cost(tmp_path):
         r"tool RMS \d+\.\d{3} mm / \d+\.\d{4} deg, rank \d+/\d+ \(\d+\.\d s\)", done[1]
     )
     assert f"reprojection RMS {res.reprojection_rms_px:.3f} px" in done[2]
+
+
+class _Count:
+    """A progress that records its total and its steps."""
+
+    def __init__(self) -> None:
+        self.total, self.steps, self.finished = None, 0, False
+
+    def start(self, total: int) -> None:
+        self.total = total
+
+    def advance(self) -> None:
+        self.steps += 1
+
+    def finish(self) -> None:
+        self.finished = True
+
+
+def test_detection_counts_one_image_per_camera(tmp_path):
+    """A one-camera dataset's detection bar runs to its image count (it said 30/60 for
+    scenarios/mono.toml: the total assumed two cameras)."""
+    from pathlib import Path
+
+    from calib.calibrate import detect_dataset
+    from calib.io.dataset import Dataset
+
+    mono = Path(__file__).resolve().parents[2] / "scenarios" / "mono.toml"
+    s = load_scenario(mono, overrides={"trajectory": {"poses": 8}, "validation": {"poses": 3}})
+    run_acquire(s, tmp_path / "ds", quiet=True)
+    ds = Dataset.open(tmp_path / "ds")
+    bar = _Count()
+    detect_dataset(ds, progress=bar)
+    assert ds.info.cameras == ("left",)
+    assert bar.total == bar.steps == len(list(ds.image_paths())) == 8 and bar.finished
