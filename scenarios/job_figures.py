@@ -10,7 +10,12 @@
 - ``parameters.png`` (simulation): every minimal parameter's ``|estimate - truth|`` beside its
   1-sigma and ``|nominal - truth|`` (mm and deg in two panels).
 
-Legends sit outside the data (:func:`scenarios.plotting.legend_outside`).
+Legends sit outside the data (:func:`scenarios.plotting.legend_outside`). Every ``selfcal run``
+draws them, so they are built without pyplot and laid out at fixed margins
+(:func:`scenarios.plotting.new_figure`, :func:`scenarios.plotting.stack_layout`): one draw per
+file, where ``constrained_layout`` drew each twice (issue 17). Titles sit at ``y=1.0`` (where
+matplotlib would put them above bottom ticks anyway): a title placed by matplotlib measures
+the axes' ticks again before each draw.
 """
 
 from __future__ import annotations
@@ -21,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from calib.evaluate import Evaluation
-from scenarios.plotting import legend_outside, pyplot, save_figure
+from scenarios.plotting import close_figure, legend_outside, new_figure, save_figure, stack_layout
 
 __all__ = [
     "FIGURES",
@@ -38,10 +43,10 @@ FIGURES = "figures"
 def tool_tip_figure(nominal_mm: np.ndarray, calibrated_mm: np.ndarray) -> Any:
     """Per validation posture (m of them): ``|error|`` of both models (log scale) and the
     calibrated error's components; ``nominal_mm``, ``calibrated_mm`` (m, 3) mm after alignment."""
-    plt = pyplot()
     nom, cal = np.linalg.norm(nominal_mm, axis=1), np.linalg.norm(calibrated_mm, axis=1)
     k = np.arange(1, len(nom) + 1)
-    fig, (a1, a2) = plt.subplots(2, 1, figsize=(9, 7), constrained_layout=True)
+    fig = new_figure(9, 7)
+    a1, a2 = fig.subplots(2, 1)
     w = 0.38
     a1.bar(k - w / 2, nom, w, color="0.55", label=f"nominal ({_rms(nom):.3f} mm RMS)")
     a1.bar(k + w / 2, cal, w, color="tab:red", label=f"calibrated ({_rms(cal):.3f} mm RMS)")
@@ -49,7 +54,7 @@ def tool_tip_figure(nominal_mm: np.ndarray, calibrated_mm: np.ndarray) -> Any:
     a1.set_ylabel("|tool-tip error| (mm, log)")
     a1.set_xlabel("validation posture")
     a1.set_xticks(k)
-    a1.set_title("(a) tool-tip error per validation posture, nominal and calibrated model")
+    a1.set_title("(a) tool-tip error per validation posture, nominal and calibrated model", y=1.0)
     a1.grid(axis="y", alpha=0.3, which="both")
     legend_outside(a1)
     w3 = 0.26
@@ -58,21 +63,23 @@ def tool_tip_figure(nominal_mm: np.ndarray, calibrated_mm: np.ndarray) -> Any:
     a2.axhline(0.0, color="k", lw=0.6)
     a2.set_ylabel("calibrated error (mm)")
     a2.set_xlabel("validation posture (held out, never used to calibrate)")
-    a2.set_title("(b) calibrated model - truth per axis")
+    a2.set_title("(b) calibrated model - truth per axis", y=1.0)
     a2.set_xticks(k)
     a2.grid(axis="y", alpha=0.3)
     legend_outside(a2)
-    fig.suptitle("Tool-tip errors after the best rigid alignment (as the paper's Fig. 3)")
+    fig.suptitle("Tool-tip errors after the best rigid alignment (as the paper's Fig. 3)",
+                 y=1.0 - 0.06 / 7, va="top")  # fmt: skip
+    stack_layout(fig, top=0.6)
     return fig
 
 
 def reprojection_figure(ev: Evaluation, what: str) -> Any:
     """RMS per image (calibrated and nominal reference, log) and the calibrated residuals'
     histogram; ``what`` says which images (e.g. "calibration images", "held-out images")."""
-    plt = pyplot()
     imgs = ev.images
     x = np.arange(len(imgs))
-    fig, (a1, a2) = plt.subplots(2, 1, figsize=(9, 6.5), constrained_layout=True)
+    fig = new_figure(9, 6.5)
+    a1, a2 = fig.subplots(2, 1)
     nominal = [r["nominal_px"] for r in imgs]
     a1.plot(x, nominal, "s", color="0.55", ms=4,
             label=f"nominal reference ({ev.rms['nominal']:.3f} px RMS)")  # fmt: skip
@@ -81,7 +88,7 @@ def reprojection_figure(ev: Evaluation, what: str) -> Any:
     a1.set_yscale("log")
     a1.set_xlabel(f"image ({what}, in frame order)")
     a1.set_ylabel("reprojection RMS (px, log)")
-    a1.set_title("(a) every image predicted from its joint reading, per image")
+    a1.set_title("(a) every image predicted from its joint reading, per image", y=1.0)
     a1.grid(alpha=0.3, which="both")
     legend_outside(a1)
     e = ev.residuals.get("calibrated", np.zeros((0, 2)))
@@ -94,20 +101,20 @@ def reprojection_figure(ev: Evaluation, what: str) -> Any:
                     label=f"{lab} (std {sd:.3f} px)")  # fmt: skip
     a2.set_xlabel("calibrated model: predicted - detected (px; clipped at the plot edges)")
     a2.set_ylabel("features")
-    a2.set_title(f"(b) residuals of the {len(e)} features")
+    a2.set_title(f"(b) residuals of the {len(e)} features", y=1.0)
     a2.grid(alpha=0.3)
     legend_outside(a2)
+    stack_layout(fig)
     return fig
 
 
 def parameter_figure(rows: list[dict]) -> Any:
     """``|estimate - truth|`` beside its 1-sigma and ``|nominal - truth|`` per minimal
     parameter (log scale); rows as :func:`calib.report.parameter_table` (mm / deg, with truth)."""
-    plt = pyplot()
     groups = [(u, [r for r in rows if r["unit"] == u]) for u in ("mm", "deg")]
     groups = [(u, g) for u, g in groups if g]
-    fig, axs = plt.subplots(len(groups), 1, figsize=(9, 3.4 * len(groups)),
-                            constrained_layout=True, squeeze=False)  # fmt: skip
+    fig = new_figure(9, 3.4 * len(groups))
+    axs = fig.subplots(len(groups), 1, squeeze=False)
     tiny = 1e-12  # an exact zero has no place on a log axis
     for ax, (unit, g) in zip(axs[:, 0], groups):
         x = np.arange(len(g))
@@ -121,9 +128,12 @@ def parameter_figure(rows: list[dict]) -> Any:
         ax.set_xlabel("minimal MCPC parameter (in the estimate's frame)")
         ax.set_ylabel(f"|error| ({unit}, log)")
         ax.set_yscale("log")
-        ax.set_title(f"parameters in {unit}: estimate and nominal against the truth")
+        ax.set_title(f"parameters in {unit}: estimate and nominal against the truth", y=1.0)
         ax.grid(alpha=0.3, which="both")
         legend_outside(ax)
+    # the names stand rotated below each axes, as high as the longest (8 pt: 0.075 in a letter)
+    names = [0.075 * max(len(r["name"]) for r in g) for _, g in groups]
+    stack_layout(fig, bottom=0.45 + names[-1], gap=0.7 + max(names[:-1], default=0.0))
     return fig
 
 
@@ -131,8 +141,8 @@ def write_figure(fig: Any, root: str | Path, name: str) -> Path:
     """Save ``fig`` as ``root/figures/name`` and close it; returns the path."""
     path = Path(root) / FIGURES / name
     path.parent.mkdir(parents=True, exist_ok=True)
-    save_figure(fig, path, dpi=110)
-    pyplot().close(fig)
+    save_figure(fig, path)
+    close_figure(fig)
     return path
 
 

@@ -7,11 +7,24 @@ study's ``runs.csv`` rows), with values spread like the measured ones.
 
 from __future__ import annotations
 
+import json
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 
 from scenarios.paper_fig3 import fig3_figure
-from scenarios.plotting import figure_problems, legend_overlaps, pyplot, unlabelled_axes
+from scenarios.plotting import (
+    figure_problems,
+    layout_problems,
+    legend_outside,
+    legend_overlaps,
+    new_figure,
+    pyplot,
+    stack_layout,
+    unlabelled_axes,
+)
 from scenarios.study_defs import STUDIES
 from scenarios.study_summary import study_figure, summarize, worse_than_nominal
 
@@ -27,6 +40,43 @@ def test_the_legend_check_sees_a_legend_over_data():
         assert legend_overlaps(fig) and unlabelled_axes(fig) == ["axes: x or y label missing"]
     finally:
         plt.close(fig)
+
+
+def _two_panels():
+    fig = new_figure(5, 4)
+    for ax, name in zip(fig.subplots(2, 1), ("upper", "lower")):
+        ax.plot([0.0, 1.0], [0.0, 1.0], label="a line with a long legend entry")
+        ax.set(title=name, xlabel="x (m)", ylabel="y (m)")
+        legend_outside(ax)
+    return fig
+
+
+def test_the_layout_check_sees_cut_off_and_overlapping_panels():
+    """The check can fail: panels pushed to the left edge and into each other are reported;
+    the same panels placed by stack_layout are not."""
+    fig = _two_panels()
+    fig.subplots_adjust(left=0.0, right=0.95, hspace=0.0)
+    problems = layout_problems(fig)
+    assert "upper: cut off at the figure's edge" in problems  # y labels and the legend
+    assert "upper and lower overlap" in problems  # x label of one, title of the other
+    fig = _two_panels()
+    stack_layout(fig)
+    assert figure_problems(fig) == []
+
+
+def test_the_main_job_figures_need_no_pyplot(tmp_path):
+    """They are drawn by every `selfcal run`: a Figure on the Agg canvas, not pyplot (issue 17);
+    checked in a fresh interpreter by sys.modules."""
+    probe = (
+        "import json, sys\nimport numpy as np\n"
+        "from scenarios.job_figures import tool_tip_figure, write_figure\n"
+        "e = np.random.default_rng(1).normal(size=(5, 3))\n"
+        f"p = write_figure(tool_tip_figure(e, e / 100), {str(tmp_path)!r}, 'tip.png')\n"
+        "print(json.dumps(['matplotlib.pyplot' in sys.modules, p.read_bytes()[:4].hex()]))"
+    )
+    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True,
+                         check=True).stdout  # fmt: skip
+    assert json.loads(out.strip().splitlines()[-1]) == [False, b"\x89PNG".hex()]
 
 
 def test_fig3_legends_cover_no_bar():
