@@ -18,6 +18,7 @@ from scenarios.pipeline import run_all
 MONO_CHARUCO = Path(__file__).resolve().parents[2] / "scenarios" / "mono-charuco.toml"
 
 
+@pytest.mark.slow  # default tier budget (~90 s): 2-5 s each
 def test_the_rendered_board_is_where_truth_json_puts_it():
     """At home the camera looks at the board's centre: the detected corners agree with the
     corners projected from truth.json (its board's target keys and pose, the true camera with

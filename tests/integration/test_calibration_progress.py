@@ -6,6 +6,8 @@ from __future__ import annotations
 import io
 import re
 
+import pytest
+
 from calib.calibrate import calibrate
 from scenarios.config import load_scenario
 from scenarios.pipeline import run_acquire
@@ -61,6 +63,7 @@ class _Count:
         self.finished = True
 
 
+@pytest.mark.slow  # default tier budget (~90 s): 2-5 s each
 def test_detection_counts_one_image_per_camera(tmp_path):
     """A one-camera dataset's detection bar runs to its image count (it said 30/60 for
     scenarios/mono.toml: the total assumed two cameras)."""

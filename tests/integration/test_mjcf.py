@@ -380,6 +380,7 @@ def test_cameras_do_not_see_the_robot(name, hidden):
             assert np.any(renderer.render()[..., 0] >= 0)
 
 
+@pytest.mark.slow  # default tier budget (~90 s): 2-5 s each
 @pytest.mark.render
 @pytest.mark.parametrize("name", ["kr6-r900", "ur5e"])
 def test_generic_arm_wrist_camera_sees_the_target_not_the_arm(name):

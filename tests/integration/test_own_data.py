@@ -246,6 +246,7 @@ def test_evaluate_and_self_calibration_refuse_what_they_cannot_do(lab, tmp_path)
         calibrate(tmp_path / "one")
 
 
+@pytest.mark.slow  # default tier budget (~90 s): 2-5 s each
 def test_two_cameras_import_into_one_dataset(lab, tmp_path, capsys):
     """Two cameras: the lab camera and a second one (the same lens) 40 mm to its right, turned
     4.6 deg towards the board, 20 frames; the board calibration estimates each camera and the
@@ -332,6 +333,7 @@ FISHEYE = Fisheye.from_pinhole(
 """A second camera of another model: a wider fisheye lens (Kannala-Brandt)."""
 
 
+@pytest.mark.slow  # default tier budget (~90 s): 2-5 s each
 def test_cameras_of_different_models_import_and_calibrate(lab, tmp_path, capsys):
     """cam0 the lab's opencv camera, cam1 a fisheye 40 mm to its right, turned 4.6 deg: imported
     with per-camera --camera-model / --free, the board rig calibration estimates each camera

@@ -70,6 +70,7 @@ def test_record_passes_rrd_verify(small_run, tmp_path):
     assert _camera_entities(rrd) == {"estimate": {"left", "right"}, "truth": {"left", "right"}}
 
 
+@pytest.mark.slow  # default tier budget (~90 s): 2-5 s each
 def test_one_camera_run_records_one_camera_entity(tmp_path):
     """`selfcal run scenarios/mono.toml --rrd X.rrd` (its camera and lens; the analytic path and
     fewer poses here, for time) writes the recording with one camera, not a right one."""
