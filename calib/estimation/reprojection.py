@@ -14,7 +14,6 @@ import numpy as np
 from calib.camera import CameraModel
 from calib.estimation.pose_models import PoseModel
 from calib.solver import Evaluation, JacobianPiece, Loss
-from calib.transforms import skew
 
 __all__ = [
     "RAYLEIGH_MEDIAN",
@@ -22,6 +21,7 @@ __all__ = [
     "projection_blocks",
     "reprojection_residuals",
     "robust_sigma",
+    "twist_jacobian",
     "ReprojectionBlock",
 ]
 
@@ -38,8 +38,14 @@ def camera_points(
     T_cam_world: np.ndarray, X: np.ndarray, view: np.ndarray, pidx: np.ndarray
 ) -> np.ndarray:
     """Camera-frame coordinates (k, 3) (m) of the points ``X[pidx]`` in the views ``view``."""
-    R = T_cam_world[view, :3, :3]
-    return np.einsum("kij,kj->ki", R, X[pidx]) + T_cam_world[view, :3, 3]
+    return _camera_points(T_cam_world[view], X, pidx)
+
+
+def _camera_points(T_rows: np.ndarray, X: np.ndarray, pidx: np.ndarray) -> np.ndarray:
+    """:func:`camera_points` from the rows' poses ``T_rows = T_cam_world[view]`` (k, 4, 4),
+    gathered once (one fancy index instead of one for the rotations and one for the
+    translations)."""
+    return np.einsum("kij,kj->ki", T_rows[:, :3, :3], X[pidx]) + T_rows[:, :3, 3]
 
 
 def reprojection_residuals(
@@ -62,10 +68,24 @@ def projection_blocks(
     """Pixels (k, 2) and the Jacobian blocks of the projection for rows (view, point index):
     w.r.t. the camera's free parameters (k, 2, n_free), w.r.t. a camera-frame twist ``[v; w]`` of
     ``T_cam_world`` (k, 2, 6) and w.r.t. the world point (k, 2, 3); px per unit."""
-    Xc = camera_points(T_cam_world, X, view, pidx)
+    T_rows = T_cam_world[view]
+    Xc = _camera_points(T_rows, X, pidx)
     uv, A, J_cam = camera.project_free(Xc)
-    D = np.concatenate([np.broadcast_to(np.eye(3), (len(Xc), 3, 3)), -skew(Xc)], axis=2)
-    return uv, J_cam, A @ D, A @ T_cam_world[view, :3, :3]
+    return uv, J_cam, twist_jacobian(A, Xc), A @ T_rows[:, :3, :3]
+
+
+def twist_jacobian(A: np.ndarray, Xc: np.ndarray) -> np.ndarray:
+    """``A @ [I | -skew(Xc)]`` (k, 2, 6) for the projection Jacobians ``A`` (k, 2, 3) at the
+    camera-frame points ``Xc`` (k, 3) m: the derivative w.r.t. a twist ``[v; w]`` of the pose,
+    written out (``-a^T skew(x) = (x cross a)^T``) instead of k small matrix products."""
+    J = np.empty(A.shape[:-1] + (6,))
+    J[..., :3] = A
+    x, y, z = (Xc[:, None, i] for i in range(3))
+    a0, a1, a2 = A[..., 0], A[..., 1], A[..., 2]
+    np.subtract(y * a2, z * a1, out=J[..., 3])
+    np.subtract(z * a0, x * a2, out=J[..., 4])
+    np.subtract(x * a1, y * a0, out=J[..., 5])
+    return J
 
 
 class ReprojectionBlock:
