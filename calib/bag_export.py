@@ -30,15 +30,14 @@ from calib.export_urdf import to_urdf
 from calib.io.board_calibration import calibration_kind, read_board_calibration
 from calib.io.calibration import read_calibration
 from calib.io.dataset import Dataset
-from calib.io.rosbag import FORMATS, BagError, BagWriter, CameraInfo
+from calib.io.rosbag import FORMATS, NS, BagError, BagWriter, CameraInfo
 from calib.mcpc import nominal_mcpc
 from calib.robot_def import RobotDef, load_robot
 
 __all__ = ["BagExport", "export_bag", "nominal_urdf", "bag_format_for", "T0_NS", "JOINT_TOPIC"]
 
-T0_NS = 1_700_000_000 * 1_000_000_000
+T0_NS = 1_700_000_000 * NS
 """Stamp of the first image (ns since the Unix epoch; a fixed date keeps bags reproducible)."""
-_NS = 1_000_000_000
 
 
 @dataclass(frozen=True)
@@ -152,11 +151,11 @@ def export_bag(
     paths = ds.image_paths()  # raises for a missing frame before the bag is created
     q = np.radians(np.asarray(ds.joints_deg, float))  # joints.csv: np.degrees of the SI values
     n = len(q)
-    period = int(round((2 * hold_s + move_s) * _NS))
-    hold, move = int(round(hold_s * _NS)), int(round(move_s * _NS))
+    period = int(round((2 * hold_s + move_s) * NS))
+    hold, move = int(round(hold_s * NS)), int(round(move_s * NS))
     stamps = T0_NS + period * np.arange(n, dtype=np.int64)
     start, end = int(stamps[0]) - hold, int(stamps[-1]) + hold
-    step = int(round(_NS / rate_hz))
+    step = int(round(NS / rate_hz))
     ticks = np.union1d(np.arange(start, end + 1, step, dtype=np.int64), stamps)
     infos = _camera_infos(ds)
     by_frame: dict[int, list[tuple[str, Path]]] = {}
@@ -183,7 +182,7 @@ def export_bag(
                         img = cv2.cvtColor(img, cv2.COLOR_BGRA2BGR)
                     w.image(f"/{cam}/image_raw", int(t), cam, img)
                     w.camera_info(f"/{cam}/camera_info", int(t), cam, infos[cam])
-    return BagExport(Path(out), fmt, n, ds.info.cameras, len(ticks), (end - start) / _NS)
+    return BagExport(Path(out), fmt, n, ds.info.cameras, len(ticks), (end - start) / NS)
 
 
 def _joints_at(

@@ -29,7 +29,17 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from calib.bag_rest import EMPTY, GAP, MOVING, NS, OUTSIDE, REST, JointTrack, RestRule
+from calib.bag_rest import (
+    EMPTY,
+    GAP,
+    MOVING,
+    OUTSIDE,
+    REST,
+    JointTrack,
+    RestRule,
+    pair_frames,
+    thin_rests,
+)
 from calib.bag_tf import TF_TOPICS, TF_TYPE, TfTree
 from calib.errors import SelfCalWarning
 from calib.import_dataset import DEFAULT_MODEL, CameraImages, ImportError_, import_dataset
@@ -38,6 +48,7 @@ from calib.io.rosbag import (
     IMAGE_TYPES,
     INFO_TYPE,
     JOINT_TYPE,
+    NS,
     BagError,
     BagReader,
     CameraInfo,
@@ -298,58 +309,6 @@ def _stage_images(
     return staged, counts, total, (first, last), frame_ids
 
 
-def _pair(
-    staged: dict[str, _Staged], names: Sequence[str], track: JointTrack, rule: RestRule
-) -> list[list[int]]:
-    """Frames: per frame the staged image index of every camera (``names`` order), the first
-    camera's images in stamp order, each other camera's nearest unused image of the same rest."""
-    ref = staged[names[0]]
-    used = {n: np.zeros(len(staged[n].stamps), bool) for n in names[1:]}
-    order = {n: np.argsort(staged[n].stamps, kind="stable") for n in names[1:]}
-    sorted_t = {n: np.asarray(staged[n].stamps, np.int64)[order[n]] for n in names[1:]}
-    frames = []
-    for i in np.argsort(ref.stamps, kind="stable"):
-        t = ref.stamps[i]
-        frame = [int(i)]
-        for n in names[1:]:
-            st, k0 = sorted_t[n], int(np.searchsorted(sorted_t[n], t))
-            cand = sorted(
-                range(max(k0 - 50, 0), min(k0 + 50, len(st))), key=lambda k: abs(st[k] - t)
-            )
-            pick = next((int(order[n][k]) for k in cand if not used[n][order[n][k]]
-                         and track.same_rest(t, int(st[k]), rule)), None)  # fmt: skip
-            if pick is None:
-                break
-            frame.append(pick)
-        else:
-            for n, k in zip(names[1:], frame[1:]):
-                used[n][k] = True
-            frames.append(frame)
-    return frames
-
-
-def _per_rest(frames: list[list[int]], stamps: list[int], track: JointTrack, rule: RestRule,
-              n: int | None) -> list[list[int]]:  # fmt: skip
-    """At most ``n`` frames of each rest, evenly spread over it (``n`` = 1: its middle frame,
-    the one farthest from the motions before and after); all when ``n`` is None."""
-    if n is None or not frames:
-        return frames
-    groups: list[list[list[int]]] = [[frames[0]]]
-    for f in frames[1:]:
-        if track.same_rest(stamps[groups[-1][-1][0]], stamps[f[0]], rule):
-            groups[-1].append(f)
-        else:
-            groups.append([f])
-    keep = []
-    for g in groups:
-        if n == 1:
-            idx = np.array([(len(g) - 1) // 2])
-        else:
-            idx = np.unique(np.round(np.linspace(0, len(g) - 1, min(n, len(g)))).astype(int))
-        keep += [g[k] for k in idx]
-    return keep
-
-
 def import_bag(
     bag: str | Path | Sequence[str | Path],
     image_topics: Sequence[ImageTopic],
@@ -423,8 +382,8 @@ def import_bag(
                 fix="record stop-and-go motion that rests at least 1 s at every posture "
                 "(docs/ros.md), or loosen --rest-speed / shorten --rest-window",
             )
-        frames = _pair(staged, names, track, rule)
-        frames = _per_rest(frames, staged[names[0]].stamps, track, rule, per_rest)
+        frames = pair_frames({n: staged[n].stamps for n in names}, names, track, rule)
+        frames = thin_rests(frames, staged[names[0]].stamps, track, rule, per_rest)
         _warn_skipped(where, rule, counts, total, at_rest, frames, len(names))
         files = _name_frames(staged, names, frames, stage)
         n = len(chain.joint_names)

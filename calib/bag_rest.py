@@ -9,17 +9,29 @@ joints SI (rad, m).
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["RestRule", "JointTrack", "REST", "MOVING", "GAP", "OUTSIDE", "EMPTY"]
+from calib.io.rosbag import NS
+
+__all__ = [
+    "RestRule",
+    "JointTrack",
+    "REST",
+    "MOVING",
+    "GAP",
+    "OUTSIDE",
+    "EMPTY",
+    "pair_frames",
+    "thin_rests",
+]
 
 REST, MOVING, GAP, OUTSIDE, EMPTY = "rest", "moving", "gap", "outside", "empty"
 """What :meth:`JointTrack.status` says of an image: at rest; moving; a gap in the joint messages
 within the window; the window not covered by the joint recording (its start or end); no joint
 message at all within the window although the stamp lies inside the recording."""
-NS = 1_000_000_000
 
 
 @dataclass(frozen=True)
@@ -109,3 +121,56 @@ class JointTrack:
         """The gap (start, end) in s of the joint stamps around stamp ``t`` (ns)."""
         i = int(np.clip(np.searchsorted(self.t, t), 1, max(len(self.t) - 1, 1)))
         return float(self.t[i - 1]) / NS, float(self.t[min(i, len(self.t) - 1)]) / NS
+
+
+def pair_frames(
+    stamps: Mapping[str, Sequence[int]], names: Sequence[str], track: JointTrack, rule: RestRule
+) -> list[list[int]]:
+    """Frames of the images at rest whose stamps (ns) are ``stamps[camera]``: per frame the
+    image index of every camera (``names`` order), the first camera's images in stamp order,
+    each other camera's nearest unused image of the same rest."""
+    ref = stamps[names[0]]
+    used = {n: np.zeros(len(stamps[n]), bool) for n in names[1:]}
+    order = {n: np.argsort(stamps[n], kind="stable") for n in names[1:]}
+    sorted_t = {n: np.asarray(stamps[n], np.int64)[order[n]] for n in names[1:]}
+    frames = []
+    for i in np.argsort(ref, kind="stable"):
+        t = ref[i]
+        frame = [int(i)]
+        for n in names[1:]:
+            st, k0 = sorted_t[n], int(np.searchsorted(sorted_t[n], t))
+            cand = sorted(
+                range(max(k0 - 50, 0), min(k0 + 50, len(st))), key=lambda k: abs(st[k] - t)
+            )
+            pick = next((int(order[n][k]) for k in cand if not used[n][order[n][k]]
+                         and track.same_rest(t, int(st[k]), rule)), None)  # fmt: skip
+            if pick is None:
+                break
+            frame.append(pick)
+        else:
+            for n, k in zip(names[1:], frame[1:]):
+                used[n][k] = True
+            frames.append(frame)
+    return frames
+
+
+def thin_rests(frames: list[list[int]], stamps: Sequence[int], track: JointTrack,
+               rule: RestRule, n: int | None) -> list[list[int]]:  # fmt: skip
+    """Of :func:`pair_frames`' ``frames`` (``stamps``: the first camera's), at most ``n`` frames of each rest, evenly spread over it (``n`` = 1: its middle frame,
+    the one farthest from the motions before and after); all when ``n`` is None."""
+    if n is None or not frames:
+        return frames
+    groups: list[list[list[int]]] = [[frames[0]]]
+    for f in frames[1:]:
+        if track.same_rest(stamps[groups[-1][-1][0]], stamps[f[0]], rule):
+            groups[-1].append(f)
+        else:
+            groups.append([f])
+    keep = []
+    for g in groups:
+        if n == 1:
+            idx = np.array([(len(g) - 1) // 2])
+        else:
+            idx = np.unique(np.round(np.linspace(0, len(g) - 1, min(n, len(g)))).astype(int))
+        keep += [g[k] for k in idx]
+    return keep

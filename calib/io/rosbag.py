@@ -31,6 +31,7 @@ from calib.choices import BAG_FORMATS
 from calib.errors import InputError
 
 __all__ = [
+    "NS",
     "BagError",
     "BagReader",
     "BagWriter",
@@ -47,6 +48,9 @@ __all__ = [
     "decode_image",
     "stamp_ns",
 ]
+
+NS = 1_000_000_000
+"""Nanoseconds per second: ROS stamps are integer ns (``sec * NS + nanosec``)."""
 
 FORMATS = BAG_FORMATS
 """Bag formats: ROS 1 ``.bag``, ROS 2 folder with sqlite3 storage, ROS 2 mcap (folder or file)."""
@@ -148,7 +152,7 @@ class CameraInfo:
 def stamp_ns(msg: Any) -> int:
     """A message's header stamp in integer nanoseconds."""
     t = msg.header.stamp
-    return int(t.sec) * 1_000_000_000 + int(t.nanosec)
+    return int(t.sec) * NS + int(t.nanosec)
 
 
 def decode_image(msg: Any, msgtype: str, where: str) -> np.ndarray:
@@ -351,8 +355,8 @@ class BagWriter(_Closing):
             shutil.rmtree(self._folder)
 
     def _header(self, stamp: int, frame_id: str) -> Any:
-        t = self._T["builtin_interfaces/msg/Time"](sec=stamp // 1_000_000_000,
-                                                  nanosec=stamp % 1_000_000_000)  # fmt: skip
+        t = self._T["builtin_interfaces/msg/Time"](sec=stamp // NS,
+                                                  nanosec=stamp % NS)  # fmt: skip
         if self._ros1:
             return self._T["std_msgs/msg/Header"](seq=0, stamp=t, frame_id=frame_id)
         return self._T["std_msgs/msg/Header"](stamp=t, frame_id=frame_id)
