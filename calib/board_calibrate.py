@@ -36,7 +36,7 @@ import numpy as np
 from calib.bundle_adjust import bundle_adjust, intrinsics_covariance
 from calib.camera import MODELS, CameraModel, LensCamera, Pinhole, camera_model, lens_names
 from calib.camera.pinhole import centered_principal_point
-from calib.errors import InputError, SelfCalWarning
+from calib.errors import InitialCameraWarning, InputError, SelfCalWarning
 from calib.estimation.pose_models import ViewPoses
 from calib.estimation.reprojection import robust_sigma
 from calib.target.base import Features
@@ -68,11 +68,6 @@ class BoardMismatchError(InputError):
 
 class BoardNotFoundWarning(SelfCalWarning):
     """Some images do not show the board (or too little of it); they are skipped."""
-
-
-class InitialCameraWarning(SelfCalWarning):
-    """A given initial camera (a ROS CameraInfo's calibration) fits the views worse than the
-    calibration's own start, which is used instead."""
 
 
 @dataclass(frozen=True)

@@ -26,7 +26,7 @@ import numpy as np
 
 from calib.camera import LensCamera, Pinhole, camera_model, centered_principal_point
 from calib.camera.undistort import Undistorter
-from calib.errors import EstimationError, SelfCalWarning
+from calib.errors import EstimationError, InitialCameraWarning, SelfCalWarning
 from calib.estimation.selfcal_errors import SelfCalibrationError
 from calib.frame_checks import check_distinct_frames, check_read_back
 from calib.identify import identify
@@ -410,11 +410,6 @@ def _stage(progress, label: str) -> Iterator[Callable[[str], None]]:
         return
     with step(label) as st:
         yield st.result
-
-
-class InitialCameraWarning(SelfCalWarning):
-    """The dataset's initial camera (a ROS CameraInfo's) fitted the images worse than the
-    self-calibration's own start, which is used instead."""
 
 
 def fit_cost(sc: SelfCalibrationResult, threshold_px: float = 3.0) -> float:

@@ -16,6 +16,7 @@ __all__ = [
     "SolverError",
     "HardwareError",
     "SelfCalWarning",
+    "InitialCameraWarning",
     "EXIT_OK",
     "EXIT_INTERNAL",
     "EXIT_INTERRUPTED",
@@ -71,3 +72,8 @@ class HardwareError(SelfCalError, RuntimeError):
 
 class SelfCalWarning(UserWarning):
     """Root of the project's warnings (something the user should know; never data)."""
+
+
+class InitialCameraWarning(SelfCalWarning):
+    """A given initial camera (a ROS CameraInfo's calibration) fitted the images worse than the
+    calibration's own start, which is used instead (the board and the field calibration)."""
