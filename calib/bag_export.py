@@ -22,6 +22,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from calib.bag_rest import NS
 from calib.camera import CameraModel, Pinhole
 from calib.choices import JOINT_TOPIC
 from calib.export import deploy_chain
@@ -30,7 +31,7 @@ from calib.export_urdf import to_urdf
 from calib.io.board_calibration import calibration_kind, read_board_calibration
 from calib.io.calibration import read_calibration
 from calib.io.dataset import Dataset
-from calib.io.rosbag import FORMATS, NS, BagError, BagWriter, CameraInfo
+from calib.io.rosbag import FORMATS, BagError, BagWriter, CameraInfo
 from calib.mcpc import nominal_mcpc
 from calib.robot_def import RobotDef, load_robot
 

@@ -14,8 +14,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from calib.io.rosbag import NS
-
 __all__ = [
     "RestRule",
     "JointTrack",
@@ -24,6 +22,7 @@ __all__ = [
     "GAP",
     "OUTSIDE",
     "EMPTY",
+    "NS",
     "pair_frames",
     "thin_rests",
 ]
@@ -32,6 +31,8 @@ REST, MOVING, GAP, OUTSIDE, EMPTY = "rest", "moving", "gap", "outside", "empty"
 """What :meth:`JointTrack.status` says of an image: at rest; moving; a gap in the joint messages
 within the window; the window not covered by the joint recording (its start or end); no joint
 message at all within the window although the stamp lies inside the recording."""
+NS = 1_000_000_000
+"""Nanoseconds per second: ROS stamps are integer ns (``sec * NS + nanosec``)."""
 
 
 @dataclass(frozen=True)

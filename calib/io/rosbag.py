@@ -27,11 +27,11 @@ from typing import Any, TypeVar
 import cv2
 import numpy as np
 
+from calib.bag_rest import NS
 from calib.choices import BAG_FORMATS
 from calib.errors import InputError
 
 __all__ = [
-    "NS",
     "BagError",
     "BagReader",
     "BagWriter",
@@ -48,9 +48,6 @@ __all__ = [
     "decode_image",
     "stamp_ns",
 ]
-
-NS = 1_000_000_000
-"""Nanoseconds per second: ROS stamps are integer ns (``sec * NS + nanosec``)."""
 
 FORMATS = BAG_FORMATS
 """Bag formats: ROS 1 ``.bag``, ROS 2 folder with sqlite3 storage, ROS 2 mcap (folder or file)."""
