@@ -18,12 +18,13 @@ from __future__ import annotations
 import functools
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Generic
+from typing import Generic, TypeVar, cast
 
 import numpy as np
 import scipy.sparse as sp
 
-from calib.camera.model import C
+from calib.camera.camera_set import CameraSet
+from calib.camera.model import CameraModel
 from calib.estimation.pose_models import PoseModel
 from calib.estimation.reprojection import ReprojectionBlock
 from calib.solver import (
@@ -35,6 +36,9 @@ from calib.solver import (
     inverse_block,
     solve,
 )
+
+C = TypeVar("C", bound=CameraModel | CameraSet)
+"""The adjusted camera: one model shared by the rig's cameras, or a set of them (each its own)."""
 
 __all__ = [
     "BundleResult",
@@ -131,7 +135,8 @@ class _Problem(Generic[C]):
     def unpack(self, x: np.ndarray) -> tuple[C, np.ndarray, np.ndarray]:
         """``(camera, p, X (P, 3))`` for unknowns ``x``."""
         v = self.problem.values(x)
-        return self.camera.with_free_values(v["intrinsics"]), v["poses"], v["points"].reshape(-1, 3)
+        cam = cast(C, self.camera.with_free_values(v["intrinsics"]))
+        return cam, v["poses"], v["points"].reshape(-1, 3)
 
     def fun(self, x: np.ndarray) -> np.ndarray:
         return self.problem.residual_vector(x)

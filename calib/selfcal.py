@@ -40,7 +40,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from calib.bundle_adjust import intrinsics_covariance
-from calib.camera import LensCamera, Pinhole, PinholeValues, with_pinhole
+from calib.camera import CameraSet, LensCamera, Pinhole, PinholeValues, first_camera, with_pinhole
 from calib.estimation.scale_sign import (
     SignChoice,
     check_scale_markers_seen,
@@ -95,7 +95,10 @@ class SelfCalibrationResult(PinholeValues):
     Gaussian noise of sigma px per coordinate). ``fx_std``/``mu_std``/``cov_fx_mu`` from the
     final Jacobian with the fitted noise level; ``cov_fx_mu_unit`` for 1 px noise (geometry
     only). ``camera``: the estimated camera, shared by every camera of the rig (``fx``, ``mu``,
-    ``cx``, ``cy``, ``width``, ``height`` are its values).
+    ``cx``, ``cy``, ``width``, ``height`` are its values); with ``cameras`` (a
+    :class:`calib.camera.CameraSet`: each camera of the rig its own model) ``camera`` is the
+    first camera's, and ``cov_fx_mu`` covers every camera's free parameters (``cameras.free``
+    order).
     """
 
     camera: Pinhole
@@ -123,6 +126,7 @@ class SelfCalibrationResult(PinholeValues):
     mu_init: float
     sign_choice: SignChoice | None = None
     diagnostics: dict = field(default_factory=dict)
+    cameras: CameraSet | None = None
 
     @property
     def intrinsics(self) -> Pinhole:
@@ -133,8 +137,15 @@ class SelfCalibrationResult(PinholeValues):
     def camera_std(self) -> dict[str, float]:
         """Standard deviation of every free camera parameter by name (``cov_fx_mu`` is the
         covariance of all of them, in ``camera.free`` order; px or unitless)."""
+        if self.cameras is not None:
+            return self.cameras.std_by_camera(self.cov_fx_mu)[self.cameras.names[0]]
         d = np.sqrt(np.clip(np.diag(self.cov_fx_mu), 0.0, None))
         return dict(zip(self.camera.free, (float(v) for v in d), strict=True))
+
+    @property
+    def cameras_std(self) -> dict[str, dict[str, float]] | None:
+        """With :attr:`cameras`: each camera's :attr:`camera_std` by camera name; else None."""
+        return None if self.cameras is None else self.cameras.std_by_camera(self.cov_fx_mu)
 
     @property
     def K(self) -> np.ndarray:
@@ -160,7 +171,8 @@ class SelfCalibrationResult(PinholeValues):
         inl = np.asarray(self.inlier, bool) & np.isfinite(self.residuals).all(axis=1)
         has_X = np.isfinite(self.X_world).all(axis=1)
         n_rig = max(5 + 6 * (len(self.T_first_cam) - 2), 0)
-        n_ba = self.camera.n_free + 6 * (n_configs - 1) + n_rig + 3 * int(has_X.sum())
+        n_cam = self.camera.n_free if self.cameras is None else self.cameras.n_free
+        n_ba = n_cam + 6 * (n_configs - 1) + n_rig + 3 * int(has_X.sum())
         dof = max(2 * int(inl.sum()) - n_ba, 1)
         return float(np.sqrt(np.sum(self.residuals[inl] ** 2) / dof))
 
@@ -193,7 +205,7 @@ def self_calibrate(
     scale_distance_m: float | None = None,
     nominal_cam_positions: np.ndarray | None = None,
     rig: bool = True,
-    camera: Pinhole | None = None,
+    camera: Pinhole | CameraSet | None = None,
     initial: Pinhole | None = None,
     fx_guess: float | None = None,
     mu_guess: float = 1.0,
@@ -219,7 +231,10 @@ def self_calibrate(
     cheirality must then hold. ``rig``: model the camera rig as rigid (default). ``camera``: the
     model and free parameters to estimate (:mod:`calib.camera`; its values are ignored): the
     initialisation is the pinhole (principal point at the centre, no distortion), the bundle
-    adjustment then frees ``camera.free`` (default: a pinhole with ``fx``, ``mu`` free).
+    adjustment then frees ``camera.free`` (default: a pinhole with ``fx``, ``mu`` free). A
+    :class:`calib.camera.CameraSet` gives each camera of the rig its own model and free
+    parameters (one intrinsics block per camera); every camera starts at the initialisation's
+    pinhole (the rig's cameras are nominally alike).
     ``initial``: a calibrated camera of ``camera``'s model (a ROS CameraInfo's calibration):
     its fx and mu replace the fundamental-matrix estimate, and all its values (principal point,
     lens) start the bundle adjustment, which frees ``camera.free`` from there.
@@ -259,9 +274,9 @@ def self_calibrate(
     diag = dict(init.diagnostics)
     rec = gauge(init, obs.layout, rig=rig, ref_scores=ref_scores)
     if initial is not None:
-        rec.camera = initial if camera is None else with_values(camera, initial)
+        rec.camera = initial if camera is None else _start(camera, initial, with_values)
     elif camera is not None:
-        rec.camera = with_pinhole(camera, rec.camera)
+        rec.camera = _start(camera, init.camera, with_pinhole)
     t0 = time.perf_counter()
     fit = adjust(
         rec,
@@ -355,7 +370,8 @@ def _check_fit(
     if res.status <= 0:
         raise ConvergenceError(
             f"bundle adjustment did not converge within max_nfev={max_nfev} evaluations "
-            f"({res.message}; fx at stop {res.camera.fx:.1f} px, initial {init.camera.fx:.1f} "
+            f"({res.message}; fx at stop {first_camera(res.camera).fx:.1f} px, initial "  # type: ignore[attr-defined]
+            f"{init.camera.fx:.1f} "
             "px); increase max_nfev, or check the observations (outliers, wrong ids); an fx "
             "running away means the views do not constrain it (add configurations with more "
             "varied viewpoints or pass fx_guess)"
@@ -376,8 +392,8 @@ def _check_fit(
             "the initialisation converged to a wrong solution -- check the data"
         )
     cov, cov_unit = intrinsics_covariance(res.jac, res.residuals, res.n_intrinsics)
-    i_fx = rec.camera.free.index("fx")
-    fx_rel_unit = float(np.sqrt(max(cov_unit[i_fx, i_fx], 0.0)) / rec.camera.fx)
+    i_fx = first_camera(rec.camera).free.index("fx")  # the first camera's block comes first
+    fx_rel_unit = float(np.sqrt(max(cov_unit[i_fx, i_fx], 0.0)) / first_camera(rec.camera).fx)  # type: ignore[attr-defined]
     diag["fx_rel_std_per_px"] = fx_rel_unit
     if not np.isfinite(fx_rel_unit) or fx_rel_unit > max_fx_rel_std_per_px:
         Twc = inv_pose(Tv[np.isfinite(Tv).all(axis=(1, 2))])
@@ -427,10 +443,11 @@ def _result(
     r_out = np.full((len(obs), 2), np.nan)
     r_out[modelled] = r_all[modelled]
     a = fit.active
-    cam = rec.camera
-    names = list(cam.free)
+    cams = rec.camera if isinstance(rec.camera, CameraSet) else None
+    cam = first_camera(rec.camera)
+    names = list(cam.free)  # the first camera's block comes first in cov
     return SelfCalibrationResult(
-        camera=cam,
+        camera=cam,  # type: ignore[arg-type]
         T_world_cam=T_world_cam,
         registered=registered.copy(),
         T_first_cam=np.concatenate([np.eye(4)[None], inv_pose(T_rigs)]),
@@ -454,7 +471,16 @@ def _result(
         fx_init=float(init.camera_init.fx),
         mu_init=float(init.camera_init.mu),
         diagnostics=diag,
+        cameras=cams,
     )
+
+
+def _start(camera: Pinhole | CameraSet, values: Pinhole, how) -> Pinhole | CameraSet:
+    """``how(template, values)`` (:func:`with_values` or :func:`calib.camera.with_pinhole`) of
+    ``camera``, or of every camera of a set."""
+    if isinstance(camera, CameraSet):
+        return CameraSet(tuple(how(c, values) for c in camera.cameras), camera.names)
+    return how(camera, values)
 
 
 def _std(cov: np.ndarray, names: list[str], name: str) -> float:

@@ -21,7 +21,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from calib.bundle_adjust import BundleResult, bundle_adjust
-from calib.camera import Pinhole
+from calib.camera import Cameras
 from calib.estimation.pose_models import FreePoses, RigPoses
 from calib.estimation.reprojection import reprojection_residuals, robust_sigma
 from calib.estimation.selfcal_errors import ConvergenceError, InsufficientDataError
@@ -79,7 +79,7 @@ class Reconstruction:
 
     layout: ViewLayout
     rig: bool
-    camera: Pinhole
+    camera: Cameras
     T: np.ndarray | None
     T_first: np.ndarray | None
     T_rigs: np.ndarray | None

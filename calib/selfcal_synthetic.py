@@ -76,6 +76,7 @@ def synthetic_stereo_scene(
     outlier_px: float = 20.0,
     T_world_left: np.ndarray | None = None,
     camera: Intrinsics | None = None,
+    camera_right: Intrinsics | None = None,
 ) -> SyntheticScene:
     """Random marker field + stereo rig views, projected with :func:`calib.camera.project`.
 
@@ -88,7 +89,8 @@ def synthetic_stereo_scene(
     centre from the vergence distance (optical axes through one point -- degenerate for fx).
     ``T_world_left`` (m, 4, 4) overrides the sampled left-camera poses; ``camera`` (a
     :class:`calib.camera.Pinhole` or a camera with a lens) overrides ``fx``, ``mu``, ``width``,
-    ``height`` and the centred principal point.
+    ``height`` and the centred principal point; ``camera_right`` (default: the same as the left)
+    gives the right camera its own model (the scene's ``intrinsics`` stays the left camera's).
     Markers with a corner outside the image or behind the camera are dropped. Gaussian noise
     ``noise_px`` per coordinate; ``outlier_fraction`` of the corners displaced by ``outlier_px``.
     """
@@ -141,7 +143,8 @@ def synthetic_stereo_scene(
     rows: list[tuple[int, int, int, int]] = []
     for i in range(n_configs):
         for c in range(2):
-            uvp = project(intr, Tcw[i, c], X).reshape(n_markers, CORNERS_PER_MARKER, 2)
+            cam = camera_right if c == 1 and camera_right is not None else intr
+            uvp = project(cam, Tcw[i, c], X).reshape(n_markers, CORNERS_PER_MARKER, 2)
             uvp = uvp + noise_px * rng.standard_normal(uvp.shape)
             z = (X @ Tcw[i, c, :3, :3].T + Tcw[i, c, :3, 3])[:, 2].reshape(n_markers, -1)
             inside = (

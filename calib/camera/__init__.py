@@ -8,12 +8,15 @@
   with a lens, :class:`BrownConrady` (``"opencv"``) and :class:`Fisheye` (``"fisheye"``);
 - :mod:`calib.camera.spec`: models by name and values by OpenCV's names;
 - :mod:`calib.camera.rig`: :class:`Rig`, N cameras with extrinsics;
+- :mod:`calib.camera.camera_set`: :class:`CameraSet`, the rig's cameras as one estimation
+  unknown when each has its own model;
 - :mod:`calib.camera.visibility`: :class:`Visibility`, which points a camera sees.
 
 A new camera model is a new :class:`CameraModel` class next to these; see
 :mod:`calib.camera.model`.
 """
 
+from calib.camera.camera_set import Cameras, CameraSet, first_camera
 from calib.camera.distorted import BrownConrady, Fisheye, LensCamera
 from calib.camera.model import CameraModel, perspective, perspective_jacobian, project
 from calib.camera.pinhole import Intrinsics, Pinhole, PinholeValues, centered_principal_point
@@ -35,6 +38,9 @@ __all__ = [
     "canonical_free",
     "BrownConrady",
     "CameraModel",
+    "CameraSet",
+    "Cameras",
+    "first_camera",
     "Fisheye",
     "LensCamera",
     "camera_model",

@@ -11,7 +11,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from calib.camera import CameraModel
+from calib.camera.camera_set import Cameras, project_free_views, project_views
 from calib.estimation.pose_models import PoseModel
 from calib.solver import Evaluation, JacobianPiece, Loss
 
@@ -49,7 +49,7 @@ def _camera_points(T_rows: np.ndarray, X: np.ndarray, pidx: np.ndarray) -> np.nd
 
 
 def reprojection_residuals(
-    camera: CameraModel,
+    camera: Cameras,
     T_cam_world: np.ndarray,
     X: np.ndarray,
     view: np.ndarray,
@@ -57,20 +57,21 @@ def reprojection_residuals(
     uv: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Residuals ``projected - observed`` (k, 2) px and depths (k,) m for rows (view, point
-    index), world points ``X`` (P, 3) m, poses ``T_cam_world`` (V, 4, 4)."""
+    index), world points ``X`` (P, 3) m, poses ``T_cam_world`` (V, 4, 4); ``camera``: one model
+    shared by every view, or a :class:`calib.camera.camera_set.CameraSet` (each view's own)."""
     Xc = camera_points(T_cam_world, X, view, pidx)
-    return camera.project(Xc) - uv, Xc[:, 2]
+    return project_views(camera, Xc, view) - uv, Xc[:, 2]
 
 
 def projection_blocks(
-    camera: CameraModel, T_cam_world: np.ndarray, X: np.ndarray, view: np.ndarray, pidx: np.ndarray
+    camera: Cameras, T_cam_world: np.ndarray, X: np.ndarray, view: np.ndarray, pidx: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Pixels (k, 2) and the Jacobian blocks of the projection for rows (view, point index):
     w.r.t. the camera's free parameters (k, 2, n_free), w.r.t. a camera-frame twist ``[v; w]`` of
     ``T_cam_world`` (k, 2, 6) and w.r.t. the world point (k, 2, 3); px per unit."""
     T_rows = T_cam_world[view]
     Xc = _camera_points(T_rows, X, pidx)
-    uv, A, J_cam = camera.project_free(Xc)
+    uv, A, J_cam = project_free_views(camera, Xc, view)
     return uv, J_cam, twist_jacobian(A, Xc), A @ T_rows[:, :3, :3]
 
 
@@ -92,7 +93,9 @@ class ReprojectionBlock:
     """Image observations as one residual block (``dim`` 2, px): rows ``(view, pidx, uv)``.
 
     Parameter blocks (names configurable): ``intrinsics`` the free parameters of ``camera`` (one
-    model shared by every camera of the rig, as the paper assumes), ``poses`` the pose model's
+    model shared by every camera of the rig, as the paper assumes, or a
+    :class:`calib.camera.camera_set.CameraSet`: each camera its own, the rows of a view
+    depending on its camera's only), ``poses`` the pose model's
     parameters ``p``, ``points`` the world points (3 P) raveled, m. A pose model whose
     ``view_jacobian`` returns None yields NaN pose derivatives (finite differences belong to the
     caller; the engine refuses them with a :class:`calib.errors.SolverError`).
@@ -102,7 +105,7 @@ class ReprojectionBlock:
 
     def __init__(
         self,
-        camera: CameraModel,
+        camera: Cameras,
         pose_model: PoseModel,
         view: np.ndarray,
         pidx: np.ndarray,

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from calib.camera import CameraModel
+from calib.camera.camera_set import Cameras, project_views, unproject_views
 from calib.estimation.reprojection import reprojection_residuals
 
 __all__ = ["triangulate", "robust_triangulate", "ray_angle"]
@@ -45,7 +45,7 @@ def robust_triangulate(
     view: np.ndarray,
     pidx: np.ndarray,
     uv: np.ndarray,
-    camera: CameraModel,
+    camera: Cameras,
     n_points: int,
     threshold_px: float,
     X_current: np.ndarray | None = None,
@@ -59,7 +59,7 @@ def robust_triangulate(
     Returns ``X`` (n_points, 3) (NaN with < 2 inliers) and the inlier mask (k,) of the rows.
     """
     rng = np.random.default_rng(seed)
-    xn = camera.unproject(uv)
+    xn = unproject_views(camera, uv, view)
     X = np.full((n_points, 3), np.nan)
     inlier = np.zeros(len(view), bool)
     order = np.argsort(pidx, kind="stable")
@@ -85,7 +85,7 @@ def robust_triangulate(
         Tv = T_cam_world[view[rows]]
         Xc = np.einsum("kij,hj->hki", Tv[:, :3, :3], hyp) + Tv[:, :3, 3]
         with np.errstate(divide="ignore", invalid="ignore"):
-            d = camera.project(Xc) - uv[rows]
+            d = project_views(camera, Xc, view[rows]) - uv[rows]
         ok = (Xc[..., 2] > 0) & (np.hypot(d[..., 0], d[..., 1]) < threshold_px)
         best = int(np.argmax(ok.sum(axis=1)))
         use = rows[ok[best]]
