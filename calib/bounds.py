@@ -40,7 +40,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from calib.alignment import express_in_frame, minimal_difference
-from calib.camera import CameraModel
+from calib.camera import Cameras, CameraSet, first_camera
 from calib.errors import EstimationError
 from calib.joint_refine import KinematicPoses, _Problem, choose_gauge
 from calib.kinematics import fk_tool, identification_jacobian
@@ -72,7 +72,7 @@ class FisherSetup:
         q: (m, n) joints (rad / m) of the configurations (read-back; the information is
             evaluated there).
         camera: the camera model (its free parameters are unknowns), shared by every camera
-            of the rig.
+            of the rig, or a :class:`calib.camera.CameraSet` (each camera its own).
         T_first_cam: (N, 4, 4) the rig: each camera's pose in the first camera's frame (m).
         X_world: (P, 3) corner positions in the model's world frame.
         view: (k,) view of every observation (:class:`calib.observations.ViewLayout` over the
@@ -88,7 +88,7 @@ class FisherSetup:
 
     model: MCPCModel
     q: np.ndarray
-    camera: CameraModel
+    camera: Cameras
     T_first_cam: np.ndarray
     X_world: np.ndarray
     view: np.ndarray
@@ -103,13 +103,13 @@ class FisherSetup:
 
     @property
     def fx(self) -> float:
-        """The pinhole's focal length (px)."""
-        return self.camera.fx  # type: ignore[attr-defined]
+        """The (first camera's) pinhole's focal length (px)."""
+        return first_camera(self.camera).fx  # type: ignore[attr-defined]
 
     @property
     def mu(self) -> float:
-        """The pinhole's aspect ratio."""
-        return self.camera.mu  # type: ignore[attr-defined]
+        """The (first camera's) pinhole's aspect ratio."""
+        return first_camera(self.camera).mu  # type: ignore[attr-defined]
 
     @property
     def T_left_right(self) -> np.ndarray:
@@ -234,7 +234,8 @@ class CramerRao:
     parameters held beyond the gauge); ``cov_ref`` (P, P) their covariance; ``model_ref`` the
     setup's model in that frame. ``cov_free``: covariance of ``rho_free`` (``free_idx`` flat
     indices of ``model``) in the held-parameter gauge. ``camera_std``: the bound of every free
-    camera parameter by name (``fx_std``, ``mu_std`` the pinhole's).
+    camera parameter by name (``fx_std``, ``mu_std`` the pinhole's; the first camera's when the
+    rig's cameras have their own models, ``cameras_std`` then holds each camera's by name).
     """
 
     model: MCPCModel
@@ -250,6 +251,7 @@ class CramerRao:
     n_observations: int
     n_unknowns: int
     extra: dict = field(default_factory=dict)
+    cameras_std: dict[str, dict[str, float]] | None = None
 
     @property
     def fx_std(self) -> float:
@@ -287,6 +289,11 @@ class CramerRao:
             cov_ref=self.cov_ref * f,
             std_ref=self.std_ref * np.sqrt(f),
             camera_std={k: v * np.sqrt(f) for k, v in self.camera_std.items()},
+            cameras_std=None
+            if self.cameras_std is None
+            else {
+                c: {k: v * np.sqrt(f) for k, v in d.items()} for c, d in self.cameras_std.items()
+            },
             pixel_sigma_px=float(pixel_sigma_px),
         )
 
@@ -313,6 +320,10 @@ def cramer_rao(s: FisherSetup, *, rank_tol: float = 1e-10) -> CramerRao:
     C = inverse_block(J, cols)
     nk, nc = len(lay.kin_cols), lay.n_camera
     camera_std = {name: float(np.sqrt(max(C[i, i], 0.0))) for i, name in enumerate(s.camera.free)}
+    cameras_std = None
+    if isinstance(s.camera, CameraSet):
+        cameras_std = s.camera.std_by_camera(C[:nc, :nc])
+        camera_std = cameras_std[s.camera.names[0]]
     cov_free = C[nc:nk, nc:nk]
     # ---- the reference-camera frame: world = left camera at the reference configuration
     model = s.model
@@ -356,6 +367,7 @@ def cramer_rao(s: FisherSetup, *, rank_tol: float = 1e-10) -> CramerRao:
         cov_ref=cov_ref,
         std_ref=std_ref,
         camera_std=camera_std,
+        cameras_std=cameras_std,
         pixel_sigma_px=float(s.pixel_sigma_px),
         n_observations=int(len(s.view)),
         n_unknowns=int(J.shape[1]),

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from calib.bounds import BoundsError, FisherSetup
-from calib.camera import Rig, Visibility
+from calib.camera import Cameras, CameraSet, Rig, Visibility
 from calib.joint_refine import encoder_sigma
 from calib.kinematics import fk_tool
 from calib.mcpc import MCPCModel
@@ -44,17 +44,16 @@ def predicted_setup(
     carry no information).
 
     Raises:
-        BoundsError: a scale marker is not seen twice, or the rig's cameras differ (the model
-            has one camera shared by the rig).
+        BoundsError: a scale marker is not seen twice.
+
+    Cameras of the rig with different models become a :class:`calib.camera.CameraSet` (each
+    camera's free parameters unknowns of their own), as the self-calibration estimates them.
     """
     q = np.atleast_2d(np.asarray(q, dtype=float))
     ids = np.asarray(marker_ids, dtype=np.int64)
-    camera = rig.cameras[0]
+    camera: Cameras = rig.cameras[0]
     if any(c != camera for c in rig.cameras[1:]):
-        raise BoundsError(
-            "the rig's cameras have different models; the estimation (and so this bound) has "
-            "one camera model shared by the rig"
-        )
+        camera = CameraSet(rig.cameras, rig.names)
     rule = visibility or Visibility()
     vis = rig.visible_markers(rule, fk_tool(model, q), corners_world, normals_world)  # (m, N, K)
     n_views = vis.sum(axis=(0, 1))
@@ -113,14 +112,14 @@ def setup_from_output(
     q = np.atleast_2d(np.asarray(q, dtype=float))
     if res is not None:
         used = np.asarray(res.diagnostics.get("used_configs"), dtype=np.int64)
-        model, camera = res.model, res.camera
+        model, camera = res.model, res.camera if res.cameras is None else res.cameras
         T_first_cam, X, ref = res.T_first_cam, res.X_world, int(res.ref_config)
         held = tuple(n for n, why in res.held_reason.items() if not why.startswith("gauge"))
         sigma = res.sigma_px
     else:
         used = np.flatnonzero(sc.registered if sc.registered.ndim == 1 else sc.registered[:, 0])
         ident = out.identification
-        model, camera = ident.model, sc.camera
+        model, camera = ident.model, sc.camera if sc.cameras is None else sc.cameras
         T_first_cam, X, ref = sc.T_first_cam, sc.X_world, int(sc.ref_config)
         held = tuple(ident.held)
         sigma = sc.pixel_sigma_px(len(used))

@@ -17,14 +17,14 @@ import functools
 import os
 import time
 import warnings
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
 
-from calib.camera import LensCamera, Pinhole, camera_model, centered_principal_point
+from calib.camera import CameraSet, LensCamera, Pinhole, camera_model, centered_principal_point
 from calib.camera.undistort import Undistorter
 from calib.errors import EstimationError, InitialCameraWarning, SelfCalWarning
 from calib.estimation.selfcal_errors import SelfCalibrationError
@@ -114,13 +114,13 @@ def skipped_images_message(skipped: tuple[str, ...], dictionary: str) -> str:
 def detect_dataset(
     ds: Dataset,
     progress=None,
-    lens: LensCamera | None = None,
+    lens: LensCamera | Mapping[str, LensCamera] | None = None,
     cache: FrameCache | None = None,
 ) -> MarkerDetections:
     """Marker corners of every image (images path) or the stored detections (analytic path),
     and the images that show no marker (for people also a :class:`NoMarkersWarning`).
-    ``lens``: a camera with a lens (an estimate): detect on the images undistorted with it and
-    map the corners back (:class:`calib.camera.undistort.Undistorter`; the straight-edge corner
+    ``lens``: a camera with a lens (an estimate), or one per camera name (a camera not named is
+    detected as it is): detect on the images undistorted with it and map the corners back (:class:`calib.camera.undistort.Undistorter`; the straight-edge corner
     refinement is biased on bent edges). The screening of hidden and grazing markers
     (:func:`calib.target.aruco_detect.detect_markers`, docs/accuracy.md) runs only for a dataset
     camera without a lens: on bent or resampled edges its level test drops markers unevenly
@@ -135,17 +135,19 @@ def detect_dataset(
     """
     if ds.info.observation == "detections":
         return MarkerDetections(ds.read_detections(), ())
-    screen = not isinstance(dataset_camera(ds.info), LensCamera)
+    screen = not any(isinstance(c, LensCamera) for c in _models(dataset_camera(ds.info)))
     out: Detections = {}
     empty: list[str] = []
     noise: list[float] = []
     if progress is not None:
         progress.start(len(ds.indices) * len(ds.info.cameras))  # one image per camera
     W, H = ds.info.resolution
-    flat = None if lens is None else Undistorter(lens)
+    lens_of = lens if isinstance(lens, Mapping) else dict.fromkeys(ds.info.cameras, lens)
+    flats = {c: Undistorter(v) for c, v in lens_of.items() if v is not None}
 
     def detect(item: tuple[int, str, Path]) -> tuple[int, str, dict, dict]:
         index, cam, path = item
+        flat = flats.get(cam)
         key = (index, cam, screen)
         if flat is None and cache is not None and key in cache.detections:
             dets, sig = cache.detections[key]
@@ -290,12 +292,6 @@ def calibrate_detailed(
             fix="calibrate a board dataset with `selfcal calibrate DIR` (it dispatches on the "
             "target)",
         )
-    if ds.info.camera_models is not None:
-        raise CalibrationError(
-            f"{root}: the cameras have different models; the self-calibration of the field "
-            "estimates one camera model shared by the rig",
-            fix="give every camera the same model and free parameters in dataset.json",
-        )
     if len(ds.indices) < MIN_POSTURES:
         raise CalibrationError(
             f"{root}: {len(ds.indices)} postures; calibration needs at least {MIN_POSTURES} "
@@ -331,10 +327,11 @@ def calibrate_detailed(
     with _stage(progress, "camera stage (bundle adjustment)") as st:
         sc, start = _camera_stage(camera_stage, obs, initial)
         st(f"reprojection RMS {sc.rms_px:.3f} px")
-    if isinstance(sc.camera, LensCamera) and ds.info.observation == "images":
+    lenses = _lenses(sc, ds.info.cameras)
+    if lenses and ds.info.observation == "images":
         # the lens bends the marker edges: detect again through the estimated lens, refit
         with _stage(progress, "camera stage again through the estimated lens") as st:
-            dets, skipped, corner_sigma = detect_dataset(ds, lens=sc.camera, cache=cache)
+            dets, skipped, corner_sigma = detect_dataset(ds, lens=lenses, cache=cache)
             _check_scale_markers(ds, dets)
             obs = observations_of(ds, dets)
             sc = camera_stage(obs, initial=initial if start == "initial" else None)
@@ -457,14 +454,30 @@ def _camera_stage(
     return fits["own"], "own"
 
 
-def dataset_camera(info: DatasetInfo) -> Pinhole:
+def dataset_camera(info: DatasetInfo) -> Pinhole | CameraSet:
     """The camera model and free parameters the dataset asks to estimate (values: a centred
-    pinhole of the dataset's resolution, no distortion; the self-calibration sets fx, mu)."""
+    pinhole of the dataset's resolution, no distortion; the self-calibration sets fx, mu): one
+    model shared by the rig, or -- when ``dataset.json`` gives the cameras their own models --
+    a :class:`calib.camera.CameraSet` of each camera's."""
     W, H = info.resolution
     cx, cy = centered_principal_point(W, H)
-    cam = camera_model(info.camera_model, fx=1.0, mu=1.0, cx=cx, cy=cy, width=W, height=H,
-                       free=info.camera_free)  # fmt: skip
-    return cam
+    kinds = info.camera_models or ((info.camera_model, tuple(info.camera_free)),)
+    cams = tuple(camera_model(m, fx=1.0, mu=1.0, cx=cx, cy=cy, width=W, height=H, free=f)
+                 for m, f in kinds)  # fmt: skip
+    return cams[0] if len(cams) == 1 else CameraSet(cams, tuple(info.cameras))
+
+
+def _models(cameras: Pinhole | CameraSet) -> tuple[Pinhole, ...]:
+    """The models of ``cameras`` (one for a shared camera)."""
+    return cameras.cameras if isinstance(cameras, CameraSet) else (cameras,)  # type: ignore[return-value]
+
+
+def _lenses(sc: SelfCalibrationResult, names: Sequence[str]) -> dict[str, LensCamera]:
+    """The estimated cameras with a lens by camera name (every camera for a shared one)."""
+    if sc.cameras is None:
+        return dict.fromkeys(names, sc.camera) if isinstance(sc.camera, LensCamera) else {}
+    return {n: c for n, c in zip(sc.cameras.names, sc.cameras.cameras, strict=True)
+            if isinstance(c, LensCamera)}  # fmt: skip
 
 
 def _joint1_axis(model: MCPCModel) -> np.ndarray:

@@ -83,7 +83,8 @@ def evaluate_field(
     if len(ds.info.cameras) == 2:
         T_cam["right"] = T_lr
     T = {k: fk_tool(m, q) for k, m in models.items()}
-    camera = cal.intrinsics.camera()
+    # each camera predicts with its own intrinsics (the shared one for a shared camera)
+    camera = {c: cal.intrinsics_of(i).camera() for i, c in enumerate(ds.info.cameras)}
     errs: list[dict[str, np.ndarray]] = []
     per = []
     for (index, cam), markers in sorted(dets.items()):
@@ -97,7 +98,7 @@ def evaluate_field(
         e: dict[str, np.ndarray] = {}
         for k in models:
             Tc = inv_pose(T[k][row[index]] @ T_cam[cam])
-            e[k] = camera.project(X @ Tc[:3, :3].T + Tc[:3, 3]) - ft.uv[keep]
+            e[k] = camera[cam].project(X @ Tc[:3, :3].T + Tc[:3, 3]) - ft.uv[keep]
             out[f"{k}_px"] = rms_px(e[k])
         per.append(out)
         errs.append(e)

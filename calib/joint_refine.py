@@ -56,7 +56,7 @@ import numpy as np
 import scipy.linalg
 
 from calib.bundle_adjust import _Problem as _AdjustmentProblem
-from calib.camera import CameraModel
+from calib.camera import Cameras, CameraSet, first_camera
 from calib.errors import EstimationError
 from calib.estimation.gauge import GaugeChoice, gauge_directions
 from calib.estimation.joint_report import (
@@ -161,7 +161,7 @@ class _Problem(_AdjustmentProblem):
 
     def __init__(
         self,
-        camera: CameraModel,
+        camera: Cameras,
         model: KinematicPoses,
         view: np.ndarray,
         pidx: np.ndarray,
@@ -304,7 +304,7 @@ def joint_refine(
         prior_w = np.tile(pixel_sigma_px / js, len(used))
     else:
         prior_cols, prior_w = np.zeros(0, np.int64), np.zeros(0)
-    camera = sc.camera
+    camera: Cameras = sc.camera if sc.cameras is None else sc.cameras
     w_scale = 1.0 / float(scale_sigma_m)
     trk: tuple[list, list] = ([], [])
     if tracker is not None:
@@ -411,6 +411,10 @@ def joint_refine(
     )
     n_cam = camera.n_free
     cam_std = dict(zip(camera.free, np.sqrt(np.clip(np.diag(C)[:n_cam], 0.0, None)).tolist()))
+    cams_std = None
+    if isinstance(camera, CameraSet):
+        cams_std = camera.std_by_camera(C[:n_cam, :n_cam])
+        cam_std = cams_std[camera.names[0]]
 
     model_g = pose_model.kinematic_model(p)
     ref = int(sc.ref_config) if active_cfg[sc.ref_config] else int(used[0])
@@ -445,10 +449,12 @@ def joint_refine(
     return JointRefinementResult(
         model=model_ref,
         model_gauge=model_g,
-        camera=camera,
+        camera=first_camera(camera),  # type: ignore[arg-type]
         fx_std=cam_std.get("fx", float("nan")),
         mu_std=cam_std.get("mu", float("nan")),
         camera_std=cam_std,
+        cameras=camera if isinstance(camera, CameraSet) else None,
+        cameras_std=cams_std,
         T_first_cam=T_first_cam,
         T_world_cam=T_wc,
         ref_config=ref,

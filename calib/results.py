@@ -22,6 +22,7 @@ import numpy as np
 
 from calib.bounds import BoundsError, cramer_rao
 from calib.bounds_setup import setup_from_output
+from calib.camera import CameraSet
 from calib.dh_table import dh_table
 from calib.estimation.joint_result import JointRefinementResult
 from calib.identify import IdentificationResult
@@ -40,10 +41,17 @@ from calib.io.calibration_blocks import (
     PoseResidualRMS,
     PoseResiduals,
     Rig,
+    RigCamera,
     ScaleEstimate,
     matrix,
 )
-from calib.io.calibration_bounds import BoundParameter, Bounds, EstimateBound, ToolTipBound
+from calib.io.calibration_bounds import (
+    BoundParameter,
+    Bounds,
+    CameraBound,
+    EstimateBound,
+    ToolTipBound,
+)
 from calib.io.dataset import Dataset
 from calib.io.dataset_info import DatasetInfo
 from calib.mcpc import MCPCModel, minimal_indices, nominal_mcpc, param_is_angle, shape_matrices
@@ -180,6 +188,7 @@ def two_stage_result(
         robot_model=robot.name,
         dataset=DatasetUse(int(len(ds.indices)), int(len(used)), tuple(skipped_images)),
         intrinsics=CameraIntrinsics.of(sc.camera, sc.camera_std),
+        cameras=rig_cameras(sc.cameras, sc.cameras_std),
         rig=Rig(matrix(sc.T_left_right)),
         scale=ScaleEstimate(
             d_mm=ds.info.scale_length_m * 1000,
@@ -208,6 +217,20 @@ def two_stage_result(
         warnings=tuple(warnings),
     )
     return dataclasses.replace(result, methods={"two-stage": method_summary(result)})
+
+
+def rig_cameras(
+    cameras: CameraSet | None, std: dict[str, dict[str, float]] | None
+) -> tuple[RigCamera, ...]:
+    """``calibration.json``'s ``cameras`` of a rig whose cameras have their own models (each
+    with the standard deviations of its free parameters by name); empty for a shared camera."""
+    if cameras is None:
+        return ()
+    std = std or {}
+    return tuple(
+        RigCamera(name, CameraIntrinsics.of(cam, std.get(name, {})))  # type: ignore[arg-type]
+        for name, cam in zip(cameras.names, cameras.cameras, strict=True)
+    )
 
 
 def with_joint(
@@ -253,6 +276,7 @@ def with_joint(
     out = dataclasses.replace(
         result,
         intrinsics=CameraIntrinsics.of(res.camera, res.camera_std),
+        cameras=rig_cameras(res.cameras, res.cameras_std),
         rig=Rig(matrix(res.T_left_right)),
         reprojection_rms_px=float(res.rms_px),
         observations=ObservationCounts(int(res.n_inliers), int(res.n_outliers)),
@@ -353,4 +377,8 @@ def _bounds(
         mu=EstimateBound(float(s.mu), float(cr.mu_std)),
         parameters=tuple(params),
         camera={k: float(v) for k, v in cr.camera_std.items()},
+        cameras=tuple(
+            CameraBound(name, {k: float(v) for k, v in d.items()})
+            for name, d in (cr.cameras_std or {}).items()
+        ),
     )

@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from calib.camera import Pinhole, PinholeValues
+from calib.camera import CameraSet, Pinhole, PinholeValues
 from calib.estimation.gauge import GaugeChoice
 from calib.mcpc import MCPCModel
 
@@ -23,7 +23,9 @@ class JointRefinementResult(PinholeValues):
             two-stage values).
         camera: the refined camera, shared by every camera of the rig (``fx``, ``mu``, ``cx``,
             ``cy`` its values, px); ``fx_std``, ``mu_std`` (NaN when held) and ``camera_std``
-            (every free parameter by name) from the final Jacobian.
+            (every free parameter by name) from the final Jacobian; with ``cameras`` (each
+            camera of the rig its own model) they are the first camera's, and
+            ``cameras_std`` holds every camera's by camera name.
         T_first_cam: (N, 4, 4) the rig: each camera's pose in the first camera frame (m);
             ``T_left_right`` the second's.
         T_world_cam: (m, N, 4, 4) camera poses of all configurations (NaN if not active).
@@ -72,6 +74,10 @@ class JointRefinementResult(PinholeValues):
     diagnostics: dict = field(default_factory=dict)
     camera_std: dict[str, float] = field(default_factory=dict)
     """Standard deviation of every free camera parameter by name (px or unitless)."""
+    cameras: CameraSet | None = None
+    """Each camera's refined model (None: ``camera`` is shared by the rig)."""
+    cameras_std: dict[str, dict[str, float]] | None = None
+    """With ``cameras``: each camera's ``camera_std`` by camera name."""
 
     @property
     def T_left_right(self) -> np.ndarray:

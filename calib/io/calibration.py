@@ -10,6 +10,12 @@ could be computed (``bounds_error``) and every warning a person should read (``w
 The world frame is the reconstruction frame: the left camera (OpenCV frame) of frame
 ``camera_poses.reference_frame_index``. The identified MCPC chain (SI units, tool = the left
 camera) is in ``mcpc`` (:attr:`CalibrationResult.model`); mm / deg tables for people beside it.
+
+``intrinsics`` is the camera shared by the rig, or -- when each camera of the rig has its own
+model (a field self-calibration of a rig with different lenses) -- the first camera's, with
+``cameras`` then listing every camera's own ``intrinsics`` by name. Such a file is schema 2 (code
+that reads schema 1 would take the first camera's intrinsics for every camera, so it refuses the
+file); a file of one camera or a shared camera stays schema 1, as before.
 """
 
 from __future__ import annotations
@@ -33,6 +39,7 @@ from calib.io.calibration_blocks import (
     ObservationCounts,
     ParameterEstimate,
     Rig,
+    RigCamera,
     ScaleEstimate,
     ScenePoints,
 )
@@ -53,9 +60,10 @@ __all__ = [
 ]
 
 FORMAT = "scorbot-selfcal-calibration"
-SCHEMA_VERSION = 1
-"""The newest ``calibration.json`` schema this code reads and the one it writes. Files from
-before ``schema_version`` existed carry ``"version": 1`` and are read as 1."""
+SCHEMA_VERSION = 2
+"""The newest ``calibration.json`` schema this code reads. It writes 2 only for a rig whose
+cameras have their own intrinsics (``cameras``), else 1. Files from before ``schema_version``
+existed carry ``"version": 1`` and are read as 1."""
 WORLD_FRAME = (
     "the left camera frame of frame camera_poses.reference_frame_index (the reconstruction "
     "frame); the identified base parameters place the robot in it"
@@ -98,6 +106,8 @@ class CalibrationResult:
             predicts), or None (files written before it existed).
         tracker: the tracker measurements estimated with the images (``sources`` then lists
             both), or None (images alone).
+        cameras: every camera of the rig with its own intrinsics (``intrinsics`` is then the
+            first's), or empty: ``intrinsics`` is shared by the rig's cameras.
     """
 
     robot_model: str
@@ -126,6 +136,7 @@ class CalibrationResult:
     seconds: float | None = None
     scene: ScenePoints | None = None
     tracker: TrackerSource | None = None
+    cameras: tuple[RigCamera, ...] = ()
     world_frame: str = WORLD_FRAME
     tool: str = TOOL
     columns: tuple[str, ...] = field(default=tuple(COLUMNS))
@@ -147,6 +158,10 @@ class CalibrationResult:
         """The calibrated intrinsics of both cameras (px)."""
         return self.intrinsics.pinhole()
 
+    def intrinsics_of(self, index: int) -> CameraIntrinsics:
+        """The intrinsics of the rig's camera ``index`` (0 = first): its own, or the shared."""
+        return self.cameras[index].intrinsics if self.cameras else self.intrinsics
+
     def std_si(self) -> dict[str, float]:
         """Standard deviation (rad or m) of every parameter that has one, by name."""
         return {p.name: p.std * p.to_si for p in self.parameters if p.std is not None}
@@ -157,11 +172,12 @@ class CalibrationResult:
         the result)."""
         doc: dict = {
             "format": FORMAT,
-            SCHEMA_KEY: SCHEMA_VERSION,
+            SCHEMA_KEY: 2 if self.cameras else 1,
             "robot_model": self.robot_model,
             "dataset": self.dataset.to_json(),
             "world_frame": self.world_frame,
             "intrinsics": self.intrinsics.to_json(),
+            **({"cameras": [c.to_json() for c in self.cameras]} if self.cameras else {}),
             "rig": self.rig.to_json(),
             "scale": self.scale.to_json(),
             "reprojection_rms_px": self.reprojection_rms_px,
@@ -233,6 +249,9 @@ class CalibrationResult:
             robot_model=f.str("robot_model"),
             dataset=DatasetUse.from_json(f.sub("dataset")),
             intrinsics=CameraIntrinsics.from_json(f.sub("intrinsics")),
+            cameras=tuple(RigCamera.from_json(c) for c in f.items("cameras"))
+            if f.has("cameras")
+            else (),
             rig=Rig.from_json(f.sub("rig")),
             scale=ScaleEstimate.from_json(f.sub("scale")),
             reprojection_rms_px=f.float("reprojection_rms_px"),

@@ -116,6 +116,15 @@ class CameraIntrinsics(JsonBlock):
 
 
 @dataclass(frozen=True, eq=False)
+class RigCamera(JsonBlock):
+    """One entry of ``cameras``: a camera of the rig by ``name`` (``left``, ``right``) and its
+    own estimated ``intrinsics`` (the rig's cameras have their own models)."""
+
+    name: str
+    intrinsics: CameraIntrinsics
+
+
+@dataclass(frozen=True, eq=False)
 class Rig(JsonBlock):
     """``rig``: the right camera in the left camera frame (OpenCV frames, m)."""
 

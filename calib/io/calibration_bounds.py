@@ -18,6 +18,7 @@ __all__ = [
     "BoundParameter",
     "Bounds",
     "BOUNDS_NOTE",
+    "CameraBound",
     "SIGMA_SOURCES",
 ]
 
@@ -56,6 +57,14 @@ class BoundParameter(JsonBlock):
     held: bool
 
 
+@dataclass(frozen=True)
+class CameraBound(JsonBlock):
+    """The bound of every free parameter of the rig's camera ``name`` (px or unitless)."""
+
+    name: str
+    bound: dict[str, float]
+
+
 BOUNDS_NOTE = (
     "Cramer-Rao bounds (standard deviations; tool tip: RMS over the validation postures after "
     "the best rigid alignment, as the report measures it) from the Fisher information of the "
@@ -71,7 +80,8 @@ class Bounds(JsonBlock):
     """``bounds``: Cramer-Rao bounds of this data set (:mod:`calib.bounds`), evaluated at the
     final estimate of ``method_evaluated_at``: the noise levels used (corner px per coordinate,
     read-back deg per joint or None), the counts, the tool-tip bound, ``fx`` / ``mu``, every
-    parameter and every free camera parameter (``camera``, by OpenCV name)."""
+    parameter and every free camera parameter (``camera``, by OpenCV name; the first camera's
+    when the rig's cameras have their own models, ``cameras`` then holding each camera's)."""
 
     kind: str = "cramer-rao"
     method_evaluated_at: str
@@ -92,3 +102,12 @@ class Bounds(JsonBlock):
     (:func:`calib.target.aruco_detect.detect_markers_noise`; a bias that shifts whole sides or
     a model error does not enter it, docs/accuracy.md), or ``"residuals"``, the final fit's
     residuals, dof-corrected (stored detections, images detected through a lens)."""
+    cameras: tuple[CameraBound, ...] = ()
+    """Each camera's bounds by name when the rig's cameras have their own models, else empty."""
+
+    def to_json(self) -> dict:
+        """The JSON object; ``cameras`` only when not empty (files stay as they were)."""
+        doc = super().to_json()
+        if not doc["cameras"]:
+            del doc["cameras"]
+        return doc

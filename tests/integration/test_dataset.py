@@ -143,9 +143,10 @@ def test_a_frame_that_cannot_be_written_stops_the_acquisition_at_that_frame(tmp_
 
 
 def test_each_camera_keeps_its_own_model_and_free_parameters(tmp_path):
-    """dataset.json holds a model per camera; a field dataset of mixed models is refused by
-    the self-calibration (it shares one model across the rig)."""
-    from calib.calibrate import CalibrationError, calibrate
+    """dataset.json holds a model per camera; the field self-calibration of a dataset of mixed
+    models estimates each camera's own (a CameraSet), of one model the shared camera."""
+    from calib.calibrate import dataset_camera
+    from calib.camera import CameraSet
     from calib.io.dataset_info import read_dataset_info, write_dataset_info
 
     models = (("opencv", ("fx", "mu", "cx", "cy", "k1", "k2")), ("pinhole", ("fx", "mu")))
@@ -155,8 +156,7 @@ def test_each_camera_keeps_its_own_model_and_free_parameters(tmp_path):
     assert back.camera_models == models and back.model_of("right") == models[1]
     same = dataclasses.replace(info(), cameras=("a", "b"))
     assert same.camera_models is None and same.model_of("b") == ("pinhole", ("fx", "mu"))
-    w = DatasetWriter(tmp_path / "ds", dataclasses.replace(mixed, observation="detections"))
-    for i in range(6):
-        w.add_frame(i, np.zeros(5), detections={})
-    with pytest.raises(CalibrationError, match="different models"):
-        calibrate(tmp_path / "ds")
+    cams = dataset_camera(back)
+    assert isinstance(cams, CameraSet) and cams.names == ("left", "right")
+    assert [(c.model_name, c.free) for c in cams.cameras] == list(models)
+    assert not isinstance(dataset_camera(same), CameraSet)
