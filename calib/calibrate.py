@@ -457,14 +457,15 @@ def _camera_stage(
 def dataset_camera(info: DatasetInfo) -> Pinhole | CameraSet:
     """The camera model and free parameters the dataset asks to estimate (values: a centred
     pinhole of the dataset's resolution, no distortion; the self-calibration sets fx, mu): one
-    model shared by the rig, or -- when ``dataset.json`` gives the cameras their own models --
-    a :class:`calib.camera.CameraSet` of each camera's."""
+    model shared by the rig, or -- when ``dataset.json`` gives the cameras their own models or
+    intrinsics (:attr:`calib.io.dataset_info.DatasetInfo.own_intrinsics`) -- a
+    :class:`calib.camera.CameraSet` of each camera's."""
     W, H = info.resolution
     cx, cy = centered_principal_point(W, H)
-    kinds = info.camera_models or ((info.camera_model, tuple(info.camera_free)),)
+    names = info.cameras if info.own_intrinsics else info.cameras[:1]
     cams = tuple(camera_model(m, fx=1.0, mu=1.0, cx=cx, cy=cy, width=W, height=H, free=f)
-                 for m, f in kinds)  # fmt: skip
-    return cams[0] if len(cams) == 1 else CameraSet(cams, tuple(info.cameras))
+                 for m, f in (info.model_of(c) for c in names))  # fmt: skip
+    return cams[0] if len(cams) == 1 else CameraSet(cams, tuple(names))
 
 
 def _models(cameras: Pinhole | CameraSet) -> tuple[Pinhole, ...]:

@@ -87,6 +87,13 @@ class SimSetup:
     """``[target] board`` (calib.target.boards.Board) or None: the marker field."""
     T_world_board: np.ndarray | None = None
     """The board's true pose on the table (board -> world, m; ``sim.board_scene.board_on_table``)."""
+    intrinsics_right: Intrinsics | None = None
+    """The right camera's own true model (``[camera.right]``), or None: ``intrinsics``."""
+
+    def rig(self) -> RigConfig:
+        """The simulated rig: the true cameras and the baseline."""
+        return RigConfig(intrinsics=self.intrinsics, T_left_right=self.T_left_right,
+                         intrinsics_right=self.intrinsics_right)  # fmt: skip
 
 
 def _field_center(robot: RobotDef, nominal: MCPCModel) -> tuple[float, float]:
@@ -138,8 +145,9 @@ def sim_setup(s: Scenario) -> SimSetup:
     T_lr = trans(np.array([s.camera.baseline_mm / 1000, 0.0, 0.0]))
     board = scenario_board(s)
     T_world_board = None if board is None else board_on_table(board, _field_center(robot, nominal))
+    right = s.camera.of("right").true_model() if s.camera.own_intrinsics else None
     return SimSetup(robot, nominal, actual, intr, T_lr, field_, board=board,
-                    T_world_board=T_world_board)  # fmt: skip
+                    T_world_board=T_world_board, intrinsics_right=right)  # fmt: skip
 
 
 def planning_inputs(s: Scenario) -> dict:
@@ -179,9 +187,11 @@ def planning_inputs(s: Scenario) -> dict:
 def _planning_rig(s: Scenario) -> Rig:
     """The cameras the plan must serve: the nominal stereo pair, or its left camera alone."""
     W, H = s.camera.resolution
+    left, right = (s.camera.of(n) for n in ("left", "right"))
     rig = Rig.stereo(
-        Intrinsics.centered(s.camera.fx, s.camera.mu, W, H),
+        Intrinsics.centered(left.fx, left.mu, W, H),
         trans(np.array([s.camera.baseline_mm / 1000, 0.0, 0.0])),
+        Intrinsics.centered(right.fx, right.mu, W, H),
     )
     n = s.camera.count
     return Rig(rig.cameras[:n], rig.T_first_cam[:n], rig.names[:n])
@@ -257,19 +267,29 @@ def plan_dataset(s: Scenario, setup: SimSetup | None = None) -> DatasetInfo:
         camera_model=s.camera.model,
         camera_free=tuple(s.camera.free),
         cameras=s.camera.names,
+        camera_models=_camera_models(s),
+        per_camera_intrinsics=s.camera.own_intrinsics,
         board=None if (board := scenario_board(s)) is None else target_document(board),
     )
 
 
+def _camera_models(s: Scenario) -> tuple[tuple[str, tuple[str, ...]], ...] | None:
+    """(model, free) of each camera when they differ (``[camera.right]``), else None."""
+    kinds = tuple((c.model, tuple(c.free)) for c in map(s.camera.of, s.camera.names))
+    return kinds if len(set(kinds)) > 1 else None
+
+
 def _digested(s: Scenario) -> dict:
-    """The scenario as its dataset's digest sees it: ``noise.msaa`` at its default and an empty
-    ``target.board`` (the marker field) are left out, so a dataset acquired before the keys
+    """The scenario as its dataset's digest sees it: ``noise.msaa`` at its default, an empty
+    ``target.board`` (the marker field) and an empty ``camera.right`` are left out, so a dataset acquired before the keys
     existed (with those defaults) still resumes."""
     d = scenario_to_dict(s)
     if s.noise.msaa == NoiseConfig.msaa:
         del d["noise"]["msaa"]
     if not s.target.board:
         del d["target"]["board"]
+    if not s.camera.right:
+        del d["camera"]["right"]
     return d
 
 
@@ -333,7 +353,7 @@ def make_sim_robot(s: Scenario, setup: SimSetup | None = None):
     """The scenario's simulated actual robot (``sim.sim_robot.SimRobot``): actual model, rig,
     marker field, image noise and seeds as the scenario says."""
     setup = setup or sim_setup(s)
-    rig = RigConfig(intrinsics=setup.intrinsics, T_left_right=setup.T_left_right)
+    rig = setup.rig()
     return SimRobot(
         setup.robot.name,
         setup.actual,
@@ -351,7 +371,7 @@ def make_kinematic_robot(s: Scenario, setup: SimSetup | None = None) -> Kinemati
     """The scenario's simulated actual robot for the analytic path
     (:class:`sim.kinematic_robot.KinematicRobot`: forward kinematics, no MuJoCo, no images)."""
     setup = setup or sim_setup(s)
-    rig = RigConfig(intrinsics=setup.intrinsics, T_left_right=setup.T_left_right)
+    rig = setup.rig()
     return KinematicRobot(
         setup.robot.name, setup.actual, rig, setup.field, quantize=s.noise.quantize_joints
     )
@@ -363,7 +383,7 @@ def render_posture(
     """Render the (nominal, unperturbed) robot's stereo pair at posture ``q`` (rad) into ``out``."""
     s = load_scenario(config, overrides={"robot": {"model": robot.name}})
     setup = sim_setup(s)
-    rig = RigConfig(intrinsics=setup.intrinsics, T_left_right=setup.T_left_right)
+    rig = setup.rig()
     out.mkdir(parents=True, exist_ok=True)
     board = None if setup.board is None else (setup.board, setup.T_world_board)
     with SimRobot(robot.name, None, rig, setup.field, board=board) as sim:

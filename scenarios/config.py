@@ -14,9 +14,8 @@ from pathlib import Path
 from typing import Any
 
 from calib.calibrate import MIN_POSTURES
-from calib.camera import MODELS, CameraModel, camera_model, centered_principal_point, lens_names
-from calib.errors import InputError
 from calib.tomlfile import read_toml
+from scenarios.config_camera import PER_CAMERA_KEYS, CameraConfig, ConfigError, validate_camera
 from scenarios.defaults import DEFAULT_ROBOT
 
 __all__ = [
@@ -29,10 +28,6 @@ __all__ = [
     "scenario_to_dict",
     "DEFAULT_ROBOT",
 ]
-
-
-class ConfigError(InputError):
-    """A scenario file that cannot be used; the message names the file, key and expected type."""
 
 
 @dataclass(frozen=True)
@@ -54,53 +49,6 @@ class RobotConfig:
     backend: str = "sim"
     """"sim" or "hardware"."""
     hardware: HardwareConfig = field(default_factory=HardwareConfig)
-
-
-@dataclass(frozen=True)
-class CameraConfig:
-    resolution: list[int] = field(default_factory=lambda: [640, 480])
-    fx: float = 800.0
-    """Focal length in px: the true value in simulation, unknown to the calibration."""
-    mu: float = 1.0
-    """Aspect ratio: fy = mu * fx."""
-    baseline_mm: float = 60.0
-    count: int = 2
-    """Cameras the calibration uses: 2 (the wrist stereo pair, ``left`` and ``right``) or 1 (the
-    ``left`` camera alone, the paper's own one-camera setup: its "stereo images" are views from
-    two configurations)."""
-    model: str = "pinhole"
-    """Camera model of both cameras: "pinhole", "opencv" (Brown-Conrady k1, k2, p1, p2, k3,
-    k4-k6) or "fisheye" (Kannala-Brandt k1-k4); OpenCV's conventions and names."""
-    principal_point_offset_px: list[float] = field(default_factory=lambda: [0.0, 0.0])
-    """True principal point minus the image centre ((W - 1) / 2, (H - 1) / 2), px (simulation)."""
-    distortion: dict = field(default_factory=dict)
-    """True lens coefficients by OpenCV name, e.g. {k1 = -0.25, p1 = 1e-3} (simulation; the
-    others are zero). The calibration starts from no distortion."""
-    free: list[str] = field(default_factory=lambda: ["fx", "mu"])
-    """Parameters the calibration estimates, by name (fx, mu = fy / fx or its OpenCV name fy,
-    cx, cy and the model's lens coefficients); the others stay at their start (the image centre,
-    no distortion). ``fy`` is read as ``mu`` (the one parametrisation the estimation uses)."""
-
-    def __post_init__(self) -> None:
-        free = list(self.free)
-        if "mu" not in free:  # both named: the validation says so with the file's name
-            free = ["mu" if n == "fy" else n for n in free]
-        object.__setattr__(self, "free", free)
-
-    @property
-    def names(self) -> tuple[str, ...]:
-        """The dataset's camera names: ``("left", "right")`` or ``("left",)``."""
-        return ("left", "right")[: self.count]
-
-    def true_model(self) -> CameraModel:
-        """The simulated camera (principal point offset, lens) with the ``free`` selection."""
-        W, H = self.resolution
-        cx, cy = centered_principal_point(W, H)
-        dx, dy = self.principal_point_offset_px
-        return camera_model(
-            self.model, fx=self.fx, mu=self.mu, cx=cx + dx, cy=cy + dy, width=W, height=H,
-            coeffs=self.distortion, free=self.free,
-        )  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -253,7 +201,7 @@ def _numeric_leaves(d: dict, prefix: str = ""):
         key = f"{prefix}{k}"
         if key in _UNRANGED:
             continue
-        if isinstance(v, dict) and key not in RANGES:
+        if isinstance(v, dict) and _range_key(key) not in RANGES:
             yield from _numeric_leaves(v, key + ".")
         elif isinstance(v, dict):
             yield from ((f"{key}.{kk}", key, vv) for kk, vv in v.items())
@@ -263,11 +211,16 @@ def _numeric_leaves(d: dict, prefix: str = ""):
             yield key, key, v
 
 
+def _range_key(key: str) -> str:
+    """The :data:`RANGES` key of a scenario key (``camera.right.fx`` has ``camera.fx``'s)."""
+    return "camera." + key[len("camera.right.") :] if key.startswith("camera.right.") else key
+
+
 def _check_ranges(s: Scenario) -> None:
     for name, key, v in _numeric_leaves(scenario_to_dict(s)):
         if isinstance(v, bool) or not isinstance(v, (int, float)):
             continue
-        r = RANGES[key]
+        r = RANGES[_range_key(key)]
         if not r.lo <= v <= r.hi:  # NaN fails too
             unit = f" {r.unit}" if r.unit else ""
             raise ConfigError(
@@ -327,19 +280,40 @@ def _build(cls: type, data: dict, where: str, file: str) -> Any:
     kwargs = {}
     for key, value in data.items():
         if key not in names:
-            raise ConfigError(
-                f"{file}: unknown key '{where}{key}'; allowed in "
-                f"[{where.rstrip('.') or 'top level'}]: {', '.join(sorted(names))}",
-                fix="check the spelling; `selfcal run --help` lists every key with its default",
-            )
+            raise _unknown_key(file, f"{where}{key}", where.rstrip(".") or "top level",
+                               ", ".join(sorted(names)))  # fmt: skip
         tp = hints[key]
-        if isinstance(tp, type) and dataclasses.is_dataclass(tp):
+        if cls is CameraConfig and key == "right":
+            kwargs[key] = _per_camera(value, f"{where}{key}", file)
+        elif isinstance(tp, type) and dataclasses.is_dataclass(tp):
             if not isinstance(value, dict):
                 raise ConfigError(f"{file}: '{where}{key}' must be a table [{where}{key}]")
             kwargs[key] = _build(tp, value, f"{where}{key}.", file)
         else:
             kwargs[key] = _coerce(value, tp, f"{where}{key}")
     return cls(**kwargs)
+
+
+def _unknown_key(file: str, key: str, table: str, allowed: str) -> ConfigError:
+    """The error of an unknown ``key`` of ``table`` in ``file``, listing the ``allowed`` keys."""
+    return ConfigError(
+        f"{file}: unknown key '{key}'; allowed in [{table}]: {allowed}",
+        fix="check the spelling; `selfcal run --help` lists every key with its default",
+    )
+
+
+def _per_camera(value: Any, where: str, file: str) -> dict:
+    """A ``[camera.right]`` table: keys of :data:`PER_CAMERA_KEYS`, typed as in ``[camera]``."""
+    if not isinstance(value, dict):
+        raise ConfigError(f"{file}: '{where}' must be a table [{where}]")
+    hints = typing.get_type_hints(CameraConfig)
+    out = {}
+    for k, v in value.items():
+        if k not in PER_CAMERA_KEYS:
+            raise _unknown_key(file, f"{where}.{k}", where, ", ".join(PER_CAMERA_KEYS) +
+                               " (the others are the rig's, in [camera])")  # fmt: skip
+        out[k] = _coerce(v, hints[k], f"{where}.{k}")
+    return out
 
 
 def _validate(s: Scenario) -> None:
@@ -356,47 +330,20 @@ def _validate(s: Scenario) -> None:
         raise ConfigError(f"{f}: camera.resolution must be [width, height] in px, each >= 16")
     if len(s.robot.hardware.cameras) != 2:
         raise ConfigError(f"{f}: robot.hardware.cameras must list two cameras: [left, right]")
-    _validate_camera(s)
+    validate_camera(s.source, s.camera, "camera")
+    if s.camera.right:
+        if s.camera.count < 2:
+            raise ConfigError(
+                f"{f}: [camera.right] describes the right camera, but camera.count = 1 (the left "
+                "camera alone)",
+                fix="set camera.count = 2, or remove [camera.right]",
+            )
+        validate_camera(s.source, s.camera.of("right"), "camera.right")
     scenario_board(s)  # a bad target file is an error naming it and the key
     for k, v in s.perturbation.table.items():
         if not isinstance(v, (int, float)) or isinstance(v, bool):
             raise ConfigError(f"{f}: perturbation.table.{k}: expected number, got {v!r}")
     _check_ranges(s)
-
-
-def _validate_camera(s: Scenario) -> None:
-    f, c = s.source, s.camera
-    if c.model not in MODELS:
-        raise ConfigError(
-            f"{f}: camera.model must be one of {', '.join(sorted(MODELS))}, got {c.model!r}"
-        )
-    if len(c.principal_point_offset_px) != 2:
-        raise ConfigError(f"{f}: camera.principal_point_offset_px must be [dx, dy] in px")
-    known = lens_names(c.model)
-    for k, v in c.distortion.items():
-        if k not in known:
-            raise ConfigError(
-                f"{f}: unknown key 'camera.distortion.{k}'; the {c.model!r} model has "
-                f"{', '.join(known) or 'no lens coefficients'}",
-                fix='set camera.model = "opencv" or "fisheye" for a lens, or remove the key',
-            )
-        if not isinstance(v, (int, float)) or isinstance(v, bool):
-            raise ConfigError(f"{f}: camera.distortion.{k}: expected number, got {v!r}")
-    names = MODELS[c.model].names
-    if "fy" in c.free:  # left by CameraConfig only when mu is named as well
-        raise ConfigError(
-            f"{f}: camera.free names both 'fy' and 'mu'; fy is OpenCV's name for the same "
-            "freedom (mu = fy / fx with fx free)",
-            fix="keep one of them in camera.free",
-        )
-    for n in c.free:
-        if n not in names:
-            raise ConfigError(
-                f"{f}: camera.free: {n!r} is not a parameter of the {c.model!r} model; "
-                f"use names of {', '.join(names)}"
-            )
-    if "fx" not in c.free or len(set(c.free)) != len(c.free):
-        raise ConfigError(f"{f}: camera.free must list distinct names and include 'fx'")
 
 
 def board_path(s: Scenario) -> Path | None:

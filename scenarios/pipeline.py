@@ -20,7 +20,6 @@ import numpy as np
 
 from calib.alignment import express_in_frame
 from calib.calibrate import CalibrationFailedError, calibrate
-from calib.camera import CameraModel
 from calib.evaluate import Evaluation, evaluate_board
 from calib.evaluate_field import evaluate_field
 from calib.io.atomic import write_text_atomic
@@ -49,6 +48,7 @@ from scenarios.job_figures import (
 )
 from scenarios.paper_data import TABLE_II_MM, table_ii_postures
 from scenarios.progress import Progress
+from scenarios.report_cameras import camera_rows, rig_camera_markdown, rig_camera_rows
 from scenarios.report_fit import (
     board_fit_report,
     figure_links,
@@ -268,8 +268,9 @@ def run_report(
         "intrinsics": {
             "fx": {"estimate": cal.intrinsics.fx, "truth": ti.fx},
             "mu": {"estimate": cal.intrinsics.mu, "truth": ti.mu},
-            **_camera_rows(cal.intrinsics.camera(), cal.intrinsics.std, ti),
+            **camera_rows(cal.intrinsics.camera(), cal.intrinsics.std, ti),
         },
+        **({"cameras": cams} if (cams := rig_camera_rows(cal, truth)) else {}),
         "scale_factor": cal.scale.k,
         "reprojection_rms_px": cal.reprojection_rms_px,
         "effective_corner_noise_px": float(
@@ -386,18 +387,6 @@ def report_summary(report: dict, root: Path) -> str:
     )
 
 
-def _camera_rows(est: CameraModel, std: dict[str, float], truth: CameraModel) -> dict:
-    """Every free camera parameter but fx, mu: ``{name: {estimate, truth, std}}`` (truth of a
-    parameter the true model does not have: 0, no lens term)."""
-    true = dict(zip(truth.names, truth.values().tolist()))
-    vals = dict(zip(est.names, est.values().tolist()))
-    return {
-        n: {"estimate": vals[n], "truth": true.get(n, 0.0), "std": std.get(n)}
-        for n in est.free
-        if n not in ("fx", "mu")
-    }
-
-
 def _markdown(r: dict) -> str:
     v = r["validation"]["tool_tip_error_mm"]
     fx, mu = r["intrinsics"]["fx"], r["intrinsics"]["mu"]
@@ -425,6 +414,7 @@ def _markdown(r: dict) -> str:
         "",
         r["validation"]["note"] + ". Per posture: validation.csv.",
         "",
+        *rig_camera_markdown(r.get("cameras", {})),
         "## Parameters",
         "",
         parameter_markdown(r["parameters"], truth=True),

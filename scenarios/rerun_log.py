@@ -137,7 +137,8 @@ def record_run(dataset_dir: str | Path, rrd_path: str | Path | None, spawn: bool
     import rerun as rr  # optional, ~0.6 s to import: only when recording
 
     from calib.calibrate import detect_dataset
-    from calib.camera import Rig
+    from calib.camera import CameraSet, Rig
+    from calib.camera.camera_set import unproject_views
     from calib.estimation.reprojection import reprojection_residuals
     from calib.estimation.triangulation import triangulate
     from calib.io.calibration import read_calibration
@@ -164,8 +165,11 @@ def record_run(dataset_dir: str | Path, rrd_path: str | Path | None, spawn: bool
     nominal = nominal_mcpc(robot).with_tool(robot.T_flange_cam)
     truth = read_truth(root / "truth.json") if (root / "truth.json").is_file() else None
 
-    est_intr = cal.intrinsics.camera()  # the estimated model, its lens included
     cams = tuple(ds.info.cameras)  # ("left",) or ("left", "right")
+    # the estimated models, lenses included: each camera's own, or the one shared
+    est_cams = tuple(cal.intrinsics_of(c).camera() for c in range(len(cams)))
+    est_intr = est_cams[0]
+    est_set = CameraSet(est_cams, cams) if len(cams) > 1 and cal.cameras else est_intr
     T_first_cam = np.stack([np.eye(4), cal.rig.T_left_right_m][: len(cams)])
     if not np.isfinite(T_first_cam).all():
         raise DatasetError(
@@ -173,7 +177,7 @@ def record_run(dataset_dir: str | Path, rrd_path: str | Path | None, spawn: bool
             "right camera (a one-camera calibration)",
             fix=f"run `selfcal calibrate {root}` again",
         )
-    rig_est = Rig(tuple(est_intr for _ in cams), T_first_cam, cams)
+    rig_est = Rig(est_cams, T_first_cam, cams)
     cp = cal.camera_poses
     est_pose = dict(zip(cp.frame_index, cp.T_world_cam_left_m))
     q_read = {int(i): np.radians(q) for i, q in zip(ds.indices, ds.joints_deg)}
@@ -205,11 +209,13 @@ def record_run(dataset_dir: str | Path, rrd_path: str | Path | None, spawn: bool
     T_first_world = inv_pose(np.stack([est_pose[i] for i in frames]).reshape(-1, 4, 4))
     T_cw = obs.layout.by_view(rig_est.T_cams_world(T_first_world))
     ids, pidx = obs.point_index()
-    X_all, n_seen = triangulate(T_cw, obs.view, pidx, est_intr.unproject(obs.uv), len(ids))
+    X_all, n_seen = triangulate(
+        T_cw, obs.view, pidx, unproject_views(est_set, obs.uv, obs.view), len(ids)
+    )
     ok = n_seen >= 2
     keys, X_recon = ids[ok], X_all[ok]
     X_world = X_recon @ T_world_recon[:3, :3].T + T_world_recon[:3, 3]
-    r, _ = reprojection_residuals(est_intr, T_cw, X_all, obs.view, pidx, obs.uv)
+    r, _ = reprojection_residuals(est_set, T_cw, X_all, obs.view, pidx, obs.uv)
     err2 = np.sum(r**2, axis=1)
 
     # Per-pose reprojection RMS with the triangulated points.
@@ -230,7 +236,8 @@ def record_run(dataset_dir: str | Path, rrd_path: str | Path | None, spawn: bool
     # Geometry: true chain when known, else nominal.
     if truth is not None:
         chain = truth.true_model
-        rig = RigConfig(intrinsics=truth.intrinsics_left, T_left_right=truth.T_left_right)
+        rig = RigConfig(intrinsics=truth.intrinsics_left, T_left_right=truth.T_left_right,
+                        intrinsics_right=truth.intrinsics_right)  # fmt: skip
         field = MarkerField.from_dict(truth.marker_field)
     else:
         chain, rig, field = nominal, RigConfig(), make_marker_field()
@@ -365,7 +372,7 @@ def record_run(dataset_dir: str | Path, rrd_path: str | Path | None, spawn: bool
                     rec,
                     f"world/estimate/cam_{cam}",
                     T,
-                    est_intr,
+                    est_cams[c],
                     _EST_COLOR,
                     img,
                     dets.get((i, cam), {}),

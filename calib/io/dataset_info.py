@@ -52,7 +52,7 @@ __all__ = [
 ]
 
 FORMAT = "scorbot-selfcal-dataset"
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
 """The newest ``dataset.json`` schema this code reads and the one it writes (1 is still read)."""
 CAMERAS = ("left", "right")
 """The cameras of a schema-1 dataset (and the simulator's stereo pair)."""
@@ -111,6 +111,12 @@ class DatasetInfo:
     {OpenCV name: value}}`` (``fx``, ``fy``, ``cx``, ``cy`` px, lens coefficients of the camera's
     model), or None for a camera without one; None: no camera has one. A guess, not truth: the
     calibration frees the camera's ``free`` parameters from it (docs/ros.md)."""
+    per_camera_intrinsics: bool = False
+    """Each camera of the rig has its own intrinsics (other lenses), estimated camera by camera
+    even when the models and free parameters agree; False: cameras of one model share one
+    camera (the paper's), cameras of different models always have their own. Written as
+    ``"per_camera_intrinsics": true`` in a schema-3 file (older code would estimate one camera
+    for the rig, so it refuses the file); absent otherwise (schema 2, as before)."""
 
     def check_encoder_model(self, where: str | Path) -> None:
         """Raise :class:`DatasetError` when the joint angles were converted with another robot
@@ -153,6 +159,14 @@ class DatasetInfo:
         return camera_model(model, fx=v["fx"], mu=v["fy"] / v["fx"], cx=v["cx"], cy=v["cy"],
                             width=W, height=H, coeffs=coeffs, free=free)  # fmt: skip
 
+    @property
+    def own_intrinsics(self) -> bool:
+        """True when each camera's intrinsics are estimated on their own (different models, or
+        :attr:`per_camera_intrinsics`) -- with more than one camera."""
+        return len(self.cameras) > 1 and (
+            self.per_camera_intrinsics or self.camera_models is not None
+        )
+
     def model_of(self, camera: str) -> tuple[str, tuple[str, ...]]:
         """(model name, free parameters) of ``camera``."""
         if self.camera_models is None:
@@ -185,7 +199,7 @@ class DatasetInfo:
         """The ``dataset.json`` document (the one writer: :func:`write_dataset_info`)."""
         return {
             "format": FORMAT,
-            SCHEMA_KEY: SCHEMA_VERSION,
+            SCHEMA_KEY: 3 if self.per_camera_intrinsics else 2,
             "robot_model": self.robot_model,
             **({} if self.encoder_model is None else {"encoder_model": self.encoder_model}),
             "backend": self.backend,
@@ -199,6 +213,7 @@ class DatasetInfo:
                 }
                 for c in self.cameras
             ],
+            **({"per_camera_intrinsics": True} if self.per_camera_intrinsics else {}),
             "target": self.target_json(),
             "observation": self.observation,
             "image_suffix": self.image_suffix,
@@ -289,6 +304,9 @@ class DatasetInfo:
             camera_models=None if len(set(per_camera)) == 1 else per_camera,
             encoder_model=f.str("encoder_model") if f.has("encoder_model") else None,
             camera_initial=None if all(i is None for i in initial) else initial,
+            per_camera_intrinsics=f.bool("per_camera_intrinsics")
+            if f.has("per_camera_intrinsics")
+            else False,
         )
 
 

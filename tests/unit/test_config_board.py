@@ -94,6 +94,7 @@ def test_the_field_keeps_the_digest_of_datasets_made_before_the_key():
     s = load_scenario(None)
     before = scenario_to_dict(s)
     del before["noise"]["msaa"], before["target"]["board"]  # as written before the keys existed
+    del before["camera"]["right"]  # an empty [camera.right] (#12) is left out as well
     assert scenario_digest(_digested(s)) == scenario_digest(before)
     board = load_scenario(ROOT / "scenarios" / "mono-charuco.toml")
     assert "board" in _digested(board)["target"]

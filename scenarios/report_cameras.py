@@ -1,0 +1,61 @@
+"""The report's camera rows against the truth: every free parameter of every camera.
+
+A rig whose cameras have their own intrinsics (``calibration.json`` ``cameras``, #12) reports
+each camera's estimate against its own true model (``truth.json`` ``cameras.left`` /
+``cameras.right``) with the z-score ``(estimate - truth) / std``; a shared camera is reported
+by the report's ``intrinsics`` rows (:func:`camera_rows`) as before.
+"""
+
+from __future__ import annotations
+
+from calib.camera import CameraModel
+from calib.io.calibration import CalibrationResult
+from calib.io.truth import Truth
+
+__all__ = ["camera_rows", "rig_camera_rows", "rig_camera_markdown"]
+
+
+def camera_rows(est: CameraModel, std: dict[str, float], truth: CameraModel) -> dict:
+    """Every free camera parameter but fx, mu: ``{name: {estimate, truth, std}}`` (truth of a
+    parameter the true model does not have: 0, no lens term)."""
+    true = dict(zip(truth.names, truth.values().tolist()))
+    vals = dict(zip(est.names, est.values().tolist()))
+    return {
+        n: {"estimate": vals[n], "truth": true.get(n, 0.0), "std": std.get(n)}
+        for n in est.free
+        if n not in ("fx", "mu")
+    }
+
+
+def rig_camera_rows(cal: CalibrationResult, truth: Truth) -> dict[str, dict]:
+    """``{camera: {parameter: {estimate, truth, std, z}}}`` of every free parameter of every
+    camera with its own intrinsics (px or unitless; ``z`` None without a std); empty for a
+    shared camera."""
+    trues = {"left": truth.intrinsics_left, "right": truth.intrinsics_right}
+    out: dict[str, dict] = {}
+    for rc in cal.cameras:
+        est = rc.intrinsics.camera()
+        std = rc.intrinsics.std
+        true = dict(zip(trues[rc.name].names, trues[rc.name].values().tolist()))
+        vals = dict(zip(est.names, est.values().tolist()))
+        rows = {}
+        for n in est.free:
+            e, t, s = vals[n], true.get(n, 0.0), std.get(n)
+            z = (e - t) / s if s else None
+            rows[n] = {"estimate": e, "truth": t, "std": s, "z": z}
+        out[rc.name] = rows
+    return out
+
+
+def rig_camera_markdown(rows: dict[str, dict]) -> list[str]:
+    """The Markdown table of :func:`rig_camera_rows` (no lines when empty)."""
+    if not rows:
+        return []
+    lines = ["## Cameras (each its own intrinsics)", "",
+             "| camera | parameter | estimate | truth | std | z |", "|---|---|---|---|---|---|"]  # fmt: skip
+    for cam, params in rows.items():
+        for n, r in params.items():
+            std = "" if r["std"] is None else f"{r['std']:.3g}"
+            z = "" if r["z"] is None else f"{r['z']:+.2f}"
+            lines.append(f"| {cam} | {n} | {r['estimate']:.6g} | {r['truth']:.6g} | {std} | {z} |")
+    return [*lines, ""]
