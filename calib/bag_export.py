@@ -101,8 +101,8 @@ def _camera_infos(ds: Dataset) -> dict[str, CameraInfo]:
             res = read_board_calibration(cal)
             cams = dict(zip(res.camera_names, res.cameras))
         else:
-            shared = read_calibration(cal).intrinsics.camera()
-            cams = {c: shared for c in info.cameras}
+            res_ = read_calibration(cal)  # each camera's own intrinsics, or the shared ones
+            cams = {c: res_.intrinsics_of(i).camera() for i, c in enumerate(info.cameras)}
     out = {}
     for c in info.cameras:
         w, h = info.resolution_of(c)

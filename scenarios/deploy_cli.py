@@ -194,12 +194,23 @@ def _export_camera(
                            f"{', '.join(board.camera_names)}")  # fmt: skip
         cam = board.cameras[0 if camera is None else board.camera_names.index(camera)]
     else:
-        cam = _usable(read_calibration(p), p).intrinsics.camera()
+        cam = _field_camera(_usable(read_calibration(p), p), p, camera)
     text = to_opencv_yaml(cam) if fmt == "opencv" else to_camera_info_yaml(cam, camera_name)
     out.parent.mkdir(parents=True, exist_ok=True)
     write_text_atomic(out, text)
     print(json.dumps({"out": str(out), "format": fmt, "camera_model": cam.model_name}))
     return 0
+
+
+def _field_camera(cal, p: Path, camera: str | None):
+    """The camera ``camera`` (default: the first) of a field calibration: its own intrinsics
+    when the rig's cameras have their own (``cameras``), else the shared ones."""
+    names = [c.name for c in cal.cameras]
+    if camera is None or not names:
+        return cal.intrinsics.camera()
+    if camera not in names:
+        raise CliError(f"--camera {camera}: {p} calibrates the cameras {', '.join(names)}")
+    return cal.intrinsics_of(names.index(camera)).camera()
 
 
 def cmd_ik_calibrated(args: argparse.Namespace) -> int:
@@ -289,8 +300,9 @@ def register(subparsers) -> None:
     )
     sp.add_argument(
         "--camera", default=None, metavar="NAME",
-        help="with --format opencv | camera_info: the camera of a board calibration's rig to "
-        "export, under its own model (default: the first)",
+        help="with --format opencv | camera_info: the camera of a board calibration's rig, or "
+        "of a field calibration whose cameras have their own intrinsics, to export, under its "
+        "own model (default: the first)",
     )  # fmt: skip
     sp.add_argument(
         "--out",

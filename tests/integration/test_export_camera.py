@@ -124,3 +124,29 @@ def test_cli_exports_the_calibrated_camera(tmp_path, capsys, fmt, suffix):
     args = _parser().parse_args(["export", str(toml), "--format", fmt, "--out", str(out)])
     with pytest.raises(CliError, match="needs a calibration.json"):
         args.func(args)
+
+
+def test_cli_exports_each_camera_of_a_field_rig_with_its_own_intrinsics(tmp_path, capsys):
+    """A field calibration whose cameras have their own intrinsics (#12): --camera picks one,
+    the default is the first; an unknown name is an error listing the cameras."""
+    from calib.io.calibration_blocks import RigCamera
+    from scenarios.cli import CliError
+
+    res = read_calibration(GOLDEN)
+    left, right = CAMERAS["plumb_bob"], CAMERAS["pinhole"]
+    cams = (RigCamera("left", CameraIntrinsics.of(left, {})),
+            RigCamera("right", CameraIntrinsics.of(right, {})))  # fmt: skip
+    write_calibration(tmp_path / "calibration.json",
+                      dataclasses.replace(res, intrinsics=cams[0].intrinsics, cameras=cams))  # fmt: skip
+    for name, cam in ((None, left), ("right", right)):
+        out = tmp_path / f"{name}.yml"
+        argv = ["export", str(tmp_path), "--out", str(out)] + (["--camera", name] if name else [])
+        args = _parser().parse_args(argv)
+        assert args.func(args) == 0
+        capsys.readouterr()
+        fs = _read(out.read_text())  # kept: its nodes live as long as the storage
+        np.testing.assert_array_equal(fs.getNode("camera_matrix").mat(), cam.K)
+    args = _parser().parse_args(["export", str(tmp_path), "--out", str(tmp_path / "x.yml"),
+                                 "--camera", "middle"])  # fmt: skip
+    with pytest.raises(CliError, match="calibrates the cameras left, right"):
+        args.func(args)
