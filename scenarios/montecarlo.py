@@ -158,11 +158,19 @@ def _evaluate(root: Path, pixel_sigma: float) -> dict:
     s2 = setup_from_output(two, obs, q, robot, ds.info, pixel_sigma_px=pixel_sigma)
     row["bound_tip_two_stage_mm"] = 1000.0 * cramer_rao(s2).aligned_tool_rms(qv, truth.T_cam_tip)
     row["bound_fx_px"] = cr.fx_std
-    true_cam = dict(zip(truth.intrinsics_left.names, truth.intrinsics_left.values().tolist()))
-    est_cam = dict(zip(out.joint.camera.names, out.joint.camera.values().tolist()))
-    for name, b in cr.camera_std.items():  # every free camera parameter (px or unitless)
-        row[f"joint_cam_err_{name}"] = est_cam[name] - true_cam.get(name, 0.0)
-        row[f"bound_cam_{name}"] = float(b)
+    # every free camera parameter (px or unitless); a rig whose cameras have their own
+    # intrinsics adds the others' as "right.k1" ..., each against its own truth
+    trues = {"left": truth.intrinsics_left, "right": truth.intrinsics_right}
+    est = dict(zip(out.joint.cameras.names, out.joint.cameras.cameras)) if out.joint.cameras \
+        else {"left": out.joint.camera}  # fmt: skip
+    bounds = cr.cameras_std or {"left": cr.camera_std}
+    for cam, stds in bounds.items():
+        true_cam = dict(zip(trues[cam].names, trues[cam].values().tolist()))
+        est_cam = dict(zip(est[cam].names, est[cam].values().tolist()))
+        pre = "" if cam == "left" else f"{cam}."
+        for name, b in stds.items():
+            row[f"joint_cam_err_{pre}{name}"] = est_cam[name] - true_cam.get(name, 0.0)
+            row[f"bound_cam_{pre}{name}"] = float(b)
     row["sigma_hat_px"] = out.joint.sigma_px
     row["outliers"] = out.joint.n_outliers
     for name, b in zip(cr.names, cr.std_ref * scale):
