@@ -40,7 +40,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from calib.alignment import express_in_frame, minimal_difference
-from calib.camera import Cameras, CameraSet, first_camera
+from calib.camera import Cameras, first_camera
+from calib.camera.camera_set import free_std
 from calib.errors import EstimationError
 from calib.joint_refine import KinematicPoses, _Problem, choose_gauge
 from calib.kinematics import fk_tool, identification_jacobian
@@ -319,11 +320,7 @@ def cramer_rao(s: FisherSetup, *, rank_tol: float = 1e-10) -> CramerRao:
     cols = np.r_[lay.kin_cols, lay.dq_ref_cols]
     C = inverse_block(J, cols)
     nk, nc = len(lay.kin_cols), lay.n_camera
-    camera_std = {name: float(np.sqrt(max(C[i, i], 0.0))) for i, name in enumerate(s.camera.free)}
-    cameras_std = None
-    if isinstance(s.camera, CameraSet):
-        cameras_std = s.camera.std_by_camera(C[:nc, :nc])
-        camera_std = cameras_std[s.camera.names[0]]
+    camera_std, cameras_std = free_std(s.camera, C[:nc, :nc])
     cov_free = C[nc:nk, nc:nk]
     # ---- the reference-camera frame: world = left camera at the reference configuration
     model = s.model

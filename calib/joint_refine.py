@@ -57,6 +57,7 @@ import scipy.linalg
 
 from calib.bundle_adjust import _Problem as _AdjustmentProblem
 from calib.camera import Cameras, CameraSet, first_camera
+from calib.camera.camera_set import free_std
 from calib.errors import EstimationError
 from calib.estimation.gauge import GaugeChoice, gauge_directions
 from calib.estimation.joint_report import (
@@ -410,11 +411,7 @@ def joint_refine(
         prob.problem, x, ["intrinsics", ("poses", np.arange(pose_model.k))], sigma2=sigma2
     )
     n_cam = camera.n_free
-    cam_std = dict(zip(camera.free, np.sqrt(np.clip(np.diag(C)[:n_cam], 0.0, None)).tolist()))
-    cams_std = None
-    if isinstance(camera, CameraSet):
-        cams_std = camera.std_by_camera(C[:n_cam, :n_cam])
-        cam_std = cams_std[camera.names[0]]
+    cam_std, cams_std = free_std(camera, C[:n_cam, :n_cam])
 
     model_g = pose_model.kinematic_model(p)
     ref = int(sc.ref_config) if active_cfg[sc.ref_config] else int(used[0])

@@ -41,6 +41,7 @@ import numpy as np
 
 from calib.bundle_adjust import intrinsics_covariance
 from calib.camera import CameraSet, LensCamera, Pinhole, PinholeValues, first_camera, with_pinhole
+from calib.camera.camera_set import free_std
 from calib.estimation.scale_sign import (
     SignChoice,
     check_scale_markers_seen,
@@ -137,15 +138,12 @@ class SelfCalibrationResult(PinholeValues):
     def camera_std(self) -> dict[str, float]:
         """Standard deviation of every free camera parameter by name (``cov_fx_mu`` is the
         covariance of all of them, in ``camera.free`` order; px or unitless)."""
-        if self.cameras is not None:
-            return self.cameras.std_by_camera(self.cov_fx_mu)[self.cameras.names[0]]
-        d = np.sqrt(np.clip(np.diag(self.cov_fx_mu), 0.0, None))
-        return dict(zip(self.camera.free, (float(v) for v in d), strict=True))
+        return free_std(self.cameras or self.camera, self.cov_fx_mu)[0]
 
     @property
     def cameras_std(self) -> dict[str, dict[str, float]] | None:
         """With :attr:`cameras`: each camera's :attr:`camera_std` by camera name; else None."""
-        return None if self.cameras is None else self.cameras.std_by_camera(self.cov_fx_mu)
+        return None if self.cameras is None else free_std(self.cameras, self.cov_fx_mu)[1]
 
     @property
     def K(self) -> np.ndarray:

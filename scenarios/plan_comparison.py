@@ -47,7 +47,7 @@ def sim_fisher_setup(
     return predicted_setup(
         setup.actual,
         q,
-        Rig.stereo(setup.intrinsics, setup.T_left_right),
+        Rig.stereo(setup.intrinsics, setup.T_left_right, setup.intrinsics_right),
         fld.ids,
         fld.corners_world(),
         fld.T_world_marker[:, :3, 2],

@@ -27,6 +27,7 @@ __all__ = [
     "unproject_views",
     "project_free_views",
     "first_camera",
+    "free_std",
 ]
 
 
@@ -110,6 +111,19 @@ Cameras = CameraModel | CameraSet
 def first_camera(cameras: Cameras) -> CameraModel:
     """The first camera's model (the shared one for a :class:`CameraModel`)."""
     return cameras.cameras[0] if isinstance(cameras, CameraSet) else cameras
+
+
+def free_std(
+    cameras: Cameras, cov: np.ndarray
+) -> tuple[dict[str, float], dict[str, dict[str, float]] | None]:
+    """Standard deviations from the covariance ``cov`` (n, n) of ``cameras``' free parameters:
+    the first camera's by parameter name, and every camera's by camera name (None for one
+    shared model)."""
+    if isinstance(cameras, CameraSet):
+        per = cameras.std_by_camera(cov)
+        return per[cameras.names[0]], per
+    d = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    return dict(zip(cameras.free, (float(v) for v in d), strict=True)), None
 
 
 def project_views(cameras: Cameras, X_cam: np.ndarray, view: np.ndarray) -> np.ndarray:
