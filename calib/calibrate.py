@@ -24,7 +24,15 @@ from typing import NamedTuple
 
 import numpy as np
 
-from calib.camera import CameraSet, LensCamera, Pinhole, camera_model, centered_principal_point
+from calib.camera import (
+    CameraSet,
+    LensCamera,
+    Pinhole,
+    camera_model,
+    centered_principal_point,
+    first_camera,
+    opencv_values,
+)
 from calib.camera.undistort import Undistorter
 from calib.errors import EstimationError, InitialCameraWarning, SelfCalWarning
 from calib.estimation.selfcal_errors import SelfCalibrationError
@@ -323,7 +331,7 @@ def calibrate_detailed(
         # x-axis is far from parallel to joint 1's axis (MCPC's base parameters are singular there).
         ref_scores=np.abs(T_nom[:, :3, 0] @ _joint1_axis(nominal)),
     )
-    initial = ds.info.initial_camera(ds.info.cameras[0])
+    initial = _initial(ds.info, camera_stage.keywords["camera"])
     with _stage(progress, "camera stage (bundle adjustment)") as st:
         sc, start = _camera_stage(camera_stage, obs, initial)
         st(f"reprojection RMS {sc.rms_px:.3f} px")
@@ -417,8 +425,21 @@ def fit_cost(sc: SelfCalibrationResult, threshold_px: float = 3.0) -> float:
     return float(np.sum(np.minimum(np.nan_to_num(e2, nan=np.inf), threshold_px**2)))
 
 
+def _initial(info: DatasetInfo, camera: Pinhole | CameraSet) -> Pinhole | CameraSet | None:
+    """The dataset's initial camera(s) (a ROS bag's CameraInfo): each camera's own when every
+    camera of a set has one, else the first camera's (for every camera), or None."""
+    first = info.initial_camera(info.cameras[0])
+    if isinstance(camera, CameraSet):
+        own = tuple(info.initial_camera(n) for n in camera.names)
+        if all(c is not None for c in own):
+            return CameraSet(own, camera.names)  # type: ignore[arg-type]
+    return first
+
+
 def _camera_stage(
-    stage: Callable[..., SelfCalibrationResult], obs: Observations, initial: Pinhole | None
+    stage: Callable[..., SelfCalibrationResult],
+    obs: Observations,
+    initial: Pinhole | CameraSet | None,
 ) -> tuple[SelfCalibrationResult, str]:
     """The camera stage from the self-calibration's own start (``"own"``) and, with an
     ``initial`` camera, from it (``"initial"``): the start whose fit costs less
@@ -444,7 +465,8 @@ def _camera_stage(
            f"fit cost {fit_cost(fits['initial']):.1f} px^2 vs {fit_cost(fits['own']):.1f} px^2 "
            f"(RMS {fits['initial'].rms_px:.3f} px vs {fits['own'].rms_px:.3f} px)")  # fmt: skip
     warnings.warn(
-        f"the initial camera (fx = {initial.fx:.1f} px, from the dataset's camera entry "
+        f"the initial camera (fx = {opencv_values(first_camera(initial))['fx']:.1f} px, from the "
+        "dataset's camera entry "
         f"'initial') fits the images worse than the self-calibration's own start ({why}): "
         "started from its own (check the camera_info of the recording: another lens or "
         "resolution?)",

@@ -41,7 +41,7 @@ import numpy as np
 
 from calib.bundle_adjust import intrinsics_covariance
 from calib.camera import CameraSet, LensCamera, Pinhole, PinholeValues, first_camera, with_pinhole
-from calib.camera.camera_set import free_std
+from calib.camera.camera_set import free_std, unproject_views
 from calib.estimation.scale_sign import (
     SignChoice,
     check_scale_markers_seen,
@@ -204,7 +204,7 @@ def self_calibrate(
     nominal_cam_positions: np.ndarray | None = None,
     rig: bool = True,
     camera: Pinhole | CameraSet | None = None,
-    initial: Pinhole | None = None,
+    initial: Pinhole | CameraSet | None = None,
     fx_guess: float | None = None,
     mu_guess: float = 1.0,
     fx_bounds: tuple[float, float] | None = None,
@@ -235,7 +235,9 @@ def self_calibrate(
     pinhole (the rig's cameras are nominally alike).
     ``initial``: a calibrated camera of ``camera``'s model (a ROS CameraInfo's calibration):
     its fx and mu replace the fundamental-matrix estimate, and all its values (principal point,
-    lens) start the bundle adjustment, which frees ``camera.free`` from there.
+    lens) start the bundle adjustment, which frees ``camera.free`` from there; a
+    :class:`calib.camera.CameraSet` of such cameras starts each camera of a set from its own
+    (the first camera's fx and mu the initialisation's).
     ``fx_guess``/``mu_guess`` skip the fundamental-matrix estimate of fx/mu (use when it is
     degenerate). Thresholds in px: ``ransac_px`` (epipolar/PnP RANSAC), ``outlier_px`` (minimum
     rejection threshold; the actual one is ``max(outlier_px, 4.5 sigma)``), ``robust_scale_px``
@@ -251,12 +253,13 @@ def self_calibrate(
     if initial is not None:
         # initialise on the pixels the initial camera's lens-free, centred pinhole would see, so
         # the pinhole initialisation meets no lens; the adjustment then takes the real pixels
-        xn = initial.unproject(obs.uv)
-        c = Pinhole.centered(initial.fx, initial.mu, width, height)
+        first: Pinhole = first_camera(initial)  # type: ignore[assignment]
+        xn = unproject_views(initial, obs.uv, obs.view)
+        c = Pinhole.centered(first.fx, first.mu, width, height)
         seen = dataclasses.replace(obs, uv=np.column_stack([c.fx * xn[:, 0] + c.cx,
                                                             c.fy * xn[:, 1] + c.cy]))  # fmt: skip
         if fx_guess is None:
-            fx_guess, mu_guess = initial.fx, initial.mu
+            fx_guess, mu_guess = first.fx, first.mu
     init = initialise(
         seen,
         width,
@@ -473,12 +476,14 @@ def _result(
     )
 
 
-def _start(camera: Pinhole | CameraSet, values: Pinhole, how) -> Pinhole | CameraSet:
+def _start(camera: Pinhole | CameraSet, values: Pinhole | CameraSet, how) -> Pinhole | CameraSet:
     """``how(template, values)`` (:func:`with_values` or :func:`calib.camera.with_pinhole`) of
-    ``camera``, or of every camera of a set."""
+    ``camera``, or of every camera of a set (with its own ``values`` when they are a set)."""
     if isinstance(camera, CameraSet):
-        return CameraSet(tuple(how(c, values) for c in camera.cameras), camera.names)
-    return how(camera, values)
+        vals = values.cameras if isinstance(values, CameraSet) else (values,) * camera.n_cameras
+        cams = tuple(how(c, v) for c, v in zip(camera.cameras, vals, strict=True))
+        return CameraSet(cams, camera.names)
+    return how(camera, first_camera(values))
 
 
 def _std(cov: np.ndarray, names: list[str], name: str) -> float:

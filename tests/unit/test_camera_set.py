@@ -5,6 +5,8 @@ different lenses recovers each camera's parameters within 3 sigma."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -124,3 +126,45 @@ def test_stereo_rig_with_two_lenses_recovers_each_camera_within_3_sigma():
     assert abs(res.cameras.cameras[1].cx - truth.cameras[1].cx) < 3 * np.sqrt(res.cov_fx_mu[10, 10])
     assert res.cameras_std is not None and set(res.cameras_std) == {"left", "right"}
     assert res.camera_std == res.cameras_std["left"]
+
+
+def test_each_camera_starts_from_its_own_initial_camera():
+    """A calibrated initial camera per camera (a ROS bag's two CameraInfo): each camera of the
+    set starts from its own; the adjustment reaches the minimum of the own start."""
+    from calib.calibrate import _initial
+    from calib.io.dataset_info import DatasetInfo
+    from calib.selfcal import self_calibrate
+    from calib.selfcal_synthetic import synthetic_stereo_scene
+
+    truth = _set()
+    start = CameraSet(
+        tuple(
+            camera_model(
+                "opencv", fx=1.0, mu=1.0, cx=319.5, cy=239.5, width=640, height=480, free=FREE
+            )
+            for _ in range(2)
+        ),  # fmt: skip
+        ("left", "right"),
+    )
+    doc = [{"source": "camera_info", "where": "t", "values": {"fx": c.fx, "fy": c.fx * c.mu,
+            "cx": c.cx, "cy": c.cy}} for c in truth.cameras]  # fmt: skip
+    info = DatasetInfo(robot_model="er4u-paper", resolution=(640, 480), dictionary="DICT_4X4_50",
+                       scale_ids=(0, 1), scale_length_m=0.2, observation="detections",
+                       planned_joints_deg=np.zeros((1, 5)), validation_joints_deg=np.zeros((0,)),
+                       camera_model="opencv", camera_free=FREE, per_camera_intrinsics=True,
+                       camera_initial=tuple(doc))  # fmt: skip
+    initial = _initial(info, start)
+    assert isinstance(initial, CameraSet)
+    assert [c.cx for c in initial.cameras] == [c.cx for c in truth.cameras]
+    first_only = _initial(dataclasses.replace(info, camera_initial=(doc[0], None)), start)
+    assert not isinstance(first_only, CameraSet) and first_only.cx == truth.cameras[0].cx
+    sc = synthetic_stereo_scene(10, seed=4, noise_px=0.5, camera=truth.cameras[0],
+                                camera_right=truth.cameras[1])  # fmt: skip
+    kw = dict(scale_markers=sc.scale_markers, scale_distance_m=sc.scale_distance_m, camera=start)
+    own = self_calibrate(sc.observations(), 640, 480, **kw)
+    from_initial = self_calibrate(sc.observations(), 640, 480, initial=initial, **kw)
+    assert own.cameras is not None and from_initial.cameras is not None
+    step = (from_initial.cameras.free_values() - own.cameras.free_values()) / np.sqrt(
+        np.diag(own.cov_fx_mu)
+    )
+    assert np.abs(step).max() < 0.01, step  # the same minimum from either start
