@@ -28,6 +28,13 @@ def _set(free_right=FREE) -> CameraSet:
     return CameraSet((left, right), ("left", "right"))
 
 
+def _start() -> CameraSet:
+    """The self-calibration's start of both cameras: the centred, distortion-free model."""
+    cam = camera_model("opencv", fx=1.0, mu=1.0, cx=319.5, cy=239.5, width=640, height=480,
+                       free=FREE)  # fmt: skip
+    return CameraSet((cam, cam), ("left", "right"))
+
+
 def _rows(seed: int, k: int = 200):
     rng = np.random.default_rng(seed)
     Xc = np.c_[rng.normal(0.0, 0.2, (k, 2)), rng.uniform(0.8, 1.2, k)]
@@ -105,15 +112,7 @@ def test_stereo_rig_with_two_lenses_recovers_each_camera_within_3_sigma():
     from calib.selfcal_synthetic import synthetic_stereo_scene
 
     truth = _set()
-    start = CameraSet(
-        tuple(
-            camera_model(
-                "opencv", fx=1.0, mu=1.0, cx=319.5, cy=239.5, width=640, height=480, free=FREE
-            )
-            for _ in range(2)
-        ),  # fmt: skip
-        ("left", "right"),
-    )
+    start = _start()
     sc = synthetic_stereo_scene(12, seed=3, noise_px=0.5, camera=truth.cameras[0],
                                 camera_right=truth.cameras[1])  # fmt: skip
     res = self_calibrate(sc.observations(), 640, 480, scale_markers=sc.scale_markers,
@@ -137,15 +136,7 @@ def test_each_camera_starts_from_its_own_initial_camera():
     from calib.selfcal_synthetic import synthetic_stereo_scene
 
     truth = _set()
-    start = CameraSet(
-        tuple(
-            camera_model(
-                "opencv", fx=1.0, mu=1.0, cx=319.5, cy=239.5, width=640, height=480, free=FREE
-            )
-            for _ in range(2)
-        ),  # fmt: skip
-        ("left", "right"),
-    )
+    start = _start()
     doc = [{"source": "camera_info", "where": "t", "values": {"fx": c.fx, "fy": c.fx * c.mu,
             "cx": c.cx, "cy": c.cy}} for c in truth.cameras]  # fmt: skip
     info = DatasetInfo(robot_model="er4u-paper", resolution=(640, 480), dictionary="DICT_4X4_50",
