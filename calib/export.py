@@ -107,7 +107,8 @@ class DeployedModel:
             reconstruction frame), for traceability.
         std: minimal parameter name -> one-sigma (rad, m) of the same-named parameter as identified
             in the reconstruction frame (``calibration.json``); empty when unknown.
-        intrinsics: calibrated left intrinsics (right assumed equal), or None.
+        intrinsics: calibrated left intrinsics (the right's too unless ``intrinsics_right``),
+            or None.
         T_left_right: calibrated right camera in the left camera's frame, or None.
         source: where the model came from (file name or description).
     """
@@ -124,6 +125,9 @@ class DeployedModel:
     intrinsics: Intrinsics | None = None
     T_left_right: np.ndarray | None = None
     source: str = ""
+    intrinsics_right: Intrinsics | None = None
+    """The right camera's own calibrated intrinsics (a rig whose cameras have their own), or
+    None: ``intrinsics`` for both."""
 
     @property
     def n(self) -> int:
@@ -255,6 +259,7 @@ def deploy(
         intrinsics=calibration.pinhole,
         T_left_right=T_lr,
         source=source,
+        intrinsics_right=calibration.intrinsics_of(1).pinhole() if calibration.cameras else None,
     )
 
 

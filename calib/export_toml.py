@@ -133,18 +133,18 @@ def to_toml(dep: DeployedModel, robot: RobotDef | None = None) -> str:
     if dep.intrinsics is not None:
         cam = dep.intrinsics
         L += [
-            "[camera]  # calibrated pinhole intrinsics (px, OpenCV), both cameras",
-            f"fx = {_f(cam.fx)}",
-            f"mu = {_f(cam.mu)}",
-            f"cx = {_f(cam.cx)}",
-            f"cy = {_f(cam.cy)}",
-            f"width = {int(cam.width)}",
-            f"height = {int(cam.height)}",
+            "[camera]  # calibrated pinhole intrinsics (px, OpenCV), both cameras"
+            if dep.intrinsics_right is None
+            else "[camera]  # calibrated pinhole intrinsics (px, OpenCV), the left camera",
+            *_pinhole_lines(cam),
             "",
         ]
         if dep.T_left_right is not None:
             L += ["[camera.T_left_right]  # right camera in the left camera's frame"]
             L += _pose_lines(dep.T_left_right) + [""]
+        if dep.intrinsics_right is not None:
+            L += ["[camera.right]  # the right camera's own intrinsics (px, OpenCV)"]
+            L += _pinhole_lines(dep.intrinsics_right) + [""]
     dh, note = dep.dh(robot)
     if dh is None:
         L.append("[dh]  # the DH table in the robot's own convention (DH or modified DH)")
@@ -178,6 +178,18 @@ def to_toml(dep: DeployedModel, robot: RobotDef | None = None) -> str:
         L.append("[dh.T_flange_tool]")
         L += _pose_lines(dh.T_flange_tool) + [""]
     return "\n".join(L)
+
+
+def _pinhole_lines(cam: Intrinsics) -> list[str]:
+    """The pinhole keys of a ``[camera]`` table (px)."""
+    return [f"fx = {_f(cam.fx)}", f"mu = {_f(cam.mu)}", f"cx = {_f(cam.cx)}",
+            f"cy = {_f(cam.cy)}", f"width = {int(cam.width)}", f"height = {int(cam.height)}"]  # fmt: skip
+
+
+def _pinhole_from(c: dict) -> Intrinsics:
+    """The pinhole of a ``[camera]`` table (px)."""
+    return Intrinsics(float(c["fx"]), float(c["mu"]), float(c["cx"]), float(c["cy"]),
+                      int(c["width"]), int(c["height"]))  # fmt: skip
 
 
 def _pose_from(t: dict, what: str) -> np.ndarray:
@@ -219,13 +231,12 @@ def from_toml(text: str) -> DeployedModel:
         for p in d.get("parameters", []):
             if "std" in p:
                 std[p["name"]] = float(p["std"]) * (deg if p["unit"] == "deg" else 1e-3)
-        intr, T_lr = None, None
+        intr, T_lr, intr_right = None, None, None
         if "camera" in d:
             c = d["camera"]
-            intr = Intrinsics(
-                float(c["fx"]), float(c["mu"]), float(c["cx"]), float(c["cy"]), int(c["width"]),
-                int(c["height"]),
-            )  # fmt: skip
+            intr = _pinhole_from(c)
+            if "right" in c:
+                intr_right = _pinhole_from(c["right"])
             if "T_left_right" in c:
                 T_lr = _pose_from(c["T_left_right"], "[camera.T_left_right]")
         return DeployedModel(
@@ -241,6 +252,7 @@ def from_toml(text: str) -> DeployedModel:
             intrinsics=intr,
             T_left_right=T_lr,
             source=str(d.get("source", "")),
+            intrinsics_right=intr_right,
         )
     except KeyError as exc:
         raise DeployError(f"parameter file lacks key {exc.args[0]!r}") from None

@@ -282,6 +282,20 @@ def test_toml_round_trips_to_the_same_model(deployed):
     assert "no DH table" in text and "parallel" in text
 
 
+def test_toml_keeps_the_right_cameras_own_intrinsics(deployed):
+    """A rig whose cameras have their own intrinsics (#12): [camera.right] holds the right's and
+    reads back; a shared camera's file has none (and says "both cameras")."""
+    from calib.camera import Intrinsics
+
+    assert "[camera.right]" not in to_toml(deployed, ROBOT) and deployed.intrinsics_right is None
+    right = Intrinsics(812.25, 1.004, 310.5, 247.0, 640, 480)
+    own = dataclasses.replace(deployed, intrinsics_right=right)
+    text = to_toml(own, ROBOT)
+    assert "[camera.right]" in text and "both cameras" not in text
+    back = from_toml(text)
+    assert back.intrinsics_right == right and back.intrinsics == deployed.intrinsics
+
+
 def test_toml_dh_table_of_the_nominal_robot():
     """Where a DH table exists it is in the file and reproduces the tool tip."""
     import tomllib
