@@ -5,6 +5,7 @@ rig is an error naming the file and the key; the dataset says each camera has it
 from __future__ import annotations
 
 import dataclasses
+import json
 
 import pytest
 
@@ -48,6 +49,8 @@ def test_the_simulated_rig_and_the_dataset_carry_each_camera(tmp_path):
     info = plan_dataset(s, setup)
     assert info.per_camera_intrinsics and info.model_of("right")[1][-1] == "k1"
     write_dataset_info(tmp_path / "dataset.json", info)
+    doc = json.loads((tmp_path / "dataset.json").read_text())
+    assert doc["schema_version"] == 3 and doc["per_camera_intrinsics"] is True  # 2 refuses it
     back = read_dataset_info(tmp_path / "dataset.json")
     assert back.per_camera_intrinsics and back.own_intrinsics
     cams = dataset_camera(back)
