@@ -37,6 +37,7 @@ from calib.choices import DEFAULT_FREE, DEFAULT_MODEL
 from calib.errors import InputError, SelfCalWarning
 from calib.import_field import MIN_FIELD_FEATURES, FieldTarget, field_target
 from calib.io.dataset_info import DatasetInfo, write_dataset_info
+from calib.io.images import read_gray_image
 from calib.io.target_toml import load_target, target_document
 from calib.io.tracker import read_joint_rows
 from calib.robot_def import RobotDef, load_robot
@@ -183,7 +184,7 @@ def _detect(
     both files."""
     feats, first = [], None
     for f in files:
-        img = cv2.imread(str(f), cv2.IMREAD_GRAYSCALE)
+        img = read_gray_image(f)
         if img is None:
             raise ImportError_(f"{f}: not a readable image", fix="remove it or convert it to PNG")
         size = (img.shape[1], img.shape[0])
