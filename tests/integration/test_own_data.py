@@ -164,6 +164,31 @@ def test_joint_rows_matched_through_the_image_column(lab, tmp_path):
     assert (tmp_path / "b" / "sources.csv").read_text().splitlines()[1].endswith("img_019.png")
 
 
+def test_images_in_run_folders_match_the_rows_in_path_order(lab, tmp_path):
+    """Two recording sessions in run1/ and run2/, each counting from img_000: the rows follow
+    the folders, then the names (a pattern of DIR/*/*.png or DIR/**/*.png); the image column
+    cannot tell such files apart and says so."""
+    root, (ci, cj), _ = lab
+    files = sorted(ci.glob("*.png"))
+    for k, f in enumerate(files):
+        run = tmp_path / "shots" / ("run1" if k < 12 else "run2")
+        run.mkdir(parents=True, exist_ok=True)
+        shutil.copy(f, run / f"img_{k % 12}.png")  # unpadded, the same names in both runs
+    flat = CameraImages.parse(f"cam0={ci}/*.png")
+    for pattern in ("*/*.png", "**/*.png"):
+        runs = CameraImages.parse(f"cam0={tmp_path / 'shots'}/{pattern}")
+        assert [f.read_bytes() for f in runs.files] == [f.read_bytes() for f in flat.files]
+    lines = cj.read_text().splitlines()
+    named = tmp_path / "named.csv"
+    named.write_text("\n".join(["image," + lines[0]] + [f"img_{k % 12}.png,{r}" for k, r in
+                                                         enumerate(lines[1:])]) + "\n")  # fmt: skip
+    with pytest.raises(
+        ImportError_,
+        match=r"file name\(s\) \['img_0.png', 'img_1.png', 'img_2.png'\] appear in more than one folder",
+    ):
+        import_dataset("kr6-r900", [runs], named, "rad", root / "board.toml", tmp_path / "o")
+
+
 def test_import_checks_counts_units_and_sizes(lab, tmp_path):
     root, (ci, cj), _ = lab
     cams = [CameraImages.parse(f"cam0={ci}/*.png")]
