@@ -10,6 +10,8 @@ line has them; quoted cells, a UTF-8 byte-order mark and a separator ending ever
   tracker frame, unit quaternion, scalar first: then every row is a pose); other columns are
   ignored (and listed by :attr:`Table.ignored`).
 - distances: ``a_j1 .. a_jn``, ``b_j1 .. b_jn`` (the two configurations) and ``d_mm``.
+- joint columns are named ``j1 .. jn`` (``J1`` too) or by the robot's own joint names (a URDF's
+  ``shoulder_pan_joint``, ...); distances prefix them with ``a_`` / ``b_``.
 - joints (for predictions and ``selfcal import``): ``j1 .. jn``, optionally an ``image`` column
   (the image's file name, text), or no header and ``n`` numbers per row.
 - predictions (written): ``x_mm,y_mm,z_mm``, one row per joints row, in order.
@@ -248,7 +250,8 @@ def _joint_names(prefix: str, n: int) -> list[str]:
 
 def _check_joint_columns(table: Table, prefix: str, robot) -> list[str]:
     """The columns of ``table`` holding ``prefix`` j1..jn in joint order (``J1`` counts as
-    ``j1``: a header's case is a spreadsheet's choice)."""
+    ``j1``: a header's case is a spreadsheet's choice), or else the robot's own joint names
+    (``shoulder_pan_joint``, ... of a URDF: what a ROS ``joint_states`` export names them)."""
     k = len(prefix) + 1
     by_name = {c.lower(): c for c in table.columns}
     present = sorted(
@@ -256,11 +259,16 @@ def _check_joint_columns(table: Table, prefix: str, robot) -> list[str]:
         key=lambda c: int(c[k:]),
     )
     want = _joint_names(prefix, robot.n)
+    named = [prefix + str(j).lower() for j in getattr(robot, "joint_names", ())]
+    if present != want and len(named) == robot.n and all(c in by_name for c in named):
+        return [by_name[c] for c in named]  # the robot's own joint names (a URDF's, ROS's)
     if present != want:
         raise TrackerFileError(
             f"{table.path}: {len(present)} joint columns ({', '.join(present) or 'none'}) do "
             f"not match robot {robot.name}, which has {robot.n} joints ({', '.join(want)})",
-            fix=f"give exactly the columns {', '.join(want)} (or choose the right --robot)",
+            fix=f"give exactly the columns {', '.join(want)} (or the robot's joint names "
+            f"{', '.join(prefix + j for j in getattr(robot, 'joint_names', ()))}; or choose "
+            "the right --robot)",
         )
     return [by_name[c] for c in want]
 

@@ -107,3 +107,15 @@ def test_decimal_commas_and_other_encodings_are_named(tmp_path):
         TrackerFileError, match=r"joints.csv: not UTF-8 text.*save the file as UTF-8"
     ):
         read_joint_rows(p, ROBOT, "deg")
+
+
+def test_columns_named_by_the_robots_joint_names(tmp_path):
+    """A URDF arm's joints file as a ROS joint_states export names them, in any order."""
+    names = list(ROBOT.joint_names)
+    assert names != [f"j{k + 1}" for k in range(6)]
+    order = [2, 0, 1, 5, 4, 3]
+    text = _csv(Q_DEG[:, order], head=[names[k].upper() for k in order])
+    got = read_joint_rows(write(tmp_path, text), ROBOT, "deg")
+    np.testing.assert_allclose(got.q, np.radians(Q_DEG), rtol=1e-15)
+    with pytest.raises(TrackerFileError, match=f"or the robot's joint names {names[0]}, "):
+        read_joint_rows(write(tmp_path, _csv(Q_DEG, head=names[:5] + ["x"])), ROBOT, "deg")
