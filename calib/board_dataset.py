@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import least_squares
 
-from calib.alignment import fit_rigid_transform
+from calib.alignment import fit_placement_and_hand_eye, fit_rigid_transform
 from calib.board_rig import calibrate_board_rig
 from calib.board_robot import calibrate_robot_with_board
 from calib.errors import EstimationError, SelfCalWarning
@@ -36,6 +36,7 @@ from calib.io.target_toml import parse_target
 from calib.kinematics import fk_tool
 from calib.mcpc import MCPCModel, minimal_indices, nominal_mcpc, param_names
 from calib.robot_def import RobotDef, load_robot
+from calib.scale_check import ScaleWarning, motion_scale, scale_warning, scaled_sizes
 from calib.target.base import Features
 from calib.target.boards import Board
 from calib.transforms import inv_pose, pose_from_vec
@@ -156,6 +157,15 @@ def calibrate_board_dataset(
     T_board_cam = inv_pose(res.board.T_cam_board[used])
     ref = nominal_reference(robot, q[used], T_board_cam)
     notes = list(incomplete)
+    sizes = {k: float(v) for k, v in (ds.info.board or {}).items() if k.endswith("_mm")}
+    # the camera poses of the calibrated chain: they fit the images with the final camera
+    T_cal = fk_tool(res.model, q[used])
+    ms = motion_scale(nominal_mcpc(robot), q[used], T_cal, robot.T_flange_cam)
+    text = scale_warning(ms, robot.name, f"the board ({scaled_sizes(sizes, 1.0)})",
+                         f"{scaled_sizes(sizes, ms.scale)} would match the arm")  # fmt: skip
+    if text is not None:
+        notes.append(text)
+        warnings.warn(text, ScaleWarning, stacklevel=2)
     for w in caught:
         if issubclass(w.category, SelfCalWarning):
             notes.append(str(w.message))
@@ -195,10 +205,7 @@ def nominal_reference(robot: RobotDef, q: np.ndarray, T_board_cam: np.ndarray) -
     def residuals(B: np.ndarray, C: np.ndarray) -> np.ndarray:
         return ((B @ F @ C - T_board_cam) @ tips)[:, :3].ravel()
 
-    C = np.asarray(robot.T_flange_cam, dtype=float)
-    for _ in range(20):
-        B = fit_rigid_transform(T_board_cam, F @ C)
-        C = inv_pose(fit_rigid_transform(inv_pose(T_board_cam), inv_pose(B @ F)))
+    B, C = fit_placement_and_hand_eye(T_board_cam, F, robot.T_flange_cam)
     nominal = nominal_mcpc(robot).with_tool(robot.T_flange_cam)
     with warnings.catch_warnings():  # the nominal misfits by design: not a note
         warnings.simplefilter("ignore", SelfCalWarning)

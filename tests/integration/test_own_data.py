@@ -48,6 +48,7 @@ from calib.io.board_calibration import read_board_calibration, write_board_calib
 from calib.io.dataset import Dataset
 from calib.io.tracker import TrackerFileError
 from calib.robot_def import load_robot
+from calib.scale_check import ScaleWarning
 from calib.transforms import inv_pose, make_pose
 from scenarios.board_run import summary
 from scenarios.cli import main
@@ -187,6 +188,19 @@ def test_images_in_run_folders_match_the_rows_in_path_order(lab, tmp_path):
         match=r"file name\(s\) \['img_0.png', 'img_1.png', 'img_2.png'\] appear in more than one folder",
     ):
         import_dataset("kr6-r900", [runs], named, "rad", root / "board.toml", tmp_path / "o")
+
+
+def test_a_board_declared_at_the_wrong_size_is_named_with_the_size_that_fits(lab, tmp_path):
+    """The board printed 3 % larger than its file says: every image still fits to the noise
+    floor (the link lengths take the scale), so only the arm's nominal size can tell."""
+    root, (ci, cj), _ = lab
+    (tmp_path / "board.toml").write_text(TARGET_TOML.replace("15.0", "14.55"))
+    cams = [CameraImages.parse(f"cam0={ci}/*.png")]
+    import_dataset("kr6-r900", cams, cj, "rad", tmp_path / "board.toml", tmp_path / "ds")
+    with pytest.warns(ScaleWarning, match=r"3\.0 % smaller .*square_mm = 14.99 would match"):
+        res = calibrate_board_dataset(tmp_path / "ds")
+    assert res.reprojection_rms_px < 0.35  # the fit itself shows nothing (0.122 px)
+    assert any("square_mm = 14.99 would match the arm" in w for w in res.warnings)
 
 
 def test_import_checks_counts_units_and_sizes(lab, tmp_path):
