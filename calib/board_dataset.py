@@ -24,9 +24,10 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from calib.alignment import fit_placement_and_hand_eye, fit_rigid_transform
+from calib.board_calibrate import calibrate_board
 from calib.board_rig import calibrate_board_rig
 from calib.board_robot import calibrate_robot_with_board
-from calib.errors import EstimationError, SelfCalWarning
+from calib.errors import EstimationError, SelfCalError, SelfCalWarning
 from calib.estimation.joint_report import encoder_sigma
 from calib.frame_checks import check_distinct_frames
 from calib.identify import IdentificationError, identify
@@ -36,6 +37,7 @@ from calib.io.target_toml import parse_target
 from calib.kinematics import fk_tool
 from calib.mcpc import MCPCModel, minimal_indices, nominal_mcpc, param_names
 from calib.robot_def import RobotDef, load_robot
+from calib.row_shift import row_shift_misfits, shift_note
 from calib.scale_check import ScaleWarning, motion_scale, scale_warning, scaled_sizes
 from calib.target.base import Features
 from calib.target.boards import Board
@@ -147,8 +149,10 @@ def calibrate_board_dataset(
                 rig_features=[o[0] for o in others],
             )
         except IdentificationError as exc:
+            note = _pairing_note(ds, board, feats, names, robot, W, H, model_name, free)
             raise IdentificationError(
-                f"{ds.root}: the camera poses the board gives do not fit one robot: {exc.message}",
+                f"{ds.root}: the camera poses the board gives do not fit one robot: {exc.message}"
+                + (f"; {note}" if note else ""),
                 fix=f"check that every joints row belongs to its image ({ds.root}/sources.csv "
                 "names each frame's file), that the board did not move and that --robot is this "
                 "arm",
@@ -188,6 +192,23 @@ def calibrate_board_dataset(
         held=res.held,
         warnings=tuple(dict.fromkeys(notes)),
     )
+
+
+def _pairing_note(ds: Dataset, board: Board, feats: list[Features], names: list[str],
+                  robot: RobotDef, W: int, H: int, model: str,
+                  free: tuple[str, ...]) -> str | None:  # fmt: skip
+    """Why the poses fit no robot, when it is the pairing of rows and images
+    (:mod:`calib.row_shift`): the camera's own calibration gives each image's pose."""
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", SelfCalWarning)
+            cb = calibrate_board(board, feats, W, H, free=free, model=model, names=names)
+    except SelfCalError:
+        return None
+    T = np.where(cb.used[:, None, None], inv_pose(cb.T_cam_board), np.nan)
+    misfits = row_shift_misfits(nominal_mcpc(robot), np.radians(ds.joints_deg), T,
+                                robot.T_flange_cam)  # fmt: skip
+    return shift_note(misfits, f"{ds.root}/joints.csv")
 
 
 def nominal_reference(robot: RobotDef, q: np.ndarray, T_board_cam: np.ndarray) -> MCPCModel:

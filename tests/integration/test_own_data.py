@@ -42,7 +42,7 @@ from calib.camera import Fisheye, Pinhole
 from calib.choices import DEFAULT_FREE
 from calib.errors import InputError
 from calib.export import deploy_chain, nominal_deployed_params
-from calib.identify import IdentificationWarning
+from calib.identify import IdentificationError, IdentificationWarning
 from calib.import_dataset import CameraImages, ImportError_, TargetNotFoundWarning, import_dataset
 from calib.io.board_calibration import read_board_calibration, write_board_calibration
 from calib.io.dataset import Dataset
@@ -201,6 +201,21 @@ def test_a_board_declared_at_the_wrong_size_is_named_with_the_size_that_fits(lab
         res = calibrate_board_dataset(tmp_path / "ds")
     assert res.reprojection_rms_px < 0.35  # the fit itself shows nothing (0.122 px)
     assert any("square_mm = 14.99 would match the arm" in w for w in res.warnings)
+
+
+def test_joints_rows_a_row_off_their_images_are_named(lab, tmp_path):
+    """The log starts one row late and ends with a row of no image: every count matches, no
+    robot fits, and the error says which pairing would."""
+    root, (ci, cj), _ = lab
+    lines = cj.read_text().splitlines()
+    late = tmp_path / "late.csv"
+    late.write_text("\n".join([lines[0], *lines[2:], lines[1]]) + "\n")
+    cams = [CameraImages.parse(f"cam0={ci}/*.png")]
+    import_dataset("kr6-r900", cams, late, "rad", root / "board.toml", tmp_path / "ds")
+    with pytest.raises(
+        IdentificationError, match=r"shifted by -1: row i-1 of .*joints.csv with image i"
+    ):
+        calibrate_board_dataset(tmp_path / "ds")
 
 
 def test_import_checks_counts_units_and_sizes(lab, tmp_path):

@@ -9,6 +9,7 @@ import pytest
 from calib.kinematics import fk_tool
 from calib.mcpc import nominal_mcpc
 from calib.robot_def import load_robot
+from calib.row_shift import row_shift_misfits, shift_note
 from calib.scale_check import SCALE_TOL, motion_scale, scale_warning, scaled_sizes
 from calib.transforms import make_pose, pose_from_vec
 
@@ -54,3 +55,18 @@ def test_the_right_size_raises_nothing(seed):
 def test_scaled_sizes_name_every_length_of_the_target():
     doc = {"type": "charuco", "square_mm": 20.0, "marker_mm": 15.0, "inner_corners": [11, 8]}
     assert scaled_sizes(doc, 1.03) == "square_mm = 20.6, marker_mm = 15.45"
+
+
+@pytest.mark.parametrize("k", [1, -1, 2])
+def test_joints_rows_off_their_images_are_found(k):
+    """Camera pose i paired with joints row i + k: the true pairing fits the nominal arm to its
+    kinematic errors (~1 mm), the rows as given by far more."""
+    nominal, q, T, C = camera_poses(1.0)
+    q_file = np.roll(q, k, axis=0)  # row i of the file is row i - k of the truth
+    T[3] = np.nan  # an image without the board
+    misfits = row_shift_misfits(nominal, q_file, T, C)
+    assert set(misfits) == {-2, -1, 0, 1, 2}
+    assert min(misfits, key=misfits.get) == k and misfits[k] < 3e-3  # measured 1.2 mm
+    note = shift_note(misfits, "joints.csv")
+    assert note is not None and f"shifted by {k:+d}: row i{k:+d} of joints.csv" in note
+    assert shift_note(row_shift_misfits(nominal, q, T, C), "joints.csv") is None
