@@ -63,7 +63,10 @@ def shift_note(misfits: dict[int, float], joints: str) -> str | None:
         f"the joints rows fit the images when shifted by {k:+d}: row i{k:+d} of {joints} with "
         f"image i leaves the nominal arm {misfits[k] * 1000:.1f} mm off the camera poses, the "
         f"rows as given {misfits[0] * 1000:.1f} mm; "
-        + (f"the file probably starts with {k} row(s) logged before the first image" if k > 0
-           else f"the first {-k} image(s) probably have no row and the file ends with {-k} "
-           "row(s) of no image")  # fmt: skip
+        + (
+            f"the file probably starts with {k} row(s) logged before the first image"
+            if k > 0
+            else f"the first {-k} image(s) probably have no row and the file ends with {-k} "
+            "row(s) of no image"
+        )  # fmt: skip
     )

@@ -33,7 +33,7 @@ def camera_poses(scale: float, seed: int = 0, m: int = 20):
     return nominal, q, T, C
 
 
-@pytest.mark.parametrize("scale", [1.03, 0.97, 1.02])
+@pytest.mark.parametrize("scale", [1.03, 0.97, 1.05])
 def test_a_target_of_another_size_is_measured(scale):
     nominal, q, T, C = camera_poses(scale)
     ms = motion_scale(nominal, q, T, make_pose(np.eye(3), C[:3, 3] + 0.01))  # a rough mount
@@ -48,7 +48,7 @@ def test_a_target_of_another_size_is_measured(scale):
 def test_the_right_size_raises_nothing(seed):
     nominal, q, T, C = camera_poses(1.0, seed)
     ms = motion_scale(nominal, q, T, C)
-    assert abs(ms.scale - 1) < SCALE_TOL / 2  # measured up to 4.1e-3 over seeds 0-5
+    assert abs(ms.scale - 1) < SCALE_TOL / 3  # measured up to 4.1e-3 over seeds 0-5
     assert scale_warning(ms, "kr6-r900", "the board", "") is None
 
 
