@@ -46,7 +46,6 @@ def test_the_path_is_relative_to_the_scenario_file(tmp_path):
         ("field.toml", "", ["s.toml", "target.board", "ArUco field, not a board"]),
         ("bad.toml", "", ["s.toml", "target.board", "bad.toml", "square_mm"]),
         ("unknown.toml", "", ["s.toml", "target.board", "unknown.toml", "spacing_mm"]),
-        ("good.toml", "[noise]\nrender = false\n", ["target.board", "noise.render = false"]),
     ],
 )
 def test_a_bad_board_names_the_scenario_file_and_the_key(tmp_path, target, extra, words):
