@@ -119,3 +119,29 @@ def test_a_board_seen_from_behind_or_cut_below_its_minimum_is_not_seen():
     far_off[:3, 3] += [0.3, 0.0, 0.0]  # the board almost out of the image
     got = project_board(far_off, cam, board, T_world_board)
     assert got == {} or len(got) >= board.min_features
+
+
+@pytest.mark.slow  # two draws and a resume: ~5 s
+def test_selfcal_montecarlo_runs_a_board_scenario_and_resumes(tmp_path, capsys):
+    """``selfcal montecarlo`` of a board scenario: the draws run the board route on the
+    analytic path against its bound (runs.csv, summary.json with both methods and the camera
+    ratios, summary.md), and the same command again runs no draw (the journal)."""
+    import json
+
+    from scenarios.cli import main
+
+    out = tmp_path / "mc"
+    argv = ["montecarlo", str(MONO_CHARUCO), "--draws", "2", "--poses", "15", "--jobs", "1",
+            "--out", str(out), "--quiet"]  # fmt: skip
+    assert main(argv) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert s["ok"] == 2 and s["failed"] == 0
+    assert s["tool_tip_bound_mm"] > 0
+    assert 0 < s["joint"]["tool_tip_ratio"] < 3.0  # two draws: a loose check
+    assert s["joint"]["tool_tip_rms_mm"] < s["two_stage"]["tool_tip_rms_mm"]
+    assert set(s["camera_ratios"]) == set(load_scenario(MONO_CHARUCO).camera.free)
+    assert "Camera parameters of the joint method" in (out / "summary.md").read_text()
+    assert len((out / "runs.csv").read_text().splitlines()) == 3
+    capsys.readouterr()
+    assert main([a for a in argv if a != "--quiet"]) == 0
+    assert "2 of 2 draws done before" in capsys.readouterr().err

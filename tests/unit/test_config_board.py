@@ -66,12 +66,11 @@ def test_a_bad_board_names_the_scenario_file_and_the_key(tmp_path, target, extra
     "argv, words",
     [
         (["run", "SCENARIO", "--rrd", "x.rrd"], ["--rrd", "declares a board"]),
-        (["montecarlo", "SCENARIO", "--draws", "2"], ["declares a board", "board_montecarlo"]),
     ],
 )
 def test_commands_that_draw_the_field_refuse_a_board(argv, words, tmp_path, capsys):
-    """Rerun recordings and `selfcal montecarlo` know the marker field only: a board scenario
-    is refused before anything runs (exit 2, the message names the way out)."""
+    """Rerun recordings know the marker field only: a board scenario is refused before
+    anything runs (exit 2, the message names the way out)."""
     from scenarios.cli import main
 
     path = str(ROOT / "scenarios" / "mono-charuco.toml")
