@@ -8,7 +8,8 @@ OpenCV's calibration as the start, the two-stage fit -- camera stage, then the i
 its camera poses -- and the one-step refinement with joint corrections), and the row holds, for
 both methods as the field's (:mod:`scenarios.montecarlo`), the validation tool tip's RMS after
 the best rigid alignment, every minimal parameter's error in the board frame (the board is the
-world: no reference camera) and the first camera's free parameters' errors, with the bounds of
+world: no reference camera) and every camera's free parameters' errors (a further camera's
+named ``right_fx`` ...), with the bounds of
 :mod:`calib.board_bounds` at the draw's one-step estimate with the *true* noise levels
 (``pixel_sigma``, encoder resolution). The two-stage method's camera is the camera stage's.
 """
@@ -73,12 +74,15 @@ def evaluate_board_draw(root: Path, pixel_sigma: float) -> dict:
     )  # fmt: skip
     row["bound_tip_rms_mm"] = b.tool_tip_rms_mm.bound
     row["dof_tip"] = None
-    bc = b.cameras[0].bounds
-    row["bound_fx_px"] = bc["fx"]
-    est = dict(zip(cal.cameras[0].names, cal.cameras[0].values().tolist()))
-    for name, bound in bc.items():  # every free camera parameter (px or unitless)
-        row[f"joint_cam_err_{name}"] = est[name] - t_vals.get(name, 0.0)
-        row[f"bound_cam_{name}"] = float(bound)
+    row["bound_fx_px"] = b.cameras[0].bounds["fx"]
+    trues = (true_cam, truth.intrinsics_right)
+    for c, (cam, cb) in enumerate(zip(cal.cameras, b.cameras, strict=True)):
+        est = dict(zip(cam.names, cam.values().tolist()))
+        tv = dict(zip(trues[c].names, trues[c].values().tolist()))
+        pre = "" if c == 0 else f"{cb.name}_"  # a further camera's: e.g. right_fx
+        for name, bound in cb.bounds.items():  # every free camera parameter (px or unitless)
+            row[f"joint_cam_err_{pre}{name}"] = est[name] - tv.get(name, 0.0)
+            row[f"bound_cam_{pre}{name}"] = float(bound)
     row["sigma_hat_px"] = cal.reprojection_rms_px / np.sqrt(2.0)
     row["outliers"] = int((~fit.board.inlier).sum())
     for p in b.parameters:

@@ -145,3 +145,27 @@ def test_selfcal_montecarlo_runs_a_board_scenario_and_resumes(tmp_path, capsys):
     capsys.readouterr()
     assert main([a for a in argv if a != "--quiet"]) == 0
     assert "2 of 2 draws done before" in capsys.readouterr().err
+
+
+@pytest.mark.slow  # one stereo draw: ~3 s
+def test_a_stereo_board_draw_records_both_cameras_against_the_rig_bound(tmp_path):
+    """A Monte Carlo draw of the stereo pair photographing the board (``camera.count = 2``):
+    both cameras' free parameters get errors and bounds (the further camera's as right_fx ...),
+    and the rig's tool-tip bound is below the one camera's (more data, one chain)."""
+    from scenarios.montecarlo import draw_one
+
+    text = MONO_CHARUCO.read_text().replace("../models/", f"{MONO_CHARUCO.parents[1]}/models/")
+    rows = {}
+    for count in (1, 2):
+        toml = tmp_path / f"board{count}.toml"
+        toml.write_text(text.replace("count = 1", f"count = {count}"))
+        rows[count] = draw_one({"poses": 15, "pixel_sigma": 0.5, "seed": 1, "traj_seed": 1,
+                                "perturb_seed": 1, "dither": True, "config": str(toml)})  # fmt: skip
+        assert rows[count]["status"] == "ok", rows[count]["status"]
+    free = load_scenario(MONO_CHARUCO).camera.free
+    r = rows[2]
+    for name in free:
+        for pre in ("", "right_"):
+            assert np.isfinite(r[f"joint_cam_err_{pre}{name}"]) and r[f"bound_cam_{pre}{name}"] > 0
+    assert not any(k.startswith("bound_cam_right_") for k in rows[1])
+    assert r["bound_tip_rms_mm"] < rows[1]["bound_tip_rms_mm"]
