@@ -154,6 +154,10 @@ def board_truth_report(root: Path, cal: BoardCalibrationResult, truth: Truth) ->
         express_in_frame(truth.nominal_model, T_board_world, like=cal.model), cal.model
     )
     params = parameter_table(cal.model, {}, true_est, nominal_est)
+    if cal.bounds is not None:  # each minimal parameter's Cramer-Rao bound (mm or deg)
+        bound_by_name = {b.name: b.bound for b in cal.bounds.parameters}
+        for row in params:
+            row["bound"] = bound_by_name.get(row["name"])
     failures: list[str] = []
     if err_cal["rms"] > err_nom["rms"]:
         failures.append(
@@ -197,7 +201,8 @@ def board_truth_report(root: Path, cal: BoardCalibrationResult, truth: Truth) ->
         "parameters": params,
         "parameters_note": (
             "truth expressed in the board frame and the estimate's joint-offset convention; the "
-            "board calibration gives no kinematic sigma"
+            "board calibration gives no kinematic sigma; 'bound' in report.json is each "
+            "parameter's Cramer-Rao bound (calibration.json bounds)"
         ),
     }
 

@@ -75,6 +75,7 @@ def test_the_report_compares_with_the_truth_and_the_bound(run):
     assert cal.bounds.pixel_sigma_px == pytest.approx(s.noise.pixel_sigma, rel=0.1)
     assert len(cal.bounds.parameters) == len(minimal_indices(cal.model.joint_types))
     assert all(p.bound is not None and p.bound > 0 for p in cal.bounds.parameters)
+    assert all(row["bound"] > 0 for row in rep["parameters"])  # the report's table, mm or deg
     assert "Cramér-Rao bound" in (out / "report.md").read_text()
 
 
