@@ -76,8 +76,9 @@ def project_board(
 
     Returns:
         ``{feature id: (1, 2) px}`` (a feature whose noisy pixel leaves the image is dropped,
-        as a detector would; a view with fewer than the board's ``min_features`` is empty: a
-        whole-grid detector finds nothing then).
+        as a detector would; a view with fewer than the board's ``min_features`` is empty, and
+        of a board whose detector finds the whole grid or nothing (``whole_grid``: chessboard,
+        circles grid) a view without every feature).
     """
     if pixel_sigma > 0 and rng is None:
         raise ValueError("pixel_sigma > 0 needs a random generator (rng) for reproducibility")
@@ -92,6 +93,6 @@ def project_board(
     if pixel_sigma > 0:
         uv = uv + rng.normal(0.0, pixel_sigma, size=uv.shape)
     inside = np.all((uv >= 0) & (uv <= [camera.width - 1, camera.height - 1]), axis=1)
-    if inside.sum() < board.min_features:
+    if inside.sum() < (board.n_features if board.whole_grid else board.min_features):
         return {}
     return {int(i): p[None] for i, p in zip(ids[ok][inside], uv[inside], strict=True)}

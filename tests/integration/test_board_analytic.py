@@ -170,3 +170,24 @@ def test_a_stereo_board_draw_records_both_cameras_against_the_rig_bound(tmp_path
             assert np.isfinite(r[f"joint_cam_err_{pre}{name}"]) and r[f"bound_cam_{pre}{name}"] > 0
     assert not any(k.startswith("bound_cam_right_") for k in rows[1])
     assert r["bound_tip_rms_mm"] < rows[1]["bound_tip_rms_mm"]
+
+
+def test_a_whole_grid_board_is_seen_whole_or_not_at_all():
+    """A chessboard's detector finds all inner corners or none (``whole_grid``): a view that
+    cuts the board gives nothing on the analytic path, where a ChArUco board of the same view
+    gives the part in the image."""
+    from calib.target import Charuco, Chessboard
+
+    cam = load_scenario(MONO_CHARUCO).camera.true_model()
+    T_world_board = np.eye(4)
+    T_world_board[:3, :3] = np.diag([1.0, -1.0, -1.0])
+    T_cam = np.eye(4)
+    T_cam[:3, :3] = np.diag([1.0, -1.0, -1.0])
+    T_cam[:3, 3] = [0.0, 0.0, 0.25]  # above the board's origin corner: about a quarter in view
+    chess, charuco = Chessboard((11, 8), 0.02), Charuco((11, 8), 0.02, 0.015, "DICT_5X5_100")
+    assert chess.whole_grid and not charuco.whole_grid
+    part = project_board(T_cam, cam, charuco, T_world_board)
+    assert charuco.min_features <= len(part) < charuco.n_features
+    assert project_board(T_cam, cam, chess, T_world_board) == {}
+    T_cam[:3, 3] = [0.12, -0.09, 0.6]  # above the centre, far enough to see it all
+    assert len(project_board(T_cam, cam, chess, T_world_board)) == chess.n_features
