@@ -25,11 +25,12 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import least_squares
 
-from calib.alignment import fit_rigid_transform
+from calib.alignment import fit_placement_and_hand_eye, fit_rigid_transform
 from calib.board_bounds import bounds_block
+from calib.board_calibrate import calibrate_board
 from calib.board_rig import calibrate_board_rig
 from calib.board_robot import BoardRobotCalibration, calibrate_robot_with_board
-from calib.errors import EstimationError, SelfCalWarning
+from calib.errors import EstimationError, SelfCalError, SelfCalWarning
 from calib.estimation.joint_report import encoder_sigma
 from calib.frame_checks import check_distinct_frames
 from calib.identify import IdentificationError, identify
@@ -39,6 +40,8 @@ from calib.io.target_toml import parse_target
 from calib.kinematics import fk_tool
 from calib.mcpc import MCPCModel, minimal_indices, nominal_mcpc, param_names
 from calib.robot_def import RobotDef, load_robot
+from calib.row_shift import row_shift_misfits, shift_note
+from calib.scale_check import ScaleWarning, motion_scale, scale_warning, scaled_sizes
 from calib.target.base import Features
 from calib.target.boards import Board
 from calib.transforms import inv_pose, pose_from_vec
@@ -184,8 +187,10 @@ def calibrate_board_dataset_detailed(
                 rig_features=[o[0] for o in others],
             )
         except IdentificationError as exc:
+            note = _pairing_note(ds, board, feats, names, robot, W, H, model_name, free)
             raise IdentificationError(
-                f"{ds.root}: the camera poses the board gives do not fit one robot: {exc.message}",
+                f"{ds.root}: the camera poses the board gives do not fit one robot: {exc.message}"
+                + (f"; {note}" if note else ""),
                 fix=f"check that every joints row belongs to its image ({ds.root}/sources.csv "
                 "names each frame's file), that the board did not move and that --robot is this "
                 "arm",
@@ -194,6 +199,15 @@ def calibrate_board_dataset_detailed(
     T_board_cam = inv_pose(res.board.T_cam_board[used])
     ref = nominal_reference(robot, q[used], T_board_cam)
     notes = list(incomplete)
+    sizes = {k: float(v) for k, v in (ds.info.board or {}).items() if k.endswith("_mm")}
+    # the camera poses of the calibrated chain: they fit the images with the final camera
+    T_cal = fk_tool(res.model, q[used])
+    ms = motion_scale(nominal_mcpc(robot), q[used], T_cal, robot.T_flange_cam)
+    text = scale_warning(ms, robot.name, f"the board ({scaled_sizes(sizes, 1.0)})",
+                         f"{scaled_sizes(sizes, ms.scale)} would match the arm")  # fmt: skip
+    if text is not None:
+        notes.append(text)
+        warnings.warn(text, ScaleWarning, stacklevel=2)
     for w in caught:
         if issubclass(w.category, SelfCalWarning):
             notes.append(str(w.message))
@@ -233,6 +247,23 @@ def calibrate_board_dataset_detailed(
     return BoardDatasetCalibration(result, res, all_feats, q)
 
 
+def _pairing_note(ds: Dataset, board: Board, feats: list[Features], names: list[str],
+                  robot: RobotDef, W: int, H: int, model: str,
+                  free: tuple[str, ...]) -> str | None:  # fmt: skip
+    """Why the poses fit no robot, when it is the pairing of rows and images
+    (:mod:`calib.row_shift`): the camera's own calibration gives each image's pose."""
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", SelfCalWarning)
+            cb = calibrate_board(board, feats, W, H, free=free, model=model, names=names)
+    except SelfCalError:
+        return None
+    T = np.where(cb.used[:, None, None], inv_pose(cb.T_cam_board), np.nan)
+    misfits = row_shift_misfits(nominal_mcpc(robot), np.radians(ds.joints_deg), T,
+                                robot.T_flange_cam)  # fmt: skip
+    return shift_note(misfits, f"{ds.root}/joints.csv")
+
+
 def nominal_reference(robot: RobotDef, q: np.ndarray, T_board_cam: np.ndarray) -> MCPCModel:
     """The nominal kinematics best placed on the camera poses ``T_board_cam`` (m, 4, 4) at the
     joints ``q`` (m, n) rad: ``T_board_cam ~ B fk_flange(q) C`` with the board pose ``B`` (board
@@ -248,10 +279,7 @@ def nominal_reference(robot: RobotDef, q: np.ndarray, T_board_cam: np.ndarray) -
     def residuals(B: np.ndarray, C: np.ndarray) -> np.ndarray:
         return ((B @ F @ C - T_board_cam) @ tips)[:, :3].ravel()
 
-    C = np.asarray(robot.T_flange_cam, dtype=float)
-    for _ in range(20):
-        B = fit_rigid_transform(T_board_cam, F @ C)
-        C = inv_pose(fit_rigid_transform(inv_pose(T_board_cam), inv_pose(B @ F)))
+    B, C = fit_placement_and_hand_eye(T_board_cam, F, robot.T_flange_cam)
     nominal = nominal_mcpc(robot).with_tool(robot.T_flange_cam)
     with warnings.catch_warnings():  # the nominal misfits by design: not a note
         warnings.simplefilter("ignore", SelfCalWarning)

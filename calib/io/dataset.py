@@ -36,6 +36,7 @@ from calib.io.dataset_info import (
     read_dataset_info,
     write_dataset_info,
 )
+from calib.io.images import read_gray_image
 from calib.io.jsonfile import dumps
 
 __all__ = [
@@ -244,7 +245,7 @@ def read_joints_csv(path: Path, n_joints: int) -> tuple[np.ndarray, np.ndarray, 
 
 def read_gray(path: Path, index: int) -> np.ndarray:
     """A dataset image as gray uint8; raises DatasetError naming the frame if unreadable."""
-    img = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+    img = read_gray_image(path)
     if img is None:
         raise _missing(path, index)
     return img
