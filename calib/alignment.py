@@ -11,10 +11,11 @@ import numpy as np
 
 from calib.kinematics import fk_tool
 from calib.mcpc import MCPCModel, chain_transforms, gauge_fix, minimal_indices, param_is_angle
-from calib.transforms import kabsch
+from calib.transforms import inv_pose, kabsch
 
 __all__ = [
     "fit_rigid_transform",
+    "fit_placement_and_hand_eye",
     "regauge",
     "wrap_params",
     "minimal_difference",
@@ -39,6 +40,20 @@ def fit_rigid_transform(T_a: np.ndarray, T_b: np.ndarray, length_m: float = 0.1)
         return np.concatenate([o, (o[:, None, :] + ax).reshape(-1, 3)], axis=0)
 
     return kabsch(pts(T_b), pts(T_a))
+
+
+def fit_placement_and_hand_eye(
+    T_world_cam: np.ndarray, T_base_flange: np.ndarray, T_flange_cam: np.ndarray, rounds: int = 20
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(B, C)`` with ``B @ T_base_flange[i] @ C ~ T_world_cam[i]`` (poses (m, 4, 4)): the
+    placement ``B`` (world <- base) and hand-eye ``C`` (flange <- camera) fitted in turn by
+    :func:`fit_rigid_transform`, from the hand-eye guess ``T_flange_cam``; a start for a
+    joint least-squares fit."""
+    C = np.asarray(T_flange_cam, dtype=float)
+    for _ in range(rounds):
+        B = fit_rigid_transform(T_world_cam, T_base_flange @ C)
+        C = inv_pose(fit_rigid_transform(inv_pose(T_world_cam), inv_pose(B @ T_base_flange)))
+    return B, C
 
 
 def regauge(

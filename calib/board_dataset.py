@@ -15,18 +15,22 @@ to the same camera poses -- is stored beside. Nothing here reads truth.
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import warnings
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from scipy.optimize import least_squares
 
-from calib.alignment import fit_rigid_transform
+from calib.alignment import fit_placement_and_hand_eye, fit_rigid_transform
+from calib.board_bounds import bounds_block
+from calib.board_calibrate import calibrate_board
 from calib.board_rig import calibrate_board_rig
-from calib.board_robot import calibrate_robot_with_board
-from calib.errors import EstimationError, SelfCalWarning
+from calib.board_robot import BoardRobotCalibration, calibrate_robot_with_board
+from calib.errors import EstimationError, SelfCalError, SelfCalWarning
 from calib.estimation.joint_report import encoder_sigma
 from calib.frame_checks import check_distinct_frames
 from calib.identify import IdentificationError, identify
@@ -36,6 +40,8 @@ from calib.io.target_toml import parse_target
 from calib.kinematics import fk_tool
 from calib.mcpc import MCPCModel, minimal_indices, nominal_mcpc, param_names
 from calib.robot_def import RobotDef, load_robot
+from calib.row_shift import row_shift_misfits, shift_note
+from calib.scale_check import ScaleWarning, motion_scale, scale_warning, scaled_sizes
 from calib.target.base import Features
 from calib.target.boards import Board
 from calib.transforms import inv_pose, pose_from_vec
@@ -43,7 +49,9 @@ from calib.transforms import inv_pose, pose_from_vec
 __all__ = [
     "dataset_board",
     "detect_board",
+    "BoardDatasetCalibration",
     "calibrate_board_dataset",
+    "calibrate_board_dataset_detailed",
     "chain_param_names",
     "nominal_reference",
 ]
@@ -60,12 +68,21 @@ def dataset_board(ds: Dataset) -> Board:
 
 def detect_board(ds: Dataset, board: Board, camera: str) -> tuple[list[Features], list[str]]:
     """The board's features in ``camera``'s image of every frame (in ``ds.indices`` order) and
-    the images' file names (for messages).
+    the images' file names (for messages); of a dataset of stored detections (the analytic
+    path, :meth:`calib.io.dataset.Dataset.read_features`) the stored features and the frames.
 
     Raises:
         DatasetError: a missing or unreadable image, or one whose size is not dataset.json's
             (the message names the file).
     """
+    if ds.info.observation == "detections":  # the analytic path: the features as stored
+        seen = ds.read_features()
+        feats = []
+        for i in ds.indices.tolist():
+            got = seen.get((int(i), camera), {})
+            ids = np.fromiter(got, dtype=np.int64, count=len(got))
+            feats.append(Features(ids, np.array([got[j][0] for j in ids.tolist()]).reshape(-1, 2)))
+        return feats, [f"frame {int(i):04d} ({camera})" for i in ds.indices]
     W, H = ds.info.resolution_of(camera)
     k = ds.info.cameras.index(camera)
     paths = [(int(i), ds.frame_paths(int(i))[k]) for i in ds.indices]
@@ -87,13 +104,37 @@ def detect_board(ds: Dataset, board: Board, camera: str) -> tuple[list[Features]
     return feats, [p.name for _, p in paths]
 
 
+@dataclass(frozen=True, eq=False)
+class BoardDatasetCalibration:
+    """:func:`calibrate_board_dataset_detailed`: the ``result`` (calibration.json), the route's
+    own ``fit`` (its stages: the camera stage, the two-stage identification), every camera's
+    ``features`` of every frame (``ds.indices`` order) and the frames' read-back ``q`` (m, n)
+    rad."""
+
+    result: BoardCalibrationResult
+    fit: BoardRobotCalibration
+    features: tuple[list[Features], ...]
+    q: np.ndarray
+
+
 def calibrate_board_dataset(
     root: str | Path, *, allow_missing_frames: bool = False
 ) -> BoardCalibrationResult:
     """Calibrate camera, hand-eye, board pose and kinematics from the board dataset in ``root``
-    (module docstring). SI inside; the result is written by
+    (module docstring) and the Cramer-Rao bounds at the estimate (:mod:`calib.board_bounds`;
+    ``bounds_error`` says why none). SI inside; the result is written by
     :func:`calib.io.board_calibration.write_board_calibration`. ``allow_missing_frames``: see
     :meth:`calib.io.dataset.Dataset.check_complete`.
+
+    Raises: as :func:`calibrate_board_dataset_detailed`.
+    """
+    return calibrate_board_dataset_detailed(root, allow_missing_frames=allow_missing_frames).result
+
+
+def calibrate_board_dataset_detailed(
+    root: str | Path, *, allow_missing_frames: bool = False
+) -> BoardDatasetCalibration:
+    """:func:`calibrate_board_dataset` with what it was computed from (the Monte Carlo's view).
 
     Raises:
         DatasetError: missing or damaged dataset files, or
@@ -146,8 +187,10 @@ def calibrate_board_dataset(
                 rig_features=[o[0] for o in others],
             )
         except IdentificationError as exc:
+            note = _pairing_note(ds, board, feats, names, robot, W, H, model_name, free)
             raise IdentificationError(
-                f"{ds.root}: the camera poses the board gives do not fit one robot: {exc.message}",
+                f"{ds.root}: the camera poses the board gives do not fit one robot: {exc.message}"
+                + (f"; {note}" if note else ""),
                 fix=f"check that every joints row belongs to its image ({ds.root}/sources.csv "
                 "names each frame's file), that the board did not move and that --robot is this "
                 "arm",
@@ -156,13 +199,22 @@ def calibrate_board_dataset(
     T_board_cam = inv_pose(res.board.T_cam_board[used])
     ref = nominal_reference(robot, q[used], T_board_cam)
     notes = list(incomplete)
+    sizes = {k: float(v) for k, v in (ds.info.board or {}).items() if k.endswith("_mm")}
+    # the camera poses of the calibrated chain: they fit the images with the final camera
+    T_cal = fk_tool(res.model, q[used])
+    ms = motion_scale(nominal_mcpc(robot), q[used], T_cal, robot.T_flange_cam)
+    text = scale_warning(ms, robot.name, f"the board ({scaled_sizes(sizes, 1.0)})",
+                         f"{scaled_sizes(sizes, ms.scale)} would match the arm")  # fmt: skip
+    if text is not None:
+        notes.append(text)
+        warnings.warn(text, ScaleWarning, stacklevel=2)
     for w in caught:
         if issubclass(w.category, SelfCalWarning):
             notes.append(str(w.message))
         warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     if not np.isfinite(res.model.params).all():
         raise EstimationError("the board calibration gave non-finite parameters")
-    return BoardCalibrationResult(
+    result = BoardCalibrationResult(
         robot_model=ds.info.robot_model,
         target=dict(ds.info.board or {}),
         camera_names=tuple(ds.info.cameras),
@@ -178,6 +230,38 @@ def calibrate_board_dataset(
         held=res.held,
         warnings=tuple(dict.fromkeys(notes)),
     )
+    all_feats = (feats, *(o[0] for o in others))
+    k = np.flatnonzero(used).tolist()
+    try:
+        bounds = bounds_block(
+            board, result, [[fc[i] for i in k] for fc in all_feats], q[used],
+            np.radians(ds.info.validation_joints_deg), inv_pose(robot.T_flange_cam),
+            joint_sigma=encoder_sigma(robot),
+        )  # fmt: skip
+        result = dataclasses.replace(result, bounds=bounds)
+    except np.linalg.LinAlgError as exc:
+        text = f"the Fisher information cannot be inverted ({exc})"
+        result = dataclasses.replace(
+            result, bounds_error=text, warnings=(*result.warnings, f"no Cramer-Rao bound: {text}")
+        )
+    return BoardDatasetCalibration(result, res, all_feats, q)
+
+
+def _pairing_note(ds: Dataset, board: Board, feats: list[Features], names: list[str],
+                  robot: RobotDef, W: int, H: int, model: str,
+                  free: tuple[str, ...]) -> str | None:  # fmt: skip
+    """Why the poses fit no robot, when it is the pairing of rows and images
+    (:mod:`calib.row_shift`): the camera's own calibration gives each image's pose."""
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", SelfCalWarning)
+            cb = calibrate_board(board, feats, W, H, free=free, model=model, names=names)
+    except SelfCalError:
+        return None
+    T = np.where(cb.used[:, None, None], inv_pose(cb.T_cam_board), np.nan)
+    misfits = row_shift_misfits(nominal_mcpc(robot), np.radians(ds.joints_deg), T,
+                                robot.T_flange_cam)  # fmt: skip
+    return shift_note(misfits, f"{ds.root}/joints.csv")
 
 
 def nominal_reference(robot: RobotDef, q: np.ndarray, T_board_cam: np.ndarray) -> MCPCModel:
@@ -195,10 +279,7 @@ def nominal_reference(robot: RobotDef, q: np.ndarray, T_board_cam: np.ndarray) -
     def residuals(B: np.ndarray, C: np.ndarray) -> np.ndarray:
         return ((B @ F @ C - T_board_cam) @ tips)[:, :3].ravel()
 
-    C = np.asarray(robot.T_flange_cam, dtype=float)
-    for _ in range(20):
-        B = fit_rigid_transform(T_board_cam, F @ C)
-        C = inv_pose(fit_rigid_transform(inv_pose(T_board_cam), inv_pose(B @ F)))
+    B, C = fit_placement_and_hand_eye(T_board_cam, F, robot.T_flange_cam)
     nominal = nominal_mcpc(robot).with_tool(robot.T_flange_cam)
     with warnings.catch_warnings():  # the nominal misfits by design: not a note
         warnings.simplefilter("ignore", SelfCalWarning)

@@ -48,7 +48,8 @@ from calib.kinematics import fk_tool
 from calib.mcpc import MCPCModel, nominal_mcpc, shape_matrices
 from calib.quality import assess_calibration
 from calib.results import CalibrationOutput, two_stage_result, with_bounds, with_joint
-from calib.robot_def import load_robot
+from calib.robot_def import RobotDef, load_robot
+from calib.scale_check import ScaleWarning, motion_scale, scale_warning
 from calib.selfcal import Observations, SelfCalibrationResult, self_calibrate
 from calib.target.aruco_detect import detect_markers, detect_markers_noise
 from calib.tracker_join import TrackerInput, tracker_source
@@ -372,6 +373,7 @@ def calibrate_detailed(
     notes = [
         *incomplete,
         *([skipped_images_message(skipped, ds.info.dictionary)] if skipped else []),
+        *_scale_notes(ds.info, robot, q[used], sc.T_world_cam[used, 0]),
     ]
     result = two_stage_result(
         ds, robot, sc, ident, used, skipped_images=skipped, warnings=[*notes, *ident.warnings]
@@ -402,6 +404,21 @@ def calibrate_detailed(
     result = dataclasses.replace(result, scene=scene, failures=failures)
     result = dataclasses.replace(result, seconds=round(time.perf_counter() - t0, 3))
     return dataclasses.replace(out, result=result)
+
+
+def _scale_notes(info: DatasetInfo, robot: RobotDef, q: np.ndarray, T_world_cam: np.ndarray):
+    """The known distance against the arm's size (:mod:`calib.scale_check`): a warning (also
+    returned, for ``calibration.json``) when the distance declared is not the markers' one."""
+    ms = motion_scale(nominal_mcpc(robot), q, T_world_cam, robot.T_flange_cam)
+    d_mm, (a, b) = info.scale_length_m * 1000.0, info.scale_ids
+    text = scale_warning(
+        ms, robot.name, f"the known distance (scale_length_mm = {d_mm:g} between markers {a} "
+        f"and {b})", f"scale_length_mm = {d_mm * ms.scale:.5g} would match the arm",
+    )  # fmt: skip
+    if text is None:
+        return []
+    warnings.warn(text, ScaleWarning, stacklevel=3)
+    return [text]
 
 
 @contextlib.contextmanager

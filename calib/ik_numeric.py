@@ -51,6 +51,10 @@ __all__ = [
 
 ANGLE_SCALE_M = 0.1
 """Metres per radian: how orientation errors weigh against position errors in the steps."""
+STALL_TOL = 1e-6
+"""m and rad: at a singular posture the steps stall short of :func:`solve_ik`'s ``tol`` (1e-9 m,
+8e-8 rad measured at the UR5e's wrist singularity); a solution that close (a thousandth of an
+arm's repeatability) is returned with its errors instead of calling the target out of reach."""
 
 
 @dataclass(frozen=True)
@@ -189,6 +193,10 @@ def _errors(r: np.ndarray) -> tuple[float, float]:
     return float(np.linalg.norm(r[:3])), float(np.linalg.norm(r[3:]) / ANGLE_SCALE_M)
 
 
+def _errors_of(res: NumericIK) -> tuple[float, float]:
+    return res.position_error_m, res.angle_error_rad
+
+
 def solve_ik(
     model: MCPCModel,
     limits: np.ndarray,
@@ -206,7 +214,10 @@ def solve_ik(
 
     Starts, in order: ``reference``, ``home``, then ``n_random`` uniform in-range postures
     (``seed``). The first start that converges wins (the reference's basin gives the solution
-    nearest the current posture).
+    nearest the current posture). When none converges to ``tol`` but one stalls within
+    :data:`STALL_TOL` inside the ranges (a singular posture: the Jacobian loses rank at the
+    solution), the closest such one is returned; its ``position_error_m`` and
+    ``angle_error_rad`` say how close.
 
     Raises:
         UnreachableError: no start converges; ``distance_m`` = the best remaining position error
@@ -266,9 +277,17 @@ def solve_ik(
     rev = [t == "revolute" for t in model.joint_types]
     ref = None if reference is None else np.asarray(reference, dtype=float).reshape(model.n)
     best = np.inf
+    near: NumericIK | None = None  # the closest stalled solution inside the ranges
+
+    def consider(q: np.ndarray, r: np.ndarray, label: str, it: int) -> None:
+        nonlocal near
+        e = _errors(r)
+        if max(e) < STALL_TOL and (near is None or max(e) < max(_errors_of(near))):
+            near = NumericIK(np.asarray(q, dtype=float), *e, label, it)
+
     for label, q0 in starts:
         q, r, it = damped_least_squares(residual, jacobian, q0, None, converged)
-        if not converged(r):
+        if not converged(r) and max(_errors(r)) >= STALL_TOL:
             # not even without the ranges: the projected solve would not get there either
             best = min(best, float(np.linalg.norm(r)))
             continue
@@ -278,12 +297,17 @@ def solve_ik(
         ]
         qw = np.clip([w for w, _ in wrapped], lo, hi)
         rw = residual(qw)
-        if all(ok for _, ok in wrapped) and converged(rw):
-            return NumericIK(qw, *_errors(rw), label, it)
+        if all(ok for _, ok in wrapped):
+            if converged(rw):
+                return NumericIK(qw, *_errors(rw), label, it)
+            consider(qw, rw, label, it)
         q, r, it = damped_least_squares(residual, jacobian, q0, limits, converged)
         if converged(r):
             return NumericIK(q, *_errors(r), label, it)
+        consider(q, r, label, it)
         best = min(best, float(np.linalg.norm(r)))
+    if near is not None:  # a singular posture: the steps stall short of tol, well below a micron
+        return near
     raise UnreachableError(
         f"{name}: tool target {target.describe()} is out of reach: from {len(starts)} starts "
         f"the closest tool pose stays {best * 1000:.3f} mm (position + "

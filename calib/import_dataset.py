@@ -37,6 +37,7 @@ from calib.choices import DEFAULT_FREE, DEFAULT_MODEL
 from calib.errors import InputError, SelfCalWarning
 from calib.import_field import MIN_FIELD_FEATURES, FieldTarget, field_target
 from calib.io.dataset_info import DatasetInfo, write_dataset_info
+from calib.io.images import read_gray_image
 from calib.io.target_toml import load_target, target_document
 from calib.io.tracker import read_joint_rows
 from calib.robot_def import RobotDef, load_robot
@@ -97,8 +98,11 @@ class CameraImages:
                 f"--images {spec!r}: camera name {name!r}",
                 fix="name each camera with letters, digits, - or _: --images 'cam0=DIR/*.png'",
             )
-        files = tuple(sorted((Path(p) for p in glob.glob(os.path.expanduser(pattern))),
-                             key=lambda p: name_order(p.name)))  # fmt: skip
+        # the whole path in name order: files of one folder by name, folders (run1/, run2/
+        # from a 'DIR/*/*.png' or 'DIR/**/*.png' pattern) one after the other
+        files = tuple(sorted((Path(p) for p in glob.glob(os.path.expanduser(pattern),
+                                                         recursive=True)),
+                             key=lambda p: name_order(str(p))))  # fmt: skip
         files = tuple(p for p in files if p.is_file())
         if not files:
             raise ImportError_(f"--images {spec!r}: no file matches {pattern!r}",
@@ -183,7 +187,7 @@ def _detect(
     both files."""
     feats, first = [], None
     for f in files:
-        img = cv2.imread(str(f), cv2.IMREAD_GRAYSCALE)
+        img = read_gray_image(f)
         if img is None:
             raise ImportError_(f"{f}: not a readable image", fix="remove it or convert it to PNG")
         size = (img.shape[1], img.shape[0])
@@ -424,6 +428,15 @@ def _match(
             out[cam.name] = list(cam.files)
             continue
         by_name = {f.name: f for f in cam.files}
+        if len(by_name) < len(cam.files):
+            names = [f.name for f in cam.files]
+            twice = sorted({n for n in names if names.count(n) > 1})
+            raise ImportError_(
+                f"camera {cam.name} ({cam.pattern}): file name(s) {twice[:3]} appear in more "
+                f"than one folder, so {joints}'s image column cannot tell which is meant",
+                fix="give each camera's images distinct file names, or leave out the image "
+                "column (rows then match the files in path order)",
+            )
         missing = [n for n in column if n not in by_name]
         if missing:
             raise ImportError_(

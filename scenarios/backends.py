@@ -49,7 +49,7 @@ from scenarios.config import (
 )
 from scenarios.hardware import open_hardware_robot
 from sim.actual import apply_errors, perturb
-from sim.analytic import project_markers
+from sim.analytic import project_board, project_markers
 from sim.board_scene import board_on_table
 from sim.collision import collision_checker
 from sim.kinematic_robot import KinematicRobot
@@ -332,6 +332,12 @@ def open_robot(
             ("left", fr["T_world_cam_left"], rig.intrinsics),
             ("right", fr["T_world_cam_right"], rig.right),
         ):
+            if setup.board is not None:  # a board's features: points, one id each
+                out_[cam] = project_board(
+                    np.asarray(T), intr, setup.board, setup.T_world_board,
+                    pixel_sigma=s.noise.pixel_sigma, rng=rng,
+                )  # fmt: skip
+                continue
             out_[cam] = project_markers(
                 np.asarray(T),
                 intr,
@@ -372,9 +378,11 @@ def make_kinematic_robot(s: Scenario, setup: SimSetup | None = None) -> Kinemati
     (:class:`sim.kinematic_robot.KinematicRobot`: forward kinematics, no MuJoCo, no images)."""
     setup = setup or sim_setup(s)
     rig = setup.rig()
+    board = None if setup.board is None else (setup.board, setup.T_world_board)
     return KinematicRobot(
-        setup.robot.name, setup.actual, rig, setup.field, quantize=s.noise.quantize_joints
-    )
+        setup.robot.name, setup.actual, rig, setup.field, quantize=s.noise.quantize_joints,
+        board=board,
+    )  # fmt: skip
 
 
 def render_posture(

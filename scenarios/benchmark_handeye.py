@@ -1,7 +1,7 @@
 """The hand-eye against OpenCV 4.x's ``cv2.calibrateRobotWorldHandEye`` on the same board data.
 
-Data: one noise draw of :mod:`scenarios.board_montecarlo` (``scenarios/mono.toml``: one camera
-with the issue's lens, the ChArUco board where the field lies, 30 postures, 0.5 px corner
+Data: a board projected into a field scenario (:mod:`scenarios.board_views`;
+``scenarios/mono.toml``: one camera with the issue's lens, the ChArUco board where the field lies, 30 postures, 0.5 px corner
 noise, read-back at encoder resolution), once with the scenario's perturbed kinematics (±1 mm,
 ±0.5 deg) and once with exact kinematics (the robot is its nominal model, so OpenCV's
 assumption of known kinematics holds). Ours: :func:`calib.board_robot.calibrate_robot_with_board`
@@ -37,7 +37,7 @@ from calib.kinematics import fk_tool
 from calib.mcpc import nominal_mcpc
 from calib.robot_def import load_robot
 from calib.transforms import inv_pose
-from scenarios.board_montecarlo import BOARD, MONO, board_pose, board_views
+from scenarios.board_views import BOARD, MONO, board_pose, board_views
 from scenarios.montecarlo import _acquire
 
 __all__ = ["run", "main"]

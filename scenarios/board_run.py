@@ -74,17 +74,24 @@ def pose_errors(T_pred: np.ndarray, T_true: np.ndarray) -> dict:
     }
 
 
-def _camera_rows(est: CameraModel, std: dict[str, float], true: CameraModel) -> dict:
-    """Per free parameter of ``est``: estimate, truth, std and z (a parameter the true model
-    lacks: truth 0, no lens term)."""
+def _camera_rows(
+    est: CameraModel, std: dict[str, float], true: CameraModel, bound: dict[str, float]
+) -> dict:
+    """Per free parameter of ``est``: estimate, truth, std, z (a parameter the true model
+    lacks: truth 0, no lens term) and the Cramer-Rao bound (None when not computed)."""
     t_vals = dict(zip(true.names, true.values().tolist()))
     vals = dict(zip(est.names, est.values().tolist()))
     rows = {}
     for n in est.free:
         t, s = t_vals.get(n, 0.0), std.get(n)
         z = None if not s else (vals[n] - t) / s
-        rows[n] = {"estimate": vals[n], "truth": t, "std": s, "z": z}
+        rows[n] = {"estimate": vals[n], "truth": t, "std": s, "z": z, "bound": bound.get(n)}
     return rows
+
+
+def _camera_bounds(cal: BoardCalibrationResult, k: int) -> dict[str, float]:
+    """Camera ``k``'s bounds of ``calibration.json`` (empty without bounds)."""
+    return {} if cal.bounds is None else dict(cal.bounds.cameras[k].bounds)
 
 
 def _rig_rows(cal: BoardCalibrationResult, truth: Truth) -> dict:
@@ -95,7 +102,9 @@ def _rig_rows(cal: BoardCalibrationResult, truth: Truth) -> dict:
     name = cal.camera_names[1]
     return {
         name: {
-            "camera": _camera_rows(cal.cameras[1], cal.camera_std[1], truth.intrinsics_right),
+            "camera": _camera_rows(
+                cal.cameras[1], cal.camera_std[1], truth.intrinsics_right, _camera_bounds(cal, 1)
+            ),
             "extrinsics": pose_errors(cal.T_first_cam[1][None], truth.T_left_right[None]),
         }
     }
@@ -145,6 +154,10 @@ def board_truth_report(root: Path, cal: BoardCalibrationResult, truth: Truth) ->
         express_in_frame(truth.nominal_model, T_board_world, like=cal.model), cal.model
     )
     params = parameter_table(cal.model, {}, true_est, nominal_est)
+    if cal.bounds is not None:  # each minimal parameter's Cramer-Rao bound (mm or deg)
+        bound_by_name = {b.name: b.bound for b in cal.bounds.parameters}
+        for row in params:
+            row["bound"] = bound_by_name.get(row["name"])
     failures: list[str] = []
     if err_cal["rms"] > err_nom["rms"]:
         failures.append(
@@ -163,7 +176,7 @@ def board_truth_report(root: Path, cal: BoardCalibrationResult, truth: Truth) ->
                 "nominal": {"rms": err_nom["rms"], "max": err_nom["max"]},
                 "calibrated": {"rms": err_cal["rms"], "max": err_cal["max"]},
             },
-            "tool_tip_bound_mm": None,
+            "tool_tip_bound_mm": (None if cal.bounds is None else cal.bounds.tool_tip_rms_mm.bound),
             "note": (
                 "tool-tip errors after the best rigid alignment (rotation and translation, no "
                 "scale) of the predicted positions to the true ones over the validation postures"
@@ -178,7 +191,9 @@ def board_truth_report(root: Path, cal: BoardCalibrationResult, truth: Truth) ->
                 ),
             },
         },
-        "camera": _camera_rows(cal.cameras[0], cal.camera_std[0], truth.intrinsics_left),
+        "camera": _camera_rows(
+            cal.cameras[0], cal.camera_std[0], truth.intrinsics_left, _camera_bounds(cal, 0)
+        ),
         "rig": _rig_rows(cal, truth),
         "hand_eye": _hand_eye(cal.model, true_est, nominal_est),
         "reprojection_rms_px": cal.reprojection_rms_px,
@@ -186,7 +201,8 @@ def board_truth_report(root: Path, cal: BoardCalibrationResult, truth: Truth) ->
         "parameters": params,
         "parameters_note": (
             "truth expressed in the board frame and the estimate's joint-offset convention; the "
-            "board calibration gives no kinematic sigma"
+            "board calibration gives no kinematic sigma; 'bound' in report.json is each "
+            "parameter's Cramer-Rao bound (calibration.json bounds)"
         ),
     }
 
@@ -197,11 +213,11 @@ def _num(x: float | None, fmt: str) -> str:
 
 def _camera_markdown(rows: dict) -> list[str]:
     return [
-        "| parameter | estimate | truth | std | z |",
-        "|---|---|---|---|---|",
+        "| parameter | estimate | truth | std | z | Cramer-Rao bound |",
+        "|---|---|---|---|---|---|",
         *(
             f"| {n} | {c['estimate']:.6g} | {c['truth']:.6g} | {_num(c['std'], '.3g')} | "
-            f"{_num(c['z'], '+.2f')} |"
+            f"{_num(c['z'], '+.2f')} | {_num(c.get('bound'), '.3g')} |"
             for n, c in rows.items()
         ),
     ]
@@ -235,6 +251,13 @@ def _markdown(r: dict) -> str:
                 f"| {k} | {t[k]['rms']:.3f} | {t[k]['max']:.3f} | "
                 f"{cp[k]['position_mm']['rms']:.3f} | {cp[k]['rotation_deg']['rms']:.4f} |"
                 for k in ("nominal", "calibrated")
+            ),
+            "",
+            (
+                f"Cramér-Rao bound of the calibrated tool-tip RMS for this data: "
+                f"{v['tool_tip_bound_mm']:.3f} mm (see calibration.json `bounds`)."
+                if v.get("tool_tip_bound_mm") is not None
+                else "No Cramér-Rao bound was computed for this calibration."
             ),
             "",
             f"Hand-eye (last link -> camera) against the truth: calibrated "
@@ -356,10 +379,12 @@ def calibrate_and_report_board(
     v = rep["validation"]["tool_tip_error_mm"]
     rows = [rep["camera"], *(k["camera"] for k in rep["rig"].values())]
     zs = [abs(c["z"]) for r in rows for c in r.values() if c["z"] is not None]
+    bound = rep["validation"]["tool_tip_bound_mm"]
     print(
         f"tool-tip error on {rep['validation']['poses']} validation postures: nominal "
         f"{v['nominal']['rms']:.3f} mm RMS (max {v['nominal']['max']:.3f}), calibrated "
-        f"{v['calibrated']['rms']:.3f} mm RMS (max {v['calibrated']['max']:.3f}); camera "
+        f"{v['calibrated']['rms']:.3f} mm RMS (max {v['calibrated']['max']:.3f})"
+        f"{'' if bound is None else f', bound {bound:.3f} mm'}; camera "
         f"parameters within {max(zs, default=float('nan')):.2f} sigma of the truth; total "
         f"{time.perf_counter() - t0:.1f} s; details in {out}/report.md"
     )

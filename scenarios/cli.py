@@ -247,10 +247,6 @@ def cmd_run(args: argparse.Namespace) -> int:
     out = _scenario_out(args, s)
     if args.spawn and not args.rrd:
         raise CliError("--spawn needs --rrd FILE.rrd", fix="add --rrd run.rrd")
-    if args.rrd and s.target.board:
-        raise CliError(f"--rrd: {s.source} declares a board ([target] board); the Rerun "
-                       "recording draws the marker field's calibration only",
-                       fix="leave out --rrd")  # fmt: skip
     if args.bag and not s.noise.render:
         raise CliError(f"--bag: {s.source} takes no images ([noise] render = false), a bag needs "
                        "them; set render = true")  # fmt: skip

@@ -68,7 +68,8 @@ class TargetConfig:
     (``models/targets/*.toml``, docs/targets.md), relative to the scenario file. Empty: the ArUco
     field of the keys above (the self-calibration). With a board the simulator puts it on the
     table where the home posture looks, the planner keeps it in view, and the calibration is the
-    board route (:mod:`calib.board_dataset`); it needs rendered images."""
+    board route (:mod:`calib.board_dataset`); ``[noise] render = false`` projects its features
+    with the true cameras instead of rendering (the analytic path)."""
 
 
 @dataclass(frozen=True)
@@ -360,8 +361,7 @@ def scenario_board(s: Scenario):
 
     Raises:
         ConfigError: naming the scenario file and ``target.board``: the file is missing, is not
-            a target TOML (its own error, naming its key, follows), declares the field, or the
-            scenario takes no images.
+            a target TOML (its own error, naming its key, follows) or declares the field.
     """
     path = board_path(s)
     if path is None:
@@ -385,13 +385,6 @@ def scenario_board(s: Scenario):
             f"{key}: {path} declares the ArUco field, not a board",
             fix="leave target.board out for the marker field ([target] markers, ...), or give a "
             "board's target TOML (chessboard, charuco, circles, aprilgrid)",
-        )
-    if s.robot.backend == "sim" and not s.noise.render:
-        raise ConfigError(
-            f"{key}: a board is simulated with rendered images, but noise.render = false",
-            fix="set [noise] render = true (the analytic path, also `selfcal montecarlo`'s, "
-            "projects the marker field only; the board's Monte Carlo is `uv run python -m "
-            "scenarios.board_montecarlo`)",
         )
     return board
 

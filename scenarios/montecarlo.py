@@ -49,6 +49,7 @@ from scenarios.acquire import acquire
 from scenarios.backends import open_robot, plan_dataset, sim_setup
 from scenarios.cli_log import get_logger
 from scenarios.config import load_scenario
+from scenarios.montecarlo_board import evaluate_board_draw
 from scenarios.montecarlo_journal import JOURNAL, DrawJournal, draw_key
 from scenarios.montecarlo_report import plot, summary_markdown
 from scenarios.montecarlo_stats import summarize
@@ -98,7 +99,8 @@ def _acquire(settings: dict, root: Path):
 
 
 def draw_one(settings: dict) -> dict:
-    """One noise draw: acquire, calibrate (two-stage + joint), compare with truth and the bound.
+    """One noise draw: acquire, calibrate (two-stage + joint), compare with truth and the bound
+    (a board scenario's: :func:`scenarios.montecarlo_board.evaluate_board_draw`).
 
     ``settings``: ``poses``, ``pixel_sigma``, ``seed`` (noise), ``traj_seed``, ``perturb_seed``,
     ``dither`` (bool), optionally ``joints_deg`` (planned postures to use instead of the
@@ -112,8 +114,9 @@ def draw_one(settings: dict) -> dict:
         with tempfile.TemporaryDirectory(prefix="selfcal-mc-") as d, warnings.catch_warnings():
             warnings.simplefilter("ignore")
             root = Path(d) / "run"
-            _acquire(settings, root)
-            row.update(_evaluate(root, float(settings["pixel_sigma"])))
+            s = _acquire(settings, root)
+            evaluate = evaluate_board_draw if s.target.board else _evaluate
+            row.update(evaluate(root, float(settings["pixel_sigma"])))
         row["status"] = "ok"
     except Exception as exc:  # noqa: BLE001 - a study records failures instead of stopping
         row["status"] = f"failed: {type(exc).__name__}: {str(exc)[:200]}"

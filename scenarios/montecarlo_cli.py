@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from scenarios.cli_common import CliError, add_json, add_scenario_arg, note_written
+from scenarios.cli_common import add_json, add_scenario_arg, note_written
 
 # Heavy modules (scipy, OpenCV, MuJoCo, the pipeline) are imported by the functions that use
 # them, so that `selfcal --help` builds every command's parser without loading them.
@@ -40,8 +40,6 @@ def _cmd(args: argparse.Namespace) -> int:
         print(json.dumps(res, default=str) if args.json else plans_markdown(res))
         note_written(args, args.out)
         return 0
-    if args.scenario is not None:
-        _refuse_board(args.scenario)
     _, s = run_montecarlo(
         args.draws,
         args.out,
@@ -62,22 +60,6 @@ def _cmd(args: argparse.Namespace) -> int:
     return 0
 
 
-def _refuse_board(path: str) -> None:
-    """A scenario with ``[target] board``: its Monte Carlo is another script (the analytic
-    path projects the marker field only)."""
-    from calib.tomlfile import read_toml
-    from scenarios.config import ConfigError
-
-    target = read_toml(path, ConfigError).get("target", {})
-    if isinstance(target, dict) and target.get("board"):
-        raise CliError(
-            f"{path} declares a board ([target] board); selfcal montecarlo simulates the marker "
-            "field on the analytic path",
-            fix="the known-board route's Monte Carlo is `uv run python -m "
-            "scenarios.board_montecarlo` (a ChArUco board on scenarios/mono.toml's camera)",
-        )
-
-
 def register(subparsers) -> argparse.ArgumentParser:
     """Add ``selfcal montecarlo [SCENARIO] [--draws N] [--out DIR] [--jobs N | --cluster ADDRESS]
     [--poses P] [--pixel-sigma S]``."""
@@ -88,7 +70,9 @@ def register(subparsers) -> argparse.ArgumentParser:
         help="Monte Carlo of both calibration methods against the Cramer-Rao bound",
         description="One truth (default scenario, analytic path), many noise draws: achieved "
         "tool-tip and parameter errors of the two-stage and the one-step method against the "
-        "Cramer-Rao bound. Writes DIR/runs.csv, summary.md, summary.json, montecarlo.png; "
+        "Cramer-Rao bound. A scenario with a board ([target] board, e.g. "
+        "scenarios/mono-charuco.toml) runs the known-board route against its own bound, with "
+        "the scenario's board and camera. Writes DIR/runs.csv, summary.md, summary.json, montecarlo.png; "
         "each finished draw goes to DIR/draws.jsonl at once, and the same command again "
         "resumes an interrupted run. "
         "The draws run in local worker processes or, with --cluster, on a Dask cluster. "

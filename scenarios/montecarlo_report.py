@@ -30,8 +30,13 @@ def summary_markdown(s: dict) -> str:
         f"{s['ok']} noise draws ({s['failed']} failed), corner noise {st.get('pixel_sigma')} px, "
         f"read-back dithered: {st.get('dither')}.",
         "",
-        f"Reliability checks (of the final, joint calibration; runs.csv columns checks and "
-        f"failed_checks): {s.get('checks_failed', 0)} of {s['draws']} draws failed them.",
+        (
+            f"Reliability checks (of the final, joint calibration; runs.csv columns checks and "
+            f"failed_checks): {s.get('checks_failed', 0)} of {s['draws']} draws failed them."
+            if s.get("checks_run", 1)
+            else "The board route runs no reliability checks; two-stage: the camera stage and "
+            "the identification on its camera poses; parameters in the board frame."
+        ),
         "",
         f"Tool-tip bound (aligned RMS over the validation postures): "
         f"{s['tool_tip_bound_mm']:.4f} mm (spread over draws {100 * s['bound_spread']:.1f} %); "
@@ -74,6 +79,13 @@ def summary_markdown(s: dict) -> str:
             f"| {n} | {v:.3f} | {s['two_stage']['param_ratios'][n]:.3f} | "
             f"{s['joint']['param_bias_z'][n]:.2f} |"
         )
+    if s.get("camera_ratios"):
+        lines += [
+            "",
+            "Camera parameters of the joint method, error RMS / bound: "
+            + ", ".join(f"{n} {v:.3f}" for n, v in s["camera_ratios"].items())
+            + ".",
+        ]
     return "\n".join(lines) + "\n"
 
 
@@ -115,7 +127,7 @@ def plot(rows: list[dict], s: dict, path: Path) -> None:
     a2.set_yscale("log")
     a2.set_xticks(x, names, rotation=90, fontsize=7)
     a2.set_ylabel("RMS error / bound")
-    a2.set_title("parameters (reference-camera frame)")
+    a2.set_title("parameters (reference-camera frame; of a board: the board frame)")
     legend_outside(a2)
     fig.savefig(path, dpi=110)
     plt.close(fig)

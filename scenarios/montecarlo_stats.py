@@ -2,7 +2,8 @@
 
 - tool tip: ``ratio = sqrt(mean_draws rms^2) / bound`` (an unbiased efficient estimator has 1);
 - parameters: per parameter ``sqrt(mean_draws err^2) / bound``, then the median over the
-  estimated parameters;
+  estimated parameters; every free camera parameter of the one-step method likewise
+  (``camera_ratios``, against the median bound);
 - 95 % intervals: bootstrap over draws (percentile), and for the tool tip also the interval an
   efficient estimator would show with this many draws (``rms^2`` is a weighted sum of chi-squares;
   Satterthwaite's effective degrees of freedom).
@@ -41,6 +42,7 @@ def summarize(rows: list[dict]) -> dict:
     res: dict = {"draws": len(rows), "ok": len(ok), "failed": len(rows) - len(ok)}
     # draws whose (joint) calibration failed the reliability checks (scenarios.row_checks)
     res["checks_failed"] = sum(r.get("checks") == "failed" for r in rows)
+    res["checks_run"] = sum("checks" in r for r in rows)  # the board route runs none
     if not ok:
         return res
     bound = float(np.median([r["bound_tip_rms_mm"] for r in ok]))
@@ -80,6 +82,15 @@ def summarize(rows: list[dict]) -> dict:
                 / np.median([r["bound_fx_px"] for r in ok])
             ),
         }
+    # every free camera parameter of the one-step method: error RMS / median bound
+    cams = [c[len("bound_cam_") :] for c in ok[0] if c.startswith("bound_cam_")]
+    res["camera_ratios"] = {
+        n: float(
+            np.sqrt(np.mean([r[f"joint_cam_err_{n}"] ** 2 for r in ok]))
+            / np.median([r[f"bound_cam_{n}"] for r in ok])
+        )
+        for n in cams
+    }
     # interval an efficient estimator would give with this many draws (per-parameter: chi2(1))
     res["efficient_param_ratio_ci95_single"] = efficient_ratio_interval(len(ok), 1.0)
     return res

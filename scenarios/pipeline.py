@@ -40,6 +40,7 @@ from scenarios.acquire import acquire
 from scenarios.backends import open_robot, plan_dataset, sim_setup
 from scenarios.cli_log import get_logger
 from scenarios.config import Scenario
+from scenarios.figure_pool import FigurePool
 from scenarios.job_figures import (
     parameter_figure,
     reprojection_figure,
@@ -174,13 +175,19 @@ def reprojection_figures(root: Path, ev: Evaluation) -> Path:
 
 
 def run_report(
-    root: Path, *, quiet: bool = False, figures: bool = False, cache: FrameCache | None = None
+    root: Path,
+    *,
+    quiet: bool = False,
+    figures: bool = False,
+    cache: FrameCache | None = None,
+    pool: FigurePool | None = None,
 ) -> dict:
     """``root/report.json`` and ``report.md``: with ``truth.json`` (simulation) the calibration
     against the truth and ``root/validation.csv`` (per validation posture); without it the fit,
     a held-out check, the sigmas and the identifiability (:mod:`scenarios.report_fit`).
     ``figures``: also the figures (:mod:`scenarios.job_figures`), linked from ``report.md``.
-    ``cache``: the dataset's images and detections already in memory (:class:`FrameCache`)."""
+    ``cache``: the dataset's images and detections already in memory (:class:`FrameCache`).
+    ``pool``: where the figures are drawn (:class:`FigurePool`; default: here, one by one)."""
     root = Path(root)
     ds = Dataset.open(root)
     cal_path = root / "calibration.json"
@@ -290,15 +297,18 @@ def run_report(
         "table_iv": table_iv,
     }
     write_text_atomic(root / "validation.csv", _validation_csv(qv, err_nom, err_cal))
-    drawn = []
+    pending = []
     if figures:
-        drawn = [
-            write_figure(tool_tip_figure(err_nom["errors_mm"], err_cal["errors_mm"]), root,
-                         "tool_tip_errors.png"),
-            reprojection_figures(root, evaluate_field(cal, root, root, cache)),
-            write_figure(parameter_figure(params), root, "parameters.png"),
+        pool = pool or FigurePool(enabled=False)
+        pending = [
+            pool.draw(tool_tip_figure, (err_nom["errors_mm"], err_cal["errors_mm"]), root,
+                      "tool_tip_errors.png"),
+            pool.draw(reprojection_figure,
+                      (evaluate_field(cal, root, root, cache), "calibration images"), root,
+                      "reprojection.png"),
+            pool.draw(parameter_figure, (params,), root, "parameters.png"),
         ]  # fmt: skip
-    report["figures"] = [str(p.relative_to(root)) for p in drawn]
+    report["figures"] = [str(f.wait().relative_to(root)) for f in pending]
     write_json_atomic(root / "report.json", report)
     md = _markdown(report)
     write_text_atomic(root / "report.md", md)
@@ -448,6 +458,24 @@ def run_all(
     """Acquire, calibrate and (in simulation) report; prints a summary. ``figures``: the
     report's figures in ``out/figures/``."""
     t0 = time.perf_counter()
+    # the report's figures: a worker forked now (before any thread or GL context) loads
+    # matplotlib while this process acquires and calibrates (scenarios/figure_pool.py)
+    with FigurePool(enabled=figures and s.robot.backend == "sim" and not s.target.board) as pool:
+        return _run_all(s, out, t0, pool, resume=resume, quiet=quiet, method=method,
+                        figures=figures)  # fmt: skip
+
+
+def _run_all(
+    s: Scenario,
+    out: Path,
+    t0: float,
+    pool: FigurePool,
+    *,
+    resume: bool,
+    quiet: bool,
+    method: str,
+    figures: bool,
+) -> dict:
     kept = FrameCache()  # calibration and report: the images taken now from memory, detected once
     run_acquire(s, out, resume=resume, quiet=quiet, keep=kept)
     if s.target.board:  # a board of known geometry: the board route (scenarios/board_run.py)
@@ -469,7 +497,7 @@ def run_all(
         raise
     result = {"calibration": cal}
     if s.robot.backend == "sim":
-        rep = run_report(out, quiet=True, figures=figures, cache=kept)
+        rep = run_report(out, quiet=True, figures=figures, cache=kept, pool=pool)
         result["report"] = rep
         v = rep["validation"]["tool_tip_error_mm"]
         print(

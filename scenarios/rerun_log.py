@@ -21,108 +21,25 @@ detections, ``calibration.json`` and (simulation) ``truth.json``; acquisition is
 
 The estimate lives in its reconstruction frame; it is registered to the world by the best rigid
 alignment (no scale) of the recovered left-camera centres onto the true ones (onto the nominal
-model's camera centres when there is no ``truth.json``, e.g. on hardware).
+model's camera centres when there is no ``truth.json``, e.g. on hardware). A board run (the
+known-board route's ``calibration.json``) is recorded by :mod:`scenarios.rerun_board` (the
+board's points, the cameras posed by the calibrated chain).
 """
 
 from __future__ import annotations
 
 import argparse
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
-from calib.errors import InputError
 from scenarios.cli_common import note_written
-
-if TYPE_CHECKING:
-    from sim.posed_geometry import PosedGeometry
+from scenarios.rerun_board import record_board_run
+from scenarios.rerun_parts import EST_COLOR, GT_COLOR, archetypes, log_camera, open_recording
 
 # Heavy modules (scipy, OpenCV, MuJoCo, the pipeline) are imported by the functions that use
 # them, so that `selfcal --help` builds every command's parser without loading them.
 __all__ = ["record_run", "register"]
-
-_GT_COLOR = (40, 200, 80, 255)
-_EST_COLOR = (230, 60, 200, 255)
-
-
-def _quat_xyzw(R: np.ndarray) -> np.ndarray:
-    from scipy.spatial.transform import Rotation
-
-    return Rotation.from_matrix(np.asarray(R).reshape(-1, 3, 3)).as_quat()
-
-
-def _archetypes(geo: PosedGeometry, ids: list[int]) -> dict[str, object]:
-    """Rerun archetypes for the geoms ``ids`` of ``geo`` at its current posture, by shape."""
-
-    import rerun as rr  # optional, ~0.6 s to import: only when recording
-
-    out: dict[str, object] = {}
-    for key, g in geo.groups(ids).items():
-        quat = _quat_xyzw(g.R)
-        size = g.size
-        if key == "boxes":
-            half = size.copy()
-            for k in np.flatnonzero(g.is_plane):
-                half[k] = [size[k, 0] or 0.6, size[k, 1] or 0.6, 0.0005]
-            out[key] = rr.Boxes3D(
-                centers=g.pos, half_sizes=half, quaternions=quat, colors=g.rgba, fill_mode="solid"
-            )
-        elif key == "cylinders":
-            out[key] = rr.Cylinders3D(
-                centers=g.pos,
-                lengths=2 * size[:, 1],
-                radii=size[:, 0],
-                quaternions=quat,
-                colors=g.rgba,
-                fill_mode="solid",
-            )
-        elif key == "capsules":
-            start = g.pos - g.R[:, :, 2] * size[:, 1:2]
-            out[key] = rr.Capsules3D(
-                translations=start,
-                lengths=2 * size[:, 1],
-                radii=size[:, 0],
-                quaternions=quat,
-                colors=g.rgba,
-                fill_mode="solid",
-            )
-        else:
-            half = np.where(size > 0, size, size[:, :1])
-            out[key] = rr.Ellipsoids3D(
-                centers=g.pos, half_sizes=half, quaternions=quat, colors=g.rgba, fill_mode="solid"
-            )
-    return out
-
-
-def _log_camera(rec, path: str, T_world_cam: np.ndarray, intr, color, image=None, corners=None):
-    import rerun as rr  # optional, ~0.6 s to import: only when recording
-
-    rec.log(
-        path,
-        rr.Transform3D(translation=T_world_cam[:3, 3], mat3x3=T_world_cam[:3, :3]),
-    )
-    rec.log(
-        path,
-        rr.Pinhole(
-            image_from_camera=intr.K,
-            resolution=[intr.width, intr.height],
-            camera_xyz=rr.ViewCoordinates.RDF,
-            image_plane_distance=0.05,
-            color=color,
-        ),
-    )
-    if image is not None:
-        rec.log(f"{path}/image", rr.EncodedImage(path=image))
-    if corners is not None:
-        ids = sorted(corners)
-        if ids:
-            uv = np.concatenate([corners[i] for i in ids])
-            lab = [f"{i}" if k == 0 else None for i in ids for k in range(len(corners[i]))]
-            rec.log(
-                f"{path}/image/corners",
-                rr.Points2D(uv, radii=1.5, colors=(255, 40, 40), labels=[x or "" for x in lab]),
-            )
 
 
 def record_run(dataset_dir: str | Path, rrd_path: str | Path | None, spawn: bool = False) -> Path:
@@ -141,6 +58,7 @@ def record_run(dataset_dir: str | Path, rrd_path: str | Path | None, spawn: bool
     from calib.camera.camera_set import unproject_views
     from calib.estimation.reprojection import reprojection_residuals
     from calib.estimation.triangulation import triangulate
+    from calib.io.board_calibration import calibration_kind
     from calib.io.calibration import read_calibration
     from calib.io.dataset import Dataset, DatasetError
     from calib.io.truth import read_truth
@@ -160,6 +78,9 @@ def record_run(dataset_dir: str | Path, rrd_path: str | Path | None, spawn: bool
     cal_path = root / "calibration.json"
     if not cal_path.is_file():
         raise DatasetError(f"{cal_path} is missing: run `selfcal calibrate {root}` first")
+    if calibration_kind(cal_path) == "board":  # the known-board route's calibration
+        rrd_board = None if rrd_path is None else Path(rrd_path)
+        return record_board_run(root, rrd_board, spawn)  # type: ignore[return-value]
     cal = read_calibration(cal_path)
     robot = load_robot(ds.info.robot_model)
     nominal = nominal_mcpc(robot).with_tool(robot.T_flange_cam)
@@ -244,28 +165,16 @@ def record_run(dataset_dir: str | Path, rrd_path: str | Path | None, spawn: bool
     geo = PosedGeometry(robot, chain, rig, field)
 
     rrd = Path(rrd_path) if rrd_path is not None else None
-    if rrd is None and not spawn:
-        raise InputError("record_run needs an .rrd path, spawn=True, or both")
-    rec = rr.RecordingStream("scorbot-selfcal", recording_id=str(root.resolve()))
-    if spawn:
-        rec.spawn(connect=False)  # start the viewer; the sinks below connect to it
-    sinks = []
-    if rrd is not None:
-        rrd.parent.mkdir(parents=True, exist_ok=True)
-        sinks.append(rr.FileSink(str(rrd)))
-    if spawn:
-        sinks.append(rr.GrpcSink())
-    rec.set_sinks(*sinks)
-    rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+    rec = open_recording(root, rrd, spawn, "record_run")
 
     # Static: scene, points, scale bar, trajectories, notes.
     geo.set(robot.home)
-    for key, arch in _archetypes(geo, geo.static if truth is not None else []).items():
+    for key, arch in archetypes(geo, geo.static if truth is not None else []).items():
         rec.log(f"world/scene/{key}", arch, static=True)
     if truth is not None:
         rec.log(
             "world/truth/marker_corners",
-            rr.Points3D(field.corners_world().reshape(-1, 3), radii=0.0015, colors=_GT_COLOR),
+            rr.Points3D(field.corners_world().reshape(-1, 3), radii=0.0015, colors=GT_COLOR),
             static=True,
         )
     if len(X_world):
@@ -274,7 +183,7 @@ def record_run(dataset_dir: str | Path, rrd_path: str | Path | None, spawn: bool
             rr.Points3D(
                 X_world,
                 radii=0.002,
-                colors=_EST_COLOR,
+                colors=EST_COLOR,
                 labels=[f"{m}:{k}" for m, k in zip(*marker_corner(keys))],
                 show_labels=False,
             ),
@@ -293,7 +202,7 @@ def record_run(dataset_dir: str | Path, rrd_path: str | Path | None, spawn: bool
             rr.LineStrips3D(
                 [[cen[sid[0]], cen[sid[1]]]],
                 radii=0.002,
-                colors=_EST_COLOR,
+                colors=EST_COLOR,
                 labels=[f"d = {length:.2f} mm (known {ds.info.scale_length_m * 1000:.1f})"],
             ),
             static=True,
@@ -303,14 +212,14 @@ def record_run(dataset_dir: str | Path, rrd_path: str | Path | None, spawn: bool
         a, b = field.index_of(sid[0]), field.index_of(sid[1])
         rec.log(
             "world/truth/scale_bar",
-            rr.LineStrips3D([[c_true[a], c_true[b]]], radii=0.001, colors=_GT_COLOR),
+            rr.LineStrips3D([[c_true[a], c_true[b]]], radii=0.001, colors=GT_COLOR),
             static=True,
         )
     if est_world:
         rec.log(
             "world/estimate/camera_path",
             rr.LineStrips3D(
-                [[est_world[i][:3, 3] for i in sorted(est_world)]], radii=0.0008, colors=_EST_COLOR
+                [[est_world[i][:3, 3] for i in sorted(est_world)]], radii=0.0008, colors=EST_COLOR
             ),
             static=True,
         )
@@ -320,7 +229,7 @@ def record_run(dataset_dir: str | Path, rrd_path: str | Path | None, spawn: bool
             rr.LineStrips3D(
                 [[true_frame[i].T_world_cam_left[:3, 3] for i in sorted(true_frame)]],
                 radii=0.0008,
-                colors=_GT_COLOR,
+                colors=GT_COLOR,
             ),
             static=True,
         )
@@ -351,29 +260,29 @@ def record_run(dataset_dir: str | Path, rrd_path: str | Path | None, spawn: bool
         rec.set_time("frame", sequence=i)
         fr = true_frame.get(i)
         geo.set(fr.joints_rad if fr is not None else q)
-        for key, arch in _archetypes(geo, geo.moving).items():
+        for key, arch in archetypes(geo, geo.moving).items():
             rec.log(f"world/robot/{key}", arch)
         rec.log("joints_deg", rr.Scalars(np.degrees(q)))
         if fr is not None:
             for cam in cams:
                 left = cam == "left"
-                _log_camera(
+                log_camera(
                     rec,
                     f"world/truth/cam_{cam}",
                     fr.T_world_cam_left if left else fr.T_world_cam_right,
                     truth.intrinsics_left if left else truth.intrinsics_right,
-                    _GT_COLOR,
+                    GT_COLOR,
                 )
         if i in est_world:
             for c, cam in enumerate(cams):
                 T = est_world[i] @ T_first_cam[c]
                 img = ds.frame_paths(i)[c] if ds.info.observation == "images" else None
-                _log_camera(
+                log_camera(
                     rec,
                     f"world/estimate/cam_{cam}",
                     T,
                     est_cams[c],
-                    _EST_COLOR,
+                    EST_COLOR,
                     img,
                     dets.get((i, cam), {}),
                 )

@@ -3,7 +3,9 @@
 The fast path of the simulator (``[noise] render = false``): instead of rendering and detecting,
 project the true corners with the camera model and add Gaussian noise. Which markers a camera sees
 is decided by the one visibility rule (:class:`calib.camera.Visibility`, its defaults: all four
-corners in front of the camera and inside the image, the marker facing the camera).
+corners in front of the camera and inside the image, the marker facing the camera). A board's
+features (:func:`project_board`) are points: each one seen by the same rule, the board's printed
+face turned to the camera.
 """
 
 from __future__ import annotations
@@ -11,9 +13,10 @@ from __future__ import annotations
 import numpy as np
 
 from calib.camera import CameraModel, Visibility, project
+from calib.target.boards import Board
 from calib.transforms import inv_pose
 
-__all__ = ["project_markers"]
+__all__ = ["project_board", "project_markers"]
 
 
 def project_markers(
@@ -55,3 +58,41 @@ def project_markers(
                 continue
         out[int(ids[k])] = c
     return out
+
+
+def project_board(
+    T_world_cam: np.ndarray,
+    camera: CameraModel,
+    board: Board,
+    T_world_board: np.ndarray,
+    *,
+    pixel_sigma: float = 0.0,
+    rng: np.random.Generator | None = None,
+    visibility: Visibility | None = None,
+) -> dict[int, np.ndarray]:
+    """The features (px, OpenCV convention) of ``board`` (posed at ``T_world_board``, board ->
+    world, m; its printed face the board frame's -z side) that one camera at ``T_world_cam``
+    (m) sees by the visibility rule, with Gaussian noise of ``pixel_sigma`` px per coordinate.
+
+    Returns:
+        ``{feature id: (1, 2) px}`` (a feature whose noisy pixel leaves the image is dropped,
+        as a detector would; a view with fewer than the board's ``min_features`` is empty, and
+        of a board whose detector finds the whole grid or nothing (``whole_grid``: chessboard,
+        circles grid) a view without every feature).
+    """
+    if pixel_sigma > 0 and rng is None:
+        raise ValueError("pixel_sigma > 0 needs a random generator (rng) for reproducibility")
+    rule = visibility or Visibility()
+    ids, pts = board.layout()
+    Tb = np.asarray(T_world_board, dtype=float)
+    X = pts @ Tb[:3, :3].T + Tb[:3, 3]
+    normals = np.tile(-Tb[:3, 2], (len(X), 1))
+    T = np.asarray(T_world_cam, dtype=float)
+    ok = rule.points(camera, T[None], X, normals)[0]
+    uv = project(camera, inv_pose(T), X[ok])
+    if pixel_sigma > 0:
+        uv = uv + rng.normal(0.0, pixel_sigma, size=uv.shape)
+    inside = np.all((uv >= 0) & (uv <= [camera.width - 1, camera.height - 1]), axis=1)
+    if inside.sum() < (board.n_features if board.whole_grid else board.min_features):
+        return {}
+    return {int(i): p[None] for i, p in zip(ids[ok][inside], uv[inside], strict=True)}

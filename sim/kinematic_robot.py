@@ -10,14 +10,18 @@ quantisation, :func:`read_back`) and ground truth (``truth_frame``, ``truth``) a
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from calib.errors import InputError
+from calib.io.target_toml import target_document
 from calib.io.truth import Truth
 from calib.kinematics import fk_tool
 from calib.mcpc import MCPCModel
 from calib.robot import RobotError, StereoPair
 from calib.robot_def import RobotDef, load_robot
+from calib.target.boards import Board
 from calib.transforms import inv_pose
 from sim.actual import make_truth
 from sim.link_frames import nominal_camera_model
@@ -44,7 +48,9 @@ class KinematicRobot:
     """A simulated robot whose camera poses are the actual chain's forward kinematics.
 
     Arguments as :class:`sim.sim_robot.SimRobot` (without image noise): ``model_name``, ``actual``
-    (tool = left camera; default nominal), ``rig``, ``field``, ``quantize``. Starts at home.
+    (tool = left camera; default nominal), ``rig``, ``field``, ``quantize``, ``board`` (``(board,
+    T_world_board)``: recorded in ``truth()``; its features are projected by
+    :func:`sim.analytic.project_board`). Starts at home.
     ``SimRobot`` is this robot plus MuJoCo (it overrides ``_set_q``, ``truth_frame``, ``capture``).
     """
 
@@ -57,6 +63,7 @@ class KinematicRobot:
         rig: RigConfig | None = None,
         field: MarkerField | None = None,
         quantize: bool = True,
+        board: tuple[Board, np.ndarray] | None = None,
     ) -> None:
         self.robot = load_robot(model_name)
         self.model_name = self.robot.name
@@ -69,6 +76,7 @@ class KinematicRobot:
         self.rig = RigConfig() if rig is None else rig
         self.field = make_marker_field() if field is None else field
         self.quantize = bool(quantize)
+        self.board = board
         self._unit = joint_units(self.robot)
         self._q = self.robot.home.astype(float).copy()
         self._closed = False
@@ -126,9 +134,15 @@ class KinematicRobot:
         }
 
     def truth(self, meta: dict | None = None) -> Truth:
-        """The ground-truth header (no frames; append ``truth_frame()`` records)."""
+        """The ground-truth header (no frames; append ``truth_frame()`` records), with the
+        board's target keys and true pose when there is one (:class:`calib.io.truth.Truth`
+        ``board``)."""
         meta = {"image_sigma": self.image_sigma, **(meta or {})}
-        return make_truth(self.robot, self.nominal, self.actual, self.rig, self.field, meta)
+        truth = make_truth(self.robot, self.nominal, self.actual, self.rig, self.field, meta)
+        if self.board is None:
+            return truth
+        doc = {"target": target_document(self.board[0]), "T_world_board": self.board[1]}
+        return dataclasses.replace(truth, board=doc)
 
     def _check_open(self) -> None:
         if self._closed:

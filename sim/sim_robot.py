@@ -9,15 +9,12 @@ posture for ``truth.json``.
 
 from __future__ import annotations
 
-import dataclasses
 from concurrent.futures import Future, ThreadPoolExecutor
 
 import mujoco
 import numpy as np
 
 from calib.errors import InputError
-from calib.io.target_toml import target_document
-from calib.io.truth import Truth
 from calib.mcpc import MCPCModel
 from calib.robot import StereoPair
 from calib.target.boards import Board
@@ -72,10 +69,9 @@ class SimRobot(KinematicRobot):
     ) -> None:
         if not image_sigma >= 0:
             raise InputError(f"image_sigma must be >= 0 (grey levels), got {image_sigma}")
-        super().__init__(model_name, actual, rig, field, quantize)
+        super().__init__(model_name, actual, rig, field, quantize, board)
         self._sigma = float(image_sigma)
         self._rng = np.random.default_rng(seed)
-        self.board = board
         scene_kw = {} if msaa is None else {"offsamples": int(msaa)}
         spec = scene_with_robot(
             self.robot, self.actual, self.rig, self.field, markers=board is None, **scene_kw
@@ -145,15 +141,6 @@ class SimRobot(KinematicRobot):
         self._closed = True
 
     # ------------------------------------------------------------------ ground truth
-    def truth(self, meta: dict | None = None) -> Truth:
-        """The ground-truth header, with the board's target keys and true pose when there is
-        one (:class:`calib.io.truth.Truth` ``board``)."""
-        truth = super().truth(meta)
-        if self.board is None:
-            return truth
-        doc = {"target": target_document(self.board[0]), "T_world_board": self.board[1]}
-        return dataclasses.replace(truth, board=doc)
-
     def truth_frame(self) -> dict:
         """Ground truth of the current posture: ``joints_rad`` / ``joints_deg`` (true, unquantised),
         ``T_world_cam_left`` / ``T_world_cam_right`` (4, 4, OpenCV camera -> world, m) and

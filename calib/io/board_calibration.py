@@ -14,6 +14,9 @@ m); the MCPC chain's tool is the first camera (OpenCV frame). Keys (units in the
     nominal_mcpc      the nominal kinematics with only hand-eye and board pose fitted (the
                       reference of ``selfcal evaluate``), same keys
     reprojection_rms_px, dataset {frames, frames_used, skipped_images}, held, warnings
+    bounds            Cramer-Rao bounds at the estimate (:class:`BoardBounds`: the tool tip's
+                      aligned RMS (mm), every camera's free parameters, every minimal
+                      parameter), or absent with ``bounds_error`` saying why
 
 :func:`read_board_calibration` is the one reader; :func:`calibration_kind` tells the two
 ``calibration.json`` kinds apart.
@@ -21,18 +24,22 @@ m); the MCPC chain's tool is the first camera (OpenCV frame). Keys (units in the
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from calib.camera import MODELS, CameraModel, camera_model, lens_names, opencv_values
 from calib.errors import InputError
+from calib.io.calibration_bounds import BoundParameter, ToolTipBound
+from calib.io.jsonblock import JsonBlock
 from calib.io.jsonfile import SCHEMA_KEY, Fields, check_header, load_json, write_json_atomic
 from calib.mcpc import COLUMNS, MCPCModel
 
 __all__ = [
+    "BoardBounds",
     "BoardCalibrationFileError",
+    "CameraBounds",
     "BoardCalibrationResult",
     "FORMAT",
     "SCHEMA_VERSION",
@@ -86,6 +93,41 @@ def camera_json(
     }
 
 
+@dataclass(frozen=True)
+class CameraBounds(JsonBlock):
+    """One camera's bounds: every free parameter by OpenCV name (px or unitless)."""
+
+    name: str
+    bounds: dict[str, float]
+
+
+BOARD_BOUNDS_NOTE = (
+    "Cramer-Rao bounds (standard deviations; tool tip: RMS over the validation postures after "
+    "the best rigid alignment, as the report measures it) from the Fisher information of the "
+    "board route's one-step refinement (corners with Gaussian noise of pixel_sigma_px, joint "
+    "read-back errors of joint_sigma_deg, the board's points known), evaluated at the estimate; "
+    "parameters in the board frame. See docs/bounds.md."
+)
+
+
+@dataclass(frozen=True, kw_only=True)
+class BoardBounds(JsonBlock):
+    """``bounds`` of a board ``calibration.json`` (:mod:`calib.board_bounds`): the noise levels
+    used (corner px per coordinate, its source, read-back deg per joint or None), the counts,
+    the tool-tip bound (mm), every camera's and every minimal parameter's bound."""
+
+    kind: str = "cramer-rao"
+    pixel_sigma_px: float
+    pixel_sigma_source: str = field(default="residuals", metadata={"choices": ("residuals",)})
+    joint_sigma_deg: tuple[float, ...] | None
+    observations: int
+    unknowns: int
+    tool_tip_rms_mm: ToolTipBound
+    cameras: tuple[CameraBounds, ...]
+    parameters: tuple[BoundParameter, ...]
+    note: str = BOARD_BOUNDS_NOTE
+
+
 @dataclass(frozen=True, eq=False)
 class BoardCalibrationResult:
     """The content of a board ``calibration.json`` (module docstring; SI inside)."""
@@ -105,6 +147,9 @@ class BoardCalibrationResult:
     warnings: tuple[str, ...] = ()
     T_first_cam: np.ndarray | None = None
     """(N, 4, 4) every camera's pose in the first camera's frame (m); None: one camera."""
+    bounds: BoardBounds | None = None
+    """The Cramer-Rao bounds at the estimate, or None (``bounds_error`` says why)."""
+    bounds_error: str | None = None
 
     def to_json(self) -> dict:
         """The document (key order fixed)."""
@@ -130,6 +175,8 @@ class BoardCalibrationResult:
             },
             "held": list(self.held),
             "warnings": list(self.warnings),
+            **({} if self.bounds is None else {"bounds": self.bounds.to_json()}),
+            **({} if self.bounds_error is None else {"bounds_error": self.bounds_error}),
         }
 
     @classmethod
@@ -172,6 +219,8 @@ class BoardCalibrationResult:
             held=f.strs("held"),
             warnings=f.strs("warnings"),
             T_first_cam=np.stack(Ts) if len(Ts) > 1 else None,
+            bounds=BoardBounds.from_json(f.sub("bounds")) if f.has("bounds") else None,
+            bounds_error=f.str("bounds_error") if f.has("bounds_error") else None,
         )
 
 

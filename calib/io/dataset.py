@@ -7,7 +7,9 @@ Layout of ``DIR``::
     joints.csv          one row per frame taken: index, joint read-back (deg)
     frames/NNNN_CAMERA.png   one image per camera and frame (images path; CAMERA is the camera's
                         name, the suffix dataset.json's ``image_suffix``)
-    detections.csv      index, camera, marker_id, corner, u_px, v_px (analytic path, no images)
+    detections.csv      index, camera, marker_id, corner, u_px, v_px (analytic path, no images);
+                        a board's (dataset.json's target a board): index, camera, feature_id,
+                        u_px, v_px, one row per board feature
     truth.json          simulation only; never read by the calibration
 
 A frame counts as taken once its row is in ``joints.csv``: images are written first (atomically,
@@ -34,6 +36,7 @@ from calib.io.dataset_info import (
     read_dataset_info,
     write_dataset_info,
 )
+from calib.io.images import read_gray_image
 from calib.io.jsonfile import dumps
 
 __all__ = [
@@ -46,7 +49,12 @@ __all__ = [
 ]
 
 Detections = dict[tuple[int, str], dict[int, np.ndarray]]
-"""(frame index, camera) -> {marker id: (4, 2) corners in px, OpenCV convention}."""
+"""(frame index, camera) -> {marker id: (4, 2) corners in px, OpenCV convention}; of a board
+dataset (:meth:`Dataset.read_features`) {feature id: (1, 2) px}."""
+
+MARKER_HEADER = ["index", "camera", "marker_id", "corner", "u_px", "v_px"]
+FEATURE_HEADER = ["index", "camera", "feature_id", "u_px", "v_px"]
+"""``detections.csv``'s columns: the marker field's corners, a board's features."""
 
 
 def _resume_key(info: DatasetInfo) -> str:
@@ -115,7 +123,7 @@ class DatasetWriter:
         self.done: list[int] = done
         self._rewrite(self._joints, ["index"] + [f"q{j + 1}_deg" for j in range(n)], done, 0)
         if info.observation == "detections":
-            header = ["index", "camera", "marker_id", "corner", "u_px", "v_px"]
+            header = FEATURE_HEADER if info.board is not None else MARKER_HEADER
             self._rewrite(self._dets, header, done, 0)
 
     def _rewrite(self, path: Path, header: list[str], keep: list[int], col: int) -> None:
@@ -157,10 +165,15 @@ class DatasetWriter:
         else:
             if detections is None:
                 raise DatasetError("a detections dataset needs the detections of each frame")
+            board = self.info.board is not None
             with open(self._dets, "a", newline="") as fh:
                 w = csv.writer(fh)
                 for cam in self.info.cameras:
                     for mid, c in sorted(detections.get(cam, {}).items()):
+                        c = np.asarray(c, dtype=float).reshape(-1, 2)
+                        if board:  # one point per feature id
+                            w.writerow([index, cam, mid, f"{c[0, 0]:.6f}", f"{c[0, 1]:.6f}"])
+                            continue
                         for k in range(4):
                             w.writerow([index, cam, mid, k, f"{c[k, 0]:.6f}", f"{c[k, 1]:.6f}"])
                 fh.flush()
@@ -232,7 +245,7 @@ def read_joints_csv(path: Path, n_joints: int) -> tuple[np.ndarray, np.ndarray, 
 
 def read_gray(path: Path, index: int) -> np.ndarray:
     """A dataset image as gray uint8; raises DatasetError naming the frame if unreadable."""
-    img = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+    img = read_gray_image(path)
     if img is None:
         raise _missing(path, index)
     return img
@@ -324,11 +337,42 @@ class Dataset:
         for i, cam, path in self.image_paths():
             yield i, cam, read_gray(path, i)
 
-    def read_detections(self) -> Detections:
-        """Detections of the analytic path from ``detections.csv``."""
+    def read_features(self) -> Detections:
+        """A board's features of the analytic path from ``detections.csv``: (frame index,
+        camera) -> {feature id: (1, 2) px}, frames of ``joints.csv`` only.
+
+        Raises:
+            DatasetError: the file is missing or a row is malformed (the message names the
+                file and the row).
+        """
+        path = self._detections_path()
+        keep = set(self.indices.tolist())
+        out: Detections = {}
+        for r in _read_csv_rows(path):
+            try:
+                if len(r) != len(FEATURE_HEADER):
+                    raise ValueError(f"{len(r)} columns, a board's are {FEATURE_HEADER}")
+                i, cam, fid, u, v = int(r[0]), r[1], int(r[2]), float(r[3]), float(r[4])
+            except (ValueError, IndexError) as exc:
+                raise DatasetError(f"{path}: malformed row {r} ({exc})") from exc
+            if i in keep:
+                out.setdefault((i, cam), {})[fid] = np.array([[u, v]])
+        return out
+
+    def _detections_path(self) -> Path:
         path = self.root / "detections.csv"
         if not path.is_file():
             raise DatasetError(f"{path} is missing; this dataset's observation is 'detections'")
+        return path
+
+    def read_detections(self) -> Detections:
+        """Detections of the analytic path from ``detections.csv``."""
+        path = self._detections_path()
+        if self.info.board is not None:
+            raise DatasetError(
+                f"{path} holds a board's features, not the marker field's corners",
+                fix="read it with Dataset.read_features (the board route)",
+            )
         out: Detections = {}
         keep = set(self.indices.tolist())
         buf: dict[tuple[int, str, int], np.ndarray] = {}

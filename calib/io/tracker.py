@@ -2,13 +2,16 @@
 joints file, and the writer of predicted positions.
 
 Formats (text, one row per line, ``#`` comment lines and blank lines skipped; a header line
-names the columns; cells separated by commas, or by whitespace when the header has no comma):
+names the columns; cells separated by commas, else by semicolons, else by whitespace, as the first
+line has them; quoted cells, a UTF-8 byte-order mark and a separator ending every line accepted):
 
 - measurements: ``j1 .. jn`` (joint readings) and ``x_mm, y_mm, z_mm`` (the tool point in the
   tracker frame, mm), optionally ``qw, qx, qy, qz`` (the measured tool frame's orientation in the
   tracker frame, unit quaternion, scalar first: then every row is a pose); other columns are
   ignored (and listed by :attr:`Table.ignored`).
 - distances: ``a_j1 .. a_jn``, ``b_j1 .. b_jn`` (the two configurations) and ``d_mm``.
+- joint columns are named ``j1 .. jn`` (``J1`` too) or by the robot's own joint names (a URDF's
+  ``shoulder_pan_joint``, ...); distances prefix them with ``a_`` / ``b_``.
 - joints (for predictions and ``selfcal import``): ``j1 .. jn``, optionally an ``image`` column
   (the image's file name, text), or no header and ``n`` numbers per row.
 - predictions (written): ``x_mm,y_mm,z_mm``, one row per joints row, in order.
@@ -23,6 +26,7 @@ unit is probably wrong. Units: SI in the returned arrays.
 
 from __future__ import annotations
 
+import csv
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -82,8 +86,20 @@ class Table:
         return self.values[:, self.columns.index(name)]
 
 
-def _split(line: str, comma: bool) -> list[str]:
-    return [c.strip() for c in line.split(",")] if comma else line.split()
+def _separator(header: str) -> str | None:
+    """The cell separator of a file whose first line is ``header``: ``,``, else ``;`` (a
+    spreadsheet's CSV in a locale with decimal commas), else None (whitespace)."""
+    if "," in header:
+        return ","
+    return ";" if ";" in header else None
+
+
+def _split(line: str, sep: str | None) -> list[str]:
+    """The cells of ``line``: CSV with ``sep`` (quoted cells, as spreadsheets and R write them,
+    lose their quotes), or whitespace-separated."""
+    if sep is None:
+        return line.split()
+    return [c.strip() for c in next(csv.reader([line], delimiter=sep, skipinitialspace=True))]
 
 
 def read_table(
@@ -100,7 +116,12 @@ def read_table(
     """
     p = Path(path)
     try:
-        text = p.read_text()
+        text = p.read_text(encoding="utf-8-sig")  # a spreadsheet's byte-order mark is no cell
+    except UnicodeDecodeError as exc:
+        raise TrackerFileError(
+            f"{p}: not UTF-8 text (byte {exc.start}: {exc.reason})",
+            fix="save the file as UTF-8 (or plain ASCII) text",
+        ) from None
     except OSError as exc:
         raise TrackerFileError(
             f"{p}: cannot be read ({exc.strerror or exc})", fix="give an existing text file"
@@ -112,8 +133,11 @@ def read_table(
     ]
     if not rows:
         raise TrackerFileError(f"{p}: no data", fix="one header line and one row per measurement")
-    comma = "," in rows[0][1]
-    first = _split(rows[0][1], comma)
+    sep = _separator(rows[0][1])
+    cells_of = [_split(ln, sep) for _, ln in rows]
+    while all(c and c[-1] == "" for c in cells_of):  # every line ends in a separator
+        cells_of = [c[:-1] for c in cells_of]
+    first = cells_of[0]
 
     def numeric(c: str) -> bool:
         try:
@@ -130,7 +154,7 @@ def read_table(
             raise TrackerFileError(
                 f"{p}: column(s) {dup} appear twice in the header", fix="give every column once"
             )
-        data = rows[1:]
+        data, cells_of = rows[1:], cells_of[1:]
     else:
         cols = tuple(f"c{i + 1}" for i in range(len(first)))
         data = rows
@@ -139,8 +163,7 @@ def read_table(
     vals = np.full((len(data), len(cols)), np.nan)
     is_text = [has_header and c in text_columns for c in cols]
     texts: dict[str, list[str]] = {c: [] for c, t in zip(cols, is_text, strict=True) if t}
-    for r, (line_no, ln) in enumerate(data):
-        cells = _split(ln, comma)
+    for r, ((line_no, _), cells) in enumerate(zip(data, cells_of, strict=True)):
         where = f"{p} row {r + 1} (line {line_no})"
         if len(cells) != len(cols):
             raise TrackerFileError(
@@ -226,18 +249,28 @@ def _joint_names(prefix: str, n: int) -> list[str]:
 
 
 def _check_joint_columns(table: Table, prefix: str, robot) -> list[str]:
+    """The columns of ``table`` holding ``prefix`` j1..jn in joint order (``J1`` counts as
+    ``j1``: a header's case is a spreadsheet's choice), or else the robot's own joint names
+    (``shoulder_pan_joint``, ... of a URDF: what a ROS ``joint_states`` export names them)."""
+    k = len(prefix) + 1
+    by_name = {c.lower(): c for c in table.columns}
     present = sorted(
-        (c for c in table.columns if c.startswith(prefix + "j") and c[len(prefix) + 1 :].isdigit()),
-        key=lambda c: int(c[len(prefix) + 1 :]),
+        (c for c in by_name if c.startswith(prefix + "j") and c[k:].isdigit()),
+        key=lambda c: int(c[k:]),
     )
     want = _joint_names(prefix, robot.n)
+    named = [prefix + str(j).lower() for j in getattr(robot, "joint_names", ())]
+    if present != want and len(named) == robot.n and all(c in by_name for c in named):
+        return [by_name[c] for c in named]  # the robot's own joint names (a URDF's, ROS's)
     if present != want:
         raise TrackerFileError(
             f"{table.path}: {len(present)} joint columns ({', '.join(present) or 'none'}) do "
             f"not match robot {robot.name}, which has {robot.n} joints ({', '.join(want)})",
-            fix=f"give exactly the columns {', '.join(want)} (or choose the right --robot)",
+            fix=f"give exactly the columns {', '.join(want)} (or the robot's joint names "
+            f"{', '.join(prefix + j for j in getattr(robot, 'joint_names', ()))}; or choose "
+            "the right --robot)",
         )
-    return want
+    return [by_name[c] for c in want]
 
 
 def _require(table: Table, cols: tuple[str, ...], layout: str) -> None:

@@ -100,6 +100,12 @@ class Board(Target):
         usually means a misdetection)."""
         return 6
 
+    @property
+    def whole_grid(self) -> bool:
+        """True when the detector finds every feature of the board or none (a chessboard, a
+        circles grid), False when it finds any subset (ChArUco, AprilGrid)."""
+        return False
+
     @cached_property
     def _lookup(self) -> dict[int, int]:
         ids, _ = self.layout()
@@ -173,6 +179,10 @@ class Chessboard(Board):
                     img[y0 : y0 + sq_px, x0 : x0 + sq_px] = 0
         return _image(img, m_px, ppm)
 
+    @property
+    def whole_grid(self) -> bool:
+        return True  # detect_chessboard: all inner corners or none
+
     def detect(self, image: np.ndarray) -> Features:
         return detect_chessboard(image, self.inner_corners)
 
@@ -239,6 +249,10 @@ class CirclesGrid(Board):
     @property
     def min_features(self) -> int:
         return self.n_features  # the detector finds the whole grid or nothing
+
+    @property
+    def whole_grid(self) -> bool:
+        return True
 
     def image(self, px_per_mm: float = 8.0, margin_mm: float | None = None) -> BoardImage:
         s_px, ppm = _ppm(self.spacing_m * 1000.0, px_per_mm)

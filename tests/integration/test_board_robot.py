@@ -25,7 +25,7 @@ from calib.mcpc import nominal_mcpc
 from calib.robot_def import load_robot
 from calib.target import Charuco
 from calib.transforms import inv_pose
-from scenarios.board_montecarlo import board_pose, board_views
+from scenarios.board_views import board_pose, board_views
 from scenarios.config import load_scenario
 from scenarios.pipeline import run_acquire
 

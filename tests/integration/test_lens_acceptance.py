@@ -23,6 +23,7 @@ from scenarios.pipeline import run_acquire, run_calibrate, run_report
 
 LENS_TOML = Path(__file__).resolve().parents[2] / "scenarios" / "lens.toml"
 MONO_TOML = LENS_TOML.with_name("mono.toml")
+MONO_CHARUCO_TOML = LENS_TOML.with_name("mono-charuco.toml")
 
 
 def _z_scores(tmp_path: Path, render: bool, config: Path = LENS_TOML) -> dict[str, float]:
@@ -102,28 +103,33 @@ def test_mono_self_calibration_frees_the_lens():
     assert np.all(np.abs(z) < 3.0)
 
 
-@pytest.mark.slow
-def test_mono_monte_carlo_tool_tip_within_1_3x_the_bound():
-    """scenarios/mono.toml (one camera + the field), 10 analytic draws (the 30-draw table in
-    docs/cameras.md: 1.115x). Measured on these 10: 1.242."""
+def _acceptance_monte_carlo(config: Path, label: str) -> None:
+    """30 analytic draws of ``config`` (the issue's acceptance): the joint tool tip within
+    1.3x the bound and every free camera parameter's error RMS / bound below 1.5 (an efficient
+    estimator's 95 % range over 30 draws is 0.75 .. 1.25)."""
     from scenarios.montecarlo import run_montecarlo
 
-    rows, summary = run_montecarlo(10, None, jobs=2, quiet=True, config=MONO_TOML)
+    rows, s = run_montecarlo(30, None, jobs=2, quiet=True, config=config)
     assert all(r["status"] == "ok" for r in rows), [r["status"] for r in rows]
-    ratio = summary["joint"]["tool_tip_ratio"]
-    print(f"\nmono Monte Carlo (10 draws): joint tool-tip ratio {ratio:.3f}")
+    ratio = s["joint"]["tool_tip_ratio"]
+    print(f"\n{label} Monte Carlo (30 draws): joint tool-tip ratio {ratio:.3f}, cameras",
+          {k: round(v, 2) for k, v in s["camera_ratios"].items()})  # fmt: skip
     assert ratio <= 1.3
+    assert set(s["camera_ratios"]) == set(load_scenario(config).camera.free)
+    assert all(v < 1.5 for v in s["camera_ratios"].values()), s["camera_ratios"]
+
+
+@pytest.mark.slow
+def test_mono_monte_carlo_tool_tip_within_1_3x_the_bound():
+    """scenarios/mono.toml (one camera + the field; the table in docs/cameras.md): measured
+    1.115, camera ratios 0.85 .. 0.99."""
+    _acceptance_monte_carlo(MONO_TOML, "mono")
 
 
 @pytest.mark.slow
 def test_mono_charuco_monte_carlo_tool_tip_within_1_3x_the_bound():
-    """One camera + ChArUco (scenarios/board_montecarlo.py), 10 draws (the 30-draw table in
-    docs/cameras.md: 0.982x); every camera parameter's error RMS / bound below 1.5. Measured
-    on these 10: 0.945, camera ratios 0.73 .. 1.35."""
-    from scenarios.board_montecarlo import run_board_montecarlo
-
-    r = run_board_montecarlo(10, jobs=2)
-    print(f"\nChArUco Monte Carlo (10 draws): tool tip {r['tip_ratio']:.3f}, cameras",
-          {k: round(v, 2) for k, v in r["camera_ratio"].items()})  # fmt: skip
-    assert r["tip_ratio"] <= 1.3
-    assert all(v < 1.5 for v in r["camera_ratio"].values()), r["camera_ratio"]
+    """scenarios/mono-charuco.toml (one camera + ChArUco, the scenario's own board and camera)
+    through ``selfcal montecarlo``'s draws on the analytic path against the board route's
+    Cramer-Rao bound (:mod:`scenarios.montecarlo_board`; the table in docs/cameras.md):
+    measured 0.901, camera ratios 0.74 .. 1.11."""
+    _acceptance_monte_carlo(MONO_CHARUCO_TOML, "ChArUco")

@@ -42,12 +42,13 @@ from calib.camera import Fisheye, Pinhole
 from calib.choices import DEFAULT_FREE
 from calib.errors import InputError
 from calib.export import deploy_chain, nominal_deployed_params
-from calib.identify import IdentificationWarning
+from calib.identify import IdentificationError, IdentificationWarning
 from calib.import_dataset import CameraImages, ImportError_, TargetNotFoundWarning, import_dataset
 from calib.io.board_calibration import read_board_calibration, write_board_calibration
 from calib.io.dataset import Dataset
 from calib.io.tracker import TrackerFileError
 from calib.robot_def import load_robot
+from calib.scale_check import ScaleWarning
 from calib.transforms import inv_pose, make_pose
 from scenarios.board_run import summary
 from scenarios.cli import main
@@ -162,6 +163,59 @@ def test_joint_rows_matched_through_the_image_column(lab, tmp_path):
     b = import_dataset("kr6-r900", cams, shuffled, "rad", root / "board.toml", tmp_path / "b")
     np.testing.assert_array_equal(a.planned_joints_deg, b.planned_joints_deg[::-1])
     assert (tmp_path / "b" / "sources.csv").read_text().splitlines()[1].endswith("img_019.png")
+
+
+def test_images_in_run_folders_match_the_rows_in_path_order(lab, tmp_path):
+    """Two recording sessions in run1/ and run2/, each counting from img_000: the rows follow
+    the folders, then the names (a pattern of DIR/*/*.png or DIR/**/*.png); the image column
+    cannot tell such files apart and says so."""
+    root, (ci, cj), _ = lab
+    files = sorted(ci.glob("*.png"))
+    for k, f in enumerate(files):
+        run = tmp_path / "shots" / ("run1" if k < 12 else "run2")
+        run.mkdir(parents=True, exist_ok=True)
+        shutil.copy(f, run / f"img_{k % 12}.png")  # unpadded, the same names in both runs
+    flat = CameraImages.parse(f"cam0={ci}/*.png")
+    for pattern in ("*/*.png", "**/*.png"):
+        runs = CameraImages.parse(f"cam0={tmp_path / 'shots'}/{pattern}")
+        assert [f.read_bytes() for f in runs.files] == [f.read_bytes() for f in flat.files]
+    lines = cj.read_text().splitlines()
+    named = tmp_path / "named.csv"
+    named.write_text("\n".join(["image," + lines[0]] + [f"img_{k % 12}.png,{r}" for k, r in
+                                                         enumerate(lines[1:])]) + "\n")  # fmt: skip
+    with pytest.raises(
+        ImportError_,
+        match=r"file name\(s\) \['img_0.png', 'img_1.png', 'img_2.png'\] appear in more than one folder",
+    ):
+        import_dataset("kr6-r900", [runs], named, "rad", root / "board.toml", tmp_path / "o")
+
+
+def test_a_board_declared_at_the_wrong_size_is_named_with_the_size_that_fits(lab, tmp_path):
+    """The board printed 3 % larger than its file says: every image still fits to the noise
+    floor (the link lengths take the scale), so only the arm's nominal size can tell."""
+    root, (ci, cj), _ = lab
+    (tmp_path / "board.toml").write_text(TARGET_TOML.replace("15.0", "14.55"))
+    cams = [CameraImages.parse(f"cam0={ci}/*.png")]
+    import_dataset("kr6-r900", cams, cj, "rad", tmp_path / "board.toml", tmp_path / "ds")
+    with pytest.warns(ScaleWarning, match=r"3\.0 % smaller .*square_mm = 14.99 would match"):
+        res = calibrate_board_dataset(tmp_path / "ds")
+    assert res.reprojection_rms_px < 0.35  # the fit itself shows nothing (0.122 px)
+    assert any("square_mm = 14.99 would match the arm" in w for w in res.warnings)
+
+
+def test_joints_rows_a_row_off_their_images_are_named(lab, tmp_path):
+    """The log starts one row late and ends with a row of no image: every count matches, no
+    robot fits, and the error says which pairing would."""
+    root, (ci, cj), _ = lab
+    lines = cj.read_text().splitlines()
+    late = tmp_path / "late.csv"
+    late.write_text("\n".join([lines[0], *lines[2:], lines[1]]) + "\n")
+    cams = [CameraImages.parse(f"cam0={ci}/*.png")]
+    import_dataset("kr6-r900", cams, late, "rad", root / "board.toml", tmp_path / "ds")
+    with pytest.raises(
+        IdentificationError, match=r"shifted by -1: row i-1 of .*joints.csv with image i"
+    ):
+        calibrate_board_dataset(tmp_path / "ds")
 
 
 def test_import_checks_counts_units_and_sizes(lab, tmp_path):

@@ -12,7 +12,9 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import shutil
+import warnings
 
 import numpy as np
 import pytest
@@ -21,6 +23,7 @@ from analytic_dataset import plan_same_postures
 from calib.calibrate import CalibrationError, NoMarkersWarning, calibrate, detect_dataset
 from calib.io.calibration import read_calibration
 from calib.io.dataset import Dataset, DatasetError
+from calib.scale_check import ScaleWarning
 from calib.trajectory import DegenerateTrajectoryError
 from scenarios.cli import cmd_report
 from scenarios.config import load_scenario
@@ -229,3 +232,23 @@ def test_degenerate_trajectory(small_analytic, tmp_path):
     plan_same_postures(ds, rows)
     with pytest.raises(DegenerateTrajectoryError, match="one point"):
         calibrate(ds)
+
+
+def test_a_known_distance_declared_wrong_is_named(small_analytic, tmp_path):
+    """The distance between the scale markers declared 3 % long: the reconstruction, the
+    kinematic fit and the reprojection take the scale without a sign, only the arm's nominal
+    size tells (calib/scale_check.py)."""
+    ds = tmp_path / "long"
+    shutil.copytree(small_analytic, ds)
+    info = json.loads((ds / "dataset.json").read_text())
+    d = info["target"]["scale_length_mm"]
+    info["target"]["scale_length_mm"] = d * 1.03
+    (ds / "dataset.json").write_text(json.dumps(info))
+    with pytest.warns(ScaleWarning, match=r"measures the camera's motion 3\.\d % larger"):
+        res = calibrate(ds, method="two-stage")
+    (text,) = [w for w in res.warnings if "would match the arm" in w]
+    fix = float(re.search(r"scale_length_mm = ([\d.]+) would match", text)[1])
+    assert fix == pytest.approx(d, rel=0.012)  # the arm's own errors: measured 0.6 % off
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ScaleWarning)  # the distance as declared: no warning
+        calibrate(small_analytic, method="two-stage")

@@ -83,6 +83,33 @@ def test_one_camera_run_records_one_camera_entity(tmp_path):
     assert _camera_entities(rrd) == {"estimate": {"left"}, "truth": {"left"}}
 
 
+@pytest.mark.slow  # default tier budget (~90 s): ~4 s
+def test_board_run_records_its_cameras_and_the_board(tmp_path):
+    """`selfcal run scenarios/mono-charuco.toml --rrd X.rrd` (the analytic path, fewer poses):
+    the recording of the board route holds the board's points and outline, one estimated and
+    one true camera entity (its features under the estimate), the robot and the errors."""
+    from rerun.chunk import RrdReader
+
+    text = (REPO / "scenarios" / "mono-charuco.toml").read_text()
+    toml = tmp_path / "mono-charuco.toml"
+    text = text.replace("../models/", f"{REPO}/models/")
+    text = text.replace("[trajectory]\n", "[trajectory]\nposes = 15\n")
+    toml.write_text(text + "\n[validation]\nposes = 5\n\n[noise]\nrender = false\n")
+    rrd = tmp_path / "board.rrd"
+    assert main(["run", str(toml), "--out", str(tmp_path / "run"), "--rrd", str(rrd)]) == 0
+    assert _camera_entities(rrd) == {"estimate": {"left"}, "truth": {"left"}}
+    paths = {str(c.entity_path) for c in RrdReader(rrd).stream().to_chunks()}
+    for p in (
+        "/world/board/points",
+        "/world/board/outline",
+        "/world/estimate/cam_left/image/corners",
+        "/errors/camera_vs_truth/position_mm",
+        "/errors/reprojection_rms_px",
+    ):
+        assert p in paths, (p, sorted(paths))
+    assert any(p.startswith("/world/robot/") for p in paths)
+
+
 def test_record_needs_a_calibration(tmp_path, small_run):
     from calib.io.dataset import DatasetError
 

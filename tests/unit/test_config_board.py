@@ -46,7 +46,6 @@ def test_the_path_is_relative_to_the_scenario_file(tmp_path):
         ("field.toml", "", ["s.toml", "target.board", "ArUco field, not a board"]),
         ("bad.toml", "", ["s.toml", "target.board", "bad.toml", "square_mm"]),
         ("unknown.toml", "", ["s.toml", "target.board", "unknown.toml", "spacing_mm"]),
-        ("good.toml", "[noise]\nrender = false\n", ["target.board", "noise.render = false"]),
     ],
 )
 def test_a_bad_board_names_the_scenario_file_and_the_key(tmp_path, target, extra, words):
@@ -61,27 +60,6 @@ def test_a_bad_board_names_the_scenario_file_and_the_key(tmp_path, target, extra
     text = str(e.value) + str(e.value.fix or "")
     for w in words:
         assert w in text, (w, text)
-
-
-@pytest.mark.parametrize(
-    "argv, words",
-    [
-        (["run", "SCENARIO", "--rrd", "x.rrd"], ["--rrd", "declares a board"]),
-        (["montecarlo", "SCENARIO", "--draws", "2"], ["declares a board", "board_montecarlo"]),
-    ],
-)
-def test_commands_that_draw_the_field_refuse_a_board(argv, words, tmp_path, capsys):
-    """Rerun recordings and `selfcal montecarlo` know the marker field only: a board scenario
-    is refused before anything runs (exit 2, the message names the way out)."""
-    from scenarios.cli import main
-
-    path = str(ROOT / "scenarios" / "mono-charuco.toml")
-    argv = [path if a == "SCENARIO" else a for a in argv] + ["--out", str(tmp_path / "out")]
-    assert main(argv) == 2
-    err = capsys.readouterr().err
-    for w in words:
-        assert w in err, (w, err)
-    assert not (tmp_path / "out").exists()
 
 
 def test_the_field_keeps_the_digest_of_datasets_made_before_the_key():

@@ -63,3 +63,59 @@ def test_a_short_row_is_named(tmp_path):
     p = write(tmp_path, "j1,j2,j3,j4,j5,j6,image\n35,-77,113,0,54,0,a.png\n35,-77,113,0,54,b.png\n")
     with pytest.raises(TrackerFileError, match="row 2 \\(line 3\\): 6 cells"):
         read_joint_rows(p, ROBOT, "deg")
+
+
+def _csv(rows, sep=",", head=None, quote=False, end=""):
+    q = '"' if quote else ""
+    names = head or [f"j{k + 1}" for k in range(6)]
+    lines = [sep.join(f"{q}{n}{q}" for n in names) + end]
+    lines += [sep.join(f"{v:g}" for v in r) + end for r in rows]
+    return "\n".join(lines) + "\n"
+
+
+@pytest.mark.parametrize(
+    "text",
+    [
+        pytest.param("\ufeff" + _csv(Q_DEG), id="excel-utf8-bom"),
+        pytest.param(_csv(Q_DEG).replace("\n", "\r\n"), id="crlf"),
+        pytest.param(_csv(Q_DEG, sep=";"), id="semicolons"),
+        pytest.param(_csv(Q_DEG, quote=True), id="quoted-header"),
+        pytest.param(_csv(Q_DEG, end=","), id="trailing-separator"),
+        pytest.param(_csv(Q_DEG, head=[f"J{k + 1}" for k in range(6)]), id="upper-case-J"),
+        pytest.param(
+            '"","j1","j2","j3","j4","j5","j6"\n'
+            + "".join(
+                f'"{k + 1}",' + ",".join(f"{v:g}" for v in r) + "\n" for k, r in enumerate(Q_DEG)
+            ),  # fmt: skip
+            id="r-write-csv-row-names",
+        ),
+    ],
+)
+def test_spreadsheet_and_r_exports_read_as_written(tmp_path, text):
+    """What spreadsheets and R write for a table of joints reads as the numbers in it."""
+    p = tmp_path / "joints.csv"
+    p.write_bytes(text.encode("utf-8"))
+    np.testing.assert_allclose(read_joint_rows(p, ROBOT, "deg").q, np.radians(Q_DEG), rtol=1e-12)
+
+
+def test_decimal_commas_and_other_encodings_are_named(tmp_path):
+    p = write(tmp_path, _csv(Q_DEG + 0.25, sep=";").replace(".", ","))
+    with pytest.raises(TrackerFileError, match=r"joints.csv row 1 .*not a number.*decimal sep"):
+        read_joint_rows(p, ROBOT, "deg")
+    p.write_bytes(_csv(Q_DEG).encode("utf-16"))
+    with pytest.raises(
+        TrackerFileError, match=r"joints.csv: not UTF-8 text.*save the file as UTF-8"
+    ):
+        read_joint_rows(p, ROBOT, "deg")
+
+
+def test_columns_named_by_the_robots_joint_names(tmp_path):
+    """A URDF arm's joints file as a ROS joint_states export names them, in any order."""
+    names = list(ROBOT.joint_names)
+    assert names != [f"j{k + 1}" for k in range(6)]
+    order = [2, 0, 1, 5, 4, 3]
+    text = _csv(Q_DEG[:, order], head=[names[k].upper() for k in order])
+    got = read_joint_rows(write(tmp_path, text), ROBOT, "deg")
+    np.testing.assert_allclose(got.q, np.radians(Q_DEG), rtol=1e-15)
+    with pytest.raises(TrackerFileError, match=f"or the robot's joint names {names[0]}, "):
+        read_joint_rows(write(tmp_path, _csv(Q_DEG, head=names[:5] + ["x"])), ROBOT, "deg")

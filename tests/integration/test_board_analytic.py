@@ -1,0 +1,193 @@
+"""A board scenario on the analytic path (``[noise] render = false``): the board's features
+projected with the true camera plus pixel noise (:func:`sim.analytic.project_board`), stored in
+``detections.csv`` (one row per feature), calibrated by the board route and reported against
+truth.json with the Cramer-Rao bounds of :mod:`calib.board_bounds`."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from calib.io.board_calibration import read_board_calibration
+from calib.io.dataset import Dataset, DatasetError
+from calib.io.truth import read_truth
+from calib.mcpc import minimal_indices
+from calib.target.boards import Board
+from calib.transforms import inv_pose
+from scenarios.config import load_scenario, scenario_board
+from scenarios.pipeline import run_all
+from sim.analytic import project_board
+
+MONO_CHARUCO = Path(__file__).resolve().parents[2] / "scenarios" / "mono-charuco.toml"
+ANALYTIC = {"noise": {"render": False}, "trajectory": {"poses": 15}}
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("board-analytic") / "run"
+    s = load_scenario(MONO_CHARUCO, ANALYTIC)
+    return s, out, run_all(s, out, quiet=True, figures=False)
+
+
+def test_the_stored_features_are_the_true_projections_plus_the_scenario_noise(run):
+    """Every stored feature against the board's point projected with truth.json's camera and
+    pose: the residual's std is the scenario's pixel_sigma (0.5 px; 3 sigma of the sample
+    std's spread) and its mean zero."""
+    s, out, _ = run
+    ds, truth = Dataset.open(out), read_truth(out / "truth.json")
+    board = scenario_board(s)
+    assert isinstance(board, Board)
+    feats = ds.read_features()
+    e = []
+    for fr in truth.frames:
+        got = feats.get((fr.frame_index, "left"), {})
+        assert len(got) >= board.min_features
+        T = inv_pose(fr.T_world_cam_left) @ truth.T_world_board
+        ids = np.array(sorted(got))
+        X = board.points(ids) @ T[:3, :3].T + T[:3, 3]
+        e.append(np.array([got[i][0] for i in ids]) - truth.intrinsics_left.project(X))
+    e = np.concatenate(e)
+    sigma = s.noise.pixel_sigma
+    assert abs(e.std() - sigma) < 3 * sigma / np.sqrt(2 * e.size)
+    assert np.abs(e.mean(axis=0)).max() < 3 * sigma / np.sqrt(len(e))
+
+
+def test_the_report_compares_with_the_truth_and_the_bound(run):
+    """The analytic board run reaches the truth: the tool tip well below nominal and within
+    3x its Cramer-Rao bound (one draw), each camera parameter within 3 sigma; the bound of
+    every free camera parameter is the refinement's own std (the same Fisher information, at
+    the estimate, with the residuals' sigma: within 2 %)."""
+    s, out, res = run
+    rep = res["report"]
+    v = rep["validation"]
+    bound = v["tool_tip_bound_mm"]
+    assert bound is not None and 0 < bound
+    cal_rms = v["tool_tip_error_mm"]["calibrated"]["rms"]
+    assert cal_rms < 3 * bound and cal_rms < 0.5 * v["tool_tip_error_mm"]["nominal"]["rms"]
+    for name, c in rep["camera"].items():
+        assert abs(c["z"]) < 3.0, (name, c)
+        assert c["bound"] == pytest.approx(c["std"], rel=0.02), (name, c)
+    cal = read_board_calibration(out)
+    assert cal.bounds is not None and cal.bounds_error is None
+    assert cal.bounds.tool_tip_rms_mm.bound == pytest.approx(bound)
+    assert cal.bounds.pixel_sigma_px == pytest.approx(s.noise.pixel_sigma, rel=0.1)
+    assert len(cal.bounds.parameters) == len(minimal_indices(cal.model.joint_types))
+    assert all(p.bound is not None and p.bound > 0 for p in cal.bounds.parameters)
+    assert all(row["bound"] > 0 for row in rep["parameters"])  # the report's table, mm or deg
+    assert "Cramér-Rao bound" in (out / "report.md").read_text()
+
+
+def test_a_board_feature_row_with_the_field_columns_is_named(run, tmp_path):
+    """detections.csv of a board holds one row per feature; a row of the marker field's six
+    columns is an error naming the file and the row."""
+    _, out, _ = run
+    import shutil
+
+    copy = tmp_path / "copy"
+    shutil.copytree(out, copy)
+    path = copy / "detections.csv"
+    path.write_text(path.read_text() + "0,left,3,0,1.0,2.0\n")
+    with pytest.raises(DatasetError, match="detections.csv: malformed row"):
+        Dataset.open(copy).read_features()
+    with pytest.raises(DatasetError, match="board's features"):
+        Dataset.open(copy).read_detections()
+
+
+def test_a_board_seen_from_behind_or_cut_below_its_minimum_is_not_seen():
+    """The visibility rule of the analytic path: the board's printed face must face the camera;
+    a view with fewer than the board's min_features features is empty."""
+    s = load_scenario(MONO_CHARUCO)
+    board = scenario_board(s)
+    assert isinstance(board, Board)
+    cam = s.camera.true_model()
+    _, pts = board.layout()
+    centre = pts.mean(axis=0)
+    T_world_board = np.eye(4)
+    T_world_board[:3, :3] = np.diag([1.0, -1.0, -1.0])  # printed face up (board z down)
+    # a camera 0.4 m above the centre looking down (OpenCV z down), then one below the table
+    above = np.eye(4)
+    above[:3, :3] = np.diag([1.0, -1.0, -1.0])
+    above[:3, 3] = T_world_board[:3, :3] @ centre + [0, 0, 0.4]
+    seen = project_board(above, cam, board, T_world_board)
+    assert len(seen) == board.n_features
+    below = above.copy()
+    below[:3, :3] = np.diag([1.0, 1.0, 1.0])
+    below[2, 3] = -0.4
+    assert project_board(below, cam, board, T_world_board) == {}
+    far_off = above.copy()
+    far_off[:3, 3] += [0.3, 0.0, 0.0]  # the board almost out of the image
+    got = project_board(far_off, cam, board, T_world_board)
+    assert got == {} or len(got) >= board.min_features
+
+
+@pytest.mark.slow  # two draws and a resume: ~5 s
+def test_selfcal_montecarlo_runs_a_board_scenario_and_resumes(tmp_path, capsys):
+    """``selfcal montecarlo`` of a board scenario: the draws run the board route on the
+    analytic path against its bound (runs.csv, summary.json with both methods and the camera
+    ratios, summary.md), and the same command again runs no draw (the journal)."""
+    import json
+
+    from scenarios.cli import main
+
+    out = tmp_path / "mc"
+    argv = ["montecarlo", str(MONO_CHARUCO), "--draws", "2", "--poses", "15", "--jobs", "1",
+            "--out", str(out), "--quiet"]  # fmt: skip
+    assert main(argv) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert s["ok"] == 2 and s["failed"] == 0
+    assert s["tool_tip_bound_mm"] > 0
+    assert 0 < s["joint"]["tool_tip_ratio"] < 3.0  # two draws: a loose check
+    assert s["joint"]["tool_tip_rms_mm"] < s["two_stage"]["tool_tip_rms_mm"]
+    assert set(s["camera_ratios"]) == set(load_scenario(MONO_CHARUCO).camera.free)
+    assert "Camera parameters of the joint method" in (out / "summary.md").read_text()
+    assert len((out / "runs.csv").read_text().splitlines()) == 3
+    capsys.readouterr()
+    assert main([a for a in argv if a != "--quiet"]) == 0
+    assert "2 of 2 draws done before" in capsys.readouterr().err
+
+
+@pytest.mark.slow  # one stereo draw: ~3 s
+def test_a_stereo_board_draw_records_both_cameras_against_the_rig_bound(tmp_path):
+    """A Monte Carlo draw of the stereo pair photographing the board (``camera.count = 2``):
+    both cameras' free parameters get errors and bounds (the further camera's as right_fx ...),
+    and the rig's tool-tip bound is below the one camera's (more data, one chain)."""
+    from scenarios.montecarlo import draw_one
+
+    text = MONO_CHARUCO.read_text().replace("../models/", f"{MONO_CHARUCO.parents[1]}/models/")
+    rows = {}
+    for count in (1, 2):
+        toml = tmp_path / f"board{count}.toml"
+        toml.write_text(text.replace("count = 1", f"count = {count}"))
+        rows[count] = draw_one({"poses": 15, "pixel_sigma": 0.5, "seed": 1, "traj_seed": 1,
+                                "perturb_seed": 1, "dither": True, "config": str(toml)})  # fmt: skip
+        assert rows[count]["status"] == "ok", rows[count]["status"]
+    free = load_scenario(MONO_CHARUCO).camera.free
+    r = rows[2]
+    for name in free:
+        for pre in ("", "right_"):
+            assert np.isfinite(r[f"joint_cam_err_{pre}{name}"]) and r[f"bound_cam_{pre}{name}"] > 0
+    assert not any(k.startswith("bound_cam_right_") for k in rows[1])
+    assert r["bound_tip_rms_mm"] < rows[1]["bound_tip_rms_mm"]
+
+
+def test_a_whole_grid_board_is_seen_whole_or_not_at_all():
+    """A chessboard's detector finds all inner corners or none (``whole_grid``): a view that
+    cuts the board gives nothing on the analytic path, where a ChArUco board of the same view
+    gives the part in the image."""
+    from calib.target import Charuco, Chessboard
+
+    cam = load_scenario(MONO_CHARUCO).camera.true_model()
+    T_world_board = np.eye(4)
+    T_world_board[:3, :3] = np.diag([1.0, -1.0, -1.0])
+    T_cam = np.eye(4)
+    T_cam[:3, :3] = np.diag([1.0, -1.0, -1.0])
+    T_cam[:3, 3] = [0.0, 0.0, 0.25]  # above the board's origin corner: about a quarter in view
+    chess, charuco = Chessboard((11, 8), 0.02), Charuco((11, 8), 0.02, 0.015, "DICT_5X5_100")
+    assert chess.whole_grid and not charuco.whole_grid
+    part = project_board(T_cam, cam, charuco, T_world_board)
+    assert charuco.min_features <= len(part) < charuco.n_features
+    assert project_board(T_cam, cam, chess, T_world_board) == {}
+    T_cam[:3, 3] = [0.12, -0.09, 0.6]  # above the centre, far enough to see it all
+    assert len(project_board(T_cam, cam, chess, T_world_board)) == chess.n_features

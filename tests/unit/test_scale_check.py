@@ -1,0 +1,72 @@
+"""A target declared at the wrong size is caught (calib/scale_check.py): the camera's motion as
+the target measures it against the nominal arm's, in scale."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from calib.kinematics import fk_tool
+from calib.mcpc import nominal_mcpc
+from calib.robot_def import load_robot
+from calib.row_shift import row_shift_misfits, shift_note
+from calib.scale_check import SCALE_TOL, motion_scale, scale_warning, scaled_sizes
+from calib.transforms import make_pose, pose_from_vec
+
+ROBOT = load_robot("kr6-r900")
+
+
+def camera_poses(scale: float, seed: int = 0, m: int = 20):
+    """Camera poses in a target frame of the KR 6 with its links up to 1 mm / 0.5 deg off the
+    nominal, as a target of ``scale`` times the declared size measures them."""
+    rng = np.random.default_rng(seed)
+    nominal = nominal_mcpc(ROBOT)
+    p = nominal.params.copy()
+    p[:, :3] += np.radians(rng.uniform(-0.5, 0.5, p[:, :3].shape))
+    p[:, 3:] += rng.uniform(-1e-3, 1e-3, p[:, 3:].shape)
+    actual = nominal.with_params(p)
+    q = ROBOT.home + rng.uniform(-0.4, 0.4, (m, ROBOT.n))
+    B = pose_from_vec(np.r_[0.1, -0.2, 0.3, 0.8, -0.1, -0.4])
+    C = pose_from_vec(np.r_[0.05, 0.02, -0.1, 0.01, 0.03, 0.08])
+    T = B @ fk_tool(actual, q) @ C
+    T[:, :3, 3] /= scale
+    return nominal, q, T, C
+
+
+@pytest.mark.parametrize("scale", [1.03, 0.97, 1.05])
+def test_a_target_of_another_size_is_measured(scale):
+    nominal, q, T, C = camera_poses(scale)
+    ms = motion_scale(nominal, q, T, make_pose(np.eye(3), C[:3, 3] + 0.01))  # a rough mount
+    assert ms.scale == pytest.approx(scale, rel=6e-3)  # the arm's errors: within 4e-3 (seeds 0-5)
+    assert ms.std < 2e-3 and ms.postures == 20
+    text = scale_warning(ms, "kr6-r900", "the board (square_mm = 15)", "square_mm = 15.45")
+    assert text is not None and f"{abs(ms.scale - 1) * 100:.1f} %" in text
+    assert ("smaller" if scale > 1 else "larger") in text and "square_mm = 15.45" in text
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_the_right_size_raises_nothing(seed):
+    nominal, q, T, C = camera_poses(1.0, seed)
+    ms = motion_scale(nominal, q, T, C)
+    assert abs(ms.scale - 1) < SCALE_TOL / 3  # measured up to 4.1e-3 over seeds 0-5
+    assert scale_warning(ms, "kr6-r900", "the board", "") is None
+
+
+def test_scaled_sizes_name_every_length_of_the_target():
+    doc = {"type": "charuco", "square_mm": 20.0, "marker_mm": 15.0, "inner_corners": [11, 8]}
+    assert scaled_sizes(doc, 1.03) == "square_mm = 20.6, marker_mm = 15.45"
+
+
+@pytest.mark.parametrize("k", [1, -1, 2])
+def test_joints_rows_off_their_images_are_found(k):
+    """Camera pose i paired with joints row i + k: the true pairing fits the nominal arm to its
+    kinematic errors (~1 mm), the rows as given by far more."""
+    nominal, q, T, C = camera_poses(1.0)
+    q_file = np.roll(q, k, axis=0)  # row i of the file is row i - k of the truth
+    T[3] = np.nan  # an image without the board
+    misfits = row_shift_misfits(nominal, q_file, T, C)
+    assert set(misfits) == {-2, -1, 0, 1, 2}
+    assert min(misfits, key=misfits.get) == k and misfits[k] < 3e-3  # measured 1.2 mm
+    note = shift_note(misfits, "joints.csv")
+    assert note is not None and f"shifted by {k:+d}: row i{k:+d} of joints.csv" in note
+    assert shift_note(row_shift_misfits(nominal, q, T, C), "joints.csv") is None
