@@ -17,7 +17,7 @@ import functools
 import os
 import time
 import warnings
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import NamedTuple
@@ -28,14 +28,13 @@ from calib.camera import (
     CameraSet,
     LensCamera,
     Pinhole,
-    camera_model,
-    centered_principal_point,
     first_camera,
     opencv_values,
 )
 from calib.camera.undistort import Undistorter
 from calib.errors import EstimationError, InitialCameraWarning, SelfCalWarning
 from calib.estimation.selfcal_errors import SelfCalibrationError
+from calib.field_cameras import dataset_camera, initial_cameras, lens_cameras, models_of
 from calib.frame_checks import check_distinct_frames, check_read_back
 from calib.identify import identify
 from calib.io.calibration import CalibrationResult
@@ -69,6 +68,7 @@ __all__ = [
     "calibrate_detailed",
     "CalibrationOutput",
     "METHODS",
+    "dataset_camera",
 ]
 
 MIN_POSTURES = 6
@@ -144,7 +144,7 @@ def detect_dataset(
     """
     if ds.info.observation == "detections":
         return MarkerDetections(ds.read_detections(), ())
-    screen = not any(isinstance(c, LensCamera) for c in _models(dataset_camera(ds.info)))
+    screen = not any(isinstance(c, LensCamera) for c in models_of(dataset_camera(ds.info)))
     out: Detections = {}
     empty: list[str] = []
     noise: list[float] = []
@@ -332,11 +332,11 @@ def calibrate_detailed(
         # x-axis is far from parallel to joint 1's axis (MCPC's base parameters are singular there).
         ref_scores=np.abs(T_nom[:, :3, 0] @ _joint1_axis(nominal)),
     )
-    initial = _initial(ds.info, camera_stage.keywords["camera"])
+    initial = initial_cameras(ds.info, camera_stage.keywords["camera"])
     with _stage(progress, "camera stage (bundle adjustment)") as st:
         sc, start = _camera_stage(camera_stage, obs, initial)
         st(f"reprojection RMS {sc.rms_px:.3f} px")
-    lenses = _lenses(sc, ds.info.cameras)
+    lenses = lens_cameras(sc, ds.info.cameras)
     if lenses and ds.info.observation == "images":
         # the lens bends the marker edges: detect again through the estimated lens, refit
         with _stage(progress, "camera stage again through the estimated lens") as st:
@@ -442,17 +442,6 @@ def fit_cost(sc: SelfCalibrationResult, threshold_px: float = 3.0) -> float:
     return float(np.sum(np.minimum(np.nan_to_num(e2, nan=np.inf), threshold_px**2)))
 
 
-def _initial(info: DatasetInfo, camera: Pinhole | CameraSet) -> Pinhole | CameraSet | None:
-    """The dataset's initial camera(s) (a ROS bag's CameraInfo): each camera's own when every
-    camera of a set has one, else the first camera's (for every camera), or None."""
-    first = info.initial_camera(info.cameras[0])
-    if isinstance(camera, CameraSet):
-        own = tuple(info.initial_camera(n) for n in camera.names)
-        if all(c is not None for c in own):
-            return CameraSet(own, camera.names)  # type: ignore[arg-type]
-    return first
-
-
 def _camera_stage(
     stage: Callable[..., SelfCalibrationResult],
     obs: Observations,
@@ -491,33 +480,6 @@ def _camera_stage(
         stacklevel=3,
     )
     return fits["own"], "own"
-
-
-def dataset_camera(info: DatasetInfo) -> Pinhole | CameraSet:
-    """The camera model and free parameters the dataset asks to estimate (values: a centred
-    pinhole of the dataset's resolution, no distortion; the self-calibration sets fx, mu): one
-    model shared by the rig, or -- when ``dataset.json`` gives the cameras their own models or
-    intrinsics (:attr:`calib.io.dataset_info.DatasetInfo.own_intrinsics`) -- a
-    :class:`calib.camera.CameraSet` of each camera's."""
-    W, H = info.resolution
-    cx, cy = centered_principal_point(W, H)
-    names = info.cameras if info.own_intrinsics else info.cameras[:1]
-    cams = tuple(camera_model(m, fx=1.0, mu=1.0, cx=cx, cy=cy, width=W, height=H, free=f)
-                 for m, f in (info.model_of(c) for c in names))  # fmt: skip
-    return cams[0] if len(cams) == 1 else CameraSet(cams, tuple(names))
-
-
-def _models(cameras: Pinhole | CameraSet) -> tuple[Pinhole, ...]:
-    """The models of ``cameras`` (one for a shared camera)."""
-    return cameras.cameras if isinstance(cameras, CameraSet) else (cameras,)  # type: ignore[return-value]
-
-
-def _lenses(sc: SelfCalibrationResult, names: Sequence[str]) -> dict[str, LensCamera]:
-    """The estimated cameras with a lens by camera name (every camera for a shared one)."""
-    if sc.cameras is None:
-        return dict.fromkeys(names, sc.camera) if isinstance(sc.camera, LensCamera) else {}
-    return {n: c for n, c in zip(sc.cameras.names, sc.cameras.cameras, strict=True)
-            if isinstance(c, LensCamera)}  # fmt: skip
 
 
 def _joint1_axis(model: MCPCModel) -> np.ndarray:

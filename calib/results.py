@@ -48,7 +48,7 @@ from calib.io.calibration_blocks import (
 from calib.io.calibration_bounds import (
     BoundParameter,
     Bounds,
-    CameraBound,
+    CameraBounds,
     EstimateBound,
     ToolTipBound,
 )
@@ -378,7 +378,7 @@ def _bounds(
         parameters=tuple(params),
         camera={k: float(v) for k, v in cr.camera_std.items()},
         cameras=tuple(
-            CameraBound(name, {k: float(v) for k, v in d.items()})
+            CameraBounds(name, {k: float(v) for k, v in d.items()})
             for name, d in (cr.cameras_std or {}).items()
         ),
     )

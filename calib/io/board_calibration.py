@@ -31,7 +31,7 @@ import numpy as np
 
 from calib.camera import MODELS, CameraModel, camera_model, lens_names, opencv_values
 from calib.errors import InputError
-from calib.io.calibration_bounds import BoundParameter, ToolTipBound
+from calib.io.calibration_bounds import BoundParameter, CameraBounds, ToolTipBound
 from calib.io.jsonblock import JsonBlock
 from calib.io.jsonfile import SCHEMA_KEY, Fields, check_header, load_json, write_json_atomic
 from calib.mcpc import COLUMNS, MCPCModel
@@ -91,14 +91,6 @@ def camera_json(
         "std": {k: float(v) for k, v in std.items()},
         "T_first_camera": (np.eye(4) if T_first_camera is None else T_first_camera).tolist(),
     }
-
-
-@dataclass(frozen=True)
-class CameraBounds(JsonBlock):
-    """One camera's bounds: every free parameter by OpenCV name (px or unitless)."""
-
-    name: str
-    bounds: dict[str, float]
 
 
 BOARD_BOUNDS_NOTE = (

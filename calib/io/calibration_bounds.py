@@ -18,7 +18,7 @@ __all__ = [
     "BoundParameter",
     "Bounds",
     "BOUNDS_NOTE",
-    "CameraBound",
+    "CameraBounds",
     "SIGMA_SOURCES",
 ]
 
@@ -58,11 +58,11 @@ class BoundParameter(JsonBlock):
 
 
 @dataclass(frozen=True)
-class CameraBound(JsonBlock):
-    """The bound of every free parameter of the rig's camera ``name`` (px or unitless)."""
+class CameraBounds(JsonBlock):
+    """One camera's bounds: every free parameter by OpenCV name (px or unitless)."""
 
     name: str
-    bound: dict[str, float]
+    bounds: dict[str, float]
 
 
 BOUNDS_NOTE = (
@@ -102,7 +102,7 @@ class Bounds(JsonBlock):
     (:func:`calib.target.aruco_detect.detect_markers_noise`; a bias that shifts whole sides or
     a model error does not enter it, docs/accuracy.md), or ``"residuals"``, the final fit's
     residuals, dof-corrected (stored detections, images detected through a lens)."""
-    cameras: tuple[CameraBound, ...] = ()
+    cameras: tuple[CameraBounds, ...] = ()
     """Each camera's bounds by name when the rig's cameras have their own models, else empty."""
 
     def to_json(self) -> dict:

@@ -130,7 +130,7 @@ def test_stereo_rig_with_two_lenses_recovers_each_camera_within_3_sigma():
 def test_each_camera_starts_from_its_own_initial_camera():
     """A calibrated initial camera per camera (a ROS bag's two CameraInfo): each camera of the
     set starts from its own; the adjustment reaches the minimum of the own start."""
-    from calib.calibrate import _initial
+    from calib.field_cameras import initial_cameras
     from calib.io.dataset_info import DatasetInfo
     from calib.selfcal import self_calibrate
     from calib.selfcal_synthetic import synthetic_stereo_scene
@@ -144,10 +144,10 @@ def test_each_camera_starts_from_its_own_initial_camera():
                        planned_joints_deg=np.zeros((1, 5)), validation_joints_deg=np.zeros((0,)),
                        camera_model="opencv", camera_free=FREE, per_camera_intrinsics=True,
                        camera_initial=tuple(doc))  # fmt: skip
-    initial = _initial(info, start)
+    initial = initial_cameras(info, start)
     assert isinstance(initial, CameraSet)
     assert [c.cx for c in initial.cameras] == [c.cx for c in truth.cameras]
-    first_only = _initial(dataclasses.replace(info, camera_initial=(doc[0], None)), start)
+    first_only = initial_cameras(dataclasses.replace(info, camera_initial=(doc[0], None)), start)
     assert not isinstance(first_only, CameraSet) and first_only.cx == truth.cameras[0].cx
     sc = synthetic_stereo_scene(10, seed=4, noise_px=0.5, camera=truth.cameras[0],
                                 camera_right=truth.cameras[1])  # fmt: skip

@@ -19,7 +19,7 @@ from calib.io.calibration import (
     write_calibration,
 )
 from calib.io.calibration_blocks import CameraIntrinsics, RigCamera
-from calib.io.calibration_bounds import CameraBound
+from calib.io.calibration_bounds import CameraBounds
 from calib.io.jsonfile import check_header
 
 GOLDEN = Path(__file__).resolve().parents[1] / "golden" / "analytic" / "calibration.json"
@@ -38,7 +38,7 @@ def _per_camera() -> CalibrationResult:
     bounds = base.bounds
     if bounds is not None:
         bounds = dataclasses.replace(
-            bounds, cameras=(CameraBound("left", {"fx": 0.4}), CameraBound("right", {"fx": 0.6}))
+            bounds, cameras=(CameraBounds("left", {"fx": 0.4}), CameraBounds("right", {"fx": 0.6}))
         )
     return dataclasses.replace(base, intrinsics=cams[0].intrinsics, cameras=cams, bounds=bounds)
 
