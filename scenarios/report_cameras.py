@@ -27,22 +27,23 @@ def camera_rows(est: CameraModel, std: dict[str, float], truth: CameraModel) -> 
     }
 
 
-def rig_camera_rows(cal: CalibrationResult, truth: Truth) -> dict[str, dict]:
-    """``{camera: {parameter: {estimate, truth, std, z}}}`` of every free parameter of every
-    camera with its own intrinsics (px or unitless; ``z`` None without a std); empty for a
-    shared camera."""
-    trues = {"left": truth.intrinsics_left, "right": truth.intrinsics_right}
+def rig_camera_rows(cal: CalibrationResult, truth: Truth | None) -> dict[str, dict]:
+    """``{camera: {parameter: {estimate, std[, truth, z]}}}`` of every free parameter of every
+    camera with its own intrinsics (px or unitless; with ``truth`` each against its own true
+    camera, ``z`` None without a std); empty for a shared camera."""
+    trues = {} if truth is None else {"left": truth.intrinsics_left,
+                                      "right": truth.intrinsics_right}  # fmt: skip
     out: dict[str, dict] = {}
     for rc in cal.cameras:
         est = rc.intrinsics.camera()
         std = rc.intrinsics.std
-        true = dict(zip(trues[rc.name].names, trues[rc.name].values().tolist()))
         vals = dict(zip(est.names, est.values().tolist()))
-        rows = {}
-        for n in est.free:
-            e, t, s = vals[n], true.get(n, 0.0), std.get(n)
-            z = (e - t) / s if s else None
-            rows[n] = {"estimate": e, "truth": t, "std": s, "z": z}
+        rows = {n: {"estimate": vals[n], "std": std.get(n)} for n in est.free}
+        if rc.name in trues:
+            true = dict(zip(trues[rc.name].names, trues[rc.name].values().tolist()))
+            for n, r in rows.items():
+                t, s = true.get(n, 0.0), r["std"]
+                r |= {"truth": t, "z": (r["estimate"] - t) / s if s else None}
         out[rc.name] = rows
     return out
 
@@ -51,11 +52,16 @@ def rig_camera_markdown(rows: dict[str, dict]) -> list[str]:
     """The Markdown table of :func:`rig_camera_rows` (no lines when empty)."""
     if not rows:
         return []
-    lines = ["## Cameras (each its own intrinsics)", "",
-             "| camera | parameter | estimate | truth | std | z |", "|---|---|---|---|---|---|"]  # fmt: skip
+    truth = all("truth" in r for params in rows.values() for r in params.values())
+    head = "| camera | parameter | estimate | std |" + (" truth | z |" if truth else "")
+    lines = ["## Cameras (each its own intrinsics)", "", head,
+             "|---|---|---|---|" + ("---|---|" if truth else "")]  # fmt: skip
     for cam, params in rows.items():
         for n, r in params.items():
             std = "" if r["std"] is None else f"{r['std']:.3g}"
-            z = "" if r["z"] is None else f"{r['z']:+.2f}"
-            lines.append(f"| {cam} | {n} | {r['estimate']:.6g} | {r['truth']:.6g} | {std} | {z} |")
+            line = f"| {cam} | {n} | {r['estimate']:.6g} | {std} |"
+            if truth:
+                z = "" if r["z"] is None else f"{r['z']:+.2f}"
+                line += f" {r['truth']:.6g} | {z} |"
+            lines.append(line)
     return [*lines, ""]

@@ -26,6 +26,7 @@ from calib.holdout import leave_poses_out
 from calib.io.board_calibration import BoardCalibrationResult
 from calib.io.calibration import CalibrationResult
 from calib.report import parameter_table
+from scenarios.report_cameras import rig_camera_markdown, rig_camera_rows
 
 __all__ = ["fit_report", "board_fit_report", "fit_markdown", "HOLDOUT_EVERY"]
 
@@ -102,6 +103,7 @@ def fit_report(root: str | Path, cal: CalibrationResult, *, every: int = HOLDOUT
             "mu": {"estimate": i.mu, "std": i.mu_std},
             **{n: {"estimate": v, "std": i.std.get(n)} for n, v in i.distortion.items()},
         },
+        **({"cameras": cams} if (cams := rig_camera_rows(cal, None)) else {}),
         "scale_factor": cal.scale.k,
         "parameters": params,
         "parameters_note": (
@@ -199,7 +201,8 @@ def fit_markdown(r: dict, figures: list[str]) -> str:
         f"{n} = {v['estimate']:.6g}" + ("" if v["std"] is None else f" ± {v['std']:.2g}")
         for n, v in r["intrinsics"].items()
     )
-    lines += ["", "## Camera", "", f"{cam} (± 1 sigma).", "", "## Parameters", "",
+    lines += ["", "## Camera", "", f"{cam} (± 1 sigma).", "",
+              *rig_camera_markdown(r.get("cameras", {})), "## Parameters", "",
               parameter_markdown(r["parameters"], truth=False)]  # fmt: skip
     lines += figure_links(figures)
     if r["warnings"]:

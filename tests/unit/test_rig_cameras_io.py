@@ -71,3 +71,17 @@ def test_a_shared_camera_file_stays_schema_1_without_cameras(tmp_path):
     assert doc["schema_version"] == 1 and "cameras" not in doc
     assert "cameras" not in doc.get("bounds", {})
     assert base.intrinsics_of(1) is base.intrinsics
+
+
+def test_the_fit_report_lists_each_cameras_own_parameters():
+    """Without truth (real data) the report lists each camera's free parameters with their std;
+    a shared camera adds nothing."""
+    from scenarios.report_cameras import rig_camera_markdown, rig_camera_rows
+
+    rows = rig_camera_rows(_per_camera(), None)
+    assert list(rows) == ["left", "right"] and list(rows["right"]) == ["fx", "mu", "cx", "cy"]
+    assert rows["right"]["fx"] == {"estimate": 790.0, "std": 0.5} and "z" not in rows["left"]["k1"]
+    text = "\n".join(rig_camera_markdown(rows))
+    assert "| right | fx | 790 | 0.5 |" in text and "truth" not in text
+    base = CalibrationResult.from_json(json.loads(GOLDEN.read_text()), "golden")
+    assert rig_camera_rows(base, None) == {} and rig_camera_markdown({}) == []
