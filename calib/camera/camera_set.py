@@ -97,9 +97,8 @@ class CameraSet:
     def std_by_camera(self, cov: np.ndarray) -> dict[str, dict[str, float]]:
         """Standard deviations of each camera's free parameters by camera name and parameter
         name, from the covariance ``cov`` (n_free, n_free) in :meth:`free_values` order."""
-        d = np.sqrt(np.clip(np.diag(cov), 0.0, None))
         return {
-            n: dict(zip(c.free, (float(x) for x in d[s]), strict=True))
+            n: _std(c, cov[s, s])
             for n, c, s in zip(self.names, self.cameras, self.slices(), strict=True)
         }
 
@@ -122,8 +121,23 @@ def free_std(
     if isinstance(cameras, CameraSet):
         per = cameras.std_by_camera(cov)
         return per[cameras.names[0]], per
-    d = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    return dict(zip(cameras.free, (float(v) for v in d), strict=True)), None
+    return _std(cameras, cov), None
+
+
+def _std(camera: CameraModel, cov: np.ndarray) -> dict[str, float]:
+    """Standard deviations of ``camera``'s free parameters by name from their covariance
+    ``cov``; with ``fx`` and ``mu`` free also OpenCV's ``fy = mu fx`` (first order:
+    ``var fy = mu^2 var fx + fx^2 var mu + 2 fx mu cov(fx, mu)``), so a file read by OpenCV's
+    names has every one's."""
+    free = list(camera.free)
+    out = dict(zip(free, (float(v) for v in np.sqrt(np.clip(np.diag(cov), 0.0, None))),
+                   strict=True))  # fmt: skip
+    if "fx" in free and "mu" in free:
+        i, j = free.index("fx"), free.index("mu")
+        fx, mu = float(camera.fx), float(camera.mu)
+        var = mu**2 * cov[i, i] + fx**2 * cov[j, j] + 2.0 * fx * mu * cov[i, j]
+        out["fy"] = float(np.sqrt(max(var, 0.0)))
+    return out
 
 
 def project_views(cameras: Cameras, X_cam: np.ndarray, view: np.ndarray) -> np.ndarray:

@@ -167,3 +167,27 @@ def test_self_calibration_frees_the_configured_lens(model, fx, coeffs, free, see
     z = (res.camera.free_values() - truth.free_values()) / np.sqrt(np.diag(res.cov_fx_mu))
     assert np.all(np.abs(z) < 3.0), dict(zip(free, z.round(2)))
     assert set(res.camera_std) == set(free) and res.rms_px < 0.5 * np.sqrt(2) * 1.1
+
+
+def test_fy_has_a_standard_deviation_beside_fx_and_mu():
+    """OpenCV's fy = mu fx gets its first-order std from the covariance of fx and mu (the
+    parameters estimated), for one camera and for each camera of a set."""
+    from calib.camera import CameraSet, Pinhole
+    from calib.camera.camera_set import free_std
+
+    cam = Pinhole(800.0, 1.002, 320.0, 240.0, 640, 480, ("fx", "mu", "cx"))
+    rng = np.random.default_rng(0)
+    A = rng.normal(size=(3, 3))
+    cov = A @ A.T * np.array([0.5, 1e-4, 0.3])[:, None] * np.array([0.5, 1e-4, 0.3])[None, :]
+    std, per = free_std(cam, cov)
+    J = np.array([cam.mu, cam.fx, 0.0])  # d fy / d (fx, mu, cx)
+    assert per is None and std["fy"] == pytest.approx(np.sqrt(J @ cov @ J), rel=1e-12)
+    assert std["fx"] == pytest.approx(np.sqrt(cov[0, 0])) and set(std) == {"fx", "mu", "cx", "fy"}
+    draws = rng.multivariate_normal([cam.fx, cam.mu, cam.cx], cov, size=200_000)
+    assert np.std(draws[:, 0] * draws[:, 1]) == pytest.approx(std["fy"], rel=0.01)
+    right = Pinhole(810.0, 1.0, 330.0, 250.0, 640, 480, ("fx", "cx"))
+    pair = CameraSet((cam, right), ("left", "right"))
+    big = np.zeros((5, 5))
+    big[:3, :3], big[3:, 3:] = cov, cov[[0, 2]][:, [0, 2]]
+    _, per = free_std(pair, big)
+    assert per["left"]["fy"] == pytest.approx(std["fy"]) and "fy" not in per["right"]
