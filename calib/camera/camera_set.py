@@ -134,7 +134,8 @@ def _std(camera: CameraModel, cov: np.ndarray) -> dict[str, float]:
                    strict=True))  # fmt: skip
     if "fx" in free and "mu" in free:
         i, j = free.index("fx"), free.index("mu")
-        fx, mu = float(camera.fx), float(camera.mu)
+        values = dict(zip(camera.names, camera.values().tolist(), strict=True))
+        fx, mu = float(values["fx"]), float(values["mu"])
         var = mu**2 * cov[i, i] + fx**2 * cov[j, j] + 2.0 * fx * mu * cov[i, j]
         out["fy"] = float(np.sqrt(max(var, 0.0)))
     return out
