@@ -40,6 +40,7 @@ from calib.trajectory import (
 from calib.transforms import trans
 from scenarios.acquire import AcquisitionHooks
 from scenarios.config import (
+    CameraConfig,
     ConfigError,
     NoiseConfig,
     Scenario,
@@ -281,8 +282,9 @@ def _camera_models(s: Scenario) -> tuple[tuple[str, tuple[str, ...]], ...] | Non
 
 def _digested(s: Scenario) -> dict:
     """The scenario as its dataset's digest sees it: ``noise.msaa`` at its default, an empty
-    ``target.board`` (the marker field) and an empty ``camera.right`` are left out, so a dataset acquired before the keys
-    existed (with those defaults) still resumes."""
+    ``target.board`` (the marker field), an empty ``camera.right`` and a zero ``camera.skew_px``
+    are left out, so a dataset acquired before the keys existed (with those defaults) still
+    resumes."""
     d = scenario_to_dict(s)
     if s.noise.msaa == NoiseConfig.msaa:
         del d["noise"]["msaa"]
@@ -290,6 +292,8 @@ def _digested(s: Scenario) -> dict:
         del d["target"]["board"]
     if not s.camera.right:
         del d["camera"]["right"]
+    if s.camera.skew_px == CameraConfig.skew_px:
+        del d["camera"]["skew_px"]
     return d
 
 

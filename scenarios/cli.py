@@ -295,9 +295,10 @@ scenario keys (TOML; every key has a default, units in the names):
   [robot.hardware] port (pyserial URL), baudrate, xonxoff, cameras = [left, right], options
                  (see docs/hardware.md; `selfcal emulate SCENARIO` prints a ready snippet)
   [camera]       resolution = [640, 480]; fx = 800.0 (px); mu = 1.0; baseline_mm = 60.0; count = 2;
-                 model = "pinhole" | "opencv" | "fisheye"; free = [...]; cx, cy, k1 ... (docs/cameras.md)
-  [camera.right] the right camera's own fx, mu, model, principal_point_offset_px, distortion,
-                 free (its own lens, estimated on its own; example scenarios/stereo-lenses.toml)
+                 model = "pinhole" | "opencv" | "fisheye"; free = [...]; cx, cy, k1 ... (docs/cameras.md);
+                 principal_point_offset_px, skew_px, distortion = {k1 = ...}: the true camera (sim)
+  [camera.right] the right camera's own fx, mu, model, principal_point_offset_px, skew_px,
+                 distortion, free (its own lens, estimated on its own; scenarios/stereo-lenses.toml)
   [target]       markers = 20; scale_length_mm = 200.0; marker_size_mm = 30.0; seed = 1;
                  board = "TARGET.toml" (a printed board instead of the markers, path relative to
                  the scenario: docs/scenarios.md; example scenarios/mono-charuco.toml)

@@ -152,6 +152,7 @@ RANGES: dict[str, Range] = {
     "camera.baseline_mm": Range(1.0, 2000.0, "mm", "stereo baseline of a rig on a wrist"),
     "camera.count": Range(1, 2, "", "one wrist camera or the stereo pair"),
     "camera.principal_point_offset_px": Range(-5000.0, 5000.0, "px", "offset from the image centre"),
+    "camera.skew_px": Range(-100.0, 100.0, "px", "K[0, 1] of a real sensor (pixels not square)"),
     "camera.distortion": Range(-100.0, 100.0, "", "lens coefficients (OpenCV scale)"),
     "target.markers": Range(4, 250, "", "markers of the ArUco dictionary (at least 4)"),
     "target.scale_length_mm": Range(10.0, 10_000.0, "mm", "a distance a person can measure well"),

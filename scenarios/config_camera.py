@@ -20,7 +20,15 @@ class ConfigError(InputError):
     """A scenario file that cannot be used; the message names the file, key and expected type."""
 
 
-PER_CAMERA_KEYS = ("fx", "mu", "model", "principal_point_offset_px", "distortion", "free")
+PER_CAMERA_KEYS = (
+    "fx",
+    "mu",
+    "model",
+    "principal_point_offset_px",
+    "skew_px",
+    "distortion",
+    "free",
+)
 """The ``[camera]`` keys a ``[camera.right]`` table may give the right camera its own value of
 (its true lens and what is estimated of it; resolution, baseline and count are the rig's)."""
 
@@ -42,6 +50,10 @@ class CameraConfig:
     k4-k6) or "fisheye" (Kannala-Brandt k1-k4); OpenCV's conventions and names."""
     principal_point_offset_px: list[float] = field(default_factory=lambda: [0.0, 0.0])
     """True principal point minus the image centre ((W - 1) / 2, (H - 1) / 2), px (simulation)."""
+    skew_px: float = 0.0
+    """True skew ``K[0, 1]`` in px (simulation: ``u = fx x + skew y + cx``; MuJoCo has none, the
+    renderer draws it through the lens remap). The calibration starts from 0 and estimates it
+    when ``free`` names ``skew``."""
     distortion: dict = field(default_factory=dict)
     """True lens coefficients by OpenCV name, e.g. {k1 = -0.25, p1 = 1e-3} (simulation; the
     others are zero). The calibration starts from no distortion."""
@@ -89,7 +101,7 @@ class CameraConfig:
         dx, dy = self.principal_point_offset_px
         return camera_model(
             self.model, fx=self.fx, mu=self.mu, cx=cx + dx, cy=cy + dy, width=W, height=H,
-            coeffs=self.distortion, free=self.free,
+            coeffs=self.distortion, free=self.free, skew=self.skew_px,
         )  # fmt: skip
 
 
