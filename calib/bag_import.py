@@ -222,10 +222,12 @@ def _model(
 
 def initial_values(info: CameraInfo, model: str) -> dict[str, float]:
     """The camera a calibrated CameraInfo describes, by OpenCV's names (px): ``fx``, ``fy``,
-    ``cx``, ``cy`` from K and, when ``model`` is the one of its ``distortion_model``
+    ``cx``, ``cy`` (and ``skew`` when K[0, 1] is not 0) from K and, when ``model`` is the one of its ``distortion_model``
     (:data:`MODEL_OF`), the lens coefficients from D (a pinhole, or another lens, takes K only)."""
     K = info.K
     out = {"fx": K[0], "fy": K[4], "cx": K[2], "cy": K[5]}
+    if K[1] != 0.0:  # K[0, 1]: a skewed camera's
+        out["skew"] = K[1]
     if MODEL_OF.get(info.distortion_model) == model:
         out.update(zip(D_NAMES[info.distortion_model], info.D))
     return {k: float(v) for k, v in out.items()}

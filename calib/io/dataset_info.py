@@ -157,7 +157,8 @@ class DatasetInfo:
         W, H = self.resolution_of(camera)
         coeffs = {k: x for k, x in v.items() if k in lens_names(model)}
         return camera_model(model, fx=v["fx"], mu=v["fy"] / v["fx"], cx=v["cx"], cy=v["cy"],
-                            width=W, height=H, coeffs=coeffs, free=free)  # fmt: skip
+                            width=W, height=H, coeffs=coeffs, free=free,
+                            skew=v.get("skew", 0.0))  # fmt: skip
 
     @property
     def own_intrinsics(self) -> bool:

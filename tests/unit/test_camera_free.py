@@ -191,3 +191,22 @@ def test_fy_has_a_standard_deviation_beside_fx_and_mu():
     big[:3, :3], big[3:, 3:] = cov, cov[[0, 2]][:, [0, 2]]
     _, per = free_std(pair, big)
     assert per["left"]["fy"] == pytest.approx(std["fy"]) and "fy" not in per["right"]
+
+
+def test_a_camera_info_with_skew_starts_the_camera_with_it():
+    """K[0, 1] of a calibrated CameraInfo is the initial camera's skew (it was dropped)."""
+    from calib.bag_import import initial_values
+    from calib.io.rosbag import CameraInfo
+
+    K = (800.0, 1.5, 321.0, 0.0, 802.0, 239.0, 0.0, 0.0, 1.0)
+    info = CameraInfo(640, 480, "plumb_bob", (-0.2, 0.05, 0.0, 0.0, 0.0), K)
+    values = initial_values(info, "opencv")
+    assert values["skew"] == 1.5 and values["k1"] == -0.2
+    start = {"source": "camera_info", "where": "x.bag#/info", "values": values}
+    cam = _info(camera_model="opencv", camera_free=("fx", "mu", "skew"),
+                camera_initial=(start, None)).initial_camera("left")  # fmt: skip
+    assert cam.skew == 1.5 and cam.K[0, 1] == 1.5 and cam.fx == 800.0
+    plain = initial_values(
+        CameraInfo(640, 480, "plumb_bob", (0.0,) * 5, (800.0, 0.0, *K[2:])), "opencv"
+    )
+    assert "skew" not in plain  # a camera without skew: the file stays as it was
