@@ -30,7 +30,7 @@ from scenarios.cli_common import (
 )
 from scenarios.cli_pose import POSE_HELP, add_pose_args, is_er, orientation_json, parse_pose_args
 from scenarios.defaults import DEFAULT_ROBOT
-from scenarios.deploy_cli import CALIBRATED_FRAME, load_calibration
+from scenarios.deploy_cli import CALIBRATED_FRAME, calibration_robot, load_calibration
 from scenarios.deploy_cli import register as register_deploy
 from scenarios.diagnose_render import register as register_diagnose
 from scenarios.hw_cli import register as register_hw
@@ -84,7 +84,7 @@ def cmd_fk(args: argparse.Namespace) -> int:
                 f"({args.calibration})",
                 fix="leave out --robot: the calibration names its robot",
             )
-        robot, model = load_robot(dep.robot_name), dep.model
+        robot, model = calibration_robot(args.calibration, dep.robot_name), dep.model
     else:
         robot = load_robot(_robot_name(args))
         model = nominal_mcpc(robot)

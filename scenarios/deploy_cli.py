@@ -36,6 +36,7 @@ __all__ = [
     "register",
     "cmd_export",
     "cmd_ik_calibrated",
+    "calibration_robot",
     "load_calibration",
     "FORMATS",
     "CALIBRATED_FRAME",
@@ -107,6 +108,20 @@ def load_calibration(path: str):
         raise CliError(f"{p}: {exc}") from None
 
 
+def calibration_robot(path: str, robot_name: str):
+    """The robot of the calibration ``path`` (as :func:`load_calibration` takes it): the robot
+    file its dataset carries (``robot_model`` a robot TOML or URDF, relative to the calibration's
+    folder: ``selfcal import --robot FILE`` copies it there), else the model ``robot_name``."""
+    from calib.robot_def import load_robot
+
+    p = _calibration_file(path)
+    if p.suffix == ".json":
+        ref = Path(str(json.loads(p.read_text()).get("robot_model", "")))
+        if ref.suffix in (".toml", ".urdf"):
+            return load_robot(ref if ref.is_absolute() else p.parent / ref)
+    return load_robot(robot_name)
+
+
 def _usable(cal: CalibrationResult, path: Path) -> CalibrationResult:
     """``cal`` read from ``path``, unless it is marked failed (#15): then its failures, exit 3."""
     from calib.calibrate import CalibrationFailedError
@@ -124,7 +139,6 @@ def cmd_export(args: argparse.Namespace) -> int:
     from calib.export_toml import to_toml
     from calib.export_urdf import to_urdf
     from calib.io.atomic import write_text_atomic
-    from calib.robot_def import load_robot
     from sim.export_mjcf import calibrated_mjcf
 
     fmt = args.format
@@ -150,7 +164,7 @@ def cmd_export(args: argparse.Namespace) -> int:
         note_written(args, out)
         return _export_camera(args.calibration, fmt, out, args.camera_name, args.camera)
     dep = load_calibration(args.calibration)
-    robot = load_robot(dep.robot_name)
+    robot = calibration_robot(args.calibration, dep.robot_name)
     if fmt == "mjcf":
         text = calibrated_mjcf(dep, robot)
     elif fmt == "urdf":
@@ -218,10 +232,9 @@ def cmd_ik_calibrated(args: argparse.Namespace) -> int:
     from calib.compensate import solve_compensated, solve_compensated_pose
     from calib.ik import UnreachableError
     from calib.ik_numeric import ToolTarget
-    from calib.robot_def import load_robot
 
     dep = load_calibration(args.calibration)
-    robot = load_robot(dep.robot_name)
+    robot = calibration_robot(args.calibration, dep.robot_name)
     pose = parse_pose_args(args, robot)
     try:
         if pose.pitch_rad is not None:

@@ -283,6 +283,25 @@ def test_a_urdf_robot_with_named_links(lab, tmp_path):
                        "rad", root / "board.toml", tmp_path / "v", tool_link="flange")  # fmt: skip
 
 
+@pytest.mark.slow  # a calibration: 3-8 s
+def test_a_urdf_robots_calibration_exports_and_answers_fk_and_ik(lab, tmp_path):
+    """The calibrated robot of a URDF exports and answers fk / ik from the dataset's copy of the
+    robot file: its own name, kr6_r900, is no model of models/robots (it was looked up there)."""
+    root, (ci, cj), _ = lab
+    urdf = Path(__file__).resolve().parents[1] / "data" / "kr6_r900.urdf"
+    assert main(["import", "--robot", str(urdf), "--tool-link", "flange", "--images",
+                 f"cam0={ci}/*.png", "--joints", str(cj), "--joint-units", "rad", "--target",
+                 str(root / "board.toml"), "--out", str(tmp_path / "u"), "--link"]) == 0  # fmt: skip
+    assert main(["calibrate", str(tmp_path / "u"), "--quiet"]) == 0
+    for fmt in ("urdf", "toml"):
+        out = tmp_path / f"cal.{fmt}"
+        assert main(["export", str(tmp_path / "u"), "--format", fmt, "--out", str(out)]) == 0
+        assert "kr6_r900" in out.read_text()
+    assert main(["fk", "--calibration", str(tmp_path / "u"), "--joints", "0,-90,90,0,0,0"]) == 0
+    assert main(["ik", "--calibration", str(tmp_path / "u"), "--xyz", "500,0,400",
+                 "--position-only"]) == 0  # fmt: skip
+
+
 def test_evaluate_and_self_calibration_refuse_what_they_cannot_do(lab, tmp_path):
     root, (ci, cj), _ = lab
     golden = Path(__file__).resolve().parents[1] / "golden" / "analytic" / "calibration.json"
