@@ -152,6 +152,43 @@ def _opencv_flags(model: str, free: Sequence[str]) -> int:
     return flags
 
 
+_GOOD_START_PX = 1.0
+"""RMS (px) of a fisheye start good enough to stop trying others (detector noise is 0.05-0.5)."""
+
+
+def _fisheye_calibrate(obj, img, width: int, height: int, K0: np.ndarray, dist0: np.ndarray,
+                       flags: int, criteria: tuple, *, starts: bool) -> tuple:  # fmt: skip
+    """``cv2.fisheye.calibrate`` from ``K0`` and, with ``starts``, from the focal lengths of
+    fields of view 60-180 deg across the shorter side (equidistant: ``f = (side / 2) / half
+    angle``): the homographies' pinhole focal length that ``K0`` holds is several times a wide
+    fisheye's (3325 px for 512 px measured), from where OpenCV's solver fails (an assertion in
+    ``InitExtrinsics``). The first start that fits within :data:`_GOOD_START_PX`, else the one
+    with the lowest RMS, wins; all failing raises the first error."""
+    obj64 = [o.reshape(1, -1, 3).astype(np.float64) for o in obj]  # the shapes it accepts
+    img64 = [i.reshape(1, -1, 2).astype(np.float64) for i in img]
+    focal = [float(K0[0, 0])]
+    if starts:  # the middle fields of view first
+        focal += [0.5 * min(width, height) / np.radians(a) for a in (60.0, 45.0, 75.0, 90.0, 30.0)]
+    best, first_error = None, None
+    for f in focal:
+        if best is not None and best[0] < _GOOD_START_PX:
+            break
+        K = K0.copy()
+        K[0, 0] = K[1, 1] = f
+        try:
+            out = cv2.fisheye.calibrate(obj64, img64, (width, height), K, dist0.copy(),
+                                        flags=flags, criteria=criteria)  # fmt: skip
+        except cv2.error as exc:
+            first_error = first_error or exc
+            continue
+        if np.isfinite(out[0]) and (best is None or out[0] < best[0]):
+            best = out
+    if best is None:
+        assert first_error is not None
+        raise first_error
+    return best
+
+
 def opencv_calibration(
     board: Board,
     features: Sequence[Features],
@@ -189,12 +226,8 @@ def opencv_calibration(
         if model == "opencv" and np.any(guess[5:8] != 0):
             flags |= cv2.CALIB_RATIONAL_MODEL  # keep its k4-k6 (held unless free)
     if model == "fisheye":
-        out = cv2.fisheye.calibrate(
-            [o.reshape(1, -1, 3).astype(np.float64) for o in obj],  # the shapes it accepts
-            [i.reshape(1, -1, 2).astype(np.float64) for i in img], (width, height), K0,
-            guess[:4].copy(),
-            flags=flags, criteria=criteria,
-        )  # fmt: skip
+        out = _fisheye_calibrate(obj, img, width, height, K0, guess[:4], flags, criteria,
+                                 starts=initial is None)  # fmt: skip
         rms, K, dist, rvecs, tvecs = out[0], out[1], np.ravel(out[2]), out[3], out[4]
         std = {}  # cv2.fisheye gives no standard deviations
     else:
