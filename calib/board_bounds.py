@@ -23,6 +23,7 @@ import numpy as np
 
 from calib.bundle_adjust import _Problem as _AdjustmentProblem
 from calib.camera import CameraModel
+from calib.camera.camera_set import std_by_name
 from calib.estimation.joint_report import aligned_tool_rms_bound
 from calib.estimation.kinematic_poses import KinematicPoses
 from calib.estimation.reprojection import ReprojectionBlock
@@ -119,8 +120,8 @@ def board_cramer_rao(
                    sigma2=pixel_sigma_px**2)  # fmt: skip
     stds, at = [], 0
     for cam in cameras:
-        d = np.sqrt(np.clip(np.diag(C)[at : at + cam.n_free], 0, None))
-        stds.append(dict(zip(cam.free, d.tolist(), strict=True)))
+        block = slice(at, at + cam.n_free)
+        stds.append(std_by_name(cam, C[block, block]))  # with fy = mu fx by OpenCV's name
         at += cam.n_free
     n_obs = sum(len(o[1]) for o in obs)
     return BoardCramerRao(model, C[at:, at:], tuple(stds), float(pixel_sigma_px), int(n_obs),

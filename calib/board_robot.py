@@ -36,6 +36,7 @@ from calib.board_calibrate import BoardCalibration, calibrate_board
 from calib.board_rig import BoardRigCalibration
 from calib.bundle_adjust import _Problem as _AdjustmentProblem
 from calib.camera import CameraModel, Pinhole
+from calib.camera.camera_set import std_by_name
 from calib.errors import EstimationError
 from calib.estimation.kinematic_poses import KinematicPoses
 from calib.estimation.reprojection import ReprojectionBlock
@@ -179,9 +180,7 @@ def calibrate_robot_with_board(
             assert rig is not None
             cams.append(rig.cameras[c].with_free_values(sol.values[name]))
         cov = covariance(prob.problem, sol.x, [name], sigma2=sigma2)
-        stds.append(
-            dict(zip(cams[c].free, np.sqrt(np.clip(np.diag(cov), 0, None)).tolist(), strict=True))
-        )
+        stds.append(std_by_name(cams[c], cov))  # with fy = mu fx by OpenCV's name
     return BoardRobotCalibration(
         model=poses.kinematic_model(p),
         camera=camera,

@@ -28,6 +28,7 @@ __all__ = [
     "project_free_views",
     "first_camera",
     "free_std",
+    "std_by_name",
 ]
 
 
@@ -98,7 +99,7 @@ class CameraSet:
         """Standard deviations of each camera's free parameters by camera name and parameter
         name, from the covariance ``cov`` (n_free, n_free) in :meth:`free_values` order."""
         return {
-            n: _std(c, cov[s, s])
+            n: std_by_name(c, cov[s, s])
             for n, c, s in zip(self.names, self.cameras, self.slices(), strict=True)
         }
 
@@ -121,10 +122,10 @@ def free_std(
     if isinstance(cameras, CameraSet):
         per = cameras.std_by_camera(cov)
         return per[cameras.names[0]], per
-    return _std(cameras, cov), None
+    return std_by_name(cameras, cov), None
 
 
-def _std(camera: CameraModel, cov: np.ndarray) -> dict[str, float]:
+def std_by_name(camera: CameraModel, cov: np.ndarray) -> dict[str, float]:
     """Standard deviations of ``camera``'s free parameters by name from their covariance
     ``cov``; with ``fx`` and ``mu`` free also OpenCV's ``fy = mu fx`` (first order:
     ``var fy = mu^2 var fx + fx^2 var mu + 2 fx mu cov(fx, mu)``), so a file read by OpenCV's
