@@ -229,6 +229,7 @@ def calibrate(
     allow_missing_frames: bool = False,
     tracker: TrackerInput | None = None,
     cache: FrameCache | None = None,
+    joint_sigma: float | np.ndarray | None = None,
 ) -> CalibrationResult:
     """The calibration of the dataset in ``root``: the result of :func:`calibrate_detailed`.
 
@@ -241,6 +242,7 @@ def calibrate(
         allow_missing_frames=allow_missing_frames,
         tracker=tracker,
         cache=cache,
+        joint_sigma=joint_sigma,
     ).result
 
 
@@ -252,6 +254,7 @@ def calibrate_detailed(
     allow_missing_frames: bool = False,
     tracker: TrackerInput | None = None,
     cache: FrameCache | None = None,
+    joint_sigma: float | np.ndarray | None = None,
 ) -> CalibrationOutput:
     """Run the whole calibration on the dataset in ``root`` (see the module docstring) and keep
     the live estimates behind the result.
@@ -267,6 +270,8 @@ def calibrate_detailed(
     refinement (method ``joint`` only; :mod:`calib.tracker_join`); the result records them
     (``CalibrationResult.tracker``).
     ``cache``: images and detections already in memory (:func:`detect_dataset`).
+    ``joint_sigma``: the standard deviation of a joint reading (rad / m; one value or one per
+    joint) the one-step refinement models, instead of the robot file's encoder resolution.
 
     Raises:
         ValueError: unknown ``method``.
@@ -382,6 +387,8 @@ def calibrate_detailed(
     if method == "joint":
         with _stage(progress, "one-step refinement (all images)") as st:
             kw = {} if tracker is None else tracker.refine_kwargs()
+            if joint_sigma is not None:
+                kw["joint_sigma"] = joint_sigma
             res = refine_calibration(out, obs, q, robot, ds.info, **kw)
             st(f"reprojection RMS {res.rms_px:.3f} px, sigma {res.sigma_px:.3f} px")
         result = with_joint(result, res, robot)

@@ -314,14 +314,22 @@ def write_board_truth_report(
 
 
 def calibrate_board_run(
-    root: Path, *, quiet: bool = False, allow_missing_frames: bool = False, figures: bool = False
+    root: Path,
+    *,
+    quiet: bool = False,
+    allow_missing_frames: bool = False,
+    figures: bool = False,
+    joint_sigma: np.ndarray | None = None,
 ) -> BoardCalibrationResult:
     """``selfcal calibrate`` of a board dataset: :func:`calib.board_dataset.calibrate_board_dataset`
     written as ``root/calibration.json``, its warnings logged and a one-line summary printed
-    (unless ``quiet``); ``figures``: also ``root/figures/reprojection.png``."""
+    (unless ``quiet``); ``figures``: also ``root/figures/reprojection.png``; ``joint_sigma``:
+    the joint read-back noise (rad / m) instead of the robot file's encoder resolution."""
     from calib.board_dataset import calibrate_board_dataset
 
-    res = calibrate_board_dataset(root, allow_missing_frames=allow_missing_frames)
+    res = calibrate_board_dataset(
+        root, allow_missing_frames=allow_missing_frames, joint_sigma=joint_sigma
+    )
     write_board_calibration(Path(root) / "calibration.json", res)
     if figures:
         ev = evaluate_board(res, str(Path(root) / "calibration.json"), root)

@@ -214,7 +214,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     with _stdout_to_stderr(args.json):
         calibrate_any(root, quiet=args.quiet, method=args.method,
                       allow_missing_frames=args.allow_missing_frames, figures=True,
-                      tracker_args=args)  # fmt: skip
+                      tracker_args=args, joint_sigma_deg=args.joint_sigma_deg)  # fmt: skip
     note_written(args, root / "calibration.json")
     if args.json:
         print(json.dumps(_calibration_json(root / "calibration.json")))
@@ -437,6 +437,15 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="calibrate without the planned frames that have no whole joints.csv row (listed in "
         "a warning); without it they are an error",
+    )
+    sp.add_argument(
+        "--joint-sigma-deg",
+        type=float,
+        default=None,
+        metavar="SIGMA",
+        help="standard deviation of a joint reading, deg (mm for a prismatic joint): the "
+        "read-back errors are estimated with the rest instead of taken as exact (default: the "
+        "robot file's encoder resolution; none for a URDF, where noisy readings bias the camera)",
     )
     add_tracker_args(sp)
     add_json(sp)

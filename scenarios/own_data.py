@@ -36,18 +36,33 @@ def calibrate_any(
     allow_missing_frames: bool = False,
     figures: bool = False,
     tracker_args: argparse.Namespace | None = None,
+    joint_sigma_deg: float | None = None,
 ) -> None:
     """Calibrate the dataset in ``root`` by its target and write ``root/calibration.json``:
     the field -> :func:`scenarios.pipeline.run_calibrate`; a board -> the board calibration.
     ``figures``: also ``root/figures/reprojection.png``. ``tracker_args``: the parsed tracker
     options of ``selfcal calibrate`` (:func:`scenarios.tracker_cli.add_tracker_args`): tracker
-    measurements estimated with the field's images."""
+    measurements estimated with the field's images. ``joint_sigma_deg``: the standard deviation
+    of a joint reading, deg (mm for a prismatic joint), modelled instead of the robot file's
+    encoder resolution."""
     from calib.io.dataset import Dataset
     from scenarios.board_run import calibrate_board_run
     from scenarios.pipeline import run_calibrate
 
     ds = Dataset.open(root)
     info = ds.info
+    joint_sigma = None
+    if joint_sigma_deg is not None:
+        import numpy as np
+
+        from calib.robot_def import load_robot
+
+        if not joint_sigma_deg > 0:
+            raise CliError(f"--joint-sigma-deg must be > 0, got {joint_sigma_deg}",
+                           fix="give the read-back noise of a joint, e.g. 0.003")  # fmt: skip
+        types = load_robot(ds.robot_source).joint_types
+        joint_sigma = np.array([np.radians(joint_sigma_deg) if t == "revolute"
+                                else joint_sigma_deg / 1000.0 for t in types])  # fmt: skip
     tracker = None
     if tracker_args is not None and tracker_args.tracker:
         from calib.robot_def import load_robot
@@ -72,12 +87,12 @@ def calibrate_any(
     if info.board is None:
         res = run_calibrate(root, quiet=quiet, method=method,
                             allow_missing_frames=allow_missing_frames, figures=figures,
-                            tracker=tracker)  # fmt: skip
+                            tracker=tracker, joint_sigma=joint_sigma)  # fmt: skip
         if res.tracker is not None:
             _say(quiet, tracker_summary(res.tracker))
         return
     calibrate_board_run(root, quiet=quiet, allow_missing_frames=allow_missing_frames,
-                        figures=figures)  # fmt: skip
+                        figures=figures, joint_sigma=joint_sigma)  # fmt: skip
 
 
 def cmd_import(args: argparse.Namespace) -> int:

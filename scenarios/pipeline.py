@@ -125,6 +125,7 @@ def run_calibrate(
     figures: bool = False,
     tracker=None,
     cache: FrameCache | None = None,
+    joint_sigma: np.ndarray | None = None,
 ) -> CalibrationResult:
     """Calibrate the dataset in ``root`` and write ``root/calibration.json``; returns the
     result. Its warnings are printed (unless ``quiet``). ``raise_failed=False``: return a
@@ -132,7 +133,8 @@ def run_calibrate(
     ``figures``: also ``root/figures/reprojection.png`` (:func:`reprojection_figures`).
     ``tracker``: a :class:`calib.tracker_join.TrackerInput` estimated with the images.
     ``cache``: the images the acquisition of this run kept in memory (the rest is read); the
-    detections are added to it.
+    detections are added to it. ``joint_sigma``: the joint read-back noise (rad / m) to model
+    instead of the robot file's encoder resolution.
 
     Raises:
         CalibrationFailedError: the calibration failed a check of :mod:`calib.quality`; it is
@@ -140,7 +142,7 @@ def run_calibrate(
     """
     res = calibrate(root, progress=Progress("detect", enabled=not quiet), method=method,
                     allow_missing_frames=allow_missing_frames, tracker=tracker,
-                    cache=cache)  # fmt: skip
+                    cache=cache, joint_sigma=joint_sigma)  # fmt: skip
     path = write_calibration(Path(root) / "calibration.json", res)
     if figures:
         _say(quiet, f"figure: {reprojection_figures(root, evaluate_field(res, root, root, cache))}")
