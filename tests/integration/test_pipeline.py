@@ -252,3 +252,17 @@ def test_a_known_distance_declared_wrong_is_named(small_analytic, tmp_path):
     with warnings.catch_warnings():
         warnings.simplefilter("error", ScaleWarning)  # the distance as declared: no warning
         calibrate(small_analytic, method="two-stage")
+
+
+@pytest.mark.slow  # a calibration of the field: 2-5 s
+def test_the_joint_read_back_noise_can_be_stated(small_analytic, tmp_path):
+    """selfcal calibrate --joint-sigma-deg replaces the robot file's encoder resolution in the
+    one-step refinement of the field (calibration.json records the sigma it modelled)."""
+    from scenarios.cli import main
+
+    ds = tmp_path / "sigma"
+    shutil.copytree(small_analytic, ds)
+    assert main(["calibrate", str(ds), "--joint-sigma-deg", "0.01", "--quiet"]) == 0
+    used = json.loads((ds / "calibration.json").read_text())["joint"]["joint_sigma"]
+    np.testing.assert_allclose(used, np.radians(0.01), rtol=1e-12)
+    assert main(["calibrate", str(ds), "--joint-sigma-deg", "0", "--quiet"]) == 2
