@@ -39,7 +39,7 @@ from calib.alignment import express_in_frame, minimal_difference
 from calib.bounds import aligned_error_dof, cramer_rao
 from calib.bounds_setup import setup_from_output
 from calib.calibrate import calibrate_detailed, detect_dataset, observations_of
-from calib.camera import opencv_values
+from calib.camera import values_by_name
 from calib.io.dataset import Dataset, DatasetWriter
 from calib.io.truth import read_truth
 from calib.mcpc import minimal_indices, param_is_angle
@@ -170,10 +170,7 @@ def _evaluate(root: Path, pixel_sigma: float) -> dict:
     bounds = cr.cameras_std or {"left": cr.camera_std}
     for cam, stds in bounds.items():
         # by the model's names and OpenCV's (fy = mu fx has a bound of its own)
-        true_cam = {**dict(zip(trues[cam].names, trues[cam].values().tolist())),
-                    **opencv_values(trues[cam])}  # fmt: skip
-        est_cam = {**dict(zip(est[cam].names, est[cam].values().tolist())),
-                   **opencv_values(est[cam])}  # fmt: skip
+        true_cam, est_cam = values_by_name(trues[cam]), values_by_name(est[cam])
         pre = "" if cam == "left" else f"{cam}."
         for name, b in stds.items():
             row[f"joint_cam_err_{pre}{name}"] = est_cam[name] - true_cam.get(name, 0.0)

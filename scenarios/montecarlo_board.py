@@ -23,6 +23,7 @@ import numpy as np
 from calib.alignment import express_in_frame, minimal_difference
 from calib.board_bounds import bounds_block
 from calib.board_dataset import calibrate_board_dataset_detailed, dataset_board
+from calib.camera import values_by_name
 from calib.estimation.joint_report import encoder_sigma
 from calib.io.dataset import Dataset
 from calib.io.truth import read_truth
@@ -77,8 +78,7 @@ def evaluate_board_draw(root: Path, pixel_sigma: float) -> dict:
     row["bound_fx_px"] = b.cameras[0].bounds["fx"]
     trues = (true_cam, truth.intrinsics_right)
     for c, (cam, cb) in enumerate(zip(cal.cameras, b.cameras, strict=True)):
-        est = dict(zip(cam.names, cam.values().tolist()))
-        tv = dict(zip(trues[c].names, trues[c].values().tolist()))
+        est, tv = values_by_name(cam), values_by_name(trues[c])  # fy's bound too
         pre = "" if c == 0 else f"{cb.name}_"  # a further camera's: e.g. right_fx
         for name, bound in cb.bounds.items():  # every free camera parameter (px or unitless)
             row[f"joint_cam_err_{pre}{name}"] = est[name] - tv.get(name, 0.0)

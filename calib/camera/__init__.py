@@ -28,6 +28,7 @@ from calib.camera.spec import (
     canonical_free,
     lens_names,
     opencv_values,
+    values_by_name,
     with_pinhole,
 )
 from calib.camera.visibility import Visibility
@@ -46,6 +47,7 @@ __all__ = [
     "camera_model",
     "lens_names",
     "opencv_values",
+    "values_by_name",
     "with_pinhole",
     "Intrinsics",
     "Pinhole",

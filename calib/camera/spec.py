@@ -24,6 +24,7 @@ __all__ = [
     "canonical_free",
     "model_name",
     "opencv_values",
+    "values_by_name",
     "with_pinhole",
     "lens_names",
 ]
@@ -121,6 +122,13 @@ def opencv_values(camera: CameraModel) -> dict[str, float]:
     if isinstance(camera, LensCamera):
         out.update(zip(camera.lens_names, (float(c) for c in camera.coeffs)))
     return out
+
+
+def values_by_name(camera: CameraModel) -> dict[str, float]:
+    """Every parameter of ``camera`` by its own name (``mu``) and by OpenCV's (``fy``): what a
+    standard deviation or bound named either way is compared with."""
+    return {**dict(zip(camera.names, camera.values().tolist(), strict=True)),
+            **opencv_values(camera)}  # fmt: skip
 
 
 def with_pinhole(template: Pinhole, pinhole: Pinhole) -> Pinhole:
