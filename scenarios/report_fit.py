@@ -120,13 +120,18 @@ def board_fit_report(
     root: str | Path, cal: BoardCalibrationResult, *, every: int = HOLDOUT_EVERY
 ) -> dict:
     """The report of the board calibration ``cal`` of the dataset in ``root`` (no truth): as
-    :func:`fit_report`; the board calibration states no parameter sigmas of the kinematics, only
-    of the camera, and the parameters it held."""
+    :func:`fit_report`; the kinematics' sigmas are their Cramer-Rao bounds at the estimate
+    (``calibration.json`` ``bounds``), the camera's its fit's, and the parameters it held."""
     root = Path(root)
     held = {n: "held: not identifiable from this data" for n in cal.held}
     params = parameter_table(cal.model, {}, None, cal.nominal_model)
+    # the kinematics' sigmas: the Cramer-Rao bound at the estimate with the fit's own noise
+    # (calibration.json bounds), what an efficient estimator's standard deviation is
+    bound = {b.name: b.bound for b in cal.bounds.parameters} if cal.bounds is not None else {}
     for row in params:
         row["held"] = held.get(row["name"])
+        if row["held"] is None and bound.get(row["name"]) is not None:
+            row["std"] = bound[row["name"]]
     cam, std = cal.cameras[0], cal.camera_std[0]
     values = dict(zip(cam.names, cam.values().tolist(), strict=True))
     return {
@@ -143,7 +148,8 @@ def board_fit_report(
         "parameters": params,
         "parameters_note": (
             "nominal: the nominal chain with hand-eye and board pose fitted (calibration.json "
-            "nominal_mcpc), in the estimate's frame; the board calibration gives no kinematic sigma"
+            "nominal_mcpc), in the estimate's frame; 1 sigma: the Cramer-Rao bound at the "
+            "estimate with the fit's noise (calibration.json bounds), none when it has no bounds"
         ),
         "identifiability": {"method": "board", "held": held},
         "warnings": list(cal.warnings),

@@ -119,6 +119,9 @@ def test_import_calibrate_evaluate(lab, capsys):
     # measured: held out like the second dataset above, at the noise floor
     assert h["reprojection_rms_px"]["calibrated"] < 0.4 < 1.5 < h["reprojection_rms_px"]["nominal"]
     assert all(rep["intrinsics"][n]["std"] > 0 for n in FREE)
+    # every kinematic parameter not held has its sigma (the bound at the estimate)
+    free_rows = [p for p in rep["parameters"] if not p["held"]]
+    assert free_rows and all(p["std"] > 0 for p in free_rows)
     assert (root / "ds" / "figures" / "reprojection.png").is_file()
     assert "## Held-out reprojection" in (root / "ds" / "report.md").read_text()
     # the calibrated robot (base -> tool tip) exports like a self-calibrated one
