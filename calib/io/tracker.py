@@ -27,6 +27,7 @@ unit is probably wrong. Units: SI in the returned arrays.
 from __future__ import annotations
 
 import csv
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -103,10 +104,14 @@ def _split(line: str, sep: str | None) -> list[str]:
 
 
 def read_table(
-    path: str | Path, *, header: bool | None = None, text_columns: tuple[str, ...] = ()
+    path: str | Path,
+    *,
+    header: bool | None = None,
+    text_columns: tuple[str, ...] | Callable[[str], bool] = (),
 ) -> Table:
     """Read a numeric table (module docstring). ``header``: True (required), False (none) or
-    None (a first line with any non-numeric cell is the header); ``text_columns``: header names of
+    None (a first line with any non-numeric cell is the header); ``text_columns``: header names (or
+    a test of a name) of
     columns kept as text (e.g. an image file name; :attr:`Table.texts`).
 
     Raises:
@@ -161,7 +166,8 @@ def read_table(
     if not data:
         raise TrackerFileError(f"{p}: a header but no data rows", fix="one row per measurement")
     vals = np.full((len(data), len(cols)), np.nan)
-    is_text = [has_header and c in text_columns for c in cols]
+    as_text = text_columns if callable(text_columns) else text_columns.__contains__
+    is_text = [has_header and bool(as_text(c)) for c in cols]
     texts: dict[str, list[str]] = {c: [] for c, t in zip(cols, is_text, strict=True) if t}
     for r, ((line_no, _), cells) in enumerate(zip(data, cells_of, strict=True)):
         where = f"{p} row {r + 1} (line {line_no})"
@@ -246,6 +252,19 @@ def joints_to_si(
 
 def _joint_names(prefix: str, n: int) -> list[str]:
     return [f"{prefix}j{i + 1}" for i in range(n)]
+
+
+def _joint_index(column: str, prefix: str, robot) -> int | None:
+    """Which joint (0-based) the header ``column`` names (``prefix`` j1..jn, any case, or the
+    robot's own joint names), or None."""
+    c = column.lower()
+    if not c.startswith(prefix):
+        return None
+    rest = c[len(prefix) :]
+    if rest.startswith("j") and rest[1:].isdigit() and 1 <= int(rest[1:]) <= robot.n:
+        return int(rest[1:]) - 1
+    names = [str(j).lower() for j in getattr(robot, "joint_names", ())]
+    return names.index(rest) if rest in names else None
 
 
 def _check_joint_columns(table: Table, prefix: str, robot) -> list[str]:
@@ -351,7 +370,9 @@ def read_joint_rows(path: str | Path, robot, units: str, *, guess: bool = True) 
     """A joints file: a header ``j1..jn`` (any order; optionally an ``image`` column holding a
     file name, kept as text) or none (``n`` numbers per row), in ``units`` for ``robot``; SI out
     (the checks of :func:`joints_to_si`)."""
-    t = read_table(path, text_columns=("image",))
+    # every column but the joints' is kept as text: a controller log's timestamps, gripper
+    # states or comments are no joints (the image column is used, the others ignored)
+    t = read_table(path, text_columns=lambda c: _joint_index(c, "", robot) is None)
     if not t.has_header:
         if len(t.columns) != robot.n:
             raise TrackerFileError(

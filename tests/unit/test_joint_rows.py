@@ -119,3 +119,19 @@ def test_columns_named_by_the_robots_joint_names(tmp_path):
     np.testing.assert_allclose(got.q, np.radians(Q_DEG), rtol=1e-15)
     with pytest.raises(TrackerFileError, match=f"or the robot's joint names {names[0]}, "):
         read_joint_rows(write(tmp_path, _csv(Q_DEG, head=names[:5] + ["x"])), ROBOT, "deg")
+
+
+def test_other_columns_of_a_controller_log_are_ignored(tmp_path):
+    """Timestamps, a gripper state and a comment beside the joints: the joints are read, the
+    image column kept, the rest ignored (a text cell there refused the whole file)."""
+    head = ["timestamp", "image", *(f"j{k + 1}" for k in range(6)), "gripper", "note"]
+    rows = [[f"{1764000000.5 + k:.1f}", f"IMG_{k}.png", *(f"{v:g}" for v in r),
+             "open" if k % 2 else "closed", "ok, moved"]
+            for k, r in enumerate(Q_DEG)]  # fmt: skip
+    text = "\n".join(";".join(c if ", " not in c else f'"{c}"' for c in r) for r in [head, *rows])
+    got = read_joint_rows(write(tmp_path, text + "\n"), ROBOT, "deg")
+    np.testing.assert_allclose(got.q, np.radians(Q_DEG), rtol=1e-15)
+    assert got.images == tuple(f"IMG_{k}.png" for k in range(5))
+    bad = text.replace("IMG_0.png;35", "IMG_0.png;thirty-five", 1)
+    with pytest.raises(TrackerFileError, match=r"row 1 \(line 2\), column j1: 'thirty-five'"):
+        read_joint_rows(write(tmp_path, bad + "\n"), ROBOT, "deg")
