@@ -8,7 +8,8 @@
   (``camera_calibration_parsers``): ``camera_matrix`` = K, ``distortion_model``
   (``plumb_bob``, ``rational_polynomial`` when k4-k6 are nonzero, ``equidistant`` for the
   fisheye) and ``distortion_coefficients`` = D, ``rectification_matrix`` = R (identity: the
-  cameras are not rectified) and ``projection_matrix`` = P = [K | 0] (3x4, px).
+  cameras are not rectified) and ``projection_matrix`` = P = [K' | 0] (3x4, px) with K' the
+  matrix of the undistorted image (:func:`rectified_matrix`; K without distortion).
 
 Both use OpenCV's pixel convention (pixel centres at integers), which ROS shares.
 """
@@ -26,6 +27,27 @@ __all__ = ["camera_matrix", "distortion", "to_opencv_yaml", "to_camera_info_yaml
 def camera_matrix(camera: Pinhole) -> np.ndarray:
     """The 3x3 calibration matrix K (px)."""
     return np.asarray(camera.K, dtype=float)
+
+
+def rectified_matrix(camera: Pinhole) -> np.ndarray:
+    """The 3x3 camera matrix of the undistorted (rectified) image, the K' of ROS camera_info's
+    ``P = [K' | 0]``: as ROS ``camera_calibration`` chooses it, every pixel of the undistorted
+    image valid (``cv2.getOptimalNewCameraMatrix`` with alpha 0;
+    ``cv2.fisheye.estimateNewCameraMatrixForUndistortRectify`` with balance 0 for the fisheye);
+    K itself for a camera without distortion."""
+    K = camera_matrix(camera)
+    model, d = distortion(camera)
+    if not np.any(d):
+        return K
+    size = (int(camera.width), int(camera.height))
+    if model == "equidistant":
+        return np.asarray(
+            cv2.fisheye.estimateNewCameraMatrixForUndistortRectify(
+                K, d, size, np.eye(3), balance=0.0
+            ),
+            dtype=float,
+        )
+    return np.asarray(cv2.getOptimalNewCameraMatrix(K, d, size, 0.0)[0], dtype=float)
 
 
 def distortion(camera: CameraModel) -> tuple[str, np.ndarray]:
@@ -72,6 +94,6 @@ def to_camera_info_yaml(camera: Pinhole, camera_name: str = "camera") -> str:
         f"distortion_model: {model}",
         *_matrix("distortion_coefficients", d.reshape(1, -1)),
         *_matrix("rectification_matrix", np.eye(3)),
-        *_matrix("projection_matrix", np.c_[K, np.zeros(3)]),
+        *_matrix("projection_matrix", np.c_[rectified_matrix(camera), np.zeros(3)]),
     ]
     return "\n".join(lines) + "\n"

@@ -189,7 +189,7 @@ def cmd_export(args: argparse.Namespace) -> int:
 
 
 def _export_camera(
-    path: str, fmt: str, out: Path, camera_name: str, camera: str | None = None
+    path: str, fmt: str, out: Path, camera_name: str | None, camera: str | None = None
 ) -> int:
     """Write the calibration's estimated camera as ``fmt``: a self-calibration's (shared by the
     rig's cameras), a board calibration's camera ``camera`` (None: the first) under its model."""
@@ -209,7 +209,8 @@ def _export_camera(
         cam = board.cameras[0 if camera is None else board.camera_names.index(camera)]
     else:
         cam = _field_camera(_usable(read_calibration(p), p), p, camera)
-    text = to_opencv_yaml(cam) if fmt == "opencv" else to_camera_info_yaml(cam, camera_name)
+    name = camera_name or camera or "camera"  # camera_info's camera_name: the camera exported
+    text = to_opencv_yaml(cam) if fmt == "opencv" else to_camera_info_yaml(cam, name)
     out.parent.mkdir(parents=True, exist_ok=True)
     write_text_atomic(out, text)
     print(json.dumps({"out": str(out), "format": fmt, "camera_model": cam.model_name}))
@@ -309,7 +310,9 @@ def register(subparsers) -> None:
         ".xml / .urdf / .toml / .yml / .yaml); with --bag: ros1 | ros2 | mcap",
     )
     sp.add_argument(
-        "--camera-name", default="camera", help="camera_name of a camera_info file (default camera)"
+        "--camera-name",
+        default=None,
+        help="camera_name of a camera_info file (default: --camera's name, else camera)",
     )
     sp.add_argument(
         "--camera", default=None, metavar="NAME",

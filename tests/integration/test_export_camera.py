@@ -87,7 +87,17 @@ def test_camera_info_yaml_reads_back(kind):
     K, D = _data(fs, "camera_matrix"), _data(fs, "distortion_coefficients")
     np.testing.assert_array_equal(K, cam.K)
     np.testing.assert_array_equal(_data(fs, "rectification_matrix"), np.eye(3))
-    np.testing.assert_array_equal(_data(fs, "projection_matrix"), np.c_[cam.K, np.zeros(3)])
+    P = _data(fs, "projection_matrix")
+    np.testing.assert_array_equal(P[:, 3], np.zeros(3))
+    if kind == "pinhole":
+        np.testing.assert_array_equal(P[:, :3], cam.K)
+    else:  # ROS camera_calibration's choice: every pixel of the rectified image is valid
+        W, H = cam.width, cam.height
+        corners = np.array([[0, 0, 1], [W - 1, 0, 1], [0, H - 1, 1], [W - 1, H - 1, 1.0]])
+        rays = corners @ np.linalg.inv(P[:, :3]).T
+        src = cam.project(rays)
+        assert np.all(src > -1.0) and np.all(src < [W, H]), src
+        assert not np.allclose(P[:, :3], cam.K)
     _check_same_projection(cam, _opencv_projection(model, K, D, X))
 
 
@@ -150,3 +160,9 @@ def test_cli_exports_each_camera_of_a_field_rig_with_its_own_intrinsics(tmp_path
                                  "--camera", "middle"])  # fmt: skip
     with pytest.raises(CliError, match="calibrates the cameras left, right"):
         args.func(args)
+    for extra, name in (([], "camera"), (["--camera", "right"], "right"),
+                        (["--camera", "right", "--camera-name", "wrist"], "wrist")):  # fmt: skip
+        out = tmp_path / "info.yaml"
+        args = _parser().parse_args(["export", str(tmp_path), "--out", str(out), *extra])
+        assert args.func(args) == 0
+        assert f"camera_name: {name}\n" in out.read_text()  # the camera exported, by default
