@@ -35,14 +35,30 @@ __all__ = [
     "evaluate_board",
     "rms_px",
     "read_evaluation",
+    "shared_postures",
     "write_evaluation",
 ]
 
 EVAL_FORMAT = "scorbot-selfcal-evaluation"
+SAME_POSTURE_DEG = 1e-4
+"""Joint readings this close (deg or mm, every joint) are one posture (:func:`shared_postures`)."""
 
 
 class EvaluationWarning(SelfCalWarning):
-    """Held-out images without the board (named and counted; they are left out)."""
+    """Held-out images without the board (named and counted; they are left out), or held-out
+    postures the calibration itself used."""
+
+
+def shared_postures(calibration_deg: np.ndarray, held_out_deg: np.ndarray) -> int:
+    """How many rows of ``held_out_deg`` (m, n) are postures of ``calibration_deg`` (k, n), every
+    joint within :data:`SAME_POSTURE_DEG` (deg, mm for a prismatic joint): a held-out check on
+    them measures the fit, not the prediction."""
+    a = np.asarray(calibration_deg, dtype=float).reshape(-1, np.shape(held_out_deg)[-1])
+    b = np.asarray(held_out_deg, dtype=float)
+    if not len(a) or not len(b):
+        return 0
+    close = np.all(np.abs(b[:, None, :] - a[None, :, :]) <= SAME_POSTURE_DEG, axis=2)
+    return int(np.count_nonzero(close.any(axis=1)))
 
 
 @dataclass(frozen=True)

@@ -135,6 +135,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         ev = evaluate_board(read_board_calibration(cal_path), str(cal_path), args.dataset)
     else:
         ev = evaluate_field(read_calibration(cal_path), cal_dir, args.dataset)
+    _warn_shared_postures(cal_dir, Path(args.dataset))
     out = Path(args.out) if args.out else Path(args.dataset) / "evaluation.json"
     write_evaluation(out, ev)
     note_written(args, out)
@@ -142,6 +143,28 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     if ev.failures:
         raise CalibrationFailedError.of(ev.failures, out)
     return 0
+
+
+def _warn_shared_postures(cal_dir: Path, held_out: Path) -> None:
+    """An :class:`calib.evaluate.EvaluationWarning` when the held-out dataset repeats postures
+    of the calibration's own dataset (``cal_dir``, when it is one)."""
+    import warnings
+
+    from calib.evaluate import EvaluationWarning, shared_postures
+    from calib.io.dataset import Dataset
+
+    if not (cal_dir / "dataset.json").is_file():
+        return
+    q_cal, q_held = Dataset.open(cal_dir).joints_deg, Dataset.open(held_out).joints_deg
+    n = shared_postures(q_cal, q_held)
+    if n:
+        warnings.warn(
+            f"{n} of {len(q_held)} postures of {held_out} are postures of the calibration's own "
+            f"dataset {cal_dir}: on them the evaluation measures the fit, not the prediction of "
+            "new postures; a held-out check needs postures the calibration did not see",
+            EvaluationWarning,
+            stacklevel=2,
+        )
 
 
 IMPORT_HELP = """\

@@ -41,6 +41,7 @@ from calib.calibrate import CalibrationError, calibrate
 from calib.camera import Fisheye, Pinhole
 from calib.choices import DEFAULT_FREE
 from calib.errors import InputError
+from calib.evaluate import EvaluationWarning
 from calib.export import deploy_chain, nominal_deployed_params
 from calib.identify import IdentificationError, IdentificationWarning
 from calib.import_dataset import CameraImages, ImportError_, TargetNotFoundWarning, import_dataset
@@ -109,6 +110,9 @@ def test_import_calibrate_evaluate(lab, capsys):
     assert len(ev["images"]) == 10 and all(
         i["calibrated_px"] < i["nominal_px"] for i in ev["images"]
     )
+    # the calibration's own postures are no held-out check: said (the held-out set above: not)
+    with pytest.warns(EvaluationWarning, match=r"20 of 20 postures of .*ds are postures of the"):
+        main(["evaluate", str(root / "ds"), str(root / "ds"), "--out", str(root / "self.json")])
     # `selfcal report` on the imported dataset (no truth): the fit, a leave-poses-out check
     # (every 5th of 20 frames held out), the camera's sigmas and the held parameters
     assert main(["report", str(root / "ds"), "--quiet"]) == 0
