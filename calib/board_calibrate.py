@@ -159,7 +159,7 @@ _GOOD_START_PX = 1.0
 def _fisheye_calibrate(obj, img, width: int, height: int, K0: np.ndarray, dist0: np.ndarray,
                        flags: int, criteria: tuple, *, starts: bool) -> tuple:  # fmt: skip
     """``cv2.fisheye.calibrate`` from ``K0`` and, with ``starts``, from the focal lengths of
-    fields of view 60-180 deg across the shorter side (equidistant: ``f = (side / 2) / half
+    fields of view 40-180 deg across the shorter side (equidistant: ``f = (side / 2) / half
     angle``): the homographies' pinhole focal length that ``K0`` holds is several times a wide
     fisheye's (3325 px for 512 px measured), from where OpenCV's solver fails (an assertion in
     ``InitExtrinsics``). The first start that fits within :data:`_GOOD_START_PX`, else the one
@@ -167,8 +167,9 @@ def _fisheye_calibrate(obj, img, width: int, height: int, K0: np.ndarray, dist0:
     obj64 = [o.reshape(1, -1, 3).astype(np.float64) for o in obj]  # the shapes it accepts
     img64 = [i.reshape(1, -1, 2).astype(np.float64) for i in img]
     focal = [float(K0[0, 0])]
-    if starts:  # the middle fields of view first
-        focal += [0.5 * min(width, height) / np.radians(a) for a in (60.0, 45.0, 75.0, 90.0, 30.0)]
+    if starts:  # half fields of view, the middle ones first
+        half_deg = (60.0, 45.0, 75.0, 90.0, 30.0, 20.0)
+        focal += [0.5 * min(width, height) / np.radians(a) for a in half_deg]
     best, first_error = None, None
     for f in focal:
         if best is not None and best[0] < _GOOD_START_PX:
