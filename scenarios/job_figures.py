@@ -26,7 +26,14 @@ from typing import Any
 import numpy as np
 
 from calib.evaluate import Evaluation
-from scenarios.plotting import close_figure, legend_outside, new_figure, save_figure, stack_layout
+from scenarios.plotting import (
+    close_figure,
+    legend_outside,
+    log_y,
+    new_figure,
+    save_figure,
+    stack_layout,
+)
 
 __all__ = [
     "FIGURES",
@@ -50,7 +57,7 @@ def tool_tip_figure(nominal_mm: np.ndarray, calibrated_mm: np.ndarray) -> Any:
     w = 0.38
     a1.bar(k - w / 2, nom, w, color="0.55", label=f"nominal ({_rms(nom):.3f} mm RMS)")
     a1.bar(k + w / 2, cal, w, color="tab:red", label=f"calibrated ({_rms(cal):.3f} mm RMS)")
-    a1.set_yscale("log")
+    log_y(a1)
     a1.set_ylabel("|tool-tip error| (mm, log)")
     a1.set_xlabel("validation posture")
     a1.set_xticks(k)
@@ -85,7 +92,7 @@ def reprojection_figure(ev: Evaluation, what: str) -> Any:
             label=f"nominal reference ({ev.rms['nominal']:.3f} px RMS)")  # fmt: skip
     a1.plot(x, [r["calibrated_px"] for r in imgs], "o", color="tab:red", ms=4,
             label=f"calibrated ({ev.rms['calibrated']:.3f} px RMS)")  # fmt: skip
-    a1.set_yscale("log")
+    log_y(a1)
     a1.set_xlabel(f"image ({what}, in frame order)")
     a1.set_ylabel("reprojection RMS (px, log)")
     a1.set_title("(a) every image predicted from its joint reading, per image", y=1.0)
@@ -127,7 +134,7 @@ def parameter_figure(rows: list[dict]) -> Any:
         ax.set_xticks(x, [r["name"] for r in g], rotation=90, fontsize=8)
         ax.set_xlabel("minimal MCPC parameter (in the estimate's frame)")
         ax.set_ylabel(f"|error| ({unit}, log)")
-        ax.set_yscale("log")
+        log_y(ax)
         ax.set_title(f"parameters in {unit}: estimate and nominal against the truth", y=1.0)
         ax.grid(alpha=0.3, which="both")
         legend_outside(ax)

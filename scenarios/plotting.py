@@ -22,6 +22,7 @@ __all__ = [
     "pyplot",
     "new_figure",
     "stack_layout",
+    "log_y",
     "close_figure",
     "save_figure",
     "legend_outside",
@@ -84,6 +85,19 @@ def stack_layout(
     axes_h = (h - top - bottom - (n - 1) * gap) / n
     fig.subplots_adjust(left=left / w, right=(left + axes_w) / w, bottom=bottom / h,
                         top=1.0 - top / h, hspace=gap / axes_h)  # fmt: skip
+
+
+def log_y(ax: Any) -> None:
+    """A log-scale y axis of ``ax`` that draws quickly: minor ticks at 2 and 5 per decade
+    (unlabelled) and the decades as plain numbers (``0.01``, ``1e-05``). Matplotlib's default
+    (eight minor ticks per decade, mathtext powers ``10^-2``) took a third of each of the main
+    job's figures' draw (issue 17)."""
+    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+
+    ax.set_yscale("log")
+    ax.yaxis.set_minor_locator(LogLocator(subs=(2.0, 5.0)))
+    ax.yaxis.set_minor_formatter(NullFormatter())
+    ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
 
 
 def close_figure(fig: Any) -> None:
