@@ -55,6 +55,7 @@ __all__ = [
 ]
 
 XYZ = ("x_mm", "y_mm", "z_mm")
+_IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".pgm", ".ppm", ".webp"}
 QUAT = ("qw", "qx", "qy", "qz")
 _MIN_ROWS_FOR_UNIT_GUESS = 5
 
@@ -272,7 +273,15 @@ def _check_joint_columns(table: Table, prefix: str, robot) -> list[str]:
     ``j1``: a header's case is a spreadsheet's choice), or else the robot's own joint names
     (``shoulder_pan_joint``, ... of a URDF: what a ROS ``joint_states`` export names them)."""
     k = len(prefix) + 1
-    by_name = {c.lower(): c for c in table.columns}
+    by_name: dict[str, str] = {}
+    for c in table.columns:
+        if c.lower() in by_name and _joint_index(c, prefix, robot) is not None:
+            raise TrackerFileError(
+                f"{table.path}: columns {by_name[c.lower()]!r} and {c!r} name the same joint",
+                fix="keep one column per joint (a log of commanded and actual values: keep the "
+                "actual ones)",
+            )
+        by_name[c.lower()] = c
     present = sorted(
         (c for c in by_name if c.startswith(prefix + "j") and c[k:].isdigit()),
         key=lambda c: int(c[k:]),
@@ -383,7 +392,23 @@ def read_joint_rows(path: str | Path, robot, units: str, *, guess: bool = True) 
         t = Table(t.path, tuple(_joint_names("", robot.n)), t.values, t.lines)
     cols = _check_joint_columns(t, "", robot)
     q = joints_to_si(t, cols, robot, units, guess=guess)
-    return JointRows(q, t.texts.get("image"), t.lines)
+    named = [c for c in t.texts if c.lower() == "image"]
+    if len(named) > 1:
+        raise TrackerFileError(f"{t.path}: columns {named} both name the image",
+                               fix="keep one image column")  # fmt: skip
+    for c, cells in t.texts.items():  # file names in a column of another name: not guessed
+        if (
+            c not in named
+            and cells
+            and all(Path(v).suffix.lower() in _IMAGE_SUFFIXES for v in cells)
+        ):
+            raise TrackerFileError(
+                f"{t.path}: column {c!r} holds image file names, but the column that pairs rows "
+                "with images is named 'image'",
+                fix=f"rename the column {c!r} to image (or remove it to pair rows and images "
+                "in file-name order)",
+            )
+    return JointRows(q, t.texts[named[0]] if named else None, t.lines)
 
 
 def read_joints(path: str | Path, robot, units: str, *, guess: bool = True) -> np.ndarray:

@@ -135,3 +135,24 @@ def test_other_columns_of_a_controller_log_are_ignored(tmp_path):
     bad = text.replace("IMG_0.png;35", "IMG_0.png;thirty-five", 1)
     with pytest.raises(TrackerFileError, match=r"row 1 \(line 2\), column j1: 'thirty-five'"):
         read_joint_rows(write(tmp_path, bad + "\n"), ROBOT, "deg")
+
+
+def test_the_image_column_by_any_case_and_file_names_elsewhere_are_named(tmp_path):
+    """'Image' pairs rows with images as 'image' does; file names in a column of another name
+    are an error, not silently left out (rows would pair in file-name order)."""
+    rows = [",".join([*(f"{v:g}" for v in r), f"shot_{4 - k}.png"]) for k, r in enumerate(Q_DEG)]
+    head = ",".join(f"j{k + 1}" for k in range(6))
+    got = read_joint_rows(write(tmp_path, "\n".join([head + ",Image", *rows]) + "\n"), ROBOT, "deg")
+    assert got.images == tuple(f"shot_{4 - k}.png" for k in range(5))
+    with pytest.raises(TrackerFileError, match=r"column 'file' holds image file names.*rename"):
+        read_joint_rows(write(tmp_path, "\n".join([head + ",file", *rows]) + "\n"), ROBOT, "deg")
+
+
+def test_one_joint_in_two_columns_is_an_error(tmp_path):
+    """A log with j1 and J1 (commanded and actual): no silent pick of either."""
+    text = _csv(np.c_[Q_DEG, Q_DEG[:, 0] + 1], head=[*(f"j{k + 1}" for k in range(6)), "J1"])
+    with pytest.raises(TrackerFileError, match=r"columns 'j1' and 'J1' name the same joint"):
+        read_joint_rows(write(tmp_path, text), ROBOT, "deg")
+    names = [*ROBOT.joint_names, ROBOT.joint_names[0].upper()]  # KUKA's a1..a6 and A1
+    with pytest.raises(TrackerFileError, match="name the same joint"):
+        read_joint_rows(write(tmp_path, _csv(np.c_[Q_DEG, Q_DEG[:, 0]], head=names)), ROBOT, "deg")
