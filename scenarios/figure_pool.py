@@ -15,8 +15,10 @@ the figures are drawn in the process as before: the pool only moves work, it nev
 from __future__ import annotations
 
 import multiprocessing as mp
+import os
 import signal
 import sys
+import threading
 from collections.abc import Callable
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
@@ -41,11 +43,28 @@ def _warm_up() -> None:
     """Worker start: ignore Ctrl-C (the parent handles it), import matplotlib's Agg canvas and
     load the default font, the part of a first figure that does not depend on its data."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _die_with_parent()
     from scenarios.plotting import new_figure
 
     fig = new_figure(1.0, 1.0)
     fig.text(0.5, 0.5, "0.1")
     fig.canvas.draw()
+
+
+def _die_with_parent() -> None:
+    """Linux: the kernel ends this worker when the process that forked it dies without closing
+    the pool (killed, crashed): an idle worker would otherwise wait forever, holding the run's
+    stdout and stderr open (a ``| tee`` or a CI job would not see their end)."""
+    import ctypes
+
+    parent = os.getppid()
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        return
+    if os.getppid() != parent:  # the parent died before the call took effect
+        os._exit(0)
 
 
 def fork_available() -> bool:
@@ -81,7 +100,8 @@ class FigurePool:
 
     def __init__(self, enabled: bool = True) -> None:
         self._pool: ProcessPoolExecutor | None = None
-        if enabled and fork_available():
+        # a fork copies the calling thread alone: with others running, one may hold a lock
+        if enabled and fork_available() and threading.active_count() == 1:
             sys.stdout.flush()  # a forked child would write the parent's buffered text again
             sys.stderr.flush()
             self._pool = ProcessPoolExecutor(
@@ -102,6 +122,7 @@ class FigurePool:
                 fut = self._pool.submit(draw_figure, builder, args, root, name)
                 return PendingFigure(builder, args, root, name, fut)
             except BrokenProcessPool:
+                self._pool.shutdown(wait=False)
                 self._pool = None
         done: Future[Path] = Future()
         try:

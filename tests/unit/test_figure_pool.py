@@ -4,6 +4,9 @@ drawn in the process, its errors reach the caller, and a dead worker loses no fi
 from __future__ import annotations
 
 import os
+import subprocess
+import sys
+import time
 
 import numpy as np
 import pytest
@@ -53,3 +56,34 @@ def test_a_dead_worker_loses_no_figure(tmp_path):
         assert path.is_file() and path.stat().st_size > 1000
         later = pool.draw(tool_tip_figure, (ERRORS[0], ERRORS[1]), tmp_path, "u.png")
         assert later.wait().is_file()  # and the figures after it are drawn here too
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="PR_SET_PDEATHSIG is Linux's")
+def test_the_worker_ends_with_a_killed_parent():
+    """An idle worker of a parent killed before it closed the pool ends too (it held the
+    parent's stdout open: a `| tee` would wait forever)."""
+    code = (
+        "import os, signal\n"
+        "from scenarios.figure_pool import FigurePool\n"
+        "pool = FigurePool()\n"
+        "print(*pool._pool._processes, flush=True)\n"
+        "os.kill(os.getpid(), signal.SIGKILL)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    pids = [int(p) for p in out.stdout.split()]
+    assert pids, out.stderr
+    deadline = time.monotonic() + 10.0
+    alive = pids
+    while alive and time.monotonic() < deadline:
+        time.sleep(0.1)
+        alive = [p for p in pids if _running(p)]
+    assert not alive, f"worker(s) {alive} outlived the killed parent"
+
+
+def _running(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    with open(f"/proc/{pid}/stat") as f:  # a zombie waiting for its reaper has ended
+        return f.read().split(") ")[-1][0] != "Z"
