@@ -103,7 +103,9 @@ def load_calibration(path: str):
             src = p.parent / ref if ref.suffix in (".toml", ".urdf") else cal.robot_model
             return deploy_chain(cal.model, load_robot(src), intrinsics=cal.cameras[0],
                                 source=str(p))  # fmt: skip
-        return deploy(_usable(read_calibration(p), p), source=str(p))
+        return deploy(
+            _usable(read_calibration(p), p), robot=_dataset_robot(p.parent), source=str(p)
+        )
     except DeployError as exc:
         raise CliError(f"{p}: {exc}") from None
 
@@ -119,7 +121,22 @@ def calibration_robot(path: str, robot_name: str):
         ref = Path(str(json.loads(p.read_text()).get("robot_model", "")))
         if ref.suffix in (".toml", ".urdf"):
             return load_robot(ref if ref.is_absolute() else p.parent / ref)
+        robot = _dataset_robot(p.parent)  # a field calibration names the robot by its name
+        if robot is not None:
+            return robot
     return load_robot(robot_name)
+
+
+def _dataset_robot(folder: Path):
+    """The robot file of the dataset in ``folder`` (``selfcal import --robot FILE`` copies it
+    there), or None: a shipped model, or no dataset."""
+    from calib.io.dataset import Dataset
+    from calib.robot_def import load_robot
+
+    if not (folder / "dataset.json").is_file():
+        return None
+    src = Dataset.open(folder).robot_source
+    return load_robot(src) if isinstance(src, Path) else None
 
 
 def _usable(cal: CalibrationResult, path: Path) -> CalibrationResult:

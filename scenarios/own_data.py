@@ -57,9 +57,12 @@ def calibrate_any(
 
         from calib.robot_def import load_robot
 
-        if not joint_sigma_deg > 0:
-            raise CliError(f"--joint-sigma-deg must be > 0, got {joint_sigma_deg}",
+        if not (np.isfinite(joint_sigma_deg) and joint_sigma_deg > 0):
+            raise CliError(f"--joint-sigma-deg must be a finite number > 0, got {joint_sigma_deg}",
                            fix="give the read-back noise of a joint, e.g. 0.003")  # fmt: skip
+        if info.board is None and method != "joint":
+            raise CliError("--joint-sigma-deg is modelled by the one-step method of the field",
+                           fix="leave out --method two-stage")  # fmt: skip
         types = load_robot(ds.robot_source).joint_types
         joint_sigma = np.array([np.radians(joint_sigma_deg) if t == "revolute"
                                 else joint_sigma_deg / 1000.0 for t in types])  # fmt: skip

@@ -15,6 +15,7 @@ import json
 import re
 import shutil
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -266,3 +267,31 @@ def test_the_joint_read_back_noise_can_be_stated(small_analytic, tmp_path):
     used = json.loads((ds / "calibration.json").read_text())["joint"]["joint_sigma"]
     np.testing.assert_allclose(used, np.radians(0.01), rtol=1e-12)
     assert main(["calibrate", str(ds), "--joint-sigma-deg", "0", "--quiet"]) == 2
+    assert main(["calibrate", str(ds), "--joint-sigma-deg", "inf", "--quiet"]) == 2
+    argv = ["calibrate", str(ds), "--joint-sigma-deg", "0.01", "--method", "two-stage"]
+    assert main(argv) == 2  # the two-stage method has no read-back model
+
+
+@pytest.mark.slow  # a calibration of the field: 2-5 s
+def test_a_field_calibration_of_a_robot_file_exports(small_analytic, tmp_path):
+    """A field dataset whose robot is a file (not a shipped model): export and fk --calibration
+    load that file; calibration.json names the robot by its own name, 'myarm', which is no
+    model of models/robots (it was looked up there and failed)."""
+    from scenarios.cli import main
+
+    ds = tmp_path / "myarm"
+    shutil.copytree(small_analytic, ds)
+    (ds / "robot").mkdir()
+    root = Path(__file__).resolve().parents[2]
+    text = (root / "models" / "robots" / "er4u-paper.toml").read_text()
+    (ds / "robot" / "myarm.toml").write_text(
+        text.replace('name = "er4u-paper"', 'name = "myarm"', 1)
+    )
+    info = json.loads((ds / "dataset.json").read_text())
+    info["robot_model"] = info["encoder_model"] = "robot/myarm.toml"
+    (ds / "dataset.json").write_text(json.dumps(info))
+    assert main(["calibrate", str(ds), "--quiet"]) == 0
+    assert json.loads((ds / "calibration.json").read_text())["robot_model"] == "myarm"
+    assert main(["export", str(ds), "--out", str(tmp_path / "myarm.urdf")]) == 0
+    assert '<robot name="myarm' in (tmp_path / "myarm.urdf").read_text()
+    assert main(["fk", "--calibration", str(ds), "--joints", "0,0,0,0,0"]) == 0
