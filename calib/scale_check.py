@@ -124,12 +124,13 @@ def scale_warning(ms: MotionScale, robot: str, target: str, correct: str) -> str
     off = ms.scale - 1.0
     if abs(off) <= ms.tolerance or abs(off) <= 5 * ms.std:
         return None
+    measured = abs(1.0 / ms.scale - 1.0)  # the target's motion against the arm's
     return (
         f"the target's scale disagrees with the arm's: {target} measures the camera's motion "
-        f"{abs(off) * 100:.1f} % {'smaller' if off > 0 else 'larger'} than the nominal "
+        f"{measured * 100:.1f} % {'smaller' if off > 0 else 'larger'} than the nominal "
         f"kinematics of {robot} make it (scale {ms.scale:.4f} +- {ms.std:.4f} over "
         f"{ms.postures} postures); the calibration has taken this into the link lengths, so its "
-        f"positions are about {abs(off) * 100:.1f} % off. A target printed or measured at "
+        f"positions are about {measured * 100:.1f} % off. A target printed or measured at "
         f"another size does this ({correct}), as does a --robot that is not this arm"
     )
 

@@ -127,18 +127,20 @@ def free_std(
 
 def std_by_name(camera: CameraModel, cov: np.ndarray) -> dict[str, float]:
     """Standard deviations of ``camera``'s free parameters by name from their covariance
-    ``cov``; with ``fx`` and ``mu`` free also OpenCV's ``fy = mu fx`` (first order:
-    ``var fy = mu^2 var fx + fx^2 var mu + 2 fx mu cov(fx, mu)``), so a file read by OpenCV's
-    names has every one's."""
+    ``cov``; with ``fx`` free also OpenCV's ``fy = mu fx`` (first order: ``var fy = mu^2 var fx
+    + fx^2 var mu + 2 fx mu cov(fx, mu)``, ``mu std(fx)`` with ``mu`` held), so a file read by
+    OpenCV's names has every one's."""
     free = list(camera.free)
     out = dict(zip(free, (float(v) for v in np.sqrt(np.clip(np.diag(cov), 0.0, None))),
                    strict=True))  # fmt: skip
+    values = dict(zip(camera.names, camera.values().tolist(), strict=True))
+    fx, mu = float(values["fx"]), float(values["mu"])
     if "fx" in free and "mu" in free:
         i, j = free.index("fx"), free.index("mu")
-        values = dict(zip(camera.names, camera.values().tolist(), strict=True))
-        fx, mu = float(values["fx"]), float(values["mu"])
         var = mu**2 * cov[i, i] + fx**2 * cov[j, j] + 2.0 * fx * mu * cov[i, j]
         out["fy"] = float(np.sqrt(max(var, 0.0)))
+    elif "fx" in free:  # mu held: fy moves with fx
+        out["fy"] = abs(mu) * out["fx"]
     return out
 
 

@@ -16,6 +16,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from calib.errors import InputError
+
 __all__ = ["gray8", "read_gray_image"]
 
 
@@ -28,7 +30,8 @@ def gray8(img: np.ndarray) -> np.ndarray:
     """
     img = np.asarray(img)
     if img.ndim == 3:
-        img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY) if img.shape[2] == 3 else img[:, :, 0]
+        codes = {3: cv2.COLOR_BGR2GRAY, 4: cv2.COLOR_BGRA2GRAY}
+        img = cv2.cvtColor(img, codes[img.shape[2]]) if img.shape[2] in codes else img[:, :, 0]
     if img.dtype == np.uint8:
         return img
     if img.dtype == np.uint16:
@@ -45,6 +48,18 @@ def gray8(img: np.ndarray) -> np.ndarray:
 
 def read_gray_image(path: str | Path) -> np.ndarray | None:
     """The image file ``path`` as gray uint8 (:func:`gray8`), or None when OpenCV cannot read
-    it (no file, not an image)."""
+    it (no file, not an image).
+
+    Raises:
+        InputError: pixels of a depth :func:`gray8` does not take (signed or 32-bit integers),
+            naming the file.
+    """
     img = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE | cv2.IMREAD_ANYDEPTH)
-    return None if img is None else gray8(img)
+    if img is None:
+        return None
+    try:
+        return gray8(img)
+    except ValueError as exc:
+        raise InputError(
+            f"{path}: {exc}", fix="save the images as 8- or 16-bit PNG or TIFF"
+        ) from None

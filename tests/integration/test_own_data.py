@@ -204,7 +204,7 @@ def test_a_board_declared_at_the_wrong_size_is_named_with_the_size_that_fits(lab
     (tmp_path / "board.toml").write_text(TARGET_TOML.replace("15.0", "14.55"))
     cams = [CameraImages.parse(f"cam0={ci}/*.png")]
     import_dataset("kr6-r900", cams, cj, "rad", tmp_path / "board.toml", tmp_path / "ds")
-    with pytest.warns(ScaleWarning, match=r"3\.0 % smaller .*square_mm = 14.99 would match"):
+    with pytest.warns(ScaleWarning, match=r"2\.9 % smaller .*square_mm = 14.99 would match"):
         res = calibrate_board_dataset(tmp_path / "ds")
     assert res.reprojection_rms_px < 0.35  # the fit itself shows nothing (0.122 px)
     assert any("square_mm = 14.99 would match the arm" in w for w in res.warnings)

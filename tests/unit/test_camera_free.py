@@ -190,7 +190,8 @@ def test_fy_has_a_standard_deviation_beside_fx_and_mu():
     big = np.zeros((5, 5))
     big[:3, :3], big[3:, 3:] = cov, cov[[0, 2]][:, [0, 2]]
     _, per = free_std(pair, big)
-    assert per["left"]["fy"] == pytest.approx(std["fy"]) and "fy" not in per["right"]
+    assert per["left"]["fy"] == pytest.approx(std["fy"])
+    assert per["right"]["fy"] == pytest.approx(right.mu * per["right"]["fx"])  # mu held
 
 
 def test_a_camera_info_with_skew_starts_the_camera_with_it():

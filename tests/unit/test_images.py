@@ -51,3 +51,15 @@ def test_an_unreadable_file_is_none(tmp_path):
     (tmp_path / "x.png").write_text("not an image")
     assert read_gray_image(tmp_path / "x.png") is None
     assert read_gray_image(tmp_path / "missing.png") is None
+
+
+def test_unsupported_depths_are_named_with_the_file(tmp_path):
+    from calib.errors import InputError
+
+    path = tmp_path / "signed.tif"
+    assert cv2.imwrite(str(path), np.full((8, 8), 1000, np.int16))
+    with pytest.raises(InputError, match=r"signed.tif: int16 pixels.*8- or 16-bit PNG or TIFF"):
+        read_gray_image(path)
+    bgra = np.zeros((4, 4, 4), np.uint8)
+    bgra[..., 2] = 200  # red
+    assert gray8(bgra)[0, 0] == cv2.cvtColor(bgra[..., :3], cv2.COLOR_BGR2GRAY)[0, 0] > 50

@@ -40,7 +40,7 @@ def test_a_target_of_another_size_is_measured(scale):
     assert ms.scale == pytest.approx(scale, rel=6e-3)  # the arm's errors: within 4e-3 (seeds 0-5)
     assert ms.std < 2e-3 and ms.postures == 20
     text = scale_warning(ms, "kr6-r900", "the board (square_mm = 15)", "square_mm = 15.45")
-    assert text is not None and f"{abs(ms.scale - 1) * 100:.1f} %" in text
+    assert text is not None and f"{abs(1 / ms.scale - 1) * 100:.1f} %" in text
     assert ("smaller" if scale > 1 else "larger") in text and "square_mm = 15.45" in text
 
 
