@@ -460,57 +460,42 @@ def run_all(
     """Acquire, calibrate and (in simulation) report; prints a summary. ``figures``: the
     report's figures in ``out/figures/``."""
     t0 = time.perf_counter()
+    kept = FrameCache()  # calibration and report: the images taken now from memory, detected once
     # the report's figures: a worker forked now (before any thread or GL context) loads
     # matplotlib while this process acquires and calibrates (scenarios/figure_pool.py)
     with FigurePool(enabled=figures and s.robot.backend == "sim" and not s.target.board) as pool:
-        return _run_all(s, out, t0, pool, resume=resume, quiet=quiet, method=method,
-                        figures=figures)  # fmt: skip
+        run_acquire(s, out, resume=resume, quiet=quiet, keep=kept)
+        if s.target.board:  # a board of known geometry: the board route (scenarios/board_run.py)
+            from scenarios.board_run import calibrate_and_report_board
 
-
-def _run_all(
-    s: Scenario,
-    out: Path,
-    t0: float,
-    pool: FigurePool,
-    *,
-    resume: bool,
-    quiet: bool,
-    method: str,
-    figures: bool,
-) -> dict:
-    kept = FrameCache()  # calibration and report: the images taken now from memory, detected once
-    run_acquire(s, out, resume=resume, quiet=quiet, keep=kept)
-    if s.target.board:  # a board of known geometry: the board route (scenarios/board_run.py)
-        from scenarios.board_run import calibrate_and_report_board
-
-        return calibrate_and_report_board(s, out, quiet=quiet, figures=figures, t0=t0)
-    # without truth (hardware) there is no report: the calibration draws what it can
-    try:
-        cal = run_calibrate(
-            out,
-            quiet=quiet,
-            method=method,
-            figures=figures and s.robot.backend != "sim",
-            cache=kept,
-        )
-    except CalibrationFailedError:
+            return calibrate_and_report_board(s, out, quiet=quiet, figures=figures, t0=t0)
+        # without truth (hardware) there is no report: the calibration draws what it can
+        try:
+            cal = run_calibrate(
+                out,
+                quiet=quiet,
+                method=method,
+                figures=figures and s.robot.backend != "sim",
+                cache=kept,
+            )
+        except CalibrationFailedError:
+            if s.robot.backend == "sim":
+                run_report(out, quiet=True)  # report.json marked failed as well
+            raise
+        result = {"calibration": cal}
         if s.robot.backend == "sim":
-            run_report(out, quiet=True)  # report.json marked failed as well
-        raise
-    result = {"calibration": cal}
-    if s.robot.backend == "sim":
-        rep = run_report(out, quiet=True, figures=figures, cache=kept, pool=pool)
-        result["report"] = rep
-        v = rep["validation"]["tool_tip_error_mm"]
-        print(
-            f"tool-tip error on {rep['validation']['poses']} validation postures: nominal "
-            f"{v['nominal']['rms']:.3f} mm RMS (max {v['nominal']['max']:.3f}), calibrated "
-            f"{v['calibrated']['rms']:.3f} mm RMS (max {v['calibrated']['max']:.3f}); "
-            f"fx {cal.intrinsics.fx:.2f} px; total {time.perf_counter() - t0:.1f} s; "
-            f"details in {out}/report.md"
-        )
-        for f in rep["figures"]:
-            _say(quiet, f"figure: {out / f}")
-        if rep["failures"]:
-            raise CalibrationFailedError.of(tuple(rep["failures"]), out / "report.json")
+            rep = run_report(out, quiet=True, figures=figures, cache=kept, pool=pool)
+            result["report"] = rep
+            v = rep["validation"]["tool_tip_error_mm"]
+            print(
+                f"tool-tip error on {rep['validation']['poses']} validation postures: nominal "
+                f"{v['nominal']['rms']:.3f} mm RMS (max {v['nominal']['max']:.3f}), calibrated "
+                f"{v['calibrated']['rms']:.3f} mm RMS (max {v['calibrated']['max']:.3f}); "
+                f"fx {cal.intrinsics.fx:.2f} px; total {time.perf_counter() - t0:.1f} s; "
+                f"details in {out}/report.md"
+            )
+            for f in rep["figures"]:
+                _say(quiet, f"figure: {out / f}")
+            if rep["failures"]:
+                raise CalibrationFailedError.of(tuple(rep["failures"]), out / "report.json")
     return result
