@@ -14,6 +14,7 @@ from calib.mcpc import MCPCModel, chain_transforms, gauge_fix, minimal_indices, 
 from calib.transforms import inv_pose, kabsch
 
 __all__ = [
+    "AXIS_TIPS",
     "fit_rigid_transform",
     "fit_placement_and_hand_eye",
     "regauge",
@@ -22,6 +23,12 @@ __all__ = [
     "express_in_frame",
     "align_truth",
 ]
+
+
+AXIS_TIPS = np.array([[0, 0, 0, 1], [0.1, 0, 0, 1], [0, 0.1, 0, 1], [0, 0, 0.1, 1]], float).T
+"""A pose's origin and the tips of its axes at 0.1 m, as homogeneous columns (4, 4):
+``((T_a - T_b) @ AXIS_TIPS)[..., :3, :]`` compares two poses by position and orientation (an
+orientation error of 1 rad weighs like 0.1 m, as in :func:`fit_rigid_transform`)."""
 
 
 def fit_rigid_transform(T_a: np.ndarray, T_b: np.ndarray, length_m: float = 0.1) -> np.ndarray:

@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import least_squares
 
-from calib.alignment import fit_placement_and_hand_eye, fit_rigid_transform
+from calib.alignment import AXIS_TIPS, fit_placement_and_hand_eye, fit_rigid_transform
 from calib.board_bounds import bounds_block
 from calib.board_calibrate import calibrate_board
 from calib.board_rig import calibrate_board_rig
@@ -41,7 +41,7 @@ from calib.kinematics import fk_tool
 from calib.mcpc import MCPCModel, minimal_indices, nominal_mcpc, param_names
 from calib.robot_def import RobotDef, load_robot
 from calib.row_shift import row_shift_misfits, shift_note
-from calib.scale_check import ScaleWarning, motion_scale, scale_warning, scaled_sizes
+from calib.scale_check import check_scale, scaled_sizes
 from calib.target.base import Features
 from calib.target.boards import Board
 from calib.transforms import inv_pose, pose_from_vec
@@ -233,13 +233,9 @@ def calibrate_board_dataset_detailed(
     notes = list(incomplete)
     sizes = {k: float(v) for k, v in (ds.info.board or {}).items() if k.endswith("_mm")}
     # the camera poses of the calibrated chain: they fit the images with the final camera
-    T_cal = fk_tool(res.model, q[used])
-    ms = motion_scale(nominal_mcpc(robot), q[used], T_cal, robot.T_flange_cam)
-    text = scale_warning(ms, robot.name, f"the board ({scaled_sizes(sizes, 1.0)})",
-                         f"{scaled_sizes(sizes, ms.scale)} would match the arm")  # fmt: skip
-    if text is not None:
-        notes.append(text)
-        warnings.warn(text, ScaleWarning, stacklevel=2)
+    notes += check_scale(robot, q[used], fk_tool(res.model, q[used]),
+                         f"the board ({scaled_sizes(sizes, 1.0)})",
+                         lambda s: f"{scaled_sizes(sizes, s)} would match the arm")  # fmt: skip
     camera_fits = res.board.rms_px < CAMERA_FIT_PX  # else the camera model misfits: said apart
     if js is None and camera_fits and res.rms_px > READBACK_RATIO * res.board.rms_px:
         text = (
@@ -319,10 +315,9 @@ def nominal_reference(robot: RobotDef, q: np.ndarray, T_board_cam: np.ndarray) -
     identification with every chain parameter held (which cannot turn the board about joint 1's
     axis nor shift it along that axis)."""
     F = fk_tool(nominal_mcpc(robot), q)  # base <- flange
-    tips = np.array([[0, 0, 0, 1], [0.1, 0, 0, 1], [0, 0.1, 0, 1], [0, 0, 0.1, 1]], float).T
 
     def residuals(B: np.ndarray, C: np.ndarray) -> np.ndarray:
-        return ((B @ F @ C - T_board_cam) @ tips)[:, :3].ravel()
+        return ((B @ F @ C - T_board_cam) @ AXIS_TIPS)[:, :3].ravel()
 
     B, C = fit_placement_and_hand_eye(T_board_cam, F, robot.T_flange_cam)
     nominal = nominal_mcpc(robot).with_tool(robot.T_flange_cam)

@@ -48,7 +48,7 @@ from calib.mcpc import MCPCModel, nominal_mcpc, shape_matrices
 from calib.quality import assess_calibration
 from calib.results import CalibrationOutput, two_stage_result, with_bounds, with_joint
 from calib.robot_def import RobotDef, load_robot
-from calib.scale_check import ScaleWarning, motion_scale, scale_warning
+from calib.scale_check import check_scale
 from calib.selfcal import Observations, SelfCalibrationResult, self_calibrate
 from calib.target.aruco_detect import detect_markers, detect_markers_noise
 from calib.tracker_join import TrackerInput, tracker_source
@@ -414,18 +414,12 @@ def calibrate_detailed(
 
 
 def _scale_notes(info: DatasetInfo, robot: RobotDef, q: np.ndarray, T_world_cam: np.ndarray):
-    """The known distance against the arm's size (:mod:`calib.scale_check`): a warning (also
-    returned, for ``calibration.json``) when the distance declared is not the markers' one."""
-    ms = motion_scale(nominal_mcpc(robot), q, T_world_cam, robot.T_flange_cam)
+    """The known distance against the arm's size (:func:`calib.scale_check.check_scale`): a
+    warning (also returned, for ``calibration.json``) when it is not the markers' distance."""
     d_mm, (a, b) = info.scale_length_m * 1000.0, info.scale_ids
-    text = scale_warning(
-        ms, robot.name, f"the known distance (scale_length_mm = {d_mm:g} between markers {a} "
-        f"and {b})", f"scale_length_mm = {d_mm * ms.scale:.5g} would match the arm",
-    )  # fmt: skip
-    if text is None:
-        return []
-    warnings.warn(text, ScaleWarning, stacklevel=3)
-    return [text]
+    target = f"the known distance (scale_length_mm = {d_mm:g} between markers {a} and {b})"
+    return check_scale(robot, q, T_world_cam, target,
+                       lambda s: f"scale_length_mm = {d_mm * s:.5g} would match the arm")  # fmt: skip
 
 
 @contextlib.contextmanager

@@ -14,13 +14,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from calib.alignment import fit_placement_and_hand_eye
+from calib.alignment import AXIS_TIPS, fit_placement_and_hand_eye
 from calib.kinematics import fk_tool
 from calib.mcpc import MCPCModel
 
 __all__ = ["row_shift_misfits", "shift_note"]
 
-_TIPS = np.array([[0, 0, 0, 1], [0.1, 0, 0, 1], [0, 0.1, 0, 1], [0, 0, 0.1, 1]], float).T
 _MIN_PAIRS = 6
 
 
@@ -46,7 +45,7 @@ def row_shift_misfits(
             continue
         F = fk_tool(nominal, q[i + k])
         B, C = fit_placement_and_hand_eye(T[i], F, T_flange_cam)
-        r = ((B @ F @ C - T[i]) @ _TIPS)[:, :3]
+        r = ((B @ F @ C - T[i]) @ AXIS_TIPS)[:, :3]
         out[k] = float(np.sqrt(np.mean(np.sum(r**2, axis=1))))
     return out
 

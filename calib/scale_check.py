@@ -27,21 +27,24 @@ which :data:`SCALE_TOL` leaves room for.
 
 from __future__ import annotations
 
+import warnings
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import least_squares
 
-from calib.alignment import fit_placement_and_hand_eye
+from calib.alignment import AXIS_TIPS, fit_placement_and_hand_eye
 from calib.errors import SelfCalWarning
 from calib.kinematics import fk_tool
-from calib.mcpc import MCPCModel
+from calib.mcpc import MCPCModel, nominal_mcpc
 from calib.transforms import pose_from_vec
 
 __all__ = [
     "SCALE_TOL",
     "MotionScale",
     "ScaleWarning",
+    "check_scale",
     "motion_scale",
     "scale_warning",
     "scaled_sizes",
@@ -53,8 +56,6 @@ link is up to 1 mm and 0.5 deg off its nominal shows up to 0.4 % (the KR 6,
 ``tests/unit/test_scale_check.py``) and 0.6 % (the ER-4u of ``scenarios/paper.toml``, a smaller
 arm), a board printed at another scale typically 2-6 %. An arm that misfits its nominal more
 widens it (:attr:`MotionScale.tolerance`)."""
-
-_TIPS = np.array([[0, 0, 0, 1], [0.1, 0, 0, 1], [0, 0.1, 0, 1], [0, 0, 0.1, 1]], float).T
 
 
 class ScaleWarning(SelfCalWarning):
@@ -100,7 +101,7 @@ def motion_scale(
     def residuals(x: np.ndarray) -> np.ndarray:
         Ts = T.copy()
         Ts[:, :3, 3] *= np.exp(x[12])
-        return ((pose_from_vec(x[:6]) @ B0 @ F @ C0 @ pose_from_vec(x[6:12]) - Ts) @ _TIPS)[
+        return ((pose_from_vec(x[:6]) @ B0 @ F @ C0 @ pose_from_vec(x[6:12]) - Ts) @ AXIS_TIPS)[
             :, :3
         ].ravel()
 
@@ -139,3 +140,19 @@ def scaled_sizes(sizes: dict[str, float], scale: float) -> str:
     """``"square_mm = 15.45, marker_mm = 11.59"``: the lengths of a target description (its
     keys ending in ``_mm``) times ``scale``, the sizes that would match the arm."""
     return ", ".join(f"{k} = {v * scale:.4g}" for k, v in sizes.items() if k.endswith("_mm"))
+
+
+def check_scale(
+    robot, q: np.ndarray, T_world_cam: np.ndarray, target: str, correct: Callable[[float], str]
+) -> list[str]:
+    """The scale check of a calibration: :func:`motion_scale` of ``robot``'s nominal chain (a
+    :class:`calib.robot_def.RobotDef`, its camera mount the hand-eye start) against the camera
+    poses ``T_world_cam`` (m, 4, 4) at joints ``q`` (m, n) rad, and beyond the tolerance a
+    :class:`ScaleWarning` (also returned, for ``calibration.json``; else ``[]``). ``target`` and
+    ``correct(scale)``: the texts of :func:`scale_warning`."""
+    ms = motion_scale(nominal_mcpc(robot), q, T_world_cam, robot.T_flange_cam)
+    text = scale_warning(ms, robot.name, target, correct(ms.scale))
+    if text is None:
+        return []
+    warnings.warn(text, ScaleWarning, stacklevel=3)
+    return [text]
