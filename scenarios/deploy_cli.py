@@ -99,43 +99,36 @@ def load_calibration(path: str):
             return from_toml(p.read_text())
         if calibration_kind(p) == "board":  # world = the board frame, tool = the camera
             cal = read_board_calibration(p)
-            ref = Path(cal.robot_model)
-            src = p.parent / ref if ref.suffix in (".toml", ".urdf") else cal.robot_model
-            return deploy_chain(cal.model, load_robot(src), intrinsics=cal.cameras[0],
-                                source=str(p))  # fmt: skip
-        return deploy(
-            _usable(read_calibration(p), p), robot=_dataset_robot(p.parent), source=str(p)
-        )
+            robot = _robot_file(p) or load_robot(cal.robot_model)
+            return deploy_chain(cal.model, robot, intrinsics=cal.cameras[0], source=str(p))
+        return deploy(_usable(read_calibration(p), p), robot=_robot_file(p), source=str(p))
     except DeployError as exc:
         raise CliError(f"{p}: {exc}") from None
 
 
 def calibration_robot(path: str, robot_name: str):
     """The robot of the calibration ``path`` (as :func:`load_calibration` takes it): the robot
-    file its dataset carries (``robot_model`` a robot TOML or URDF, relative to the calibration's
-    folder: ``selfcal import --robot FILE`` copies it there), else the model ``robot_name``."""
+    file its dataset carries (:func:`_robot_file`), else the model ``robot_name``."""
     from calib.robot_def import load_robot
 
     p = _calibration_file(path)
-    if p.suffix == ".json":
-        ref = Path(str(json.loads(p.read_text()).get("robot_model", "")))
-        if ref.suffix in (".toml", ".urdf"):
-            return load_robot(ref if ref.is_absolute() else p.parent / ref)
-        robot = _dataset_robot(p.parent)  # a field calibration names the robot by its name
-        if robot is not None:
-            return robot
-    return load_robot(robot_name)
+    return (_robot_file(p) if p.suffix == ".json" else None) or load_robot(robot_name)
 
 
-def _dataset_robot(folder: Path):
-    """The robot file of the dataset in ``folder`` (``selfcal import --robot FILE`` copies it
-    there), or None: a shipped model, or no dataset."""
+def _robot_file(calibration: Path):
+    """The robot file behind the ``calibration.json`` ``calibration``, or None (a shipped model):
+    its ``robot_model`` when that is a robot TOML or URDF (a board calibration's, relative to its
+    folder, where ``selfcal import --robot FILE`` copies it), else the file of the dataset in
+    its folder (a field calibration names the robot by its own name)."""
     from calib.io.dataset import Dataset
     from calib.robot_def import load_robot
 
-    if not (folder / "dataset.json").is_file():
+    ref = Path(str(json.loads(calibration.read_text()).get("robot_model", "")))
+    if ref.suffix in (".toml", ".urdf"):
+        return load_robot(ref if ref.is_absolute() else calibration.parent / ref)
+    if not (calibration.parent / "dataset.json").is_file():
         return None
-    src = Dataset.open(folder).robot_source
+    src = Dataset.open(calibration.parent).robot_source
     return load_robot(src) if isinstance(src, Path) else None
 
 
