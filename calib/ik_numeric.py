@@ -193,10 +193,6 @@ def _errors(r: np.ndarray) -> tuple[float, float]:
     return float(np.linalg.norm(r[:3])), float(np.linalg.norm(r[3:]) / ANGLE_SCALE_M)
 
 
-def _errors_of(res: NumericIK) -> tuple[float, float]:
-    return res.position_error_m, res.angle_error_rad
-
-
 def solve_ik(
     model: MCPCModel,
     limits: np.ndarray,
@@ -282,7 +278,9 @@ def solve_ik(
     def consider(q: np.ndarray, r: np.ndarray, label: str, it: int) -> None:
         nonlocal near
         e = _errors(r)
-        if max(e) < STALL_TOL and (near is None or max(e) < max(_errors_of(near))):
+        if max(e) < STALL_TOL and (
+            near is None or max(e) < max(near.position_error_m, near.angle_error_rad)
+        ):
             near = NumericIK(np.asarray(q, dtype=float), *e, label, it)
 
     for label, q0 in starts:
