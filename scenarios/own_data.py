@@ -14,6 +14,11 @@ import sys
 from pathlib import Path
 
 from scenarios.cli_common import CliError, add_json, note_written
+from scenarios.handeye_cli import (
+    add_pose_import_args,
+    check_pose_only_args,
+    cmd_import_poses,
+)
 from scenarios.ros_cli import add_import_args as add_bag_import_args
 from scenarios.ros_cli import cmd_import_bag
 
@@ -99,12 +104,19 @@ def calibrate_any(
 
 
 def cmd_import(args: argparse.Namespace) -> int:
-    source = args.bag[0] if args.bag else args.joints
+    source = args.bag[0] if args.bag else (args.joints or args.poses)
     args.out = args.out or (f"runs/import-{Path(source).stem}" if source else None)
+    if args.poses:
+        return cmd_import_poses(args)
+    check_pose_only_args(args)
+    if not args.robot:
+        raise CliError(f"import {'--bag' if args.bag else '--joints'} needs --robot",
+                       fix="name the robot: --robot ur5e, a robot TOML or a URDF (or give "
+                       "flange poses with --poses)")  # fmt: skip
     if args.bag:
         return cmd_import_bag(args)
     if not args.images or not args.joints or not args.joint_units:
-        raise CliError("import needs --images, --joints and --joint-units (or --bag)")
+        raise CliError("import needs --images, --joints and --joint-units (or --poses, or --bag)")
 
     from calib.camera_choice import camera_options
     from calib.import_dataset import CameraImages, import_dataset
@@ -188,7 +200,11 @@ def register(subparsers) -> None:
         epilog=IMPORT_HELP,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    sp.add_argument("--robot", required=True, help="model name, robot TOML or URDF file")
+    sp.add_argument(
+        "--robot",
+        default=None,
+        help="model name, robot TOML or URDF file (needed with --joints or --bag)",
+    )
     sp.add_argument("--base-link", default=None, help="a URDF's base link (default: its root)")
     sp.add_argument("--tool-link", default=None, help="a URDF's tool link (default: its leaf)")
     sp.add_argument(
@@ -221,6 +237,7 @@ def register(subparsers) -> None:
         + "; k3 only on request); NAME= sets one camera's (repeat per camera, e.g. "
         "'cam1=fx,mu,cx,cy,k1,k2,k3,k4'), a bare list every camera not named; fy may stand for mu",
     )  # fmt: skip
+    add_pose_import_args(sp)
     add_bag_import_args(sp)
     add_json(sp)
     sp.set_defaults(func=cmd_import)
