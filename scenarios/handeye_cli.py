@@ -1,18 +1,27 @@
-"""The flange-pose side of ``selfcal import`` (``--poses``): images and a robot's flange poses
-(no joint readings) as a pose dataset (:mod:`calib.pose_import`), eye-in-hand or eye-to-hand.
-See docs/handeye.md.
+"""The flange-pose side of ``selfcal import`` (``--poses``), ``calibrate`` and ``evaluate``:
+images and a robot's flange poses (no joint readings) as a pose dataset
+(:mod:`calib.pose_import`), eye-in-hand or eye-to-hand; its hand-eye calibration
+(:mod:`calib.handeye`) and the held-out prediction from the poses alone. See docs/handeye.md.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import sys
+from pathlib import Path
 
 from scenarios.cli_common import CliError, note_written
 
 # OpenCV, scipy and the calibration load in the commands that use them (`selfcal --help` stays fast).
 
-__all__ = ["add_pose_import_args", "check_pose_only_args", "cmd_import_poses"]
+__all__ = [
+    "add_pose_import_args",
+    "calibrate_poses",
+    "check_pose_only_args",
+    "cmd_import_poses",
+    "evaluate_poses",
+]
 
 ROTATIONS = ("quaternion-xyzw", "abb-quaternion", "kuka-abc", "fanuc-wpr", "ur-rotvec")
 """``--rotation``: :data:`calib.pose_conventions.CONVENTIONS` (kept here so --help needs no scipy)."""
@@ -92,3 +101,107 @@ def cmd_import_poses(args: argparse.Namespace) -> int:
     else:
         print(f"imported {n} frames ({ds.setup}, flange poses) into {args.out}")
     return 0
+
+
+def _features(ds) -> list:
+    """The board's features in every frame of the pose dataset ``ds``."""
+    from calib.io.images import read_gray_image
+    from calib.io.pose_dataset import PoseDatasetError
+    from calib.io.target_toml import parse_target
+
+    board = parse_target(ds.board, str(ds.root / "dataset.json"))
+    out = []
+    for i in range(len(ds.T_base_flange)):
+        img = read_gray_image(ds.image_path(i))
+        if img is None:
+            raise PoseDatasetError(f"{ds.image_path(i)}: frame {i}'s image is missing or unreadable",
+                                   fix="import the dataset again")  # fmt: skip
+        out.append(board.detect(img))
+    return [board, out]
+
+
+def calibrate_poses(root: Path, *, quiet: bool = False, figures: bool = False,
+                    method: str = "joint", joint_sigma_deg: float | None = None,
+                    tracker_args: argparse.Namespace | None = None) -> None:  # fmt: skip
+    """``selfcal calibrate`` of a pose dataset: write ``root/calibration.json`` (the hand-eye
+    and board mount with sigmas, the camera, the nominal beside). The options of the joint
+    datasets (``--method two-stage``, ``--joint-sigma-deg``, ``--tracker``) are errors here."""
+    from calib.handeye import FRAMES, calibrate_hand_eye
+    from calib.io.handeye_calibration import handeye_document
+    from calib.io.jsonfile import write_json_atomic
+    from calib.io.pose_dataset import PoseDataset
+
+    if method != "joint" or joint_sigma_deg is not None or (tracker_args and tracker_args.tracker):
+        raise CliError(f"{root} is a pose dataset (flange poses, no joints): --method, "
+                       "--joint-sigma-deg and --tracker do not apply",
+                       fix="leave them out")  # fmt: skip
+    ds = PoseDataset.open(root)
+    board, feats = _features(ds)
+    names = [str(ds.image_path(i)) for i in range(len(feats))]
+    cal = calibrate_hand_eye(board, feats, ds.T_base_flange, ds.setup, *ds.resolution,
+                             model=ds.model, free=ds.free, names=names)  # fmt: skip
+    write_json_atomic(root / "calibration.json", handeye_document(cal, str(root)))
+    if not quiet:
+        x_what, b_what = FRAMES[ds.setup]
+        c, n = cal.calibrated, cal.nominal
+        say = lambda t: print(t, file=sys.stderr)  # noqa: E731
+        say(f"{ds.setup}, {int(cal.used.sum())} frames: no kinematics to identify (flange poses "
+            "as the robot reports them); camera, hand-eye and board mount fitted on corner "
+            "reprojection")  # fmt: skip
+        for what, T, s in ((x_what, c.X, c.X_std), (b_what, c.B, c.B_std)):
+            xyz = ", ".join(f"{v:.2f}" for v in T[:3, 3] * 1000)
+            sig = ", ".join(f"{v:.2f}" for v in s[3:] * 1000)
+            say(
+                f"  {what}: xyz ({xyz}) mm +- ({sig}) mm, rotation +- "
+                f"{max(s[:3]) * 180 / 3.141592653589793:.3f} deg"
+            )
+        say(
+            f"  fit: calibrated {c.rms_px:.3f} px, nominal (camera stage's camera held) "
+            f"{n.rms_px:.3f} px"
+        )
+
+
+def evaluate_poses(args: argparse.Namespace, cal_dir: Path) -> bool:
+    """``selfcal evaluate`` of a hand-eye calibration: predict every corner of the held-out pose
+    dataset from its flange poses alone with the calibrated and the nominal model; write
+    evaluation.json and print both. False when the calibration is not a hand-eye one."""
+    import numpy as np
+
+    from calib.handeye import chain_motions, predict_corners
+    from calib.io.handeye_calibration import is_handeye, read_handeye
+    from calib.io.jsonfile import write_json_atomic
+    from calib.io.pose_dataset import PoseDataset
+
+    if not is_handeye(args.calibration):
+        return False
+    setup, calibrated, nominal, _ = read_handeye(args.calibration)
+    ds = PoseDataset.open(args.dataset)
+    if ds.setup != setup:
+        raise CliError(f"{args.dataset} is {ds.setup} but the calibration is {setup}",
+                       fix="evaluate with a held-out dataset of the same setup")  # fmt: skip
+    board, feats = _features(ds)
+    view = np.concatenate([np.full(len(f), i) for i, f in enumerate(feats)])
+    pts = board.points(np.concatenate([f.ids for f in feats]))
+    uv = np.concatenate([f.uv for f in feats])
+    A = chain_motions(setup, ds.T_base_flange)
+    rms = {}
+    for name, m in (("nominal", nominal), ("calibrated", calibrated)):
+        e = np.sum((predict_corners(m.camera, m.X, m.B, A, view, pts) - uv) ** 2, axis=1)
+        rms[name] = float(np.sqrt(np.mean(e)))
+    better = rms["calibrated"] < rms["nominal"]
+    doc = {"calibration": str(args.calibration), "dataset": str(args.dataset), "setup": setup,
+           "frames": len(feats), "corners": len(uv), "held_out_rms_px": rms,
+           "calibration_better_than_nominal": better}  # fmt: skip
+    out = Path(args.out) if args.out else Path(args.dataset) / "evaluation.json"
+    write_json_atomic(out, doc)
+    note_written(args, out)
+    if args.json:
+        print(json.dumps({"evaluation": str(out), **doc}))
+    else:
+        verdict = "better than" if better else "NOT better than"
+        print(
+            f"held-out {len(feats)} frames, {len(uv)} corners predicted from the flange poses: "
+            f"nominal {rms['nominal']:.3f} px, calibrated {rms['calibrated']:.3f} px "
+            f"(the calibration is {verdict} the nominal)"
+        )
+    return True

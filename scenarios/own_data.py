@@ -16,8 +16,10 @@ from pathlib import Path
 from scenarios.cli_common import CliError, add_json, note_written
 from scenarios.handeye_cli import (
     add_pose_import_args,
+    calibrate_poses,
     check_pose_only_args,
     cmd_import_poses,
+    evaluate_poses,
 )
 from scenarios.ros_cli import add_import_args as add_bag_import_args
 from scenarios.ros_cli import cmd_import_bag
@@ -51,9 +53,14 @@ def calibrate_any(
     of a joint reading, deg (mm for a prismatic joint), modelled instead of the robot file's
     encoder resolution."""
     from calib.io.dataset import Dataset
+    from calib.io.pose_dataset import is_pose_dataset
     from scenarios.board_run import calibrate_board_run
     from scenarios.pipeline import run_calibrate
 
+    if is_pose_dataset(root):
+        calibrate_poses(root, quiet=quiet, figures=figures, method=method,
+                        joint_sigma_deg=joint_sigma_deg, tracker_args=tracker_args)  # fmt: skip
+        return
     ds = Dataset.open(root)
     info = ds.info
     joint_sigma = None
@@ -146,6 +153,8 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
 
     cal_path = Path(args.calibration)
     cal_dir = cal_path if cal_path.is_dir() else cal_path.parent
+    if evaluate_poses(args, cal_dir):
+        return 0
     if calibration_kind(cal_path) == "board":
         ev = evaluate_board(read_board_calibration(cal_path), str(cal_path), args.dataset)
     else:

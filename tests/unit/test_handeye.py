@@ -1,0 +1,120 @@
+"""Hand-eye calibration from flange poses (calib.handeye): a board projected through known
+poses, eye-in-hand and eye-to-hand; noise-free exact, with noise within 3 sigma; the linear
+start refuses motions about one axis; the pose chain's Jacobian is the residuals' derivative."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from calib.camera import camera_model
+from calib.estimation.pose_chain import PoseChainBlock
+from calib.handeye import calibrate_hand_eye, chain_motions
+from calib.handeye_linear import HandEyeStartError, linear_hand_eye
+from calib.target.base import Features
+from calib.target.boards import Chessboard
+from calib.transforms import inv_pose, make_pose
+
+BOARD = Chessboard((7, 5), 0.03)
+CAMERA = camera_model("opencv", fx=900.0, mu=1.002, cx=645.0, cy=478.0, width=1280, height=960,
+                      coeffs={"k1": -0.12, "k2": 0.08}, free=("fx", "mu", "cx", "cy", "k1", "k2"))  # fmt: skip
+CENTRE = BOARD.points(np.arange(35)).mean(axis=0)
+
+
+def _look_at(eye: np.ndarray, target: np.ndarray, rng) -> np.ndarray:
+    """T_world_cam of a camera at ``eye`` looking at ``target`` with a random roll."""
+    z = (target - eye) / np.linalg.norm(target - eye)
+    x = np.cross(z, rng.normal(size=3))
+    x /= np.linalg.norm(x)
+    return make_pose(np.stack([x, np.cross(z, x), z], axis=1), eye)
+
+
+def _scene(setup: str, n: int, seed: int):
+    """Truth X, B and flange poses whose views see the whole board from 0.4-0.6 m."""
+    rng = np.random.default_rng(seed)
+    X = make_pose(Rotation.random(random_state=seed).as_matrix(), rng.uniform(-0.1, 0.1, 3))
+    B = make_pose(Rotation.random(random_state=seed + 1).as_matrix(), rng.uniform(-0.2, 0.2, 3))
+    if setup == "eye-to-hand":
+        X[:3, 3] += [0.0, 1.0, 0.5]  # the static camera in the base frame
+    else:
+        B[:3, 3] += [0.6, 0.0, 0.0]  # the static board in the base frame
+    flange = []
+    for _ in range(n):  # a camera pose around the board's normal, then the flange that gives it
+        d = rng.uniform(0.4, 0.6)
+        eye_b = CENTRE + d * np.r_[rng.uniform(-0.5, 0.5, 2), -1.0] / np.sqrt(1.25)
+        T_board_cam = _look_at(eye_b, CENTRE, rng)
+        T_cam_board = inv_pose(T_board_cam)
+        # T_cam_board = X^-1 A B  ->  A = X T_cam_board B^-1
+        A = X @ T_cam_board @ inv_pose(B)
+        flange.append(A if setup == "eye-to-hand" else inv_pose(A))
+    return X, B, np.array(flange)
+
+
+def _features(X, B, A, noise_px: float, seed: int) -> list[Features]:
+    rng = np.random.default_rng(seed)
+    ids = np.arange(35)
+    P = BOARD.points(ids)
+    out = []
+    for Ai in A:
+        T = inv_pose(X) @ Ai @ B
+        uv = CAMERA.project(P @ T[:3, :3].T + T[:3, 3])
+        out.append(Features(ids, uv + rng.normal(0.0, noise_px, uv.shape)))
+    return out
+
+
+def _rot_deg(R1, R2):
+    return np.degrees(np.linalg.norm(Rotation.from_matrix(R1 @ R2.T).as_rotvec()))
+
+
+@pytest.mark.parametrize("setup", ["eye-in-hand", "eye-to-hand"])
+def test_noise_free_is_exact(setup):
+    X, B, F = _scene(setup, 12, seed=5)
+    feats = _features(X, B, chain_motions(setup, F), 0.0, 1)
+    cal = calibrate_hand_eye(BOARD, feats, F, setup, 1280, 960, model="opencv", free=CAMERA.free)
+    c = cal.calibrated
+    assert np.abs(c.X[:3, 3] - X[:3, 3]).max() < 1e-6
+    assert np.abs(c.B[:3, 3] - B[:3, 3]).max() < 1e-6
+    assert _rot_deg(c.X[:3, :3], X[:3, :3]) < 1e-6 and _rot_deg(c.B[:3, :3], B[:3, :3]) < 1e-6
+    np.testing.assert_allclose(c.camera.values(), CAMERA.values(), rtol=0, atol=1e-6)
+
+
+@pytest.mark.parametrize("setup", ["eye-in-hand", "eye-to-hand"])
+def test_noisy_within_three_sigma(setup):
+    X, B, F = _scene(setup, 15, seed=7)
+    feats = _features(X, B, chain_motions(setup, F), 0.3, 2)
+    cal = calibrate_hand_eye(BOARD, feats, F, setup, 1280, 960, model="opencv", free=CAMERA.free)
+    c = cal.calibrated
+    for T, truth, std in ((c.X, X, c.X_std), (c.B, B, c.B_std)):
+        assert np.all(np.abs(T[:3, 3] - truth[:3, 3]) < 3 * std[3:])
+        w = Rotation.from_matrix(truth[:3, :3] @ T[:3, :3].T).as_rotvec()  # truth = Rot(w) T
+        assert np.all(np.abs(w) < 3 * std[:3])
+    assert 0.25 < c.sigma_px < 0.35  # the noise per coordinate is recovered
+    assert c.rms_px <= cal.nominal.rms_px + 1e-9  # the camera freed never fits worse
+
+
+def test_linear_start_refuses_motions_about_one_axis():
+    A = make_pose(Rotation.from_rotvec(np.outer(np.linspace(0.1, 1, 6), [0, 0, 1])).as_matrix(),
+                  np.random.default_rng(1).normal(size=(6, 3)))  # fmt: skip
+    with pytest.raises(HandEyeStartError, match="one axis"):
+        linear_hand_eye(A, A)
+
+
+def test_pose_chain_jacobian_matches_finite_differences():
+    X, B, F = _scene("eye-to-hand", 4, seed=3)
+    A = chain_motions("eye-to-hand", F)
+    view = np.repeat(np.arange(4), 35)
+    pts = np.tile(BOARD.points(np.arange(35)), (4, 1))
+    blk = PoseChainBlock(CAMERA, A, X, B, view, pts, np.zeros((len(view), 2)))
+    rng = np.random.default_rng(0)
+    vals = {"intrinsics": CAMERA.free_values(), "X": rng.normal(0, 0.01, 6),
+            "B": rng.normal(0, 0.01, 6)}  # fmt: skip
+    ev = blk.evaluate(vals, True)
+    for piece in ev.pieces:
+        v0 = vals[piece.block]
+        for j in range(v0.size):
+            h = 1e-7 * max(1.0, abs(v0[j]))
+            up = dict(vals, **{piece.block: v0 + h * np.eye(v0.size)[j]})
+            dn = dict(vals, **{piece.block: v0 - h * np.eye(v0.size)[j]})
+            fd = (blk.evaluate(up, False).residuals - blk.evaluate(dn, False).residuals) / (2 * h)
+            np.testing.assert_allclose(piece.J[:, :, j], fd, rtol=1e-5, atol=1e-4)
