@@ -195,6 +195,8 @@ IMPORT_HELP = """\
 joints file: CSV with the header j1,...,jn (optionally an image column with the file name), or
 n numbers per row without a header (comma or whitespace); rows match the images in sorted
 file-name order, or by the image column. Target TOML: docs/targets.md. See docs/own-data.md.
+poses file (--poses, instead of joints): base -> flange per image, x_mm,y_mm,z_mm + the columns
+of --rotation, or industrial_calibration's cal_data.yaml; with --setup. See docs/handeye.md.
 """
 
 
@@ -204,7 +206,8 @@ def register(subparsers) -> None:
 
     sp = subparsers.add_parser(
         "import",
-        help="your own images + joint readings + board -> a dataset folder (no truth)",
+        help="your own images + joint readings (or flange poses) + board -> a dataset folder "
+        "(no truth)",
         description="Check and import your own data as a dataset folder.",
         epilog=IMPORT_HELP,
         formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -254,8 +257,8 @@ def register(subparsers) -> None:
     sp = subparsers.add_parser(
         "evaluate",
         help="held-out check: predict DATASET2's features with the calibration",
-        description="Predict every detected feature of DATASET2 from its joint readings with the "
-        "calibrated model and with the nominal kinematics; write evaluation.json.",
+        description="Predict every detected feature of DATASET2 from its joint readings (or its "
+        "flange poses) with the calibrated model and with the nominal; write evaluation.json.",
     )
     add_json(sp)
     sp.add_argument("calibration", help="calibrated dataset folder (or its calibration.json)")

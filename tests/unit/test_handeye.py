@@ -118,3 +118,37 @@ def test_pose_chain_jacobian_matches_finite_differences():
             dn = dict(vals, **{piece.block: v0 - h * np.eye(v0.size)[j]})
             fd = (blk.evaluate(up, False).residuals - blk.evaluate(dn, False).residuals) / (2 * h)
             np.testing.assert_allclose(piece.J[:, :, j], fd, rtol=1e-5, atol=1e-4)
+
+
+def _convention_csv(path, convention: str, T) -> None:
+    """Flange poses ``T`` written as a controller of ``convention`` prints them."""
+    rot = Rotation.from_matrix(T[:, :3, :3])
+    cols, vals = {
+        "quaternion-xyzw": (["qx", "qy", "qz", "qw"], rot.as_quat()),
+        "abb-quaternion": (["q1", "q2", "q3", "q4"], rot.as_quat()[:, [3, 0, 1, 2]]),
+        "kuka-abc": (["a", "b", "c"], rot.as_euler("ZYX", degrees=True)),
+        "fanuc-wpr": (["w", "p", "r"], rot.as_euler("xyz", degrees=True)),
+        "ur-rotvec": (["rx", "ry", "rz"], rot.as_rotvec()),
+    }[convention]
+    rows = np.hstack([T[:, :3, 3] * 1000.0, vals])
+    path.write_text(",".join(["x_mm", "y_mm", "z_mm", *cols]) + "\n"
+                    + "".join(",".join(f"{v:.17g}" for v in r) + "\n" for r in rows))  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    "convention", ["quaternion-xyzw", "abb-quaternion", "kuka-abc", "fanuc-wpr", "ur-rotvec"]
+)
+def test_each_rotation_convention_gives_the_same_hand_eye(tmp_path, convention):
+    from calib.io.pose_files import read_poses
+
+    X, B, F = _scene("eye-to-hand", 10, seed=11)
+    feats = _features(X, B, chain_motions("eye-to-hand", F), 0.2, 3)
+    _convention_csv(tmp_path / "poses.csv", convention, F)
+    rows = read_poses(tmp_path / "poses.csv", "ur-rotvec" if convention == "ur-rotvec" else None)
+    assert rows.convention == convention
+    ref = calibrate_hand_eye(BOARD, feats, F, "eye-to-hand", 1280, 960, free=CAMERA.free).calibrated
+    got = calibrate_hand_eye(BOARD, feats, rows.T_base_flange, "eye-to-hand", 1280, 960,
+                             free=CAMERA.free).calibrated  # fmt: skip
+    np.testing.assert_allclose(got.X, ref.X, atol=1e-9)
+    np.testing.assert_allclose(got.B, ref.B, atol=1e-9)
+    assert abs(got.rms_px - ref.rms_px) < 1e-9

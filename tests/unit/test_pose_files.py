@@ -103,3 +103,34 @@ def test_industrial_calibration_yaml(tmp_path):
     (tmp_path / "poses" / "2.yaml").write_text("x: 1\ny: 2\n")
     with pytest.raises(PoseFileError, match=r"2.yaml: no key 'z'"):
         read_poses(tmp_path / "cal_data.yaml")
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        ([], "--poses needs --setup"),
+        (["--setup", "eye-to-hand", "--robot", "ur5e"], "flange poses need no robot model"),
+        (["--setup", "eye-to-hand", "--joint-units", "deg"], "--joint-units applies to --joints"),
+    ],
+)
+def test_cli_pose_import_refuses_mixed_options(tmp_path, capsys, extra, message):
+    from scenarios.cli import main
+
+    f = _csv(
+        tmp_path / "p.csv",
+        ["x_mm", "y_mm", "z_mm", "qx", "qy", "qz", "qw"],
+        [[0, 0, 0, 0, 0, 0, 1]],
+    )
+    argv = ["import", "--poses", str(f), "--target", "t.toml", "--out", str(tmp_path / "o")]
+    assert main(argv + extra) == 2
+    assert message in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
+
+
+def test_cli_joints_import_still_needs_a_robot(tmp_path, capsys):
+    from scenarios.cli import main
+
+    argv = ["import", "--joints", "j.csv", "--joint-units", "deg", "--images", "x/*.png",
+            "--target", "t.toml", "--out", str(tmp_path / "o")]  # fmt: skip
+    assert main(argv) == 2
+    assert "needs --robot" in capsys.readouterr().err
