@@ -29,20 +29,32 @@ from calib.camera.camera_set import std_by_name
 from calib.errors import EstimationError
 from calib.estimation.pose_chain import PoseChainBlock, local_pose
 from calib.estimation.reprojection import robust_sigma
-from calib.handeye_linear import linear_hand_eye
+from calib.handeye_linear import linear_hand_eye, turn_misfit_deg
 from calib.solver import Loss, ParameterBlock, Problem, SolverOptions, covariance, solve
 from calib.target.base import Features
 from calib.target.boards import Board
 from calib.transforms import inv_pose
 
-__all__ = ["HandEyeFit", "HandEyeCalibration", "calibrate_hand_eye", "chain_motions",
-           "predict_corners", "FRAMES"]  # fmt: skip
+__all__ = ["HandEyeFit", "HandEyeCalibration", "HandEyeMisfitError", "calibrate_hand_eye",
+           "chain_motions", "predict_corners", "FRAMES", "MISFIT_PX", "MISFIT_RATIO"]  # fmt: skip
 
 FRAMES = {
     "eye-in-hand": ("flange -> camera", "base -> board"),
     "eye-to-hand": ("base -> camera", "flange -> board"),
 }
 """What ``X`` (the hand-eye) and ``B`` (the board mount) are in each setup."""
+
+MISFIT_PX = 5.0
+MISFIT_RATIO = 10.0
+"""The hand-eye fit's RMS beyond ``max(MISFIT_PX, MISFIT_RATIO x the camera stage's)`` means the
+poses do not explain the images (a real arm's pose noise gives 1-2x: 1.85x on ical-charuco; the
+wrong ``--setup`` gives 178 px there)."""
+_TURN_DEG = 1.0
+"""Median turn misfit (deg) beyond which the orientations are not the robot's (0.1-0.2 real)."""
+
+
+class HandEyeMisfitError(EstimationError):
+    """The flange poses do not explain the board poses (the message says what the checks found)."""
 
 
 def chain_motions(setup: str, T_base_flange: np.ndarray) -> np.ndarray:
@@ -177,8 +189,54 @@ def calibrate_hand_eye(
     view = stage.view
     points = board.points(stage.feature)
     uv = np.concatenate([features[i].uv for i in np.flatnonzero(used).tolist()])
-    nominal = _fit(stage.camera, True, A, X0, B0, view, points, uv, outlier_px, max_iter)
+    turn = turn_misfit_deg(T_base_flange[used], stage.T_cam_board[used])
+    if turn > _TURN_DEG:
+        raise HandEyeMisfitError(
+            f"the flange poses do not fit the board poses the camera sees: the robot's motions "
+            f"and the camera's turn by angles that differ by {turn:.1f} deg (median over the "
+            "pairs of images; a real arm: 0.1-0.2 deg), whatever the setup and hand-eye",
+            fix="check the orientation columns and --rotation (quaternion order, Euler "
+            "convention, degrees or radians) and that every pose row belongs to its image",
+        )
+    try:
+        nominal = _fit(stage.camera, True, A, X0, B0, view, points, uv, outlier_px, max_iter)
+        rms = nominal.rms_px
+    except EstimationError:
+        rms = float("inf")
+    if rms > max(MISFIT_PX, MISFIT_RATIO * stage.rms_px):
+        _explain_misfit(setup, rms, stage, T_base_flange, view, points, uv, outlier_px, max_iter)
     calibrated = _fit(stage.camera, False, A, nominal.X, nominal.B, view, points, uv, outlier_px,
                       max_iter)  # fmt: skip
     return HandEyeCalibration(setup=setup, camera_stage=stage, X0=X0, B0=B0, nominal=nominal,
                               calibrated=calibrated, used=used)  # fmt: skip
+
+
+def _explain_misfit(setup: str, rms_px: float, stage: BoardCalibration, T_base_flange: np.ndarray,
+                    view: np.ndarray, points: np.ndarray, uv: np.ndarray, outlier_px: float,
+                    max_iter: int) -> None:  # fmt: skip
+    """Raise :class:`HandEyeMisfitError` saying what the data checks show: the other setup's
+    fit, else what to check (the turn angles of the motions agreed before)."""
+    used = stage.used
+    other = "eye-in-hand" if setup == "eye-to-hand" else "eye-to-hand"
+    A = chain_motions(other, T_base_flange)
+    try:
+        X0, B0 = linear_hand_eye(A[used], stage.T_cam_board[used])
+        other_px = _fit(stage.camera, True, A, X0, B0, view, points, uv, outlier_px,
+                        max_iter).rms_px  # fmt: skip
+    except EstimationError:
+        other_px = float("inf")
+    fit = "does not converge" if not np.isfinite(rms_px) else f"leaves {rms_px:.1f} px RMS"
+    head = (f"the flange poses do not explain the board poses as {setup}: the hand-eye fit "
+            f"{fit} where the camera alone fits {stage.rms_px:.2f} px")  # fmt: skip
+    if other_px < max(MISFIT_PX, MISFIT_RATIO * stage.rms_px):
+        raise HandEyeMisfitError(
+            f"{head}; as {other} they fit ({other_px:.2f} px)",
+            fix=f"import the dataset again with --setup {other} (or, if the setup is {setup}, "
+            "the poses are flange -> base: give their inverse, base -> flange)",
+        )
+    raise HandEyeMisfitError(
+        f"{head} ({other}: {other_px:.1f} px); the motions' turn angles agree, so the "
+        "orientations and the pairing look right",
+        fix="check the positions' unit (--pose-units, x_mm or x_m), that the poses are base -> "
+        "flange (not their inverse) and that the board did not move on its mount",
+    )

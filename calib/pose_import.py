@@ -14,6 +14,7 @@ there are no kinematics to identify from poses.
 from __future__ import annotations
 
 import csv
+import io
 import shutil
 from collections.abc import Sequence
 from pathlib import Path
@@ -30,6 +31,7 @@ from calib.import_dataset import (
     _warn_not_found,
     check_geometry,
 )
+from calib.io.atomic import write_text_atomic
 from calib.io.pose_dataset import SETUPS, PoseDataset, write_pose_dataset
 from calib.io.pose_files import read_poses
 from calib.io.target_toml import load_target, target_document
@@ -125,17 +127,18 @@ def import_pose_dataset(
         keep = np.flatnonzero(seen)
         (out / "frames").mkdir(parents=True, exist_ok=True)
         suffix = suffixes.pop()
-        with open(out / "sources.csv", "w", newline="") as fh:
-            w = csv.writer(fh)
-            w.writerow(["index", "camera", "source"])
-            for k, r in enumerate(keep.tolist()):
-                src = files[r].resolve()
-                dst = out / "frames" / f"{k:04d}_{cam.name}{suffix}"
-                if link:
-                    dst.symlink_to(src)
-                else:
-                    shutil.copy2(src, dst)
-                w.writerow([k, cam.name, str(src)])
+        buf = io.StringIO()
+        w = csv.writer(buf, lineterminator="\n")
+        w.writerow(["index", "camera", "source"])
+        for k, r in enumerate(keep.tolist()):
+            src = files[r].resolve()
+            dst = out / "frames" / f"{k:04d}_{cam.name}{suffix}"
+            if link:
+                dst.symlink_to(src)
+            else:
+                shutil.copy2(src, dst)
+            w.writerow([k, cam.name, str(src)])
+        write_text_atomic(out / "sources.csv", buf.getvalue())
         ds = PoseDataset(
             root=out, setup=setup, camera=cam.name, resolution=size, model=model, free=free_t,
             board=target_document(tgt), T_base_flange=rows.T_base_flange[keep],

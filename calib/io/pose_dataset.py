@@ -16,6 +16,7 @@ Nothing here is truth: the poses are the robot's reports.
 from __future__ import annotations
 
 import csv
+import io
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -23,6 +24,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from calib.errors import InputError
+from calib.io.atomic import write_text_atomic
 from calib.io.jsonfile import SCHEMA_KEY, check_header, load_json, write_json_atomic
 from calib.transforms import make_pose
 
@@ -154,9 +156,10 @@ def write_pose_dataset(ds: PoseDataset) -> None:
     the caller's)."""
     ds.root.mkdir(parents=True, exist_ok=True)
     q = Rotation.from_matrix(ds.T_base_flange[:, :3, :3]).as_quat()
-    with open(ds.root / "poses.csv", "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(_HEADER)
-        for k, (T, qk) in enumerate(zip(ds.T_base_flange, q, strict=True)):
-            w.writerow([k] + [f"{v:.9f}" for v in T[:3, 3] * 1000.0] + [f"{v:.12f}" for v in qk])
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(_HEADER)
+    for k, (T, qk) in enumerate(zip(ds.T_base_flange, q, strict=True)):
+        w.writerow([k] + [f"{v:.9f}" for v in T[:3, 3] * 1000.0] + [f"{v:.12f}" for v in qk])
+    write_text_atomic(ds.root / "poses.csv", buf.getvalue())
     write_json_atomic(ds.root / "dataset.json", ds.to_json())

@@ -152,3 +152,23 @@ def test_each_rotation_convention_gives_the_same_hand_eye(tmp_path, convention):
     np.testing.assert_allclose(got.X, ref.X, atol=1e-9)
     np.testing.assert_allclose(got.B, ref.B, atol=1e-9)
     assert abs(got.rms_px - ref.rms_px) < 1e-9
+
+
+def test_the_wrong_setup_is_named_by_the_other_setups_fit():
+    from calib.handeye import HandEyeMisfitError
+
+    X, B, F = _scene("eye-to-hand", 10, seed=13)
+    feats = _features(X, B, chain_motions("eye-to-hand", F), 0.2, 4)
+    with pytest.raises(HandEyeMisfitError, match="as eye-to-hand they fit") as exc:
+        calibrate_hand_eye(BOARD, feats, F, "eye-in-hand", 1280, 960, free=CAMERA.free)
+    assert "--setup eye-to-hand" in exc.value.fix
+
+
+def test_rows_paired_with_the_wrong_images_are_named_by_the_turn_angles():
+    from calib.handeye import HandEyeMisfitError
+
+    X, B, F = _scene("eye-in-hand", 10, seed=17)
+    feats = _features(X, B, chain_motions("eye-in-hand", F), 0.2, 5)
+    shifted = np.roll(F, 1, axis=0)  # every pose row one image off
+    with pytest.raises(HandEyeMisfitError, match="turn by angles that differ"):
+        calibrate_hand_eye(BOARD, feats, shifted, "eye-in-hand", 1280, 960, free=CAMERA.free)
