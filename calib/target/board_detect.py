@@ -19,6 +19,8 @@ empty features.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import cv2
 import numpy as np
 
@@ -27,6 +29,9 @@ from calib.target.aruco_detect import detect_markers, to_gray
 from calib.target.base import Features
 
 __all__ = [
+    "Detection",
+    "chessboard_detection",
+    "refusal",
     "detect_chessboard",
     "orient_chessboard",
     "detect_charuco",
@@ -64,32 +69,81 @@ def orient_chessboard(gray: np.ndarray, uv: np.ndarray, cols: int, rows: int) ->
     return g.reshape(-1, 2)
 
 
-def _pattern_continues(gray: np.ndarray, uv: np.ndarray, cols: int, rows: int) -> bool:
-    """Whether the chessboard pattern goes on beyond the detected grid ``uv`` (cols * rows, 2):
-    a quarter square into the quiet zone (one square beyond the outer corner lines) the printed
-    board is white, but a larger board than the declared one shows further squares there."""
-    g = np.asarray(uv, dtype=float).reshape(rows, cols, 2)
+def _ring_levels(
+    gray: np.ndarray, edge: np.ndarray, out: np.ndarray, k: float, r: int
+) -> np.ndarray:
+    """Grey levels at the centres of the cells ``k`` steps beyond the corner line ``edge``
+    (n, 2) px (``out``: the outward step per corner), one per pair of neighbouring corners; NaN
+    where the sample falls off the image."""
     H, W = gray.shape
-    inner = 0.25 * (g[:-1, :-1] + g[1:, 1:] + g[:-1, 1:] + g[1:, :-1]).reshape(-1, 2)
+    mid = 0.5 * (edge[:-1] + edge[1:]) + k * 0.5 * (out[:-1] + out[1:])
+    inside = (mid[:, 0] > r) & (mid[:, 0] < W - 1 - r) & (mid[:, 1] > r) & (mid[:, 1] < H - 1 - r)
+    return np.array(
+        [_sample(gray, p, r) if ok else np.nan for p, ok in zip(mid, inside, strict=True)]
+    )
+
+
+def _alternates(levels: np.ndarray, expected: np.ndarray, contrast: float, share: float) -> bool:
+    """Whether neighbouring ``levels`` differ with the ``expected`` signs and at least half the
+    ``contrast`` (grey levels) in ``share`` of the pairs seen (and at least two)."""
+    d = np.diff(levels)
+    seen = np.isfinite(d) & np.isfinite(expected) & (expected != 0)
+    agree = (np.sign(d) == expected) & (np.abs(d) >= 0.5 * contrast)
+    return bool(seen.sum() >= 2 and agree[seen].sum() >= share * seen.sum())
+
+
+def refusal(gray: np.ndarray, uv: np.ndarray, cols: int, rows: int) -> str:
+    """Why the chessboard grid ``uv`` (cols * rows, 2) px that OpenCV found is not the declared
+    board, or ``""`` when the image shows nothing against it. Refused are a grid whose cells are
+    not a chessboard's (each square's colour opposite to its neighbours') and a sub-grid of a
+    larger printed board, which OpenCV also finds: on some side, the cells one square beyond the
+    board's own outer squares continue the pattern (squares of the board's pitch, each colour
+    opposite to the outer square beside it, with at least half the contrast of the board's own
+    squares, in 3 of 4 places). A plain, grey or cluttered surround (a narrow white margin, the
+    plate the board is mounted on) continues nothing."""
+    g = np.asarray(uv, dtype=float).reshape(rows, cols, 2)
     step = float(np.median(np.linalg.norm(np.diff(g, axis=1), axis=2)))
     r = max(1, int(0.15 * step))
-    levels = np.array([_sample(gray, p, r) for p in inner])
-    thr = 0.5 * (np.percentile(levels, 10) + np.percentile(levels, 90))
-    for side in (g, g[::-1], g.transpose(1, 0, 2), g.transpose(1, 0, 2)[::-1]):
+    cells = np.stack(
+        [_ring_levels(gray, a, b - a, 0.5, r) for a, b in zip(g[:-1], g[1:], strict=True)]
+    )
+    dx, dy = np.diff(cells, axis=1), np.diff(cells, axis=0)
+    contrast = float(np.median(np.abs(np.concatenate([dx.ravel(), dy.ravel()]))))
+    sx = (-1.0) ** np.add.outer(*map(np.arange, dx.shape))  # a chessboard's sign pattern
+    sy = (-1.0) ** np.add.outer(*map(np.arange, dy.shape))
+    parity = np.sign(np.median(dx * sx))  # which colour the first cell has
+    ok_x = (np.sign(dx) == parity * sx) & (np.abs(dx) >= 0.5 * contrast)
+    ok_y = (np.sign(dy) == parity * sy) & (np.abs(dy) >= 0.5 * contrast)
+    if not contrast > 0 or (ok_x.sum() + ok_y.sum()) < 0.75 * (ok_x.size + ok_y.size):
+        return "the grid OpenCV found is not a chessboard's (its cells do not alternate)"
+    names = ("first row", "last row", "first column", "last column")
+    for name, side in zip(names, (g, g[::-1], g.transpose(1, 0, 2), g.transpose(1, 0, 2)[::-1]),
+                          strict=True):  # fmt: skip
         edge, out = side[0], side[0] - side[1]  # corner line and the outward step per corner
-        mid = 0.5 * (edge[:-1] + edge[1:]) + 1.25 * 0.5 * (out[:-1] + out[1:])
-        inside = (
-            (mid[:, 0] > r) & (mid[:, 0] < W - 1 - r) & (mid[:, 1] > r) & (mid[:, 1] < H - 1 - r)
-        )
-        dark = sum(_sample(gray, p, r) < thr for p in mid[inside])
-        if dark >= 2 and dark >= 0.25 * len(mid):
-            return True
-    return False
+        outer = _ring_levels(gray, edge, out, 0.5, r)  # the board's outer squares
+        beyond = _ring_levels(gray, edge, out, 1.5, r)  # where a larger board goes on
+        if _alternates(beyond, -np.sign(np.diff(outer)), contrast, 0.75):
+            return (
+                f"squares go on beyond the {name} of corners: part of a larger board than the "
+                f"declared {cols} x {rows} inner corners"
+            )
+    return ""
 
 
-def detect_chessboard(image: np.ndarray, inner_corners: tuple[int, int]) -> Features:
-    """All inner corners of a chessboard of ``inner_corners = (cols, rows)``, or none (also when
-    the grid found is part of a larger chessboard: OpenCV finds sub-grids)."""
+@dataclass(frozen=True)
+class Detection:
+    """A board's detection in one image: the ``features`` kept, how many features OpenCV's
+    detector returned before the project's checks (``opencv``) and why those checks refused
+    them (``refused``; ``""`` when kept or when OpenCV found nothing)."""
+
+    features: Features
+    opencv: int
+    refused: str = ""
+
+
+def chessboard_detection(image: np.ndarray, inner_corners: tuple[int, int]) -> Detection:
+    """:func:`detect_chessboard` with what OpenCV found and why it was refused
+    (:func:`refusal`)."""
     gray = to_gray(image)
     cols, rows = inner_corners
     ok, corners = cv2.findChessboardCorners(
@@ -102,11 +156,20 @@ def detect_chessboard(image: np.ndarray, inner_corners: tuple[int, int]) -> Feat
             gray, (cols, rows), flags=cv2.CALIB_CB_NORMALIZE_IMAGE | cv2.CALIB_CB_EXHAUSTIVE
         )
         if not ok:
-            return _EMPTY
+            return Detection(_EMPTY, 0)
     uv = np.asarray(corners, dtype=float).reshape(-1, 2)
-    if _pattern_continues(gray, uv, cols, rows):
-        return _EMPTY  # a part of a larger board: not the declared one
-    return Features(np.arange(cols * rows), orient_chessboard(gray, uv, cols, rows))
+    why = refusal(gray, uv, cols, rows)
+    if why:
+        return Detection(_EMPTY, len(uv), why)
+    return Detection(
+        Features(np.arange(cols * rows), orient_chessboard(gray, uv, cols, rows)), len(uv)
+    )
+
+
+def detect_chessboard(image: np.ndarray, inner_corners: tuple[int, int]) -> Features:
+    """All inner corners of a chessboard of ``inner_corners = (cols, rows)``, or none (also when
+    the grid found is not the declared board, :func:`refusal`: OpenCV finds sub-grids)."""
+    return chessboard_detection(image, inner_corners).features
 
 
 def detect_charuco(image: np.ndarray, board: cv2.aruco.CharucoBoard) -> Features:

@@ -1,0 +1,85 @@
+"""The chessboard detector's sub-grid check (calib.target.board_detect): a board OpenCV finds is
+kept unless squares of its pitch continue its pattern beyond it (a larger printed board)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from calib.target import Chessboard
+from calib.target.board_detect import chessboard_detection, refusal
+
+REAL = Path(__file__).resolve().parents[1] / "data" / "real"  # README.md there: source, licence
+
+
+def _corners_cv(gray: np.ndarray, inner: tuple[int, int]) -> np.ndarray:
+    flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
+    ok, c = cv2.findChessboardCorners(gray, inner, flags=flags)
+    assert ok, "OpenCV itself finds this board"
+    crit = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 100, 1e-3)
+    return cv2.cornerSubPix(gray, c, (5, 5), (-1, -1), crit).reshape(-1, 2)
+
+
+@pytest.mark.parametrize("name", sorted(p.name for p in REAL.glob("*.png")))
+def test_real_boards_on_a_grey_plate_with_a_narrow_margin_are_found(name):
+    """Real images (11 x 8 inner corners, 15 mm): the grey plate beyond the board's narrow white
+    margin is not more squares; every corner OpenCV finds is kept."""
+    gray = cv2.imread(str(REAL / name), cv2.IMREAD_GRAYSCALE)
+    found = Chessboard((11, 8), 0.015).detect(gray)
+    assert len(found) == 88
+    cv = _corners_cv(gray, (11, 8))
+    # the same corners, in the board's own order
+    d = np.linalg.norm(found.uv[:, None] - cv[None], axis=2).min(axis=1)
+    assert d.max() < 1e-6
+
+
+def _plate(board: Chessboard, margin_mm: float, plate: int, angle_deg: float) -> np.ndarray:
+    """The board printed with a white ``margin_mm`` on a plate of grey level ``plate``, turned
+    by ``angle_deg`` and seen in mild perspective, blurred like optics."""
+    bi = board.image(px_per_mm=2.5, margin_mm=margin_mm)
+    pad = 60
+    img = np.pad(bi.pixels, pad, constant_values=plate)
+    h, w = img.shape
+    size = (w + 200, h + 200)
+    a = np.radians(angle_deg)
+    R = np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
+    C = np.array([[1, 0, -w / 2], [0, 1, -h / 2], [0, 0, 1.0]])
+    P = np.array([[1, 0, 0], [0, 1, 0], [1e-4, -1e-4, 1]])
+    T = np.array([[1, 0, size[0] / 2], [0, 1, size[1] / 2], [0, 0, 1.0]])
+    out = cv2.warpPerspective(img, T @ P @ R @ C, size, flags=cv2.INTER_LINEAR, borderValue=20)
+    return cv2.GaussianBlur(out, (0, 0), 0.8)
+
+
+@pytest.mark.parametrize("plate", [40, 110])
+@pytest.mark.parametrize("angle", [0.0, 15.0, 100.0])
+def test_a_board_with_a_narrow_margin_on_a_dark_plate_is_kept(plate, angle):
+    board = Chessboard((9, 6), 0.02)
+    assert len(board.detect(_plate(board, 4.0, plate, angle))) == 54
+
+
+@pytest.mark.parametrize(
+    ("r0", "r1", "c0", "c1"),
+    [(0, 6, 1, 9), (0, 6, 2, 9), (0, 6, 0, 8), (0, 6, 1, 8), (1, 6, 0, 9), (0, 4, 0, 9),
+     (1, 5, 1, 8), (2, 6, 3, 9)],
+)  # fmt: skip
+def test_a_sub_grid_of_a_larger_printed_board_is_refused(r0, r1, c0, c1):
+    """Any sub-grid of a printed 9 x 6 board (larger by one or two corners on a side, or on
+    both axes): the squares beyond it continue the pattern."""
+    img = _plate(Chessboard((9, 6), 0.02), 20.0, 110, 15.0)
+    full = chessboard_detection(img, (9, 6))
+    assert len(full.features) == 54 and not full.refused
+    sub = full.features.uv.reshape(6, 9, 2)[r0:r1, c0:c1]
+    why = refusal(img, sub.reshape(-1, 2), c1 - c0, r1 - r0)
+    assert "part of a larger board" in why and f"{c1 - c0} x {r1 - r0}" in why
+
+
+def test_a_grid_that_skips_corner_lines_is_refused():
+    """OpenCV's findChessboardCornersSB finds a 9 x 4 grid in a 9 x 6 board with every other
+    corner line: its cells are not a chessboard's."""
+    img = _plate(Chessboard((9, 6), 0.02), 20.0, 110, 100.0)
+    found = chessboard_detection(img, (9, 4))
+    assert found.opencv == 36, "OpenCV finds that grid (else this case tests nothing)"
+    assert len(found.features) == 0 and "not a chessboard" in found.refused
