@@ -8,8 +8,13 @@ empty features.
   synthetic views, tests/unit/test_boards.py), falling back to ``cv2.findChessboardCornersSB``
   (more robust, but 0.15-0.3 px RMS on the same views); the corner order is then made the
   board's own (:func:`orient_chessboard`): OpenCV may return the grid mirrored or turned by 180
-  degrees, which the printed colours and the handedness of a board seen from its front decide;
-- ChArUco: ``cv2.aruco.CharucoDetector.detectBoard`` (partial views: each corner has its id);
+  degrees, which the printed colours and the handedness of a board seen from its front decide.
+  A grid OpenCV finds is kept unless the image shows it is not the declared board
+  (:func:`refusal`: a sub-grid of a larger printed board, or cells that do not alternate);
+- ChArUco: ``cv2.aruco.CharucoDetector.detectBoard`` (partial views: each corner has its id)
+  with ``tryRefineMarkers``: OpenCV looks again for the markers the first pass missed where the
+  board's layout puts them (a real view, ical-charuco image 2: 4 corners without, 24 with; the
+  corners found either way do not move);
 - asymmetric circle grid: ``cv2.findCirclesGrid`` with ``CALIB_CB_ASYMMETRIC_GRID``, then with
   a blob detector that accepts large circles (OpenCV's default one, which finds the grid more
   often under strong perspective, ignores blobs above 5000 px^2);
@@ -175,7 +180,9 @@ def detect_chessboard(image: np.ndarray, inner_corners: tuple[int, int]) -> Feat
 def detect_charuco(image: np.ndarray, board: cv2.aruco.CharucoBoard) -> Features:
     """The corners of the ChArUco ``board`` found (any subset, each with its id)."""
     gray = to_gray(image)
-    detector = cv2.aruco.CharucoDetector(board)
+    params = cv2.aruco.CharucoParameters()
+    params.tryRefineMarkers = True  # look again for the board's markers not found at first
+    detector = cv2.aruco.CharucoDetector(board, params)
     corners, ids, _, _ = detector.detectBoard(gray)
     if ids is None or len(ids) == 0:
         return _EMPTY
