@@ -27,7 +27,7 @@ from scipy.optimize import least_squares
 
 from calib.alignment import AXIS_TIPS, fit_placement_and_hand_eye, fit_rigid_transform
 from calib.board_bounds import bounds_block
-from calib.board_calibrate import calibrate_board
+from calib.board_calibrate import BoardInputError, calibrate_board
 from calib.board_rig import calibrate_board_rig
 from calib.board_robot import BoardRobotCalibration, calibrate_robot_with_board
 from calib.errors import EstimationError, SelfCalError, SelfCalWarning
@@ -47,6 +47,7 @@ from calib.target.boards import Board
 from calib.transforms import inv_pose, pose_from_vec
 
 __all__ = [
+    "MIN_FRAMES",
     "READBACK_RATIO",
     "ReadbackWarning",
     "dataset_board",
@@ -58,6 +59,10 @@ __all__ = [
     "nominal_reference",
 ]
 
+
+MIN_FRAMES = 6
+"""Fewest frames that show the board for a calibration (``selfcal import`` takes any number:
+a held-out set for ``selfcal evaluate`` may have one)."""
 
 READBACK_RATIO = 1.5
 """The robot's fit RMS over the camera-only fit's (a free pose per image) beyond which joint
@@ -181,6 +186,14 @@ def calibrate_board_dataset_detailed(
           else np.broadcast_to(np.asarray(joint_sigma, dtype=float), (robot.n,)))  # fmt: skip
     board = dataset_board(ds)
     feats, names = detect_board(ds, board, cam)
+    shown = sum(len(f) >= board.min_features for f in feats)
+    if shown < MIN_FRAMES:
+        raise BoardInputError(
+            f"{ds.root}: the {board.describe()} is found in {shown} of {len(feats)} frames; "
+            f"calibration needs at least {MIN_FRAMES}",
+            fix="add images that show the whole board (a smaller set can be held out: "
+            "`selfcal evaluate CALIBRATION HELD_OUT`)",
+        )
     seen = {(int(i), cam): dict(zip(f.ids.tolist(), f.uv)) for i, f in zip(ds.indices, feats)}
     check_distinct_frames(ds.indices, ds.joints_deg, seen, (cam,), str(ds.root))
     rig, others = None, []

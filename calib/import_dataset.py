@@ -7,9 +7,14 @@ target TOML (a board, or a marker field with its one known distance: :mod:`calib
 file match the images in sorted file-name order, or through its ``image`` column (the file name
 every camera's folder holds for that frame). Checked, each an :class:`calib.errors.InputError`
 naming the file and the fix: row and image counts, joint units, one image size per camera, the
-target found in enough images (the others are named, counted and skipped with an
-:class:`ImportWarning`), and the board's declared geometry against the detections
-(:func:`calib.board_calibrate.calibrate_board`). Writes ``dataset.json`` (schema 2, no truth),
+target found in at least one image (the others are named, counted and skipped with a
+:class:`TargetNotFoundWarning`, apart from those in which OpenCV found the board but the
+detector's checks refused it, each with the reason), and the board's declared geometry against
+the detections (:func:`calib.board_calibrate.calibrate_board`). Any number of frames imports (a
+held-out set for ``selfcal evaluate`` may have one); the calibration's minimum is
+:data:`calib.board_dataset.MIN_FRAMES`. ``dataset.json``'s ``provenance.detection`` counts the
+images searched, those with the target and those in which OpenCV alone found it
+(:func:`detection_summary`). Writes ``dataset.json`` (schema 2, no truth),
 ``joints.csv`` (deg), ``frames/NNNN_CAMERA.EXT`` (copies or symbolic links) and ``sources.csv``
 (where every frame came from).
 """
@@ -44,6 +49,7 @@ from calib.robot_def import RobotDef, load_robot
 from calib.robot_urdf import urdf_chain
 from calib.target import ArucoField
 from calib.target.base import Features
+from calib.target.board_detect import Detection
 from calib.target.boards import Board
 from calib.tomlfile import read_toml
 
@@ -54,11 +60,9 @@ __all__ = [
     "check_geometry",
     "name_order",
     "import_dataset",
-    "MIN_FRAMES",
+    "detection_summary",
 ]
 
-MIN_FRAMES = 6
-"""Fewest frames that show the target for a dataset to be imported (as the calibration)."""
 MISMATCH_PX = 3.0
 """Reprojection RMS (px, 2-D) above which the declared board does not fit the detections."""
 
@@ -181,8 +185,8 @@ def _copy_urdf_of(toml: Path, folder: Path) -> None:
 
 def _detect(
     cam: CameraImages, files: Sequence[Path], target: Board | FieldTarget
-) -> tuple[tuple[int, int], list[Features]]:
-    """The target's features in every image (read gray, one at a time, so memory does not grow
+) -> tuple[tuple[int, int], list[Detection]]:
+    """The target's detection in every image (read gray, one at a time, so memory does not grow
     with the number of images) and the camera's one image size; two sizes are an error naming
     both files."""
     feats, first = [], None
@@ -200,7 +204,11 @@ def _detect(
                 fix="give every image of one camera at the camera's native size (or give the "
                 "other size as another camera)",
             )
-        feats.append((target.field if isinstance(target, FieldTarget) else target).detect(img))
+        if isinstance(target, FieldTarget):
+            found = target.field.detect(img)
+            feats.append(Detection(found, len(found)))
+        else:
+            feats.append(target.detection(img))
     assert first is not None
     return first[1], feats
 
@@ -264,17 +272,17 @@ def import_dataset(
         if len(suffixes) != 1:
             raise ImportError_(f"images of several kinds {sorted(suffixes)}",
                                fix="convert the images to one format (e.g. PNG)")  # fmt: skip
-        sizes, feats = {}, {}
+        sizes, found = {}, {}
         for cam in images:
-            sizes[cam.name], feats[cam.name] = _detect(cam, files[cam.name], tgt)
+            sizes[cam.name], found[cam.name] = _detect(cam, files[cam.name], tgt)
+        feats = {c: [d.features for d in ds] for c, ds in found.items()}
         seen = np.zeros(len(rows.q), bool)
         for cam in images:
             seen |= [len(f) >= _min_features(tgt) for f in feats[cam.name]]
-        _warn_not_found(tgt, images, files, feats, labels or {})
-        if seen.sum() < MIN_FRAMES:
+        _warn_not_found(tgt, images, files, found, labels or {})
+        if not seen.any():
             raise ImportError_(
-                f"the {tgt.describe()} is found in {int(seen.sum())} of {len(seen)} frames; "
-                f"calibration needs at least {MIN_FRAMES}",
+                f"the {tgt.describe()} is found in none of the {len(seen)} frames",
                 fix="check the target file's keys against the printed board and add images that show "
                 "the whole board",
             )
@@ -317,7 +325,8 @@ def import_dataset(
             validation_joints_deg=np.zeros((0,)),
             backend="import",
             provenance={"import": source or {"joints": str(joints), "joint_units": joint_units,
-                      "target": str(target), "images": {c.name: c.pattern for c in images}}},
+                      "target": str(target), "images": {c.name: c.pattern for c in images}},
+                        "detection": _counts(tgt, found)},
             cameras=tuple(names),
             resolutions=None if len(set(res)) == 1 else res,
             board=target_document(tgt) if isinstance(tgt, Board) else None,
@@ -456,13 +465,18 @@ def _warn_not_found(
     board: Board | FieldTarget,
     images: Sequence[CameraImages],
     files: dict[str, list[Path]],
-    feats: dict[str, list[Features]],
+    found: dict[str, list[Detection]],
     labels: Mapping[Path, str],
 ) -> None:
-    missed = [labels.get(f, str(f)) for c in images for f, ft in zip(files[c.name], feats[c.name], strict=True)
-              if len(ft) < _min_features(board)]  # fmt: skip
+    """Name and count the images without the target, and apart from them each image in which
+    OpenCV found the board but the project's checks refused it, with the reason."""
+    need = _min_features(board)
+    pairs = [(labels.get(f, str(f)), d) for c in images
+             for f, d in zip(files[c.name], found[c.name], strict=True)]  # fmt: skip
+    total = len(pairs)
+    missed = [name for name, d in pairs if len(d.features) < need and d.opencv < need]
+    refused = [f"{name} ({d.refused})" for name, d in pairs if len(d.features) < need <= d.opencv]
     if missed:
-        total = sum(len(v) for v in files.values())
         more = " ..." if len(missed) > 8 else ""
         warnings.warn(
             f"the {board.describe()} is not found in {len(missed)} of {total} image(s), skipped: "
@@ -470,3 +484,29 @@ def _warn_not_found(
             TargetNotFoundWarning,
             stacklevel=3,
         )
+    if refused:
+        warnings.warn(
+            f"OpenCV finds the {board.describe()} in {len(refused)} image(s) that the detector's "
+            f"checks refuse, skipped: {'; '.join(refused)}",
+            TargetNotFoundWarning,
+            stacklevel=3,
+        )
+
+
+def _counts(board: Board | FieldTarget, found: dict[str, list[Detection]]) -> dict[str, int]:
+    """Images searched, images with the target found, and images in which OpenCV's detector
+    alone found it (before the project's checks), over every camera."""
+    need = _min_features(board)
+    ds = [d for v in found.values() for d in v]
+    return {"images": len(ds), "found": sum(len(d.features) >= need for d in ds),
+            "opencv": sum(d.opencv >= need for d in ds)}  # fmt: skip
+
+
+def detection_summary(info: DatasetInfo) -> str:
+    """One line of what ``import`` found, e.g. ``board found in 24 of 24 images (OpenCV alone:
+    24)``; ``""`` for a dataset that does not record it."""
+    c = info.provenance.get("detection")
+    if not isinstance(c, dict):
+        return ""
+    what = "board" if info.board is not None else "target"
+    return f"{what} found in {c['found']} of {c['images']} images (OpenCV alone: {c['opencv']})"

@@ -126,7 +126,7 @@ def cmd_import(args: argparse.Namespace) -> int:
         raise CliError("import needs --images, --joints and --joint-units (or --poses, or --bag)")
 
     from calib.camera_choice import camera_options
-    from calib.import_dataset import CameraImages, import_dataset
+    from calib.import_dataset import CameraImages, detection_summary, import_dataset
 
     cams = [CameraImages.parse(s, default_name=f"cam{k}") for k, s in enumerate(args.images)]
     models, frees = camera_options(args.camera_model, args.free, [c.name for c in cams], "--images")
@@ -138,9 +138,11 @@ def cmd_import(args: argparse.Namespace) -> int:
     n = len(info.planned_joints_deg)
     note_written(args, args.out)
     if args.json:
-        print(json.dumps({"dataset": str(args.out), "frames": n, "cameras": list(info.cameras)}))
+        print(json.dumps({"dataset": str(args.out), "frames": n, "cameras": list(info.cameras),
+                          "detection": info.provenance.get("detection")}))  # fmt: skip
     else:
-        print(f"imported {n} frames of {len(info.cameras)} camera(s) into {args.out}")
+        print(f"{detection_summary(info)}; imported {n} frames of {len(info.cameras)} camera(s) "
+              f"into {args.out}")  # fmt: skip
     return 0
 
 

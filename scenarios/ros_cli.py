@@ -55,6 +55,7 @@ def cmd_import_bag(args: argparse.Namespace) -> int:
     """``selfcal import --bag``."""
     from calib.bag_import import ImageTopic, import_bag
     from calib.camera_choice import camera_options
+    from calib.import_dataset import detection_summary
 
     if args.images or args.joints:
         raise CliError("--bag replaces --images and --joints: give one or the other")
@@ -78,7 +79,8 @@ def cmd_import_bag(args: argparse.Namespace) -> int:
     n = len(info.planned_joints_deg)
     note_written(args, args.out)
     src = str(bags[0]) if len(bags) == 1 else f"{len(bags)} bag files ({bags[0]} ...)"
-    print(f"imported {n} frames of {len(info.cameras)} camera(s) from {src} into {args.out}")
+    print(f"{detection_summary(info)}; imported {n} frames of {len(info.cameras)} camera(s) "
+          f"from {src} into {args.out}")  # fmt: skip
     return 0
 
 

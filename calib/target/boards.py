@@ -38,6 +38,8 @@ from calib.target.aruco import marker_features
 from calib.target.aruco_detect import aruco_dictionary
 from calib.target.base import Features, Target
 from calib.target.board_detect import (
+    Detection,
+    chessboard_detection,
     detect_aprilgrid,
     detect_charuco,
     detect_chessboard,
@@ -105,6 +107,12 @@ class Board(Target):
         """True when the detector finds every feature of the board or none (a chessboard, a
         circles grid), False when it finds any subset (ChArUco, AprilGrid)."""
         return False
+
+    def detection(self, image: np.ndarray) -> Detection:
+        """:meth:`detect` with how many features OpenCV's detector found before the project's
+        checks and why they refused them (:class:`calib.target.board_detect.Detection`)."""
+        found = self.detect(image)
+        return Detection(found, len(found))
 
     @cached_property
     def _lookup(self) -> dict[int, int]:
@@ -185,6 +193,9 @@ class Chessboard(Board):
 
     def detect(self, image: np.ndarray) -> Features:
         return detect_chessboard(image, self.inner_corners)
+
+    def detection(self, image: np.ndarray) -> Detection:
+        return chessboard_detection(image, self.inner_corners)
 
 
 @dataclass(frozen=True)

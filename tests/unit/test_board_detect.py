@@ -9,6 +9,12 @@ import cv2
 import numpy as np
 import pytest
 
+from calib.import_dataset import (
+    CameraImages,
+    TargetNotFoundWarning,
+    detection_summary,
+    import_dataset,
+)
 from calib.target import Charuco, Chessboard
 from calib.target.board_detect import chessboard_detection, refusal
 
@@ -36,14 +42,17 @@ def test_real_boards_on_a_grey_plate_with_a_narrow_margin_are_found(name):
     assert d.max() < 1e-6
 
 
-def _plate(board: Chessboard, margin_mm: float, plate: int, angle_deg: float) -> np.ndarray:
+def _plate(
+    board: Chessboard, margin_mm: float, plate: int, angle_deg: float, size=None
+) -> np.ndarray:
     """The board printed with a white ``margin_mm`` on a plate of grey level ``plate``, turned
-    by ``angle_deg`` and seen in mild perspective, blurred like optics."""
+    by ``angle_deg`` and seen in mild perspective, blurred like optics (an image of ``size``
+    (W, H), default 200 px more than the plate's)."""
     bi = board.image(px_per_mm=2.5, margin_mm=margin_mm)
     pad = 60
     img = np.pad(bi.pixels, pad, constant_values=plate)
     h, w = img.shape
-    size = (w + 200, h + 200)
+    size = size or (w + 200, h + 200)
     a = np.radians(angle_deg)
     R = np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
     C = np.array([[1, 0, -w / 2], [0, 1, -h / 2], [0, 0, 1.0]])
@@ -106,3 +115,25 @@ def test_a_charuco_marker_the_first_pass_misses_is_found_where_the_board_puts_it
     found, ref = board.detect(stained), board.detect(clean)
     assert len(ref) == 24 and np.array_equal(found.ids, ref.ids)
     np.testing.assert_allclose(found.uv, ref.uv, atol=1e-6)  # measured: identical
+
+
+def test_import_names_each_refused_image_and_counts_what_opencv_found(tmp_path):
+    """``selfcal import``: an image in which OpenCV finds the declared grid but the checks
+    refuse it is named with the reason, and the summary counts both."""
+    printed, declared = Chessboard((9, 6), 0.02), Chessboard((9, 4), 0.02)
+    (tmp_path / "img").mkdir()
+    size = (920, 900)
+    cv2.imwrite(str(tmp_path / "img" / "a.png"), _plate(printed, 20.0, 110, 100.0, size))
+    cv2.imwrite(str(tmp_path / "img" / "b.png"), _plate(declared, 20.0, 110, 10.0, size))
+    (tmp_path / "j.csv").write_text("j1,j2,j3,j4,j5,j6\n" + "0,-1.2,1.4,0,0.6,0\n" * 2)
+    (tmp_path / "t.toml").write_text(
+        'type = "chessboard"\ninner_corners = [9, 4]\nsquare_mm = 20\n'
+    )
+    cams = [CameraImages.parse(f"cam0={tmp_path}/img/*.png")]
+    with pytest.warns(TargetNotFoundWarning) as caught:
+        info = import_dataset("kr6-r900", cams, tmp_path / "j.csv", "rad", tmp_path / "t.toml",
+                              tmp_path / "ds")  # fmt: skip
+    text = " ".join(str(w.message) for w in caught)
+    assert "OpenCV finds the chessboard target" in text and "in 1 image(s)" in text
+    assert "a.png (the grid OpenCV found is not a chessboard's" in text
+    assert detection_summary(info) == "board found in 1 of 2 images (OpenCV alone: 2)"
