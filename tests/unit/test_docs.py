@@ -113,10 +113,30 @@ def test_there_are_commands_to_check():
 OUTSIDE = re.compile(r"^\.\./|/\.\./|/work/|\.library|^shared/")
 
 
+def repository_folders(root: Path) -> set[str]:
+    """The top-level folders of the checkout ``root`` that hold repository files: not hidden,
+    and not a generated output folder that ``.gitignore`` names (``runs/``, which ``selfcal
+    run`` writes: a path under it in the docs is an output, not a repository path)."""
+    ignore = root / ".gitignore"
+    lines = ignore.read_text().splitlines() if ignore.exists() else []
+    outputs = {ln.strip().strip("/") for ln in lines if re.fullmatch(r"/?[\w.-]+/", ln.strip())}
+    return {p.name for p in root.iterdir()
+            if p.is_dir() and not p.name.startswith(".") and p.name not in outputs}  # fmt: skip
+
+
+def test_output_folders_are_not_repository_folders(tmp_path):
+    for name in ("docs", "runs", "out", ".venv"):
+        (tmp_path / name).mkdir()
+    (tmp_path / ".gitignore").write_text("__pycache__/\n*.pyc\n.venv/\nruns/\nout/\n")
+    assert repository_folders(tmp_path) == {"docs"}
+    assert "runs" not in repository_folders(ROOT) and "calib" in repository_folders(ROOT)
+
+
 def test_docs_cite_nothing_outside_the_repository():
     """No link leaves the repository (no web page, no sibling folder); every repository path
-    named in backticks exists."""
-    tops = {p.name for p in ROOT.iterdir() if p.is_dir() and not p.name.startswith(".")}
+    named in backticks exists (a path under an output folder, :func:`repository_folders`, is
+    what a command writes)."""
+    tops = repository_folders(ROOT)
     bad = []
     for doc in DOCS:
         prose = FENCE.sub("", doc.read_text())
