@@ -189,7 +189,7 @@ def calibrate_board_dataset_detailed(
     shown = sum(len(f) >= board.min_features for f in feats)
     if shown < MIN_FRAMES:
         raise BoardInputError(
-            f"{ds.root}: the {board.describe()} is found in {shown} of {len(feats)} frames; "
+            f"the {board.describe()} is found in {shown} of {len(feats)} frames of {ds.root}; "
             f"calibration needs at least {MIN_FRAMES}",
             fix="add images that show the whole board (a smaller set can be held out: "
             "`selfcal evaluate CALIBRATION HELD_OUT`)",

@@ -27,6 +27,7 @@ import pytest
 from calib.calibrate import calibrate_detailed
 from calib.io.calibration import read_calibration
 from calib.io.dataset import Dataset
+from calib.target.aruco_detect import detect_markers
 from scenarios.cli import main
 from scenarios.config import load_scenario
 from scenarios.pipeline import run_acquire
@@ -104,6 +105,17 @@ def test_field_target_needs_its_known_distance(field, tmp_path, capsys):
     assert main([*args, "--target", str(tmp_path / "g.toml")]) == 2
     err = capsys.readouterr().err
     assert "g.toml: scale marker 47 (scale_marker_ids) is seen in 0 image(s)" in err
+    # one frame that shows both scale markers imports (a held-out set for `selfcal evaluate`);
+    # the calibration needs more
+    frames = sorted((root / "sim" / "frames").glob("*.png"))
+    k = next(i for i, f in enumerate(frames)
+             if {48, 49} <= set(detect_markers(cv2.imread(str(f)), "DICT_4X4_50")))  # fmt: skip
+    (tmp_path / "one.csv").write_text(f"{rows[0]}\n{rows[1 + k]}\n")
+    one = [a if a != f"left={root}/sim/frames/*.png" else f"left={frames[k]}" for a in args]
+    one[one.index(str(tmp_path / "joints.csv"))] = str(tmp_path / "one.csv")
+    assert main([*one, "--target", str(root / "field.toml")]) == 0
+    assert main(["calibrate", str(tmp_path / "o"), "--quiet"]) == 3
+    assert "needs at least" in capsys.readouterr().err
 
 
 def _z(got, want) -> dict[str, float]:
