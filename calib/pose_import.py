@@ -117,8 +117,9 @@ def import_pose_dataset(
         if len(suffixes) != 1:
             raise ImportError_(f"images of several kinds {sorted(suffixes)}",
                                fix="convert the images to one format (e.g. PNG)")  # fmt: skip
-        size, feats = _detect(cam, files, tgt)
-        _warn_not_found(tgt, [cam], {cam.name: files}, {cam.name: feats}, {})
+        size, found = _detect(cam, files, tgt)
+        _warn_not_found(tgt, [cam], {cam.name: files}, {cam.name: found}, {})
+        feats = [d.features for d in found]
         seen = np.array([len(f) >= tgt.min_features for f in feats])
         if seen.sum() < MIN_POSE_FRAMES:
             raise ImportError_(f"the {tgt.describe()} is found in none of {len(files)} images",
