@@ -41,7 +41,7 @@ from calib.kinematics import fk_tool
 from calib.mcpc import MCPCModel, minimal_indices, nominal_mcpc, param_names
 from calib.robot_def import RobotDef, load_robot
 from calib.row_shift import row_shift_misfits, shift_note
-from calib.scale_check import check_scale, scaled_sizes
+from calib.scale_check import check_scale, motion_scale, scale_warning, scaled_sizes
 from calib.target.base import Features
 from calib.target.boards import Board
 from calib.transforms import inv_pose, pose_from_vec
@@ -232,13 +232,18 @@ def calibrate_board_dataset_detailed(
                 rig_features=[o[0] for o in others],
             )
         except IdentificationError as exc:
-            note = _pairing_note(ds, board, feats, names, robot, W, H, model_name, free)
-            raise IdentificationError(
-                f"{ds.root}: the camera poses the board gives do not fit one robot: {exc.message}"
-                + (f"; {note}" if note else ""),
-                fix=f"check that every joints row belongs to its image ({ds.root}/sources.csv "
-                "names each frame's file), that the board did not move and that --robot is this "
-                "arm",
+            found = _data_notes(ds, board, feats, names, robot, W, H, model_name, free)
+            if found:  # a data check shows what is wrong: name the data
+                raise IdentificationError(
+                    f"{ds.root}: the camera poses the board gives do not fit one robot: "
+                    f"{exc.message}; " + "; ".join(found),
+                    fix=f"check that every joints row belongs to its image ({ds.root}/sources.csv "
+                    "names each frame's file), the target's sizes and that --robot is this arm",
+                ) from exc
+            raise type(exc)(
+                f"{ds.root}: {exc.message}; the checks of the data (rows paired with their "
+                "images, the target's scale against the arm's) found nothing wrong",
+                fix=exc.fix,
             ) from exc
     used = res.used
     T_board_cam = inv_pose(res.board.T_cam_board[used])
@@ -301,21 +306,32 @@ def calibrate_board_dataset_detailed(
     return BoardDatasetCalibration(result, res, all_feats, q)
 
 
-def _pairing_note(ds: Dataset, board: Board, feats: list[Features], names: list[str],
-                  robot: RobotDef, W: int, H: int, model: str,
-                  free: tuple[str, ...]) -> str | None:  # fmt: skip
-    """Why the poses fit no robot, when it is the pairing of rows and images
-    (:mod:`calib.row_shift`): the camera's own calibration gives each image's pose."""
+def _data_notes(ds: Dataset, board: Board, feats: list[Features], names: list[str],
+                robot: RobotDef, W: int, H: int, model: str,
+                free: tuple[str, ...]) -> list[str]:  # fmt: skip
+    """Why the poses fit no robot, when a data check shows it: the pairing of rows and images
+    (:mod:`calib.row_shift`) or the target's scale against the arm's
+    (:mod:`calib.scale_check`), from each image's pose by the camera's own calibration; one
+    sentence a finding, none when the checks pass (or cannot run)."""
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", SelfCalWarning)
             cb = calibrate_board(board, feats, W, H, free=free, model=model, names=names)
     except SelfCalError:
-        return None
+        return []
     T = np.where(cb.used[:, None, None], inv_pose(cb.T_cam_board), np.nan)
-    misfits = row_shift_misfits(nominal_mcpc(robot), np.radians(ds.joints_deg), T,
-                                robot.T_flange_cam)  # fmt: skip
-    return shift_note(misfits, f"{ds.root}/joints.csv")
+    q = np.radians(ds.joints_deg)
+    misfits = row_shift_misfits(nominal_mcpc(robot), q, T, robot.T_flange_cam)
+    shift = shift_note(misfits, f"{ds.root}/joints.csv")
+    if shift is not None:
+        return [shift]  # a wrong pairing also spoils the scale: that one first
+    sizes = {k: float(v) for k, v in (ds.info.board or {}).items() if k.endswith("_mm")}
+    if int(cb.used.sum()) < 3:
+        return []
+    ms = motion_scale(nominal_mcpc(robot), q[cb.used], T[cb.used], robot.T_flange_cam)
+    scale = scale_warning(ms, robot.name, f"the board ({scaled_sizes(sizes, 1.0)})",
+                          f"{scaled_sizes(sizes, ms.scale)} would match the arm")  # fmt: skip
+    return [] if scale is None else [scale]
 
 
 def nominal_reference(robot: RobotDef, q: np.ndarray, T_board_cam: np.ndarray) -> MCPCModel:

@@ -105,7 +105,9 @@ def calibrate_robot_with_board(
 
     Raises:
         calib.board_calibrate.BoardInputError / BoardMismatchError: as :func:`calibrate_board`.
-        calib.identify.IdentificationError: too few frames for the kinematics.
+        calib.identify.IdentificationError: too few frames for the kinematics;
+            calib.identify.IdentificationSolverError (a kind of it) when the two-stage
+            identification's solver failed (a caller may fall back to the nominal chain).
         EstimationError: the refinement did not converge.
     """
     q = np.atleast_2d(np.asarray(q, dtype=float))

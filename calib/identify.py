@@ -6,13 +6,17 @@ adjustment's reconstruction frame), metres. The model is an :class:`~calib.mcpc.
 ``V_0`` maps that world frame to joint 1 and whose ``V_n`` maps the last link to the camera, e.g.
 ``nominal_mcpc(robot).with_tool(robot.T_flange_cam)`` placed with :func:`initial_base`.
 
-Estimation: Gauss-Newton with Levenberg-Marquardt fallback on the minimal parameter set
-(``calib.mcpc.minimal_indices``, 26 parameters for 5 revolute joints). Each iteration solves the
-linearised eq. 12, ``y = J rho`` (rows ``[d; delta]`` of every pose in the tool frame, weighted by
-``1 / sigma``), by least squares. ``y`` is the exact pose error of :func:`calib.kinematics.pose_error`
-and ``J`` the analytic identification Jacobian, corrected by the exact derivative of that error
-(``d x delta`` for the translation rows, the inverse left Jacobian of SO(3) for the rotation rows),
-so the fixed point is the true weighted least-squares minimum, not only a first-order one.
+Estimation: Levenberg-Marquardt on the project's solver (:mod:`calib.solver`) over the minimal
+parameter set (``calib.mcpc.minimal_indices``, 26 parameters for 5 revolute joints): one residual
+block of the pose errors ``y`` (rows ``[d; delta]`` of every pose in the tool frame, weighted by
+``1 / sigma``; :class:`calib.estimation.tracker.TrackerPoseBlock`), ``y`` the exact pose error of
+:func:`calib.kinematics.pose_error` and its Jacobian the analytic identification Jacobian
+corrected by the exact derivative of that error (:func:`calib.kinematics.pose_error_jacobian`), so
+the fixed point is the true weighted least-squares minimum, not only a first-order one. The base
+and the tool are fitted first with the chain held (a hand-eye far from the robot file's would
+otherwise lead a small set astray), then every identifiable parameter. Parameters the postures
+do not determine (rank of the scaled Jacobian at the start), and beyond ``6 (m - 1)`` for ``m``
+poses, are held at the start's values and named.
 
 Gauge (why parameters must be compared in a common world frame): the world frame is free. ``V_0``
 (4 minimal parameters alpha0, beta0, lx0, ly0) describes world -> joint-1 axis; a change of world
@@ -41,17 +45,19 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from calib.alignment import fit_rigid_transform, regauge
-from calib.errors import EstimationError, InputError, SelfCalWarning
+from calib.alignment import fit_placement_and_hand_eye, fit_rigid_transform, regauge
+from calib.errors import EstimationError, InputError, SelfCalWarning, SolverError
+from calib.estimation.tracker import ChainLayout, TrackerPoseBlock
 from calib.identifiability import (
     O1_SCALE_M,
     O1_SCALE_RAD,
     Identifiability,
     analyse_identifiability,
     pose_sigmas,
+    priority_order,
     triangular_factor,
 )
-from calib.kinematics import fk_tool, identification_jacobian, pose_error
+from calib.kinematics import fk_tool, pose_error
 from calib.mcpc import (
     MCPCModel,
     chain_transforms,
@@ -60,23 +66,35 @@ from calib.mcpc import (
     param_names,
 )
 from calib.results_base import ParameterEstimates
-from calib.transforms import (
-    skew,
+from calib.solver import (
+    ParameterBlock,
+    Problem,
+    SolverOptions,
+    SolverResult,
+    covariance,
+    solve,
 )
 
 __all__ = [
     "IdentificationError",
+    "IdentificationSolverError",
     "IdentificationWarning",
     "IdentificationResult",
     "initial_base",
     "identify",
-    "pose_error_jacobian",
 ]
 
 
 class IdentificationError(EstimationError):
     """Identification cannot give a trustworthy answer (too few poses, rank deficiency that is not
     held, no convergence); the message says why and what to change."""
+
+
+class IdentificationSolverError(IdentificationError):
+    """The estimator failed: Levenberg-Marquardt did not converge within its budget or stopped on
+    non-finite numbers. The message says what was tried; it does not blame the data (a caller
+    that runs a data check names the data when the check shows it, or falls back to the nominal
+    chain)."""
 
 
 class IdentificationWarning(SelfCalWarning):
@@ -109,13 +127,16 @@ class IdentificationResult(ParameterEstimates):
             this data"``), covariance, rank, n_params: :class:`~calib.results_base.ParameterEstimates`
             (the rank of the scaled Jacobian at the start).
         model: identified model, world = measurement frame of ``T_world_cam``.
-        initial_model: the starting model (after base placement).
+        initial_model: the start the solver used: the nominal model placed by a rigid fit, or
+            with its placement and hand-eye fitted in turn when that fits the poses better (the
+            held parameters keep its values).
         identifiability: the analysis at the start (rank, singular values, indices).
         condition_number, o1, o3, singular_values: of the estimated set at the solution
             (see :mod:`calib.identifiability` for the scaling and index definitions).
         sigma0: a-posteriori standard deviation of unit weight, sqrt(r^T W r / (6m - p)); ~1 when
             the stated sigmas are right. The std include it.
-        rms_t_mm_before/after: RMS of the tool position error norm (mm) before/after.
+        rms_t_mm_before/after: RMS of the tool position error norm (mm) before (the nominal
+            model placed by a rigid fit, :func:`initial_base`) / after.
         rms_r_deg_before/after: RMS of the tool rotation error angle (deg) before/after.
         iterations: Jacobian evaluations; converged: the Gauss-Newton step met ``tol``.
         warnings: what it warned about, one sentence each (also emitted as
@@ -181,32 +202,6 @@ def _check_inputs(
     return q, T
 
 
-def _so3_left_jacobian_inv(phi: np.ndarray) -> np.ndarray:
-    """Inverse left Jacobian of SO(3) for rotation vectors (..., 3): (..., 3, 3)."""
-    th = np.linalg.norm(phi, axis=-1)[..., None, None]
-    K = skew(phi)
-    small = th < 1e-4
-    th_s = np.where(small, 1.0, th)
-    coef = np.where(
-        small,
-        1.0 / 12.0 + th**2 / 720.0,
-        1.0 / th_s**2 - (1.0 + np.cos(th_s)) / (2.0 * th_s * np.sin(th_s)),
-    )
-    return np.eye(3) - 0.5 * K + coef * (K @ K)
-
-
-def pose_error_jacobian(J: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Exact ``-d y / d params`` of ``y = pose_error(T_model, T_meas)`` from the tool Jacobian ``J``.
-
-    ``J`` (m, 6, p) gives the model's tool-frame twist per parameter, ``y`` (m, 6) the current error.
-    """
-    Jv, Jw = J[:, :3], J[:, 3:]
-    out = np.empty_like(J)
-    out[:, :3] = Jv - skew(y[:, :3]) @ Jw
-    out[:, 3:] = _so3_left_jacobian_inv(y[:, 3:]) @ Jw
-    return out
-
-
 def _rms(y: np.ndarray) -> tuple[float, float]:
     t = float(np.sqrt(np.mean(np.sum(y[:, :3] ** 2, axis=1)))) * 1000.0
     r = float(np.degrees(np.sqrt(np.mean(np.sum(y[:, 3:] ** 2, axis=1)))))
@@ -220,6 +215,94 @@ def _note(notes: list[str], text: str) -> None:
     warnings.warn(text, IdentificationWarning, stacklevel=3)
 
 
+def _pose_problem(
+    start: MCPCModel, q: np.ndarray, T_meas: np.ndarray, sig: np.ndarray, free: np.ndarray
+) -> Problem:
+    """The weighted pose errors of ``start``'s chain at ``q`` against ``T_meas`` over the flat
+    parameters ``free`` (the others held at ``start``'s values): one parameter block ``"mcpc"``
+    (every flat parameter) and one residual block ``"poses"``."""
+    held = np.ones(start.params.size, dtype=bool)
+    held[free] = False
+    block = TrackerPoseBlock(
+        ChainLayout.whole(start), q, T_meas, sig[:, :3], sig[:, 3:], name="poses"
+    )
+    return Problem([ParameterBlock("mcpc", start.params.reshape(-1), held=held)], [block])
+
+
+def _starts(
+    start: MCPCModel, q: np.ndarray, T_meas: np.ndarray, hold: np.ndarray
+) -> list[tuple[str, MCPCModel]]:
+    """Where the solver may start: ``start`` itself and ``start`` with its placement and a tool
+    correction fitted in turn by closed-form rigid fits
+    (:func:`calib.alignment.fit_placement_and_hand_eye`; a robot file's camera mount can be far
+    from the real one), the flat parameters ``hold`` (held by the caller's request) kept at
+    ``start``'s. The other held parameters take the fitted start's values: the same nominal
+    chain, written from the fitted base."""
+    B, C = fit_placement_and_hand_eye(T_meas, fk_tool(start, q), np.eye(4))
+    G = chain_transforms(start)
+    fitted = regauge([B @ G[0], *G[1:-1], G[-1] @ C], start.joint_types, start.joint_offsets)
+    flat = fitted.params.reshape(-1).copy()
+    flat[hold] = start.params.reshape(-1)[hold]
+    return [
+        ("the nominal chain as placed", start),
+        ("placement and hand-eye fitted in turn", start.with_params(flat)),
+    ]
+
+
+def _fit(
+    start: MCPCModel,
+    q: np.ndarray,
+    T_meas: np.ndarray,
+    sig: np.ndarray,
+    est: np.ndarray,
+    hold: np.ndarray,
+    options: SolverOptions,
+) -> tuple[MCPCModel, MCPCModel, Problem, SolverResult, int]:
+    """Levenberg-Marquardt on the estimated parameters ``est`` (flat indices) from the better
+    (lower cost) of :func:`_starts` first (``hold``: flat indices held by request), in two
+    stages each: the base and the tool (``V_0``, ``V_n``) with the chain at the start's values,
+    then every estimated parameter from there. Returns the start used, the fitted model, ...
+    the last stage's problem and result and the iterations of all stages; raises
+    :class:`IdentificationSolverError` naming what was tried when no start converges (a stage
+    stopped on its budget or on non-finite numbers)."""
+    n = start.n
+    ends = est[np.isin(est // 6, (0, n))]
+    stages = [("base and tool", ends)] if 0 < ends.size < est.size else []
+    stages.append(("every estimated parameter", est))
+    starts = _starts(start, q, T_meas, hold)
+    cost = [float(np.sum((pose_error(fk_tool(m0, q), T_meas) / sig) ** 2)) for _, m0 in starts]
+    tried: list[str] = []
+    iterations = 0
+    last: SolverError | None = None
+    for k in np.argsort(cost, kind="stable").tolist():
+        name, first = starts[k]
+        model = first
+        tried.append(f"from {name} (weighted RMS {np.sqrt(cost[k] / (6 * len(q))):.3g})")
+        for what, free in stages:
+            prob = _pose_problem(model, q, T_meas, sig, free)
+            try:
+                sol = solve(prob, options)
+            except SolverError as exc:
+                last = exc
+                tried.append(f"{what}: {exc.message}")
+                break
+            iterations += sol.iterations
+            tried.append(f"{what} ({free.size} parameters): {sol.iterations} iterations, "
+                         f"{sol.trials} trials, {sol.message}")  # fmt: skip
+            if not sol.converged:
+                break
+            model = model.with_params(sol.values["mcpc"])
+        else:
+            return first, model, prob, sol, iterations
+    raise IdentificationSolverError(
+        "the kinematic identification did not converge (the estimator failed, not necessarily "
+        "the data): Levenberg-Marquardt (damping from "
+        f"{options.initial_damping:g}, adapted by the gain ratio; at most "
+        f"{options.max_iterations} iterations a stage) " + "; ".join(tried),
+        fix="hold parameters the postures do not excite, or add postures",
+    ) from last
+
+
 def identify(
     model: MCPCModel,
     q: np.ndarray,
@@ -227,8 +310,8 @@ def identify(
     *,
     sigma_t_m: float | np.ndarray = 1e-4,
     sigma_r_rad: float | np.ndarray = 1e-3,
-    max_iter: int = 50,
-    tol: float = 1e-9,
+    max_iter: int = 100,
+    tol: float = 1e-12,
     hold: list[str] | tuple[str, ...] | None = None,
     auto_hold: bool = True,
     place_base: bool = True,
@@ -244,13 +327,15 @@ def identify(
         T_world_cam: (m, 4, 4) measured tool poses in the (arbitrary, fixed) world frame, metres.
         sigma_t_m, sigma_r_rad: standard deviations of the pose error components in the tool frame
             (translation m, rotation rad): scalar, per pose (m,) or per axis (m, 3).
-        max_iter: maximum Gauss-Newton / LM iterations.
-        tol: convergence when the Gauss-Newton step changes the weighted residuals by less than
-            ``tol * max(1, RMS weighted residual)`` (RMS over rows, in units of sigma); equivalently
-            the weighted gradient ``J^T W r`` is negligible.
+        max_iter: Levenberg-Marquardt iterations (Jacobian evaluations) allowed per stage
+            (:func:`_fit`: base and tool, then all).
+        tol: the solver's relative tolerance (:mod:`calib.solver.lm`: cost decrease, step, and
+            ``1e-3 tol`` on the scaled gradient).
         hold: names (e.g. ``"beta1"``) held at their starting values; their std is nan.
-        auto_hold: hold parameters that are not identifiable from these configurations (named in an
-            :class:`IdentificationWarning`); with ``False`` such data raise instead.
+        auto_hold: hold parameters that are not identifiable from these configurations, and
+            beyond ``6 (m - 1)`` parameters the last in :func:`calib.identifiability.priority_order`
+            (too few poses; named in an :class:`IdentificationWarning`); with ``False`` such data
+            raise instead.
         place_base: start from :func:`initial_base` (needed when the world frame is arbitrary).
         rank_rtol: relative singular-value threshold of the numerical rank.
         cond_warn: warn above this condition number of the scaled Jacobian.
@@ -260,8 +345,11 @@ def identify(
 
     Raises:
         ValueError: malformed inputs or unknown ``hold`` names.
-        IdentificationError: too few poses (the message names the minimum), rank deficiency with
-            ``auto_hold=False``, or no convergence within ``max_iter``.
+        IdentificationError: fewer than 2 poses, too few poses or a rank deficiency with
+            ``auto_hold=False`` (the message names the minimum or the parameters), a Jacobian
+            rank deficient at the solution.
+        IdentificationSolverError: the solver did not converge within ``max_iter`` or stopped on
+            non-finite numbers (the message says what was tried).
     """
     q, T_meas = _check_inputs(model, q, T_world_cam)
     notes: list[str] = []
@@ -273,8 +361,8 @@ def identify(
     if unknown:
         raise ValueError(f"cannot hold {unknown}: not minimal parameters; valid names: {names}")
     p_free = idx.size - len(set(hold))
-    if 6 * m <= p_free:
-        need = p_free // 6 + 1
+    if m < 2 or (6 * m <= p_free and not auto_hold):
+        need = p_free // 6 + 1 if not auto_hold else 2
         raise IdentificationError(
             f"too few poses: {m} poses give {6 * m} equations for {p_free} parameters; need at "
             f"least {need} poses (more than {p_free} equations), better several times that"
@@ -309,76 +397,34 @@ def identify(
         )
         held_reason.update({nm: "unidentifiable from this data" for nm in ana.unidentifiable})
     estimated = ana.identifiable.copy()
+    cap = 6 * (m - 1)  # leave one pose's equations to judge the fit (sigma0)
+    if estimated.sum() > cap:
+        order = [k for k in priority_order(model.joint_types) if estimated[k]]
+        few = tuple(names[k] for k in order[cap:])
+        estimated[order[cap:]] = False
+        _note(
+            notes,
+            f"held at nominal, too few poses ({m} poses, {6 * m} equations) to estimate more "
+            f"than {cap} parameters: {list(few)}",
+        )
+        held_reason.update({nm: f"too few poses ({m})" for nm in few})
     est = idx[estimated]
     p = est.size
     N = 6 * m
 
-    def evaluate(x: np.ndarray) -> tuple[MCPCModel, np.ndarray, np.ndarray]:
-        mx = start.with_params(x.reshape(-1, 6))
-        y = pose_error(fk_tool(mx, q), T_meas)
-        return mx, y, (y / sig).reshape(-1)
+    y0 = pose_error(fk_tool(start, q), T_meas)
+    held_flat = idx[[names.index(h) for h in set(hold)]]
+    first, mx, prob, sol, iterations = _fit(start, q, T_meas, sig, est, held_flat,
+                        SolverOptions(tol=tol, max_iterations=max_iter, linear_solver="dense"))  # fmt: skip
+    y = pose_error(fk_tool(mx, q), T_meas)
+    cost = 2.0 * sol.cost  # r^T W r
 
-    def weighted_jacobian(mx: MCPCModel, y: np.ndarray) -> np.ndarray:
-        J = identification_jacobian(mx, q)[:, :, est]
-        return (pose_error_jacobian(J, y) / sig[:, :, None]).reshape(N, p)
-
-    x = start.params.reshape(-1).copy()
-    mx, y, r = evaluate(x)
-    y0 = y
-    cost = float(r @ r)
-    lam = 0.0
-    converged = False
-    it = 0
-    step_rms = np.inf
-    while it < max_iter:
-        it += 1
-        A = weighted_jacobian(mx, y)
-        scale = np.linalg.norm(A, axis=0)
-        # [As | r] = Q [R, Q^T r; 0, rho]: solve the small triangular system instead of A itself.
-        Raug = triangular_factor(np.column_stack([A / scale, r]))
-        R, qtr = Raug[:p, :p], Raug[:p, p]
-        z = np.linalg.lstsq(R, qtr, rcond=None)[0]
-        step_rms = float(np.linalg.norm(R @ z) / np.sqrt(N))
-        if step_rms <= tol * max(1.0, float(np.sqrt(cost / N))):
-            x_new = x.copy()
-            x_new[est] += z / scale
-            mx_n, y_n, r_n = evaluate(x_new)
-            if float(r_n @ r_n) <= cost * (1 + 1e-10) + 1e-30:
-                x, mx, y, r, cost = x_new, mx_n, y_n, r_n, float(r_n @ r_n)
-            converged = True
-            break
-        while True:
-            if lam > 0:
-                Aug = np.vstack([R, np.sqrt(lam) * np.eye(p)])
-                z = np.linalg.lstsq(Aug, np.concatenate([qtr, np.zeros(p)]), rcond=None)[0]
-            x_new = x.copy()
-            x_new[est] += z / scale
-            mx_n, y_n, r_n = evaluate(x_new)
-            c_n = float(r_n @ r_n)
-            # Accept a decrease, or a change within the rounding noise of the cost (near the
-            # minimum the predicted decrease ||A z||^2 is far below eps * cost).
-            if np.isfinite(c_n) and (c_n < cost or c_n - cost <= 1e-10 * cost):
-                x, mx, y, r, cost = x_new, mx_n, y_n, r_n, c_n
-                lam = 0.0 if lam < 1e-6 else lam / 10.0
-                break
-            lam = max(1e-4, 10.0 * lam)
-            if lam > 1e12:
-                raise IdentificationError(
-                    f"Levenberg-Marquardt cannot reduce the cost after {it} iterations (weighted "
-                    f"RMS {np.sqrt(cost / N):.3g}); the start is too far from the data -- check the "
-                    "joint/pose pairing, units (m, rad) and the camera convention"
-                )
-    if not converged:
-        raise IdentificationError(
-            f"no convergence in {max_iter} iterations (last Gauss-Newton step changed the weighted "
-            f"residuals by {step_rms:.3g} sigma RMS, tol {tol:g}); raise max_iter or check the data"
-        )
-
-    # Statistics at the solution.
-    A = weighted_jacobian(mx, y)
+    # Statistics at the solution (columns in the minimal set's order).
+    pos = np.searchsorted(np.sort(est), est)  # est's coordinates among the problem's unknowns
+    A = np.asarray(prob.jacobian(sol.x).todense())[:, pos]
     scale = np.linalg.norm(A, axis=0)
     R = triangular_factor(A / scale)
-    _, s, Vt = np.linalg.svd(R)
+    s = np.linalg.svd(R, compute_uv=False)
     cond = float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
     if not s[-1] > rank_rtol * s[0]:
         raise IdentificationError(
@@ -393,8 +439,7 @@ def identify(
         )
     dof = N - p
     sigma0 = float(np.sqrt(cost / dof))
-    cov_s = (Vt.T / s**2) @ Vt
-    cov = sigma0**2 * cov_s / np.outer(scale, scale)
+    cov = covariance(prob, sol.x, [("mcpc", pos)], sigma2=sigma0**2)
     if sigma0 > 10.0:
         _note(
             notes,
@@ -413,7 +458,7 @@ def identify(
     t1, r1 = _rms(y)
     return IdentificationResult(
         model=final,
-        initial_model=start,
+        initial_model=first,
         names=names,
         values=values,
         std=std,
@@ -432,8 +477,8 @@ def identify(
         rms_r_deg_before=r0,
         rms_t_mm_after=t1,
         rms_r_deg_after=r1,
-        iterations=it,
-        converged=converged,
+        iterations=iterations,
+        converged=sol.converged,
         residuals=y,
         warnings=tuple(notes),
     )

@@ -16,7 +16,7 @@ import numpy as np
 from calib.mcpc import MCPCModel, shape_matrices
 from calib.robot_chain import chain_frames, dh_frames
 from calib.robot_def import RobotDef
-from calib.transforms import inv_pose, rot_x, rot_y, rot_z, trans
+from calib.transforms import inv_pose, rot_x, rot_y, rot_z, skew, trans
 
 __all__ = [
     "motion_matrices",
@@ -25,6 +25,7 @@ __all__ = [
     "fk_nominal",
     "pose_error",
     "identification_jacobian",
+    "pose_error_jacobian",
 ]
 
 
@@ -125,3 +126,31 @@ def identification_jacobian(
     J[:, :, 3:, :3] = np.swapaxes(X[..., :3, :3], -1, -2)
     J[:, :, 3:, 3:] = 0.0
     return np.transpose(J, (0, 3, 1, 2)).reshape(m, 6, 6 * (n + 1))
+
+
+def _so3_left_jacobian_inv(phi: np.ndarray) -> np.ndarray:
+    """Inverse left Jacobian of SO(3) for rotation vectors (..., 3): (..., 3, 3)."""
+    th = np.linalg.norm(phi, axis=-1)[..., None, None]
+    K = skew(phi)
+    small = th < 1e-4
+    th_s = np.where(small, 1.0, th)
+    coef = np.where(
+        small,
+        1.0 / 12.0 + th**2 / 720.0,
+        1.0 / th_s**2 - (1.0 + np.cos(th_s)) / (2.0 * th_s * np.sin(th_s)),
+    )
+    return np.eye(3) - 0.5 * K + coef * (K @ K)
+
+
+def pose_error_jacobian(J: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Exact ``-d y / d params`` of ``y = pose_error(T_model, T_meas)`` from the tool Jacobian ``J``.
+
+    ``J`` (m, 6, p) gives the model's tool-frame twist per parameter (e.g.
+    :func:`identification_jacobian`), ``y`` (m, 6) the current error: ``d x delta`` corrects the
+    translation rows, the inverse left Jacobian of SO(3) the rotation rows.
+    """
+    Jv, Jw = J[:, :3], J[:, 3:]
+    out = np.empty_like(J)
+    out[:, :3] = Jv - skew(y[:, :3]) @ Jw
+    out[:, 3:] = _so3_left_jacobian_inv(y[:, 3:]) @ Jw
+    return out

@@ -37,8 +37,13 @@ import numpy as np
 
 from calib.errors import InputError
 from calib.estimation.pose_models import so3_left_jacobian
-from calib.identify import pose_error_jacobian
-from calib.kinematics import fk_frames, fk_tool, identification_jacobian, pose_error
+from calib.kinematics import (
+    fk_frames,
+    fk_tool,
+    identification_jacobian,
+    pose_error,
+    pose_error_jacobian,
+)
 from calib.mcpc import MCPCModel
 from calib.solver import Evaluation, JacobianPiece, Loss, ParameterBlock
 from calib.transforms import adjoint, inv_pose, kabsch, make_pose, pose_from_vec, skew
@@ -247,7 +252,7 @@ class TrackerPositionBlock(_TrackerBlock):
 class TrackerPoseBlock(_TrackerBlock):
     """Rows ``pose_error(T_pred_i, T_i) / sigma`` (6 each, ``[d; delta]`` in the predicted tool
     frame): measured tool poses ``T`` (m, 4, 4) in the tracker frame at joints ``q``;
-    ``sigma_t`` m and ``sigma_r`` rad (scalars or (m,))."""
+    ``sigma_t`` m and ``sigma_r`` rad (scalars, (m,) or per axis (m, 3))."""
 
     dim = 6
 
@@ -265,9 +270,12 @@ class TrackerPoseBlock(_TrackerBlock):
         super().__init__(layout, q, name, loss)
         self.T = np.asarray(T, dtype=float).reshape(-1, 4, 4)
         m = len(self.T)
-        st = np.broadcast_to(np.asarray(sigma_t, dtype=float), (m,))
-        sr = np.broadcast_to(np.asarray(sigma_r, dtype=float), (m,))
-        self.w = 1.0 / np.column_stack([st, st, st, sr, sr, sr])
+
+        def per_axis(s: float | np.ndarray) -> np.ndarray:
+            a = np.asarray(s, dtype=float)
+            return np.broadcast_to(a[:, None] if a.ndim == 1 else a, (m, 3))
+
+        self.w = 1.0 / np.concatenate([per_axis(sigma_t), per_axis(sigma_r)], axis=1)
 
     def evaluate(self, values: Mapping[str, np.ndarray], jacobian: bool) -> Evaluation:
         """Residuals (m, 6) and the pieces (exact derivative of the pose error)."""

@@ -14,7 +14,13 @@ from scipy.spatial.transform import Rotation
 
 from calib.alignment import align_truth, express_in_frame, fit_rigid_transform, minimal_difference
 from calib.dh_table import DHNotRepresentableWarning, canonical_base, to_dh
-from calib.identify import IdentificationError, IdentificationWarning, identify, initial_base
+from calib.identify import (
+    IdentificationError,
+    IdentificationSolverError,
+    IdentificationWarning,
+    identify,
+    initial_base,
+)
 from calib.kinematics import fk_nominal, fk_tool, pose_error
 from calib.mcpc import MCPCModel, minimal_indices, nominal_mcpc, param_is_angle, param_names
 from calib.robot_def import DHParams, RobotDef, list_robots, load_robot, models_dir, with_dh
@@ -237,11 +243,34 @@ def test_explicit_hold() -> None:
 
 
 def test_too_few_poses_names_the_minimum() -> None:
+    """Without auto_hold, 4 poses for 26 parameters raise naming the minimum; a single pose
+    raises in any case."""
     robot = load_robot("er4u-vendor")
     nom = nominal(robot)
     q = configs(robot, np.random.default_rng(0), 4)
     with pytest.raises(IdentificationError, match="at least 5 poses"):
-        identify(nom, q, fk_tool(nom, q))
+        identify(nom, q, fk_tool(nom, q), auto_hold=False)
+    with pytest.raises(IdentificationError, match="at least 2 poses"):
+        identify(nom, q[:1], fk_tool(nom, q[:1]))
+
+
+@pytest.mark.parametrize("m", [2, 3])
+def test_few_poses_hold_what_they_cannot_carry(m: int) -> None:
+    """2 or 3 poses of a 6-joint arm (30 parameters): a result, not an exception, with at most
+    6 (m - 1) parameters estimated (base first, then tool), the rest held and named, and a fit
+    closer to the poses than the placed nominal chain."""
+    robot = load_robot(URDF_ARM)
+    nom = nominal(robot)
+    rng = np.random.default_rng(21)
+    q = configs(robot, rng, m)
+    T_w = random_world(rng)
+    with pytest.warns(IdentificationWarning, match="too few poses"):
+        res = identify(nom, q, T_w @ fk_tool(perturbed(nom, rng), q))
+    assert res.converged and int(res.estimated.sum()) <= 6 * (m - 1)
+    assert all(res.estimated[res.names.index(k)] for k in ("alpha0", "beta0", "lx0", "ly0"))
+    assert any("too few poses" in r for r in res.held_reason.values())
+    assert np.all(np.isfinite(res.std[res.estimated]))
+    assert res.rms_t_mm_before > 0.5 and res.rms_t_mm_after < 0.95 * res.rms_t_mm_before
 
 
 def test_non_convergence_raises() -> None:
@@ -250,7 +279,7 @@ def test_non_convergence_raises() -> None:
     nom = nominal(robot)
     rng = np.random.default_rng(9)
     q = configs(robot, rng, 20)
-    with pytest.raises(IdentificationError, match="no convergence"):
+    with pytest.raises(IdentificationSolverError, match="did not converge.*1 iterations"):
         identify(nom, q, fk_tool(perturbed(nom, rng), q), max_iter=1)
 
 
