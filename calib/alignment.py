@@ -10,7 +10,14 @@ from __future__ import annotations
 import numpy as np
 
 from calib.kinematics import fk_tool
-from calib.mcpc import MCPCModel, chain_transforms, gauge_fix, minimal_indices, param_is_angle
+from calib.mcpc import (
+    MCPCModel,
+    base_offset_for,
+    chain_transforms,
+    gauge_fix,
+    minimal_indices,
+    param_is_angle,
+)
 from calib.transforms import inv_pose, kabsch
 
 __all__ = [
@@ -64,16 +71,21 @@ def fit_placement_and_hand_eye(
 
 
 def regauge(
-    chain: list[np.ndarray], joint_types: tuple[str, ...], joint_offsets: np.ndarray
+    chain: list[np.ndarray],
+    joint_types: tuple[str, ...],
+    joint_offsets: np.ndarray,
+    base_offset: float | None = None,
 ) -> MCPCModel:
     """The MCPC model of the chain ``G_0 Q_1 G_1 ... Q_n G_n`` using *given* joint offsets.
 
     Same gauge as :func:`calib.mcpc.gauge_fix` (gamma_i = lz_i = 0 for i < n), but the constant
     offsets are imposed rather than chosen for conditioning, so two models of (nearly) the same
-    robot get comparable parameters. Angles are wrapped to (-pi, pi].
+    robot get comparable parameters. Angles are wrapped to (-pi, pi]. ``base_offset``: imposed
+    too, or None to choose it (:func:`calib.mcpc.base_offset_for`).
     """
-    params, offsets = gauge_fix(chain, tuple(joint_types), offsets=joint_offsets)
-    return MCPCModel(wrap_params(params), tuple(joint_types), offsets)
+    base = base_offset_for(chain[0]) if base_offset is None else float(base_offset)
+    params, offsets = gauge_fix(chain, tuple(joint_types), offsets=joint_offsets, base_offset=base)
+    return MCPCModel(wrap_params(params), tuple(joint_types), offsets, base)
 
 
 def wrap_params(params: np.ndarray) -> np.ndarray:
@@ -87,12 +99,13 @@ def minimal_difference(a: MCPCModel, b: MCPCModel) -> np.ndarray:
     """``a - b`` over the minimal parameters (eq. 10 order, SI), angles wrapped to (-pi, pi].
 
     Raises:
-        ValueError: different joint types or joint offsets (re-express one with
+        ValueError: different joint types or joint (or base) offsets (re-express one with
             :func:`express_in_frame` ``like=`` the other first).
     """
     if a.joint_types != b.joint_types:
         raise ValueError("models have different joint types")
-    if not np.allclose(a.joint_offsets, b.joint_offsets, atol=1e-12):
+    if not np.allclose(np.r_[a.joint_offsets, a.base_offset], np.r_[b.joint_offsets, b.base_offset],
+                       atol=1e-12):  # fmt: skip
         raise ValueError(
             "models use different joint offsets, so their parameters are not comparable; "
             "re-express one with express_in_frame(model, T, like=other)"
@@ -117,7 +130,9 @@ def express_in_frame(
     if like is None:
         return model.with_base(T_new_old)
     G = chain_transforms(model)
-    return regauge([T_new_old @ G[0], *G[1:]], model.joint_types, like.joint_offsets)
+    return regauge(
+        [T_new_old @ G[0], *G[1:]], model.joint_types, like.joint_offsets, like.base_offset
+    )
 
 
 def align_truth(

@@ -44,7 +44,7 @@ from calib.io.dataset_info import CAMERAS, DatasetInfo
 from calib.io.frame_cache import FrameCache
 from calib.joint_refine import refine_calibration
 from calib.kinematics import fk_tool
-from calib.mcpc import MCPCModel, nominal_mcpc, shape_matrices
+from calib.mcpc import MCPCModel, chain_transforms, nominal_mcpc
 from calib.quality import assess_calibration
 from calib.results import CalibrationOutput, two_stage_result, with_bounds, with_joint
 from calib.robot_def import RobotDef, load_robot
@@ -484,5 +484,5 @@ def _camera_stage(
 
 
 def _joint1_axis(model: MCPCModel) -> np.ndarray:
-    """Joint 1's axis in the model's world frame (the z-axis of ``V_0``)."""
-    return shape_matrices(model.params[0])[:3, 2]
+    """Joint 1's axis in the model's world frame (the z-axis of ``G_0``)."""
+    return chain_transforms(model)[0][:3, 2]

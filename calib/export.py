@@ -300,6 +300,7 @@ def body_poses(model: MCPCModel) -> np.ndarray:
     for k, kind in enumerate(model.joint_types):
         if kind == "revolute":
             out[k] = V[k] @ rot_z(model.joint_offsets[k])
+    out[0] = rot_z(model.base_offset) @ out[0]
     return out
 
 

@@ -88,6 +88,7 @@ def to_toml(dep: DeployedModel, robot: RobotDef | None = None) -> str:
         "names = [" + ", ".join(_s(x) for x in dep.joint_names) + "]",
         "types = [" + ", ".join(_s(x) for x in dep.joint_types) + "]",
         f"offset_deg = {_arr(m.joint_offsets * deg)}",
+        *([f"base_offset_deg = {_f(m.base_offset * deg)}"] if m.base_offset else []),
         "# ranges and home: deg for revolute joints, mm for prismatic ones",
         "range = " + _mat([lim * (deg if r else 1000.0) for lim, r in zip(dep.limits, rev)]),
         f"home = {_arr([h * (deg if r else 1000.0) for h, r in zip(dep.home, rev)])}",
@@ -226,7 +227,8 @@ def from_toml(text: str) -> DeployedModel:
         scale = np.array([deg, deg, deg, 1e-3, 1e-3, 1e-3])
         cols = ["alpha_deg", "beta_deg", "gamma_deg", "lx_mm", "ly_mm", "lz_mm"]
         params = np.array([[float(r[c]) for c in cols] for r in rows]) * scale
-        model = MCPCModel(params, types, np.asarray(j["offset_deg"], float) * deg)
+        model = MCPCModel(params, types, np.asarray(j["offset_deg"], float) * deg,
+                          float(j.get("base_offset_deg", 0.0)) * deg)  # fmt: skip
         std = {}
         for p in d.get("parameters", []):
             if "std" in p:

@@ -235,17 +235,20 @@ def _starts(
     """Where the solver may start: ``start`` itself and ``start`` with its placement and a tool
     correction fitted in turn by closed-form rigid fits
     (:func:`calib.alignment.fit_placement_and_hand_eye`; a robot file's camera mount can be far
-    from the real one), the flat parameters ``hold`` (held by the caller's request) kept at
-    ``start``'s. The other held parameters take the fitted start's values: the same nominal
-    chain, written from the fitted base."""
+    from the real one). Of the flat parameters ``hold`` (held by the caller's request) those of
+    the base and the tool keep ``start``'s values; the chain's take the fitted start's: the same
+    nominal chain, written from the fitted base (the MCPC gauge carries a change of base into
+    ``V_1 ..``)."""
     B, C = fit_placement_and_hand_eye(T_meas, fk_tool(start, q), np.eye(4))
     G = chain_transforms(start)
-    fitted = regauge([B @ G[0], *G[1:-1], G[-1] @ C], start.joint_types, start.joint_offsets)
+    ends = hold[np.isin(hold // 6, (0, start.n))]  # held base and tool parameters
+    base = start.base_offset if np.any(ends < 6) else None  # V_0's held values need its base
+    fitted = regauge([B @ G[0], *G[1:-1], G[-1] @ C], start.joint_types, start.joint_offsets, base)
     flat = fitted.params.reshape(-1).copy()
-    flat[hold] = start.params.reshape(-1)[hold]
+    flat[ends] = start.params.reshape(-1)[ends]
     return [
         ("the nominal chain as placed", start),
-        ("placement and hand-eye fitted in turn", start.with_params(flat)),
+        ("placement and hand-eye fitted in turn", fitted.with_params(flat)),
     ]
 
 
@@ -372,13 +375,6 @@ def identify(
     # Canonical form (gauge-fixed, same offsets) so that only minimal parameters move.
     model = regauge(chain_transforms(model), model.joint_types, model.joint_offsets)
     start = initial_base(model, q, T_meas) if place_base else model
-    if abs(start.params[0, 1]) > np.radians(80.0):
-        _note(
-            notes,
-            f"beta0 = {np.degrees(start.params[0, 1]):.1f} deg: joint 1's axis is nearly along the "
-            "world x axis, where V_0's Euler angles are singular; express the measurements in a "
-            "frame whose x axis is not along joint 1 (e.g. the nominal base frame) for reliable std",
-        )
 
     ana = analyse_identifiability(
         start, q, sigma_t_m=sig[:, :3], sigma_r_rad=sig[:, 3:], hold=hold, rank_rtol=rank_rtol
@@ -450,7 +446,7 @@ def identify(
     s_phys = np.linalg.svd(R * (scale * phys), compute_uv=False)
     o1 = float(np.exp(np.mean(np.log(s_phys))) / np.sqrt(m))
 
-    final = regauge(chain_transforms(mx), mx.joint_types, mx.joint_offsets)
+    final = regauge(chain_transforms(mx), mx.joint_types, mx.joint_offsets, mx.base_offset)
     values = final.params.reshape(-1)[idx]
     std = np.full(idx.size, np.nan)
     std[estimated] = np.sqrt(np.diag(cov))

@@ -56,7 +56,7 @@ def fk_frames(model: MCPCModel, q: np.ndarray) -> np.ndarray:
     V = shape_matrices(model.params)
     Q = motion_matrices(model, q)
     out = np.empty((q.shape[0], model.n + 1, 4, 4))
-    P = np.broadcast_to(V[0], (q.shape[0], 4, 4))
+    P = np.broadcast_to(rot_z(model.base_offset) @ V[0], (q.shape[0], 4, 4))
     for k in range(model.n):
         F = P @ Q[:, k]
         out[:, k] = F
@@ -109,9 +109,9 @@ def identification_jacobian(
     m, n = q.shape[0], model.n
     frames = fk_frames(model, q) if frames is None else frames
     p = model.params
-    # World frame in which each shape matrix V_k starts: F_0 = I, F_k for k >= 1.
+    # World frame in which each shape matrix V_k starts: F_0 = Rz(base offset), F_k for k >= 1.
     start = np.empty((m, n + 1, 4, 4))
-    start[:, 0] = np.eye(4)
+    start[:, 0] = rot_z(model.base_offset)
     start[:, 1:] = frames[:, :n]
     # The frames where each parameter acts, expressed in the tool frame: X0 = T^-1 start (alpha
     # acts about its x axis), X1 = X0 Rx(alpha) (beta, y), X2 = X1 Ry(beta) (gamma, z),

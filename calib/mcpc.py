@@ -37,6 +37,7 @@ __all__ = [
     "shape_matrices",
     "nominal_mcpc",
     "gauge_fix",
+    "base_offset_for",
     "chain_transforms",
     "minimal_indices",
     "param_names",
@@ -53,11 +54,16 @@ class MCPCModel:
     ``joint_offsets`` (n,) are constants added to revolute joint readings inside ``Q_i``; keeping
     them out of the shape matrices keeps ``V_i`` away from the Euler singularity (a 90 deg offset
     would otherwise put ``beta`` at 90 deg). Errors of the offsets are absorbed by the parameters.
+    ``base_offset`` (rad) is the base's counterpart: a constant rotation about the world z-axis
+    before ``V_0`` (``G_0 = Rz(base_offset) V_0``), a multiple of 90 deg chosen where joint 1's
+    axis lies near the world x-axis (:func:`base_offset_for`), so that any chain in any world
+    frame has well-conditioned base parameters.
     """
 
     params: np.ndarray
     joint_types: tuple[str, ...]
     joint_offsets: np.ndarray
+    base_offset: float = 0.0
 
     @property
     def n(self) -> int:
@@ -67,7 +73,7 @@ class MCPCModel:
     def with_params(self, params: np.ndarray) -> MCPCModel:
         """A copy with other parameters (same joint types)."""
         params = np.asarray(params, dtype=float).reshape(self.n + 1, 6)
-        return MCPCModel(params.copy(), self.joint_types, self.joint_offsets)
+        return MCPCModel(params.copy(), self.joint_types, self.joint_offsets, self.base_offset)
 
     def with_tool(self, T_flange_tool: np.ndarray) -> MCPCModel:
         """The same chain with ``T_flange_tool`` appended to the last shape matrix ``V_n``."""
@@ -97,10 +103,18 @@ def _decompose_conditioned(g: np.ndarray, free_offset: bool) -> tuple[float, np.
     return best, rot_z(-best) @ g
 
 
+def base_offset_for(G0: np.ndarray) -> float:
+    """The base offset (rad; 0, 90, -90 or 180 deg) for the first chain transform ``G0`` (4, 4):
+    ``Rz(-c) G0`` has joint 1's axis within 45 deg of the world's y-z plane, away from ``V_0``'s
+    Euler singularity; 0 whenever ``G0`` is there already."""
+    return _decompose_conditioned(np.asarray(G0, dtype=float), True)[0]
+
+
 def gauge_fix(
     G: list[np.ndarray] | np.ndarray,
     joint_types: tuple[str, ...],
     offsets: np.ndarray | None = None,
+    base_offset: float = 0.0,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Exact MCPC form of the chain ``G_0 Q_1 G_1 ... Q_n G_n`` of rigid ``G_i``, ``Q_i = Rz(q_i)``.
 
@@ -110,7 +124,8 @@ def gauge_fix(
     shape matrix would sit near the Euler singularity (``|beta| > 45 deg``), a constant multiple of
     90 deg is moved into the preceding revolute joint's offset instead -- unless ``offsets`` (n,)
     are given, which are then imposed (so that two models of nearly the same robot get directly
-    comparable parameters).
+    comparable parameters). ``base_offset``: the model's constant rotation about the world z-axis
+    before ``V_0`` (:func:`base_offset_for` chooses it).
 
     Returns:
         ``(params (n + 1, 6), joint_offsets (n,))`` in rad and m.
@@ -122,12 +137,11 @@ def gauge_fix(
     out = np.zeros((n + 1, 6))
     impose = offsets is not None
     offsets = np.zeros(n) if offsets is None else np.asarray(offsets, dtype=float).copy()
-    carry = np.eye(4)
-    if abs(G[0][0, 2]) > 0.999:
+    carry = rot_z(-base_offset)
+    if abs((carry @ G[0])[0, 2]) > 0.999:
         raise ValueError(
             "the world frame's x-axis is (nearly) parallel to joint 1's axis: the MCPC base "
-            "parameters are singular there; express the chain in a rotated world frame (e.g. one "
-            "whose z-axis is close to joint 1's axis)"
+            "parameters are singular there; give a base_offset (calib.mcpc.base_offset_for)"
         )
     for i in range(n + 1):
         revolute_before = i > 0 and joint_types[i - 1] == "revolute"
@@ -156,7 +170,9 @@ def gauge_fix(
 def chain_transforms(model: MCPCModel) -> list[np.ndarray]:
     """The chain as ``G_0 Q_1 G_1 ...`` with offset-free ``Q_i`` (offsets folded into ``G_i``)."""
     V = shape_matrices(model.params)
-    return [V[0]] + [rot_z(o) @ v for o, v in zip(model.joint_offsets, V[1:])]
+    return [rot_z(model.base_offset) @ V[0]] + [
+        rot_z(o) @ v for o, v in zip(model.joint_offsets, V[1:])
+    ]
 
 
 def nominal_mcpc(
@@ -178,8 +194,9 @@ def nominal_mcpc(
 
 
 def _from_chain(G: list[np.ndarray], joint_types: tuple[str, ...]) -> MCPCModel:
-    params, offsets = gauge_fix(G, joint_types)
-    return MCPCModel(params, joint_types, offsets)
+    base = base_offset_for(G[0])
+    params, offsets = gauge_fix(G, joint_types, base_offset=base)
+    return MCPCModel(params, joint_types, offsets, base)
 
 
 def minimal_indices(joint_types: tuple[str, ...]) -> np.ndarray:

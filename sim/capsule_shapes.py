@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from calib.mcpc import MCPCModel, shape_matrices
+from calib.mcpc import MCPCModel, chain_transforms
 from sim.link_frames import next_joint
 from sim.mjcf_geoms import GeomBuilder
 
@@ -30,7 +30,7 @@ def link_radius(model: MCPCModel, T_link_flange: np.ndarray) -> float:
 def shape_capsule_base(b: GeomBuilder, body, model: MCPCModel, r: float) -> None:
     """A pedestal: a dark plate and a grey cylinder along joint 1's axis (placed by ``V_0``),
     from the base frame's origin up to ``2 r``."""
-    V0 = shape_matrices(model.params[0])
+    V0 = chain_transforms(model)[0]
     o, z = V0[:3, 3], V0[:3, 2]
     b.cylinder(body, o, o + z * 0.006, 2.2 * r, "dark")
     b.cylinder(body, o + z * 0.006, o + z * 2 * r, 1.6 * r, "grey")

@@ -50,6 +50,7 @@ def link_body_poses(model: MCPCModel) -> np.ndarray:
     for k in range(model.n):
         out[k] = V[k] @ _motion_offset(model, k)
     out[model.n] = V[model.n]
+    out[0] = rot_z(model.base_offset) @ out[0]
     return out
 
 

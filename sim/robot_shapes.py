@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from calib.mcpc import MCPCModel, shape_matrices
+from calib.mcpc import MCPCModel, chain_transforms
 from sim.link_frames import next_joint
 from sim.mjcf_geoms import GeomBuilder, box_frame, unit
 
@@ -19,7 +19,7 @@ __all__ = ["shape_base", "shape_turret", "shape_arm", "shape_wrist", "shape_hand
 
 def shape_base(b: GeomBuilder, body, model: MCPCModel, h_base: float) -> None:
     """Grey pedestal around joint 1's axis (placed by ``V_0``), from the floor up to ``h_base``."""
-    V0 = shape_matrices(model.params[0])
+    V0 = chain_transforms(model)[0]
     o, z = V0[:3, 3], V0[:3, 2]
     b.box(body, o + z * 0.006, V0[:3, :3], [0.13, 0.13, 0.006], "dark")
     b.cylinder(body, o + z * 0.012, o + z * h_base, 0.105, "grey")

@@ -62,6 +62,7 @@ def _model_json(m: MCPCModel, tool: str) -> dict:
     return {
         "joint_types": list(m.joint_types),
         "joint_offsets_rad": np.asarray(m.joint_offsets, float).tolist(),
+        **({"base_offset_rad": float(m.base_offset)} if m.base_offset else {}),
         "params_si": m.params.tolist(),
         "columns": list(COLUMNS),
         "tool": tool,
@@ -71,7 +72,10 @@ def _model_json(m: MCPCModel, tool: str) -> dict:
 def _model_from(f: Fields) -> MCPCModel:
     types = f.strs("joint_types")
     n = len(types)
-    return MCPCModel(f.array("params_si", (n + 1, 6)), types, f.array("joint_offsets_rad", (n,)))
+    base = f.float("base_offset_rad") if f.has("base_offset_rad") else 0.0
+    return MCPCModel(
+        f.array("params_si", (n + 1, 6)), types, f.array("joint_offsets_rad", (n,)), base
+    )
 
 
 def camera_json(

@@ -91,7 +91,8 @@ class CalibrationResult:
         identification: the two-stage kinematic fit (the start of the joint method).
         parameters: the minimal MCPC parameters (mm / deg) in the reference-camera frame.
         joint_types, joint_offsets_rad (n,), params_si (n + 1, 6): the identified MCPC chain
-            (columns alpha, beta, gamma rad; lx, ly, lz m), tool = left camera.
+            (columns alpha, beta, gamma rad; lx, ly, lz m), tool = left camera;
+            base_offset_rad its base offset (:class:`calib.mcpc.MCPCModel`; written when not 0).
         dh: the standard-DH table, or None with the reason in ``dh_note``.
         camera_poses: the left camera of every frame used, in the world frame.
         joint: the one-step refinement's summary (method ``joint``), else None.
@@ -140,6 +141,7 @@ class CalibrationResult:
     world_frame: str = WORLD_FRAME
     tool: str = TOOL
     columns: tuple[str, ...] = field(default=tuple(COLUMNS))
+    base_offset_rad: float = 0.0
 
     # ------------------------------------------------------------------ derived values
     @property
@@ -151,7 +153,8 @@ class CalibrationResult:
     def model(self) -> MCPCModel:
         """The identified MCPC chain: tool = left camera (OpenCV frame), world = the
         reconstruction frame; SI units."""
-        return MCPCModel(self.params_si.copy(), self.joint_types, self.joint_offsets_rad.copy())
+        return MCPCModel(self.params_si.copy(), self.joint_types, self.joint_offsets_rad.copy(),
+                         self.base_offset_rad)  # fmt: skip
 
     @property
     def pinhole(self) -> Intrinsics:
@@ -188,6 +191,7 @@ class CalibrationResult:
             "mcpc": {
                 "joint_types": list(self.joint_types),
                 "joint_offsets_rad": self.joint_offsets_rad.tolist(),
+                **({"base_offset_rad": self.base_offset_rad} if self.base_offset_rad else {}),
                 "params_si": self.params_si.tolist(),
                 "columns": list(self.columns),
                 "tool": self.tool,
@@ -261,6 +265,7 @@ class CalibrationResult:
             parameters=tuple(ParameterEstimate.from_json(p) for p in f.items("parameters")),
             joint_types=types,
             joint_offsets_rad=offsets,
+            base_offset_rad=m.float("base_offset_rad") if m.has("base_offset_rad") else 0.0,
             params_si=params,
             dh=None if dh is None else tuple(DHRow.from_json(r) for r in dh.items("rows")),
             dh_note=f.opt_str("dh_note"),

@@ -146,6 +146,7 @@ class TrackerCalibration:
                 "columns": list(COLUMNS),
                 "params": self.model.params.tolist(),
                 "joint_offsets": self.model.joint_offsets.tolist(),
+                **({"base_offset": self.model.base_offset} if self.model.base_offset else {}),
                 "T_meas_fit": self.T_meas_fit.tolist(),
             },
             "sigmas": self.sigmas,
@@ -164,8 +165,9 @@ class TrackerCalibration:
             raise rb.bad("joint_types", f"a list of {JOINT_TYPES}", types)
         n = len(types)
         model = MCPCModel(
-            mc.array("params", (n + 1, 6)), tuple(types), mc.array("joint_offsets", (n,))
-        )
+            mc.array("params", (n + 1, 6)), tuple(types), mc.array("joint_offsets", (n,)),
+            mc.float("base_offset") if mc.has("base_offset") else 0.0,
+        )  # fmt: skip
         params = f.items("parameters")
         return cls(
             robot=rb.str("name"),

@@ -85,3 +85,17 @@ def test_three_postures_give_a_result_with_parameters_held() -> None:
     assert ident.converged and int(ident.estimated.sum()) <= 12 and len(res.held) >= 18
     assert any("too few poses" in w for w in ident.warnings)
     assert res.rms_px < 1.5 * 0.3 * np.sqrt(2)
+
+
+def test_a_chain_whose_joint_1_lies_along_the_base_x_axis_calibrates() -> None:
+    """The virtual 3P+3R chain of an eye-to-hand set (joint 1 prismatic along the base's x-axis,
+    where V_0's Euler angles are singular): the nominal model takes a base offset instead of an
+    internal error, and the board route calibrates 9 postures to the corners' noise."""
+    robot_file = str(DATA / "virtual_chain_xyz.urdf")
+    _, nominal, _, _, q, feats = _scene(robot_file, 9, 3, span_deg=10.0)
+    assert abs(nominal.base_offset) == pytest.approx(np.pi / 2)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = calibrate_robot_with_board(BOARD, feats, q, nominal, CAMERA.width, CAMERA.height)
+    assert res.identification.converged
+    assert res.rms_px < 1.5 * 0.3 * np.sqrt(2)

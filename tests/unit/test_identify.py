@@ -356,3 +356,30 @@ def test_calibration_document_names_each_held_parameter_with_its_reason() -> Non
     assert set(held) == {"beta1", "alpha4", "beta4", "lx4", "ly4"}
     # what it warned about is data on the result too (nobody has to catch the warning)
     assert any("not identifiable" in w and "alpha4" in w for w in res.warnings)
+
+
+def test_joint_1_along_the_world_x_axis_takes_a_base_offset() -> None:
+    """A chain whose joint 1 lies along its world's x-axis (the virtual 3P+3R chain of an
+    eye-to-hand set) gets a base offset of 90 deg: its MCPC form reproduces the URDF's forward
+    kinematics (1e-12 m), the noise-free identification in that world converges (to 0.012 mm:
+    ly3 is held, unidentifiable at the nominal chain, though the perturbed truth moves it), and
+    the offset survives a board calibration file (write, read)."""
+    from calib.io.board_calibration import _model_from, _model_json
+    from calib.io.jsonfile import Fields
+
+    robot = load_robot(str(models_dir().parent / "tests" / "data" / "virtual_chain_xyz.urdf"))
+    nom = nominal(robot)
+    assert abs(nom.base_offset) == pytest.approx(np.pi / 2) and abs(nom.params[0, 1]) < 1e-9
+    rng = np.random.default_rng(31)
+    q = configs(robot, rng, 30) * 0.2
+    flange = fk_tool(nominal_mcpc(robot), q)
+    assert np.abs(flange - fk_nominal(robot, q)[:, -1]).max() < 1e-12
+    true = perturbed(nom, rng)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", IdentificationWarning)  # zero-length links: held
+        res = identify(nom, q, fk_tool(true, q))
+    assert res.converged and res.held == ("ly3",)
+    assert res.rms_t_mm_before > 0.5 and res.rms_t_mm_after < 0.03
+    back = _model_from(Fields(_model_json(res.model, "camera"), "calibration.json", ""))
+    assert back.base_offset == res.model.base_offset
+    assert np.abs(fk_tool(back, q) - fk_tool(res.model, q)).max() < 1e-15
