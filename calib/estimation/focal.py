@@ -10,11 +10,21 @@ starts from this estimate and frees them in the bundle adjustment.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
 
 from calib.estimation.selfcal_errors import DegenerateConfigurationError, InsufficientDataError
+from calib.solver import (
+    Evaluation,
+    JacobianPiece,
+    Loss,
+    ParameterBlock,
+    Problem,
+    SolverOptions,
+    solve,
+)
 
 __all__ = [
     "FocalEstimate",
@@ -111,46 +121,40 @@ class FocalEstimate:
     residual_scale: float
 
 
+class _ConstraintBlock:
+    """The rows ``fun(x)`` (one residual component each) over the parameter block ``"x"``, with a
+    soft-L1 loss of scale ``f_scale`` and a central-difference Jacobian (``x`` has two
+    coordinates: ``ln fx``, ``ln mu``)."""
+
+    dim = 1
+
+    def __init__(self, fun, f_scale: float) -> None:
+        self.name = "essential_constraint"
+        self.loss = Loss("soft_l1", f_scale)
+        self.fun = fun
+
+    def evaluate(self, values: Mapping[str, np.ndarray], jacobian: bool) -> Evaluation:
+        x = values["x"]
+        f = self.fun(x)[:, None]
+        if not jacobian:
+            return Evaluation(f)
+        h = 1e-6
+        J = np.stack([(self.fun(x + h * e) - self.fun(x - h * e)) / (2 * h) for e in np.eye(len(x))],
+                     axis=1)  # fmt: skip
+        cols = np.broadcast_to(np.arange(len(x)), (len(f), len(x)))
+        return Evaluation(f, (JacobianPiece("x", J[:, None, :], cols),))
+
+
 def _soft_l1_fit(fun, x0, f_scale, bounds, max_iter=100, tol=1e-12):
     """Minimise ``sum rho(f_i(x)^2 / f_scale^2)``, ``rho(z) = 2 (sqrt(1 + z) - 1)`` (soft-L1 per
-    residual component, like ``least_squares(loss="soft_l1")``) for a few parameters ``x``
-    within ``bounds``: Levenberg-Marquardt on the iteratively reweighted problem, central
-    difference Jacobian. Returns ``x`` and ``f(x)``."""
-    lo, hi = bounds
-    x = np.asarray(x0, dtype=float).copy()
-    f = fun(x)
-
-    def cost(f):
-        return float(np.sum(2.0 * (np.sqrt(1.0 + (f / f_scale) ** 2) - 1.0)))
-
-    c = cost(f)
-    lam = 1e-3
-    h = 1e-6
-    eye = np.eye(len(x))
-    for _ in range(max_iter):
-        J = np.stack([(fun(x + h * e) - fun(x - h * e)) / (2 * h) for e in eye], axis=1)
-        w = 1.0 / np.sqrt(1.0 + (f / f_scale) ** 2)  # IRLS weight rho'(z)
-        A = J.T @ (w[:, None] * J)
-        g = J.T @ (w * f)
-        D = np.diag(np.maximum(np.diag(A), 1e-300))
-        improved = False
-        while lam < 1e12:
-            x_new = np.clip(x - np.linalg.solve(A + lam * D, g), lo, hi)
-            f_new = fun(x_new)
-            c_new = cost(f_new)
-            if c_new <= c:
-                improved = True
-                break
-            lam *= 10.0
-        if not improved:
-            break
-        step = np.abs(x_new - x).max()
-        done = c - c_new <= tol * c or step <= tol * (1.0 + np.abs(x).max())
-        x, f, c = x_new, f_new, c_new
-        lam = max(lam / 10.0, 1e-12)
-        if done:
-            break
-    return x, f
+    residual component) for a few parameters ``x`` on the project's solver (Levenberg-Marquardt,
+    iteratively reweighted; central-difference Jacobian), the result clipped to ``bounds`` (the
+    grid search's box the start comes from). Returns ``x`` and ``f(x)``."""
+    prob = Problem([ParameterBlock("x", np.asarray(x0, dtype=float))],
+                   [_ConstraintBlock(fun, f_scale)])  # fmt: skip
+    sol = solve(prob, SolverOptions(tol=tol, max_iterations=max_iter, linear_solver="dense"))
+    x = np.clip(sol.x, *bounds)
+    return x, fun(x)
 
 
 def focal_from_fundamentals(
