@@ -48,7 +48,7 @@ __all__ = [
     "RobotDefinitionError",  # defined with the file parsing (calib.robot_toml); load_robot raises it
 ]
 
-MIN_JOINTS, MAX_JOINTS = 3, 7
+MIN_JOINTS, MAX_JOINTS = 1, 12
 """Joint counts a robot file may have."""
 
 
@@ -216,6 +216,12 @@ class RobotDef:
     def n(self) -> int:
         """Number of joints."""
         return len(self.joint_types)
+
+    @property
+    def edge_unit(self) -> np.ndarray:
+        """(n,) SI units per unit at the edges: rad per deg for a revolute joint, m per mm for a
+        prismatic one (joint values on the command line and in robot files are deg and mm)."""
+        return np.where(np.array([t == "revolute" for t in self.joint_types]), np.pi / 180, 1e-3)
 
     @property
     def convention(self) -> str:

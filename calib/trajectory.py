@@ -64,8 +64,8 @@ def home_target_center(robot: RobotDef, model_cam: MCPCModel) -> tuple[float, fl
             f"{robot.name}: at the home posture the camera {seen}; the marker field is placed "
             f"where the home optical axis meets the table, {rule.min_depth_m:.2f} to "
             f"{rule.max_depth_m:.2f} m in front of the camera",
-            fix=f"choose a home posture (home_deg in models/robots/{robot.name}.toml) whose "
-            "camera looks down at the table in front of the robot",
+            fix=f"choose a home posture (home_deg in the robot file of {robot.name}) or a "
+            "[camera_mount] whose camera looks down at the table in front of the robot",
         )
     hit = p + depth * z
     return float(hit[0]), float(hit[1])

@@ -254,8 +254,10 @@ def plan_dataset(s: Scenario, setup: SimSetup | None = None) -> DatasetInfo:
         collision_ok=p["collision_ok"],
     )
     return DatasetInfo(
-        robot_model=robot.name,
-        encoder_model=robot.name,  # the read-back: quantised (sim) or counts (hardware) by it
+        robot_model=robot_reference(s.robot.model),
+        encoder_model=robot_reference(
+            s.robot.model
+        ),  # the read-back: quantised (sim) or counts (hardware) by it
         backend=s.robot.backend,
         resolution=(W, H),
         dictionary=DICTIONARY,
@@ -365,7 +367,7 @@ def make_sim_robot(s: Scenario, setup: SimSetup | None = None):
     setup = setup or sim_setup(s)
     rig = setup.rig()
     return SimRobot(
-        setup.robot.name,
+        setup.robot,
         setup.actual,
         rig,
         setup.field,
@@ -377,6 +379,14 @@ def make_sim_robot(s: Scenario, setup: SimSetup | None = None):
     )
 
 
+def robot_reference(model: str) -> str:
+    """What a dataset records as its robot for a scenario's ``[robot] model``: the model name, or
+    the robot file's absolute path (a path relative to the working directory would not be found
+    from the dataset folder, :attr:`calib.io.dataset.Dataset.robot_source`)."""
+    path = Path(model)
+    return str(path.resolve()) if path.suffix in (".toml", ".urdf") else model
+
+
 def make_kinematic_robot(s: Scenario, setup: SimSetup | None = None) -> KinematicRobot:
     """The scenario's simulated actual robot for the analytic path
     (:class:`sim.kinematic_robot.KinematicRobot`: forward kinematics, no MuJoCo, no images)."""
@@ -384,7 +394,7 @@ def make_kinematic_robot(s: Scenario, setup: SimSetup | None = None) -> Kinemati
     rig = setup.rig()
     board = None if setup.board is None else (setup.board, setup.T_world_board)
     return KinematicRobot(
-        setup.robot.name, setup.actual, rig, setup.field, quantize=s.noise.quantize_joints,
+        setup.robot, setup.actual, rig, setup.field, quantize=s.noise.quantize_joints,
         board=board,
     )  # fmt: skip
 

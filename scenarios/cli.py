@@ -52,7 +52,8 @@ __all__ = ["main", "build_parser", "CliError"]
 
 
 def _joints_rad(robot, text: str) -> np.ndarray:
-    q = np.radians(parse_floats(text, robot.n, "--joints (deg)"))
+    """``--joints`` (deg, mm for a prismatic joint) in SI (rad, m), checked against the ranges."""
+    q = parse_floats(text, robot.n, "--joints (deg, mm for a prismatic joint)") * robot.edge_unit
     try:
         robot.check_joints(q)
     except ValueError as exc:
@@ -92,7 +93,7 @@ def cmd_fk(args: argparse.Namespace) -> int:
     T = fk_tool(model, q[None])[0]
     out = {
         "model": robot.name,
-        "joints_deg": np.round(np.degrees(q), 6).tolist(),
+        "joints_deg": np.round(q / robot.edge_unit, 6).tolist(),
         "xyz_mm": np.round(T[:3, 3] * 1000, 4).tolist(),
     }
     if is_er(robot):
@@ -148,7 +149,7 @@ def cmd_ik(args: argparse.Namespace) -> int:
             out["angle_error_deg"] = float(np.degrees(res.angle_error_rad))
     except UnreachableError as exc:
         raise CliError(f"unreachable: {exc}") from None
-    out["joints_deg"] = np.round(np.degrees(q), 6).tolist()
+    out["joints_deg"] = np.round(q / robot.edge_unit, 6).tolist()
     print(json.dumps(out))
     return 0
 
@@ -355,7 +356,9 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--robot", default=None, help=robot_help)
     add_deprecated(sp, "--model", "--robot", dest="robot")
     sp.add_argument(
-        "--joints", required=True, help="joint angles in deg, e.g. 38.15,-30,45,-63.54,0"
+        "--joints",
+        required=True,
+        help="joint values in deg (mm for a prismatic joint), e.g. 38.15,-30,45,-63.54,0",
     )
     sp.add_argument(
         "--calibration",
@@ -384,7 +387,9 @@ def build_parser() -> argparse.ArgumentParser:
     add_scenario_arg(sp, "for the robot, camera and target")
     sp.add_argument("--robot", default=None, help="robot model (default: the scenario's)")
     add_deprecated(sp, "--model", "--robot", dest="robot")
-    sp.add_argument("--joints", required=True, help="joint angles in deg")
+    sp.add_argument(
+        "--joints", required=True, help="joint values in deg (mm for a prismatic joint)"
+    )
     sp.add_argument("--out", default="render", help="output folder (default ./render)")
     add_json(sp, always=True)
 

@@ -116,7 +116,7 @@ def parse_pose_args(args: argparse.Namespace, robot: RobotDef) -> PoseArgs:
     ref = None
     if args.reference is not None:
         ref = parse_floats(args.reference, robot.n, "--reference (deg)")
-        ref = ref * np.where([t == "revolute" for t in robot.joint_types], np.pi / 180, 1e-3)
+        ref = ref * robot.edge_unit
         try:
             robot.check_joints(ref)
         except ValueError as exc:

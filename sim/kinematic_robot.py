@@ -33,7 +33,7 @@ __all__ = ["KinematicRobot", "read_back", "joint_units"]
 
 def joint_units(robot: RobotDef) -> np.ndarray:
     """Per joint: SI units per edge unit (rad per deg, or m per mm for a prismatic joint)."""
-    return np.where(np.array([t == "revolute" for t in robot.joint_types]), np.pi / 180.0, 1e-3)
+    return robot.edge_unit
 
 
 def read_back(q: np.ndarray, counts_per_unit: np.ndarray, quantize: bool) -> np.ndarray:
@@ -47,7 +47,8 @@ def read_back(q: np.ndarray, counts_per_unit: np.ndarray, quantize: bool) -> np.
 class KinematicRobot:
     """A simulated robot whose camera poses are the actual chain's forward kinematics.
 
-    Arguments as :class:`sim.sim_robot.SimRobot` (without image noise): ``model_name``, ``actual``
+    Arguments as :class:`sim.sim_robot.SimRobot` (without image noise): ``model_name`` (a model
+    name or robot file for :func:`calib.robot_def.load_robot`, or the loaded robot), ``actual``
     (tool = left camera; default nominal), ``rig``, ``field``, ``quantize``, ``board`` (``(board,
     T_world_board)``: recorded in ``truth()``; its features are projected by
     :func:`sim.analytic.project_board`). Starts at home.
@@ -58,14 +59,14 @@ class KinematicRobot:
 
     def __init__(
         self,
-        model_name: str,
+        model_name: str | RobotDef,
         actual: MCPCModel | None = None,
         rig: RigConfig | None = None,
         field: MarkerField | None = None,
         quantize: bool = True,
         board: tuple[Board, np.ndarray] | None = None,
     ) -> None:
-        self.robot = load_robot(model_name)
+        self.robot = model_name if isinstance(model_name, RobotDef) else load_robot(model_name)
         self.model_name = self.robot.name
         self.nominal = nominal_camera_model(self.robot)
         self.actual = self.nominal if actual is None else actual

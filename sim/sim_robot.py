@@ -17,6 +17,7 @@ import numpy as np
 from calib.errors import InputError
 from calib.mcpc import MCPCModel
 from calib.robot import StereoPair
+from calib.robot_def import RobotDef
 from calib.target.boards import Board
 from sim.board_scene import add_board
 from sim.kinematic_robot import KinematicRobot
@@ -32,7 +33,8 @@ class SimRobot(KinematicRobot):
     """A simulated robot with a wrist stereo rig photographing a marker field.
 
     Args:
-        model_name: nominal robot model (``models/robots/<name>.toml``).
+        model_name: nominal robot model (``models/robots/<name>.toml``), robot file or the
+            loaded :class:`~calib.robot_def.RobotDef`.
         actual: the simulated robot's MCPC chain, tool = left camera (default: nominal, i.e.
             ``nominal_mcpc(robot).with_tool(robot.T_flange_cam)``); see ``sim.actual.perturb``.
         rig: stereo rig (intrinsics, baseline); default ``RigConfig()``.
@@ -57,7 +59,7 @@ class SimRobot(KinematicRobot):
 
     def __init__(
         self,
-        model_name: str,
+        model_name: str | RobotDef,
         actual: MCPCModel | None = None,
         rig: RigConfig | None = None,
         field: MarkerField | None = None,

@@ -3,11 +3,14 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from scenarios.cli import main
+
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def run(capsys, *argv):
@@ -143,3 +146,46 @@ def test_ik_reference_and_position_only_for_a_six_axis_arm(capsys):
     q2 = json.loads(out)["joints_deg"]
     code, out, _ = run(capsys, "fk", "--robot", "ur5e", "--joints", ",".join(map(str, q2)))
     np.testing.assert_allclose(json.loads(out)["xyz_mm"], doc["xyz_mm"], atol=1e-3)
+
+
+def test_fk_ik_of_an_arm_on_a_linear_track_take_the_track_in_mm(capsys, tmp_path):
+    """A UR5e on a 2 m vertical track (prismatic joint 1, 7 joints): ``--joints`` and ``joints_deg`` hold
+    the track in mm (before: read as degrees, 1500 "deg" = 26 m, out of range); fk and ik
+    round-trip, and moving the track moves the tool by as much."""
+    text = (ROOT / "models/robots/ur5e.toml").read_text()
+    track = (
+        '[[joint]]\nname = "track"\ntype = "prismatic"\nalpha_deg = 0.0\na_mm = 0.0\n'
+        "d_mm = 0.0\nrange_mm = [0.0, 2000.0]\n\n"
+    )
+    text = text.replace("[[joint]]", track + "[[joint]]", 1)
+    text = text.replace("home_deg = [", "home_deg = [500.0, ")
+    text = text.split("[encoder]")[0]  # per-joint tables of 6 values: not for 7 joints
+    robot = tmp_path / "ur5e-track.toml"
+    robot.write_text(text)
+    q = [1500.0, 10.0, -95.0, 100.0, -95.0, -85.0, 20.0]
+    docs = []
+    for track_mm in (1500.0, 1000.0):
+        joints = ",".join(map(str, [track_mm] + q[1:]))
+        code, out, err = run(capsys, "fk", "--robot", str(robot), "--joints", joints)
+        assert code == 0, err
+        docs.append(json.loads(out))
+    assert docs[0]["joints_deg"] == q
+    np.testing.assert_allclose(
+        np.subtract(docs[0]["xyz_mm"], docs[1]["xyz_mm"]), [0, 0, 500], atol=1e-3
+    )
+    xyz = ",".join(f"{v:.6f}" for v in docs[0]["xyz_mm"])
+    quat = ",".join(f"{v:.9f}" for v in docs[0]["quat_wxyz"])
+    ref = ",".join(map(str, [1450.0] + q[1:]))
+    code, out, err = run(
+        capsys, "ik", "--robot", str(robot), f"--xyz={xyz}", f"--quat={quat}", "--reference", ref
+    )
+    assert code == 0, err
+    # 7 joints for a 6-D pose: a solution near the reference that gives the pose back
+    sol = json.loads(out)["joints_deg"]
+    assert 1000.0 < sol[0] < 2000.0
+    code, out, err = run(capsys, "fk", "--robot", str(robot), "--joints", ",".join(map(str, sol)))
+    back = json.loads(out)
+    np.testing.assert_allclose(back["xyz_mm"], docs[0]["xyz_mm"], atol=1e-3)
+    np.testing.assert_allclose(
+        np.abs(np.dot(back["quat_wxyz"], docs[0]["quat_wxyz"])), 1.0, atol=1e-9
+    )

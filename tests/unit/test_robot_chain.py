@@ -6,6 +6,8 @@ KR 6 R900 the datasheet's dimensions added up by hand at the KUKA HOME posture.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -47,11 +49,11 @@ def test_nominal_mcpc_reproduces_the_description(name):
 @settings(max_examples=25, deadline=None)
 @given(
     seed=st.integers(0, 2**31 - 1),
-    prismatic=st.lists(st.booleans(), min_size=3, max_size=7),
+    prismatic=st.lists(st.booleans(), min_size=1, max_size=12),
     convention=st.sampled_from(["dh", "mdh"]),
 )
 def test_tables_multiply_out_like_their_formula(seed, prismatic, convention):
-    """Random DH / MDH tables of 3..7 joints, prismatic or revolute: the chain G_0 Q_1 ... G_n
+    """Random DH / MDH tables of 1..12 joints, prismatic or revolute: the chain G_0 Q_1 ... G_n
     equals the product of the textbook link transforms (tolerance 1e-13, achieved ~1e-15)."""
     rng = np.random.default_rng(seed)
     n = len(prismatic)
@@ -109,13 +111,50 @@ def test_unknown_convention_names_the_key(tmp_path):
     assert "mdh" in exc.value.fix
 
 
-@pytest.mark.parametrize("n", [2, 8])
-def test_joint_count_outside_3_to_7_is_refused(tmp_path, n):
-    row = "[[joint]]\nalpha_deg = 90.0\na_mm = 100.0\nd_mm = 0.0\nrange_deg = [-90.0, 90.0]\n"
-    mount = "[camera_mount]\nxyz_mm = [0, 0, 0]\nx_axis = [1, 0, 0]\nz_axis = [0, 0, 1]\n"
+def _chain_file(tmp_path, n: int, prismatic: tuple[int, ...] = ()) -> Path:
+    """A robot TOML of ``n`` joints (standard DH, no camera mount), the 0-based ``prismatic``."""
+    rows = []
+    for i in range(n):
+        alpha = 90.0 if i % 2 else -90.0
+        if i in prismatic:
+            rows.append(f'[[joint]]\ntype = "prismatic"\nalpha_deg = {alpha}\na_mm = 0.0\n'
+                        "d_mm = 100.0\nrange_mm = [0.0, 1500.0]\n")  # fmt: skip
+        else:
+            rows.append(f"[[joint]]\nalpha_deg = {alpha}\na_mm = {50 + 10 * i}.0\n"
+                        f"d_mm = {20 * i}.0\nrange_deg = [-170.0, 170.0]\n")  # fmt: skip
     p = tmp_path / "arm.toml"
-    p.write_text(row * n + mount)
-    with pytest.raises(RobotDefinitionError, match=f"arm.toml: {n} joints; a robot needs 3 to 7"):
+    p.write_text("\n".join(rows))
+    return p
+
+
+@pytest.mark.parametrize(("n", "prismatic"), [(1, ()), (2, ()), (12, (0,))])
+def test_chains_of_1_to_12_joints_load_and_give_fk(tmp_path, n, prismatic):
+    """A one-joint turntable, a two-axis positioner and a 11-axis arm on a linear track (12
+    joints) load, and their flange is the product of the table's link transforms (before: refused
+    outside 3 to 7 joints)."""
+    robot = load_robot(_chain_file(tmp_path, n, prismatic))
+    assert robot.n == n and robot.joint_types[0] == ("prismatic" if prismatic else "revolute")
+    q = _q(robot, 5, np.random.default_rng(n))
+    T = np.tile(np.eye(4), (5, 1, 1))
+    for i in range(n):
+        pr = i in prismatic
+        th = np.broadcast_to(robot.dh.offset[i] + (0.0 if pr else q[:, i]), (5,))
+        d = np.broadcast_to(robot.dh.d[i] + (q[:, i] if pr else 0.0), (5,))
+        T = T @ rot_z(th) @ trans(np.stack([0 * d, 0 * d, d], -1))
+        T = T @ trans(np.array([robot.dh.a[i], 0.0, 0.0])) @ rot_x(robot.dh.alpha[i])
+    np.testing.assert_allclose(fk_nominal(robot, q)[:, -1], T, atol=1e-13)
+    np.testing.assert_allclose(fk_frames(nominal_mcpc(robot), q)[:, -1], T, atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("n", "match"),
+    [(0, "needs at least one \\[\\[joint\\]\\] table"), (13, "13 joints; a robot needs 1 to 12")],
+)
+def test_joint_count_outside_1_to_12_is_refused(tmp_path, n, match):
+    mount = "[camera_mount]\nxyz_mm = [0, 0, 0]\nx_axis = [1, 0, 0]\nz_axis = [0, 0, 1]\n"
+    p = _chain_file(tmp_path, n)
+    p.write_text(p.read_text() + mount)
+    with pytest.raises(RobotDefinitionError, match="arm.toml: " + match):
         load_robot(p)
 
 

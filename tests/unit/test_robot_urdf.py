@@ -14,7 +14,7 @@ import pytest
 from calib.errors import InputError
 from calib.kinematics import fk_frames, fk_nominal
 from calib.mcpc import nominal_mcpc
-from calib.robot_def import RobotDefinitionError, load_robot
+from calib.robot_def import load_robot
 from calib.robot_urdf import CONTINUOUS_LIMIT, UrdfError
 
 DATA = Path(__file__).resolve().parents[1] / "data"
@@ -104,15 +104,25 @@ def test_bad_chains_are_refused_with_a_fix(tmp_path, old, new, links, match, fix
     assert fix in exc.value.fix
 
 
-def test_too_few_joints_is_refused(tmp_path):
+def test_a_two_joint_chain_of_a_urdf_loads(tmp_path):
+    """``tool_link = "link_2"``: the first two joints alone, e.g. a positioner (before: refused as
+    fewer than 3 joints)."""
     p = _variant(tmp_path, "", "", toml_extra={"tool_link": 'tool_link = "link_2"'})
     (tmp_path / "arm.toml").write_text(
         (tmp_path / "arm.toml")
         .read_text()
         .replace("home_deg = [35.0, -77.0, 113.0, 0.0, 54.0, 0.0]", "")
     )
-    with pytest.raises(RobotDefinitionError, match=r"arm.toml: 2 joints; a robot needs 3 to 7"):
-        load_robot(p)
+    robot = load_robot(p)
+    full = load_robot(_variant(tmp_path, "", ""))
+    assert robot.n == 2 and robot.joint_names == full.joint_names[:2]
+    q = np.radians([[20.0, -30.0]])
+    # link_2's origin is joint 2's frame of the whole chain (whose axes follow the joint axis)
+    np.testing.assert_allclose(
+        fk_nominal(robot, q)[0, -1, :3, 3],
+        fk_nominal(full, np.c_[q, np.zeros((1, 4))])[0, 1, :3, 3],
+        atol=1e-12,
+    )
 
 
 def test_ambiguous_tool_link_asks_for_a_name(tmp_path):
