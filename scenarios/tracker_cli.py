@@ -3,9 +3,13 @@
 - ``selfcal identify MEASUREMENTS.csv --robot ROBOT --joint-units deg|rad --out DIR
   [--distances FILE]``: fit the robot's MCPC chain, the tracker-to-base transform and the tool
   point to the measured tool-point positions (or poses); writes ``DIR/calibration.json``
-  (:mod:`calib.io.tracker_calibration`) and ``DIR/residuals.csv``; prints the fit RMS.
+  (:mod:`calib.io.tracker_calibration`) and ``DIR/residuals.csv``; prints the fit RMS beside the
+  fair nominal's (:mod:`calib.tracker_nominal`).
 - ``selfcal predict DIR --joints FILE --joint-units deg|rad [--out predicted.csv]``: the tool
-  point in the tracker frame for every joints row (stdout without ``--out``).
+  point in the tracker frame for every joints row (stdout without ``--out``), and the tool
+  orientation when the fit used poses; ``--measurements FILE`` instead of ``--joints``: held-out
+  rows, each with the error of the calibration and of the fair nominal
+  (:mod:`calib.tracker_nominal`), their RMS on stderr.
 
 File formats: :mod:`calib.io.tracker` and docs/tracker.md.
 """
@@ -40,12 +44,14 @@ __all__ = [
 
 IDENTIFY_HELP = """\
 MEASUREMENTS.csv: header j1..jn,x_mm,y_mm,z_mm (tool point in the tracker frame, mm), optionally
-qw,qx,qy,qz (tool orientation, unit quaternion): one row per measured configuration.
+qw,qx,qy,qz (tool orientation, unit quaternion; columns in any order, e.g. qx,qy,qz,qw): one row
+per measured configuration (a pose sensor's rows are poses).
 --distances FILE: header a_j1..a_jn,b_j1..b_jn,d_mm: the distance between the tool point at two
 configurations (ball bar, a known length).
 --joint-units deg: revolute joints in degrees, prismatic in mm; rad: radians and metres.
-writes DIR/calibration.json (estimates with std, the identifiable set, rank, condition number)
-and DIR/residuals.csv; see docs/tracker.md
+writes DIR/calibration.json (estimates with std, the identifiable set, rank, condition number,
+and the fair nominal: the robot file's chain with the tracker frame and the tool fitted) and
+DIR/residuals.csv; prints both fits; see docs/tracker.md
 """
 
 
@@ -204,6 +210,7 @@ def cmd_identify(args: argparse.Namespace) -> int:
     from calib.mcpc import nominal_mcpc
     from calib.robot_def import load_robot
     from calib.tracker_identify import identify_tracker
+    from calib.tracker_nominal import fit_nominal
 
     robot = load_robot(args.robot)
     meas, table = read_tracker_files(
@@ -221,6 +228,9 @@ def cmd_identify(args: argparse.Namespace) -> int:
         sigma_d_m=args.sigma_mm / 1e3,
         hold=hold,
     )
+    fair = fit_nominal(
+        nominal, meas, sigma_t_m=args.sigma_mm / 1e3, sigma_r_rad=np.radians(args.sigma_deg)
+    )
     files = {"measurements": str(args.measurements), "distances": args.distances}
     sigmas = {
         "position_mm": args.sigma_mm,
@@ -237,6 +247,7 @@ def cmd_identify(args: argparse.Namespace) -> int:
         joint_units=args.joint_units,
         sigmas=sigmas,
         files=files,
+        fair_nominal=fair,
     )
     path = write_tracker_calibration(out / "calibration.json", cal)
     note_written(args, path)
@@ -249,16 +260,22 @@ def cmd_identify(args: argparse.Namespace) -> int:
         return 0
     if meas.m:
         what = "poses" if meas.R is not None else "positions"
-        print(f"fit RMS {res.rms_mm:.4f} mm over {meas.m} {what}", end="")
-        print(f", {res.rms_deg:.4f} deg" if meas.R is not None else "")
+        deg = meas.R is not None
+        print(f"fit RMS {res.rms_mm:.4f} mm over {meas.m} {what}" + _deg(res.rms_deg, deg))
+        print(f"nominal fit RMS {fair.rms_mm:.4f} mm{_deg(fair.rms_deg, deg)} ({NOMINAL})")
     if meas.k:
-        print(f"distance RMS {res.rms_distance_mm:.4f} mm over {meas.k} distances")
+        print(f"distance RMS {res.rms_distance_mm:.4f} mm over {meas.k} distances (nominal "
+              f"{fair.rms_distance_mm:.4f} mm)")  # fmt: skip
     print(
         f"{kinds}: rank {res.rank}/{res.n_params}, condition number {res.condition_number:.3g}, "
         f"sigma0 {res.sigma0:.3g} (1 when --sigma-mm is the noise)"
     )
     held = ", ".join(f"{k} ({v})" for k, v in res.held_reason.items()) or "none"
     print(f"held at nominal: {held}")
+    print(
+        "the fit RMS of more parameters is always lower: judge the calibration on held-out rows, "
+        f"`selfcal predict {out} --measurements HELD_OUT.csv`"
+    )
     tool = ", ".join(f"{v:.3f}" for v in cal.tool_point_mm)
     print(f"tool point in the nominal flange frame: ({tool}) mm")
     if table.ignored:
@@ -267,6 +284,13 @@ def cmd_identify(args: argparse.Namespace) -> int:
         get_logger(__name__).warning("%s", w)
     print(f"wrote {path}")
     return 0
+
+
+NOMINAL = "the robot file's chain, tracker frame and tool fitted the same way"
+
+
+def _deg(v: float, show: bool) -> str:
+    return f", {v:.4f} deg" if show else ""
 
 
 def _identify_json(res, meas: TrackerMeasurements, cal, path: Path) -> dict:
@@ -283,12 +307,13 @@ def _identify_json(res, meas: TrackerMeasurements, cal, path: Path) -> dict:
         "sigma0": res.sigma0,
         "held": dict(res.held_reason),
         "tool_point_mm": [float(v) for v in cal.tool_point_mm],
+        "nominal": {k: v for k, v in cal.to_json()["nominal"].items() if k.startswith("rms_")},
         "warnings": list(res.warnings),
     }
 
 
 def cmd_predict(args: argparse.Namespace) -> int:
-    from calib.io.tracker import positions_csv, read_joints, write_positions
+    from calib.io.tracker import positions_csv, read_joints, read_measurements, write_positions
     from calib.io.tracker_calibration import read_tracker_calibration
 
     src = Path(args.calibration)
@@ -298,16 +323,59 @@ def cmd_predict(args: argparse.Namespace) -> int:
             f"{path} not found",
             fix="give the folder `selfcal identify --out DIR` wrote, or its calibration.json",
         )
+    if (args.joints is None) == (args.measurements is None):
+        raise CliError(
+            "give either --joints FILE (predict) or --measurements FILE (predict and compare)",
+            fix="see `selfcal predict --help`",
+        )
     cal = read_tracker_calibration(path)
-    q = read_joints(args.joints, cal, args.joint_units, guess=not args.trust_units)
-    xyz = cal.predict(q)
-    if args.out:
-        write_positions(args.out, xyz)
-        note_written(args, args.out)
-        print(f"wrote {len(xyz)} positions to {args.out}", file=sys.stderr)
+    guess = not args.trust_units
+    extra: dict[str, np.ndarray] = {}
+    if args.measurements:
+        meas, _ = read_measurements(args.measurements, cal, args.joint_units, guess=guess)
+        q = meas.q
+        extra = _held_out(cal, meas)
     else:
-        sys.stdout.write(positions_csv(xyz))
+        q = read_joints(args.joints, cal, args.joint_units, guess=guess)
+    T = cal.predict_poses(q)
+    if args.out:
+        write_positions(args.out, T, orientation=cal.poses, extra=extra)
+        note_written(args, args.out)
+        print(f"wrote {len(T)} {'poses' if cal.poses else 'positions'} to {args.out}",
+              file=sys.stderr)  # fmt: skip
+    else:
+        sys.stdout.write(positions_csv(T, orientation=cal.poses, extra=extra))
     return 0
+
+
+def _held_out(cal, meas: TrackerMeasurements) -> dict[str, np.ndarray]:
+    """The per-row errors of the calibration and of its fair nominal against held-out
+    measurements (columns of the output), with their RMS printed on stderr."""
+    from calib.tracker_nominal import pose_errors
+
+    R = meas.R if cal.poses else None  # a position fit does not identify the tool orientation
+    models = {"": cal.predict_poses(meas.q)}
+    if cal.nominal is not None:
+        models["nominal_"] = cal.nominal.predict_poses(meas.q)
+    out: dict[str, np.ndarray] = {}
+    rms: dict[str, str] = {}
+    for key, T in models.items():
+        pos, ang = pose_errors(T, meas.xyz, R)
+        out[f"{key}error_mm"] = pos
+        rms[key] = f"{np.sqrt(np.mean(pos**2)):.4f} mm"
+        if ang is not None:
+            out[f"{key}error_deg"] = ang
+            rms[key] += f", {np.sqrt(np.mean(ang**2)):.4f} deg"
+    what = "poses" if R is not None else "positions"
+    line = f"held-out RMS over {meas.m} {what}: calibrated {rms['']}"
+    if "nominal_" not in rms:
+        line += "; no nominal in this calibration.json (written before it was recorded)"
+    else:
+        line += f", nominal {rms['nominal_']} ({NOMINAL})"
+        if np.sqrt(np.mean(out["error_mm"] ** 2)) >= np.sqrt(np.mean(out["nominal_error_mm"] ** 2)):
+            line += "; the calibration does not predict better than the nominal chain"
+    print(line, file=sys.stderr)
+    return {k: out[k] for k in sorted(out, key=lambda k: (k.endswith("deg"), k))}
 
 
 def register(sub) -> None:
@@ -346,14 +414,26 @@ def register(sub) -> None:
         "predict",
         help="tool-point positions in the tracker frame for new joint rows (CSV x_mm,y_mm,z_mm)",
         description="predict the tool point (tracker frame, mm) for every row of a joints file "
-        "with a calibration written by `selfcal identify`; CSV on stdout or --out",
+        "with a calibration written by `selfcal identify`, and the tool orientation (qw,qx,qy,qz) "
+        "when it was fitted to poses; with --measurements, also the error of the calibration and "
+        "of the fair nominal per row; CSV on stdout or --out",
     )
     sp.set_defaults(func=cmd_predict)
     sp.add_argument("calibration", help="the DIR of `selfcal identify` (or its calibration.json)")
     sp.add_argument(
         "--joints",
-        required=True,
+        default=None,
         help="joints file: header j1..jn, or n numbers per row, comma- or whitespace-separated",
+    )
+    sp.add_argument(
+        "--measurements",
+        default=None,
+        metavar="FILE",
+        help="held-out measurements in the format `selfcal identify` reads (instead of "
+        "--joints): adds each row's error of the calibration and of the fair nominal (the "
+        "robot file's chain, tracker frame and tool fitted) as columns error_mm, "
+        "nominal_error_mm (and error_deg, nominal_error_deg for a fit of poses) and prints "
+        "their RMS",
     )
     sp.add_argument("--joint-units", required=True, choices=JOINT_UNITS, help=UNITS_HELP)
     sp.add_argument("--out", default=None, help="predicted.csv (default: stdout)")

@@ -334,7 +334,7 @@ def read_measurements(
             raise TrackerFileError(
                 f"{t.where(int(bad[0]), 'qw..qz')}: the quaternion has norm {nrm[bad[0]]:.6f}, "
                 "not 1",
-                fix="give unit quaternions (qw, qx, qy, qz), scalar first",
+                fix="give unit quaternions (columns qw, qx, qy, qz, in any order)",
             )
         R = Rotation.from_quat(quat[:, [1, 2, 3, 0]] / nrm[:, None]).as_matrix()
     used = set(jcols) | set(XYZ) | (set(QUAT) if R is not None else set())
@@ -416,12 +416,30 @@ def read_joints(path: str | Path, robot, units: str, *, guess: bool = True) -> n
     return read_joint_rows(path, robot, units, guess=guess).q
 
 
-def positions_csv(xyz_m: np.ndarray) -> str:
-    """Predicted positions (m, 3) m as CSV text: header ``x_mm,y_mm,z_mm``, 6 decimals (nm)."""
-    lines = [",".join(XYZ)] + [f"{x:.6f},{y:.6f},{z:.6f}" for x, y, z in np.asarray(xyz_m) * 1e3]
+def positions_csv(
+    T_pred: np.ndarray, *, orientation: bool = False, extra: dict[str, np.ndarray] | None = None
+) -> str:
+    """Predicted tool poses ``T_pred`` (m, 4, 4) m as CSV text: ``x_mm,y_mm,z_mm`` (6 decimals,
+    nm), with ``orientation`` also ``qw,qx,qy,qz`` (unit quaternion, scalar first, 9 decimals),
+    then the ``extra`` columns (name -> (m,) values, 6 decimals; e.g. errors)."""
+    T = np.asarray(T_pred, dtype=float).reshape(-1, 4, 4)
+    cols = [T[:, :3, 3] * 1e3]
+    names = list(XYZ)
+    if orientation:
+        q = Rotation.from_matrix(T[:, :3, :3]).as_quat()[:, [3, 0, 1, 2]]
+        cols.append(q * np.where(q[:, :1] < 0, -1.0, 1.0))  # qw >= 0: one of the two signs
+        names += QUAT
+    for name, v in (extra or {}).items():
+        cols.append(np.asarray(v, dtype=float).reshape(-1, 1))
+        names.append(name)
+    table = np.column_stack(cols)
+    digits = [6, 6, 6] + ([9] * 4 if orientation else []) + [6] * len(extra or {})
+    lines = [",".join(names)]
+    lines += [",".join(f"{v:.{d}f}" for v, d in zip(row, digits)) for row in table]
     return "\n".join(lines) + "\n"
 
 
-def write_positions(path: str | Path, xyz_m: np.ndarray) -> Path:
-    """Write :func:`positions_csv` to ``path`` (via a temporary file and rename)."""
-    return write_text_atomic(path, positions_csv(xyz_m))
+def write_positions(path: str | Path, T_pred: np.ndarray, **kw) -> Path:
+    """Write :func:`positions_csv` (same keywords) to ``path`` (via a temporary file and
+    rename)."""
+    return write_text_atomic(path, positions_csv(T_pred, **kw))

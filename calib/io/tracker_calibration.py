@@ -16,7 +16,11 @@ frame. Keys:
   ``T_tracker_joint1`` (4 x 4, m: the frame on joint 1's axis in which joint 1 turns, in the
   tracker frame);
 - ``fit``: RMS of the position error (mm), rotation error (deg), distance error (mm), the row and
-  equation counts, the kinds, iterations; ``sigmas`` as given; ``files``; ``warnings``.
+  equation counts, the kinds, iterations; ``sigmas`` as given; ``files``; ``warnings``;
+- ``nominal`` (optional, absent from files written before it): the fair nominal of
+  :mod:`calib.tracker_nominal` -- the robot file's chain with the tracker frame and the tool
+  fitted by the same objective: its ``rms_mm``, ``rms_deg``, ``rms_distance_mm`` and its chain
+  ``mcpc`` (``params``, ``joint_offsets``, ``T_meas_fit`` as above).
 """
 
 from __future__ import annotations
@@ -31,6 +35,7 @@ from calib.io.jsonfile import Fields, check_header, load_json, write_json_atomic
 from calib.kinematics import fk_tool
 from calib.mcpc import COLUMNS, MCPCModel, chain_transforms, minimal_indices, param_is_angle
 from calib.tracker_identify import TrackerResult
+from calib.tracker_nominal import NominalFit
 from calib.transforms import inv_pose
 
 __all__ = [
@@ -80,6 +85,12 @@ class TrackerCalibration:
     sigmas: dict
     files: dict
     warnings: tuple[str, ...] = field(default=())
+    nominal: NominalFit | None = None
+
+    @property
+    def poses(self) -> bool:
+        """Whether the fit used poses: the tool frame's orientation is then identified."""
+        return "pose" in self.fit.get("kinds", ())
 
     @property
     def name(self) -> str:
@@ -107,7 +118,12 @@ class TrackerCalibration:
 
     def predict(self, q: np.ndarray) -> np.ndarray:
         """Tool-point positions (m, 3) in the tracker frame (m) at joints ``q`` (m, n) SI."""
-        return (self.T_meas_fit @ fk_tool(self.model, np.atleast_2d(q)))[:, :3, 3]
+        return self.predict_poses(q)[:, :3, 3]
+
+    def predict_poses(self, q: np.ndarray) -> np.ndarray:
+        """Tool poses ``T_tracker_tool`` (m, 4, 4) at joints ``q`` (m, n) SI (the orientation is
+        the measured tool frame's when the fit used poses, else the flange's, not identified)."""
+        return self.T_meas_fit @ fk_tool(self.model, np.atleast_2d(q))
 
     def to_json(self) -> dict:
         G = chain_transforms(self.model)
@@ -152,6 +168,7 @@ class TrackerCalibration:
             "sigmas": self.sigmas,
             "files": self.files,
             "warnings": list(self.warnings),
+            **({} if self.nominal is None else {"nominal": _nominal_json(self.nominal)}),
         }
 
     @classmethod
@@ -191,7 +208,44 @@ class TrackerCalibration:
             sigmas=dict(f.raw("sigmas")),
             files=dict(f.raw("files")),
             warnings=f.strs("warnings"),
+            nominal=_nominal_from(f.sub("nominal"), tuple(types)) if f.has("nominal") else None,
         )
+
+
+def _nominal_json(nom: NominalFit) -> dict:
+    def num(x: float) -> float | None:
+        return None if not np.isfinite(x) else float(x)
+
+    return {
+        "what": "the robot file's chain with the tracker frame and the tool fitted by the same "
+        "objective (the fair reference)",
+        "rms_mm": num(nom.rms_mm),
+        "rms_deg": num(nom.rms_deg),
+        "rms_distance_mm": num(nom.rms_distance_mm),
+        "converged": nom.converged,
+        "mcpc": {
+            "params": nom.model.params.tolist(),
+            "joint_offsets": nom.model.joint_offsets.tolist(),
+            "T_meas_fit": nom.T_meas_fit.tolist(),
+        },
+    }
+
+
+def _nominal_from(f: Fields, types: tuple[str, ...]) -> NominalFit:
+    n, mc = len(types), f.sub("mcpc")
+
+    def num(key: str) -> float:
+        v = f.opt_float(key)
+        return float("nan") if v is None else v
+
+    return NominalFit(
+        model=MCPCModel(mc.array("params", (n + 1, 6)), types, mc.array("joint_offsets", (n,))),
+        T_meas_fit=mc.array("T_meas_fit", (4, 4)),
+        rms_mm=num("rms_mm"),
+        rms_deg=num("rms_deg"),
+        rms_distance_mm=num("rms_distance_mm"),
+        converged=bool(f.raw("converged")),
+    )
 
 
 def from_result(
@@ -205,10 +259,12 @@ def from_result(
     joint_units: str,
     sigmas: dict,
     files: dict,
+    fair_nominal: NominalFit | None = None,
 ) -> TrackerCalibration:
     """The file's content for an identification result (values and std to mm / deg); the tool
     point is expressed in the flange frame of ``nominal`` (the model the identification started
-    from, same joint offsets)."""
+    from, same joint offsets); ``fair_nominal``: :func:`calib.tracker_nominal.fit_nominal` of
+    the same data, recorded beside the calibration."""
     idx = minimal_indices(res.model.joint_types)
     ang = param_is_angle(idx)
     k = np.where(ang, 180.0 / np.pi, 1e3)
@@ -251,6 +307,7 @@ def from_result(
         sigmas=sigmas,
         files=files,
         warnings=res.warnings,
+        nominal=fair_nominal,
     )
 
 
