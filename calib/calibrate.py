@@ -33,7 +33,7 @@ from calib.camera import (
 )
 from calib.camera.undistort import Undistorter
 from calib.errors import EstimationError, InitialCameraWarning, SelfCalWarning
-from calib.estimation.selfcal_errors import SelfCalibrationError
+from calib.estimation.selfcal_errors import DegenerateConfigurationError, SelfCalibrationError
 from calib.field_cameras import dataset_camera, initial_cameras, lens_cameras, models_of
 from calib.frame_checks import check_distinct_frames, check_read_back
 from calib.identify import identify
@@ -43,8 +43,8 @@ from calib.io.dataset import Dataset, DatasetError, Detections, read_gray
 from calib.io.dataset_info import CAMERAS, DatasetInfo
 from calib.io.frame_cache import FrameCache
 from calib.joint_refine import refine_calibration
-from calib.kinematics import fk_tool
-from calib.mcpc import MCPCModel, chain_transforms, nominal_mcpc
+from calib.kinematics import fk_frames, fk_tool
+from calib.mcpc import MCPCModel, chain_transforms, minimal_indices, nominal_mcpc
 from calib.quality import assess_calibration
 from calib.results import CalibrationOutput, two_stage_result, with_bounds, with_joint
 from calib.robot_def import RobotDef, load_robot
@@ -309,7 +309,8 @@ def calibrate_detailed(
     if len(ds.indices) < MIN_POSTURES:
         raise CalibrationError(
             f"{root}: {len(ds.indices)} postures; calibration needs at least {MIN_POSTURES} "
-            "(26 kinematic parameters from 6 pose values each, plus the camera's unknowns): "
+            f"({len(minimal_indices(robot.joint_types))} kinematic parameters of this "
+            f"{robot.n}-joint robot from 6 pose values each, plus the camera's unknowns): "
             "acquire more"
         )
     dets, skipped, corner_sigma = detect_dataset(ds, progress=progress, cache=cache)
@@ -339,7 +340,10 @@ def calibrate_detailed(
     )
     initial = initial_cameras(ds.info, camera_stage.keywords["camera"])
     with _stage(progress, "camera stage (bundle adjustment)") as st:
-        sc, start = _camera_stage(camera_stage, obs, initial)
+        try:
+            sc, start = _camera_stage(camera_stage, obs, initial)
+        except DegenerateConfigurationError as exc:
+            raise _one_rotation_direction(robot, exc) from exc
         st(f"reprojection RMS {sc.rms_px:.3f} px")
     lenses = lens_cameras(sc, ds.info.cameras)
     if lenses and ds.info.observation == "images":
@@ -481,6 +485,27 @@ def _camera_stage(
         stacklevel=3,
     )
     return fits["own"], "own"
+
+
+def _one_rotation_direction(
+    robot: RobotDef, exc: DegenerateConfigurationError
+) -> DegenerateConfigurationError:
+    """``exc`` (the views do not determine the camera) with the reason when the robot cannot
+    give better views: every revolute joint turns about one direction (one joint, or parallel
+    axes; prismatic joints only translate), so the camera rotates about that direction alone, a
+    critical motion for self-calibration (Sturm 1997: rotations about parallel axes)."""
+    F = fk_frames(nominal_mcpc(robot), robot.home[None])[0]
+    z = F[np.flatnonzero([t == "revolute" for t in robot.joint_types]), :3, 2]
+    if len(z) and np.linalg.norm(np.cross(z, z[0]), axis=1).max() > 1e-6:
+        return exc
+    return DegenerateConfigurationError(
+        f"{robot.name}: every revolute joint of its {robot.n} turns about one direction, so the "
+        f"camera only rotates about that direction, which no choice of postures mends: "
+        f"{exc.message}",
+        fix="the field self-calibration, which estimates the focal length, needs a camera turned "
+        "about two non-parallel axes; calibrate this robot from tracker measurements of its tool "
+        "(`selfcal identify`, docs/tracker.md)",
+    )
 
 
 def _joint1_axis(model: MCPCModel) -> np.ndarray:

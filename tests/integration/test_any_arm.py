@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from calib.estimation.selfcal_errors import DegenerateConfigurationError
 from calib.kinematics import fk_tool
 from calib.mcpc import nominal_mcpc
 from calib.robot_def import load_robot
@@ -125,3 +126,21 @@ def test_a_seven_joint_arm_from_a_robot_file_calibrates(tmp_path):
     err = rep["tool_tip_error_mm"]
     assert err["calibrated"]["rms"] < err["nominal"]["rms"] / 5
     assert err["calibrated"]["rms"] < 3 * rep["tool_tip_bound_mm"]
+
+
+@pytest.mark.slow
+def test_a_turntable_camera_is_refused_with_what_the_field_needs(tmp_path):
+    """One revolute joint: the camera only turns about one direction, a critical motion for the
+    field self-calibration (the focal length is not determined); the error says so and points to
+    the tracker route (before: "vary viewpoints, aim points and camera roll", which this robot
+    cannot)."""
+    robot = tmp_path / "turntable.toml"
+    robot.write_text(
+        "home_deg = [0.0]\n[[joint]]\nalpha_deg = -90.0\na_mm = 50.0\nd_mm = 100.0\n"
+        "range_deg = [-170.0, 170.0]\n[camera_mount]\nxyz_mm = [200.0, -400.0, 0.0]\n"
+        "x_axis = [1.0, 0.0, 0.0]\nz_axis = [0.0, 1.0, 0.0]\n[planning]\nspan_deg = [60.0]\n"
+    )
+    s = load_scenario(UR5E, {"robot": {"model": str(robot)}, "trajectory": {"poses": 12}})
+    with pytest.raises(DegenerateConfigurationError, match="turntable: every revolute joint") as e:
+        run_all(s, tmp_path / "run", quiet=True)
+    assert "selfcal identify" in e.value.fix
