@@ -108,11 +108,25 @@ def load_calibration(path: str):
 
 def calibration_robot(path: str, robot_name: str):
     """The robot of the calibration ``path`` (as :func:`load_calibration` takes it): the robot
-    file its dataset carries (:func:`_robot_file`), else the model ``robot_name``."""
-    from calib.robot_def import load_robot
+    file its dataset carries (:func:`_robot_file`), else the model ``robot_name``. An exported
+    TOML of a robot from a file finds it through the calibration.json it names as ``source``."""
+    from calib.export_toml import from_toml
+    from calib.robot_def import list_robots, load_robot
 
     p = _calibration_file(path)
-    return (_robot_file(p) if p.suffix == ".json" else None) or load_robot(robot_name)
+    if p.suffix == ".json":
+        return _robot_file(p) or load_robot(robot_name)
+    if robot_name in list_robots():
+        return load_robot(robot_name)
+    src = Path(from_toml(p.read_text()).source)
+    if src.suffix == ".json" and src.is_file() and (robot := _robot_file(src)) is not None:
+        return robot
+    raise CliError(
+        f"{p}: robot {robot_name!r} is neither a shipped model nor found through the file's "
+        f"source {str(src)!r}",
+        fix="give the calibration.json the TOML was exported from (its folder keeps the robot "
+        "file), or export again from it",
+    )
 
 
 def _robot_file(calibration: Path):

@@ -18,6 +18,7 @@ from calib.robot_def import load_robot
 from calib.self_collision import CapsuleChain
 from calib.trajectory import PLANNING_VISIBILITY
 from scenarios.backends import plan_dataset, plan_optimal, planning_inputs
+from scenarios.cli import main
 from scenarios.config import ConfigError, load_scenario
 from scenarios.pipeline import run_all
 
@@ -112,7 +113,7 @@ def test_pipeline_calibrates_from_rendered_images(tmp_path, path):
 
 
 @pytest.mark.slow
-def test_a_seven_joint_arm_from_a_robot_file_calibrates(tmp_path):
+def test_a_seven_joint_arm_from_a_robot_file_calibrates(tmp_path, capsys):
     """``[robot] model`` the path of a 7-joint robot file outside models/robots
     (tests/data/arm7.toml): the simulated robot and the dataset take the file, not its name (before:
     "unknown robot model 'arm7'"), and the calibration beats nominal (measured: nominal 1.05 mm,
@@ -126,6 +127,14 @@ def test_a_seven_joint_arm_from_a_robot_file_calibrates(tmp_path):
     err = rep["tool_tip_error_mm"]
     assert err["calibrated"]["rms"] < err["nominal"]["rms"] / 5
     assert err["calibrated"]["rms"] < 3 * rep["tool_tip_bound_mm"]
+    # exported, the TOML finds its robot file through its source (before: "unknown robot model")
+    exported = tmp_path / "arm7-calibrated.toml"
+    assert main(["-q", "export", str(tmp_path / "run"), "--out", str(exported)]) == 0
+    joints = "0,-30,0,-130,0,100,45"
+    for cal in (tmp_path / "run", exported):
+        assert main(["fk", "--calibration", str(cal), "--joints", joints]) == 0
+    first, second = (json.loads(line) for line in capsys.readouterr().out.splitlines()[-2:])
+    assert first["xyz_mm"] == second["xyz_mm"]
 
 
 @pytest.mark.slow
