@@ -7,8 +7,9 @@ frame; and/or distances (m) between the tool point at two configurations. Output
 tool point's offset on the flange (and the measured tool frame's orientation, for poses).
 
 Steps:
-1. Placement (:func:`initial_placement`): the nominal chain is placed in the tracker frame by a
-   closed-form rigid fit alternated with a linear fit of the tool point on the flange. The
+1. Placement (:mod:`calib.estimation.tracker_start`): the nominal chain is placed in the tracker
+   frame by a closed-form rigid fit alternated with a linear fit of the tool point on the flange
+   (positions), or by the closed-form robot-world hand-eye solution (poses). The
    estimation works in that placed base frame (the *fit frame*): there the base parameters are
    small and far from the MCPC Euler singularity whatever the tracker's axes are. The result
    keeps ``T_meas_fit`` (tracker <- fit frame) and predicts in the tracker frame.
@@ -48,9 +49,9 @@ from calib.estimation.tracker import (
     TrackerPoseBlock,
     TrackerPositionBlock,
     initial_placement,
-    mean_rotation,
     tracker_terms,
 )
+from calib.estimation.tracker_start import pose_placement
 from calib.identifiability import select_identifiable, triangular_factor
 from calib.identify import IdentificationWarning
 from calib.kinematics import fk_tool
@@ -281,16 +282,16 @@ def identify_tracker(
 
     # 1. placement: work in the placed nominal base frame ("fit frame")
     if meas.m:
-        B, s = initial_placement(model, meas.q, meas.xyz)
+        if meas.R is not None:  # the closed form of the poses: positions' start fails with few
+            B, X = pose_placement(model, meas.q, make_pose(meas.R, meas.xyz))
+            s, R_tool = X[:3, 3], X[:3, :3]
+        else:
+            (B, s), R_tool = initial_placement(model, meas.q, meas.xyz), None
         params = model.params.copy()
         params[-1, 3:] += s  # V_n Trans(s) = Rx Ry Rz Trans(l + s): still in the gauge
         start = model.with_params(params)
-        if meas.R is not None:
-            Tt = fk_tool(start, meas.q)
-            Rm = B[:3, :3].T @ meas.R
-            start = start.with_tool(
-                make_pose(mean_rotation(np.swapaxes(Tt[:, :3, :3], 1, 2) @ Rm), np.zeros(3))
-            )
+        if R_tool is not None:
+            start = start.with_tool(make_pose(R_tool, np.zeros(3)))
     else:
         B = np.eye(4)
         start = model

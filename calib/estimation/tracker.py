@@ -22,7 +22,7 @@ Residuals, each in units of its own standard deviation:
 - distance: ``(|y_a - y_b| - d) / sigma`` (1 per row).
 
 Also here: the measurements as data (:class:`TrackerMeasurements`), the closed-form start
-(:func:`initial_placement`) and the blocks another problem adds to take tracker data in
+(:mod:`calib.estimation.tracker_start`) and the blocks another problem adds to take tracker data in
 (:func:`tracker_terms`, used by the joint refinement over images).
 
 Units: SI (m, rad).
@@ -37,16 +37,16 @@ import numpy as np
 
 from calib.errors import InputError
 from calib.estimation.pose_models import so3_left_jacobian
+from calib.estimation.tracker_start import initial_placement, mean_rotation, pose_placement
 from calib.kinematics import (
     fk_frames,
-    fk_tool,
     identification_jacobian,
     pose_error,
     pose_error_jacobian,
 )
 from calib.mcpc import MCPCModel
 from calib.solver import Evaluation, JacobianPiece, Loss, ParameterBlock
-from calib.transforms import adjoint, inv_pose, kabsch, make_pose, pose_from_vec, skew
+from calib.transforms import adjoint, inv_pose, make_pose, pose_from_vec, skew
 
 __all__ = [
     "TrackerMeasurements",
@@ -388,37 +388,6 @@ class TrackerMeasurements:
             raise InputError("tracker data: no measurements")
 
 
-def initial_placement(
-    model: MCPCModel, q: np.ndarray, xyz: np.ndarray, *, iterations: int = 50
-) -> tuple[np.ndarray, np.ndarray]:
-    """``(T_meas_base (4, 4), s (3,))``: the rigid placement of ``model`` in the tracker frame and
-    the tool point ``s`` in its tool frame (m) that best fit the positions ``xyz`` (m, 3) at
-    ``q`` (m, n), by alternating the closed-form rigid fit (Kabsch) with the linear
-    least-squares tool point (a fixed-point start for the estimation, not an estimate)."""
-    T = fk_tool(model, q)
-    R, t = T[:, :3, :3], T[:, :3, 3]
-    s = np.zeros(3)
-    B = np.eye(4)
-    for _ in range(iterations):
-        x = R @ s + t
-        B = kabsch(x, xyz) if len(q) >= 3 else make_pose(np.eye(3), np.mean(xyz - x, axis=0))
-        rhs = (xyz - B[:3, 3]) @ B[:3, :3] - t  # R_i s = B^-1 p_i - t_i
-        # least squares over the rows: the normal matrix sum R_i^T R_i is m I
-        s_new = np.einsum("kji,kj->i", R, rhs) / len(q)
-        done = np.linalg.norm(s_new - s) <= 1e-6  # a start for LM: 1 um is plenty
-        s = s_new
-        if done:
-            break
-    return B, s
-
-
-def mean_rotation(R: np.ndarray) -> np.ndarray:
-    """The chordal mean (3, 3) of rotations ``R`` (m, 3, 3): the proper rotation nearest their sum."""
-    U, _, Vt = np.linalg.svd(np.sum(R, axis=0))
-    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))])
-    return U @ D @ Vt
-
-
 def tracker_terms(
     meas: TrackerMeasurements,
     model: MCPCModel,
@@ -439,15 +408,15 @@ def tracker_terms(
     coords = -np.ones(6 * (model.n + 1), np.int64)
     coords[np.asarray(free_idx)] = np.arange(len(free_idx))
     frame0, tool0, params = np.eye(4), np.eye(4), []
-    if meas.m:
-        frame0, s0 = initial_placement(model, meas.q, meas.xyz)
-        params.append(ParameterBlock("tracker_frame", np.zeros(6)))
-        tool0 = make_pose(np.eye(3), s0)
     poses = meas.m > 0 and meas.R is not None
+    if poses:  # the closed form of the poses: the positions' start fails with few rows
+        frame0, tool0 = pose_placement(model, meas.q, make_pose(np.asarray(meas.R), meas.xyz))
+    elif meas.m:
+        frame0, s0 = initial_placement(model, meas.q, meas.xyz)
+        tool0 = make_pose(np.eye(3), s0)
+    if meas.m:
+        params.append(ParameterBlock("tracker_frame", np.zeros(6)))
     if poses:
-        R = fk_tool(model, meas.q)[:, :3, :3]
-        R_tool = mean_rotation(np.swapaxes(R, 1, 2) @ frame0[:3, :3].T @ meas.R)
-        tool0 = make_pose(R_tool, tool0[:3, 3])
         params.append(ParameterBlock("tool_frame", np.zeros(6)))
     if meas.k or not poses:
         params.append(ParameterBlock("tool_point", tool0[:3, 3]))
