@@ -400,15 +400,16 @@ def make_kinematic_robot(s: Scenario, setup: SimSetup | None = None) -> Kinemati
 
 
 def render_posture(
-    robot: RobotDef, q: np.ndarray, out: Path, config: str | None = None
+    robot: RobotDef, q: np.ndarray, out: Path, config: str | None = None, model: str | None = None
 ) -> tuple[Path, Path]:
-    """Render the (nominal, unperturbed) robot's stereo pair at posture ``q`` (rad) into ``out``."""
-    s = load_scenario(config, overrides={"robot": {"model": robot.name}})
+    """Render the (nominal, unperturbed) robot's stereo pair at posture ``q`` (rad) into ``out``;
+    ``model``: what ``robot`` was loaded from (a name or a robot file; default its name)."""
+    s = load_scenario(config, overrides={"robot": {"model": model or robot.name}})
     setup = sim_setup(s)
     rig = setup.rig()
     out.mkdir(parents=True, exist_ok=True)
     board = None if setup.board is None else (setup.board, setup.T_world_board)
-    with SimRobot(robot.name, None, rig, setup.field, board=board) as sim:
+    with SimRobot(robot, None, rig, setup.field, board=board) as sim:
         sim.move_to(np.degrees(q))
         pair = sim.capture()
     paths = (out / "left.png", out / "right.png")

@@ -165,7 +165,7 @@ def cmd_render(args: argparse.Namespace) -> int:
     q = _joints_rad(robot, args.joints)
     bar = Progress("render", enabled=not args.quiet)
     with bar.step("render the stereo pair") as st:
-        paths = render_posture(robot, q, Path(args.out), config=scenario)
+        paths = render_posture(robot, q, Path(args.out), config=scenario, model=model)
         st.result(f"{paths[0].name}, {paths[1].name}")
     note_written(args, *paths)
     print(json.dumps({"left": str(paths[0]), "right": str(paths[1])}))

@@ -189,3 +189,17 @@ def test_fk_ik_of_an_arm_on_a_linear_track_take_the_track_in_mm(capsys, tmp_path
     np.testing.assert_allclose(
         np.abs(np.dot(back["quat_wxyz"], docs[0]["quat_wxyz"])), 1.0, atol=1e-9
     )
+
+
+@pytest.mark.render
+def test_render_takes_a_robot_file_of_seven_joints(capsys, tmp_path):
+    """``--robot FILE`` outside models/robots (before: "unknown robot model 'arm7'")."""
+    import cv2
+
+    robot = ROOT / "tests" / "data" / "arm7.toml"
+    joints = "0,-30,0,-130,0,100,45"
+    code, out, err = run(capsys, "render", "--robot", str(robot), "--joints", joints,
+                         "--out", str(tmp_path))  # fmt: skip
+    assert code == 0, err
+    img = cv2.imread(json.loads(out)["left"])
+    assert img.shape == (480, 640, 3) and img.std() > 10
