@@ -209,6 +209,7 @@ def cmd_identify(args: argparse.Namespace) -> int:
     from calib.io.tracker_calibration import from_result, write_tracker_calibration
     from calib.mcpc import nominal_mcpc
     from calib.robot_def import load_robot
+    from calib.tracker_cv import leave_one_out
     from calib.tracker_identify import identify_tracker
     from calib.tracker_nominal import fit_nominal
 
@@ -220,17 +221,10 @@ def cmd_identify(args: argparse.Namespace) -> int:
     out = _out_dir(args.out or f"runs/identify-{Path(args.measurements).stem}")
     hold = tuple(h for h in (args.hold or "").replace(" ", "").split(",") if h)
     nominal = nominal_mcpc(robot)
-    res = identify_tracker(
-        nominal,
-        meas,
-        sigma_t_m=args.sigma_mm / 1e3,
-        sigma_r_rad=np.radians(args.sigma_deg),
-        sigma_d_m=args.sigma_mm / 1e3,
-        hold=hold,
-    )
-    fair = fit_nominal(
-        nominal, meas, sigma_t_m=args.sigma_mm / 1e3, sigma_r_rad=np.radians(args.sigma_deg)
-    )
+    sig = {"sigma_t_m": args.sigma_mm / 1e3, "sigma_r_rad": np.radians(args.sigma_deg)}
+    res = identify_tracker(nominal, meas, sigma_d_m=args.sigma_mm / 1e3, hold=hold, **sig)
+    fair = fit_nominal(nominal, meas, **sig)
+    cv = leave_one_out(nominal, meas, sigma_d_m=args.sigma_mm / 1e3, hold=hold, **sig)
     files = {"measurements": str(args.measurements), "distances": args.distances}
     sigmas = {
         "position_mm": args.sigma_mm,
@@ -249,6 +243,8 @@ def cmd_identify(args: argparse.Namespace) -> int:
         files=files,
         fair_nominal=fair,
     )
+    if cv is not None:
+        cal.fit["cross_validation"] = cv.to_json()
     path = write_tracker_calibration(out / "calibration.json", cal)
     note_written(args, path)
     if meas.m:
@@ -272,10 +268,13 @@ def cmd_identify(args: argparse.Namespace) -> int:
     )
     held = ", ".join(f"{k} ({v})" for k, v in res.held_reason.items()) or "none"
     print(f"held at nominal: {held}")
-    print(
-        "the fit RMS of more parameters is always lower: judge the calibration on held-out rows, "
-        f"`selfcal predict {out} --measurements HELD_OUT.csv`"
-    )
+    if cv is not None:
+        _print_cv(cv, meas.R is not None)
+    else:
+        print(
+            "the fit RMS of more parameters is always lower: judge the calibration on held-out "
+            f"rows, `selfcal predict {out} --measurements HELD_OUT.csv`"
+        )
     tool = ", ".join(f"{v:.3f}" for v in cal.tool_point_mm)
     print(f"tool point in the nominal flange frame: ({tool}) mm")
     if table.ignored:
@@ -291,6 +290,22 @@ NOMINAL = "the robot file's chain, tracker frame and tool fitted the same way"
 
 def _deg(v: float, show: bool) -> str:
     return f", {v:.4f} deg" if show else ""
+
+
+def _print_cv(cv, poses: bool) -> None:
+    """The leave-one-out line of ``identify`` and, when the data do not support the calibration,
+    the warning."""
+    print(
+        f"leave-one-out over {cv.rows} rows: calibrated {cv.rms_mm:.4f} mm"
+        f"{_deg(cv.rms_deg, poses)}, nominal {cv.nominal_rms_mm:.4f} mm"
+        f"{_deg(cv.nominal_rms_deg, poses)}"
+    )
+    if not cv.supported:
+        get_logger(__name__).warning(
+            "the data do not support the kinematic calibration: it predicts left-out rows no "
+            "better than the nominal chain with the tracker frame and tool fitted (`nominal` in "
+            "calibration.json); measure more, better spread configurations"
+        )
 
 
 def _identify_json(res, meas: TrackerMeasurements, cal, path: Path) -> dict:
