@@ -9,8 +9,9 @@ model and free parameters dataset.json declares, e.g. OpenCV's lens model), hand
 and kinematics (scale from the board, no known distance). With several cameras
 (:func:`calib.board_rig.calibrate_board_rig` gives their start) every camera's model and pose in
 the first camera's frame join that refinement. The reference of
-``selfcal evaluate`` -- the nominal kinematics with only the hand-eye and the board pose fitted
-to the same camera poses -- is stored beside. Nothing here reads truth.
+``selfcal evaluate`` -- the fair nominal: the nominal kinematics with the hand-eye, the board
+pose and the cameras fitted by the same objective (:mod:`calib.nominal_fit`) -- is stored
+beside. Nothing here reads truth.
 """
 
 from __future__ import annotations
@@ -23,9 +24,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from scipy.optimize import least_squares
 
-from calib.alignment import AXIS_TIPS, fit_placement_and_hand_eye, fit_rigid_transform
 from calib.board_bounds import bounds_block
 from calib.board_calibrate import BoardInputError, calibrate_board
 from calib.board_rig import calibrate_board_rig
@@ -33,18 +32,18 @@ from calib.board_robot import BoardRobotCalibration, calibrate_robot_with_board
 from calib.errors import EstimationError, SelfCalError, SelfCalWarning
 from calib.estimation.joint_report import encoder_sigma
 from calib.frame_checks import check_distinct_frames
-from calib.identify import IdentificationError, identify
+from calib.identify import IdentificationError
 from calib.io.board_calibration import BoardCalibrationResult
 from calib.io.dataset import Dataset, DatasetError, read_gray
 from calib.io.target_toml import parse_target
 from calib.kinematics import fk_tool
-from calib.mcpc import MCPCModel, minimal_indices, nominal_mcpc, param_names
+from calib.mcpc import minimal_indices, nominal_mcpc, param_names
 from calib.robot_def import RobotDef, load_robot
 from calib.row_shift import row_shift_misfits, shift_note
 from calib.scale_check import check_scale, motion_scale, scale_warning, scaled_sizes
 from calib.target.base import Features
 from calib.target.boards import Board
-from calib.transforms import inv_pose, pose_from_vec
+from calib.transforms import inv_pose
 
 __all__ = [
     "MIN_FRAMES",
@@ -56,7 +55,6 @@ __all__ = [
     "calibrate_board_dataset",
     "calibrate_board_dataset_detailed",
     "chain_param_names",
-    "nominal_reference",
 ]
 
 
@@ -246,8 +244,7 @@ def calibrate_board_dataset_detailed(
                 fix=exc.fix,
             ) from exc
     used = res.used
-    T_board_cam = inv_pose(res.board.T_cam_board[used])
-    ref = nominal_reference(robot, q[used], T_board_cam)
+    assert res.nominal is not None
     notes = list(incomplete)
     sizes = {k: float(v) for k, v in (ds.info.board or {}).items() if k.endswith("_mm")}
     # the camera poses of the calibrated chain: they fit the images with the final camera
@@ -281,7 +278,10 @@ def calibrate_board_dataset_detailed(
         camera_std=res.cameras_std,
         T_first_cam=None if rig is None else res.T_first_cam,
         model=res.model,
-        nominal_model=ref,
+        nominal_model=res.nominal.model,
+        nominal_cameras=res.nominal.cameras,
+        nominal_T_first_cam=None if rig is None else res.nominal.T_first_cam,
+        nominal_rms_px=res.nominal.rms_px,
         reprojection_rms_px=res.rms_px,
         frames=len(ds.indices),
         frames_used=int(used.sum()),
@@ -334,42 +334,9 @@ def _data_notes(ds: Dataset, board: Board, feats: list[Features], names: list[st
     return [] if scale is None else [scale]
 
 
-def nominal_reference(robot: RobotDef, q: np.ndarray, T_board_cam: np.ndarray) -> MCPCModel:
-    """The nominal kinematics best placed on the camera poses ``T_board_cam`` (m, 4, 4) at the
-    joints ``q`` (m, n) rad: ``T_board_cam ~ B fk_flange(q) C`` with the board pose ``B`` (board
-    <- base) and the hand-eye ``C`` (flange <- camera) free, 6 dof each (the reference of ``selfcal
-    evaluate``'s "nominal"), by least squares on each pose's origin and axis tips at 0.1 m. It
-    starts from the better of two guesses: alternating closed-form rigid fits
-    (:func:`calib.alignment.fit_rigid_transform`) from the robot file's camera mount, and an
-    identification with every chain parameter held (which cannot turn the board about joint 1's
-    axis nor shift it along that axis)."""
-    F = fk_tool(nominal_mcpc(robot), q)  # base <- flange
-
-    def residuals(B: np.ndarray, C: np.ndarray) -> np.ndarray:
-        return ((B @ F @ C - T_board_cam) @ AXIS_TIPS)[:, :3].ravel()
-
-    B, C = fit_placement_and_hand_eye(T_board_cam, F, robot.T_flange_cam)
-    nominal = nominal_mcpc(robot).with_tool(robot.T_flange_cam)
-    with warnings.catch_warnings():  # the nominal misfits by design: not a note
-        warnings.simplefilter("ignore", SelfCalWarning)
-        held = identify(nominal, q, T_board_cam, hold=chain_param_names(nominal.joint_types))
-    Fh = fk_tool(held.model, q)
-    Bh = fit_rigid_transform(Fh, F @ C)  # the held fit as B, C: Fh ~ Bh F C_h
-    Ch = inv_pose(fit_rigid_transform(inv_pose(Fh), inv_pose(Bh @ F)))
-    starts = [(B, C), (Bh, Ch)]
-    B0, C0 = min(starts, key=lambda bc: float(np.sum(residuals(*bc) ** 2)))
-
-    def unpack(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        return pose_from_vec(x[:6]) @ B0, C0 @ pose_from_vec(x[6:])
-
-    sol = least_squares(lambda x: residuals(*unpack(x)), np.zeros(12), method="lm", xtol=1e-12)
-    B, C = unpack(sol.x)
-    return nominal_mcpc(robot, T_world_base=B, T_flange_tool=C)
-
-
 def chain_param_names(joint_types: tuple[str, ...]) -> tuple[str, ...]:
     """The minimal parameters of the joints' chain: all but the base (row 0) and the tool
-    (row n), i.e. what the nominal reference keeps at the drawing's values."""
+    (row n), i.e. what a nominal model keeps at the drawing's values."""
     n = len(joint_types)
     idx = minimal_indices(joint_types)
     return tuple(param_names(np.array([k for k in idx if k // 6 not in (0, n)])))

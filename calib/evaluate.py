@@ -5,9 +5,10 @@ the frame's joint readings alone: ``uv = camera_c(inv(T_first_cam[c]) inv(fk(mod
 with ``X`` the board point (board frame = the calibration's world), ``model`` the calibrated
 kinematics (hand-eye and board pose included; its tool is the first camera), ``camera_c`` and
 ``T_first_cam[c]`` camera ``c``'s model and its pose in the first camera's frame, all from the
-calibration -- nothing is re-fitted. The same with the calibration's nominal reference (the
-nominal kinematics with only hand-eye and board pose fitted on the calibration data, the same
-cameras and extrinsics). Result: the 2-D reprojection RMS (px) of both, overall, per camera and
+calibration -- nothing is re-fitted. The same with the calibration's fair nominal (the nominal
+kinematics with hand-eye, board pose and cameras fitted on the calibration data by the
+calibration's own objective, :mod:`calib.nominal_fit`, with its own cameras and extrinsics).
+Result: the 2-D reprojection RMS (px) of both, overall, per camera and
 per image (``evaluation.json``). The board must not have moved between the two datasets (its
 pose is part of the model).
 """
@@ -175,6 +176,10 @@ def evaluate_board(cal: BoardCalibrationResult, cal_where: str, root: str | Path
         )
     T_first = np.eye(4)[None] if cal.T_first_cam is None else np.asarray(cal.T_first_cam)
     cams = {n: (cal.cameras[k], T_first[k]) for k, n in enumerate(cal.camera_names)}
+    nom_cams, nom_T = cal.nominal_camera_set
+    nom_T = np.eye(4)[None] if nom_T is None else np.asarray(nom_T)
+    by_model = {"nominal": {n: (nom_cams[k], nom_T[k]) for k, n in enumerate(cal.camera_names)},
+                "calibrated": cams}  # fmt: skip
     for cam_name in ds.info.cameras:
         if cam_name not in cams:
             raise InputError(
@@ -204,7 +209,6 @@ def evaluate_board(cal: BoardCalibrationResult, cal_where: str, root: str | Path
     skipped: list[str] = []
     for f in range(len(ds.indices)):
         for cam_name in ds.info.cameras:
-            camera, T_first_cam = cams[cam_name]
             ft, name = detected[cam_name][0][f], detected[cam_name][1][f]
             if len(ft) < board.min_features:
                 skipped.append(name)
@@ -214,6 +218,7 @@ def evaluate_board(cal: BoardCalibrationResult, cal_where: str, root: str | Path
                    "features": len(ft)}  # fmt: skip
             e: dict[str, np.ndarray] = {}
             for k in models:
+                camera, T_first_cam = by_model[k][cam_name]
                 Tc = inv_pose(T_first_cam) @ T[k][f]  # camera c <- board
                 e[k] = camera.project(X @ Tc[:3, :3].T + Tc[:3, 3]) - ft.uv
                 row[f"{k}_px"] = rms_px(e[k])

@@ -11,8 +11,7 @@ chain moves it must agree in scale.
 
 :func:`motion_scale` fits ``s T_world_cam ~ B fk(q) C`` over the postures -- the target's
 placement ``B`` (world <- base), the hand-eye ``C`` (flange <- camera) and the scale ``s`` free
--- by least squares on each camera pose's origin and axis tips at 0.1 m (as
-:func:`calib.board_dataset.nominal_reference`, which is the same fit with ``s = 1``).
+-- by least squares on each camera pose's origin and axis tips at 0.1 m.
 ``s > 1``: the target measures the motion smaller than the arm makes it (a board printed
 larger than declared, a known distance declared too short). :func:`scale_warning` turns a
 scale off by more than its tolerance (:data:`SCALE_TOL`, more for an arm that misfits its

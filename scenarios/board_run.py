@@ -186,8 +186,8 @@ def board_truth_report(root: Path, cal: BoardCalibrationResult, truth: Truth) ->
                 "nominal": pose_errors(fk_tool(cal.nominal_model, qv), T_true),
                 "note": (
                     "the camera's pose in the board frame predicted from the joint readings "
-                    "(no alignment); nominal: the nominal chain with only hand-eye and board "
-                    "pose fitted (calibration.json nominal_mcpc)"
+                    "(no alignment); nominal: the fair nominal, the nominal chain with hand-eye, "
+                    "board pose and camera fitted to the pixels (calibration.json nominal_mcpc)"
                 ),
             },
         },

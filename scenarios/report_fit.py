@@ -147,8 +147,8 @@ def board_fit_report(
         "intrinsics": {n: {"estimate": values[n], "std": std.get(n)} for n in cam.free},
         "parameters": params,
         "parameters_note": (
-            "nominal: the nominal chain with hand-eye and board pose fitted (calibration.json "
-            "nominal_mcpc), in the estimate's frame; 1 sigma: the Cramer-Rao bound at the "
+            "nominal: the fair nominal, the nominal chain with hand-eye, board pose and camera "
+            "fitted to the pixels (calibration.json nominal_mcpc), in the estimate's frame; 1 sigma: the Cramer-Rao bound at the "
             "estimate with the fit's noise (calibration.json bounds), none when it has no bounds"
         ),
         "identifiability": {"method": "board", "held": held},

@@ -15,7 +15,7 @@ from calib.mcpc import MCPCModel
 from calib.observations import ViewLayout
 from calib.transforms import adjoint, inv_pose, make_pose, pose_from_vec, skew
 
-__all__ = ["KinematicPoses"]
+__all__ = ["KinematicPoses", "joint_twists"]
 
 
 class KinematicPoses:
@@ -31,6 +31,10 @@ class KinematicPoses:
     ``model.params.reshape(-1)``, all others fixed at ``model``'s values), each ``rig = [w, v]``
     the left-perturbation of ``T_cam_first`` around ``T0_cam_first``: ``R = Rot(w) R0``,
     ``t = t0 + v``.
+
+    ``offset_joints`` (indices of revolute joints, 0-based): their zero offsets are estimated
+    too, as changes (rad) of ``model.joint_offsets`` right after ``rho_free`` (the parameter
+    ``p`` then reads ``[rho_free, offsets, rig, dq]``).
 
     With ``joint_corrections=True`` the parameters continue with ``dq`` (n per active
     configuration, rad / m): the poses use ``q_i + dq_i`` (errors in the joint read-back, e.g.
@@ -52,6 +56,7 @@ class KinematicPoses:
         active: np.ndarray | None = None,
         *,
         joint_corrections: bool = False,
+        offset_joints: np.ndarray | tuple[int, ...] = (),
     ):
         self.model = model
         self.q = np.atleast_2d(np.asarray(q, dtype=float))
@@ -60,6 +65,9 @@ class KinematicPoses:
         self.free_idx = np.asarray(free_idx, dtype=np.int64)
         if len(np.unique(self.free_idx)) != len(self.free_idx):
             raise ValueError("free_idx contains duplicates")
+        self.offset_joints = np.asarray(offset_joints, dtype=np.int64).reshape(-1)
+        if any(model.joint_types[j] != "revolute" for j in self.offset_joints.tolist()):
+            raise ValueError("offset_joints must name revolute joints")
         self.rigs0 = np.asarray(T0_cam_first, dtype=float).reshape(-1, 4, 4).copy()
         m = len(self.q)
         self.active = np.ones(m, bool) if active is None else np.asarray(active, bool).copy()
@@ -69,18 +77,19 @@ class KinematicPoses:
         self.layout = ViewLayout(m, 1 + len(self.rigs0))
         self.n_views = self.layout.n_views
         self.k = len(self.free_idx)
+        self.n_kin = self.k + len(self.offset_joints)  # the kinematic parameters (shared)
         act = np.flatnonzero(self.active)
         n = model.n
         n_rig = 6 * len(self.rigs0)
         self.n_dq = n * len(act) if joint_corrections else 0
-        self.dq_cols = self.k + n_rig + np.arange(self.n_dq)
-        self.n_params = self.k + n_rig + self.n_dq
-        width = self.k + (6 if n_rig else 0) + (n if joint_corrections else 0)
+        self.dq_cols = self.n_kin + n_rig + np.arange(self.n_dq)
+        self.n_params = self.n_kin + n_rig + self.n_dq
+        width = self.n_kin + (6 if n_rig else 0) + (n if joint_corrections else 0)
         cols = -np.ones((self.n_views, width), dtype=np.int64)
         by = self.layout.by_frame(cols)
-        by[act, :, : self.k] = np.arange(self.k)
+        by[act, :, : self.n_kin] = np.arange(self.n_kin)
         for c in range(1, self.layout.n_cameras):
-            by[act, c, self.k : self.k + 6] = self._rig_cols(c)
+            by[act, c, self.n_kin : self.n_kin + 6] = self._rig_cols(c)
         if joint_corrections:
             dq = self.dq_cols.reshape(len(act), 1, n)
             by[act, :, width - n :] = dq
@@ -89,13 +98,13 @@ class KinematicPoses:
 
     def _rig_cols(self, c: int) -> np.ndarray:
         """Indices in ``p`` of camera ``c``'s (>= 1) rig parameters ``[w, v]``."""
-        return self.k + 6 * (c - 1) + np.arange(6)
+        return self.n_kin + 6 * (c - 1) + np.arange(6)
 
     def initial_params(self) -> np.ndarray:
         return np.concatenate(
             [
                 self.model.params.reshape(-1)[self.free_idx],
-                np.zeros(6 * len(self.rigs0) + self.n_dq),
+                np.zeros(len(self.offset_joints) + 6 * len(self.rigs0) + self.n_dq),
             ]
         )
 
@@ -121,7 +130,11 @@ class KinematicPoses:
         """The MCPC model for parameters ``p``."""
         flat = self.model.params.reshape(-1).copy()
         flat[self.free_idx] = p[: self.k]
-        return self.model.with_params(flat)
+        if not len(self.offset_joints):
+            return self.model.with_params(flat)
+        offsets = np.asarray(self.model.joint_offsets, dtype=float).copy()
+        offsets[self.offset_joints] += p[self.k : self.n_kin]
+        return MCPCModel(flat.reshape(self.model.n + 1, 6), self.model.joint_types, offsets)
 
     def rig(self, p: np.ndarray, c: int = 1) -> np.ndarray:
         """``T_cam_first`` (4, 4) of camera ``c`` (default the second: ``T_right_left``)."""
@@ -155,14 +168,11 @@ class KinematicPoses:
         qa = self.joints(p)
         JL = np.zeros((len(act), 6, width))
         JL[..., : self.k] = -identification_jacobian(mdl, qa)[:, :, self.free_idx]
-        if self.n_dq:
-            F = fk_frames(mdl, qa)
-            X = inv_pose(F[:, -1:]) @ F[:, :-1]  # joint frames in the tool frame (m, n, 4, 4)
-            w = X[..., :3, 2]
-            tw = np.concatenate([np.cross(X[..., :3, 3], w), w], axis=-1)  # revolute
-            pris = np.array([t == "prismatic" for t in mdl.joint_types])
-            tw[:, pris] = np.concatenate([w[:, pris], 0 * w[:, pris]], axis=-1)
-            JL[..., width - mdl.n :] = -np.swapaxes(tw, 1, 2)
+        if self.n_dq or len(self.offset_joints):
+            tw = joint_twists(mdl, qa)
+            JL[..., self.k : self.n_kin] = -tw[:, :, self.offset_joints]
+            if self.n_dq:
+                JL[..., width - mdl.n :] = -tw
         by[act, 0] = JL
         for c in range(1, self.layout.n_cameras):
             Trig = self.rig(p, c)
@@ -172,5 +182,19 @@ class KinematicPoses:
             Jr[:3, 3:] = np.eye(3)
             Jr[3:, :3] = Jl
             by[act, c] = adjoint(Trig) @ JL
-            by[act, c, :, self.k : self.k + 6] = Jr
+            by[act, c, :, self.n_kin : self.n_kin + 6] = Jr
         return J
+
+
+def joint_twists(model: MCPCModel, q: np.ndarray) -> np.ndarray:
+    """(m, 6, n) the twist ``[v; w]`` of every joint's axis in the tool frame at the joints ``q``
+    (m, n) rad / m: the derivative of the tool pose (body twist, rows as
+    :func:`calib.kinematics.identification_jacobian`) by each joint variable -- and by a
+    revolute joint's zero offset."""
+    F = fk_frames(model, q)
+    X = inv_pose(F[:, -1:]) @ F[:, :-1]  # joint frames in the tool frame (m, n, 4, 4)
+    w = X[..., :3, 2]
+    tw = np.concatenate([np.cross(X[..., :3, 3], w), w], axis=-1)  # revolute
+    pris = np.array([t == "prismatic" for t in model.joint_types])
+    tw[:, pris] = np.concatenate([w[:, pris], 0 * w[:, pris]], axis=-1)
+    return np.swapaxes(tw, 1, 2)

@@ -11,8 +11,11 @@ m); the MCPC chain's tool is the first camera (OpenCV frame). Keys (units in the
                        lens coefficients, OpenCV names)}, free, std: {free name: px or 1},
                        T_first_camera}]
     mcpc              joint_types, joint_offsets_rad, params_si (n + 1, 6), columns, tool
-    nominal_mcpc      the nominal kinematics with only hand-eye and board pose fitted (the
-                      reference of ``selfcal evaluate``), same keys
+    nominal_mcpc      the fair nominal: the nominal chain with hand-eye, board pose and cameras
+                      fitted by the calibration's own objective (:mod:`calib.nominal_fit`;
+                      the reference of ``selfcal evaluate`` and ``report``), same keys
+    nominal_cameras   its cameras (as ``cameras``; absent in older files: the calibrated ones)
+    nominal_reprojection_rms_px   its fit
     reprojection_rms_px, dataset {frames, frames_used, skipped_images}, held, warnings
     bounds            Cramer-Rao bounds at the estimate (:class:`BoardBounds`: the tool tip's
                       aligned RMS (mm), every camera's free parameters, every minimal
@@ -146,6 +149,17 @@ class BoardCalibrationResult:
     bounds: BoardBounds | None = None
     """The Cramer-Rao bounds at the estimate, or None (``bounds_error`` says why)."""
     bounds_error: str | None = None
+    nominal_cameras: tuple[CameraModel, ...] = ()
+    """The fair nominal's cameras (empty: the calibrated ``cameras``, files before them)."""
+    nominal_T_first_cam: np.ndarray | None = None
+    nominal_rms_px: float | None = None
+
+    @property
+    def nominal_camera_set(self) -> tuple[tuple[CameraModel, ...], np.ndarray | None]:
+        """The fair nominal's cameras and their poses in the first camera's frame."""
+        if not self.nominal_cameras:
+            return self.cameras, self.T_first_cam
+        return self.nominal_cameras, self.nominal_T_first_cam
 
     def to_json(self) -> dict:
         """The document (key order fixed)."""
@@ -163,6 +177,30 @@ class BoardCalibrationResult:
             ],
             "mcpc": _model_json(self.model, f"camera {self.camera_names[0]} (OpenCV frame)"),
             "nominal_mcpc": _model_json(self.nominal_model, "the same camera, nominal chain"),
+            **(
+                {}
+                if not self.nominal_cameras
+                else {
+                    "nominal_cameras": [
+                        camera_json(
+                            n,
+                            c,
+                            {},
+                            None
+                            if self.nominal_T_first_cam is None
+                            else self.nominal_T_first_cam[k],
+                        )
+                        for k, (n, c) in enumerate(
+                            zip(self.camera_names, self.nominal_cameras, strict=True)
+                        )
+                    ]
+                }
+            ),
+            **(
+                {}
+                if self.nominal_rms_px is None
+                else {"nominal_reprojection_rms_px": self.nominal_rms_px}
+            ),
             "reprojection_rms_px": self.reprojection_rms_px,
             "dataset": {
                 "frames": self.frames,
@@ -184,21 +222,12 @@ class BoardCalibrationResult:
         cams, names, stds, Ts = [], [], [], []
         for c in f.items("cameras"):
             Ts.append(c.array("T_first_camera", (4, 4)))
-            model = c.str("model")
-            if model not in MODELS:
-                raise c.bad("model", f"one of {tuple(MODELS)}", model)
-            p, (w, h) = c.sub("parameters"), c.ints("resolution")
-            coeffs = {k: p.float(k) for k in lens_names(model)}
-            try:
-                cams.append(camera_model(model, fx=p.float("fx"), mu=p.float("fy") / p.float("fx"),
-                                         cx=p.float("cx"), cy=p.float("cy"), width=w, height=h,
-                                         coeffs=coeffs, free=c.strs("free"),
-                                         skew=p.float("skew") if p.has("skew") else 0.0))  # fmt: skip
-            except ValueError as e:
-                raise c.bad("free", f"parameter names of the {model} model", c.raw("free")) from e
+            cams.append(_camera_from(c))
             names.append(c.str("name"))
             s = c.sub("std")
             stds.append({k: s.float(k) for k in s.doc})
+        nom = [(_camera_from(c), c.array("T_first_camera", (4, 4)))
+               for c in (f.items("nominal_cameras") if f.has("nominal_cameras") else [])]  # fmt: skip
         d = f.sub("dataset")
         return cls(
             robot_model=f.str("robot_model"),
@@ -217,7 +246,30 @@ class BoardCalibrationResult:
             T_first_cam=np.stack(Ts) if len(Ts) > 1 else None,
             bounds=BoardBounds.from_json(f.sub("bounds")) if f.has("bounds") else None,
             bounds_error=f.str("bounds_error") if f.has("bounds_error") else None,
+            nominal_cameras=tuple(c for c, _ in nom),
+            nominal_T_first_cam=np.stack([T for _, T in nom]) if len(nom) > 1 else None,
+            nominal_rms_px=(
+                f.float("nominal_reprojection_rms_px")
+                if f.has("nominal_reprojection_rms_px")
+                else None
+            ),  # fmt: skip
         )
+
+
+def _camera_from(c: Fields) -> CameraModel:
+    """One ``cameras`` entry's camera model (the error names the key)."""
+    model = c.str("model")
+    if model not in MODELS:
+        raise c.bad("model", f"one of {tuple(MODELS)}", model)
+    p, (w, h) = c.sub("parameters"), c.ints("resolution")
+    coeffs = {k: p.float(k) for k in lens_names(model)}
+    try:
+        return camera_model(model, fx=p.float("fx"), mu=p.float("fy") / p.float("fx"),
+                            cx=p.float("cx"), cy=p.float("cy"), width=w, height=h,
+                            coeffs=coeffs, free=c.strs("free"),
+                            skew=p.float("skew") if p.has("skew") else 0.0)  # fmt: skip
+    except ValueError as e:
+        raise c.bad("free", f"parameter names of the {model} model", c.raw("free")) from e
 
 
 def write_board_calibration(path: str | Path, result: BoardCalibrationResult) -> Path:
