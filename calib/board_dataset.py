@@ -6,7 +6,8 @@ target's detector (:meth:`calib.target.Target.detect`); images without the board
 counted and skipped by :func:`calib.board_calibrate.calibrate_board` (an error when too few
 remain); :func:`calib.board_robot.calibrate_robot_with_board` then estimates the camera (the
 model and free parameters dataset.json declares, e.g. OpenCV's lens model), hand-eye, board pose
-and kinematics (scale from the board, no known distance). With several cameras
+and the kinematic parameters the data support (:mod:`calib.param_selection`; scale from the
+board, no known distance). With several cameras
 (:func:`calib.board_rig.calibrate_board_rig` gives their start) every camera's model and pose in
 the first camera's frame join that refinement. The reference of
 ``selfcal evaluate`` -- the fair nominal: the nominal kinematics with the hand-eye, the board
@@ -211,6 +212,18 @@ def calibrate_board_dataset_detailed(
     nominal = nominal_mcpc(robot).with_tool(robot.T_flange_cam)
     q = np.radians(ds.joints_deg)
     W, H = ds.info.resolution_of(cam)
+
+    def pairing_check(what: str) -> None:
+        """The data check when a fit fails: an error naming a row shift if the data show one."""
+        found = _data_notes(ds, board, feats, names, robot, W, H, model_name, free)
+        if found:
+            note = "; ".join(found)
+            raise IdentificationError(
+                f"{ds.root}: the camera poses the board gives do not fit one robot: {what}; {note}",
+                fix=f"check that every joints row belongs to its image ({ds.root}/sources.csv "
+                "names each frame's file), the target's sizes and that --robot is this arm",
+            )
+
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
@@ -229,23 +242,24 @@ def calibrate_board_dataset_detailed(
                 rig=rig,
                 rig_features=[o[0] for o in others],
             )
-        except IdentificationError as exc:
-            found = _data_notes(ds, board, feats, names, robot, W, H, model_name, free)
-            if found:  # a data check shows what is wrong: name the data
-                raise IdentificationError(
-                    f"{ds.root}: the camera poses the board gives do not fit one robot: "
-                    f"{exc.message}; " + "; ".join(found),
-                    fix=f"check that every joints row belongs to its image ({ds.root}/sources.csv "
-                    "names each frame's file), the target's sizes and that --robot is this arm",
-                ) from exc
+        except EstimationError as exc:
+            pairing_check(exc.message)
             raise type(exc)(
                 f"{ds.root}: {exc.message}; the checks of the data (rows paired with their "
                 "images, the target's scale against the arm's) found nothing wrong",
                 fix=exc.fix,
             ) from exc
-    used = res.used
-    assert res.nominal is not None
     notes = list(incomplete)
+    if res.identification_error is not None:  # a data check first: rows paired with images
+        pairing_check(res.identification_error)
+        notes.append(
+            f"the two-stage identification failed ({res.identification_error}); no row shift "
+            "shows in the data, so the fits started from the fair nominal instead"
+        )
+    used = res.used
+    sel = res.selection
+    assert sel is not None and res.nominal is not None
+    notes += sel.notes
     sizes = {k: float(v) for k, v in (ds.info.board or {}).items() if k.endswith("_mm")}
     # the camera poses of the calibrated chain: they fit the images with the final camera
     notes += check_scale(robot, q[used], fk_tool(res.model, q[used]),
@@ -282,6 +296,7 @@ def calibrate_board_dataset_detailed(
         nominal_cameras=res.nominal.cameras,
         nominal_T_first_cam=None if rig is None else res.nominal.T_first_cam,
         nominal_rms_px=res.nominal.rms_px,
+        selection=sel.to_json(),
         reprojection_rms_px=res.rms_px,
         frames=len(ds.indices),
         frames_used=int(used.sum()),

@@ -102,16 +102,21 @@ def refine_on_board(
     cameras: Sequence[CameraModel] | None = None,
     max_iter: int = 100,
     stds: bool = True,
+    converge: bool = True,
+    tol: float = 1e-12,
 ) -> Refinement:
     """Fit the flat MCPC parameters ``free_idx`` and the zero offsets of ``offset_joints`` of
     ``start`` (every other parameter held at its value), every camera's free parameters (from
     ``cameras``, default the camera stage's and the rig's) and the further cameras' extrinsics
     to the inlier pixels of the frames ``train`` (m,) bool (default every frame with the board),
     robust to nothing (the camera stage rejected the outliers), on the one solver. ``stds``:
-    compute the cameras' standard deviations (the cross-validation's fits skip them).
+    compute the cameras' standard deviations (the cross-validation's fits skip them);
+    ``converge=False``: take the iterate after ``max_iter`` iterations (a few Gauss-Newton
+    steps from a nearby fit) instead of an error; ``tol``: the solver's relative tolerance.
 
     Raises:
-        EstimationError: the solver did not converge within ``max_iter`` iterations.
+        EstimationError: the solver did not converge within ``max_iter`` iterations (with
+            ``converge``) or failed.
     """
     used = obs.used if train is None else obs.used & np.asarray(train, bool)
     rig = obs.rig
@@ -147,8 +152,8 @@ def refine_on_board(
         cameras[0], poses, view, np.searchsorted(ids, feat0), uv, len(ids), loss=Loss("linear"),
         x0=x0, extra=extra, fixed_points=obs.board.points(ids), extra_params=extra_params,
     )  # fmt: skip
-    sol = solve(prob.problem, SolverOptions(tol=1e-12, max_iterations=max_iter, eliminate="poses"))
-    if sol.status <= 0:
+    sol = solve(prob.problem, SolverOptions(tol=tol, max_iterations=max_iter, eliminate="poses"))
+    if sol.status < 0 or (sol.status == 0 and converge):
         raise EstimationError(
             f"the refinement of kinematics and camera on the board did not converge within "
             f"{max_iter} iterations ({sol.message})",

@@ -6,14 +6,18 @@ somewhere in the scene):
 1. :func:`calib.board_calibrate.calibrate_board` -- the camera and the board pose of every frame
    (Zhang via ``cv2.calibrateCamera``, then the bundle adjustment with the board held);
 2. the fair nominal (:mod:`calib.nominal_fit`): the nominal chain with board pose, hand-eye and
-   cameras fitted to the pixels -- the reference every result is judged against;
-3. :func:`calib.identify.identify` -- the minimal MCPC parameters (tool = camera) fitted to the
-   camera poses in the board frame (the two-stage method of the paper);
-4. the one-step refinement (:mod:`calib.board_refine`): the same bundle adjustment with the
-   camera poses taken from the kinematic chain and the board's points held at their declared
-   positions. The board fixes the world frame (the board frame) and the scale, so no parameter
-   is held for a gauge and no known distance is needed; only the parameters the identification
-   found unidentifiable stay held. With a rig of N >= 2 cameras
+   cameras fitted to the pixels -- the reference every result is judged against, and the start
+   of every further fit;
+3. :func:`calib.identify.identify` -- the two-stage method of the paper on the camera poses, a
+   check of the data (its failure on a small set is noted, not fatal: the fits start from the
+   fair nominal);
+4. the kinematic parameters the data support (:mod:`calib.param_selection`: rank and
+   conditioning of the identification Jacobian, then leave-one-configuration-out
+   cross-validation between nested candidates), each candidate the one-step refinement of
+   :mod:`calib.board_refine`: the same bundle adjustment with the camera poses taken from the
+   kinematic chain and the board's points held at their declared positions. The board fixes the
+   world frame (the board frame) and the scale, so no parameter is held for a gauge and no
+   known distance is needed. With a rig of N >= 2 cameras
    (:func:`calib.board_rig.calibrate_board_rig` gives its start) every further camera's pixels
    join the same adjustment: its own model and free parameters, its pose in the first camera's
    frame (``T_first_cam``) estimated with the kinematics (the robot's tool is the first
@@ -21,6 +25,9 @@ somewhere in the scene):
    :func:`calib.estimation.joint_report.encoder_sigma`) every frame gets joint corrections with
    a zero-mean Gaussian prior (errors in variables, as :mod:`calib.joint_refine` explains);
    without, the read-back is taken as exact.
+
+The model is written in the MCPC gauge with the nominal's joint offsets
+(:func:`calib.nominal_fit.standard_gauge`), so its minimal parameters compare one to one.
 
 Frames: the world is the board frame (m); the model's tool is the OpenCV camera frame. SI units.
 """
@@ -33,12 +40,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from calib.board_calibrate import BoardCalibration, calibrate_board
-from calib.board_refine import BoardObservations, Refinement, refine_on_board
+from calib.board_refine import BoardObservations, Refinement
 from calib.board_rig import BoardRigCalibration
 from calib.camera import CameraModel, Pinhole
-from calib.identify import IdentificationResult, identify
-from calib.mcpc import MCPCModel, minimal_indices, param_names
-from calib.nominal_fit import fit_nominal
+from calib.identify import IdentificationError, IdentificationResult, identify
+from calib.mcpc import MCPCModel
+from calib.nominal_fit import fit_nominal, standard_gauge
+from calib.param_selection import Selection, select_parameters
 from calib.target.base import Features
 from calib.target.boards import Board
 from calib.transforms import inv_pose
@@ -50,10 +58,12 @@ __all__ = ["BoardRobotCalibration", "calibrate_robot_with_board"]
 class BoardRobotCalibration:
     """Result of :func:`calibrate_robot_with_board`: the refined kinematic ``model`` (world =
     board frame, tool = camera) and ``camera``; ``camera_std`` of its free parameters; the stages
-    it started from (``board``: the camera stage, ``identification``: the two-stage model);
-    ``used`` (m,) the frames in the adjustment; ``rms_px`` the final reprojection RMS (2-D,
-    every camera's inliers); ``held``: minimal parameters held (unidentifiable from the frames);
-    ``nominal``: the fair nominal (:mod:`calib.nominal_fit`).
+    it started from (``board``: the camera stage, ``identification``: the two-stage model, None
+    when it failed: ``identification_error`` says why); ``used`` (m,) the frames in the
+    adjustment; ``rms_px`` the final reprojection RMS (2-D, every camera's inliers); ``held``:
+    the kinematic parameters held (``selection`` says why: rank, conditioning or
+    cross-validation, :mod:`calib.param_selection`); ``nominal``: the fair nominal
+    (:mod:`calib.nominal_fit`).
     ``cameras``, ``cameras_std``: every camera of the rig (the first is ``camera``);
     ``T_first_cam`` (N, 4, 4): every camera's pose in the first camera's frame (m; the first
     the identity)."""
@@ -70,6 +80,8 @@ class BoardRobotCalibration:
     cameras_std: tuple[dict[str, float], ...] = ()
     T_first_cam: np.ndarray = field(default_factory=lambda: np.eye(4)[None])
     nominal: Refinement | None = None
+    selection: Selection | None = None
+    identification_error: str | None = None
 
 
 def calibrate_robot_with_board(
@@ -102,10 +114,8 @@ def calibrate_robot_with_board(
 
     Raises:
         calib.board_calibrate.BoardInputError / BoardMismatchError: as :func:`calibrate_board`.
-        calib.identify.IdentificationError: too few frames for the kinematics;
-            calib.identify.IdentificationSolverError (a kind of it) when the two-stage
-            identification's solver failed (a caller may fall back to the nominal chain).
-        EstimationError: the fair nominal or the refinement did not converge.
+        EstimationError: not even the fair nominal could be fitted (the selection's other
+            candidates that fail are noted and left out).
     """
     q = np.atleast_2d(np.asarray(q, dtype=float))
     if len(q) != len(features):
@@ -117,22 +127,27 @@ def calibrate_robot_with_board(
         raise ValueError(f"a rig of {n_cams} cameras needs {n_cams - 1} further feature lists")
     obs = BoardObservations(board, cam_stage, features, q, rig, rig_features, joint_sigma)
     used = cam_stage.used.copy()
-    ident = identify(nominal, q[used], inv_pose(cam_stage.T_cam_board[used]))
     nominal_fit = fit_nominal(obs, nominal)
-    idx = minimal_indices(nominal.joint_types)
-    held = tuple(n for n, est in zip(param_names(idx), ident.estimated, strict=True) if not est)
-    fit = refine_on_board(obs, ident.model, idx[ident.estimated], max_iter=max_iter)
+    ident, ident_error = None, None
+    try:  # the two-stage identification: a check of the data (and the Monte Carlo's comparison)
+        ident = identify(nominal, q[used], inv_pose(cam_stage.T_cam_board[used]))
+    except IdentificationError as exc:
+        ident_error = exc.message
+    selection = select_parameters(obs, nominal_fit.model, max_iter=max_iter)
+    fit = selection.fit
     return BoardRobotCalibration(
-        model=fit.model,
+        model=standard_gauge(fit.model, nominal_fit.model.joint_offsets),
         camera=fit.cameras[0],
         camera_std=fit.cameras_std[0],
         board=cam_stage,
         identification=ident,
         used=used,
         rms_px=fit.rms_px,
-        held=held,
+        held=tuple(selection.held),
         cameras=fit.cameras,
         cameras_std=fit.cameras_std,
         T_first_cam=fit.T_first_cam,
         nominal=nominal_fit,
+        selection=selection,
+        identification_error=ident_error,
     )

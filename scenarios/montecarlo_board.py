@@ -46,7 +46,9 @@ def evaluate_board_draw(root: Path, pixel_sigma: float) -> dict:
     qv = np.radians(ds.info.validation_joints_deg)
     T_cam_tip = truth.T_cam_tip
     p_true = tool_tips(truth.true_model, qv, T_cam_tip)
-    models = {"joint": cal.model, "two_stage": fit.identification.model}
+    # the two-stage identification can fail on a draw (the fits then start from the nominal)
+    two = None if fit.identification is None else fit.identification.model
+    models = {"joint": cal.model, **({} if two is None else {"two_stage": two})}
     row: dict = {}
     for k, mdl in models.items():
         row[f"{k}_tip_rms_mm"] = aligned_errors(tool_tips(mdl, qv, T_cam_tip), p_true)["rms"]
@@ -67,6 +69,9 @@ def evaluate_board_draw(root: Path, pixel_sigma: float) -> dict:
         true_b = express_in_frame(truth.true_model, T_board_world, like=mdl)
         for name, e in zip(names, minimal_difference(mdl, true_b) * scale, strict=True):
             row[f"{k}_err_{name}"] = float(e)
+    if two is None:
+        row["two_stage_tip_rms_mm"] = float("nan")
+        row.update({f"two_stage_err_{name}": float("nan") for name in names})
     # the bound at this draw's one-step estimate, with the true noise levels
     used = np.flatnonzero(fit.used).tolist()
     b = bounds_block(

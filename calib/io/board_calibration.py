@@ -17,6 +17,9 @@ m); the MCPC chain's tool is the first camera (OpenCV frame). Keys (units in the
     nominal_cameras   its cameras (as ``cameras``; absent in older files: the calibrated ones)
     nominal_reprojection_rms_px   its fit
     reprojection_rms_px, dataset {frames, frames_used, skipped_images}, held, warnings
+    selection         which kinematic parameters were identified and why the others were held
+                      (:mod:`calib.param_selection`: rank, conditioning, the cross-validation
+                      of every candidate), absent in older files
     bounds            Cramer-Rao bounds at the estimate (:class:`BoardBounds`: the tool tip's
                       aligned RMS (mm), every camera's free parameters, every minimal
                       parameter), or absent with ``bounds_error`` saying why
@@ -153,6 +156,8 @@ class BoardCalibrationResult:
     """The fair nominal's cameras (empty: the calibrated ``cameras``, files before them)."""
     nominal_T_first_cam: np.ndarray | None = None
     nominal_rms_px: float | None = None
+    selection: dict | None = None
+    """:meth:`calib.param_selection.Selection.to_json`, or None (files before it)."""
 
     @property
     def nominal_camera_set(self) -> tuple[tuple[CameraModel, ...], np.ndarray | None]:
@@ -208,6 +213,7 @@ class BoardCalibrationResult:
                 "skipped_images": list(self.skipped_images),
             },
             "held": list(self.held),
+            **({} if self.selection is None else {"selection": self.selection}),
             "warnings": list(self.warnings),
             **({} if self.bounds is None else {"bounds": self.bounds.to_json()}),
             **({} if self.bounds_error is None else {"bounds_error": self.bounds_error}),
@@ -246,6 +252,7 @@ class BoardCalibrationResult:
             T_first_cam=np.stack(Ts) if len(Ts) > 1 else None,
             bounds=BoardBounds.from_json(f.sub("bounds")) if f.has("bounds") else None,
             bounds_error=f.str("bounds_error") if f.has("bounds_error") else None,
+            selection=dict(f.sub("selection").doc) if f.has("selection") else None,
             nominal_cameras=tuple(c for c, _ in nom),
             nominal_T_first_cam=np.stack([T for _, T in nom]) if len(nom) > 1 else None,
             nominal_rms_px=(
