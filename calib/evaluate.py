@@ -135,12 +135,19 @@ class Evaluation:
 
     def line(self) -> str:
         """The one line ``selfcal evaluate`` prints (with each camera's calibrated RMS when
-        there are several)."""
+        there are several), saying when the calibrated model is no gain over the nominal."""
         n = sum(i["features"] for i in self.images)
         out = (
             f"held-out reprojection RMS over {n} features in {len(self.images)} images: nominal "
             f"{self.rms['nominal']:.3f} px, calibrated {self.rms['calibrated']:.3f} px"
         )
+        cal, nom = self.rms["calibrated"], self.rms["nominal"]
+        if not cal < nom * (1 - 1e-9):
+            out += (
+                "; NO GAIN: the calibrated model predicts no better than the nominal"
+                if cal <= nom * (1 + 1e-9)
+                else "; WORSE than the nominal"
+            )
         if len(self.cameras) > 1:
             out += (
                 " (calibrated by camera: "

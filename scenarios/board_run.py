@@ -341,13 +341,37 @@ def calibrate_board_run(
     return res
 
 
+def _nominal_text(res: BoardCalibrationResult) -> str:
+    """The fair nominal's fit, what was identified and, when it is no gain, that it is none."""
+    out = ""
+    if res.nominal_rms_px is not None:
+        out += f" (fair nominal {res.nominal_rms_px:.3f} px)"
+    sel = res.selection
+    if sel:
+        cands = {c["label"]: c for c in sel["candidates"]}
+        ch, nom = cands[sel["chosen"]], sel["candidates"][0]
+        cv = (
+            ""
+            if ch.get("cv_px") is None or nom.get("cv_px") is None
+            else (
+                f", cross-validated {ch['cv_px']:.3f} px against the nominal's {nom['cv_px']:.3f} px"
+            )
+        )
+        extra = len(ch["parameters"]) - len(nom["parameters"])
+        out += f"; {extra} kinematic parameter(s) beyond the placement identified{cv}"
+    verdict = res.cv_verdict()
+    if verdict:
+        out += f"; NO GAIN: {verdict}"
+    return out
+
+
 def summary(res: BoardCalibrationResult) -> str:
     """One line on a board calibration, and one more per further camera of a rig."""
     c = res.cameras[0]
     lines = [
         f"calibrated {res.frames_used}/{res.frames} frames with the {res.target['type']} "
         f"({c.model_name} camera): {_camera_text(c)}, "
-        f"reprojection RMS {res.reprojection_rms_px:.3f} px"
+        f"reprojection RMS {res.reprojection_rms_px:.3f} px" + _nominal_text(res)
     ]
     for name, cam in zip(res.camera_names[1:], res.cameras[1:], strict=True):
         lines.append(f"camera {name} ({cam.model_name}): {_camera_text(cam)}")

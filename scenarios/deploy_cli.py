@@ -155,6 +155,39 @@ def _usable(cal: CalibrationResult, path: Path) -> CalibrationResult:
     return cal
 
 
+def _refuse_no_gain(path: str, force: bool) -> None:
+    """A :class:`CliError` when the board calibration ``path`` is no gain over its fair nominal
+    -- by its cross-validation (calibration.json ``selection``) or by the held-out check in its
+    folder (``evaluation.json``) -- unless ``force`` (then a warning)."""
+    import warnings
+
+    from calib.errors import SelfCalWarning
+    from calib.evaluate import read_evaluation
+    from calib.io.board_calibration import calibration_kind, read_board_calibration
+
+    p = _calibration_file(path)
+    if p.suffix != ".json" or calibration_kind(p) != "board":
+        return
+    why = read_board_calibration(p).cv_verdict()
+    ev = p.parent / "evaluation.json"
+    if why is None and ev.is_file():
+        rms = read_evaluation(ev).rms
+        if not rms["calibrated"] < rms["nominal"]:
+            why = (f"its held-out reprojection in {ev} ({rms['calibrated']:.3f} px) is not "
+                   f"below the fair nominal's ({rms['nominal']:.3f} px)")  # fmt: skip
+    if why is None:
+        return
+    if force:
+        warnings.warn(f"{p}: exported with --force although {why}", SelfCalWarning, stacklevel=2)
+        return
+    raise CliError(
+        f"{p}: not exported: {why}; the calibrated kinematics are no better than the nominal "
+        "robot's",
+        fix="add arm configurations (move the first joints, not only the wrist) and calibrate "
+        "again, or give --force to export it anyway",
+    )
+
+
 def cmd_export(args: argparse.Namespace) -> int:
     """``selfcal export``: write the calibrated model in the chosen format."""
     if args.bag:
@@ -187,6 +220,7 @@ def cmd_export(args: argparse.Namespace) -> int:
     if fmt in CAMERA_FORMATS:
         note_written(args, out)
         return _export_camera(args.calibration, fmt, out, args.camera_name, args.camera)
+    _refuse_no_gain(args.calibration, args.force)
     dep = load_calibration(args.calibration)
     robot = calibration_robot(args.calibration, dep.robot_name)
     if fmt == "mjcf":
@@ -348,6 +382,12 @@ def register(subparsers) -> None:
         "--out",
         default=None,
         help="output file (default calibrated.<format suffix> next to the calibration.json)",
+    )
+    sp.add_argument(
+        "--force",
+        action="store_true",
+        help="export a board calibration even when it is no gain over its fair nominal (its "
+        "cross-validation or held-out check)",
     )
     add_bag_export_args(sp)
     sp.set_defaults(func=cmd_export)

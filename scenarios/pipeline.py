@@ -343,6 +343,12 @@ def _write_fit_report(root: Path, report: dict, drawn: list[Path], *, quiet: boo
     report["figures"] = [str(p.relative_to(root)) for p in drawn]
     failures = list(report.get("failures", []))
     rms = report["held_out"].get("reprojection_rms_px")
+    if rms is not None and "verdict" not in report and not rms["calibrated"] < rms["nominal"]:
+        report["verdict"] = (
+            f"no gain: the held-out reprojection of the calibrated model "
+            f"({rms['calibrated']:.3f} px) is not below the nominal reference's "
+            f"({rms['nominal']:.3f} px)"
+        )
     if rms is not None and rms["calibrated"] > rms["nominal"]:
         failures.append(
             f"the held-out reprojection of the calibrated model ({rms['calibrated']:.3f} px) is "
@@ -386,8 +392,10 @@ def report_summary(report: dict, root: Path) -> str:
             r = h["reprojection_rms_px"]
             held = (f"held-out reprojection {r['calibrated']:.3f} px RMS calibrated, "
                     f"{r['nominal']:.3f} px nominal over {h['images']} images ({h['source']})")  # fmt: skip
+        verdict = report.get("verdict")
+        verdict = "" if not verdict else "; NO GAIN: " + verdict.removeprefix("no gain: ")
         return (f"report (no truth): fit {report['fit']['reprojection_rms_px']:.3f} px RMS; "
-                f"{held}; {Path(root) / 'report.json'}")  # fmt: skip
+                f"{held}{verdict}; {Path(root) / 'report.json'}")  # fmt: skip
     v = report["validation"]
     t = v["tool_tip_error_mm"]
     bound = v.get("tool_tip_bound_mm")

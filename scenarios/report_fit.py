@@ -123,7 +123,8 @@ def board_fit_report(
     :func:`fit_report`; the kinematics' sigmas are their Cramer-Rao bounds at the estimate
     (``calibration.json`` ``bounds``), the camera's its fit's, and the parameters it held."""
     root = Path(root)
-    held = {n: "held: not identifiable from this data" for n in cal.held}
+    reasons = {} if cal.selection is None else cal.selection.get("held", {})
+    held = {n: reasons.get(n, "held: not identifiable from this data") for n in cal.held}
     params = parameter_table(cal.model, {}, None, cal.nominal_model)
     # the kinematics' sigmas: the Cramer-Rao bound at the estimate with the fit's own noise
     # (calibration.json bounds), what an efficient estimator's standard deviation is
@@ -151,9 +152,11 @@ def board_fit_report(
             "fitted to the pixels (calibration.json nominal_mcpc), in the estimate's frame; 1 sigma: the Cramer-Rao bound at the "
             "estimate with the fit's noise (calibration.json bounds), none when it has no bounds"
         ),
-        "identifiability": {"method": "board", "held": held},
+        "identifiability": {"method": "board", "held": held,
+                            **({} if cal.selection is None else {"selection": cal.selection})},
+        **({} if (verdict := cal.cv_verdict()) is None else {"verdict": f"no gain: {verdict}"}),
         "warnings": list(cal.warnings),
-    }
+    }  # fmt: skip
 
 
 def fit_markdown(r: dict, figures: list[str]) -> str:
@@ -184,6 +187,8 @@ def fit_markdown(r: dict, figures: list[str]) -> str:
             f"| nominal reference | {rms['nominal']:.3f} |",
             f"| calibrated | {rms['calibrated']:.3f} |",
         ]
+    if "verdict" in r:
+        lines += ["", f"**{r['verdict']}**"]
     idf = r["identifiability"]
     lines += ["", "## Identifiability", ""]
     if "two_stage" in idf:
@@ -200,6 +205,8 @@ def fit_markdown(r: dict, figures: list[str]) -> str:
             f"One-step refinement: rank {j['rank']}/{j['n_unknowns']} unknowns; gauge held: "
             f"{', '.join(j['gauge_held']) or 'none'}."
         )
+    if "selection" in idf:
+        lines += selection_markdown(idf["selection"])
     if idf["held"]:
         lines += ["", "Held parameters:", ""]
         lines += [f"- {k}: {v}" for k, v in idf["held"].items()]
@@ -214,6 +221,23 @@ def fit_markdown(r: dict, figures: list[str]) -> str:
     if r["warnings"]:
         lines += ["", "## Warnings", ""] + [f"- {w}" for w in r["warnings"]]
     return "\n".join(lines) + "\n"
+
+
+def selection_markdown(sel: dict) -> list[str]:
+    """The parameter selection of a board calibration (calibration.json ``selection``): what
+    was identified, the rule and every candidate's cross-validated errors."""
+    out = [
+        f"Identified: {', '.join(sel['identified'])} (chosen: {sel['chosen']}; {sel['rule']}).",
+        "",
+        "| candidate | parameters | fit (px) | cross-validated (px) | per fold (px) |",
+        "|---|---|---|---|---|",
+    ]
+    for c in sel["candidates"]:
+        fit = "-" if c["fit_rms_px"] is None else f"{c['fit_rms_px']:.3f}"
+        cv = "-" if c["cv_px"] is None else f"{c['cv_px']:.3f}"
+        folds = ", ".join("-" if v is None else f"{v:.3f}" for v in c["fold_rms_px"])
+        out.append(f"| {c['label']} | {c['n_parameters']} | {fit} | {cv} | {folds} |")
+    return out
 
 
 def parameter_markdown(rows: list[dict], *, truth: bool) -> str:

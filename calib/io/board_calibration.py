@@ -166,6 +166,27 @@ class BoardCalibrationResult:
             return self.cameras, self.T_first_cam
         return self.nominal_cameras, self.nominal_T_first_cam
 
+    def cv_verdict(self) -> str | None:
+        """Why the calibration is no gain over the fair nominal by its cross-validation (one
+        sentence), or None when it predicts better (or the file has no selection)."""
+        sel = self.selection
+        if not sel:
+            return None
+        cands = {c["label"]: c for c in sel["candidates"]}
+        first = sel["candidates"][0]
+        chosen = cands[sel["chosen"]]
+        if chosen is first:
+            return (
+                f"the calibration is the fair nominal: cross-validation over "
+                f"{sel['configurations']} arm configuration(s) supports no kinematic parameter "
+                "beyond hand-eye, board pose and camera (calibration.json selection)"
+            )
+        c, n = chosen.get("cv_px"), first.get("cv_px")
+        if c is None or n is None or c < n:
+            return None
+        return (f"the calibrated model's cross-validated error ({c:.3f} px) is not below the fair "
+                f"nominal's ({n:.3f} px)")  # fmt: skip
+
     def to_json(self) -> dict:
         """The document (key order fixed)."""
         return {
