@@ -1,8 +1,8 @@
 """Shared test setup: headless rendering through MuJoCo's EGL backend, and the golden-file option.
 
 Tiers (see README): ``tests/unit`` pure functions, ``tests/integration`` whole paths on small data,
-``tests/slow`` rendering-heavy studies and Monte Carlo. ``uv run pytest`` runs the first two;
-``.ci/run`` runs all three.
+tests marked ``slow`` (rendering-heavy studies and Monte Carlo), ``tests/real`` (marked ``real``:
+real recordings through the CLI). ``uv run pytest`` runs the first two; ``.ci/run`` runs all four.
 """
 
 from __future__ import annotations
