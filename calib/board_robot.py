@@ -134,7 +134,9 @@ def calibrate_robot_with_board(
     except IdentificationError as exc:
         ident_error = exc.message
     selection = select_parameters(obs, nominal_fit.model, max_iter=max_iter)
-    fit = selection.fit
+    # the nominal chosen: the calibration IS the fair nominal (the same numbers, not a refit
+    # that differs in the ninth digit and reads as a gain)
+    fit = nominal_fit if selection.chosen == 0 else selection.fit
     return BoardRobotCalibration(
         model=standard_gauge(fit.model, nominal_fit.model.joint_offsets),
         camera=fit.cameras[0],

@@ -43,6 +43,9 @@ __all__ = [
 EVAL_FORMAT = "scorbot-selfcal-evaluation"
 SAME_POSTURE_DEG = 1e-4
 """Joint readings this close (deg or mm, every joint) are one posture (:func:`shared_postures`)."""
+SAME_RMS = 1e-6
+"""Relative difference of two RMS at or below which they are the same figure (a model written
+in another gauge predicts the same pixels to about 1e-9)."""
 
 
 class EvaluationWarning(SelfCalWarning):
@@ -110,7 +113,7 @@ class Evaluation:
         """The held-out check failed: the calibrated model predicts worse than the nominal one
         (one sentence), else empty (#15)."""
         cal, nom = self.rms.get("calibrated", np.nan), self.rms.get("nominal", np.nan)
-        if not cal > nom:
+        if not cal > nom * (1 + SAME_RMS):  # equal: the calibration is the nominal (NO GAIN)
             return ()
         return (
             f"the calibrated model predicts the held-out images of {self.dataset} worse than the "
@@ -142,10 +145,10 @@ class Evaluation:
             f"{self.rms['nominal']:.3f} px, calibrated {self.rms['calibrated']:.3f} px"
         )
         cal, nom = self.rms["calibrated"], self.rms["nominal"]
-        if not cal < nom * (1 - 1e-9):
+        if not cal < nom * (1 - SAME_RMS):
             out += (
                 "; NO GAIN: the calibrated model predicts no better than the nominal"
-                if cal <= nom * (1 + 1e-9)
+                if cal <= nom * (1 + SAME_RMS)
                 else "; WORSE than the nominal"
             )
         if len(self.cameras) > 1:

@@ -94,18 +94,16 @@ SETS = {
 }
 
 # What fails today, measured by this tier (docs/real-data.md): (test, set) -> reason.
-HELD_OUT_TESTS = ("reference", "beats_nominal", "fair_nominal")
-_PHOTONEO = "import exits 2, the board found in 0 of 20 frames (OpenCV: 20): nothing calibrated"
+
 _MECHEYE = (
-    "the held-out import exits 2, the board found in 0 of 4 frames (OpenCV: 4): no evaluation"
+    "the cross-validation over the 5 arm configurations supports no kinematic parameter (joint "
+    "offsets 1.267 px against the nominal's 1.256 px): the calibration is the fair nominal, "
+    "held-out 1.067 px (NO GAIN) against the reference's 0.615 px with offsets j2..j5, whose own "
+    "leave-group-2-out is worse than nominal (4.19 against 0.88 px)"
 )
-_ICAL = "no eye-to-hand from flange poses yet (issue 28); the virtual chain's calibrate exits 1"
 XFAIL = {
-    ("found", PHOTONEO): "import keeps 0 + 0 images, OpenCV finds 20 + 4 (issue 27 item 1)",
-    ("found", MECHEYE): "import keeps 12 + 0 images, OpenCV finds 20 + 4 (issue 27 item 1)",
-    **{(test, PHOTONEO): _PHOTONEO for test in HELD_OUT_TESTS},
-    **{(test, MECHEYE): _MECHEYE for test in HELD_OUT_TESTS},
-    **{(test, ICAL): _ICAL for test in HELD_OUT_TESTS},
+    ("reference", MECHEYE): _MECHEYE,
+    ("beats_nominal", MECHEYE): _MECHEYE,
 }
 
 
@@ -196,7 +194,9 @@ def run(real: RealSet, out: Path) -> Outcome:
         if step.returncode == 0:
             lines = (ds / "sources.csv").read_text().splitlines()[1:]
             files = (Path(line.split(",", 2)[2]) for line in lines)
-            res.kept[split] = sorted(str(f.relative_to(real.root)) for f in files)
+            res.kept[split] = sorted(
+                str(f.resolve().relative_to(real.root.resolve())) for f in files
+            )
     if res.imports["calib"].returncode == 0:
         res.calibrate = selfcal("calibrate", str(out / "calib"))
     if res.calibrate and res.calibrate.returncode == 0 and res.imports["held"].returncode == 0:
@@ -265,7 +265,9 @@ def opencv_finds(real: RealSet, split: str) -> list[str]:
     files = sorted(real.root.glob(real.images[split]))
     assert files, f"no image matches {real.images[split]} in {real.root}"
     gray = (cv2.imread(str(f), cv2.IMREAD_GRAYSCALE) for f in files)
-    return sorted(str(f.relative_to(real.root)) for f, g in zip(files, gray) if found(g))
+    return sorted(
+        str(f.resolve().relative_to(real.root.resolve())) for f, g in zip(files, gray) if found(g)
+    )
 
 
 # ------------------------------------------------------------------ the tests
@@ -274,12 +276,12 @@ def test_import_keeps_every_image_opencv_finds(name, outcome):
     real = SETS[name]
     cv = {split: opencv_finds(real, split) for split in SPLITS}
     kept = {split: outcome.kept.get(split, []) for split in SPLITS}  # none where import failed
-    differ = [
+    differ = [  # the project may keep more (ChArUco: OpenCV's refined marker search), never less
         f"{s}: import keeps {len(kept[s])} images, OpenCV finds the board in {len(cv[s])}; "
         f"only OpenCV: {sorted(set(cv[s]) - set(kept[s]))}, only import: "
         f"{sorted(set(kept[s]) - set(cv[s]))}; {outcome.imports[s]}"
         for s in SPLITS
-        if kept[s] != cv[s]
+        if set(cv[s]) - set(kept[s])
     ]
     assert not differ, f"{name}: " + "\n".join(differ)
 
