@@ -34,6 +34,7 @@ import cv2
 import numpy as np
 import pytest
 
+from calib.evaluate import SAME_RMS
 from calib.tomlfile import read_toml
 
 pytestmark = pytest.mark.real
@@ -300,10 +301,11 @@ def test_held_out_error_within_1p1_of_the_reference(name, outcome):
 def test_held_out_error_below_the_nominal(name, outcome):
     rms = outcome.held_out_rms()
     msg = f"{name}: held-out nominal {rms['nominal']:.3f} px, calibrated {rms['calibrated']:.3f} px"
+    same = rms["nominal"] * SAME_RMS  # evaluate's own "the same figure" (NO GAIN)
     if SETS[name].kinematics:
-        assert rms["calibrated"] < rms["nominal"], msg
+        assert rms["calibrated"] < rms["nominal"] - same, msg
     else:  # poses: nothing kinematic to identify, the nominal model may be the result
-        assert rms["calibrated"] <= rms["nominal"], msg
+        assert rms["calibrated"] <= rms["nominal"] + same, msg
 
 
 @pytest.mark.parametrize("name", cases("fair_nominal"))
