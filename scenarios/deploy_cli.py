@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -47,7 +48,18 @@ CALIBRATED_FRAME = "robot base frame (DH frame 0 of the identified joint axes 1 
 
 FORMATS = {"mjcf": ".xml", "urdf": ".urdf", "toml": ".toml", "opencv": ".yml",
            "camera_info": ".yaml"}  # fmt: skip
+"""Each format and the suffix of its default file (``calibrated<suffix>`` beside the
+calibration); the format itself is chosen by ``--format`` only, never by a file's suffix."""
 CAMERA_FORMATS = ("opencv", "camera_info")
+WRITTEN = {
+    "mjcf": "the calibrated robot as a MuJoCo model (MJCF)",
+    "urdf": "the calibrated robot as a URDF (kinematics only)",
+    "toml": "the calibrated robot's parameter table (TOML, mm and deg)",
+    "opencv": "OpenCV YAML for cv2.FileStorage (camera_matrix, distortion_coefficients)",
+    "camera_info": "ROS camera_info YAML (camera_calibration's convention: K, D, R = I, "
+    "P = [K' | 0] with K' the rectified camera matrix)",
+}
+"""What each format writes, in the words ``selfcal export`` says after writing it."""
 
 EXPORT_HELP = """\
 frames and units:
@@ -55,14 +67,18 @@ frames and units:
   (z along joint 1's axis; for the nominal robot this is the nominal model's world);
   tool = the tool tip (identified camera + the known camera-to-tip transform), z = tool axis;
   joint values = the controller's joint readings. MJCF/URDF in m and rad, TOML in mm and deg.
-formats:
+formats (chosen by --format only, never by the --out file's suffix):
   mjcf  the robot of models/scorbot_er4u/<robot>.xml with calibrated frames (same names)
   urdf  base_link, link1..link<n>, tool_tip, cam_left, cam_right (kinematics only)
   toml  MCPC parameters with std, joint offsets and the DH table where one exists
   opencv       the estimated camera as cv2.FileStorage YAML (camera_matrix,
                distortion_coefficients, image_width, image_height, distortion_model)
-  camera_info  the estimated camera as ROS camera_info YAML (K, D with distortion_model
-               plumb_bob / rational_polynomial / equidistant, R = I, P = [K | 0])
+  camera_info  the estimated camera as ROS camera_info YAML in ROS camera_calibration's
+               convention: camera_matrix K, distortion_coefficients D (distortion_model
+               plumb_bob / rational_polynomial / equidistant), rectification_matrix R = I,
+               projection_matrix P = [K' | 0] with K' the rectified camera matrix
+               (getOptimalNewCameraMatrix, alpha 0; K without distortion); read it with a
+               YAML reader (camera_calibration_parsers, PyYAML), not cv2.FileStorage
 see docs/deploy.md
 """
 
@@ -201,25 +217,18 @@ def cmd_export(args: argparse.Namespace) -> int:
     fmt = args.format
     if fmt in BAG_FORMATS:
         raise CliError(f"--format {fmt} writes a ROS bag: give --bag OUT instead of --out")
+    if fmt is None:
+        raise CliError(
+            "give --format: the format is never taken from the --out file's name "
+            f"({' | '.join(FORMATS)}), or --bag OUT to write a dataset as a ROS bag",
+            fix="e.g. --format urdf (writes DIR/calibrated.urdf without --out)",
+        )
     if args.out is None:
-        if fmt is None:
-            raise CliError(
-                "give --format or --out (its suffix names the format), or --bag OUT to write a "
-                "dataset as a ROS bag",
-                fix="e.g. --format urdf (writes DIR/calibrated.urdf)",
-            )
         args.out = str(_calibration_file(args.calibration).parent / f"calibrated{FORMATS[fmt]}")
     out = Path(args.out)
-    if fmt is None:
-        fmt = next((f for f, ext in FORMATS.items() if out.suffix == ext), None)
-        if fmt is None:
-            raise CliError(
-                f"--format is needed: the suffix of {out.name!r} names none of "
-                f"{', '.join(f'{f} ({e})' for f, e in FORMATS.items())}"
-            )
     if fmt in CAMERA_FORMATS:
         note_written(args, out)
-        return _export_camera(args.calibration, fmt, out, args.camera_name, args.camera)
+        return _export_camera(args, fmt, out)
     _refuse_no_gain(args.calibration, args.force)
     dep = load_calibration(args.calibration)
     robot = calibration_robot(args.calibration, dep.robot_name)
@@ -232,11 +241,14 @@ def cmd_export(args: argparse.Namespace) -> int:
     out.parent.mkdir(parents=True, exist_ok=True)
     write_text_atomic(out, text)
     note_written(args, out)
+    written = f"{WRITTEN[fmt]} of {dep.robot_name}"
+    _say(args, out, written)
     print(
         json.dumps(
             {
                 "out": str(out),
                 "format": fmt,
+                "written": written,
                 "robot_model": dep.robot_name,
                 "base_frame": BASE_FRAME,
                 "tool_frame": TOOL_FRAME,
@@ -246,16 +258,22 @@ def cmd_export(args: argparse.Namespace) -> int:
     return 0
 
 
-def _export_camera(
-    path: str, fmt: str, out: Path, camera_name: str | None, camera: str | None = None
-) -> int:
+def _say(args: argparse.Namespace, out: Path, written: str) -> None:
+    """Say in words on stderr what was written where (not with -q)."""
+    if not getattr(args, "quiet", False):
+        print(f"wrote {out}: {written}", file=sys.stderr)
+
+
+def _export_camera(args: argparse.Namespace, fmt: str, out: Path) -> int:
     """Write the calibration's estimated camera as ``fmt``: a self-calibration's (shared by the
-    rig's cameras), a board calibration's camera ``camera`` (None: the first) under its model."""
+    rig's cameras), a board calibration's camera ``--camera`` (None: the first) under its
+    model."""
     from calib.export_camera import to_camera_info_yaml, to_opencv_yaml
     from calib.io.atomic import write_text_atomic
     from calib.io.board_calibration import calibration_kind, read_board_calibration
     from calib.io.calibration import read_calibration
 
+    path, camera_name, camera = args.calibration, args.camera_name, args.camera
     p = _calibration_file(path)
     if p.suffix == ".toml":
         raise CliError(f"{p}: --format {fmt} needs a calibration.json (a .toml holds no camera)")
@@ -265,13 +283,18 @@ def _export_camera(
             raise CliError(f"--camera {camera}: {p} calibrates the cameras "
                            f"{', '.join(board.camera_names)}")  # fmt: skip
         cam = board.cameras[0 if camera is None else board.camera_names.index(camera)]
+        which = f"camera {camera or board.camera_names[0]}"
     else:
         cam = _field_camera(_usable(read_calibration(p), p), p, camera)
+        which = f"camera {camera}" if camera else "the calibrated camera"
     name = camera_name or camera or "camera"  # camera_info's camera_name: the camera exported
     text = to_opencv_yaml(cam) if fmt == "opencv" else to_camera_info_yaml(cam, name)
     out.parent.mkdir(parents=True, exist_ok=True)
     write_text_atomic(out, text)
-    print(json.dumps({"out": str(out), "format": fmt, "camera_model": cam.model_name}))
+    written = f"{which} ({cam.model_name} model) as {WRITTEN[fmt]}"
+    _say(args, out, written)
+    print(json.dumps({"out": str(out), "format": fmt, "written": written,
+                      "camera_model": cam.model_name}))  # fmt: skip
     return 0
 
 
@@ -364,8 +387,8 @@ def register(subparsers) -> None:
         "--format",
         choices=tuple(FORMATS) + BAG_FORMATS,
         default=None,
-        help="mjcf | urdf | toml | opencv | camera_info (default: from the --out suffix "
-        ".xml / .urdf / .toml / .yml / .yaml); with --bag: ros1 | ros2 | mcap",
+        help="mjcf | urdf | toml | opencv | camera_info: what to write, whatever --out's "
+        "suffix (required without --bag); with --bag: ros1 | ros2 | mcap",
     )
     sp.add_argument(
         "--camera-name",
@@ -381,7 +404,8 @@ def register(subparsers) -> None:
     sp.add_argument(
         "--out",
         default=None,
-        help="output file (default calibrated.<format suffix> next to the calibration.json)",
+        help="output file (default calibrated.xml / .urdf / .toml / .yml / .yaml by --format, "
+        "next to the calibration.json); its name does not choose the format",
     )
     sp.add_argument(
         "--force",

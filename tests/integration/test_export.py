@@ -356,7 +356,7 @@ def _parser():
 def test_cli_export(calibration, tmp_path, capsys, fmt):
     root, _ = calibration
     out = tmp_path / f"robot.{ {'mjcf': 'xml', 'urdf': 'urdf', 'toml': 'toml'}[fmt] }"
-    args = _parser().parse_args(["export", str(root), "--out", str(out)])  # format from suffix
+    args = _parser().parse_args(["export", str(root), "--format", fmt, "--out", str(out)])
     assert args.func(args) == 0
     info = json.loads(capsys.readouterr().out)
     assert info["format"] == fmt and info["out"] == str(out)
@@ -383,12 +383,14 @@ def test_cli_export_errors(tmp_path):
     from scenarios.cli import CliError
 
     p = _parser()
-    args = p.parse_args(["export", str(tmp_path), "--out", str(tmp_path / "x.xml")])
+    args = p.parse_args(["export", str(tmp_path), "--format", "mjcf", "--out",
+                         str(tmp_path / "x.xml")])  # fmt: skip
     with pytest.raises(CliError, match="calibration.json"):
         args.func(args)
-    args = p.parse_args(["export", str(tmp_path), "--out", str(tmp_path / "x.bin")])
-    with pytest.raises(CliError, match="--format"):
-        args.func(args)
+    for name in ("x.xml", "x.bin"):  # a suffix never chooses the format
+        args = p.parse_args(["export", str(tmp_path), "--out", str(tmp_path / name)])
+        with pytest.raises(CliError, match="give --format"):
+            args.func(args)
 
 
 # ----------------------------------------------------------------------------- any arm
@@ -528,7 +530,8 @@ def test_industrial_arm_calibration_exports_through_the_cli(tmp_path, capsys):
     outs = {}
     for fmt, suffix in (("mjcf", "xml"), ("urdf", "urdf"), ("toml", "toml")):
         outs[fmt] = tmp_path / f"robot.{suffix}"
-        args = _parser().parse_args(["export", str(root), "--out", str(outs[fmt])])
+        args = _parser().parse_args(["export", str(root), "--format", fmt, "--out",
+                                     str(outs[fmt])])  # fmt: skip
         assert args.func(args) == 0
         assert json.loads(capsys.readouterr().out)["format"] == fmt
     got = _mj_frames(mujoco.MjModel.from_xml_path(str(outs["mjcf"])), q)[:, : robot.n + 1]

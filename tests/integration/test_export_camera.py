@@ -1,5 +1,7 @@
 """Export of the estimated camera (calib.export_camera, ``selfcal export --format
-opencv|camera_info``): read back with cv2.FileStorage, the same projection through OpenCV."""
+opencv|camera_info``): the OpenCV YAML read back with cv2.FileStorage, the camera_info YAML with
+a YAML reader (as camera_calibration_parsers reads it), the same projection through OpenCV; the
+format chosen by --format alone, whatever the file's suffix."""
 
 from __future__ import annotations
 
@@ -12,6 +14,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+import yaml
 
 from calib.camera import BrownConrady, Fisheye, Pinhole
 from calib.export_camera import to_camera_info_yaml, to_opencv_yaml
@@ -78,20 +81,27 @@ def test_opencv_yaml_reads_back_and_projects_the_same(kind):
 
 @pytest.mark.parametrize("kind", CAMERAS)
 def test_camera_info_yaml_reads_back(kind):
+    """ROS camera_calibration's convention: K, D, R = I and P = [K' | 0] with K' the rectified
+    camera matrix (every pixel of the rectified image valid; K itself without distortion)."""
     cam = CAMERAS[kind]
-    fs = _read(to_camera_info_yaml(cam, "left"))
-    assert fs.getNode("camera_name").string() == "left"
-    assert (fs.getNode("image_width").real(), fs.getNode("image_height").real()) == (640, 480)
-    model = fs.getNode("distortion_model").string()
+    doc = yaml.safe_load(to_camera_info_yaml(cam, "left"))
+
+    def mat(key: str) -> np.ndarray:
+        m = doc[key]
+        return np.array(m["data"], float).reshape(m["rows"], m["cols"])
+
+    assert doc["camera_name"] == "left"
+    assert (doc["image_width"], doc["image_height"]) == (640, 480)
+    model = doc["distortion_model"]
     assert model == kind.replace("pinhole", "plumb_bob")
-    K, D = _data(fs, "camera_matrix"), _data(fs, "distortion_coefficients")
+    K, D = mat("camera_matrix"), mat("distortion_coefficients")
     np.testing.assert_array_equal(K, cam.K)
-    np.testing.assert_array_equal(_data(fs, "rectification_matrix"), np.eye(3))
-    P = _data(fs, "projection_matrix")
+    np.testing.assert_array_equal(mat("rectification_matrix"), np.eye(3))
+    P = mat("projection_matrix")
     np.testing.assert_array_equal(P[:, 3], np.zeros(3))
     if kind == "pinhole":
         np.testing.assert_array_equal(P[:, :3], cam.K)
-    else:  # ROS camera_calibration's choice: every pixel of the rectified image is valid
+    else:  # every pixel of the rectified image is valid
         W, H = cam.width, cam.height
         corners = np.array([[0, 0, 1], [W - 1, 0, 1], [0, H - 1, 1], [W - 1, H - 1, 1.0]])
         rays = corners @ np.linalg.inv(P[:, :3]).T
@@ -107,8 +117,10 @@ def _parser():
     return p
 
 
-@pytest.mark.parametrize("fmt, suffix", [("opencv", "yml"), ("camera_info", "yaml")])
+@pytest.mark.parametrize("fmt, suffix", [("opencv", "yaml"), ("camera_info", "yml")])
 def test_cli_exports_the_calibrated_camera(tmp_path, capsys, fmt, suffix):
+    """--format alone chooses the format: OpenCV YAML into a .yaml file and camera_info into a
+    .yml file (each suffix the other format's usual one), said in words on stderr."""
     doc = json.loads(GOLDEN.read_text())
     shutil.copy(GOLDEN, tmp_path / "calibration.json")
     lens = CAMERAS["plumb_bob"]
@@ -116,21 +128,29 @@ def test_cli_exports_the_calibrated_camera(tmp_path, capsys, fmt, suffix):
     write_calibration(tmp_path / "calibration.json",
                       dataclasses.replace(res, intrinsics=CameraIntrinsics.of(lens, {})))  # fmt: skip
     out = tmp_path / f"cam.{suffix}"
-    args = _parser().parse_args(["export", str(tmp_path), "--out", str(out)])  # from the suffix
+    args = _parser().parse_args(["export", str(tmp_path), "--format", fmt, "--out", str(out)])
     assert args.func(args) == 0
-    assert json.loads(capsys.readouterr().out) == {
-        "out": str(out),
-        "format": fmt,
-        "camera_model": "opencv",
-    }
-    fs = _read(out.read_text())
-    K = fs.getNode("camera_matrix").mat() if fmt == "opencv" else _data(fs, "camera_matrix")
+    std = capsys.readouterr()
+    info = json.loads(std.out)
+    words = {"opencv": "OpenCV YAML for cv2.FileStorage", "camera_info": "ROS camera_info YAML"}
+    assert info["format"] == fmt and info["out"] == str(out) and info["camera_model"] == "opencv"
+    assert words[fmt] in info["written"] and f"wrote {out}: " in std.err
+    assert words[fmt] in std.err
+    if fmt == "opencv":
+        fs = _read(out.read_text())  # kept: its nodes live as long as the storage
+        K = fs.getNode("camera_matrix").mat()
+    else:
+        m = yaml.safe_load(out.read_text())["camera_matrix"]
+        K = np.array(m["data"]).reshape(3, 3)
     np.testing.assert_array_equal(K, lens.K)
     assert doc["intrinsics"]["fx"] != lens.fx  # the file's camera, not the golden one
-    toml = tmp_path / "robot.toml"
-    toml.write_text("x = 1\n")
+    args = _parser().parse_args(["export", str(tmp_path), "--out", str(out)])
     from scenarios.cli import CliError
 
+    with pytest.raises(CliError, match="give --format: the format is never taken from"):
+        args.func(args)  # the suffix names no format
+    toml = tmp_path / "robot.toml"
+    toml.write_text("x = 1\n")
     args = _parser().parse_args(["export", str(toml), "--format", fmt, "--out", str(out)])
     with pytest.raises(CliError, match="needs a calibration.json"):
         args.func(args)
@@ -150,19 +170,22 @@ def test_cli_exports_each_camera_of_a_field_rig_with_its_own_intrinsics(tmp_path
                       dataclasses.replace(res, intrinsics=cams[0].intrinsics, cameras=cams))  # fmt: skip
     for name, cam in ((None, left), ("right", right)):
         out = tmp_path / f"{name}.yml"
-        argv = ["export", str(tmp_path), "--out", str(out)] + (["--camera", name] if name else [])
+        argv = ["export", str(tmp_path), "--format", "opencv", "--out", str(out)] + (
+            ["--camera", name] if name else []
+        )
         args = _parser().parse_args(argv)
         assert args.func(args) == 0
         capsys.readouterr()
         fs = _read(out.read_text())  # kept: its nodes live as long as the storage
         np.testing.assert_array_equal(fs.getNode("camera_matrix").mat(), cam.K)
-    args = _parser().parse_args(["export", str(tmp_path), "--out", str(tmp_path / "x.yml"),
-                                 "--camera", "middle"])  # fmt: skip
+    args = _parser().parse_args(["export", str(tmp_path), "--format", "opencv", "--out",
+                                 str(tmp_path / "x.yml"), "--camera", "middle"])  # fmt: skip
     with pytest.raises(CliError, match="calibrates the cameras left, right"):
         args.func(args)
     for extra, name in (([], "camera"), (["--camera", "right"], "right"),
                         (["--camera", "right", "--camera-name", "wrist"], "wrist")):  # fmt: skip
         out = tmp_path / "info.yaml"
-        args = _parser().parse_args(["export", str(tmp_path), "--out", str(out), *extra])
+        args = _parser().parse_args(["export", str(tmp_path), "--format", "camera_info",
+                                     "--out", str(out), *extra])  # fmt: skip
         assert args.func(args) == 0
         assert f"camera_name: {name}\n" in out.read_text()  # the camera exported, by default

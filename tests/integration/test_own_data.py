@@ -130,9 +130,11 @@ def test_import_calibrate_evaluate(lab, capsys):
     assert (root / "ds" / "figures" / "reprojection.png").is_file()
     assert "## Held-out reprojection" in (root / "ds" / "report.md").read_text()
     # the calibrated robot (base -> tool tip) exports like a self-calibrated one
-    assert main(["export", str(root / "ds"), "--out", str(root / "kr6.urdf")]) == 0
+    assert main(["export", str(root / "ds"), "--format", "urdf", "--out",
+                 str(root / "kr6.urdf")]) == 0  # fmt: skip
     assert "<robot" in (root / "kr6.urdf").read_text()
-    assert main(["export", str(root / "ds"), "--out", str(root / "kr6.toml")]) == 0
+    assert main(["export", str(root / "ds"), "--format", "toml", "--out",
+                 str(root / "kr6.toml")]) == 0  # fmt: skip
     dep = load_calibration(str(root / "kr6.toml"))
     assert main(["export", str(root / "ds"), "--format", "opencv", "--out",
                  str(root / "cam0.yml")]) == 0  # fmt: skip

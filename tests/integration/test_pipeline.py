@@ -292,6 +292,6 @@ def test_a_field_calibration_of_a_robot_file_exports(small_analytic, tmp_path):
     (ds / "dataset.json").write_text(json.dumps(info))
     assert main(["calibrate", str(ds), "--quiet"]) == 0
     assert json.loads((ds / "calibration.json").read_text())["robot_model"] == "myarm"
-    assert main(["export", str(ds), "--out", str(tmp_path / "myarm.urdf")]) == 0
+    assert main(["export", str(ds), "--format", "urdf", "--out", str(tmp_path / "myarm.urdf")]) == 0
     assert '<robot name="myarm' in (tmp_path / "myarm.urdf").read_text()
     assert main(["fk", "--calibration", str(ds), "--joints", "0,0,0,0,0"]) == 0
