@@ -68,6 +68,7 @@ __all__ = [
     "method_summary",
     "parameter_table",
     "hand_eye",
+    "flange_tool",
     "dh_rows",
 ]
 
@@ -116,11 +117,16 @@ def _last_link_to_tool(model: MCPCModel) -> np.ndarray:
     return rot_z(model.joint_offsets[-1]) @ shape_matrices(model.params[-1])
 
 
+def flange_tool(model: MCPCModel, robot: RobotDef) -> np.ndarray:
+    """The tool of ``model`` (4, 4) m in the nominal flange of joint n: its last shape matrix
+    relative to the nominal robot's (full precision)."""
+    return inv_pose(_last_link_to_tool(nominal_mcpc(robot))) @ _last_link_to_tool(model)
+
+
 def hand_eye(model: MCPCModel, robot: RobotDef) -> HandEye:
     """The identified ``T_flange_cam`` (4, 4) m: the last shape matrix of ``model`` (tool = left
     camera) relative to the nominal flange of joint n, rounded like the file stores it."""
-    T = inv_pose(_last_link_to_tool(nominal_mcpc(robot))) @ _last_link_to_tool(model)
-    return HandEye(matrix(T))
+    return HandEye(matrix(flange_tool(model, robot)))
 
 
 def dh_rows(model: MCPCModel, robot: RobotDef) -> tuple[tuple[DHRow, ...] | None, str | None]:

@@ -46,11 +46,14 @@ __all__ = [
 CALIBRATED_FRAME = "robot base frame (DH frame 0 of the identified joint axes 1 and 2), tool tip"
 """The frame of a calibrated model's tool pose (``fk``/``ik --calibration``)."""
 
-FORMATS = {"mjcf": ".xml", "urdf": ".urdf", "toml": ".toml", "opencv": ".yml",
-           "camera_info": ".yaml"}  # fmt: skip
-"""Each format and the suffix of its default file (``calibrated<suffix>`` beside the
-calibration); the format itself is chosen by ``--format`` only, never by a file's suffix."""
+FORMATS = {"mjcf": "calibrated.xml", "urdf": "calibrated.urdf", "toml": "calibrated.toml",
+           "opencv": "calibrated.yml", "camera_info": "calibrated.yaml",
+           "tf": "hand_eye_tf.yaml", "easy_handeye": "hand_eye_easy_handeye.yaml",
+           "matrix": "hand_eye_matrix.yaml"}  # fmt: skip
+"""Each format and its default file (beside the calibration); the format itself is chosen by
+``--format`` only, never by a file's suffix."""
 CAMERA_FORMATS = ("opencv", "camera_info")
+HANDEYE_FORMATS = ("tf", "easy_handeye", "matrix")
 WRITTEN = {
     "mjcf": "the calibrated robot as a MuJoCo model (MJCF)",
     "urdf": "the calibrated robot as a URDF (kinematics only)",
@@ -58,6 +61,10 @@ WRITTEN = {
     "opencv": "OpenCV YAML for cv2.FileStorage (camera_matrix, distortion_coefficients)",
     "camera_info": "ROS camera_info YAML (camera_calibration's convention: K, D, R = I, "
     "P = [K' | 0] with K' the rectified camera matrix)",
+    "tf": "ROS static transforms (static_transform_publisher arguments for ROS 2 and ROS 1, "
+    "launch snippets) in YAML",
+    "easy_handeye": "easy_handeye's calibration YAML (parameters, transformation)",
+    "matrix": "4x4 matrices with translation, quaternion (xyzw) and Euler angles in YAML",
 }
 """What each format writes, in the words ``selfcal export`` says after writing it."""
 
@@ -73,6 +80,18 @@ formats (chosen by --format only, never by the --out file's suffix):
   toml  MCPC parameters with std, joint offsets and the DH table where one exists
   opencv       the estimated camera as cv2.FileStorage YAML (camera_matrix,
                distortion_coefficients, image_width, image_height, distortion_model)
+  tf            the hand-eye (and board mount) as ROS static transforms: frames, translation,
+                quaternion, sigmas, static_transform_publisher arguments (ROS 2 and 1) and
+                launch snippets
+  easy_handeye  the hand-eye as easy_handeye's saved calibration YAML (parameters,
+                transformation x y z qx qy qz qw; sigmas and board mount under scorbot_selfcal)
+  matrix        the hand-eye (and board mount) as 4x4 matrices (m), translation (mm), quaternion
+                (xyzw) and Euler roll, pitch, yaw (deg, R = Rz(yaw) Ry(pitch) Rx(roll)) with sigmas
+  hand-eye transforms: a pose dataset's calibration: eye-in-hand flange -> camera and base ->
+  board, eye-to-hand base -> camera and flange -> board; a calibration with joints: flange ->
+  camera (and base -> board for a board calibration). ROS frame names (--frames): base_link,
+  tool0 (the flange as the controller reports it), camera_optical_frame (z forward, x right,
+  y down), board; see docs/handeye.md
   camera_info  the estimated camera as ROS camera_info YAML in ROS camera_calibration's
                convention: camera_matrix K, distortion_coefficients D (distortion_model
                plumb_bob / rational_polynomial / equidistant), rectification_matrix R = I,
@@ -224,11 +243,17 @@ def cmd_export(args: argparse.Namespace) -> int:
             fix="e.g. --format urdf (writes DIR/calibrated.urdf without --out)",
         )
     if args.out is None:
-        args.out = str(_calibration_file(args.calibration).parent / f"calibrated{FORMATS[fmt]}")
+        args.out = str(_calibration_file(args.calibration).parent / FORMATS[fmt])
     out = Path(args.out)
+    if fmt in HANDEYE_FORMATS:
+        return _export_handeye(args, fmt, out)
+    if args.frames is not None:
+        raise CliError(f"--frames names the frames of --format {' | '.join(HANDEYE_FORMATS)}",
+                       fix="leave it out")  # fmt: skip
     if fmt in CAMERA_FORMATS:
         note_written(args, out)
         return _export_camera(args, fmt, out)
+    _refuse_pose_calibration(args.calibration, fmt)
     _refuse_no_gain(args.calibration, args.force)
     dep = load_calibration(args.calibration)
     robot = calibration_robot(args.calibration, dep.robot_name)
@@ -258,6 +283,77 @@ def cmd_export(args: argparse.Namespace) -> int:
     return 0
 
 
+def _refuse_pose_calibration(path: str, fmt: str) -> None:
+    """A CliError for a robot format of a pose dataset's calibration (it has no kinematics)."""
+    from calib.io.handeye_calibration import is_handeye
+
+    if is_handeye(_calibration_file(path)):
+        raise CliError(f"{path} is the calibration of a pose dataset (flange poses, no joints): "
+                       f"it identified no kinematics, so there is no robot to write as {fmt}",
+                       fix="export the hand-eye with --format tf | easy_handeye | matrix, or the "
+                       "camera with --format opencv | camera_info")  # fmt: skip
+
+
+def load_handeye(path: str):
+    """The :class:`calib.export_handeye.HandEyeExport` of the calibration ``path``: a pose
+    dataset's (hand-eye and board mount), a board calibration's (flange -> camera, base ->
+    board) or a self-calibration's (flange -> camera)."""
+    import math
+
+    from calib.export_handeye import from_chain, from_handeye_document
+    from calib.io.board_calibration import calibration_kind, read_board_calibration
+    from calib.io.calibration import read_calibration
+    from calib.io.handeye_calibration import is_handeye, read_handeye
+    from calib.robot_def import load_robot
+
+    p = _calibration_file(path)
+    if p.suffix == ".toml":
+        raise CliError(f"{p}: the hand-eye formats need a calibration.json (an exported .toml "
+                       "holds the tool tip, not the calibration's camera)")  # fmt: skip
+    if is_handeye(p):
+        return from_handeye_document(read_handeye(p)[3], str(p))
+    if calibration_kind(p) == "board":
+        cal = read_board_calibration(p)
+        to_si = {"deg": math.pi / 180.0, "mm": 1e-3}
+        std = {b.name: b.std * to_si[b.unit] for b in (cal.bounds.parameters if cal.bounds else ())
+               if b.std is not None}  # fmt: skip
+        robot = _robot_file(p) or load_robot(cal.robot_model)
+        return from_chain(cal.model, robot, std, str(p), board=True)
+    field = _usable(read_calibration(p), p)
+    robot = _robot_file(p) or load_robot(field.robot_model)
+    return from_chain(field.model, robot, field.std_si(), str(p), board=False)
+
+
+def _export_handeye(args: argparse.Namespace, fmt: str, out: Path) -> int:
+    """``--format tf | easy_handeye | matrix``: the calibration's hand-eye and board mount."""
+    from calib.errors import InputError
+    from calib.export_handeye import (
+        frame_names,
+        to_easy_handeye_yaml,
+        to_matrix_yaml,
+        to_tf_yaml,
+    )
+    from calib.io.atomic import write_text_atomic
+
+    try:
+        frames = frame_names(args.frames)
+    except InputError as exc:
+        raise CliError(str(exc), fix=exc.fix) from None
+    ex = load_handeye(args.calibration)
+    write = {"tf": to_tf_yaml, "easy_handeye": to_easy_handeye_yaml, "matrix": to_matrix_yaml}
+    text = write[fmt](ex, frames)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    write_text_atomic(out, text)
+    note_written(args, out)
+    whats = [f"{t.what} ({frames[t.parent]} -> {frames[t.child]})" for t in ex.transforms]
+    shown = whats[:1] if fmt == "easy_handeye" else whats
+    written = f"{' and '.join(shown)} of the {ex.setup} calibration as {WRITTEN[fmt]}"
+    _say(args, out, written)
+    print(json.dumps({"out": str(out), "format": fmt, "written": written, "setup": ex.setup,
+                      "frames": frames}))  # fmt: skip
+    return 0
+
+
 def _say(args: argparse.Namespace, out: Path, written: str) -> None:
     """Say in words on stderr what was written where (not with -q)."""
     if not getattr(args, "quiet", False):
@@ -272,12 +368,18 @@ def _export_camera(args: argparse.Namespace, fmt: str, out: Path) -> int:
     from calib.io.atomic import write_text_atomic
     from calib.io.board_calibration import calibration_kind, read_board_calibration
     from calib.io.calibration import read_calibration
+    from calib.io.handeye_calibration import is_handeye, read_handeye
 
     path, camera_name, camera = args.calibration, args.camera_name, args.camera
     p = _calibration_file(path)
     if p.suffix == ".toml":
         raise CliError(f"{p}: --format {fmt} needs a calibration.json (a .toml holds no camera)")
-    if calibration_kind(p) == "board":
+    if is_handeye(p):
+        if camera is not None:
+            raise CliError(f"--camera {camera}: {p} calibrates one camera", fix="leave it out")
+        cam = read_handeye(p)[1].camera
+        which = "the calibrated camera"
+    elif calibration_kind(p) == "board":
         board = read_board_calibration(p)
         if camera is not None and camera not in board.camera_names:
             raise CliError(f"--camera {camera}: {p} calibrates the cameras "
@@ -387,8 +489,8 @@ def register(subparsers) -> None:
         "--format",
         choices=tuple(FORMATS) + BAG_FORMATS,
         default=None,
-        help="mjcf | urdf | toml | opencv | camera_info: what to write, whatever --out's "
-        "suffix (required without --bag); with --bag: ros1 | ros2 | mcap",
+        help="mjcf | urdf | toml | opencv | camera_info | tf | easy_handeye | matrix: what to "
+        "write, whatever --out's suffix (required without --bag); with --bag: ros1 | ros2 | mcap",
     )
     sp.add_argument(
         "--camera-name",
@@ -404,8 +506,9 @@ def register(subparsers) -> None:
     sp.add_argument(
         "--out",
         default=None,
-        help="output file (default calibrated.xml / .urdf / .toml / .yml / .yaml by --format, "
-        "next to the calibration.json); its name does not choose the format",
+        help="output file (default by --format, next to the calibration.json: calibrated.xml "
+        "/ .urdf / .toml / .yml / .yaml, hand_eye_tf.yaml, hand_eye_easy_handeye.yaml, "
+        "hand_eye_matrix.yaml); its name does not choose the format",
     )
     sp.add_argument(
         "--force",
@@ -413,6 +516,11 @@ def register(subparsers) -> None:
         help="export a board calibration even when it is no gain over its fair nominal (its "
         "cross-validation or held-out check)",
     )
+    sp.add_argument(
+        "--frames", metavar="BASE,FLANGE,CAMERA,BOARD", help="with --format tf | easy_handeye | matrix: the ROS frame names (default "
+        "base_link,tool0,camera_optical_frame,board); BASE and FLANGE are the frames the robot "
+        "reports its flange poses in (a UR controller's base is `base`, not `base_link`)",
+    )  # fmt: skip
     add_bag_export_args(sp)
     sp.set_defaults(func=cmd_export)
 
