@@ -143,12 +143,13 @@ def _last_row_sigmas(model: MCPCModel, robot: RobotDef, std: Mapping[str, float]
 
 
 def from_chain(model: MCPCModel, robot: RobotDef, std: Mapping[str, float], source: str, *,
-               board: bool) -> HandEyeExport:  # fmt: skip
+               board: bool, sigma_source: str = "standard deviations") -> HandEyeExport:  # fmt: skip
     """The export of a calibration with joints: ``model`` the identified chain whose tool is the
     camera (world: the board frame when ``board``, else any), ``std`` the minimal parameters'
-    sigmas by name (rad, m). Flange -> camera with first-order sigmas from the last row's
-    parameters; with ``board`` also base -> board (no sigma: the base frame is rebuilt on the
-    identified axes 1 and 2, whose covariance the calibration does not store)."""
+    sigmas by name (rad, m), ``sigma_source`` what they are. Flange -> camera with first-order
+    sigmas from the last row's parameters; with ``board`` also base -> board (no sigma: the base
+    frame is rebuilt on the identified axes 1 and 2, whose covariance the calibration does not
+    store)."""
     sig = _last_row_sigmas(model, robot, std)
     out = [StaticTransform("flange -> camera", "flange", "camera",
                            flange_tool(model, robot),
@@ -160,8 +161,8 @@ def from_chain(model: MCPCModel, robot: RobotDef, std: Mapping[str, float], sour
     note = (f"kinematics of {robot.name} identified with the camera; the flange is the nominal "
             "flange of the last joint on the identified last link, the base the robot's base "
             "frame rebuilt on the identified joint axes 1 and 2 (as the URDF export's base_link); "
-            "flange -> camera sigmas to first order from the last link's parameters taken as "
-            "independent")  # fmt: skip
+            f"flange -> camera sigmas to first order from the {sigma_source} of the last "
+            "link's six parameters taken as independent")  # fmt: skip
     return HandEyeExport("eye-in-hand", tuple(out), source, note)
 
 

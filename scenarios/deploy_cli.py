@@ -314,11 +314,13 @@ def load_handeye(path: str):
         return from_handeye_document(read_handeye(p)[3], str(p))
     if calibration_kind(p) == "board":
         cal = read_board_calibration(p)
+        # a board calibration keeps the Cramer-Rao bound of each parameter, not its std
         to_si = {"deg": math.pi / 180.0, "mm": 1e-3}
-        std = {b.name: b.std * to_si[b.unit] for b in (cal.bounds.parameters if cal.bounds else ())
-               if b.std is not None}  # fmt: skip
+        std = {b.name: b.bound * to_si[b.unit] for b in (cal.bounds.parameters if cal.bounds else ())
+               if b.bound is not None}  # fmt: skip
         robot = _robot_file(p) or load_robot(cal.robot_model)
-        return from_chain(cal.model, robot, std, str(p), board=True)
+        return from_chain(cal.model, robot, std, str(p), board=True,
+                          sigma_source="Cramer-Rao bounds at the estimate")  # fmt: skip
     field = _usable(read_calibration(p), p)
     robot = _robot_file(p) or load_robot(field.robot_model)
     return from_chain(field.model, robot, field.std_si(), str(p), board=False)
