@@ -1,0 +1,61 @@
+"""``selfcal report`` of a pose dataset's calibration (scenarios.handeye_report): the hand-eye
+and the board mount with sigmas beside the nominal, the fit, the note that no kinematics were
+identified, and the held-out check of DIR/evaluation.json with its verdict."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+from test_handeye import BOARD, CAMERA, _features, _scene
+
+from calib.handeye import calibrate_hand_eye, chain_motions
+from calib.io.handeye_calibration import handeye_document
+from calib.io.jsonfile import write_json_atomic
+from scenarios.cli import main
+
+
+def test_report_of_a_pose_calibration(tmp_path, capsys):
+    X, B, F = _scene("eye-to-hand", 10, seed=23)
+    feats = _features(X, B, chain_motions("eye-to-hand", F), 0.3, 2)
+    cal = calibrate_hand_eye(BOARD, feats, F, "eye-to-hand", 1280, 960, free=CAMERA.free)
+    doc = handeye_document(cal, str(tmp_path))
+    write_json_atomic(tmp_path / "calibration.json", doc)
+
+    assert main(["report", str(tmp_path)]) == 0
+    line = capsys.readouterr().out.strip()
+    assert line.startswith("report (eye-to-hand, flange poses: no kinematics identified): fit ")
+    assert (
+        f"{cal.calibrated.rms_px:.3f} px RMS calibrated, {cal.nominal.rms_px:.3f} px nominal"
+        in line
+    )
+    assert "evaluation.json is missing" in line and "\n" not in line
+    rep = json.loads((tmp_path / "report.json").read_text())
+    assert rep["kind"] == "handeye" and "No kinematics were identified" in rep["kinematics"]
+    he, bm = rep["transforms"]
+    assert (he["what"], bm["what"]) == ("base -> camera", "flange -> board")
+    np.testing.assert_allclose(he["calibrated"]["xyz_mm"], cal.calibrated.X[:3, 3] * 1000)
+    np.testing.assert_allclose(he["nominal"]["xyz_mm"], cal.nominal.X[:3, 3] * 1000)
+    np.testing.assert_allclose(bm["calibrated"]["sigma_xyz_mm"], cal.calibrated.B_std[3:] * 1000)
+    d = np.linalg.norm(cal.calibrated.X[:3, 3] - cal.nominal.X[:3, 3]) * 1000
+    assert abs(he["difference_mm"] - d) < 1e-9
+    assert rep["camera"]["parameters"]["fx"]["nominal"] == cal.nominal.camera.fx
+    md = (tmp_path / "report.md").read_text()
+    assert "No kinematics were identified" in md and "| base -> camera |" in md
+
+    # a held-out evaluation of this calibration, as `selfcal evaluate CAL HELD --out
+    # CAL/evaluation.json` writes it, where the calibration predicts worse than the nominal
+    ev = {"calibration": str(tmp_path), "dataset": "held", "setup": "eye-to-hand", "frames": 4,
+          "corners": 140, "held_out_rms_px": {"nominal": 0.41, "calibrated": 0.43},
+          "calibration_better_than_nominal": False}  # fmt: skip
+    write_json_atomic(tmp_path / "evaluation.json", ev)
+    assert main(["report", str(tmp_path), "-q"]) == 0
+    line = capsys.readouterr().out
+    assert "held-out reprojection 0.430 px RMS calibrated, 0.410 px nominal over 4 frames" in line
+    assert "the calibration is NOT better than the nominal" in line
+    rep = json.loads((tmp_path / "report.json").read_text())
+    assert rep["held_out"]["reprojection_rms_px"] == ev["held_out_rms_px"]
+    ev["calibration"] = str(tmp_path / "other")  # another calibration's evaluation is not used
+    write_json_atomic(tmp_path / "evaluation.json", ev)
+    assert main(["report", str(tmp_path), "-q"]) == 0
+    assert "is not an evaluation of" in capsys.readouterr().out
