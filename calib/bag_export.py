@@ -8,7 +8,9 @@ profile. ``joint_states`` (``sensor_msgs/JointState``, the robot's joint names, 
 published at ``rate_hz`` and at every image stamp (the frame's reading exactly). Per camera
 ``/NAME/image_raw`` (raw mono8, mono16 or bgr8, the dataset's pixels unchanged) and
 ``/NAME/camera_info`` at the same stamps: the calibrated camera when the dataset folder holds a
-``calibration.json``, otherwise uncalibrated (K all zeros, the model's ``distortion_model``).
+``calibration.json`` in ROS camera_calibration's convention (K, D, R = I, P = [K' | 0] with K'
+the rectified camera matrix, as ``selfcal export --format camera_info`` writes it), otherwise
+uncalibrated (K all zeros, the model's ``distortion_model``).
 ``/robot_description`` (``std_msgs/String``, once at the start): the robot's NOMINAL URDF. Truth
 never goes into the bag (``truth.json`` is not read).
 """
@@ -26,7 +28,7 @@ from calib.bag_rest import NS
 from calib.camera import CameraModel, Pinhole
 from calib.choices import JOINT_TOPIC
 from calib.export import deploy_chain
-from calib.export_camera import camera_matrix, distortion
+from calib.export_camera import camera_matrix, distortion, rectified_matrix
 from calib.export_urdf import to_urdf
 from calib.io.board_calibration import calibration_kind, read_board_calibration
 from calib.io.calibration import read_calibration
@@ -109,11 +111,13 @@ def _camera_infos(ds: Dataset) -> dict[str, CameraInfo]:
         cam = cams.get(c)
         if isinstance(cam, Pinhole):
             model, D = distortion(cam)
-            K = camera_matrix(cam).ravel()
+            K, K_rect = camera_matrix(cam).ravel(), rectified_matrix(cam).ravel()
         else:
             model = "equidistant" if info.camera_model == "fisheye" else "plumb_bob"
             D, K = np.zeros(4 if model == "equidistant" else 5), np.zeros(9)
-        out[c] = CameraInfo(w, h, model, tuple(map(float, D)), tuple(map(float, K)))
+            K_rect = K
+        out[c] = CameraInfo(w, h, model, tuple(map(float, D)), tuple(map(float, K)),
+                            tuple(map(float, K_rect)))  # fmt: skip
     return out
 
 

@@ -21,7 +21,8 @@ import numpy as np
 
 from calib.camera import BrownConrady, CameraModel, Fisheye, Pinhole
 
-__all__ = ["camera_matrix", "distortion", "to_opencv_yaml", "to_camera_info_yaml"]
+__all__ = ["camera_matrix", "rectified_matrix", "distortion", "to_opencv_yaml",
+           "to_camera_info_yaml"]  # fmt: skip
 
 
 def camera_matrix(camera: Pinhole) -> np.ndarray:

@@ -119,13 +119,15 @@ def bag_format(path: str | Path) -> str:
 
 @dataclass(frozen=True)
 class CameraInfo:
-    """A ``sensor_msgs/CameraInfo``: image size (px), distortion model and coefficients, K."""
+    """A ``sensor_msgs/CameraInfo``: image size (px), distortion model and coefficients, K, and
+    the rectified camera matrix K' of ``P = [K' | 0]`` (empty: K)."""
 
     width: int
     height: int
     distortion_model: str
     D: tuple[float, ...]
     K: tuple[float, ...]
+    K_rectified: tuple[float, ...] = ()
 
     @property
     def calibrated(self) -> bool:
@@ -384,10 +386,11 @@ class BagWriter(_Closing):
         self._write(topic, RAW_TYPE, stamp, msg)
 
     def camera_info(self, topic: str, stamp: int, frame_id: str, info: CameraInfo) -> None:
-        """A ``CameraInfo`` at ``stamp`` (ns); R = identity, P = [K | 0] (a monocular camera)."""
+        """A ``CameraInfo`` at ``stamp`` (ns); R = identity (a monocular camera), P = [K' | 0]
+        with K' ``info.K_rectified`` (ROS camera_calibration's convention), K when empty."""
         K = np.asarray(info.K, float)
         P = np.zeros(12)
-        P.reshape(3, 4)[:, :3] = K.reshape(3, 3)
+        P.reshape(3, 4)[:, :3] = np.asarray(info.K_rectified or info.K, float).reshape(3, 3)
         roi = self._T["sensor_msgs/msg/RegionOfInterest"](x_offset=0, y_offset=0, height=0,
                                                           width=0, do_rectify=False)  # fmt: skip
         arrays = {"d": np.asarray(info.D, float), "k": K, "r": np.eye(3).ravel(), "p": P}

@@ -25,6 +25,7 @@ from threadpoolctl import threadpool_limits
 
 from calib.board_dataset import calibrate_board_dataset
 from calib.camera import BrownConrady, Pinhole, opencv_values
+from calib.export_camera import rectified_matrix
 from calib.import_dataset import CameraImages, import_dataset
 from calib.io.board_calibration import write_board_calibration
 from calib.io.dataset import Dataset
@@ -196,11 +197,16 @@ def test_exported_bag_content(lab, tmp_path):
         imgs = [(m.header.stamp.sec * 10**9 + m.header.stamp.nanosec)
                 for _, _, m in r.messages(["/cam0/image_raw"])]  # fmt: skip
         infos = [CameraInfo.from_msg(m) for _, _, m in r.messages(["/cam0/camera_info"])]
+        P = [np.reshape(m.P if hasattr(m, "P") else m.p, (3, 4))
+             for _, _, m in r.messages(["/cam0/camera_info"])]  # fmt: skip
         js = [(m.header.stamp.sec * 10**9 + m.header.stamp.nanosec, list(m.name),
                np.array(m.position)) for _, _, m in r.messages(["/joint_states"])]  # fmt: skip
     assert "<robot" in urdf and "_calibrated" not in urdf and 'name="a1"' in urdf
     assert len(imgs) == 8 and len(infos) == 8
     np.testing.assert_allclose(infos[0].K, cal.cameras[0].K.ravel())
+    # camera_calibration's P = [K' | 0], K' the rectified camera matrix, as the camera_info export
+    np.testing.assert_array_equal(P[0], np.c_[rectified_matrix(cal.cameras[0]), np.zeros(3)])
+    assert not np.allclose(P[0][:, :3], cal.cameras[0].K)  # the lab's lens distorts
     t = np.array([s for s, _, _ in js])
     q = np.array([p for _, _, p in js])
     assert all(n == ["a1", "a2", "a3", "a4", "a5", "a6"] for _, n, _ in js)
