@@ -129,7 +129,10 @@ def test_a_seven_joint_arm_from_a_robot_file_calibrates(tmp_path, capsys):
     assert err["calibrated"]["rms"] < 3 * rep["tool_tip_bound_mm"]
     # exported, the TOML finds its robot file through its source (before: "unknown robot model")
     exported = tmp_path / "arm7-calibrated.toml"
-    assert main(["-q", "export", str(tmp_path / "run"), "--out", str(exported)]) == 0
+    assert (
+        main(["-q", "export", str(tmp_path / "run"), "--format", "toml", "--out", str(exported)])
+        == 0
+    )
     joints = "0,-30,0,-130,0,100,45"
     for cal in (tmp_path / "run", exported):
         assert main(["fk", "--calibration", str(cal), "--joints", joints]) == 0

@@ -153,13 +153,16 @@ def test_import_calibrate_evaluate(lab, capsys):
     (root / "nogain").mkdir()
     (root / "nogain" / "calibration.json").write_text(json.dumps(doc))
     capsys.readouterr()
-    assert main(["export", str(root / "nogain"), "--out", str(root / "no.urdf")]) == 2
+    assert (
+        main(["export", str(root / "nogain"), "--format", "urdf", "--out", str(root / "no.urdf")])
+        == 2
+    )
     err = capsys.readouterr().err
     assert "not exported: the calibration is the fair nominal" in err and "--force" in err, err
     assert not (root / "no.urdf").exists()
     with pytest.warns(SelfCalWarning, match="exported with --force although"):
-        assert main(["export", str(root / "nogain"), "--out", str(root / "no.urdf"),
-                     "--force"]) == 0  # fmt: skip
+        assert main(["export", str(root / "nogain"), "--format", "urdf", "--out",
+                     str(root / "no.urdf"), "--force"]) == 0  # fmt: skip
 
 
 def test_import_records_the_camera_model_and_free_parameters(lab, tmp_path, capsys):
