@@ -77,11 +77,15 @@ def _model_json(m: MCPCModel, tool: str) -> dict:
 
 def _model_from(f: Fields) -> MCPCModel:
     types = f.strs("joint_types")
+    if not types or any(t not in ("revolute", "prismatic") for t in types):
+        raise f.bad("joint_types", "a list of 'revolute' and 'prismatic'", list(types))
     n = len(types)
-    base = f.float("base_offset_rad") if f.has("base_offset_rad") else 0.0
-    return MCPCModel(
-        f.array("params_si", (n + 1, 6)), types, f.array("joint_offsets_rad", (n,)), base
-    )
+    base = f.finite("base_offset_rad") if f.has("base_offset_rad") else 0.0
+    params, offsets = f.array("params_si", (n + 1, 6)), f.array("joint_offsets_rad", (n,))
+    for key, a in (("params_si", params), ("joint_offsets_rad", offsets)):
+        if not np.isfinite(a).all():
+            raise f.bad(key, "finite numbers", "non-finite values")
+    return MCPCModel(params, types, offsets, base)
 
 
 def camera_json(
@@ -248,7 +252,7 @@ class BoardCalibrationResult:
         f = Fields(doc, where, _FIX, error=err)
         cams, names, stds, Ts = [], [], [], []
         for c in f.items("cameras"):
-            Ts.append(c.array("T_first_camera", (4, 4)))
+            Ts.append(c.poses("T_first_camera", (4, 4)))
             cams.append(_camera_from(c))
             names.append(c.str("name"))
             s = c.sub("std")
@@ -289,13 +293,15 @@ def _camera_from(c: Fields) -> CameraModel:
     model = c.str("model")
     if model not in MODELS:
         raise c.bad("model", f"one of {tuple(MODELS)}", model)
-    p, (w, h) = c.sub("parameters"), c.ints("resolution")
-    coeffs = {k: p.float(k) for k in lens_names(model)}
-    try:
-        return camera_model(model, fx=p.float("fx"), mu=p.float("fy") / p.float("fx"),
-                            cx=p.float("cx"), cy=p.float("cy"), width=w, height=h,
-                            coeffs=coeffs, free=c.strs("free"),
-                            skew=p.float("skew") if p.has("skew") else 0.0)  # fmt: skip
+    p, res = c.sub("parameters"), c.ints("resolution")
+    if len(res) != 2 or min(res) <= 0:
+        raise c.bad("resolution", "two integers above zero", list(res))
+    (w, h), coeffs = res, {k: p.finite(k) for k in lens_names(model)}
+    fx, fy, cx, cy = (p.positive("fx"), p.positive("fy"), p.finite("cx"), p.finite("cy"))
+    skew, free = p.finite("skew") if p.has("skew") else 0.0, c.strs("free")
+    try:  # the checks above first: an InputError is a ValueError too
+        return camera_model(model, fx=fx, mu=fy / fx, cx=cx, cy=cy, width=w, height=h,
+                            coeffs=coeffs, free=free, skew=skew)  # fmt: skip
     except ValueError as e:
         raise c.bad("free", f"parameter names of the {model} model", c.raw("free")) from e
 

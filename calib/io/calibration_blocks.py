@@ -40,7 +40,9 @@ __all__ = [
 
 UNITS = ("deg", "mm")
 """The units of a parameter table: angles in deg, lengths in mm."""
-POSE = {"shape": (4, 4)}
+POSE = {"shape": (4, 4), "rigid": True}
+FINITE = {"check": "finite"}
+POSITIVE = {"check": "positive"}
 
 
 def matrix(T: np.ndarray, digits: int = 9) -> np.ndarray:
@@ -66,20 +68,20 @@ class CameraIntrinsics(JsonBlock):
     coefficients by OpenCV name (``distortion``), the estimated (``free``) parameters and their
     standard deviations by name (``std``), the ``skew`` (px, ``K[0, 1]``; 0 unless freed)."""
 
-    fx: float
-    fy: float
-    mu: float
-    cx: float
-    cy: float
-    width: int
-    height: int
+    fx: float = field(metadata=POSITIVE)
+    fy: float = field(metadata=POSITIVE)
+    mu: float = field(metadata=POSITIVE)
+    cx: float = field(metadata=FINITE)
+    cy: float = field(metadata=FINITE)
+    width: int = field(metadata=POSITIVE)
+    height: int = field(metadata=POSITIVE)
     fx_std: float
     mu_std: float
     model: str = field(default="pinhole", metadata={"choices": tuple(MODELS)})
     free: tuple[str, ...] = ("fx", "mu")
-    distortion: dict[str, float] = field(default_factory=dict)
+    distortion: dict[str, float] = field(default_factory=dict, metadata=FINITE)
     std: dict[str, float] = field(default_factory=dict)
-    skew: float = 0.0
+    skew: float = field(default=0.0, metadata=FINITE)
 
     def to_json(self) -> dict:
         """The JSON object; ``skew`` only when nonzero (files stay as they were without it)."""
@@ -99,6 +101,15 @@ class CameraIntrinsics(JsonBlock):
             self.model, fx=self.fx, mu=self.mu, cx=self.cx, cy=self.cy, width=self.width,
             height=self.height, coeffs=self.distortion, free=self.free, skew=self.skew,
         )  # fmt: skip
+
+    @classmethod
+    def from_json(cls, f: Fields) -> CameraIntrinsics:
+        """Read the block; ``fy`` must be ``mu fx`` (to 1e-6 relative: an edited ``fx`` or
+        ``fy`` alone is a damaged file, not another camera)."""
+        block = super().from_json(f)
+        if abs(block.fy - block.mu * block.fx) > 1e-6 * block.fy:
+            raise f.bad("fy", f"mu fx = {block.mu * block.fx:.6g} (fy = mu fx)", block.fy)
+        return block
 
     @classmethod
     def of(cls, camera: Intrinsics, std: dict[str, float]) -> CameraIntrinsics:
@@ -126,9 +137,16 @@ class RigCamera(JsonBlock):
 
 @dataclass(frozen=True, eq=False)
 class Rig(JsonBlock):
-    """``rig``: the right camera in the left camera frame (OpenCV frames, m)."""
+    """``rig``: the right camera in the left camera frame (OpenCV frames, m); every entry NaN for
+    a calibration of one camera (there is no right camera)."""
 
-    T_left_right_m: np.ndarray = field(metadata=POSE)
+    T_left_right_m: np.ndarray = field(metadata={"shape": (4, 4)})
+
+    @classmethod
+    def from_json(cls, f: Fields) -> Rig:
+        """Read the block: a rigid transform, or all NaN (one camera)."""
+        T = f.array("T_left_right_m", (4, 4))
+        return cls(T if np.isnan(T).all() else f.poses("T_left_right_m", (4, 4)))
 
 
 @dataclass(frozen=True, eq=False)
@@ -230,7 +248,7 @@ class CameraPoses(JsonBlock):
     @classmethod
     def from_json(cls, f: Fields) -> CameraPoses:
         idx = f.ints("frame_index")
-        T = f.array("T_world_cam_left_m", (len(idx), 4, 4)) if idx else np.zeros((0, 4, 4))
+        T = f.poses("T_world_cam_left_m", (len(idx), 4, 4)) if idx else np.zeros((0, 4, 4))
         return cls(f.int("reference_frame_index"), idx, T)
 
 
@@ -241,7 +259,7 @@ class ScenePoints(JsonBlock):
     (the frame of ``camera_poses`` and ``mcpc``); what ``selfcal evaluate`` predicts."""
 
     point_ids: tuple[int, ...]
-    X_world_m: np.ndarray = field(metadata={"shape": (None, 3)})
+    X_world_m: np.ndarray = field(metadata={"shape": (None, 3), **FINITE})
 
 
 @dataclass(frozen=True, eq=False)
@@ -256,7 +274,7 @@ class MethodSummary(JsonBlock):
     observations: ObservationCounts
     hand_eye: HandEye
     parameters: tuple[ParameterEstimate, ...]
-    mcpc_params_si: np.ndarray = field(metadata={"shape": (None, 6)})
+    mcpc_params_si: np.ndarray = field(metadata={"shape": (None, 6), **FINITE})
 
 
 JOINT_NOTE = (

@@ -5,7 +5,9 @@
 both driven by the field's declared type: ``float``, ``int``, ``str``, ``bool``, their
 ``| None`` forms, ``tuple[X, ...]`` of those or of blocks, ``dict[str, str]``, ``dict[str, float]``, nested blocks,
 and ``np.ndarray`` with ``field(metadata={"shape": (4, 4)})`` (None: any length on that axis).
-A ``str`` field may list its allowed values in ``metadata={"choices": (...)}``. A field with a
+A ``str`` field may list its allowed values in ``metadata={"choices": (...)}``; a number (or an
+object of numbers) may ask to be ``metadata={"check": "finite"}`` or ``"positive"``, an array to
+hold rigid transforms (``"rigid": True``: :meth:`calib.io.jsonfile.Fields.poses`). A field with a
 default may be absent from a file (files of an older schema). Numbers are coerced to the
 declared type when written, so the text of a block is a function of its values.
 """
@@ -14,6 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import math
 import types
 import typing
 from typing import Any, ClassVar, TypeVar
@@ -116,11 +119,24 @@ def _load(f: Fields, key: str, hint: Any, meta: typing.Mapping[str, Any]) -> Any
         if choices is not None and v not in choices:
             raise f.bad(key, f"one of {tuple(choices)}", v)
         return v
+    check = meta.get("check")
+    if t is float and check is not None:
+        return {"finite": f.finite, "positive": f.positive}[check](key)
+    if t is int and check == "positive":
+        n = f.int(key)
+        if n <= 0:
+            raise f.bad(key, "an integer above zero", n)
+        return n
     simple = {float: f.float, int: f.int, bool: f.bool}
     if t in simple:
         return simple[t](key)
     if t is np.ndarray:
-        return f.array(key, meta["shape"])
+        if meta.get("rigid"):
+            return f.poses(key, meta["shape"])
+        a = f.array(key, meta["shape"])
+        if check == "finite" and not np.isfinite(a).all():
+            raise f.bad(key, "finite numbers", "non-finite values")
+        return a
     origin, args = typing.get_origin(t), typing.get_args(t)
     if origin is tuple and len(args) == 2 and args[1] is Ellipsis:
         item = args[0]
@@ -132,5 +148,8 @@ def _load(f: Fields, key: str, hint: Any, meta: typing.Mapping[str, Any]) -> Any
     if origin is dict and args == (str, str):
         return f.str_map(key)
     if origin is dict and args == (str, float):
-        return f.float_map(key)
+        m = f.float_map(key)
+        if check == "finite" and not all(map(math.isfinite, m.values())):
+            raise f.bad(key, "an object of finite numbers", m)
+        return m
     raise TypeError(f"no JSON form for fields of type {hint}")

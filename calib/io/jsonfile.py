@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import builtins
 import json
+import math
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -29,6 +30,8 @@ __all__ = [
     "load_json",
     "check_header",
     "Fields",
+    "RIGID_TOL",
+    "rigid_error",
 ]
 
 SCHEMA_KEY = "schema_version"
@@ -57,7 +60,12 @@ def load_json(path: str | Path, *, fix: str, error: type[InputError] = InputErro
     """
     path = Path(path)
     try:
-        text = path.read_text()
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise error(
+            f"{path}: not UTF-8 text (byte {exc.start}: {exc.reason})",
+            fix=f"{fix} (the file is damaged: JSON is UTF-8 text)",
+        ) from None
     except OSError as exc:
         raise error(f"{path}: cannot be read ({exc.strerror or exc})", fix=fix) from None
     try:
@@ -194,6 +202,31 @@ class Fields:
         """A required number (NaN allowed)."""
         return self._convert(key, "a number", _float)
 
+    def finite(self, key: builtins.str) -> builtins.float:
+        """A required finite number."""
+        v = self.float(key)
+        if not math.isfinite(v):
+            raise self.bad(key, "a finite number", v)
+        return v
+
+    def positive(self, key: builtins.str) -> builtins.float:
+        """A required finite number above zero (a focal length, a size)."""
+        v = self.float(key)
+        if not (math.isfinite(v) and v > 0):
+            raise self.bad(key, "a finite number above zero", v)
+        return v
+
+    def poses(self, key: builtins.str, shape: tuple[builtins.int | None, ...]) -> np.ndarray:
+        """A required array of rigid transforms of ``shape`` (``(4, 4)`` or ``(n, 4, 4)``):
+        finite, rotation part orthonormal with determinant +1 (to :data:`RIGID_TOL`), last row
+        ``0 0 0 1``."""
+        T = self.array(key, shape)
+        bad = rigid_error(T)
+        if bad is not None:
+            raise self.bad(key, "rigid transforms (4x4, rotation orthonormal, last row 0 0 0 1)",
+                           bad)  # fmt: skip
+        return T
+
     def opt_float(self, key: builtins.str) -> builtins.float | None:
         """A number that may be null or absent."""
         return None if self.doc.get(key) is None else self.float(key)
@@ -249,6 +282,26 @@ class Fields:
     def opt_floats(self, key: builtins.str) -> tuple[builtins.float, ...] | None:
         """A list of numbers that may be null or absent."""
         return None if self.doc.get(key) is None else self.floats(key)
+
+
+RIGID_TOL = 1e-6
+"""How far a stored rotation may be from orthonormal (the writers round poses to 9 digits)."""
+
+
+def rigid_error(T: np.ndarray) -> str | None:
+    """Why the (..., 4, 4) ``T`` is not a stack of rigid transforms, or None."""
+    T = np.asarray(T, dtype=float).reshape(-1, 4, 4)
+    if not np.isfinite(T).all():
+        return "non-finite values"
+    R = T[:, :3, :3]
+    off = np.abs(R.transpose(0, 2, 1) @ R - np.eye(3)).max(initial=0.0)
+    if off > RIGID_TOL:
+        return f"a rotation part R with |R^T R - I| = {off:.3g} (not orthonormal)"
+    if (np.linalg.det(R) < 0).any():
+        return "a rotation part of determinant -1 (a reflection)"
+    if np.abs(T[:, 3] - [0, 0, 0, 1]).max(initial=0.0) > RIGID_TOL:
+        return "a last row other than 0 0 0 1"
+    return None
 
 
 def _exact(kind: type) -> Callable[[Any], Any]:
