@@ -90,14 +90,18 @@ def _residuals_csv(table, res, meas: TrackerMeasurements) -> str:
 
 def read_tracker_files(measurements, distances, robot, units: str, *, guess: bool = True):
     """``(TrackerMeasurements, Table)``: the measurements file (positions or poses) and, when
-    given, the distances file of ``robot`` (:mod:`calib.io.tracker`, joints in ``units``)."""
+    given, the distances file of ``robot`` (:mod:`calib.io.tracker`, joints in ``units``), their
+    geometry checked against the nominal arm (:mod:`calib.tracker_checks`)."""
     from calib.io.tracker import read_distances, read_measurements
+    from calib.mcpc import nominal_mcpc
+    from calib.tracker_checks import check_tracker_geometry
     from calib.tracker_identify import TrackerMeasurements
 
     meas, table = read_measurements(measurements, robot, units, guess=guess)
     if distances:
         qa, qb, d = read_distances(distances, robot, units, guess=guess)
         meas = TrackerMeasurements(meas.q, meas.xyz, meas.R, qa, qb, d)
+    check_tracker_geometry(nominal_mcpc(robot), meas, str(measurements), distances)
     return meas, table
 
 

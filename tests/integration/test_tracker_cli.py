@@ -107,16 +107,21 @@ def test_poses_and_a_robot_file_path(tmp_path, capsys):
     assert "over 30 poses" in text and "rank 30/30" in text
 
 
-def test_distances_file_combines_with_positions(tmp_path, capsys, er4u):
+def _with_distances(tmp_path, er4u, mm_per_unit=1e3):
+    """``selfcal identify`` argv of positions and 8 ball-bar distances (``d_mm`` written in
+    ``1 / mm_per_unit`` units: 1e3 is millimetres)."""
     case, header, rows = _measurements(tmp_path, er4u)
     meas = _write(tmp_path / "m.csv", header, rows)
     qa, qb = case.configurations(8, 5), case.configurations(8, 6)
     d = np.linalg.norm(fk_tool(case.true, qa)[:, :3, 3] - fk_tool(case.true, qb)[:, :3, 3], axis=1)
     head = [f"a_j{i + 1}" for i in range(5)] + [f"b_j{i + 1}" for i in range(5)] + ["d_mm"]
-    dist = _write(
-        tmp_path / "d.csv", head, np.column_stack([np.degrees(qa), np.degrees(qb), d * 1e3])
-    )
-    argv = ["identify", meas, "--robot", "er4u-paper", "--joint-units", "deg", "--distances", dist]
+    rows_d = np.column_stack([np.degrees(qa), np.degrees(qb), d * mm_per_unit])
+    dist = _write(tmp_path / "d.csv", head, rows_d, fmt="{:.9f}")
+    return ["identify", meas, "--robot", "er4u-paper", "--joint-units", "deg", "--distances", dist]
+
+
+def test_distances_file_combines_with_positions(tmp_path, capsys, er4u):
+    argv = _with_distances(tmp_path, er4u)
     code, text, err = _run([*argv, "--out", str(tmp_path / "o")], capsys)
     assert code == 0, err
     assert "distance RMS" in text and "position + distance" in text
@@ -263,3 +268,27 @@ def test_a_urdf_robot(tmp_path, capsys):
     pred = np.loadtxt(text.splitlines()[1:], delimiter=",")
     # the model's own error at 30 positions; measured max 0.19 mm
     assert np.abs(pred - fk_tool(case.true, q_new)[:, :3, 3] * 1e3).max() < 0.35
+
+
+def test_positions_on_one_line_are_refused(tmp_path, capsys, er4u):
+    """#33: before, exit 0 with a fit RMS of 125.8 mm and no warning."""
+    _, header, rows = _measurements(tmp_path, er4u)
+    t = np.linspace(-1.0, 1.0, len(rows))
+    rows[:, -3:] = np.outer(t, [300.0, 200.0, 100.0]) + [400.0, 0.0, 300.0]
+    code, err = _identify_fails(tmp_path, capsys, header, rows)
+    assert code == 2 and str(tmp_path / "bad.csv") in err and "lies on one line" in err
+
+
+def test_positions_in_metres_under_mm_headers_are_refused(tmp_path, capsys, er4u):
+    """#33: before, exit 0 with a fit RMS of 0.00013 mm (a robot 1000 times too small)."""
+    _, header, rows = _measurements(tmp_path, er4u)
+    rows[:, -3:] /= 1e3
+    code, err = _identify_fails(tmp_path, capsys, header, rows, fmt="{:.9f}")
+    assert code == 2 and str(tmp_path / "bad.csv") in err
+    assert "these look like metres" in err and "x_mm" in err
+
+
+def test_distances_in_metres_are_refused(tmp_path, capsys, er4u):
+    argv = _with_distances(tmp_path, er4u, mm_per_unit=1.0)  # metres under d_mm
+    code, _, err = _run([*argv, "--out", str(tmp_path / "o")], capsys)
+    assert code == 2 and str(tmp_path / "d.csv") in err and "look like metres" in err
