@@ -32,7 +32,7 @@ from calib.board_rig import calibrate_board_rig
 from calib.board_robot import BoardRobotCalibration, calibrate_robot_with_board
 from calib.errors import EstimationError, SelfCalError, SelfCalWarning
 from calib.estimation.joint_report import encoder_sigma
-from calib.frame_checks import check_distinct_frames
+from calib.frame_checks import UnusedFramesWarning, check_distinct_frames, unused_frames_message
 from calib.identify import IdentificationError
 from calib.io.board_calibration import BoardCalibrationResult
 from calib.io.dataset import Dataset, DatasetError, read_gray
@@ -278,6 +278,10 @@ def calibrate_board_dataset_detailed(
         )
         notes.append(text)
         warnings.warn(text, ReadbackWarning, stacklevel=2)
+    unused = unused_frames_message(ds.indices, np.flatnonzero(used), res.board.skipped)
+    if unused:
+        notes.append(unused)
+        warnings.warn(unused, UnusedFramesWarning, stacklevel=2)
     for w in caught:
         if issubclass(w.category, SelfCalWarning):
             notes.append(str(w.message))

@@ -35,7 +35,12 @@ from calib.camera.undistort import Undistorter
 from calib.errors import EstimationError, InitialCameraWarning, SelfCalWarning
 from calib.estimation.selfcal_errors import DegenerateConfigurationError, SelfCalibrationError
 from calib.field_cameras import dataset_camera, initial_cameras, lens_cameras, models_of
-from calib.frame_checks import check_distinct_frames, check_read_back
+from calib.frame_checks import (
+    UnusedFramesWarning,
+    check_distinct_frames,
+    check_read_back,
+    unused_frames_message,
+)
 from calib.identify import identify
 from calib.io.calibration import CalibrationResult
 from calib.io.calibration_blocks import ScenePoints
@@ -60,6 +65,7 @@ __all__ = [
     "fit_cost",
     "CalibrationFailedError",
     "NoMarkersWarning",
+    "UnusedFramesWarning",
     "MarkerDetections",
     "skipped_images_message",
     "detect_dataset",
@@ -379,9 +385,13 @@ def calibrate_detailed(
             f"tool RMS {ident.rms_t_mm_after:.3f} mm / {ident.rms_r_deg_after:.4f} deg, "
             f"rank {ident.rank}/{ident.n_params}"
         )
+    unused = unused_frames_message(ds.indices, used, skipped)
+    if unused:
+        warnings.warn(unused, UnusedFramesWarning, stacklevel=2)
     notes = [
         *incomplete,
         *([skipped_images_message(skipped, ds.info.dictionary)] if skipped else []),
+        *([unused] if unused else []),
         *_scale_notes(ds.info, robot, q[used], sc.T_world_cam[used, 0]),
     ]
     result = two_stage_result(

@@ -15,11 +15,22 @@ from it (:data:`READBACK_DEG`) is a joints row of another frame, joints in radia
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 
+from calib.errors import SelfCalWarning
 from calib.io.dataset import DatasetError, Detections
 
-__all__ = ["NEAR_PX", "READBACK_DEG", "alike_frames", "check_distinct_frames", "check_read_back"]
+__all__ = [
+    "NEAR_PX",
+    "READBACK_DEG",
+    "alike_frames",
+    "check_distinct_frames",
+    "check_read_back",
+    "unused_frames_message",
+    "UnusedFramesWarning",
+]
 
 NEAR_PX = 0.05
 """Largest RMS difference (px) of the corners of two frames that counts as the same image. Two
@@ -70,6 +81,7 @@ def alike_frames(
                     "delivered an old image, or an image file was copied"
                 )
             out.append(f"frames {idx[ka]} and {idx[kb]} show the same corners ({how}) {why}")
+    out += _cameras_alike(idx, dets, cameras)
     for a in range(len(idx)):
         for b in np.flatnonzero(np.all(q[a + 1 :] == q[a], axis=1)) + a + 1:
             if (a, int(b)) not in same_images:
@@ -79,6 +91,49 @@ def alike_frames(
                     "while the robot moved"
                 )
     return out
+
+
+def _cameras_alike(idx: list[int], dets: Detections, cameras: tuple[str, ...]) -> list[str]:
+    """One sentence per frame in which two cameras show the same corners (within
+    :data:`NEAR_PX`): the cameras of a rig look from other places, so one image is a copy of the
+    other (before: the frame dropped without a word, or an outlier-rejection error naming none)."""
+    out = []
+    for i in idx:
+        for a, ca in enumerate(cameras):
+            for cb in cameras[a + 1 :]:
+                da, db = dets.get((i, ca), {}), dets.get((i, cb), {})
+                if not da or sorted(da) != sorted(db):
+                    continue
+                d = np.sqrt(np.mean([np.mean((da[m] - db[m]) ** 2) for m in da]))
+                if d <= NEAR_PX:
+                    how = "identical" if d == 0.0 else f"within {d:.3f} px RMS"
+                    out.append(
+                        f"frame {i}: the {cb} image shows the same corners as the {ca} image "
+                        f"({how}): one camera's image was copied over the other's"
+                    )
+    return out
+
+
+class UnusedFramesWarning(SelfCalWarning):
+    """Frames the calibration could not use are left out (named; also in the result)."""
+
+
+def unused_frames_message(indices: np.ndarray, used: np.ndarray, skipped: tuple[str, ...]) -> str:
+    """The sentence naming the frames (by index) of ``indices`` not among the positions ``used``
+    (a warning and in ``calibration.json``), or ``""`` when every frame is used; ``skipped``:
+    the images without markers (``NNNN_camera``), named with their frame."""
+    kept = {int(u) for u in used}
+    unused = [int(i) for k, i in enumerate(indices) if k not in kept]
+    if not unused:
+        return ""
+    empty = {int(m[0]) for m in (re.match(r"[0-9]{1,9}", n) for n in skipped) if m}
+    named = [f"{i} (an image without markers)" if i in empty else str(i) for i in unused]
+    return (
+        f"{len(unused)} of {len(indices)} frame(s) not used by the calibration: "
+        f"{', '.join(named[:20])}{' ...' if len(named) > 20 else ''}; the camera stage could not "
+        "register them with the others (too few markers shared with other frames, or images "
+        "that do not agree with them: an image of another frame or camera)"
+    )
 
 
 def check_distinct_frames(

@@ -192,7 +192,12 @@ def two_stage_result(
     dh, dh_note = dh_rows(model, robot)
     result = CalibrationResult(
         robot_model=robot.name,
-        dataset=DatasetUse(int(len(ds.indices)), int(len(used)), tuple(skipped_images)),
+        dataset=DatasetUse(
+            int(len(ds.indices)),
+            int(len(used)),
+            tuple(skipped_images),
+            tuple(int(i) for i in np.setdiff1d(ds.indices, ds.indices[used])),
+        ),
         intrinsics=CameraIntrinsics.of(sc.camera, sc.camera_std),
         cameras=rig_cameras(sc.cameras, sc.cameras_std),
         rig=Rig(matrix(sc.T_left_right)),

@@ -52,12 +52,22 @@ def matrix(T: np.ndarray, digits: int = 9) -> np.ndarray:
 
 @dataclass(frozen=True)
 class DatasetUse(JsonBlock):
-    """``dataset``: frames in the dataset, frames the calibration used, and the images skipped
-    because no marker was detected in them (``NNNN_left`` / ``NNNN_right``)."""
+    """``dataset``: frames in the dataset, frames the calibration used, the images skipped
+    because no marker was detected in them (``NNNN_left`` / ``NNNN_right``) and the frames (by
+    index) the calibration did not use (also named in ``warnings``)."""
 
     frames: int
     frames_used: int
     skipped_images: tuple[str, ...] = ()
+    unused_frames: tuple[int, ...] = ()
+
+    def to_json(self) -> dict:
+        """The JSON object; ``unused_frames`` only when a frame was not used (files stay as they
+        were otherwise)."""
+        doc = super().to_json()
+        if not doc["unused_frames"]:
+            del doc["unused_frames"]
+        return doc
 
 
 @dataclass(frozen=True)

@@ -14,7 +14,7 @@ import pytest
 from analytic_dataset import acquire_analytic, run
 
 from calib.calibrate import calibrate, detect_dataset
-from calib.frame_checks import NEAR_PX, alike_frames
+from calib.frame_checks import NEAR_PX, alike_frames, unused_frames_message
 from calib.io.dataset import Dataset, DatasetError
 
 
@@ -189,3 +189,49 @@ def test_joints_rows_of_other_frames_are_named(dataset, tmp_path):
                        r"planned postures \(frames 2, 6; worst frame [26]: q\d_deg = ") as exc:  # fmt: skip
         calibrate(ds)
     assert "rows or columns out of order" in str(exc.value)
+
+
+def copy_camera(frame, src, dst, from_frame=None):
+    """An edit of detections.csv that replaces camera ``dst``'s corners of ``frame`` by camera
+    ``src``'s (of ``from_frame``, default the same frame)."""
+    from_frame = frame if from_frame is None else from_frame
+
+    def d(text):
+        lines = text.splitlines()
+        keep = [r for r in lines[1:] if r.split(",")[:2] != [str(frame), dst]]
+        new = [",".join([str(frame), dst, *r.split(",")[2:]])
+               for r in lines[1:] if r.split(",")[:2] == [str(from_frame), src]]  # fmt: skip
+        return "\n".join([lines[0], *keep, *new]) + "\n"
+
+    return {"detections": d}
+
+
+@pytest.mark.parametrize(("src", "dst"), [("left", "right"), ("right", "left")])
+def test_one_camera_copied_over_the_other_is_named(capsys, dataset, tmp_path, src, dst):
+    """#33: the right image a copy of the left was dropped without a word (29 of 30 frames used,
+    skipped_images empty); the left a copy of the right failed the outlier rejection, exit 3,
+    naming no frame."""
+    ds = edited(dataset, tmp_path / "copy", **copy_camera(4, src, dst))
+    code, out, err = run(capsys, "calibrate", ds, "--quiet")
+    assert code == 2 and out == ""
+    assert "frame 4: the right image shows the same corners as the left image" in err
+    assert "(identical): one camera's image was copied over the other's" in err
+
+
+@pytest.mark.slow
+def test_a_frame_the_camera_stage_drops_is_named(dataset, tmp_path):
+    """#33: frame 3's right image of another frame (5): the camera stage cannot register the frame
+    and leaves it out; a warning and calibration.json name it (before: 9 of 10 used, no word)."""
+    ds = edited(dataset, tmp_path / "other", **copy_camera(3, "right", "right", from_frame=5))
+    with pytest.warns(UserWarning, match=r"1 of 10 frame\(s\) not used by the calibration: 3;"):
+        res = calibrate(ds, method="two-stage")
+    assert res.dataset.frames_used == 9 and res.dataset.unused_frames == (3,)
+    assert any("not used by the calibration: 3;" in w for w in res.warnings)
+    assert res.to_json()["dataset"]["unused_frames"] == [3]
+
+
+def test_unused_frames_are_named_with_their_images_without_markers():
+    msg = unused_frames_message(np.arange(10, 16), np.array([0, 1, 3, 5]), ("0012_left",))
+    assert msg.startswith("2 of 6 frame(s) not used by the calibration: 12 (an image without ")
+    assert ", 14; the camera stage could not register them" in msg
+    assert unused_frames_message(np.arange(4), np.arange(4), ()) == ""
