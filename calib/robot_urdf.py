@@ -14,13 +14,16 @@ several leaves tie (e.g. two gripper fingers) the call fails and asks for ``tool
 
 Joints: ``revolute`` and ``prismatic`` (limits from ``<limit>``), ``continuous`` (revolute with
 limits +-360 deg), ``fixed`` (folded into ``G``). A ``floating`` or ``planar`` joint, or a mimic
-joint, in the chain is refused.
+joint, in the chain is refused; so is a joint graph that is not a tree (a kinematic loop, a link
+with two parents: before, the chain's walk never ended), naming the joint, and a file that is not
+XML with a ``<robot>`` root (before yourdfpy logs its parser's complaints).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -74,9 +77,67 @@ def _z_onto(axis: np.ndarray) -> np.ndarray:
     return T
 
 
+def _check_xml(path: Path) -> None:
+    """Refuse a file that is not XML with a ``<robot>`` root, before yourdfpy (which logs the
+    XML parser's complaints and then fails with a TypeError's text)."""
+    from xml.etree import ElementTree
+
+    fix = f"give a URDF: XML with <robot>, <link> and <joint> ({path} is another kind of file)"
+    try:
+        root = ElementTree.parse(path).getroot()
+    except ElementTree.ParseError as exc:
+        raise UrdfError(f"{path}: not a URDF: not XML ({exc})", fix=fix) from None
+    except OSError as exc:
+        raise UrdfError(f"{path}: cannot be read ({exc.strerror or exc})", fix=fix) from None
+    if root.tag != "robot":
+        raise UrdfError(f"{path}: not a URDF: the root element is <{root.tag}>, not <robot>",
+                        fix=fix)  # fmt: skip
+
+
+def _check_tree(path: Path, joints: list) -> None:
+    """Refuse a joint graph that is not a tree (a link with two parent joints, a closed loop),
+    naming the joint; the chain walks below would not end."""
+    parent_of: dict[str, Any] = {}
+    fix = (
+        "remove the joint that closes the loop (URDF describes open chains only; a parallel "
+        "linkage is modelled by its serial chain)"
+    )
+    for j in joints:
+        if j.child in parent_of:
+            first = parent_of[j.child].name
+            raise UrdfError(
+                f"{path}: joint {j.name!r} makes link {j.child!r} the child of a second joint "
+                f"({first!r} is the first): a kinematic loop or a link with two parents, and a "
+                "URDF is a tree",
+                fix=f"{fix}: {j.name!r}",
+            )
+        parent_of[j.child] = j
+    order = {id(j): k for k, j in enumerate(joints)}
+    for start in parent_of:
+        seen: list[str] = []
+        link = start
+        while link in parent_of and link not in seen:
+            seen.append(link)
+            link = parent_of[link].parent
+        if link in seen:
+            loop = [parent_of[x] for x in seen[seen.index(link) :]]
+            last = max(loop, key=lambda j: order[id(j)])
+            raise UrdfError(
+                f"{path}: joint {last.name!r} closes a kinematic loop (joints "
+                f"{', '.join(repr(j.name) for j in loop)}): a URDF is a tree",
+                fix=f"{fix}: {last.name!r}",
+            )
+
+
 def _load(path: Path):
+    import logging
+
     import yourdfpy  # heavy (trimesh); only needed when a URDF is read
 
+    _check_xml(path)
+    log = logging.getLogger("yourdfpy")
+    level = log.level
+    log.setLevel(logging.CRITICAL)  # its parse errors become ours (one message), then restored
     try:
         return yourdfpy.URDF.load(
             str(path),
@@ -90,6 +151,8 @@ def _load(path: Path):
             f"{path}: not a readable URDF ({type(exc).__name__}: {exc})",
             fix=f"check that {path} is a valid URDF (XML with <robot>, <link> and <joint>)",
         ) from exc
+    finally:
+        log.setLevel(level)
 
 
 _NAME_LINKS = (
@@ -150,6 +213,7 @@ def urdf_chain(
     path = Path(path)
     robot = _load(path)
     joints = list(robot.joints)
+    _check_tree(path, joints)
     links = [link.name for link in robot.links]
     for key, link in (("base_link", base_link), ("tool_link", tool_link)):
         if link is not None and link not in links:

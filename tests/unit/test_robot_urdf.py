@@ -139,7 +139,7 @@ def test_ambiguous_tool_link_asks_for_a_name(tmp_path):
 def test_unreadable_urdf(tmp_path):
     p = tmp_path / "broken.urdf"
     p.write_text("solid cube\nfacet normal 0 0 1\n")
-    with pytest.raises(InputError, match="broken.urdf: not a readable URDF"):
+    with pytest.raises(InputError, match="broken.urdf: not a URDF: not XML"):
         load_robot(p)
 
 
@@ -187,3 +187,46 @@ def test_general_urdf_chain_matches_yourdfpy_forward_kinematics(tmp_path):
         want = urdf.get_transform("tool0", "base_link")
         assert np.abs(T - want).max() < 1e-13
         assert np.abs(M - want).max() < 1e-13
+
+
+LOOP = (
+    '<joint name="loop_back" type="revolute">\n    <parent link="link_4"/>\n'
+    '    <child link="link_2"/>\n    <axis xyz="0 0 1"/>\n'
+    '    <limit lower="-1" upper="1" effort="1" velocity="1"/>\n  </joint>\n</robot>'
+)
+
+
+@pytest.mark.parametrize("links", [None, {"tool_link": 'tool_link = "tool0"'}])
+def test_a_kinematic_loop_is_refused_naming_the_joint(tmp_path, links):
+    """#33: a joint from a child link back to an ancestor made `selfcal fk` run for ever (still
+    running after 300 s). A URDF is a tree: the second joint into a link is named."""
+    p = _variant(tmp_path, "</robot>", LOOP, toml_extra=links)
+    with pytest.raises(UrdfError, match=r"arm.urdf: joint 'loop_back' makes link 'link_2' the "
+                                        r"child of a second joint \('joint_a2'") as exc:  # fmt: skip
+        load_robot(p)
+    assert "a URDF is a tree" in str(exc.value) and "loop_back" in exc.value.fix
+
+
+def test_a_cycle_without_a_root_is_refused(tmp_path):
+    """Every link a child (the loop closes on the root): no root and a cycle, named."""
+    root = (
+        '<joint name="to_root" type="fixed">\n    <parent link="tool0"/>\n'
+        '    <child link="base_link"/>\n  </joint>\n</robot>'
+    )
+    p = _variant(tmp_path, "</robot>", root)
+    with pytest.raises(UrdfError, match=r"joint 'to_root' .* a kinematic loop"):
+        load_robot(p)
+
+
+def test_plain_text_as_urdf_is_one_clear_error(tmp_path, capfd, caplog):
+    """#33: a plain-text file given as URDF printed a TypeError's text and two lxml lines before
+    the error; now one line naming the file, exit 2."""
+    from scenarios.cli import main
+
+    p = tmp_path / "notes.urdf"
+    p.write_text("this robot has six joints\nand a camera\n")
+    assert main(["fk", "--robot", str(p), "--joints", "0,0,0,0,0,0"]) == 2
+    out, err = capfd.readouterr()
+    assert err.count("\n") == 1 and err.startswith("selfcal: error: ") and str(p) in err
+    assert "not a URDF" in err and "TypeError" not in err
+    assert not [r for r in caplog.records if r.name.startswith("yourdfpy")]  # no parser lines
