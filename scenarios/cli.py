@@ -27,6 +27,7 @@ from scenarios.cli_common import (
     note_written,
     parse_floats,
     run_command,
+    writing,
 )
 from scenarios.cli_pose import POSE_HELP, add_pose_args, is_er, orientation_json, parse_pose_args
 from scenarios.defaults import DEFAULT_ROBOT
@@ -184,7 +185,8 @@ def cmd_acquire(args: argparse.Namespace) -> int:
 
     s = load_scenario(args.config)
     out = _scenario_out(args, s)
-    run_acquire(s, out, resume=args.resume, quiet=args.quiet)
+    with writing(args, out):
+        run_acquire(s, out, resume=args.resume, quiet=args.quiet)
     note_written(args, out)
     if args.json:
         print(json.dumps({"dataset": str(out), "frames": len(Dataset.open(out).indices)}))
@@ -212,7 +214,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     from scenarios.own_data import calibrate_any
 
     root = Path(args.dataset)
-    with _stdout_to_stderr(args.json):
+    with writing(args, root, "DATASET", create=False), _stdout_to_stderr(args.json):
         calibrate_any(root, quiet=args.quiet, method=args.method,
                       allow_missing_frames=args.allow_missing_frames, figures=True,
                       tracker_args=args, joint_sigma_deg=args.joint_sigma_deg)  # fmt: skip
@@ -260,12 +262,13 @@ def cmd_run(args: argparse.Namespace) -> int:
         raise CliError(f"--bag: {s.source} takes no images ([noise] render = false), a bag needs "
                        "them; set render = true")  # fmt: skip
     # A run continues the dataset already in --out when it was taken with the same scenario.
-    with _stdout_to_stderr(args.json):
-        result = run_all(s, out, resume=True, quiet=args.quiet, method=args.method)
-    if args.bag:
+    with writing(args, out):
         with _stdout_to_stderr(args.json):
-            export_run(out, args.bag, args.quiet)
-        note_written(args, args.bag)
+            result = run_all(s, out, resume=True, quiet=args.quiet, method=args.method)
+        if args.bag:
+            with _stdout_to_stderr(args.json):
+                export_run(out, args.bag, args.quiet)
+            note_written(args, args.bag)
     note_written(args, out)
     doc: dict = {"out": str(out), **_calibration_json(out / "calibration.json")}
     if "report" in result:
@@ -501,6 +504,7 @@ def main(argv: list[str] | None = None) -> int:
         args = parser.parse_args(argv)
     except SystemExit as exc:  # --help (0) or a usage error (2, printed by SelfcalParser)
         return exc.code if isinstance(exc.code, int) else EXIT_USAGE
+    args.argv = list(sys.argv[1:] if argv is None else argv)  # names the writer in a lock
     return run_command(_limited(args.func), args)
 
 

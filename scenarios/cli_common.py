@@ -12,11 +12,13 @@ kinds.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
+import shlex
 import sys
 import time
 import traceback
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import NoReturn
 
@@ -26,6 +28,7 @@ from calib.errors import EXIT_INTERNAL, EXIT_INTERRUPTED, InputError, SelfCalErr
 from scenarios.cli_log import command_logging, get_logger, wrote_line
 
 __all__ = [
+    "writing",
     "CliError",
     "SelfcalParser",
     "parse_floats",
@@ -232,3 +235,23 @@ def note_written(args: argparse.Namespace, *paths: str | Path) -> None:
     log = getattr(args, "log", None)
     if log is not None:
         log.add_written(*paths)
+
+
+@contextlib.contextmanager
+def writing(
+    args: argparse.Namespace, folder: str | Path, what: str = "--out", *, create: bool = True
+) -> Iterator[None]:
+    """Hold the lock of the output ``folder`` while a command writes it
+    (:func:`calib.io.outlock.output_lock`: one writer per folder; a second stops with exit code 2
+    naming the first; a stale lock is taken over with a warning). ``create``: make a missing
+    folder (False: a missing folder is the command's own error to report, nothing is locked)."""
+    from calib.io.outlock import output_lock
+
+    if not create and not Path(folder).is_dir():
+        yield
+        return
+    command = "selfcal " + shlex.join(getattr(args, "argv", None) or sys.argv[1:])
+    with output_lock(folder, command, what) as note:
+        if note:
+            get_logger("cli").warning("%s", note)
+        yield
