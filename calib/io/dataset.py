@@ -84,11 +84,52 @@ def _encode_png(rgb: np.ndarray) -> bytes:
     return buf.tobytes()
 
 
+def _robot_source(root: Path, ref: str) -> str | Path:
+    if Path(ref).suffix in (".toml", ".urdf"):
+        return Path(ref) if Path(ref).is_absolute() else root / ref
+    return ref
+
+
+def _check_robot_model(root: Path, ref: str, where: Path) -> None:
+    """``robot_model`` names a known robot or an existing robot file; else the error names
+    ``where`` and the key (before: an encoder-table mismatch was blamed)."""
+    from calib.robot_def import list_robots  # robot files are read by the commands, not here
+
+    src = _robot_source(root, ref)
+    if isinstance(src, Path) and not src.is_file():
+        raise DatasetError(
+            f"{where}: key 'robot_model' names the robot file {src}, which does not exist",
+            fix="give robot_model the robot that took the data: a robot of models/robots or a "
+            "robot TOML / URDF path (relative to the dataset folder)",
+        )
+    if isinstance(src, str) and src not in list_robots():
+        raise DatasetError(
+            f"{where}: key 'robot_model' is {ref!r}, which names no robot (known: "
+            f"{', '.join(list_robots())})",
+            fix="give robot_model the robot that took the data: one of the known names, or a "
+            "robot TOML / URDF path (relative to the dataset folder)",
+        )
+
+
+def read_text(path: Path) -> str:
+    """The UTF-8 text of a dataset file; a :class:`DatasetError` naming it when it is not UTF-8
+    (before: a UnicodeDecodeError, exit 1) or cannot be read."""
+    try:
+        return path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise DatasetError(
+            f"{path}: not UTF-8 text (byte {exc.start}: {exc.reason})",
+            fix="restore the file (the dataset writes UTF-8 text), or re-acquire",
+        ) from None
+    except OSError as exc:
+        raise DatasetError(f"{path}: cannot be read ({exc.strerror or exc})") from None
+
+
 def _read_csv_rows(path: Path) -> list[list[str]]:
     """Rows of a CSV file, header excluded, ignoring a trailing partial line."""
     if not path.is_file():
         return []
-    text = path.read_text()
+    text = read_text(path)
     if text and not text.endswith("\n"):
         text = text[: text.rfind("\n") + 1]
     rows = list(csv.reader(text.splitlines()))
@@ -209,7 +250,7 @@ def read_joints_csv(path: Path, n_joints: int) -> tuple[np.ndarray, np.ndarray, 
         DatasetError: a value that is not a number, NaN or inf, too many values, a frame index
             twice (each naming the file, line and frame).
     """
-    text = path.read_text() if path.is_file() else ""
+    text = read_text(path) if path.is_file() else ""
     lines = text.splitlines()
     cut: list[str] = []
     idx: list[int] = []
@@ -275,6 +316,7 @@ class Dataset:
                 "`selfcal acquire CONFIG --out DIR`)"
             )
         info = read_dataset_info(meta)
+        _check_robot_model(root, info.robot_model, meta)
         info.check_encoder_model(meta)
         idx, q, cut = read_joints_csv(root / "joints.csv", info.planned_joints_deg.shape[1])
         if not len(idx) and not cut:
@@ -311,10 +353,7 @@ class Dataset:
     def robot_source(self) -> str | Path:
         """What :func:`calib.robot_def.load_robot` takes for ``info.robot_model``: a model name,
         or a robot file (a relative path is relative to the dataset folder)."""
-        ref = self.info.robot_model
-        if Path(ref).suffix in (".toml", ".urdf"):
-            return Path(ref) if Path(ref).is_absolute() else self.root / ref
-        return ref
+        return _robot_source(self.root, self.info.robot_model)
 
     def frame_paths(self, index: int) -> tuple[Path, ...]:
         """Paths of a frame's images, one per camera in ``info.cameras`` order."""

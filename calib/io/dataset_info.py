@@ -36,7 +36,7 @@ from calib.io.jsonfile import (
     load_json,
     write_json_atomic,
 )
-from calib.io.target_toml import parse_target
+from calib.io.target_toml import dictionary_name, length_m, parse_target
 
 __all__ = [
     "DatasetError",
@@ -258,8 +258,8 @@ class DatasetInfo:
             scale_ids = tgt.ints("scale_marker_ids")
             if len(scale_ids) != 2:
                 raise tgt.bad("scale_marker_ids", "two marker ids", list(scale_ids))
-            dictionary, scale = tgt.str("dictionary"), (scale_ids[0], scale_ids[1])
-            length = tgt.float("scale_length_mm") / 1000.0
+            dictionary, scale = dictionary_name(tgt), (scale_ids[0], scale_ids[1])
+            length = length_m(tgt, "scale_length_mm")
         else:
             board = dict(tgt.doc)
             try:

@@ -33,6 +33,7 @@ from calib.target.boards import AprilGrid, Charuco, Chessboard, CirclesGrid
 from calib.tomlfile import read_toml
 
 __all__ = ["TargetFileError", "load_target", "parse_target", "target_document", "TARGET_TYPES",
+           "length_m", "dictionary_name", "MAX_LENGTH_MM",
            "load_field_scale"]  # fmt: skip
 
 TARGET_TYPES: dict[str, tuple[set[str], set[str]]] = {
@@ -79,7 +80,7 @@ def load_field_scale(path: str | Path) -> tuple[tuple[int, int], float]:
     ids = f.ints("scale_marker_ids")
     if len(ids) != 2 or ids[0] == ids[1] or min(ids) < 0:
         raise f.bad("scale_marker_ids", "two distinct marker ids [A, B]", list(ids))
-    return (ids[0], ids[1]), _mm(f, "scale_length_mm")
+    return (ids[0], ids[1]), length_m(f, "scale_length_mm")
 
 
 def _pair(f: Fields, key: str, odd_even: bool = False) -> tuple[int, int]:
@@ -96,14 +97,23 @@ def _pair(f: Fields, key: str, odd_even: bool = False) -> tuple[int, int]:
     return v[0], v[1]
 
 
-def _mm(f: Fields, key: str) -> float:
+MAX_LENGTH_MM = 1e5
+"""The longest length a target file may give (100 m): beyond it a value is a typo (1e308 ended in
+a LinAlgError)."""
+
+
+def length_m(f: Fields, key: str) -> float:
+    """The length ``key`` (mm in the file) in m: finite, above zero, at most
+    :data:`MAX_LENGTH_MM`; else the error naming the file and the key."""
     v = f.float(key)
-    if not v > 0:
-        raise f.bad(key, "a length > 0 (mm)", v)
+    if not 0 < v <= MAX_LENGTH_MM:
+        raise f.bad(key, f"a length > 0 and at most {MAX_LENGTH_MM:g} (mm)", v)
     return v / 1000.0
 
 
-def _dictionary(f: Fields) -> str:
+def dictionary_name(f: Fields) -> str:
+    """The cv2.aruco dictionary named by ``dictionary``; else the error naming the file and the
+    key."""
     name = f.str("dictionary")
     try:
         aruco_dictionary(name)
@@ -130,22 +140,22 @@ def parse_target(doc: dict, where: str) -> Target:
     for key in sorted(required):
         f.raw(key)  # missing key: the error names it
     if kind == "field":
-        return ArucoField(dictionary=_dictionary(f) if f.has("dictionary") else "DICT_4X4_50")
+        return ArucoField(dictionary=dictionary_name(f) if f.has("dictionary") else "DICT_4X4_50")
     if kind == "chessboard":
-        return Chessboard(_pair(f, "inner_corners", odd_even=True), _mm(f, "square_mm"), where)
+        return Chessboard(_pair(f, "inner_corners", odd_even=True), length_m(f, "square_mm"), where)
     if kind == "charuco":
-        square, marker = _mm(f, "square_mm"), _mm(f, "marker_mm")
+        square, marker = length_m(f, "square_mm"), length_m(f, "marker_mm")
         if not marker < square:
             raise f.bad("marker_mm", f"smaller than square_mm ({square * 1000:g})", marker * 1000)
         cols, rows = _pair(f, "inner_corners")
-        name = _dictionary(f)
+        name = dictionary_name(f)
         need, have = (cols + 1) * (rows + 1) // 2, len(aruco_dictionary(name).bytesList)
         if need > have:
             raise f.bad("dictionary", f"a dictionary of at least {need} markers", name)
         return Charuco((cols, rows), square, marker, name, where)
     if kind == "circles":
-        spacing = _mm(f, "spacing_mm")
-        diameter = _mm(f, "diameter_mm") if f.has("diameter_mm") else spacing
+        spacing = length_m(f, "spacing_mm")
+        diameter = length_m(f, "diameter_mm") if f.has("diameter_mm") else spacing
         if not diameter < spacing * 2**0.5:
             raise f.bad(
                 "diameter_mm",
@@ -157,7 +167,7 @@ def parse_target(doc: dict, where: str) -> Target:
     ratio = f.float("spacing_ratio")
     if not 0 < ratio <= 2:
         raise f.bad("spacing_ratio", "a number in (0, 2] (gap / tag side)", ratio)
-    return AprilGrid(_pair(f, "tags"), _mm(f, "tag_mm"), ratio, where)
+    return AprilGrid(_pair(f, "tags"), length_m(f, "tag_mm"), ratio, where)
 
 
 _DOCUMENT: dict[type, tuple[str, tuple[tuple[str, str], ...]]] = {

@@ -255,6 +255,12 @@ def _joint_names(prefix: str, n: int) -> list[str]:
     return [f"{prefix}j{i + 1}" for i in range(n)]
 
 
+def _joint_number(text: str) -> int | None:
+    """The joint number ``text`` spells in ASCII digits (at most 4: ``j`` followed by 5000 digits
+    or ``j¹4`` is no joint column, and no ValueError), else None."""
+    return int(text) if text.isascii() and text.isdigit() and len(text) <= 4 else None
+
+
 def _joint_index(column: str, prefix: str, robot) -> int | None:
     """Which joint (0-based) the header ``column`` names (``prefix`` j1..jn, any case, or the
     robot's own joint names), or None."""
@@ -262,8 +268,9 @@ def _joint_index(column: str, prefix: str, robot) -> int | None:
     if not c.startswith(prefix):
         return None
     rest = c[len(prefix) :]
-    if rest.startswith("j") and rest[1:].isdigit() and 1 <= int(rest[1:]) <= robot.n:
-        return int(rest[1:]) - 1
+    k = _joint_number(rest[1:]) if rest.startswith("j") else None
+    if k is not None and 1 <= k <= robot.n:
+        return k - 1
     names = [str(j).lower() for j in getattr(robot, "joint_names", ())]
     return names.index(rest) if rest in names else None
 
@@ -282,9 +289,9 @@ def _check_joint_columns(table: Table, prefix: str, robot) -> list[str]:
                 "actual ones)",
             )
         by_name[c.lower()] = c
+    numbered = {c: _joint_number(c[k:]) for c in by_name if c.startswith(prefix + "j")}
     present = sorted(
-        (c for c in by_name if c.startswith(prefix + "j") and c[k:].isdigit()),
-        key=lambda c: int(c[k:]),
+        (c for c, i in numbered.items() if i is not None), key=lambda c: numbered[c] or 0
     )
     want = _joint_names(prefix, robot.n)
     named = [prefix + str(j).lower() for j in getattr(robot, "joint_names", ())]

@@ -292,3 +292,14 @@ def test_distances_in_metres_are_refused(tmp_path, capsys, er4u):
     argv = _with_distances(tmp_path, er4u, mm_per_unit=1.0)  # metres under d_mm
     code, _, err = _run([*argv, "--out", str(tmp_path / "o")], capsys)
     assert code == 2 and str(tmp_path / "d.csv") in err and "look like metres" in err
+
+
+@pytest.mark.parametrize("last", ["j" + "9" * 5000, "j¹5", "j٥"])
+def test_a_joint_header_of_odd_digits_names_the_columns(tmp_path, capsys, er4u, last):
+    """#33: `j<5000 digits>` (ValueError: exceeds the limit of 4300 digits) and `j¹4` (invalid
+    literal for int()) exited 1 from predict and import; the joints reader is theirs too."""
+    _, header, rows = _measurements(tmp_path, er4u)
+    header[4] = last
+    code, err = _identify_fails(tmp_path, capsys, header, rows)
+    assert code == 2 and str(tmp_path / "bad.csv") in err
+    assert "4 joint columns (j1, j2, j3, j4) do not match robot er4u-paper" in err
