@@ -241,10 +241,13 @@ def urdf_chain(
     T = np.eye(4)
     for j in path_joints:
         origin = np.eye(4) if j.origin is None else np.asarray(j.origin, dtype=float)
+        where = f"{path}: joint {j.name!r}"
+        if origin.shape != (4, 4) or not np.isfinite(origin).all():
+            raise UrdfError(f"{where}: <origin> must be finite numbers (xyz, rpy: 3 each)",
+                            fix=f"give {j.name!r} an <origin xyz=... rpy=...> of numbers")  # fmt: skip
         if j.type == "fixed":
             T = T @ origin
             continue
-        where = f"{path}: joint {j.name!r}"
         if j.type in ("floating", "planar"):
             raise UrdfError(
                 f"{where} is {j.type}: a serial arm's chain needs revolute, continuous, "
@@ -257,6 +260,9 @@ def urdf_chain(
                 fix=f"end the chain (tool_link) before {j.name!r} or make it independent",
             )
         axis = np.array([1.0, 0.0, 0.0]) if j.axis is None else np.asarray(j.axis, float)
+        if axis.shape != (3,) or not np.isfinite(axis).all():
+            raise UrdfError(f"{where}: <axis xyz> must be 3 finite numbers",
+                            fix=f"give {j.name!r} a unit <axis>")  # fmt: skip
         if not np.linalg.norm(axis) > 0:
             raise UrdfError(f"{where}: zero joint axis", fix=f"give {j.name!r} a unit <axis>")
         R = _z_onto(axis / np.linalg.norm(axis))

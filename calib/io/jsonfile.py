@@ -294,9 +294,12 @@ def rigid_error(T: np.ndarray) -> str | None:
     if not np.isfinite(T).all():
         return "non-finite values"
     R = T[:, :3, :3]
-    off = np.abs(R.transpose(0, 2, 1) @ R - np.eye(3)).max(initial=0.0)
+    with np.errstate(over="ignore", invalid="ignore"):  # huge entries: off is inf, refused
+        off = np.abs(R.transpose(0, 2, 1) @ R - np.eye(3)).max(initial=0.0)
     if off > RIGID_TOL:
         return f"a rotation part R with |R^T R - I| = {off:.3g} (not orthonormal)"
+    if not off <= RIGID_TOL:
+        return "a rotation part with entries beyond any rotation"
     if (np.linalg.det(R) < 0).any():
         return "a rotation part of determinant -1 (a reflection)"
     if np.abs(T[:, 3] - [0, 0, 0, 1]).max(initial=0.0) > RIGID_TOL:

@@ -151,9 +151,20 @@ def _number(path: Path, line: int | None, column: str, text: str) -> float:
     return v
 
 
+def _text(path: Path) -> str:
+    """The UTF-8 text of a pose file; a :class:`PoseFileError` naming it otherwise."""
+    try:
+        return path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise PoseFileError(f"{path}: not UTF-8 text (byte {exc.start}: {exc.reason})",
+                            fix="save the pose file as UTF-8 (or plain ASCII) text") from None  # fmt: skip
+    except OSError as exc:
+        raise PoseFileError(f"{path}: cannot be read ({exc.strerror or exc})",
+                            fix="give an existing pose file") from None  # fmt: skip
+
+
 def _read_csv(path: Path, rotation: str | None, units: str | None) -> PoseRows:
-    with open(path, newline="") as fh:
-        text = fh.read()
+    text = _text(path)
     try:
         dialect = csv.Sniffer().sniff(text.splitlines()[0] if text else "", delimiters=",;\t ")
     except csv.Error:
@@ -210,10 +221,10 @@ def _name_order(name: str) -> list:
 def _yaml(path: Path) -> object:
     import yaml
 
+    text = _text(path)
     try:
-        with open(path) as fh:
-            return yaml.safe_load(fh)
-    except (OSError, yaml.YAMLError) as exc:
+        return yaml.safe_load(text)
+    except (yaml.YAMLError, ValueError, RecursionError) as exc:
         raise PoseFileError(f"{path}: not a readable YAML file ({exc})",
                             fix="give industrial_calibration's pose files") from None  # fmt: skip
 

@@ -103,3 +103,16 @@ def test_dataset_json_reader_is_total(key, value):
     doc = INFO.to_json()
     doc[key] = value
     _open_all(_dataset({"dataset.json": json.dumps(doc)}))
+
+
+@FUZZ
+@given(st.sampled_from(["dataset.json", "joints.csv", "detections.csv"]), st.data())
+def test_dataset_files_take_any_bytes(name, data):
+    """Bytes that are not UTF-8 anywhere in a dataset file (before: UnicodeDecodeError, exit 1)
+    end in a DatasetError naming the file, or a dataset (#33)."""
+    from test_readers_fuzz import damaged_bytes
+
+    root = _dataset({})
+    raw = data.draw(st.one_of(st.binary(max_size=120), damaged_bytes((root / name).read_bytes())))
+    (root / name).write_bytes(raw)
+    _open_all(root)

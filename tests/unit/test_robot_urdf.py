@@ -230,3 +230,12 @@ def test_plain_text_as_urdf_is_one_clear_error(tmp_path, capfd, caplog):
     assert err.count("\n") == 1 and err.startswith("selfcal: error: ") and str(p) in err
     assert "not a URDF" in err and "TypeError" not in err
     assert not [r for r in caplog.records if r.name.startswith("yourdfpy")]  # no parser lines
+
+
+@pytest.mark.parametrize(("old", "new"), [('xyz="0.455 0 0"', 'xyz="nan 0 0"'),
+                                          ('<axis xyz="0 1 0"/>', '<axis xyz="0 inf 0"/>')])  # fmt: skip
+def test_non_finite_origins_and_axes_are_refused(tmp_path, old, new):
+    """Found by the fuzz test (#33): an origin of NaN gave a chain of NaN without a word."""
+    p = _variant(tmp_path, old, new)
+    with pytest.raises(UrdfError, match=r"arm.urdf: joint 'joint_a\d': <(origin|axis xyz)> must"):
+        load_robot(p)
