@@ -63,6 +63,7 @@ TRUST_HELP = (
 
 
 def _out_dir(path: str) -> Path:
+    from calib.io.outlock import prepare_folder
     from calib.io.tracker_calibration import is_tracker_calibration
 
     out = Path(path)
@@ -74,8 +75,7 @@ def _out_dir(path: str) -> Path:
             f"{cal} exists and is not a tracker calibration (it would be overwritten)",
             fix="give another --out folder",
         )
-    out.mkdir(parents=True, exist_ok=True)
-    return out
+    return prepare_folder(out)  # below a file, or where no folder can be made: named
 
 
 def _residuals_csv(table, res, meas: TrackerMeasurements) -> str:

@@ -303,3 +303,12 @@ def test_a_joint_header_of_odd_digits_names_the_columns(tmp_path, capsys, er4u, 
     code, err = _identify_fails(tmp_path, capsys, header, rows)
     assert code == 2 and str(tmp_path / "bad.csv") in err
     assert "4 joint columns (j1, j2, j3, j4) do not match robot er4u-paper" in err
+
+
+def test_identify_out_below_a_file_exits_2(tmp_path, capsys, er4u):
+    """#33: an --out below a file was an OSError (exit 1)."""
+    _, header, rows = _measurements(tmp_path, er4u)
+    meas = _write(tmp_path / "m.csv", header, rows)
+    argv = ["identify", meas, "--robot", "er4u-paper", "--joint-units", "deg"]
+    code, _, err = _run([*argv, "--out", str(tmp_path / "m.csv" / "cal")], capsys)
+    assert code == 2 and f"{tmp_path / 'm.csv'} is a file, not a folder" in err

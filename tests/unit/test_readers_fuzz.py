@@ -143,6 +143,12 @@ CELL = st.one_of(
 )
 
 
+ODD_JOINT = st.one_of(
+    st.sampled_from(["j" + "9" * 5000, "j¹5", "j٥", "j05", "J5", "j+5", "j 5", "j5.0", "j-1"]),
+    st.text(max_size=6).map(lambda t: "j" + t.replace(",", "")),
+)  # a joint header cell of odd digits (#33: j<5000 digits> and j¹4 raised from int())
+
+
 @st.composite
 def tracker_csv(draw):
     header = draw(
@@ -391,3 +397,19 @@ def test_board_calibration_json_reader_is_total(data):
         assert np.isfinite(res.model.params).all()
 
     _total(read_board, _file(text, "calibration.json"), board_err, check)
+
+
+@FUZZ
+@given(st.lists(ODD_JOINT, min_size=1, max_size=2), st.integers(0, 4))
+def test_joint_headers_are_total(er4u, odd, at):
+    """Joint columns named with odd digits, valid rows: the joints reader of identify, predict and
+    import names the file (before: ValueError from int(), exit 1)."""
+    names = [f"j{i + 1}" for i in range(5)]
+    names[at : at + len(odd)] = odd
+    header = ",".join([*names, "x_mm", "y_mm", "z_mm"])
+    rows = [
+        ",".join(f"{(r * 7 + c) % 11 - 5:.1f}" for c in range(len(names) + 3)) for r in range(6)
+    ]
+    path = _file("\n".join([header, *rows]) + "\n", "MEASUREMENTS.csv")
+    for read in (read_measurements, read_joints):
+        _total(lambda p, read=read: read(p, er4u, "deg"), path, TrackerFileError)
