@@ -81,11 +81,8 @@ def _model_from(f: Fields) -> MCPCModel:
         raise f.bad("joint_types", "a list of 'revolute' and 'prismatic'", list(types))
     n = len(types)
     base = f.finite("base_offset_rad") if f.has("base_offset_rad") else 0.0
-    params, offsets = f.array("params_si", (n + 1, 6)), f.array("joint_offsets_rad", (n,))
-    for key, a in (("params_si", params), ("joint_offsets_rad", offsets)):
-        if not np.isfinite(a).all():
-            raise f.bad(key, "finite numbers", "non-finite values")
-    return MCPCModel(params, types, offsets, base)
+    params = f.finite_array("params_si", (n + 1, 6))
+    return MCPCModel(params, types, f.finite_array("joint_offsets_rad", (n,)), base)
 
 
 def camera_json(

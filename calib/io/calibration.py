@@ -236,10 +236,8 @@ class CalibrationResult:
         if not types or any(t not in JOINT_TYPES for t in types):
             raise m.bad("joint_types", f"a list of {JOINT_TYPES}", list(types))
         n = len(types)
-        params = m.array("params_si", (n + 1, 6))
-        offsets = m.array("joint_offsets_rad", (n,))
-        if not (np.isfinite(params).all() and np.isfinite(offsets).all()):
-            raise m.bad("params_si", "finite numbers", "non-finite values")
+        params = m.finite_array("params_si", (n + 1, 6))
+        offsets = m.finite_array("joint_offsets_rad", (n,))
         dh = f.maybe_sub("dh")
         bounds = f.maybe_sub("bounds")
         bounds_error = None
@@ -265,7 +263,7 @@ class CalibrationResult:
             parameters=tuple(ParameterEstimate.from_json(p) for p in f.items("parameters")),
             joint_types=types,
             joint_offsets_rad=offsets,
-            base_offset_rad=m.float("base_offset_rad") if m.has("base_offset_rad") else 0.0,
+            base_offset_rad=m.finite("base_offset_rad") if m.has("base_offset_rad") else 0.0,
             params_si=params,
             dh=None if dh is None else tuple(DHRow.from_json(r) for r in dh.items("rows")),
             dh_note=f.opt_str("dh_note"),

@@ -16,8 +16,9 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from calib.camera import CameraModel, camera_model, lens_names
+from calib.errors import InputError
 from calib.handeye import FRAMES, HandEyeCalibration, HandEyeFit
-from calib.io.jsonfile import SCHEMA_KEY, check_header, load_json
+from calib.io.jsonfile import SCHEMA_KEY, Fields, check_header, load_json
 
 __all__ = ["HANDEYE_FORMAT", "HandEyeModel", "handeye_document", "is_handeye", "read_handeye"]
 
@@ -91,15 +92,16 @@ class HandEyeModel:
     B: np.ndarray
 
 
-def _model(doc: dict) -> HandEyeModel:
-    c = doc["camera"]
-    v = c["values"]
-    cam = camera_model(c["model"], fx=v["fx"], mu=v["mu"], cx=v["cx"], cy=v["cy"],
-                       width=int(c["width"]), height=int(c["height"]),
-                       coeffs={k: v[k] for k in lens_names(c["model"]) if k in v},
-                       free=tuple(c["free"]), skew=v.get("skew", 0.0))  # fmt: skip
-    return HandEyeModel(cam, np.array(doc["hand_eye"]["matrix"], float),
-                        np.array(doc["board_mount"]["matrix"], float))  # fmt: skip
+def _model(f: Fields) -> HandEyeModel:
+    """One fit, checked (finite values, positive focal length, rigid X and B)."""
+    c = f.sub("camera")
+    v, model = c.sub("values"), c.str("model")
+    cam = camera_model(model, fx=v.positive("fx"), mu=v.positive("mu"), cx=v.finite("cx"),
+                       cy=v.finite("cy"), width=c.int("width"), height=c.int("height"),
+                       coeffs={k: v.finite(k) for k in lens_names(model) if v.has(k)},
+                       free=c.strs("free"), skew=v.finite("skew") if v.has("skew") else 0.0)  # fmt: skip
+    return HandEyeModel(cam, f.sub("hand_eye").poses("matrix", (4, 4)),
+                        f.sub("board_mount").poses("matrix", (4, 4)))  # fmt: skip
 
 
 def read_handeye(path: str | Path) -> tuple[str, HandEyeModel, HandEyeModel, dict]:
@@ -110,9 +112,10 @@ def read_handeye(path: str | Path) -> tuple[str, HandEyeModel, HandEyeModel, dic
     p = p / "calibration.json" if p.is_dir() else p
     doc = load_json(p, fix=_FIX)
     check_header(doc, str(p), fmt=HANDEYE_FORMAT, version=1, fix=_FIX)
+    f = Fields(doc, str(p), _FIX)
     try:
-        return doc["setup"], _model(doc), _model(doc["nominal"]), doc
-    except (KeyError, TypeError, ValueError) as exc:
-        from calib.errors import InputError
-
-        raise InputError(f"{p}: missing or malformed key {exc}", fix=_FIX) from None
+        return f.str("setup"), _model(f), _model(f.sub("nominal")), doc
+    except InputError:
+        raise
+    except (KeyError, TypeError, ValueError) as exc:  # a camera model refusing its values
+        raise InputError(f"{p}: malformed camera ({exc})", fix=_FIX) from None

@@ -216,6 +216,13 @@ class Fields:
             raise self.bad(key, "a finite number above zero", v)
         return v
 
+    def finite_array(self, key: builtins.str, shape: tuple[builtins.int | None, ...]) -> np.ndarray:
+        """A required array of finite numbers of ``shape`` (as :meth:`array`)."""
+        a = self.array(key, shape)
+        if not np.isfinite(a).all():
+            raise self.bad(key, "finite numbers", "non-finite values")
+        return a
+
     def poses(self, key: builtins.str, shape: tuple[builtins.int | None, ...]) -> np.ndarray:
         """A required array of rigid transforms of ``shape`` (``(4, 4)`` or ``(n, 4, 4)``):
         finite, rotation part orthonormal with determinant +1 (to :data:`RIGID_TOL`), last row

@@ -182,9 +182,11 @@ class TrackerCalibration:
             raise rb.bad("joint_types", f"a list of {JOINT_TYPES}", types)
         n = len(types)
         model = MCPCModel(
-            mc.array("params", (n + 1, 6)), tuple(types), mc.array("joint_offsets", (n,)),
-            mc.float("base_offset") if mc.has("base_offset") else 0.0,
-        )  # fmt: skip
+            mc.finite_array("params", (n + 1, 6)),
+            tuple(types),
+            mc.finite_array("joint_offsets", (n,)),
+            mc.finite("base_offset") if mc.has("base_offset") else 0.0,
+        )
         params = f.items("parameters")
         return cls(
             robot=rb.str("name"),
@@ -192,8 +194,8 @@ class TrackerCalibration:
             joint_names=rb.strs("joint_names"),
             joint_limits=rb.array("joint_limits_si", (n, 2)),
             model=model,
-            T_meas_fit=mc.array("T_meas_fit", (4, 4)),
-            tool_point_mm=f.array("tool_point_mm", (3,)),
+            T_meas_fit=mc.poses("T_meas_fit", (4, 4)),
+            tool_point_mm=f.finite_array("tool_point_mm", (3,)),
             joint_units=f.str("joint_units"),
             names=tuple(p.str("name") for p in params),
             values=np.array([p.float("value") for p in params]),

@@ -4,6 +4,9 @@ start refuses motions about one axis; the pose chain's Jacobian is the residuals
 
 from __future__ import annotations
 
+import json
+import re
+
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -172,3 +175,49 @@ def test_rows_paired_with_the_wrong_images_are_named_by_the_turn_angles():
     shifted = np.roll(F, 1, axis=0)  # every pose row one image off
     with pytest.raises(HandEyeMisfitError, match="turn by angles that differ"):
         calibrate_hand_eye(BOARD, feats, shifted, "eye-in-hand", 1280, 960, free=CAMERA.free)
+
+
+def _handeye_file(tmp_path, edit=None):
+    """A hand-eye calibration.json written by handeye_document (fits of a pinhole camera)."""
+    from types import SimpleNamespace
+
+    from calib.camera import Pinhole
+    from calib.handeye import FRAMES, HandEyeFit
+    from calib.io.handeye_calibration import handeye_document
+
+    fit = HandEyeFit(Pinhole(800.0, 1.0, 320.0, 240.0, 640, 480), {}, np.eye(4), np.eye(4),
+                     np.zeros(6), np.zeros(6), 0.1, np.ones(4, bool), 0.1, 3)  # fmt: skip
+    cal = SimpleNamespace(setup=next(iter(FRAMES)), camera_stage=SimpleNamespace(rms_px=0.1),
+                          nominal=fit, calibrated=fit, used=np.ones(4, bool))  # fmt: skip
+    doc = handeye_document(cal, "ds")
+    if edit is not None:
+        edit(doc)
+    path = tmp_path / "calibration.json"
+    path.write_text(json.dumps(doc))
+    return path
+
+
+def _scale(T):
+    return (np.array(T) * 2).tolist()
+
+
+@pytest.mark.parametrize(
+    ("edit", "key"),
+    [
+        (lambda d: d["camera"]["values"].update(fx=float("nan")), "camera.values.fx"),
+        (lambda d: d["camera"]["values"].update(fx=-800.0), "camera.values.fx"),
+        (lambda d: d["hand_eye"].update(matrix=_scale(d["hand_eye"]["matrix"])), "hand_eye.matrix"),
+        (lambda d: d["nominal"]["board_mount"].update(matrix=[[float("nan")] * 4] * 4),
+         "nominal.board_mount.matrix"),
+        (lambda d: d["camera"].pop("free"), "camera.free"),
+    ],
+)  # fmt: skip
+def test_a_damaged_handeye_calibration_is_refused_naming_the_key(tmp_path, edit, key):
+    """#33: every calibration.json reader checks what it reads (before: NaN and a negative focal
+    length were read back, a missing key was named as KeyError's text)."""
+    from calib.errors import InputError
+    from calib.io.handeye_calibration import read_handeye
+
+    read_handeye(_handeye_file(tmp_path))  # the undamaged file reads
+    with pytest.raises(InputError, match=rf"calibration.json: (missing )?key '{re.escape(key)}'"):
+        read_handeye(_handeye_file(tmp_path, edit))

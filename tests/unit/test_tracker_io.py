@@ -115,3 +115,19 @@ def test_read_table_round_trips_any_numbers_and_separators(tmp_path_factory, val
     t = read_table(path, header=header)
     assert t.columns == tuple(cols) and t.has_header == header
     np.testing.assert_array_equal(t.values, values)
+
+
+@pytest.mark.parametrize(
+    ("key", "value"),
+    [("params", "nan"), ("joint_offsets", "inf"), ("T_meas_fit", "scaled")],
+)
+def test_a_tracker_calibration_of_non_finite_or_non_rigid_values_is_refused(tmp_path, key, value):
+    """#33: the readers of every calibration.json check what they read (before: NaN and a scaled
+    tracker transform were read and predicted from without a word)."""
+    _, _, path = _calibration(tmp_path)
+    doc = json.loads(path.read_text())
+    a = np.array(doc["mcpc"][key], float)
+    doc["mcpc"][key] = (a * 2 if value == "scaled" else np.full_like(a, float(value))).tolist()
+    path.write_text(json.dumps(doc))
+    with pytest.raises(TrackerCalibrationFileError, match=rf"key 'mcpc.{key}' must be"):
+        read_tracker_calibration(path)
