@@ -14,6 +14,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import os
+import re
 import shlex
 import sys
 import time
@@ -85,7 +86,16 @@ def report_error(exc: SelfCalError) -> None:
 
 class SelfcalParser(argparse.ArgumentParser):
     """An argument parser whose usage errors read like every other error: the usage, then
-    ``selfcal: error: <problem> -- see `selfcal CMD --help``` and exit code 2."""
+    ``selfcal: error: <problem> -- see `selfcal CMD --help``` and exit code 2.
+
+    A value that starts with a minus and a digit is a value, not an option: argparse alone
+    takes ``-10`` for a number but ``-10,20,30`` for an unknown option, so ``--joints
+    -10,20,30,0,0`` failed with "expected one argument" (no ``selfcal`` option is spelled like
+    a number)."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = re.compile(r"^-\.?\d[\d.,eE+\- ]*$")
 
     def error(self, message: str) -> NoReturn:
         self.print_usage(sys.stderr)

@@ -39,7 +39,7 @@ tool orientation (exactly one):
                     only (closed-form IK)
   --position-only   the tool point alone, any orientation
 the tool is the last DH frame (flange) of --robot; xyz in mm in the robot's base frame.
-values starting with a minus sign need the form --xyz=-400,-133,400 (or --rpy-deg=-180,0,90).
+a list starting with a minus sign works as typed: --xyz -400,-133,400 --rpy-deg -180,0,90.
 """
 
 

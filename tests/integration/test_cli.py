@@ -48,6 +48,23 @@ def test_ik_round_trips_through_fk(capsys):
     assert abs(doc["pitch_deg"] + 138.54) < 1e-3
 
 
+def test_negative_numbers_work_as_typed(capsys):
+    """A comma list that starts with a minus is a value (argparse took it for an option)."""
+    from scenarios.cli import build_parser
+    from scenarios.cli_common import SelfcalParser, leaf_parsers
+
+    code, typed, err = run(capsys, "fk", "--joints", "-10,20,30,0,0")
+    assert code == 0, err
+    assert run(capsys, "fk", "--joints=-10,20,30,0,0")[1] == typed
+    xyz = ",".join(f"{v:.6f}" for v in json.loads(typed)["xyz_mm"])
+    code, out, err = run(
+        capsys, "ik", "--xyz", xyz, "--pitch", "-40", "--reference", "-10,20,30,0,0"
+    )
+    assert code == 0, err
+    np.testing.assert_allclose(json.loads(out)["joints_deg"], [-10, 20, 30, 0, 0], atol=1e-4)
+    assert all(isinstance(p, SelfcalParser) for p in leaf_parsers(build_parser()))
+
+
 def test_ik_unreachable_exits_nonzero(capsys):
     code, out, err = run(capsys, "ik", "--xyz", "2000,0,0", "--pitch", "0")
     assert code != 0 and out == ""
