@@ -18,7 +18,7 @@ from calib.kinematics import fk_tool
 from calib.mcpc import MCPCModel, minimal_indices, param_is_angle, param_names
 from calib.transforms import kabsch
 
-__all__ = ["tool_tips", "aligned_errors", "parameter_table", "format_table_iv"]
+__all__ = ["tool_tips", "aligned_errors", "parameter_table", "wrap_deg", "format_table_iv"]
 
 
 def tool_tips(model_cam: MCPCModel, q: np.ndarray, T_cam_tip: np.ndarray) -> np.ndarray:
@@ -50,6 +50,8 @@ def parameter_table(
     """Rows ``{name, unit, estimate, std, truth, nominal}`` over the minimal set (mm / deg).
 
     ``truth`` and ``nominal`` must already be expressed in the estimate's world frame and offsets.
+    An angle's estimate and truth are shown in the nominal's branch (nominal plus the difference
+    wrapped to (-180, 180]): -179.98 against 180.01 is a difference of 0.01 deg, not 359.99.
     """
     idx = minimal_indices(est.joint_types)
     ang = param_is_angle(idx)
@@ -57,8 +59,14 @@ def parameter_table(
     for name, k, a in zip(param_names(idx), idx, ang):
         s = 180.0 / np.pi if a else 1000.0
 
-        def val(m: MCPCModel | None, k: int = k, s: float = s) -> float | None:
-            return None if m is None else float(m.params.reshape(-1)[k] * s)
+        def val(m: MCPCModel | None, k: int = k, s: float = s, a: bool = a) -> float | None:
+            if m is None:
+                return None
+            v = float(m.params.reshape(-1)[k] * s)
+            if not a or m is nominal:
+                return v
+            ref = float(nominal.params.reshape(-1)[k] * s)
+            return ref + wrap_deg(v - ref)
 
         std = std_by_name.get(name)
         rows.append(
@@ -72,6 +80,11 @@ def parameter_table(
             }
         )
     return rows
+
+
+def wrap_deg(d: float) -> float:
+    """An angle difference (deg) wrapped to (-180, 180]."""
+    return float(d - 360.0 * np.ceil((d - 180.0) / 360.0))
 
 
 def format_table_iv(rows: list[dict]) -> str:

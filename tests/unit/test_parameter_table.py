@@ -1,0 +1,39 @@
+"""The parameter table of the reports (calib.report.parameter_table): angles in one branch."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from calib.mcpc import minimal_indices, nominal_mcpc, param_names
+from calib.report import parameter_table, wrap_deg
+from calib.robot_def import load_robot
+
+
+@pytest.mark.parametrize(
+    ("d", "wrapped"),
+    [(0.0, 0.0), (180.0, 180.0), (-180.0, 180.0), (359.99, -0.01), (-190.0, 170.0)],
+)
+def test_wrap_deg_is_half_open_at_minus_180(d: float, wrapped: float) -> None:
+    assert wrap_deg(d) == pytest.approx(wrapped, abs=1e-9)
+
+
+def test_an_angle_a_turn_away_shows_in_the_nominals_branch() -> None:
+    nominal = nominal_mcpc(load_robot("er4u-paper"))
+    idx = minimal_indices(nominal.joint_types)
+    names = param_names(idx)
+    flat = nominal.params.reshape(-1).copy()
+    # the estimate a turn away (and 0.01 deg off), as a fit that crossed +-180 reports it
+    moved = {"alpha0": -2 * np.pi + np.radians(0.01), "gamma5": 2 * np.pi - np.radians(0.02)}
+    for name, step in moved.items():
+        flat[idx[names.index(name)]] += step
+    truth = nominal.with_params(nominal.params.copy())
+    rows = {
+        r["name"]: r
+        for r in parameter_table(
+            nominal.with_params(flat.reshape(nominal.params.shape)), {}, truth, nominal
+        )
+    }
+    assert rows["alpha0"]["estimate"] - rows["alpha0"]["nominal"] == pytest.approx(0.01, abs=1e-9)
+    assert rows["gamma5"]["estimate"] - rows["gamma5"]["nominal"] == pytest.approx(-0.02, abs=1e-9)
+    assert rows["gamma5"]["truth"] == pytest.approx(rows["gamma5"]["nominal"], abs=1e-12)
