@@ -308,8 +308,6 @@ def write_board_truth_report(
     write_json_atomic(root / "report.json", report)
     md = _markdown(report)
     write_text_atomic(root / "report.md", md)
-    if not quiet:
-        print(md, file=sys.stderr)
     return report
 
 

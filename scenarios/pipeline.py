@@ -317,7 +317,6 @@ def run_report(
     if table_iv:
         md_iv = format_table_iv(table_iv)
         write_text_atomic(root / "table_iv.md", md_iv)
-    _say(quiet, md)
     return report
 
 
@@ -358,7 +357,6 @@ def _write_fit_report(root: Path, report: dict, drawn: list[Path], *, quiet: boo
     write_json_atomic(root / "report.json", report)
     md = fit_markdown(report, report["figures"])
     write_text_atomic(root / "report.md", md)
-    _say(quiet, md)
     return report
 
 

@@ -58,9 +58,12 @@ def test_a_good_calibration_is_ok(capsys, dataset, tmp_path):
     shutil.copytree(dataset, ds)
     assert run(capsys, "calibrate", ds, "--quiet")[0] == 0
     assert json.loads((ds / "calibration.json").read_text())["status"] == "ok"
-    code, out, _ = run(capsys, "report", ds, "--quiet")
+    code, out, err = run(capsys, "report", ds)
     assert code == 0 and out.startswith("report: ")
     assert json.loads((ds / "report.json").read_text())["status"] == "ok"
+    # README: one summary line; report.md is in the folder, not on stderr (it was, 57 lines)
+    assert len(out.splitlines()) == 1 and str(ds / "report.json") in out
+    assert "# Calibration report" not in err and "report.md" in err.splitlines()[-1]
 
 
 def test_swapped_cameras_fail_naming_the_swap(capsys, dataset, tmp_path):
