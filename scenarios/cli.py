@@ -41,6 +41,7 @@ from scenarios.paper_repro import register as register_paper
 from scenarios.progress import Progress
 from scenarios.rerun_log import register as register_record
 from scenarios.ros_cli import export_run
+from scenarios.shipped import register as register_shipped
 from scenarios.studies import register as register_study
 from scenarios.threads import DEFAULT_THREADS, THREADS_ENV, limit_threads
 from scenarios.tracker_cli import add_tracker_args
@@ -410,7 +411,9 @@ def build_parser() -> argparse.ArgumentParser:
         "drive the robot along the trajectory into a dataset folder",
         CONFIG_HELP,
     )
-    sp.add_argument("config", metavar="SCENARIO", help="scenario TOML (e.g. scenarios/paper.toml)")
+    sp.add_argument(
+        "config", metavar="SCENARIO", help="scenario TOML or a shipped name (`selfcal scenarios`)"
+    )
     sp.add_argument(
         "--out", default=None, help="dataset folder (default runs/<scenario file name>)"
     )
@@ -429,7 +432,7 @@ def build_parser() -> argparse.ArgumentParser:
         nargs="?",
         default=None,
         metavar="SCENARIO",
-        help="scenario TOML (default scenarios/paper.toml)",
+        help="scenario TOML or a shipped name (`selfcal scenarios`; default paper)",
     )
     sp.add_argument("--out", default=None, help="output folder (default runs/<scenario file name>)")
     sp.add_argument("--method", choices=METHODS, default="joint", help=METHOD_HELP)
@@ -488,6 +491,7 @@ def build_parser() -> argparse.ArgumentParser:
         register_tracker,
         register_own_data,
         register_diagnose,
+        register_shipped,
     ):
         register(sub)
     for leaf in leaf_parsers(p):

@@ -182,7 +182,8 @@ def add_scenario_arg(p: argparse.ArgumentParser, what: str) -> None:
         nargs="?",
         metavar="SCENARIO",
         default=argparse.SUPPRESS,  # keeps a value given by the old --config
-        help=f"scenario TOML {what} (default scenarios/paper.toml)",
+        help=f"scenario TOML {what}, or a shipped scenario's name (`selfcal scenarios`; default "
+        "paper)",
     )
     add_deprecated(p, "--config", "the positional SCENARIO", dest="scenario")
 

@@ -17,6 +17,7 @@ from calib.calibrate import MIN_POSTURES
 from calib.tomlfile import read_toml
 from scenarios.config_camera import PER_CAMERA_KEYS, CameraConfig, ConfigError, validate_camera
 from scenarios.defaults import DEFAULT_ROBOT
+from scenarios.shipped import scenario_file, shipped_model_file, shipped_scenarios
 
 __all__ = [
     "Scenario",
@@ -352,8 +353,12 @@ def board_path(s: Scenario) -> Path | None:
     """The target TOML of ``[target] board`` (relative to the scenario file), or None."""
     if not s.target.board:
         return None
-    base = Path(s.source).parent if s.source != "<defaults>" else Path.cwd()
-    return (base / s.target.board).resolve()
+    if s.source == "<defaults>":
+        return (Path.cwd() / s.target.board).resolve()
+    path = (Path(s.source).parent / s.target.board).resolve()
+    if not path.is_file():  # a shipped scenario's "../models/..." inside a wheel
+        return shipped_model_file(Path(s.source), s.target.board) or path
+    return path
 
 
 def scenario_board(s: Scenario):
@@ -398,9 +403,15 @@ def load_scenario(path: str | Path | None = None, overrides: dict | None = None)
     Raises:
         ConfigError: missing file, invalid TOML, unknown key, wrong type or value out of range.
     """
-    p = Path(path) if path is not None else default_scenario_path()
-    if not p.is_file():
-        raise ConfigError(f"scenario file not found: {p} (give a path to a .toml scenario)")
+    given = Path(path) if path is not None else default_scenario_path()
+    p = scenario_file(given)
+    if p is None:
+        raise ConfigError(
+            f"scenario file not found: {given}",
+            fix="give a path to a .toml scenario or the name of a shipped one: "
+            + ", ".join(shipped_scenarios())
+            + " (`selfcal scenarios`)",
+        )
     data = read_toml(p, ConfigError)
     if overrides:
         data = _merge(data, overrides)

@@ -34,3 +34,29 @@ def test_wheel_carries_models():
     wheel = cfg["tool"]["hatch"]["build"]["targets"]["wheel"]
     assert wheel["force-include"]["models"] == "calib/models"
     assert "scenarios" in wheel["packages"]  # the scenario TOML files are package data of it
+
+
+def test_shipped_scenarios_are_reachable_by_name_from_anywhere(tmp_path, monkeypatch, capsys):
+    """`selfcal run mono-charuco` outside the checkout said "scenario file not found"."""
+    from scenarios import shipped
+    from scenarios.cli import main
+    from scenarios.config import board_path, load_scenario, scenario_board
+
+    monkeypatch.chdir(tmp_path)
+    s = load_scenario("mono-charuco")
+    assert Path(s.source) == ROOT / "scenarios" / "mono-charuco.toml"
+    assert scenario_board(s) is not None
+    assert main(["scenarios"]) == 0
+    listed = dict(line.split(None, 1) for line in capsys.readouterr().out.splitlines())
+    assert set(listed) == {p.stem for p in (ROOT / "scenarios").glob("*.toml")}
+    assert listed["paper"] == "The default scenario: the paper's setting in simulation"
+    # in a wheel the board's "../models/targets/..." is calib/models/targets/...
+    wheel = tmp_path / "site"
+    (wheel / "scenarios").mkdir(parents=True)
+    (wheel / "scenarios" / "mono-charuco.toml").write_bytes(Path(s.source).read_bytes())
+    (wheel / "calib" / "models" / "targets").mkdir(parents=True)
+    board = wheel / "calib" / "models" / "targets" / "charuco.toml"
+    board.write_bytes((ROOT / "models" / "targets" / "charuco.toml").read_bytes())
+    monkeypatch.setattr(shipped, "SHIPPED_DIR", wheel / "scenarios")
+    monkeypatch.setattr(shipped, "models_dir", lambda: wheel / "calib" / "models")
+    assert board_path(load_scenario("mono-charuco")) == board
