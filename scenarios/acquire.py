@@ -52,9 +52,12 @@ def acquire(
     hooks: AcquisitionHooks | None = None,
     progress: Progress | None = None,
     keep: FrameCache | None = None,
+    resume_command: str | None = None,
 ) -> int:
     """Take every planned frame that the dataset does not hold yet; returns frames taken now.
-    ``keep``: also keep the images taken in memory (:meth:`FrameCache.add`).
+    ``keep``: also keep the images taken in memory (:meth:`FrameCache.add`). ``resume_command``:
+    the command that continues this acquisition, named when it stops (default ``selfcal acquire
+    SCENARIO --out ROOT --resume``).
 
     Raises:
         AcquisitionError: a robot or camera failure; every frame taken before it is kept on disk
@@ -84,7 +87,7 @@ def acquire(
             try:
                 fut.result()
             except (Exception, KeyboardInterrupt) as exc:
-                raise _stopped(j, len(plan), writer, exc) from exc
+                raise _stopped(j, len(plan), writer, exc, resume_command) from exc
 
     with ThreadPoolExecutor(max_workers=1, thread_name_prefix="frame-writer") as pool:
         try:
@@ -105,7 +108,7 @@ def acquire(
                     raise
                 except (Exception, KeyboardInterrupt) as exc:
                     settle()
-                    raise _stopped(i, len(plan), writer, exc) from exc
+                    raise _stopped(i, len(plan), writer, exc, resume_command) from exc
                 taken += 1
                 if progress is not None:
                     progress.advance()
@@ -120,9 +123,17 @@ def acquire(
     return taken
 
 
-def _stopped(i: int, n: int, writer: DatasetWriter, exc: BaseException) -> AcquisitionError:
+def _stopped(
+    i: int, n: int, writer: DatasetWriter, exc: BaseException, resume_command: str | None
+) -> AcquisitionError:
+    """The error that stops the acquisition at frame ``i`` of ``n``: why, what is kept and the
+    command that continues (a Ctrl-C's ``KeyboardInterrupt`` has no text of its own)."""
+    if isinstance(exc, KeyboardInterrupt):
+        reason = "interrupted (Ctrl-C)"
+    else:
+        reason = str(exc) or type(exc).__name__
+    command = resume_command or f"selfcal acquire SCENARIO --out {writer.root} --resume"
     return AcquisitionError(
-        f"acquisition stopped at frame {i} of {n}: {exc}. "
-        f"{writer.n_done} frames are kept in {writer.root}; continue with "
-        f"`selfcal acquire CONFIG --out {writer.root} --resume`"
+        f"acquisition stopped at frame {i} of {n}: {reason}. "
+        f"{writer.n_done} frames are kept in {writer.root}; continue with `{command}`"
     )

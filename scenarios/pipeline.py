@@ -12,6 +12,7 @@ from __future__ import annotations
 import csv
 import dataclasses
 import io
+import shlex
 import sys
 import time
 from pathlib import Path
@@ -57,6 +58,7 @@ from scenarios.report_fit import (
     fit_report,
     parameter_markdown,
 )
+from scenarios.shipped import SHIPPED_DIR
 
 _log = get_logger(__name__)
 
@@ -73,6 +75,12 @@ __all__ = [
 def _say(quiet: bool, text: str) -> None:
     if not quiet:
         print(text, file=sys.stderr)
+
+
+def scenario_arg(s: Scenario) -> str:
+    """The scenario as a ``selfcal`` argument: a shipped one by name, else its file (quoted)."""
+    p = Path(s.source)
+    return p.stem if p.resolve().parent == SHIPPED_DIR else shlex.quote(s.source)
 
 
 def dithered(planned_deg: np.ndarray, robot, seed: int) -> np.ndarray:
@@ -94,10 +102,13 @@ def run_acquire(
     quiet: bool = False,
     dither_seed: int | None = None,
     keep: FrameCache | None = None,
+    resume_command: str | None = None,
 ) -> Path:
     """Acquire the scenario's dataset into ``out`` (resumable). ``dither_seed`` (simulation):
     move the planned postures by a random fraction of an encoder count (:func:`dithered`).
-    ``keep``: also keep the images in memory for :func:`run_calibrate` (:class:`FrameCache`)."""
+    ``keep``: also keep the images in memory for :func:`run_calibrate` (:class:`FrameCache`).
+    ``resume_command``: what continues it when it stops (default ``selfcal acquire ... --resume``
+    with this scenario and ``out``)."""
     setup = sim_setup(s) if s.robot.backend == "sim" else None
     info = plan_dataset(s, setup)
     if dither_seed is not None and setup is not None:
@@ -107,7 +118,13 @@ def run_acquire(
     robot, hooks = open_robot(s, out, setup)
     try:
         n = acquire(
-            robot, writer, hooks=hooks, progress=Progress("acquire", enabled=not quiet), keep=keep
+            robot,
+            writer,
+            hooks=hooks,
+            progress=Progress("acquire", enabled=not quiet),
+            keep=keep,
+            resume_command=resume_command
+            or f"selfcal acquire {scenario_arg(s)} --out {shlex.quote(str(out))} --resume",
         )
     finally:
         robot.close()
@@ -470,7 +487,9 @@ def run_all(
     # the report's figures: a worker forked now (before any thread or GL context) loads
     # matplotlib while this process acquires and calibrates (scenarios/figure_pool.py)
     with FigurePool(enabled=figures and s.robot.backend == "sim" and not s.target.board) as pool:
-        run_acquire(s, out, resume=resume, quiet=quiet, keep=kept)
+        again = f"selfcal run {scenario_arg(s)} --out {shlex.quote(str(out))}"
+        again += "" if method == "joint" else f" --method {method}"
+        run_acquire(s, out, resume=resume, quiet=quiet, keep=kept, resume_command=again)
         if s.target.board:  # a board of known geometry: the board route (scenarios/board_run.py)
             from scenarios.board_run import calibrate_and_report_board
 

@@ -138,6 +138,50 @@ def test_ctrl_c_exits_130(capsys, monkeypatch):
     assert code == 130 and "interrupted" in err
 
 
+@pytest.mark.parametrize(
+    "rerun",
+    [False, pytest.param(True, marks=pytest.mark.slow)],  # the rerun calibrates: ~4 s
+)
+def test_ctrl_c_in_run_names_the_command_that_resumes(capsys, monkeypatch, tmp_path, rerun):
+    """The message said "stopped at frame 3 of 12: . ... continue with selfcal acquire CONFIG
+    --out ... --resume": no reason, a placeholder, and not the `run` that resumes."""
+    import shlex
+
+    from scenarios import pipeline
+
+    scenario = tmp_path / "quick.toml"
+    scenario.write_text(
+        "[noise]\nrender = false\n[trajectory]\nposes = 10\n[validation]\nposes = 5\n"
+    )
+    real_open = pipeline.open_robot
+
+    def open_robot(*a, **k):
+        robot, hooks = real_open(*a, **k)
+        move, moves = robot.move_to, []
+
+        def move_to(q):
+            moves.append(q)
+            if len(moves) == 4:
+                raise KeyboardInterrupt
+            move(q)
+
+        robot.move_to = move_to
+        return robot, hooks
+
+    monkeypatch.setattr(pipeline, "open_robot", open_robot)
+    out = tmp_path / "run dir"
+    code, _, err = run(capsys, "run", scenario, "--out", out)
+    assert code == 130
+    assert "stopped at frame 3 of 10: interrupted (Ctrl-C). 3 frames are kept" in err
+    command = err.split("continue with `")[1].split("`")[0]
+    assert command == f"selfcal run {scenario} --out '{out}'"
+    if not rerun:
+        return
+    monkeypatch.setattr(pipeline, "open_robot", real_open)
+    code, _, err = run(capsys, *shlex.split(command)[1:], "--quiet")
+    assert code == 0, err
+
+
 def test_fix_follows_the_message_on_one_line(capsys, monkeypatch):
     def bad(args):
         raise InputError("the thing is wrong", fix="do the other thing")
