@@ -79,8 +79,8 @@ def main(argv: list[str] | None = None) -> None:
 
 def _breakdown(r: StereoRenderer, data: mujoco.MjData, n: int) -> None:
     """Per-stage medians for one camera (uses the renderer's internals on purpose)."""
-    cam = r._cams[0]
-    buf = np.empty((r.height, r.width, 3), dtype=np.uint8)
+    cam, rect = r._cams[0], r._rects[0]
+    buf = np.empty_like(r._bufs[0])
     stages = {"update_scene": [], "mjr_render": [], "readPixels": [], "flip+copy": []}
     for _ in range(n):
         t0 = time.perf_counter()
@@ -88,9 +88,9 @@ def _breakdown(r: StereoRenderer, data: mujoco.MjData, n: int) -> None:
             r.model, data, r._opt, None, cam, mujoco.mjtCatBit.mjCAT_ALL, r._scene
         )
         t1 = time.perf_counter()
-        mujoco.mjr_render(r._rect, r._scene, r._ctx)
+        mujoco.mjr_render(rect, r._scene, r._ctx)
         t2 = time.perf_counter()
-        mujoco.mjr_readPixels(buf, None, r._rect, r._ctx)
+        mujoco.mjr_readPixels(buf, None, rect, r._ctx)
         t3 = time.perf_counter()
         np.flipud(buf).copy()
         t4 = time.perf_counter()
