@@ -48,7 +48,7 @@ from scenarios.job_figures import (
     tool_tip_figure,
     write_figure,
 )
-from scenarios.report_fit import figure_links, parameter_markdown
+from scenarios.report_fit import bound_markdown, figure_links, parameter_markdown
 
 __all__ = [
     "board_truth_report",
@@ -253,12 +253,7 @@ def _markdown(r: dict) -> str:
                 for k in ("nominal", "calibrated")
             ),
             "",
-            (
-                f"Cramér-Rao bound of the calibrated tool-tip RMS for this data: "
-                f"{v['tool_tip_bound_mm']:.3f} mm (see calibration.json `bounds`)."
-                if v.get("tool_tip_bound_mm") is not None
-                else "No Cramér-Rao bound was computed for this calibration."
-            ),
+            bound_markdown(v.get("tool_tip_bound_mm"), t["calibrated"]["rms"]),
             "",
             f"Hand-eye (last link -> camera) against the truth: calibrated "
             f"{he['calibrated']['position_mm']['rms']:.3f} mm / "

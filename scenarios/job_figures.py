@@ -91,7 +91,8 @@ def reprojection_figure(ev: Evaluation, what: str) -> Any:
     a1.plot(x, nominal, "s", color="0.55", ms=4,
             label=f"nominal reference ({ev.rms['nominal']:.3f} px RMS)")  # fmt: skip
     a1.plot(x, [r["calibrated_px"] for r in imgs], "o", color="tab:red", ms=4,
-            label=f"calibrated ({ev.rms['calibrated']:.3f} px RMS)")  # fmt: skip
+            label=f"calibrated ({ev.rms['calibrated']:.3f} px RMS)\npredicted from the joints, "
+                  "not the fit's RMS")  # fmt: skip
     log_y(a1)
     a1.set_xlabel(f"image ({what}, in frame order)")
     a1.set_ylabel("reprojection RMS (px, log)")
@@ -116,8 +117,9 @@ def reprojection_figure(ev: Evaluation, what: str) -> Any:
 
 
 def parameter_figure(rows: list[dict]) -> Any:
-    """``|estimate - truth|`` beside its 1-sigma and ``|nominal - truth|`` per minimal
-    parameter (log scale); rows as :func:`calib.report.parameter_table` (mm / deg, with truth)."""
+    """``|estimate - truth|`` beside its 1-sigma (when any is known) and ``|nominal - truth|``
+    per minimal parameter (log scale); rows as :func:`calib.report.parameter_table` (mm / deg,
+    with truth)."""
     groups = [(u, [r for r in rows if r["unit"] == u]) for u in ("mm", "deg")]
     groups = [(u, g) for u, g in groups if g]
     fig = new_figure(9, 3.4 * len(groups))
@@ -130,7 +132,8 @@ def parameter_figure(rows: list[dict]) -> Any:
         sd = [np.nan if r["std"] is None else r["std"] for r in g]
         ax.plot(x, nom, "s", color="0.55", ms=5, label="|nominal - truth|")
         ax.plot(x, est, "o", color="tab:red", ms=5, label="|estimate - truth|")
-        ax.plot(x, sd, "_", color="k", ms=12, mew=1.5, label="1 sigma (from the fit)")
+        if np.isfinite(sd).any():  # a board run has no sigmas: no legend entry without marks
+            ax.plot(x, sd, "_", color="k", ms=12, mew=1.5, label="1 sigma (from the fit)")
         ax.set_xticks(x, [r["name"] for r in g], rotation=90, fontsize=8)
         ax.set_xlabel("minimal MCPC parameter (in the estimate's frame)")
         ax.set_ylabel(f"|error| ({unit}, log)")

@@ -53,6 +53,7 @@ from scenarios.progress import Progress
 from scenarios.report_cameras import camera_rows, rig_camera_markdown, rig_camera_rows
 from scenarios.report_fit import (
     board_fit_report,
+    bound_markdown,
     figure_links,
     fit_markdown,
     fit_report,
@@ -319,12 +320,12 @@ def run_report(
     pending = []
     if figures:
         pool = pool or FigurePool(enabled=False)
+        ev = evaluate_field(cal, root, root, cache)
+        report["reprojection_predicted_px"] = ev.rms["calibrated"]
         pending = [
             pool.draw(tool_tip_figure, (err_nom["errors_mm"], err_cal["errors_mm"]), root,
                       "tool_tip_errors.png"),
-            pool.draw(reprojection_figure,
-                      (evaluate_field(cal, root, root, cache), "calibration images"), root,
-                      "reprojection.png"),
+            pool.draw(reprojection_figure, (ev, "calibration images"), root, "reprojection.png"),
             pool.draw(parameter_figure, (params,), root, "parameters.png"),
         ]  # fmt: skip
     report["figures"] = [str(f.wait().relative_to(root)) for f in pending]
@@ -422,6 +423,15 @@ def report_summary(report: dict, root: Path) -> str:
     )
 
 
+def _predicted(r: dict) -> str:
+    """The clause on figures/reprojection.png's RMS beside the fit's, when it was drawn."""
+    px = r.get("reprojection_predicted_px")
+    if px is None:
+        return ""
+    return (f"; figures/reprojection.png predicts every image from its joint reading alone, "
+            f"nothing fitted per image: {px:.3f} px, the joint readings' errors included")  # fmt: skip
+
+
 def _markdown(r: dict) -> str:
     v = r["validation"]["tool_tip_error_mm"]
     fx, mu = r["intrinsics"]["fx"], r["intrinsics"]["mu"]
@@ -435,17 +445,15 @@ def _markdown(r: dict) -> str:
         f"| nominal | {v['nominal']['rms']:.3f} | {v['nominal']['max']:.3f} |",
         f"| calibrated | {v['calibrated']['rms']:.3f} | {v['calibrated']['max']:.3f} |",
         "",
-        (
-            f"Cramér-Rao bound of the calibrated tool-tip RMS for this data: "
-            f"{r['validation']['tool_tip_bound_mm']:.3f} mm (any unbiased method; see "
-            "calibration.json `bounds`)."
-            if r["validation"].get("tool_tip_bound_mm") is not None
-            else "No Cramér-Rao bound was computed for this calibration."
+        bound_markdown(
+            r["validation"].get("tool_tip_bound_mm"),
+            v["calibrated"]["rms"],
+            "any unbiased method; ",
         ),
         "",
         f"fx = {fx['estimate']:.3f} px (truth {fx['truth']:.3f}), mu = {mu['estimate']:.6f} "
         f"(truth {mu['truth']:.6f}); scale factor k = {r['scale_factor']:.6g}; reprojection RMS "
-        f"{r['reprojection_rms_px']:.3f} px ({r['observation']}).",
+        f"of the fit {r['reprojection_rms_px']:.3f} px ({r['observation']}){_predicted(r)}.",
         "",
         r["validation"]["note"] + ". Per posture: validation.csv.",
         "",

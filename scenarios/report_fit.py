@@ -259,6 +259,22 @@ def parameter_markdown(rows: list[dict], *, truth: bool) -> str:
     return "\n".join(out)
 
 
+def bound_markdown(bound_mm: float | None, achieved_mm: float, method: str = "") -> str:
+    """The report's sentence on the Cramer-Rao bound of the calibrated tool-tip RMS (mm) and,
+    when the achieved error of this one data set is below it, why that is no contradiction."""
+    if bound_mm is None:
+        return "No Cramér-Rao bound was computed for this calibration."
+    text = (f"Cramér-Rao bound of the calibrated tool-tip RMS for this data: {bound_mm:.3f} mm "
+            f"({method}see calibration.json `bounds`).")  # fmt: skip
+    if achieved_mm < bound_mm:
+        text += (
+            f" The achieved {achieved_mm:.3f} mm is below it: the bound is the RMS expected over "
+            "noise draws, and one draw can beat it (`selfcal montecarlo` shows the spread over "
+            "draws)."
+        )
+    return text
+
+
 def figure_links(figures: list[str]) -> list[str]:
     """Markdown image links of ``figures`` (paths relative to the report)."""
     if not figures:

@@ -64,6 +64,9 @@ def test_a_good_calibration_is_ok(capsys, dataset, tmp_path):
     # README: one summary line; report.md is in the folder, not on stderr (it was, 57 lines)
     assert len(out.splitlines()) == 1 and str(ds / "report.json") in out
     assert "# Calibration report" not in err and "report.md" in err.splitlines()[-1]
+    # the fit's RMS and reprojection.png's (predicted from the joints) are told apart
+    md = (ds / "report.md").read_text()
+    assert "reprojection RMS of the fit" in md and "figures/reprojection.png predicts" in md
 
 
 def test_swapped_cameras_fail_naming_the_swap(capsys, dataset, tmp_path):

@@ -137,3 +137,30 @@ def test_study_says_where_calibration_made_the_model_worse(tmp_path):
 def test_the_study_plot_is_drawn_from_two_settings_on(tmp_path, xs):
     summarize("perturbation", study_rows("perturbation", xs), tmp_path)
     assert (tmp_path / "perturbation.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def _legend_texts(fig) -> list[str]:
+    return [t.get_text() for ax in fig.axes if ax.get_legend() for t in ax.get_legend().get_texts()]
+
+
+def test_job_figures_say_what_they_show():
+    """reprojection.png's 0.120 px is a prediction from the joints, not report.md's 0.019 px
+    fit; parameters.png of a board run (no sigmas) had "1 sigma" in its legend and no marks."""
+    from calib.evaluate import Evaluation
+    from scenarios.job_figures import parameter_figure, reprojection_figure
+
+    rng = np.random.default_rng(0)
+    images = tuple({"nominal_px": 1.5 + 0.1 * k, "calibrated_px": 0.12} for k in range(6))
+    ev = Evaluation(rms={"nominal": 1.6, "calibrated": 0.12}, images=images, skipped=(),
+                    dataset="d", calibration="c",
+                    residuals={"calibrated": rng.normal(0, 0.1, (60, 2))})  # fmt: skip
+    fig = reprojection_figure(ev, "calibration images")
+    assert any("predicted from the joints, not the fit's RMS" in t for t in _legend_texts(fig))
+    assert figure_problems(fig) == []
+    rows = [{"name": f"lx{k}", "unit": "mm", "nominal": 1.0, "estimate": 1.1 + k, "truth": 1.2,
+             "std": None} for k in range(4)]  # fmt: skip
+    fig = parameter_figure(rows)
+    assert not any("sigma" in t for t in _legend_texts(fig))
+    assert figure_problems(fig) == []
+    rows[0]["std"] = 0.01
+    assert any("1 sigma" in t for t in _legend_texts(parameter_figure(rows)))

@@ -37,3 +37,12 @@ def test_an_angle_a_turn_away_shows_in_the_nominals_branch() -> None:
     assert rows["alpha0"]["estimate"] - rows["alpha0"]["nominal"] == pytest.approx(0.01, abs=1e-9)
     assert rows["gamma5"]["estimate"] - rows["gamma5"]["nominal"] == pytest.approx(-0.02, abs=1e-9)
     assert rows["gamma5"]["truth"] == pytest.approx(rows["gamma5"]["nominal"], abs=1e-12)
+
+
+def test_a_bound_above_the_achieved_error_is_explained() -> None:
+    from scenarios.report_fit import bound_markdown
+
+    below = bound_markdown(0.022, 0.010)
+    assert "0.022 mm" in below and "The achieved 0.010 mm is below it" in below
+    assert "below it" not in bound_markdown(0.022, 0.030)
+    assert bound_markdown(None, 0.01) == "No Cramér-Rao bound was computed for this calibration."
