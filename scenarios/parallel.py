@@ -6,6 +6,7 @@ yields each task's result row as it arrives, in completion order."""
 from __future__ import annotations
 
 import contextlib
+import logging
 import multiprocessing as mp
 import os
 import signal
@@ -14,6 +15,7 @@ from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 
+from scenarios.cli_log import LOGGER, get_logger
 from scenarios.cluster import DEFAULT_RETRIES, cluster_tasks
 from scenarios.progress import TaskCounts
 from scenarios.threads import THREAD_VARS, THREADS_ENV, limit_threads, thread_count
@@ -24,9 +26,25 @@ ErrorRow = Callable[[dict, BaseException], dict]
 """``error_row(item, exc)``: the result row recording that the task for ``item`` failed."""
 
 
-def _worker_init(threads: int) -> None:
+def _worker_init(threads: int, parent: int) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C
+    _die_with(parent)
     limit_threads(threads)
+
+
+def _die_with(parent: int) -> None:
+    """End this worker when the parent process ``parent`` ends, however it ends: a parent
+    killed by SIGTERM runs no cleanup, and its idle workers waited for work forever (Linux:
+    ``prctl(PR_SET_PDEATHSIG)``; elsewhere the pool's shutdown alone)."""
+    if not sys.platform.startswith("linux"):
+        return
+    import ctypes
+
+    PR_SET_PDEATHSIG = 1
+    with contextlib.suppress(OSError, AttributeError):
+        ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
+    if os.getppid() != parent:  # the parent ended before the line above
+        os._exit(1)
 
 
 @contextlib.contextmanager
@@ -44,7 +62,7 @@ def worker_pool(max_workers: int, threads: int | None = None) -> Iterator[Proces
         max_workers=max_workers,
         mp_context=mp.get_context("spawn"),
         initializer=_worker_init,
-        initargs=(n,),
+        initargs=(n, os.getpid()),
     )
     try:
         yield ex
@@ -94,7 +112,7 @@ def run_tasks(
         return
     workers = min(jobs, len(items))
     with worker_pool(workers) as ex:
-        futs: dict[Future, int] = {ex.submit(fn, x): i for i, x in enumerate(items)}
+        futs: dict[Future, int] = {ex.submit(_logged, fn, x): i for i, x in enumerate(items)}
         pending = set(futs)
         try:
             while pending:
@@ -110,16 +128,48 @@ def run_tasks(
             for f in pending:
                 if not f.cancelled():
                     try:
-                        row = f.result()
+                        row = _unpack(f.result())
                     except Exception:  # noqa: BLE001
                         continue
                     yield futs[f], row
             raise
 
 
+class _Collect(logging.Handler):
+    """Keeps the text of every record (a worker's warnings, for the parent to log)."""
+
+    def __init__(self) -> None:
+        super().__init__(logging.WARNING)
+        self.texts: list[str] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.texts.append(record.getMessage())
+
+
+def _logged(fn: Callable[[dict], dict], item: dict) -> tuple[dict, list[str]]:
+    """``fn(item)`` in a worker, with the warnings it logged: a worker has no ``selfcal`` log
+    handler, so they went raw to the shared stderr, onto the parent's progress bar, and were not
+    counted in the command's last line."""
+    logger, keep = logging.getLogger(LOGGER), _Collect()
+    logger.addHandler(keep)
+    logger.propagate = False
+    try:
+        return fn(item), keep.texts
+    finally:
+        logger.removeHandler(keep)
+
+
+def _unpack(result: tuple[dict, list[str]]) -> dict:
+    """The row of :func:`_logged`, its warnings logged here (printed above the bar, counted)."""
+    row, texts = result
+    for text in texts:
+        get_logger("worker").warning("%s", text)
+    return row
+
+
 def _outcome(f: Future, item: dict, error_row: ErrorRow) -> dict:
     try:
-        return f.result()
+        return _unpack(f.result())
     except BrokenProcessPool:
         raise
     except Exception as exc:  # noqa: BLE001 - recorded as the item's row

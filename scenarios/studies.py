@@ -179,8 +179,8 @@ def run_study(
     finally:
         fh.close()
     res = summarize(name, rows, out)
-    for text in worse_than_nominal(study, res):
-        print(f"warning: study {name}: {text}", file=sys.stderr)
+    for text in worse_than_nominal(study, res):  # counted in the last line
+        get_logger(__name__).warning("study %s: %s", name, text)
     checks = count_check_failures(rows)
     if checks:
         get_logger(__name__).warning(

@@ -62,3 +62,43 @@ def test_resume_does_not_redo_finished_runs(quick_poses, monkeypatch):
 def test_unknown_study_is_an_error(tmp_path):
     with pytest.raises(ValueError, match="unknown study 'nope'"):
         studies.run_study("nope", tmp_path)
+
+
+def test_a_run_worse_than_the_nominal_model_fails_its_checks(monkeypatch, tmp_path):
+    """run_one counted only the calibration's own checks: a run whose validation error was
+    worse than the nominal model's (report.json failed) counted as passed."""
+    from types import SimpleNamespace
+
+    from scenarios import study_runs
+    from scenarios.study_defs import STUDIES
+
+    worse = "the calibrated tool-tip error 2.1 mm is worse than the nominal model's 1.6 mm"
+    v = {"calibrated": {"rms": 2.1, "max": 3.0}, "nominal": {"rms": 1.6, "max": 2.9}}
+    report = {"validation": {"tool_tip_error_mm": v}, "failures": [worse],
+              "intrinsics": {"fx": {"estimate": 800.0, "truth": 800.0},
+                             "mu": {"estimate": 1.0, "truth": 1.0}}}  # fmt: skip
+    cal = SimpleNamespace(failures=(), reprojection_rms_px=0.3, identification=SimpleNamespace(rank=26),
+                          dataset=SimpleNamespace(frames=8, frames_used=8))  # fmt: skip
+    monkeypatch.setattr(study_runs, "run_acquire", lambda *a, **k: None)
+    monkeypatch.setattr(study_runs, "run_calibrate", lambda *a, **k: cal)
+    monkeypatch.setattr(study_runs, "run_report", lambda *a, **k: report)
+    settings = STUDIES["poses"].phases[0]("quick", [], 0)[0]
+    row = study_runs.run_one(settings)
+    assert row["status"] == "ok" and row["checks"] == "failed" and row["failed_checks"] == worse
+
+
+def test_a_setting_worse_than_nominal_is_a_counted_warning(tmp_path, capsys):
+    """It was a raw "warning: ..." print, and the last line said "0 warnings"."""
+    from scenarios.cli_log import command_logging
+    from scenarios.study_runs import SETTING_KEYS
+
+    def task(st: dict) -> dict:
+        row = {k: st[k] for k in SETTING_KEYS}
+        return {**row, "status": "ok", "cal_rms_mm": 2.0, "nom_rms_mm": 1.5, "eff_noise_px": 0.2,
+                "checks": "passed"}  # fmt: skip
+
+    with command_logging() as log:
+        studies.run_study("poses", tmp_path, budget="quick", jobs=1, quiet=True, task=task)
+    err = capsys.readouterr().err
+    assert "selfcal: warning: study poses: calibrated at poses = 8" in err, err
+    assert log.warnings == 2  # 8 and 40 poses
