@@ -184,13 +184,15 @@ def _copy_urdf_of(toml: Path, folder: Path) -> None:
 
 
 def _detect(
-    cam: CameraImages, files: Sequence[Path], target: Board | FieldTarget
+    cam: CameraImages, files: Sequence[Path], target: Board | FieldTarget, progress=None
 ) -> tuple[tuple[int, int], list[Detection]]:
     """The target's detection in every image (read gray, one at a time, so memory does not grow
     with the number of images) and the camera's one image size; two sizes are an error naming
-    both files."""
+    both files. ``progress``: advanced once per image (``advance()``)."""
     feats, first = [], None
     for f in files:
+        if progress is not None:
+            progress.advance()
         img = read_gray_image(f)
         if img is None:
             raise ImportError_(f"{f}: not a readable image", fix="remove it or convert it to PNG")
@@ -230,6 +232,7 @@ def import_dataset(
     source: dict | None = None,
     labels: Mapping[Path, str] | None = None,
     initial: Mapping[str, dict] | None = None,
+    progress=None,
 ) -> DatasetInfo:
     """Check the inputs and write the dataset folder ``out`` (module docstring); returns its
     ``dataset.json`` content. ``trust_units``: skip the radians-looking check of degrees.
@@ -241,8 +244,9 @@ def import_dataset(
     target and the image patterns) is recorded as dataset.json's ``scenario.import``; ``labels``
     names an image file's origin in ``sources.csv`` (default: its resolved path); ``initial``:
     camera name -> the camera to start the calibration from (dataset.json's ``initial``:
-    :attr:`calib.io.dataset.DatasetInfo.camera_initial`). A failed import leaves no folder
-    behind that it created.
+    :attr:`calib.io.dataset.DatasetInfo.camera_initial`). ``progress``: an object with
+    ``start(total)``, ``advance()``, ``finish()`` (``scenarios.progress.Progress``) advanced once
+    per image detected. A failed import leaves no folder behind that it created.
 
     Raises:
         ImportError_, calib.io.tracker.TrackerFileError, calib.board_calibrate
@@ -273,8 +277,12 @@ def import_dataset(
             raise ImportError_(f"images of several kinds {sorted(suffixes)}",
                                fix="convert the images to one format (e.g. PNG)")  # fmt: skip
         sizes, found = {}, {}
+        if progress is not None:
+            progress.start(sum(len(fs) for fs in files.values()))
         for cam in images:
-            sizes[cam.name], found[cam.name] = _detect(cam, files[cam.name], tgt)
+            sizes[cam.name], found[cam.name] = _detect(cam, files[cam.name], tgt, progress)
+        if progress is not None:
+            progress.finish()
         feats = {c: [d.features for d in ds] for c, ds in found.items()}
         seen = np.zeros(len(rows.q), bool)
         for cam in images:

@@ -48,6 +48,7 @@ from scenarios.job_figures import (
     tool_tip_figure,
     write_figure,
 )
+from scenarios.progress import Progress
 from scenarios.report_fit import bound_markdown, figure_links, parameter_markdown
 
 __all__ = [
@@ -320,9 +321,12 @@ def calibrate_board_run(
     the joint read-back noise (rad / m) instead of the robot file's encoder resolution."""
     from calib.board_dataset import calibrate_board_dataset
 
-    res = calibrate_board_dataset(
-        root, allow_missing_frames=allow_missing_frames, joint_sigma=joint_sigma
-    )
+    label = "board calibration (detection, camera, hand-eye, kinematics, bounds)"
+    with Progress("calibrate", enabled=not quiet).step(label) as st:
+        res = calibrate_board_dataset(
+            root, allow_missing_frames=allow_missing_frames, joint_sigma=joint_sigma
+        )
+        st.result(f"reprojection RMS {res.reprojection_rms_px:.3f} px")
     write_board_calibration(Path(root) / "calibration.json", res)
     if figures:
         ev = evaluate_board(res, str(Path(root) / "calibration.json"), root)

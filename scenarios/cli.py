@@ -232,13 +232,16 @@ def cmd_report(args: argparse.Namespace) -> int:
 
     root = Path(args.dataset)
     as_json = getattr(args, "json", False)  # a namespace built by a caller may lack it
+    quiet = args.quiet or as_json
     if is_handeye(root):  # a pose dataset's calibration: the hand-eye, no kinematics
         report = handeye_report(root)
         summary = handeye_summary(report, root)
     else:
         from scenarios.pipeline import report_summary, run_report
 
-        report = run_report(root, quiet=args.quiet or as_json, figures=True)
+        with Progress("report", enabled=not quiet).step("report (validation, figures)") as st:
+            report = run_report(root, quiet=quiet, figures=True)
+            st.result(report["status"])
         summary = report_summary(report, root)
     note_written(args, *_existing(root, "report.json", "report.md", "table_iv.md"))
     if as_json:

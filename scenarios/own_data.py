@@ -21,6 +21,7 @@ from scenarios.handeye_cli import (
     cmd_import_poses,
     evaluate_poses,
 )
+from scenarios.progress import Progress
 from scenarios.ros_cli import add_import_args as add_bag_import_args
 from scenarios.ros_cli import cmd_import_bag
 
@@ -134,6 +135,7 @@ def cmd_import(args: argparse.Namespace) -> int:
         args.robot, cams, args.joints, args.joint_units, args.target, args.out,
         base_link=args.base_link, tool_link=args.tool_link, link=args.link,
         trust_units=args.trust_units, camera_model=models, free=frees,
+        progress=Progress("detect", enabled=not (args.quiet or args.json)),
     )  # fmt: skip
     n = len(info.planned_joints_deg)
     note_written(args, args.out)

@@ -34,6 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from scenarios.cli_common import note_written
+from scenarios.progress import Progress
 from scenarios.rerun_board import record_board_run
 from scenarios.rerun_parts import EST_COLOR, GT_COLOR, archetypes, log_camera, open_recording
 
@@ -305,7 +306,10 @@ def record_run(dataset_dir: str | Path, rrd_path: str | Path | None, spawn: bool
 
 def _cmd(args: argparse.Namespace) -> int:
     rrd = args.rrd or (None if args.spawn else Path(args.dataset) / "run.rrd")
-    path = record_run(Path(args.dataset), rrd, spawn=args.spawn)
+    quiet = getattr(args, "quiet", False)  # a parser built by a caller may lack -q
+    with Progress("record", enabled=not quiet).step(f"recording {args.dataset}") as st:
+        path = record_run(Path(args.dataset), rrd, spawn=args.spawn)
+        st.result("viewer spawned" if path is None else f"{path}")
     if path is not None:
         note_written(args, path)
         print(f"recorded {args.dataset} into {path} (view: rerun {path})")

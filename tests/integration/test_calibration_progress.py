@@ -80,3 +80,35 @@ def test_detection_counts_one_image_per_camera(tmp_path):
     detect_dataset(ds, progress=bar)
     assert ds.info.cameras == ("left",)
     assert bar.total == bar.steps == len(list(ds.image_paths())) == 8 and bar.finished
+
+
+def _shown(tty: Tty) -> list[str]:
+    """The lines a terminal kept (rich's colours and cursor moves dropped)."""
+    text = re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", tty.getvalue())
+    return [seg for seg in re.split(r"[\r\n]", text) if seg.strip()]
+
+
+@pytest.mark.slow  # a board calibration and its report with figures: ~3 s
+def test_board_calibrate_and_report_show_their_progress(tmp_path, monkeypatch):
+    """`selfcal calibrate` of a board dataset (6.5 s) and `selfcal report` (4.5 s) showed
+    nothing on a terminal until they ended."""
+    import sys
+    from pathlib import Path
+
+    from scenarios.cli import main
+
+    board = Path(__file__).resolve().parents[2] / "scenarios" / "mono-charuco.toml"
+    s = load_scenario(board, {"noise": {"render": False}, "trajectory": {"poses": 12}})
+    run_acquire(s, tmp_path / "ds", quiet=True)
+    for argv, line in (
+        (["calibrate", str(tmp_path / "ds")],
+         r"board calibration \(detection, .*\): reprojection RMS \d\.\d{3} px \(\d+\.\d s\)"),
+        (["report", str(tmp_path / "ds")], r"report \(validation, figures\): ok \(\d+\.\d s\)"),
+    ):  # fmt: skip
+        tty = Tty()
+        monkeypatch.setattr(sys, "stderr", tty)
+        assert main(argv) == 0
+        monkeypatch.undo()
+        shown = _shown(tty)
+        assert any(ln.endswith(" ...") for ln in shown), shown  # the spinner while it runs
+        assert any(re.fullmatch(line, ln) for ln in shown), shown

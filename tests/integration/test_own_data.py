@@ -165,6 +165,25 @@ def test_import_calibrate_evaluate(lab, capsys):
                      str(root / "no.urdf"), "--force"]) == 0  # fmt: skip
 
 
+def test_import_shows_its_detection_on_a_terminal(lab, tmp_path, monkeypatch):
+    """`selfcal import` (4.8 s on 60 images) showed nothing until it ended."""
+    import io
+    import re
+    import sys
+
+    class Tty(io.StringIO):
+        def isatty(self) -> bool:
+            return True
+
+    root, (ci, cj), _ = lab
+    tty = Tty()
+    monkeypatch.setattr(sys, "stderr", tty)
+    assert run_import(root, ci, cj, tmp_path / "ds") == 0
+    monkeypatch.undo()
+    text = re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", tty.getvalue())
+    assert re.search(r"detect .*20/20", text), text  # the bar, one piece per image
+
+
 def test_import_records_the_camera_model_and_free_parameters(lab, tmp_path, capsys):
     root, (ci, cj), _ = lab
     assert run_import(root, ci, cj, tmp_path / "k3", "rad", "board.toml", "--link",
