@@ -11,8 +11,11 @@ published at ``rate_hz`` and at every image stamp (the frame's reading exactly).
 ``calibration.json`` in ROS camera_calibration's convention (K, D, R = I, P = [K' | 0] with K'
 the rectified camera matrix, as ``selfcal export --format camera_info`` writes it), otherwise
 uncalibrated (K all zeros, the model's ``distortion_model``).
-``/robot_description`` (``std_msgs/String``, once at the start): the robot's NOMINAL URDF. Truth
-never goes into the bag (``truth.json`` is not read).
+``/robot_description`` (``std_msgs/String``, once at the start): the robot's NOMINAL URDF.
+``/tf_static`` (once at the start) and ``/tf`` (at every joint state): the calibrated chain when
+the folder holds a ``calibration.json``, else the nominal one (:mod:`calib.bag_chain`); the
+images' and camera_infos' ``frame_id`` is the camera's frame in it (``cam_left``, ``cam_right``).
+Truth never goes into the bag (``truth.json`` is not read).
 """
 
 from __future__ import annotations
@@ -24,6 +27,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from calib.bag_chain import bag_chain, camera_frames, moving_edges, static_edges
 from calib.bag_rest import NS
 from calib.camera import CameraModel, Pinhole
 from calib.choices import JOINT_TOPIC
@@ -168,8 +172,11 @@ def export_bag(
         by_frame.setdefault(i, []).append((cam, path))
     urdf = nominal_urdf(ds)
     names = list(robot.joint_names)
+    chain, _ = bag_chain(ds.root, robot)
+    frames = camera_frames(ds.info.cameras)
     with BagWriter(out, fmt) as w:
         w.string("/robot_description", start, urdf)
+        w.tf("/tf_static", start, static_edges(chain))
         k = 0
         for t in ticks:
             while k < n and int(stamps[k]) < t:
@@ -177,6 +184,7 @@ def export_bag(
             # frame k is the next image at or after t; frame k - 1 the last one before it
             qt = _joints_at(int(t), stamps, q, k, hold, move)
             w.joint_state(joint_topic, int(t), names, qt)
+            w.tf("/tf", int(t), moving_edges(chain, qt))
             if k < n and int(stamps[k]) == t:
                 for cam, path in by_frame[int(ds.indices[k])]:
                     img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
@@ -185,8 +193,8 @@ def export_bag(
                                        fix="re-acquire or re-import the dataset")  # fmt: skip
                     if img.ndim == 3 and img.shape[2] == 4:
                         img = cv2.cvtColor(img, cv2.COLOR_BGRA2BGR)
-                    w.image(f"/{cam}/image_raw", int(t), cam, img)
-                    w.camera_info(f"/{cam}/camera_info", int(t), cam, infos[cam])
+                    w.image(f"/{cam}/image_raw", int(t), frames[cam], img)
+                    w.camera_info(f"/{cam}/camera_info", int(t), frames[cam], infos[cam])
     return BagExport(Path(out), fmt, n, ds.info.cameras, len(ticks), (end - start) / NS)
 
 

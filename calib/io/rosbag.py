@@ -56,6 +56,7 @@ COMPRESSED_TYPE = "sensor_msgs/msg/CompressedImage"
 IMAGE_TYPES = (RAW_TYPE, COMPRESSED_TYPE)
 INFO_TYPE = "sensor_msgs/msg/CameraInfo"
 JOINT_TYPE = "sensor_msgs/msg/JointState"
+TF_MSG = "tf2_msgs/msg/TFMessage"
 STRING_TYPE = "std_msgs/msg/String"
 ENCODINGS = ("mono8", "mono16", "rgb8", "bgr8")
 """Raw image encodings read (and ``CompressedImage`` in jpeg or png)."""
@@ -329,6 +330,9 @@ class BagWriter(_Closing):
         self._ros1 = fmt == "ros1"
         store = ts.Stores.ROS1_NOETIC if self._ros1 else ts.Stores.ROS2_HUMBLE
         self._ts = ts.get_typestore(store)
+        if TF_MSG not in self._ts.types:  # ROS 1 Noetic's store lacks tf2_msgs: its definition
+            self._ts.register(ts.get_types_from_msg(
+                "geometry_msgs/TransformStamped[] transforms", TF_MSG))  # fmt: skip
         # a bare .mcap: rosbags writes a bag folder; its one .mcap file is moved out on close
         self._bare = fmt == "mcap" and self.path.suffix == ".mcap"
         self._folder = self.path.with_name(f".{self.path.name}.part") if self._bare else self.path
@@ -407,6 +411,23 @@ class BagWriter(_Closing):
         msg = self._T[JOINT_TYPE](header=self._header(stamp, ""), name=list(names),
                                   position=np.asarray(q, float), velocity=empty, effort=empty)  # fmt: skip
         self._write(topic, JOINT_TYPE, stamp, msg)
+
+    def tf(self, topic: str, stamp: int, edges: Sequence[tuple[str, str, np.ndarray]]) -> None:
+        """A ``tf2_msgs/TFMessage`` at ``stamp`` (ns) of ``edges``: ``(parent, child,
+        T_parent_child)`` (4, 4), metres."""
+        from scipy.spatial.transform import Rotation
+
+        T = self._T
+        trs = []
+        for parent, child, M in edges:
+            x, y, z, w = Rotation.from_matrix(np.asarray(M, float)[:3, :3]).as_quat()
+            p = np.asarray(M, float)[:3, 3]
+            trs.append(T["geometry_msgs/msg/TransformStamped"](
+                header=self._header(stamp, parent), child_frame_id=child,
+                transform=T["geometry_msgs/msg/Transform"](
+                    translation=T["geometry_msgs/msg/Vector3"](x=p[0], y=p[1], z=p[2]),
+                    rotation=T["geometry_msgs/msg/Quaternion"](x=x, y=y, z=z, w=w))))  # fmt: skip
+        self._write(topic, TF_MSG, stamp, T[TF_MSG](transforms=trs))
 
     def string(self, topic: str, stamp: int, text: str) -> None:
         """A ``std_msgs/String`` at ``stamp`` (ns)."""

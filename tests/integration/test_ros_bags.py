@@ -30,10 +30,11 @@ from calib.import_dataset import CameraImages, import_dataset
 from calib.io.board_calibration import write_board_calibration
 from calib.io.dataset import Dataset
 from calib.io.rosbag import BagReader, CameraInfo, bag_format
+from calib.kinematics import fk_tool
 from calib.robot_chain import chain_frames
 from calib.robot_def import load_robot
 from calib.robot_urdf import urdf_chain
-from calib.transforms import inv_pose
+from calib.transforms import inv_pose, make_pose
 from scenarios.cli import main
 
 pytest.importorskip("rosbags")
@@ -192,7 +193,13 @@ def test_exported_bag_content(lab, tmp_path):
         assert r.topics == {"/robot_description": "std_msgs/msg/String",
                             "/joint_states": "sensor_msgs/msg/JointState",
                             "/cam0/image_raw": "sensor_msgs/msg/Image",
-                            "/cam0/camera_info": "sensor_msgs/msg/CameraInfo"}  # fmt: skip
+                            "/cam0/camera_info": "sensor_msgs/msg/CameraInfo",
+                            "/tf_static": "tf2_msgs/msg/TFMessage",
+                            "/tf": "tf2_msgs/msg/TFMessage"}  # fmt: skip
+        frame_ids = {m.header.frame_id for _, _, m in r.messages(["/cam0/image_raw",
+                                                                 "/cam0/camera_info"])}  # fmt: skip
+        (static,) = [_edges(m) for _, _, m in r.messages(["/tf_static"])]
+        moving = [(stamp, _edges(m)) for _, _, m, stamp in r.timed(["/tf"])]
         urdf = next(m.data for _, _, m in r.messages(["/robot_description"]))
         imgs = [(m.header.stamp.sec * 10**9 + m.header.stamp.nanosec)
                 for _, _, m in r.messages(["/cam0/image_raw"])]  # fmt: skip
@@ -202,6 +209,19 @@ def test_exported_bag_content(lab, tmp_path):
         js = [(m.header.stamp.sec * 10**9 + m.header.stamp.nanosec, list(m.name),
                np.array(m.position)) for _, _, m in r.messages(["/joint_states"])]  # fmt: skip
     assert "<robot" in urdf and "_calibrated" not in urdf and 'name="a1"' in urdf
+    # the images are in the URDF's camera frame (they said cam0), on the CALIBRATED chain
+    assert frame_ids == {"cam_left"} and '<link name="cam_left"' in urdf
+    assert set(static) == {("link6", "tool_tip"), ("link6", "cam_left")}
+    by_stamp = dict(moving)
+    cams = []
+    for s in imgs:
+        T = np.eye(4)
+        for k in range(6):
+            T = T @ by_stamp[s][("base_link" if k == 0 else f"link{k}", f"link{k + 1}")]
+        cams.append(T @ static[("link6", "cam_left")])
+    F = fk_tool(cal.model, np.radians(ds.joints_deg))  # the calibration's camera poses
+    for k in range(1, 8):  # the same motions (the world frames differ)
+        np.testing.assert_allclose(inv_pose(cams[0]) @ cams[k], inv_pose(F[0]) @ F[k], atol=1e-9)
     assert len(imgs) == 8 and len(infos) == 8
     np.testing.assert_allclose(infos[0].K, cal.cameras[0].K.ravel())
     # camera_calibration's P = [K' | 0], K' the rectified camera matrix, as the camera_info export
@@ -227,6 +247,18 @@ def test_exported_bag_content(lab, tmp_path):
     B = chain_frames(robot.chain, robot.joint_types, qs)[:, -1]
     for k in range(1, 5):
         np.testing.assert_allclose(inv_pose(A[0]) @ A[k], inv_pose(B[0]) @ B[k], atol=1e-12)
+
+
+def _edges(msg) -> dict:
+    """A TFMessage as ``{(parent, child): T_parent_child}``."""
+    from scipy.spatial.transform import Rotation
+
+    out = {}
+    for tr in msg.transforms:
+        t, r = tr.transform.translation, tr.transform.rotation
+        R = Rotation.from_quat([r.x, r.y, r.z, r.w]).as_matrix()
+        out[(tr.header.frame_id, tr.child_frame_id)] = make_pose(R, [t.x, t.y, t.z])
+    return out
 
 
 def test_cli_refuses_mixed_options(lab, tmp_path, capsys):
