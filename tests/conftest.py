@@ -101,7 +101,7 @@ def start_emulate_cli(argv: list[str], timeout_s: float = 60.0):
     import time
     from contextlib import redirect_stdout
 
-    from scenarios.hw_cli import register
+    from selfcal.cli.hw import register
 
     parser = argparse.ArgumentParser(prog="selfcal")
     register(parser.add_subparsers(dest="command", required=True))

@@ -5,9 +5,9 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from scenarios import cli
-from scenarios.config import load_scenario
-from scenarios.pipeline import run_acquire
+from selfcal.cli import main as cli
+from selfcal.config.scenario import load_scenario
+from selfcal.pipeline.run import run_acquire
 
 
 def run(capsys, *argv) -> tuple[int, str, str]:

@@ -3,7 +3,7 @@ its flange and a printed 11x8 chessboard, as a lab would hand them over: PNG ima
 in radians and a target TOML. No simulator: the board's generated image is drawn through the true poses
 into the lens camera's source pinhole image (``cv2.warpPerspective``, the homography of the board
 plane), the lens (k1 = -0.2 ...) is applied by the exact inverse remap of
-:class:`sim.lens.LensRemap`, and the image is blurred slightly and given pixel noise. The true robot is the nominal one with every
+:class:`selfcal.sim.lens.LensRemap`, and the image is blurred slightly and given pixel noise. The true robot is the nominal one with every
 MCPC parameter perturbed (1 mm, 0.3 deg standard deviation).
 """
 
@@ -15,14 +15,14 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from calib.camera import BrownConrady, Pinhole, Rig
-from calib.kinematics import fk_tool
-from calib.mcpc import MCPCModel, nominal_mcpc
-from calib.robot_def import load_robot
-from calib.target import Chessboard
-from calib.trajectory import plan_postures
-from calib.transforms import inv_pose, make_pose
-from sim.lens import LensRemap
+from selfcal.camera import BrownConrady, Pinhole, Rig
+from selfcal.kinematics.forward import fk_tool
+from selfcal.kinematics.mcpc import MCPCModel, nominal_mcpc
+from selfcal.kinematics.trajectory import plan_postures
+from selfcal.robot.definition import load_robot
+from selfcal.sim.lens import LensRemap
+from selfcal.target import Chessboard
+from selfcal.transforms import inv_pose, make_pose
 
 ROBOT = "kr6-r900"
 BOARD = Chessboard((11, 8), 0.015)

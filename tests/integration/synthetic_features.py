@@ -7,10 +7,10 @@ from __future__ import annotations
 import numpy as np
 from synthetic_board import BOARD, CAMERA, H, W
 
-from calib.kinematics import fk_tool
-from calib.mcpc import MCPCModel
-from calib.target.base import Features
-from calib.transforms import inv_pose
+from selfcal.kinematics.forward import fk_tool
+from selfcal.kinematics.mcpc import MCPCModel
+from selfcal.target.base import Features
+from selfcal.transforms import inv_pose
 
 
 def board_features(

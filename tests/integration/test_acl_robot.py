@@ -13,19 +13,19 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from calib.robot import Robot, RobotError, StereoPair
-from hw.acl_errors import (
+from selfcal.hw.acl_errors import (
     AclConnectionError,
     AclControllerError,
     AclLatchedError,
     AclProtocolError,
     AclTimeoutError,
 )
-from hw.acl_robot import AclRobot
-from hw.cameras import StereoCamera
-from hw.emulator import AclEmulator
-from hw.emulator_backends import KinematicBackend
-from hw.encoders import EncoderTable
+from selfcal.hw.acl_robot import AclRobot
+from selfcal.hw.cameras import StereoCamera
+from selfcal.hw.emulator import AclEmulator
+from selfcal.hw.emulator_backends import KinematicBackend
+from selfcal.hw.encoders import EncoderTable
+from selfcal.robot.interface import Robot, RobotError, StereoPair
 
 ROOT = Path(__file__).resolve().parents[2]
 ENC = EncoderTable.for_robot("er4u-vendor")  # the [encoder] table of models/robots/er4u-vendor.toml
@@ -254,7 +254,7 @@ def test_disconnect_mid_move(transport):
 
 def test_keyboard_interrupt_during_move_aborts(emu, robot, monkeypatch):
     emu.move_speed_deg_s = 100.0
-    import hw.acl_robot as mod
+    import selfcal.hw.acl_robot as mod
 
     def interrupt(_s):
         raise KeyboardInterrupt
@@ -305,8 +305,8 @@ def test_capture_through_the_emulator_frames(emu):
 
 
 def test_hardware_settings():
-    from hw.settings import AclSettings
-    from scenarios.hardware import hardware_settings
+    from selfcal.acquisition.hardware import hardware_settings
+    from selfcal.hw.settings import AclSettings
 
     s = hardware_settings({"robot": {"model": "er4u-paper", "hardware": {"port": "loop://"}}})
     assert s.model == "er4u-paper" and s.port == "loop://" and s.baudrate == 9600
@@ -325,7 +325,7 @@ def test_hardware_settings():
 
 
 def _run_cli(argv, capsys):
-    from scenarios.cli import main
+    from selfcal.cli.main import main
 
     code = main(argv)
     out, err = capsys.readouterr()
@@ -374,11 +374,11 @@ def test_cli_hardware_fault_exits_4(emu, capsys):
 
 
 def test_cli_hw_and_emulate_share_the_one_default_robot(capsys):
-    """`selfcal emulate` and `selfcal hw` without a model both take scenarios.config.DEFAULT_ROBOT
+    """`selfcal emulate` and `selfcal hw` without a model both take selfcal.config.scenario.DEFAULT_ROBOT
     (the default scenario's): the same encoder counts are the same joint angles."""
-    from calib.robot_def import load_robot
-    from scenarios.config import DEFAULT_ROBOT
-    from scenarios.hw_cli import emulator_from_config
+    from selfcal.cli.hw import emulator_from_config
+    from selfcal.config.scenario import DEFAULT_ROBOT
+    from selfcal.robot.definition import load_robot
 
     emu = emulator_from_config(None, overrides={"tcp_port": None, "home_duration_s": 0.02})
     with emu:
@@ -397,7 +397,7 @@ def test_cli_emulate_runs_until_ctrl_c(tmp_path):
     )
     code = (
         "import argparse, sys\n"
-        "from scenarios.hw_cli import register\n"
+        "from selfcal.cli.hw import register\n"
         "p = argparse.ArgumentParser(); register(p.add_subparsers(dest='c'))\n"
         "a = p.parse_args(sys.argv[1:]); sys.exit(a.func(a))\n"
     )

@@ -8,12 +8,11 @@ import mujoco
 import numpy as np
 import pytest
 
-from calib.io.truth import TRUTH_FORMAT, TruthFileError, read_truth, write_truth
-from calib.kinematics import fk_frames
-from calib.mcpc import minimal_indices, param_is_angle
-from calib.robot_def import load_robot
-from calib.transforms import inv_pose, trans
-from sim.actual import (
+from selfcal.io.truth import TRUTH_FORMAT, TruthFileError, read_truth, write_truth
+from selfcal.kinematics.forward import fk_frames
+from selfcal.kinematics.mcpc import minimal_indices, param_is_angle
+from selfcal.robot.definition import load_robot
+from selfcal.sim.actual import (
     apply_errors,
     error_table,
     make_truth,
@@ -22,9 +21,10 @@ from sim.actual import (
     perturb,
     true_hand_eye,
 )
-from sim.link_frames import nominal_camera_model
-from sim.markers import make_marker_field
-from sim.robot_mjcf import RigConfig, robot_spec
+from selfcal.sim.link_frames import nominal_camera_model
+from selfcal.sim.markers import make_marker_field
+from selfcal.sim.robot_mjcf import RigConfig, robot_spec
+from selfcal.transforms import inv_pose, trans
 
 
 @pytest.fixture(scope="module")

@@ -11,16 +11,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from calib.estimation.selfcal_errors import DegenerateConfigurationError
-from calib.kinematics import fk_tool
-from calib.mcpc import nominal_mcpc
-from calib.robot_def import load_robot
-from calib.self_collision import CapsuleChain
-from calib.trajectory import PLANNING_VISIBILITY
-from scenarios.backends import plan_dataset, plan_optimal, planning_inputs
-from scenarios.cli import main
-from scenarios.config import ConfigError, load_scenario
-from scenarios.pipeline import run_all
+from selfcal.acquisition.backends import plan_dataset, plan_optimal, planning_inputs
+from selfcal.cli.main import main
+from selfcal.config.scenario import ConfigError, load_scenario
+from selfcal.estimation.selfcal_errors import DegenerateConfigurationError
+from selfcal.kinematics.forward import fk_tool
+from selfcal.kinematics.mcpc import nominal_mcpc
+from selfcal.kinematics.self_collision import CapsuleChain
+from selfcal.kinematics.trajectory import PLANNING_VISIBILITY
+from selfcal.pipeline.run import run_all
+from selfcal.robot.definition import load_robot
 
 ROOT = Path(__file__).resolve().parents[2]
 UR5E = ROOT / "scenarios" / "ur5e.toml"

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 
-from scenarios.montecarlo import run_montecarlo
+from selfcal.studies.montecarlo.run import run_montecarlo
 
 UR5E = Path(__file__).resolve().parents[2] / "scenarios" / "ur5e.toml"
 KR6 = Path(__file__).resolve().parents[2] / "scenarios" / "kr6-r900.toml"

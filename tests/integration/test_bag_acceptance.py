@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 from synthetic_board import TARGET_TOML, make_lab, postures, render
 
-from calib.io.board_calibration import read_board_calibration
-from scenarios.cli import main
+from selfcal.cli.main import main
+from selfcal.io.board_calibration import read_board_calibration
 
 pytest.importorskip("rosbags")
 from rosbags.rosbag2 import Writer  # noqa: E402

@@ -1,11 +1,11 @@
-"""scenarios.benchmark_render runs, with the per-stage breakdown (it crashed: the renderer's
+"""selfcal.benchmarks.render runs, with the per-stage breakdown (it crashed: the renderer's
 rectangle became one per camera, ``_rects``, and the breakdown still read ``_rect``)."""
 
 from __future__ import annotations
 
 import re
 
-from scenarios import benchmark_render
+from selfcal.benchmarks import render as benchmark_render
 
 
 def test_breakdown_prints_each_stage(capsys):

@@ -1,7 +1,7 @@
 """A board scenario on the analytic path (``[noise] render = false``): the board's features
-projected with the true camera plus pixel noise (:func:`sim.analytic.project_board`), stored in
+projected with the true camera plus pixel noise (:func:`selfcal.sim.analytic.project_board`), stored in
 ``detections.csv`` (one row per feature), calibrated by the board route and reported against
-truth.json with the Cramer-Rao bounds of :mod:`calib.board_bounds`."""
+truth.json with the Cramer-Rao bounds of :mod:`selfcal.calibration.board.bounds`."""
 
 from __future__ import annotations
 
@@ -10,15 +10,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from calib.io.board_calibration import read_board_calibration
-from calib.io.dataset import Dataset, DatasetError
-from calib.io.truth import read_truth
-from calib.mcpc import minimal_indices
-from calib.target.boards import Board
-from calib.transforms import inv_pose
-from scenarios.config import load_scenario, scenario_board
-from scenarios.pipeline import run_all
-from sim.analytic import project_board
+from selfcal.config.scenario import load_scenario, scenario_board
+from selfcal.io.board_calibration import read_board_calibration
+from selfcal.io.dataset import Dataset, DatasetError
+from selfcal.io.truth import read_truth
+from selfcal.kinematics.mcpc import minimal_indices
+from selfcal.pipeline.run import run_all
+from selfcal.sim.analytic import project_board
+from selfcal.target.boards import Board
+from selfcal.transforms import inv_pose
 
 MONO_CHARUCO = Path(__file__).resolve().parents[2] / "scenarios" / "mono-charuco.toml"
 ANALYTIC = {"noise": {"render": False}, "trajectory": {"poses": 15}}
@@ -129,7 +129,7 @@ def test_selfcal_montecarlo_runs_a_board_scenario_and_resumes(tmp_path, capsys):
     ratios, summary.md), and the same command again runs no draw (the journal)."""
     import json
 
-    from scenarios.cli import main
+    from selfcal.cli.main import main
 
     out = tmp_path / "mc"
     argv = ["montecarlo", str(MONO_CHARUCO), "--draws", "2", "--poses", "15", "--jobs", "1",
@@ -153,7 +153,7 @@ def test_a_stereo_board_draw_records_both_cameras_against_the_rig_bound(tmp_path
     """A Monte Carlo draw of the stereo pair photographing the board (``camera.count = 2``):
     both cameras' free parameters get errors and bounds (the further camera's as right_fx ...),
     and the rig's tool-tip bound is below the one camera's (more data, one chain)."""
-    from scenarios.montecarlo import draw_one
+    from selfcal.studies.montecarlo.run import draw_one
 
     text = MONO_CHARUCO.read_text().replace("../models/", f"{MONO_CHARUCO.parents[1]}/models/")
     rows = {}
@@ -176,7 +176,7 @@ def test_a_whole_grid_board_is_seen_whole_or_not_at_all():
     """A chessboard's detector finds all inner corners or none (``whole_grid``): a view that
     cuts the board gives nothing on the analytic path, where a ChArUco board of the same view
     gives the part in the image."""
-    from calib.target import Charuco, Chessboard
+    from selfcal.target import Charuco, Chessboard
 
     cam = load_scenario(MONO_CHARUCO).camera.true_model()
     T_world_board = np.eye(4)
@@ -203,10 +203,10 @@ def test_the_hand_eye_exports_near_the_truth_within_its_sigmas(run, tmp_path, ca
     import yaml
     from scipy.spatial.transform import Rotation
 
-    from calib.dh_table import canonical_base
-    from calib.results import flange_tool
-    from calib.robot_def import load_robot
-    from scenarios.cli import main
+    from selfcal.calibration.field.results import flange_tool
+    from selfcal.cli.main import main
+    from selfcal.kinematics.dh_table import canonical_base
+    from selfcal.robot.definition import load_robot
 
     _, out, _ = run
     truth = read_truth(out / "truth.json")

@@ -1,5 +1,5 @@
-"""Rendered mono + ChArUco: a board in the MuJoCo scene (sim/board_scene.py), photographed by one
-camera from 12 viewpoints, detected and calibrated (calib/board_calibrate.py).
+"""Rendered mono + ChArUco: a board in the MuJoCo scene (selfcal/sim/board_scene.py), photographed by one
+camera from 12 viewpoints, detected and calibrated (selfcal/calibration/board/calibrate.py).
 
 Acceptance (issue #12, without lens distortion until the lens model lands): every camera
 parameter within 3 sigma of the truth, and against OpenCV on the same images: intrinsics within
@@ -15,14 +15,14 @@ import mujoco
 import numpy as np
 import pytest
 
-from calib.board_calibrate import calibrate_board
-from calib.camera import Pinhole
-from calib.target import AprilGrid, Board, Charuco, Chessboard, CirclesGrid
-from calib.target.board_views import random_board_poses
-from calib.transforms import inv_pose, make_pose
-from sim.board_scene import board_scene_spec
-from sim.mj_camera import T_world_cam_cv, add_camera, intrinsics_from_model
-from sim.render import StereoRenderer
+from selfcal.calibration.board.calibrate import calibrate_board
+from selfcal.camera import Pinhole
+from selfcal.sim.board_scene import board_scene_spec
+from selfcal.sim.mj_camera import T_world_cam_cv, add_camera, intrinsics_from_model
+from selfcal.sim.render import StereoRenderer
+from selfcal.target import AprilGrid, Board, Charuco, Chessboard, CirclesGrid
+from selfcal.target.board_views import random_board_poses
+from selfcal.transforms import inv_pose, make_pose
 
 W, H = 640, 480
 BOARD = Charuco((11, 8), 0.02, 0.015, "DICT_5X5_100")

@@ -1,4 +1,4 @@
-"""Robot calibration with a board (calib/board_robot.py) on the analytic path.
+"""Robot calibration with a board (selfcal/calibration/board/robot.py) on the analytic path.
 
 The default scenario's postures and true robot (simulated acquisition without rendering,
 quantised joint read-back), one camera (the left one) and a ChArUco board lying on the table
@@ -16,18 +16,18 @@ import warnings
 import numpy as np
 import pytest
 
-from calib.board_robot import calibrate_robot_with_board
-from calib.estimation.joint_report import encoder_sigma
-from calib.io.dataset import Dataset
-from calib.io.truth import read_truth
-from calib.kinematics import fk_tool
-from calib.mcpc import nominal_mcpc
-from calib.robot_def import load_robot
-from calib.target import Charuco
-from calib.transforms import inv_pose
-from scenarios.board_views import board_pose, board_views
-from scenarios.config import load_scenario
-from scenarios.pipeline import run_acquire
+from selfcal.benchmarks.board_views import board_pose, board_views
+from selfcal.calibration.board.robot import calibrate_robot_with_board
+from selfcal.config.scenario import load_scenario
+from selfcal.estimation.joint_report import encoder_sigma
+from selfcal.io.dataset import Dataset
+from selfcal.io.truth import read_truth
+from selfcal.kinematics.forward import fk_tool
+from selfcal.kinematics.mcpc import nominal_mcpc
+from selfcal.pipeline.run import run_acquire
+from selfcal.robot.definition import load_robot
+from selfcal.target import Charuco
+from selfcal.transforms import inv_pose
 
 BOARD = Charuco((11, 8), 0.02, 0.015, "DICT_5X5_100")
 

@@ -9,11 +9,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from calib.io.target_toml import parse_target, target_document
-from calib.transforms import inv_pose
-from scenarios.backends import make_sim_robot, sim_setup
-from scenarios.config import load_scenario, scenario_board
-from scenarios.pipeline import run_all
+from selfcal.acquisition.backends import make_sim_robot, sim_setup
+from selfcal.config.scenario import load_scenario, scenario_board
+from selfcal.io.target_toml import parse_target, target_document
+from selfcal.pipeline.run import run_all
+from selfcal.transforms import inv_pose
 
 MONO_CHARUCO = Path(__file__).resolve().parents[2] / "scenarios" / "mono-charuco.toml"
 

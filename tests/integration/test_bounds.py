@@ -1,4 +1,4 @@
-"""Cramer-Rao bounds (calib.bounds) against a brute-force Fisher matrix and a small Monte Carlo.
+"""Cramer-Rao bounds (selfcal.calibration.field.bounds) against a brute-force Fisher matrix and a small Monte Carlo.
 
 1. On a tiny problem (7 postures, the default marker field) the bounds computed from the joint
    refinement's sparse analytic Jacobian equal those of a dense Fisher matrix built by central
@@ -20,20 +20,24 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 
-from calib.alignment import express_in_frame, minimal_difference
-from calib.bounds import aligned_error_dof, aligned_rms_from_covariance, cramer_rao
-from calib.joint_refine import encoder_sigma
-from calib.kinematics import fk_tool, identification_jacobian
-from calib.mcpc import minimal_indices
-from calib.trajectory import plan_postures
-from calib.transforms import inv_pose, kabsch, pose_from_vec, skew
-from scenarios.config import load_scenario
-from scenarios.plan_comparison import sim_fisher_setup
+from selfcal.calibration.field.bounds import (
+    aligned_error_dof,
+    aligned_rms_from_covariance,
+    cramer_rao,
+)
+from selfcal.calibration.field.joint_refine import encoder_sigma
+from selfcal.config.scenario import load_scenario
+from selfcal.kinematics.alignment import express_in_frame, minimal_difference
+from selfcal.kinematics.forward import fk_tool, identification_jacobian
+from selfcal.kinematics.mcpc import minimal_indices
+from selfcal.kinematics.trajectory import plan_postures
+from selfcal.studies.montecarlo.plan_comparison import sim_fisher_setup
+from selfcal.transforms import inv_pose, kabsch, pose_from_vec, skew
 
 
 @pytest.fixture(scope="module")
 def tiny():
-    from scenarios.backends import planning_inputs, sim_setup
+    from selfcal.acquisition.backends import planning_inputs, sim_setup
 
     s = load_scenario(None, {"noise": {"render": False}, "target": {"markers": 8}})
     setup = sim_setup(s)
@@ -64,10 +68,10 @@ def _brute_force(st):
     """Dense Fisher matrix by central differences of an independent forward model."""
     model = st.model
     idx = minimal_indices(model.joint_types)
-    from calib.mcpc import param_names
+    from selfcal.kinematics.mcpc import param_names
 
     names = param_names(idx)
-    from calib.joint_refine import choose_gauge
+    from selfcal.calibration.field.joint_refine import choose_gauge
 
     held = set(choose_gauge(model).held) | set(st.held)
     free_idx = idx[[nm not in held for nm in names]]
@@ -99,7 +103,7 @@ def _brute_force(st):
         T_lw = inv_pose(fk_tool(mdl, st.q + dq))
         T_cw = np.stack([T_lw, T_rl @ T_lw], axis=1).reshape(-1, 4, 4)
         Xc = np.einsum("kij,kj->ki", T_cw[st.view, :3, :3], X[st.pidx]) + T_cw[st.view, :3, 3]
-        uvw = Xc @ K.T  # the pinhole written out: independent of calib.camera
+        uvw = Xc @ K.T  # the pinhole written out: independent of selfcal.camera
         uv = uvw[:, :2] / uvw[:, 2:]
         ca = X[st.scale_points[0]].mean(axis=0)
         cb = X[st.scale_points[1]].mean(axis=0)
@@ -194,7 +198,7 @@ def test_aligned_error_dof_matches_sampled_alignments(tiny):
 
 @pytest.fixture(scope="module")
 def mc_rows():
-    from scenarios.montecarlo import run_montecarlo
+    from selfcal.studies.montecarlo.run import run_montecarlo
 
     rows, summary = run_montecarlo(8, None, poses=12, jobs=1, quiet=True)
     return rows, summary

@@ -7,7 +7,7 @@ the tool tip in the tracker frame in mm, 0.1 mm noise, an arbitrary tracker fram
 estimates, each through the command line: the images alone (``selfcal calibrate``), the tracker
 alone (``selfcal identify`` + ``selfcal predict``) and both (``selfcal calibrate --tracker``).
 Metric: the tool-tip error they predict on the dataset's validation postures after the best
-rigid alignment (:func:`calib.report.aligned_errors`, as ``selfcal report``).
+rigid alignment (:func:`selfcal.kinematics.accuracy.aligned_errors`, as ``selfcal report``).
 """
 
 from __future__ import annotations
@@ -19,15 +19,15 @@ import shutil
 import numpy as np
 import pytest
 
-from calib.io.calibration import read_calibration
-from calib.io.dataset import Dataset
-from calib.io.truth import read_truth
-from calib.kinematics import fk_tool
-from calib.report import aligned_errors, tool_tips
-from calib.transforms import pose_from_vec, trans
-from scenarios.cli import main as cli_main
-from scenarios.config import load_scenario
-from scenarios.pipeline import run_acquire
+from selfcal.cli.main import main as cli_main
+from selfcal.config.scenario import load_scenario
+from selfcal.io.calibration import read_calibration
+from selfcal.io.dataset import Dataset
+from selfcal.io.truth import read_truth
+from selfcal.kinematics.accuracy import aligned_errors, tool_tips
+from selfcal.kinematics.forward import fk_tool
+from selfcal.pipeline.run import run_acquire
+from selfcal.transforms import pose_from_vec, trans
 
 SIGMA_MM = 0.1
 T_TRACKER_WORLD = pose_from_vec([0.4, -1.1, 0.3, 1.5, -0.7, 0.2])

@@ -8,10 +8,10 @@ import re
 
 import pytest
 
-from calib.calibrate import calibrate
-from scenarios.config import load_scenario
-from scenarios.pipeline import run_acquire
-from scenarios.progress import Progress
+from selfcal.calibration.field.calibrate import calibrate
+from selfcal.config.scenario import load_scenario
+from selfcal.console.progress import Progress
+from selfcal.pipeline.run import run_acquire
 
 
 class Tty(io.StringIO):
@@ -69,8 +69,8 @@ def test_detection_counts_one_image_per_camera(tmp_path):
     scenarios/mono.toml: the total assumed two cameras)."""
     from pathlib import Path
 
-    from calib.calibrate import detect_dataset
-    from calib.io.dataset import Dataset
+    from selfcal.calibration.field.calibrate import detect_dataset
+    from selfcal.io.dataset import Dataset
 
     mono = Path(__file__).resolve().parents[2] / "scenarios" / "mono.toml"
     s = load_scenario(mono, overrides={"trajectory": {"poses": 8}, "validation": {"poses": 3}})
@@ -95,7 +95,7 @@ def test_board_calibrate_and_report_show_their_progress(tmp_path, monkeypatch):
     import sys
     from pathlib import Path
 
-    from scenarios.cli import main
+    from selfcal.cli.main import main
 
     board = Path(__file__).resolve().parents[2] / "scenarios" / "mono-charuco.toml"
     s = load_scenario(board, {"noise": {"render": False}, "trajectory": {"poses": 12}})

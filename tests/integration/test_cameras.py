@@ -6,12 +6,12 @@ import cv2
 import numpy as np
 import pytest
 
-from calib.robot import StereoPair
-from calib.robot_def import load_robot
-from hw.acl_robot import AclRobot
-from hw.cameras import Camera, CameraError, StereoCamera, source_kind
-from hw.emulator import AclEmulator
-from hw.emulator_backends import KinematicBackend
+from selfcal.hw.acl_robot import AclRobot
+from selfcal.hw.cameras import Camera, CameraError, StereoCamera, source_kind
+from selfcal.hw.emulator import AclEmulator
+from selfcal.hw.emulator_backends import KinematicBackend
+from selfcal.robot.definition import load_robot
+from selfcal.robot.interface import StereoPair
 
 
 def _write(path, rgb):

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from scenarios.cli import main
+from selfcal.cli.main import main
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -50,8 +50,8 @@ def test_ik_round_trips_through_fk(capsys):
 
 def test_negative_numbers_work_as_typed(capsys):
     """A comma list that starts with a minus is a value (argparse took it for an option)."""
-    from scenarios.cli import build_parser
-    from scenarios.cli_common import SelfcalParser, leaf_parsers
+    from selfcal.cli.main import build_parser
+    from selfcal.console.common import SelfcalParser, leaf_parsers
 
     code, typed, err = run(capsys, "fk", "--joints", "-10,20,30,0,0")
     assert code == 0, err

@@ -9,8 +9,8 @@ import json
 import numpy as np
 import pytest
 
-from scenarios.cli import main
-from scenarios.config import DEFAULT_ROBOT, load_scenario
+from selfcal.cli.main import main
+from selfcal.config.scenario import DEFAULT_ROBOT, load_scenario
 
 QUICK = "[noise]\nrender = false\n[trajectory]\nposes = 8\n[validation]\nposes = 4\n"
 
@@ -80,7 +80,7 @@ def test_run_json_calibrate_json_and_fk_with_the_calibration(quick_run, capsys, 
 
 
 def test_renamed_options_land_in_the_new_names():
-    from scenarios.cli import build_parser
+    from selfcal.cli.main import build_parser
 
     p = build_parser()
     args = p.parse_args(["run", "--rerun", "x.rrd"])
@@ -106,7 +106,7 @@ def test_spawn_without_rrd_is_bad_input(quick_run, capsys):
 
 
 def test_dataset_records_its_encoder_model_and_a_mismatch_is_refused(tmp_path, capsys):
-    from scenarios.pipeline import run_acquire
+    from selfcal.pipeline.run import run_acquire
 
     s = load_scenario(overrides={"noise": {"render": False}, "trajectory": {"poses": 6}})
     run_acquire(s, tmp_path / "ds", quiet=True)
@@ -136,7 +136,7 @@ def test_montecarlo_json_and_where_it_wrote(tmp_path, capsys, monkeypatch):
 def test_record_defaults_to_a_file_in_the_dataset(tmp_path, capsys):
     """`selfcal record DIR` without --rrd writes DIR/run.rrd (it used to end in a bare ValueError
     about spawn=True)."""
-    from scenarios.pipeline import run_acquire, run_calibrate
+    from selfcal.pipeline.run import run_acquire, run_calibrate
 
     s = load_scenario(overrides={"noise": {"render": False}, "trajectory": {"poses": 6}})
     run_acquire(s, tmp_path / "ds", quiet=True)

@@ -28,13 +28,13 @@ import pytest
 from distributed import LocalCluster
 from threadpoolctl import threadpool_info
 
-from calib.errors import InputError
-from scenarios.cli import main
-from scenarios.cluster import cluster_tasks
-from scenarios.montecarlo import draw_one, run_montecarlo
-from scenarios.montecarlo_journal import JOURNAL, DrawJournal
-from scenarios.studies import run_study
-from scenarios.study_runs import failed_row, run_one, settings_key
+from selfcal.cli.main import main
+from selfcal.errors import InputError
+from selfcal.studies.cluster import cluster_tasks
+from selfcal.studies.montecarlo.journal import JOURNAL, DrawJournal
+from selfcal.studies.montecarlo.run import draw_one, run_montecarlo
+from selfcal.studies.runs import failed_row, run_one, settings_key
+from selfcal.studies.study import run_study
 
 # The tasks below run on the workers, which cannot import this test module: send them by value.
 cloudpickle.register_pickle_by_value(sys.modules[__name__])
@@ -70,7 +70,7 @@ def _without_seconds(row: dict) -> dict:
 
 # ---------------------------------------------------------------------------- default tier
 def test_the_local_path_imports_no_dask():
-    code = "import sys, scenarios.cli; print(sorted(m for m in ('dask', 'distributed') if m in sys.modules))"
+    code = "import sys, selfcal.cli.main; print(sorted(m for m in ('dask', 'distributed') if m in sys.modules))"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
 

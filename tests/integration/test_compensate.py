@@ -1,11 +1,11 @@
 """IK with the calibrated model moves the ACTUAL (simulated) tool tip onto the target.
 
 Frames: the calibrated model and the simulator's true robot are both expressed in the robot's
-base frame built from their own joint axes 1 and 2 (calib.export.deploy_chain), the frame a user
+base frame built from their own joint axes 1 and 2 (selfcal.export.deploy.deploy_chain), the frame a user
 commands in; the true robot's tip there is the ground truth of where a joint command puts the tool.
 The paper's Table II positions are commanded with the tool pitch of row 1 held (as
-scenarios.pipeline._table_ii_postures does) once with the nominal analytic IK and once with
-calib.compensate.compensated_ik.
+selfcal.pipeline.run._table_ii_postures does) once with the nominal analytic IK and once with
+selfcal.export.compensate.compensated_ik.
 """
 
 from __future__ import annotations
@@ -16,19 +16,19 @@ import json
 import numpy as np
 import pytest
 
-from calib.compensate import compensated_ik, solve_compensated, tool_target_residual
-from calib.export import deploy, deploy_chain
-from calib.export_toml import to_toml
-from calib.ik import UnreachableError, ik_nearest
-from calib.io.dataset_info import read_dataset_info
-from calib.io.truth import read_truth
-from calib.kinematics import fk_nominal
-from calib.mcpc import nominal_mcpc
-from calib.robot_def import load_robot
-from calib.tool_pose import tool_pose
-from scenarios.config import load_scenario
-from scenarios.deploy_cli import register
-from scenarios.pipeline import TABLE_II_MM, run_acquire, run_calibrate, run_report
+from selfcal.cli.deploy import register
+from selfcal.config.scenario import load_scenario
+from selfcal.export.compensate import compensated_ik, solve_compensated, tool_target_residual
+from selfcal.export.deploy import deploy, deploy_chain
+from selfcal.export.robot_toml import to_toml
+from selfcal.io.dataset_info import read_dataset_info
+from selfcal.io.truth import read_truth
+from selfcal.kinematics.forward import fk_nominal
+from selfcal.kinematics.ik import UnreachableError, ik_nearest
+from selfcal.kinematics.mcpc import nominal_mcpc
+from selfcal.kinematics.tool_pose import tool_pose
+from selfcal.pipeline.run import TABLE_II_MM, run_acquire, run_calibrate, run_report
+from selfcal.robot.definition import load_robot
 
 ROBOT = load_robot("er4u-paper")
 _, PITCH, ROLL = tool_pose(
@@ -143,7 +143,7 @@ def test_other_branch_is_followed(noise_free):
 def _parser(with_nominal_ik: bool):
     p = argparse.ArgumentParser(prog="selfcal")
     sub = p.add_subparsers(dest="command", required=True)
-    if with_nominal_ik:  # like scenarios/cli.py: an existing `ik` keeps working
+    if with_nominal_ik:  # like selfcal/cli/main.py: an existing `ik` keeps working
         sp = sub.add_parser("ik")
         sp.add_argument("--model", default="er4u-paper")
         sp.add_argument("--xyz", required=True)
@@ -185,7 +185,7 @@ def test_cli_ik_with_calibration(noise_free, capsys, tmp_path, with_nominal_ik):
 
 
 def test_cli_ik_unreachable_says_so(noise_free):
-    from scenarios.cli import CliError
+    from selfcal.cli.main import CliError
 
     out, _, _ = noise_free
     args = _parser(True).parse_args(

@@ -1,7 +1,7 @@
-"""Compensated IK of any serial arm (calib.compensate.solve_compensated_pose, `selfcal ik
+"""Compensated IK of any serial arm (selfcal.export.compensate.solve_compensated_pose, `selfcal ik
 --calibration` with --rpy-deg / --quat): the calibrated chain reaches the target exactly.
 
-Ground truth: a perturbed UR5e chain (sim.actual.perturb, 2 mm / 0.5 deg) plays the calibrated
+Ground truth: a perturbed UR5e chain (selfcal.sim.actual.perturb, 2 mm / 0.5 deg) plays the calibrated
 model; its forward kinematics at a known posture gives the target.
 """
 
@@ -13,16 +13,16 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from calib.compensate import solve_compensated_pose
-from calib.export import as_deployed
-from calib.export_toml import to_toml
-from calib.ik import UnreachableError
-from calib.ik_numeric import ToolTarget
-from calib.kinematics import fk_tool
-from calib.mcpc import nominal_mcpc
-from calib.robot_def import load_robot
-from scenarios.cli import main
-from sim.actual import perturb
+from selfcal.cli.main import main
+from selfcal.export.compensate import solve_compensated_pose
+from selfcal.export.deploy import as_deployed
+from selfcal.export.robot_toml import to_toml
+from selfcal.kinematics.forward import fk_tool
+from selfcal.kinematics.ik import UnreachableError
+from selfcal.kinematics.ik_numeric import ToolTarget
+from selfcal.kinematics.mcpc import nominal_mcpc
+from selfcal.robot.definition import load_robot
+from selfcal.sim.actual import perturb
 
 ROBOT = load_robot("ur5e")
 

@@ -1,5 +1,5 @@
 """A damaged ``calibration.json`` is refused when read, by every command (#33): the readers
-(:mod:`calib.io.calibration`, :mod:`calib.io.board_calibration`) check that the numbers are
+(:mod:`selfcal.io.calibration`, :mod:`selfcal.io.board_calibration`) check that the numbers are
 finite, focal lengths positive, poses rigid. Before, ``fx = NaN`` exported ``.Nan`` into an
 OpenCV camera matrix and ``fx = -800`` a camera_info, both with exit 0."""
 
@@ -11,11 +11,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from calib.camera import Pinhole
-from calib.io.board_calibration import BoardCalibrationResult
-from calib.mcpc import nominal_mcpc
-from calib.robot_def import load_robot
-from scenarios import cli
+from selfcal.camera import Pinhole
+from selfcal.cli import main as cli
+from selfcal.io.board_calibration import BoardCalibrationResult
+from selfcal.kinematics.mcpc import nominal_mcpc
+from selfcal.robot.definition import load_robot
 
 GOLDEN = Path(__file__).resolve().parents[1] / "golden" / "analytic" / "calibration.json"
 

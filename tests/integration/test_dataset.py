@@ -5,10 +5,10 @@ import dataclasses
 import numpy as np
 import pytest
 
-from calib.io.dataset import Dataset, DatasetError, DatasetWriter
-from calib.io.dataset_info import DatasetInfo
-from calib.robot import StereoPair
-from scenarios.acquire import AcquisitionError, acquire
+from selfcal.acquisition.acquire import AcquisitionError, acquire
+from selfcal.io.dataset import Dataset, DatasetError, DatasetWriter
+from selfcal.io.dataset_info import DatasetInfo
+from selfcal.robot.interface import StereoPair
 
 
 def info(observation="images", m=5):
@@ -145,9 +145,9 @@ def test_a_frame_that_cannot_be_written_stops_the_acquisition_at_that_frame(tmp_
 def test_each_camera_keeps_its_own_model_and_free_parameters(tmp_path):
     """dataset.json holds a model per camera; the field self-calibration of a dataset of mixed
     models estimates each camera's own (a CameraSet), of one model the shared camera."""
-    from calib.calibrate import dataset_camera
-    from calib.camera import CameraSet
-    from calib.io.dataset_info import read_dataset_info, write_dataset_info
+    from selfcal.calibration.field.calibrate import dataset_camera
+    from selfcal.camera import CameraSet
+    from selfcal.io.dataset_info import read_dataset_info, write_dataset_info
 
     models = (("opencv", ("fx", "mu", "cx", "cy", "k1", "k2")), ("pinhole", ("fx", "mu")))
     mixed = dataclasses.replace(info(m=6), cameras=("left", "right"), camera_models=models)

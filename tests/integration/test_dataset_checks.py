@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 from analytic_dataset import acquire_analytic, run
 
-from calib.calibrate import calibrate, detect_dataset
-from calib.frame_checks import NEAR_PX, alike_frames, unused_frames_message
-from calib.io.dataset import Dataset, DatasetError
+from selfcal.calibration.field.calibrate import calibrate, detect_dataset
+from selfcal.calibration.frame_checks import NEAR_PX, alike_frames, unused_frames_message
+from selfcal.io.dataset import Dataset, DatasetError
 
 
 @pytest.fixture(scope="module")

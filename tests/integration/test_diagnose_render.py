@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from scenarios.diagnose_render import measure, outlier_detections, summarise
+from selfcal.studies.diagnose_render import measure, outlier_detections, summarise
 
 pytestmark = pytest.mark.render
 
@@ -42,8 +42,8 @@ def test_rendered_corners_match_the_analytic_projection():
 
 
 def test_selfcal_diagnose_render_parses():
-    from scenarios.cli import build_parser
-    from scenarios.diagnose_render import _cmd
+    from selfcal.cli.main import build_parser
+    from selfcal.studies.diagnose_render import _cmd
 
     a = build_parser().parse_args(["diagnose", "render", "x.toml", "--refine", "lines"])
     assert a.func is _cmd and a.config == "x.toml" and a.refine == ["lines"]
@@ -52,8 +52,8 @@ def test_selfcal_diagnose_render_parses():
 def test_diagnose_render_figure_goes_into_the_output_folder():
     """The figure's default is inside the output folder (like run's DIR/figures/*.png), never a
     path relative to where the command runs from such as docs/; --figure still overrides it."""
-    from scenarios.cli import build_parser
-    from scenarios.diagnose_render import DEFAULT_OUT, figure_path
+    from selfcal.cli.main import build_parser
+    from selfcal.studies.diagnose_render import DEFAULT_OUT, figure_path
 
     p = build_parser()
     a = p.parse_args(["diagnose", "render"])

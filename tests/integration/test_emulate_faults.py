@@ -13,13 +13,13 @@ import pytest
 import tomllib
 from conftest import start_emulate_cli
 
-from calib.errors import InputError
-from calib.io.dataset import Dataset
-from scenarios.acquire import AcquisitionError
-from scenarios.config import default_scenario_path, load_scenario
-from scenarios.emulate_faults import CLI_FAULTS, acquisition_fault, choose_fault
-from scenarios.hw_cli import register
-from scenarios.pipeline import run_acquire
+from selfcal.acquisition.acquire import AcquisitionError
+from selfcal.acquisition.emulate_faults import CLI_FAULTS, acquisition_fault, choose_fault
+from selfcal.cli.hw import register
+from selfcal.config.scenario import default_scenario_path, load_scenario
+from selfcal.errors import InputError
+from selfcal.io.dataset import Dataset
+from selfcal.pipeline.run import run_acquire
 
 AT = 2
 ABORTED = "abort sequence (Ctrl-A, CLRBUF) sent"

@@ -8,13 +8,13 @@ import time
 import numpy as np
 import pytest
 
-from hw.acl_errors import AclConnectionError, AclProtocolError, AclTimeoutError
-from hw.acl_link import AclLink
-from hw.acl_parsers import parse_listpv, parse_mflag, parse_show_speed, parse_version
-from hw.emulator import AclEmulator
-from hw.emulator_backends import EmulatorBackend, KinematicBackend
-from hw.emulator_faults import Fault
-from hw.encoders import EncoderTable
+from selfcal.hw.acl_errors import AclConnectionError, AclProtocolError, AclTimeoutError
+from selfcal.hw.acl_link import AclLink
+from selfcal.hw.acl_parsers import parse_listpv, parse_mflag, parse_show_speed, parse_version
+from selfcal.hw.emulator import AclEmulator
+from selfcal.hw.emulator_backends import EmulatorBackend, KinematicBackend
+from selfcal.hw.emulator_faults import Fault
+from selfcal.hw.encoders import EncoderTable
 
 ENC = EncoderTable.for_robot("er4u-vendor")
 

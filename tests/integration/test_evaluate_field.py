@@ -9,10 +9,10 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from calib.io.calibration import read_calibration
-from scenarios.cli import main
-from scenarios.config import load_scenario
-from scenarios.pipeline import run_acquire
+from selfcal.cli.main import main
+from selfcal.config.scenario import load_scenario
+from selfcal.io.calibration import read_calibration
+from selfcal.pipeline.run import run_acquire
 
 
 def test_field_calibration_predicts_a_held_out_dataset(tmp_path, capsys):

@@ -14,10 +14,10 @@ import shutil
 import pytest
 from analytic_dataset import plan_same_postures
 
-from calib.errors import EstimationError, HardwareError, InputError, SelfCalError
-from scenarios import cli
-from scenarios.config import load_scenario
-from scenarios.pipeline import run_acquire
+from selfcal.cli import main as cli
+from selfcal.config.scenario import load_scenario
+from selfcal.errors import EstimationError, HardwareError, InputError, SelfCalError
+from selfcal.pipeline.run import run_acquire
 
 
 def run(capsys, *argv):
@@ -29,11 +29,11 @@ def run(capsys, *argv):
 def test_the_kinds_carry_their_codes():
     assert (InputError.exit_code, EstimationError.exit_code, HardwareError.exit_code) == (2, 3, 4)
     # every class the project raises on purpose has the one root
-    from calib.calibrate import CalibrationError
-    from calib.io.calibration import CalibrationFileError
-    from calib.robot_def import RobotDefinitionError
-    from hw.acl_errors import AclControllerError
-    from scenarios.config import ConfigError
+    from selfcal.calibration.field.calibrate import CalibrationError
+    from selfcal.config.scenario import ConfigError
+    from selfcal.hw.acl_errors import AclControllerError
+    from selfcal.io.calibration import CalibrationFileError
+    from selfcal.robot.definition import RobotDefinitionError
 
     assert issubclass(ConfigError, InputError) and issubclass(RobotDefinitionError, InputError)
     assert issubclass(CalibrationError, EstimationError) and issubclass(
@@ -147,7 +147,7 @@ def test_ctrl_c_in_run_names_the_command_that_resumes(capsys, monkeypatch, tmp_p
     --out ... --resume": no reason, a placeholder, and not the `run` that resumes."""
     import shlex
 
-    from scenarios import pipeline
+    from selfcal.pipeline import run as pipeline
 
     scenario = tmp_path / "quick.toml"
     scenario.write_text(
@@ -206,7 +206,7 @@ def test_usage_errors_exit_2_in_the_same_style(capsys):
 def test_python_warnings_become_counted_log_lines(capsys, monkeypatch):
     import warnings
 
-    from calib.errors import SelfCalWarning
+    from selfcal.errors import SelfCalWarning
 
     def warn(args):
         warnings.warn("the first thing", SelfCalWarning, stacklevel=1)

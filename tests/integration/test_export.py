@@ -1,6 +1,6 @@
 """Deployable exports of a calibration: base-frame chain, MJCF, URDF and TOML reproduce the model.
 
-Ground truth here is the calibrated model itself (calib.kinematics.fk_frames of the deployed
+Ground truth here is the calibrated model itself (selfcal.kinematics.forward.fk_frames of the deployed
 chain): each export must reproduce its link frames and tool tip to 1e-9 m for random in-range
 joint readings. The base-frame construction is checked against the nominal robot, whose base frame
 and tool tip are known exactly (the DH frame 0 and the last DH frame).
@@ -18,7 +18,9 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from calib.export import (
+from selfcal.cli.deploy import register
+from selfcal.config.scenario import load_scenario
+from selfcal.export.deploy import (
     FIXED_BY_BASE_FRAME,
     DeployError,
     as_deployed,
@@ -26,21 +28,19 @@ from calib.export import (
     deploy_chain,
     nominal_deployed_params,
 )
-from calib.export_toml import from_toml, to_toml
-from calib.export_urdf import to_urdf
-from calib.io.calibration import read_calibration
-from calib.kinematics import fk_frames, fk_nominal
-from calib.mcpc import minimal_indices, param_names
-from calib.robot_chain import chain_frames
-from calib.robot_def import load_robot, models_dir
-from calib.robot_urdf import urdf_chain
-from calib.transforms import make_pose, rot_x, rot_z, trans
-from scenarios.config import load_scenario
-from scenarios.deploy_cli import register
-from scenarios.pipeline import run_acquire, run_calibrate
-from sim.actual import perturb
-from sim.export_mjcf import calibrated_mjcf
-from sim.link_frames import nominal_camera_model
+from selfcal.export.robot_toml import from_toml, to_toml
+from selfcal.export.urdf import to_urdf
+from selfcal.io.calibration import read_calibration
+from selfcal.kinematics.forward import fk_frames, fk_nominal
+from selfcal.kinematics.mcpc import minimal_indices, param_names
+from selfcal.pipeline.run import run_acquire, run_calibrate
+from selfcal.robot.chain import chain_frames
+from selfcal.robot.definition import load_robot, models_dir
+from selfcal.robot.urdf import urdf_chain
+from selfcal.sim.actual import perturb
+from selfcal.sim.export_mjcf import calibrated_mjcf
+from selfcal.sim.link_frames import nominal_camera_model
+from selfcal.transforms import make_pose, rot_x, rot_z, trans
 
 TOL_M = 1e-9
 ROBOT = load_robot("er4u-paper")
@@ -285,7 +285,7 @@ def test_toml_round_trips_to_the_same_model(deployed):
 def test_toml_keeps_the_right_cameras_own_intrinsics(deployed):
     """A rig whose cameras have their own intrinsics (#12): [camera.right] holds the right's and
     reads back; a shared camera's file has none (and says "both cameras")."""
-    from calib.camera import Intrinsics
+    from selfcal.camera import Intrinsics
 
     assert "[camera.right]" not in to_toml(deployed, ROBOT) and deployed.intrinsics_right is None
     right = Intrinsics(812.25, 1.004, 310.5, 247.0, 640, 480)
@@ -380,7 +380,7 @@ def test_cli_export(calibration, tmp_path, capsys, fmt):
 
 
 def test_cli_export_errors(tmp_path):
-    from scenarios.cli import CliError
+    from selfcal.cli.main import CliError
 
     p = _parser()
     args = p.parse_args(["export", str(tmp_path), "--format", "mjcf", "--out",

@@ -1,4 +1,4 @@
-"""Export of the estimated camera (calib.export_camera, ``selfcal export --format
+"""Export of the estimated camera (selfcal.export.camera, ``selfcal export --format
 opencv|camera_info``): the OpenCV YAML read back with cv2.FileStorage, the camera_info YAML with
 a YAML reader (as camera_calibration_parsers reads it), the same projection through OpenCV; the
 format chosen by --format alone, whatever the file's suffix."""
@@ -16,11 +16,11 @@ import numpy as np
 import pytest
 import yaml
 
-from calib.camera import BrownConrady, Fisheye, Pinhole
-from calib.export_camera import to_camera_info_yaml, to_opencv_yaml
-from calib.io.calibration import read_calibration, write_calibration
-from calib.io.calibration_blocks import CameraIntrinsics
-from scenarios.deploy_cli import register
+from selfcal.camera import BrownConrady, Fisheye, Pinhole
+from selfcal.cli.deploy import register
+from selfcal.export.camera import to_camera_info_yaml, to_opencv_yaml
+from selfcal.io.calibration import read_calibration, write_calibration
+from selfcal.io.calibration_blocks import CameraIntrinsics
 
 GOLDEN = Path(__file__).resolve().parents[1] / "golden" / "analytic" / "calibration.json"
 
@@ -145,7 +145,7 @@ def test_cli_exports_the_calibrated_camera(tmp_path, capsys, fmt, suffix):
     np.testing.assert_array_equal(K, lens.K)
     assert doc["intrinsics"]["fx"] != lens.fx  # the file's camera, not the golden one
     args = _parser().parse_args(["export", str(tmp_path), "--out", str(out)])
-    from scenarios.cli import CliError
+    from selfcal.cli.main import CliError
 
     with pytest.raises(CliError, match="give --format: the format is never taken from"):
         args.func(args)  # the suffix names no format
@@ -159,8 +159,8 @@ def test_cli_exports_the_calibrated_camera(tmp_path, capsys, fmt, suffix):
 def test_cli_exports_each_camera_of_a_field_rig_with_its_own_intrinsics(tmp_path, capsys):
     """A field calibration whose cameras have their own intrinsics (#12): --camera picks one,
     the default is the first; an unknown name is an error listing the cameras."""
-    from calib.io.calibration_blocks import RigCamera
-    from scenarios.cli import CliError
+    from selfcal.cli.main import CliError
+    from selfcal.io.calibration_blocks import RigCamera
 
     res = read_calibration(GOLDEN)
     left, right = CAMERAS["plumb_bob"], CAMERAS["pinhole"]

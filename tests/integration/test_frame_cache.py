@@ -7,14 +7,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from calib.calibrate import detect_dataset
-from calib.io.dataset import Dataset, read_gray
-from calib.io.frame_cache import FrameCache
-from scenarios.config import load_scenario
-from scenarios.pipeline import run_acquire
-from sim.markers import make_marker_field
-from sim.render import apply_noise, noise_field
-from sim.sim_robot import SimRobot
+from selfcal.calibration.field.calibrate import detect_dataset
+from selfcal.config.scenario import load_scenario
+from selfcal.io.dataset import Dataset, read_gray
+from selfcal.io.frame_cache import FrameCache
+from selfcal.pipeline.run import run_acquire
+from selfcal.sim.markers import make_marker_field
+from selfcal.sim.render import apply_noise, noise_field
+from selfcal.sim.sim_robot import SimRobot
 
 pytestmark = pytest.mark.render
 

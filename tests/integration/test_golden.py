@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import json
 
-from calib.io.calibration import read_calibration
-from calib.io.jsonfile import dumps
-from scenarios.config import load_scenario
-from scenarios.pipeline import run_acquire, run_calibrate, run_report
+from selfcal.config.scenario import load_scenario
+from selfcal.io.calibration import read_calibration
+from selfcal.io.jsonfile import dumps
+from selfcal.pipeline.run import run_acquire, run_calibrate, run_report
 
 
 def test_default_scenario_analytic_matches_golden(tmp_path, golden, capsys):

@@ -6,8 +6,8 @@ import json
 
 import pytest
 
-from scenarios.config import load_scenario
-from scenarios.pipeline import run_acquire, run_calibrate, run_report
+from selfcal.config.scenario import load_scenario
+from selfcal.pipeline.run import run_acquire, run_calibrate, run_report
 
 pytestmark = pytest.mark.render
 

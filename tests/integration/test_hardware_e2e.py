@@ -1,9 +1,9 @@
 """The hardware path end to end: ``[robot] backend = "hardware"`` against the ACL emulator whose arm
-is the scenario's simulated robot (``scenarios.emulator_backend.SimEmulatorBackend``).
+is the scenario's simulated robot (``selfcal.acquisition.emulator_backend.SimEmulatorBackend``).
 
 The scenario is ``scenarios/paper.toml`` with the one flag switched and the ``[robot.hardware]``
 table the emulator prints; acquisition runs through ``AclRobot`` (serial dialogue on a pty,
-encoder counts, image files read by ``hw.cameras``), calibration never sees truth, and the test,
+encoder counts, image files read by ``selfcal.hw.cameras``), calibration never sees truth, and the test,
 which holds the simulated robot, compares the calibrated model with the truth and with the sim
 backend on the same scenario. Faults injected in the emulator must stop the acquisition with a
 clear error, keep the frames taken so far, and let ``resume`` finish the dataset.
@@ -22,20 +22,25 @@ import pytest
 import tomllib
 from conftest import start_emulate_cli
 
-from calib.io.calibration import read_calibration
-from calib.io.dataset import Dataset
-from calib.report import aligned_errors, tool_tips
-from calib.robot import Robot
-from hw.acl_errors import AclConnectionError
-from hw.acl_robot import AclRobot
-from hw.emulator import AclEmulator
-from hw.emulator_faults import Fault
-from hw.encoders import EncoderTable
-from scenarios.acquire import AcquisitionError
-from scenarios.config import ConfigError, default_scenario_path, load_scenario, scenario_to_dict
-from scenarios.emulator_backend import SimEmulatorBackend
-from scenarios.hardware import hardware_settings, open_hardware_robot
-from scenarios.pipeline import run_acquire, run_calibrate
+from selfcal.acquisition.acquire import AcquisitionError
+from selfcal.acquisition.emulator_backend import SimEmulatorBackend
+from selfcal.acquisition.hardware import hardware_settings, open_hardware_robot
+from selfcal.config.scenario import (
+    ConfigError,
+    default_scenario_path,
+    load_scenario,
+    scenario_to_dict,
+)
+from selfcal.hw.acl_errors import AclConnectionError
+from selfcal.hw.acl_robot import AclRobot
+from selfcal.hw.emulator import AclEmulator
+from selfcal.hw.emulator_faults import Fault
+from selfcal.hw.encoders import EncoderTable
+from selfcal.io.calibration import read_calibration
+from selfcal.io.dataset import Dataset
+from selfcal.kinematics.accuracy import aligned_errors, tool_tips
+from selfcal.pipeline.run import run_acquire, run_calibrate
+from selfcal.robot.interface import Robot
 
 FAST = 3000.0  # emulated joint speed, deg/s: the moves are not what is tested here
 FAULT_SECTIONS = {"trajectory": {"poses": 12}}

@@ -16,11 +16,11 @@ import sys
 import numpy as np
 import pytest
 
-from calib.io.calibration import read_calibration
-from scenarios.config import load_scenario
-from scenarios.job_figures import parameter_figure, reprojection_figure, tool_tip_figure
-from scenarios.pipeline import report_summary, run_acquire, run_calibrate, run_report
-from scenarios.plotting import figure_problems
+from selfcal.config.scenario import load_scenario
+from selfcal.io.calibration import read_calibration
+from selfcal.pipeline.run import report_summary, run_acquire, run_calibrate, run_report
+from selfcal.plots.job_figures import parameter_figure, reprojection_figure, tool_tip_figure
+from selfcal.plots.plotting import figure_problems
 
 SECTIONS = {"noise": {"render": False}, "trajectory": {"poses": 15}}
 OUTPUTS = ("truth.json", "report.json", "report.md", "table_iv.md", "validation.csv", "figures")
@@ -76,7 +76,7 @@ def test_calibrate_draws_the_reprojection_figure(job):
 
 def test_every_main_job_figure_has_labelled_axes_and_a_legend_over_no_data(job):
     out, rep = job
-    from calib.evaluate_field import evaluate_field
+    from selfcal.calibration.field.evaluate import evaluate_field
 
     with open(out / "validation.csv") as fh:
         table = list(csv.DictReader(fh))
@@ -118,8 +118,8 @@ def test_report_without_truth_reports_fit_held_out_sigmas_and_identifiability(re
 def test_report_without_truth_uses_selfcal_evaluate_when_it_ran(real, tmp_path):
     """With DIR/evaluation.json (`selfcal evaluate` on a second dataset), that is the held-out
     check; here the second dataset is another trajectory of the same scene."""
-    from calib.evaluate import write_evaluation
-    from calib.evaluate_field import evaluate_field
+    from selfcal.calibration.board.evaluate import write_evaluation
+    from selfcal.calibration.field.evaluate import evaluate_field
 
     root, _ = real
     copy = tmp_path / "ds"
@@ -142,8 +142,8 @@ def test_report_of_real_data_needs_no_simulator(real):
     code = (
         "import sys, json\n"
         "sys.modules['mujoco'] = None; sys.modules['sim'] = None\n"
-        "from calib.io.calibration import read_calibration\n"
-        "from scenarios.report_fit import fit_report\n"
+        "from selfcal.io.calibration import read_calibration\n"
+        "from selfcal.pipeline.report_fit import fit_report\n"
         f"r = fit_report({str(root)!r}, read_calibration({str(root)!r}))\n"
         "print(json.dumps(r['held_out']['reprojection_rms_px']))\n"
     )

@@ -1,8 +1,8 @@
-"""One-step maximum-likelihood refinement (calib.joint_refine) against simulator ground truth.
+"""One-step maximum-likelihood refinement (selfcal.calibration.field.joint_refine) against simulator ground truth.
 
 The pipeline runs on the analytic path (projected corners, no rendering) so each dataset takes a
 few seconds. Tolerances are stated per test; the noisy-seed numbers are discussed in the module
-docstring of scenarios/benchmark_joint.py.
+docstring of selfcal/benchmarks/joint.py.
 """
 
 from __future__ import annotations
@@ -12,22 +12,22 @@ import warnings
 import numpy as np
 import pytest
 
-from calib.calibrate import calibrate, calibrate_detailed
-from calib.io.calibration import read_calibration
-from calib.io.dataset import Dataset
-from calib.io.truth import read_truth
-from calib.joint_refine import (
+from selfcal.calibration.field.calibrate import calibrate, calibrate_detailed
+from selfcal.calibration.field.joint_refine import (
     aligned_tool_rms_bound,
     choose_gauge,
     gauge_directions,
 )
-from calib.kinematics import fk_tool
-from calib.mcpc import MCPCModel, minimal_indices, nominal_mcpc, param_names
-from calib.report import aligned_errors, tool_tips
-from calib.robot_def import load_robot
-from calib.transforms import make_pose, rot_x
-from scenarios.config import load_scenario
-from scenarios.pipeline import run_acquire, run_calibrate, run_report
+from selfcal.config.scenario import load_scenario
+from selfcal.io.calibration import read_calibration
+from selfcal.io.dataset import Dataset
+from selfcal.io.truth import read_truth
+from selfcal.kinematics.accuracy import aligned_errors, tool_tips
+from selfcal.kinematics.forward import fk_tool
+from selfcal.kinematics.mcpc import MCPCModel, minimal_indices, nominal_mcpc, param_names
+from selfcal.pipeline.run import run_acquire, run_calibrate, run_report
+from selfcal.robot.definition import load_robot
+from selfcal.transforms import make_pose, rot_x
 
 NOISE_SEEDS = (1, 2, 3)
 

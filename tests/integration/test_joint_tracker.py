@@ -1,11 +1,11 @@
-"""Images and tracker positions in one estimate (calib.joint_refine with tracker blocks).
+"""Images and tracker positions in one estimate (selfcal.calibration.field.joint_refine with tracker blocks).
 
 A simulated SCORBOT dataset (analytic path: projected corners with 0.5 px noise, exact joint
 read-back) whose tool tip a tracker also measured at the same configurations (0.1 mm noise, an
 arbitrary tracker frame). The metric of all three estimates is the error of the tool tip they
 predict on the validation configurations, after the best rigid alignment
-(:func:`calib.report.aligned_errors`): images alone (the joint refinement, with the known
-camera-to-tip transform), tracker alone (:func:`calib.tracker_identify.identify_tracker`, its
+(:func:`selfcal.kinematics.accuracy.aligned_errors`): images alone (the joint refinement, with the known
+camera-to-tip transform), tracker alone (:func:`selfcal.calibration.tracker.identify.identify_tracker`, its
 tool point) and both in one estimate (its estimated tool point); with tracker positions, distances and poses.
 """
 
@@ -16,18 +16,18 @@ import warnings
 import numpy as np
 import pytest
 
-from calib.calibrate import calibrate_detailed, detect_dataset, observations_of
-from calib.io.dataset import Dataset
-from calib.io.truth import read_truth
-from calib.joint_refine import refine_calibration
-from calib.kinematics import fk_tool
-from calib.mcpc import nominal_mcpc
-from calib.report import aligned_errors, tool_tips
-from calib.robot_def import load_robot
-from calib.tracker_identify import TrackerMeasurements, identify_tracker
-from calib.transforms import pose_from_vec, trans
-from scenarios.config import load_scenario
-from scenarios.pipeline import run_acquire
+from selfcal.calibration.field.calibrate import calibrate_detailed, detect_dataset, observations_of
+from selfcal.calibration.field.joint_refine import refine_calibration
+from selfcal.calibration.tracker.identify import TrackerMeasurements, identify_tracker
+from selfcal.config.scenario import load_scenario
+from selfcal.io.dataset import Dataset
+from selfcal.io.truth import read_truth
+from selfcal.kinematics.accuracy import aligned_errors, tool_tips
+from selfcal.kinematics.forward import fk_tool
+from selfcal.kinematics.mcpc import nominal_mcpc
+from selfcal.pipeline.run import run_acquire
+from selfcal.robot.definition import load_robot
+from selfcal.transforms import pose_from_vec, trans
 
 SIGMA_M = 1e-4
 SIGMA_RAD = 1e-4

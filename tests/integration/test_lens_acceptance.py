@@ -5,10 +5,10 @@ pinhole).
 
 - every free camera parameter within 3 sigma of truth (sigma: the calibration's covariance),
   analytic and rendered (measured |z| <= 1.7 analytic, <= 1.8 rendered; the rendered corners
-  are re-detected through the estimated lens, calib.camera.undistort);
+  are re-detected through the estimated lens, selfcal.camera.undistort);
 - one camera (self-calibration without a rig, synthetic field): the same, max |z| 1.9;
 - the calibrated tool tip within 1.3x the Cramer-Rao bound over 30 Monte Carlo draws on the
-  analytic path (scenarios/montecarlo.py).
+  analytic path (selfcal/studies/montecarlo/run.py).
 """
 
 from __future__ import annotations
@@ -18,8 +18,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from scenarios.config import load_scenario
-from scenarios.pipeline import run_acquire, run_calibrate, run_report
+from selfcal.config.scenario import load_scenario
+from selfcal.pipeline.run import run_acquire, run_calibrate, run_report
 
 LENS_TOML = Path(__file__).resolve().parents[2] / "scenarios" / "lens.toml"
 MONO_TOML = LENS_TOML.with_name("mono.toml")
@@ -65,7 +65,7 @@ def test_mono_scenario_every_free_camera_parameter_within_3_sigma(tmp_path, rend
 
 @pytest.mark.slow
 def test_monte_carlo_tool_tip_within_1_3x_the_bound_with_a_lens():
-    from scenarios.montecarlo import run_montecarlo
+    from selfcal.studies.montecarlo.run import run_montecarlo
 
     rows, summary = run_montecarlo(30, None, jobs=2, quiet=True, config=LENS_TOML)
     ok = [r for r in rows if r["status"] == "ok"]
@@ -83,10 +83,10 @@ def test_mono_self_calibration_frees_the_lens():
     """One camera (the left of a synthetic stereo scene, 30 views, 0.5 px noise) and the marker
     field: the self-calibration without a rig recovers every free parameter within 3 sigma
     (measured over seeds 0-4: max |z| 1.93)."""
-    from calib.camera import camera_model
-    from calib.observations import Observations
-    from calib.selfcal import self_calibrate
-    from calib.selfcal_synthetic import synthetic_stereo_scene
+    from selfcal.calibration.field.self_calibration import self_calibrate
+    from selfcal.calibration.field.synthetic import synthetic_stereo_scene
+    from selfcal.camera import camera_model
+    from selfcal.estimation.observations import Observations
 
     free = ["fx", "mu", "cx", "cy", "k1", "k2", "p1", "p2"]
     lens = {"k1": -0.25, "k2": 0.1, "p1": 1e-3, "p2": -5e-4}
@@ -108,7 +108,7 @@ def _acceptance_monte_carlo(config: Path, label: str) -> None:
     """30 analytic draws of ``config`` (the issue's acceptance): the joint tool tip within
     1.3x the bound and every free camera parameter's error RMS / bound below 1.5 (an efficient
     estimator's 95 % range over 30 draws is 0.75 .. 1.25)."""
-    from scenarios.montecarlo import run_montecarlo
+    from selfcal.studies.montecarlo.run import run_montecarlo
 
     rows, s = run_montecarlo(30, None, jobs=2, quiet=True, config=config)
     assert all(r["status"] == "ok" for r in rows), [r["status"] for r in rows]
@@ -131,6 +131,6 @@ def test_mono_monte_carlo_tool_tip_within_1_3x_the_bound():
 def test_mono_charuco_monte_carlo_tool_tip_within_1_3x_the_bound():
     """scenarios/mono-charuco.toml (one camera + ChArUco, the scenario's own board and camera)
     through ``selfcal montecarlo``'s draws on the analytic path against the board route's
-    Cramer-Rao bound (:mod:`scenarios.montecarlo_board`; the table in docs/cameras.md):
+    Cramer-Rao bound (:mod:`selfcal.studies.montecarlo.board`; the table in docs/cameras.md):
     measured 0.901, camera ratios 0.74 .. 1.11."""
     _acceptance_monte_carlo(MONO_CHARUCO_TOML, "ChArUco")

@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 import pytest
 
-from sim.markers import (
+from selfcal.sim.markers import (
     BLOCK_MARGIN_M,
     MarkerField,
     make_marker_field,
@@ -139,12 +139,12 @@ def test_rendered_top_view_matches_corner_order():
     marker side, >= 40 px)."""
     import mujoco
 
-    from calib.camera import Intrinsics, project
-    from calib.target.aruco_detect import detect_markers
-    from calib.transforms import inv_pose
-    from sim.mj_camera import T_world_cam_cv, add_camera
-    from sim.render import StereoRenderer
-    from sim.scene import scene_spec
+    from selfcal.camera import Intrinsics, project
+    from selfcal.sim.mj_camera import T_world_cam_cv, add_camera
+    from selfcal.sim.render import StereoRenderer
+    from selfcal.sim.scene import scene_spec
+    from selfcal.target.aruco_detect import detect_markers
+    from selfcal.transforms import inv_pose
 
     f = make_marker_field()
     spec = scene_spec(f)

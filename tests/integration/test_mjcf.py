@@ -10,16 +10,16 @@ import mujoco
 import numpy as np
 import pytest
 
-from calib.camera import Intrinsics
-from calib.kinematics import fk_frames, fk_nominal
-from calib.robot_def import load_robot, models_dir
-from calib.transforms import inv_pose, trans
-from sim.actual import apply_errors, perturb
-from sim.build_models import ROBOT_MODELS, mjcf_entries, write_models
-from sim.link_frames import link_body_names, nominal_camera_model
-from sim.markers import make_marker_field
-from sim.mj_camera import T_world_cam_cv, intrinsics_from_model
-from sim.robot_mjcf import RigConfig, add_robot, robot_spec, scene_with_robot
+from selfcal.camera import Intrinsics
+from selfcal.kinematics.forward import fk_frames, fk_nominal
+from selfcal.robot.definition import load_robot, models_dir
+from selfcal.sim.actual import apply_errors, perturb
+from selfcal.sim.build_models import ROBOT_MODELS, mjcf_entries, write_models
+from selfcal.sim.link_frames import link_body_names, nominal_camera_model
+from selfcal.sim.markers import make_marker_field
+from selfcal.sim.mj_camera import T_world_cam_cv, intrinsics_from_model
+from selfcal.sim.robot_mjcf import RigConfig, add_robot, robot_spec, scene_with_robot
+from selfcal.transforms import inv_pose, trans
 
 MODEL_DIR = models_dir() / "scorbot_er4u"  # the SCORBOT folder
 TOL = 1e-9  # m, and for rotation-matrix entries
@@ -76,7 +76,7 @@ def _site_pose(data: mujoco.MjData, site: str) -> np.ndarray:
 
 
 def _frame_errors(model, data, robot, mcpc, q, rig: RigConfig) -> dict[str, float]:
-    """Max abs deviation of MuJoCo's frames from calib.kinematics over configurations q."""
+    """Max abs deviation of MuJoCo's frames from selfcal.kinematics.forward over configurations q."""
     F = fk_frames(mcpc, q)
     T_cam_tip = inv_pose(robot.T_flange_cam)
     err = {"links": 0.0, "rig": 0.0, "cam_left": 0.0, "cam_right": 0.0, "tool_tip": 0.0}
@@ -231,10 +231,10 @@ def test_committed_xml_is_regenerated_exactly(tmp_path: Path):
     for p in written:
         rel = p.relative_to(tmp_path)
         committed = models_dir() / rel
-        assert committed.is_file(), f"{committed} missing: run `python -m sim.build_models`"
+        assert committed.is_file(), f"{committed} missing: run `python -m selfcal.sim.build_models`"
         if p.suffix == ".xml":
             assert _normalise(p.read_text()) == _normalise(committed.read_text()), (
-                f"{rel} is stale: run `python -m sim.build_models`"
+                f"{rel} is stale: run `python -m selfcal.sim.build_models`"
             )
         else:
             import cv2

@@ -1,14 +1,14 @@
 """Issue #14's done-when on the rendered path: the noise-free default scenario and the rendered
-Monte Carlo against the Cramer-Rao bound (scenarios/montecarlo_render.py, docs/accuracy.md)."""
+Monte Carlo against the Cramer-Rao bound (selfcal/studies/montecarlo/render.py, docs/accuracy.md)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from calib.robot_def import load_robot
-from scenarios.montecarlo_render import run_draws, summarise
-from scenarios.pipeline import dithered
+from selfcal.pipeline.run import dithered
+from selfcal.robot.definition import load_robot
+from selfcal.studies.montecarlo.render import run_draws, summarise
 
 
 def test_dithered_postures_move_within_half_an_encoder_count():

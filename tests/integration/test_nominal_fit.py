@@ -1,4 +1,4 @@
-"""The fair nominal of a board calibration (calib/nominal_fit.py): the nominal chain with the
+"""The fair nominal of a board calibration (selfcal/calibration/board/nominal_fit.py): the nominal chain with the
 board pose, the hand-eye and the camera fitted to the pixels by the calibration's own objective.
 
 It replaced a pose-distance proxy (the nominal chain placed on the camera stage's poses with the
@@ -13,13 +13,13 @@ import numpy as np
 from synthetic_board import BOARD, CAMERA, ROBOT, H, W, make_lab, postures
 from synthetic_features import board_features
 
-from calib.board_calibrate import calibrate_board
-from calib.board_refine import BoardObservations, Refinement, predict_px
-from calib.kinematics import fk_tool
-from calib.mcpc import nominal_mcpc
-from calib.nominal_fit import fit_nominal, place_nominal
-from calib.robot_def import load_robot
-from calib.transforms import inv_pose
+from selfcal.calibration.board.calibrate import calibrate_board
+from selfcal.calibration.board.nominal_fit import fit_nominal, place_nominal
+from selfcal.calibration.board.refine import BoardObservations, Refinement, predict_px
+from selfcal.kinematics.forward import fk_tool
+from selfcal.kinematics.mcpc import nominal_mcpc
+from selfcal.robot.definition import load_robot
+from selfcal.transforms import inv_pose
 
 
 def _observations(true_model, T_world_board, q, px: float, seed: int) -> BoardObservations:

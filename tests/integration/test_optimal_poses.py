@@ -1,11 +1,11 @@
-"""D-optimal calibration postures (calib.optimal_poses) and the MuJoCo collision check.
+"""D-optimal calibration postures (selfcal.calibration.field.optimal_poses) and the MuJoCo collision check.
 
 - the per-posture information proxy equals J^T J of central differences of the stereo
   projections of the visible grid points (1e-6 relative);
 - greedy + exchange selection finds the best subset of a small pool (exhaustive search);
 - the collision check passes home, rejects a folded arm and a camera below the table;
 - optimal postures lower the Cramer-Rao bound of the validation tool tip (full joint model,
-  :mod:`calib.bounds`, simulator's marker field) against the random planner's postures of the
+  :mod:`selfcal.calibration.field.bounds`, simulator's marker field) against the random planner's postures of the
   same count by at least 25 % (measured: see docs/bounds.md).
 """
 
@@ -16,15 +16,15 @@ import itertools
 import numpy as np
 import pytest
 
-from calib.camera import project
-from calib.kinematics import fk_tool
-from calib.optimal_poses import pose_information, select_d_optimal
-from calib.trajectory import PLANNING_VISIBILITY, plan_postures
-from calib.transforms import inv_pose, pose_from_vec
-from scenarios.backends import plan_optimal, planning_inputs
-from scenarios.config import load_scenario
-from scenarios.plan_comparison import predicted_bound
-from sim.collision import collision_checker
+from selfcal.acquisition.backends import plan_optimal, planning_inputs
+from selfcal.calibration.field.optimal_poses import pose_information, select_d_optimal
+from selfcal.camera import project
+from selfcal.config.scenario import load_scenario
+from selfcal.kinematics.forward import fk_tool
+from selfcal.kinematics.trajectory import PLANNING_VISIBILITY, plan_postures
+from selfcal.sim.collision import collision_checker
+from selfcal.studies.montecarlo.plan_comparison import predicted_bound
+from selfcal.transforms import inv_pose, pose_from_vec
 
 
 @pytest.fixture(scope="module")
@@ -67,7 +67,7 @@ def test_exchange_finds_the_best_subset_of_a_small_pool():
 
 
 def test_collision_checker():
-    from calib.robot_def import load_robot
+    from selfcal.robot.definition import load_robot
 
     robot = load_robot("er4u-paper")
     ok = collision_checker("er4u-paper")

@@ -1,6 +1,6 @@
 """One writer per output folder (#33): two `selfcal run --out same` at once wrote joints.csv with
 frames 0-15 twice and exited 4 (the hardware code) for a file race. A command that writes a
-folder holds FOLDER/.selfcal.lock (calib.io.outlock); a second one says who holds it and exits 2
+folder holds FOLDER/.selfcal.lock (selfcal.io.outlock); a second one says who holds it and exits 2
 before it touches anything; a lock whose process is gone is taken over with a warning. An --out
 that cannot be a folder is an input error naming it (before: exit 1)."""
 
@@ -14,8 +14,8 @@ import sys
 
 import pytest
 
-from calib.io.outlock import LOCK_NAME, output_lock
-from scenarios import cli
+from selfcal.cli import main as cli
+from selfcal.io.outlock import LOCK_NAME, output_lock
 
 
 def run(capsys, *argv):
@@ -46,7 +46,7 @@ def test_a_second_writer_is_refused_naming_the_first(capsys, tmp_path, scenario,
 def test_the_lock_is_held_while_the_command_runs_and_released_after(
     capsys, tmp_path, scenario, monkeypatch
 ):
-    import scenarios.pipeline
+    import selfcal.pipeline.run
 
     seen = []
 
@@ -54,7 +54,7 @@ def test_the_lock_is_held_while_the_command_runs_and_released_after(
         seen.append(json.loads((out / LOCK_NAME).read_text()))
         raise KeyboardInterrupt  # and the lock is released however the command ends
 
-    monkeypatch.setattr(scenarios.pipeline, "run_acquire", acquire)
+    monkeypatch.setattr(selfcal.pipeline.run, "run_acquire", acquire)
     code, _, _ = run(capsys, "acquire", scenario, "--out", tmp_path / "ds", "--quiet")
     assert code == 130
     assert seen[0]["pid"] == os.getpid() and seen[0]["host"] == socket.gethostname()

@@ -36,27 +36,32 @@ from synthetic_board import (
     write_lab_data,
 )
 
-from calib.board_calibrate import BoardInputError
-from calib.board_dataset import ReadbackWarning, calibrate_board_dataset
-from calib.calibrate import CalibrationError, calibrate
-from calib.camera import Fisheye, Pinhole
-from calib.choices import DEFAULT_FREE
-from calib.errors import InputError, SelfCalWarning
-from calib.evaluate import EvaluationWarning
-from calib.export import deploy_chain, nominal_deployed_params
-from calib.identify import IdentificationError, IdentificationWarning
-from calib.import_dataset import CameraImages, ImportError_, TargetNotFoundWarning, import_dataset
-from calib.io.board_calibration import read_board_calibration, write_board_calibration
-from calib.io.dataset import Dataset
-from calib.io.tracker import TrackerFileError
-from calib.robot_def import load_robot
-from calib.scale_check import ScaleWarning
-from calib.transforms import inv_pose, make_pose
-from scenarios.board_run import summary
-from scenarios.cli import main
-from scenarios.deploy_cli import load_calibration
-from scenarios.own_data import cmd_evaluate
-from sim.lens import LensRemap
+from selfcal.calibration.board.calibrate import BoardInputError
+from selfcal.calibration.board.dataset import ReadbackWarning, calibrate_board_dataset
+from selfcal.calibration.board.evaluate import EvaluationWarning
+from selfcal.calibration.field.calibrate import CalibrationError, calibrate
+from selfcal.calibration.identify import IdentificationError, IdentificationWarning
+from selfcal.calibration.scale_check import ScaleWarning
+from selfcal.camera import Fisheye, Pinhole
+from selfcal.choices import DEFAULT_FREE
+from selfcal.cli.deploy import load_calibration
+from selfcal.cli.main import main
+from selfcal.cli.own_data import cmd_evaluate
+from selfcal.errors import InputError, SelfCalWarning
+from selfcal.export.deploy import deploy_chain, nominal_deployed_params
+from selfcal.importing.dataset import (
+    CameraImages,
+    ImportError_,
+    TargetNotFoundWarning,
+    import_dataset,
+)
+from selfcal.io.board_calibration import read_board_calibration, write_board_calibration
+from selfcal.io.dataset import Dataset
+from selfcal.io.tracker import TrackerFileError
+from selfcal.pipeline.board_run import summary
+from selfcal.robot.definition import load_robot
+from selfcal.sim.lens import LensRemap
+from selfcal.transforms import inv_pose, make_pose
 
 
 @pytest.fixture(scope="module")

@@ -16,11 +16,11 @@ import json
 import numpy as np
 import pytest
 
-from calib.kinematics import fk_nominal
-from calib.robot_def import load_robot
-from scenarios.cli import main as cli_main
-from scenarios.paper_checks import paper_inconsistencies
-from scenarios.paper_data import TABLE_II_MM, TABLE_II_THETA4_DEG, table_ii_postures
+from selfcal.cli.main import main as cli_main
+from selfcal.config.paper_data import TABLE_II_MM, TABLE_II_THETA4_DEG, table_ii_postures
+from selfcal.kinematics.forward import fk_nominal
+from selfcal.robot.definition import load_robot
+from selfcal.studies.paper.checks import paper_inconsistencies
 
 
 def test_table_ii_postures_reproduce_table_ii():

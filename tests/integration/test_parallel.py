@@ -1,4 +1,4 @@
-"""The local worker pool of studies and Monte Carlo (scenarios.parallel): a worker's warnings
+"""The local worker pool of studies and Monte Carlo (selfcal.studies.parallel): a worker's warnings
 reach the command's log (printed as ``selfcal: warning:`` lines, counted in the last line) and
 the workers end with their parent, even one killed by SIGTERM.
 
@@ -15,8 +15,8 @@ import sys
 import time
 from pathlib import Path
 
-from scenarios.cli_log import command_logging, get_logger
-from scenarios.parallel import run_tasks
+from selfcal.console.log import command_logging, get_logger
+from selfcal.studies.parallel import run_tasks
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -41,7 +41,7 @@ def test_a_workers_warnings_are_logged_and_counted(capfd):
 
 POOL = """
 import time
-from scenarios.parallel import worker_pool
+from selfcal.studies.parallel import worker_pool
 if __name__ == "__main__":
     with worker_pool(2) as ex:
         for f in [ex.submit(time.sleep, 0.2) for _ in range(2)]:

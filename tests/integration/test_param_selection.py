@@ -1,5 +1,5 @@
 """The kinematic parameters a board calibration estimates are chosen by the data
-(calib/param_selection.py): rank and conditioning of the identification Jacobian, then
+(selfcal/calibration/board/param_selection.py): rank and conditioning of the identification Jacobian, then
 leave-one-configuration-out cross-validation between nested candidates.
 
 The synthetic lab (tests/integration/synthetic_board.py: the KR 6 R900 with every MCPC parameter
@@ -19,14 +19,19 @@ import pytest
 from synthetic_board import BOARD, CAMERA, ROBOT, H, W, make_lab, postures
 from synthetic_features import board_features
 
-from calib.board_calibrate import calibrate_board
-from calib.board_refine import BoardObservations, Refinement, predict_px
-from calib.board_robot import calibrate_robot_with_board
-from calib.errors import SelfCalWarning
-from calib.mcpc import nominal_mcpc
-from calib.nominal_fit import fit_nominal
-from calib.param_selection import MAX_FOLDS, configurations, fold_labels, select_parameters
-from calib.robot_def import load_robot
+from selfcal.calibration.board.calibrate import calibrate_board
+from selfcal.calibration.board.nominal_fit import fit_nominal
+from selfcal.calibration.board.param_selection import (
+    MAX_FOLDS,
+    configurations,
+    fold_labels,
+    select_parameters,
+)
+from selfcal.calibration.board.refine import BoardObservations, Refinement, predict_px
+from selfcal.calibration.board.robot import calibrate_robot_with_board
+from selfcal.errors import SelfCalWarning
+from selfcal.kinematics.mcpc import nominal_mcpc
+from selfcal.robot.definition import load_robot
 
 READ_NOISE = np.radians(0.01)
 

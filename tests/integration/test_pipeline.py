@@ -21,14 +21,19 @@ import numpy as np
 import pytest
 from analytic_dataset import plan_same_postures
 
-from calib.calibrate import CalibrationError, NoMarkersWarning, calibrate, detect_dataset
-from calib.io.calibration import read_calibration
-from calib.io.dataset import Dataset, DatasetError
-from calib.scale_check import ScaleWarning
-from calib.trajectory import DegenerateTrajectoryError
-from scenarios.cli import cmd_report
-from scenarios.config import load_scenario
-from scenarios.pipeline import run_acquire, run_calibrate, run_report
+from selfcal.calibration.field.calibrate import (
+    CalibrationError,
+    NoMarkersWarning,
+    calibrate,
+    detect_dataset,
+)
+from selfcal.calibration.scale_check import ScaleWarning
+from selfcal.cli.main import cmd_report
+from selfcal.config.scenario import load_scenario
+from selfcal.io.calibration import read_calibration
+from selfcal.io.dataset import Dataset, DatasetError
+from selfcal.kinematics.trajectory import DegenerateTrajectoryError
+from selfcal.pipeline.run import run_acquire, run_calibrate, run_report
 
 
 def scenario(**sections):
@@ -238,7 +243,7 @@ def test_degenerate_trajectory(small_analytic, tmp_path):
 def test_a_known_distance_declared_wrong_is_named(small_analytic, tmp_path):
     """The distance between the scale markers declared 3 % long: the reconstruction, the
     kinematic fit and the reprojection take the scale without a sign, only the arm's nominal
-    size tells (calib/scale_check.py)."""
+    size tells (selfcal/calibration/scale_check.py)."""
     ds = tmp_path / "long"
     shutil.copytree(small_analytic, ds)
     info = json.loads((ds / "dataset.json").read_text())
@@ -259,7 +264,7 @@ def test_a_known_distance_declared_wrong_is_named(small_analytic, tmp_path):
 def test_the_joint_read_back_noise_can_be_stated(small_analytic, tmp_path):
     """selfcal calibrate --joint-sigma-deg replaces the robot file's encoder resolution in the
     one-step refinement of the field (calibration.json records the sigma it modelled)."""
-    from scenarios.cli import main
+    from selfcal.cli.main import main
 
     ds = tmp_path / "sigma"
     shutil.copytree(small_analytic, ds)
@@ -277,7 +282,7 @@ def test_a_field_calibration_of_a_robot_file_exports(small_analytic, tmp_path):
     """A field dataset whose robot is a file (not a shipped model): export and fk --calibration
     load that file; calibration.json names the robot by its own name, 'myarm', which is no
     model of models/robots (it was looked up there and failed)."""
-    from scenarios.cli import main
+    from selfcal.cli.main import main
 
     ds = tmp_path / "myarm"
     shutil.copytree(small_analytic, ds)

@@ -1,8 +1,8 @@
-"""THE pin of the OpenCV <-> MuJoCo camera convention (sim/mj_camera.py).
+"""THE pin of the OpenCV <-> MuJoCo camera convention (selfcal/sim/mj_camera.py).
 
 Free-standing cameras (fx = 800 px; mu = 1 with a centred principal point, and mu = 1.05 with
 off-centre principal points) photograph the marker field from 0.25-0.4 m and different
-directions. Detected ArUco corners must agree with ``calib.camera.project`` of the ground-truth
+directions. Detected ArUco corners must agree with ``selfcal.camera.project`` of the ground-truth
 corners through the read-back camera pose: RMS <= 0.3 px (requirement) and no bias. A half-pixel
 offset error would give a 0.5 px bias, a principal-point sign error 2 |c - centre| px.
 Measured (mujoco 4.0.0, llvmpipe): RMS 0.014 px, mean (+0.001, +0.000) px, max 0.07 px with the
@@ -15,12 +15,12 @@ import mujoco
 import numpy as np
 import pytest
 
-from calib.camera import Intrinsics, project
-from calib.target.aruco_detect import detect_markers
-from calib.transforms import inv_pose
-from sim.markers import make_marker_field
-from sim.mj_camera import T_world_cam_cv, add_camera, intrinsics_from_model, look_at_cv
-from sim.scene import scene_spec
+from selfcal.camera import Intrinsics, project
+from selfcal.sim.markers import make_marker_field
+from selfcal.sim.mj_camera import T_world_cam_cv, add_camera, intrinsics_from_model, look_at_cv
+from selfcal.sim.scene import scene_spec
+from selfcal.target.aruco_detect import detect_markers
+from selfcal.transforms import inv_pose
 
 W, H = 640, 480
 TARGET = np.array([0.47, 0.39, 0.03])
@@ -85,7 +85,7 @@ def test_add_camera_rejects_bad_pose():
 
 @pytest.mark.render
 def test_rendered_corners_match_projection(rig):
-    from sim.render import StereoRenderer
+    from selfcal.sim.render import StereoRenderer
 
     field, model, data = rig
     names = tuple(CAMERAS)
@@ -111,7 +111,7 @@ def test_rendered_corners_match_projection(rig):
 
 @pytest.mark.render
 def test_stereo_render_shapes_and_noise(rig):
-    from sim.render import StereoRenderer
+    from selfcal.sim.render import StereoRenderer
 
     _, model, data = rig
     with StereoRenderer(model, W, H, camera_names=("pin_mu_a", "pin_mu_b")) as r:

@@ -1,4 +1,4 @@
-"""THE pin of the simulated lens (sim/lens.py, sim/render.py): MuJoCo renders the source pinhole,
+"""THE pin of the simulated lens (selfcal/sim/lens.py, selfcal/sim/render.py): MuJoCo renders the source pinhole,
 the exact inverse remap distorts it, and rendered marker corners land where the camera model
 projects them.
 
@@ -18,13 +18,13 @@ import mujoco
 import numpy as np
 import pytest
 
-from calib.camera import Pinhole, camera_model, project
-from calib.target.aruco_detect import detect_markers
-from calib.transforms import inv_pose
-from sim.lens import LensRemap, source_pinhole
-from sim.markers import make_marker_field
-from sim.mj_camera import T_world_cam_cv, add_camera, intrinsics_from_model, look_at_cv
-from sim.scene import scene_spec
+from selfcal.camera import Pinhole, camera_model, project
+from selfcal.sim.lens import LensRemap, source_pinhole
+from selfcal.sim.markers import make_marker_field
+from selfcal.sim.mj_camera import T_world_cam_cv, add_camera, intrinsics_from_model, look_at_cv
+from selfcal.sim.scene import scene_spec
+from selfcal.target.aruco_detect import detect_markers
+from selfcal.transforms import inv_pose
 
 W, H = 640, 480
 LENS = camera_model("opencv", fx=800.0, mu=1.0, cx=319.5 + 12, cy=239.5 - 8, width=W, height=H,
@@ -62,7 +62,7 @@ def test_source_pinhole_holds_every_ray_and_the_remap_samples_the_right_place():
 
 @pytest.fixture(scope="module")
 def lens_views():
-    from sim.render import StereoRenderer
+    from selfcal.sim.render import StereoRenderer
 
     field = make_marker_field()
     spec = scene_spec(field, W, H)

@@ -17,21 +17,25 @@ import numpy as np
 import pytest
 from analytic_dataset import acquire_analytic, run
 
-from calib.calibrate import (
+from selfcal.calibration.board.evaluate import Evaluation
+from selfcal.calibration.field.calibrate import (
     CalibrationFailedError,
     calibrate_detailed,
     detect_dataset,
     observations_of,
 )
-from calib.evaluate import Evaluation
-from calib.io.calibration import CalibrationFileError, CalibrationResult, read_calibration
-from calib.io.dataset import Dataset
-from calib.mcpc import nominal_mcpc
-from calib.quality import assess_calibration, baseline_angle_deg, rig_direction_failure
-from calib.robot_def import load_robot
-from calib.transforms import make_pose
-from scenarios import cli
-from scenarios.pipeline import run_calibrate
+from selfcal.calibration.field.quality import (
+    assess_calibration,
+    baseline_angle_deg,
+    rig_direction_failure,
+)
+from selfcal.cli import main as cli
+from selfcal.io.calibration import CalibrationFileError, CalibrationResult, read_calibration
+from selfcal.io.dataset import Dataset
+from selfcal.kinematics.mcpc import nominal_mcpc
+from selfcal.pipeline.run import run_calibrate
+from selfcal.robot.definition import load_robot
+from selfcal.transforms import make_pose
 
 
 @pytest.fixture(scope="module")

@@ -17,10 +17,10 @@ from pathlib import Path
 
 import pytest
 
-from scenarios import rerun_log
-from scenarios.cli import main
-from scenarios.config import load_scenario
-from scenarios.pipeline import run_acquire, run_calibrate
+from selfcal.cli.main import main
+from selfcal.config.scenario import load_scenario
+from selfcal.pipeline.run import run_acquire, run_calibrate
+from selfcal.plots import rerun_log
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -111,7 +111,7 @@ def test_board_run_records_its_cameras_and_the_board(tmp_path):
 
 
 def test_record_needs_a_calibration(tmp_path, small_run):
-    from calib.io.dataset import DatasetError
+    from selfcal.io.dataset import DatasetError
 
     ds = tmp_path / "ds"
     shutil.copytree(small_run, ds)

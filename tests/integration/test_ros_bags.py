@@ -23,19 +23,19 @@ import pytest
 from synthetic_board import CAMERA, TARGET_TOML, make_lab, write_lab_data
 from threadpoolctl import threadpool_limits
 
-from calib.board_dataset import calibrate_board_dataset
-from calib.camera import BrownConrady, Pinhole, opencv_values
-from calib.export_camera import rectified_matrix
-from calib.import_dataset import CameraImages, import_dataset
-from calib.io.board_calibration import write_board_calibration
-from calib.io.dataset import Dataset
-from calib.io.rosbag import BagReader, CameraInfo, bag_format
-from calib.kinematics import fk_tool
-from calib.robot_chain import chain_frames
-from calib.robot_def import load_robot
-from calib.robot_urdf import urdf_chain
-from calib.transforms import inv_pose, make_pose
-from scenarios.cli import main
+from selfcal.calibration.board.dataset import calibrate_board_dataset
+from selfcal.camera import BrownConrady, Pinhole, opencv_values
+from selfcal.cli.main import main
+from selfcal.export.camera import rectified_matrix
+from selfcal.importing.dataset import CameraImages, import_dataset
+from selfcal.io.board_calibration import write_board_calibration
+from selfcal.io.dataset import Dataset
+from selfcal.kinematics.forward import fk_tool
+from selfcal.robot.chain import chain_frames
+from selfcal.robot.definition import load_robot
+from selfcal.robot.urdf import urdf_chain
+from selfcal.ros.rosbag import BagReader, CameraInfo, bag_format
+from selfcal.transforms import inv_pose, make_pose
 
 pytest.importorskip("rosbags")
 

@@ -24,13 +24,13 @@ import cv2
 import numpy as np
 import pytest
 
-from calib.calibrate import calibrate_detailed
-from calib.io.calibration import read_calibration
-from calib.io.dataset import Dataset
-from calib.target.aruco_detect import detect_markers
-from scenarios.cli import main
-from scenarios.config import load_scenario
-from scenarios.pipeline import run_acquire
+from selfcal.calibration.field.calibrate import calibrate_detailed
+from selfcal.cli.main import main
+from selfcal.config.scenario import load_scenario
+from selfcal.io.calibration import read_calibration
+from selfcal.io.dataset import Dataset
+from selfcal.pipeline.run import run_acquire
+from selfcal.target.aruco_detect import detect_markers
 
 pytest.importorskip("rosbags")
 pytestmark = [pytest.mark.slow, pytest.mark.render]

@@ -21,11 +21,11 @@ import numpy as np
 import pytest
 from synthetic_board import TARGET_TOML, make_lab, postures, render
 
-from calib.bag_import import MovingImagesWarning
-from calib.errors import InputError
-from calib.io.dataset import Dataset
-from calib.io.rosbag import BagReader
-from scenarios.cli import main
+from selfcal.cli.main import main
+from selfcal.errors import InputError
+from selfcal.io.dataset import Dataset
+from selfcal.ros.bag_import import MovingImagesWarning
+from selfcal.ros.rosbag import BagReader
 
 rosbags = pytest.importorskip("rosbags")
 from rosbags.rosbag1 import Writer as Writer1  # noqa: E402
@@ -491,7 +491,7 @@ def test_zero_header_stamps_are_taken_at_their_recording_time(lab, tmp_path, cap
 
 
 def test_not_a_bag(tmp_path):
-    from calib.io.rosbag import bag_format
+    from selfcal.ros.rosbag import bag_format
 
     (tmp_path / "x.bag").write_text("hello")
     with pytest.raises(InputError, match="not a ROS bag"):

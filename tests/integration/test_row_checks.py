@@ -1,15 +1,15 @@
 """The rows of a real study run and a real Monte Carlo draw record the calibration's reliability
 checks (issue #15) as ``selfcal calibrate`` reports them: a sound calibration passes them
 (``checks = "passed"``, no failures). The failing case is the same field through the fake tasks
-of tests/unit/test_seeds_and_checks.py; the checks themselves: tests of calib.quality."""
+of tests/unit/test_seeds_and_checks.py; the checks themselves: tests of selfcal.calibration.field.quality."""
 
 from __future__ import annotations
 
 import pytest
 
-from scenarios.montecarlo import draw_one
-from scenarios.study_defs import BASE
-from scenarios.study_runs import run_one
+from selfcal.studies.defs import BASE
+from selfcal.studies.montecarlo.run import draw_one
+from selfcal.studies.runs import run_one
 
 
 @pytest.mark.slow  # a whole acquisition and calibration each (13-17 s on the loaded machine)

@@ -1,23 +1,23 @@
-"""The simulated robot behind the ``calib.robot.Robot`` interface."""
+"""The simulated robot behind the ``selfcal.robot.interface.Robot`` interface."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from calib.camera import project
-from calib.kinematics import fk_frames
-from calib.robot import Robot, RobotError, StereoPair
-from calib.transforms import inv_pose
-from sim.actual import apply_errors, perturb
-from sim.link_frames import nominal_camera_model
-from sim.markers import make_marker_field
-from sim.sim_robot import SimRobot
+from selfcal.camera import project
+from selfcal.kinematics.forward import fk_frames
+from selfcal.robot.interface import Robot, RobotError, StereoPair
+from selfcal.sim.actual import apply_errors, perturb
+from selfcal.sim.link_frames import nominal_camera_model
+from selfcal.sim.markers import make_marker_field
+from selfcal.sim.sim_robot import SimRobot
+from selfcal.transforms import inv_pose
 
 
 @pytest.fixture(scope="module")
 def sim():
-    from calib.robot_def import load_robot
+    from selfcal.robot.definition import load_robot
 
     robot = load_robot("er4u-paper")
     actual = apply_errors(
@@ -106,7 +106,7 @@ def test_bad_construction():
 
 @pytest.mark.render
 def test_capture_and_markers_visible_at_home(sim):
-    from calib.target.aruco_detect import detect_markers
+    from selfcal.target.aruco_detect import detect_markers
 
     sim.home()
     pair = sim.capture()

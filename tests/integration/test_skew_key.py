@@ -7,7 +7,7 @@ import json
 
 import pytest
 
-from scenarios.cli import main
+from selfcal.cli.main import main
 
 SCENARIO = """
 [camera]

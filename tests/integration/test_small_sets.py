@@ -1,5 +1,5 @@
-"""Small real-sized sets on the board route (calib/board_robot.py) and the identification they
-start from (calib/identify.py): a 7-joint arm with 9 postures, a 6-joint arm with 3.
+"""Small real-sized sets on the board route (selfcal/calibration/board/robot.py) and the identification they
+start from (selfcal/calibration/identify.py): a 7-joint arm with 9 postures, a 6-joint arm with 3.
 
 Synthetic truth: the robot file's nominal chain with every MCPC parameter perturbed (1 mm, 0.3 deg
 standard deviation), a 11x8 ChArUco board 0.45 m below the camera at home, corners projected
@@ -15,15 +15,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from calib.board_robot import calibrate_robot_with_board
-from calib.camera import Pinhole
-from calib.camera.model import project
-from calib.kinematics import fk_tool
-from calib.mcpc import MCPCModel, nominal_mcpc
-from calib.robot_def import load_robot
-from calib.target import Charuco
-from calib.target.base import Features
-from calib.transforms import inv_pose, make_pose
+from selfcal.calibration.board.robot import calibrate_robot_with_board
+from selfcal.camera import Pinhole
+from selfcal.camera.model import project
+from selfcal.kinematics.forward import fk_tool
+from selfcal.kinematics.mcpc import MCPCModel, nominal_mcpc
+from selfcal.robot.definition import load_robot
+from selfcal.target import Charuco
+from selfcal.target.base import Features
+from selfcal.transforms import inv_pose, make_pose
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 BOARD = Charuco((11, 8), 0.02, 0.015, "DICT_5X5_100")

@@ -13,13 +13,13 @@ import numpy as np
 import pytest
 from scipy.optimize import least_squares
 
-import calib.bundle_adjust as bundle_adjust
-import calib.joint_refine as joint_refine
-from calib.calibrate import calibrate
-from calib.solver import Problem, SolverOptions, solve
-from scenarios.benchmark_speed import off_minimum as _perturbed
-from scenarios.config import load_scenario
-from scenarios.pipeline import run_acquire
+import selfcal.calibration.field.joint_refine as joint_refine
+import selfcal.estimation.bundle_adjust as bundle_adjust
+from selfcal.benchmarks.speed import off_minimum as _perturbed
+from selfcal.calibration.field.calibrate import calibrate
+from selfcal.config.scenario import load_scenario
+from selfcal.pipeline.run import run_acquire
+from selfcal.solver import Problem, SolverOptions, solve
 
 REL_COST = 5e-14  # measured <= 1.5e-14 (rounding); issue 11 asks for 1e-9
 REL_STEP = 2e-10  # one step, each linear solver against dense LU: measured <= 6.1e-11

@@ -22,9 +22,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from calib.evaluate_field import evaluate_field
-from calib.io.calibration import read_calibration
-from scenarios.cli import main
+from selfcal.calibration.field.evaluate import evaluate_field
+from selfcal.cli.main import main
+from selfcal.io.calibration import read_calibration
 
 STEREO_TOML = Path(__file__).resolve().parents[2] / "scenarios" / "stereo-lenses.toml"
 
@@ -95,7 +95,7 @@ def test_stereo_lenses_monte_carlo_each_camera_at_its_bound():
     """10 analytic draws of scenarios/stereo-lenses.toml: the tool tip within 1.3x its Cramer-Rao
     bound and every parameter of both cameras with error RMS / bound below 1.5 (30 draws, the
     table in docs/cameras.md: tool tip 0.877, cameras 0.75 .. 1.13)."""
-    from scenarios.montecarlo import run_montecarlo
+    from selfcal.studies.montecarlo.run import run_montecarlo
 
     rows, summary = run_montecarlo(10, None, jobs=2, quiet=True, config=STEREO_TOML)
     ok = [r for r in rows if r["status"] == "ok"]

@@ -14,9 +14,9 @@ import csv
 import numpy as np
 import pytest
 
-from scenarios import studies
-from scenarios.cli import main as cli_main
-from scenarios.study_runs import COLUMNS, load_runs
+from selfcal.cli.main import main as cli_main
+from selfcal.studies import study as studies
+from selfcal.studies.runs import COLUMNS, load_runs
 
 
 @pytest.fixture(scope="module")
@@ -69,8 +69,8 @@ def test_a_run_worse_than_the_nominal_model_fails_its_checks(monkeypatch, tmp_pa
     worse than the nominal model's (report.json failed) counted as passed."""
     from types import SimpleNamespace
 
-    from scenarios import study_runs
-    from scenarios.study_defs import STUDIES
+    from selfcal.studies import runs as study_runs
+    from selfcal.studies.defs import STUDIES
 
     worse = "the calibrated tool-tip error 2.1 mm is worse than the nominal model's 1.6 mm"
     v = {"calibrated": {"rms": 2.1, "max": 3.0}, "nominal": {"rms": 1.6, "max": 2.9}}
@@ -89,8 +89,8 @@ def test_a_run_worse_than_the_nominal_model_fails_its_checks(monkeypatch, tmp_pa
 
 def test_a_setting_worse_than_nominal_is_a_counted_warning(tmp_path, capsys):
     """It was a raw "warning: ..." print, and the last line said "0 warnings"."""
-    from scenarios.cli_log import command_logging
-    from scenarios.study_runs import SETTING_KEYS
+    from selfcal.console.log import command_logging
+    from selfcal.studies.runs import SETTING_KEYS
 
     def task(st: dict) -> dict:
         row = {k: st[k] for k in SETTING_KEYS}

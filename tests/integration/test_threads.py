@@ -1,4 +1,4 @@
-"""BLAS/OpenMP threads are limited in one place (scenarios/threads.py): the CLI and every worker."""
+"""BLAS/OpenMP threads are limited in one place (selfcal/console/threads.py): the CLI and every worker."""
 
 from __future__ import annotations
 
@@ -7,10 +7,10 @@ import os
 import pytest
 from threadpoolctl import threadpool_info
 
-from calib.errors import InputError
-from scenarios.cli import main
-from scenarios.parallel import worker_pool
-from scenarios.threads import THREAD_VARS, THREADS_ENV, thread_count
+from selfcal.cli.main import main
+from selfcal.console.threads import THREAD_VARS, THREADS_ENV, thread_count
+from selfcal.errors import InputError
+from selfcal.studies.parallel import worker_pool
 
 
 def _pools_after_scipy() -> list[dict]:

@@ -15,10 +15,10 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from calib.kinematics import fk_tool
-from calib.robot_def import load_robot
-from scenarios.cli import main
-from scenarios.tracker_sim import make_case, measure
+from selfcal.benchmarks.tracker_sim import make_case, measure
+from selfcal.cli.main import main
+from selfcal.kinematics.forward import fk_tool
+from selfcal.robot.definition import load_robot
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 SIGMA_MM, SIGMA_DEG = 0.05, 0.01

@@ -8,10 +8,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from calib.kinematics import fk_tool
-from calib.robot_def import load_robot, models_dir
-from scenarios.cli import main
-from scenarios.tracker_sim import make_case, measure
+from selfcal.benchmarks.tracker_sim import make_case, measure
+from selfcal.cli.main import main
+from selfcal.kinematics.forward import fk_tool
+from selfcal.robot.definition import load_robot, models_dir
 
 SIGMA = 1e-4
 

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 import yaml
 
-from scenarios.cli import main
+from selfcal.cli.main import main
 
 pytestmark = pytest.mark.real
 

@@ -34,8 +34,8 @@ import cv2
 import numpy as np
 import pytest
 
-from calib.evaluate import SAME_RMS
-from calib.tomlfile import read_toml
+from selfcal.calibration.board.evaluate import SAME_RMS
+from selfcal.tomlfile import read_toml
 
 pytestmark = pytest.mark.real
 

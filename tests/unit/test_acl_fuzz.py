@@ -8,14 +8,14 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from hw.acl_errors import (
+from selfcal.hw.acl_errors import (
     AclControllerError,
     AclProtocolError,
     extract_error_events,
     parse_error_line,
 )
-from hw.acl_parsers import parse_listpv, parse_mflag, parse_show_speed, parse_version
-from hw.acl_reply import AclReply, ReplyAssembler
+from selfcal.hw.acl_parsers import parse_listpv, parse_mflag, parse_show_speed, parse_version
+from selfcal.hw.acl_reply import AclReply, ReplyAssembler
 
 PARSERS = (parse_listpv, parse_mflag, parse_show_speed, parse_version)
 TYPED = (AclProtocolError, AclControllerError)
@@ -89,7 +89,7 @@ def test_huge_integers_are_protocol_errors(n):
 def test_reply_read_byte_by_byte_analyses_each_line_once(monkeypatch):
     """Linear time: a 4 KB reply fed one byte at a time analyses each of its lines once (the
     old reader re-split the whole reply on every byte: 2.6 s for 4 KB; see
-    scenarios/benchmark_acl.py for the time)."""
+    selfcal/benchmarks/acl.py for the time)."""
     calls = []
     original = ReplyAssembler._take_line
     monkeypatch.setattr(

@@ -1,5 +1,5 @@
 """Atomic writes (issue #15): an interrupted write leaves the old file whole and no temporary file
-behind; the pipeline's writers go through calib.io.atomic."""
+behind; the pipeline's writers go through selfcal.io.atomic."""
 
 from __future__ import annotations
 
@@ -10,9 +10,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from calib.io import atomic
-from calib.io.atomic import write_image_atomic, write_text_atomic, write_with_atomic
-from calib.io.jsonfile import write_json_atomic
+from selfcal.io import atomic
+from selfcal.io.atomic import write_image_atomic, write_text_atomic, write_with_atomic
+from selfcal.io.jsonfile import write_json_atomic
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -88,25 +88,25 @@ def test_text_and_images_round_trip(tmp_path):
     assert sorted(x.name for x in tmp_path.iterdir()) == ["f.png", "r.md"]
 
 
-# Writers that may write a file directly: the dataset writer (calib/io/dataset.py, which keeps its
-# own temporary + rename) and `selfcal import` (calib/import_dataset.py: it fills a new dataset
+# Writers that may write a file directly: the dataset writer (selfcal/io/dataset.py, which keeps its
+# own temporary + rename) and `selfcal import` (selfcal/importing/dataset.py: it fills a new dataset
 # folder and is being changed in another branch; an interrupted import leaves an incomplete new
-# folder, never a damaged result; `selfcal import --bag`, calib/bag_import.py, stages the bag's
+# folder, never a damaged result; `selfcal import --bag`, selfcal/ros/bag_import.py, stages the bag's
 # images in that new folder and removes the folder on failure), tools that regenerate committed
-# files (sim/build_models.py, benchmark scripts writing docs, .npz caches and scratch files), the
-# emulator transport, and atomic.py itself; the truth journal (calib/io/truth.py) is appended a
+# files (selfcal/sim/build_models.py, benchmark scripts writing docs, .npz caches and scratch files), the
+# emulator transport, and atomic.py itself; the truth journal (selfcal/io/truth.py) is appended a
 # line per frame like the dataset's CSV files (its reader drops a partial last line).
 ALLOWED = {
-    "calib/io/atomic.py",
-    "calib/io/dataset.py",
-    "calib/io/truth.py",
-    "calib/calibrate.py",
-    "calib/import_dataset.py",
-    "calib/bag_import.py",
-    "sim/build_models.py",
-    "scenarios/benchmark_tracker.py",
-    "scenarios/benchmark_ros.py",
-    "scenarios/pybotics_fit.py",
+    "selfcal/io/atomic.py",
+    "selfcal/io/dataset.py",
+    "selfcal/io/truth.py",
+    "selfcal/calibration/field/calibrate.py",
+    "selfcal/importing/dataset.py",
+    "selfcal/ros/bag_import.py",
+    "selfcal/sim/build_models.py",
+    "selfcal/benchmarks/tracker.py",
+    "selfcal/benchmarks/ros.py",
+    "selfcal/benchmarks/pybotics_fit.py",
 }
 DIRECT = re.compile(
     r"\.write_text\(|\.write_bytes\(|open\([^)]*[\"'][wa]b?[\"']|imwrite\(|savefig\("
@@ -115,18 +115,18 @@ DIRECT = re.compile(
 
 def test_the_pipeline_writes_through_calib_io_atomic():
     found = []
-    for pkg in ("calib", "scenarios", "sim", "hw"):
+    for pkg in ("selfcal",):
         for f in sorted((REPO / pkg).rglob("*.py")):
             rel = f.relative_to(REPO).as_posix()
-            if rel in ALLOWED or rel.startswith(("scenarios/stud", "scenarios/montecarlo")):
+            if rel in ALLOWED or rel.startswith("selfcal/studies/"):
                 continue
             for i, line in enumerate(f.read_text().splitlines(), 1):
                 if DIRECT.search(line) and "save_figure" not in line:
                     found.append(f"{rel}:{i}: {line.strip()}")
-    # the one savefig is inside scenarios.plotting.save_figure
+    # the one savefig is inside selfcal.plots.plotting.save_figure
     assert found == [
-        "scenarios/plotting.py:"
-        + str(_line_of(REPO / "scenarios/plotting.py", "fig.savefig("))
+        "selfcal/plots/plotting.py:"
+        + str(_line_of(REPO / "selfcal/plots/plotting.py", "fig.savefig("))
         + ": return write_with_atomic(path, lambda tmp: fig.savefig(tmp, format=fmt, **kwargs))"
     ], "\n".join(found)
 

@@ -8,7 +8,7 @@ import re
 
 import pytest
 
-from calib.robot_def import RobotDefinitionError, load_robot, models_dir
+from selfcal.robot.definition import RobotDefinitionError, load_robot, models_dir
 
 ER4U = (models_dir() / "robots" / "er4u-paper.toml").read_text()
 

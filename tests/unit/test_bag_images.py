@@ -1,4 +1,4 @@
-"""Image messages decoded by calib/io/rosbag.py: every supported encoding, row padding, byte order,
+"""Image messages decoded by selfcal/ros/rosbag.py: every supported encoding, row padding, byte order,
 compressed jpeg and png, and the errors for the others."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 import pytest
 
-from calib.io.rosbag import COMPRESSED_TYPE, RAW_TYPE, BagError, decode_image
+from selfcal.ros.rosbag import COMPRESSED_TYPE, RAW_TYPE, BagError, decode_image
 
 RNG = np.random.default_rng(0)
 GRAY = RNG.integers(0, 255, (6, 5), np.uint8)

@@ -1,4 +1,4 @@
-"""The rest test of `selfcal import --bag` (calib/bag_rest.py): interpolation of the joint readings
+"""The rest test of `selfcal import --bag` (selfcal/ros/bag_rest.py): interpolation of the joint readings
 at image stamps and the five verdicts (rest, moving, gap, outside, empty)."""
 
 from __future__ import annotations
@@ -7,7 +7,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from calib.bag_rest import EMPTY, GAP, MOVING, OUTSIDE, REST, JointTrack, RestRule
+from selfcal.ros.bag_rest import EMPTY, GAP, MOVING, OUTSIDE, REST, JointTrack, RestRule
 
 NS = 1_000_000_000
 RULE = RestRule()  # 0.5 s window, 0.3 deg/s, 0.05 s gap

@@ -1,4 +1,4 @@
-"""Camera calibration from a board of known geometry (calib.board_calibrate)."""
+"""Camera calibration from a board of known geometry (selfcal.calibration.board.calibrate)."""
 
 from __future__ import annotations
 
@@ -9,17 +9,17 @@ import cv2
 import numpy as np
 import pytest
 
-from calib.board_calibrate import (
+from selfcal.calibration.board.calibrate import (
     BoardInputError,
     BoardMismatchError,
     BoardNotFoundWarning,
     calibrate_board,
     opencv_calibration,
 )
-from calib.camera import BrownConrady, Fisheye, Pinhole, opencv_values
-from calib.target import AprilGrid, Charuco, Chessboard, Features
-from calib.target.board_views import random_board_poses
-from sim.lens import LensRemap
+from selfcal.camera import BrownConrady, Fisheye, Pinhole, opencv_values
+from selfcal.sim.lens import LensRemap
+from selfcal.target import AprilGrid, Charuco, Chessboard, Features
+from selfcal.target.board_views import random_board_poses
 
 CAMERA = Pinhole(800.0, 1.01, 330.0, 235.0, 640, 480, free=("fx", "mu", "cx", "cy"))
 NAMES = ("fx", "mu", "cx", "cy")
@@ -135,7 +135,7 @@ LENS = BrownConrady.from_pinhole(CAMERA, (-0.2, 0.08, 5e-4, -3e-4, 0, 0, 0, 0), 
 
 def lens_image_views(board, camera, poses, blur_px=0.7):
     """:func:`image_views` through ``camera``'s lens: the board drawn into the renderer's source
-    pinhole (:func:`sim.lens.source_pinhole`), then remapped exactly (:class:`sim.lens.LensRemap`)."""
+    pinhole (:func:`selfcal.sim.lens.source_pinhole`), then remapped exactly (:class:`selfcal.sim.lens.LensRemap`)."""
     remap = LensRemap(camera)
     return [remap(img) for img in image_views(board, remap.source, poses, blur_px)]
 
@@ -207,8 +207,8 @@ def test_a_free_skew_is_estimated_and_exported_as_k01():
     as K[0, 1] and calibration.json's camera entry names it."""
     import json
 
-    from calib.export_camera import to_camera_info_yaml, to_opencv_yaml
-    from calib.io.board_calibration import camera_json
+    from selfcal.export.camera import to_camera_info_yaml, to_opencv_yaml
+    from selfcal.io.board_calibration import camera_json
 
     free = (*NAMES, "skew")
     true = Pinhole(800.0, 1.01, 330.0, 235.0, 640, 480, free=free, skew=1.5)

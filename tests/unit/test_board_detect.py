@@ -1,4 +1,4 @@
-"""The chessboard detector's sub-grid check (calib.target.board_detect): a board OpenCV finds is
+"""The chessboard detector's sub-grid check (selfcal.target.board_detect): a board OpenCV finds is
 kept unless squares of its pitch continue its pattern beyond it (a larger printed board)."""
 
 from __future__ import annotations
@@ -9,14 +9,14 @@ import cv2
 import numpy as np
 import pytest
 
-from calib.import_dataset import (
+from selfcal.importing.dataset import (
     CameraImages,
     TargetNotFoundWarning,
     detection_summary,
     import_dataset,
 )
-from calib.target import Charuco, Chessboard
-from calib.target.board_detect import chessboard_detection, refusal
+from selfcal.target import Charuco, Chessboard
+from selfcal.target.board_detect import chessboard_detection, refusal
 
 REAL = Path(__file__).resolve().parents[1] / "data" / "real"  # README.md there: source, licence
 REAL_PLATES = (  # boards on a grey plate with a white margin narrower than one square on two sides

@@ -1,4 +1,4 @@
-"""A rig of two cameras with different models calibrated from a board (calib.board_rig)."""
+"""A rig of two cameras with different models calibrated from a board (selfcal.calibration.board.rig)."""
 
 from __future__ import annotations
 
@@ -8,13 +8,13 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from calib.board_calibrate import BoardNotFoundWarning
-from calib.board_rig import calibrate_board_rig
-from calib.camera import BrownConrady, Pinhole
-from calib.errors import InputError
-from calib.target import Charuco, Features
-from calib.target.board_views import random_board_poses
-from calib.transforms import inv_pose, make_pose
+from selfcal.calibration.board.calibrate import BoardNotFoundWarning
+from selfcal.calibration.board.rig import calibrate_board_rig
+from selfcal.camera import BrownConrady, Pinhole
+from selfcal.errors import InputError
+from selfcal.target import Charuco, Features
+from selfcal.target.board_views import random_board_poses
+from selfcal.transforms import inv_pose, make_pose
 
 BOARD = Charuco((11, 8), 0.02, 0.015, "DICT_5X5_100")
 LENS_FREE = ("fx", "mu", "cx", "cy", "k1", "k2", "p1", "p2")

@@ -1,4 +1,4 @@
-"""Boards of known geometry (calib.target.boards): layout, generated images, detection, TOML."""
+"""Boards of known geometry (selfcal.target.boards): layout, generated images, detection, TOML."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ import cv2
 import numpy as np
 import pytest
 
-from calib.io.target_toml import TargetFileError, load_target, parse_target, target_document
-from calib.target import AprilGrid, ArucoField, Board, Charuco, Chessboard, CirclesGrid
+from selfcal.io.target_toml import TargetFileError, load_target, parse_target, target_document
+from selfcal.target import AprilGrid, ArucoField, Board, Charuco, Chessboard, CirclesGrid
 
 ROOT = Path(__file__).resolve().parents[2]
 EXAMPLES = sorted((ROOT / "models" / "targets").glob("*.toml"))

@@ -1,4 +1,4 @@
-"""The camera model (calib.camera): the pinhole against OpenCV and finite differences, the round
+"""The camera model (selfcal.camera): the pinhole against OpenCV and finite differences, the round
 trip through unproject, the free-parameter selection, the rig and the one visibility rule.
 
 Tolerances are about 3x what the code achieves (measured over thousands of random cameras):
@@ -17,8 +17,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from calib.camera import Pinhole, Rig, Visibility, project
-from calib.transforms import inv_pose, make_pose, pose_from_vec
+from selfcal.camera import Pinhole, Rig, Visibility, project
+from selfcal.transforms import inv_pose, make_pose, pose_from_vec
 
 EPS = np.finfo(float).eps
 

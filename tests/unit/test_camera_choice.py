@@ -1,4 +1,4 @@
-"""``--camera-model`` / ``--free`` per camera (calib.camera_choice): parsing, spreading, errors."""
+"""``--camera-model`` / ``--free`` per camera (selfcal.importing.camera_choice): parsing, spreading, errors."""
 
 from __future__ import annotations
 
@@ -6,8 +6,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from calib.camera_choice import ALL, camera_options, for_cameras, free_value, per_camera
-from calib.errors import InputError
+from selfcal.errors import InputError
+from selfcal.importing.camera_choice import ALL, camera_options, for_cameras, free_value, per_camera
 
 CAMS = ["cam0", "cam1", "cam2"]
 

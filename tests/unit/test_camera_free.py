@@ -13,15 +13,15 @@ import json
 import numpy as np
 import pytest
 
-from calib.calibrate import dataset_camera
-from calib.camera import BrownConrady, Fisheye, camera_model, canonical_free
-from calib.import_dataset import ImportError_, _camera_choice
-from calib.io.calibration_blocks import CameraIntrinsics
-from calib.io.dataset_info import DatasetError, DatasetInfo
-from calib.io.jsonfile import Fields
-from calib.selfcal import self_calibrate
-from calib.selfcal_synthetic import synthetic_stereo_scene
-from scenarios.config import ConfigError, load_scenario
+from selfcal.calibration.field.calibrate import dataset_camera
+from selfcal.calibration.field.self_calibration import self_calibrate
+from selfcal.calibration.field.synthetic import synthetic_stereo_scene
+from selfcal.camera import BrownConrady, Fisheye, camera_model, canonical_free
+from selfcal.config.scenario import ConfigError, load_scenario
+from selfcal.importing.dataset import ImportError_, _camera_choice
+from selfcal.io.calibration_blocks import CameraIntrinsics
+from selfcal.io.dataset_info import DatasetError, DatasetInfo
+from selfcal.io.jsonfile import Fields
 
 LENS = "k1 = -0.25, k2 = 0.1, p1 = 1e-3, p2 = -5e-4"
 FREE = ["fx", "mu", "cx", "cy", "k1", "k2", "p1", "p2"]
@@ -172,8 +172,8 @@ def test_self_calibration_frees_the_configured_lens(model, fx, coeffs, free, see
 def test_fy_has_a_standard_deviation_beside_fx_and_mu():
     """OpenCV's fy = mu fx gets its first-order std from the covariance of fx and mu (the
     parameters estimated), for one camera and for each camera of a set."""
-    from calib.camera import CameraSet, Pinhole
-    from calib.camera.camera_set import free_std
+    from selfcal.camera import CameraSet, Pinhole
+    from selfcal.camera.camera_set import free_std
 
     cam = Pinhole(800.0, 1.002, 320.0, 240.0, 640, 480, ("fx", "mu", "cx"))
     rng = np.random.default_rng(0)
@@ -196,8 +196,8 @@ def test_fy_has_a_standard_deviation_beside_fx_and_mu():
 
 def test_a_camera_info_with_skew_starts_the_camera_with_it():
     """K[0, 1] of a calibrated CameraInfo is the initial camera's skew (it was dropped)."""
-    from calib.bag_import import initial_values
-    from calib.io.rosbag import CameraInfo
+    from selfcal.ros.bag_import import initial_values
+    from selfcal.ros.rosbag import CameraInfo
 
     K = (800.0, 1.5, 321.0, 0.0, 802.0, 239.0, 0.0, 0.0, 1.0)
     info = CameraInfo(640, 480, "plumb_bob", (-0.2, 0.05, 0.0, 0.0, 0.0), K)

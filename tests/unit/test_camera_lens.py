@@ -1,4 +1,4 @@
-"""Cameras with a lens (calib.camera.distorted, calib.camera.lens, calib.camera.spec): projection
+"""Cameras with a lens (selfcal.camera.distorted, selfcal.camera.lens, selfcal.camera.spec): projection
 against OpenCV, Jacobians against central differences, unproject round trips, models by name.
 
 Tolerances are about 3x the worst of 3000 random cameras (measured): projection vs
@@ -17,7 +17,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from test_camera import central_differences
 
-from calib.camera import (
+from selfcal.camera import (
     BrownConrady,
     Fisheye,
     Pinhole,
@@ -25,7 +25,7 @@ from calib.camera import (
     opencv_values,
     with_pinhole,
 )
-from calib.camera.lens import kannala_brandt
+from selfcal.camera.lens import kannala_brandt
 
 EPS = np.finfo(float).eps
 
@@ -153,7 +153,7 @@ def test_models_by_name_and_opencv_values():
 
 
 def test_undistorter_maps_the_pinhole_image_back_through_the_lens():
-    from calib.camera.undistort import Undistorter
+    from selfcal.camera.undistort import Undistorter
 
     cam = camera_model("opencv", fx=800.0, mu=1.0, cx=331.5, cy=231.5, width=64, height=48,
                        coeffs={"k1": -0.25, "k2": 0.1, "p1": 1e-3, "p2": -5e-4})  # fmt: skip
@@ -173,11 +173,11 @@ def test_undistorter_maps_the_pinhole_image_back_through_the_lens():
 
 def test_the_renderer_remaps_a_skewed_camera():
     """MuJoCo's pinhole has no skew: a camera with one is rendered as its skew-free source
-    pinhole and remapped (sim.lens). A ramp in the source pinhole's pixels, remapped, is the
+    pinhole and remapped (selfcal.sim.lens). A ramp in the source pinhole's pixels, remapped, is the
     ramp at the source pixel of every output pixel's ray, and a point lands where the skewed
     camera projects it."""
-    from calib.camera import Pinhole
-    from sim.lens import LensRemap, needs_remap
+    from selfcal.camera import Pinhole
+    from selfcal.sim.lens import LensRemap, needs_remap
 
     cam = Pinhole(300.0, 1.02, 40.5, 30.5, 80, 60, skew=6.0)
     assert needs_remap(cam) and not needs_remap(Pinhole(300.0, 1.02, 40.5, 30.5, 80, 60))

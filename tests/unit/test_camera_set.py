@@ -1,5 +1,5 @@
 """Per-camera intrinsics blocks of the field self-calibration (#12, rigs of N cameras): a
-:class:`calib.camera.CameraSet` projects each view with its own camera, its parameter Jacobian is
+:class:`selfcal.camera.CameraSet` projects each view with its own camera, its parameter Jacobian is
 the derivative of the projection and zero across cameras, and a synthetic stereo rig with two
 different lenses recovers each camera's parameters within 3 sigma."""
 
@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from calib.camera import CameraSet, camera_model
-from calib.camera.camera_set import project_free_views, project_views, unproject_views
-from calib.estimation.reprojection import projection_blocks
+from selfcal.camera import CameraSet, camera_model
+from selfcal.camera.camera_set import project_free_views, project_views, unproject_views
+from selfcal.estimation.reprojection import projection_blocks
 
 FREE = ("fx", "mu", "cx", "cy", "k1", "k2", "p1", "p2")
 LEFT_LENS = {"k1": -0.25, "k2": 0.1, "p1": 1e-3, "p2": -5e-4}
@@ -108,8 +108,8 @@ def test_stereo_rig_with_two_lenses_recovers_each_camera_within_3_sigma():
     """Synthetic stereo scene (12 configurations, 0.5 px): the left camera has the issue's lens
     and principal point (+12, -8) px, the right another lens, focal length and principal point;
     every free parameter of both cameras within 3 sigma of its truth (the analytic path)."""
-    from calib.selfcal import self_calibrate
-    from calib.selfcal_synthetic import synthetic_stereo_scene
+    from selfcal.calibration.field.self_calibration import self_calibrate
+    from selfcal.calibration.field.synthetic import synthetic_stereo_scene
 
     truth = _set()
     start = _start()
@@ -130,10 +130,10 @@ def test_stereo_rig_with_two_lenses_recovers_each_camera_within_3_sigma():
 def test_each_camera_starts_from_its_own_initial_camera():
     """A calibrated initial camera per camera (a ROS bag's two CameraInfo): each camera of the
     set starts from its own; the adjustment reaches the minimum of the own start."""
-    from calib.field_cameras import initial_cameras
-    from calib.io.dataset_info import DatasetInfo
-    from calib.selfcal import self_calibrate
-    from calib.selfcal_synthetic import synthetic_stereo_scene
+    from selfcal.calibration.field.cameras import initial_cameras
+    from selfcal.calibration.field.self_calibration import self_calibrate
+    from selfcal.calibration.field.synthetic import synthetic_stereo_scene
+    from selfcal.io.dataset_info import DatasetInfo
 
     truth = _set()
     start = _start()

@@ -1,14 +1,14 @@
-"""docs/cli.md is generated from the parser (`python -m scenarios.cli_docs --write`): this test
+"""docs/cli.md is generated from the parser (`python -m selfcal.cli.docs --write`): this test
 fails when a command or option changed without regenerating it."""
 
 from __future__ import annotations
 
-from scenarios.cli_docs import DOC, cli_markdown
+from selfcal.cli.docs import DOC, cli_markdown
 
 
 def test_docs_cli_md_matches_the_parser():
     assert DOC.read_text() == cli_markdown(), (
-        "docs/cli.md is stale: run `uv run python -m scenarios.cli_docs --write`"
+        "docs/cli.md is stale: run `uv run python -m selfcal.cli.docs --write`"
     )
 
 

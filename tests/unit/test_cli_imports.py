@@ -14,10 +14,10 @@ HEAVY = (
     "mujoco",
     "matplotlib",
     "scipy.stats",
-    "sim",
-    "scenarios.pipeline",
-    "scenarios.backends",
-    "rich",  # the progress bars import it when they first draw (scenarios.progress)
+    "selfcal.sim",
+    "selfcal.pipeline.run",
+    "selfcal.acquisition.backends",
+    "rich",  # the progress bars import it when they first draw (selfcal.console.progress)
 )
 PARSER_HEAVY = ("scipy", "cv2")  # also not needed to build the parser
 
@@ -31,8 +31,8 @@ def _loaded(code: str) -> list[str]:
 
 
 def test_importing_the_cli_and_building_its_parser_loads_no_heavy_module():
-    mods = _loaded("import scenarios.cli as c\nc.build_parser()")
-    assert "scenarios.cli" in mods  # the probe did import it
+    mods = _loaded("import selfcal.cli.main as c\nc.build_parser()")
+    assert "selfcal.cli.main" in mods  # the probe did import it
     assert [m for m in HEAVY + PARSER_HEAVY if m in mods] == []
 
 
@@ -46,18 +46,18 @@ def test_importing_the_cli_and_building_its_parser_loads_no_heavy_module():
 def test_fk_loads_no_scipy_simulator_or_plotting(argv):
     """`selfcal fk` (0.5 s of its 0.84 s was importing scipy.spatial) needs numpy only."""
     mods = _loaded(
-        "import contextlib, io, sys\nimport scenarios.cli as c\n"
+        "import contextlib, io, sys\nimport selfcal.cli.main as c\n"
         "with contextlib.redirect_stdout(io.StringIO()) as out:\n"
         f"    code = c.main({argv!r})\n"
         "assert code == 0 and 'quat_wxyz' in out.getvalue(), out.getvalue()"
     )
-    assert "calib.kinematics" in mods  # fk ran
+    assert "selfcal.kinematics.forward" in mods  # fk ran
     assert [m for m in HEAVY + PARSER_HEAVY if m in mods] == []
 
 
 def test_the_light_choices_name_the_camera_models():
-    from calib.camera import MODELS
-    from calib.choices import CAMERA_MODELS, DEFAULT_FREE, DEFAULT_MODEL
+    from selfcal.camera import MODELS
+    from selfcal.choices import CAMERA_MODELS, DEFAULT_FREE, DEFAULT_MODEL
 
     assert CAMERA_MODELS == tuple(MODELS) == tuple(DEFAULT_FREE)
     assert DEFAULT_MODEL in MODELS

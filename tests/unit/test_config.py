@@ -2,7 +2,7 @@
 
 import pytest
 
-from scenarios.config import ConfigError, load_scenario
+from selfcal.config.scenario import ConfigError, load_scenario
 
 
 def write(tmp_path, text):
@@ -68,7 +68,7 @@ def test_one_camera_scenario_plans_a_one_camera_dataset(tmp_path):
     (the plan then only needs that camera to see the field); 3 cameras are out of range."""
     from pathlib import Path
 
-    from scenarios.backends import plan_dataset
+    from selfcal.acquisition.backends import plan_dataset
 
     mono = Path(__file__).resolve().parents[2] / "scenarios" / "mono.toml"
     s = load_scenario(mono, overrides={"noise": {"render": False}, "trajectory": {"poses": 6}})

@@ -5,8 +5,8 @@ from pathlib import Path
 
 import pytest
 
-from calib.io.target_toml import load_target, target_document
-from scenarios.config import ConfigError, load_scenario, scenario_board
+from selfcal.config.scenario import ConfigError, load_scenario, scenario_board
+from selfcal.io.target_toml import load_target, target_document
 
 ROOT = Path(__file__).resolve().parents[2]
 CHARUCO = ROOT / "models" / "targets" / "charuco.toml"
@@ -65,9 +65,9 @@ def test_a_bad_board_names_the_scenario_file_and_the_key(tmp_path, target, extra
 def test_the_field_keeps_the_digest_of_datasets_made_before_the_key():
     """An empty target.board is left out of the dataset's scenario digest (datasets acquired
     before the key existed still resume); a board changes it."""
-    from calib.io.dataset_info import scenario_digest
-    from scenarios.backends import _digested
-    from scenarios.config import scenario_to_dict
+    from selfcal.acquisition.backends import _digested
+    from selfcal.config.scenario import scenario_to_dict
+    from selfcal.io.dataset_info import scenario_digest
 
     s = load_scenario(None)
     before = scenario_to_dict(s)

@@ -9,11 +9,11 @@ import json
 
 import pytest
 
-from calib.calibrate import dataset_camera
-from calib.camera import CameraSet
-from calib.io.dataset_info import read_dataset_info, write_dataset_info
-from scenarios.backends import plan_dataset, sim_setup
-from scenarios.config import ConfigError, load_scenario
+from selfcal.acquisition.backends import plan_dataset, sim_setup
+from selfcal.calibration.field.calibrate import dataset_camera
+from selfcal.camera import CameraSet
+from selfcal.config.scenario import ConfigError, load_scenario
+from selfcal.io.dataset_info import read_dataset_info, write_dataset_info
 
 LENS = "[camera]\nmodel = 'opencv'\ndistortion = { k1 = -0.25 }\nfree = ['fx', 'mu', 'k1']\n"
 
@@ -89,7 +89,7 @@ def test_bad_right_tables_name_the_file_and_key(tmp_path, text, words):
 
 
 def test_a_right_table_changes_the_digest_an_empty_one_does_not(tmp_path):
-    from scenarios.backends import _digested
+    from selfcal.acquisition.backends import _digested
 
     plain = load_scenario(write(tmp_path, LENS))
     assert "right" not in _digested(plain)["camera"]

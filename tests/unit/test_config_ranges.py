@@ -9,7 +9,14 @@ from pathlib import Path
 
 import pytest
 
-from scenarios.config import RANGES, ConfigError, Scenario, _fmt, load_scenario, ranges_markdown
+from selfcal.config.scenario import (
+    RANGES,
+    ConfigError,
+    Scenario,
+    _fmt,
+    load_scenario,
+    ranges_markdown,
+)
 
 DOC = Path(__file__).resolve().parents[2] / "docs" / "scenarios.md"
 

@@ -14,8 +14,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from test_readers_fuzz import ANY_TEXT, CELL
 
-from calib.io.dataset import Dataset, DatasetError
-from calib.io.dataset_info import DatasetInfo, write_dataset_info
+from selfcal.io.dataset import Dataset, DatasetError
+from selfcal.io.dataset_info import DatasetInfo, write_dataset_info
 
 INFO = DatasetInfo(
     robot_model="er4u-paper",

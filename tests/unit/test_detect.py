@@ -6,7 +6,7 @@ import cv2
 import numpy as np
 import pytest
 
-from calib.target.aruco_detect import (
+from selfcal.target.aruco_detect import (
     DuplicateMarkerWarning,
     detect_markers,
     detect_markers_noise,
@@ -93,7 +93,7 @@ def test_other_refine_methods_run(refine):
     det = detect_markers(img, refine=refine)
     assert (
         np.abs(det[9] - truth).max() < 1.0
-    )  # within a pixel (biases: see calib/target/aruco_detect.py)
+    )  # within a pixel (biases: see selfcal/target/aruco_detect.py)
 
 
 def test_no_markers_gives_empty_dict():

@@ -17,11 +17,11 @@ from pathlib import Path
 
 import pytest
 
-from calib.io.target_toml import parse_target
-from calib.tomlfile import parse_toml
-from scenarios.cli import build_parser, main
-from scenarios.config import load_scenario
-from scenarios.hardware import scenario_settings
+from selfcal.acquisition.hardware import scenario_settings
+from selfcal.cli.main import build_parser, main
+from selfcal.config.scenario import load_scenario
+from selfcal.io.target_toml import parse_target
+from selfcal.tomlfile import parse_toml
 
 ROOT = Path(__file__).resolve().parents[2]
 DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
@@ -129,7 +129,7 @@ def test_output_folders_are_not_repository_folders(tmp_path):
         (tmp_path / name).mkdir()
     (tmp_path / ".gitignore").write_text("__pycache__/\n*.pyc\n.venv/\nruns/\nout/\n")
     assert repository_folders(tmp_path) == {"docs"}
-    assert "runs" not in repository_folders(ROOT) and "calib" in repository_folders(ROOT)
+    assert "runs" not in repository_folders(ROOT) and "selfcal" in repository_folders(ROOT)
 
 
 def test_docs_cite_nothing_outside_the_repository():

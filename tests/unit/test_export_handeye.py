@@ -1,4 +1,4 @@
-"""The hand-eye export (calib.export_handeye, ``selfcal export --format tf|easy_handeye|matrix``):
+"""The hand-eye export (selfcal.export.handeye, ``selfcal export --format tf|easy_handeye|matrix``):
 a pose dataset's calibration of known poses read back from each format as ROS and easy_handeye
 read it (the static_transform_publisher arguments, the launch XML, easy_handeye's keys), the
 quaternion and Euler angles recomposed; a chain with joints gives flange -> camera and
@@ -16,15 +16,15 @@ import yaml
 from scipy.spatial.transform import Rotation
 from test_handeye import BOARD, CAMERA, _features, _scene
 
-from calib.alignment import regauge
-from calib.export_handeye import from_chain
-from calib.handeye import calibrate_hand_eye, chain_motions
-from calib.io.handeye_calibration import handeye_document
-from calib.io.jsonfile import write_json_atomic
-from calib.mcpc import chain_transforms, nominal_mcpc
-from calib.robot_def import load_robot
-from calib.transforms import make_pose
-from scenarios.deploy_cli import register
+from selfcal.calibration.handeye.calibrate import calibrate_hand_eye, chain_motions
+from selfcal.calibration.handeye.calibration_file import handeye_document
+from selfcal.cli.deploy import register
+from selfcal.export.handeye import from_chain
+from selfcal.io.jsonfile import write_json_atomic
+from selfcal.kinematics.alignment import regauge
+from selfcal.kinematics.mcpc import chain_transforms, nominal_mcpc
+from selfcal.robot.definition import load_robot
+from selfcal.transforms import make_pose
 
 FRAMES = ("base_link", "tool0", "camera_optical_frame", "board")
 
@@ -128,7 +128,7 @@ def test_matrix_quaternion_and_euler_agree(calibrated, capsys):
 
 
 def test_robot_formats_of_a_pose_calibration_are_refused(calibrated, capsys):
-    from scenarios.cli_common import CliError
+    from selfcal.console.common import CliError
 
     root = calibrated[0]
     with pytest.raises(CliError, match="identified no kinematics"):

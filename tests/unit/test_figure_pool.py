@@ -1,4 +1,4 @@
-"""The report's figures drawn in a forked worker (scenarios/figure_pool.py) are the same files as
+"""The report's figures drawn in a forked worker (selfcal/plots/figure_pool.py) are the same files as
 drawn in the process, its errors reach the caller, and a dead worker loses no figure."""
 
 from __future__ import annotations
@@ -11,8 +11,8 @@ import time
 import numpy as np
 import pytest
 
-from scenarios.figure_pool import FigurePool, fork_available
-from scenarios.job_figures import tool_tip_figure
+from selfcal.plots.figure_pool import FigurePool, fork_available
+from selfcal.plots.job_figures import tool_tip_figure
 
 ERRORS = np.random.default_rng(3).normal(size=(2, 12, 3))
 
@@ -64,7 +64,7 @@ def test_the_worker_ends_with_a_killed_parent():
     parent's stdout open: a `| tee` would wait forever)."""
     code = (
         "import os, signal\n"
-        "from scenarios.figure_pool import FigurePool\n"
+        "from selfcal.plots.figure_pool import FigurePool\n"
         "pool = FigurePool()\n"
         "print(*pool._pool._processes, flush=True)\n"
         "os.kill(os.getpid(), signal.SIGKILL)\n"

@@ -14,8 +14,7 @@ import sys
 import numpy as np
 import pytest
 
-from scenarios.paper_fig3 import fig3_figure
-from scenarios.plotting import (
+from selfcal.plots.plotting import (
     figure_problems,
     layout_problems,
     legend_outside,
@@ -25,8 +24,9 @@ from scenarios.plotting import (
     stack_layout,
     unlabelled_axes,
 )
-from scenarios.study_defs import STUDIES
-from scenarios.study_summary import study_figure, summarize, worse_than_nominal
+from selfcal.studies.defs import STUDIES
+from selfcal.studies.paper.fig3 import fig3_figure
+from selfcal.studies.summary import study_figure, summarize, worse_than_nominal
 
 
 def test_the_legend_check_sees_a_legend_over_data():
@@ -69,7 +69,7 @@ def test_the_main_job_figures_need_no_pyplot(tmp_path):
     checked in a fresh interpreter by sys.modules."""
     probe = (
         "import json, sys\nimport numpy as np\n"
-        "from scenarios.job_figures import tool_tip_figure, write_figure\n"
+        "from selfcal.plots.job_figures import tool_tip_figure, write_figure\n"
         "e = np.random.default_rng(1).normal(size=(5, 3))\n"
         f"p = write_figure(tool_tip_figure(e, e / 100), {str(tmp_path)!r}, 'tip.png')\n"
         "print(json.dumps(['matplotlib.pyplot' in sys.modules, p.read_bytes()[:4].hex()]))"
@@ -146,8 +146,8 @@ def _legend_texts(fig) -> list[str]:
 def test_job_figures_say_what_they_show():
     """reprojection.png's 0.120 px is a prediction from the joints, not report.md's 0.019 px
     fit; parameters.png of a board run (no sigmas) had "1 sigma" in its legend and no marks."""
-    from calib.evaluate import Evaluation
-    from scenarios.job_figures import parameter_figure, reprojection_figure
+    from selfcal.calibration.board.evaluate import Evaluation
+    from selfcal.plots.job_figures import parameter_figure, reprojection_figure
 
     rng = np.random.default_rng(0)
     images = tuple({"nominal_px": 1.5 + 0.1 * k, "calibrated_px": 0.12} for k in range(6))

@@ -1,4 +1,4 @@
-"""Hand-eye calibration from flange poses (calib.handeye): a board projected through known
+"""Hand-eye calibration from flange poses (selfcal.calibration.handeye.calibrate): a board projected through known
 poses, eye-in-hand and eye-to-hand; noise-free exact, with noise within 3 sigma; the linear
 start refuses motions about one axis; the pose chain's Jacobian is the residuals' derivative."""
 
@@ -11,13 +11,13 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from calib.camera import camera_model
-from calib.estimation.pose_chain import PoseChainBlock
-from calib.handeye import calibrate_hand_eye, chain_motions
-from calib.handeye_linear import HandEyeStartError, linear_hand_eye
-from calib.target.base import Features
-from calib.target.boards import Chessboard
-from calib.transforms import inv_pose, make_pose
+from selfcal.calibration.handeye.calibrate import calibrate_hand_eye, chain_motions
+from selfcal.calibration.handeye.linear import HandEyeStartError, linear_hand_eye
+from selfcal.camera import camera_model
+from selfcal.estimation.pose_chain import PoseChainBlock
+from selfcal.target.base import Features
+from selfcal.target.boards import Chessboard
+from selfcal.transforms import inv_pose, make_pose
 
 BOARD = Chessboard((7, 5), 0.03)
 CAMERA = camera_model("opencv", fx=900.0, mu=1.002, cx=645.0, cy=478.0, width=1280, height=960,
@@ -142,7 +142,7 @@ def _convention_csv(path, convention: str, T) -> None:
     "convention", ["quaternion-xyzw", "abb-quaternion", "kuka-abc", "fanuc-wpr", "ur-rotvec"]
 )
 def test_each_rotation_convention_gives_the_same_hand_eye(tmp_path, convention):
-    from calib.io.pose_files import read_poses
+    from selfcal.io.pose_files import read_poses
 
     X, B, F = _scene("eye-to-hand", 10, seed=11)
     feats = _features(X, B, chain_motions("eye-to-hand", F), 0.2, 3)
@@ -158,7 +158,7 @@ def test_each_rotation_convention_gives_the_same_hand_eye(tmp_path, convention):
 
 
 def test_the_wrong_setup_is_named_by_the_other_setups_fit():
-    from calib.handeye import HandEyeMisfitError
+    from selfcal.calibration.handeye.calibrate import HandEyeMisfitError
 
     X, B, F = _scene("eye-to-hand", 10, seed=13)
     feats = _features(X, B, chain_motions("eye-to-hand", F), 0.2, 4)
@@ -168,7 +168,7 @@ def test_the_wrong_setup_is_named_by_the_other_setups_fit():
 
 
 def test_rows_paired_with_the_wrong_images_are_named_by_the_turn_angles():
-    from calib.handeye import HandEyeMisfitError
+    from selfcal.calibration.handeye.calibrate import HandEyeMisfitError
 
     X, B, F = _scene("eye-in-hand", 10, seed=17)
     feats = _features(X, B, chain_motions("eye-in-hand", F), 0.2, 5)
@@ -181,9 +181,9 @@ def _handeye_file(tmp_path, edit=None):
     """A hand-eye calibration.json written by handeye_document (fits of a pinhole camera)."""
     from types import SimpleNamespace
 
-    from calib.camera import Pinhole
-    from calib.handeye import FRAMES, HandEyeFit
-    from calib.io.handeye_calibration import handeye_document
+    from selfcal.calibration.handeye.calibrate import FRAMES, HandEyeFit
+    from selfcal.calibration.handeye.calibration_file import handeye_document
+    from selfcal.camera import Pinhole
 
     fit = HandEyeFit(Pinhole(800.0, 1.0, 320.0, 240.0, 640, 480), {}, np.eye(4), np.eye(4),
                      np.zeros(6), np.zeros(6), 0.1, np.ones(4, bool), 0.1, 3)  # fmt: skip
@@ -215,8 +215,8 @@ def _scale(T):
 def test_a_damaged_handeye_calibration_is_refused_naming_the_key(tmp_path, edit, key):
     """#33: every calibration.json reader checks what it reads (before: NaN and a negative focal
     length were read back, a missing key was named as KeyError's text)."""
-    from calib.errors import InputError
-    from calib.io.handeye_calibration import read_handeye
+    from selfcal.calibration.handeye.calibration_file import read_handeye
+    from selfcal.errors import InputError
 
     read_handeye(_handeye_file(tmp_path))  # the undamaged file reads
     with pytest.raises(InputError, match=rf"calibration.json: (missing )?key '{re.escape(key)}'"):

@@ -1,4 +1,4 @@
-"""``selfcal report`` of a pose dataset's calibration (scenarios.handeye_report): the hand-eye
+"""``selfcal report`` of a pose dataset's calibration (selfcal.pipeline.handeye_report): the hand-eye
 and the board mount with sigmas beside the nominal, the fit, the note that no kinematics were
 identified, and the held-out check of DIR/evaluation.json with its verdict."""
 
@@ -9,10 +9,10 @@ import json
 import numpy as np
 from test_handeye import BOARD, CAMERA, _features, _scene
 
-from calib.handeye import calibrate_hand_eye, chain_motions
-from calib.io.handeye_calibration import handeye_document
-from calib.io.jsonfile import write_json_atomic
-from scenarios.cli import main
+from selfcal.calibration.handeye.calibrate import calibrate_hand_eye, chain_motions
+from selfcal.calibration.handeye.calibration_file import handeye_document
+from selfcal.cli.main import main
+from selfcal.io.jsonfile import write_json_atomic
 
 
 def test_report_of_a_pose_calibration(tmp_path, capsys):

@@ -1,4 +1,4 @@
-"""MCPC kinematic identification (calib.identify) against simulated ground truth.
+"""MCPC kinematic identification (selfcal.calibration.identify) against simulated ground truth.
 
 Ground truth: the nominal model with every minimal parameter perturbed (+-1 mm / +-0.5 deg), its
 camera poses expressed in a random world frame. Tolerances are stated in each test.
@@ -12,19 +12,37 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from calib.alignment import align_truth, express_in_frame, fit_rigid_transform, minimal_difference
-from calib.dh_table import DHNotRepresentableWarning, canonical_base, to_dh
-from calib.identify import (
+from selfcal.calibration.identify import (
     IdentificationError,
     IdentificationSolverError,
     IdentificationWarning,
     identify,
     initial_base,
 )
-from calib.kinematics import fk_nominal, fk_tool, pose_error
-from calib.mcpc import MCPCModel, minimal_indices, nominal_mcpc, param_is_angle, param_names
-from calib.robot_def import DHParams, RobotDef, list_robots, load_robot, models_dir, with_dh
-from calib.transforms import make_pose, pose_from_vec
+from selfcal.kinematics.alignment import (
+    align_truth,
+    express_in_frame,
+    fit_rigid_transform,
+    minimal_difference,
+)
+from selfcal.kinematics.dh_table import DHNotRepresentableWarning, canonical_base, to_dh
+from selfcal.kinematics.forward import fk_nominal, fk_tool, pose_error
+from selfcal.kinematics.mcpc import (
+    MCPCModel,
+    minimal_indices,
+    nominal_mcpc,
+    param_is_angle,
+    param_names,
+)
+from selfcal.robot.definition import (
+    DHParams,
+    RobotDef,
+    list_robots,
+    load_robot,
+    models_dir,
+    with_dh,
+)
+from selfcal.transforms import make_pose, pose_from_vec
 
 ROBOTS = ["er4u-paper", "er4u-vendor"]
 MM, DEG = 1e-3, np.pi / 180
@@ -340,7 +358,7 @@ def test_canonical_base_removes_the_world_gauge() -> None:
 def test_calibration_document_names_each_held_parameter_with_its_reason() -> None:
     """calibration.json's identification.held maps each held name to *its* reason (explicit vs
     unidentifiable), also when both kinds occur."""
-    from calib.results import identification_summary
+    from selfcal.calibration.field.results import identification_summary
 
     robot = load_robot("er4u-vendor")
     nom = nominal(robot)
@@ -364,8 +382,8 @@ def test_joint_1_along_the_world_x_axis_takes_a_base_offset() -> None:
     kinematics (1e-12 m), the noise-free identification in that world converges (to 0.012 mm:
     ly3 is held, unidentifiable at the nominal chain, though the perturbed truth moves it), and
     the offset survives a board calibration file (write, read)."""
-    from calib.io.board_calibration import _model_from, _model_json
-    from calib.io.jsonfile import Fields
+    from selfcal.io.board_calibration import _model_from, _model_json
+    from selfcal.io.jsonfile import Fields
 
     robot = load_robot(str(models_dir().parent / "tests" / "data" / "virtual_chain_xyz.urdf"))
     nom = nominal(robot)

@@ -1,4 +1,4 @@
-"""Tool pose convention and inverse kinematics (calib.tool_pose, calib.ik).
+"""Tool pose convention and inverse kinematics (selfcal.kinematics.tool_pose, selfcal.kinematics.ik).
 
 Ground truth: forward kinematics straight from the DH table (``fk_nominal``) and the MCPC chain
 (``fk_frames``); the geometric definitions of pitch and roll written out independently here.
@@ -13,7 +13,8 @@ import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
-from calib.ik import (
+from selfcal.kinematics.forward import fk_frames, fk_nominal
+from selfcal.kinematics.ik import (
     IKStructureError,
     UnreachableError,
     check_er_structure,
@@ -22,10 +23,9 @@ from calib.ik import (
     nearest_reachable,
     wrap_into_range,
 )
-from calib.kinematics import fk_frames, fk_nominal
-from calib.mcpc import nominal_mcpc
-from calib.robot_def import load_robot, with_dh
-from calib.tool_pose import tool_frame, tool_pose
+from selfcal.kinematics.mcpc import nominal_mcpc
+from selfcal.kinematics.tool_pose import tool_frame, tool_pose
+from selfcal.robot.definition import load_robot, with_dh
 
 ROBOTS = ("er4u-paper", "er4u-vendor")
 DEG = np.pi / 180

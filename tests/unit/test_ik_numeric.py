@@ -1,4 +1,4 @@
-"""Numerical IK of any serial arm (calib.ik_numeric): IK of FK reproduces the tool pose.
+"""Numerical IK of any serial arm (selfcal.kinematics.ik_numeric): IK of FK reproduces the tool pose.
 
 Ground truth: forward kinematics of the robots' nominal MCPC chains (``fk_tool``), which
 tests/unit/test_kinematics.py checks against the DH tables.
@@ -12,8 +12,9 @@ from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from calib.ik import UnreachableError
-from calib.ik_numeric import (
+from selfcal.kinematics.forward import fk_tool
+from selfcal.kinematics.ik import UnreachableError
+from selfcal.kinematics.ik_numeric import (
     STALL_TOL,
     ToolTarget,
     ik_robot,
@@ -21,9 +22,8 @@ from calib.ik_numeric import (
     pose_residual,
     solve_ik,
 )
-from calib.kinematics import fk_tool
-from calib.mcpc import nominal_mcpc
-from calib.robot_def import list_robots, load_robot
+from selfcal.kinematics.mcpc import nominal_mcpc
+from selfcal.robot.definition import list_robots, load_robot
 
 ROBOTS = tuple(list_robots())
 _CACHE = {name: load_robot(name) for name in ROBOTS}

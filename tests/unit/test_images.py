@@ -1,4 +1,4 @@
-"""Deep images (10-16 bit, float) read as the gray uint8 the detectors take (calib/io/images.py):
+"""Deep images (10-16 bit, float) read as the gray uint8 the detectors take (selfcal/io/images.py):
 12-bit data in a 16-bit file is found as an 8-bit image is, where OpenCV's IMREAD_GRAYSCALE left
 it at 16 grey levels."""
 
@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 import pytest
 
-from calib.io.images import gray8, read_gray_image
+from selfcal.io.images import gray8, read_gray_image
 from tests.unit.test_boards import BOARDS, truth_uv, view
 
 
@@ -54,7 +54,7 @@ def test_an_unreadable_file_is_none(tmp_path):
 
 
 def test_unsupported_depths_are_named_with_the_file(tmp_path):
-    from calib.errors import InputError
+    from selfcal.errors import InputError
 
     path = tmp_path / "signed.tif"
     assert cv2.imwrite(str(path), np.full((8, 8), 1000, np.int16))

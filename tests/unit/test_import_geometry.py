@@ -1,4 +1,4 @@
-"""The import's check of the declared board against the detections (calib/import_dataset.py
+"""The import's check of the declared board against the detections (selfcal/importing/dataset.py
 check_geometry): a wrong board is refused naming the target file; a strongly distorting lens
 (which the pinhole board calibration alone would take for a wrong board) is not."""
 
@@ -10,10 +10,10 @@ import cv2
 import numpy as np
 import pytest
 
-from calib.board_calibrate import BoardMismatchError, calibrate_board
-from calib.import_dataset import check_geometry
-from calib.target import Charuco, Features
-from calib.target.board_views import random_board_poses
+from selfcal.calibration.board.calibrate import BoardMismatchError, calibrate_board
+from selfcal.importing.dataset import check_geometry
+from selfcal.target import Charuco, Features
+from selfcal.target.board_views import random_board_poses
 
 K = np.array([[800.0, 0, 331.5], [0, 800.0, 231.5], [0, 0, 1]])
 PRINTED = Charuco((11, 8), 0.02, 0.015, "DICT_5X5_100")

@@ -13,9 +13,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from calib.import_dataset import CameraImages, ImportError_, import_dataset, name_order
-from calib.robot_def import RobotDefinitionError, load_robot
-from calib.robot_urdf import UrdfError, urdf_chain
+from selfcal.importing.dataset import CameraImages, ImportError_, import_dataset, name_order
+from selfcal.robot.definition import RobotDefinitionError, load_robot
+from selfcal.robot.urdf import UrdfError, urdf_chain
 
 _ARM = [  # Panda-like: franka_description's joint origins (xyz m, rpy rad) and limits (rad)
     ("j1", (0, 0, 0.333), (0, 0, 0), -2.9, 2.9),

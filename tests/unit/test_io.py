@@ -13,23 +13,23 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from calib.camera import BrownConrady, Intrinsics
-from calib.errors import InputError
-from calib.io.calibration import (
+from selfcal.camera import BrownConrady, Intrinsics
+from selfcal.errors import InputError
+from selfcal.io.calibration import (
     CalibrationFileError,
     CalibrationResult,
     read_calibration,
     write_calibration,
 )
-from calib.io.dataset_info import (
+from selfcal.io.dataset_info import (
     DatasetError,
     DatasetInfo,
     read_dataset_info,
     scenario_digest,
     write_dataset_info,
 )
-from calib.io.target_toml import parse_target, target_document
-from calib.io.truth import (
+from selfcal.io.target_toml import parse_target, target_document
+from selfcal.io.truth import (
     TRUTH_JOURNAL,
     Truth,
     TruthFileError,
@@ -38,9 +38,9 @@ from calib.io.truth import (
     with_journal,
     write_truth,
 )
-from calib.mcpc import MCPCModel, nominal_mcpc
-from calib.robot_def import load_robot
-from calib.target import Charuco
+from selfcal.kinematics.mcpc import MCPCModel, nominal_mcpc
+from selfcal.robot.definition import load_robot
+from selfcal.target import Charuco
 
 GOLDEN = Path(__file__).resolve().parents[1] / "golden"
 

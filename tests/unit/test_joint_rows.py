@@ -1,4 +1,4 @@
-"""The joints file of `selfcal import` through the one joints reader (calib/io/tracker.py
+"""The joints file of `selfcal import` through the one joints reader (selfcal/io/tracker.py
 read_joint_rows): the image column kept as text, rows in file order, SI out, and the unit and
 shape errors naming the file."""
 
@@ -7,8 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from calib.io.tracker import TrackerFileError, read_joint_rows, read_joints
-from calib.robot_def import load_robot
+from selfcal.io.tracker import TrackerFileError, read_joint_rows, read_joints
+from selfcal.robot.definition import load_robot
 
 ROBOT = load_robot("kr6-r900")
 Q_DEG = np.array(

@@ -14,11 +14,17 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from calib.kinematics import fk_frames, fk_nominal, fk_tool, identification_jacobian, pose_error
-from calib.mcpc import MCPCModel, gauge_fix, minimal_indices, nominal_mcpc
-from calib.robot_def import RobotDefinitionError, list_robots, load_robot
-from calib.tool_pose import tool_pose
-from calib.transforms import make_pose, rot_z
+from selfcal.kinematics.forward import (
+    fk_frames,
+    fk_nominal,
+    fk_tool,
+    identification_jacobian,
+    pose_error,
+)
+from selfcal.kinematics.mcpc import MCPCModel, gauge_fix, minimal_indices, nominal_mcpc
+from selfcal.kinematics.tool_pose import tool_pose
+from selfcal.robot.definition import RobotDefinitionError, list_robots, load_robot
+from selfcal.transforms import make_pose, rot_z
 
 ROBOTS = ("er4u-paper", "er4u-vendor")
 DEG = np.pi / 180

@@ -13,8 +13,8 @@ import math
 import numpy as np
 import pytest
 
-from scenarios.montecarlo import run_montecarlo
-from scenarios.montecarlo_journal import JOURNAL, DrawJournal, draw_key
+from selfcal.studies.montecarlo.journal import JOURNAL, DrawJournal, draw_key
+from selfcal.studies.montecarlo.run import run_montecarlo
 
 
 def test_rows_read_back_bit_identical(tmp_path):

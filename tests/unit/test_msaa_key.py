@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import pytest
 
-from calib.io.dataset_info import scenario_digest
-from scenarios.backends import _digested
-from scenarios.config import ConfigError, load_scenario, scenario_to_dict
+from selfcal.acquisition.backends import _digested
+from selfcal.config.scenario import ConfigError, load_scenario, scenario_to_dict
+from selfcal.io.dataset_info import scenario_digest
 
 
 def test_default_and_range():

@@ -7,13 +7,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from calib.errors import InputError
-from calib.identify import identify
-from calib.ik_numeric import ToolTarget, solve_ik
-from calib.kinematics import fk_tool
-from calib.mcpc import nominal_mcpc
-from calib.robot_def import load_robot
-from calib.tracker_identify import TrackerMeasurements, identify_tracker
+from selfcal.calibration.identify import identify
+from selfcal.calibration.tracker.identify import TrackerMeasurements, identify_tracker
+from selfcal.errors import InputError
+from selfcal.kinematics.forward import fk_tool
+from selfcal.kinematics.ik_numeric import ToolTarget, solve_ik
+from selfcal.kinematics.mcpc import nominal_mcpc
+from selfcal.robot.definition import load_robot
 
 
 @pytest.fixture(scope="module")

@@ -1,4 +1,4 @@
-"""Image observations (calib.observations): the view arithmetic in one place and its round trips."""
+"""Image observations (selfcal.estimation.observations): the view arithmetic in one place and its round trips."""
 
 from __future__ import annotations
 
@@ -7,8 +7,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from calib.observations import Observations, ViewLayout, views_per_point
-from calib.target import Features
+from selfcal.estimation.observations import Observations, ViewLayout, views_per_point
+from selfcal.target import Features
 
 
 @given(st.integers(1, 50), st.integers(1, 6), st.data())

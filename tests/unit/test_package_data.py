@@ -9,7 +9,7 @@ from pathlib import Path
 
 import tomllib
 
-import calib.robot_def as robot_def
+import selfcal.robot.definition as robot_def
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -32,15 +32,24 @@ def test_packaged_models_preferred(tmp_path, monkeypatch):
 def test_wheel_carries_models():
     cfg = tomllib.loads((ROOT / "pyproject.toml").read_text())
     wheel = cfg["tool"]["hatch"]["build"]["targets"]["wheel"]
-    assert wheel["force-include"]["models"] == "calib/models"
-    assert "scenarios" in wheel["packages"]  # the scenario TOML files are package data of it
+    assert wheel["force-include"]["models"] == "selfcal/models"
+    assert wheel["force-include"]["scenarios"] == "selfcal/scenarios"  # the shipped scenarios
+    assert wheel["packages"] == ["selfcal"]  # one top-level package
+
+
+def test_shipped_scenarios_found_beside_the_models(tmp_path, monkeypatch):
+    from selfcal.config.scenario import default_scenario_path, scenarios_dir
+
+    monkeypatch.chdir(tmp_path)
+    assert scenarios_dir() == ROOT / "scenarios"
+    assert default_scenario_path().is_file()
 
 
 def test_shipped_scenarios_are_reachable_by_name_from_anywhere(tmp_path, monkeypatch, capsys):
     """`selfcal run mono-charuco` outside the checkout said "scenario file not found"."""
-    from scenarios import shipped
-    from scenarios.cli import main
-    from scenarios.config import board_path, load_scenario, scenario_board
+    from selfcal.cli.main import main
+    from selfcal.config import shipped
+    from selfcal.config.scenario import board_path, load_scenario, scenario_board
 
     monkeypatch.chdir(tmp_path)
     s = load_scenario("mono-charuco")
@@ -50,7 +59,7 @@ def test_shipped_scenarios_are_reachable_by_name_from_anywhere(tmp_path, monkeyp
     listed = dict(line.split(None, 1) for line in capsys.readouterr().out.splitlines())
     assert set(listed) == {p.stem for p in (ROOT / "scenarios").glob("*.toml")}
     assert listed["paper"] == "The default scenario: the paper's setting in simulation"
-    # in a wheel the board's "../models/targets/..." is calib/models/targets/...
+    # in a wheel the board's "../models/targets/..." is selfcal/models/targets/...
     wheel = tmp_path / "site"
     (wheel / "scenarios").mkdir(parents=True)
     (wheel / "scenarios" / "mono-charuco.toml").write_bytes(Path(s.source).read_bytes())

@@ -12,12 +12,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from calib.ik import ik_nearest, nearest_reachable
-from calib.kinematics import fk_frames, fk_nominal
-from calib.mcpc import nominal_mcpc
-from calib.robot_def import load_robot
-from calib.tool_pose import tool_pose
-from scenarios.paper_data import TABLE_I_THETA_DEG, TABLE_II_MM, TABLE_II_THETA4_DEG
+from selfcal.config.paper_data import TABLE_I_THETA_DEG, TABLE_II_MM, TABLE_II_THETA4_DEG
+from selfcal.kinematics.forward import fk_frames, fk_nominal
+from selfcal.kinematics.ik import ik_nearest, nearest_reachable
+from selfcal.kinematics.mcpc import nominal_mcpc
+from selfcal.kinematics.tool_pose import tool_pose
+from selfcal.robot.definition import load_robot
 
 DEG = np.pi / 180
 THETA4 = TABLE_II_THETA4_DEG * DEG  # Table II "Pitch (theta4)"

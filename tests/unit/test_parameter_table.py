@@ -1,13 +1,13 @@
-"""The parameter table of the reports (calib.report.parameter_table): angles in one branch."""
+"""The parameter table of the reports (selfcal.kinematics.accuracy.parameter_table): angles in one branch."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from calib.mcpc import minimal_indices, nominal_mcpc, param_names
-from calib.report import parameter_table, wrap_deg
-from calib.robot_def import load_robot
+from selfcal.kinematics.accuracy import parameter_table, wrap_deg
+from selfcal.kinematics.mcpc import minimal_indices, nominal_mcpc, param_names
+from selfcal.robot.definition import load_robot
 
 
 @pytest.mark.parametrize(
@@ -40,7 +40,7 @@ def test_an_angle_a_turn_away_shows_in_the_nominals_branch() -> None:
 
 
 def test_a_bound_above_the_achieved_error_is_explained() -> None:
-    from scenarios.report_fit import bound_markdown
+    from selfcal.pipeline.report_fit import bound_markdown
 
     below = bound_markdown(0.022, 0.010)
     assert "0.022 mm" in below and "The achieved 0.010 mm is below it" in below

@@ -7,8 +7,8 @@ import cv2
 import numpy as np
 import pytest
 
-from calib.io.dataset import DatasetInfo, DatasetWriter, read_gray
-from calib.io.frame_cache import gray_of_png
+from selfcal.io.dataset import DatasetInfo, DatasetWriter, read_gray
+from selfcal.io.frame_cache import gray_of_png
 
 
 def test_every_rgb_value_decodes_to_the_same_gray():

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from calib.io.pose_files import PoseFileError, read_poses
-from calib.transforms import make_pose
+from selfcal.io.pose_files import PoseFileError, read_poses
+from selfcal.transforms import make_pose
 
 RNG = np.random.default_rng(3)
 ROT = Rotation.random(5, random_state=4)
@@ -114,7 +114,7 @@ def test_industrial_calibration_yaml(tmp_path):
     ],
 )
 def test_cli_pose_import_refuses_mixed_options(tmp_path, capsys, extra, message):
-    from scenarios.cli import main
+    from selfcal.cli.main import main
 
     f = _csv(
         tmp_path / "p.csv",
@@ -128,7 +128,7 @@ def test_cli_pose_import_refuses_mixed_options(tmp_path, capsys, extra, message)
 
 
 def test_cli_joints_import_still_needs_a_robot(tmp_path, capsys):
-    from scenarios.cli import main
+    from selfcal.cli.main import main
 
     argv = ["import", "--joints", "j.csv", "--joint-units", "deg", "--images", "x/*.png",
             "--target", "t.toml", "--out", str(tmp_path / "o")]  # fmt: skip

@@ -1,4 +1,4 @@
-"""The one progress mechanism (scenarios.progress.Progress): a bar (drawn by rich) with
+"""The one progress mechanism (selfcal.console.progress.Progress): a bar (drawn by rich) with
 done/total and the time left on a terminal, notes above it, one-piece steps with their result;
 silent elsewhere for short stages and always with enabled=False (-q)."""
 
@@ -7,8 +7,8 @@ from __future__ import annotations
 import io
 import re
 
-from scenarios import progress
-from scenarios.progress import Progress, TaskCounts, format_seconds
+from selfcal.console import progress
+from selfcal.console.progress import Progress, TaskCounts, format_seconds
 
 
 class Tty(io.StringIO):

@@ -15,11 +15,11 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from calib.errors import InputError, SelfCalError
-from calib.io.target_toml import TargetFileError, load_target
-from calib.io.tracker import TrackerFileError, read_distances, read_joints, read_measurements
-from calib.robot_def import RobotDefinitionError, load_robot, models_dir
-from scenarios.config import ConfigError, default_scenario_path, load_scenario
+from selfcal.config.scenario import ConfigError, default_scenario_path, load_scenario
+from selfcal.errors import InputError, SelfCalError
+from selfcal.io.target_toml import TargetFileError, load_target
+from selfcal.io.tracker import TrackerFileError, read_distances, read_joints, read_measurements
+from selfcal.robot.definition import RobotDefinitionError, load_robot, models_dir
 
 REPO = Path(__file__).resolve().parents[2]
 VALUE_LINE = re.compile(r"^(\s*[A-Za-z_][\w.]*\s*=\s*)(.+?)\s*(#.*)?$")
@@ -212,15 +212,15 @@ def _bytes_file(data: bytes, name: str) -> Path:
 
 
 def _calibration_readers():
-    from calib.io.board_calibration import BoardCalibrationFileError, read_board_calibration
-    from calib.io.calibration import CalibrationFileError, read_calibration
+    from selfcal.io.board_calibration import BoardCalibrationFileError, read_board_calibration
+    from selfcal.io.calibration import CalibrationFileError, read_calibration
 
     return read_calibration, CalibrationFileError, read_board_calibration, BoardCalibrationFileError
 
 
 def _readers(er4u):
     """(file name, shipped example, reader, its typed error) of every file a user gives."""
-    from calib.io.pose_files import PoseFileError, read_poses
+    from selfcal.io.pose_files import PoseFileError, read_poses
 
     read_cal, cal_err, read_board, board_err = _calibration_readers()
     robots = models_dir() / "robots"
@@ -279,7 +279,7 @@ def pose_csv(draw):
 @given(st.one_of(pose_csv(), ANY_TEXT), st.sampled_from([None, "kuka-abc", "ur-rotvec"]),
        st.sampled_from([None, "mm", "m"]))  # fmt: skip
 def test_pose_file_reader_is_total(text, rotation, units):
-    from calib.io.pose_files import PoseFileError, read_poses
+    from selfcal.io.pose_files import PoseFileError, read_poses
 
     def check(rows):
         assert np.isfinite(rows.T_base_flange).all()
@@ -369,9 +369,9 @@ def test_calibration_json_reader_is_total(data):
 
 
 def _board_doc() -> dict:
-    from calib.camera import Pinhole
-    from calib.io.board_calibration import BoardCalibrationResult
-    from calib.mcpc import nominal_mcpc
+    from selfcal.camera import Pinhole
+    from selfcal.io.board_calibration import BoardCalibrationResult
+    from selfcal.kinematics.mcpc import nominal_mcpc
 
     robot = load_robot("ur5e")
     cam = Pinhole(800.0, 1.0, 320.0, 240.0, 640, 480)

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from calib.camera import camera_model
-from calib.estimation.reprojection import camera_points, projection_blocks
-from calib.transforms import skew
+from selfcal.camera import camera_model
+from selfcal.estimation.reprojection import camera_points, projection_blocks
+from selfcal.transforms import skew
 
 LENS = {"k1": -0.25, "k2": 0.1, "p1": 1e-3, "p2": -5e-4}
 

@@ -1,10 +1,10 @@
-"""The shared base of the kinematic estimators' results (calib.results_base.ParameterEstimates)."""
+"""The shared base of the kinematic estimators' results (selfcal.kinematics.parameter_estimates.ParameterEstimates)."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from calib.results_base import ParameterEstimates
+from selfcal.kinematics.parameter_estimates import ParameterEstimates
 
 
 def estimates() -> ParameterEstimates:

@@ -11,16 +11,16 @@ from pathlib import Path
 
 import pytest
 
-from calib.camera import camera_model
-from calib.io.calibration import (
+from selfcal.camera import camera_model
+from selfcal.io.calibration import (
     CalibrationFileError,
     CalibrationResult,
     read_calibration,
     write_calibration,
 )
-from calib.io.calibration_blocks import CameraIntrinsics, RigCamera
-from calib.io.calibration_bounds import CameraBounds
-from calib.io.jsonfile import check_header
+from selfcal.io.calibration_blocks import CameraIntrinsics, RigCamera
+from selfcal.io.calibration_bounds import CameraBounds
+from selfcal.io.jsonfile import check_header
 
 GOLDEN = Path(__file__).resolve().parents[1] / "golden" / "analytic" / "calibration.json"
 FREE = ("fx", "mu", "cx", "cy", "k1", "k2", "p1", "p2")
@@ -76,7 +76,7 @@ def test_a_shared_camera_file_stays_schema_1_without_cameras(tmp_path):
 def test_the_fit_report_lists_each_cameras_own_parameters():
     """Without truth (real data) the report lists each camera's free parameters with their std;
     a shared camera adds nothing."""
-    from scenarios.report_cameras import rig_camera_markdown, rig_camera_rows
+    from selfcal.pipeline.report_cameras import rig_camera_markdown, rig_camera_rows
 
     rows = rig_camera_rows(_per_camera(), None)
     assert list(rows) == ["left", "right"] and list(rows["right"]) == ["fx", "mu", "cx", "cy"]

@@ -1,7 +1,7 @@
 """Rigs of one and three cameras through the same code as the stereo pair: the pose models'
 Jacobians against finite differences and noise-free self-calibration (exact recovery).
 
-The scenes are the synthetic stereo scenes (calib.selfcal_synthetic) with the right camera dropped
+The scenes are the synthetic stereo scenes (selfcal.calibration.field.synthetic) with the right camera dropped
 (one camera) or a third camera added above the pair (three cameras); noise-free corners must give
 the truth to rounding. Rounding depends on the BLAS thread count (the CLI limits it in-process, so
 it depends on test order too); worst measured over 1 and 2 threads: fx, mu 2.0e-14 relative, rig
@@ -13,16 +13,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from calib.camera import project
-from calib.estimation.kinematic_poses import KinematicPoses
-from calib.estimation.pose_models import RigPoses
-from calib.mcpc import minimal_indices, nominal_mcpc
-from calib.observations import Observations
-from calib.robot_def import load_robot
-from calib.selfcal import self_calibrate
-from calib.selfcal_synthetic import synthetic_stereo_scene
-from calib.target import CORNERS_PER_MARKER
-from calib.transforms import inv_pose, make_pose, pose_from_vec, rot_x
+from selfcal.calibration.field.self_calibration import self_calibrate
+from selfcal.calibration.field.synthetic import synthetic_stereo_scene
+from selfcal.camera import project
+from selfcal.estimation.kinematic_poses import KinematicPoses
+from selfcal.estimation.observations import Observations
+from selfcal.estimation.pose_models import RigPoses
+from selfcal.kinematics.mcpc import minimal_indices, nominal_mcpc
+from selfcal.robot.definition import load_robot
+from selfcal.target import CORNERS_PER_MARKER
+from selfcal.transforms import inv_pose, make_pose, pose_from_vec, rot_x
 
 T_LEFT_TOP = pose_from_vec(np.r_[0.02, 0.01, -0.03, 0.03, -0.05, 0.004])  # third camera
 

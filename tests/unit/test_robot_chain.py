@@ -1,4 +1,4 @@
-"""The convention-free nominal chain (calib.robot_chain) and its DH / modified-DH loaders.
+"""The convention-free nominal chain (selfcal.robot.chain) and its DH / modified-DH loaders.
 
 Ground truth: the table rows multiplied out directly (``fk_nominal`` -> ``dh_frames``), and for the
 KR 6 R900 the datasheet's dimensions added up by hand at the KUKA HOME posture.
@@ -14,12 +14,18 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from calib.dh_table import dh_table
-from calib.kinematics import fk_frames, fk_nominal
-from calib.mcpc import nominal_mcpc
-from calib.robot_chain import DHParams, chain_frames, dh_chain, dh_frames
-from calib.robot_def import RobotDefinitionError, list_robots, load_robot, models_dir, with_dh
-from calib.transforms import make_pose, rot_x, rot_z, trans
+from selfcal.kinematics.dh_table import dh_table
+from selfcal.kinematics.forward import fk_frames, fk_nominal
+from selfcal.kinematics.mcpc import nominal_mcpc
+from selfcal.robot.chain import DHParams, chain_frames, dh_chain, dh_frames
+from selfcal.robot.definition import (
+    RobotDefinitionError,
+    list_robots,
+    load_robot,
+    models_dir,
+    with_dh,
+)
+from selfcal.transforms import make_pose, rot_x, rot_z, trans
 
 DEG = np.pi / 180
 

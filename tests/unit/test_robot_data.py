@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from calib.robot_def import (
+from selfcal.robot.definition import (
     DEFAULT_KP,
     DEFAULT_SPAN_DEG,
     RobotDefinitionError,

@@ -1,4 +1,4 @@
-"""Robots from a URDF (calib.robot_urdf through load_robot).
+"""Robots from a URDF (selfcal.robot.urdf through load_robot).
 
 Ground truth: the same arm written independently in modified DH (models/robots/kr6-r900.toml) and
 in URDF (tests/data/kr6_r900.urdf, joint axes along x and y, extra fixed frames).
@@ -11,11 +11,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from calib.errors import InputError
-from calib.kinematics import fk_frames, fk_nominal
-from calib.mcpc import nominal_mcpc
-from calib.robot_def import load_robot
-from calib.robot_urdf import CONTINUOUS_LIMIT, UrdfError
+from selfcal.errors import InputError
+from selfcal.kinematics.forward import fk_frames, fk_nominal
+from selfcal.kinematics.mcpc import nominal_mcpc
+from selfcal.robot.definition import load_robot
+from selfcal.robot.urdf import CONTINUOUS_LIMIT, UrdfError
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 URDF = DATA / "kr6_r900.urdf"
@@ -221,7 +221,7 @@ def test_a_cycle_without_a_root_is_refused(tmp_path):
 def test_plain_text_as_urdf_is_one_clear_error(tmp_path, capfd, caplog):
     """#33: a plain-text file given as URDF printed a TypeError's text and two lxml lines before
     the error; now one line naming the file, exit 2."""
-    from scenarios.cli import main
+    from selfcal.cli.main import main
 
     p = tmp_path / "notes.urdf"
     p.write_text("this robot has six joints\nand a camera\n")

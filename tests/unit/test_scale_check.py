@@ -1,4 +1,4 @@
-"""A target declared at the wrong size is caught (calib/scale_check.py): the camera's motion as
+"""A target declared at the wrong size is caught (selfcal/calibration/scale_check.py): the camera's motion as
 the target measures it against the nominal arm's, in scale."""
 
 from __future__ import annotations
@@ -6,12 +6,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from calib.kinematics import fk_tool
-from calib.mcpc import nominal_mcpc
-from calib.robot_def import load_robot
-from calib.row_shift import row_shift_misfits, shift_note
-from calib.scale_check import SCALE_TOL, motion_scale, scale_warning, scaled_sizes
-from calib.transforms import make_pose, pose_from_vec
+from selfcal.calibration.row_shift import row_shift_misfits, shift_note
+from selfcal.calibration.scale_check import SCALE_TOL, motion_scale, scale_warning, scaled_sizes
+from selfcal.kinematics.forward import fk_tool
+from selfcal.kinematics.mcpc import nominal_mcpc
+from selfcal.robot.definition import load_robot
+from selfcal.transforms import make_pose, pose_from_vec
 
 ROBOT = load_robot("kr6-r900")
 

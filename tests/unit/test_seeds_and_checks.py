@@ -10,10 +10,11 @@ import json
 
 import pytest
 
-from scenarios import montecarlo, studies
-from scenarios.cli import main as cli_main
-from scenarios.row_checks import check_fields, count_check_failures
-from scenarios.study_runs import COLUMNS, load_runs
+from selfcal.cli.main import main as cli_main
+from selfcal.studies import study as studies
+from selfcal.studies.montecarlo import run as montecarlo
+from selfcal.studies.row_checks import check_fields, count_check_failures
+from selfcal.studies.runs import COLUMNS, load_runs
 
 FAILURE = "the calibrated model fits worse than the nominal model (10.26 px against 7.01 px)"
 

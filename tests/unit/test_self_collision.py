@@ -1,4 +1,4 @@
-"""The capsule self-collision and floor check of planning (calib.self_collision)."""
+"""The capsule self-collision and floor check of planning (selfcal.kinematics.self_collision)."""
 
 from __future__ import annotations
 
@@ -7,9 +7,9 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from calib.mcpc import nominal_mcpc
-from calib.robot_def import load_robot
-from calib.self_collision import CapsuleChain, segment_distances
+from selfcal.kinematics.mcpc import nominal_mcpc
+from selfcal.kinematics.self_collision import CapsuleChain, segment_distances
+from selfcal.robot.definition import load_robot
 
 coords = st.floats(-1.0, 1.0, allow_nan=False)
 points = st.lists(coords, min_size=3, max_size=3)

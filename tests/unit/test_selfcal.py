@@ -1,16 +1,11 @@
-"""Camera self-calibration (calib.selfcal*): synthetic stereo-rig scenes with known ground truth."""
+"""Camera self-calibration (selfcal.calibration.field.self_calibration*): synthetic stereo-rig scenes with known ground truth."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from calib.bundle_adjust import _Problem, bundle_adjust
-from calib.camera import project
-from calib.estimation.focal import focal_from_fundamentals
-from calib.estimation.pose_models import FreePoses, RigPoses
-from calib.estimation.scale_sign import cheirality_fraction, choose_scale_sign, rigid_align
-from calib.selfcal import (
+from selfcal.calibration.field.self_calibration import (
     ConvergenceError,
     DegenerateConfigurationError,
     InsufficientDataError,
@@ -19,9 +14,14 @@ from calib.selfcal import (
     SelfCalibrationError,
     self_calibrate,
 )
-from calib.selfcal_synthetic import look_at, synthetic_stereo_scene
-from calib.target import feature_id, marker_features
-from calib.transforms import inv_pose, make_pose, pose_from_vec, skew
+from selfcal.calibration.field.synthetic import look_at, synthetic_stereo_scene
+from selfcal.camera import project
+from selfcal.estimation.bundle_adjust import _Problem, bundle_adjust
+from selfcal.estimation.focal import focal_from_fundamentals
+from selfcal.estimation.pose_models import FreePoses, RigPoses
+from selfcal.estimation.scale_sign import cheirality_fraction, choose_scale_sign, rigid_align
+from selfcal.target import feature_id, marker_features
+from selfcal.transforms import inv_pose, make_pose, pose_from_vec, skew
 
 W, H = 640, 480
 
@@ -335,7 +335,7 @@ def test_observations_outside_image_rejected():
 
 
 def test_projection_consistency_of_synthetic_scene():
-    # the generator uses calib.camera.project; check one detection against it directly
+    # the generator uses selfcal.camera.project; check one detection against it directly
     sc = synthetic_stereo_scene(3, seed=9)
     (cfg, cam), markers = next(iter(sc.detections.items()))
     mk, uv = next(iter(markers.items()))

@@ -1,4 +1,4 @@
-"""The least-squares engine (calib.solver) on small problems with known answers."""
+"""The least-squares engine (selfcal.solver) on small problems with known answers."""
 
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.optimize import least_squares
 
-from calib.errors import SolverError
-from calib.solver import (
+from selfcal.errors import SolverError
+from selfcal.solver import (
     LOSSES,
     Evaluation,
     JacobianPiece,
@@ -20,7 +20,7 @@ from calib.solver import (
     covariance,
     solve,
 )
-from calib.solver import linear as linear_mod
+from selfcal.solver import linear as linear_mod
 
 T = np.linspace(0.0, 2.0, 40)
 TRUE = np.array([2.0, -1.3, 0.5])  # y = a exp(b t) + c
@@ -249,7 +249,7 @@ def test_scaled_rank_above_dense_max_matches_the_dense_eigenvalues(monkeypatch):
 
     import scipy.sparse as sp
 
-    cov_mod = importlib.import_module("calib.solver.covariance")  # the package exports a function
+    cov_mod = importlib.import_module("selfcal.solver.covariance")  # the package exports a function
 
     rng = np.random.default_rng(3)
     J = sp.random(400, 80, density=0.05, random_state=4, format="csr")
@@ -270,7 +270,7 @@ def test_normal_matrix_with_dense_columns_is_jtj():
 
     import scipy.sparse as sp
 
-    cov_mod = importlib.import_module("calib.solver.covariance")
+    cov_mod = importlib.import_module("selfcal.solver.covariance")
     rng = np.random.default_rng(5)
     S = sp.random(300, 40, density=0.03, random_state=6, format="csr")
     D = sp.csr_matrix(rng.standard_normal((300, 4)) * (rng.random((300, 1)) < 0.6))

@@ -1,4 +1,4 @@
-"""The Schur-form assembly (calib.solver.schur) against the dense normal equations, on residual
+"""The Schur-form assembly (selfcal.solver.schur) against the dense normal equations, on residual
 blocks with every column kind: instance columns, constant and varying kept columns, a column that
 is an instance's unknown in some rows and a shared one in others, unused (-1) and held entries,
 rows without instance columns, and a one-row block."""
@@ -10,9 +10,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from calib.solver import Evaluation, JacobianPiece, Loss, ParameterBlock, Problem
-from calib.solver.linear import assemble
-from calib.solver.schur import SchurAssembler
+from selfcal.solver import Evaluation, JacobianPiece, Loss, ParameterBlock, Problem
+from selfcal.solver.linear import assemble
+from selfcal.solver.schur import SchurAssembler
 
 N_INST, N_PTS = 5, 7
 

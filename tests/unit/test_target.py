@@ -1,4 +1,4 @@
-"""Targets (calib.target): the feature-id mapping of the ArUco field and its detection."""
+"""Targets (selfcal.target): the feature-id mapping of the ArUco field and its detection."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from calib.target import (
+from selfcal.target import (
     CORNERS_PER_MARKER,
     ArucoField,
     Features,
@@ -18,7 +18,7 @@ from calib.target import (
     marker_features,
     markers_to_features,
 )
-from calib.target.aruco_detect import detect_markers
+from selfcal.target.aruco_detect import detect_markers
 
 
 @given(st.integers(0, 10**6), st.integers(0, CORNERS_PER_MARKER - 1))

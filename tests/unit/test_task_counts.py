@@ -1,9 +1,9 @@
-"""Progress of a batch of tasks (scenarios.progress.TaskCounts): counts and the time left."""
+"""Progress of a batch of tasks (selfcal.console.progress.TaskCounts): counts and the time left."""
 
 from __future__ import annotations
 
-from scenarios import progress
-from scenarios.progress import TaskCounts
+from selfcal.console import progress
+from selfcal.console.progress import TaskCounts
 
 
 def test_counts_and_time_left(monkeypatch):

@@ -7,26 +7,26 @@ import warnings
 import numpy as np
 import pytest
 
-from calib.alignment import express_in_frame
-from calib.estimation.tracker import (
+from selfcal.benchmarks.tracker import BEGIN, END, combine, mdh_table, run, table, write_docs
+from selfcal.benchmarks.tracker_sim import RRPRR_DH, dh_robot, make_case, measure
+from selfcal.calibration.identify import IdentificationWarning
+from selfcal.calibration.tracker.identify import (
+    TrackerIdentificationError,
+    TrackerMeasurements,
+    identify_tracker,
+)
+from selfcal.estimation.tracker import (
     ChainLayout,
     TrackerDistanceBlock,
     TrackerPoseBlock,
     TrackerPositionBlock,
 )
-from calib.identify import IdentificationWarning
-from calib.kinematics import fk_nominal, fk_tool
-from calib.mcpc import chain_transforms, minimal_indices, param_is_angle
-from calib.robot_def import list_robots, load_robot
-from calib.solver import ParameterBlock, Problem
-from calib.tracker_identify import (
-    TrackerIdentificationError,
-    TrackerMeasurements,
-    identify_tracker,
-)
-from calib.transforms import inv_pose, pose_from_vec, rot_x, rot_z, trans
-from scenarios.benchmark_tracker import BEGIN, END, combine, mdh_table, run, table, write_docs
-from scenarios.tracker_sim import RRPRR_DH, dh_robot, make_case, measure
+from selfcal.kinematics.alignment import express_in_frame
+from selfcal.kinematics.forward import fk_nominal, fk_tool
+from selfcal.kinematics.mcpc import chain_transforms, minimal_indices, param_is_angle
+from selfcal.robot.definition import list_robots, load_robot
+from selfcal.solver import ParameterBlock, Problem
+from selfcal.transforms import inv_pose, pose_from_vec, rot_x, rot_z, trans
 
 ROBOTS = {
     "rrprr": lambda: dh_robot("rrprr", **RRPRR_DH),

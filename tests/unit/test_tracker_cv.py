@@ -1,13 +1,13 @@
-"""Leave-one-out check of a tracker calibration against its fair nominal (calib/tracker_cv.py)."""
+"""Leave-one-out check of a tracker calibration against its fair nominal (selfcal/calibration/tracker/cross_validation.py)."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from calib.estimation.tracker import TrackerMeasurements
-from calib.robot_def import load_robot
-from calib.tracker_cv import MAX_ROWS, leave_one_out
-from scenarios.tracker_sim import make_case, measure
+from selfcal.benchmarks.tracker_sim import make_case, measure
+from selfcal.calibration.tracker.cross_validation import MAX_ROWS, leave_one_out
+from selfcal.estimation.tracker import TrackerMeasurements
+from selfcal.robot.definition import load_robot
 
 SIGMA_M = 5e-5
 

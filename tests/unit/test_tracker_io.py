@@ -10,15 +10,15 @@ import pytest
 from hypothesis import given, settings
 from hypothesis.extra.numpy import arrays
 
-from calib.io.tracker import TrackerFileError, joints_to_si, read_joints, read_table
-from calib.io.tracker_calibration import (
+from selfcal.benchmarks.tracker_sim import RRPRR_DH, dh_robot, make_case, measure
+from selfcal.calibration.tracker.calibration_file import (
     TrackerCalibrationFileError,
     from_result,
     read_tracker_calibration,
     write_tracker_calibration,
 )
-from calib.tracker_identify import TrackerMeasurements, identify_tracker
-from scenarios.tracker_sim import RRPRR_DH, dh_robot, make_case, measure
+from selfcal.calibration.tracker.identify import TrackerMeasurements, identify_tracker
+from selfcal.io.tracker import TrackerFileError, joints_to_si, read_joints, read_table
 
 
 def rrprr():

@@ -1,4 +1,4 @@
-"""The fair nominal of the tracker route (calib/tracker_nominal.py): the robot file's chain with
+"""The fair nominal of the tracker route (selfcal/calibration/tracker/nominal.py): the robot file's chain with
 the tracker frame and the tool fitted by the identification's objective."""
 
 from __future__ import annotations
@@ -6,14 +6,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from calib.estimation.tracker import TrackerMeasurements
-from calib.io.tracker_calibration import TrackerCalibration
-from calib.kinematics import fk_tool
-from calib.mcpc import nominal_mcpc
-from calib.robot_def import load_robot
-from calib.tracker_nominal import fit_nominal, pose_errors
-from calib.transforms import make_pose, pose_from_vec
-from scenarios.tracker_sim import make_case
+from selfcal.benchmarks.tracker_sim import make_case
+from selfcal.calibration.tracker.calibration_file import TrackerCalibration
+from selfcal.calibration.tracker.nominal import fit_nominal, pose_errors
+from selfcal.estimation.tracker import TrackerMeasurements
+from selfcal.kinematics.forward import fk_tool
+from selfcal.kinematics.mcpc import nominal_mcpc
+from selfcal.robot.definition import load_robot
+from selfcal.transforms import make_pose, pose_from_vec
 
 
 @pytest.mark.parametrize("poses", [False, True])
@@ -54,9 +54,9 @@ def test_distances_alone_fit_the_tool_point():
 def test_the_nominal_survives_the_calibration_file(tmp_path):
     """``nominal`` in calibration.json: written and read back; a file without it (written before)
     reads with ``nominal`` None."""
-    from calib.io.tracker_calibration import from_result, read_tracker_calibration
-    from calib.io.tracker_calibration import write_tracker_calibration as write
-    from calib.tracker_identify import identify_tracker
+    from selfcal.calibration.tracker.calibration_file import from_result, read_tracker_calibration
+    from selfcal.calibration.tracker.calibration_file import write_tracker_calibration as write
+    from selfcal.calibration.tracker.identify import identify_tracker
 
     robot = load_robot("tests/data/positioner2.toml")
     case = make_case(robot, seed=3)
@@ -81,7 +81,7 @@ def test_the_pose_start_is_exact_from_three_poses_of_a_positioner():
     """Noise-free poses of a 2-axis positioner's nominal chain, placed and tooled anywhere:
     the closed-form start recovers both (1e-9; measured ~1e-15), where the positions' start
     settles in a wrong placement with 3 rows (the identification then ended 450 mm off)."""
-    from calib.estimation.tracker_start import initial_placement, pose_placement
+    from selfcal.estimation.tracker_start import initial_placement, pose_placement
 
     robot = load_robot("tests/data/positioner2.toml")
     case = make_case(robot, seed=3)

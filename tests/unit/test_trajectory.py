@@ -3,11 +3,10 @@
 import numpy as np
 import pytest
 
-from calib.camera import Intrinsics, Rig
-from calib.kinematics import fk_tool
-from calib.mcpc import nominal_mcpc
-from calib.robot_def import load_robot
-from calib.trajectory import (
+from selfcal.camera import Intrinsics, Rig
+from selfcal.kinematics.forward import fk_tool
+from selfcal.kinematics.mcpc import nominal_mcpc
+from selfcal.kinematics.trajectory import (
     DegenerateTrajectoryError,
     DegenerateTrajectoryWarning,
     axes_convergence_m,
@@ -15,7 +14,8 @@ from calib.trajectory import (
     plan_postures,
     visible_counts,
 )
-from calib.transforms import make_pose, trans
+from selfcal.robot.definition import load_robot
+from selfcal.transforms import make_pose, trans
 
 INTR = Intrinsics.centered(800.0, 1.0, 640, 480)
 

@@ -1,4 +1,4 @@
-"""The numpy Euler angles and quaternions of calib.transforms (`selfcal fk` loads no scipy) agree
+"""The numpy Euler angles and quaternions of selfcal.transforms (`selfcal fk` loads no scipy) agree
 with scipy's Rotation, the library they replace on that path, including the gimbal locks."""
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from calib.transforms import quat_from_matrix, rpy_from_matrix, xyz_euler_from_matrix
+from selfcal.transforms import quat_from_matrix, rpy_from_matrix, xyz_euler_from_matrix
 
 # Measured: at most 8.9e-16 rad from scipy over 6e5 random rotations, also within 1e-5 rad of a
 # gimbal lock (the same direct method); quaternions bit-identical.

@@ -1,0 +1,424 @@
+"""Backends behind the one Robot interface, chosen by ``[robot] backend`` in the scenario.
+
+``sim``: the simulated actual robot (nominal + injected errors) photographing a marker field;
+``hardware``: the ACL serial adapter (``hw``). Everything backend-specific lives here; the
+acquisition loop and the calibration only see a ``Robot`` and a dataset.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from selfcal.acquisition.acquire import AcquisitionHooks
+from selfcal.acquisition.hardware import open_hardware_robot
+from selfcal.calibration.field.optimal_poses import plan_optimal_postures
+from selfcal.camera import Intrinsics, Rig
+from selfcal.config.scenario import (
+    CameraConfig,
+    ConfigError,
+    NoiseConfig,
+    Scenario,
+    load_scenario,
+    scenario_board,
+    scenario_to_dict,
+)
+from selfcal.errors import InputError
+from selfcal.io.atomic import write_image_atomic
+from selfcal.io.dataset_info import DatasetInfo, scenario_digest
+from selfcal.io.target_toml import target_document
+from selfcal.io.truth import (
+    TRUTH_JOURNAL,
+    append_truth_frame,
+    read_truth,
+    with_journal,
+    write_truth,
+)
+from selfcal.kinematics.forward import fk_tool
+from selfcal.kinematics.mcpc import (
+    MCPCModel,
+    minimal_indices,
+    nominal_mcpc,
+    param_is_angle,
+    param_names,
+)
+from selfcal.kinematics.self_collision import CapsuleChain
+from selfcal.kinematics.trajectory import (
+    check_not_degenerate,
+    home_target_center,
+    plan_postures,
+)
+from selfcal.robot.definition import RobotDef, load_robot
+from selfcal.robot.interface import Robot
+from selfcal.sim.actual import apply_errors, perturb
+from selfcal.sim.analytic import project_board, project_markers
+from selfcal.sim.board_scene import board_on_table
+from selfcal.sim.collision import collision_checker
+from selfcal.sim.kinematic_robot import KinematicRobot
+from selfcal.sim.markers import make_marker_field
+from selfcal.sim.robot_mjcf import RigConfig
+from selfcal.sim.sim_robot import SimRobot
+from selfcal.target import CORNERS_PER_MARKER
+from selfcal.transforms import trans
+
+__all__ = [
+    "SimSetup",
+    "sim_setup",
+    "make_sim_robot",
+    "make_kinematic_robot",
+    "open_robot",
+    "plan_dataset",
+    "render_posture",
+]
+
+DICTIONARY = "DICT_4X4_50"
+SCALE_IDS = (48, 49)
+"""The scale bar's two markers: the dictionary's last two ids (as ``selfcal.sim.markers`` places them)."""
+
+
+@dataclass
+class SimSetup:
+    """Everything the simulator needs, derived from a scenario (deterministic per seeds)."""
+
+    robot: RobotDef
+    nominal: MCPCModel
+    actual: MCPCModel
+    intrinsics: Intrinsics
+    T_left_right: np.ndarray
+    field: object  # selfcal.sim.markers.MarkerField
+    meta: dict = field(default_factory=dict)
+    board: object = None
+    """``[target] board`` (selfcal.target.boards.Board) or None: the marker field."""
+    T_world_board: np.ndarray | None = None
+    """The board's true pose on the table (board -> world, m; ``selfcal.sim.board_scene.board_on_table``)."""
+    intrinsics_right: Intrinsics | None = None
+    """The right camera's own true model (``[camera.right]``), or None: ``intrinsics``."""
+
+    def rig(self) -> RigConfig:
+        """The simulated rig: the true cameras and the baseline."""
+        return RigConfig(intrinsics=self.intrinsics, T_left_right=self.T_left_right,
+                         intrinsics_right=self.intrinsics_right)  # fmt: skip
+
+
+def _field_center(robot: RobotDef, nominal: MCPCModel) -> tuple[float, float]:
+    """The field's centre: where the home posture's optical axis meets the table
+    (:func:`selfcal.kinematics.trajectory.home_target_center`; ``nominal``: base -> camera)."""
+    try:
+        return home_target_center(robot, nominal)
+    except InputError as exc:
+        raise ConfigError(exc.message, fix=exc.fix) from exc
+
+
+def _perturbation_table(s: Scenario, joint_types: tuple[str, ...]) -> dict[str, float]:
+    idx = minimal_indices(joint_types)
+    names = param_names(idx)
+    out = {}
+    for k, v in s.perturbation.table.items():
+        if k not in names:
+            raise ConfigError(
+                f"{s.source}: perturbation.table.{k}: unknown parameter; known: {', '.join(names)}"
+            )
+        is_angle = param_is_angle(idx)[names.index(k)]
+        out[k] = float(v) * (np.pi / 180 if is_angle else 1e-3)
+    return out
+
+
+def sim_setup(s: Scenario) -> SimSetup:
+    """The simulated actual robot, rig and marker field of a scenario."""
+    robot = load_robot(s.robot.model)
+    nominal = nominal_mcpc(robot).with_tool(robot.T_flange_cam)
+    actual = perturb(
+        nominal,
+        seed=s.perturbation.seed,
+        translation_m=s.perturbation.translation_mm / 1000,
+        rotation_rad=np.radians(s.perturbation.rotation_deg),
+    )
+    table = _perturbation_table(s, robot.joint_types)
+    if table:
+        actual = apply_errors(actual, table)
+    intr = s.camera.true_model()
+    field_ = make_marker_field(
+        n_markers=s.target.markers,
+        seed=s.target.seed,
+        center_xy_m=_field_center(robot, nominal),
+        extent_m=(s.target.extent_mm / 1000, s.target.extent_mm / 1000),
+        size_m=s.target.marker_size_mm / 1000,
+        scale_length_m=s.target.scale_length_mm / 1000,
+        dictionary=DICTIONARY,
+    )
+    T_lr = trans(np.array([s.camera.baseline_mm / 1000, 0.0, 0.0]))
+    board = scenario_board(s)
+    T_world_board = None if board is None else board_on_table(board, _field_center(robot, nominal))
+    right = s.camera.of("right").true_model() if s.camera.own_intrinsics else None
+    return SimSetup(robot, nominal, actual, intr, T_lr, field_, board=board,
+                    T_world_board=T_world_board, intrinsics_right=right)  # fmt: skip
+
+
+def planning_inputs(s: Scenario) -> dict:
+    """What trajectories are planned with: robot, nominal camera chain, the camera rig (nominal
+    intrinsics and baseline), a 6 x 6 grid of points (with normals) over the target region and
+    the self-collision check (:class:`selfcal.kinematics.self_collision.CapsuleChain` of the nominal arm).
+
+    Planning sees only what a person at a real robot knows: the region the target covers (centred
+    where the home posture looks, ``[target] extent_mm``; a board's own extent, its corner
+    features' span), never the true marker positions, so the sim and hardware backends plan the
+    same postures for one scenario.
+    """
+    robot = load_robot(s.robot.model)
+    nominal = nominal_mcpc(robot).with_tool(robot.T_flange_cam)
+    cx, cy = _field_center(robot, nominal)
+    board = scenario_board(s)
+    if board is None:
+        half_x = half_y = s.target.extent_mm / 2000.0
+    else:  # the span of the board's features, centred where the home posture looks
+        _, pts_b = board.layout()
+        half_x, half_y = (pts_b[:, :2].max(axis=0) - pts_b[:, :2].min(axis=0)) / 2
+    pts = np.array(
+        [[cx + a, cy + b, 0.0] for a in np.linspace(-half_x, half_x, 6)
+         for b in np.linspace(-half_y, half_y, 6)]
+    )  # fmt: skip
+    return {
+        "robot": robot,
+        "model_cam": nominal,
+        "rig": _planning_rig(s),
+        "points_world": pts,
+        "normals_world": np.tile([0.0, 0.0, 1.0], (len(pts), 1)),
+        "min_visible": s.trajectory.min_markers,
+        "collision_ok": CapsuleChain(nominal_mcpc(robot), robot.T_flange_cam).ok,
+    }
+
+
+def _planning_rig(s: Scenario) -> Rig:
+    """The cameras the plan must serve: the nominal stereo pair, or its left camera alone."""
+    W, H = s.camera.resolution
+    left, right = (s.camera.of(n) for n in ("left", "right"))
+    rig = Rig.stereo(
+        Intrinsics.centered(left.fx, left.mu, W, H),
+        trans(np.array([s.camera.baseline_mm / 1000, 0.0, 0.0])),
+        Intrinsics.centered(right.fx, right.mu, W, H),
+    )
+    n = s.camera.count
+    return Rig(rig.cameras[:n], rig.T_first_cam[:n], rig.names[:n])
+
+
+def plan_optimal(s: Scenario, *, collisions: bool = True, **kw):
+    """The D-optimal plan (:class:`selfcal.calibration.field.optimal_poses.OptimalPlan`, ``q`` rad) for scenario ``s``
+    over the planning grid of :func:`planning_inputs`, checked for self-collision with MuJoCo
+    (:mod:`selfcal.sim.collision`), with ``corners_per_point = corners of the markers / 36``."""
+    inp = planning_inputs(s)
+    inp.pop("collision_ok")  # the MuJoCo shapes below check it
+    corners = CORNERS_PER_MARKER * s.target.markers
+    kw.setdefault("corners_per_point", corners / len(inp["points_world"]))
+    kw.setdefault("pixel_sigma_px", s.noise.pixel_sigma)
+    return plan_optimal_postures(
+        **inp,
+        n_poses=s.trajectory.poses,
+        seed=s.trajectory.seed,
+        collision_ok=collision_checker(s.robot.model) if collisions else None,
+        **kw,
+    )
+
+
+def plan_dataset(s: Scenario, setup: SimSetup | None = None) -> DatasetInfo:
+    """The dataset description: planned trajectory and validation postures (deg).
+
+    ``[trajectory] kind = "optimal"`` selects D-optimal postures (``selfcal.calibration.field.optimal_poses``)
+    instead of random ones, under the same visibility rule and without self-collision.
+    """
+    p = planning_inputs(s)
+    robot, nominal, rig = p["robot"], p["model_cam"], p["rig"]
+    pts, nrm = p["points_world"], p["normals_world"]
+    W, H = rig.cameras[0].width, rig.cameras[0].height
+    scale_ids = tuple(int(i) for i in setup.field.scale_ids) if setup is not None else SCALE_IDS
+    if s.trajectory.kind == "optimal":
+        q = plan_optimal(s).q
+    else:
+        q = plan_postures(
+            robot,
+            nominal,
+            rig,
+            pts,
+            s.trajectory.poses,
+            seed=s.trajectory.seed,
+            min_visible=s.trajectory.min_markers,
+            normals_world=nrm,
+            collision_ok=p["collision_ok"],
+        )
+    check_not_degenerate(fk_tool(nominal, q))
+    qv = plan_postures(
+        robot,
+        nominal,
+        rig,
+        pts,
+        s.validation.poses,
+        seed=10_000 + s.validation.seed,
+        min_visible=0,
+        normals_world=nrm,
+        collision_ok=p["collision_ok"],
+    )
+    return DatasetInfo(
+        robot_model=robot_reference(s.robot.model),
+        encoder_model=robot_reference(
+            s.robot.model
+        ),  # the read-back: quantised (sim) or counts (hardware) by it
+        backend=s.robot.backend,
+        resolution=(W, H),
+        dictionary=DICTIONARY,
+        scale_ids=scale_ids,
+        scale_length_m=s.target.scale_length_mm / 1000,
+        observation="images" if (s.noise.render or s.robot.backend == "hardware") else "detections",
+        planned_joints_deg=np.round(np.degrees(q), 6),
+        validation_joints_deg=np.round(np.degrees(qv), 6),
+        provenance={"scenario_sha256": scenario_digest(_digested(s))},
+        camera_model=s.camera.model,
+        camera_free=tuple(s.camera.free),
+        cameras=s.camera.names,
+        camera_models=_camera_models(s),
+        per_camera_intrinsics=s.camera.own_intrinsics,
+        board=None if (board := scenario_board(s)) is None else target_document(board),
+    )
+
+
+def _camera_models(s: Scenario) -> tuple[tuple[str, tuple[str, ...]], ...] | None:
+    """(model, free) of each camera when they differ (``[camera.right]``), else None."""
+    kinds = tuple((c.model, tuple(c.free)) for c in map(s.camera.of, s.camera.names))
+    return kinds if len(set(kinds)) > 1 else None
+
+
+def _digested(s: Scenario) -> dict:
+    """The scenario as its dataset's digest sees it: ``noise.msaa`` at its default, an empty
+    ``target.board`` (the marker field), an empty ``camera.right`` and a zero ``camera.skew_px``
+    are left out, so a dataset acquired before the keys existed (with those defaults) still
+    resumes."""
+    d = scenario_to_dict(s)
+    if s.noise.msaa == NoiseConfig.msaa:
+        del d["noise"]["msaa"]
+    if not s.target.board:
+        del d["target"]["board"]
+    if not s.camera.right:
+        del d["camera"]["right"]
+    if s.camera.skew_px == CameraConfig.skew_px:
+        del d["camera"]["skew_px"]
+    return d
+
+
+def open_robot(
+    s: Scenario, out: Path, setup: SimSetup | None = None
+) -> tuple[Robot, AcquisitionHooks]:
+    """The scenario's robot and its simulator-only hooks (analytic detections, ground truth)."""
+    if s.robot.backend == "hardware":
+        return open_hardware_robot(s), AcquisitionHooks()
+
+    setup = setup or sim_setup(s)
+    # the analytic path needs no images: the MuJoCo-free simulator serves any serial arm
+    robot = make_sim_robot(s, setup) if s.noise.render else make_kinematic_robot(s, setup)
+    rig = robot.rig
+    truth = robot.truth(meta={"scenario": scenario_to_dict(s)})
+    truth_path = Path(out) / "truth.json"
+    journal = Path(out) / TRUTH_JOURNAL
+    if truth_path.is_file():
+        truth = dataclasses.replace(truth, frames=read_truth(truth_path).frames)
+    truth = with_journal(truth, journal)  # frames of a killed acquisition
+    write_truth(truth_path, truth)
+    journal.unlink(missing_ok=True)
+    rng = np.random.default_rng(s.noise.seed + 7919)
+    fld = setup.field
+    corners, normals = fld.corners_world(), fld.T_world_marker[:, :3, 2]
+
+    def record_truth(index: int) -> None:
+        nonlocal truth
+        truth = truth.with_frame(robot.truth_frame(), frame_index=index)
+        append_truth_frame(journal, truth.frames[-1])  # O(1); truth.json once, in finish()
+
+    def finish() -> None:
+        write_truth(truth_path, truth)
+        journal.unlink(missing_ok=True)
+
+    def detect() -> dict:
+        fr = robot.truth_frame()
+        out_ = {}
+        for cam, T, intr in (
+            ("left", fr["T_world_cam_left"], rig.intrinsics),
+            ("right", fr["T_world_cam_right"], rig.right),
+        ):
+            if setup.board is not None:  # a board's features: points, one id each
+                out_[cam] = project_board(
+                    np.asarray(T), intr, setup.board, setup.T_world_board,
+                    pixel_sigma=s.noise.pixel_sigma, rng=rng,
+                )  # fmt: skip
+                continue
+            out_[cam] = project_markers(
+                np.asarray(T),
+                intr,
+                fld.ids,
+                corners,
+                normals,
+                pixel_sigma=s.noise.pixel_sigma,
+                rng=rng,
+            )
+        return out_
+
+    hooks = AcquisitionHooks(
+        detect=None if s.noise.render else detect, record_truth=record_truth, finish=finish
+    )
+    return robot, hooks
+
+
+def make_sim_robot(s: Scenario, setup: SimSetup | None = None):
+    """The scenario's simulated actual robot (``selfcal.sim.sim_robot.SimRobot``): actual model, rig,
+    marker field, image noise and seeds as the scenario says."""
+    setup = setup or sim_setup(s)
+    rig = setup.rig()
+    return SimRobot(
+        setup.robot,
+        setup.actual,
+        rig,
+        setup.field,
+        image_sigma=s.noise.image_sigma,
+        seed=s.noise.seed,
+        quantize=s.noise.quantize_joints,
+        msaa=s.noise.msaa,
+        board=None if setup.board is None else (setup.board, setup.T_world_board),
+    )
+
+
+def robot_reference(model: str) -> str:
+    """What a dataset records as its robot for a scenario's ``[robot] model``: the model name, or
+    the robot file's absolute path (a path relative to the working directory would not be found
+    from the dataset folder, :attr:`selfcal.io.dataset.Dataset.robot_source`)."""
+    path = Path(model)
+    return str(path.resolve()) if path.suffix in (".toml", ".urdf") else model
+
+
+def make_kinematic_robot(s: Scenario, setup: SimSetup | None = None) -> KinematicRobot:
+    """The scenario's simulated actual robot for the analytic path
+    (:class:`selfcal.sim.kinematic_robot.KinematicRobot`: forward kinematics, no MuJoCo, no images)."""
+    setup = setup or sim_setup(s)
+    rig = setup.rig()
+    board = None if setup.board is None else (setup.board, setup.T_world_board)
+    return KinematicRobot(
+        setup.robot, setup.actual, rig, setup.field, quantize=s.noise.quantize_joints,
+        board=board,
+    )  # fmt: skip
+
+
+def render_posture(
+    robot: RobotDef, q: np.ndarray, out: Path, config: str | None = None, model: str | None = None
+) -> tuple[Path, Path]:
+    """Render the (nominal, unperturbed) robot's stereo pair at posture ``q`` (rad) into ``out``;
+    ``model``: what ``robot`` was loaded from (a name or a robot file; default its name)."""
+    s = load_scenario(config, overrides={"robot": {"model": model or robot.name}})
+    setup = sim_setup(s)
+    rig = setup.rig()
+    out.mkdir(parents=True, exist_ok=True)
+    board = None if setup.board is None else (setup.board, setup.T_world_board)
+    with SimRobot(robot, None, rig, setup.field, board=board) as sim:
+        sim.move_to(np.degrees(q))
+        pair = sim.capture()
+    paths = (out / "left.png", out / "right.png")
+    for p, img in zip(paths, (pair.left, pair.right)):
+        write_image_atomic(p, img)
+    return paths

@@ -1,0 +1,25 @@
+"""Blocks of generated text in README.md and docs/*.md, between ``<!-- NAME: begin -->`` and
+``<!-- NAME: end -->`` markers: the benchmark scripts rewrite them, nothing else does."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from selfcal.io.atomic import write_text_atomic
+
+__all__ = ["ROOT", "write_block"]
+
+ROOT = Path(__file__).resolve().parents[2]
+"""The repository's root (README.md and docs/ are in it)."""
+
+
+def write_block(path: Path, block: str, name: str = "benchmark_speed") -> None:
+    """Replace what stands between ``<!-- NAME: begin -->`` and ``<!-- NAME: end -->`` in
+    ``path`` by ``block``; no markers is an error naming the file."""
+    begin, end = f"<!-- {name}: begin -->", f"<!-- {name}: end -->"
+    text = path.read_text()
+    if begin not in text or end not in text:
+        raise SystemExit(f"{path}: no {begin} ... {end} markers to write between")
+    head, rest = text.split(begin, 1)
+    tail = rest.split(end, 1)[1]
+    write_text_atomic(path, f"{head}{begin}\n{block}\n{end}{tail}")

@@ -1,0 +1,188 @@
+"""Cramer-Rao bounds of the known-board route (:func:`selfcal.calibration.board.robot.calibrate_robot_with_board`).
+
+The bound is the Fisher information of that route's one-step refinement, evaluated at given
+values (the truth in a Monte Carlo, the estimate in a report): every camera's free parameters,
+every minimal MCPC parameter of the chain in the board frame (tool = the first camera), each
+further camera's pose in the first camera's frame, and -- with ``joint_sigma`` -- every frame's
+joint corrections under their zero-mean Gaussian prior (the read-back's errors); the board's
+points are known (no scale gauge, no known distance). Corner noise: Gaussian, ``pixel_sigma_px``
+per coordinate. No parameter is held, so the bound is that of the full model (the refinement
+holds only what the data cannot determine, where the bound is infinite).
+
+The tool tip's bound is the RMS over postures after the best rigid alignment, as the report
+measures it (:func:`selfcal.estimation.joint_report.aligned_tool_rms_bound`). Units: SI inside;
+camera parameters in px (or unitless) by OpenCV name.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from selfcal.camera import CameraModel
+from selfcal.camera.camera_set import std_by_name
+from selfcal.estimation.bundle_adjust import _Problem as _AdjustmentProblem
+from selfcal.estimation.joint_report import aligned_tool_rms_bound
+from selfcal.estimation.kinematic_poses import KinematicPoses
+from selfcal.estimation.reprojection import ReprojectionBlock
+from selfcal.estimation.residuals import GaussianPriorBlock
+from selfcal.io.board_calibration import BoardBounds, BoardCalibrationResult, CameraBounds
+from selfcal.io.calibration_bounds import BoundParameter, ToolTipBound
+from selfcal.kinematics.mcpc import MCPCModel, minimal_indices, param_is_angle, param_names
+from selfcal.solver import Loss, ParameterBlock, ResidualBlock, covariance
+from selfcal.target.base import Features
+from selfcal.target.boards import Board
+from selfcal.transforms import inv_pose
+
+__all__ = ["BoardCramerRao", "board_cramer_rao", "bounds_block"]
+
+
+@dataclass(frozen=True, eq=False)
+class BoardCramerRao:
+    """The bounds of :func:`board_cramer_rao`: ``model`` (the chain they were evaluated at,
+    world = board frame), ``covariance`` (k, k) of its minimal parameters (SI, the order of
+    :func:`selfcal.kinematics.mcpc.minimal_indices`), ``camera_std`` every camera's free parameters' bound
+    (px or unitless, by name), the noise level and the counts."""
+
+    model: MCPCModel
+    covariance: np.ndarray
+    camera_std: tuple[dict[str, float], ...]
+    pixel_sigma_px: float
+    observations: int
+    unknowns: int
+
+    def aligned_tool_rms(self, q: np.ndarray, T_cam_tip: np.ndarray) -> float:
+        """The bound (m) of the RMS error of the point ``T_cam_tip`` (first camera -> tip, m)
+        over the postures ``q`` (k, n) rad after the best rigid alignment."""
+        return aligned_tool_rms_bound(self, np.asarray(q, dtype=float), T_cam_tip)  # type: ignore[arg-type]
+
+    def parameter_std(self) -> dict[str, float]:
+        """Every minimal parameter's bound by name (m or rad)."""
+        names = param_names(minimal_indices(self.model.joint_types))
+        return dict(zip(names, np.sqrt(np.clip(np.diag(self.covariance), 0, None)).tolist()))
+
+
+def board_cramer_rao(
+    board: Board,
+    cameras: Sequence[CameraModel],
+    model: MCPCModel,
+    q: np.ndarray,
+    features: Sequence[Sequence[Features]],
+    pixel_sigma_px: float,
+    *,
+    joint_sigma: float | np.ndarray | None = None,
+    T_first_cam: np.ndarray | None = None,
+) -> BoardCramerRao:
+    """The bounds of the board refinement (module docstring) with ``cameras`` (the first is the
+    chain's tool; each with its ``free`` parameters), the chain ``model`` (world = board frame)
+    at the joints ``q`` (m, n) rad, ``features[c][i]`` camera ``c``'s board features in frame
+    ``i`` (px), ``T_first_cam`` (N, 4, 4) every camera's pose in the first camera's frame (m;
+    None for one camera) and ``joint_sigma`` (rad / m, scalar or (n,); None: exact read-back).
+
+    Raises:
+        ValueError: the feature lists do not match the cameras or the frames.
+    """
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    n_cams, m = len(cameras), len(q)
+    if len(features) != n_cams or any(len(f) != m for f in features):
+        raise ValueError(f"give one feature list of {m} frames per camera ({n_cams} cameras)")
+    T_rigs = np.zeros((0, 4, 4)) if n_cams == 1 else inv_pose(np.asarray(T_first_cam)[1:])
+    idx = minimal_indices(model.joint_types)
+    poses = KinematicPoses(model, q, idx, T_rigs, np.ones(m, bool),
+                           joint_corrections=joint_sigma is not None)  # fmt: skip
+    obs = []
+    for c, fc in enumerate(features):
+        frame = np.concatenate([np.full(len(f), i) for i, f in enumerate(fc)]).astype(int)
+        obs.append((poses.layout.view(frame, c), np.concatenate([f.ids for f in fc]),
+                    np.concatenate([f.uv for f in fc]).reshape(-1, 2)))  # fmt: skip
+    ids = np.unique(np.concatenate([o[1] for o in obs]))
+    extra: list[ResidualBlock] = []
+    extra_params: list[ParameterBlock] = []
+    for c in range(1, n_cams):
+        v_c, f_c, uv_c = obs[c]
+        extra.append(ReprojectionBlock(cameras[c], poses, v_c, np.searchsorted(ids, f_c), uv_c,
+                                       Loss("linear"), name=f"reprojection{c}",
+                                       intrinsics=f"intrinsics{c}"))  # fmt: skip
+        extra_params.append(ParameterBlock(f"intrinsics{c}", cameras[c].free_values()))
+    if joint_sigma is not None:
+        js = np.broadcast_to(np.asarray(joint_sigma, dtype=float), (model.n,))
+        extra.append(GaussianPriorBlock("poses", poses.dq_cols, np.tile(pixel_sigma_px / js, m)))
+    x0 = np.concatenate([cameras[0].free_values(), poses.initial_params()])
+    view, feat0, uv = obs[0]
+    prob = _AdjustmentProblem(
+        cameras[0], poses, view, np.searchsorted(ids, feat0), uv, len(ids), loss=Loss("linear"),
+        x0=x0, extra=extra, fixed_points=board.points(ids), extra_params=extra_params,
+    )  # fmt: skip
+    blocks: list = ["intrinsics", *(f"intrinsics{c}" for c in range(1, n_cams))]
+    C = covariance(prob.problem, prob.problem.x0, [*blocks, ("poses", np.arange(poses.k))],
+                   sigma2=pixel_sigma_px**2)  # fmt: skip
+    stds, at = [], 0
+    for cam in cameras:
+        block = slice(at, at + cam.n_free)
+        stds.append(std_by_name(cam, C[block, block]))  # with fy = mu fx by OpenCV's name
+        at += cam.n_free
+    n_obs = sum(len(o[1]) for o in obs)
+    return BoardCramerRao(model, C[at:, at:], tuple(stds), float(pixel_sigma_px), int(n_obs),
+                       int(prob.problem.n))  # fmt: skip
+
+
+def bounds_block(
+    board: Board,
+    cal: BoardCalibrationResult,
+    features: Sequence[Sequence[Features]],
+    q: np.ndarray,
+    q_valid: np.ndarray,
+    T_cam_tip: np.ndarray,
+    *,
+    joint_sigma: np.ndarray | None,
+    pixel_sigma_px: float | None = None,
+) -> BoardBounds:
+    """``calibration.json``'s ``bounds`` of the board calibration ``cal``: :func:`board_cramer_rao`
+    at its estimate (cameras, chain, extrinsics) for the features ``features[c][i]`` of the
+    frames it used at their read-back joints ``q`` (m, n) rad; the tool tip ``T_cam_tip`` over
+    the postures ``q_valid`` (k, n) rad (the calibration's own when none). ``pixel_sigma_px``:
+    the corner noise (None: from the final fit's reprojection RMS, dof-corrected).
+
+    Raises:
+        numpy.linalg.LinAlgError: the Fisher information cannot be inverted.
+    """
+    n_cams = len(cal.cameras)
+    if pixel_sigma_px is None:
+        n_obs = sum(len(f) for fc in features for f in fc)
+        p = sum(c.n_free for c in cal.cameras) + minimal_indices(cal.model.joint_types).size
+        p += 6 * (n_cams - 1)
+        dof = max(2 * n_obs - p, 1)
+        pixel_sigma_px = float(cal.reprojection_rms_px * np.sqrt(n_obs / dof))
+    b = board_cramer_rao(board, cal.cameras, cal.model, q, features, pixel_sigma_px,
+                         joint_sigma=joint_sigma, T_first_cam=cal.T_first_cam)  # fmt: skip
+    qv = np.atleast_2d(np.asarray(q_valid, dtype=float))
+    if qv.size == 0:  # an imported dataset plans no validation postures: the calibration's own
+        qv = q
+    idx = minimal_indices(cal.model.joint_types)
+    ang = param_is_angle(idx)
+    std = np.sqrt(np.clip(np.diag(b.covariance), 0, None))
+    params = tuple(
+        BoundParameter(
+            name=n,
+            unit="deg" if a else "mm",
+            estimate=float(cal.model.params.reshape(-1)[k] * (180.0 / np.pi if a else 1000.0)),
+            std=None,
+            bound=float(s * (180.0 / np.pi if a else 1000.0)),
+            held=n in cal.held,
+        )  # fmt: skip
+        for n, k, a, s in zip(param_names(idx), idx, ang, std, strict=True)
+    )
+    js = None if joint_sigma is None else np.broadcast_to(joint_sigma, (cal.model.n,))
+    return BoardBounds(
+        pixel_sigma_px=pixel_sigma_px,
+        joint_sigma_deg=None if js is None else tuple(float(x) for x in np.degrees(js)),
+        observations=b.observations,
+        unknowns=b.unknowns,
+        tool_tip_rms_mm=ToolTipBound(1000.0 * b.aligned_tool_rms(qv, T_cam_tip), int(len(qv))),
+        cameras=tuple(
+            CameraBounds(n, d) for n, d in zip(cal.camera_names, b.camera_std, strict=True)
+        ),
+        parameters=params,
+    )

@@ -1,0 +1,365 @@
+"""A dataset whose target is a board: detection per image and the robot calibration with it.
+
+``selfcal calibrate`` dispatches here when ``dataset.json``'s target is a board (chessboard,
+ChArUco, circles, AprilGrid). Every image of the first camera is read and searched with the
+target's detector (:meth:`selfcal.target.Target.detect`); images without the board are named,
+counted and skipped by :func:`selfcal.calibration.board.calibrate.calibrate_board` (an error when too few
+remain); :func:`selfcal.calibration.board.robot.calibrate_robot_with_board` then estimates the camera (the
+model and free parameters dataset.json declares, e.g. OpenCV's lens model), hand-eye, board pose
+and the kinematic parameters the data support (:mod:`selfcal.calibration.board.param_selection`; scale from the
+board, no known distance). With several cameras
+(:func:`selfcal.calibration.board.rig.calibrate_board_rig` gives their start) every camera's model and pose in
+the first camera's frame join that refinement. The reference of
+``selfcal evaluate`` -- the fair nominal: the nominal kinematics with the hand-eye, the board
+pose and the cameras fitted by the same objective (:mod:`selfcal.calibration.board.nominal_fit`) -- is stored
+beside. Nothing here reads truth.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import warnings
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from selfcal.calibration.board.bounds import bounds_block
+from selfcal.calibration.board.calibrate import BoardInputError, calibrate_board
+from selfcal.calibration.board.rig import calibrate_board_rig
+from selfcal.calibration.board.robot import BoardRobotCalibration, calibrate_robot_with_board
+from selfcal.calibration.frame_checks import (
+    UnusedFramesWarning,
+    check_distinct_frames,
+    unused_frames_message,
+)
+from selfcal.calibration.identify import IdentificationError
+from selfcal.calibration.row_shift import row_shift_misfits, shift_note
+from selfcal.calibration.scale_check import check_scale, motion_scale, scale_warning, scaled_sizes
+from selfcal.errors import EstimationError, SelfCalError, SelfCalWarning
+from selfcal.estimation.joint_report import encoder_sigma
+from selfcal.io.board_calibration import BoardCalibrationResult
+from selfcal.io.dataset import Dataset, DatasetError, read_gray
+from selfcal.io.target_toml import parse_target
+from selfcal.kinematics.forward import fk_tool
+from selfcal.kinematics.mcpc import minimal_indices, nominal_mcpc, param_names
+from selfcal.robot.definition import RobotDef, load_robot
+from selfcal.target.base import Features
+from selfcal.target.boards import Board
+from selfcal.transforms import inv_pose
+
+__all__ = [
+    "MIN_FRAMES",
+    "READBACK_RATIO",
+    "ReadbackWarning",
+    "dataset_board",
+    "detect_board",
+    "BoardDatasetCalibration",
+    "calibrate_board_dataset",
+    "calibrate_board_dataset_detailed",
+    "chain_param_names",
+]
+
+
+MIN_FRAMES = 6
+"""Fewest frames that show the board for a calibration (``selfcal import`` takes any number:
+a held-out set for ``selfcal evaluate`` may have one)."""
+
+READBACK_RATIO = 1.5
+"""The robot's fit RMS over the camera-only fit's (a free pose per image) beyond which joint
+readings taken as exact are named: 1.01-1.02 with exact readings, 2.8-2.9 with 0.003 deg of
+read-back noise on a stranger's 6-axis data (1920x1200 and 2448x2048 cameras)."""
+
+
+CAMERA_FIT_PX = 0.35
+"""The camera-only fit's RMS (px) below which its camera model fits the images (board detectors
+give 0.02-0.3 px; a pinhole fitted to the test's k1 = -0.2 lens 0.475 px), so that a worse fit
+with the robot points at the joint readings."""
+
+
+class ReadbackWarning(SelfCalWarning):
+    """Joint readings taken as exact do not place the camera to the pixels' precision."""
+
+
+def dataset_board(ds: Dataset) -> Board:
+    """The board ``ds`` declares (DatasetError when its target is the field)."""
+    if ds.info.board is None:
+        raise DatasetError(f"{ds.root}: the dataset's target is the ArUco field, not a board")
+    board = parse_target(ds.info.board, f"{ds.root / 'dataset.json'}: target")
+    assert isinstance(board, Board)
+    return board
+
+
+def detect_board(ds: Dataset, board: Board, camera: str) -> tuple[list[Features], list[str]]:
+    """The board's features in ``camera``'s image of every frame (in ``ds.indices`` order) and
+    the images' file names (for messages); of a dataset of stored detections (the analytic
+    path, :meth:`selfcal.io.dataset.Dataset.read_features`) the stored features and the frames.
+
+    Raises:
+        DatasetError: a missing or unreadable image, or one whose size is not dataset.json's
+            (the message names the file).
+    """
+    if ds.info.observation == "detections":  # the analytic path: the features as stored
+        seen = ds.read_features()
+        feats = []
+        for i in ds.indices.tolist():
+            got = seen.get((int(i), camera), {})
+            ids = np.fromiter(got, dtype=np.int64, count=len(got))
+            feats.append(Features(ids, np.array([got[j][0] for j in ids.tolist()]).reshape(-1, 2)))
+        return feats, [f"frame {int(i):04d} ({camera})" for i in ds.indices]
+    W, H = ds.info.resolution_of(camera)
+    k = ds.info.cameras.index(camera)
+    paths = [(int(i), ds.frame_paths(int(i))[k]) for i in ds.indices]
+
+    def detect(item: tuple[int, Path]) -> Features:
+        index, path = item
+        img = read_gray(path, index)
+        if img.shape[1] != W or img.shape[0] != H:
+            raise DatasetError(
+                f"{path}: {img.shape[1]}x{img.shape[0]} px but dataset.json gives camera "
+                f"{camera} {W}x{H} px",
+                fix="give every image of one camera the same size (the camera's native one)",
+            )
+        return board.detect(img)
+
+    # OpenCV releases the GIL while decoding and detecting: use every core, keep the order.
+    with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
+        feats = list(pool.map(detect, paths))
+    return feats, [p.name for _, p in paths]
+
+
+@dataclass(frozen=True, eq=False)
+class BoardDatasetCalibration:
+    """:func:`calibrate_board_dataset_detailed`: the ``result`` (calibration.json), the route's
+    own ``fit`` (its stages: the camera stage, the two-stage identification), every camera's
+    ``features`` of every frame (``ds.indices`` order) and the frames' read-back ``q`` (m, n)
+    rad."""
+
+    result: BoardCalibrationResult
+    fit: BoardRobotCalibration
+    features: tuple[list[Features], ...]
+    q: np.ndarray
+
+
+def calibrate_board_dataset(
+    root: str | Path,
+    *,
+    allow_missing_frames: bool = False,
+    joint_sigma: float | np.ndarray | None = None,
+) -> BoardCalibrationResult:
+    """Calibrate camera, hand-eye, board pose and kinematics from the board dataset in ``root``
+    (module docstring) and the Cramer-Rao bounds at the estimate (:mod:`selfcal.calibration.board.bounds`;
+    ``bounds_error`` says why none). SI inside; the result is written by
+    :func:`selfcal.io.board_calibration.write_board_calibration`. ``allow_missing_frames``: see
+    :meth:`selfcal.io.dataset.Dataset.check_complete`. ``joint_sigma``: the standard deviation of
+    a joint reading (rad / m, one value or one per joint; default the robot file's encoder
+    resolution, :func:`selfcal.estimation.joint_report.encoder_sigma`): the read-back errors are
+    then estimated with the rest (errors in variables), where readings taken as exact bias the
+    camera.
+
+    Raises: as :func:`calibrate_board_dataset_detailed`.
+    """
+    return calibrate_board_dataset_detailed(
+        root, allow_missing_frames=allow_missing_frames, joint_sigma=joint_sigma
+    ).result
+
+
+def calibrate_board_dataset_detailed(
+    root: str | Path,
+    *,
+    allow_missing_frames: bool = False,
+    joint_sigma: float | np.ndarray | None = None,
+) -> BoardDatasetCalibration:
+    """:func:`calibrate_board_dataset` with what it was computed from (the Monte Carlo's view).
+
+    Raises:
+        DatasetError: missing or damaged dataset files, or
+            frames that are copies of each other (:mod:`selfcal.calibration.frame_checks`).
+        selfcal.calibration.board.calibrate.BoardInputError / BoardMismatchError: too few images show the board,
+            or its declared geometry does not match the detections.
+        selfcal.calibration.identify.IdentificationError, EstimationError: data that cannot determine it.
+    """
+    ds = Dataset.open(root)
+    incomplete = ds.check_complete(allow_missing=allow_missing_frames)
+    cam = ds.info.cameras[0]
+    robot = load_robot(ds.robot_source)
+    js = (encoder_sigma(robot) if joint_sigma is None
+          else np.broadcast_to(np.asarray(joint_sigma, dtype=float), (robot.n,)))  # fmt: skip
+    board = dataset_board(ds)
+    feats, names = detect_board(ds, board, cam)
+    shown = sum(len(f) >= board.min_features for f in feats)
+    if shown < MIN_FRAMES:
+        raise BoardInputError(
+            f"the {board.describe()} is found in {shown} of {len(feats)} frames of {ds.root}; "
+            f"calibration needs at least {MIN_FRAMES}",
+            fix="add images that show the whole board (a smaller set can be held out: "
+            "`selfcal evaluate CALIBRATION HELD_OUT`)",
+        )
+    seen = {(int(i), cam): dict(zip(f.ids.tolist(), f.uv)) for i, f in zip(ds.indices, feats)}
+    check_distinct_frames(ds.indices, ds.joints_deg, seen, (cam,), str(ds.root))
+    rig, others = None, []
+    if len(ds.info.cameras) > 1:  # every camera its own model; the extrinsics to the first
+        others = [detect_board(ds, board, c) for c in ds.info.cameras[1:]]
+        detected = [(feats, names), *others]
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", SelfCalWarning)  # named again below for camera 0
+            rig = calibrate_board_rig(
+                board, [d[0] for d in detected],
+                [ds.info.resolution_of(c) for c in ds.info.cameras],
+                [ds.info.model_of(c)[0] for c in ds.info.cameras],
+                [ds.info.model_of(c)[1] for c in ds.info.cameras], names=[d[1] for d in detected],
+                initials=[ds.info.initial_camera(c) for c in ds.info.cameras],
+            )  # fmt: skip
+    model_name, free = ds.info.model_of(cam)
+    nominal = nominal_mcpc(robot).with_tool(robot.T_flange_cam)
+    q = np.radians(ds.joints_deg)
+    W, H = ds.info.resolution_of(cam)
+
+    def pairing_check(what: str) -> None:
+        """The data check when a fit fails: an error naming a row shift if the data show one."""
+        found = _data_notes(ds, board, feats, names, robot, W, H, model_name, free)
+        if found:
+            note = "; ".join(found)
+            raise IdentificationError(
+                f"{ds.root}: the camera poses the board gives do not fit one robot: {what}; {note}",
+                fix=f"check that every joints row belongs to its image ({ds.root}/sources.csv "
+                "names each frame's file), the target's sizes and that --robot is this arm",
+            )
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            res = calibrate_robot_with_board(
+                board,
+                feats,
+                q,
+                nominal,
+                W,
+                H,
+                names=names,
+                joint_sigma=js,
+                free=free,
+                model=model_name,
+                initial=ds.info.initial_camera(cam),
+                rig=rig,
+                rig_features=[o[0] for o in others],
+            )
+        except EstimationError as exc:
+            pairing_check(exc.message)
+            raise type(exc)(
+                f"{ds.root}: {exc.message}; the checks of the data (rows paired with their "
+                "images, the target's scale against the arm's) found nothing wrong",
+                fix=exc.fix,
+            ) from exc
+    notes = list(incomplete)
+    if res.identification_error is not None:  # a data check first: rows paired with images
+        pairing_check(res.identification_error)
+        notes.append(
+            f"the two-stage identification failed ({res.identification_error}); no row shift "
+            "shows in the data, so the fits started from the fair nominal instead"
+        )
+    used = res.used
+    sel = res.selection
+    assert sel is not None and res.nominal is not None
+    notes += sel.notes
+    sizes = {k: float(v) for k, v in (ds.info.board or {}).items() if k.endswith("_mm")}
+    # the camera poses of the calibrated chain: they fit the images with the final camera
+    notes += check_scale(robot, q[used], fk_tool(res.model, q[used]),
+                         f"the board ({scaled_sizes(sizes, 1.0)})",
+                         lambda s: f"{scaled_sizes(sizes, s)} would match the arm")  # fmt: skip
+    camera_fits = res.board.rms_px < CAMERA_FIT_PX  # else the camera model misfits: said apart
+    if js is None and camera_fits and res.rms_px > READBACK_RATIO * res.board.rms_px:
+        text = (
+            f"the robot's fit leaves {res.rms_px:.3f} px RMS where the camera with a free pose "
+            f"per image fits {res.board.rms_px:.3f} px ({res.rms_px / res.board.rms_px:.1f}x): "
+            f"the joint readings do not place the camera to the pixels' precision, and the "
+            f"calibration takes them as exact ({robot.name} states no encoder resolution), "
+            "which biases the camera and the kinematics beyond their sigmas; give the read-back "
+            "noise of the controller (selfcal calibrate --joint-sigma-deg, e.g. 0.003) so the "
+            "fit estimates the reading errors, or look for a robot model that misfits"
+        )
+        notes.append(text)
+        warnings.warn(text, ReadbackWarning, stacklevel=2)
+    unused = unused_frames_message(ds.indices, np.flatnonzero(used), res.board.skipped)
+    if unused:
+        notes.append(unused)
+        warnings.warn(unused, UnusedFramesWarning, stacklevel=2)
+    for w in caught:
+        if issubclass(w.category, SelfCalWarning):
+            notes.append(str(w.message))
+        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    if not np.isfinite(res.model.params).all():
+        raise EstimationError("the board calibration gave non-finite parameters")
+    result = BoardCalibrationResult(
+        robot_model=ds.info.robot_model,
+        target=dict(ds.info.board or {}),
+        camera_names=tuple(ds.info.cameras),
+        cameras=res.cameras,
+        camera_std=res.cameras_std,
+        T_first_cam=None if rig is None else res.T_first_cam,
+        model=res.model,
+        nominal_model=res.nominal.model,
+        nominal_cameras=res.nominal.cameras,
+        nominal_T_first_cam=None if rig is None else res.nominal.T_first_cam,
+        nominal_rms_px=res.nominal.rms_px,
+        selection=sel.to_json(),
+        reprojection_rms_px=res.rms_px,
+        frames=len(ds.indices),
+        frames_used=int(used.sum()),
+        skipped_images=res.board.skipped,
+        held=res.held,
+        warnings=tuple(dict.fromkeys(notes)),
+    )
+    all_feats = (feats, *(o[0] for o in others))
+    k = np.flatnonzero(used).tolist()
+    try:
+        bounds = bounds_block(
+            board, result, [[fc[i] for i in k] for fc in all_feats], q[used],
+            np.radians(ds.info.validation_joints_deg), inv_pose(robot.T_flange_cam),
+            joint_sigma=js,
+        )  # fmt: skip
+        result = dataclasses.replace(result, bounds=bounds)
+    except np.linalg.LinAlgError as exc:
+        text = f"the Fisher information cannot be inverted ({exc})"
+        result = dataclasses.replace(
+            result, bounds_error=text, warnings=(*result.warnings, f"no Cramer-Rao bound: {text}")
+        )
+    return BoardDatasetCalibration(result, res, all_feats, q)
+
+
+def _data_notes(ds: Dataset, board: Board, feats: list[Features], names: list[str],
+                robot: RobotDef, W: int, H: int, model: str,
+                free: tuple[str, ...]) -> list[str]:  # fmt: skip
+    """Why the poses fit no robot, when a data check shows it: the pairing of rows and images
+    (:mod:`selfcal.calibration.row_shift`) or the target's scale against the arm's
+    (:mod:`selfcal.calibration.scale_check`), from each image's pose by the camera's own calibration; one
+    sentence a finding, none when the checks pass (or cannot run)."""
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", SelfCalWarning)
+            cb = calibrate_board(board, feats, W, H, free=free, model=model, names=names)
+    except SelfCalError:
+        return []
+    T = np.where(cb.used[:, None, None], inv_pose(cb.T_cam_board), np.nan)
+    q = np.radians(ds.joints_deg)
+    misfits = row_shift_misfits(nominal_mcpc(robot), q, T, robot.T_flange_cam)
+    shift = shift_note(misfits, f"{ds.root}/joints.csv")
+    if shift is not None:
+        return [shift]  # a wrong pairing also spoils the scale: that one first
+    sizes = {k: float(v) for k, v in (ds.info.board or {}).items() if k.endswith("_mm")}
+    if int(cb.used.sum()) < 3:
+        return []
+    ms = motion_scale(nominal_mcpc(robot), q[cb.used], T[cb.used], robot.T_flange_cam)
+    scale = scale_warning(ms, robot.name, f"the board ({scaled_sizes(sizes, 1.0)})",
+                          f"{scaled_sizes(sizes, ms.scale)} would match the arm")  # fmt: skip
+    return [] if scale is None else [scale]
+
+
+def chain_param_names(joint_types: tuple[str, ...]) -> tuple[str, ...]:
+    """The minimal parameters of the joints' chain: all but the base (row 0) and the tool
+    (row n), i.e. what a nominal model keeps at the drawing's values."""
+    n = len(joint_types)
+    idx = minimal_indices(joint_types)
+    return tuple(param_names(np.array([k for k in idx if k // 6 not in (0, n)])))

@@ -1,0 +1,272 @@
+"""The held-out check of a board calibration: ``selfcal evaluate CALIBRATION_DIR DATASET2``.
+
+Every feature the target's detector finds in every camera's images of DATASET2 is predicted from
+the frame's joint readings alone: ``uv = camera_c(inv(T_first_cam[c]) inv(fk(model, q)) X)``
+with ``X`` the board point (board frame = the calibration's world), ``model`` the calibrated
+kinematics (hand-eye and board pose included; its tool is the first camera), ``camera_c`` and
+``T_first_cam[c]`` camera ``c``'s model and its pose in the first camera's frame, all from the
+calibration -- nothing is re-fitted. The same with the calibration's fair nominal (the nominal
+kinematics with hand-eye, board pose and cameras fitted on the calibration data by the
+calibration's own objective, :mod:`selfcal.calibration.board.nominal_fit`, with its own cameras and extrinsics).
+Result: the 2-D reprojection RMS (px) of both, overall, per camera and
+per image (``evaluation.json``). The board must not have moved between the two datasets (its
+pose is part of the model).
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from selfcal.calibration.board.dataset import dataset_board, detect_board
+from selfcal.errors import InputError, SelfCalWarning
+from selfcal.io.board_calibration import BoardCalibrationResult
+from selfcal.io.dataset import Dataset
+from selfcal.io.jsonfile import SCHEMA_KEY, Fields, check_header, load_json, write_json_atomic
+from selfcal.kinematics.forward import fk_tool
+from selfcal.kinematics.mcpc import MCPCModel
+from selfcal.transforms import inv_pose
+
+__all__ = [
+    "EVAL_FORMAT",
+    "Evaluation",
+    "evaluate_board",
+    "rms_px",
+    "read_evaluation",
+    "shared_postures",
+    "write_evaluation",
+]
+
+EVAL_FORMAT = "scorbot-selfcal-evaluation"
+SAME_POSTURE_DEG = 1e-4
+"""Joint readings this close (deg or mm, every joint) are one posture (:func:`shared_postures`)."""
+SAME_RMS = 1e-6
+"""Relative difference of two RMS at or below which they are the same figure (a model written
+in another gauge predicts the same pixels to about 1e-9)."""
+
+
+class EvaluationWarning(SelfCalWarning):
+    """Held-out images without the board (named and counted; they are left out), or held-out
+    postures the calibration itself used."""
+
+
+def shared_postures(calibration_deg: np.ndarray, held_out_deg: np.ndarray) -> int:
+    """How many rows of ``held_out_deg`` (m, n) are postures of ``calibration_deg`` (k, n), every
+    joint within :data:`SAME_POSTURE_DEG` (deg, mm for a prismatic joint): a held-out check on
+    them measures the fit, not the prediction."""
+    a = np.asarray(calibration_deg, dtype=float).reshape(-1, np.shape(held_out_deg)[-1])
+    b = np.asarray(held_out_deg, dtype=float)
+    if not len(a) or not len(b):
+        return 0
+    close = np.all(np.abs(b[:, None, :] - a[None, :, :]) <= SAME_POSTURE_DEG, axis=2)
+    return int(np.count_nonzero(close.any(axis=1)))
+
+
+@dataclass(frozen=True)
+class Evaluation:
+    """``rms`` by model (``nominal``, ``calibrated``) over every feature of every camera (px,
+    2-D); ``images``: per image its file, frame index, ``camera``, feature count and RMS by model;
+    ``skipped``: images without the target; ``cameras``: per camera name (in the rig's order) its
+    ``images``, ``features`` and ``reprojection_rms_px`` by model; ``residuals``: by model,
+    every feature's predicted - detected (k, 2) px in the order of ``images`` (not written to
+    ``evaluation.json``; figures draw them)."""
+
+    rms: dict[str, float]
+    images: tuple[dict, ...]
+    skipped: tuple[str, ...]
+    dataset: str
+    calibration: str
+    residuals: dict[str, np.ndarray] = field(default_factory=dict, compare=False, repr=False)
+    cameras: dict[str, dict] = field(default_factory=dict)
+
+    @classmethod
+    def of(
+        cls,
+        rows: list[dict],
+        errors: list[dict[str, np.ndarray]],
+        skipped: tuple[str, ...],
+        dataset: str,
+        calibration: str,
+    ) -> Evaluation:
+        """The evaluation of the images ``rows`` (each with ``camera`` and ``features``) whose
+        residuals by model are ``errors`` (one dict per row, (k, 2) px): overall, per camera
+        (in the order the cameras first appear) and per image RMS."""
+        models = tuple(errors[0]) if errors else ()
+        res = {k: np.concatenate([e[k] for e in errors]) for k in models}
+        per_cam: dict[str, dict] = {}
+        for cam in dict.fromkeys(r["camera"] for r in rows):
+            mine = [e for r, e in zip(rows, errors, strict=True) if r["camera"] == cam]
+            per_cam[cam] = {
+                "images": len(mine),
+                "features": sum(len(e[models[0]]) for e in mine),
+                "reprojection_rms_px": {k: rms_px(np.concatenate([e[k] for e in mine]))
+                                        for k in models},
+            }  # fmt: skip
+        rms = {k: rms_px(v) for k, v in res.items()}
+        return cls(rms, tuple(rows), skipped, dataset, calibration, res, per_cam)
+
+    @property
+    def failures(self) -> tuple[str, ...]:
+        """The held-out check failed: the calibrated model predicts worse than the nominal one
+        (one sentence), else empty (#15)."""
+        cal, nom = self.rms.get("calibrated", np.nan), self.rms.get("nominal", np.nan)
+        if not cal > nom * (1 + SAME_RMS):  # equal: the calibration is the nominal (NO GAIN)
+            return ()
+        return (
+            f"the calibrated model predicts the held-out images of {self.dataset} worse than the "
+            f"nominal model ({cal:.3f} px RMS against {nom:.3f} px): the calibration is wrong "
+            "for this robot and camera (see its failures and warnings), or the two datasets do "
+            "not show the same robot, camera and target",
+        )
+
+    def to_json(self) -> dict:
+        return {
+            "format": EVAL_FORMAT,
+            SCHEMA_KEY: 1,
+            "calibration": self.calibration,
+            "dataset": self.dataset,
+            "status": "failed" if self.failures else "ok",
+            "failures": list(self.failures),
+            "reprojection_rms_px": dict(self.rms),
+            "cameras": {k: dict(v) for k, v in self.cameras.items()},
+            "images": list(self.images),
+            "skipped_images": list(self.skipped),
+        }
+
+    def line(self) -> str:
+        """The one line ``selfcal evaluate`` prints (with each camera's calibrated RMS when
+        there are several), saying when the calibrated model is no gain over the nominal."""
+        n = sum(i["features"] for i in self.images)
+        out = (
+            f"held-out reprojection RMS over {n} features in {len(self.images)} images: nominal "
+            f"{self.rms['nominal']:.3f} px, calibrated {self.rms['calibrated']:.3f} px"
+        )
+        cal, nom = self.rms["calibrated"], self.rms["nominal"]
+        if not cal < nom * (1 - SAME_RMS):
+            out += (
+                "; NO GAIN: the calibrated model predicts no better than the nominal"
+                if cal <= nom * (1 + SAME_RMS)
+                else "; WORSE than the nominal"
+            )
+        if len(self.cameras) > 1:
+            out += (
+                " (calibrated by camera: "
+                + ", ".join(
+                    f"{c} {v['reprojection_rms_px']['calibrated']:.3f} px"
+                    for c, v in self.cameras.items()
+                )
+                + ")"
+            )
+        return out
+
+
+def rms_px(e: np.ndarray) -> float:
+    """2-D RMS (px) of residuals (k, 2)."""
+    return float(np.sqrt(np.mean(np.sum(e**2, axis=-1))))
+
+
+def evaluate_board(cal: BoardCalibrationResult, cal_where: str, root: str | Path) -> Evaluation:
+    """Predict DATASET2 (``root``) with ``cal`` (module docstring): every camera of DATASET2,
+    each with its calibrated model and extrinsics.
+
+    Raises:
+        InputError: the datasets' robot, target or cameras do not match the calibration's (a
+            camera the calibration does not hold, another image size), or no image of DATASET2
+            shows the board.
+    """
+    ds = Dataset.open(root)
+    board = dataset_board(ds)
+    if ds.info.board != cal.target:
+        raise InputError(
+            f"{ds.root}: target {ds.info.board} differs from the calibration's {cal.target}",
+            fix="evaluate on a dataset of the same board (import it with the same --target)",
+        )
+    T_first = np.eye(4)[None] if cal.T_first_cam is None else np.asarray(cal.T_first_cam)
+    cams = {n: (cal.cameras[k], T_first[k]) for k, n in enumerate(cal.camera_names)}
+    nom_cams, nom_T = cal.nominal_camera_set
+    nom_T = np.eye(4)[None] if nom_T is None else np.asarray(nom_T)
+    by_model = {"nominal": {n: (nom_cams[k], nom_T[k]) for k, n in enumerate(cal.camera_names)},
+                "calibrated": cams}  # fmt: skip
+    for cam_name in ds.info.cameras:
+        if cam_name not in cams:
+            raise InputError(
+                f"{ds.root}: camera {cam_name!r} is not one of the calibrated cameras "
+                f"{list(cal.camera_names)}",
+                fix="import the held-out images under the calibrated cameras' names ("
+                + ", ".join(f"--images '{c}=...'" for c in cal.camera_names)
+                + ")",
+            )
+        camera = cams[cam_name][0]
+        if ds.info.resolution_of(cam_name) != (camera.width, camera.height):
+            raise InputError(
+                f"{ds.root}: camera {cam_name} is {ds.info.resolution_of(cam_name)} px, the "
+                f"calibration's {(camera.width, camera.height)}",
+                fix="evaluate on images of the calibrated camera at its size",
+            )
+    n = len(cal.model.joint_types)
+    if ds.joints_deg.shape[1] != n:
+        raise InputError(f"{ds.root}: {ds.joints_deg.shape[1]} joints, the calibration's robot "
+                         f"{n}", fix="evaluate on a dataset of the calibrated robot")  # fmt: skip
+    detected = {c: detect_board(ds, board, c) for c in ds.info.cameras}
+    q = np.radians(ds.joints_deg)
+    models: dict[str, MCPCModel] = {"nominal": cal.nominal_model, "calibrated": cal.model}
+    T = {k: inv_pose(fk_tool(m, q)) for k, m in models.items()}  # first camera <- board
+    rows: list[dict] = []
+    errs: list[dict[str, np.ndarray]] = []
+    skipped: list[str] = []
+    for f in range(len(ds.indices)):
+        for cam_name in ds.info.cameras:
+            ft, name = detected[cam_name][0][f], detected[cam_name][1][f]
+            if len(ft) < board.min_features:
+                skipped.append(name)
+                continue
+            X = board.points(ft.ids)
+            row = {"image": name, "index": int(ds.indices[f]), "camera": cam_name,
+                   "features": len(ft)}  # fmt: skip
+            e: dict[str, np.ndarray] = {}
+            for k in models:
+                camera, T_first_cam = by_model[k][cam_name]
+                Tc = inv_pose(T_first_cam) @ T[k][f]  # camera c <- board
+                e[k] = camera.project(X @ Tc[:3, :3].T + Tc[:3, 3]) - ft.uv
+                row[f"{k}_px"] = rms_px(e[k])
+            rows.append(row)
+            errs.append(e)
+    n_images = len(ds.indices) * len(ds.info.cameras)
+    if skipped:
+        warnings.warn(f"the {board.describe()} is not found in {len(skipped)} of {n_images} "
+                      f"held-out image(s), left out: {', '.join(skipped[:8])}",
+                      EvaluationWarning, stacklevel=2)  # fmt: skip
+    if not rows:
+        raise InputError(f"{ds.root}: no image shows the {board.describe()}",
+                         fix="give held-out images that show the board")  # fmt: skip
+    return Evaluation.of(rows, errs, tuple(skipped), str(ds.root), cal_where)
+
+
+def write_evaluation(path: str | Path, ev: Evaluation) -> Path:
+    """Write ``evaluation.json`` (atomically; the one writer)."""
+    return write_json_atomic(path, ev.to_json())
+
+
+def read_evaluation(path: str | Path) -> Evaluation:
+    """Read the ``evaluation.json`` at ``path`` (the one reader; no residuals).
+
+    Raises:
+        InputError: missing or unreadable, another format, a newer schema, a missing key (named).
+    """
+    fix = "re-run `selfcal evaluate CALIBRATION_DIR DATASET2`"
+    doc = load_json(path, fix=fix)
+    check_header(doc, str(path), fmt=EVAL_FORMAT, version=1, fix=fix)
+    f = Fields(doc, str(path), fix)
+    images = tuple(dict(i.doc) for i in f.items("images"))
+    cams = f.maybe_sub("cameras")  # files written before the per-camera entries have none
+    per_cam = {} if cams is None else {
+        k: {"images": c.int("images"), "features": c.int("features"),
+            "reprojection_rms_px": c.float_map("reprojection_rms_px")}
+        for k in cams.doc for c in (cams.sub(k),)
+    }  # fmt: skip
+    return Evaluation(dict(f.float_map("reprojection_rms_px")), images,
+                      f.strs("skipped_images"), f.str("dataset"), f.str("calibration"),
+                      cameras=per_cam)  # fmt: skip

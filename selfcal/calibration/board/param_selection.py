@@ -1,0 +1,385 @@
+"""Which kinematic parameters the data support: rank, conditioning, then cross-validation.
+
+A board calibration estimates no fixed parameter set. From the placement of the nominal chain
+upward, the parameters are offered in a fixed order and kept as the data allow:
+
+1. the pool, in order: the placement (``V_0``: the board pose, ``V_n``: the hand-eye; always
+   estimated, :func:`selfcal.calibration.board.nominal_fit.placement_indices`), the zero offsets of the revolute
+   joints, then the remaining minimal MCPC parameters of the chain (``V_1 .. V_{n-1}``) in the
+   order of a pivoted QR factorisation of the identification Jacobian (the tool-pose Jacobian of
+   :func:`selfcal.kinematics.forward.identification_jacobian` at the fair nominal, rows weighted as
+   :func:`selfcal.kinematics.identifiability.analyse_identifiability`'s, columns scaled to unit norm);
+   a parameter whose column adds nothing to the span of those before it is held for *rank*
+   (its orthogonal part below :data:`RANK_TOL`), one that adds too little for *conditioning*
+   (below :data:`COND_TOL`: its variance would grow by more than ``1 / COND_TOL**2``);
+2. nested candidates: the nominal (placement and cameras only), + the identifiable joint
+   offsets, then + the further parameters in pivoted-QR order in two steps (the first half,
+   then all identifiable ones);
+3. leave-one-configuration-out cross-validation (:func:`configurations`: frames whose arm
+   joints -- all but the wrist's last three, all of a chain of three or fewer -- are equal
+   within :data:`SAME_CONFIGURATION` form one configuration, at most :data:`MAX_FOLDS` folds):
+   every candidate is fitted without a fold's frames (:func:`selfcal.calibration.board.refine.refine_on_board`,
+   the calibration's own objective) and predicts them from their joints alone: each fold's RMS
+   (px); the candidate's CV error is their geometric mean (every fold weighs the same, one
+   configuration far outside the others does not decide alone), beside the RMS of all
+   predictions;
+4. the one-standard-error rule, paired: the best candidate has the lowest CV error; a smaller
+   one is as good when its log error ratio to the best, averaged over the folds, is within one
+   standard error of that mean (the folds' spread of the ratio); the smallest such candidate is
+   chosen. A larger set is taken only when it predicts clearly better.
+
+The chosen candidate's fit on every frame is the calibration. Nothing here reads truth.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from selfcal.calibration.board.nominal_fit import placement_indices
+from selfcal.calibration.board.refine import (
+    BoardObservations,
+    Refinement,
+    predict_px,
+    refine_on_board,
+)
+from selfcal.errors import EstimationError
+from selfcal.estimation.kinematic_poses import joint_twists
+from selfcal.kinematics.forward import identification_jacobian
+from selfcal.kinematics.identifiability import pose_sigmas, triangular_factor
+from selfcal.kinematics.mcpc import MCPCModel, minimal_indices, param_names
+
+__all__ = [
+    "COND_TOL",
+    "MAX_FOLDS",
+    "RANK_TOL",
+    "SAME_CONFIGURATION",
+    "Candidate",
+    "ParameterPool",
+    "Selection",
+    "configurations",
+    "fold_labels",
+    "parameter_pool",
+    "select_parameters",
+]
+
+RANK_TOL = 1e-8
+"""Orthogonal part (of a unit column) at or below which a parameter is not identifiable."""
+COND_TOL = 1e-3
+"""Orthogonal part below which a parameter is held for conditioning (variance x 1e6)."""
+SAME_CONFIGURATION = np.radians(0.1)
+"""Arm joints this close (rad; m for a prismatic joint: 0.1 mm) make one configuration."""
+MAX_FOLDS = 5
+"""Configurations beyond this many are dealt into this many folds (every 5th together)."""
+FOLD_TOL = 1e-6
+"""The solver's relative tolerance (cost and step) in a fold's fit: its prediction then agrees
+with a fit to 1e-12 within a thousandth of a pixel, in a third of the iterations."""
+
+
+def configurations(q: np.ndarray, joint_types: tuple[str, ...]) -> np.ndarray:
+    """(m,) the configuration of every frame of the joints ``q`` (m, n) rad / m: frames whose
+    arm joints (all but the last three when there are more than three) are all within
+    :data:`SAME_CONFIGURATION` (0.1 deg, 0.1 mm) of a configuration's first frame belong to it;
+    numbered in order of appearance."""
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    n = q.shape[1]
+    arm = q[:, : n - 3] if n > 3 else q
+    tol = np.array([SAME_CONFIGURATION if t == "revolute" else 1e-4 for t in joint_types])
+    tol = tol[: arm.shape[1]]
+    reps: list[np.ndarray] = []
+    label = np.empty(len(q), dtype=int)
+    for i, a in enumerate(arm):
+        for k, r in enumerate(reps):
+            if np.all(np.abs(a - r) <= tol):
+                label[i] = k
+                break
+        else:
+            label[i] = len(reps)
+            reps.append(a)
+    return label
+
+
+def fold_labels(config: np.ndarray) -> np.ndarray:
+    """(m,) the fold of every frame: its configuration, dealt into :data:`MAX_FOLDS` folds when
+    there are more configurations (configuration ``k`` to fold ``k % MAX_FOLDS``: each fold then
+    holds configurations from the whole recording)."""
+    config = np.asarray(config, dtype=int)
+    return config % MAX_FOLDS if config.max(initial=-1) + 1 > MAX_FOLDS else config.copy()
+
+
+@dataclass(frozen=True)
+class ParameterPool:
+    """The parameters offered (:func:`parameter_pool`): ``order`` the accepted ones as
+    ``(name, kind, index)`` (``kind`` ``"mcpc"``: a flat MCPC index; ``"offset"``: a joint, 0
+    based) in the order offered; ``n_placement``, ``n_offsets`` how many of them are the
+    placement and the joint offsets; ``held`` the others by name with the reason."""
+
+    order: tuple[tuple[str, str, int], ...]
+    n_placement: int
+    n_offsets: int
+    held: dict[str, str]
+
+
+def _offset_name(j: int) -> str:
+    return f"offset_j{j + 1}"
+
+
+def parameter_pool(model: MCPCModel, q: np.ndarray) -> ParameterPool:
+    """The pool of step 1 (module docstring) at ``model`` (world = board frame, tool = camera)
+    and the joints ``q`` (m, n) rad of the frames used."""
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    n = model.n
+    place = placement_indices(n)
+    inner = np.array([k for k in minimal_indices(model.joint_types) if 0 < k // 6 < n], int)
+    revolute = [j for j, t in enumerate(model.joint_types) if t == "revolute"]
+    J = identification_jacobian(model, q)
+    cols = [J[:, :, place], joint_twists(model, q)[:, :, revolute], J[:, :, inner]]
+    A = np.concatenate(cols, axis=2) / pose_sigmas(1e-4, 1e-3, len(q))[:, :, None]
+    A = A.reshape(-1, A.shape[2])
+    norm = np.linalg.norm(A, axis=0)
+    R = triangular_factor(A / np.where(norm > 0, norm, 1.0))
+    names = ([*param_names(place)] + [_offset_name(j) for j in revolute]
+             + [*param_names(inner)])  # fmt: skip
+    kinds = ["mcpc"] * len(place) + ["offset"] * len(revolute) + ["mcpc"] * len(inner)
+    index = [*place.tolist(), *revolute, *inner.tolist()]
+    groups = [range(len(place)), range(len(place), len(place) + len(revolute))]
+    rest = list(range(len(place) + len(revolute), len(names)))
+    basis = np.zeros((R.shape[0], 0))
+    order: list[tuple[str, str, int]] = []
+    held: dict[str, str] = {}
+    counts = []
+
+    def orth(k: int) -> np.ndarray:
+        c = R[:, k] / max(float(np.linalg.norm(R[:, k])), 1e-300)
+        for _ in range(2):  # re-orthogonalise once for stability
+            c = c - basis @ (basis.T @ c)
+        return c
+
+    def offer(k: int, c: np.ndarray) -> bool:
+        nonlocal basis
+        s = float(np.linalg.norm(c))
+        if s <= RANK_TOL:
+            held[names[k]] = (
+                "rank: not identifiable from these postures (a combination of the others)"
+            )
+            return False
+        if s < COND_TOL:
+            held[names[k]] = (f"conditioning: adds {s:.1e} of its column to the others' span "
+                              f"(limit {COND_TOL:g})")  # fmt: skip
+            return False
+        basis = np.column_stack([basis, c / s])
+        order.append((names[k], kinds[k], index[k]))
+        return True
+
+    for g in groups:
+        counts.append(sum(offer(k, orth(k)) for k in g))
+    while rest:  # pivoted QR: the column with the largest part outside the span next
+        parts = [orth(k) for k in rest]
+        best = int(np.argmax([np.linalg.norm(p) for p in parts]))
+        k = rest.pop(best)
+        if not offer(k, parts[best]):
+            for r in rest:  # every further one adds less still
+                offer(r, orth(r))
+            break
+    return ParameterPool(tuple(order), counts[0], counts[1], held)
+
+
+@dataclass
+class Candidate:
+    """One nested candidate: its ``label``, the kinematic parameters it estimates (``names``,
+    by kind ``free_idx`` and ``offset_joints``), its fit on every frame (``fit``, None when it
+    failed), its CV error ``cv_px`` (the folds' geometric mean, px; inf when a fit failed), the
+    RMS of all its predictions ``cv_rms_px``, every fold's RMS ``fold_rms_px``, its mean log
+    ratio to the best candidate and that mean's standard error ``log_ratio``, and a ``note``
+    (why it failed)."""
+
+    label: str
+    names: tuple[str, ...]
+    free_idx: np.ndarray
+    offset_joints: np.ndarray
+    fit: Refinement | None = None
+    cv_px: float = float("inf")
+    cv_rms_px: float = float("inf")
+    fold_rms_px: tuple[float, ...] = ()
+    log_ratio: tuple[float, float] = (float("nan"), float("nan"))
+    note: str = ""
+
+    def to_json(self) -> dict:
+        return {
+            "label": self.label,
+            "parameters": list(self.names),
+            "n_parameters": len(self.names),
+            "fit_rms_px": None if self.fit is None else self.fit.rms_px,
+            "cv_px": _num(self.cv_px),
+            "cv_rms_px": _num(self.cv_rms_px),
+            "fold_rms_px": [_num(v) for v in self.fold_rms_px],
+            "log_ratio_to_best": {"mean": _num(self.log_ratio[0]), "se": _num(self.log_ratio[1])},
+            **({"note": self.note} if self.note else {}),
+        }
+
+
+def _num(v: float) -> float | None:
+    return float(v) if np.isfinite(v) else None
+
+
+@dataclass
+class Selection:
+    """The outcome of :func:`select_parameters`: the ``candidates`` with their CV errors, the
+    ``chosen`` one's index, the parameters ``identified`` and ``held`` (name -> reason), the
+    number of ``configurations`` and ``folds``, the ``rule`` in words."""
+
+    candidates: list[Candidate]
+    chosen: int
+    identified: tuple[str, ...]
+    held: dict[str, str]
+    configurations: int
+    folds: int
+    rule: str
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def fit(self) -> Refinement:
+        fit = self.candidates[self.chosen].fit
+        assert fit is not None
+        return fit
+
+    def to_json(self) -> dict:
+        return {
+            "identified": list(self.identified),
+            "held": dict(self.held),
+            "chosen": self.candidates[self.chosen].label,
+            "rule": self.rule,
+            "configurations": self.configurations,
+            "folds": self.folds,
+            "candidates": [c.to_json() for c in self.candidates],
+        }
+
+
+def _candidates(pool: ParameterPool) -> list[Candidate]:
+    """The nested candidates of step 2 (module docstring)."""
+    p, o = pool.n_placement, pool.n_offsets
+    rest = len(pool.order) - p - o
+    ends = [(p, "nominal (placement + camera)")]
+    if o:
+        ends.append((p + o, "+ joint offsets"))
+    steps = sorted({round(rest * f) for f in (1 / 2, 1.0)} - {0})
+    for s in steps:
+        ends.append((p + o + s, "+ all identifiable" if s == rest else f"+ {s} by pivoted QR"))
+    out = []
+    for end, label in ends:
+        sel = pool.order[:end]
+        out.append(Candidate(
+            label, tuple(n for n, _, _ in sel),
+            np.array([i for _, k, i in sel if k == "mcpc"], dtype=np.int64),
+            np.array([i for _, k, i in sel if k == "offset"], dtype=np.int64),
+        ))  # fmt: skip
+    return out
+
+
+def _cross_validate(obs: BoardObservations, start: MCPCModel, cand: Candidate,
+                    folds: np.ndarray, max_iter: int) -> None:  # fmt: skip
+    """Fill ``cand``'s fit and CV error (step 3), each fold's fit started from its fit on every
+    frame."""
+    try:
+        cand.fit = refine_on_board(obs, start, cand.free_idx, cand.offset_joints,
+                                   max_iter=max_iter)  # fmt: skip
+    except (EstimationError, np.linalg.LinAlgError) as exc:
+        cand.note = f"the fit on every frame failed: {exc}"
+        return
+    full = cand.fit
+    fold_ms, fold_n = [], []
+    for f in np.unique(folds[obs.used]).tolist():
+        out = folds == f
+        try:
+            fit = refine_on_board(obs, full.model, cand.free_idx, cand.offset_joints,
+                                  train=~out, cameras=full.cameras, stds=False,
+                                  max_iter=max_iter, tol=FOLD_TOL)  # fmt: skip
+        except (EstimationError, np.linalg.LinAlgError) as exc:
+            cand.note = f"the fit without fold {f} failed: {exc}"
+            return
+        e = predict_px(obs, fit, out)
+        fold_ms.append(float(np.mean(np.sum(e**2, axis=1))) if len(e) else np.nan)
+        fold_n.append(len(e))
+    ms, n = np.array(fold_ms), np.array(fold_n)
+    ok = n > 0
+    cand.cv_rms_px = float(np.sqrt(np.sum(ms[ok] * n[ok]) / np.sum(n[ok])))
+    cand.fold_rms_px = tuple(np.sqrt(ms).tolist())
+    cand.cv_px = float(np.exp(np.mean(np.log(np.sqrt(ms[ok])))))
+
+
+def select_parameters(obs: BoardObservations, nominal_fit: MCPCModel, *,
+                      max_iter: int = 100) -> Selection:  # fmt: skip
+    """Choose and fit the kinematic parameters the data support (module docstring), starting
+    every candidate from ``nominal_fit`` (the fair nominal's model: the placed nominal chain).
+
+    Raises:
+        EstimationError: not even the nominal candidate could be fitted on every frame.
+    """
+    used = obs.used
+    pool = parameter_pool(nominal_fit, obs.q[used])
+    cands = _candidates(pool)
+    config = configurations(obs.q, nominal_fit.joint_types)
+    n_config = len(np.unique(config[used]))
+    folds = fold_labels(config)
+    n_folds = len(np.unique(folds[used]))
+    notes = []
+    if n_folds < 2:
+        cands = cands[:1]
+        rule = ("no cross-validation: the frames show one configuration of the arm, so no "
+                "kinematic parameter can be checked on postures it was not fitted to")  # fmt: skip
+        notes.append(f"only the placement was estimated: {rule}")
+    for c in cands:
+        if n_folds < 2:
+            try:
+                c.fit = refine_on_board(obs, nominal_fit, c.free_idx, c.offset_joints,
+                                        max_iter=max_iter)  # fmt: skip
+            except (EstimationError, np.linalg.LinAlgError) as exc:
+                c.note = f"the fit on every frame failed: {exc}"
+        else:
+            _cross_validate(obs, nominal_fit, c, folds, max_iter)
+    if cands[0].fit is None:
+        raise EstimationError(
+            f"not even the nominal chain could be placed on the board by reprojection "
+            f"({cands[0].note})",
+            fix="check the joint read-back (units, order of the rows) against the images",
+        )
+    if n_folds >= 2:
+        chosen, best = _one_se_rule(cands)
+        rule = (f"paired one-standard-error rule over leave-one-configuration-out "
+                f"cross-validation ({n_config} configurations, {n_folds} folds): the smallest "
+                f"candidate whose mean log error ratio to the best ({cands[best].label}, "
+                f"{cands[best].cv_px:.3f} px) is within one standard error")  # fmt: skip
+    else:
+        chosen = 0
+    held = dict(pool.held)
+    chosen_names = set(cands[chosen].names)
+    for c in cands[chosen + 1 :]:
+        for name in c.names:
+            if name not in chosen_names and name not in held:
+                held[name] = (f"cross-validation: {c.label} predicts {_px(c.cv_px)} against "
+                              f"{_px(cands[chosen].cv_px)} of the chosen "
+                              f"{cands[chosen].label}: not clearly better")  # fmt: skip
+    return Selection(cands, chosen, cands[chosen].names, held, n_config, n_folds, rule, notes)
+
+
+def _px(v: float) -> str:
+    return f"{v:.3f} px" if np.isfinite(v) else "nothing (a fit failed)"
+
+
+def _one_se_rule(cands: list[Candidate]) -> tuple[int, int]:
+    """(chosen, best) by step 4 of the module docstring; every candidate's ``log_ratio`` set."""
+    cv = np.array([c.cv_px for c in cands])
+    best = int(np.argmin(cv))
+    ref = np.log(np.array(cands[best].fold_rms_px))
+    chosen = best
+    for i, c in enumerate(cands):
+        if not np.isfinite(c.cv_px):
+            continue
+        d = np.log(np.array(c.fold_rms_px)) - ref
+        d = d[np.isfinite(d)]
+        se = float(np.std(d, ddof=1) / np.sqrt(len(d))) if len(d) > 1 else 0.0
+        c.log_ratio = (float(np.mean(d)), se)
+        if i < chosen and c.log_ratio[0] <= se:
+            chosen = i
+    return chosen, best

@@ -1,0 +1,537 @@
+"""Dataset -> calibration: detection, camera self-calibration, scale and sign, identification.
+
+This is the paper's pipeline end to end (sections II-III). It reads only the dataset folder
+(images or detections, joint read-back, the target description with the known distance d) and
+never ``truth.json``. Output: a :class:`selfcal.io.calibration.CalibrationResult` (written as
+``calibration.json`` by :func:`selfcal.io.calibration.write_calibration`): mm/deg for people, the
+full SI model (:attr:`~selfcal.io.calibration.CalibrationResult.model`), and the diagnostics as
+fields (images skipped, parameters held and why, why there is no DH table or bound, warnings).
+The result is built in :mod:`selfcal.calibration.field.results`.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import functools
+import os
+import time
+import warnings
+from collections.abc import Callable, Iterator, Mapping
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+
+from selfcal.calibration.field.cameras import (
+    dataset_camera,
+    initial_cameras,
+    lens_cameras,
+    models_of,
+)
+from selfcal.calibration.field.joint_refine import refine_calibration
+from selfcal.calibration.field.quality import assess_calibration
+from selfcal.calibration.field.results import (
+    CalibrationOutput,
+    two_stage_result,
+    with_bounds,
+    with_joint,
+)
+from selfcal.calibration.field.self_calibration import (
+    Observations,
+    SelfCalibrationResult,
+    self_calibrate,
+)
+from selfcal.calibration.frame_checks import (
+    UnusedFramesWarning,
+    check_distinct_frames,
+    check_read_back,
+    unused_frames_message,
+)
+from selfcal.calibration.identify import identify
+from selfcal.calibration.scale_check import check_scale
+from selfcal.calibration.tracker.join import TrackerInput, tracker_source
+from selfcal.camera import (
+    CameraSet,
+    LensCamera,
+    Pinhole,
+    first_camera,
+    opencv_values,
+)
+from selfcal.camera.undistort import Undistorter
+from selfcal.errors import EstimationError, InitialCameraWarning, SelfCalWarning
+from selfcal.estimation.selfcal_errors import DegenerateConfigurationError, SelfCalibrationError
+from selfcal.io.calibration import CalibrationResult
+from selfcal.io.calibration_blocks import ScenePoints
+from selfcal.io.dataset import Dataset, DatasetError, Detections, read_gray
+from selfcal.io.dataset_info import CAMERAS, DatasetInfo
+from selfcal.io.frame_cache import FrameCache
+from selfcal.kinematics.forward import fk_frames, fk_tool
+from selfcal.kinematics.mcpc import MCPCModel, chain_transforms, minimal_indices, nominal_mcpc
+from selfcal.kinematics.trajectory import check_not_degenerate
+from selfcal.robot.definition import RobotDef, load_robot
+from selfcal.target.aruco_detect import detect_markers, detect_markers_noise
+
+__all__ = [
+    "CalibrationError",
+    "InitialCameraWarning",
+    "fit_cost",
+    "CalibrationFailedError",
+    "NoMarkersWarning",
+    "UnusedFramesWarning",
+    "MarkerDetections",
+    "skipped_images_message",
+    "detect_dataset",
+    "observations_of",
+    "calibrate",
+    "calibrate_detailed",
+    "CalibrationOutput",
+    "METHODS",
+    "dataset_camera",
+]
+
+MIN_POSTURES = 6
+METHODS = ("two-stage", "joint")
+
+
+class CalibrationError(EstimationError, ValueError):
+    """The dataset cannot be calibrated; the message names the cause and the fix. (Still a
+    ``ValueError``, as it always was.)"""
+
+
+class CalibrationFailedError(CalibrationError):
+    """A calibration that ran to the end but failed a check of :mod:`selfcal.calibration.field.quality` (worse
+    than the nominal model, swapped cameras): the message lists the failures and their likely
+    causes; the result is written all the same, marked ``"status": "failed"``."""
+
+    @classmethod
+    def of(cls, failures: tuple[str, ...], where: str | Path) -> CalibrationFailedError:
+        """The error for the ``failures`` of the calibration written to ``where``."""
+        lines = "".join(f"\n  - {f}" for f in failures)
+        return cls(
+            f"the calibration FAILED {len(failures)} check(s) and is marked failed in {where} "
+            f'("status": "failed"):{lines}',
+            fix="remove the cause named above and calibrate again; do not use this calibration",
+        )
+
+
+class NoMarkersWarning(SelfCalWarning):
+    """Some images show no marker at all (they are skipped; the result lists them as well)."""
+
+
+class MarkerDetections(NamedTuple):
+    """What :func:`detect_dataset` found: the corners, the images that show no marker
+    (``NNNN_left`` / ``NNNN_right``; skipped) and the detector's own estimate of the corner
+    noise (px per coordinate, RMS over the detections; None when it has none: stored
+    detections, images undistorted through a lens)."""
+
+    detections: Detections
+    skipped_images: tuple[str, ...]
+    corner_sigma_px: float | None = None
+
+
+def skipped_images_message(skipped: tuple[str, ...], dictionary: str) -> str:
+    """The sentence naming the images without markers (the warning and the result's)."""
+    more = " ..." if len(skipped) > 8 else ""
+    return (
+        f"{len(skipped)} image(s) show no {dictionary} marker and are skipped: "
+        f"{', '.join(skipped[:8])}{more}"
+    )
+
+
+def detect_dataset(
+    ds: Dataset,
+    progress=None,
+    lens: LensCamera | Mapping[str, LensCamera] | None = None,
+    cache: FrameCache | None = None,
+) -> MarkerDetections:
+    """Marker corners of every image (images path) or the stored detections (analytic path),
+    and the images that show no marker (for people also a :class:`NoMarkersWarning`).
+    ``lens``: a camera with a lens (an estimate), or one per camera name (a camera not named is
+    detected as it is): detect on the images undistorted with it and map the corners back (:class:`selfcal.camera.undistort.Undistorter`; the straight-edge corner
+    refinement is biased on bent edges). The screening of hidden and grazing markers
+    (:func:`selfcal.target.aruco_detect.detect_markers`, docs/accuracy.md) runs only for a dataset
+    camera without a lens: on bent or resampled edges its level test drops markers unevenly
+    (rendered lens scenario: worst camera-parameter z 3.05 with it, 1.78 without).
+    ``cache``: the images already in memory (the others are read from the files) and the
+    detections of an earlier call on the same dataset (reused, and the new ones added; not
+    through a lens): :class:`selfcal.io.frame_cache.FrameCache`.
+
+    Raises:
+        DatasetError: a missing or unreadable image, or one whose size is not dataset.json's.
+        CalibrationError: no marker in any image.
+    """
+    if ds.info.observation == "detections":
+        return MarkerDetections(ds.read_detections(), ())
+    screen = not any(isinstance(c, LensCamera) for c in models_of(dataset_camera(ds.info)))
+    out: Detections = {}
+    empty: list[str] = []
+    noise: list[float] = []
+    if progress is not None:
+        progress.start(len(ds.indices) * len(ds.info.cameras))  # one image per camera
+    W, H = ds.info.resolution
+    lens_of = lens if isinstance(lens, Mapping) else dict.fromkeys(ds.info.cameras, lens)
+    flats = {c: Undistorter(v) for c, v in lens_of.items() if v is not None}
+
+    def detect(item: tuple[int, str, Path]) -> tuple[int, str, dict, dict]:
+        index, cam, path = item
+        flat = flats.get(cam)
+        key = (index, cam, screen)
+        if flat is None and cache is not None and key in cache.detections:
+            dets, sig = cache.detections[key]
+            return index, cam, {k: c.copy() for k, c in dets.items()}, dict(sig)
+        img = cache.images.get((index, cam)) if cache is not None else None
+        img = read_gray(path, index) if img is None else img
+        if img.shape[1] != W or img.shape[0] != H:
+            raise DatasetError(
+                f"frame {index:04d}_{cam}.png is {img.shape[1]}x{img.shape[0]} px but dataset.json "
+                f"says {W}x{H}"
+            )
+        if flat is None:
+            dets, sig = detect_markers_noise(img, ds.info.dictionary, screen=screen)
+            if cache is not None:
+                cache.detections[key] = ({k: c.copy() for k, c in dets.items()}, dict(sig))
+            return index, cam, dets, sig
+        dets = detect_markers(flat.image(img), dictionary=ds.info.dictionary, screen=False)
+        return index, cam, {k: flat.distorted(c) for k, c in dets.items()}, {}
+
+    # OpenCV releases the GIL while decoding and detecting: use every core, keep the order.
+    with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
+        for index, cam, dets, sig in pool.map(detect, ds.image_paths()):
+            noise += sig.values()
+            if dets:
+                out[(index, cam)] = dets
+            else:
+                empty.append(f"{index:04d}_{cam}")
+            if progress is not None:
+                progress.advance()
+    if progress is not None:
+        progress.finish()
+    if empty:
+        text = skipped_images_message(tuple(empty), ds.info.dictionary)
+        warnings.warn(text, NoMarkersWarning, stacklevel=2)
+    if not out:
+        raise CalibrationError(
+            f"no marker was detected in any image of {ds.root}; check the target dictionary "
+            f"({ds.info.dictionary}), the lighting and that the camera sees the marker field"
+        )
+    sigma = float(np.sqrt(np.mean(np.square(noise)))) if noise else None
+    return MarkerDetections(out, tuple(empty), sigma)
+
+
+def observations_of(ds: Dataset, dets: Detections) -> Observations:
+    """The detections as :class:`selfcal.calibration.field.self_calibration.Observations`, configurations numbered by their
+    position in ``ds.indices``."""
+    pos = {int(i): k for k, i in enumerate(ds.indices)}
+    remapped: dict[tuple[int, int | str], dict[int, np.ndarray]] = {
+        (pos[i], cam): m for (i, cam), m in dets.items() if i in pos
+    }
+    return Observations.from_corners(remapped, n_configs=len(ds.indices), cameras=ds.info.cameras)
+
+
+def _check_scale_markers(ds: Dataset, dets: Detections) -> None:
+    for mid in ds.info.scale_ids:
+        views = [k for k, m in dets.items() if mid in m]
+        if len(views) < 2:
+            raise CalibrationError(
+                f"scale marker {mid} is seen in {len(views)} image(s); it must be seen in at least "
+                "two so its position can be triangulated: move the scale bar into view or add "
+                "postures that see it"
+            )
+
+
+def calibrate(
+    root: str | Path,
+    *,
+    progress=None,
+    method: str = "joint",
+    allow_missing_frames: bool = False,
+    tracker: TrackerInput | None = None,
+    cache: FrameCache | None = None,
+    joint_sigma: float | np.ndarray | None = None,
+) -> CalibrationResult:
+    """The calibration of the dataset in ``root``: the result of :func:`calibrate_detailed`.
+
+    Raises: as :func:`calibrate_detailed`.
+    """
+    return calibrate_detailed(
+        root,
+        progress=progress,
+        method=method,
+        allow_missing_frames=allow_missing_frames,
+        tracker=tracker,
+        cache=cache,
+        joint_sigma=joint_sigma,
+    ).result
+
+
+def calibrate_detailed(
+    root: str | Path,
+    *,
+    progress=None,
+    method: str = "joint",
+    allow_missing_frames: bool = False,
+    tracker: TrackerInput | None = None,
+    cache: FrameCache | None = None,
+    joint_sigma: float | np.ndarray | None = None,
+) -> CalibrationOutput:
+    """Run the whole calibration on the dataset in ``root`` (see the module docstring) and keep
+    the live estimates behind the result.
+
+    ``method``: ``"two-stage"`` (the paper: camera poses by bundle adjustment, then the
+    kinematics fitted to the poses) or ``"joint"`` (default: the two-stage result refined by the
+    one-step maximum-likelihood adjustment of :mod:`selfcal.calibration.field.joint_refine`). The result holds the
+    final method's estimate, ``method``, a summary of every method run under ``methods``, the
+    Cramer-Rao bounds (or why none), the images skipped, the warnings and the wall time, and the
+    failures of :mod:`selfcal.calibration.field.quality` (the result is then marked failed). A planned frame without
+    a whole ``joints.csv`` row is an error, or with ``allow_missing_frames`` a warning naming it.
+    ``tracker``: tracker measurements of the same robot estimated with the images in the one-step
+    refinement (method ``joint`` only; :mod:`selfcal.calibration.tracker.join`); the result records them
+    (``CalibrationResult.tracker``).
+    ``cache``: images and detections already in memory (:func:`detect_dataset`).
+    ``joint_sigma``: the standard deviation of a joint reading (rad / m; one value or one per
+    joint) the one-step refinement models, instead of the robot file's encoder resolution.
+
+    Raises:
+        ValueError: unknown ``method``.
+        CalibrationError: ``tracker`` with the two-stage method.
+        DatasetError: missing or damaged dataset files, frames without joints rows (listed).
+        CalibrationError / selfcal.calibration.field.self_calibration.SelfCalibrationError / selfcal.calibration.identify.IdentificationError:
+            data that cannot determine the answer (each message names the cause).
+    """
+    if method not in METHODS:
+        raise ValueError(f"unknown calibration method {method!r}; use one of {METHODS}")
+    if tracker is not None and method != "joint":
+        raise CalibrationError(
+            "tracker measurements join the images in the one-step refinement; the two-stage "
+            "method has none",
+            fix="use the default method (joint) with tracker measurements",
+        )
+    t0 = time.perf_counter()
+    ds = Dataset.open(root)
+    incomplete = ds.check_complete(allow_missing=allow_missing_frames)
+    robot = load_robot(ds.robot_source)
+    if ds.info.board is None and ds.info.cameras == CAMERAS[::-1]:
+        raise DatasetError(
+            f"{ds.root / 'dataset.json'}: cameras are listed as {list(ds.info.cameras)}; the "
+            "first is the rig's reference and must be the left one",
+            fix="list the cameras as left, right in dataset.json (each with its own resolution)",
+        )
+    if ds.info.board is not None or (len(ds.info.cameras) != 1 and ds.info.cameras != CAMERAS):
+        raise CalibrationError(
+            f"{root}: the self-calibration takes one camera or a stereo pair and the ArUco "
+            f"field; this dataset has cameras {list(ds.info.cameras)} and target "
+            f"{ds.info.target_type!r}",
+            fix="calibrate a board dataset with `selfcal calibrate DIR` (it dispatches on the "
+            "target)",
+        )
+    if len(ds.indices) < MIN_POSTURES:
+        raise CalibrationError(
+            f"{root}: {len(ds.indices)} postures; calibration needs at least {MIN_POSTURES} "
+            f"({len(minimal_indices(robot.joint_types))} kinematic parameters of this "
+            f"{robot.n}-joint robot from 6 pose values each, plus the camera's unknowns): "
+            "acquire more"
+        )
+    dets, skipped, corner_sigma = detect_dataset(ds, progress=progress, cache=cache)
+    check_distinct_frames(ds.indices, ds.joints_deg, dets, ds.info.cameras, str(ds.root))
+    check_read_back(
+        ds.indices, ds.joints_deg, ds.info.planned_joints_deg, str(ds.root / "joints.csv")
+    )
+    _check_scale_markers(ds, dets)
+    obs = observations_of(ds, dets)
+    q = np.radians(ds.joints_deg)
+    nominal = nominal_mcpc(robot).with_tool(robot.T_flange_cam)
+    T_nom = fk_tool(nominal, q)
+    check_not_degenerate(T_nom)
+    W, H = ds.info.resolution
+    camera_stage = functools.partial(
+        self_calibrate,
+        width=W,
+        height=H,
+        camera=dataset_camera(ds.info),
+        scale_markers=ds.info.scale_ids,
+        scale_distance_m=ds.info.scale_length_m,
+        rig=len(ds.info.cameras) > 1,  # one camera: views from two configurations (the paper's)
+        nominal_cam_positions=T_nom[:, :3, 3],
+        # The reconstruction frame becomes the world of the kinematic model: take a camera whose
+        # x-axis is far from parallel to joint 1's axis (MCPC's base parameters are singular there).
+        ref_scores=np.abs(T_nom[:, :3, 0] @ _joint1_axis(nominal)),
+    )
+    initial = initial_cameras(ds.info, camera_stage.keywords["camera"])
+    with _stage(progress, "camera stage (bundle adjustment)") as st:
+        try:
+            sc, start = _camera_stage(camera_stage, obs, initial)
+        except DegenerateConfigurationError as exc:
+            raise _one_rotation_direction(robot, exc) from exc
+        st(f"reprojection RMS {sc.rms_px:.3f} px")
+    lenses = lens_cameras(sc, ds.info.cameras)
+    if lenses and ds.info.observation == "images":
+        # the lens bends the marker edges: detect again through the estimated lens, refit
+        with _stage(progress, "camera stage again through the estimated lens") as st:
+            dets, skipped, corner_sigma = detect_dataset(ds, lens=lenses, cache=cache)
+            _check_scale_markers(ds, dets)
+            obs = observations_of(ds, dets)
+            sc = camera_stage(obs, initial=initial if start == "initial" else None)
+            st(f"reprojection RMS {sc.rms_px:.3f} px")
+    used = np.flatnonzero(sc.registered if sc.registered.ndim == 1 else sc.registered[:, 0])
+    if len(used) < MIN_POSTURES:
+        raise CalibrationError(
+            f"only {len(used)} postures could be registered by the camera stage; calibration "
+            f"needs at least {MIN_POSTURES}: acquire more postures that see the markers"
+        )
+    # One camera sees its pose less well than a stereo pair (depth from one view): on
+    # scenarios/mono.toml the pose residuals are 11.9x identify's default sigmas (stereo: within
+    # them), so both are scaled by 10 (the estimate does not change, only the warning's scale),
+    # and its Gauss-Newton may need more steps (a Monte Carlo draw of mono.toml took 152).
+    mono = len(ds.info.cameras) == 1
+    s_pose = 10.0 if mono else 1.0
+    with _stage(progress, "kinematic identification") as st:
+        ident = identify(
+            nominal,
+            q[used],
+            sc.T_world_cam[used, 0],
+            sigma_t_m=1e-4 * s_pose,
+            sigma_r_rad=1e-3 * s_pose,
+            max_iter=200 if mono else 50,
+        )
+        st(
+            f"tool RMS {ident.rms_t_mm_after:.3f} mm / {ident.rms_r_deg_after:.4f} deg, "
+            f"rank {ident.rank}/{ident.n_params}"
+        )
+    unused = unused_frames_message(ds.indices, used, skipped)
+    if unused:
+        warnings.warn(unused, UnusedFramesWarning, stacklevel=2)
+    notes = [
+        *incomplete,
+        *([skipped_images_message(skipped, ds.info.dictionary)] if skipped else []),
+        *([unused] if unused else []),
+        *_scale_notes(ds.info, robot, q[used], sc.T_world_cam[used, 0]),
+    ]
+    result = two_stage_result(
+        ds, robot, sc, ident, used, skipped_images=skipped, warnings=[*notes, *ident.warnings]
+    )
+    out = CalibrationOutput(result, sc, ident, ident.model, ds.indices[used])
+    if method == "joint":
+        with _stage(progress, "one-step refinement (all images)") as st:
+            kw = {} if tracker is None else tracker.refine_kwargs()
+            if joint_sigma is not None:
+                kw["joint_sigma"] = joint_sigma
+            res = refine_calibration(out, obs, q, robot, ds.info, **kw)
+            st(f"reprojection RMS {res.rms_px:.3f} px, sigma {res.sigma_px:.3f} px")
+        result = with_joint(result, res, robot)
+        if tracker is not None:
+            src = tracker_source(tracker, res.diagnostics, res.model, res.model_gauge)
+            result = dataclasses.replace(result, tracker=src)
+        out = CalibrationOutput(result, sc, ident, res.model, ds.indices[used], res)
+    # the bound's corner noise: the detector's own estimate where it has one (it excludes a
+    # bias of whole sides, which the fit residuals would carry into the bound), else residuals
+    with _stage(progress, "Cramer-Rao bounds"):
+        result = with_bounds(
+            result, out, obs=obs, q=q, robot=robot, ds_info=ds.info, pixel_sigma_px=corner_sigma,
+            pixel_sigma_source="detector",
+        )  # fmt: skip
+    final = out.joint if out.joint is not None else sc  # the points of the final method
+    ids, X = final.point_ids, final.X_world
+    ok = np.isfinite(X).all(axis=1)
+    scene = ScenePoints(tuple(int(i) for i in ids[ok]), np.asarray(X[ok], dtype=float))
+    failures = assess_calibration(dataclasses.replace(out, result=result), obs, q, nominal)
+    result = dataclasses.replace(result, scene=scene, failures=failures)
+    result = dataclasses.replace(result, seconds=round(time.perf_counter() - t0, 3))
+    return dataclasses.replace(out, result=result)
+
+
+def _scale_notes(info: DatasetInfo, robot: RobotDef, q: np.ndarray, T_world_cam: np.ndarray):
+    """The known distance against the arm's size (:func:`selfcal.calibration.scale_check.check_scale`): a
+    warning (also returned, for ``calibration.json``) when it is not the markers' distance."""
+    d_mm, (a, b) = info.scale_length_m * 1000.0, info.scale_ids
+    target = f"the known distance (scale_length_mm = {d_mm:g} between markers {a} and {b})"
+    return check_scale(robot, q, T_world_cam, target,
+                       lambda s: f"scale_length_mm = {d_mm * s:.5g} would match the arm")  # fmt: skip
+
+
+@contextlib.contextmanager
+def _stage(progress, label: str) -> Iterator[Callable[[str], None]]:
+    """One calibration stage as ``progress.step(label)`` when the progress object has steps
+    (``selfcal.console.progress.Progress``); yields a function that records the stage's result (its
+    cost) for the step's last line. Without such an object: nothing is shown."""
+    step = getattr(progress, "step", None)
+    if step is None:
+        yield lambda text: None
+        return
+    with step(label) as st:
+        yield st.result
+
+
+def fit_cost(sc: SelfCalibrationResult, threshold_px: float = 3.0) -> float:
+    """The camera stage's fit as one number comparable across starts: the sum over every
+    observation row of ``min(|r|^2, threshold^2)`` (px^2; an unmodelled row counts the
+    threshold), so that a fit rejecting more rows as outliers does not look better for it."""
+    e2 = np.sum(np.square(sc.residuals), axis=1)
+    return float(np.sum(np.minimum(np.nan_to_num(e2, nan=np.inf), threshold_px**2)))
+
+
+def _camera_stage(
+    stage: Callable[..., SelfCalibrationResult],
+    obs: Observations,
+    initial: Pinhole | CameraSet | None,
+) -> tuple[SelfCalibrationResult, str]:
+    """The camera stage from the self-calibration's own start (``"own"``) and, with an
+    ``initial`` camera, from it (``"initial"``): the start whose fit costs less
+    (:func:`fit_cost`; the initial camera on a tie) wins, the other way round an
+    :class:`InitialCameraWarning` says so. One that fails leaves the other; both failing
+    raises the own start's error."""
+    if initial is None:
+        return stage(obs), "own"
+    fits: dict[str, SelfCalibrationResult] = {}
+    errors: dict[str, SelfCalibrationError] = {}
+    for name, cam in (("initial", initial), ("own", None)):
+        try:
+            fits[name] = stage(obs, initial=cam)
+        except SelfCalibrationError as exc:
+            errors[name] = exc
+    if not fits:
+        raise errors["own"]
+    if "initial" in fits and (
+        "own" not in fits or fit_cost(fits["initial"]) <= fit_cost(fits["own"]) * (1 + 1e-9)
+    ):
+        return fits["initial"], "initial"
+    why = (f"failed: {errors['initial']}" if "initial" in errors else
+           f"fit cost {fit_cost(fits['initial']):.1f} px^2 vs {fit_cost(fits['own']):.1f} px^2 "
+           f"(RMS {fits['initial'].rms_px:.3f} px vs {fits['own'].rms_px:.3f} px)")  # fmt: skip
+    warnings.warn(
+        f"the initial camera (fx = {opencv_values(first_camera(initial))['fx']:.1f} px, from the "
+        "dataset's camera entry "
+        f"'initial') fits the images worse than the self-calibration's own start ({why}): "
+        "started from its own (check the camera_info of the recording: another lens or "
+        "resolution?)",
+        InitialCameraWarning,
+        stacklevel=3,
+    )
+    return fits["own"], "own"
+
+
+def _one_rotation_direction(
+    robot: RobotDef, exc: DegenerateConfigurationError
+) -> DegenerateConfigurationError:
+    """``exc`` (the views do not determine the camera) with the reason when the robot cannot
+    give better views: every revolute joint turns about one direction (one joint, or parallel
+    axes; prismatic joints only translate), so the camera rotates about that direction alone, a
+    critical motion for self-calibration (Sturm 1997: rotations about parallel axes)."""
+    F = fk_frames(nominal_mcpc(robot), robot.home[None])[0]
+    z = F[np.flatnonzero([t == "revolute" for t in robot.joint_types]), :3, 2]
+    if len(z) and np.linalg.norm(np.cross(z, z[0]), axis=1).max() > 1e-6:
+        return exc
+    return DegenerateConfigurationError(
+        f"{robot.name}: every revolute joint of its {robot.n} turns about one direction, so the "
+        f"camera only rotates about that direction, which no choice of postures mends: "
+        f"{exc.message}",
+        fix="the field self-calibration, which estimates the focal length, needs a camera turned "
+        "about two non-parallel axes; calibrate this robot from tracker measurements of its tool "
+        "(`selfcal identify`, docs/tracker.md)",
+    )
+
+
+def _joint1_axis(model: MCPCModel) -> np.ndarray:
+    """Joint 1's axis in the model's world frame (the z-axis of ``G_0``)."""
+    return chain_transforms(model)[0][:3, 2]

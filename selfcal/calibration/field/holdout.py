@@ -1,0 +1,69 @@
+"""A held-out check of a dataset without a second one: leave some poses out.
+
+Every ``every``-th frame (from the first) is held out; the rest is calibrated afresh (the same
+method as the full calibration) and the held-out frames are predicted from their joint readings
+alone with that calibration (:func:`selfcal.calibration.field.evaluate.evaluate_field` for the ArUco field,
+:func:`selfcal.calibration.board.evaluate.evaluate_board` for a board): the reprojection RMS (px) of images the fit
+never saw, of the calibrated model and of the nominal reference. ``selfcal report`` runs it on
+real data (no truth), where no second dataset was taken for ``selfcal evaluate``.
+"""
+
+from __future__ import annotations
+
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+from selfcal.calibration.board.dataset import calibrate_board_dataset
+from selfcal.calibration.board.evaluate import Evaluation, evaluate_board
+from selfcal.calibration.field.calibrate import calibrate
+from selfcal.calibration.field.evaluate import evaluate_field
+from selfcal.io.dataset import Dataset, DatasetError
+from selfcal.io.dataset_subset import subset_dataset
+
+__all__ = ["HoldOut", "leave_poses_out", "MIN_FIT_FRAMES"]
+
+MIN_FIT_FRAMES = 8
+"""Fewest frames left to fit (the calibration needs 6 postures; 8 leaves a margin)."""
+
+
+@dataclass(frozen=True)
+class HoldOut:
+    """The frames held out and fitted (dataset indices) and the evaluation of the held-out ones
+    with the calibration of the others."""
+
+    held_out: tuple[int, ...]
+    fitted: tuple[int, ...]
+    evaluation: Evaluation
+
+
+def leave_poses_out(root: str | Path, *, every: int = 5, method: str = "joint") -> HoldOut:
+    """Calibrate ``root`` without every ``every``-th frame and predict those (module docstring).
+
+    Raises:
+        DatasetError: ``every`` < 2, or fewer than :data:`MIN_FIT_FRAMES` frames would be left
+            to fit.
+        EstimationError, InputError: from the calibration of the subset or the evaluation.
+    """
+    if every < 2:
+        raise DatasetError(f"leave-poses-out: every = {every}; hold out every 2nd frame or fewer")
+    ds = Dataset.open(root)
+    idx = [int(i) for i in ds.indices]
+    held, fit = idx[::every], [i for k, i in enumerate(idx) if k % every]
+    if len(fit) < MIN_FIT_FRAMES:
+        raise DatasetError(
+            f"{ds.root}: {len(idx)} frames leave {len(fit)} to fit when every {every}th is held "
+            f"out; the check needs {MIN_FIT_FRAMES}",
+            fix="take more frames, or a second dataset for `selfcal evaluate`",
+        )
+    with tempfile.TemporaryDirectory(prefix="selfcal-holdout-") as tmp:
+        fit_ds = subset_dataset(ds.root, fit, Path(tmp) / "fit")
+        held_ds = subset_dataset(ds.root, held, Path(tmp) / "held")
+        if ds.info.board is None:
+            # the subset lacks frames of the planned trajectory on purpose
+            cal = calibrate(fit_ds.root, method=method, allow_missing_frames=True)
+            ev = evaluate_field(cal, fit_ds.root, held_ds.root)
+        else:
+            board_cal = calibrate_board_dataset(fit_ds.root, allow_missing_frames=True)
+            ev = evaluate_board(board_cal, "leave-poses-out fit", held_ds.root)
+    return HoldOut(tuple(held), tuple(fit), ev)

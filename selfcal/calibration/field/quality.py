@@ -1,0 +1,158 @@
+"""Is a finished calibration believable? The checks that mark it failed (issue #15).
+
+A calibration can converge, fit its own data and still be wrong; these checks compare it with
+what is declared and with the nominal model, and return one sentence per failure with the likely
+causes (empty: no failure). :func:`selfcal.calibration.field.calibrate.calibrate_detailed` stores them in the result
+(``calibration.json`` ``status`` and ``failures``); the CLI then exits with status 3.
+
+- **Rig direction.** The dataset's cameras are named ``left`` and ``right``: the right camera
+  lies along +x (image right, OpenCV frame) of the left one. An estimated baseline more than 90
+  degrees from that direction means the images of the two cameras are swapped (or the cameras
+  were listed in the wrong order). The swap is invisible to every fit (the reprojection error is
+  the same to 1e-12 px: the identified hand-eye simply moves by one baseline), so it is checked
+  against the declaration.
+- **Calibrated against nominal.** The calibrated model's reprojection RMS over the calibration
+  images against the nominal model's: the nominal chain with only its base (the world placement)
+  and its tool (the hand-eye) fitted to the calibration's camera poses, predicting the same
+  corners with the same camera, rig and points. A calibration that fits worse than the nominal
+  model has failed (a diverged or mis-gauged estimation, wrong joint readings).
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+from selfcal.calibration.board.dataset import chain_param_names
+from selfcal.calibration.field.results import CalibrationOutput
+from selfcal.calibration.identify import identify
+from selfcal.camera import CameraModel
+from selfcal.estimation.observations import Observations
+from selfcal.kinematics.forward import fk_tool
+from selfcal.kinematics.mcpc import MCPCModel
+from selfcal.transforms import inv_pose
+
+__all__ = [
+    "MAX_BASELINE_ANGLE_DEG",
+    "baseline_angle_deg",
+    "rig_direction_failure",
+    "nominal_with_fitted_base_and_tool",
+    "model_reprojection_rms_px",
+    "nominal_fit_failure",
+    "assess_calibration",
+]
+
+MAX_BASELINE_ANGLE_DEG = 90.0
+"""Largest angle (deg) between the estimated baseline and the declared one (+x of the left
+camera) that is accepted: a swap gives 180, a real rig a few degrees."""
+
+
+def baseline_angle_deg(T_left_right: np.ndarray) -> float:
+    """Angle (deg) between the right camera's position in the left camera frame (the translation
+    of ``T_left_right``, (4, 4) m) and the left camera's +x axis."""
+    t = np.asarray(T_left_right, dtype=float)[:3, 3]
+    n = float(np.linalg.norm(t))
+    if not np.isfinite(n) or n == 0.0:
+        return float("nan")
+    return float(np.degrees(np.arccos(np.clip(t[0] / n, -1.0, 1.0))))
+
+
+def rig_direction_failure(T_left_right: np.ndarray) -> str | None:
+    """The failure sentence when the estimated baseline points away from the declared +x, else
+    None (see the module docstring)."""
+    angle = baseline_angle_deg(T_left_right)
+    if not angle > MAX_BASELINE_ANGLE_DEG:
+        return None
+    t_mm = np.asarray(T_left_right, dtype=float)[:3, 3] * 1000.0
+    return (
+        f"the right camera is estimated at ({t_mm[0]:.1f}, {t_mm[1]:.1f}, {t_mm[2]:.1f}) mm in "
+        f"the left camera frame, {angle:.0f} deg from the declared direction (+x, image right; "
+        f"at most {MAX_BASELINE_ANGLE_DEG:.0f} accepted): the left and right images are likely "
+        "swapped, or the cameras listed in the wrong order (robot.hardware.cameras, dataset.json "
+        "cameras); the identified camera mount is then off by one baseline"
+    )
+
+
+def nominal_with_fitted_base_and_tool(
+    nominal: MCPCModel, q: np.ndarray, T_world_cam: np.ndarray
+) -> MCPCModel:
+    """The nominal chain (tool = the camera) with only its base and tool parameters fitted to
+    the camera poses ``T_world_cam`` (m, 4, 4) m at joints ``q`` (m, n) rad: the nominal model
+    placed in the calibration's world, its hand-eye measured. The chain keeps the drawing's
+    values."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # parameters the few base/tool poses leave undetermined
+        ref = identify(nominal, q, T_world_cam, hold=chain_param_names(nominal.joint_types))
+    return ref.model
+
+
+def model_reprojection_rms_px(
+    model: MCPCModel,
+    q: np.ndarray,
+    obs: Observations,
+    camera: CameraModel,
+    T_first_cam: np.ndarray,
+    point_ids: np.ndarray,
+    X_world: np.ndarray,
+) -> float:
+    """2-D reprojection RMS (px) of the observations ``obs`` (configurations index ``q`` (m, n)
+    rad) predicted with the camera poses of ``model`` (tool = the first camera), the rig
+    ``T_first_cam`` (N, 4, 4) m and the points ``X_world`` (P, 3) m of ``point_ids``.
+    Observations of points without a finite position are left out; NaN when none remains."""
+    T_world_first = fk_tool(model, q)
+    ids = np.asarray(point_ids)
+    k = -np.ones(len(obs.point), np.int64)  # index of each observation's point in point_ids
+    if len(ids):
+        order = np.argsort(ids, kind="stable")
+        pos = np.minimum(np.searchsorted(ids[order], obs.point), len(ids) - 1)
+        k = np.where(ids[order][pos] == obs.point, order[pos], -1)
+    keep = k >= 0
+    keep[keep] = np.isfinite(X_world[k[keep]]).all(axis=1)
+    if not keep.any():
+        return float("nan")
+    T_cam_world = inv_pose(T_world_first[:, None] @ np.asarray(T_first_cam)[None])  # (m, N)
+    T = T_cam_world[obs.config[keep], obs.camera[keep]]  # per observation
+    X = np.einsum("kij,kj->ki", T[:, :3, :3], X_world[k[keep]]) + T[:, :3, 3]
+    return float(np.sqrt(np.mean(np.sum((camera.project(X) - obs.uv[keep]) ** 2, axis=1))))
+
+
+def nominal_fit_failure(calibrated_px: float, nominal_px: float) -> str | None:
+    """The failure sentence when the calibrated model reprojects worse than the nominal one
+    (both RMS px over the same corners, see the module docstring), else None."""
+    if not calibrated_px > nominal_px:  # NaN on either side: no verdict from this check
+        return None
+    return (
+        f"the calibrated model reprojects the calibration images worse than the nominal model "
+        f"({calibrated_px:.3f} px RMS against {nominal_px:.3f} px with the nominal chain, its "
+        "base and camera mount fitted): the estimation went wrong; likely causes: joint "
+        "readings in another unit or order than joints.csv declares, frames whose images and "
+        "joints do not belong together, a robot file that is not this robot, too few and too "
+        "similar postures, or the two-stage method where it misses (use the default --method "
+        "joint)"
+    )
+
+
+def assess_calibration(
+    out: CalibrationOutput, obs: Observations, q: np.ndarray, nominal: MCPCModel
+) -> tuple[str, ...]:
+    """The failures of the calibration ``out`` (:func:`selfcal.calibration.field.calibrate.calibrate_detailed`) of
+    the observations ``obs`` at joints ``q`` (every frame, rad), ``nominal`` the robot's nominal
+    chain with the declared camera mount as tool: one sentence each, empty when none."""
+    final = out.joint if out.joint is not None else out.selfcal
+    failures = [rig_direction_failure(final.T_first_cam[1])] if len(final.T_first_cam) > 1 else []
+    used = np.asarray(out.selfcal.registered)
+    used = np.flatnonzero(used if used.ndim == 1 else used[:, 0])
+    poses = final.T_world_cam[used, 0]
+    ok = np.isfinite(poses).all(axis=(1, 2))
+    if ok.sum() >= 3:
+        ref = nominal_with_fitted_base_and_tool(nominal, q[used[ok]], poses[ok])
+        sub = obs.subset(np.isin(obs.config, used))
+        rms = [
+            model_reprojection_rms_px(
+                m, q, sub, final.camera, final.T_first_cam, final.point_ids, final.X_world
+            )  # fmt: skip
+            for m in (out.model, ref)
+        ]
+        failures.append(nominal_fit_failure(rms[0], rms[1]))
+    return tuple(f for f in failures if f is not None)

@@ -1,0 +1,121 @@
+"""``calibration.json`` of a hand-eye calibration from flange poses (:mod:`selfcal.calibration.handeye.calibrate`).
+
+Holds the setup, the camera (model, values by OpenCV name, standard deviations), the hand-eye
+``X`` and the board mount ``B`` (what each is: :data:`selfcal.calibration.handeye.calibrate.FRAMES`) as 4x4 matrices,
+mm and quaternions with their standard deviations (mm, deg), for the calibrated fit and for the
+nominal (the camera of the camera stage held, ``X`` and ``B`` fitted by the same objective), and
+the fit RMS. :func:`read_handeye` reads back what :func:`handeye_document` writes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from selfcal.calibration.handeye.calibrate import FRAMES, HandEyeCalibration, HandEyeFit
+from selfcal.camera import CameraModel, camera_model, lens_names
+from selfcal.errors import InputError
+from selfcal.io.jsonfile import SCHEMA_KEY, Fields, check_header, load_json
+
+__all__ = ["HANDEYE_FORMAT", "HandEyeModel", "handeye_document", "is_handeye", "read_handeye"]
+
+HANDEYE_FORMAT = "scorbot-selfcal-handeye-calibration"
+_FIX = "calibrate the pose dataset again with `selfcal calibrate DIR`"
+
+
+def _transform(T: np.ndarray, std: np.ndarray, what: str) -> dict:
+    return {
+        "transform": what,
+        "matrix": np.round(T, 12).tolist(),
+        "xyz_mm": (T[:3, 3] * 1000.0).tolist(),
+        "quat_xyzw": Rotation.from_matrix(T[:3, :3]).as_quat().tolist(),
+        "sigma_xyz_mm": (std[3:] * 1000.0).tolist(),
+        "sigma_rotation_deg": np.degrees(std[:3]).tolist(),
+    }
+
+
+def _camera(cam: CameraModel, std: dict[str, float]) -> dict:
+    return {"model": cam.model_name, "width": cam.width, "height": cam.height,
+            "free": list(cam.free),
+            "values": dict(zip(cam.names, (float(v) for v in cam.values()), strict=True)),
+            "std": std}  # fmt: skip
+
+
+def _fit(fit: HandEyeFit, setup: str) -> dict:
+    x_what, b_what = FRAMES[setup]
+    return {"camera": _camera(fit.camera, fit.camera_std),
+            "hand_eye": _transform(fit.X, fit.X_std, x_what),
+            "board_mount": _transform(fit.B, fit.B_std, b_what),
+            "reprojection_rms_px": fit.rms_px, "sigma_px": fit.sigma_px,
+            "inliers": int(fit.inlier.sum()), "rows": int(fit.inlier.size)}  # fmt: skip
+
+
+def handeye_document(cal: HandEyeCalibration, dataset: str) -> dict:
+    """The ``calibration.json`` document of ``cal`` calibrated from the pose dataset ``dataset``."""
+    return {
+        "format": HANDEYE_FORMAT,
+        SCHEMA_KEY: 1,
+        "dataset": dataset,
+        "setup": cal.setup,
+        "method": "hand-eye on corner reprojection (linear Park start, the one solver)",
+        "kinematics": "none identified: the flange poses are the robot's reports, taken as they are",
+        "frames_used": int(cal.used.sum()),
+        "camera_stage_rms_px": cal.camera_stage.rms_px,
+        **_fit(cal.calibrated, cal.setup),
+        "nominal": {
+            "what": "the camera stage's camera held, hand-eye and board mount fitted by "
+            "the same objective",
+            **_fit(cal.nominal, cal.setup),
+        },  # fmt: skip
+    }
+
+
+def is_handeye(path: str | Path) -> bool:
+    """Whether ``path`` (a calibration.json or its folder) is a hand-eye calibration."""
+    p = Path(path)
+    p = p / "calibration.json" if p.is_dir() else p
+    try:
+        return p.is_file() and load_json(p, fix=_FIX).get("format") == HANDEYE_FORMAT
+    except ValueError:
+        return False
+
+
+@dataclass(frozen=True)
+class HandEyeModel:
+    """One fit read back: ``camera``, ``X`` and ``B`` (4, 4) m."""
+
+    camera: CameraModel
+    X: np.ndarray
+    B: np.ndarray
+
+
+def _model(f: Fields) -> HandEyeModel:
+    """One fit, checked (finite values, positive focal length, rigid X and B)."""
+    c = f.sub("camera")
+    v, model = c.sub("values"), c.str("model")
+    cam = camera_model(model, fx=v.positive("fx"), mu=v.positive("mu"), cx=v.finite("cx"),
+                       cy=v.finite("cy"), width=c.int("width"), height=c.int("height"),
+                       coeffs={k: v.finite(k) for k in lens_names(model) if v.has(k)},
+                       free=c.strs("free"), skew=v.finite("skew") if v.has("skew") else 0.0)  # fmt: skip
+    return HandEyeModel(cam, f.sub("hand_eye").poses("matrix", (4, 4)),
+                        f.sub("board_mount").poses("matrix", (4, 4)))  # fmt: skip
+
+
+def read_handeye(path: str | Path) -> tuple[str, HandEyeModel, HandEyeModel, dict]:
+    """The setup, the calibrated and the nominal model and the whole document of the hand-eye
+    ``calibration.json`` ``path`` (or its folder). Raises :class:`selfcal.errors.InputError`
+    naming the file."""
+    p = Path(path)
+    p = p / "calibration.json" if p.is_dir() else p
+    doc = load_json(p, fix=_FIX)
+    check_header(doc, str(p), fmt=HANDEYE_FORMAT, version=1, fix=_FIX)
+    f = Fields(doc, str(p), _FIX)
+    try:
+        return f.str("setup"), _model(f), _model(f.sub("nominal")), doc
+    except InputError:
+        raise
+    except (KeyError, TypeError, ValueError) as exc:  # a camera model refusing its values
+        raise InputError(f"{p}: malformed camera ({exc})", fix=_FIX) from None

@@ -1,0 +1,157 @@
+"""Does the target's scale agree with the arm's? A wrong board size or known distance, caught.
+
+A calibration from images takes its scale from the target: the board's square size, or the
+field's one known distance. Declared wrong -- a board printed "fit to page", a square measured
+in the wrong unit, a distance between the wrong markers -- every camera pose comes out scaled,
+the kinematic fit takes the scale into the link lengths, and the reprojection error stays at
+the noise floor: the calibration looks perfect and positions the arm a few per cent wrong. The
+nominal kinematics know the arm's size to a fraction of a per cent (link lengths are machined
+to about a millimetre), so the camera's motion as the target measures it and as the nominal
+chain moves it must agree in scale.
+
+:func:`motion_scale` fits ``s T_world_cam ~ B fk(q) C`` over the postures -- the target's
+placement ``B`` (world <- base), the hand-eye ``C`` (flange <- camera) and the scale ``s`` free
+-- by least squares on each camera pose's origin and axis tips at 0.1 m.
+``s > 1``: the target measures the motion smaller than the arm makes it (a board printed
+larger than declared, a known distance declared too short). :func:`scale_warning` turns a
+scale off by more than its tolerance (:data:`SCALE_TOL`, more for an arm that misfits its
+nominal) and 5 sigma into a warning that says how large the target really is.
+
+Measured on the synthetic lab of ``tests/integration/test_own_data.py`` (kinematics perturbed
+by up to 1 mm and 0.5 deg): s = 0.9992 +- 0.0006 with the right square size, 1.0301 with the
+square declared 3 % small, 0.9701 declared 3 % large. The standard deviation is the noise's
+alone: the arm's own kinematic errors bias ``s`` by up to 0.4 % (``tests/unit/test_scale_check.py``),
+which :data:`SCALE_TOL` leaves room for.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from selfcal.errors import SelfCalWarning
+from selfcal.kinematics.alignment import AXIS_TIPS, fit_placement_and_hand_eye
+from selfcal.kinematics.forward import fk_tool
+from selfcal.kinematics.mcpc import MCPCModel, nominal_mcpc
+from selfcal.transforms import pose_from_vec
+
+__all__ = [
+    "SCALE_TOL",
+    "MotionScale",
+    "ScaleWarning",
+    "check_scale",
+    "motion_scale",
+    "scale_warning",
+    "scaled_sizes",
+]
+
+SCALE_TOL = 0.015
+"""Relative scale beyond which the target and the nominal arm disagree (1.5 %): an arm whose every
+link is up to 1 mm and 0.5 deg off its nominal shows up to 0.4 % (the KR 6,
+``tests/unit/test_scale_check.py``) and 0.6 % (the ER-4u of ``scenarios/paper.toml``, a smaller
+arm), a board printed at another scale typically 2-6 %. An arm that misfits its nominal more
+widens it (:attr:`MotionScale.tolerance`)."""
+
+
+class ScaleWarning(SelfCalWarning):
+    """The target's scale and the arm's disagree (:func:`scale_warning`)."""
+
+
+@dataclass(frozen=True)
+class MotionScale:
+    """The scale the nominal arm's motion needs to match the target's camera poses.
+
+    Attributes:
+        scale: ``s`` with ``s T_world_cam ~ B fk(q) C`` (1: they agree).
+        std: its standard deviation from the fit's residuals.
+        rms_m: RMS residual of the fit (m; origin and axis tips), the nominal chain's own misfit.
+        spread_m: RMS distance of the camera positions from their centroid (m).
+        postures: how many camera poses it used.
+    """
+
+    scale: float
+    std: float
+    rms_m: float
+    spread_m: float
+    postures: int
+
+    @property
+    def tolerance(self) -> float:
+        """How far from 1 the scale may be from the arm's own kinematic errors: :data:`SCALE_TOL`,
+        or four times the nominal chain's misfit over the camera's spread when that is more."""
+        return max(SCALE_TOL, 4.0 * self.rms_m / max(self.spread_m, 1e-9))
+
+
+def motion_scale(
+    nominal: MCPCModel, q: np.ndarray, T_world_cam: np.ndarray, T_flange_cam: np.ndarray
+) -> MotionScale:
+    """The scale of the camera poses ``T_world_cam`` (m, 4, 4; m) against the flange poses the
+    ``nominal`` chain (no tool) gives at joints ``q`` (m, n) rad; ``T_flange_cam`` (4, 4) m:
+    the hand-eye guess to start from (the robot file's camera mount). Needs 3 postures or more.
+    """
+    T = np.asarray(T_world_cam, dtype=float)
+    F = fk_tool(nominal, np.asarray(q, dtype=float))
+    B0, C0 = fit_placement_and_hand_eye(T, F, T_flange_cam)
+
+    def residuals(x: np.ndarray) -> np.ndarray:
+        Ts = T.copy()
+        Ts[:, :3, 3] *= np.exp(x[12])
+        return ((pose_from_vec(x[:6]) @ B0 @ F @ C0 @ pose_from_vec(x[6:12]) - Ts) @ AXIS_TIPS)[
+            :, :3
+        ].ravel()
+
+    sol = least_squares(residuals, np.zeros(13), method="lm", xtol=1e-12)
+    dof = max(sol.fun.size - 13, 1)
+    s2 = float(sol.fun @ sol.fun) / dof
+    JtJ = sol.jac.T @ sol.jac
+    var = float(np.linalg.pinv(JtJ)[12, 12]) * s2
+    s = float(np.exp(sol.x[12]))
+    P = T[:, :3, 3]
+    spread = float(np.sqrt(np.mean(np.sum((P - P.mean(axis=0)) ** 2, axis=1))))
+    rms = float(np.sqrt(np.mean(sol.fun**2)))
+    return MotionScale(s, s * float(np.sqrt(max(var, 0.0))), rms, spread, len(T))
+
+
+def scale_warning(ms: MotionScale, robot: str, target: str, correct: str) -> str | None:
+    """A warning when ``ms`` is off by more than its tolerance and 5 sigma, else None.
+    ``robot``: the robot's name; ``target``: what set the scale (e.g. "the chessboard of
+    board.toml (square_mm = 15.0)"); ``correct``: the fix, given the scale (e.g. "square_mm =
+    15.45 would match the arm")."""
+    off = ms.scale - 1.0
+    if abs(off) <= ms.tolerance or abs(off) <= 5 * ms.std:
+        return None
+    measured = abs(1.0 / ms.scale - 1.0)  # the target's motion against the arm's
+    return (
+        f"the target's scale disagrees with the arm's: {target} measures the camera's motion "
+        f"{measured * 100:.1f} % {'smaller' if off > 0 else 'larger'} than the nominal "
+        f"kinematics of {robot} make it (scale {ms.scale:.4f} +- {ms.std:.4f} over "
+        f"{ms.postures} postures); the calibration has taken this into the link lengths, so its "
+        f"positions are about {measured * 100:.1f} % off. A target printed or measured at "
+        f"another size does this ({correct}), as does a --robot that is not this arm"
+    )
+
+
+def scaled_sizes(sizes: dict[str, float], scale: float) -> str:
+    """``"square_mm = 15.45, marker_mm = 11.59"``: the lengths of a target description (its
+    keys ending in ``_mm``) times ``scale``, the sizes that would match the arm."""
+    return ", ".join(f"{k} = {v * scale:.4g}" for k, v in sizes.items() if k.endswith("_mm"))
+
+
+def check_scale(
+    robot, q: np.ndarray, T_world_cam: np.ndarray, target: str, correct: Callable[[float], str]
+) -> list[str]:
+    """The scale check of a calibration: :func:`motion_scale` of ``robot``'s nominal chain (a
+    :class:`selfcal.robot.definition.RobotDef`, its camera mount the hand-eye start) against the camera
+    poses ``T_world_cam`` (m, 4, 4) at joints ``q`` (m, n) rad, and beyond the tolerance a
+    :class:`ScaleWarning` (also returned, for ``calibration.json``; else ``[]``). ``target`` and
+    ``correct(scale)``: the texts of :func:`scale_warning`."""
+    ms = motion_scale(nominal_mcpc(robot), q, T_world_cam, robot.T_flange_cam)
+    text = scale_warning(ms, robot.name, target, correct(ms.scale))
+    if text is None:
+        return []
+    warnings.warn(text, ScaleWarning, stacklevel=3)
+    return [text]

@@ -1,0 +1,2 @@
+"""The tracker route: kinematics from tracker measurements of the tool,
+its calibration file, and the joint fit with the images."""

@@ -1,0 +1,410 @@
+"""Kinematic identification from tracker measurements: positions, poses and distances of the tool.
+
+Input: joint readings ``q`` (m, n) rad (m for prismatic joints) with, per row, the measured
+position of a tool point (m) and optionally the orientation of a tool frame, in the tracker's
+frame; and/or distances (m) between the tool point at two configurations. Output: the MCPC chain
+(:mod:`selfcal.kinematics.mcpc`) whose ``V_0`` holds the tracker-to-base transform and whose ``V_n`` holds the
+tool point's offset on the flange (and the measured tool frame's orientation, for poses).
+
+Steps:
+1. Placement (:mod:`selfcal.estimation.tracker_start`): the nominal chain is placed in the tracker
+   frame by a closed-form rigid fit alternated with a linear fit of the tool point on the flange
+   (positions), or by the closed-form robot-world hand-eye solution (poses). The
+   estimation works in that placed base frame (the *fit frame*): there the base parameters are
+   small and far from the MCPC Euler singularity whatever the tracker's axes are. The result
+   keeps ``T_meas_fit`` (tracker <- fit frame) and predicts in the tracker frame.
+2. Identifiability: the residual blocks' weighted, column-scaled Jacobian of all minimal
+   parameters at the start (:mod:`selfcal.estimation.tracker`); parameters are offered base first,
+   then the tool point's offset, the internal frames and last the tool orientation
+   (:data:`priority_order`), and a parameter is kept when it adds to the span of those kept
+   (:func:`selfcal.kinematics.identifiability.select_identifiable`, pivoted QR when that does not reproduce the
+   SVD rank). Positions alone cannot see the orientation of the tool frame: three parameters of
+   ``V_n`` come out unidentifiable, numerically. Distances alone cannot see the tracker frame.
+3. Too few measurements: the count of parameters these kinds of measurement identify on this
+   chain (the rank at well-spread random configurations) must be below the number of equations;
+   otherwise :class:`TrackerIdentificationError` says how many rows are needed. When the data
+   reach that rank their selection is the structural one; only for poorly excited data does the
+   selection also run at the well-spread configurations (which parameters the kinds cannot see,
+   which these configurations miss).
+4. Levenberg-Marquardt of the one solver (:func:`selfcal.solver.solve`) on the identifiable set,
+   the rest held at nominal (their Jacobian columns are never formed); standard deviations ``sigma0^2 (J^T J)^-1`` with the a-posteriori
+   ``sigma0`` (1 when the stated sigmas are right).
+
+Units: SI inside; result fields ending in ``_mm`` / ``_deg`` are for reports.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from selfcal.calibration.identify import IdentificationWarning
+from selfcal.errors import EstimationError, InputError
+from selfcal.estimation.tracker import (
+    ChainLayout,
+    TrackerDistanceBlock,
+    TrackerMeasurements,
+    TrackerPoseBlock,
+    TrackerPositionBlock,
+    initial_placement,
+    tracker_terms,
+)
+from selfcal.estimation.tracker_start import pose_placement
+from selfcal.kinematics.alignment import wrap_params
+from selfcal.kinematics.forward import fk_tool
+from selfcal.kinematics.identifiability import select_identifiable, triangular_factor
+from selfcal.kinematics.mcpc import MCPCModel, minimal_indices, param_is_angle, param_names
+from selfcal.kinematics.parameter_estimates import ParameterEstimates
+from selfcal.solver import ParameterBlock, Problem, SolverOptions, solve
+from selfcal.transforms import inv_pose, make_pose
+
+__all__ = [
+    "TrackerMeasurements",
+    "TrackerResult",
+    "TrackerIdentificationError",
+    "initial_placement",
+    "priority_order",
+    "identify_tracker",
+    "tracker_terms",
+]
+
+
+class TrackerIdentificationError(EstimationError):
+    """The tracker data cannot determine the chain (too few rows, no convergence); the message
+    says how many rows are needed or what to change."""
+
+
+# --------------------------------------------------------------------------------------------
+# Identifiability
+# --------------------------------------------------------------------------------------------
+
+
+def priority_order(joint_types: tuple[str, ...]) -> np.ndarray:
+    """Positions (into the minimal set) in the order they are offered for estimation: ``V_0``,
+    the lengths of ``V_n`` (the tool point), ``V_1 .. V_{n-1}``, the angles of ``V_n``."""
+    n = len(joint_types)
+    idx = minimal_indices(joint_types)
+    frame = idx // 6
+    group = np.where(frame == 0, 0, np.where(frame == n, np.where(param_is_angle(idx), 3, 1), 2))
+    return np.argsort(group, kind="stable")
+
+
+def _blocks(layout: ChainLayout, meas: TrackerMeasurements, sig: tuple[float, float, float]):
+    st, sr, sd = sig
+    blocks: list = []
+    if meas.m and meas.R is not None:
+        T = make_pose(meas.R, meas.xyz)
+        blocks.append(TrackerPoseBlock(layout, meas.q, T, st, sr))
+    elif meas.m:
+        blocks.append(TrackerPositionBlock(layout, meas.q, meas.xyz, st))
+    if meas.k:
+        blocks.append(TrackerDistanceBlock(layout, *meas.distances(), sd))
+    return blocks
+
+
+def _dense_jacobian(blocks: list, values: dict, flat: np.ndarray) -> np.ndarray:
+    """The weighted Jacobian (rows, len(flat)) of the blocks w.r.t. the coordinates ``flat`` of
+    their chain block (over a whole-chain layout: the flat MCPC parameters), dense: small
+    problems need no sparse assembly."""
+    out = []
+    for b in blocks:
+        (piece,) = b.evaluate(values, True).pieces
+        k, d, c = piece.J.shape
+        out.append(piece.J.reshape(k * d, c)[:, flat])
+    return np.vstack(out)
+
+
+def _scaled_factor(
+    model: MCPCModel, meas: TrackerMeasurements, sig, cons: np.ndarray
+) -> np.ndarray:
+    """The triangular factor of the blocks' weighted Jacobian w.r.t. the minimal parameters
+    ``cons`` (positions into the minimal set), each column scaled to unit norm (columns that are
+    zero up to rounding, e.g. the base for distances, stay zero)."""
+    idx = minimal_indices(model.joint_types)
+    blocks = _blocks(ChainLayout.whole(model), meas, sig)
+    J = _dense_jacobian(blocks, {"mcpc": model.params.reshape(-1)}, idx[cons])
+    col = np.linalg.norm(J, axis=0)
+    col = np.where(col > 1e-10 * col.max(initial=0.0), col, np.inf)
+    return triangular_factor(J / col)
+
+
+def _numerical_rank(A: np.ndarray, rank_rtol: float) -> int:
+    """Singular values above ``rank_rtol`` sigma_max (the rule of :func:`select_identifiable`)."""
+    s = np.linalg.svd(A, compute_uv=False)
+    return int(np.sum(s > rank_rtol * s[0])) if s.size else 0
+
+
+def _select(
+    model: MCPCModel, A: np.ndarray, cons: np.ndarray, rank_rtol: float
+) -> tuple[np.ndarray, int]:
+    """Mask (over the minimal set) of the columns of ``A`` (the minimal parameters ``cons``)
+    kept when they are offered in :func:`priority_order`, and the rank of ``A``."""
+    pos = {k: i for i, k in enumerate(cons)}
+    order = np.array([pos[k] for k in priority_order(model.joint_types) if k in pos], int)
+    keep, rank, _ = select_identifiable(A, order, rank_rtol)
+    mask = np.zeros(minimal_indices(model.joint_types).size, bool)
+    mask[cons[keep]] = True
+    return mask, rank
+
+
+def _spread(model: MCPCModel, meas: TrackerMeasurements, p: int) -> TrackerMeasurements:
+    """Noise-free measurements of the same kinds at ``p + 10`` well-spread random
+    configurations (revolute joints over a full turn, prismatic ones over the data's range
+    +- 0.1 m), deterministic: what these kinds of measurement identify on this chain."""
+    rng = np.random.default_rng(0)
+    rows = p + 10
+    data_q = np.concatenate([a for a in (meas.q, meas.q_a, meas.q_b) if a is not None and len(a)])
+    lo, hi = data_q.min(axis=0) - 0.1, data_q.max(axis=0) + 0.1
+    rev = np.array([t == "revolute" for t in model.joint_types])
+
+    def draw(k: int) -> np.ndarray:
+        return np.where(
+            rev, rng.uniform(-np.pi, np.pi, (k, model.n)), rng.uniform(lo, hi, (k, model.n))
+        )
+
+    q = draw(rows)
+    T = fk_tool(model, q)
+    return TrackerMeasurements(
+        q=q if meas.m else q[:0],
+        xyz=T[:, :3, 3] if meas.m else np.zeros((0, 3)),
+        R=T[:, :3, :3] if meas.R is not None else None,
+        q_a=draw(rows) if meas.k else None,
+        q_b=draw(rows) if meas.k else None,
+        d=np.ones(rows) if meas.k else None,
+    )
+
+
+def _kinds(meas: TrackerMeasurements) -> tuple[str, ...]:
+    on = (("position", meas.m and meas.R is None), ("pose", meas.m and meas.R is not None))
+    return tuple(k for k, b in (*on, ("distance", meas.k)) if b)
+
+
+# --------------------------------------------------------------------------------------------
+# Result and driver
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class TrackerResult(ParameterEstimates):
+    """Outcome of :func:`identify_tracker`. SI units unless a name says otherwise.
+
+    Attributes:
+        names, values, std, estimated, held_reason, covariance, rank, n_params:
+            :class:`~selfcal.kinematics.parameter_estimates.ParameterEstimates` (the rank of the considered
+            parameters' Jacobian at the start).
+        model: identified chain in the fit frame (tool = the tool point, or the measured tool
+            frame for poses).
+        T_meas_fit: (4, 4) tracker frame <- fit frame (constant; see the module docstring).
+        condition_number: of the column-scaled weighted Jacobian of the estimated set at the
+            solution.
+        sigma0: a-posteriori standard deviation of unit weight.
+        rms_mm: RMS of the position residual norms (mm) of the position / pose rows (nan if none);
+        rms_deg: RMS rotation error (deg) of the pose rows (nan if none); rms_distance_mm.
+        kinds: the measurement kinds used (``position``, ``pose``, ``distance``).
+        iterations, converged, warnings: of the solve; n_rows, n_distances, n_equations.
+    """
+
+    model: MCPCModel
+    T_meas_fit: np.ndarray
+    condition_number: float
+    sigma0: float
+    rms_mm: float
+    rms_deg: float
+    rms_distance_mm: float
+    kinds: tuple[str, ...]
+    iterations: int
+    converged: bool
+    n_rows: int
+    n_distances: int
+    n_equations: int
+    residuals: dict[str, np.ndarray] = field(repr=False, default_factory=dict)
+    warnings: tuple[str, ...] = ()
+
+    def predict(self, q: np.ndarray) -> np.ndarray:
+        """Tool-point positions (m, 3) in the tracker frame (m) at joints ``q`` (m, n)."""
+        T = self.T_meas_fit @ fk_tool(self.model, np.atleast_2d(q))
+        return T[:, :3, 3]
+
+    def predict_poses(self, q: np.ndarray) -> np.ndarray:
+        """Tool poses ``T_tracker_tool`` (m, 4, 4) at joints ``q`` (m, n)."""
+        return self.T_meas_fit @ fk_tool(self.model, np.atleast_2d(q))
+
+
+def identify_tracker(
+    model: MCPCModel,
+    meas: TrackerMeasurements,
+    *,
+    sigma_t_m: float = 1e-4,
+    sigma_r_rad: float = 1e-4,
+    sigma_d_m: float = 1e-4,
+    hold: tuple[str, ...] | list[str] = (),
+    rank_rtol: float = 1e-9,
+    max_iterations: int = 100,
+    tol: float = 1e-8,
+) -> TrackerResult:
+    """Identify the minimal MCPC parameters from tracker measurements (module docstring).
+
+    Args:
+        model: nominal chain (e.g. ``nominal_mcpc(robot)``; its tool is the flange: the tool point
+            and the tracker frame are estimated).
+        meas: the measurements (:class:`TrackerMeasurements`, SI, tracker frame).
+        sigma_t_m, sigma_r_rad, sigma_d_m: standard deviations of a position coordinate, a
+            rotation-vector coordinate and a distance (they weight the kinds against each
+            other; the std are scaled by the a-posteriori ``sigma0``).
+        hold: minimal parameter names held at nominal.
+        tol: the solver's relative tolerance on the cost change and the step (scipy's
+            ``least_squares`` default ``ftol``/``xtol``): a step that changes the cost by 1e-8
+            of itself moves the parameters by ``sqrt(2e-8 cost)`` standard deviations (below
+            0.003 at the benchmark's N = 30 to 300); tighter only spends evaluations on rounding
+            (held-out predictions equal to 1e-8 mm at 1e-12, docs/tracker.md).
+
+    Raises:
+        InputError: malformed measurements or unknown ``hold`` names.
+        TrackerIdentificationError: too few measurements (the message says how many are
+            needed) or no convergence.
+    """
+    meas.check(model.n)
+    if not np.all(np.isfinite(model.params)):
+        raise InputError("the nominal model holds NaN or inf parameters",
+                         fix="check the robot file the model comes from")  # fmt: skip
+    idx = minimal_indices(model.joint_types)
+    names = tuple(param_names(idx))
+    unknown = [h for h in hold if h not in names]
+    if unknown:
+        raise InputError(
+            f"cannot hold {unknown}: not minimal parameters of this robot",
+            fix=f"name parameters among {', '.join(names)}",
+        )
+    notes: list[str] = []
+    sig = (float(sigma_t_m), float(sigma_r_rad), float(sigma_d_m))
+
+    # 1. placement: work in the placed nominal base frame ("fit frame")
+    if meas.m:
+        if meas.R is not None:  # the closed form of the poses: positions' start fails with few
+            B, X = pose_placement(model, meas.q, make_pose(meas.R, meas.xyz))
+            s, R_tool = X[:3, 3], X[:3, :3]
+        else:
+            (B, s), R_tool = initial_placement(model, meas.q, meas.xyz), None
+        params = model.params.copy()
+        params[-1, 3:] += s  # V_n Trans(s) = Rx Ry Rz Trans(l + s): still in the gauge
+        start = model.with_params(params)
+        if R_tool is not None:
+            start = start.with_tool(make_pose(R_tool, np.zeros(3)))
+    else:
+        B = np.eye(4)
+        start = model
+    Binv = inv_pose(B)
+    local = TrackerMeasurements(
+        q=meas.q,
+        xyz=meas.xyz @ Binv[:3, :3].T + Binv[:3, 3],
+        R=None if meas.R is None else Binv[:3, :3] @ meas.R,
+        q_a=meas.q_a,
+        q_b=meas.q_b,
+        d=meas.d,
+    )
+
+    # 2./3. identifiability and the count of equations
+    considered = np.array([nm not in set(hold) for nm in names])
+    cons = np.flatnonzero(considered)
+    A_spread = _scaled_factor(start, _spread(start, local, cons.size), sig, cons)
+    p_struct = _numerical_rank(A_spread, rank_rtol)
+    n_eq = meas.equations()
+    if n_eq <= p_struct:
+        per = 6 if meas.R is not None else 3 if meas.m else 1
+        what = "poses" if meas.R is not None else "positions" if meas.m else "distances"
+        need = (p_struct - (n_eq - per * (meas.m if meas.m else meas.k))) // per + 1
+        raise TrackerIdentificationError(
+            f"too few measurements: {n_eq} equations for the {p_struct} parameters that "
+            f"{what} identify on this robot; need at least {need} {what} "
+            f"(more than {p_struct} equations), better 3 times that",
+            fix=f"measure at least {need} well-spread configurations that move every joint",
+        )
+    mask, rank = _select(start, _scaled_factor(start, local, sig, cons), cons, rank_rtol)
+    # Data that reach the structural rank keep the structural set: a structural dependency
+    # holds at every configuration, so the ordered selection rejects the same columns. Only
+    # poorly excited data need the selection at the well-spread configurations to tell the
+    # parameters the kinds cannot see from those these configurations miss.
+    struct_mask = mask if rank == p_struct else _select(start, A_spread, cons, rank_rtol)[0]
+    held_reason = {h: "explicit" for h in hold}
+    kinds = _kinds(meas)
+    for nm, c, ok in zip(names, considered, struct_mask):
+        if c and not ok:
+            held_reason[nm] = f"not identifiable from {' and '.join(kinds)} measurements"
+    lost = [nm for nm, c, k in zip(names, considered, mask) if c and not k]
+    lost = [nm for nm in lost if nm not in held_reason]
+    if rank < p_struct:
+        text = (
+            f"rank {rank} < {p_struct}: {lost} cannot be identified from these configurations "
+            "(e.g. a joint that never moves); held at nominal"
+        )
+        notes.append(text)
+        warnings.warn(text, IdentificationWarning, stacklevel=2)
+    for nm in lost:
+        held_reason[nm] = "unidentifiable from this data"
+
+    # 4. estimation
+    # the chain's unknowns are the estimated parameters alone (the held ones are constants of
+    # the layout, their Jacobian columns never formed)
+    est_flat = np.sort(idx[mask])
+    coords = np.full(6 * (start.n + 1), -1, np.int64)
+    coords[est_flat] = np.arange(est_flat.size)
+    layout = ChainLayout(start, "mcpc", coords)
+    blocks = _blocks(layout, local, sig)
+    prob = Problem([ParameterBlock("mcpc", start.params.reshape(-1)[est_flat])], blocks)
+    sol = solve(prob, SolverOptions(tol=tol, max_iterations=max_iterations))
+    if not sol.converged:
+        raise TrackerIdentificationError(
+            f"no convergence in {max_iterations} iterations ({sol.message})",
+            fix="check the joint/measurement pairing and the units (--joint-units)",
+        )
+    fit = layout.chain(sol.values)
+    J = _dense_jacobian(blocks, sol.values, np.arange(est_flat.size))
+    dof = max(J.shape[0] - J.shape[1], 1)
+    sigma0 = float(np.sqrt(2.0 * sol.cost / dof))
+    col = np.linalg.norm(J, axis=0)
+    R = triangular_factor(J / col)  # column-scaled: the condition number and the covariance
+    sv = np.linalg.svd(R, compute_uv=False)
+    Rinv = np.linalg.inv(R)
+    cov_flat = max(sigma0, 1e-300) ** 2 * (Rinv @ Rinv.T) / np.outer(col, col)
+    inv_cond = float(sv[-1] / sv[0])
+    final = fit.with_params(wrap_params(fit.params))  # LM moved minimal parameters only
+    order = np.searchsorted(est_flat, idx[mask])  # minimal order of the estimated ones
+    std = np.full(idx.size, np.nan)
+    std[mask] = np.sqrt(np.clip(np.diag(cov_flat), 0.0, None))[order]
+
+    rms_mm = rms_deg = rms_d = float("nan")
+    res = {b.name: sol.residuals[b.name] / np.reshape(b.w, (len(b.w), -1)) for b in blocks}
+    if meas.m:
+        r = res[blocks[0].name]
+        rms_mm = float(np.sqrt(np.mean(np.sum(r[:, :3] ** 2, axis=1)))) * 1e3
+        if meas.R is not None:
+            rms_deg = float(np.degrees(np.sqrt(np.mean(np.sum(r[:, 3:] ** 2, axis=1)))))
+    if meas.k:
+        rms_d = float(np.sqrt(np.mean(res[blocks[-1].name] ** 2))) * 1e3
+    return TrackerResult(
+        model=final,
+        T_meas_fit=B,
+        names=names,
+        values=final.params.reshape(-1)[idx],
+        std=std,
+        estimated=mask,
+        held_reason=held_reason,
+        covariance=cov_flat[np.ix_(order, order)],
+        rank=rank,
+        n_params=int(considered.sum()),
+        condition_number=float(1.0 / inv_cond) if inv_cond > 0 else float("inf"),
+        sigma0=sigma0,
+        rms_mm=rms_mm,
+        rms_deg=rms_deg,
+        rms_distance_mm=rms_d,
+        kinds=kinds,
+        iterations=sol.iterations,
+        converged=sol.converged,
+        n_rows=meas.m,
+        n_distances=meas.k,
+        n_equations=n_eq,
+        residuals=res,
+        warnings=tuple(notes),
+    )

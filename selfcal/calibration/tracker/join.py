@@ -1,0 +1,104 @@
+"""Images and tracker measurements in one calibration (``selfcal calibrate DIR --tracker FILE``).
+
+A lab that has both camera images of the robot's postures (the dataset) and tracker readings of
+the same robot (tool-point positions, tool poses or ball-bar distances, each row with its own
+joint readings; :mod:`selfcal.io.tracker`) gets one estimate: the tracker's residual blocks join the
+one-step refinement over the images (:func:`selfcal.calibration.field.joint_refine.joint_refine` with ``tracker``),
+which estimates the tracker frame and the tool point with the kinematics. :class:`TrackerInput`
+is what the calibration takes; :func:`tracker_source` is what ``calibration.json`` records of it
+(:class:`selfcal.io.calibration_tracker.TrackerSource`). Units: SI inside, mm / deg in the record.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from selfcal.estimation.tracker import TrackerMeasurements
+from selfcal.io.calibration_blocks import matrix
+from selfcal.io.calibration_tracker import TrackerSource
+from selfcal.kinematics.forward import fk_tool
+from selfcal.kinematics.mcpc import MCPCModel
+from selfcal.transforms import inv_pose
+
+__all__ = ["TrackerInput", "tracker_source", "DEFAULT_SIGMA_M", "DEFAULT_SIGMA_RAD"]
+
+DEFAULT_SIGMA_M = 1e-4
+"""Default tracker noise per coordinate (0.1 mm: a laser tracker's, as ``selfcal identify``)."""
+DEFAULT_SIGMA_RAD = float(np.radians(0.01))
+"""Default noise of a measured tool orientation (0.01 deg, as ``selfcal identify``)."""
+
+
+@dataclass(frozen=True)
+class TrackerInput:
+    """Tracker data to estimate with the images.
+
+    Attributes:
+        measurements: positions / poses / distances in SI units (joints rad, m).
+        joint_units: the units the files declared (``deg`` or ``rad``), recorded.
+        file, distances_file: where they came from (recorded; None when not from a file).
+        sigma_m, sigma_rad: the noise of a coordinate (m) and of an orientation (rad).
+    """
+
+    measurements: TrackerMeasurements
+    joint_units: str = "deg"
+    file: str | None = None
+    distances_file: str | None = None
+    sigma_m: float = DEFAULT_SIGMA_M
+    sigma_rad: float = DEFAULT_SIGMA_RAD
+
+    def refine_kwargs(self) -> dict:
+        """The keyword arguments of :func:`selfcal.calibration.field.joint_refine.joint_refine` for this input."""
+        return {
+            "tracker": self.measurements,
+            "tracker_sigma_m": self.sigma_m,
+            "tracker_sigma_rad": self.sigma_rad,
+        }
+
+
+def kinds(meas: TrackerMeasurements) -> tuple[str, ...]:
+    """What ``meas`` holds: ``positions`` or ``poses``, and ``distances``."""
+    out = []
+    if meas.m:
+        out.append("poses" if meas.R is not None else "positions")
+    if meas.k:
+        out.append("distances")
+    return tuple(out)
+
+
+def tracker_source(
+    inp: TrackerInput, diagnostics: dict, model: MCPCModel, model_gauge: MCPCModel
+) -> TrackerSource:
+    """The ``calibration.json`` record of ``inp`` estimated by the joint refinement whose
+    ``diagnostics`` (:func:`selfcal.estimation.tracker.tracker_report`'s keys), final ``model``
+    (world = the reference left camera) and ``model_gauge`` (the adjustment's world, where the
+    tracker frame was estimated) are given."""
+    meas = inp.measurements
+    rms = {
+        k[len("tracker_") : -len("_rms_m")]: 1e3 * float(v)
+        for k, v in diagnostics.items()
+        if k.startswith("tracker_") and k.endswith("_rms_m")
+    }
+    T_tracker_world = None
+    if diagnostics.get("tracker_frame") is not None:
+        # the same chain in both worlds: T_gauge_world = T_gauge_tool(q) T_world_tool(q)^-1
+        q0 = meas.q[:1]
+        T_gauge_world = fk_tool(model_gauge, q0)[0] @ inv_pose(fk_tool(model, q0)[0])
+        T_tracker_world = matrix(np.asarray(diagnostics["tracker_frame"]) @ T_gauge_world)
+    point = diagnostics.get("tool_point")
+    tool = diagnostics.get("tool_frame")
+    return TrackerSource(
+        file=inp.file,
+        distances_file=inp.distances_file,
+        joint_units=inp.joint_units,
+        kinds=kinds(meas),
+        rows=meas.m,
+        distances=meas.k,
+        sigma_mm=1e3 * inp.sigma_m,
+        sigma_deg=float(np.degrees(inp.sigma_rad)),
+        rms_mm=rms,
+        T_tracker_world_m=T_tracker_world,
+        tool_point_mm=None if point is None else tuple(1e3 * np.asarray(point, dtype=float)),
+        T_cam_tool_m=None if tool is None else matrix(np.asarray(tool)),
+    )

@@ -1,0 +1,1 @@
+"""The ``selfcal`` command: the parser and the commands' entry points."""

@@ -1,0 +1,207 @@
+"""The flange-pose side of ``selfcal import`` (``--poses``), ``calibrate`` and ``evaluate``:
+images and a robot's flange poses (no joint readings) as a pose dataset
+(:mod:`selfcal.importing.poses`), eye-in-hand or eye-to-hand; its hand-eye calibration
+(:mod:`selfcal.calibration.handeye.calibrate`) and the held-out prediction from the poses alone. See docs/handeye.md.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from selfcal.console.common import CliError, note_written
+
+# OpenCV, scipy and the calibration load in the commands that use them (`selfcal --help` stays fast).
+
+__all__ = [
+    "add_pose_import_args",
+    "calibrate_poses",
+    "check_pose_only_args",
+    "cmd_import_poses",
+    "evaluate_poses",
+]
+
+ROTATIONS = ("quaternion-xyzw", "abb-quaternion", "kuka-abc", "fanuc-wpr", "ur-rotvec")
+"""``--rotation``: :data:`selfcal.io.pose_conventions.CONVENTIONS` (kept here so --help needs no scipy)."""
+SETUP_CHOICES = ("eye-in-hand", "eye-to-hand")
+"""``--setup``: :data:`selfcal.io.pose_dataset.SETUPS`."""
+_POSE_ONLY = ("pose_units", "rotation", "setup")
+
+
+def add_pose_import_args(sp: argparse.ArgumentParser) -> None:
+    """``--poses``, ``--pose-units``, ``--rotation`` and ``--setup`` of ``selfcal import``."""
+    sp.add_argument(
+        "--poses", default=None, metavar="FILE",
+        help="flange poses (robot base -> flange) instead of joints: a CSV with x_mm,y_mm,z_mm "
+        "(or x,y,z with --pose-units) and the orientation columns of --rotation, or "
+        "industrial_calibration's cal_data.yaml (it names the images) or its poses/ folder; "
+        "no --robot needed (docs/handeye.md)",
+    )  # fmt: skip
+    sp.add_argument("--pose-units", default=None, choices=("mm", "m"),
+                    help="unit of the pose file's x,y,z when its header does not say")  # fmt: skip
+    sp.add_argument(
+        "--rotation", default=None, choices=ROTATIONS,
+        help="orientation convention of the pose file: quaternion-xyzw (qx,qy,qz,qw), "
+        "abb-quaternion (q1..q4 = w,x,y,z), kuka-abc (A,B,C deg, intrinsic Z-Y'-X''), fanuc-wpr "
+        "(W,P,R deg, fixed X-Y-Z), ur-rotvec (rx,ry,rz rad); default: from the column names",
+    )  # fmt: skip
+    sp.add_argument(
+        "--setup", default=None, choices=SETUP_CHOICES,
+        help="with --poses: eye-in-hand (camera on the flange, board static) or eye-to-hand "
+        "(camera static, board on the flange)",
+    )  # fmt: skip
+
+
+def check_pose_only_args(args: argparse.Namespace) -> None:
+    """A :class:`CliError` for the pose options given without ``--poses``."""
+    given = [f"--{k.replace('_', '-')}" for k in _POSE_ONLY if getattr(args, k, None)]
+    if given:
+        raise CliError(f"{', '.join(given)} apply to --poses",
+                       fix="give the flange poses with --poses FILE, or leave them out")  # fmt: skip
+
+
+def cmd_import_poses(args: argparse.Namespace) -> int:
+    """``selfcal import --poses FILE --setup SETUP --target T [--images GLOB]``."""
+    from selfcal.importing.dataset import CameraImages
+    from selfcal.importing.poses import import_pose_dataset
+
+    if args.joints or args.bag:
+        raise CliError("--poses replaces --joints and --bag", fix="give one of them")
+    if args.joint_units:
+        raise CliError("--joint-units applies to --joints", fix="leave it out with --poses")
+    if not args.setup:
+        raise CliError("--poses needs --setup eye-in-hand | eye-to-hand",
+                       fix="eye-in-hand: the camera rides on the flange; eye-to-hand: the camera "
+                       "is static and the board rides on the flange")  # fmt: skip
+    if args.robot or args.base_link or args.tool_link:
+        raise CliError("--robot, --base-link and --tool-link describe the joints of --joints",
+                       fix="leave them out with --poses: flange poses need no robot model")  # fmt: skip
+    if args.images and len(args.images) > 1:
+        raise CliError("--poses takes one camera's images",
+                       fix="import each camera as its own pose dataset")  # fmt: skip
+    if args.camera_model and len(args.camera_model) > 1 or args.free and len(args.free) > 1:
+        raise CliError("--poses takes one camera: one --camera-model and one --free")
+    cam = CameraImages.parse(args.images[0]) if args.images else None
+    model = (
+        (args.camera_model[0].partition("=")[2] or args.camera_model[0])
+        if args.camera_model
+        else None
+    )
+    free = (args.free[0].partition("=")[2] or args.free[0]).split(",") if args.free else None
+    kwargs = {"camera_model": model} if model else {}
+    ds = import_pose_dataset(cam, args.poses, args.target, args.out, args.setup,
+                             rotation=args.rotation, units=args.pose_units, link=args.link,
+                             free=free, **kwargs)  # fmt: skip
+    n = len(ds.T_base_flange)
+    note_written(args, args.out)
+    if args.json:
+        print(json.dumps({"dataset": str(args.out), "frames": n, "setup": ds.setup}))
+    else:
+        print(f"imported {n} frames ({ds.setup}, flange poses) into {args.out}")
+    return 0
+
+
+def _features(ds) -> list:
+    """The board's features in every frame of the pose dataset ``ds``."""
+    from selfcal.io.images import read_gray_image
+    from selfcal.io.pose_dataset import PoseDatasetError
+    from selfcal.io.target_toml import parse_target
+
+    board = parse_target(ds.board, str(ds.root / "dataset.json"))
+    out = []
+    for i in range(len(ds.T_base_flange)):
+        img = read_gray_image(ds.image_path(i))
+        if img is None:
+            raise PoseDatasetError(f"{ds.image_path(i)}: frame {i}'s image is missing or unreadable",
+                                   fix="import the dataset again")  # fmt: skip
+        out.append(board.detect(img))
+    return [board, out]
+
+
+def calibrate_poses(root: Path, *, quiet: bool = False, figures: bool = False,
+                    method: str = "joint", joint_sigma_deg: float | None = None,
+                    tracker_args: argparse.Namespace | None = None) -> None:  # fmt: skip
+    """``selfcal calibrate`` of a pose dataset: write ``root/calibration.json`` (the hand-eye
+    and board mount with sigmas, the camera, the nominal beside). The options of the joint
+    datasets (``--method two-stage``, ``--joint-sigma-deg``, ``--tracker``) are errors here."""
+    from selfcal.calibration.handeye.calibrate import FRAMES, calibrate_hand_eye
+    from selfcal.calibration.handeye.calibration_file import handeye_document
+    from selfcal.io.jsonfile import write_json_atomic
+    from selfcal.io.pose_dataset import PoseDataset
+
+    if method != "joint" or joint_sigma_deg is not None or (tracker_args and tracker_args.tracker):
+        raise CliError(f"{root} is a pose dataset (flange poses, no joints): --method, "
+                       "--joint-sigma-deg and --tracker do not apply",
+                       fix="leave them out")  # fmt: skip
+    ds = PoseDataset.open(root)
+    board, feats = _features(ds)
+    names = [str(ds.image_path(i)) for i in range(len(feats))]
+    cal = calibrate_hand_eye(board, feats, ds.T_base_flange, ds.setup, *ds.resolution,
+                             model=ds.model, free=ds.free, names=names)  # fmt: skip
+    write_json_atomic(root / "calibration.json", handeye_document(cal, str(root)))
+    if not quiet:
+        x_what, b_what = FRAMES[ds.setup]
+        c, n = cal.calibrated, cal.nominal
+        say = lambda t: print(t, file=sys.stderr)  # noqa: E731
+        say(f"{ds.setup}, {int(cal.used.sum())} frames: no kinematics to identify (flange poses "
+            "as the robot reports them); camera, hand-eye and board mount fitted on corner "
+            "reprojection")  # fmt: skip
+        for what, T, s in ((x_what, c.X, c.X_std), (b_what, c.B, c.B_std)):
+            xyz = ", ".join(f"{v:.2f}" for v in T[:3, 3] * 1000)
+            sig = ", ".join(f"{v:.2f}" for v in s[3:] * 1000)
+            say(
+                f"  {what}: xyz ({xyz}) mm +- ({sig}) mm, rotation +- "
+                f"{max(s[:3]) * 180 / 3.141592653589793:.3f} deg"
+            )
+        say(
+            f"  fit: calibrated {c.rms_px:.3f} px, nominal (camera stage's camera held) "
+            f"{n.rms_px:.3f} px"
+        )
+
+
+def evaluate_poses(args: argparse.Namespace, cal_dir: Path) -> bool:
+    """``selfcal evaluate`` of a hand-eye calibration: predict every corner of the held-out pose
+    dataset from its flange poses alone with the calibrated and the nominal model; write
+    evaluation.json and print both. False when the calibration is not a hand-eye one."""
+    import numpy as np
+
+    from selfcal.calibration.handeye.calibrate import chain_motions, predict_corners
+    from selfcal.calibration.handeye.calibration_file import is_handeye, read_handeye
+    from selfcal.io.jsonfile import write_json_atomic
+    from selfcal.io.pose_dataset import PoseDataset
+
+    if not is_handeye(args.calibration):
+        return False
+    setup, calibrated, nominal, _ = read_handeye(args.calibration)
+    ds = PoseDataset.open(args.dataset)
+    if ds.setup != setup:
+        raise CliError(f"{args.dataset} is {ds.setup} but the calibration is {setup}",
+                       fix="evaluate with a held-out dataset of the same setup")  # fmt: skip
+    board, feats = _features(ds)
+    view = np.concatenate([np.full(len(f), i) for i, f in enumerate(feats)])
+    pts = board.points(np.concatenate([f.ids for f in feats]))
+    uv = np.concatenate([f.uv for f in feats])
+    A = chain_motions(setup, ds.T_base_flange)
+    rms = {}
+    for name, m in (("nominal", nominal), ("calibrated", calibrated)):
+        e = np.sum((predict_corners(m.camera, m.X, m.B, A, view, pts) - uv) ** 2, axis=1)
+        rms[name] = float(np.sqrt(np.mean(e)))
+    better = rms["calibrated"] < rms["nominal"]
+    doc = {"calibration": str(args.calibration), "dataset": str(args.dataset), "setup": setup,
+           "frames": len(feats), "corners": len(uv), "held_out_rms_px": rms,
+           "calibration_better_than_nominal": better}  # fmt: skip
+    out = Path(args.out) if args.out else Path(args.dataset) / "evaluation.json"
+    write_json_atomic(out, doc)
+    note_written(args, out)
+    if args.json:
+        print(json.dumps({"evaluation": str(out), **doc}))
+    else:
+        verdict = "better than" if better else "NOT better than"
+        print(
+            f"held-out {len(feats)} frames, {len(uv)} corners predicted from the flange poses: "
+            f"nominal {rms['nominal']:.3f} px, calibrated {rms['calibrated']:.3f} px "
+            f"(the calibration is {verdict} the nominal)"
+        )
+    return True

@@ -1,0 +1,271 @@
+"""``selfcal import`` and ``selfcal evaluate``, and the target dispatch of ``selfcal calibrate``.
+
+Your own data (docs/own-data.md): images of N >= 1 cameras, joint readings and a printed board
+become a dataset folder (:mod:`selfcal.importing.dataset`); ``calibrate`` runs the self-calibration
+for the ArUco field and the board calibration (:mod:`selfcal.calibration.board.dataset`) for a board;
+``evaluate`` predicts a held-out dataset with the calibration (:mod:`selfcal.calibration.board.evaluate`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from selfcal.cli.handeye import (
+    add_pose_import_args,
+    calibrate_poses,
+    check_pose_only_args,
+    cmd_import_poses,
+    evaluate_poses,
+)
+from selfcal.cli.ros import add_import_args as add_bag_import_args
+from selfcal.cli.ros import cmd_import_bag
+from selfcal.console.common import CliError, add_json, note_written
+from selfcal.console.progress import Progress
+
+# Heavy modules (scipy, OpenCV, MuJoCo, the pipeline) are imported by the functions that use
+# them, so that `selfcal --help` builds every command's parser without loading them.
+
+__all__ = ["calibrate_any", "register"]
+
+
+def _say(quiet: bool, text: str) -> None:
+    if not quiet:
+        print(text, file=sys.stderr)
+
+
+def calibrate_any(
+    root: Path,
+    *,
+    quiet: bool = False,
+    method: str = "joint",
+    allow_missing_frames: bool = False,
+    figures: bool = False,
+    tracker_args: argparse.Namespace | None = None,
+    joint_sigma_deg: float | None = None,
+) -> None:
+    """Calibrate the dataset in ``root`` by its target and write ``root/calibration.json``:
+    the field -> :func:`selfcal.pipeline.run.run_calibrate`; a board -> the board calibration.
+    ``figures``: also ``root/figures/reprojection.png``. ``tracker_args``: the parsed tracker
+    options of ``selfcal calibrate`` (:func:`selfcal.cli.tracker.add_tracker_args`): tracker
+    measurements estimated with the field's images. ``joint_sigma_deg``: the standard deviation
+    of a joint reading, deg (mm for a prismatic joint), modelled instead of the robot file's
+    encoder resolution."""
+    from selfcal.io.dataset import Dataset
+    from selfcal.io.pose_dataset import is_pose_dataset
+    from selfcal.pipeline.board_run import calibrate_board_run
+    from selfcal.pipeline.run import run_calibrate
+
+    if is_pose_dataset(root):
+        calibrate_poses(root, quiet=quiet, figures=figures, method=method,
+                        joint_sigma_deg=joint_sigma_deg, tracker_args=tracker_args)  # fmt: skip
+        return
+    ds = Dataset.open(root)
+    info = ds.info
+    joint_sigma = None
+    if joint_sigma_deg is not None:
+        import numpy as np
+
+        from selfcal.robot.definition import load_robot
+
+        if not (np.isfinite(joint_sigma_deg) and joint_sigma_deg > 0):
+            raise CliError(f"--joint-sigma-deg must be a finite number > 0, got {joint_sigma_deg}",
+                           fix="give the read-back noise of a joint, e.g. 0.003")  # fmt: skip
+        if info.board is None and method != "joint":
+            raise CliError("--joint-sigma-deg is modelled by the one-step method of the field",
+                           fix="leave out --method two-stage")  # fmt: skip
+        types = load_robot(ds.robot_source).joint_types
+        joint_sigma = np.array([np.radians(joint_sigma_deg) if t == "revolute"
+                                else joint_sigma_deg / 1000.0 for t in types])  # fmt: skip
+    tracker = None
+    if tracker_args is not None and tracker_args.tracker:
+        from selfcal.cli.tracker import tracker_input, tracker_summary
+        from selfcal.robot.definition import load_robot
+
+        if info.board is not None:
+            raise CliError(
+                f"{root}: --tracker joins the self-calibration of the ArUco field; this dataset "
+                "has a board",
+                fix="calibrate the board dataset without --tracker",
+            )
+        if method != "joint":
+            raise CliError(
+                "--tracker needs the one-step method (--method joint, the default)",
+                fix="leave out --method two-stage",
+            )
+        tracker = tracker_input(tracker_args, load_robot(ds.robot_source))
+    elif tracker_args is not None:
+        from selfcal.cli.tracker import tracker_input
+
+        tracker_input(tracker_args, None)  # options that need --tracker are errors
+    if info.board is None:
+        res = run_calibrate(root, quiet=quiet, method=method,
+                            allow_missing_frames=allow_missing_frames, figures=figures,
+                            tracker=tracker, joint_sigma=joint_sigma)  # fmt: skip
+        if res.tracker is not None:
+            _say(quiet, tracker_summary(res.tracker))
+        return
+    calibrate_board_run(root, quiet=quiet, allow_missing_frames=allow_missing_frames,
+                        figures=figures, joint_sigma=joint_sigma)  # fmt: skip
+
+
+def cmd_import(args: argparse.Namespace) -> int:
+    source = args.bag[0] if args.bag else (args.joints or args.poses)
+    args.out = args.out or (f"runs/import-{Path(source).stem}" if source else None)
+    if args.poses:
+        return cmd_import_poses(args)
+    check_pose_only_args(args)
+    if not args.robot:
+        raise CliError(f"import {'--bag' if args.bag else '--joints'} needs --robot",
+                       fix="name the robot: --robot ur5e, a robot TOML or a URDF (or give "
+                       "flange poses with --poses)")  # fmt: skip
+    if args.bag:
+        return cmd_import_bag(args)
+    if not args.images or not args.joints or not args.joint_units:
+        raise CliError("import needs --images, --joints and --joint-units (or --poses, or --bag)")
+
+    from selfcal.importing.camera_choice import camera_options
+    from selfcal.importing.dataset import CameraImages, detection_summary, import_dataset
+
+    cams = [CameraImages.parse(s, default_name=f"cam{k}") for k, s in enumerate(args.images)]
+    models, frees = camera_options(args.camera_model, args.free, [c.name for c in cams], "--images")
+    info = import_dataset(
+        args.robot, cams, args.joints, args.joint_units, args.target, args.out,
+        base_link=args.base_link, tool_link=args.tool_link, link=args.link,
+        trust_units=args.trust_units, camera_model=models, free=frees,
+        progress=Progress("detect", enabled=not (args.quiet or args.json)),
+    )  # fmt: skip
+    n = len(info.planned_joints_deg)
+    note_written(args, args.out)
+    if args.json:
+        print(json.dumps({"dataset": str(args.out), "frames": n, "cameras": list(info.cameras),
+                          "detection": info.provenance.get("detection")}))  # fmt: skip
+    else:
+        print(f"{detection_summary(info)}; imported {n} frames of {len(info.cameras)} camera(s) "
+              f"into {args.out}")  # fmt: skip
+    return 0
+
+
+def cmd_evaluate(args: argparse.Namespace) -> int:
+    from selfcal.calibration.board.evaluate import evaluate_board, write_evaluation
+    from selfcal.calibration.field.calibrate import CalibrationFailedError
+    from selfcal.calibration.field.evaluate import evaluate_field
+    from selfcal.io.board_calibration import calibration_kind, read_board_calibration
+    from selfcal.io.calibration import read_calibration
+
+    cal_path = Path(args.calibration)
+    cal_dir = cal_path if cal_path.is_dir() else cal_path.parent
+    if evaluate_poses(args, cal_dir):
+        return 0
+    if calibration_kind(cal_path) == "board":
+        ev = evaluate_board(read_board_calibration(cal_path), str(cal_path), args.dataset)
+    else:
+        ev = evaluate_field(read_calibration(cal_path), cal_dir, args.dataset)
+    _warn_shared_postures(cal_dir, Path(args.dataset))
+    out = Path(args.out) if args.out else Path(args.dataset) / "evaluation.json"
+    write_evaluation(out, ev)
+    note_written(args, out)
+    print(json.dumps({"evaluation": str(out), **ev.to_json()}) if args.json else ev.line())
+    if ev.failures:
+        raise CalibrationFailedError.of(ev.failures, out)
+    return 0
+
+
+def _warn_shared_postures(cal_dir: Path, held_out: Path) -> None:
+    """An :class:`selfcal.calibration.board.evaluate.EvaluationWarning` when the held-out dataset repeats postures
+    of the calibration's own dataset (``cal_dir``, when it is one)."""
+    import warnings
+
+    from selfcal.calibration.board.evaluate import EvaluationWarning, shared_postures
+    from selfcal.io.dataset import Dataset
+
+    if not (cal_dir / "dataset.json").is_file():
+        return
+    q_cal, q_held = Dataset.open(cal_dir).joints_deg, Dataset.open(held_out).joints_deg
+    n = shared_postures(q_cal, q_held)
+    if n:
+        warnings.warn(
+            f"{n} of {len(q_held)} postures of {held_out} are postures of the calibration's own "
+            f"dataset {cal_dir}: on them the evaluation measures the fit, not the prediction of "
+            "new postures; a held-out check needs postures the calibration did not see",
+            EvaluationWarning,
+            stacklevel=2,
+        )
+
+
+IMPORT_HELP = """\
+joints file: CSV with the header j1,...,jn (optionally an image column with the file name), or
+n numbers per row without a header (comma or whitespace); rows match the images in sorted
+file-name order, or by the image column. Target TOML: docs/targets.md. See docs/own-data.md.
+poses file (--poses, instead of joints): base -> flange per image, x_mm,y_mm,z_mm + the columns
+of --rotation, or industrial_calibration's cal_data.yaml; with --setup. See docs/handeye.md.
+"""
+
+
+def register(subparsers) -> None:
+    """Add ``import`` and ``evaluate`` to the ``selfcal`` subcommands."""
+    from selfcal.choices import CAMERA_MODELS, DEFAULT_FREE, JOINT_UNITS
+
+    sp = subparsers.add_parser(
+        "import",
+        help="your own images + joint readings (or flange poses) + board -> a dataset folder "
+        "(no truth)",
+        description="Check and import your own data as a dataset folder.",
+        epilog=IMPORT_HELP,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    sp.add_argument(
+        "--robot",
+        default=None,
+        help="model name, robot TOML or URDF file (needed with --joints or --bag)",
+    )
+    sp.add_argument("--base-link", default=None, help="a URDF's base link (default: its root)")
+    sp.add_argument("--tool-link", default=None, help="a URDF's tool link (default: its leaf)")
+    sp.add_argument(
+        "--images", action="append", default=None, metavar="NAME=GLOB",
+        help="one camera's images, e.g. 'cam0=DIR/*.png' (quote it; repeat per camera)",
+    )  # fmt: skip
+    sp.add_argument("--joints", default=None, help="joints file (CSV)")
+    sp.add_argument("--joint-units", default=None, choices=JOINT_UNITS)
+    sp.add_argument("--target", required=True, help="target TOML (docs/targets.md)")
+    sp.add_argument(
+        "--out", default=None, help="new dataset folder (default runs/import-<joints file name>)"
+    )
+    sp.add_argument("--link", action="store_true", help="link the images instead of copying")
+    sp.add_argument(
+        "--trust-units", action="store_true",
+        help="degrees that stay within +-6.3 deg are degrees (skip the radians-looking check)",
+    )  # fmt: skip
+    sp.add_argument(
+        "--camera-model", action="append", default=None, metavar="[NAME=]MODEL",
+        help=f"the cameras' model, one of {', '.join(CAMERA_MODELS)} (default opencv: "
+        "Brown-Conrady distortion, what a real lens needs; a pinhole fitted to a distorting "
+        "lens is biased; fisheye for wide angles; with --bag: from a calibrated camera_info if "
+        "there is one); NAME= sets one camera's (repeat per camera, e.g. cam1=fisheye), a bare "
+        "MODEL every camera not named",
+    )  # fmt: skip
+    sp.add_argument(
+        "--free", action="append", default=None, metavar="[NAME=]NAMES",
+        help="comma list of the camera parameters to estimate, OpenCV names (default: "
+        + "; ".join(f"{m}: {','.join(f)}" for m, f in DEFAULT_FREE.items())
+        + "; k3 only on request); NAME= sets one camera's (repeat per camera, e.g. "
+        "'cam1=fx,mu,cx,cy,k1,k2,k3,k4'), a bare list every camera not named; fy may stand for mu",
+    )  # fmt: skip
+    add_pose_import_args(sp)
+    add_bag_import_args(sp)
+    add_json(sp)
+    sp.set_defaults(func=cmd_import)
+
+    sp = subparsers.add_parser(
+        "evaluate",
+        help="held-out check: predict DATASET2's features with the calibration",
+        description="Predict every detected feature of DATASET2 from its joint readings (or its "
+        "flange poses) with the calibrated model and with the nominal; write evaluation.json.",
+    )
+    add_json(sp)
+    sp.add_argument("calibration", help="calibrated dataset folder (or its calibration.json)")
+    sp.add_argument("dataset", help="held-out dataset folder (same robot, camera and board)")
+    sp.add_argument("--out", default=None, help="default DATASET/evaluation.json")
+    sp.set_defaults(func=cmd_evaluate)

@@ -1,0 +1,1 @@
+"""Scenario configuration (TOML) and defaults; the founding paper's tables."""

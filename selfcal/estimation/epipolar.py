@@ -1,0 +1,160 @@
+"""Epipolar geometry between views: fundamental matrices, their noise level, parallax test.
+
+Two-view by nature: every function here works on pairs of views (a pair may be the two cameras of
+one frame -- for the stereo rig the left/right pair -- or two frames). Pixels follow the OpenCV
+convention; ``x_b^T F x_a = 0``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from selfcal.estimation.observations import Observations
+from selfcal.estimation.selfcal_errors import InsufficientDataError
+
+__all__ = ["PairEstimate", "fundamental_pairs", "epipolar_sigma", "robust_cv"]
+
+
+@dataclass
+class PairEstimate:
+    """Epipolar geometry of views ``view_a``, ``view_b``: ``x_b^T F x_a = 0`` (pixels).
+
+    ``pidx`` are the shared point indices (into ``Observations.point_index()[0]``), ``inlier``
+    the RANSAC inliers among them, ``n_h_inliers`` how many a homography explains equally well;
+    ``homography_like`` pairs (no usable parallax: pure rotation or planar points) carry no
+    information on ``fx`` and are not used for it.
+    """
+
+    view_a: int
+    view_b: int
+    pidx: np.ndarray
+    F: np.ndarray
+    inlier: np.ndarray
+    n_h_inliers: int
+    homography_like: bool
+    sampson_px: np.ndarray
+
+    @property
+    def n_inliers(self) -> int:
+        return int(self.inlier.sum())
+
+
+def _sampson(F: np.ndarray, p1: np.ndarray, p2: np.ndarray) -> np.ndarray:
+    x1 = np.c_[p1, np.ones(len(p1))]
+    x2 = np.c_[p2, np.ones(len(p2))]
+    Fx1 = x1 @ F.T
+    Ftx2 = x2 @ F
+    num = np.einsum("ij,ij->i", x2, Fx1)
+    den = Fx1[:, 0] ** 2 + Fx1[:, 1] ** 2 + Ftx2[:, 0] ** 2 + Ftx2[:, 1] ** 2
+    return np.abs(num) / np.sqrt(np.maximum(den, 1e-300))
+
+
+def _transfer(H: np.ndarray, p1: np.ndarray, p2: np.ndarray) -> np.ndarray:
+    x1 = np.c_[p1, np.ones(len(p1))] @ H.T
+    with np.errstate(divide="ignore", invalid="ignore"):
+        d = np.linalg.norm(x1[:, :2] / x1[:, 2:3] - p2, axis=1)
+    return np.where(np.isfinite(d), d, np.inf)
+
+
+def uv_table(obs: Observations, pidx: np.ndarray, n_points: int) -> np.ndarray:
+    """(V, n_points, 2) pixel coordinates of each point index in each view (NaN: not seen)."""
+    table = np.full((obs.n_views, n_points, 2), np.nan)
+    table[obs.view, pidx] = obs.uv
+    return table
+
+
+def fundamental_pairs(
+    obs: Observations,
+    *,
+    min_shared: int = 16,
+    max_pairs: int = 150,
+    max_rig_pairs: int = 10,
+    ransac_px: float = 3.0,
+    seed: int = 0,
+) -> list[PairEstimate]:
+    """Fundamental matrices (cv2 USAC MAGSAC++) for view pairs sharing ``>= min_shared`` points.
+
+    Up to ``max_rig_pairs`` pairs of two cameras of one frame (the stereo rig's left/right
+    pairs) plus up to ``max_pairs`` other pairs (random, reproducible with ``seed``) are
+    estimated; a homography is fitted to the same points and pairs it explains (>= 90 % of the
+    F inliers within ``ransac_px``) are flagged ``homography_like``. Raises
+    :class:`InsufficientDataError` if no pair qualifies.
+    """
+    if min_shared < 8:
+        raise ValueError("min_shared must be >= 8 (eight-point algorithm)")
+    _, pidx = obs.point_index()
+    n_points = int(pidx.max()) + 1 if len(pidx) else 0
+    table = uv_table(obs, pidx, n_points)
+    vis = ~np.isnan(table[..., 0])
+    shared = vis.astype(np.int32) @ vis.T.astype(np.int32)
+    iu, ju = np.triu_indices(obs.n_views, 1)
+    ok = shared[iu, ju] >= min_shared
+    iu, ju = iu[ok], ju[ok]
+    if len(iu) == 0:
+        best = int(np.max(shared[np.triu_indices(obs.n_views, 1)], initial=0))
+        raise InsufficientDataError(
+            f"no pair of views shares >= {min_shared} marker corners (best pair: {best}); "
+            "take views that overlap more (each view should see several markers also seen in "
+            "other views) or add markers"
+        )
+    rig = obs.layout.same_frame(iu, ju)
+    rng = np.random.default_rng(seed)
+    rig_sel = np.flatnonzero(rig)
+    if len(rig_sel) > max_rig_pairs:
+        rig_sel = rig_sel[np.linspace(0, len(rig_sel) - 1, max_rig_pairs).round().astype(int)]
+    other = np.flatnonzero(~rig)
+    if len(other) > max_pairs:
+        other = np.sort(rng.choice(other, max_pairs, replace=False))
+    out: list[PairEstimate] = []
+    for s in np.concatenate([rig_sel, other]):
+        a, b = int(iu[s]), int(ju[s])
+        common = np.flatnonzero(vis[a] & vis[b])
+        p1, p2 = table[a, common], table[b, common]
+        F = robust_cv(cv2.findFundamentalMat, p1, p2, cv2.USAC_MAGSAC, ransac_px, 0.9999, 10000)
+        if F is None or F.shape != (3, 3):
+            continue
+        F = F / np.linalg.norm(F)
+        d = _sampson(F, p1, p2)
+        inl = d < ransac_px
+        if inl.sum() < 8:
+            continue
+        H = robust_cv(
+            cv2.findHomography,
+            p1,
+            p2,
+            cv2.USAC_MAGSAC,
+            ransac_px,
+            maxIters=10000,
+            confidence=0.9999,
+        )
+        n_h = int((_transfer(H, p1, p2) < ransac_px).sum()) if H is not None else 0
+        out.append(PairEstimate(a, b, common, F, inl, n_h, bool(n_h >= 0.9 * inl.sum()), d))
+    if not out:
+        raise InsufficientDataError(
+            "no fundamental matrix could be estimated from the view pairs; check the "
+            "correspondences (ids consistent across views?) and the pixel noise"
+        )
+    return out
+
+
+def robust_cv(fn, *args, **kw):
+    """First output of an OpenCV robust estimator, or None where it fails: OpenCV 5's USAC can
+    raise (e.g. ``!model.empty()``) on a degenerate sample instead of returning no model; for
+    one view pair that only means "no estimate from this pair"."""
+    try:
+        return fn(*args, **kw)[0]
+    except cv2.error:
+        return None
+
+
+def epipolar_sigma(pairs: list[PairEstimate]) -> float:
+    """Pixel noise (per coordinate) from the Sampson distances of all shared points of the
+    pairs: robust (median) over points, corrected for the 7 dof fitted per F."""
+    vals = []
+    for p in pairs:
+        n = len(p.sampson_px)
+        vals.append(p.sampson_px * np.sqrt(n / max(n - 7, 1)))
+    return float(np.median(np.concatenate(vals)) / 0.6745)

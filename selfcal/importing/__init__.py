@@ -1,0 +1,1 @@
+"""``selfcal import``: your own images, joint readings and target as a dataset folder."""

@@ -1,0 +1,52 @@
+"""``calibration.json`` ``tracker``: the tracker measurements estimated with the images.
+
+When ``selfcal calibrate DIR --tracker FILE`` combines the dataset's images with tracker readings
+of the same robot (positions, poses or distances of a tool point; :mod:`selfcal.io.tracker`), the
+calibration's ``sources`` are ``["images", "tracker"]`` and this block records the tracker's part:
+the files and their joint units, what they hold, the noise assumed, the fit (RMS per kind) and the
+extra unknowns estimated with the kinematics: the tracker frame in the calibration's world frame
+(the reference left camera), the tool point (and, for poses, the measured tool frame) in the
+calibrated tool frame (the left camera, OpenCV).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from selfcal.io.jsonblock import JsonBlock
+
+__all__ = ["TrackerSource", "SOURCES", "TRACKER_NOTE"]
+
+SOURCES = ("images", "tracker")
+"""``calibration.json`` ``sources`` of a calibration that used tracker measurements too."""
+
+POSE = {"shape": (4, 4)}
+TRACKER_NOTE = (
+    "tracker measurements and the dataset's images estimated together by the one-step "
+    "refinement (method joint): T_tracker_world_m is the tracker frame's placement (world = the "
+    "reference left camera, as the mcpc chain); tool_point_mm is the measured tool point and "
+    "T_cam_tool_m the measured tool frame, both in the calibrated tool frame (left camera, "
+    "OpenCV); rms_mm is the fit per kind (translation part); the parameter standard deviations "
+    "and the Cramer-Rao bounds are those of the images alone"
+)
+
+
+@dataclass(frozen=True, eq=False)
+class TrackerSource(JsonBlock):
+    """``tracker``: see the module docstring. Units: mm and deg for people, m in ``_m`` keys."""
+
+    file: str | None
+    distances_file: str | None
+    joint_units: str = field(metadata={"choices": ("deg", "rad")})
+    kinds: tuple[str, ...]
+    rows: int
+    distances: int
+    sigma_mm: float
+    sigma_deg: float
+    rms_mm: dict[str, float]
+    T_tracker_world_m: np.ndarray | None = field(metadata=POSE)
+    tool_point_mm: tuple[float, ...] | None
+    T_cam_tool_m: np.ndarray | None = field(metadata=POSE)
+    note: str = TRACKER_NOTE

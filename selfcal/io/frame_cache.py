@@ -1,0 +1,73 @@
+"""A dataset's images already in memory: ``selfcal run`` calibrates and reports from the images
+its acquisition just took instead of reading the PNGs back, and detects each image's markers once
+for the calibration and the report (issue 17).
+
+The gray image kept for a frame is bit-identical to what :func:`selfcal.io.dataset.read_gray` reads
+from the PNG the dataset writer stores: OpenCV decodes a colour PNG to gray by libpng's
+fixed-point weights (``png_set_rgb_to_gray`` with 0.299, 0.587), which differ from
+``cv2.cvtColor`` by one grey level in places; :func:`gray_of_png` applies those weights
+(tests/unit/test_png_gray.py checks every RGB value against OpenCV's decoder).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ["gray_of_png", "FrameCache"]
+
+# libpng's RGB -> gray weights in 1/32768 (0.299, 0.587 and the rest), the sum truncated
+_PNG_GRAY_WEIGHTS = (9797, 19234, 3737)
+
+
+def gray_of_png(image: np.ndarray) -> np.ndarray:
+    """The gray uint8 image :func:`selfcal.io.dataset.read_gray` returns for the PNG the dataset
+    writer stores from ``image`` (uint8 RGB (H, W, 3), or gray (H, W)), without encoding or
+    decoding it."""
+    img = np.asarray(image)
+    if not _is_png_rgb_or_gray(img):
+        raise ValueError(
+            f"expected a uint8 RGB (H, W, 3) or gray (H, W) image, got {img.dtype} {img.shape}"
+        )
+    if img.ndim == 2:
+        return img.copy()
+    wr, wg, wb = _PNG_GRAY_WEIGHTS
+    acc = img[..., 0] * np.uint32(wr)
+    acc += img[..., 1] * np.uint32(wg)
+    acc += img[..., 2] * np.uint32(wb)
+    acc >>= 15
+    return acc.astype(np.uint8)
+
+
+def _is_png_rgb_or_gray(img: np.ndarray) -> bool:
+    return img.dtype == np.uint8 and (img.ndim == 2 or (img.ndim == 3 and img.shape[2] == 3))
+
+
+@dataclass
+class FrameCache:
+    """One dataset's images and marker detections held by this process.
+
+    ``images[(index, camera)]``: the gray image of that frame (:func:`gray_of_png`), kept by
+    :meth:`add` only once the frame is on disk and while the images fit in ``max_bytes``
+    (default 256 MiB: 870 images of 640 x 480); the readers read the others from the files.
+    ``detections``: what :func:`selfcal.calibration.field.calibrate.detect_dataset` found in each image (it fills
+    and reuses it). Use one cache for one dataset folder only.
+    """
+
+    max_bytes: int = 256 * 2**20
+    images: dict[tuple[int, str], np.ndarray] = field(default_factory=dict)
+    detections: dict[tuple, tuple[dict, dict]] = field(default_factory=dict)
+    nbytes: int = 0
+
+    def add(self, index: int, images: dict[str, np.ndarray]) -> None:
+        """Keep frame ``index``'s images (uint8 RGB or gray, by camera) while they fit; an image
+        of another kind (say 16 bits from a camera) is left to be read from its file."""
+        for cam, img in images.items():
+            if not _is_png_rgb_or_gray(img):
+                continue
+            gray = gray_of_png(img)
+            if self.nbytes + gray.nbytes > self.max_bytes:
+                return
+            self.images[(index, cam)] = gray
+            self.nbytes += gray.nbytes

@@ -1,0 +1,2 @@
+"""The commands behind ``selfcal acquire | calibrate | report | run``, and their
+reports."""

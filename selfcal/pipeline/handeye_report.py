@@ -1,0 +1,148 @@
+"""``selfcal report DIR`` of a pose dataset's calibration (flange poses, no joints).
+
+A short report: the setup and that no kinematics were identified; the hand-eye and the board
+mount, calibrated (with sigmas) beside the nominal (the camera stage's camera held, both fitted
+by the same objective) and their difference; the camera's parameters, calibrated beside
+nominal; the fit (RMS of both); the held-out reprojection when ``DIR/evaluation.json`` holds a
+``selfcal evaluate`` of this calibration, with whether the calibration beat the nominal.
+Output: ``DIR/report.json`` (``"kind": "handeye"``) and ``DIR/report.md``.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from selfcal.calibration.handeye.calibration_file import read_handeye
+from selfcal.io.atomic import write_text_atomic
+from selfcal.io.jsonfile import write_json_atomic
+
+__all__ = ["handeye_report", "handeye_summary", "handeye_markdown"]
+
+NO_KINEMATICS = (
+    "No kinematics were identified: the flange poses are taken as the robot reports them, so "
+    "whatever error they carry (the controller's own model, backlash, the tool frame) stays in "
+    "the residuals"
+)
+
+
+def _transform(cal: dict, nom: dict) -> dict:
+    Rc = Rotation.from_quat(cal["quat_xyzw"])
+    Rn = Rotation.from_quat(nom["quat_xyzw"])
+    return {
+        "what": cal["transform"],
+        "calibrated": {
+            k: cal[k] for k in ("xyz_mm", "quat_xyzw", "sigma_xyz_mm", "sigma_rotation_deg")
+        },  # fmt: skip
+        "nominal": {k: nom[k] for k in ("xyz_mm", "quat_xyzw")},
+        "difference_mm": float(np.linalg.norm(np.subtract(cal["xyz_mm"], nom["xyz_mm"]))),
+        "difference_deg": float(np.degrees((Rc * Rn.inv()).magnitude())),
+    }
+
+
+def _held_out(root: Path, cal_path: Path) -> dict:
+    ev_path = root / "evaluation.json"
+    fix = (f"run `selfcal evaluate {root} HELD_OUT_DATASET --out {ev_path}` with a second pose "
+           "dataset of the same setup")  # fmt: skip
+    if not ev_path.is_file():
+        return {"error": f"no held-out check: {ev_path} is missing; {fix}"}
+    ev = json.loads(ev_path.read_text())
+    if "held_out_rms_px" not in ev or Path(ev.get("calibration", "")).resolve() not in (
+        cal_path.resolve(), cal_path.parent.resolve()):  # fmt: skip
+        return {"error": f"no held-out check: {ev_path} is not an evaluation of {cal_path}; {fix}"}
+    return {"source": "selfcal evaluate", "file": str(ev_path), "dataset": ev["dataset"],
+            "frames": ev["frames"], "corners": ev["corners"],
+            "reprojection_rms_px": ev["held_out_rms_px"],
+            "calibration_better_than_nominal": ev["calibration_better_than_nominal"]}  # fmt: skip
+
+
+def handeye_report(root: str | Path) -> dict:
+    """Write ``root/report.json`` and ``report.md`` for the hand-eye calibration in ``root``
+    (module docstring) and return the report; lengths mm, angles deg, image quantities px."""
+    root = Path(root)
+    cal_path = root / "calibration.json"
+    setup, _, _, doc = read_handeye(cal_path)
+    nom = doc["nominal"]
+    cam, ncam = doc["camera"], nom["camera"]
+    report = {
+        "kind": "handeye",
+        "setup": setup,
+        "calibration": str(cal_path),
+        "kinematics": NO_KINEMATICS,
+        "frames_used": doc["frames_used"],
+        "transforms": [_transform(doc[k], nom[k]) for k in ("hand_eye", "board_mount")],
+        "camera": {
+            "model": cam["model"],
+            "free": cam["free"],
+            "parameters": {
+                k: {"calibrated": v, "std": cam["std"].get(k), "nominal": ncam["values"][k]}
+                for k, v in cam["values"].items()
+            },
+        },  # fmt: skip
+        "fit": {
+            "reprojection_rms_px": {
+                "calibrated": doc["reprojection_rms_px"],
+                "nominal": nom["reprojection_rms_px"],
+            },
+            "camera_stage_rms_px": doc["camera_stage_rms_px"],
+            "inliers": doc["inliers"],
+            "rows": doc["rows"],
+        },  # fmt: skip
+        "nominal_is": nom["what"],
+        "held_out": _held_out(root, cal_path),
+        "failures": [],
+    }
+    write_json_atomic(root / "report.json", report)
+    write_text_atomic(root / "report.md", handeye_markdown(report))
+    return report
+
+
+def _held_out_line(h: dict) -> str:
+    if "error" in h:
+        return h["error"]
+    r = h["reprojection_rms_px"]
+    verdict = "better than" if h["calibration_better_than_nominal"] else "NOT better than"
+    return (f"held-out reprojection {r['calibrated']:.3f} px RMS calibrated, {r['nominal']:.3f} "
+            f"px nominal over {h['frames']} frames of {h['dataset']}: the calibration is "
+            f"{verdict} the nominal")  # fmt: skip
+
+
+def handeye_summary(report: dict, root: Path) -> str:
+    """The one line ``selfcal report`` prints for a hand-eye calibration."""
+    f = report["fit"]["reprojection_rms_px"]
+    return (f"report ({report['setup']}, flange poses: no kinematics identified): fit "
+            f"{f['calibrated']:.3f} px RMS calibrated, {f['nominal']:.3f} px nominal; "
+            f"{_held_out_line(report['held_out'])}; {Path(root) / 'report.json'}")  # fmt: skip
+
+
+def _v(xs) -> str:
+    return ", ".join(f"{x:.2f}" for x in xs)
+
+
+def handeye_markdown(r: dict) -> str:
+    """``report.md`` of a hand-eye report."""
+    f = r["fit"]
+    lines = [f"# Hand-eye calibration report ({r['setup']})", "", NO_KINEMATICS + ".", "",
+             "| transform | calibrated xyz (mm) | sigma xyz (mm) | sigma rotation (deg) | "
+             "nominal xyz (mm) | calibrated - nominal |", "|---|---|---|---|---|---|"]  # fmt: skip
+    for t in r["transforms"]:
+        c = t["calibrated"]
+        lines.append(f"| {t['what']} | {_v(c['xyz_mm'])} | {_v(c['sigma_xyz_mm'])} | "
+                     f"{max(c['sigma_rotation_deg']):.3f} | {_v(t['nominal']['xyz_mm'])} | "
+                     f"{t['difference_mm']:.2f} mm, {t['difference_deg']:.3f} deg |")  # fmt: skip
+    lines += ["", f"Nominal: {r['nominal_is']}. Quaternions (xyzw) and matrices: "
+              "calibration.json; for ROS: `selfcal export DIR --format tf`.", "",
+              f"Fit over {r['frames_used']} frames ({f['inliers']} of {f['rows']} corners "
+              f"inliers): calibrated {f['reprojection_rms_px']['calibrated']:.3f} px RMS, nominal "
+              f"{f['reprojection_rms_px']['nominal']:.3f} px, camera stage (a free board pose "
+              f"per image) {f['camera_stage_rms_px']:.3f} px.", "",
+              "## Held-out reprojection", "", _held_out_line(r["held_out"]) + ".", "",
+              f"## Camera ({r['camera']['model']})", "",
+              "| parameter | calibrated | std | nominal |", "|---|---|---|---|"]  # fmt: skip
+    for k, p in r["camera"]["parameters"].items():
+        std = "held" if p["std"] is None else f"{p['std']:.4g}"
+        lines.append(f"| {k} | {p['calibrated']:.6g} | {std} | {p['nominal']:.6g} |")
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,282 @@
+"""``selfcal report DIR`` on real data (no ``truth.json``): what the data itself says.
+
+The fit (reprojection RMS, inliers, frames used), a held-out reprojection -- from
+``DIR/evaluation.json`` when ``selfcal evaluate`` wrote one with a second dataset, else the
+leave-some-poses-out check (:func:`selfcal.calibration.field.holdout.leave_poses_out`: every 5th frame predicted by
+a calibration of the others) -- the parameters with their standard deviations against the nominal
+reference (the nominal chain with only base and hand-eye fitted, :mod:`selfcal.calibration.field.evaluate`),
+and the identifiability (rank, condition number, held parameters and why). Never the simulator.
+A board calibration (``selfcal import`` of your own data) gets the same report from its own
+numbers: fit, held-out check, the camera's sigmas, the parameters against the nominal reference
+and the ones held (:func:`board_fit_report`). Output: ``DIR/report.json`` and ``DIR/report.md``
+(``"kind": "fit"``).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from selfcal.calibration.board.evaluate import read_evaluation
+from selfcal.calibration.field.evaluate import nominal_reference
+from selfcal.calibration.field.holdout import leave_poses_out
+from selfcal.errors import SelfCalError
+from selfcal.io.board_calibration import BoardCalibrationResult
+from selfcal.io.calibration import CalibrationResult
+from selfcal.kinematics.accuracy import parameter_table
+from selfcal.kinematics.alignment import express_in_frame
+from selfcal.pipeline.report_cameras import rig_camera_markdown, rig_camera_rows
+
+__all__ = ["fit_report", "board_fit_report", "fit_markdown", "HOLDOUT_EVERY"]
+
+HOLDOUT_EVERY = 5
+"""The leave-some-poses-out check holds out every 5th frame (6 of the default 30)."""
+
+
+def _held_out(root: Path, method: str, every: int) -> dict:
+    ev_path = root / "evaluation.json"
+    if ev_path.is_file():
+        ev = read_evaluation(ev_path)
+        return {"source": "selfcal evaluate", "file": str(ev_path), "dataset": ev.dataset,
+                "images": len(ev.images), "features": sum(i["features"] for i in ev.images),
+                "reprojection_rms_px": dict(ev.rms)}  # fmt: skip
+    try:
+        h = leave_poses_out(root, every=every, method=method)
+    except SelfCalError as exc:
+        return {"source": "leave-poses-out", "error": str(exc)}
+    ev = h.evaluation
+    return {
+        "source": "leave-poses-out",
+        "every": every,
+        "held_out_frames": list(h.held_out),
+        "images": len(ev.images),
+        "features": sum(i["features"] for i in ev.images),
+        "reprojection_rms_px": dict(ev.rms),
+        "note": (
+            f"every {every}th frame held out, the other {len(h.fitted)} calibrated afresh with the "
+            f"same method ({method}); the held-out images predicted from their joint readings "
+            "alone"
+        ),
+    }
+
+
+def fit_report(root: str | Path, cal: CalibrationResult, *, every: int = HOLDOUT_EVERY) -> dict:
+    """The report of the field calibration ``cal`` of the dataset in ``root`` without truth
+    (module docstring); lengths mm, angles deg, image quantities px."""
+    root = Path(root)
+    est = cal.model
+    nominal = express_in_frame(nominal_reference(cal, root), np.eye(4), like=est)
+    std_si = {p.name: np.nan if p.std is None else p.std * p.to_si for p in cal.parameters}
+    params = parameter_table(est, std_si, None, nominal)
+    held = {**cal.identification.held, **({} if cal.joint is None else cal.joint.held)}
+    for row in params:
+        row["held"] = held.get(row["name"])
+    i = cal.intrinsics
+    ident = cal.identification
+    identifiability = {
+        "method": cal.method,
+        "two_stage": {"rank": ident.rank, "n_params": ident.n_params,
+                      "condition_number": ident.condition_number,
+                      "observability_o1": ident.observability_o1,
+                      "observability_o3": ident.observability_o3},
+        "held": held,
+    }  # fmt: skip
+    if cal.joint is not None:
+        identifiability["joint"] = {"rank": cal.joint.rank, "n_unknowns": cal.joint.n_unknowns,
+                                    "gauge_held": list(cal.joint.gauge_held)}  # fmt: skip
+    return {
+        "kind": "fit",
+        "note": "no truth.json (real data): the fit, a held-out check, sigmas and identifiability",
+        "fit": {
+            "method": cal.method,
+            "frames": cal.dataset.frames,
+            "frames_used": cal.dataset.frames_used,
+            "reprojection_rms_px": cal.reprojection_rms_px,
+            "inliers": cal.observations.inliers,
+            "outliers": cal.observations.outliers,
+            "corner_noise_px": None if cal.joint is None else cal.joint.sigma_px,
+        },
+        "held_out": _held_out(root, cal.method, every),
+        "intrinsics": {
+            "fx": {"estimate": i.fx, "std": i.fx_std},
+            "mu": {"estimate": i.mu, "std": i.mu_std},
+            **{n: {"estimate": v, "std": i.std.get(n)} for n, v in i.distortion.items()},
+        },
+        **({"cameras": cams} if (cams := rig_camera_rows(cal, None)) else {}),
+        "scale_factor": cal.scale.k,
+        "parameters": params,
+        "parameters_note": (
+            "nominal: the robot file's chain with only its base and hand-eye fitted to the "
+            "calibrated camera poses, in the estimate's frame; std: 1 sigma from the fit"
+        ),
+        "identifiability": identifiability,
+        "warnings": list(cal.warnings),
+        "failures": list(cal.failures),
+    }
+
+
+def board_fit_report(
+    root: str | Path, cal: BoardCalibrationResult, *, every: int = HOLDOUT_EVERY
+) -> dict:
+    """The report of the board calibration ``cal`` of the dataset in ``root`` (no truth): as
+    :func:`fit_report`; the kinematics' sigmas are their Cramer-Rao bounds at the estimate
+    (``calibration.json`` ``bounds``), the camera's its fit's, and the parameters it held."""
+    root = Path(root)
+    reasons = {} if cal.selection is None else cal.selection.get("held", {})
+    held = {n: reasons.get(n, "held: not identifiable from this data") for n in cal.held}
+    params = parameter_table(cal.model, {}, None, cal.nominal_model)
+    # the kinematics' sigmas: the Cramer-Rao bound at the estimate with the fit's own noise
+    # (calibration.json bounds), what an efficient estimator's standard deviation is
+    bound = {b.name: b.bound for b in cal.bounds.parameters} if cal.bounds is not None else {}
+    for row in params:
+        row["held"] = held.get(row["name"])
+        if row["held"] is None and bound.get(row["name"]) is not None:
+            row["std"] = bound[row["name"]]
+    cam, std = cal.cameras[0], cal.camera_std[0]
+    values = dict(zip(cam.names, cam.values().tolist(), strict=True))
+    return {
+        "kind": "fit",
+        "note": "no truth.json (real data): the fit, a held-out check, sigmas and identifiability",
+        "fit": {
+            "method": "board",
+            "frames": cal.frames,
+            "frames_used": cal.frames_used,
+            "reprojection_rms_px": cal.reprojection_rms_px,
+        },
+        "held_out": _held_out(root, "board", every),
+        "intrinsics": {n: {"estimate": values[n], "std": std.get(n)} for n in cam.free},
+        "parameters": params,
+        "parameters_note": (
+            "nominal: the fair nominal, the nominal chain with hand-eye, board pose and camera "
+            "fitted to the pixels (calibration.json nominal_mcpc), in the estimate's frame; 1 sigma: the Cramer-Rao bound at the "
+            "estimate with the fit's noise (calibration.json bounds), none when it has no bounds"
+        ),
+        "identifiability": {"method": "board", "held": held,
+                            **({} if cal.selection is None else {"selection": cal.selection})},
+        **({} if (verdict := cal.cv_verdict()) is None else {"verdict": f"no gain: {verdict}"}),
+        "warnings": list(cal.warnings),
+    }  # fmt: skip
+
+
+def fit_markdown(r: dict, figures: list[str]) -> str:
+    """``report.md`` of a report without truth."""
+    f, h = r["fit"], r["held_out"]
+    counts = (f" over {f['inliers']} inlier corners ({f['outliers']} outliers)"
+              if "inliers" in f else "")  # fmt: skip
+    lines = [
+        "# Calibration report (real data: no truth)",
+        "",
+        f"Fit ({f['method']}): {f['frames_used']}/{f['frames']} frames, reprojection RMS "
+        f"{f['reprojection_rms_px']:.3f} px{counts}.",
+        "",
+        "## Held-out reprojection",
+        "",
+    ]
+    if "error" in h:
+        lines.append(f"Not available: {h['error']}")
+    else:
+        rms = h["reprojection_rms_px"]
+        src = (f"`selfcal evaluate` on {h['dataset']}" if h["source"] == "selfcal evaluate"
+               else h["note"])  # fmt: skip
+        lines += [
+            f"{src}: {h['features']} features in {h['images']} images.",
+            "",
+            "| model | held-out reprojection RMS (px) |",
+            "|---|---|",
+            f"| nominal reference | {rms['nominal']:.3f} |",
+            f"| calibrated | {rms['calibrated']:.3f} |",
+        ]
+    if "verdict" in r:
+        lines += ["", f"**{r['verdict']}**"]
+    idf = r["identifiability"]
+    lines += ["", "## Identifiability", ""]
+    if "two_stage" in idf:
+        ts = idf["two_stage"]
+        lines.append(
+            f"Two-stage identification rank {ts['rank']}/{ts['n_params']}, condition number "
+            f"{ts['condition_number']:.3g}, observability index O1 {ts['observability_o1']:.3g}."
+        )
+    elif not idf["held"]:
+        lines.append("Every parameter was identified (none held).")
+    if "joint" in idf:
+        j = idf["joint"]
+        lines.append(
+            f"One-step refinement: rank {j['rank']}/{j['n_unknowns']} unknowns; gauge held: "
+            f"{', '.join(j['gauge_held']) or 'none'}."
+        )
+    if "selection" in idf:
+        lines += selection_markdown(idf["selection"])
+    if idf["held"]:
+        lines += ["", "Held parameters:", ""]
+        lines += [f"- {k}: {v}" for k, v in idf["held"].items()]
+    cam = ", ".join(
+        f"{n} = {v['estimate']:.6g}" + ("" if v["std"] is None else f" ± {v['std']:.2g}")
+        for n, v in r["intrinsics"].items()
+    )
+    lines += ["", "## Camera", "", f"{cam} (± 1 sigma).", "",
+              *rig_camera_markdown(r.get("cameras", {})), "## Parameters", "",
+              parameter_markdown(r["parameters"], truth=False)]  # fmt: skip
+    lines += figure_links(figures)
+    if r["warnings"]:
+        lines += ["", "## Warnings", ""] + [f"- {w}" for w in r["warnings"]]
+    return "\n".join(lines) + "\n"
+
+
+def selection_markdown(sel: dict) -> list[str]:
+    """The parameter selection of a board calibration (calibration.json ``selection``): what
+    was identified, the rule and every candidate's cross-validated errors."""
+    out = [
+        f"Identified: {', '.join(sel['identified'])} (chosen: {sel['chosen']}; {sel['rule']}).",
+        "",
+        "| candidate | parameters | fit (px) | cross-validated (px) | per fold (px) |",
+        "|---|---|---|---|---|",
+    ]
+    for c in sel["candidates"]:
+        fit = "-" if c["fit_rms_px"] is None else f"{c['fit_rms_px']:.3f}"
+        cv = "-" if c["cv_px"] is None else f"{c['cv_px']:.3f}"
+        folds = ", ".join("-" if v is None else f"{v:.3f}" for v in c["fold_rms_px"])
+        out.append(f"| {c['label']} | {c['n_parameters']} | {fit} | {cv} | {folds} |")
+    return out
+
+
+def parameter_markdown(rows: list[dict], *, truth: bool) -> str:
+    """The parameter table (mm / deg): nominal, estimate, 1 sigma, and with ``truth`` the truth
+    and the estimate's error."""
+    head = "| parameter | unit | nominal | estimate | 1 sigma |"
+    rule = "|---|---|---|---|---|"
+    if truth:
+        head += " truth | estimate - truth |"
+        rule += "---|---|"
+    out = [head, rule]
+    for p in rows:
+        sd = "held" if p.get("held") else ("-" if p["std"] is None else f"{p['std']:.4f}")
+        line = (f"| {p['name']} | {p['unit']} | {p['nominal']:.4f} | {p['estimate']:.4f} | "
+                f"{sd} |")  # fmt: skip
+        if truth:
+            line += f" {p['truth']:.4f} | {p['estimate'] - p['truth']:+.4f} |"
+        out.append(line)
+    return "\n".join(out)
+
+
+def bound_markdown(bound_mm: float | None, achieved_mm: float, method: str = "") -> str:
+    """The report's sentence on the Cramer-Rao bound of the calibrated tool-tip RMS (mm) and,
+    when the achieved error of this one data set is below it, why that is no contradiction."""
+    if bound_mm is None:
+        return "No Cramér-Rao bound was computed for this calibration."
+    text = (f"Cramér-Rao bound of the calibrated tool-tip RMS for this data: {bound_mm:.3f} mm "
+            f"({method}see calibration.json `bounds`).")  # fmt: skip
+    if achieved_mm < bound_mm:
+        text += (
+            f" The achieved {achieved_mm:.3f} mm is below it: the bound is the RMS expected over "
+            "noise draws, and one draw can beat it (`selfcal montecarlo` shows the spread over "
+            "draws)."
+        )
+    return text
+
+
+def figure_links(figures: list[str]) -> list[str]:
+    """Markdown image links of ``figures`` (paths relative to the report)."""
+    if not figures:
+        return []
+    return ["", "## Figures", ""] + [f"![{Path(p).stem}]({p})" for p in figures]

@@ -1,0 +1,1 @@
+"""Figures (matplotlib through ``plotting``) and the Rerun recording."""

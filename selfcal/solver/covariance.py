@@ -1,0 +1,111 @@
+"""Covariance of selected parameter blocks after a solve: blocks of ``(J^T J)^-1``.
+
+The caller supplies the noise level: ``sigma^2 (J^T J)^-1`` with ``J`` the unweighted Jacobian of
+the residuals at the solution (each residual in units of its own standard deviation, or scaled
+by ``sigma^2`` when all rows share one unknown noise level). Nuisance unknowns (points, poses)
+are marginalised by the inverse.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.linalg import ArpackError, eigsh, splu
+
+from selfcal.solver.linear import DENSE_MAX
+from selfcal.solver.problem import Problem
+
+__all__ = ["inverse_block", "covariance", "scaled_rank", "normal_matrix"]
+
+
+_DENSE_COLUMN = 0.125  # a column in more than this fraction of the rows is multiplied densely
+
+
+def normal_matrix(J: sp.spmatrix | np.ndarray) -> sp.csc_matrix:
+    """``J^T J`` (CSC) of a sparse Jacobian. The columns that most rows use (a camera's
+    intrinsics, a kinematic chain: more than 1/8 of the rows) are multiplied densely (BLAS) with
+    themselves and with the rest, only the sparse remainder (poses, points) by a sparse product:
+    the same matrix as ``J.T @ J`` (to rounding), several times faster when a few columns are
+    dense (measured: 77 -> ~15 ms for the joint refinement at 300 postures)."""
+    Jc = sp.csc_matrix(J)
+    m, n = Jc.shape
+    dense = np.diff(Jc.indptr) > _DENSE_COLUMN * m
+    if not dense.any() or dense.all():
+        return (Jc.T @ Jc).tocsc()
+    d, r = np.flatnonzero(dense), np.flatnonzero(~dense)
+    Jd = Jc[:, d].toarray()
+    Jr = Jc[:, r]
+    Dd = Jd.T @ Jd  # (nd, nd)
+    Rd = np.asarray(Jr.T @ Jd)  # (nr, nd)
+    Rr = (Jr.T @ Jr).tocoo()
+    nd, nr = len(d), len(r)
+    rows = np.concatenate([np.repeat(d, nd), np.repeat(r, nd), np.tile(d, nr), r[Rr.row]])
+    cols = np.concatenate([np.tile(d, nd), np.tile(d, nr), np.repeat(r, nd), r[Rr.col]])
+    vals = np.concatenate([Dd.ravel(), Rd.ravel(), Rd.ravel(), Rr.data])
+    return sp.csc_matrix((vals, (rows, cols)), shape=(n, n))
+
+
+def inverse_block(J: sp.spmatrix | np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """``(J^T J)^-1`` restricted to the unknowns ``cols`` (len(cols), len(cols)), symmetrised.
+
+    Diagonally scaled exact solve: dense LU up to :data:`selfcal.solver.linear.DENSE_MAX`
+    unknowns, SuperLU (COLAMD) above. Raises ``RuntimeError``/``LinAlgError`` when ``J^T J`` is
+    singular (an unknown the residuals do not determine)."""
+    cols = np.asarray(cols, dtype=np.int64)
+    JtJ = normal_matrix(J)
+    dg = np.sqrt(np.maximum(JtJ.diagonal(), 1e-300))
+    e = np.zeros((JtJ.shape[0], len(cols)))
+    e[cols, np.arange(len(cols))] = 1.0
+    if JtJ.shape[0] <= DENSE_MAX:  # dense LU: faster than SuperLU at this size
+        M = JtJ.toarray() / dg[:, None] / dg[None, :]
+        sol = np.linalg.solve(M, e / dg[:, None]) / dg[:, None]
+    else:
+        Dinv = sp.diags(1.0 / dg)
+        lu = splu((Dinv @ JtJ @ Dinv).tocsc(), permc_spec="COLAMD")
+        sol = lu.solve(e / dg[:, None]) / dg[:, None]
+    out = sol[cols]
+    return 0.5 * (out + out.T)
+
+
+def covariance(
+    problem: Problem,
+    x: np.ndarray,
+    blocks: Sequence[str | tuple[str, np.ndarray]],
+    *,
+    sigma2: float = 1.0,
+) -> np.ndarray:
+    """``sigma2 (J^T J)^-1`` over the free coordinates of parameter ``blocks`` (in that order,
+    each block's coordinates in order; ``(name, idx)`` selects the free coordinates ``idx`` of a
+    block) at unknowns ``x`` (e.g. ``SolverResult.x``)."""
+    cols = []
+    for b in blocks:
+        name, idx = (b, None) if isinstance(b, str) else b
+        c = problem.columns(name)
+        cols.append(c if idx is None else c[np.asarray(idx, dtype=np.int64)])
+    return sigma2 * inverse_block(problem.jacobian(x), np.concatenate(cols))
+
+
+def scaled_rank(J: sp.spmatrix | np.ndarray, rtol: float = 1e-9) -> tuple[float, int]:
+    """``(s_min / s_max, rank)`` of the unit-column-scaled ``J``: the smallest relative singular
+    value and the numerical rank (singular values above ``rtol s_max``), from the eigenvalues of
+    ``J^T J``: all of them densely up to :data:`selfcal.solver.linear.DENSE_MAX` unknowns; above,
+    only the largest and (shift-invert Lanczos on the sparse matrix, linear in the postures of a
+    bundle adjustment) the smallest, and all densely only when that one is below the rank
+    threshold (a rank-deficient problem, which the callers refuse)."""
+    JtJ = normal_matrix(J)
+    dg = np.sqrt(np.maximum(JtJ.diagonal(), 1e-300))
+    if JtJ.shape[0] > DENSE_MAX:
+        Dinv = sp.diags(1.0 / dg)
+        M = (Dinv @ JtJ @ Dinv).tocsc()
+        try:
+            top = eigsh(M, k=1, which="LA", return_eigenvectors=False)[0]
+            low = eigsh(M, k=1, sigma=0.0, which="LM", return_eigenvectors=False)[0]
+        except (RuntimeError, ArpackError):  # singular at the shift: rank deficient
+            top = low = 0.0
+        if top > 0 and low > (rtol**2) * top:
+            return float(np.sqrt(low / top)), int(JtJ.shape[0])
+    ev = np.linalg.eigvalsh(JtJ.toarray() / np.outer(dg, dg))
+    s = np.sqrt(np.clip(ev, 0.0, None))[::-1]
+    return float(s[-1] / s[0]), int(np.sum(s > rtol * s[0]))

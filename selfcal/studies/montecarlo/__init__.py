@@ -1,0 +1,1 @@
+"""The Monte Carlo of ``selfcal montecarlo`` and the plan comparison."""

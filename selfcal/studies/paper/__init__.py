@@ -1,0 +1,1 @@
+"""``selfcal paper``: the founding paper's experiment reproduced."""
