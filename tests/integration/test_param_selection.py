@@ -113,10 +113,10 @@ def test_a_rich_set_identifies_every_identifiable_parameter():
 
 
 @pytest.mark.slow  # one calibration with 4 folds: ~5 s
-def test_a_small_set_converges_where_the_two_stage_identification_fails():
-    """4 postures give 24 pose equations for 30 parameters: the two-stage identification refuses
-    (it used to stop the calibration); the fits start from the fair nominal instead and the
-    result says what happened."""
+def test_a_small_set_converges_where_the_two_stage_identification_cannot_fit_everything():
+    """4 postures give 24 pose equations for 30 parameters: the two-stage identification holds
+    what they cannot give and says so (it used to stop the calibration); the fits start from the
+    fair nominal and the result says what happened."""
     robot = load_robot(ROBOT)
     nom = nominal_mcpc(robot).with_tool(robot.T_flange_cam)
     lab = make_lab(0)
@@ -126,8 +126,10 @@ def test_a_small_set_converges_where_the_two_stage_identification_fails():
         warnings.simplefilter("ignore", SelfCalWarning)
         res = calibrate_robot_with_board(BOARD, feats, q, nom, W, H, free=CAMERA.free,
                                          model="opencv")  # fmt: skip
-    assert res.identification is None
-    assert res.identification_error is not None and "too few poses" in res.identification_error
+    ident, why = res.identification, res.identification_error
+    assert (ident is None and why is not None and "too few poses" in why) or (
+        ident is not None and any("too few poses" in w for w in ident.warnings)
+    ), (why, None if ident is None else ident.warnings)
     assert res.selection is not None and res.nominal is not None
     assert np.isfinite(res.model.params).all()
     assert res.rms_px <= res.nominal.rms_px * (1 + 1e-9)
