@@ -131,3 +131,27 @@ def test_a_tracker_calibration_of_non_finite_or_non_rigid_values_is_refused(tmp_
     path.write_text(json.dumps(doc))
     with pytest.raises(TrackerCalibrationFileError, match=rf"key 'mcpc.{key}' must be"):
         read_tracker_calibration(path)
+
+
+def test_the_fair_nominal_keeps_its_base_offset():
+    """A chain whose joint 1 lies along its base x-axis has a base offset of 90 deg; the fair
+    nominal recorded in the tracker calibration keeps it (without it the nominal tool moved by
+    0.3 m and `selfcal predict` printed a wrong nominal error)."""
+    from selfcal.calibration.tracker.calibration_file import _nominal_from, _nominal_json
+    from selfcal.calibration.tracker.nominal import NominalFit
+    from selfcal.io.jsonfile import Fields
+    from selfcal.kinematics.forward import fk_frames
+    from selfcal.kinematics.mcpc import nominal_mcpc
+    from selfcal.robot.definition import load_robot, models_dir
+
+    robot = load_robot(str(models_dir().parent / "tests" / "data" / "virtual_chain_xyz.urdf"))
+    model = nominal_mcpc(robot)
+    assert abs(model.base_offset) == pytest.approx(np.pi / 2)
+    nom = NominalFit(model, np.eye(4), 1.0, float("nan"), float("nan"), True)
+    doc = json.loads(json.dumps(_nominal_json(nom)))
+    back = _nominal_from(Fields(doc, "nominal", "fix"), model.joint_types)
+    assert back.model.base_offset == model.base_offset
+    q = np.random.default_rng(4).uniform(robot.limits[:, 0], robot.limits[:, 1], (5, 6)) * 0.2
+    np.testing.assert_allclose(
+        fk_frames(back.model, q)[:, -1], fk_frames(model, q)[:, -1], atol=1e-12
+    )

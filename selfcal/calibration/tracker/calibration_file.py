@@ -7,7 +7,8 @@ frame. Keys:
 - ``robot`` (name, the ``--robot`` given, joint names, types and ranges in rad / m) and ``joint_units`` declared;
 - ``measurement_frame``: what the world is (the tracker frame of the measurements);
 - ``mcpc``: the identified chain in the *fit frame* (SI: ``params`` (n + 1, 6) with columns
-  ``alpha, beta, gamma`` rad and ``lx, ly, lz`` m, ``joint_offsets`` rad) and ``T_meas_fit``
+  ``alpha, beta, gamma`` rad and ``lx, ly, lz`` m, ``joint_offsets`` rad, ``base_offset`` rad
+  when not 0: :class:`selfcal.kinematics.mcpc.MCPCModel`) and ``T_meas_fit``
   (4 x 4, m): tracker frame <- fit frame; a tool point is ``T_meas_fit fk(mcpc, q)``;
 - ``parameters``: one entry per minimal parameter: ``name``, ``value``, ``std`` (null when held),
   ``unit`` (mm or deg), ``estimated``, ``held`` (why, or null);
@@ -20,7 +21,7 @@ frame. Keys:
 - ``nominal`` (optional, absent from files written before it): the fair nominal of
   :mod:`selfcal.calibration.tracker.nominal` -- the robot file's chain with the tracker frame and the tool
   fitted by the same objective: its ``rms_mm``, ``rms_deg``, ``rms_distance_mm`` and its chain
-  ``mcpc`` (``params``, ``joint_offsets``, ``T_meas_fit`` as above).
+  ``mcpc`` (``params``, ``joint_offsets``, ``base_offset``, ``T_meas_fit`` as above).
 """
 
 from __future__ import annotations
@@ -234,6 +235,7 @@ def _nominal_json(nom: NominalFit) -> dict:
         "mcpc": {
             "params": nom.model.params.tolist(),
             "joint_offsets": nom.model.joint_offsets.tolist(),
+            **({"base_offset": nom.model.base_offset} if nom.model.base_offset else {}),
             "T_meas_fit": nom.T_meas_fit.tolist(),
         },
     }
@@ -247,7 +249,12 @@ def _nominal_from(f: Fields, types: tuple[str, ...]) -> NominalFit:
         return float("nan") if v is None else v
 
     return NominalFit(
-        model=MCPCModel(mc.array("params", (n + 1, 6)), types, mc.array("joint_offsets", (n,))),
+        model=MCPCModel(
+            mc.array("params", (n + 1, 6)),
+            types,
+            mc.array("joint_offsets", (n,)),
+            mc.finite("base_offset") if mc.has("base_offset") else 0.0,
+        ),
         T_meas_fit=mc.array("T_meas_fit", (4, 4)),
         rms_mm=num("rms_mm"),
         rms_deg=num("rms_deg"),
