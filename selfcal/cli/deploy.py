@@ -89,9 +89,10 @@ formats (chosen by --format only, never by the --out file's suffix):
                 (xyzw) and Euler roll, pitch, yaw (deg, R = Rz(yaw) Ry(pitch) Rx(roll)) with sigmas
   hand-eye transforms: a pose dataset's calibration: eye-in-hand flange -> camera and base ->
   board, eye-to-hand base -> camera and flange -> board; a calibration with joints: flange ->
-  camera (and base -> board for a board calibration). ROS frame names (--frames): base_link,
-  tool0 (the flange as the controller reports it), camera_optical_frame (z forward, x right,
-  y down), board; see docs/handeye.md
+  camera (and base -> board for a board calibration, unless joint 1 or 2 is prismatic or their
+  axes are parallel: no base frame can be rebuilt then, the file says so). ROS frame names
+  (--frames): base_link, tool0 (the flange as the controller reports it), camera_optical_frame
+  (z forward, x right, y down), board; see docs/handeye.md
   camera_info  the estimated camera as ROS camera_info YAML in ROS camera_calibration's
                convention: camera_matrix K, distortion_coefficients D (distortion_model
                plumb_bob / rational_polynomial / equidistant), rectification_matrix R = I,

@@ -12,7 +12,8 @@ export``):
 - a calibration with joints (:func:`from_chain`; tool = the camera): flange -> camera, where the
   flange is the nominal flange of joint n (``selfcal.calibration.field.results.hand_eye``), and for a board
   calibration base -> board, where the base is the robot's base frame rebuilt on the identified
-  axes 1 and 2 (``selfcal.kinematics.dh_table.canonical_base``, the URDF export's ``base_link``).
+  axes 1 and 2 (``selfcal.kinematics.dh_table.canonical_base``, the URDF export's ``base_link``);
+  flange -> camera alone (and a note why) when joint 1 or 2 is prismatic or their axes parallel.
 
 Writers (pure functions returning text): :func:`to_tf_yaml` (``static_transform_publisher``
 arguments for ROS 1 and ROS 2 and launch snippets), :func:`to_easy_handeye_yaml` (easy_handeye's
@@ -149,18 +150,28 @@ def from_chain(model: MCPCModel, robot: RobotDef, std: Mapping[str, float], sour
     sigmas by name (rad, m), ``sigma_source`` what they are. Flange -> camera with first-order
     sigmas from the last row's parameters; with ``board`` also base -> board (no sigma: the base
     frame is rebuilt on the identified axes 1 and 2, whose covariance the calibration does not
-    store)."""
+    store) -- unless joint 1 or 2 is prismatic or their axes are parallel (an arm on a track, a
+    SCARA): no base frame can be rebuilt then, flange -> camera is exported alone and ``note``
+    says so."""
     sig = _last_row_sigmas(model, robot, std)
     out = [StaticTransform("flange -> camera", "flange", "camera",
                            flange_tool(model, robot),
                            None if sig is None else sig[0], None if sig is None else sig[1])]  # fmt: skip
+    base = ("the base the robot's base frame rebuilt on the identified joint axes 1 and 2 (as "
+            "the URDF export's base_link)")  # fmt: skip
     if board:
-        T_board_base = canonical_base(model, robot)
-        out.append(StaticTransform("base -> board", "base", "board", inv_pose(T_board_base),
-                                   None, None))  # fmt: skip
+        try:
+            T_board_base = canonical_base(model, robot)
+        except ValueError as exc:
+            # an arm on a track or a SCARA: its axes 1 and 2 fix no base frame
+            base = (f"no base -> board: the robot's base frame cannot be rebuilt on the identified "
+                    f"axes ({exc}); the calibration's chain is in the board frame "
+                    "(calibration.json), flange -> camera alone is exported")  # fmt: skip
+        else:
+            out.append(StaticTransform("base -> board", "base", "board", inv_pose(T_board_base),
+                                       None, None))  # fmt: skip
     note = (f"kinematics of {robot.name} identified with the camera; the flange is the nominal "
-            "flange of the last joint on the identified last link, the base the robot's base "
-            "frame rebuilt on the identified joint axes 1 and 2 (as the URDF export's base_link); "
+            f"flange of the last joint on the identified last link, {base}; "
             f"flange -> camera sigmas to first order from the {sigma_source} of the last "
             "link's six parameters taken as independent")  # fmt: skip
     return HandEyeExport("eye-in-hand", tuple(out), source, note)

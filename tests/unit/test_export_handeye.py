@@ -158,3 +158,21 @@ def test_a_chain_with_joints_gives_flange_camera_and_base_board():
     assert np.linalg.norm(he.sigma_xyz_m) == pytest.approx(1e-3, rel=1e-5)
     assert np.all(he.sigma_rotation_rad < 1e-9)
     assert from_chain(model, robot, {}, "synthetic", board=False).transforms[0].sigma_xyz_m is None
+
+
+def test_a_chain_without_a_base_frame_gives_flange_camera_alone():
+    """A board calibration of a chain whose joint 1 is prismatic (an arm on a track) has no base
+    frame rebuilt on axes 1 and 2: flange -> camera is exported alone, the note says why (it
+    raised and `selfcal export --format tf` exited 1)."""
+    from selfcal.robot.definition import models_dir
+
+    robot = load_robot(str(models_dir().parent / "tests" / "data" / "virtual_chain_xyz.urdf"))
+    T_flange_cam = make_pose(Rotation.from_rotvec([0.2, 0.1, -0.3]).as_matrix(), [0.01, 0.0, 0.05])
+    cam = nominal_mcpc(robot).with_tool(T_flange_cam)
+    T_board_base = make_pose(Rotation.from_rotvec([0.1, -0.2, 0.3]).as_matrix(), [0.4, 0.1, -0.2])
+    G = chain_transforms(cam)
+    model = regauge([T_board_base @ G[0], *G[1:]], cam.joint_types, cam.joint_offsets)
+    ex = from_chain(model, robot, {}, "synthetic", board=True)
+    (he,) = ex.transforms
+    np.testing.assert_allclose(he.T, T_flange_cam, atol=1e-9)
+    assert "no base -> board" in ex.note and "joints 1 and 2 must be revolute" in ex.note
