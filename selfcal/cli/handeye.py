@@ -165,10 +165,9 @@ def evaluate_poses(args: argparse.Namespace, cal_dir: Path) -> bool:
     """``selfcal evaluate`` of a hand-eye calibration: predict every corner of the held-out pose
     dataset from its flange poses alone with the calibrated and the nominal model; write
     evaluation.json and print both. False when the calibration is not a hand-eye one."""
-    import numpy as np
-
-    from selfcal.calibration.handeye.calibrate import chain_motions, predict_corners
+    from selfcal.calibration.field.calibrate import CalibrationFailedError
     from selfcal.calibration.handeye.calibration_file import is_handeye, read_handeye
+    from selfcal.calibration.handeye.held_out import held_out_check
     from selfcal.io.jsonfile import write_json_atomic
     from selfcal.io.pose_dataset import PoseDataset
 
@@ -180,28 +179,28 @@ def evaluate_poses(args: argparse.Namespace, cal_dir: Path) -> bool:
         raise CliError(f"{args.dataset} is {ds.setup} but the calibration is {setup}",
                        fix="evaluate with a held-out dataset of the same setup")  # fmt: skip
     board, feats = _features(ds)
-    view = np.concatenate([np.full(len(f), i) for i, f in enumerate(feats)])
-    pts = board.points(np.concatenate([f.ids for f in feats]))
-    uv = np.concatenate([f.uv for f in feats])
-    A = chain_motions(setup, ds.T_base_flange)
-    rms = {}
-    for name, m in (("nominal", nominal), ("calibrated", calibrated)):
-        e = np.sum((predict_corners(m.camera, m.X, m.B, A, view, pts) - uv) ** 2, axis=1)
-        rms[name] = float(np.sqrt(np.mean(e)))
-    better = rms["calibrated"] < rms["nominal"]
+    check = held_out_check(board, feats, ds.T_base_flange, setup,
+                           {"nominal": nominal, "calibrated": calibrated}, str(args.dataset))  # fmt: skip
     doc = {"calibration": str(args.calibration), "dataset": str(args.dataset), "setup": setup,
-           "frames": len(feats), "corners": len(uv), "held_out_rms_px": rms,
-           "calibration_better_than_nominal": better}  # fmt: skip
+           "status": "failed" if check["failures"] else "ok", **check}  # fmt: skip
     out = Path(args.out) if args.out else Path(args.dataset) / "evaluation.json"
     write_json_atomic(out, doc)
     note_written(args, out)
     if args.json:
         print(json.dumps({"evaluation": str(out), **doc}))
     else:
-        verdict = "better than" if better else "NOT better than"
+        rms, behind = check["held_out_rms_px"], check["behind_camera"]
+
+        def px(k: str) -> str:
+            r = "none in front of the camera" if rms[k] is None else f"{rms[k]:.3f} px"
+            return r + (f" ({behind[k]} corners behind the camera)" if behind[k] else "")
+
+        verdict = "better than" if check["calibration_better_than_nominal"] else "NOT better than"
         print(
-            f"held-out {len(feats)} frames, {len(uv)} corners predicted from the flange poses: "
-            f"nominal {rms['nominal']:.3f} px, calibrated {rms['calibrated']:.3f} px "
-            f"(the calibration is {verdict} the nominal)"
+            f"held-out {check['frames']} frames, {check['corners']} corners predicted from the "
+            f"flange poses: nominal {px('nominal')}, calibrated {px('calibrated')} (the "
+            f"calibration is {verdict} the nominal)"
         )
+    if check["failures"]:
+        raise CalibrationFailedError.of(tuple(check["failures"]), out)
     return True

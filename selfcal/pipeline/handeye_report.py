@@ -56,6 +56,7 @@ def _held_out(root: Path, cal_path: Path) -> dict:
     return {"source": "selfcal evaluate", "file": str(ev_path), "dataset": ev["dataset"],
             "frames": ev["frames"], "corners": ev["corners"],
             "reprojection_rms_px": ev["held_out_rms_px"],
+            "behind_camera": ev.get("behind_camera", {}),  # files before it: none counted
             "calibration_better_than_nominal": ev["calibration_better_than_nominal"]}  # fmt: skip
 
 
@@ -103,11 +104,15 @@ def handeye_report(root: str | Path) -> dict:
 def _held_out_line(h: dict) -> str:
     if "error" in h:
         return h["error"]
-    r = h["reprojection_rms_px"]
+    r, behind = h["reprojection_rms_px"], h.get("behind_camera", {})
+
+    def px(k: str, rms: str) -> str:
+        out = "no corner in front of the camera" if r[k] is None else f"{r[k]:.3f} px{rms}"
+        return out + (f" ({behind[k]} corners behind the camera)" if behind.get(k) else "")
+
     verdict = "better than" if h["calibration_better_than_nominal"] else "NOT better than"
-    return (f"held-out reprojection {r['calibrated']:.3f} px RMS calibrated, {r['nominal']:.3f} "
-            f"px nominal over {h['frames']} frames of {h['dataset']}: the calibration is "
-            f"{verdict} the nominal")  # fmt: skip
+    return (f"held-out reprojection {px('calibrated', ' RMS')} calibrated, {px('nominal', '')} nominal over "
+            f"{h['frames']} frames of {h['dataset']}: the calibration is {verdict} the nominal")  # fmt: skip
 
 
 def handeye_summary(report: dict, root: Path) -> str:

@@ -59,3 +59,37 @@ def test_report_of_a_pose_calibration(tmp_path, capsys):
     write_json_atomic(tmp_path / "evaluation.json", ev)
     assert main(["report", str(tmp_path), "-q"]) == 0
     assert "is not an evaluation of" in capsys.readouterr().out
+
+
+def test_held_out_corners_behind_the_camera_and_frames_without_the_board():
+    """`selfcal evaluate` of a pose dataset: a corner the calibrated model puts behind the camera
+    is a failure, counted apart (it made the RMS NaN: "nan px", exit 0); a frame with fewer
+    corners than the board's min_features is left out with a warning."""
+    import dataclasses
+
+    import pytest
+
+    from selfcal.calibration.handeye.held_out import HeldOutWarning, held_out_check
+    from selfcal.target.base import Features
+    from selfcal.transforms import make_pose
+
+    X, B, F = _scene("eye-in-hand", 6, seed=5)
+    feats = _features(X, B, chain_motions("eye-in-hand", F), 0.3, 1)
+    feats[2] = Features(feats[2].ids[:3], feats[2].uv[:3])
+    cal = calibrate_hand_eye(BOARD, feats[:2] + feats[3:], np.delete(F, 2, axis=0), "eye-in-hand",
+                             1280, 960, free=CAMERA.free)  # fmt: skip
+    models = {"nominal": cal.nominal, "calibrated": cal.calibrated}
+    with pytest.warns(HeldOutWarning, match=r"in 1 of 6 held-out frame\(s\), left out: 2"):
+        ok = held_out_check(BOARD, feats, F, "eye-in-hand", models, "held")
+    assert ok["frames"] == 5 and ok["skipped_frames"] == [2] and not ok["failures"]
+    assert ok["behind_camera"] == {"nominal": 0, "calibrated": 0}
+    assert 0.2 < ok["held_out_rms_px"]["calibrated"] < 0.6  # the 0.3 px noise per coordinate
+    # the camera turned half round about its x-axis: every corner behind it
+    flipped = cal.calibrated.X @ make_pose(np.diag([1.0, -1.0, -1.0]), np.zeros(3))
+    models["calibrated"] = dataclasses.replace(cal.calibrated, X=flipped)
+    with pytest.warns(HeldOutWarning):
+        bad = held_out_check(BOARD, feats, F, "eye-in-hand", models, "held")
+    assert bad["behind_camera"] == {"nominal": 0, "calibrated": 5 * 35}
+    assert bad["held_out_rms_px"]["calibrated"] is None
+    assert not bad["calibration_better_than_nominal"]
+    assert bad["failures"] and "175 of 175 held-out corners" in bad["failures"][0]
