@@ -13,8 +13,9 @@ detector's checks refused it, each with the reason), and the board's declared ge
 the detections (:func:`selfcal.calibration.board.calibrate.calibrate_board`). Any number of frames imports (a
 held-out set for ``selfcal evaluate`` may have one); the calibration's minimum is
 :data:`selfcal.calibration.board.dataset.MIN_FRAMES`. ``dataset.json``'s ``provenance.detection`` counts the
-images searched, those with the target and those in which OpenCV alone found it
-(:func:`detection_summary`). Writes ``dataset.json`` (schema 2, no truth),
+images searched, those with the target and those in which OpenCV alone found it: its own
+detector with its default parameters (``Board.detection``; for an ArUco field the project's
+detector, and the summary line gives no OpenCV count) (:func:`detection_summary`). Writes ``dataset.json`` (schema 2, no truth),
 ``joints.csv`` (deg), ``frames/NNNN_CAMERA.EXT`` (copies or symbolic links) and ``sources.csv``
 (where every frame came from).
 """
@@ -516,5 +517,6 @@ def detection_summary(info: DatasetInfo) -> str:
     c = info.provenance.get("detection")
     if not isinstance(c, dict):
         return ""
-    what = "board" if info.board is not None else "target"
-    return f"{what} found in {c['found']} of {c['images']} images (OpenCV alone: {c['opencv']})"
+    if info.board is None:  # an ArUco field: its count is the project's detector's, not OpenCV's
+        return f"target found in {c['found']} of {c['images']} images"
+    return f"board found in {c['found']} of {c['images']} images (OpenCV alone: {c['opencv']})"

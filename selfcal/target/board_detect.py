@@ -20,6 +20,12 @@ empty features.
   often under strong perspective, ignores blobs above 5000 px^2);
 - AprilGrid: the ArUco detector with the AprilTag 36h11 dictionary and the edge-line corner
   refinement of :mod:`selfcal.target.aruco_detect`; ids beyond the grid are dropped.
+
+Each board's ``*_detection`` also counts what OpenCV's own detector finds with its default
+parameters (:class:`Detection` ``opencv``; ``selfcal import``'s "OpenCV alone"): the chessboard
+corners before :func:`refusal`, ``CharucoDetector`` without ``tryRefineMarkers``,
+``findCirclesGrid`` with the default blob detector, the ArUco detector without the edge-line
+refinement and screening.
 """
 
 from __future__ import annotations
@@ -40,8 +46,11 @@ __all__ = [
     "detect_chessboard",
     "orient_chessboard",
     "detect_charuco",
+    "charuco_detection",
     "detect_circles",
+    "circles_detection",
     "detect_aprilgrid",
+    "aprilgrid_detection",
 ]
 
 _EMPTY = Features(np.zeros(0, np.int64), np.zeros((0, 2)))
@@ -177,16 +186,25 @@ def detect_chessboard(image: np.ndarray, inner_corners: tuple[int, int]) -> Feat
     return chessboard_detection(image, inner_corners).features
 
 
-def detect_charuco(image: np.ndarray, board: cv2.aruco.CharucoBoard) -> Features:
-    """The corners of the ChArUco ``board`` found (any subset, each with its id)."""
-    gray = to_gray(image)
+def _charuco(gray: np.ndarray, board: cv2.aruco.CharucoBoard, refine: bool) -> Features:
     params = cv2.aruco.CharucoParameters()
-    params.tryRefineMarkers = True  # look again for the board's markers not found at first
-    detector = cv2.aruco.CharucoDetector(board, params)
-    corners, ids, _, _ = detector.detectBoard(gray)
+    params.tryRefineMarkers = refine  # look again for the board's markers not found at first
+    corners, ids, _, _ = cv2.aruco.CharucoDetector(board, params).detectBoard(gray)
     if ids is None or len(ids) == 0:
         return _EMPTY
     return Features(np.asarray(ids).reshape(-1), np.asarray(corners, dtype=float).reshape(-1, 2))
+
+
+def detect_charuco(image: np.ndarray, board: cv2.aruco.CharucoBoard) -> Features:
+    """The corners of the ChArUco ``board`` found (any subset, each with its id)."""
+    return _charuco(to_gray(image), board, refine=True)
+
+
+def charuco_detection(image: np.ndarray, board: cv2.aruco.CharucoBoard) -> Detection:
+    """:func:`detect_charuco` with the corners OpenCV's ``CharucoDetector`` finds with its
+    default parameters (without ``tryRefineMarkers``) as ``opencv``."""
+    gray = to_gray(image)
+    return Detection(_charuco(gray, board, refine=True), len(_charuco(gray, board, False).ids))
 
 
 def _blob_detector() -> cv2.SimpleBlobDetector:
@@ -202,19 +220,39 @@ def _blob_detector() -> cv2.SimpleBlobDetector:
     return cv2.SimpleBlobDetector.create(p)
 
 
-def detect_circles(image: np.ndarray, pattern: tuple[int, int]) -> Features:
-    """All circle centres of an asymmetric grid ``pattern = (cols, rows)``, or none."""
+def circles_detection(image: np.ndarray, pattern: tuple[int, int]) -> Detection:
+    """:func:`detect_circles` with the centres ``cv2.findCirclesGrid`` finds with OpenCV's
+    default blob detector as ``opencv`` (0 when only the large-blob detector finds the grid)."""
     gray = to_gray(image)
     flags = cv2.CALIB_CB_ASYMMETRIC_GRID
     ok, centres = cv2.findCirclesGrid(gray, tuple(pattern), flags=flags)
+    opencv = int(pattern[0] * pattern[1]) if ok and centres is not None else 0
     if not ok:  # OpenCV's default blob detector ignores blobs above 5000 px^2
         ok, centres = cv2.findCirclesGrid(
             gray, tuple(pattern), flags=flags, blobDetector=_blob_detector()
         )
     if not ok or centres is None:
-        return _EMPTY
+        return Detection(_EMPTY, opencv)
     uv = np.asarray(centres, dtype=float).reshape(-1, 2)
-    return Features(np.arange(len(uv)), uv)
+    return Detection(Features(np.arange(len(uv)), uv), opencv)
+
+
+def detect_circles(image: np.ndarray, pattern: tuple[int, int]) -> Features:
+    """All circle centres of an asymmetric grid ``pattern = (cols, rows)``, or none."""
+    return circles_detection(image, pattern).features
+
+
+def aprilgrid_detection(image: np.ndarray, tags: tuple[int, int]) -> Detection:
+    """:func:`detect_aprilgrid` with the tag corners of the grid that OpenCV's ArUco detector
+    finds with its default parameters (no corner refinement, no screening) as ``opencv``."""
+    n = int(tags[0]) * int(tags[1])
+    detector = cv2.aruco.ArucoDetector(
+        cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_APRILTAG_36h11)
+    )
+    _, ids, _ = detector.detectMarkers(to_gray(image))
+    ids = np.zeros(0, int) if ids is None else np.asarray(ids).reshape(-1)
+    opencv = 4 * len(np.unique(ids[(ids >= 0) & (ids < n)]))
+    return Detection(detect_aprilgrid(image, tags), opencv)
 
 
 def detect_aprilgrid(image: np.ndarray, tags: tuple[int, int]) -> Features:

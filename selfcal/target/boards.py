@@ -39,7 +39,10 @@ from selfcal.target.aruco_detect import aruco_dictionary
 from selfcal.target.base import Features, Target
 from selfcal.target.board_detect import (
     Detection,
+    aprilgrid_detection,
+    charuco_detection,
     chessboard_detection,
+    circles_detection,
     detect_aprilgrid,
     detect_charuco,
     detect_chessboard,
@@ -110,7 +113,9 @@ class Board(Target):
 
     def detection(self, image: np.ndarray) -> Detection:
         """:meth:`detect` with how many features OpenCV's detector found before the project's
-        checks and why they refused them (:class:`selfcal.target.board_detect.Detection`)."""
+        checks and why they refused them (:class:`selfcal.target.board_detect.Detection`); every
+        board overrides it with OpenCV's own detector's count (this default counts the
+        project's)."""
         found = self.detect(image)
         return Detection(found, len(found))
 
@@ -236,6 +241,9 @@ class Charuco(Board):
     def detect(self, image: np.ndarray) -> Features:
         return detect_charuco(image, self.cv_board())
 
+    def detection(self, image: np.ndarray) -> Detection:
+        return charuco_detection(image, self.cv_board())
+
 
 @dataclass(frozen=True)
 class CirclesGrid(Board):
@@ -292,6 +300,9 @@ class CirclesGrid(Board):
     def detect(self, image: np.ndarray) -> Features:
         return detect_circles(image, self.pattern)
 
+    def detection(self, image: np.ndarray) -> Detection:
+        return circles_detection(image, self.pattern)
+
 
 @dataclass(frozen=True)
 class AprilGrid(Board):
@@ -330,6 +341,9 @@ class AprilGrid(Board):
 
     def detect(self, image: np.ndarray) -> Features:
         return detect_aprilgrid(image, self.tags)
+
+    def detection(self, image: np.ndarray) -> Detection:
+        return aprilgrid_detection(image, self.tags)
 
 
 def _image(img: np.ndarray, margin_px: int, ppm: float) -> BoardImage:

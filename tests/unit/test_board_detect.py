@@ -3,6 +3,7 @@ kept unless squares of its pitch continue its pattern beyond it (a larger printe
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import cv2
@@ -141,3 +142,6 @@ def test_import_names_each_refused_image_and_counts_what_opencv_found(tmp_path):
     assert "OpenCV finds the chessboard target" in text and "in 1 image(s)" in text
     assert "a.png (the grid OpenCV found is not a chessboard's" in text
     assert detection_summary(info) == "board found in 1 of 2 images (OpenCV alone: 2)"
+    # an ArUco field's count is the project's own detector's: no "OpenCV alone" for it
+    field = dataclasses.replace(info, board=None)
+    assert detection_summary(field) == "target found in 1 of 2 images"
