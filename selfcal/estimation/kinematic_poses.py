@@ -7,6 +7,8 @@ frame); camera ``c`` of the rig is ``T_cam_first @ T_first_world``. Views are in
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from selfcal.estimation.observations import ViewLayout
@@ -134,7 +136,7 @@ class KinematicPoses:
             return self.model.with_params(flat)
         offsets = np.asarray(self.model.joint_offsets, dtype=float).copy()
         offsets[self.offset_joints] += p[self.k : self.n_kin]
-        return MCPCModel(flat.reshape(self.model.n + 1, 6), self.model.joint_types, offsets)
+        return replace(self.model, params=flat.reshape(self.model.n + 1, 6), joint_offsets=offsets)
 
     def rig(self, p: np.ndarray, c: int = 1) -> np.ndarray:
         """``T_cam_first`` (4, 4) of camera ``c`` (default the second: ``T_right_left``)."""

@@ -136,7 +136,7 @@ def _last_row_sigmas(model: MCPCModel, robot: RobotDef, std: Mapping[str, float]
         h = 1e-7
         p = model.params.copy()
         p[n, j] += h
-        T = flange_tool(MCPCModel(p, model.joint_types, model.joint_offsets), robot)
+        T = flange_tool(model.with_params(p), robot)
         w = Rotation.from_matrix(T[:3, :3] @ T0[:3, :3].T).as_rotvec()
         J[:, j] = np.r_[w, T[:3, 3] - T0[:3, 3]] / h
     sd = np.sqrt(np.sum((J * s) ** 2, axis=1))

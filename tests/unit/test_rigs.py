@@ -19,10 +19,11 @@ from selfcal.camera import project
 from selfcal.estimation.kinematic_poses import KinematicPoses
 from selfcal.estimation.observations import Observations
 from selfcal.estimation.pose_models import RigPoses
+from selfcal.kinematics.forward import fk_tool
 from selfcal.kinematics.mcpc import minimal_indices, nominal_mcpc
 from selfcal.robot.definition import load_robot
 from selfcal.target import CORNERS_PER_MARKER
-from selfcal.transforms import inv_pose, make_pose, pose_from_vec, rot_x
+from selfcal.transforms import inv_pose, make_pose, pose_from_vec, rot_x, rot_y
 
 T_LEFT_TOP = pose_from_vec(np.r_[0.02, 0.01, -0.03, 0.03, -0.05, 0.004])  # third camera
 
@@ -130,3 +131,20 @@ def test_a_rig_model_needs_two_cameras():
     _, obs, _ = _rig_scene(1, n_configs=6)
     with pytest.raises(ValueError, match="rig=False"):
         self_calibrate(obs, 640, 480, rig=True)
+
+
+def test_freed_joint_offsets_keep_the_base_offset():
+    """A chain placed where joint 1's axis lies along the world's x-axis gets a base offset of
+    90 deg (selfcal.kinematics.mcpc.base_offset_for); freeing joint offsets must keep it: the
+    model at the start parameters gives the start's tool poses (it had dropped the base offset,
+    a 90 deg turn of the whole chain)."""
+    robot = load_robot("er4u-paper")
+    base = make_pose(rot_y(np.pi / 2)[:3, :3], [0.1, -0.2, 0.05])
+    model = nominal_mcpc(robot, base, robot.T_flange_cam)
+    assert model.base_offset != 0.0
+    q = np.random.default_rng(0).uniform(-1.0, 1.0, (4, model.n))
+    pm = KinematicPoses(model, q, minimal_indices(model.joint_types)[:4], np.zeros((0, 4, 4)),
+                        offset_joints=[0, 2])  # fmt: skip
+    again = pm.kinematic_model(pm.initial_params())
+    assert again.base_offset == model.base_offset
+    np.testing.assert_allclose(fk_tool(again, q), fk_tool(model, q), atol=1e-12)
