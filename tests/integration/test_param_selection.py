@@ -133,3 +133,24 @@ def test_a_small_set_converges_where_the_two_stage_identification_cannot_fit_eve
     assert res.selection is not None and res.nominal is not None
     assert np.isfinite(res.model.params).all()
     assert res.rms_px <= res.nominal.rms_px * (1 + 1e-9)
+
+
+@pytest.mark.slow  # 2 configurations x 4 candidates x 3 fits: ~2.5 s
+def test_a_fold_holds_what_its_frames_cannot_determine():
+    """2 arm configurations with 6 wrist postures each: a fold's training frames show one
+    configuration, which cannot determine the arm's joint offsets that both do. The fold's fit
+    holds those at the fair nominal's value (it ran to its iteration limit before, every
+    candidate but the nominal was dropped as failed, and the note blamed the joint read-back)."""
+    lab = make_lab(0)
+    rng = np.random.default_rng(1)
+    base = postures(lab, 2, seed=3)
+    wrist = np.c_[np.zeros((12, 3)), rng.normal(0, np.radians(4.0), (12, 3))]
+    sel, _, _ = _selection(np.repeat(base, 6, axis=0) + wrist, 0)
+    assert sel.folds == 2
+    for c in sel.candidates:
+        assert c.fit is not None and np.isfinite(c.cv_px), (c.label, c.note)
+        assert "joint read-back" not in c.note
+    offsets = sel.candidates[1]
+    assert offsets.label == "+ joint offsets"
+    assert all("offset_j2" in held for held in offsets.fold_held.values()), offsets.fold_held
+    assert set(offsets.fold_held) == {0, 1}

@@ -33,7 +33,7 @@ The chosen candidate's fit on every frame is the calibration. Nothing here reads
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -125,9 +125,38 @@ def _offset_name(j: int) -> str:
     return f"offset_j{j + 1}"
 
 
-def parameter_pool(model: MCPCModel, q: np.ndarray) -> ParameterPool:
-    """The pool of step 1 (module docstring) at ``model`` (world = board frame, tool = camera)
-    and the joints ``q`` (m, n) rad of the frames used."""
+class _Span:
+    """The rank and conditioning test of step 1 over the columns of ``R`` (the triangular
+    factor of the scaled identification Jacobian): :meth:`offer` accepts a column when its part
+    outside the span of those accepted before is large enough, else gives the reason."""
+
+    def __init__(self, R: np.ndarray):
+        self.R = R
+        self.basis = np.zeros((R.shape[0], 0))
+
+    def orth(self, k: int) -> np.ndarray:
+        c = self.R[:, k] / max(float(np.linalg.norm(self.R[:, k])), 1e-300)
+        for _ in range(2):  # re-orthogonalise once for stability
+            c = c - self.basis @ (self.basis.T @ c)
+        return c
+
+    def offer(self, k: int, c: np.ndarray | None = None) -> str | None:
+        """None when column ``k`` (its orthogonal part ``c``) is accepted, else why not."""
+        c = self.orth(k) if c is None else c
+        s = float(np.linalg.norm(c))
+        if s <= RANK_TOL:
+            return "rank: not identifiable from these postures (a combination of the others)"
+        if s < COND_TOL:
+            return (f"conditioning: adds {s:.1e} of its column to the others' span "
+                    f"(limit {COND_TOL:g})")  # fmt: skip
+        self.basis = np.column_stack([self.basis, c / s])
+        return None
+
+
+def _columns(model: MCPCModel, q: np.ndarray) -> tuple[list[str], list[str], list[int], np.ndarray]:
+    """Every parameter offered (names, kinds, indices: placement, joint offsets, the inner
+    minimal parameters) and the triangular factor of their scaled identification Jacobian at
+    ``model`` and the joints ``q`` (m, n) rad (step 1 of the module docstring)."""
     q = np.atleast_2d(np.asarray(q, dtype=float))
     n = model.n
     place = placement_indices(n)
@@ -143,46 +172,51 @@ def parameter_pool(model: MCPCModel, q: np.ndarray) -> ParameterPool:
              + [*param_names(inner)])  # fmt: skip
     kinds = ["mcpc"] * len(place) + ["offset"] * len(revolute) + ["mcpc"] * len(inner)
     index = [*place.tolist(), *revolute, *inner.tolist()]
-    groups = [range(len(place)), range(len(place), len(place) + len(revolute))]
-    rest = list(range(len(place) + len(revolute), len(names)))
-    basis = np.zeros((R.shape[0], 0))
+    return names, kinds, index, R
+
+
+def parameter_pool(model: MCPCModel, q: np.ndarray) -> ParameterPool:
+    """The pool of step 1 (module docstring) at ``model`` (world = board frame, tool = camera)
+    and the joints ``q`` (m, n) rad of the frames used."""
+    names, kinds, index, R = _columns(model, q)
+    n_place = len(placement_indices(model.n))
+    n_rev = kinds.count("offset")
+    groups = [range(n_place), range(n_place, n_place + n_rev)]
+    rest = list(range(n_place + n_rev, len(names)))
+    span = _Span(R)
     order: list[tuple[str, str, int]] = []
     held: dict[str, str] = {}
     counts = []
 
-    def orth(k: int) -> np.ndarray:
-        c = R[:, k] / max(float(np.linalg.norm(R[:, k])), 1e-300)
-        for _ in range(2):  # re-orthogonalise once for stability
-            c = c - basis @ (basis.T @ c)
-        return c
-
-    def offer(k: int, c: np.ndarray) -> bool:
-        nonlocal basis
-        s = float(np.linalg.norm(c))
-        if s <= RANK_TOL:
-            held[names[k]] = (
-                "rank: not identifiable from these postures (a combination of the others)"
-            )
+    def offer(k: int, c: np.ndarray | None = None) -> bool:
+        why = span.offer(k, c)
+        if why is not None:
+            held[names[k]] = why
             return False
-        if s < COND_TOL:
-            held[names[k]] = (f"conditioning: adds {s:.1e} of its column to the others' span "
-                              f"(limit {COND_TOL:g})")  # fmt: skip
-            return False
-        basis = np.column_stack([basis, c / s])
         order.append((names[k], kinds[k], index[k]))
         return True
 
     for g in groups:
-        counts.append(sum(offer(k, orth(k)) for k in g))
+        counts.append(sum(offer(k) for k in g))
     while rest:  # pivoted QR: the column with the largest part outside the span next
-        parts = [orth(k) for k in rest]
+        parts = [span.orth(k) for k in rest]
         best = int(np.argmax([np.linalg.norm(p) for p in parts]))
         k = rest.pop(best)
         if not offer(k, parts[best]):
             for r in rest:  # every further one adds less still
-                offer(r, orth(r))
+                offer(r)
             break
     return ParameterPool(tuple(order), counts[0], counts[1], held)
+
+
+def determined(model: MCPCModel, q: np.ndarray, names: tuple[str, ...]) -> dict[str, str]:
+    """Which of the parameters ``names`` (a candidate's, in its order) the joints ``q`` (m, n)
+    rad cannot determine, by the rank and conditioning test of step 1 offered in that order at
+    ``model``: name -> reason (empty when they determine all)."""
+    all_names, _, _, R = _columns(model, q)
+    span = _Span(R)
+    at = {nm: k for k, nm in enumerate(all_names)}
+    return {nm: why for nm in names if (why := span.offer(at[nm])) is not None}
 
 
 @dataclass
@@ -204,6 +238,7 @@ class Candidate:
     fold_rms_px: tuple[float, ...] = ()
     log_ratio: tuple[float, float] = (float("nan"), float("nan"))
     note: str = ""
+    fold_held: dict[int, tuple[str, ...]] = field(default_factory=dict)
 
     def to_json(self) -> dict:
         return {
@@ -216,6 +251,11 @@ class Candidate:
             "fold_rms_px": [_num(v) for v in self.fold_rms_px],
             "log_ratio_to_best": {"mean": _num(self.log_ratio[0]), "se": _num(self.log_ratio[1])},
             **({"note": self.note} if self.note else {}),
+            **(
+                {"held_in_folds": {str(f): list(v) for f, v in self.fold_held.items()}}
+                if self.fold_held
+                else {}
+            ),  # fmt: skip
         }
 
 
@@ -279,24 +319,50 @@ def _candidates(pool: ParameterPool) -> list[Candidate]:
 
 def _cross_validate(obs: BoardObservations, start: MCPCModel, cand: Candidate,
                     folds: np.ndarray, max_iter: int) -> None:  # fmt: skip
-    """Fill ``cand``'s fit and CV error (step 3), each fold's fit started from its fit on every
-    frame."""
+    """Fill ``cand``'s fit and CV error (step 3). Each fold's fit starts from the fit on every
+    frame, except for the parameters the fold's training frames cannot determine (the test of
+    step 1 on those frames, :func:`determined`, e.g. joint offsets when they hold one
+    configuration): those are held at the fair nominal's value (``start``) -- not at the fit
+    on every frame's, which has seen the fold."""
     try:
         cand.fit = refine_on_board(obs, start, cand.free_idx, cand.offset_joints,
                                    max_iter=max_iter)  # fmt: skip
     except (EstimationError, np.linalg.LinAlgError) as exc:
-        cand.note = f"the fit on every frame failed: {exc}"
+        cand.note = (f"the estimator failed on every frame ({_why(exc)}; tried: "
+                     f"Levenberg-Marquardt from the fair nominal, {len(cand.names)} parameters "
+                     f"free, {max_iter} iterations)")  # fmt: skip
         return
     full = cand.fit
+    mcpc_names = param_names(cand.free_idx)
+    off_names = [_offset_name(j) for j in cand.offset_joints.tolist()]
     fold_ms, fold_n = [], []
     for f in np.unique(folds[obs.used]).tolist():
         out = folds == f
+        held = determined(start, obs.q[obs.used & ~out], cand.names)
+        keep_m = np.array([nm not in held for nm in mcpc_names], bool)
+        keep_o = np.array([nm not in held for nm in off_names], bool)
+        params = full.model.params.reshape(-1).copy()
+        params[cand.free_idx[~keep_m]] = start.params.reshape(-1)[cand.free_idx[~keep_m]]
+        offsets = np.asarray(full.model.joint_offsets, dtype=float).copy()
+        back = cand.offset_joints[~keep_o]
+        offsets[back] = np.asarray(start.joint_offsets, dtype=float)[back]
+        begin = replace(full.model, params=params.reshape(full.model.params.shape),
+                        joint_offsets=offsets)  # fmt: skip
+        if held:
+            cand.fold_held[int(f)] = tuple(held)
         try:
-            fit = refine_on_board(obs, full.model, cand.free_idx, cand.offset_joints,
+            fit = refine_on_board(obs, begin, cand.free_idx[keep_m], cand.offset_joints[keep_o],
                                   train=~out, cameras=full.cameras, stds=False,
                                   max_iter=max_iter, tol=FOLD_TOL)  # fmt: skip
         except (EstimationError, np.linalg.LinAlgError) as exc:
-            cand.note = f"the fit without fold {f} failed: {exc}"
+            cand.note = (
+                f"the estimator failed on fold {f} ({_why(exc)}; tried: Levenberg-Marquardt "
+                f"from the fit on every frame on the other folds' frames, "
+                f"{int(keep_m.sum() + keep_o.sum())} parameters free"
+                + (f", {len(held)} held at the fair nominal as those frames cannot determine "
+                   f"them ({', '.join(held)})" if held else "")
+                + f", {max_iter} iterations)"
+            )  # fmt: skip
             return
         e = predict_px(obs, fit, out)
         fold_ms.append(float(np.mean(np.sum(e**2, axis=1))) if len(e) else np.nan)
@@ -306,6 +372,11 @@ def _cross_validate(obs: BoardObservations, start: MCPCModel, cand: Candidate,
     cand.cv_rms_px = float(np.sqrt(np.sum(ms[ok] * n[ok]) / np.sum(n[ok])))
     cand.fold_rms_px = tuple(np.sqrt(ms).tolist())
     cand.cv_px = float(np.exp(np.mean(np.log(np.sqrt(ms[ok])))))
+
+
+def _why(exc: Exception) -> str:
+    """The error's message without its fix: a failed estimator is no finding about the data."""
+    return exc.message if isinstance(exc, EstimationError) else f"{type(exc).__name__}: {exc}"
 
 
 def select_parameters(obs: BoardObservations, nominal_fit: MCPCModel, *,
@@ -335,7 +406,7 @@ def select_parameters(obs: BoardObservations, nominal_fit: MCPCModel, *,
                 c.fit = refine_on_board(obs, nominal_fit, c.free_idx, c.offset_joints,
                                         max_iter=max_iter)  # fmt: skip
             except (EstimationError, np.linalg.LinAlgError) as exc:
-                c.note = f"the fit on every frame failed: {exc}"
+                c.note = f"the estimator failed on every frame ({_why(exc)})"
         else:
             _cross_validate(obs, nominal_fit, c, folds, max_iter)
     if cands[0].fit is None:
