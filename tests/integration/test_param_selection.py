@@ -23,6 +23,8 @@ from selfcal.calibration.board.calibrate import calibrate_board
 from selfcal.calibration.board.nominal_fit import fit_nominal
 from selfcal.calibration.board.param_selection import (
     MAX_FOLDS,
+    Candidate,
+    _one_se_rule,
     configurations,
     fold_labels,
     select_parameters,
@@ -154,3 +156,23 @@ def test_a_fold_holds_what_its_frames_cannot_determine():
     assert offsets.label == "+ joint offsets"
     assert all("offset_j2" in held for held in offsets.fold_held.values()), offsets.fold_held
     assert set(offsets.fold_held) == {0, 1}
+
+
+def _cand(label: str, folds: list[float]) -> Candidate:
+    return Candidate(label, (), np.zeros(0, np.int64), np.zeros(0, np.int64),
+                     cv_px=float(np.exp(np.mean(np.log(folds)))), fold_rms_px=tuple(folds))  # fmt: skip
+
+
+def test_the_one_se_rule_has_one_threshold_and_never_picks_worse_than_the_nominal():
+    """One threshold, the best candidate's mean log ratio to the nominal plus its standard
+    error: a candidate whose folds scatter widely (CV 1.095 px, above the nominal's 1.0) is not
+    taken because its own standard error is large (the rule compared each candidate with its
+    own); the best (0.9 px in every fold) is."""
+    cands = [_cand("nominal", [1.0] * 4), _cand("wide", [0.2, 6.0, 0.2, 6.0]),
+             _cand("best", [0.9] * 4)]  # fmt: skip
+    chosen, best = _one_se_rule(cands)
+    assert (chosen, best) == (2, 2)
+    assert cands[2].log_ratio == pytest.approx((np.log(0.9), 0.0))
+    # a best within its standard error of the nominal: the nominal
+    cands = [_cand("nominal", [1.0] * 4), _cand("best", [0.5, 1.5, 0.5, 1.4])]
+    assert _one_se_rule(cands) == (0, 1)

@@ -19,14 +19,18 @@ upward, the parameters are offered in a fixed order and kept as the data allow:
    joints -- all but the wrist's last three, all of a chain of three or fewer -- are equal
    within :data:`SAME_CONFIGURATION` form one configuration, at most :data:`MAX_FOLDS` folds):
    every candidate is fitted without a fold's frames (:func:`selfcal.calibration.board.refine.refine_on_board`,
-   the calibration's own objective) and predicts them from their joints alone: each fold's RMS
+   the calibration's own objective; a parameter the training frames cannot determine by the
+   test of step 1 -- joint offsets when they show one configuration -- held at the fair
+   nominal's value) and predicts them from their joints alone: each fold's RMS
    (px); the candidate's CV error is their geometric mean (every fold weighs the same, one
    configuration far outside the others does not decide alone), beside the RMS of all
    predictions;
-4. the one-standard-error rule, paired: the best candidate has the lowest CV error; a smaller
-   one is as good when its log error ratio to the best, averaged over the folds, is within one
-   standard error of that mean (the folds' spread of the ratio); the smallest such candidate is
-   chosen. A larger set is taken only when it predicts clearly better.
+4. the one-standard-error rule, paired with the nominal: every candidate's log error ratio to
+   the nominal, fold by fold, averaged over the folds (with the standard error of that mean,
+   from the folds' spread); the best candidate has the lowest CV error, and the threshold is
+   its mean log ratio plus its standard error; the smallest candidate at or below that one
+   threshold is chosen, and never one whose CV error is not below the nominal's. A larger set
+   is taken only when it predicts clearly better.
 
 The chosen candidate's fit on every frame is the calibration. Nothing here reads truth.
 """
@@ -225,8 +229,9 @@ class Candidate:
     by kind ``free_idx`` and ``offset_joints``), its fit on every frame (``fit``, None when it
     failed), its CV error ``cv_px`` (the folds' geometric mean, px; inf when a fit failed), the
     RMS of all its predictions ``cv_rms_px``, every fold's RMS ``fold_rms_px``, its mean log
-    ratio to the best candidate and that mean's standard error ``log_ratio``, and a ``note``
-    (why it failed)."""
+    ratio to the nominal and that mean's standard error ``log_ratio``, a ``note`` (why it
+    failed) and ``fold_held``: per fold the parameters its training frames cannot determine
+    (held at the fair nominal's value in that fold's fit)."""
 
     label: str
     names: tuple[str, ...]
@@ -249,7 +254,10 @@ class Candidate:
             "cv_px": _num(self.cv_px),
             "cv_rms_px": _num(self.cv_rms_px),
             "fold_rms_px": [_num(v) for v in self.fold_rms_px],
-            "log_ratio_to_best": {"mean": _num(self.log_ratio[0]), "se": _num(self.log_ratio[1])},
+            "log_ratio_to_nominal": {
+                "mean": _num(self.log_ratio[0]),
+                "se": _num(self.log_ratio[1]),
+            },
             **({"note": self.note} if self.note else {}),
             **(
                 {"held_in_folds": {str(f): list(v) for f, v in self.fold_held.items()}}
@@ -419,8 +427,9 @@ def select_parameters(obs: BoardObservations, nominal_fit: MCPCModel, *,
         chosen, best = _one_se_rule(cands)
         rule = (f"paired one-standard-error rule over leave-one-configuration-out "
                 f"cross-validation ({n_config} configurations, {n_folds} folds): the smallest "
-                f"candidate whose mean log error ratio to the best ({cands[best].label}, "
-                f"{cands[best].cv_px:.3f} px) is within one standard error")  # fmt: skip
+                f"candidate whose mean log error ratio to the nominal is at most the best's "
+                f"({cands[best].label}, {cands[best].cv_px:.3f} px) plus its standard error, "
+                f"and below the nominal's")  # fmt: skip
     else:
         chosen = 0
     held = dict(pool.held)
@@ -439,18 +448,21 @@ def _px(v: float) -> str:
 
 
 def _one_se_rule(cands: list[Candidate]) -> tuple[int, int]:
-    """(chosen, best) by step 4 of the module docstring; every candidate's ``log_ratio`` set."""
-    cv = np.array([c.cv_px for c in cands])
-    best = int(np.argmin(cv))
-    ref = np.log(np.array(cands[best].fold_rms_px))
-    chosen = best
-    for i, c in enumerate(cands):
+    """(chosen, best) by step 4 of the module docstring; every candidate's ``log_ratio`` (to the
+    nominal, ``cands[0]``) set."""
+    ref = np.log(np.array(cands[0].fold_rms_px))
+    for c in cands:
         if not np.isfinite(c.cv_px):
             continue
         d = np.log(np.array(c.fold_rms_px)) - ref
         d = d[np.isfinite(d)]
         se = float(np.std(d, ddof=1) / np.sqrt(len(d))) if len(d) > 1 else 0.0
-        c.log_ratio = (float(np.mean(d)), se)
-        if i < chosen and c.log_ratio[0] <= se:
-            chosen = i
+        c.log_ratio = (float(np.mean(d)) if len(d) else 0.0, se)
+    cv = np.array([c.cv_px for c in cands])
+    best = int(np.argmin(cv))
+    threshold = cands[best].log_ratio[0] + cands[best].log_ratio[1]
+    chosen = next(i for i, c in enumerate(cands[: best + 1])
+                  if np.isfinite(c.cv_px) and c.log_ratio[0] <= threshold)  # fmt: skip
+    if chosen > 0 and not cands[chosen].cv_px < cands[0].cv_px:
+        chosen = 0  # never a candidate that does not predict better than the nominal
     return chosen, best
