@@ -10,7 +10,8 @@ somewhere in the scene):
    of every further fit;
 3. :func:`selfcal.calibration.identify.identify` -- the two-stage method of the paper on the camera poses, a
    check of the data (its failure on a small set is noted, not fatal: the fits start from the
-   fair nominal);
+   fair nominal; its warnings are silenced: its model is not used, and a failure only triggers
+   the check of the rows' pairing with the images);
 4. the kinematic parameters the data support (:mod:`selfcal.calibration.board.param_selection`: rank and
    conditioning of the identification Jacobian, then leave-one-configuration-out
    cross-validation between nested candidates), each candidate the one-step refinement of
@@ -34,6 +35,7 @@ Frames: the world is the board frame (m); the model's tool is the OpenCV camera 
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -44,7 +46,12 @@ from selfcal.calibration.board.nominal_fit import fit_nominal, standard_gauge
 from selfcal.calibration.board.param_selection import Selection, select_parameters
 from selfcal.calibration.board.refine import BoardObservations, Refinement
 from selfcal.calibration.board.rig import BoardRigCalibration
-from selfcal.calibration.identify import IdentificationError, IdentificationResult, identify
+from selfcal.calibration.identify import (
+    IdentificationError,
+    IdentificationResult,
+    IdentificationWarning,
+    identify,
+)
 from selfcal.camera import CameraModel, Pinhole
 from selfcal.kinematics.mcpc import MCPCModel
 from selfcal.target.base import Features
@@ -130,7 +137,9 @@ def calibrate_robot_with_board(
     nominal_fit = fit_nominal(obs, nominal)
     ident, ident_error = None, None
     try:  # the two-stage identification: a check of the data (and the Monte Carlo's comparison)
-        ident = identify(nominal, q[used], inv_pose(cam_stage.T_cam_board[used]))
+        with warnings.catch_warnings():  # its model is not used: what it held or how well it
+            warnings.simplefilter("ignore", IdentificationWarning)  # fitted is no finding
+            ident = identify(nominal, q[used], inv_pose(cam_stage.T_cam_board[used]))
     except IdentificationError as exc:
         ident_error = exc.message
     selection = select_parameters(obs, nominal_fit.model, max_iter=max_iter)
