@@ -6,8 +6,12 @@ every minimal MCPC parameter of the chain in the board frame (tool = the first c
 further camera's pose in the first camera's frame, and -- with ``joint_sigma`` -- every frame's
 joint corrections under their zero-mean Gaussian prior (the read-back's errors); the board's
 points are known (no scale gauge, no known distance). Corner noise: Gaussian, ``pixel_sigma_px``
-per coordinate. No parameter is held, so the bound is that of the full model (the refinement
-holds only what the data cannot determine, where the bound is infinite).
+per coordinate. The kinematic parameters free are those the calibration estimated (the chosen
+candidate of :mod:`selfcal.calibration.board.param_selection`: flat MCPC parameters and joint
+offsets; every minimal parameter when none is given); their covariance is carried to the
+minimal parameters of the stored model (the MCPC gauge with the nominal's joint offsets,
+:func:`selfcal.calibration.board.nominal_fit.standard_gauge`) to first order. A minimal
+parameter no estimated one moves was held: it has no bound.
 
 The tool tip's bound is the RMS over postures after the best rigid alignment, as the report
 measures it (:func:`selfcal.estimation.joint_report.aligned_tool_rms_bound`). Units: SI inside;
@@ -30,21 +34,35 @@ from selfcal.estimation.reprojection import ReprojectionBlock
 from selfcal.estimation.residuals import GaussianPriorBlock
 from selfcal.io.board_calibration import BoardBounds, BoardCalibrationResult, CameraBounds
 from selfcal.io.calibration_bounds import BoundParameter, ToolTipBound
-from selfcal.kinematics.mcpc import MCPCModel, minimal_indices, param_is_angle, param_names
+from selfcal.kinematics.alignment import regauge
+from selfcal.kinematics.mcpc import (
+    MCPCModel,
+    chain_transforms,
+    minimal_indices,
+    param_is_angle,
+    param_names,
+)
 from selfcal.solver import Loss, ParameterBlock, ResidualBlock, covariance
 from selfcal.target.base import Features
 from selfcal.target.boards import Board
 from selfcal.transforms import inv_pose
 
-__all__ = ["BoardCramerRao", "board_cramer_rao", "bounds_block"]
+__all__ = ["MOVES", "BoardCramerRao", "board_cramer_rao", "bounds_block"]
+
+MOVES = 1e-4
+"""A minimal parameter counts as estimated when an estimated parameter moves it by more than
+this per unit (rad per rad, m per m, ...): the gauge carries a freed joint offset or base
+rotation into the rows after it by amounts of the order of the chain's deviation from the
+drawing, and by 1e-9 and less where the axes are not involved (those are held)."""
 
 
 @dataclass(frozen=True, eq=False)
 class BoardCramerRao:
     """The bounds of :func:`board_cramer_rao`: ``model`` (the chain they were evaluated at,
     world = board frame), ``covariance`` (k, k) of its minimal parameters (SI, the order of
-    :func:`selfcal.kinematics.mcpc.minimal_indices`), ``camera_std`` every camera's free parameters' bound
-    (px or unitless, by name), the noise level and the counts."""
+    :func:`selfcal.kinematics.mcpc.minimal_indices`; zero for a held one), ``camera_std`` every camera's free parameters' bound
+    (px or unitless, by name), the noise level and the counts; ``estimated`` (k,) which
+    minimal parameters the estimate moves (the others were held; all when None)."""
 
     model: MCPCModel
     covariance: np.ndarray
@@ -52,6 +70,7 @@ class BoardCramerRao:
     pixel_sigma_px: float
     observations: int
     unknowns: int
+    estimated: np.ndarray | None = None
 
     def aligned_tool_rms(self, q: np.ndarray, T_cam_tip: np.ndarray) -> float:
         """The bound (m) of the RMS error of the point ``T_cam_tip`` (first camera -> tip, m)
@@ -61,7 +80,9 @@ class BoardCramerRao:
     def parameter_std(self) -> dict[str, float]:
         """Every minimal parameter's bound by name (m or rad)."""
         names = param_names(minimal_indices(self.model.joint_types))
-        return dict(zip(names, np.sqrt(np.clip(np.diag(self.covariance), 0, None)).tolist()))
+        std = np.sqrt(np.clip(np.diag(self.covariance), 0, None)).tolist()
+        est = np.ones(len(names), bool) if self.estimated is None else self.estimated
+        return {n: s for n, s, e in zip(names, std, est, strict=True) if e}
 
 
 def board_cramer_rao(
@@ -74,12 +95,16 @@ def board_cramer_rao(
     *,
     joint_sigma: float | np.ndarray | None = None,
     T_first_cam: np.ndarray | None = None,
+    free_idx: np.ndarray | None = None,
+    offset_joints: np.ndarray | Sequence[int] = (),
 ) -> BoardCramerRao:
     """The bounds of the board refinement (module docstring) with ``cameras`` (the first is the
     chain's tool; each with its ``free`` parameters), the chain ``model`` (world = board frame)
     at the joints ``q`` (m, n) rad, ``features[c][i]`` camera ``c``'s board features in frame
     ``i`` (px), ``T_first_cam`` (N, 4, 4) every camera's pose in the first camera's frame (m;
-    None for one camera) and ``joint_sigma`` (rad / m, scalar or (n,); None: exact read-back).
+    None for one camera) and ``joint_sigma`` (rad / m, scalar or (n,); None: exact read-back);
+    ``free_idx`` (flat MCPC indices) and ``offset_joints`` (revolute joints, 0 based): the
+    kinematic parameters estimated (default every minimal parameter, no offset).
 
     Raises:
         ValueError: the feature lists do not match the cameras or the frames.
@@ -89,9 +114,10 @@ def board_cramer_rao(
     if len(features) != n_cams or any(len(f) != m for f in features):
         raise ValueError(f"give one feature list of {m} frames per camera ({n_cams} cameras)")
     T_rigs = np.zeros((0, 4, 4)) if n_cams == 1 else inv_pose(np.asarray(T_first_cam)[1:])
-    idx = minimal_indices(model.joint_types)
+    idx = minimal_indices(model.joint_types) if free_idx is None else np.asarray(free_idx, int)
     poses = KinematicPoses(model, q, idx, T_rigs, np.ones(m, bool),
-                           joint_corrections=joint_sigma is not None)  # fmt: skip
+                           joint_corrections=joint_sigma is not None,
+                           offset_joints=np.asarray(offset_joints, dtype=np.int64))  # fmt: skip
     obs = []
     for c, fc in enumerate(features):
         frame = np.concatenate([np.full(len(f), i) for i, f in enumerate(fc)]).astype(int)
@@ -116,7 +142,7 @@ def board_cramer_rao(
         x0=x0, extra=extra, fixed_points=board.points(ids), extra_params=extra_params,
     )  # fmt: skip
     blocks: list = ["intrinsics", *(f"intrinsics{c}" for c in range(1, n_cams))]
-    C = covariance(prob.problem, prob.problem.x0, [*blocks, ("poses", np.arange(poses.k))],
+    C = covariance(prob.problem, prob.problem.x0, [*blocks, ("poses", np.arange(poses.n_kin))],
                    sigma2=pixel_sigma_px**2)  # fmt: skip
     stds, at = [], 0
     for cam in cameras:
@@ -124,8 +150,42 @@ def board_cramer_rao(
         stds.append(std_by_name(cam, C[block, block]))  # with fy = mu fx by OpenCV's name
         at += cam.n_free
     n_obs = sum(len(o[1]) for o in obs)
-    return BoardCramerRao(model, C[at:, at:], tuple(stds), float(pixel_sigma_px), int(n_obs),
-                       int(prob.problem.n))  # fmt: skip
+    C_kin, estimated = C[at:, at:], None
+    minimal = minimal_indices(model.joint_types)
+    if free_idx is not None or poses.n_kin != poses.k:
+        M = _to_minimal(poses)
+        C_kin = M @ C_kin @ M.T
+        estimated = np.abs(M).max(axis=1, initial=0.0) > MOVES
+        C_kin[~estimated] = 0.0
+        C_kin[:, ~estimated] = 0.0
+    assert C_kin.shape == (minimal.size, minimal.size)
+    return BoardCramerRao(model, C_kin, tuple(stds), float(pixel_sigma_px), int(n_obs),
+                          int(prob.problem.n), estimated)  # fmt: skip
+
+
+def _to_minimal(poses: KinematicPoses) -> np.ndarray:
+    """(k_min, n_kin) the derivative of the stored model's minimal parameters (the MCPC gauge
+    with the start's joint offsets and base offset) by the estimated kinematic parameters, by
+    central differences (angles differenced on the circle)."""
+    model = poses.model
+    minimal = minimal_indices(model.joint_types)
+    angle = param_is_angle(minimal)
+    p0 = poses.initial_params()
+
+    def stored(p: np.ndarray) -> np.ndarray:
+        m = poses.kinematic_model(p)
+        g = regauge(chain_transforms(m), m.joint_types, model.joint_offsets, model.base_offset)
+        return g.params.reshape(-1)[minimal]
+
+    M = np.zeros((minimal.size, poses.n_kin))
+    h = 1e-6
+    for j in range(poses.n_kin):
+        e = np.zeros_like(p0)
+        e[j] = h
+        d = stored(p0 + e) - stored(p0 - e)
+        d[angle] = np.angle(np.exp(1j * d[angle]))
+        M[:, j] = d / (2 * h)
+    return M
 
 
 def bounds_block(
@@ -149,30 +209,33 @@ def bounds_block(
         numpy.linalg.LinAlgError: the Fisher information cannot be inverted.
     """
     n_cams = len(cal.cameras)
+    free_idx, offset_joints = _estimated(cal)
     if pixel_sigma_px is None:
         n_obs = sum(len(f) for fc in features for f in fc)
-        p = sum(c.n_free for c in cal.cameras) + minimal_indices(cal.model.joint_types).size
+        p = sum(c.n_free for c in cal.cameras) + len(free_idx) + len(offset_joints)
         p += 6 * (n_cams - 1)
         dof = max(2 * n_obs - p, 1)
         pixel_sigma_px = float(cal.reprojection_rms_px * np.sqrt(n_obs / dof))
     b = board_cramer_rao(board, cal.cameras, cal.model, q, features, pixel_sigma_px,
-                         joint_sigma=joint_sigma, T_first_cam=cal.T_first_cam)  # fmt: skip
+                         joint_sigma=joint_sigma, T_first_cam=cal.T_first_cam,
+                         free_idx=free_idx, offset_joints=offset_joints)  # fmt: skip
     qv = np.atleast_2d(np.asarray(q_valid, dtype=float))
     if qv.size == 0:  # an imported dataset plans no validation postures: the calibration's own
         qv = q
     idx = minimal_indices(cal.model.joint_types)
     ang = param_is_angle(idx)
     std = np.sqrt(np.clip(np.diag(b.covariance), 0, None))
+    est = np.ones(idx.size, bool) if b.estimated is None else b.estimated
     params = tuple(
         BoundParameter(
             name=n,
             unit="deg" if a else "mm",
             estimate=float(cal.model.params.reshape(-1)[k] * (180.0 / np.pi if a else 1000.0)),
             std=None,
-            bound=float(s * (180.0 / np.pi if a else 1000.0)),
+            bound=float(s * (180.0 / np.pi if a else 1000.0)) if e else None,
             held=n in cal.held,
         )  # fmt: skip
-        for n, k, a, s in zip(param_names(idx), idx, ang, std, strict=True)
+        for n, k, a, s, e in zip(param_names(idx), idx, ang, std, est, strict=True)
     )
     js = None if joint_sigma is None else np.broadcast_to(joint_sigma, (cal.model.n,))
     return BoardBounds(
@@ -186,3 +249,18 @@ def bounds_block(
         ),
         parameters=params,
     )
+
+
+def _estimated(cal: BoardCalibrationResult) -> tuple[np.ndarray, np.ndarray]:
+    """The kinematic parameters ``cal`` estimated: flat MCPC indices and joint offsets (0
+    based), from its selection's ``identified`` names (every minimal parameter, no offset, for
+    a result without a selection)."""
+    types = cal.model.joint_types
+    if not cal.selection or "identified" not in cal.selection:
+        return minimal_indices(types), np.zeros(0, np.int64)
+    flat = np.arange(6 * (len(types) + 1))
+    by_name = dict(zip(param_names(flat), flat.tolist(), strict=True))
+    names = [str(x) for x in cal.selection["identified"]]
+    offsets = [int(x.removeprefix("offset_j")) - 1 for x in names if x.startswith("offset_j")]
+    idx = [by_name[x] for x in names if not x.startswith("offset_j")]
+    return np.array(idx, np.int64), np.array(offsets, np.int64)
