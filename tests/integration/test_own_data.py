@@ -272,8 +272,9 @@ def test_joints_rows_a_row_off_their_images_are_named(lab, tmp_path):
 @pytest.mark.slow  # two board calibrations: 5-10 s
 def test_noisy_joint_readings_are_named_and_modelled_on_request(lab, tmp_path):
     """Joint readings with 0.01 deg of noise from a robot file without an encoder table: taken
-    as exact, they bias the lens (cx 4.9 px off, 12 sigma, measured) and the fit says so by its
-    RMS against the camera-only fit's; --joint-sigma-deg models them (cx within 3 sigma)."""
+    as exact, they bias the lens (cx 4.4 px off, 3.4 sigma of a fit whose residuals the noise
+    inflates, measured) and the fit says so by its RMS against the camera-only fit's;
+    --joint-sigma-deg models them (cx within 3 sigma)."""
     root, (ci, cj), _ = lab
     lines = cj.read_text().splitlines()
     rng = np.random.default_rng(5)
@@ -289,7 +290,7 @@ def test_noisy_joint_readings_are_named_and_modelled_on_request(lab, tmp_path):
     ):
         exact = calibrate_board_dataset(tmp_path / "ds")
     z = abs(exact.cameras[0].cx - truth["cx"]) / exact.camera_std[0]["cx"]
-    assert z > 5  # measured 12
+    assert abs(exact.cameras[0].cx - truth["cx"]) > 2.5 and z > 2.5  # measured 4.4 px, 3.4
     with warnings.catch_warnings():
         warnings.simplefilter("error", ReadbackWarning)
         assert main(["calibrate", str(tmp_path / "ds"), "--joint-sigma-deg", "0.01", "-q"]) == 0
