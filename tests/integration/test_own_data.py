@@ -241,6 +241,7 @@ def test_images_in_run_folders_match_the_rows_in_path_order(lab, tmp_path):
         import_dataset("kr6-r900", [runs], named, "rad", root / "board.toml", tmp_path / "o")
 
 
+@pytest.mark.slow  # a few seconds on 2 cores: the default tier keeps to ~90 s
 def test_a_board_declared_at_the_wrong_size_is_named_with_the_size_that_fits(lab, tmp_path):
     """The board printed 3 % larger than its file says: every image still fits to the noise
     floor (the link lengths take the scale), so only the arm's nominal size can tell."""
@@ -321,6 +322,7 @@ def test_import_checks_counts_units_and_sizes(lab, tmp_path):
                        tmp_path / "o3")  # fmt: skip
 
 
+@pytest.mark.slow  # a few seconds on 2 cores: the default tier keeps to ~90 s
 def test_images_without_the_board_are_named_and_skipped_and_any_number_imports(lab, tmp_path):
     root, (ci, cj), _ = lab
     board = root / "board.toml"

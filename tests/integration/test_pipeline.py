@@ -129,6 +129,7 @@ def check_accuracy(rep, *, rms_max: float, factor: float, fx_rel: float):
     assert rep["reprojection_rms_px"] > 0  # the effective corner noise is reported
 
 
+@pytest.mark.slow  # a few seconds on 2 cores: the default tier keeps to ~90 s
 @pytest.mark.render
 def test_default_scenario_rendered(tmp_path):
     """The default scenario: rendered images with the default sensor noise. Achieves 0.0102 mm

@@ -37,6 +37,7 @@ VIEWS = {
 }
 
 
+@pytest.mark.slow  # a few seconds on 2 cores: the default tier keeps to ~90 s
 def test_source_pinhole_holds_every_ray_and_the_remap_samples_the_right_place():
     remap = LensRemap(LENS)
     src = remap.source
@@ -79,6 +80,7 @@ def lens_views():
     return field, model, data, images
 
 
+@pytest.mark.slow  # a few seconds on 2 cores: the default tier keeps to ~90 s
 @pytest.mark.render
 def test_rendered_lens_corners_match_the_model(lens_views):
     field, model, data, images = lens_views

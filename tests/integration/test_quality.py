@@ -57,6 +57,7 @@ def swapped(src, dst):
     return dst
 
 
+@pytest.mark.slow  # a few seconds on 2 cores: the default tier keeps to ~90 s
 def test_a_good_calibration_is_ok(capsys, dataset, tmp_path):
     ds = tmp_path / "good"
     shutil.copytree(dataset, ds)
@@ -73,6 +74,7 @@ def test_a_good_calibration_is_ok(capsys, dataset, tmp_path):
     assert "reprojection RMS of the fit" in md and "figures/reprojection.png predicts" in md
 
 
+@pytest.mark.slow  # a few seconds on 2 cores: the default tier keeps to ~90 s
 def test_swapped_cameras_fail_naming_the_swap(capsys, dataset, tmp_path):
     ds = swapped(dataset, tmp_path / "swapped")
     code, out, err = run(capsys, "calibrate", ds, "--quiet")

@@ -71,6 +71,7 @@ def _import(root: Path, bag: Path, out: Path, *extra: str) -> int:
                  *extra])  # fmt: skip
 
 
+@pytest.mark.slow  # a few seconds on 2 cores: the default tier keeps to ~90 s
 @pytest.mark.parametrize("fmt", ["ros1", "ros2", "mcap", "mcap-file"])
 def test_round_trip(lab, tmp_path, fmt, capsys):
     root, cal = lab
@@ -132,6 +133,7 @@ def _through_camera_info(root: Path, cal, camera, tmp_path: Path, name: str):
     return Dataset.open(tmp_path / name), got, [str(w.message) for w in caught]
 
 
+@pytest.mark.slow  # a few seconds on 2 cores: the default tier keeps to ~90 s
 def test_camera_info_initialises_the_camera(lab, tmp_path, capsys):
     """A calibrated camera_info starts the board calibration (dataset.json records it as the
     camera's initial camera): with the true camera the result is the same as from OpenCV's own
@@ -167,6 +169,7 @@ def test_camera_info_initialises_the_camera(lab, tmp_path, capsys):
     np.testing.assert_allclose(bad.model.params, cal.model.params, rtol=0, atol=4e-11)
 
 
+@pytest.mark.slow  # a few seconds on 2 cores: the default tier keeps to ~90 s
 def test_uncalibrated_camera_info_is_ignored(lab, tmp_path):
     root, _ = lab
     shutil.copytree(root / "ds", tmp_path / "ds", ignore=shutil.ignore_patterns("calibration.json"))

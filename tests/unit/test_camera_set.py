@@ -127,6 +127,7 @@ def test_stereo_rig_with_two_lenses_recovers_each_camera_within_3_sigma():
     assert res.camera_std == res.cameras_std["left"]
 
 
+@pytest.mark.slow  # a few seconds on 2 cores: the default tier keeps to ~90 s
 def test_each_camera_starts_from_its_own_initial_camera():
     """A calibrated initial camera per camera (a ROS bag's two CameraInfo): each camera of the
     set starts from its own; the adjustment reaches the minimum of the own start."""
