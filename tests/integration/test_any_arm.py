@@ -83,6 +83,7 @@ def test_optimal_postures_are_found(path):
     assert planning_inputs(s)["collision_ok"](plan.q).all()
 
 
+@pytest.mark.slow  # over 2 s on 2 cores: the default tier keeps to ~90 s
 @pytest.mark.parametrize("path", SCENARIOS, ids=lambda p: p.stem)
 def test_pipeline_calibrates_on_the_analytic_path(tmp_path, path):
     """Perturbation -> synthetic corners -> calibration -> validation, 30 poses."""

@@ -43,6 +43,7 @@ def test_old_spelling_still_works_and_warns(capsys):
     assert err.splitlines()[-1].endswith("1 warning")
 
 
+@pytest.mark.slow  # over 2 s on 2 cores: the default tier keeps to ~90 s
 def test_run_json_calibrate_json_and_fk_with_the_calibration(quick_run, capsys, monkeypatch):
     root, cfg = quick_run
     monkeypatch.chdir(root)  # --out defaults to runs/<scenario file name>
@@ -121,6 +122,7 @@ def test_dataset_records_its_encoder_model_and_a_mismatch_is_refused(tmp_path, c
     assert "robot_model is 'er4u-vendor'" in err and " -- acquire again with" in err
 
 
+@pytest.mark.slow  # over 2 s on 2 cores: the default tier keeps to ~90 s
 def test_montecarlo_json_and_where_it_wrote(tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)  # --out defaults to runs/montecarlo
     code, out, err = run(

@@ -136,6 +136,7 @@ def test_report_without_truth_uses_selfcal_evaluate_when_it_ran(real, tmp_path):
     assert rep["figures"] == []  # figures only when asked (the commands ask)
 
 
+@pytest.mark.slow  # over 2 s on 2 cores: the default tier keeps to ~90 s
 def test_report_of_real_data_needs_no_simulator(real):
     """The no-truth report's modules run with MuJoCo and the simulator unavailable."""
     root, rep = real

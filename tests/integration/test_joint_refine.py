@@ -133,6 +133,7 @@ def noisy_results(tmp_path_factory):
     return rows
 
 
+@pytest.mark.slow  # over 2 s on 2 cores: the default tier keeps to ~90 s
 def test_noisy_joint_beats_two_stage_and_meets_accuracy(noisy_results):
     for r in noisy_results:
         print(r)

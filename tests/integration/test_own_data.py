@@ -80,6 +80,7 @@ def run_import(root, images, joints, out, units="rad", target="board.toml", *ext
                  str(root / target), "--out", str(root / out), *extra])  # fmt: skip
 
 
+@pytest.mark.slow  # over 2 s on 2 cores: the default tier keeps to ~90 s
 def test_import_calibrate_evaluate(lab, capsys):
     root, (ci, cj), (hi, hj) = lab
     assert run_import(root, ci, cj, "ds") == 0

@@ -27,6 +27,7 @@ def _dies_in_worker(parent: int):
     return tool_tip_figure(ERRORS[0], ERRORS[1])
 
 
+@pytest.mark.slow  # over 2 s on 2 cores: the default tier keeps to ~90 s
 @pytest.mark.skipif(not fork_available(), reason="no fork on this platform")
 def test_the_worker_draws_the_same_file_as_the_process(tmp_path):
     with FigurePool() as pool:

@@ -64,6 +64,7 @@ def test_the_layout_check_sees_cut_off_and_overlapping_panels():
     assert figure_problems(fig) == []
 
 
+@pytest.mark.slow  # over 2 s on 2 cores: the default tier keeps to ~90 s
 def test_the_main_job_figures_need_no_pyplot(tmp_path):
     """They are drawn by every `selfcal run`: a Figure on the Agg canvas, not pyplot (issue 17);
     checked in a fresh interpreter by sys.modules."""
