@@ -25,13 +25,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from selfcal.calibration.board.problem import board_problem
 from selfcal.camera import CameraModel
 from selfcal.camera.camera_set import std_by_name
-from selfcal.estimation.bundle_adjust import _Problem as _AdjustmentProblem
 from selfcal.estimation.joint_report import aligned_tool_rms_bound
 from selfcal.estimation.kinematic_poses import KinematicPoses
-from selfcal.estimation.reprojection import ReprojectionBlock
-from selfcal.estimation.residuals import GaussianPriorBlock
 from selfcal.io.board_calibration import BoardBounds, BoardCalibrationResult, CameraBounds
 from selfcal.io.calibration_bounds import BoundParameter, ToolTipBound
 from selfcal.kinematics.alignment import regauge
@@ -42,7 +40,7 @@ from selfcal.kinematics.mcpc import (
     param_is_angle,
     param_names,
 )
-from selfcal.solver import Loss, ParameterBlock, ResidualBlock, covariance
+from selfcal.solver import covariance
 from selfcal.target.base import Features
 from selfcal.target.boards import Board
 from selfcal.transforms import inv_pose
@@ -123,24 +121,8 @@ def board_cramer_rao(
         frame = np.concatenate([np.full(len(f), i) for i, f in enumerate(fc)]).astype(int)
         obs.append((poses.layout.view(frame, c), np.concatenate([f.ids for f in fc]),
                     np.concatenate([f.uv for f in fc]).reshape(-1, 2)))  # fmt: skip
-    ids = np.unique(np.concatenate([o[1] for o in obs]))
-    extra: list[ResidualBlock] = []
-    extra_params: list[ParameterBlock] = []
-    for c in range(1, n_cams):
-        v_c, f_c, uv_c = obs[c]
-        extra.append(ReprojectionBlock(cameras[c], poses, v_c, np.searchsorted(ids, f_c), uv_c,
-                                       Loss("linear"), name=f"reprojection{c}",
-                                       intrinsics=f"intrinsics{c}"))  # fmt: skip
-        extra_params.append(ParameterBlock(f"intrinsics{c}", cameras[c].free_values()))
-    if joint_sigma is not None:
-        js = np.broadcast_to(np.asarray(joint_sigma, dtype=float), (model.n,))
-        extra.append(GaussianPriorBlock("poses", poses.dq_cols, np.tile(pixel_sigma_px / js, m)))
-    x0 = np.concatenate([cameras[0].free_values(), poses.initial_params()])
-    view, feat0, uv = obs[0]
-    prob = _AdjustmentProblem(
-        cameras[0], poses, view, np.searchsorted(ids, feat0), uv, len(ids), loss=Loss("linear"),
-        x0=x0, extra=extra, fixed_points=board.points(ids), extra_params=extra_params,
-    )  # fmt: skip
+    prob = board_problem(cameras, poses, obs, board, pixel_sigma_px=pixel_sigma_px,
+                         joint_sigma=joint_sigma, n_frames=m)  # fmt: skip
     blocks: list = ["intrinsics", *(f"intrinsics{c}" for c in range(1, n_cams))]
     C = covariance(prob.problem, prob.problem.x0, [*blocks, ("poses", np.arange(poses.n_kin))],
                    sigma2=pixel_sigma_px**2)  # fmt: skip

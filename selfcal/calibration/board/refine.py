@@ -23,17 +23,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from selfcal.calibration.board.calibrate import BoardCalibration
+from selfcal.calibration.board.problem import board_problem
 from selfcal.calibration.board.rig import BoardRigCalibration
 from selfcal.camera import CameraModel
 from selfcal.camera.camera_set import std_by_name
 from selfcal.errors import EstimationError
-from selfcal.estimation.bundle_adjust import _Problem as _AdjustmentProblem
 from selfcal.estimation.kinematic_poses import KinematicPoses
-from selfcal.estimation.reprojection import ReprojectionBlock
-from selfcal.estimation.residuals import GaussianPriorBlock
 from selfcal.kinematics.forward import fk_tool
 from selfcal.kinematics.mcpc import MCPCModel
-from selfcal.solver import Loss, ParameterBlock, ResidualBlock, SolverOptions, covariance, solve
+from selfcal.solver import SolverOptions, covariance, solve
 from selfcal.target.base import Features
 from selfcal.target.boards import Board
 from selfcal.transforms import inv_pose
@@ -133,25 +131,9 @@ def refine_on_board(
         offset_joints=np.asarray(offset_joints, dtype=np.int64),
     )
     rows = [(poses.layout.view(v, c), f, uv) for c, (v, f, uv) in enumerate(obs.rows(used))]
-    ids = np.unique(np.concatenate([r[1] for r in rows]))
-    extra: list[ResidualBlock] = []
-    extra_params: list[ParameterBlock] = []
-    for c in range(1, n_cams):
-        v_c, f_c, uv_c = rows[c]
-        extra.append(ReprojectionBlock(cameras[c], poses, v_c, np.searchsorted(ids, f_c), uv_c,
-                                       Loss("linear"), name=f"reprojection{c}",
-                                       intrinsics=f"intrinsics{c}"))  # fmt: skip
-        extra_params.append(ParameterBlock(f"intrinsics{c}", cameras[c].free_values()))
-    if obs.joint_sigma is not None:
-        js = np.broadcast_to(np.asarray(obs.joint_sigma, dtype=float), (start.n,))
-        w = np.tile(obs.cam_stage.sigma_px / js, int(used.sum()))  # px per rad (m)
-        extra.append(GaussianPriorBlock("poses", poses.dq_cols, w))
-    view, feat0, uv = rows[0]
-    x0 = np.concatenate([cameras[0].free_values(), poses.initial_params()])
-    prob = _AdjustmentProblem(
-        cameras[0], poses, view, np.searchsorted(ids, feat0), uv, len(ids), loss=Loss("linear"),
-        x0=x0, extra=extra, fixed_points=obs.board.points(ids), extra_params=extra_params,
-    )  # fmt: skip
+    prob = board_problem(cameras[:n_cams], poses, rows, obs.board,
+                         pixel_sigma_px=obs.cam_stage.sigma_px, joint_sigma=obs.joint_sigma,
+                         n_frames=int(used.sum()))  # fmt: skip
     sol = solve(prob.problem, SolverOptions(tol=tol, max_iterations=max_iter, eliminate="poses"))
     if sol.status < 0 or (sol.status == 0 and converge):
         raise EstimationError(
