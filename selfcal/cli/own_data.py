@@ -22,7 +22,7 @@ from selfcal.cli.handeye import (
 )
 from selfcal.cli.ros import add_import_args as add_bag_import_args
 from selfcal.cli.ros import cmd_import_bag
-from selfcal.console.common import CliError, add_json, note_written
+from selfcal.console.common import CliError, add_json, note_written, writing
 from selfcal.console.progress import Progress
 
 # Heavy modules (scipy, OpenCV, MuJoCo, the pipeline) are imported by the functions that use
@@ -114,6 +114,13 @@ def calibrate_any(
 def cmd_import(args: argparse.Namespace) -> int:
     source = args.bag[0] if args.bag else (args.joints or args.poses)
     args.out = args.out or (f"runs/import-{Path(source).stem}" if source else None)
+    if args.out is None:
+        return _import(args)
+    with writing(args, args.out):  # one writer per dataset folder (a second import stops, exit 2)
+        return _import(args)
+
+
+def _import(args: argparse.Namespace) -> int:
     if args.poses:
         return cmd_import_poses(args)
     check_pose_only_args(args)

@@ -44,6 +44,7 @@ from selfcal.importing.camera_choice import for_cameras
 from selfcal.importing.field import MIN_FIELD_FEATURES, FieldTarget, field_target
 from selfcal.io.dataset_info import DatasetInfo, write_dataset_info
 from selfcal.io.images import read_gray_image
+from selfcal.io.outlock import new_folder, remove_output
 from selfcal.io.target_toml import load_target, target_document
 from selfcal.io.tracker import read_joint_rows
 from selfcal.robot.definition import RobotDef, load_robot
@@ -158,13 +159,14 @@ def _robot(
 
 @contextmanager
 def _removed_on_failure(out: Path) -> Iterator[None]:
-    """Remove ``out`` when the block fails and ``out`` did not exist before it."""
-    created = not out.exists()
+    """Remove ``out`` when the block fails and ``out`` did not exist before it (or held only the
+    output lock of the command that runs the block)."""
+    created = new_folder(out)
     try:
         yield
     except BaseException:
         if created:
-            shutil.rmtree(out, ignore_errors=True)
+            remove_output(out)
         raise
 
 

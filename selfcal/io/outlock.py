@@ -8,8 +8,9 @@ Two ``selfcal run --out same`` at once used to interleave their rows (``joints.c
 sees it half written. A second writer finds it and stops with
 :class:`OutputBusyError` (exit code 2) before it touches anything else in the folder. A lock whose
 process is no longer running on this host (killed, a power cut) is stale: it is taken over, and
-the caller gets a note saying whose it was. A lock from another host cannot be checked and is
-held.
+the caller gets a note saying whose it was. The lock also records the process's start (Linux:
+``/proc/PID/stat``'s start time since boot, in clock ticks), so a pid that a new process took after a
+crash does not keep the lock held. A lock from another host cannot be checked and is held.
 
 :func:`prepare_folder` also refuses an output path that cannot be a folder: an existing file, a
 path below a file, a place where folders cannot be made (``/proc``), each as an
@@ -21,6 +22,7 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import shutil
 import socket
 from collections.abc import Iterator
 from datetime import datetime
@@ -29,7 +31,7 @@ from pathlib import Path
 from selfcal.errors import InputError
 from selfcal.io.atomic import write_text_atomic
 
-__all__ = ["LOCK_NAME", "OutputBusyError", "prepare_folder", "output_lock"]
+__all__ = ["LOCK_NAME", "OutputBusyError", "new_folder", "prepare_folder", "remove_output", "output_lock"]
 
 LOCK_NAME = ".selfcal.lock"
 
@@ -59,6 +61,47 @@ def prepare_folder(folder: str | Path, what: str = "--out") -> Path:
             f"{what} {folder}: cannot create the folder ({exc.strerror or exc})", fix=fix
         ) from None
     return folder
+
+
+def new_folder(folder: str | Path) -> bool:
+    """Whether ``folder`` is missing or holds nothing but this command's output lock (a folder the
+    command may empty again when it fails, see :func:`remove_output`)."""
+    folder = Path(folder)
+    if not folder.exists():
+        return True
+    names = {p.name for p in folder.iterdir()} if folder.is_dir() else {""}
+    return bool(names) and all(n.startswith(LOCK_NAME) for n in names)
+
+
+def remove_output(folder: str | Path) -> None:
+    """Remove what a failed command wrote into the :func:`new_folder` ``folder``: everything but
+    its output lock, or the folder itself when it holds no lock (the lock's holder removes the
+    folder it made when it releases the lock, :func:`output_lock`)."""
+    folder = Path(folder)
+    if not (folder / LOCK_NAME).exists():
+        shutil.rmtree(folder, ignore_errors=True)
+        return
+    for p in folder.iterdir():
+        if p.name.startswith(LOCK_NAME):
+            continue
+        if p.is_dir() and not p.is_symlink():
+            shutil.rmtree(p, ignore_errors=True)
+        else:
+            with contextlib.suppress(FileNotFoundError):
+                p.unlink()
+
+
+def _start_ticks(pid: int) -> int | None:
+    """The start of process ``pid`` (clock ticks after boot, ``/proc/PID/stat`` field 22), or None
+    where there is no /proc (not Linux) or no such process."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return None
+    try:  # the command name (field 2) is in parentheses and may hold spaces
+        return int(stat[stat.rindex(")") + 2 :].split()[19])
+    except (ValueError, IndexError):
+        return None
 
 
 def _alive(pid: int) -> bool:
@@ -94,13 +137,18 @@ def _describe(doc: dict) -> str:
 
 def _stale(doc: dict) -> bool:
     pid = doc.get("pid")
-    return (
-        doc.get("host") == socket.gethostname()
-        and isinstance(pid, int)
-        and not isinstance(pid, bool)
-        and pid != os.getpid()
-        and not _alive(pid)
-    )
+    if (
+        doc.get("host") != socket.gethostname()
+        or not isinstance(pid, int)
+        or isinstance(pid, bool)
+        or pid == os.getpid()
+    ):
+        return False
+    if not _alive(pid):
+        return True
+    started = doc.get("start_ticks")  # a living pid another process took after a crash
+    now = _start_ticks(pid)
+    return isinstance(started, int) and now is not None and now != started
 
 
 def _take(path: Path, staged: Path, what: str) -> str | None:
@@ -136,21 +184,27 @@ def _take(path: Path, staged: Path, what: str) -> str | None:
 @contextlib.contextmanager
 def output_lock(folder: str | Path, command: str, what: str = "--out") -> Iterator[str | None]:
     """Hold ``folder``'s lock (module docstring) while the block runs; yields a note when a stale
-    lock was taken over (for the user), else None. The folder is created (:func:`prepare_folder`).
+    lock was taken over (for the user), else None. The folder is created (:func:`prepare_folder`),
+    and removed again at the end when the block left it empty (a command that stopped on its
+    arguments leaves no folder behind).
 
     Raises:
         OutputBusyError: another running process holds the lock (its pid, host, command and start
             named; a damaged lock file too: the message names it to remove).
         InputError: ``folder`` cannot be a folder (:func:`prepare_folder`).
     """
+    made = not Path(folder).exists()
     folder = prepare_folder(folder, what)
     path = folder / LOCK_NAME
-    mine = {
+    mine: dict[str, object] = {
         "pid": os.getpid(),
         "host": socket.gethostname(),
         "command": command,
         "started": datetime.now().astimezone().isoformat(timespec="seconds"),
     }
+    ticks = _start_ticks(os.getpid())
+    if ticks is not None:
+        mine["start_ticks"] = ticks
     staged = write_text_atomic(folder / f"{LOCK_NAME}.{os.getpid()}", json.dumps(mine))
     try:
         note = _take(path, staged, what)
@@ -162,3 +216,6 @@ def output_lock(folder: str | Path, command: str, what: str = "--out") -> Iterat
         if _read(path).get("pid") == os.getpid():
             with contextlib.suppress(FileNotFoundError):
                 path.unlink()
+        if made:
+            with contextlib.suppress(OSError):  # not empty (the output), or gone
+                folder.rmdir()

@@ -32,6 +32,7 @@ import numpy as np
 from selfcal.errors import SelfCalWarning
 from selfcal.importing.dataset import DEFAULT_MODEL, CameraImages, ImportError_, import_dataset
 from selfcal.io.dataset_info import DatasetInfo
+from selfcal.io.outlock import new_folder, remove_output
 from selfcal.robot.definition import load_robot
 from selfcal.robot.urdf import urdf_chain
 from selfcal.ros.bag_rest import (
@@ -352,7 +353,7 @@ def import_bag(
                            fix="give a model name, a robot TOML or a URDF file")  # fmt: skip
     chain = Chain.of(robot, base_link, tool_link)
     stage = out / _STAGE
-    made_out = not out.exists()
+    made_out = new_folder(out)
     try:
         with BagReader(bags) as reader:
             where = reader.label
@@ -421,7 +422,7 @@ def import_bag(
         return info
     except BaseException:
         if made_out and out.exists() and not (out / "dataset.json").exists():
-            shutil.rmtree(out)
+            remove_output(out)
         raise
     finally:
         if stage.exists():

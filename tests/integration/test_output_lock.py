@@ -15,7 +15,7 @@ import sys
 import pytest
 
 from selfcal.cli import main as cli
-from selfcal.io.outlock import LOCK_NAME, output_lock
+from selfcal.io.outlock import LOCK_NAME, OutputBusyError, output_lock
 
 
 def run(capsys, *argv):
@@ -97,3 +97,39 @@ def test_an_out_that_cannot_be_a_folder_exits_2_naming_it(capsys, tmp_path, scen
             "proc": "cannot create the folder"}[where]  # fmt: skip
     assert want in err
     assert (tmp_path / "f").read_text() == "a file\n"
+
+
+def test_a_living_pid_of_another_process_does_not_keep_a_crashed_lock(tmp_path):
+    """A crashed writer's pid taken by a new process (here: this test's parent, alive, started
+    at another time) does not hold the lock: its start time differs from the lock's."""
+    from selfcal.io.outlock import _start_ticks
+
+    ticks = _start_ticks(os.getppid())
+    if ticks is None:
+        pytest.skip("no /proc on this system")
+    ds = tmp_path / "ds"
+    ds.mkdir()
+    crashed = {"pid": os.getppid(), "host": socket.gethostname(), "command": "selfcal run",
+               "started": "2026-01-01T00:00:00+00:00", "start_ticks": ticks + 1}  # fmt: skip
+    (ds / LOCK_NAME).write_text(json.dumps(crashed))
+    with output_lock(ds, "selfcal run --out ds") as note:
+        assert note is not None and "took over a stale lock" in note
+        assert json.loads((ds / LOCK_NAME).read_text())["start_ticks"] == _start_ticks(os.getpid())
+    crashed["start_ticks"] = ticks  # the same process: still running, the lock is held
+    (ds / LOCK_NAME).write_text(json.dumps(crashed))
+    with pytest.raises(OutputBusyError), output_lock(ds, "selfcal run --out ds"):
+        pass
+
+
+def test_import_is_one_writer_per_folder_and_a_refused_import_leaves_no_folder(capsys, tmp_path):
+    out = tmp_path / "ds"
+    args = ["import", "--images", tmp_path, "--joints", tmp_path / "j.csv", "--joint-units",
+            "deg", "--robot", "ur5e", "--target", tmp_path / "board.toml", "--out", out]  # fmt: skip
+    with output_lock(out, "selfcal import ... --out ds"):
+        code, _, err = run(capsys, *args)
+        assert sorted(p.name for p in out.iterdir()) == [LOCK_NAME]  # nothing touched
+    assert code == 2 and "another selfcal writes this folder" in err
+    assert not out.exists()  # the lock's holder made the folder and removed it, empty
+    code, _, err = run(capsys, *args)  # no images: refused, no folder left
+    assert code == 2 and "no file matches" in err
+    assert not out.exists()
