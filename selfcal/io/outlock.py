@@ -31,7 +31,14 @@ from pathlib import Path
 from selfcal.errors import InputError
 from selfcal.io.atomic import write_text_atomic
 
-__all__ = ["LOCK_NAME", "OutputBusyError", "new_folder", "prepare_folder", "remove_output", "output_lock"]
+__all__ = [
+    "LOCK_NAME",
+    "OutputBusyError",
+    "new_folder",
+    "prepare_folder",
+    "remove_output",
+    "output_lock",
+]
 
 LOCK_NAME = ".selfcal.lock"
 
