@@ -165,3 +165,24 @@ def test_job_figures_say_what_they_show():
     assert figure_problems(fig) == []
     rows[0]["std"] = 0.01
     assert any("1 sigma" in t for t in _legend_texts(parameter_figure(rows)))
+
+
+def test_the_residual_histogram_separates_each_images_shift():
+    """reprojection.png's u histogram was bimodal, unexplained (#32): predicted from the joints,
+    every feature of an image shares one shift. The figure draws the residuals less each image's
+    mean beside them, and that part is the within-image scatter."""
+    from selfcal.calibration.board.evaluate import Evaluation
+    from selfcal.plots.job_figures import reprojection_figure, within_image
+
+    rng = np.random.default_rng(1)
+    shift = rng.choice([-0.12, 0.12], size=(30, 2))  # one shift per image: a bimodal mixture
+    e = np.repeat(shift, 20, axis=0) + rng.normal(0, 0.015, (600, 2))
+    w = within_image(e, [20] * 30)
+    assert w is not None and abs(float(np.std(w)) - 0.015) < 0.002
+    assert within_image(e, [20] * 29) is None  # counts that do not describe e
+    images = tuple({"nominal_px": 2.0, "calibrated_px": 0.12, "features": 20} for _ in range(30))
+    ev = Evaluation(rms={"nominal": 2.0, "calibrated": 0.12}, images=images, skipped=(),
+                    dataset="d", calibration="c", residuals={"calibrated": e})  # fmt: skip
+    fig = reprojection_figure(ev, "calibration images")
+    assert any("less its image's shift (std 0.01" in t for t in _legend_texts(fig))
+    assert figure_problems(fig) == []
