@@ -52,9 +52,16 @@ def parameter_table(
     ``truth`` and ``nominal`` must already be expressed in the estimate's world frame and offsets.
     An angle's estimate and truth are shown in the nominal's branch (nominal plus the difference
     wrapped to (-180, 180]): -179.98 against 180.01 is a difference of 0.01 deg, not 359.99.
+    A link whose three angles are all estimated (the tool's) is shown in the nominal's Euler
+    branch as well: ``Rx(a) Ry(b) Rz(c) = Rx(a + 180) Ry(180 - b) Rz(c + 180)``, so alpha5 -90.10
+    and gamma5 179.83 against the nominal's 90.07 and -0.78 are the same rotation, 0.1 and 0.6
+    deg apart, not two 180-degree errors.
     """
     idx = minimal_indices(est.joint_types)
     ang = param_is_angle(idx)
+    full = [i for i in range(est.n + 1) if {6 * i, 6 * i + 1, 6 * i + 2} <= set(idx.tolist())]
+    est = euler_branch_like(est, nominal, full)
+    truth = None if truth is None else euler_branch_like(truth, nominal, full)
     rows = []
     for name, k, a in zip(param_names(idx), idx, ang):
         s = 180.0 / np.pi if a else 1000.0
@@ -80,6 +87,21 @@ def parameter_table(
             }
         )
     return rows
+
+
+def euler_branch_like(m: MCPCModel, like: MCPCModel, links: list[int]) -> MCPCModel:
+    """``m`` with the angles of each link in ``links`` written as the Euler triple of the same
+    rotation (``(a, b, c)`` or ``(a + pi, pi - b, c + pi)``, rad) nearer ``like``'s, each angle
+    difference wrapped to (-pi, pi]; every shape matrix unchanged."""
+    p = m.params.copy()
+    for i in links:
+        a, b, c = p[i, :3]
+        dual = np.array([a + np.pi, np.pi - b, c + np.pi])
+        d0 = np.abs((p[i, :3] - like.params[i, :3] + np.pi) % (2 * np.pi) - np.pi).max()
+        d1 = np.abs((dual - like.params[i, :3] + np.pi) % (2 * np.pi) - np.pi).max()
+        if d1 < d0:
+            p[i, :3] = (dual + np.pi) % (2 * np.pi) - np.pi
+    return m.with_params(p)
 
 
 def wrap_deg(d: float) -> float:

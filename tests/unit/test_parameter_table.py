@@ -46,3 +46,21 @@ def test_a_bound_above_the_achieved_error_is_explained() -> None:
     assert "0.022 mm" in below and "The achieved 0.010 mm is below it" in below
     assert "below it" not in bound_markdown(0.022, 0.030)
     assert bound_markdown(None, 0.01) == "No Cramér-Rao bound was computed for this calibration."
+
+
+def test_the_tools_other_euler_triple_shows_in_the_nominals_branch() -> None:
+    """#32: alpha5 90.07 -> -90.10 and gamma5 -0.78 -> 179.83 read as two 180-degree errors; they
+    are the same rotation written as (a + 180, 180 - b, c + 180)."""
+    from selfcal.kinematics.mcpc import shape_matrices
+
+    nominal = nominal_mcpc(load_robot("er4u-paper"))
+    p = nominal.params.copy()
+    a, b, c = p[-1, :3] + np.radians([0.03, -0.02, 0.6])  # the fit: a small change ...
+    p[-1, :3] = [a + np.pi, np.pi - b, c - np.pi]  # ... written on the other branch
+    est = nominal.with_params(p)
+    rows = {r["name"]: r for r in parameter_table(est, {}, None, nominal)}
+    diff = {k: rows[k]["estimate"] - rows[k]["nominal"] for k in ("alpha5", "beta5", "gamma5")}
+    assert diff == pytest.approx({"alpha5": 0.03, "beta5": -0.02, "gamma5": 0.6}, abs=1e-9)
+    assert np.allclose(shape_matrices(p[-1]), shape_matrices(np.radians(
+        [rows["alpha5"]["estimate"], rows["beta5"]["estimate"], rows["gamma5"]["estimate"], 0, 0, 0]
+    ) + np.r_[0, 0, 0, p[-1, 3:]]), atol=1e-12)  # fmt: skip
