@@ -21,7 +21,7 @@ from selfcal.cli.handeye import (
     evaluate_poses,
 )
 from selfcal.cli.ros import add_import_args as add_bag_import_args
-from selfcal.cli.ros import cmd_import_bag
+from selfcal.cli.ros import cmd_import_bag, cmd_import_bag_poses
 from selfcal.console.common import CliError, add_json, note_written, writing
 from selfcal.console.progress import Progress
 
@@ -123,6 +123,11 @@ def cmd_import(args: argparse.Namespace) -> int:
 def _import(args: argparse.Namespace) -> int:
     if args.poses:
         return cmd_import_poses(args)
+    if args.tf_parent or args.tf_child:
+        if not args.bag:
+            raise CliError("--tf-parent and --tf-child read the flange poses of a --bag",
+                           fix="give the bag with --bag, or the poses as a file with --poses")  # fmt: skip
+        return cmd_import_bag_poses(args)
     check_pose_only_args(args)
     if not args.robot:
         raise CliError(f"import {'--bag' if args.bag else '--joints'} needs --robot",

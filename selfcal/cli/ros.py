@@ -15,8 +15,8 @@ from selfcal.choices import BAG_FORMATS, JOINT_TOPIC
 from selfcal.console.common import CliError, note_written
 from selfcal.ros.bag_rest import RestRule
 
-__all__ = ["BAG_FORMATS", "add_import_args", "bag_paths", "cmd_import_bag", "add_export_args",
-           "cmd_export_bag", "export_run"]  # fmt: skip
+__all__ = ["BAG_FORMATS", "add_import_args", "bag_paths", "cmd_import_bag", "cmd_import_bag_poses",
+           "add_export_args", "cmd_export_bag", "export_run"]  # fmt: skip
 
 _RULE = RestRule()
 
@@ -45,6 +45,12 @@ def add_import_args(sp: argparse.ArgumentParser) -> None:
     g.add_argument("--max-gap", type=float, default=_RULE.max_gap_s, metavar="S",
                    help="longest pause of the joint messages within the window (default "
                    f"{_RULE.max_gap_s:g} s)")  # fmt: skip
+    g.add_argument("--tf-parent", default=None, metavar="FRAME",
+                   help="with --tf-child: take the flange poses from /tf (FRAME -> the child, "
+                   "e.g. base_link) instead of joints; needs --setup, no --robot "
+                   "(docs/handeye.md)")  # fmt: skip
+    g.add_argument("--tf-child", default=None, metavar="FRAME",
+                   help="the flange or tool frame of the /tf pose pair, e.g. tool0")  # fmt: skip
     g.add_argument("--per-rest", default="1", metavar="N|all",
                    help="keep at most N frames of each rest (default 1: the middle image of "
                    "each rest, one frame per posture; `calibrate` refuses two frames of one "
@@ -61,13 +67,8 @@ def cmd_import_bag(args: argparse.Namespace) -> int:
         raise CliError("--bag replaces --images and --joints: give one or the other")
     if not args.image_topic:
         raise CliError("--bag needs --image-topic NAME=TOPIC (one per camera)")
-    for name, v in (("--rest-window", args.rest_window), ("--rest-speed", args.rest_speed),
-                    ("--max-gap", args.max_gap)):  # fmt: skip
-        if not v > 0:
-            raise CliError(f"{name} {v}: give a positive number")
+    rule = _rule(args)
     per_rest = None if args.per_rest == "all" else _count(args.per_rest)
-    rule = RestRule(window_s=args.rest_window, speed_rad_s=float(np.radians(args.rest_speed)),
-                    speed_m_s=args.rest_speed / 1e3, max_gap_s=args.max_gap)  # fmt: skip
     topics = [ImageTopic.parse(s, default_name=f"cam{k}") for k, s in enumerate(args.image_topic)]
     models, free = camera_options(args.camera_model, args.free, [c.name for c in topics],
                                   "--image-topic")  # fmt: skip
@@ -82,6 +83,60 @@ def cmd_import_bag(args: argparse.Namespace) -> int:
     print(f"{detection_summary(info)}; imported {n} frames of {len(info.cameras)} camera(s) "
           f"from {src} into {args.out}")  # fmt: skip
     return 0
+
+
+def cmd_import_bag_poses(args: argparse.Namespace) -> int:
+    """``selfcal import --bag BAG --tf-parent BASE --tf-child FLANGE --setup SETUP``."""
+    from selfcal.ros.bag_import import ImageTopic
+    from selfcal.ros.bag_poses import import_bag_poses
+
+    if not (args.tf_parent and args.tf_child):
+        raise CliError("--tf-parent and --tf-child go together",
+                       fix="name both frames: --tf-parent base_link --tf-child tool0")  # fmt: skip
+    if args.images or args.joints or args.poses:
+        raise CliError("--bag with --tf-parent/--tf-child replaces --images, --joints and --poses")
+    if args.robot or args.base_link or args.tool_link or args.joint_units:
+        raise CliError("--robot, --base-link, --tool-link and --joint-units describe joints",
+                       fix="leave them out: flange poses from /tf need no robot model")  # fmt: skip
+    if args.pose_units or args.rotation:
+        raise CliError("--pose-units and --rotation describe a --poses file",
+                       fix="leave them out: /tf holds metres and quaternions")  # fmt: skip
+    if not args.setup:
+        raise CliError("--tf-child needs --setup eye-in-hand | eye-to-hand",
+                       fix="eye-in-hand: the camera rides on the flange; eye-to-hand: the camera "
+                       "is static and the board rides on the flange")  # fmt: skip
+    if not args.image_topic or len(args.image_topic) != 1:
+        raise CliError("--tf-child takes one camera: one --image-topic NAME=TOPIC",
+                       fix="import each camera as its own pose dataset")  # fmt: skip
+    if args.camera_model and len(args.camera_model) > 1 or args.free and len(args.free) > 1:
+        raise CliError("--tf-child takes one camera: one --camera-model and one --free")
+    rule = _rule(args)
+    per_rest = None if args.per_rest == "all" else _count(args.per_rest)
+    model = (args.camera_model[0].partition("=")[2] or args.camera_model[0]
+             if args.camera_model else None)  # fmt: skip
+    free = (args.free[0].partition("=")[2] or args.free[0]).split(",") if args.free else None
+    bags = bag_paths(args.bag)
+    ds = import_bag_poses(bags if len(bags) > 1 else bags[0], ImageTopic.parse(args.image_topic[0]),
+                          args.tf_parent, args.tf_child, args.target, args.out, args.setup,
+                          rule=rule, per_rest=per_rest, camera_model=model, free=free)  # fmt: skip
+    n = len(ds.T_base_flange)
+    note_written(args, args.out)
+    if args.json:
+        print(json.dumps({"dataset": str(args.out), "frames": n, "setup": ds.setup}))
+    else:
+        print(f"imported {n} frames ({ds.setup}, flange poses {args.tf_parent} -> "
+              f"{args.tf_child} from /tf) into {args.out}")  # fmt: skip
+    return 0
+
+
+def _rule(args: argparse.Namespace) -> RestRule:
+    """The rest test of the ``--rest-*`` and ``--max-gap`` options."""
+    for name, v in (("--rest-window", args.rest_window), ("--rest-speed", args.rest_speed),
+                    ("--max-gap", args.max_gap)):  # fmt: skip
+        if not v > 0:
+            raise CliError(f"{name} {v}: give a positive number")
+    return RestRule(window_s=args.rest_window, speed_rad_s=float(np.radians(args.rest_speed)),
+                    speed_m_s=args.rest_speed / 1e3, max_gap_s=args.max_gap)  # fmt: skip
 
 
 def _count(text: str) -> int:

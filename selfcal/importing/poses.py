@@ -16,7 +16,7 @@ from __future__ import annotations
 import csv
 import io
 import shutil
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -88,12 +88,16 @@ def import_pose_dataset(
     link: bool = False,
     camera_model: str = DEFAULT_MODEL,
     free: Sequence[str] | None = None,
+    source: dict | None = None,
+    labels: Mapping[Path, str] | None = None,
 ) -> PoseDataset:
     """Check the inputs and write the pose dataset ``out`` (module docstring); returns it.
     ``rotation``, ``units``: the pose file's convention and position unit where its header does
     not say (:func:`selfcal.io.pose_files.read_poses`); ``camera_model``, ``free``: what the
-    calibration estimates (as ``selfcal import``). A failed import leaves no folder behind that
-    it created.
+    calibration estimates (as ``selfcal import``); ``source``: what the poses and images came
+    from (e.g. a bag and its topics), recorded instead of the pose file under
+    ``provenance.import``; ``labels``: each image file's name in ``sources.csv`` (default its
+    path). A failed import leaves no folder behind that it created.
 
     Raises:
         selfcal.importing.dataset.ImportError_, selfcal.io.pose_files.PoseFileError,
@@ -138,15 +142,15 @@ def import_pose_dataset(
                 dst.symlink_to(src)
             else:
                 shutil.copy2(src, dst)
-            w.writerow([k, cam.name, str(src)])
+            w.writerow([k, cam.name, (labels or {}).get(files[r], str(src))])
         write_text_atomic(out / "sources.csv", buf.getvalue())
         ds = PoseDataset(
             root=out, setup=setup, camera=cam.name, resolution=size, model=model, free=free_t,
             board=target_document(tgt), T_base_flange=rows.T_base_flange[keep],
             image_suffix=suffix,
-            provenance={"import": {"poses": str(poses), "rotation": rows.convention,
-                                   "units": rows.units, "target": str(target),
-                                   "images": cam.pattern}},
+            provenance={"import": source or {"poses": str(poses), "rotation": rows.convention,
+                                             "units": rows.units, "target": str(target),
+                                             "images": cam.pattern}},
         )  # fmt: skip
         write_pose_dataset(ds)
         return ds

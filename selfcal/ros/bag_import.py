@@ -447,16 +447,19 @@ def _name_frames(
 
 
 def _warn_skipped(bag: str, rule: RestRule, counts: dict[str, int], total: int, at_rest: int,
-                  frames: list[list[int]], n_cams: int) -> None:  # fmt: skip
+                  frames: list[list[int]], n_cams: int,
+                  motion: str = "the joint") -> None:  # fmt: skip
+    """The warning for the images not kept; ``motion`` names what tells the motion (the joint
+    messages, or /tf's)."""
     skipped = total - at_rest
     unpaired = at_rest - len(frames) * n_cams
     if not skipped and not unpaired:
         return
     parts = [f"{counts[MOVING]} with the arm moving within +-{rule.window_s / 2:g} s"]
     if counts[GAP]:
-        parts.append(f"{counts[GAP]} at a pause of the joint messages")
+        parts.append(f"{counts[GAP]} at a pause of {motion} messages")
     if counts[OUTSIDE]:
-        parts.append(f"{counts[OUTSIDE]} outside the joint recording")
+        parts.append(f"{counts[OUTSIDE]} outside {motion} recording")
     if unpaired:
         parts.append(f"{unpaired} at rest but not in a frame (no image of every camera in that "
                      "rest, or beyond --per-rest)")  # fmt: skip
