@@ -30,6 +30,7 @@ from scipy.spatial.transform import Rotation
 from selfcal.choices import DEFAULT_MODEL
 from selfcal.importing.dataset import CameraImages, ImportError_
 from selfcal.importing.poses import import_pose_dataset
+from selfcal.io.atomic import write_text_atomic
 from selfcal.io.pose_dataset import SETUPS, PoseDataset
 from selfcal.ros.bag_import import ImageTopic, _name_frames, _stage_images, _warn_skipped
 from selfcal.ros.bag_rest import GAP, MOVING, OUTSIDE, RestRule, pair_frames, thin_rests
@@ -116,7 +117,7 @@ def import_bag_poses(
             w.writerow([f.name] + [repr(float(v)) for v in Tk[:3, 3] * 1e3]
                        + [repr(float(v)) for v in qk])  # fmt: skip
         poses = stage / "poses.csv"
-        poses.write_text(buf.getvalue())
+        write_text_atomic(poses, buf.getvalue())
         labels = {f: f"{staged[name].bags[fr[0]].resolve()}#{image_topic.topic}@{int(s)}"
                   for f, fr, s in zip(files, frames, stamps)}  # fmt: skip
         source = {
