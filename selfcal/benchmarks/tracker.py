@@ -184,7 +184,7 @@ def table(rows, note: str) -> str:
         return "n/a" if v is None else format(v * scale, fmt)
 
     out = [
-        f"UR5e (models/robots/ur5e.toml), 0.1 mm noise, {N_TEST} held-out configurations; {note}; {machine()}.",
+        f"UR5e (models/universal_robots_ur5e/ur5e.toml), 0.1 mm noise, {N_TEST} held-out configurations; {note}; {machine()}.",
         "",
         "| N | nominal held-out mm | ours held-out mm (vs truth) | pybotics held-out mm (vs truth) "
         "| ours fit ms wall (CPU) | pybotics fit ms wall (CPU) | speed-up wall | speed-up CPU |",

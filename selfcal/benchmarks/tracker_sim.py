@@ -4,7 +4,7 @@ tracker benchmark).
 A *case* is a true chain (the nominal MCPC chain of a robot with every minimal parameter moved by
 a uniform error, a tool point on the flange and an arbitrary tracker frame), joint configurations
 drawn within the robot's ranges and the tool-point positions (or poses) the tracker would measure,
-with Gaussian noise. Robots are robot files (``models/robots``) or standard-DH tables given here
+with Gaussian noise. Robots are robot files (``models/<folder>/``) or standard-DH tables given here
 (:func:`dh_robot`). Units: SI inside; the DH tables in mm and deg like the robot files.
 """
 

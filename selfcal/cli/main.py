@@ -306,7 +306,7 @@ METHOD_HELP = (
 
 CONFIG_HELP = """\
 scenario keys (TOML; every key has a default, units in the names):
-  [robot]        model = a robot of models/robots (er4u-paper, er4u-vendor, ur5e, kr6-r900);
+  [robot]        model = a robot of models/<folder>/ (er4u-paper, er4u-vendor, ur5e, kr6-r900);
                  backend = "sim" | "hardware"
   [robot.hardware] port (pyserial URL), baudrate, xonxoff, cameras = [left, right], options
                  (see docs/hardware.md; `selfcal emulate SCENARIO` prints a ready snippet)

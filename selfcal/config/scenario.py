@@ -47,7 +47,7 @@ class HardwareConfig:
 @dataclass(frozen=True)
 class RobotConfig:
     model: str = DEFAULT_ROBOT
-    """Nominal kinematics by name (models/robots/<name>.toml)."""
+    """Nominal kinematics by name (models/<folder>/<name>.toml)."""
     backend: str = "sim"
     """"sim" or "hardware"."""
     hardware: HardwareConfig = field(default_factory=HardwareConfig)

@@ -94,7 +94,7 @@ class DeployedModel:
     """The calibrated robot in its base frame (see the module docstring). SI units.
 
     Attributes:
-        robot_name: the robot definition (``models/robots/<name>.toml``).
+        robot_name: the robot definition (``models/<folder>/<name>.toml``).
         joint_names, joint_types: per joint.
         limits: (n, 2) joint ranges (rad or m), from the robot definition.
         home: (n,) home posture (rad or m).

@@ -44,7 +44,7 @@ from selfcal.hw.acl_parsers import (
 from selfcal.hw.cameras import StereoCamera
 from selfcal.hw.encoders import EncoderTable
 from selfcal.hw.settings import DEFAULT_MODEL, AclSettings
-from selfcal.robot.definition import RobotDef, load_robot
+from selfcal.robot.definition import RobotDef, load_robot, robot_files
 from selfcal.robot.interface import RobotError, StereoPair
 
 __all__ = ["AclRobot", "default_encoders"]
@@ -148,7 +148,7 @@ class AclRobot(AclGuard):
                 f"{robot.name}'s home posture {np.round(encoders.home_deg, 3).tolist()} deg (its "
                 "TOML home_deg). On a real arm they read zero where HOME leaves it: give "
                 "[robot.hardware.options.encoders] home_deg in this model's convention (or "
-                f"[encoder] zero_deg in models/robots/{robot.name}.toml)",
+                f"[encoder] zero_deg in {robot_files().get(robot.name, 'its robot file')})",
                 stacklevel=3,
             )
         opened = link is None

@@ -23,7 +23,7 @@ class EmulatorBackend(Protocol):
     """The arm behind the emulated controller.
 
     Attributes:
-        model_name: robot model name (``models/robots/<name>.toml``), used for LISTPV's Cartesian
+        model_name: robot model name (``models/<folder>/<name>.toml``), used for LISTPV's Cartesian
             line when the backend has no ``robot`` attribute.
         limits_deg: (n, 2) joint ranges (deg) the controller enforces (``*** OUT OF RANGE``).
     """

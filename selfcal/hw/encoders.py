@@ -11,7 +11,7 @@ counts ``pitch = (enc4 - enc5) / 2`` and ``roll = (enc4 + enc5) / 2``, so
 is in those (half-sum / half-difference) counts per joint degree.
 
 The numbers live in the robot file's ``[encoder]`` table (keys: :mod:`selfcal.robot.encoder`;
-ER-4u: ``models/robots/er4u-vendor.toml``). ``EncoderTable.for_robot(model)`` builds the table of a
+ER-4u: ``models/scorbot_er4u/er4u-vendor.toml``). ``EncoderTable.for_robot(model)`` builds the table of a
 model from it; the simulated-robot emulator backend and the adapter (when the config gives no
 table) use it, and a config's ``encoders`` table overrides it key by key (``from_config``).
 """
@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from selfcal.errors import InputError
-from selfcal.robot.definition import RobotDef, load_robot
+from selfcal.robot.definition import RobotDef, load_robot, robot_files
 
 __all__ = ["EncoderTable"]
 
@@ -104,7 +104,7 @@ class EncoderTable:
             raise InputError(
                 f"{robot.name}: the model has no [encoder] counts_per_deg",
                 fix="give an encoder table ([robot.hardware.options.encoders] counts_per_deg, "
-                f"home_deg) or add [encoder] to models/robots/{robot.name}.toml",
+                f"home_deg) or add [encoder] to {robot_files().get(robot.name, 'its robot file')}",
             )
         cpd = enc.counts_per_unit * np.pi / 180.0
         # the TOML states degrees with a few decimals: drop the rad <-> deg round-off

@@ -19,7 +19,7 @@ from selfcal.errors import InputError
 __all__ = ["AclSettings", "DEFAULT_HARDWARE", "DEFAULT_MODEL"]
 
 DEFAULT_MODEL = "er4u-vendor"
-"""The model (``models/robots/<name>.toml``) of an ACL controller's arm when none is named."""
+"""The model (``models/<folder>/<name>.toml``) of an ACL controller's arm when none is named."""
 
 _POSITION_NAME = re.compile(r"[A-Za-z][A-Za-z0-9]{0,4}")
 
@@ -29,7 +29,7 @@ class AclSettings:
     """The ACL adapter's settings (units in the names). Raises :class:`InputError` on bad values."""
 
     model: str = DEFAULT_MODEL
-    """Nominal model (``models/robots/<name>.toml``): joint ranges and ``model_name``."""
+    """Nominal model (``models/<folder>/<name>.toml``): joint ranges and ``model_name``."""
     port: str = "/dev/ttyUSB0"
     """Any pyserial URL: device, ``socket://host:port``, ``loop://``, pty path."""
     baudrate: int = 9600

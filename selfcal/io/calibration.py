@@ -83,7 +83,7 @@ class CalibrationResult:
     """The content of ``calibration.json`` (see the module docstring; units in each block).
 
     Attributes:
-        robot_model: ``models/robots/<name>.toml`` of the calibrated robot.
+        robot_model: ``models/<folder>/<name>.toml`` of the calibrated robot.
         dataset: frames, frames used, images skipped (no marker).
         intrinsics, rig (right camera in the left camera frame, m), scale,
             reprojection_rms_px (2-D RMS over the inliers), observations, hand_eye (the

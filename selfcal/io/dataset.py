@@ -101,7 +101,7 @@ def _check_robot_model(root: Path, ref: str, where: Path) -> None:
     if isinstance(src, Path) and not src.is_file():
         raise DatasetError(
             f"{where}: key 'robot_model' names the robot file {src}, which does not exist",
-            fix="give robot_model the robot that took the data: a robot of models/robots or a "
+            fix="give robot_model the robot that took the data: a robot of models/<folder>/ or a "
             "robot TOML / URDF path (relative to the dataset folder)",
         )
     if isinstance(src, str) and src not in list_robots():

@@ -9,7 +9,7 @@ never opens it. All lengths in metres, angles in radians unless a key says ``_de
     {
       "format": "scorbot-selfcal truth v1",
       "schema_version": 1,
-      "robot_model": "er4u-paper",                  # models/robots/<name>.toml
+      "robot_model": "er4u-paper",                  # models/<folder>/<name>.toml
       "joints": {"names": [...], "types": ["revolute", ...], "offsets_rad": [...]},
       "mcpc": {
         "columns": ["alpha", "beta", "gamma", "lx", "ly", "lz"],

@@ -11,7 +11,7 @@ Convention (world frame: z up along the base axis, metres and radians):
 - ``roll`` is the rotation of the tool x-axis about the tool axis, measured from the reference
   direction ``ref = z_tool x h`` with ``h = z_world x r_hat``, in ``(-pi, pi]``.
 
-For the SCORBOT models in ``models/robots`` this gives ``roll = theta_5 + offset_5`` whenever the
+For the SCORBOT models in ``models/<folder>/`` this gives ``roll = theta_5 + offset_5`` whenever the
 tool point lies on the side of the base axis that joint 1's x-axis points to (the "front" branch),
 and ``roll = theta_5 + offset_5 + pi`` on the back branch. The paper's model (Table I) at joint zero
 has the tool axis pointing straight down (pitch -90 deg); the vendor model at joint zero has it

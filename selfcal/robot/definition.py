@@ -1,6 +1,6 @@
 """Robot definitions: the nominal kinematics of a robot, read from its one data file.
 
-Each robot is a TOML file ``models/robots/<name>.toml`` holding its kinematics -- a standard DH
+Each robot is a TOML file ``models/<folder>/<name>.toml`` holding its kinematics -- a standard DH
 table (``convention = "dh"``, the default), a modified-DH table (``convention = "mdh"``, Craig) or a
 ``[urdf]`` table naming a URDF file and its base and tool links -- plus joint ranges, a home posture,
 encoder resolution and the wrist-camera mount (mm, deg at that edge). A URDF file can also be
@@ -44,6 +44,7 @@ __all__ = [
     "with_dh",
     "load_robot",
     "list_robots",
+    "robot_files",
     "models_dir",
     "RobotDefinitionError",  # defined with the file parsing (selfcal.robot.tables); load_robot raises it
 ]
@@ -57,14 +58,37 @@ def models_dir() -> Path:
     through :mod:`importlib.resources`; pyproject ``force-include``), else ``models/`` of the source
     checkout next to this package. Never the working directory."""
     packaged = Path(str(importlib.resources.files("selfcal"))) / "models"
-    if (packaged / "robots").is_dir():
+    if (packaged / "targets").is_dir():
         return packaged
     return Path(__file__).resolve().parents[2] / "models"
 
 
+TARGETS_FOLDER = "targets"
+"""The folder of ``models/`` that holds target files; every other folder is one robot's."""
+
+
+def robot_files() -> dict[str, Path]:
+    """Every shipped robot file by name: ``models/<folder>/<name>.toml``, one folder per robot
+    with its generated MJCF, scene, picture and README (MuJoCo Menagerie's layout; a folder may
+    hold variants of one arm, e.g. the ER-4u's paper and vendor tables).
+
+    Raises:
+        RobotDefinitionError: two robot files of one name.
+    """
+    out: dict[str, Path] = {}
+    for p in sorted(models_dir().glob("*/*.toml")):
+        if p.parent.name == TARGETS_FOLDER:
+            continue
+        if p.stem in out:
+            raise RobotDefinitionError(f"two robot files named {p.stem}: {out[p.stem]} and {p}",
+                                       fix="rename one of them: a robot's name is its file stem")  # fmt: skip
+        out[p.stem] = p
+    return out
+
+
 def list_robots() -> list[str]:
-    """Names of the robots defined in ``models/robots``."""
-    return sorted(p.stem for p in (models_dir() / "robots").glob("*.toml"))
+    """Names of the shipped robots (:func:`robot_files`)."""
+    return sorted(robot_files())
 
 
 DEFAULT_SPAN_DEG = 45.0
@@ -249,12 +273,13 @@ class RobotDef:
 def _resolve(name_or_path: str | Path) -> Path:
     path = Path(name_or_path)
     if path.suffix not in (".toml", ".urdf"):
-        path = models_dir() / "robots" / f"{name_or_path}.toml"
-        if not path.is_file():
+        found = robot_files().get(str(name_or_path))
+        path = found if found is not None else Path(f"{name_or_path}.toml")
+        if found is None:
             raise RobotDefinitionError(
                 f"unknown robot model '{name_or_path}'; known models: {', '.join(list_robots())}",
                 fix="give one of the known names, the path of a robot TOML file "
-                "(models/robots/<name>.toml) or of a URDF file",
+                "(models/<folder>/<name>.toml) or of a URDF file",
             )
     if not path.is_file():
         raise RobotDefinitionError(f"robot file not found: {path}")
@@ -262,7 +287,7 @@ def _resolve(name_or_path: str | Path) -> Path:
 
 
 def load_robot(name_or_path: str | Path) -> RobotDef:
-    """Load a robot by name (``models/robots/<name>.toml``), from a robot TOML path, or from a URDF
+    """Load a robot by name (``models/<folder>/<name>.toml``), from a robot TOML path, or from a URDF
     path.
 
     A URDF alone: the chain runs from the root link to the leaf link reached through the most

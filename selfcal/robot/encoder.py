@@ -1,4 +1,4 @@
-"""The controller's encoder table of a robot file (``[encoder]`` in ``models/robots/<name>.toml``).
+"""The controller's encoder table of a robot file (``[encoder]`` in ``models/<folder>/<name>.toml``).
 
 Keys (units in the names; all per joint, in the file's joint order; only ``counts_per_deg`` is
 needed for the simulator's read-back, the others describe the real controller):

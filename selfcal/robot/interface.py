@@ -36,7 +36,7 @@ class Robot(Protocol):
     """A camera-equipped arm. Implementations: ``selfcal.sim.sim_robot.SimRobot``, ``selfcal.hw.acl_robot.AclRobot``."""
 
     model_name: str
-    """Name of the nominal kinematic model (``models/robots/<name>.toml``)."""
+    """Name of the nominal kinematic model (``models/<folder>/<name>.toml``)."""
 
     def home(self) -> None:
         """Move to (or find) the home posture."""

@@ -111,7 +111,7 @@ def known_keys(table: dict, known: frozenset[str], where: str, path: Path) -> No
     if unknown:
         raise RobotDefinitionError(
             f"{where}: unknown key(s) {unknown}",
-            fix=f"use only {', '.join(sorted(known))} there (docs/tracker.md, models/robots/*.toml "
+            fix=f"use only {', '.join(sorted(known))} there (docs/tracker.md, models/*/*.toml "
             f"show robot files); edit {path}",
         )
 

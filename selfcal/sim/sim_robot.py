@@ -33,7 +33,7 @@ class SimRobot(KinematicRobot):
     """A simulated robot with a wrist stereo rig photographing a marker field.
 
     Args:
-        model_name: nominal robot model (``models/robots/<name>.toml``), robot file or the
+        model_name: nominal robot model (``models/<folder>/<name>.toml``), robot file or the
             loaded :class:`~selfcal.robot.definition.RobotDef`.
         actual: the simulated robot's MCPC chain, tool = left camera (default: nominal, i.e.
             ``nominal_mcpc(robot).with_tool(robot.T_flange_cam)``); see ``selfcal.sim.actual.perturb``.

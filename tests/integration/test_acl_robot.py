@@ -28,7 +28,9 @@ from selfcal.hw.encoders import EncoderTable
 from selfcal.robot.interface import Robot, RobotError, StereoPair
 
 ROOT = Path(__file__).resolve().parents[2]
-ENC = EncoderTable.for_robot("er4u-vendor")  # the [encoder] table of models/robots/er4u-vendor.toml
+ENC = EncoderTable.for_robot(
+    "er4u-vendor"
+)  # the [encoder] table of models/scorbot_er4u/er4u-vendor.toml
 HOME = ENC.home_deg
 
 

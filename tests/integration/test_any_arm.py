@@ -1,4 +1,4 @@
-"""The simulated pipeline for a serial arm other than the ER-4u (models/robots/ur5e.toml): the
+"""The simulated pipeline for a serial arm other than the ER-4u (models/universal_robots_ur5e/ur5e.toml): the
 marker field placed from the home camera pose, planning with visibility and self-collision, and
 a calibration on the analytic path (the Monte Carlo against the bound is in
 tests/integration/test_any_arm_montecarlo.py, slow tier)."""
@@ -44,7 +44,7 @@ def test_field_is_centred_on_the_home_optical_axis(path):
 
 
 def test_home_camera_not_facing_the_table_is_refused(tmp_path):
-    text = (ROOT / "models/robots/ur5e.toml").read_text()
+    text = (ROOT / "models/universal_robots_ur5e/ur5e.toml").read_text()
     # wrist_2 at 0 instead of -90: the camera looks sideways, never at the table
     text = text.replace(
         "home_deg = [0.0, -100.0, 110.0, -100.0, -90.0, 0.0]",
@@ -115,7 +115,7 @@ def test_pipeline_calibrates_from_rendered_images(tmp_path, path):
 
 @pytest.mark.slow
 def test_a_seven_joint_arm_from_a_robot_file_calibrates(tmp_path, capsys):
-    """``[robot] model`` the path of a 7-joint robot file outside models/robots
+    """``[robot] model`` the path of a 7-joint robot file outside models/
     (tests/data/arm7.toml): the simulated robot and the dataset take the file, not its name (before:
     "unknown robot model 'arm7'"), and the calibration beats nominal (measured: nominal 1.05 mm,
     calibrated 0.092 mm RMS over 20 validation postures)."""

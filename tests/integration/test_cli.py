@@ -169,7 +169,7 @@ def test_fk_ik_of_an_arm_on_a_linear_track_take_the_track_in_mm(capsys, tmp_path
     """A UR5e on a 2 m vertical track (prismatic joint 1, 7 joints): ``--joints`` and ``joints_deg`` hold
     the track in mm (before: read as degrees, 1500 "deg" = 26 m, out of range); fk and ik
     round-trip, and moving the track moves the tool by as much."""
-    text = (ROOT / "models/robots/ur5e.toml").read_text()
+    text = (ROOT / "models/universal_robots_ur5e/ur5e.toml").read_text()
     track = (
         '[[joint]]\nname = "track"\ntype = "prismatic"\nalpha_deg = 0.0\na_mm = 0.0\n'
         "d_mm = 0.0\nrange_mm = [0.0, 2000.0]\n\n"
@@ -210,7 +210,7 @@ def test_fk_ik_of_an_arm_on_a_linear_track_take_the_track_in_mm(capsys, tmp_path
 
 @pytest.mark.render
 def test_render_takes_a_robot_file_of_seven_joints(capsys, tmp_path):
-    """``--robot FILE`` outside models/robots (before: "unknown robot model 'arm7'")."""
+    """``--robot FILE`` outside models/ (before: "unknown robot model 'arm7'")."""
     import cv2
 
     robot = ROOT / "tests" / "data" / "arm7.toml"

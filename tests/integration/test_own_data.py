@@ -374,14 +374,14 @@ def test_a_urdf_robot_with_named_links(lab, tmp_path):
     robot = load_robot(ds.robot_source)  # the dataset's own copy, wherever the folder goes
     assert robot.n == 6 and robot.name == "kr6_r900"
     with pytest.raises(ImportError_, match="apply to a URDF only"):
-        import_dataset("models/robots/kr6-r900.toml", [CameraImages.parse(f"{ci}/*.png")], cj,
+        import_dataset("models/kuka_kr6_r900/kr6-r900.toml", [CameraImages.parse(f"{ci}/*.png")], cj,
                        "rad", root / "board.toml", tmp_path / "v", tool_link="flange")  # fmt: skip
 
 
 @pytest.mark.slow  # a calibration: 3-8 s
 def test_a_urdf_robots_calibration_exports_and_answers_fk_and_ik(lab, tmp_path):
     """The calibrated robot of a URDF exports and answers fk / ik from the dataset's copy of the
-    robot file: its own name, kr6_r900, is no model of models/robots (it was looked up there)."""
+    robot file: its own name, kr6_r900, is no robot of models/ (it was looked up there)."""
     root, (ci, cj), _ = lab
     urdf = Path(__file__).resolve().parents[1] / "data" / "kr6_r900.urdf"
     assert main(["import", "--robot", str(urdf), "--tool-link", "flange", "--images",

@@ -282,14 +282,14 @@ def test_the_joint_read_back_noise_can_be_stated(small_analytic, tmp_path):
 def test_a_field_calibration_of_a_robot_file_exports(small_analytic, tmp_path):
     """A field dataset whose robot is a file (not a shipped model): export and fk --calibration
     load that file; calibration.json names the robot by its own name, 'myarm', which is no
-    model of models/robots (it was looked up there and failed)."""
+    robot of models/ (it was looked up there and failed)."""
     from selfcal.cli.main import main
 
     ds = tmp_path / "myarm"
     shutil.copytree(small_analytic, ds)
     (ds / "robot").mkdir()
     root = Path(__file__).resolve().parents[2]
-    text = (root / "models" / "robots" / "er4u-paper.toml").read_text()
+    text = (root / "models" / "scorbot_er4u" / "er4u-paper.toml").read_text()
     (ds / "robot" / "myarm.toml").write_text(
         text.replace('name = "er4u-paper"', 'name = "myarm"', 1)
     )

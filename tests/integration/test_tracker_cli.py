@@ -11,7 +11,7 @@ import pytest
 from selfcal.benchmarks.tracker_sim import make_case, measure
 from selfcal.cli.main import main
 from selfcal.kinematics.forward import fk_tool
-from selfcal.robot.definition import load_robot, models_dir
+from selfcal.robot.definition import load_robot, robot_files
 
 SIGMA = 1e-4
 
@@ -97,7 +97,7 @@ def test_identify_then_predict_round_trip(tmp_path, capsys, er4u):
 
 
 def test_poses_and_a_robot_file_path(tmp_path, capsys):
-    robot_path = str(models_dir() / "robots" / "ur5e.toml")
+    robot_path = str(robot_files()["ur5e"])
     robot = load_robot(robot_path)
     _, header, rows = _measurements(tmp_path, robot, m=30, poses=True)
     meas = _write(tmp_path / "m.csv", header, rows, fmt="{:.9f}")

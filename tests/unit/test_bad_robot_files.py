@@ -8,9 +8,9 @@ import re
 
 import pytest
 
-from selfcal.robot.definition import RobotDefinitionError, load_robot, models_dir
+from selfcal.robot.definition import RobotDefinitionError, load_robot, robot_files
 
-ER4U = (models_dir() / "robots" / "er4u-paper.toml").read_text()
+ER4U = (robot_files()["er4u-paper"]).read_text()
 
 
 def _with(tmp_path, pattern: str, repl: str, count: int = 1):

@@ -1,4 +1,4 @@
-"""Robot knowledge is data (models/robots/<name>.toml), not code: the mathematics, selfcal/sim/ and selfcal/hw/ hold no
+"""Robot knowledge is data (models/<folder>/<name>.toml), not code: the mathematics, selfcal/sim/ and selfcal/hw/ hold no
 five-element numeric literals, no comparisons of a joint count with 5, no ``range`` over five
 joints and no robot names outside docstrings and comments (the encoder tables, for one, are the
 robot file's ``[encoder]``).
@@ -136,4 +136,4 @@ def test_no_robot_specifics_in_code(path):
         for line, kind in robot_specifics((ROOT / path).read_text())
         if (path, kind) not in ALLOWED
     ]
-    assert not found, "robot knowledge belongs in models/robots/<name>.toml:\n" + "\n".join(found)
+    assert not found, "robot knowledge belongs in models/<folder>/<name>.toml:\n" + "\n".join(found)

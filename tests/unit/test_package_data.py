@@ -22,8 +22,9 @@ def test_checkout_models_found_from_any_working_directory(tmp_path, monkeypatch)
 
 
 def test_packaged_models_preferred(tmp_path, monkeypatch):
-    (tmp_path / "models" / "robots").mkdir(parents=True)
-    (tmp_path / "models" / "robots" / "only-here.toml").write_text("")
+    (tmp_path / "models" / "targets").mkdir(parents=True)
+    (tmp_path / "models" / "an_arm").mkdir()
+    (tmp_path / "models" / "an_arm" / "only-here.toml").write_text("")
     monkeypatch.setattr(importlib.resources, "files", lambda pkg: tmp_path)
     assert robot_def.models_dir() == tmp_path / "models"
     assert robot_def.list_robots() == ["only-here"]
@@ -69,3 +70,19 @@ def test_shipped_scenarios_are_reachable_by_name_from_anywhere(tmp_path, monkeyp
     monkeypatch.setattr(shipped, "SHIPPED_DIR", wheel / "scenarios")
     monkeypatch.setattr(shipped, "models_dir", lambda: wheel / "calib" / "models")
     assert board_path(load_scenario("mono-charuco")) == board
+
+
+def test_one_folder_per_robot_with_its_readme_and_licence():
+    """#31: a robot lived in two places (models/robots/NAME.toml and models/FOLDER/); now its
+    file, generated MJCF, scene, picture, README and LICENSE share one folder."""
+    from selfcal.sim.build_models import mjcf_entries
+
+    files = robot_def.robot_files()
+    assert set(files) == {"er4u-paper", "er4u-vendor", "kr6-r900", "ur5e"}
+    for path in files.values():
+        folder = path.parent
+        assert folder.parent == ROOT / "models" and folder.name != "targets", path
+        assert (folder / "README.md").is_file() and (folder / "LICENSE").is_file(), folder
+    for e in mjcf_entries():  # the MJCF of each robot beside its file
+        assert e.folder == files[e.name].parent and (e.folder / f"{e.name}.xml").is_file()
+    assert not (ROOT / "models" / "robots").exists()

@@ -19,7 +19,7 @@ from selfcal.config.scenario import ConfigError, default_scenario_path, load_sce
 from selfcal.errors import InputError, SelfCalError
 from selfcal.io.target_toml import TargetFileError, load_target
 from selfcal.io.tracker import TrackerFileError, read_distances, read_joints, read_measurements
-from selfcal.robot.definition import RobotDefinitionError, load_robot, models_dir
+from selfcal.robot.definition import RobotDefinitionError, load_robot, models_dir, robot_files
 
 REPO = Path(__file__).resolve().parents[2]
 VALUE_LINE = re.compile(r"^(\s*[A-Za-z_][\w.]*\s*=\s*)(.+?)\s*(#.*)?$")
@@ -120,7 +120,7 @@ def test_scenario_loader_is_total(text):
 
 
 @FUZZ
-@given(st.one_of(mutations((models_dir() / "robots" / "er4u-paper.toml").read_text()), ANY_TEXT))
+@given(st.one_of(mutations((robot_files()["er4u-paper"]).read_text()), ANY_TEXT))
 def test_robot_file_reader_is_total(text):
     _total(load_robot, _file(text, "arm.toml"), RobotDefinitionError, _finite_robot)
 
@@ -223,10 +223,9 @@ def _readers(er4u):
     from selfcal.io.pose_files import PoseFileError, read_poses
 
     read_cal, cal_err, read_board, board_err = _calibration_readers()
-    robots = models_dir() / "robots"
     return [
         ("scenario.toml", default_scenario_path(), load_scenario, ConfigError),
-        ("arm.toml", robots / "er4u-paper.toml", load_robot, RobotDefinitionError),
+        ("arm.toml", robot_files()["er4u-paper"], load_robot, RobotDefinitionError),
         ("target.toml", models_dir() / "targets" / "charuco.toml", load_target, TargetFileError),
         ("m.csv", None, lambda p: read_measurements(p, er4u, "deg"), TrackerFileError),
         ("poses.csv", None, read_poses, PoseFileError),

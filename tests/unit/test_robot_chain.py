@@ -22,7 +22,7 @@ from selfcal.robot.definition import (
     RobotDefinitionError,
     list_robots,
     load_robot,
-    models_dir,
+    robot_files,
     with_dh,
 )
 from selfcal.transforms import make_pose, rot_x, rot_z, trans
@@ -104,7 +104,7 @@ def test_kr6_home_matches_the_datasheet_dimensions():
 
 
 def _variant(tmp_path, edit):
-    text = (models_dir() / "robots" / "kr6-r900.toml").read_text()
+    text = (robot_files()["kr6-r900"]).read_text()
     p = tmp_path / "arm.toml"
     p.write_text(edit(text))
     return p

@@ -12,10 +12,10 @@ from selfcal.robot.definition import (
     DEFAULT_SPAN_DEG,
     RobotDefinitionError,
     load_robot,
-    models_dir,
+    robot_files,
 )
 
-PAPER = models_dir() / "robots" / "er4u-paper.toml"
+PAPER = robot_files()["er4u-paper"]
 
 
 def _variant(tmp_path: Path, drop: tuple[str, ...] = (), append: str = "") -> Path:

@@ -1,6 +1,6 @@
 """Robots from a URDF (selfcal.robot.urdf through load_robot).
 
-Ground truth: the same arm written independently in modified DH (models/robots/kr6-r900.toml) and
+Ground truth: the same arm written independently in modified DH (models/kuka_kr6_r900/kr6-r900.toml) and
 in URDF (tests/data/kr6_r900.urdf, joint axes along x and y, extra fixed frames).
 """
 
