@@ -1,10 +1,14 @@
-"""The one exception root of scorbot-selfcal and its four kinds.
+"""The one exception root of scorbot-selfcal and its kinds.
 
-Every error the project raises on purpose derives from :class:`SelfCalError`. Its message names
-the file, key, row or quantity at fault; ``fix`` (optional) says what the user can do about it.
-The command line catches the root, prints ``message`` and ``fix`` and exits with the kind's
-``exit_code`` (README: "Exit codes"). The kinds keep the builtin they used to be (``ValueError``
-for bad input, ``RuntimeError`` otherwise) so ``except ValueError`` in callers still works.
+Every error the project raises derives from :class:`SelfCalError` (tests/unit/test_raises.py
+fails on a bare builtin ``raise``). Its message names the file, key, row or quantity at fault;
+``fix`` (optional) says what the user can do about it. The command line catches the root, prints
+``message`` and ``fix`` and exits with the kind's ``exit_code`` (README: "Exit codes"); a kind
+whose code is :data:`EXIT_INTERNAL` (a bug: :class:`UsageError`, :class:`InternalError`) is
+printed as an internal error. The kinds keep the builtin they used to be (``ValueError`` for bad
+input or a bad argument, ``TypeError`` for an argument of the wrong type, ``RuntimeError`` for a
+failure, ``OSError`` for a file that cannot be written) so ``except ValueError`` in callers still
+works.
 """
 
 from __future__ import annotations
@@ -15,6 +19,10 @@ __all__ = [
     "EstimationError",
     "SolverError",
     "HardwareError",
+    "OutputError",
+    "UsageError",
+    "UsageTypeError",
+    "InternalError",
     "SelfCalWarning",
     "InitialCameraWarning",
     "EXIT_OK",
@@ -68,6 +76,29 @@ class HardwareError(SelfCalError, RuntimeError):
     """The robot, its controller, the serial link or a camera failed."""
 
     exit_code = 4
+
+
+class OutputError(SelfCalError, OSError):
+    """A file or device could not be written (an image format OpenCV cannot encode, a path that
+    is taken, a closed pseudo-terminal): exit code 2, the message names it."""
+
+    exit_code = 2
+
+
+class UsageError(SelfCalError, ValueError):
+    """The calling program broke a function's contract (an argument's shape, length or range,
+    two arguments that disagree): a bug in the caller, so the command line reports it as an
+    internal error (exit code 1). What a user wrote (a file, a key, a flag) is an
+    :class:`InputError`."""
+
+
+class UsageTypeError(UsageError, TypeError):
+    """An argument of the wrong type (a :class:`UsageError` that is also a ``TypeError``)."""
+
+
+class InternalError(SelfCalError, RuntimeError):
+    """The project's own state or result is wrong (an object used after it was closed or before
+    it was started, a check of its own result that fails): a bug, exit code 1."""
 
 
 class SelfCalWarning(UserWarning):

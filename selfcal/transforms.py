@@ -10,6 +10,8 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
+from selfcal.errors import UsageError
+
 # scipy.spatial.transform is imported inside the functions that use it: importing it costs
 # 0.5 s (scipy.spatial loads scipy.sparse), and `selfcal fk` needs none of them (issue 17).
 
@@ -223,7 +225,7 @@ def kabsch(A: np.ndarray, B: np.ndarray) -> np.ndarray:
     A = np.asarray(A, dtype=float)
     B = np.asarray(B, dtype=float)
     if A.shape != B.shape or A.ndim != 2 or A.shape[1] != 3 or len(A) < 3:
-        raise ValueError(
+        raise UsageError(
             f"kabsch needs two (k, 3) point sets with k >= 3, got {A.shape}, {B.shape}"
         )
     ca, cb = A.mean(axis=0), B.mean(axis=0)

@@ -30,6 +30,7 @@ import numpy as np
 
 from selfcal.acquisition.backends import make_sim_robot
 from selfcal.config.scenario import Scenario
+from selfcal.errors import InputError, InternalError
 from selfcal.hw.encoders import EncoderTable
 from selfcal.io.truth import Truth
 from selfcal.robot.definition import RobotDef
@@ -73,7 +74,7 @@ class SimEmulatorBackend:
         seed: int = 0,
     ) -> None:
         if not 0.0 <= rest_jitter_counts <= 0.5:
-            raise ValueError(
+            raise InputError(
                 f"rest_jitter_counts must be in [0, 0.5] (inside the count cell the encoders "
                 f"read), got {rest_jitter_counts}"
             )
@@ -81,11 +82,11 @@ class SimEmulatorBackend:
         self.robot: RobotDef = sim_robot.robot
         self.model_name = sim_robot.model_name
         if any(t != "revolute" for t in self.robot.joint_types):
-            raise ValueError(f"{self.model_name}: the ACL emulator drives revolute joints only")
+            raise InputError(f"{self.model_name}: the ACL emulator drives revolute joints only")
         self.limits_deg = np.degrees(self.robot.limits)
         self.encoders = encoders if encoders is not None else EncoderTable.for_robot(self.robot)
         if self.encoders.n != self.robot.n:
-            raise ValueError(
+            raise InputError(
                 f"encoder table has {self.encoders.n} axes, {self.model_name} has {self.robot.n}"
             )
         self.rest_jitter_counts = float(rest_jitter_counts)
@@ -101,7 +102,7 @@ class SimEmulatorBackend:
 
     def _call(self, fn: Any, *args: Any) -> Any:
         if self._closed:
-            raise RuntimeError("SimEmulatorBackend is closed")
+            raise InternalError("SimEmulatorBackend is closed")
         return self._worker.submit(fn, *args).result()
 
     # -- EmulatorBackend ---------------------------------------------------------------------------

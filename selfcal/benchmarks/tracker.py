@@ -46,6 +46,7 @@ from selfcal.calibration.tracker.identify import (
     initial_placement,
 )
 from selfcal.console.threads import limit_threads
+from selfcal.errors import InputError
 from selfcal.kinematics.forward import fk_tool
 from selfcal.robot.definition import RobotDef, load_robot
 from selfcal.transforms import rot_x, trans
@@ -68,7 +69,7 @@ def mdh_table(robot: RobotDef) -> tuple[np.ndarray, np.ndarray]:
     modified-DH table the rows themselves and no tail."""
     dh = robot.dh
     if dh is None:
-        raise ValueError(f"{robot.name} has no DH table (pybotics needs one)")
+        raise InputError(f"{robot.name} has no DH table (pybotics needs one)")
     if dh.convention == "mdh":
         return np.column_stack([dh.alpha, dh.a * 1e3, dh.offset, dh.d * 1e3]), np.eye(4)
     alpha = np.r_[0.0, dh.alpha[:-1]]

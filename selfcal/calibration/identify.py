@@ -355,7 +355,7 @@ def identify(
     hold = tuple(hold or ())
     unknown = [h for h in hold if h not in names]
     if unknown:
-        raise ValueError(f"cannot hold {unknown}: not minimal parameters; valid names: {names}")
+        raise InputError(f"cannot hold {unknown}: not minimal parameters; valid names: {names}")
     p_free = idx.size - len(set(hold))
     if m < 2 or (6 * m <= p_free and not auto_hold):
         need = p_free // 6 + 1 if not auto_hold else 2

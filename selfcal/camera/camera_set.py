@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from selfcal.camera.model import CameraModel
+from selfcal.errors import InputError, UsageError
 
 __all__ = [
     "CameraSet",
@@ -48,7 +49,7 @@ class CameraSet:
     def __post_init__(self) -> None:
         cams, names = tuple(self.cameras), tuple(self.names)
         if len(cams) < 2 or len(names) != len(cams) or len(set(names)) != len(names):
-            raise ValueError(
+            raise InputError(
                 f"a camera set needs N >= 2 cameras and N distinct names; got {len(cams)} "
                 f"cameras, names {names} (one camera, or one model shared by the rig: use the "
                 "CameraModel itself)"
@@ -85,7 +86,7 @@ class CameraSet:
         """The same cameras with their free parameters set to ``free_values`` (n_free,)."""
         v = np.asarray(free_values, dtype=float).reshape(-1)
         if len(v) != self.n_free:
-            raise ValueError(f"{len(v)} values for {self.n_free} free camera parameters")
+            raise UsageError(f"{len(v)} values for {self.n_free} free camera parameters")
         cams = tuple(
             c.with_free_values(v[s]) for c, s in zip(self.cameras, self.slices(), strict=True)
         )

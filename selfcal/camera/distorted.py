@@ -25,6 +25,7 @@ import numpy as np
 from selfcal.camera.lens import LensMap, brown_conrady, kannala_brandt, undistort
 from selfcal.camera.model import perspective_jacobian
 from selfcal.camera.pinhole import Pinhole
+from selfcal.errors import InputError
 
 __all__ = ["LensCamera", "BrownConrady", "Fisheye"]
 
@@ -42,7 +43,7 @@ class LensCamera(Pinhole):
     def __post_init__(self) -> None:
         c = tuple(float(v) for v in self.coeffs) or (0.0,) * len(self.lens_names)
         if len(c) != len(self.lens_names):
-            raise ValueError(
+            raise InputError(
                 f"{type(self).__name__} has {len(self.lens_names)} lens coefficients "
                 f"{self.lens_names}, got {len(c)}"
             )

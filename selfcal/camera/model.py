@@ -26,6 +26,8 @@ from typing import ClassVar, TypeVar
 
 import numpy as np
 
+from selfcal.errors import InputError
+
 __all__ = ["CameraModel", "perspective", "perspective_jacobian", "project"]
 
 
@@ -100,7 +102,7 @@ class CameraModel(ABC):
     def _check_free(self) -> None:
         unknown = [n for n in self.free if n not in self.names]
         if unknown or len(set(self.free)) != len(self.free):
-            raise ValueError(
+            raise InputError(
                 f"free camera parameters {self.free} must be distinct names of {self.names}"
             )
 

@@ -14,6 +14,7 @@ import numpy as np
 
 from selfcal.camera.model import CameraModel
 from selfcal.camera.visibility import Visibility
+from selfcal.errors import InputError
 from selfcal.transforms import inv_pose
 
 __all__ = ["Rig", "STEREO_NAMES"]
@@ -38,12 +39,12 @@ class Rig:
         T = np.asarray(self.T_first_cam, dtype=float).copy()
         names = tuple(self.names)
         if not cams or T.shape != (len(cams), 4, 4) or len(names) != len(cams):
-            raise ValueError(
+            raise InputError(
                 f"a rig needs N >= 1 cameras with N extrinsics (N, 4, 4) and N names; got "
                 f"{len(cams)} cameras, extrinsics {T.shape}, names {names}"
             )
         if not np.allclose(T[0], np.eye(4), atol=1e-12):
-            raise ValueError("the first camera's extrinsic T_first_cam[0] must be the identity")
+            raise InputError("the first camera's extrinsic T_first_cam[0] must be the identity")
         T.setflags(write=False)
         object.__setattr__(self, "cameras", cams)
         object.__setattr__(self, "T_first_cam", T)

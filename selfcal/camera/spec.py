@@ -16,6 +16,7 @@ from collections.abc import Mapping, Sequence
 from selfcal.camera.distorted import BrownConrady, Fisheye, LensCamera
 from selfcal.camera.model import CameraModel
 from selfcal.camera.pinhole import Pinhole
+from selfcal.errors import InputError
 
 __all__ = [
     "FREE_ALIASES",
@@ -51,7 +52,7 @@ def canonical_free(free: Sequence[str]) -> tuple[str, ...]:
     for n in free:
         target = FREE_ALIASES.get(n, n)
         if n != target and target in free:
-            raise ValueError(
+            raise InputError(
                 f"free camera parameters name both {n!r} and {target!r}; {n!r} is OpenCV's name "
                 f"for the same freedom ({target} = fy / fx with fx free): give one of them"
             )
@@ -64,7 +65,7 @@ def lens_names(model: str) -> tuple[str, ...]:
 
     Raises ``ValueError`` for an unknown model name."""
     if model not in MODELS:
-        raise ValueError(f"unknown camera model {model!r}; use one of {sorted(MODELS)}")
+        raise InputError(f"unknown camera model {model!r}; use one of {sorted(MODELS)}")
     cls = MODELS[model]
     return cls.lens_names if issubclass(cls, LensCamera) else ()
 
@@ -91,13 +92,13 @@ def camera_model(
     coeffs = dict(coeffs or {})
     unknown = sorted(set(coeffs) - set(names))
     if unknown:
-        raise ValueError(f"camera model {model!r} has no coefficient(s) {unknown}; it has {names}")
+        raise InputError(f"camera model {model!r} has no coefficient(s) {unknown}; it has {names}")
     cls = MODELS[model]
     allowed = cls.names
     free = canonical_free(free)
     bad = [n for n in free if n not in allowed]
     if bad:
-        raise ValueError(
+        raise InputError(
             f"camera model {model!r} has no parameter(s) {bad} to free; it has {allowed}"
         )
     free_t = tuple(n for n in allowed if n in free)  # names order

@@ -17,6 +17,7 @@ from selfcal.calibration.field.calibrate import MIN_POSTURES
 from selfcal.config.camera import PER_CAMERA_KEYS, CameraConfig, ConfigError, validate_camera
 from selfcal.config.defaults import DEFAULT_ROBOT
 from selfcal.config.shipped import scenario_file, shipped_model_file, shipped_scenarios
+from selfcal.errors import InternalError
 from selfcal.robot.definition import models_dir
 from selfcal.tomlfile import read_toml
 
@@ -276,7 +277,7 @@ def _coerce(value: Any, tp: Any, where: str) -> Any:
         if ok:
             return [_coerce(v, arg, f"{where}[{i}]") for i, v in enumerate(value)]
     else:  # pragma: no cover - schema error
-        raise TypeError(f"unsupported schema type {tp}")
+        raise InternalError(f"unsupported schema type {tp}")
     if not ok:
         raise ConfigError(
             f"key '{where}': expected {_type_name(tp)}, got {type(value).__name__} {value!r}"

@@ -200,8 +200,9 @@ def run_command(func: Callable[[argparse.Namespace], int | None], args: argparse
     Warnings go through :mod:`selfcal.console.log` (one format, counted); the command records what
     it wrote in ``args.log`` (:class:`selfcal.console.log.CommandLog`) and the last line names it.
     A :class:`SelfCalError` prints :func:`error_line` and returns its ``exit_code`` (130 when
-    it was caused by Ctrl-C); any other exception is a bug: one line and 1 (``-v``: with the
-    traceback; ``SELFCAL_DEBUG=1``: re-raised).
+    it was caused by Ctrl-C); one whose ``exit_code`` is 1 (``UsageError``, ``InternalError``)
+    and any other exception is a bug: one line and 1 (``-v``: with the traceback;
+    ``SELFCAL_DEBUG=1``: re-raised).
     """
     reraise, trace = _debug(args)
     t0 = time.perf_counter()
@@ -217,6 +218,8 @@ def run_command(func: Callable[[argparse.Namespace], int | None], args: argparse
         except SelfCalError as exc:
             if reraise and not isinstance(exc, CliError):
                 raise
+            if exc.exit_code == EXIT_INTERNAL:  # a bug (UsageError, InternalError)
+                return _internal(exc, trace)
             if trace:
                 traceback.print_exc()
             report_error(exc)
@@ -226,18 +229,23 @@ def run_command(func: Callable[[argparse.Namespace], int | None], args: argparse
         except Exception as exc:
             if reraise:
                 raise
-            if trace:
-                traceback.print_exc()
-            hint = "" if trace else "; run again with -v for the traceback"
-            print(
-                f"selfcal: error: internal error {type(exc).__name__}: {exc} -- a bug{hint}",
-                file=sys.stderr,
-            )
-            return EXIT_INTERNAL
+            return _internal(exc, trace)
         line = wrote_line(log, time.perf_counter() - t0)
         if line:
             print(line, file=sys.stderr, flush=True)
         return code
+
+
+def _internal(exc: Exception, trace: bool) -> int:
+    """Report ``exc`` as an internal error (a bug): one line, the traceback with ``-v``."""
+    if trace:
+        traceback.print_exc()
+    hint = "" if trace else "; run again with -v for the traceback"
+    print(
+        f"selfcal: error: internal error {type(exc).__name__}: {exc} -- a bug{hint}",
+        file=sys.stderr,
+    )
+    return EXIT_INTERNAL
 
 
 def note_written(args: argparse.Namespace, *paths: str | Path) -> None:

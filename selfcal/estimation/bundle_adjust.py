@@ -25,6 +25,7 @@ import scipy.sparse as sp
 
 from selfcal.camera.camera_set import CameraSet
 from selfcal.camera.model import CameraModel
+from selfcal.errors import InputError
 from selfcal.estimation.pose_models import PoseModel
 from selfcal.estimation.reprojection import ReprojectionBlock
 from selfcal.solver import (
@@ -183,7 +184,7 @@ def bundle_adjust(
         ValueError: an unknown ``solver`` or ``loss``.
     """
     if solver not in ("lm", "scipy"):
-        raise ValueError(f"solver must be 'lm' or 'scipy', got {solver!r}")
+        raise InputError(f"solver must be 'lm' or 'scipy', got {solver!r}")
     x0 = np.concatenate(
         [
             [] if fix_intrinsics else camera.free_values(),

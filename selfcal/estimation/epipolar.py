@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from selfcal.errors import InputError
 from selfcal.estimation.observations import Observations
 from selfcal.estimation.selfcal_errors import InsufficientDataError
 
@@ -84,7 +85,7 @@ def fundamental_pairs(
     :class:`InsufficientDataError` if no pair qualifies.
     """
     if min_shared < 8:
-        raise ValueError("min_shared must be >= 8 (eight-point algorithm)")
+        raise InputError("min_shared must be >= 8 (eight-point algorithm)")
     _, pidx = obs.point_index()
     n_points = int(pidx.max()) + 1 if len(pidx) else 0
     table = uv_table(obs, pidx, n_points)

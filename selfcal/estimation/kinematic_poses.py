@@ -11,6 +11,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from selfcal.errors import UsageError
 from selfcal.estimation.observations import ViewLayout
 from selfcal.estimation.pose_models import so3_left_jacobian
 from selfcal.kinematics.forward import fk_frames, fk_tool, identification_jacobian
@@ -63,18 +64,18 @@ class KinematicPoses:
         self.model = model
         self.q = np.atleast_2d(np.asarray(q, dtype=float))
         if self.q.shape[1] != model.n:
-            raise ValueError(f"q must have shape (m, {model.n}) (rad), got {self.q.shape}")
+            raise UsageError(f"q must have shape (m, {model.n}) (rad), got {self.q.shape}")
         self.free_idx = np.asarray(free_idx, dtype=np.int64)
         if len(np.unique(self.free_idx)) != len(self.free_idx):
-            raise ValueError("free_idx contains duplicates")
+            raise UsageError("free_idx contains duplicates")
         self.offset_joints = np.asarray(offset_joints, dtype=np.int64).reshape(-1)
         if any(model.joint_types[j] != "revolute" for j in self.offset_joints.tolist()):
-            raise ValueError("offset_joints must name revolute joints")
+            raise UsageError("offset_joints must name revolute joints")
         self.rigs0 = np.asarray(T0_cam_first, dtype=float).reshape(-1, 4, 4).copy()
         m = len(self.q)
         self.active = np.ones(m, bool) if active is None else np.asarray(active, bool).copy()
         if self.active.shape != (m,):
-            raise ValueError(f"active must have shape ({m},)")
+            raise UsageError(f"active must have shape ({m},)")
         self.n_configs = m
         self.layout = ViewLayout(m, 1 + len(self.rigs0))
         self.n_views = self.layout.n_views

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from selfcal.camera import STEREO_NAMES
+from selfcal.errors import InputError, UsageError
 from selfcal.target import Features, markers_to_features
 
 __all__ = ["ViewLayout", "Observations", "views_per_point"]
@@ -114,21 +115,21 @@ class Observations:
         uv = np.asarray(self.uv, dtype=float).reshape(-1, 2)
         k = len(cfg)
         if not (len(cam) == len(pt) == len(uv) == k):
-            raise ValueError(
+            raise UsageError(
                 f"Observations arrays differ in length: config {k}, camera {len(cam)}, "
                 f"point {len(pt)}, uv {len(uv)}; give one row per observation"
             )
         if k and (cfg.min() < 0 or cfg.max() >= self.n_configs):
-            raise ValueError(f"config indices must lie in 0..{self.n_configs - 1}")
+            raise UsageError(f"config indices must lie in 0..{self.n_configs - 1}")
         if k and (cam.min() < 0 or cam.max() >= self.n_cameras):
-            raise ValueError(f"camera indices must lie in 0..{self.n_cameras - 1}")
+            raise UsageError(f"camera indices must lie in 0..{self.n_cameras - 1}")
         if k and pt.min() < 0:
-            raise ValueError("feature ids must be >= 0 (see selfcal.target)")
+            raise UsageError("feature ids must be >= 0 (see selfcal.target)")
         if not np.isfinite(uv).all():
-            raise ValueError("uv contains NaN/inf; drop undetected corners instead")
+            raise UsageError("uv contains NaN/inf; drop undetected corners instead")
         key = self.layout.view(cfg, cam) * (int(pt.max()) + 1 if k else 1) + pt
         if len(np.unique(key)) != k:
-            raise ValueError("a point is observed twice in the same view; deduplicate detections")
+            raise UsageError("a point is observed twice in the same view; deduplicate detections")
         for name, val in (("config", cfg), ("camera", cam), ("point", pt), ("uv", uv)):
             val.setflags(write=False)
             object.__setattr__(self, name, val)
@@ -149,12 +150,12 @@ class Observations:
         for (c, camera), f in features.items():
             if isinstance(camera, str):
                 if camera not in names:
-                    raise ValueError(f"camera {camera!r} is not one of {tuple(cameras)}")
+                    raise InputError(f"camera {camera!r} is not one of {tuple(cameras)}")
                 ci = names[camera]
             else:
                 ci = int(camera)
                 if not 0 <= ci < len(cameras):
-                    raise ValueError(f"camera {camera!r} is not an index 0..{len(cameras) - 1}")
+                    raise InputError(f"camera {camera!r} is not an index 0..{len(cameras) - 1}")
             cfg.append(np.full(len(f), int(c)))
             cam.append(np.full(len(f), ci))
             pt.append(f.ids)

@@ -25,6 +25,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from selfcal.errors import UsageError
 from selfcal.estimation.observations import ViewLayout
 from selfcal.transforms import adjoint, make_pose, skew
 
@@ -107,16 +108,16 @@ class FreePoses:
         T0 = np.asarray(T0_cam_world, dtype=float).copy()
         reg = np.asarray(registered, dtype=bool).copy()
         if not (reg[ref_view] and reg[scale_view]) or ref_view == scale_view:
-            raise ValueError("ref_view and scale_view must be two distinct registered views")
+            raise UsageError("ref_view and scale_view must be two distinct registered views")
         if not np.allclose(T0[ref_view], np.eye(4), atol=1e-9):
-            raise ValueError("the reference view's initial pose must be the identity (gauge)")
+            raise UsageError("the reference view's initial pose must be the identity (gauge)")
         self.T0 = T0
         self.registered = reg
         self.ref_view, self.scale_view = int(ref_view), int(scale_view)
         self.n_views = len(T0)
         self.t_norm = float(np.linalg.norm(T0[scale_view, :3, 3]))
         if self.t_norm <= 0:
-            raise ValueError("scale_view coincides with ref_view: zero baseline")
+            raise UsageError("scale_view coincides with ref_view: zero baseline")
         self.basis = _tangent_basis(T0[scale_view, :3, 3] / self.t_norm)
         cols = -np.ones((self.n_views, 6), dtype=np.int64)
         start = 0
@@ -244,13 +245,13 @@ class RigPoses:
         T0 = np.asarray(T0_first_world, dtype=float).copy()
         reg = np.asarray(registered, dtype=bool).copy()
         if not reg[ref_config]:
-            raise ValueError("ref_config must be registered")
+            raise UsageError("ref_config must be registered")
         if not np.allclose(T0[ref_config], np.eye(4), atol=1e-9):
-            raise ValueError("the reference configuration's first pose must be the identity")
+            raise UsageError("the reference configuration's first pose must be the identity")
         self.T0 = T0
         self.rigs0 = np.asarray(T0_cam_first, dtype=float).reshape(-1, 4, 4).copy()
         if len(self.rigs0) == 0:
-            raise ValueError(
+            raise UsageError(
                 "a rig pose model needs at least two cameras (the baseline fixes the scale); "
                 "for one camera use FreePoses"
             )
@@ -261,7 +262,7 @@ class RigPoses:
         self.n_views = self.layout.n_views
         self.baseline = float(np.linalg.norm(self.rigs0[0, :3, 3]))
         if self.baseline <= 0:
-            raise ValueError("the rig baseline must be non-zero")
+            raise UsageError("the rig baseline must be non-zero")
         self.basis = _tangent_basis(self.rigs0[0, :3, 3] / self.baseline)
         self.cfg_idx = np.flatnonzero(reg & (np.arange(self.n_configs) != ref_config))
         start = 6 * len(self.cfg_idx)

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from selfcal.errors import UsageError
 from selfcal.estimation.observations import Observations
 from selfcal.estimation.selfcal_errors import (
     InsufficientDataError,
@@ -132,7 +133,7 @@ def choose_scale_sign(
     C = np.asarray(cam_positions, dtype=float)
     N = np.asarray(nominal_positions, dtype=float)
     if C.shape != N.shape or C.ndim != 2 or C.shape[1] != 3:
-        raise ValueError(
+        raise UsageError(
             f"cam_positions {C.shape} and nominal_positions {N.shape} must both be (n, 3)"
         )
     if len(C) < 3:
@@ -194,7 +195,7 @@ def sign_from_nominal(
     elif nom.shape == (m, n_cam, 3):
         C, N = T_world_cam[..., :3, 3].reshape(-1, 3), nom.reshape(-1, 3)
     else:
-        raise ValueError(f"nominal_cam_positions must be ({m}, 3) or ({m}, {n_cam}, 3)")
+        raise UsageError(f"nominal_cam_positions must be ({m}, 3) or ({m}, {n_cam}, 3)")
     ok = np.isfinite(C).all(axis=1) & np.isfinite(N).all(axis=1)
     choice = choose_scale_sign(k_abs * C[ok], N[ok])
     if choice.ambiguous:

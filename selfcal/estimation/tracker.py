@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from selfcal.errors import InputError
+from selfcal.errors import InputError, UsageError
 from selfcal.estimation.pose_models import so3_left_jacobian
 from selfcal.estimation.tracker_start import initial_placement, mean_rotation, pose_placement
 from selfcal.kinematics.forward import (
@@ -95,7 +95,7 @@ class ChainLayout:
     def __post_init__(self) -> None:
         c = np.asarray(self.coords, dtype=np.int64).reshape(-1)
         if c.shape != (6 * (self.model.n + 1),):
-            raise ValueError(f"coords must have {6 * (self.model.n + 1)} entries, got {c.size}")
+            raise UsageError(f"coords must have {6 * (self.model.n + 1)} entries, got {c.size}")
         object.__setattr__(self, "coords", c)
         object.__setattr__(self, "frame0", np.asarray(self.frame0, dtype=float))
         object.__setattr__(self, "tool0", np.asarray(self.tool0, dtype=float))
@@ -434,7 +434,7 @@ def tracker_terms(
     if poses:
         T = make_pose(np.asarray(meas.R), meas.xyz)
         if sigma_r is None:
-            raise ValueError("tracker poses need sigma_r (rad per unit of residual)")
+            raise InputError("tracker poses need sigma_r (rad per unit of residual)")
         blocks.append(TrackerPoseBlock(layout, meas.q, T, sigma, sigma_r))
     elif meas.m:
         blocks.append(TrackerPositionBlock(layout, meas.q, meas.xyz, sigma))

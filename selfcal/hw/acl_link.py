@@ -18,6 +18,7 @@ from typing import Any, TypeVar
 
 import serial
 
+from selfcal.errors import UsageError
 from selfcal.hw.acl_errors import (
     AclConnectionError,
     AclErrorEvent,
@@ -292,7 +293,7 @@ class AclLink:
         exchange the link first resynchronises on a fresh prompt.
         """
         if "\r" in cmd or "\n" in cmd:
-            raise ValueError(f"an ACL command is one line, got {cmd!r}")
+            raise UsageError(f"an ACL command is one line, got {cmd!r}")
         if self._dirty:
             self.resync()
         self.drain()

@@ -39,7 +39,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from selfcal.errors import InputError
+from selfcal.errors import InputError, InternalError
 from selfcal.hw.emulator_backends import EmulatorBackend
 from selfcal.hw.emulator_controller import AclController
 from selfcal.hw.emulator_transport import PtyPort, TcpPort, Terminal
@@ -189,7 +189,7 @@ class AclEmulator(AclController):
     def camera_sources(self) -> tuple[str, str]:
         """Image-sequence patterns (left, right) for ``selfcal.hw.cameras`` / ``[robot.hardware] cameras``."""
         if self.frames_dir is None:
-            raise RuntimeError("the emulator writes no frames (write_frames=False, no frames_dir)")
+            raise InternalError("the emulator writes no frames (write_frames=False, no frames_dir)")
         return (str(self.frames_dir / "%06d_left.png"), str(self.frames_dir / "%06d_right.png"))
 
     @property
@@ -206,7 +206,7 @@ class AclEmulator(AclController):
         adapter converts counts exactly as the emulated controller does."""
         port = port or self.port
         if port is None:
-            raise RuntimeError("the emulator is not started (no port yet)")
+            raise InternalError("the emulator is not started (no port yet)")
         enc = self.encoders.to_config()
         lines = [
             f'# scenario: [robot] backend = "hardware", model = "{self.backend.model_name}"',

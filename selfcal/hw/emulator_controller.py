@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from selfcal.errors import InputError
+from selfcal.errors import InputError, UsageTypeError
 from selfcal.hw.emulator_backends import EmulatorBackend, KinematicBackend
 from selfcal.hw.emulator_faults import Fault, drop, garble, take_fault
 from selfcal.hw.emulator_motion import ArmMotion, Segment
@@ -67,7 +67,7 @@ class AclController(ArmMotion):
                 )
             encoders = EncoderTable.for_robot(robot)
         if not isinstance(encoders, EncoderTable):
-            raise TypeError(f"encoders must be an EncoderTable, got {type(encoders).__name__}")
+            raise UsageTypeError(f"encoders must be an EncoderTable, got {type(encoders).__name__}")
         super().__init__(backend, encoders, move_speed_deg_s)
         self.limits_deg = np.asarray(self.backend.limits_deg, dtype=float)
         if self.limits_deg.shape != (self.encoders.n, 2):

@@ -19,6 +19,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Protocol
 
+from selfcal.errors import OutputError
+
 __all__ = ["TerminalOwner", "Terminal", "PtyPort", "TcpPort"]
 
 
@@ -135,7 +137,7 @@ class PtyPort:
         link = self.link
         assert link is not None and self.path is not None
         if link.exists() and not link.is_symlink():
-            raise FileExistsError(
+            raise OutputError(
                 f"pty_link {link} exists and is not a symbolic link; not replacing it"
             )
         link.parent.mkdir(parents=True, exist_ok=True)
@@ -157,7 +159,7 @@ class PtyPort:
     def write(self, data: bytes) -> None:
         fd = self._master_fd
         if fd is None:
-            raise OSError("pty closed")
+            raise OutputError("pty closed")
         deadline = time.monotonic() + 1.0
         view = memoryview(data)
         while view:

@@ -16,6 +16,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from selfcal.errors import OutputError
+
 __all__ = [
     "write_bytes_atomic",
     "write_text_atomic",
@@ -79,5 +81,5 @@ def write_image_atomic(path: str | Path, rgb: np.ndarray) -> Path:
     except cv2.error:
         ok = False
     if not ok:
-        raise OSError(f"cannot encode an image of shape {img.shape} as {path.suffix!r}: {path}")
+        raise OutputError(f"cannot encode an image of shape {img.shape} as {path.suffix!r}: {path}")
     return write_bytes_atomic(path, buf.tobytes())

@@ -29,6 +29,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from selfcal.errors import InputError
 from selfcal.io.dataset_info import (
     DATASET_FIX,
     DatasetError,
@@ -392,7 +393,7 @@ class Dataset:
         for r in _read_csv_rows(path):
             try:
                 if len(r) != len(FEATURE_HEADER):
-                    raise ValueError(f"{len(r)} columns, a board's are {FEATURE_HEADER}")
+                    raise InputError(f"{len(r)} columns, a board's are {FEATURE_HEADER}")
                 i, cam, fid, u, v = int(r[0]), r[1], int(r[2]), float(r[3]), float(r[4])
             except (ValueError, IndexError) as exc:
                 raise DatasetError(f"{path}: malformed row {r} ({exc})") from exc

@@ -15,6 +15,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from selfcal.errors import UsageError
+
 __all__ = ["gray_of_png", "FrameCache"]
 
 # libpng's RGB -> gray weights in 1/32768 (0.299, 0.587 and the rest), the sum truncated
@@ -27,7 +29,7 @@ def gray_of_png(image: np.ndarray) -> np.ndarray:
     decoding it."""
     img = np.asarray(image)
     if not _is_png_rgb_or_gray(img):
-        raise ValueError(
+        raise UsageError(
             f"expected a uint8 RGB (H, W, 3) or gray (H, W) image, got {img.dtype} {img.shape}"
         )
     if img.ndim == 2:

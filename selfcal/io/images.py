@@ -43,7 +43,7 @@ def gray8(img: np.ndarray) -> np.ndarray:
     if np.issubdtype(img.dtype, np.floating):
         top = max(float(np.nanmax(img)), 1.0) if img.size else 1.0
         return np.clip(np.rint(np.nan_to_num(img) * (255.0 / top)), 0, 255).astype(np.uint8)
-    raise ValueError(f"{img.dtype} pixels: give 8- or 16-bit or floating-point images")
+    raise InputError(f"{img.dtype} pixels: give 8- or 16-bit or floating-point images")
 
 
 def read_gray_image(path: str | Path) -> np.ndarray | None:

@@ -23,6 +23,7 @@ from typing import Any, ClassVar, TypeVar
 
 import numpy as np
 
+from selfcal.errors import UsageTypeError
 from selfcal.io.jsonfile import Fields
 
 __all__ = ["JsonBlock"]
@@ -91,7 +92,7 @@ def _dump(v: Any, hint: Any) -> Any:
     optional, t = _unwrap(hint)
     if v is None:
         if not optional:
-            raise TypeError(f"None for a field of type {hint}")
+            raise UsageTypeError(f"None for a field of type {hint}")
         return None
     if _is_block(t):
         return v.to_json()
@@ -104,7 +105,7 @@ def _dump(v: Any, hint: Any) -> Any:
         return [_dump(x, args[0]) for x in v]
     if origin is dict and args in ((str, str), (str, float)):
         return {str(k): args[1](x) for k, x in v.items()}
-    raise TypeError(f"no JSON form for fields of type {hint}")
+    raise UsageTypeError(f"no JSON form for fields of type {hint}")
 
 
 def _load(f: Fields, key: str, hint: Any, meta: typing.Mapping[str, Any]) -> Any:
@@ -152,4 +153,4 @@ def _load(f: Fields, key: str, hint: Any, meta: typing.Mapping[str, Any]) -> Any
         if check == "finite" and not all(map(math.isfinite, m.values())):
             raise f.bad(key, "an object of finite numbers", m)
         return m
-    raise TypeError(f"no JSON form for fields of type {hint}")
+    raise UsageTypeError(f"no JSON form for fields of type {hint}")

@@ -261,7 +261,7 @@ class Fields:
     def _map(self, key: builtins.str, want: builtins.str, item: Callable[[Any], Any]) -> Any:
         def conv(v: Any) -> dict[builtins.str, Any]:
             if not isinstance(v, dict):
-                raise TypeError
+                raise InputError
             return {str(k): item(x) for k, x in v.items()}
 
         return self._convert(key, want, conv)
@@ -272,12 +272,12 @@ class Fields:
 
         def conv(v: Any) -> np.ndarray:
             if not isinstance(v, list):
-                raise TypeError
+                raise InputError
             a = np.asarray(v, dtype=float)
             if a.ndim != len(shape) or any(
                 s is not None and s != d for s, d in zip(shape, a.shape)
             ):
-                raise ValueError
+                raise InputError
             return a
 
         return self._convert(key, want, conv)
@@ -317,7 +317,7 @@ def rigid_error(T: np.ndarray) -> str | None:
 def _exact(kind: type) -> Callable[[Any], Any]:
     def conv(v: Any) -> Any:
         if not isinstance(v, kind):
-            raise TypeError
+            raise InputError
         return v
 
     return conv
@@ -325,11 +325,11 @@ def _exact(kind: type) -> Callable[[Any], Any]:
 
 def _int(v: Any) -> int:
     if isinstance(v, bool) or not isinstance(v, int):
-        raise TypeError
+        raise InputError
     return int(v)
 
 
 def _float(v: Any) -> float:
     if isinstance(v, bool) or not isinstance(v, int | float):
-        raise TypeError
+        raise InputError
     return float(v)

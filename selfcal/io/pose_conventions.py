@@ -19,6 +19,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from selfcal.errors import InputError
+
 __all__ = ["CONVENTIONS", "QUATERNION_TOLERANCE", "rotation_matrices", "unit_quaternions"]
 
 CONVENTIONS: dict[str, str] = {
@@ -61,7 +63,7 @@ def rotation_matrices(convention: str, values: np.ndarray) -> np.ndarray:
     elif convention == "ur-rotvec":
         R = Rotation.from_rotvec(v)
     else:
-        raise ValueError(
+        raise InputError(
             f"unknown rotation convention {convention!r}; use one of {list(CONVENTIONS)}"
         )
     return R.as_matrix().reshape(-1, 3, 3)

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from selfcal.errors import InputError
+from selfcal.errors import InputError, UsageTypeError
 from selfcal.io.jsonfile import Fields
 from selfcal.target import ArucoField, Target
 from selfcal.target.aruco_detect import aruco_dictionary
@@ -199,7 +199,7 @@ def target_document(target: Target) -> dict:
     :func:`parse_target` (``parse_target(target_document(t), ...)`` equals ``t`` up to its
     ``source``). Raises ``TypeError`` for a target without a TOML form."""
     if type(target) not in _DOCUMENT:
-        raise TypeError(f"no target TOML for {type(target).__name__}")
+        raise UsageTypeError(f"no target TOML for {type(target).__name__}")
     kind, keys = _DOCUMENT[type(target)]
     doc: dict = {"type": kind}
     for key, attr in keys:

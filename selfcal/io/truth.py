@@ -56,7 +56,7 @@ from typing import Any
 import numpy as np
 
 from selfcal.camera import MODELS, Intrinsics, camera_model, lens_names, opencv_values
-from selfcal.errors import InputError
+from selfcal.errors import InputError, UsageError
 from selfcal.io.jsonfile import SCHEMA_KEY, Fields, check_header, load_json, write_json_atomic
 from selfcal.kinematics.mcpc import COLUMNS, MCPCModel, minimal_indices, param_names
 
@@ -87,7 +87,7 @@ def error_table(nominal: MCPCModel, actual: MCPCModel) -> dict[str, float]:
 
     Raises ``ValueError`` when the models have different joint types."""
     if nominal.joint_types != actual.joint_types:
-        raise ValueError("nominal and actual models have different joint types")
+        raise UsageError("nominal and actual models have different joint types")
     idx = minimal_indices(nominal.joint_types)
     d = (actual.params - nominal.params).reshape(-1)[idx]
     return {k: float(v) for k, v in zip(param_names(idx), d, strict=True)}

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from selfcal.errors import UsageError
 from selfcal.kinematics.forward import fk_tool
 from selfcal.kinematics.mcpc import (
     MCPCModel,
@@ -103,10 +104,10 @@ def minimal_difference(a: MCPCModel, b: MCPCModel) -> np.ndarray:
             :func:`express_in_frame` ``like=`` the other first).
     """
     if a.joint_types != b.joint_types:
-        raise ValueError("models have different joint types")
+        raise UsageError("models have different joint types")
     if not np.allclose(np.r_[a.joint_offsets, a.base_offset], np.r_[b.joint_offsets, b.base_offset],
                        atol=1e-12):  # fmt: skip
-        raise ValueError(
+        raise UsageError(
             "models use different joint offsets, so their parameters are not comparable; "
             "re-express one with express_in_frame(model, T, like=other)"
         )

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from selfcal.errors import SelfCalWarning
+from selfcal.errors import InputError, SelfCalWarning
 from selfcal.kinematics.forward import fk_frames
 from selfcal.kinematics.mcpc import MCPCModel, nominal_mcpc
 from selfcal.robot.definition import DHParams, RobotDef
@@ -173,7 +173,7 @@ def dh_table(
         return None, NO_TABLE_FOR_URDF
     convention = robot.convention if convention is None else convention
     if convention not in ("dh", "mdh"):
-        raise ValueError(f"convention must be 'dh' or 'mdh', got {convention!r}")
+        raise InputError(f"convention must be 'dh' or 'mdh', got {convention!r}")
     nominal, frame0 = view
     out = _dh_impl(model, nominal, parallel_tol_deg, exact_parallel_rad)
     if isinstance(out, str):
@@ -212,7 +212,7 @@ def _axes_frame(model: MCPCModel, parallel_tol_deg: float) -> np.ndarray:
     c = np.cross(z1, z2)
     s = float(np.linalg.norm(c))
     if s < np.sin(np.radians(parallel_tol_deg)):
-        raise ValueError(
+        raise InputError(
             f"axes of joints 1 and 2 are {np.degrees(np.arcsin(min(s, 1.0))):.4g} deg from "
             f"parallel (< {parallel_tol_deg} deg): their common normal is undefined"
         )
@@ -242,12 +242,12 @@ def canonical_base(
         ValueError: prismatic joints, or axes 1 and 2 nearly parallel.
     """
     if any(t != "revolute" for t in model.joint_types[:2]):
-        raise ValueError("no canonical base frame: joints 1 and 2 must be revolute")
+        raise InputError("no canonical base frame: joints 1 and 2 must be revolute")
     nominal = _axes_frame(nominal_mcpc(robot), parallel_tol_deg)
     try:
         return _axes_frame(model, parallel_tol_deg) @ inv_pose(nominal)
     except ValueError as exc:
-        raise ValueError(f"no canonical base frame: {exc}") from exc
+        raise InputError(f"no canonical base frame: {exc}") from exc
 
 
 def _dh_impl(
@@ -259,10 +259,10 @@ def _dh_impl(
     """The standard-DH table, or the reason why none exists (a string naming the nearly parallel
     axes). ``nominal``: the robot's standard-DH rows (free choices and signs follow them)."""
     if any(t != "revolute" for t in model.joint_types):
-        raise ValueError("to_dh supports revolute joints only")
+        raise InputError("to_dh supports revolute joints only")
     n = model.n
     if nominal.n != n:
-        raise ValueError(f"model has {n} joints, the robot's table {nominal.n}")
+        raise InputError(f"model has {n} joints, the robot's table {nominal.n}")
     F = fk_frames(model, np.zeros((1, n)))[0]
     z = [F[k, :3, 2] for k in range(n)]  # axis k+1 direction
     p = [F[k, :3, 3] for k in range(n)]  # a point on axis k+1
@@ -285,7 +285,7 @@ def _dh_impl(
             w = p[k + 1] - base
             w = w - (w @ zi) * zi
             if np.linalg.norm(w) < 1e-12:
-                raise ValueError(f"axes of joints {k + 1} and {k + 2} coincide: DH undefined")
+                raise InputError(f"axes of joints {k + 1} and {k + 2} coincide: DH undefined")
             return w / np.linalg.norm(w), base, base + w
         # closest points P = p_k + t zi, Q = p_{k+1} + u zj
         b = zi @ zj

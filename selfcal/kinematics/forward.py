@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from selfcal.errors import UsageError
 from selfcal.kinematics.mcpc import MCPCModel, shape_matrices
 from selfcal.robot.chain import chain_frames, dh_frames
 from selfcal.robot.definition import RobotDef
@@ -42,7 +43,7 @@ def motion_matrices(model: MCPCModel, q: np.ndarray) -> np.ndarray:
 def _check_q(model: MCPCModel, q: np.ndarray) -> np.ndarray:
     q = np.atleast_2d(np.asarray(q, dtype=float))
     if q.ndim != 2 or q.shape[1] != model.n:
-        raise ValueError(f"joint array must have shape (m, {model.n}), got {np.shape(q)}")
+        raise UsageError(f"joint array must have shape (m, {model.n}), got {np.shape(q)}")
     return q
 
 

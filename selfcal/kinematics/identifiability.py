@@ -36,6 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
+from selfcal.errors import InputError, UsageError
 from selfcal.kinematics.forward import identification_jacobian
 from selfcal.kinematics.mcpc import MCPCModel, minimal_indices, param_is_angle, param_names
 
@@ -108,11 +109,11 @@ def pose_sigmas(
         try:
             out[:, cols] = np.broadcast_to(s, (m, 3))
         except ValueError as exc:
-            raise ValueError(
+            raise UsageError(
                 f"{what} must be a scalar, shape ({m},) or ({m}, 3); got shape {s.shape}"
             ) from exc
     if not np.all(np.isfinite(out)) or np.any(out <= 0):
-        raise ValueError("sigma_t_m and sigma_r_rad must be positive and finite")
+        raise InputError("sigma_t_m and sigma_r_rad must be positive and finite")
     return out
 
 
@@ -189,7 +190,7 @@ def analyse_identifiability(
     names = tuple(param_names(idx))
     unknown = [h for h in hold if h not in names]
     if unknown:
-        raise ValueError(f"cannot hold {unknown}: not minimal parameters; valid names: {names}")
+        raise InputError(f"cannot hold {unknown}: not minimal parameters; valid names: {names}")
     considered = np.array([nm not in set(hold) for nm in names])
     sig = pose_sigmas(sigma_t_m, sigma_r_rad, q.shape[0])
     J = identification_jacobian(model, q)[:, :, idx] / sig[:, :, None]

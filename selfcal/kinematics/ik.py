@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from selfcal.errors import InputError
+from selfcal.errors import InputError, InternalError
 from selfcal.kinematics.forward import fk_nominal
 from selfcal.kinematics.tool_pose import AXIS_EPS_M, pitch_roll, tool_rotation
 from selfcal.robot.definition import DHParams, RobotDef
@@ -168,10 +168,10 @@ def _violation(robot: RobotDef, j: int, v: float) -> str:
 def _as_target(xyz_m, pitch_rad, roll_rad) -> tuple[np.ndarray, float, float]:
     p = np.asarray(xyz_m, dtype=float)
     if p.shape != (3,):
-        raise ValueError(f"xyz_m must be a 3-vector (m), got shape {p.shape}")
+        raise InputError(f"xyz_m must be a 3-vector (m), got shape {p.shape}")
     pitch, roll = float(pitch_rad), float(roll_rad)
     if not (np.all(np.isfinite(p)) and np.isfinite(pitch) and np.isfinite(roll)):
-        raise ValueError(f"IK target must be finite, got xyz={p}, pitch={pitch}, roll={roll}")
+        raise InputError(f"IK target must be finite, got xyz={p}, pitch={pitch}, roll={roll}")
     return p, pitch, roll
 
 
@@ -271,7 +271,7 @@ def ik(
             # Guard against silent errors: the solution must reproduce the target.
             T = fk_nominal(robot, q[None])[0, -1]
             if np.linalg.norm(T[:3, 3] - p) > 1e-9 or np.linalg.norm(T[:3, 2] - z_goal) > 1e-9:
-                raise RuntimeError(
+                raise InternalError(
                     f"{robot.name}: IK branch {name} does not reproduce the target "
                     f"(position error {np.linalg.norm(T[:3, 3] - p):.3g} m); this is a bug"
                 )
@@ -331,11 +331,11 @@ def ik_nearest(
 def _joint_index(robot: RobotDef, key: int | str) -> int:
     if isinstance(key, str):
         if key not in robot.joint_names:
-            raise ValueError(f"{robot.name}: unknown joint {key!r}; joints: {robot.joint_names}")
+            raise InputError(f"{robot.name}: unknown joint {key!r}; joints: {robot.joint_names}")
         return robot.joint_names.index(key)
     j = int(key)
     if not 0 <= j < robot.n:
-        raise ValueError(f"{robot.name}: joint index {key} must be in 0..{robot.n - 1} (0 = base)")
+        raise InputError(f"{robot.name}: joint index {key} must be in 0..{robot.n - 1} (0 = base)")
     return j
 
 
@@ -364,7 +364,7 @@ def nearest_reachable(
 
     p = np.asarray(xyz_m, dtype=float)
     if p.shape != (3,) or not np.all(np.isfinite(p)):
-        raise ValueError(f"xyz_m must be a finite 3-vector (m), got {xyz_m!r}")
+        raise InputError(f"xyz_m must be a finite 3-vector (m), got {xyz_m!r}")
     q0 = np.clip(robot.home.astype(float), robot.limits[:, 0], robot.limits[:, 1])
     fixed_idx = []
     for key, val in (fixed or {}).items():

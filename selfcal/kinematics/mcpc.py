@@ -22,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from selfcal.errors import InputError, UsageError
 from selfcal.robot.definition import RobotDef
 from selfcal.transforms import (
     rot_x,
@@ -133,13 +134,13 @@ def gauge_fix(
     n = len(joint_types)
     G = [np.asarray(g, dtype=float) for g in G]
     if len(G) != n + 1:
-        raise ValueError(f"need {n + 1} transforms for {n} joints, got {len(G)}")
+        raise UsageError(f"need {n + 1} transforms for {n} joints, got {len(G)}")
     out = np.zeros((n + 1, 6))
     impose = offsets is not None
     offsets = np.zeros(n) if offsets is None else np.asarray(offsets, dtype=float).copy()
     carry = rot_z(-base_offset)
     if abs((carry @ G[0])[0, 2]) > 0.999:
-        raise ValueError(
+        raise InputError(
             "the world frame's x-axis is (nearly) parallel to joint 1's axis: the MCPC base "
             "parameters are singular there; give a base_offset (selfcal.kinematics.mcpc.base_offset_for)"
         )

@@ -26,6 +26,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from selfcal.errors import InputError, UsageError
+
 __all__ = ["AXIS_EPS_M", "tool_pose", "tool_rotation", "tool_frame", "pitch_roll", "radial_dir"]
 
 #: Tool points closer than this to the base axis (m) use the supplied joint-1 azimuth for ``r_hat``.
@@ -54,7 +56,7 @@ def radial_dir(xyz_m: np.ndarray, azimuth_rad: np.ndarray | float | None = None)
     az = np.arctan2(xyz[..., 1], xyz[..., 0])
     if np.any(on_axis):
         if azimuth_rad is None:
-            raise ValueError(
+            raise InputError(
                 "tool point lies on the base axis, where pitch/roll are measured from the arm's "
                 "joint-1 direction: pass azimuth_rad (for a DH robot q_1 + offset_1)"
             )
@@ -80,7 +82,7 @@ def pitch_roll(R_world_tool: np.ndarray, r_hat: np.ndarray) -> tuple[np.ndarray,
     ref = np.cross(z, h)
     nrm = np.linalg.norm(ref, axis=-1)
     if np.any(nrm < 1e-9):
-        raise ValueError(
+        raise InputError(
             "tool axis is perpendicular to the vertical plane through the base axis and the tool "
             "point: roll is undefined there"
         )
@@ -102,7 +104,7 @@ def tool_pose(
     """
     T = np.asarray(T_world_tool, dtype=float)
     if T.shape[-2:] != (4, 4):
-        raise ValueError(f"T_world_tool must have shape (..., 4, 4), got {T.shape}")
+        raise UsageError(f"T_world_tool must have shape (..., 4, 4), got {T.shape}")
     xyz = T[..., :3, 3]
     pitch, roll = pitch_roll(T[..., :3, :3], radial_dir(xyz, azimuth_rad))
     return xyz.copy(), pitch, roll

@@ -21,7 +21,7 @@ import numpy as np
 from selfcal.calibration.board.evaluate import read_evaluation
 from selfcal.calibration.field.evaluate import nominal_reference
 from selfcal.calibration.field.holdout import leave_poses_out
-from selfcal.errors import SelfCalError
+from selfcal.errors import EXIT_INTERNAL, SelfCalError
 from selfcal.io.board_calibration import BoardCalibrationResult
 from selfcal.io.calibration import CalibrationResult
 from selfcal.kinematics.accuracy import parameter_table
@@ -44,6 +44,8 @@ def _held_out(root: Path, method: str, every: int) -> dict:
     try:
         h = leave_poses_out(root, every=every, method=method)
     except SelfCalError as exc:
+        if exc.exit_code == EXIT_INTERNAL:  # a bug, not a finding about the data
+            raise
         return {"source": "leave-poses-out", "error": str(exc)}
     ev = h.evaluation
     return {

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from selfcal.errors import InputError
 from selfcal.transforms import rot_x, rot_z, trans
 
 __all__ = ["CONVENTIONS", "DHParams", "dh_chain", "dh_frames", "chain_frames"]
@@ -54,10 +55,10 @@ class DHParams:
 
     def __post_init__(self) -> None:
         if self.convention not in CONVENTIONS:
-            raise ValueError(f"convention must be one of {CONVENTIONS}, got {self.convention!r}")
+            raise InputError(f"convention must be one of {CONVENTIONS}, got {self.convention!r}")
         shapes = {np.shape(v) for v in (self.alpha, self.a, self.d, self.offset)}
         if len(shapes) != 1 or len(shapes.pop()) != 1:
-            raise ValueError("alpha, a, d and offset must be 1-D arrays of one length")
+            raise InputError("alpha, a, d and offset must be 1-D arrays of one length")
 
     @property
     def n(self) -> int:

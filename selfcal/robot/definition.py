@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from selfcal.errors import InputError
+from selfcal.errors import InputError, UsageError
 from selfcal.robot.chain import DHParams, dh_chain
 from selfcal.robot.encoder import EncoderSpec, encoder_spec
 from selfcal.robot.tables import (
@@ -401,5 +401,5 @@ def _assemble(path: Path, data: dict, kin: Kinematics, T_flange_cam: np.ndarray)
 def with_dh(robot: RobotDef, dh: DHParams) -> RobotDef:
     """A copy of ``robot`` whose nominal chain is the table ``dh`` (e.g. a perturbed table)."""
     if dh.n != robot.n:
-        raise ValueError(f"{robot.name} has {robot.n} joints, the table {dh.n} rows")
+        raise UsageError(f"{robot.name} has {robot.n} joints, the table {dh.n} rows")
     return replace(robot, dh=dh, chain=dh_chain(dh))

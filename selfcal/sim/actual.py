@@ -15,7 +15,7 @@ import re
 
 import numpy as np
 
-from selfcal.errors import InputError
+from selfcal.errors import InputError, UsageError
 from selfcal.io.truth import Truth, error_table
 from selfcal.kinematics.mcpc import (
     COLUMNS,
@@ -108,7 +108,7 @@ def make_truth(
 ) -> Truth:
     """The ground-truth header for a simulated ``robot`` with chain ``actual`` (no frames yet)."""
     if nominal.joint_types != actual.joint_types or nominal.n != robot.n:
-        raise ValueError("robot, nominal and actual models disagree on the joints")
+        raise UsageError("robot, nominal and actual models disagree on the joints")
     return Truth(
         robot_model=robot.name,
         joint_names=tuple(robot.joint_names),

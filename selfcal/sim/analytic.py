@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from selfcal.camera import CameraModel, Visibility, project
+from selfcal.errors import UsageError
 from selfcal.target.boards import Board
 from selfcal.transforms import inv_pose
 
@@ -43,7 +44,7 @@ def project_markers(
         ``{marker id: (4, 2) corners}``.
     """
     if pixel_sigma > 0 and rng is None:
-        raise ValueError("pixel_sigma > 0 needs a random generator (rng) for reproducibility")
+        raise UsageError("pixel_sigma > 0 needs a random generator (rng) for reproducibility")
     rule = visibility or Visibility()
     T = np.asarray(T_world_cam, dtype=float)
     ok = rule.markers(intr, T[None], corners_world, normals_world)[0]
@@ -81,7 +82,7 @@ def project_board(
         circles grid) a view without every feature).
     """
     if pixel_sigma > 0 and rng is None:
-        raise ValueError("pixel_sigma > 0 needs a random generator (rng) for reproducibility")
+        raise UsageError("pixel_sigma > 0 needs a random generator (rng) for reproducibility")
     rule = visibility or Visibility()
     ids, pts = board.layout()
     Tb = np.asarray(T_world_board, dtype=float)

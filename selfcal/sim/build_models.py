@@ -32,6 +32,7 @@ import cv2
 import mujoco
 import numpy as np
 
+from selfcal.errors import OutputError
 from selfcal.kinematics.trajectory import home_target_center
 from selfcal.robot.definition import (
     DEFAULT_PICTURE_VIEW,
@@ -270,7 +271,7 @@ def write_models(out_dir: Path | None = None) -> list[Path]:
         for rel, img in _marker_assets(field).items():
             p = folder / rel
             if not cv2.imwrite(str(p), np.ascontiguousarray(img[:, :, ::-1])):
-                raise OSError(f"could not write {p}")
+                raise OutputError(f"could not write {p}")
             written.append(p)
         p = folder / "scene.xml"
         p.write_text(
@@ -334,7 +335,7 @@ def render_picture(
         )
     out_path = Path(out_path)
     if not cv2.imwrite(str(out_path), img[:, :, ::-1]):
-        raise OSError(f"could not write {out_path}")
+        raise OutputError(f"could not write {out_path}")
     return out_path
 
 

@@ -14,7 +14,7 @@ import dataclasses
 
 import numpy as np
 
-from selfcal.errors import InputError
+from selfcal.errors import InputError, UsageError
 from selfcal.io.target_toml import target_document
 from selfcal.io.truth import Truth
 from selfcal.kinematics.forward import fk_tool
@@ -71,7 +71,7 @@ class KinematicRobot:
         self.nominal = nominal_camera_model(self.robot)
         self.actual = self.nominal if actual is None else actual
         if self.actual.joint_types != self.robot.joint_types:
-            raise ValueError(
+            raise UsageError(
                 f"actual model joints {self.actual.joint_types} do not match {self.model_name}"
             )
         self.rig = RigConfig() if rig is None else rig

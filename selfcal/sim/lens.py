@@ -19,6 +19,7 @@ import cv2
 import numpy as np
 
 from selfcal.camera import LensCamera, Pinhole
+from selfcal.errors import InputError, UsageError
 
 __all__ = ["source_pinhole", "LensRemap", "needs_remap"]
 
@@ -36,7 +37,7 @@ def _rays(camera: Pinhole) -> np.ndarray:
     u, v = np.meshgrid(np.arange(camera.width, dtype=float), np.arange(camera.height, dtype=float))
     xn = camera.unproject(np.stack([u, v], axis=-1))
     if not np.isfinite(xn).all():
-        raise ValueError(
+        raise InputError(
             f"the lens of {camera} cannot be inverted over the whole image (the distortion "
             "folds over): use smaller coefficients"
         )
@@ -76,7 +77,7 @@ class LensRemap:
     def __call__(self, image: np.ndarray) -> np.ndarray:
         """The lens camera's image (H, W[, C]) of the source image (source H, W[, C])."""
         if image.shape[:2] != (self.source.height, self.source.width):
-            raise ValueError(
+            raise UsageError(
                 f"source image {image.shape[1]}x{image.shape[0]} px, expected "
                 f"{self.source.width}x{self.source.height}"
             )

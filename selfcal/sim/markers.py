@@ -47,7 +47,7 @@ def aruco_dictionary(name: str) -> cv2.aruco.Dictionary:
     code = getattr(cv2.aruco, name, None) if name.startswith("DICT_") else None
     if not isinstance(code, int):
         valid = sorted(n for n in dir(cv2.aruco) if n.startswith("DICT_"))
-        raise ValueError(f"unknown ArUco dictionary {name!r}; choose one of {valid}")
+        raise InputError(f"unknown ArUco dictionary {name!r}; choose one of {valid}")
     return cv2.aruco.getPredefinedDictionary(code)
 
 
@@ -69,9 +69,9 @@ def marker_texture_rgb(
     d = aruco_dictionary(dictionary)
     n_ids = d.bytesList.shape[0]
     if not 0 <= int(marker_id) < n_ids:
-        raise ValueError(f"marker id {marker_id} outside {dictionary} (0..{n_ids - 1})")
+        raise InputError(f"marker id {marker_id} outside {dictionary} (0..{n_ids - 1})")
     if pixels_per_module < 1 or quiet_zone_modules < 0:
-        raise ValueError("pixels_per_module must be >= 1 and quiet_zone_modules >= 0")
+        raise InputError("pixels_per_module must be >= 1 and quiet_zone_modules >= 0")
     side = (d.markerSize + 2) * pixels_per_module
     img = cv2.aruco.generateImageMarker(d, int(marker_id), side, borderBits=1)
     q = quiet_zone_modules * pixels_per_module
@@ -114,16 +114,16 @@ class MarkerField:
         T = np.asarray(self.T_world_marker, dtype=float)
         k = ids.shape[0]
         if ids.ndim != 1 or len(set(ids.tolist())) != k:
-            raise ValueError("ids must be a 1-D array of distinct marker ids")
+            raise InputError("ids must be a 1-D array of distinct marker ids")
         if T.shape != (k, 4, 4):
-            raise ValueError(f"T_world_marker must have shape ({k}, 4, 4), got {T.shape}")
+            raise InputError(f"T_world_marker must have shape ({k}, 4, 4), got {T.shape}")
         if len(self.scale_ids) != 2 or not set(self.scale_ids) <= set(ids.tolist()):
-            raise ValueError(f"scale_ids {self.scale_ids} must be two ids present in ids")
+            raise InputError(f"scale_ids {self.scale_ids} must be two ids present in ids")
         if self.size_m <= 0 or self.scale_length_m <= 0:
-            raise ValueError("size_m and scale_length_m must be positive (metres)")
+            raise InputError("size_m and scale_length_m must be positive (metres)")
         n_ids = aruco_dictionary(self.dictionary).bytesList.shape[0]
         if ids.min() < 0 or ids.max() >= n_ids:
-            raise ValueError(f"ids must lie in 0..{n_ids - 1} for {self.dictionary}")
+            raise InputError(f"ids must lie in 0..{n_ids - 1} for {self.dictionary}")
         object.__setattr__(self, "ids", ids)
         object.__setattr__(self, "T_world_marker", T)
         object.__setattr__(self, "support_height_m", np.asarray(self.support_height_m, float))
@@ -143,7 +143,7 @@ class MarkerField:
         """Row of ``marker_id`` in ``ids``; raises ``KeyError`` if absent."""
         hits = np.flatnonzero(self.ids == int(marker_id))
         if hits.size == 0:
-            raise KeyError(f"marker id {marker_id} is not in the field")
+            raise InputError(f"marker id {marker_id} is not in the field")
         return int(hits[0])
 
     def corners_marker(self) -> np.ndarray:
@@ -195,7 +195,7 @@ class MarkerField:
                 meta=dict(d.get("meta", {})),
             )
         except KeyError as e:
-            raise KeyError(f"marker field dict lacks key {e.args[0]!r}") from None
+            raise InputError(f"marker field dict lacks key {e.args[0]!r}") from None
 
 
 def _rect_corners(cx: float, cy: float, yaw: float, half_l: float, half_w: float) -> np.ndarray:

@@ -34,6 +34,7 @@ import mujoco
 import numpy as np
 
 from selfcal.camera import Intrinsics
+from selfcal.errors import InputError
 from selfcal.sim.lens import source_pinhole
 
 __all__ = [
@@ -52,12 +53,12 @@ R_CV_TO_MJ = np.diag([1.0, -1.0, -1.0])
 def _check_pose(T: np.ndarray, what: str) -> np.ndarray:
     T = np.asarray(T, dtype=float)
     if T.shape != (4, 4):
-        raise ValueError(f"{what} must be a 4x4 homogeneous transform, got shape {T.shape}")
+        raise InputError(f"{what} must be a 4x4 homogeneous transform, got shape {T.shape}")
     R = T[:3, :3]
     if not np.allclose(R.T @ R, np.eye(3), atol=1e-9) or np.linalg.det(R) < 0:
-        raise ValueError(f"{what} rotation is not a proper rotation matrix (orthonormalise it)")
+        raise InputError(f"{what} rotation is not a proper rotation matrix (orthonormalise it)")
     if not np.allclose(T[3], [0.0, 0.0, 0.0, 1.0]):
-        raise ValueError(f"{what} last row must be [0, 0, 0, 1], got {T[3]}")
+        raise InputError(f"{what} last row must be [0, 0, 0, 1], got {T[3]}")
     return T
 
 
@@ -77,9 +78,9 @@ def add_camera(
     T = _check_pose(T_body_cam, "T_body_cam")
     intr = source_pinhole(intr)
     if not (intr.fx > 0 and intr.fy > 0):
-        raise ValueError(f"focal lengths must be positive, got fx={intr.fx}, fy={intr.fy}")
+        raise InputError(f"focal lengths must be positive, got fx={intr.fx}, fy={intr.fy}")
     if intr.width <= 0 or intr.height <= 0:
-        raise ValueError(f"image size must be positive, got {intr.width}x{intr.height}")
+        raise InputError(f"image size must be positive, got {intr.width}x{intr.height}")
     R_mj = T[:3, :3] @ R_CV_TO_MJ
     quat = np.zeros(4)
     mujoco.mju_mat2Quat(quat, R_mj.reshape(-1))
@@ -102,7 +103,7 @@ def camera_id(model: mujoco.MjModel, camera_name: str) -> int:
     cid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, camera_name)
     if cid < 0:
         names = [model.camera(i).name for i in range(model.ncam)]
-        raise KeyError(f"no camera named {camera_name!r} in the model; cameras: {names}")
+        raise InputError(f"no camera named {camera_name!r} in the model; cameras: {names}")
     return cid
 
 
@@ -128,7 +129,7 @@ def intrinsics_from_model(model: mujoco.MjModel, camera_name: str) -> Intrinsics
     W, H = (int(v) for v in model.cam_resolution[cid])
     sw, sh = (float(v) for v in model.cam_sensorsize[cid])
     if sw <= 0 or sh <= 0:
-        raise ValueError(
+        raise InputError(
             f"camera {camera_name!r} has no sensor size (fovy-only camera); "
             "create it with selfcal.sim.mj_camera.add_camera"
         )
@@ -148,11 +149,11 @@ def look_at_cv(eye: np.ndarray, target: np.ndarray, up: np.ndarray = (0.0, 0.0, 
     eye, target, up = (np.asarray(v, dtype=float) for v in (eye, target, up))
     z = target - eye
     if np.linalg.norm(z) < 1e-12:
-        raise ValueError("eye and target coincide")
+        raise InputError("eye and target coincide")
     z /= np.linalg.norm(z)
     y = -(up - (up @ z) * z)
     if np.linalg.norm(y) < 1e-9:
-        raise ValueError("viewing direction is parallel to 'up'; pass another up vector")
+        raise InputError("viewing direction is parallel to 'up'; pass another up vector")
     y /= np.linalg.norm(y)
     T = np.eye(4)
     T[:3, :3] = np.column_stack([np.cross(y, z), y, z])

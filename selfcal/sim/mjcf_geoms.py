@@ -11,6 +11,8 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
+from selfcal.errors import InternalError
+
 __all__ = ["GeomBuilder", "add_defaults_and_materials", "set_pose", "unit", "box_frame"]
 
 _ORANGE = (0.93, 0.45, 0.06, 1.0)
@@ -45,7 +47,7 @@ def _perp(v: np.ndarray, hint: np.ndarray) -> np.ndarray:
         w = h - (h @ v) * v
         if np.linalg.norm(w) > 1e-6:
             return unit(w)
-    raise AssertionError("unreachable")
+    raise InternalError("unreachable")
 
 
 def box_frame(x_dir: np.ndarray, z_hint: np.ndarray) -> np.ndarray:

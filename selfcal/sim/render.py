@@ -25,6 +25,7 @@ import mujoco
 import numpy as np
 
 from selfcal.camera import Pinhole
+from selfcal.errors import InputError, InternalError, UsageError
 from selfcal.sim.lens import LensRemap, needs_remap
 from selfcal.sim.mj_camera import camera_id
 
@@ -59,7 +60,7 @@ class StereoRenderer:
         self.width, self.height = int(width), int(height)
         self.camera_names = tuple(camera_names)
         if lenses is not None and len(lenses) != len(self.camera_names):
-            raise ValueError(f"{len(lenses)} lenses for {len(self.camera_names)} cameras")
+            raise UsageError(f"{len(lenses)} lenses for {len(self.camera_names)} cameras")
         self._remaps = [
             LensRemap(c) if c is not None and needs_remap(c) else None for c in (lenses or ())
         ] or [None] * len(self.camera_names)
@@ -72,7 +73,7 @@ class StereoRenderer:
             cid = camera_id(model, name)
             res = tuple(int(v) for v in model.cam_resolution[cid])
             if res != size:
-                raise ValueError(
+                raise InputError(
                     f"camera {name!r} was built for {res[0]}x{res[1]} pixels, renderer is "
                     f"{size[0]}x{size[1]}: the intrinsics would not hold"
                 )
@@ -82,7 +83,7 @@ class StereoRenderer:
             self._cams.append(cam)
         gw, gh = max(w for w, _ in sizes), max(h for _, h in sizes)
         if gw > model.vis.global_.offwidth or gh > model.vis.global_.offheight:
-            raise ValueError(
+            raise InputError(
                 f"image {gw}x{gh} exceeds the offscreen buffer "
                 f"{model.vis.global_.offwidth}x{model.vis.global_.offheight}; "
                 "build the spec with selfcal.sim.scene.configure_visual(spec, width, height)"
@@ -118,9 +119,9 @@ class StereoRenderer:
         0-255 scale) to every channel, then rounds and clips; ``rng`` makes it reproducible.
         """
         if self._ctx is None:
-            raise RuntimeError("StereoRenderer is closed")
+            raise InternalError("StereoRenderer is closed")
         if image_sigma < 0:
-            raise ValueError(f"image_sigma must be >= 0, got {image_sigma}")
+            raise InputError(f"image_sigma must be >= 0, got {image_sigma}")
         self._gl.make_current()
         out = []
         for k, cam in enumerate(self._cams):
@@ -143,7 +144,7 @@ class StereoRenderer:
         """``(left_rgb, right_rgb)`` uint8 (H, W, 3) for the first two cameras; see
         :meth:`render_all` for ``image_sigma`` and ``rng``."""
         if len(self._cams) != 2:
-            raise ValueError(
+            raise UsageError(
                 f"render() needs exactly two cameras, this renderer has {len(self._cams)}; "
                 "use render_all()"
             )

@@ -34,6 +34,7 @@ import mujoco
 import numpy as np
 
 from selfcal.camera import Intrinsics
+from selfcal.errors import InputError, UsageError
 from selfcal.kinematics.mcpc import MCPCModel
 from selfcal.robot.definition import RobotDef
 from selfcal.sim.capsule_shapes import link_radius, shape_capsule_base, shape_capsule_links
@@ -95,7 +96,7 @@ class RigConfig:
     def __post_init__(self) -> None:
         T = np.asarray(self.T_left_right, dtype=float)
         if T.shape != (4, 4) or not np.allclose(T[:3, :3].T @ T[:3, :3], np.eye(3), atol=1e-9):
-            raise ValueError("T_left_right must be a rigid 4x4 transform (OpenCV frames, m)")
+            raise InputError("T_left_right must be a rigid 4x4 transform (OpenCV frames, m)")
         object.__setattr__(self, "T_left_right", T)
 
     @property
@@ -123,11 +124,11 @@ def add_robot(spec: mujoco.MjSpec, robot: RobotDef, model: MCPCModel, rig: RigCo
     holds a robot.
     """
     if model.joint_types != robot.joint_types:
-        raise ValueError(
+        raise UsageError(
             f"model joint types {model.joint_types} do not match {robot.name}'s {robot.joint_types}"
         )
     if any(b.name == "base" for b in spec.bodies):
-        raise ValueError("spec already contains a robot (body 'base'); add it once")
+        raise UsageError("spec already contains a robot (body 'base'); add it once")
     spec.compiler.degree = False  # all angles below are radians
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
     spec.option.timestep = 0.002

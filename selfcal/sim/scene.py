@@ -12,6 +12,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
+from selfcal.errors import InputError, UsageError
 from selfcal.sim.markers import BLOCK_MARGIN_M, MARKER_THICKNESS_M, MarkerField, marker_texture_rgb
 
 __all__ = ["add_scene", "scene_spec", "configure_visual", "PIXELS_PER_MODULE"]
@@ -43,7 +44,7 @@ def configure_visual(
     planes do not change when the robot is attached.
     """
     if width <= 0 or height <= 0:
-        raise ValueError(f"image size must be positive, got {width}x{height}")
+        raise InputError(f"image size must be positive, got {width}x{height}")
     vis = spec.visual
     vis.global_.offwidth = max(int(width), int(vis.global_.offwidth))
     vis.global_.offheight = max(int(height), int(vis.global_.offheight))
@@ -73,7 +74,7 @@ def add_scene(
     Raises ``ValueError`` if ``spec`` already holds scene elements (e.g. called twice).
     """
     if any(g.name == "table" for g in spec.geoms):
-        raise ValueError("spec already contains a scene (geom 'table'); call add_scene once")
+        raise UsageError("spec already contains a scene (geom 'table'); call add_scene once")
     wb = spec.worldbody
 
     # table: a neutral, slightly mottled plane (no straight edges or squares)

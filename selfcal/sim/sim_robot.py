@@ -14,7 +14,7 @@ from concurrent.futures import Future, ThreadPoolExecutor
 import mujoco
 import numpy as np
 
-from selfcal.errors import InputError
+from selfcal.errors import InputError, InternalError
 from selfcal.kinematics.mcpc import MCPCModel
 from selfcal.robot.definition import RobotDef
 from selfcal.robot.interface import StereoPair
@@ -101,7 +101,7 @@ class SimRobot(KinematicRobot):
         ahead, self._next_noise = self._next_noise, None
         z = ahead.result() if ahead is not None else self._draw_noise(shapes)
         if [f.shape for f in z] != shapes:  # pragma: no cover - one renderer, fixed sizes
-            raise RuntimeError(f"noise drawn for images {[f.shape for f in z]}, got {shapes}")
+            raise InternalError(f"noise drawn for images {[f.shape for f in z]}, got {shapes}")
         if self._noise_pool is None:
             self._noise_pool = ThreadPoolExecutor(1, thread_name_prefix="image-noise")
         self._next_noise = self._noise_pool.submit(self._draw_noise, shapes)

@@ -28,6 +28,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
+from selfcal.errors import SolverError, UsageError
 from selfcal.solver.problem import Evaluation, Problem
 from selfcal.solver.schur import SchurAssembler
 
@@ -40,8 +41,9 @@ problems use sparse matrices and SuperLU (or the Schur form when an elimination 
 _CHUNK = 8192  # residual rows per bincount pass (bounds the memory of the index arrays)
 
 
-class SingularSystem(RuntimeError):
-    """The damped normal equations could not be factored or gave a non-finite step."""
+class SingularSystem(SolverError):
+    """The damped normal equations could not be factored or gave a non-finite step (a
+    :class:`~selfcal.errors.SolverError`, so a ``RuntimeError``)."""
 
 
 @dataclass
@@ -263,12 +265,12 @@ def assemble(
     if kind == "schur":
         if schur is None:
             if instances is None:
-                raise ValueError("the Schur form needs the instances of the eliminated unknowns")
+                raise UsageError("the Schur form needs the instances of the eliminated unknowns")
             schur = SchurAssembler(problem, instances)
         g, U, W, V = schur.assemble(evals, weights)
         lay = schur.layout
         return NormalEquations("schur", problem.n, g, U=U, W=W, V=V, elim=lay.elim, kept=lay.kept)
-    raise ValueError(f"unknown linear solver {kind!r}; use dense, sparse or schur")
+    raise UsageError(f"unknown linear solver {kind!r}; use dense, sparse or schur")
 
 
 class DampedSystem:

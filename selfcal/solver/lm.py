@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from selfcal.errors import SolverError
+from selfcal.errors import SolverError, UsageError
 from selfcal.solver.linear import DENSE_MAX, DampedSystem, SingularSystem, assemble
 from selfcal.solver.problem import Evaluation, Problem
 from selfcal.solver.schur import SchurAssembler
@@ -112,7 +112,7 @@ def _linear_kind(problem: Problem, opt: SolverOptions) -> tuple[str, np.ndarray 
         else:
             kind = "dense" if problem.n <= DENSE_MAX else "sparse"
     if kind == "schur" and inst is None:
-        raise ValueError("linear_solver='schur' needs eliminate=<parameter block name>")
+        raise UsageError("linear_solver='schur' needs eliminate=<parameter block name>")
     return kind, inst
 
 

@@ -12,6 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from selfcal.errors import InputError
+
 __all__ = ["Loss", "LOSSES"]
 
 LOSSES = ("linear", "soft_l1", "huber", "cauchy")
@@ -28,9 +30,9 @@ class Loss:
 
     def __post_init__(self) -> None:
         if self.kind not in LOSSES:
-            raise ValueError(f"unknown loss {self.kind!r}; use linear, soft_l1, huber or cauchy")
+            raise InputError(f"unknown loss {self.kind!r}; use linear, soft_l1, huber or cauchy")
         if not float(self.scale) > 0:
-            raise ValueError(f"loss scale must be > 0, got {self.scale}")
+            raise InputError(f"loss scale must be > 0, got {self.scale}")
 
     def evaluate(self, e2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(f^2 rho(e2 / f^2), rho'(e2 / f^2))`` per row for squared row norms ``e2`` (k,):

@@ -23,7 +23,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 import scipy.sparse as sp
 
-from selfcal.errors import SolverError
+from selfcal.errors import SolverError, UsageError
 from selfcal.solver.losses import Loss
 
 __all__ = [
@@ -58,7 +58,7 @@ class ParameterBlock:
                 continue
             a = np.asarray(a, dtype=bool if key == "held" else np.int64).reshape(-1)
             if a.shape != v.shape:
-                raise ValueError(
+                raise UsageError(
                     f"parameter block {self.name!r}: {key} has {a.size} entries for "
                     f"{v.size} coordinates"
                 )
@@ -115,9 +115,9 @@ class Problem:
         self.parameters = {p.name: p for p in parameters}
         self.residuals = list(residuals)
         if len(self.parameters) != len(parameters):
-            raise ValueError("parameter block names must be unique")
+            raise UsageError("parameter block names must be unique")
         if len({r.name for r in self.residuals}) != len(self.residuals):
-            raise ValueError("residual block names must be unique")
+            raise UsageError("residual block names must be unique")
         self.colmap: dict[str, np.ndarray] = {}
         start = 0
         for p in parameters:
@@ -153,7 +153,7 @@ class Problem:
         Raises ``ValueError`` if ``block`` declares no instances."""
         p = self.parameters[block]
         if p.instance is None:
-            raise ValueError(f"parameter block {block!r} declares no instances to eliminate")
+            raise UsageError(f"parameter block {block!r} declares no instances to eliminate")
         out = -np.ones(self.n, np.int64)
         cm = self.colmap[block]
         free = cm >= 0

@@ -31,6 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from selfcal.errors import UsageError
 from selfcal.solver.problem import Evaluation, Problem
 
 __all__ = ["CHUNK_ROWS", "SchurLayout", "SchurAssembler"]
@@ -175,7 +176,7 @@ class _BlockPlan:
         inst_e = lay.inst[E.Gm]  # ni where unused
         row_inst = np.where(inst_e < ni, inst_e, -1).max(axis=1, initial=-1)
         if np.any((inst_e < ni) & (inst_e != row_inst[:, None])):
-            raise ValueError(
+            raise UsageError(
                 "a residual block couples two instances of the eliminated parameter block; "
                 "the Schur elimination does not apply"
             )

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from selfcal.errors import InputError
 from selfcal.target.aruco_detect import detect_markers
 from selfcal.target.base import Features, Target
 
@@ -56,7 +57,7 @@ def markers_to_features(markers: Mapping[int, np.ndarray], where: str = "") -> F
     for mid, corners in markers.items():
         c = np.asarray(corners, dtype=float)
         if c.shape != (CORNERS_PER_MARKER, 2):
-            raise ValueError(
+            raise InputError(
                 f"marker {mid}{' in ' + where if where else ''}: corners must have shape "
                 f"({CORNERS_PER_MARKER}, 2), got {c.shape}"
             )

@@ -37,7 +37,7 @@ from functools import lru_cache
 import cv2
 import numpy as np
 
-from selfcal.errors import SelfCalWarning
+from selfcal.errors import InputError, SelfCalWarning
 from selfcal.target.marker_sides import (
     MAX_LEVEL_DROP,
     MAX_SIDE_SPREAD,
@@ -82,7 +82,7 @@ def aruco_dictionary(name: str) -> cv2.aruco.Dictionary:
     code = getattr(cv2.aruco, name, None) if name.startswith("DICT_") else None
     if not isinstance(code, int):
         valid = sorted(n for n in dir(cv2.aruco) if n.startswith("DICT_"))
-        raise ValueError(f"unknown ArUco dictionary {name!r}; choose one of {valid}")
+        raise InputError(f"unknown ArUco dictionary {name!r}; choose one of {valid}")
     return cv2.aruco.getPredefinedDictionary(code)
 
 
@@ -99,7 +99,7 @@ def make_detector(
     Raises ``ValueError`` for an unknown dictionary or method.
     """
     if refine not in REFINE_METHODS:
-        raise ValueError(f"unknown refine method {refine!r}; choose one of {list(REFINE_METHODS)}")
+        raise InputError(f"unknown refine method {refine!r}; choose one of {list(REFINE_METHODS)}")
     p = cv2.aruco.DetectorParameters()
     p.cornerRefinementMethod = REFINE_METHODS[refine]
     p.cornerRefinementWinSize = 3
@@ -114,14 +114,14 @@ def to_gray(image: np.ndarray) -> np.ndarray:
     otherwise."""
     img = np.asarray(image)
     if img.dtype != np.uint8:
-        raise ValueError(f"image must be uint8, got {img.dtype}; convert with np.clip(...).astype")
+        raise InputError(f"image must be uint8, got {img.dtype}; convert with np.clip(...).astype")
     if img.ndim == 2:
         return img
     if img.ndim == 3 and img.shape[2] == 3:
         return cv2.cvtColor(img, cv2.COLOR_RGB2GRAY)
     if img.ndim == 3 and img.shape[2] == 1:
         return img[:, :, 0]
-    raise ValueError(f"image must be (H, W) gray or (H, W, 3) RGB, got shape {img.shape}")
+    raise InputError(f"image must be (H, W) gray or (H, W, 3) RGB, got shape {img.shape}")
 
 
 def refine_corners_lines(

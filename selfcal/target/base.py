@@ -16,6 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from selfcal.errors import UsageError
+
 __all__ = ["Features", "Target"]
 
 
@@ -30,7 +32,7 @@ class Features:
         ids = np.asarray(self.ids, dtype=np.int64).reshape(-1)
         uv = np.asarray(self.uv, dtype=float).reshape(-1, 2)
         if len(ids) != len(uv):
-            raise ValueError(f"Features: {len(ids)} ids but {len(uv)} pixel coordinates")
+            raise UsageError(f"Features: {len(ids)} ids but {len(uv)} pixel coordinates")
         object.__setattr__(self, "ids", ids)
         object.__setattr__(self, "uv", uv)
 

@@ -195,6 +195,40 @@ def test_fix_follows_the_message_on_one_line(capsys, monkeypatch):
     assert err.splitlines()[-1] == "selfcal: error: the thing is wrong -- do the other thing"
 
 
+KINDS = {"InputError": 2, "OutputError": 2, "EstimationError": 3, "SolverError": 3,
+         "HardwareError": 4, "UsageError": 1, "UsageTypeError": 1, "InternalError": 1}  # fmt: skip
+
+
+def test_every_kind_has_a_code_here():
+    import selfcal.errors as errors
+
+    kinds = {n for n in errors.__all__ if isinstance(getattr(errors, n), type)
+             and issubclass(getattr(errors, n), SelfCalError) and n != "SelfCalError"}  # fmt: skip
+    assert kinds == set(KINDS)
+
+
+@pytest.mark.parametrize(("kind", "code"), KINDS.items())
+def test_each_kind_exits_with_its_code(capsys, monkeypatch, kind, code):
+    """The command line maps every kind of the root to its exit code; a bug's kind (code 1) is
+    printed as an internal error with the debug hint, the others as the message alone."""
+    import selfcal.errors as errors
+
+    cls = getattr(errors, kind)
+    assert kind in errors.__all__ and issubclass(cls, SelfCalError) and cls.exit_code == code
+
+    def fail(args):
+        raise cls("the thing is wrong")
+
+    monkeypatch.setattr(cli, "cmd_fk", fail)
+    monkeypatch.delenv("SELFCAL_DEBUG", raising=False)
+    got, out, err = run(capsys, "fk", "--joints", "0,0,0,0,0")
+    assert got == code and out == "" and len(err.splitlines()) == 1
+    if code == 1:
+        assert err.startswith(f"selfcal: error: internal error {kind}: the thing is wrong -- a bug")
+    else:
+        assert err == "selfcal: error: the thing is wrong\n"
+
+
 def test_usage_errors_exit_2_in_the_same_style(capsys):
     code, out, err = run(capsys, "fk")  # --joints is required
     assert code == 2 and out == ""

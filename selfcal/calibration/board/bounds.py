@@ -28,6 +28,7 @@ import numpy as np
 from selfcal.calibration.board.problem import board_problem
 from selfcal.camera import CameraModel
 from selfcal.camera.camera_set import std_by_name
+from selfcal.errors import UsageError
 from selfcal.estimation.joint_report import aligned_tool_rms_bound
 from selfcal.estimation.kinematic_poses import KinematicPoses
 from selfcal.io.board_calibration import BoardBounds, BoardCalibrationResult, CameraBounds
@@ -110,7 +111,7 @@ def board_cramer_rao(
     q = np.atleast_2d(np.asarray(q, dtype=float))
     n_cams, m = len(cameras), len(q)
     if len(features) != n_cams or any(len(f) != m for f in features):
-        raise ValueError(f"give one feature list of {m} frames per camera ({n_cams} cameras)")
+        raise UsageError(f"give one feature list of {m} frames per camera ({n_cams} cameras)")
     T_rigs = np.zeros((0, 4, 4)) if n_cams == 1 else inv_pose(np.asarray(T_first_cam)[1:])
     idx = minimal_indices(model.joint_types) if free_idx is None else np.asarray(free_idx, int)
     poses = KinematicPoses(model, q, idx, T_rigs, np.ones(m, bool),

@@ -207,7 +207,7 @@ def opencv_calibration(
     of ``model`` to start from instead (its K and lens coefficients; the held parameters keep its
     values)."""
     if model not in MODELS:
-        raise ValueError(f"unknown camera model {model!r}; use one of {sorted(MODELS)}")
+        raise InputError(f"unknown camera model {model!r}; use one of {sorted(MODELS)}")
     obj = [board.points(f.ids).astype(np.float32) for f in features]
     img = [f.uv.astype(np.float32).reshape(-1, 1, 2) for f in features]
     cx0, cy0 = centered_principal_point(width, height)
@@ -220,7 +220,7 @@ def opencv_calibration(
     guess = np.zeros(len(names))
     if initial is not None:
         if initial.model_name != model:
-            raise ValueError(f"initial camera {initial.model_name!r}, model {model!r}")
+            raise InputError(f"initial camera {initial.model_name!r}, model {model!r}")
         K0 = np.array(initial.K, dtype=np.float64)
         if isinstance(initial, LensCamera):
             guess = np.asarray(initial.coeffs, float)[: len(names)]

@@ -38,7 +38,7 @@ from selfcal.calibration.frame_checks import (
 from selfcal.calibration.identify import IdentificationError
 from selfcal.calibration.row_shift import row_shift_misfits, shift_note
 from selfcal.calibration.scale_check import check_scale, motion_scale, scale_warning, scaled_sizes
-from selfcal.errors import EstimationError, SelfCalError, SelfCalWarning
+from selfcal.errors import EXIT_INTERNAL, EstimationError, SelfCalError, SelfCalWarning
 from selfcal.estimation.joint_report import encoder_sigma
 from selfcal.io.board_calibration import BoardCalibrationResult
 from selfcal.io.dataset import Dataset, DatasetError, read_gray
@@ -340,7 +340,9 @@ def _data_notes(ds: Dataset, board: Board, feats: list[Features], names: list[st
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", SelfCalWarning)
             cb = calibrate_board(board, feats, W, H, free=free, model=model, names=names)
-    except SelfCalError:
+    except SelfCalError as exc:
+        if exc.exit_code == EXIT_INTERNAL:  # a bug, not a check that cannot run
+            raise
         return []
     T = np.where(cb.used[:, None, None], inv_pose(cb.T_cam_board), np.nan)
     q = np.radians(ds.joints_deg)

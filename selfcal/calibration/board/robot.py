@@ -53,6 +53,7 @@ from selfcal.calibration.identify import (
     identify,
 )
 from selfcal.camera import CameraModel, Pinhole
+from selfcal.errors import InputError, UsageError
 from selfcal.kinematics.mcpc import MCPCModel
 from selfcal.target.base import Features
 from selfcal.target.boards import Board
@@ -126,12 +127,12 @@ def calibrate_robot_with_board(
     """
     q = np.atleast_2d(np.asarray(q, dtype=float))
     if len(q) != len(features):
-        raise ValueError(f"{len(features)} images but {len(q)} joint rows; give one row per image")
+        raise InputError(f"{len(features)} images but {len(q)} joint rows; give one row per image")
     cam_stage = calibrate_board(board, features, width, height, free=free, model=model, names=names,
                                 initial=initial)  # fmt: skip
     n_cams = 1 if rig is None else len(rig.cameras)
     if len(rig_features) != n_cams - 1:
-        raise ValueError(f"a rig of {n_cams} cameras needs {n_cams - 1} further feature lists")
+        raise UsageError(f"a rig of {n_cams} cameras needs {n_cams - 1} further feature lists")
     obs = BoardObservations(board, cam_stage, features, q, rig, rig_features, joint_sigma)
     used = cam_stage.used.copy()
     nominal_fit = fit_nominal(obs, nominal)

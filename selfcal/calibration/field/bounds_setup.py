@@ -14,6 +14,7 @@ import numpy as np
 from selfcal.calibration.field.bounds import BoundsError, FisherSetup
 from selfcal.calibration.field.joint_refine import encoder_sigma
 from selfcal.camera import Cameras, CameraSet, Rig, Visibility
+from selfcal.errors import InputError
 from selfcal.estimation.observations import ViewLayout, views_per_point
 from selfcal.kinematics.forward import fk_tool
 from selfcal.kinematics.mcpc import MCPCModel
@@ -127,7 +128,7 @@ def setup_from_output(
         sigma = float(pixel_sigma_px)
     if isinstance(joint_sigma, str):
         if joint_sigma != "encoder":
-            raise ValueError(
+            raise InputError(
                 f"joint_sigma must be 'encoder', an array or None, not {joint_sigma!r}"
             )
         joint_sigma = encoder_sigma(robot)

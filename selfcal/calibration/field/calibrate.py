@@ -60,7 +60,7 @@ from selfcal.camera import (
     opencv_values,
 )
 from selfcal.camera.undistort import Undistorter
-from selfcal.errors import EstimationError, InitialCameraWarning, SelfCalWarning
+from selfcal.errors import EstimationError, InitialCameraWarning, InputError, SelfCalWarning
 from selfcal.estimation.selfcal_errors import DegenerateConfigurationError, SelfCalibrationError
 from selfcal.io.calibration import CalibrationResult
 from selfcal.io.calibration_blocks import ScenePoints
@@ -301,7 +301,7 @@ def calibrate_detailed(
             data that cannot determine the answer (each message names the cause).
     """
     if method not in METHODS:
-        raise ValueError(f"unknown calibration method {method!r}; use one of {METHODS}")
+        raise InputError(f"unknown calibration method {method!r}; use one of {METHODS}")
     if tracker is not None and method != "joint":
         raise CalibrationError(
             "tracker measurements join the images in the one-step refinement; the two-stage "

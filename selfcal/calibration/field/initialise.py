@@ -28,6 +28,7 @@ import cv2
 import numpy as np
 
 from selfcal.camera import Pinhole
+from selfcal.errors import InputError
 from selfcal.estimation.bundle_adjust import bundle_adjust
 from selfcal.estimation.epipolar import (
     PairEstimate,
@@ -115,7 +116,7 @@ def initialise(
         diag["focal_inlier_pairs"] = foc.n_inlier_pairs
     else:
         if not (np.isfinite(fx_guess) and fx_guess > 0):
-            raise ValueError(f"fx_guess must be a positive focal length in px, got {fx_guess}")
+            raise InputError(f"fx_guess must be a positive focal length in px, got {fx_guess}")
         fx0, mu0 = float(fx_guess), float(mu_guess)
     diag["t_focal_s"] = time.perf_counter() - t0
 

@@ -58,7 +58,7 @@ import scipy.linalg
 from selfcal.calibration.identify import IdentificationResult
 from selfcal.camera import Cameras, CameraSet, first_camera
 from selfcal.camera.camera_set import free_std
-from selfcal.errors import EstimationError
+from selfcal.errors import EstimationError, InputError, UsageError
 from selfcal.estimation.bundle_adjust import _Problem as _AdjustmentProblem
 from selfcal.estimation.gauge import GaugeChoice, gauge_directions
 from selfcal.estimation.joint_report import (
@@ -248,7 +248,7 @@ def joint_refine(
     q = np.atleast_2d(np.asarray(q, dtype=float))
     m = len(q)
     if obs.n_configs != m:
-        raise ValueError(f"obs has {obs.n_configs} configurations but q has {m} rows")
+        raise UsageError(f"obs has {obs.n_configs} configurations but q has {m} rows")
     if not sc.is_metric:
         raise JointRefinementError("the camera stage result is not metric (no scale markers)")
     used = np.asarray(used, dtype=np.int64)
@@ -268,7 +268,7 @@ def joint_refine(
     # ---- rows: observations of the used configurations whose point is reconstructed
     ids, pidx_all = obs.point_index()
     if not np.array_equal(ids, sc.point_ids):
-        raise ValueError("obs and the camera-stage result disagree on the point ids")
+        raise UsageError("obs and the camera-stage result disagree on the point ids")
     has_X = np.isfinite(sc.X_world).all(axis=1)
     cand = active_cfg[obs.config] & has_X[pidx_all]
     view_all = obs.view
@@ -300,7 +300,7 @@ def joint_refine(
     if use_dq:
         js = np.broadcast_to(np.asarray(joint_sigma, dtype=float), (model0.n,))
         if not (np.all(np.isfinite(js)) and np.all(js > 0)):
-            raise ValueError(f"joint_sigma must be positive and finite, got {joint_sigma}")
+            raise InputError(f"joint_sigma must be positive and finite, got {joint_sigma}")
         prior_cols = pose_model.dq_cols
         prior_w = np.tile(pixel_sigma_px / js, len(used))
     else:

@@ -36,6 +36,7 @@ import numpy as np
 
 from selfcal.calibration.field.joint_refine import choose_gauge, encoder_sigma
 from selfcal.camera import CameraModel, Rig
+from selfcal.errors import InputError, UsageError
 from selfcal.kinematics.forward import fk_frames, fk_tool, identification_jacobian
 from selfcal.kinematics.mcpc import MCPCModel, minimal_indices, param_names
 from selfcal.kinematics.trajectory import (
@@ -155,7 +156,7 @@ def select_d_optimal(
     full rank are chosen)."""
     N, k, _ = B.shape
     if n > N:
-        raise ValueError(f"cannot choose {n} postures from {N} candidates; enlarge the pool")
+        raise InputError(f"cannot choose {n} postures from {N} candidates; enlarge the pool")
     BBt = np.einsum("nir,njr->nij", B, B)
     F0 = reg * np.mean(np.diagonal(BBt, axis1=1, axis2=2)) * np.eye(k)
     F = F0.copy()
@@ -227,7 +228,7 @@ def plan_optimal_postures(
     """
     if isinstance(joint_sigma, str):
         if joint_sigma != "encoder":
-            raise ValueError(
+            raise InputError(
                 f"joint_sigma must be 'encoder', an array or None, not {joint_sigma!r}"
             )
         joint_sigma = encoder_sigma(robot)
@@ -246,7 +247,7 @@ def plan_optimal_postures(
     if collision_ok is not None:
         ok = np.asarray(collision_ok(pool), dtype=bool)
         if ok.shape != (len(pool),):
-            raise ValueError("collision_ok must return one bool per posture")
+            raise UsageError("collision_ok must return one bool per posture")
         rejected = int((~ok).sum())
         pool = pool[ok]
     if len(pool) < n_poses:

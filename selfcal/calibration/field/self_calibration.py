@@ -50,6 +50,7 @@ from selfcal.calibration.field.adjust import (
 from selfcal.calibration.field.initialise import InitialReconstruction, initialise
 from selfcal.camera import CameraSet, LensCamera, Pinhole, PinholeValues, first_camera, with_pinhole
 from selfcal.camera.camera_set import free_std, unproject_views
+from selfcal.errors import InputError, UsageTypeError
 from selfcal.estimation.bundle_adjust import intrinsics_covariance
 from selfcal.estimation.observations import Observations
 from selfcal.estimation.scale_sign import (
@@ -330,18 +331,18 @@ def _check_input(
     """Raise ``TypeError``/``ValueError`` for malformed input, :class:`InsufficientDataError`
     for fewer than ``min_configs`` configurations with observations."""
     if not isinstance(obs, Observations):
-        raise TypeError("obs must be an Observations (see Observations.from_corners)")
+        raise UsageTypeError("obs must be an Observations (see Observations.from_corners)")
     if len(obs) and (obs.uv.min(axis=0) < -0.5).any() | (obs.uv[:, 0].max() > width - 0.5) | (
         obs.uv[:, 1].max() > height - 0.5
     ):
-        raise ValueError(
+        raise InputError(
             f"observations lie outside the {width}x{height} image; check width/height and the "
             "pixel convention (OpenCV, pixel centres at integers)"
         )
     if (scale_markers is None) != (scale_distance_m is None):
-        raise ValueError("give both scale_markers and scale_distance_m, or neither")
+        raise InputError("give both scale_markers and scale_distance_m, or neither")
     if rig and obs.n_cameras < 2:
-        raise ValueError(
+        raise InputError(
             f"rig=True models {obs.n_cameras} camera(s) as a rigid rig, which needs at least two "
             "(its baseline fixes the scale); call with rig=False for one camera"
         )

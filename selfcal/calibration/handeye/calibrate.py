@@ -27,7 +27,7 @@ from selfcal.calibration.board.calibrate import BoardCalibration, calibrate_boar
 from selfcal.calibration.handeye.linear import linear_hand_eye, turn_misfit_deg
 from selfcal.camera import CameraModel
 from selfcal.camera.camera_set import std_by_name
-from selfcal.errors import EstimationError
+from selfcal.errors import EstimationError, InputError
 from selfcal.estimation.pose_chain import PoseChainBlock, local_pose
 from selfcal.estimation.reprojection import robust_sigma
 from selfcal.solver import Loss, ParameterBlock, Problem, SolverOptions, covariance, solve
@@ -63,7 +63,7 @@ def chain_motions(setup: str, T_base_flange: np.ndarray) -> np.ndarray:
         return np.asarray(T_base_flange, float)
     if setup == "eye-in-hand":
         return inv_pose(np.asarray(T_base_flange, float))
-    raise ValueError(f"unknown setup {setup!r}; use {list(FRAMES)}")
+    raise InputError(f"unknown setup {setup!r}; use {list(FRAMES)}")
 
 
 @dataclass(frozen=True)
@@ -181,7 +181,7 @@ def calibrate_hand_eye(
     """
     T_base_flange = np.asarray(T_base_flange, float)
     if len(T_base_flange) != len(features):
-        raise ValueError(f"{len(features)} images but {len(T_base_flange)} poses")
+        raise InputError(f"{len(features)} images but {len(T_base_flange)} poses")
     A = chain_motions(setup, T_base_flange)
     stage = calibrate_board(board, features, width, height, free=free, model=model, names=names)
     used = stage.used

@@ -33,7 +33,7 @@ import numpy as np
 
 from selfcal.calibration.tracker.identify import TrackerResult
 from selfcal.calibration.tracker.nominal import NominalFit
-from selfcal.errors import InputError
+from selfcal.errors import InputError, UsageError
 from selfcal.io.jsonfile import Fields, check_header, load_json, write_json_atomic
 from selfcal.kinematics.forward import fk_tool
 from selfcal.kinematics.mcpc import (
@@ -284,7 +284,7 @@ def from_result(
     ang = param_is_angle(idx)
     k = np.where(ang, 180.0 / np.pi, 1e3)
     if not np.allclose(nominal.joint_offsets, res.model.joint_offsets):
-        raise ValueError("nominal and identified models use different joint offsets")
+        raise UsageError("nominal and identified models use different joint offsets")
     G_id = chain_transforms(res.model)
 
     def num(x: float) -> float | None:

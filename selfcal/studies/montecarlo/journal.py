@@ -17,6 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
+from selfcal.errors import UsageTypeError
+
 __all__ = ["JOURNAL", "draw_key", "DrawJournal"]
 
 JOURNAL = "draws.jsonl"
@@ -33,7 +35,7 @@ def _plain(v):
     """numpy scalars and arrays as the Python numbers and lists JSON knows."""
     if isinstance(v, np.generic | np.ndarray):
         return v.tolist()
-    raise TypeError(f"{type(v).__name__} is not JSON serialisable")
+    raise UsageTypeError(f"{type(v).__name__} is not JSON serialisable")
 
 
 class DrawJournal:
