@@ -1,11 +1,11 @@
 """The JSON files of a run: one text form, atomic writes, and checked reading.
 
-Every JSON file this package writes (``dataset.json``, ``calibration.json``, ``truth.json``)
-starts with ``format`` (what the file is) and ``schema_version`` (an integer, raised whenever
+Every JSON file this package writes (``dataset.json``, ``calibration.json``, ``truth.json``,
+``report.json``) starts with ``format`` (what the file is) and ``schema_version`` (an integer, raised whenever
 the file's keys change in a way older code cannot read). A reader accepts its own format at any
 schema_version from 1 up to the one this code writes. Files written before ``schema_version``
 existed are read as version 1 (``dataset.json`` and ``calibration.json`` then held
-``"version": 1``). Everything else is an :class:`selfcal.errors.InputError` whose message names
+``"version": 1``; ``report.json`` held neither key). Everything else is an :class:`selfcal.errors.InputError` whose message names
 the file and the key, and whose ``fix`` says what to do.
 """
 
@@ -32,6 +32,10 @@ __all__ = [
     "Fields",
     "RIGID_TOL",
     "rigid_error",
+    "REPORT_FORMAT",
+    "REPORT_SCHEMA_VERSION",
+    "write_report",
+    "read_report",
 ]
 
 SCHEMA_KEY = "schema_version"
@@ -333,3 +337,35 @@ def _float(v: Any) -> float:
     if isinstance(v, bool) or not isinstance(v, int | float):
         raise InputError
     return float(v)
+
+
+REPORT_FORMAT = "scorbot-selfcal-report"
+REPORT_SCHEMA_VERSION = 1
+"""``report.json`` (``selfcal report``, every route): raise it when a key changes in a way older
+code cannot read."""
+_REPORT_FIX = "re-create it with `selfcal report DIR`"
+
+
+def write_report(path: str | Path, report: dict) -> Path:
+    """Write ``report`` as ``report.json`` at ``path``, ``format`` and ``schema_version`` first;
+    the header is put into ``report`` itself (the dict the caller returns is the file)."""
+    body = {k: v for k, v in report.items() if k not in ("format", SCHEMA_KEY)}
+    report.clear()
+    report.update({"format": REPORT_FORMAT, SCHEMA_KEY: REPORT_SCHEMA_VERSION, **body})
+    return write_json_atomic(path, report)
+
+
+def read_report(path: str | Path) -> dict:
+    """The ``report.json`` at ``path``; one written before ``schema_version`` existed (no
+    ``format`` and no ``schema_version``) is read as version 1.
+
+    Raises:
+        InputError: missing, not JSON, another format, or a ``schema_version`` newer than
+            :data:`REPORT_SCHEMA_VERSION` (the message names the file and the key).
+    """
+    doc = load_json(path, fix=_REPORT_FIX)
+    if "format" in doc or SCHEMA_KEY in doc:
+        check_header(
+            doc, str(path), fmt=REPORT_FORMAT, version=REPORT_SCHEMA_VERSION, fix=_REPORT_FIX
+        )
+    return doc

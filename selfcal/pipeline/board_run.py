@@ -36,7 +36,7 @@ from selfcal.console.progress import Progress
 from selfcal.io.atomic import write_text_atomic
 from selfcal.io.board_calibration import BoardCalibrationResult, write_board_calibration
 from selfcal.io.dataset import Dataset, DatasetError
-from selfcal.io.jsonfile import write_json_atomic
+from selfcal.io.jsonfile import write_report
 from selfcal.io.truth import Truth, read_truth
 from selfcal.kinematics.accuracy import aligned_errors, parameter_table, tool_tips
 from selfcal.kinematics.alignment import express_in_frame
@@ -301,7 +301,7 @@ def write_board_truth_report(
             write_figure(parameter_figure(report["parameters"]), root, "parameters.png"),
         ]
     report["figures"] = [str(p.relative_to(root)) for p in drawn]
-    write_json_atomic(root / "report.json", report)
+    write_report(root / "report.json", report)
     md = _markdown(report)
     write_text_atomic(root / "report.md", md)
     return report

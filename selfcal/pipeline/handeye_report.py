@@ -18,7 +18,7 @@ from scipy.spatial.transform import Rotation
 
 from selfcal.calibration.handeye.calibration_file import read_handeye
 from selfcal.io.atomic import write_text_atomic
-from selfcal.io.jsonfile import write_json_atomic
+from selfcal.io.jsonfile import write_report
 
 __all__ = ["handeye_report", "handeye_summary", "handeye_markdown"]
 
@@ -96,7 +96,7 @@ def handeye_report(root: str | Path) -> dict:
         "held_out": _held_out(root, cal_path),
         "failures": [],
     }
-    write_json_atomic(root / "report.json", report)
+    write_report(root / "report.json", report)
     write_text_atomic(root / "report.md", handeye_markdown(report))
     return report
 

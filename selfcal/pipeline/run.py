@@ -38,7 +38,7 @@ from selfcal.io.board_calibration import (
 from selfcal.io.calibration import CalibrationResult, read_calibration, write_calibration
 from selfcal.io.dataset import Dataset, DatasetError, DatasetWriter
 from selfcal.io.frame_cache import FrameCache
-from selfcal.io.jsonfile import write_json_atomic
+from selfcal.io.jsonfile import write_report
 from selfcal.io.truth import read_truth
 from selfcal.kinematics.accuracy import aligned_errors, format_table_iv, parameter_table, tool_tips
 from selfcal.kinematics.alignment import express_in_frame
@@ -329,7 +329,7 @@ def run_report(
             pool.draw(parameter_figure, (params,), root, "parameters.png"),
         ]  # fmt: skip
     report["figures"] = [str(f.wait().relative_to(root)) for f in pending]
-    write_json_atomic(root / "report.json", report)
+    write_report(root / "report.json", report)
     md = _markdown(report)
     write_text_atomic(root / "report.md", md)
     if table_iv:
@@ -372,7 +372,7 @@ def _write_fit_report(root: Path, report: dict, drawn: list[Path], *, quiet: boo
             f"worse than the nominal reference's ({rms['nominal']:.3f} px): do not use it"
         )
     report["status"], report["failures"] = ("failed" if failures else "ok"), failures
-    write_json_atomic(root / "report.json", report)
+    write_report(root / "report.json", report)
     md = fit_markdown(report, report["figures"])
     write_text_atomic(root / "report.md", md)
     return report

@@ -340,3 +340,27 @@ def test_dataset_written_with_the_whole_scenario_reads_and_keeps_only_its_digest
     assert old.provenance == {"scenario_sha256": scenario_digest(moved)}
     assert scenario_digest(scenario) != scenario_digest({**scenario, "noise": {"seed": 2}})
     assert "800" not in json.dumps(old.to_json()["provenance"])
+
+
+def test_report_json_carries_its_schema_version_and_older_reports_still_read(tmp_path):
+    """report.json starts with format and schema_version (in the returned dict too); one written
+    before them is read as version 1; a newer one is refused naming the file and the key."""
+    from selfcal.io.jsonfile import REPORT_SCHEMA_VERSION, read_report, write_report
+
+    report = {"status": "ok", "failures": [], "schema_version": 7}
+    path = write_report(tmp_path / "report.json", report)
+    assert list(report)[:2] == ["format", "schema_version"]
+    assert report["schema_version"] == REPORT_SCHEMA_VERSION == 1
+    assert read_report(path) == report == json.loads(path.read_text())
+    older = tmp_path / "older.json"
+    older.write_text(json.dumps({"status": "ok", "failures": []}))
+    assert read_report(older) == {"status": "ok", "failures": []}
+    newer = tmp_path / "newer.json"
+    newer.write_text(json.dumps({**report, "schema_version": REPORT_SCHEMA_VERSION + 1}))
+    with pytest.raises(InputError, match=f"{newer}: schema_version 2 is newer") as err:
+        read_report(newer)
+    assert "upgrade scorbot-selfcal" in str(err.value.fix)
+    other = tmp_path / "other.json"
+    other.write_text(json.dumps({"format": "scorbot-selfcal-calibration", "schema_version": 1}))
+    with pytest.raises(InputError, match="not a scorbot-selfcal-report file"):
+        read_report(other)

@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from selfcal.config.scenario import load_scenario
+from selfcal.io.jsonfile import read_report
 from selfcal.pipeline.run import run_acquire, run_calibrate, run_report
 
 __all__ = ["run_draws", "summarise"]
@@ -50,7 +51,7 @@ def run_draws(
         run_acquire(s, d, quiet=True, dither_seed=k if dither else None)
         cal = run_calibrate(d, quiet=True, raise_failed=False)
         run_report(d, quiet=True)
-        rep = json.loads((d / "report.json").read_text())
+        rep = read_report(d / "report.json")
         z = [
             ((p["estimate"] - p["truth"]) / p["std"], p["name"])
             for p in rep["parameters"]
