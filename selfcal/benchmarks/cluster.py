@@ -26,12 +26,12 @@ import platform
 import time
 from pathlib import Path
 
-from selfcal.console.threads import limit_threads
 from selfcal.io.atomic import write_text_atomic
 from selfcal.studies.cluster import distributed_module
 from selfcal.studies.defs import BASE
 from selfcal.studies.parallel import run_tasks
 from selfcal.studies.runs import failed_row, run_one
+from selfcal.threads import limit_threads
 
 DOC = Path(__file__).resolve().parents[2] / "docs" / "cluster.md"
 VOLATILE = ("seconds", "cpu_s")

@@ -348,7 +348,7 @@ def main(argv: list[str] | None = None) -> int:
                     "--write-readme it always does)")  # fmt: skip
     args = ap.parse_args(argv)
     args.with_pybotics = args.with_pybotics or args.write_docs or args.write_readme
-    from selfcal.console.threads import limit_threads
+    from selfcal.threads import limit_threads
 
     limit_threads(None)
     fig = measure(args)

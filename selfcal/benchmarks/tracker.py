@@ -45,10 +45,10 @@ from selfcal.calibration.tracker.identify import (
     identify_tracker,
     initial_placement,
 )
-from selfcal.console.threads import limit_threads
 from selfcal.errors import InputError
 from selfcal.kinematics.forward import fk_tool
 from selfcal.robot.definition import RobotDef, load_robot
+from selfcal.threads import limit_threads
 from selfcal.transforms import rot_x, trans
 
 __all__ = ["run", "combine", "table", "mdh_table", "main"]

@@ -41,11 +41,11 @@ from selfcal.console.common import (
     writing,
 )
 from selfcal.console.progress import Progress
-from selfcal.console.threads import DEFAULT_THREADS, THREADS_ENV, limit_threads
 from selfcal.plots.rerun_log import register as register_record
 from selfcal.studies.diagnose_render import register as register_diagnose
 from selfcal.studies.paper.repro import register as register_paper
 from selfcal.studies.study import register as register_study
+from selfcal.threads import DEFAULT_THREADS, THREADS_ENV, limit_threads
 
 # The modules a command runs are imported by that command (`selfcal --help` and `selfcal fk`
 # stay fast): scipy, OpenCV, MuJoCo, matplotlib load only where used.

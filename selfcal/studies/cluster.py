@@ -4,7 +4,7 @@ Each item (a run's settings, a noise draw) is one Dask task submitted to the sch
 ``ADDRESS`` through ``dask.distributed.Client``; the results stream back in completion order
 (``as_completed``) and the caller writes each at once, so an interrupted batch keeps every
 finished row. Every task first applies the project's thread limit
-(:func:`selfcal.console.threads.limit_threads`, ``SELFCAL_THREADS`` or 1), so a worker process uses
+(:func:`selfcal.threads.limit_threads`, ``SELFCAL_THREADS`` or 1), so a worker process uses
 as many cores as it has Dask threads, not BLAS threads on top. Failures: a task on a worker that
 dies is rescheduled by the scheduler (``distributed.scheduler.allowed-failures``, 3 by default);
 a task that raises is tried ``retries`` more times; a task that fails on every try becomes an
@@ -23,8 +23,8 @@ from collections.abc import Callable, Iterator, Sequence
 from types import ModuleType
 
 from selfcal.console.progress import TaskCounts
-from selfcal.console.threads import limit_threads, thread_count
 from selfcal.errors import InputError
+from selfcal.threads import limit_threads, thread_count
 
 __all__ = [
     "DEFAULT_RETRIES",

@@ -17,8 +17,8 @@ from concurrent.futures.process import BrokenProcessPool
 
 from selfcal.console.log import LOGGER, get_logger
 from selfcal.console.progress import TaskCounts
-from selfcal.console.threads import THREAD_VARS, THREADS_ENV, limit_threads, thread_count
 from selfcal.studies.cluster import DEFAULT_RETRIES, cluster_tasks
+from selfcal.threads import THREAD_VARS, THREADS_ENV, limit_threads, thread_count
 
 __all__ = ["ErrorRow", "run_tasks", "worker_pool"]
 
@@ -50,7 +50,7 @@ def _die_with(parent: int) -> None:
 @contextlib.contextmanager
 def worker_pool(max_workers: int, threads: int | None = None) -> Iterator[ProcessPoolExecutor]:
     """Spawned worker processes with ``threads`` BLAS/OpenMP threads each (default
-    :func:`selfcal.console.threads.thread_count`: ``SELFCAL_THREADS`` or 1; the workers, not BLAS, use
+    :func:`selfcal.threads.thread_count`: ``SELFCAL_THREADS`` or 1; the workers, not BLAS, use
     the cores); they ignore Ctrl-C, which the parent handles. The parent's environment is
     restored and unfinished work cancelled on exit."""
     n = thread_count(threads)

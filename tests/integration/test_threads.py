@@ -1,4 +1,4 @@
-"""BLAS/OpenMP threads are limited in one place (selfcal/console/threads.py): the CLI and every worker."""
+"""BLAS/OpenMP threads are limited in one place (selfcal/threads.py): the CLI and every worker."""
 
 from __future__ import annotations
 
@@ -8,9 +8,9 @@ import pytest
 from threadpoolctl import threadpool_info
 
 from selfcal.cli.main import main
-from selfcal.console.threads import THREAD_VARS, THREADS_ENV, thread_count
 from selfcal.errors import InputError
 from selfcal.studies.parallel import worker_pool
+from selfcal.threads import THREAD_VARS, THREADS_ENV, thread_count
 
 
 def _pools_after_scipy() -> list[dict]:
