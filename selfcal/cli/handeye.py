@@ -103,49 +103,26 @@ def cmd_import_poses(args: argparse.Namespace) -> int:
     return 0
 
 
-def _features(ds) -> list:
-    """The board's features in every frame of the pose dataset ``ds``."""
-    from selfcal.io.images import read_gray_image
-    from selfcal.io.pose_dataset import PoseDatasetError
-    from selfcal.io.target_toml import parse_target
-
-    board = parse_target(ds.board, str(ds.root / "dataset.json"))
-    out = []
-    for i in range(len(ds.T_base_flange)):
-        img = read_gray_image(ds.image_path(i))
-        if img is None:
-            raise PoseDatasetError(f"{ds.image_path(i)}: frame {i}'s image is missing or unreadable",
-                                   fix="import the dataset again")  # fmt: skip
-        out.append(board.detect(img))
-    return [board, out]
-
-
 def calibrate_poses(root: Path, *, quiet: bool = False, figures: bool = False,
                     method: str = "joint", joint_sigma_deg: float | None = None,
                     tracker_args: argparse.Namespace | None = None) -> None:  # fmt: skip
     """``selfcal calibrate`` of a pose dataset: write ``root/calibration.json`` (the hand-eye
-    and board mount with sigmas, the camera, the nominal beside). The options of the joint
+    and board mount with sigmas, the camera, the nominal beside:
+    :func:`selfcal.calibration.routes.calibrate_pose_dataset`). The options of the joint
     datasets (``--method two-stage``, ``--joint-sigma-deg``, ``--tracker``) are errors here."""
-    from selfcal.calibration.handeye.calibrate import FRAMES, calibrate_hand_eye
-    from selfcal.calibration.handeye.calibration_file import handeye_document
-    from selfcal.io.jsonfile import write_json_atomic
-    from selfcal.io.pose_dataset import PoseDataset
+    from selfcal.calibration.handeye.calibrate import FRAMES
+    from selfcal.calibration.routes import calibrate_pose_dataset
 
     if method != "joint" or joint_sigma_deg is not None or (tracker_args and tracker_args.tracker):
         raise CliError(f"{root} is a pose dataset (flange poses, no joints): --method, "
                        "--joint-sigma-deg and --tracker do not apply",
                        fix="leave them out")  # fmt: skip
-    ds = PoseDataset.open(root)
-    board, feats = _features(ds)
-    names = [str(ds.image_path(i)) for i in range(len(feats))]
-    cal = calibrate_hand_eye(board, feats, ds.T_base_flange, ds.setup, *ds.resolution,
-                             model=ds.model, free=ds.free, names=names)  # fmt: skip
-    write_json_atomic(root / "calibration.json", handeye_document(cal, str(root)))
+    cal = calibrate_pose_dataset(root)
     if not quiet:
-        x_what, b_what = FRAMES[ds.setup]
+        x_what, b_what = FRAMES[cal.setup]
         c, n = cal.calibrated, cal.nominal
         say = lambda t: print(t, file=sys.stderr)  # noqa: E731
-        say(f"{ds.setup}, {int(cal.used.sum())} frames: no kinematics to identify (flange poses "
+        say(f"{cal.setup}, {int(cal.used.sum())} frames: no kinematics to identify (flange poses "
             "as the robot reports them); camera, hand-eye and board mount fitted on corner "
             "reprojection")  # fmt: skip
         for what, T, s in ((x_what, c.X, c.X_std), (b_what, c.B, c.B_std)):
@@ -161,28 +138,16 @@ def calibrate_poses(root: Path, *, quiet: bool = False, figures: bool = False,
         )
 
 
-def evaluate_poses(args: argparse.Namespace, cal_dir: Path) -> bool:
+def evaluate_poses(args: argparse.Namespace) -> None:
     """``selfcal evaluate`` of a hand-eye calibration: predict every corner of the held-out pose
-    dataset from its flange poses alone with the calibrated and the nominal model; write
-    evaluation.json and print both. False when the calibration is not a hand-eye one."""
+    dataset from its flange poses alone with the calibrated and the nominal model
+    (:func:`selfcal.calibration.routes.evaluate_pose_dataset`); write evaluation.json and print
+    both."""
     from selfcal.calibration.field.calibrate import CalibrationFailedError
-    from selfcal.calibration.handeye.calibration_file import is_handeye, read_handeye
-    from selfcal.calibration.handeye.held_out import held_out_check
+    from selfcal.calibration.routes import evaluate_pose_dataset
     from selfcal.io.jsonfile import write_json_atomic
-    from selfcal.io.pose_dataset import PoseDataset
 
-    if not is_handeye(args.calibration):
-        return False
-    setup, calibrated, nominal, _ = read_handeye(args.calibration)
-    ds = PoseDataset.open(args.dataset)
-    if ds.setup != setup:
-        raise CliError(f"{args.dataset} is {ds.setup} but the calibration is {setup}",
-                       fix="evaluate with a held-out dataset of the same setup")  # fmt: skip
-    board, feats = _features(ds)
-    check = held_out_check(board, feats, ds.T_base_flange, setup,
-                           {"nominal": nominal, "calibrated": calibrated}, str(args.dataset))  # fmt: skip
-    doc = {"calibration": str(args.calibration), "dataset": str(args.dataset), "setup": setup,
-           "status": "failed" if check["failures"] else "ok", **check}  # fmt: skip
+    doc = check = evaluate_pose_dataset(args.calibration, args.dataset)
     out = Path(args.out) if args.out else Path(args.dataset) / "evaluation.json"
     write_json_atomic(out, doc)
     note_written(args, out)
@@ -203,4 +168,3 @@ def evaluate_poses(args: argparse.Namespace, cal_dir: Path) -> bool:
         )
     if check["failures"]:
         raise CalibrationFailedError.of(tuple(check["failures"]), out)
-    return True

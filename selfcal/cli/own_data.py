@@ -53,17 +53,17 @@ def calibrate_any(
     measurements estimated with the field's images. ``joint_sigma_deg``: the standard deviation
     of a joint reading, deg (mm for a prismatic joint), modelled instead of the robot file's
     encoder resolution."""
+    from selfcal.calibration.routes import dataset_route
     from selfcal.io.dataset import Dataset
-    from selfcal.io.pose_dataset import is_pose_dataset
     from selfcal.pipeline.board_run import calibrate_board_run
     from selfcal.pipeline.run import run_calibrate
 
-    if is_pose_dataset(root):
+    route = dataset_route(root)  # the choice the public API's calibrate makes
+    if route == "handeye":
         calibrate_poses(root, quiet=quiet, figures=figures, method=method,
                         joint_sigma_deg=joint_sigma_deg, tracker_args=tracker_args)  # fmt: skip
         return
     ds = Dataset.open(root)
-    info = ds.info
     joint_sigma = None
     if joint_sigma_deg is not None:
         import numpy as np
@@ -73,7 +73,7 @@ def calibrate_any(
         if not (np.isfinite(joint_sigma_deg) and joint_sigma_deg > 0):
             raise CliError(f"--joint-sigma-deg must be a finite number > 0, got {joint_sigma_deg}",
                            fix="give the read-back noise of a joint, e.g. 0.003")  # fmt: skip
-        if info.board is None and method != "joint":
+        if route == "field" and method != "joint":
             raise CliError("--joint-sigma-deg is modelled by the one-step method of the field",
                            fix="leave out --method two-stage")  # fmt: skip
         types = load_robot(ds.robot_source).joint_types
@@ -84,7 +84,7 @@ def calibrate_any(
         from selfcal.cli.tracker import tracker_input, tracker_summary
         from selfcal.robot.definition import load_robot
 
-        if info.board is not None:
+        if route == "board":
             raise CliError(
                 f"{root}: --tracker joins the self-calibration of the ArUco field; this dataset "
                 "has a board",
@@ -100,7 +100,7 @@ def calibrate_any(
         from selfcal.cli.tracker import tracker_input
 
         tracker_input(tracker_args, None)  # options that need --tracker are errors
-    if info.board is None:
+    if route == "field":
         res = run_calibrate(root, quiet=quiet, method=method,
                             allow_missing_frames=allow_missing_frames, figures=figures,
                             tracker=tracker, joint_sigma=joint_sigma)  # fmt: skip
@@ -161,20 +161,17 @@ def _import(args: argparse.Namespace) -> int:
 
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
-    from selfcal.calibration.board.evaluate import evaluate_board, write_evaluation
+    from selfcal.calibration.board.evaluate import Evaluation, write_evaluation
     from selfcal.calibration.field.calibrate import CalibrationFailedError
-    from selfcal.calibration.field.evaluate import evaluate_field
-    from selfcal.io.board_calibration import calibration_kind, read_board_calibration
-    from selfcal.io.calibration import read_calibration
+    from selfcal.calibration.routes import calibration_route, evaluate
 
     cal_path = Path(args.calibration)
     cal_dir = cal_path if cal_path.is_dir() else cal_path.parent
-    if evaluate_poses(args, cal_dir):
+    if calibration_route(cal_path) == "handeye":
+        evaluate_poses(args)
         return 0
-    if calibration_kind(cal_path) == "board":
-        ev = evaluate_board(read_board_calibration(cal_path), str(cal_path), args.dataset)
-    else:
-        ev = evaluate_field(read_calibration(cal_path), cal_dir, args.dataset)
+    ev = evaluate(cal_path, args.dataset)  # the public API's evaluate: the same choice
+    assert isinstance(ev, Evaluation)  # a joint dataset's calibration
     _warn_shared_postures(cal_dir, Path(args.dataset))
     out = Path(args.out) if args.out else Path(args.dataset) / "evaluation.json"
     write_evaluation(out, ev)

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -20,7 +21,14 @@ from selfcal.camera import CameraModel, camera_model, lens_names
 from selfcal.errors import InputError
 from selfcal.io.jsonfile import SCHEMA_KEY, Fields, check_header, load_json
 
-__all__ = ["HANDEYE_FORMAT", "HandEyeModel", "handeye_document", "is_handeye", "read_handeye"]
+__all__ = [
+    "HANDEYE_FORMAT",
+    "HandEyeFile",
+    "HandEyeModel",
+    "handeye_document",
+    "is_handeye",
+    "read_handeye",
+]
 
 HANDEYE_FORMAT = "scorbot-selfcal-handeye-calibration"
 _FIX = "calibrate the pose dataset again with `selfcal calibrate DIR`"
@@ -104,7 +112,17 @@ def _model(f: Fields) -> HandEyeModel:
                         f.sub("board_mount").poses("matrix", (4, 4)))  # fmt: skip
 
 
-def read_handeye(path: str | Path) -> tuple[str, HandEyeModel, HandEyeModel, dict]:
+class HandEyeFile(NamedTuple):
+    """A hand-eye ``calibration.json`` read back: the ``setup`` (``eye-in-hand`` or
+    ``eye-to-hand``), the ``calibrated`` and the ``nominal`` model and the whole ``document``."""
+
+    setup: str
+    calibrated: HandEyeModel
+    nominal: HandEyeModel
+    document: dict
+
+
+def read_handeye(path: str | Path) -> HandEyeFile:
     """The setup, the calibrated and the nominal model and the whole document of the hand-eye
     ``calibration.json`` ``path`` (or its folder). Raises :class:`selfcal.errors.InputError`
     naming the file."""
@@ -114,7 +132,7 @@ def read_handeye(path: str | Path) -> tuple[str, HandEyeModel, HandEyeModel, dic
     check_header(doc, str(p), fmt=HANDEYE_FORMAT, version=1, fix=_FIX)
     f = Fields(doc, str(p), _FIX)
     try:
-        return f.str("setup"), _model(f), _model(f.sub("nominal")), doc
+        return HandEyeFile(f.str("setup"), _model(f), _model(f.sub("nominal")), doc)
     except InputError:
         raise
     except (KeyError, TypeError, ValueError) as exc:  # a camera model refusing its values

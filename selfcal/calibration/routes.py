@@ -1,0 +1,314 @@
+"""Which route calibrates a dataset, and each route in one call: the choice ``selfcal calibrate``
+and ``selfcal evaluate`` make, and the public API (``selfcal.calibrate``, ``selfcal.evaluate``,
+docs/api.md) calls.
+
+A dataset folder says its route (:func:`dataset_route`):
+
+- ``"handeye"``: a pose dataset (images and flange poses, no joint readings:
+  :mod:`selfcal.io.pose_dataset`): camera, hand-eye and board mount
+  (:mod:`selfcal.calibration.handeye.calibrate`);
+- ``"board"``: images, joint readings and a board of known geometry
+  (:mod:`selfcal.calibration.board.dataset`);
+- ``"field"``: images, joint readings and the ArUco field: the self-calibration
+  (:mod:`selfcal.calibration.field.calibrate`), optionally with tracker measurements.
+
+Tracker measurements alone (no images) are files, not a dataset folder: ``selfcal identify``
+(:mod:`selfcal.calibration.tracker.identify`). A ``calibration.json`` says its kind
+(:func:`calibration_route`). :func:`calibrate` and :func:`evaluate` run under the thread limit
+(:func:`selfcal.threads.limited`). SI units; frames as each route's result documents them.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING, Literal
+
+import numpy as np
+
+from selfcal.errors import InputError
+from selfcal.io.pose_dataset import is_pose_dataset
+from selfcal.threads import limited
+
+if TYPE_CHECKING:
+    from selfcal.calibration.board.evaluate import Evaluation
+    from selfcal.calibration.handeye.calibrate import HandEyeCalibration
+    from selfcal.calibration.handeye.calibration_file import HandEyeFile
+    from selfcal.calibration.tracker.calibration_file import TrackerCalibration
+    from selfcal.calibration.tracker.join import TrackerInput
+    from selfcal.io.board_calibration import BoardCalibrationResult
+    from selfcal.io.calibration import CalibrationResult
+    from selfcal.io.dataset import Dataset
+    from selfcal.io.pose_dataset import PoseDataset
+    from selfcal.target.base import Features
+    from selfcal.target.boards import Board
+
+# The routes' modules (scipy, OpenCV) load in the functions that run them: the CLI imports this
+# module to choose, and `selfcal --help` stays fast.
+
+__all__ = [
+    "Route",
+    "calibrate",
+    "calibrate_pose_dataset",
+    "calibration_route",
+    "dataset_route",
+    "evaluate",
+    "evaluate_pose_dataset",
+    "open_dataset",
+    "pose_features",
+    "read_calibration",
+]
+
+Route = Literal["field", "board", "handeye"]
+"""The calibration route of a dataset folder (module docstring)."""
+
+
+def dataset_route(root: str | Path) -> Route:
+    """The route of the dataset folder ``root``: ``"handeye"`` for a pose dataset, else
+    ``"board"`` or ``"field"`` by its target (``dataset.json``).
+
+    Raises:
+        DatasetError: ``root`` is no dataset folder (names the file and the fix).
+    """
+    if is_pose_dataset(root):
+        return "handeye"
+    from selfcal.io.dataset import Dataset
+
+    return "field" if Dataset.open(root).info.board is None else "board"
+
+
+def open_dataset(root: str | Path) -> Dataset | PoseDataset:
+    """The dataset folder ``root`` read: a :class:`selfcal.io.pose_dataset.PoseDataset` (flange
+    poses, m) or a :class:`selfcal.io.dataset.Dataset` (joint readings, rad / m)."""
+    if is_pose_dataset(root):
+        from selfcal.io.pose_dataset import PoseDataset
+
+        return PoseDataset.open(root)
+    from selfcal.io.dataset import Dataset
+
+    return Dataset.open(root)
+
+
+def pose_features(ds: PoseDataset) -> tuple[Board, list[Features]]:
+    """The board of the pose dataset ``ds`` and its features (px) in every frame's image.
+
+    Raises:
+        PoseDatasetError: the target is no board of known geometry, or a frame's image is
+            missing or unreadable (named).
+    """
+    from selfcal.io.images import read_gray_image
+    from selfcal.io.pose_dataset import PoseDatasetError
+    from selfcal.io.target_toml import parse_target
+    from selfcal.target.boards import Board
+
+    board = parse_target(ds.board, str(ds.root / "dataset.json"))
+    if not isinstance(board, Board):
+        raise PoseDatasetError(f"{ds.root / 'dataset.json'}: the target of a pose dataset is a "
+                               f"board of known geometry, not a {type(board).__name__}",
+                               fix="import it again with a board's target TOML (docs/targets.md)")  # fmt: skip
+    out = []
+    for i in range(len(ds.T_base_flange)):
+        img = read_gray_image(ds.image_path(i))
+        if img is None:
+            raise PoseDatasetError(f"{ds.image_path(i)}: frame {i}'s image is missing or unreadable",
+                                   fix="import the dataset again")  # fmt: skip
+        out.append(board.detect(img))
+    return board, out
+
+
+def calibrate_pose_dataset(root: str | Path, *, write: bool = True) -> HandEyeCalibration:
+    """The hand-eye calibration of the pose dataset ``root`` (camera, hand-eye ``X`` and board
+    mount ``B``, m, their frames: :data:`selfcal.calibration.handeye.calibrate.FRAMES`), written
+    as ``root/calibration.json`` when ``write``."""
+    from selfcal.calibration.handeye.calibrate import calibrate_hand_eye
+    from selfcal.calibration.handeye.calibration_file import handeye_document
+    from selfcal.io.jsonfile import write_json_atomic
+    from selfcal.io.pose_dataset import PoseDataset
+
+    ds = PoseDataset.open(root)
+    board, feats = pose_features(ds)
+    names = [str(ds.image_path(i)) for i in range(len(feats))]
+    cal = calibrate_hand_eye(board, feats, ds.T_base_flange, ds.setup, *ds.resolution,
+                             model=ds.model, free=ds.free, names=names)  # fmt: skip
+    if write:
+        write_json_atomic(Path(root) / "calibration.json", handeye_document(cal, str(root)))
+    return cal
+
+
+@limited
+def calibrate(
+    root: str | Path,
+    *,
+    method: str = "joint",
+    allow_missing_frames: bool = False,
+    joint_sigma: float | np.ndarray | None = None,
+    tracker: TrackerInput | None = None,
+    progress=None,
+    write: bool = True,
+) -> CalibrationResult | BoardCalibrationResult | HandEyeCalibration:
+    """Calibrate the dataset folder ``root`` by its route (:func:`dataset_route`) and write
+    ``root/calibration.json`` (unless ``write`` is False), as ``selfcal calibrate`` does.
+
+    Args:
+        root: the dataset folder (``selfcal import`` or ``selfcal acquire`` made it).
+        method: the field's ``"joint"`` (one-step refinement, default) or ``"two-stage"``.
+        allow_missing_frames: calibrate on the frames present when some are missing
+            (:meth:`selfcal.io.dataset.Dataset.check_complete`).
+        joint_sigma: standard deviation of a joint reading, rad (m for a prismatic joint), one
+            value or one per joint; default the robot file's encoder resolution (joint datasets).
+        tracker: tracker measurements estimated with the field's images (method ``"joint"``).
+        progress: a :class:`selfcal.console.progress.Progress`-like object the field reports to.
+        write: write ``root/calibration.json``.
+
+    Returns:
+        the field's :class:`selfcal.io.calibration.CalibrationResult` (world = the reconstruction
+        frame, tool = the left camera), the board's
+        :class:`selfcal.io.board_calibration.BoardCalibrationResult` (world = the robot base,
+        the board pose, hand-eye) or the pose dataset's
+        :class:`selfcal.calibration.handeye.calibrate.HandEyeCalibration`.
+
+    Raises:
+        InputError: an option the route does not take (named), or bad data (named).
+        CalibrationFailedError: the field calibration failed its checks (written all the same,
+            marked failed).
+        EstimationError: the estimator failed (what was tried).
+    """
+    route = dataset_route(root)
+    if route != "field" and (method != "joint" or tracker is not None):
+        raise InputError(f"{root} is a {route} dataset: the field's method and tracker options do "
+                         "not apply", fix="leave out method and tracker")  # fmt: skip
+    if route == "handeye":
+        if joint_sigma is not None:
+            raise InputError(f"{root} is a pose dataset (flange poses, no joints): joint_sigma "
+                             "does not apply", fix="leave it out")  # fmt: skip
+        return calibrate_pose_dataset(root, write=write)
+    if route == "board":
+        from selfcal.calibration.board.dataset import calibrate_board_dataset
+        from selfcal.io.board_calibration import write_board_calibration
+
+        board = calibrate_board_dataset(
+            root, allow_missing_frames=allow_missing_frames, joint_sigma=joint_sigma
+        )
+        if write:
+            write_board_calibration(Path(root) / "calibration.json", board)
+        return board
+    from selfcal.calibration.field.calibrate import CalibrationFailedError
+    from selfcal.calibration.field.calibrate import calibrate as calibrate_field
+    from selfcal.io.calibration import write_calibration
+
+    res = calibrate_field(root, progress=progress, method=method,
+                          allow_missing_frames=allow_missing_frames, tracker=tracker,
+                          joint_sigma=joint_sigma)  # fmt: skip
+    path = Path(root) / "calibration.json"
+    if write:
+        write_calibration(path, res)
+    if res.failed:
+        raise CalibrationFailedError.of(res.failures, path)
+    return res
+
+
+CalibrationKind = Literal["field", "board", "handeye", "tracker"]
+
+
+def calibration_route(path: str | Path) -> CalibrationKind:
+    """Which route wrote the ``calibration.json`` at ``path`` (or ``path/calibration.json``), by
+    its ``format`` (``"field"`` for a missing or damaged file: the field's reader names it)."""
+    from selfcal.calibration.handeye.calibration_file import is_handeye
+    from selfcal.calibration.tracker.calibration_file import is_tracker_calibration
+    from selfcal.io.board_calibration import calibration_kind
+
+    if is_handeye(path):
+        return "handeye"
+    p = Path(path)
+    if is_tracker_calibration(p / "calibration.json" if p.is_dir() else p):
+        return "tracker"
+    return "board" if calibration_kind(path) == "board" else "field"
+
+
+def read_calibration(
+    path: str | Path,
+) -> CalibrationResult | BoardCalibrationResult | HandEyeFile | TrackerCalibration:
+    """The ``calibration.json`` at ``path`` (or ``path/calibration.json``) read by its kind's one
+    reader (:func:`calibration_route`).
+
+    Raises:
+        InputError: missing, damaged or newer than this version (names the file and the fix).
+    """
+    kind = calibration_route(path)
+    if kind == "handeye":
+        from selfcal.calibration.handeye.calibration_file import read_handeye
+
+        return read_handeye(path)
+    if kind == "tracker":
+        from selfcal.calibration.tracker.calibration_file import read_tracker_calibration
+
+        p = Path(path)
+        return read_tracker_calibration(p / "calibration.json" if p.is_dir() else p)
+    if kind == "board":
+        from selfcal.io.board_calibration import read_board_calibration
+
+        return read_board_calibration(path)
+    from selfcal.io.calibration import read_calibration as read_field
+
+    return read_field(path)
+
+
+def evaluate_pose_dataset(calibration: str | Path, dataset: str | Path) -> dict:
+    """Predict every board corner of the held-out pose dataset ``dataset`` from its flange poses
+    alone with the hand-eye calibration ``calibration`` and with its nominal: the document
+    ``selfcal evaluate`` writes as ``evaluation.json`` (RMS in px; ``status`` ``"failed"`` with
+    ``failures`` when the calibrated model predicts worse than the nominal or puts corners
+    behind its camera).
+
+    Raises:
+        InputError: the dataset's setup is not the calibration's, or bad files (named).
+    """
+    from selfcal.calibration.handeye.calibration_file import read_handeye
+    from selfcal.calibration.handeye.held_out import held_out_check
+    from selfcal.io.pose_dataset import PoseDataset
+
+    setup, calibrated, nominal, _ = read_handeye(calibration)
+    ds = PoseDataset.open(dataset)
+    if ds.setup != setup:
+        raise InputError(f"{dataset} is {ds.setup} but the calibration is {setup}",
+                         fix="evaluate with a held-out dataset of the same setup")  # fmt: skip
+    board, feats = pose_features(ds)
+    models = {"nominal": nominal, "calibrated": calibrated}
+    check = held_out_check(board, feats, ds.T_base_flange, setup, models, str(dataset))  # type: ignore[arg-type]
+    return {"calibration": str(calibration), "dataset": str(dataset), "setup": setup,
+            "status": "failed" if check["failures"] else "ok", **check}  # fmt: skip
+
+
+@limited
+def evaluate(calibration: str | Path, dataset: str | Path) -> Evaluation | dict:
+    """The held-out check of ``selfcal evaluate``: predict every feature of the dataset folder
+    ``dataset`` (postures the calibration did not see) from its joint readings (or flange poses)
+    with the calibration at ``calibration`` (a ``calibration.json`` or its folder) and with the
+    fair nominal. Nothing is written.
+
+    Returns:
+        a joint dataset's :class:`selfcal.calibration.board.evaluate.Evaluation` (``rms`` by
+        model, px; ``failures``), a pose dataset's evaluation document
+        (:func:`evaluate_pose_dataset`).
+
+    Raises:
+        InputError: a tracker calibration (``selfcal predict`` checks those), a dataset of
+            another kind, or bad files (named).
+    """
+    kind = calibration_route(calibration)
+    if kind == "handeye":
+        return evaluate_pose_dataset(calibration, dataset)
+    if kind == "tracker":
+        raise InputError(f"{calibration} is a tracker calibration: it predicts tracker rows, not "
+                         "images", fix="check it on held-out rows with `selfcal predict "
+                         "CAL --measurements HELD_OUT.csv`")  # fmt: skip
+    if kind == "board":
+        from selfcal.calibration.board.evaluate import evaluate_board
+        from selfcal.io.board_calibration import read_board_calibration
+
+        return evaluate_board(read_board_calibration(calibration), str(calibration), dataset)
+    from selfcal.calibration.field.evaluate import evaluate_field
+    from selfcal.io.calibration import read_calibration as read_field
+
+    cal_path = Path(calibration)
+    cal_dir = cal_path if cal_path.is_dir() else cal_path.parent
+    return evaluate_field(read_field(cal_path), cal_dir, dataset)
