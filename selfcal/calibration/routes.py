@@ -56,6 +56,7 @@ __all__ = [
     "open_dataset",
     "pose_features",
     "read_calibration",
+    "write_calibration",
 ]
 
 Route = Literal["field", "board", "handeye"]
@@ -134,6 +135,43 @@ def calibrate_pose_dataset(root: str | Path, *, write: bool = True) -> HandEyeCa
     return cal
 
 
+def write_calibration(
+    path: str | Path,
+    result: CalibrationResult | BoardCalibrationResult | HandEyeCalibration | TrackerCalibration,
+) -> Path:
+    """Write ``result`` of any route with its kind's one writer at ``path`` (a file, or a folder:
+    its ``calibration.json``); returns the file. A hand-eye calibration names the folder it is
+    written in as its dataset.
+
+    Raises:
+        InputError: ``result`` is none of the four results.
+    """
+    from selfcal.calibration.handeye.calibrate import HandEyeCalibration
+    from selfcal.calibration.handeye.calibration_file import handeye_document
+    from selfcal.calibration.tracker.calibration_file import (
+        TrackerCalibration,
+        write_tracker_calibration,
+    )
+    from selfcal.io.board_calibration import BoardCalibrationResult, write_board_calibration
+    from selfcal.io.calibration import CalibrationResult
+    from selfcal.io.calibration import write_calibration as write_field
+    from selfcal.io.jsonfile import write_json_atomic
+
+    p = Path(path)
+    p = p / "calibration.json" if p.is_dir() else p
+    if isinstance(result, CalibrationResult):
+        return write_field(p, result)
+    if isinstance(result, BoardCalibrationResult):
+        return write_board_calibration(p, result)
+    if isinstance(result, HandEyeCalibration):
+        return write_json_atomic(p, handeye_document(result, str(p.parent)))
+    if isinstance(result, TrackerCalibration):
+        return write_tracker_calibration(p, result)
+    raise InputError(f"write_calibration: {type(result).__name__} is no calibration result",
+                     fix="give what calibrate, identify_tracker's from_result or "
+                     "read_calibration returned")  # fmt: skip
+
+
 @limited
 def calibrate(
     root: str | Path,
@@ -183,17 +221,15 @@ def calibrate(
         return calibrate_pose_dataset(root, write=write)
     if route == "board":
         from selfcal.calibration.board.dataset import calibrate_board_dataset
-        from selfcal.io.board_calibration import write_board_calibration
 
         board = calibrate_board_dataset(
             root, allow_missing_frames=allow_missing_frames, joint_sigma=joint_sigma
         )
         if write:
-            write_board_calibration(Path(root) / "calibration.json", board)
+            write_calibration(Path(root) / "calibration.json", board)
         return board
     from selfcal.calibration.field.calibrate import CalibrationFailedError
     from selfcal.calibration.field.calibrate import calibrate as calibrate_field
-    from selfcal.io.calibration import write_calibration
 
     res = calibrate_field(root, progress=progress, method=method,
                           allow_missing_frames=allow_missing_frames, tracker=tracker,
