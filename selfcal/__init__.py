@@ -24,6 +24,8 @@ if TYPE_CHECKING:
     from selfcal.calibration.routes import open_dataset as open_dataset
     from selfcal.calibration.routes import read_calibration as read_calibration
     from selfcal.calibration.routes import write_calibration as write_calibration
+    from selfcal.calibration.tracker.calibrate import TrackerRun as TrackerRun
+    from selfcal.calibration.tracker.calibrate import calibrate_tracker as calibrate_tracker
     from selfcal.calibration.tracker.calibration_file import (
         TrackerCalibration as TrackerCalibration,
     )
@@ -87,6 +89,7 @@ _PARTS: dict[str, tuple[str, ...]] = {
         "read_calibration",
         "write_calibration",
     ),
+    "selfcal.calibration.tracker.calibrate": ("TrackerRun", "calibrate_tracker"),
     "selfcal.calibration.tracker.identify": ("TrackerMeasurements", "identify_tracker"),
     "selfcal.calibration.tracker.join": ("TrackerInput",),
     # results
@@ -156,7 +159,9 @@ __all__ = [
     "TrackerCalibration",
     "TrackerInput",
     "TrackerMeasurements",
+    "TrackerRun",
     "calibrate",
+    "calibrate_tracker",
     "calibrated_mjcf",
     "calibration_route",
     "camera_model",

@@ -139,9 +139,9 @@ def write_calibration(
     path: str | Path,
     result: CalibrationResult | BoardCalibrationResult | HandEyeCalibration | TrackerCalibration,
 ) -> Path:
-    """Write ``result`` of any route with its kind's one writer at ``path`` (a file, or a folder:
-    its ``calibration.json``); returns the file. A hand-eye calibration names the folder it is
-    written in as its dataset.
+    """Write ``result`` of any route with its kind's one writer at ``path``: a ``.json`` file,
+    else a folder (made when missing) and its ``calibration.json``; returns the file. A hand-eye
+    calibration names the folder it is written in as its dataset.
 
     Raises:
         InputError: ``result`` is none of the four results.
@@ -158,7 +158,9 @@ def write_calibration(
     from selfcal.io.jsonfile import write_json_atomic
 
     p = Path(path)
-    p = p / "calibration.json" if p.is_dir() else p
+    if p.suffix != ".json":
+        p.mkdir(parents=True, exist_ok=True)
+        p = p / "calibration.json"
     if isinstance(result, CalibrationResult):
         return write_field(p, result)
     if isinstance(result, BoardCalibrationResult):

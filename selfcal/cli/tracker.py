@@ -39,7 +39,6 @@ __all__ = [
     "add_tracker_args",
     "tracker_input",
     "tracker_summary",
-    "read_tracker_files",
 ]
 
 IDENTIFY_HELP = """\
@@ -86,23 +85,6 @@ def _residuals_csv(table, res, meas: TrackerMeasurements) -> str:
     for i, (line, e) in enumerate(zip(table.lines, r)):
         lines.append(f"{i + 1},{line},{e[0]:.6f},{e[1]:.6f},{e[2]:.6f},{np.linalg.norm(e):.6f}")
     return "\n".join(lines) + "\n"
-
-
-def read_tracker_files(measurements, distances, robot, units: str, *, guess: bool = True):
-    """``(TrackerMeasurements, Table)``: the measurements file (positions or poses) and, when
-    given, the distances file of ``robot`` (:mod:`selfcal.io.tracker`, joints in ``units``), their
-    geometry checked against the nominal arm (:mod:`selfcal.calibration.tracker.checks`)."""
-    from selfcal.calibration.tracker.checks import check_tracker_geometry
-    from selfcal.calibration.tracker.identify import TrackerMeasurements
-    from selfcal.io.tracker import read_distances, read_measurements
-    from selfcal.kinematics.mcpc import nominal_mcpc
-
-    meas, table = read_measurements(measurements, robot, units, guess=guess)
-    if distances:
-        qa, qb, d = read_distances(distances, robot, units, guess=guess)
-        meas = TrackerMeasurements(meas.q, meas.xyz, meas.R, qa, qb, d)
-    check_tracker_geometry(nominal_mcpc(robot), meas, str(measurements), distances)
-    return meas, table
 
 
 def _check_sigmas(*named: tuple[str, float]) -> None:
@@ -162,6 +144,7 @@ def tracker_input(args: argparse.Namespace, robot):
             ``--joint-units`` with it, or a noise that is not a positive number.
         InputError: a file that cannot be read (named with row and column).
     """
+    from selfcal.calibration.tracker.calibrate import read_tracker_files
     from selfcal.calibration.tracker.join import TrackerInput
 
     if not args.tracker:
@@ -209,46 +192,18 @@ def tracker_summary(src) -> str:
 
 
 def cmd_identify(args: argparse.Namespace) -> int:
-    from selfcal.calibration.tracker.calibration_file import from_result, write_tracker_calibration
-    from selfcal.calibration.tracker.cross_validation import leave_one_out
-    from selfcal.calibration.tracker.identify import identify_tracker
-    from selfcal.calibration.tracker.nominal import fit_nominal
+    from selfcal.calibration.tracker.calibrate import calibrate_tracker
+    from selfcal.calibration.tracker.calibration_file import write_tracker_calibration
     from selfcal.io.atomic import write_text_atomic
-    from selfcal.kinematics.mcpc import nominal_mcpc
-    from selfcal.robot.definition import load_robot
 
-    robot = load_robot(args.robot)
-    meas, table = read_tracker_files(
-        args.measurements, args.distances, robot, args.joint_units, guess=not args.trust_units
-    )
     _check_sigmas(("--sigma-mm", args.sigma_mm), ("--sigma-deg", args.sigma_deg))
-    out = _out_dir(args.out or f"runs/identify-{Path(args.measurements).stem}")
     hold = tuple(h for h in (args.hold or "").replace(" ", "").split(",") if h)
-    nominal = nominal_mcpc(robot)
-    sig = {"sigma_t_m": args.sigma_mm / 1e3, "sigma_r_rad": np.radians(args.sigma_deg)}
-    res = identify_tracker(nominal, meas, sigma_d_m=args.sigma_mm / 1e3, hold=hold, **sig)
-    fair = fit_nominal(nominal, meas, **sig)
-    cv = leave_one_out(nominal, meas, sigma_d_m=args.sigma_mm / 1e3, hold=hold, **sig)
-    files = {"measurements": str(args.measurements), "distances": args.distances}
-    sigmas = {
-        "position_mm": args.sigma_mm,
-        "rotation_deg": args.sigma_deg,
-        "distance_mm": args.sigma_mm,
-    }
-    cal = from_result(
-        res,
-        nominal,
-        robot=robot.name,
-        robot_source=str(args.robot),
-        joint_names=robot.joint_names,
-        joint_limits=robot.limits,
-        joint_units=args.joint_units,
-        sigmas=sigmas,
-        files=files,
-        fair_nominal=fair,
-    )
-    if cv is not None:
-        cal.fit["cross_validation"] = cv.to_json()
+    run = calibrate_tracker(args.measurements, args.robot, args.joint_units,
+                            distances=args.distances, sigma_mm=args.sigma_mm,
+                            sigma_deg=args.sigma_deg, hold=hold, trust_units=args.trust_units)  # fmt: skip
+    out = _out_dir(args.out or f"runs/identify-{Path(args.measurements).stem}")  # after the input
+    res, cal, fair, cv = run.result, run.calibration, run.nominal, run.cross_validation
+    meas, table = run.measurements, run.table
     path = write_tracker_calibration(out / "calibration.json", cal)
     note_written(args, path)
     if meas.m:

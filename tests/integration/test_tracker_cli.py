@@ -312,3 +312,28 @@ def test_identify_out_below_a_file_exits_2(tmp_path, capsys, er4u):
     argv = ["identify", meas, "--robot", "er4u-paper", "--joint-units", "deg"]
     code, _, err = _run([*argv, "--out", str(tmp_path / "m.csv" / "cal")], capsys)
     assert code == 2 and f"{tmp_path / 'm.csv'} is a file, not a folder" in err
+
+
+def test_the_api_calibrates_a_tracker_file_as_identify_does(tmp_path, capsys, er4u):
+    """``selfcal.calibrate_tracker`` + ``write_calibration`` write the file ``identify`` writes
+    (the API's tracker route; ``read_calibration`` reads it back by its format)."""
+    import selfcal
+
+    _, header, rows = _measurements(tmp_path, er4u, m=30)
+    meas = _write(tmp_path / "m.csv", header, rows)
+    code, _, err = _run(["identify", meas, "--robot", "er4u-paper", "--joint-units", "deg",
+                         "--out", str(tmp_path / "cli")], capsys)  # fmt: skip
+    assert code == 0, err
+    run = selfcal.calibrate_tracker(meas, "er4u-paper", "deg")
+    path = selfcal.write_calibration(tmp_path / "api.json", run.calibration)
+    assert json.loads(path.read_text()) == json.loads(
+        (tmp_path / "cli" / "calibration.json").read_text()
+    )
+    assert selfcal.calibration_route(path) == "tracker"
+    back = selfcal.read_calibration(path)
+    assert isinstance(back, selfcal.TrackerCalibration)
+    assert back.tool_point_mm == pytest.approx(run.calibration.tool_point_mm, abs=1e-9)
+    with pytest.raises(selfcal.InputError, match="sigma_mm must be a positive number"):
+        selfcal.calibrate_tracker(meas, "er4u-paper", "deg", sigma_mm=0.0)
+    folder = selfcal.write_calibration(tmp_path / "new" / "cal", run.calibration)
+    assert folder == tmp_path / "new" / "cal" / "calibration.json" and folder.is_file()

@@ -1,0 +1,138 @@
+"""The tracker route in one call: tracker measurement files -> the identified chain, the fair
+nominal beside it, the leave-one-out check and the ``calibration.json`` content
+(:mod:`selfcal.calibration.tracker.calibration_file`). ``selfcal identify`` prints and writes
+what :func:`calibrate_tracker` returns; the public API serves it as ``selfcal.calibrate_tracker``.
+
+File formats: :mod:`selfcal.io.tracker` and docs/tracker.md. SI inside; the files' joints in
+``joint_units`` (``deg``: revolute joints in degrees, prismatic in mm; ``rad``: radians and
+metres), positions in mm, the tracker's frame.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from selfcal.calibration.tracker.calibration_file import TrackerCalibration, from_result
+from selfcal.calibration.tracker.checks import check_tracker_geometry
+from selfcal.calibration.tracker.cross_validation import CrossValidation, leave_one_out
+from selfcal.calibration.tracker.identify import (
+    TrackerMeasurements,
+    TrackerResult,
+    identify_tracker,
+)
+from selfcal.calibration.tracker.nominal import NominalFit, fit_nominal
+from selfcal.errors import InputError
+from selfcal.io.tracker import Table, read_distances, read_measurements
+from selfcal.kinematics.mcpc import nominal_mcpc
+from selfcal.robot.definition import RobotDef, load_robot
+from selfcal.threads import limited
+
+__all__ = ["TrackerRun", "calibrate_tracker", "read_tracker_files"]
+
+
+def read_tracker_files(
+    measurements: str | Path,
+    distances: str | Path | None,
+    robot: RobotDef,
+    units: str,
+    *,
+    guess: bool = True,
+) -> tuple[TrackerMeasurements, Table]:
+    """``(TrackerMeasurements, Table)``: the measurements file (positions or poses, tracker
+    frame) and, when given, the distances file of ``robot`` (:mod:`selfcal.io.tracker`, joints
+    in ``units``), SI, their geometry checked against the nominal arm
+    (:mod:`selfcal.calibration.tracker.checks`). ``guess=False``: skip the check that degrees
+    look like radians.
+
+    Raises:
+        InputError: a file that cannot be read (named with row and column), or measurements
+            whose geometry does not fit the arm (off by a unit's factor: said).
+    """
+    meas, table = read_measurements(measurements, robot, units, guess=guess)
+    if distances:
+        qa, qb, d = read_distances(distances, robot, units, guess=guess)
+        meas = TrackerMeasurements(meas.q, meas.xyz, meas.R, qa, qb, d)
+    check_tracker_geometry(
+        nominal_mcpc(robot), meas, str(measurements), None if distances is None else str(distances)
+    )
+    return meas, table
+
+
+@dataclass(frozen=True)
+class TrackerRun:
+    """What :func:`calibrate_tracker` found: the ``result`` (the identified chain, tracker
+    frame), the ``calibration`` (the ``calibration.json`` content, mm and deg), the ``nominal``
+    fit (the robot file's chain, tracker frame and tool fitted the same way), the leave-one-out
+    ``cross_validation`` (None when there are no rows or too many), the ``measurements`` (SI)
+    and the measurements file's ``table``."""
+
+    result: TrackerResult
+    calibration: TrackerCalibration
+    nominal: NominalFit
+    cross_validation: CrossValidation | None
+    measurements: TrackerMeasurements
+    table: Table
+
+
+@limited
+def calibrate_tracker(
+    measurements: str | Path,
+    robot: str | Path,
+    joint_units: str,
+    *,
+    distances: str | Path | None = None,
+    sigma_mm: float = 0.1,
+    sigma_deg: float = 0.01,
+    hold: tuple[str, ...] | list[str] = (),
+    trust_units: bool = False,
+) -> TrackerRun:
+    """Identify ``robot``'s kinematics (a model name, robot TOML or URDF) from the tracker
+    measurements file ``measurements`` (tool-point positions or poses, mm, tracker frame) and
+    the optional ball-bar ``distances`` file, as ``selfcal identify`` does; nothing is written
+    (:func:`selfcal.calibration.routes.write_calibration` writes ``run.calibration``).
+
+    Args:
+        joint_units: ``deg`` (revolute degrees, prismatic mm) or ``rad`` (radians, metres).
+        sigma_mm: position and distance noise, mm; ``sigma_deg``: orientation noise of poses,
+            deg (they weigh the kinds against each other).
+        hold: minimal parameter names held at nominal.
+        trust_units: skip the check that degrees look like radians.
+
+    Raises:
+        InputError: a noise that is not a positive number, or a file that cannot be read
+            (named with row and column).
+        TrackerIdentificationError: too few measurements for what they can identify (says how
+            many are needed).
+    """
+    for name, v in (("sigma_mm", sigma_mm), ("sigma_deg", sigma_deg)):
+        if not (np.isfinite(v) and v > 0):
+            raise InputError(f"{name} must be a positive number, got {v}")
+    rd = load_robot(robot)
+    meas, table = read_tracker_files(measurements, distances, rd, joint_units,
+                                     guess=not trust_units)  # fmt: skip
+    nominal = nominal_mcpc(rd)
+    s_t, s_r = sigma_mm / 1e3, float(np.radians(sigma_deg))
+    res = identify_tracker(nominal, meas, sigma_t_m=s_t, sigma_r_rad=s_r, sigma_d_m=s_t, hold=hold)
+    fair = fit_nominal(nominal, meas, sigma_t_m=s_t, sigma_r_rad=s_r)
+    cv = leave_one_out(nominal, meas, sigma_t_m=s_t, sigma_r_rad=s_r, sigma_d_m=s_t, hold=hold)
+    cal = from_result(
+        res,
+        nominal,
+        robot=rd.name,
+        robot_source=str(robot),
+        joint_names=rd.joint_names,
+        joint_limits=rd.limits,
+        joint_units=joint_units,
+        sigmas={"position_mm": sigma_mm, "rotation_deg": sigma_deg, "distance_mm": sigma_mm},
+        files={
+            "measurements": str(measurements),
+            "distances": None if distances is None else str(distances),
+        },
+        fair_nominal=fair,
+    )
+    if cv is not None:
+        cal.fit["cross_validation"] = cv.to_json()
+    return TrackerRun(res, cal, fair, cv, meas, table)
