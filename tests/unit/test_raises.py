@@ -51,13 +51,26 @@ def _placeholder(func: ast.FunctionDef | ast.AsyncFunctionDef) -> bool:
     )
 
 
-def _bare_raises(tree: ast.Module) -> list[tuple[int, str]]:
-    """(line, name) of every ``raise Builtin(...)`` outside an abstract placeholder."""
-    allowed = {
-        id(node.body[-1])
-        for node in ast.walk(tree)
-        if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef) and _placeholder(node)
+def _protocol(func: ast.FunctionDef | ast.AsyncFunctionDef) -> set[int]:
+    """The ``raise AttributeError`` of a module's or class's ``__getattr__`` (PEP 562: Python's
+    way of saying a name is not there; no other exception will do)."""
+    if func.name != "__getattr__":
+        return set()
+    return {
+        id(n)
+        for n in ast.walk(func)
+        if isinstance(n, ast.Raise)
+        and isinstance(f := n.exc.func if isinstance(n.exc, ast.Call) else n.exc, ast.Name)
+        and f.id == "AttributeError"
     }
+
+
+def _bare_raises(tree: ast.Module) -> list[tuple[int, str]]:
+    """(line, name) of every ``raise Builtin(...)`` outside an abstract placeholder and a
+    ``__getattr__``'s AttributeError."""
+    funcs = [n for n in ast.walk(tree) if isinstance(n, ast.FunctionDef | ast.AsyncFunctionDef)]
+    allowed = {id(f.body[-1]) for f in funcs if _placeholder(f)}
+    allowed |= {i for f in funcs for i in _protocol(f)}
     out = []
     for node in ast.walk(tree):
         if not isinstance(node, ast.Raise) or node.exc is None or id(node) in allowed:
@@ -101,5 +114,6 @@ def test_the_scan_finds_a_bare_raise():
         "class A:\n    def g(self):\n        '''doc'''\n        raise NotImplementedError\n"
         "    def h(self):\n        print()\n        raise NotImplementedError\n"
         "if __name__ == '__main__':\n    raise SystemExit(0)\n"
+        "def __getattr__(name):\n    raise AttributeError(name)\n"
     )
     assert _bare_raises(tree) == [(3, "ValueError"), (4, "KeyError"), (11, "NotImplementedError")]
