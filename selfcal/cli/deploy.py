@@ -123,11 +123,10 @@ def load_calibration(path: str):
         CliError: missing file or unusable TOML (the message says what to give instead).
         CalibrationFileError: a damaged or foreign calibration.json (named, with the fix).
     """
-    from selfcal.export.deploy import DeployError, deploy, deploy_chain
+    from selfcal.export.deploy import DeployError, calibration_robot_model, deploy, deploy_chain
     from selfcal.export.robot_toml import from_toml
     from selfcal.io.board_calibration import calibration_kind, read_board_calibration
     from selfcal.io.calibration import read_calibration
-    from selfcal.robot.definition import load_robot
 
     p = _calibration_file(path)
     try:
@@ -135,11 +134,11 @@ def load_calibration(path: str):
             return from_toml(p.read_text())
         if calibration_kind(p) == "board":  # world = the board frame, tool = the camera
             cal = read_board_calibration(p)
-            robot = _robot_file(p) or load_robot(cal.robot_model)
+            robot = _robot_file(p) or calibration_robot_model(cal.robot_model)
             return deploy_chain(cal.model, robot, intrinsics=cal.cameras[0], source=str(p))
         return deploy(_usable(read_calibration(p), p), robot=_robot_file(p), source=str(p))
     except DeployError as exc:
-        raise CliError(f"{p}: {exc}") from None
+        raise CliError(f"{p}: {exc.message}", fix=exc.fix) from None
 
 
 def calibration_robot(path: str, robot_name: str):
@@ -163,6 +162,17 @@ def calibration_robot(path: str, robot_name: str):
         fix="give the calibration.json the TOML was exported from (its folder keeps the robot "
         "file), or export again from it",
     )
+
+
+def _named(calibration: Path, name: str):
+    """The robot ``calibration``'s ``robot_model`` ``name`` names, or a :class:`CliError`
+    naming the file."""
+    from selfcal.export.deploy import DeployError, calibration_robot_model
+
+    try:
+        return calibration_robot_model(name)
+    except DeployError as exc:
+        raise CliError(f"{calibration}: {exc.message}", fix=exc.fix) from None
 
 
 def _robot_file(calibration: Path):
@@ -312,7 +322,6 @@ def load_handeye(path: str):
     from selfcal.export.handeye import from_chain, from_handeye_document
     from selfcal.io.board_calibration import calibration_kind, read_board_calibration
     from selfcal.io.calibration import read_calibration
-    from selfcal.robot.definition import load_robot
 
     p = _calibration_file(path)
     if p.suffix == ".toml":
@@ -326,11 +335,11 @@ def load_handeye(path: str):
         to_si = {"deg": math.pi / 180.0, "mm": 1e-3}
         std = {b.name: b.bound * to_si[b.unit] for b in (cal.bounds.parameters if cal.bounds else ())
                if b.bound is not None}  # fmt: skip
-        robot = _robot_file(p) or load_robot(cal.robot_model)
+        robot = _robot_file(p) or _named(p, cal.robot_model)
         return from_chain(cal.model, robot, std, str(p), board=True,
                           sigma_source="Cramer-Rao bounds at the estimate")  # fmt: skip
     field = _usable(read_calibration(p), p)
-    robot = _robot_file(p) or load_robot(field.robot_model)
+    robot = _robot_file(p) or _named(p, field.robot_model)
     return from_chain(field.model, robot, field.std_si(), str(p), board=False)
 
 

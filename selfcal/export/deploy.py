@@ -50,7 +50,7 @@ from selfcal.kinematics.alignment import regauge
 from selfcal.kinematics.dh_table import DHTable, canonical_base, dh_table
 from selfcal.kinematics.forward import fk_frames
 from selfcal.kinematics.mcpc import MCPCModel, chain_transforms, nominal_mcpc, shape_matrices
-from selfcal.robot.definition import RobotDef, load_robot
+from selfcal.robot.definition import RobotDef, RobotDefinitionError, load_robot
 from selfcal.transforms import inv_pose, make_pose, rot_z
 
 __all__ = [
@@ -87,6 +87,22 @@ TOOL_FRAME = (
 
 class DeployError(InputError):
     """A calibration or parameter file that cannot be turned into a deployable model."""
+
+
+def calibration_robot_model(name: str) -> RobotDef:
+    """The robot a calibration's ``robot_model`` ``name`` names (a shipped robot's name).
+
+    Raises:
+        DeployError: no robot of that name (the caller prefixes the calibration file).
+    """
+    try:
+        return load_robot(name)
+    except RobotDefinitionError as exc:
+        raise DeployError(
+            f"robot_model {name!r} is not a robot this installation knows ({exc.message})",
+            fix="calibrate again with this version, or pass the robot file the calibration was "
+            "made with (its dataset folder's robot/ copy)",
+        ) from None
 
 
 @dataclass(frozen=True, eq=False)
@@ -246,7 +262,7 @@ def deploy(
         DeployError: a robot that does not match the calibration, or a rig that is not rigid.
     """
     if robot is None:
-        robot = load_robot(calibration.robot_model)
+        robot = calibration_robot_model(calibration.robot_model)
     elif calibration.robot_model != robot.name:
         raise DeployError(
             f"the calibration is of robot {calibration.robot_model!r}, not {robot.name!r}"

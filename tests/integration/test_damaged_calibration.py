@@ -123,3 +123,16 @@ def test_the_undamaged_board_calibration_exports(capsys, tmp_path):
     code, _, err = run(capsys, "export", tmp_path, "--format", "camera_info",
                        "--out", tmp_path / "cam.yaml")  # fmt: skip
     assert code == 0, err
+
+
+@pytest.mark.parametrize("argv", [["export", "{d}", "--out", "{d}/o.urdf", "--format", "urdf"],
+                                  ["export", "{d}", "--out", "{d}/o.toml", "--format", "toml"],
+                                  ["fk", "--calibration", "{d}", "--joints", "0,0,0,0,0"]])  # fmt: skip
+def test_a_robot_model_no_robot_has_is_named_with_the_file(capsys, tmp_path, argv):
+    """#33's leftover: robot_model 'no-such-arm' stopped with the robot lookup's message alone,
+    not naming the calibration.json that names it."""
+    d = _field(tmp_path, "robot_model", "no-such-arm")
+    code, _, err = run(capsys, *[a.format(d=d) for a in argv])
+    assert code == 2
+    assert f"{d / 'calibration.json'}: robot_model 'no-such-arm' is not a robot" in err
+    assert " -- calibrate again with this version, or pass the robot file" in err
