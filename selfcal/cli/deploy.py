@@ -202,22 +202,23 @@ def _usable(cal: CalibrationResult, path: Path) -> CalibrationResult:
 
 
 def _refuse_no_gain(path: str, force: bool) -> None:
-    """A :class:`CliError` when the board calibration ``path`` is no gain over its fair nominal
-    -- by its cross-validation (calibration.json ``selection``) or by the held-out check in its
-    folder (``evaluation.json`` written by ``selfcal evaluate CAL DATASET2 --out
-    CAL/evaluation.json`` for THIS calibration; one of another is not used, with a warning) --
-    unless ``force`` (then a warning). No gain as ``selfcal evaluate`` says it: the calibrated RMS
-    not below the nominal's by more than :data:`selfcal.calibration.board.evaluate.SAME_RMS`."""
+    """A :class:`CliError` when the calibration ``path`` (board or field) is no gain over its
+    fair nominal -- by its cross-validation (a board's calibration.json ``selection``) or by the
+    held-out check in its folder (``evaluation.json`` written by ``selfcal evaluate CAL DATASET2
+    --out CAL/evaluation.json`` for THIS calibration; one of another is not used, with a
+    warning) -- unless ``force`` (then a warning). No gain as ``selfcal evaluate`` says it
+    (:func:`selfcal.calibration.board.evaluate.no_gain`)."""
     import warnings
 
-    from selfcal.calibration.board.evaluate import SAME_RMS, read_evaluation
+    from selfcal.calibration.board.evaluate import no_gain, read_evaluation
     from selfcal.errors import SelfCalWarning
     from selfcal.io.board_calibration import calibration_kind, read_board_calibration
 
     p = _calibration_file(path)
-    if p.suffix != ".json" or calibration_kind(p) != "board":
+    if p.suffix != ".json":
         return
-    why = read_board_calibration(p).cv_verdict()
+    board = calibration_kind(p) == "board"
+    why = read_board_calibration(p).cv_verdict() if board else None
     ev_path = p.parent / "evaluation.json"
     if why is None and ev_path.is_file():
         ev = read_evaluation(ev_path)
@@ -225,7 +226,7 @@ def _refuse_no_gain(path: str, force: bool) -> None:
         if Path(ev.calibration).resolve() not in (p.resolve(), p.parent.resolve()):
             warnings.warn(f"{ev_path} evaluates {ev.calibration}, not {p}: its held-out check is "
                           "not used", SelfCalWarning, stacklevel=2)  # fmt: skip
-        elif not rms["calibrated"] < rms["nominal"] * (1 - SAME_RMS):
+        elif no_gain(rms["calibrated"], rms["nominal"]):
             why = (f"its held-out reprojection in {ev_path} ({rms['calibrated']:.3f} px) is not "
                    f"below the fair nominal's ({rms['nominal']:.3f} px)")  # fmt: skip
     if why is None:
@@ -532,9 +533,10 @@ def register(subparsers) -> None:
     sp.add_argument(
         "--force",
         action="store_true",
-        help="export a board calibration even when it is no gain over its fair nominal (its "
-        "cross-validation, or the held-out check in CAL/evaluation.json: `selfcal evaluate CAL "
-        "DATASET2 --out CAL/evaluation.json`; an evaluation of another calibration is not used)",
+        help="export a calibration even when it is no gain over its fair nominal (a board's "
+        "cross-validation, or for a board or the marker field the held-out check in "
+        "CAL/evaluation.json: `selfcal evaluate CAL DATASET2 --out CAL/evaluation.json`; an "
+        "evaluation of another calibration is not used)",
     )
     sp.add_argument(
         "--frames", metavar="BASE,FLANGE,CAMERA,BOARD", help="with --format tf | easy_handeye | matrix: the ROS frame names (default "

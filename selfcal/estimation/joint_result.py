@@ -78,6 +78,8 @@ class JointRefinementResult(PinholeValues):
     """Each camera's refined model (None: ``camera`` is shared by the rig)."""
     cameras_std: dict[str, dict[str, float]] | None = None
     """With ``cameras``: each camera's ``camera_std`` by camera name."""
+    inlier: np.ndarray | None = None
+    """(k,) bool: the observation rows the final pass fitted (the settled inliers)."""
 
     @property
     def T_left_right(self) -> np.ndarray:

@@ -32,6 +32,7 @@ from selfcal.io.calibration_blocks import (
     CameraPoses,
     DatasetUse,
     DHRow,
+    FairNominal,
     HandEye,
     IdentificationSummary,
     JointSummary,
@@ -109,6 +110,9 @@ class CalibrationResult:
             both), or None (images alone).
         cameras: every camera of the rig with its own intrinsics (``intrinsics`` is then the
             first's), or empty: ``intrinsics`` is shared by the rig's cameras.
+        nominal: the fair nominal (the nominal chain with everything but the kinematics fitted
+            to the same pixels, :class:`selfcal.io.calibration_blocks.FairNominal`), or None
+            (files written before it existed, or its fit failed: ``warnings`` says why).
     """
 
     robot_model: str
@@ -138,6 +142,7 @@ class CalibrationResult:
     scene: ScenePoints | None = None
     tracker: TrackerSource | None = None
     cameras: tuple[RigCamera, ...] = ()
+    nominal: FairNominal | None = None
     world_frame: str = WORLD_FRAME
     tool: str = TOOL
     columns: tuple[str, ...] = field(default=tuple(COLUMNS))
@@ -155,6 +160,16 @@ class CalibrationResult:
         reconstruction frame; SI units."""
         return MCPCModel(self.params_si.copy(), self.joint_types, self.joint_offsets_rad.copy(),
                          self.base_offset_rad)  # fmt: skip
+
+    @property
+    def nominal_model(self) -> MCPCModel | None:
+        """The fair nominal's MCPC chain (tool = left camera, the calibration's world; SI), or
+        None when the file holds none."""
+        if self.nominal is None:
+            return None
+        n = self.nominal
+        return MCPCModel(n.params_si.copy(), self.joint_types, n.joint_offsets_rad.copy(),
+                         n.base_offset_rad)  # fmt: skip
 
     @property
     def pinhole(self) -> Intrinsics:
@@ -218,6 +233,8 @@ class CalibrationResult:
             doc["seconds"] = self.seconds
         if self.scene is not None:
             doc["scene"] = self.scene.to_json()
+        if self.nominal is not None:
+            doc["nominal"] = self.nominal.to_json()
         return doc
 
     @classmethod
@@ -246,6 +263,7 @@ class CalibrationResult:
         joint = f.maybe_sub("joint")
         tracker = f.maybe_sub("tracker")
         scene = f.maybe_sub("scene")
+        nominal = f.maybe_sub("nominal")
         methods = f.sub("methods")
         return cls(
             robot_model=f.str("robot_model"),
@@ -278,6 +296,7 @@ class CalibrationResult:
             seconds=f.opt_float("seconds"),
             scene=None if scene is None else ScenePoints.from_json(scene),
             tracker=None if tracker is None else TrackerSource.from_json(tracker),
+            nominal=None if nominal is None else FairNominal.from_json(nominal),
             world_frame=f.str("world_frame"),
             tool=m.str("tool"),
             columns=m.strs("columns"),

@@ -34,6 +34,7 @@ __all__ = [
     "CameraPoses",
     "MethodSummary",
     "JointSummary",
+    "FairNominal",
     "matrix",
     "UNITS",
 ]
@@ -318,3 +319,35 @@ class JointSummary(JsonBlock):
     joint_correction_rms: tuple[float, ...] | None
     scale_residual_m: float | None
     note: str = JOINT_NOTE
+
+
+FAIR_NOMINAL_NOTE = (
+    "the fair nominal: the robot file's chain (every joint's parameters held) with the hand-eye, "
+    "the camera(s), the rig and the marker corners fitted to the same pixels by the calibration's "
+    "objective (selfcal.calibration.field.nominal_fit); in the calibration's world frame (aligned "
+    "on the marker corners); 'evaluate' and the checks judge the calibration against it"
+)
+
+
+@dataclass(frozen=True, eq=False)
+class FairNominal(JsonBlock):
+    """``nominal``: the fair nominal of a field calibration (``FAIR_NOMINAL_NOTE``): its MCPC chain
+    (tool = left camera; ``joint_offsets_rad`` (n,), ``params_si`` (n + 1, 6), SI), its camera
+    (``intrinsics``; ``cameras`` when each camera of the rig has its own), ``rig``, marker corners
+    (``scene``) and hand-eye, its fit's reprojection RMS (px, over its inliers) and counts, and
+    ``calibration_images_rms_px``: the calibration images predicted from their joint readings by
+    ``nominal`` and ``calibrated`` over the same corners (px; the check of
+    :mod:`selfcal.calibration.field.quality`)."""
+
+    joint_offsets_rad: np.ndarray = field(metadata={"shape": (None,), **FINITE})
+    params_si: np.ndarray = field(metadata={"shape": (None, 6), **FINITE})
+    intrinsics: CameraIntrinsics
+    rig: Rig
+    scene: ScenePoints
+    hand_eye: HandEye
+    reprojection_rms_px: float
+    observations: ObservationCounts
+    calibration_images_rms_px: dict[str, float]
+    cameras: tuple[RigCamera, ...] = ()
+    base_offset_rad: float = 0.0
+    note: str = FAIR_NOMINAL_NOTE

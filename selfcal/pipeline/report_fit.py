@@ -3,8 +3,9 @@
 The fit (reprojection RMS, inliers, frames used), a held-out reprojection -- from
 ``DIR/evaluation.json`` when ``selfcal evaluate`` wrote one with a second dataset, else the
 leave-some-poses-out check (:func:`selfcal.calibration.field.holdout.leave_poses_out`: every 5th frame predicted by
-a calibration of the others) -- the parameters with their standard deviations against the nominal
-reference (the nominal chain with only base and hand-eye fitted, :mod:`selfcal.calibration.field.evaluate`),
+a calibration of the others) -- the parameters with their standard deviations against the fair
+nominal (the nominal chain with hand-eye, camera, rig and marker corners fitted to the same
+pixels: ``calibration.json`` ``nominal``, :mod:`selfcal.calibration.field.nominal_fit`),
 and the identifiability (rank, condition number, held parameters and why). Never the simulator.
 A board calibration (``selfcal import`` of your own data) gets the same report from its own
 numbers: fit, held-out check, the camera's sigmas, the parameters against the nominal reference
@@ -19,14 +20,16 @@ from pathlib import Path
 import numpy as np
 
 from selfcal.calibration.board.evaluate import read_evaluation
-from selfcal.calibration.field.evaluate import nominal_reference
 from selfcal.calibration.field.holdout import leave_poses_out
 from selfcal.errors import EXIT_INTERNAL, SelfCalError
 from selfcal.io.board_calibration import BoardCalibrationResult
 from selfcal.io.calibration import CalibrationResult
+from selfcal.io.dataset import Dataset
 from selfcal.kinematics.accuracy import parameter_table
 from selfcal.kinematics.alignment import express_in_frame
+from selfcal.kinematics.mcpc import nominal_mcpc
 from selfcal.pipeline.report_cameras import rig_camera_markdown, rig_camera_rows
+from selfcal.robot.definition import load_robot
 
 __all__ = ["fit_report", "board_fit_report", "fit_markdown", "HOLDOUT_EVERY"]
 
@@ -68,7 +71,11 @@ def fit_report(root: str | Path, cal: CalibrationResult, *, every: int = HOLDOUT
     (module docstring); lengths mm, angles deg, image quantities px."""
     root = Path(root)
     est = cal.model
-    nominal = express_in_frame(nominal_reference(cal, root), np.eye(4), like=est)
+    nominal = cal.nominal_model
+    if nominal is None:  # a file from before the fair nominal was stored (or its fit failed)
+        robot = load_robot(Dataset.open(root).robot_source)
+        nominal = nominal_mcpc(robot).with_tool(robot.T_flange_cam)
+    nominal = express_in_frame(nominal, np.eye(4), like=est)
     std_si = {p.name: np.nan if p.std is None else p.std * p.to_si for p in cal.parameters}
     params = parameter_table(est, std_si, None, nominal)
     held = {**cal.identification.held, **({} if cal.joint is None else cal.joint.held)}
@@ -109,8 +116,13 @@ def fit_report(root: str | Path, cal: CalibrationResult, *, every: int = HOLDOUT
         "scale_factor": cal.scale.k,
         "parameters": params,
         "parameters_note": (
-            "nominal: the robot file's chain with only its base and hand-eye fitted to the "
-            "calibrated camera poses, in the estimate's frame; std: 1 sigma from the fit"
+            "nominal: the fair nominal, the nominal chain with hand-eye, camera and marker "
+            "corners fitted to the pixels (calibration.json nominal), in the estimate's frame; "
+            "std: 1 sigma from the fit"
+            if cal.nominal is not None
+            else "nominal: the robot file's chain in its base frame (calibration.json holds no "
+            "fair nominal: re-run `selfcal calibrate`), so the base parameters do not compare; "
+            "std: 1 sigma from the fit"
         ),
         "identifiability": identifiability,
         "warnings": list(cal.warnings),

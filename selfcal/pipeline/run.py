@@ -21,7 +21,7 @@ import numpy as np
 
 from selfcal.acquisition.acquire import acquire
 from selfcal.acquisition.backends import open_robot, plan_dataset, sim_setup
-from selfcal.calibration.board.evaluate import Evaluation, evaluate_board
+from selfcal.calibration.board.evaluate import Evaluation, evaluate_board, no_gain, worse
 from selfcal.calibration.field.calibrate import CalibrationFailedError, calibrate
 from selfcal.calibration.field.evaluate import evaluate_field
 from selfcal.config.paper_data import TABLE_II_MM, table_ii_postures
@@ -180,11 +180,28 @@ def run_calibrate(
         quiet,
         f"calibrated {res.dataset.frames_used}/{res.dataset.frames} frames in "
         f"{res.seconds:.1f} s: fx = {i.fx:.2f} px, mu = {i.mu:.5f}, "
-        f"reprojection RMS {res.reprojection_rms_px:.3f} px, {fitted}",
+        f"reprojection RMS {res.reprojection_rms_px:.3f} px{_fair_nominal_text(res)}, {fitted}",
     )
     if res.failed and raise_failed:
         raise CalibrationFailedError.of(res.failures, path)
     return res
+
+
+def _fair_nominal_text(res: CalibrationResult) -> str:
+    """The calibration images predicted from their joint readings by the calibrated model and
+    by the fair nominal (over the same corners; the fits' own RMS let the joint read-back
+    corrections absorb part of a misfit) and, when the calibrated model is no better
+    (:func:`selfcal.calibration.board.evaluate.no_gain`; worse is a failure, said apart), that
+    it is no gain."""
+    nom = res.nominal
+    if nom is None:
+        return ""
+    rms = nom.calibration_images_rms_px
+    out = (f" (from the joint readings {rms['calibrated']:.3f} px, the fair nominal "
+           f"{rms['nominal']:.3f} px)")  # fmt: skip
+    if no_gain(rms["calibrated"], rms["nominal"]) and not worse(rms["calibrated"], rms["nominal"]):
+        out += "; NO GAIN: predicts the calibration images no better than the fair nominal"
+    return out
 
 
 def reprojection_figures(root: Path, ev: Evaluation) -> Path:
@@ -360,13 +377,13 @@ def _write_fit_report(root: Path, report: dict, drawn: list[Path], *, quiet: boo
     report["figures"] = [str(p.relative_to(root)) for p in drawn]
     failures = list(report.get("failures", []))
     rms = report["held_out"].get("reprojection_rms_px")
-    if rms is not None and "verdict" not in report and not rms["calibrated"] < rms["nominal"]:
+    if rms is not None and "verdict" not in report and no_gain(rms["calibrated"], rms["nominal"]):
         report["verdict"] = (
             f"no gain: the held-out reprojection of the calibrated model "
             f"({rms['calibrated']:.3f} px) is not below the nominal reference's "
             f"({rms['nominal']:.3f} px)"
         )
-    if rms is not None and rms["calibrated"] > rms["nominal"]:
+    if rms is not None and worse(rms["calibrated"], rms["nominal"]):
         failures.append(
             f"the held-out reprojection of the calibrated model ({rms['calibrated']:.3f} px) is "
             f"worse than the nominal reference's ({rms['nominal']:.3f} px): do not use it"

@@ -1,5 +1,6 @@
 """Every calibration stage shows up on a terminal with its cost (#16 item 3): detection as a bar,
-then the camera stage, the identification, the one-step refinement and the bounds as steps."""
+then the camera stage, the identification, the one-step refinement, the bounds and the fair
+nominal as steps."""
 
 from __future__ import annotations
 
@@ -39,12 +40,16 @@ def test_each_stage_with_its_cost(tmp_path):
         "kinematic identification",
         "one-step refinement (all images)",
         "Cramer-Rao bounds",
+        "fair nominal (the nominal chain fitted to the same pixels)",
     ]
     assert f"reprojection RMS {res.methods['two-stage'].reprojection_rms_px:.3f} px" in done[0]
     assert re.search(
         r"tool RMS \d+\.\d{3} mm / \d+\.\d{4} deg, rank \d+/\d+ \(\d+\.\d s\)", done[1]
     )
     assert f"reprojection RMS {res.reprojection_rms_px:.3f} px" in done[2]
+    assert res.nominal is not None  # the reference the calibration is judged against
+    rms = res.nominal.calibration_images_rms_px["nominal"]
+    assert f"predicts the calibration images with {rms:.3f} px RMS" in done[4]
 
 
 class _Count:

@@ -18,6 +18,12 @@ def test_default_scenario_analytic_matches_golden(tmp_path, golden, capsys):
     # 5-joint chain less the 6 of the world frame's gauge (not the two-stage "rank 26/26")
     said = capsys.readouterr().err
     assert "20 kinematic parameters fitted (6 fixed by the world frame's gauge)" in said, said
+    # and both models' prediction of the calibration images, the calibrated and the fair nominal
+    assert result.nominal is not None
+    rms = result.nominal.calibration_images_rms_px
+    assert (f"(from the joint readings {rms['calibrated']:.3f} px, the fair nominal "
+            f"{rms['nominal']:.3f} px)") in said, said  # fmt: skip
+    assert rms["calibrated"] < 1.0 < 4.0 < rms["nominal"] < 5.0  # measured 0.698 and 4.377
     run_report(tmp_path, quiet=True)
     text = (tmp_path / "calibration.json").read_text()
     golden("analytic/calibration.json", json.loads(text))

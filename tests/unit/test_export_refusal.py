@@ -1,8 +1,11 @@
-"""`selfcal export` refuses a board calibration whose held-out check in its folder is no gain."""
+"""`selfcal export` refuses a board or field calibration whose held-out check in its folder is no
+gain."""
 
 from __future__ import annotations
 
+import shutil
 import warnings
+from pathlib import Path
 
 import pytest
 
@@ -14,6 +17,8 @@ from selfcal.errors import SelfCalWarning
 from selfcal.io.board_calibration import BoardCalibrationResult, write_board_calibration
 from selfcal.kinematics.mcpc import nominal_mcpc
 from selfcal.robot.definition import load_robot
+
+GOLDEN = Path(__file__).resolve().parents[1] / "golden" / "analytic"
 
 
 @pytest.fixture
@@ -56,3 +61,19 @@ def test_an_evaluation_of_another_calibration_is_not_used(cal_dir, tmp_path):
         warnings.simplefilter("error")
         with pytest.raises(CliError, match="not exported"):
             _refuse_no_gain(str(cal_dir), force=False)
+
+
+def test_a_field_calibration_of_no_gain_held_out_is_refused_too(tmp_path):
+    """The ArUco field's calibration (the golden one of the default scenario) with a held-out
+    check in its folder that is no gain over its fair nominal: refused unless --force, as a
+    board's (it was exported whatever its check said)."""
+    cal_dir = tmp_path / "field"
+    cal_dir.mkdir()
+    shutil.copy(GOLDEN / "calibration.json", cal_dir / "calibration.json")
+    _evaluation(cal_dir, str(cal_dir), 5.0, 5.0)
+    with pytest.raises(CliError, match="is not below the fair nominal's"):
+        _refuse_no_gain(str(cal_dir), force=False)
+    with pytest.warns(SelfCalWarning, match="exported with --force"):
+        _refuse_no_gain(str(cal_dir), force=True)
+    _evaluation(cal_dir, str(cal_dir), 0.75, 5.0)
+    _refuse_no_gain(str(cal_dir), force=False)

@@ -33,6 +33,9 @@ from selfcal.transforms import inv_pose
 __all__ = [
     "EVAL_FORMAT",
     "Evaluation",
+    "SAME_RMS",
+    "no_gain",
+    "worse",
     "evaluate_board",
     "rms_px",
     "read_evaluation",
@@ -46,6 +49,19 @@ SAME_POSTURE_DEG = 1e-4
 SAME_RMS = 1e-6
 """Relative difference of two RMS at or below which they are the same figure (a model written
 in another gauge predicts the same pixels to about 1e-9)."""
+
+
+def no_gain(calibrated_px: float, nominal_px: float) -> bool:
+    """The calibrated RMS is not below the fair nominal's by more than :data:`SAME_RMS` (NO
+    GAIN, or worse): the one rule of evaluate, report, export and the calibrations' summaries.
+    NaN on either side: no gain shown."""
+    return not calibrated_px < nominal_px * (1 - SAME_RMS)
+
+
+def worse(calibrated_px: float, nominal_px: float) -> bool:
+    """The calibrated RMS is above the fair nominal's by more than :data:`SAME_RMS` (a failed
+    check). NaN on either side: no verdict (False)."""
+    return bool(calibrated_px > nominal_px * (1 + SAME_RMS))
 
 
 class EvaluationWarning(SelfCalWarning):
@@ -113,7 +129,7 @@ class Evaluation:
         """The held-out check failed: the calibrated model predicts worse than the nominal one
         (one sentence), else empty (#15)."""
         cal, nom = self.rms.get("calibrated", np.nan), self.rms.get("nominal", np.nan)
-        if not cal > nom * (1 + SAME_RMS):  # equal: the calibration is the nominal (NO GAIN)
+        if not worse(cal, nom):  # equal: the calibration is the nominal (NO GAIN)
             return ()
         return (
             f"the calibrated model predicts the held-out images of {self.dataset} worse than the "
@@ -145,11 +161,11 @@ class Evaluation:
             f"{self.rms['nominal']:.3f} px, calibrated {self.rms['calibrated']:.3f} px"
         )
         cal, nom = self.rms["calibrated"], self.rms["nominal"]
-        if not cal < nom * (1 - SAME_RMS):
+        if no_gain(cal, nom):
             out += (
-                "; NO GAIN: the calibrated model predicts no better than the nominal"
-                if cal <= nom * (1 + SAME_RMS)
-                else "; WORSE than the nominal"
+                "; WORSE than the nominal"
+                if worse(cal, nom)
+                else "; NO GAIN: the calibrated model predicts no better than the nominal"
             )
         if len(self.cameras) > 1:
             out += (

@@ -31,6 +31,7 @@ from selfcal.calibration.field.cameras import (
     models_of,
 )
 from selfcal.calibration.field.joint_refine import refine_calibration
+from selfcal.calibration.field.nominal_fit import judge_against_nominal
 from selfcal.calibration.field.quality import assess_calibration
 from selfcal.calibration.field.results import (
     CalibrationOutput,
@@ -435,8 +436,17 @@ def calibrate_detailed(
     ids, X = final.point_ids, final.X_world
     ok = np.isfinite(X).all(axis=1)
     scene = ScenePoints(tuple(int(i) for i in ids[ok]), np.asarray(X[ok], dtype=float))
-    failures = assess_calibration(dataclasses.replace(out, result=result), obs, q, nominal)
-    result = dataclasses.replace(result, scene=scene, failures=failures)
+    out = dataclasses.replace(out, result=result)
+    with _stage(progress, "fair nominal (the nominal chain fitted to the same pixels)") as st:
+        kw = {} if tracker is None else tracker.refine_kwargs()
+        fair, why = judge_against_nominal(out, obs, q, robot, ds.info, **kw)
+        if fair is not None:
+            st(f"predicts the calibration images with "
+               f"{fair.calibration_images_rms_px['nominal']:.3f} px RMS")  # fmt: skip
+    failures = assess_calibration(out, fair)
+    extra = () if why is None else (why,)
+    result = dataclasses.replace(result, scene=scene, failures=failures, nominal=fair,
+                                 warnings=(*result.warnings, *extra))  # fmt: skip
     result = dataclasses.replace(result, seconds=round(time.perf_counter() - t0, 3))
     return dataclasses.replace(out, result=result)
 

@@ -398,8 +398,12 @@ def joint_refine(
         active = new_active
     if not converged:
         raise JointRefinementError(
-            f"the joint refinement did not converge within {max_iter} iterations ({message}); "
-            "check the data or raise max_iter"
+            f"the joint refinement did not converge within {max_iter} iterations of its final "
+            f"pass ({message}): the estimator failed, no check of the data found them wrong; "
+            f"tried: Levenberg-Marquardt from its start, {rnd} robust round(s) ({loss} loss) then "
+            f"plain least squares, {int(free.sum())} kinematic parameters free, "
+            f"{int(act.sum())} corner observations",
+            fix="add postures from other arm configurations, or raise max_iter",
         )
 
     # ---- statistics at the solution (final least-squares Jacobian)
@@ -476,6 +480,7 @@ def joint_refine(
         rank=rank_info[1],
         n_unknowns=prob.n,
         diagnostics=diag,
+        inlier=act,
     )
 
 

@@ -11,24 +11,24 @@ causes (empty: no failure). :func:`selfcal.calibration.field.calibrate.calibrate
   were listed in the wrong order). The swap is invisible to every fit (the reprojection error is
   the same to 1e-12 px: the identified hand-eye simply moves by one baseline), so it is checked
   against the declaration.
-- **Calibrated against nominal.** The calibrated model's reprojection RMS over the calibration
-  images against the nominal model's: the nominal chain with only its base (the world placement)
-  and its tool (the hand-eye) fitted to the calibration's camera poses, predicting the same
-  corners with the same camera, rig and points. A calibration that fits worse than the nominal
-  model has failed (a diverged or mis-gauged estimation, wrong joint readings).
+- **Calibrated against nominal.** The calibration images predicted from their joint readings by
+  the calibrated model against the fair nominal (:mod:`selfcal.calibration.field.nominal_fit`:
+  the nominal chain with the hand-eye, camera, rig and marker corners fitted to the same pixels
+  by the calibration's objective), each with its own camera, rig and corners, over the same
+  corners (``calibration.json`` ``nominal.calibration_images_rms_px``). A calibration that
+  predicts them no better than the fair nominal has failed (a diverged or mis-gauged estimation,
+  wrong joint readings): it fits more parameters to the same pixels.
 """
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 
-from selfcal.calibration.board.dataset import chain_param_names
+from selfcal.calibration.board.evaluate import worse
 from selfcal.calibration.field.results import CalibrationOutput
-from selfcal.calibration.identify import identify
 from selfcal.camera import CameraModel
 from selfcal.estimation.observations import Observations
+from selfcal.io.calibration_blocks import FairNominal
 from selfcal.kinematics.forward import fk_tool
 from selfcal.kinematics.mcpc import MCPCModel
 from selfcal.transforms import inv_pose
@@ -37,7 +37,6 @@ __all__ = [
     "MAX_BASELINE_ANGLE_DEG",
     "baseline_angle_deg",
     "rig_direction_failure",
-    "nominal_with_fitted_base_and_tool",
     "model_reprojection_rms_px",
     "nominal_fit_failure",
     "assess_calibration",
@@ -74,19 +73,6 @@ def rig_direction_failure(T_left_right: np.ndarray) -> str | None:
     )
 
 
-def nominal_with_fitted_base_and_tool(
-    nominal: MCPCModel, q: np.ndarray, T_world_cam: np.ndarray
-) -> MCPCModel:
-    """The nominal chain (tool = the camera) with only its base and tool parameters fitted to
-    the camera poses ``T_world_cam`` (m, 4, 4) m at joints ``q`` (m, n) rad: the nominal model
-    placed in the calibration's world, its hand-eye measured. The chain keeps the drawing's
-    values."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # parameters the few base/tool poses leave undetermined
-        ref = identify(nominal, q, T_world_cam, hold=chain_param_names(nominal.joint_types))
-    return ref.model
-
-
 def model_reprojection_rms_px(
     model: MCPCModel,
     q: np.ndarray,
@@ -118,41 +104,29 @@ def model_reprojection_rms_px(
 
 
 def nominal_fit_failure(calibrated_px: float, nominal_px: float) -> str | None:
-    """The failure sentence when the calibrated model reprojects worse than the nominal one
-    (both RMS px over the same corners, see the module docstring), else None."""
-    if not calibrated_px > nominal_px:  # NaN on either side: no verdict from this check
+    """The failure sentence when the calibrated model predicts the calibration images no better
+    than the fair nominal (both RMS px over the same corners, see the module docstring), else
+    None."""
+    if not worse(calibrated_px, nominal_px):  # NaN on either side: no verdict
         return None
     return (
-        f"the calibrated model reprojects the calibration images worse than the nominal model "
-        f"({calibrated_px:.3f} px RMS against {nominal_px:.3f} px with the nominal chain, its "
-        "base and camera mount fitted): the estimation went wrong; likely causes: joint "
-        "readings in another unit or order than joints.csv declares, frames whose images and "
-        "joints do not belong together, a robot file that is not this robot, too few and too "
-        "similar postures, or the two-stage method where it misses (use the default --method "
-        "joint)"
+        f"the calibrated model predicts the calibration images from their joint readings WORSE "
+        f"than the fair nominal ({calibrated_px:.3f} px RMS against {nominal_px:.3f} px with the "
+        "nominal chain, its hand-eye, camera and marker corners fitted to the same pixels): the "
+        "estimation went wrong; likely causes: joint readings in another unit or order than "
+        "joints.csv declares, frames whose images and joints do not belong together, a robot "
+        "file that is not this robot, too few and too similar postures, or the two-stage method "
+        "where it misses (use the default --method joint)"
     )
 
 
-def assess_calibration(
-    out: CalibrationOutput, obs: Observations, q: np.ndarray, nominal: MCPCModel
-) -> tuple[str, ...]:
-    """The failures of the calibration ``out`` (:func:`selfcal.calibration.field.calibrate.calibrate_detailed`) of
-    the observations ``obs`` at joints ``q`` (every frame, rad), ``nominal`` the robot's nominal
-    chain with the declared camera mount as tool: one sentence each, empty when none."""
+def assess_calibration(out: CalibrationOutput, nominal: FairNominal | None) -> tuple[str, ...]:
+    """The failures of the calibration ``out`` (:func:`selfcal.calibration.field.calibrate.calibrate_detailed`)
+    judged against its fair nominal ``nominal`` (:func:`selfcal.calibration.field.nominal_fit.fair_nominal`;
+    None: its fit failed, no verdict from that check): one sentence each, empty when none."""
     final = out.joint if out.joint is not None else out.selfcal
     failures = [rig_direction_failure(final.T_first_cam[1])] if len(final.T_first_cam) > 1 else []
-    used = np.asarray(out.selfcal.registered)
-    used = np.flatnonzero(used if used.ndim == 1 else used[:, 0])
-    poses = final.T_world_cam[used, 0]
-    ok = np.isfinite(poses).all(axis=(1, 2))
-    if ok.sum() >= 3:
-        ref = nominal_with_fitted_base_and_tool(nominal, q[used[ok]], poses[ok])
-        sub = obs.subset(np.isin(obs.config, used))
-        rms = [
-            model_reprojection_rms_px(
-                m, q, sub, final.camera, final.T_first_cam, final.point_ids, final.X_world
-            )  # fmt: skip
-            for m in (out.model, ref)
-        ]
-        failures.append(nominal_fit_failure(rms[0], rms[1]))
+    if nominal is not None:
+        rms = nominal.calibration_images_rms_px
+        failures.append(nominal_fit_failure(rms["calibrated"], rms["nominal"]))
     return tuple(f for f in failures if f is not None)
