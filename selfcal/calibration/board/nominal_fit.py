@@ -75,5 +75,8 @@ def fit_nominal(obs: BoardObservations, nominal: MCPCModel, *, stds: bool = True
     """
     used = obs.used
     start = place_nominal(nominal, obs.q[used], inv_pose(obs.cam_stage.T_cam_board[used]))
-    fit = refine_on_board(obs, start, placement_indices(nominal.n), stds=stds)
+    fit = refine_on_board(obs, start, placement_indices(nominal.n), stds=stds,
+                          what="the fair nominal (the nominal chain placed on the camera "
+                          "stage's poses, board pose, hand-eye and cameras fitted, the chain "
+                          "held)")  # fmt: skip
     return replace(fit, model=standard_gauge(fit.model, start.joint_offsets))

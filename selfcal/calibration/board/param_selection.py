@@ -421,7 +421,8 @@ def select_parameters(obs: BoardObservations, nominal_fit: MCPCModel, *,
         raise EstimationError(
             f"not even the nominal chain could be placed on the board by reprojection "
             f"({cands[0].note})",
-            fix="check the joint read-back (units, order of the rows) against the images",
+            fix="add frames from other arm configurations (move the first joints, not only the "
+            "wrist) and calibrate again",
         )
     if n_folds >= 2:
         chosen, best = _one_se_rule(cands)

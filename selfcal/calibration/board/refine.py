@@ -30,7 +30,7 @@ from selfcal.camera.camera_set import std_by_name
 from selfcal.errors import EstimationError
 from selfcal.estimation.kinematic_poses import KinematicPoses
 from selfcal.kinematics.forward import fk_tool
-from selfcal.kinematics.mcpc import MCPCModel
+from selfcal.kinematics.mcpc import MCPCModel, param_names
 from selfcal.solver import SolverOptions, covariance, solve
 from selfcal.target.base import Features
 from selfcal.target.boards import Board
@@ -102,6 +102,7 @@ def refine_on_board(
     stds: bool = True,
     converge: bool = True,
     tol: float = 1e-12,
+    what: str = "kinematics and cameras",
 ) -> Refinement:
     """Fit the flat MCPC parameters ``free_idx`` and the zero offsets of ``offset_joints`` of
     ``start`` (every other parameter held at its value), every camera's free parameters (from
@@ -110,11 +111,13 @@ def refine_on_board(
     robust to nothing (the camera stage rejected the outliers), on the one solver. ``stds``:
     compute the cameras' standard deviations (the cross-validation's fits skip them);
     ``converge=False``: take the iterate after ``max_iter`` iterations (a few Gauss-Newton
-    steps from a nearby fit) instead of an error; ``tol``: the solver's relative tolerance.
+    steps from a nearby fit) instead of an error; ``tol``: the solver's relative tolerance;
+    ``what``: the fit's name in the error (e.g. the fair nominal).
 
     Raises:
         EstimationError: the solver did not converge within ``max_iter`` iterations (with
-            ``converge``) or failed.
+            ``converge``) or failed: the message names the fit and what was tried, and blames
+            no data (a caller's data check does that when it finds them wrong).
     """
     used = obs.used if train is None else obs.used & np.asarray(train, bool)
     rig = obs.rig
@@ -136,10 +139,18 @@ def refine_on_board(
                          n_frames=int(used.sum()))  # fmt: skip
     sol = solve(prob.problem, SolverOptions(tol=tol, max_iterations=max_iter, eliminate="poses"))
     if sol.status < 0 or (sol.status == 0 and converge):
+        free = [*param_names(np.asarray(free_idx, dtype=np.int64)),
+                *(f"offset_j{j + 1}" for j in np.asarray(offset_joints, dtype=int).tolist())]  # fmt: skip
+        listed = ", ".join(free[:8]) + (" ..." if len(free) > 8 else "")
+        ended = "stopped" if sol.status < 0 else f"did not converge within {max_iter} iterations"
         raise EstimationError(
-            f"the refinement of kinematics and camera on the board did not converge within "
-            f"{max_iter} iterations ({sol.message})",
-            fix="check the joint read-back (units, order of the rows) against the images",
+            f"the fit of {what} on the board {ended} ({sol.message}): the estimator failed, no "
+            f"check of the data found them wrong; tried: Levenberg-Marquardt from the start "
+            f"model, {len(free)} kinematic parameter(s) free ({listed or 'none'}), every "
+            f"camera's free parameters, {int(used.sum())} frames, tolerance {tol:g}"
+            + (", joint read-back errors estimated" if obs.joint_sigma is not None else ""),
+            fix="add frames from other arm configurations (move the first joints, not only the "
+            "wrist) and calibrate again",
         )
     camera, p, _ = prob.unpack(sol.x)
     r = np.concatenate([sol.residuals[prob.block.name]]
