@@ -40,7 +40,7 @@ class JointRefinementResult(PinholeValues):
             per coordinate; ``n_inliers``, ``n_outliers``.
         iterations: LM iterations summed over rounds; ``rounds``; ``converged``; ``seconds``.
         rank_min_singular: smallest relative singular value of the column-scaled Jacobian at
-            the start (gauge check), ``rank``/``n_unknowns``.
+            the start (gauge check), ``rank``/``n_unknowns`` (NaN and -1: not checked).
     """
 
     model: MCPCModel

@@ -333,7 +333,8 @@ FAIR_NOMINAL_NOTE = (
 class FairNominal(JsonBlock):
     """``nominal``: the fair nominal of a field calibration (``FAIR_NOMINAL_NOTE``): its MCPC chain
     (tool = left camera; ``joint_offsets_rad`` (n,), ``params_si`` (n + 1, 6), SI), its camera
-    (``intrinsics``; ``cameras`` when each camera of the rig has its own), ``rig``, marker corners
+    (``intrinsics``, its sigmas NaN: not computed; ``cameras`` when each camera of the rig has
+    its own), ``rig``, marker corners
     (``scene``) and hand-eye, its fit's reprojection RMS (px, over its inliers) and counts, and
     ``calibration_images_rms_px``: the calibration images predicted from their joint readings by
     ``nominal`` and ``calibrated`` over the same corners (px; the check of

@@ -213,6 +213,8 @@ def joint_refine(
     tracker: TrackerMeasurements | None = None,
     tracker_sigma_m: float = 1e-4,
     tracker_sigma_rad: float = 1e-4,
+    check_rank: bool = True,
+    stds: bool = True,
 ) -> JointRefinementResult:
     """Refine kinematics, intrinsics, rig and points together from the corner observations.
 
@@ -239,6 +241,10 @@ def joint_refine(
         tracker, tracker_sigma_m, tracker_sigma_rad: tracker positions, poses or distances
             (joints rad, m) with their noise, estimated with the rest (:func:`tracker_terms`:
             tracker frame and tool point / frame are new unknowns; residuals in pixels).
+        check_rank: test the gauge by the rank of the start's Jacobian (a dense eigenvalue
+            problem); False where a fit of more unknowns on the same rows passed it (the fair
+            nominal, :mod:`selfcal.calibration.field.nominal_fit`): ``rank`` is then -1.
+        stds: the covariance of the camera and the kinematic parameters (NaN without).
 
     Raises:
         JointRefinementError: the scale markers are not reconstructed, the gauge is not fixed
@@ -352,6 +358,8 @@ def joint_refine(
             x0,
             trk,
         )
+        if rank_info is None and not check_rank:
+            rank_info = (float("nan"), -1)
         if rank_info is None:
             rank_info = scaled_rank(prob.jac(prob.problem.x0))
             if rank_info[1] < prob.n:
@@ -411,10 +419,13 @@ def joint_refine(
     # 6 gauge dof are removed by the held parameters, the 7th (scale) by the hard scale row
     dof = max(len(r) - prob.n, 1)
     sigma2 = sum(float(np.sum(v**2)) for k, v in sol.residuals.items() if k != "scale") / dof
-    C = covariance(
-        prob.problem, x, ["intrinsics", ("poses", np.arange(pose_model.k))], sigma2=sigma2
-    )
     n_cam = camera.n_free
+    if stds:
+        C = covariance(
+            prob.problem, x, ["intrinsics", ("poses", np.arange(pose_model.k))], sigma2=sigma2
+        )
+    else:
+        C = np.full((n_cam + pose_model.k,) * 2, np.nan)
     cam_std, cams_std = free_std(camera, C[:n_cam, :n_cam])
 
     model_g = pose_model.kinematic_model(p)

@@ -100,6 +100,7 @@ def fit_field_nominal(
                      inlier=sc.inlier if fin.inlier is None else fin.inlier)  # fmt: skip
         kw.setdefault("pixel_sigma_px", fin.diagnostics["pixel_sigma_px"])
         kw.setdefault("joint_sigma", fin.diagnostics["joint_sigma"])
+        kw.setdefault("check_rank", False)  # the calibration's refinement of more unknowns did
     else:
         kw.setdefault("joint_sigma", encoder_sigma(robot))
     nominal = nominal_mcpc(robot).with_tool(robot.T_flange_cam)
@@ -113,6 +114,7 @@ def fit_field_nominal(
         scale_markers=(ds_info.scale_ids[0], ds_info.scale_ids[1]),
         scale_distance_m=ds_info.scale_length_m,
         loss="linear",  # the final pass over the given rows (module docstring)
+        stds=False,  # nothing reads the nominal's sigmas
         **kw,
     )
 
