@@ -246,7 +246,8 @@ def urdf_chain(
             raise UrdfError(f"{where}: <origin> must be finite numbers (xyz, rpy: 3 each)",
                             fix=f"give {j.name!r} an <origin xyz=... rpy=...> of numbers")  # fmt: skip
         if j.type == "fixed":
-            T = T @ origin
+            with np.errstate(over="ignore", invalid="ignore"):  # checked after the loop
+                T = T @ origin
             continue
         if j.type in ("floating", "planar"):
             raise UrdfError(
@@ -266,7 +267,8 @@ def urdf_chain(
         if not np.linalg.norm(axis) > 0:
             raise UrdfError(f"{where}: zero joint axis", fix=f"give {j.name!r} a unit <axis>")
         R = _z_onto(axis / np.linalg.norm(axis))
-        G.append(T @ origin @ R)
+        with np.errstate(over="ignore", invalid="ignore"):  # checked after the loop
+            G.append(T @ origin @ R)
         T = inv_pose(R)
         names.append(str(j.name))
         if j.type == "continuous":
@@ -284,6 +286,15 @@ def urdf_chain(
             )
         limits.append((float(lo), float(hi)))
     G.append(T)
+    with np.errstate(over="ignore", invalid="ignore"):  # checked here: origins near 1e308
+        chain = np.array(G)
+        finite = bool(np.isfinite(chain).all())
+    if not finite:
+        raise UrdfError(
+            f"{path}: the chain {base_link} -> {tool_link} does not compose to finite "
+            "transforms (an <origin> too large for floating point)",
+            fix="give the joints' <origin xyz> in metres, a robot's size",
+        )
     return UrdfChain(
         name=str(robot.name),
         base_link=base_link,
@@ -291,7 +302,7 @@ def urdf_chain(
         joint_names=tuple(names),
         joint_types=tuple(types),
         limits=np.array(limits, dtype=float).reshape(-1, 2),
-        chain=np.array(G),
+        chain=chain,
     )
 
 

@@ -239,3 +239,15 @@ def test_non_finite_origins_and_axes_are_refused(tmp_path, old, new):
     p = _variant(tmp_path, old, new)
     with pytest.raises(UrdfError, match=r"arm.urdf: joint 'joint_a\d': <(origin|axis xyz)> must"):
         load_robot(p)
+
+
+def test_origins_too_large_for_floating_point_are_refused(tmp_path):
+    """The fuzz test's find: finite origins of 1.8e308 m composed to an infinite flange pose and
+    loaded as a robot."""
+    text = (Path(__file__).resolve().parents[1] / "data" / "kr6_r900.urdf").read_text()
+    i = text.index("<origin", text.index('<joint name="flange-tool0"'))
+    text = text[:i] + '<origin xyz="1.7976931348623155e+308 0 1.7976931348623155e+308" rpy="3.1 -1.5 0"' \
+        + text[text.index("/>", i):]  # fmt: skip
+    (tmp_path / "arm.urdf").write_text(text)
+    with pytest.raises(UrdfError, match="does not compose to finite transforms"):
+        load_robot(tmp_path / "arm.urdf")
