@@ -13,8 +13,15 @@ import os
 from pathlib import Path
 
 import pytest
+from hypothesis import settings
 
 os.environ.setdefault("MUJOCO_GL", "egl")
+
+# Property and fuzz tests (hypothesis) explore new inputs on every local run; CI runs them
+# derandomized (.ci/run sets HYPOTHESIS_PROFILE=ci), so a landing is decided by the code, not by
+# the day's draw. What a local run finds is kept in .hypothesis/ and becomes a regression test.
+settings.register_profile("ci", derandomize=True, database=None, print_blob=True)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "default"))
 
 GOLDEN_DIR = Path(__file__).resolve().parent / "golden"
 
