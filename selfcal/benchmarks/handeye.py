@@ -40,7 +40,7 @@ from selfcal.robot.definition import load_robot
 from selfcal.studies.montecarlo.run import _acquire
 from selfcal.transforms import inv_pose
 
-__all__ = ["run", "main"]
+__all__ = ["run", "main", "run_opencv4"]
 
 DOC = Path(__file__).resolve().parents[2] / "docs" / "cameras.md"
 BEGIN, END = "<!-- benchmark_handeye begin -->", "<!-- benchmark_handeye end -->"
@@ -55,19 +55,28 @@ def _errors(T: np.ndarray, T_true: np.ndarray) -> tuple[float, float]:
     return float(np.sqrt(np.mean(dt**2)) * 1e3), float(np.degrees(np.sqrt(np.mean(dR**2))))
 
 
-def _opencv4(T_cam_board: np.ndarray, T_flange_base: np.ndarray, workdir: Path):
-    """``(T_board_base, T_cam_flange, version)`` from OpenCV 4.x, or ``(None, None, why)``."""
+def run_opencv4(src: Path, dst: Path) -> str | None:
+    """Run :mod:`selfcal.benchmarks.opencv4_handeye` on ``src`` into ``dst`` in its OpenCV 4.x
+    environment; None when it ran, else why it did not."""
     if shutil.which("uv") is None:
-        return None, None, "uv not found"
-    src, dst = workdir / "in.npz", workdir / "out.npz"
-    np.savez(src, T_cam_board=T_cam_board, T_flange_base=T_flange_base)
+        return "uv not found"
     script = Path(__file__).with_name("opencv4_handeye.py")
     try:
         subprocess.run([*OPENCV4_CMD, str(script), str(src), str(dst)], check=True,
                        capture_output=True, text=True, timeout=1800)  # fmt: skip
     except (subprocess.CalledProcessError, subprocess.TimeoutExpired, OSError) as exc:
         err = getattr(exc, "stderr", "") or str(exc)
-        return None, None, f"OpenCV 4 did not run: {err.strip().splitlines()[-1:]}"
+        return f"OpenCV 4 did not run: {err.strip().splitlines()[-1:]}"
+    return None
+
+
+def _opencv4(T_cam_board: np.ndarray, T_flange_base: np.ndarray, workdir: Path):
+    """``(T_board_base, T_cam_flange, version)`` from OpenCV 4.x, or ``(None, None, why)``."""
+    src, dst = workdir / "in.npz", workdir / "out.npz"
+    np.savez(src, T_cam_board=T_cam_board, T_flange_base=T_flange_base)
+    why = run_opencv4(src, dst)
+    if why is not None:
+        return None, None, why
     out = np.load(dst)
     return out["T_board_base"], out["T_cam_flange"], f"OpenCV {out['version']}"
 
