@@ -228,12 +228,18 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
 def cmd_report(args: argparse.Namespace) -> int:
     from selfcal.calibration.field.calibrate import CalibrationFailedError
     from selfcal.calibration.handeye.calibration_file import is_handeye
+    from selfcal.calibration.tracker.calibration_file import is_tracker_calibration
     from selfcal.pipeline.handeye_report import handeye_report, handeye_summary
 
     root = Path(args.dataset)
     as_json = getattr(args, "json", False)  # a namespace built by a caller may lack it
     quiet = args.quiet or as_json
-    if is_handeye(root):  # a pose dataset's calibration: the hand-eye, no kinematics
+    if is_tracker_calibration(root / "calibration.json"):  # selfcal identify's DIR
+        from selfcal.pipeline.tracker_report import tracker_report, tracker_report_summary
+
+        report = tracker_report(root)
+        summary = tracker_report_summary(report, root)
+    elif is_handeye(root):  # a pose dataset's calibration: the hand-eye, no kinematics
         report = handeye_report(root)
         summary = handeye_summary(report, root)
     else:
@@ -479,9 +485,11 @@ def build_parser() -> argparse.ArgumentParser:
         "and DIR/figures/*.png; without truth (real data): the fit, a held-out check (DIR/"
         "evaluation.json or leave every 5th pose out), the sigmas and the identifiability; of a "
         "pose dataset: the hand-eye and board mount with sigmas beside the nominal, the fit and "
-        "DIR/evaluation.json's held-out check (no kinematics identified)",
+        "DIR/evaluation.json's held-out check (no kinematics identified); of `selfcal "
+        "identify`'s DIR: the predicted tool-point error over the workspace "
+        "(DIR/figures/workspace_accuracy.png, docs/tool-accuracy.md)",
     )
-    sp.add_argument("dataset", help="dataset folder")
+    sp.add_argument("dataset", help="dataset folder (or the DIR of `selfcal identify`)")
     add_json(sp)
 
     for register in (

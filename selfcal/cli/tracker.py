@@ -195,6 +195,7 @@ def cmd_identify(args: argparse.Namespace) -> int:
     from selfcal.calibration.tracker.calibrate import calibrate_tracker
     from selfcal.calibration.tracker.calibration_file import write_tracker_calibration
     from selfcal.io.atomic import write_text_atomic
+    from selfcal.kinematics.tool_error import accuracy_line
 
     _check_sigmas(("--sigma-mm", args.sigma_mm), ("--sigma-deg", args.sigma_deg))
     hold = tuple(h for h in (args.hold or "").replace(" ", "").split(",") if h)
@@ -236,6 +237,9 @@ def cmd_identify(args: argparse.Namespace) -> int:
         )
     tool = ", ".join(f"{v:.3f}" for v in cal.tool_point_mm)
     print(f"tool point in the nominal flange frame: ({tool}) mm")
+    if run.accuracy is not None:
+        line = accuracy_line(run.accuracy.summary)
+        print(f"predicted: {line} (`selfcal report {out}` draws the map)")
     if table.ignored:
         print(f"ignored columns of {table.path}: {', '.join(table.ignored)}")
     for w in res.warnings:

@@ -358,6 +358,12 @@ class TrackerMeasurements:
         """Scalar equations: 3 per position, 6 per pose, 1 per distance."""
         return (6 if self.R is not None else 3) * self.m + self.k
 
+    def with_rows(self, keep: np.ndarray) -> TrackerMeasurements:
+        """The position / pose rows selected by ``keep`` (a mask or indices), every distance
+        row kept (a cross-validation fold's training set)."""
+        R = None if self.R is None else self.R[keep]
+        return TrackerMeasurements(self.q[keep], self.xyz[keep], R, self.q_a, self.q_b, self.d)
+
     def distances(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(q_a, q_b, d)`` of the distance rows ((k, n), (k, n), (k,)); empty when none."""
         if self.q_a is None or self.q_b is None or self.d is None:

@@ -329,6 +329,8 @@ def test_the_api_calibrates_a_tracker_file_as_identify_does(tmp_path, capsys, er
     assert json.loads(path.read_text()) == json.loads(
         (tmp_path / "cli" / "calibration.json").read_text()
     )
+    assert run.accuracy is not None  # the predicted accuracy is the route's, not the CLI's
+    assert json.loads(path.read_text())["accuracy"]["regions"] == run.accuracy.summary
     assert selfcal.calibration_route(path) == "tracker"
     back = selfcal.read_calibration(path)
     assert isinstance(back, selfcal.TrackerCalibration)

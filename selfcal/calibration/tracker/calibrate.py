@@ -1,5 +1,6 @@
 """The tracker route in one call: tracker measurement files -> the identified chain, the fair
-nominal beside it, the leave-one-out check and the ``calibration.json`` content
+nominal beside it, the leave-one-out check, the predicted tool-point accuracy over the workspace
+and the ``calibration.json`` content
 (:mod:`selfcal.calibration.tracker.calibration_file`). ``selfcal identify`` prints and writes
 what :func:`calibrate_tracker` returns; the public API serves it as ``selfcal.calibrate_tracker``.
 
@@ -10,11 +11,12 @@ metres), positions in mm, the tracker's frame.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
+from selfcal.calibration.tracker.accuracy import TrackerAccuracy, tracker_accuracy
 from selfcal.calibration.tracker.calibration_file import TrackerCalibration, from_result
 from selfcal.calibration.tracker.checks import check_tracker_geometry
 from selfcal.calibration.tracker.cross_validation import CrossValidation, leave_one_out
@@ -67,7 +69,9 @@ class TrackerRun:
     frame), the ``calibration`` (the ``calibration.json`` content, mm and deg), the ``nominal``
     fit (the robot file's chain, tracker frame and tool fitted the same way), the leave-one-out
     ``cross_validation`` (None when there are no rows or too many), the ``measurements`` (SI)
-    and the measurements file's ``table``."""
+    and the measurements file's ``table``; the predicted tool-point ``accuracy`` over the
+    workspace (:mod:`selfcal.calibration.tracker.accuracy`, also ``calibration.accuracy``; None
+    without position / pose rows)."""
 
     result: TrackerResult
     calibration: TrackerCalibration
@@ -75,6 +79,7 @@ class TrackerRun:
     cross_validation: CrossValidation | None
     measurements: TrackerMeasurements
     table: Table
+    accuracy: TrackerAccuracy | None = None
 
 
 @limited
@@ -118,6 +123,8 @@ def calibrate_tracker(
     res = identify_tracker(nominal, meas, sigma_t_m=s_t, sigma_r_rad=s_r, sigma_d_m=s_t, hold=hold)
     fair = fit_nominal(nominal, meas, sigma_t_m=s_t, sigma_r_rad=s_r)
     cv = leave_one_out(nominal, meas, sigma_t_m=s_t, sigma_r_rad=s_r, sigma_d_m=s_t, hold=hold)
+    acc = tracker_accuracy(nominal, meas, res, rd.limits, sigma_t_m=s_t, sigma_r_rad=s_r,
+                           sigma_d_m=s_t, hold=hold)  # fmt: skip
     cal = from_result(
         res,
         nominal,
@@ -135,4 +142,6 @@ def calibrate_tracker(
     )
     if cv is not None:
         cal.fit["cross_validation"] = cv.to_json()
-    return TrackerRun(res, cal, fair, cv, meas, table)
+    if acc is not None:
+        cal = replace(cal, accuracy=acc.to_json())
+    return TrackerRun(res, cal, fair, cv, meas, table, acc)

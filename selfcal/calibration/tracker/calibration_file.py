@@ -21,7 +21,10 @@ frame. Keys:
 - ``nominal`` (optional, absent from files written before it): the fair nominal of
   :mod:`selfcal.calibration.tracker.nominal` -- the robot file's chain with the tracker frame and the tool
   fitted by the same objective: its ``rms_mm``, ``rms_deg``, ``rms_distance_mm`` and its chain
-  ``mcpc`` (``params``, ``joint_offsets``, ``base_offset``, ``T_meas_fit`` as above).
+  ``mcpc`` (``params``, ``joint_offsets``, ``base_offset``, ``T_meas_fit`` as above);
+- ``accuracy`` (optional, absent from files written before it and without position / pose rows):
+  the predicted tool-point error over the workspace, its units and what it contains
+  (:mod:`selfcal.calibration.tracker.accuracy`).
 """
 
 from __future__ import annotations
@@ -93,6 +96,7 @@ class TrackerCalibration:
     files: dict
     warnings: tuple[str, ...] = field(default=())
     nominal: NominalFit | None = None
+    accuracy: dict | None = None
 
     @property
     def poses(self) -> bool:
@@ -176,6 +180,7 @@ class TrackerCalibration:
             "files": self.files,
             "warnings": list(self.warnings),
             **({} if self.nominal is None else {"nominal": _nominal_json(self.nominal)}),
+            **({} if self.accuracy is None else {"accuracy": self.accuracy}),
         }
 
     @classmethod
@@ -218,6 +223,7 @@ class TrackerCalibration:
             files=dict(f.raw("files")),
             warnings=f.strs("warnings"),
             nominal=_nominal_from(f.sub("nominal"), tuple(types)) if f.has("nominal") else None,
+            accuracy=dict(f.sub("accuracy").doc) if f.has("accuracy") else None,
         )
 
 

@@ -93,10 +93,7 @@ def leave_one_out(
     failed = 0
     for i in range(meas.m):
         keep = np.arange(meas.m) != i
-        train = TrackerMeasurements(
-            meas.q[keep], meas.xyz[keep], None if meas.R is None else meas.R[keep],
-            meas.q_a, meas.q_b, meas.d,
-        )  # fmt: skip
+        train = meas.with_rows(keep)
         try:
             with warnings.catch_warnings():  # a fold's own rank notes: the whole fit has its own
                 warnings.simplefilter("ignore")

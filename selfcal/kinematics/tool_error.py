@@ -1,0 +1,221 @@
+"""Predicted tool-point error of a calibrated chain over the workspace (issue #29).
+
+A calibration's tool pose at joints ``q`` is ``T_out_tool(q) = T_out_world fk(model, q)``. Its
+error against the robot's true pose has two parts, both treated as zero-mean Gaussian:
+
+- the *estimation* error: the covariance ``C`` (p, p) of the estimated minimal parameters carried
+  through the chain to first order, ``S(q) = J(q) C J(q)^T`` with ``J`` the identification
+  Jacobian (:func:`selfcal.kinematics.forward.identification_jacobian`) of the estimated columns,
+  rotated into the output frame (rows: position m, orientation rad as a rotation vector);
+- the *model* error: what the model cannot express (compliance, a wrong link, a tracker's
+  systematic error), a per-coordinate standard deviation estimated from held-out residuals by the
+  calibration route (e.g. :mod:`selfcal.calibration.tracker.accuracy`), the same at every posture.
+
+The 95 % bound of the error's norm (position mm, orientation deg) at ``q`` is the 95 % quantile of
+``|e|`` for ``e ~ N(0, S(q) + m^2 I)``, by Satterthwaite's scaled chi-square (``|e|^2 ~ a chi2_f``
+with ``a = tr(Sigma^2) / tr(Sigma)``, ``f = tr(Sigma)^2 / tr(Sigma^2)``; exact for an isotropic
+``Sigma``: 2.796 sigma).
+
+The workspace is sampled in joint space (:func:`workspace_sample`): the *calibrated region* is the
+box of the calibration postures' joint ranges; its *edge* is the band around it out to 10 % of
+each joint's range (clipped to the joint limits); the *workspace* is the whole box of the joint
+limits. SI inside; ``_mm`` / ``_deg`` at the edges.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.stats import chi2
+
+from selfcal.kinematics.forward import fk_frames, identification_jacobian
+from selfcal.kinematics.mcpc import MCPCModel
+
+__all__ = [
+    "ToolErrorModel",
+    "norm_quantile",
+    "WorkspaceSample",
+    "workspace_sample",
+    "EDGE_FRACTION",
+    "workspace_summary",
+    "accuracy_line",
+]
+
+EDGE_FRACTION = 0.10
+"""The edge band reaches this fraction of each joint's range beyond the calibrated region."""
+
+
+def norm_quantile(cov: np.ndarray, p: float = 0.95) -> np.ndarray:
+    """The ``p`` quantile of ``|e|`` for ``e ~ N(0, cov)``, ``cov`` (..., d, d); Satterthwaite's
+    scaled chi-square (module docstring). Zero where ``cov`` is zero."""
+    cov = np.asarray(cov, dtype=float)
+    tr = np.trace(cov, axis1=-2, axis2=-1)
+    tr2 = np.einsum("...ij,...ji->...", cov, cov)
+    ok = tr > 0
+    a = np.where(ok, tr2 / np.where(ok, tr, 1.0), 0.0)
+    f = np.where(ok, tr**2 / np.where(tr2 > 0, tr2, 1.0), 1.0)
+    return np.sqrt(a * chi2.ppf(p, f))
+
+
+@dataclass(frozen=True)
+class ToolErrorModel:
+    """What the predicted tool error depends on (SI).
+
+    Attributes:
+        model: the calibrated chain (its tool is the tool point / frame), in its world frame.
+        T_out_world: (4, 4) the output frame (e.g. the tracker's) <- the chain's world frame.
+        columns: (p,) flat indices (``params.reshape(-1)``) of the estimated parameters.
+        covariance: (p, p) their covariance (rad, m).
+        model_error_m: per-coordinate standard deviation of the model error at the tool point (m).
+        model_error_rad: the same for the tool orientation (rad, rotation-vector coordinate), or
+            None when the calibration does not determine the tool frame's orientation.
+    """
+
+    model: MCPCModel
+    T_out_world: np.ndarray
+    columns: np.ndarray
+    covariance: np.ndarray
+    model_error_m: float
+    model_error_rad: float | None = None
+
+    def tool_positions(self, q: np.ndarray) -> np.ndarray:
+        """Tool points (m, 3) in the output frame (m) at joints ``q`` (m, n)."""
+        T = self.T_out_world @ fk_frames(self.model, q)[:, -1]
+        return T[:, :3, 3]
+
+    def estimation_covariance(self, q: np.ndarray) -> np.ndarray:
+        """(m, 6, 6) covariance of ``[position (m); orientation (rad)]`` of the tool in the output
+        frame at joints ``q`` (m, n), from the parameters' covariance alone."""
+        frames = fk_frames(self.model, q)
+        J = identification_jacobian(self.model, q, frames)[:, :, self.columns]  # tool frame
+        R = self.T_out_world[:3, :3] @ frames[:, -1, :3, :3]
+        Jo = np.concatenate([R @ J[:, :3], R @ J[:, 3:]], axis=1)
+        return Jo @ self.covariance @ np.swapaxes(Jo, -1, -2)
+
+    def predicted(self, q: np.ndarray) -> dict[str, np.ndarray]:
+        """At joints ``q`` (m, n): ``position_mm`` (m, 3) the predicted tool points (output frame),
+        ``position_95_mm`` and ``estimation_95_mm`` (m,) the 95 % bound of the position error with
+        and without the model error, ``position_rms_mm`` (m,) its expected RMS
+        (``sqrt(tr Sigma)``), and ``orientation_95_deg`` (m,) (nan without an orientation)."""
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        S = self.estimation_covariance(q)
+        eye = np.eye(3)
+        Sp = S[:, :3, :3]
+        Sp_tot = Sp + self.model_error_m**2 * eye
+        if self.model_error_rad is None:
+            rot = np.full(len(q), np.nan)
+        else:
+            rot = np.degrees(norm_quantile(S[:, 3:, 3:] + self.model_error_rad**2 * eye))
+        return {
+            "position_mm": self.tool_positions(q) * 1e3,
+            "position_95_mm": norm_quantile(Sp_tot) * 1e3,
+            "estimation_95_mm": norm_quantile(Sp) * 1e3,
+            "position_rms_mm": np.sqrt(np.trace(Sp_tot, axis1=1, axis2=2)) * 1e3,
+            "orientation_95_deg": rot,
+        }
+
+
+@dataclass(frozen=True)
+class WorkspaceSample:
+    """Joint vectors (rad / m) sampled in the three regions of the module docstring; ``box``
+    (n, 2) is the calibrated region (the calibration postures' joint ranges), ``limits`` (n, 2)
+    the robot's."""
+
+    inside: np.ndarray
+    edge: np.ndarray
+    workspace: np.ndarray
+    box: np.ndarray
+    limits: np.ndarray
+
+    def in_box(self, q: np.ndarray) -> np.ndarray:
+        """Whether each joint vector of ``q`` (m, n) lies in the calibrated region."""
+        q = np.atleast_2d(q)
+        return np.all((q >= self.box[:, 0]) & (q <= self.box[:, 1]), axis=1)
+
+
+def workspace_sample(
+    q_cal: np.ndarray, limits: np.ndarray, *, count: int = 256, seed: int = 0
+) -> WorkspaceSample:
+    """``count`` joint vectors in each region (module docstring), uniform and deterministic
+    (``seed``). An edge point is an inside point with one joint (drawn among those with room)
+    moved into the band beyond the box on a side drawn among those with room; when the box
+    reaches the limits on every side the edge sample is empty.
+
+    ``q_cal`` (m, n): the calibration postures; ``limits`` (n, 2): the joint limits (rad / m).
+    """
+    q_cal = np.atleast_2d(np.asarray(q_cal, dtype=float))
+    limits = np.asarray(limits, dtype=float)
+    n = limits.shape[0]
+    rng = np.random.default_rng(seed)
+    box = np.stack([q_cal.min(axis=0), q_cal.max(axis=0)], axis=1)
+    inside = rng.uniform(box[:, 0], box[:, 1], (count, n))
+    band = EDGE_FRACTION * (limits[:, 1] - limits[:, 0])
+    lo = np.stack([np.maximum(box[:, 0] - band, limits[:, 0]), box[:, 0]], axis=1)  # below
+    hi = np.stack([box[:, 1], np.minimum(box[:, 1] + band, limits[:, 1])], axis=1)  # above
+    sides = np.stack([lo, hi])  # (2, n, 2): side, joint, [from, to]
+    room = sides[:, :, 1] - sides[:, :, 0] > 1e-12  # (2, n)
+    options = np.argwhere(room.T)  # (k, 2): joint, side
+    if options.size == 0:
+        edge = np.zeros((0, n))
+    else:
+        pick = options[rng.integers(0, len(options), count)]
+        edge = rng.uniform(box[:, 0], box[:, 1], (count, n))
+        j, s = pick[:, 0], pick[:, 1]
+        a, b = sides[s, j, 0], sides[s, j, 1]
+        edge[np.arange(count), j] = a + rng.uniform(0.0, 1.0, count) * (b - a)
+    workspace = rng.uniform(limits[:, 0], limits[:, 1], (count, n))
+    return WorkspaceSample(inside, edge, workspace, box, limits)
+
+
+def _region(em: ToolErrorModel, q: np.ndarray) -> dict:
+    """Largest and median 95 % bounds and the RMS over the joint vectors ``q`` (mm, deg)."""
+    if len(q) == 0:
+        return {"points": 0}
+    pred = em.predicted(q)
+    p95, rot = pred["position_95_mm"], pred["orientation_95_deg"]
+    out = {
+        "points": int(p95.size),
+        "position_95_mm_max": float(p95.max()),
+        "position_95_mm_median": float(np.median(p95)),
+        "position_rms_mm": float(np.sqrt(np.mean(pred["position_rms_mm"] ** 2))),
+    }
+    if np.all(np.isfinite(rot)):
+        out["orientation_95_deg_max"] = float(rot.max())
+        out["orientation_95_deg_median"] = float(np.median(rot))
+    return out
+
+
+def workspace_summary(em: ToolErrorModel, sample: WorkspaceSample, q_cal: np.ndarray) -> dict:
+    """The predicted errors over the regions of ``sample`` and at the calibration postures
+    ``q_cal`` (m, n): per region its point count, the largest and the median 95 % bound (mm,
+    deg) and the RMS over it (mm); at the postures also each one's 95 % bounds."""
+    out = {name: _region(em, getattr(sample, name)) for name in ("inside", "edge", "workspace")}
+    at_cal = em.predicted(q_cal)
+    out["calibration_postures"] = {
+        **_region(em, q_cal),
+        "position_95_mm": at_cal["position_95_mm"].tolist(),
+    }
+    if np.all(np.isfinite(at_cal["orientation_95_deg"])):
+        out["calibration_postures"]["orientation_95_deg"] = at_cal["orientation_95_deg"].tolist()
+    return out
+
+
+def accuracy_line(regions: dict) -> str:
+    """The one line of a report on a :func:`workspace_summary`: the largest 95 % bound of the
+    tool point's position inside the calibrated region and at its edge (mm), and of the tool's
+    orientation when predicted (deg)."""
+    inside, edge = regions["inside"], regions["edge"]
+    text = (
+        f"tool point within {inside['position_95_mm_max']:.3f} mm (95 %) inside the calibrated "
+        "region"
+    )
+    if edge.get("points"):
+        text += f", {edge['position_95_mm_max']:.3f} mm at its edge"
+    else:
+        text += " (it reaches the joint limits: no edge)"
+    if "orientation_95_deg_max" in inside:
+        text += f"; orientation within {inside['orientation_95_deg_max']:.4f} deg"
+        if "orientation_95_deg_max" in edge:
+            text += f", {edge['orientation_95_deg_max']:.4f} deg at the edge"
+    return text

@@ -1,0 +1,120 @@
+"""The predicted tool error over the workspace (selfcal.kinematics.tool_error, issue #29)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.stats import chi2
+
+from selfcal.kinematics.forward import fk_tool
+from selfcal.kinematics.mcpc import minimal_indices, nominal_mcpc
+from selfcal.kinematics.tool_error import (
+    ToolErrorModel,
+    accuracy_line,
+    norm_quantile,
+    workspace_sample,
+    workspace_summary,
+)
+from selfcal.robot.definition import load_robot
+from selfcal.transforms import pose_from_vec
+
+
+def test_norm_quantile_isotropic_and_one_dimensional():
+    s = 0.3
+    assert norm_quantile(s**2 * np.eye(3)) == pytest.approx(s * np.sqrt(chi2.ppf(0.95, 3)))
+    assert norm_quantile(np.diag([s**2, 0.0, 0.0])) == pytest.approx(1.959964 * s, rel=1e-6)
+    assert norm_quantile(np.zeros((3, 3))) == 0.0
+
+
+def test_norm_quantile_against_samples_of_an_anisotropic_covariance():
+    rng = np.random.default_rng(3)
+    A = rng.normal(size=(3, 3))
+    cov = A @ A.T + np.diag([0.01, 0.2, 1.0])
+    e = rng.multivariate_normal(np.zeros(3), cov, 400_000)
+    sampled = np.quantile(np.linalg.norm(e, axis=1), 0.95)
+    assert norm_quantile(cov) == pytest.approx(sampled, rel=0.02)
+
+
+@pytest.fixture(scope="module")
+def er4u():
+    return load_robot("er4u-paper")
+
+
+def _error_model(robot, rng, model_error_m=0.0, model_error_rad=None):
+    model = nominal_mcpc(robot)
+    cols = minimal_indices(model.joint_types)[::2]
+    A = rng.normal(size=(cols.size, cols.size)) * 1e-4
+    T = pose_from_vec(np.r_[0.3, -0.2, 1.0, 1.5, -0.4, 0.2])
+    return ToolErrorModel(model, T, cols, A @ A.T, model_error_m, model_error_rad)
+
+
+def test_estimation_covariance_is_the_parameters_carried_through_the_chain(er4u):
+    """Against central differences of the tool pose in the output frame."""
+    rng = np.random.default_rng(0)
+    em = _error_model(er4u, rng)
+    q = rng.uniform(er4u.limits[:, 0], er4u.limits[:, 1], (4, er4u.n))
+    h = 1e-6
+    J = np.zeros((len(q), 6, em.columns.size))
+    T0 = em.T_out_world @ fk_tool(em.model, q)
+    for k, c in enumerate(em.columns):
+        p = em.model.params.reshape(-1).copy()
+        p[c] += h
+        Tp = em.T_out_world @ fk_tool(em.model.with_params(p.reshape(-1, 6)), q)
+        p[c] -= 2 * h
+        Tm = em.T_out_world @ fk_tool(em.model.with_params(p.reshape(-1, 6)), q)
+        J[:, :3, k] = (Tp[:, :3, 3] - Tm[:, :3, 3]) / (2 * h)
+        W = (Tp[:, :3, :3] - Tm[:, :3, :3]) / (2 * h) @ np.swapaxes(T0[:, :3, :3], 1, 2)
+        J[:, 3:, k] = np.stack([W[:, 2, 1], W[:, 0, 2], W[:, 1, 0]], axis=1)  # world rotation
+    want = J @ em.covariance @ np.swapaxes(J, 1, 2)
+    got = em.estimation_covariance(q)
+    assert np.abs(got - want).max() < 1e-6 * np.abs(want).max()
+
+
+def test_predicted_adds_the_model_error(er4u):
+    rng = np.random.default_rng(1)
+    em0 = _error_model(er4u, rng)
+    em = ToolErrorModel(em0.model, em0.T_out_world, em0.columns, em0.covariance, 2e-4, 1e-4)
+    q = rng.uniform(er4u.limits[:, 0], er4u.limits[:, 1], (5, er4u.n))
+    p0, p = em0.predicted(q), em.predicted(q)
+    assert np.all(np.isnan(p0["orientation_95_deg"])) and np.all(p["orientation_95_deg"] > 0)
+    assert np.allclose(p["estimation_95_mm"], p0["position_95_mm"])
+    assert np.all(p["position_95_mm"] > p0["position_95_mm"])
+    S = em0.estimation_covariance(q)[:, :3, :3]
+    rms = np.sqrt(np.trace(S, axis1=1, axis2=2) + 3 * 2e-4**2) * 1e3
+    assert np.allclose(p["position_rms_mm"], rms)
+
+
+def test_workspace_sample_regions(er4u):
+    rng = np.random.default_rng(2)
+    lim = er4u.limits
+    mid, half = lim.mean(axis=1), 0.3 * (lim[:, 1] - lim[:, 0])
+    q_cal = rng.uniform(mid - half, mid + half, (20, er4u.n))
+    s = workspace_sample(q_cal, lim, count=100)
+    assert np.allclose(s.box, np.c_[q_cal.min(0), q_cal.max(0)])
+    assert s.in_box(s.inside).all() and not s.in_box(s.edge).any()
+    outside = (s.edge < s.box[:, 0]) | (s.edge > s.box[:, 1])
+    assert np.all(outside.sum(axis=1) == 1)
+    band = 0.1 * (lim[:, 1] - lim[:, 0])
+    assert np.all(s.edge >= s.box[:, 0] - band - 1e-12) and np.all(
+        s.edge <= s.box[:, 1] + band + 1e-12
+    )
+    assert np.all(s.workspace >= lim[:, 0]) and np.all(s.workspace <= lim[:, 1])
+    again = workspace_sample(q_cal, lim, count=100)
+    assert np.array_equal(again.edge, s.edge)
+    corners = np.array([lim[:, 0], lim[:, 1]])  # the box is the whole workspace: no edge
+    assert workspace_sample(corners, lim, count=10).edge.shape == (0, er4u.n)
+
+
+def test_summary_and_line(er4u):
+    rng = np.random.default_rng(4)
+    em = _error_model(er4u, rng, 1e-4, 1e-4)
+    q_cal = rng.uniform(er4u.limits[:, 0] / 2, er4u.limits[:, 1] / 2, (12, er4u.n))
+    s = workspace_sample(q_cal, er4u.limits, count=50)
+    summ = workspace_summary(em, s, q_cal)
+    inside = em.predicted(s.inside)["position_95_mm"]
+    assert summ["inside"]["position_95_mm_max"] == pytest.approx(inside.max())
+    assert len(summ["calibration_postures"]["position_95_mm"]) == 12
+    line = accuracy_line(summ)
+    assert line.startswith(f"tool point within {inside.max():.3f} mm (95 %) inside")
+    assert f"{summ['edge']['position_95_mm_max']:.3f} mm at its edge" in line
+    assert "orientation within" in line
