@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import astuple
+
 import numpy as np
 import pytest
 
@@ -106,3 +108,17 @@ def test_the_block_rebuilds_the_prediction(er4u):
     block["estimated"] = block["estimated"][:-1]
     with pytest.raises(InputError, match="does not match its parameters"):
         error_model_from_json(block, res.model, res.T_meas_fit, res.names, True, "cal.json")
+
+
+def test_the_order_of_the_rows_does_not_matter(er4u):
+    case = make_case(er4u, seed=5)
+    q = case.configurations(24, 6)
+    xyz, _ = measure(case, q, SIGMA, 7)
+    perm = np.random.default_rng(1).permutation(24)
+    _, a = _calibrate(er4u, q, xyz)
+    _, b = _calibrate(er4u, q[perm], xyz[perm])
+    ma, mb = (np.array(astuple(x.model_error), dtype=float) for x in (a, b))  # None -> nan
+    assert np.allclose(ma, mb, rtol=1e-6, equal_nan=True)
+    for region in ("inside", "edge", "workspace"):
+        for key, v in a.summary[region].items():
+            assert b.summary[region][key] == pytest.approx(v, rel=1e-6), (region, key)

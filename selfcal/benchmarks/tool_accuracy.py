@@ -1,0 +1,166 @@
+"""Benchmark: does the predicted tool-point accuracy of a tracker calibration hold? (issue #29)
+
+Monte Carlo on simulated analytic data (:mod:`selfcal.benchmarks.tracker_sim`): per robot, noise
+level and model, ``--draws`` draws, each a new true chain (every minimal parameter moved within
++-1 mm / +-0.2 deg, a tool point and a tracker frame), 30 training positions uniform in the
+central 70 % of each joint's range (within +-170 deg) with Gaussian noise, the calibration
+(:func:`selfcal.calibration.tracker.identify.identify_tracker`) and its predicted accuracy
+(:func:`selfcal.calibration.tracker.accuracy.tracker_accuracy`). The predicted 95 % bound and
+RMS are compared with the true error (predicted tool point against the true chain's, no noise)
+at the workspace sample's joint vectors (inside the calibrated region, at its edge, over the
+joint limits: :mod:`selfcal.kinematics.tool_error`).
+
+Models: ``fits`` (the true robot is a chain of the model's kind) and ``compliance`` (joint 2
+bends by 0.05 deg x cos(q2 + q3), which no constant chain expresses).
+
+Reported per row: coverage (the share of (draw, point) pairs whose true error is within the
+predicted 95 % bound; target 90-98 %), the pooled ratio of the predicted to the true RMS (target
+0.7-1.4) with the 10-90 % range of the per-draw ratios, and the same coverage for the covariance
+alone (no model error).
+
+Run: ``uv run python -m selfcal.benchmarks.tool_accuracy [--draws 30] [--write-docs]``
+(rewrites the table in docs/tool-accuracy.md).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+import warnings
+
+import numpy as np
+
+from selfcal.benchmarks.doc_blocks import ROOT, write_block
+from selfcal.benchmarks.tracker_sim import make_case
+from selfcal.calibration.identify import IdentificationWarning
+from selfcal.calibration.tracker.accuracy import tracker_accuracy
+from selfcal.calibration.tracker.identify import identify_tracker
+from selfcal.estimation.tracker import TrackerMeasurements
+from selfcal.kinematics.forward import fk_tool
+from selfcal.kinematics.tool_error import workspace_sample
+from selfcal.robot.definition import load_robot
+from selfcal.threads import limit_threads
+
+__all__ = ["run", "table", "main", "ROBOTS", "NOISE_MM", "MODELS"]
+
+ROBOTS = ("er4u-paper", "ur5e")
+NOISE_MM = (0.02, 0.1, 0.5)
+MODELS = ("fits", "compliance")
+ROWS = 30
+SPAN = 0.7
+COUNT = 128
+REGIONS = ("inside", "edge", "workspace")
+DOC = ROOT / "docs" / "tool-accuracy.md"
+BLOCK = "benchmark_tool_accuracy"
+
+
+def _bend(q: np.ndarray, model: str) -> np.ndarray:
+    """The joints the true robot turns to for readings ``q`` (the ``compliance`` model)."""
+    if model == "fits":
+        return q
+    out = q.copy()
+    out[:, 1] += np.radians(0.05) * np.cos(q[:, 1] + q[:, 2])
+    return out
+
+
+def draw(robot, sigma_m: float, model: str, seed: int) -> dict[str, np.ndarray]:
+    """One draw: per region, the predicted 95 % bound, the predicted RMS without and with the
+    model error, and the true error (mm) at its joint vectors."""
+    case = make_case(robot, seed=seed)
+    rng = np.random.default_rng(seed + 500)
+    lim = np.clip(robot.limits, -np.radians(170.0), np.radians(170.0))
+    mid, half = lim.mean(axis=1), SPAN * (lim[:, 1] - lim[:, 0]) / 2
+    q = rng.uniform(mid - half, mid + half, (ROWS, robot.n))
+    xyz = fk_tool(case.true, _bend(q, model))[:, :3, 3] + rng.normal(0.0, sigma_m, (ROWS, 3))
+    meas = TrackerMeasurements(q, xyz, None, None, None, None)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", IdentificationWarning)
+        res = identify_tracker(case.nominal, meas, sigma_t_m=sigma_m)
+        acc = tracker_accuracy(case.nominal, meas, res, robot.limits, sigma_t_m=sigma_m,
+                               sigma_r_rad=1e-4, count=COUNT)  # fmt: skip
+    assert acc is not None
+    sample = workspace_sample(q, robot.limits, count=COUNT, seed=seed + 1)
+    out = {}
+    for name in REGIONS:
+        qq = getattr(sample, name)
+        p = acc.error_model.predicted(qq)
+        true = fk_tool(case.true, _bend(qq, model))[:, :3, 3] * 1e3
+        out[name] = np.stack([p["position_95_mm"], p["estimation_95_mm"], p["position_rms_mm"],
+                              np.linalg.norm(p["position_mm"] - true, axis=1)])  # fmt: skip
+    return out
+
+
+def run(draws: int = 30, robots=ROBOTS, noise_mm=NOISE_MM, models=MODELS) -> list[dict]:
+    """One row per (robot, noise, model, region): coverage, coverage of the covariance alone,
+    pooled predicted / true RMS and the 10-90 % range of the per-draw ratios."""
+    rows = []
+    for rname in robots:
+        robot = load_robot(rname)
+        for s_mm in noise_mm:
+            for model in models:
+                t0 = time.perf_counter()
+                got = [draw(robot, s_mm / 1e3, model, seed) for seed in range(draws)]
+                for region in REGIONS:
+                    d = [g[region] for g in got]
+                    a = np.concatenate(d, axis=1)
+                    ratio = [np.sqrt(np.mean(x[2] ** 2) / np.mean(x[3] ** 2)) for x in d]
+                    rows.append({
+                        "robot": rname, "noise_mm": s_mm, "model": model, "region": region,
+                        "draws": draws, "points": a.shape[1],
+                        "coverage": float(np.mean(a[3] <= a[0])),
+                        "coverage_covariance": float(np.mean(a[3] <= a[1])),
+                        "ratio": float(np.sqrt(np.mean(a[2] ** 2) / np.mean(a[3] ** 2))),
+                        "ratio_10": float(np.quantile(ratio, 0.1)),
+                        "ratio_90": float(np.quantile(ratio, 0.9)),
+                        "true_rms_mm": float(np.sqrt(np.mean(a[3] ** 2))),
+                    })  # fmt: skip
+                print(f"{rname} {s_mm} mm {model}: {time.perf_counter() - t0:.1f} s",
+                      file=sys.stderr)  # fmt: skip
+    return rows
+
+
+def _mark(v: float, lo: float, hi: float) -> str:
+    return "" if lo <= v <= hi else " (outside)"
+
+
+def table(rows: list[dict]) -> str:
+    """The Markdown table of :func:`run`'s rows."""
+    head = (
+        "| robot | noise (mm) | model | region | true RMS (mm) | coverage of the 95 % bound "
+        "(target 90-98 %) | covariance alone | predicted / true RMS (target 0.7-1.4) | per draw "
+        "10-90 % |\n|---|---|---|---|---|---|---|---|---|\n"
+    )
+    lines = [
+        f"| {r['robot']} | {r['noise_mm']:g} | {r['model']} | {r['region']} | "
+        f"{r['true_rms_mm']:.3f} | {100 * r['coverage']:.1f} %"
+        f"{_mark(r['coverage'], 0.9, 0.98)} | {100 * r['coverage_covariance']:.1f} % | "
+        f"{r['ratio']:.2f}{_mark(r['ratio'], 0.7, 1.4)} | {r['ratio_10']:.2f}-{r['ratio_90']:.2f} |"
+        for r in rows
+    ]
+    d = rows[0]
+    note = (
+        f"\n{d['draws']} draws per row, {ROWS} training positions in the central "
+        f"{SPAN:.0%} of each joint's range, {COUNT} joint vectors per region and draw; "
+        "`uv run python -m selfcal.benchmarks.tool_accuracy --write-docs`."
+    )
+    return head + "\n".join(lines) + "\n" + note
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the benchmark (one BLAS thread) and print, or write, the table."""
+    limit_threads(1)
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--draws", type=int, default=30, help="draws per row (default 30)")
+    ap.add_argument("--write-docs", action="store_true",
+                    help="rewrite the table in docs/tool-accuracy.md")  # fmt: skip
+    args = ap.parse_args(argv)
+    text = table(run(args.draws))
+    print(text)
+    if args.write_docs:
+        write_block(DOC, text, BLOCK)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
