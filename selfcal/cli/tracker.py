@@ -194,14 +194,19 @@ def tracker_summary(src) -> str:
 def cmd_identify(args: argparse.Namespace) -> int:
     from selfcal.calibration.tracker.calibrate import calibrate_tracker
     from selfcal.calibration.tracker.calibration_file import write_tracker_calibration
+    from selfcal.calibration.tracker.spread import spread_line
     from selfcal.io.atomic import write_text_atomic
     from selfcal.kinematics.tool_error import accuracy_line
 
     _check_sigmas(("--sigma-mm", args.sigma_mm), ("--sigma-deg", args.sigma_deg))
+    if args.spread < 0:
+        raise CliError(f"--spread {args.spread}: give a number of resamplings >= 0",
+                       fix="e.g. --spread 50")  # fmt: skip
     hold = tuple(h for h in (args.hold or "").replace(" ", "").split(",") if h)
     run = calibrate_tracker(args.measurements, args.robot, args.joint_units,
                             distances=args.distances, sigma_mm=args.sigma_mm,
-                            sigma_deg=args.sigma_deg, hold=hold, trust_units=args.trust_units)  # fmt: skip
+                            sigma_deg=args.sigma_deg, hold=hold, trust_units=args.trust_units,
+                            spread=args.spread)  # fmt: skip
     out = _out_dir(args.out or f"runs/identify-{Path(args.measurements).stem}")  # after the input
     res, cal, fair, cv = run.result, run.calibration, run.nominal, run.cross_validation
     meas, table = run.measurements, run.table
@@ -240,6 +245,8 @@ def cmd_identify(args: argparse.Namespace) -> int:
     if run.accuracy is not None:
         line = accuracy_line(run.accuracy.summary)
         print(f"predicted: {line} (`selfcal report {out}` draws the map)")
+    if run.spread is not None:
+        print(spread_line(run.spread.to_json()))
     if table.ignored:
         print(f"ignored columns of {table.path}: {', '.join(table.ignored)}")
     for w in res.warnings:
@@ -386,6 +393,14 @@ def register(sub) -> None:
     )
     sp.add_argument("--hold", default=None, help="parameters held at nominal, e.g. beta1,ly1")
     sp.add_argument("--trust-units", action="store_true", help=TRUST_HELP)
+    sp.add_argument(
+        "--spread",
+        type=int,
+        default=0,
+        metavar="N",
+        help="also the run-to-run spread of the tool point over N bootstrap resamplings of the "
+        "rows (mm over the workspace, calibration.json accuracy.spread; docs/tool-accuracy.md)",
+    )
     add_json(sp)
 
     sp = sub.add_parser(

@@ -17,6 +17,7 @@ from selfcal.calibration.tracker.accuracy import (
     postures_from_json,
 )
 from selfcal.calibration.tracker.calibration_file import read_tracker_calibration
+from selfcal.calibration.tracker.spread import spread_line
 from selfcal.errors import InputError
 from selfcal.io.atomic import write_text_atomic
 from selfcal.io.jsonfile import write_json_atomic
@@ -85,6 +86,9 @@ def _markdown(report: dict) -> str:
         f"model error {me.get('position_mm', 0.0):.4f} mm per coordinate from {me.get('rows')} "
         f"cross-validated rows ({me.get('folds')} folds)"
     )
+    spread = acc.get("spread")
+    if spread:
+        note += f".\n\n{spread_line(spread)}"
     return (
         "# Tracker calibration: predicted tool-point accuracy\n\n"
         f"{report['accuracy']['line']}\n\n{note}. See docs/tool-accuracy.md.\n\n"

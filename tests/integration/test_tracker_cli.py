@@ -337,5 +337,7 @@ def test_the_api_calibrates_a_tracker_file_as_identify_does(tmp_path, capsys, er
     assert back.tool_point_mm == pytest.approx(run.calibration.tool_point_mm, abs=1e-9)
     with pytest.raises(selfcal.InputError, match="sigma_mm must be a positive number"):
         selfcal.calibrate_tracker(meas, "er4u-paper", "deg", sigma_mm=0.0)
+    with pytest.raises(selfcal.InputError, match="spread must be a number of resamplings"):
+        selfcal.calibrate_tracker(meas, "er4u-paper", "deg", spread=-1)
     folder = selfcal.write_calibration(tmp_path / "new" / "cal", run.calibration)
     assert folder == tmp_path / "new" / "cal" / "calibration.json" and folder.is_file()

@@ -9,6 +9,7 @@ import pytest
 
 from selfcal.calibration.tracker.accuracy import SAMPLE_COUNT, error_model_from_json
 from selfcal.calibration.tracker.calibration_file import read_tracker_calibration
+from selfcal.calibration.tracker.spread import spread_line
 from selfcal.cli.main import main
 from selfcal.kinematics.tool_error import workspace_sample
 from selfcal.plots.plotting import figure_problems
@@ -24,7 +25,8 @@ def test_identify_then_report_says_the_predicted_accuracy(tmp_path, capsys):
     keep = np.abs(rows[:, 0]) < 90.0  # joint 1 within +-90 deg: the region is not everything
     meas = _write(tmp_path / "m.csv", header, rows[keep])
     out = tmp_path / "cal"
-    argv = ["identify", meas, "--robot", "er4u-paper", "--joint-units", "deg", "--out", str(out)]
+    argv = ["identify", meas, "--robot", "er4u-paper", "--joint-units", "deg", "--out", str(out),
+            "--spread", "20"]  # fmt: skip
     assert main(argv) == 0
     said = capsys.readouterr().out
     doc = json.loads((out / "calibration.json").read_text())
@@ -36,12 +38,16 @@ def test_identify_then_report_says_the_predicted_accuracy(tmp_path, capsys):
     assert acc["model_error"]["rows"] == keep.sum() and acc["model_error"]["folds"] == 10
     assert len(acc["regions"]["calibration_postures"]["position_95_mm"]) == keep.sum()
     assert edge["position_95_mm_max"] > inside["position_95_mm_median"]
+    spread = acc["spread"]
+    assert spread["resamplings"] + spread["failed"] == 20
+    assert spread_line(spread) in said
     assert main(["report", str(out)]) == 0
     said = capsys.readouterr().out
     assert said.startswith(f"report: {line};")
     report = json.loads((out / "report.json").read_text())
     assert report["accuracy"]["regions"] == acc["regions"]  # the same numbers, rebuilt
-    assert (out / report["figures"][0]).is_file() and line in (out / "report.md").read_text()
+    md = (out / "report.md").read_text()
+    assert (out / report["figures"][0]).is_file() and line in md and spread_line(spread) in md
 
     cal = read_tracker_calibration(out / "calibration.json")
     em = error_model_from_json(acc, cal.model, cal.T_meas_fit, cal.names, False, "x")

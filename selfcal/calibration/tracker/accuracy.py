@@ -39,6 +39,7 @@ from selfcal.kinematics.mcpc import MCPCModel, minimal_indices
 from selfcal.kinematics.tool_error import (
     EDGE_FRACTION,
     ToolErrorModel,
+    WorkspaceSample,
     workspace_sample,
     workspace_summary,
 )
@@ -237,7 +238,7 @@ class TrackerAccuracy:
     names: tuple[str, ...]
     model_error: ModelError | None
     summary: dict
-    box: np.ndarray
+    sample: WorkspaceSample
     q_cal: np.ndarray
 
     def to_json(self) -> dict:
@@ -251,7 +252,7 @@ class TrackerAccuracy:
             if self.model_error is not None
             else "no cross-validation possible (fewer than 2 position / pose rows or every fold "
             "failed): the covariance alone, which is optimistic when the model misfits",
-            "calibrated_region_si": self.box.tolist(),
+            "calibrated_region_si": self.sample.box.tolist(),
             "calibration_postures_si": self.q_cal.tolist(),
             "regions": self.summary,
             "estimated": list(self.names),
@@ -284,7 +285,7 @@ def tracker_accuracy(
     sample = workspace_sample(meas.q, limits, count=count)
     names = tuple(n for n, e in zip(res.names, res.estimated) if e)
     summary = workspace_summary(em, sample, meas.q)
-    return TrackerAccuracy(em, names, me, summary, sample.box, np.array(meas.q, dtype=float))
+    return TrackerAccuracy(em, names, me, summary, sample, np.array(meas.q, dtype=float))
 
 
 def error_model_from_json(block: dict, model: MCPCModel, T_meas_fit: np.ndarray,

@@ -26,6 +26,7 @@ from selfcal.calibration.tracker.identify import (
     identify_tracker,
 )
 from selfcal.calibration.tracker.nominal import NominalFit, fit_nominal
+from selfcal.calibration.tracker.spread import Spread, bootstrap_spread
 from selfcal.errors import InputError
 from selfcal.io.tracker import Table, read_distances, read_measurements
 from selfcal.kinematics.mcpc import nominal_mcpc
@@ -71,7 +72,9 @@ class TrackerRun:
     ``cross_validation`` (None when there are no rows or too many), the ``measurements`` (SI)
     and the measurements file's ``table``; the predicted tool-point ``accuracy`` over the
     workspace (:mod:`selfcal.calibration.tracker.accuracy`, also ``calibration.accuracy``; None
-    without position / pose rows)."""
+    without position / pose rows) and the run-to-run ``spread`` of the tool point over bootstrap
+    resamplings of the rows (:mod:`selfcal.calibration.tracker.spread`, also
+    ``calibration.accuracy["spread"]``; None unless asked for)."""
 
     result: TrackerResult
     calibration: TrackerCalibration
@@ -80,6 +83,7 @@ class TrackerRun:
     measurements: TrackerMeasurements
     table: Table
     accuracy: TrackerAccuracy | None = None
+    spread: Spread | None = None
 
 
 @limited
@@ -93,6 +97,7 @@ def calibrate_tracker(
     sigma_deg: float = 0.01,
     hold: tuple[str, ...] | list[str] = (),
     trust_units: bool = False,
+    spread: int = 0,
 ) -> TrackerRun:
     """Identify ``robot``'s kinematics (a model name, robot TOML or URDF) from the tracker
     measurements file ``measurements`` (tool-point positions or poses, mm, tracker frame) and
@@ -105,16 +110,20 @@ def calibrate_tracker(
             deg (they weigh the kinds against each other).
         hold: minimal parameter names held at nominal.
         trust_units: skip the check that degrees look like radians.
+        spread: this many bootstrap resamplings of the rows for the run-to-run spread of the
+            tool point (one identification each); 0: none.
 
     Raises:
-        InputError: a noise that is not a positive number, or a file that cannot be read
-            (named with row and column).
+        InputError: a noise that is not a positive number, a negative ``spread`` or a file
+            that cannot be read (named with row and column).
         TrackerIdentificationError: too few measurements for what they can identify (says how
             many are needed).
     """
     for name, v in (("sigma_mm", sigma_mm), ("sigma_deg", sigma_deg)):
         if not (np.isfinite(v) and v > 0):
             raise InputError(f"{name} must be a positive number, got {v}")
+    if spread < 0:
+        raise InputError(f"spread must be a number of resamplings >= 0, got {spread}")
     rd = load_robot(robot)
     meas, table = read_tracker_files(measurements, distances, rd, joint_units,
                                      guess=not trust_units)  # fmt: skip
@@ -142,6 +151,12 @@ def calibrate_tracker(
     )
     if cv is not None:
         cal.fit["cross_validation"] = cv.to_json()
+    boot = None
     if acc is not None:
-        cal = replace(cal, accuracy=acc.to_json())
-    return TrackerRun(res, cal, fair, cv, meas, table, acc)
+        block = acc.to_json()
+        if spread > 0:
+            boot = bootstrap_spread(nominal, meas, res, acc.sample, spread, sigma_t_m=s_t,
+                                    sigma_r_rad=s_r, sigma_d_m=s_t, hold=hold)  # fmt: skip
+            block["spread"] = None if boot is None else boot.to_json()
+        cal = replace(cal, accuracy=block)
+    return TrackerRun(res, cal, fair, cv, meas, table, acc, boot)
