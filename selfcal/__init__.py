@@ -29,6 +29,8 @@ if TYPE_CHECKING:
     from selfcal.calibration.tracker.calibration_file import (
         TrackerCalibration as TrackerCalibration,
     )
+    from selfcal.calibration.tracker.drift import DriftCheck as DriftCheck
+    from selfcal.calibration.tracker.drift import check_tracker as check_tracker
     from selfcal.calibration.tracker.identify import TrackerMeasurements as TrackerMeasurements
     from selfcal.calibration.tracker.identify import identify_tracker as identify_tracker
     from selfcal.calibration.tracker.join import TrackerInput as TrackerInput
@@ -92,6 +94,7 @@ _PARTS: dict[str, tuple[str, ...]] = {
     "selfcal.calibration.tracker.calibrate": ("TrackerRun", "calibrate_tracker"),
     "selfcal.calibration.tracker.identify": ("TrackerMeasurements", "identify_tracker"),
     "selfcal.calibration.tracker.join": ("TrackerInput",),
+    "selfcal.calibration.tracker.drift": ("DriftCheck", "check_tracker"),
     # results
     "selfcal.io.calibration": ("CalibrationResult",),
     "selfcal.io.board_calibration": ("BoardCalibrationResult",),
@@ -141,6 +144,7 @@ __all__ = [
     "Dataset",
     "DatasetError",
     "DeployedModel",
+    "DriftCheck",
     "EstimationError",
     "Evaluation",
     "Fisheye",
@@ -165,6 +169,7 @@ __all__ = [
     "calibrated_mjcf",
     "calibration_route",
     "camera_model",
+    "check_tracker",
     "compensated_ik",
     "dataset_route",
     "deploy",

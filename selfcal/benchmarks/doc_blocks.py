@@ -7,7 +7,7 @@ from pathlib import Path
 
 from selfcal.io.atomic import write_text_atomic
 
-__all__ = ["ROOT", "write_block"]
+__all__ = ["ROOT", "write_block", "print_table"]
 
 ROOT = Path(__file__).resolve().parents[2]
 """The repository's root (README.md and docs/ are in it)."""
@@ -23,3 +23,12 @@ def write_block(path: Path, block: str, name: str = "benchmark_speed") -> None:
     head, rest = text.split(begin, 1)
     tail = rest.split(end, 1)[1]
     write_text_atomic(path, f"{head}{begin}\n{block}\n{end}{tail}")
+
+
+def print_table(text: str, path: Path, name: str, *, write: bool) -> int:
+    """Print a benchmark's table ``text`` and, with ``write``, put it between the ``name``
+    markers of ``path`` (:func:`write_block`); returns 0 (the script's exit code)."""
+    print(text)
+    if write:
+        write_block(path, text, name)
+    return 0

@@ -31,7 +31,7 @@ import warnings
 
 import numpy as np
 
-from selfcal.benchmarks.doc_blocks import ROOT, write_block
+from selfcal.benchmarks.doc_blocks import ROOT, print_table
 from selfcal.benchmarks.tracker_sim import make_case
 from selfcal.calibration.identify import IdentificationWarning
 from selfcal.calibration.tracker.accuracy import tracker_accuracy
@@ -155,11 +155,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--write-docs", action="store_true",
                     help="rewrite the table in docs/tool-accuracy.md")  # fmt: skip
     args = ap.parse_args(argv)
-    text = table(run(args.draws))
-    print(text)
-    if args.write_docs:
-        write_block(DOC, text, BLOCK)
-    return 0
+    return print_table(table(run(args.draws)), DOC, BLOCK, write=args.write_docs)
 
 
 if __name__ == "__main__":

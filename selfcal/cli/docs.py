@@ -60,6 +60,7 @@ once). A command that writes files ends with one line naming them and counting t
 | 2 | bad input: scenario, dataset, robot file, calibration file, argument or command line |
 | 3 | cannot calibrate from this data: too few postures, degenerate geometry, no convergence |
 | 4 | robot or hardware fault: controller error, serial link, camera |
+| 5 | `selfcal check`: the robot has changed since its calibration (the check worked) |
 | 130 | interrupted (Ctrl-C) |
 
 ## Commands

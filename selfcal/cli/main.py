@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from selfcal.cli.check import register as register_check
 from selfcal.cli.deploy import CALIBRATED_FRAME, calibration_robot, load_calibration
 from selfcal.cli.deploy import register as register_deploy
 from selfcal.cli.hw import register as register_hw
@@ -500,6 +501,7 @@ def build_parser() -> argparse.ArgumentParser:
         register_deploy,
         register_montecarlo,
         register_tracker,
+        register_check,
         register_own_data,
         register_diagnose,
         register_shipped,

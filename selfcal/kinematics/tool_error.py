@@ -84,13 +84,18 @@ class ToolErrorModel:
         T = self.T_out_world @ fk_frames(self.model, q)[:, -1]
         return T[:, :3, 3]
 
-    def estimation_covariance(self, q: np.ndarray) -> np.ndarray:
-        """(m, 6, 6) covariance of ``[position (m); orientation (rad)]`` of the tool in the output
-        frame at joints ``q`` (m, n), from the parameters' covariance alone."""
+    def jacobian(self, q: np.ndarray) -> np.ndarray:
+        """(m, 6, p) derivative of ``[position (m); orientation (rad, rotation vector)]`` of the
+        tool in the output frame w.r.t. the estimated parameters, at joints ``q`` (m, n)."""
         frames = fk_frames(self.model, q)
         J = identification_jacobian(self.model, q, frames)[:, :, self.columns]  # tool frame
         R = self.T_out_world[:3, :3] @ frames[:, -1, :3, :3]
-        Jo = np.concatenate([R @ J[:, :3], R @ J[:, 3:]], axis=1)
+        return np.concatenate([R @ J[:, :3], R @ J[:, 3:]], axis=1)
+
+    def estimation_covariance(self, q: np.ndarray) -> np.ndarray:
+        """(m, 6, 6) covariance of ``[position (m); orientation (rad)]`` of the tool in the output
+        frame at joints ``q`` (m, n), from the parameters' covariance alone."""
+        Jo = self.jacobian(q)
         return Jo @ self.covariance @ np.swapaxes(Jo, -1, -2)
 
     def predicted(self, q: np.ndarray) -> dict[str, np.ndarray]:

@@ -1,0 +1,53 @@
+"""The drift check's test (selfcal.calibration.tracker.drift, issue #29)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from selfcal.calibration.tracker.drift import drift_check
+from selfcal.errors import InputError
+from selfcal.kinematics.mcpc import minimal_indices, nominal_mcpc
+from selfcal.kinematics.tool_error import ToolErrorModel
+from selfcal.robot.definition import load_robot
+
+
+@pytest.fixture(scope="module")
+def setup():
+    robot = load_robot("er4u-paper")
+    model = nominal_mcpc(robot)
+    cols = minimal_indices(model.joint_types)
+    rng = np.random.default_rng(0)
+    A = rng.normal(size=(cols.size, cols.size)) * 2e-5
+    em = ToolErrorModel(model, np.eye(4), cols, A @ A.T, 3e-5)
+    q = rng.uniform(robot.limits[:, 0], robot.limits[:, 1], (5, robot.n))
+    return em, q
+
+
+def test_residuals_drawn_from_the_prediction_alarm_at_alpha(setup):
+    """Residuals with exactly the covariance the check assumes (the parameters' error shared by
+    the rows, model error and noise per row) are called changed in about 1 % of draws."""
+    em, q = setup
+    rng = np.random.default_rng(1)
+    p = em.tool_positions(q)
+    Jp = em.jacobian(q)[:, :3]
+    L = np.linalg.cholesky(em.covariance)
+    sd = np.hypot(em.model_error_m, 1e-4)
+    n = 800
+    changed = 0
+    for _ in range(n):
+        dtheta = L @ rng.normal(size=L.shape[0])
+        xyz = p + Jp @ dtheta + rng.normal(0.0, sd, p.shape)
+        changed += drift_check(em, q, xyz, 1e-4).changed
+    assert 0.0025 < changed / n < 0.025
+
+
+def test_a_shift_is_changed_and_bad_rows_are_refused(setup):
+    em, q = setup
+    xyz = em.tool_positions(q) + np.array([1e-3, 0.0, 0.0])
+    res = drift_check(em, q, xyz, 1e-4)
+    assert res.changed and res.p_value < 1e-6
+    assert res.mean_mm == pytest.approx([1.0, 0.0, 0.0], abs=1e-9)
+    assert "changed by" in res.line()
+    with pytest.raises(InputError, match="one measured position per joint row"):
+        drift_check(em, q, xyz[:3], 1e-4)
