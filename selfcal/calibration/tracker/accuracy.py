@@ -231,8 +231,9 @@ def model_error(
 @dataclass(frozen=True)
 class TrackerAccuracy:
     """The predicted accuracy of a tracker calibration (module docstring): its error model, the
-    model-error estimate and the summary over the workspace
-    (:func:`selfcal.kinematics.tool_error.workspace_summary`)."""
+    estimated parameters' ``names``, the model-error estimate, the summary over the workspace
+    (:func:`selfcal.kinematics.tool_error.workspace_summary`) of ``sample`` and the calibration
+    postures ``q_cal`` (m, n) rad / m."""
 
     error_model: ToolErrorModel
     names: tuple[str, ...]
