@@ -91,23 +91,36 @@ def test_a_misfit_enters_as_model_error(er4u):
     assert covered > 0.75 and covariance_alone < covered - 0.1
 
 
-def test_the_block_rebuilds_the_prediction(er4u):
+def _rebuilt(er4u, poses: bool):
     case = make_case(er4u, seed=5)
     q = case.configurations(25, 6)
-    xyz, R = measure(case, q, SIGMA, 7, poses=True)
+    xyz, R = measure(case, q, SIGMA, 7, poses=poses)
     res, acc = _calibrate(er4u, q, xyz, R)
     block = acc.to_json()
-    assert block["model_error"]["rotation_deg"] is not None
-    em = error_model_from_json(block, res.model, res.T_meas_fit, res.names, True, "cal.json")
+    em = error_model_from_json(block, res.model, res.T_meas_fit, res.names, poses, "cal.json")
     assert np.array_equal(postures_from_json(block, er4u.n, "cal.json"), q)
     qw = case.configurations(20, 9)
     got, want = em.predicted(qw), acc.error_model.predicted(qw)
     for key in ("position_95_mm", "orientation_95_deg"):
-        assert np.allclose(got[key], want[key], rtol=1e-12)
-    assert acc.summary["inside"]["orientation_95_deg_max"] > 0
+        assert np.allclose(got[key], want[key], rtol=1e-12, equal_nan=True)
+    return res, acc, block
+
+
+def test_the_block_rebuilds_the_prediction(er4u):
+    res, acc, block = _rebuilt(er4u, poses=False)
+    assert block["model_error"]["rotation_deg"] is None
+    assert "orientation_95_deg_max" not in acc.summary["inside"]
     block["estimated"] = block["estimated"][:-1]
     with pytest.raises(InputError, match="does not match its parameters"):
-        error_model_from_json(block, res.model, res.T_meas_fit, res.names, True, "cal.json")
+        error_model_from_json(block, res.model, res.T_meas_fit, res.names, False, "cal.json")
+
+
+@pytest.mark.slow
+def test_a_fit_of_poses_predicts_the_orientation_too(er4u):
+    """Slow: 11 identifications of poses take 2-5 s on a loaded 2-core machine."""
+    _, acc, block = _rebuilt(er4u, poses=True)
+    assert block["model_error"]["rotation_deg"] is not None
+    assert acc.summary["inside"]["orientation_95_deg_max"] > 0
 
 
 def test_the_order_of_the_rows_does_not_matter(er4u):
