@@ -1,7 +1,9 @@
 """Camera poses from the kinematic chain: the pose model of the one-step refinement.
 
 Frames: ``T_world_cam`` of the rig's first camera (the left one) is the MCPC tool (OpenCV camera
-frame); camera ``c`` of the rig is ``T_cam_first @ T_first_world``. Views are indexed by
+frame); camera ``c`` of the rig is ``T_cam_first @ T_first_world``. Eye-to-hand (the cameras
+static, the target on the flange) inverts the chain: its world is the first camera and its tool
+the target, so the chain gives ``T_first_target`` itself. Views are indexed by
 :class:`selfcal.estimation.observations.ViewLayout`. SI units.
 """
 
@@ -44,10 +46,17 @@ class KinematicPoses:
     encoder quantisation; the caller adds a prior on ``dq``). ``dq_cols`` are their indices in
     ``p``.
 
+    ``eye_to_hand=True``: the cameras are static and the target rides on the flange; the
+    chain's world is the first camera and its tool the target, so the first camera's view pose
+    is the chain's tool pose itself, ``T_cam_world = fk_tool(model(rho), q_i)`` (the world of the
+    views is the target frame), and camera ``c``'s ``T_cam_first @ T_first_target`` as above.
+
     ``view_jacobian`` is analytic: the identification Jacobian is the body twist ``xi`` of
     ``T_world_cam``  (``dT = T xi^``), so ``T_cam_world`` moves by the camera-frame twist ``-xi``
-    (the bundle adjustment's convention); camera ``c`` by ``Ad(T_cam_first) (-xi)``. The joint
-    columns are the joint axes' twists in the tool frame.
+    (the bundle adjustment's convention); camera ``c`` by ``Ad(T_cam_first) (-xi)``. Eye-to-hand
+    the chain's tool pose ``T`` is the view pose, which moves by the camera-frame twist
+    ``Ad(T) xi`` (``T xi^ = (Ad(T) xi)^ T``). The joint columns are the joint axes' twists in the
+    tool frame.
     """
 
     def __init__(
@@ -60,8 +69,10 @@ class KinematicPoses:
         *,
         joint_corrections: bool = False,
         offset_joints: np.ndarray | tuple[int, ...] = (),
+        eye_to_hand: bool = False,
     ):
         self.model = model
+        self.eye_to_hand = bool(eye_to_hand)
         self.q = np.atleast_2d(np.asarray(q, dtype=float))
         if self.q.shape[1] != model.n:
             raise UsageError(f"q must have shape (m, {model.n}) (rad), got {self.q.shape}")
@@ -156,11 +167,16 @@ class KinematicPoses:
         T = np.full((self.n_views, 4, 4), np.nan)
         by = self.layout.by_frame(T)
         act = self._act
-        TL = inv_pose(fk_tool(self.kinematic_model(p), self.joints(p)))
+        TL = self._first_views(fk_tool(self.kinematic_model(p), self.joints(p)))
         by[act, 0] = TL
         for c in range(1, self.layout.n_cameras):
             by[act, c] = self.rig(p, c) @ TL
         return T
+
+    def _first_views(self, T_tool: np.ndarray) -> np.ndarray:
+        """The first camera's view poses ``T_cam_world`` of the chain's tool poses (class
+        docstring): their inverse, or eye-to-hand themselves."""
+        return T_tool.copy() if self.eye_to_hand else inv_pose(T_tool)
 
     def view_jacobian(self, p: np.ndarray) -> np.ndarray:
         width = self._cols.shape[1]
@@ -170,12 +186,14 @@ class KinematicPoses:
         mdl = self.kinematic_model(p)
         qa = self.joints(p)
         JL = np.zeros((len(act), 6, width))
-        JL[..., : self.k] = -identification_jacobian(mdl, qa)[:, :, self.free_idx]
+        JL[..., : self.k] = identification_jacobian(mdl, qa)[:, :, self.free_idx]
         if self.n_dq or len(self.offset_joints):
             tw = joint_twists(mdl, qa)
-            JL[..., self.k : self.n_kin] = -tw[:, :, self.offset_joints]
+            JL[..., self.k : self.n_kin] = tw[:, :, self.offset_joints]
             if self.n_dq:
-                JL[..., width - mdl.n :] = -tw
+                JL[..., width - mdl.n :] = tw
+        # the tool's body twist as the first camera's view twist (class docstring)
+        JL = adjoint(fk_tool(mdl, qa)) @ JL if self.eye_to_hand else -JL
         by[act, 0] = JL
         for c in range(1, self.layout.n_cameras):
             Trig = self.rig(p, c)

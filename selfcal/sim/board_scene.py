@@ -50,9 +50,12 @@ def add_board(
     *,
     px_per_mm: float = 8.0,
     name: str = "board",
+    body: mujoco.MjsBody | None = None,
 ) -> None:
     """Add ``board`` to ``spec`` at ``T_world_board`` (board -> world, m) as a thin matte tile
-    whose face shows the board image made at ``px_per_mm`` (module docstring). No collisions."""
+    whose face shows the board image made at ``px_per_mm`` (module docstring). No collisions.
+    ``body``: the body that carries it (``T_world_board`` is then board -> that body's frame,
+    e.g. a board on the flange); default the world."""
     bi = board.image(px_per_mm)
     img = np.ascontiguousarray(np.repeat(bi.pixels[:, :, None], 3, axis=2))
     tex = spec.add_texture()
@@ -70,7 +73,7 @@ def add_board(
     T_face = np.asarray(T_world_board, dtype=float) @ _T_board_face(bi.extent_m)
     quat = np.zeros(4)
     mujoco.mju_mat2Quat(quat, np.ascontiguousarray(T_face[:3, :3]).reshape(-1))
-    g = spec.worldbody.add_geom()
+    g = (spec.worldbody if body is None else body).add_geom()
     g.name = name
     g.type = mujoco.mjtGeom.mjGEOM_BOX
     g.size = [(x1 - x0) / 2, (y1 - y0) / 2, BOARD_THICKNESS_M / 2]

@@ -148,3 +148,23 @@ def test_freed_joint_offsets_keep_the_base_offset():
     again = pm.kinematic_model(pm.initial_params())
     assert again.base_offset == model.base_offset
     np.testing.assert_allclose(fk_tool(again, q), fk_tool(model, q), atol=1e-12)
+
+
+def test_kinematic_poses_jacobian_eye_to_hand():
+    """Eye-to-hand (the cameras static, the board on the flange): the chain's tool pose is the
+    first camera's view pose, its body twist carried to the camera frame; with a second static
+    camera, joint offsets and joint corrections."""
+    rng = np.random.default_rng(2)
+    robot = load_robot("ur5e")
+    model = nominal_mcpc(robot, make_pose(rot_x(0.4)[:3, :3], [0.1, -0.3, 0.9]),
+                         pose_from_vec(np.r_[0.1, 0.2, -0.1, 0.01, 0.02, 0.05]))  # fmt: skip
+    q = rng.uniform(-1.0, 1.0, (3, model.n))
+    rig = pose_from_vec(np.r_[0.01, -0.02, 0.005, -0.06, 0.001, 0.002])[None]
+    pm = KinematicPoses(model, q, minimal_indices(model.joint_types)[3:], rig,
+                        joint_corrections=True, offset_joints=(1, 2), eye_to_hand=True)  # fmt: skip
+    p0 = pm.initial_params() + 1e-3 * rng.standard_normal(pm.n_params)
+    T = pm.poses(p0).reshape(3, 2, 4, 4)
+    np.testing.assert_allclose(T[:, 0], fk_tool(pm.kinematic_model(p0), pm.joints(p0)),
+                               atol=1e-15)  # fmt: skip
+    np.testing.assert_allclose(T[:, 1], pm.rigs(p0)[0] @ T[:, 0], atol=1e-15)
+    _twist_jacobian_check(pm, p0, atol=2e-8)

@@ -96,6 +96,7 @@ def board_cramer_rao(
     T_first_cam: np.ndarray | None = None,
     free_idx: np.ndarray | None = None,
     offset_joints: np.ndarray | Sequence[int] = (),
+    eye_to_hand: bool = False,
 ) -> BoardCramerRao:
     """The bounds of the board refinement (module docstring) with ``cameras`` (the first is the
     chain's tool; each with its ``free`` parameters), the chain ``model`` (world = board frame)
@@ -103,7 +104,9 @@ def board_cramer_rao(
     ``i`` (px), ``T_first_cam`` (N, 4, 4) every camera's pose in the first camera's frame (m;
     None for one camera) and ``joint_sigma`` (rad / m, scalar or (n,); None: exact read-back);
     ``free_idx`` (flat MCPC indices) and ``offset_joints`` (revolute joints, 0 based): the
-    kinematic parameters estimated (default every minimal parameter, no offset).
+    kinematic parameters estimated (default every minimal parameter, no offset);
+    ``eye_to_hand``: the cameras static and the board on the flange (``model``'s world the first
+    camera, its tool the board, :class:`selfcal.estimation.kinematic_poses.KinematicPoses`).
 
     Raises:
         ValueError: the feature lists do not match the cameras or the frames.
@@ -116,7 +119,8 @@ def board_cramer_rao(
     idx = minimal_indices(model.joint_types) if free_idx is None else np.asarray(free_idx, int)
     poses = KinematicPoses(model, q, idx, T_rigs, np.ones(m, bool),
                            joint_corrections=joint_sigma is not None,
-                           offset_joints=np.asarray(offset_joints, dtype=np.int64))  # fmt: skip
+                           offset_joints=np.asarray(offset_joints, dtype=np.int64),
+                           eye_to_hand=eye_to_hand)  # fmt: skip
     obs = []
     for c, fc in enumerate(features):
         frame = np.concatenate([np.full(len(f), i) for i, f in enumerate(fc)]).astype(int)

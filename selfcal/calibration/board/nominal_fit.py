@@ -9,7 +9,9 @@ this model -- what the robot gives without calibrating its kinematics -- never a
 pose-distance proxy. The start of that fit is the closed-form placement of the nominal chain on
 the camera stage's poses (:func:`place_nominal`).
 
-Frames and units: world = board frame (m), the model's tool = the first camera (OpenCV frame).
+Frames and units: world = board frame (m), the model's tool = the first camera (OpenCV frame);
+eye-to-hand (the board on the flange) world = the first camera, tool = the board, and the
+placement is base -> camera and flange -> board.
 """
 
 from __future__ import annotations
@@ -37,7 +39,8 @@ def placement_indices(n: int) -> np.ndarray:
 
 def place_nominal(nominal: MCPCModel, q: np.ndarray, T_board_cam: np.ndarray) -> MCPCModel:
     """``nominal`` (tool = the camera at its nominal mount) placed on the camera poses
-    ``T_board_cam`` (m, 4, 4) at the joints ``q`` (m, n) rad: board pose and hand-eye by
+    ``T_board_cam`` (m, 4, 4) at the joints ``q`` (m, n) rad (eye-to-hand: the tool the board,
+    the poses the board's in the camera frame): board pose and hand-eye by
     alternating closed-form rigid fits (:func:`selfcal.kinematics.alignment.fit_rigid_transform`) from the
     nominal mount, the round whose camera positions fit best kept (with little wrist motion the
     alternation can drift off: the hand-eye is then weakly determined by the poses) -- the start
@@ -74,7 +77,7 @@ def fit_nominal(obs: BoardObservations, nominal: MCPCModel, *, stds: bool = True
         EstimationError: the fit did not converge.
     """
     used = obs.used
-    start = place_nominal(nominal, obs.q[used], inv_pose(obs.cam_stage.T_cam_board[used]))
+    start = place_nominal(nominal, obs.q[used], obs.tool_poses()[used])
     fit = refine_on_board(obs, start, placement_indices(nominal.n), stds=stds,
                           what="the fair nominal (the nominal chain placed on the camera "
                           "stage's poses, board pose, hand-eye and cameras fitted, the chain "

@@ -12,7 +12,10 @@ sets; a subset of the frames (``train``) gives the fits of the cross-validation,
 :func:`predict_px` predicts the others from their joints alone.
 
 Frames and units: world = board frame (m), the model's tool = the first camera (OpenCV frame),
-pixels in the OpenCV convention; joints rad (m for a prismatic joint).
+pixels in the OpenCV convention; joints rad (m for a prismatic joint). Eye-to-hand (the cameras
+static, the board on the flange: ``BoardObservations.eye_to_hand``) the same fit runs on the
+inverted chain: world = the first camera, the model's tool = the board
+(:class:`selfcal.estimation.kinematic_poses.KinematicPoses`).
 """
 
 from __future__ import annotations
@@ -44,8 +47,11 @@ class BoardObservations:
     """What every fit on one dataset shares: the ``board``, the camera stage ``cam_stage`` of
     the first camera (its inlier rows are the observations; its camera the start), the
     ``features`` of every frame, the joints ``q`` (m, n) rad, a ``rig`` of further cameras
-    (their start, or None) with their features ``rig_features``, and the joint read-back's
-    standard deviation ``joint_sigma`` (rad / m, or None for exact read-back)."""
+    (their start, or None) with their features ``rig_features``, the joint read-back's
+    standard deviation ``joint_sigma`` (rad / m, or None for exact read-back) and the setup:
+    ``eye_to_hand`` the cameras static and the board on the flange (the chain's world is then
+    the first camera and its tool the board), else the cameras on the flange (world = board,
+    tool = the first camera)."""
 
     board: Board
     cam_stage: BoardCalibration
@@ -54,11 +60,19 @@ class BoardObservations:
     rig: BoardRigCalibration | None = None
     rig_features: Sequence[Sequence[Features]] = ()
     joint_sigma: float | np.ndarray | None = None
+    eye_to_hand: bool = False
 
     @property
     def used(self) -> np.ndarray:
         """(m,) the frames the camera stage found the board in."""
         return self.cam_stage.used
+
+    def tool_poses(self) -> np.ndarray:
+        """(m, 4, 4) the chain's tool poses in its world that the camera stage measured (NaN
+        where it did not find the board): the camera in the board frame, or eye-to-hand the
+        board in the first camera's frame (m)."""
+        T = self.cam_stage.T_cam_board
+        return T.copy() if self.eye_to_hand else inv_pose(T)
 
     def rows(self, frames: np.ndarray) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
         """Per camera the inlier rows of the frames ``frames`` (m,) bool: frame index, feature
@@ -132,6 +146,7 @@ def refine_on_board(
         used,
         joint_corrections=obs.joint_sigma is not None,
         offset_joints=np.asarray(offset_joints, dtype=np.int64),
+        eye_to_hand=obs.eye_to_hand,
     )
     rows = [(poses.layout.view(v, c), f, uv) for c, (v, f, uv) in enumerate(obs.rows(used))]
     prob = board_problem(cameras[:n_cams], poses, rows, obs.board,
@@ -179,7 +194,8 @@ def predict_px(obs: BoardObservations, fit: Refinement, frames: np.ndarray) -> n
     """The residuals (k, 2) px (predicted - detected) of every camera's inlier rows in the frames
     ``frames`` (m,) bool, predicted from the joints alone with ``fit`` (nothing re-fitted)."""
     frames = obs.used & np.asarray(frames, bool)
-    T_cam0_board = inv_pose(fk_tool(fit.model, obs.q))
+    T_tool = fk_tool(fit.model, obs.q)
+    T_cam0_board = T_tool if obs.eye_to_hand else inv_pose(T_tool)
     out = []
     for c, (v, f, uv) in enumerate(obs.rows(frames)):
         T = inv_pose(fit.T_first_cam[c]) @ T_cam0_board[v]

@@ -30,7 +30,15 @@ somewhere in the scene):
 The model is written in the MCPC gauge with the nominal's joint offsets
 (:func:`selfcal.calibration.board.nominal_fit.standard_gauge`), so its minimal parameters compare one to one.
 
-Frames: the world is the board frame (m); the model's tool is the OpenCV camera frame. SI units.
+Eye-to-hand (``eye_to_hand=True``: the cameras static in the cell, the board on the flange) is
+the same route on the inverted chain: the model's world is the first camera and its tool the
+board, so its placement is base -> camera (``V_0``) and flange -> board (``V_n``), and the
+camera poses of the camera stage enter as the board's poses in the camera frame
+(:class:`selfcal.estimation.kinematic_poses.KinematicPoses`); the selection, the fair nominal
+and the refinement are unchanged.
+
+Frames: the world is the board frame (m); the model's tool is the OpenCV camera frame (eye-to-hand:
+the world is the first camera's OpenCV frame, the tool the board frame). SI units.
 """
 
 from __future__ import annotations
@@ -57,7 +65,6 @@ from selfcal.errors import InputError, UsageError
 from selfcal.kinematics.mcpc import MCPCModel
 from selfcal.target.base import Features
 from selfcal.target.boards import Board
-from selfcal.transforms import inv_pose
 
 __all__ = ["BoardRobotCalibration", "calibrate_robot_with_board"]
 
@@ -108,6 +115,7 @@ def calibrate_robot_with_board(
     rig_features: Sequence[Sequence[Features]] = (),
     max_iter: int = 100,
     initial: Pinhole | None = None,
+    eye_to_hand: bool = False,
 ) -> BoardRobotCalibration:
     """Calibrate the camera and the robot from the board ``features`` of one camera image per
     frame and the joint read-backs ``q`` (m, n) rad; ``model``, ``free``: the camera model
@@ -118,7 +126,10 @@ def calibrate_robot_with_board(
     camera to start from (:func:`selfcal.calibration.board.calibrate.calibrate_board`). ``rig``: the board
     calibration of a rig of N >= 2 cameras whose first camera took ``features`` (the start of
     every further camera and its extrinsics), ``rig_features[c - 1]`` camera ``c``'s features,
-    one per frame in the frames' order. See the module docstring.
+    one per frame in the frames' order. ``eye_to_hand``: the cameras are static and the board
+    rides on the flange; ``nominal``'s tool is then the board at its nominal mount (any: the
+    fair nominal fits it) and the model returned has world = the first camera, tool = the board.
+    See the module docstring.
 
     Raises:
         selfcal.calibration.board.calibrate.BoardInputError / BoardMismatchError: as :func:`calibrate_board`.
@@ -133,14 +144,15 @@ def calibrate_robot_with_board(
     n_cams = 1 if rig is None else len(rig.cameras)
     if len(rig_features) != n_cams - 1:
         raise UsageError(f"a rig of {n_cams} cameras needs {n_cams - 1} further feature lists")
-    obs = BoardObservations(board, cam_stage, features, q, rig, rig_features, joint_sigma)
+    obs = BoardObservations(board, cam_stage, features, q, rig, rig_features, joint_sigma,
+                            eye_to_hand)  # fmt: skip
     used = cam_stage.used.copy()
     nominal_fit = fit_nominal(obs, nominal)
     ident, ident_error = None, None
     try:  # the two-stage identification: a check of the data (and the Monte Carlo's comparison)
         with warnings.catch_warnings():  # its model is not used: what it held or how well it
             warnings.simplefilter("ignore", IdentificationWarning)  # fitted is no finding
-            ident = identify(nominal, q[used], inv_pose(cam_stage.T_cam_board[used]))
+            ident = identify(nominal, q[used], obs.tool_poses()[used])
     except IdentificationError as exc:
         ident_error = exc.message
     selection = select_parameters(obs, nominal_fit.model, max_iter=max_iter)

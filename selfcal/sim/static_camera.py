@@ -1,0 +1,227 @@
+"""Eye-to-hand in simulation: one camera static in the cell, a board of known geometry on the flange.
+
+The true robot is the nominal chain with its minimal parameters perturbed
+(:func:`selfcal.sim.actual.perturb`) and the board as its tool: ``actual`` (world = the robot's
+base frame, tool = the board frame, m). The camera looks at the board's printed face at the
+home posture from ``distance_m`` along its normal (camera axes = board axes: the board shows
+upright), so ``T_cam_board(q) = inv(T_base_cam) @ fk_tool(actual, q)``. Postures are drawn
+around home (:func:`plan_static_postures`: arm configurations, each with several wrist
+orientations) and kept when the camera sees the whole board. The features are projected
+analytically (:func:`project_views`, :func:`selfcal.sim.analytic.project_board`) or rendered with
+MuJoCo (:class:`StaticCameraRenderer`: the robot of :mod:`selfcal.sim.robot_mjcf` with the board
+tile on its last link and one fixed camera in the world).
+
+Truth stays here (:class:`StaticCameraTruth`): what a calibration is compared with, never given
+to it. SI units; OpenCV camera frame and pixels.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from selfcal.camera import CameraModel, Pinhole
+from selfcal.errors import InputError, UsageTypeError
+from selfcal.kinematics.forward import fk_tool
+from selfcal.kinematics.mcpc import MCPCModel, nominal_mcpc
+from selfcal.robot.definition import RobotDef
+from selfcal.sim.actual import perturb
+from selfcal.sim.analytic import project_board
+from selfcal.sim.board_scene import add_board
+from selfcal.sim.markers import make_marker_field
+from selfcal.sim.mj_camera import add_camera
+from selfcal.sim.render import StereoRenderer
+from selfcal.sim.robot_mjcf import RigConfig, scene_with_robot
+from selfcal.target.base import Features
+from selfcal.target.boards import Board
+from selfcal.transforms import inv_pose, make_pose
+
+__all__ = [
+    "STATIC_CAMERA",
+    "StaticCameraTruth",
+    "StaticCameraRenderer",
+    "board_on_flange",
+    "static_camera_truth",
+    "plan_static_postures",
+    "project_views",
+]
+
+STATIC_CAMERA = "cam_static"
+"""The MuJoCo name of the static camera."""
+
+_FLIP_X = np.diag([1.0, -1.0, -1.0])
+
+
+def board_on_flange(board: Board, standoff_m: float = 0.005) -> np.ndarray:
+    """``T_flange_board`` (4, 4, m) of ``board`` mounted on the flange with its printed face out
+    (along the flange's z) and the centre of its features on the flange's axis, ``standoff_m``
+    in front of the flange: board x along flange x, board z (into the board) along -z."""
+    _, pts = board.layout()
+    centre = (pts.min(axis=0) + pts.max(axis=0)) / 2
+    return make_pose(_FLIP_X, np.array([0.0, 0.0, standoff_m]) - _FLIP_X @ centre)
+
+
+@dataclass(frozen=True)
+class StaticCameraTruth:
+    """The simulated eye-to-hand cell: ``robot``; ``actual`` the true chain (world = base,
+    tool = board); ``T_base_cam`` the camera's pose (OpenCV frame -> base, m); ``camera`` the
+    true camera; ``board``; ``T_flange_board_nominal`` the mount as drawn (no error)."""
+
+    robot: RobotDef
+    actual: MCPCModel
+    T_base_cam: np.ndarray
+    camera: CameraModel
+    board: Board
+    T_flange_board_nominal: np.ndarray
+
+    def chain(self) -> MCPCModel:
+        """The true chain as the calibration writes it: world = the camera, tool = the board."""
+        return self.actual.with_base(inv_pose(self.T_base_cam))
+
+    def T_cam_board(self, q: np.ndarray) -> np.ndarray:
+        """(m, 4, 4) the board's true pose in the camera frame at the true joints ``q`` (m, n)."""
+        return fk_tool(self.chain(), np.atleast_2d(q))
+
+
+def static_camera_truth(
+    robot: RobotDef,
+    board: Board,
+    camera: CameraModel,
+    *,
+    distance_m: float = 0.6,
+    seed: int = 0,
+    translation_m: float = 0.001,
+    rotation_rad: float = np.radians(0.1),
+) -> StaticCameraTruth:
+    """The cell of the module docstring: the nominal chain with ``board`` on the flange
+    (:func:`board_on_flange`), every minimal parameter (board mount included) perturbed by up
+    to ``translation_m`` / ``rotation_rad`` (seeded), and ``camera`` at ``distance_m`` in front
+    of the board's printed face at the home posture."""
+    T_fb = board_on_flange(board)
+    actual = perturb(nominal_mcpc(robot).with_tool(T_fb), seed=seed,
+                     translation_m=translation_m, rotation_rad=rotation_rad)  # fmt: skip
+    T_base_board = fk_tool(actual, robot.home[None])[0]
+    _, pts = board.layout()
+    centre = T_base_board[:3, :3] @ ((pts.min(axis=0) + pts.max(axis=0)) / 2)
+    centre += T_base_board[:3, 3]
+    R = T_base_board[:3, :3]
+    T_base_cam = make_pose(R, centre - distance_m * R[:, 2])
+    return StaticCameraTruth(robot, actual, T_base_cam, camera, board, T_fb)
+
+
+def _sees_board(truth: StaticCameraTruth, q: np.ndarray) -> bool:
+    T_bc = truth.T_base_cam
+    return len(project_board(T_bc, truth.camera, truth.board, fk_tool(truth.actual, q[None])[0])) \
+        == truth.board.n_features  # fmt: skip
+
+
+def plan_static_postures(
+    truth: StaticCameraTruth,
+    configurations: int,
+    per_configuration: int,
+    *,
+    arm_deg: float = 8.0,
+    wrist_deg: float = 20.0,
+    seed: int = 0,
+) -> np.ndarray:
+    """(configurations * per_configuration, n) rad: joint vectors around home, the arm joints
+    (all but the last three) drawn within ``arm_deg`` once per configuration and the wrist's
+    last three within ``wrist_deg`` per posture, each kept when the camera sees every feature
+    of the board (within the joint ranges). Deterministic for ``seed``.
+
+    Raises:
+        InputError: no such posture found in 200 draws per posture (a camera that cannot see
+            the board around home).
+    """
+    robot = truth.robot
+    rng = np.random.default_rng(seed)
+    n = robot.n
+    arm = np.arange(n) < max(n - 3, 0) if n > 3 else np.ones(n, bool)
+    lo, hi = robot.limits[:, 0], robot.limits[:, 1]
+    out = []
+    for _ in range(configurations):
+        base = robot.home.astype(float).copy()
+        base[arm] += np.radians(rng.uniform(-arm_deg, arm_deg, int(arm.sum())))
+        for _ in range(per_configuration):
+            for _ in range(200):
+                q = base.copy()
+                q[~arm] += np.radians(rng.uniform(-wrist_deg, wrist_deg, int((~arm).sum())))
+                if np.all((q >= lo) & (q <= hi)) and _sees_board(truth, q):
+                    out.append(q)
+                    break
+            else:
+                raise InputError("no posture around home shows the whole board to the camera",
+                                 fix="a larger camera image or focal length, or a smaller "
+                                 "board")  # fmt: skip
+    return np.array(out)
+
+
+def project_views(
+    truth: StaticCameraTruth,
+    q: np.ndarray,
+    pixel_sigma: float = 0.0,
+    rng: np.random.Generator | None = None,
+) -> list[Features]:
+    """The board's features (px) in the camera at the true joints ``q`` (m, n) rad, projected
+    analytically with Gaussian noise ``pixel_sigma`` px per coordinate (``rng`` for it)."""
+    out = []
+    for T in fk_tool(truth.actual, np.atleast_2d(q)):
+        seen = project_board(truth.T_base_cam, truth.camera, truth.board, T,
+                             pixel_sigma=pixel_sigma, rng=rng)  # fmt: skip
+        ids = np.array(sorted(seen), dtype=np.int64)
+        out.append(Features(ids, np.array([seen[i][0] for i in ids.tolist()]).reshape(-1, 2)))
+    return out
+
+
+class StaticCameraRenderer:
+    """MuJoCo images of the cell (module docstring): the true robot with the board tile on its
+    last link and the camera fixed in the world; :meth:`render` gives the camera's RGB image at
+    joints ``q`` (n,) rad. The robot model's wrist rig (its cameras unused) sits behind the
+    board, turned away from the camera. Close it (or use ``with``)."""
+
+    def __init__(self, truth: StaticCameraTruth, *, offsamples: int = 4):
+        if not isinstance(truth.camera, Pinhole):
+            raise UsageTypeError("the static camera must be a camera model of selfcal.camera")
+        T_board_rig = make_pose(_FLIP_X, np.array([0.0, 0.0, 0.03]))  # behind the board
+        W, H = truth.camera.width, truth.camera.height
+        rig = RigConfig(intrinsics=Pinhole.centered(500.0, 1.0, W, H))
+        spec = scene_with_robot(truth.robot, truth.actual.with_tool(T_board_rig), rig,
+                                make_marker_field(), markers=False,
+                                offsamples=offsamples)  # fmt: skip
+        rig_body = next(b for b in spec.bodies if b.name == "rig")
+        add_board(spec, truth.board, inv_pose(T_board_rig), body=rig_body)
+        add_camera(spec.worldbody, STATIC_CAMERA, truth.camera, truth.T_base_cam)
+        self.truth = truth
+        self.model = spec.compile()
+        self.data = mujoco.MjData(self.model)
+        self._renderer = StereoRenderer(self.model, W, H, camera_names=(STATIC_CAMERA,),
+                                        lenses=(truth.camera,))  # fmt: skip
+
+    def render(self, q: np.ndarray, image_sigma: float = 0.0,
+               rng: np.random.Generator | None = None) -> np.ndarray:  # fmt: skip
+        """The camera's image (H, W, 3) uint8 at the true joints ``q`` (n,) rad, with Gaussian
+        intensity noise ``image_sigma`` (grey levels; ``rng`` for it)."""
+        n = self.truth.robot.n
+        self.data.qpos[:n] = np.asarray(q, dtype=float)
+        mujoco.mj_forward(self.model, self.data)
+        return self._renderer.render_all(self.data, image_sigma, rng)[0]
+
+    def close(self) -> None:
+        self._renderer.close()
+
+    def __enter__(self) -> StaticCameraRenderer:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def rendered_views(truth: StaticCameraTruth, q: Sequence[np.ndarray],
+                   image_sigma: float = 0.0, seed: int = 0) -> list[np.ndarray]:  # fmt: skip
+    """The camera's images at the true joints ``q`` (:class:`StaticCameraRenderer`)."""
+    rng = np.random.default_rng(seed)
+    with StaticCameraRenderer(truth) as r:
+        return [r.render(qi, image_sigma, rng) for qi in q]
