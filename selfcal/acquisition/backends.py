@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from selfcal.acquisition.acquire import AcquisitionHooks
+from selfcal.acquisition.eye_to_hand import plan_static, static_cell, static_detect, static_robot
 from selfcal.acquisition.hardware import open_hardware_robot
 from selfcal.calibration.field.optimal_poses import plan_optimal_postures
 from selfcal.camera import Intrinsics, Rig
@@ -96,6 +97,9 @@ class SimSetup:
     """The board's true pose on the table (board -> world, m; ``selfcal.sim.board_scene.board_on_table``)."""
     intrinsics_right: Intrinsics | None = None
     """The right camera's own true model (``[camera.right]``), or None: ``intrinsics``."""
+    static: object = None
+    """Eye-to-hand (``[camera] setup``): the cell (selfcal.sim.static_camera.StaticCameraTruth:
+    the static camera, the board on the flange), or None: the cameras on the flange."""
 
     def rig(self) -> RigConfig:
         """The simulated rig: the true cameras and the baseline."""
@@ -153,8 +157,10 @@ def sim_setup(s: Scenario) -> SimSetup:
     board = scenario_board(s)
     T_world_board = None if board is None else board_on_table(board, _field_center(robot, nominal))
     right = s.camera.of("right").true_model() if s.camera.own_intrinsics else None
+    static = static_cell(s, robot) if s.camera.setup == "eye-to-hand" else None
     return SimSetup(robot, nominal, actual, intr, T_lr, field_, board=board,
-                    T_world_board=T_world_board, intrinsics_right=right)  # fmt: skip
+                    T_world_board=T_world_board, intrinsics_right=right,
+                    static=static)  # fmt: skip
 
 
 def planning_inputs(s: Scenario) -> dict:
@@ -227,7 +233,11 @@ def plan_dataset(s: Scenario, setup: SimSetup | None = None) -> DatasetInfo:
 
     ``[trajectory] kind = "optimal"`` selects D-optimal postures (``selfcal.calibration.field.optimal_poses``)
     instead of random ones, under the same visibility rule and without self-collision.
+    Eye-to-hand (``[camera] setup``) the postures show the board on the flange to the static
+    camera (:func:`selfcal.acquisition.eye_to_hand.plan_static`).
     """
+    if s.camera.setup == "eye-to-hand":
+        return _static_info(s)
     p = planning_inputs(s)
     robot, nominal, rig = p["robot"], p["model_cam"], p["rig"]
     pts, nrm = p["points_world"], p["normals_world"]
@@ -282,6 +292,24 @@ def plan_dataset(s: Scenario, setup: SimSetup | None = None) -> DatasetInfo:
     )
 
 
+def _static_info(s: Scenario) -> DatasetInfo:
+    """:func:`plan_dataset` of an eye-to-hand scenario."""
+    robot = load_robot(s.robot.model)
+    q, qv = plan_static(s, robot)
+    board = scenario_board(s)
+    return DatasetInfo(
+        robot_model=robot_reference(s.robot.model), encoder_model=robot_reference(s.robot.model),
+        backend=s.robot.backend, resolution=tuple(s.camera.resolution), dictionary=DICTIONARY,
+        scale_ids=SCALE_IDS, scale_length_m=s.target.scale_length_mm / 1000,
+        observation="images" if s.noise.render else "detections",
+        planned_joints_deg=np.round(np.degrees(q), 6),
+        validation_joints_deg=np.round(np.degrees(qv), 6),
+        provenance={"scenario_sha256": scenario_digest(_digested(s))},
+        camera_model=s.camera.model, camera_free=tuple(s.camera.free), cameras=s.camera.names,
+        board=target_document(board), setup="eye-to-hand",
+    )  # fmt: skip
+
+
 def _camera_models(s: Scenario) -> tuple[tuple[str, tuple[str, ...]], ...] | None:
     """(model, free) of each camera when they differ (``[camera.right]``), else None."""
     kinds = tuple((c.model, tuple(c.free)) for c in map(s.camera.of, s.camera.names))
@@ -290,8 +318,8 @@ def _camera_models(s: Scenario) -> tuple[tuple[str, tuple[str, ...]], ...] | Non
 
 def _digested(s: Scenario) -> dict:
     """The scenario as its dataset's digest sees it: ``noise.msaa`` at its default, an empty
-    ``target.board`` (the marker field), an empty ``camera.right`` and a zero ``camera.skew_px``
-    are left out, so a dataset acquired before the keys existed (with those defaults) still
+    ``target.board`` (the marker field), an empty ``camera.right``, a zero ``camera.skew_px`` and
+    the camera on the flange (``camera.setup``) are left out, so a dataset acquired before the keys existed (with those defaults) still
     resumes."""
     d = scenario_to_dict(s)
     if s.noise.msaa == NoiseConfig.msaa:
@@ -302,6 +330,8 @@ def _digested(s: Scenario) -> dict:
         del d["camera"]["right"]
     if s.camera.skew_px == CameraConfig.skew_px:
         del d["camera"]["skew_px"]
+    if s.camera.setup == CameraConfig.setup:
+        del d["camera"]["setup"]
     return d
 
 
@@ -314,7 +344,12 @@ def open_robot(
 
     setup = setup or sim_setup(s)
     # the analytic path needs no images: the MuJoCo-free simulator serves any serial arm
-    robot = make_sim_robot(s, setup) if s.noise.render else make_kinematic_robot(s, setup)
+    if setup.static is not None:
+        robot = static_robot(s, setup.static)
+    elif s.noise.render:
+        robot = make_sim_robot(s, setup)
+    else:
+        robot = make_kinematic_robot(s, setup)
     rig = robot.rig
     truth = robot.truth(meta={"scenario": scenario_to_dict(s)})
     truth_path = Path(out) / "truth.json"
@@ -361,6 +396,8 @@ def open_robot(
             )
         return out_
 
+    if setup.static is not None:
+        detect = static_detect(s, robot, rng)  # type: ignore[arg-type]
     hooks = AcquisitionHooks(
         detect=None if s.noise.render else detect, record_truth=record_truth, finish=finish
     )

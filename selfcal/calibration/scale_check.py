@@ -142,14 +142,23 @@ def scaled_sizes(sizes: dict[str, float], scale: float) -> str:
 
 
 def check_scale(
-    robot, q: np.ndarray, T_world_cam: np.ndarray, target: str, correct: Callable[[float], str]
+    robot,
+    q: np.ndarray,
+    T_world_cam: np.ndarray,
+    target: str,
+    correct: Callable[[float], str],
+    *,
+    T_flange_tool: np.ndarray | None = None,
 ) -> list[str]:
     """The scale check of a calibration: :func:`motion_scale` of ``robot``'s nominal chain (a
     :class:`selfcal.robot.definition.RobotDef`, its camera mount the hand-eye start) against the camera
     poses ``T_world_cam`` (m, 4, 4) at joints ``q`` (m, n) rad, and beyond the tolerance a
     :class:`ScaleWarning` (also returned, for ``calibration.json``; else ``[]``). ``target`` and
-    ``correct(scale)``: the texts of :func:`scale_warning`."""
-    ms = motion_scale(nominal_mcpc(robot), q, T_world_cam, robot.T_flange_cam)
+    ``correct(scale)``: the texts of :func:`scale_warning`. ``T_flange_tool``: the chain's tool
+    on the flange to start from instead of the camera mount (eye-to-hand: the board's mount,
+    ``T_world_cam`` then the board's poses in the camera frame)."""
+    start = robot.T_flange_cam if T_flange_tool is None else T_flange_tool
+    ms = motion_scale(nominal_mcpc(robot), q, T_world_cam, start)
     text = scale_warning(ms, robot.name, target, correct(ms.scale))
     if text is None:
         return []

@@ -90,7 +90,8 @@ formats (chosen by --format only, never by the --out file's suffix):
   hand-eye transforms: a pose dataset's calibration: eye-in-hand flange -> camera and base ->
   board, eye-to-hand base -> camera and flange -> board; a calibration with joints: flange ->
   camera (and base -> board for a board calibration, unless joint 1 or 2 is prismatic or their
-  axes are parallel: no base frame can be rebuilt then, the file says so). ROS frame names
+  axes are parallel: no base frame can be rebuilt then, the file says so); an eye-to-hand board
+  calibration with joints: base -> camera and flange -> board with sigmas. ROS frame names
   (--frames): base_link, tool0 (the flange as the controller reports it), camera_optical_frame
   (z forward, x right, y down), board; see docs/handeye.md
   camera_info  the estimated camera as ROS camera_info YAML in ROS camera_calibration's
@@ -316,11 +317,12 @@ def _refuse_pose_calibration(path: str, fmt: str) -> None:
 def load_handeye(path: str):
     """The :class:`selfcal.export.handeye.HandEyeExport` of the calibration ``path``: a pose
     dataset's (hand-eye and board mount), a board calibration's (flange -> camera, base ->
-    board) or a self-calibration's (flange -> camera)."""
+    board; eye-to-hand base -> camera, flange -> board) or a self-calibration's (flange ->
+    camera)."""
     import math
 
     from selfcal.calibration.handeye.calibration_file import is_handeye, read_handeye
-    from selfcal.export.handeye import from_chain, from_handeye_document
+    from selfcal.export.handeye import from_chain, from_handeye_document, from_mounts
     from selfcal.io.board_calibration import calibration_kind, read_board_calibration
     from selfcal.io.calibration import read_calibration
 
@@ -332,6 +334,12 @@ def load_handeye(path: str):
         return from_handeye_document(read_handeye(p)[3], str(p))
     if calibration_kind(p) == "board":
         cal = read_board_calibration(p)
+        if cal.eye_to_hand:  # the camera static: base -> camera, flange -> board
+            if not cal.mounts:
+                raise CliError(f"{p}: an eye-to-hand calibration without mounts (no base frame "
+                               "can be rebuilt on joints 1 and 2, or no Cramer-Rao bound: "
+                               "calibration.json bounds_error says why)")  # fmt: skip
+            return from_mounts(cal.mounts, str(p))
         # a board calibration keeps the Cramer-Rao bound of each parameter, not its std
         to_si = {"deg": math.pi / 180.0, "mm": 1e-3}
         std = {b.name: b.bound * to_si[b.unit] for b in (cal.bounds.parameters if cal.bounds else ())

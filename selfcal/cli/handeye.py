@@ -49,14 +49,17 @@ def add_pose_import_args(sp: argparse.ArgumentParser) -> None:
     )  # fmt: skip
     sp.add_argument(
         "--setup", default=None, choices=SETUP_CHOICES,
-        help="with --poses: eye-in-hand (camera on the flange, board static) or eye-to-hand "
-        "(camera static, board on the flange)",
+        help="eye-in-hand (camera on the flange, board static) or eye-to-hand (camera static, "
+        "board on the flange): needed with --poses and a --bag's --tf-parent/--tf-child; with "
+        "--joints default eye-in-hand, recorded in dataset.json so calibrate takes the board "
+        "route's chain the right way round",
     )  # fmt: skip
 
 
-def check_pose_only_args(args: argparse.Namespace) -> None:
-    """A :class:`CliError` for the pose options given without ``--poses``."""
-    given = [f"--{k.replace('_', '-')}" for k in _POSE_ONLY if getattr(args, k, None)]
+def check_pose_only_args(args: argparse.Namespace, allowed: tuple[str, ...] = ()) -> None:
+    """A :class:`CliError` for the pose options given without ``--poses`` (but ``allowed``)."""
+    given = [f"--{k.replace('_', '-')}" for k in _POSE_ONLY
+             if k not in allowed and getattr(args, k, None)]  # fmt: skip
     if given:
         raise CliError(f"{', '.join(given)} apply to --poses",
                        fix="give the flange poses with --poses FILE, or leave them out")  # fmt: skip

@@ -128,7 +128,8 @@ def _import(args: argparse.Namespace) -> int:
             raise CliError("--tf-parent and --tf-child read the flange poses of a --bag",
                            fix="give the bag with --bag, or the poses as a file with --poses")  # fmt: skip
         return cmd_import_bag_poses(args)
-    check_pose_only_args(args)
+    # --setup with --joints too: where the camera is (the board route's chain)
+    check_pose_only_args(args, allowed=() if args.bag else ("setup",))
     if not args.robot:
         raise CliError(f"import {'--bag' if args.bag else '--joints'} needs --robot",
                        fix="name the robot: --robot ur5e, a robot TOML or a URDF (or give "
@@ -148,6 +149,7 @@ def _import(args: argparse.Namespace) -> int:
         base_link=args.base_link, tool_link=args.tool_link, link=args.link,
         trust_units=args.trust_units, camera_model=models, free=frees,
         progress=Progress("detect", enabled=not (args.quiet or args.json)),
+        setup=args.setup or "eye-in-hand",
     )  # fmt: skip
     n = len(info.planned_joints_deg)
     note_written(args, args.out)

@@ -61,6 +61,10 @@ class CameraConfig:
     """Parameters the calibration estimates, by name (fx, mu = fy / fx or its OpenCV name fy,
     cx, cy and the model's lens coefficients); the others stay at their start (the image centre,
     no distortion). ``fy`` is read as ``mu`` (the one parametrisation the estimation uses)."""
+    setup: str = "eye-in-hand"
+    """Where the camera is: ``"eye-in-hand"`` (on the flange, the target static in the cell) or
+    ``"eye-to-hand"`` (static in the cell, looking at a board on the flange: needs ``[target]
+    board`` and ``count = 1``; the simulator places it 0.6 m in front of the board at home)."""
     right: dict = field(default_factory=dict)
     """``[camera.right]``: how the right camera differs from ``[camera]`` (any of
     :data:`PER_CAMERA_KEYS`; the others are ``[camera]``'s). Empty: both cameras are ``[camera]``'s

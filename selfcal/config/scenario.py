@@ -351,10 +351,33 @@ def _validate(s: Scenario) -> None:
             )
         validate_camera(s.source, s.camera.of("right"), "camera.right")
     scenario_board(s)  # a bad target file is an error naming it and the key
+    _check_setup(s)
     for k, v in s.perturbation.table.items():
         if not isinstance(v, (int, float)) or isinstance(v, bool):
             raise ConfigError(f"{f}: perturbation.table.{k}: expected number, got {v!r}")
     _check_ranges(s)
+
+
+SETUPS = ("eye-in-hand", "eye-to-hand")
+"""``[camera] setup``: the camera on the flange, or static with the board on the flange."""
+
+
+def _check_setup(s: Scenario) -> None:
+    """ConfigError for a ``[camera] setup`` the simulator cannot build: an unknown one, or
+    eye-to-hand without a board, with two cameras or on hardware."""
+    f, setup = s.source, s.camera.setup
+    if setup not in SETUPS:
+        raise ConfigError(f"{f}: camera.setup must be one of {', '.join(SETUPS)}, got {setup!r}")
+    if setup == "eye-in-hand":
+        return
+    if not s.target.board:
+        raise ConfigError(f"{f}: camera.setup = \"eye-to-hand\" needs a board on the flange",
+                          fix="set [target] board to a target TOML (e.g. "
+                          "models/targets/charuco.toml)")  # fmt: skip
+    if s.camera.count != 1 or s.robot.backend != "sim":
+        raise ConfigError(f"{f}: camera.setup = \"eye-to-hand\" is simulated with one static "
+                          "camera (camera.count = 1, robot.backend = \"sim\")",
+                          fix="set camera.count = 1 and robot.backend = \"sim\"")  # fmt: skip
 
 
 def board_path(s: Scenario) -> Path | None:

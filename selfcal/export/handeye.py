@@ -13,7 +13,10 @@ export``):
   flange is the nominal flange of joint n (``selfcal.calibration.field.results.hand_eye``), and for a board
   calibration base -> board, where the base is the robot's base frame rebuilt on the identified
   axes 1 and 2 (``selfcal.kinematics.dh_table.canonical_base``, the URDF export's ``base_link``);
-  flange -> camera alone (and a note why) when joint 1 or 2 is prismatic or their axes parallel.
+  flange -> camera alone (and a note why) when joint 1 or 2 is prismatic or their axes parallel;
+- an eye-to-hand calibration with joints (the camera static, the board on the flange;
+  :func:`from_mounts`): base -> camera and flange -> board as ``calibration.json`` ``mounts``
+  holds them, with the sigmas of the Cramer-Rao covariance.
 
 Writers (pure functions returning text): :func:`to_tf_yaml` (``static_transform_publisher``
 arguments for ROS 1 and ROS 2 and launch snippets), :func:`to_easy_handeye_yaml` (easy_handeye's
@@ -24,7 +27,7 @@ the camera frame is the optical frame (OpenCV = ROS optical: z forward, x right,
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -46,6 +49,7 @@ __all__ = [
     "frame_names",
     "from_handeye_document",
     "from_chain",
+    "from_mounts",
     "to_tf_yaml",
     "to_easy_handeye_yaml",
     "to_matrix_yaml",
@@ -175,6 +179,20 @@ def from_chain(model: MCPCModel, robot: RobotDef, std: Mapping[str, float], sour
             f"flange -> camera sigmas to first order from the {sigma_source} of the last "
             "link's six parameters taken as independent")  # fmt: skip
     return HandEyeExport("eye-in-hand", tuple(out), source, note)
+
+
+def from_mounts(mounts: Sequence, source: str) -> HandEyeExport:
+    """The export of an eye-to-hand board calibration with joints: its ``mounts``
+    (:class:`selfcal.io.board_calibration.Mount`: base -> camera, flange -> board, sigmas from the
+    Cramer-Rao covariance at the estimate)."""
+    out = tuple(StaticTransform(m.what, m.parent, m.child, m.T, m.sigma_rotation_rad,
+                                m.sigma_xyz_m) for m in mounts)  # fmt: skip
+    note = ("camera, base -> camera, flange -> board and the kinematics the data support fitted "
+            "on corner reprojection from the joint readings; base: the robot's base frame "
+            "rebuilt on the identified joint axes 1 and 2, flange: the nominal flange of the last "
+            "joint on the identified last link; sigmas to first order from the Cramer-Rao "
+            "covariance at the estimate")  # fmt: skip
+    return HandEyeExport("eye-to-hand", out, source, note)
 
 
 def _quat(T: np.ndarray) -> np.ndarray:

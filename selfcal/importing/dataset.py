@@ -236,6 +236,7 @@ def import_dataset(
     labels: Mapping[Path, str] | None = None,
     initial: Mapping[str, dict] | None = None,
     progress=None,
+    setup: str = "eye-in-hand",
 ) -> DatasetInfo:
     """Check the inputs and write the dataset folder ``out`` (module docstring); returns its
     ``dataset.json`` content. ``trust_units``: skip the radians-looking check of degrees.
@@ -249,7 +250,9 @@ def import_dataset(
     camera name -> the camera to start the calibration from (dataset.json's ``initial``:
     :attr:`selfcal.io.dataset.DatasetInfo.camera_initial`). ``progress``: an object with
     ``start(total)``, ``advance()``, ``finish()`` (``selfcal.console.progress.Progress``) advanced once
-    per image detected. A failed import leaves no folder behind that it created.
+    per image detected. ``setup``: ``"eye-in-hand"`` (the cameras on the flange) or
+    ``"eye-to-hand"`` (the cameras static, the board on the flange), recorded in dataset.json.
+    A failed import leaves no folder behind that it created.
 
     Raises:
         ImportError_, selfcal.io.tracker.TrackerFileError, selfcal.calibration.board.calibrate
@@ -267,6 +270,11 @@ def import_dataset(
         loaded = load_target(target)
         tgt: Board | FieldTarget
         if isinstance(loaded, ArucoField):
+            if setup == "eye-to-hand":
+                raise ImportError_(f"{target}: --setup eye-to-hand needs a board on the flange, "
+                                   "not the ArUco field (the field's self-calibration has the "
+                                   "cameras on the flange)",
+                                   fix="give the board's target TOML with --target")  # fmt: skip
             tgt = field_target(target, loaded, names)
         else:
             assert isinstance(loaded, Board)  # every other target type is a board
@@ -346,6 +354,7 @@ def import_dataset(
             camera_free=choice[names[0]][1],
             camera_models=None if len(set(choice.values())) == 1 else tuple(choice.values()),
             camera_initial=tuple((initial or {}).get(c) for c in names) if initial else None,
+            setup=setup,
         )  # fmt: skip
         write_dataset_info(out / "dataset.json", info)
         return info

@@ -23,6 +23,11 @@ m); the MCPC chain's tool is the first camera (OpenCV frame). Keys (units in the
     bounds            Cramer-Rao bounds at the estimate (:class:`BoardBounds`: the tool tip's
                       aligned RMS (mm), every camera's free parameters, every minimal
                       parameter), or absent with ``bounds_error`` saying why
+    setup, mounts     schema 2, eye-to-hand (the cameras static, the board on the flange): the
+                      world frame is the first camera (OpenCV frame), the chain's tool the
+                      board; ``mounts`` the cell's static transforms read out of the chain
+                      (:class:`Mount`: base -> camera, flange -> board, matrix m, sigmas from
+                      the Cramer-Rao covariance in deg and mm, null without)
 
 :func:`read_board_calibration` is the one reader; :func:`calibration_kind` tells the two
 ``calibration.json`` kinds apart.
@@ -44,6 +49,7 @@ from selfcal.kinematics.mcpc import COLUMNS, MCPCModel
 
 __all__ = [
     "BoardBounds",
+    "Mount",
     "BoardCalibrationFileError",
     "CameraBounds",
     "BoardCalibrationResult",
@@ -55,8 +61,11 @@ __all__ = [
 ]
 
 FORMAT = "scorbot-selfcal-board-calibration"
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
+"""The newest schema read; 2 is written for eye-to-hand alone (older code would take its chain
+for a wrist camera's), 1 otherwise."""
 WORLD_FRAME = "the board frame (the target's declared feature points, m)"
+WORLD_FRAME_STATIC = "the first camera's OpenCV frame (static; the board rides on the flange)"
 _FIX = "re-run `selfcal calibrate DATASET` to write DATASET/calibration.json again"
 
 
@@ -132,6 +141,35 @@ class BoardBounds(JsonBlock):
 
 
 @dataclass(frozen=True, eq=False)
+class Mount:
+    """A static transform of the cell: ``T`` (4, 4) m, the ``child`` frame's pose in the
+    ``parent`` frame (``base``, ``flange``, ``camera``, ``board``), ``what`` in words
+    (``"base -> camera"``), the sigmas ``sigma_rotation_rad`` (3,) about the parent's axes and
+    ``sigma_xyz_m`` (3,) along them, or None."""
+
+    what: str
+    parent: str
+    child: str
+    T: np.ndarray
+    sigma_rotation_rad: np.ndarray | None = None
+    sigma_xyz_m: np.ndarray | None = None
+
+    def to_json(self) -> dict:
+        rot, xyz = self.sigma_rotation_rad, self.sigma_xyz_m
+        return {"transform": self.what, "parent": self.parent, "child": self.child,
+                "matrix": np.asarray(self.T).tolist(),
+                "sigma_rotation_deg": None if rot is None else np.degrees(rot).tolist(),
+                "sigma_xyz_mm": None if xyz is None else (1000.0 * xyz).tolist()}  # fmt: skip
+
+    @classmethod
+    def from_json(cls, f: Fields) -> Mount:
+        sig = [None if f.raw(k) is None else f.array(k, (3,)) * s
+               for k, s in (("sigma_rotation_deg", np.pi / 180.0), ("sigma_xyz_mm", 1e-3))]  # fmt: skip
+        return cls(f.str("transform"), f.str("parent"), f.str("child"), f.poses("matrix", (4, 4)),
+                   sig[0], sig[1])  # fmt: skip
+
+
+@dataclass(frozen=True, eq=False)
 class BoardCalibrationResult:
     """The content of a board ``calibration.json`` (module docstring; SI inside)."""
 
@@ -159,6 +197,16 @@ class BoardCalibrationResult:
     nominal_rms_px: float | None = None
     selection: dict | None = None
     """:meth:`selfcal.calibration.board.param_selection.Selection.to_json`, or None (files before it)."""
+    setup: str = "eye-in-hand"
+    """``"eye-in-hand"`` (world = board, tool = the first camera) or ``"eye-to-hand"`` (world =
+    the first camera, tool = the board on the flange)."""
+    mounts: tuple[Mount, ...] = ()
+    """Eye-to-hand: base -> camera and flange -> board with their sigmas (empty: not computed)."""
+
+    @property
+    def eye_to_hand(self) -> bool:
+        """The cameras are static and the board rides on the flange."""
+        return self.setup == "eye-to-hand"
 
     @property
     def nominal_camera_set(self) -> tuple[tuple[CameraModel, ...], np.ndarray | None]:
@@ -192,9 +240,10 @@ class BoardCalibrationResult:
         """The document (key order fixed)."""
         return {
             "format": FORMAT,
-            SCHEMA_KEY: SCHEMA_VERSION,
+            SCHEMA_KEY: 2 if self.eye_to_hand else 1,
             "robot_model": self.robot_model,
-            "world_frame": WORLD_FRAME,
+            **({"setup": self.setup} if self.eye_to_hand else {}),
+            "world_frame": WORLD_FRAME_STATIC if self.eye_to_hand else WORLD_FRAME,
             "target": dict(self.target),
             "cameras": [
                 camera_json(n, c, s, None if self.T_first_cam is None else self.T_first_cam[k])
@@ -202,8 +251,19 @@ class BoardCalibrationResult:
                     zip(self.camera_names, self.cameras, self.camera_std, strict=True)
                 )
             ],
-            "mcpc": _model_json(self.model, f"camera {self.camera_names[0]} (OpenCV frame)"),
-            "nominal_mcpc": _model_json(self.nominal_model, "the same camera, nominal chain"),
+            "mcpc": _model_json(
+                self.model,
+                "the board (its declared frame)"
+                if self.eye_to_hand
+                else f"camera {self.camera_names[0]} (OpenCV frame)",
+            ),  # fmt: skip
+            "nominal_mcpc": _model_json(
+                self.nominal_model,
+                "the same board, nominal chain"
+                if self.eye_to_hand
+                else "the same camera, nominal chain",
+            ),  # fmt: skip
+            **({"mounts": [m.to_json() for m in self.mounts]} if self.mounts else {}),
             **(
                 {}
                 if not self.nominal_cameras
@@ -257,6 +317,9 @@ class BoardCalibrationResult:
         nom = [(_camera_from(c), c.array("T_first_camera", (4, 4)))
                for c in (f.items("nominal_cameras") if f.has("nominal_cameras") else [])]  # fmt: skip
         d = f.sub("dataset")
+        setup = f.str("setup") if f.has("setup") else "eye-in-hand"
+        if setup not in ("eye-in-hand", "eye-to-hand"):
+            raise f.bad("setup", "eye-in-hand or eye-to-hand", setup)
         return cls(
             robot_model=f.str("robot_model"),
             target=dict(f.sub("target").doc),
@@ -282,6 +345,8 @@ class BoardCalibrationResult:
                 if f.has("nominal_reprojection_rms_px")
                 else None
             ),  # fmt: skip
+            setup=setup,
+            mounts=tuple(Mount.from_json(m) for m in f.items("mounts")) if f.has("mounts") else (),
         )
 
 

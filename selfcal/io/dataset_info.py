@@ -9,7 +9,9 @@ validation postures (deg), observation kind, image suffix and provenance (the sc
 the imported files): nothing the calibration must not know. The rest of the folder (joints,
 images, detections) is :mod:`selfcal.io.dataset`.
 
-Schema 2 (written) lists ``cameras`` as ``[{"name": ..., "resolution": [W, H]}, ...]`` and gives
+Schema 4 (written for eye-to-hand alone) adds ``"setup": "eye-to-hand"``: the camera(s) static in
+the cell and the board on the flange (older code would take the images for a wrist camera's, so
+it refuses the file); without the key the cameras ride on the flange. Schema 2 (written) lists ``cameras`` as ``[{"name": ..., "resolution": [W, H]}, ...]`` and gives
 the target a ``type``; schema 1 (still read) had one ``camera.resolution`` shared by the stereo
 pair ``left``/``right`` and an ArUco field as the target.
 
@@ -36,6 +38,7 @@ from selfcal.io.jsonfile import (
     load_json,
     write_json_atomic,
 )
+from selfcal.io.pose_dataset import SETUPS
 from selfcal.io.target_toml import dictionary_name, length_m, parse_target
 
 __all__ = [
@@ -52,7 +55,7 @@ __all__ = [
 ]
 
 FORMAT = "scorbot-selfcal-dataset"
-SCHEMA_VERSION = 3
+SCHEMA_VERSION = 4
 """The newest ``dataset.json`` schema this code reads and the one it writes (1 is still read)."""
 CAMERAS = ("left", "right")
 """The cameras of a schema-1 dataset (and the simulator's stereo pair)."""
@@ -117,6 +120,10 @@ class DatasetInfo:
     camera (the paper's), cameras of different models always have their own. Written as
     ``"per_camera_intrinsics": true`` in a schema-3 file (older code would estimate one camera
     for the rig, so it refuses the file); absent otherwise (schema 2, as before)."""
+    setup: str = "eye-in-hand"
+    """Where the cameras are (:data:`selfcal.io.pose_dataset.SETUPS`): ``"eye-in-hand"`` on the
+    flange, the board static; ``"eye-to-hand"`` static in the cell, the board on the flange
+    (written as ``"setup"`` in a schema-4 file; absent: eye-in-hand)."""
 
     def check_encoder_model(self, where: str | Path) -> None:
         """Raise :class:`DatasetError` when the joint angles were converted with another robot
@@ -139,6 +146,10 @@ class DatasetInfo:
             raise DatasetError("give one camera model per camera")
         if self.camera_initial is not None and len(self.camera_initial) != len(self.cameras):
             raise DatasetError("give one initial camera (or null) per camera")
+        if self.setup not in SETUPS:
+            raise DatasetError(f"setup {self.setup!r}: use one of {list(SETUPS)}")
+        if self.setup == "eye-to-hand" and self.board is None:
+            raise DatasetError("an eye-to-hand dataset needs a board (on the flange) as target")
 
     def initial_of(self, camera: str) -> dict | None:
         """The initial camera of ``camera`` (:attr:`camera_initial`), or None."""
@@ -159,6 +170,11 @@ class DatasetInfo:
         return camera_model(model, fx=v["fx"], mu=v["fy"] / v["fx"], cx=v["cx"], cy=v["cy"],
                             width=W, height=H, coeffs=coeffs, free=free,
                             skew=v.get("skew", 0.0))  # fmt: skip
+
+    @property
+    def eye_to_hand(self) -> bool:
+        """The cameras are static and the board rides on the flange (:attr:`setup`)."""
+        return self.setup == "eye-to-hand"
 
     @property
     def own_intrinsics(self) -> bool:
@@ -200,8 +216,9 @@ class DatasetInfo:
         """The ``dataset.json`` document (the one writer: :func:`write_dataset_info`)."""
         return {
             "format": FORMAT,
-            SCHEMA_KEY: 3 if self.per_camera_intrinsics else 2,
+            SCHEMA_KEY: 4 if self.eye_to_hand else 3 if self.per_camera_intrinsics else 2,
             "robot_model": self.robot_model,
+            **({"setup": self.setup} if self.eye_to_hand else {}),
             **({} if self.encoder_model is None else {"encoder_model": self.encoder_model}),
             "backend": self.backend,
             "cameras": [
@@ -285,6 +302,12 @@ class DatasetInfo:
                 raise f.bad("scenario", "an object", scenario)
             provenance = {**provenance, "scenario_sha256": scenario_digest(scenario)}
         suffix = f.str("image_suffix") if f.has("image_suffix") else ".png"
+        setup = f.str("setup") if f.has("setup") else "eye-in-hand"
+        if setup not in SETUPS:
+            raise f.bad("setup", f"one of {list(SETUPS)}", setup)
+        if setup == "eye-to-hand" and board is None:
+            raise f.bad("setup", "eye-in-hand with the marker field (a board rides on the "
+                        "flange, not the field)", setup)  # fmt: skip
         return cls(
             robot_model=f.str("robot_model"),
             backend=f.str("backend") if f.has("backend") else "sim",
@@ -308,6 +331,7 @@ class DatasetInfo:
             per_camera_intrinsics=f.bool("per_camera_intrinsics")
             if f.has("per_camera_intrinsics")
             else False,
+            setup=setup,
         )
 
 

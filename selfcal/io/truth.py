@@ -151,6 +151,10 @@ class Truth:
     ``selfcal.sim.markers.MarkerField.to_dict()``; ``meta``: free-form (seed, error magnitudes, ...);
     ``board``: a board of known geometry in the scene, ``{"target": its target TOML keys
     (:func:`selfcal.io.target_toml.target_document`), "T_world_board": its true pose}``, or None.
+    Eye-to-hand (the camera static, the board on the flange: :mod:`selfcal.sim.static_camera`)
+    ``board`` is ``{"target", "setup": "eye-to-hand", "T_world_cam": the static camera's pose,
+    "T_flange_board": the true mount}``, the chains' tool is the board (world = the robot's
+    base) and every frame's ``T_world_cam_left`` the static camera.
     """
 
     robot_model: str
@@ -173,7 +177,7 @@ class Truth:
     @property
     def T_world_board(self) -> np.ndarray | None:
         """The true pose (4, 4; board -> world, m) of the board in the scene, or None."""
-        if self.board is None:
+        if self.board is None or "T_world_board" not in self.board:
             return None
         return np.asarray(self.board["T_world_board"], dtype=float)
 
@@ -262,7 +266,12 @@ class Truth:
         board = None
         if f.has("board"):
             b = f.sub("board")
-            board = {"target": b.raw("target"), "T_world_board": b.array("T_world_board", (4, 4))}
+            if b.has("setup") and b.str("setup") == "eye-to-hand":  # the board on the flange
+                board = {"target": b.raw("target"), "setup": "eye-to-hand",
+                         **{k: b.array(k, (4, 4)) for k in ("T_world_cam", "T_flange_board")}}  # fmt: skip
+            else:
+                board = {"target": b.raw("target"),
+                         "T_world_board": b.array("T_world_board", (4, 4))}  # fmt: skip
             if not isinstance(board["target"], dict):
                 raise b.bad("target", "an object (the target TOML's keys)", board["target"])
         return cls(

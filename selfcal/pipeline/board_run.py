@@ -53,6 +53,8 @@ from selfcal.transforms import inv_pose
 
 __all__ = [
     "board_truth_report",
+    "camera_bounds",
+    "camera_rows",
     "calibrate_and_report_board",
     "calibrate_board_run",
     "pose_errors",
@@ -75,7 +77,7 @@ def pose_errors(T_pred: np.ndarray, T_true: np.ndarray) -> dict:
     }
 
 
-def _camera_rows(
+def camera_rows(
     est: CameraModel, std: dict[str, float], true: CameraModel, bound: dict[str, float]
 ) -> dict:
     """Per free parameter of ``est``: estimate, truth, std, z (a parameter the true model
@@ -90,7 +92,7 @@ def _camera_rows(
     return rows
 
 
-def _camera_bounds(cal: BoardCalibrationResult, k: int) -> dict[str, float]:
+def camera_bounds(cal: BoardCalibrationResult, k: int) -> dict[str, float]:
     """Camera ``k``'s bounds of ``calibration.json`` (empty without bounds)."""
     return {} if cal.bounds is None else dict(cal.bounds.cameras[k].bounds)
 
@@ -103,8 +105,8 @@ def _rig_rows(cal: BoardCalibrationResult, truth: Truth) -> dict:
     name = cal.camera_names[1]
     return {
         name: {
-            "camera": _camera_rows(
-                cal.cameras[1], cal.camera_std[1], truth.intrinsics_right, _camera_bounds(cal, 1)
+            "camera": camera_rows(
+                cal.cameras[1], cal.camera_std[1], truth.intrinsics_right, camera_bounds(cal, 1)
             ),
             "extrinsics": pose_errors(cal.T_first_cam[1][None], truth.T_left_right[None]),
         }
@@ -192,8 +194,8 @@ def board_truth_report(root: Path, cal: BoardCalibrationResult, truth: Truth) ->
                 ),
             },
         },
-        "camera": _camera_rows(
-            cal.cameras[0], cal.camera_std[0], truth.intrinsics_left, _camera_bounds(cal, 0)
+        "camera": camera_rows(
+            cal.cameras[0], cal.camera_std[0], truth.intrinsics_left, camera_bounds(cal, 0)
         ),
         "rig": _rig_rows(cal, truth),
         "hand_eye": _hand_eye(cal.model, true_est, nominal_est),

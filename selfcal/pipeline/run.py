@@ -365,8 +365,11 @@ def _report_without_truth(
 def _board_report(root: Path, cal: BoardCalibrationResult, *, quiet: bool, figures: bool) -> dict:
     if (root / "truth.json").is_file():  # a simulated board: against the truth
         from selfcal.pipeline.board_run import write_board_truth_report
+        from selfcal.pipeline.static_report import write_static_truth_report
 
         truth = read_truth(root / "truth.json")
+        if cal.eye_to_hand:
+            return write_static_truth_report(root, cal, truth, figures=figures)
         return write_board_truth_report(root, cal, truth, quiet=quiet, figures=figures)
     ev = evaluate_board(cal, str(root / "calibration.json"), root) if figures else None
     drawn = [] if ev is None else [reprojection_figures(root, ev)]
@@ -429,6 +432,10 @@ def report_summary(report: dict, root: Path) -> str:
         verdict = "" if not verdict else "; NO GAIN: " + verdict.removeprefix("no gain: ")
         return (f"report (no truth): fit {report['fit']['reprojection_rms_px']:.3f} px RMS; "
                 f"{held}{verdict}; {Path(root) / 'report.json'}")  # fmt: skip
+    if report.get("kind") == "eye-to-hand-truth":
+        from selfcal.pipeline.static_report import static_summary
+
+        return static_summary(report, Path(root))
     v = report["validation"]
     t = v["tool_tip_error_mm"]
     bound = v.get("tool_tip_bound_mm")
@@ -515,6 +522,10 @@ def run_all(
         again = f"selfcal run {scenario_arg(s)} --out {shlex.quote(str(out))}"
         again += "" if method == "joint" else f" --method {method}"
         run_acquire(s, out, resume=resume, quiet=quiet, keep=kept, resume_command=again)
+        if s.camera.setup == "eye-to-hand" and s.robot.backend == "sim":  # the board on the flange
+            from selfcal.pipeline.static_report import calibrate_and_report_static
+
+            return calibrate_and_report_static(out, quiet=quiet, figures=figures, t0=t0)
         if (
             s.target.board
         ):  # a board of known geometry: the board route (selfcal/pipeline/board_run.py)

@@ -3,8 +3,9 @@
 The true robot is the nominal chain with its minimal parameters perturbed
 (:func:`selfcal.sim.actual.perturb`) and the board as its tool: ``actual`` (world = the robot's
 base frame, tool = the board frame, m). The camera looks at the board's printed face at the
-home posture from ``distance_m`` along its normal (camera axes = board axes: the board shows
-upright), so ``T_cam_board(q) = inv(T_base_cam) @ fk_tool(actual, q)``. Postures are drawn
+nominal robot's home posture from ``distance_m`` along its normal (camera axes = board axes:
+the board shows upright; where a person would set it up, so a plan from the nominal cell
+serves the true one), so ``T_cam_board(q) = inv(T_base_cam) @ fk_tool(actual, q)``. Postures are drawn
 around home (:func:`plan_static_postures`: arm configurations, each with several wrist
 orientations) and kept when the camera sees the whole board. The features are projected
 analytically (:func:`project_views`, :func:`selfcal.sim.analytic.project_board`) or rendered with
@@ -18,19 +19,23 @@ to it. SI units; OpenCV camera frame and pixels.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import mujoco
 import numpy as np
 
 from selfcal.camera import CameraModel, Pinhole
 from selfcal.errors import InputError, UsageTypeError
+from selfcal.io.target_toml import target_document
+from selfcal.io.truth import Truth
 from selfcal.kinematics.forward import fk_tool
 from selfcal.kinematics.mcpc import MCPCModel, nominal_mcpc
 from selfcal.robot.definition import RobotDef
-from selfcal.sim.actual import perturb
+from selfcal.robot.interface import StereoPair
+from selfcal.sim.actual import make_truth, perturb
 from selfcal.sim.analytic import project_board
 from selfcal.sim.board_scene import add_board
+from selfcal.sim.kinematic_robot import KinematicRobot
 from selfcal.sim.markers import make_marker_field
 from selfcal.sim.mj_camera import add_camera
 from selfcal.sim.render import StereoRenderer
@@ -43,10 +48,12 @@ __all__ = [
     "STATIC_CAMERA",
     "StaticCameraTruth",
     "StaticCameraRenderer",
+    "StaticCameraRobot",
     "board_on_flange",
     "static_camera_truth",
     "plan_static_postures",
     "project_views",
+    "rendered_views",
 ]
 
 STATIC_CAMERA = "cam_static"
@@ -55,7 +62,7 @@ STATIC_CAMERA = "cam_static"
 _FLIP_X = np.diag([1.0, -1.0, -1.0])
 
 
-def board_on_flange(board: Board, standoff_m: float = 0.005) -> np.ndarray:
+def board_on_flange(board: Board, standoff_m: float = 0.05) -> np.ndarray:
     """``T_flange_board`` (4, 4, m) of ``board`` mounted on the flange with its printed face out
     (along the flange's z) and the centre of its features on the flange's axis, ``standoff_m``
     in front of the flange: board x along flange x, board z (into the board) along -z."""
@@ -103,7 +110,7 @@ def static_camera_truth(
     T_fb = board_on_flange(board)
     actual = perturb(nominal_mcpc(robot).with_tool(T_fb), seed=seed,
                      translation_m=translation_m, rotation_rad=rotation_rad)  # fmt: skip
-    T_base_board = fk_tool(actual, robot.home[None])[0]
+    T_base_board = fk_tool(nominal_mcpc(robot).with_tool(T_fb), robot.home[None])[0]
     _, pts = board.layout()
     centre = T_base_board[:3, :3] @ ((pts.min(axis=0) + pts.max(axis=0)) / 2)
     centre += T_base_board[:3, 3]
@@ -225,3 +232,56 @@ def rendered_views(truth: StaticCameraTruth, q: Sequence[np.ndarray],
     rng = np.random.default_rng(seed)
     with StaticCameraRenderer(truth) as r:
         return [r.render(qi, image_sigma, rng) for qi in q]
+
+
+class StaticCameraRobot(KinematicRobot):
+    """The simulated eye-to-hand cell as a robot to acquire with
+    (:func:`selfcal.acquisition.acquire.acquire`): the arm of ``truth`` with the board on its
+    flange (joint read-back quantised as :class:`selfcal.sim.kinematic_robot.KinematicRobot`'s),
+    :meth:`capture` the static camera's MuJoCo image (``render``; the pair's both images are
+    it) with Gaussian intensity noise ``image_sigma`` (``seed``), :meth:`truth_frame` and
+    :meth:`truth` the ground truth: the camera's pose as ``T_world_cam_left`` (world = the
+    robot's base), the board's origin as ``tool_tip_m``, the chains with the board as tool and
+    ``board`` = ``{"target", "setup": "eye-to-hand", "T_world_cam", "T_flange_board"}``."""
+
+    def __init__(self, truth: StaticCameraTruth, *, quantize: bool = True, render: bool = True,
+                 image_sigma: float = 0.0, seed: int = 0, offsamples: int = 4):  # fmt: skip
+        super().__init__(truth.robot, truth.actual, RigConfig(intrinsics=truth.camera),
+                         quantize=quantize)  # fmt: skip
+        self.static = truth
+        self.image_sigma = float(image_sigma)
+        self._rng = np.random.default_rng(seed)
+        self._renderer = StaticCameraRenderer(truth, offsamples=offsamples) if render else None
+        self._n = 0
+
+    def capture(self) -> StereoPair:
+        """The static camera's image at the current posture (uint8 RGB, H x W x 3)."""
+        self._check_open()
+        if self._renderer is None:
+            return super().capture()  # raises: the analytic path renders nothing
+        img = self._renderer.render(self.true_joints(), self.image_sigma, self._rng)
+        meta = {"index": self._n, "joints_deg": self.joints().tolist()}
+        self._n += 1
+        return StereoPair(left=img, right=img, meta=meta)
+
+    def close(self) -> None:
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+        super().close()
+
+    def truth_frame(self) -> dict:
+        q = self.true_joints()
+        T = self.static.T_base_cam
+        return {"joints_rad": q, "joints_deg": q / self._unit, "T_world_cam_left": T.copy(),
+                "T_world_cam_right": T.copy(),
+                "tool_tip_m": fk_tool(self.actual, q[None])[0, :3, 3]}  # fmt: skip
+
+    def truth(self, meta: dict | None = None) -> Truth:
+        st = self.static
+        nominal = nominal_mcpc(st.robot).with_tool(st.T_flange_board_nominal)
+        truth = make_truth(st.robot, nominal, st.actual, self.rig, self.field,
+                           {"image_sigma": self.image_sigma, **(meta or {})})  # fmt: skip
+        doc = {"target": target_document(st.board), "setup": "eye-to-hand",
+               "T_world_cam": st.T_base_cam, "T_flange_board": truth.T_flange_cam}  # fmt: skip
+        return replace(truth, board=doc)

@@ -74,6 +74,35 @@ def test_the_field_keeps_the_digest_of_datasets_made_before_the_key():
     del before["noise"]["msaa"], before["target"]["board"]  # as written before the keys existed
     del before["camera"]["right"]  # an empty [camera.right] (#12) is left out as well
     del before["camera"]["skew_px"]  # and a zero skew
+    del before["camera"]["setup"]  # and the camera on the flange (#28)
     assert scenario_digest(_digested(s)) == scenario_digest(before)
     board = load_scenario(ROOT / "scenarios" / "mono-charuco.toml")
     assert "board" in _digested(board)["target"]
+
+
+@pytest.mark.parametrize(
+    "text, words",
+    [
+        ('[camera]\nsetup = "eye-on-base"\n', ["camera.setup", "eye-to-hand", "eye-on-base"]),
+        ('[camera]\nsetup = "eye-to-hand"\ncount = 1\n', ["eye-to-hand", "board", "[target]"]),
+        (
+            '[camera]\nsetup = "eye-to-hand"\n[target]\nboard = "c.toml"\n',
+            ["eye-to-hand", "camera.count = 1"],
+        ),
+    ],
+)
+def test_an_eye_to_hand_scenario_the_simulator_cannot_build_names_the_key(tmp_path, text, words):
+    """[camera] setup (#28): an unknown setup, eye-to-hand without a board (it rides on the
+    flange) or with the stereo pair: a ConfigError naming the file and the key."""
+    (tmp_path / "c.toml").write_text(CHARUCO.read_text())
+    with pytest.raises(ConfigError) as e:
+        load_scenario(write(tmp_path, text))
+    msg = str(e.value) + str(e.value.fix or "")
+    for w in ["s.toml", *words]:
+        assert w in msg, (w, msg)
+
+
+def test_the_shipped_eye_to_hand_scenario_is_a_static_camera_and_a_board():
+    s = load_scenario("eye-to-hand")
+    assert s.camera.setup == "eye-to-hand" and s.camera.count == 1
+    assert scenario_board(s) is not None

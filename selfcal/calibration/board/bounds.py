@@ -46,7 +46,7 @@ from selfcal.target.base import Features
 from selfcal.target.boards import Board
 from selfcal.transforms import inv_pose
 
-__all__ = ["MOVES", "BoardCramerRao", "board_cramer_rao", "bounds_block"]
+__all__ = ["MOVES", "BoardCramerRao", "board_bounds", "board_cramer_rao"]
 
 MOVES = 1e-4
 """A minimal parameter counts as estimated when an estimated parameter moves it by more than
@@ -175,7 +175,7 @@ def _to_minimal(poses: KinematicPoses) -> np.ndarray:
     return M
 
 
-def bounds_block(
+def board_bounds(
     board: Board,
     cal: BoardCalibrationResult,
     features: Sequence[Sequence[Features]],
@@ -185,12 +185,14 @@ def bounds_block(
     *,
     joint_sigma: np.ndarray | None,
     pixel_sigma_px: float | None = None,
-) -> BoardBounds:
-    """``calibration.json``'s ``bounds`` of the board calibration ``cal``: :func:`board_cramer_rao`
+) -> tuple[BoardBounds, BoardCramerRao]:
+    """``calibration.json``'s ``bounds`` of the board calibration ``cal`` and the
+    :class:`BoardCramerRao` they come from: :func:`board_cramer_rao`
     at its estimate (cameras, chain, extrinsics) for the features ``features[c][i]`` of the
     frames it used at their read-back joints ``q`` (m, n) rad; the tool tip ``T_cam_tip`` over
     the postures ``q_valid`` (k, n) rad (the calibration's own when none). ``pixel_sigma_px``:
-    the corner noise (None: from the final fit's reprojection RMS, dof-corrected).
+    the corner noise (None: from the final fit's reprojection RMS, dof-corrected). Eye-to-hand
+    (``cal.setup``) the chain's tool is the board, and ``T_cam_tip`` the tip in the board frame.
 
     Raises:
         numpy.linalg.LinAlgError: the Fisher information cannot be inverted.
@@ -205,7 +207,8 @@ def bounds_block(
         pixel_sigma_px = float(cal.reprojection_rms_px * np.sqrt(n_obs / dof))
     b = board_cramer_rao(board, cal.cameras, cal.model, q, features, pixel_sigma_px,
                          joint_sigma=joint_sigma, T_first_cam=cal.T_first_cam,
-                         free_idx=free_idx, offset_joints=offset_joints)  # fmt: skip
+                         free_idx=free_idx, offset_joints=offset_joints,
+                         eye_to_hand=cal.eye_to_hand)  # fmt: skip
     qv = np.atleast_2d(np.asarray(q_valid, dtype=float))
     if qv.size == 0:  # an imported dataset plans no validation postures: the calibration's own
         qv = q
@@ -225,7 +228,7 @@ def bounds_block(
         for n, k, a, s, e in zip(param_names(idx), idx, ang, std, est, strict=True)
     )
     js = None if joint_sigma is None else np.broadcast_to(joint_sigma, (cal.model.n,))
-    return BoardBounds(
+    bounds = BoardBounds(
         pixel_sigma_px=pixel_sigma_px,
         joint_sigma_deg=None if js is None else tuple(float(x) for x in np.degrees(js)),
         observations=b.observations,
@@ -236,6 +239,7 @@ def bounds_block(
         ),
         parameters=params,
     )
+    return bounds, b
 
 
 def _estimated(cal: BoardCalibrationResult) -> tuple[np.ndarray, np.ndarray]:

@@ -12,7 +12,10 @@ board, no known distance). With several cameras
 the first camera's frame join that refinement. The reference of
 ``selfcal evaluate`` -- the fair nominal: the nominal kinematics with the hand-eye, the board
 pose and the cameras fitted by the same objective (:mod:`selfcal.calibration.board.nominal_fit`) -- is stored
-beside. Nothing here reads truth.
+beside. A dataset whose ``setup`` is ``"eye-to-hand"`` (the cameras static, the board on the
+flange) runs the same route on the inverted chain (world = the first camera, tool = the board)
+and stores base -> camera and flange -> board with their sigmas
+(:mod:`selfcal.calibration.board.mounts`). Nothing here reads truth.
 """
 
 from __future__ import annotations
@@ -26,8 +29,9 @@ from pathlib import Path
 
 import numpy as np
 
-from selfcal.calibration.board.bounds import bounds_block
+from selfcal.calibration.board.bounds import board_bounds
 from selfcal.calibration.board.calibrate import BoardInputError, calibrate_board
+from selfcal.calibration.board.mounts import flange_to_tool, mounts
 from selfcal.calibration.board.rig import calibrate_board_rig
 from selfcal.calibration.board.robot import BoardRobotCalibration, calibrate_robot_with_board
 from selfcal.calibration.frame_checks import (
@@ -213,13 +217,14 @@ def calibrate_board_dataset_detailed(
                 initials=[ds.info.initial_camera(c) for c in ds.info.cameras],
             )  # fmt: skip
     model_name, free = ds.info.model_of(cam)
-    nominal = nominal_mcpc(robot).with_tool(robot.T_flange_cam)
+    e2h = ds.info.eye_to_hand  # the tool is the board at an unknown mount: the fits place it
+    nominal = nominal_mcpc(robot) if e2h else nominal_mcpc(robot).with_tool(robot.T_flange_cam)
     q = np.radians(ds.joints_deg)
     W, H = ds.info.resolution_of(cam)
 
     def pairing_check(what: str) -> None:
         """The data check when a fit fails: an error naming a row shift if the data show one."""
-        found = _data_notes(ds, board, feats, names, robot, W, H, model_name, free)
+        found = _data_notes(ds, board, feats, names, robot, W, H, model_name, free, e2h)
         if found:
             note = "; ".join(found)
             raise IdentificationError(
@@ -245,6 +250,7 @@ def calibrate_board_dataset_detailed(
                 initial=ds.info.initial_camera(cam),
                 rig=rig,
                 rig_features=[o[0] for o in others],
+                eye_to_hand=e2h,
             )
         except EstimationError as exc:
             pairing_check(exc.message)
@@ -266,9 +272,12 @@ def calibrate_board_dataset_detailed(
     notes += sel.notes
     sizes = {k: float(v) for k, v in (ds.info.board or {}).items() if k.endswith("_mm")}
     # the camera poses of the calibrated chain: they fit the images with the final camera
+    # eye-to-hand the calibrated board mount (the scale check's start, the tool tip's frame)
+    mount = flange_to_tool(res.model, robot) if e2h else robot.T_flange_cam
     notes += check_scale(robot, q[used], fk_tool(res.model, q[used]),
                          f"the board ({scaled_sizes(sizes, 1.0)})",
-                         lambda s: f"{scaled_sizes(sizes, s)} would match the arm")  # fmt: skip
+                         lambda s: f"{scaled_sizes(sizes, s)} would match the arm",
+                         T_flange_tool=mount if e2h else None)  # fmt: skip
     camera_fits = res.board.rms_px < CAMERA_FIT_PX  # else the camera model misfits: said apart
     if js is None and camera_fits and res.rms_px > READBACK_RATIO * res.board.rms_px:
         text = (
@@ -311,16 +320,19 @@ def calibrate_board_dataset_detailed(
         skipped_images=res.board.skipped,
         held=res.held,
         warnings=tuple(dict.fromkeys(notes)),
+        setup=ds.info.setup,
     )
     all_feats = (feats, *(o[0] for o in others))
     k = np.flatnonzero(used).tolist()
-    try:
-        bounds = bounds_block(
+    try:  # the tool tip: the flange's origin in the tool's frame
+        bounds, cr = board_bounds(
             board, result, [[fc[i] for i in k] for fc in all_feats], q[used],
-            np.radians(ds.info.validation_joints_deg), inv_pose(robot.T_flange_cam),
-            joint_sigma=js,
+            np.radians(ds.info.validation_joints_deg),
+            inv_pose(mount), joint_sigma=js,
         )  # fmt: skip
         result = dataclasses.replace(result, bounds=bounds)
+        if e2h:
+            result = dataclasses.replace(result, mounts=_mounts(res.model, robot, cr.covariance))
     except np.linalg.LinAlgError as exc:
         text = f"the Fisher information cannot be inverted ({exc})"
         result = dataclasses.replace(
@@ -329,13 +341,23 @@ def calibrate_board_dataset_detailed(
     return BoardDatasetCalibration(result, res, all_feats, q)
 
 
+def _mounts(model, robot: RobotDef, covariance: np.ndarray) -> tuple:
+    """Eye-to-hand base -> camera and flange -> board with sigmas, or none when no base frame
+    can be rebuilt on the chain's axes 1 and 2 (a track, a SCARA)."""
+    try:
+        return mounts(model, robot, eye_to_hand=True, covariance=covariance)
+    except ValueError:
+        return ()
+
+
 def _data_notes(ds: Dataset, board: Board, feats: list[Features], names: list[str],
                 robot: RobotDef, W: int, H: int, model: str,
-                free: tuple[str, ...]) -> list[str]:  # fmt: skip
+                free: tuple[str, ...], eye_to_hand: bool = False) -> list[str]:  # fmt: skip
     """Why the poses fit no robot, when a data check shows it: the pairing of rows and images
     (:mod:`selfcal.calibration.row_shift`) or the target's scale against the arm's
     (:mod:`selfcal.calibration.scale_check`), from each image's pose by the camera's own calibration; one
-    sentence a finding, none when the checks pass (or cannot run)."""
+    sentence a finding, none when the checks pass (or cannot run). Eye-to-hand the poses are
+    the board's in the camera frame and the mount's start the bare flange."""
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", SelfCalWarning)
@@ -344,16 +366,18 @@ def _data_notes(ds: Dataset, board: Board, feats: list[Features], names: list[st
         if exc.exit_code == EXIT_INTERNAL:  # a bug, not a check that cannot run
             raise
         return []
-    T = np.where(cb.used[:, None, None], inv_pose(cb.T_cam_board), np.nan)
+    T_tool = cb.T_cam_board if eye_to_hand else inv_pose(cb.T_cam_board)
+    T = np.where(cb.used[:, None, None], T_tool, np.nan)
+    mount0 = np.eye(4) if eye_to_hand else robot.T_flange_cam
     q = np.radians(ds.joints_deg)
-    misfits = row_shift_misfits(nominal_mcpc(robot), q, T, robot.T_flange_cam)
+    misfits = row_shift_misfits(nominal_mcpc(robot), q, T, mount0)
     shift = shift_note(misfits, f"{ds.root}/joints.csv")
     if shift is not None:
         return [shift]  # a wrong pairing also spoils the scale: that one first
     sizes = {k: float(v) for k, v in (ds.info.board or {}).items() if k.endswith("_mm")}
     if int(cb.used.sum()) < 3:
         return []
-    ms = motion_scale(nominal_mcpc(robot), q[cb.used], T[cb.used], robot.T_flange_cam)
+    ms = motion_scale(nominal_mcpc(robot), q[cb.used], T[cb.used], mount0)
     scale = scale_warning(ms, robot.name, f"the board ({scaled_sizes(sizes, 1.0)})",
                           f"{scaled_sizes(sizes, ms.scale)} would match the arm")  # fmt: skip
     return [] if scale is None else [scale]

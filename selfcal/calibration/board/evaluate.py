@@ -226,10 +226,16 @@ def evaluate_board(cal: BoardCalibrationResult, cal_where: str, root: str | Path
     if ds.joints_deg.shape[1] != n:
         raise InputError(f"{ds.root}: {ds.joints_deg.shape[1]} joints, the calibration's robot "
                          f"{n}", fix="evaluate on a dataset of the calibrated robot")  # fmt: skip
+    if ds.info.setup != cal.setup:
+        raise InputError(f"{ds.root}: an {ds.info.setup} dataset, the calibration's is "
+                         f"{cal.setup}", fix="evaluate on images of the calibrated cell "
+                         "(the camera on the flange or static as calibrated)")  # fmt: skip
     detected = {c: detect_board(ds, board, c) for c in ds.info.cameras}
     q = np.radians(ds.joints_deg)
     models: dict[str, MCPCModel] = {"nominal": cal.nominal_model, "calibrated": cal.model}
-    T = {k: inv_pose(fk_tool(m, q)) for k, m in models.items()}  # first camera <- board
+    # first camera <- board: the chain's tool pose eye-to-hand, its inverse eye-in-hand
+    T = {k: fk_tool(m, q) if cal.eye_to_hand else inv_pose(fk_tool(m, q))
+         for k, m in models.items()}  # fmt: skip
     rows: list[dict] = []
     errs: list[dict[str, np.ndarray]] = []
     skipped: list[str] = []

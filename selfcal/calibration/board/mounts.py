@@ -16,32 +16,17 @@ first order from the covariance of the chain's minimal parameters (the Cramer-Ra
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from selfcal.io.board_calibration import Mount
 from selfcal.kinematics.dh_table import canonical_base
+from selfcal.kinematics.forward import fk_frames
 from selfcal.kinematics.mcpc import MCPCModel, minimal_indices, nominal_mcpc, shape_matrices
 from selfcal.robot.definition import RobotDef
 from selfcal.transforms import inv_pose, rot_z
 
 __all__ = ["Mount", "flange_to_tool", "mounts"]
-
-
-@dataclass(frozen=True)
-class Mount:
-    """``T`` (4, 4) m: the ``child`` frame's pose in the ``parent`` frame (``base``,
-    ``flange``, ``camera``, ``board``), ``what`` in words (``"base -> camera"``), the sigmas
-    ``sigma_rotation_rad`` (3,) about the parent's axes and ``sigma_xyz_m`` (3,) along them, or
-    None without a covariance."""
-
-    what: str
-    parent: str
-    child: str
-    T: np.ndarray
-    sigma_rotation_rad: np.ndarray | None = None
-    sigma_xyz_m: np.ndarray | None = None
 
 
 def _last_link_tool(model: MCPCModel) -> np.ndarray:
@@ -51,8 +36,24 @@ def _last_link_tool(model: MCPCModel) -> np.ndarray:
 
 def flange_to_tool(model: MCPCModel, robot: RobotDef) -> np.ndarray:
     """``model``'s tool (4, 4, m) in the nominal flange of joint n: its last link relative to
-    the nominal robot's."""
-    return inv_pose(_last_link_tool(nominal_mcpc(robot))) @ _last_link_tool(model)
+    the nominal robot's. The chain's frames are fixed up to a half turn about each joint's
+    axis (a common normal's sign: ``a, alpha -> -a, -alpha``; a fit placed in a turned world
+    can come out so): the last joint's frame is taken the way round the nominal's is, by its x
+    axis at zero joints in the frame rebuilt on axes 1 and 2
+    (:func:`selfcal.kinematics.dh_table.canonical_base`; as it stands when that frame cannot be
+    rebuilt)."""
+    L = _last_link_tool(model)
+    try:
+        base = canonical_base(model, robot)
+    except ValueError:
+        return inv_pose(_last_link_tool(nominal_mcpc(robot))) @ L
+    n = model.n
+    z = np.zeros((1, n))
+    x_model = (inv_pose(base) @ fk_frames(model, z)[0, n - 1])[:3, 0]
+    x_nominal = fk_frames(nominal_mcpc(robot), z)[0, n - 1, :3, 0]
+    if x_model @ x_nominal < 0:  # the half turn: the same frame the nominal's way round
+        L = rot_z(np.pi) @ L
+    return inv_pose(_last_link_tool(nominal_mcpc(robot))) @ L
 
 
 def _poses(model: MCPCModel, robot: RobotDef) -> tuple[np.ndarray, np.ndarray]:
@@ -72,7 +73,7 @@ def mounts(model: MCPCModel, robot: RobotDef, *, eye_to_hand: bool,
             rebuilt on them).
     """
     base, tool = _poses(model, robot)
-    sig: list[tuple[np.ndarray, np.ndarray] | tuple[None, None]] = [(None, None), (None, None)]
+    sig: list[tuple[np.ndarray | None, np.ndarray | None]] = [(None, None), (None, None)]
     if covariance is not None:
         idx = minimal_indices(model.joint_types)
         J = np.zeros((2, 6, idx.size))

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from selfcal.calibration.board.bounds import bounds_block
+from selfcal.calibration.board.bounds import board_bounds
 from selfcal.calibration.board.dataset import calibrate_board_dataset_detailed, dataset_board
 from selfcal.camera import values_by_name
 from selfcal.estimation.joint_report import encoder_sigma
@@ -74,7 +74,7 @@ def evaluate_board_draw(root: Path, pixel_sigma: float) -> dict:
         row.update({f"two_stage_err_{name}": float("nan") for name in names})
     # the bound at this draw's one-step estimate, with the true noise levels
     used = np.flatnonzero(fit.used).tolist()
-    b = bounds_block(
+    b, _ = board_bounds(
         dataset_board(ds), cal, [[fc[i] for i in used] for fc in out.features], out.q[used], qv,
         T_cam_tip, joint_sigma=encoder_sigma(robot), pixel_sigma_px=pixel_sigma,
     )  # fmt: skip

@@ -1,0 +1,205 @@
+"""``selfcal run`` / ``report`` of a simulated eye-to-hand cell: the calibration against ``truth.json``.
+
+The dataset of ``[camera] setup = "eye-to-hand"`` (:mod:`selfcal.acquisition.eye_to_hand`: one
+camera static in the cell, the board on the flange) is calibrated by the board route on the
+inverted chain (:mod:`selfcal.calibration.board.dataset`); the report compares, with the truth
+the calibration never saw:
+
+- every free camera parameter: estimate, truth, standard deviation, ``z``;
+- base -> camera and flange -> board (``calibration.json`` ``mounts``, read out of the chain as
+  :mod:`selfcal.calibration.board.mounts` reads the truth's): the error's rotation (deg, about
+  the parent's axes) and translation (mm, along them), their sigmas and ``z`` per component;
+- the board's pose in the camera frame at the validation postures, predicted from the joints by
+  the calibrated chain and by the fair nominal (``nominal_mcpc``), against the true one.
+
+``status`` is "failed" when the calibrated chain predicts the validation board poses worse than
+the fair nominal. Units: mm and deg, px for the camera.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from selfcal.calibration.board.evaluate import evaluate_board
+from selfcal.calibration.board.mounts import mounts
+from selfcal.io.atomic import write_text_atomic
+from selfcal.io.board_calibration import BoardCalibrationResult
+from selfcal.io.dataset import Dataset, DatasetError
+from selfcal.io.jsonfile import write_report
+from selfcal.io.truth import Truth, read_truth
+from selfcal.kinematics.forward import fk_tool
+from selfcal.pipeline.board_run import (
+    calibrate_board_run,
+    camera_bounds,
+    camera_rows,
+    pose_errors,
+)
+from selfcal.plots.job_figures import reprojection_figure, write_figure
+from selfcal.robot.definition import load_robot
+from selfcal.transforms import inv_pose
+
+__all__ = [
+    "calibrate_and_report_static",
+    "static_truth_report",
+    "write_static_truth_report",
+    "static_summary",
+]
+
+
+def _mount_rows(cal: BoardCalibrationResult, truth_chain, robot) -> list[dict]:
+    """Per mount of ``cal``: estimate and truth (mm, deg), the error, its sigmas and z."""
+    rows = []
+    for est, true in zip(cal.mounts, mounts(truth_chain, robot, eye_to_hand=True), strict=True):
+        w = Rotation.from_matrix(est.T[:3, :3] @ true.T[:3, :3].T).as_rotvec()
+        d = est.T[:3, 3] - true.T[:3, 3]
+        s_r, s_t = est.sigma_rotation_rad, est.sigma_xyz_m
+        z = None if s_r is None or s_t is None else np.r_[w / s_r, d / s_t]
+        rows.append({
+            "transform": est.what,
+            "estimate": {"xyz_mm": (1000 * est.T[:3, 3]).tolist(),
+                         "rotvec_deg": np.degrees(Rotation.from_matrix(est.T[:3, :3])
+                                                  .as_rotvec()).tolist()},
+            "truth": {"xyz_mm": (1000 * true.T[:3, 3]).tolist(),
+                      "rotvec_deg": np.degrees(Rotation.from_matrix(true.T[:3, :3])
+                                               .as_rotvec()).tolist()},
+            "error": {"rotation_deg": np.degrees(w).tolist(), "xyz_mm": (1000 * d).tolist()},
+            "sigma": None if z is None else {"rotation_deg": np.degrees(s_r).tolist(),
+                                             "xyz_mm": (1000 * s_t).tolist()},
+            "z": None if z is None else z.tolist(),
+            "max_abs_z": None if z is None else float(np.abs(z).max()),
+        })  # fmt: skip
+    return rows
+
+
+def static_truth_report(root: Path, cal: BoardCalibrationResult, truth: Truth) -> dict:
+    """The report (module docstring) of the eye-to-hand calibration ``cal`` of the simulated
+    dataset in ``root`` against ``truth``.
+
+    Raises:
+        DatasetError: ``truth.json`` is not an eye-to-hand cell's.
+    """
+    if truth.board is None or truth.board.get("setup") != "eye-to-hand":
+        raise DatasetError(f"{root / 'truth.json'} is not the truth of an eye-to-hand cell but "
+                           "calibration.json is an eye-to-hand calibration",
+                           fix="acquire the dataset again from its scenario")  # fmt: skip
+    ds = Dataset.open(root)
+    robot = load_robot(ds.robot_source)
+    qv = np.radians(ds.info.validation_joints_deg)
+    true_chain = truth.true_model.with_base(inv_pose(np.asarray(truth.board["T_world_cam"])))
+    T_true = fk_tool(true_chain, qv)
+    cal_err = pose_errors(fk_tool(cal.model, qv), T_true)
+    nom_err = pose_errors(fk_tool(cal.nominal_model, qv), T_true)
+    failures = []
+    if cal_err["position_mm"]["rms"] > nom_err["position_mm"]["rms"]:
+        failures.append(
+            f"the calibrated chain predicts the validation board poses worse than the fair "
+            f"nominal ({cal_err['position_mm']['rms']:.3f} mm RMS against "
+            f"{nom_err['position_mm']['rms']:.3f} mm over {len(qv)} held-out postures)"
+        )
+    return {
+        "kind": "eye-to-hand-truth",
+        "status": "failed" if failures else "ok",
+        "failures": failures,
+        "setup": "eye-to-hand",
+        "target": cal.target,
+        "camera": camera_rows(
+            cal.cameras[0], cal.camera_std[0], truth.intrinsics_left, camera_bounds(cal, 0)
+        ),  # fmt: skip
+        "mounts": _mount_rows(cal, true_chain, robot),
+        "mounts_note": (
+            "errors about / along the parent's axes; sigmas from the Cramer-Rao "
+            "covariance at the estimate (calibration.json mounts)"
+        ),  # fmt: skip
+        "validation": {
+            "poses": int(len(qv)),
+            "board_pose_in_camera": {"calibrated": cal_err, "nominal": nom_err},
+            "note": (
+                "the board's pose in the camera frame predicted from the joint readings "
+                "(no alignment: the camera is the world); nominal: the fair nominal, the "
+                "nominal chain with base -> camera, flange -> board and camera fitted to the "
+                "pixels"
+            ),
+        },  # fmt: skip
+        "reprojection_rms_px": cal.reprojection_rms_px,
+        "frames": {"planned": cal.frames, "used": cal.frames_used},
+        "identified": list((cal.selection or {}).get("identified", [])),
+    }
+
+
+def _markdown(r: dict) -> str:
+    v = r["validation"]["board_pose_in_camera"]
+    lines = ["# Eye-to-hand calibration against the truth", "",
+             f"Status: **{r['status']}**" + "".join(f"\n- {f}" for f in r["failures"]), "",
+             f"Reprojection RMS {r['reprojection_rms_px']:.3f} px over {r['frames']['used']} of "
+             f"{r['frames']['planned']} frames.", "", "## Camera", "",
+             "| parameter | estimate | truth | std | z |", "|---|---|---|---|---|"]  # fmt: skip
+    for n, c in r["camera"].items():
+        z = "" if c["z"] is None else f"{c['z']:+.2f}"
+        std = "" if c["std"] is None else f"{c['std']:.4g}"
+        lines.append(f"| {n} | {c['estimate']:.6g} | {c['truth']:.6g} | {std} | {z} |")
+    lines += ["", "## Mounts", "", "| transform | rotation error (deg) | translation error (mm) "
+              "| max abs z |", "|---|---|---|---|"]  # fmt: skip
+    for m in r["mounts"]:
+        z = "" if m["max_abs_z"] is None else f"{m['max_abs_z']:.2f}"
+        rot = ", ".join(f"{x:+.4f}" for x in m["error"]["rotation_deg"])
+        xyz = ", ".join(f"{x:+.3f}" for x in m["error"]["xyz_mm"])
+        lines.append(f"| {m['transform']} | {rot} | {xyz} | {z} |")
+    lines += ["", f"## Board pose at {r['validation']['poses']} validation postures", "",
+              "| model | position RMS (mm) | rotation RMS (deg) |", "|---|---|---|"]  # fmt: skip
+    for k in ("nominal", "calibrated"):
+        lines.append(f"| {k} | {v[k]['position_mm']['rms']:.4f} | "
+                     f"{v[k]['rotation_deg']['rms']:.5f} |")  # fmt: skip
+    lines += ["", r["mounts_note"] + "; " + r["validation"]["note"] + "."]
+    return "\n".join(lines) + "\n"
+
+
+def write_static_truth_report(root: Path, cal: BoardCalibrationResult, truth: Truth, *,
+                              figures: bool) -> dict:  # fmt: skip
+    """:func:`static_truth_report` written as ``root/report.json`` and ``report.md`` (with
+    ``figures`` the reprojection figure in ``root/figures``)."""
+    report = static_truth_report(root, cal, truth)
+    drawn = []
+    if figures:
+        ev = evaluate_board(cal, str(root / "calibration.json"), root)
+        drawn.append(write_figure(reprojection_figure(ev, "calibration images"), root,
+                                  "reprojection.png"))  # fmt: skip
+    report["figures"] = [str(p.relative_to(root)) for p in drawn]
+    write_report(root / "report.json", report)
+    write_text_atomic(root / "report.md", _markdown(report))
+    return report
+
+
+def static_summary(rep: dict, root: Path) -> str:
+    """One line on the report: camera and mount z, the validation board poses."""
+    zc = [abs(c["z"]) for c in rep["camera"].values() if c["z"] is not None]
+    zm = [m["max_abs_z"] for m in rep["mounts"] if m["max_abs_z"] is not None]
+    v = rep["validation"]["board_pose_in_camera"]
+    return (f"eye-to-hand: camera parameters within {max(zc, default=float('nan')):.2f} sigma "
+            f"and base -> camera, flange -> board within {max(zm, default=float('nan')):.2f} "
+            f"sigma of the truth; board pose on {rep['validation']['poses']} validation "
+            f"postures: nominal {v['nominal']['position_mm']['rms']:.3f} mm RMS, calibrated "
+            f"{v['calibrated']['position_mm']['rms']:.3f} mm RMS; details in {root}/report.md")  # fmt: skip
+
+
+def calibrate_and_report_static(out: Path, *, quiet: bool = False, figures: bool = True,
+                                t0: float | None = None) -> dict:  # fmt: skip
+    """The rest of ``selfcal run`` for an eye-to-hand scenario once acquired in ``out``: the
+    calibration and the report against the truth; prints a summary line (total time since
+    ``t0``, :func:`time.perf_counter`).
+
+    Raises:
+        CalibrationFailedError: the report found the calibration worse than the fair nominal.
+    """
+    from selfcal.calibration.field.calibrate import CalibrationFailedError
+
+    t0 = time.perf_counter() if t0 is None else t0
+    cal = calibrate_board_run(out, quiet=quiet, figures=False)
+    rep = write_static_truth_report(out, cal, read_truth(out / "truth.json"), figures=figures)
+    print(f"{static_summary(rep, out)}; total {time.perf_counter() - t0:.1f} s")
+    if rep["failures"]:
+        raise CalibrationFailedError.of(tuple(rep["failures"]), out / "report.json")
+    return {"calibration": cal, "report": rep}
