@@ -64,7 +64,8 @@ class CameraConfig:
     setup: str = "eye-in-hand"
     """Where the camera is: ``"eye-in-hand"`` (on the flange, the target static in the cell) or
     ``"eye-to-hand"`` (static in the cell, looking at a board on the flange: needs ``[target]
-    board`` and ``count = 1``; the simulator places it 0.6 m in front of the board at home)."""
+    board`` and ``count = 1``; the simulator places it 0.6 m in front of the board at home, the
+    wrist turned so that the board faces away from the arm)."""
     right: dict = field(default_factory=dict)
     """``[camera.right]``: how the right camera differs from ``[camera]`` (any of
     :data:`PER_CAMERA_KEYS`; the others are ``[camera]``'s). Empty: both cameras are ``[camera]``'s

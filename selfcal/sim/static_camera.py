@@ -2,11 +2,12 @@
 
 The true robot is the nominal chain with its minimal parameters perturbed
 (:func:`selfcal.sim.actual.perturb`) and the board as its tool: ``actual`` (world = the robot's
-base frame, tool = the board frame, m). The camera looks at the board's printed face at the
-nominal robot's home posture from ``distance_m`` along its normal (camera axes = board axes:
-the board shows upright; where a person would set it up, so a plan from the nominal cell
-serves the true one), so ``T_cam_board(q) = inv(T_base_cam) @ fk_tool(actual, q)``. Postures are drawn
-around home (:func:`plan_static_postures`: arm configurations, each with several wrist
+base frame, tool = the board frame, m). The cell's home (:func:`cell_home`) is the robot's home
+with the wrist turned so that the board faces the cell rather than the table; the camera looks
+at the board's printed face there, on the nominal robot, from ``distance_m`` along its normal
+(camera axes = board axes: the board shows upright; where a person would set it up, so a plan
+from the nominal cell serves the true one), so ``T_cam_board(q) = inv(T_base_cam) @ fk_tool(actual, q)``. Postures are drawn
+around the cell's home (:func:`plan_static_postures`: arm configurations, each with several wrist
 orientations) and kept when the camera sees the whole board. The features are projected
 analytically (:func:`project_views`, :func:`selfcal.sim.analytic.project_board`) or rendered with
 MuJoCo (:class:`StaticCameraRenderer`: the robot of :mod:`selfcal.sim.robot_mjcf` with the board
@@ -50,6 +51,7 @@ __all__ = [
     "StaticCameraRenderer",
     "StaticCameraRobot",
     "board_on_flange",
+    "cell_home",
     "static_camera_truth",
     "plan_static_postures",
     "project_views",
@@ -75,7 +77,8 @@ def board_on_flange(board: Board, standoff_m: float = 0.05) -> np.ndarray:
 class StaticCameraTruth:
     """The simulated eye-to-hand cell: ``robot``; ``actual`` the true chain (world = base,
     tool = board); ``T_base_cam`` the camera's pose (OpenCV frame -> base, m); ``camera`` the
-    true camera; ``board``; ``T_flange_board_nominal`` the mount as drawn (no error)."""
+    true camera; ``board``; ``T_flange_board_nominal`` the mount as drawn (no error); ``home``
+    (n,) rad the posture the camera was set up at (:func:`cell_home`)."""
 
     robot: RobotDef
     actual: MCPCModel
@@ -83,6 +86,7 @@ class StaticCameraTruth:
     camera: CameraModel
     board: Board
     T_flange_board_nominal: np.ndarray
+    home: np.ndarray
 
     def chain(self) -> MCPCModel:
         """The true chain as the calibration writes it: world = the camera, tool = the board."""
@@ -91,6 +95,45 @@ class StaticCameraTruth:
     def T_cam_board(self, q: np.ndarray) -> np.ndarray:
         """(m, 4, 4) the board's true pose in the camera frame at the true joints ``q`` (m, n)."""
         return fk_tool(self.chain(), np.atleast_2d(q))
+
+
+def _camera_pose(chain: MCPCModel, board: Board, q: np.ndarray, distance_m: float) -> np.ndarray:
+    """``T_base_cam`` of a camera ``distance_m`` in front of the board's printed face at ``q``,
+    its axes the board's (``chain``: world = base, tool = the board)."""
+    T = fk_tool(chain, q[None])[0]
+    _, pts = board.layout()
+    centre = T[:3, :3] @ ((pts.min(axis=0) + pts.max(axis=0)) / 2) + T[:3, 3]
+    return make_pose(T[:3, :3], centre - distance_m * T[:3, 2])
+
+
+def cell_home(robot: RobotDef, chain: MCPCModel, board: Board, distance_m: float) -> np.ndarray:
+    """(n,) rad: the robot's home with the wrist's first two joints (the 4th and 5th of a
+    6-axis arm; none of an arm of four joints or fewer) turned by 0 or +-90 deg each: of the
+    turns within the joint ranges whose camera (:func:`_camera_pose`) stands above the table
+    (z > 0.05 m), the one whose board faces most directly away from the base's axis (the camera
+    outside the arm's reach, the arm behind the board); without such a turn the one with the
+    highest camera. ``chain``: world = base, tool = the board."""
+    n = robot.n
+    turns = [np.zeros(n)]
+    if n - 3 >= 2:  # a wrist of three joints after an arm of two or more
+        for a in (0.0, -90.0, 90.0):
+            for b in (0.0, -90.0, 90.0):
+                d = np.zeros(n)
+                d[n - 3], d[n - 2] = np.radians(a), np.radians(b)
+                turns.append(d)
+    lo, hi = robot.limits[:, 0], robot.limits[:, 1]
+    homes = [robot.home + d for d in turns
+             if np.all((robot.home + d >= lo) & (robot.home + d <= hi))]  # fmt: skip
+    height, outward = [], []
+    for q in homes:
+        T = fk_tool(chain, q[None])[0]
+        radial = np.r_[T[:2, 3], 0.0] / max(float(np.linalg.norm(T[:2, 3])), 1e-9)
+        outward.append(float(-T[:3, 2] @ radial))
+        height.append(_camera_pose(chain, board, q, distance_m)[2, 3])
+    above = np.array(height) > 0.05
+    if not above.any():
+        return homes[int(np.argmax(height))].astype(float)
+    return homes[int(np.argmax(np.where(above, outward, -np.inf)))].astype(float)
 
 
 def static_camera_truth(
@@ -110,13 +153,10 @@ def static_camera_truth(
     T_fb = board_on_flange(board)
     actual = perturb(nominal_mcpc(robot).with_tool(T_fb), seed=seed,
                      translation_m=translation_m, rotation_rad=rotation_rad)  # fmt: skip
-    T_base_board = fk_tool(nominal_mcpc(robot).with_tool(T_fb), robot.home[None])[0]
-    _, pts = board.layout()
-    centre = T_base_board[:3, :3] @ ((pts.min(axis=0) + pts.max(axis=0)) / 2)
-    centre += T_base_board[:3, 3]
-    R = T_base_board[:3, :3]
-    T_base_cam = make_pose(R, centre - distance_m * R[:, 2])
-    return StaticCameraTruth(robot, actual, T_base_cam, camera, board, T_fb)
+    nominal = nominal_mcpc(robot).with_tool(T_fb)
+    home = cell_home(robot, nominal, board, distance_m)
+    T_base_cam = _camera_pose(nominal, board, home, distance_m)
+    return StaticCameraTruth(robot, actual, T_base_cam, camera, board, T_fb, home)
 
 
 def _sees_board(truth: StaticCameraTruth, q: np.ndarray) -> bool:
@@ -134,14 +174,15 @@ def plan_static_postures(
     wrist_deg: float = 20.0,
     seed: int = 0,
 ) -> np.ndarray:
-    """(configurations * per_configuration, n) rad: joint vectors around home, the arm joints
+    """(configurations * per_configuration, n) rad: joint vectors around the cell's home
+    (``truth.home``), the arm joints
     (all but the last three) drawn within ``arm_deg`` once per configuration and the wrist's
     last three within ``wrist_deg`` per posture, each kept when the camera sees every feature
     of the board (within the joint ranges). Deterministic for ``seed``.
 
     Raises:
         InputError: no such posture found in 200 draws per posture (a camera that cannot see
-            the board around home).
+            the board around the cell's home).
     """
     robot = truth.robot
     rng = np.random.default_rng(seed)
@@ -150,7 +191,7 @@ def plan_static_postures(
     lo, hi = robot.limits[:, 0], robot.limits[:, 1]
     out = []
     for _ in range(configurations):
-        base = robot.home.astype(float).copy()
+        base = truth.home.astype(float).copy()
         base[arm] += np.radians(rng.uniform(-arm_deg, arm_deg, int(arm.sum())))
         for _ in range(per_configuration):
             for _ in range(200):

@@ -4,13 +4,13 @@ board route's own machinery with the chain inverted (selfcal/calibration/board/r
 
 The cell is selfcal/sim/static_camera.py's: a UR5e whose minimal parameters (board mount
 included) are perturbed by up to 1 mm / 0.1 deg, the ChArUco of models/targets/charuco.toml on
-its flange, a 640 x 480 pinhole 0.6 m in front of it at home; 6 arm configurations x 5 wrist
-orientations. The features are projected analytically (the rendered run is
+its flange, a 640 x 480 pinhole 0.6 m in front of it at the cell's home (the wrist turned so the
+board faces away from the arm); 6 arm configurations x 5 wrist orientations. The features are projected analytically (the rendered run is
 tests/integration/test_eye_to_hand_rendered.py). The truth never enters the calibration; it is
 compared afterwards: noise-free, the board's poses at postures not used and the mounts agree to
-1e-6 (measured 3e-15 m / 4e-13 deg); with 0.1 px of corner noise the camera, base -> camera and
+1e-6 (measured 1e-15 m / 2e-13 deg); with 0.1 px of corner noise the camera, base -> camera and
 flange -> board fall within 3 sigma of the Cramer-Rao covariance at the estimate (measured
-|z| <= 1.5).
+|z| <= 1.7).
 """
 
 from __future__ import annotations
