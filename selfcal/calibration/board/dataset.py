@@ -32,6 +32,7 @@ import numpy as np
 from selfcal.calibration.board.bounds import board_bounds
 from selfcal.calibration.board.calibrate import BoardInputError, calibrate_board
 from selfcal.calibration.board.mounts import flange_to_tool, mounts
+from selfcal.calibration.board.nominal_fit import placement
 from selfcal.calibration.board.rig import calibrate_board_rig
 from selfcal.calibration.board.robot import BoardRobotCalibration, calibrate_robot_with_board
 from selfcal.calibration.frame_checks import (
@@ -357,7 +358,8 @@ def _data_notes(ds: Dataset, board: Board, feats: list[Features], names: list[st
     (:mod:`selfcal.calibration.row_shift`) or the target's scale against the arm's
     (:mod:`selfcal.calibration.scale_check`), from each image's pose by the camera's own calibration; one
     sentence a finding, none when the checks pass (or cannot run). Eye-to-hand the poses are
-    the board's in the camera frame and the mount's start the bare flange."""
+    the board's in the camera frame and the mount's start the best fit of the rows as given
+    (:func:`selfcal.calibration.board.nominal_fit.placement`)."""
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", SelfCalWarning)
@@ -368,8 +370,11 @@ def _data_notes(ds: Dataset, board: Board, feats: list[Features], names: list[st
         return []
     T_tool = cb.T_cam_board if eye_to_hand else inv_pose(cb.T_cam_board)
     T = np.where(cb.used[:, None, None], T_tool, np.nan)
-    mount0 = np.eye(4) if eye_to_hand else robot.T_flange_cam
     q = np.radians(ds.joints_deg)
+    mount0 = robot.T_flange_cam
+    if eye_to_hand:  # no drawing of the board's mount: the best of the quarter-turn starts
+        F = fk_tool(nominal_mcpc(robot), q[cb.used])
+        mount0 = placement(F, T[cb.used], any_mount=True)[1]
     misfits = row_shift_misfits(nominal_mcpc(robot), q, T, mount0)
     shift = shift_note(misfits, f"{ds.root}/joints.csv")
     if shift is not None:

@@ -16,6 +16,7 @@ placement is base -> camera and flange -> board.
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import replace
 
 import numpy as np
@@ -24,9 +25,9 @@ from selfcal.calibration.board.refine import BoardObservations, Refinement, refi
 from selfcal.kinematics.alignment import AXIS_TIPS, fit_rigid_transform, regauge
 from selfcal.kinematics.forward import fk_tool
 from selfcal.kinematics.mcpc import MCPCModel, chain_transforms
-from selfcal.transforms import inv_pose
+from selfcal.transforms import inv_pose, make_pose
 
-__all__ = ["fit_nominal", "place_nominal", "placement_indices", "standard_gauge"]
+__all__ = ["fit_nominal", "place_nominal", "placement", "placement_indices", "standard_gauge"]
 
 
 def placement_indices(n: int) -> np.ndarray:
@@ -37,28 +38,54 @@ def placement_indices(n: int) -> np.ndarray:
     return np.r_[np.arange(6), 6 * n + np.arange(6)]
 
 
-def place_nominal(nominal: MCPCModel, q: np.ndarray, T_board_cam: np.ndarray) -> MCPCModel:
-    """``nominal`` (tool = the camera at its nominal mount) placed on the camera poses
-    ``T_board_cam`` (m, 4, 4) at the joints ``q`` (m, n) rad (eye-to-hand: the tool the board,
-    the poses the board's in the camera frame): board pose and hand-eye by
-    alternating closed-form rigid fits (:func:`selfcal.kinematics.alignment.fit_rigid_transform`) from the
-    nominal mount, the round whose camera positions fit best kept (with little wrist motion the
-    alternation can drift off: the hand-eye is then weakly determined by the poses) -- the start
-    of :func:`fit_nominal`."""
-    F = fk_tool(nominal, q)
+def _turns() -> np.ndarray:
+    """(24, 4, 4) the proper rotations that map the axes onto the axes (signed permutations of
+    determinant +1): the starts of :func:`placement` when the mount is unknown."""
+    out = []
+    for perm in itertools.permutations(range(3)):
+        for signs in itertools.product((1.0, -1.0), repeat=3):
+            R = np.zeros((3, 3))
+            R[range(3), perm] = signs
+            if np.linalg.det(R) > 0:
+                out.append(make_pose(R, np.zeros(3)))
+    return np.array(out)
+
+
+def placement(
+    F: np.ndarray, T: np.ndarray, *, any_mount: bool = False
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(B, C)`` with ``B @ F[i] @ C ~ T[i]`` for the chain's tool poses ``F`` (m, 4, 4) and the
+    measured ones ``T`` (m): alternating closed-form rigid fits
+    (:func:`selfcal.kinematics.alignment.fit_rigid_transform`) from ``C`` = the identity, the
+    round whose axis tips fit best kept (with little wrist motion the alternation can drift
+    off: ``C`` is then weakly determined by the poses). ``any_mount``: the mount is unknown
+    (eye-to-hand: a board on the flange any way round), so the alternation starts from each of
+    the 24 quarter-turn rotations as well and the best fit wins (from the identity alone it can
+    stall half a turn away)."""
 
     def misfit(B: np.ndarray, C: np.ndarray) -> float:
-        return float(np.sum(((B @ F @ C - T_board_cam) @ AXIS_TIPS)[:, :3] ** 2))
+        return float(np.sum(((B @ F @ C - T) @ AXIS_TIPS)[:, :3] ** 2))
 
-    C = np.eye(4)
     best: tuple[float, np.ndarray, np.ndarray] | None = None
-    for _ in range(20):
-        B = fit_rigid_transform(T_board_cam, F @ C)
-        if best is None or misfit(B, C) < best[0]:
-            best = (misfit(B, C), B, C)
-        C = inv_pose(fit_rigid_transform(inv_pose(T_board_cam), inv_pose(B @ F)))
+    for C0 in _turns() if any_mount else [np.eye(4)]:
+        C = C0
+        for _ in range(20):
+            B = fit_rigid_transform(T, F @ C)
+            if best is None or misfit(B, C) < best[0]:
+                best = (misfit(B, C), B, C)
+            C = inv_pose(fit_rigid_transform(inv_pose(T), inv_pose(B @ F)))
     assert best is not None
-    return nominal.with_base(best[1]).with_tool(best[2])
+    return best[1], best[2]
+
+
+def place_nominal(nominal: MCPCModel, q: np.ndarray, T_board_cam: np.ndarray, *,
+                  any_mount: bool = False) -> MCPCModel:  # fmt: skip
+    """``nominal`` (tool = the camera at its nominal mount) placed on the camera poses
+    ``T_board_cam`` (m, 4, 4) at the joints ``q`` (m, n) rad (eye-to-hand: the tool the board,
+    the poses the board's in the camera frame, ``any_mount``): board pose and hand-eye by
+    :func:`placement` from the nominal mount -- the start of :func:`fit_nominal`."""
+    B, C = placement(fk_tool(nominal, q), T_board_cam, any_mount=any_mount)
+    return nominal.with_base(B).with_tool(C)
 
 
 def standard_gauge(model: MCPCModel, offsets: np.ndarray) -> MCPCModel:
@@ -77,7 +104,8 @@ def fit_nominal(obs: BoardObservations, nominal: MCPCModel, *, stds: bool = True
         EstimationError: the fit did not converge.
     """
     used = obs.used
-    start = place_nominal(nominal, obs.q[used], obs.tool_poses()[used])
+    start = place_nominal(nominal, obs.q[used], obs.tool_poses()[used],
+                          any_mount=obs.eye_to_hand)  # fmt: skip
     fit = refine_on_board(obs, start, placement_indices(nominal.n), stds=stds,
                           what="the fair nominal (the nominal chain placed on the camera "
                           "stage's poses, board pose, hand-eye and cameras fitted, the chain "
