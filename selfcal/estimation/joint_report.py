@@ -21,6 +21,7 @@ __all__ = [
     "tool_point_covariance",
     "encoder_sigma",
     "aligned_tool_rms_bound",
+    "aligned_tool_weight",
 ]
 
 
@@ -84,6 +85,28 @@ def encoder_sigma(robot) -> np.ndarray | None:
     return 1.0 / (cpu * np.sqrt(12.0))
 
 
+def aligned_tool_weight(model: MCPCModel, q: np.ndarray, T_cam_point: np.ndarray) -> np.ndarray:
+    """(k, k) the weight ``G`` of the minimal parameters' covariance ``C`` (SI, the order of
+    :func:`selfcal.kinematics.mcpc.minimal_indices`) whose ``trace(G C)`` is the squared RMS of
+    a camera-attached point's error over postures ``q`` (m, n) after the best rigid alignment
+    (:func:`aligned_tool_rms_bound`): ``G = Jp^T P Jp / m`` with ``Jp`` (3m, k) the stacked
+    points' Jacobian and ``P`` the projector removing rigid motions (m^2 per unit^2)."""
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    idx = minimal_indices(model.joint_types)
+    T = fk_tool(model, q)
+    Jb = identification_jacobian(model, q)[:, :, idx]
+    pt = np.asarray(T_cam_point, dtype=float)[:3, 3]
+    Jp = (T[:, :3, :3] @ (Jb[:, :3] - skew(pt) @ Jb[:, 3:])).reshape(-1, idx.size)
+    P_world = (T @ np.asarray(T_cam_point, dtype=float))[:, :3, 3]
+    c = P_world - P_world.mean(axis=0)
+    rigid = np.concatenate(
+        [np.tile(np.eye(3), (len(q), 1)), -skew(c).reshape(-1, 3)], axis=1
+    )  # (3m, 6): translation, rotation about the centroid
+    Q, _ = np.linalg.qr(rigid)
+    PJ = Jp - Q @ (Q.T @ Jp)
+    return PJ.T @ PJ / len(q)
+
+
 def aligned_tool_rms_bound(
     res: JointRefinementResult, q: np.ndarray, T_cam_point: np.ndarray
 ) -> float:
@@ -91,20 +114,8 @@ def aligned_tool_rms_bound(
     the best rigid alignment (the validation metric of :mod:`selfcal.kinematics.accuracy`), from the parameter
     covariance (first order): ``sqrt(trace(P S P) / k)`` with ``S`` the (3k, 3k) covariance of
     the stacked points (:func:`tool_point_covariance` with cross terms) and ``P`` the projector
-    removing rigid motions. With the a-posteriori noise level this is the Cramer-Rao bound of
-    the metric for an unbiased estimator."""
-    q = np.atleast_2d(np.asarray(q, dtype=float))
-    idx = minimal_indices(res.model.joint_types)
-    T = fk_tool(res.model, q)
-    Jb = identification_jacobian(res.model, q)[:, :, idx]
-    pt = np.asarray(T_cam_point, dtype=float)[:3, 3]
-    Jp = (T[:, :3, :3] @ (Jb[:, :3] - skew(pt) @ Jb[:, 3:])).reshape(-1, idx.size)
-    S = Jp @ np.nan_to_num(res.covariance) @ Jp.T
-    P_world = (T @ np.asarray(T_cam_point, dtype=float))[:, :3, 3]
-    c = P_world - P_world.mean(axis=0)
-    rigid = np.concatenate(
-        [np.tile(np.eye(3), (len(q), 1)), -skew(c).reshape(-1, 3)], axis=1
-    )  # (3k, 6): translation, rotation about the centroid
-    Q, _ = np.linalg.qr(rigid)
-    P = np.eye(len(S)) - Q @ Q.T
-    return float(np.sqrt(max(np.trace(P @ S @ P), 0.0) / len(q)))
+    removing rigid motions (computed as ``trace(G C)``, :func:`aligned_tool_weight`). With the
+    a-posteriori noise level this is the Cramer-Rao bound of the metric for an unbiased
+    estimator."""
+    G = aligned_tool_weight(res.model, q, T_cam_point)
+    return float(np.sqrt(max(np.trace(G @ np.nan_to_num(res.covariance)), 0.0)))
