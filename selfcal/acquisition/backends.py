@@ -23,6 +23,7 @@ from selfcal.config.scenario import (
     ConfigError,
     NoiseConfig,
     Scenario,
+    joints_path,
     load_scenario,
     scenario_board,
     scenario_to_dict,
@@ -31,6 +32,7 @@ from selfcal.errors import InputError
 from selfcal.io.atomic import write_image_atomic
 from selfcal.io.dataset_info import DatasetInfo, scenario_digest
 from selfcal.io.target_toml import target_document
+from selfcal.io.tracker import read_joints
 from selfcal.io.truth import (
     TRUTH_JOURNAL,
     append_truth_frame,
@@ -63,6 +65,7 @@ from selfcal.sim.markers import make_marker_field
 from selfcal.sim.robot_mjcf import RigConfig
 from selfcal.sim.sim_robot import SimRobot
 from selfcal.target import CORNERS_PER_MARKER
+from selfcal.target.placement import board_pose
 from selfcal.transforms import trans
 
 __all__ = [
@@ -155,12 +158,31 @@ def sim_setup(s: Scenario) -> SimSetup:
     )
     T_lr = trans(np.array([s.camera.baseline_mm / 1000, 0.0, 0.0]))
     board = scenario_board(s)
-    T_world_board = None if board is None else board_on_table(board, _field_center(robot, nominal))
+    T_world_board = None if board is None else _board_pose(s, board, robot, nominal)
     right = s.camera.of("right").true_model() if s.camera.own_intrinsics else None
     static = static_cell(s, robot) if s.camera.setup == "eye-to-hand" else None
     return SimSetup(robot, nominal, actual, intr, T_lr, field_, board=board,
                     T_world_board=T_world_board, intrinsics_right=right,
                     static=static)  # fmt: skip
+
+
+def _board_pose(s: Scenario, board, robot: RobotDef, nominal: MCPCModel) -> np.ndarray:
+    """The board's pose (board -> world, m): ``[target] board_pose`` or on the table where the
+    home posture looks."""
+    bp = s.target.board_pose
+    if not bp:
+        return board_on_table(board, _field_center(robot, nominal))
+    rpy = np.radians(bp[3:]) if len(bp) == 6 else None
+    return board_pose(board, np.asarray(bp[:3]) / 1000.0, rpy)
+
+
+def _file_postures(s: Scenario, robot: RobotDef) -> np.ndarray:
+    """The postures (m, n) rad of ``[trajectory] joints`` (kind "file")."""
+    path = joints_path(s)
+    if not path.is_file():
+        raise ConfigError(f"{s.source}: trajectory.joints = {s.trajectory.joints!r}: no such file "
+                          f"{path}", fix="give a joints CSV relative to the scenario file")  # fmt: skip
+    return read_joints(path, robot, "deg", guess=False)
 
 
 def planning_inputs(s: Scenario) -> dict:
@@ -245,6 +267,8 @@ def plan_dataset(s: Scenario, setup: SimSetup | None = None) -> DatasetInfo:
     scale_ids = tuple(int(i) for i in setup.field.scale_ids) if setup is not None else SCALE_IDS
     if s.trajectory.kind == "optimal":
         q = plan_optimal(s).q
+    elif s.trajectory.kind == "file":
+        q = _file_postures(s, robot)
     else:
         q = plan_postures(
             robot,
@@ -326,6 +350,10 @@ def _digested(s: Scenario) -> dict:
         del d["noise"]["msaa"]
     if not s.target.board:
         del d["target"]["board"]
+    if not s.target.board_pose:
+        del d["target"]["board_pose"]
+    if not s.trajectory.joints:
+        del d["trajectory"]["joints"]
     if not s.camera.right:
         del d["camera"]["right"]
     if s.camera.skew_px == CameraConfig.skew_px:

@@ -21,6 +21,7 @@ from selfcal.cli.deploy import register as register_deploy
 from selfcal.cli.hw import register as register_hw
 from selfcal.cli.montecarlo import register as register_montecarlo
 from selfcal.cli.own_data import register as register_own_data
+from selfcal.cli.plan import register as register_plan
 from selfcal.cli.pose import POSE_HELP, add_pose_args, is_er, orientation_json, parse_pose_args
 from selfcal.cli.ros import export_run
 from selfcal.cli.tracker import add_tracker_args
@@ -324,9 +325,11 @@ scenario keys (TOML; every key has a default, units in the names):
                  distortion, free (its own lens, estimated on its own; scenarios/stereo-lenses.toml)
   [target]       markers = 20; scale_length_mm = 200.0; marker_size_mm = 30.0; seed = 1;
                  board = "TARGET.toml" (a printed board instead of the markers, path relative to
-                 the scenario: docs/scenarios.md; example scenarios/mono-charuco.toml)
+                 the scenario: docs/scenarios.md; example scenarios/mono-charuco.toml);
+                 board_pose = [x, y, z, rx, ry, rz] (mm, deg; default: where home looks)
   [perturbation] seed = 1; translation_mm = 1.0; rotation_deg = 0.5; [perturbation.table] name = value
-  [trajectory]   poses = 30; seed = 1; min_markers = 6; kind = "random" | "optimal"
+  [trajectory]   poses = 30; seed = 1; min_markers = 6; kind = "random" | "optimal" |
+                 "file" with joints = "joints.csv" (the postures of a file, e.g. `selfcal plan`'s)
   [noise]        render = true; image_sigma = 2.0 (0-255); pixel_sigma = 0.5 (px); seed = 1;
                  quantize_joints = true (encoder resolution of the simulated read-back);
                  msaa = 4 (anti-aliasing samples of the rendered images; 0: off, faster)
@@ -503,6 +506,7 @@ def build_parser() -> argparse.ArgumentParser:
         register_tracker,
         register_check,
         register_own_data,
+        register_plan,
         register_diagnose,
         register_shipped,
     ):

@@ -28,6 +28,7 @@ __all__ = [
     "default_scenario_path",
     "scenario_board",
     "board_path",
+    "joints_path",
     "scenario_to_dict",
     "DEFAULT_ROBOT",
 ]
@@ -73,6 +74,11 @@ class TargetConfig:
     table where the home posture looks, the planner keeps it in view, and the calibration is the
     board route (:mod:`selfcal.calibration.board.dataset`); ``[noise] render = false`` projects its features
     with the true cameras instead of rendering (the analytic path)."""
+    board_pose: list[float] = field(default_factory=list)
+    """Where the board is instead: ``[x, y, z]`` mm, or ``[x, y, z, rx, ry, rz]`` mm and deg, the
+    centre of its printed image in the robot's base frame and its rotation from lying printed
+    face up (fixed axes x, y, z: ``R = Rz Ry Rx``; :mod:`selfcal.target.placement`), as
+    ``selfcal plan --board-pose`` takes it. Empty: on the table where the home posture looks."""
 
 
 @dataclass(frozen=True)
@@ -92,7 +98,12 @@ class TrajectoryConfig:
     poses: int = 30
     seed: int = 1
     kind: str = "random"
-    """"random" (postures drawn in a window around home) or "optimal" (D-optimal selection)."""
+    """"random" (postures drawn in a window around home), "optimal" (D-optimal selection) or
+    "file" (the postures of ``joints``, e.g. a plan of ``selfcal plan``)."""
+    joints: str = ""
+    """With ``kind = "file"``: a joints CSV in ``selfcal import``'s format (header ``j1..jn``,
+    deg; mm for a prismatic joint), relative to the scenario file; its rows are the calibration
+    postures in order (``poses`` is not used)."""
     min_markers: int = 6
     """A pose is kept only if both cameras see at least this many of 36 points spread over the
     target region (nominal prediction), i.e. a good part of the marker field."""
@@ -162,6 +173,7 @@ RANGES: dict[str, Range] = {
     "target.marker_size_mm": Range(1.0, 1000.0, "mm", "printed marker side"),
     "target.extent_mm": Range(10.0, 10_000.0, "mm", "side of the marker region"),
     "target.seed": Range(0, 2**32 - 1, "", "random seed (numpy)"),
+    "target.board_pose": Range(-100_000.0, 100_000.0, "mm or deg", "board centre and rotation"),
     "perturbation.seed": Range(0, 2**32 - 1, "", "random seed (numpy)"),
     "perturbation.translation_mm": Range(0.0, 100.0, "mm", "injected length errors"),
     "perturbation.rotation_deg": Range(0.0, 30.0, "deg", "injected angle errors"),
@@ -333,9 +345,22 @@ def _validate(s: Scenario) -> None:
         raise ConfigError(
             f'{f}: robot.backend must be "sim" or "hardware", got {s.robot.backend!r}'
         )
-    if s.trajectory.kind not in ("random", "optimal"):
+    if s.trajectory.kind not in ("random", "optimal", "file"):
         raise ConfigError(
-            f'{f}: trajectory.kind must be "random" or "optimal", got {s.trajectory.kind!r}'
+            f'{f}: trajectory.kind must be "random", "optimal" or "file", got {s.trajectory.kind!r}'
+        )
+    if (s.trajectory.kind == "file") != bool(s.trajectory.joints):
+        raise ConfigError(
+            f"{f}: trajectory.joints names the postures' file exactly when trajectory.kind = "
+            '"file"',
+            fix='give both kind = "file" and joints = "joints.csv", or neither',
+        )
+    if len(s.target.board_pose) not in (0, 3, 6) or (s.target.board_pose and not s.target.board):
+        raise ConfigError(
+            f"{f}: target.board_pose must be [x, y, z] (mm) or [x, y, z, rx, ry, rz] (mm, deg) "
+            "of a board (target.board)",
+            fix="give 3 or 6 numbers and target.board, or leave board_pose out (the board lies "
+            "where the home posture looks)",
         )
     if len(s.camera.resolution) != 2 or min(s.camera.resolution) < 16:
         raise ConfigError(f"{f}: camera.resolution must be [width, height] in px, each >= 16")
@@ -390,6 +415,12 @@ def board_path(s: Scenario) -> Path | None:
     if not path.is_file():  # a shipped scenario's "../models/..." inside a wheel
         return shipped_model_file(Path(s.source), s.target.board) or path
     return path
+
+
+def joints_path(s: Scenario) -> Path:
+    """The joints file of ``[trajectory] joints`` (relative to the scenario file)."""
+    base = Path.cwd() if s.source == "<defaults>" else Path(s.source).parent
+    return (base / s.trajectory.joints).resolve()
 
 
 def scenario_board(s: Scenario):

@@ -1,0 +1,261 @@
+"""A recording plan for a user's arm, wrist camera and board: which postures to record so that the
+board calibration predicts the smallest tool-point error (``selfcal plan``, issue #30).
+
+Candidates: :func:`selfcal.calibration.board.plan_views.candidate_pool` (reachable, free of
+collision and keep-out boxes, the whole board well in view). Criterion: the Cramer-Rao bound of
+the board route (:func:`selfcal.calibration.board.bounds.board_cramer_rao`: the camera's free
+parameters and every minimal kinematic parameter of the chain in the board frame, the board
+known, the joints read exactly, Gaussian corner noise of ``pixel_sigma_px``) carried to the
+predicted RMS error of the tool point (the flange centre) over a sample of the workspace after
+the best rigid alignment, as the calibration reports it
+(:func:`selfcal.estimation.joint_report.aligned_tool_weight`). With the joints exact the
+parameters are all shared by the frames, so the Fisher information is the sum of each frame's
+(one Jacobian of :func:`selfcal.calibration.board.problem.board_problem` over the whole pool):
+the greedy choice adds, step by step, the candidate that lowers the predicted error most (from a
+slightly regularised start, so the first few frames count while the information is not yet of
+full rank). The chosen postures are then ordered for a short joint-space path from home
+(nearest neighbour, then 2-opt; distance: the largest joint move, which sets the travel time
+when the joints move together). The random plan of the same size (the pool's first postures: the
+same filters) is predicted by the same bound, for contrast. Units: SI inside.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from selfcal.calibration.board.plan_views import PlanSetup, candidate_pool
+from selfcal.calibration.board.problem import board_problem
+from selfcal.errors import InputError
+from selfcal.estimation.joint_report import aligned_tool_weight
+from selfcal.estimation.kinematic_poses import KinematicPoses
+from selfcal.kinematics.forward import fk_tool
+from selfcal.kinematics.keep_out import outside_boxes
+from selfcal.kinematics.mcpc import MCPCModel, minimal_indices
+from selfcal.transforms import inv_pose
+
+__all__ = [
+    "RecordingPlan",
+    "board_model",
+    "frame_information",
+    "workspace_sample",
+    "predicted_error",
+    "select_greedy",
+    "order_path",
+    "path_length",
+    "plan_recording",
+]
+
+REG = 1e-6
+"""The greedy start's information: this times the identity in parameters scaled to unit mean
+information per candidate (it only matters while fewer frames than parameters are chosen)."""
+
+
+@dataclass(frozen=True, eq=False)
+class RecordingPlan:
+    """``q`` (N, n) rad the planned postures in path order; ``predicted_m`` their predicted
+    tool-point RMS error (m) over the ``workspace`` postures (w, n) rad; ``q_random`` a random
+    plan of the same size from the same candidates and ``random_m`` its prediction;
+    ``candidates`` the pool's size and ``drawn_from`` where it was drawn; the noise level and
+    the joint path lengths (rad, the sum of the largest joint move of every step from home) of
+    the plan in its order and of the random plan in its own."""
+
+    q: np.ndarray
+    predicted_m: float
+    q_random: np.ndarray
+    random_m: float
+    workspace: np.ndarray
+    candidates: int
+    drawn_from: str
+    pixel_sigma_px: float
+    path_rad: float
+    random_path_rad: float
+
+
+def board_model(setup: PlanSetup) -> MCPCModel:
+    """The nominal chain board frame -> camera (world = the board, tool = the camera)."""
+    return setup.model_cam.with_base(inv_pose(setup.T_base_board))
+
+
+def frame_information(setup: PlanSetup, q: np.ndarray, pixel_sigma_px: float) -> np.ndarray:
+    """(m, p, p) the Fisher information of each posture ``q`` (m, n) rad about ``[camera's free
+    parameters, minimal kinematic parameters]`` (px, rad, m; the order of
+    :func:`selfcal.calibration.board.bounds.board_cramer_rao`): every board feature seen by the
+    nominal camera, noise ``pixel_sigma_px`` px per coordinate."""
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    m = len(q)
+    model = board_model(setup)
+    ids, pts = setup.board.layout()
+    T_cb = inv_pose(fk_tool(model, q))  # board (world) -> camera
+    Xc = np.einsum("mij,kj->mki", T_cb[:, :3, :3], pts) + T_cb[:, None, :3, 3]
+    uv = setup.camera.project(Xc)  # (m, k, 2)
+    idx = minimal_indices(model.joint_types)
+    poses = KinematicPoses(model, q, idx, np.zeros((0, 4, 4)), np.ones(m, bool))
+    frame = np.repeat(np.arange(m), len(ids))
+    rows = [(poses.layout.view(frame, 0), np.tile(ids, m), uv.reshape(-1, 2))]
+    prob = board_problem([setup.camera], poses, rows, setup.board,
+                         pixel_sigma_px=pixel_sigma_px, joint_sigma=None, n_frames=m)  # fmt: skip
+    P = prob.problem
+    cols = np.concatenate([P.columns("intrinsics"), P.columns("poses")[: poses.n_kin]])
+    J = P.jacobian(P.x0)[:, cols].toarray()
+    views = poses.layout.view(np.arange(m), 0)
+    of_view = np.empty(int(views.max()) + 1, np.int64)
+    of_view[views] = np.arange(m)
+    row_frame = np.repeat(of_view[prob.block.view], 2)
+    if len(row_frame) != len(J):
+        raise InputError("the board problem's residuals do not match the frames' features")
+    order = np.argsort(row_frame, kind="stable")
+    Jf = J[order].reshape(m, -1, J.shape[1])
+    return np.einsum("mri,mrj->mij", Jf, Jf) / pixel_sigma_px**2
+
+
+def workspace_sample(setup: PlanSetup, n: int, *, seed: int) -> np.ndarray:
+    """(n, dof) rad: random postures of the planning window around home, free of self-collision
+    and keep-out boxes (the board need not be in view): where the predicted error is averaged."""
+    r = setup.robot
+    rng = np.random.default_rng(seed)
+    lo = np.maximum(r.limits[:, 0], r.home - r.planning_span)
+    hi = np.minimum(r.limits[:, 1], r.home + r.planning_span)
+    out: list[np.ndarray] = []
+    for _ in range(50):
+        q = rng.uniform(lo, hi, size=(max(4 * n, 256), r.n))
+        ok = setup.chain.ok(q)
+        ok[ok] = outside_boxes(setup.chain, q[ok], setup.boxes)
+        out.append(q[ok])
+        if sum(map(len, out)) >= n:
+            break
+    w = np.concatenate(out)[:n]
+    if len(w) < n:
+        raise InputError(
+            f"only {len(w)} of {n} postures of the planning window around home are free of "
+            "collision and of the keep-out boxes",
+            fix="check the keep-out boxes against the robot's home posture and [planning] span_deg",
+        )
+    return w
+
+
+def predicted_error(F: np.ndarray, G: np.ndarray, n_cam: int) -> float:
+    """The predicted RMS tool-point error (m): ``sqrt(trace(G C))``, ``C`` the kinematic block
+    of ``F^-1`` (``F`` (p, p) the information, the first ``n_cam`` parameters the camera's);
+    infinite when ``F`` is singular."""
+    try:
+        C = np.linalg.inv(F)
+    except np.linalg.LinAlgError:
+        return float("inf")
+    if not np.all(np.isfinite(C)) or np.linalg.cond(F) > 1e14:
+        return float("inf")
+    return float(np.sqrt(max(np.trace(G @ C[n_cam:, n_cam:]), 0.0)))
+
+
+def select_greedy(F: np.ndarray, G: np.ndarray, n_cam: int, count: int) -> np.ndarray:
+    """Indices (count,) into the candidates' informations ``F`` (m, p, p), chosen one by one to
+    lower ``trace(W (F_0 + sum F_i)^-1)`` most, ``W`` = ``G`` (k, k) on the kinematic block
+    (module docstring)."""
+    m, p, _ = F.shape
+    if count > m:
+        raise InputError(f"cannot choose {count} postures from {m} candidates",
+                         fix="lower --count or widen the candidate pool (--candidates)")  # fmt: skip
+    d = np.sqrt(np.maximum(np.einsum("mii->i", F) / m, 1e-300))
+    Fs = F / np.outer(d, d)
+    W = np.zeros((p, p))
+    W[n_cam:, n_cam:] = G
+    Ws = W / np.outer(d, d)
+    total = REG * np.eye(p)
+    free = np.ones(m, bool)
+    chosen: list[int] = []
+    for _ in range(count):
+        trial = np.linalg.inv(total + Fs)
+        cost = np.einsum("ij,mji->m", Ws, trial)
+        cost[~free] = np.inf
+        b = int(np.argmin(cost))
+        chosen.append(b)
+        free[b] = False
+        total = total + Fs[b]
+    return np.asarray(chosen)
+
+
+def _step(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.max(np.abs(a - b), axis=-1)
+
+
+def path_length(q: np.ndarray, start: np.ndarray) -> float:
+    """The joint path from ``start`` through ``q`` (m, n) in order: the sum of every step's
+    largest joint move (rad)."""
+    pts = np.concatenate([np.asarray(start, dtype=float)[None], np.asarray(q, dtype=float)])
+    return float(_step(pts[1:], pts[:-1]).sum())
+
+
+def order_path(q: np.ndarray, start: np.ndarray) -> np.ndarray:
+    """An order (m,) of postures ``q`` (m, n) for a short path from ``start`` (n,): nearest
+    neighbour, then 2-opt (reversing a stretch while that shortens the open path)."""
+    q = np.asarray(q, dtype=float)
+    m = len(q)
+    pts = np.concatenate([np.asarray(start, dtype=float)[None], q])
+    D = _step(pts[:, None], pts[None])
+    tour, left = [0], set(range(1, m + 1))
+    while left:
+        nxt = min(left, key=lambda j: D[tour[-1], j])
+        tour.append(nxt)
+        left.remove(nxt)
+    improved = True
+    while improved:
+        improved = False
+        for i in range(1, m):
+            for j in range(i + 1, m + 1):
+                a, b = tour[i - 1], tour[i]
+                c = tour[j]
+                e = tour[j + 1] if j < m else None
+                old = D[a, b] + (D[c, e] if e is not None else 0.0)
+                new = D[a, c] + (D[b, e] if e is not None else 0.0)
+                if new < old - 1e-12:
+                    tour[i : j + 1] = tour[i : j + 1][::-1]
+                    improved = True
+    return np.asarray(tour[1:]) - 1
+
+
+def plan_recording(
+    setup: PlanSetup,
+    count: int,
+    *,
+    seed: int = 1,
+    candidates: int = 400,
+    workspace: int = 50,
+    pixel_sigma_px: float = 0.5,
+) -> RecordingPlan:
+    """``count`` postures for ``setup`` (module docstring), deterministic for a ``seed``:
+    chosen from ``candidates`` random candidate postures, the error predicted over
+    ``workspace`` random workspace postures with corner noise ``pixel_sigma_px`` px.
+
+    Raises:
+        InputError: fewer candidates than ``count``, or no posture sees the board.
+    """
+    pool, where = candidate_pool(setup, max(candidates, count), seed=seed)
+    if len(pool) < count:
+        raise InputError(
+            f"only {len(pool)} postures of {setup.robot.name} see the whole board without "
+            f"collision; {count} asked",
+            fix="lower --count, move the board (--board-pose) nearer to where the arm works, "
+            "or remove keep-out boxes",
+        )
+    qw = workspace_sample(setup, workspace, seed=seed + 1)
+    G = aligned_tool_weight(board_model(setup), qw, inv_pose(setup.robot.T_flange_cam))
+    F = frame_information(setup, pool, pixel_sigma_px)
+    n_cam = setup.camera.n_free
+    chosen = select_greedy(F, G, n_cam, count)
+    q = pool[chosen]
+    q = q[order_path(q, setup.robot.home)]
+    rand = pool[:count]
+    rand_order = order_path(rand, setup.robot.home)
+    return RecordingPlan(
+        q=q,
+        predicted_m=predicted_error(F[chosen].sum(axis=0), G, n_cam),
+        q_random=rand,
+        random_m=predicted_error(F[:count].sum(axis=0), G, n_cam),
+        workspace=qw,
+        candidates=len(pool),
+        drawn_from=where,
+        pixel_sigma_px=float(pixel_sigma_px),
+        path_rad=path_length(q, setup.robot.home),
+        random_path_rad=path_length(rand[rand_order], setup.robot.home),
+    )

@@ -1,0 +1,205 @@
+"""``selfcal plan``: the postures to record for your own arm, wrist camera and board (issue #30):
+the command of :mod:`selfcal.calibration.board.plan`, writing PLAN/joints.csv, trajectory.yaml,
+scenario.toml (with target.toml beside it) and plan.json."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+
+from selfcal.console.common import CliError, add_json, note_written, parse_floats, writing
+
+__all__ = ["register", "scenario_text"]
+
+EPILOG = """\
+The camera sits on the flange where the robot file's [camera_mount] puts it (eye-in-hand).
+--board-pose X,Y,Z[,RX,RY,RZ]: the centre of the printed board in the robot's base frame (mm) and
+its rotation from lying printed face up with its columns along the base's x axis (deg, fixed axes
+x, y, z: R = Rz Ry Rx); without the rotation the board lies face up.
+--keep-out XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX (mm, base frame; repeat for more boxes): no part of the
+arm or the camera enters the box. The table the robot stands on (z = 0) is always kept out.
+The plan's postures see the whole board inside the image, the board's normal within 60 deg of the
+optical axis, a feature pitch of at least 12 px; they are chosen from --candidates random ones to
+minimise the board calibration's predicted (Cramer-Rao) tool-point error over the workspace, and
+ordered for a short joint path from home. plan.json holds the prediction and that of a random plan
+of the same size from the same candidates. See docs/plan.md.
+"""
+
+
+def _parse_size(text: str) -> tuple[int, int]:
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise CliError(
+            f"--resolution {text!r}: expected WIDTHxHEIGHT in px, e.g. 1280x720"
+        ) from None
+    return w, h
+
+
+def scenario_text(robot_ref: str, camera, board_pose: np.ndarray, count: int) -> str:
+    """The scenario TOML that replays the plan in simulation (``selfcal run``): the robot, the
+    plan's nominal camera as the true one, the board of ``target.toml`` at ``board_pose`` (6,) mm
+    and deg, the postures of ``joints.csv``, analytic corners."""
+    v = dict(zip(camera.names, camera.values().tolist()))
+    W, H = camera.width, camera.height
+    lens = {n: v[n] for n in camera.names[5:] if v[n] != 0.0}
+    dist = ", ".join(f"{k} = {x!r}" for k, x in lens.items())
+    free = ", ".join(f'"{n}"' for n in camera.free)
+    pose = ", ".join(f"{x:.6g}" for x in board_pose)
+    return f"""# Written by `selfcal plan`: the plan replayed in simulation, `selfcal run scenario.toml`.
+# The camera below is the plan's nominal camera, simulated as the true one; the robot's errors
+# are the default simulated ones ([perturbation]).
+[robot]
+model = {json.dumps(robot_ref)}
+
+[camera]
+count = 1
+resolution = [{W}, {H}]
+model = "{camera.model_name}"
+fx = {v["fx"]!r}
+mu = {v["mu"]!r}
+principal_point_offset_px = [{v["cx"] - (W - 1) / 2:.6g}, {v["cy"] - (H - 1) / 2:.6g}]
+skew_px = {v["skew"]!r}
+distortion = {{ {dist} }}
+free = [{free}]
+
+[target]
+board = "target.toml"
+board_pose = [{pose}]  # mm, deg: the printed board's centre in the base frame, its rotation
+
+[trajectory]
+kind = "file"
+joints = "joints.csv"
+poses = {count}
+
+[noise]
+render = false  # analytic corners; true renders the MuJoCo scene
+"""
+
+
+def _cmd(args: argparse.Namespace) -> int:
+    from selfcal.acquisition.backends import robot_reference
+    from selfcal.calibration.board.plan import plan_recording
+    from selfcal.calibration.board.plan_views import PlanSetup
+    from selfcal.config.scenario import load_scenario
+    from selfcal.io.atomic import write_text_atomic
+    from selfcal.io.camera_file import camera_from_fov, read_camera_file
+    from selfcal.io.jsonfile import write_json_atomic
+    from selfcal.io.plan_files import joints_csv, trajectory_yaml
+    from selfcal.io.target_toml import load_target
+    from selfcal.kinematics.keep_out import check_boxes
+    from selfcal.robot.definition import load_robot
+    from selfcal.target.boards import Board
+    from selfcal.target.placement import board_pose
+
+    if args.mount != "eye-in-hand":
+        raise CliError("--mount eye-to-hand is not planned yet; only eye-in-hand")
+    robot = load_robot(args.robot)
+    if args.camera:
+        camera = read_camera_file(args.camera)
+    elif args.fov_deg is not None and args.resolution:
+        camera = camera_from_fov(args.fov_deg, *_parse_size(args.resolution))
+    else:
+        raise CliError("give --camera CAMERA.yaml, or --fov-deg DEG and --resolution WxH")
+    board = load_target(args.target)
+    if not isinstance(board, Board):
+        raise CliError(f"--target {args.target}: the plan needs a board (chessboard, charuco, "
+                       "circles, aprilgrid), not a marker field")  # fmt: skip
+    bp = parse_floats(args.board_pose, None, "--board-pose (mm, deg)")
+    if len(bp) not in (3, 6):
+        raise CliError("--board-pose: give X,Y,Z (mm) or X,Y,Z,RX,RY,RZ (mm, deg)")
+    bp = np.concatenate([bp, np.zeros(6 - len(bp))])
+    boxes = check_boxes(
+        np.array([parse_floats(b, 6, "--keep-out (mm)") for b in args.keep_out]).reshape(-1, 6)
+        / 1000.0
+    )
+    if args.count < 3:
+        raise CliError(f"--count {args.count}: a plan needs at least 3 postures")
+    setup = PlanSetup(robot, camera, board, board_pose(board, bp[:3] / 1000, np.radians(bp[3:])),
+                      boxes)  # fmt: skip
+    plan = plan_recording(setup, args.count, seed=args.seed, candidates=args.candidates,
+                          pixel_sigma_px=args.pixel_sigma)  # fmt: skip
+    out = Path(args.out)
+    with writing(args, out):
+        write_text_atomic(out / "joints.csv", joints_csv(plan.q, robot.edge_unit))
+        speed = np.radians(args.speed_deg_s)
+        write_text_atomic(out / "trajectory.yaml", trajectory_yaml(
+            robot.joint_names, plan.q, robot.home, speed=speed, dwell_s=args.dwell_s))  # fmt: skip
+        shutil.copyfile(args.target, out / "target.toml")
+        ref = robot_reference(args.robot)
+        write_text_atomic(out / "scenario.toml", scenario_text(ref, camera, bp, len(plan.q)))
+        load_scenario(out / "scenario.toml")  # what we wrote reads back
+        doc = {
+            "format": "scorbot-selfcal-plan",
+            "schema_version": 1,
+            "robot": ref,
+            "count": len(plan.q),
+            "predicted_tool_rms_mm": round(plan.predicted_m * 1000, 4),
+            "random_tool_rms_mm": round(plan.random_m * 1000, 4),
+            "criterion": "board route Cramer-Rao bound: RMS of the flange centre over "
+            f"{len(plan.workspace)} random workspace postures after the best rigid alignment, "
+            f"corner noise {plan.pixel_sigma_px:g} px, joints read exactly",
+            "candidates": plan.candidates,
+            "candidates_from": plan.drawn_from,
+            "path_deg": round(float(np.degrees(plan.path_rad)), 3),
+            "random_path_deg": round(float(np.degrees(plan.random_path_rad)), 3),
+            "seed": args.seed,
+            "board_pose_mm_deg": bp.tolist(),
+            "keep_out_mm": (boxes * 1000).tolist(),
+            "joints_deg": np.round(plan.q / robot.edge_unit, 6).tolist(),
+            "random_joints_deg": np.round(plan.q_random / robot.edge_unit, 6).tolist(),
+        }
+        write_json_atomic(out / "plan.json", doc)
+    note_written(args, out)
+    line = (f"plan of {len(plan.q)} postures: predicted tool-point error "
+            f"{plan.predicted_m * 1000:.3f} mm RMS (a random plan of {len(plan.q)}: "
+            f"{plan.random_m * 1000:.3f} mm); joint path {np.degrees(plan.path_rad):.0f} deg")  # fmt: skip
+    print(json.dumps(doc) if args.json else line)
+    return 0
+
+
+def register(subparsers) -> argparse.ArgumentParser:
+    """Add ``selfcal plan``."""
+    sp = subparsers.add_parser(
+        "plan",
+        help="plan the postures to record for your own arm, camera and board",
+        description="Plan the postures to record for your own arm, wrist camera and board: "
+        "writes PLAN/joints.csv (selfcal import's format, deg), trajectory.yaml (a ROS "
+        "trajectory_msgs/JointTrajectory), scenario.toml (selfcal run replays the plan in "
+        "simulation) and plan.json (the predicted tool-point error against a random plan).",
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    sp.add_argument("--robot", required=True, help="robot model name, robot TOML or URDF file")
+    sp.add_argument("--target", required=True, metavar="TARGET.toml",
+                    help="the board's target TOML (docs/targets.md)")  # fmt: skip
+    sp.add_argument("--camera", default=None, metavar="CAMERA.yaml",
+                    help="the camera: OpenCV or ROS camera_info YAML")  # fmt: skip
+    sp.add_argument("--fov-deg", type=float, default=None, metavar="DEG",
+                    help="instead of --camera: the horizontal field of view (deg)")  # fmt: skip
+    sp.add_argument("--resolution", default=None, metavar="WxH",
+                    help="with --fov-deg: the image size in px, e.g. 1280x720")  # fmt: skip
+    sp.add_argument("--mount", default="eye-in-hand", choices=["eye-in-hand"],
+                    help="where the camera is (default eye-in-hand: on the flange)")  # fmt: skip
+    sp.add_argument("--board-pose", required=True, metavar="X,Y,Z[,RX,RY,RZ]",
+                    help="the board in the base frame: centre (mm), rotation (deg); see below")  # fmt: skip
+    sp.add_argument("--count", type=int, default=12, help="postures to plan (default 12)")
+    sp.add_argument("--keep-out", action="append", default=[], metavar="BOX",
+                    help="XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX (mm, base frame); repeatable")  # fmt: skip
+    sp.add_argument("--out", required=True, metavar="PLAN", help="output folder")
+    sp.add_argument("--seed", type=int, default=1, help="seed of the candidates (default 1)")
+    sp.add_argument("--candidates", type=int, default=400,
+                    help="random candidate postures to choose from (default 400)")  # fmt: skip
+    sp.add_argument("--pixel-sigma", type=float, default=0.5,
+                    help="corner noise the prediction assumes, px (default 0.5)")  # fmt: skip
+    sp.add_argument("--speed-deg-s", type=float, default=10.0,
+                    help="trajectory.yaml: the fastest joint's speed, deg/s (default 10)")  # fmt: skip
+    sp.add_argument("--dwell-s", type=float, default=2.0,
+                    help="trajectory.yaml: rest at each posture, s (default 2)")  # fmt: skip
+    add_json(sp)
+    sp.set_defaults(func=_cmd)
+    return sp
