@@ -86,6 +86,7 @@ def _cmd(args: argparse.Namespace) -> int:
     from selfcal.calibration.board.plan import plan_recording
     from selfcal.calibration.board.plan_views import PlanSetup
     from selfcal.config.scenario import load_scenario
+    from selfcal.estimation.joint_report import encoder_sigma
     from selfcal.io.atomic import write_text_atomic
     from selfcal.io.camera_file import camera_from_fov, read_camera_file
     from selfcal.io.jsonfile import write_json_atomic
@@ -121,8 +122,10 @@ def _cmd(args: argparse.Namespace) -> int:
         raise CliError(f"--count {args.count}: a plan needs at least 3 postures")
     setup = PlanSetup(robot, camera, board, board_pose(board, bp[:3] / 1000, np.radians(bp[3:])),
                       boxes)  # fmt: skip
+    js = encoder_sigma(robot)  # the board calibration's default read-back noise
     plan = plan_recording(setup, args.count, seed=args.seed, candidates=args.candidates,
-                          pixel_sigma_px=args.pixel_sigma)  # fmt: skip
+                          pixel_sigma_px=args.pixel_sigma, joint_sigma=js)  # fmt: skip
+
     out = Path(args.out)
     with writing(args, out):
         write_text_atomic(out / "joints.csv", joints_csv(plan.q, robot.edge_unit))
@@ -142,7 +145,14 @@ def _cmd(args: argparse.Namespace) -> int:
             "random_tool_rms_mm": round(plan.random_m * 1000, 4),
             "criterion": "board route Cramer-Rao bound: RMS of the flange centre over "
             f"{len(plan.workspace)} random workspace postures after the best rigid alignment, "
-            f"corner noise {plan.pixel_sigma_px:g} px, joints read exactly",
+            f"corner noise {plan.pixel_sigma_px:g} px, "
+            + (
+                "joints read exactly"
+                if js is None
+                else "joint read-back noise of the robot "
+                "file's encoder resolution (1 count / sqrt(12)), each frame's corrections "
+                "estimated"
+            ),
             "candidates": plan.candidates,
             "candidates_from": plan.drawn_from,
             "path_deg": round(float(np.degrees(plan.path_rad)), 3),

@@ -130,3 +130,20 @@ def test_camera_file_reads_what_export_writes(tmp_path, fmt):
     assert (back.width, back.height) == (1280, 720)
     assert np.allclose(back.values(), cam.values(), rtol=1e-9, atol=1e-12)
     assert "k1" in back.free
+
+
+def test_prediction_with_joint_noise_is_the_board_route_bound(setup, plan):
+    from selfcal.calibration.board.plan import frame_information, predicted_error
+    from selfcal.estimation.joint_report import aligned_tool_weight
+
+    js = np.full(6, np.radians(0.02))
+    model = board_model(setup)
+    ids, pts = setup.board.layout()
+    feats = [Features(ids, project(setup.camera, T, pts)) for T in inv_pose(fk_tool(model, plan.q))]
+    cr = board_cramer_rao(setup.board, [setup.camera], model, plan.q, [feats], 0.5, joint_sigma=js)
+    T_cam_tip = inv_pose(setup.robot.T_flange_cam)
+    F = frame_information(setup, plan.q, 0.5, js).sum(axis=0)
+    G = aligned_tool_weight(model, plan.workspace, T_cam_tip)
+    got = predicted_error(F, G, setup.camera.n_free)
+    assert got == pytest.approx(cr.aligned_tool_rms(plan.workspace, T_cam_tip), rel=1e-6)
+    assert got > plan.predicted_m  # noisy joints: a larger error than with exact ones

@@ -5,12 +5,14 @@ Candidates: :func:`selfcal.calibration.board.plan_views.candidate_pool` (reachab
 collision and keep-out boxes, the whole board well in view). Criterion: the Cramer-Rao bound of
 the board route (:func:`selfcal.calibration.board.bounds.board_cramer_rao`: the camera's free
 parameters and every minimal kinematic parameter of the chain in the board frame, the board
-known, the joints read exactly, Gaussian corner noise of ``pixel_sigma_px``) carried to the
-predicted RMS error of the tool point (the flange centre) over a sample of the workspace after
-the best rigid alignment, as the calibration reports it
-(:func:`selfcal.estimation.joint_report.aligned_tool_weight`). With the joints exact the
-parameters are all shared by the frames, so the Fisher information is the sum of each frame's
-(one Jacobian of :func:`selfcal.calibration.board.problem.board_problem` over the whole pool):
+known, Gaussian corner noise of ``pixel_sigma_px`` and, optionally, joint read-back noise
+whose per-frame corrections are estimated under their prior) carried to the predicted RMS error
+of the tool point (the flange centre) over a sample of the workspace after the best rigid
+alignment, as the calibration reports it
+(:func:`selfcal.estimation.joint_report.aligned_tool_weight`). Every other parameter is shared
+by the frames and a frame's own joint corrections are eliminated frame by frame, so the Fisher
+information is the sum of each frame's (one Jacobian of
+:func:`selfcal.calibration.board.problem.board_problem` over the whole pool):
 the greedy choice adds, step by step, the candidate that lowers the predicted error most (from a
 slightly regularised start, so the first few frames count while the information is not yet of
 full rank). The chosen postures are then ordered for a short joint-space path from home
@@ -69,6 +71,7 @@ class RecordingPlan:
     candidates: int
     drawn_from: str
     pixel_sigma_px: float
+    joint_sigma: np.ndarray | None
     path_rad: float
     random_path_rad: float
 
@@ -78,11 +81,19 @@ def board_model(setup: PlanSetup) -> MCPCModel:
     return setup.model_cam.with_base(inv_pose(setup.T_base_board))
 
 
-def frame_information(setup: PlanSetup, q: np.ndarray, pixel_sigma_px: float) -> np.ndarray:
+def frame_information(
+    setup: PlanSetup,
+    q: np.ndarray,
+    pixel_sigma_px: float,
+    joint_sigma: np.ndarray | None = None,
+) -> np.ndarray:
     """(m, p, p) the Fisher information of each posture ``q`` (m, n) rad about ``[camera's free
     parameters, minimal kinematic parameters]`` (px, rad, m; the order of
     :func:`selfcal.calibration.board.bounds.board_cramer_rao`): every board feature seen by the
-    nominal camera, noise ``pixel_sigma_px`` px per coordinate."""
+    nominal camera, noise ``pixel_sigma_px`` px per coordinate; with ``joint_sigma`` (n,) rad
+    (m for a prismatic joint) each frame's joint read-back errors are estimated under their
+    Gaussian prior and eliminated (the Schur complement of the frame's own corrections), as the
+    board route does."""
     q = np.atleast_2d(np.asarray(q, dtype=float))
     m = len(q)
     model = board_model(setup)
@@ -91,23 +102,34 @@ def frame_information(setup: PlanSetup, q: np.ndarray, pixel_sigma_px: float) ->
     Xc = np.einsum("mij,kj->mki", T_cb[:, :3, :3], pts) + T_cb[:, None, :3, 3]
     uv = setup.camera.project(Xc)  # (m, k, 2)
     idx = minimal_indices(model.joint_types)
-    poses = KinematicPoses(model, q, idx, np.zeros((0, 4, 4)), np.ones(m, bool))
+    poses = KinematicPoses(model, q, idx, np.zeros((0, 4, 4)), np.ones(m, bool),
+                           joint_corrections=joint_sigma is not None)  # fmt: skip
     frame = np.repeat(np.arange(m), len(ids))
     rows = [(poses.layout.view(frame, 0), np.tile(ids, m), uv.reshape(-1, 2))]
-    prob = board_problem([setup.camera], poses, rows, setup.board,
-                         pixel_sigma_px=pixel_sigma_px, joint_sigma=None, n_frames=m)  # fmt: skip
+    prob = board_problem([setup.camera], poses, rows, setup.board, pixel_sigma_px=pixel_sigma_px,
+                         joint_sigma=joint_sigma, n_frames=m)  # fmt: skip
     P = prob.problem
-    cols = np.concatenate([P.columns("intrinsics"), P.columns("poses")[: poses.n_kin]])
-    J = P.jacobian(P.x0)[:, cols].toarray()
+    pose_cols = P.columns("poses")
+    cols = np.concatenate([P.columns("intrinsics"), pose_cols[: poses.n_kin]])
+    J = P.jacobian(P.x0)[: 2 * len(frame)]  # the reprojection rows (the prior's follow)
     views = poses.layout.view(np.arange(m), 0)
     of_view = np.empty(int(views.max()) + 1, np.int64)
     of_view[views] = np.arange(m)
     row_frame = np.repeat(of_view[prob.block.view], 2)
-    if len(row_frame) != len(J):
+    if len(row_frame) != J.shape[0]:
         raise InputError("the board problem's residuals do not match the frames' features")
     order = np.argsort(row_frame, kind="stable")
-    Jf = J[order].reshape(m, -1, J.shape[1])
-    return np.einsum("mri,mrj->mij", Jf, Jf) / pixel_sigma_px**2
+    Jg = J[:, cols].toarray()[order].reshape(m, -1, len(cols))
+    F = np.einsum("mri,mrj->mij", Jg, Jg)
+    if joint_sigma is not None:  # eliminate each frame's joint corrections
+        dq = pose_cols[np.asarray(poses.dq_cols)].reshape(m, -1)
+        Jl = np.stack([J[order[k * Jg.shape[1] : (k + 1) * Jg.shape[1]]][:, dq[k]].toarray()
+                       for k in range(m)])  # fmt: skip
+        js = np.broadcast_to(np.asarray(joint_sigma, dtype=float), (dq.shape[1],))
+        D = np.einsum("mri,mrj->mij", Jl, Jl) + np.diag((pixel_sigma_px / js) ** 2)
+        B = np.einsum("mri,mrj->mij", Jg, Jl)
+        F = F - B @ np.linalg.solve(D, np.swapaxes(B, 1, 2))
+    return F / pixel_sigma_px**2
 
 
 def workspace_sample(setup: PlanSetup, n: int, *, seed: int) -> np.ndarray:
@@ -222,10 +244,12 @@ def plan_recording(
     candidates: int = 400,
     workspace: int = 50,
     pixel_sigma_px: float = 0.5,
+    joint_sigma: np.ndarray | None = None,
 ) -> RecordingPlan:
     """``count`` postures for ``setup`` (module docstring), deterministic for a ``seed``:
     chosen from ``candidates`` random candidate postures, the error predicted over
-    ``workspace`` random workspace postures with corner noise ``pixel_sigma_px`` px.
+    ``workspace`` random workspace postures with corner noise ``pixel_sigma_px`` px and joint
+    read-back noise ``joint_sigma`` (n,) rad (None: exact; :func:`frame_information`).
 
     Raises:
         InputError: fewer candidates than ``count``, or no posture sees the board.
@@ -240,7 +264,7 @@ def plan_recording(
         )
     qw = workspace_sample(setup, workspace, seed=seed + 1)
     G = aligned_tool_weight(board_model(setup), qw, inv_pose(setup.robot.T_flange_cam))
-    F = frame_information(setup, pool, pixel_sigma_px)
+    F = frame_information(setup, pool, pixel_sigma_px, joint_sigma)
     n_cam = setup.camera.n_free
     chosen = select_greedy(F, G, n_cam, count)
     q = pool[chosen]
@@ -256,6 +280,7 @@ def plan_recording(
         candidates=len(pool),
         drawn_from=where,
         pixel_sigma_px=float(pixel_sigma_px),
+        joint_sigma=None if joint_sigma is None else np.asarray(joint_sigma, dtype=float),
         path_rad=path_length(q, setup.robot.home),
         random_path_rad=path_length(rand[rand_order], setup.robot.home),
     )
