@@ -208,12 +208,21 @@ def planning_inputs(s: Scenario) -> dict:
         [[cx + a, cy + b, 0.0] for a in np.linspace(-half_x, half_x, 6)
          for b in np.linspace(-half_y, half_y, 6)]
     )  # fmt: skip
+    normals = np.tile([0.0, 0.0, 1.0], (len(pts), 1))
+    if board is not None and s.target.board_pose:  # the grid over the board where it is
+        _, pts_b = board.layout()
+        lo, hi = pts_b[:, :2].min(axis=0), pts_b[:, :2].max(axis=0)
+        grid = np.array([[a, b, 0.0] for a in np.linspace(lo[0], hi[0], 6)
+                         for b in np.linspace(lo[1], hi[1], 6)])  # fmt: skip
+        T = _board_pose(s, board, robot, nominal)
+        pts = grid @ T[:3, :3].T + T[:3, 3]
+        normals = np.tile(-T[:3, 2], (len(pts), 1))
     return {
         "robot": robot,
         "model_cam": nominal,
         "rig": _planning_rig(s),
         "points_world": pts,
-        "normals_world": np.tile([0.0, 0.0, 1.0], (len(pts), 1)),
+        "normals_world": normals,
         "min_visible": s.trajectory.min_markers,
         "collision_ok": CapsuleChain(nominal_mcpc(robot), robot.T_flange_cam).ok,
     }
