@@ -1,6 +1,6 @@
 """Benchmark: false alarms and power of ``selfcal check`` (tracker drift check, issue #29).
 
-Per robot and noise level: ``--calibrations`` simulated calibrations (:mod:`selfcal.benchmarks.tracker_sim`,
+Per robot and noise level: ``--calibrations`` simulated calibrations (:mod:`selfcal.benchmarks.tracker.sim`,
 30 positions uniform in the joint ranges, the stated noise the true one), each checked
 ``--checks`` times with 5 new rows at random postures: unchanged, the tool point moved by 0.2 mm
 (a random direction on the flange) and one joint (drawn at random) offset by 0.05 deg. Reported:
@@ -20,7 +20,7 @@ import warnings
 import numpy as np
 
 from selfcal.benchmarks.doc_blocks import ROOT, print_table
-from selfcal.benchmarks.tracker_sim import make_case
+from selfcal.benchmarks.tracker.sim import make_case
 from selfcal.calibration.identify import IdentificationWarning
 from selfcal.calibration.tracker.accuracy import tracker_accuracy
 from selfcal.calibration.tracker.drift import drift_check

@@ -169,7 +169,7 @@ def pybotics_ratio(n: int, repeats_ours: int = 10, repeats_pybotics: int = 3) ->
     """The tracker identification at ``n`` configurations, the project against pybotics (in its
     own environment): one row of :func:`selfcal.benchmarks.tracker.run` and its note (the
     pybotics version, or why it did not run)."""
-    from selfcal.benchmarks.tracker import run as tracker_run
+    from selfcal.benchmarks.tracker.compare import run as tracker_run
 
     rows, note = tracker_run(
         sizes=(n,), repeats_ours=repeats_ours, repeats_pybotics=repeats_pybotics

@@ -1,6 +1,6 @@
 """Benchmark: does the predicted tool-point accuracy of a tracker calibration hold? (issue #29)
 
-Monte Carlo on simulated analytic data (:mod:`selfcal.benchmarks.tracker_sim`): per robot, noise
+Monte Carlo on simulated analytic data (:mod:`selfcal.benchmarks.tracker.sim`): per robot, noise
 level and model, ``--draws`` draws, each a new true chain (every minimal parameter moved within
 +-1 mm / +-0.2 deg, a tool point and a tracker frame), 30 training positions uniform in the
 central 70 % of each joint's range (within +-170 deg) with Gaussian noise, the calibration
@@ -32,7 +32,7 @@ import warnings
 import numpy as np
 
 from selfcal.benchmarks.doc_blocks import ROOT, print_table
-from selfcal.benchmarks.tracker_sim import make_case
+from selfcal.benchmarks.tracker.sim import make_case
 from selfcal.calibration.identify import IdentificationWarning
 from selfcal.calibration.tracker.accuracy import tracker_accuracy
 from selfcal.calibration.tracker.identify import identify_tracker

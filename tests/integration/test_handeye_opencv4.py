@@ -1,4 +1,4 @@
-"""The hand-eye comparison with OpenCV 4.x (selfcal.benchmarks.handeye_poses) on a tiny case:
+"""The hand-eye comparison with OpenCV 4.x (selfcal.benchmarks.handeye.poses) on a tiny case:
 without noise every one of OpenCV's seven methods and ours predict the held-out corners exactly,
 in both setups, so the benchmark hands each method its frames as OpenCV documents them; the
 table and its docs block are written. Slow: it makes OpenCV 4.x's environment with uv (a
@@ -10,8 +10,8 @@ import shutil
 
 import pytest
 
-from selfcal.benchmarks import handeye_poses as hp
 from selfcal.benchmarks.doc_blocks import write_block
+from selfcal.benchmarks.handeye import poses as hp
 
 pytestmark = pytest.mark.slow
 

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from selfcal.benchmarks.tracker_sim import make_case, measure
+from selfcal.benchmarks.tracker.sim import make_case, measure
 from selfcal.cli.main import main
 from selfcal.kinematics.forward import fk_tool
 from selfcal.robot.definition import load_robot

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from selfcal.benchmarks.tracker_sim import make_case, measure
+from selfcal.benchmarks.tracker.sim import make_case, measure
 from selfcal.cli.main import main
 from selfcal.kinematics.forward import fk_tool
 from selfcal.robot.definition import load_robot, robot_files

@@ -104,10 +104,10 @@ ALLOWED = {
     "selfcal/importing/dataset.py",
     "selfcal/ros/bag_import.py",
     "selfcal/sim/build_models.py",
-    "selfcal/benchmarks/tracker.py",
+    "selfcal/benchmarks/tracker/compare.py",
     "selfcal/benchmarks/ros.py",
-    "selfcal/benchmarks/pybotics_fit.py",
-    "selfcal/benchmarks/opencv4_handeye.py",  # runs in OpenCV 4's environment, without selfcal
+    "selfcal/benchmarks/tracker/pybotics_fit.py",
+    "selfcal/benchmarks/handeye/opencv4.py",  # runs in OpenCV 4's environment, without selfcal
 }
 DIRECT = re.compile(
     r"\.write_text\(|\.write_bytes\(|open\([^)]*[\"'][wa]b?[\"']|imwrite\(|savefig\("

@@ -7,8 +7,16 @@ import warnings
 import numpy as np
 import pytest
 
-from selfcal.benchmarks.tracker import BEGIN, END, combine, mdh_table, run, table, write_docs
-from selfcal.benchmarks.tracker_sim import RRPRR_DH, dh_robot, make_case, measure
+from selfcal.benchmarks.tracker.compare import (
+    BEGIN,
+    END,
+    combine,
+    mdh_table,
+    run,
+    table,
+    write_docs,
+)
+from selfcal.benchmarks.tracker.sim import RRPRR_DH, dh_robot, make_case, measure
 from selfcal.calibration.identify import IdentificationWarning
 from selfcal.calibration.tracker.identify import (
     TrackerIdentificationError,

@@ -7,7 +7,7 @@ from dataclasses import astuple
 import numpy as np
 import pytest
 
-from selfcal.benchmarks.tracker_sim import make_case, measure
+from selfcal.benchmarks.tracker.sim import make_case, measure
 from selfcal.calibration.tracker.accuracy import (
     error_model_from_json,
     fold_index,

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from selfcal.benchmarks.tracker_sim import make_case, measure
+from selfcal.benchmarks.tracker.sim import make_case, measure
 from selfcal.calibration.tracker.cross_validation import MAX_ROWS, leave_one_out
 from selfcal.estimation.tracker import TrackerMeasurements
 from selfcal.robot.definition import load_robot

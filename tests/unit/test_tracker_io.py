@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis.extra.numpy import arrays
 
-from selfcal.benchmarks.tracker_sim import RRPRR_DH, dh_robot, make_case, measure
+from selfcal.benchmarks.tracker.sim import RRPRR_DH, dh_robot, make_case, measure
 from selfcal.calibration.tracker.calibration_file import (
     TrackerCalibrationFileError,
     from_result,

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from selfcal.benchmarks.tracker_sim import make_case
+from selfcal.benchmarks.tracker.sim import make_case
 from selfcal.calibration.tracker.calibration_file import TrackerCalibration
 from selfcal.calibration.tracker.nominal import fit_nominal, pose_errors
 from selfcal.estimation.tracker import TrackerMeasurements

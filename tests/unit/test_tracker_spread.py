@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from selfcal.benchmarks.tracker_sim import make_case, measure
+from selfcal.benchmarks.tracker.sim import make_case, measure
 from selfcal.calibration.tracker.accuracy import tracker_accuracy
 from selfcal.calibration.tracker.identify import identify_tracker
 from selfcal.calibration.tracker.spread import bootstrap_spread, spread_line

@@ -11,7 +11,7 @@ its flange at the same joint readings spreads over a volume of the arm's size.
 same joints: their spread (RMS distance from the centroid) must not be smaller by more than a
 factor of :data:`SCALE_FACTOR`, nor larger by that factor and a tool's length (the tool point is
 unknown, so only the order of magnitude is checked; the synthetic cases of
-``selfcal.benchmarks.tracker_sim`` read 1.04 to 1.12 on three arms), and the measured positions must
+``selfcal.benchmarks.tracker.sim`` read 1.04 to 1.12 on three arms), and the measured positions must
 not lie on a line when the nominal flange's do not (second principal spread below
 :data:`LINE_RATIO` of the first, where the nominal's is above ten times that). Distances
 (ball bar) are checked the same way against the nominal flange distances.

@@ -1,10 +1,10 @@
 """Benchmark: tracker identification (``selfcal.calibration.tracker.identify``) against pybotics, the anchor.
 
-The same simulated 6-axis positions for both (:mod:`selfcal.benchmarks.tracker_sim`: the UR5e with
+The same simulated 6-axis positions for both (:mod:`selfcal.benchmarks.tracker.sim`: the UR5e with
 every minimal MCPC parameter moved within +-1 mm / +-0.2 deg, a tool point 30, -20, 80 mm on the
 flange, a tracker frame ~2 m away; 0.1 mm Gaussian noise per coordinate), N = 30, 100, 300
 training configurations and 300 held-out ones, uniform within +-170 deg. pybotics runs in its own
-environment (it pins numpy < 2) through ``uv run`` (:mod:`selfcal.benchmarks.pybotics_fit`); without uv or
+environment (it pins numpy < 2) through ``uv run`` (:mod:`selfcal.benchmarks.tracker.pybotics_fit`); without uv or
 pybotics the table says so and shows the project's numbers alone.
 
 Reported: the held-out position error (RMS of the distance between the predicted and the measured
@@ -39,7 +39,7 @@ from pathlib import Path
 import numpy as np
 
 from selfcal.benchmarks.stages import machine
-from selfcal.benchmarks.tracker_sim import TrackerCase, make_case, measure
+from selfcal.benchmarks.tracker.sim import TrackerCase, make_case, measure
 from selfcal.calibration.tracker.identify import (
     TrackerMeasurements,
     identify_tracker,
@@ -56,7 +56,7 @@ __all__ = ["run", "combine", "table", "mdh_table", "main"]
 SIGMA_M = 1e-4
 SIZES = (30, 100, 300)
 N_TEST = 300
-DOC = Path(__file__).resolve().parents[2] / "docs" / "tracker.md"
+DOC = Path(__file__).resolve().parents[3] / "docs" / "tracker.md"
 BEGIN, END = "<!-- benchmark_tracker begin -->", "<!-- benchmark_tracker end -->"
 PYBOTICS_CMD = ["uv", "run", "--no-project", "--python", "3.11", "--with", "pybotics"]
 PYBOTICS_CMD += ["--with", "numpy<2", "python"]
@@ -240,7 +240,9 @@ def main(argv: list[str] | None = None) -> int:
     """Run the benchmark with one BLAS thread for both sides (``limit_threads(1)``, which the
     pybotics process inherits): the matrices are small, threads only add overhead."""
     limit_threads(1)
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(
+        prog="python -m selfcal.benchmarks.tracker", description=__doc__.splitlines()[0]
+    )
     ap.add_argument("--no-pybotics", action="store_true", help="the project's numbers alone")
     ap.add_argument(
         "--write-docs", action="store_true", help="rewrite the table in docs/tracker.md"

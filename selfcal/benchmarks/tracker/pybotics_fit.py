@@ -1,6 +1,6 @@
 """The pybotics side of the tracker benchmark, run in pybotics' own environment (it pins
 numpy < 2, so :mod:`selfcal.benchmarks.tracker` starts it with ``uv run --no-project --with
-pybotics --with 'numpy<2' python selfcal/benchmarks/pybotics_fit.py IN.npz OUT.npz``).
+pybotics --with 'numpy<2' python selfcal/benchmarks/tracker/pybotics_fit.py IN.npz OUT.npz``).
 
 pybotics' documented calibration: a modified-DH chain (``alpha, a, theta, d`` per link, mm and
 rad), an :class:`pybotics.optimization.OptimizationHandler` with masks, and

@@ -4,7 +4,7 @@ Every case is a training set and a held-out set of images of a board with the ro
 poses (eye-in-hand or eye-to-hand). Ours: :func:`selfcal.calibration.handeye.calibrate.calibrate_hand_eye`
 on the training frames: its linear start (the camera stage's camera, Park's rotation), its
 nominal (camera stage's camera held, hand-eye and board mount on corner reprojection) and its
-answer, the calibrated fit (the camera freed too). OpenCV's (:mod:`selfcal.benchmarks.opencv4_handeye`,
+answer, the calibrated fit (the camera freed too). OpenCV's (:mod:`selfcal.benchmarks.handeye.opencv4`,
 in its own OpenCV 4.x environment): ``cv2.calibrateCamera`` on the same training frames and
 corners (the same distortion model: k1, k2, p1, p2, ``CALIB_FIX_K3``), then each of
 ``cv2.calibrateHandEye``'s five methods (the board mount: the chordal mean over the training
@@ -20,7 +20,7 @@ noise 0.2 or 1 px, and once 0.5 mm / 0.05 deg per axis of noise on the reported 
 (tests/data/real/ical-charuco; eye-to-hand, its README's split: images 0, 3, 6, 9, 12, 15 held
 out).
 
-Run: ``uv run python -m selfcal.benchmarks.handeye_poses [--seeds N] [--write-docs]``
+Run: ``uv run python -m selfcal.benchmarks.handeye.poses [--seeds N] [--write-docs]``
 (rewrites the table in docs/handeye.md between its markers).
 """
 
@@ -37,7 +37,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from selfcal.benchmarks.doc_blocks import ROOT, write_block
-from selfcal.benchmarks.handeye import run_opencv4
+from selfcal.benchmarks.handeye.joints import run_opencv4
 from selfcal.calibration.handeye.calibrate import calibrate_hand_eye, chain_motions, predict_corners
 from selfcal.camera import CameraModel, camera_model
 from selfcal.errors import InputError, SelfCalError
@@ -183,7 +183,7 @@ def _ours(s: Split, held: np.ndarray) -> tuple[dict, np.ndarray]:
 
 
 def _request(s: Split, used: np.ndarray, held: np.ndarray) -> dict:
-    """The OpenCV side's case (:mod:`selfcal.benchmarks.opencv4_handeye`)."""
+    """The OpenCV side's case (:mod:`selfcal.benchmarks.handeye.opencv4`)."""
     tr = np.flatnonzero(used)
     obj = lambda fs, fr: [s.board.points(fs[i].ids).tolist() for i in fr]  # noqa: E731
     return {"size": [s.width, s.height], "flags": CV_FLAGS,
@@ -194,7 +194,7 @@ def _request(s: Split, used: np.ndarray, held: np.ndarray) -> dict:
 
 
 def opencv4(cases: list[dict], workdir: Path) -> dict:
-    """OpenCV 4.x's answers to ``cases`` (see :mod:`selfcal.benchmarks.opencv4_handeye`); raises
+    """OpenCV 4.x's answers to ``cases`` (see :mod:`selfcal.benchmarks.handeye.opencv4`); raises
     :class:`selfcal.errors.SelfCalError` saying why when its environment does not run."""
     src, dst = workdir / "in.json", workdir / "out.json"
     write_text_atomic(src, json.dumps({"cases": cases}))

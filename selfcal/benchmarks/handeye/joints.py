@@ -8,7 +8,7 @@ assumption of known kinematics holds). Ours: :func:`selfcal.calibration.board.ro
 (camera, hand-eye, board pose and kinematics). OpenCV's: the board poses of OpenCV's camera
 calibration (``cv2.calibrateCamera`` on the views that show enough of the board, the start of
 ours) and the nominal flange poses at those views' joint readings into ``cv2.calibrateRobotWorldHandEye`` (in its own environment,
-:mod:`selfcal.benchmarks.opencv4_handeye`). Both predict the camera pose in the board frame at 20
+:mod:`selfcal.benchmarks.handeye.opencv4`). Both predict the camera pose in the board frame at 20
 held-out postures; the table gives the RMS position (mm) and rotation (deg) errors against the
 truth.
 
@@ -42,7 +42,7 @@ from selfcal.transforms import inv_pose
 
 __all__ = ["run", "main", "run_opencv4"]
 
-DOC = Path(__file__).resolve().parents[2] / "docs" / "cameras.md"
+DOC = Path(__file__).resolve().parents[3] / "docs" / "cameras.md"
 BEGIN, END = "<!-- benchmark_handeye begin -->", "<!-- benchmark_handeye end -->"
 OPENCV4_CMD = ["uv", "run", "--no-project", "--python", "3.11"]
 OPENCV4_CMD += ["--with", "opencv-python-headless<5", "--with", "numpy", "python"]
@@ -56,11 +56,11 @@ def _errors(T: np.ndarray, T_true: np.ndarray) -> tuple[float, float]:
 
 
 def run_opencv4(src: Path, dst: Path) -> str | None:
-    """Run :mod:`selfcal.benchmarks.opencv4_handeye` on ``src`` into ``dst`` in its OpenCV 4.x
+    """Run :mod:`selfcal.benchmarks.handeye.opencv4` on ``src`` into ``dst`` in its OpenCV 4.x
     environment; None when it ran, else why it did not."""
     if shutil.which("uv") is None:
         return "uv not found"
-    script = Path(__file__).with_name("opencv4_handeye.py")
+    script = Path(__file__).with_name("opencv4.py")
     try:
         subprocess.run([*OPENCV4_CMD, str(script), str(src), str(dst)], check=True,
                        capture_output=True, text=True, timeout=1800)  # fmt: skip
@@ -141,7 +141,9 @@ def table(rows: list[dict]) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = argparse.ArgumentParser(
+        prog="python -m selfcal.benchmarks.handeye", description=__doc__.split("\n\n")[0]
+    )
     ap.add_argument("--write-docs", action="store_true")
     a = ap.parse_args(argv)
     rows = run()

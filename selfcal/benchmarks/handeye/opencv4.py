@@ -1,7 +1,7 @@
 """The OpenCV side of the hand-eye comparisons, run in an environment with OpenCV 4.x (OpenCV
 5.0's Python bindings, the version in uv.lock, no longer expose the hand-eye functions). It
 imports nothing of selfcal: the benchmarks start it with ``uv run --no-project --with
-'opencv-python-headless<5' --with numpy python selfcal/benchmarks/opencv4_handeye.py IN OUT``.
+'opencv-python-headless<5' --with numpy python selfcal/benchmarks/handeye/opencv4.py IN OUT``.
 
 Two modes, by IN's suffix:
 
@@ -10,7 +10,7 @@ Two modes, by IN's suffix:
   the inverse of the robot's flange poses from its kinematics and joint readings (m). OUT.npz:
   ``T_board_base`` and ``T_cam_flange`` (4, 4) of ``cv2.calibrateRobotWorldHandEye`` (Shah's
   method, OpenCV's default), ``version``.
-- ``IN.json`` (:mod:`selfcal.benchmarks.handeye_poses`, the pose route): ``cases``, each
+- ``IN.json`` (:mod:`selfcal.benchmarks.handeye.poses`, the pose route): ``cases``, each
   ``{"size": [W, H], "flags": [names of calibrateCamera's flags], "train": {"object": [(k, 3) m per
   frame], "image": [(k, 2) px per frame], "A": [(4, 4) per frame]}, "held": {"object": [...],
   "A": [...]}}`` where ``A_i`` are the pose chain's motions: every frame sees the board through
