@@ -59,7 +59,7 @@ if TYPE_CHECKING:
     from selfcal.io.calibration import CalibrationResult as CalibrationResult
     from selfcal.io.dataset import Dataset as Dataset
     from selfcal.io.dataset_info import DatasetError as DatasetError
-    from selfcal.io.pose_dataset import PoseDataset as PoseDataset
+    from selfcal.io.poses.dataset import PoseDataset as PoseDataset
     from selfcal.io.target_toml import load_target as load_target
     from selfcal.kinematics.ik_numeric import ToolTarget as ToolTarget
     from selfcal.robot.definition import RobotDef as RobotDef
@@ -80,7 +80,7 @@ _PARTS: dict[str, tuple[str, ...]] = {
     "selfcal.importing.dataset": ("CameraImages", "import_dataset"),
     "selfcal.importing.poses": ("import_pose_dataset",),
     "selfcal.io.dataset": ("Dataset",),
-    "selfcal.io.pose_dataset": ("PoseDataset",),
+    "selfcal.io.poses.dataset": ("PoseDataset",),
     # calibrating, evaluating, reading and writing (each dataset's route)
     "selfcal.calibration.routes": (
         "calibrate",

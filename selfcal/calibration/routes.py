@@ -5,7 +5,7 @@ docs/api.md) calls.
 A dataset folder says its route (:func:`dataset_route`):
 
 - ``"handeye"``: a pose dataset (images and flange poses, no joint readings:
-  :mod:`selfcal.io.pose_dataset`): camera, hand-eye and board mount
+  :mod:`selfcal.io.poses.dataset`): camera, hand-eye and board mount
   (:mod:`selfcal.calibration.handeye.calibrate`);
 - ``"board"``: images, joint readings and a board of known geometry
   (:mod:`selfcal.calibration.board.dataset`);
@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING, Literal
 import numpy as np
 
 from selfcal.errors import InputError
-from selfcal.io.pose_dataset import is_pose_dataset
+from selfcal.io.poses.dataset import is_pose_dataset
 from selfcal.threads import limited
 
 if TYPE_CHECKING:
@@ -38,7 +38,7 @@ if TYPE_CHECKING:
     from selfcal.io.board_calibration import BoardCalibrationResult
     from selfcal.io.calibration import CalibrationResult
     from selfcal.io.dataset import Dataset
-    from selfcal.io.pose_dataset import PoseDataset
+    from selfcal.io.poses.dataset import PoseDataset
     from selfcal.target.base import Features
     from selfcal.target.boards import Board
 
@@ -78,10 +78,10 @@ def dataset_route(root: str | Path) -> Route:
 
 
 def open_dataset(root: str | Path) -> Dataset | PoseDataset:
-    """The dataset folder ``root`` read: a :class:`selfcal.io.pose_dataset.PoseDataset` (flange
+    """The dataset folder ``root`` read: a :class:`selfcal.io.poses.dataset.PoseDataset` (flange
     poses, m) or a :class:`selfcal.io.dataset.Dataset` (joint readings, rad / m)."""
     if is_pose_dataset(root):
-        from selfcal.io.pose_dataset import PoseDataset
+        from selfcal.io.poses.dataset import PoseDataset
 
         return PoseDataset.open(root)
     from selfcal.io.dataset import Dataset
@@ -97,7 +97,7 @@ def pose_features(ds: PoseDataset) -> tuple[Board, list[Features]]:
             missing or unreadable (named).
     """
     from selfcal.io.images import read_gray_image
-    from selfcal.io.pose_dataset import PoseDatasetError
+    from selfcal.io.poses.dataset import PoseDatasetError
     from selfcal.io.target_toml import parse_target
     from selfcal.target.boards import Board
 
@@ -123,7 +123,7 @@ def calibrate_pose_dataset(root: str | Path, *, write: bool = True) -> HandEyeCa
     from selfcal.calibration.handeye.calibrate import calibrate_hand_eye
     from selfcal.calibration.handeye.calibration_file import handeye_document
     from selfcal.io.jsonfile import write_json_atomic
-    from selfcal.io.pose_dataset import PoseDataset
+    from selfcal.io.poses.dataset import PoseDataset
 
     ds = PoseDataset.open(root)
     board, feats = pose_features(ds)
@@ -302,7 +302,7 @@ def evaluate_pose_dataset(calibration: str | Path, dataset: str | Path) -> dict:
     """
     from selfcal.calibration.handeye.calibration_file import read_handeye
     from selfcal.calibration.handeye.held_out import held_out_check
-    from selfcal.io.pose_dataset import PoseDataset
+    from selfcal.io.poses.dataset import PoseDataset
 
     setup, calibrated, nominal, _ = read_handeye(calibration)
     ds = PoseDataset.open(dataset)

@@ -24,9 +24,9 @@ __all__ = [
 ]
 
 ROTATIONS = ("quaternion-xyzw", "abb-quaternion", "kuka-abc", "fanuc-wpr", "ur-rotvec")
-"""``--rotation``: :data:`selfcal.io.pose_conventions.CONVENTIONS` (kept here so --help needs no scipy)."""
+"""``--rotation``: :data:`selfcal.io.poses.conventions.CONVENTIONS` (kept here so --help needs no scipy)."""
 SETUP_CHOICES = ("eye-in-hand", "eye-to-hand")
-"""``--setup``: :data:`selfcal.io.pose_dataset.SETUPS`."""
+"""``--setup``: :data:`selfcal.io.poses.dataset.SETUPS`."""
 _POSE_ONLY = ("pose_units", "rotation", "setup")
 
 

@@ -2,12 +2,12 @@
 
 Inputs: the images (a glob, :class:`selfcal.importing.dataset.CameraImages`; or the image files an
 industrial_calibration ``cal_data.yaml`` names), a flange pose file
-(:func:`selfcal.io.pose_files.read_poses`: base -> flange, one row per image in sorted file-name
+(:func:`selfcal.io.poses.files.read_poses`: base -> flange, one row per image in sorted file-name
 order or by its image column), the target TOML of a board and the setup (``eye-in-hand`` or
-``eye-to-hand``, :data:`selfcal.io.pose_dataset.SETUPS`). Checked as ``selfcal import`` checks a
+``eye-to-hand``, :data:`selfcal.io.poses.dataset.SETUPS`). Checked as ``selfcal import`` checks a
 joints dataset: row and image counts, one image size, the board found (the others named, counted
 and skipped with a :class:`selfcal.importing.dataset.TargetNotFoundWarning`), the declared geometry
-against the detections. Writes :mod:`selfcal.io.pose_dataset`'s folder. No robot model is needed:
+against the detections. Writes :mod:`selfcal.io.poses.dataset`'s folder. No robot model is needed:
 there are no kinematics to identify from poses.
 """
 
@@ -32,8 +32,8 @@ from selfcal.importing.dataset import (
     check_geometry,
 )
 from selfcal.io.atomic import write_text_atomic
-from selfcal.io.pose_dataset import SETUPS, PoseDataset, write_pose_dataset
-from selfcal.io.pose_files import read_poses
+from selfcal.io.poses.dataset import SETUPS, PoseDataset, write_pose_dataset
+from selfcal.io.poses.files import read_poses
 from selfcal.io.target_toml import load_target, target_document
 from selfcal.target.boards import Board
 
@@ -93,14 +93,14 @@ def import_pose_dataset(
 ) -> PoseDataset:
     """Check the inputs and write the pose dataset ``out`` (module docstring); returns it.
     ``rotation``, ``units``: the pose file's convention and position unit where its header does
-    not say (:func:`selfcal.io.pose_files.read_poses`); ``camera_model``, ``free``: what the
+    not say (:func:`selfcal.io.poses.files.read_poses`); ``camera_model``, ``free``: what the
     calibration estimates (as ``selfcal import``); ``source``: what the poses and images came
     from (e.g. a bag and its topics), recorded instead of the pose file under
     ``provenance.import``; ``labels``: each image file's name in ``sources.csv`` (default its
     path). A failed import leaves no folder behind that it created.
 
     Raises:
-        selfcal.importing.dataset.ImportError_, selfcal.io.pose_files.PoseFileError,
+        selfcal.importing.dataset.ImportError_, selfcal.io.poses.files.PoseFileError,
         selfcal.calibration.board.calibrate.BoardMismatchError: bad input, each naming the file and the fix.
     """
     if setup not in SETUPS:

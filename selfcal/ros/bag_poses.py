@@ -31,7 +31,7 @@ from selfcal.choices import DEFAULT_MODEL
 from selfcal.importing.dataset import CameraImages, ImportError_
 from selfcal.importing.poses import import_pose_dataset
 from selfcal.io.atomic import write_text_atomic
-from selfcal.io.pose_dataset import SETUPS, PoseDataset
+from selfcal.io.poses.dataset import SETUPS, PoseDataset
 from selfcal.ros.bag_import import ImageTopic, _name_frames, _stage_images, _warn_skipped
 from selfcal.ros.bag_rest import GAP, MOVING, OUTSIDE, RestRule, pair_frames, thin_rests
 from selfcal.ros.rosbag import IMAGE_TYPES, BagError, BagReader

@@ -142,7 +142,7 @@ def _convention_csv(path, convention: str, T) -> None:
     "convention", ["quaternion-xyzw", "abb-quaternion", "kuka-abc", "fanuc-wpr", "ur-rotvec"]
 )
 def test_each_rotation_convention_gives_the_same_hand_eye(tmp_path, convention):
-    from selfcal.io.pose_files import read_poses
+    from selfcal.io.poses.files import read_poses
 
     X, B, F = _scene("eye-to-hand", 10, seed=11)
     feats = _features(X, B, chain_motions("eye-to-hand", F), 0.2, 3)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from selfcal.io.pose_files import PoseFileError, read_poses
+from selfcal.io.poses.files import PoseFileError, read_poses
 from selfcal.transforms import make_pose
 
 RNG = np.random.default_rng(3)

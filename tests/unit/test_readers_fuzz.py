@@ -220,7 +220,7 @@ def _calibration_readers():
 
 def _readers(er4u):
     """(file name, shipped example, reader, its typed error) of every file a user gives."""
-    from selfcal.io.pose_files import PoseFileError, read_poses
+    from selfcal.io.poses.files import PoseFileError, read_poses
 
     read_cal, cal_err, read_board, board_err = _calibration_readers()
     return [
@@ -278,7 +278,7 @@ def pose_csv(draw):
 @given(st.one_of(pose_csv(), ANY_TEXT), st.sampled_from([None, "kuka-abc", "ur-rotvec"]),
        st.sampled_from([None, "mm", "m"]))  # fmt: skip
 def test_pose_file_reader_is_total(text, rotation, units):
-    from selfcal.io.pose_files import PoseFileError, read_poses
+    from selfcal.io.poses.files import PoseFileError, read_poses
 
     def check(rows):
         assert np.isfinite(rows.T_base_flange).all()

@@ -43,7 +43,7 @@ from selfcal.camera import CameraModel, camera_model
 from selfcal.errors import InputError, SelfCalError
 from selfcal.io.atomic import write_text_atomic
 from selfcal.io.images import read_gray_image
-from selfcal.io.pose_files import read_poses
+from selfcal.io.poses.files import read_poses
 from selfcal.io.target_toml import load_target
 from selfcal.target.base import Features
 from selfcal.target.boards import Board, Chessboard

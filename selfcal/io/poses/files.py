@@ -4,7 +4,7 @@ Two layouts (:func:`read_poses`):
 
 - **CSV** with a header: the position ``x_mm, y_mm, z_mm`` (or ``x_m, y_m, z_m``, or ``x, y, z``
   with the unit given as ``units``) and the orientation in a named convention
-  (:mod:`selfcal.io.pose_conventions`): ``qx, qy, qz, qw`` (quaternion-xyzw), ``q1, q2, q3, q4``
+  (:mod:`selfcal.io.poses.conventions`): ``qx, qy, qz, qw`` (quaternion-xyzw), ``q1, q2, q3, q4``
   (abb-quaternion, ``w`` first), ``a, b, c`` (kuka-abc), ``w, p, r`` (fanuc-wpr) or ``rx, ry, rz``
   (kuka-abc, fanuc-wpr or ur-rotvec: the convention must be named); optionally an ``image``
   column naming each row's image file. Column names are matched in any case; extra columns are
@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from selfcal.errors import InputError
-from selfcal.io.pose_conventions import CONVENTIONS, rotation_matrices, unit_quaternions
+from selfcal.io.poses.conventions import CONVENTIONS, rotation_matrices, unit_quaternions
 from selfcal.transforms import make_pose
 
 __all__ = ["POSE_UNITS", "PoseFileError", "PoseRows", "read_poses"]
@@ -283,7 +283,7 @@ def _read_yaml(path: Path, rotation: str | None, units: str | None) -> PoseRows:
 
 def read_poses(path: str | Path, rotation: str | None = None, units: str | None = None) -> PoseRows:
     """The flange poses (base -> flange) of the pose file or folder ``path`` (see the module
-    docstring); ``rotation``: the convention (:data:`selfcal.io.pose_conventions.CONVENTIONS`;
+    docstring); ``rotation``: the convention (:data:`selfcal.io.poses.conventions.CONVENTIONS`;
     None: from the column names where they tell); ``units``: ``"mm"`` or ``"m"`` for a CSV
     whose header gives no unit.
 
