@@ -33,7 +33,6 @@ if TYPE_CHECKING:
     from selfcal.calibration.tracker.drift import check_tracker as check_tracker
     from selfcal.calibration.tracker.identify import TrackerMeasurements as TrackerMeasurements
     from selfcal.calibration.tracker.identify import identify_tracker as identify_tracker
-    from selfcal.calibration.tracker.join import TrackerInput as TrackerInput
     from selfcal.camera import BrownConrady as BrownConrady
     from selfcal.camera import CameraModel as CameraModel
     from selfcal.camera import Fisheye as Fisheye
@@ -71,6 +70,7 @@ if TYPE_CHECKING:
     from selfcal.target.boards import Charuco as Charuco
     from selfcal.target.boards import Chessboard as Chessboard
     from selfcal.target.boards import CirclesGrid as CirclesGrid
+    from selfcal.terms.tracker import TrackerTerm as TrackerTerm
     from selfcal.threads import limit_threads as limit_threads
     from selfcal.threads import thread_count as thread_count
 
@@ -93,8 +93,8 @@ _PARTS: dict[str, tuple[str, ...]] = {
     ),
     "selfcal.calibration.tracker.calibrate": ("TrackerRun", "calibrate_tracker"),
     "selfcal.calibration.tracker.identify": ("TrackerMeasurements", "identify_tracker"),
-    "selfcal.calibration.tracker.join": ("TrackerInput",),
     "selfcal.calibration.tracker.drift": ("DriftCheck", "check_tracker"),
+    "selfcal.terms.tracker": ("TrackerTerm",),
     # results
     "selfcal.io.calibration": ("CalibrationResult",),
     "selfcal.io.board_calibration": ("BoardCalibrationResult",),
@@ -161,9 +161,9 @@ __all__ = [
     "Target",
     "ToolTarget",
     "TrackerCalibration",
-    "TrackerInput",
     "TrackerMeasurements",
     "TrackerRun",
+    "TrackerTerm",
     "calibrate",
     "calibrate_tracker",
     "calibrated_mjcf",

@@ -20,6 +20,7 @@ Tracker measurements alone (no images) are files, not a dataset folder: ``selfca
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Literal
 
@@ -34,13 +35,13 @@ if TYPE_CHECKING:
     from selfcal.calibration.handeye.calibrate import HandEyeCalibration
     from selfcal.calibration.handeye.calibration_file import HandEyeFile
     from selfcal.calibration.tracker.calibration_file import TrackerCalibration
-    from selfcal.calibration.tracker.join import TrackerInput
     from selfcal.io.board_calibration import BoardCalibrationResult
     from selfcal.io.calibration import CalibrationResult
     from selfcal.io.dataset import Dataset
     from selfcal.io.poses.dataset import PoseDataset
     from selfcal.target.base import Features
     from selfcal.target.boards import Board
+    from selfcal.terms.base import Term
 
 # The routes' modules (scipy, OpenCV) load in the functions that run them: the CLI imports this
 # module to choose, and `selfcal --help` stays fast.
@@ -181,7 +182,7 @@ def calibrate(
     method: str = "joint",
     allow_missing_frames: bool = False,
     joint_sigma: float | np.ndarray | None = None,
-    tracker: TrackerInput | None = None,
+    terms: Sequence[Term] = (),
     progress=None,
     write: bool = True,
 ) -> CalibrationResult | BoardCalibrationResult | HandEyeCalibration:
@@ -195,7 +196,9 @@ def calibrate(
             (:meth:`selfcal.io.dataset.Dataset.check_complete`).
         joint_sigma: standard deviation of a joint reading, rad (m for a prismatic joint), one
             value or one per joint; default the robot file's encoder resolution (joint datasets).
-        tracker: tracker measurements estimated with the field's images (method ``"joint"``).
+        terms: further measurements estimated with the field's images (method ``"joint"``):
+            :mod:`selfcal.terms`, e.g. a :class:`selfcal.terms.tracker.TrackerTerm` or a
+            :class:`selfcal.terms.probe.ProbeTerm`; the result records each one's section.
         progress: a :class:`selfcal.console.progress.Progress`-like object the field reports to.
         write: write ``root/calibration.json``.
 
@@ -213,9 +216,9 @@ def calibrate(
         EstimationError: the estimator failed (what was tried).
     """
     route = dataset_route(root)
-    if route != "field" and (method != "joint" or tracker is not None):
-        raise InputError(f"{root} is a {route} dataset: the field's method and tracker options do "
-                         "not apply", fix="leave out method and tracker")  # fmt: skip
+    if route != "field" and (method != "joint" or terms):
+        raise InputError(f"{root} is a {route} dataset: the field's method and measurement terms "
+                         "do not apply", fix="leave out method and terms")  # fmt: skip
     if route == "handeye":
         if joint_sigma is not None:
             raise InputError(f"{root} is a pose dataset (flange poses, no joints): joint_sigma "
@@ -234,7 +237,7 @@ def calibrate(
     from selfcal.calibration.field.calibrate import calibrate as calibrate_field
 
     res = calibrate_field(root, progress=progress, method=method,
-                          allow_missing_frames=allow_missing_frames, tracker=tracker,
+                          allow_missing_frames=allow_missing_frames, terms=terms,
                           joint_sigma=joint_sigma)  # fmt: skip
     path = Path(root) / "calibration.json"
     if write:
@@ -285,9 +288,9 @@ def read_calibration(
         from selfcal.io.board_calibration import read_board_calibration
 
         return read_board_calibration(path)
-    from selfcal.io.calibration import read_calibration as read_field
+    from selfcal.terms.registry import read_calibration as read_field
 
-    return read_field(path)
+    return read_field(path)  # every registered measurement kind's section read as its type
 
 
 def evaluate_pose_dataset(calibration: str | Path, dataset: str | Path) -> dict:

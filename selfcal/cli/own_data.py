@@ -79,9 +79,9 @@ def calibrate_any(
         types = load_robot(ds.robot_source).joint_types
         joint_sigma = np.array([np.radians(joint_sigma_deg) if t == "revolute"
                                 else joint_sigma_deg / 1000.0 for t in types])  # fmt: skip
-    tracker = None
+    terms = []
     if tracker_args is not None and tracker_args.tracker:
-        from selfcal.cli.tracker import tracker_input, tracker_summary
+        from selfcal.cli.tracker import tracker_input
         from selfcal.robot.definition import load_robot
 
         if route == "board":
@@ -95,7 +95,7 @@ def calibrate_any(
                 "--tracker needs the one-step method (--method joint, the default)",
                 fix="leave out --method two-stage",
             )
-        tracker = tracker_input(tracker_args, load_robot(ds.robot_source))
+        terms.append(tracker_input(tracker_args, load_robot(ds.robot_source)))
     elif tracker_args is not None:
         from selfcal.cli.tracker import tracker_input
 
@@ -103,9 +103,9 @@ def calibrate_any(
     if route == "field":
         res = run_calibrate(root, quiet=quiet, method=method,
                             allow_missing_frames=allow_missing_frames, figures=figures,
-                            tracker=tracker, joint_sigma=joint_sigma)  # fmt: skip
-        if res.tracker is not None:
-            _say(quiet, tracker_summary(res.tracker))
+                            terms=terms, joint_sigma=joint_sigma)  # fmt: skip
+        for section in res.terms:
+            _say(quiet, section.summary())
         return
     calibrate_board_run(root, quiet=quiet, allow_missing_frames=allow_missing_frames,
                         figures=figures, joint_sigma=joint_sigma)  # fmt: skip

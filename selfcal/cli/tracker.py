@@ -38,7 +38,6 @@ __all__ = [
     "cmd_predict",
     "add_tracker_args",
     "tracker_input",
-    "tracker_summary",
 ]
 
 IDENTIFY_HELP = """\
@@ -136,7 +135,7 @@ def add_tracker_args(sp: argparse.ArgumentParser) -> None:
 
 
 def tracker_input(args: argparse.Namespace, robot):
-    """The :class:`selfcal.calibration.tracker.join.TrackerInput` of ``selfcal calibrate``'s tracker options
+    """The :class:`selfcal.terms.tracker.TrackerTerm` of ``selfcal calibrate``'s tracker options
     for ``robot``, or None without ``--tracker``.
 
     Raises:
@@ -145,7 +144,7 @@ def tracker_input(args: argparse.Namespace, robot):
         InputError: a file that cannot be read (named with row and column).
     """
     from selfcal.calibration.tracker.calibrate import read_tracker_files
-    from selfcal.calibration.tracker.join import TrackerInput
+    from selfcal.terms.tracker import TrackerTerm
 
     if not args.tracker:
         for opt, v in (("--tracker-distances", args.tracker_distances),
@@ -165,7 +164,7 @@ def tracker_input(args: argparse.Namespace, robot):
         ("--tracker-sigma-deg", args.tracker_sigma_deg),
     )
     meas, _ = read_tracker_files(args.tracker, args.tracker_distances, robot, args.joint_units)
-    return TrackerInput(
+    return TrackerTerm(
         meas,
         joint_units=args.joint_units,
         file=str(args.tracker),
@@ -173,22 +172,6 @@ def tracker_input(args: argparse.Namespace, robot):
         sigma_m=args.tracker_sigma_mm / 1e3,
         sigma_rad=float(np.radians(args.tracker_sigma_deg)),
     )
-
-
-def tracker_summary(src) -> str:
-    """One line on the tracker part of a calibration (``CalibrationResult.tracker``)."""
-    what = " + ".join(
-        f"{src.rows} {k}" if k != "distances" else f"{src.distances} distances" for k in src.kinds
-    )
-    fit = ", ".join(f"{k} {v:.4f} mm" for k, v in src.rms_mm.items())
-    point = ""
-    if src.tool_point_mm is not None:
-        point = (
-            "; tool point in the left camera frame ("
-            + ", ".join(f"{v:.3f}" for v in src.tool_point_mm)
-            + ") mm"
-        )
-    return f"tracker: {what} estimated with the images, fit RMS {fit}{point}"
 
 
 def cmd_identify(args: argparse.Namespace) -> int:

@@ -80,6 +80,9 @@ class JointRefinementResult(PinholeValues):
     """With ``cameras``: each camera's ``camera_std`` by camera name."""
     inlier: np.ndarray | None = None
     """(k,) bool: the observation rows the final pass fitted (the settled inliers)."""
+    sections: tuple = ()
+    """The ``calibration.json`` section of every measurement term estimated with the images
+    (:mod:`selfcal.terms`), in order."""
 
     @property
     def T_left_right(self) -> np.ndarray:

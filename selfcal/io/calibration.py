@@ -20,6 +20,7 @@ file); a file of one camera or a shared camera stays schema 1, as before.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -45,7 +46,7 @@ from selfcal.io.calibration_blocks import (
     ScenePoints,
 )
 from selfcal.io.calibration_bounds import Bounds
-from selfcal.io.calibration_tracker import SOURCES, TrackerSource
+from selfcal.io.calibration_terms import IMAGES, Section, SectionType, read_sections
 from selfcal.io.jsonfile import SCHEMA_KEY, Fields, check_header, load_json, write_json_atomic
 from selfcal.kinematics.mcpc import COLUMNS, MCPCModel
 
@@ -106,8 +107,10 @@ class CalibrationResult:
         seconds: wall time of the calibration (s), or None.
         scene: the calibrated marker corners in the world frame (what ``selfcal evaluate``
             predicts), or None (files written before it existed).
-        tracker: the tracker measurements estimated with the images (``sources`` then lists
-            both), or None (images alone).
+        terms: the sections of the measurement terms estimated with the images (tracker
+            measurements, touch-probe points ...; :mod:`selfcal.io.calibration_terms`), in order:
+            ``sources`` then lists ``images`` and their kinds, each section under its kind;
+            empty: images alone.
         cameras: every camera of the rig with its own intrinsics (``intrinsics`` is then the
             first's), or empty: ``intrinsics`` is shared by the rig's cameras.
         nominal: the fair nominal (the nominal chain with everything but the kinematics fitted
@@ -140,7 +143,7 @@ class CalibrationResult:
     failures: tuple[str, ...] = ()
     seconds: float | None = None
     scene: ScenePoints | None = None
-    tracker: TrackerSource | None = None
+    terms: tuple[Section, ...] = ()
     cameras: tuple[RigCamera, ...] = ()
     nominal: FairNominal | None = None
     world_frame: str = WORLD_FRAME
@@ -180,6 +183,10 @@ class CalibrationResult:
         """The intrinsics of the rig's camera ``index`` (0 = first): its own, or the shared."""
         return self.cameras[index].intrinsics if self.cameras else self.intrinsics
 
+    def section(self, kind: str) -> Section | None:
+        """The section of the term ``kind`` (e.g. ``"tracker"``), or None when there is none."""
+        return next((s for s in self.terms if s.kind == kind), None)
+
     def std_si(self) -> dict[str, float]:
         """Standard deviation (rad or m) of every parameter that has one, by name."""
         return {p.name: p.std * p.to_si for p in self.parameters if p.std is not None}
@@ -217,9 +224,9 @@ class CalibrationResult:
         }
         if self.joint is not None:
             doc["joint"] = self.joint.to_json()
-        if self.tracker is not None:
-            doc["sources"] = list(SOURCES)
-            doc["tracker"] = self.tracker.to_json()
+        if self.terms:
+            doc["sources"] = [IMAGES, *(s.kind for s in self.terms)]
+            doc |= {s.kind: s.to_json() for s in self.terms}
         doc["method"] = self.method
         doc["methods"] = {k: m.to_json() for k, m in self.methods.items()}
         if self.bounds is not None:
@@ -238,8 +245,15 @@ class CalibrationResult:
         return doc
 
     @classmethod
-    def from_json(cls, doc: dict, where: str = "calibration.json") -> CalibrationResult:
-        """Parse a ``calibration.json`` document read from ``where``.
+    def from_json(
+        cls,
+        doc: dict,
+        where: str = "calibration.json",
+        sections: Mapping[str, SectionType] | None = None,
+    ) -> CalibrationResult:
+        """Parse a ``calibration.json`` document read from ``where``; ``sections``: the section
+        types of the measurement kinds to read as such (the others are kept as written,
+        :func:`selfcal.io.calibration_terms.read_sections`).
 
         Raises:
             CalibrationFileError: another format, a newer schema_version, a missing or
@@ -261,7 +275,6 @@ class CalibrationResult:
         if bounds is not None and bounds.has("error"):
             bounds_error, bounds = bounds.str("error"), None
         joint = f.maybe_sub("joint")
-        tracker = f.maybe_sub("tracker")
         scene = f.maybe_sub("scene")
         nominal = f.maybe_sub("nominal")
         methods = f.sub("methods")
@@ -295,7 +308,7 @@ class CalibrationResult:
             failures=_failures(f),
             seconds=f.opt_float("seconds"),
             scene=None if scene is None else ScenePoints.from_json(scene),
-            tracker=None if tracker is None else TrackerSource.from_json(tracker),
+            terms=read_sections(f, sections or {}),
             nominal=None if nominal is None else FairNominal.from_json(nominal),
             world_frame=f.str("world_frame"),
             tool=m.str("tool"),
@@ -317,9 +330,12 @@ def write_calibration(path: str | Path, result: CalibrationResult) -> Path:
     return write_json_atomic(path, result.to_json())
 
 
-def read_calibration(path: str | Path) -> CalibrationResult:
+def read_calibration(
+    path: str | Path, sections: Mapping[str, SectionType] | None = None
+) -> CalibrationResult:
     """Read the ``calibration.json`` at ``path``, or ``path/calibration.json`` for a dataset
-    folder (the one reader of that file).
+    folder (the one reader of that file); ``sections`` as :meth:`CalibrationResult.from_json`
+    (:func:`selfcal.terms.registry.read_calibration` passes every registered kind's).
 
     Raises:
         CalibrationFileError: the file is missing, not JSON, not a calibration, newer than this
@@ -334,4 +350,4 @@ def read_calibration(path: str | Path) -> CalibrationResult:
             fix="run `selfcal calibrate DIR` first, or give the calibration.json it wrote",
         )
     doc = load_json(path, fix=_FIX, error=CalibrationFileError)
-    return CalibrationResult.from_json(doc, str(path))
+    return CalibrationResult.from_json(doc, str(path), sections)

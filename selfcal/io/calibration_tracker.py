@@ -12,15 +12,13 @@ calibrated tool frame (the left camera, OpenCV).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 import numpy as np
 
 from selfcal.io.jsonblock import JsonBlock
 
-__all__ = ["TrackerSource", "SOURCES", "TRACKER_NOTE"]
-
-SOURCES = ("images", "tracker")
-"""``calibration.json`` ``sources`` of a calibration that used tracker measurements too."""
+__all__ = ["TrackerSource", "TRACKER_NOTE"]
 
 POSE = {"shape": (4, 4)}
 TRACKER_NOTE = (
@@ -37,6 +35,8 @@ TRACKER_NOTE = (
 class TrackerSource(JsonBlock):
     """``tracker``: see the module docstring. Units: mm and deg for people, m in ``_m`` keys."""
 
+    kind: ClassVar[str] = "tracker"
+
     file: str | None
     distances_file: str | None
     joint_units: str = field(metadata={"choices": ("deg", "rad")})
@@ -50,3 +50,19 @@ class TrackerSource(JsonBlock):
     tool_point_mm: tuple[float, ...] | None
     T_cam_tool_m: np.ndarray | None = field(metadata=POSE)
     note: str = TRACKER_NOTE
+
+    def summary(self) -> str:
+        """One line on the tracker part of a calibration."""
+        what = " + ".join(
+            f"{self.rows} {k}" if k != "distances" else f"{self.distances} distances"
+            for k in self.kinds
+        )
+        fit = ", ".join(f"{k} {v:.4f} mm" for k, v in self.rms_mm.items())
+        point = ""
+        if self.tool_point_mm is not None:
+            point = (
+                "; tool point in the left camera frame ("
+                + ", ".join(f"{v:.3f}" for v in self.tool_point_mm)
+                + ") mm"
+            )
+        return f"tracker: {what} estimated with the images, fit RMS {fit}{point}"

@@ -13,6 +13,7 @@ import dataclasses
 import shlex
 import sys
 import time
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -55,6 +56,7 @@ from selfcal.plots.job_figures import (
     write_figure,
 )
 from selfcal.robot.definition import load_robot
+from selfcal.terms.base import Term
 from selfcal.transforms import inv_pose
 
 _log = get_logger(__name__)
@@ -137,7 +139,7 @@ def run_calibrate(
     allow_missing_frames: bool = False,
     raise_failed: bool = True,
     figures: bool = False,
-    tracker=None,
+    terms: Sequence[Term] = (),
     cache: FrameCache | None = None,
     joint_sigma: np.ndarray | None = None,
 ) -> CalibrationResult:
@@ -145,7 +147,8 @@ def run_calibrate(
     result. Its warnings are printed (unless ``quiet``). ``raise_failed=False``: return a
     calibration marked failed as well (studies, which measure it against the truth).
     ``figures``: also ``root/figures/reprojection.png`` (:func:`reprojection_figures`).
-    ``tracker``: a :class:`selfcal.calibration.tracker.join.TrackerInput` estimated with the images.
+    ``terms``: measurement terms estimated with the images (:mod:`selfcal.terms`, e.g. a
+    :class:`selfcal.terms.tracker.TrackerTerm`).
     ``cache``: the images the acquisition of this run kept in memory (the rest is read); the
     detections are added to it. ``joint_sigma``: the joint read-back noise (rad / m) to model
     instead of the robot file's encoder resolution.
@@ -155,7 +158,7 @@ def run_calibrate(
             written all the same, marked failed (unless ``raise_failed`` is False).
     """
     res = calibrate(root, progress=Progress("detect", enabled=not quiet), method=method,
-                    allow_missing_frames=allow_missing_frames, tracker=tracker,
+                    allow_missing_frames=allow_missing_frames, terms=terms,
                     cache=cache, joint_sigma=joint_sigma)  # fmt: skip
     path = write_calibration(Path(root) / "calibration.json", res)
     if figures:

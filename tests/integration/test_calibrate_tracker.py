@@ -21,12 +21,12 @@ import pytest
 
 from selfcal.cli.main import main as cli_main
 from selfcal.config.scenario import load_scenario
-from selfcal.io.calibration import read_calibration
 from selfcal.io.dataset import Dataset
 from selfcal.io.truth import read_truth
 from selfcal.kinematics.accuracy import aligned_errors, tool_tips
 from selfcal.kinematics.forward import fk_tool
 from selfcal.pipeline.run import run_acquire
+from selfcal.terms.registry import read_calibration
 from selfcal.transforms import pose_from_vec, trans
 
 SIGMA_MM = 0.1
@@ -84,9 +84,9 @@ def test_images_and_tracker_together_are_at_least_as_good_as_either_alone(acquir
     qv = np.radians(ds.info.validation_joints_deg)
     p_true = tool_tips(truth.true_model, qv, truth.T_cam_tip)
     cal_img, cal_both = read_calibration(images), read_calibration(both)
-    assert cal_img.tracker is None and cal_both.tracker is not None
+    assert cal_img.section("tracker") is None and cal_both.section("tracker") is not None
     e_images = aligned_errors(tool_tips(cal_img.model, qv, truth.T_cam_tip), p_true)["rms"]
-    tool = trans(np.asarray(cal_both.tracker.tool_point_mm) / 1e3)
+    tool = trans(np.asarray(cal_both.section("tracker").tool_point_mm) / 1e3)
     e_both = aligned_errors(tool_tips(cal_both.model, qv, tool), p_true)["rms"]
     p_trk = np.loadtxt(predicted, delimiter=",", skiprows=1) / 1e3
     e_tracker = aligned_errors(p_trk, p_true)["rms"]

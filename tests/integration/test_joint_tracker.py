@@ -27,6 +27,7 @@ from selfcal.kinematics.forward import fk_tool
 from selfcal.kinematics.mcpc import nominal_mcpc
 from selfcal.pipeline.run import run_acquire
 from selfcal.robot.definition import load_robot
+from selfcal.terms.tracker import TrackerTerm
 from selfcal.transforms import pose_from_vec, trans
 
 SIGMA_M = 1e-4
@@ -62,7 +63,7 @@ def test_images_and_tracker_together_beat_either_alone(case):
     p_true = tool_tips(truth.true_model, qv, truth.T_cam_tip)
     kw = {"loss": "linear"}
     both = refine_calibration(
-        out, obs, q, robot, ds.info, tracker=meas, tracker_sigma_m=SIGMA_M, **kw
+        out, obs, q, robot, ds.info, terms=[TrackerTerm(meas, sigma_m=SIGMA_M)], **kw
     )
     alone = identify_tracker(nominal_mcpc(robot), meas, sigma_t_m=SIGMA_M)
 
@@ -91,7 +92,7 @@ def test_images_and_tracker_together_beat_either_alone(case):
     d = np.linalg.norm(tips[a] - tips[b], axis=1) + rng.normal(0.0, SIGMA_M, 15)
     dist = TrackerMeasurements(q[:0], np.zeros((0, 3)), q_a=q[a], q_b=q[b], d=d)
     with_d = refine_calibration(
-        out, obs, q, robot, ds.info, tracker=dist, tracker_sigma_m=SIGMA_M, **kw
+        out, obs, q, robot, ds.info, terms=[TrackerTerm(dist, sigma_m=SIGMA_M)], **kw
     )
     e_dist = err(with_d.model, trans(np.array(with_d.diagnostics["tool_point"])))
     print(f"images + 15 distances: {e_dist:.4f} mm")
@@ -111,8 +112,8 @@ def test_images_and_tracker_poses_together_beat_either_alone(case):
         np.c_[rng.normal(0, SIGMA_RAD, (len(q), 3)), rng.normal(0, SIGMA_M, (len(q), 3))]
     )
     poses = TrackerMeasurements(q, T[:, :3, 3], T[:, :3, :3])
-    kw = {"loss": "linear", "tracker_sigma_m": SIGMA_M, "tracker_sigma_rad": SIGMA_RAD}
-    both = refine_calibration(out, obs, q, robot, ds.info, tracker=poses, **kw)
+    term = TrackerTerm(poses, sigma_m=SIGMA_M, sigma_rad=SIGMA_RAD)
+    both = refine_calibration(out, obs, q, robot, ds.info, loss="linear", terms=[term])
     alone = identify_tracker(nominal_mcpc(robot), poses, sigma_t_m=SIGMA_M, sigma_r_rad=SIGMA_RAD)
     e_images = aligned_errors(tool_tips(images.model, qv, truth.T_cam_tip), p_true)["rms"]
     T_cam_tool = np.array(both.diagnostics["tool_frame"])

@@ -17,7 +17,7 @@ import functools
 import os
 import time
 import warnings
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import NamedTuple
@@ -52,7 +52,6 @@ from selfcal.calibration.frame_checks import (
 )
 from selfcal.calibration.identify import identify
 from selfcal.calibration.scale_check import check_scale
-from selfcal.calibration.tracker.join import TrackerInput, tracker_source
 from selfcal.camera import (
     CameraSet,
     LensCamera,
@@ -73,6 +72,7 @@ from selfcal.kinematics.mcpc import MCPCModel, chain_transforms, minimal_indices
 from selfcal.kinematics.trajectory import check_not_degenerate
 from selfcal.robot.definition import RobotDef, load_robot
 from selfcal.target.aruco_detect import detect_markers, detect_markers_noise
+from selfcal.terms.base import Term
 
 __all__ = [
     "CalibrationError",
@@ -248,7 +248,7 @@ def calibrate(
     progress=None,
     method: str = "joint",
     allow_missing_frames: bool = False,
-    tracker: TrackerInput | None = None,
+    terms: Sequence[Term] = (),
     cache: FrameCache | None = None,
     joint_sigma: float | np.ndarray | None = None,
 ) -> CalibrationResult:
@@ -261,7 +261,7 @@ def calibrate(
         progress=progress,
         method=method,
         allow_missing_frames=allow_missing_frames,
-        tracker=tracker,
+        terms=terms,
         cache=cache,
         joint_sigma=joint_sigma,
     ).result
@@ -273,7 +273,7 @@ def calibrate_detailed(
     progress=None,
     method: str = "joint",
     allow_missing_frames: bool = False,
-    tracker: TrackerInput | None = None,
+    terms: Sequence[Term] = (),
     cache: FrameCache | None = None,
     joint_sigma: float | np.ndarray | None = None,
 ) -> CalibrationOutput:
@@ -287,27 +287,29 @@ def calibrate_detailed(
     Cramer-Rao bounds (or why none), the images skipped, the warnings and the wall time, and the
     failures of :mod:`selfcal.calibration.field.quality` (the result is then marked failed). A planned frame without
     a whole ``joints.csv`` row is an error, or with ``allow_missing_frames`` a warning naming it.
-    ``tracker``: tracker measurements of the same robot estimated with the images in the one-step
-    refinement (method ``joint`` only; :mod:`selfcal.calibration.tracker.join`); the result records them
-    (``CalibrationResult.tracker``).
+    ``terms``: further measurements of the same robot (:mod:`selfcal.terms`: tracker positions,
+    poses and distances, touch-probe points ...) estimated with the images in the one-step
+    refinement (method ``joint`` only); the result records each term's section
+    (``CalibrationResult.terms``).
     ``cache``: images and detections already in memory (:func:`detect_dataset`).
     ``joint_sigma``: the standard deviation of a joint reading (rad / m; one value or one per
     joint) the one-step refinement models, instead of the robot file's encoder resolution.
 
     Raises:
         ValueError: unknown ``method``.
-        CalibrationError: ``tracker`` with the two-stage method.
+        CalibrationError: ``terms`` with the two-stage method.
         DatasetError: missing or damaged dataset files, frames without joints rows (listed).
         CalibrationError / selfcal.calibration.field.self_calibration.SelfCalibrationError / selfcal.calibration.identify.IdentificationError:
             data that cannot determine the answer (each message names the cause).
     """
     if method not in METHODS:
         raise InputError(f"unknown calibration method {method!r}; use one of {METHODS}")
-    if tracker is not None and method != "joint":
+    if terms and method != "joint":
+        kinds = ", ".join(t.kind for t in terms)
         raise CalibrationError(
-            "tracker measurements join the images in the one-step refinement; the two-stage "
-            "method has none",
-            fix="use the default method (joint) with tracker measurements",
+            f"further measurements ({kinds}) join the images in the one-step refinement; the "
+            "two-stage method has none",
+            fix=f"use the default method (joint) with {kinds} measurements",
         )
     t0 = time.perf_counter()
     ds = Dataset.open(root)
@@ -415,15 +417,12 @@ def calibrate_detailed(
     out = CalibrationOutput(result, sc, ident, ident.model, ds.indices[used])
     if method == "joint":
         with _stage(progress, "one-step refinement (all images)") as st:
-            kw = {} if tracker is None else tracker.refine_kwargs()
+            kw: dict = {"terms": terms}
             if joint_sigma is not None:
                 kw["joint_sigma"] = joint_sigma
             res = refine_calibration(out, obs, q, robot, ds.info, **kw)
             st(f"reprojection RMS {res.rms_px:.3f} px, sigma {res.sigma_px:.3f} px")
-        result = with_joint(result, res, robot)
-        if tracker is not None:
-            src = tracker_source(tracker, res.diagnostics, res.model, res.model_gauge)
-            result = dataclasses.replace(result, tracker=src)
+        result = dataclasses.replace(with_joint(result, res, robot), terms=res.sections)
         out = CalibrationOutput(result, sc, ident, res.model, ds.indices[used], res)
     # the bound's corner noise: the detector's own estimate where it has one (it excludes a
     # bias of whole sides, which the fit residuals would carry into the bound), else residuals
@@ -438,8 +437,7 @@ def calibrate_detailed(
     scene = ScenePoints(tuple(int(i) for i in ids[ok]), np.asarray(X[ok], dtype=float))
     out = dataclasses.replace(out, result=result)
     with _stage(progress, "fair nominal (the nominal chain fitted to the same pixels)") as st:
-        kw = {} if tracker is None else tracker.refine_kwargs()
-        fair, why = judge_against_nominal(out, obs, q, robot, ds.info, **kw)
+        fair, why = judge_against_nominal(out, obs, q, robot, ds.info, terms=terms)
         if fair is not None:
             st(f"predicts the calibration images with "
                f"{fair.calibration_images_rms_px['nominal']:.3f} px RMS")  # fmt: skip

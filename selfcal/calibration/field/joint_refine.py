@@ -51,6 +51,7 @@ kinematic block (points, rig and intrinsics are nuisance parameters, marginalise
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 
 import numpy as np
 import scipy.linalg
@@ -72,11 +73,11 @@ from selfcal.estimation.kinematic_poses import KinematicPoses
 from selfcal.estimation.observations import Observations, views_per_point
 from selfcal.estimation.reprojection import reprojection_residuals, robust_sigma
 from selfcal.estimation.residuals import GaussianPriorBlock, ScaleDistanceBlock
-from selfcal.estimation.tracker import TrackerMeasurements, restarted, tracker_report, tracker_terms
 from selfcal.kinematics.forward import fk_tool
 from selfcal.kinematics.mcpc import MCPCModel, minimal_indices, param_is_angle, param_names
 from selfcal.solver import Loss, ResidualBlock, SolverOptions, covariance, scaled_rank, solve
 from selfcal.target import marker_features
+from selfcal.terms.base import Term, TermContext, TermSolution, term_blocks
 from selfcal.transforms import inv_pose
 
 __all__ = [
@@ -156,9 +157,10 @@ class _Problem(_AdjustmentProblem):
     parameters, p, X (3 P)]``:
     residual blocks ``reprojection`` (2 k px, robust ``loss``), ``scale`` (1 row, see
     :class:`selfcal.estimation.residuals.ScaleDistanceBlock`) and ``prior`` (``prior_w *
-    p[prior_cols]``, zero-mean Gaussian priors; absent when empty). Parameter blocks
-    ``intrinsics``, ``poses`` (the :class:`KinematicPoses` parameters; the joint corrections are
-    per-configuration instances) and ``points``."""
+    p[prior_cols]``, zero-mean Gaussian priors; absent when empty) and the terms' blocks
+    (``terms``: residual and parameter blocks). Parameter blocks ``intrinsics``, ``poses`` (the
+    :class:`KinematicPoses` parameters; the joint corrections are per-configuration instances)
+    and ``points``."""
 
     def __init__(
         self,
@@ -175,13 +177,13 @@ class _Problem(_AdjustmentProblem):
         prior_w: np.ndarray,
         loss: Loss | None = None,
         x0: np.ndarray | None = None,
-        tracker: tuple[list, list] = ([], []),
+        terms: tuple[list, list] = ([], []),
     ) -> None:
         extra: list[ResidualBlock] = [ScaleDistanceBlock(scale_idx[0], scale_idx[1], d_m, w_scale)]
         if len(prior_cols):
             extra.append(GaussianPriorBlock("poses", prior_cols, prior_w))
-        extra += tracker[0]
-        kw: dict = {"loss": loss, "x0": x0, "extra": extra, "extra_params": tracker[1]}
+        extra += terms[0]
+        kw: dict = {"loss": loss, "x0": x0, "extra": extra, "extra_params": terms[1]}
         super().__init__(camera, model, view, pidx, uv, n_points, **kw)
         self.n_pix = 2 * len(self.view)
 
@@ -210,9 +212,7 @@ def joint_refine(
     max_rounds: int = 5,
     max_iter: int = 100,
     tol: float = 1e-12,
-    tracker: TrackerMeasurements | None = None,
-    tracker_sigma_m: float = 1e-4,
-    tracker_sigma_rad: float = 1e-4,
+    terms: Sequence[Term] = (),
     check_rank: bool = True,
     stds: bool = True,
 ) -> JointRefinementResult:
@@ -238,9 +238,11 @@ def joint_refine(
             pass) or ``"linear"`` (plain least squares on the two-stage inliers only).
         robust_scale_px, outlier_px: soft-L1 scale; minimum outlier threshold (the threshold is
             ``max(outlier_px, 4.5 sigma)``).
-        tracker, tracker_sigma_m, tracker_sigma_rad: tracker positions, poses or distances
-            (joints rad, m) with their noise, estimated with the rest (:func:`tracker_terms`:
-            tracker frame and tool point / frame are new unknowns; residuals in pixels).
+        terms: further measurements estimated with the rest (:mod:`selfcal.terms`: tracker
+            positions, poses or distances, touch-probe points ...): each adds its residual and
+            parameter blocks over the free kinematic parameters (block ``poses``), its residuals
+            in pixels (one unit = ``pixel_sigma_px`` of its own noise), and reports its
+            diagnostics (merged into ``diagnostics``) and section (``sections``).
         check_rank: test the gauge by the rank of the start's Jacobian (a dense eigenvalue
             problem); False where a fit of more unknowns on the same rows passed it (the fair
             nominal, :mod:`selfcal.calibration.field.nominal_fit`): ``rank`` is then -1.
@@ -313,10 +315,8 @@ def joint_refine(
         prior_cols, prior_w = np.zeros(0, np.int64), np.zeros(0)
     camera: Cameras = sc.camera if sc.cameras is None else sc.cameras
     w_scale = 1.0 / float(scale_sigma_m)
-    trk: tuple[list, list] = ([], [])
-    if tracker is not None:
-        s_px = (tracker_sigma_m / pixel_sigma_px, tracker_sigma_rad / pixel_sigma_px)
-        trk = tracker_terms(tracker, model0, free_idx, "poses", *s_px)
+    term_ctx = TermContext(model0, free_idx, "poses", pixel_sigma_px)
+    built = [t.build(term_ctx) for t in terms]
 
     def select(act):
         """Rows and points of the adjustment: points seen in two inlier views."""
@@ -356,7 +356,7 @@ def joint_refine(
             prior_w,
             Loss("linear" if last else loss, robust_scale_px),
             x0,
-            trk,
+            term_blocks(built),
         )
         if rank_info is None and not check_rank:
             rank_info = (float("nan"), -1)
@@ -380,7 +380,7 @@ def joint_refine(
         total_it += sol.iterations
         camera, p, Xu = prob.unpack(x)
         p = p.copy()
-        trk = (trk[0], restarted(trk[1], sol.values))
+        built = [b.restarted(sol.values) for b in built]
         X = np.full_like(X, np.nan)
         X[pts_used] = Xu
         if last:
@@ -456,7 +456,10 @@ def joint_refine(
         dq = p[pose_model.dq_cols].reshape(-1, model0.n)
         diag["joint_correction_rms"] = np.sqrt(np.mean(dq**2, axis=0)).tolist()
     diag["gauge_condition_number"] = gauge.condition_number
-    diag |= tracker_report(*trk, sol.values, sol.residuals, tracker_sigma_m / pixel_sigma_px)
+    solved = TermSolution(sol.values, sol.residuals, model_ref, model_g, term_ctx)
+    reports = [t.report(b, solved) for t, b in zip(terms, built)]
+    for rep_ in reports:
+        diag |= rep_.diagnostics
     assert rank_info is not None  # set in the first round (there is always one)
     return JointRefinementResult(
         model=model_ref,
@@ -492,6 +495,7 @@ def joint_refine(
         n_unknowns=prob.n,
         diagnostics=diag,
         inlier=act,
+        sections=tuple(r.section for r in reports if r.section is not None),
     )
 
 

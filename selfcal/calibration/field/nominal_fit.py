@@ -86,7 +86,7 @@ def fit_field_nominal(
     corner noise it modelled; a two-stage calibration's from its camera stage (its inliers,
     the robot file's encoder resolution). ``kw``: further keyword arguments of
     :func:`selfcal.calibration.field.joint_refine.joint_refine` the calibration's refinement
-    had (its tracker measurements).
+    had (its measurement terms, ``terms``: :mod:`selfcal.terms`).
 
     Raises:
         JointRefinementError, IdentificationError: the fit failed (the message says why).

@@ -1,12 +1,14 @@
-"""Images and tracker measurements in one calibration (``selfcal calibrate DIR --tracker FILE``).
+"""The tracker term: tracker positions, poses and distances estimated with the images.
 
 A lab that has both camera images of the robot's postures (the dataset) and tracker readings of
 the same robot (tool-point positions, tool poses or ball-bar distances, each row with its own
-joint readings; :mod:`selfcal.io.tracker`) gets one estimate: the tracker's residual blocks join the
-one-step refinement over the images (:func:`selfcal.calibration.field.joint_refine.joint_refine` with ``tracker``),
-which estimates the tracker frame and the tool point with the kinematics. :class:`TrackerInput`
-is what the calibration takes; :func:`tracker_source` is what ``calibration.json`` records of it
-(:class:`selfcal.io.calibration_tracker.TrackerSource`). Units: SI inside, mm / deg in the record.
+joint readings; :mod:`selfcal.io.tracker`) gets one estimate (``selfcal calibrate DIR --tracker
+FILE``): the tracker's residual blocks (:func:`selfcal.estimation.tracker.tracker_terms`) join the
+one-step refinement over the images (:func:`selfcal.calibration.field.joint_refine.joint_refine`),
+which estimates the tracker frame and the tool point with the kinematics. :class:`TrackerTerm` is
+the term (:mod:`selfcal.terms.base`); :func:`tracker_source` is what ``calibration.json`` records of
+it (:class:`selfcal.io.calibration_tracker.TrackerSource`, section ``tracker``). Units: SI inside,
+mm / deg in the record.
 """
 
 from __future__ import annotations
@@ -15,14 +17,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from selfcal.estimation.tracker import TrackerMeasurements
+from selfcal.estimation.tracker import TrackerMeasurements, tracker_report, tracker_terms
 from selfcal.io.calibration_blocks import matrix
 from selfcal.io.calibration_tracker import TrackerSource
 from selfcal.kinematics.forward import fk_tool
 from selfcal.kinematics.mcpc import MCPCModel
+from selfcal.terms.base import TermBlocks, TermContext, TermReport, TermSolution
 from selfcal.transforms import inv_pose
 
-__all__ = ["TrackerInput", "tracker_source", "DEFAULT_SIGMA_M", "DEFAULT_SIGMA_RAD"]
+__all__ = ["TrackerTerm", "tracker_source", "DEFAULT_SIGMA_M", "DEFAULT_SIGMA_RAD"]
 
 DEFAULT_SIGMA_M = 1e-4
 """Default tracker noise per coordinate (0.1 mm: a laser tracker's, as ``selfcal identify``)."""
@@ -31,8 +34,8 @@ DEFAULT_SIGMA_RAD = float(np.radians(0.01))
 
 
 @dataclass(frozen=True)
-class TrackerInput:
-    """Tracker data to estimate with the images.
+class TrackerTerm:
+    """Tracker data to estimate with the images (a :class:`selfcal.terms.base.Term`).
 
     Attributes:
         measurements: positions / poses / distances in SI units (joints rad, m).
@@ -48,13 +51,24 @@ class TrackerInput:
     sigma_m: float = DEFAULT_SIGMA_M
     sigma_rad: float = DEFAULT_SIGMA_RAD
 
-    def refine_kwargs(self) -> dict:
-        """The keyword arguments of :func:`selfcal.calibration.field.joint_refine.joint_refine` for this input."""
-        return {
-            "tracker": self.measurements,
-            "tracker_sigma_m": self.sigma_m,
-            "tracker_sigma_rad": self.sigma_rad,
-        }
+    kind = "tracker"
+
+    def build(self, context: TermContext) -> TermBlocks:
+        """The position or pose block and the distance block over the chain of ``context``, with
+        the tracker frame, tool point and tool frame as new unknowns
+        (:func:`selfcal.estimation.tracker.tracker_terms`)."""
+        scale = (self.sigma_m / context.unit_sigma, self.sigma_rad / context.unit_sigma)
+        blocks, params = tracker_terms(
+            self.measurements, context.model, context.free_idx, context.block, *scale
+        )
+        return TermBlocks(tuple(blocks), tuple(params), state=scale[0])
+
+    def report(self, blocks: TermBlocks, solution: TermSolution) -> TermReport:
+        """The fit per block and the estimated frames (diagnostics, SI:
+        :func:`selfcal.estimation.tracker.tracker_report`) and their record."""
+        diag = tracker_report(list(blocks.residuals), list(blocks.parameters), solution.values,
+                              solution.residuals, blocks.state)  # fmt: skip
+        return TermReport(diag, tracker_source(self, diag, solution.model, solution.model_gauge))
 
 
 def kinds(meas: TrackerMeasurements) -> tuple[str, ...]:
@@ -68,7 +82,7 @@ def kinds(meas: TrackerMeasurements) -> tuple[str, ...]:
 
 
 def tracker_source(
-    inp: TrackerInput, diagnostics: dict, model: MCPCModel, model_gauge: MCPCModel
+    inp: TrackerTerm, diagnostics: dict, model: MCPCModel, model_gauge: MCPCModel
 ) -> TrackerSource:
     """The ``calibration.json`` record of ``inp`` estimated by the joint refinement whose
     ``diagnostics`` (:func:`selfcal.estimation.tracker.tracker_report`'s keys), final ``model``

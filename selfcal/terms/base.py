@@ -1,0 +1,136 @@
+"""What a measurement term is: its residual and parameter blocks, its report and its section.
+
+A *term* is one kind of measurement that a calibration estimates with the rest (images of a
+marker field are the route's own; tracker positions, poses and distances, touch-probe points ...).
+An estimator that takes terms (:func:`selfcal.calibration.field.joint_refine.joint_refine`) hands
+each the :class:`TermContext` of its problem and gets back :class:`TermBlocks`: residual blocks and
+new parameter blocks for :mod:`selfcal.solver`. After the solve it asks each term for its
+:class:`TermReport`: diagnostics (SI) and the section that ``calibration.json`` records under the
+term's ``kind`` (mm / deg for people, ``_m`` keys in metres). The estimator loops over its terms and
+names none of them: a new kind is a new module and a line in :mod:`selfcal.terms.registry`.
+
+Units: SI inside (m, rad); a term's residuals are in the problem's residual unit, i.e. its errors
+divided by its own standard deviation and multiplied by :attr:`TermContext.unit_sigma` (the
+standard deviation of one unit of the problem's other residuals, e.g. the corner noise in px), so
+that one standard deviation of any term weighs the same.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+from selfcal.kinematics.mcpc import MCPCModel
+from selfcal.solver import ParameterBlock, ResidualBlock
+
+__all__ = ["Term", "TermBlocks", "TermContext", "TermReport", "TermSection", "TermSolution"]
+
+
+@dataclass(frozen=True)
+class TermContext:
+    """The problem a term joins.
+
+    Attributes:
+        model: the chain at the start (SI; world and tool are the problem's: for the field route
+            the reconstruction frame and the left camera, OpenCV frame).
+        free_idx: flat MCPC parameters (``model.params.reshape(-1)`` order) that are unknowns;
+            they are the first coordinates of parameter block ``block``, in this order.
+        block: name of the parameter block holding them.
+        unit_sigma: standard deviation of one unit of the problem's residuals (e.g. px); a term
+            scales its residuals by ``unit_sigma / sigma`` (1.0: residuals in standard deviations).
+    """
+
+    model: MCPCModel
+    free_idx: np.ndarray
+    block: str
+    unit_sigma: float = 1.0
+
+    def coords(self) -> np.ndarray:
+        """(6 (n + 1),) coordinate in :attr:`block` of every flat MCPC parameter, -1 = fixed at
+        :attr:`model`'s value (the ``coords`` of :class:`selfcal.estimation.tracker.ChainLayout`)."""
+        out = -np.ones(6 * (self.model.n + 1), np.int64)
+        out[np.asarray(self.free_idx, dtype=np.int64)] = np.arange(len(self.free_idx))
+        return out
+
+
+@dataclass(frozen=True)
+class TermBlocks:
+    """What a term adds to a problem: residual blocks, new parameter blocks (their names unique
+    in the problem) and whatever the term keeps to report on them (``state``)."""
+
+    residuals: tuple[ResidualBlock, ...]
+    parameters: tuple[ParameterBlock, ...] = ()
+    state: Any = None
+
+    def restarted(self, values: Mapping[str, np.ndarray]) -> TermBlocks:
+        """The same blocks with the parameter blocks started at ``values`` (a solution's, for
+        the next round of an adjustment)."""
+        params = tuple(
+            ParameterBlock(p.name, values[p.name], p.held, p.instance) for p in self.parameters
+        )
+        return TermBlocks(self.residuals, params, self.state)
+
+
+@dataclass(frozen=True)
+class TermSolution:
+    """The solved problem as a term sees it.
+
+    Attributes:
+        values: every parameter block's solved values (block name -> flat array).
+        residuals: every residual block's solved residuals (block name -> (k, d)).
+        model: the solved chain in the frame the calibration reports (SI).
+        model_gauge: the solved chain in the problem's own world (where the term's parameter
+            blocks were estimated); the same as ``model`` when the estimator does not re-express.
+        context: the :class:`TermContext` the term was built with.
+    """
+
+    values: Mapping[str, np.ndarray]
+    residuals: Mapping[str, np.ndarray]
+    model: MCPCModel
+    model_gauge: MCPCModel
+    context: TermContext
+
+
+class TermSection(Protocol):
+    """A ``calibration.json`` section: written under the key ``kind``."""
+
+    @property
+    def kind(self) -> str:
+        """The section's key (the term's kind)."""
+
+    def to_json(self) -> dict:
+        """The section's JSON object."""
+
+
+@dataclass(frozen=True)
+class TermReport:
+    """What a term says after the solve: ``diagnostics`` (SI numbers and lists, merged into the
+    estimator's) and its ``calibration.json`` ``section`` (None: nothing to record)."""
+
+    diagnostics: dict = field(default_factory=dict)
+    section: TermSection | None = None
+
+
+@runtime_checkable
+class Term(Protocol):
+    """One measurement kind's data and noise (see the module docstring)."""
+
+    kind: str
+
+    def build(self, context: TermContext) -> TermBlocks:
+        """The term's residual and parameter blocks in the problem of ``context``.
+
+        Raises:
+            InputError: data that do not fit the problem (e.g. joints of another robot).
+        """
+
+    def report(self, blocks: TermBlocks, solution: TermSolution) -> TermReport:
+        """Diagnostics and ``calibration.json`` section at the solution."""
+
+
+def term_blocks(built: Sequence[TermBlocks]) -> tuple[list, list[ParameterBlock]]:
+    """All residual blocks and all parameter blocks of ``built``, in order."""
+    return [r for b in built for r in b.residuals], [p for b in built for p in b.parameters]
