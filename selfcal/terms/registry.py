@@ -16,6 +16,7 @@ from selfcal.io.calibration import CalibrationResult
 from selfcal.io.calibration import read_calibration as _read_calibration
 from selfcal.io.calibration_terms import SectionType
 from selfcal.io.calibration_tracker import TrackerSource
+from selfcal.terms.probe import ProbeSection, ProbeTerm
 from selfcal.terms.tracker import TrackerTerm
 
 __all__ = ["TermKind", "KINDS", "section_types", "read_calibration"]
@@ -33,6 +34,7 @@ class TermKind:
 
 KINDS: tuple[TermKind, ...] = (
     TermKind("tracker", TrackerTerm, TrackerSource),
+    TermKind("probe", ProbeTerm, ProbeSection),
     # one line per kind
 )
 
