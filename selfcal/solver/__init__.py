@@ -1,6 +1,6 @@
 """One sparse nonlinear least-squares engine (Levenberg-Marquardt), vectorised over residual rows.
 
-- :mod:`selfcal.solver.problem`: parameter blocks (held coordinates, instances) and residual blocks
+- :mod:`selfcal.solver.problem`: parameter blocks (held coordinates, instances, bounds) and residual blocks
   (batches of homogeneous rows with Jacobian pieces) laid out as one unknown vector;
 - :mod:`selfcal.solver.losses`: robust losses on each row's norm (IRLS);
 - :mod:`selfcal.solver.linear`: dense, sparse and Schur-complement normal equations, damped solves;

@@ -10,6 +10,13 @@ residual row's norm. Stopping rules (``tol`` relative):
 3. damping saturated: ``lam > 1e16`` after a failure;
 0. budget: ``max_iterations`` Jacobian evaluations or ``max_evaluations`` trials.
 
+Bounds (a problem with bounded unknowns, :class:`selfcal.solver.problem.ParameterBlock`; dense
+or sparse linear solver): the unknowns at a bound whose descent direction leaves the box are held
+for the iteration (their rows and columns of the normal equations decoupled, their gradient
+left out of the gradient rule), the others' step is projected onto the box, and the predicted
+decrease is that of the projected step (projected Levenberg-Marquardt). A problem without bounds
+runs exactly as before.
+
 Every trial counts toward ``max_evaluations``: a residual evaluation, a failed factorisation of
 the damped system, a rejected step. NaN/inf at the start, in a Jacobian or in the normal
 equations raise :class:`selfcal.errors.SolverError` naming the residual block; a trial point with
@@ -24,9 +31,16 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.sparse as sp
 
 from selfcal.errors import SolverError, UsageError
-from selfcal.solver.linear import DENSE_MAX, DampedSystem, SingularSystem, assemble
+from selfcal.solver.linear import (
+    DENSE_MAX,
+    DampedSystem,
+    NormalEquations,
+    SingularSystem,
+    assemble,
+)
 from selfcal.solver.problem import Evaluation, Problem
 from selfcal.solver.schur import SchurAssembler
 
@@ -101,6 +115,27 @@ def _overflowing(
     ]
 
 
+def _blocked(problem: Problem, x: np.ndarray, g: np.ndarray) -> np.ndarray:
+    """(n,) the unknowns at a bound whose descent direction ``-g`` leaves the box."""
+    return ((x <= problem.lower) & (g > 0)) | ((x >= problem.upper) & (g < 0))
+
+
+def _held_at_bounds(ne: NormalEquations, held: np.ndarray) -> NormalEquations:
+    """``ne`` with the unknowns ``held`` (n,) decoupled (zero gradient, their diagonal alone), so
+    the damped step leaves them where they are."""
+    if not held.any():
+        return ne
+    free = (~held).astype(float)
+    g = ne.g * free
+    if ne.kind == "dense":
+        A = ne.dense_A * free[:, None] * free[None, :]
+        A[np.diag_indices_from(A)] += np.diag(ne.dense_A) * held
+        return NormalEquations("dense", ne.n, g, A=A)
+    P = sp.diags(free)
+    A_s = (P @ ne.sparse_A @ P + sp.diags(ne.sparse_A.diagonal() * held)).tocsc()
+    return NormalEquations("sparse", ne.n, g, A=A_s)
+
+
 def _linear_kind(problem: Problem, opt: SolverOptions) -> tuple[str, np.ndarray | None]:
     kind = opt.linear_solver
     inst = problem.instance_of_columns(opt.eliminate) if opt.eliminate else None
@@ -113,6 +148,8 @@ def _linear_kind(problem: Problem, opt: SolverOptions) -> tuple[str, np.ndarray 
             kind = "dense" if problem.n <= DENSE_MAX else "sparse"
     if kind == "schur" and inst is None:
         raise UsageError("linear_solver='schur' needs eliminate=<parameter block name>")
+    if kind == "schur" and problem.bounded:
+        raise UsageError("bounded unknowns need the dense or sparse linear solver, not schur")
     return kind, inst
 
 
@@ -152,10 +189,12 @@ def solve(problem: Problem, options: SolverOptions | None = None) -> SolverResul
                 f"{_overflowing(problem, jev, weights)}",
                 fix="scale the residuals (e.g. divide by their standard deviation)",
             )
-        system = DampedSystem(ne)
-        if np.max(np.abs(system.scaled_gradient()), initial=0.0) <= tol * 1e-3 * max(
-            np.sqrt(2 * cost), 1e-300
-        ):
+        if problem.bounded:  # a component pushing out of the box at its bound cannot move
+            system = DampedSystem(_held_at_bounds(ne, _blocked(problem, x, ne.g)))
+        else:
+            system = DampedSystem(ne)
+        sg = system.scaled_gradient()
+        if np.max(np.abs(sg), initial=0.0) <= tol * 1e-3 * max(np.sqrt(2 * cost), 1e-300):
             status, message = 1, "gradient tolerance reached"
             break
         improved = False
@@ -164,6 +203,9 @@ def solve(problem: Problem, options: SolverOptions | None = None) -> SolverResul
             try:
                 step = -system.solve(lam)
                 x_new = x + step
+                if problem.bounded:
+                    x_new = np.clip(x_new, problem.lower, problem.upper)
+                    step = x_new - x
                 ev_new = problem.evaluate(x_new)
                 nfev += 1
                 bad_block = problem.nonfinite_block(ev_new)

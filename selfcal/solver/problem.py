@@ -2,7 +2,8 @@
 
 A *parameter block* is a named flat array (e.g. ``"intrinsics"`` = ``[fx, mu]``, ``"points"`` =
 ``(P, 3)`` raveled); some coordinates may be *held* at their initial values (gauge, fixed
-intrinsics) and are then not unknowns. A coordinate may belong to an *instance* (e.g. the six
+intrinsics) and are then not unknowns, and some may be *bounded* (``lower`` <= value <=
+``upper``, e.g. joint ranges): the solver projects every step onto the box. A coordinate may belong to an *instance* (e.g. the six
 coordinates of one camera pose): the linear solver can eliminate all instances of one block by a
 Schur complement when no residual row touches two of them.
 
@@ -42,12 +43,18 @@ class ParameterBlock:
     ``held``: bool mask (size,) of coordinates fixed at ``value`` (None: all free).
     ``instance``: int (size,) instance index of each coordinate for Schur elimination, ``-1`` for
     coordinates shared by all rows (None: no instances).
+    ``lower``, ``upper``: bounds of the coordinates (scalar or (size,); None: -inf / inf); a
+    start outside them is moved onto them.
+
+    Raises :class:`selfcal.errors.UsageError` for arrays of another size or a lower bound above its upper bound.
     """
 
     name: str
     value: np.ndarray
     held: np.ndarray | None = None
     instance: np.ndarray | None = None
+    lower: np.ndarray | None = None
+    upper: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         v = np.asarray(self.value, dtype=float).reshape(-1).copy()
@@ -63,6 +70,15 @@ class ParameterBlock:
                     f"{v.size} coordinates"
                 )
             object.__setattr__(self, key, a)
+        if self.lower is not None or self.upper is not None:
+            lo = np.broadcast_to(-np.inf if self.lower is None else self.lower, v.shape)
+            hi = np.broadcast_to(np.inf if self.upper is None else self.upper, v.shape)
+            lo, hi = np.asarray(lo, dtype=float).copy(), np.asarray(hi, dtype=float).copy()
+            if np.any(lo > hi) or np.isnan(lo).any() or np.isnan(hi).any():
+                raise UsageError(f"parameter block {self.name!r}: a lower bound above its upper")
+            object.__setattr__(self, "lower", lo)
+            object.__setattr__(self, "upper", hi)
+            object.__setattr__(self, "value", np.clip(v, lo, hi))
 
     @property
     def size(self) -> int:
@@ -130,6 +146,15 @@ class Problem:
         self.x0 = np.concatenate(
             [p.value[self.colmap[p.name] >= 0] for p in parameters] or [np.zeros(0)]
         )
+        self.lower = np.full(self.n, -np.inf)
+        self.upper = np.full(self.n, np.inf)
+        for p in parameters:
+            cm = self.colmap[p.name]
+            if p.lower is not None and p.upper is not None:
+                self.lower[cm[cm >= 0]] = p.lower[cm >= 0]
+                self.upper[cm[cm >= 0]] = p.upper[cm >= 0]
+        self.bounded = bool(np.isfinite(self.lower).any() or np.isfinite(self.upper).any())
+        """Whether any unknown has a finite bound (the solver then projects its steps)."""
 
     # ------------------------------------------------------------------- layout
     def values(self, x: np.ndarray) -> dict[str, np.ndarray]:

@@ -17,6 +17,7 @@ that one standard deviation of any term weighs the same.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Protocol, runtime_checkable
@@ -68,9 +69,7 @@ class TermBlocks:
     def restarted(self, values: Mapping[str, np.ndarray]) -> TermBlocks:
         """The same blocks with the parameter blocks started at ``values`` (a solution's, for
         the next round of an adjustment)."""
-        params = tuple(
-            ParameterBlock(p.name, values[p.name], p.held, p.instance) for p in self.parameters
-        )
+        params = tuple(dataclasses.replace(p, value=values[p.name]) for p in self.parameters)
         return TermBlocks(self.residuals, params, self.state)
 
 
