@@ -41,10 +41,10 @@ from selfcal.kinematics.ik import UnreachableError, ik, ik_nearest, wrap_into_ra
 from selfcal.kinematics.ik_numeric import (
     ANGLE_SCALE_M,
     ToolTarget,
-    damped_least_squares,
     ik_robot,
     solve_ik,
 )
+from selfcal.kinematics.least_squares import damped_least_squares
 from selfcal.kinematics.tool_pose import tool_pose
 from selfcal.robot.definition import RobotDef
 
@@ -97,10 +97,10 @@ def tool_target_residual(
     )
 
 
-def _solve(dep, q0, xyz, pitch, roll, tol, max_iter=60):
-    """Damped Newton (LM, :func:`selfcal.kinematics.ik_numeric.damped_least_squares`) from ``q0`` on the
-    pitch/roll residual, central-difference Jacobian; returns (q, position error, angle error,
-    iterations)."""
+def _solve(dep, q0, xyz, pitch, roll, max_iter=60):
+    """Damped Newton (LM on the one solver,
+    :func:`selfcal.kinematics.least_squares.damped_least_squares`) from ``q0`` on the pitch/roll
+    residual, central-difference Jacobian; returns (q, position error, angle error, iterations)."""
     n = dep.n
     w = np.array([1.0, 1.0, 1.0, ANGLE_SCALE_M, ANGLE_SCALE_M])
     eye = np.eye(n)
@@ -113,12 +113,7 @@ def _solve(dep, q0, xyz, pitch, roll, tol, max_iter=60):
         rs = tool_target_residual(dep, qs, xyz, pitch, roll)
         return ((rs[:n] - rs[n:]) / (2 * _FD_STEP)).T * w[:, None]  # (5, n)
 
-    def converged(r):
-        return np.linalg.norm(r[:3]) < tol and np.max(np.abs(r[3:] / w[3:])) < tol
-
-    q, r, iterations = damped_least_squares(
-        residual, jacobian, q0, None, converged, max_iter=max_iter
-    )
+    q, r, iterations = damped_least_squares(residual, jacobian, q0, None, max_iter=max_iter)
     return q, float(np.linalg.norm(r[:3])), float(np.max(np.abs(r[3:] / w[3:]))), iterations
 
 
@@ -175,7 +170,7 @@ def solve_compensated(
         seeds.append((np.clip(ref, dep.limits[:, 0], dep.limits[:, 1]), "home"))
     best_err, blocked = np.inf, []
     for q0, name in seeds:
-        q, e_pos, e_ang, it = _solve(dep, q0, xyz, pitch, roll, tol)
+        q, e_pos, e_ang, it = _solve(dep, q0, xyz, pitch, roll)
         if not (e_pos < tol and e_ang < tol):
             best_err = min(best_err, e_pos + ANGLE_SCALE_M * e_ang)
             continue

@@ -348,8 +348,9 @@ def nearest_reachable(
     """The in-range posture whose tool point is nearest ``xyz_m`` (m) with some joints held fixed.
 
     ``fixed`` maps joint index (0-based, 0 = base) or joint name to its value (rad). The free joints
-    are optimised with ``scipy.optimize.least_squares`` inside their ranges from deterministic
-    starts (home, mid-range, ``n_starts`` Halton points), keeping the best.
+    are optimised on the one solver inside their ranges (its bounds:
+    :func:`selfcal.kinematics.least_squares.damped_least_squares`) from deterministic starts
+    (home, mid-range, ``n_starts`` Halton points), keeping the best.
 
     Returns:
         ``(q (n,) rad, distance_m)``: the posture and its tool point's distance to the target.
@@ -357,10 +358,11 @@ def nearest_reachable(
     Raises:
         ValueError: malformed target, unknown joint, or a fixed value outside its joint's range.
     """
-    # Only this function needs them, and they cost ~0.3 s (optimize) and ~1 s (stats) to import,
-    # which `selfcal fk|ik` would otherwise pay (python -X importtime).
-    from scipy.optimize import least_squares
+    # Only this function needs them, and they cost ~0.3 s (the solver's scipy.sparse) and ~1 s
+    # (stats) to import, which `selfcal fk|ik` would otherwise pay (python -X importtime).
     from scipy.stats import qmc
+
+    from selfcal.kinematics.least_squares import damped_least_squares
 
     p = np.asarray(xyz_m, dtype=float)
     if p.shape != (3,) or not np.all(np.isfinite(p)):
@@ -398,13 +400,13 @@ def nearest_reachable(
     if n_starts > 0:
         u = qmc.Halton(d=free.size, scramble=False).random(n_starts + 1)[1:]
         starts += list(lo + u * (hi - lo))
-    best_x, best_cost = None, np.inf
+    box = np.column_stack([lo, hi])
+    best_x, best_cost = starts[0], np.inf
     for x0 in starts:  # coarse pass from every start ...
-        res = least_squares(resid, np.clip(x0, lo, hi), jac=jac, bounds=(lo, hi), xtol=1e-9)
-        if res.cost < best_cost:
-            best_x, best_cost = res.x, res.cost
+        x, r, _ = damped_least_squares(resid, jac, x0, box, max_iter=100, tol=1e-9)
+        if float(r @ r) < best_cost:
+            best_x, best_cost = x, float(r @ r)
     # ... then polish the best to rounding level.
-    tight = dict(xtol=1e-15, ftol=1e-15, gtol=1e-15)
-    best_x = least_squares(resid, best_x, jac=jac, bounds=(lo, hi), **tight).x
+    best_x = damped_least_squares(resid, jac, best_x, box, max_iter=200, tol=1e-15)[0]
     q = full(np.clip(best_x, lo, hi))
     return q, float(np.linalg.norm(resid(q[free])))

@@ -4,8 +4,9 @@ The target is a tool pose: a tool point (m, world frame of the chain) and, optio
 orientation (a 3x3 rotation). The residual is ``[p(q) - p_goal; rotvec(R(q) R_goal^T) * s]`` with
 ``s`` = :data:`ANGLE_SCALE_M` metres per radian weighing orientation against position; its
 Jacobian is the chain's geometric Jacobian (joint axes from :func:`selfcal.kinematics.forward.fk_frames`),
-exact at the solution. One Levenberg-Marquardt loop (:func:`damped_least_squares`) minimises any
-residual: this IK and the calibrated-model compensation (:mod:`selfcal.export.compensate`) both call it.
+exact at the solution. The one solver's Levenberg-Marquardt loop minimises it, the joint ranges
+as its bounds (:func:`selfcal.kinematics.least_squares.damped_least_squares`, which the
+calibrated-model compensation, :mod:`selfcal.export.compensate`, calls too).
 
 Joint ranges: each start is solved without them first and the result wrapped by +-360 deg into
 the ranges (:func:`selfcal.kinematics.ik.wrap_into_range`, so solutions on a range's end are found); when that
@@ -18,7 +19,6 @@ Units: metres and radians inside (metres for a prismatic joint).
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -33,6 +33,7 @@ from selfcal.kinematics.ik import (
     ik_nearest,
     wrap_into_range,
 )
+from selfcal.kinematics.least_squares import damped_least_squares
 from selfcal.kinematics.mcpc import MCPCModel, nominal_mcpc
 from selfcal.kinematics.tool_pose import tool_pose
 from selfcal.robot.definition import RobotDef
@@ -42,7 +43,6 @@ __all__ = [
     "ANGLE_SCALE_M",
     "ToolTarget",
     "NumericIK",
-    "damped_least_squares",
     "pose_residual",
     "pose_jacobian",
     "solve_ik",
@@ -134,47 +134,6 @@ def pose_jacobian(model: MCPCModel, q: np.ndarray, rows: int = 6) -> np.ndarray:
     lin = np.where(rev, np.cross(z, tip - o), z)
     J = lin if rows == 3 else np.concatenate([lin, ANGLE_SCALE_M * np.where(rev, z, 0.0)], axis=2)
     return np.swapaxes(J, 1, 2)
-
-
-def damped_least_squares(
-    residual: Callable[[np.ndarray], np.ndarray],
-    jacobian: Callable[[np.ndarray], np.ndarray],
-    q0: np.ndarray,
-    limits: np.ndarray | None,
-    converged: Callable[[np.ndarray], bool],
-    *,
-    max_iter: int = 60,
-) -> tuple[np.ndarray, np.ndarray, int]:
-    """Levenberg-Marquardt from ``q0`` (n,) on ``residual(q) -> (k,)`` with ``jacobian(q) ->
-    (k, n)``, each step projected onto ``limits`` (n, 2; None: unconstrained). Stops when stuck,
-    or when ``converged(r)`` and the last step was at rounding level.
-
-    Returns ``(q, r, iterations)``.
-    """
-    lo, hi = (-np.inf, np.inf) if limits is None else (limits[:, 0], limits[:, 1])
-    q = np.clip(np.asarray(q0, dtype=float), lo, hi)
-    r = residual(q)
-    lam = 1e-6
-    iterations = 0
-    for _ in range(max_iter):
-        iterations += 1
-        J = jacobian(q)
-        JtJ, g = J.T @ J, J.T @ r
-        improved = False
-        step = np.zeros_like(q)
-        for _ in range(30):
-            step = -np.linalg.solve(JtJ + lam * np.diag(np.diag(JtJ) + 1e-12), g)
-            q_new = np.clip(q + step, lo, hi)
-            r_new = residual(q_new)
-            if np.linalg.norm(r_new) <= np.linalg.norm(r):
-                step, q, r = q_new - q, q_new, r_new
-                lam = max(lam / 10, 1e-12)
-                improved = True
-                break
-            lam *= 10
-        if not improved or (converged(r) and np.max(np.abs(step)) < 1e-11):
-            break
-    return q, r, iterations
 
 
 def _reach_bound(model: MCPCModel, limits: np.ndarray) -> float:
@@ -284,7 +243,7 @@ def solve_ik(
             near = NumericIK(np.asarray(q, dtype=float), *e, label, it)
 
     for label, q0 in starts:
-        q, r, it = damped_least_squares(residual, jacobian, q0, None, converged)
+        q, r, it = damped_least_squares(residual, jacobian, q0, None)
         if not converged(r) and max(_errors(r)) >= STALL_TOL:
             # not even without the ranges: the projected solve would not get there either
             best = min(best, float(np.linalg.norm(r)))
@@ -299,7 +258,7 @@ def solve_ik(
             if converged(rw):
                 return NumericIK(qw, *_errors(rw), label, it)
             consider(qw, rw, label, it)
-        q, r, it = damped_least_squares(residual, jacobian, q0, limits, converged)
+        q, r, it = damped_least_squares(residual, jacobian, q0, limits)
         if converged(r):
             return NumericIK(q, *_errors(r), label, it)
         consider(q, r, label, it)
