@@ -11,7 +11,8 @@ chain moves it must agree in scale.
 
 :func:`motion_scale` fits ``s T_world_cam ~ B fk(q) C`` over the postures -- the target's
 placement ``B`` (world <- base), the hand-eye ``C`` (flange <- camera) and the scale ``s`` free
--- by least squares on each camera pose's origin and axis tips at 0.1 m.
+-- by least squares on each camera pose's origin and axis tips at 0.1 m (the one solver, its
+Jacobian by central differences).
 ``s > 1``: the target measures the motion smaller than the arm makes it (a board printed
 larger than declared, a known distance declared too short). :func:`scale_warning` turns a
 scale off by more than its tolerance (:data:`SCALE_TOL`, more for an arm that misfits its
@@ -31,11 +32,11 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from selfcal.errors import SelfCalWarning
 from selfcal.kinematics.alignment import AXIS_TIPS, fit_placement_and_hand_eye
 from selfcal.kinematics.forward import fk_tool
+from selfcal.kinematics.least_squares import damped_least_squares
 from selfcal.kinematics.mcpc import MCPCModel, nominal_mcpc
 from selfcal.transforms import pose_from_vec
 
@@ -55,6 +56,10 @@ link is up to 1 mm and 0.5 deg off its nominal shows up to 0.4 % (the KR 6,
 ``tests/unit/test_scale_check.py``) and 0.6 % (the ER-4u of ``scenarios/paper.toml``, a smaller
 arm), a board printed at another scale typically 2-6 %. An arm that misfits its nominal more
 widens it (:attr:`MotionScale.tolerance`)."""
+
+
+_FD_STEP = 1e-6
+"""Central-difference step of the fit's Jacobian (rad of the rotation vectors, m, log scale)."""
 
 
 class ScaleWarning(SelfCalWarning):
@@ -104,15 +109,20 @@ def motion_scale(
             :, :3
         ].ravel()
 
-    sol = least_squares(residuals, np.zeros(13), method="lm", xtol=1e-12)
-    dof = max(sol.fun.size - 13, 1)
-    s2 = float(sol.fun @ sol.fun) / dof
-    JtJ = sol.jac.T @ sol.jac
-    var = float(np.linalg.pinv(JtJ)[12, 12]) * s2
-    s = float(np.exp(sol.x[12]))
+    def jacobian(x: np.ndarray) -> np.ndarray:
+        h = _FD_STEP
+        return np.stack([(residuals(x + e) - residuals(x - e)) / (2 * h) for e in h * np.eye(13)],
+                        axis=1)  # fmt: skip
+
+    x, r, _ = damped_least_squares(residuals, jacobian, np.zeros(13), None, max_iter=100)
+    dof = max(r.size - 13, 1)
+    s2 = float(r @ r) / dof
+    J = jacobian(x)
+    var = float(np.linalg.pinv(J.T @ J)[12, 12]) * s2
+    s = float(np.exp(x[12]))
     P = T[:, :3, 3]
     spread = float(np.sqrt(np.mean(np.sum((P - P.mean(axis=0)) ** 2, axis=1))))
-    rms = float(np.sqrt(np.mean(sol.fun**2)))
+    rms = float(np.sqrt(np.mean(r**2)))
     return MotionScale(s, s * float(np.sqrt(max(var, 0.0))), rms, spread, len(T))
 
 
