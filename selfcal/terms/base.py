@@ -24,10 +24,20 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
+from selfcal.errors import InputError
 from selfcal.kinematics.mcpc import MCPCModel
 from selfcal.solver import ParameterBlock, ResidualBlock
 
-__all__ = ["Term", "TermBlocks", "TermContext", "TermReport", "TermSection", "TermSolution"]
+__all__ = [
+    "Term",
+    "TermBlocks",
+    "TermContext",
+    "TermReport",
+    "TermSection",
+    "TermSolution",
+    "check_terms",
+    "term_blocks",
+]
 
 
 @dataclass(frozen=True)
@@ -128,6 +138,21 @@ class Term(Protocol):
 
     def report(self, blocks: TermBlocks, solution: TermSolution) -> TermReport:
         """Diagnostics and ``calibration.json`` section at the solution."""
+
+
+def check_terms(terms: Sequence[Term]) -> None:
+    """Refuse two terms of one kind: their sections (and new parameter blocks) would clash.
+
+    Raises:
+        InputError: a kind given twice (named, with the fix).
+    """
+    kinds = [t.kind for t in terms]
+    twice = sorted({k for k in kinds if kinds.count(k) > 1})
+    if twice:
+        raise InputError(
+            f"measurements of kind {', '.join(twice)} are given more than once",
+            fix="give each kind once (one term holds all its rows, e.g. positions and distances)",
+        )
 
 
 def term_blocks(built: Sequence[TermBlocks]) -> tuple[list, list[ParameterBlock]]:

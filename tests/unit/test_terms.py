@@ -15,6 +15,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from selfcal.calibration.field.calibrate import calibrate
+from selfcal.errors import InputError
 from selfcal.io.calibration import (
     CalibrationFileError,
     CalibrationResult,
@@ -24,6 +26,7 @@ from selfcal.io.calibration import (
 from selfcal.io.calibration_terms import RawSection
 from selfcal.io.calibration_tracker import TrackerSource
 from selfcal.terms import registry
+from selfcal.terms.probe import ProbeTerm
 
 GOLDEN = Path(__file__).resolve().parents[1] / "golden" / "analytic" / "calibration.json"
 
@@ -97,3 +100,9 @@ def test_no_kind_takes_a_key_of_the_calibration_itself():
     names = [k.name for k in registry.KINDS]
     assert len(set(names)) == len(names) and not own & set(names)
     assert all(getattr(k.section, "kind", k.name) == k.name for k in registry.KINDS)
+
+
+def test_two_terms_of_one_kind_are_refused_before_the_calibration_starts(tmp_path):
+    probe = ProbeTerm(np.zeros((2, 5)), np.zeros((1, 3)), np.zeros(2, np.int64))
+    with pytest.raises(InputError, match="kind probe are given more than once"):
+        calibrate(tmp_path / "no-such-dataset", terms=[probe, probe])

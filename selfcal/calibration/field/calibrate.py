@@ -72,7 +72,7 @@ from selfcal.kinematics.mcpc import MCPCModel, chain_transforms, minimal_indices
 from selfcal.kinematics.trajectory import check_not_degenerate
 from selfcal.robot.definition import RobotDef, load_robot
 from selfcal.target.aruco_detect import detect_markers, detect_markers_noise
-from selfcal.terms.base import Term
+from selfcal.terms.base import Term, check_terms
 
 __all__ = [
     "CalibrationError",
@@ -297,6 +297,7 @@ def calibrate_detailed(
 
     Raises:
         ValueError: unknown ``method``.
+        InputError: two terms of one kind.
         CalibrationError: ``terms`` with the two-stage method.
         DatasetError: missing or damaged dataset files, frames without joints rows (listed).
         CalibrationError / selfcal.calibration.field.self_calibration.SelfCalibrationError / selfcal.calibration.identify.IdentificationError:
@@ -304,6 +305,7 @@ def calibrate_detailed(
     """
     if method not in METHODS:
         raise InputError(f"unknown calibration method {method!r}; use one of {METHODS}")
+    check_terms(terms)
     if terms and method != "joint":
         kinds = ", ".join(t.kind for t in terms)
         raise CalibrationError(

@@ -77,7 +77,7 @@ from selfcal.kinematics.forward import fk_tool
 from selfcal.kinematics.mcpc import MCPCModel, minimal_indices, param_is_angle, param_names
 from selfcal.solver import Loss, ResidualBlock, SolverOptions, covariance, scaled_rank, solve
 from selfcal.target import marker_features
-from selfcal.terms.base import Term, TermContext, TermSolution, term_blocks
+from selfcal.terms.base import Term, TermContext, TermSolution, check_terms, term_blocks
 from selfcal.transforms import inv_pose
 
 __all__ = [
@@ -249,6 +249,7 @@ def joint_refine(
         stds: the covariance of the camera and the kinematic parameters (NaN without).
 
     Raises:
+        InputError: two terms of one kind.
         JointRefinementError: the scale markers are not reconstructed, the gauge is not fixed
             (rank-deficient Jacobian) or the adjustment does not converge.
     """
@@ -315,6 +316,7 @@ def joint_refine(
         prior_cols, prior_w = np.zeros(0, np.int64), np.zeros(0)
     camera: Cameras = sc.camera if sc.cameras is None else sc.cameras
     w_scale = 1.0 / float(scale_sigma_m)
+    check_terms(terms)
     term_ctx = TermContext(model0, free_idx, "poses", pixel_sigma_px)
     built = [t.build(term_ctx) for t in terms]
 
