@@ -39,11 +39,12 @@ def draw_figure(builder: Builder, args: tuple, root: str | Path, name: str) -> P
     return write_figure(builder(*args), root, name)
 
 
-def _warm_up() -> None:
-    """Worker start: ignore Ctrl-C (the parent handles it), import matplotlib's Agg canvas and
-    load the default font, the part of a first figure that does not depend on its data."""
+def _warm_up(parent: int) -> None:
+    """Worker start: ignore Ctrl-C (the parent handles it), end with the ``parent`` process
+    (its pid, taken before the fork), import matplotlib's Agg canvas and load the default font,
+    the part of a first figure that does not depend on its data."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    _die_with_parent()
+    _die_with_parent(parent)
     from selfcal.plots.plotting import new_figure
 
     fig = new_figure(1.0, 1.0)
@@ -51,13 +52,14 @@ def _warm_up() -> None:
     fig.canvas.draw()
 
 
-def _die_with_parent() -> None:
-    """Linux: the kernel ends this worker when the process that forked it dies without closing
-    the pool (killed, crashed): an idle worker would otherwise wait forever, holding the run's
-    stdout and stderr open (a ``| tee`` or a CI job would not see their end)."""
+def _die_with_parent(parent: int) -> None:
+    """Linux: the kernel ends this worker when the process ``parent`` that forked it dies
+    without closing the pool (killed, crashed): an idle worker would otherwise wait forever,
+    holding the run's stdout and stderr open (a ``| tee`` or a CI job would not see their end).
+    ``parent`` is the pid the parent had before the fork: read in the worker, a parent killed
+    before the read would already have left it to pid 1, which never dies."""
     import ctypes
 
-    parent = os.getppid()
     try:
         libc = ctypes.CDLL(None, use_errno=True)
         libc.prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
@@ -105,7 +107,10 @@ class FigurePool:
             sys.stdout.flush()  # a forked child would write the parent's buffered text again
             sys.stderr.flush()
             self._pool = ProcessPoolExecutor(
-                max_workers=1, mp_context=mp.get_context("fork"), initializer=_warm_up
+                max_workers=1,
+                mp_context=mp.get_context("fork"),
+                initializer=_warm_up,
+                initargs=(os.getpid(),),
             )
             self._pool.submit(int)  # forks now, while this process has a single thread
 

@@ -392,6 +392,7 @@ def test_cli_hw_and_emulate_share_the_one_default_robot(capsys):
     np.testing.assert_allclose(doc["joints_deg"], home, atol=1e-4)
 
 
+@pytest.mark.slow
 def test_cli_emulate_runs_until_ctrl_c(tmp_path):
     cfg = tmp_path / "emu.toml"
     cfg.write_text(

@@ -11,12 +11,15 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import pytest
+
 from selfcal.cli.main import main
 from selfcal.config.scenario import load_scenario
 from selfcal.io.calibration import read_calibration
 from selfcal.pipeline.run import run_acquire
 
 
+@pytest.mark.slow
 def test_field_calibration_predicts_a_held_out_dataset(tmp_path, capsys):
     cal, held = tmp_path / "cal", tmp_path / "held"
     run_acquire(load_scenario(overrides={"noise": {"render": False}}), cal, quiet=True)

@@ -77,6 +77,7 @@ def test_collision_checker():
     assert res.tolist() == [True, False, False]
 
 
+@pytest.mark.slow
 def test_optimal_postures_lower_the_tool_tip_bound(inp):
     s = load_scenario(None, {"noise": {"render": False}, "trajectory": {"poses": 10}})
     plan = plan_optimal(s, n_candidates=1500)

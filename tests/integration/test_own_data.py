@@ -580,6 +580,7 @@ def test_import_errors_exit_2_with_the_fix(lab, tmp_path, capsys):
     assert " -- declare --joint-units rad" in err  # the fix, on the error's line
 
 
+@pytest.mark.slow
 def test_a_pinhole_calibration_of_the_same_lens_is_clearly_worse(lab, capsys):
     """The lens matters: the same data calibrated as a pinhole (``--camera-model pinhole``)
     predicts the held-out images far worse than the default lens model."""

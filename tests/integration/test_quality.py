@@ -245,6 +245,7 @@ def test_cameras_listed_right_first_are_named(capsys, dataset, tmp_path):
     assert " -- list the cameras as left, right" in err
 
 
+@pytest.mark.slow
 def test_studies_keep_a_failed_calibration_to_measure_it(dataset, tmp_path):
     """Studies and Monte Carlo measure every draw against the truth: run_calibrate returns the
     calibration marked failed instead of raising (raise_failed=False)."""

@@ -104,6 +104,7 @@ def test_a_set_needs_two_cameras_with_distinct_names():
         _set().with_free_values(np.zeros(3))
 
 
+@pytest.mark.slow
 def test_stereo_rig_with_two_lenses_recovers_each_camera_within_3_sigma():
     """Synthetic stereo scene (12 configurations, 0.5 px): the left camera has the issue's lens
     and principal point (+12, -8) px, the right another lens, focal length and principal point;

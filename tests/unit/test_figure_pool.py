@@ -49,6 +49,7 @@ def test_an_error_in_a_figure_reaches_the_caller(tmp_path, enabled):
     assert not (tmp_path / "figures" / "x.png").exists()
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not fork_available(), reason="no fork on this platform")
 def test_a_dead_worker_loses_no_figure(tmp_path):
     with FigurePool() as pool:
