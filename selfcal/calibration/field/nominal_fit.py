@@ -39,6 +39,7 @@ from selfcal.calibration.field.joint_refine import joint_refine
 from selfcal.calibration.field.quality import model_reprojection_rms_px
 from selfcal.calibration.field.results import CalibrationOutput, hand_eye, rig_cameras
 from selfcal.calibration.identify import IdentificationResult, identify
+from selfcal.camera import CameraModel
 from selfcal.errors import EstimationError, SelfCalWarning
 from selfcal.estimation.joint_report import encoder_sigma
 from selfcal.estimation.joint_result import JointRefinementResult
@@ -139,14 +140,14 @@ def fair_nominal(
     used = np.asarray(out.selfcal.registered)
     used = np.flatnonzero(used if used.ndim == 1 else used[:, 0])
     sub = obs.subset(np.isin(obs.config, used) & np.isin(obs.point, both))
-    # each model with its own camera, rig and corners (the first camera's model for every
-    # camera, as the calibration's check always did)
+    # each model with its own cameras (each camera of a rig of different lenses its own), rig
+    # and corners
     rms = {
         "nominal": model_reprojection_rms_px(
-            model, q, sub, nom.camera, nom.T_first_cam, ids_n[ok_n], X
+            model, q, sub, _models(nom), nom.T_first_cam, ids_n[ok_n], X
         ),
         "calibrated": model_reprojection_rms_px(
-            out.model, q, sub, final.camera, final.T_first_cam, ids_c, X_c
+            out.model, q, sub, _models(final), final.T_first_cam, ids_c, X_c
         ),
     }
     return FairNominal(
@@ -162,6 +163,11 @@ def fair_nominal(
         observations=ObservationCounts(nom.n_inliers, nom.n_outliers),
         calibration_images_rms_px=rms,
     )
+
+
+def _models(res) -> CameraModel | tuple[CameraModel, ...]:
+    """A refinement's camera model: one for the whole rig, or each camera's (``res.cameras``)."""
+    return res.camera if res.cameras is None else tuple(res.cameras.cameras)
 
 
 def judge_against_nominal(

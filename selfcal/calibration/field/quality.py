@@ -22,6 +22,8 @@ causes (empty: no failure). :func:`selfcal.calibration.field.calibrate.calibrate
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
 from selfcal.calibration.board.evaluate import worse
@@ -77,15 +79,18 @@ def model_reprojection_rms_px(
     model: MCPCModel,
     q: np.ndarray,
     obs: Observations,
-    camera: CameraModel,
+    camera: CameraModel | Sequence[CameraModel],
     T_first_cam: np.ndarray,
     point_ids: np.ndarray,
     X_world: np.ndarray,
 ) -> float:
     """2-D reprojection RMS (px) of the observations ``obs`` (configurations index ``q`` (m, n)
     rad) predicted with the camera poses of ``model`` (tool = the first camera), the rig
-    ``T_first_cam`` (N, 4, 4) m and the points ``X_world`` (P, 3) m of ``point_ids``.
-    Observations of points without a finite position are left out; NaN when none remains."""
+    ``T_first_cam`` (N, 4, 4) m, the points ``X_world`` (P, 3) m of ``point_ids`` and
+    ``camera``: one model for every camera of the rig, or camera ``c``'s model ``camera[c]``
+    (a rig of different lenses: one model for all predicted the right images with the left
+    lens, tens of pixels off). Observations of points without a finite position are left
+    out; NaN when none remains."""
     T_world_first = fk_tool(model, q)
     ids = np.asarray(point_ids)
     k = -np.ones(len(obs.point), np.int64)  # index of each observation's point in point_ids
@@ -100,7 +105,13 @@ def model_reprojection_rms_px(
     T_cam_world = inv_pose(T_world_first[:, None] @ np.asarray(T_first_cam)[None])  # (m, N)
     T = T_cam_world[obs.config[keep], obs.camera[keep]]  # per observation
     X = np.einsum("kij,kj->ki", T[:, :3, :3], X_world[k[keep]]) + T[:, :3, 3]
-    return float(np.sqrt(np.mean(np.sum((camera.project(X) - obs.uv[keep]) ** 2, axis=1))))
+    cams = [camera] if isinstance(camera, CameraModel) else list(camera)
+    which = np.minimum(obs.camera[keep], len(cams) - 1) if len(cams) > 1 else None
+    uv = np.empty((len(X), 2))
+    for c, cam in enumerate(cams):
+        rows = slice(None) if which is None else which == c
+        uv[rows] = cam.project(X[rows])
+    return float(np.sqrt(np.mean(np.sum((uv - obs.uv[keep]) ** 2, axis=1))))
 
 
 def nominal_fit_failure(calibrated_px: float, nominal_px: float) -> str | None:
