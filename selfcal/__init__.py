@@ -70,6 +70,7 @@ if TYPE_CHECKING:
     from selfcal.target.boards import Charuco as Charuco
     from selfcal.target.boards import Chessboard as Chessboard
     from selfcal.target.boards import CirclesGrid as CirclesGrid
+    from selfcal.terms.probe import ProbeTerm as ProbeTerm
     from selfcal.terms.tracker import TrackerTerm as TrackerTerm
     from selfcal.threads import limit_threads as limit_threads
     from selfcal.threads import thread_count as thread_count
@@ -94,6 +95,7 @@ _PARTS: dict[str, tuple[str, ...]] = {
     "selfcal.calibration.tracker.calibrate": ("TrackerRun", "calibrate_tracker"),
     "selfcal.calibration.tracker.identify": ("TrackerMeasurements", "identify_tracker"),
     "selfcal.calibration.tracker.drift": ("DriftCheck", "check_tracker"),
+    "selfcal.terms.probe": ("ProbeTerm",),
     "selfcal.terms.tracker": ("TrackerTerm",),
     # results
     "selfcal.io.calibration": ("CalibrationResult",),
@@ -154,6 +156,7 @@ __all__ = [
     "InputError",
     "Pinhole",
     "PoseDataset",
+    "ProbeTerm",
     "Rig",
     "RobotDef",
     "SelfCalError",
