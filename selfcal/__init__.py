@@ -35,6 +35,7 @@ if TYPE_CHECKING:
     from selfcal.calibration.tracker.identify import identify_tracker as identify_tracker
     from selfcal.camera import BrownConrady as BrownConrady
     from selfcal.camera import CameraModel as CameraModel
+    from selfcal.camera import DoubleSphere as DoubleSphere
     from selfcal.camera import Fisheye as Fisheye
     from selfcal.camera import Pinhole as Pinhole
     from selfcal.camera import Rig as Rig
@@ -112,7 +113,15 @@ _PARTS: dict[str, tuple[str, ...]] = {
     "selfcal.export.urdf": ("to_urdf",),
     "selfcal.sim.export_mjcf": ("calibrated_mjcf",),
     # camera models and targets
-    "selfcal.camera": ("BrownConrady", "CameraModel", "Fisheye", "Pinhole", "Rig", "camera_model"),
+    "selfcal.camera": (
+        "BrownConrady",
+        "CameraModel",
+        "DoubleSphere",
+        "Fisheye",
+        "Pinhole",
+        "Rig",
+        "camera_model",
+    ),
     "selfcal.target.base": ("Target",),
     "selfcal.target.boards": ("AprilGrid", "Charuco", "Chessboard", "CirclesGrid"),
     "selfcal.target.aruco": ("ArucoField",),
@@ -146,6 +155,7 @@ __all__ = [
     "Dataset",
     "DatasetError",
     "DeployedModel",
+    "DoubleSphere",
     "DriftCheck",
     "EstimationError",
     "Evaluation",

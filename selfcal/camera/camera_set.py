@@ -162,12 +162,12 @@ def project_views(cameras: Cameras, X_cam: np.ndarray, view: np.ndarray) -> np.n
 def unproject_views(cameras: Cameras, uv: np.ndarray, view: np.ndarray) -> np.ndarray:
     """Normalised coordinates (k, 2) of the pixels ``uv`` (k, 2) seen in views ``view`` (k,)."""
     if not isinstance(cameras, CameraSet):
-        return cameras.unproject(uv)
+        return cameras.unproject_normalised(uv)
     out = np.empty(np.shape(uv))
     cam = cameras.camera_of_view(view)
     for c, model in enumerate(cameras.cameras):
         m = cam == c
-        out[m] = model.unproject(np.asarray(uv)[m])
+        out[m] = model.unproject_normalised(np.asarray(uv)[m])
     return out
 
 

@@ -95,7 +95,7 @@ class LensCamera(Pinhole):
         J_params = np.concatenate([J_pin, J_pix @ J_coeffs], axis=-1)
         return uv, J_pix @ J_lens @ J_persp, J_params
 
-    def unproject(self, uv: np.ndarray) -> np.ndarray:
+    def unproject_normalised(self, uv: np.ndarray) -> np.ndarray:
         return undistort(self.pinhole.normalised(uv), self.lens, np.asarray(self.coeffs))
 
     def project(self, X_cam: np.ndarray) -> np.ndarray:

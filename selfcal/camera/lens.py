@@ -19,7 +19,7 @@ to OpenCV and ROS unchanged:
       (xd, yd) = theta_d / r (x, y)
 
 Each map returns ``(xd (..., 2), J_xn (..., 2, 2), J_coeffs (..., 2, n))``. :func:`undistort`
-inverts a map by Newton's method with the analytic Jacobian (used by ``unproject`` and by the
+inverts a map by Newton's method with the analytic Jacobian (used by ``unproject_normalised`` and by the
 renderer's exact inverse remap).
 """
 

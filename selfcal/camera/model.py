@@ -5,13 +5,21 @@ Frames and units (OpenCV): the camera frame has x right, y down, z forward along
 centre is (0, 0)). *Normalised coordinates* are ``(x / z, y / z)`` of a camera-frame point: the
 ray through the pixel at unit depth.
 
-A :class:`CameraModel` is central: a point projects through its normalised coordinates. Every
-model is the chain ``X_cam -> perspective -> [lens] -> pixels``; :func:`perspective` (and
+A :class:`CameraModel` is a central ray model (Kalibr's projection x distortion): it projects
+camera-frame points to pixels (:meth:`~CameraModel.project`, with the points it projects at
+all: :meth:`~CameraModel.valid`, :meth:`~CameraModel.project_valid`), its Jacobians w.r.t. the
+point and the parameters (:meth:`~CameraModel.project_jacobians`), and unprojects pixels to unit
+rays (:meth:`~CameraModel.unproject`); it owns its visibility test (:meth:`~CameraModel.valid`,
+:meth:`~CameraModel.depth`, asked by :class:`selfcal.camera.visibility.Visibility`) and its
+initial guesses from images (:meth:`~CameraModel.starts`). The perspective models are the chain
+``X_cam -> perspective -> [lens] -> pixels`` with ``z > 0``; :func:`perspective` (and
 :func:`perspective_jacobian`) is the first link for all of them. The pinhole
 (:class:`selfcal.camera.pinhole.Pinhole`) has no lens term; a distortion model (Brown-Conrady,
-Kannala-Brandt) is a new class that holds a pinhole and inserts its map between
-:func:`perspective` and :meth:`Pinhole.pixels` (chain rule for the Jacobians), so the estimation
-code, which only sees this interface, does not change.
+Kannala-Brandt) is a class that holds a pinhole and inserts its map between
+:func:`perspective` and :meth:`Pinhole.pixels` (chain rule for the Jacobians). A model past 180
+deg (:class:`selfcal.camera.double_sphere.DoubleSphere`) replaces the perspective link by its own
+map of the 3-D point and overrides the visibility test; the estimation code, which only sees this
+interface, does not change.
 
 Parameters carry OpenCV's names (``fx``, ``cx``, ``cy``, later ``k1`` ...; the paper's aspect
 ratio ``mu = fy / fx``). ``free`` selects the ones an estimation adjusts; the others stay at their
@@ -26,7 +34,7 @@ from typing import ClassVar, TypeVar
 
 import numpy as np
 
-from selfcal.errors import InputError
+from selfcal.errors import InputError, UsageError
 
 __all__ = ["CameraModel", "perspective", "perspective_jacobian", "project"]
 
@@ -62,7 +70,7 @@ class CameraModel(ABC):
     """A central camera model (see the module docstring).
 
     Attributes every model has: ``names`` (class attribute: all parameter names in order),
-    ``model_name`` (class attribute: ``"pinhole"``, ``"opencv"``, ``"fisheye"``),
+    ``model_name`` (class attribute: a name of :data:`selfcal.camera.registry.REGISTRY`),
     ``free`` (the names an estimation adjusts, a subset of ``names`` in ``names`` order),
     ``width``, ``height`` (image size, px).
     """
@@ -87,16 +95,57 @@ class CameraModel(ABC):
         """Pixels (..., 2) of camera-frame points ``X_cam`` (..., 3) (m), their Jacobian w.r.t.
         the point (..., 2, 3) (px/m) and w.r.t. every parameter (..., 2, len(names)).
 
-        Points behind the camera give meaningless values: callers check ``z > 0``."""
+        Points the model does not project (:meth:`valid`) give meaningless values: callers
+        check :meth:`valid` (or use :meth:`project_valid`)."""
 
     @abstractmethod
-    def unproject(self, uv: np.ndarray) -> np.ndarray:
+    def unproject_normalised(self, uv: np.ndarray) -> np.ndarray:
         """Normalised coordinates (..., 2) of pixels ``uv`` (..., 2): the inverse of
-        :meth:`project` up to depth (``project([xn, yn, 1] * z) == uv`` for any ``z > 0``)."""
+        :meth:`project` up to depth (``project([xn, yn, 1] * z) == uv`` for any ``z > 0``);
+        NaN for a pixel whose ray does not point forward (z <= 0) or that no ray reaches."""
 
     def project(self, X_cam: np.ndarray) -> np.ndarray:
         """Pixels (..., 2) of camera-frame points ``X_cam`` (..., 3) (m)."""
         return self.project_jacobians(X_cam)[0]
+
+    # ------------------------------------------------------------------ the ray model
+    def valid(self, X_cam: np.ndarray) -> np.ndarray:
+        """(...,) bool: which camera-frame points ``X_cam`` (..., 3) (m) the model projects (a
+        perspective model: ``z > 0``; a model past 180 deg overrides it with its own
+        condition). The visibility rule's first test."""
+        return np.asarray(X_cam, dtype=float)[..., 2] > 0.0
+
+    def depth(self, X_cam: np.ndarray) -> np.ndarray:
+        """(...,) m: the distance the visibility rule's depth range bounds: ``z`` along the
+        optical axis for a perspective model; a model past 180 deg overrides it with the
+        distance from the camera centre (a point beside or behind the camera has z <= 0)."""
+        return np.asarray(X_cam, dtype=float)[..., 2]
+
+    def project_valid(self, X_cam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Pixels (..., 2) of camera-frame points ``X_cam`` (..., 3) (m), NaN where the model
+        does not project the point, and the (...,) bool mask of those it does (:meth:`valid`
+        and a finite pixel)."""
+        with np.errstate(divide="ignore", invalid="ignore"):
+            uv = np.array(self.project(X_cam), dtype=float)
+        ok = self.valid(X_cam) & np.all(np.isfinite(uv), axis=-1)
+        uv[~ok] = np.nan
+        return uv, ok
+
+    def unproject(self, uv: np.ndarray) -> np.ndarray:
+        """Unit rays (..., 3) in the camera frame of pixels ``uv`` (..., 2): ``project(s ray)
+        == uv`` for every ``s > 0``; NaN where no ray reaches the pixel. A perspective model
+        normalises ``[xn, yn, 1]`` of :meth:`unproject_normalised`."""
+        xn = np.asarray(self.unproject_normalised(uv), dtype=float)
+        ray = np.concatenate([xn, np.ones(xn.shape[:-1] + (1,))], axis=-1)
+        return ray / np.linalg.norm(ray, axis=-1, keepdims=True)
+
+    @classmethod
+    def starts(cls: type[C], width: int, height: int, free: tuple[str, ...]) -> list[C]:
+        """Initial guesses of this model for ``width`` x ``height`` px images (principal point
+        at the centre, fields of view from narrow to past 180 deg where the model reaches
+        them), for a start from images where OpenCV does not calibrate the model
+        (the board calibration refines each and keeps the best, :mod:`selfcal.camera.start`)."""
+        raise UsageError(f"camera model {cls.model_name!r} has no start from images")
 
     # ------------------------------------------------------------------ the free parameters
     def _check_free(self) -> None:

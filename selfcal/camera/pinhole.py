@@ -117,8 +117,19 @@ class Pinhole(CameraModel):
         uv, J_xn, J_par = self.pixels_jacobians(xn)
         return uv, J_xn @ J_persp, J_par
 
-    def unproject(self, uv: np.ndarray) -> np.ndarray:
+    def unproject_normalised(self, uv: np.ndarray) -> np.ndarray:
         return self.normalised(uv)
+
+    @classmethod
+    def starts(cls, width: int, height: int, free: tuple[str, ...]) -> list:
+        """Principal point at the centre, aspect 1, no lens, half fields of view across the
+        shorter side of 10, 20, 30, 45, 60 and 75 deg (``fx = (side / 2) / tan(half angle)``)."""
+        cx, cy = centered_principal_point(width, height)
+        side = 0.5 * min(width, height)
+        return [
+            cls(side / np.tan(np.radians(a)), 1.0, cx, cy, int(width), int(height), tuple(free))
+            for a in (10.0, 20.0, 30.0, 45.0, 60.0, 75.0)
+        ]
 
 
 Intrinsics = Pinhole

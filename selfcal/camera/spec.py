@@ -2,7 +2,8 @@
 
 Model names (the scenario's and dataset's ``camera.model``): ``"pinhole"``
 (:class:`selfcal.camera.pinhole.Pinhole`), ``"opencv"`` (:class:`selfcal.camera.distorted.BrownConrady`),
-``"fisheye"`` (:class:`selfcal.camera.distorted.Fisheye`). Values by OpenCV's names: ``fx``, ``fy``,
+``"fisheye"`` (:class:`selfcal.camera.distorted.Fisheye`), ``"double_sphere"``
+(:class:`selfcal.camera.double_sphere.DoubleSphere`; :mod:`selfcal.camera.registry`). Values by OpenCV's names: ``fx``, ``fy``,
 ``cx``, ``cy`` (px) and the lens coefficients (``k1`` ...); the estimation's parameter ``mu`` is
 ``fy / fx``. A ``free`` selection may name ``fy`` for ``mu`` (:func:`canonical_free`): with
 ``fx`` free (it always is), freeing ``fy`` and freeing the aspect ratio are the same
@@ -13,9 +14,11 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 
-from selfcal.camera.distorted import BrownConrady, Fisheye, LensCamera
+from selfcal.camera.distorted import LensCamera
+from selfcal.camera.double_sphere import DoubleSphere
 from selfcal.camera.model import CameraModel
 from selfcal.camera.pinhole import Pinhole
+from selfcal.camera.registry import MODELS, entry
 from selfcal.errors import InputError
 
 __all__ = [
@@ -29,14 +32,6 @@ __all__ = [
     "with_pinhole",
     "lens_names",
 ]
-
-MODELS: dict[str, type[Pinhole]] = {
-    "pinhole": Pinhole,
-    "opencv": BrownConrady,
-    "fisheye": Fisheye,
-}
-"""Camera model classes by name."""
-
 
 FREE_ALIASES = {"fy": "mu"}
 """OpenCV names a ``free`` selection may use for the estimation's parameters: ``fy`` frees the
@@ -61,13 +56,11 @@ def canonical_free(free: Sequence[str]) -> tuple[str, ...]:
 
 
 def lens_names(model: str) -> tuple[str, ...]:
-    """The lens coefficient names of ``model`` (none for the pinhole).
+    """The parameter names of ``model`` beyond the pinhole's (its lens coefficients; none for
+    the pinhole).
 
-    Raises ``ValueError`` for an unknown model name."""
-    if model not in MODELS:
-        raise InputError(f"unknown camera model {model!r}; use one of {sorted(MODELS)}")
-    cls = MODELS[model]
-    return cls.lens_names if issubclass(cls, LensCamera) else ()
+    Raises :class:`InputError` for an unknown model name."""
+    return entry(model).lens_names
 
 
 def camera_model(
@@ -93,7 +86,7 @@ def camera_model(
     unknown = sorted(set(coeffs) - set(names))
     if unknown:
         raise InputError(f"camera model {model!r} has no coefficient(s) {unknown}; it has {names}")
-    cls = MODELS[model]
+    cls = entry(model).cls
     allowed = cls.names
     free = canonical_free(free)
     bad = [n for n in free if n not in allowed]
@@ -105,13 +98,18 @@ def camera_model(
     if cls is Pinhole:
         return Pinhole(float(fx), float(mu), float(cx), float(cy), int(width), int(height), free_t,
                        skew=float(skew))  # fmt: skip
+    if cls is DoubleSphere:
+        return DoubleSphere(float(fx), float(mu), float(cx), float(cy), int(width), int(height),
+                            free_t, skew=float(skew), xi=float(coeffs.get("xi", 0.0)),
+                            alpha=float(coeffs.get("alpha", 0.0)))  # fmt: skip
     c = tuple(float(coeffs.get(n, 0.0)) for n in names)
     return cls(float(fx), float(mu), float(cx), float(cy), int(width), int(height), free_t,
                coeffs=c, skew=float(skew))  # type: ignore[call-arg]  # fmt: skip
 
 
 def model_name(camera: CameraModel) -> str:
-    """The name of ``camera``'s model (``"pinhole"``, ``"opencv"``, ``"fisheye"``)."""
+    """The name of ``camera``'s model (``"pinhole"``, ``"opencv"``, ``"fisheye"``,
+    ``"double_sphere"``)."""
     return camera.model_name
 
 
@@ -120,8 +118,7 @@ def opencv_values(camera: CameraModel) -> dict[str, float]:
     ``camera`` by OpenCV's names."""
     fx, mu, cx, cy, skew = (float(v) for v in camera.values()[:5])
     out = {"fx": fx, "fy": fx * mu, "cx": cx, "cy": cy, "skew": skew}
-    if isinstance(camera, LensCamera):
-        out.update(zip(camera.lens_names, (float(c) for c in camera.coeffs)))
+    out.update(zip(camera.names[5:], (float(c) for c in camera.values()[5:]), strict=True))
     return out
 
 
@@ -137,5 +134,8 @@ def with_pinhole(template: Pinhole, pinhole: Pinhole) -> Pinhole:
     distortion (the self-calibration's start: its initialisation is a pinhole)."""
     if isinstance(template, LensCamera):
         return type(template).from_pinhole(pinhole, (), template.free)
+    if isinstance(template, DoubleSphere):  # xi = alpha = 0 is the pinhole
+        return DoubleSphere(pinhole.fx, pinhole.mu, pinhole.cx, pinhole.cy, pinhole.width,
+                            pinhole.height, template.free, skew=pinhole.skew, xi=0.0, alpha=0.0)  # fmt: skip
     return Pinhole(pinhole.fx, pinhole.mu, pinhole.cx, pinhole.cy, pinhole.width,
                    pinhole.height, template.free, skew=pinhole.skew)  # fmt: skip

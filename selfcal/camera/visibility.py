@@ -1,7 +1,8 @@
 """The one visibility rule: which points (or markers) a camera sees from a pose.
 
-A point is seen when it lies in front of the camera within a depth range, projects inside the image
-with a margin and -- given its surface normal -- faces the camera within an incidence angle. A
+A point is seen when the camera model projects it (:meth:`selfcal.camera.model.CameraModel.valid`:
+in front of a perspective camera, inside the field of view of a model past 180 deg) within a depth
+range (:meth:`~selfcal.camera.model.CameraModel.depth`), projects inside the image with a margin and -- given its surface normal -- faces the camera within an incidence angle. A
 marker (a flat patch with several corner points) is seen when all its corners are seen (depth and
 image tests) and its centre faces the camera. The simulator's analytic observations, the planner,
 the D-optimal selection and the predicted Cramer-Rao bounds all ask this rule (with their own
@@ -26,7 +27,8 @@ class Visibility:
     """Thresholds of the visibility rule (defaults: what the analytic simulator reports).
 
     ``margin_px``: distance a projection must keep from the image border (pixel centres
-    ``0 .. W - 1``); ``min_depth_m``, ``max_depth_m``: depth range along the optical axis (m);
+    ``0 .. W - 1``); ``min_depth_m``, ``max_depth_m``: depth range (m) along the optical axis
+    (a model past 180 deg: distance from the camera centre);
     ``max_incidence_deg``: largest angle between a surface normal and the direction to the
     camera centre.
     """
@@ -45,9 +47,9 @@ class Visibility:
         X = np.asarray(X_world, dtype=float)
         Xc = np.einsum("mij,...j->m...i", T_cw[:, :3, :3], X)
         Xc += T_cw[:, :3, 3].reshape((len(T_cw),) + (1,) * (X.ndim - 1) + (3,))
-        z = Xc[..., 2]
-        ok = (z > self.min_depth_m) & (z < self.max_depth_m)
-        return ok & camera.in_image(camera.project(Xc), self.margin_px)
+        d = camera.depth(Xc)
+        ok = camera.valid(Xc) & (d > self.min_depth_m) & (d < self.max_depth_m)
+        return ok & camera.in_image(camera.project_valid(Xc)[0], self.margin_px)
 
     def facing(
         self, T_world_cam: np.ndarray, P_world: np.ndarray, normals_world: np.ndarray

@@ -1,7 +1,7 @@
 """Triangulation of points seen by cameras of known pose: linear (DLT) and robust (RANSAC).
 
 Poses ``T_cam_world`` (V, 4, 4) map world to camera coordinates (OpenCV frame, m); rays come from
-the camera model's :meth:`selfcal.camera.CameraModel.unproject` (normalised coordinates).
+the camera model's :meth:`selfcal.camera.CameraModel.unproject_normalised`.
 """
 
 from __future__ import annotations

@@ -4,7 +4,7 @@ MuJoCo renders pinhole images only. For a camera with a lens (:class:`selfcal.ca
 the simulator renders the *source* pinhole :func:`source_pinhole` -- the same focal lengths (times
 ``supersample``), an image large enough to hold every ray the lens camera sees (plus a margin),
 its principal point placed accordingly -- and :class:`LensRemap` turns that image into the lens
-camera's: for every output pixel ``u`` (OpenCV pixel centres) the ray ``camera.unproject(u)``
+camera's: for every output pixel ``u`` (OpenCV pixel centres) the ray ``camera.unproject_normalised(u)``
 (exact: Newton on the lens map) is projected by the source pinhole, and ``cv2.remap`` samples the
 source image there (bilinear). So a scene point ``X`` lands where ``camera.project(X)`` says, up
 to interpolation. A plain :class:`selfcal.camera.Pinhole` (principal point anywhere: MuJoCo's own
@@ -35,7 +35,7 @@ def needs_remap(camera: Pinhole) -> bool:
 def _rays(camera: Pinhole) -> np.ndarray:
     """Normalised coordinates (H, W, 2) of every output pixel centre of ``camera``."""
     u, v = np.meshgrid(np.arange(camera.width, dtype=float), np.arange(camera.height, dtype=float))
-    xn = camera.unproject(np.stack([u, v], axis=-1))
+    xn = camera.unproject_normalised(np.stack([u, v], axis=-1))
     if not np.isfinite(xn).all():
         raise InputError(
             f"the lens of {camera} cannot be inverted over the whole image (the distortion "

@@ -53,7 +53,7 @@ def test_source_pinhole_holds_every_ray_and_the_remap_samples_the_right_place():
 
     out = remap(pattern(xs).astype(np.float32))
     u, v = np.meshgrid(np.arange(W, dtype=float), np.arange(H, dtype=float))
-    want = pattern(LENS.unproject(np.stack([u, v], axis=-1)))
+    want = pattern(LENS.unproject_normalised(np.stack([u, v], axis=-1)))
     # bilinear interpolation of this smooth pattern plus cv2.remap's 1/32 px coordinate grid:
     # measured max 0.0015 grey levels of 60, 3x that here
     assert np.abs(out - want).max() < 0.005

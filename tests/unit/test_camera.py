@@ -101,11 +101,11 @@ def test_unproject_inverts_project(cam, seed):
     terms = np.abs(xn0) * f + np.abs([cam.cx, cam.cy])
     terms[:, 0] += np.abs(cam.skew * xn0[:, 1]) + terms[:, 1] * abs(cam.skew) / cam.fy
     scale = terms / f  # the terms rounded, in xn units (the skew carries y's into x)
-    assert np.all(np.abs(cam.unproject(cam.project(X)) - xn0) <= 5 * EPS * scale)
+    assert np.all(np.abs(cam.unproject_normalised(cam.project(X)) - xn0) <= 5 * EPS * scale)
     # and the ray through a pixel projects back onto it, at any depth
     uv = np.array([[0.0, 0.0], [cam.width - 1.0, cam.height - 1.0], [cam.cx, cam.cy]])
     for z in (0.05, 3.0):
-        ray = np.c_[cam.unproject(uv), np.ones(3)] * z
+        ray = np.c_[cam.unproject_normalised(uv), np.ones(3)] * z
         assert np.abs(cam.project(ray) - uv).max() <= 6 * EPS * (np.abs(uv).max() + cam.fx)
 
 

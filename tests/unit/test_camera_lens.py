@@ -85,7 +85,7 @@ def test_lens_projection_matches_opencv_and_unprojects(kind, tol, tol_back, data
     uv = cam.project(X)
     scale = np.abs(uv) + np.abs([cam.cx, cam.cy]) + [cam.fx, cam.fy]
     assert np.all(np.abs(uv - _opencv(cam, X)) <= tol * EPS * scale)
-    assert np.all(np.abs(cam.unproject(uv) - xn) <= tol_back * EPS)
+    assert np.all(np.abs(cam.unproject_normalised(uv) - xn) <= tol_back * EPS)
 
 
 @pytest.mark.parametrize(
@@ -190,10 +190,10 @@ def test_the_renderer_remaps_a_skewed_camera():
     out = remap(u + 1000 * v)
     X = np.array([[0.03, -0.02, 1.0], [-0.05, 0.04, 2.0]])
     # a point's ray: the skewed camera's pixel leads to the source pinhole's pixel of the point
-    np.testing.assert_allclose(src.pixels(cam.unproject(cam.project(X))), src.project(X),
+    np.testing.assert_allclose(src.pixels(cam.unproject_normalised(cam.project(X))), src.project(X),
                                rtol=0, atol=1e-9)  # fmt: skip
     # every output pixel holds the source image at its ray (bilinear is exact on a ramp:
     # float32 rounding of values up to 6.7e4, measured 0.0019)
     grid = np.stack(np.meshgrid(np.arange(80.0), np.arange(60.0)), axis=-1)
-    s_uv = src.pixels(cam.unproject(grid))
+    s_uv = src.pixels(cam.unproject_normalised(grid))
     assert np.abs(out - (s_uv[..., 0] + 1000 * s_uv[..., 1])).max() < 0.006

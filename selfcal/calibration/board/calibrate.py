@@ -16,7 +16,10 @@ OpenCV camera frame; pixels in the OpenCV convention. The camera is any model of
 (``"opencv"``: plus ``k1, k2, p1, p2, k3 ...``) or the fisheye -- with its ``free`` parameters:
 OpenCV's calibration (``cv2.calibrateCamera`` / ``cv2.fisheye.calibrate``, the held parameters
 fixed by its flags) gives the initial intrinsics and distortion, the bundle adjustment refines
-every free parameter (the lens Jacobians of :mod:`selfcal.camera.lens`).
+every free parameter (the lens Jacobians of :mod:`selfcal.camera.lens`). A model OpenCV does not
+calibrate (the double sphere, :data:`selfcal.camera.REGISTRY`) starts from its rays instead
+(:func:`ray_start`: each of its guesses refined, the lowest cost kept; ``diagnostics["start"]``
+is ``"rays"``) and is refined the same way.
 
 Bad input: images without the board are skipped with a :class:`BoardNotFoundWarning` that names
 and counts them, and :class:`BoardInputError` follows when fewer than ``min_views`` remain; a fit
@@ -26,6 +29,7 @@ whose residuals show that the declared geometry is not the printed one raises
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -33,9 +37,18 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from selfcal.camera import MODELS, CameraModel, LensCamera, Pinhole, camera_model, lens_names
+from selfcal.camera import (
+    CameraModel,
+    LensCamera,
+    Pinhole,
+    camera_model,
+    canonical_free,
+    entry,
+    lens_names,
+    ray_poses,
+)
 from selfcal.camera.pinhole import centered_principal_point
-from selfcal.errors import InitialCameraWarning, InputError, SelfCalWarning
+from selfcal.errors import EstimationError, InitialCameraWarning, InputError, SelfCalWarning
 from selfcal.estimation.bundle_adjust import bundle_adjust, intrinsics_covariance
 from selfcal.estimation.pose_models import ViewPoses
 from selfcal.estimation.reprojection import robust_sigma
@@ -52,6 +65,7 @@ __all__ = [
     "OpenCVCalibration",
     "calibrate_board",
     "opencv_calibration",
+    "ray_start",
 ]
 
 _FIX_FILES = "see docs/targets.md"
@@ -206,8 +220,9 @@ def opencv_calibration(
     principal point at the image centre, aspect 1, lens coefficients 0). ``initial``: a camera
     of ``model`` to start from instead (its K and lens coefficients; the held parameters keep its
     values)."""
-    if model not in MODELS:
-        raise InputError(f"unknown camera model {model!r}; use one of {sorted(MODELS)}")
+    if not entry(model).opencv:
+        raise InputError(f"OpenCV does not calibrate the camera model {model!r}",
+                         fix="use ray_start for its start")  # fmt: skip
     obj = [board.points(f.ids).astype(np.float32) for f in features]
     img = [f.uv.astype(np.float32).reshape(-1, 1, 2) for f in features]
     cx0, cy0 = centered_principal_point(width, height)
@@ -247,6 +262,61 @@ def opencv_calibration(
                           skew=float(K[0, 1]))  # fmt: skip
     T = np.stack([_pose(r, t) for r, t in zip(rvecs, tvecs, strict=True)])
     return OpenCVCalibration(camera, std, T, float(rms))
+
+
+def ray_start(
+    board: Board,
+    features: Sequence[Features],
+    width: int,
+    height: int,
+    free: Sequence[str],
+    model: str,
+    initial: Pinhole | None = None,
+    max_nfev: int = 200,
+) -> OpenCVCalibration:
+    """The start of a camera ``model`` OpenCV does not calibrate (the double sphere) from the
+    views ``features``: every guess of the model (:meth:`selfcal.camera.CameraModel.starts`;
+    ``initial``, a camera of ``model``, first) gives the views' poses through its rays
+    (:func:`selfcal.camera.ray_poses`) and is refined from there by the bundle adjustment
+    (soft-L1, the board held); the lowest cost wins (a model whose parameters trade off has
+    local minima). Held in the form of OpenCV's result (no standard deviations; ``rms_px`` the
+    winner's).
+
+    Raises:
+        EstimationError: no guess gave every view a pose or a finite refinement (the message
+            names how many were tried and the first reason).
+    """
+    cls = entry(model).cls
+    if initial is not None and initial.model_name != model:
+        raise InputError(f"initial camera {initial.model_name!r}, model {model!r}")
+    guesses = cls.starts(width, height, canonical_free(free))
+    if initial is not None:
+        guesses.insert(0, dataclasses.replace(initial, free=guesses[0].free))
+    view = np.concatenate([np.full(len(f), i) for i, f in enumerate(features)])
+    pts_ids, pidx = np.unique(np.concatenate([f.ids for f in features]), return_inverse=True)
+    X, uv = board.points(pts_ids), np.concatenate([f.uv for f in features])
+    best, reasons = None, []
+    for guess in guesses:
+        try:
+            r = ray_poses(guess, [board.points(f.ids) for f in features],
+                          [f.uv for f in features])  # fmt: skip
+            poses = ViewPoses(r.T_cam_target, np.ones(len(features), bool))
+            res = bundle_adjust(poses, poses.initial_params(), X, view, pidx, uv, guess,
+                                fix_points=True, loss="soft_l1", f_scale_px=1.0,
+                                max_nfev=max_nfev)  # fmt: skip
+        except EstimationError as exc:
+            reasons.append(exc.message)
+            continue
+        if best is None or res.cost < best.cost:
+            best = res
+    if best is None:
+        raise EstimationError(
+            f"no start of the {model} camera: none of {len(guesses)} guesses fitted the views "
+            f"({reasons[0]})",
+            fix="check the camera model, the image size and the target file",
+        )
+    e = np.linalg.norm(best.residuals, axis=-1)
+    return OpenCVCalibration(best.camera, {}, best.T_cam_world, float(np.sqrt(np.mean(e**2))))
 
 
 def _usable(
@@ -314,9 +384,13 @@ def calibrate_board(
     ok, skipped = _usable(board, features, names, min_views)
     idx = np.flatnonzero(ok).tolist()
     _check_ids(board, [features[i] for i in idx])
-    cv_res = opencv_calibration(board, [features[i] for i in idx], width, height, free, model)
-    start = "opencv"
-    if initial is not None:
+    if not entry(model).opencv:
+        cv_res = ray_start(board, [features[i] for i in idx], width, height, free, model, initial)
+        start = "rays"
+    else:
+        cv_res = opencv_calibration(board, [features[i] for i in idx], width, height, free, model)
+        start = "opencv"
+    if initial is not None and entry(model).opencv:
         cv_init = opencv_calibration(board, [features[i] for i in idx], width, height, free,
                                      model, initial)  # fmt: skip
         if cv_init.rms_px <= cv_res.rms_px * (1 + 1e-9) or not np.isfinite(cv_res.rms_px):
@@ -373,11 +447,12 @@ def calibrate_board(
 
 
 def _errors(camera, T_cam_world, X, view, pidx, uv) -> np.ndarray:
-    """2-D reprojection error (k,) px of every row; inf behind the camera."""
+    """2-D reprojection error (k,) px of every row; inf where the model does not project the
+    point (behind a perspective camera)."""
     T = T_cam_world[view]
     Xc = np.einsum("kij,kj->ki", T[:, :3, :3], X[pidx]) + T[:, :3, 3]
     e = np.linalg.norm(camera.project(Xc) - uv, axis=1)
-    return np.where(Xc[:, 2] > 0, e, np.inf)
+    return np.where(camera.valid(Xc), e, np.inf)
 
 
 _KEYS = {

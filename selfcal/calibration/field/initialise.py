@@ -163,8 +163,8 @@ def _pair_init(pair: PairEstimate, table: np.ndarray, camera: Pinhole, thr_px: f
     triangulation), or None: ``(T_b_a, point indices, X (n, 3), median ray angle, n)``."""
     a, b = pair.view_a, pair.view_b
     pts = pair.pidx[pair.inlier]
-    x1 = camera.unproject(table[a, pts])
-    x2 = camera.unproject(table[b, pts])
+    x1 = camera.unproject_normalised(table[a, pts])
+    x2 = camera.unproject_normalised(table[b, pts])
     if len(pts) < 8:
         return None
     E = robust_cv(
@@ -289,7 +289,7 @@ def initial_reconstruction(
         if only_new:
             m &= ~has_X[pidx]
         for _ in range(8):
-            xn = camera.unproject(uv[m])
+            xn = camera.unproject_normalised(uv[m])
             Xn, cnt = triangulate(T, view[m], pidx[m], xn, n_points)
             cand = cnt >= 2
             if not cand.any():
