@@ -3,11 +3,13 @@
 - :func:`to_opencv_yaml`: what ``cv2.FileStorage`` writes and reads (OpenCV's calibration
   sample's keys): ``image_width``, ``image_height``, ``camera_matrix`` (3x3 K, px),
   ``distortion_coefficients`` (1 x n: ``k1 k2 p1 p2 k3 [k4 k5 k6]`` for the ``opencv`` model,
-  ``k1 .. k4`` for ``fisheye``, none for the pinhole) and ``distortion_model``.
+  ``k1 .. k4`` for ``fisheye``, ``xi alpha`` for ``double_sphere``, none for the pinhole) and
+  ``distortion_model``.
 - :func:`to_camera_info_yaml`: the file ROS's ``camera_info_manager`` loads
   (``camera_calibration_parsers``): ``camera_matrix`` = K, ``distortion_model``
   (``plumb_bob``, ``rational_polynomial`` when k4-k6 are nonzero, ``equidistant`` for the
-  fisheye) and ``distortion_coefficients`` = D, ``rectification_matrix`` = R (identity: the
+  fisheye, ``double_sphere`` -- not one of ROS image_geometry's: a node that only knows those
+  refuses it -- for the double sphere; :mod:`selfcal.camera.registry`) and ``distortion_coefficients`` = D, ``rectification_matrix`` = R (identity: the
   cameras are not rectified) and ``projection_matrix`` = P = [K' | 0] (3x4, px) with K' the
   matrix of the undistorted image (:func:`rectified_matrix`; K without distortion).
 
@@ -19,7 +21,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from selfcal.camera import BrownConrady, CameraModel, Fisheye, Pinhole
+from selfcal.camera import CameraModel, Pinhole, entry_of, ros_distortion
 
 __all__ = ["camera_matrix", "rectified_matrix", "distortion", "to_opencv_yaml",
            "to_camera_info_yaml"]  # fmt: skip
@@ -35,10 +37,11 @@ def rectified_matrix(camera: Pinhole) -> np.ndarray:
     ``P = [K' | 0]``: as ROS ``camera_calibration`` chooses it, every pixel of the undistorted
     image valid (``cv2.getOptimalNewCameraMatrix`` with alpha 0;
     ``cv2.fisheye.estimateNewCameraMatrixForUndistortRectify`` with balance 0 for the fisheye);
-    K itself for a camera without distortion."""
+    K itself for a camera without distortion and for a model OpenCV does not know (the double
+    sphere: no perspective image holds its field of view)."""
     K = camera_matrix(camera)
     model, d = distortion(camera)
-    if not np.any(d):
+    if not np.any(d) or not entry_of(camera).opencv:
         return K
     size = (int(camera.width), int(camera.height))
     if model == "equidistant":
@@ -53,14 +56,10 @@ def rectified_matrix(camera: Pinhole) -> np.ndarray:
 
 def distortion(camera: CameraModel) -> tuple[str, np.ndarray]:
     """``(ROS distortion_model, D)``: ``plumb_bob`` with ``k1 k2 p1 p2 k3``,
-    ``rational_polynomial`` with 8 coefficients, ``equidistant`` with ``k1 .. k4``; the pinhole
-    is ``plumb_bob`` with five zeros."""
-    if isinstance(camera, Fisheye):
-        return "equidistant", np.asarray(camera.dist_coeffs, dtype=float)
-    if isinstance(camera, BrownConrady):
-        d = np.asarray(camera.dist_coeffs, dtype=float)
-        return ("rational_polynomial" if len(d) == 8 else "plumb_bob"), d
-    return "plumb_bob", np.zeros(5)
+    ``rational_polynomial`` with 8 coefficients, ``equidistant`` with ``k1 .. k4``,
+    ``double_sphere`` with ``xi alpha``; the pinhole is ``plumb_bob`` with five zeros
+    (:func:`selfcal.camera.ros_distortion`, the registry's names)."""
+    return ros_distortion(camera)
 
 
 def to_opencv_yaml(camera: Pinhole) -> str:

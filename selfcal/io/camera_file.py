@@ -17,14 +17,18 @@ import cv2
 import numpy as np
 import yaml
 
-from selfcal.camera import CameraModel, camera_model, centered_principal_point
+from selfcal.camera import (
+    MODELS,
+    CameraModel,
+    camera_model,
+    centered_principal_point,
+    lens_names,
+)
+from selfcal.camera.registry import ROS_MODEL_OF
 from selfcal.choices import DEFAULT_FREE
 from selfcal.errors import InputError
 
 __all__ = ["CameraFileError", "read_camera_file", "camera_from_fov"]
-
-_OPENCV = ("k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6")
-_FISHEYE = ("k1", "k2", "k3", "k4")
 
 
 class CameraFileError(InputError):
@@ -98,12 +102,11 @@ def read_camera_file(path: str | Path) -> CameraModel:
     D = d.get("distortion_coefficients")
     D = np.zeros(0) if D is None else np.asarray(D, dtype=float).reshape(-1)
     kind = str(d.get("distortion_model") or "plumb_bob")
-    model, names = ("fisheye", _FISHEYE) if kind == "equidistant" else ("opencv", _OPENCV)
-    if kind not in ("plumb_bob", "rational_polynomial", "equidistant"):
-        raise CameraFileError(
-            f"{path}: distortion_model {kind!r} is not one of plumb_bob, rational_polynomial, "
-            "equidistant"
-        )
+    known = {r: m for r, m in ROS_MODEL_OF.items() if m in MODELS}  # the models routes take
+    if kind not in known:
+        raise CameraFileError(f"{path}: distortion_model {kind!r} is not one of {', '.join(known)}")
+    model = known[kind]
+    names = lens_names(model)
     if D.size > len(names):
         raise CameraFileError(f"{path}: {D.size} distortion coefficients for {kind} "
                               f"(at most {len(names)})")  # fmt: skip

@@ -27,7 +27,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from selfcal.camera import CameraModel, Pinhole
+from selfcal.camera import CameraModel, Pinhole, entry
+from selfcal.camera.registry import ROS_D_NAMES
 from selfcal.choices import JOINT_TOPIC
 from selfcal.export.camera import camera_matrix, distortion, rectified_matrix
 from selfcal.export.deploy import deploy_chain
@@ -117,8 +118,8 @@ def _camera_infos(ds: Dataset) -> dict[str, CameraInfo]:
             model, D = distortion(cam)
             K, K_rect = camera_matrix(cam).ravel(), rectified_matrix(cam).ravel()
         else:
-            model = "equidistant" if info.camera_model == "fisheye" else "plumb_bob"
-            D, K = np.zeros(4 if model == "equidistant" else 5), np.zeros(9)
+            model = entry(info.camera_model).ros[0]
+            D, K = np.zeros(len(ROS_D_NAMES[model])), np.zeros(9)
             K_rect = K
         out[c] = CameraInfo(w, h, model, tuple(map(float, D)), tuple(map(float, K)),
                             tuple(map(float, K_rect)))  # fmt: skip

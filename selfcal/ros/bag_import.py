@@ -29,6 +29,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from selfcal.camera.registry import MODELS, ROS_D_NAMES, ROS_MODEL_OF
 from selfcal.errors import SelfCalWarning
 from selfcal.importing.dataset import DEFAULT_MODEL, CameraImages, ImportError_, import_dataset
 from selfcal.io.dataset_info import DatasetInfo
@@ -69,13 +70,10 @@ __all__ = [
     "MODEL_OF",
 ]
 
-MODEL_OF = {"plumb_bob": "opencv", "rational_polynomial": "opencv", "equidistant": "fisheye"}
-"""The camera model of a calibrated CameraInfo's ``distortion_model``."""
-D_NAMES = {
-    "plumb_bob": ("k1", "k2", "p1", "p2", "k3"),
-    "rational_polynomial": ("k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6"),
-    "equidistant": ("k1", "k2", "k3", "k4"),
-}
+MODEL_OF = {r: m for r, m in ROS_MODEL_OF.items() if m in MODELS}
+"""The camera model of a calibrated CameraInfo's ``distortion_model`` (the registry's, for the
+models a dataset takes: :data:`selfcal.camera.MODELS`)."""
+D_NAMES = ROS_D_NAMES
 """The OpenCV names of a CameraInfo's ``D``, by ``distortion_model``."""
 _STAGE = ".bag-staging"
 

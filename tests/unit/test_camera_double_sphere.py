@@ -31,6 +31,7 @@ from selfcal.camera import (
     ros_distortion,
 )
 from selfcal.errors import InputError
+from selfcal.export.camera import rectified_matrix, to_camera_info_yaml
 
 EPS = np.finfo(float).eps
 WIDE = DoubleSphere(170.0, 1.002, 401.3, 398.1, 800, 800, DoubleSphere.names, xi=-0.2, alpha=0.6)
@@ -156,3 +157,11 @@ def test_double_sphere_by_name_and_its_values_by_opencv_names():
     with pytest.raises(InputError, match="k1"):
         camera_model("double_sphere", fx=1.0, mu=1.0, cx=0.0, cy=0.0, width=64, height=64,
                      coeffs={"k1": 0.1})  # fmt: skip
+
+
+def test_camera_info_of_a_double_sphere_keeps_its_k():
+    """No perspective image holds 244 deg: P = [K | 0], D = (xi, alpha)."""
+    np.testing.assert_array_equal(rectified_matrix(WIDE), WIDE.K)
+    text = to_camera_info_yaml(WIDE, "fish")
+    assert "distortion_model: double_sphere" in text
+    assert "data: [-0.2, 0.6]" in text
