@@ -10,8 +10,10 @@ by ``alpha / (1 - alpha)`` of the unit (paper's eqs. 40-45)::
 A point projects when ``z > -w2 d1`` (eq. 43):
 ``w1 = alpha / (1 - alpha)`` for ``alpha <= 1/2`` else ``(1 - alpha) / alpha``,
 ``w2 = (w1 + xi) / sqrt(2 w1 xi + xi^2 + 1)``: with ``w2 > 0`` the field of view passes 180 deg;
-and ``D > 0`` (with ``xi < 0`` and a small ``alpha``, e.g. -0.49 and 0.08, ``D`` reaches 0 inside
-eq. 43's bound and the map folds over there).
+but with ``xi < 0`` and an ``alpha`` near 0 or 1 (e.g. -0.49 and 0.08, or -0.45 and 0.92) the map
+folds over inside that bound: its radius stops growing with the angle off the axis, or ``D``
+reaches 0. The model projects up to :attr:`DoubleSphere.half_angle`, the smaller of the two, and
+unprojects no pixel to a ray beyond it.
 The inverse is closed form too (eqs. 47-50): with ``m`` of the pixel and ``r^2 = |m|^2``
 (reached only where ``r^2 <= 1 / (2 alpha - 1)`` when ``alpha > 1/2``)::
 
@@ -26,6 +28,7 @@ Parameters, in order: the pinhole's ``fx`` (px), ``mu = fy / fx``, ``cx``, ``cy`
 from __future__ import annotations
 
 import dataclasses
+import functools
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -34,6 +37,9 @@ import numpy as np
 from selfcal.camera.pinhole import Pinhole, centered_principal_point
 
 __all__ = ["DoubleSphere"]
+
+_ANGLES = 20001
+"""Angles over [0, pi] on which :attr:`DoubleSphere.half_angle` looks for a fold (0.009 deg)."""
 
 
 @dataclass(frozen=True)
@@ -83,14 +89,25 @@ class DoubleSphere(Pinhole):
         w1 = a / (1.0 - a) if a <= 0.5 else (1.0 - a) / a
         return (w1 + xi) / np.sqrt(2.0 * w1 * xi + xi * xi + 1.0)
 
+    @functools.cached_property
+    def half_angle(self) -> float:
+        """The largest angle off the optical axis (rad) the model projects one to one: eq. 43's
+        ``arccos(-w2)``, or less where the radial map ``r(theta)`` stops growing or its
+        denominator reaches 0 first (module docstring); the last of 20001 angles over [0, pi]
+        before that."""
+        th = np.linspace(0.0, np.pi, _ANGLES)
+        e = self.xi + np.cos(th)
+        D = self.alpha * np.sqrt(np.sin(th) ** 2 + e * e) + (1.0 - self.alpha) * e
+        with np.errstate(divide="ignore", invalid="ignore"):
+            r = np.sin(th) / D
+        good = (D > 0.0) & (np.cos(th) > -self.w2)
+        good[1:] &= np.diff(r) > 0.0
+        return float(th[-1] if good.all() else th[max(int(np.argmin(good)) - 1, 0)])
+
     def valid(self, X_cam: np.ndarray) -> np.ndarray:
-        """(...,) bool: ``z > -w2 |X|`` (eq. 43) and the denominator ``D > 0`` (with ``xi < 0``
-        and a small ``alpha``, D reaches 0 inside eq. 43's bound, where the map folds over)."""
+        """(...,) bool: points less than :attr:`half_angle` off the optical axis."""
         X = np.asarray(X_cam, dtype=float)
-        d1 = np.linalg.norm(X, axis=-1)
-        e = self.xi * d1 + X[..., 2]
-        D = self.alpha * np.sqrt(X[..., 0] ** 2 + X[..., 1] ** 2 + e * e) + (1 - self.alpha) * e
-        return (X[..., 2] > -self.w2 * d1) & (D > 0.0)
+        return X[..., 2] > np.cos(self.half_angle) * np.linalg.norm(X, axis=-1)
 
     def depth(self, X_cam: np.ndarray) -> np.ndarray:
         return np.linalg.norm(np.asarray(X_cam, dtype=float), axis=-1)
@@ -144,6 +161,8 @@ class DoubleSphere(Pinhole):
             ray /= np.linalg.norm(ray, axis=-1, keepdims=True)
         if a > 0.5:
             ray[r2 > 1.0 / (2.0 * a - 1.0)] = np.nan
+        with np.errstate(invalid="ignore"):
+            ray[ray[..., 2] < np.cos(self.half_angle) - 1e-12] = np.nan  # past a fold
         return ray
 
     def unproject_normalised(self, uv: np.ndarray) -> np.ndarray:

@@ -1,13 +1,14 @@
 """The double-sphere camera (selfcal.camera.double_sphere) and the camera registry
 (selfcal.camera.registry): round trips, Jacobians against central differences, the field of view
-past 180 deg, the pinhole as a special case, and the models' OpenCV/ROS names.
+past 180 deg, where the map folds over, the pinhole as a special case, and the models' OpenCV/ROS
+names.
 
-Tolerances are about 3x the worst of 3000 random cameras (fx 100-2000 px, xi -0.3 .. 1, alpha
-0.05 .. 0.95, directions anywhere the model projects, 0.01-100 m; measured): unit ray of
-unproject(project(X)) 637 eps; point Jacobian vs central differences (h = 1e-6 of the distance)
-5.3e-7 of the largest entry; parameter Jacobian (h = 1e-6 of the value) 7.1e-6 of (largest entry
-+ 1). With xi below about -0.4 and alpha above 0.8 the paper's bound (eq. 43) lets in points near
-its edge where the map folds over (a 0.05 ray error measured): the draws stay above -0.3.
+Tolerances are about 3x the worst of 3000 random cameras (fx 100-2000 px, directions anywhere the
+model projects, 0.01-100 m; measured): unit ray of unproject(project(X)) 3829 eps over the
+paper's whole range (xi -1 .. 1, alpha 0 .. 1; the worst near a fold); with xi -0.3 .. 1 and
+alpha 0.05 .. 0.95 (the draws of the Jacobian test: central differences lose accuracy near a
+fold) point Jacobian vs central differences (h = 1e-6 of the distance) 5.3e-7 of the largest
+entry, parameter Jacobian (h = 1e-6 of the value) 7.1e-6 of (largest entry + 1).
 """
 
 from __future__ import annotations
@@ -39,13 +40,13 @@ WIDE = DoubleSphere(170.0, 1.002, 401.3, 398.1, 800, 800, DoubleSphere.names, xi
 
 
 @st.composite
-def cameras(draw):
+def cameras(draw, xi=(-1.0, 1.0), alpha=(0.0, 1.0)):
     W, H = draw(st.integers(64, 4000)), draw(st.integers(64, 4000))
     fx = draw(st.floats(100.0, 2000.0))
     return DoubleSphere(fx, draw(st.floats(0.8, 1.25)), draw(st.floats(0.0, float(W))),
                         draw(st.floats(0.0, float(H))), W, H, DoubleSphere.names,
-                        skew=draw(st.floats(-0.02, 0.02)) * fx, xi=draw(st.floats(-0.3, 1.0)),
-                        alpha=draw(st.floats(0.05, 0.95)))  # fmt: skip
+                        skew=draw(st.floats(-0.02, 0.02)) * fx, xi=draw(st.floats(*xi)),
+                        alpha=draw(st.floats(*alpha)))  # fmt: skip
 
 
 def _points(cam: DoubleSphere, seed: int, n: int = 10) -> tuple[np.ndarray, np.ndarray]:
@@ -64,11 +65,11 @@ def test_unproject_inverts_project_wherever_the_model_projects(cam, seed):
     d, X = _points(cam, seed)
     uv, ok = cam.project_valid(X)
     assert ok.all()
-    assert np.all(np.abs(cam.unproject(uv) - d) <= 2000 * EPS)
+    assert np.all(np.abs(cam.unproject(uv) - d) <= 12000 * EPS)
 
 
 @settings(max_examples=60, deadline=None)
-@given(cam=cameras(), seed=st.integers(0, 2**32 - 1))
+@given(cam=cameras(xi=(-0.3, 1.0), alpha=(0.05, 0.95)), seed=st.integers(0, 2**32 - 1))
 def test_jacobians_match_central_differences(cam, seed):
     _, X = _points(cam, seed)
     uv, J_point, J_par = cam.project_jacobians(X)
@@ -107,6 +108,24 @@ def test_the_field_of_view_passes_180_degrees():
     assert rule.points(pin, T_world_cam, 2.0 * d).tolist() == [[False, False]]
     assert WIDE.depth(2.0 * d[:1]) == pytest.approx(2.0)  # the distance, not z < 0
     assert np.isnan(WIDE.unproject_normalised(uv[:1])).all()  # no z = 1 plane behind
+
+
+@pytest.mark.parametrize("xi, alpha", [(-0.49, 0.08), (-0.45, 0.92)])
+def test_the_model_stops_where_the_map_folds_over(xi, alpha):
+    """Inside the paper's bound (eq. 43) these maps fold over: the image radius stops growing
+    with the angle off the axis (or the denominator reaches 0), so two directions would share a
+    pixel. The model projects only up to the fold and unprojects nothing beyond it."""
+    cam = DoubleSphere(300.0, 1.0, 400.0, 400.0, 800, 800, xi=xi, alpha=alpha)
+    paper = np.arccos(-cam.w2)
+    assert cam.half_angle < paper - np.radians(1.0)
+    th = np.linspace(0.0, paper, 2001)
+    d = np.c_[np.sin(th), np.zeros_like(th), np.cos(th)]
+    r = cam.sphere_map(d)[0][:, 0]
+    inside = th <= cam.half_angle
+    assert np.all(np.diff(r[inside]) > 0)  # one to one up to the fold
+    assert not np.all(np.diff(r[th <= cam.half_angle + np.radians(1.0)]) > 0)  # not beyond
+    assert cam.valid(d).tolist() == inside.tolist()
+    np.testing.assert_allclose(cam.unproject(cam.project(d[inside])), d[inside], atol=1e-9)
 
 
 def test_xi_and_alpha_zero_is_the_pinhole():
