@@ -56,7 +56,7 @@ def board_views(
         T = inv_pose(fr.T_world_cam_left) @ T_world_board
         Xc = pts @ T[:3, :3].T + T[:3, 3]
         uv = camera.project(Xc)
-        ok = camera.in_image(uv, 2.0) & (Xc[:, 2] > 0)
+        ok = camera.in_image(uv, 2.0) & camera.valid(Xc)
         feats.append(Features(ids[ok], uv[ok] + rng.normal(0, sigma_px, (int(ok.sum()), 2))))
         q.append(fr.joints_rad)
     return feats, np.asarray(q)

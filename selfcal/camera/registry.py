@@ -52,13 +52,15 @@ __all__ = [
 @dataclass(frozen=True)
 class CameraEntry:
     """One camera model: its ``name``, ``cls``, the ROS ``distortion_model`` names it is written
-    as (``ros``, the first that holds its coefficients is chosen), whether OpenCV calibrates it
-    (``opencv``) and whether the simulator and every route take it (``everywhere``)."""
+    as (``ros``, the first that holds its coefficients is chosen), OpenCV's module for it
+    (``opencv``: ``"calib3d"`` for ``cv2.calibrateCamera``, ``cv2.undistort`` ..., ``"fisheye"``
+    for ``cv2.fisheye``; None: OpenCV does not know it) and whether the simulator and every
+    route take it (``everywhere``)."""
 
     name: str
     cls: type[Pinhole]
     ros: tuple[str, ...]
-    opencv: bool = True
+    opencv: str | None = "calib3d"
     everywhere: bool = True
 
     @property
@@ -72,10 +74,10 @@ REGISTRY: dict[str, CameraEntry] = {
     for e in (
         CameraEntry("pinhole", Pinhole, ("plumb_bob",)),
         CameraEntry("opencv", BrownConrady, ("plumb_bob", "rational_polynomial")),
-        CameraEntry("fisheye", Fisheye, ("equidistant",)),
+        CameraEntry("fisheye", Fisheye, ("equidistant",), opencv="fisheye"),
         CameraEntry(
-            "double_sphere", DoubleSphere, ("double_sphere",), opencv=False, everywhere=False
-        ),  # fmt: skip
+            "double_sphere", DoubleSphere, ("double_sphere",), opencv=None, everywhere=False
+        ),
     )
 }
 """Every camera model by name (module docstring)."""

@@ -40,11 +40,11 @@ def rectified_matrix(camera: Pinhole) -> np.ndarray:
     K itself for a camera without distortion and for a model OpenCV does not know (the double
     sphere: no perspective image holds its field of view)."""
     K = camera_matrix(camera)
-    model, d = distortion(camera)
+    _, d = distortion(camera)
     if not np.any(d) or not entry_of(camera).opencv:
         return K
     size = (int(camera.width), int(camera.height))
-    if model == "equidistant":
+    if entry_of(camera).opencv == "fisheye":
         return np.asarray(
             cv2.fisheye.estimateNewCameraMatrixForUndistortRectify(
                 K, d, size, np.eye(3), balance=0.0

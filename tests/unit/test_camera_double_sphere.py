@@ -4,18 +4,18 @@ past 180 deg, where the map folds over, the pinhole as a special case, and the m
 names.
 
 Tolerances are about 3x the worst of 3000 random cameras (fx 100-2000 px, directions anywhere the
-model projects, 0.01-100 m; measured): unit ray of unproject(project(X)) 3829 eps over the
-paper's whole range (xi -1 .. 1, alpha 0 .. 1; the worst near a fold); with xi -0.3 .. 1 and
-alpha 0.05 .. 0.95 (the draws of the Jacobian test: central differences lose accuracy near a
-fold) point Jacobian vs central differences (h = 1e-6 of the distance) 5.3e-7 of the largest
-entry, parameter Jacobian (h = 1e-6 of the value) 7.1e-6 of (largest entry + 1).
+model projects, 0.01-100 m; the paper's whole range, xi -1 .. 1, alpha 0 .. 1; measured): unit
+ray of unproject(project(X)) 3829 eps (the worst near a fold); within 0.9 of the half angle
+(central differences lose their accuracy where the map turns steep at its edge) point Jacobian
+vs central differences (h = 1e-6 of the distance) 4.0e-9 of the largest entry, parameter
+Jacobian (h = 1e-6 of the value) 2.0e-8 of (largest entry + 1).
 """
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from selfcal.camera import (
@@ -49,13 +49,15 @@ def cameras(draw, xi=(-1.0, 1.0), alpha=(0.0, 1.0)):
                         alpha=draw(st.floats(*alpha)))  # fmt: skip
 
 
-def _points(cam: DoubleSphere, seed: int, n: int = 10) -> tuple[np.ndarray, np.ndarray]:
-    """Unit directions (k, 3) the model projects, drawn over the sphere, and points (k, 3) m
-    0.01-100 m along them."""
+def _points(
+    cam: DoubleSphere, seed: int, n: int = 10, within: float = 1.0
+) -> tuple[np.ndarray, np.ndarray]:
+    """Unit directions (k, 3) the model projects (``within`` that fraction of its half angle),
+    drawn over the sphere, and points (k, 3) m 0.01-100 m along them."""
     rng = np.random.default_rng(seed)
     d = rng.normal(size=(40 * n, 3))
     d /= np.linalg.norm(d, axis=1, keepdims=True)
-    d = d[cam.valid(d)][:n]
+    d = d[cam.valid(d) & (d[:, 2] > np.cos(within * cam.half_angle))][:n]
     return d, d * rng.uniform(0.01, 100.0, (len(d), 1))
 
 
@@ -69,9 +71,10 @@ def test_unproject_inverts_project_wherever_the_model_projects(cam, seed):
 
 
 @settings(max_examples=60, deadline=None)
-@given(cam=cameras(xi=(-0.3, 1.0), alpha=(0.05, 0.95)), seed=st.integers(0, 2**32 - 1))
+@given(cam=cameras(), seed=st.integers(0, 2**32 - 1))
 def test_jacobians_match_central_differences(cam, seed):
-    _, X = _points(cam, seed)
+    _, X = _points(cam, seed, within=0.9)
+    assume(len(X) > 0)  # xi = -1 with alpha = 0 projects no direction
     uv, J_point, J_par = cam.project_jacobians(X)
     np.testing.assert_array_equal(uv, cam.project(X))
     h = 1e-6 * np.linalg.norm(X, axis=1, keepdims=True)
@@ -79,14 +82,14 @@ def test_jacobians_match_central_differences(cam, seed):
         [(cam.project(X + h * e) - cam.project(X - h * e)) / (2 * h) for e in np.eye(3)], -1
     )
     scale = np.abs(J_point).max(axis=(1, 2))[:, None, None]
-    assert np.all(np.abs(fd - J_point) <= 1.6e-6 * scale)
+    assert np.all(np.abs(fd - J_point) <= 1.2e-8 * scale)
     v = cam.values()
     fd_par = np.empty_like(J_par)
     for i, hv in enumerate(1e-6 * np.maximum(np.abs(v), 1.0)):
         step = hv * np.eye(len(v))[i]
         fd_par[..., i] = (cam.with_values(v + step).project(X)
                           - cam.with_values(v - step).project(X)) / (2 * hv)  # fmt: skip
-    assert np.all(np.abs(fd_par - J_par) <= 2.2e-5 * (np.abs(J_par).max() + 1))
+    assert np.all(np.abs(fd_par - J_par) <= 6e-8 * (np.abs(J_par).max() + 1))
 
 
 def test_the_field_of_view_passes_180_degrees():

@@ -138,7 +138,7 @@ _CV_STD_NAMES = ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3", "k4", "k5
 def _opencv_flags(model: str, free: Sequence[str]) -> int:
     """``cv2.calibrateCamera`` flags (Brown-Conrady) or ``cv2.fisheye.calibrate`` flags that
     hold every parameter of ``model`` not in ``free``."""
-    if model == "fisheye":  # OpenCV 5 keeps the fisheye flags in cv2, 4.x in cv2.fisheye
+    if entry(model).opencv == "fisheye":  # OpenCV 5 keeps its flags in cv2, 4.x in cv2.fisheye
         flag = lambda n: getattr(cv2.fisheye, n, None) or getattr(cv2, n)  # noqa: E731
         flags = flag("CALIB_RECOMPUTE_EXTRINSIC") | flag("CALIB_USE_INTRINSIC_GUESS")
         if "skew" not in free:  # its alpha = skew / fx; calibrateCamera has no skew
@@ -239,9 +239,9 @@ def opencv_calibration(
         K0 = np.array(initial.K, dtype=np.float64)
         if isinstance(initial, LensCamera):
             guess = np.asarray(initial.coeffs, float)[: len(names)]
-        if model == "opencv" and np.any(guess[5:8] != 0):
+        if "k4" in names and np.any(guess[5:8] != 0):
             flags |= cv2.CALIB_RATIONAL_MODEL  # keep its k4-k6 (held unless free)
-    if model == "fisheye":
+    if entry(model).opencv == "fisheye":
         out = _fisheye_calibrate(obj, img, width, height, K0, guess[:4], flags, criteria,
                                  starts=initial is None)  # fmt: skip
         rms, K, dist, rvecs, tvecs = out[0], out[1], np.ravel(out[2]), out[3], out[4]

@@ -95,12 +95,12 @@ def _pitch_edges(board: Board) -> tuple[np.ndarray, float]:
 
 
 def _in_view(setup: PlanSetup, T_cam_base: np.ndarray, X: np.ndarray) -> np.ndarray:
-    """(m,) bool: every point ``X`` (k, 3) base frame m in front of and inside the image."""
+    """(m,) bool: every point ``X`` (k, 3) base frame m projected by the camera model beyond the
+    rule's least depth and inside the image."""
     rule, cam = setup.rule, setup.camera
     Xc = np.einsum("mij,kj->mki", T_cam_base[:, :3, :3], X) + T_cam_base[:, None, :3, 3]
-    ok = np.all(Xc[..., 2] > rule.min_depth_m, axis=1)
-    Xc[..., 2] = np.where(ok[:, None], Xc[..., 2], 1.0)
-    return ok & np.all(cam.in_image(cam.project(Xc), rule.margin_px), axis=1)
+    ok = np.all(cam.valid(Xc) & (cam.depth(Xc) > rule.min_depth_m), axis=1)
+    return ok & np.all(cam.in_image(cam.project_valid(Xc)[0], rule.margin_px), axis=1)
 
 
 def board_views_ok(setup: PlanSetup, T_base_cam: np.ndarray) -> np.ndarray:
