@@ -17,8 +17,8 @@
   unknown when each has its own model;
 - :mod:`selfcal.camera.visibility`: :class:`Visibility`, which points a camera sees.
 
-A new camera model is a new :class:`CameraModel` class next to these; see
-:mod:`selfcal.camera.model`.
+A new camera model is a new :class:`CameraModel` class next to these (see
+:mod:`selfcal.camera.model`) and one entry of :data:`REGISTRY` with its OpenCV and ROS names.
 """
 
 from selfcal.camera.camera_set import Cameras, CameraSet, first_camera

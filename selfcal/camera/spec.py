@@ -2,8 +2,9 @@
 
 Model names (the scenario's and dataset's ``camera.model``): ``"pinhole"``
 (:class:`selfcal.camera.pinhole.Pinhole`), ``"opencv"`` (:class:`selfcal.camera.distorted.BrownConrady`),
-``"fisheye"`` (:class:`selfcal.camera.distorted.Fisheye`), ``"double_sphere"``
-(:class:`selfcal.camera.double_sphere.DoubleSphere`; :mod:`selfcal.camera.registry`). Values by OpenCV's names: ``fx``, ``fy``,
+``"fisheye"`` (:class:`selfcal.camera.distorted.Fisheye`); and ``"double_sphere"``
+(:class:`selfcal.camera.double_sphere.DoubleSphere`), which only the board calibration takes so far
+(:mod:`selfcal.camera.registry`). Values by OpenCV's names: ``fx``, ``fy``,
 ``cx``, ``cy`` (px) and the lens coefficients (``k1`` ...); the estimation's parameter ``mu`` is
 ``fy / fx``. A ``free`` selection may name ``fy`` for ``mu`` (:func:`canonical_free`): with
 ``fx`` free (it always is), freeing ``fy`` and freeing the aspect ratio are the same
