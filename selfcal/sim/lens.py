@@ -18,7 +18,7 @@ import math
 import cv2
 import numpy as np
 
-from selfcal.camera import LensCamera, Pinhole
+from selfcal.camera import LensCamera, Pinhole, entry_of
 from selfcal.errors import InputError, UsageError
 
 __all__ = ["source_pinhole", "LensRemap", "needs_remap"]
@@ -28,7 +28,15 @@ MARGIN_PX = 3
 
 
 def needs_remap(camera: Pinhole) -> bool:
-    """True for a camera with a lens or a skew (MuJoCo cannot render either directly)."""
+    """True for a camera with a lens or a skew (MuJoCo cannot render either directly).
+
+    Raises :class:`UsageError` for a model the simulator does not take (the double sphere: its
+    rays do not fit one pinhole image; :mod:`selfcal.sim.cube_map` renders it)."""
+    if not entry_of(camera).everywhere:
+        raise UsageError(
+            f"a {camera.model_name} camera is not one pinhole image with a remap: render it "
+            "through a cube map (selfcal.sim.cube_map)"
+        )
     return isinstance(camera, LensCamera) or camera.skew != 0.0
 
 

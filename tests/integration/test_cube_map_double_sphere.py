@@ -21,8 +21,10 @@ import pytest
 
 from selfcal.calibration.board.calibrate import calibrate_board
 from selfcal.camera import DoubleSphere
+from selfcal.errors import UsageError
 from selfcal.sim.board_scene import board_scene_spec
 from selfcal.sim.cube_map import FACES, CubeMapRemap, add_cube_cameras, even_headlight, face_pinhole
+from selfcal.sim.lens import source_pinhole
 from selfcal.target import Charuco
 from selfcal.transforms import inv_pose, make_pose
 
@@ -54,6 +56,8 @@ def test_the_remap_reads_every_ray_from_its_face():
     assert (ray[seen][:, 2] < -0.5).any()  # rays 120 deg off the axis are read too
     assert np.abs(out[seen] - pattern(ray[seen])).max() < 0.011
     assert (out[~seen] == 0).all()
+    with pytest.raises(UsageError, match="cube map"):  # never one pinhole image in silence
+        source_pinhole(TRUE)
 
 
 def _poses(n: int = 12, seed: int = 0) -> list[np.ndarray]:
