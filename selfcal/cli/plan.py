@@ -1,6 +1,7 @@
 """``selfcal plan``: the postures to record for your own arm, wrist camera and board (issue #30):
-the command of :mod:`selfcal.calibration.board.plan`, writing PLAN/joints.csv, trajectory.yaml,
-scenario.toml (with target.toml beside it) and plan.json."""
+the command of :mod:`selfcal.calibration.board.plan` (and, with ``--add K DATASET``, of
+:mod:`selfcal.calibration.board.plan_add`), writing PLAN/joints.csv, trajectory.yaml,
+scenario.toml (with target.toml beside it; replay.csv with --add) and plan.json."""
 
 from __future__ import annotations
 
@@ -25,8 +26,15 @@ arm or the camera enters the box. The table the robot stands on (z = 0) is alway
 The plan's postures see the whole board inside the image, the board's normal within 60 deg of the
 optical axis, a feature pitch of at least 12 px; they are chosen from --candidates random ones to
 minimise the board calibration's predicted (Cramer-Rao) tool-point error over the workspace, and
-ordered for a short joint path from home. plan.json holds the prediction and that of a random plan
-of the same size from the same candidates. See docs/plan.md.
+ordered for a short joint path from home. The prediction is that of the calibration with the
+parameters its selection's rank test keeps, every other one held at the drawing and erring by
+--deviation-mm / --deviation-deg. plan.json holds the prediction and that of a random plan of
+the same size from the same candidates.
+--add K DATASET: instead, the K postures that most lower the predicted error of the calibrated
+DATASET (its robot file, calibration.json's camera, board pose and hand-eye; --robot, --target,
+--board-pose, --count and the camera options are not used); PLAN/joints.csv and trajectory.yaml hold the
+added postures, replay.csv the dataset's and the added ones (scenario.toml replays them).
+See docs/plan.md.
 """
 
 
@@ -40,10 +48,12 @@ def _parse_size(text: str) -> tuple[int, int]:
     return w, h
 
 
-def scenario_text(robot_ref: str, camera, board_pose: np.ndarray, count: int) -> str:
+def scenario_text(
+    robot_ref: str, camera, board_pose: np.ndarray, count: int, joints: str = "joints.csv"
+) -> str:
     """The scenario TOML that replays the plan in simulation (``selfcal run``): the robot, the
     plan's nominal camera as the true one, the board of ``target.toml`` at ``board_pose`` (6,) mm
-    and deg, the postures of ``joints.csv``, analytic corners."""
+    and deg, the ``count`` postures of the CSV ``joints`` (beside it), analytic corners."""
     v = dict(zip(camera.names, camera.values().tolist()))
     W, H = camera.width, camera.height
     lens = {n: v[n] for n in camera.names[5:] if v[n] != 0.0}
@@ -73,7 +83,7 @@ board_pose = [{pose}]  # mm, deg: the printed board's centre in the base frame, 
 
 [trajectory]
 kind = "file"
-joints = "joints.csv"
+joints = {json.dumps(joints)}
 poses = {count}
 
 [noise]
@@ -92,13 +102,18 @@ def _cmd(args: argparse.Namespace) -> int:
     from selfcal.io.jsonfile import write_json_atomic
     from selfcal.io.plan_files import joints_csv, trajectory_yaml
     from selfcal.io.target_toml import load_target
-    from selfcal.kinematics.keep_out import check_boxes
     from selfcal.robot.definition import load_robot
     from selfcal.target.boards import Board
     from selfcal.target.placement import board_pose
 
     if args.mount != "eye-in-hand":
         raise CliError("--mount eye-to-hand is not planned yet; only eye-in-hand")
+    if args.add:
+        return _cmd_add(args)
+    missing = [o for o, v in (("--robot", args.robot), ("--target", args.target),
+                              ("--board-pose", args.board_pose)) if not v]  # fmt: skip
+    if missing:
+        raise CliError(f"give {', '.join(missing)} (or --add K DATASET to extend a dataset)")
     robot = load_robot(args.robot)
     if args.camera:
         camera = read_camera_file(args.camera)
@@ -114,17 +129,15 @@ def _cmd(args: argparse.Namespace) -> int:
     if len(bp) not in (3, 6):
         raise CliError("--board-pose: give X,Y,Z (mm) or X,Y,Z,RX,RY,RZ (mm, deg)")
     bp = np.concatenate([bp, np.zeros(6 - len(bp))])
-    boxes = check_boxes(
-        np.array([parse_floats(b, 6, "--keep-out (mm)") for b in args.keep_out]).reshape(-1, 6)
-        / 1000.0
-    )
+    boxes = _boxes(args)
     if args.count < 3:
         raise CliError(f"--count {args.count}: a plan needs at least 3 postures")
     setup = PlanSetup(robot, camera, board, board_pose(board, bp[:3] / 1000, np.radians(bp[3:])),
                       boxes)  # fmt: skip
     js = encoder_sigma(robot)  # the board calibration's default read-back noise
     plan = plan_recording(setup, args.count, seed=args.seed, candidates=args.candidates,
-                          pixel_sigma_px=args.pixel_sigma, joint_sigma=js)  # fmt: skip
+                          pixel_sigma_px=args.pixel_sigma, joint_sigma=js,
+                          deviation=_deviation(args))  # fmt: skip
 
     out = Path(args.out)
     with writing(args, out):
@@ -143,22 +156,14 @@ def _cmd(args: argparse.Namespace) -> int:
             "count": len(plan.q),
             "predicted_tool_rms_mm": round(plan.predicted_m * 1000, 4),
             "random_tool_rms_mm": round(plan.random_m * 1000, 4),
-            "criterion": "board route Cramer-Rao bound: RMS of the flange centre over "
-            f"{len(plan.workspace)} random workspace postures after the best rigid alignment, "
-            f"corner noise {plan.pixel_sigma_px:g} px, "
-            + (
-                "joints read exactly"
-                if js is None
-                else "joint read-back noise of the robot "
-                "file's encoder resolution (1 count / sqrt(12)), each frame's corrections "
-                "estimated"
-            ),
+            "criterion": _criterion(len(plan.workspace), plan.pixel_sigma_px, js, args),
             "candidates": plan.candidates,
             "candidates_from": plan.drawn_from,
             "path_deg": round(float(np.degrees(plan.path_rad)), 3),
             "random_path_deg": round(float(np.degrees(plan.random_path_rad)), 3),
             "seed": args.seed,
             "board_pose_mm_deg": bp.tolist(),
+            "deviation_mm_deg": [args.deviation_mm, args.deviation_deg],
             "keep_out_mm": (boxes * 1000).tolist(),
             "joints_deg": np.round(plan.q / robot.edge_unit, 6).tolist(),
             "random_joints_deg": np.round(plan.q_random / robot.edge_unit, 6).tolist(),
@@ -168,6 +173,112 @@ def _cmd(args: argparse.Namespace) -> int:
     line = (f"plan of {len(plan.q)} postures: predicted tool-point error "
             f"{plan.predicted_m * 1000:.3f} mm RMS (a random plan of {len(plan.q)}: "
             f"{plan.random_m * 1000:.3f} mm); joint path {np.degrees(plan.path_rad):.0f} deg")  # fmt: skip
+    print(json.dumps(doc) if args.json else line)
+    return 0
+
+
+def _boxes(args: argparse.Namespace) -> np.ndarray:
+    from selfcal.kinematics.keep_out import check_boxes
+
+    return check_boxes(
+        np.array([parse_floats(b, 6, "--keep-out (mm)") for b in args.keep_out]).reshape(-1, 6)
+        / 1000.0
+    )
+
+
+def _deviation(args: argparse.Namespace):
+    from selfcal.calibration.board.plan_predict import Deviation
+
+    if args.deviation_mm < 0 or args.deviation_deg < 0:
+        raise CliError("--deviation-mm and --deviation-deg must be >= 0")
+    return Deviation(args.deviation_mm / 1000.0, float(np.radians(args.deviation_deg)))
+
+
+def _criterion(workspace: int, pixel_sigma: float, js, args: argparse.Namespace) -> str:
+    joints = ("joints read exactly" if js is None else "joint read-back noise of the robot "
+              "file's encoder resolution (1 count / sqrt(12)), each frame's corrections "
+              "estimated")  # fmt: skip
+    return (
+        "board route Cramer-Rao bound with the parameters the selection's rank test keeps, "
+        f"the others held at the drawing, deviating uniformly within +-{args.deviation_mm:g} mm "
+        f"and +-{args.deviation_deg:g} deg: RMS of the flange centre over {workspace} random "
+        f"workspace postures after the best rigid alignment, corner noise {pixel_sigma:g} px, "
+        + joints
+    )
+
+
+def _cmd_add(args: argparse.Namespace) -> int:
+    from selfcal.acquisition.backends import robot_reference
+    from selfcal.calibration.board.plan import PlanOptions
+    from selfcal.calibration.board.plan_add import dataset_setup, plan_additions
+    from selfcal.estimation.joint_report import encoder_sigma
+    from selfcal.io.atomic import write_text_atomic
+    from selfcal.io.dataset import Dataset
+    from selfcal.io.jsonfile import write_json_atomic
+    from selfcal.io.plan_files import joints_csv, trajectory_yaml
+    from selfcal.io.target_toml import target_document
+    from selfcal.target.placement import board_pose_values
+
+    k_text, root = args.add
+    try:
+        count = int(k_text)
+    except ValueError:
+        raise CliError(f"--add {k_text} {root}: K must be a whole number of postures") from None
+    if count < 1:
+        raise CliError(f"--add {count}: add at least 1 posture")
+    dplan = dataset_setup(root, _boxes(args))
+    setup = dplan.setup
+    robot = setup.robot
+    js = encoder_sigma(robot)
+    opts = PlanOptions(seed=args.seed, candidates=args.candidates,
+                       pixel_sigma_px=args.pixel_sigma, joint_sigma=js, deviation=_deviation(args))  # fmt: skip
+    add = plan_additions(dplan, count, opts)
+    centre, rpy = board_pose_values(setup.board, setup.T_base_board)
+    bp = np.concatenate([centre * 1000.0, np.degrees(rpy)])
+    ref = robot_reference(str(Dataset.open(root).robot_source))
+    out = Path(args.out)
+    q_all = np.concatenate([dplan.q, add.q])
+    with writing(args, out):
+        write_text_atomic(out / "joints.csv", joints_csv(add.q, robot.edge_unit))
+        write_text_atomic(out / "trajectory.yaml", trajectory_yaml(
+            robot.joint_names, add.q, robot.home, speed=np.radians(args.speed_deg_s),
+            dwell_s=args.dwell_s))  # fmt: skip
+        write_text_atomic(out / "replay.csv", joints_csv(q_all, robot.edge_unit))
+        doc_t = target_document(setup.board)  # flat: strings, numbers and lists of numbers
+        write_text_atomic(out / "target.toml", "# The board of " + str(root) + "\n" + "".join(
+            f"{k} = {json.dumps(v)}\n" for k, v in doc_t.items()))  # fmt: skip
+        write_text_atomic(out / "scenario.toml", scenario_text(ref, setup.camera, bp, len(q_all),
+                                                              joints="replay.csv"))  # fmt: skip
+        doc = {
+            "format": "scorbot-selfcal-plan",
+            "schema_version": 1,
+            "kind": "add",
+            "dataset": str(root),
+            "dataset_frames": len(dplan.q),
+            "robot": ref,
+            "count": len(add.q),
+            "predicted_before_tool_rms_mm": round(add.before_m * 1000, 4),
+            "predicted_tool_rms_mm": round(add.after_m * 1000, 4),
+            "kinematic_parameters_before": add.kept_before,
+            "kinematic_parameters_after": add.kept_after,
+            "criterion": _criterion(len(add.workspace), args.pixel_sigma, js, args)
+            + "; summed over the dataset and each training set of the selection's "
+            "cross-validation",
+            "candidates": add.candidates,
+            "candidates_from": add.drawn_from,
+            "path_deg": round(float(np.degrees(add.path_rad)), 3),
+            "seed": args.seed,
+            "board_pose_mm_deg": np.round(bp, 6).tolist(),
+            "deviation_mm_deg": [args.deviation_mm, args.deviation_deg],
+            "keep_out_mm": (setup.boxes * 1000).tolist(),
+            "joints_deg": np.round(add.q / robot.edge_unit, 6).tolist(),
+        }
+        write_json_atomic(out / "plan.json", doc)
+    note_written(args, out)
+    line = (f"add {len(add.q)} postures to {root} ({len(dplan.q)} frames): predicted tool-point "
+            f"error {add.before_m * 1000:.3f} -> {add.after_m * 1000:.3f} mm RMS (kinematic "
+            f"parameters estimated {add.kept_before} -> {add.kept_after}); joint path "
+            f"{np.degrees(add.path_rad):.0f} deg")  # fmt: skip
     print(json.dumps(doc) if args.json else line)
     return 0
 
@@ -184,8 +295,9 @@ def register(subparsers) -> argparse.ArgumentParser:
         epilog=EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    sp.add_argument("--robot", required=True, help="robot model name, robot TOML or URDF file")
-    sp.add_argument("--target", required=True, metavar="TARGET.toml",
+    sp.add_argument("--robot", default=None,
+                    help="robot model name, robot TOML or URDF file (a new plan)")  # fmt: skip
+    sp.add_argument("--target", default=None, metavar="TARGET.toml",
                     help="the board's target TOML (docs/targets.md)")  # fmt: skip
     sp.add_argument("--camera", default=None, metavar="CAMERA.yaml",
                     help="the camera: OpenCV or ROS camera_info YAML")  # fmt: skip
@@ -195,17 +307,24 @@ def register(subparsers) -> argparse.ArgumentParser:
                     help="with --fov-deg: the image size in px, e.g. 1280x720")  # fmt: skip
     sp.add_argument("--mount", default="eye-in-hand", choices=["eye-in-hand"],
                     help="where the camera is (default eye-in-hand: on the flange)")  # fmt: skip
-    sp.add_argument("--board-pose", required=True, metavar="X,Y,Z[,RX,RY,RZ]",
+    sp.add_argument("--board-pose", default=None, metavar="X,Y,Z[,RX,RY,RZ]",
                     help="the board in the base frame: centre (mm), rotation (deg); see below")  # fmt: skip
     sp.add_argument("--count", type=int, default=12, help="postures to plan (default 12)")
     sp.add_argument("--keep-out", action="append", default=[], metavar="BOX",
                     help="XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX (mm, base frame); repeatable")  # fmt: skip
+    sp.add_argument("--add", nargs=2, default=None, metavar=("K", "DATASET"),
+                    help="instead of a new plan: the K postures that most improve the calibrated "
+                    "DATASET (its robot, camera, board and calibration.json); see below")  # fmt: skip
     sp.add_argument("--out", required=True, metavar="PLAN", help="output folder")
     sp.add_argument("--seed", type=int, default=1, help="seed of the candidates (default 1)")
     sp.add_argument("--candidates", type=int, default=400,
                     help="random candidate postures to choose from (default 400)")  # fmt: skip
     sp.add_argument("--pixel-sigma", type=float, default=0.5,
                     help="corner noise the prediction assumes, px (default 0.5)")  # fmt: skip
+    sp.add_argument("--deviation-mm", type=float, default=1.0,
+                    help="how far the arm's lengths may lie from its drawing, mm (default 1)")  # fmt: skip
+    sp.add_argument("--deviation-deg", type=float, default=0.5,
+                    help="how far its angles may, deg (default 0.5)")  # fmt: skip
     sp.add_argument("--speed-deg-s", type=float, default=10.0,
                     help="trajectory.yaml: the fastest joint's speed, deg/s (default 10)")  # fmt: skip
     sp.add_argument("--dwell-s", type=float, default=2.0,

@@ -15,7 +15,7 @@ import numpy as np
 from selfcal.target.boards import Board
 from selfcal.transforms import make_pose, rot_x, rot_y, rot_z
 
-__all__ = ["FACE_UP", "board_pose", "board_centre"]
+__all__ = ["FACE_UP", "board_pose", "board_centre", "board_pose_values"]
 
 FACE_UP = np.diag([1.0, -1.0, -1.0])
 """The board frame's rotation in the base frame for a board lying printed face up (x along x,
@@ -34,3 +34,14 @@ def board_pose(board: Board, centre_m: np.ndarray, rpy_rad: np.ndarray | None = 
     r = np.zeros(3) if rpy_rad is None else np.asarray(rpy_rad, dtype=float)
     R = (rot_z(r[2]) @ rot_y(r[1]) @ rot_x(r[0]))[:3, :3] @ FACE_UP
     return make_pose(R, np.asarray(centre_m, dtype=float) - R @ board_centre(board))
+
+
+def board_pose_values(board: Board, T_base_board: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The inverse of :func:`board_pose`: the printed image's centre (3,) m in the base frame
+    and the rotation ``rpy`` (3,) rad from face up (fixed axes x, y, z; ``R = Rz Ry Rx``)."""
+    from scipy.spatial.transform import Rotation
+
+    T = np.asarray(T_base_board, dtype=float)
+    R = T[:3, :3] @ FACE_UP  # FACE_UP is its own inverse
+    rpy = Rotation.from_matrix(R).as_euler("xyz")
+    return T[:3, 3] + T[:3, :3] @ board_centre(board), rpy

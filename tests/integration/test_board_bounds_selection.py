@@ -9,7 +9,7 @@ import numpy as np
 from synthetic_board import BOARD, CAMERA, ROBOT, make_lab
 from synthetic_features import board_features
 
-from selfcal.calibration.board.bounds import _to_minimal, board_cramer_rao
+from selfcal.calibration.board.bounds import board_cramer_rao, to_minimal
 from selfcal.calibration.board.nominal_fit import placement_indices
 from selfcal.estimation.kinematic_poses import KinematicPoses
 from selfcal.kinematics.mcpc import minimal_indices
@@ -53,4 +53,4 @@ def test_the_minimal_parameters_map_to_themselves():
     model = lab.true_model.with_base(inv_pose(lab.T_world_board))
     idx = minimal_indices(model.joint_types)
     poses = KinematicPoses(model, _near_home(3), idx, np.zeros((0, 4, 4)))
-    np.testing.assert_allclose(_to_minimal(poses), np.eye(idx.size), atol=1e-7)
+    np.testing.assert_allclose(to_minimal(poses), np.eye(idx.size), atol=1e-7)

@@ -46,7 +46,14 @@ from selfcal.target.base import Features
 from selfcal.target.boards import Board
 from selfcal.transforms import inv_pose
 
-__all__ = ["MOVES", "BoardCramerRao", "board_bounds", "board_cramer_rao"]
+__all__ = [
+    "MOVES",
+    "BoardCramerRao",
+    "board_bounds",
+    "board_cramer_rao",
+    "estimated_parameters",
+    "to_minimal",
+]
 
 MOVES = 1e-4
 """A minimal parameter counts as estimated when an estimated parameter moves it by more than
@@ -140,7 +147,7 @@ def board_cramer_rao(
     C_kin, estimated = C[at:, at:], None
     minimal = minimal_indices(model.joint_types)
     if free_idx is not None or poses.n_kin != poses.k:
-        M = _to_minimal(poses)
+        M = to_minimal(poses)
         C_kin = M @ C_kin @ M.T
         estimated = np.abs(M).max(axis=1, initial=0.0) > MOVES
         C_kin[~estimated] = 0.0
@@ -150,7 +157,7 @@ def board_cramer_rao(
                           int(prob.problem.n), estimated)  # fmt: skip
 
 
-def _to_minimal(poses: KinematicPoses) -> np.ndarray:
+def to_minimal(poses: KinematicPoses) -> np.ndarray:
     """(k_min, n_kin) the derivative of the stored model's minimal parameters (the MCPC gauge
     with the start's joint offsets and base offset) by the estimated kinematic parameters, by
     central differences (angles differenced on the circle)."""
@@ -198,7 +205,7 @@ def board_bounds(
         numpy.linalg.LinAlgError: the Fisher information cannot be inverted.
     """
     n_cams = len(cal.cameras)
-    free_idx, offset_joints = _estimated(cal)
+    free_idx, offset_joints = estimated_parameters(cal)
     if pixel_sigma_px is None:
         n_obs = sum(len(f) for fc in features for f in fc)
         p = sum(c.n_free for c in cal.cameras) + len(free_idx) + len(offset_joints)
@@ -242,7 +249,7 @@ def board_bounds(
     return bounds, b
 
 
-def _estimated(cal: BoardCalibrationResult) -> tuple[np.ndarray, np.ndarray]:
+def estimated_parameters(cal: BoardCalibrationResult) -> tuple[np.ndarray, np.ndarray]:
     """The kinematic parameters ``cal`` estimated: flat MCPC indices and joint offsets (0
     based), from its selection's ``identified`` names (every minimal parameter, no offset, for
     a result without a selection)."""

@@ -15,18 +15,28 @@ information is the sum of each frame's (one Jacobian of
 :func:`selfcal.calibration.board.problem.board_problem` over the whole pool):
 the greedy choice adds, step by step, the candidate that lowers the predicted error most (from a
 slightly regularised start, so the first few frames count while the information is not yet of
-full rank). The chosen postures are then ordered for a short joint-space path from home
+full rank; a dataset's additions start from its frames and the prior of the arm's deviation
+from its drawing, :mod:`selfcal.calibration.board.plan_add`). The prediction of the chosen
+postures is that of the calibration with the parameters its selection keeps, every other one
+held at the drawing (:func:`predict_kept`, :mod:`selfcal.calibration.board.plan_predict`). The
+chosen postures are then ordered for a short joint-space path from home
 (nearest neighbour, then 2-opt; distance: the largest joint move, which sets the travel time
 when the joints move together). The random plan of the same size (the pool's first postures: the
-same filters) is predicted by the same bound, for contrast. Units: SI inside.
+same filters) is predicted the same way, for contrast. Units: SI inside.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
+from selfcal.calibration.board.plan_predict import (
+    Deviation,
+    estimated_directions,
+    kept_by_rank,
+    predicted_with_held,
+)
 from selfcal.calibration.board.plan_views import PlanSetup, candidate_pool
 from selfcal.calibration.board.problem import board_problem
 from selfcal.errors import InputError
@@ -47,6 +57,10 @@ __all__ = [
     "order_path",
     "path_length",
     "plan_recording",
+    "predict_kept",
+    "PlanOptions",
+    "PlanGround",
+    "plan_ground",
 ]
 
 REG = 1e-6
@@ -170,10 +184,15 @@ def predicted_error(F: np.ndarray, G: np.ndarray, n_cam: int) -> float:
     return float(np.sqrt(max(np.trace(G @ C[n_cam:, n_cam:]), 0.0)))
 
 
-def select_greedy(F: np.ndarray, G: np.ndarray, n_cam: int, count: int) -> np.ndarray:
+def select_greedy(
+    F: np.ndarray, G: np.ndarray, n_cam: int, count: int, start: np.ndarray | None = None
+) -> np.ndarray:
     """Indices (count,) into the candidates' informations ``F`` (m, p, p), chosen one by one to
     lower ``trace(W (F_0 + sum F_i)^-1)`` most, ``W`` = ``G`` (k, k) on the kinematic block
-    (module docstring)."""
+    (module docstring); ``F_0`` the information ``start`` (p, p) already held (the prior of
+    the deviation from the drawing, a dataset's frames) plus a slight regularisation. A stack
+    ``start`` (s, p, p) of several: the sum of their ``s`` costs is lowered (the added postures
+    serve each)."""
     m, p, _ = F.shape
     if count > m:
         raise InputError(f"cannot choose {count} postures from {m} candidates",
@@ -183,12 +202,14 @@ def select_greedy(F: np.ndarray, G: np.ndarray, n_cam: int, count: int) -> np.nd
     W = np.zeros((p, p))
     W[n_cam:, n_cam:] = G
     Ws = W / np.outer(d, d)
-    total = REG * np.eye(p)
+    starts = np.zeros((1, p, p)) if start is None else np.asarray(start, dtype=float)
+    total = REG * np.eye(p) + starts.reshape(-1, p, p) / np.outer(d, d)
     free = np.ones(m, bool)
     chosen: list[int] = []
     for _ in range(count):
-        trial = np.linalg.inv(total + Fs)
-        cost = np.einsum("ij,mji->m", Ws, trial)
+        cost = np.zeros(m)
+        for t in total:
+            cost += np.einsum("ij,mji->m", Ws, np.linalg.inv(t + Fs))
         cost[~free] = np.inf
         b = int(np.argmin(cost))
         chosen.append(b)
@@ -236,6 +257,55 @@ def order_path(q: np.ndarray, start: np.ndarray) -> np.ndarray:
     return np.asarray(tour[1:]) - 1
 
 
+@dataclass(frozen=True)
+class PlanOptions:
+    """What every plan is drawn and predicted with: the ``seed`` of the candidates and the
+    workspace, the pool's size ``candidates``, the ``workspace`` postures the error is averaged
+    over, the corner noise ``pixel_sigma_px`` (px), the joint read-back noise ``joint_sigma``
+    (n,) rad (None: exact; :func:`frame_information`) and the arm's ``deviation`` from its
+    drawing (:class:`selfcal.calibration.board.plan_predict.Deviation`)."""
+
+    seed: int = 1
+    candidates: int = 400
+    workspace: int = 50
+    pixel_sigma_px: float = 0.5
+    joint_sigma: np.ndarray | None = None
+    deviation: Deviation = field(default_factory=Deviation)
+
+
+@dataclass(frozen=True, eq=False)
+class PlanGround:
+    """The common ground of a plan (:func:`plan_ground`): the candidate ``pool`` (m, n) rad and
+    where it was ``drawn_from``, the ``workspace`` (w, n) rad, the aligned tool weight ``G``
+    (k, k) over it and the deviation's ``variance`` (k,)."""
+
+    pool: np.ndarray
+    drawn_from: str
+    workspace: np.ndarray
+    G: np.ndarray
+    variance: np.ndarray
+
+
+def plan_ground(setup: PlanSetup, count: int, options: PlanOptions) -> PlanGround:
+    """The candidates, the workspace and the weights a plan of ``count`` postures chooses with.
+
+    Raises:
+        InputError: fewer candidates than ``count``, or no posture sees the board.
+    """
+    pool, where = candidate_pool(setup, max(options.candidates, count), seed=options.seed)
+    if len(pool) < count:
+        raise InputError(
+            f"only {len(pool)} postures of {setup.robot.name} see the whole board without "
+            f"collision; {count} asked",
+            fix="plan fewer postures, move the board (--board-pose) nearer to where the arm "
+            "works, or remove keep-out boxes",
+        )
+    qw = workspace_sample(setup, options.workspace, seed=options.seed + 1)
+    model = board_model(setup)
+    G = aligned_tool_weight(model, qw, inv_pose(setup.robot.T_flange_cam))
+    return PlanGround(pool, where, qw, G, options.deviation.variance(model.joint_types))
+
+
 def plan_recording(
     setup: PlanSetup,
     count: int,
@@ -245,25 +315,18 @@ def plan_recording(
     workspace: int = 50,
     pixel_sigma_px: float = 0.5,
     joint_sigma: np.ndarray | None = None,
+    deviation: Deviation | None = None,
 ) -> RecordingPlan:
-    """``count`` postures for ``setup`` (module docstring), deterministic for a ``seed``:
-    chosen from ``candidates`` random candidate postures, the error predicted over
-    ``workspace`` random workspace postures with corner noise ``pixel_sigma_px`` px and joint
-    read-back noise ``joint_sigma`` (n,) rad (None: exact; :func:`frame_information`).
+    """``count`` postures for ``setup`` (module docstring), deterministic for a ``seed``;
+    the other arguments as :class:`PlanOptions`'s (``deviation`` None: the default).
 
     Raises:
         InputError: fewer candidates than ``count``, or no posture sees the board.
     """
-    pool, where = candidate_pool(setup, max(candidates, count), seed=seed)
-    if len(pool) < count:
-        raise InputError(
-            f"only {len(pool)} postures of {setup.robot.name} see the whole board without "
-            f"collision; {count} asked",
-            fix="lower --count, move the board (--board-pose) nearer to where the arm works, "
-            "or remove keep-out boxes",
-        )
-    qw = workspace_sample(setup, workspace, seed=seed + 1)
-    G = aligned_tool_weight(board_model(setup), qw, inv_pose(setup.robot.T_flange_cam))
+    opts = PlanOptions(seed, candidates, workspace, pixel_sigma_px, joint_sigma,
+                       deviation or Deviation())  # fmt: skip
+    g = plan_ground(setup, count, opts)
+    pool, G, var = g.pool, g.G, g.variance
     F = frame_information(setup, pool, pixel_sigma_px, joint_sigma)
     n_cam = setup.camera.n_free
     chosen = select_greedy(F, G, n_cam, count)
@@ -273,14 +336,34 @@ def plan_recording(
     rand_order = order_path(rand, setup.robot.home)
     return RecordingPlan(
         q=q,
-        predicted_m=predicted_error(F[chosen].sum(axis=0), G, n_cam),
+        predicted_m=predict_kept(setup, q, F[chosen].sum(axis=0), G, var),
         q_random=rand,
-        random_m=predicted_error(F[:count].sum(axis=0), G, n_cam),
-        workspace=qw,
+        random_m=predict_kept(setup, rand, F[:count].sum(axis=0), G, var),
+        workspace=g.workspace,
         candidates=len(pool),
-        drawn_from=where,
+        drawn_from=g.drawn_from,
         pixel_sigma_px=float(pixel_sigma_px),
         joint_sigma=None if joint_sigma is None else np.asarray(joint_sigma, dtype=float),
         path_rad=path_length(q, setup.robot.home),
         random_path_rad=path_length(rand[rand_order], setup.robot.home),
     )
+
+
+def predict_kept(
+    setup: PlanSetup,
+    q: np.ndarray,
+    F: np.ndarray,
+    G: np.ndarray,
+    variance: np.ndarray,
+    kept: tuple[np.ndarray, np.ndarray] | None = None,
+) -> float:
+    """The predicted tool-point RMS (m) of a calibration on the postures ``q`` (m, n) rad with
+    the information ``F`` (p, p) (:func:`frame_information` summed over them), the tool weight
+    ``G`` and the deviation's ``variance`` (k,): its ``kept`` parameters (flat MCPC indices,
+    offset joints) estimated, by default those the selection's rank and conditioning test
+    accepts at ``q``, the others held at the drawing
+    (:func:`selfcal.calibration.board.plan_predict.predicted_with_held`)."""
+    model = board_model(setup)
+    free_idx, offsets = kept_by_rank(model, q) if kept is None else kept
+    M = estimated_directions(model, free_idx, offsets)
+    return predicted_with_held(F, G, setup.camera.n_free, M, variance)

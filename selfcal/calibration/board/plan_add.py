@@ -1,0 +1,172 @@
+"""The postures to add to a calibrated board dataset: the ``count`` that most lower the predicted
+tool-point error of its calibration, given the frames it holds (``selfcal plan --add``, issue
+#30).
+
+The cell is the calibration's (:func:`dataset_setup`): the robot file, the calibrated camera, the
+board where the calibration placed it (base -> board) and the camera where it placed it on the
+flange (:func:`selfcal.calibration.board.mounts.mounts`). Candidates are drawn as for a new plan
+(:func:`selfcal.calibration.board.plan_views.candidate_pool`). The information the dataset
+already holds is its frames' (:func:`selfcal.calibration.board.plan.frame_information` at its
+read-back joints, every board feature taken as seen) plus the prior of the arm's deviation from
+its drawing (:mod:`selfcal.calibration.board.plan_predict`); the greedy choice adds, one at a
+time, the candidate that lowers the predicted tool-point error most
+(:func:`selfcal.calibration.board.plan.select_greedy`), and the added postures are ordered for a
+short joint path from home.
+
+Predicted before: the dataset's calibration with the parameters its selection identified
+(``calibration.json``), every other minimal parameter held at the drawing; after: the dataset's
+frames and the added ones with the parameters the selection's rank and conditioning test accepts
+on all of them (its cross-validation may hold more). Units: SI inside.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from selfcal.calibration.board.bounds import estimated_parameters
+from selfcal.calibration.board.dataset import dataset_board
+from selfcal.calibration.board.mounts import mounts
+from selfcal.calibration.board.param_selection import configurations, fold_labels
+from selfcal.calibration.board.plan import (
+    PlanOptions,
+    board_model,
+    frame_information,
+    order_path,
+    path_length,
+    plan_ground,
+    predict_kept,
+    select_greedy,
+)
+from selfcal.calibration.board.plan_predict import kept_by_rank, prior_information
+from selfcal.calibration.board.plan_views import PlanSetup
+from selfcal.errors import InputError
+from selfcal.io.board_calibration import read_board_calibration
+from selfcal.io.dataset import Dataset
+from selfcal.robot.definition import load_robot
+
+__all__ = [
+    "AddedPostures",
+    "DatasetPlan",
+    "dataset_setup",
+    "plan_additions",
+    "training_sets",
+]
+
+
+@dataclass(frozen=True, eq=False)
+class DatasetPlan:
+    """What a calibrated dataset gives the planner: the cell ``setup``, the read-back joints
+    ``q`` (m, n) rad of the frames its calibration used, and the kinematic parameters it
+    identified (``free_idx`` flat MCPC indices, ``offset_joints`` 0 based)."""
+
+    setup: PlanSetup
+    q: np.ndarray
+    free_idx: np.ndarray
+    offset_joints: np.ndarray
+
+
+def dataset_setup(root: str | Path, boxes: np.ndarray | None = None) -> DatasetPlan:
+    """The :class:`DatasetPlan` of the dataset folder ``root`` and its ``calibration.json``
+    (``selfcal calibrate``), with keep-out ``boxes`` (b, 6) m in the base frame. Every frame of
+    the dataset counts, as if each showed the whole board (a frame whose board was not found
+    makes the prediction before the additions a little optimistic).
+
+    Raises:
+        InputError: no calibration.json, an eye-to-hand or multi-camera calibration (not
+            planned yet), or joints that do not match the calibration's frames.
+    """
+    root = Path(root)
+    if not (root / "calibration.json").is_file():
+        raise InputError(f"{root}: no calibration.json",
+                         fix=f"calibrate the dataset first: selfcal calibrate {root}")  # fmt: skip
+    cal = read_board_calibration(root)
+    if cal.eye_to_hand or len(cal.cameras) > 1:
+        raise InputError(
+            f"{root}/calibration.json: --add plans for one wrist camera (eye-in-hand) only; this "
+            f"calibration is {cal.setup} with {len(cal.cameras)} camera(s)",
+            fix="plan the additions of one camera's dataset",
+        )
+    ds = Dataset.open(root)
+    robot = load_robot(ds.robot_source)
+    T_flange_cam, T_base_board = (m.T for m in mounts(cal.model, robot, eye_to_hand=False))
+    robot = dataclasses.replace(robot, T_flange_cam=T_flange_cam)
+    q = np.radians(ds.joints_deg)  # every frame, as if each showed the whole board
+    setup = PlanSetup(robot, cal.cameras[0], dataset_board(ds), T_base_board,
+                      np.zeros((0, 6)) if boxes is None else np.asarray(boxes, dtype=float))  # fmt: skip
+    free_idx, offsets = estimated_parameters(cal)
+    return DatasetPlan(setup, q, free_idx, offsets)
+
+
+def training_sets(plan: DatasetPlan, F_frames: np.ndarray) -> np.ndarray:
+    """(1 + f, p, p) the information of the dataset's frames ``F_frames`` (m, p, p) summed:
+    all of them, then every training set of the selection's cross-validation (all but one
+    fold of its arm configurations,
+    :func:`selfcal.calibration.board.param_selection.fold_labels`). A dataset of one
+    configuration gives the whole and nothing: the fold that leaves it out fits the added
+    postures alone, and they must then predict it."""
+    folds = fold_labels(configurations(plan.q, plan.setup.robot.joint_types))
+    total = F_frames.sum(axis=0)
+    return np.stack([total, *(total - F_frames[folds == f].sum(axis=0)
+                              for f in np.unique(folds))])  # fmt: skip
+
+
+@dataclass(frozen=True, eq=False)
+class AddedPostures:
+    """``q`` (K, n) rad the postures to add in path order; ``before_m`` the dataset's predicted
+    tool-point RMS (m) with its identified parameters, ``after_m`` with the added postures and
+    the parameters the selection's rank test accepts on all frames; ``kept_before``,
+    ``kept_after`` how many kinematic parameters (flat MCPC and joint offsets) each estimates;
+    the ``workspace`` (w, n) rad the error is averaged over, the pool's size and where it was
+    drawn, and the joint path (rad) from home through the added ones."""
+
+    q: np.ndarray
+    before_m: float
+    after_m: float
+    kept_before: int
+    kept_after: int
+    workspace: np.ndarray
+    candidates: int
+    drawn_from: str
+    path_rad: float
+
+
+def plan_additions(
+    plan: DatasetPlan, count: int, options: PlanOptions | None = None
+) -> AddedPostures:
+    """The ``count`` postures to add to ``plan``'s dataset (module docstring), drawn and
+    predicted with ``options`` (default :class:`selfcal.calibration.board.plan.PlanOptions`).
+
+    Raises:
+        InputError: fewer candidates than ``count``.
+    """
+    opts = options or PlanOptions()
+    setup = plan.setup
+    g = plan_ground(setup, count, opts)
+    G, var, n_cam = g.G, g.variance, setup.camera.n_free
+    F_frames = frame_information(setup, plan.q, opts.pixel_sigma_px, opts.joint_sigma)
+    F_old = F_frames.sum(axis=0)
+    F = frame_information(setup, g.pool, opts.pixel_sigma_px, opts.joint_sigma)
+    chosen = select_greedy(F, G, n_cam, count, start=training_sets(plan, F_frames)
+                           + prior_information(var, n_cam))  # fmt: skip
+    home = setup.robot.home
+    q = g.pool[chosen]
+    q = q[order_path(q, home)]
+    q_all = np.concatenate([plan.q, q])
+    kept_after = kept_by_rank(board_model(setup), q_all)
+    before = predict_kept(setup, plan.q, F_old, G, var, (plan.free_idx, plan.offset_joints))
+    after = predict_kept(setup, q_all, F_old + F[chosen].sum(axis=0), G, var, kept_after)
+    return AddedPostures(
+        q=q,
+        before_m=before,
+        after_m=after,
+        kept_before=len(plan.free_idx) + len(plan.offset_joints),
+        kept_after=sum(map(len, kept_after)),
+        workspace=g.workspace,
+        candidates=len(g.pool),
+        drawn_from=g.drawn_from,
+        path_rad=path_length(q, home),
+    )

@@ -1,0 +1,127 @@
+"""The tool-point error a board calibration reaches with the parameters its selection keeps: the
+prediction of ``selfcal plan`` (issue #30).
+
+A board calibration estimates the kinematic parameters its identifiability selection keeps
+(:mod:`selfcal.calibration.board.param_selection`); every other minimal parameter stays at the
+drawing's value, and its deviation from the drawing is an error the estimated parameters only
+partly absorb. To first order, with ``F`` (p, p) the Fisher information of the camera's free
+parameters and every minimal kinematic parameter
+(:func:`selfcal.calibration.board.plan.frame_information`), ``M`` (p, e) the estimated
+parameters' directions among them (the camera's own; the kinematic ones by
+:func:`selfcal.calibration.board.bounds.to_minimal`) and ``S`` (p, p) the covariance of the
+minimal parameters' deviation from the drawing::
+
+    error = -(I - P) d + noise,   P = M (M^T F M)^-1 M^T F       (d ~ S: the deviation)
+    Cov(error) = (I - P) S (I - P)^T + M (M^T F M)^-1 M^T
+
+and the predicted RMS of the tool point over the workspace is ``sqrt(trace(G Cov))``, ``G`` the
+aligned tool-point weight (:func:`selfcal.estimation.joint_report.aligned_tool_weight`) on the
+kinematic block. With every minimal parameter kept ``P = I``: the Cramer-Rao bound.
+
+Which parameters a plan's calibration keeps: those step 1 of the selection accepts at its
+postures (rank and conditioning of the identification Jacobian at the nominal,
+:func:`selfcal.calibration.board.param_selection.parameter_pool`); its cross-validation, which
+needs the images, may hold more (their deviation is then a further error the prediction does
+not see). A calibrated dataset's: those its ``calibration.json`` names as identified.
+
+The deviation from the drawing (:class:`Deviation`): every inner minimal parameter (not the
+placement, the board pose and the hand-eye, which the calibration always estimates) uniform
+within +-``translation_m`` (lengths) or +-``rotation_rad`` (angles), i.e. the standard
+deviation ``a / sqrt(3)``; by default 1 mm and 0.5 deg, the simulated robots' own
+(:class:`selfcal.config.scenario.PerturbationConfig`). Units: SI.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from selfcal.calibration.board.bounds import to_minimal
+from selfcal.calibration.board.nominal_fit import placement_indices
+from selfcal.calibration.board.param_selection import parameter_pool
+from selfcal.errors import UsageError
+from selfcal.estimation.kinematic_poses import KinematicPoses
+from selfcal.kinematics.mcpc import MCPCModel, minimal_indices, param_is_angle
+
+__all__ = [
+    "Deviation",
+    "kept_by_rank",
+    "estimated_directions",
+    "prior_information",
+    "predicted_with_held",
+]
+
+
+@dataclass(frozen=True)
+class Deviation:
+    """How far the arm's geometry may lie from its drawing (module docstring): every inner
+    minimal parameter uniform within +-``translation_m`` (m) or +-``rotation_rad`` (rad)."""
+
+    translation_m: float = 1e-3
+    rotation_rad: float = float(np.radians(0.5))
+
+    def variance(self, joint_types: tuple[str, ...]) -> np.ndarray:
+        """(k,) the variance of every minimal parameter's deviation (m^2, rad^2; the order of
+        :func:`selfcal.kinematics.mcpc.minimal_indices`), zero for the placement."""
+        idx = minimal_indices(joint_types)
+        a = np.where(param_is_angle(idx), self.rotation_rad, self.translation_m)
+        var = a**2 / 3.0
+        var[np.isin(idx, placement_indices(len(joint_types)))] = 0.0
+        return var
+
+
+def kept_by_rank(model: MCPCModel, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The kinematic parameters the selection's rank and conditioning test accepts at the
+    joints ``q`` (m, n) rad of ``model`` (world = board, tool = camera): flat MCPC indices and
+    the revolute joints (0 based) whose zero offsets are estimated."""
+    pool = parameter_pool(model, np.atleast_2d(np.asarray(q, dtype=float)))
+    free = [i for _, kind, i in pool.order if kind == "mcpc"]
+    offsets = [i for _, kind, i in pool.order if kind == "offset"]
+    return np.array(free, np.int64), np.array(offsets, np.int64)
+
+
+def estimated_directions(
+    model: MCPCModel, free_idx: np.ndarray, offset_joints: np.ndarray
+) -> np.ndarray:
+    """(k, e) the directions among the minimal parameters (the order of
+    :func:`selfcal.kinematics.mcpc.minimal_indices`) that the estimated flat MCPC parameters
+    ``free_idx`` and joint offsets ``offset_joints`` move, at ``model`` (first order)."""
+    poses = KinematicPoses(model, np.zeros((1, model.n)), np.asarray(free_idx, np.int64),
+                           np.zeros((0, 4, 4)), np.ones(1, bool),
+                           offset_joints=np.asarray(offset_joints, np.int64))  # fmt: skip
+    return to_minimal(poses)
+
+
+def prior_information(variance: np.ndarray, n_cam: int) -> np.ndarray:
+    """(p, p) the information of the deviation's prior on ``[camera (n_cam), minimal]``:
+    ``1 / variance`` on the kinematic diagonal where it is positive, zero elsewhere."""
+    v = np.asarray(variance, dtype=float)
+    d = np.concatenate([np.zeros(n_cam), np.where(v > 0, 1.0 / np.where(v > 0, v, 1.0), 0.0)])
+    return np.diag(d)
+
+
+def predicted_with_held(
+    F: np.ndarray, G: np.ndarray, n_cam: int, M: np.ndarray, variance: np.ndarray
+) -> float:
+    """The predicted RMS tool-point error (m, module docstring): ``F`` (p, p) the information
+    on ``[camera (n_cam), minimal (k)]``, ``G`` (k, k) the aligned tool weight, ``M`` (k, e)
+    the estimated kinematic directions, ``variance`` (k,) the deviation's; infinite when the
+    estimated parameters' information is singular."""
+    k = len(variance)
+    if F.shape != (n_cam + k, n_cam + k) or M.shape[0] != k or G.shape != (k, k):
+        raise UsageError(f"shapes do not match: F {F.shape}, G {G.shape}, M {M.shape}, k {k}")
+    Mf = np.zeros((n_cam + k, n_cam + M.shape[1]))
+    Mf[:n_cam, :n_cam] = np.eye(n_cam)
+    Mf[n_cam:, n_cam:] = M
+    A = Mf.T @ F @ Mf
+    d = np.sqrt(np.maximum(np.abs(np.diag(A)), 1e-300))
+    As = A / np.outer(d, d)
+    if not np.all(np.isfinite(As)) or np.linalg.cond(As) > 1e12:
+        return float("inf")
+    C = Mf @ (np.linalg.inv(As) / np.outer(d, d)) @ Mf.T  # the estimate's covariance
+    R = np.eye(n_cam + k) - C @ F  # I - P: what the estimate leaves of a deviation
+    S = np.zeros(n_cam + k)
+    S[n_cam:] = variance
+    cov = (R * S) @ R.T + C
+    return float(np.sqrt(max(np.trace(G @ cov[n_cam:, n_cam:]), 0.0)))

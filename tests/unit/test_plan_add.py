@@ -1,0 +1,145 @@
+"""The prediction with the parameters the selection keeps (selfcal/calibration/board/plan_predict.py)
+and the postures added to a dataset (plan_add.py): a held parameter's deviation is an error the
+bound alone does not see; with every parameter kept the prediction is the Cramer-Rao bound."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from selfcal.calibration.board.bounds import board_cramer_rao
+from selfcal.calibration.board.plan import (
+    board_model,
+    frame_information,
+    plan_recording,
+    select_greedy,
+)
+from selfcal.calibration.board.plan_add import DatasetPlan, training_sets
+from selfcal.calibration.board.plan_predict import (
+    Deviation,
+    estimated_directions,
+    kept_by_rank,
+    predicted_with_held,
+)
+from selfcal.calibration.board.plan_views import PlanSetup
+from selfcal.camera import project
+from selfcal.estimation.joint_report import aligned_tool_weight
+from selfcal.io.camera_file import camera_from_fov
+from selfcal.io.target_toml import load_target
+from selfcal.kinematics.forward import fk_tool
+from selfcal.kinematics.mcpc import minimal_indices, nominal_mcpc
+from selfcal.kinematics.trajectory import home_target_center
+from selfcal.robot.definition import load_robot, models_dir
+from selfcal.target.base import Features
+from selfcal.target.placement import board_pose, board_pose_values
+from selfcal.transforms import inv_pose
+
+JS = np.full(6, np.radians(0.01))
+
+
+@pytest.fixture(scope="module")
+def setup() -> PlanSetup:
+    robot = load_robot("ur5e")
+    cx, cy = home_target_center(robot, nominal_mcpc(robot).with_tool(robot.T_flange_cam))
+    board = load_target(models_dir() / "targets/charuco.toml")
+    return PlanSetup(robot, camera_from_fov(60.0, 640, 480), board,
+                     board_pose(board, np.array([cx, cy, 0.003])))  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def plan(setup):
+    return plan_recording(setup, 8, seed=3, candidates=80, workspace=20, joint_sigma=JS)
+
+
+@pytest.fixture(scope="module")
+def parts(setup, plan):
+    model = board_model(setup)
+    F = frame_information(setup, plan.q, 0.5, JS).sum(axis=0)
+    G = aligned_tool_weight(model, plan.workspace, inv_pose(setup.robot.T_flange_cam))
+    free_idx, offsets = kept_by_rank(model, plan.q)
+    return model, F, G, free_idx[:-3], offsets  # three inner parameters held
+
+
+def test_prediction_with_kept_parameters_is_the_board_route_bound(setup, plan, parts):
+    model, F, G, free_idx, offsets = parts
+    M = estimated_directions(model, free_idx, offsets)
+    var = Deviation().variance(model.joint_types)
+    got = predicted_with_held(F, G, setup.camera.n_free, M, 0.0 * var)
+    ids, pts = setup.board.layout()
+    feats = [Features(ids, project(setup.camera, T, pts)) for T in inv_pose(fk_tool(model, plan.q))]
+    cr = board_cramer_rao(setup.board, [setup.camera], model, plan.q, [feats], 0.5, joint_sigma=JS,
+                          free_idx=free_idx, offset_joints=offsets)  # fmt: skip
+    bound = cr.aligned_tool_rms(plan.workspace, inv_pose(setup.robot.T_flange_cam))
+    assert got == pytest.approx(bound, rel=1e-4)
+
+
+def test_a_held_parameter_adds_its_deviation(setup, parts):
+    model, F, G, free_idx, offsets = parts
+    var = Deviation().variance(model.joint_types)
+    n_cam, k = setup.camera.n_free, var.size
+    M = estimated_directions(model, free_idx, offsets)
+    variance_only = predicted_with_held(F, G, n_cam, M, 0.0 * var)
+    # the bias on its own: each deviation fitted by least squares in the whitened data space
+    w, V = np.linalg.eigh(F)
+    L = V * np.sqrt(np.clip(w, 0, None))  # F = L L^T
+    Mf = np.zeros((n_cam + k, n_cam + M.shape[1]))
+    Mf[:n_cam, :n_cam], Mf[n_cam:, n_cam:] = np.eye(n_cam), M
+    bias2 = 0.0
+    for j in np.flatnonzero(var):
+        d = np.zeros(n_cam + k)
+        d[n_cam + j] = np.sqrt(var[j])
+        theta = np.linalg.lstsq(L.T @ Mf, L.T @ d, rcond=None)[0]
+        e = (Mf @ theta - d)[n_cam:]
+        bias2 += e @ G @ e
+    got = predicted_with_held(F, G, n_cam, M, var)
+    assert got**2 == pytest.approx(variance_only**2 + bias2, rel=1e-6)
+    assert bias2 > 0.3 * variance_only**2  # 0.87 measured: three held parameters, a bias
+    # every minimal parameter estimated: the deviation is absorbed, the bound is left
+    every = np.eye(k)
+    assert predicted_with_held(F, G, n_cam, every, var) == pytest.approx(
+        predicted_with_held(F, G, n_cam, every, 0.0 * var), rel=1e-6)  # fmt: skip
+
+
+def test_the_placement_has_no_deviation(setup):
+    from selfcal.calibration.board.nominal_fit import placement_indices
+
+    types = board_model(setup).joint_types
+    var = Deviation(2e-3, np.radians(1.0)).variance(types)
+    placement = np.isin(minimal_indices(types), placement_indices(len(types)))
+    assert placement.sum() >= 6 and np.all(var[placement] == 0)  # board pose, hand-eye
+    assert set(np.round(var[~placement], 12)) == {round(np.radians(1.0) ** 2 / 3, 12),
+                                                  round(4e-6 / 3, 12)}  # fmt: skip
+
+
+def test_one_configuration_leaves_the_added_postures_alone(setup, plan):
+    q = np.tile(setup.robot.home, (4, 1))
+    q[:, 4] += np.radians([0, 10, 20, 30])  # the wrist alone moves
+    dp = DatasetPlan(setup, q, np.zeros(0, np.int64), np.zeros(0, np.int64))
+    Ff = frame_information(setup, plan.q[:4], 0.5, JS)
+    sets = training_sets(dp, Ff)
+    assert len(sets) == 2
+    assert np.allclose(sets[0], Ff.sum(axis=0)) and np.allclose(sets[1], 0.0)
+
+
+def test_a_stack_of_one_start_is_that_start(setup, plan, parts):
+    _, _, G, _, _ = parts
+    F = frame_information(setup, plan.q, 0.5, JS)
+    start = F[:2].sum(axis=0)
+    a = select_greedy(F[2:], G, setup.camera.n_free, 3, start=start)
+    b = select_greedy(F[2:], G, setup.camera.n_free, 3, start=start[None])
+    assert a.tolist() == b.tolist()
+
+
+def test_board_pose_values_inverts_board_pose(setup):
+    T = board_pose(setup.board, np.array([0.4, -0.1, 0.2]), np.radians([10.0, -20.0, 30.0]))
+    centre, rpy = board_pose_values(setup.board, T)
+    assert np.allclose(centre, [0.4, -0.1, 0.2]) and np.allclose(np.degrees(rpy), [10, -20, 30])
+
+
+def test_add_needs_a_calibrated_dataset(tmp_path, capsys):
+    from selfcal.cli.main import main
+
+    assert main(["plan", "--add", "5", str(tmp_path), "--out", str(tmp_path / "p")]) == 2
+    assert "calibrate the dataset first" in capsys.readouterr().err
+    assert main(["plan", "--out", str(tmp_path / "p")]) == 2
+    assert "--robot, --target, --board-pose" in capsys.readouterr().err
