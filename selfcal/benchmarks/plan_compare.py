@@ -1,0 +1,123 @@
+"""``python -m selfcal.benchmarks.plan_compare [--draws 30] [--jobs 2] [--out DIR]``: the postures
+of ``selfcal plan`` against random ones, achieved in simulation (docs/plan.md, issue #30).
+
+The cell of docs/plan.md's example (UR5e, 60 deg 640 x 480 wrist camera, ChArUco at
+-472, -133, 3 mm, one keep-out box): the plan of 12, the first 12 and the first 30 of its
+candidate pool (random postures under the same filters). Every draw is one simulated truth
+(``[perturbation] seed`` = the draw) and one noise draw, on the analytic path with dithered
+read-back, calibrated by the board route as ``selfcal calibrate`` does
+(:func:`selfcal.studies.montecarlo.run.draw_one`); the achieved error is the validation tool
+tip's RMS after the best rigid alignment against the truth. Prints, per posture set, the
+prediction (:func:`selfcal.calibration.board.plan.predict_kept`) and the achieved median and
+90th percentile, and their ratio (each draw also in ``DIR/draws.jsonl`` as it ends).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["BOARD_POSE", "KEEP_OUT", "main", "posture_sets"]
+
+BOARD_POSE = np.array([-472.0, -133.0, 3.0, 0.0, 0.0, 0.0])
+"""mm, deg: docs/plan.md's board."""
+KEEP_OUT = np.array([[-300.0, 50.0, 0.0, -100.0, 400.0, 600.0]])
+"""mm: docs/plan.md's keep-out box."""
+
+
+def posture_sets(count: int = 12, random_counts: tuple[int, ...] = (12, 30)) -> dict:
+    """``{name: (q (m, n) rad, predicted tool-point RMS m)}``: the plan of ``count`` and the
+    pool's first ``random_counts`` postures, and the setup's robot and camera."""
+    from selfcal.calibration.board.plan import (
+        board_model,
+        frame_information,
+        plan_recording,
+        predict_kept,
+    )
+    from selfcal.calibration.board.plan_predict import Deviation
+    from selfcal.calibration.board.plan_views import PlanSetup, candidate_pool
+    from selfcal.estimation.joint_report import aligned_tool_weight, encoder_sigma
+    from selfcal.io.camera_file import camera_from_fov
+    from selfcal.io.target_toml import load_target
+    from selfcal.robot.definition import load_robot, models_dir
+    from selfcal.target.placement import board_pose
+    from selfcal.transforms import inv_pose
+
+    robot = load_robot("ur5e")
+    board = load_target(models_dir() / "targets/charuco.toml")
+    setup = PlanSetup(robot, camera_from_fov(60.0, 640, 480), board,
+                      board_pose(board, BOARD_POSE[:3] / 1000.0), KEEP_OUT / 1000.0)  # fmt: skip
+    js = encoder_sigma(robot)
+    plan = plan_recording(setup, count, seed=1, joint_sigma=js)
+    pool, _ = candidate_pool(setup, 400, seed=1)
+    G = aligned_tool_weight(board_model(setup), plan.workspace, inv_pose(robot.T_flange_cam))
+    var = Deviation().variance(robot.joint_types)
+    out = {f"plan {count}": (plan.q, plan.predicted_m)}
+    for n in random_counts:
+        q = pool[:n]
+        F = frame_information(setup, q, plan.pixel_sigma_px, js).sum(axis=0)
+        out[f"random {n}"] = (q, predict_kept(setup, q, F, G, var))
+    return {"sets": out, "setup": setup}
+
+
+def _draw(item: tuple[str, str, list, int]) -> tuple[str, int, float, str]:
+    from selfcal.studies.montecarlo.run import draw_one
+
+    name, config, joints_deg, seed = item
+    row = draw_one({"config": config, "poses": len(joints_deg), "pixel_sigma": 0.5,
+                    "seed": seed, "traj_seed": 1, "perturb_seed": seed, "dither": True,
+                    "joints_deg": joints_deg})  # fmt: skip
+    return name, seed, float(row.get("joint_tip_rms_mm") or np.nan), str(row["status"])
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Draw and print the table."""
+    from multiprocessing import get_context
+
+    from selfcal.cli.plan import scenario_text
+    from selfcal.io.plan_files import joints_csv
+    from selfcal.robot.definition import models_dir
+
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--draws", type=int, default=30)
+    ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--out", default="runs/plan-compare")
+    a = ap.parse_args(argv)
+    got = posture_sets()
+    setup, sets = got["setup"], got["sets"]
+    root = Path(a.out)
+    items = []
+    for name, (q, _) in sets.items():
+        folder = root / name.replace(" ", "-")
+        folder.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(models_dir() / "targets/charuco.toml", folder / "target.toml")
+        (folder / "joints.csv").write_text(joints_csv(q, setup.robot.edge_unit))
+        (folder / "scenario.toml").write_text(
+            scenario_text("ur5e", setup.camera, BOARD_POSE, len(q))
+        )
+        deg = (q / setup.robot.edge_unit).tolist()
+        items += [(name, str(folder / "scenario.toml"), deg, s) for s in range(1, a.draws + 1)]
+    rows = []
+    with get_context("spawn").Pool(a.jobs) as pool, open(root / "draws.jsonl", "w") as log:
+        for row in pool.imap_unordered(_draw, items):
+            rows.append(row)
+            log.write(json.dumps(row) + "\n")
+            log.flush()
+    print("| postures | predicted (mm) | achieved median (mm) | 90th percentile | median / "
+          "predicted | failed |")  # fmt: skip
+    print("|---|---|---|---|---|---|")
+    for name, (_, pred) in sets.items():
+        e = np.array([r[2] for r in rows if r[0] == name and r[3] == "ok"])
+        bad = sum(1 for r in rows if r[0] == name and r[3] != "ok")
+        med, p90 = np.median(e), np.percentile(e, 90)
+        print(f"| {name} | {pred * 1000:.3f} | {med:.3f} | {p90:.3f} | {med / (pred * 1000):.2f} "
+              f"| {bad} |")  # fmt: skip
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
