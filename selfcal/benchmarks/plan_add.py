@@ -20,6 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
+from selfcal.io.atomic import write_text_atomic
+
 __all__ = ["wrist_only_row", "main"]
 
 WRIST_SPAN_DEG = (40.0, 40.0, 90.0)
@@ -51,7 +53,7 @@ def _write(folder: Path, setup, target: Path, bp: np.ndarray, joints: str, seed:
     shutil.copyfile(target, folder / "target.toml")
     n = len((folder / joints).read_text().splitlines()) - 1
     text = scenario_text("ur5e", setup.camera, bp, n, joints=joints)
-    (folder / "scenario.toml").write_text(text + f"\n[perturbation]\nseed = {seed}\n")
+    write_text_atomic(folder / "scenario.toml", text + f"\n[perturbation]\nseed = {seed}\n")
     return folder / "scenario.toml"
 
 
@@ -81,7 +83,7 @@ def wrist_only_row(root: Path, seed: int, add: int = 5) -> dict:
     q = q[feasible(setup, q)][:12]
     first = root / "wrist"
     first.mkdir(parents=True, exist_ok=True)
-    (first / "joints.csv").write_text(joints_csv(q, robot.edge_unit))
+    write_text_atomic(first / "joints.csv", joints_csv(q, robot.edge_unit))
     before = _achieved(_write(first, setup, target, bp, "joints.csv", seed), root / "dataset")
     plan = root / "plan"
     if not (plan / "plan.json").is_file():

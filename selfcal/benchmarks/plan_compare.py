@@ -21,6 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
+from selfcal.io.atomic import write_text_atomic
+
 __all__ = ["BOARD_POSE", "KEEP_OUT", "main", "posture_sets"]
 
 BOARD_POSE = np.array([-472.0, -133.0, 3.0, 0.0, 0.0, 0.0])
@@ -95,18 +97,17 @@ def main(argv: list[str] | None = None) -> int:
         folder = root / name.replace(" ", "-")
         folder.mkdir(parents=True, exist_ok=True)
         shutil.copyfile(models_dir() / "targets/charuco.toml", folder / "target.toml")
-        (folder / "joints.csv").write_text(joints_csv(q, setup.robot.edge_unit))
-        (folder / "scenario.toml").write_text(
-            scenario_text("ur5e", setup.camera, BOARD_POSE, len(q))
+        write_text_atomic(folder / "joints.csv", joints_csv(q, setup.robot.edge_unit))
+        write_text_atomic(
+            folder / "scenario.toml", scenario_text("ur5e", setup.camera, BOARD_POSE, len(q))
         )
         deg = (q / setup.robot.edge_unit).tolist()
         items += [(name, str(folder / "scenario.toml"), deg, s) for s in range(1, a.draws + 1)]
-    rows = []
-    with get_context("spawn").Pool(a.jobs) as pool, open(root / "draws.jsonl", "w") as log:
+    rows: list = []
+    with get_context("spawn").Pool(a.jobs) as pool:
         for row in pool.imap_unordered(_draw, items):
             rows.append(row)
-            log.write(json.dumps(row) + "\n")
-            log.flush()
+            write_text_atomic(root / "draws.jsonl", "".join(json.dumps(r) + "\n" for r in rows))
     print("| postures | predicted (mm) | achieved median (mm) | 90th percentile | median / "
           "predicted | failed |")  # fmt: skip
     print("|---|---|---|---|---|---|")
