@@ -27,8 +27,7 @@ import glob
 import os
 import re
 import shutil
-from collections.abc import Iterator, Mapping, Sequence
-from contextlib import contextmanager
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -49,7 +48,7 @@ from selfcal.importing.checks import (
 from selfcal.importing.field import FieldTarget, field_target
 from selfcal.io.dataset_info import DatasetInfo, write_dataset_info
 from selfcal.io.images import read_gray_image
-from selfcal.io.outlock import new_folder, remove_output
+from selfcal.io.outlock import removed_on_failure
 from selfcal.io.target_toml import load_target, target_document
 from selfcal.io.tracker import read_joint_rows
 from selfcal.robot.definition import RobotDef, load_robot
@@ -150,19 +149,6 @@ def _robot(
     return load_robot(out / rel), rel
 
 
-@contextmanager
-def _removed_on_failure(out: Path) -> Iterator[None]:
-    """Remove ``out`` when the block fails and ``out`` did not exist before it (or held only the
-    output lock of the command that runs the block)."""
-    created = new_folder(out)
-    try:
-        yield
-    except BaseException:
-        if created:
-            remove_output(out)
-        raise
-
-
 def _copy_urdf_of(toml: Path, folder: Path) -> None:
     """Copy the URDF that the robot TOML ``toml`` names in ``[urdf] file`` next to its copy in
     ``folder`` (the copy's ``file`` then names it without a folder), so the dataset can move."""
@@ -252,7 +238,7 @@ def import_dataset(
         .BoardInputError / BoardMismatchError, selfcal.robot.definition.RobotDefinitionError: bad input
         (each names the file and the fix).
     """
-    with _removed_on_failure(Path(out)):
+    with removed_on_failure(Path(out)):
         out = Path(out)
         names = [c.name for c in images]
         if not images or len(set(names)) != len(names):

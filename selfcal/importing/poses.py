@@ -27,11 +27,11 @@ from selfcal.importing.dataset import (
     ImportError_,
     _camera_choice,
     _detect,
-    _removed_on_failure,
     _warn_not_found,
     check_geometry,
 )
 from selfcal.io.atomic import write_text_atomic
+from selfcal.io.outlock import removed_on_failure
 from selfcal.io.poses.dataset import SETUPS, PoseDataset, write_pose_dataset
 from selfcal.io.poses.files import read_poses
 from selfcal.io.target_toml import load_target, target_document
@@ -109,7 +109,7 @@ def import_pose_dataset(
     if (out / "dataset.json").exists():
         raise ImportError_(f"{out} already holds a dataset", fix="choose another --out folder")
     model, free_t = _camera_choice(camera_model, free)
-    with _removed_on_failure(out):
+    with removed_on_failure(out):
         rows = read_poses(poses, rotation, units)
         tgt = load_target(target)
         if not isinstance(tgt, Board):

@@ -25,6 +25,7 @@ import os
 import shutil
 import socket
 from collections.abc import Iterator
+from contextlib import contextmanager
 from datetime import datetime
 from pathlib import Path
 
@@ -37,6 +38,7 @@ __all__ = [
     "new_folder",
     "prepare_folder",
     "remove_output",
+    "removed_on_failure",
     "output_lock",
 ]
 
@@ -96,6 +98,20 @@ def remove_output(folder: str | Path) -> None:
         else:
             with contextlib.suppress(FileNotFoundError):
                 p.unlink()
+
+
+@contextmanager
+def removed_on_failure(folder: str | Path) -> Iterator[None]:
+    """Remove ``folder`` when the block fails and ``folder`` did not exist before it (or held only
+    the output lock of the command that runs the block: :func:`new_folder`, :func:`remove_output`);
+    the exception goes on."""
+    created = new_folder(folder)
+    try:
+        yield
+    except BaseException:
+        if created:
+            remove_output(folder)
+        raise
 
 
 def _start_ticks(pid: int) -> int | None:

@@ -22,7 +22,8 @@ import os
 import shutil
 import warnings
 from array import array
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -33,20 +34,16 @@ from selfcal.camera.registry import MODELS, ROS_D_NAMES, ROS_MODEL_OF
 from selfcal.errors import SelfCalWarning
 from selfcal.importing.dataset import DEFAULT_MODEL, CameraImages, ImportError_, import_dataset
 from selfcal.io.dataset_info import DatasetInfo
-from selfcal.io.outlock import new_folder, remove_output
+from selfcal.io.outlock import removed_on_failure
 from selfcal.robot.definition import load_robot
 from selfcal.robot.urdf import urdf_chain
-from selfcal.ros.bag_rest import (
-    EMPTY,
-    GAP,
-    MOVING,
-    NS,
-    OUTSIDE,
-    REST,
-    JointTrack,
-    RestRule,
-    pair_frames,
-    thin_rests,
+from selfcal.ros.bag_rest import GAP, MOVING, OUTSIDE, JointTrack, RestRule, pair_frames, thin_rests
+from selfcal.ros.bag_stage import (
+    MovingImagesWarning,
+    name_frames,
+    secs,
+    stage_images,
+    warn_skipped,
 )
 from selfcal.ros.bag_tf import TF_TOPICS, TF_TYPE, TfTree
 from selfcal.ros.rosbag import (
@@ -56,7 +53,6 @@ from selfcal.ros.rosbag import (
     BagError,
     BagReader,
     CameraInfo,
-    decode_image,
 )
 
 __all__ = [
@@ -82,9 +78,14 @@ class CameraInfoWarning(SelfCalWarning):
     """A calibrated CameraInfo that cannot initialise the camera (another image size)."""
 
 
-class MovingImagesWarning(SelfCalWarning):
-    """Images of the bag skipped because the arm moved (or the joint messages do not cover them);
-    counted in one line."""
+@contextmanager
+def _staging(stage: Path) -> Iterator[None]:
+    """Remove the staging folder ``stage`` when the block ends, however it ends."""
+    try:
+        yield
+    finally:
+        if stage.exists():
+            shutil.rmtree(stage)
 
 
 @dataclass(frozen=True)
@@ -115,10 +116,6 @@ class ImageTopic:
         if parts[-1] == "compressed":
             parts = parts[:-1]
         return "/".join(parts[:-1] + ["camera_info"])
-
-
-def _secs(t: int) -> str:
-    return f"{t / NS:.3f} s"
 
 
 def read_joint_track(
@@ -260,56 +257,6 @@ def _initial(infos: dict[str, CameraInfo | None], cams: Sequence[ImageTopic],
     return out or None
 
 
-@dataclass
-class _Staged:
-    """The images at rest of one camera: stamps (ns) and staged files."""
-
-    stamps: list[int]
-    files: list[Path]
-    bags: list[Path]
-
-
-def _stage_images(
-    reader: BagReader, cams: Sequence[ImageTopic], track: JointTrack, rule: RestRule,
-    joint_topic: str, stage: Path,
-) -> tuple[dict[str, _Staged], dict[str, int], int, tuple[int, int], dict[str, str]]:  # fmt: skip
-    """Pass 2: decode and stage every image at rest; count the others by reason; the first and
-    last image stamps; each camera's frame_id (of its first image)."""
-    by_topic = {c.topic: c.name for c in cams}
-    staged = {c.name: _Staged([], [], []) for c in cams}
-    for c in cams:
-        (stage / c.name).mkdir(parents=True)
-    counts = {MOVING: 0, GAP: 0, OUTSIDE: 0}
-    total, first, last = 0, 2**63 - 1, -(2**63)
-    frame_ids: dict[str, str] = {}
-    for topic, msgtype, msg, t, src in reader.timed_in(list(by_topic)):
-        total += 1
-        frame_ids.setdefault(by_topic[topic], str(msg.header.frame_id))
-        first, last = min(first, t), max(last, t)
-        st = track.status(t, rule)
-        if st == EMPTY:
-            a, b = track.largest_gap(t)
-            raise BagError(
-                f"{reader.label}: no message on {joint_topic} within +-{rule.window_s / 2:g} s of "
-                f"the image at {_secs(t)} on {topic} (the joint messages pause from {a:.3f} s to "
-                f"{b:.3f} s)",
-                fix="record the joint topic without pauses (check the driver's publish rate and "
-                "dropped messages), or give the --joint-topic the driver publishes continuously",
-            )
-        if st != REST:
-            counts[st] += 1
-            continue
-        s = staged[by_topic[topic]]
-        img = decode_image(msg, msgtype, f"{src}: topic {topic}")
-        path = stage / by_topic[topic] / f"raw_{len(s.files):07d}.png"
-        if not cv2.imwrite(str(path), img):  # pragma: no cover
-            raise ImportError_(f"{path}: cannot write the staged image", fix="check the disk")
-        s.stamps.append(t)
-        s.files.append(path)
-        s.bags.append(src)
-    return staged, counts, total, (first, last), frame_ids
-
-
 def import_bag(
     bag: str | Path | Sequence[str | Path],
     image_topics: Sequence[ImageTopic],
@@ -351,8 +298,7 @@ def import_bag(
                            fix="give a model name, a robot TOML or a URDF file")  # fmt: skip
     chain = Chain.of(robot, base_link, tool_link)
     stage = out / _STAGE
-    made_out = new_folder(out)
-    try:
+    with removed_on_failure(out), _staging(stage):
         with BagReader(bags) as reader:
             where = reader.label
             for c in image_topics:
@@ -362,16 +308,16 @@ def import_bag(
             model = _model(infos, camera_model, where)
             if stage.exists():
                 shutil.rmtree(stage)
-            staged, counts, total, span, frame_ids = _stage_images(
-                reader, image_topics, track, rule, joint_topic, stage)  # fmt: skip
+            staged, counts, total, span, frame_ids = stage_images(
+                reader, {c.name: c.topic for c in image_topics}, track, rule, joint_topic, stage)  # fmt: skip
             fmt = reader.format
         topics = ", ".join(c.topic for c in image_topics)
         at_rest = sum(len(s.files) for s in staged.values())
         if total and counts[OUTSIDE] == total:
             raise BagError(
-                f"{where}: the {total} images on {topics} ({_secs(span[0])} to {_secs(span[1])}) lie "
-                f"outside the joint messages on {joint_topic} ({_secs(int(track.t[0]))} to "
-                f"{_secs(int(track.t[-1]))})",
+                f"{where}: the {total} images on {topics} ({secs(span[0])} to {secs(span[1])}) lie "
+                f"outside the joint messages on {joint_topic} ({secs(int(track.t[0]))} to "
+                f"{secs(int(track.t[-1]))})",
                 fix="stamp images and joints by one clock (check use_sim_time and the camera "
                 "driver's time source), and record the joints for as long as the camera",
             )
@@ -385,8 +331,8 @@ def import_bag(
             )
         frames = pair_frames({n: staged[n].stamps for n in names}, names, track, rule)
         frames = thin_rests(frames, staged[names[0]].stamps, track, rule, per_rest)
-        _warn_skipped(where, rule, counts, total, at_rest, frames, len(names))
-        files = _name_frames(staged, names, frames, stage)
+        warn_skipped(where, rule, counts, total, at_rest, frames, len(names))
+        files = name_frames(staged, names, frames, stage)
         n = len(chain.joint_names)
         q = np.array([track.at(staged[names[0]].stamps[f[0]]) for f in frames]).reshape(-1, n)
         joints = stage / "joints.csv"
@@ -418,52 +364,3 @@ def import_bag(
             if link.is_symlink():
                 os.replace(link.resolve(), link)  # the staged file becomes the frame
         return info
-    except BaseException:
-        if made_out and out.exists() and not (out / "dataset.json").exists():
-            remove_output(out)
-        raise
-    finally:
-        if stage.exists():
-            shutil.rmtree(stage)
-
-
-def _name_frames(
-    staged: dict[str, _Staged], names: Sequence[str], frames: list[list[int]], stage: Path
-) -> dict[str, list[Path]]:
-    """Rename each frame's staged images to ``NNNNNN.png`` (one name across the cameras, the
-    joints file's image column) and delete the unused ones."""
-    out: dict[str, list[Path]] = {n: [] for n in names}
-    for k, f in enumerate(frames):
-        for n, i in zip(names, f):
-            dst = stage / n / f"{k:06d}.png"
-            os.replace(staged[n].files[i], dst)
-            out[n].append(dst)
-    for n in names:
-        for p in (stage / n).glob("raw_*.png"):
-            p.unlink()
-    return out
-
-
-def _warn_skipped(bag: str, rule: RestRule, counts: dict[str, int], total: int, at_rest: int,
-                  frames: list[list[int]], n_cams: int,
-                  motion: str = "the joint") -> None:  # fmt: skip
-    """The warning for the images not kept; ``motion`` names what tells the motion (the joint
-    messages, or /tf's)."""
-    skipped = total - at_rest
-    unpaired = at_rest - len(frames) * n_cams
-    if not skipped and not unpaired:
-        return
-    parts = [f"{counts[MOVING]} with the arm moving within +-{rule.window_s / 2:g} s"]
-    if counts[GAP]:
-        parts.append(f"{counts[GAP]} at a pause of {motion} messages")
-    if counts[OUTSIDE]:
-        parts.append(f"{counts[OUTSIDE]} outside {motion} recording")
-    if unpaired:
-        parts.append(f"{unpaired} at rest but not in a frame (no image of every camera in that "
-                     "rest, or beyond --per-rest)")  # fmt: skip
-    warnings.warn(
-        f"{bag}: {skipped + unpaired} of {total} images skipped: {', '.join(parts)}; "
-        f"{len(frames)} frame(s) at rest kept",
-        MovingImagesWarning,
-        stacklevel=3,
-    )

@@ -32,8 +32,9 @@ from selfcal.importing.dataset import CameraImages, ImportError_
 from selfcal.importing.poses import import_pose_dataset
 from selfcal.io.atomic import write_text_atomic
 from selfcal.io.poses.dataset import SETUPS, PoseDataset
-from selfcal.ros.bag_import import ImageTopic, _name_frames, _stage_images, _warn_skipped
+from selfcal.ros.bag_import import ImageTopic
 from selfcal.ros.bag_rest import GAP, MOVING, OUTSIDE, RestRule, pair_frames, thin_rests
+from selfcal.ros.bag_stage import name_frames, stage_images, warn_skipped
 from selfcal.ros.rosbag import IMAGE_TYPES, BagError, BagReader
 from selfcal.ros.tf_track import TfSeries
 
@@ -90,8 +91,8 @@ def import_bag_poses(
             for t, _m, msg, stamp in reader.timed(tf_topics):
                 series.add(msg, static=t == "/tf_static", stamp=stamp)
             track = series.track(tf_parent, tf_child)
-            staged, counts, total, span, _ids = _stage_images(
-                reader, [image_topic], track, rule, "/tf", stage)  # fmt: skip
+            staged, counts, total, span, _ids = stage_images(
+                reader, {image_topic.name: image_topic.topic}, track, rule, "/tf", stage)  # fmt: skip
         name = image_topic.name
         at_rest = len(staged[name].files)
         if at_rest == 0:
@@ -105,8 +106,8 @@ def import_bag_poses(
             )
         frames = pair_frames({name: staged[name].stamps}, [name], track, rule)
         frames = thin_rests(frames, staged[name].stamps, track, rule, per_rest)
-        _warn_skipped(where, rule, counts, total, at_rest, frames, 1, motion="the /tf")
-        files = _name_frames(staged, [name], frames, stage)[name]
+        warn_skipped(where, rule, counts, total, at_rest, frames, 1, motion="the /tf")
+        files = name_frames(staged, [name], frames, stage)[name]
         stamps = np.array([staged[name].stamps[f[0]] for f in frames], np.int64)
         T = series.lookup(tf_parent, tf_child, stamps)
         q = Rotation.from_matrix(T[:, :3, :3]).as_quat()

@@ -91,8 +91,9 @@ def test_text_and_images_round_trip(tmp_path):
 # Writers that may write a file directly: the dataset writer (selfcal/io/dataset.py, which keeps its
 # own temporary + rename) and `selfcal import` (selfcal/importing/dataset.py: it fills a new dataset
 # folder and is being changed in another branch; an interrupted import leaves an incomplete new
-# folder, never a damaged result; `selfcal import --bag`, selfcal/ros/bag_import.py, stages the bag's
-# images in that new folder and removes the folder on failure), tools that regenerate committed
+# folder, never a damaged result; `selfcal import --bag`, selfcal/ros/bag_import.py with
+# selfcal/ros/bag_stage.py, stages the bag's images in that new folder and removes the folder on
+# failure), tools that regenerate committed
 # files (selfcal/sim/build_models.py, benchmark scripts writing docs, .npz caches and scratch files), the
 # emulator transport, and atomic.py itself; the truth journal (selfcal/io/truth.py) is appended a
 # line per frame like the dataset's CSV files (its reader drops a partial last line).
@@ -103,6 +104,7 @@ ALLOWED = {
     "selfcal/calibration/field/calibrate.py",
     "selfcal/importing/dataset.py",
     "selfcal/ros/bag_import.py",
+    "selfcal/ros/bag_stage.py",
     "selfcal/sim/build_models.py",
     "selfcal/benchmarks/tracker/compare.py",
     "selfcal/benchmarks/ros.py",
