@@ -34,6 +34,7 @@ if TYPE_CHECKING:
     from selfcal.calibration.board.evaluate import Evaluation
     from selfcal.calibration.handeye.calibrate import HandEyeCalibration
     from selfcal.calibration.handeye.calibration_file import HandEyeFile
+    from selfcal.calibration.handeye.eiv import PoseNoise
     from selfcal.calibration.tracker.calibration_file import TrackerCalibration
     from selfcal.io.board_calibration import BoardCalibrationResult
     from selfcal.io.calibration import CalibrationResult
@@ -117,10 +118,12 @@ def pose_features(ds: PoseDataset) -> tuple[Board, list[Features]]:
     return board, out
 
 
-def calibrate_pose_dataset(root: str | Path, *, write: bool = True) -> HandEyeCalibration:
+def calibrate_pose_dataset(root: str | Path, *, write: bool = True,
+                           pose_noise: PoseNoise | str = "auto") -> HandEyeCalibration:  # fmt: skip
     """The hand-eye calibration of the pose dataset ``root`` (camera, hand-eye ``X`` and board
     mount ``B``, m, their frames: :data:`selfcal.calibration.handeye.calibrate.FRAMES`), written
-    as ``root/calibration.json`` when ``write``."""
+    as ``root/calibration.json`` when ``write``; ``pose_noise``: the flange poses' noise, as
+    :func:`selfcal.calibration.handeye.calibrate.calibrate_hand_eye`'s."""
     from selfcal.calibration.handeye.calibrate import calibrate_hand_eye
     from selfcal.calibration.handeye.calibration_file import handeye_document
     from selfcal.io.jsonfile import write_json_atomic
@@ -130,7 +133,8 @@ def calibrate_pose_dataset(root: str | Path, *, write: bool = True) -> HandEyeCa
     board, feats = pose_features(ds)
     names = [str(ds.image_path(i)) for i in range(len(feats))]
     cal = calibrate_hand_eye(board, feats, ds.T_base_flange, ds.setup, *ds.resolution,
-                             model=ds.model, free=ds.free, names=names)  # fmt: skip
+                             model=ds.model, free=ds.free, names=names,
+                             pose_noise=pose_noise)  # fmt: skip
     if write:
         write_json_atomic(Path(root) / "calibration.json", handeye_document(cal, str(root)))
     return cal

@@ -12,11 +12,13 @@ import sys
 from pathlib import Path
 
 from selfcal.console.common import CliError, note_written
+from selfcal.errors import SelfCalError
 
 # OpenCV, scipy and the calibration load in the commands that use them (`selfcal --help` stays fast).
 
 __all__ = [
     "add_pose_import_args",
+    "add_pose_noise_arg",
     "calibrate_poses",
     "check_pose_only_args",
     "cmd_import_poses",
@@ -28,6 +30,39 @@ ROTATIONS = ("quaternion-xyzw", "abb-quaternion", "kuka-abc", "fanuc-wpr", "ur-r
 SETUP_CHOICES = ("eye-in-hand", "eye-to-hand")
 """``--setup``: :data:`selfcal.io.poses.dataset.SETUPS`."""
 _POSE_ONLY = ("pose_units", "rotation", "setup")
+POSE_NOISE_HELP = (
+    "pose datasets: the flange poses' noise per axis, MM,DEG (e.g. 0.5,0.05: each pose then gets "
+    "a correction with that prior, estimated with the hand-eye); 'exact': the poses as reported; "
+    "'estimate': the noise estimated from the residuals; 'auto' (default): estimated, and the "
+    "corrections used only when they predict left-out images better than the exact poses "
+    "(docs/handeye.md)"
+)
+
+
+def add_pose_noise_arg(sp: argparse.ArgumentParser) -> None:
+    """``--pose-noise`` of ``selfcal calibrate`` (a pose dataset's)."""
+    sp.add_argument("--pose-noise", default=None, metavar="MM,DEG|auto|estimate|exact",
+                    help=POSE_NOISE_HELP)  # fmt: skip
+
+
+def parse_pose_noise(text: str | None):  # -> PoseNoise | str (the import waits for the command)
+    """``--pose-noise``'s value: ``"auto"`` (None), ``"estimate"``, a
+    :class:`selfcal.calibration.handeye.eiv.PoseNoise` (``exact``: both 0). Raises
+    :class:`CliError` naming the value."""
+    from selfcal.calibration.handeye.eiv import EXACT, PoseNoise
+
+    t = "auto" if text is None else text.strip().lower()
+    if t in ("auto", "estimate"):
+        return t
+    if t == "exact":
+        return EXACT
+    try:
+        mm, deg = (float(v) for v in t.split(","))
+        return PoseNoise(mm, deg)
+    except (ValueError, SelfCalError):
+        raise CliError(f"--pose-noise {text!r}",
+                       fix="give MM,DEG (two sigmas > 0, e.g. 0.5,0.05), exact, estimate or "
+                       "auto") from None  # fmt: skip
 
 
 def add_pose_import_args(sp: argparse.ArgumentParser) -> None:
@@ -108,19 +143,22 @@ def cmd_import_poses(args: argparse.Namespace) -> int:
 
 def calibrate_poses(root: Path, *, quiet: bool = False, figures: bool = False,
                     method: str = "joint", joint_sigma_deg: float | None = None,
-                    tracker_args: argparse.Namespace | None = None) -> None:  # fmt: skip
+                    tracker_args: argparse.Namespace | None = None,
+                    pose_noise: str | None = None) -> None:  # fmt: skip
     """``selfcal calibrate`` of a pose dataset: write ``root/calibration.json`` (the hand-eye
     and board mount with sigmas, the camera, the nominal beside:
     :func:`selfcal.calibration.routes.calibrate_pose_dataset`). The options of the joint
-    datasets (``--method two-stage``, ``--joint-sigma-deg``, ``--tracker``) are errors here."""
+    datasets (``--method two-stage``, ``--joint-sigma-deg``, ``--tracker``) are errors here;
+    ``pose_noise``: ``--pose-noise`` (:func:`parse_pose_noise`)."""
     from selfcal.calibration.handeye.calibrate import FRAMES
+    from selfcal.calibration.handeye.calibration_file import flange_poses_section, flange_poses_text
     from selfcal.calibration.routes import calibrate_pose_dataset
 
     if method != "joint" or joint_sigma_deg is not None or (tracker_args and tracker_args.tracker):
         raise CliError(f"{root} is a pose dataset (flange poses, no joints): --method, "
                        "--joint-sigma-deg and --tracker do not apply",
                        fix="leave them out")  # fmt: skip
-    cal = calibrate_pose_dataset(root)
+    cal = calibrate_pose_dataset(root, pose_noise=parse_pose_noise(pose_noise))
     if not quiet:
         x_what, b_what = FRAMES[cal.setup]
         c, n = cal.calibrated, cal.nominal
@@ -128,6 +166,7 @@ def calibrate_poses(root: Path, *, quiet: bool = False, figures: bool = False,
         say(f"{cal.setup}, {int(cal.used.sum())} frames: no kinematics to identify (flange poses "
             "as the robot reports them); camera, hand-eye and board mount fitted on corner "
             "reprojection")  # fmt: skip
+        say(f"  {flange_poses_text(flange_poses_section(cal))}")
         for what, T, s in ((x_what, c.X, c.X_std), (b_what, c.B, c.B_std)):
             xyz = ", ".join(f"{v:.2f}" for v in T[:3, 3] * 1000)
             sig = ", ".join(f"{v:.2f}" for v in s[3:] * 1000)

@@ -15,6 +15,7 @@ from pathlib import Path
 
 from selfcal.cli.check import register as register_check
 from selfcal.cli.deploy import register as register_deploy
+from selfcal.cli.handeye import add_pose_noise_arg
 from selfcal.cli.hw import register as register_hw
 from selfcal.cli.kinematics import _joints_rad, cmd_fk, cmd_ik
 from selfcal.cli.montecarlo import register as register_montecarlo
@@ -119,7 +120,8 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     with writing(args, root, "DATASET", create=False), _stdout_to_stderr(args.json):
         calibrate_any(root, quiet=args.quiet, method=args.method,
                       allow_missing_frames=args.allow_missing_frames, figures=True,
-                      tracker_args=args, joint_sigma_deg=args.joint_sigma_deg)  # fmt: skip
+                      tracker_args=args, joint_sigma_deg=args.joint_sigma_deg,
+                      pose_noise=args.pose_noise)  # fmt: skip
     note_written(args, root / "calibration.json")
     if args.json:
         print(json.dumps(_calibration_json(root / "calibration.json")))
@@ -378,6 +380,7 @@ def build_parser() -> argparse.ArgumentParser:
         "read-back errors are estimated with the rest instead of taken as exact (default: the "
         "robot file's encoder resolution; none for a URDF, where noisy readings bias the camera)",
     )
+    add_pose_noise_arg(sp)
     add_tracker_args(sp)
     add_json(sp)
 

@@ -45,6 +45,7 @@ def calibrate_any(
     figures: bool = False,
     tracker_args: argparse.Namespace | None = None,
     joint_sigma_deg: float | None = None,
+    pose_noise: str | None = None,
 ) -> None:
     """Calibrate the dataset in ``root`` by its target and write ``root/calibration.json``:
     the field -> :func:`selfcal.pipeline.run.run_calibrate`; a board -> the board calibration.
@@ -52,7 +53,8 @@ def calibrate_any(
     options of ``selfcal calibrate`` (:func:`selfcal.cli.tracker.add_tracker_args`): tracker
     measurements estimated with the field's images. ``joint_sigma_deg``: the standard deviation
     of a joint reading, deg (mm for a prismatic joint), modelled instead of the robot file's
-    encoder resolution."""
+    encoder resolution. ``pose_noise``: ``--pose-noise`` of a pose dataset (an error for the
+    others)."""
     from selfcal.calibration.routes import dataset_route
     from selfcal.io.dataset import Dataset
     from selfcal.pipeline.board_run import calibrate_board_run
@@ -61,8 +63,12 @@ def calibrate_any(
     route = dataset_route(root)  # the choice the public API's calibrate makes
     if route == "handeye":
         calibrate_poses(root, quiet=quiet, figures=figures, method=method,
-                        joint_sigma_deg=joint_sigma_deg, tracker_args=tracker_args)  # fmt: skip
+                        joint_sigma_deg=joint_sigma_deg, tracker_args=tracker_args,
+                        pose_noise=pose_noise)  # fmt: skip
         return
+    if pose_noise is not None:
+        raise CliError(f"{root}: --pose-noise applies to a pose dataset (flange poses); this one "
+                       "has joint readings", fix="leave --pose-noise out")  # fmt: skip
     ds = Dataset.open(root)
     joint_sigma = None
     if joint_sigma_deg is not None:

@@ -18,6 +18,7 @@ from test_handeye import BOARD, CAMERA, _features, _scene
 
 from selfcal.calibration.handeye.calibrate import calibrate_hand_eye, chain_motions
 from selfcal.calibration.handeye.calibration_file import handeye_document
+from selfcal.calibration.handeye.eiv import EXACT
 from selfcal.cli.deploy import register
 from selfcal.export.handeye import from_chain
 from selfcal.io.jsonfile import write_json_atomic
@@ -35,7 +36,7 @@ def calibrated(request, tmp_path_factory):
     setup = request.param
     X, B, F = _scene(setup, 10, seed=21)
     feats = _features(X, B, chain_motions(setup, F), 0.0, 1)
-    cal = calibrate_hand_eye(BOARD, feats, F, setup, 1280, 960, free=CAMERA.free)
+    cal = calibrate_hand_eye(BOARD, feats, F, setup, 1280, 960, free=CAMERA.free, pose_noise=EXACT)
     root = tmp_path_factory.mktemp(setup)
     write_json_atomic(root / "calibration.json", handeye_document(cal, str(root)))
     return root, setup, X, B

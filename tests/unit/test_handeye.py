@@ -12,6 +12,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from selfcal.calibration.handeye.calibrate import calibrate_hand_eye, chain_motions
+from selfcal.calibration.handeye.eiv import EXACT
 from selfcal.calibration.handeye.linear import HandEyeStartError, linear_hand_eye
 from selfcal.camera import camera_model
 from selfcal.estimation.pose_chain import PoseChainBlock
@@ -149,9 +150,10 @@ def test_each_rotation_convention_gives_the_same_hand_eye(tmp_path, convention):
     _convention_csv(tmp_path / "poses.csv", convention, F)
     rows = read_poses(tmp_path / "poses.csv", "ur-rotvec" if convention == "ur-rotvec" else None)
     assert rows.convention == convention
-    ref = calibrate_hand_eye(BOARD, feats, F, "eye-to-hand", 1280, 960, free=CAMERA.free).calibrated
+    ref = calibrate_hand_eye(BOARD, feats, F, "eye-to-hand", 1280, 960, free=CAMERA.free,
+                             pose_noise=EXACT).calibrated  # fmt: skip
     got = calibrate_hand_eye(BOARD, feats, rows.T_base_flange, "eye-to-hand", 1280, 960,
-                             free=CAMERA.free).calibrated  # fmt: skip
+                             free=CAMERA.free, pose_noise=EXACT).calibrated  # fmt: skip
     np.testing.assert_allclose(got.X, ref.X, atol=1e-9)
     np.testing.assert_allclose(got.B, ref.B, atol=1e-9)
     assert abs(got.rms_px - ref.rms_px) < 1e-9
@@ -188,7 +190,8 @@ def _handeye_file(tmp_path, edit=None):
     fit = HandEyeFit(Pinhole(800.0, 1.0, 320.0, 240.0, 640, 480), {}, np.eye(4), np.eye(4),
                      np.zeros(6), np.zeros(6), 0.1, np.ones(4, bool), 0.1, 3)  # fmt: skip
     cal = SimpleNamespace(setup=next(iter(FRAMES)), camera_stage=SimpleNamespace(rms_px=0.1),
-                          nominal=fit, calibrated=fit, used=np.ones(4, bool))  # fmt: skip
+                          nominal=fit, calibrated=fit, used=np.ones(4, bool),
+                          pose_choice=None)  # fmt: skip
     doc = handeye_document(cal, "ds")
     if edit is not None:
         edit(doc)

@@ -25,6 +25,8 @@ __all__ = [
     "HANDEYE_FORMAT",
     "HandEyeFile",
     "HandEyeModel",
+    "flange_poses_section",
+    "flange_poses_text",
     "handeye_document",
     "is_handeye",
     "read_handeye",
@@ -61,6 +63,40 @@ def _fit(fit: HandEyeFit, setup: str) -> dict:
             "inliers": int(fit.inlier.sum()), "rows": int(fit.inlier.size)}  # fmt: skip
 
 
+def flange_poses_section(cal: HandEyeCalibration) -> dict:
+    """``calibration.json``'s ``flange_poses``: how the answer treated the reported flange
+    poses (``exact`` or ``corrected``, :mod:`selfcal.calibration.handeye.eiv`), the noise it
+    weighed them with (mm, deg per axis) and whether estimated, the corrections' RMS, and the
+    cross-validation that chose (None: the caller gave the noise)."""
+    f, ch = cal.calibrated, cal.pose_choice
+    c = f.corrections if len(f.corrections) else np.zeros((1, 6))
+    return {
+        "treatment": "exact" if f.pose_noise.exact else "corrected",
+        "sigma_mm": f.pose_noise.mm, "sigma_deg": f.pose_noise.deg,
+        "estimated": f.pose_noise_estimated,
+        "corrections_rms_mm": float(1e3 * np.sqrt(np.mean(c[:, 3:] ** 2))),
+        "corrections_rms_deg": float(np.degrees(np.sqrt(np.mean(c[:, :3] ** 2)))),
+        "cross_validation": None if ch is None else {
+            "folds": ch.folds, "exact_px": ch.exact_px, "corrected_px": ch.eiv_px,
+            "chosen": "corrected" if ch.eiv else "exact"},
+    }  # fmt: skip
+
+
+def flange_poses_text(section: dict) -> str:
+    """One line for people of :func:`flange_poses_section`'s ``section``."""
+    cv = section.get("cross_validation")
+    why = "" if cv is None else (
+        f"; left-out images predicted from their poses ({cv['folds']} folds): exact "
+        f"{cv['exact_px']:.3f} px, corrected {cv['corrected_px']:.3f} px")  # fmt: skip
+    if section["treatment"] == "exact":
+        return "flange poses: taken as reported" + why
+    how = "estimated" if section["estimated"] else "given"
+    return (f"flange poses: each corrected with a prior of {section['sigma_mm']:.3f} mm, "
+            f"{section['sigma_deg']:.4f} deg per axis ({how}; corrections RMS "
+            f"{section['corrections_rms_mm']:.3f} mm, {section['corrections_rms_deg']:.4f} deg)"
+            + why)  # fmt: skip
+
+
 def handeye_document(cal: HandEyeCalibration, dataset: str) -> dict:
     """The ``calibration.json`` document of ``cal`` calibrated from the pose dataset ``dataset``."""
     return {
@@ -69,7 +105,8 @@ def handeye_document(cal: HandEyeCalibration, dataset: str) -> dict:
         "dataset": dataset,
         "setup": cal.setup,
         "method": "hand-eye on corner reprojection (linear Park start, the one solver)",
-        "kinematics": "none identified: the flange poses are the robot's reports, taken as they are",
+        "kinematics": "none identified: the flange poses are the robot's reports",
+        "flange_poses": flange_poses_section(cal),
         "frames_used": int(cal.used.sum()),
         "camera_stage_rms_px": cal.camera_stage.rms_px,
         **_fit(cal.calibrated, cal.setup),
