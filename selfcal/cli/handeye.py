@@ -34,7 +34,7 @@ POSE_NOISE_HELP = (
     "pose datasets: the flange poses' noise per axis, MM,DEG (e.g. 0.5,0.05: each pose then gets "
     "a correction with that prior, estimated with the hand-eye); 'exact': the poses as reported; "
     "'estimate': the noise estimated from the residuals; 'auto' (default): estimated, and the "
-    "corrections used only when they predict left-out images better than the exact poses "
+    "corrections dropped when they predict left-out images worse than the exact poses "
     "(docs/handeye.md)"
 )
 

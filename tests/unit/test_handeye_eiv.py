@@ -136,3 +136,15 @@ def test_monte_carlo_corrections_recover_the_truth_better(setup):
     assert np.all(rms["eiv"] < 0.6 * rms["exact"]), rms
     mm, deg = np.mean(noise, axis=0)
     assert 0.3 < mm < 0.7 and 0.03 < deg < 0.07, (mm, deg)  # the truth: 0.5 mm, 0.05 deg
+
+
+def test_pose_noise_option_is_read_or_refused_by_name():
+    from selfcal.cli.handeye import parse_pose_noise
+    from selfcal.console.common import CliError
+
+    assert parse_pose_noise(None) == "auto" and parse_pose_noise("estimate") == "estimate"
+    assert parse_pose_noise("exact") == EXACT
+    assert parse_pose_noise("0.5, 0.05") == PoseNoise(0.5, 0.05)
+    for bad in ("0.5", "0,0.05", "-1,0.1", "a,b", "nan,1"):
+        with pytest.raises(CliError, match="--pose-noise"):
+            parse_pose_noise(bad)

@@ -18,8 +18,8 @@ fitted by the same objective), the *calibrated* frees the camera's parameters to
 The flange poses (``pose_noise``, :mod:`selfcal.calibration.handeye.eiv`): the fit with them
 exact comes first (the checks that the poses explain the images run on it); then, unless the
 caller says they are exact, each pose gets a correction with a prior of the pose noise (given,
-or estimated by variance components), and with ``"auto"`` the corrections are kept only when
-they predict left-out views from their reported poses better than the exact poses
+or estimated by variance components), and with ``"auto"`` the corrections are dropped when
+they predict left-out views from their reported poses worse than the exact poses
 (:func:`selfcal.calibration.handeye.fit.choose_pose_noise`). The calibrated fit weighs the poses
 as the nominal chose, with the nominal's sigmas.
 """
@@ -117,8 +117,8 @@ def calibrate_hand_eye(
     ``T_base_flange`` (n, 4, 4) m (see the module docstring); ``names`` name the images;
     ``pose_noise`` (:mod:`selfcal.calibration.handeye.eiv`): the flange poses' sigmas per axis
     (:data:`selfcal.calibration.handeye.eiv.EXACT`: the poses taken as exact), ``"estimate"``:
-    estimated from the residuals, ``"auto"``: estimated, and the corrections used only when
-    they predict left-out views better than the exact poses
+    estimated from the residuals, ``"auto"``: estimated, and the corrections dropped when they
+    predict left-out views worse than the exact poses
     (:func:`selfcal.calibration.handeye.fit.choose_pose_noise`).
 
     Raises:
