@@ -4,7 +4,10 @@ Every case is a training set and a held-out set of images of a board with the ro
 poses (eye-in-hand or eye-to-hand). Ours: :func:`selfcal.calibration.handeye.calibrate.calibrate_hand_eye`
 on the training frames: its linear start (the camera stage's camera, Park's rotation), its
 nominal (camera stage's camera held, hand-eye and board mount on corner reprojection) and its
-answer, the calibrated fit (the camera freed too). OpenCV's (:mod:`selfcal.benchmarks.handeye.opencv4`,
+answer, the calibrated fit (the camera freed too), with the flange poses' noise ``"auto"``; and
+the calibrated fit with the poses exact and always corrected
+(:mod:`selfcal.calibration.handeye.eiv`). A second table: the calibrated fits' errors against the
+synthetic truth. OpenCV's (:mod:`selfcal.benchmarks.handeye.opencv4`,
 in its own OpenCV 4.x environment): ``cv2.calibrateCamera`` on the same training frames and
 corners (the same distortion model: k1, k2, p1, p2, ``CALIB_FIX_K3``), then each of
 ``cv2.calibrateHandEye``'s five methods (the board mount: the chordal mean over the training
@@ -39,6 +42,7 @@ from scipy.spatial.transform import Rotation
 from selfcal.benchmarks.doc_blocks import ROOT, write_block
 from selfcal.benchmarks.handeye.joints import run_opencv4
 from selfcal.calibration.handeye.calibrate import calibrate_hand_eye, chain_motions, predict_corners
+from selfcal.calibration.handeye.eiv import EXACT
 from selfcal.camera import CameraModel, camera_model
 from selfcal.errors import InputError, SelfCalError
 from selfcal.io.atomic import write_text_atomic
@@ -54,7 +58,11 @@ __all__ = ["Split", "synthetic_split", "ical_split", "run", "table", "main"]
 DOC = ROOT / "docs" / "handeye.md"
 ICAL = ROOT / "tests" / "data" / "real" / "ical-charuco"
 ICAL_HELD_OUT = (0, 3, 6, 9, 12, 15)
-OURS = ("calibrated", "nominal", "linear start")
+OURS = ("calibrated", "nominal", "linear start", "poses exact", "poses corrected")
+"""Our models: the answer ``calibrate`` writes (the pose noise ``"auto"``), its nominal, its linear
+start, and the calibrated fit with the flange poses taken as exact and with their corrections
+always (:mod:`selfcal.calibration.handeye.eiv`)."""
+MODES = {"poses exact": EXACT, "poses corrected": "estimate"}
 OPENCV = ("TSAI", "PARK", "HORAUD", "ANDREFF", "DANIILIDIS", "SHAH", "LI")
 FREE = ("fx", "mu", "cx", "cy", "k1", "k2", "p1", "p2")
 """Ours frees these (the opencv model's default); OpenCV's calibrateCamera the same (fixed k3)."""
@@ -80,6 +88,8 @@ class Split:
     held_flange: np.ndarray
     width: int
     height: int
+    X_true: np.ndarray | None = None
+    B_true: np.ndarray | None = None
 
 
 def _look_at(eye: np.ndarray, target: np.ndarray, rng: np.random.Generator) -> np.ndarray:
@@ -121,7 +131,7 @@ def synthetic_split(setup: str, pixel_px: float, pose_mm: float, pose_deg: float
         f", poses {pose_mm:g} mm / {pose_deg:g}°" if pose_mm else ""
     )
     return Split(name, setup, BOARD, feats[:n_train], reported[:n_train], feats[n_train:],
-                 reported[n_train:], CAMERA.width, CAMERA.height)  # fmt: skip
+                 reported[n_train:], CAMERA.width, CAMERA.height, X, B)  # fmt: skip
 
 
 def ical_split() -> Split | None:
@@ -165,21 +175,43 @@ def _rms(pred: np.ndarray, uv: np.ndarray) -> float:
     return float(np.sqrt(np.mean(e))) if np.isfinite(e).all() else float("inf")
 
 
+def _truth_errors(s: Split, X: np.ndarray, B: np.ndarray) -> list[float]:
+    """The hand-eye's and the board mount's rotation (deg) and translation (mm) errors against
+    the synthetic truth (empty for a real set)."""
+    if s.X_true is None or s.B_true is None:
+        return []
+    out = []
+    for T, T0 in ((X, s.X_true), (B, s.B_true)):
+        D = inv_pose(T0) @ T
+        out += [float(np.degrees(Rotation.from_matrix(D[:3, :3]).magnitude())),
+                float(1e3 * np.linalg.norm(T[:3, 3] - T0[:3, 3]))]  # fmt: skip
+    return out
+
+
 def _ours(s: Split, held: np.ndarray) -> tuple[dict, np.ndarray]:
-    """Our three models' held-out RMS (px) and the training frames they used."""
+    """Our models' held-out RMS (px), their errors against the truth (``truth``: model -> X deg,
+    X mm, B deg, B mm; synthetic only), the cross-validation's choice (``corrected``: 1 when the
+    answer uses the corrections) and the training frames they used."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        cal = calibrate_hand_eye(s.board, s.train, s.train_flange, s.setup, s.width, s.height,
-                                 model="opencv", free=FREE)  # fmt: skip
+        fit = lambda noise: calibrate_hand_eye(s.board, s.train, s.train_flange, s.setup,  # noqa: E731
+                                               s.width, s.height, model="opencv", free=FREE,
+                                               pose_noise=noise)  # fmt: skip
+        cal = fit("auto")
+        others = {k: fit(m).calibrated for k, m in MODES.items()}
     view, pts, uv = _rows(s.board, s.held, np.flatnonzero(held))
     A = chain_motions(s.setup, s.held_flange[held])
     models: dict[str, tuple[CameraModel, np.ndarray, np.ndarray]] = {
         "calibrated": (cal.calibrated.camera, cal.calibrated.X, cal.calibrated.B),
         "nominal": (cal.nominal.camera, cal.nominal.X, cal.nominal.B),
         "linear start": (cal.camera_stage.camera, cal.X0, cal.B0),
+        **{k: (f.camera, f.X, f.B) for k, f in others.items()},
     }
-    return {k: _rms(predict_corners(c, X, B, A, view, pts), uv)
-            for k, (c, X, B) in models.items()}, cal.used  # fmt: skip
+    out: dict = {k: _rms(predict_corners(c, X, B, A, view, pts), uv)
+                 for k, (c, X, B) in models.items()}  # fmt: skip
+    out["truth"] = {k: _truth_errors(s, X, B) for k, (_, X, B) in models.items()}
+    out["corrected"] = int(cal.pose_choice is not None and cal.pose_choice.eiv)
+    return out, cal.used
 
 
 def _request(s: Split, used: np.ndarray, held: np.ndarray) -> dict:
@@ -244,13 +276,21 @@ def _group(rows: list[dict]) -> list[dict]:
             g[m] = float(np.mean([r[m] for r in g["all"]]))
         g["n"], g["best"] = len(g["all"]), _best(g)
         g["wins"] = sum(int(r["calibrated"] <= r[g["best"]]) for r in g["all"])
+        g["corrected"] = sum(r["corrected"] for r in g["all"])
+        g["truth"] = {m: np.sqrt(np.mean(np.square([r["truth"][m] for r in g["all"]]), axis=0))
+                      for m in OURS if g["all"][0]["truth"][m]}  # fmt: skip
     return list(out.values())
+
+
+TRUTH_MODELS = ("poses exact", "poses corrected", "calibrated")
+"""The models of the truth table (:func:`table`)."""
 
 
 def table(rows: list[dict], version: str) -> str:
     """The markdown table of :func:`run`'s rows (seeds merged by :func:`_group`)."""
     fmt = lambda v: "no answer" if np.isnan(v) else "behind" if np.isinf(v) else f"{v:.3f}"  # noqa: E731
-    head = ["case", "seeds", *(f"ours: {m}" for m in OURS), *OPENCV, "ours ≤ best OpenCV (seeds)"]
+    head = ["case", "seeds", *(f"ours: {m}" for m in OURS), *OPENCV, "ours ≤ best OpenCV (seeds)",
+            "answer corrected (seeds)"]  # fmt: skip
     lines = ["| " + " | ".join(head) + " |", "|---" * len(head) + "|"]
     groups = _group(rows)
     for g in groups:
@@ -258,9 +298,20 @@ def table(rows: list[dict], version: str) -> str:
         cells = [fmt(g[m]) for m in OURS]
         cells += [f"**{fmt(g[m])}**" if m == best else fmt(g[m]) for m in OPENCV]
         lines.append(f"| {g['name']} | {g['n']} | " + " | ".join(cells)
-                     + f" | {g['wins']} of {g['n']} |")  # fmt: skip
+                     + f" | {g['wins']} of {g['n']} | {g['corrected']} of {g['n']} |")  # fmt: skip
     lines += ["", f"(Held-out RMS in px, the mean over the seeds; bold: the best OpenCV method; "
               f"{version}; 'behind': the model puts held-out corners behind the camera.)"]  # fmt: skip
+    short = {"poses exact": "exact", "poses corrected": "corrected", "calibrated": "answer"}
+    what = ("hand-eye rotation (deg)", "hand-eye translation (mm)", "board mount rotation (deg)",
+            "board mount translation (mm)")  # fmt: skip
+    head = ["case"] + [f"{w}: {short[m]}" for w in what for m in TRUTH_MODELS]
+    lines += ["", "| " + " | ".join(head) + " |", "|---" * len(head) + "|"]
+    for g in groups:
+        if g["truth"]:
+            cells = [f"{g['truth'][m][i]:.3f}" for i in range(4) for m in TRUTH_MODELS]
+            lines.append(f"| {g['name']} | " + " | ".join(cells) + " |")
+    lines += ["", "(Errors of the calibrated fits against the synthetic truth, RMS over the seeds: "
+              "the flange poses taken as exact, always corrected, and calibrate's answer.)"]  # fmt: skip
     return "\n".join(lines)
 
 
