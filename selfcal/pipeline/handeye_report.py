@@ -1,7 +1,8 @@
 """``selfcal report DIR`` of a pose dataset's calibration (flange poses, no joints).
 
-A short report: the setup and that no kinematics were identified; the hand-eye and the board
-mount, calibrated (with sigmas) beside the nominal (the camera stage's camera held, both fitted
+A short report: the setup and that no kinematics were identified, how the flange poses were
+weighed (``calibration.json`` ``flange_poses``); the hand-eye and the board mount, calibrated
+(with sigmas) beside the nominal (the camera stage's camera held, both fitted
 by the same objective) and their difference; the camera's parameters, calibrated beside
 nominal; the fit (RMS of both); the held-out reprojection when ``DIR/evaluation.json`` holds a
 ``selfcal evaluate`` of this calibration, with whether the calibration beat the nominal.
@@ -16,16 +17,16 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from selfcal.calibration.handeye.calibration_file import read_handeye
+from selfcal.calibration.handeye.calibration_file import flange_poses_text, read_handeye
 from selfcal.io.atomic import write_text_atomic
 from selfcal.io.jsonfile import write_report
 
 __all__ = ["handeye_report", "handeye_summary", "handeye_markdown"]
 
 NO_KINEMATICS = (
-    "No kinematics were identified: the flange poses are taken as the robot reports them, so "
-    "whatever error they carry (the controller's own model, backlash, the tool frame) stays in "
-    "the residuals"
+    "No kinematics were identified: the flange poses are the robot's reports, so whatever error "
+    "they carry (the controller's own model, backlash, the tool frame) stays in the residuals "
+    "or, where the poses were corrected, in the corrections"
 )
 
 
@@ -73,6 +74,9 @@ def handeye_report(root: str | Path) -> dict:
         "setup": setup,
         "calibration": str(cal_path),
         "kinematics": NO_KINEMATICS,
+        "flange_poses": flange_poses_text(doc["flange_poses"])
+        if "flange_poses" in doc
+        else "flange poses: taken as reported",
         "frames_used": doc["frames_used"],
         "transforms": [_transform(doc[k], nom[k]) for k in ("hand_eye", "board_mount")],
         "camera": {
@@ -131,6 +135,7 @@ def handeye_markdown(r: dict) -> str:
     """``report.md`` of a hand-eye report."""
     f = r["fit"]
     lines = [f"# Hand-eye calibration report ({r['setup']})", "", NO_KINEMATICS + ".", "",
+             r["flange_poses"][0].upper() + r["flange_poses"][1:] + ".", "",
              "| transform | calibrated xyz (mm) | sigma xyz (mm) | sigma rotation (deg) | "
              "nominal xyz (mm) | calibrated - nominal |", "|---|---|---|---|---|---|"]  # fmt: skip
     for t in r["transforms"]:

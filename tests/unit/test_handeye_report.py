@@ -42,6 +42,11 @@ def test_report_of_a_pose_calibration(tmp_path, capsys):
     assert rep["camera"]["parameters"]["fx"]["nominal"] == cal.nominal.camera.fx
     md = (tmp_path / "report.md").read_text()
     assert "No kinematics were identified" in md and "| base -> camera |" in md
+    assert (
+        rep["flange_poses"].startswith("flange poses: ")
+        and "left-out images" in rep["flange_poses"]
+    )
+    assert rep["flange_poses"][1:] in md  # the cross-validation's choice, the first letter capital
 
     # a held-out evaluation of this calibration, as `selfcal evaluate CAL HELD --out
     # CAL/evaluation.json` writes it, where the calibration predicts worse than the nominal
