@@ -53,8 +53,9 @@ def test_corrections_jacobian_is_the_derivative(setup):
     s = synthetic_split(setup, 0.2, 0.5, 0.05, 1, n_train=4, n_held=1)
     view, pts, uv = _rows(s)
     rng = np.random.default_rng(3)
-    block = PoseChainBlock(CAMERA, chain_motions(setup, s.train_flange), s.X_true, s.B_true, view,
-                           pts, uv, corrections="corrections", inverted=setup == "eye-in-hand")  # fmt: skip
+    A = chain_motions(setup, s.train_flange)
+    block = PoseChainBlock(CAMERA, A, s.X_true, s.B_true, view, pts, uv,
+                           corrections="corrections", inverted=setup == "eye-in-hand")  # fmt: skip
     prior = FlangePriorBlock(4, np.r_[np.full(3, 2e3), np.full(3, 4e2)])
     params = [ParameterBlock("intrinsics", CAMERA.free_values()),
               ParameterBlock("X", 0.01 * rng.normal(size=6)),

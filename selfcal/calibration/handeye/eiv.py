@@ -26,7 +26,8 @@ from scipy.linalg import solve_triangular
 from selfcal.errors import UsageError
 from selfcal.solver import Problem
 
-__all__ = ["PoseNoise", "EXACT", "DEFAULT_START", "FLOOR", "redundancy", "variance_components"]
+__all__ = ["PoseNoise", "EXACT", "DEFAULT_START", "FLOOR", "FLOOR_PX", "RESOLVED", "redundancy",
+           "variance_components"]  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -117,8 +118,9 @@ def variance_components(
         return None
     s_px = max(np.sqrt(float(np.sum(image**2)) / r_img), FLOOR_PX)
     out = []
-    for cols, prev, floor, unit in ((slice(3, 6), previous.mm, FLOOR.mm, 1e3),
-                                    (slice(0, 3), previous.deg, FLOOR.deg, np.degrees(1.0))):  # fmt: skip
+    groups = ((slice(3, 6), previous.mm, FLOOR.mm, 1e3),
+              (slice(0, 3), previous.deg, FLOOR.deg, np.degrees(1.0)))  # fmt: skip
+    for cols, prev, floor, unit in groups:
         r = float(prior_r[:, cols].sum())
         if r < max(0.5, RESOLVED * prior_r[:, cols].size):
             out.append(prev)

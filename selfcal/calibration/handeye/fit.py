@@ -39,8 +39,8 @@ from selfcal.solver import (
 )
 from selfcal.transforms import inv_pose
 
-__all__ = ["CV_MARGIN", "HandEyeFit", "PoseChoice", "choose_pose_noise", "corrected_motions", "fit_pose_chain",
-           "predict_corners"]  # fmt: skip
+__all__ = ["CV_MARGIN", "HandEyeFit", "PoseChoice", "choose_pose_noise", "corrected_motions",
+           "fit_pose_chain", "predict_corners"]  # fmt: skip
 
 CV_MARGIN = 0.01
 """The corrections are dropped when they predict the left-out views this much worse (1 % of the
@@ -110,17 +110,21 @@ def _problem(cam0: CameraModel, cam: CameraModel, hold_camera: bool, A: np.ndarr
     return Problem(params, [block, FlangePriorBlock(n, scale)])
 
 
-def fit_pose_chain(cam0: CameraModel, hold_camera: bool, A: np.ndarray, X0: np.ndarray, B0: np.ndarray,
-         view: np.ndarray, points: np.ndarray, uv: np.ndarray, outlier_px: float,
-         max_iter: int, *, setup: str, pose_noise: PoseNoise | None,
-         start_px: float = 1.0, settle: bool = True, robust: bool = True,
-         tol: float = 1e-12) -> HandEyeFit:  # fmt: skip
-    """One fit (module docstring) from ``X0``, ``B0``. ``pose_noise``: the flange poses' sigmas
-    (exact: no corrections) or None: estimated from the residuals (variance components from
-    :data:`selfcal.calibration.handeye.eiv.DEFAULT_START`); the image noise (px per
-    coordinate) starts at ``start_px`` and is estimated likewise (``settle`` False with given
-    sigmas: held at ``start_px``, one least-squares pass); ``robust`` False: no robust pass (the
-    rows are the inliers already); ``tol``: the solver's.
+def fit_pose_chain(cam0: CameraModel, hold_camera: bool, A: np.ndarray, X0: np.ndarray,
+                   B0: np.ndarray, view: np.ndarray, points: np.ndarray, uv: np.ndarray,
+                   outlier_px: float, max_iter: int, *, setup: str,
+                   pose_noise: PoseNoise | None, start_px: float = 1.0, settle: bool = True,
+                   robust: bool = True, tol: float = 1e-12) -> HandEyeFit:  # fmt: skip
+    """One fit (module docstring) of the camera ``cam0`` (its free parameters held when
+    ``hold_camera``), ``X`` and ``B`` from ``X0``, ``B0`` (4, 4) m, on the corner rows ``view``
+    (k,), board ``points`` (k, 3) m and pixels ``uv`` (k, 2) through the motions ``A`` (n, 4, 4)
+    of ``setup`` (:func:`selfcal.calibration.handeye.calibrate.chain_motions`); rows beyond
+    ``max(outlier_px, 4.5 sigma)`` after the robust pass are dropped. ``pose_noise``: the flange
+    poses' sigmas (exact: no corrections) or None: estimated from the residuals (variance
+    components from :data:`selfcal.calibration.handeye.eiv.DEFAULT_START`); the image noise (px
+    per coordinate) starts at ``start_px`` and is estimated likewise (``settle`` False with
+    given sigmas: held at ``start_px``, one least-squares pass); ``robust`` False: no robust
+    pass (the rows are the inliers already); ``tol``: the solver's.
 
     Raises:
         EstimationError: a pass did not converge.
