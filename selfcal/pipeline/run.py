@@ -9,6 +9,7 @@ the data says (:mod:`selfcal.pipeline.report_fit`). With ``figures=True`` (the c
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import shlex
 import sys
@@ -48,8 +49,9 @@ from selfcal.pipeline.report_fit import (
     fit_report,
 )
 from selfcal.pipeline.report_text import _markdown, _validation_csv, report_summary
-from selfcal.plots.figure_pool import FigurePool
+from selfcal.plots.figure_pool import FigurePool, run_figure_pool
 from selfcal.plots.job_figures import (
+    ReprojectionData,
     parameter_figure,
     reprojection_figure,
     tool_tip_figure,
@@ -338,12 +340,13 @@ def run_report(
         pool = pool or FigurePool(enabled=False)
         ev = evaluate_field(cal, root, root, cache)
         report["reprojection_predicted_px"] = ev.rms["calibrated"]
-        pending = [
-            pool.draw(tool_tip_figure, (err_nom["errors_mm"], err_cal["errors_mm"]), root,
-                      "tool_tip_errors.png"),
-            pool.draw(reprojection_figure, (ev, "calibration images"), root, "reprojection.png"),
-            pool.draw(parameter_figure, (params,), root, "parameters.png"),
-        ]  # fmt: skip
+        pending = pool.draw_all([
+            (tool_tip_figure, (err_nom["errors_mm"], err_cal["errors_mm"]), root,
+             "tool_tip_errors.png"),
+            (reprojection_figure, (ReprojectionData.of(ev), "calibration images"), root,
+             "reprojection.png"),
+            (parameter_figure, (params,), root, "parameters.png"),
+        ])  # fmt: skip
     report["figures"] = [str(f.wait().relative_to(root)) for f in pending]
     write_report(root / "report.json", report)
     md = _markdown(report)
@@ -405,14 +408,18 @@ def run_all(
     quiet: bool = False,
     method: str = "joint",
     figures: bool = True,
+    pool: FigurePool | None = None,
 ) -> dict:
     """Acquire, calibrate and (in simulation) report; prints a summary. ``figures``: the
-    report's figures in ``out/figures/``."""
+    report's figures in ``out/figures/``. ``pool``: the caller's
+    :func:`selfcal.plots.figure_pool.run_figure_pool` of ``s``, forked before its imports (the
+    caller closes it); default: forked here and closed at the end."""
     t0 = time.perf_counter()
     kept = FrameCache()  # calibration and report: the images taken now from memory, detected once
     # the report's figures: a worker forked now (before any thread or GL context) loads
     # matplotlib while this process acquires and calibrates (selfcal/plots/figure_pool.py)
-    with FigurePool(enabled=figures and s.robot.backend == "sim" and not s.target.board) as pool:
+    own = run_figure_pool(s, figures) if pool is None else contextlib.nullcontext(pool)
+    with own as pool:
         again = f"selfcal run {scenario_arg(s)} --out {shlex.quote(str(out))}"
         again += "" if method == "joint" else f" --method {method}"
         run_acquire(s, out, resume=resume, quiet=quiet, keep=kept, resume_command=again)

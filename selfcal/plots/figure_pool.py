@@ -1,12 +1,14 @@
 """The report's figures drawn beside the rest of a run, in a forked worker process (issue 17).
 
-Matplotlib costs ``selfcal run`` about 0.5 s to import and 0.7 s to draw the three figures, all
-on the one core the run's Python code holds (threads would not help: drawing is Python code
-under the GIL). :class:`FigurePool` forks one worker at the start of a run, before the
-acquisition opens its GL context; the worker imports matplotlib and loads the fonts while the
-parent acquires and calibrates, then draws each figure the report asks for while the parent
-goes on with the report. The figures are the same files as when drawn in the process
-(``tests/unit/test_figure_pool.py``).
+Matplotlib costs ``selfcal run`` about 0.5 s to import and 0.5-0.7 s to draw the three figures,
+all Python code under the GIL (threads would not help). :class:`FigurePool` forks one worker
+early in a run: ``selfcal run`` forks it before it imports the acquisition and the calibration
+(:func:`selfcal.pipeline.run.run_figure_pool`), so the worker imports matplotlib and loads the
+fonts on the other core while the parent imports, and not during the acquisition, which keeps
+both cores busy. The figures the report asks for at once (:meth:`FigurePool.draw_all`) are
+drawn side by side: the worker draws the first and forks, matplotlib loaded, one process for
+each other figure (issue 32: the run waited 0.85 s for three figures drawn one after another).
+The figures are the same files as when drawn in the process (``tests/unit/test_figure_pool.py``).
 
 Where ``fork`` is not the platform's way to start processes (macOS, Windows), or a worker dies,
 the figures are drawn in the process as before: the pool only moves work, it never drops it.
@@ -24,14 +26,27 @@ from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from selfcal.plots.job_figures import write_figure
+from selfcal.plots.job_figures import FIGURES, write_figure
 
-__all__ = ["FigurePool", "PendingFigure", "draw_figure", "fork_available"]
+if TYPE_CHECKING:
+    from selfcal.config.scenario import Scenario
+
+__all__ = [
+    "FigurePool",
+    "PendingFigure",
+    "draw_figure",
+    "draw_figures",
+    "fork_available",
+    "run_figure_pool",
+]
 
 Builder = Callable[..., Any]
 """A module-level function returning a matplotlib Figure (``selfcal.plots.job_figures``)."""
+
+Job = tuple[Builder, tuple, "str | Path", str]
+"""One figure to draw: ``(builder, args, root, name)`` as :func:`draw_figure` takes them."""
 
 
 def draw_figure(builder: Builder, args: tuple, root: str | Path, name: str) -> Path:
@@ -39,12 +54,49 @@ def draw_figure(builder: Builder, args: tuple, root: str | Path, name: str) -> P
     return write_figure(builder(*args), root, name)
 
 
+def draw_figures(jobs: list[Job]) -> list[Path]:
+    """:func:`draw_figure` of every job, side by side on a multi-core machine: the first here,
+    each other in a process forked from this one (the pool's worker has matplotlib loaded, so a
+    fork starts drawing at once; only where this process has a single thread, else one after
+    another here). A job whose process failed is drawn here again, so that its exception is
+    raised here; each file is written atomically, a failed process leaves none."""
+    forked: dict[int, int] = {}  # job index -> pid
+    if (len(jobs) > 1 and (os.cpu_count() or 1) > 1 and fork_available()
+            and threading.active_count() == 1):  # fmt: skip
+        sys.stdout.flush()
+        sys.stderr.flush()
+        me = os.getpid()
+        for k in range(1, len(jobs)):
+            pid = os.fork()
+            if pid == 0:  # the child: one figure, then leave without running any cleanup
+                code = 1
+                try:
+                    _die_with_parent(me)
+                    draw_figure(*jobs[k])
+                    code = 0
+                finally:
+                    os._exit(code)
+            forked[k] = pid
+    paths: dict[int, Path] = {}
+    try:
+        for k in range(len(jobs)):
+            if k not in forked:
+                paths[k] = draw_figure(*jobs[k])
+    finally:  # every child reaped, also when a figure here failed
+        codes = {k: os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1]) for k, pid in forked.items()}
+    for k, code in codes.items():
+        root, name = jobs[k][2], jobs[k][3]
+        paths[k] = Path(root) / FIGURES / name if code == 0 else draw_figure(*jobs[k])
+    return [paths[k] for k in range(len(jobs))]
+
+
 def _warm_up(parent: int) -> None:
     """Worker start: ignore Ctrl-C (the parent handles it), end with the ``parent`` process
-    (its pid, taken before the fork), import matplotlib's Agg canvas and load the default font,
-    the part of a first figure that does not depend on its data."""
+    (its pid, taken before the fork), import matplotlib's Agg canvas, the figures' module and
+    load the default font, the part of a first figure that does not depend on its data."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     _die_with_parent(parent)
+    import selfcal.plots.job_figures  # noqa: F401 - unpickles the figures' data
     from selfcal.plots.plotting import new_figure
 
     fig = new_figure(1.0, 1.0)
@@ -76,21 +128,25 @@ def fork_available() -> bool:
 
 @dataclass
 class PendingFigure:
-    """A figure :meth:`FigurePool.draw` was asked for; :meth:`wait` gives its path."""
+    """A figure :meth:`FigurePool.draw` or :meth:`FigurePool.draw_all` was asked for;
+    :meth:`wait` gives its path. ``index``: its place in the paths of a batch's ``future``
+    (:func:`draw_figures`), None when the future gives this figure's path alone."""
 
     builder: Builder
     args: tuple
     root: str | Path
     name: str
-    future: Future[Path]
+    future: Future[Any]
+    index: int | None = None
 
     def wait(self) -> Path:
         """The figure's path once written; re-raises the drawing's exception, and draws the
         figure in this process if the worker died."""
         try:
-            return self.future.result()
+            done = self.future.result()
         except BrokenProcessPool:
             return draw_figure(self.builder, self.args, self.root, self.name)
+        return done if self.index is None else done[self.index]
 
 
 class FigurePool:
@@ -136,6 +192,19 @@ class FigurePool:
             done.set_exception(exc)
         return PendingFigure(builder, args, root, name, done)
 
+    def draw_all(self, jobs: list[Job]) -> list[PendingFigure]:
+        """:meth:`draw` of every job, drawn side by side in the worker and processes it forks
+        (:func:`draw_figures`); without a worker here and now, one after another. An error in
+        one figure is raised by each figure's :meth:`PendingFigure.wait` (all or none)."""
+        if self._pool is not None:
+            try:
+                fut = self._pool.submit(draw_figures, list(jobs))
+                return [PendingFigure(*job, future=fut, index=k) for k, job in enumerate(jobs)]
+            except BrokenProcessPool:
+                self._pool.shutdown(wait=False)
+                self._pool = None
+        return [self.draw(*job) for job in jobs]
+
     def close(self) -> None:
         """Wait for the figures asked for and stop the worker (idempotent)."""
         if self._pool is not None:
@@ -147,3 +216,12 @@ class FigurePool:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def run_figure_pool(s: Scenario, figures: bool = True) -> FigurePool:
+    """The pool :func:`selfcal.pipeline.run.run_all` draws the report's figures in: a worker
+    for a simulated run of the field route (its report draws three figures), else none (the
+    other routes draw in the process). The worker forks now: call it before any thread or GL
+    context exists, and early (``selfcal run`` calls it before it imports the acquisition and
+    the calibration, 0.7 s on one core, so the worker loads matplotlib on the other)."""
+    return FigurePool(enabled=figures and s.robot.backend == "sim" and not s.target.board)

@@ -23,12 +23,12 @@ the axes' ticks again before each draw.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from selfcal.calibration.board.evaluate import Evaluation
 from selfcal.plots.plotting import (
     close_figure,
     legend_outside,
@@ -38,9 +38,13 @@ from selfcal.plots.plotting import (
     stack_layout,
 )
 
+if TYPE_CHECKING:  # the calibration's import (0.6 s) is not this module's: see ReprojectionData
+    from selfcal.calibration.board.evaluate import Evaluation
+
 __all__ = [
     "FIGURES",
     "tool_tip_figure",
+    "ReprojectionData",
     "reprojection_figure",
     "parameter_figure",
     "write_figure",
@@ -96,7 +100,25 @@ def within_image(e: np.ndarray, counts: list[int]) -> np.ndarray | None:
     return e - (mean / counts_a[:, None])[image]
 
 
-def reprojection_figure(ev: Evaluation, what: str) -> Any:
+@dataclass(frozen=True)
+class ReprojectionData:
+    """What :func:`reprojection_figure` draws of an :class:`Evaluation`: its ``rms`` by model
+    (px), ``images`` (rows with ``nominal_px``, ``calibrated_px``, ``features``) and
+    ``residuals`` by model ((k, 2) px). Pickled to the figure worker
+    (:mod:`selfcal.plots.figure_pool`), which is forked before the calibration is imported and
+    need not import it to unpickle these."""
+
+    rms: dict[str, float]
+    images: tuple[dict, ...]
+    residuals: dict[str, np.ndarray]
+
+    @classmethod
+    def of(cls, ev: Evaluation) -> ReprojectionData:
+        """The parts of ``ev`` the figure draws."""
+        return cls(dict(ev.rms), tuple(ev.images), dict(ev.residuals))
+
+
+def reprojection_figure(ev: Evaluation | ReprojectionData, what: str) -> Any:
     """RMS per image (calibrated and nominal reference, log) and the calibrated residuals'
     histogram; ``what`` says which images (e.g. "calibration images", "held-out images")."""
     imgs = ev.images

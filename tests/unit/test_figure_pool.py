@@ -21,6 +21,12 @@ def _broken(_: int) -> None:
     raise ValueError("no data for this figure")
 
 
+def _fails_in_a_forked_drawer(parent: int):
+    if os.getppid() != parent:  # not the worker (the test's child): a drawer the worker forked
+        raise RuntimeError("this drawer fails")
+    return tool_tip_figure(ERRORS[0], ERRORS[1])
+
+
 def _dies_in_worker(parent: int):
     if os.getpid() != parent:
         os._exit(3)  # the worker dies as if killed
@@ -38,6 +44,39 @@ def test_the_worker_draws_the_same_file_as_the_process(tmp_path):
                                           tmp_path / "b", "t.png")  # fmt: skip
     assert here.future.done()  # drawn at once, in this process
     assert forked.wait().read_bytes() == here.wait().read_bytes()
+
+
+@pytest.mark.slow  # over 2 s on 2 cores
+@pytest.mark.skipif(not fork_available(), reason="no fork on this platform")
+def test_figures_drawn_side_by_side_are_the_files_drawn_one_by_one(tmp_path):
+    """draw_all: the worker draws the first figure and forks a drawer for each other (#32)."""
+    jobs = [(tool_tip_figure, (ERRORS[0], ERRORS[k]), tmp_path / "a", f"t{k}.png") for k in (0, 1)]
+    with FigurePool() as pool:
+        side = [f.wait() for f in pool.draw_all(jobs)]
+    assert side == [tmp_path / "a" / "figures" / f"t{k}.png" for k in (0, 1)]
+    alone = [f.wait() for f in FigurePool(enabled=False).draw_all([(*j[:2], tmp_path / "b", j[3])
+                                                                     for j in jobs])]  # fmt: skip
+    assert [p.read_bytes() for p in side] == [p.read_bytes() for p in alone]
+    assert side[0].read_bytes() != side[1].read_bytes()  # each job drew its own data
+
+
+@pytest.mark.skipif(not fork_available(), reason="no fork on this platform")
+def test_a_figure_whose_drawer_failed_is_drawn_again_by_the_worker(tmp_path):
+    with FigurePool() as pool:
+        figs = pool.draw_all([(tool_tip_figure, (ERRORS[0], ERRORS[1]), tmp_path, "a.png"),
+                              (_fails_in_a_forked_drawer, (os.getpid(),), tmp_path, "b.png")])  # fmt: skip
+        assert [f.wait().name for f in figs] == ["a.png", "b.png"]
+    assert (tmp_path / "figures" / "b.png").stat().st_size > 1000
+
+
+@pytest.mark.parametrize("enabled", [True, False])
+def test_an_error_in_one_of_several_figures_reaches_the_caller(tmp_path, enabled):
+    with FigurePool(enabled) as pool:
+        figs = pool.draw_all([(tool_tip_figure, (ERRORS[0], ERRORS[1]), tmp_path, "t.png"),
+                              (_broken, (1,), tmp_path, "x.png")])  # fmt: skip
+        with pytest.raises(ValueError, match="no data for this figure"):
+            figs[1].wait()
+    assert not (tmp_path / "figures" / "x.png").exists()
 
 
 @pytest.mark.parametrize("enabled", [True, False])

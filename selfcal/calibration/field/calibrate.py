@@ -34,7 +34,11 @@ from selfcal.calibration.field.detections import (
     observations_of,
     skipped_images_message,
 )
-from selfcal.calibration.field.failures import CalibrationError, CalibrationFailedError
+from selfcal.calibration.field.failures import (
+    MIN_POSTURES,
+    CalibrationError,
+    CalibrationFailedError,
+)
 from selfcal.calibration.field.joint_refine import refine_calibration
 from selfcal.calibration.field.nominal_fit import judge_against_nominal
 from selfcal.calibration.field.quality import assess_calibration
@@ -94,7 +98,6 @@ __all__ = [
     "dataset_camera",
 ]
 
-MIN_POSTURES = 6
 METHODS = ("two-stage", "joint")
 
 

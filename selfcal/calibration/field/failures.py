@@ -1,5 +1,7 @@
 """The field route's errors: a dataset that cannot be calibrated (:class:`CalibrationError`) and
-a calibration that ran to the end but failed its checks (:class:`CalibrationFailedError`)."""
+a calibration that ran to the end but failed its checks (:class:`CalibrationFailedError`); and
+the fewest postures it calibrates from (:data:`MIN_POSTURES`, which a scenario's range names
+without importing the calibration)."""
 
 from __future__ import annotations
 
@@ -7,7 +9,10 @@ from pathlib import Path
 
 from selfcal.errors import EstimationError
 
-__all__ = ["CalibrationError", "CalibrationFailedError"]
+__all__ = ["CalibrationError", "CalibrationFailedError", "MIN_POSTURES"]
+
+MIN_POSTURES = 6
+"""Postures (with markers seen) a field calibration needs at the least."""
 
 
 class CalibrationError(EstimationError, ValueError):
