@@ -20,6 +20,10 @@ Measures, in one run on this machine:
   (``uv run --with pybotics``): fit times (best of repeats, wall and CPU), their ratio and both
   held-out errors (equal accuracy is part of the comparison).
 
+With ``--against REF`` also git ``REF`` measured the same way in a temporary worktree, both
+side by side, and issue 32's goals met or not (:mod:`selfcal.benchmarks.speed_against`);
+``--memory`` adds ``selfcal calibrate``'s peak memory per posture.
+
 Writes the table to docs/performance.md (``--write-docs``) and into README.md between the
 ``benchmark_speed`` markers (``--write-readme``). It exits 1 when a measured figure is more than
 1.3x off the one the README states, unless ``--write-readme`` replaces them (``--check``: then
@@ -27,7 +31,7 @@ too). The 1-minute load average before and after each
 part is printed and written with the table: the machines are shared.
 
 Run: ``MUJOCO_GL=egl uv run python -m selfcal.benchmarks.speed [--with-pybotics] [--write-docs]
-[--write-readme] [--check]``.
+[--write-readme] [--check] [--against REF] [--memory]``.
 """
 
 from __future__ import annotations
@@ -35,6 +39,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import datetime
+import json
 import os
 import re
 import resource
@@ -232,6 +237,37 @@ def measure(args: argparse.Namespace) -> dict:
     return fig
 
 
+def calibrate_memory(poses: list[int]) -> dict:
+    """Peak memory of ``selfcal calibrate`` as a process (its largest resident set, MB) on the
+    analytic datasets of the fewest and the most of ``poses``, and its growth per posture
+    between them (#32: at most 0.3 MB per posture): ``{"poses": [a, b], "peak_mb": [ma, mb],
+    "mb_per_posture": x}``."""
+    from selfcal.config.scenario import load_scenario
+    from selfcal.pipeline.run import run_acquire
+
+    script = Path(sys.executable).parent / "selfcal"
+    selfcal = [str(script)] if script.is_file() else [sys.executable, "-m", "selfcal.cli.main"]
+    ends = sorted({min(poses), max(poses)})
+    peaks = []
+    with tempfile.TemporaryDirectory(prefix="selfcal-memory-") as d:
+        for n in ends:
+            s = load_scenario(None, {"trajectory": {"poses": n}, "noise": {"render": False}})
+            out = Path(d) / f"analytic{n}"
+            run_acquire(s, out, quiet=True)
+            proc = subprocess.Popen([*selfcal, "calibrate", "--quiet", str(out)],
+                                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # fmt: skip
+            _, status, usage = os.wait4(proc.pid, 0)
+            proc.returncode = os.waitstatus_to_exitcode(status)
+            if proc.returncode != 0:
+                raise SystemExit(f"selfcal calibrate {out} exited {proc.returncode}")
+            peaks.append(usage.ru_maxrss / 1024)  # kB on Linux
+    per = (peaks[-1] - peaks[0]) / (ends[-1] - ends[0]) if len(ends) > 1 else peaks[0] / ends[0]
+    print(
+        f"selfcal calibrate peak memory: {', '.join(f'{n} poses {m:.0f} MB' for n, m in zip(ends, peaks, strict=True))}; {per:.3f} MB per posture"
+    )
+    return {"poses": ends, "peak_mb": peaks, "mb_per_posture": per}
+
+
 def table(fig: dict) -> str:
     """The Markdown block (README and docs/performance.md)."""
     when = datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d %H:%M UTC")
@@ -328,6 +364,33 @@ def linear_growth(rows: list[dict]) -> str:
     )
 
 
+def add_against_options(ap: argparse.ArgumentParser) -> None:
+    """``--against REF``, ``--memory`` and ``--json`` (selfcal/benchmarks/speed_against.py)."""
+    ap.add_argument("--against", metavar="REF",
+                    help="also measure git REF (commit, branch, tag; HEAD~1: the previous commit) "
+                    "in a temporary worktree with its own environment, the same way, and print "
+                    "both side by side with the ratio and issue 32's goals met or not")  # fmt: skip
+    ap.add_argument("--memory", action="store_true",
+                    help="also `selfcal calibrate`'s peak memory (a process at the fewest and "
+                    "the most --poses) and its growth per posture; implied by --against")  # fmt: skip
+    ap.add_argument(
+        "--json",
+        metavar="FILE",
+        help="write the figures as JSON to FILE and stop (REF's run of --against)",
+    )
+
+
+def against_and_goals(args: argparse.Namespace, fig: dict, argv: list[str]) -> str:
+    """Issue 32's goals for ``fig`` and, with ``--against REF``, REF measured by the same
+    options ``argv`` side by side (:mod:`selfcal.benchmarks.speed_against`)."""
+    from selfcal.benchmarks.speed_against import comparison, measure_ref, ref_argv
+
+    if not args.against:
+        return comparison(fig)
+    ref, commit = measure_ref(args.against, ref_argv(argv))
+    return comparison(fig, ref, f"{args.against} ({commit})")
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--poses", type=int, nargs="+", default=[30, 100, 300, 1000])
@@ -346,21 +409,34 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--check", action="store_true",
                     help="exit 1 if > 1.3x off the README even with --write-readme (without "
                     "--write-readme it always does)")  # fmt: skip
+    add_against_options(ap)
     args = ap.parse_args(argv)
     args.with_pybotics = args.with_pybotics or args.write_docs or args.write_readme
     from selfcal.threads import limit_threads
 
     limit_threads(None)
+    if args.against:  # REF's tree is compiled too: the same start for both
+        from selfcal.benchmarks.speed_against import compile_tree
+
+        compile_tree(ROOT)
     fig = measure(args)
+    if args.memory or args.against:
+        fig["memory"] = calibrate_memory(args.poses)
+    if args.json:  # REF's run of --against
+        Path(args.json).write_text(json.dumps(fig))
+        return 0
     block = table(fig)
     growth = linear_growth(fig["calibrate"])
+    goals = against_and_goals(args, fig, sys.argv[1:] if argv is None else argv)
     print()
     print(block)
     print()
     print(growth)
+    print()
+    print(goals)
     bad = check(block)
     if args.write_docs:
-        write_block(ROOT / "docs" / "performance.md", block + "\n\n" + growth)
+        write_block(ROOT / "docs" / "performance.md", f"{block}\n\n{growth}\n\n{goals}")
     if args.write_readme:
         write_block(ROOT / "README.md", block)
     if bad:

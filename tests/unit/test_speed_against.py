@@ -1,0 +1,53 @@
+"""The speed benchmark side by side with a git ref (#32): REF is measured with this run's
+options less the writing ones, and each goal of the issue is judged met or not for each column."""
+
+from __future__ import annotations
+
+from selfcal.benchmarks.speed_against import GOALS, comparison, named, ref_argv
+
+
+def _fig(run: float, loaded: float, cal300: float, mb: float, load: float = 0.2) -> dict:
+    return {
+        "load": [load, load],
+        "help": [0.13, 0.12],
+        "fk": [0.14, 0.14],
+        "run": [run, 1.4 * run],
+        "run_loaded": [loaded, 1.4 * run],
+        "calibrate": [{"poses": 30, "wall": 0.9, "acquire": 0.3, "used": 30, "cpu": 0.9},
+                      {"poses": 300, "wall": cal300, "acquire": 0.8, "used": 300, "cpu": cal300}],
+        "memory": {"poses": [30, 300], "peak_mb": [200.0, 200.0 + 270 * mb],
+                   "mb_per_posture": mb},
+    }  # fmt: skip
+
+
+def test_ref_is_measured_with_the_same_options_less_the_writing_ones():
+    argv = ["--poses", "30", "300", "--against", "HEAD~1", "--write-docs", "--pybotics-n=50",
+            "--repeat", "3", "--check", "--against=main", "--with-pybotics"]  # fmt: skip
+    assert ref_argv(argv) == ["--poses", "30", "300", "--repeat", "3", "--memory"]
+    assert ref_argv(["--memory", "--skip-run"]) == ["--memory", "--skip-run"]
+
+
+def test_each_goal_is_judged_for_each_column():
+    new, old = _fig(2.6, 3.6, 1.9, 0.25), _fig(3.5, 5.6, 4.0, 0.5)
+    text = comparison(new, old, "HEAD~1")
+    rows = {line.split(" | ")[0][2:]: line for line in text.splitlines() if line.startswith("| ")}
+    assert len([r for r in rows.values() if "met" in r]) == len(GOALS)
+    assert rows["`selfcal run` default scenario, on an idle 2-core machine"].endswith(
+        "| 2.6 s: met | 3.5 s: NOT met |"
+    )
+    assert "1.38 x: met | 1.6 x: NOT met" in rows[GOALS[1].what]
+    assert "1.9 s: met | 4 s: NOT met" in rows[GOALS[2].what]
+    assert "0.25 MB: met | 0.5 MB: NOT met" in rows[GOALS[3].what]
+    run = rows["`selfcal run` default scenario (process)"]
+    assert run == "| `selfcal run` default scenario (process) | 2.6 | 3.5 | 0.74 |"
+    assert "not idle" not in text
+
+
+def test_a_goal_not_measured_and_a_busy_machine_are_said():
+    fig = _fig(2.0, 2.2, 1.0, 0.1, load=1.7)
+    del fig["memory"], fig["run_loaded"]
+    text = comparison(fig)
+    assert "| this tree |\n" in text and "HEAD" not in text  # no REF column
+    assert text.count("not measured") == 2
+    assert "not idle" in text
+    assert "`selfcal calibrate` peak memory, 30 poses (MB)" not in named(fig)
