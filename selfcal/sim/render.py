@@ -186,7 +186,7 @@ def apply_noise(img: np.ndarray, z: np.ndarray) -> np.ndarray:
     """``img`` (uint8) plus the noise field ``z`` (float32, consumed), rounded and clipped."""
     z += img
     np.rint(z, out=z)
-    return np.clip(z, 0, 255).astype(np.uint8)
+    return np.clip(z, 0, 255, out=z).astype(np.uint8)
 
 
 def _add_noise(img: np.ndarray, sigma: float, rng: np.random.Generator) -> np.ndarray:

@@ -185,21 +185,28 @@ def _refine_batch(
     g = gray if gray.dtype == np.float32 else gray.astype(np.float32)
     cur = c.copy()
     sigma = np.full(len(c), np.nan)
-    for _ in range(max(int(passes), 1)):
-        ok = ~np.isnan(cur).any(axis=(1, 2))
-        cur[ok], sigma[ok] = _refine_pass(g, cur[ok], n_modules, min_contrast, screen)
+    n_pass = max(int(passes), 1)
+    for k in range(n_pass):
+        ok = ~np.isnan(cur).any(axis=(1, 2))  # a pass's sigma is kept only from the last one
+        cur[ok], sigma[ok] = _refine_pass(g, cur[ok], n_modules, min_contrast, screen,
+                                          noise=k == n_pass - 1)  # fmt: skip
     bad = ~(np.abs(cur - c).max(axis=(1, 2)) <= 2.0)  # moved too far (or failed)
     cur[bad], sigma[bad] = np.nan, np.nan
     return cur, sigma
 
 
 def _refine_pass(
-    g: np.ndarray, corners: np.ndarray, n_modules: int, min_contrast: float, screen: bool
+    g: np.ndarray,
+    corners: np.ndarray,
+    n_modules: int,
+    min_contrast: float,
+    screen: bool,
+    noise: bool = True,
 ) -> tuple[np.ndarray, np.ndarray]:
     """One pass of :func:`refine_corners_lines_batch`: edge profiles across the sides of
     ``corners`` (n, 4, 2) in the float32 image ``g``, lines fitted, corners intersected;
     NaN rows for markers that fail (or moved more than 2 px). Also the corners' predicted
-    noise (n,) px (:func:`corner_sigma`)."""
+    noise (n,) px (:func:`corner_sigma`; with ``noise=False`` NaN: a pass before the last)."""
     c = corners
     n = len(c)
     out = np.full((n, 4, 2), np.nan)
@@ -284,7 +291,8 @@ def _refine_pass(
     ok_all &= np.abs(res - c).max(axis=(1, 2)) <= 2.0
     out[ok_all] = res[ok_all]
     sigma = np.full(n, np.nan)
-    sigma[ok_all] = corner_sigma(Ppad, kept, n_line, res)[ok_all]
+    if noise:
+        sigma[ok_all] = corner_sigma(Ppad, kept, n_line, res)[ok_all]
     return out, sigma
 
 
