@@ -54,6 +54,7 @@ from pathlib import Path
 import numpy as np
 
 from selfcal.benchmarks.doc_blocks import ROOT, write_block
+from selfcal.io.atomic import write_text_atomic
 
 BEGIN, END = "<!-- benchmark_speed: begin -->", "<!-- benchmark_speed: end -->"
 TOLERANCE = 1.3
@@ -423,7 +424,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.memory or args.against:
         fig["memory"] = calibrate_memory(args.poses)
     if args.json:  # REF's run of --against
-        Path(args.json).write_text(json.dumps(fig))
+        write_text_atomic(Path(args.json), json.dumps(fig))
         return 0
     block = table(fig)
     growth = linear_growth(fig["calibrate"])
