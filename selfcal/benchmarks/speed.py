@@ -22,7 +22,9 @@ Measures, in one run on this machine:
 
 With ``--against REF`` also git ``REF`` measured the same way in a temporary worktree, both
 side by side, and issue 32's goals met or not (:mod:`selfcal.benchmarks.speed_against`);
-``--memory`` adds ``selfcal calibrate``'s peak memory per posture.
+``--memory`` adds ``selfcal calibrate``'s peak memory per posture. The checkout's ``selfcal/`` is
+compiled first, as ``pip install`` compiles a wheel (where ``PYTHONDONTWRITEBYTECODE`` is set,
+every process would compile it again).
 
 Writes the table to docs/performance.md (``--write-docs``) and into README.md between the
 ``benchmark_speed`` markers (``--write-readme``). It exits 1 when a measured figure is more than
@@ -416,7 +418,7 @@ def main(argv: list[str] | None = None) -> int:
     from selfcal.threads import limit_threads
 
     limit_threads(None)
-    if args.against:  # REF's tree is compiled too: the same start for both
+    if not args.json:  # as installed (pip compiles); REF's run of --against compiles its own
         from selfcal.benchmarks.speed_against import compile_tree
 
         compile_tree(ROOT)

@@ -6,9 +6,10 @@
 temporary worktree (``git worktree add --detach``) with its own environment (``uv sync --locked
 --compile-bytecode``), by this checkout's ``speed.py`` run with REF's interpreter, so that both
 columns come from the same measuring code and differ only in the code measured. Both trees'
-``selfcal/`` are compiled first (``compileall``), as a user's first run leaves a checkout: where
-``PYTHONDONTWRITEBYTECODE`` is set every process would compile them again. The worktree is
-removed at the end.
+``selfcal/`` are compiled first (:func:`compile_tree`; ``speed.py`` always compiles its own), as
+``pip install`` leaves a wheel: where ``PYTHONDONTWRITEBYTECODE`` is set every process would
+compile them again (``uv sync --compile-bytecode`` compiles the dependencies, not the editable
+project). The worktree is removed at the end.
 
 Prints one row per figure (this tree, REF, ratio) and one row per goal of issue 32 (:data:`GOALS`):
 met or not met, for each column.
