@@ -391,7 +391,8 @@ def against_and_goals(args: argparse.Namespace, fig: dict, argv: list[str]) -> s
     if not args.against:
         return comparison(fig)
     ref, commit = measure_ref(args.against, ref_argv(argv))
-    return comparison(fig, ref, f"{args.against} ({commit})")
+    named = commit.startswith(args.against) or args.against.startswith(commit)
+    return comparison(fig, ref, args.against if named else f"{args.against} ({commit})")
 
 
 def main(argv: list[str] | None = None) -> int:
