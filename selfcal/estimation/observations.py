@@ -19,7 +19,7 @@ from selfcal.camera import STEREO_NAMES
 from selfcal.errors import InputError, UsageError
 from selfcal.target import Features, markers_to_features
 
-__all__ = ["ViewLayout", "Observations", "views_per_point"]
+__all__ = ["ViewLayout", "Observations", "RowGroups", "views_per_point"]
 
 
 @dataclass(frozen=True)
@@ -77,6 +77,31 @@ class ViewLayout:
     def same_frame(self, view_a: np.ndarray | int, view_b: np.ndarray | int) -> np.ndarray:
         """Whether two views are images of one frame (by different cameras or the same)."""
         return self.frame(view_a) == self.frame(view_b)
+
+
+class RowGroups:
+    """Observation rows grouped by a key in ``0..n-1`` (a view, a point index), sorted once, so
+    that the rows of a few keys are found without scanning every row.
+
+    ``key`` (k,) int; the rows of each key come out in ascending row order (as
+    ``np.flatnonzero(key == g)`` gives them)."""
+
+    def __init__(self, key: np.ndarray, n: int) -> None:
+        key = np.asarray(key, dtype=np.int64)
+        self.order = np.argsort(key, kind="stable")
+        self.bounds = np.concatenate([[0], np.cumsum(np.bincount(key, minlength=n))])
+
+    def rows_of_one(self, g: int) -> np.ndarray:
+        """The rows whose key is ``g``, ascending."""
+        return self.order[self.bounds[g] : self.bounds[g + 1]]
+
+    def rows_of(self, keys: np.ndarray) -> np.ndarray:
+        """The rows whose key is one of ``keys`` (distinct), ascending (as
+        ``np.flatnonzero(np.isin(key, keys))``)."""
+        keys = np.asarray(keys, dtype=np.int64)
+        start, n = self.bounds[keys], self.bounds[keys + 1] - self.bounds[keys]
+        at = np.repeat(start - (np.cumsum(n) - n), n) + np.arange(int(n.sum()))
+        return np.sort(self.order[at])
 
 
 def views_per_point(view: np.ndarray, pidx: np.ndarray, n_points: int) -> np.ndarray:

@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from selfcal.estimation.observations import Observations, ViewLayout, views_per_point
+from selfcal.estimation.observations import Observations, RowGroups, ViewLayout, views_per_point
 from selfcal.target import Features
 
 
@@ -82,3 +82,18 @@ def test_observations_from_marker_corners():
         Observations.from_corners({(0, 0): {1: np.full((4, 2), np.nan)}})
     with pytest.raises(ValueError, match="shape"):
         Observations.from_corners({(0, 0): {1: np.zeros((3, 2))}})
+
+
+def test_row_groups_give_the_rows_a_scan_gives():
+    """RowGroups (the initial reconstruction's per-view and per-point rows, found without a
+    scan of every row) returns exactly what flatnonzero over all rows returns, in row order,
+    also for empty groups and no keys."""
+    rng = np.random.default_rng(3)
+    key = rng.integers(0, 40, 1000)
+    key[key == 7] = 8  # key 7 has no rows
+    g = RowGroups(key, 41)  # key 40: none either
+    for k in (0, 7, 8, 39, 40):
+        assert np.array_equal(g.rows_of_one(k), np.flatnonzero(key == k))
+    for keys in ([], [5], [3, 7, 40, 1], rng.permutation(41)[:17]):
+        want = np.flatnonzero(np.isin(key, keys))
+        assert np.array_equal(g.rows_of(np.asarray(keys, int)), want)

@@ -38,7 +38,7 @@ from selfcal.estimation.epipolar import (
     uv_table,
 )
 from selfcal.estimation.focal import focal_from_fundamentals
-from selfcal.estimation.observations import Observations
+from selfcal.estimation.observations import Observations, RowGroups
 from selfcal.estimation.pose_models import FreePoses
 from selfcal.estimation.reprojection import reprojection_residuals, robust_sigma
 from selfcal.estimation.selfcal_errors import (
@@ -284,34 +284,35 @@ def initial_reconstruction(
         act[np.flatnonzero(m)] = (e < t) & (z > 0)
         return act
 
-    def triangulate_new(T, X, has_X, active, camera, only_new=True):
-        m = active & reg[view]
-        if only_new:
-            m &= ~has_X[pidx]
+    by_view, by_point = RowGroups(view, V), RowGroups(pidx, n_points)
+
+    def triangulate_new(T, X, has_X, active, camera):
+        """Triangulate the points not yet reconstructed from their active rows in registered
+        views (only those points' rows are visited, in row order)."""
+        sel = by_point.rows_of(np.flatnonzero(~has_X))
+        sel = sel[active[sel] & reg[view[sel]]]
         for _ in range(8):
-            xn = camera.unproject_normalised(uv[m])
-            Xn, cnt = triangulate(T, view[m], pidx[m], xn, n_points)
+            xn = camera.unproject_normalised(uv[sel])
+            Xn, cnt = triangulate(T, view[sel], pidx[sel], xn, n_points)
             cand = cnt >= 2
             if not cand.any():
                 return X, has_X, active
-            r, z = reprojection_residuals(camera, T, Xn, view[m], pidx[m], uv[m])
+            r, z = reprojection_residuals(camera, T, Xn, view[sel], pidx[sel], uv[sel])
             e = np.where(z > 0, np.linalg.norm(r, axis=1), np.inf)
             e = np.where(np.isfinite(e), e, np.inf)
             worst = np.zeros(n_points)
-            np.maximum.at(worst, pidx[m], e)
+            np.maximum.at(worst, pidx[sel], e)
             bad_pt = cand & (worst > work["thr"])
             if not bad_pt.any():
                 break
-            rows = np.flatnonzero(m)
-            drop = bad_pt[pidx[rows]] & (e > np.maximum(work["thr"], 0.5 * worst[pidx[rows]]))
-            m[rows[drop]] = False
-            active[rows[drop]] = False
-        ang = ray_angle(T, view[m], pidx[m], Xn, n_points)
+            drop = bad_pt[pidx[sel]] & (e > np.maximum(work["thr"], 0.5 * worst[pidx[sel]]))
+            active[sel[drop]] = False
+            sel = sel[~drop]
+        ang = ray_angle(T, view[sel], pidx[sel], Xn, n_points)
         ok = cand & ~bad_pt & (ang >= np.deg2rad(min_angle_deg)) & np.isfinite(Xn).all(axis=1)
         X = X.copy()
         X[ok] = Xn[ok]
-        has_X = has_X | ok
-        return X, has_X, active
+        return X, has_X | ok, active
 
     def run_ba(T, X, has_X, active, camera):
         m = active & reg[view] & has_X[pidx]
@@ -342,32 +343,54 @@ def initial_reconstruction(
         X[used] = res.X
         return T, X, res.camera
 
+    def usable_counts(active, has_X):
+        """(V,) active rows of reconstructed points per view (-1 for registered or failed
+        views: no candidates)."""
+        counts = np.bincount(view[active & has_X[pidx]], minlength=V)
+        counts[reg | failed] = -1
+        return counts
+
+    def triangulate_counted(T, X, has_X, active, camera, counts):
+        """:func:`triangulate_new`, adding the rows of the newly reconstructed points to the
+        candidates' ``counts`` (the rows it deactivates belong to points without X: uncounted)."""
+        X, new_has_X, active = triangulate_new(T, X, has_X, active, camera)
+        rows = by_point.rows_of(np.flatnonzero(new_has_X & ~has_X))
+        rows = rows[active[rows]]
+        counts += np.where(counts >= 0, np.bincount(view[rows], minlength=V), 0)
+        return X, new_has_X, active
+
+    # the next view is the unregistered one with the most usable rows; the counts are kept up to
+    # date from the rows that change, so that one registration visits its own view's rows and
+    # the new points' rows only (not every observation: linear in the number of views)
+    counts = usable_counts(active, has_X)
+    n_reg = 2
     while True:
-        usable = active & has_X[pidx]
-        counts = np.bincount(view[usable], minlength=V)
-        counts[reg | failed] = 0
         v = int(np.argmax(counts))
         if counts[v] < min_view_points:
             break
-        rows = np.flatnonzero(usable & (view == v))
+        rows = by_view.rows_of_one(v)
+        rows = rows[active[rows] & has_X[pidx[rows]]]
         out = _pnp(X[pidx[rows]], uv[rows], camera.K, work["thr"])
+        counts[v] = -1
         if out is None:
             failed[v] = True
             continue
         T_v, inl = out
         T[v] = T_v
         reg[v] = True
+        n_reg += 1
         bad = np.ones(len(rows), bool)
         bad[inl] = False
         active[rows[bad]] = False
-        X, has_X, active = triangulate_new(T, X, has_X, active, camera)
-        if reg.sum() >= next_ba:
+        X, has_X, active = triangulate_counted(T, X, has_X, active, camera, counts)
+        if n_reg >= next_ba:
             T, X, camera = run_ba(T, X, has_X, active, camera)
             n_ba += 1
             next_ba = 2 * next_ba
             active = classify(T, X, has_X, camera)
             failed[:] = False
             X, has_X, active = triangulate_new(T, X, has_X, active, camera)
+            counts = usable_counts(active, has_X)
     if reg.sum() < 3:
         raise InsufficientDataError(
             f"only {int(reg.sum())} views could be registered; each view needs >= "
