@@ -74,19 +74,26 @@ def robust_triangulate(
         if n <= 8:
             ii, jj = np.triu_indices(n, 1)
             pairs = np.stack([ii, jj], axis=1)
-        sel = rows[pairs]  # (s, 2)
-        s_idx = np.repeat(np.arange(len(sel)), 2)
-        hyp, _ = triangulate(T_cam_world, view[sel.ravel()], s_idx, xn[sel.ravel()], len(sel))
-        if X_current is not None and np.isfinite(X_current[p]).all():
-            hyp = np.vstack([X_current[p], hyp])
-        hyp = hyp[np.isfinite(hyp).all(axis=1)]
-        if not len(hyp):
-            continue
         Tv = T_cam_world[view[rows]]
-        Xc = np.einsum("kij,hj->hki", Tv[:, :3, :3], hyp) + Tv[:, :3, 3]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            d = project_views(camera, Xc, view[rows]) - uv[rows]
-        ok = (Xc[..., 2] > 0) & (np.hypot(d[..., 0], d[..., 1]) < threshold_px)
+        # the current point explaining every row wins the vote whatever the samples give (it is
+        # hypothesis 0, argmax takes the first of equal counts): the samples are drawn anyway, so
+        # the generator's stream and every other point's outcome stay the same
+        cur = X_current[p] if X_current is not None else None
+        if cur is not None and not np.isfinite(cur).all():
+            cur = None
+        if cur is not None:
+            hyp = cur[None]
+            ok = _votes(camera, Tv, hyp, view[rows], uv[rows], threshold_px)
+        if cur is None or not ok[0].all():
+            sel = rows[pairs]  # (s, 2)
+            s_idx = np.repeat(np.arange(len(sel)), 2)
+            hyp, _ = triangulate(T_cam_world, view[sel.ravel()], s_idx, xn[sel.ravel()], len(sel))
+            if cur is not None:
+                hyp = np.vstack([cur, hyp])
+            hyp = hyp[np.isfinite(hyp).all(axis=1)]
+            if not len(hyp):
+                continue
+            ok = _votes(camera, Tv, hyp, view[rows], uv[rows], threshold_px)
         best = int(np.argmax(ok.sum(axis=1)))
         use = rows[ok[best]]
         if len(use) < 2:
@@ -103,6 +110,23 @@ def robust_triangulate(
             X[p] = hyp[best]
             inlier[rows] = ok[best]
     return X, inlier
+
+
+def _votes(
+    camera: Cameras,
+    Tv: np.ndarray,
+    hyp: np.ndarray,
+    view: np.ndarray,
+    uv: np.ndarray,
+    threshold_px: float,
+) -> np.ndarray:
+    """(h, n) whether each of the hypotheses ``hyp`` (h, 3) reprojects within ``threshold_px``
+    of each row (poses ``Tv`` (n, 4, 4) of the rows' views, pixels ``uv``), in front of the
+    camera."""
+    Xc = np.einsum("kij,hj->hki", Tv[:, :3, :3], hyp) + Tv[:, :3, 3]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        d = project_views(camera, Xc, view) - uv
+    return (Xc[..., 2] > 0) & (np.hypot(d[..., 0], d[..., 1]) < threshold_px)
 
 
 def ray_angle(
