@@ -5,6 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from selfcal.calibration.field.adjust import adjust, gauge
+from selfcal.calibration.field.initialise import initialise
 from selfcal.calibration.field.self_calibration import (
     ConvergenceError,
     DegenerateConfigurationError,
@@ -341,3 +343,22 @@ def test_projection_consistency_of_synthetic_scene():
     mk, uv = next(iter(markers.items()))
     Tcw = inv_pose(sc.T_world_cam[cfg, cam])
     np.testing.assert_allclose(uv, project(sc.intrinsics, Tcw, sc.X_world[marker_features(mk)]))
+
+
+def test_the_camera_stage_adjusts_no_more_often_than_it_needs():
+    """A robust round that keeps exactly the rows it was given is followed by the final
+    least-squares pass (a second robust round would solve the same problem again): the
+    adjustment started again from its own result and rows takes one robust round."""
+    sc = synthetic_stereo_scene(12, seed=5, noise_px=0.5)
+    obs = sc.observations()
+    init = initialise(obs, W, H)
+    # the initial reconstruction adjusted at 4, 8, 16 ... registered views and left the views
+    # registered after the last of those to the camera stage's adjustment (no final pass)
+    n_reg = int(init.registered.sum())
+    assert init.n_ba == int(np.log2(n_reg)) - 1 and n_reg > 2 ** int(np.log2(n_reg))
+    rec = gauge(init, obs.layout, rig=True)
+    first = adjust(rec, obs, init.active.copy())
+    again = adjust(rec, obs, first.active.copy())
+    assert again.rounds == 2
+    np.testing.assert_array_equal(again.active, first.active)
+    assert abs(again.bundle.cost - first.bundle.cost) <= 1e-9 * first.bundle.cost

@@ -323,7 +323,9 @@ def adjust(
         if last:
             return Adjustment(res, a, n_rounds, total_nfev)
         new_active = _retriangulate(rec, obs, res, outlier_px, seed + rnd)
-        if np.array_equal(new_active, active) and rnd > 0:
-            max_rounds = rnd + 1  # converged classification: do the final pass next
+        if np.array_equal(new_active, active):
+            # the round was fitted to the rows it classifies as inliers: another robust round
+            # would solve the same problem again, so the final pass comes next
+            max_rounds = rnd + 1
         active = new_active
         rnd += 1

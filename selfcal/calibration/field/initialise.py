@@ -12,7 +12,9 @@ Following Hartley's approach for "an uncalibrated camera with intrinsics of eq. 
 3. :func:`initial_reconstruction` -- essential matrix and relative pose of the best pair,
    two-view triangulation, then incremental registration of every other view (PnP + RANSAC
    against the points triangulated so far), triangulation of new points, and bundle adjustments
-   when the number of registered views doubles. The result has an arbitrary scale (reference pair
+   when the number of registered views doubles (the views registered after the last one are
+   adjusted by the camera stage's adjustment that follows, :mod:`selfcal.calibration.field.adjust`,
+   once the intrinsics have been refined). The result has an arbitrary scale (reference pair
    baseline = 1) and its world frame is the first view of the reference pair.
 
 The initialisation is the paper's pinhole by nature (:class:`selfcal.camera.Pinhole`, no lens
@@ -397,8 +399,14 @@ def initial_reconstruction(
             f"{min_view_points} corners of markers also seen in other views -- or the initial "
             f"focal length ({camera.fx:.0f} px) is far off: pass fx_guess"
         )
-    T, X, camera = run_ba(T, X, has_X, active, camera)
-    n_ba += 1
+    if work["thr"] != thr:
+        # no adjustment has refined the intrinsics yet: this one does. Once one has, the views
+        # registered since are left to the camera stage's adjustment (adjust.adjust), which
+        # starts from this reconstruction and adjusts every view at once: a pass here would
+        # repeat it on more unknowns (a pose per view); they are classified with the poses
+        # PnP refined against the adjusted points
+        T, X, camera = run_ba(T, X, has_X, active, camera)
+        n_ba += 1
     active = classify(T, X, has_X, camera)
     X, has_X, active = triangulate_new(T, X, has_X, active, camera)
     X[~has_X] = np.nan
