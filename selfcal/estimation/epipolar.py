@@ -13,7 +13,7 @@ import cv2
 import numpy as np
 
 from selfcal.errors import InputError
-from selfcal.estimation.observations import Observations
+from selfcal.estimation.observations import Observations, ViewLayout
 from selfcal.estimation.selfcal_errors import InsufficientDataError
 
 __all__ = ["PairEstimate", "fundamental_pairs", "epipolar_sigma", "robust_cv"]
@@ -79,7 +79,8 @@ def fundamental_pairs(
     """Fundamental matrices (cv2 USAC MAGSAC++) for view pairs sharing ``>= min_shared`` points.
 
     Up to ``max_rig_pairs`` pairs of two cameras of one frame (the stereo rig's left/right
-    pairs) plus up to ``max_pairs`` other pairs (random, reproducible with ``seed``) are
+    pairs) plus up to ``max_pairs`` other pairs (random, reproducible with ``seed``; above
+    :data:`DENSE_VIEWS` views drawn without counting every pair's shared points) are
     estimated; a homography is fitted to the same points and pairs it explains (>= 90 % of the
     F inliers within ``ransac_px``) are flagged ``homography_like``. Raises
     :class:`InsufficientDataError` if no pair qualifies.
@@ -90,19 +91,18 @@ def fundamental_pairs(
     n_points = int(pidx.max()) + 1 if len(pidx) else 0
     table = uv_table(obs, pidx, n_points)
     vis = ~np.isnan(table[..., 0])
-    shared = vis.astype(np.int32) @ vis.T.astype(np.int32)
-    iu, ju = np.triu_indices(obs.n_views, 1)
-    ok = shared[iu, ju] >= min_shared
-    iu, ju = iu[ok], ju[ok]
+    rng = np.random.default_rng(seed)
+    if obs.n_views <= DENSE_VIEWS:
+        iu, ju, best = _all_pairs(vis, min_shared)
+    else:
+        iu, ju, best = _sampled_pairs(vis, obs.layout, min_shared, max_pairs, rng)
     if len(iu) == 0:
-        best = int(np.max(shared[np.triu_indices(obs.n_views, 1)], initial=0))
         raise InsufficientDataError(
             f"no pair of views shares >= {min_shared} marker corners (best pair: {best}); "
             "take views that overlap more (each view should see several markers also seen in "
             "other views) or add markers"
         )
     rig = obs.layout.same_frame(iu, ju)
-    rng = np.random.default_rng(seed)
     rig_sel = np.flatnonzero(rig)
     if len(rig_sel) > max_rig_pairs:
         rig_sel = rig_sel[np.linspace(0, len(rig_sel) - 1, max_rig_pairs).round().astype(int)]
@@ -139,6 +139,59 @@ def fundamental_pairs(
             "correspondences (ids consistent across views?) and the pixel noise"
         )
     return out
+
+
+DENSE_VIEWS = 1000
+"""Up to this many views every pair's shared points are counted (a views x views table); above,
+the pairs of different frames are drawn at random (:func:`_sampled_pairs`), so that the cost
+stays linear in the views."""
+
+
+def _all_pairs(vis: np.ndarray, min_shared: int) -> tuple[np.ndarray, np.ndarray, int]:
+    """Every view pair ``(a < b)`` sharing ``>= min_shared`` points (row-major order) from the
+    visibility table ``vis`` (V, P), and the most points any pair shares."""
+    shared = vis.astype(np.int32) @ vis.T.astype(np.int32)
+    iu, ju = np.triu_indices(len(vis), 1)
+    s = shared[iu, ju]
+    ok = s >= min_shared
+    return iu[ok], ju[ok], int(np.max(s, initial=0))
+
+
+def _sampled_pairs(
+    vis: np.ndarray, layout: ViewLayout, min_shared: int, max_pairs: int, rng: np.random.Generator
+) -> tuple[np.ndarray, np.ndarray, int]:
+    """As :func:`_all_pairs` for the pairs of one frame's cameras (every one), and for the pairs
+    of different frames up to ``max_pairs`` drawn uniformly among those that qualify (by drawing
+    pairs at random and keeping the ones that do; fewer when fewer than one draw in ~100
+    qualifies). Sorted like :func:`_all_pairs`."""
+    n_cam = layout.n_cameras
+    ca, cb = np.triu_indices(n_cam, 1)
+    frames = np.arange(layout.n_frames)
+    a = np.ravel(layout.view(frames[:, None], ca[None]))
+    b = np.ravel(layout.view(frames[:, None], cb[None]))
+    found: set[int] = set()
+    best = 0
+    V = len(vis)
+    for _ in range(100):
+        if len(found) >= max_pairs or V < n_cam + 1:
+            break
+        x, y = rng.integers(0, V, (2, 2 * max_pairs))
+        x, y = np.minimum(x, y), np.maximum(x, y)
+        diff = ~layout.same_frame(x, y)
+        x, y = x[diff], y[diff]
+        s = np.count_nonzero(vis[x] & vis[y], axis=1)
+        best = max(best, int(np.max(s, initial=0)))
+        for key in (x * V + y)[s >= min_shared]:
+            if len(found) < max_pairs:
+                found.add(int(key))
+    key = np.array(sorted(found), dtype=np.int64)
+    s = np.count_nonzero(vis[a] & vis[b], axis=1)
+    best = max(best, int(np.max(s, initial=0)))
+    ok = s >= min_shared
+    iu = np.concatenate([a[ok], key // V])
+    ju = np.concatenate([b[ok], key % V])
+    order = np.lexsort((ju, iu))
+    return iu[order], ju[order], best
 
 
 def robust_cv(fn, *args, **kw):
