@@ -235,10 +235,17 @@ def _prune(rec: Reconstruction, obs: Observations, active: np.ndarray, min_view_
 
 
 def _retriangulate(
-    rec: Reconstruction, obs: Observations, res: BundleResult, outlier_px: float, seed: int
+    rec: Reconstruction,
+    obs: Observations,
+    res: BundleResult,
+    fitted: np.ndarray,
+    outlier_px: float,
+    seed: int,
 ) -> np.ndarray:
     """Robust re-triangulation with the adjusted poses (a point dragged by an outlier in an early
-    view is recovered, and its correct observations re-enter); returns the new inlier rows."""
+    view is recovered, and its correct observations re-enter); returns the new inlier rows. A
+    point whose inlier rows are the rows ``fitted`` (k,) the adjustment used keeps its adjusted
+    position (the next pass starts from it)."""
     _, pidx = obs.point_index()
     view = obs.view
     n_res = res.residuals.size
@@ -261,10 +268,13 @@ def _retriangulate(
     )
     ang = ray_angle(Tv, view[vis][inl_r], pidx[vis][inl_r], Xr, len(rec.X))
     good = np.isfinite(Xr).all(axis=1) & (rec.has_X | (ang >= np.deg2rad(1.0)))
-    rec.X = np.where(good[:, None], Xr, rec.X)
-    rec.has_X = rec.has_X | good
     new_active = np.zeros(len(obs), bool)
     new_active[np.flatnonzero(vis)] = inl_r & good[pidx[vis]]
+    moved = np.zeros(len(rec.X), bool)
+    moved[pidx[new_active != fitted]] = True
+    take = good & (moved | ~rec.has_X)
+    rec.X = np.where(take[:, None], Xr, rec.X)
+    rec.has_X = rec.has_X | good
     return new_active
 
 
@@ -322,7 +332,7 @@ def adjust(
             rec.T = res.T_cam_world
         if last:
             return Adjustment(res, a, n_rounds, total_nfev)
-        new_active = _retriangulate(rec, obs, res, outlier_px, seed + rnd)
+        new_active = _retriangulate(rec, obs, res, a, outlier_px, seed + rnd)
         if np.array_equal(new_active, active):
             # the round was fitted to the rows it classifies as inliers: another robust round
             # would solve the same problem again, so the final pass comes next
