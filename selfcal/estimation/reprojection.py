@@ -25,6 +25,9 @@ __all__ = [
     "ReprojectionBlock",
 ]
 
+CHUNK_ROWS = 8192
+"""Rows per chunk of :meth:`ReprojectionBlock.evaluate` (bounds its temporaries to a few MB)."""
+
 RAYLEIGH_MEDIAN = 1.1774  # median of |r| for 2-D Gaussian noise with unit sigma per axis
 
 
@@ -136,16 +139,29 @@ class ReprojectionBlock:
         p = values[kp]
         X = values[kx].reshape(-1, 3)
         T = self.model.poses(p)
+        k, nc = len(self.view), cam.n_free
+        r = np.empty((k, 2))
         if not jacobian:
-            return Evaluation(reprojection_residuals(cam, T, X, self.view, self.pidx, self.uv)[0])
-        uv, Jc, Jt, Jx = projection_blocks(cam, T, X, self.view, self.pidx)
+            for a in range(0, k, CHUNK_ROWS):
+                sl = slice(a, a + CHUNK_ROWS)
+                r[sl] = reprojection_residuals(
+                    cam, T, X, self.view[sl], self.pidx[sl], self.uv[sl]
+                )[0]
+            return Evaluation(r)
         Jv = self.model.view_jacobian(p)
-        if Jv is None:
-            Jp = np.full(self.pose_cols.shape[:1] + (2,) + self.pose_cols.shape[1:], np.nan)
-        else:
-            Jp = Jt @ Jv[self.view]
+        Jc, Jx = np.empty((k, 2, nc)), np.empty((k, 2, 3))
+        Jp = np.full(self.pose_cols.shape[:1] + (2,) + self.pose_cols.shape[1:], np.nan)
+        # by chunks of rows: whole-block temporaries (the rows' poses, their view Jacobians: a
+        # kinematic pose model's are (k, 6, ~30), 0.3 GB at 3000 postures) cost more in fresh
+        # pages than in arithmetic; a chunk's stay in the cache (row by row the same numbers)
+        for a in range(0, k, CHUNK_ROWS):
+            sl = slice(a, a + CHUNK_ROWS)
+            uv, Jc[sl], Jt, Jx[sl] = projection_blocks(cam, T, X, self.view[sl], self.pidx[sl])
+            np.subtract(uv, self.uv[sl], out=r[sl])
+            if Jv is not None:
+                np.matmul(Jt, Jv[self.view[sl]], out=Jp[sl])
         return Evaluation(
-            uv - self.uv,
+            r,
             (
                 JacobianPiece(ki, Jc, self.camera_cols),
                 JacobianPiece(kp, Jp, self.pose_cols),

@@ -72,3 +72,29 @@ def test_twist_jacobian_is_the_derivative_of_the_projection():
         # central differences at h = 1e-6 m / rad: measured agreement 8.3e-8 px per unit
         np.testing.assert_allclose(Jt[:, :, i], fd, rtol=0, atol=2.5e-7)
     assert np.abs(Jt).max() > 100.0  # the comparison is not between zeros
+
+
+@pytest.mark.parametrize("jacobian", [True, False])
+def test_the_block_evaluated_by_chunks_of_rows_is_the_block_evaluated_at_once(
+    monkeypatch, jacobian
+):
+    """ReprojectionBlock.evaluate works through its rows in chunks (bounded temporaries): with
+    chunks of 7 rows (300 rows, a short last chunk) every residual and Jacobian entry is the
+    one a single chunk gives, bit for bit."""
+    import selfcal.estimation.reprojection as reprojection
+    from selfcal.estimation.pose_models import ViewPoses
+
+    cam, T, X, view, pidx = _problem(3)
+    model = ViewPoses(T, np.ones(len(T), bool))
+    uv = np.random.default_rng(1).uniform(0, 600, (len(view), 2))
+    block = reprojection.ReprojectionBlock(cam, model, view, pidx, uv)
+    p = np.random.default_rng(2).normal(0.0, 1e-3, model.n_params)
+    values = {"intrinsics": cam.free_values(), "poses": p, "points": X.ravel()}
+    whole = block.evaluate(values, jacobian)
+    monkeypatch.setattr(reprojection, "CHUNK_ROWS", 7)
+    chunked = block.evaluate(values, jacobian)
+    np.testing.assert_array_equal(chunked.residuals, whole.residuals)
+    assert len(chunked.pieces) == len(whole.pieces) == (3 if jacobian else 0)
+    for a, b in zip(chunked.pieces, whole.pieces, strict=True):
+        np.testing.assert_array_equal(a.J, b.J)
+        assert np.isfinite(a.J).all()
