@@ -16,6 +16,7 @@ from scipy.sparse.linalg import ArpackError, eigsh, splu
 
 from selfcal.solver.linear import DENSE_MAX
 from selfcal.solver.problem import Problem
+from selfcal.solver.schur import SchurAssembler
 
 __all__ = ["inverse_block", "covariance", "scaled_rank", "normal_matrix"]
 
@@ -75,16 +76,60 @@ def covariance(
     blocks: Sequence[str | tuple[str, np.ndarray]],
     *,
     sigma2: float = 1.0,
+    eliminate: str | None = None,
 ) -> np.ndarray:
     """``sigma2 (J^T J)^-1`` over the free coordinates of parameter ``blocks`` (in that order,
     each block's coordinates in order; ``(name, idx)`` selects the free coordinates ``idx`` of a
-    block) at unknowns ``x`` (e.g. ``SolverResult.x``)."""
-    cols = []
+    block) at unknowns ``x`` (e.g. ``SolverResult.x``).
+
+    ``eliminate``: a parameter block with instances (as :class:`selfcal.solver.SolverOptions`'s):
+    when none of the selected coordinates is one of its instances', the inverse is that of the
+    Schur complement of the instances in ``J^T J`` assembled as the solver assembles it (dense,
+    the kept unknowns only), instead of a sparse factorisation of the whole of ``J^T J``."""
+    cols_ = []
     for b in blocks:
         name, idx = (b, None) if isinstance(b, str) else b
         c = problem.columns(name)
-        cols.append(c if idx is None else c[np.asarray(idx, dtype=np.int64)])
-    return sigma2 * inverse_block(problem.jacobian(x), np.concatenate(cols))
+        cols_.append(c if idx is None else c[np.asarray(idx, dtype=np.int64)])
+    cols = np.concatenate(cols_)
+    if eliminate is not None:
+        kept = _kept_inverse(problem, x, cols, eliminate)
+        if kept is not None:
+            return sigma2 * kept
+    return sigma2 * inverse_block(problem.jacobian(x), cols)
+
+
+def _kept_inverse(
+    problem: Problem, x: np.ndarray, cols: np.ndarray, eliminate: str
+) -> np.ndarray | None:
+    """``(J^T J)^-1`` restricted to ``cols`` through the Schur complement of the instances of
+    block ``eliminate`` (diagonally scaled like :func:`inverse_block`), or None when a column
+    is one of theirs, there are none, or an instance's block is not positive definite."""
+    inst = problem.instance_of_columns(eliminate)
+    if not np.any(inst >= 0) or np.any(inst[cols] >= 0):
+        return None
+    evals = problem.evaluate(x, jacobian=True)
+    asm = SchurAssembler(problem, inst)
+    _, U, W, V = asm.assemble(evals, [np.ones(len(ev.residuals)) for ev in evals])
+    lay = asm.layout
+    e = lay.elim >= 0
+    dU = np.sqrt(np.where(e, np.maximum(np.einsum("iaa->ia", U), 1e-300), 1.0))
+    dV = np.sqrt(np.maximum(np.diag(V), 1e-300))
+    Us = U / dU[:, :, None] / dU[:, None, :]
+    i, a = np.nonzero(~e)
+    Us[i, a, a] = 1.0  # an instance's unused slot: decoupled
+    Ws = W / dU[:, :, None] / dV[None, None, :]
+    try:
+        Li = np.linalg.inv(np.linalg.cholesky(Us))
+    except np.linalg.LinAlgError:
+        return None
+    Y = np.matmul(Li, Ws).reshape(-1, lay.nk)
+    S = V / dV[:, None] / dV[None, :] - Y.T @ Y
+    k = lay.kid[cols]
+    rhs = np.zeros((lay.nk, len(k)))
+    rhs[k, np.arange(len(k))] = 1.0
+    out = np.linalg.solve(S, rhs)[k] / dV[k][:, None] / dV[k][None, :]
+    return 0.5 * (out + out.T)
 
 
 def scaled_rank(J: sp.spmatrix | np.ndarray, rtol: float = 1e-9) -> tuple[float, int]:

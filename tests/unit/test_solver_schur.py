@@ -142,3 +142,23 @@ def test_a_row_that_couples_two_instances_is_refused():
     evals = prob.evaluate(prob.x0, jacobian=True)
     with pytest.raises(ValueError, match="couples two instances"):
         assemble(prob, evals, _weights(rng, evals), "schur", prob.instance_of_columns("p"))
+
+
+@settings(max_examples=10, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1))
+def test_the_covariance_of_kept_unknowns_through_the_schur_complement(seed):
+    """covariance(..., eliminate=) of kept unknowns (the shared ``a``, two of ``p``'s shared
+    ones, points) is the block of the inverse of the whole J^T J; asked for an instance's
+    unknown it falls back to the whole inverse."""
+    from selfcal.solver import covariance
+
+    rng = np.random.default_rng(seed)
+    prob = _problem(rng)
+    blocks = ["a", ("p", np.array([14, 15])), ("x", np.arange(6))]  # p: 16 free
+    whole = covariance(prob, prob.x0, blocks, sigma2=2.0)
+    schur = covariance(prob, prob.x0, blocks, sigma2=2.0, eliminate="p")
+    np.testing.assert_allclose(schur, whole, rtol=1e-8, atol=1e-10 * np.abs(whole).max())
+    mixed = ["a", ("p", np.array([0, 14]))]
+    np.testing.assert_array_equal(
+        covariance(prob, prob.x0, mixed, eliminate="p"), covariance(prob, prob.x0, mixed)
+    )

@@ -424,7 +424,11 @@ def joint_refine(
     n_cam = camera.n_free
     if stds:
         C = covariance(
-            prob.problem, x, ["intrinsics", ("poses", np.arange(pose_model.k))], sigma2=sigma2
+            prob.problem,
+            x,
+            ["intrinsics", ("poses", np.arange(pose_model.k))],
+            sigma2=sigma2,
+            eliminate="poses",  # the joint corrections, as the solver eliminates them
         )
     else:
         C = np.full((n_cam + pose_model.k,) * 2, np.nan)
