@@ -7,6 +7,8 @@ with arbitrary leading batch dimensions.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import numpy.typing as npt
 
@@ -178,7 +180,43 @@ def xyz_euler_from_matrix(R: np.ndarray) -> np.ndarray:
     Singular at ``b = +-90 deg`` (within ``GIMBAL_EPS``: then ``g = 0``); MCPC frames stay far
     from it. Plain numpy: ``selfcal fk`` loads no scipy (issue 17).
     """
+    R = np.asarray(R, dtype=float)
+    if R.shape == (3, 3):
+        return _xyz_euler_one(R)
     return _tait_bryan(_quat_xyzw(R), (0, 1, 2), extrinsic=False)
+
+
+def _xyz_euler_one(R: np.ndarray) -> np.ndarray:
+    """:func:`xyz_euler_from_matrix` of one rotation, the same steps on Python floats (a model's
+    gauge fixing converts one matrix at a time, hundreds of times per calibration: numpy's
+    per-call overhead was most of it)."""
+    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = R.tolist()
+    t = r00 + r11 + r22
+    s01, s02, s12 = r10 + r01, r20 + r02, r21 + r12
+    v0, v1, v2 = r21 - r12, r02 - r20, r10 - r01
+    cases = (
+        (1 - t + 2 * r00, s01, s02, v0),
+        (s01, 1 - t + 2 * r11, s12, v1),
+        (s02, s12, 1 - t + 2 * r22, v2),
+        (v0, v1, v2, 1 + t),
+    )
+    diag = (r00, r11, r22, t)
+    x, y, z, w = cases[max(range(4), key=lambda i: (diag[i], -i))]
+    n = math.sqrt(x * x + y * y + z * z + w * w)
+    x, y, z, w = x / n, y / n, z / n, w / n
+    # _tait_bryan(q, (0, 1, 2), extrinsic=False): i, j, k = 2, 1, 0 and sign = -1
+    a, b, c, d = w - y, z - x, y + w, -z - x
+    middle = 2 * math.atan2(math.hypot(c, d), math.hypot(a, b))
+    half_sum, half_diff = math.atan2(b, a), math.atan2(d, c)
+    if abs(middle) <= GIMBAL_EPS:
+        first, last = -(2 * half_sum), 0.0
+    elif abs(middle - math.pi) <= GIMBAL_EPS:
+        first, last = -(2 * half_diff), 0.0
+    else:
+        first, last = -(half_sum + half_diff), half_sum - half_diff
+    out = [first, middle - math.pi / 2, last]
+    return np.array([u + 2 * math.pi if u < -math.pi else u - 2 * math.pi if u > math.pi else u
+                     for u in out])  # fmt: skip
 
 
 def rpy_from_matrix(R: np.ndarray) -> np.ndarray:

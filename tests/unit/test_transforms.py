@@ -64,3 +64,15 @@ def test_batched_shapes():
     assert xyz_euler_from_matrix(R).shape == (2, 3, 3)
     assert quat_from_matrix(R).shape == (2, 3, 4)
     np.testing.assert_array_equal(quat_from_matrix(R)[1, 2], quat_from_matrix(R[1, 2]))
+
+
+def test_one_matrix_takes_the_batched_angles():
+    """xyz_euler_from_matrix of one matrix (Python floats: the gauge fixing calls it hundreds of
+    times per calibration) gives the batched path's angles, at right angles and locks too."""
+    angles = np.array([(a, b, g) for a in right for b in right for g in right])
+    R = np.concatenate([Rotation.from_euler("XYZ", angles).as_matrix(),
+                        Rotation.random(500, random_state=4).as_matrix()])  # fmt: skip
+    batched = xyz_euler_from_matrix(R)
+    one = np.stack([xyz_euler_from_matrix(r) for r in R])
+    assert _wrapped(one - batched).max() <= ANGLE_TOL
+    assert np.array_equal(one[:, 2] == 0.0, batched[:, 2] == 0.0)  # the same locks
