@@ -150,7 +150,8 @@ class ReprojectionBlock:
             return Evaluation(r)
         Jv = self.model.view_jacobian(p)
         Jc, Jx = np.empty((k, 2, nc)), np.empty((k, 2, 3))
-        Jp = np.full(self.pose_cols.shape[:1] + (2,) + self.pose_cols.shape[1:], np.nan)
+        shape = self.pose_cols.shape[:1] + (2,) + self.pose_cols.shape[1:]
+        Jp = np.full(shape, np.nan) if Jv is None else np.empty(shape)
         # by chunks of rows: whole-block temporaries (the rows' poses, their view Jacobians: a
         # kinematic pose model's are (k, 6, ~30), 0.3 GB at 3000 postures) cost more in fresh
         # pages than in arithmetic; a chunk's stay in the cache (row by row the same numbers)
