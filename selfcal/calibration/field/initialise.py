@@ -12,11 +12,10 @@ Following Hartley's approach for "an uncalibrated camera with intrinsics of eq. 
 3. :func:`initial_reconstruction` -- essential matrix and relative pose of the best pair,
    two-view triangulation, then incremental registration of every other view (PnP + RANSAC
    against the points triangulated so far), triangulation of new points, and bundle adjustments
-   when the number of registered views doubles. Once one has refined the intrinsics, the views
-   registered past half of those that could be are adjusted by the camera stage's adjustment that
-   follows (:mod:`selfcal.calibration.field.adjust`), not here: it comes within one more
-   doubling. The result has an arbitrary scale (reference pair baseline = 1) and its world frame
-   is the first view of the reference pair.
+   when the number of registered views doubles (the views registered after the last one are
+   adjusted by the camera stage's adjustment that follows, :mod:`selfcal.calibration.field.adjust`,
+   once the intrinsics have been refined). The result has an arbitrary scale (reference pair
+   baseline = 1) and its world frame is the first view of the reference pair.
 
 The initialisation is the paper's pinhole by nature (:class:`selfcal.camera.Pinhole`, no lens
 term); models with more parameters start from it. Pixel coordinates follow the OpenCV convention.
@@ -367,7 +366,6 @@ def initial_reconstruction(
     # the new points' rows only (not every observation: linear in the number of views)
     counts = usable_counts(active, has_X)
     n_reg = 2
-    n_cand = int(np.sum(np.bincount(view, minlength=V) >= min_view_points))  # could be registered
     while True:
         v = int(np.argmax(counts))
         if counts[v] < min_view_points:
@@ -387,10 +385,7 @@ def initial_reconstruction(
         bad[inl] = False
         active[rows[bad]] = False
         X, has_X, active = triangulate_counted(T, X, has_X, active, camera, counts)
-        # past half the views that could be registered the camera stage's adjustment comes
-        # within one more doubling anyway: no intermediate one (once the intrinsics are refined)
-        late = work["thr"] == thr and 2 * n_reg > n_cand
-        if n_reg >= next_ba and not late:
+        if n_reg >= next_ba:
             T, X, camera = run_ba(T, X, has_X, active, camera)
             n_ba += 1
             next_ba = 2 * next_ba
