@@ -9,7 +9,13 @@
 - :mod:`selfcal.solver.covariance`: blocks of ``(J^T J)^-1`` after a solve.
 """
 
-from selfcal.solver.covariance import covariance, inverse_block, scaled_rank
+from selfcal.solver.covariance import (
+    covariance,
+    inverse_block,
+    scaled_rank,
+    scaled_rank_of_normal,
+    schur_normal_matrix,
+)
 from selfcal.solver.linear import DENSE_MAX
 from selfcal.solver.lm import SolverOptions, SolverResult, cost_and_weights, solve
 from selfcal.solver.losses import LOSSES, Loss
@@ -30,5 +36,7 @@ __all__ = [
     "covariance",
     "inverse_block",
     "scaled_rank",
+    "scaled_rank_of_normal",
+    "schur_normal_matrix",
     "solve",
 ]

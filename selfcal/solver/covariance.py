@@ -18,7 +18,14 @@ from selfcal.solver.linear import DENSE_MAX
 from selfcal.solver.problem import Problem
 from selfcal.solver.schur import SchurAssembler
 
-__all__ = ["inverse_block", "covariance", "scaled_rank", "normal_matrix"]
+__all__ = [
+    "inverse_block",
+    "covariance",
+    "scaled_rank",
+    "scaled_rank_of_normal",
+    "normal_matrix",
+    "schur_normal_matrix",
+]
 
 
 _DENSE_COLUMN = 0.125  # a column in more than this fraction of the rows is multiplied densely
@@ -99,6 +106,28 @@ def covariance(
     return sigma2 * inverse_block(problem.jacobian(x), cols)
 
 
+def schur_normal_matrix(problem: Problem, x: np.ndarray, eliminate: str) -> sp.csc_matrix:
+    """``J^T J`` (unweighted, CSC) at ``x`` assembled as the solver assembles its Schur form
+    (block ``eliminate``'s instances eliminated): the same matrix as :func:`normal_matrix` of
+    :meth:`Problem.jacobian` (to rounding) without the sparse Jacobian of every row."""
+    inst = problem.instance_of_columns(eliminate)
+    evals = problem.evaluate(x, jacobian=True)
+    asm = SchurAssembler(problem, inst)
+    _, U, W, V = asm.assemble(evals, [np.ones(len(ev.residuals)) for ev in evals])
+    elim, kept = asm.layout.elim, asm.layout.kept
+    ia, a, b = np.nonzero((elim >= 0)[:, :, None] & (elim >= 0)[:, None, :])
+    iw, aw = np.nonzero(elim >= 0)
+    nk = len(kept)
+    rows = [elim[ia, a], np.repeat(elim[iw, aw], nk), np.tile(kept, len(iw)),
+            np.repeat(kept, nk)]  # fmt: skip
+    cols = [elim[ia, b], np.tile(kept, len(iw)), np.repeat(elim[iw, aw], nk), np.tile(kept, nk)]
+    Wv = W[iw, aw].ravel()
+    vals = [U[ia, a, b], Wv, Wv, V.ravel()]
+    n = problem.n
+    return sp.csc_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                         shape=(n, n))  # fmt: skip
+
+
 def _kept_inverse(
     problem: Problem, x: np.ndarray, cols: np.ndarray, eliminate: str
 ) -> np.ndarray | None:
@@ -139,7 +168,12 @@ def scaled_rank(J: sp.spmatrix | np.ndarray, rtol: float = 1e-9) -> tuple[float,
     only the largest and (shift-invert Lanczos on the sparse matrix, linear in the postures of a
     bundle adjustment) the smallest, and all densely only when that one is below the rank
     threshold (a rank-deficient problem, which the callers refuse)."""
-    JtJ = normal_matrix(J)
+    return scaled_rank_of_normal(normal_matrix(J), rtol)
+
+
+def scaled_rank_of_normal(JtJ: sp.spmatrix, rtol: float = 1e-9) -> tuple[float, int]:
+    """:func:`scaled_rank` from ``J^T J`` (e.g. :func:`schur_normal_matrix`'s)."""
+    JtJ = sp.csc_matrix(JtJ)
     dg = np.sqrt(np.maximum(JtJ.diagonal(), 1e-300))
     if JtJ.shape[0] > DENSE_MAX:
         Dinv = sp.diags(1.0 / dg)

@@ -162,3 +162,21 @@ def test_the_covariance_of_kept_unknowns_through_the_schur_complement(seed):
     np.testing.assert_array_equal(
         covariance(prob, prob.x0, mixed, eliminate="p"), covariance(prob, prob.x0, mixed)
     )
+
+
+@settings(max_examples=10, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1))
+def test_the_normal_matrix_assembled_in_schur_form_is_that_of_the_sparse_jacobian(seed):
+    """schur_normal_matrix (the joint refinement's rank check without a sparse Jacobian of
+    every row) is J^T J of Problem.jacobian, and gives the same scaled rank."""
+    from selfcal.solver import scaled_rank, scaled_rank_of_normal, schur_normal_matrix
+    from selfcal.solver.covariance import normal_matrix
+
+    rng = np.random.default_rng(seed)
+    prob = _problem(rng)
+    want = normal_matrix(prob.jacobian(prob.x0)).toarray()
+    got = schur_normal_matrix(prob, prob.x0, "p").toarray()
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-13 * np.abs(want).max())
+    ratio, rank = scaled_rank_of_normal(schur_normal_matrix(prob, prob.x0, "p"))
+    ratio0, rank0 = scaled_rank(prob.jacobian(prob.x0))
+    assert rank == rank0 and abs(ratio - ratio0) <= 1e-9 * ratio0

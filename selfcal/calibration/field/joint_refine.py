@@ -75,7 +75,16 @@ from selfcal.estimation.reprojection import reprojection_residuals, robust_sigma
 from selfcal.estimation.residuals import GaussianPriorBlock, ScaleDistanceBlock
 from selfcal.kinematics.forward import fk_tool
 from selfcal.kinematics.mcpc import MCPCModel, minimal_indices, param_is_angle, param_names
-from selfcal.solver import Loss, ResidualBlock, SolverOptions, covariance, scaled_rank, solve
+from selfcal.solver import (
+    Loss,
+    ResidualBlock,
+    SolverOptions,
+    covariance,
+    scaled_rank,
+    scaled_rank_of_normal,
+    schur_normal_matrix,
+    solve,
+)
 from selfcal.target import marker_features
 from selfcal.terms.base import Term, TermContext, TermSolution, check_terms, term_blocks
 from selfcal.transforms import inv_pose
@@ -362,6 +371,9 @@ def joint_refine(
         )
         if rank_info is None and not check_rank:
             rank_info = (float("nan"), -1)
+        if rank_info is None and use_dq:  # J^T J as the solver assembles it (no sparse J)
+            x_0 = prob.problem.x0
+            rank_info = scaled_rank_of_normal(schur_normal_matrix(prob.problem, x_0, "poses"))
         if rank_info is None:
             rank_info = scaled_rank(prob.jac(prob.problem.x0))
             if rank_info[1] < prob.n:
