@@ -8,7 +8,8 @@ Measures, in one run on this machine:
 - ``selfcal run`` of the default scenario (rendered, 30 poses) as a whole process, and again
   beside a process that spins one core (the ratio to the quiet run: #17 asks for <= 1.5x);
 - ``calibrate`` in-process on analytic-path datasets of the default scenario with 30, 100, 300
-  and 1000 poses (``[trajectory] poses``), wall and CPU seconds, and the acquisition of each;
+  and 1000 poses (``[trajectory] poses``; ``--large`` adds 3000 and 10,000, minutes and ~4 GB),
+  wall and CPU seconds, and the acquisition of each;
 - the bundle adjustment's last plain least-squares pass (captured inside ``calibrate`` at
   ``--ba-poses``), started off its minimum and solved by the engine (Schur elimination of the
   poses) and by ``least_squares`` (trf, sparse Jacobian, lsmr): the speed ratio at the final
@@ -32,8 +33,8 @@ Writes the table to docs/performance.md (``--write-docs``) and into README.md be
 too). The 1-minute load average before and after each
 part is printed and written with the table: the machines are shared.
 
-Run: ``MUJOCO_GL=egl uv run python -m selfcal.benchmarks.speed [--with-pybotics] [--write-docs]
-[--write-readme] [--check] [--against REF] [--memory]``.
+Run: ``MUJOCO_GL=egl uv run python -m selfcal.benchmarks.speed [--large] [--with-pybotics]
+[--write-docs] [--write-readme] [--check] [--against REF] [--memory]``.
 """
 
 from __future__ import annotations
@@ -80,6 +81,10 @@ def process_seconds(argv: list[str], repeat: int) -> tuple[float, float]:
         r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
         cpus.append(r1.ru_utime - r0.ru_utime + r1.ru_stime - r0.ru_stime)
     return statistics.median(walls), statistics.median(cpus)
+
+
+LARGE = [3000, 10000]
+"""The pose counts ``--large`` adds: the growth to 10,000 postures (#32: linear, <= 0.3 MB each)."""
 
 
 def calibrate_scaling(poses: list[int], root: Path) -> list[dict]:
@@ -398,6 +403,9 @@ def against_and_goals(args: argparse.Namespace, fig: dict, argv: list[str]) -> s
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--poses", type=int, nargs="+", default=[30, 100, 300, 1000])
+    ap.add_argument("--large", action="store_true",
+                    help=f"also calibrate at {' and '.join(map(str, LARGE))} poses (issue 32's "
+                    "growth to 10,000; minutes, ~4 GB)")  # fmt: skip
     ap.add_argument("--ba-poses", type=int, default=300)
     ap.add_argument("--repeat", type=int, default=5, help="runs of --help and fk (median)")
     ap.add_argument("--skip-run", action="store_true", help="leave out `selfcal run`")
@@ -419,6 +427,8 @@ def main(argv: list[str] | None = None) -> int:
     from selfcal.threads import limit_threads
 
     limit_threads(None)
+    if args.large:
+        args.poses = sorted(set(args.poses) | set(LARGE))
     if not args.json:  # as installed (pip compiles); REF's run of --against compiles its own
         from selfcal.benchmarks.speed_against import compile_tree
 
