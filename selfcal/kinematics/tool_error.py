@@ -70,6 +70,8 @@ class ToolErrorModel:
         model_error_m: per-coordinate standard deviation of the model error at the tool point (m).
         model_error_rad: the same for the tool orientation (rad, rotation-vector coordinate), or
             None when the calibration does not determine the tool frame's orientation.
+        T_tool_point: (4, 4) the tool point's frame in the chain's tool frame (m), e.g. the
+            flange seen from a camera that is the chain's tool; None: the tool frame itself.
     """
 
     model: MCPCModel
@@ -78,11 +80,16 @@ class ToolErrorModel:
     covariance: np.ndarray
     model_error_m: float
     model_error_rad: float | None = None
+    T_tool_point: np.ndarray | None = None
+
+    def _point(self) -> np.ndarray:
+        """(3,) the tool point in the chain's tool frame (m)."""
+        return np.zeros(3) if self.T_tool_point is None else np.asarray(self.T_tool_point)[:3, 3]
 
     def tool_positions(self, q: np.ndarray) -> np.ndarray:
         """Tool points (m, 3) in the output frame (m) at joints ``q`` (m, n)."""
         T = self.T_out_world @ fk_frames(self.model, q)[:, -1]
-        return T[:, :3, 3]
+        return T[:, :3, :3] @ self._point() + T[:, :3, 3]
 
     def jacobian(self, q: np.ndarray) -> np.ndarray:
         """(m, 6, p) derivative of ``[position (m); orientation (rad, rotation vector)]`` of the
@@ -90,7 +97,11 @@ class ToolErrorModel:
         frames = fk_frames(self.model, q)
         J = identification_jacobian(self.model, q, frames)[:, :, self.columns]  # tool frame
         R = self.T_out_world[:3, :3] @ frames[:, -1, :3, :3]
-        return np.concatenate([R @ J[:, :3], R @ J[:, 3:]], axis=1)
+        # a body twist [v; w] moves the tool point t by v + w x t (tool frame)
+        t = self._point()
+        skew = np.array([[0.0, -t[2], t[1]], [t[2], 0.0, -t[0]], [-t[1], t[0], 0.0]])
+        Jp = J[:, :3] - skew @ J[:, 3:]
+        return np.concatenate([R @ Jp, R @ J[:, 3:]], axis=1)
 
     def estimation_covariance(self, q: np.ndarray) -> np.ndarray:
         """(m, 6, 6) covariance of ``[position (m); orientation (rad)]`` of the tool in the output

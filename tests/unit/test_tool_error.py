@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 from scipy.stats import chi2
@@ -48,20 +50,28 @@ def _error_model(robot, rng, model_error_m=0.0, model_error_rad=None):
     return ToolErrorModel(model, T, cols, A @ A.T, model_error_m, model_error_rad)
 
 
-def test_estimation_covariance_is_the_parameters_carried_through_the_chain(er4u):
-    """Against central differences of the tool pose in the output frame."""
+@pytest.mark.parametrize("point", [False, True])
+def test_estimation_covariance_is_the_parameters_carried_through_the_chain(er4u, point):
+    """Against central differences of the tool pose in the output frame (and of a tool point
+    away from the tool frame, as the board route's flange seen from its camera)."""
     rng = np.random.default_rng(0)
     em = _error_model(er4u, rng)
+    if point:
+        em = dataclasses.replace(
+            em, T_tool_point=pose_from_vec(np.r_[0.05, -0.02, -0.12, 0.3, 0.1, -0.2])
+        )
+    tip = np.eye(4) if em.T_tool_point is None else em.T_tool_point
     q = rng.uniform(er4u.limits[:, 0], er4u.limits[:, 1], (4, er4u.n))
     h = 1e-6
     J = np.zeros((len(q), 6, em.columns.size))
-    T0 = em.T_out_world @ fk_tool(em.model, q)
+    T0 = em.T_out_world @ fk_tool(em.model, q) @ tip
+    assert np.allclose(em.tool_positions(q), T0[:, :3, 3])
     for k, c in enumerate(em.columns):
         p = em.model.params.reshape(-1).copy()
         p[c] += h
-        Tp = em.T_out_world @ fk_tool(em.model.with_params(p.reshape(-1, 6)), q)
+        Tp = em.T_out_world @ fk_tool(em.model.with_params(p.reshape(-1, 6)), q) @ tip
         p[c] -= 2 * h
-        Tm = em.T_out_world @ fk_tool(em.model.with_params(p.reshape(-1, 6)), q)
+        Tm = em.T_out_world @ fk_tool(em.model.with_params(p.reshape(-1, 6)), q) @ tip
         J[:, :3, k] = (Tp[:, :3, 3] - Tm[:, :3, 3]) / (2 * h)
         W = (Tp[:, :3, :3] - Tm[:, :3, :3]) / (2 * h) @ np.swapaxes(T0[:, :3, :3], 1, 2)
         J[:, 3:, k] = np.stack([W[:, 2, 1], W[:, 0, 2], W[:, 1, 0]], axis=1)  # world rotation

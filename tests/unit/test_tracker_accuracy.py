@@ -130,7 +130,10 @@ def test_the_order_of_the_rows_does_not_matter(er4u):
     perm = np.random.default_rng(1).permutation(24)
     _, a = _calibrate(er4u, q, xyz)
     _, b = _calibrate(er4u, q[perm], xyz[perm])
-    ma, mb = (np.array(astuple(x.model_error), dtype=float) for x in (a, b))  # None -> nan
+    ma, mb = (
+        np.array([v for v in astuple(x.model_error) if not isinstance(v, str)], dtype=float)
+        for x in (a, b)
+    )  # None -> nan
     assert np.allclose(ma, mb, rtol=1e-6, equal_nan=True)
     for region in ("inside", "edge", "workspace"):
         for key, v in a.summary[region].items():

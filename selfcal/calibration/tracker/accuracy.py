@@ -20,26 +20,33 @@ prediction is then pessimistic), a model error the postures cannot show (it repe
 row alike) is not counted.
 
 The block :meth:`TrackerAccuracy.to_json` goes into ``calibration.json`` (``accuracy``); the
-report rebuilds the prediction from it (:func:`error_model_from_json`). SI inside; ``_mm`` /
+report rebuilds the prediction from it (:func:`error_model_from_json`). The split, the block and
+its reading back are the routes' shared :mod:`selfcal.calibration.accuracy`. SI inside; ``_mm`` /
 ``_deg`` in the block.
 """
 
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
 
 import numpy as np
 
+from selfcal.calibration import accuracy as shared
+from selfcal.calibration.accuracy import (
+    SAMPLE_COUNT,
+    Z_MODEL_ERROR,
+    ModelError,
+    model_error_of,
+)
+from selfcal.calibration.accuracy import Accuracy as TrackerAccuracy
 from selfcal.calibration.tracker.identify import TrackerResult, identify_tracker
 from selfcal.calibration.tracker.nominal import pose_errors
-from selfcal.errors import EstimationError, InputError
+from selfcal.errors import EstimationError
 from selfcal.estimation.tracker import TrackerMeasurements
 from selfcal.kinematics.mcpc import MCPCModel, minimal_indices
 from selfcal.kinematics.tool_error import (
     EDGE_FRACTION,
     ToolErrorModel,
-    WorkspaceSample,
     workspace_sample,
     workspace_summary,
 )
@@ -58,16 +65,6 @@ __all__ = [
     "SAMPLE_COUNT",
 ]
 
-SAMPLE_COUNT = 256
-"""Joint vectors per region of the workspace sample."""
-
-Z_MODEL_ERROR = 2.0
-"""A model error is counted when the held-out errors exceed what the estimation error and the
-noise explain by more than this many standard errors (one-sided, ~2 %): an excess of that size
-arises by chance in 1 calibration in 40 that has no model error; below it the estimate would
-be mostly the sampling noise of the held-out errors, which clipped at 0 inflates the
-prediction."""
-
 MAX_FOLDS = 10
 """At most this many cross-validation folds (one identification each)."""
 
@@ -78,6 +75,10 @@ WHAT = (
     "95 % bounds of the error's norm per joint vector, summarised per region: inside = joint "
     "vectors within the calibration postures' joint ranges, edge = beyond them by up to "
     f"{EDGE_FRACTION:.0%} of each joint's range, workspace = within the joint limits"
+)
+NOTE = (
+    "no cross-validation possible (fewer than 2 position / pose rows or every fold failed): "
+    "the covariance alone, which is optimistic when the model misfits"
 )
 
 
@@ -91,54 +92,6 @@ def fold_index(q: np.ndarray, k: int) -> np.ndarray:
     return fold
 
 
-@dataclass(frozen=True)
-class ModelError:
-    """The model error estimated from held-out rows (module docstring); SI.
-
-    Attributes:
-        position_m, rotation_rad: per-coordinate standard deviations (rotation: None without
-            poses).
-        folds, rows, failed: folds used, rows predicted, folds whose fit failed.
-        held_out_rms_m, held_out_rms_rad: RMS of the held-out errors' norms (rad: nan without
-            poses); estimation_rms_m, estimation_rms_rad: what the folds' covariances explain
-            (``sqrt(mean tr S)``); noise_m, noise_rad: the tracker noise per coordinate taken out.
-    """
-
-    position_m: float
-    rotation_rad: float | None
-    folds: int
-    rows: int
-    failed: int
-    held_out_rms_m: float
-    held_out_rms_rad: float
-    estimation_rms_m: float
-    estimation_rms_rad: float
-    noise_m: float
-    noise_rad: float
-
-    def to_json(self) -> dict:
-        def num(x: float | None, k: float) -> float | None:
-            return None if x is None or not np.isfinite(x) else float(x * k)
-
-        deg = 180.0 / np.pi
-        return {
-            "what": "per-coordinate standard deviation of what the model cannot express, from "
-            "the cross-validated rows' errors less the folds' predicted estimation error and the "
-            "tracker noise",
-            "position_mm": num(self.position_m, 1e3),
-            "rotation_deg": num(self.rotation_rad, deg),
-            "folds": self.folds,
-            "rows": self.rows,
-            "failed_folds": self.failed,
-            "held_out_rms_mm": num(self.held_out_rms_m, 1e3),
-            "held_out_rms_deg": num(self.held_out_rms_rad, deg),
-            "estimation_rms_mm": num(self.estimation_rms_m, 1e3),
-            "estimation_rms_deg": num(self.estimation_rms_rad, deg),
-            "noise_mm": num(self.noise_m, 1e3),
-            "noise_deg": num(self.noise_rad, deg),
-        }
-
-
 def error_model(
     res: TrackerResult, position_m: float, rotation_rad: float | None = None
 ) -> ToolErrorModel:
@@ -147,18 +100,6 @@ def error_model(
     cols = minimal_indices(res.model.joint_types)[res.estimated]
     return ToolErrorModel(res.model, res.T_meas_fit, cols, res.covariance, position_m,
                           rotation_rad)  # fmt: skip
-
-
-def _excess(total2: float, explained2: float, noise: float, rows: int) -> float:
-    """Per-coordinate standard deviation of what ``total2`` (the mean squared norm over ``rows``
-    held-out rows) leaves beyond ``explained2`` and three coordinates of ``noise``; 0 unless
-    that excess exceeds :data:`Z_MODEL_ERROR` standard errors of ``total2`` under no model error
-    (a squared norm of three Gaussian coordinates has variance 2/3 of its square mean)."""
-    expected = explained2 + 3.0 * noise**2
-    excess = total2 - expected
-    if excess <= Z_MODEL_ERROR * expected * np.sqrt(2.0 / (3.0 * rows)):
-        return 0.0
-    return float(np.sqrt(excess / 3.0))
 
 
 def model_error(
@@ -206,59 +147,10 @@ def model_error(
         return None
     scale = min(1.0, res.sigma0)
     nu, nu_r = sigma_t_m * scale, sigma_r_rad * scale
-    n_rows = int(sum(len(v) for v in r2))
-    e2, es2 = float(np.mean(np.concatenate(r2))), float(np.mean(np.concatenate(s2)))
-    rot = None
-    e2r = es2r = float("nan")
-    if poses:
-        e2r, es2r = float(np.mean(np.concatenate(r2_rot))), float(np.mean(np.concatenate(s2_rot)))
-        rot = _excess(e2r, es2r, nu_r, n_rows)
-    return ModelError(
-        position_m=_excess(e2, es2, nu, n_rows),
-        rotation_rad=rot,
-        folds=k - failed,
-        rows=n_rows,
-        failed=failed,
-        held_out_rms_m=float(np.sqrt(e2)),
-        held_out_rms_rad=float(np.sqrt(e2r)),
-        estimation_rms_m=float(np.sqrt(es2)),
-        estimation_rms_rad=float(np.sqrt(es2r)),
-        noise_m=nu,
-        noise_rad=nu_r if poses else float("nan"),
-    )
-
-
-@dataclass(frozen=True)
-class TrackerAccuracy:
-    """The predicted accuracy of a tracker calibration (module docstring): its error model, the
-    estimated parameters' ``names``, the model-error estimate, the summary over the workspace
-    (:func:`selfcal.kinematics.tool_error.workspace_summary`) of ``sample`` and the calibration
-    postures ``q_cal`` (m, n) rad / m."""
-
-    error_model: ToolErrorModel
-    names: tuple[str, ...]
-    model_error: ModelError | None
-    summary: dict
-    sample: WorkspaceSample
-    q_cal: np.ndarray
-
-    def to_json(self) -> dict:
-        """The ``accuracy`` block of ``calibration.json`` (units in the key names)."""
-        em = self.error_model
-        return {
-            "what": WHAT,
-            "units": "mm and deg; covariance SI (rad, m) in the order of `estimated`",
-            "model_error": None if self.model_error is None else self.model_error.to_json(),
-            "model_error_note": None
-            if self.model_error is not None
-            else "no cross-validation possible (fewer than 2 position / pose rows or every fold "
-            "failed): the covariance alone, which is optimistic when the model misfits",
-            "calibrated_region_si": self.sample.box.tolist(),
-            "calibration_postures_si": self.q_cal.tolist(),
-            "regions": self.summary,
-            "estimated": list(self.names),
-            "covariance_si": em.covariance.tolist(),
-        }
+    n2 = [np.full(len(v), 3.0 * nu**2) for v in r2]
+    rot = (r2_rot, s2_rot, [np.full(len(v), 3.0 * nu_r**2) for v in r2_rot]) if poses else None
+    return model_error_of(r2, s2, n2, rot, folds=k - failed, failed=failed,
+                          noise_what="the tracker noise")  # fmt: skip
 
 
 def tracker_accuracy(
@@ -286,30 +178,22 @@ def tracker_accuracy(
     sample = workspace_sample(meas.q, limits, count=count)
     names = tuple(n for n, e in zip(res.names, res.estimated) if e)
     summary = workspace_summary(em, sample, meas.q)
-    return TrackerAccuracy(em, names, me, summary, sample, np.array(meas.q, dtype=float))
+    return TrackerAccuracy(em, names, me, summary, sample, np.array(meas.q, dtype=float),
+                           WHAT, NOTE)  # fmt: skip
+
+
+_FIX = "re-run `selfcal identify` to write the block again"
 
 
 def error_model_from_json(block: dict, model: MCPCModel, T_meas_fit: np.ndarray,
                           names: tuple[str, ...], poses: bool, where: str) -> ToolErrorModel:  # fmt: skip
-    """The :class:`ToolErrorModel` of a calibration file's ``accuracy`` block (``names``: the
-    file's minimal parameter names, ``poses``: whether the fit used poses).
+    """The :class:`ToolErrorModel` of a tracker calibration file's ``accuracy`` block
+    (``names``: the file's minimal parameter names, ``poses``: whether the fit used poses).
 
     Raises:
         InputError: the block's parameters are not the file's or its covariance is malformed.
     """
-    est = tuple(block.get("estimated", ()))
-    unknown = [n for n in est if n not in names]
-    cov = np.asarray(block.get("covariance_si", []), dtype=float)
-    fix = "re-run `selfcal identify` to write the block again"
-    if unknown or cov.shape != (len(est), len(est)) or not np.all(np.isfinite(cov)):
-        raise InputError(f"{where}: the accuracy block's covariance does not match its "
-                         f"parameters {list(est)}", fix=fix)  # fmt: skip
-    idx = minimal_indices(model.joint_types)
-    cols = idx[[names.index(n) for n in est]]
-    me = block.get("model_error") or {}
-    pos = (me.get("position_mm") or 0.0) / 1e3
-    rot = np.radians(me.get("rotation_deg") or 0.0) if poses else None
-    return ToolErrorModel(model, np.asarray(T_meas_fit, float), cols, cov, pos, rot)
+    return shared.error_model_from_json(block, model, T_meas_fit, names, poses, where, fix=_FIX)
 
 
 def postures_from_json(block: dict, n: int, where: str) -> np.ndarray:
@@ -318,8 +202,4 @@ def postures_from_json(block: dict, n: int, where: str) -> np.ndarray:
     Raises:
         InputError: missing or malformed.
     """
-    q = np.asarray(block.get("calibration_postures_si", []), dtype=float)
-    if q.ndim != 2 or q.shape[1] != n or len(q) == 0 or not np.all(np.isfinite(q)):
-        raise InputError(f"{where}: accuracy.calibration_postures_si must be m rows of {n} "
-                         "joint values", fix="re-run `selfcal identify` to write the block again")  # fmt: skip
-    return q
+    return shared.postures_from_json(block, n, where, fix=_FIX)

@@ -1,0 +1,233 @@
+"""What every route's predicted tool-point accuracy shares (issue #29, docs/tool-accuracy.md).
+
+A route (the tracker's :mod:`selfcal.calibration.tracker.accuracy`, the board's
+:mod:`selfcal.calibration.board.accuracy`) predicts the error of its calibrated tool point from
+the estimate's covariance carried through the chain
+(:class:`selfcal.kinematics.tool_error.ToolErrorModel`) plus a *model error*: what its model
+cannot express, estimated from cross-validated rows. Each held-out row ``i`` gives its squared
+tool-point error ``|r_i|^2``, what the fold's own covariance explains there (``tr S_i``) and what
+the measurement noise explains (``tr N_i``); the model error per coordinate ``m`` follows from
+
+    mean |r_i|^2 = mean tr S_i + mean tr N_i + 3 m^2
+
+counted only when the excess exceeds :data:`Z_MODEL_ERROR` standard errors of the mean
+(:func:`excess`). The same for the orientation. Here: that split (:func:`model_error_of`), its
+record (:class:`ModelError`), the ``accuracy`` block of ``calibration.json``
+(:class:`Accuracy`) and its reading back (:func:`error_model_from_json`,
+:func:`postures_from_json`). SI inside; ``_mm`` / ``_deg`` in the block.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from selfcal.errors import InputError
+from selfcal.kinematics.mcpc import MCPCModel, minimal_indices
+from selfcal.kinematics.tool_error import ToolErrorModel, WorkspaceSample
+
+__all__ = [
+    "SAMPLE_COUNT",
+    "Z_MODEL_ERROR",
+    "Accuracy",
+    "ModelError",
+    "error_model_from_json",
+    "excess",
+    "model_error_of",
+    "postures_from_json",
+]
+
+SAMPLE_COUNT = 256
+"""Joint vectors per region of the workspace sample."""
+
+Z_MODEL_ERROR = 2.0
+"""A model error is counted when the held-out errors exceed what the estimation error and the
+noise explain by more than this many standard errors (one-sided, ~2 %): an excess of that size
+arises by chance in 1 calibration in 40 that has no model error; below it the estimate would
+be mostly the sampling noise of the held-out errors, which clipped at 0 inflates the
+prediction."""
+
+
+def excess(total2: float, expected2: float, rows: int) -> float:
+    """Per-coordinate standard deviation of what ``total2`` (the mean squared norm of ``rows``
+    held-out 3-vectors) leaves beyond ``expected2`` (what the estimation error and the noise
+    explain); 0 unless that excess exceeds :data:`Z_MODEL_ERROR` standard errors of ``total2``
+    under no model error (a squared norm of three Gaussian coordinates has variance 2/3 of its
+    square mean)."""
+    extra = total2 - expected2
+    if extra <= Z_MODEL_ERROR * expected2 * np.sqrt(2.0 / (3.0 * rows)):
+        return 0.0
+    return float(np.sqrt(extra / 3.0))
+
+
+@dataclass(frozen=True)
+class ModelError:
+    """The model error estimated from held-out rows (module docstring); SI.
+
+    Attributes:
+        position_m, rotation_rad: per-coordinate standard deviations (rotation: None when the
+            route does not measure the tool's orientation).
+        folds, rows, failed: folds used, rows predicted, folds whose fit failed.
+        held_out_rms_m, held_out_rms_rad: RMS of the held-out errors' norms (rad: nan without
+            orientation); estimation_rms_m, estimation_rms_rad: what the folds' covariances
+            explain (``sqrt(mean tr S)``); noise_m, noise_rad: the measurement noise per
+            coordinate taken out (``sqrt(mean tr N / 3)``).
+        noise_what: what the noise is (e.g. the tracker's stated sigma).
+    """
+
+    position_m: float
+    rotation_rad: float | None
+    folds: int
+    rows: int
+    failed: int
+    held_out_rms_m: float
+    held_out_rms_rad: float
+    estimation_rms_m: float
+    estimation_rms_rad: float
+    noise_m: float
+    noise_rad: float
+    noise_what: str = "the tracker noise"
+
+    def to_json(self) -> dict:
+        def num(x: float | None, k: float) -> float | None:
+            return None if x is None or not np.isfinite(x) else float(x * k)
+
+        deg = 180.0 / np.pi
+        return {
+            "what": "per-coordinate standard deviation of what the model cannot express, from "
+            "the cross-validated rows' errors less the folds' predicted estimation error and "
+            f"{self.noise_what}",
+            "position_mm": num(self.position_m, 1e3),
+            "rotation_deg": num(self.rotation_rad, deg),
+            "folds": self.folds,
+            "rows": self.rows,
+            "failed_folds": self.failed,
+            "held_out_rms_mm": num(self.held_out_rms_m, 1e3),
+            "held_out_rms_deg": num(self.held_out_rms_rad, deg),
+            "estimation_rms_mm": num(self.estimation_rms_m, 1e3),
+            "estimation_rms_deg": num(self.estimation_rms_rad, deg),
+            "noise_mm": num(self.noise_m, 1e3),
+            "noise_deg": num(self.noise_rad, deg),
+        }
+
+
+def model_error_of(
+    r2: Sequence[np.ndarray],
+    s2: Sequence[np.ndarray],
+    n2: Sequence[np.ndarray],
+    rot: tuple[Sequence[np.ndarray], Sequence[np.ndarray], Sequence[np.ndarray]] | None,
+    *,
+    folds: int,
+    failed: int,
+    noise_what: str,
+) -> ModelError | None:
+    """The :class:`ModelError` of held-out rows given fold by fold: their squared tool-point
+    errors ``r2`` (m^2), what the folds' covariances explain ``s2`` (``tr S``, m^2) and what the
+    noise explains ``n2`` (``tr N``, m^2), each a list of per-fold arrays; ``rot`` the same
+    three for the orientation (rad^2) or None. None without rows."""
+    if not r2 or sum(len(v) for v in r2) == 0:
+        return None
+    n_rows = int(sum(len(v) for v in r2))
+    e2, es2, en2 = (float(np.mean(np.concatenate(v))) for v in (r2, s2, n2))
+    out_rot, e2r, es2r, en2r = None, float("nan"), float("nan"), float("nan")
+    if rot is not None:
+        e2r, es2r, en2r = (float(np.mean(np.concatenate(v))) for v in rot)
+        out_rot = excess(e2r, es2r + en2r, n_rows)
+    return ModelError(
+        position_m=excess(e2, es2 + en2, n_rows),
+        rotation_rad=out_rot,
+        folds=folds,
+        rows=n_rows,
+        failed=failed,
+        held_out_rms_m=float(np.sqrt(e2)),
+        held_out_rms_rad=float(np.sqrt(e2r)),
+        estimation_rms_m=float(np.sqrt(es2)),
+        estimation_rms_rad=float(np.sqrt(es2r)),
+        noise_m=float(np.sqrt(en2 / 3.0)),
+        noise_rad=float(np.sqrt(en2r / 3.0)),
+        noise_what=noise_what,
+    )
+
+
+@dataclass(frozen=True)
+class Accuracy:
+    """The predicted accuracy of a calibration (module docstring): its error model, the
+    estimated parameters' ``names``, the model-error estimate, the summary over the workspace
+    (:func:`selfcal.kinematics.tool_error.workspace_summary`) of ``sample`` and the calibration
+    postures ``q_cal`` (m, n) rad / m; ``what`` says what is predicted in which frame, ``note``
+    why there is no model error when ``model_error`` is None, ``extra`` further keys of the
+    block (e.g. the board route's cross-validated reprojection)."""
+
+    error_model: ToolErrorModel
+    names: tuple[str, ...]
+    model_error: ModelError | None
+    summary: dict
+    sample: WorkspaceSample
+    q_cal: np.ndarray
+    what: str
+    note: str
+    extra: dict = field(default_factory=dict)
+
+    def to_json(self) -> dict:
+        """The ``accuracy`` block of ``calibration.json`` (units in the key names)."""
+        em = self.error_model
+        return {
+            "what": self.what,
+            "units": "mm and deg; covariance SI (rad, m) in the order of `estimated`",
+            "model_error": None if self.model_error is None else self.model_error.to_json(),
+            "model_error_note": None if self.model_error is not None else self.note,
+            "calibrated_region_si": self.sample.box.tolist(),
+            "calibration_postures_si": self.q_cal.tolist(),
+            "regions": self.summary,
+            "estimated": list(self.names),
+            "covariance_si": em.covariance.tolist(),
+            **self.extra,
+        }
+
+
+def error_model_from_json(
+    block: dict,
+    model: MCPCModel,
+    T_out_world: np.ndarray,
+    names: tuple[str, ...],
+    poses: bool,
+    where: str,
+    *,
+    fix: str,
+    T_tool_point: np.ndarray | None = None,
+) -> ToolErrorModel:
+    """The :class:`ToolErrorModel` of a calibration file's ``accuracy`` block (``names``: the
+    model's minimal parameter names, ``poses``: whether the orientation is predicted, ``fix``:
+    how to write the block again, ``T_tool_point``: the tool point in the chain's tool frame).
+
+    Raises:
+        InputError: the block's parameters are not the file's or its covariance is malformed.
+    """
+    est = tuple(block.get("estimated", ()))
+    unknown = [n for n in est if n not in names]
+    cov = np.asarray(block.get("covariance_si", []), dtype=float)
+    if unknown or cov.shape != (len(est), len(est)) or not np.all(np.isfinite(cov)):
+        raise InputError(f"{where}: the accuracy block's covariance does not match its "
+                         f"parameters {list(est)}", fix=fix)  # fmt: skip
+    idx = minimal_indices(model.joint_types)
+    cols = idx[[names.index(n) for n in est]]
+    me = block.get("model_error") or {}
+    pos = (me.get("position_mm") or 0.0) / 1e3
+    rot = np.radians(me.get("rotation_deg") or 0.0) if poses else None
+    tip = None if T_tool_point is None else np.asarray(T_tool_point, float)
+    return ToolErrorModel(model, np.asarray(T_out_world, float), cols, cov, pos, rot, tip)
+
+
+def postures_from_json(block: dict, n: int, where: str, *, fix: str) -> np.ndarray:
+    """The calibration postures (m, n) rad / m of an ``accuracy`` block.
+
+    Raises:
+        InputError: missing or malformed.
+    """
+    q = np.asarray(block.get("calibration_postures_si", []), dtype=float)
+    if q.ndim != 2 or q.shape[1] != n or len(q) == 0 or not np.all(np.isfinite(q)):
+        raise InputError(f"{where}: accuracy.calibration_postures_si must be m rows of {n} "
+                         "joint values", fix=fix)  # fmt: skip
+    return q
