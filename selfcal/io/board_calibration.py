@@ -28,6 +28,9 @@ m); the MCPC chain's tool is the first camera (OpenCV frame). Keys (units in the
                       board; ``mounts`` the cell's static transforms read out of the chain
                       (:class:`Mount`: base -> camera, flange -> board, matrix m, sigmas from
                       the Cramer-Rao covariance in deg and mm, null without)
+    accuracy          the predicted tool-point (flange) error over the workspace and the
+                      cross-validated reprojection (:mod:`selfcal.calibration.board.accuracy`,
+                      docs/tool-accuracy.md), absent in older files and without bounds
 
 :func:`read_board_calibration` is the one reader; :func:`calibration_kind` tells the two
 ``calibration.json`` kinds apart.
@@ -202,6 +205,9 @@ class BoardCalibrationResult:
     the first camera, tool = the board on the flange)."""
     mounts: tuple[Mount, ...] = ()
     """Eye-to-hand: base -> camera and flange -> board with their sigmas (empty: not computed)."""
+    accuracy: dict | None = None
+    """The predicted tool-point accuracy (:mod:`selfcal.calibration.board.accuracy`), or None
+    (files before it, or no bounds)."""
 
     @property
     def eye_to_hand(self) -> bool:
@@ -299,6 +305,7 @@ class BoardCalibrationResult:
             "warnings": list(self.warnings),
             **({} if self.bounds is None else {"bounds": self.bounds.to_json()}),
             **({} if self.bounds_error is None else {"bounds_error": self.bounds_error}),
+            **({} if self.accuracy is None else {"accuracy": self.accuracy}),
         }
 
     @classmethod
@@ -347,6 +354,7 @@ class BoardCalibrationResult:
             ),  # fmt: skip
             setup=setup,
             mounts=tuple(Mount.from_json(m) for m in f.items("mounts")) if f.has("mounts") else (),
+            accuracy=dict(f.sub("accuracy").doc) if f.has("accuracy") else None,
         )
 
 

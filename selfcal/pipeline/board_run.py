@@ -42,6 +42,7 @@ from selfcal.kinematics.accuracy import aligned_errors, parameter_table, tool_ti
 from selfcal.kinematics.alignment import express_in_frame
 from selfcal.kinematics.forward import fk_tool
 from selfcal.kinematics.mcpc import MCPCModel, shape_matrices
+from selfcal.pipeline.board_accuracy import accuracy_markdown, board_accuracy_section
 from selfcal.pipeline.report_fit import bound_markdown, figure_links, parameter_markdown
 from selfcal.plots.job_figures import (
     parameter_figure,
@@ -302,9 +303,14 @@ def write_board_truth_report(
             write_figure(reprojection_figure(ev, "calibration images"), root, "reprojection.png"),
             write_figure(parameter_figure(report["parameters"]), root, "parameters.png"),
         ]
-    report["figures"] = [str(p.relative_to(root)) for p in drawn]
+    section, maps = board_accuracy_section(root, cal, figures=figures)
+    if section is not None:  # the predicted tool-point accuracy (issue #29)
+        report["accuracy"] = section
+    report["figures"] = [str(p.relative_to(root)) for p in drawn + maps]
     write_report(root / "report.json", report)
     md = _markdown(report)
+    if section is not None:
+        md += "\n".join(accuracy_markdown(section)) + "\n"
     write_text_atomic(root / "report.md", md)
     return report
 

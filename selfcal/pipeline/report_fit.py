@@ -28,6 +28,7 @@ from selfcal.io.dataset import Dataset
 from selfcal.kinematics.accuracy import parameter_table
 from selfcal.kinematics.alignment import express_in_frame
 from selfcal.kinematics.mcpc import nominal_mcpc
+from selfcal.pipeline.board_accuracy import accuracy_markdown
 from selfcal.pipeline.report_cameras import rig_camera_markdown, rig_camera_rows
 from selfcal.robot.definition import load_robot
 
@@ -203,6 +204,8 @@ def fit_markdown(r: dict, figures: list[str]) -> str:
         ]
     if "verdict" in r:
         lines += ["", f"**{r['verdict']}**"]
+    if "accuracy" in r:
+        lines += accuracy_markdown(r["accuracy"])
     idf = r["identifiability"]
     lines += ["", "## Identifiability", ""]
     if "two_stage" in idf:

@@ -49,8 +49,10 @@ def report_summary(report: dict, root: Path) -> str:
                     f"{r['nominal']:.3f} px nominal over {h['images']} images ({h['source']})")  # fmt: skip
         verdict = report.get("verdict")
         verdict = "" if not verdict else "; NO GAIN: " + verdict.removeprefix("no gain: ")
+        acc = report.get("accuracy")
+        tool = "" if not acc else f"; {acc['line']}"
         return (f"report (no truth): fit {report['fit']['reprojection_rms_px']:.3f} px RMS; "
-                f"{held}{verdict}; {Path(root) / 'report.json'}")  # fmt: skip
+                f"{held}{verdict}{tool}; {Path(root) / 'report.json'}")  # fmt: skip
     if report.get("kind") == "eye-to-hand-truth":
         from selfcal.pipeline.static_report import static_summary
 
@@ -59,10 +61,12 @@ def report_summary(report: dict, root: Path) -> str:
     t = v["tool_tip_error_mm"]
     bound = v.get("tool_tip_bound_mm")
     b = "" if bound is None else f", bound {bound:.3f} mm"
+    acc = report.get("accuracy")
+    tool = "" if not acc else f"; predicted: {acc['line']}"
     return (
         f"report: tool-tip error {t['calibrated']['rms']:.3f} mm RMS calibrated, "
-        f"{t['nominal']['rms']:.3f} mm nominal over {v['poses']} validation postures{b}; "
-        f"{Path(root) / 'report.json'}"
+        f"{t['nominal']['rms']:.3f} mm nominal over {v['poses']} validation postures{b}"
+        f"{tool}; {Path(root) / 'report.json'}"
     )
 
 

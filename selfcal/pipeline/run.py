@@ -373,9 +373,15 @@ def _board_report(root: Path, cal: BoardCalibrationResult, *, quiet: bool, figur
         if cal.eye_to_hand:
             return write_static_truth_report(root, cal, truth, figures=figures)
         return write_board_truth_report(root, cal, truth, quiet=quiet, figures=figures)
+    from selfcal.pipeline.board_accuracy import board_accuracy_section
+
     ev = evaluate_board(cal, str(root / "calibration.json"), root) if figures else None
     drawn = [] if ev is None else [reprojection_figures(root, ev)]
-    return _write_fit_report(root, board_fit_report(root, cal), drawn, quiet=quiet)
+    report = board_fit_report(root, cal)
+    section, maps = board_accuracy_section(root, cal, figures=figures)
+    if section is not None:
+        report["accuracy"] = section
+    return _write_fit_report(root, report, drawn + maps, quiet=quiet)
 
 
 def _write_fit_report(root: Path, report: dict, drawn: list[Path], *, quiet: bool) -> dict:

@@ -22,6 +22,7 @@ from selfcal.errors import InputError
 from selfcal.io.atomic import write_text_atomic
 from selfcal.io.jsonfile import write_json_atomic
 from selfcal.kinematics.tool_error import accuracy_line, workspace_sample, workspace_summary
+from selfcal.pipeline.accuracy_table import region_table
 from selfcal.plots.job_figures import write_figure
 from selfcal.plots.workspace_map import workspace_map_figure
 
@@ -73,14 +74,6 @@ def tracker_report(root: Path, *, figures: bool = True) -> dict:
 def _markdown(report: dict) -> str:
     acc = report["accuracy"]
     me = acc.get("model_error") or {}
-    rows = []
-    for name in ("calibration_postures", "inside", "edge", "workspace"):
-        r = acc["regions"][name]
-        if not r.get("points"):
-            rows.append(f"| {name} | 0 | | | |")
-            continue
-        rows.append(f"| {name} | {r['points']} | {r['position_95_mm_median']:.4f} | "
-                    f"{r['position_95_mm_max']:.4f} | {r['position_rms_mm']:.4f} |")  # fmt: skip
     figs = "".join(f"\n![{f}]({f})\n" for f in report["figures"])
     note = acc.get("model_error_note") or (
         f"model error {me.get('position_mm', 0.0):.4f} mm per coordinate from {me.get('rows')} "
@@ -92,8 +85,9 @@ def _markdown(report: dict) -> str:
     return (
         "# Tracker calibration: predicted tool-point accuracy\n\n"
         f"{report['accuracy']['line']}\n\n{note}. See docs/tool-accuracy.md.\n\n"
-        "| region | points | median 95 % (mm) | largest 95 % (mm) | RMS (mm) |\n"
-        "|---|---|---|---|---|\n" + "\n".join(rows) + "\n" + figs
+        + "\n".join(region_table(acc["regions"]))
+        + "\n"
+        + figs
     )
 
 

@@ -68,7 +68,10 @@ class BoardCramerRao:
     world = board frame), ``covariance`` (k, k) of its minimal parameters (SI, the order of
     :func:`selfcal.kinematics.mcpc.minimal_indices`; zero for a held one), ``camera_std`` every camera's free parameters' bound
     (px or unitless, by name), the noise level and the counts; ``estimated`` (k,) which
-    minimal parameters the estimate moves (the others were held; all when None)."""
+    minimal parameters the estimate moves (the others were held; all when None);
+    ``camera_covariance`` (c, c) the first camera's free parameters' covariance and
+    ``camera_cross`` (k, c) its covariance with the minimal parameters (zero rows for held
+    ones), for what the camera's errors do to a prediction (:mod:`selfcal.calibration.board.accuracy`)."""
 
     model: MCPCModel
     covariance: np.ndarray
@@ -77,6 +80,8 @@ class BoardCramerRao:
     observations: int
     unknowns: int
     estimated: np.ndarray | None = None
+    camera_covariance: np.ndarray | None = None
+    camera_cross: np.ndarray | None = None
 
     def aligned_tool_rms(self, q: np.ndarray, T_cam_tip: np.ndarray) -> float:
         """The bound (m) of the RMS error of the point ``T_cam_tip`` (first camera -> tip, m)
@@ -145,16 +150,20 @@ def board_cramer_rao(
         at += cam.n_free
     n_obs = sum(len(o[1]) for o in obs)
     C_kin, estimated = C[at:, at:], None
+    n0 = cameras[0].n_free
+    cross = C[at:, :n0]
     minimal = minimal_indices(model.joint_types)
     if free_idx is not None or poses.n_kin != poses.k:
         M = to_minimal(poses)
         C_kin = M @ C_kin @ M.T
+        cross = M @ cross
         estimated = np.abs(M).max(axis=1, initial=0.0) > MOVES
         C_kin[~estimated] = 0.0
         C_kin[:, ~estimated] = 0.0
+        cross[~estimated] = 0.0
     assert C_kin.shape == (minimal.size, minimal.size)
     return BoardCramerRao(model, C_kin, tuple(stds), float(pixel_sigma_px), int(n_obs),
-                          int(prob.problem.n), estimated)  # fmt: skip
+                          int(prob.problem.n), estimated, C[:n0, :n0], cross)  # fmt: skip
 
 
 def to_minimal(poses: KinematicPoses) -> np.ndarray:

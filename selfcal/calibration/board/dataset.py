@@ -29,10 +29,12 @@ from pathlib import Path
 
 import numpy as np
 
+from selfcal.calibration.board.accuracy import board_accuracy
 from selfcal.calibration.board.bounds import board_bounds
 from selfcal.calibration.board.calibrate import BoardInputError, calibrate_board
 from selfcal.calibration.board.mounts import flange_to_tool, mounts
 from selfcal.calibration.board.nominal_fit import placement
+from selfcal.calibration.board.refine import BoardObservations
 from selfcal.calibration.board.rig import calibrate_board_rig
 from selfcal.calibration.board.robot import BoardRobotCalibration, calibrate_robot_with_board
 from selfcal.calibration.frame_checks import (
@@ -339,6 +341,15 @@ def calibrate_board_dataset_detailed(
         result = dataclasses.replace(
             result, bounds_error=text, warnings=(*result.warnings, f"no Cramer-Rao bound: {text}")
         )
+    else:  # the predicted tool-point accuracy over the workspace (issue #29)
+        obs = BoardObservations(board, res.board, feats, q, rig, [o[0] for o in others], js, e2h)
+        try:
+            acc = board_accuracy(obs, sel, cr, res.nominal.model.joint_offsets, inv_pose(mount),
+                                 robot.limits, pixel_sigma_px=bounds.pixel_sigma_px)  # fmt: skip
+            result = dataclasses.replace(result, accuracy=acc.to_json())
+        except np.linalg.LinAlgError as exc:
+            text = f"no predicted accuracy: a fold's Fisher information cannot be inverted ({exc})"
+            result = dataclasses.replace(result, warnings=(*result.warnings, text))
     return BoardDatasetCalibration(result, res, all_feats, q)
 
 

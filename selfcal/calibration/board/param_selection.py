@@ -231,7 +231,9 @@ class Candidate:
     RMS of all its predictions ``cv_rms_px``, every fold's RMS ``fold_rms_px``, its mean log
     ratio to the nominal and that mean's standard error ``log_ratio``, a ``note`` (why it
     failed) and ``fold_held``: per fold the parameters its training frames cannot determine
-    (held at the fair nominal's value in that fold's fit)."""
+    (held at the fair nominal's value in that fold's fit); ``fold_fits``: per fold its fit on
+    the other folds' frames with the flat MCPC indices and joint offsets it estimated (the
+    predicted accuracy's cross-validation, :mod:`selfcal.calibration.board.accuracy`)."""
 
     label: str
     names: tuple[str, ...]
@@ -244,6 +246,9 @@ class Candidate:
     log_ratio: tuple[float, float] = (float("nan"), float("nan"))
     note: str = ""
     fold_held: dict[int, tuple[str, ...]] = field(default_factory=dict)
+    fold_fits: dict[int, tuple[Refinement, np.ndarray, np.ndarray]] = field(
+        default_factory=dict, repr=False
+    )
 
     def to_json(self) -> dict:
         return {
@@ -285,6 +290,8 @@ class Selection:
     folds: int
     rule: str
     notes: list[str] = field(default_factory=list)
+    fold_of: np.ndarray | None = field(default=None, repr=False)
+    """(m,) every frame's cross-validation fold (:func:`fold_labels`), None without folds."""
 
     @property
     def fit(self) -> Refinement:
@@ -372,6 +379,7 @@ def _cross_validate(obs: BoardObservations, start: MCPCModel, cand: Candidate,
                 + f", {max_iter} iterations)"
             )  # fmt: skip
             return
+        cand.fold_fits[int(f)] = (fit, cand.free_idx[keep_m], cand.offset_joints[keep_o])
         e = predict_px(obs, fit, out)
         fold_ms.append(float(np.mean(np.sum(e**2, axis=1))) if len(e) else np.nan)
         fold_n.append(len(e))
@@ -441,7 +449,8 @@ def select_parameters(obs: BoardObservations, nominal_fit: MCPCModel, *,
                 held[name] = (f"cross-validation: {c.label} predicts {_px(c.cv_px)} against "
                               f"{_px(cands[chosen].cv_px)} of the chosen "
                               f"{cands[chosen].label}: not clearly better")  # fmt: skip
-    return Selection(cands, chosen, cands[chosen].names, held, n_config, n_folds, rule, notes)
+    return Selection(cands, chosen, cands[chosen].names, held, n_config, n_folds, rule, notes,
+                     folds if n_folds >= 2 else None)  # fmt: skip
 
 
 def _px(v: float) -> str:

@@ -39,7 +39,7 @@ from selfcal.target.base import Features
 from selfcal.target.boards import Board
 from selfcal.transforms import inv_pose
 
-__all__ = ["BoardObservations", "Refinement", "predict_px", "refine_on_board"]
+__all__ = ["BoardObservations", "Refinement", "predict_px", "predicted_points", "refine_on_board"]
 
 
 @dataclass(frozen=True)
@@ -190,9 +190,13 @@ def refine_on_board(
     )
 
 
-def predict_px(obs: BoardObservations, fit: Refinement, frames: np.ndarray) -> np.ndarray:
-    """The residuals (k, 2) px (predicted - detected) of every camera's inlier rows in the frames
-    ``frames`` (m,) bool, predicted from the joints alone with ``fit`` (nothing re-fitted)."""
+def predicted_points(
+    obs: BoardObservations, fit: Refinement, frames: np.ndarray
+) -> list[tuple[CameraModel, np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
+    """Per camera, the inlier rows of the frames ``frames`` (m,) bool as ``fit`` predicts them
+    from the joints alone: the camera's model, the rows' frame index (k,), the board points in
+    the camera's frame (k, 3) m, the detected pixels (k, 2) and the board's normal in the
+    camera's frame (k, 3)."""
     frames = obs.used & np.asarray(frames, bool)
     T_tool = fk_tool(fit.model, obs.q)
     T_cam0_board = T_tool if obs.eye_to_hand else inv_pose(T_tool)
@@ -201,5 +205,12 @@ def predict_px(obs: BoardObservations, fit: Refinement, frames: np.ndarray) -> n
         T = inv_pose(fit.T_first_cam[c]) @ T_cam0_board[v]
         X = obs.board.points(f)
         Xc = np.einsum("kij,kj->ki", T[:, :3, :3], X) + T[:, :3, 3]
-        out.append(fit.cameras[c].project(Xc) - uv)
+        out.append((fit.cameras[c], v, Xc, uv, T[:, :3, 2]))
+    return out
+
+
+def predict_px(obs: BoardObservations, fit: Refinement, frames: np.ndarray) -> np.ndarray:
+    """The residuals (k, 2) px (predicted - detected) of every camera's inlier rows in the frames
+    ``frames`` (m,) bool, predicted from the joints alone with ``fit`` (nothing re-fitted)."""
+    out = [cam.project(Xc) - uv for cam, _, Xc, uv, _ in predicted_points(obs, fit, frames)]
     return np.concatenate(out) if out else np.zeros((0, 2))

@@ -1,0 +1,106 @@
+"""The predicted tool-point accuracy and the cross-validated reprojection in ``selfcal report``
+of a board calibration (issue #29).
+
+Rebuilds the prediction from ``calibration.json``'s ``accuracy`` block
+(:mod:`selfcal.calibration.board.accuracy`): the one line "tool point within X mm (95 %) inside
+the calibrated region, Y mm at its edge", the regions' summary, the model error, the
+leave-one-configuration-out reprojection of the calibrated model and the fair nominal (px and
+mm at the board), and the workspace map ``figures/workspace_accuracy.png``
+(:mod:`selfcal.plots.workspace_map`).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from selfcal.calibration.accuracy import SAMPLE_COUNT
+from selfcal.calibration.board.accuracy import (
+    board_error_model_from_json,
+    board_postures_from_json,
+)
+from selfcal.errors import InputError
+from selfcal.io.board_calibration import BoardCalibrationResult
+from selfcal.kinematics.tool_error import accuracy_line, workspace_sample, workspace_summary
+from selfcal.pipeline.accuracy_table import region_table
+from selfcal.plots.job_figures import write_figure
+from selfcal.plots.workspace_map import workspace_map_figure
+
+__all__ = ["FIGURE", "accuracy_markdown", "board_accuracy_section", "cross_validation_line"]
+
+FIGURE = "workspace_accuracy.png"
+
+
+def board_accuracy_section(root: Path, cal: BoardCalibrationResult, *,
+                           figures: bool) -> tuple[dict | None, list[Path]]:  # fmt: skip
+    """The report's ``accuracy`` section of the board calibration ``cal`` in ``root`` and the
+    figure drawn (with ``figures``); None without the block (a file written before it).
+
+    Raises:
+        InputError: the block is malformed (named, with the fix).
+    """
+    block = cal.accuracy
+    if block is None:
+        return None, []
+    where = str(Path(root) / "calibration.json")
+    em = board_error_model_from_json(block, cal.model, where)
+    q_cal = board_postures_from_json(block, cal.model.n, where)
+    limits = np.asarray(block.get("joint_limits_si", []), dtype=float)
+    if limits.shape != (cal.model.n, 2) or not np.all(np.isfinite(limits)):
+        raise InputError(f"{where}: accuracy.joint_limits_si must be {cal.model.n} rows of "
+                         "[low, high]", fix="re-run `selfcal calibrate` to write it again")  # fmt: skip
+    sample = workspace_sample(q_cal, limits, count=SAMPLE_COUNT)
+    regions = workspace_summary(em, sample, q_cal)
+    line = accuracy_line(regions)
+    section = {
+        "line": line,
+        "what": block.get("what"),
+        "tool_point": block.get("tool_point"),
+        "model_error": block.get("model_error"),
+        "model_error_note": block.get("model_error_note"),
+        "regions": regions,
+        "cross_validation": block.get("cross_validation"),
+    }
+    drawn = []
+    if figures:
+        frame = "camera frame" if cal.eye_to_hand else "board frame"
+        drawn.append(write_figure(workspace_map_figure(em, sample, q_cal, line, frame), root,
+                                  FIGURE))  # fmt: skip
+    return section, drawn
+
+
+def cross_validation_line(cv: dict | None) -> str | None:
+    """One sentence of the cross-validated reprojection (None without it)."""
+    if not cv or not cv.get("calibrated") or not cv.get("nominal"):
+        return None
+    c, n = cv["calibrated"], cv["nominal"]
+    return (
+        f"cross-validated over {cv['configurations']} configurations in {cv['folds']} folds: "
+        f"calibrated {c['reprojection_rms_px']:.3f} px ({c['at_board_rms_mm']:.3f} mm at the "
+        f"board), fair nominal {n['reprojection_rms_px']:.3f} px "
+        f"({n['at_board_rms_mm']:.3f} mm)"
+    )
+
+
+def accuracy_markdown(section: dict) -> list[str]:
+    """The report.md lines of :func:`board_accuracy_section`'s section."""
+    me = section.get("model_error") or {}
+    note = section.get("model_error_note") or (
+        f"model error {me.get('position_mm', 0.0):.4f} mm and {me.get('rotation_deg', 0.0):.4f} "
+        f"deg per coordinate from {me.get('rows')} cross-validated frames ({me.get('folds')} "
+        "folds)"
+    )
+    out = [
+        "",
+        "## Predicted tool-point accuracy",
+        "",
+        f"{section['line']} ({section.get('tool_point') or 'the tool point'}). {note}. See "
+        "docs/tool-accuracy.md.",
+        "",
+        *region_table(section["regions"], orientation=True),
+    ]
+    cv = cross_validation_line(section.get("cross_validation"))
+    if cv is not None:
+        out += ["", "## Cross-validated reprojection", "", cv[0].upper() + cv[1:] + "."]
+    return out
