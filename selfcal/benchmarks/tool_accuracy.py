@@ -42,7 +42,7 @@ from selfcal.kinematics.tool_error import workspace_sample
 from selfcal.robot.definition import load_robot
 from selfcal.threads import limit_threads
 
-__all__ = ["run", "table", "main", "ROBOTS", "NOISE_MM", "MODELS"]
+__all__ = ["run", "table", "main", "mark", "ROBOTS", "NOISE_MM", "MODELS"]
 
 ROBOTS = ("er4u-paper", "ur5e")
 NOISE_MM = (0.02, 0.1, 0.5)
@@ -120,7 +120,8 @@ def run(draws: int = 30, robots=ROBOTS, noise_mm=NOISE_MM, models=MODELS) -> lis
     return rows
 
 
-def _mark(v: float, lo: float, hi: float) -> str:
+def mark(v: float, lo: float, hi: float) -> str:
+    """ " (outside)" when ``v`` is outside the target ``lo``-``hi`` (a table cell's suffix)."""
     return "" if lo <= v <= hi else " (outside)"
 
 
@@ -134,8 +135,8 @@ def table(rows: list[dict]) -> str:
     lines = [
         f"| {r['robot']} | {r['noise_mm']:g} | {r['model']} | {r['region']} | "
         f"{r['true_rms_mm']:.3f} | {100 * r['coverage']:.1f} %"
-        f"{_mark(r['coverage'], 0.9, 0.98)} | {100 * r['coverage_covariance']:.1f} % | "
-        f"{r['ratio']:.2f}{_mark(r['ratio'], 0.7, 1.4)} | {r['ratio_10']:.2f}-{r['ratio_90']:.2f} |"
+        f"{mark(r['coverage'], 0.9, 0.98)} | {100 * r['coverage_covariance']:.1f} % | "
+        f"{r['ratio']:.2f}{mark(r['ratio'], 0.7, 1.4)} | {r['ratio_10']:.2f}-{r['ratio_90']:.2f} |"
         for r in rows
     ]
     d = rows[0]

@@ -11,7 +11,8 @@ the measurement noise explains (``tr N_i``); the model error per coordinate ``m`
     mean |r_i|^2 = mean tr S_i + mean tr N_i + 3 m^2
 
 counted only when the excess exceeds :data:`Z_MODEL_ERROR` standard errors of the mean
-(:func:`excess`). The same for the orientation. Here: that split (:func:`model_error_of`), its
+(:func:`excess`). The same for the orientation. (The board route measures its held-out errors in
+pixels and splits them there: :mod:`selfcal.calibration.board.accuracy`.) Here: that split (:func:`model_error_of`), its
 record (:class:`ModelError`), the ``accuracy`` block of ``calibration.json``
 (:class:`Accuracy`) and its reading back (:func:`error_model_from_json`,
 :func:`postures_from_json`). SI inside; ``_mm`` / ``_deg`` in the block.
@@ -50,17 +51,14 @@ be mostly the sampling noise of the held-out errors, which clipped at 0 inflates
 prediction."""
 
 
-def excess(total2: float, expected2: float, rows: int, var2: float | None = None) -> float:
+def excess(total2: float, expected2: float, rows: int) -> float:
     """Per-coordinate standard deviation of what ``total2`` (the mean squared norm of ``rows``
     held-out 3-vectors) leaves beyond ``expected2`` (what the estimation error and the noise
     explain); 0 unless that excess exceeds :data:`Z_MODEL_ERROR` standard errors of ``total2``
-    under no model error. ``var2``: the mean variance of one row's squared norm
-    (``2 tr Sigma_i^2`` for a row of covariance ``Sigma_i``); None: that of three independent
-    Gaussian coordinates of equal variance, 2/3 of its squared mean."""
-    if var2 is None:
-        var2 = 2.0 / 3.0 * expected2**2
+    under no model error (a squared norm of three Gaussian coordinates has variance 2/3 of its
+    square mean)."""
     extra = total2 - expected2
-    if extra <= Z_MODEL_ERROR * np.sqrt(var2 / rows):
+    if extra <= Z_MODEL_ERROR * expected2 * np.sqrt(2.0 / (3.0 * rows)):
         return 0.0
     return float(np.sqrt(extra / 3.0))
 
@@ -125,28 +123,27 @@ def model_error_of(
     folds: int,
     failed: int,
     noise_what: str,
-    var2: tuple[Sequence[np.ndarray], Sequence[np.ndarray] | None] | None = None,
+    given: tuple[float, float | None] | None = None,
 ) -> ModelError | None:
     """The :class:`ModelError` of held-out rows given fold by fold: their squared tool-point
     errors ``r2`` (m^2), what the folds' covariances explain ``s2`` (``tr S``, m^2) and what the
     noise explains ``n2`` (``tr N``, m^2), each a list of per-fold arrays; ``rot`` the same
-    three for the orientation (rad^2) or None; ``var2``: every row's variance of its squared
-    norm under no model error (``2 tr Sigma^2``, position and orientation), None for three
-    coordinates of equal variance (:func:`excess`). None without rows."""
+    three for the orientation (rad^2) or None; ``given``: the model error (position m, rotation
+    rad) when the route estimated it otherwise (the board route, from the pixels), None for
+    :func:`excess` of the squared norms. None without rows."""
     if not r2 or sum(len(v) for v in r2) == 0:
         return None
     n_rows = int(sum(len(v) for v in r2))
     e2, es2, en2 = (float(np.mean(np.concatenate(v))) for v in (r2, s2, n2))
-    v_pos = v_rot = None
-    if var2 is not None:
-        v_pos = float(np.mean(np.concatenate(var2[0])))
-        v_rot = None if var2[1] is None else float(np.mean(np.concatenate(var2[1])))
     out_rot, e2r, es2r, en2r = None, float("nan"), float("nan"), float("nan")
     if rot is not None:
         e2r, es2r, en2r = (float(np.mean(np.concatenate(v))) for v in rot)
-        out_rot = excess(e2r, es2r + en2r, n_rows, v_rot)
+        out_rot = excess(e2r, es2r + en2r, n_rows)
+    pos = excess(e2, es2 + en2, n_rows)
+    if given is not None:
+        pos, out_rot = given
     return ModelError(
-        position_m=excess(e2, es2 + en2, n_rows, v_pos),
+        position_m=pos,
         rotation_rad=out_rot,
         folds=folds,
         rows=n_rows,

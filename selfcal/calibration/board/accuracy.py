@@ -11,19 +11,23 @@ parts of :mod:`selfcal.calibration.accuracy`:
   the chain (:class:`selfcal.kinematics.tool_error.ToolErrorModel`);
 - the model error, from the parameter selection's own leave-one-configuration-out folds
   (:mod:`selfcal.calibration.board.param_selection`: the chosen candidate fitted without each
-  fold): every held-out frame's first-camera pixels, predicted from its joints alone, are
-  explained by the one correction ``xi`` (a body twist) of the predicted tool pose that fits
-  them best (linear least squares on the projection's Jacobian), so that ``B xi`` is the
-  frame's tool-point error (position m, orientation rad; ``B`` carries the twist to the tool
-  point in the world frame). What the fold's covariance explains there (``tr S``) and what the
-  pixel noise and the joint read-back noise explain (``tr N``: ``B sigma^2 (A^T A)^-1 B^T`` with
-  ``A`` that Jacobian, plus the joint twists weighted by the joint sigma) are taken out as the
-  tracker route does (:func:`selfcal.calibration.accuracy.model_error_of`).
+  fold): every held-out frame's first-camera pixels, predicted from its joints alone, against
+  the detected ones. What the fold's errors (its Cramer-Rao covariance of the kinematics and the
+  first camera, with their correlation), the joint read-back noise and the pixel noise give
+  their squared sum is carried to the pixels (:func:`held_out_errors`); the excess beyond
+  :data:`selfcal.calibration.accuracy.Z_MODEL_ERROR` standard errors (``2 tr Sigma^2`` per
+  frame) is a model error ``m`` per tool-point coordinate and ``m / L`` per rotation coordinate
+  (``L`` the tool point's mean distance to the board points in view: the rotation then moves
+  the view about as much as the translation) whose pixel effect is that excess. Each held-out
+  frame's tool-point error as the pose correction that fits its pixels best (linear least
+  squares on the projection's Jacobian, ``B xi``) is kept beside it
+  (:class:`selfcal.calibration.accuracy.ModelError`'s held-out RMS): a single view knows it
+  poorly along its line of sight, so the model error is not taken from it.
 
-What this cannot see: the fold's camera errors move its prediction and its pose correction
-alike (the correlation is not modelled: the held-out errors then read a little smaller than
-``S + N``, and a small model error is not counted); a model error the same in every frame is
-absorbed by the placement (board pose, hand-eye) and is not seen.
+What this cannot see: a model error the same in every frame is absorbed by the placement (board
+pose, hand-eye) and is not seen; a misfit that grows where the arm reaches out is taken as the
+same everywhere; held-out configurations far outside the others (few configurations) make the
+folds' extrapolation, not the calibration's, the measure.
 
 Beside it, the cross-validated reprojection (``accuracy.cross_validation``): every fold's
 held-out frames predicted by the chosen candidate and by the fair nominal (the first candidate,
@@ -38,6 +42,7 @@ import numpy as np
 
 from selfcal.calibration.accuracy import (
     SAMPLE_COUNT,
+    Z_MODEL_ERROR,
     Accuracy,
     ModelError,
     error_model_from_json,
@@ -48,6 +53,7 @@ from selfcal.calibration.board.bounds import BoardCramerRao, board_cramer_rao
 from selfcal.calibration.board.nominal_fit import standard_gauge
 from selfcal.calibration.board.param_selection import Selection
 from selfcal.calibration.board.refine import BoardObservations, Refinement, predicted_points
+from selfcal.camera import CameraModel
 from selfcal.estimation.kinematic_poses import joint_twists
 from selfcal.kinematics.forward import fk_tool, identification_jacobian
 from selfcal.kinematics.mcpc import MCPCModel, minimal_indices, param_names
@@ -57,6 +63,7 @@ from selfcal.kinematics.tool_error import (
     workspace_sample,
     workspace_summary,
 )
+from selfcal.transforms import inv_pose
 
 __all__ = [
     "board_accuracy",
@@ -64,9 +71,11 @@ __all__ = [
     "board_error_model_from_json",
     "board_postures_from_json",
     "cross_validated_reprojection",
-    "held_out_pose_errors",
+    "held_out_errors",
     "model_error",
     "pose_jacobian",
+    "predicted_reprojection",
+    "tip_map",
 ]
 
 _FIX = "re-run `selfcal calibrate` to write the block again"
@@ -121,29 +130,59 @@ def pose_jacobian(Jx: np.ndarray, x: np.ndarray, T_tool: np.ndarray,
     return (Jx @ dX).reshape(-1, 6)
 
 
-def held_out_pose_errors(obs: BoardObservations, fit: Refinement, frames: np.ndarray,
-                         T_tool_point: np.ndarray, cr: BoardCramerRao) -> tuple[np.ndarray, ...]:  # fmt: skip
-    """For every frame of ``frames`` (m,) bool with first-camera rows: the tool-point error of
-    ``fit``'s prediction from the joints alone, as the best pose correction of the frame's
-    pixels (module docstring), and what explains it. ``cr``: ``fit``'s bounds (its covariance
-    and the pixel noise). Returns the frames (k,), the errors (k, 6) (position m, orientation
-    rad, world frame), the covariance (k, 6, 6) the estimate's errors give them (the kinematics'
-    and the first camera's, with their correlation) and that of the noise (k, 6, 6) (the pixel
-    noise and the joint read-back noise)."""
+def tip_map(T_tool: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """(6, 6) the map of a body twist ``[v; w]`` of the tool pose ``T_tool`` to the move of the
+    tool point ``t`` (3,) (tool frame, m) and the rotation, both in the world frame."""
+    R = T_tool[:3, :3]
+    B = np.zeros((6, 6))
+    B[:3, :3], B[:3, 3:], B[3:, 3:] = R, -R @ _skew(np.asarray(t, float)), R
+    return B
+
+
+def _full_covariance(cr: BoardCramerRao) -> tuple[np.ndarray, np.ndarray, int]:
+    """The estimated minimal parameters' flat indices, the joint covariance (p + c, p + c) of
+    them and the first camera's free parameters (with their correlation), and ``c``."""
+    idx = minimal_indices(cr.model.joint_types)
+    est = np.ones(idx.size, bool) if cr.estimated is None else np.asarray(cr.estimated, bool)
+    p = int(est.sum())
+    n0 = 0 if cr.camera_covariance is None else len(cr.camera_covariance)
+    C = np.zeros((p + n0, p + n0))
+    C[:p, :p] = cr.covariance[np.ix_(est, est)]
+    if n0:
+        assert cr.camera_cross is not None
+        C[p:, p:] = cr.camera_covariance
+        C[:p, p:] = cr.camera_cross[est]
+        C[p:, :p] = cr.camera_cross[est].T
+    return idx[est], C, n0
+
+
+def _sqrt_psd(C: np.ndarray) -> np.ndarray:
+    """A square root ``R`` (p, p) of the symmetric positive semi-definite ``C``: ``R R^T = C``."""
+    w, V = np.linalg.eigh(C)
+    return V * np.sqrt(np.clip(w, 0.0, None))
+
+
+def held_out_errors(obs: BoardObservations, fit: Refinement, frames: np.ndarray,
+                    T_tool_point: np.ndarray, cr: BoardCramerRao) -> dict[str, np.ndarray]:  # fmt: skip
+    """For every frame of ``frames`` (m,) bool with first-camera rows, ``fit``'s prediction from
+    the joints alone against the detected pixels (module docstring), ``cr`` its bounds (its
+    covariance and the pixel noise). By key, one entry per frame: ``frame``; ``px2`` the sum of
+    its squared pixel errors, ``px2_expected`` what the estimate's errors (kinematics and first
+    camera, with their correlation), the joint read-back noise and the pixel noise give it,
+    ``px2_var`` that sum's variance without a model error (``2 tr Sigma^2``), ``px2_unit`` what
+    a model error of 1 m per tool-point coordinate (and 1 m / lever rad per rotation coordinate)
+    adds to it; ``lever`` the tool point's mean distance (m) to the board points in view; the
+    flange's error as the best pose correction of the pixels ``e`` (6,) (position m, orientation
+    rad, world frame) with the covariances the estimate's errors ``S`` (6, 6) and the noise
+    ``N`` (6, 6) give it."""
     cam, v, Xc, uv, _ = predicted_points(obs, fit, frames)[0]
     t = np.asarray(T_tool_point, float)[:3, 3]
     js = obs.joint_sigma
-    idx = minimal_indices(cr.model.joint_types)
-    est = np.ones(idx.size, bool) if cr.estimated is None else np.asarray(cr.estimated, bool)
-    n0 = 0 if cr.camera_covariance is None else len(cr.camera_covariance)
-    C = np.zeros((est.sum() + n0, est.sum() + n0))
-    C[: est.sum(), : est.sum()] = cr.covariance[np.ix_(est, est)]
-    if n0:
-        assert cr.camera_cross is not None
-        C[est.sum() :, est.sum() :] = cr.camera_covariance
-        C[: est.sum(), est.sum() :] = cr.camera_cross[est]
-        C[est.sum() :, : est.sum()] = cr.camera_cross[est].T
-    out: list[list] = [[], [], [], []]
+    cols, C, n0 = _full_covariance(cr)
+    C_half = _sqrt_psd(C)
+    s2 = cr.pixel_sigma_px**2
+    keys = ("frame", "px2", "px2_expected", "px2_var", "px2_unit", "lever", "e", "S", "N")
+    out: dict[str, list] = {k: [] for k in keys}
     for i in np.unique(v).tolist():
         rows = v == i
         T = fk_tool(cr.model, obs.q[i][None])[0]
@@ -152,20 +191,39 @@ def held_out_pose_errors(obs: BoardObservations, fit: Refinement, frames: np.nda
         r = (uv_hat - uv[rows]).reshape(-1)
         A = pose_jacobian(Jx, x, T, obs.eye_to_hand)
         AtA_inv = np.linalg.inv(A.T @ A)
-        xi = -AtA_inv @ A.T @ r
-        B = np.zeros((6, 6))
-        B[:3, :3], B[:3, 3:], B[3:, 3:] = T[:3, :3], -T[:3, :3] @ _skew(t), T[:3, :3]
-        Jb = identification_jacobian(cr.model, obs.q[i][None])[0][:, idx[est]]
-        G = B @ np.concatenate([Jb, AtA_inv @ A.T @ Jc.reshape(-1, n0)], axis=1)
-        N = cr.pixel_sigma_px**2 * B @ AtA_inv @ B.T
+        B = tip_map(T, t)
+        Binv = np.linalg.inv(B)
+        H = np.concatenate([A @ identification_jacobian(cr.model, obs.q[i][None])[0][:, cols],
+                            Jc.reshape(-1, n0)], axis=1)  # fmt: skip
+        U = H @ C_half  # the estimate's pixel errors: U U^T
+        P = AtA_inv @ A.T  # pixels -> the pose correction (body twist)
+        N = s2 * B @ AtA_inv @ B.T
         if js is not None:
-            tw = B @ joint_twists(cr.model, obs.q[i][None])[0]  # (6, n)
-            N = N + tw @ np.diag(np.broadcast_to(np.asarray(js, float) ** 2, (tw.shape[1],))) @ tw.T
-        for lst, val in zip(out, (i, B @ xi, G @ C @ G.T, N), strict=True):
-            lst.append(val)
-    if not out[0]:
-        return np.zeros(0, int), np.zeros((0, 6)), np.zeros((0, 6, 6)), np.zeros((0, 6, 6))
-    return tuple(np.array(o) for o in out)
+            tw = joint_twists(cr.model, obs.q[i][None])[0]  # (6, n) body twists
+            Q = tw * np.broadcast_to(np.asarray(js, float), (tw.shape[1],))
+            U = np.concatenate([U, A @ Q], axis=1)
+            N = N + B @ Q @ Q.T @ B.T
+        tip_cam = T[:3, :3] @ t + T[:3, 3] if obs.eye_to_hand else t  # camera frame
+        lever = float(np.mean(np.linalg.norm(x - tip_cam, axis=1)))
+        D_half = Binv @ np.diag(np.r_[np.ones(3), np.full(3, 1.0 / lever)])
+        UtU = U.T @ U
+        vals = {
+            "frame": i,
+            "px2": float(r @ r),
+            "px2_expected": float(np.trace(UtU)) + r.size * s2,
+            "px2_var": 2.0
+            * (
+                float(np.sum(UtU * UtU)) + 2 * s2 * float(np.trace(UtU)) + r.size * s2**2
+            ),  # fmt: skip
+            "px2_unit": float(np.sum((A @ D_half) ** 2)),
+            "lever": lever,
+            "e": -B @ P @ r,
+            "S": B @ P @ (H @ C @ H.T) @ P.T @ B.T,
+            "N": N,
+        }
+        for k in keys:
+            out[k].append(vals[k])
+    return {k: np.array(val) for k, val in out.items()}
 
 
 def _features(obs: BoardObservations, frames: np.ndarray) -> list[list]:
@@ -181,7 +239,7 @@ def model_error(obs: BoardObservations, selection: Selection, offsets: np.ndarra
     fits = selection.candidates[selection.chosen].fold_fits
     if selection.fold_of is None or not fits:
         return None
-    r2, s2, n2, r2r, s2r, n2r, v2, v2r = [], [], [], [], [], [], [], []
+    got = []
     for f, (fit, free_idx, offset_joints) in sorted(fits.items()):
         out = selection.fold_of == f
         train = obs.used & ~out
@@ -191,22 +249,30 @@ def model_error(obs: BoardObservations, selection: Selection, offsets: np.ndarra
             joint_sigma=obs.joint_sigma, T_first_cam=None if obs.rig is None else fit.T_first_cam,
             free_idx=free_idx, offset_joints=offset_joints, eye_to_hand=obs.eye_to_hand,
         )  # fmt: skip
-        frames, e, S, N = held_out_pose_errors(obs, fit, out, T_tool_point, cr)
-        if not len(frames):
-            continue
-        r2.append(np.sum(e[:, :3] ** 2, axis=1))
-        r2r.append(np.sum(e[:, 3:] ** 2, axis=1))
-        s2.append(np.trace(S[:, :3, :3], axis1=1, axis2=2))
-        s2r.append(np.trace(S[:, 3:, 3:], axis1=1, axis2=2))
-        n2.append(np.trace(N[:, :3, :3], axis1=1, axis2=2))
-        n2r.append(np.trace(N[:, 3:, 3:], axis1=1, axis2=2))
-        tot = S + N  # the variance of a squared norm: 2 tr Sigma^2 (anisotropic here)
-        v2.append(2.0 * np.einsum("kij,kji->k", tot[:, :3, :3], tot[:, :3, :3]))
-        v2r.append(2.0 * np.einsum("kij,kji->k", tot[:, 3:, 3:], tot[:, 3:, 3:]))
-    return model_error_of(r2, s2, n2, (r2r, s2r, n2r), folds=len(r2),
-                          failed=selection.folds - len(r2),
+        h = held_out_errors(obs, fit, out, T_tool_point, cr)
+        if len(h["frame"]):
+            got.append(h)
+    if not got:
+        return None
+    h = {k: np.concatenate([g[k] for g in got]) for k in got[0]}
+    # one size m per tool-point coordinate, m / L per rotation coordinate (L the tool point's
+    # distance to the board points in view: the rotation then moves the view about as much as
+    # the translation), from the pixels' excess over what the rest explains
+    extra = float(np.sum(h["px2"]) - np.sum(h["px2_expected"]))
+    m = 0.0
+    if extra > Z_MODEL_ERROR * np.sqrt(np.sum(h["px2_var"])):
+        m = float(np.sqrt(extra / np.sum(h["px2_unit"])))
+    e, S, N = h["e"], h["S"], h["N"]
+
+    def parts(b: slice) -> tuple[list[np.ndarray], list[np.ndarray], list[np.ndarray]]:
+        return ([np.sum(e[:, b] ** 2, axis=1)], [np.trace(S[:, b, b], axis1=1, axis2=2)],
+                [np.trace(N[:, b, b], axis1=1, axis2=2)])  # fmt: skip
+
+    (r2, s2, n2), rot = parts(slice(0, 3)), parts(slice(3, 6))  # position, orientation
+    return model_error_of(r2, s2, n2, rot, folds=len(got),
+                          failed=selection.folds - len(got),
                           noise_what="the pixel and joint read-back noise",
-                          var2=(v2, v2r))  # fmt: skip
+                          given=(m, m / float(np.mean(h["lever"]))))  # fmt: skip
 
 
 def _errors_px_mm(obs: BoardObservations, fit: Refinement,
@@ -281,6 +347,40 @@ def board_accuracy(obs: BoardObservations, selection: Selection, cr: BoardCramer
     }
     return Accuracy(em, names, me, workspace_summary(em, sample, q_cal), sample, q_cal,
                     _what(obs.eye_to_hand), note, extra)  # fmt: skip
+
+
+def predicted_reprojection(cr: BoardCramerRao, camera: CameraModel, q: np.ndarray,
+                           points: list[np.ndarray], T_tool_point: np.ndarray, *,
+                           eye_to_hand: bool, joint_sigma: np.ndarray | float | None,
+                           model_error_m: float, model_error_rad: float) -> float:  # fmt: skip
+    """The predicted 2-D RMS (px) of the reprojection errors of new frames of the first camera
+    ``camera`` at the joints ``q`` (m, n) rad, ``points[i]`` (k_i, 3) the board points it sees in
+    frame ``i`` (board frame, m): what the calibration's errors (kinematics and camera, ``cr``
+    its bounds at the estimate), the model error per tool-point coordinate (``model_error_m``,
+    ``model_error_rad``), the joint read-back noise ``joint_sigma`` and the pixel noise
+    (``cr.pixel_sigma_px``) give them, to first order -- to compare with ``selfcal evaluate``'s
+    measured held-out RMS."""
+    cols, C, n0 = _full_covariance(cr)
+    t = np.asarray(T_tool_point, float)[:3, 3]
+    M = np.diag([model_error_m**2] * 3 + [model_error_rad**2] * 3)
+    total, count = 0.0, 0
+    for qi, X in zip(np.atleast_2d(q), points, strict=True):
+        T = fk_tool(cr.model, qi[None])[0]
+        T_cam_board = T if eye_to_hand else inv_pose(T)
+        x = X @ T_cam_board[:3, :3].T + T_cam_board[:3, 3]
+        _, Jx, Jc = camera.project_free(x)
+        A = pose_jacobian(Jx, x, T, eye_to_hand)
+        H = np.concatenate([A @ identification_jacobian(cr.model, qi[None])[0][:, cols],
+                            Jc.reshape(-1, n0)], axis=1)  # fmt: skip
+        Binv = np.linalg.inv(tip_map(T, t))
+        cov = H @ C @ H.T + A @ Binv @ M @ Binv.T @ A.T
+        if joint_sigma is not None:
+            tw = A @ joint_twists(cr.model, qi[None])[0]
+            cov = cov + tw @ np.diag(np.broadcast_to(np.asarray(joint_sigma, float) ** 2,
+                                                     (tw.shape[1],))) @ tw.T  # fmt: skip
+        total += float(np.trace(cov)) + 2 * len(x) * cr.pixel_sigma_px**2
+        count += len(x)
+    return float(np.sqrt(total / max(count, 1)))
 
 
 def board_error_model_from_json(block: dict, model: MCPCModel, where: str) -> ToolErrorModel:

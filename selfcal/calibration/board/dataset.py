@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from selfcal.calibration.board.accuracy import board_accuracy
-from selfcal.calibration.board.bounds import board_bounds
+from selfcal.calibration.board.bounds import BoardCramerRao, board_bounds
 from selfcal.calibration.board.calibrate import BoardInputError, calibrate_board
 from selfcal.calibration.board.mounts import flange_to_tool, mounts
 from selfcal.calibration.board.nominal_fit import placement
@@ -141,13 +141,15 @@ def detect_board(ds: Dataset, board: Board, camera: str) -> tuple[list[Features]
 class BoardDatasetCalibration:
     """:func:`calibrate_board_dataset_detailed`: the ``result`` (calibration.json), the route's
     own ``fit`` (its stages: the camera stage, the two-stage identification), every camera's
-    ``features`` of every frame (``ds.indices`` order) and the frames' read-back ``q`` (m, n)
-    rad."""
+    ``features`` of every frame (``ds.indices`` order), the frames' read-back ``q`` (m, n)
+    rad and the Cramer-Rao bounds at the estimate ``cramer_rao``."""
 
     result: BoardCalibrationResult
     fit: BoardRobotCalibration
     features: tuple[list[Features], ...]
     q: np.ndarray
+    cramer_rao: BoardCramerRao | None = None
+    """The bounds at the estimate (None when the Fisher information could not be inverted)."""
 
 
 def calibrate_board_dataset(
@@ -337,11 +339,13 @@ def calibrate_board_dataset_detailed(
         if e2h:
             result = dataclasses.replace(result, mounts=_mounts(res.model, robot, cr.covariance))
     except np.linalg.LinAlgError as exc:
+        cr = None
         text = f"the Fisher information cannot be inverted ({exc})"
         result = dataclasses.replace(
             result, bounds_error=text, warnings=(*result.warnings, f"no Cramer-Rao bound: {text}")
         )
     else:  # the predicted tool-point accuracy over the workspace (issue #29)
+        assert cr is not None
         obs = BoardObservations(board, res.board, feats, q, rig, [o[0] for o in others], js, e2h)
         try:
             acc = board_accuracy(obs, sel, cr, res.nominal.model.joint_offsets, inv_pose(mount),
@@ -350,7 +354,7 @@ def calibrate_board_dataset_detailed(
         except np.linalg.LinAlgError as exc:
             text = f"no predicted accuracy: a fold's Fisher information cannot be inverted ({exc})"
             result = dataclasses.replace(result, warnings=(*result.warnings, text))
-    return BoardDatasetCalibration(result, res, all_feats, q)
+    return BoardDatasetCalibration(result, res, all_feats, q, cr)
 
 
 def _mounts(model, robot: RobotDef, covariance: np.ndarray) -> tuple:

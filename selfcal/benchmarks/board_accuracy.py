@@ -1,0 +1,305 @@
+"""Benchmark: does the predicted tool-point accuracy of a board calibration hold? (issue #29)
+
+Monte Carlo on the analytic board scenario (``scenarios/mono-charuco.toml``: one wrist camera
+with a Brown-Conrady lens, a ChArUco board on the table, the ER-4u of the paper with every
+minimal parameter perturbed): per pixel noise level ``--draws`` draws, each its own truth
+(perturbation, postures and noise seeded by the draw), 30 calibration postures, the board route
+as ``selfcal run`` calibrates them (:func:`selfcal.pipeline.run.run_all`: camera stage, fair
+nominal, parameter selection, bounds) and its predicted accuracy
+(:mod:`selfcal.calibration.board.accuracy`). The predicted 95 % bound and RMS of the flange's
+position and orientation are compared with the true error (the calibrated chain's flange against
+the true chain's, both in the board frame, no noise) at the workspace sample's joint vectors
+(inside the calibrated region, at its edge, over the joint limits:
+:mod:`selfcal.kinematics.tool_error`).
+
+Reported per row: coverage (the share of (draw, point) pairs whose true error is within the
+predicted 95 % bound; target 90-98 %), the same for the covariance alone (no model error), the
+pooled ratio of the predicted to the true RMS (target 0.7-1.4) with the 10-90 % range of the
+per-draw ratios, the orientation's coverage, and the share of draws that counted a model error.
+
+``--real``: the repository's real sets with a board (tests/data/real, docs/real-data.md):
+each imported and calibrated as its README says, and the held-out images' reprojection RMS that
+the calibration predicts (:func:`selfcal.calibration.board.accuracy.predicted_reprojection`:
+the estimate's errors, the model error, the joint and pixel noise) against the one ``selfcal
+evaluate`` measures (target 0.67-1.5x).
+
+Run: ``uv run python -m selfcal.benchmarks.board_accuracy [--draws 30] [--jobs 2] [--real]
+[--write-docs]`` (rewrites the tables in docs/tool-accuracy.md).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+import time
+import warnings
+from concurrent.futures import ProcessPoolExecutor
+from contextlib import redirect_stderr, redirect_stdout
+from io import StringIO
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from selfcal.benchmarks.doc_blocks import ROOT, print_table, write_block
+from selfcal.benchmarks.tool_accuracy import mark as _mark
+from selfcal.calibration.board.accuracy import (
+    board_error_model_from_json,
+    board_postures_from_json,
+    predicted_reprojection,
+)
+from selfcal.calibration.board.dataset import (
+    calibrate_board_dataset_detailed,
+    dataset_board,
+    detect_board,
+)
+from selfcal.calibration.board.evaluate import evaluate_board
+from selfcal.config.scenario import load_scenario, scenarios_dir
+from selfcal.estimation.joint_report import encoder_sigma
+from selfcal.io.board_calibration import read_board_calibration
+from selfcal.io.dataset import Dataset
+from selfcal.io.truth import read_truth
+from selfcal.kinematics.alignment import express_in_frame
+from selfcal.kinematics.forward import fk_tool
+from selfcal.kinematics.tool_error import workspace_sample
+from selfcal.pipeline.run import run_all
+from selfcal.robot.definition import load_robot
+from selfcal.threads import limit_threads
+from selfcal.transforms import inv_pose
+
+__all__ = ["draw", "main", "real_set", "run", "table", "real_table", "NOISE_PX", "REAL_SETS"]
+
+NOISE_PX = (0.05, 0.2)
+POSES = 30
+COUNT = 128
+REGIONS = ("inside", "edge", "workspace")
+SCENARIO = scenarios_dir() / "mono-charuco.toml"
+DOC = ROOT / "docs" / "tool-accuracy.md"
+BLOCK = "benchmark_board_accuracy"
+BLOCK_REAL = "benchmark_board_accuracy_real"
+REAL = ROOT / "tests" / "data" / "real"
+REAL_SETS = {
+    "nachi-2025-01-17-photoneo": ("nachi_mz25.urdf",
+                                  "handeye_data/2025-01-17_data_photoneo/group[1-5]/*.png",
+                                  "handeye_data/2025-01-17_data_photoneo/group6/*.png"),
+    "nachi-2025-02-05-mecheye": ("nachi_mz25.urdf",
+                                 "handeye_data/2025-02-05_data_mecheye/group[1-5]/*.png",
+                                 "handeye_data/2025-02-05_data_mecheye/group6/*.png"),
+    "ical-charuco": ("virtual_inverse_pose_chain_xyz.urdf", "inputs/images_calib/*.png",
+                     "inputs/images_heldout/*.png"),
+}  # fmt: skip
+"""Per set: the robot file in its inputs/, the calibration and the held-out images (its README)."""
+
+
+def _angle(R_a: np.ndarray, R_b: np.ndarray) -> np.ndarray:
+    """(m,) deg the rotation angles between (m, 3, 3) rotations."""
+    return np.degrees(np.linalg.norm(Rotation.from_matrix(R_a @ np.swapaxes(R_b, 1, 2))
+                                     .as_rotvec(), axis=1))  # fmt: skip
+
+
+def draw(args: tuple[float, int]) -> dict:
+    """One draw (noise ``sigma_px``, ``seed``): per region the predicted 95 % bound with and
+    without the model error, the predicted RMS, the true error (mm), the predicted and true
+    orientation error (deg); ``model_error_mm``; ``status``."""
+    sigma_px, seed = args
+    over = {"noise": {"render": False, "pixel_sigma": sigma_px, "seed": seed},
+            "trajectory": {"poses": POSES, "seed": seed}, "perturbation": {"seed": seed}}  # fmt: skip
+    try:
+        with (tempfile.TemporaryDirectory(prefix="selfcal-acc-") as d, warnings.catch_warnings(),
+              redirect_stdout(StringIO()), redirect_stderr(StringIO())):  # fmt: skip
+            warnings.simplefilter("ignore")
+            out = Path(d) / "run"
+            run_all(load_scenario(SCENARIO, over), out, quiet=True, figures=False)
+            cal = read_board_calibration(out / "calibration.json")
+            truth = read_truth(out / "truth.json")
+        block = cal.accuracy
+        assert block is not None and truth.T_world_board is not None
+        em = board_error_model_from_json(block, cal.model, "calibration.json")
+        q_cal = board_postures_from_json(block, cal.model.n, "calibration.json")
+        sample = workspace_sample(q_cal, np.asarray(block["joint_limits_si"]), count=COUNT,
+                                  seed=seed + 1)  # fmt: skip
+        true_b = express_in_frame(truth.true_model, inv_pose(truth.T_world_board),
+                                  like=cal.model)  # fmt: skip
+        tip = np.asarray(block["T_tool_point_si"])
+        row: dict = {"status": "ok",
+                     "model_error_mm": (block["model_error"] or {}).get("position_mm") or 0.0}  # fmt: skip
+        for name in REGIONS:
+            q = getattr(sample, name)
+            p = em.predicted(q)
+            T_est = fk_tool(cal.model, q) @ tip
+            T_true = fk_tool(true_b, q) @ tip
+            row[name] = np.stack([
+                p["position_95_mm"], p["estimation_95_mm"], p["position_rms_mm"],
+                np.linalg.norm(T_est[:, :3, 3] - T_true[:, :3, 3], axis=1) * 1e3,
+                p["orientation_95_deg"], _angle(T_est[:, :3, :3], T_true[:, :3, :3]),
+            ])  # fmt: skip
+        return row
+    except Exception as exc:  # noqa: BLE001 - a benchmark counts failed draws
+        return {"status": f"failed: {type(exc).__name__}: {str(exc)[:200]}"}
+
+
+def run(draws: int = 30, noise_px=NOISE_PX, jobs: int = 2) -> list[dict]:
+    """One row per (noise, region) over ``draws`` draws (``jobs`` processes)."""
+    rows = []
+    for s in noise_px:
+        t0 = time.perf_counter()
+        with ProcessPoolExecutor(max_workers=jobs) as pool:
+            got = list(pool.map(draw, [(s, seed) for seed in range(1, draws + 1)]))
+        ok = [g for g in got if g["status"] == "ok"]
+        print(f"{s} px: {len(ok)}/{draws} draws in {time.perf_counter() - t0:.0f} s "
+              + "; ".join(sorted({g['status'] for g in got} - {'ok'})), file=sys.stderr)  # fmt: skip
+        for region in REGIONS:
+            d = [g[region] for g in ok]
+            a = np.concatenate(d, axis=1)
+            ratio = [np.sqrt(np.mean(x[2] ** 2) / np.mean(x[3] ** 2)) for x in d]
+            rows.append({
+                "noise_px": s, "region": region, "draws": len(ok), "failed": draws - len(ok),
+                "true_rms_mm": float(np.sqrt(np.mean(a[3] ** 2))),
+                "coverage": float(np.mean(a[3] <= a[0])),
+                "coverage_covariance": float(np.mean(a[3] <= a[1])),
+                "ratio": float(np.sqrt(np.mean(a[2] ** 2) / np.mean(a[3] ** 2))),
+                "ratio_10": float(np.quantile(ratio, 0.1)),
+                "ratio_90": float(np.quantile(ratio, 0.9)),
+                "true_rot_rms_deg": float(np.sqrt(np.mean(a[5] ** 2))),
+                "coverage_rot": float(np.mean(a[5] <= a[4])),
+                "model_error_share": float(np.mean([g["model_error_mm"] > 0 for g in ok])),
+            })  # fmt: skip
+    return rows
+
+
+def table(rows: list[dict]) -> str:
+    """The Markdown table of :func:`run`'s rows."""
+    head = (
+        "| noise (px) | region | true RMS (mm) | coverage of the 95 % bound (target 90-98 %) | "
+        "covariance alone | predicted / true RMS (target 0.7-1.4) | per draw 10-90 % | "
+        "true orientation RMS (deg) | orientation coverage | draws with a model error |\n"
+        "|---|---|---|---|---|---|---|---|---|---|\n"
+    )
+    lines = [
+        f"| {r['noise_px']:g} | {r['region']} | {r['true_rms_mm']:.3f} | "
+        f"{100 * r['coverage']:.1f} %{_mark(r['coverage'], 0.9, 0.98)} | "
+        f"{100 * r['coverage_covariance']:.1f} % | {r['ratio']:.2f}{_mark(r['ratio'], 0.7, 1.4)}"
+        f" | {r['ratio_10']:.2f}-{r['ratio_90']:.2f} | {r['true_rot_rms_deg']:.4f} | "
+        f"{100 * r['coverage_rot']:.1f} %{_mark(r['coverage_rot'], 0.9, 0.98)} | "
+        f"{100 * r['model_error_share']:.0f} % |"
+        for r in rows
+    ]
+    failed = sum(r["failed"] for r in rows[:: len(REGIONS)])
+    lines += ["", f"{rows[0]['draws'] + rows[0]['failed']} draws per noise level ({failed} failed "
+              f"in all), scenarios/mono-charuco.toml on the analytic path, {POSES} calibration "
+              f"postures, {COUNT} joint vectors per region and draw; `uv run python -m "
+              "selfcal.benchmarks.board_accuracy --write-docs`."]  # fmt: skip
+    return head + "\n".join(lines)
+
+
+def _selfcal(*argv: str) -> None:
+    from selfcal.cli.main import main as selfcal
+
+    with redirect_stdout(StringIO()), redirect_stderr(StringIO()):
+        code = selfcal(list(argv))
+    if code != 0:
+        raise RuntimeError(f"selfcal {' '.join(argv)} exited {code}")
+
+
+def real_set(name: str, work: Path) -> dict:
+    """The predicted against the measured held-out reprojection RMS (px) of the real set
+    ``name`` (:data:`REAL_SETS`) calibrated in ``work``."""
+    robot_file, cal_glob, held_glob = REAL_SETS[name]
+    d = REAL / name
+    inp = d / "inputs"
+    for out, glob, joints in (("cal", cal_glob, "joints_calib.csv"),
+                              ("held", held_glob, "joints_heldout.csv")):  # fmt: skip
+        _selfcal("import", "--robot", str(inp / robot_file), "--images", f"cam0={d / glob}",
+                 "--joints", str(inp / joints), "--joint-units", "rad", "--target",
+                 str(inp / "target.toml"), "--out", str(work / out))  # fmt: skip
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        out = calibrate_board_dataset_detailed(work / "cal")
+        cal = out.result
+        ev = evaluate_board(cal, str(work / "cal" / "calibration.json"), work / "held")
+        held = Dataset.open(work / "held")
+        board = dataset_board(held)
+        feats, _ = detect_board(held, board, held.info.cameras[0])
+    assert out.cramer_rao is not None and cal.accuracy is not None
+    keep = [i for i, f in enumerate(feats) if len(f) >= board.min_features]
+    q = np.radians(held.joints_deg)[keep]
+    me = cal.accuracy.get("model_error") or {}
+    robot = load_robot(Dataset.open(work / "cal").robot_source)
+    js = encoder_sigma(robot)
+    args = dict(eye_to_hand=cal.eye_to_hand, joint_sigma=js,
+                T_tool_point=np.asarray(cal.accuracy["T_tool_point_si"]))  # fmt: skip
+    pts = [board.points(feats[i].ids) for i in keep]
+    pred = predicted_reprojection(out.cramer_rao, cal.cameras[0], q, pts,
+                                  model_error_m=(me.get("position_mm") or 0.0) / 1e3,
+                                  model_error_rad=np.radians(me.get("rotation_deg") or 0.0),
+                                  **args)  # fmt: skip
+    cov_only = predicted_reprojection(out.cramer_rao, cal.cameras[0], q, pts, model_error_m=0.0,
+                                      model_error_rad=0.0, **args)  # fmt: skip
+    cv = cal.accuracy.get("cross_validation") or {}
+    return {
+        "set": name,
+        "images": len(keep),
+        "measured_px": ev.rms["calibrated"],
+        "nominal_px": ev.rms["nominal"],
+        "predicted_px": pred,
+        "covariance_px": cov_only,
+        "model_error_mm": me.get("position_mm"),
+        "cv_px": (cv.get("calibrated") or {}).get("reprojection_rms_px"),
+        "cv_nominal_px": (cv.get("nominal") or {}).get("reprojection_rms_px"),
+    }
+
+
+def _real_row(r: dict) -> str:
+    k = r["predicted_px"] / r["measured_px"]
+    cv = "-" if r["cv_px"] is None else f"{r['cv_px']:.3f} / {r['cv_nominal_px']:.3f}"
+    cells = [r["set"], str(r["images"]), f"{r['measured_px']:.3f}", f"{r['predicted_px']:.3f}",
+             f"{k:.2f}{_mark(k, 0.67, 1.5)}", f"{r['covariance_px']:.3f}",
+             f"{r['model_error_mm'] or 0.0:.3f}", cv]  # fmt: skip
+    return "| " + " | ".join(cells) + " |"
+
+
+def real_table(rows: list[dict]) -> str:
+    """The Markdown table of the real sets."""
+    cols = ["set", "held-out images", "measured held-out RMS (px)", "predicted (px)",
+            "predicted / measured (target 0.67-1.5)", "covariance alone (px)",
+            "model error (mm)", "cross-validated calibrated / fair nominal (px)"]  # fmt: skip
+    return "\n".join([
+        "| " + " | ".join(cols) + " |", "|" + "---|" * len(cols), *map(_real_row, rows), "",
+        "the sets' README commands (docs/real-data.md); "
+        "`uv run python -m selfcal.benchmarks.board_accuracy --real --write-docs`.",
+    ])  # fmt: skip
+
+
+def _arguments(argv: list[str] | None) -> argparse.Namespace:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    for flag, kind, text in (("--draws", int, "draws per noise level (default 30)"),
+                             ("--jobs", int, "processes (default 2)")):  # fmt: skip
+        ap.add_argument(flag, type=kind, default=30 if flag == "--draws" else 2, help=text)
+    for flag, text in (("--real", "the real sets' held-out images instead of the Monte Carlo"),
+                       ("--write-docs", "rewrite the table in docs/tool-accuracy.md")):  # fmt: skip
+        ap.add_argument(flag, action="store_true", help=text)
+    return ap.parse_args(argv)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the benchmark (one BLAS thread per process) and print, or write, the table."""
+    limit_threads(1)
+    args = _arguments(argv)
+    if args.real:
+        rows = []
+        for name in REAL_SETS:
+            with tempfile.TemporaryDirectory(prefix="selfcal-real-") as d:
+                t0 = time.perf_counter()
+                rows.append(real_set(name, Path(d)))
+                print(f"{name}: {time.perf_counter() - t0:.0f} s", file=sys.stderr)
+        text = real_table(rows)
+        print(text)
+        if args.write_docs:
+            write_block(DOC, text, BLOCK_REAL)
+        return 0
+    return print_table(table(run(args.draws, jobs=args.jobs)), DOC, BLOCK, write=args.write_docs)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
