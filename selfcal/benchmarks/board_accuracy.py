@@ -56,6 +56,7 @@ from selfcal.calibration.board.dataset import (
 )
 from selfcal.calibration.board.evaluate import evaluate_board
 from selfcal.config.scenario import load_scenario, scenarios_dir
+from selfcal.errors import InternalError
 from selfcal.estimation.joint_report import encoder_sigma
 from selfcal.io.board_calibration import read_board_calibration
 from selfcal.io.dataset import Dataset
@@ -199,7 +200,7 @@ def _selfcal(*argv: str) -> None:
     with redirect_stdout(StringIO()), redirect_stderr(StringIO()):
         code = selfcal(list(argv))
     if code != 0:
-        raise RuntimeError(f"selfcal {' '.join(argv)} exited {code}")
+        raise InternalError(f"the benchmark's `selfcal {' '.join(argv)}` exited {code}")
 
 
 def real_set(name: str, work: Path) -> dict:
