@@ -283,7 +283,7 @@ def _errors_px_mm(obs: BoardObservations, fit: Refinement,
     px, mm = [], []
     for cam, _, Xc, uv, normal in predicted_points(obs, fit, frames):
         px.append(np.linalg.norm(cam.project(Xc) - uv, axis=1))
-        d = np.concatenate([cam.unproject(uv), np.ones((len(uv), 1))], axis=1)
+        d = cam.unproject(uv)  # the detected pixels' rays (camera frame)
         s = np.sum(normal * Xc, axis=1) / np.sum(normal * d, axis=1)
         mm.append(1e3 * np.linalg.norm(s[:, None] * d - Xc, axis=1))
     return (np.concatenate(px), np.concatenate(mm)) if px else (np.zeros(0), np.zeros(0))
