@@ -245,6 +245,31 @@ def measure(args: argparse.Namespace) -> dict:
     return fig
 
 
+# Forks and execs argv, waits, prints "exit-code peak-kB": run as a process of its own.
+_LAUNCHER = (
+    "import os, sys\n"
+    "pid = os.fork()\n"
+    "if pid == 0:\n"
+    "    fd = os.open(os.devnull, os.O_WRONLY); os.dup2(fd, 1); os.dup2(fd, 2)\n"
+    "    os.execvp(sys.argv[1], sys.argv[1:])\n"
+    "_, status, usage = os.wait4(pid, 0)\n"
+    "print(os.waitstatus_to_exitcode(status), usage.ru_maxrss)\n"
+)
+
+
+def peak_memory_mb(argv: list[str]) -> tuple[int, float]:
+    """``(exit code, peak resident set in MB)`` of the command ``argv`` (Linux ``ru_maxrss``).
+
+    Linux carries a process's resident set at ``fork`` into its child's ``ru_maxrss`` across
+    ``exec``: a command started straight from this benchmark (hundreds of MB after its
+    in-process calibrations) would report at least this process's size. A small launcher
+    process forks and execs the command instead, so the floor is the launcher's ~10 MB."""
+    done = subprocess.run([sys.executable, "-c", _LAUNCHER, *argv], check=True,
+                          capture_output=True, text=True)  # fmt: skip
+    code, kb = done.stdout.split()
+    return int(code), int(kb) / 1024
+
+
 def calibrate_memory(poses: list[int]) -> dict:
     """Peak memory of ``selfcal calibrate`` as a process (its largest resident set, MB) on the
     analytic datasets of the fewest and the most of ``poses``, and its growth per posture
@@ -262,13 +287,10 @@ def calibrate_memory(poses: list[int]) -> dict:
             s = load_scenario(None, {"trajectory": {"poses": n}, "noise": {"render": False}})
             out = Path(d) / f"analytic{n}"
             run_acquire(s, out, quiet=True)
-            proc = subprocess.Popen([*selfcal, "calibrate", "--quiet", str(out)],
-                                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # fmt: skip
-            _, status, usage = os.wait4(proc.pid, 0)
-            proc.returncode = os.waitstatus_to_exitcode(status)
-            if proc.returncode != 0:
-                raise SystemExit(f"selfcal calibrate {out} exited {proc.returncode}")
-            peaks.append(usage.ru_maxrss / 1024)  # kB on Linux
+            code, peak_mb = peak_memory_mb([*selfcal, "calibrate", "--quiet", str(out)])
+            if code != 0:
+                raise SystemExit(f"selfcal calibrate {out} exited {code}")
+            peaks.append(peak_mb)
     per = (peaks[-1] - peaks[0]) / (ends[-1] - ends[0]) if len(ends) > 1 else peaks[0] / ends[0]
     print(
         f"selfcal calibrate peak memory: {', '.join(f'{n} poses {m:.0f} MB' for n, m in zip(ends, peaks, strict=True))}; {per:.3f} MB per posture"
