@@ -1,5 +1,5 @@
 """`selfcal plan --add 5` on a dataset whose postures move only the wrist (the Nachi groups'
-kind), simulated end to end (selfcal/benchmarks/plan_add.py): the dataset is calibrated, the 5
+kind), simulated end to end (selfcal/benchmarks/plan/add.py): the dataset is calibrated, the 5
 postures are planned from its calibration.json, the dataset's postures and the added ones are
 acquired again with the same simulated truth and calibrated. Three truths (the benchmark runs
 more; docs/plan.md quotes it)."""
@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from selfcal.benchmarks.plan_add import wrist_only_row
+from selfcal.benchmarks.plan.add import wrist_only_row
 
 
 @pytest.mark.slow

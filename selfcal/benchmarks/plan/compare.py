@@ -1,4 +1,4 @@
-"""``python -m selfcal.benchmarks.plan_compare [--draws 30] [--jobs 2] [--out DIR]``: the postures
+"""``python -m selfcal.benchmarks.plan.compare [--draws 30] [--jobs 2] [--out DIR]``: the postures
 of ``selfcal plan`` against random ones, achieved in simulation (docs/plan.md, issue #30).
 
 The cell of docs/plan.md's example (UR5e, 60 deg 640 x 480 wrist camera, ChArUco at

@@ -1,4 +1,4 @@
-"""``python -m selfcal.benchmarks.plan_add [--truths 6] [--add 5] [--jobs 2] [--out DIR]``:
+"""``python -m selfcal.benchmarks.plan.add [--truths 6] [--add 5] [--jobs 2] [--out DIR]``:
 ``selfcal plan --add`` on a poorly identified dataset, simulated (docs/plan.md, issue #30).
 
 For every truth (the scenario's ``[perturbation] seed``): a UR5e with a 60 deg wrist camera
