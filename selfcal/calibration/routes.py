@@ -187,6 +187,7 @@ def calibrate(
     allow_missing_frames: bool = False,
     joint_sigma: float | np.ndarray | None = None,
     terms: Sequence[Term] = (),
+    pose_noise: PoseNoise | str | None = None,
     progress=None,
     write: bool = True,
 ) -> CalibrationResult | BoardCalibrationResult | HandEyeCalibration:
@@ -203,6 +204,10 @@ def calibrate(
         terms: further measurements estimated with the field's images (method ``"joint"``):
             :mod:`selfcal.terms`, e.g. a :class:`selfcal.terms.tracker.TrackerTerm` or a
             :class:`selfcal.terms.probe.ProbeTerm`; the result records each one's section.
+        pose_noise: a pose dataset's flange-pose noise, as ``selfcal calibrate --pose-noise``:
+            a :class:`selfcal.calibration.handeye.eiv.PoseNoise` (mm, deg) or ``"auto"``
+            (default), ``"estimate"`` or ``"exact"`` (:func:`calibrate_pose_dataset`); pose
+            datasets only.
         progress: a :class:`selfcal.console.progress.Progress`-like object the field reports to.
         write: write ``root/calibration.json``.
 
@@ -220,6 +225,9 @@ def calibrate(
         EstimationError: the estimator failed (what was tried).
     """
     route = dataset_route(root)
+    if route != "handeye" and pose_noise is not None:
+        raise InputError(f"{root} is a {route} dataset (joint readings): pose_noise applies to "
+                         "a pose dataset's flange poses", fix="leave it out")  # fmt: skip
     if route != "field" and (method != "joint" or terms):
         raise InputError(f"{root} is a {route} dataset: the field's method and measurement terms "
                          "do not apply", fix="leave out method and terms")  # fmt: skip
@@ -227,7 +235,8 @@ def calibrate(
         if joint_sigma is not None:
             raise InputError(f"{root} is a pose dataset (flange poses, no joints): joint_sigma "
                              "does not apply", fix="leave it out")  # fmt: skip
-        return calibrate_pose_dataset(root, write=write)
+        return calibrate_pose_dataset(root, write=write,
+                                      pose_noise="auto" if pose_noise is None else pose_noise)  # fmt: skip
     if route == "board":
         from selfcal.calibration.board.dataset import calibrate_board_dataset
 
