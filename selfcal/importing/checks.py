@@ -78,7 +78,7 @@ def _min_features(target: Board | FieldTarget) -> int:
     return target.min_features if isinstance(target, Board) else MIN_FIELD_FEATURES
 
 
-def _warn_not_found(
+def warn_not_found(
     board: Board | FieldTarget,
     images: Sequence[Any],
     files: dict[str, list[Path]],

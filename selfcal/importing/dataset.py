@@ -41,9 +41,9 @@ from selfcal.importing.checks import (
     TargetNotFoundWarning,
     _counts,
     _min_features,
-    _warn_not_found,
     check_geometry,
     detection_summary,
+    warn_not_found,
 )
 from selfcal.importing.field import FieldTarget, field_target
 from selfcal.io.dataset_info import DatasetInfo, write_dataset_info
@@ -66,6 +66,8 @@ __all__ = [
     "name_order",
     "import_dataset",
     "detection_summary",
+    "detect_images",
+    "camera_choice",
 ]
 
 
@@ -165,7 +167,7 @@ def _copy_urdf_of(toml: Path, folder: Path) -> None:
         )
 
 
-def _detect(
+def detect_images(
     cam: CameraImages, files: Sequence[Path], target: Board | FieldTarget, progress=None
 ) -> tuple[tuple[int, int], list[Detection]]:
     """The target's detection in every image (read gray, one at a time, so memory does not grow
@@ -270,14 +272,14 @@ def import_dataset(
         if progress is not None:
             progress.start(sum(len(fs) for fs in files.values()))
         for cam in images:
-            sizes[cam.name], found[cam.name] = _detect(cam, files[cam.name], tgt, progress)
+            sizes[cam.name], found[cam.name] = detect_images(cam, files[cam.name], tgt, progress)
         if progress is not None:
             progress.finish()
         feats = {c: [d.features for d in ds] for c, ds in found.items()}
         seen = np.zeros(len(rows.q), bool)
         for cam in images:
             seen |= [len(f) >= _min_features(tgt) for f in feats[cam.name]]
-        _warn_not_found(tgt, images, files, found, labels or {})
+        warn_not_found(tgt, images, files, found, labels or {})
         if not seen.any():
             raise ImportError_(
                 f"the {tgt.describe()} is found in none of the {len(seen)} frames",
@@ -353,11 +355,11 @@ def _camera_choices(
     model_of = {c: models.get(c, DEFAULT_MODEL) for c in cameras}
     free_of = {c: None if (f := frees.get(c)) is None else tuple(f) for c in cameras}
     per = len(set(model_of.values())) > 1 or len(set(free_of.values())) > 1
-    return {c: _camera_choice(model_of[c], free_of[c], c if per else None)
+    return {c: camera_choice(model_of[c], free_of[c], c if per else None)
             for c in cameras}  # fmt: skip
 
 
-def _camera_choice(
+def camera_choice(
     model: str, free: Sequence[str] | None, camera: str | None = None
 ) -> tuple[str, tuple[str, ...]]:
     """The camera ``model`` and its ``free`` names (default :data:`DEFAULT_FREE`), checked;

@@ -22,14 +22,8 @@ from pathlib import Path
 import numpy as np
 
 from selfcal.choices import DEFAULT_MODEL
-from selfcal.importing.dataset import (
-    CameraImages,
-    ImportError_,
-    _camera_choice,
-    _detect,
-    _warn_not_found,
-    check_geometry,
-)
+from selfcal.importing.checks import ImportError_, check_geometry, warn_not_found
+from selfcal.importing.dataset import CameraImages, camera_choice, detect_images
 from selfcal.io.atomic import write_text_atomic
 from selfcal.io.outlock import removed_on_failure
 from selfcal.io.poses.dataset import SETUPS, PoseDataset, write_pose_dataset
@@ -108,7 +102,7 @@ def import_pose_dataset(
     out = Path(out)
     if (out / "dataset.json").exists():
         raise ImportError_(f"{out} already holds a dataset", fix="choose another --out folder")
-    model, free_t = _camera_choice(camera_model, free)
+    model, free_t = camera_choice(camera_model, free)
     with removed_on_failure(out):
         rows = read_poses(poses, rotation, units)
         tgt = load_target(target)
@@ -121,8 +115,8 @@ def import_pose_dataset(
         if len(suffixes) != 1:
             raise ImportError_(f"images of several kinds {sorted(suffixes)}",
                                fix="convert the images to one format (e.g. PNG)")  # fmt: skip
-        size, found = _detect(cam, files, tgt)
-        _warn_not_found(tgt, [cam], {cam.name: files}, {cam.name: found}, {})
+        size, found = detect_images(cam, files, tgt)
+        warn_not_found(tgt, [cam], {cam.name: files}, {cam.name: found}, {})
         feats = [d.features for d in found]
         seen = np.array([len(f) >= tgt.min_features for f in feats])
         if seen.sum() < MIN_POSE_FRAMES:

@@ -18,7 +18,7 @@ from selfcal.calibration.field.self_calibration import self_calibrate
 from selfcal.calibration.field.synthetic import synthetic_stereo_scene
 from selfcal.camera import BrownConrady, Fisheye, camera_model, canonical_free
 from selfcal.config.scenario import ConfigError, load_scenario
-from selfcal.importing.dataset import ImportError_, _camera_choice
+from selfcal.importing.dataset import ImportError_, camera_choice
 from selfcal.io.calibration_blocks import CameraIntrinsics
 from selfcal.io.dataset_info import DatasetError, DatasetInfo
 from selfcal.io.jsonfile import Fields
@@ -84,12 +84,12 @@ def test_fy_by_its_opencv_name_frees_the_aspect_ratio(tmp_path):
                        free=["fy", "fx"])  # fmt: skip
     assert cam.free == ("fx", "mu")
     assert CameraIntrinsics.of(cam, {"fx": 0.1, "mu": 1e-4}).fy == pytest.approx(808.0)
-    assert _camera_choice("opencv", ["fx", "fy", "cx", "cy"]) == (
+    assert camera_choice("opencv", ["fx", "fy", "cx", "cy"]) == (
         "opencv",
         ("fx", "mu", "cx", "cy"),
     )
     with pytest.raises(ImportError_, match="'fy' and 'mu'"):
-        _camera_choice("opencv", ["fx", "fy", "mu"])
+        camera_choice("opencv", ["fx", "fy", "mu"])
     doc = _info(camera_model="opencv", camera_free=("fx", "mu")).to_json()
     for c in doc["cameras"]:
         c["free"] = ["fx", "fy", "k1"]
