@@ -2,6 +2,12 @@
 
 Each is a batch of rows for :mod:`selfcal.solver` (see :class:`selfcal.solver.ResidualBlock`), in
 units of its own standard deviation (or of the pixel noise, when the caller scales it so).
+:func:`scale_block` and :func:`joint_prior` build the two that every adjustment of the field route
+over :class:`selfcal.estimation.kinematic_poses.KinematicPoses` carries (the one-step refinement
+and its Cramer-Rao bound): the scale fixed by the scale markers and the errors-in-variables prior
+on the joint read-back. They are not :mod:`selfcal.terms`: they are the images' own model, always
+present, the scale row indexes the ``points`` block (re-indexed every outlier round) and the
+prior the joint corrections, neither has a ``calibration.json`` section.
 """
 
 from __future__ import annotations
@@ -10,9 +16,10 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from selfcal.errors import InputError
 from selfcal.solver import Evaluation, JacobianPiece, Loss
 
-__all__ = ["ScaleDistanceBlock", "GaussianPriorBlock"]
+__all__ = ["ScaleDistanceBlock", "GaussianPriorBlock", "scale_block", "joint_prior"]
 
 
 class ScaleDistanceBlock:
@@ -85,3 +92,37 @@ class GaussianPriorBlock:
         if not jacobian:
             return Evaluation(r)
         return Evaluation(r, (JacobianPiece(self.block, self.w[:, None, None], self.cols),))
+
+
+def scale_block(
+    points: tuple[np.ndarray, np.ndarray], distance_m: float, sigma_m: float
+) -> ScaleDistanceBlock:
+    """The hard scale row ``(|c_a - c_b| - d) / sigma_m`` (in the problem's residual unit, e.g.
+    px: ``d`` known to ``sigma_m`` relative to one unit) on the centroids of the two scale
+    markers' corners ``points`` (indices into the ``points`` block) ``distance_m`` (m) apart."""
+    return ScaleDistanceBlock(points[0], points[1], distance_m, 1.0 / float(sigma_m))
+
+
+def joint_prior(
+    dq_cols: np.ndarray, joint_sigma: float | np.ndarray, n_joints: int, unit_sigma: float
+) -> tuple[np.ndarray, GaussianPriorBlock]:
+    """The zero-mean Gaussian prior ``unit_sigma dq / joint_sigma`` on the joint corrections.
+
+    Args:
+        dq_cols: coordinates of the corrections in the ``poses`` block (n per configuration,
+            configuration-major: :attr:`selfcal.estimation.kinematic_poses.KinematicPoses.dq_cols`).
+        joint_sigma: standard deviation of the joint read-back errors (rad / m; scalar or (n,)).
+        n_joints: ``n``, the joints of the chain.
+        unit_sigma: standard deviation of one unit of the problem's residuals (e.g. px).
+
+    Returns:
+        ``(joint_sigma as (n,), block)``.
+
+    Raises:
+        InputError: a ``joint_sigma`` that is not positive and finite.
+    """
+    js = np.broadcast_to(np.asarray(joint_sigma, dtype=float), (n_joints,))
+    if not (np.all(np.isfinite(js)) and np.all(js > 0)):
+        raise InputError(f"joint_sigma must be positive and finite, got {joint_sigma}")
+    weight = np.tile(unit_sigma / js, len(dq_cols) // n_joints)
+    return js, GaussianPriorBlock("poses", dq_cols, weight)

@@ -39,14 +39,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from selfcal.calibration.field.joint_refine import KinematicPoses, _Problem, choose_gauge
+from selfcal.calibration.field.joint_refine import KinematicPoses, choose_gauge
 from selfcal.camera import Cameras, first_camera
 from selfcal.camera.camera_set import free_std
-from selfcal.errors import EstimationError
+from selfcal.errors import EstimationError, InputError
+from selfcal.estimation.bundle_adjust import _Problem as _AdjustmentProblem
+from selfcal.estimation.residuals import joint_prior, scale_block
 from selfcal.kinematics.alignment import express_in_frame, minimal_difference
 from selfcal.kinematics.forward import fk_tool, identification_jacobian
 from selfcal.kinematics.mcpc import MCPCModel, minimal_indices, param_names
-from selfcal.solver import inverse_block, scaled_rank
+from selfcal.solver import ResidualBlock, inverse_block, scaled_rank
 from selfcal.transforms import inv_pose, skew
 
 __all__ = [
@@ -170,27 +172,20 @@ def fisher_jacobian(s: FisherSetup) -> tuple:
         raise BoundsError("an observed point has no (finite) position; drop its observations")
     lay = _layout(s)
     pm = lay.pose_model
-    use_dq = s.joint_sigma is not None
-    if use_dq:
-        js = np.broadcast_to(np.asarray(s.joint_sigma, dtype=float), (s.model.n,))
-        if not (np.all(np.isfinite(js)) and np.all(js > 0)):
-            raise BoundsError(f"joint_sigma must be positive and finite, got {s.joint_sigma}")
-        prior_cols = pm.dq_cols
-        prior_w = np.tile(s.pixel_sigma_px / js, len(q))
-    else:
-        prior_cols, prior_w = np.zeros(0, np.int64), np.zeros(0)
-    prob = _Problem(
+    extra: list[ResidualBlock] = [scale_block(s.scale_points, s.scale_distance_m, s.scale_sigma_m)]
+    if s.joint_sigma is not None:
+        try:
+            extra.append(joint_prior(pm.dq_cols, s.joint_sigma, s.model.n, s.pixel_sigma_px)[1])
+        except InputError as e:
+            raise BoundsError(e.message, fix=e.fix) from e
+    prob = _AdjustmentProblem(
         s.camera,
         pm,
         np.asarray(s.view, dtype=np.int64),
         np.asarray(s.pidx, dtype=np.int64),
         np.zeros((len(s.view), 2)),
         len(X),
-        s.scale_points,
-        s.scale_distance_m,
-        1.0 / s.scale_sigma_m,
-        prior_cols,
-        prior_w,
+        extra=extra,
     )
     x = np.concatenate([s.camera.free_values(), pm.initial_params(), X.ravel()])
     J = prob.jac(x) / s.pixel_sigma_px

@@ -59,7 +59,7 @@ import scipy.linalg
 from selfcal.calibration.identify import IdentificationResult
 from selfcal.camera import Cameras, CameraSet, first_camera
 from selfcal.camera.camera_set import free_std
-from selfcal.errors import EstimationError, InputError, UsageError
+from selfcal.errors import EstimationError, UsageError
 from selfcal.estimation.bundle_adjust import _Problem as _AdjustmentProblem
 from selfcal.estimation.gauge import GaugeChoice, gauge_directions
 from selfcal.estimation.joint_report import (
@@ -72,7 +72,7 @@ from selfcal.estimation.joint_result import JointRefinementResult
 from selfcal.estimation.kinematic_poses import KinematicPoses
 from selfcal.estimation.observations import Observations, views_per_point
 from selfcal.estimation.reprojection import reprojection_residuals, robust_sigma
-from selfcal.estimation.residuals import GaussianPriorBlock, ScaleDistanceBlock
+from selfcal.estimation.residuals import joint_prior, scale_block
 from selfcal.kinematics.forward import fk_tool
 from selfcal.kinematics.mcpc import MCPCModel, minimal_indices, param_is_angle, param_names
 from selfcal.solver import (
@@ -157,47 +157,6 @@ def choose_gauge(model: MCPCModel, *, alpha1_tol_deg: float = 10.0) -> GaugeChoi
 
 
 # --------------------------------------------------------------------------------------------
-# The least-squares problem
-# --------------------------------------------------------------------------------------------
-
-
-class _Problem(_AdjustmentProblem):
-    """The joint refinement as a :class:`selfcal.solver.Problem` over ``x = [camera's free
-    parameters, p, X (3 P)]``:
-    residual blocks ``reprojection`` (2 k px, robust ``loss``), ``scale`` (1 row, see
-    :class:`selfcal.estimation.residuals.ScaleDistanceBlock`) and ``prior`` (``prior_w *
-    p[prior_cols]``, zero-mean Gaussian priors; absent when empty) and the terms' blocks
-    (``terms``: residual and parameter blocks). Parameter blocks ``intrinsics``, ``poses`` (the
-    :class:`KinematicPoses` parameters; the joint corrections are per-configuration instances)
-    and ``points``."""
-
-    def __init__(
-        self,
-        camera: Cameras,
-        model: KinematicPoses,
-        view: np.ndarray,
-        pidx: np.ndarray,
-        uv: np.ndarray,
-        n_points: int,
-        scale_idx: tuple[np.ndarray, np.ndarray],
-        d_m: float,
-        w_scale: float,
-        prior_cols: np.ndarray,
-        prior_w: np.ndarray,
-        loss: Loss | None = None,
-        x0: np.ndarray | None = None,
-        terms: tuple[list, list] = ([], []),
-    ) -> None:
-        extra: list[ResidualBlock] = [ScaleDistanceBlock(scale_idx[0], scale_idx[1], d_m, w_scale)]
-        if len(prior_cols):
-            extra.append(GaussianPriorBlock("poses", prior_cols, prior_w))
-        extra += terms[0]
-        kw: dict = {"loss": loss, "x0": x0, "extra": extra, "extra_params": terms[1]}
-        super().__init__(camera, model, view, pidx, uv, n_points, **kw)
-        self.n_pix = 2 * len(self.view)
-
-
-# --------------------------------------------------------------------------------------------
 # Driver
 # --------------------------------------------------------------------------------------------
 
@@ -258,7 +217,7 @@ def joint_refine(
         stds: the covariance of the camera and the kinematic parameters (NaN without).
 
     Raises:
-        InputError: two terms of one kind.
+        InputError: two terms of one kind; a ``joint_sigma`` not positive and finite.
         JointRefinementError: the scale markers are not reconstructed, the gauge is not fixed
             (rank-deficient Jacobian) or the adjustment does not converge.
     """
@@ -315,16 +274,11 @@ def joint_refine(
     if pixel_sigma_px is None:
         pixel_sigma_px = sc.pixel_sigma_px(len(used))
     pixel_sigma_px = max(float(pixel_sigma_px), float(min_pixel_sigma_px))
-    if use_dq:
-        js = np.broadcast_to(np.asarray(joint_sigma, dtype=float), (model0.n,))
-        if not (np.all(np.isfinite(js)) and np.all(js > 0)):
-            raise InputError(f"joint_sigma must be positive and finite, got {joint_sigma}")
-        prior_cols = pose_model.dq_cols
-        prior_w = np.tile(pixel_sigma_px / js, len(used))
-    else:
-        prior_cols, prior_w = np.zeros(0, np.int64), np.zeros(0)
+    prior: list[ResidualBlock] = []
+    if joint_sigma is not None:
+        js, prior_block = joint_prior(pose_model.dq_cols, joint_sigma, model0.n, pixel_sigma_px)
+        prior.append(prior_block)
     camera: Cameras = sc.camera if sc.cameras is None else sc.cameras
-    w_scale = 1.0 / float(scale_sigma_m)
     check_terms(terms)
     term_ctx = TermContext(model0, free_idx, "poses", pixel_sigma_px)
     built = [t.build(term_ctx) for t in terms]
@@ -353,21 +307,21 @@ def joint_refine(
         last = rnd == rounds
         act, pts_used, remap = select(active)
         x0 = np.concatenate([camera.free_values(), p, X[pts_used].ravel()])
-        prob = _Problem(
+        scale = scale_block(
+            (remap[scale_pts[0]], remap[scale_pts[1]]), scale_distance_m, scale_sigma_m
+        )
+        extra, extra_params = term_blocks(built)  # blocks: reprojection, scale, prior, terms'
+        prob = _AdjustmentProblem(
             camera,
             pose_model,
             view_all[act],
             remap[pidx_all[act]],
             obs.uv[act],
             int(pts_used.sum()),
-            (remap[scale_pts[0]], remap[scale_pts[1]]),
-            scale_distance_m,
-            w_scale,
-            prior_cols,
-            prior_w,
-            Loss("linear" if last else loss, robust_scale_px),
-            x0,
-            term_blocks(built),
+            loss=Loss("linear" if last else loss, robust_scale_px),
+            x0=x0,
+            extra=[scale, *prior, *extra],
+            extra_params=extra_params,
         )
         if rank_info is None and not check_rank:
             rank_info = (float("nan"), -1)
@@ -409,7 +363,7 @@ def joint_refine(
         )
         e[ok] = np.where(zz > 0, np.linalg.norm(rr, axis=1), np.inf)
         n_res = 2 * int(act.sum())
-        dof = max(n_res + len(prior_cols) + 1 - prob.n, 1)
+        dof = max(n_res + len(pose_model.dq_cols) + 1 - prob.n, 1)
         sigma = robust_sigma(e[act]) * np.sqrt(n_res / dof)
         thr = max(outlier_px, 4.5 * sigma)
         new_active = ok & (e < thr)
@@ -467,7 +421,7 @@ def joint_refine(
     diag["cost"] = cost
     diag["status"] = int(status)
     diag["message"] = message
-    diag["scale_residual_m"] = float(sol.residuals["scale"][0, 0] / w_scale)
+    diag["scale_residual_m"] = float(sol.residuals["scale"][0, 0] / scale.w)
     diag["pixel_sigma_px"] = pixel_sigma_px
     diag["joint_sigma"] = None if not use_dq else js.tolist()
     if use_dq:
