@@ -27,7 +27,13 @@ from selfcal.pipeline.accuracy_table import region_table
 from selfcal.plots.job_figures import write_figure
 from selfcal.plots.workspace_map import workspace_map_figure
 
-__all__ = ["FIGURE", "accuracy_markdown", "board_accuracy_section", "cross_validation_line"]
+__all__ = [
+    "FIGURE",
+    "accuracy_markdown",
+    "accuracy_summary",
+    "board_accuracy_section",
+    "cross_validation_line",
+]
 
 FIGURE = "workspace_accuracy.png"
 
@@ -80,6 +86,21 @@ def cross_validation_line(cv: dict | None) -> str | None:
         f"calibrated {c['reprojection_rms_px']:.3f} px ({c['at_board_rms_mm']:.3f} mm at the "
         f"board), fair nominal {n['reprojection_rms_px']:.3f} px "
         f"({n['at_board_rms_mm']:.3f} mm)"
+    )
+
+
+def accuracy_summary(section: dict) -> str:
+    """The words ``selfcal report`` and ``selfcal run`` print of :func:`board_accuracy_section`'s
+    section: its line, and beside it the cross-validated held-out reprojection of the calibrated
+    model (px, mm at the board) against the fair nominal's (px), when the block has it."""
+    cv = section.get("cross_validation") or {}
+    c, n = cv.get("calibrated"), cv.get("nominal")
+    if not c or not n:
+        return section["line"]
+    return (
+        f"{section['line']}; cross-validated: {c['reprojection_rms_px']:.3f} px "
+        f"({c['at_board_rms_mm']:.3f} mm at the board) against the fair nominal's "
+        f"{n['reprojection_rms_px']:.3f} px"
     )
 
 

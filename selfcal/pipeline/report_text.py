@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from selfcal.kinematics.accuracy import format_table_iv
+from selfcal.pipeline.board_accuracy import accuracy_summary
 from selfcal.pipeline.report_cameras import rig_camera_markdown
 from selfcal.pipeline.report_fit import bound_markdown, figure_links, parameter_markdown
 
@@ -50,7 +51,7 @@ def report_summary(report: dict, root: Path) -> str:
         verdict = report.get("verdict")
         verdict = "" if not verdict else "; NO GAIN: " + verdict.removeprefix("no gain: ")
         acc = report.get("accuracy")
-        tool = "" if not acc else f"; {acc['line']}"
+        tool = "" if not acc else f"; {accuracy_summary(acc)}"
         return (f"report (no truth): fit {report['fit']['reprojection_rms_px']:.3f} px RMS; "
                 f"{held}{verdict}{tool}; {Path(root) / 'report.json'}")  # fmt: skip
     if report.get("kind") == "eye-to-hand-truth":
@@ -62,7 +63,7 @@ def report_summary(report: dict, root: Path) -> str:
     bound = v.get("tool_tip_bound_mm")
     b = "" if bound is None else f", bound {bound:.3f} mm"
     acc = report.get("accuracy")
-    tool = "" if not acc else f"; predicted: {acc['line']}"
+    tool = "" if not acc else f"; predicted: {accuracy_summary(acc)}"
     return (
         f"report: tool-tip error {t['calibrated']['rms']:.3f} mm RMS calibrated, "
         f"{t['nominal']['rms']:.3f} mm nominal over {v['poses']} validation postures{b}"

@@ -10,7 +10,10 @@ the calibration never saw:
   :mod:`selfcal.calibration.board.mounts` reads the truth's): the error's rotation (deg, about
   the parent's axes) and translation (mm, along them), their sigmas and ``z`` per component;
 - the board's pose in the camera frame at the validation postures, predicted from the joints by
-  the calibrated chain and by the fair nominal (``nominal_mcpc``), against the true one.
+  the calibrated chain and by the fair nominal (``nominal_mcpc``), against the true one;
+- the predicted tool-point accuracy and the cross-validated reprojection of ``calibration.json``'s
+  ``accuracy`` block, as the board route's report gives them
+  (:mod:`selfcal.pipeline.board_accuracy`, issue #29).
 
 ``status`` is "failed" when the calibrated chain predicts the validation board poses worse than
 the fair nominal. Units: mm and deg, px for the camera.
@@ -32,6 +35,11 @@ from selfcal.io.dataset import Dataset, DatasetError
 from selfcal.io.jsonfile import write_report
 from selfcal.io.truth import Truth, read_truth
 from selfcal.kinematics.forward import fk_tool
+from selfcal.pipeline.board_accuracy import (
+    accuracy_markdown,
+    accuracy_summary,
+    board_accuracy_section,
+)
 from selfcal.pipeline.board_run import (
     calibrate_board_run,
     camera_bounds,
@@ -160,21 +168,29 @@ def _markdown(r: dict) -> str:
 def write_static_truth_report(root: Path, cal: BoardCalibrationResult, truth: Truth, *,
                               figures: bool) -> dict:  # fmt: skip
     """:func:`static_truth_report` written as ``root/report.json`` and ``report.md`` (with
-    ``figures`` the reprojection figure in ``root/figures``)."""
+    ``figures`` the reprojection figure and the workspace map in ``root/figures``)."""
     report = static_truth_report(root, cal, truth)
     drawn = []
     if figures:
         ev = evaluate_board(cal, str(root / "calibration.json"), root)
         drawn.append(write_figure(reprojection_figure(ev, "calibration images"), root,
                                   "reprojection.png"))  # fmt: skip
-    report["figures"] = [str(p.relative_to(root)) for p in drawn]
+    section, maps = board_accuracy_section(root, cal, figures=figures)
+    md = _markdown(report)
+    if section is not None:  # the predicted tool-point accuracy (issue #29)
+        report["accuracy"] = section
+        md += "\n".join(accuracy_markdown(section)) + "\n"
+    report["figures"] = [str(p.relative_to(root)) for p in drawn + maps]
     write_report(root / "report.json", report)
-    write_text_atomic(root / "report.md", _markdown(report))
+    write_text_atomic(root / "report.md", md)
     return report
 
 
 def static_summary(rep: dict, root: Path) -> str:
-    """One line on the report: camera and mount z, the validation board poses."""
+    """One line on the report: camera and mount z, the validation board poses, and the predicted
+    tool-point accuracy with the cross-validated reprojection when the report has them."""
+    acc = rep.get("accuracy")
+    tool = "" if not acc else f"; predicted: {accuracy_summary(acc)}"
     zc = [abs(c["z"]) for c in rep["camera"].values() if c["z"] is not None]
     zm = [m["max_abs_z"] for m in rep["mounts"] if m["max_abs_z"] is not None]
     v = rep["validation"]["board_pose_in_camera"]
@@ -182,7 +198,8 @@ def static_summary(rep: dict, root: Path) -> str:
             f"and base -> camera, flange -> board within {max(zm, default=float('nan')):.2f} "
             f"sigma of the truth; board pose on {rep['validation']['poses']} validation "
             f"postures: nominal {v['nominal']['position_mm']['rms']:.3f} mm RMS, calibrated "
-            f"{v['calibrated']['position_mm']['rms']:.3f} mm RMS; details in {root}/report.md")  # fmt: skip
+            f"{v['calibrated']['position_mm']['rms']:.3f} mm RMS{tool}; details in "
+            f"{root}/report.md")  # fmt: skip
 
 
 def calibrate_and_report_static(out: Path, *, quiet: bool = False, figures: bool = True,

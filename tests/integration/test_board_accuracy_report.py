@@ -20,7 +20,7 @@ from selfcal.io.truth import read_truth
 from selfcal.kinematics.alignment import express_in_frame
 from selfcal.kinematics.forward import fk_tool
 from selfcal.kinematics.tool_error import workspace_sample
-from selfcal.pipeline.run import run_all
+from selfcal.pipeline.run import report_summary, run_all
 from selfcal.transforms import inv_pose
 
 MONO_CHARUCO = Path(__file__).resolve().parents[2] / "scenarios" / "mono-charuco.toml"
@@ -56,6 +56,10 @@ def test_the_report_gives_the_line_the_map_and_the_cross_validation(run):
     k_cal = cal["at_board_rms_mm"] / cal["reprojection_rms_px"]
     k_nom = nom["at_board_rms_mm"] / nom["reprojection_rms_px"]
     assert 0.3 < k_cal < 3.0 and k_cal == pytest.approx(k_nom, rel=0.2)
+    # the printed line gives the cross-validated error beside the prediction
+    assert (f"{acc['line']}; cross-validated: {cal['reprojection_rms_px']:.3f} px "
+            f"({cal['at_board_rms_mm']:.3f} mm at the board) against the fair nominal's "
+            f"{nom['reprojection_rms_px']:.3f} px") in report_summary(rep, out)  # fmt: skip
 
 
 def test_the_prediction_against_the_truth_over_the_workspace(run):

@@ -21,7 +21,7 @@ from selfcal.cli import main as cli
 from selfcal.config.scenario import load_scenario
 from selfcal.io.board_calibration import read_board_calibration
 from selfcal.io.dataset import Dataset
-from selfcal.pipeline.run import run_all
+from selfcal.pipeline.run import report_summary, run_all
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -46,6 +46,21 @@ def test_rendered_eye_to_hand_within_three_sigma(rendered):
         assert m["max_abs_z"] < 3, m
     v = rep["validation"]["board_pose_in_camera"]
     assert v["calibrated"]["position_mm"]["rms"] < v["nominal"]["position_mm"]["rms"]
+
+
+def test_the_eye_to_hand_report_gives_the_predicted_accuracy_as_the_board_report(rendered):
+    """calibration.json's accuracy block reaches report.json, report.md, the workspace map and
+    the printed line, with the cross-validated reprojection beside the prediction (issue #29)."""
+    rep = json.loads((rendered / "report.json").read_text())
+    acc = rep["accuracy"]
+    assert acc["line"].startswith("tool point within ") and "mm at its edge" in acc["line"]
+    assert "figures/workspace_accuracy.png" in rep["figures"]
+    md = (rendered / "report.md").read_text()
+    assert "## Predicted tool-point accuracy" in md and acc["line"] in md
+    assert "## Cross-validated reprojection" in md
+    line = report_summary(rep, rendered)
+    assert f"; predicted: {acc['line']}; cross-validated: " in line
+    assert "against the fair nominal's " in line and line.startswith("eye-to-hand: ")
 
 
 @pytest.mark.parametrize("fmt", ["tf", "easy_handeye", "matrix"])

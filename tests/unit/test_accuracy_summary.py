@@ -1,0 +1,63 @@
+"""The printed summary of a board calibration's predicted tool-point accuracy (issue #29): the
+prediction's line and, beside it, the cross-validated held-out reprojection of the calibrated
+model and the fair nominal, in ``selfcal report``'s line and in the eye-to-hand run's."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from selfcal.pipeline.report_text import report_summary
+from selfcal.pipeline.static_report import static_summary
+
+LINE = "tool point within 0.412 mm (95 %) inside the calibrated region, 0.807 mm at its edge"
+CV = {
+    "configurations": 6,
+    "folds": 6,
+    "calibrated": {"reprojection_rms_px": 0.3212, "at_board_rms_mm": 0.3004, "corners": 900},
+    "nominal": {"reprojection_rms_px": 4.2049, "at_board_rms_mm": 3.951, "corners": 900},
+}
+WORDS = "cross-validated: 0.321 px (0.300 mm at the board) against the fair nominal's 4.205 px"
+
+
+def _fit(accuracy: dict | None) -> dict:
+    rep = {
+        "kind": "fit",
+        "fit": {"reprojection_rms_px": 0.25},
+        "held_out": {"reprojection_rms_px": {"calibrated": 0.3, "nominal": 4.0}, "images": 6,
+                     "source": "leave-poses-out"},
+    }  # fmt: skip
+    return rep if accuracy is None else {**rep, "accuracy": accuracy}
+
+
+def _eye_to_hand(accuracy: dict | None) -> dict:
+    pose = {"position_mm": {"rms": 0.23}}
+    rep = {
+        "kind": "eye-to-hand-truth",
+        "camera": {"fx": {"z": 1.2}},
+        "mounts": [{"max_abs_z": 2.1}],
+        "validation": {"poses": 6, "board_pose_in_camera": {"calibrated": pose,
+                                                            "nominal": pose}},
+    }  # fmt: skip
+    return rep if accuracy is None else {**rep, "accuracy": accuracy}
+
+
+def test_the_report_line_gives_the_cross_validated_error_beside_the_prediction():
+    line = report_summary(_fit({"line": LINE, "cross_validation": CV}), Path("cal"))
+    assert f"{LINE}; {WORDS}; " in line
+
+
+def test_without_a_cross_validation_the_line_is_the_prediction_alone():
+    line = report_summary(_fit({"line": LINE, "cross_validation": None}), Path("cal"))
+    assert f"; {LINE}; cal/report.json" in line and "cross-validated" not in line
+
+
+def test_the_eye_to_hand_run_prints_the_prediction_and_the_cross_validation():
+    line = static_summary(_eye_to_hand({"line": LINE, "cross_validation": CV}), Path("run"))
+    assert line.startswith("eye-to-hand: camera parameters within 1.20 sigma")
+    assert f"; predicted: {LINE}; {WORDS}; details in run/report.md" in line
+
+
+def test_the_eye_to_hand_line_of_a_report_without_the_block_is_unchanged():
+    line = static_summary(_eye_to_hand(None), Path("run"))
+    assert "tool point" not in line and line.endswith("calibrated 0.230 mm RMS; details in "
+                                                      "run/report.md")  # fmt: skip
