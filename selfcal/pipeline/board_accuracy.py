@@ -98,7 +98,7 @@ def accuracy_summary(section: dict) -> str:
     if not c or not n:
         return section["line"]
     return (
-        f"{section['line']}; cross-validated: {c['reprojection_rms_px']:.3f} px "
+        f"{section['line']}; cross-validated RMS over the held-out corners: {c['reprojection_rms_px']:.3f} px "
         f"({c['at_board_rms_mm']:.3f} mm at the board) against the fair nominal's "
         f"{n['reprojection_rms_px']:.3f} px"
     )

@@ -359,7 +359,8 @@ def _nominal_text(res: BoardCalibrationResult) -> str:
             ""
             if ch.get("cv_px") is None or nom.get("cv_px") is None
             else (
-                f", cross-validated {ch['cv_px']:.3f} px against the nominal's {nom['cv_px']:.3f} px"
+                f", cross-validated {ch['cv_px']:.3f} px against the nominal's {nom['cv_px']:.3f} px "
+                "(geometric mean over the folds)"
             )
         )
         extra = len(ch["parameters"]) - len(nom["parameters"])

@@ -57,7 +57,7 @@ def test_the_report_gives_the_line_the_map_and_the_cross_validation(run):
     k_nom = nom["at_board_rms_mm"] / nom["reprojection_rms_px"]
     assert 0.3 < k_cal < 3.0 and k_cal == pytest.approx(k_nom, rel=0.2)
     # the printed line gives the cross-validated error beside the prediction
-    assert (f"{acc['line']}; cross-validated: {cal['reprojection_rms_px']:.3f} px "
+    assert (f"{acc['line']}; cross-validated RMS over the held-out corners: {cal['reprojection_rms_px']:.3f} px "
             f"({cal['at_board_rms_mm']:.3f} mm at the board) against the fair nominal's "
             f"{nom['reprojection_rms_px']:.3f} px") in report_summary(rep, out)  # fmt: skip
 

@@ -59,7 +59,7 @@ def test_the_eye_to_hand_report_gives_the_predicted_accuracy_as_the_board_report
     assert "## Predicted tool-point accuracy" in md and acc["line"] in md
     assert "## Cross-validated reprojection" in md
     line = report_summary(rep, rendered)
-    assert f"; predicted: {acc['line']}; cross-validated: " in line
+    assert f"; predicted: {acc['line']}; cross-validated RMS over the held-out corners: " in line
     assert "against the fair nominal's " in line and line.startswith("eye-to-hand: ")
 
 
