@@ -8,9 +8,9 @@ import pytest
 from scipy.linalg import expm
 
 from selfcal.calibration.accuracy import model_error_of
-from selfcal.calibration.board.accuracy import _skew, pose_jacobian
+from selfcal.calibration.board.accuracy import pose_jacobian
 from selfcal.camera import camera_model
-from selfcal.transforms import inv_pose, pose_from_vec
+from selfcal.transforms import inv_pose, pose_from_vec, skew
 
 
 @pytest.mark.parametrize("eye_to_hand", [False, True])
@@ -27,7 +27,7 @@ def test_pose_jacobian_against_central_differences(eye_to_hand):
 
     def pixels(xi: np.ndarray) -> np.ndarray:
         hat = np.zeros((4, 4))
-        hat[:3, :3], hat[:3, 3] = _skew(xi[3:]), xi[:3]
+        hat[:3, :3], hat[:3, 3] = skew(xi[3:]), xi[:3]
         T = T_tool @ expm(hat)
         T_cam_board = T if eye_to_hand else inv_pose(T)
         return cam.project(X @ T_cam_board[:3, :3].T + T_cam_board[:3, 3]).reshape(-1)

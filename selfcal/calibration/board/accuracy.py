@@ -63,7 +63,7 @@ from selfcal.kinematics.tool_error import (
     workspace_sample,
     workspace_summary,
 )
-from selfcal.transforms import inv_pose
+from selfcal.transforms import inv_pose, skew
 
 __all__ = [
     "board_accuracy",
@@ -94,14 +94,6 @@ def _what(eye_to_hand: bool) -> str:
     )
 
 
-def _skew(v: np.ndarray) -> np.ndarray:
-    """(..., 3, 3) the cross-product matrices of ``v`` (..., 3)."""
-    z = np.zeros(v.shape[:-1])
-    return np.stack([np.stack([z, -v[..., 2], v[..., 1]], -1),
-                     np.stack([v[..., 2], z, -v[..., 0]], -1),
-                     np.stack([-v[..., 1], v[..., 0], z], -1)], -2)  # fmt: skip
-
-
 def board_error_model(cr: BoardCramerRao, T_tool_point: np.ndarray, position_m: float = 0.0,
                       rotation_rad: float = 0.0) -> tuple[ToolErrorModel, tuple[str, ...]]:  # fmt: skip
     """The :class:`ToolErrorModel` of the bounds ``cr`` (world = the chain's, the tool point
@@ -124,9 +116,9 @@ def pose_jacobian(Jx: np.ndarray, x: np.ndarray, T_tool: np.ndarray,
     projection's derivative by the point (px per m)."""
     if eye_to_hand:  # camera <- board = the tool pose; the twist moves the board
         R = T_tool[:3, :3]
-        dX = np.concatenate([np.broadcast_to(R, (len(x), 3, 3)), -_skew(x - T_tool[:3, 3]) @ R], 2)
+        dX = np.concatenate([np.broadcast_to(R, (len(x), 3, 3)), -skew(x - T_tool[:3, 3]) @ R], 2)
     else:  # camera <- board = inv(tool pose); the twist moves the camera
-        dX = np.concatenate([np.broadcast_to(-np.eye(3), (len(x), 3, 3)), _skew(x)], 2)
+        dX = np.concatenate([np.broadcast_to(-np.eye(3), (len(x), 3, 3)), skew(x)], 2)
     return (Jx @ dX).reshape(-1, 6)
 
 
@@ -135,7 +127,7 @@ def tip_map(T_tool: np.ndarray, t: np.ndarray) -> np.ndarray:
     tool point ``t`` (3,) (tool frame, m) and the rotation, both in the world frame."""
     R = T_tool[:3, :3]
     B = np.zeros((6, 6))
-    B[:3, :3], B[:3, 3:], B[3:, 3:] = R, -R @ _skew(np.asarray(t, float)), R
+    B[:3, :3], B[:3, 3:], B[3:, 3:] = R, -R @ skew(np.asarray(t, float)), R
     return B
 
 
