@@ -7,7 +7,7 @@ it moves (those are decoded by nobody: the rest test skips them). At rest the ca
 chessboard from a different pose each time (a pinhole camera, the board drawn by homography);
 while moving it sees a few fixed noise pictures. Then runs ``selfcal import --bag ... --per-rest 1``
 in a child process and prints its wall time and peak resident memory (``ru_maxrss`` of that child
-alone, from ``os.wait4``) against the bag's size.
+alone, from ``os.wait4`` in a small launcher: :mod:`selfcal.benchmarks.child`) against the bag's size.
 
 Run: ``uv run python -m selfcal.benchmarks.ros [--size-mb 300 2000] [--format ros1]
 [--keep DIR]``.
@@ -16,9 +16,7 @@ Run: ``uv run python -m selfcal.benchmarks.ros [--size-mb 300 2000] [--format ro
 from __future__ import annotations
 
 import argparse
-import os
 import shutil
-import subprocess
 import sys
 import tempfile
 import time
@@ -27,6 +25,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from selfcal.benchmarks.child import run_child
 from selfcal.robot.definition import load_robot
 from selfcal.ros.rosbag import BagWriter
 from selfcal.target import Chessboard
@@ -118,16 +117,11 @@ def measure(bag: Path, work: Path) -> tuple[float, float, int]:
            "--image-topic", "cam0=/camera/image_raw", "--robot", ROBOT,
            "--target", str(work / "board.toml"), "--out", str(out), "--per-rest", "1",
            "--camera-model", "pinhole"]  # fmt: skip
-    t = time.perf_counter()
-    with open(work / "stderr.txt", "w") as err:
-        proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=err)
-        _, status, usage = os.wait4(proc.pid, 0)
-    wall = time.perf_counter() - t
-    code = os.waitstatus_to_exitcode(status)
+    code, wall, peak_mb = run_child(cmd, stderr=work / "stderr.txt")
     for line in (work / "stderr.txt").read_text().splitlines():
         if code != 0 or "skipped" in line:
             print("  " + line.split("Warning: ", 1)[-1], file=sys.stderr)
-    return wall, usage.ru_maxrss / 1024.0, code
+    return wall, peak_mb, code
 
 
 def main(argv: list[str] | None = None) -> int:

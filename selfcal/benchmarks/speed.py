@@ -245,36 +245,12 @@ def measure(args: argparse.Namespace) -> dict:
     return fig
 
 
-# Forks and execs argv, waits, prints "exit-code peak-kB": run as a process of its own.
-_LAUNCHER = (
-    "import os, sys\n"
-    "pid = os.fork()\n"
-    "if pid == 0:\n"
-    "    fd = os.open(os.devnull, os.O_WRONLY); os.dup2(fd, 1); os.dup2(fd, 2)\n"
-    "    os.execvp(sys.argv[1], sys.argv[1:])\n"
-    "_, status, usage = os.wait4(pid, 0)\n"
-    "print(os.waitstatus_to_exitcode(status), usage.ru_maxrss)\n"
-)
-
-
-def peak_memory_mb(argv: list[str]) -> tuple[int, float]:
-    """``(exit code, peak resident set in MB)`` of the command ``argv`` (Linux ``ru_maxrss``).
-
-    Linux carries a process's resident set at ``fork`` into its child's ``ru_maxrss`` across
-    ``exec``: a command started straight from this benchmark (hundreds of MB after its
-    in-process calibrations) would report at least this process's size. A small launcher
-    process forks and execs the command instead, so the floor is the launcher's ~10 MB."""
-    done = subprocess.run([sys.executable, "-c", _LAUNCHER, *argv], check=True,
-                          capture_output=True, text=True)  # fmt: skip
-    code, kb = done.stdout.split()
-    return int(code), int(kb) / 1024
-
-
 def calibrate_memory(poses: list[int]) -> dict:
     """Peak memory of ``selfcal calibrate`` as a process (its largest resident set, MB) on the
     analytic datasets of the fewest and the most of ``poses``, and its growth per posture
     between them (#32: at most 0.3 MB per posture): ``{"poses": [a, b], "peak_mb": [ma, mb],
     "mb_per_posture": x}``."""
+    from selfcal.benchmarks.child import run_child
     from selfcal.config.scenario import load_scenario
     from selfcal.pipeline.run import run_acquire
 
@@ -287,7 +263,7 @@ def calibrate_memory(poses: list[int]) -> dict:
             s = load_scenario(None, {"trajectory": {"poses": n}, "noise": {"render": False}})
             out = Path(d) / f"analytic{n}"
             run_acquire(s, out, quiet=True)
-            code, peak_mb = peak_memory_mb([*selfcal, "calibrate", "--quiet", str(out)])
+            code, _, peak_mb = run_child([*selfcal, "calibrate", "--quiet", str(out)])
             if code != 0:
                 raise SystemExit(f"selfcal calibrate {out} exited {code}")
             peaks.append(peak_mb)
