@@ -201,9 +201,11 @@ def calibrate(
             (:meth:`selfcal.io.dataset.Dataset.check_complete`).
         joint_sigma: standard deviation of a joint reading, rad (m for a prismatic joint), one
             value or one per joint; default the robot file's encoder resolution (joint datasets).
-        terms: further measurements estimated with the field's images (method ``"joint"``):
-            :mod:`selfcal.terms`, e.g. a :class:`selfcal.terms.tracker.TrackerTerm` or a
-            :class:`selfcal.terms.probe.ProbeTerm`; the result records each one's section.
+        terms: further measurements estimated with the images of a dataset with joint readings
+            (the field's with method ``"joint"``, or a board's: every fit of the board route,
+            :mod:`selfcal.calibration.board.terms`): :mod:`selfcal.terms`, e.g. a
+            :class:`selfcal.terms.tracker.TrackerTerm` or a :class:`selfcal.terms.probe.ProbeTerm`;
+            the result records each one's section.
         pose_noise: a pose dataset's flange-pose noise, as ``selfcal calibrate --pose-noise``:
             a :class:`selfcal.calibration.handeye.eiv.PoseNoise` (mm, deg) or ``"auto"``
             (default), ``"estimate"`` or ``"exact"`` (:func:`calibrate_pose_dataset`); pose
@@ -228,9 +230,13 @@ def calibrate(
     if route != "handeye" and pose_noise is not None:
         raise InputError(f"{root} is a {route} dataset (joint readings): pose_noise applies to "
                          "a pose dataset's flange poses", fix="leave it out")  # fmt: skip
-    if route != "field" and (method != "joint" or terms):
-        raise InputError(f"{root} is a {route} dataset: the field's method and measurement terms "
-                         "do not apply", fix="leave out method and terms")  # fmt: skip
+    if route != "field" and method != "joint":
+        raise InputError(f"{root} is a {route} dataset: the field's method does not apply",
+                         fix="leave out method")  # fmt: skip
+    if route == "handeye" and terms:
+        raise InputError(f"{root} is a pose dataset (flange poses, no joint readings): a "
+                         "measurement term needs the joints of a chain",
+                         fix="leave out terms, or calibrate a dataset with joint readings")  # fmt: skip
     if route == "handeye":
         if joint_sigma is not None:
             raise InputError(f"{root} is a pose dataset (flange poses, no joints): joint_sigma "
@@ -241,7 +247,7 @@ def calibrate(
         from selfcal.calibration.board.dataset import calibrate_board_dataset
 
         board = calibrate_board_dataset(
-            root, allow_missing_frames=allow_missing_frames, joint_sigma=joint_sigma
+            root, allow_missing_frames=allow_missing_frames, joint_sigma=joint_sigma, terms=terms
         )
         if write:
             write_calibration(Path(root) / "calibration.json", board)
@@ -298,9 +304,9 @@ def read_calibration(
         p = Path(path)
         return read_tracker_calibration(p / "calibration.json" if p.is_dir() else p)
     if kind == "board":
-        from selfcal.io.board_calibration import read_board_calibration
+        from selfcal.terms.registry import read_board_calibration
 
-        return read_board_calibration(path)
+        return read_board_calibration(path)  # every registered kind's section read as its type
     from selfcal.terms.registry import read_calibration as read_field
 
     return read_field(path)  # every registered measurement kind's section read as its type

@@ -49,18 +49,31 @@ def calibrate_any(
 ) -> None:
     """Calibrate the dataset in ``root`` by its target and write ``root/calibration.json``:
     the field -> :func:`selfcal.pipeline.run.run_calibrate`; a board -> the board calibration.
-    ``figures``: also ``root/figures/reprojection.png``. ``tracker_args``: the parsed tracker
-    options of ``selfcal calibrate`` (:func:`selfcal.cli.tracker.add_tracker_args`): tracker
-    measurements estimated with the field's images. ``joint_sigma_deg``: the standard deviation
+    ``figures``: also ``root/figures/reprojection.png``. ``tracker_args``: the parsed
+    measurement options of ``selfcal calibrate`` (:func:`selfcal.cli.tracker.add_tracker_args`:
+    ``--tracker ...`` and ``--term KIND=FILE[,NAME=VALUE ...]``, any kind of
+    :mod:`selfcal.terms.registry`): measurements estimated with the images of the field or of a
+    board dataset with joint readings. ``joint_sigma_deg``: the standard deviation
     of a joint reading, deg (mm for a prismatic joint), modelled instead of the robot file's
     encoder resolution. ``pose_noise``: ``--pose-noise`` of a pose dataset (an error for the
     others)."""
+    specs = list(getattr(tracker_args, "term", None) or [])
+    if specs:  # the spelling and the options first: a bad one stops before any work
+        from selfcal.terms.registry import parse_term_spec
+
+        units = {"joint_units": getattr(tracker_args, "joint_units", None)}
+        for spec in specs:
+            parse_term_spec(spec).options(units)
     from selfcal.calibration.routes import dataset_route
     from selfcal.io.dataset import Dataset
     from selfcal.pipeline.board_run import calibrate_board_run
     from selfcal.pipeline.run import run_calibrate
 
     route = dataset_route(root)  # the choice the public API's calibrate makes
+    if route == "handeye" and specs:
+        raise CliError(f"{root} is a pose dataset (flange poses, no joint readings): --term "
+                       "needs the joints of a chain",
+                       fix="leave out --term, or calibrate a dataset with joint readings")  # fmt: skip
     if route == "handeye":
         calibrate_poses(root, quiet=quiet, figures=figures, method=method,
                         joint_sigma_deg=joint_sigma_deg, tracker_args=tracker_args,
@@ -86,22 +99,23 @@ def calibrate_any(
         joint_sigma = np.array([np.radians(joint_sigma_deg) if t == "revolute"
                                 else joint_sigma_deg / 1000.0 for t in types])  # fmt: skip
     terms = []
-    if tracker_args is not None and tracker_args.tracker:
+    if tracker_args is not None and (tracker_args.tracker or specs):
         from selfcal.cli.tracker import tracker_input
         from selfcal.robot.definition import load_robot
+        from selfcal.terms.registry import term_from_spec
 
-        if route == "board":
+        if route == "field" and method != "joint":
             raise CliError(
-                f"{root}: --tracker joins the self-calibration of the ArUco field; this dataset "
-                "has a board",
-                fix="calibrate the board dataset without --tracker",
-            )
-        if method != "joint":
-            raise CliError(
-                "--tracker needs the one-step method (--method joint, the default)",
+                "--tracker and --term need the one-step method (--method joint, the default)",
                 fix="leave out --method two-stage",
             )
-        terms.append(tracker_input(tracker_args, load_robot(ds.robot_source)))
+        robot = load_robot(ds.robot_source)
+        if tracker_args.tracker:
+            terms.append(tracker_input(tracker_args, robot))
+        else:
+            tracker_input(tracker_args, None)  # options that need --tracker are errors
+        units = {"joint_units": tracker_args.joint_units}
+        terms += [term_from_spec(spec, robot, units) for spec in specs]
     elif tracker_args is not None:
         from selfcal.cli.tracker import tracker_input
 
@@ -113,8 +127,10 @@ def calibrate_any(
         for section in res.terms:
             _say(quiet, section.summary())
         return
-    calibrate_board_run(root, quiet=quiet, allow_missing_frames=allow_missing_frames,
-                        figures=figures, joint_sigma=joint_sigma)  # fmt: skip
+    board = calibrate_board_run(root, quiet=quiet, allow_missing_frames=allow_missing_frames,
+                                figures=figures, joint_sigma=joint_sigma, terms=terms)  # fmt: skip
+    for section in board.terms:
+        _say(quiet, section.summary())
 
 
 def cmd_import(args: argparse.Namespace) -> int:

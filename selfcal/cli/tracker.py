@@ -116,7 +116,20 @@ def add_tracker_args(sp: argparse.ArgumentParser) -> None:
         "--joint-units",
         default=None,
         choices=JOINT_UNITS,
-        help=f"of the tracker files' joints (needed with --tracker): {UNITS_HELP}",
+        help=f"of the tracker files' joints (needed with --tracker; --term's joint_units "
+        f"unless it gives its own): {UNITS_HELP}",
+    )
+    sp.add_argument(
+        "--term",
+        action="append",
+        default=None,
+        metavar="KIND=FILE[,NAME=VALUE...]",
+        help="further measurements of the same robot estimated with the images (field or "
+        "board dataset with joint readings), any registered kind with its own options, e.g. "
+        "--term probe=touches.csv,sigma_mm=0.02 (touch-probe points) or --term "
+        "tracker=positions.csv,distances=bar.csv (--tracker's spelling); repeat for more "
+        "kinds; the kinds, their files and options: docs/terms.md; calibration.json records "
+        "each one's section",
     )
     sp.add_argument(
         "--tracker-sigma-mm",
@@ -147,8 +160,9 @@ def tracker_input(args: argparse.Namespace, robot):
     from selfcal.terms.tracker import TrackerTerm
 
     if not args.tracker:
+        units = None if getattr(args, "term", None) else args.joint_units  # --term's default
         for opt, v in (("--tracker-distances", args.tracker_distances),
-                       ("--joint-units", args.joint_units)):  # fmt: skip
+                       ("--joint-units", units)):  # fmt: skip
             if v:
                 raise CliError(
                     f"{opt} needs --tracker FILE", fix=f"add --tracker or leave out {opt}"

@@ -31,6 +31,10 @@ m); the MCPC chain's tool is the first camera (OpenCV frame). Keys (units in the
     accuracy          the predicted tool-point (flange) error over the workspace and the
                       cross-validated reprojection (:mod:`selfcal.calibration.board.accuracy`,
                       docs/tool-accuracy.md), absent in older files and without bounds
+    sources, KIND     with measurement terms estimated with the images (touch-probe points,
+                      tracker rows: :mod:`selfcal.calibration.board.terms`): ``["images",
+                      KIND ...]`` and each term's section under its kind, as the field's
+                      calibration.json (:mod:`selfcal.io.calibration_terms`); absent without
 
 :func:`read_board_calibration` is the one reader; :func:`calibration_kind` tells the two
 ``calibration.json`` kinds apart.
@@ -38,6 +42,7 @@ m); the MCPC chain's tool is the first camera (OpenCV frame). Keys (units in the
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -46,6 +51,7 @@ import numpy as np
 from selfcal.camera import MODELS, CameraModel, camera_model, lens_names, opencv_values
 from selfcal.errors import InputError
 from selfcal.io.calibration_bounds import BoundParameter, CameraBounds, ToolTipBound
+from selfcal.io.calibration_terms import IMAGES, Section, SectionType, read_sections
 from selfcal.io.jsonblock import JsonBlock
 from selfcal.io.jsonfile import SCHEMA_KEY, Fields, check_header, load_json, write_json_atomic
 from selfcal.kinematics.mcpc import COLUMNS, MCPCModel
@@ -208,6 +214,13 @@ class BoardCalibrationResult:
     accuracy: dict | None = None
     """The predicted tool-point accuracy (:mod:`selfcal.calibration.board.accuracy`), or None
     (files before it, or no bounds)."""
+    terms: tuple[Section, ...] = ()
+    """The sections of the measurement terms estimated with the images, in order (``sources``
+    lists ``images`` and their kinds); empty: the images alone."""
+
+    def section(self, kind: str) -> Section | None:
+        """The section of the term ``kind``, or None."""
+        return next((s for s in self.terms if s.kind == kind), None)
 
     @property
     def eye_to_hand(self) -> bool:
@@ -306,11 +319,21 @@ class BoardCalibrationResult:
             **({} if self.bounds is None else {"bounds": self.bounds.to_json()}),
             **({} if self.bounds_error is None else {"bounds_error": self.bounds_error}),
             **({} if self.accuracy is None else {"accuracy": self.accuracy}),
+            **(
+                {"sources": [IMAGES, *(s.kind for s in self.terms)]}
+                | {s.kind: s.to_json() for s in self.terms}
+                if self.terms
+                else {}
+            ),
         }
 
     @classmethod
-    def from_json(cls, doc: dict, where: str) -> BoardCalibrationResult:
-        """Parse a document read from ``where``; raises BoardCalibrationFileError."""
+    def from_json(
+        cls, doc: dict, where: str, sections: Mapping[str, SectionType] | None = None
+    ) -> BoardCalibrationResult:
+        """Parse a document read from ``where``; raises BoardCalibrationFileError. ``sections``:
+        the section type of each measurement kind to read as its type (any other is kept as
+        written, :func:`selfcal.io.calibration_terms.read_sections`)."""
         err = BoardCalibrationFileError
         check_header(doc, where, fmt=FORMAT, version=SCHEMA_VERSION, fix=_FIX, error=err)
         f = Fields(doc, where, _FIX, error=err)
@@ -355,6 +378,7 @@ class BoardCalibrationResult:
             setup=setup,
             mounts=tuple(Mount.from_json(m) for m in f.items("mounts")) if f.has("mounts") else (),
             accuracy=dict(f.sub("accuracy").doc) if f.has("accuracy") else None,
+            terms=read_sections(f, sections or {}),
         )
 
 
@@ -402,8 +426,12 @@ def calibration_kind(path: str | Path) -> str:
     return "board" if doc.get("format") == FORMAT else "field"
 
 
-def read_board_calibration(path: str | Path) -> BoardCalibrationResult:
-    """Read the board ``calibration.json`` at ``path`` (or ``path/calibration.json``)."""
+def read_board_calibration(
+    path: str | Path, sections: Mapping[str, SectionType] | None = None
+) -> BoardCalibrationResult:
+    """Read the board ``calibration.json`` at ``path`` (or ``path/calibration.json``);
+    ``sections`` as :meth:`BoardCalibrationResult.from_json`
+    (:func:`selfcal.terms.registry.read_board_calibration` passes every registered kind's)."""
     p = _path(path)
     return BoardCalibrationResult.from_json(load_json(p, fix=_FIX, error=BoardCalibrationFileError),
-                                            str(p))  # fmt: skip
+                                            str(p), sections)  # fmt: skip

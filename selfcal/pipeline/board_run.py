@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import sys
 import time
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -50,6 +51,7 @@ from selfcal.plots.job_figures import (
     tool_tip_figure,
     write_figure,
 )
+from selfcal.terms.base import Term
 from selfcal.transforms import inv_pose
 
 __all__ = [
@@ -322,17 +324,19 @@ def calibrate_board_run(
     allow_missing_frames: bool = False,
     figures: bool = False,
     joint_sigma: np.ndarray | None = None,
+    terms: Sequence[Term] = (),
 ) -> BoardCalibrationResult:
     """``selfcal calibrate`` of a board dataset: :func:`selfcal.calibration.board.dataset.calibrate_board_dataset`
     written as ``root/calibration.json``, its warnings logged and a one-line summary printed
     (unless ``quiet``); ``figures``: also ``root/figures/reprojection.png``; ``joint_sigma``:
-    the joint read-back noise (rad / m) instead of the robot file's encoder resolution."""
+    the joint read-back noise (rad / m) instead of the robot file's encoder resolution;
+    ``terms``: further measurements estimated with the images (:mod:`selfcal.terms`)."""
     from selfcal.calibration.board.dataset import calibrate_board_dataset
 
     label = "board calibration (detection, camera, hand-eye, kinematics, bounds)"
     with Progress("calibrate", enabled=not quiet).step(label) as st:
         res = calibrate_board_dataset(
-            root, allow_missing_frames=allow_missing_frames, joint_sigma=joint_sigma
+            root, allow_missing_frames=allow_missing_frames, joint_sigma=joint_sigma, terms=terms
         )
         st.result(f"reprojection RMS {res.reprojection_rms_px:.3f} px")
     write_board_calibration(Path(root) / "calibration.json", res)

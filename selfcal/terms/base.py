@@ -32,6 +32,7 @@ __all__ = [
     "Term",
     "TermBlocks",
     "TermContext",
+    "TermOption",
     "TermReport",
     "TermSection",
     "TermSolution",
@@ -138,6 +139,60 @@ class Term(Protocol):
 
     def report(self, blocks: TermBlocks, solution: TermSolution) -> TermReport:
         """Diagnostics and ``calibration.json`` section at the solution."""
+
+
+@dataclass(frozen=True)
+class TermOption:
+    """One option of a kind's file reader, as ``selfcal calibrate --term KIND=FILE,NAME=VALUE``
+    gives it (:func:`selfcal.terms.registry.term_from_spec`): a term class lists its own in
+    ``OPTIONS`` and reads its file with ``from_file(path, robot, options)``, so that a new kind
+    needs no edit of the command line.
+
+    Attributes:
+        name: the option's name (``sigma_mm``: the unit in the name, as the files' columns).
+        help: what it is, for people.
+        unit: its unit (``mm``, ``deg``; empty for a word or a file).
+        default: the value when not given, as written (None: none).
+        required: the option must be given (or come from the command, e.g. ``--joint-units``).
+        choices: the words it takes (empty: a positive number, or a file with ``path``).
+        path: the value is a file.
+    """
+
+    name: str
+    help: str
+    unit: str = ""
+    default: str | None = None
+    required: bool = False
+    choices: tuple[str, ...] = ()
+    path: bool = False
+
+    def parse(self, text: str, where: str) -> str | float:
+        """The value ``text`` (a word, a file name, or a finite number > 0).
+
+        Raises:
+            InputError: a value it does not take (``where`` names the option, with the fix).
+        """
+        if self.path or self.choices:
+            if self.choices and text not in self.choices:
+                raise InputError(f"{where}: {self.name}={text} is not one of {', '.join(self.choices)}",
+                                 fix=f"give {self.name}={self.choices[0]} ({self.help})")  # fmt: skip
+            return text
+        try:
+            value = float(text)
+        except ValueError:
+            value = float("nan")
+        if not (np.isfinite(value) and value > 0):
+            raise InputError(f"{where}: {self.name}={text} is not a number > 0",
+                             fix=f"give {self.name} in {self.unit or 'its unit'}, e.g. "
+                             f"{self.name}={self.default or 1} ({self.help})")  # fmt: skip
+        return value
+
+    def describe(self) -> str:
+        """``name`` with its unit, default and help, for a list of options."""
+        what = "|".join(self.choices) if self.choices else ("FILE" if self.path else self.unit)
+        given = ("required" if self.required
+                 else "optional" if self.default is None else f"default {self.default}")  # fmt: skip
+        return f"{self.name} ({what}; {given}): {self.help}"
 
 
 def check_terms(terms: Sequence[Term]) -> None:

@@ -27,7 +27,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -39,7 +39,7 @@ from selfcal.io.jsonblock import JsonBlock
 from selfcal.io.tracker import read_measurements
 from selfcal.kinematics.forward import fk_tool
 from selfcal.solver import Evaluation, JacobianPiece, Loss, ParameterBlock
-from selfcal.terms.base import TermBlocks, TermContext, TermReport, TermSolution
+from selfcal.terms.base import TermBlocks, TermContext, TermOption, TermReport, TermSolution
 from selfcal.transforms import inv_pose
 
 __all__ = ["ProbeTerm", "ProbeSection", "ProbeBlock", "DEFAULT_SIGMA_M"]
@@ -48,10 +48,10 @@ DEFAULT_SIGMA_M = 2e-5
 """Default noise of a touch per coordinate (0.02 mm: a touch probe's repeatability)."""
 
 PROBE_NOTE = (
-    "touch-probe points estimated with the dataset's images (method joint): tip_mm is the probe "
-    "tip in the calibrated tool frame (the left camera, OpenCV); T_fixture_world_m places the "
-    "fixture of the known points in the calibration's world frame (null: it was given); rms_mm "
-    "and max_mm are the fit over the touches (3-D)"
+    "touch-probe points estimated with the dataset's images: tip_mm is the probe tip in the "
+    "calibrated chain's tool frame (mcpc's tool: the left or first camera, OpenCV, or eye-to-hand "
+    "the board); T_fixture_world_m places the fixture of the known points in the calibration's "
+    "world frame (null: it was given); rms_mm and max_mm are the fit over the touches (3-D)"
 )
 
 
@@ -128,6 +128,13 @@ class ProbeTerm:
     tip_m: np.ndarray | None = None
     file: str | None = None
     kind: ClassVar[str] = "probe"
+    OPTIONS: ClassVar[tuple[TermOption, ...]] = (
+        TermOption("joint_units", "the units of the file's joints (deg: degrees and prismatic "
+                   "mm; rad: radians and m); default the command's --joint-units",
+                   required=True, choices=("deg", "rad")),
+        TermOption("sigma_mm", "noise of a touch per coordinate", "mm", "0.02"),
+    )  # fmt: skip
+    """The options of :meth:`from_file` (``selfcal calibrate --term probe=FILE,NAME=VALUE``)."""
 
     def __post_init__(self) -> None:
         q = np.atleast_2d(np.asarray(self.q, dtype=float))
@@ -164,6 +171,12 @@ class ProbeTerm:
             )
         points, touched = np.unique(meas.xyz, axis=0, return_inverse=True)
         return cls(meas.q, points, touched.reshape(-1), sigma_m, file=str(path))
+
+    @classmethod
+    def from_file(cls, path: str | Path, robot, options: Mapping[str, Any]) -> ProbeTerm:
+        """The touches in ``path`` with the values of :data:`OPTIONS` (``sigma_mm`` in mm),
+        as :meth:`read` reads them."""
+        return cls.read(path, robot, options["joint_units"], 1e-3 * float(options["sigma_mm"]))
 
     # ------------------------------------------------------------------ the term
     def build(self, context: TermContext) -> TermBlocks:

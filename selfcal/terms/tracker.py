@@ -13,24 +13,64 @@ mm / deg in the record.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, ClassVar
 
 import numpy as np
 
 from selfcal.estimation.tracker import TrackerMeasurements, tracker_report, tracker_terms
+from selfcal.estimation.tracker_checks import check_tracker_geometry
 from selfcal.io.calibration_blocks import matrix
 from selfcal.io.calibration_tracker import TrackerSource
+from selfcal.io.tracker import Table, read_distances, read_measurements
 from selfcal.kinematics.forward import fk_tool
-from selfcal.kinematics.mcpc import MCPCModel
-from selfcal.terms.base import TermBlocks, TermContext, TermReport, TermSolution
+from selfcal.kinematics.mcpc import MCPCModel, nominal_mcpc
+from selfcal.robot.definition import RobotDef
+from selfcal.terms.base import TermBlocks, TermContext, TermOption, TermReport, TermSolution
 from selfcal.transforms import inv_pose
 
-__all__ = ["TrackerTerm", "tracker_source", "DEFAULT_SIGMA_M", "DEFAULT_SIGMA_RAD"]
+__all__ = [
+    "TrackerTerm",
+    "tracker_source",
+    "read_tracker_files",
+    "DEFAULT_SIGMA_M",
+    "DEFAULT_SIGMA_RAD",
+]
 
 DEFAULT_SIGMA_M = 1e-4
 """Default tracker noise per coordinate (0.1 mm: a laser tracker's, as ``selfcal identify``)."""
 DEFAULT_SIGMA_RAD = float(np.radians(0.01))
 """Default noise of a measured tool orientation (0.01 deg, as ``selfcal identify``)."""
+
+
+def read_tracker_files(
+    measurements: str | Path,
+    distances: str | Path | None,
+    robot: RobotDef,
+    units: str,
+    *,
+    guess: bool = True,
+) -> tuple[TrackerMeasurements, Table]:
+    """``(TrackerMeasurements, Table)``: the measurements file (positions or poses, tracker
+    frame) and, when given, the distances file of ``robot`` (:mod:`selfcal.io.tracker`, joints
+    in ``units``), SI, their geometry checked against the nominal arm
+    (:mod:`selfcal.estimation.tracker_checks`). ``guess=False``: skip the check that degrees
+    look like radians.
+
+    Raises:
+        InputError: a file that cannot be read (named with row and column), or measurements
+            whose geometry does not fit the arm (off by a unit's factor: said).
+    """
+    meas, table = read_measurements(measurements, robot, units, guess=guess)
+    if distances:
+        qa, qb, d = read_distances(distances, robot, units, guess=guess)
+        meas = TrackerMeasurements(meas.q, meas.xyz, meas.R, qa, qb, d)
+    check_tracker_geometry(
+        nominal_mcpc(robot), meas, str(measurements), None if distances is None else str(distances)
+    )
+    return meas, table
 
 
 @dataclass(frozen=True)
@@ -52,6 +92,30 @@ class TrackerTerm:
     sigma_rad: float = DEFAULT_SIGMA_RAD
 
     kind = "tracker"
+    OPTIONS: ClassVar[tuple[TermOption, ...]] = (
+        TermOption("joint_units", "the units of the files' joints (deg: degrees and prismatic "
+                   "mm; rad: radians and m); default the command's --joint-units",
+                   required=True, choices=("deg", "rad")),
+        TermOption("distances", "ball-bar distances too (a_j1..a_jn,b_j1..b_jn,d_mm)",
+                   path=True),
+        TermOption("sigma_mm", "position / distance noise per coordinate", "mm", "0.1"),
+        TermOption("sigma_deg", "orientation noise of tool poses", "deg", "0.01"),
+    )  # fmt: skip
+    """The options of :meth:`from_file` (``selfcal calibrate --term tracker=FILE,NAME=VALUE``)."""
+
+    @classmethod
+    def from_file(
+        cls, path: str | Path, robot: RobotDef, options: Mapping[str, Any]
+    ) -> TrackerTerm:
+        """The measurements in ``path`` (docs/tracker.md) with the values of :data:`OPTIONS`,
+        read and checked as ``selfcal identify`` reads them (:func:`read_tracker_files`)."""
+        dist = options.get("distances")
+        units = options["joint_units"]
+        meas, _ = read_tracker_files(path, dist, robot, units)
+        return cls(meas, joint_units=units, file=str(path),
+                   distances_file=None if dist is None else str(dist),
+                   sigma_m=1e-3 * float(options["sigma_mm"]),
+                   sigma_rad=float(np.radians(float(options["sigma_deg"]))))  # fmt: skip
 
     def build(self, context: TermContext) -> TermBlocks:
         """The position or pose block and the distance block over the chain of ``context``, with

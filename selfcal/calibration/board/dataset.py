@@ -23,6 +23,7 @@ from __future__ import annotations
 import dataclasses
 import os
 import warnings
+from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
@@ -55,6 +56,7 @@ from selfcal.kinematics.mcpc import minimal_indices, nominal_mcpc, param_names
 from selfcal.robot.definition import RobotDef, load_robot
 from selfcal.target.base import Features
 from selfcal.target.boards import Board
+from selfcal.terms.base import Term
 from selfcal.transforms import inv_pose
 
 __all__ = [
@@ -157,6 +159,7 @@ def calibrate_board_dataset(
     *,
     allow_missing_frames: bool = False,
     joint_sigma: float | np.ndarray | None = None,
+    terms: Sequence[Term] = (),
 ) -> BoardCalibrationResult:
     """Calibrate camera, hand-eye, board pose and kinematics from the board dataset in ``root``
     (module docstring) and the Cramer-Rao bounds at the estimate (:mod:`selfcal.calibration.board.bounds`;
@@ -166,12 +169,14 @@ def calibrate_board_dataset(
     a joint reading (rad / m, one value or one per joint; default the robot file's encoder
     resolution, :func:`selfcal.estimation.joint_report.encoder_sigma`): the read-back errors are
     then estimated with the rest (errors in variables), where readings taken as exact bias the
-    camera.
+    camera. ``terms``: further measurements of the same robot (:mod:`selfcal.terms`: touch-probe
+    points, tracker rows ...) estimated with the images in every fit, the fair nominal's too
+    (:mod:`selfcal.calibration.board.terms`); the result records each one's section.
 
     Raises: as :func:`calibrate_board_dataset_detailed`.
     """
     return calibrate_board_dataset_detailed(
-        root, allow_missing_frames=allow_missing_frames, joint_sigma=joint_sigma
+        root, allow_missing_frames=allow_missing_frames, joint_sigma=joint_sigma, terms=terms
     ).result
 
 
@@ -180,6 +185,7 @@ def calibrate_board_dataset_detailed(
     *,
     allow_missing_frames: bool = False,
     joint_sigma: float | np.ndarray | None = None,
+    terms: Sequence[Term] = (),
 ) -> BoardDatasetCalibration:
     """:func:`calibrate_board_dataset` with what it was computed from (the Monte Carlo's view).
 
@@ -256,6 +262,7 @@ def calibrate_board_dataset_detailed(
                 rig=rig,
                 rig_features=[o[0] for o in others],
                 eye_to_hand=e2h,
+                terms=terms,
             )
         except EstimationError as exc:
             pairing_check(exc.message)
@@ -326,6 +333,7 @@ def calibrate_board_dataset_detailed(
         held=res.held,
         warnings=tuple(dict.fromkeys(notes)),
         setup=ds.info.setup,
+        terms=res.sections,
     )
     all_feats = (feats, *(o[0] for o in others))
     k = np.flatnonzero(used).tolist()
@@ -346,7 +354,8 @@ def calibrate_board_dataset_detailed(
         )
     else:  # the predicted tool-point accuracy over the workspace (issue #29)
         assert cr is not None
-        obs = BoardObservations(board, res.board, feats, q, rig, [o[0] for o in others], js, e2h)
+        obs = BoardObservations(board, res.board, feats, q, rig, [o[0] for o in others], js, e2h,
+                                tuple(terms))  # fmt: skip
         try:
             acc = board_accuracy(obs, sel, cr, res.nominal.model.joint_offsets, inv_pose(mount),
                                  robot.limits, pixel_sigma_px=bounds.pixel_sigma_px)  # fmt: skip

@@ -33,12 +33,16 @@ def board_problem(
     pixel_sigma_px: float,
     joint_sigma: float | np.ndarray | None,
     n_frames: int,
+    term_blocks: Sequence[ResidualBlock] = (),
+    term_params: Sequence[ParameterBlock] = (),
 ) -> _AdjustmentProblem:
     """The problem of ``cameras`` (the first is the chain's tool) seeing ``board`` through
     ``poses``: ``rows[c]`` = (view index in ``poses``' layout, board feature id, pixel (k, 2))
     of camera ``c``; ``joint_sigma`` (rad / m, scalar or (n,); None: exact read-back) weighs the
     joint corrections of the ``n_frames`` frames used against ``pixel_sigma_px`` (px). Unknowns
-    start at the cameras' free values and the poses' initial parameters; the board is fixed."""
+    start at the cameras' free values and the poses' initial parameters; the board is fixed.
+    ``term_blocks``, ``term_params``: the measurement terms' residual and parameter blocks
+    (:mod:`selfcal.calibration.board.terms`), after the images' and the prior."""
     ids = np.unique(np.concatenate([r[1] for r in rows]))
     extra: list[ResidualBlock] = []
     extra_params: list[ParameterBlock] = []
@@ -52,6 +56,8 @@ def board_problem(
         js = np.broadcast_to(np.asarray(joint_sigma, dtype=float), (poses.model.n,))
         extra.append(GaussianPriorBlock("poses", poses.dq_cols,
                                         np.tile(pixel_sigma_px / js, n_frames)))  # fmt: skip
+    extra += term_blocks
+    extra_params += term_params
     view, feat0, uv = rows[0]
     x0 = np.concatenate([cameras[0].free_values(), poses.initial_params()])
     return _AdjustmentProblem(

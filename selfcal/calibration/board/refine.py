@@ -21,13 +21,14 @@ inverted chain: world = the first camera, the model's tool = the board
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from selfcal.calibration.board.calibrate import BoardCalibration
 from selfcal.calibration.board.problem import board_problem
 from selfcal.calibration.board.rig import BoardRigCalibration
+from selfcal.calibration.board.terms import build_terms
 from selfcal.camera import CameraModel
 from selfcal.camera.camera_set import std_by_name
 from selfcal.errors import EstimationError
@@ -37,6 +38,7 @@ from selfcal.kinematics.mcpc import MCPCModel, param_names
 from selfcal.solver import SolverOptions, covariance, solve
 from selfcal.target.base import Features
 from selfcal.target.boards import Board
+from selfcal.terms.base import Term
 from selfcal.transforms import inv_pose
 
 __all__ = ["BoardObservations", "Refinement", "predict_px", "predicted_points", "refine_on_board"]
@@ -51,7 +53,9 @@ class BoardObservations:
     standard deviation ``joint_sigma`` (rad / m, or None for exact read-back) and the setup:
     ``eye_to_hand`` the cameras static and the board on the flange (the chain's world is then
     the first camera and its tool the board), else the cameras on the flange (world = board,
-    tool = the first camera)."""
+    tool = the first camera). ``terms``: further measurements of the same robot
+    (:mod:`selfcal.terms`: touch-probe points, tracker rows ...) estimated with the images in
+    every fit (:mod:`selfcal.calibration.board.terms`)."""
 
     board: Board
     cam_stage: BoardCalibration
@@ -61,6 +65,7 @@ class BoardObservations:
     rig_features: Sequence[Sequence[Features]] = ()
     joint_sigma: float | np.ndarray | None = None
     eye_to_hand: bool = False
+    terms: tuple[Term, ...] = ()
 
     @property
     def used(self) -> np.ndarray:
@@ -94,7 +99,8 @@ class Refinement:
     (``cameras``, the first is the chain's tool) with the standard deviations of its free
     parameters ``cameras_std``, every camera's pose in the first's frame ``T_first_cam`` (N, 4,
     4) m, the 2-D reprojection RMS ``rms_px`` over every camera's rows and the solver's
-    ``iterations``."""
+    ``iterations``; ``sections``: the measurement terms' ``calibration.json`` sections and
+    ``term_diagnostics`` their diagnostics (SI) at the solution."""
 
     model: MCPCModel
     cameras: tuple[CameraModel, ...]
@@ -102,6 +108,8 @@ class Refinement:
     T_first_cam: np.ndarray
     rms_px: float
     iterations: int
+    sections: tuple = ()
+    term_diagnostics: dict = field(default_factory=dict)
 
 
 def refine_on_board(
@@ -149,9 +157,12 @@ def refine_on_board(
         eye_to_hand=obs.eye_to_hand,
     )
     rows = [(poses.layout.view(v, c), f, uv) for c, (v, f, uv) in enumerate(obs.rows(used))]
+    terms = build_terms(obs.terms, poses, obs.cam_stage.sigma_px) if obs.terms else None
     prob = board_problem(cameras[:n_cams], poses, rows, obs.board,
                          pixel_sigma_px=obs.cam_stage.sigma_px, joint_sigma=obs.joint_sigma,
-                         n_frames=int(used.sum()))  # fmt: skip
+                         n_frames=int(used.sum()),
+                         term_blocks=() if terms is None else terms.residuals,
+                         term_params=() if terms is None else terms.parameters)  # fmt: skip
     sol = solve(prob.problem, SolverOptions(tol=tol, max_iterations=max_iter, eliminate="poses"))
     if sol.status < 0 or (sol.status == 0 and converge):
         free = [*param_names(np.asarray(free_idx, dtype=np.int64)),
@@ -163,7 +174,8 @@ def refine_on_board(
             f"check of the data found them wrong; tried: Levenberg-Marquardt from the start "
             f"model, {len(free)} kinematic parameter(s) free ({listed or 'none'}), every "
             f"camera's free parameters, {int(used.sum())} frames, tolerance {tol:g}"
-            + (", joint read-back errors estimated" if obs.joint_sigma is not None else ""),
+            + (", joint read-back errors estimated" if obs.joint_sigma is not None else "")
+            + (f", with the terms {', '.join(t.kind for t in obs.terms)}" if obs.terms else ""),
             fix="add frames from other arm configurations (move the first joints, not only the "
             "wrist) and calibrate again",
         )
@@ -180,13 +192,17 @@ def refine_on_board(
             cov = covariance(prob.problem, sol.x, ["intrinsics" if c == 0 else f"intrinsics{c}"],
                              sigma2=sigma2)  # fmt: skip
             std_list.append(std_by_name(cams[c], cov))  # with fy = mu fx by OpenCV's name
+    model = poses.kinematic_model(p)
+    reports = [] if terms is None else terms.reports(sol.values, sol.residuals, poses, model)
     return Refinement(
-        model=poses.kinematic_model(p),
+        model=model,
         cameras=tuple(cams),
         cameras_std=tuple(std_list),
         T_first_cam=np.concatenate([np.eye(4)[None], inv_pose(poses.rigs(p))]),
         rms_px=float(np.sqrt(np.mean(np.sum(r**2, axis=1)))),
         iterations=int(getattr(sol, "iterations", 0)),
+        sections=tuple(r.section for r in reports if r.section is not None),
+        term_diagnostics={k: v for r in reports for k, v in r.diagnostics.items()},
     )
 
 

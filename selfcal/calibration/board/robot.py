@@ -27,6 +27,11 @@ somewhere in the scene):
    a zero-mean Gaussian prior (errors in variables, as :mod:`selfcal.calibration.field.joint_refine` explains);
    without, the read-back is taken as exact.
 
+Measurement terms (``terms``: touch-probe points, tracker rows, :mod:`selfcal.terms`) join every
+fit of steps 2 and 4 -- the fair nominal with their own unknowns, every candidate and fold --
+on the chain as :mod:`selfcal.calibration.board.terms` presents it; the folds leave out images
+only.
+
 The model is written in the MCPC gauge with the nominal's joint offsets
 (:func:`selfcal.calibration.board.nominal_fit.standard_gauge`), so its minimal parameters compare one to one.
 
@@ -65,6 +70,7 @@ from selfcal.errors import InputError, UsageError
 from selfcal.kinematics.mcpc import MCPCModel
 from selfcal.target.base import Features
 from selfcal.target.boards import Board
+from selfcal.terms.base import Term, check_terms
 
 __all__ = ["BoardRobotCalibration", "calibrate_robot_with_board"]
 
@@ -81,7 +87,8 @@ class BoardRobotCalibration:
     (:mod:`selfcal.calibration.board.nominal_fit`).
     ``cameras``, ``cameras_std``: every camera of the rig (the first is ``camera``);
     ``T_first_cam`` (N, 4, 4): every camera's pose in the first camera's frame (m; the first
-    the identity)."""
+    the identity). ``sections``: the measurement terms' ``calibration.json`` sections of the
+    chosen fit (:mod:`selfcal.calibration.board.terms`)."""
 
     model: MCPCModel
     camera: CameraModel
@@ -97,6 +104,7 @@ class BoardRobotCalibration:
     nominal: Refinement | None = None
     selection: Selection | None = None
     identification_error: str | None = None
+    sections: tuple = ()
 
 
 def calibrate_robot_with_board(
@@ -116,6 +124,7 @@ def calibrate_robot_with_board(
     max_iter: int = 100,
     initial: Pinhole | None = None,
     eye_to_hand: bool = False,
+    terms: Sequence[Term] = (),
 ) -> BoardRobotCalibration:
     """Calibrate the camera and the robot from the board ``features`` of one camera image per
     frame and the joint read-backs ``q`` (m, n) rad; ``model``, ``free``: the camera model
@@ -129,14 +138,18 @@ def calibrate_robot_with_board(
     one per frame in the frames' order. ``eye_to_hand``: the cameras are static and the board
     rides on the flange; ``nominal``'s tool is then the board at its nominal mount (any: the
     fair nominal fits it) and the model returned has world = the first camera, tool = the board.
-    See the module docstring.
+    ``terms``: further measurements of the same robot (:mod:`selfcal.terms`) estimated with the
+    images in every fit, the fair nominal's too (their context:
+    :mod:`selfcal.calibration.board.terms`). See the module docstring.
 
     Raises:
         selfcal.calibration.board.calibrate.BoardInputError / BoardMismatchError: as :func:`calibrate_board`.
+        InputError: two terms of one kind, or a term's data that do not fit the chain.
         EstimationError: not even the fair nominal could be fitted (the selection's other
             candidates that fail are noted and left out).
     """
     q = np.atleast_2d(np.asarray(q, dtype=float))
+    check_terms(terms)
     if len(q) != len(features):
         raise InputError(f"{len(features)} images but {len(q)} joint rows; give one row per image")
     cam_stage = calibrate_board(board, features, width, height, free=free, model=model, names=names,
@@ -145,7 +158,7 @@ def calibrate_robot_with_board(
     if len(rig_features) != n_cams - 1:
         raise UsageError(f"a rig of {n_cams} cameras needs {n_cams - 1} further feature lists")
     obs = BoardObservations(board, cam_stage, features, q, rig, rig_features, joint_sigma,
-                            eye_to_hand)  # fmt: skip
+                            eye_to_hand, tuple(terms))  # fmt: skip
     used = cam_stage.used.copy()
     nominal_fit = fit_nominal(obs, nominal)
     ident, ident_error = None, None
@@ -174,4 +187,5 @@ def calibrate_robot_with_board(
         nominal=nominal_fit,
         selection=selection,
         identification_error=ident_error,
+        sections=fit.sections,
     )

@@ -18,7 +18,6 @@ import numpy as np
 
 from selfcal.calibration.tracker.accuracy import TrackerAccuracy, tracker_accuracy
 from selfcal.calibration.tracker.calibration_file import TrackerCalibration, from_result
-from selfcal.calibration.tracker.checks import check_tracker_geometry
 from selfcal.calibration.tracker.cross_validation import CrossValidation, leave_one_out
 from selfcal.calibration.tracker.identify import (
     TrackerMeasurements,
@@ -28,40 +27,13 @@ from selfcal.calibration.tracker.identify import (
 from selfcal.calibration.tracker.nominal import NominalFit, fit_nominal
 from selfcal.calibration.tracker.spread import Spread, bootstrap_spread
 from selfcal.errors import InputError
-from selfcal.io.tracker import Table, read_distances, read_measurements
+from selfcal.io.tracker import Table
 from selfcal.kinematics.mcpc import nominal_mcpc
-from selfcal.robot.definition import RobotDef, load_robot
+from selfcal.robot.definition import load_robot
+from selfcal.terms.tracker import read_tracker_files
 from selfcal.threads import limited
 
 __all__ = ["TrackerRun", "calibrate_tracker", "read_tracker_files"]
-
-
-def read_tracker_files(
-    measurements: str | Path,
-    distances: str | Path | None,
-    robot: RobotDef,
-    units: str,
-    *,
-    guess: bool = True,
-) -> tuple[TrackerMeasurements, Table]:
-    """``(TrackerMeasurements, Table)``: the measurements file (positions or poses, tracker
-    frame) and, when given, the distances file of ``robot`` (:mod:`selfcal.io.tracker`, joints
-    in ``units``), SI, their geometry checked against the nominal arm
-    (:mod:`selfcal.calibration.tracker.checks`). ``guess=False``: skip the check that degrees
-    look like radians.
-
-    Raises:
-        InputError: a file that cannot be read (named with row and column), or measurements
-            whose geometry does not fit the arm (off by a unit's factor: said).
-    """
-    meas, table = read_measurements(measurements, robot, units, guess=guess)
-    if distances:
-        qa, qb, d = read_distances(distances, robot, units, guess=guess)
-        meas = TrackerMeasurements(meas.q, meas.xyz, meas.R, qa, qb, d)
-    check_tracker_geometry(
-        nominal_mcpc(robot), meas, str(measurements), None if distances is None else str(distances)
-    )
-    return meas, table
 
 
 @dataclass(frozen=True)
