@@ -8,7 +8,8 @@ estimated with the board's images, checked against the simulation's truth.
    coordinate) at postures over the whole workspace. The same board calibration with and
    without the probe term; each model's camera positions at 40 held-out postures against the
    truth (board frame).
-2. ``selfcal calibrate DS --term probe=touches.csv,...`` end to end on the analytic ChArUco
+2. Eye-to-hand, noise-free: a probe tip fixed to the board is found in the board frame.
+3. ``selfcal calibrate DS --term probe=touches.csv,...`` end to end on the analytic ChArUco
    scenario (12 postures): calibration.json lists ``sources`` and the probe's section, read back
    as its type, with the tip where the truth puts it.
 """
@@ -122,3 +123,39 @@ def test_calibrate_takes_a_probe_term_from_the_command_line(tmp_path, capsys):
     off = np.linalg.norm(np.asarray(sec.tip_mm) - 1e3 * TIP)
     print(sec.summary(), f"; tip {off:.3f} mm off")
     assert off < 0.75  # measured 0.252 mm
+
+
+@pytest.mark.slow  # an eye-to-hand calibration with its cross-validation: ~6 s
+def test_eye_to_hand_probe_touches_in_the_board_frame_are_exact_without_noise():
+    """Eye-to-hand the chain's tool is the board (world: the static camera): a probe tip fixed
+    to the board is estimated in the board frame, and noise-free touches and images give the
+    truth (the cell of tests/integration/test_eye_to_hand.py)."""
+    from selfcal.camera import Pinhole
+    from selfcal.io.target_toml import load_target
+    from selfcal.sim.static_camera import plan_static_postures, project_views, static_camera_truth
+
+    robot = load_robot("ur5e")
+    board = load_target("models/targets/charuco.toml")
+    free = ("fx", "mu", "cx", "cy")
+    truth = static_camera_truth(robot, board, Pinhole(900.0, 1.0, 326.0, 233.0, 640, 480, free),
+                                seed=1)  # fmt: skip
+    q = plan_static_postures(truth, 6, 5, seed=0)
+    tip_board = np.array([0.02, 0.05, -0.03])  # m, in the board frame
+    qt = plan_static_postures(truth, 4, 5, seed=7)  # postures of the kind the images show
+    T = truth.T_cam_board(qt)
+    x = T[:, :3, :3] @ tip_board + T[:, :3, 3]
+    p = x @ T_FIXTURE_WORLD[:3, :3].T + T_FIXTURE_WORLD[:3, 3]
+    probe = ProbeTerm(qt, p, np.arange(len(p)), SIGMA_M)
+    nominal = nominal_mcpc(robot).with_tool(truth.T_flange_board_nominal)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the two-stage identification's notes
+        res = calibrate_robot_with_board(board, project_views(truth, q), q, nominal, 640, 480,
+                                         free=free, eye_to_hand=True, terms=[probe])  # fmt: skip
+    sec = res.sections[0]
+    assert isinstance(sec, ProbeSection)
+    print(sec.summary(), f"; reprojection {res.rms_px:.2e} px")
+    assert res.rms_px < 1e-8 and sec.rms_mm < 1e-6
+    np.testing.assert_allclose(np.asarray(sec.tip_mm), 1e3 * tip_board, atol=1e-6)
+    held_out = plan_static_postures(truth, 3, 2, seed=5)
+    np.testing.assert_allclose(fk_tool(res.model, held_out), truth.T_cam_board(held_out),
+                               atol=1e-6)  # fmt: skip

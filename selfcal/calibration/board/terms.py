@@ -20,7 +20,9 @@ The term's context (:class:`selfcal.terms.base.TermContext`) on the board route:
 - ``free_idx``: every flat MCPC parameter, in block :data:`CHAIN_BLOCK` (the fit's own held
   parameters do not move in it: :func:`chain_values` holds them);
 - ``unit_sigma``: the camera stage's pixel noise (px per coordinate), the unit of the images'
-  residuals and of the joint prior.
+  residuals and of the joint prior, at least :data:`MIN_UNIT_SIGMA_PX` (noise-free images fit to
+  1e-13 px, which would weigh a term's rows to nothing: the solver then stops before the term's
+  own unknowns move).
 
 The terms' rows enter every fit of the route: the fair nominal (the kinematics held, the terms'
 own unknowns fitted), every candidate of the parameter selection and each of its
@@ -47,11 +49,22 @@ from selfcal.terms.base import (
     term_blocks,
 )
 
-__all__ = ["CHAIN_BLOCK", "BuiltTerms", "ChainTermBlock", "build_terms", "chain_values"]
+__all__ = [
+    "CHAIN_BLOCK",
+    "MIN_UNIT_SIGMA_PX",
+    "BuiltTerms",
+    "ChainTermBlock",
+    "build_terms",
+    "chain_values",
+]
 
 CHAIN_BLOCK = "board_chain"
 """The virtual block of every flat MCPC parameter a term on the board route is built on (it is
 no parameter block of the problem: :class:`ChainTermBlock` fills it from ``poses``)."""
+
+MIN_UNIT_SIGMA_PX = 0.01
+"""Floor of the terms' unit (px), as the field's ``min_pixel_sigma_px``: board detectors give
+0.02-0.3 px."""
 
 POSES = "poses"
 """The board adjustment's block of the chain (:class:`KinematicPoses`' parameters)."""
@@ -135,13 +148,14 @@ class BuiltTerms:
 
 def build_terms(terms: Sequence[Term], poses: KinematicPoses, unit_sigma: float) -> BuiltTerms:
     """The blocks of ``terms`` over the chain of ``poses`` (module docstring), residuals in the
-    unit ``unit_sigma`` (px).
+    unit ``unit_sigma`` (px; at least :data:`MIN_UNIT_SIGMA_PX`).
 
     Raises:
         InputError: a term's data that do not fit the chain (the term's own check).
     """
     n_flat = poses.model.params.size
-    ctx = TermContext(poses.model, np.arange(n_flat), CHAIN_BLOCK, float(unit_sigma))
+    unit = max(float(unit_sigma), MIN_UNIT_SIGMA_PX)
+    ctx = TermContext(poses.model, np.arange(n_flat), CHAIN_BLOCK, unit)
     built = tuple(t.build(ctx) for t in terms)
     res, params = term_blocks(built)
     wrapped = tuple(ChainTermBlock(r, poses) for r in res)
