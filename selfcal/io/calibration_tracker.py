@@ -5,8 +5,9 @@ of the same robot (positions, poses or distances of a tool point; :mod:`selfcal.
 calibration's ``sources`` are ``["images", "tracker"]`` and this block records the tracker's part:
 the files and their joint units, what they hold, the noise assumed, the fit (RMS per kind) and the
 extra unknowns estimated with the kinematics: the tracker frame in the calibration's world frame
-(the reference left camera), the tool point (and, for poses, the measured tool frame) in the
-calibrated tool frame (the left camera, OpenCV).
+(the field's reference left camera; a board calibration's board frame, eye-to-hand its first
+camera), the tool point (and, for poses, the measured tool frame) in the calibrated tool frame
+(the left or first camera, OpenCV; eye-to-hand the board).
 """
 
 from __future__ import annotations
@@ -22,12 +23,13 @@ __all__ = ["TrackerSource", "TRACKER_NOTE"]
 
 POSE = {"shape": (4, 4)}
 TRACKER_NOTE = (
-    "tracker measurements and the dataset's images estimated together by the one-step "
-    "refinement (method joint): T_tracker_world_m is the tracker frame's placement (world = the "
-    "reference left camera, as the mcpc chain); tool_point_mm is the measured tool point and "
-    "T_cam_tool_m the measured tool frame, both in the calibrated tool frame (left camera, "
-    "OpenCV); rms_mm is the fit per kind (translation part); the parameter standard deviations "
-    "and the Cramer-Rao bounds are those of the images alone"
+    "tracker measurements and the dataset's images estimated together: T_tracker_world_m is "
+    "the tracker frame's placement in the calibration's world (as the mcpc chain: the field's "
+    "reference left camera, a board's world_frame); tool_point_mm is the measured tool point "
+    "and T_cam_tool_m the measured tool frame, both in the calibrated tool frame (mcpc's tool: "
+    "the left or first camera, OpenCV, or eye-to-hand the board); rms_mm is the fit per kind "
+    "(translation part); the parameter standard deviations and the Cramer-Rao bounds are those "
+    "of the images alone"
 )
 
 
@@ -61,7 +63,7 @@ class TrackerSource(JsonBlock):
         point = ""
         if self.tool_point_mm is not None:
             point = (
-                "; tool point in the left camera frame ("
+                "; tool point in the calibrated tool frame ("
                 + ", ".join(f"{v:.3f}" for v in self.tool_point_mm)
                 + ") mm"
             )
