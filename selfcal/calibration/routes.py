@@ -8,9 +8,11 @@ A dataset folder says its route (:func:`dataset_route`):
   :mod:`selfcal.io.poses.dataset`): camera, hand-eye and board mount
   (:mod:`selfcal.calibration.handeye.calibrate`);
 - ``"board"``: images, joint readings and a board of known geometry
-  (:mod:`selfcal.calibration.board.dataset`);
+  (:mod:`selfcal.calibration.board.dataset`), optionally with measurement terms
+  (:mod:`selfcal.calibration.board.terms`);
 - ``"field"``: images, joint readings and the ArUco field: the self-calibration
-  (:mod:`selfcal.calibration.field.calibrate`), optionally with tracker measurements.
+  (:mod:`selfcal.calibration.field.calibrate`), optionally with measurement terms (tracker
+  measurements, touch-probe points: :mod:`selfcal.terms`).
 
 Tracker measurements alone (no images) are files, not a dataset folder: ``selfcal identify``
 (:mod:`selfcal.calibration.tracker.identify`). A ``calibration.json`` says its kind

@@ -2,8 +2,9 @@
 
 A *term* is one kind of measurement that a calibration estimates with the rest (images of a
 marker field are the route's own; tracker positions, poses and distances, touch-probe points ...).
-An estimator that takes terms (:func:`selfcal.calibration.field.joint_refine.joint_refine`) hands
-each the :class:`TermContext` of its problem and gets back :class:`TermBlocks`: residual blocks and
+An estimator that takes terms (:func:`selfcal.calibration.field.joint_refine.joint_refine`, the
+board route's :func:`selfcal.calibration.board.refine.refine_on_board` through
+:mod:`selfcal.calibration.board.terms`) hands each the :class:`TermContext` of its problem and gets back :class:`TermBlocks`: residual blocks and
 new parameter blocks for :mod:`selfcal.solver`. After the solve it asks each term for its
 :class:`TermReport`: diagnostics (SI) and the section that ``calibration.json`` records under the
 term's ``kind`` (mm / deg for people, ``_m`` keys in metres). The estimator loops over its terms and
@@ -47,7 +48,8 @@ class TermContext:
 
     Attributes:
         model: the chain at the start (SI; world and tool are the problem's: for the field route
-            the reconstruction frame and the left camera, OpenCV frame).
+            the reconstruction frame and the left camera, OpenCV frame; for the board route the
+            board frame and the first camera, eye-to-hand the first camera and the board).
         free_idx: flat MCPC parameters (``model.params.reshape(-1)`` order) that are unknowns;
             they are the first coordinates of parameter block ``block``, in this order.
         block: name of the parameter block holding them.
