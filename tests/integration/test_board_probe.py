@@ -91,8 +91,7 @@ def test_probe_touches_improve_the_board_route_kinematics():
     off = np.linalg.norm(np.asarray(sec.tip_mm) - 1e3 * TIP)
     print(sec.summary(), f"; tip {off:.3f} mm off")
     # the tip in the calibrated camera frame against the true one: measured 1.85 mm (the probe's
-    # fit, 0.20 mm RMS, is above its 0.02 mm noise: the parameters the images alone do not
-    # support stay held, docs/terms.md)
+    # fit, 0.20 mm RMS, is the touches' joint read noise: 0.01 deg over the arm's reach)
     assert off < 5.0
 
 

@@ -169,3 +169,23 @@ def test_the_command_refuses_a_bad_term_before_any_work(tmp_path, capsys):
     assert main(["calibrate", str(tmp_path), "--term", "gauge=x.csv"]) == 2
     err = capsys.readouterr().err
     assert "no measurement kind 'gauge'" in err and "tracker, probe" in err
+
+
+def test_the_parameter_pool_offers_what_only_a_term_determines():
+    """Images whose first two joints never move cannot tell those joints' parameters apart;
+    probe touches over the whole workspace can (selfcal/calibration/board/param_selection.py
+    with the terms' rows, their own unknowns projected out)."""
+    from selfcal.calibration.board.param_selection import parameter_pool
+
+    rng = np.random.default_rng(0)
+    robot = load_robot("kr6-r900")
+    model = nominal_mcpc(robot).with_tool(robot.T_flange_cam)
+    lo, hi = robot.limits[:, 0], robot.limits[:, 1]
+    q = lo + (hi - lo) * (0.3 + 0.4 * rng.random((12, robot.n)))
+    q[:, :2] = [0.1, 0.2]  # joints 1 and 2 never move in the images
+    qt = lo + (hi - lo) * (0.2 + 0.6 * rng.random((30, robot.n)))
+    probe = ProbeTerm(qt, rng.normal(0.0, 0.1, (30, 3)), np.arange(30))
+    alone, both = parameter_pool(model, q), parameter_pool(model, q, (probe,))
+    gained = {"alpha1", "alpha2", "beta2", "lx1", "lx2", "ly3", "offset_j2", "offset_j3"}
+    assert gained <= set(alone.held) and all(alone.held[n].startswith("rank") for n in gained)
+    assert not gained & set(both.held) and len(both.order) == len(alone.order) + len(gained)

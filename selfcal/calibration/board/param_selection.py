@@ -9,6 +9,9 @@ upward, the parameters are offered in a fixed order and kept as the data allow:
    order of a pivoted QR factorisation of the identification Jacobian (the tool-pose Jacobian of
    :func:`selfcal.kinematics.forward.identification_jacobian` at the fair nominal, rows weighted as
    :func:`selfcal.kinematics.identifiability.analyse_identifiability`'s, columns scaled to unit norm);
+   measurement terms (:mod:`selfcal.calibration.board.terms`) add their rows, what they tell
+   of the chain beyond their own unknowns
+   (:func:`selfcal.calibration.board.terms.identification_rows`);
    a parameter whose column adds nothing to the span of those before it is held for *rank*
    (its orthogonal part below :data:`RANK_TOL`), one that adds too little for *conditioning*
    (below :data:`COND_TOL`: its variance would grow by more than ``1 / COND_TOL**2``);
@@ -37,6 +40,7 @@ The chosen candidate's fit on every frame is the calibration. Nothing here reads
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -48,11 +52,13 @@ from selfcal.calibration.board.refine import (
     predict_px,
     refine_on_board,
 )
+from selfcal.calibration.board.terms import identification_rows
 from selfcal.errors import EstimationError
 from selfcal.estimation.kinematic_poses import joint_twists
 from selfcal.kinematics.forward import identification_jacobian
 from selfcal.kinematics.identifiability import pose_sigmas, triangular_factor
 from selfcal.kinematics.mcpc import MCPCModel, minimal_indices, param_names
+from selfcal.terms.base import Term
 
 __all__ = [
     "COND_TOL",
@@ -157,10 +163,13 @@ class _Span:
         return None
 
 
-def _columns(model: MCPCModel, q: np.ndarray) -> tuple[list[str], list[str], list[int], np.ndarray]:
+def _columns(model: MCPCModel, q: np.ndarray, terms: Sequence[Term] = ()
+             ) -> tuple[list[str], list[str], list[int], np.ndarray]:  # fmt: skip
     """Every parameter offered (names, kinds, indices: placement, joint offsets, the inner
     minimal parameters) and the triangular factor of their scaled identification Jacobian at
-    ``model`` and the joints ``q`` (m, n) rad (step 1 of the module docstring)."""
+    ``model`` and the joints ``q`` (m, n) rad (step 1 of the module docstring), with the rows
+    of the measurement ``terms`` (what they tell of the chain beyond their own unknowns,
+    :func:`selfcal.calibration.board.terms.identification_rows`)."""
     q = np.atleast_2d(np.asarray(q, dtype=float))
     n = model.n
     place = placement_indices(n)
@@ -170,6 +179,11 @@ def _columns(model: MCPCModel, q: np.ndarray) -> tuple[list[str], list[str], lis
     cols = [J[:, :, place], joint_twists(model, q)[:, :, revolute], J[:, :, inner]]
     A = np.concatenate(cols, axis=2) / pose_sigmas(1e-4, 1e-3, len(q))[:, :, None]
     A = A.reshape(-1, A.shape[2])
+    if terms:  # their columns [placement, inner, offsets] in the order of A's
+        T = identification_rows(terms, model, np.r_[place, inner], np.array(revolute, int))
+        order = np.r_[np.arange(len(place)), len(place) + len(inner) + np.arange(len(revolute)),
+                      len(place) + np.arange(len(inner))]  # fmt: skip
+        A = np.concatenate([A, T[:, order]])
     norm = np.linalg.norm(A, axis=0)
     R = triangular_factor(A / np.where(norm > 0, norm, 1.0))
     names = ([*param_names(place)] + [_offset_name(j) for j in revolute]
@@ -179,10 +193,11 @@ def _columns(model: MCPCModel, q: np.ndarray) -> tuple[list[str], list[str], lis
     return names, kinds, index, R
 
 
-def parameter_pool(model: MCPCModel, q: np.ndarray) -> ParameterPool:
+def parameter_pool(model: MCPCModel, q: np.ndarray, terms: Sequence[Term] = ()) -> ParameterPool:
     """The pool of step 1 (module docstring) at ``model`` (world = board frame, tool = camera)
-    and the joints ``q`` (m, n) rad of the frames used."""
-    names, kinds, index, R = _columns(model, q)
+    and the joints ``q`` (m, n) rad of the frames used, with the rows of the measurement
+    ``terms``."""
+    names, kinds, index, R = _columns(model, q, terms)
     n_place = len(placement_indices(model.n))
     n_rev = kinds.count("offset")
     groups = [range(n_place), range(n_place, n_place + n_rev)]
@@ -213,11 +228,13 @@ def parameter_pool(model: MCPCModel, q: np.ndarray) -> ParameterPool:
     return ParameterPool(tuple(order), counts[0], counts[1], held)
 
 
-def determined(model: MCPCModel, q: np.ndarray, names: tuple[str, ...]) -> dict[str, str]:
+def determined(model: MCPCModel, q: np.ndarray, names: tuple[str, ...],
+               terms: Sequence[Term] = ()) -> dict[str, str]:  # fmt: skip
     """Which of the parameters ``names`` (a candidate's, in its order) the joints ``q`` (m, n)
-    rad cannot determine, by the rank and conditioning test of step 1 offered in that order at
-    ``model``: name -> reason (empty when they determine all)."""
-    all_names, _, _, R = _columns(model, q)
+    rad and the measurement ``terms`` cannot determine, by the rank and conditioning test of
+    step 1 offered in that order at ``model``: name -> reason (empty when they determine
+    all)."""
+    all_names, _, _, R = _columns(model, q, terms)
     span = _Span(R)
     at = {nm: k for k, nm in enumerate(all_names)}
     return {nm: why for nm in names if (why := span.offer(at[nm])) is not None}
@@ -353,7 +370,7 @@ def _cross_validate(obs: BoardObservations, start: MCPCModel, cand: Candidate,
     fold_ms, fold_n = [], []
     for f in np.unique(folds[obs.used]).tolist():
         out = folds == f
-        held = determined(start, obs.q[obs.used & ~out], cand.names)
+        held = determined(start, obs.q[obs.used & ~out], cand.names, obs.terms)
         keep_m = np.array([nm not in held for nm in mcpc_names], bool)
         keep_o = np.array([nm not in held for nm in off_names], bool)
         params = full.model.params.reshape(-1).copy()
@@ -404,7 +421,7 @@ def select_parameters(obs: BoardObservations, nominal_fit: MCPCModel, *,
         EstimationError: not even the nominal candidate could be fitted on every frame.
     """
     used = obs.used
-    pool = parameter_pool(nominal_fit, obs.q[used])
+    pool = parameter_pool(nominal_fit, obs.q[used], obs.terms)
     cands = _candidates(pool)
     config = configurations(obs.q, nominal_fit.joint_types)
     n_config = len(np.unique(config[used]))

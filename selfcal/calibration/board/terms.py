@@ -27,7 +27,8 @@ The term's context (:class:`selfcal.terms.base.TermContext`) on the board route:
 The terms' rows enter every fit of the route: the fair nominal (the kinematics held, the terms'
 own unknowns fitted), every candidate of the parameter selection and each of its
 cross-validation folds (the folds leave out images, never a term's rows: the held-out error is
-the images'), and the calibration. SI units.
+the images'), and the calibration; the selection's pool of parameters takes their rows too
+(:func:`identification_rows`). SI units.
 """
 
 from __future__ import annotations
@@ -160,3 +161,46 @@ def build_terms(terms: Sequence[Term], poses: KinematicPoses, unit_sigma: float)
     res, params = term_blocks(built)
     wrapped = tuple(ChainTermBlock(r, poses) for r in res)
     return BuiltTerms(tuple(terms), built, ctx, wrapped, tuple(params))
+
+
+def identification_rows(terms: Sequence[Term], model: MCPCModel, free_idx: np.ndarray,
+                        offset_joints: np.ndarray) -> np.ndarray:  # fmt: skip
+    """The terms' rows of an identification Jacobian at ``model``: their residuals' derivative
+    (each error over its own standard deviation) by the flat MCPC parameters ``free_idx`` and
+    then the zero offsets of ``offset_joints``, with the part the terms' own unknowns (a fixture
+    frame, a tip ...) can absorb projected out -- what the terms tell of the chain. (r, k) with
+    ``k = len(free_idx) + len(offset_joints)``; (0, k) without terms.
+
+    Raises:
+        InputError: a term's data that do not fit the chain (the term's own check).
+    """
+    free_idx = np.asarray(free_idx, dtype=np.int64)
+    offset_joints = np.asarray(offset_joints, dtype=np.int64)
+    k = len(free_idx) + len(offset_joints)
+    if not terms:
+        return np.zeros((0, k))
+    poses = KinematicPoses(model, np.zeros((1, model.n)), free_idx, np.zeros((0, 4, 4)),
+                           offset_joints=offset_joints)  # fmt: skip
+    built = build_terms(terms, poses, 1.0)  # rows in standard deviations
+    sizes = {POSES: poses.n_params, **{b.name: b.value.size for b in built.parameters}}
+    start = np.cumsum([0, *sizes.values()])
+    at = dict(zip(sizes, start[:-1].tolist(), strict=True))
+    values = {POSES: poses.initial_params(), **{b.name: b.value for b in built.parameters}}
+    rows = []
+    for block in built.residuals:
+        ev = block.evaluate(values, True)
+        n_rows, d = ev.residuals.shape
+        J = np.zeros((n_rows, d, int(start[-1])))
+        for pc in ev.pieces:
+            ok = pc.cols >= 0
+            r = np.broadcast_to(np.arange(n_rows)[:, None], pc.cols.shape)
+            np.add.at(np.moveaxis(J, 2, 1), (r[ok], at[pc.block] + pc.cols[ok]),
+                      np.moveaxis(pc.J, 2, 1)[ok])  # fmt: skip
+        rows.append(J.reshape(n_rows * d, -1))
+    A = np.concatenate(rows)
+    chain, own = A[:, :k], A[:, poses.n_params :]
+    if own.shape[1]:  # the complement of what the terms' own unknowns absorb
+        Q, s, _ = np.linalg.svd(own, full_matrices=False)
+        Q = Q[:, s > 1e-12 * max(float(s.max(initial=0.0)), 1e-300)]
+        chain = chain - Q @ (Q.T @ chain)
+    return chain
