@@ -3,10 +3,12 @@
 The loop knows nothing of the backend: the simulator and the hardware adapter are both ``Robot``s.
 Observers that only a simulator has (analytic corner projections, ground truth) are passed in as
 optional callbacks by the caller. Images are encoded and written by one worker thread while the
-robot moves to and captures the next posture (PNG encoding releases the GIL); at most one frame
-is in flight, and a frame is complete on disk before the next one is handed over. With a
-:class:`selfcal.io.frame_cache.FrameCache` the same worker also keeps each image on disk as the
-gray pixels the calibration would read back (``selfcal run`` calibrates from memory).
+robot moves to and captures the next posture (PNG encoding releases the GIL), a frame's images
+side by side (the second on a thread of its own: the encodings and the waits for the disk's
+fsync overlap); at most one frame is in flight, and a frame is complete on disk before the next
+one is handed over. With a :class:`selfcal.io.frame_cache.FrameCache` the same worker also
+keeps each image on disk as the gray pixels the calibration would read back (``selfcal run``
+calibrates from memory).
 """
 
 from __future__ import annotations
@@ -75,8 +77,9 @@ def acquire(
     cameras = writer.info.cameras
 
     def store(i: int, q: np.ndarray, left: np.ndarray, right: np.ndarray | None) -> None:
-        """Write frame ``i`` (the worker thread), then keep its images."""
-        writer.add_frame(i, q, left=left, right=right)
+        """Write frame ``i`` (the worker thread; the second image on ``images``), then keep
+        its images."""
+        writer.add_frame(i, q, left=left, right=right, executor=images)
         if keep is not None:
             keep.add(i, {c: v for c, v in (("left", left), ("right", right)) if c in cameras})
 
@@ -89,7 +92,10 @@ def acquire(
             except (Exception, KeyboardInterrupt) as exc:
                 raise _stopped(j, len(plan), writer, exc, resume_command) from exc
 
-    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="frame-writer") as pool:
+    with (
+        ThreadPoolExecutor(max_workers=1, thread_name_prefix="frame-writer") as pool,
+        ThreadPoolExecutor(max_workers=1, thread_name_prefix="image-writer") as images,
+    ):
         try:
             for i in todo:
                 try:

@@ -23,6 +23,7 @@ from __future__ import annotations
 import csv
 import os
 from collections.abc import Iterator
+from concurrent.futures import Executor, wait
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -73,6 +74,10 @@ def _write_bytes_atomic(path: Path, data: bytes) -> None:
         fh.flush()
         os.fsync(fh.fileno())
     os.replace(tmp, path)
+
+
+def _write_png(path: Path, rgb: np.ndarray) -> None:
+    _write_bytes_atomic(path, _encode_png(rgb))
 
 
 def _encode_png(rgb: np.ndarray) -> bytes:
@@ -194,18 +199,29 @@ class DatasetWriter:
         right: np.ndarray | None = None,
         detections: dict[str, dict[int, np.ndarray]] | None = None,
         images: dict[str, np.ndarray] | None = None,
+        executor: Executor | None = None,
     ) -> None:
         """Store frame ``index``: images (images path: ``images`` by camera name, or ``left`` and
-        ``right``) or detections (analytic path), then joints."""
+        ``right``) or detections (analytic path), then joints. ``executor``: the images after
+        the first are encoded and written on it while this thread writes the first, side by
+        side (PNG encoding and the disk's fsync release the GIL); the joints row is written once
+        every image is on disk, as without it."""
         if self.info.observation == "images":
             images = dict(images or {})
             images.update({c: v for c, v in (("left", left), ("right", right)) if v is not None})
             missing = [c for c in self.info.cameras if images.get(c) is None]
             if missing:
                 raise DatasetError(f"frame {index}: no image of camera(s) {missing}")
-            for cam in self.info.cameras:
-                path = self.root / "frames" / f"{index:04d}_{cam}.png"
-                _write_bytes_atomic(path, _encode_png(images[cam]))
+            jobs = [(self.root / "frames" / f"{index:04d}_{cam}.png", images[cam])
+                    for cam in self.info.cameras]  # fmt: skip
+            others = [] if executor is None else [executor.submit(_write_png, *j) for j in jobs[1:]]
+            try:
+                for job in jobs[: len(jobs) - len(others)]:
+                    _write_png(*job)
+            finally:  # every image written (or failed) before this frame goes on
+                wait(others)
+            for fut in others:
+                fut.result()  # a failed image raises here: the frame gets no joints row
         else:
             if detections is None:
                 raise DatasetError("a detections dataset needs the detections of each frame")

@@ -142,6 +142,36 @@ def test_a_frame_that_cannot_be_written_stops_the_acquisition_at_that_frame(tmp_
     assert Dataset.open(tmp_path).indices.tolist() == [0, 1]
 
 
+def test_a_frame_whose_second_image_fails_on_the_image_thread_gets_no_joints_row(
+    tmp_path, monkeypatch
+):
+    """The acquisition writes a frame's second image on a thread of its own: its failure is
+    the frame's, and the frame is not listed (its joints row follows every image)."""
+    import selfcal.io.dataset as dataset_module
+
+    real = dataset_module._write_png
+
+    def write_png(path, rgb):
+        if path.name == "0001_right.png":
+            raise OSError("disk full")
+        real(path, rgb)
+
+    monkeypatch.setattr(dataset_module, "_write_png", write_png)
+    with pytest.raises(AcquisitionError, match="stopped at frame 1 of 5: disk full.*1 frames"):
+        acquire(FakeRobot(), DatasetWriter(tmp_path / "a", info()))
+    assert Dataset.open(tmp_path / "a").indices.tolist() == [0]
+    monkeypatch.setattr(dataset_module, "_write_png", real)
+    acquire(FakeRobot(), DatasetWriter(tmp_path / "b", info()))
+    w = DatasetWriter(tmp_path / "c", info())
+    for i, q in enumerate(info().planned_joints_deg):  # one thread, as before
+        pair = FakeRobot()
+        pair.move_to(q)
+        w.add_frame(i, pair.joints(), left=pair.capture().left, right=pair.capture().right)
+    for name in sorted(p.name for p in (tmp_path / "b" / "frames").iterdir()):
+        assert (tmp_path / "b" / "frames" / name).read_bytes() == (
+            tmp_path / "c" / "frames" / name).read_bytes()  # fmt: skip
+
+
 def test_each_camera_keeps_its_own_model_and_free_parameters(tmp_path):
     """dataset.json holds a model per camera; the field self-calibration of a dataset of mixed
     models estimates each camera's own (a CameraSet), of one model the shared camera."""
