@@ -11,6 +11,7 @@ fixed-point weights (``png_set_rgb_to_gray`` with 0.299, 0.587), which differ fr
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -61,15 +62,22 @@ class FrameCache:
     images: dict[tuple[int, str], np.ndarray] = field(default_factory=dict)
     detections: dict[tuple, tuple[dict, dict]] = field(default_factory=dict)
     nbytes: int = 0
+    on_image: Callable[[int, str, np.ndarray], None] | None = None
+    """Called with ``(index, camera, gray)`` for every image :meth:`add` is given, kept or not
+    (``selfcal run`` detects the markers there, while the acquisition goes on:
+    :func:`selfcal.calibration.field.detections.detect_ahead`)."""
 
     def add(self, index: int, images: dict[str, np.ndarray]) -> None:
         """Keep frame ``index``'s images (uint8 RGB or gray, by camera) while they fit; an image
         of another kind (say 16 bits from a camera) is left to be read from its file."""
+        full = False
         for cam, img in images.items():
             if not _is_png_rgb_or_gray(img):
                 continue
             gray = gray_of_png(img)
-            if self.nbytes + gray.nbytes > self.max_bytes:
-                return
-            self.images[(index, cam)] = gray
-            self.nbytes += gray.nbytes
+            if self.on_image is not None:
+                self.on_image(index, cam, gray)
+            full = full or self.nbytes + gray.nbytes > self.max_bytes
+            if not full:
+                self.images[(index, cam)] = gray
+                self.nbytes += gray.nbytes

@@ -23,6 +23,7 @@ from selfcal.acquisition.acquire import acquire
 from selfcal.acquisition.backends import open_robot, plan_dataset, sim_setup
 from selfcal.calibration.board.evaluate import Evaluation, evaluate_board, no_gain, worse
 from selfcal.calibration.field.calibrate import CalibrationFailedError, calibrate
+from selfcal.calibration.field.detections import detect_ahead
 from selfcal.calibration.field.evaluate import evaluate_field
 from selfcal.config.paper_data import TABLE_II_MM, table_ii_postures
 from selfcal.config.scenario import Scenario
@@ -107,7 +108,8 @@ def run_acquire(
 ) -> Path:
     """Acquire the scenario's dataset into ``out`` (resumable). ``dither_seed`` (simulation):
     move the planned postures by a random fraction of an encoder count (:func:`dithered`).
-    ``keep``: also keep the images in memory for :func:`run_calibrate` (:class:`FrameCache`).
+    ``keep``: also keep the images in memory for :func:`run_calibrate` (:class:`FrameCache`)
+    and, for the field route, detect their markers as they are taken (:func:`detect_ahead`).
     ``resume_command``: what continues it when it stops (default ``selfcal acquire ... --resume``
     with this scenario and ``out``)."""
     setup = sim_setup(s) if s.robot.backend == "sim" else None
@@ -116,6 +118,8 @@ def run_acquire(
         q = dithered(np.asarray(info.planned_joints_deg), setup.robot, dither_seed)
         info = dataclasses.replace(info, planned_joints_deg=q)
     writer = DatasetWriter(out, info, resume=resume)
+    if keep is not None and _field_route(s):
+        detect_ahead(info, keep)
     robot, hooks = open_robot(s, out, setup)
     try:
         n = acquire(
@@ -131,6 +135,12 @@ def run_acquire(
         robot.close()
     _say(quiet, f"acquired {n} new frame(s); {writer.n_done} in {out}")
     return out
+
+
+def _field_route(s: Scenario) -> bool:
+    """Whether :func:`run_all` calibrates ``s`` by the field route (:func:`run_calibrate`)."""
+    static = s.camera.setup == "eye-to-hand" and s.robot.backend == "sim"
+    return not static and not s.target.board
 
 
 def run_calibrate(

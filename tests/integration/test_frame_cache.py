@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+import selfcal.calibration.field.detections as detections_module
 from selfcal.calibration.field.calibrate import detect_dataset
 from selfcal.config.scenario import load_scenario
 from selfcal.io.dataset import Dataset, read_gray
@@ -26,11 +27,11 @@ def acquired(tmp_path_factory):
     out = tmp_path_factory.mktemp("kept")
     cache = FrameCache()
     run_acquire(s, out, quiet=True, keep=cache)
-    return out, cache
+    return out, cache, dict(cache.detections)
 
 
 def test_kept_images_are_the_pixels_read_back(acquired):
-    out, cache = acquired
+    out, cache, _ = acquired
     ds = Dataset.open(out)
     paths = ds.image_paths()
     assert len(paths) == 12 and set(cache.images) == {(i, c) for i, c, _ in paths}
@@ -39,7 +40,7 @@ def test_kept_images_are_the_pixels_read_back(acquired):
 
 
 def test_kept_frames_stop_at_the_memory_budget(acquired):
-    out, cache = acquired
+    out, cache, _ = acquired
     small = FrameCache(max_bytes=3 * 640 * 480)
     for (index, cam), img in sorted(cache.images.items()):
         small.add(index, {cam: img})
@@ -50,7 +51,7 @@ def test_kept_frames_stop_at_the_memory_budget(acquired):
 
 
 def test_detections_from_memory_and_reused_equal_those_from_the_files(acquired):
-    out, cache = acquired
+    out, cache, _ = acquired
     ds = Dataset.open(out)
     files = detect_dataset(ds)
     cache.detections.clear()
@@ -58,13 +59,35 @@ def test_detections_from_memory_and_reused_equal_those_from_the_files(acquired):
     assert len(cache.detections) == 12
     again = detect_dataset(ds, cache=cache)  # from the cache alone
     for got in (first, again):
-        assert got.skipped_images == files.skipped_images
-        assert got.corner_sigma_px == files.corner_sigma_px
-        assert got.detections.keys() == files.detections.keys()
-        for k, markers in files.detections.items():
-            assert got.detections[k].keys() == markers.keys()
-            for m, c in markers.items():
-                np.testing.assert_array_equal(got.detections[k][m], c)
+        _assert_same_detections(got, files)
+
+
+def _assert_same_detections(got, want) -> None:
+    assert got.skipped_images == want.skipped_images
+    assert got.corner_sigma_px == want.corner_sigma_px
+    assert got.detections.keys() == want.detections.keys()
+    for k, markers in want.detections.items():
+        assert got.detections[k].keys() == markers.keys()
+        for m, c in markers.items():
+            np.testing.assert_array_equal(got.detections[k][m], c)
+
+
+def test_detections_made_while_acquiring_are_those_from_the_files_and_reused(acquired, monkeypatch):
+    """The field route's markers are detected as the acquisition keeps each image
+    (detect_ahead): the same corners and noise as detected from the PNGs, and the calibration's
+    detection takes them without detecting again."""
+    out, _, ahead = acquired
+    ds = Dataset.open(out)
+    files = detect_dataset(ds)
+    assert len(ahead) == 12
+    cache = FrameCache(detections=dict(ahead))
+
+    def no_detection(*args, **kwargs):
+        raise AssertionError("detected again")
+
+    monkeypatch.setattr(detections_module, "detect_markers_noise", no_detection)
+    monkeypatch.setattr(detections_module, "read_gray", no_detection)
+    _assert_same_detections(detect_dataset(ds, cache=cache), files)
 
 
 def test_noise_drawn_ahead_is_the_seeded_stream():

@@ -28,6 +28,7 @@ from selfcal.camera import (
 from selfcal.camera.undistort import Undistorter
 from selfcal.errors import SelfCalWarning
 from selfcal.io.dataset import Dataset, DatasetError, Detections, read_gray
+from selfcal.io.dataset_info import DatasetInfo
 from selfcal.io.frame_cache import FrameCache
 from selfcal.target.aruco_detect import detect_markers, detect_markers_noise
 
@@ -80,7 +81,7 @@ def detect_dataset(
     """
     if ds.info.observation == "detections":
         return MarkerDetections(ds.read_detections(), ())
-    screen = not any(isinstance(c, LensCamera) for c in models_of(dataset_camera(ds.info)))
+    screen = _screens(ds.info)
     out: Detections = {}
     empty: list[str] = []
     noise: list[float] = []
@@ -134,6 +135,31 @@ def detect_dataset(
         )
     sigma = float(np.sqrt(np.mean(np.square(noise)))) if noise else None
     return MarkerDetections(out, tuple(empty), sigma)
+
+
+def _screens(info: DatasetInfo) -> bool:
+    """Whether :func:`detect_dataset` screens hidden and grazing markers: for a dataset camera
+    without a lens."""
+    return not any(isinstance(c, LensCamera) for c in models_of(dataset_camera(info)))
+
+
+def detect_ahead(info: DatasetInfo, cache: FrameCache) -> None:
+    """Have ``cache`` detect each image's markers as the acquisition keeps it
+    (:attr:`FrameCache.on_image`, on the acquisition's writer thread, beside the rendering of
+    the next posture), the detection :func:`detect_dataset` would run on that image, stored
+    where it looks first: the calibration that follows reuses them. An image of another size
+    than ``info``'s is left to :func:`detect_dataset` (which names it)."""
+    if info.observation != "images":
+        return
+    screen = _screens(info)
+    W, H = info.resolution
+
+    def detect(index: int, cam: str, gray: np.ndarray) -> None:
+        if gray.shape[:2] == (H, W):
+            dets, sig = detect_markers_noise(gray, info.dictionary, screen=screen)
+            cache.detections[(index, cam, screen)] = (dets, sig)
+
+    cache.on_image = detect
 
 
 def observations_of(ds: Dataset, dets: Detections) -> Observations:
