@@ -4,11 +4,11 @@ The loop knows nothing of the backend: the simulator and the hardware adapter ar
 Observers that only a simulator has (analytic corner projections, ground truth) are passed in as
 optional callbacks by the caller. Images are encoded and written by one worker thread while the
 robot moves to and captures the next posture (PNG encoding releases the GIL), a frame's images
-side by side (the second on a thread of its own: the encodings and the waits for the disk's
-fsync overlap); at most one frame is in flight, and a frame is complete on disk before the next
-one is handed over. With a :class:`selfcal.io.frame_cache.FrameCache` the same worker also
-keeps each image on disk as the gray pixels the calibration would read back (``selfcal run``
-calibrates from memory).
+side by side (the second on a helper thread: the encodings and the waits for the disk's fsync
+overlap); at most one frame is in flight, and a frame is complete on disk before the next one
+is handed over. With a :class:`selfcal.io.frame_cache.FrameCache` another helper thread keeps
+each image meanwhile as the gray pixels the calibration would read back (``selfcal run``
+calibrates from memory) and detects its markers there (:attr:`FrameCache.on_image`).
 """
 
 from __future__ import annotations
@@ -77,11 +77,17 @@ def acquire(
     cameras = writer.info.cameras
 
     def store(i: int, q: np.ndarray, left: np.ndarray, right: np.ndarray | None) -> None:
-        """Write frame ``i`` (the worker thread; the second image on ``images``), then keep
-        its images."""
-        writer.add_frame(i, q, left=left, right=right, executor=images)
+        """Write frame ``i`` (the worker thread; the second image on ``helpers``) and keep its
+        images meanwhile (on the other helper: the cache's gray images and detections)."""
+        kept = None
         if keep is not None:
-            keep.add(i, {c: v for c, v in (("left", left), ("right", right)) if c in cameras})
+            shown = {c: v for c, v in (("left", left), ("right", right)) if c in cameras}
+            kept = helpers.submit(keep.add, i, shown)
+        try:
+            writer.add_frame(i, q, left=left, right=right, executor=helpers)
+        finally:
+            if kept is not None:
+                kept.result()
 
     def settle() -> None:
         """Wait for the frame in flight; its failure stops the acquisition at that frame."""
@@ -94,7 +100,7 @@ def acquire(
 
     with (
         ThreadPoolExecutor(max_workers=1, thread_name_prefix="frame-writer") as pool,
-        ThreadPoolExecutor(max_workers=1, thread_name_prefix="image-writer") as images,
+        ThreadPoolExecutor(max_workers=2, thread_name_prefix="frame-helper") as helpers,
     ):
         try:
             for i in todo:

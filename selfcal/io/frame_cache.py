@@ -52,7 +52,8 @@ class FrameCache:
     """One dataset's images and marker detections held by this process.
 
     ``images[(index, camera)]``: the gray image of that frame (:func:`gray_of_png`), kept by
-    :meth:`add` only once the frame is on disk and while the images fit in ``max_bytes``
+    :meth:`add` while the acquisition writes the frame (the readers take only the frames the
+    dataset lists: those on disk) and while the images fit in ``max_bytes``
     (default 256 MiB: 870 images of 640 x 480); the readers read the others from the files.
     ``detections``: what :func:`selfcal.calibration.field.calibrate.detect_dataset` found in each image (it fills
     and reuses it). Use one cache for one dataset folder only.

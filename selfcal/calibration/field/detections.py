@@ -145,10 +145,10 @@ def _screens(info: DatasetInfo) -> bool:
 
 def detect_ahead(info: DatasetInfo, cache: FrameCache) -> None:
     """Have ``cache`` detect each image's markers as the acquisition keeps it
-    (:attr:`FrameCache.on_image`, on the acquisition's writer thread, beside the rendering of
-    the next posture), the detection :func:`detect_dataset` would run on that image, stored
-    where it looks first: the calibration that follows reuses them. An image of another size
-    than ``info``'s is left to :func:`detect_dataset` (which names it)."""
+    (:attr:`FrameCache.on_image`, on a helper thread of the acquisition's writer, beside the
+    rendering of the next posture), the detection :func:`detect_dataset` would run on that
+    image, stored where it looks first: the calibration that follows reuses them. An image of
+    another size than ``info``'s is left to :func:`detect_dataset` (which names it)."""
     if info.observation != "images":
         return
     screen = _screens(info)
