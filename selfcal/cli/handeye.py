@@ -151,7 +151,12 @@ def calibrate_poses(root: Path, *, quiet: bool = False, figures: bool = False,
     datasets (``--method two-stage``, ``--joint-sigma-deg``, ``--tracker``) are errors here;
     ``pose_noise``: ``--pose-noise`` (:func:`parse_pose_noise`)."""
     from selfcal.calibration.handeye.calibrate import FRAMES
-    from selfcal.calibration.handeye.calibration_file import flange_poses_section, flange_poses_text
+    from selfcal.calibration.handeye.calibration_file import (
+        camera_section,
+        camera_text,
+        flange_poses_section,
+        flange_poses_text,
+    )
     from selfcal.calibration.routes import calibrate_pose_dataset
 
     if method != "joint" or joint_sigma_deg is not None or (tracker_args and tracker_args.tracker):
@@ -167,6 +172,7 @@ def calibrate_poses(root: Path, *, quiet: bool = False, figures: bool = False,
             "as the robot reports them); camera, hand-eye and board mount fitted on corner "
             "reprojection")  # fmt: skip
         say(f"  {flange_poses_text(flange_poses_section(cal))}")
+        say(f"  {camera_text(camera_section(cal))}")
         for what, T, s in ((x_what, c.X, c.X_std), (b_what, c.B, c.B_std)):
             xyz = ", ".join(f"{v:.2f}" for v in T[:3, 3] * 1000)
             sig = ", ".join(f"{v:.2f}" for v in s[3:] * 1000)
@@ -186,6 +192,7 @@ def evaluate_poses(args: argparse.Namespace) -> None:
     (:func:`selfcal.calibration.routes.evaluate_pose_dataset`); write evaluation.json and print
     both."""
     from selfcal.calibration.field.calibrate import CalibrationFailedError
+    from selfcal.calibration.handeye.calibration_file import held_out_verdict, read_handeye
     from selfcal.calibration.routes import evaluate_pose_dataset
     from selfcal.io.jsonfile import write_json_atomic
 
@@ -202,11 +209,12 @@ def evaluate_poses(args: argparse.Namespace) -> None:
             r = "none in front of the camera" if rms[k] is None else f"{rms[k]:.3f} px"
             return r + (f" ({behind[k]} corners behind the camera)" if behind[k] else "")
 
-        verdict = "better than" if check["calibration_better_than_nominal"] else "NOT better than"
+        doc = read_handeye(args.calibration)[3]
+        verdict = held_out_verdict(check["calibration_better_than_nominal"],
+                                   doc.get("camera_choice"))  # fmt: skip
         print(
             f"held-out {check['frames']} frames, {check['corners']} corners predicted from the "
-            f"flange poses: nominal {px('nominal')}, calibrated {px('calibrated')} (the "
-            f"calibration is {verdict} the nominal)"
+            f"flange poses: nominal {px('nominal')}, calibrated {px('calibrated')} ({verdict})"
         )
     if check["failures"]:
         raise CalibrationFailedError.of(tuple(check["failures"]), out)

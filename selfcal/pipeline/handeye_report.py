@@ -1,7 +1,8 @@
 """``selfcal report DIR`` of a pose dataset's calibration (flange poses, no joints).
 
 A short report: the setup and that no kinematics were identified, how the flange poses were
-weighed (``calibration.json`` ``flange_poses``); the hand-eye and the board mount, calibrated
+weighed (``calibration.json`` ``flange_poses``) and whether the camera was refined or held
+(``camera_choice``); the hand-eye and the board mount, calibrated
 (with sigmas) beside the nominal (the camera stage's camera held, both fitted
 by the same objective) and their difference; the camera's parameters, calibrated beside
 nominal; the fit (RMS of both); the held-out reprojection when ``DIR/evaluation.json`` holds a
@@ -17,7 +18,12 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from selfcal.calibration.handeye.calibration_file import flange_poses_text, read_handeye
+from selfcal.calibration.handeye.calibration_file import (
+    camera_text,
+    flange_poses_text,
+    held_out_verdict,
+    read_handeye,
+)
 from selfcal.io.atomic import write_text_atomic
 from selfcal.io.jsonfile import write_report
 
@@ -77,6 +83,9 @@ def handeye_report(root: str | Path) -> dict:
         "flange_poses": flange_poses_text(doc["flange_poses"])
         if "flange_poses" in doc
         else "flange poses: taken as reported",
+        "camera_choice": camera_text(doc["camera_choice"])
+        if "camera_choice" in doc
+        else "camera: refined with the hand-eye",
         "frames_used": doc["frames_used"],
         "transforms": [_transform(doc[k], nom[k]) for k in ("hand_eye", "board_mount")],
         "camera": {
@@ -98,6 +107,7 @@ def handeye_report(root: str | Path) -> dict:
         },  # fmt: skip
         "nominal_is": nom["what"],
         "held_out": _held_out(root, cal_path),
+        "camera_held": doc.get("camera_choice", {}).get("treatment") == "held",
         "failures": [],
     }
     write_report(root / "report.json", report)
@@ -105,7 +115,7 @@ def handeye_report(root: str | Path) -> dict:
     return report
 
 
-def _held_out_line(h: dict) -> str:
+def _held_out_line(h: dict, held: bool = False) -> str:
     if "error" in h:
         return h["error"]
     r, behind = h["reprojection_rms_px"], h.get("behind_camera", {})
@@ -114,9 +124,10 @@ def _held_out_line(h: dict) -> str:
         out = "no corner in front of the camera" if r[k] is None else f"{r[k]:.3f} px{rms}"
         return out + (f" ({behind[k]} corners behind the camera)" if behind.get(k) else "")
 
-    verdict = "better than" if h["calibration_better_than_nominal"] else "NOT better than"
+    verdict = held_out_verdict(h["calibration_better_than_nominal"],
+                               {"treatment": "held"} if held else None)  # fmt: skip
     return (f"held-out reprojection {px('calibrated', ' RMS')} calibrated, {px('nominal', '')} nominal over "
-            f"{h['frames']} frames of {h['dataset']}: the calibration is {verdict} the nominal")  # fmt: skip
+            f"{h['frames']} frames of {h['dataset']}: {verdict}")  # fmt: skip
 
 
 def handeye_summary(report: dict, root: Path) -> str:
@@ -124,7 +135,7 @@ def handeye_summary(report: dict, root: Path) -> str:
     f = report["fit"]["reprojection_rms_px"]
     return (f"report ({report['setup']}, flange poses: no kinematics identified): fit "
             f"{f['calibrated']:.3f} px RMS calibrated, {f['nominal']:.3f} px nominal; "
-            f"{_held_out_line(report['held_out'])}; {Path(root) / 'report.json'}")  # fmt: skip
+            f"{_held_out_line(report['held_out'], report['camera_held'])}; {Path(root) / 'report.json'}")  # fmt: skip
 
 
 def _v(xs) -> str:
@@ -136,6 +147,7 @@ def handeye_markdown(r: dict) -> str:
     f = r["fit"]
     lines = [f"# Hand-eye calibration report ({r['setup']})", "", NO_KINEMATICS + ".", "",
              r["flange_poses"][0].upper() + r["flange_poses"][1:] + ".", "",
+             r["camera_choice"][0].upper() + r["camera_choice"][1:] + ".", "",
              "| transform | calibrated xyz (mm) | sigma xyz (mm) | sigma rotation (deg) | "
              "nominal xyz (mm) | calibrated - nominal |", "|---|---|---|---|---|---|"]  # fmt: skip
     for t in r["transforms"]:
@@ -149,7 +161,7 @@ def handeye_markdown(r: dict) -> str:
               f"inliers): calibrated {f['reprojection_rms_px']['calibrated']:.3f} px RMS, nominal "
               f"{f['reprojection_rms_px']['nominal']:.3f} px, camera stage (a free board pose "
               f"per image) {f['camera_stage_rms_px']:.3f} px.", "",
-              "## Held-out reprojection", "", _held_out_line(r["held_out"]) + ".", "",
+              "## Held-out reprojection", "", _held_out_line(r["held_out"], r["camera_held"]) + ".", "",
               f"## Camera ({r['camera']['model']})", "",
               "| parameter | calibrated | std | nominal |", "|---|---|---|---|"]  # fmt: skip
     for k, p in r["camera"]["parameters"].items():

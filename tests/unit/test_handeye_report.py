@@ -18,7 +18,8 @@ from selfcal.io.jsonfile import write_json_atomic
 def test_report_of_a_pose_calibration(tmp_path, capsys):
     X, B, F = _scene("eye-to-hand", 10, seed=23)
     feats = _features(X, B, chain_motions("eye-to-hand", F), 0.3, 2)
-    cal = calibrate_hand_eye(BOARD, feats, F, "eye-to-hand", 1280, 960, free=CAMERA.free)
+    cal = calibrate_hand_eye(BOARD, feats, F, "eye-to-hand", 1280, 960, free=CAMERA.free,
+                             camera="refined")  # fmt: skip
     doc = handeye_document(cal, str(tmp_path))
     write_json_atomic(tmp_path / "calibration.json", doc)
 
@@ -60,6 +61,16 @@ def test_report_of_a_pose_calibration(tmp_path, capsys):
     assert "the calibration is NOT better than the nominal" in line
     rep = json.loads((tmp_path / "report.json").read_text())
     assert rep["held_out"]["reprojection_rms_px"] == ev["held_out_rms_px"]
+    # an answer that holds the camera stage's camera is the nominal, and says so
+    doc["camera_choice"] = {"treatment": "held", "cross_validation": {
+        "folds": 8, "held_px": 0.41, "refined_px": 0.4106, "margin": 0.01, "chosen": "held"}}  # fmt: skip
+    write_json_atomic(tmp_path / "calibration.json", doc)
+    assert main(["report", str(tmp_path), "-q"]) == 0
+    line = capsys.readouterr().out
+    assert "the calibration is the nominal: the camera held at the board calibration's" in line
+    assert ("Camera: held at the board calibration's; left-out images predicted from their "
+            "poses (8 folds): held 0.410 px, refined 0.411 px (refined only when better by more "
+            "than 1 %).") in (tmp_path / "report.md").read_text()  # fmt: skip
     ev["calibration"] = str(tmp_path / "other")  # another calibration's evaluation is not used
     write_json_atomic(tmp_path / "evaluation.json", ev)
     assert main(["report", str(tmp_path), "-q"]) == 0

@@ -22,6 +22,11 @@ or estimated by variance components), and with ``"auto"`` the corrections are dr
 they predict left-out views from their reported poses worse than the exact poses
 (:func:`selfcal.calibration.handeye.fit.choose_pose_noise`). The calibrated fit weighs the poses
 as the nominal chose, with the nominal's sigmas.
+
+The camera (``camera``, :mod:`selfcal.calibration.handeye.camera_choice`): with ``"auto"`` the
+answer holds the camera stage's camera (the nominal is the answer) unless refining it predicts
+left-out views better by more than the pose noise's margin, each fold's held camera calibrated
+on its training images alone.
 """
 
 from __future__ import annotations
@@ -32,6 +37,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from selfcal.calibration.board.calibrate import BoardCalibration, calibrate_board
+from selfcal.calibration.handeye.camera_choice import CAMERA_MODES, CameraChoice, choose_camera
 from selfcal.calibration.handeye.eiv import EXACT, PoseNoise
 from selfcal.calibration.handeye.fit import (
     HandEyeFit,
@@ -48,7 +54,7 @@ from selfcal.transforms import inv_pose
 
 __all__ = ["HandEyeFit", "HandEyeCalibration", "HandEyeMisfitError", "calibrate_hand_eye",
            "chain_motions", "predict_corners", "FRAMES", "MISFIT_PX", "MISFIT_RATIO",
-           "POSE_NOISE_MODES"]  # fmt: skip
+           "POSE_NOISE_MODES", "CAMERA_MODES", "CameraChoice"]  # fmt: skip
 
 FRAMES = {
     "eye-in-hand": ("flange -> camera", "base -> board"),
@@ -85,7 +91,11 @@ class HandEyeCalibration:
     """Result of :func:`calibrate_hand_eye`: the ``setup``, the ``camera_stage``, the linear
     start ``X0`` / ``B0``, the ``nominal`` (camera held) and ``calibrated`` (camera free) fits,
     ``used`` (n,) the views in them, ``pose_choice`` the cross-validation that chose between the
-    exact flange poses and their corrections (None: the caller gave the pose noise)."""
+    exact flange poses and their corrections (None: the caller gave the pose noise);
+    ``camera_refined`` whether ``calibrated`` refines the camera (else it is the nominal),
+    ``camera_choice`` the cross-validation that chose (None: the caller chose) and ``refined``
+    the fit with the camera refined (``calibrated`` when chosen; None when ``camera`` was
+    ``"held"``)."""
 
     setup: str
     camera_stage: BoardCalibration
@@ -95,6 +105,9 @@ class HandEyeCalibration:
     calibrated: HandEyeFit
     used: np.ndarray
     pose_choice: PoseChoice | None = None
+    camera_refined: bool = True
+    camera_choice: CameraChoice | None = None
+    refined: HandEyeFit | None = None
 
 
 def calibrate_hand_eye(
@@ -111,6 +124,7 @@ def calibrate_hand_eye(
     outlier_px: float = 3.0,
     max_iter: int = 100,
     pose_noise: PoseNoise | str = "auto",
+    camera: str = "auto",
 ) -> HandEyeCalibration:
     """Calibrate the camera (``model``, parameters ``free``), the hand-eye and the board mount
     of ``setup`` from the board ``features`` of one image per pose and the flange poses
@@ -119,7 +133,11 @@ def calibrate_hand_eye(
     (:data:`selfcal.calibration.handeye.eiv.EXACT`: the poses taken as exact), ``"estimate"``:
     estimated from the residuals, ``"auto"``: estimated, and the corrections dropped when they
     predict left-out views worse than the exact poses
-    (:func:`selfcal.calibration.handeye.fit.choose_pose_noise`).
+    (:func:`selfcal.calibration.handeye.fit.choose_pose_noise`); ``camera``: ``"refined"`` the
+    answer refines the camera, ``"held"`` holds the camera stage's (the answer is the nominal),
+    ``"auto"``: held unless refining predicts left-out views better by more than
+    :data:`selfcal.calibration.handeye.fit.CV_MARGIN`
+    (:func:`selfcal.calibration.handeye.camera_choice.choose_camera`).
 
     Raises:
         selfcal.calibration.board.calibrate.BoardInputError / BoardMismatchError: as the camera stage.
@@ -130,6 +148,8 @@ def calibrate_hand_eye(
     if not isinstance(pose_noise, PoseNoise) and pose_noise not in POSE_NOISE_MODES:
         raise UsageError(f"pose_noise {pose_noise!r}: give a PoseNoise or one of "
                          f"{', '.join(POSE_NOISE_MODES)}")  # fmt: skip
+    if camera not in CAMERA_MODES:
+        raise UsageError(f"camera {camera!r}: give one of {', '.join(CAMERA_MODES)}")
     given = pose_noise if isinstance(pose_noise, PoseNoise) else None
     if len(T_base_flange) != len(features):
         raise InputError(f"{len(features)} images but {len(T_base_flange)} poses")
@@ -151,7 +171,7 @@ def calibrate_hand_eye(
         )
     try:
         exact = fit_pose_chain(stage.camera, True, A, X0, B0, view, points, uv, outlier_px, max_iter,
-                     setup=setup, pose_noise=EXACT)  # fmt: skip
+                     setup=setup, pose_noise=EXACT, camera_cov=stage.cov)  # fmt: skip
         rms = exact.rms_px
     except EstimationError:
         rms = float("inf")
@@ -161,18 +181,26 @@ def calibrate_hand_eye(
     if given is None or not given.exact:
         eiv = fit_pose_chain(stage.camera, True, A, exact.X, exact.B, view, points, uv,
                              outlier_px, max_iter, setup=setup, pose_noise=given,
-                             start_px=exact.sigma_px)  # fmt: skip
+                             start_px=exact.sigma_px, camera_cov=stage.cov)  # fmt: skip
         if pose_noise == "auto":
             choice = choose_pose_noise(stage.camera, A, exact, eiv, view, points, uv, outlier_px,
                                        max_iter, setup=setup)  # fmt: skip
         nominal = eiv if choice is None or choice.eiv else exact
     noise = nominal.pose_noise
-    calibrated = fit_pose_chain(stage.camera, False, A, nominal.X, nominal.B, view, points, uv,
-                                outlier_px, max_iter, setup=setup, pose_noise=noise,
-                                start_px=nominal.sigma_px)  # fmt: skip
-    calibrated = replace(calibrated, pose_noise_estimated=nominal.pose_noise_estimated)
+    refined = cam_choice = None
+    if camera != "held":
+        refined = fit_pose_chain(stage.camera, False, A, nominal.X, nominal.B, view, points, uv,
+                                 outlier_px, max_iter, setup=setup, pose_noise=noise,
+                                 start_px=nominal.sigma_px)  # fmt: skip
+        refined = replace(refined, pose_noise_estimated=nominal.pose_noise_estimated)
+    if camera == "auto" and refined is not None:
+        cam_choice = choose_camera(stage, board, A, nominal, refined, view, points, uv,
+                                   outlier_px, max_iter, setup)  # fmt: skip
+    chosen = camera == "refined" or (cam_choice is not None and cam_choice.refined)
     return HandEyeCalibration(setup=setup, camera_stage=stage, X0=X0, B0=B0, nominal=nominal,
-                              calibrated=calibrated, used=used, pose_choice=choice)  # fmt: skip
+                              calibrated=refined if chosen and refined else nominal, used=used,
+                              pose_choice=choice, camera_refined=chosen,
+                              camera_choice=cam_choice, refined=refined)  # fmt: skip
 
 
 def _explain_misfit(setup: str, rms_px: float, stage: BoardCalibration, T_base_flange: np.ndarray,

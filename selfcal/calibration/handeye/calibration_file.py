@@ -17,6 +17,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from selfcal.calibration.handeye.calibrate import FRAMES, HandEyeCalibration, HandEyeFit
+from selfcal.calibration.handeye.fit import CV_MARGIN
 from selfcal.camera import CameraModel, camera_model, lens_names
 from selfcal.errors import InputError
 from selfcal.io.jsonfile import SCHEMA_KEY, Fields, check_header, load_json
@@ -25,9 +26,12 @@ __all__ = [
     "HANDEYE_FORMAT",
     "HandEyeFile",
     "HandEyeModel",
+    "camera_section",
+    "camera_text",
     "flange_poses_section",
     "flange_poses_text",
     "handeye_document",
+    "held_out_verdict",
     "is_handeye",
     "read_handeye",
 ]
@@ -97,6 +101,40 @@ def flange_poses_text(section: dict) -> str:
             + why)  # fmt: skip
 
 
+def camera_section(cal: HandEyeCalibration) -> dict:
+    """``calibration.json``'s ``camera_choice``: whether the answer ``refined`` the camera or
+    ``held`` the camera stage's, and the cross-validation that chose (None: the caller chose;
+    ``margin``: how much better, relative, refining had to predict to be chosen)."""
+    ch = cal.camera_choice
+    return {
+        "treatment": "refined" if cal.camera_refined else "held",
+        "cross_validation": None if ch is None else {
+            "folds": ch.folds, "held_px": ch.held_px, "refined_px": ch.refined_px,
+            "margin": CV_MARGIN, "chosen": "refined" if ch.refined else "held"},
+    }  # fmt: skip
+
+
+def camera_text(section: dict) -> str:
+    """One line for people of :func:`camera_section`'s ``section``."""
+    cv = section.get("cross_validation")
+    head = ("camera: refined with the hand-eye" if section["treatment"] == "refined"
+            else "camera: held at the board calibration's")  # fmt: skip
+    if cv is None:
+        return head + " (as asked)"
+    return (f"{head}; left-out images predicted from their poses ({cv['folds']} folds): held "
+            f"{cv['held_px']:.3f} px, refined {cv['refined_px']:.3f} px (refined only when "
+            f"better by more than {100 * cv['margin']:g} %)")  # fmt: skip
+
+
+def held_out_verdict(better: bool, section: dict | None) -> str:
+    """The held-out check's verdict for people: whether the calibration predicted better than
+    the nominal (``better``), or, when its ``camera_choice`` ``section`` held the camera, that
+    it is the nominal."""
+    if section is not None and section.get("treatment") == "held":
+        return "the calibration is the nominal: the camera held at the board calibration's"
+    return f"the calibration is {'better than' if better else 'NOT better than'} the nominal"
+
+
 def handeye_document(cal: HandEyeCalibration, dataset: str) -> dict:
     """The ``calibration.json`` document of ``cal`` calibrated from the pose dataset ``dataset``."""
     return {
@@ -107,6 +145,7 @@ def handeye_document(cal: HandEyeCalibration, dataset: str) -> dict:
         "method": "hand-eye on corner reprojection (linear Park start, the one solver)",
         "kinematics": "none identified: the flange poses are the robot's reports",
         "flange_poses": flange_poses_section(cal),
+        "camera_choice": camera_section(cal),
         "frames_used": int(cal.used.sum()),
         "camera_stage_rms_px": cal.camera_stage.rms_px,
         **_fit(cal.calibrated, cal.setup),
