@@ -74,11 +74,17 @@ def _rot_deg(R1, R2):
     return np.degrees(np.linalg.norm(Rotation.from_matrix(R1 @ R2.T).as_rotvec()))
 
 
-@pytest.mark.parametrize("setup", ["eye-in-hand", "eye-to-hand"])
-def test_noise_free_is_exact(setup):
+# each setup with one of the camera's treatments (the cross-validated choice between them:
+# test_the_camera_choice_is_recorded_and_obeyed)
+SETUP_CAMERA = [("eye-in-hand", "refined"), ("eye-to-hand", "held")]
+
+
+@pytest.mark.parametrize(("setup", "camera"), SETUP_CAMERA)
+def test_noise_free_is_exact(setup, camera):
     X, B, F = _scene(setup, 12, seed=5)
     feats = _features(X, B, chain_motions(setup, F), 0.0, 1)
-    cal = calibrate_hand_eye(BOARD, feats, F, setup, 1280, 960, model="opencv", free=CAMERA.free)
+    cal = calibrate_hand_eye(BOARD, feats, F, setup, 1280, 960, model="opencv", free=CAMERA.free,
+                             camera=camera)  # fmt: skip
     c = cal.calibrated
     assert np.abs(c.X[:3, 3] - X[:3, 3]).max() < 1e-6
     assert np.abs(c.B[:3, 3] - B[:3, 3]).max() < 1e-6
@@ -86,11 +92,13 @@ def test_noise_free_is_exact(setup):
     np.testing.assert_allclose(c.camera.values(), CAMERA.values(), rtol=0, atol=1e-6)
 
 
-@pytest.mark.parametrize("setup", ["eye-in-hand", "eye-to-hand"])
-def test_noisy_within_three_sigma(setup):
+@pytest.mark.parametrize(("setup", "camera"), [(s, "held" if c == "refined" else "refined")
+                                               for s, c in SETUP_CAMERA])  # fmt: skip
+def test_noisy_within_three_sigma(setup, camera):
     X, B, F = _scene(setup, 15, seed=7)
     feats = _features(X, B, chain_motions(setup, F), 0.3, 2)
-    cal = calibrate_hand_eye(BOARD, feats, F, setup, 1280, 960, model="opencv", free=CAMERA.free)
+    cal = calibrate_hand_eye(BOARD, feats, F, setup, 1280, 960, model="opencv", free=CAMERA.free,
+                             camera=camera)  # fmt: skip
     c = cal.calibrated
     for T, truth, std in ((c.X, X, c.X_std), (c.B, B, c.B_std)):
         assert np.all(np.abs(T[:3, 3] - truth[:3, 3]) < 3 * std[3:])
