@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from selfcal.calibration.handeye import camera_choice
+from selfcal.calibration.handeye import camera_refinement
 from selfcal.calibration.handeye.calibrate import calibrate_hand_eye, chain_motions
 from selfcal.calibration.handeye.eiv import EXACT
 from selfcal.calibration.handeye.fit import CV_MARGIN, predict_better
@@ -262,7 +262,7 @@ def test_one_rule_chooses_the_flange_poses_and_the_camera():
     assert not predict_better(1.0, 1.0099) and predict_better(1.0, 1.0101)
     assert not predict_better(1.0, 1.0) and not predict_better(float("inf"), 1.0)
     assert predict_better(1.0, float("inf"))
-    assert camera_choice.predict_better is predict_better
+    assert camera_refinement.predict_better is predict_better
 
 
 @pytest.mark.slow

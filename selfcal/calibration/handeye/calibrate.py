@@ -23,7 +23,7 @@ they predict left-out views from their reported poses worse than the exact poses
 (:func:`selfcal.calibration.handeye.fit.choose_pose_noise`). The calibrated fit weighs the poses
 as the nominal chose, with the nominal's sigmas.
 
-The camera (``camera``, :mod:`selfcal.calibration.handeye.camera_choice`): with ``"auto"`` the
+The camera (``camera``, :mod:`selfcal.calibration.handeye.camera_refinement`): with ``"auto"`` the
 answer holds the camera stage's camera (the nominal is the answer) unless refining it predicts
 left-out views better by more than the pose noise's margin, each fold's held camera calibrated
 on its training images alone.
@@ -37,7 +37,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from selfcal.calibration.board.calibrate import BoardCalibration, calibrate_board
-from selfcal.calibration.handeye.camera_choice import CAMERA_MODES, CameraChoice, choose_camera
+from selfcal.calibration.handeye.camera_refinement import CAMERA_MODES, CameraChoice, choose_camera
 from selfcal.calibration.handeye.eiv import EXACT, PoseNoise
 from selfcal.calibration.handeye.fit import (
     HandEyeFit,
@@ -137,7 +137,7 @@ def calibrate_hand_eye(
     answer refines the camera, ``"held"`` holds the camera stage's (the answer is the nominal),
     ``"auto"``: held unless refining predicts left-out views better by more than
     :data:`selfcal.calibration.handeye.fit.CV_MARGIN`
-    (:func:`selfcal.calibration.handeye.camera_choice.choose_camera`).
+    (:func:`selfcal.calibration.handeye.camera_refinement.choose_camera`).
 
     Raises:
         selfcal.calibration.board.calibrate.BoardInputError / BoardMismatchError: as the camera stage.

@@ -280,7 +280,7 @@ def choose_pose_noise(camera: CameraModel, A: np.ndarray, exact: HandEyeFit, eiv
 def predict_better(other_px: float, default_px: float) -> bool:
     """The rule of both cross-validated choices of the pose route (the flange poses'
     corrections, :func:`choose_pose_noise`; the camera,
-    :func:`selfcal.calibration.handeye.camera_choice.choose_camera`): whether the model that
+    :func:`selfcal.calibration.handeye.camera_refinement.choose_camera`): whether the model that
     predicted the left-out views with RMS ``other_px`` (px) replaces the default one
     (``default_px``): only when it is better by more than :data:`CV_MARGIN`, ``default_px >
     (1 + CV_MARGIN) other_px``; a smaller difference is within what eight folds of a dozen
