@@ -11,6 +11,7 @@ __all__ = [
     "JOINT_UNITS",
     "BAG_FORMATS",
     "JOINT_TOPIC",
+    "HANDEYE_CAMERA",
 ]
 
 CAMERA_MODELS = ("pinhole", "opencv", "fisheye")
@@ -31,3 +32,7 @@ BAG_FORMATS = ("ros1", "ros2", "mcap")
 """ROS bag formats (``--format`` with ``--bag``; read by :mod:`selfcal.ros.rosbag`)."""
 JOINT_TOPIC = "/joint_states"
 """The JointState topic a bag is read from and written to unless told (``--joint-topic``)."""
+HANDEYE_CAMERA = ("auto", "held", "refined")
+"""How a pose dataset's hand-eye treats the camera in its answer (``selfcal calibrate --camera``,
+:func:`selfcal.calibration.handeye.calibrate.calibrate_hand_eye`'s ``camera``): chosen by
+cross-validation, held at the board calibration's, refined with the hand-eye."""

@@ -28,7 +28,8 @@ from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
-from selfcal.errors import InputError
+from selfcal.choices import HANDEYE_CAMERA
+from selfcal.errors import InputError, UsageError
 from selfcal.io.poses.dataset import is_pose_dataset
 from selfcal.threads import limited
 
@@ -121,22 +122,26 @@ def pose_features(ds: PoseDataset) -> tuple[Board, list[Features]]:
 
 
 def calibrate_pose_dataset(root: str | Path, *, write: bool = True,
-                           pose_noise: PoseNoise | str = "auto") -> HandEyeCalibration:  # fmt: skip
+                           pose_noise: PoseNoise | str = "auto",
+                           camera: str = "auto") -> HandEyeCalibration:  # fmt: skip
     """The hand-eye calibration of the pose dataset ``root`` (camera, hand-eye ``X`` and board
     mount ``B``, m, their frames: :data:`selfcal.calibration.handeye.calibrate.FRAMES`), written
-    as ``root/calibration.json`` when ``write``; ``pose_noise``: the flange poses' noise, as
+    as ``root/calibration.json`` when ``write``; ``pose_noise``: the flange poses' noise and
+    ``camera``: the answer's camera (``"auto"``, ``"held"`` or ``"refined"``), as
     :func:`selfcal.calibration.handeye.calibrate.calibrate_hand_eye`'s."""
     from selfcal.calibration.handeye.calibrate import calibrate_hand_eye
     from selfcal.calibration.handeye.calibration_file import handeye_document
     from selfcal.io.jsonfile import write_json_atomic
     from selfcal.io.poses.dataset import PoseDataset
 
+    if camera not in HANDEYE_CAMERA:  # before the detection, not after
+        raise UsageError(f"camera {camera!r}: give one of {', '.join(HANDEYE_CAMERA)}")
     ds = PoseDataset.open(root)
     board, feats = pose_features(ds)
     names = [str(ds.image_path(i)) for i in range(len(feats))]
     cal = calibrate_hand_eye(board, feats, ds.T_base_flange, ds.setup, *ds.resolution,
                              model=ds.model, free=ds.free, names=names,
-                             pose_noise=pose_noise)  # fmt: skip
+                             pose_noise=pose_noise, camera=camera)  # fmt: skip
     if write:
         write_json_atomic(Path(root) / "calibration.json", handeye_document(cal, str(root)))
     return cal
@@ -190,6 +195,7 @@ def calibrate(
     joint_sigma: float | np.ndarray | None = None,
     terms: Sequence[Term] = (),
     pose_noise: PoseNoise | str | None = None,
+    camera: str | None = None,
     progress=None,
     write: bool = True,
 ) -> CalibrationResult | BoardCalibrationResult | HandEyeCalibration:
@@ -212,6 +218,10 @@ def calibrate(
             a :class:`selfcal.calibration.handeye.eiv.PoseNoise` (mm, deg) or ``"auto"``
             (default), ``"estimate"`` or ``"exact"`` (:func:`calibrate_pose_dataset`); pose
             datasets only.
+        camera: a pose dataset's camera in the answer, as ``selfcal calibrate --camera``:
+            ``"auto"`` (default: held at the board calibration's unless refining it with the
+            hand-eye predicts left-out images better by more than 1 %), ``"held"`` or
+            ``"refined"`` (:data:`selfcal.choices.HANDEYE_CAMERA`); pose datasets only.
         progress: a :class:`selfcal.console.progress.Progress`-like object the field reports to.
         write: write ``root/calibration.json``.
 
@@ -232,6 +242,10 @@ def calibrate(
     if route != "handeye" and pose_noise is not None:
         raise InputError(f"{root} is a {route} dataset (joint readings): pose_noise applies to "
                          "a pose dataset's flange poses", fix="leave it out")  # fmt: skip
+    if route != "handeye" and camera is not None:
+        raise InputError(f"{root} is a {route} dataset (joint readings): camera (held or "
+                         "refined) applies to a pose dataset's hand-eye; the camera here is "
+                         "estimated with the rest", fix="leave it out")  # fmt: skip
     if route != "field" and method != "joint":
         raise InputError(f"{root} is a {route} dataset: the field's method does not apply",
                          fix="leave out method")  # fmt: skip
@@ -244,7 +258,8 @@ def calibrate(
             raise InputError(f"{root} is a pose dataset (flange poses, no joints): joint_sigma "
                              "does not apply", fix="leave it out")  # fmt: skip
         return calibrate_pose_dataset(root, write=write,
-                                      pose_noise="auto" if pose_noise is None else pose_noise)  # fmt: skip
+                                      pose_noise="auto" if pose_noise is None else pose_noise,
+                                      camera="auto" if camera is None else camera)  # fmt: skip
     if route == "board":
         from selfcal.calibration.board.dataset import calibrate_board_dataset
 

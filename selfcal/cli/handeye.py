@@ -11,6 +11,7 @@ import json
 import sys
 from pathlib import Path
 
+from selfcal.choices import HANDEYE_CAMERA
 from selfcal.console.common import CliError, note_written
 from selfcal.errors import SelfCalError
 
@@ -39,10 +40,19 @@ POSE_NOISE_HELP = (
 )
 
 
+CAMERA_HELP = (
+    "pose datasets: the camera in the answer; 'held': the board calibration's (like for like "
+    "with OpenCV's hand-eye methods, which take the camera as given); 'refined': refined with "
+    "the hand-eye (few board images but a rich pose set); 'auto' (default): held unless "
+    "refining predicts left-out images better by more than 1 %% (docs/handeye.md)"
+)
+
+
 def add_pose_noise_arg(sp: argparse.ArgumentParser) -> None:
-    """``--pose-noise`` of ``selfcal calibrate`` (a pose dataset's)."""
+    """``--pose-noise`` and ``--camera`` of ``selfcal calibrate`` (a pose dataset's)."""
     sp.add_argument("--pose-noise", default=None, metavar="MM,DEG|auto|estimate|exact",
                     help=POSE_NOISE_HELP)  # fmt: skip
+    sp.add_argument("--camera", default=None, choices=HANDEYE_CAMERA, help=CAMERA_HELP)
 
 
 def parse_pose_noise(text: str | None):  # -> PoseNoise | str (the import waits for the command)
@@ -144,12 +154,13 @@ def cmd_import_poses(args: argparse.Namespace) -> int:
 def calibrate_poses(root: Path, *, quiet: bool = False, figures: bool = False,
                     method: str = "joint", joint_sigma_deg: float | None = None,
                     tracker_args: argparse.Namespace | None = None,
-                    pose_noise: str | None = None) -> None:  # fmt: skip
+                    pose_noise: str | None = None, camera: str | None = None) -> None:  # fmt: skip
     """``selfcal calibrate`` of a pose dataset: write ``root/calibration.json`` (the hand-eye
     and board mount with sigmas, the camera, the nominal beside:
     :func:`selfcal.calibration.routes.calibrate_pose_dataset`). The options of the joint
     datasets (``--method two-stage``, ``--joint-sigma-deg``, ``--tracker``) are errors here;
-    ``pose_noise``: ``--pose-noise`` (:func:`parse_pose_noise`)."""
+    ``pose_noise``: ``--pose-noise`` (:func:`parse_pose_noise`); ``camera``: ``--camera``
+    (:data:`selfcal.choices.HANDEYE_CAMERA`, default ``"auto"``)."""
     from selfcal.calibration.handeye.calibrate import FRAMES
     from selfcal.calibration.handeye.calibration_file import (
         camera_section,
@@ -163,7 +174,8 @@ def calibrate_poses(root: Path, *, quiet: bool = False, figures: bool = False,
         raise CliError(f"{root} is a pose dataset (flange poses, no joints): --method, "
                        "--joint-sigma-deg and --tracker do not apply",
                        fix="leave them out")  # fmt: skip
-    cal = calibrate_pose_dataset(root, pose_noise=parse_pose_noise(pose_noise))
+    cal = calibrate_pose_dataset(root, pose_noise=parse_pose_noise(pose_noise),
+                                 camera=camera or "auto")  # fmt: skip
     if not quiet:
         x_what, b_what = FRAMES[cal.setup]
         c, n = cal.calibrated, cal.nominal

@@ -121,7 +121,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         calibrate_any(root, quiet=args.quiet, method=args.method,
                       allow_missing_frames=args.allow_missing_frames, figures=True,
                       tracker_args=args, joint_sigma_deg=args.joint_sigma_deg,
-                      pose_noise=args.pose_noise)  # fmt: skip
+                      pose_noise=args.pose_noise, camera=args.camera)  # fmt: skip
     note_written(args, root / "calibration.json")
     if args.json:
         print(json.dumps(_calibration_json(root / "calibration.json")))

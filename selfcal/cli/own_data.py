@@ -46,6 +46,7 @@ def calibrate_any(
     tracker_args: argparse.Namespace | None = None,
     joint_sigma_deg: float | None = None,
     pose_noise: str | None = None,
+    camera: str | None = None,
 ) -> None:
     """Calibrate the dataset in ``root`` by its target and write ``root/calibration.json``:
     the field -> :func:`selfcal.pipeline.run.run_calibrate`; a board -> the board calibration.
@@ -55,8 +56,8 @@ def calibrate_any(
     :mod:`selfcal.terms.registry`): measurements estimated with the images of the field or of a
     board dataset with joint readings. ``joint_sigma_deg``: the standard deviation
     of a joint reading, deg (mm for a prismatic joint), modelled instead of the robot file's
-    encoder resolution. ``pose_noise``: ``--pose-noise`` of a pose dataset (an error for the
-    others)."""
+    encoder resolution. ``pose_noise``, ``camera``: ``--pose-noise`` and ``--camera`` of a pose
+    dataset (errors for the others)."""
     specs = list(getattr(tracker_args, "term", None) or [])
     if specs:  # the spelling and the options first: a bad one stops before any work
         from selfcal.terms.registry import parse_term_spec
@@ -77,11 +78,15 @@ def calibrate_any(
     if route == "handeye":
         calibrate_poses(root, quiet=quiet, figures=figures, method=method,
                         joint_sigma_deg=joint_sigma_deg, tracker_args=tracker_args,
-                        pose_noise=pose_noise)  # fmt: skip
+                        pose_noise=pose_noise, camera=camera)  # fmt: skip
         return
     if pose_noise is not None:
         raise CliError(f"{root}: --pose-noise applies to a pose dataset (flange poses); this one "
                        "has joint readings", fix="leave --pose-noise out")  # fmt: skip
+    if camera is not None:
+        raise CliError(f"{root}: --camera (held or refined) applies to a pose dataset's hand-eye "
+                       "(flange poses); this one has joint readings and its camera is estimated "
+                       "with the rest", fix="leave --camera out")  # fmt: skip
     ds = Dataset.open(root)
     joint_sigma = None
     if joint_sigma_deg is not None:

@@ -13,6 +13,7 @@ from scipy.spatial.transform import Rotation
 
 from selfcal.calibration.handeye import camera_refinement
 from selfcal.calibration.handeye.calibrate import calibrate_hand_eye, chain_motions
+from selfcal.calibration.handeye.calibration_file import camera_section
 from selfcal.calibration.handeye.eiv import EXACT
 from selfcal.calibration.handeye.fit import CV_MARGIN, predict_better
 from selfcal.calibration.handeye.linear import HandEyeStartError, linear_hand_eye
@@ -252,6 +253,12 @@ def test_the_camera_choice_is_recorded_and_obeyed():
     assert 0.35 < min(ch.held_px, ch.refined_px) < 0.6
     assert held.calibrated is held.nominal and not held.camera_refined
     assert held.camera_choice is None
+    # calibration.json says who chose: the cross-validation, or the caller (--camera)
+    sec = camera_section(auto)
+    assert sec["chosen_by"] == "cross-validation" and sec["cross_validation"]["folds"] == 8
+    assert sec["treatment"] == ("refined" if ch.refined else "held")
+    assert camera_section(held) == {"treatment": "held", "chosen_by": "caller",
+                                    "cross_validation": None}  # fmt: skip
     with pytest.raises(UsageError):
         run("free")
 

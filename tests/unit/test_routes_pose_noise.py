@@ -24,6 +24,6 @@ def test_pose_noise_reaches_the_pose_fit(monkeypatch, tmp_path, given, passed):
     seen = {}
     monkeypatch.setattr(routes, "dataset_route", lambda root: "handeye")
     monkeypatch.setattr(routes, "calibrate_pose_dataset",
-                        lambda root, *, write, pose_noise: seen.setdefault("n", pose_noise))  # fmt: skip
+                        lambda root, *, write, pose_noise, camera: seen.update(n=pose_noise, c=camera))  # fmt: skip
     routes.calibrate(tmp_path, pose_noise=given, write=False)
-    assert seen["n"] == passed
+    assert seen == {"n": passed, "c": "auto"}  # the camera by default chosen by the data

@@ -103,11 +103,14 @@ def flange_poses_text(section: dict) -> str:
 
 def camera_section(cal: HandEyeCalibration) -> dict:
     """``calibration.json``'s ``camera_choice``: whether the answer ``refined`` the camera or
-    ``held`` the camera stage's, and the cross-validation that chose (None: the caller chose;
-    ``margin``: how much better, relative, refining had to predict to be chosen)."""
+    ``held`` the camera stage's, who chose (``chosen_by``: ``"cross-validation"``, or
+    ``"caller"`` when forced by ``selfcal calibrate --camera held|refined``) and the
+    cross-validation that chose (None when the caller did; ``margin``: how much better,
+    relative, refining had to predict to be chosen)."""
     ch = cal.camera_choice
     return {
         "treatment": "refined" if cal.camera_refined else "held",
+        "chosen_by": "caller" if ch is None else "cross-validation",
         "cross_validation": None if ch is None else {
             "folds": ch.folds, "held_px": ch.held_px, "refined_px": ch.refined_px,
             "margin": CV_MARGIN, "chosen": "refined" if ch.refined else "held"},

@@ -28,6 +28,7 @@ from selfcal.calibration.handeye.fit import (
     predict_corners,
 )
 from selfcal.camera import CameraModel
+from selfcal.choices import HANDEYE_CAMERA
 from selfcal.errors import EstimationError, SelfCalError
 from selfcal.estimation.bundle_adjust import bundle_adjust
 from selfcal.estimation.pose_models import ViewPoses
@@ -35,9 +36,10 @@ from selfcal.target.boards import Board
 
 __all__ = ["CAMERA_MODES", "CameraChoice", "choose_camera", "fold_camera"]
 
-CAMERA_MODES = ("auto", "refined", "held")
+CAMERA_MODES = HANDEYE_CAMERA
 """How :func:`selfcal.calibration.handeye.calibrate.calibrate_hand_eye` treats the camera in its
-answer: chosen by :func:`choose_camera`, always refined, always the camera stage's."""
+answer: chosen by :func:`choose_camera`, always the camera stage's, always refined
+(:data:`selfcal.choices.HANDEYE_CAMERA`, which ``selfcal calibrate --camera`` offers)."""
 
 
 @dataclass(frozen=True)
