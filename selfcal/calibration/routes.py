@@ -128,12 +128,16 @@ def calibrate_pose_dataset(root: str | Path, *, write: bool = True,
     mount ``B``, m, their frames: :data:`selfcal.calibration.handeye.calibrate.FRAMES`), written
     as ``root/calibration.json`` when ``write``; ``pose_noise``: the flange poses' noise and
     ``camera``: the answer's camera (``"auto"``, ``"held"`` or ``"refined"``), as
-    :func:`selfcal.calibration.handeye.calibrate.calibrate_hand_eye`'s."""
+    :func:`selfcal.calibration.handeye.calibrate.calibrate_hand_eye`'s (``pose_noise`` also
+    ``"exact"``, as ``--pose-noise`` takes it: :data:`selfcal.calibration.handeye.eiv.EXACT`)."""
     from selfcal.calibration.handeye.calibrate import calibrate_hand_eye
     from selfcal.calibration.handeye.calibration_file import handeye_document
+    from selfcal.calibration.handeye.eiv import EXACT
     from selfcal.io.jsonfile import write_json_atomic
     from selfcal.io.poses.dataset import PoseDataset
 
+    if isinstance(pose_noise, str) and pose_noise == "exact":
+        pose_noise = EXACT
     if camera not in HANDEYE_CAMERA:  # before the detection, not after
         raise UsageError(f"camera {camera!r}: give one of {', '.join(HANDEYE_CAMERA)}")
     ds = PoseDataset.open(root)

@@ -39,7 +39,8 @@ def _camera_choice(root) -> dict:
 
 @pytest.mark.parametrize("camera", ["held", "refined"])
 def test_the_api_forces_the_camera_and_records_it(pose_dir, camera):
-    cal = routes.calibrate(pose_dir, camera=camera, pose_noise=EXACT)
+    cal = routes.calibrate(pose_dir, camera=camera, pose_noise="exact")  # as docs/api.md says
+    assert cal.nominal.pose_noise == EXACT
     assert cal.camera_refined == (camera == "refined")
     assert (cal.calibrated is cal.nominal) == (camera == "held")
     assert cal.camera_choice is None  # no cross-validation ran
