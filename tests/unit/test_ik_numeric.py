@@ -6,12 +6,15 @@ tests/unit/test_kinematics.py checks against the DH tables.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
+from selfcal.kinematics import ik_numeric
 from selfcal.kinematics.forward import fk_tool
 from selfcal.kinematics.ik import UnreachableError
 from selfcal.kinematics.ik_numeric import (
@@ -62,7 +65,10 @@ def test_ik_of_fk_reproduces_the_pose(name, u):
     res = ik_robot(robot, target)
     _assert_same_pose(model, res.joints, T, tol)
     robot.check_joints(res.joints)
-    num = solve_ik(model, robot.limits, target, reference=robot.home, home=robot.home)
+    if res.start == "analytic":  # the closed form answered: now the numerical solver alone
+        num = solve_ik(model, robot.limits, target, reference=robot.home, home=robot.home)
+    else:  # ik_robot ran solve_ik with these very arguments (deterministic): not twice
+        num = res
     _assert_same_pose(model, num.joints, T, tol)
     robot.check_joints(num.joints)
     T2 = fk_tool(model, num.joints[None])[0]
@@ -80,12 +86,20 @@ def test_er_type_arms_take_the_closed_form(name):
     np.testing.assert_allclose(res.joints, q, atol=1e-9)
 
 
+@pytest.fixture
+def few_starts(monkeypatch):
+    """ik_robot's solve_ik with 8 random starts instead of 64: an unreachable target fails every
+    start (0.1-0.2 s each on 2 loaded cores); 8 give the same closest distance (131.073 mm below, 16.187 mm for the ER-4u pose)."""
+    monkeypatch.setattr(ik_numeric, "solve_ik", functools.partial(solve_ik, n_random=8))
+
+
+@pytest.mark.usefixtures("few_starts")
 def test_er_pose_the_5_axis_arm_cannot_take_is_unreachable():
     """An orientation off the closed form's family goes to the numerical solver, which says so."""
     robot = _CACHE["er4u-paper"]
     T = fk_tool(nominal_mcpc(robot), robot.home[None])[0]
     R = Rotation.from_rotvec([0.3, 0.2, 0.1]).as_matrix() @ T[:3, :3]
-    with pytest.raises(UnreachableError, match="starts"):
+    with pytest.raises(UnreachableError, match="from 10 starts"):
         ik_robot(robot, ToolTarget(T[:3, 3], R))
 
 
@@ -111,6 +125,7 @@ def test_reference_selects_the_nearby_solution():
     assert res.start == "reference"
 
 
+@pytest.mark.usefixtures("few_starts")
 def test_unreachable_target_raises_with_distance():
     robot = _CACHE["ur5e"]
     # beyond the sum of the link lengths (1.3123 m): refused at once, by how much
@@ -118,7 +133,7 @@ def test_unreachable_target_raises_with_distance():
         ik_robot(robot, ToolTarget(np.array([2.0, 0.0, 0.5])))
     assert err.value.distance_m == pytest.approx(np.hypot(2.0, 0.5) - 1.3123, abs=1e-9)
     # within that bound but beyond the arm's real reach (about 0.95 m from the shoulder)
-    with pytest.raises(UnreachableError, match="starts") as err:
+    with pytest.raises(UnreachableError, match="from 10 starts") as err:
         ik_robot(robot, ToolTarget(np.array([1.1, 0.0, 0.1625])))
     assert err.value.distance_m > 0.1
 
