@@ -48,6 +48,16 @@ def dataset(tmp_path_factory):
     return acquire_analytic(tmp_path_factory.mktemp("quality") / "ds", 12, 5)
 
 
+@pytest.fixture(scope="module")
+def calibrated(dataset, tmp_path_factory):
+    """A copy of the dataset calibrated by `selfcal calibrate` (status ok): the tests that read or
+    edit a calibration.json copy it."""
+    ds = tmp_path_factory.mktemp("quality-cal") / "cal"
+    shutil.copytree(dataset, ds)
+    assert cli.main(["calibrate", str(ds), "--quiet"]) == 0
+    return ds
+
+
 def swapped(src, dst):
     """A copy of the dataset ``src`` with the left and right cameras' detections swapped."""
     shutil.copytree(src, dst)
@@ -97,6 +107,10 @@ def test_swapped_cameras_fail_naming_the_swap(capsys, dataset, tmp_path):
     v = rep["validation"]["tool_tip_error_mm"]
     assert 20 < v["calibrated"]["rms"] < 60 and v["nominal"]["rms"] < 3  # about one baseline
     assert "worse than the nominal model" in rep["failures"][1]
+    for fmt in ("urdf", "opencv"):  # and it is not exported
+        code, out, err = run(capsys, "export", ds, "--format", fmt, "--out", tmp_path / "x")
+        assert code == 3 and out == "" and "likely swapped" in err
+        assert not (tmp_path / "x").exists()
 
 
 def test_a_model_worse_than_the_nominal_one_fails(dataset):
@@ -163,10 +177,9 @@ def test_the_baseline_direction_is_checked_against_plus_x(t_mm, failed):
     assert np.isnan(baseline_angle_deg(np.eye(4)))  # no baseline: no verdict
 
 
-def test_status_and_failures_must_agree(dataset, tmp_path):
+def test_status_and_failures_must_agree(calibrated, tmp_path):
     ds = tmp_path / "cal"
-    shutil.copytree(dataset, ds)
-    cli.main(["calibrate", str(ds), "--quiet"])
+    shutil.copytree(calibrated, ds)
     doc = json.loads((ds / "calibration.json").read_text())
     assert CalibrationResult.from_json(doc).failures == ()
     with pytest.raises(CalibrationFileError, match="status"):
@@ -183,9 +196,16 @@ def test_status_and_failures_must_agree(dataset, tmp_path):
         evaluate_field(read_calibration(ds), ds, ds)
 
 
-def test_a_failed_calibration_is_not_exported(capsys, dataset, tmp_path):
-    ds = swapped(dataset, tmp_path / "swapped")
-    assert run(capsys, "calibrate", ds, "--quiet")[0] == 3
+def test_a_failed_calibration_is_not_exported(capsys, calibrated, tmp_path):
+    """A calibration.json marked failed with the swap check's own sentence: the swapped dataset's
+    calibration writes it (test_swapped_cameras_fail_naming_the_swap, slow, exports it too)."""
+    ds = tmp_path / "failed"
+    shutil.copytree(calibrated, ds)
+    doc = json.loads((ds / "calibration.json").read_text())
+    why = rig_direction_failure(make_pose(np.eye(3), np.array([-0.06, 0.0, 0.0])))
+    assert why is not None
+    doc.update(status="failed", failures=[why])
+    (ds / "calibration.json").write_text(json.dumps(doc))
     for fmt in ("urdf", "opencv"):
         code, out, err = run(capsys, "export", ds, "--format", fmt, "--out", tmp_path / "x")
         assert code == 3 and out == "" and "likely swapped" in err
