@@ -161,17 +161,23 @@ def test_analytic_path_with_half_pixel_noise(tmp_path):
 # ---------------------------------------------------------------- bad inputs
 
 
-def test_missing_frame_is_named(tmp_path):
-    out = tmp_path / "ds"
+@pytest.fixture(scope="module")
+def small_rendered(tmp_path_factory):
+    """6 rendered postures (3 validation) of the default scenario: each test edits a copy."""
+    out = tmp_path_factory.mktemp("sr") / "ds"
     run_acquire(scenario(trajectory={"poses": 6}, validation={"poses": 3}), out, quiet=True)
+    return out
+
+
+def test_missing_frame_is_named(small_rendered, tmp_path):
+    out = shutil.copytree(small_rendered, tmp_path / "ds")
     (out / "frames" / "0003_left.png").unlink()
     with pytest.raises(DatasetError, match="0003_left.png is missing"):
         calibrate(out)
 
 
-def test_images_without_markers(tmp_path):
-    out = tmp_path / "ds"
-    run_acquire(scenario(trajectory={"poses": 6}, validation={"poses": 3}), out, quiet=True)
+def test_images_without_markers(small_rendered, tmp_path):
+    out = shutil.copytree(small_rendered, tmp_path / "ds")
     import cv2
 
     blank = np.full((480, 640), 128, np.uint8)
