@@ -57,6 +57,26 @@ def golden(request: pytest.FixtureRequest):
     return check
 
 
+@pytest.fixture(scope="session")
+def default_analytic(tmp_path_factory):
+    """The default scenario on the analytic path (0.5 px corner noise, quantised joints) acquired,
+    calibrated and reported once per test process (the golden files', the pipeline's and the
+    compensation's tests each ran this same run): (folder, the calibration result, what
+    ``run_calibrate`` printed on stderr, the report). Read it, never write into the folder."""
+    import contextlib
+    import io
+
+    from selfcal.config.scenario import load_scenario
+    from selfcal.pipeline.run import run_acquire, run_calibrate, run_report
+
+    out = tmp_path_factory.mktemp("default-analytic") / "ds"
+    run_acquire(load_scenario(overrides={"noise": {"render": False}}), out, quiet=True)
+    said = io.StringIO()
+    with contextlib.redirect_stderr(said):
+        result = run_calibrate(out, quiet=False)
+    return out, result, said.getvalue(), run_report(out, quiet=True)
+
+
 def compare_json(expected, actual, *, rtol: float, atol: float, path: str = "") -> list[str]:
     """Differences between two JSON trees: numbers within ``atol + rtol * max(|a|, |b|)``.
 

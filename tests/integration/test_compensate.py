@@ -27,7 +27,7 @@ from selfcal.kinematics.forward import fk_nominal
 from selfcal.kinematics.ik import UnreachableError, ik_nearest
 from selfcal.kinematics.mcpc import nominal_mcpc
 from selfcal.kinematics.tool_pose import tool_pose
-from selfcal.pipeline.run import TABLE_II_MM, run_acquire, run_calibrate, run_report
+from selfcal.pipeline.run import TABLE_II_MM, run_acquire, run_calibrate
 from selfcal.robot.definition import load_robot
 
 ROBOT = load_robot("er4u-paper")
@@ -44,10 +44,10 @@ def _run(tmp_path_factory, name: str, overrides: dict):
 
 
 @pytest.fixture(scope="module")
-def noisy(tmp_path_factory):
-    """The paper's setting with analytic corners (0.5 px noise, quantised joints), ~6 s."""
-    out, cal, truth = _run(tmp_path_factory, "noisy", {"noise": {"render": False}})
-    return out, cal, truth, run_report(out, quiet=True)
+def noisy(default_analytic):
+    """The paper's setting with analytic corners (0.5 px noise, quantised joints)."""
+    out, cal, _, rep = default_analytic
+    return out, cal, read_truth(out / "truth.json"), rep
 
 
 @pytest.fixture(scope="module")

@@ -4,19 +4,14 @@ from __future__ import annotations
 
 import json
 
-from selfcal.config.scenario import load_scenario
 from selfcal.io.calibration import read_calibration
 from selfcal.io.jsonfile import dumps
-from selfcal.pipeline.run import run_acquire, run_calibrate, run_report
 
 
-def test_default_scenario_analytic_matches_golden(tmp_path, golden, capsys):
-    s = load_scenario(overrides={"noise": {"render": False}})
-    run_acquire(s, tmp_path, quiet=True)
-    result = run_calibrate(tmp_path, quiet=False)
+def test_default_scenario_analytic_matches_golden(default_analytic, golden):
+    out, result, said, _ = default_analytic  # acquired, calibrated (not quiet) and reported
     # the line names what the default (one-step) method fits: the 26 MCPC parameters of the
     # 5-joint chain less the 6 of the world frame's gauge (not the two-stage "rank 26/26")
-    said = capsys.readouterr().err
     assert "20 kinematic parameters fitted (6 fixed by the world frame's gauge)" in said, said
     # and both models' prediction of the calibration images, the calibrated and the fair nominal
     assert result.nominal is not None
@@ -24,10 +19,9 @@ def test_default_scenario_analytic_matches_golden(tmp_path, golden, capsys):
     assert (f"(from the joint readings {rms['calibrated']:.3f} px, the fair nominal "
             f"{rms['nominal']:.3f} px)") in said, said  # fmt: skip
     assert rms["calibrated"] < 1.0 < 4.0 < rms["nominal"] < 5.0  # measured 0.698 and 4.377
-    run_report(tmp_path, quiet=True)
-    text = (tmp_path / "calibration.json").read_text()
+    text = (out / "calibration.json").read_text()
     golden("analytic/calibration.json", json.loads(text))
-    golden("analytic/report.json", json.loads((tmp_path / "report.json").read_text()))
+    golden("analytic/report.json", json.loads((out / "report.json").read_text()))
     # the file is the result, and reading it back gives the same text
-    assert text == dumps(result.to_json()) == dumps(read_calibration(tmp_path).to_json())
+    assert text == dumps(result.to_json()) == dumps(read_calibration(out).to_json())
     assert result.dataset.skipped_images == () and result.bounds is not None

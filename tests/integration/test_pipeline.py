@@ -146,12 +146,12 @@ def test_default_scenario_rendered(tmp_path):
     assert 0.75 < b.pixel_sigma_px / rep["effective_corner_noise_px"] < 1.33
 
 
-def test_analytic_path_with_half_pixel_noise(tmp_path):
+def test_analytic_path_with_half_pixel_noise(default_analytic):
     """0.5 px corner noise, the default scenario's seeds: 0.10 mm RMS (15x below nominal; the
     Cramer-Rao bound for these 30 postures is 0.23 mm, so this draw is a lucky one), asserted at
     ~3x; tests/integration/test_joint_refine.py checks the estimator against the bound over
     several draws."""
-    out, rep = run(tmp_path, "analytic", noise={"render": False, "pixel_sigma": 0.5})
+    out, _, _, rep = default_analytic  # the default's noise: {"render": False, "pixel_sigma": 0.5}
     check_accuracy(rep, rms_max=0.3, factor=5.0, fx_rel=2e-4)
     assert 0.45 < rep["effective_corner_noise_px"] < 0.55
     b = read_calibration(out / "calibration.json").bounds
