@@ -185,6 +185,7 @@ def test_uncalibrated_camera_info_is_ignored(lab, tmp_path):
     assert "initial" not in json.loads((tmp_path / "u" / "dataset.json").read_text())["cameras"][0]
 
 
+@pytest.mark.slow  # the lab's 8 images, their board calibration and a bag: over 2 s on 2 cores
 def test_exported_bag_content(lab, tmp_path):
     """Images at their stamps with camera_info, joint_states at the image stamps and a smooth
     100 Hz motion between them, the nominal URDF; nothing of truth."""
@@ -264,8 +265,8 @@ def _edges(msg) -> dict:
     return out
 
 
-def test_cli_refuses_mixed_options(lab, tmp_path, capsys):
-    root, _ = lab
+def test_cli_refuses_mixed_options(tmp_path, capsys):
+    root = tmp_path  # refused from the arguments alone: no dataset is read
     code = main(["export", str(root / "ds"), "--bag", str(tmp_path / "a.bag"), "--out", "x.urdf"])
     assert code == 2 and "give one" in capsys.readouterr().err
     code = main(["export", str(root / "ds"), "--format", "mcap", "--out", str(tmp_path / "x")])
