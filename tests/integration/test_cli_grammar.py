@@ -135,6 +135,7 @@ def test_montecarlo_json_and_where_it_wrote(tmp_path, capsys, monkeypatch):
     assert last.startswith("selfcal: wrote runs/montecarlo/ (") and "summary.json" in last
 
 
+@pytest.mark.slow  # an acquisition, a calibration and a recording: over 2 s on 2 cores
 def test_record_defaults_to_a_file_in_the_dataset(tmp_path, capsys):
     """`selfcal record DIR` without --rrd writes DIR/run.rrd (it used to end in a bare ValueError
     about spawn=True)."""

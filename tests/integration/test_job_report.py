@@ -74,6 +74,8 @@ def test_calibrate_draws_the_reprojection_figure(job):
     assert (out / "figures" / "reprojection.png").is_file()
 
 
+@pytest.mark.slow  # the field evaluated and 3 figures drawn again: over 2 s on 2 cores; the
+# default tier checks the figures' layout on small data (tests/unit/test_figures.py)
 def test_every_main_job_figure_has_labelled_axes_and_a_legend_over_no_data(job):
     out, rep = job
     from selfcal.calibration.field.evaluate import evaluate_field

@@ -52,6 +52,7 @@ def small_run(tmp_path_factory) -> Path:
     return out
 
 
+@pytest.mark.slow  # the recording of 15 rendered postures and `rerun rrd verify`: over 2 s
 def test_record_passes_rrd_verify(small_run, tmp_path):
     exe = _rerun_exe()
     if exe is None:

@@ -217,6 +217,7 @@ def _recording(bag: RawBag, rests, pictures, t0: int) -> None:
     bag.close()
 
 
+@pytest.mark.slow  # three imports of 8 images each: over 2 s on 2 cores
 def test_split_recording_reads_as_one_bag(lab, tmp_path):
     """`rosbag record --split` files (rec_0.bag, rec_1.bag, rec_2.bag; cut in the middle of
     rests and of moves) import as the same dataset as the recording in one file, given as a
