@@ -111,20 +111,24 @@ def test_board_run_records_its_cameras_and_the_board(tmp_path):
     assert any(p.startswith("/world/robot/") for p in paths)
 
 
-def test_record_needs_a_calibration(tmp_path, small_run):
+def test_record_needs_a_calibration(tmp_path):
     from selfcal.io.dataset import DatasetError
 
-    ds = tmp_path / "ds"
-    shutil.copytree(small_run, ds)
-    (ds / "calibration.json").unlink()
+    ds = tmp_path / "ds"  # acquired, not calibrated (analytic: no images needed for the refusal)
+    s = load_scenario(None, {"noise": {"render": False}, "trajectory": {"poses": 6},
+                             "validation": {"poses": 3}})  # fmt: skip
+    run_acquire(s, ds, quiet=True)
     with pytest.raises(DatasetError, match="calibrate"):
         rerun_log.record_run(ds, tmp_path / "x.rrd")
 
 
-def test_record_shows_its_progress_on_a_terminal(small_run, tmp_path, monkeypatch):
-    """`selfcal record` (3.4 s) showed nothing on a terminal until it ended."""
+def test_record_shows_its_progress_on_a_terminal(default_analytic, tmp_path, monkeypatch):
+    """`selfcal record` (3.4 s) showed nothing on a terminal until it ended. (The default
+    scenario's analytic run, shared with other tests: recorded to a file outside its folder.)"""
     import io
     import re
+
+    small_run = default_analytic[0]
 
     class Tty(io.StringIO):
         def isatty(self) -> bool:
