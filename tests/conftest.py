@@ -77,6 +77,22 @@ def default_analytic(tmp_path_factory):
     return out, result, said.getvalue(), run_report(out, quiet=True)
 
 
+@pytest.fixture(scope="session")
+def default_noise_free(tmp_path_factory):
+    """The default scenario without noise (analytic corners, no pixel noise, joints not
+    quantised) acquired, calibrated and reported once per test process (the pipeline's and the
+    joint refinement's noise-free tests each ran this same run): (folder, the calibration
+    result, the report). Copy the folder to change it (`selfcal report` on it writes the same
+    report.json again)."""
+    from selfcal.config.scenario import load_scenario
+    from selfcal.pipeline.run import run_acquire, run_calibrate, run_report
+
+    out = tmp_path_factory.mktemp("default-noise-free") / "ds"
+    noise = {"render": False, "pixel_sigma": 0.0, "quantize_joints": False}
+    run_acquire(load_scenario(overrides={"noise": noise}), out, quiet=True)
+    return out, run_calibrate(out, quiet=True), run_report(out, quiet=True)
+
+
 def compare_json(expected, actual, *, rtol: float, atol: float, path: str = "") -> list[str]:
     """Differences between two JSON trees: numbers within ``atol + rtol * max(|a|, |b|)``.
 

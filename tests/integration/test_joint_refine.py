@@ -25,7 +25,7 @@ from selfcal.io.truth import read_truth
 from selfcal.kinematics.accuracy import aligned_errors, tool_tips
 from selfcal.kinematics.forward import fk_tool
 from selfcal.kinematics.mcpc import MCPCModel, minimal_indices, nominal_mcpc, param_names
-from selfcal.pipeline.run import run_acquire, run_calibrate, run_report
+from selfcal.pipeline.run import run_acquire
 from selfcal.robot.definition import load_robot
 from selfcal.transforms import make_pose, rot_x
 
@@ -76,9 +76,10 @@ def noise_free(tmp_path_factory):
     return _dataset(tmp_path_factory, "nf", {"pixel_sigma": 0.0, "quantize_joints": False})
 
 
-def test_noise_free_recovers_injected_parameters(noise_free):
-    cal = run_calibrate(noise_free, quiet=True)
-    rep = run_report(noise_free, quiet=True)
+def test_noise_free_recovers_injected_parameters(default_noise_free):
+    """The same noise-free scenario as the module's dataset, calibrated and reported once per
+    test process (tests/conftest.py)."""
+    folder, cal, rep = default_noise_free
     assert cal.method == "joint" and set(cal.methods) == {"two-stage", "joint"}
     assert cal.joint is not None and cal.joint.rank == cal.joint.n_unknowns
     # in the estimate's gauge (world = reference camera, known exactly in simulation)
@@ -86,7 +87,7 @@ def test_noise_free_recovers_injected_parameters(noise_free):
         assert abs(p["estimate"] - p["truth"]) < 1e-6, (p["name"], p["estimate"], p["truth"])
     assert rep["validation"]["tool_tip_error_mm"]["calibrated"]["rms"] < 1e-3
     assert abs(cal.intrinsics.fx - 800.0) < 1e-4
-    assert read_calibration(noise_free).method == "joint"
+    assert read_calibration(folder).method == "joint"
 
 
 def test_two_stage_method_and_bad_method(noise_free):

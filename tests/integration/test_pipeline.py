@@ -52,8 +52,10 @@ NOISE_FREE = {"render": False, "pixel_sigma": 0.0, "quantize_joints": False}
 
 
 @pytest.fixture(scope="module")
-def noise_free(tmp_path_factory):
-    return run(tmp_path_factory.mktemp("nf"), "ds", noise=NOISE_FREE)
+def noise_free(default_noise_free):
+    """The default scenario with noise NOISE_FREE, calibrated and reported (tests/conftest.py)."""
+    out, _, rep = default_noise_free
+    return out, rep
 
 
 def test_noise_free_recovers_injected_parameters(noise_free):
