@@ -5,10 +5,15 @@ names.
 
 Tolerances are about 3x the worst of 3000 random cameras (fx 100-2000 px, directions anywhere the
 model projects, 0.01-100 m; the paper's whole range, xi -1 .. 1, alpha 0 .. 1; measured): unit
-ray of unproject(project(X)) 3829 eps (the worst near a fold); within 0.9 of the half angle
-(central differences lose their accuracy where the map turns steep at its edge) point Jacobian
-vs central differences (h = 1e-6 of the distance) 4.0e-9 of the largest entry, parameter
-Jacobian (h = 1e-6 of the value) 2.0e-8 of (largest entry + 1).
+ray of unproject(project(X)) 3829 eps (the worst near a fold). The Jacobians against central
+differences (h = 1e-6 of the distance for the point, of the value for a parameter), within 0.9
+of the half angle (central differences lose their accuracy where the map turns steep at its
+edge) and for xi >= -0.9 (8000 cameras, half of them with xi in -0.9 .. -0.85): point 3.6e-9 of
+the largest entry, parameter 3.6e-9 of (largest entry + 1). Towards xi = -1 the field of view
+closes (a half angle of 2.6 deg at xi = -0.999 with alpha 0 or 1) and the projection's
+derivative by xi grows past 1e8 px: a step of 1e-6 there errs by 1.6e-5 of it (truncation; the
+analytic derivative agrees with steps of 1e-8 to 7e-9), so the finite differences, not the
+model, set the range.
 """
 
 from __future__ import annotations
@@ -71,7 +76,7 @@ def test_unproject_inverts_project_wherever_the_model_projects(cam, seed):
 
 
 @settings(max_examples=60, deadline=None)
-@given(cam=cameras(), seed=st.integers(0, 2**32 - 1))
+@given(cam=cameras(xi=(-0.9, 1.0)), seed=st.integers(0, 2**32 - 1))
 def test_jacobians_match_central_differences(cam, seed):
     _, X = _points(cam, seed, within=0.9)
     assume(len(X) > 0)  # xi = -1 with alpha = 0 projects no direction
@@ -89,7 +94,7 @@ def test_jacobians_match_central_differences(cam, seed):
         step = hv * np.eye(len(v))[i]
         fd_par[..., i] = (cam.with_values(v + step).project(X)
                           - cam.with_values(v - step).project(X)) / (2 * hv)  # fmt: skip
-    assert np.all(np.abs(fd_par - J_par) <= 6e-8 * (np.abs(J_par).max() + 1))
+    assert np.all(np.abs(fd_par - J_par) <= 1.2e-8 * (np.abs(J_par).max() + 1))
 
 
 def test_the_field_of_view_passes_180_degrees():
