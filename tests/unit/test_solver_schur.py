@@ -179,4 +179,7 @@ def test_the_normal_matrix_assembled_in_schur_form_is_that_of_the_sparse_jacobia
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-13 * np.abs(want).max())
     ratio, rank = scaled_rank_of_normal(schur_normal_matrix(prob, prob.x0, "p"))
     ratio0, rank0 = scaled_rank(prob.jacobian(prob.x0))
-    assert rank == rank0 and abs(ratio - ratio0) <= 1e-9 * ratio0
+    if ratio0 > 1e-7:
+        assert rank == rank0 and abs(ratio - ratio0) <= 1e-9 * ratio0
+    else:  # J^T J squares the ratio: below ~1e-7 it is rounding (25 of 3000 seeds draw such a J)
+        assert ratio <= 1e-7
