@@ -12,10 +12,13 @@ Following Hartley's approach for "an uncalibrated camera with intrinsics of eq. 
 3. :func:`initial_reconstruction` -- essential matrix and relative pose of the best pair,
    two-view triangulation, then incremental registration of every other view (PnP + RANSAC
    against the points triangulated so far), triangulation of new points, and bundle adjustments
-   when the number of registered views doubles (the views registered after the last one are
-   adjusted by the camera stage's adjustment that follows, :mod:`selfcal.calibration.field.adjust`,
-   once the intrinsics have been refined). The result has an arbitrary scale (reference pair
-   baseline = 1) and its world frame is the first view of the reference pair.
+   when the number of registered views doubles, until one has refined the intrinsics; after it,
+   only when points were triangulated or a view failed to register since the last one (views
+   registered against the same adjusted points by PnP, each on its own, carry no error into
+   each other: a marker field is whole after a few views). The views registered after the last adjustment are adjusted by
+   the camera stage's adjustment that follows (:mod:`selfcal.calibration.field.adjust`). The
+   result has an arbitrary scale (reference pair baseline = 1) and its world frame is the first
+   view of the reference pair.
 
 The initialisation is the paper's pinhole by nature (:class:`selfcal.camera.Pinhole`, no lens
 term); models with more parameters start from it. Pixel coordinates follow the OpenCV convention.
@@ -274,7 +277,7 @@ def initial_reconstruction(
     has_X[pts] = True
     active = np.ones(len(obs), bool)
     failed = np.zeros(V, bool)
-    n_ba, next_ba = 0, 4
+    n_ba, next_ba, pts_at_ba = 0, 4, 0  # pts_at_ba: points reconstructed at the last one
 
     def classify(T, X, has_X, camera):
         m = reg[view] & has_X[pidx]
@@ -385,10 +388,14 @@ def initial_reconstruction(
         bad[inl] = False
         active[rows[bad]] = False
         X, has_X, active = triangulate_counted(T, X, has_X, active, camera, counts)
-        if n_reg >= next_ba:
+        # an adjustment when the registered views have doubled, unless the intrinsics have been
+        # refined, no point has been added since the last one and no view failed (the views that
+        # failed are tried again after an adjustment; step 3 of the docstring)
+        if n_reg >= next_ba and (work["thr"] != thr or has_X.sum() > pts_at_ba or failed.any()):
             T, X, camera = run_ba(T, X, has_X, active, camera)
             n_ba += 1
             next_ba = 2 * next_ba
+            pts_at_ba = int(has_X.sum())
             active = classify(T, X, has_X, camera)
             failed[:] = False
             X, has_X, active = triangulate_new(T, X, has_X, active, camera)
