@@ -9,8 +9,9 @@ view (:class:`FreePoses`).
 
 :func:`adjust` runs the sparse bundle adjustment (:func:`selfcal.estimation.bundle_adjust.bundle_adjust`) with a
 soft-L1 loss, re-triangulates every point robustly with the adjusted poses, reclassifies the
-observations (threshold ``max(outlier_px, 4.5 sigma)``) until the classification settles, then
-does a final least-squares pass. Views: :class:`selfcal.estimation.observations.ViewLayout`.
+observations (threshold ``max(outlier_px, 4.5 sigma)``) until a round keeps every row it was
+fitted to, then does a final least-squares pass over the rows the last round keeps. Views:
+:class:`selfcal.estimation.observations.ViewLayout`.
 """
 
 from __future__ import annotations
@@ -333,9 +334,10 @@ def adjust(
         if last:
             return Adjustment(res, a, n_rounds, total_nfev)
         new_active = _retriangulate(rec, obs, res, a, outlier_px, seed + rnd)
-        if np.array_equal(new_active, active):
-            # the round was fitted to the rows it classifies as inliers: another robust round
-            # would solve the same problem again, so the final pass comes next
+        if not np.any(a & ~new_active):
+            # the round keeps every row it was fitted to: another robust round would solve the
+            # same problem again, or one with a few more rows that lie within the threshold of
+            # this fit (rows an earlier step left out), so the final pass comes next, over them
             max_rounds = rnd + 1
         active = new_active
         rnd += 1
