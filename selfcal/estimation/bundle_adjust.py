@@ -54,7 +54,8 @@ class BundleResult(Generic[C]):
     parameters, poses ``T_cam_world`` (V, 4, 4), points ``X`` (P, 3), residuals (k, 2) px of the
     rows passed in, the solver's cost/evaluations/status, the final Jacobian :attr:`jac`
     (columns: the ``n_intrinsics`` free camera parameters unless fixed, then poses, then points;
-    evaluated on first use: most adjustments never ask for it)."""
+    evaluated on first use: most adjustments never ask for it) and the damping the solver ended
+    with (``initial_damping`` of a next adjustment from here; the default for the scipy path)."""
 
     camera: C
     pose_params: np.ndarray
@@ -67,6 +68,7 @@ class BundleResult(Generic[C]):
     message: str
     jacobian: Callable[[], sp.csr_matrix] | None = field(default=None, repr=False)
     n_intrinsics: int = 0
+    damping: float = SolverOptions.initial_damping
 
     @functools.cached_property
     def jac(self) -> sp.csr_matrix | None:
@@ -165,6 +167,7 @@ def bundle_adjust(
     max_nfev: int = 100,
     tol: float = 1e-12,
     solver: str = "lm",
+    initial_damping: float = SolverOptions.initial_damping,
 ) -> BundleResult[C]:
     """Sparse bundle adjustment of ``camera``'s free parameters (unless ``fix_intrinsics``), the
     pose-model parameters (start ``p0``) and the points ``X`` (P, 3) m (start ``X0``; held at
@@ -175,7 +178,8 @@ def bundle_adjust(
     the analytic Jacobian, at most ``max_nfev`` trials, robust ``loss`` (linear, soft_l1, huber,
     cauchy; scale ``f_scale_px``) on each observation's 2-D residual norm; the pose parameters are
     eliminated by a Schur complement in large problems when the pose model labels them per view
-    (``param_instances``). ``solver="scipy"``: :func:`scipy.optimize.least_squares` (trf + lsmr,
+    (``param_instances``); ``initial_damping``: its first damping (a previous adjustment's
+    :attr:`BundleResult.damping` starts a nearby problem warm). ``solver="scipy"``: :func:`scipy.optimize.least_squares` (trf + lsmr,
     loss per coordinate), with the analytic Jacobian or -- when ``model.view_jacobian`` returns None
     -- finite differences restricted by ``jac_sparsity``.
 
@@ -212,10 +216,11 @@ def bundle_adjust(
             max_iterations=max_nfev,
             max_evaluations=max_nfev,
             eliminate="poses" if has_instances else None,
+            initial_damping=initial_damping,
         )
         res = solve(prob.problem, opt)
         x, r, cost, nfev = res.x, res.residuals[prob.block.name], res.cost, res.nfev
-        status, message = res.status, res.message
+        status, message, damping = res.status, res.message, res.damping
     else:
         # optional heavy import (0.15 s): only the scipy path and pose models without Jacobian
         from scipy.optimize import least_squares
@@ -242,10 +247,13 @@ def bundle_adjust(
         )
         x, r, cost, nfev = ls.x, ls.fun.reshape(-1, 2), float(ls.cost), int(ls.nfev)
         status, message = int(ls.status), str(ls.message)
+        damping = SolverOptions.initial_damping
     cam, p, X = prob.unpack(x)
     T = model.poses(p)
     J = functools.partial(prob.jac, x.copy()) if use_analytic else None
-    return BundleResult(cam, p.copy(), T, X.copy(), r, cost, nfev, status, message, J, prob.ni)
+    return BundleResult(
+        cam, p.copy(), T, X.copy(), r, cost, nfev, status, message, J, prob.ni, damping
+    )
 
 
 def intrinsics_covariance(

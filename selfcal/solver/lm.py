@@ -71,7 +71,9 @@ class SolverResult:
     """Outcome of :func:`solve`. ``x``: unknowns; ``values``: block name -> full flat array;
     ``residuals``: residual block name -> (k, d) at ``x``; ``cost`` ``1/2 sum rho``; ``iterations``
     (Jacobian evaluations), ``nfev`` (residual evaluations incl. the start), ``trials`` (budget
-    used); ``status`` 0 budget, 1 gradient, 2 cost/step, 3 damping saturated; ``message``."""
+    used); ``status`` 0 budget, 1 gradient, 2 cost/step, 3 damping saturated; ``message``;
+    ``damping``: the damping ``lam`` the loop ended with (a warm start,
+    ``SolverOptions.initial_damping``, for the next solve of a nearby problem)."""
 
     x: np.ndarray
     values: dict[str, np.ndarray]
@@ -83,6 +85,7 @@ class SolverResult:
     status: int
     message: str
     linear_solver: str
+    damping: float = 1e-4
 
     @property
     def converged(self) -> bool:
@@ -257,4 +260,5 @@ def solve(problem: Problem, options: SolverOptions | None = None) -> SolverResul
         status=status,
         message=message,
         linear_solver=kind,
+        damping=float(lam),
     )
