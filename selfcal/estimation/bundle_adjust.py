@@ -34,6 +34,7 @@ from selfcal.solver import (
     Problem,
     ResidualBlock,
     SolverOptions,
+    covariance,
     inverse_block,
     solve,
 )
@@ -55,7 +56,9 @@ class BundleResult(Generic[C]):
     rows passed in, the solver's cost/evaluations/status, the final Jacobian :attr:`jac`
     (columns: the ``n_intrinsics`` free camera parameters unless fixed, then poses, then points;
     evaluated on first use: most adjustments never ask for it) and the damping the solver ended
-    with (``initial_damping`` of a next adjustment from here; the default for the scipy path)."""
+    with (``initial_damping`` of a next adjustment from here; the default for the scipy path);
+    :meth:`intrinsics_covariance` the camera's covariance (``unit_covariance``: its ``(J^T J)^-1``
+    block by the solver's Schur form, when the solver eliminated the poses; ``n_unknowns``)."""
 
     camera: C
     pose_params: np.ndarray
@@ -69,11 +72,26 @@ class BundleResult(Generic[C]):
     jacobian: Callable[[], sp.csr_matrix] | None = field(default=None, repr=False)
     n_intrinsics: int = 0
     damping: float = SolverOptions.initial_damping
+    unit_covariance: Callable[[], np.ndarray] | None = field(default=None, repr=False)
+    n_unknowns: int = 0
 
     @functools.cached_property
     def jac(self) -> sp.csr_matrix | None:
         """The final sparse Jacobian (rows: residuals raveled), None without an analytic one."""
         return None if self.jacobian is None else self.jacobian()
+
+    def intrinsics_covariance(self) -> tuple[np.ndarray, np.ndarray]:
+        """:func:`intrinsics_covariance` of the final Jacobian, ``(cov, cov_unit)``: where the
+        solver eliminated the poses, from the Schur complement of the poses in ``J^T J`` (the
+        camera's parameters and the points; :func:`selfcal.solver.covariance`), without the
+        sparse Jacobian and a factorisation of every unknown."""
+        if self.unit_covariance is None:
+            assert self.jac is not None, "no analytic Jacobian: no covariance"
+            return intrinsics_covariance(self.jac, self.residuals, self.n_intrinsics)
+        dof = max(self.residuals.size - self.n_unknowns, 1)
+        sigma2 = float(np.sum(np.asarray(self.residuals) ** 2) / dof)
+        cov_unit = self.unit_covariance()
+        return sigma2 * cov_unit, cov_unit
 
 
 class _Problem(Generic[C]):
@@ -221,6 +239,10 @@ def bundle_adjust(
         res = solve(prob.problem, opt)
         x, r, cost, nfev = res.x, res.residuals[prob.block.name], res.cost, res.nfev
         status, message, damping = res.status, res.message, res.damping
+        cov = None
+        if has_instances and prob.ni:  # the camera's covariance by the solver's Schur form
+            cov = functools.partial(covariance, prob.problem, res.x.copy(), ["intrinsics"],
+                                    eliminate="poses")  # fmt: skip
     else:
         # optional heavy import (0.15 s): only the scipy path and pose models without Jacobian
         from scipy.optimize import least_squares
@@ -247,13 +269,12 @@ def bundle_adjust(
         )
         x, r, cost, nfev = ls.x, ls.fun.reshape(-1, 2), float(ls.cost), int(ls.nfev)
         status, message = int(ls.status), str(ls.message)
-        damping = SolverOptions.initial_damping
+        damping, cov = SolverOptions.initial_damping, None
     cam, p, X = prob.unpack(x)
     T = model.poses(p)
     J = functools.partial(prob.jac, x.copy()) if use_analytic else None
-    return BundleResult(
-        cam, p.copy(), T, X.copy(), r, cost, nfev, status, message, J, prob.ni, damping
-    )
+    return BundleResult(cam, p.copy(), T, X.copy(), r, cost, nfev, status, message, J, prob.ni,
+                        damping=damping, unit_covariance=cov, n_unknowns=prob.n)  # fmt: skip
 
 
 def intrinsics_covariance(

@@ -51,7 +51,6 @@ from selfcal.calibration.field.initialise import InitialReconstruction, initiali
 from selfcal.camera import CameraSet, LensCamera, Pinhole, PinholeValues, first_camera, with_pinhole
 from selfcal.camera.camera_set import free_std, unproject_views
 from selfcal.errors import InputError, UsageTypeError
-from selfcal.estimation.bundle_adjust import intrinsics_covariance
 from selfcal.estimation.observations import Observations
 from selfcal.estimation.scale_sign import (
     SignChoice,
@@ -393,7 +392,7 @@ def _check_fit(
             "the adjusted reconstruction has points behind the cameras (cheirality violated); "
             "the initialisation converged to a wrong solution -- check the data"
         )
-    cov, cov_unit = intrinsics_covariance(res.jac, res.residuals, res.n_intrinsics)
+    cov, cov_unit = res.intrinsics_covariance()
     i_fx = first_camera(rec.camera).free.index("fx")  # the first camera's block comes first
     fx_rel_unit = float(np.sqrt(max(cov_unit[i_fx, i_fx], 0.0)) / first_camera(rec.camera).fx)  # type: ignore[attr-defined]
     diag["fx_rel_std_per_px"] = fx_rel_unit
