@@ -15,6 +15,7 @@ from selfcal.solver.covariance import (
     scaled_rank,
     scaled_rank_of_normal,
     schur_normal_matrix,
+    schur_scaled_rank,
 )
 from selfcal.solver.linear import DENSE_MAX
 from selfcal.solver.lm import SolverOptions, SolverResult, cost_and_weights, solve
@@ -38,5 +39,6 @@ __all__ = [
     "scaled_rank",
     "scaled_rank_of_normal",
     "schur_normal_matrix",
+    "schur_scaled_rank",
     "solve",
 ]

@@ -11,8 +11,9 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
+import scipy.linalg
 import scipy.sparse as sp
-from scipy.sparse.linalg import ArpackError, eigsh, splu
+from scipy.sparse.linalg import ArpackError, LinearOperator, eigsh, splu
 
 from selfcal.solver.linear import DENSE_MAX
 from selfcal.solver.problem import Problem
@@ -23,6 +24,7 @@ __all__ = [
     "covariance",
     "scaled_rank",
     "scaled_rank_of_normal",
+    "schur_scaled_rank",
     "normal_matrix",
     "schur_normal_matrix",
 ]
@@ -110,11 +112,22 @@ def schur_normal_matrix(problem: Problem, x: np.ndarray, eliminate: str) -> sp.c
     """``J^T J`` (unweighted, CSC) at ``x`` assembled as the solver assembles its Schur form
     (block ``eliminate``'s instances eliminated): the same matrix as :func:`normal_matrix` of
     :meth:`Problem.jacobian` (to rounding) without the sparse Jacobian of every row."""
+    U, W, V, elim, kept = _schur_parts(problem, x, eliminate)
+    return _normal_of_parts(U, W, V, elim, kept, problem.n)
+
+
+def _schur_parts(problem: Problem, x: np.ndarray, eliminate: str) -> tuple[np.ndarray, ...]:
+    """``(U, W, V, elim, kept)`` of the unweighted ``J^T J`` at ``x`` in the solver's Schur form
+    (:class:`selfcal.solver.linear.NormalEquations`)."""
     inst = problem.instance_of_columns(eliminate)
     evals = problem.evaluate(x, jacobian=True)
     asm = SchurAssembler(problem, inst)
     _, U, W, V = asm.assemble(evals, [np.ones(len(ev.residuals)) for ev in evals])
-    elim, kept = asm.layout.elim, asm.layout.kept
+    return U, W, V, asm.layout.elim, asm.layout.kept
+
+
+def _normal_of_parts(U, W, V, elim, kept, n: int) -> sp.csc_matrix:
+    """The sparse ``J^T J`` (n, n) of Schur parts."""
     ia, a, b = np.nonzero((elim >= 0)[:, :, None] & (elim >= 0)[:, None, :])
     iw, aw = np.nonzero(elim >= 0)
     nk = len(kept)
@@ -123,7 +136,6 @@ def schur_normal_matrix(problem: Problem, x: np.ndarray, eliminate: str) -> sp.c
     cols = [elim[ia, b], np.tile(kept, len(iw)), np.repeat(elim[iw, aw], nk), np.tile(kept, nk)]
     Wv = W[iw, aw].ravel()
     vals = [U[ia, a, b], Wv, Wv, V.ravel()]
-    n = problem.n
     return sp.csc_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
                          shape=(n, n))  # fmt: skip
 
@@ -141,19 +153,13 @@ def _kept_inverse(
     asm = SchurAssembler(problem, inst)
     _, U, W, V = asm.assemble(evals, [np.ones(len(ev.residuals)) for ev in evals])
     lay = asm.layout
-    e = lay.elim >= 0
-    dU = np.sqrt(np.where(e, np.maximum(np.einsum("iaa->ia", U), 1e-300), 1.0))
-    dV = np.sqrt(np.maximum(np.diag(V), 1e-300))
-    Us = U / dU[:, :, None] / dU[:, None, :]
-    i, a = np.nonzero(~e)
-    Us[i, a, a] = 1.0  # an instance's unused slot: decoupled
-    Ws = W / dU[:, :, None] / dV[None, None, :]
+    Us, Ws, Vs, dV = _unit_diagonal(U, W, V, lay.elim >= 0)
     try:
         Li = np.linalg.inv(np.linalg.cholesky(Us))
     except np.linalg.LinAlgError:
         return None
     Y = np.matmul(Li, Ws).reshape(-1, lay.nk)
-    S = V / dV[:, None] / dV[None, :] - Y.T @ Y
+    S = Vs - Y.T @ Y
     k = lay.kid[cols]
     rhs = np.zeros((lay.nk, len(k)))
     rhs[k, np.arange(len(k))] = 1.0
@@ -169,6 +175,73 @@ def scaled_rank(J: sp.spmatrix | np.ndarray, rtol: float = 1e-9) -> tuple[float,
     bundle adjustment) the smallest, and all densely only when that one is below the rank
     threshold (a rank-deficient problem, which the callers refuse)."""
     return scaled_rank_of_normal(normal_matrix(J), rtol)
+
+
+def _unit_diagonal(U, W, V, e: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The Schur parts of ``J^T J`` scaled to a unit diagonal (as :func:`inverse_block` scales
+    it; ``e`` (I, s) the instances' used slots, an unused one decoupled) and the kept unknowns'
+    scales: ``(Us, Ws, Vs, dV)``."""
+    dU = np.sqrt(np.where(e, np.maximum(np.einsum("iaa->ia", U), 1e-300), 1.0))
+    dV = np.sqrt(np.maximum(np.diag(V), 1e-300))
+    Us = U / dU[:, :, None] / dU[:, None, :]
+    i, a = np.nonzero(~e)
+    Us[i, a, a] = 1.0  # an instance's unused slot: decoupled
+    Ws = W / dU[:, :, None] / dV[None, None, :]
+    return Us, Ws, V / dV[:, None] / dV[None, :], dV
+
+
+def schur_scaled_rank(
+    problem: Problem, x: np.ndarray, eliminate: str, rtol: float = 1e-9
+) -> tuple[float, int]:
+    """:func:`scaled_rank_of_normal` of :func:`schur_normal_matrix` ``(problem, x, eliminate)``;
+    above :data:`selfcal.solver.linear.DENSE_MAX` unknowns without forming it: Lanczos on the
+    Schur parts (products per instance), the smallest eigenvalue by shift-invert through the
+    Schur complement of the instances (a dense factorisation of the kept unknowns) instead of a
+    sparse factorisation of every unknown. The same numbers to rounding; a matrix that is not
+    positive definite (rank deficient) goes to :func:`scaled_rank_of_normal`."""
+    U, W, V, elim, kept = _schur_parts(problem, x, eliminate)
+    n, e = problem.n, elim >= 0
+    if n <= DENSE_MAX or not e.any():
+        return scaled_rank_of_normal(_normal_of_parts(U, W, V, elim, kept, n), rtol)
+    ni, s, nk = W.shape
+    safe = np.maximum(elim, 0)
+    Us, Ws, Vs, _ = _unit_diagonal(U, W, V, e)
+
+    def place(ye: np.ndarray, yk: np.ndarray) -> np.ndarray:
+        y = np.empty(n)
+        y[elim[e]] = ye[e]
+        y[kept] = yk
+        return y
+
+    def matvec(v: np.ndarray) -> np.ndarray:
+        v = np.ravel(v)
+        ve, vk = np.where(e, v[safe], 0.0), v[kept]
+        ye = np.einsum("iab,ib->ia", Us, ve) + np.einsum("iab,b->ia", Ws, vk)
+        return place(ye, np.einsum("iab,ia->b", Ws, ve) + Vs @ vk)
+
+    try:
+        Li = np.linalg.inv(np.linalg.cholesky(Us))
+        Y = np.matmul(Li, Ws).reshape(ni * s, nk)
+        cS = scipy.linalg.cho_factor(Vs - Y.T @ Y)
+    except (np.linalg.LinAlgError, scipy.linalg.LinAlgError):
+        return scaled_rank_of_normal(_normal_of_parts(U, W, V, elim, kept, n), rtol)
+
+    def solve(b: np.ndarray) -> np.ndarray:
+        b = np.ravel(b)
+        lb = np.einsum("iab,ib->ia", Li, np.where(e, b[safe], 0.0)).ravel()
+        yk = scipy.linalg.cho_solve(cS, b[kept] - Y.T @ lb)
+        return place(np.einsum("iba,ib->ia", Li, (lb - Y @ yk).reshape(ni, s)), yk)
+
+    M = LinearOperator((n, n), matvec=matvec, dtype=float)
+    try:
+        top = eigsh(M, k=1, which="LA", return_eigenvectors=False)[0]
+        low = eigsh(M, k=1, sigma=0.0, which="LM", return_eigenvectors=False,
+                    OPinv=LinearOperator((n, n), matvec=solve, dtype=float))[0]  # fmt: skip
+    except (RuntimeError, ArpackError):
+        top = low = 0.0
+    if top > 0 and low > (rtol**2) * top:
+        return float(np.sqrt(low / top)), n
+    return scaled_rank_of_normal(_normal_of_parts(U, W, V, elim, kept, n), rtol)
 
 
 def scaled_rank_of_normal(JtJ: sp.spmatrix, rtol: float = 1e-9) -> tuple[float, int]:

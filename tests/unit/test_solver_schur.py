@@ -183,3 +183,24 @@ def test_the_normal_matrix_assembled_in_schur_form_is_that_of_the_sparse_jacobia
         assert rank == rank0 and abs(ratio - ratio0) <= 1e-9 * ratio0
     else:  # J^T J squares the ratio: below ~1e-7 it is rounding (25 of 3000 seeds draw such a J)
         assert ratio <= 1e-7
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2, 3])
+def test_the_scaled_rank_by_lanczos_on_the_schur_parts_is_that_of_the_normal_matrix(
+    seed, monkeypatch
+):
+    """schur_scaled_rank above DENSE_MAX unknowns (lowered here to this small problem's size):
+    Lanczos on the Schur parts, the shift-invert through the Schur complement, gives the ratio
+    and rank of the dense eigenvalues of the whole normal matrix."""
+    import importlib
+
+    from selfcal.solver import scaled_rank, schur_scaled_rank
+
+    cov = importlib.import_module("selfcal.solver.covariance")  # the module, not the function
+
+    rng = np.random.default_rng(seed)
+    prob = _problem(rng)
+    ratio0, rank0 = scaled_rank(prob.jacobian(prob.x0))  # dense: every eigenvalue
+    monkeypatch.setattr(cov, "DENSE_MAX", 5)
+    ratio, rank = schur_scaled_rank(prob, prob.x0, "p")
+    assert rank == rank0 == prob.n and abs(ratio - ratio0) <= 1e-9 * ratio0

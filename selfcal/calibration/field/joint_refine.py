@@ -81,8 +81,7 @@ from selfcal.solver import (
     SolverOptions,
     covariance,
     scaled_rank,
-    scaled_rank_of_normal,
-    schur_normal_matrix,
+    schur_scaled_rank,
     solve,
 )
 from selfcal.target import marker_features
@@ -327,7 +326,7 @@ def joint_refine(
             rank_info = (float("nan"), -1)
         if rank_info is None and use_dq:  # J^T J as the solver assembles it (no sparse J)
             x_0 = prob.problem.x0
-            rank_info = scaled_rank_of_normal(schur_normal_matrix(prob.problem, x_0, "poses"))
+            rank_info = schur_scaled_rank(prob.problem, x_0, "poses")
         if rank_info is None:
             rank_info = scaled_rank(prob.jac(prob.problem.x0))
             if rank_info[1] < prob.n:
