@@ -48,7 +48,13 @@ from selfcal.estimation.residuals import joint_prior, scale_block
 from selfcal.kinematics.alignment import express_in_frame, minimal_difference
 from selfcal.kinematics.forward import fk_tool, identification_jacobian
 from selfcal.kinematics.mcpc import MCPCModel, minimal_indices, param_names
-from selfcal.solver import ResidualBlock, inverse_block, scaled_rank
+from selfcal.solver import (
+    ResidualBlock,
+    covariance,
+    inverse_block,
+    scaled_rank,
+    schur_scaled_rank,
+)
 from selfcal.transforms import inv_pose, skew
 
 __all__ = [
@@ -132,6 +138,22 @@ class _Layout:
     dq_ref_cols: np.ndarray  # columns of the reference configuration's read-back errors (or [])
 
 
+class _ReferenceKept(KinematicPoses):
+    """:class:`KinematicPoses` whose reference configuration's read-back errors are not
+    eliminated with their configuration but kept with the shared unknowns: the bounds need
+    their covariance, which :func:`selfcal.solver.covariance` gives for kept unknowns."""
+
+    def __init__(self, *args, ref_config: int, **kw) -> None:
+        super().__init__(*args, **kw)
+        self.ref_config = ref_config
+
+    def param_instances(self) -> np.ndarray:
+        inst = super().param_instances()
+        n = self.model.n
+        inst[self.dq_cols[n * self.ref_config : n * (self.ref_config + 1)]] = -1
+        return inst
+
+
 def _layout(s: FisherSetup) -> _Layout:
     idx = minimal_indices(s.model.joint_types)
     names = tuple(param_names(idx))
@@ -144,9 +166,10 @@ def _layout(s: FisherSetup) -> _Layout:
     free = np.array([nm not in held for nm in names])
     free_idx = idx[free]
     use_dq = s.joint_sigma is not None
-    pm = KinematicPoses(
-        s.model, s.q, free_idx, inv_pose(s.T_first_cam[1:]), joint_corrections=use_dq
-    )
+    pm = _ReferenceKept(
+        s.model, s.q, free_idx, inv_pose(s.T_first_cam[1:]), joint_corrections=use_dq,
+        ref_config=s.ref_config,
+    )  # fmt: skip
     nc = s.camera.n_free
     kin_cols = np.arange(nc + pm.k)
     n = s.model.n
@@ -157,7 +180,14 @@ def _layout(s: FisherSetup) -> _Layout:
 def fisher_jacobian(s: FisherSetup) -> tuple:
     """The whitened Jacobian ``J`` (sparse, rows / sigma) with Fisher information ``J^T J``, the
     unknowns ``x = [camera's free parameters, rho_free, rig (6 per further camera), dq (n per
-    configuration), X (3 P)]`` and the layout (for :func:`cramer_rao`). Returns ``(J, layout)``."""
+    configuration), X (3 P)]`` and the layout. Returns ``(J, layout)``."""
+    prob, x, lay = _fisher_problem(s)
+    return (prob.jac(x) / s.pixel_sigma_px).tocsr(), lay
+
+
+def _fisher_problem(s: FisherSetup) -> tuple[_AdjustmentProblem, np.ndarray, _Layout]:
+    """The joint model's problem of the setup (residuals in px against zero observations: only
+    its Jacobian is used), its unknowns ``x`` at the setup's values and the layout."""
     q = np.atleast_2d(np.asarray(s.q, dtype=float))
     if q.shape[1] != s.model.n:
         raise BoundsError(f"q must have shape (m, {s.model.n}), got {q.shape}")
@@ -188,8 +218,7 @@ def fisher_jacobian(s: FisherSetup) -> tuple:
         extra=extra,
     )
     x = np.concatenate([s.camera.free_values(), pm.initial_params(), X.ravel()])
-    J = prob.jac(x) / s.pixel_sigma_px
-    return J.tocsr(), lay
+    return prob, x, lay
 
 
 def aligned_rms_from_covariance(points_m: np.ndarray, S: np.ndarray) -> float:
@@ -302,18 +331,29 @@ def cramer_rao(s: FisherSetup, *, rank_tol: float = 1e-10) -> CramerRao:
             data in this gauge: too few configurations, a joint that never moves, points seen
             once, no scale markers).
     """
-    J, lay = fisher_jacobian(s)
-    # the scaled eigenvalue ratio of J^T J (dense up to DENSE_MAX unknowns, Lanczos above)
-    ratio, rank = scaled_rank(J, rtol=float(np.sqrt(rank_tol)))
+    prob, x, lay = _fisher_problem(s)
+    n_unknowns, rtol = prob.n, float(np.sqrt(rank_tol))
+    # the scaled eigenvalue ratio of J^T J (dense up to DENSE_MAX unknowns, Lanczos above; with
+    # read-back errors on the Schur parts, as the solver eliminates them per configuration)
+    if s.joint_sigma is not None:
+        ratio, rank = schur_scaled_rank(prob.problem, x, "poses", rtol=rtol)
+    else:
+        J = prob.jac(x) / s.pixel_sigma_px
+        ratio, rank = scaled_rank(J, rtol=rtol)
     if ratio**2 <= rank_tol:
         raise BoundsError(
             f"the Fisher information is singular (scaled eigenvalue ratio {ratio**2:.2e}, "
-            f"{J.shape[1] - rank} direction(s)): these data do not determine every unknown -- "
+            f"{n_unknowns - rank} direction(s)): these data do not determine every unknown -- "
             "check that every joint moves, that points are seen in two views and that the scale "
             "markers are seen"
         )
-    cols = np.r_[lay.kin_cols, lay.dq_ref_cols]
-    C = inverse_block(J, cols)
+    if s.joint_sigma is not None:  # the Schur complement of the other configurations' dq
+        pm, n = lay.pose_model, s.model.n
+        sel = np.r_[np.arange(pm.k), pm.dq_cols[n * s.ref_config : n * (s.ref_config + 1)]]
+        C = covariance(prob.problem, x, ["intrinsics", ("poses", sel)],
+                       sigma2=s.pixel_sigma_px**2, eliminate="poses")  # fmt: skip
+    else:
+        C = inverse_block(J, np.r_[lay.kin_cols, lay.dq_ref_cols])
     nk, nc = len(lay.kin_cols), lay.n_camera
     camera_std, cameras_std = free_std(s.camera, C[:nc, :nc])
     cov_free = C[nc:nk, nc:nk]
@@ -362,5 +402,5 @@ def cramer_rao(s: FisherSetup, *, rank_tol: float = 1e-10) -> CramerRao:
         cameras_std=cameras_std,
         pixel_sigma_px=float(s.pixel_sigma_px),
         n_observations=int(len(s.view)),
-        n_unknowns=int(J.shape[1]),
+        n_unknowns=int(n_unknowns),
     )
