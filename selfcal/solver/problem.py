@@ -33,7 +33,12 @@ __all__ = [
     "Evaluation",
     "ResidualBlock",
     "Problem",
+    "JACOBIAN_CHUNK",
 ]
+
+JACOBIAN_CHUNK = 8192
+"""Residual rows of a block per chunk of :meth:`Problem.sparse_jacobian` (bounds the memory of
+its triplets; the matrix does not depend on it)."""
 
 
 @dataclass(frozen=True)
@@ -187,8 +192,12 @@ class Problem:
 
     def global_cols(self, piece: JacobianPiece) -> np.ndarray:
         """(k, c) indices into ``x`` of a piece's columns (``-1``: ignored or held)."""
+        return self._global_cols(piece, slice(None))
+
+    def _global_cols(self, piece: JacobianPiece, rows: slice) -> np.ndarray:
+        """:meth:`global_cols` of the residual rows ``rows`` only."""
         cm = self.colmap[piece.block]
-        cols = np.broadcast_to(np.asarray(piece.cols, dtype=np.int64), piece.J.shape[::2])
+        cols = np.broadcast_to(np.asarray(piece.cols, dtype=np.int64), piece.J.shape[::2])[rows]
         return np.where(cols >= 0, cm[np.maximum(cols, 0)], -1)
 
     # --------------------------------------------------------------- evaluation
@@ -244,20 +253,32 @@ class Problem:
 
     def sparse_jacobian(self, evals: Sequence[Evaluation], pattern: bool = False) -> sp.csr_matrix:
         """Unweighted sparse Jacobian (rows, n) from evaluations with pieces (ones if
-        ``pattern``)."""
-        rows, cols, data = [], [], []
-        row0 = 0
+        ``pattern``). Built in chunks of at most :data:`JACOBIAN_CHUNK` residual rows of a block
+        (each chunk's triplets to CSR, the chunks stacked): the same matrix as from all
+        triplets at once, without the triplets of every row in memory."""
+        parts: list[sp.csr_matrix] = []
         for ev in evals:
             k, d = ev.residuals.shape
-            for pc in ev.pieces:
-                g = self.global_cols(pc)
-                rr = row0 + d * np.arange(k)[:, None, None] + np.arange(d)[None, :, None]
-                rr = np.broadcast_to(rr, pc.J.shape)
-                cc = np.broadcast_to(g[:, None, :], pc.J.shape)
-                m = cc >= 0
-                rows.append(rr[m])
-                cols.append(cc[m])
-                data.append(np.ones(int(m.sum())) if pattern else pc.J[m])
-            row0 += k * d
+            for a in range(0, k, JACOBIAN_CHUNK):
+                sl = slice(a, min(a + JACOBIAN_CHUNK, k))
+                parts.append(self._jacobian_rows(ev, sl, d, pattern))
+        if not parts:
+            return sp.csr_matrix((0, self.n))
+        return parts[0] if len(parts) == 1 else sp.vstack(parts, format="csr")
+
+    def _jacobian_rows(self, ev: Evaluation, sl: slice, d: int, pattern: bool) -> sp.csr_matrix:
+        """The CSR rows of residual rows ``sl`` of one evaluation (``d`` coordinates each)."""
+        k = sl.stop - sl.start
+        rows, cols, data = [], [], []
+        for pc in ev.pieces:
+            J = pc.J[sl]
+            g = self._global_cols(pc, sl)
+            rr = d * np.arange(k)[:, None, None] + np.arange(d)[None, :, None]
+            rr = np.broadcast_to(rr, J.shape)
+            cc = np.broadcast_to(g[:, None, :], J.shape)
+            m = cc >= 0
+            rows.append(rr[m])
+            cols.append(cc[m])
+            data.append(np.ones(int(m.sum())) if pattern else J[m])
         cat = (lambda a: np.concatenate(a)) if rows else (lambda a: np.zeros(0))
-        return sp.csr_matrix((cat(data), (cat(rows), cat(cols))), shape=(row0, self.n))
+        return sp.csr_matrix((cat(data), (cat(rows), cat(cols))), shape=(k * d, self.n))
