@@ -126,18 +126,48 @@ def _schur_parts(problem: Problem, x: np.ndarray, eliminate: str) -> tuple[np.nd
     return U, W, V, asm.layout.elim, asm.layout.kept
 
 
-def _normal_of_parts(U, W, V, elim, kept, n: int) -> sp.csc_matrix:
-    """The sparse ``J^T J`` (n, n) of Schur parts."""
-    ia, a, b = np.nonzero((elim >= 0)[:, :, None] & (elim >= 0)[:, None, :])
-    iw, aw = np.nonzero(elim >= 0)
-    nk = len(kept)
-    rows = [elim[ia, a], np.repeat(elim[iw, aw], nk), np.tile(kept, len(iw)),
-            np.repeat(kept, nk)]  # fmt: skip
-    cols = [elim[ia, b], np.tile(kept, len(iw)), np.repeat(elim[iw, aw], nk), np.tile(kept, nk)]
-    Wv = W[iw, aw].ravel()
-    vals = [U[ia, a, b], Wv, Wv, V.ravel()]
-    return sp.csc_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                         shape=(n, n))  # fmt: skip
+_MATRIX_CHUNK = 1 << 20  # entries per column chunk of _normal_of_parts
+
+
+def _normal_of_parts(
+    U: np.ndarray, W: np.ndarray, V: np.ndarray, elim: np.ndarray, kept: np.ndarray, n: int
+) -> sp.csc_matrix:
+    """The (n, n) CSC matrix ``[[U, W], [W^T, V]]`` of the Schur form's parts (``U`` (I, s, s),
+    ``W`` (I, s, nk), ``V`` (nk, nk), ``elim`` (I, s) the unknown of each instance slot, ``-1``
+    padding, ``kept`` (nk,)), every entry of the parts stored (zeros too), indices sorted.
+    Built in chunks of columns of at most about :data:`_MATRIX_CHUNK` entries (each chunk's
+    triplets to CSC, the chunks side by side): the same matrix as from all triplets at once,
+    without the triplets of the coupling ``W`` (dense in the kept unknowns) in memory."""
+    e = elim >= 0
+    ia, a, b = np.nonzero(e[:, :, None] & e[:, None, :])
+    u_row, u_col, u_val = elim[ia, a], elim[ia, b], U[ia, a, b]
+    iw, aw = np.nonzero(e)
+    e_unk = elim[iw, aw]  # the eliminated unknowns, rows of W (ne,)
+    nk, ne = len(kept), len(e_unk)
+    count = np.zeros(n, np.int64)  # entries of each column
+    np.add.at(count, u_col, 1)
+    count[e_unk] += nk
+    count[kept] += ne + nk
+    cum = np.cumsum(count)
+    cuts = np.searchsorted(cum, np.arange(_MATRIX_CHUNK, cum[-1] if n else 0, _MATRIX_CHUNK))
+    cuts = np.unique(np.r_[0, cuts, n])
+    parts = []
+    for c0, c1 in zip(cuts[:-1], cuts[1:]):
+        su = np.flatnonzero((u_col >= c0) & (u_col < c1))
+        se = np.flatnonzero((e_unk >= c0) & (e_unk < c1))  # W^T: kept rows, these columns
+        sk = np.flatnonzero((kept >= c0) & (kept < c1))  # W and V: these kept columns
+        rows = [u_row[su], np.tile(kept, len(se)), np.tile(e_unk, len(sk)),
+                np.tile(kept, len(sk))]  # fmt: skip
+        cols = [u_col[su], np.repeat(e_unk[se], nk), np.repeat(kept[sk], ne),
+                np.repeat(kept[sk], nk)]  # fmt: skip
+        vals = [u_val[su], W[iw[se], aw[se]].ravel(), W[iw[None, :], aw[None, :], sk[:, None]].ravel(),
+                V[:, sk].T.ravel()]  # fmt: skip
+        cc = np.concatenate(cols) - c0
+        parts.append(sp.csc_matrix((np.concatenate(vals), (np.concatenate(rows), cc)),
+                                   shape=(n, c1 - c0)))  # fmt: skip
+    if not parts:
+        return sp.csc_matrix((n, n))
+    return parts[0] if len(parts) == 1 else sp.hstack(parts, format="csc")
 
 
 def _kept_inverse(

@@ -204,3 +204,29 @@ def test_the_scaled_rank_by_lanczos_on_the_schur_parts_is_that_of_the_normal_mat
     monkeypatch.setattr(cov, "DENSE_MAX", 5)
     ratio, rank = schur_scaled_rank(prob, prob.x0, "p")
     assert rank == rank0 == prob.n and abs(ratio - ratio0) <= 1e-9 * ratio0
+
+
+def test_the_sparse_matrices_built_in_chunks_are_those_built_at_once(monkeypatch):
+    """Problem.sparse_jacobian (chunks of residual rows) and schur_normal_matrix (chunks of
+    columns) hold the same arrays, bit for bit, with chunks of a few rows or columns as with
+    one chunk (the chunks bound their memory, not their result)."""
+    import importlib
+
+    from selfcal.solver import problem as problem_module
+    from selfcal.solver import schur_normal_matrix
+
+    cov = importlib.import_module("selfcal.solver.covariance")
+    prob = _problem(np.random.default_rng(11))
+
+    def arrays(M):
+        return [M.indptr, M.indices, M.data, np.asarray(M.shape)]
+
+    mats = []
+    for rows, entries in ((1 << 30, 1 << 30), (7, 40)):
+        monkeypatch.setattr(problem_module, "JACOBIAN_CHUNK", rows)
+        monkeypatch.setattr(cov, "_MATRIX_CHUNK", entries)
+        mats.append((prob.jacobian(prob.x0), prob.sparsity(),
+                     schur_normal_matrix(prob, prob.x0, "p")))  # fmt: skip
+    for whole, chunked in zip(*mats):
+        for a, b in zip(arrays(whole), arrays(chunked)):
+            np.testing.assert_array_equal(a, b)
