@@ -34,10 +34,14 @@ import numpy as np
 from selfcal.errors import UsageError
 from selfcal.solver.problem import Evaluation, Problem
 
-__all__ = ["CHUNK_ROWS", "SchurLayout", "SchurAssembler"]
+__all__ = ["BATCH_ENTRIES", "CHUNK_ROWS", "SchurLayout", "SchurAssembler"]
 
 CHUNK_ROWS = 32
 """Rows per chunk of a group in the batched products (a group is padded to whole chunks)."""
+
+BATCH_ENTRIES = 1 << 18
+"""Gathered Jacobian entries per batch of chunks in :meth:`_Groups.products` (bounds its
+memory; the sums do not depend on it)."""
 
 
 @dataclass(frozen=True)
@@ -102,11 +106,27 @@ class _Groups:
 
     def products(self, A: np.ndarray, B: np.ndarray | None = None) -> np.ndarray:
         """``sum_{rows r of the group} A_r^T B_r`` (groups, a, b) for ``A`` (k + 1, d, a) and
-        ``B`` (k + 1, d, b) (``B`` None: ``A``)."""
+        ``B`` (k + 1, d, b) (``B`` None: ``A``). The chunks' products are formed for a batch of
+        whole groups at a time (about :data:`BATCH_ENTRIES` gathered entries, at least one
+        group) and summed over each group by ``reduceat``: the sums over all chunks at once,
+        bit for bit, without the gathered rows of every chunk in memory."""
         c, m = self.rows.shape
-        Ap = A[self.rows].reshape(c, m * A.shape[1], A.shape[2])
-        Bp = Ap if B is None else B[self.rows].reshape(c, m * B.shape[1], B.shape[2])
-        return np.add.reduceat(np.matmul(Ap.transpose(0, 2, 1), Bp), self.starts, axis=0)
+        d, a = A.shape[1], A.shape[2]
+        b = a if B is None else B.shape[2]
+        out = np.empty((self.n, a, b))
+        per = max(1, BATCH_ENTRIES // (m * d * (a + b)))  # chunks per batch
+        ends = np.r_[self.starts[1:], c]
+        g0 = 0
+        while g0 < self.n:  # groups g0 .. g1 - 1: their chunks, and at least one group
+            g1 = max(g0 + 1, int(np.searchsorted(ends, self.starts[g0] + per, "right")))
+            c0, c1 = self.starts[g0], ends[g1 - 1]
+            rows = self.rows[c0:c1]
+            Ap = A[rows].reshape(c1 - c0, m * d, a)
+            Bp = Ap if B is None else B[rows].reshape(c1 - c0, m * d, b)
+            P = np.matmul(Ap.transpose(0, 2, 1), Bp)
+            out[g0:g1] = np.add.reduceat(P, self.starts[g0:g1] - c0, axis=0)
+            g0 = g1
+        return out
 
 
 class _Columns:
@@ -139,6 +159,7 @@ class _Columns:
                 self.runs.append((p, slice(col, col + 1), slice(dst, dst + 1)))
         self.zr = np.concatenate([o for o in self.off] or [np.zeros(0, np.int64)])
         self.zc = np.repeat(np.arange(self.c), [len(o) for o in self.off]).astype(np.int64)
+        self.G, self.off = [], []  # in Gm, zr and zc now (a plan lives as long as its solve)
 
     def gather(self, Js: Sequence[np.ndarray], sw: np.ndarray) -> np.ndarray:
         X = np.empty((self.k + 1, self.d, self.c))

@@ -207,16 +207,28 @@ def test_the_scaled_rank_by_lanczos_on_the_schur_parts_is_that_of_the_normal_mat
 
 
 def test_the_sparse_matrices_built_in_chunks_are_those_built_at_once(monkeypatch):
-    """Problem.sparse_jacobian (chunks of residual rows) and schur_normal_matrix (chunks of
-    columns) hold the same arrays, bit for bit, with chunks of a few rows or columns as with
-    one chunk (the chunks bound their memory, not their result)."""
+    """Problem.sparse_jacobian (chunks of residual rows), schur_normal_matrix (chunks of
+    columns) and the Schur assembly (batches of groups of rows) give the same arrays, bit for
+    bit, with chunks of a few rows, columns or groups as with one chunk (the chunks bound
+    their memory, not their result)."""
     import importlib
 
     from selfcal.solver import problem as problem_module
+    from selfcal.solver import schur as schur_module
     from selfcal.solver import schur_normal_matrix
 
     cov = importlib.import_module("selfcal.solver.covariance")
-    prob = _problem(np.random.default_rng(11))
+    rng = np.random.default_rng(11)
+    prob = _problem(rng)
+    evals = prob.evaluate(prob.x0, jacobian=True)
+    w = _weights(rng, evals)
+    parts = []
+    for batch in (1 << 30, 8):
+        monkeypatch.setattr(schur_module, "BATCH_ENTRIES", batch)
+        ne = assemble(prob, evals, w, "schur", prob.instance_of_columns("p"))
+        parts.append([ne.g, *ne.schur_parts[:3]])
+    for whole, batched in zip(*parts):
+        np.testing.assert_array_equal(whole, batched)
 
     def arrays(M):
         return [M.indptr, M.indices, M.data, np.asarray(M.shape)]
