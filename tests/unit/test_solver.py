@@ -263,14 +263,16 @@ def test_scaled_rank_above_dense_max_matches_the_dense_eigenvalues(monkeypatch):
     assert cov_mod.scaled_rank(J_def) == (0.0, 80)
 
 
-def test_normal_matrix_with_dense_columns_is_jtj():
+@pytest.mark.parametrize("chunk", [1 << 16, 7])
+def test_normal_matrix_with_dense_columns_is_jtj(chunk, monkeypatch):
     """The split product (dense columns by BLAS, the rest sparse) is ``J^T J``; also without
-    dense columns and with only dense ones."""
+    dense columns and with only dense ones, and a chunk of a few rows at a time."""
     import importlib
 
     import scipy.sparse as sp
 
     cov_mod = importlib.import_module("selfcal.solver.covariance")
+    monkeypatch.setattr(cov_mod, "NORMAL_CHUNK", chunk)
     rng = np.random.default_rng(5)
     S = sp.random(300, 40, density=0.03, random_state=6, format="csr")
     D = sp.csr_matrix(rng.standard_normal((300, 4)) * (rng.random((300, 1)) < 0.6))
