@@ -235,6 +235,7 @@ def solve(problem: Problem, options: SolverOptions | None = None) -> SolverResul
             if lam > 1e16:
                 status, message = 3, "no further decrease possible (damping saturated)"
                 break
+        del jev, ne, system  # not alive beside the next iteration's (one Jacobian at a time)
         if status or not improved:
             break
     if bad_block is not None and status in (0, 3):
