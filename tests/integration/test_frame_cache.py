@@ -90,6 +90,22 @@ def test_detections_made_while_acquiring_are_those_from_the_files_and_reused(acq
     _assert_same_detections(detect_dataset(ds, cache=cache), files)
 
 
+def test_a_detection_failing_while_acquiring_is_left_to_the_calibration(acquired, monkeypatch):
+    """A detection that raises on the acquisition's helper thread (say a cv2.error on an odd
+    image) neither stops the acquisition (its frame is on disk) nor leaves a detection: the
+    calibration's detect_dataset detects that image again from its file and reports there."""
+    out, cache, _ = acquired
+    kept = FrameCache()
+    detections_module.detect_ahead(Dataset.open(out).info, kept)
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("odd image")
+
+    monkeypatch.setattr(detections_module, "detect_markers_noise", broken)
+    kept.add(0, {"left": cache.images[(0, "left")]})  # does not raise
+    assert kept.detections == {} and (0, "left") in kept.images
+
+
 def test_noise_drawn_ahead_is_the_seeded_stream():
     """Three captures with noise equal the clean renders plus the generator's draws in order."""
     field = make_marker_field(n_markers=6, seed=2)

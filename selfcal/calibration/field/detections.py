@@ -148,16 +148,22 @@ def detect_ahead(info: DatasetInfo, cache: FrameCache) -> None:
     (:attr:`FrameCache.on_image`, on a helper thread of the acquisition's writer, beside the
     rendering of the next posture), the detection :func:`detect_dataset` would run on that
     image, stored where it looks first: the calibration that follows reuses them. An image of
-    another size than ``info``'s is left to :func:`detect_dataset` (which names it)."""
+    another size than ``info``'s is left to :func:`detect_dataset` (which names it), and so is
+    an image whose detection fails here: the failure is the calibration's to report, from the
+    image's file, never the acquisition's (whose frame is on disk by then)."""
     if info.observation != "images":
         return
     screen = _screens(info)
     W, H = info.resolution
 
     def detect(index: int, cam: str, gray: np.ndarray) -> None:
-        if gray.shape[:2] == (H, W):
+        if gray.shape[:2] != (H, W):
+            return
+        try:
             dets, sig = detect_markers_noise(gray, info.dictionary, screen=screen)
-            cache.detections[(index, cam, screen)] = (dets, sig)
+        except Exception:  # detected again from the file by detect_dataset, which reports it
+            return
+        cache.detections[(index, cam, screen)] = (dets, sig)
 
     cache.on_image = detect
 
