@@ -134,14 +134,14 @@ def add_tracker_args(sp: argparse.ArgumentParser) -> None:
     sp.add_argument(
         "--tracker-sigma-mm",
         type=float,
-        default=0.1,
+        default=None,
         metavar="MM",
         help="tracker position / distance noise, mm (0.1); weighs the tracker against the images",
     )
     sp.add_argument(
         "--tracker-sigma-deg",
         type=float,
-        default=0.01,
+        default=None,
         metavar="DEG",
         help="orientation noise of tracker poses, deg (0.01)",
     )
@@ -167,24 +167,33 @@ def tracker_input(args: argparse.Namespace, robot):
                 raise CliError(
                     f"{opt} needs --tracker FILE", fix=f"add --tracker or leave out {opt}"
                 )
+        for opt, v, name in (("--tracker-sigma-mm", args.tracker_sigma_mm, "sigma_mm"),
+                             ("--tracker-sigma-deg", args.tracker_sigma_deg, "sigma_deg")):  # fmt: skip
+            if v is not None:  # it would weigh nothing: say so rather than ignore it
+                raise CliError(
+                    f"{opt} needs --tracker FILE (a --term takes its noise as its own option)",
+                    fix=f"add --tracker, or give --term tracker=FILE,{name}={v:g}",
+                )
         return None
     if args.joint_units is None:
         raise CliError(
             "--tracker needs --joint-units deg|rad (the units of the tracker file's joints)",
             fix="add --joint-units deg (degrees, prismatic mm) or --joint-units rad",
         )
-    _check_sigmas(
-        ("--tracker-sigma-mm", args.tracker_sigma_mm),
-        ("--tracker-sigma-deg", args.tracker_sigma_deg),
-    )
+    default = {o.name: o.default for o in TrackerTerm.OPTIONS}  # the term's own defaults
+    sigma_mm = args.tracker_sigma_mm
+    sigma_mm = float(default["sigma_mm"] or "nan") if sigma_mm is None else sigma_mm
+    sigma_deg = args.tracker_sigma_deg
+    sigma_deg = float(default["sigma_deg"] or "nan") if sigma_deg is None else sigma_deg
+    _check_sigmas(("--tracker-sigma-mm", sigma_mm), ("--tracker-sigma-deg", sigma_deg))
     meas, _ = read_tracker_files(args.tracker, args.tracker_distances, robot, args.joint_units)
     return TrackerTerm(
         meas,
         joint_units=args.joint_units,
         file=str(args.tracker),
         distances_file=None if args.tracker_distances is None else str(args.tracker_distances),
-        sigma_m=args.tracker_sigma_mm / 1e3,
-        sigma_rad=float(np.radians(args.tracker_sigma_deg)),
+        sigma_m=sigma_mm / 1e3,
+        sigma_rad=float(np.radians(sigma_deg)),
     )
 
 

@@ -132,3 +132,7 @@ def test_tracker_options_are_checked(acquired, capsys):
     assert "--method joint" in capsys.readouterr().err
     assert cli_main([*argv, "--tracker-sigma-mm", "0"]) == 2
     assert "--tracker-sigma-mm must be a positive number" in capsys.readouterr().err
+    # without --tracker the noise would weigh nothing (a --term takes its own): refused
+    argv = ["calibrate", str(images), "--term", f"tracker={tracker}", "--joint-units", "deg"]
+    assert cli_main([*argv, "--tracker-sigma-mm", "0.05"]) == 2
+    assert "tracker=FILE,sigma_mm=0.05" in capsys.readouterr().err
