@@ -263,6 +263,42 @@ def test_the_camera_choice_is_recorded_and_obeyed():
         run("free")
 
 
+def test_a_held_camera_that_fails_in_a_fold_is_no_vote_for_refining(monkeypatch):
+    """A fold whose held camera cannot be calibrated (fold_camera raises) is left out of both
+    RMS, not counted as an infinite error that would choose the refined camera; with none left
+    the camera is held; calibration.json and the line for people say how many failed."""
+    from selfcal.calibration.handeye.calibration_file import camera_text
+    from selfcal.errors import EstimationError
+
+    X, B, F = _scene("eye-to-hand", 12, seed=11)
+    feats = _features(X, B, chain_motions("eye-to-hand", F), 0.3, 3)
+    real, calls = camera_refinement.fold_camera, []
+
+    def flaky(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 1 or fail_all:
+            raise EstimationError("the fold's board calibration did not converge (test)")
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(camera_refinement, "fold_camera", flaky)
+    run = lambda: calibrate_hand_eye(BOARD, feats, F, "eye-to-hand", 1280, 960,  # noqa: E731
+                                     free=CAMERA.free, pose_noise=EXACT, camera="auto")  # fmt: skip
+    fail_all = False
+    ch = run().camera_choice
+    assert ch is not None and ch.held_failed == 1 and not np.isfinite(ch.held_fold_px[0])
+    # pooled over the 7 folds both predicted: finite, and within their folds' range
+    assert min(ch.held_fold_px[1:]) <= ch.held_px <= max(ch.held_fold_px[1:])
+    assert min(ch.refined_fold_px[1:]) <= ch.refined_px <= max(ch.refined_fold_px[1:])
+    assert ch.refined == predict_better(ch.refined_px, ch.held_px)
+    fail_all, calls[:] = True, []
+    cal = run()
+    assert cal.camera_choice.held_failed == 8 and not cal.camera_choice.refined
+    assert not cal.camera_refined
+    sec = camera_section(cal)
+    assert sec["cross_validation"]["held_failed_folds"] == 8
+    assert "could not be calibrated in 8 of 8 folds" in camera_text(sec)
+
+
 def test_one_rule_chooses_the_flange_poses_and_the_camera():
     # the default model gives way only to one better by more than CV_MARGIN (1 %)
     assert CV_MARGIN == 0.01

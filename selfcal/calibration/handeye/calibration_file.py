@@ -113,7 +113,8 @@ def camera_section(cal: HandEyeCalibration) -> dict:
         "chosen_by": "caller" if ch is None else "cross-validation",
         "cross_validation": None if ch is None else {
             "folds": ch.folds, "held_px": ch.held_px, "refined_px": ch.refined_px,
-            "margin": CV_MARGIN, "chosen": "refined" if ch.refined else "held"},
+            "margin": CV_MARGIN, "chosen": "refined" if ch.refined else "held",
+            "held_failed_folds": ch.held_failed},
     }  # fmt: skip
 
 
@@ -124,9 +125,12 @@ def camera_text(section: dict) -> str:
             else "camera: held at the board calibration's")  # fmt: skip
     if cv is None:
         return head + " (as asked)"
+    failed = cv.get("held_failed_folds", 0)
+    note = (f"; the held camera could not be calibrated in {failed} of {cv['folds']} folds: "
+            "compared over the others" if failed else "")  # fmt: skip
     return (f"{head}; left-out images predicted from their poses ({cv['folds']} folds): held "
             f"{cv['held_px']:.3f} px, refined {cv['refined_px']:.3f} px (refined only when "
-            f"better by more than {100 * cv['margin']:g} %)")  # fmt: skip
+            f"better by more than {100 * cv['margin']:g} %){note}")  # fmt: skip
 
 
 def held_out_verdict(better: bool, section: dict | None) -> str:

@@ -48,7 +48,9 @@ class CameraChoice:
     corners predicted from their flange poses by the fits without them, the camera held at the
     board calibration of the training images (``held_px``) and refined with the hand-eye
     (``refined_px``), over ``folds`` folds (each fold's RMS: ``held_fold_px``,
-    ``refined_fold_px``); ``refined`` whether the answer refines the camera."""
+    ``refined_fold_px``); ``refined`` whether the answer refines the camera. ``held_failed``:
+    the folds whose held camera could not be calibrated (:func:`fold_camera` failed); the two
+    RMS are then over the folds where both predicted, and where none did the camera is held."""
 
     held_px: float
     refined_px: float
@@ -56,6 +58,7 @@ class CameraChoice:
     refined: bool
     held_fold_px: tuple[float, ...] = ()
     refined_fold_px: tuple[float, ...] = ()
+    held_failed: int = 0
 
 
 def fold_camera(stage: BoardCalibration, board: Board, uv: np.ndarray, images: np.ndarray,
@@ -103,7 +106,7 @@ def choose_camera(stage: BoardCalibration, board: Board, A: np.ndarray, nominal:
     noise, s_px = nominal.pose_noise, nominal.sigma_px
 
     def held(train: np.ndarray, test: np.ndarray) -> np.ndarray:
-        camera = fold_camera(stage, board, uv, np.unique(view[train]), max_iter)
+        camera = fold_camera(stage, board, uv, np.unique(view[train]))  # its own budget
         g = fit_pose_chain(camera, True, A, nominal.X, nominal.B, view[train], points[train],
                            uv[train], outlier_px, max_iter, setup=setup, pose_noise=noise,
                            start_px=s_px, settle=False, robust=False, tol=1e-9,
@@ -117,5 +120,15 @@ def choose_camera(stage: BoardCalibration, board: Board, A: np.ndarray, nominal:
     }  # fmt: skip
     cv = cross_validate(view, nominal.inlier & calibrated.inlier, uv, predictors, folds)
     h, r = cv.rms["held"], cv.rms["refined"]
+    held_f, ref_f = np.array(cv.fold_rms["held"]), np.array(cv.fold_rms["refined"])
+    failed = int(np.sum(~np.isfinite(held_f)))
+    if failed:  # a held camera not calibrated is no evidence for refining: compare the others
+        both = np.isfinite(held_f) & np.isfinite(ref_f)
+        n = np.array(cv.fold_count, float) * both
+        if n.sum() == 0:
+            return CameraChoice(h, r, cv.folds, False, cv.fold_rms["held"],
+                                cv.fold_rms["refined"], failed)  # fmt: skip
+        h = float(np.sqrt(np.sum(np.where(both, held_f, 0.0) ** 2 * n) / n.sum()))
+        r = float(np.sqrt(np.sum(np.where(both, ref_f, 0.0) ** 2 * n) / n.sum()))
     return CameraChoice(h, r, cv.folds, predict_better(r, h), cv.fold_rms["held"],
-                        cv.fold_rms["refined"])  # fmt: skip
+                        cv.fold_rms["refined"], failed)  # fmt: skip

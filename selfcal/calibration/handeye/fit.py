@@ -296,11 +296,13 @@ rows (bool mask); raises :class:`selfcal.errors.EstimationError` when its fit fa
 @dataclass(frozen=True)
 class CrossValidation:
     """:func:`cross_validate`'s result: per predictor the held-out ``rms`` (px) over every
-    left-out corner and ``fold_rms`` (folds,) px over each fold's; the number of ``folds``."""
+    left-out corner and ``fold_rms`` (folds,) px over each fold's; the number of ``folds`` and
+    of left-out corners in each (``fold_count``)."""
 
     rms: dict[str, float]
     fold_rms: dict[str, tuple[float, ...]]
     folds: int
+    fold_count: tuple[int, ...] = ()
 
 
 def cross_validate(view: np.ndarray, inlier: np.ndarray, uv: np.ndarray,
@@ -325,7 +327,8 @@ def cross_validate(view: np.ndarray, inlier: np.ndarray, uv: np.ndarray,
     n = np.maximum(count, 1)
     return CrossValidation(
         rms={m: float(np.sqrt(v.sum() / max(count.sum(), 1))) for m, v in sq.items()},
-        fold_rms={m: tuple(np.sqrt(v / n).tolist()) for m, v in sq.items()}, folds=k)  # fmt: skip
+        fold_rms={m: tuple(np.sqrt(v / n).tolist()) for m, v in sq.items()}, folds=k,
+        fold_count=tuple(int(c) for c in count))  # fmt: skip
 
 
 def chain_predictor(camera: CameraModel, A: np.ndarray, start: HandEyeFit,
