@@ -70,9 +70,11 @@ def test_noise_free_recovers_injected_parameters(noise_free):
     assert abs(rep["intrinsics"]["fx"]["estimate"] / 800.0 - 1) < 1e-8
 
 
-def test_selfcal_report_prints_its_summary_line(noise_free, capsys):
+def test_selfcal_report_prints_its_summary_line(noise_free, capsys, tmp_path):
     """`selfcal report DIR` prints one summary line on stdout (issue #15: it printed nothing)."""
-    out, rep = noise_free
+    shared, rep = noise_free
+    out = tmp_path / "ds"  # report writes into the folder: a copy, not the session's
+    shutil.copytree(shared, out)
     # the command's function, not cli.main: main limits the BLAS threads of this process
     assert cmd_report(argparse.Namespace(dataset=str(out), quiet=True)) == 0
     lines = capsys.readouterr().out.splitlines()

@@ -202,6 +202,11 @@ def test_the_scaled_rank_by_lanczos_on_the_schur_parts_is_that_of_the_normal_mat
     prob = _problem(rng)
     ratio0, rank0 = scaled_rank(prob.jacobian(prob.x0))  # dense: every eigenvalue
     monkeypatch.setattr(cov, "DENSE_MAX", 5)
+
+    def no_fallback(*args, **kwargs):
+        raise AssertionError("the dense eigenvalues, not Lanczos")
+
+    monkeypatch.setattr(cov, "scaled_rank_of_normal", no_fallback)  # Lanczos must answer
     ratio, rank = schur_scaled_rank(prob, prob.x0, "p")
     assert rank == rank0 == prob.n and abs(ratio - ratio0) <= 1e-9 * ratio0
 
