@@ -71,3 +71,12 @@ def test_camera_on_a_joint_dataset_is_refused(monkeypatch, tmp_path, capsys, rou
     assert "--camera (held or refined) applies to a pose dataset's hand-eye" in err
     assert "leave --camera out" in err
     assert not (tmp_path / "calibration.json").exists()
+
+
+def test_a_term_on_a_pose_dataset_is_refused_for_the_dataset_not_its_options(pose_dir, capsys):
+    """--term on a pose dataset says the dataset takes no terms, before the term's own options
+    (a probe without --joint-units said "needs joint_units", which adding would not fix)."""
+    assert main(["calibrate", str(pose_dir), "--term", "probe=touches.csv"]) == 2
+    err = capsys.readouterr().err
+    assert "is a pose dataset" in err and "joint_units" not in err
+    assert not (pose_dir / "calibration.json").exists()
