@@ -86,6 +86,7 @@ def test_probe_touches_improve_the_board_route_kinematics():
     # the fair nominal fits the probe's own unknowns (fixture, tip) with the kinematics held
     assert [s.kind for s in both.nominal.sections] == ["probe"]
     assert e_both < 0.3 * e_alone  # measured 2.72 against 17.0 mm
+    assert e_both < 0.3 * error_mm(both.nominal.model)  # the fair nominal: measured 25.5 mm
     sec = both.sections[0]
     assert isinstance(sec, ProbeSection) and sec.touches == 30
     off = np.linalg.norm(np.asarray(sec.tip_mm) - 1e3 * TIP)
@@ -93,6 +94,7 @@ def test_probe_touches_improve_the_board_route_kinematics():
     # the tip in the calibrated camera frame against the true one: measured 1.85 mm (the probe's
     # fit, 0.20 mm RMS, is the touches' joint read noise: 0.01 deg over the arm's reach)
     assert off < 5.0
+    assert sec.rms_mm < 0.6  # the probe's fit: measured 0.20 mm
 
 
 @pytest.mark.slow  # an analytic acquisition and a board calibration through the CLI: ~8 s
