@@ -85,7 +85,7 @@ class SolverResult:
     status: int
     message: str
     linear_solver: str
-    damping: float = 1e-4
+    damping: float = SolverOptions.initial_damping
 
     @property
     def converged(self) -> bool:
