@@ -59,22 +59,22 @@ def calibrate_any(
     encoder resolution. ``pose_noise``, ``camera``: ``--pose-noise`` and ``--camera`` of a pose
     dataset (errors for the others)."""
     specs = list(getattr(tracker_args, "term", None) or [])
+    from selfcal.terms.registry import parse_term_spec
+
+    parsed = [parse_term_spec(spec) for spec in specs]  # a bad kind or name stops before any work
     from selfcal.calibration.routes import dataset_route
     from selfcal.io.dataset import Dataset
     from selfcal.pipeline.board_run import calibrate_board_run
     from selfcal.pipeline.run import run_calibrate
 
     route = dataset_route(root)  # the choice the public API's calibrate makes
-    if route == "handeye" and specs:  # before the terms' options, which it makes moot
+    if route == "handeye" and specs:  # before the terms' values, which it makes moot
         raise CliError(f"{root} is a pose dataset (flange poses, no joint readings): --term "
                        "needs the joints of a chain",
                        fix="leave out --term, or calibrate a dataset with joint readings")  # fmt: skip
-    if specs:  # the spelling and the options next: a bad one stops before any work
-        from selfcal.terms.registry import parse_term_spec
-
-        units = {"joint_units": getattr(tracker_args, "joint_units", None)}
-        for spec in specs:
-            parse_term_spec(spec).options(units)
+    units = {"joint_units": getattr(tracker_args, "joint_units", None)}
+    for p in parsed:  # the values next (units, numbers), still before any work
+        p.options(units)
     if route == "handeye":
         calibrate_poses(root, quiet=quiet, figures=figures, method=method,
                         joint_sigma_deg=joint_sigma_deg, tracker_args=tracker_args,
