@@ -118,7 +118,7 @@ def run_acquire(
         q = dithered(np.asarray(info.planned_joints_deg), setup.robot, dither_seed)
         info = dataclasses.replace(info, planned_joints_deg=q)
     writer = DatasetWriter(out, info, resume=resume)
-    if keep is not None and _field_route(s):
+    if keep is not None and _route(s) == "field":
         detect_ahead(info, keep)
     robot, hooks = open_robot(s, out, setup)
     try:
@@ -137,10 +137,12 @@ def run_acquire(
     return out
 
 
-def _field_route(s: Scenario) -> bool:
-    """Whether :func:`run_all` calibrates ``s`` by the field route (:func:`run_calibrate`)."""
-    static = s.camera.setup == "eye-to-hand" and s.robot.backend == "sim"
-    return not static and not s.target.board
+def _route(s: Scenario) -> str:
+    """How :func:`run_all` calibrates ``s``: ``"static"`` (a simulated fixed camera, the board on
+    the flange), ``"board"`` (a board of known geometry) or ``"field"`` (:func:`run_calibrate`)."""
+    if s.camera.setup == "eye-to-hand" and s.robot.backend == "sim":
+        return "static"
+    return "board" if s.target.board else "field"
 
 
 def run_calibrate(
@@ -439,13 +441,12 @@ def run_all(
         again = f"selfcal run {scenario_arg(s)} --out {shlex.quote(str(out))}"
         again += "" if method == "joint" else f" --method {method}"
         run_acquire(s, out, resume=resume, quiet=quiet, keep=kept, resume_command=again)
-        if s.camera.setup == "eye-to-hand" and s.robot.backend == "sim":  # the board on the flange
+        route = _route(s)
+        if route == "static":  # the board on the flange
             from selfcal.pipeline.static_report import calibrate_and_report_static
 
             return calibrate_and_report_static(out, quiet=quiet, figures=figures, t0=t0)
-        if (
-            s.target.board
-        ):  # a board of known geometry: the board route (selfcal/pipeline/board_run.py)
+        if route == "board":  # the board route (selfcal/pipeline/board_run.py)
             from selfcal.pipeline.board_run import calibrate_and_report_board
 
             return calibrate_and_report_board(s, out, quiet=quiet, figures=figures, t0=t0)
