@@ -23,9 +23,7 @@ from selfcal.calibration.handeye.fit import (
     Predictor,
     chain_predictor,
     cross_validate,
-    fit_pose_chain,
     predict_better,
-    predict_corners,
 )
 from selfcal.camera import CameraModel
 from selfcal.choices import HANDEYE_CAMERA
@@ -105,16 +103,12 @@ def choose_camera(stage: BoardCalibration, board: Board, A: np.ndarray, nominal:
     (:func:`selfcal.calibration.handeye.fit.predict_better`)."""
     noise, s_px = nominal.pose_noise, nominal.sigma_px
 
-    def held(train: np.ndarray, test: np.ndarray) -> np.ndarray:
-        camera = fold_camera(stage, board, uv, np.unique(view[train]))  # its own budget
-        g = fit_pose_chain(camera, True, A, nominal.X, nominal.B, view[train], points[train],
-                           uv[train], outlier_px, max_iter, setup=setup, pose_noise=noise,
-                           start_px=s_px, settle=False, robust=False, tol=1e-9,
-                           sigmas=False)  # fmt: skip
-        return predict_corners(g.camera, g.X, g.B, A, view[test], points[test])
+    def camera_of(train: np.ndarray) -> CameraModel:  # its own budget, not max_iter
+        return fold_camera(stage, board, uv, np.unique(view[train]))
 
     predictors: dict[str, Predictor] = {
-        "held": held,
+        "held": chain_predictor(camera_of, A, nominal, noise, s_px, view, points, uv,
+                                outlier_px, max_iter, setup),
         "refined": chain_predictor(calibrated.camera, A, calibrated, noise, s_px, view, points,
                                    uv, outlier_px, max_iter, setup, hold_camera=False),
     }  # fmt: skip

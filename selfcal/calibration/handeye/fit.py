@@ -331,16 +331,18 @@ def cross_validate(view: np.ndarray, inlier: np.ndarray, uv: np.ndarray,
         fold_count=tuple(int(c) for c in count))  # fmt: skip
 
 
-def chain_predictor(camera: CameraModel, A: np.ndarray, start: HandEyeFit,
-                           noise: PoseNoise, start_px: float, view: np.ndarray,
+def chain_predictor(camera: CameraModel | Callable[[np.ndarray], CameraModel], A: np.ndarray,
+                           start: HandEyeFit, noise: PoseNoise, start_px: float, view: np.ndarray,
                            points: np.ndarray, uv: np.ndarray, outlier_px: float, max_iter: int,
                            setup: str, hold_camera: bool = True) -> Predictor:  # fmt: skip
     """The :data:`Predictor` of the fit of ``camera`` (held, or free with ``hold_camera``
     False), ``X`` and ``B`` from ``start``'s, the flange poses weighed by ``noise`` (held), on
-    the training rows without a robust pass, to a tolerance of 1e-9, without sigmas."""
+    the training rows without a robust pass, to a tolerance of 1e-9, without sigmas.
+    ``camera`` may be a function of the training rows (bool mask) giving each fold's camera."""
 
     def predict(train: np.ndarray, test: np.ndarray) -> np.ndarray:
-        g = fit_pose_chain(camera, hold_camera, A, start.X, start.B, view[train], points[train],
+        cam = camera(train) if callable(camera) else camera
+        g = fit_pose_chain(cam, hold_camera, A, start.X, start.B, view[train], points[train],
                            uv[train], outlier_px, max_iter, setup=setup, pose_noise=noise,
                            start_px=start_px, settle=False, robust=False, tol=1e-9,
                            sigmas=False)  # fmt: skip
