@@ -156,7 +156,6 @@ def tracker_input(args: argparse.Namespace, robot):
             ``--joint-units`` with it, or a noise that is not a positive number.
         InputError: a file that cannot be read (named with row and column).
     """
-    from selfcal.calibration.tracker.calibrate import read_tracker_files
     from selfcal.terms.tracker import TrackerTerm
 
     if not args.tracker:
@@ -181,20 +180,15 @@ def tracker_input(args: argparse.Namespace, robot):
             fix="add --joint-units deg (degrees, prismatic mm) or --joint-units rad",
         )
     default = {o.name: o.default for o in TrackerTerm.OPTIONS}  # the term's own defaults
-    sigma_mm = args.tracker_sigma_mm
-    sigma_mm = float(default["sigma_mm"] or "nan") if sigma_mm is None else sigma_mm
-    sigma_deg = args.tracker_sigma_deg
-    sigma_deg = float(default["sigma_deg"] or "nan") if sigma_deg is None else sigma_deg
-    _check_sigmas(("--tracker-sigma-mm", sigma_mm), ("--tracker-sigma-deg", sigma_deg))
-    meas, _ = read_tracker_files(args.tracker, args.tracker_distances, robot, args.joint_units)
-    return TrackerTerm(
-        meas,
-        joint_units=args.joint_units,
-        file=str(args.tracker),
-        distances_file=None if args.tracker_distances is None else str(args.tracker_distances),
-        sigma_m=sigma_mm / 1e3,
-        sigma_rad=float(np.radians(sigma_deg)),
-    )
+    sigma = {name: float(str(default[name]) if given is None else given)
+             for name, given in (("sigma_mm", args.tracker_sigma_mm),
+                                 ("sigma_deg", args.tracker_sigma_deg))}  # fmt: skip
+    _check_sigmas(("--tracker-sigma-mm", sigma["sigma_mm"]),
+                  ("--tracker-sigma-deg", sigma["sigma_deg"]))  # fmt: skip
+    # --tracker is a spelling of --term tracker=FILE: the term reads its file the same way
+    return TrackerTerm.from_file(args.tracker, robot, {"joint_units": args.joint_units,
+                                                       "distances": args.tracker_distances,
+                                                       **sigma})  # fmt: skip
 
 
 def cmd_identify(args: argparse.Namespace) -> int:
