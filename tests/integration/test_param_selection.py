@@ -24,9 +24,9 @@ from selfcal.calibration.board.nominal_fit import fit_nominal
 from selfcal.calibration.board.param_selection import (
     MAX_FOLDS,
     Candidate,
-    _one_se_rule,
     configurations,
     fold_labels,
+    one_se_rule,
     select_parameters,
 )
 from selfcal.calibration.board.refine import BoardObservations, Refinement, predict_px
@@ -170,9 +170,9 @@ def test_the_one_se_rule_has_one_threshold_and_never_picks_worse_than_the_nomina
     own); the best (0.9 px in every fold) is."""
     cands = [_cand("nominal", [1.0] * 4), _cand("wide", [0.2, 6.0, 0.2, 6.0]),
              _cand("best", [0.9] * 4)]  # fmt: skip
-    chosen, best = _one_se_rule(cands)
+    chosen, best = one_se_rule(cands)
     assert (chosen, best) == (2, 2)
     assert cands[2].log_ratio == pytest.approx((np.log(0.9), 0.0))
     # a best within its standard error of the nominal: the nominal
     cands = [_cand("nominal", [1.0] * 4), _cand("best", [0.5, 1.5, 0.5, 1.4])]
-    assert _one_se_rule(cands) == (0, 1)
+    assert one_se_rule(cands) == (0, 1)

@@ -22,13 +22,16 @@ import numpy as np
 
 from selfcal.io.atomic import write_text_atomic
 
-__all__ = ["wrist_only_row", "main"]
+__all__ = ["wrist_cell", "wrist_only_row", "main"]
 
 WRIST_SPAN_DEG = (40.0, 40.0, 90.0)
 """How far the wrist's three joints move from home in the wrist-only dataset (deg)."""
 
 
-def _cell():
+def wrist_cell():
+    """The benchmark's cell: a :class:`selfcal.calibration.board.plan_views.PlanSetup` (UR5e,
+    60 deg 640 x 480 camera, the ChArUco board on the table where home looks), the target
+    file and the board pose (mm, deg)."""
     from selfcal.calibration.board.plan_views import PlanSetup
     from selfcal.io.camera_file import camera_from_fov
     from selfcal.io.target_toml import load_target
@@ -75,7 +78,7 @@ def wrist_only_row(root: Path, seed: int, add: int = 5) -> dict:
     from selfcal.cli.main import main as selfcal
     from selfcal.io.plan_files import joints_csv
 
-    setup, target, bp = _cell()
+    setup, target, bp = wrist_cell()
     robot = setup.robot
     rng = np.random.default_rng(seed)
     q = np.tile(robot.home, (4000, 1))

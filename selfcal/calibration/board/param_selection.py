@@ -69,7 +69,11 @@ __all__ = [
     "ParameterPool",
     "Selection",
     "configurations",
+    "determined",
+    "determined_each",
     "fold_labels",
+    "nested_candidates",
+    "one_se_rule",
     "parameter_pool",
     "select_parameters",
 ]
@@ -234,10 +238,20 @@ def determined(model: MCPCModel, q: np.ndarray, names: tuple[str, ...],
     rad and the measurement ``terms`` cannot determine, by the rank and conditioning test of
     step 1 offered in that order at ``model``: name -> reason (empty when they determine
     all)."""
+    return determined_each(model, q, [names], terms)[0]
+
+
+def determined_each(model: MCPCModel, q: np.ndarray, names: Sequence[tuple[str, ...]],
+                    terms: Sequence[Term] = ()) -> list[dict[str, str]]:  # fmt: skip
+    """:func:`determined` of every parameter tuple in ``names`` (e.g. each nested candidate's)
+    at the same joints ``q``, from one identification Jacobian."""
     all_names, _, _, R = _columns(model, q, terms)
-    span = _Span(R)
     at = {nm: k for k, nm in enumerate(all_names)}
-    return {nm: why for nm in names if (why := span.offer(at[nm])) is not None}
+    out = []
+    for group in names:
+        span = _Span(R)
+        out.append({nm: why for nm in group if (why := span.offer(at[nm])) is not None})
+    return out
 
 
 @dataclass
@@ -328,7 +342,7 @@ class Selection:
         }
 
 
-def _candidates(pool: ParameterPool) -> list[Candidate]:
+def nested_candidates(pool: ParameterPool) -> list[Candidate]:
     """The nested candidates of step 2 (module docstring)."""
     p, o = pool.n_placement, pool.n_offsets
     rest = len(pool.order) - p - o
@@ -422,7 +436,7 @@ def select_parameters(obs: BoardObservations, nominal_fit: MCPCModel, *,
     """
     used = obs.used
     pool = parameter_pool(nominal_fit, obs.q[used], obs.terms)
-    cands = _candidates(pool)
+    cands = nested_candidates(pool)
     config = configurations(obs.q, nominal_fit.joint_types)
     n_config = len(np.unique(config[used]))
     folds = fold_labels(config)
@@ -450,7 +464,7 @@ def select_parameters(obs: BoardObservations, nominal_fit: MCPCModel, *,
             "wrist) and calibrate again",
         )
     if n_folds >= 2:
-        chosen, best = _one_se_rule(cands)
+        chosen, best = one_se_rule(cands)
         rule = (f"paired one-standard-error rule over leave-one-configuration-out "
                 f"cross-validation ({n_config} configurations, {n_folds} folds): the smallest "
                 f"candidate whose mean log error ratio to the nominal is at most the best's "
@@ -474,7 +488,7 @@ def _px(v: float) -> str:
     return f"{v:.3f} px" if np.isfinite(v) else "nothing (a fit failed)"
 
 
-def _one_se_rule(cands: list[Candidate]) -> tuple[int, int]:
+def one_se_rule(cands: list[Candidate]) -> tuple[int, int]:
     """(chosen, best) by step 4 of the module docstring; every candidate's ``log_ratio`` (to the
     nominal, ``cands[0]``) set."""
     ref = np.log(np.array(cands[0].fold_rms_px))

@@ -27,6 +27,7 @@ same filters) is predicted the same way, for contrast. Units: SI inside.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -39,7 +40,7 @@ from selfcal.calibration.board.plan_predict import (
 )
 from selfcal.calibration.board.plan_views import PlanSetup, candidate_pool
 from selfcal.calibration.board.problem import board_problem
-from selfcal.errors import InputError
+from selfcal.errors import InputError, UsageError
 from selfcal.estimation.joint_report import aligned_tool_weight
 from selfcal.estimation.kinematic_poses import KinematicPoses
 from selfcal.kinematics.forward import fk_tool
@@ -100,11 +101,13 @@ def frame_information(
     q: np.ndarray,
     pixel_sigma_px: float,
     joint_sigma: np.ndarray | None = None,
+    seen: Sequence[np.ndarray] | None = None,
 ) -> np.ndarray:
     """(m, p, p) the Fisher information of each posture ``q`` (m, n) rad about ``[camera's free
     parameters, minimal kinematic parameters]`` (px, rad, m; the order of
-    :func:`selfcal.calibration.board.bounds.board_cramer_rao`): every board feature seen by the
-    nominal camera, noise ``pixel_sigma_px`` px per coordinate; with ``joint_sigma`` (n,) rad
+    :func:`selfcal.calibration.board.bounds.board_cramer_rao`): the board features ``seen``
+    in each frame (m arrays of feature ids; None: every feature) at the nominal camera's
+    projection, noise ``pixel_sigma_px`` px per coordinate; with ``joint_sigma`` (n,) rad
     (m for a prismatic joint) each frame's joint read-back errors are estimated under their
     Gaussian prior and eliminated (the Schur complement of the frame's own corrections), as the
     board route does."""
@@ -112,14 +115,23 @@ def frame_information(
     m = len(q)
     model = board_model(setup)
     ids, pts = setup.board.layout()
+    if seen is None:
+        feature = [np.arange(len(ids))] * m
+    else:
+        at = {int(i): k for k, i in enumerate(ids.tolist())}
+        feature = [np.array([at[i] for i in np.asarray(s).tolist() if i in at], np.int64)
+                   for s in seen]  # fmt: skip
+        if len(feature) != m:
+            raise UsageError(f"{len(feature)} frames of seen features for {m} postures")
     T_cb = inv_pose(fk_tool(model, q))  # board (world) -> camera
     Xc = np.einsum("mij,kj->mki", T_cb[:, :3, :3], pts) + T_cb[:, None, :3, 3]
     uv = setup.camera.project(Xc)  # (m, k, 2)
     idx = minimal_indices(model.joint_types)
     poses = KinematicPoses(model, q, idx, np.zeros((0, 4, 4)), np.ones(m, bool),
                            joint_corrections=joint_sigma is not None)  # fmt: skip
-    frame = np.repeat(np.arange(m), len(ids))
-    rows = [(poses.layout.view(frame, 0), np.tile(ids, m), uv.reshape(-1, 2))]
+    frame = np.repeat(np.arange(m), [len(f) for f in feature])
+    k = np.concatenate([np.zeros(0, np.int64), *feature])
+    rows = [(poses.layout.view(frame, 0), ids[k], uv[frame, k])]
     prob = board_problem([setup.camera], poses, rows, setup.board, pixel_sigma_px=pixel_sigma_px,
                          joint_sigma=joint_sigma, n_frames=m)  # fmt: skip
     P = prob.problem
@@ -133,16 +145,18 @@ def frame_information(
     if len(row_frame) != J.shape[0]:
         raise InputError("the board problem's residuals do not match the frames' features")
     order = np.argsort(row_frame, kind="stable")
-    Jg = J[:, cols].toarray()[order].reshape(m, -1, len(cols))
-    F = np.einsum("mri,mrj->mij", Jg, Jg)
+    ends = np.cumsum(np.bincount(row_frame, minlength=m))
+    parts = np.split(order, ends[:-1])
+    Jg = J[:, cols].toarray()
+    F = np.stack([Jg[r].T @ Jg[r] for r in parts])
     if joint_sigma is not None:  # eliminate each frame's joint corrections
         dq = pose_cols[np.asarray(poses.dq_cols)].reshape(m, -1)
-        Jl = np.stack([J[order[k * Jg.shape[1] : (k + 1) * Jg.shape[1]]][:, dq[k]].toarray()
-                       for k in range(m)])  # fmt: skip
         js = np.broadcast_to(np.asarray(joint_sigma, dtype=float), (dq.shape[1],))
-        D = np.einsum("mri,mrj->mij", Jl, Jl) + np.diag((pixel_sigma_px / js) ** 2)
-        B = np.einsum("mri,mrj->mij", Jg, Jl)
-        F = F - B @ np.linalg.solve(D, np.swapaxes(B, 1, 2))
+        prior = np.diag((pixel_sigma_px / js) ** 2)
+        for f, r in enumerate(parts):
+            Jl = J[r][:, dq[f]].toarray()
+            B = Jg[r].T @ Jl
+            F[f] -= B @ np.linalg.solve(Jl.T @ Jl + prior, B.T)
     return F / pixel_sigma_px**2
 
 

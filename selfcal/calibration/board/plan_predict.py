@@ -47,6 +47,7 @@ from selfcal.kinematics.mcpc import MCPCModel, minimal_indices, param_is_angle
 __all__ = [
     "Deviation",
     "kept_by_rank",
+    "error_covariance",
     "estimated_directions",
     "prior_information",
     "predicted_with_held",
@@ -101,6 +102,31 @@ def prior_information(variance: np.ndarray, n_cam: int) -> np.ndarray:
     return np.diag(d)
 
 
+def error_covariance(
+    F: np.ndarray, n_cam: int, M: np.ndarray, variance: np.ndarray
+) -> np.ndarray | None:
+    """(p, p) the covariance of the estimate's error (module docstring) on ``[camera (n_cam),
+    minimal (k)]``: ``F`` (p, p) the information, ``M`` (k, e) the estimated kinematic
+    directions, ``variance`` (k,) the deviation's; None when the estimated parameters'
+    information is singular."""
+    k = len(variance)
+    if F.shape != (n_cam + k, n_cam + k) or M.shape[0] != k:
+        raise UsageError(f"shapes do not match: F {F.shape}, M {M.shape}, k {k}")
+    Mf = np.zeros((n_cam + k, n_cam + M.shape[1]))
+    Mf[:n_cam, :n_cam] = np.eye(n_cam)
+    Mf[n_cam:, n_cam:] = M
+    A = Mf.T @ F @ Mf
+    d = np.sqrt(np.maximum(np.abs(np.diag(A)), 1e-300))
+    As = A / np.outer(d, d)
+    if not np.all(np.isfinite(As)) or np.linalg.cond(As) > 1e12:
+        return None
+    C = Mf @ (np.linalg.inv(As) / np.outer(d, d)) @ Mf.T  # the estimate's covariance
+    R = np.eye(n_cam + k) - C @ F  # I - P: what the estimate leaves of a deviation
+    S = np.zeros(n_cam + k)
+    S[n_cam:] = variance
+    return (R * S) @ R.T + C
+
+
 def predicted_with_held(
     F: np.ndarray, G: np.ndarray, n_cam: int, M: np.ndarray, variance: np.ndarray
 ) -> float:
@@ -109,19 +135,9 @@ def predicted_with_held(
     the estimated kinematic directions, ``variance`` (k,) the deviation's; infinite when the
     estimated parameters' information is singular."""
     k = len(variance)
-    if F.shape != (n_cam + k, n_cam + k) or M.shape[0] != k or G.shape != (k, k):
-        raise UsageError(f"shapes do not match: F {F.shape}, G {G.shape}, M {M.shape}, k {k}")
-    Mf = np.zeros((n_cam + k, n_cam + M.shape[1]))
-    Mf[:n_cam, :n_cam] = np.eye(n_cam)
-    Mf[n_cam:, n_cam:] = M
-    A = Mf.T @ F @ Mf
-    d = np.sqrt(np.maximum(np.abs(np.diag(A)), 1e-300))
-    As = A / np.outer(d, d)
-    if not np.all(np.isfinite(As)) or np.linalg.cond(As) > 1e12:
+    if G.shape != (k, k):
+        raise UsageError(f"shapes do not match: G {G.shape}, k {k}")
+    cov = error_covariance(F, n_cam, M, variance)
+    if cov is None:
         return float("inf")
-    C = Mf @ (np.linalg.inv(As) / np.outer(d, d)) @ Mf.T  # the estimate's covariance
-    R = np.eye(n_cam + k) - C @ F  # I - P: what the estimate leaves of a deviation
-    S = np.zeros(n_cam + k)
-    S[n_cam:] = variance
-    cov = (R * S) @ R.T + C
     return float(np.sqrt(max(np.trace(G @ cov[n_cam:, n_cam:]), 0.0)))

@@ -1,0 +1,129 @@
+"""Which parameters a board calibration's selection will keep at planned postures: its
+cross-validation forecast from the information alone (``selfcal plan --add``, issue #30).
+
+The selection (:mod:`selfcal.calibration.board.param_selection`) keeps the smallest nested
+candidate that predicts the frames of every left-out configuration fold clearly better than the
+nominal does. Its rank test alone (:func:`selfcal.calibration.board.plan_predict.kept_by_rank`)
+says what every frame together determines, not what each fold's training frames can predict:
+a dataset recorded in one arm configuration is left out whole by one fold, whose fit has only
+the added postures of the other folds. With few of them a large candidate is barely determined
+there and predicts the dataset's frames badly, so the selection keeps a smaller one.
+
+The forecast runs the selection's own steps on expectations: the same pool and nested
+candidates at the joints, the same folds (:func:`selfcal.calibration.board.param_selection.configurations`,
+:func:`selfcal.calibration.board.param_selection.fold_labels`, the frames in recording order),
+in every fold the parameters its training frames cannot determine held
+(:func:`selfcal.calibration.board.param_selection.determined`), and the same paired
+one-standard-error rule (:func:`selfcal.calibration.board.param_selection.one_se_rule`) on the
+folds' expected RMS. A fold's expected mean square per feature (both image coordinates): the
+corners' noise ``2 sigma^2`` plus ``sigma^2 sum_i trace(F_i C) / n``, ``F_i`` the information
+of the fold's frames (``n`` features), ``C`` the error covariance of the fit on the other
+folds' frames (:func:`selfcal.calibration.board.plan_predict.error_covariance`: the noise and
+the held parameters' deviation from the drawing), the camera taken as known (the folds keep the
+camera of the fit on every frame). Units: SI, px.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from selfcal.calibration.board.param_selection import (
+    Candidate,
+    configurations,
+    determined_each,
+    fold_labels,
+    nested_candidates,
+    one_se_rule,
+    parameter_pool,
+)
+from selfcal.calibration.board.plan_predict import error_covariance, estimated_directions
+from selfcal.errors import UsageError
+from selfcal.kinematics.mcpc import MCPCModel, param_names
+
+__all__ = ["SelectionForecast", "forecast_selection"]
+
+
+@dataclass(frozen=True, eq=False)
+class SelectionForecast:
+    """The forecast of :func:`forecast_selection`: the chosen candidate's ``label`` and its
+    kinematic parameters (``free_idx`` flat MCPC indices, ``offset_joints`` 0 based); every
+    candidate's label and expected fold RMS (px) in ``fold_rms_px``; ``folds`` how many."""
+
+    label: str
+    free_idx: np.ndarray
+    offset_joints: np.ndarray
+    labels: tuple[str, ...]
+    fold_rms_px: tuple[tuple[float, ...], ...]
+    folds: int
+
+    @property
+    def kept(self) -> tuple[np.ndarray, np.ndarray]:
+        """(flat MCPC indices, offset joints) the forecast keeps."""
+        return self.free_idx, self.offset_joints
+
+
+def forecast_selection(
+    model: MCPCModel,
+    q: np.ndarray,
+    F_frames: np.ndarray,
+    n_features: np.ndarray,
+    n_cam: int,
+    variance: np.ndarray,
+    sigma_px: float,
+) -> SelectionForecast:
+    """The candidate the selection is expected to keep (module docstring) for the frames at the
+    joints ``q`` (m, n) rad in recording order, of ``model`` (world = board, tool = camera):
+    ``F_frames`` (m, p, p) their information on ``[camera (n_cam), minimal (k)]``
+    (:func:`selfcal.calibration.board.plan.frame_information`), ``n_features`` (m,) the
+    features each shows, ``variance`` (k,) the deviation from the drawing, ``sigma_px`` the
+    corner noise (px)."""
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    n_features = np.asarray(n_features, dtype=float)
+    if len(F_frames) != len(q) or len(n_features) != len(q):
+        raise UsageError(f"{len(q)} frames, {len(F_frames)} informations, "
+                         f"{len(n_features)} feature counts")  # fmt: skip
+    cands = nested_candidates(parameter_pool(model, q))
+    folds = fold_labels(configurations(q, model.joint_types))
+    labels = np.unique(folds)
+    first = cands[0]
+    if len(labels) < 2:  # no cross-validation: the selection keeps the nominal
+        return SelectionForecast(first.label, first.free_idx, first.offset_joints,
+                                 (first.label,), ((),), 1)  # fmt: skip
+    Fk = F_frames[:, n_cam:, n_cam:]
+    last = cands[-1]  # the candidates are nested: every direction is one of the last's
+    M = estimated_directions(model, last.free_idx, last.offset_joints)
+    column = {nm: k for k, nm in enumerate(_names(last))}
+    rms = np.array([[_fold_rms(Fk, n_features, folds == f,
+                               M[:, [column[nm] for nm in _names(c) if nm not in held]],
+                               variance, sigma_px)
+                     for c, held in zip(cands, determined_each(
+                         model, q[folds != f], [c.names for c in cands]))]
+                    for f in labels])  # fmt: skip
+    for c, r in zip(cands, rms.T):
+        c.fold_rms_px = tuple(r.tolist())
+        c.cv_px = float(np.exp(np.mean(np.log(r))))
+    chosen, _ = one_se_rule(cands)
+    c = cands[chosen]
+    return SelectionForecast(
+        c.label, c.free_idx, c.offset_joints, tuple(x.label for x in cands),
+        tuple(x.fold_rms_px for x in cands), len(labels),
+    )  # fmt: skip
+
+
+def _names(cand: Candidate) -> list[str]:
+    """A candidate's kinematic parameters in the order of its estimated directions' columns:
+    the flat MCPC ones, then the joint offsets."""
+    return [*param_names(cand.free_idx), *(f"offset_j{j + 1}" for j in cand.offset_joints)]
+
+
+def _fold_rms(Fk, n_features, out, M, variance, sigma_px) -> float:
+    """The expected RMS (px) of the fit on the frames outside ``out`` predicting those in it
+    (module docstring): ``M`` the directions it estimates (those its training frames
+    determine)."""
+    C = error_covariance(Fk[~out].sum(axis=0), 0, M, variance)
+    if C is None:
+        return float("inf")
+    spread = float(np.einsum("mij,ji->", Fk[out], C))
+    return float(np.sqrt(2.0 * sigma_px**2 + sigma_px**2 * spread / n_features[out].sum()))
