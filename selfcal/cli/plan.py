@@ -32,8 +32,10 @@ parameters its selection's rank test keeps, every other one held at the drawing 
 the same size from the same candidates.
 --add K DATASET: instead, the K postures that most lower the predicted error of the calibrated
 DATASET (its robot file, calibration.json's camera, board pose and hand-eye; --robot, --target,
---board-pose, --count and the camera options are not used); PLAN/joints.csv and trajectory.yaml hold the
-added postures, replay.csv the dataset's and the added ones (scenario.toml replays them).
+--board-pose, --count and the camera options are not used), predicted with the parameters the
+selection's cross-validation is forecast to keep; PLAN/joints.csv and trajectory.yaml hold the
+added postures in the order to record them (it sets the cross-validation's folds), replay.csv the
+dataset's and the added ones (scenario.toml replays them).
 See docs/plan.md.
 """
 
@@ -263,7 +265,16 @@ def _cmd_add(args: argparse.Namespace) -> int:
             "kinematic_parameters_after": add.kept_after,
             "criterion": _criterion(len(add.workspace), args.pixel_sigma, js, args)
             + "; summed over the dataset and each training set of the selection's "
-            "cross-validation",
+            "cross-validation; after: with the parameters the selection's cross-validation "
+            "is forecast to keep (the swaps and the recording order it prefers)",
+            "forecast": {
+                "chosen": add.forecast.label,
+                "folds": add.forecast.folds,
+                "candidates": [
+                    {"label": lab, "fold_rms_px": [round(v, 4) for v in rms]}
+                    for lab, rms in zip(add.forecast.labels, add.forecast.fold_rms_px)
+                ],
+            },
             "candidates": add.candidates,
             "candidates_from": add.drawn_from,
             "path_deg": round(float(np.degrees(add.path_rad)), 3),

@@ -114,7 +114,8 @@ def test_the_placement_has_no_deviation(setup):
 def test_one_configuration_leaves_the_added_postures_alone(setup, plan):
     q = np.tile(setup.robot.home, (4, 1))
     q[:, 4] += np.radians([0, 10, 20, 30])  # the wrist alone moves
-    dp = DatasetPlan(setup, q, np.zeros(0, np.int64), np.zeros(0, np.int64))
+    ids = setup.board.layout()[0]
+    dp = DatasetPlan(setup, q, (ids,) * 4, np.zeros(0, np.int64), np.zeros(0, np.int64))
     Ff = frame_information(setup, plan.q[:4], 0.5, JS)
     sets = training_sets(dp, Ff)
     assert len(sets) == 2
@@ -143,3 +144,19 @@ def test_add_needs_a_calibrated_dataset(tmp_path, capsys):
     assert "calibrate the dataset first" in capsys.readouterr().err
     assert main(["plan", "--out", str(tmp_path / "p")]) == 2
     assert "--robot, --target, --board-pose" in capsys.readouterr().err
+
+
+def test_a_frame_counts_the_features_it_shows(setup, plan):
+    ids = setup.board.layout()[0]
+    every = frame_information(setup, plan.q[:2], 0.5, JS)
+    assert np.array_equal(frame_information(setup, plan.q[:2], 0.5, JS, [ids, ids]), every)
+    half = frame_information(setup, plan.q[:2], 0.5, JS, [ids[::2], ids[1::2]])
+    alone = frame_information(setup, plan.q[1:2], 0.5, JS, [ids[1::2]])
+    assert np.allclose(half[1], alone[0], rtol=1e-12, atol=1e-9 * np.abs(alone).max())
+    # read exactly, a frame's information is the sum of its features': halves add up
+    even, odd = (
+        frame_information(setup, plan.q[:1], 0.5, None, [s]) for s in (ids[::2], ids[1::2])
+    )
+    whole = frame_information(setup, plan.q[:1], 0.5)
+    assert np.allclose(even + odd, whole, rtol=1e-10, atol=1e-10 * np.abs(whole).max())
+    assert not np.allclose(even, whole, rtol=0.1)

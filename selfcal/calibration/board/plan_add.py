@@ -7,28 +7,35 @@ board where the calibration placed it (base -> board) and the camera where it pl
 flange (:func:`selfcal.calibration.board.mounts.mounts`). Candidates are drawn as for a new plan
 (:func:`selfcal.calibration.board.plan_views.candidate_pool`). The information the dataset
 already holds is its frames' (:func:`selfcal.calibration.board.plan.frame_information` at its
-read-back joints, every board feature taken as seen) plus the prior of the arm's deviation from
-its drawing (:mod:`selfcal.calibration.board.plan_predict`); the greedy choice adds, one at a
-time, the candidate that lowers the predicted tool-point error most
-(:func:`selfcal.calibration.board.plan.select_greedy`), and the added postures are ordered for a
-short joint path from home.
+read-back joints, with the board features detected in each) plus the prior of the arm's
+deviation from its drawing (:mod:`selfcal.calibration.board.plan_predict`); the greedy choice
+adds, one at a time, the candidate that lowers the predicted tool-point error most
+(:func:`selfcal.calibration.board.plan.select_greedy`) and ranks :data:`SPARE` more; the added
+postures are ordered for a short joint path from home.
+
+The prediction after the additions is that of the calibration with the parameters its
+selection's cross-validation is forecast to keep
+(:func:`selfcal.calibration.board.plan_selection.forecast_selection`: the folds depend on the
+recording order, the dataset's frames first and the added ones after in the planned order).
+Then, where the forecast prediction falls by :data:`GAIN` or more, a spare pick replaces a
+chosen posture, and another added posture is recorded last (the one a dataset of one
+configuration shares its fold with when the configurations outnumber the folds).
 
 Predicted before: the dataset's calibration with the parameters its selection identified
-(``calibration.json``), every other minimal parameter held at the drawing; after: the dataset's
-frames and the added ones with the parameters the selection's rank and conditioning test accepts
-on all of them (its cross-validation may hold more). Units: SI inside.
+(``calibration.json``), every other minimal parameter held at the drawing. Units: SI inside.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from selfcal.calibration.board.bounds import estimated_parameters
-from selfcal.calibration.board.dataset import dataset_board
+from selfcal.calibration.board.dataset import dataset_board, detect_board
 from selfcal.calibration.board.mounts import mounts
 from selfcal.calibration.board.param_selection import configurations, fold_labels
 from selfcal.calibration.board.plan import (
@@ -41,7 +48,8 @@ from selfcal.calibration.board.plan import (
     predict_kept,
     select_greedy,
 )
-from selfcal.calibration.board.plan_predict import kept_by_rank, prior_information
+from selfcal.calibration.board.plan_predict import prior_information
+from selfcal.calibration.board.plan_selection import SelectionForecast, forecast_selection
 from selfcal.calibration.board.plan_views import PlanSetup
 from selfcal.errors import InputError
 from selfcal.io.board_calibration import read_board_calibration
@@ -60,24 +68,32 @@ __all__ = [
 @dataclass(frozen=True, eq=False)
 class DatasetPlan:
     """What a calibrated dataset gives the planner: the cell ``setup``, the read-back joints
-    ``q`` (m, n) rad of the frames its calibration used, and the kinematic parameters it
-    identified (``free_idx`` flat MCPC indices, ``offset_joints`` 0 based)."""
+    ``q`` (m, n) rad of the frames its calibration used, the board features ``seen`` in each
+    (m arrays of feature ids), and the kinematic parameters it identified (``free_idx`` flat
+    MCPC indices, ``offset_joints`` 0 based)."""
 
     setup: PlanSetup
     q: np.ndarray
+    seen: tuple[np.ndarray, ...]
     free_idx: np.ndarray
     offset_joints: np.ndarray
+
+    @property
+    def n_features(self) -> np.ndarray:
+        """(m,) how many board features each frame shows."""
+        return np.array([len(s) for s in self.seen], dtype=np.int64)
 
 
 def dataset_setup(root: str | Path, boxes: np.ndarray | None = None) -> DatasetPlan:
     """The :class:`DatasetPlan` of the dataset folder ``root`` and its ``calibration.json``
-    (``selfcal calibrate``), with keep-out ``boxes`` (b, 6) m in the base frame. Every frame of
-    the dataset counts, as if each showed the whole board (a frame whose board was not found
-    makes the prediction before the additions a little optimistic).
+    (``selfcal calibrate``), with keep-out ``boxes`` (b, 6) m in the base frame. The frames
+    count with the board features detected in them (the stored detections, or the images
+    detected again), those showing fewer than the board's minimum left out as the calibration
+    leaves them.
 
     Raises:
         InputError: no calibration.json, an eye-to-hand or multi-camera calibration (not
-            planned yet), or joints that do not match the calibration's frames.
+            planned yet), or no frame showing the board.
     """
     root = Path(root)
     if not (root / "calibration.json").is_file():
@@ -94,11 +110,20 @@ def dataset_setup(root: str | Path, boxes: np.ndarray | None = None) -> DatasetP
     robot = load_robot(ds.robot_source)
     T_flange_cam, T_base_board = (m.T for m in mounts(cal.model, robot, eye_to_hand=False))
     robot = dataclasses.replace(robot, T_flange_cam=T_flange_cam)
-    q = np.radians(ds.joints_deg)  # every frame, as if each showed the whole board
-    setup = PlanSetup(robot, cal.cameras[0], dataset_board(ds), T_base_board,
+    board = dataset_board(ds)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # a frame without the board: left out below, as calibrate
+        features, _ = detect_board(ds, board, ds.info.cameras[0])
+    used = np.array([len(f) >= board.min_features for f in features], bool)
+    if not used.any():
+        raise InputError(f"{root}: no frame shows the board",
+                         fix="calibrate a dataset whose images show the board")  # fmt: skip
+    q = np.radians(ds.joints_deg)[used]
+    setup = PlanSetup(robot, cal.cameras[0], board, T_base_board,
                       np.zeros((0, 6)) if boxes is None else np.asarray(boxes, dtype=float))  # fmt: skip
     free_idx, offsets = estimated_parameters(cal)
-    return DatasetPlan(setup, q, free_idx, offsets)
+    seen = tuple(np.asarray(f.ids, np.int64) for f, u in zip(features, used) if u)
+    return DatasetPlan(setup, q, seen, free_idx, offsets)
 
 
 def training_sets(plan: DatasetPlan, F_frames: np.ndarray) -> np.ndarray:
@@ -116,9 +141,9 @@ def training_sets(plan: DatasetPlan, F_frames: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True, eq=False)
 class AddedPostures:
-    """``q`` (K, n) rad the postures to add in path order; ``before_m`` the dataset's predicted
-    tool-point RMS (m) with its identified parameters, ``after_m`` with the added postures and
-    the parameters the selection's rank test accepts on all frames; ``kept_before``,
+    """``q`` (K, n) rad the postures to add in recording order; ``before_m`` the dataset's
+    predicted tool-point RMS (m) with its identified parameters, ``after_m`` with the added
+    postures and the parameters the ``forecast`` of the selection keeps; ``kept_before``,
     ``kept_after`` how many kinematic parameters (flat MCPC and joint offsets) each estimates;
     the ``workspace`` (w, n) rad the error is averaged over, the pool's size and where it was
     drawn, and the joint path (rad) from home through the added ones."""
@@ -132,6 +157,13 @@ class AddedPostures:
     candidates: int
     drawn_from: str
     path_rad: float
+    forecast: SelectionForecast
+
+
+SPARE = 8
+"""The greedy's next picks beyond the count that may replace a chosen posture."""
+GAIN = 0.01
+"""A swap or a change of the recording order is taken when the prediction falls by this much."""
 
 
 def plan_additions(
@@ -147,24 +179,53 @@ def plan_additions(
     setup = plan.setup
     g = plan_ground(setup, count, opts)
     G, var, n_cam = g.G, g.variance, setup.camera.n_free
-    F_frames = frame_information(setup, plan.q, opts.pixel_sigma_px, opts.joint_sigma)
+    F_frames = frame_information(setup, plan.q, opts.pixel_sigma_px, opts.joint_sigma, plan.seen)
     F_old = F_frames.sum(axis=0)
     F = frame_information(setup, g.pool, opts.pixel_sigma_px, opts.joint_sigma)
-    chosen = select_greedy(F, G, n_cam, count, start=training_sets(plan, F_frames)
-                           + prior_information(var, n_cam))  # fmt: skip
+    picks = select_greedy(F, G, n_cam, min(count + SPARE, len(F)),
+                          start=training_sets(plan, F_frames) + prior_information(var, n_cam))  # fmt: skip
     home = setup.robot.home
+    n_feat = np.concatenate([plan.n_features, np.full(len(F), len(setup.board.layout()[0]))])
+    model = board_model(setup)
+
+    def predicted(idx: np.ndarray) -> tuple[float, SelectionForecast]:
+        """The prediction after recording the pool's postures ``idx`` in that order."""
+        q_all = np.concatenate([plan.q, g.pool[idx]])
+        F_all = np.concatenate([F_frames, F[idx]])
+        nf = np.concatenate([n_feat[: len(plan.q)], n_feat[len(plan.q) + idx]])
+        fc = forecast_selection(model, q_all, F_all, nf, n_cam, var, opts.pixel_sigma_px)
+        return predict_kept(setup, q_all, F_all.sum(axis=0), G, var, fc.kept), fc
+
+    def in_path_order(idx: np.ndarray) -> np.ndarray:
+        return idx[order_path(g.pool[idx], home)]
+
+    chosen = in_path_order(picks[:count])
+    best = predicted(chosen)[0]
+    for i in range(count):  # swap in the greedy's next picks where the forecast gains
+        for spare in picks[count:]:
+            if spare in chosen:
+                continue
+            trial = chosen.copy()
+            trial[i] = spare
+            trial = in_path_order(trial)
+            got = predicted(trial)[0]
+            if got < (1.0 - GAIN) * best:
+                chosen, best = trial, got
+    for i in range(count - 1):  # which posture shares the last fold with the dataset's frames
+        trial = np.r_[np.delete(chosen, i), chosen[i]]
+        got = predicted(trial)[0]
+        if got < (1.0 - GAIN) * best:
+            chosen, best = trial, got
+    after, forecast = predicted(chosen)
     q = g.pool[chosen]
-    q = q[order_path(q, home)]
-    q_all = np.concatenate([plan.q, q])
-    kept_after = kept_by_rank(board_model(setup), q_all)
     before = predict_kept(setup, plan.q, F_old, G, var, (plan.free_idx, plan.offset_joints))
-    after = predict_kept(setup, q_all, F_old + F[chosen].sum(axis=0), G, var, kept_after)
     return AddedPostures(
         q=q,
         before_m=before,
         after_m=after,
         kept_before=len(plan.free_idx) + len(plan.offset_joints),
-        kept_after=sum(map(len, kept_after)),
+        kept_after=sum(map(len, forecast.kept)),
+        forecast=forecast,
         workspace=g.workspace,
         candidates=len(g.pool),
         drawn_from=g.drawn_from,
