@@ -316,3 +316,29 @@ def test_evaluate_nominal_is_the_fair_one(name, outcome):
         f"{name}: evaluate's held-out nominal {rms['nominal']:.3f} px, the reference's (nominal "
         f"chain, hand-eye and board pose fitted on the pixels) {ref:.3f} px"
     )
+
+
+@pytest.mark.parametrize("name", [pytest.param(PHOTONEO, id=PHOTONEO)])
+@pytest.mark.parametrize("deviation", [(), ("--deviation-mm", "0.1", "--deviation-deg", "0.05")],
+                         ids=["default-deviation", "small-deviation"])  # fmt: skip
+def test_plan_add_five_postures_to_the_calibrated_set(name, deviation, outcome, runs_dir):
+    """`selfcal plan --add 5` on the calibrated groups 1-5 (docs/plan.md quotes the lines):
+    the predicted tool-point error falls at least 2x and more parameters are kept, with the
+    simulated robots' deviation from the drawing (1 mm, 0.5 deg) and with one 10x smaller
+    (whose forecast nominal fold RMS, 1.9-3.0 px, matches the calibration's 1.6-2.6 px)."""
+    from selfcal.robot.definition import load_robot
+
+    outcome.held_out_rms()  # import and calibrate ran
+    real = SETS[name]
+    out = runs_dir / name / f"add5{''.join(deviation)}"
+    argv = ["plan", "--add", "5", str(runs_dir / name / "calib"), "--out", str(out), *deviation]
+    p = subprocess.run([_selfcal_exe(), *argv], capture_output=True, text=True, timeout=1200,
+                       check=False)  # fmt: skip
+    assert p.returncode == 0, p.stdout + p.stderr
+    doc = json.loads((out / "plan.json").read_text())
+    gain = doc["predicted_before_tool_rms_mm"] / doc["predicted_tool_rms_mm"]
+    assert gain >= 2.0, doc  # measured 217 (39.8 -> 0.184 mm) and 20 (4.00 -> 0.200 mm)
+    assert doc["kinematic_parameters_after"] > doc["kinematic_parameters_before"]  # 30, 16
+    q = np.radians(doc["joints_deg"])
+    limits = load_robot(real.root / real.robot).limits
+    assert len(q) == 5 and np.all((q >= limits[:, 0]) & (q <= limits[:, 1]))
