@@ -34,6 +34,7 @@ import numpy as np
 
 from selfcal.calibration.board.plan_predict import (
     Deviation,
+    Directions,
     estimated_directions,
     kept_by_rank,
     predicted_with_held,
@@ -370,14 +371,19 @@ def predict_kept(
     G: np.ndarray,
     variance: np.ndarray,
     kept: tuple[np.ndarray, np.ndarray] | None = None,
+    directions: Directions | None = None,
 ) -> float:
     """The predicted tool-point RMS (m) of a calibration on the postures ``q`` (m, n) rad with
     the information ``F`` (p, p) (:func:`frame_information` summed over them), the tool weight
     ``G`` and the deviation's ``variance`` (k,): its ``kept`` parameters (flat MCPC indices,
     offset joints) estimated, by default those the selection's rank and conditioning test
     accepts at ``q``, the others held at the drawing
-    (:func:`selfcal.calibration.board.plan_predict.predicted_with_held`)."""
+    (:func:`selfcal.calibration.board.plan_predict.predicted_with_held`); ``directions`` the
+    model's when already computed."""
     model = board_model(setup)
     free_idx, offsets = kept_by_rank(model, q) if kept is None else kept
-    M = estimated_directions(model, free_idx, offsets)
+    if directions is None:
+        M = estimated_directions(model, free_idx, offsets)
+    else:
+        M = directions.of(free_idx, offsets)
     return predicted_with_held(F, G, setup.camera.n_free, M, variance)

@@ -48,7 +48,7 @@ from selfcal.calibration.board.plan import (
     predict_kept,
     select_greedy,
 )
-from selfcal.calibration.board.plan_predict import prior_information
+from selfcal.calibration.board.plan_predict import Directions, prior_information
 from selfcal.calibration.board.plan_selection import SelectionForecast, forecast_selection
 from selfcal.calibration.board.plan_views import PlanSetup
 from selfcal.errors import InputError
@@ -187,14 +187,15 @@ def plan_additions(
     home = setup.robot.home
     n_feat = np.concatenate([plan.n_features, np.full(len(F), len(setup.board.layout()[0]))])
     model = board_model(setup)
+    dirs = Directions(model)
 
     def predicted(idx: np.ndarray) -> tuple[float, SelectionForecast]:
         """The prediction after recording the pool's postures ``idx`` in that order."""
         q_all = np.concatenate([plan.q, g.pool[idx]])
         F_all = np.concatenate([F_frames, F[idx]])
         nf = np.concatenate([n_feat[: len(plan.q)], n_feat[len(plan.q) + idx]])
-        fc = forecast_selection(model, q_all, F_all, nf, n_cam, var, opts.pixel_sigma_px)
-        return predict_kept(setup, q_all, F_all.sum(axis=0), G, var, fc.kept), fc
+        fc = forecast_selection(model, q_all, F_all, nf, n_cam, var, opts.pixel_sigma_px, dirs)
+        return predict_kept(setup, q_all, F_all.sum(axis=0), G, var, fc.kept, dirs), fc
 
     def in_path_order(idx: np.ndarray) -> np.ndarray:
         return idx[order_path(g.pool[idx], home)]

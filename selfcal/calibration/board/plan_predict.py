@@ -46,6 +46,7 @@ from selfcal.kinematics.mcpc import MCPCModel, minimal_indices, param_is_angle
 
 __all__ = [
     "Deviation",
+    "Directions",
     "kept_by_rank",
     "error_covariance",
     "estimated_directions",
@@ -92,6 +93,31 @@ def estimated_directions(
                            np.zeros((0, 4, 4)), np.ones(1, bool),
                            offset_joints=np.asarray(offset_joints, np.int64))  # fmt: skip
     return to_minimal(poses)
+
+
+class Directions:
+    """:func:`estimated_directions` of every minimal parameter, the placement's and every
+    revolute joint's offset of ``model`` (all the selection offers), computed once: each column depends on its own parameter alone (a
+    derivative at the model), so any set's directions are a choice of these columns."""
+
+    def __init__(self, model: MCPCModel):
+        self.free = np.union1d(minimal_indices(model.joint_types), placement_indices(model.n))
+        self.offsets = np.array(
+            [j for j, t in enumerate(model.joint_types) if t == "revolute"], np.int64
+        )
+        self.M = estimated_directions(model, self.free, self.offsets)
+
+    def of(self, free_idx: np.ndarray, offset_joints: np.ndarray) -> np.ndarray:
+        """(k, e) the directions of the flat MCPC parameters ``free_idx`` and
+        the joint offsets ``offset_joints``, in that order."""
+        at = {int(i): c for c, i in enumerate(self.free.tolist())}
+        off = {int(j): len(self.free) + c for c, j in enumerate(self.offsets.tolist())}
+        try:
+            cols = [at[int(i)] for i in np.asarray(free_idx).tolist()]
+            cols += [off[int(j)] for j in np.asarray(offset_joints).tolist()]
+        except KeyError as exc:
+            raise UsageError(f"parameter {exc} is not one the selection offers") from None
+        return self.M[:, cols]
 
 
 def prior_information(variance: np.ndarray, n_cam: int) -> np.ndarray:

@@ -38,7 +38,7 @@ from selfcal.calibration.board.param_selection import (
     one_se_rule,
     parameter_pool,
 )
-from selfcal.calibration.board.plan_predict import error_covariance, estimated_directions
+from selfcal.calibration.board.plan_predict import Directions, error_covariance
 from selfcal.errors import UsageError
 from selfcal.kinematics.mcpc import MCPCModel, param_names
 
@@ -72,13 +72,15 @@ def forecast_selection(
     n_cam: int,
     variance: np.ndarray,
     sigma_px: float,
+    directions: Directions | None = None,
 ) -> SelectionForecast:
     """The candidate the selection is expected to keep (module docstring) for the frames at the
     joints ``q`` (m, n) rad in recording order, of ``model`` (world = board, tool = camera):
     ``F_frames`` (m, p, p) their information on ``[camera (n_cam), minimal (k)]``
     (:func:`selfcal.calibration.board.plan.frame_information`), ``n_features`` (m,) the
     features each shows, ``variance`` (k,) the deviation from the drawing, ``sigma_px`` the
-    corner noise (px)."""
+    corner noise (px); ``directions`` the model's estimated directions when already computed
+    (:class:`selfcal.calibration.board.plan_predict.Directions`)."""
     q = np.atleast_2d(np.asarray(q, dtype=float))
     n_features = np.asarray(n_features, dtype=float)
     if len(F_frames) != len(q) or len(n_features) != len(q):
@@ -93,7 +95,7 @@ def forecast_selection(
                                  (first.label,), ((),), 1)  # fmt: skip
     Fk = F_frames[:, n_cam:, n_cam:]
     last = cands[-1]  # the candidates are nested: every direction is one of the last's
-    M = estimated_directions(model, last.free_idx, last.offset_joints)
+    M = (directions or Directions(model)).of(last.free_idx, last.offset_joints)
     column = {nm: k for k, nm in enumerate(_names(last))}
     rms = np.array([[_fold_rms(Fk, n_features, folds == f,
                                M[:, [column[nm] for nm in _names(c) if nm not in held]],
