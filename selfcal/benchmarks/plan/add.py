@@ -1,4 +1,5 @@
-"""``python -m selfcal.benchmarks.plan.add [--truths 6] [--add 5] [--jobs 2] [--out DIR]``:
+"""``python -m selfcal.benchmarks.plan.add [--truths 6] [--add 5] [--jobs 2] [--out DIR]
+[--write-docs]``:
 ``selfcal plan --add`` on a poorly identified dataset, simulated (docs/plan.md, issue #30).
 
 For every truth (the scenario's ``[perturbation] seed``): a UR5e with a 60 deg wrist camera
@@ -8,7 +9,8 @@ calibrates them; ``selfcal plan --add K`` plans K postures for that dataset; the
 postures and the added ones are acquired again in simulation with the same truth and
 calibrated. A row: the predicted tool-point RMS before and after (``plan.json``) and the
 achieved one (``report.json``'s validation tool tip against the simulated truth). Prints the
-table and the medians of the before/after ratios.
+table and the medians of the before/after ratios; ``--write-docs`` puts them between
+docs/plan.md's ``benchmark_plan_add_K`` markers (K the ``--add``).
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from selfcal.benchmarks.doc_blocks import ROOT, print_table
 from selfcal.io.atomic import write_text_atomic
 
 __all__ = ["wrist_cell", "wrist_only_row", "main"]
@@ -117,25 +120,26 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--add", type=int, default=5)
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--out", default="runs/plan-add")
+    ap.add_argument("--write-docs", action="store_true",
+                    help="rewrite the table of this --add in docs/plan.md")  # fmt: skip
     a = ap.parse_args(argv)
     items = [(a.out, s, a.add) for s in range(1, a.truths + 1)]
     with get_context("spawn").Pool(a.jobs) as pool:
         rows = pool.map(_row, items)
-    print("| truth | frames | predicted before -> after (mm) | achieved before -> after (mm) "
-          "| parameters kept |")  # fmt: skip
-    print("|---|---|---|---|---|")
+    lines = ["| truth | frames | predicted before -> after (mm) | achieved before -> after (mm) "
+             "| parameters kept |", "|---|---|---|---|---|"]  # fmt: skip
     for r in rows:
-        print(f"| {r['seed']} | {r['frames']} + {a.add} | {r['predicted_before_mm']:.3f} -> "
-              f"{r['predicted_after_mm']:.3f} | {r['achieved_before_mm']:.3f} -> "
-              f"{r['achieved_after_mm']:.3f} | {r['kept_before']} -> {r['kept_after']} |")  # fmt: skip
+        lines.append(f"| {r['seed']} | {r['frames']} + {a.add} | {r['predicted_before_mm']:.3f} -> "
+                     f"{r['predicted_after_mm']:.3f} | {r['achieved_before_mm']:.3f} -> "
+                     f"{r['achieved_after_mm']:.3f} | {r['kept_before']} -> {r['kept_after']} |")  # fmt: skip
     pr = np.median([r["predicted_before_mm"] / r["predicted_after_mm"] for r in rows])
     ac = np.median([r["achieved_before_mm"] / r["achieved_after_mm"] for r in rows])
     fit = np.median([r["achieved_after_mm"] / r["predicted_after_mm"] for r in rows])
-    print(
-        f"\nmedian ratio before/after: predicted {pr:.2f}, achieved {ac:.2f}; "
-        f"achieved/predicted after {fit:.2f}"
-    )
-    return 0
+    lines += ["", f"Median ratio before/after: predicted {pr:.2f}, achieved {ac:.2f}; "
+              f"achieved/predicted after {fit:.2f} (`python -m selfcal.benchmarks.plan.add "
+              f"--truths {a.truths} --add {a.add} --write-docs`)."]  # fmt: skip
+    return print_table("\n".join(lines), ROOT / "docs" / "plan.md",
+                       f"benchmark_plan_add_{a.add}", write=a.write_docs)  # fmt: skip
 
 
 if __name__ == "__main__":
