@@ -10,8 +10,10 @@
 """
 
 from selfcal.solver.covariance import (
+    block_columns,
     covariance,
     inverse_block,
+    inverse_columns,
     scaled_rank,
     scaled_rank_of_normal,
     schur_normal_matrix,
@@ -33,9 +35,11 @@ __all__ = [
     "ResidualBlock",
     "SolverOptions",
     "SolverResult",
+    "block_columns",
     "cost_and_weights",
     "covariance",
     "inverse_block",
+    "inverse_columns",
     "scaled_rank",
     "scaled_rank_of_normal",
     "schur_normal_matrix",

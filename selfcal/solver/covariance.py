@@ -20,7 +20,9 @@ from selfcal.solver.problem import Problem
 from selfcal.solver.schur import SchurAssembler
 
 __all__ = [
+    "block_columns",
     "inverse_block",
+    "inverse_columns",
     "covariance",
     "scaled_rank",
     "scaled_rank_of_normal",
@@ -72,8 +74,8 @@ def normal_matrix(J: sp.spmatrix | np.ndarray) -> sp.csc_matrix:
     return sp.csc_matrix((vals, (rows, cols)), shape=(n, n))
 
 
-def inverse_block(J: sp.spmatrix | np.ndarray, cols: np.ndarray) -> np.ndarray:
-    """``(J^T J)^-1`` restricted to the unknowns ``cols`` (len(cols), len(cols)), symmetrised.
+def inverse_columns(J: sp.spmatrix | np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """The columns ``cols`` of ``(J^T J)^-1`` (n, len(cols)).
 
     Diagonally scaled exact solve: dense LU up to :data:`selfcal.solver.linear.DENSE_MAX`
     unknowns, SuperLU (COLAMD) above. Raises ``RuntimeError``/``LinAlgError`` when ``J^T J`` is
@@ -85,13 +87,29 @@ def inverse_block(J: sp.spmatrix | np.ndarray, cols: np.ndarray) -> np.ndarray:
     e[cols, np.arange(len(cols))] = 1.0
     if JtJ.shape[0] <= DENSE_MAX:  # dense LU: faster than SuperLU at this size
         M = JtJ.toarray() / dg[:, None] / dg[None, :]
-        sol = np.linalg.solve(M, e / dg[:, None]) / dg[:, None]
-    else:
-        Dinv = sp.diags(1.0 / dg)
-        lu = splu((Dinv @ JtJ @ Dinv).tocsc(), permc_spec="COLAMD")
-        sol = lu.solve(e / dg[:, None]) / dg[:, None]
-    out = sol[cols]
+        return np.linalg.solve(M, e / dg[:, None]) / dg[:, None]
+    Dinv = sp.diags(1.0 / dg)
+    lu = splu((Dinv @ JtJ @ Dinv).tocsc(), permc_spec="COLAMD")
+    return lu.solve(e / dg[:, None]) / dg[:, None]
+
+
+def inverse_block(J: sp.spmatrix | np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """``(J^T J)^-1`` restricted to the unknowns ``cols`` (len(cols), len(cols)), symmetrised
+    (:func:`inverse_columns`' solve)."""
+    out = inverse_columns(J, cols)[np.asarray(cols, dtype=np.int64)]
     return 0.5 * (out + out.T)
+
+
+def block_columns(problem: Problem,
+                  blocks: Sequence[str | tuple[str, np.ndarray]]) -> np.ndarray:  # fmt: skip
+    """The unknowns' columns of parameter ``blocks`` in that order (each block's free
+    coordinates in order; ``(name, idx)`` selects the free coordinates ``idx`` of a block)."""
+    cols = []
+    for b in blocks:
+        name, idx = (b, None) if isinstance(b, str) else b
+        c = problem.columns(name)
+        cols.append(c if idx is None else c[np.asarray(idx, dtype=np.int64)])
+    return np.concatenate(cols)
 
 
 def covariance(
@@ -110,12 +128,7 @@ def covariance(
     when none of the selected coordinates is one of its instances', the inverse is that of the
     Schur complement of the instances in ``J^T J`` assembled as the solver assembles it (dense,
     the kept unknowns only), instead of a sparse factorisation of the whole of ``J^T J``."""
-    cols_ = []
-    for b in blocks:
-        name, idx = (b, None) if isinstance(b, str) else b
-        c = problem.columns(name)
-        cols_.append(c if idx is None else c[np.asarray(idx, dtype=np.int64)])
-    cols = np.concatenate(cols_)
+    cols = block_columns(problem, blocks)
     if eliminate is not None:
         kept = _kept_inverse(problem, x, cols, eliminate)
         if kept is not None:
