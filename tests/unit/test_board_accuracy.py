@@ -8,7 +8,7 @@ import pytest
 from scipy.linalg import expm
 
 from selfcal.calibration.accuracy import model_error_of
-from selfcal.calibration.board.accuracy import pose_jacobian
+from selfcal.calibration.board.misfit import pose_jacobian
 from selfcal.camera import camera_model
 from selfcal.transforms import inv_pose, pose_from_vec, skew
 

@@ -18,7 +18,11 @@ parts of :mod:`selfcal.calibration.accuracy`:
   :data:`selfcal.calibration.accuracy.Z_MODEL_ERROR` standard errors (``2 tr Sigma^2`` per
   frame) is a model error ``m`` per tool-point coordinate and ``m / L`` per rotation coordinate
   (``L`` the tool point's mean distance to the board points in view: the rotation then moves
-  the view about as much as the translation) whose pixel effect is that excess. Each held-out
+  the view about as much as the translation) whose pixel effect is that excess: in the held-out
+  frame itself and through what the same error in the fold's training frames did to its
+  estimate (:mod:`selfcal.calibration.board.misfit`: a fold that extrapolates is thrown far by
+  it, and is not read as a large model error everywhere). The calibration's covariance gets
+  the same (``m^2 G`` of its own frames) in its prediction. Each held-out
   frame's tool-point error as the pose correction that fits its pixels best (linear least
   squares on the projection's Jacobian, ``B xi``) is kept beside it
   (:class:`selfcal.calibration.accuracy.ModelError`'s held-out RMS): a single view knows it
@@ -50,6 +54,7 @@ from selfcal.calibration.accuracy import (
     postures_from_json,
 )
 from selfcal.calibration.board.bounds import BoardCramerRao, board_cramer_rao
+from selfcal.calibration.board.misfit import pose_jacobian, tip_map, unit_rows
 from selfcal.calibration.board.nominal_fit import standard_gauge
 from selfcal.calibration.board.param_selection import Selection
 from selfcal.calibration.board.refine import BoardObservations, Refinement, predicted_points
@@ -63,7 +68,7 @@ from selfcal.kinematics.tool_error import (
     workspace_sample,
     workspace_summary,
 )
-from selfcal.transforms import inv_pose, skew
+from selfcal.transforms import inv_pose
 
 __all__ = [
     "board_accuracy",
@@ -73,9 +78,7 @@ __all__ = [
     "cross_validated_reprojection",
     "held_out_errors",
     "model_error",
-    "pose_jacobian",
     "predicted_reprojection",
-    "tip_map",
 ]
 
 _FIX = "re-run `selfcal calibrate` to write the block again"
@@ -99,45 +102,32 @@ def board_error_model(cr: BoardCramerRao, T_tool_point: np.ndarray, position_m: 
     """The :class:`ToolErrorModel` of the bounds ``cr`` (world = the chain's, the tool point
     ``T_tool_point`` in the chain's tool frame) with the model error ``position_m`` /
     ``rotation_rad`` per coordinate, and the names of the parameters its covariance covers (the
-    minimal parameters the estimate moved)."""
+    minimal parameters the estimate moved); the covariance is the Cramer-Rao one plus what the
+    model error in the calibration's frames gives the estimate (``position_m^2 G``,
+    :mod:`selfcal.calibration.board.misfit`)."""
     idx = minimal_indices(cr.model.joint_types)
     est = np.ones(idx.size, bool) if cr.estimated is None else np.asarray(cr.estimated, bool)
-    cov = cr.covariance[np.ix_(est, est)]
+    p = int(est.sum())
+    cov = cr.covariance[np.ix_(est, est)] + position_m**2 * _full_covariance(cr, True)[1][:p, :p]
     em = ToolErrorModel(cr.model, np.eye(4), idx[est], cov, position_m, rotation_rad,
                         np.asarray(T_tool_point, float))  # fmt: skip
     return em, tuple(param_names(idx[est]))
 
 
-def pose_jacobian(Jx: np.ndarray, x: np.ndarray, T_tool: np.ndarray,
-                  eye_to_hand: bool) -> np.ndarray:  # fmt: skip
-    """(2k, 6) the derivative of the pixels of the board points ``x`` (k, 3) (camera frame, m)
-    by a body twist ``[v; w]`` (m, rad) of the chain's tool pose ``T_tool`` (4, 4) (the camera
-    in the board frame, eye-to-hand the board in the camera frame); ``Jx`` (k, 2, 3) the
-    projection's derivative by the point (px per m)."""
-    if eye_to_hand:  # camera <- board = the tool pose; the twist moves the board
-        R = T_tool[:3, :3]
-        dX = np.concatenate([np.broadcast_to(R, (len(x), 3, 3)), -skew(x - T_tool[:3, 3]) @ R], 2)
-    else:  # camera <- board = inv(tool pose); the twist moves the camera
-        dX = np.concatenate([np.broadcast_to(-np.eye(3), (len(x), 3, 3)), skew(x)], 2)
-    return (Jx @ dX).reshape(-1, 6)
-
-
-def tip_map(T_tool: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """(6, 6) the map of a body twist ``[v; w]`` of the tool pose ``T_tool`` to the move of the
-    tool point ``t`` (3,) (tool frame, m) and the rotation, both in the world frame."""
-    R = T_tool[:3, :3]
-    B = np.zeros((6, 6))
-    B[:3, :3], B[:3, 3:], B[3:, 3:] = R, -R @ skew(np.asarray(t, float)), R
-    return B
-
-
-def _full_covariance(cr: BoardCramerRao) -> tuple[np.ndarray, np.ndarray, int]:
+def _full_covariance(cr: BoardCramerRao,
+                     misfit: bool = False) -> tuple[np.ndarray, np.ndarray, int]:  # fmt: skip
     """The estimated minimal parameters' flat indices, the joint covariance (p + c, p + c) of
-    them and the first camera's free parameters (with their correlation), and ``c``."""
+    them and the first camera's free parameters (with their correlation), and ``c``;
+    ``misfit``: instead of the covariance, what a unit model error gives them
+    (:attr:`BoardCramerRao.misfit`, zero when the bounds carry none)."""
     idx = minimal_indices(cr.model.joint_types)
     est = np.ones(idx.size, bool) if cr.estimated is None else np.asarray(cr.estimated, bool)
     p = int(est.sum())
     n0 = 0 if cr.camera_covariance is None else len(cr.camera_covariance)
+    if misfit:
+        keep = np.r_[np.flatnonzero(est), idx.size + np.arange(n0)]
+        G = np.zeros((p + n0, p + n0)) if cr.misfit is None else cr.misfit[np.ix_(keep, keep)]
+        return idx[est], G, n0
     C = np.zeros((p + n0, p + n0))
     C[:p, :p] = cr.covariance[np.ix_(est, est)]
     if n0:
@@ -163,8 +153,9 @@ def held_out_errors(obs: BoardObservations, fit: Refinement, frames: np.ndarray,
     camera, with their correlation), the joint read-back noise and the pixel noise give it,
     ``px2_var`` that sum's variance without a model error (``2 tr Sigma^2``), ``px2_unit`` what
     a model error of 1 m per tool-point coordinate (and 1 m / lever rad per rotation coordinate)
-    adds to it; ``lever`` the tool point's mean distance (m) to the board points in view; the
-    flange's error as the best pose correction of the pixels ``e`` (6,) (position m, orientation
+    in this frame adds to it, ``px2_misfit`` what the same in the training frames adds through
+    the estimate (:mod:`selfcal.calibration.board.misfit`); ``lever`` the tool point's mean
+    distance (m) to the board points in view; the flange's error as the best pose correction of the pixels ``e`` (6,) (position m, orientation
     rad, world frame) with the covariances the estimate's errors ``S`` (6, 6) and the noise
     ``N`` (6, 6) give it."""
     cam, v, Xc, uv, _ = predicted_points(obs, fit, frames)[0]
@@ -172,8 +163,10 @@ def held_out_errors(obs: BoardObservations, fit: Refinement, frames: np.ndarray,
     js = obs.joint_sigma
     cols, C, n0 = _full_covariance(cr)
     C_half = _sqrt_psd(C)
+    G_half = _sqrt_psd(_full_covariance(cr, misfit=True)[1])
     s2 = cr.pixel_sigma_px**2
-    keys = ("frame", "px2", "px2_expected", "px2_var", "px2_unit", "lever", "e", "S", "N")
+    keys = ("frame", "px2", "px2_expected", "px2_var", "px2_unit", "px2_misfit", "lever", "e",
+            "S", "N")  # fmt: skip
     out: dict[str, list] = {k: [] for k in keys}
     for i in np.unique(v).tolist():
         rows = v == i
@@ -184,7 +177,6 @@ def held_out_errors(obs: BoardObservations, fit: Refinement, frames: np.ndarray,
         A = pose_jacobian(Jx, x, T, obs.eye_to_hand)
         AtA_inv = np.linalg.inv(A.T @ A)
         B = tip_map(T, t)
-        Binv = np.linalg.inv(B)
         H = np.concatenate([A @ identification_jacobian(cr.model, obs.q[i][None])[0][:, cols],
                             Jc.reshape(-1, n0)], axis=1)  # fmt: skip
         U = H @ C_half  # the estimate's pixel errors: U U^T
@@ -195,9 +187,7 @@ def held_out_errors(obs: BoardObservations, fit: Refinement, frames: np.ndarray,
             Q = tw * np.broadcast_to(np.asarray(js, float), (tw.shape[1],))
             U = np.concatenate([U, A @ Q], axis=1)
             N = N + B @ Q @ Q.T @ B.T
-        tip_cam = T[:3, :3] @ t + T[:3, 3] if obs.eye_to_hand else t  # camera frame
-        lever = float(np.mean(np.linalg.norm(x - tip_cam, axis=1)))
-        D_half = Binv @ np.diag(np.r_[np.ones(3), np.full(3, 1.0 / lever)])
+        K, lever = unit_rows(A, x, T, t, obs.eye_to_hand)
         UtU = U.T @ U
         vals = {
             "frame": i,
@@ -207,7 +197,8 @@ def held_out_errors(obs: BoardObservations, fit: Refinement, frames: np.ndarray,
             * (
                 float(np.sum(UtU * UtU)) + 2 * s2 * float(np.trace(UtU)) + r.size * s2**2
             ),  # fmt: skip
-            "px2_unit": float(np.sum((A @ D_half) ** 2)),
+            "px2_unit": float(np.sum(K**2)),
+            "px2_misfit": float(np.sum((H @ G_half) ** 2)),
             "lever": lever,
             "e": -B @ P @ r,
             "S": B @ P @ (H @ C @ H.T) @ P.T @ B.T,
@@ -240,6 +231,7 @@ def model_error(obs: BoardObservations, selection: Selection, offsets: np.ndarra
             obs.board, fit.cameras, model, obs.q[train], _features(obs, train), pixel_sigma_px,
             joint_sigma=obs.joint_sigma, T_first_cam=None if obs.rig is None else fit.T_first_cam,
             free_idx=free_idx, offset_joints=offset_joints, eye_to_hand=obs.eye_to_hand,
+            T_tool_point=T_tool_point,
         )  # fmt: skip
         h = held_out_errors(obs, fit, out, T_tool_point, cr)
         if len(h["frame"]):
@@ -249,11 +241,12 @@ def model_error(obs: BoardObservations, selection: Selection, offsets: np.ndarra
     h = {k: np.concatenate([g[k] for g in got]) for k in got[0]}
     # one size m per tool-point coordinate, m / L per rotation coordinate (L the tool point's
     # distance to the board points in view: the rotation then moves the view about as much as
-    # the translation), from the pixels' excess over what the rest explains
+    # the translation), from the pixels' excess over what the rest explains: m^2 (u + w), its
+    # effect in the frame itself and through the fold's estimate (misfit.py)
     extra = float(np.sum(h["px2"]) - np.sum(h["px2_expected"]))
     m = 0.0
     if extra > Z_MODEL_ERROR * np.sqrt(np.sum(h["px2_var"])):
-        m = float(np.sqrt(extra / np.sum(h["px2_unit"])))
+        m = float(np.sqrt(extra / (np.sum(h["px2_unit"]) + np.sum(h["px2_misfit"]))))
     e, S, N = h["e"], h["S"], h["N"]
 
     def parts(b: slice) -> tuple[list[np.ndarray], list[np.ndarray], list[np.ndarray]]:
@@ -348,11 +341,13 @@ def predicted_reprojection(cr: BoardCramerRao, camera: CameraModel, q: np.ndarra
     """The predicted 2-D RMS (px) of the reprojection errors of new frames of the first camera
     ``camera`` at the joints ``q`` (m, n) rad, ``points[i]`` (k_i, 3) the board points it sees in
     frame ``i`` (board frame, m): what the calibration's errors (kinematics and camera, ``cr``
-    its bounds at the estimate), the model error per tool-point coordinate (``model_error_m``,
+    its bounds at the estimate, with what the model error in its frames gave the estimate:
+    :attr:`BoardCramerRao.misfit`), the model error per tool-point coordinate (``model_error_m``,
     ``model_error_rad``), the joint read-back noise ``joint_sigma`` and the pixel noise
     (``cr.pixel_sigma_px``) give them, to first order -- to compare with ``selfcal evaluate``'s
     measured held-out RMS."""
     cols, C, n0 = _full_covariance(cr)
+    C = C + model_error_m**2 * _full_covariance(cr, misfit=True)[1]
     t = np.asarray(T_tool_point, float)[:3, 3]
     M = np.diag([model_error_m**2] * 3 + [model_error_rad**2] * 3)
     total, count = 0.0, 0

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from selfcal.calibration.board.misfit import misfit_covariance, pose_jacobian, unit_rows
 from selfcal.calibration.board.problem import board_problem
 from selfcal.camera import CameraModel
 from selfcal.camera.camera_set import std_by_name
@@ -34,6 +35,7 @@ from selfcal.estimation.kinematic_poses import KinematicPoses
 from selfcal.io.board_calibration import BoardBounds, BoardCalibrationResult, CameraBounds
 from selfcal.io.calibration_bounds import BoundParameter, ToolTipBound
 from selfcal.kinematics.alignment import regauge
+from selfcal.kinematics.forward import fk_tool
 from selfcal.kinematics.mcpc import (
     MCPCModel,
     chain_transforms,
@@ -41,7 +43,7 @@ from selfcal.kinematics.mcpc import (
     param_is_angle,
     param_names,
 )
-from selfcal.solver import covariance
+from selfcal.solver import block_columns, covariance
 from selfcal.target.base import Features
 from selfcal.target.boards import Board
 from selfcal.transforms import inv_pose
@@ -82,6 +84,11 @@ class BoardCramerRao:
     estimated: np.ndarray | None = None
     camera_covariance: np.ndarray | None = None
     camera_cross: np.ndarray | None = None
+    misfit: np.ndarray | None = None
+    """(k + c, k + c) the covariance a model error of unit size (1 m per tool-point coordinate)
+    in every frame gives the minimal parameters and the first camera's
+    (:mod:`selfcal.calibration.board.misfit`'s ``G``; zero rows for held ones), None when not
+    asked for (no ``T_tool_point``)."""
 
     def aligned_tool_rms(self, q: np.ndarray, T_cam_tip: np.ndarray) -> float:
         """The bound (m) of the RMS error of the point ``T_cam_tip`` (first camera -> tip, m)
@@ -109,6 +116,7 @@ def board_cramer_rao(
     free_idx: np.ndarray | None = None,
     offset_joints: np.ndarray | Sequence[int] = (),
     eye_to_hand: bool = False,
+    T_tool_point: np.ndarray | None = None,
 ) -> BoardCramerRao:
     """The bounds of the board refinement (module docstring) with ``cameras`` (the first is the
     chain's tool; each with its ``free`` parameters), the chain ``model`` (world = board frame)
@@ -141,29 +149,65 @@ def board_cramer_rao(
     prob = board_problem(cameras, poses, obs, board, pixel_sigma_px=pixel_sigma_px,
                          joint_sigma=joint_sigma, n_frames=m)  # fmt: skip
     blocks: list = ["intrinsics", *(f"intrinsics{c}" for c in range(1, n_cams))]
-    C = covariance(prob.problem, prob.problem.x0, [*blocks, ("poses", np.arange(poses.n_kin))],
-                   sigma2=pixel_sigma_px**2)  # fmt: skip
+    blocks.append(("poses", np.arange(poses.n_kin)))
+    C = covariance(prob.problem, prob.problem.x0, blocks, sigma2=pixel_sigma_px**2)
     stds, at = [], 0
     for cam in cameras:
         block = slice(at, at + cam.n_free)
         stds.append(std_by_name(cam, C[block, block]))  # with fy = mu fx by OpenCV's name
         at += cam.n_free
     n_obs = sum(len(o[1]) for o in obs)
-    C_kin, estimated = C[at:, at:], None
     n0 = cameras[0].n_free
-    cross = C[at:, :n0]
-    minimal = minimal_indices(model.joint_types)
-    if free_idx is not None or poses.n_kin != poses.k:
-        M = to_minimal(poses)
-        C_kin = M @ C_kin @ M.T
-        cross = M @ cross
-        estimated = np.abs(M).max(axis=1, initial=0.0) > MOVES
-        C_kin[~estimated] = 0.0
-        C_kin[:, ~estimated] = 0.0
-        cross[~estimated] = 0.0
-    assert C_kin.shape == (minimal.size, minimal.size)
+    M = to_minimal(poses) if free_idx is not None or poses.n_kin != poses.k else None
+    C_kin, cross, estimated = _kinematic_part(C, at, n0, M)
+    misfit = None
+    if T_tool_point is not None:
+        G = misfit_covariance(prob.problem.jacobian(prob.problem.x0),
+                              *_unit_rows(cameras[0], model, q, features[0], board, T_tool_point,
+                                          eye_to_hand),
+                              block_columns(prob.problem, blocks))  # fmt: skip
+        G_kin, G_cross, _ = _kinematic_part(G, at, n0, M)
+        misfit = np.block([[G_kin, G_cross], [G_cross.T, G[:n0, :n0]]])
+    assert C_kin.shape == (minimal_indices(model.joint_types).size,) * 2
     return BoardCramerRao(model, C_kin, tuple(stds), float(pixel_sigma_px), int(n_obs),
-                          int(prob.problem.n), estimated, C[:n0, :n0], cross)  # fmt: skip
+                          int(prob.problem.n), estimated, C[:n0, :n0], cross, misfit)  # fmt: skip
+
+
+def _kinematic_part(C: np.ndarray, at: int, n0: int,
+                    M: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:  # fmt: skip
+    """The minimal parameters' block of ``C`` (the cameras' ``at`` columns first, then the
+    estimated kinematic parameters), its cross block with the first camera's ``n0`` and which
+    minimal parameters are estimated (None: all), through ``M`` (:func:`to_minimal`, None when
+    the estimated ones are the minimal ones)."""
+    C_kin, cross = C[at:, at:], C[at:, :n0]
+    if M is None:
+        return C_kin, cross, None
+    C_kin, cross = M @ C_kin @ M.T, M @ cross
+    estimated = np.abs(M).max(axis=1, initial=0.0) > MOVES
+    C_kin[~estimated] = 0.0
+    C_kin[:, ~estimated] = 0.0
+    cross[~estimated] = 0.0
+    return C_kin, cross, estimated
+
+
+def _unit_rows(camera: CameraModel, model: MCPCModel, q: np.ndarray, features: Sequence[Features],
+               board: Board, T_tool_point: np.ndarray,
+               eye_to_hand: bool) -> tuple[list[np.ndarray], list[np.ndarray]]:  # fmt: skip
+    """Every frame's residual rows of the first camera (the problem's first block, two per
+    corner in order) and their :func:`selfcal.calibration.board.misfit.unit_rows`."""
+    T = fk_tool(model, q)
+    t = np.asarray(T_tool_point, float)[:3, 3]
+    rows, K, at = [], [], 0
+    for i, f in enumerate(features):
+        if not len(f):
+            continue
+        T_cam_board = T[i] if eye_to_hand else inv_pose(T[i])
+        x = board.points(f.ids) @ T_cam_board[:3, :3].T + T_cam_board[:3, 3]
+        A = pose_jacobian(camera.project_free(x)[1], x, T[i], eye_to_hand)
+        rows.append(np.arange(2 * at, 2 * (at + len(f))))
+        K.append(unit_rows(A, x, T[i], t, eye_to_hand)[0])
+        at += len(f)
+    return rows, K
 
 
 def to_minimal(poses: KinematicPoses) -> np.ndarray:
@@ -201,13 +245,16 @@ def board_bounds(
     *,
     joint_sigma: np.ndarray | None,
     pixel_sigma_px: float | None = None,
+    misfit: bool = False,
 ) -> tuple[BoardBounds, BoardCramerRao]:
     """``calibration.json``'s ``bounds`` of the board calibration ``cal`` and the
     :class:`BoardCramerRao` they come from: :func:`board_cramer_rao`
     at its estimate (cameras, chain, extrinsics) for the features ``features[c][i]`` of the
     frames it used at their read-back joints ``q`` (m, n) rad; the tool tip ``T_cam_tip`` over
     the postures ``q_valid`` (k, n) rad (the calibration's own when none). ``pixel_sigma_px``:
-    the corner noise (None: from the final fit's reprojection RMS, dof-corrected). Eye-to-hand
+    the corner noise (None: from the final fit's reprojection RMS, dof-corrected); ``misfit``:
+    also what a model error does to the estimate at the tip (:attr:`BoardCramerRao.misfit`,
+    for the predicted accuracy). Eye-to-hand
     (``cal.setup``) the chain's tool is the board, and ``T_cam_tip`` the tip in the board frame.
 
     Raises:
@@ -224,7 +271,8 @@ def board_bounds(
     b = board_cramer_rao(board, cal.cameras, cal.model, q, features, pixel_sigma_px,
                          joint_sigma=joint_sigma, T_first_cam=cal.T_first_cam,
                          free_idx=free_idx, offset_joints=offset_joints,
-                         eye_to_hand=cal.eye_to_hand)  # fmt: skip
+                         eye_to_hand=cal.eye_to_hand,
+                         T_tool_point=T_cam_tip if misfit else None)  # fmt: skip
     qv = np.atleast_2d(np.asarray(q_valid, dtype=float))
     if qv.size == 0:  # an imported dataset plans no validation postures: the calibration's own
         qv = q

@@ -341,7 +341,7 @@ def calibrate_board_dataset_detailed(
         bounds, cr = board_bounds(
             board, result, [[fc[i] for i in k] for fc in all_feats], q[used],
             np.radians(ds.info.validation_joints_deg),
-            inv_pose(mount), joint_sigma=js,
+            inv_pose(mount), joint_sigma=js, misfit=True,
         )  # fmt: skip
         result = dataclasses.replace(result, bounds=bounds)
         if e2h:
