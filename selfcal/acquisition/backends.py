@@ -328,7 +328,7 @@ def plan_dataset(s: Scenario, setup: SimSetup | None = None) -> DatasetInfo:
 def _static_info(s: Scenario) -> DatasetInfo:
     """:func:`plan_dataset` of an eye-to-hand scenario."""
     robot = load_robot(s.robot.model)
-    q, qv = plan_static(s, robot)
+    q, qv = plan_static(s, robot, _file_postures(s, robot) if s.trajectory.kind == "file" else None)
     board = scenario_board(s)
     return DatasetInfo(
         robot_model=robot_reference(s.robot.model), encoder_model=robot_reference(s.robot.model),
@@ -351,8 +351,8 @@ def _camera_models(s: Scenario) -> tuple[tuple[str, tuple[str, ...]], ...] | Non
 
 def _digested(s: Scenario) -> dict:
     """The scenario as its dataset's digest sees it: ``noise.msaa`` at its default, an empty
-    ``target.board`` (the marker field), an empty ``camera.right``, a zero ``camera.skew_px`` and
-    the camera on the flange (``camera.setup``) are left out, so a dataset acquired before the keys existed (with those defaults) still
+    ``target.board`` (the marker field), an empty ``camera.right``, a zero ``camera.skew_px``,
+    the camera on the flange (``camera.setup``) and no ``camera.pose`` are left out, so a dataset acquired before the keys existed (with those defaults) still
     resumes."""
     d = scenario_to_dict(s)
     if s.noise.msaa == NoiseConfig.msaa:
@@ -369,6 +369,8 @@ def _digested(s: Scenario) -> dict:
         del d["camera"]["skew_px"]
     if s.camera.setup == CameraConfig.setup:
         del d["camera"]["setup"]
+    if not s.camera.pose:
+        del d["camera"]["pose"]
     return d
 
 

@@ -17,14 +17,26 @@ from selfcal.console.common import CliError, add_json, note_written, parse_float
 __all__ = ["register", "scenario_text"]
 
 EPILOG = """\
-The camera sits on the flange where the robot file's [camera_mount] puts it (eye-in-hand).
+--mount eye-in-hand (default): the camera sits on the flange where the robot file's
+[camera_mount] puts it, the board lies still.
 --board-pose X,Y,Z[,RX,RY,RZ]: the centre of the printed board in the robot's base frame (mm) and
 its rotation from lying printed face up with its columns along the base's x axis (deg, fixed axes
 x, y, z: R = Rz Ry Rx); without the rotation the board lies face up.
+--mount eye-to-hand: the camera stands still and the board rides on the flange, printed face out
+along the flange's z axis, the centre of its features on the flange's axis 50 mm in front of the
+flange (as `selfcal run eye-to-hand` mounts it); the calibration then fits base -> camera and
+flange -> board.
+--camera-pose X,Y,Z[,RX,RY,RZ]: the camera's centre in the base frame (mm) and the rotation of
+its OpenCV axes (x right, y down, z along the view) from the base's axes (deg, fixed axes x, y, z:
+R = Rz Ry Rx); without the rotation it looks at the board's centre at the robot's home, its
+image rows level. The arm keeps 80 mm from the camera and out of its lines of sight to the board;
+the board's normal within 45 deg of the optical axis and a feature pitch of at least 24 px (what
+the rendered eye-to-hand replay needs to find every corner).
 --keep-out XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX (mm, base frame; repeat for more boxes): no part of the
-arm or the camera enters the box. The table the robot stands on (z = 0) is always kept out.
-The plan's postures see the whole board inside the image, the board's normal within 60 deg of the
-optical axis, a feature pitch of at least 12 px; they are chosen from --candidates random ones to
+arm, the camera on it or the board on it enters the box. The table the robot stands on (z = 0)
+is always kept out.
+The plan's postures show the whole board inside the image, the board's normal within 60 deg of the
+optical axis, a feature pitch of at least 12 px (eye-in-hand); they are chosen from --candidates random ones to
 minimise the board calibration's predicted (Cramer-Rao) tool-point error over the workspace, and
 ordered for a short joint path from home. The prediction is that of the calibration with the
 parameters its selection's rank test keeps, every other one held at the drawing and erring by
@@ -40,6 +52,14 @@ See docs/plan.md.
 """
 
 
+BOARD_ON_FLANGE = (
+    "printed face out along the flange's z axis, the centre of its features on the flange's "
+    "axis 50 mm in front of the flange, its columns along the flange's x axis"
+)
+"""Where an eye-to-hand plan puts the board (:func:`selfcal.target.placement.board_on_flange`,
+as the simulated eye-to-hand cell does)."""
+
+
 def _parse_size(text: str) -> tuple[int, int]:
     try:
         w, h = (int(v) for v in text.lower().split("x"))
@@ -51,17 +71,33 @@ def _parse_size(text: str) -> tuple[int, int]:
 
 
 def scenario_text(
-    robot_ref: str, camera, board_pose: np.ndarray, count: int, joints: str = "joints.csv"
+    robot_ref: str,
+    camera,
+    board_pose: np.ndarray | None,
+    count: int,
+    joints: str = "joints.csv",
+    camera_pose: np.ndarray | None = None,
 ) -> str:
     """The scenario TOML that replays the plan in simulation (``selfcal run``): the robot, the
     plan's nominal camera as the true one, the board of ``target.toml`` at ``board_pose`` (6,) mm
-    and deg, the ``count`` postures of the CSV ``joints`` (beside it), analytic corners."""
+    and deg (eye-in-hand) or on the flange with the camera static at ``camera_pose`` (6,) mm and
+    deg (eye-to-hand), the ``count`` postures of the CSV ``joints`` (beside it), analytic
+    corners."""
     v = dict(zip(camera.names, camera.values().tolist()))
     W, H = camera.width, camera.height
     lens = {n: v[n] for n in camera.names[5:] if v[n] != 0.0}
     dist = ", ".join(f"{k} = {x!r}" for k, x in lens.items())
     free = ", ".join(f'"{n}"' for n in camera.free)
-    pose = ", ".join(f"{x:.6g}" for x in board_pose)
+    if camera_pose is None:
+        assert board_pose is not None
+        pose = ", ".join(f"{x:.6g}" for x in board_pose)
+        setup = ""
+        where = f"board_pose = [{pose}]  # mm, deg: the printed board's centre in the base frame, its rotation\n"
+    else:
+        pose = ", ".join(f"{x:.10g}" for x in camera_pose)
+        setup = ('setup = "eye-to-hand"  # the camera static, the board on the flange\n'
+                 f"pose = [{pose}]  # mm, deg: the camera's centre in the base frame, its rotation\n")  # fmt: skip
+        where = ""
     return f"""# Written by `selfcal plan`: the plan replayed in simulation, `selfcal run scenario.toml`.
 # The camera below is the plan's nominal camera, simulated as the true one; the robot's errors
 # are the default simulated ones ([perturbation]).
@@ -69,7 +105,7 @@ def scenario_text(
 model = {json.dumps(robot_ref)}
 
 [camera]
-count = 1
+{setup}count = 1
 resolution = [{W}, {H}]
 model = "{camera.model_name}"
 fx = {v["fx"]!r}
@@ -81,8 +117,7 @@ free = [{free}]
 
 [target]
 board = "target.toml"
-board_pose = [{pose}]  # mm, deg: the printed board's centre in the base frame, its rotation
-
+{where}
 [trajectory]
 kind = "file"
 joints = {json.dumps(joints)}
@@ -93,49 +128,106 @@ render = false  # analytic corners; true renders the MuJoCo scene
 """
 
 
+def _camera(args: argparse.Namespace):
+    from selfcal.io.camera_file import camera_from_fov, read_camera_file
+
+    if args.camera:
+        return read_camera_file(args.camera)
+    if args.fov_deg is not None and args.resolution:
+        return camera_from_fov(args.fov_deg, *_parse_size(args.resolution))
+    raise CliError("give --camera CAMERA.yaml, or --fov-deg DEG and --resolution WxH")
+
+
+def _pose6(text: str, option: str) -> np.ndarray:
+    """X,Y,Z[,RX,RY,RZ] as (6,) mm and deg (a NaN rotation when only the centre is given)."""
+    p = parse_floats(text, None, f"{option} (mm, deg)")
+    if len(p) not in (3, 6):
+        raise CliError(f"{option}: give X,Y,Z (mm) or X,Y,Z,RX,RY,RZ (mm, deg)")
+    return np.concatenate([p, np.full(6 - len(p), np.nan)])
+
+
+def _setup(args: argparse.Namespace, robot, camera, board, boxes):
+    """The plan's cell and the pose the user gave, resolved (6,) mm and deg: the board's
+    (eye-in-hand, face up without a rotation) or the static camera's (eye-to-hand, looking at
+    the board's centre at home without a rotation)."""
+    from selfcal.calibration.board.plan_views import PlanSetup
+    from selfcal.kinematics.forward import fk_tool
+    from selfcal.kinematics.mcpc import nominal_mcpc
+    from selfcal.target.placement import (
+        board_centre,
+        board_on_flange,
+        board_pose,
+        camera_pose,
+        camera_pose_values,
+        look_at,
+    )
+
+    if args.mount == "eye-in-hand":
+        bp = _pose6(args.board_pose, "--board-pose")
+        bp = np.where(np.isnan(bp), 0.0, bp)
+        T = board_pose(board, bp[:3] / 1000, np.radians(bp[3:]))
+        return PlanSetup(robot, camera, board, T, boxes), bp
+    cp = _pose6(args.camera_pose, "--camera-pose")
+    T_fb = board_on_flange(board)
+    if np.isnan(cp[3:]).any():  # look at the board's centre at home, rows level
+        T_home = fk_tool(nominal_mcpc(robot).with_tool(T_fb), robot.home[None])[0]
+        centre = T_home[:3, :3] @ board_centre(board) + T_home[:3, 3]
+        T_bc = look_at(cp[:3] / 1000, centre)
+        cp = np.concatenate([cp[:3], np.degrees(camera_pose_values(T_bc)[1])])
+    T_bc = camera_pose(cp[:3] / 1000, np.radians(cp[3:]))
+    return PlanSetup.eye_to_hand_setup(robot, camera, board, T_bc, T_fb, boxes), cp
+
+
+def _check_mount(args: argparse.Namespace) -> None:
+    """A clear error for an option the mount does not take, or one it needs."""
+    e2h = args.mount == "eye-to-hand"
+    wrong = [o for o, v in (("--board-pose", args.board_pose if e2h else None),
+                            ("--camera-pose", None if e2h else args.camera_pose)) if v]  # fmt: skip
+    if wrong:
+        raise CliError(
+            f"{wrong[0]} does not go with --mount {args.mount}: "
+            + ("the board rides on the flange and the camera stands still (--camera-pose)"
+               if e2h else "the camera rides on the flange and the board lies still (--board-pose)"),
+            fix="give --board-pose with --mount eye-in-hand, --camera-pose with --mount eye-to-hand",
+        )  # fmt: skip
+    if e2h and args.add:
+        raise CliError("--add plans the additions to an eye-in-hand dataset only",
+                       fix="leave out --mount eye-to-hand with --add")  # fmt: skip
+    if args.add:
+        return
+    pose = "--camera-pose" if e2h else "--board-pose"
+    missing = [o for o, v in (("--robot", args.robot), ("--target", args.target),
+                              (pose, args.camera_pose if e2h else args.board_pose)) if not v]  # fmt: skip
+    if missing:
+        raise CliError(f"give {', '.join(missing)} (or --add K DATASET to extend a dataset)")
+
+
 def _cmd(args: argparse.Namespace) -> int:
     from selfcal.acquisition.backends import robot_reference
     from selfcal.calibration.board.plan import plan_recording
-    from selfcal.calibration.board.plan_views import PlanSetup
     from selfcal.config.scenario import load_scenario
     from selfcal.estimation.joint_report import encoder_sigma
     from selfcal.io.atomic import write_text_atomic
-    from selfcal.io.camera_file import camera_from_fov, read_camera_file
     from selfcal.io.jsonfile import write_json_atomic
     from selfcal.io.plan_files import joints_csv, trajectory_yaml
     from selfcal.io.target_toml import load_target
     from selfcal.robot.definition import load_robot
     from selfcal.target.boards import Board
-    from selfcal.target.placement import board_pose
 
-    if args.mount != "eye-in-hand":
-        raise CliError("--mount eye-to-hand is not planned yet; only eye-in-hand")
+    _check_mount(args)
     if args.add:
         return _cmd_add(args)
-    missing = [o for o, v in (("--robot", args.robot), ("--target", args.target),
-                              ("--board-pose", args.board_pose)) if not v]  # fmt: skip
-    if missing:
-        raise CliError(f"give {', '.join(missing)} (or --add K DATASET to extend a dataset)")
     robot = load_robot(args.robot)
-    if args.camera:
-        camera = read_camera_file(args.camera)
-    elif args.fov_deg is not None and args.resolution:
-        camera = camera_from_fov(args.fov_deg, *_parse_size(args.resolution))
-    else:
-        raise CliError("give --camera CAMERA.yaml, or --fov-deg DEG and --resolution WxH")
+    camera = _camera(args)
     board = load_target(args.target)
     if not isinstance(board, Board):
         raise CliError(f"--target {args.target}: the plan needs a board (chessboard, charuco, "
                        "circles, aprilgrid), not a marker field")  # fmt: skip
-    bp = parse_floats(args.board_pose, None, "--board-pose (mm, deg)")
-    if len(bp) not in (3, 6):
-        raise CliError("--board-pose: give X,Y,Z (mm) or X,Y,Z,RX,RY,RZ (mm, deg)")
-    bp = np.concatenate([bp, np.zeros(6 - len(bp))])
     boxes = _boxes(args)
     if args.count < 3:
         raise CliError(f"--count {args.count}: a plan needs at least 3 postures")
-    setup = PlanSetup(robot, camera, board, board_pose(board, bp[:3] / 1000, np.radians(bp[3:])),
-                      boxes)  # fmt: skip
+    setup, pose = _setup(args, robot, camera, board, boxes)
+    e2h = setup.eye_to_hand
     js = encoder_sigma(robot)  # the board calibration's default read-back noise
     plan = plan_recording(setup, args.count, seed=args.seed, candidates=args.candidates,
                           pixel_sigma_px=args.pixel_sigma, joint_sigma=js,
@@ -149,12 +241,15 @@ def _cmd(args: argparse.Namespace) -> int:
             robot.joint_names, plan.q, robot.home, speed=speed, dwell_s=args.dwell_s))  # fmt: skip
         shutil.copyfile(args.target, out / "target.toml")
         ref = robot_reference(args.robot)
-        write_text_atomic(out / "scenario.toml", scenario_text(ref, camera, bp, len(plan.q)))
+        write_text_atomic(out / "scenario.toml", scenario_text(
+            ref, camera, None if e2h else pose, len(plan.q),
+            camera_pose=pose if e2h else None))  # fmt: skip
         load_scenario(out / "scenario.toml")  # what we wrote reads back
         doc = {
             "format": "scorbot-selfcal-plan",
             "schema_version": 1,
             "robot": ref,
+            "mount": args.mount,
             "count": len(plan.q),
             "predicted_tool_rms_mm": round(plan.predicted_m * 1000, 4),
             "random_tool_rms_mm": round(plan.random_m * 1000, 4),
@@ -164,7 +259,8 @@ def _cmd(args: argparse.Namespace) -> int:
             "path_deg": round(float(np.degrees(plan.path_rad)), 3),
             "random_path_deg": round(float(np.degrees(plan.random_path_rad)), 3),
             "seed": args.seed,
-            "board_pose_mm_deg": bp.tolist(),
+            ("camera_pose_mm_deg" if e2h else "board_pose_mm_deg"): np.round(pose, 6).tolist(),
+            **({"board_on_flange": BOARD_ON_FLANGE} if e2h else {}),
             "deviation_mm_deg": [args.deviation_mm, args.deviation_deg],
             "keep_out_mm": (boxes * 1000).tolist(),
             "joints_deg": np.round(plan.q / robot.edge_unit, 6).tolist(),
@@ -316,10 +412,15 @@ def register(subparsers) -> argparse.ArgumentParser:
                     help="instead of --camera: the horizontal field of view (deg)")  # fmt: skip
     sp.add_argument("--resolution", default=None, metavar="WxH",
                     help="with --fov-deg: the image size in px, e.g. 1280x720")  # fmt: skip
-    sp.add_argument("--mount", default="eye-in-hand", choices=["eye-in-hand"],
-                    help="where the camera is (default eye-in-hand: on the flange)")  # fmt: skip
+    sp.add_argument("--mount", default="eye-in-hand", choices=["eye-in-hand", "eye-to-hand"],
+                    help="where the camera is (default eye-in-hand: on the flange, the board "
+                    "still; eye-to-hand: still, the board on the flange)")  # fmt: skip
     sp.add_argument("--board-pose", default=None, metavar="X,Y,Z[,RX,RY,RZ]",
-                    help="the board in the base frame: centre (mm), rotation (deg); see below")  # fmt: skip
+                    help="eye-in-hand: the board in the base frame: centre (mm), rotation (deg); "
+                    "see below")  # fmt: skip
+    sp.add_argument("--camera-pose", default=None, metavar="X,Y,Z[,RX,RY,RZ]",
+                    help="eye-to-hand: the static camera in the base frame: centre (mm), "
+                    "rotation (deg); see below")  # fmt: skip
     sp.add_argument("--count", type=int, default=12, help="postures to plan (default 12)")
     sp.add_argument("--keep-out", action="append", default=[], metavar="BOX",
                     help="XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX (mm, base frame); repeatable")  # fmt: skip

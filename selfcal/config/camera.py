@@ -9,11 +9,13 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
+from typing import Any
 
 from selfcal.camera import MODELS, CameraModel, camera_model, centered_principal_point, lens_names
 from selfcal.errors import InputError
 
-__all__ = ["CameraConfig", "ConfigError", "PER_CAMERA_KEYS", "validate_camera"]
+__all__ = ["CameraConfig", "ConfigError", "PER_CAMERA_KEYS", "SETUPS", "check_setup",
+           "validate_camera"]  # fmt: skip
 
 
 class ConfigError(InputError):
@@ -66,6 +68,11 @@ class CameraConfig:
     ``"eye-to-hand"`` (static in the cell, looking at a board on the flange: needs ``[target]
     board`` and ``count = 1``; the simulator places it 0.6 m in front of the board at home, the
     wrist turned so that the board faces away from the arm)."""
+    pose: list[float] = field(default_factory=list)
+    """Eye-to-hand: where the static camera stands instead, ``[x, y, z, rx, ry, rz]`` mm and deg,
+    its centre in the robot's base frame and the rotation of its OpenCV axes from the base's
+    (fixed axes x, y, z: ``R = Rz Ry Rx``; :func:`selfcal.target.placement.camera_pose`), as
+    ``selfcal plan --camera-pose`` resolves it. Empty: in front of the board at home."""
     right: dict = field(default_factory=dict)
     """``[camera.right]``: how the right camera differs from ``[camera]`` (any of
     :data:`PER_CAMERA_KEYS`; the others are ``[camera]``'s). Empty: both cameras are ``[camera]``'s
@@ -143,3 +150,37 @@ def validate_camera(f: str, c: CameraConfig, key: str) -> None:
             )
     if "fx" not in c.free or len(set(c.free)) != len(c.free):
         raise ConfigError(f"{f}: {key}.free must list distinct names and include 'fx'")
+
+
+SETUPS = ("eye-in-hand", "eye-to-hand")
+"""``[camera] setup``: the camera on the flange, or static with the board on the flange."""
+
+
+def check_setup(s: Any) -> None:
+    """ConfigError for a ``[camera] setup`` of the scenario ``s``
+    (:class:`selfcal.config.scenario.Scenario`; not imported: it imports this module) the
+    simulator cannot build: an unknown one,
+    eye-to-hand without a board, with two cameras, on hardware, with a ``[target] board_pose``
+    (the board rides on the flange) or a ``camera.pose`` of other than six numbers, or a
+    ``camera.pose`` on the flange (eye-in-hand)."""
+    f, setup = s.source, s.camera.setup
+    if setup not in SETUPS:
+        raise ConfigError(f"{f}: camera.setup must be one of {', '.join(SETUPS)}, got {setup!r}")
+    if setup == "eye-in-hand" and s.camera.pose:
+        raise ConfigError(f"{f}: camera.pose places a static camera; this camera rides on the "
+                          "flange (camera.setup = \"eye-in-hand\")",
+                          fix="set camera.setup = \"eye-to-hand\", or remove camera.pose")  # fmt: skip
+    if setup == "eye-in-hand":
+        return
+    if len(s.camera.pose) not in (0, 6) or s.target.board_pose:
+        raise ConfigError(f"{f}: eye-to-hand the board rides on the flange and camera.pose, if "
+                          "given, is [x, y, z, rx, ry, rz] (mm, deg)",
+                          fix="give camera.pose 6 numbers and leave target.board_pose out")  # fmt: skip
+    if not s.target.board:
+        raise ConfigError(f"{f}: camera.setup = \"eye-to-hand\" needs a board on the flange",
+                          fix="set [target] board to a target TOML (e.g. "
+                          "models/targets/charuco.toml)")  # fmt: skip
+    if s.camera.count != 1 or s.robot.backend != "sim":
+        raise ConfigError(f"{f}: camera.setup = \"eye-to-hand\" is simulated with one static "
+                          "camera (camera.count = 1, robot.backend = \"sim\")",
+                          fix="set camera.count = 1 and robot.backend = \"sim\"")  # fmt: skip

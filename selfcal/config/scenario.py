@@ -14,7 +14,13 @@ from pathlib import Path
 from typing import Any
 
 from selfcal.calibration.field.failures import MIN_POSTURES  # not .calibrate: 0.6 s of imports
-from selfcal.config.camera import PER_CAMERA_KEYS, CameraConfig, ConfigError, validate_camera
+from selfcal.config.camera import (
+    PER_CAMERA_KEYS,
+    CameraConfig,
+    ConfigError,
+    check_setup,
+    validate_camera,
+)
 from selfcal.config.defaults import DEFAULT_ROBOT
 from selfcal.config.shipped import scenario_file, shipped_model_file, shipped_scenarios
 from selfcal.errors import InternalError
@@ -168,6 +174,7 @@ RANGES: dict[str, Range] = {
     "camera.principal_point_offset_px": Range(-5000.0, 5000.0, "px", "offset from the image centre"),
     "camera.skew_px": Range(-100.0, 100.0, "px", "K[0, 1] of a real sensor (pixels not square)"),
     "camera.distortion": Range(-100.0, 100.0, "", "lens coefficients (OpenCV scale)"),
+    "camera.pose": Range(-100_000.0, 100_000.0, "mm or deg", "static camera's centre and rotation"),
     "target.markers": Range(4, 250, "", "markers of the ArUco dictionary (at least 4)"),
     "target.scale_length_mm": Range(10.0, 10_000.0, "mm", "a distance a person can measure well"),
     "target.marker_size_mm": Range(1.0, 1000.0, "mm", "printed marker side"),
@@ -376,33 +383,11 @@ def _validate(s: Scenario) -> None:
             )
         validate_camera(s.source, s.camera.of("right"), "camera.right")
     scenario_board(s)  # a bad target file is an error naming it and the key
-    _check_setup(s)
+    check_setup(s)
     for k, v in s.perturbation.table.items():
         if not isinstance(v, (int, float)) or isinstance(v, bool):
             raise ConfigError(f"{f}: perturbation.table.{k}: expected number, got {v!r}")
     _check_ranges(s)
-
-
-SETUPS = ("eye-in-hand", "eye-to-hand")
-"""``[camera] setup``: the camera on the flange, or static with the board on the flange."""
-
-
-def _check_setup(s: Scenario) -> None:
-    """ConfigError for a ``[camera] setup`` the simulator cannot build: an unknown one, or
-    eye-to-hand without a board, with two cameras or on hardware."""
-    f, setup = s.source, s.camera.setup
-    if setup not in SETUPS:
-        raise ConfigError(f"{f}: camera.setup must be one of {', '.join(SETUPS)}, got {setup!r}")
-    if setup == "eye-in-hand":
-        return
-    if not s.target.board:
-        raise ConfigError(f"{f}: camera.setup = \"eye-to-hand\" needs a board on the flange",
-                          fix="set [target] board to a target TOML (e.g. "
-                          "models/targets/charuco.toml)")  # fmt: skip
-    if s.camera.count != 1 or s.robot.backend != "sim":
-        raise ConfigError(f"{f}: camera.setup = \"eye-to-hand\" is simulated with one static "
-                          "camera (camera.count = 1, robot.backend = \"sim\")",
-                          fix="set camera.count = 1 and robot.backend = \"sim\"")  # fmt: skip
 
 
 def board_path(s: Scenario) -> Path | None:

@@ -37,12 +37,14 @@ from selfcal.sim.actual import make_truth, perturb
 from selfcal.sim.analytic import project_board
 from selfcal.sim.board_scene import add_board
 from selfcal.sim.kinematic_robot import KinematicRobot
+from selfcal.sim.lens import source_pinhole
 from selfcal.sim.markers import make_marker_field
 from selfcal.sim.mj_camera import add_camera
 from selfcal.sim.render import StereoRenderer
 from selfcal.sim.robot_mjcf import RigConfig, scene_with_robot
 from selfcal.target.base import Features
 from selfcal.target.boards import Board
+from selfcal.target.placement import board_on_flange
 from selfcal.transforms import inv_pose, make_pose
 
 __all__ = [
@@ -62,15 +64,6 @@ STATIC_CAMERA = "cam_static"
 """The MuJoCo name of the static camera."""
 
 _FLIP_X = np.diag([1.0, -1.0, -1.0])
-
-
-def board_on_flange(board: Board, standoff_m: float = 0.05) -> np.ndarray:
-    """``T_flange_board`` (4, 4, m) of ``board`` mounted on the flange with its printed face out
-    (along the flange's z) and the centre of its features on the flange's axis, ``standoff_m``
-    in front of the flange: board x along flange x, board z (into the board) along -z."""
-    _, pts = board.layout()
-    centre = (pts.min(axis=0) + pts.max(axis=0)) / 2
-    return make_pose(_FLIP_X, np.array([0.0, 0.0, standoff_m]) - _FLIP_X @ centre)
 
 
 @dataclass(frozen=True)
@@ -242,6 +235,8 @@ class StaticCameraRenderer:
         rig_body = next(b for b in spec.bodies if b.name == "rig")
         add_board(spec, truth.board, inv_pose(T_board_rig), body=rig_body)
         add_camera(spec.worldbody, STATIC_CAMERA, truth.camera, truth.T_base_cam)
+        g, src = spec.visual.global_, source_pinhole(truth.camera)  # a lens renders larger
+        g.offwidth, g.offheight = max(int(g.offwidth), src.width), max(int(g.offheight), src.height)
         self.truth = truth
         self.model = spec.compile()
         self.data = mujoco.MjData(self.model)

@@ -84,3 +84,106 @@ def test_the_docs_plan_line_is_what_the_command_prints(tmp_path, capsys):
     line = capsys.readouterr().out.strip()
     assert line in page
     assert "--board-pose -472,-133,3 --count 12 --keep-out -300,50,0,-100,400,600" in page
+
+
+def _plan_e2h(out, *extra: str, count: int = 8, candidates: int = 80) -> int:
+    argv = ["plan", "--robot", "ur5e", "--target", BOARD, "--fov-deg", "40", "--resolution",
+            "640x480", "--mount", "eye-to-hand", "--camera-pose", "-1062,-133,613,-90,0,-90",
+            "--count", str(count), "--candidates", str(candidates), "--out", str(out),
+            "--quiet", *extra]  # fmt: skip
+    return main(argv)
+
+
+def test_eye_to_hand_plan_files_parse(tmp_path, capsys):
+    from selfcal.acquisition.eye_to_hand import static_cell
+    from selfcal.target.placement import camera_pose
+
+    assert _plan_e2h(tmp_path / "plan") == 0
+    doc = json.loads((tmp_path / "plan/plan.json").read_text())
+    assert doc["mount"] == "eye-to-hand" and "board_pose_mm_deg" not in doc
+    assert doc["predicted_tool_rms_mm"] <= doc["random_tool_rms_mm"]
+    cp = np.array(doc["camera_pose_mm_deg"])
+    assert cp.tolist() == [-1062, -133, 613, -90, 0, -90]
+    T = camera_pose(cp[:3] / 1000, np.radians(cp[3:]))
+    robot = load_robot("ur5e")
+    q = read_joint_rows(tmp_path / "plan/joints.csv", robot, "deg").q
+    assert np.allclose(np.degrees(q), doc["joints_deg"], atol=1e-6)
+    s = load_scenario(tmp_path / "plan/scenario.toml")
+    assert s.camera.setup == "eye-to-hand" and s.trajectory.kind == "file"
+    assert np.allclose(static_cell(s, robot, nominal=True).T_base_cam, T, atol=1e-12)
+
+
+def test_a_camera_pose_without_rotation_looks_at_the_board_at_home():
+    import argparse
+
+    from selfcal.cli.plan import _setup
+    from selfcal.io.camera_file import camera_from_fov
+    from selfcal.io.target_toml import load_target
+
+    robot, board = load_robot("ur5e"), load_target(BOARD)
+    args = argparse.Namespace(mount="eye-to-hand", camera_pose="-1062,-133,613")
+    setup, cp = _setup(args, robot, camera_from_fov(40.0, 640, 480), board, np.zeros((0, 6)))
+    T = setup.T_base_cam
+    centre = setup.T_cam_board(robot.home)[0] @ np.r_[setup.board_points()[-4:].mean(axis=0), 1]
+    assert np.allclose(centre[:2], 0.0, atol=1e-9) and centre[2] > 0  # on the optical axis
+    assert abs(T[2, 0]) < 1e-9  # the image rows level
+    assert np.allclose(cp[:3], [-1062, -133, 613])
+
+
+@pytest.mark.parametrize(
+    ("extra", "says"),
+    [
+        (["--board-pose", "0,0,0"], "--board-pose does not go with --mount eye-to-hand"),
+        (["--camera-pose", "1,2"], "--camera-pose: give X,Y,Z"),
+    ],
+)
+def test_eye_to_hand_refuses_a_contradicting_option(tmp_path, capsys, extra, says):
+    argv = ["plan", "--robot", "ur5e", "--target", BOARD, "--fov-deg", "40", "--resolution",
+            "640x480", "--mount", "eye-to-hand", "--out", str(tmp_path / "p"), *extra]  # fmt: skip
+    if "--camera-pose" not in extra:
+        argv += ["--camera-pose", "-1062,-133,613"]
+    assert main(argv) == 2
+    assert says in capsys.readouterr().err
+    assert not (tmp_path / "p").exists()
+
+
+def test_the_mount_asks_for_its_own_pose(tmp_path, capsys):
+    argv = ["plan", "--robot", "ur5e", "--target", BOARD, "--fov-deg", "40", "--resolution",
+            "640x480", "--mount", "eye-to-hand", "--out", str(tmp_path / "p")]  # fmt: skip
+    assert main(argv) == 2
+    assert "give --camera-pose" in capsys.readouterr().err
+    argv = ["plan", "--robot", "ur5e", "--target", BOARD, "--fov-deg", "40", "--resolution",
+            "640x480", "--camera-pose", "0,0,1", "--board-pose", "0,0,0", "--out",
+            str(tmp_path / "p")]  # fmt: skip
+    assert main(argv) == 2
+    assert "--camera-pose does not go with --mount eye-in-hand" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_rendered_run_of_an_eye_to_hand_plan_sees_the_whole_board(tmp_path):
+    """Every planned posture, rendered with MuJoCo (the true arm perturbed as the scenario's
+    default), shows the detector every feature of the board."""
+    assert _plan_e2h(tmp_path / "plan", count=10, candidates=200) == 0
+    path = tmp_path / "plan/scenario.toml"
+    path.write_text(path.read_text().replace("render = false", "render = true"))
+    assert main(["run", str(path), "--out", str(tmp_path / "run"), "--quiet"]) == 0
+    from selfcal.calibration.board.dataset import dataset_board, detect_board
+    from selfcal.io.dataset import Dataset
+
+    ds = Dataset.open(tmp_path / "run")
+    assert ds.info.observation == "images" and len(ds.indices) == 10
+    feats, _ = detect_board(ds, dataset_board(ds), "left")  # the images detected again
+    assert [len(f) for f in feats] == [88] * 10  # the ChArUco's 11 x 8 inner corners, every one
+
+
+@pytest.mark.slow
+def test_the_docs_eye_to_hand_line_is_what_the_command_prints(tmp_path, capsys):
+    """docs/plan.md shows the line its eye-to-hand command prints."""
+    page = (Path(__file__).resolve().parents[2] / "docs/plan.md").read_text()
+    argv = ["plan", "--robot", "ur5e", "--target", BOARD, "--fov-deg", "40", "--resolution",
+            "640x480", "--mount", "eye-to-hand", "--camera-pose", "-1062,-133,613,-90,0,-90",
+            "--count", "12", "--out", str(tmp_path / "plan"), "--quiet"]  # fmt: skip
+    assert main(argv) == 0
+    line = capsys.readouterr().out.strip()
+    assert line in page
+    assert "--mount eye-to-hand --camera-pose -1062,-133,613,-90,0,-90 --count 12" in page

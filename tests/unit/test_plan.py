@@ -82,7 +82,7 @@ def test_a_view_from_the_side_is_refused(setup):
     T = np.eye(4)
     T[:3, :3] = np.array([[0, 0, 1], [-1, 0, 0], [0, -1, 0]]).T
     T[:3, 3] = setup.T_base_board[:3, 3] + [-0.5, 0.0, 0.05]
-    assert not board_views_ok(setup, T[None]).any()
+    assert not board_views_ok(setup, inv_pose(T[None]) @ setup.T_base_board).any()
 
 
 def test_prediction_is_the_board_route_bound_and_beats_random(setup, plan):

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 
 from selfcal.acquisition.backends import planning_inputs, sim_setup
@@ -31,3 +33,27 @@ def _charuco():
     from selfcal.robot.definition import models_dir
 
     return models_dir() / "targets/charuco.toml"
+
+
+def test_a_static_camera_pose_is_refused_where_it_does_not_fit(tmp_path):
+    import pytest
+
+    from selfcal.config.camera import ConfigError
+
+    board = f'[target]\nboard = "{_charuco()}"\n'
+    cases = {
+        "[camera]\ncount = 1\npose = [0, 0, 1000, 0, 0, 0]\n": "camera.pose places a static",
+        '[camera]\ncount = 1\nsetup = "eye-to-hand"\npose = [0, 0, 1000]\n': "is [x, y, z, rx",
+        '[camera]\ncount = 1\nsetup = "eye-to-hand"\n': None,
+    }
+    for text, says in cases.items():
+        (tmp_path / "s.toml").write_text('[robot]\nmodel = "ur5e"\n' + text + board)
+        if says is None:
+            assert load_scenario(tmp_path / "s.toml").camera.pose == []
+            continue
+        with pytest.raises(ConfigError, match=re.escape(says)):
+            load_scenario(tmp_path / "s.toml")
+    (tmp_path / "s.toml").write_text('[robot]\nmodel = "ur5e"\n[camera]\ncount = 1\n'
+                                     'setup = "eye-to-hand"\n' + board + "board_pose = [0, 0, 3]\n")  # fmt: skip
+    with pytest.raises(ConfigError, match="leave target.board_pose out"):
+        load_scenario(tmp_path / "s.toml")

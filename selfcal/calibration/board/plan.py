@@ -1,5 +1,9 @@
-"""A recording plan for a user's arm, wrist camera and board: which postures to record so that the
-board calibration predicts the smallest tool-point error (``selfcal plan``, issue #30).
+"""A recording plan for a user's arm, camera and board: which postures to record so that the
+board calibration predicts the smallest tool-point error (``selfcal plan``, issue #30). Both
+mounts: the camera on the flange and the board static (eye-in-hand), or the camera static and
+the board on the flange (eye-to-hand: the board route's inverted chain, world = the camera, tool
+= the board, :class:`selfcal.estimation.kinematic_poses.KinematicPoses`); the tool point is the
+flange's origin either way.
 
 Candidates: :func:`selfcal.calibration.board.plan_views.candidate_pool` (reachable, free of
 collision and keep-out boxes, the whole board well in view). Criterion: the Cramer-Rao bound of
@@ -44,10 +48,8 @@ from selfcal.calibration.board.problem import board_problem
 from selfcal.errors import InputError, UsageError
 from selfcal.estimation.joint_report import aligned_tool_weight
 from selfcal.estimation.kinematic_poses import KinematicPoses
-from selfcal.kinematics.forward import fk_tool
 from selfcal.kinematics.keep_out import outside_boxes
 from selfcal.kinematics.mcpc import MCPCModel, minimal_indices
-from selfcal.transforms import inv_pose
 
 __all__ = [
     "RecordingPlan",
@@ -93,8 +95,10 @@ class RecordingPlan:
 
 
 def board_model(setup: PlanSetup) -> MCPCModel:
-    """The nominal chain board frame -> camera (world = the board, tool = the camera)."""
-    return setup.model_cam.with_base(inv_pose(setup.T_base_board))
+    """The nominal chain the board calibration fits: eye-in-hand board frame -> camera (world =
+    the board, tool = the camera), eye-to-hand camera -> board (world = the camera, tool = the
+    board; :meth:`selfcal.calibration.board.plan_views.PlanSetup.calibration_model`)."""
+    return setup.calibration_model()
 
 
 def frame_information(
@@ -124,12 +128,13 @@ def frame_information(
                    for s in seen]  # fmt: skip
         if len(feature) != m:
             raise UsageError(f"{len(feature)} frames of seen features for {m} postures")
-    T_cb = inv_pose(fk_tool(model, q))  # board (world) -> camera
+    T_cb = setup.T_cam_board(q)  # board -> camera
     Xc = np.einsum("mij,kj->mki", T_cb[:, :3, :3], pts) + T_cb[:, None, :3, 3]
     uv = setup.camera.project(Xc)  # (m, k, 2)
     idx = minimal_indices(model.joint_types)
     poses = KinematicPoses(model, q, idx, np.zeros((0, 4, 4)), np.ones(m, bool),
-                           joint_corrections=joint_sigma is not None)  # fmt: skip
+                           joint_corrections=joint_sigma is not None,
+                           eye_to_hand=setup.eye_to_hand)  # fmt: skip
     frame = np.repeat(np.arange(m), [len(f) for f in feature])
     k = np.concatenate([np.zeros(0, np.int64), *feature])
     rows = [(poses.layout.view(frame, 0), ids[k], uv[frame, k])]
@@ -317,7 +322,7 @@ def plan_ground(setup: PlanSetup, count: int, options: PlanOptions) -> PlanGroun
         )
     qw = workspace_sample(setup, options.workspace, seed=options.seed + 1)
     model = board_model(setup)
-    G = aligned_tool_weight(model, qw, inv_pose(setup.robot.T_flange_cam))
+    G = aligned_tool_weight(model, qw, setup.T_tool_tip)
     return PlanGround(pool, where, qw, G, options.deviation.variance(model.joint_types))
 
 

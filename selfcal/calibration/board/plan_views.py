@@ -1,11 +1,17 @@
 """The postures a recording plan may use: reachable, collision-free, and seeing the whole board
 well (the candidate pool of :mod:`selfcal.calibration.board.plan`).
 
-A posture ``q`` (rad, within the robot file's joint ranges) is a candidate when
+Two mounts (:class:`PlanSetup`): eye-in-hand (the camera on the flange, the board static in the
+base frame) and eye-to-hand (the camera static in the base frame, the board on the flange). A
+posture ``q`` (rad, within the robot file's joint ranges) is a candidate when
 
-- the capsule chain (:class:`selfcal.kinematics.self_collision.CapsuleChain`) neither folds onto
-  itself nor touches the table (the base frame's z = 0 plane), nor enters a keep-out box
-  (:mod:`selfcal.kinematics.keep_out`) or the board's own plate;
+- the capsule chain (:class:`selfcal.kinematics.self_collision.CapsuleChain`, its tool the camera
+  or the board) neither folds onto itself nor touches the table (the base frame's z = 0 plane),
+  nor enters a keep-out box (:mod:`selfcal.kinematics.keep_out`) or the board's own plate
+  (eye-in-hand); eye-to-hand the board's plate stays above the table and out of the keep-out
+  boxes, the arm (but the wrist that holds the board) out of the plate, the arm
+  :data:`CAMERA_CLEARANCE_M` from the static camera, and no link crosses the lines of sight from
+  the camera to the board's printed corners and centre (the capsule radius to spare);
 - the nominal camera sees every feature of the board and every corner of its printed image
   inside the image with :attr:`ViewRule.margin_px` to spare, at least
   :attr:`ViewRule.min_depth_m` in front of it;
@@ -30,14 +36,26 @@ import numpy as np
 from selfcal.camera import CameraModel
 from selfcal.errors import InputError
 from selfcal.kinematics.forward import fk_tool
-from selfcal.kinematics.keep_out import chain_samples, outside_boxes
+from selfcal.kinematics.keep_out import SAMPLES, chain_samples, outside_boxes
 from selfcal.kinematics.mcpc import MCPCModel, nominal_mcpc
 from selfcal.kinematics.self_collision import CapsuleChain
 from selfcal.robot.definition import RobotDef
 from selfcal.target.boards import Board
 from selfcal.transforms import inv_pose
 
-__all__ = ["ViewRule", "PlanSetup", "board_views_ok", "feasible", "candidate_pool"]
+__all__ = [
+    "CAMERA_CLEARANCE_M",
+    "EYE_TO_HAND_RULE",
+    "ViewRule",
+    "PlanSetup",
+    "board_views_ok",
+    "feasible",
+    "candidate_pool",
+]
+
+CAMERA_CLEARANCE_M = 0.08
+"""Eye-to-hand: no sample of the arm's capsule chain comes nearer the static camera's centre than
+this plus the capsule radius (the camera's body, m)."""
 
 
 @dataclass(frozen=True)
@@ -50,11 +68,22 @@ class ViewRule:
     min_pitch_px: float = 12.0
 
 
+EYE_TO_HAND_RULE = ViewRule(min_pitch_px=24.0, max_tilt_deg=45.0)
+"""What an eye-to-hand view asks: a longer pitch and a smaller tilt than eye-in-hand's default.
+Measured: rendered with MuJoCo and detected (the slow test of tests/integration/test_plan_cli.py),
+a ChArUco on an arm's flange 0.5 - 0.9 m from a still camera lost corners in frames of a
+13 - 21 px pitch at 34 - 59 deg (the markers' bits then span 1.4 - 2.2 px); the eye-in-hand
+plans' candidates stay within 36 deg."""
+
+
 @dataclass(frozen=True, eq=False)
 class PlanSetup:
-    """One arm, one wrist camera, one board: ``robot`` (its ``T_flange_cam`` places the camera
-    on the flange), ``camera`` (the nominal camera), ``board`` at ``T_base_board`` (board ->
-    base, m), keep-out ``boxes`` (b, 6) m in the base frame, the view ``rule``."""
+    """One arm, one camera, one board. Eye-in-hand: ``robot``'s ``T_flange_cam`` places the
+    camera on the flange and the ``board`` is static at ``T_base_board`` (board -> base, m).
+    Eye-to-hand (``T_base_cam`` given: the camera static, OpenCV frame -> base, m): the board
+    rides on the flange at ``T_flange_board`` (board -> flange, m) and ``T_base_board`` is not
+    used (:meth:`eye_to_hand_setup`). ``camera`` the nominal camera, keep-out ``boxes`` (b, 6) m
+    in the base frame, the view ``rule``."""
 
     robot: RobotDef
     camera: CameraModel
@@ -62,25 +91,72 @@ class PlanSetup:
     T_base_board: np.ndarray
     boxes: np.ndarray = field(default_factory=lambda: np.zeros((0, 6)))
     rule: ViewRule = field(default_factory=ViewRule)
+    T_base_cam: np.ndarray | None = None
+    T_flange_board: np.ndarray | None = None
+
+    @classmethod
+    def eye_to_hand_setup(cls, robot: RobotDef, camera: CameraModel, board: Board,
+                          T_base_cam: np.ndarray, T_flange_board: np.ndarray,
+                          boxes: np.ndarray | None = None) -> PlanSetup:  # fmt: skip
+        """The eye-to-hand cell: the camera static at ``T_base_cam`` (4, 4, m), the board on
+        the flange at ``T_flange_board`` (4, 4, m)."""
+        return cls(robot, camera, board, np.full((4, 4), np.nan),
+                   np.zeros((0, 6)) if boxes is None else np.asarray(boxes, dtype=float),
+                   rule=EYE_TO_HAND_RULE, T_base_cam=np.asarray(T_base_cam, dtype=float),
+                   T_flange_board=np.asarray(T_flange_board, dtype=float))  # fmt: skip
+
+    @property
+    def eye_to_hand(self) -> bool:
+        """True when the camera is static and the board rides on the flange."""
+        return self.T_base_cam is not None
+
+    @property
+    def T_flange_tool(self) -> np.ndarray:
+        """What rides on the flange (4, 4, m): the camera (eye-in-hand) or the board."""
+        if self.T_flange_board is not None:
+            return self.T_flange_board
+        return self.robot.T_flange_cam
 
     @property
     def model_cam(self) -> MCPCModel:
-        """The nominal chain base -> camera (OpenCV frame)."""
+        """The nominal chain base -> camera (OpenCV frame; eye-in-hand)."""
         return nominal_mcpc(self.robot).with_tool(self.robot.T_flange_cam)
 
     @property
+    def model_tool(self) -> MCPCModel:
+        """The nominal chain base -> what rides on the flange (the camera or the board)."""
+        return nominal_mcpc(self.robot).with_tool(self.T_flange_tool)
+
+    @property
     def chain(self) -> CapsuleChain:
-        """The self-collision and table check of the nominal arm with its camera."""
-        return CapsuleChain(nominal_mcpc(self.robot), self.robot.T_flange_cam)
+        """The self-collision and table check of the nominal arm with its camera or board."""
+        return CapsuleChain(nominal_mcpc(self.robot), self.T_flange_tool)
+
+    def calibration_model(self) -> MCPCModel:
+        """The nominal chain the board calibration fits: eye-in-hand world = the board, tool =
+        the camera; eye-to-hand world = the camera, tool = the board
+        (:class:`selfcal.estimation.kinematic_poses.KinematicPoses`)."""
+        if self.T_base_cam is not None:
+            return self.model_tool.with_base(inv_pose(self.T_base_cam))
+        return self.model_cam.with_base(inv_pose(self.T_base_board))
+
+    def T_cam_board(self, q: np.ndarray) -> np.ndarray:
+        """(m, 4, 4) board -> camera at the nominal joints ``q`` (m, n) rad."""
+        T = fk_tool(self.calibration_model(), np.atleast_2d(np.asarray(q, dtype=float)))
+        return T if self.eye_to_hand else inv_pose(T)
+
+    @property
+    def T_tool_tip(self) -> np.ndarray:
+        """The tool point the plan predicts, the flange's origin, in the chain's tool frame
+        (the camera's or the board's, 4 x 4)."""
+        return inv_pose(self.T_flange_tool)
 
     def board_points(self) -> np.ndarray:
-        """(k + 4, 3) the board's features and its printed image's corners (base frame, m)."""
+        """(k + 4, 3) the board's features and its printed image's corners (board frame, m)."""
         _, pts = self.board.layout()
         x0, y0, x1, y1 = self.board.image(1.0).extent_m
         corners = np.array([[x0, y0, 0], [x1, y0, 0], [x1, y1, 0], [x0, y1, 0]], dtype=float)
-        X = np.concatenate([pts, corners])
-        T = self.T_base_board
-        return X @ T[:3, :3].T + T[:3, 3]
+        return np.concatenate([pts, corners])
 
 
 def _pitch_edges(board: Board) -> tuple[np.ndarray, float]:
@@ -94,27 +170,25 @@ def _pitch_edges(board: Board) -> tuple[np.ndarray, float]:
     return grid, float(d.min())
 
 
-def _in_view(setup: PlanSetup, T_cam_base: np.ndarray, X: np.ndarray) -> np.ndarray:
-    """(m,) bool: every point ``X`` (k, 3) base frame m projected by the camera model beyond the
-    rule's least depth and inside the image."""
+def _in_view(setup: PlanSetup, T_cam_board: np.ndarray, X: np.ndarray) -> np.ndarray:
+    """(m,) bool: every point ``X`` (k, 3) board frame m projected by the camera model beyond
+    the rule's least depth and inside the image."""
     rule, cam = setup.rule, setup.camera
-    Xc = np.einsum("mij,kj->mki", T_cam_base[:, :3, :3], X) + T_cam_base[:, None, :3, 3]
+    Xc = np.einsum("mij,kj->mki", T_cam_board[:, :3, :3], X) + T_cam_board[:, None, :3, 3]
     ok = np.all(cam.valid(Xc) & (cam.depth(Xc) > rule.min_depth_m), axis=1)
     return ok & np.all(cam.in_image(cam.project_valid(Xc)[0], rule.margin_px), axis=1)
 
 
-def board_views_ok(setup: PlanSetup, T_base_cam: np.ndarray) -> np.ndarray:
-    """(m,) bool: which camera poses ``T_base_cam`` (m, 4, 4) see the board as the module
-    docstring asks."""
-    T = np.asarray(T_base_cam, dtype=float).reshape(-1, 4, 4)
+def board_views_ok(setup: PlanSetup, T_cam_board: np.ndarray) -> np.ndarray:
+    """(m,) bool: which board poses in the camera frame ``T_cam_board`` (m, 4, 4; board ->
+    camera, m) show the board as the module docstring asks."""
+    T_cb = np.asarray(T_cam_board, dtype=float).reshape(-1, 4, 4)
     rule = setup.rule
-    T_cw = inv_pose(T)
-    T_cb = T_cw @ setup.T_base_board  # board -> camera
     # the optical axis against the board's normal (board z, into the board) in the camera frame
     ok = T_cb[:, 2, 2] >= np.cos(np.radians(rule.max_tilt_deg))
     X = setup.board_points()
-    ok[ok] = _in_view(setup, T_cw[ok], X[-4:])  # the printed corners first: cheap
-    ok[ok] = _in_view(setup, T_cw[ok], X)  # then every feature (a lens bends the edges)
+    ok[ok] = _in_view(setup, T_cb[ok], X[-4:])  # the printed corners first: cheap
+    ok[ok] = _in_view(setup, T_cb[ok], X)  # then every feature (a lens bends the edges)
     grid, pitch = _pitch_edges(setup.board)
     Gc = np.einsum("mij,kj->mki", T_cb[ok, :3, :3], grid) + T_cb[ok, None, :3, 3]
     uv = setup.camera.project(Gc)
@@ -130,11 +204,64 @@ def _off_board(setup: PlanSetup, q: np.ndarray) -> np.ndarray:
     and clearance."""
     pts = chain_samples(setup.chain, q)  # base frame
     T_bb = inv_pose(setup.T_base_board)
-    Pb = pts @ T_bb[:3, :3].T + T_bb[:3, 3]
+    return ~_in_plate(setup, pts @ T_bb[:3, :3].T + T_bb[:3, 3])
+
+
+def _in_plate(setup: PlanSetup, Pb: np.ndarray) -> np.ndarray:
+    """(m,) bool: a point of ``Pb`` (m, s, 3; board frame, m) inside the board's plate grown by
+    the capsule radius and clearance."""
     x0, y0, x1, y1 = setup.board.image(1.0).extent_m
     g = setup.chain.radius_m + setup.chain.clearance_m
     lo, hi = np.array([x0 - g, y0 - g, -g]), np.array([x1 + g, y1 + g, 0.01 + g])
-    return ~np.all((Pb > lo) & (Pb < hi), axis=-1).any(axis=1)
+    return np.all((Pb > lo) & (Pb < hi), axis=-1).any(axis=1)
+
+
+def _plate_points(setup: PlanSetup, q: np.ndarray) -> np.ndarray:
+    """(m, 9, 3) the board plate's corners, edge midpoints and centre (base frame, m) at ``q``
+    (eye-to-hand: the board on the flange)."""
+    x0, y0, x1, y1 = setup.board.image(1.0).extent_m
+    xs, ys = np.array([x0, (x0 + x1) / 2, x1]), np.array([y0, (y0 + y1) / 2, y1])
+    P = np.array([[x, y, 0.0] for x in xs for y in ys])
+    T = fk_tool(setup.model_tool, q)
+    return np.einsum("mij,kj->mki", T[:, :3, :3], P) + T[:, None, :3, 3]
+
+
+def _plate_clear(setup: PlanSetup, q: np.ndarray) -> np.ndarray:
+    """(m,) bool, eye-to-hand: the board's plate above the table and outside the keep-out boxes
+    (by the chain's clearance), and no sample of the arm before the wrist's last two segments
+    inside the plate grown by the capsule radius and clearance."""
+    chain = setup.chain
+    c = chain.clearance_m
+    P = _plate_points(setup, q)
+    ok = np.all(P[..., 2] >= chain.floor_z_m + c, axis=1)
+    for box in setup.boxes:
+        ok &= ~np.all((P > box[:3] - c) & (P < box[3:] + c), axis=-1).any(axis=1)
+    pts = chain_samples(chain, q)[:, : -2 * SAMPLES]  # the wrist holding the board left out
+    T_bb = inv_pose(fk_tool(setup.model_tool, q))  # base -> board
+    Pb = np.einsum("mij,mkj->mki", T_bb[:, :3, :3], pts) + T_bb[:, None, :3, 3]
+    return ok & ~_in_plate(setup, Pb)
+
+
+def _sight_clear(setup: PlanSetup, q: np.ndarray, samples: int = 24) -> np.ndarray:
+    """(m,) bool, eye-to-hand: the arm keeps :data:`CAMERA_CLEARANCE_M` from the static camera,
+    and no sample of it (the board's own mount left out) lies within the capsule radius plus
+    clearance of a line of sight from the camera to the board's printed corners and centre,
+    each stopped that distance and 1 cm before the board."""
+    assert setup.T_base_cam is not None
+    chain = setup.chain
+    g = chain.radius_m + chain.clearance_m
+    C = setup.T_base_cam[:3, 3]
+    pts = chain_samples(chain, q)[:, :-SAMPLES]  # (m, s, 3) without flange -> board
+    ok = np.all(np.linalg.norm(pts - C, axis=-1) > chain.radius_m + CAMERA_CLEARANCE_M, axis=1)
+    P = _plate_points(setup, q)[:, ::2]  # every other of the 3 x 3: corners, centre (m, 5, 3)
+    d = np.linalg.norm(P - C, axis=-1, keepdims=True)
+    t = np.linspace(0.0, 1.0, samples)
+    ray = C + (P - C)[:, :, None] * (t * np.maximum(1.0 - (g + 0.01) / d, 0.0))[..., None]
+    ray = ray.reshape(len(q), -1, 3)  # (m, 5 samples, 3)
+    for k in np.flatnonzero(ok):
+        near = np.linalg.norm(ray[k][:, None] - pts[k][None], axis=-1).min()
+        ok[k] = near > g
+    return ok
 
 
 def feasible(setup: PlanSetup, q: np.ndarray) -> np.ndarray:
@@ -143,11 +270,12 @@ def feasible(setup: PlanSetup, q: np.ndarray) -> np.ndarray:
     r = setup.robot
     ok = np.all((q >= r.limits[:, 0]) & (q <= r.limits[:, 1]), axis=1)
     checks = (
-        lambda x: board_views_ok(setup, fk_tool(setup.model_cam, x)),
+        lambda x: board_views_ok(setup, setup.T_cam_board(x)),
         setup.chain.ok,
         lambda x: outside_boxes(setup.chain, x, setup.boxes),
-        lambda x: _off_board(setup, x),
-    )
+        *((lambda x: _plate_clear(setup, x), lambda x: _sight_clear(setup, x))
+          if setup.eye_to_hand else (lambda x: _off_board(setup, x),)),
+    )  # fmt: skip
     for check in checks:
         if not ok.any():
             break
@@ -162,23 +290,31 @@ def _window(robot: RobotDef, centre: np.ndarray, span: np.ndarray) -> tuple[np.n
 
 
 def _check_within_reach(setup: PlanSetup) -> None:
-    """Refuse at once a board no camera on the arm can see large enough: farther from the base
-    than the chain's length plus the distance at which one feature pitch spans
-    :attr:`ViewRule.min_pitch_px` (a pinhole's ``fx pitch / px``)."""
+    """Refuse at once a board no camera on the arm can see large enough (eye-in-hand: farther
+    from the base than the chain's length plus the distance at which one feature pitch spans
+    :attr:`ViewRule.min_pitch_px`, a pinhole's ``fx pitch / px``), or a static camera that far
+    from the base (eye-to-hand)."""
     P = setup.chain.points(setup.robot.home[None])[0]
     reach = float(np.linalg.norm(np.diff(P, axis=0), axis=1).sum())
-    reach += float(np.linalg.norm(setup.robot.T_flange_cam[:3, 3]))
+    reach += float(np.linalg.norm(setup.T_flange_tool[:3, 3]))
     _, pitch = _pitch_edges(setup.board)
     fx = float(dict(zip(setup.camera.names, setup.camera.values()))["fx"])
     far = fx * pitch / setup.rule.min_pitch_px
-    centre = setup.board_points()[-4:].mean(axis=0)
+    if setup.T_base_cam is not None:
+        what, option = "static camera", "--camera-pose (the camera's centre in the base frame, mm)"
+        centre = setup.T_base_cam[:3, 3]
+    else:
+        what, option = "board's centre", "--board-pose (the centre of the printed board in the " \
+            "base frame, mm)"  # fmt: skip
+        T = setup.T_base_board
+        centre = T[:3, :3] @ setup.board_points()[-4:].mean(axis=0) + T[:3, 3]
     if np.linalg.norm(centre) > reach + far:
         raise InputError(
-            f"the board's centre is {np.linalg.norm(centre) * 1000:.0f} mm from {setup.robot.name}'s "
+            f"the {what} is {np.linalg.norm(centre) * 1000:.0f} mm from {setup.robot.name}'s "
             f"base, beyond its reach ({reach * 1000:.0f} mm) plus the farthest the camera sees a "
             f"feature pitch of {setup.rule.min_pitch_px:g} px ({far * 1000:.0f} mm): no posture "
             "sees the whole board",
-            fix="check --board-pose (the centre of the printed board in the base frame, mm)",
+            fix=f"check {option}",
         )
 
 
@@ -218,8 +354,8 @@ def candidate_pool(
             f"(margin {setup.rule.margin_px:g} px, board normal within "
             f"{setup.rule.max_tilt_deg:g} deg of the optical axis, a feature pitch of at least "
             f"{setup.rule.min_pitch_px:g} px) without collision",
-            fix="check --board-pose (the centre of the printed board in the base frame, mm) and "
-            "the camera (--camera or --fov-deg/--resolution); a board too large for the view at a "
+            fix="check --board-pose (the centre of the printed board in the base frame, mm) or "
+            "--camera-pose and the camera (--camera or --fov-deg/--resolution); a board too large for the view at a "
             "working distance needs a wider lens, one too small a closer approach",
         )
     return pool, where
