@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from selfcal.cli.plan_args import keep_out_boxes, plan_inputs
 from selfcal.console.common import CliError, add_json, note_written, parse_floats, writing
 
 __all__ = ["register", "scenario_text"]
@@ -48,6 +49,13 @@ DATASET (its robot file, calibration.json's camera, board pose and hand-eye; --r
 selection's cross-validation is forecast to keep; PLAN/joints.csv and trajectory.yaml hold the
 added postures in the order to record them (it sets the cross-validation's folds), replay.csv the
 dataset's and the added ones (scenario.toml replays them).
+--measure tracker: instead, the postures at which a laser tracker measures a tool point (the
+reflector at --tool-point on the flange) for `selfcal identify`: reachable and free of collision
+and the keep-out boxes (the tracker's line of sight is not checked), chosen to minimise the
+tracker route's predicted tool-point error over the workspace in the tracker frame (its
+covariance with the parameters its rank test keeps, noise --sigma-mm per coordinate, exact
+joints); PLAN/joints.csv (add the measured x_mm,y_mm,z_mm to each row for identify),
+trajectory.yaml and plan.json. No camera, board or mount options.
 See docs/plan.md.
 """
 
@@ -214,6 +222,11 @@ def _cmd(args: argparse.Namespace) -> int:
     from selfcal.robot.definition import load_robot
     from selfcal.target.boards import Board
 
+    if args.measure == "tracker":
+        from selfcal.cli.plan_tracker import cmd_tracker
+
+        return cmd_tracker(args, _deviation(args))
+    args.mount = args.mount or "eye-in-hand"
     _check_mount(args)
     if args.add:
         return _cmd_add(args)
@@ -223,7 +236,7 @@ def _cmd(args: argparse.Namespace) -> int:
     if not isinstance(board, Board):
         raise CliError(f"--target {args.target}: the plan needs a board (chessboard, charuco, "
                        "circles, aprilgrid), not a marker field")  # fmt: skip
-    boxes = _boxes(args)
+    boxes = keep_out_boxes(args)
     if args.count < 3:
         raise CliError(f"--count {args.count}: a plan needs at least 3 postures")
     setup, pose = _setup(args, robot, camera, board, boxes)
@@ -261,10 +274,7 @@ def _cmd(args: argparse.Namespace) -> int:
             "seed": args.seed,
             ("camera_pose_mm_deg" if e2h else "board_pose_mm_deg"): np.round(pose, 6).tolist(),
             **({"board_on_flange": BOARD_ON_FLANGE} if e2h else {}),
-            "deviation_mm_deg": [args.deviation_mm, args.deviation_deg],
-            "keep_out_mm": (boxes * 1000).tolist(),
-            "joints_deg": np.round(plan.q / robot.edge_unit, 6).tolist(),
-            "random_joints_deg": np.round(plan.q_random / robot.edge_unit, 6).tolist(),
+            **plan_inputs(args, boxes, robot.edge_unit, plan.q, plan.q_random),
         }
         write_json_atomic(out / "plan.json", doc)
     note_written(args, out)
@@ -273,15 +283,6 @@ def _cmd(args: argparse.Namespace) -> int:
             f"{plan.random_m * 1000:.3f} mm); joint path {np.degrees(plan.path_rad):.0f} deg")  # fmt: skip
     print(json.dumps(doc) if args.json else line)
     return 0
-
-
-def _boxes(args: argparse.Namespace) -> np.ndarray:
-    from selfcal.kinematics.keep_out import check_boxes
-
-    return check_boxes(
-        np.array([parse_floats(b, 6, "--keep-out (mm)") for b in args.keep_out]).reshape(-1, 6)
-        / 1000.0
-    )
 
 
 def _deviation(args: argparse.Namespace):
@@ -324,7 +325,7 @@ def _cmd_add(args: argparse.Namespace) -> int:
         raise CliError(f"--add {k_text} {root}: K must be a whole number of postures") from None
     if count < 1:
         raise CliError(f"--add {count}: add at least 1 posture")
-    dplan = dataset_setup(root, _boxes(args))
+    dplan = dataset_setup(root, keep_out_boxes(args))
     setup = dplan.setup
     robot = setup.robot
     js = encoder_sigma(robot)
@@ -376,9 +377,7 @@ def _cmd_add(args: argparse.Namespace) -> int:
             "path_deg": round(float(np.degrees(add.path_rad)), 3),
             "seed": args.seed,
             "board_pose_mm_deg": np.round(bp, 6).tolist(),
-            "deviation_mm_deg": [args.deviation_mm, args.deviation_deg],
-            "keep_out_mm": (setup.boxes * 1000).tolist(),
-            "joints_deg": np.round(add.q / robot.edge_unit, 6).tolist(),
+            **plan_inputs(args, setup.boxes, robot.edge_unit, add.q),
         }
         write_json_atomic(out / "plan.json", doc)
     note_written(args, out)
@@ -412,7 +411,10 @@ def register(subparsers) -> argparse.ArgumentParser:
                     help="instead of --camera: the horizontal field of view (deg)")  # fmt: skip
     sp.add_argument("--resolution", default=None, metavar="WxH",
                     help="with --fov-deg: the image size in px, e.g. 1280x720")  # fmt: skip
-    sp.add_argument("--mount", default="eye-in-hand", choices=["eye-in-hand", "eye-to-hand"],
+    sp.add_argument("--measure", default="camera", choices=["camera", "tracker"],
+                    help="what measures the arm: a camera seeing a board (default) or a laser "
+                    "tracker measuring a tool point (selfcal identify); see below")  # fmt: skip
+    sp.add_argument("--mount", default=None, choices=["eye-in-hand", "eye-to-hand"],
                     help="where the camera is (default eye-in-hand: on the flange, the board "
                     "still; eye-to-hand: still, the board on the flange)")  # fmt: skip
     sp.add_argument("--board-pose", default=None, metavar="X,Y,Z[,RX,RY,RZ]",
@@ -421,6 +423,11 @@ def register(subparsers) -> argparse.ArgumentParser:
     sp.add_argument("--camera-pose", default=None, metavar="X,Y,Z[,RX,RY,RZ]",
                     help="eye-to-hand: the static camera in the base frame: centre (mm), "
                     "rotation (deg); see below")  # fmt: skip
+    sp.add_argument("--tool-point", default="0,0,0", metavar="X,Y,Z",
+                    help="--measure tracker: the reflector's centre in the flange frame, mm "
+                    "(default 0,0,0)")  # fmt: skip
+    sp.add_argument("--sigma-mm", type=float, default=0.1,
+                    help="--measure tracker: the tracker's noise per coordinate, mm (default 0.1)")  # fmt: skip
     sp.add_argument("--count", type=int, default=12, help="postures to plan (default 12)")
     sp.add_argument("--keep-out", action="append", default=[], metavar="BOX",
                     help="XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX (mm, base frame); repeatable")  # fmt: skip

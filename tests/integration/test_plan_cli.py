@@ -187,3 +187,42 @@ def test_the_docs_eye_to_hand_line_is_what_the_command_prints(tmp_path, capsys):
     line = capsys.readouterr().out.strip()
     assert line in page
     assert "--mount eye-to-hand --camera-pose -1062,-133,613,-90,0,-90 --count 12" in page
+
+
+def test_tracker_plan_files_parse(tmp_path, capsys):
+    argv = ["plan", "--measure", "tracker", "--robot", "ur5e", "--tool-point", "0,0,50",
+            "--count", "8", "--candidates", "100", "--out", str(tmp_path / "plan"), "--quiet"]  # fmt: skip
+    assert main(argv) == 0
+    line = capsys.readouterr().out.strip()
+    assert line.startswith("tracker plan of 8 postures: predicted tool-point error")
+    doc = json.loads((tmp_path / "plan/plan.json").read_text())
+    assert doc["kind"] == "tracker" and doc["tool_point_mm"] == [0, 0, 50]
+    assert doc["predicted_tool_rms_mm"] < doc["random_tool_rms_mm"]
+    robot = load_robot("ur5e")
+    q = read_joint_rows(tmp_path / "plan/joints.csv", robot, "deg").q  # identify's joints
+    assert np.allclose(np.degrees(q), doc["joints_deg"], atol=1e-6)
+    traj = yaml.safe_load((tmp_path / "plan/trajectory.yaml").read_text())
+    assert np.allclose(np.array([p["positions"] for p in traj["points"]])[::2], q, atol=1e-8)
+    assert sorted(p.name for p in (tmp_path / "plan").iterdir()) == [
+        "joints.csv", "plan.json", "trajectory.yaml"]  # fmt: skip
+
+
+@pytest.mark.parametrize("extra", [["--fov-deg", "40"], ["--mount", "eye-in-hand"],
+                                   ["--board-pose", "0,0,0"], ["--target", BOARD]])  # fmt: skip
+def test_tracker_plan_refuses_camera_options(tmp_path, capsys, extra):
+    argv = ["plan", "--measure", "tracker", "--robot", "ur5e", "--out", str(tmp_path / "p"),
+            *extra]  # fmt: skip
+    assert main(argv) == 2
+    assert f"{extra[0]} describes a camera and a board" in capsys.readouterr().err
+    assert not (tmp_path / "p").exists()
+
+
+def test_the_docs_tracker_line_is_what_the_command_prints(tmp_path, capsys):
+    """docs/plan.md shows the line its tracker command prints."""
+    page = (Path(__file__).resolve().parents[2] / "docs/plan.md").read_text()
+    argv = ["plan", "--measure", "tracker", "--robot", "ur5e", "--tool-point", "0,0,50",
+            "--count", "12", "--out", str(tmp_path / "plan"), "--quiet"]  # fmt: skip
+    assert main(argv) == 0
+    line = capsys.readouterr().out.strip()
+    assert line in page
+    assert "--measure tracker --robot ur5e --tool-point 0,0,50 --count 12" in page

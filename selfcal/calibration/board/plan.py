@@ -33,6 +33,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Protocol
 
 import numpy as np
 
@@ -50,9 +51,12 @@ from selfcal.estimation.joint_report import aligned_tool_weight
 from selfcal.estimation.kinematic_poses import KinematicPoses
 from selfcal.kinematics.keep_out import outside_boxes
 from selfcal.kinematics.mcpc import MCPCModel, minimal_indices
+from selfcal.kinematics.self_collision import CapsuleChain
+from selfcal.robot.definition import RobotDef
 
 __all__ = [
     "RecordingPlan",
+    "PostureCell",
     "board_model",
     "frame_information",
     "workspace_sample",
@@ -166,9 +170,24 @@ def frame_information(
     return F / pixel_sigma_px**2
 
 
-def workspace_sample(setup: PlanSetup, n: int, *, seed: int) -> np.ndarray:
+class PostureCell(Protocol):
+    """What :func:`workspace_sample` draws for: an arm, its collision check and keep-out boxes
+    (:class:`selfcal.calibration.board.plan_views.PlanSetup`, a tracker plan's setup)."""
+
+    @property
+    def robot(self) -> RobotDef: ...
+
+    @property
+    def chain(self) -> CapsuleChain: ...
+
+    @property
+    def boxes(self) -> np.ndarray: ...
+
+
+def workspace_sample(setup: PostureCell, n: int, *, seed: int) -> np.ndarray:
     """(n, dof) rad: random postures of the planning window around home, free of self-collision
-    and keep-out boxes (the board need not be in view): where the predicted error is averaged."""
+    and keep-out boxes (the board need not be in view): where the predicted error is averaged,
+    and a tracker plan's candidates."""
     r = setup.robot
     rng = np.random.default_rng(seed)
     lo = np.maximum(r.limits[:, 0], r.home - r.planning_span)

@@ -1,0 +1,187 @@
+"""A recording plan for a laser tracker: which postures to measure so that the tracker route
+(:func:`selfcal.calibration.tracker.identify.identify_tracker`, positions of a tool point)
+predicts the smallest tool-point error (``selfcal plan --measure tracker``, issue #30).
+
+Candidates: postures drawn uniformly in the robot file's planning window around home
+(``[planning] span_deg``), within the joint ranges, free of self-collision, of the table and of
+the keep-out boxes (the capsule chain with the tool point as its tool;
+:func:`selfcal.calibration.board.plan.workspace_sample`). No line of sight is asked:
+a tracker's view of its reflector is not modelled (check it at the cell).
+
+Information: the tracker route's position rows, ``(y_i - p(q_i)) / sigma_t`` per coordinate, at
+the nominal chain (world = the tracker, here the base frame; tool = the tool point on the
+flange): each posture's Fisher information about the minimal MCPC parameters is
+``J_i^T J_i / sigma_t^2`` with ``J_i`` (3, k) the derivative of the tool point's position
+(:func:`position_jacobian`; the same rows as
+:class:`selfcal.estimation.tracker.TrackerPositionBlock`'s, a unit test compares them). The
+joints are taken as read exactly, as the route does.
+
+Criterion: the predicted RMS of the tool point's position error over a sample of the workspace
+in the tracker frame (no alignment: the tracker route's accuracy is stated in the tracker's
+frame, :mod:`selfcal.calibration.tracker.accuracy`), ``sqrt(trace(G C))`` with
+``G = mean_w J_w^T J_w``. The greedy choice and the ordering are the board plan's
+(:func:`selfcal.calibration.board.plan.select_greedy`, :func:`~selfcal.calibration.board.plan.order_path`).
+The prediction of the chosen postures keeps the parameters the route's rank test keeps at them
+(:func:`kept_by_rank`: offered in :func:`selfcal.calibration.tracker.identify.priority_order`,
+the route's rank tolerance), every other one held at the drawing and erring by the arm's
+deviation from it (:func:`selfcal.calibration.board.plan_predict.predicted_with_held`, no
+camera parameters). Positions never see the tool frame's orientation (three angles of ``V_n``):
+those are held and move no tool point. Units: SI inside.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from selfcal.calibration.board.plan import (
+    order_path,
+    path_length,
+    select_greedy,
+    workspace_sample,
+)
+from selfcal.calibration.board.plan_predict import Deviation, predicted_with_held
+from selfcal.calibration.tracker.identify import priority_order
+from selfcal.kinematics.forward import fk_tool, identification_jacobian
+from selfcal.kinematics.identifiability import select_identifiable, triangular_factor
+from selfcal.kinematics.mcpc import MCPCModel, minimal_indices, nominal_mcpc
+from selfcal.kinematics.self_collision import CapsuleChain
+from selfcal.robot.definition import RobotDef
+from selfcal.transforms import trans
+
+__all__ = [
+    "RANK_RTOL",
+    "TrackerPlanSetup",
+    "TrackerPlan",
+    "position_jacobian",
+    "posture_information",
+    "kept_by_rank",
+    "predict_tracker",
+    "plan_tracker",
+]
+
+RANK_RTOL = 1e-9
+"""The tracker route's rank tolerance (:func:`selfcal.calibration.tracker.identify.identify_tracker`'s
+default)."""
+
+
+@dataclass(frozen=True, eq=False)
+class TrackerPlanSetup:
+    """One arm and a tracker's reflector on its flange: ``robot``, ``tool_point_m`` (3,) the
+    reflector's centre in the flange frame (m), keep-out ``boxes`` (b, 6) m in the base frame,
+    ``sigma_m`` the tracker's noise per coordinate (m)."""
+
+    robot: RobotDef
+    tool_point_m: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    boxes: np.ndarray = field(default_factory=lambda: np.zeros((0, 6)))
+    sigma_m: float = 1e-4
+
+    @property
+    def model(self) -> MCPCModel:
+        """The nominal chain base (the tracker) -> the tool point."""
+        return nominal_mcpc(self.robot).with_tool(trans(np.asarray(self.tool_point_m, float)))
+
+    @property
+    def chain(self) -> CapsuleChain:
+        """The self-collision and table check of the nominal arm with its tool point."""
+        return CapsuleChain(nominal_mcpc(self.robot), trans(np.asarray(self.tool_point_m, float)))
+
+
+def position_jacobian(model: MCPCModel, q: np.ndarray) -> np.ndarray:
+    """(m, 3, k) the derivative of the tool point's position (world frame, m) by the minimal
+    MCPC parameters (SI, the order of :func:`selfcal.kinematics.mcpc.minimal_indices`) at the
+    joints ``q`` (m, n) rad."""
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    idx = minimal_indices(model.joint_types)
+    R = fk_tool(model, q)[:, :3, :3]
+    return R @ identification_jacobian(model, q)[:, :3][:, :, idx]
+
+
+def posture_information(setup: TrackerPlanSetup, q: np.ndarray) -> np.ndarray:
+    """(m, k, k) each posture's Fisher information about the minimal parameters (module
+    docstring)."""
+    J = position_jacobian(setup.model, q) / setup.sigma_m
+    return np.einsum("mri,mrj->mij", J, J)
+
+
+def kept_by_rank(setup: TrackerPlanSetup, q: np.ndarray) -> np.ndarray:
+    """(k,) bool: the minimal parameters the tracker route's rank test keeps at the postures
+    ``q`` (m, n) rad (module docstring)."""
+    J = position_jacobian(setup.model, q).reshape(-1, minimal_indices(setup.model.joint_types).size)
+    col = np.linalg.norm(J, axis=0)
+    col = np.where(col > 1e-10 * col.max(initial=0.0), col, np.inf)
+    A = triangular_factor(J / col)
+    keep, _, _ = select_identifiable(A, priority_order(setup.model.joint_types), RANK_RTOL)
+    return keep
+
+
+def predict_tracker(
+    setup: TrackerPlanSetup, q: np.ndarray, F: np.ndarray, G: np.ndarray, variance: np.ndarray
+) -> float:
+    """The predicted tool-point RMS (m) of the tracker route on the postures ``q`` with the
+    information ``F`` (k, k) (:func:`posture_information` summed over them), the workspace
+    weight ``G`` (k, k) and the deviation's ``variance`` (k,): the parameters
+    :func:`kept_by_rank` keeps estimated, the others held."""
+    keep = kept_by_rank(setup, q)
+    M = np.eye(len(keep))[:, keep]
+    return predicted_with_held(F, G, 0, M, variance)
+
+
+@dataclass(frozen=True, eq=False)
+class TrackerPlan:
+    """``q`` (N, n) rad the planned postures in path order and ``predicted_m`` their predicted
+    tool-point RMS (m) over the ``workspace`` (w, n) rad; ``q_random`` the pool's first N
+    postures and ``random_m`` their prediction; ``kept`` how many minimal parameters the route
+    estimates on the plan (of ``parameters``); the pool's size and the joint paths (rad) of the
+    plan and of the random plan, each in its own short order."""
+
+    q: np.ndarray
+    predicted_m: float
+    q_random: np.ndarray
+    random_m: float
+    workspace: np.ndarray
+    kept: int
+    parameters: int
+    candidates: int
+    path_rad: float
+    random_path_rad: float
+
+
+def plan_tracker(
+    setup: TrackerPlanSetup,
+    count: int,
+    *,
+    seed: int = 1,
+    candidates: int = 400,
+    workspace: int = 50,
+    deviation: Deviation | None = None,
+) -> TrackerPlan:
+    """``count`` postures for ``setup`` (module docstring), deterministic for a ``seed``.
+
+    Raises:
+        InputError: fewer free postures than ``count`` or ``workspace``.
+    """
+    pool = workspace_sample(setup, max(candidates, count), seed=seed)
+    qw = workspace_sample(setup, workspace, seed=seed + 1)
+    Jw = position_jacobian(setup.model, qw)
+    G = np.einsum("wri,wrj->ij", Jw, Jw) / len(qw)
+    var = (deviation or Deviation()).variance(setup.model.joint_types)
+    F = posture_information(setup, pool)
+    chosen = select_greedy(F, G, 0, count)
+    home = setup.robot.home
+    q = pool[chosen]
+    q = q[order_path(q, home)]
+    rand = pool[:count]
+    return TrackerPlan(
+        q=q,
+        predicted_m=predict_tracker(setup, q, F[chosen].sum(axis=0), G, var),
+        q_random=rand,
+        random_m=predict_tracker(setup, rand, F[:count].sum(axis=0), G, var),
+        workspace=qw,
+        kept=int(kept_by_rank(setup, q).sum()),
+        parameters=int(minimal_indices(setup.model.joint_types).size),
+        candidates=len(pool),
+        path_rad=path_length(q, home),
+        random_path_rad=path_length(rand[order_path(rand, home)], home),
+    )

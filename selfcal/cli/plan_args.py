@@ -1,0 +1,36 @@
+"""What ``selfcal plan``'s commands share (:mod:`selfcal.cli.plan`, :mod:`selfcal.cli.plan_tracker`):
+the keep-out boxes of the command line and plan.json's last keys."""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+
+from selfcal.console.common import parse_floats
+
+__all__ = ["keep_out_boxes", "plan_inputs"]
+
+
+def plan_inputs(args: argparse.Namespace, boxes: np.ndarray, edge_unit: np.ndarray,
+                q: np.ndarray, q_random: np.ndarray | None = None) -> dict:  # fmt: skip
+    """plan.json's last keys: the deviation (mm, deg), the keep-out ``boxes`` (b, 6) m as mm,
+    the postures ``q`` (m, n) SI and, when given, the random plan's, in edge units (deg, mm)."""
+    doc = {
+        "deviation_mm_deg": [args.deviation_mm, args.deviation_deg],
+        "keep_out_mm": (np.asarray(boxes) * 1000).tolist(),
+        "joints_deg": np.round(q / edge_unit, 6).tolist(),
+    }
+    if q_random is not None:
+        doc["random_joints_deg"] = np.round(q_random / edge_unit, 6).tolist()
+    return doc
+
+
+def keep_out_boxes(args: argparse.Namespace) -> np.ndarray:
+    """The ``--keep-out`` boxes (b, 6) m."""
+    from selfcal.kinematics.keep_out import check_boxes
+
+    return check_boxes(
+        np.array([parse_floats(b, 6, "--keep-out (mm)") for b in args.keep_out]).reshape(-1, 6)
+        / 1000.0
+    )

@@ -1,0 +1,104 @@
+"""``selfcal plan --measure tracker``: the postures at which to measure a tool point with a laser
+tracker for the tracker route (``selfcal identify``), the command of
+:mod:`selfcal.calibration.tracker.plan`; writes PLAN/joints.csv, trajectory.yaml and plan.json."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+
+from selfcal.cli.plan_args import keep_out_boxes, plan_inputs
+from selfcal.console.common import CliError, note_written, parse_floats, writing
+
+__all__ = ["CAMERA_OPTIONS", "cmd_tracker"]
+
+CAMERA_OPTIONS = (
+    ("--target", "target"),
+    ("--camera", "camera"),
+    ("--fov-deg", "fov_deg"),
+    ("--resolution", "resolution"),
+    ("--mount", "mount"),
+    ("--board-pose", "board_pose"),
+    ("--camera-pose", "camera_pose"),
+    ("--add", "add"),
+)
+"""What a camera plan takes and a tracker plan refuses (it has no camera and no board)."""
+
+
+def _check(args: argparse.Namespace) -> None:
+    given = [o for o, k in CAMERA_OPTIONS if getattr(args, k) not in (None, [], False)]
+    if given:
+        raise CliError(
+            f"--measure tracker plans the postures of a tool point a laser tracker measures: "
+            f"{', '.join(given)} describe{'s' if len(given) == 1 else ''} a camera and a board",
+            fix="leave out the camera's and the board's options, or plan for a camera "
+            "(--measure camera)",
+        )
+    if not args.robot:
+        raise CliError("give --robot (a model name, robot TOML or URDF)")
+    if args.count < 3:
+        raise CliError(f"--count {args.count}: a plan needs at least 3 postures")
+    if not args.sigma_mm > 0:
+        raise CliError(f"--sigma-mm {args.sigma_mm}: the tracker's noise must be > 0 mm")
+
+
+def cmd_tracker(args: argparse.Namespace, deviation) -> int:
+    """Plan, write and print (module docstring); ``deviation`` the arm's deviation from its
+    drawing (:class:`selfcal.calibration.board.plan_predict.Deviation`)."""
+    from selfcal.acquisition.backends import robot_reference
+    from selfcal.calibration.tracker.plan import TrackerPlanSetup, plan_tracker
+    from selfcal.io.atomic import write_text_atomic
+    from selfcal.io.jsonfile import write_json_atomic
+    from selfcal.io.plan_files import joints_csv, trajectory_yaml
+    from selfcal.robot.definition import load_robot
+
+    _check(args)
+    robot = load_robot(args.robot)
+    tool = parse_floats(args.tool_point, 3, "--tool-point (mm)")
+    boxes = keep_out_boxes(args)
+    setup = TrackerPlanSetup(robot, tool / 1000.0, boxes, args.sigma_mm / 1000.0)
+    plan = plan_tracker(setup, args.count, seed=args.seed, candidates=args.candidates,
+                        deviation=deviation)  # fmt: skip
+    out = Path(args.out)
+    ref = robot_reference(args.robot)
+    with writing(args, out):
+        write_text_atomic(out / "joints.csv", joints_csv(plan.q, robot.edge_unit))
+        write_text_atomic(out / "trajectory.yaml", trajectory_yaml(
+            robot.joint_names, plan.q, robot.home, speed=np.radians(args.speed_deg_s),
+            dwell_s=args.dwell_s))  # fmt: skip
+        doc = {
+            "format": "scorbot-selfcal-plan",
+            "schema_version": 1,
+            "kind": "tracker",
+            "robot": ref,
+            "count": len(plan.q),
+            "predicted_tool_rms_mm": round(plan.predicted_m * 1000, 4),
+            "random_tool_rms_mm": round(plan.random_m * 1000, 4),
+            "kinematic_parameters": plan.kept,
+            "minimal_parameters": plan.parameters,
+            "criterion": (
+                "tracker route (positions of the tool point, exact joints) covariance with the "
+                "parameters its rank test keeps, the others held at the drawing, deviating "
+                f"uniformly within +-{args.deviation_mm:g} mm and +-{args.deviation_deg:g} deg: "
+                f"RMS of the tool point's position error over {len(plan.workspace)} random "
+                f"workspace postures in the tracker frame, tracker noise {args.sigma_mm:g} mm "
+                "per coordinate"
+            ),
+            "candidates": plan.candidates,
+            "path_deg": round(float(np.degrees(plan.path_rad)), 3),
+            "random_path_deg": round(float(np.degrees(plan.random_path_rad)), 3),
+            "seed": args.seed,
+            "tool_point_mm": tool.tolist(),
+            **plan_inputs(args, boxes, robot.edge_unit, plan.q, plan.q_random),
+        }
+        write_json_atomic(out / "plan.json", doc)
+    note_written(args, out)
+    line = (f"tracker plan of {len(plan.q)} postures: predicted tool-point error "
+            f"{plan.predicted_m * 1000:.3f} mm RMS (a random plan of {len(plan.q)}: "
+            f"{plan.random_m * 1000:.3f} mm; {plan.kept} of {plan.parameters} parameters "
+            f"identified); joint path {np.degrees(plan.path_rad):.0f} deg")  # fmt: skip
+    print(json.dumps(doc) if args.json else line)
+    return 0

@@ -1,0 +1,69 @@
+"""selfcal plan --measure tracker (selfcal/calibration/tracker/plan.py): the information is the
+tracker route's own (its position block's Jacobian), the postures reach and do not collide, the
+plan's prediction beats a random plan's and is what the route achieves in simulation."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from selfcal.benchmarks.plan.tracker import TOOL_POINT_M, achieved
+from selfcal.calibration.tracker.plan import (
+    TrackerPlanSetup,
+    kept_by_rank,
+    plan_tracker,
+    posture_information,
+)
+from selfcal.estimation.tracker import ChainLayout, TrackerPositionBlock
+from selfcal.kinematics.forward import fk_tool
+from selfcal.kinematics.keep_out import outside_boxes
+from selfcal.kinematics.mcpc import minimal_indices, param_names
+from selfcal.robot.definition import load_robot
+
+BOX = np.array([[0.2, -0.2, 0.0, 0.6, 0.2, 0.3]])  # m: a fixture in front of the UR5e
+
+
+@pytest.fixture(scope="module")
+def setup() -> TrackerPlanSetup:
+    return TrackerPlanSetup(load_robot("ur5e"), TOOL_POINT_M, BOX)
+
+
+@pytest.fixture(scope="module")
+def plan(setup):
+    return plan_tracker(setup, 12, seed=2, candidates=200, workspace=30)
+
+
+def test_the_information_is_the_tracker_routes_own(setup, plan):
+    m = setup.model
+    xyz = fk_tool(m, plan.q)[:, :3, 3]
+    block = TrackerPositionBlock(ChainLayout.whole(m), plan.q, xyz, setup.sigma_m)
+    (piece,) = block.evaluate({"mcpc": m.params.reshape(-1)}, True).pieces
+    k, d, c = piece.J.shape
+    J = piece.J.reshape(k * d, c)[:, minimal_indices(m.joint_types)]
+    F = posture_information(setup, plan.q).sum(axis=0)
+    assert np.allclose(J.T @ J, F, rtol=1e-10, atol=1e-12 * np.abs(F).max())
+
+
+def test_postures_reach_do_not_collide_and_beat_random(setup, plan):
+    lim = setup.robot.limits
+    assert plan.q.shape == (12, 6)
+    assert np.all((plan.q >= lim[:, 0]) & (plan.q <= lim[:, 1]))
+    assert setup.chain.ok(plan.q).all() and outside_boxes(setup.chain, plan.q, BOX).all()
+    assert plan.predicted_m < plan.random_m
+
+
+def test_positions_never_identify_the_tool_frames_orientation(setup, plan):
+    names = param_names(minimal_indices(setup.model.joint_types))
+    held = {n for n, k in zip(names, kept_by_rank(setup, plan.q), strict=True) if not k}
+    assert {"alpha6", "beta6", "gamma6"} <= held
+    assert plan.kept == len(names) - len(held)
+
+
+def test_the_prediction_is_what_the_route_achieves(setup, plan):
+    """The tracker route on the plan's postures, 8 simulated truths (the deviation the plan
+    assumes) and noise draws: the median achieved error within 0.7 - 1.4 times the prediction
+    (the benchmark's 30 draws: 1.05)."""
+    e = np.array([achieved(setup, plan.q, plan.workspace, s) for s in range(1, 9)])
+    assert np.isfinite(e).sum() >= 7
+    ratio = np.median(e[np.isfinite(e)]) / plan.predicted_m
+    assert 0.7 <= ratio <= 1.4
