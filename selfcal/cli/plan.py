@@ -226,6 +226,12 @@ def _cmd(args: argparse.Namespace) -> int:
         from selfcal.cli.plan_tracker import cmd_tracker
 
         return cmd_tracker(args, _deviation(args))
+    given = [o for o, v in (("--tool-point", args.tool_point), ("--sigma-mm", args.sigma_mm))
+             if v is not None]  # fmt: skip
+    if given:
+        raise CliError(f"{', '.join(given)} describe{'s' if len(given) == 1 else ''} a laser "
+                       "tracker's measurement, not a camera's",
+                       fix="add --measure tracker, or leave them out")  # fmt: skip
     args.mount = args.mount or "eye-in-hand"
     _check_mount(args)
     if args.add:
@@ -423,10 +429,10 @@ def register(subparsers) -> argparse.ArgumentParser:
     sp.add_argument("--camera-pose", default=None, metavar="X,Y,Z[,RX,RY,RZ]",
                     help="eye-to-hand: the static camera in the base frame: centre (mm), "
                     "rotation (deg); see below")  # fmt: skip
-    sp.add_argument("--tool-point", default="0,0,0", metavar="X,Y,Z",
+    sp.add_argument("--tool-point", default=None, metavar="X,Y,Z",
                     help="--measure tracker: the reflector's centre in the flange frame, mm "
                     "(default 0,0,0)")  # fmt: skip
-    sp.add_argument("--sigma-mm", type=float, default=0.1,
+    sp.add_argument("--sigma-mm", type=float, default=None,
                     help="--measure tracker: the tracker's noise per coordinate, mm (default 0.1)")  # fmt: skip
     sp.add_argument("--count", type=int, default=12, help="postures to plan (default 12)")
     sp.add_argument("--keep-out", action="append", default=[], metavar="BOX",

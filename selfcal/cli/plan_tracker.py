@@ -41,6 +41,8 @@ def _check(args: argparse.Namespace) -> None:
         raise CliError("give --robot (a model name, robot TOML or URDF)")
     if args.count < 3:
         raise CliError(f"--count {args.count}: a plan needs at least 3 postures")
+    args.tool_point = "0,0,0" if args.tool_point is None else args.tool_point
+    args.sigma_mm = 0.1 if args.sigma_mm is None else args.sigma_mm  # identify's default
     if not args.sigma_mm > 0:
         raise CliError(f"--sigma-mm {args.sigma_mm}: the tracker's noise must be > 0 mm")
 

@@ -226,3 +226,11 @@ def test_the_docs_tracker_line_is_what_the_command_prints(tmp_path, capsys):
     line = capsys.readouterr().out.strip()
     assert line in page
     assert "--measure tracker --robot ur5e --tool-point 0,0,50 --count 12" in page
+
+
+def test_a_camera_plan_refuses_the_trackers_options(tmp_path, capsys):
+    argv = ["plan", "--robot", "ur5e", "--target", BOARD, "--fov-deg", "60", "--resolution",
+            "640x480", "--board-pose", "-472,-133,3", "--sigma-mm", "0.05", "--out",
+            str(tmp_path / "p")]  # fmt: skip
+    assert main(argv) == 2
+    assert "--sigma-mm describes a laser tracker's measurement" in capsys.readouterr().err

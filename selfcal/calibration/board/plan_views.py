@@ -11,7 +11,8 @@ posture ``q`` (rad, within the robot file's joint ranges) is a candidate when
   (eye-in-hand); eye-to-hand the board's plate stays above the table and out of the keep-out
   boxes, the arm (but the wrist that holds the board) out of the plate, the arm
   :data:`CAMERA_CLEARANCE_M` from the static camera, and no link crosses the lines of sight from
-  the camera to the board's printed corners and centre (the capsule radius to spare);
+  the camera to the board's printed corners and centre (the capsule radius and clearance to
+  spare);
 - the nominal camera sees every feature of the board and every corner of its printed image
   inside the image with :attr:`ViewRule.margin_px` to spare, at least
   :attr:`ViewRule.min_depth_m` in front of it;
@@ -20,6 +21,9 @@ posture ``q`` (rad, within the robot file's joint ranges) is a candidate when
   past what the corner detectors handle);
 - the board is large enough in the image: one feature pitch (the closest two features) spans at
   least :attr:`ViewRule.min_pitch_px` along each edge of the feature grid.
+
+Eye-to-hand asks a longer pitch and a smaller tilt (:data:`EYE_TO_HAND_RULE`, measured on
+rendered replays).
 
 Candidates are drawn uniformly in the robot file's planning window around home
 (``[planning] span_deg``); when too few lie there (a board far from where home looks), in the
@@ -258,7 +262,7 @@ def _sight_clear(setup: PlanSetup, q: np.ndarray, samples: int = 24) -> np.ndarr
     t = np.linspace(0.0, 1.0, samples)
     ray = C + (P - C)[:, :, None] * (t * np.maximum(1.0 - (g + 0.01) / d, 0.0))[..., None]
     ray = ray.reshape(len(q), -1, 3)  # (m, 5 samples, 3)
-    for k in np.flatnonzero(ok):
+    for k in np.flatnonzero(ok):  # one posture at a time: (m, 5 samples, s) would not fit
         near = np.linalg.norm(ray[k][:, None] - pts[k][None], axis=-1).min()
         ok[k] = near > g
     return ok

@@ -1,0 +1,137 @@
+"""``python -m selfcal.benchmarks.plan.eye_to_hand [--draws 20] [--out DIR]``: the postures of
+``selfcal plan --mount eye-to-hand`` against random ones, achieved in simulation (docs/plan.md,
+issue #30).
+
+The cell of docs/plan.md's eye-to-hand example (UR5e, a 40 deg 640 x 480 camera still at
+-1062, -133, 613 mm looking along the base's x axis, the ChArUco on the flange): the plan of 12,
+the first 12 and the first 30 of its candidate pool (random postures under the same filters).
+Every draw is one simulated truth (``[perturbation] seed`` = the draw: every minimal parameter,
+the board's mount and the camera's placement in the chain included, within +-1 mm and
++-0.5 deg, the deviation the plan assumes) and one noise draw (0.5 px corners, quantised joint
+read-back), acquired on the analytic path (``selfcal acquire``) and calibrated by the board route
+as ``selfcal calibrate`` does; the achieved error is the RMS over the plan's 50 workspace
+postures of the flange centre predicted by the calibrated chain (in the camera frame) against
+the truth's, after the best rigid alignment: the quantity the plan predicts. Prints, per
+posture set, the prediction, the achieved median and 90th percentile and their ratio.
+"""
+
+from __future__ import annotations
+
+import argparse
+import shutil
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["CAMERA_POSE", "achieved", "main", "posture_sets"]
+
+CAMERA_POSE = np.array([-1062.0, -133.0, 613.0, -90.0, 0.0, -90.0])
+"""mm, deg: docs/plan.md's still camera."""
+
+
+def posture_sets(count: int = 12, random_counts: tuple[int, ...] = (12, 30)) -> dict:
+    """``{"sets": {name: (q (m, n) rad, predicted tool-point RMS m)}, "setup", "workspace"}``:
+    the plan of ``count`` and the pool's first ``random_counts`` postures."""
+    from selfcal.calibration.board.plan import (
+        board_model,
+        frame_information,
+        plan_recording,
+        predict_kept,
+    )
+    from selfcal.calibration.board.plan_predict import Deviation
+    from selfcal.calibration.board.plan_views import PlanSetup, candidate_pool
+    from selfcal.estimation.joint_report import aligned_tool_weight, encoder_sigma
+    from selfcal.io.camera_file import camera_from_fov
+    from selfcal.io.target_toml import load_target
+    from selfcal.robot.definition import load_robot, models_dir
+    from selfcal.target.placement import board_on_flange, camera_pose
+
+    robot = load_robot("ur5e")
+    board = load_target(models_dir() / "targets/charuco.toml")
+    T_bc = camera_pose(CAMERA_POSE[:3] / 1000.0, np.radians(CAMERA_POSE[3:]))
+    setup = PlanSetup.eye_to_hand_setup(robot, camera_from_fov(40.0, 640, 480), board, T_bc,
+                                        board_on_flange(board))  # fmt: skip
+    js = encoder_sigma(robot)
+    plan = plan_recording(setup, count, seed=1, joint_sigma=js)
+    pool, _ = candidate_pool(setup, 400, seed=1)
+    G = aligned_tool_weight(board_model(setup), plan.workspace, setup.T_tool_tip)
+    var = Deviation().variance(robot.joint_types)
+    out = {f"plan {count}": (plan.q, plan.predicted_m)}
+    for n in random_counts:
+        q = pool[:n]
+        F = frame_information(setup, q, plan.pixel_sigma_px, js).sum(axis=0)
+        out[f"random {n}"] = (q, predict_kept(setup, q, F, G, var))
+    return {"sets": out, "setup": setup, "workspace": plan.workspace}
+
+
+def achieved(setup, q: np.ndarray, qw: np.ndarray, seed: int, folder: Path) -> float:
+    """The achieved tool-point RMS (m) over ``qw`` of the board route on the postures ``q``
+    (m, n) rad for the truth and noise of ``seed`` (module docstring), acquired in a temporary
+    folder under ``folder``; NaN when the calibration fails."""
+    from selfcal.calibration.board.dataset import calibrate_board_dataset
+    from selfcal.calibration.board.mounts import flange_to_tool
+    from selfcal.cli.main import main as selfcal
+    from selfcal.cli.plan import scenario_text
+    from selfcal.errors import SelfCalError
+    from selfcal.io.atomic import write_text_atomic
+    from selfcal.io.plan_files import joints_csv
+    from selfcal.io.truth import read_truth
+    from selfcal.kinematics.accuracy import aligned_errors
+    from selfcal.kinematics.forward import fk_tool
+    from selfcal.robot.definition import models_dir
+    from selfcal.transforms import inv_pose
+
+    robot = setup.robot
+    with tempfile.TemporaryDirectory(dir=folder) as d:
+        root = Path(d)
+        shutil.copyfile(models_dir() / "targets/charuco.toml", root / "target.toml")
+        write_text_atomic(root / "joints.csv", joints_csv(q, robot.edge_unit))
+        text = scenario_text("ur5e", setup.camera, None, len(q), camera_pose=CAMERA_POSE)
+        text += f"\n[perturbation]\nseed = {seed}\n"
+        text = text.replace("[noise]\n", f"[noise]\nseed = {seed}\npixel_sigma = 0.5\n")
+        write_text_atomic(root / "scenario.toml", text)
+        if selfcal(["acquire", str(root / "scenario.toml"), "--out", str(root / "run"),
+                    "--quiet"]) != 0:  # fmt: skip
+            return float("nan")
+        try:
+            cal = calibrate_board_dataset(root / "run")
+        except SelfCalError:
+            return float("nan")
+        truth = read_truth(root / "run/truth.json")
+    assert truth.board is not None
+    true_chain = truth.true_model.with_base(inv_pose(np.asarray(truth.board["T_world_cam"])))
+    p_true = fk_tool(true_chain, qw) @ inv_pose(np.asarray(truth.board["T_flange_board"]))
+    p_est = fk_tool(cal.model, qw) @ inv_pose(flange_to_tool(cal.model, robot))
+    return float(aligned_errors(p_est[:, :3, 3], p_true[:, :3, 3])["rms"]) / 1000.0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Draw and print the table."""
+    import warnings
+
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--draws", type=int, default=20)
+    ap.add_argument("--out", default="runs/plan-e2h-compare")
+    a = ap.parse_args(argv)
+    got = posture_sets()
+    folder = Path(a.out)
+    folder.mkdir(parents=True, exist_ok=True)
+    print(f"ur5e eye-to-hand, {a.draws} draws")
+    print("| postures | predicted (mm) | achieved median (mm) | 90th percentile | median / "
+          "predicted | failed |")  # fmt: skip
+    print("|---|---|---|---|---|---|")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for name, (q, pred) in got["sets"].items():
+            e = np.array([achieved(got["setup"], q, got["workspace"], s, folder)
+                          for s in range(1, a.draws + 1)])  # fmt: skip
+            ok = e[np.isfinite(e)] * 1000
+            med, p90 = np.median(ok), np.percentile(ok, 90)
+            print(f"| {name} | {pred * 1000:.3f} | {med:.3f} | {p90:.3f} | "
+                  f"{med / (pred * 1000):.2f} | {int((~np.isfinite(e)).sum())} |", flush=True)  # fmt: skip
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
