@@ -23,7 +23,7 @@ import numpy as np
 
 from selfcal.io.atomic import write_text_atomic
 
-__all__ = ["BOARD_POSE", "KEEP_OUT", "main", "posture_sets"]
+__all__ = ["BOARD_POSE", "KEEP_OUT", "main", "posture_sets", "sets_of"]
 
 BOARD_POSE = np.array([-472.0, -133.0, 3.0, 0.0, 0.0, 0.0])
 """mm, deg: docs/plan.md's board."""
@@ -34,6 +34,23 @@ KEEP_OUT = np.array([[-300.0, 50.0, 0.0, -100.0, 400.0, 600.0]])
 def posture_sets(count: int = 12, random_counts: tuple[int, ...] = (12, 30)) -> dict:
     """``{name: (q (m, n) rad, predicted tool-point RMS m)}``: the plan of ``count`` and the
     pool's first ``random_counts`` postures, and the setup's robot and camera."""
+    from selfcal.calibration.board.plan_views import PlanSetup
+    from selfcal.io.camera_file import camera_from_fov
+    from selfcal.io.target_toml import load_target
+    from selfcal.robot.definition import load_robot, models_dir
+    from selfcal.target.placement import board_pose
+
+    robot = load_robot("ur5e")
+    board = load_target(models_dir() / "targets/charuco.toml")
+    setup = PlanSetup(robot, camera_from_fov(60.0, 640, 480), board,
+                      board_pose(board, BOARD_POSE[:3] / 1000.0), KEEP_OUT / 1000.0)  # fmt: skip
+    return sets_of(setup, count, random_counts)
+
+
+def sets_of(setup, count: int, random_counts: tuple[int, ...]) -> dict:
+    """:func:`posture_sets` of any plan ``setup``
+    (:class:`selfcal.calibration.board.plan_views.PlanSetup`, either mount): ``{"sets", "setup",
+    "workspace"}``, predicted with the robot file's joint read-back noise."""
     from selfcal.calibration.board.plan import (
         board_model,
         frame_information,
@@ -41,29 +58,21 @@ def posture_sets(count: int = 12, random_counts: tuple[int, ...] = (12, 30)) -> 
         predict_kept,
     )
     from selfcal.calibration.board.plan_predict import Deviation
-    from selfcal.calibration.board.plan_views import PlanSetup, candidate_pool
+    from selfcal.calibration.board.plan_views import candidate_pool
     from selfcal.estimation.joint_report import aligned_tool_weight, encoder_sigma
-    from selfcal.io.camera_file import camera_from_fov
-    from selfcal.io.target_toml import load_target
-    from selfcal.robot.definition import load_robot, models_dir
-    from selfcal.target.placement import board_pose
-    from selfcal.transforms import inv_pose
 
-    robot = load_robot("ur5e")
-    board = load_target(models_dir() / "targets/charuco.toml")
-    setup = PlanSetup(robot, camera_from_fov(60.0, 640, 480), board,
-                      board_pose(board, BOARD_POSE[:3] / 1000.0), KEEP_OUT / 1000.0)  # fmt: skip
+    robot = setup.robot
     js = encoder_sigma(robot)
     plan = plan_recording(setup, count, seed=1, joint_sigma=js)
     pool, _ = candidate_pool(setup, 400, seed=1)
-    G = aligned_tool_weight(board_model(setup), plan.workspace, inv_pose(robot.T_flange_cam))
+    G = aligned_tool_weight(board_model(setup), plan.workspace, setup.T_tool_tip)
     var = Deviation().variance(robot.joint_types)
     out = {f"plan {count}": (plan.q, plan.predicted_m)}
     for n in random_counts:
         q = pool[:n]
         F = frame_information(setup, q, plan.pixel_sigma_px, js).sum(axis=0)
         out[f"random {n}"] = (q, predict_kept(setup, q, F, G, var))
-    return {"sets": out, "setup": setup}
+    return {"sets": out, "setup": setup, "workspace": plan.workspace}
 
 
 def _draw(item: tuple[str, str, list, int]) -> tuple[str, int, float, str]:

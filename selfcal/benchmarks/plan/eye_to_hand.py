@@ -32,37 +32,20 @@ CAMERA_POSE = np.array([-1062.0, -133.0, 613.0, -90.0, 0.0, -90.0])
 
 def posture_sets(count: int = 12, random_counts: tuple[int, ...] = (12, 30)) -> dict:
     """``{"sets": {name: (q (m, n) rad, predicted tool-point RMS m)}, "setup", "workspace"}``:
-    the plan of ``count`` and the pool's first ``random_counts`` postures."""
-    from selfcal.calibration.board.plan import (
-        board_model,
-        frame_information,
-        plan_recording,
-        predict_kept,
-    )
-    from selfcal.calibration.board.plan_predict import Deviation
-    from selfcal.calibration.board.plan_views import PlanSetup, candidate_pool
-    from selfcal.estimation.joint_report import aligned_tool_weight, encoder_sigma
+    the plan of ``count`` and the pool's first ``random_counts`` postures
+    (:func:`selfcal.benchmarks.plan.compare.sets_of`)."""
+    from selfcal.benchmarks.plan.compare import sets_of
+    from selfcal.calibration.board.plan_views import PlanSetup
     from selfcal.io.camera_file import camera_from_fov
     from selfcal.io.target_toml import load_target
     from selfcal.robot.definition import load_robot, models_dir
     from selfcal.target.placement import board_on_flange, camera_pose
 
-    robot = load_robot("ur5e")
     board = load_target(models_dir() / "targets/charuco.toml")
     T_bc = camera_pose(CAMERA_POSE[:3] / 1000.0, np.radians(CAMERA_POSE[3:]))
-    setup = PlanSetup.eye_to_hand_setup(robot, camera_from_fov(40.0, 640, 480), board, T_bc,
-                                        board_on_flange(board))  # fmt: skip
-    js = encoder_sigma(robot)
-    plan = plan_recording(setup, count, seed=1, joint_sigma=js)
-    pool, _ = candidate_pool(setup, 400, seed=1)
-    G = aligned_tool_weight(board_model(setup), plan.workspace, setup.T_tool_tip)
-    var = Deviation().variance(robot.joint_types)
-    out = {f"plan {count}": (plan.q, plan.predicted_m)}
-    for n in random_counts:
-        q = pool[:n]
-        F = frame_information(setup, q, plan.pixel_sigma_px, js).sum(axis=0)
-        out[f"random {n}"] = (q, predict_kept(setup, q, F, G, var))
-    return {"sets": out, "setup": setup, "workspace": plan.workspace}
+    setup = PlanSetup.eye_to_hand_setup(load_robot("ur5e"), camera_from_fov(40.0, 640, 480),
+                                        board, T_bc, board_on_flange(board))  # fmt: skip
+    return sets_of(setup, count, random_counts)
 
 
 def achieved(setup, q: np.ndarray, qw: np.ndarray, seed: int, folder: Path) -> float:
