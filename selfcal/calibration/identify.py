@@ -439,7 +439,11 @@ def identify(
     s_phys = np.linalg.svd(R * (scale * phys), compute_uv=False)
     o1 = float(np.exp(np.mean(np.log(s_phys))) / np.sqrt(m))
 
-    final = regauge(chain_transforms(mx), mx.joint_types, mx.joint_offsets, mx.base_offset)
+    try:
+        final = regauge(chain_transforms(mx), mx.joint_types, mx.joint_offsets, mx.base_offset)
+    except InputError:  # the fit turned joint 1's axis onto the world's x axis, where the
+        # start's base offset is singular: a base offset chosen for the fitted chain instead
+        final = regauge(chain_transforms(mx), mx.joint_types, mx.joint_offsets)
     values = final.params.reshape(-1)[idx]
     std = np.full(idx.size, np.nan)
     std[estimated] = np.sqrt(np.diag(cov))
