@@ -399,11 +399,12 @@ def register(subparsers) -> argparse.ArgumentParser:
     """Add ``selfcal plan``."""
     sp = subparsers.add_parser(
         "plan",
-        help="plan the postures to record for your own arm, camera and board",
-        description="Plan the postures to record for your own arm, wrist camera and board: "
-        "writes PLAN/joints.csv (selfcal import's format, deg), trajectory.yaml (a ROS "
-        "trajectory_msgs/JointTrajectory), scenario.toml (selfcal run replays the plan in "
-        "simulation) and plan.json (the predicted tool-point error against a random plan).",
+        help="plan the postures to record for your own arm, camera and board (or tracker)",
+        description="Plan the postures to record for your own arm, camera (on the flange or "
+        "still) and board, or for a laser tracker: writes PLAN/joints.csv (selfcal import's "
+        "format, deg), trajectory.yaml (a ROS trajectory_msgs/JointTrajectory), scenario.toml "
+        "(selfcal run replays a camera plan in simulation) and plan.json (the predicted "
+        "tool-point error against a random plan).",
         epilog=EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
