@@ -15,7 +15,6 @@ import numpy as np
 
 from selfcal.acquisition.acquire import AcquisitionHooks
 from selfcal.acquisition.eye_to_hand import plan_static, static_cell, static_detect, static_robot
-from selfcal.acquisition.hardware import open_hardware_robot
 from selfcal.calibration.field.optimal_poses import plan_optimal_postures
 from selfcal.camera import Intrinsics, Rig
 from selfcal.config.scenario import (
@@ -379,6 +378,9 @@ def open_robot(
 ) -> tuple[Robot, AcquisitionHooks]:
     """The scenario's robot and its simulator-only hooks (analytic detections, ground truth)."""
     if s.robot.backend == "hardware":
+        # the serial link's modules (pyserial, the ACL driver) load for a robot that uses them
+        from selfcal.acquisition.hardware import open_hardware_robot
+
         return open_hardware_robot(s), AcquisitionHooks()
 
     setup = setup or sim_setup(s)

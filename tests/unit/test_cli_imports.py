@@ -63,3 +63,12 @@ def test_the_light_choices_name_the_camera_models():
     assert DEFAULT_MODEL in MODELS
     for name, free in DEFAULT_FREE.items():
         assert set(free) <= set(MODELS[name].names)
+
+
+def test_the_run_pipeline_loads_no_serial_link():
+    """A simulated `selfcal run` imports the pipeline; the serial link's modules (pyserial, the
+    ACL driver) load only for a hardware robot (selfcal.acquisition.backends.open_robot)."""
+    mods = _loaded("import selfcal.pipeline.run")
+    assert "selfcal.acquisition.backends" in mods  # the probe did import it
+    assert [m for m in ("serial", "selfcal.hw.acl_robot", "selfcal.acquisition.hardware")
+            if m in mods] == []  # fmt: skip
