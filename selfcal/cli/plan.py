@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from selfcal.cli.plan_args import keep_out_boxes, plan_inputs
+from selfcal.cli.plan_args import check_common, keep_out_boxes, plan_inputs
 from selfcal.console.common import CliError, add_json, note_written, parse_floats, writing
 
 __all__ = ["register", "scenario_text"]
@@ -45,7 +45,7 @@ parameters its selection's rank test keeps, every other one held at the drawing 
 the same size from the same candidates.
 --add K DATASET: instead, the K postures that most lower the predicted error of the calibrated
 DATASET (its robot file, calibration.json's camera, board pose and hand-eye; --robot, --target,
---board-pose, --count and the camera options are not used), predicted with the parameters the
+--board-pose, --count and the camera options are refused), predicted with the parameters the
 selection's cross-validation is forecast to keep; PLAN/joints.csv and trajectory.yaml hold the
 added postures in the order to record them (it sets the cross-validation's folds), replay.csv the
 dataset's and the added ones (scenario.toml replays them).
@@ -66,6 +66,18 @@ BOARD_ON_FLANGE = (
 )
 """Where an eye-to-hand plan puts the board (:func:`selfcal.target.placement.board_on_flange`,
 as the simulated eye-to-hand cell does)."""
+
+
+ADD_TAKES_FROM_DATASET = (
+    ("--robot", "robot"),
+    ("--target", "target"),
+    ("--camera", "camera"),
+    ("--fov-deg", "fov_deg"),
+    ("--resolution", "resolution"),
+    ("--board-pose", "board_pose"),
+    ("--count", "count"),
+)
+"""What a new plan takes and ``--add`` refuses (the dataset and its calibration give them)."""
 
 
 def _parse_size(text: str) -> tuple[int, int]:
@@ -202,7 +214,13 @@ def _check_mount(args: argparse.Namespace) -> None:
         raise CliError("--add plans the additions to an eye-in-hand dataset only",
                        fix="leave out --mount eye-to-hand with --add")  # fmt: skip
     if args.add:
+        given = [o for o, k in ADD_TAKES_FROM_DATASET if getattr(args, k) is not None]
+        if given:
+            raise CliError(f"--add takes the robot, camera, board and its pose from the dataset "
+                           f"and K as the count: {', '.join(given)} would not be used",
+                           fix=f"leave out {', '.join(given)} with --add")  # fmt: skip
         return
+    args.count = 12 if args.count is None else args.count
     pose = "--camera-pose" if e2h else "--board-pose"
     missing = [o for o, v in (("--robot", args.robot), ("--target", args.target),
                               (pose, args.camera_pose if e2h else args.board_pose)) if not v]  # fmt: skip
@@ -245,6 +263,7 @@ def _cmd(args: argparse.Namespace) -> int:
     boxes = keep_out_boxes(args)
     if args.count < 3:
         raise CliError(f"--count {args.count}: a plan needs at least 3 postures")
+    check_common(args, args.count)
     setup, pose = _setup(args, robot, camera, board, boxes)
     e2h = setup.eye_to_hand
     js = encoder_sigma(robot)  # the board calibration's default read-back noise
@@ -331,6 +350,7 @@ def _cmd_add(args: argparse.Namespace) -> int:
         raise CliError(f"--add {k_text} {root}: K must be a whole number of postures") from None
     if count < 1:
         raise CliError(f"--add {count}: add at least 1 posture")
+    check_common(args, count)
     dplan = dataset_setup(root, keep_out_boxes(args))
     setup = dplan.setup
     robot = setup.robot
@@ -435,7 +455,8 @@ def register(subparsers) -> argparse.ArgumentParser:
                     "(default 0,0,0)")  # fmt: skip
     sp.add_argument("--sigma-mm", type=float, default=None,
                     help="--measure tracker: the tracker's noise per coordinate, mm (default 0.1)")  # fmt: skip
-    sp.add_argument("--count", type=int, default=12, help="postures to plan (default 12)")
+    sp.add_argument("--count", type=int, default=None,
+                    help="postures to plan (default 12; not with --add)")  # fmt: skip
     sp.add_argument("--keep-out", action="append", default=[], metavar="BOX",
                     help="XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX (mm, base frame); repeatable")  # fmt: skip
     sp.add_argument("--add", nargs=2, default=None, metavar=("K", "DATASET"),

@@ -7,9 +7,9 @@ import argparse
 
 import numpy as np
 
-from selfcal.console.common import parse_floats
+from selfcal.console.common import CliError, parse_floats
 
-__all__ = ["keep_out_boxes", "plan_inputs"]
+__all__ = ["check_common", "keep_out_boxes", "plan_inputs"]
 
 
 def plan_inputs(args: argparse.Namespace, boxes: np.ndarray, edge_unit: np.ndarray,
@@ -34,3 +34,20 @@ def keep_out_boxes(args: argparse.Namespace) -> np.ndarray:
         np.array([parse_floats(b, 6, "--keep-out (mm)") for b in args.keep_out]).reshape(-1, 6)
         / 1000.0
     )
+
+
+def check_common(args: argparse.Namespace, count: int) -> None:
+    """A clear error for the options every plan takes, before any planning: the trajectory's
+    timing (``--speed-deg-s`` > 0, ``--dwell-s`` >= 0) and a pool of ``--candidates`` at least
+    the ``count`` postures to choose (fewer were silently made up to ``count``: the plan was then
+    the random plan)."""
+    if not args.speed_deg_s > 0:
+        raise CliError(f"--speed-deg-s {args.speed_deg_s:g}: the fastest joint's speed must be "
+                       "> 0 deg/s", fix="e.g. --speed-deg-s 10 (the default)")  # fmt: skip
+    if not args.dwell_s >= 0:
+        raise CliError(f"--dwell-s {args.dwell_s:g}: the rest at each posture must be >= 0 s",
+                       fix="e.g. --dwell-s 2 (the default)")  # fmt: skip
+    if args.candidates < count:
+        raise CliError(f"--candidates {args.candidates}: fewer than the {count} postures to "
+                       "choose from them", fix=f"give --candidates of at least {count} (the "
+                       "default 400)")  # fmt: skip

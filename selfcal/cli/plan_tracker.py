@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from selfcal.cli.plan_args import keep_out_boxes, plan_inputs
+from selfcal.cli.plan_args import check_common, keep_out_boxes, plan_inputs
 from selfcal.console.common import CliError, note_written, parse_floats, writing
 
 __all__ = ["CAMERA_OPTIONS", "cmd_tracker"]
@@ -39,8 +39,10 @@ def _check(args: argparse.Namespace) -> None:
         )
     if not args.robot:
         raise CliError("give --robot (a model name, robot TOML or URDF)")
+    args.count = 12 if args.count is None else args.count
     if args.count < 3:
         raise CliError(f"--count {args.count}: a plan needs at least 3 postures")
+    check_common(args, args.count)
     args.tool_point = "0,0,0" if args.tool_point is None else args.tool_point
     args.sigma_mm = 0.1 if args.sigma_mm is None else args.sigma_mm  # identify's default
     if not args.sigma_mm > 0:

@@ -234,3 +234,36 @@ def test_a_camera_plan_refuses_the_trackers_options(tmp_path, capsys):
             str(tmp_path / "p")]  # fmt: skip
     assert main(argv) == 2
     assert "--sigma-mm describes a laser tracker's measurement" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(("extra", "says"), [
+    (["--speed-deg-s", "0"], "--speed-deg-s 0: the fastest joint's speed must be > 0"),
+    (["--dwell-s", "-1"], "--dwell-s -1: the rest at each posture must be >= 0"),
+    (["--candidates", "5"], "--candidates 5: fewer than the 12 postures"),
+])  # fmt: skip
+@pytest.mark.parametrize("measure", ["camera", "tracker"])
+def test_a_plan_refuses_bad_timing_and_a_pool_smaller_than_the_plan(tmp_path, capsys, extra,
+                                                                     says, measure):  # fmt: skip
+    """A zero speed stopped the command with an internal error, a negative rest wrote a
+    trajectory going back in time, and fewer candidates than --count made a plan that is the
+    random one."""
+    argv = (["plan", "--measure", "tracker", "--robot", "ur5e"] if measure == "tracker" else
+            ["plan", "--robot", "ur5e", "--target", BOARD, "--fov-deg", "60", "--resolution",
+             "640x480", "--board-pose", "-472,-133,3"])  # fmt: skip
+    assert main([*argv, "--out", str(tmp_path / "p"), *extra]) == 2
+    assert says in capsys.readouterr().err
+    assert not (tmp_path / "p").exists()
+
+
+@pytest.mark.parametrize("extra", [["--robot", "ur5e"], ["--target", BOARD], ["--count", "5"],
+                                   ["--fov-deg", "60"], ["--board-pose", "0,0,0"]])  # fmt: skip
+def test_add_refuses_what_the_dataset_gives(tmp_path, capsys, extra):
+    """--add takes the cell from the dataset: these options were silently not used."""
+    argv = ["plan", "--add", "5", str(tmp_path / "data"), "--out", str(tmp_path / "p"), *extra]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert (
+        f"--add takes the robot, camera, board and its pose from the dataset and K as the "
+        f"count: {extra[0]} would not be used" in err
+    )
+    assert not (tmp_path / "p").exists()
