@@ -231,6 +231,7 @@ def _check_mount(args: argparse.Namespace) -> None:
 def _cmd(args: argparse.Namespace) -> int:
     from selfcal.acquisition.backends import robot_reference
     from selfcal.calibration.board.plan import plan_recording
+    from selfcal.calibration.field.failures import MIN_POSTURES
     from selfcal.config.scenario import load_scenario
     from selfcal.estimation.joint_report import encoder_sigma
     from selfcal.io.atomic import write_text_atomic
@@ -251,6 +252,10 @@ def _cmd(args: argparse.Namespace) -> int:
                        "tracker's measurement, not a camera's",
                        fix="add --measure tracker, or leave them out")  # fmt: skip
     args.mount = args.mount or "eye-in-hand"
+    args.pixel_sigma = 0.5 if args.pixel_sigma is None else args.pixel_sigma
+    if not args.pixel_sigma > 0:
+        raise CliError(f"--pixel-sigma {args.pixel_sigma:g}: the corner noise must be > 0 px",
+                       fix="e.g. --pixel-sigma 0.5 (the default)")  # fmt: skip
     _check_mount(args)
     if args.add:
         return _cmd_add(args)
@@ -261,8 +266,10 @@ def _cmd(args: argparse.Namespace) -> int:
         raise CliError(f"--target {args.target}: the plan needs a board (chessboard, charuco, "
                        "circles, aprilgrid), not a marker field")  # fmt: skip
     boxes = keep_out_boxes(args)
-    if args.count < 3:
-        raise CliError(f"--count {args.count}: a plan needs at least 3 postures")
+    if args.count < MIN_POSTURES:
+        raise CliError(f"--count {args.count}: a camera plan needs at least {MIN_POSTURES} "
+                       "postures (what the board calibration and the replay's scenario take)",
+                       fix=f"give --count {MIN_POSTURES} or more")  # fmt: skip
     check_common(args, args.count)
     setup, pose = _setup(args, robot, camera, board, boxes)
     e2h = setup.eye_to_hand
@@ -466,8 +473,9 @@ def register(subparsers) -> argparse.ArgumentParser:
     sp.add_argument("--seed", type=int, default=1, help="seed of the candidates (default 1)")
     sp.add_argument("--candidates", type=int, default=400,
                     help="random candidate postures to choose from (default 400)")  # fmt: skip
-    sp.add_argument("--pixel-sigma", type=float, default=0.5,
-                    help="corner noise the prediction assumes, px (default 0.5)")  # fmt: skip
+    sp.add_argument("--pixel-sigma", type=float, default=None,
+                    help="a camera plan: the corner noise the prediction assumes, px "
+                    "(default 0.5)")  # fmt: skip
     sp.add_argument("--deviation-mm", type=float, default=1.0,
                     help="how far the arm's lengths may lie from its drawing, mm (default 1)")  # fmt: skip
     sp.add_argument("--deviation-deg", type=float, default=0.5,

@@ -24,12 +24,13 @@ CAMERA_OPTIONS = (
     ("--board-pose", "board_pose"),
     ("--camera-pose", "camera_pose"),
     ("--add", "add"),
+    ("--pixel-sigma", "pixel_sigma"),
 )
 """What a camera plan takes and a tracker plan refuses (it has no camera and no board)."""
 
 
 def _check(args: argparse.Namespace) -> None:
-    given = [o for o, k in CAMERA_OPTIONS if getattr(args, k) not in (None, [], False)]
+    given = [o for o, k in CAMERA_OPTIONS if getattr(args, k) not in (None, [])]  # 0 is given
     if given:
         raise CliError(
             f"--measure tracker plans the postures of a tool point a laser tracker measures: "

@@ -267,3 +267,41 @@ def test_add_refuses_what_the_dataset_gives(tmp_path, capsys, extra):
         f"count: {extra[0]} would not be used" in err
     )
     assert not (tmp_path / "p").exists()
+
+
+def test_a_camera_plan_refuses_fewer_postures_than_its_scenario_takes(tmp_path, capsys):
+    """--count 3 was planned, then the written scenario.toml failed to read back (poses >= 6)."""
+    argv = [
+        "plan",
+        "--robot",
+        "ur5e",
+        "--target",
+        BOARD,
+        "--fov-deg",
+        "60",
+        "--resolution",
+        "640x480",
+        "--board-pose",
+        "-472,-133,3",
+        "--count",
+        "3",
+        "--out",
+        str(tmp_path / "p"),
+    ]
+    assert main(argv) == 2
+    assert "--count 3: a camera plan needs at least 6 postures" in capsys.readouterr().err
+    assert not (tmp_path / "p").exists()
+
+
+@pytest.mark.parametrize(("measure", "says"), [
+    ("camera", "--pixel-sigma 0: the corner noise must be > 0 px"),
+    ("tracker", "--pixel-sigma describes a camera and a board"),
+])  # fmt: skip
+def test_pixel_sigma_is_a_positive_camera_option(tmp_path, capsys, measure, says):
+    """0 px gave a NaN prediction; a tracker plan silently ignored it."""
+    argv = (["plan", "--measure", "tracker", "--robot", "ur5e"] if measure == "tracker" else
+            ["plan", "--robot", "ur5e", "--target", BOARD, "--fov-deg", "60", "--resolution",
+             "640x480", "--board-pose", "-472,-133,3"])  # fmt: skip
+    assert main([*argv, "--pixel-sigma", "0", "--out", str(tmp_path / "p")]) == 2
+    assert says in capsys.readouterr().err
+    assert not (tmp_path / "p").exists()
