@@ -281,7 +281,7 @@ def _cmd(args: argparse.Namespace) -> int:
     out = Path(args.out)
     with writing(args, out):
         write_text_atomic(out / "joints.csv", joints_csv(plan.q, robot.edge_unit))
-        speed = np.radians(args.speed_deg_s)
+        speed = args.speed_deg_s * robot.edge_unit  # rad/s, m/s for a prismatic joint
         write_text_atomic(out / "trajectory.yaml", trajectory_yaml(
             robot.joint_names, plan.q, robot.home, speed=speed, dwell_s=args.dwell_s))  # fmt: skip
         shutil.copyfile(args.target, out / "target.toml")
@@ -373,7 +373,7 @@ def _cmd_add(args: argparse.Namespace) -> int:
     with writing(args, out):
         write_text_atomic(out / "joints.csv", joints_csv(add.q, robot.edge_unit))
         write_text_atomic(out / "trajectory.yaml", trajectory_yaml(
-            robot.joint_names, add.q, robot.home, speed=np.radians(args.speed_deg_s),
+            robot.joint_names, add.q, robot.home, speed=args.speed_deg_s * robot.edge_unit,
             dwell_s=args.dwell_s))  # fmt: skip
         write_text_atomic(out / "replay.csv", joints_csv(q_all, robot.edge_unit))
         doc_t = target_document(setup.board)  # flat: strings, numbers and lists of numbers
@@ -481,7 +481,8 @@ def register(subparsers) -> argparse.ArgumentParser:
     sp.add_argument("--deviation-deg", type=float, default=0.5,
                     help="how far its angles may, deg (default 0.5)")  # fmt: skip
     sp.add_argument("--speed-deg-s", type=float, default=10.0,
-                    help="trajectory.yaml: the fastest joint's speed, deg/s (default 10)")  # fmt: skip
+                    help="trajectory.yaml: the fastest joint's speed, deg/s (mm/s for a "
+                         "prismatic joint; default 10)")  # fmt: skip
     sp.add_argument("--dwell-s", type=float, default=2.0,
                     help="trajectory.yaml: rest at each posture, s (default 2)")  # fmt: skip
     add_json(sp)

@@ -72,7 +72,7 @@ def cmd_tracker(args: argparse.Namespace, deviation) -> int:
     with writing(args, out):
         write_text_atomic(out / "joints.csv", joints_csv(plan.q, robot.edge_unit))
         write_text_atomic(out / "trajectory.yaml", trajectory_yaml(
-            robot.joint_names, plan.q, robot.home, speed=np.radians(args.speed_deg_s),
+            robot.joint_names, plan.q, robot.home, speed=args.speed_deg_s * robot.edge_unit,
             dwell_s=args.dwell_s))  # fmt: skip
         doc = {
             "format": "scorbot-selfcal-plan",

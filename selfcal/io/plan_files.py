@@ -7,8 +7,8 @@
   ``positions`` (rad; m for a prismatic joint), zero ``velocities`` and ``time_from_start``
   (``sec``, ``nanosec``: ROS 2's ``builtin_interfaces/Duration``), then the same positions
   again ``dwell_s`` later (the arm rests there while the images are taken). The times assume
-  the arm starts at home and every joint moves at ``speed`` (rad/s; m/s for a prismatic joint)
-  at most.
+  the arm starts at home and every joint moves at its ``speed`` (rad/s; m/s for a prismatic
+  joint) at most.
 """
 
 from __future__ import annotations
@@ -40,15 +40,17 @@ def trajectory_doc(
     q: np.ndarray,
     start: np.ndarray,
     *,
-    speed: float,
+    speed: float | np.ndarray,
     dwell_s: float,
 ) -> dict:
-    """The JointTrajectory (module docstring) as plain data."""
+    """The JointTrajectory (module docstring) as plain data; ``speed`` is one speed for every
+    joint or (n,) one per joint (rad/s; m/s for a prismatic joint)."""
     q = np.atleast_2d(np.asarray(q, dtype=float))
+    speed = np.broadcast_to(np.asarray(speed, dtype=float), q.shape[1:])
     pts, t, prev = [], 0.0, np.asarray(start, dtype=float)
     zeros = [0.0] * q.shape[1]
     for row in q:
-        t += max(float(np.max(np.abs(row - prev))) / speed, 0.1)
+        t += max(float(np.max(np.abs(row - prev) / speed)), 0.1)
         for at in (t, t + dwell_s):
             pts.append({"positions": [round(float(v), 9) for v in row], "velocities": list(zeros),
                         "accelerations": [], "effort": [],
@@ -59,7 +61,12 @@ def trajectory_doc(
 
 
 def trajectory_yaml(
-    joint_names: Sequence[str], q: np.ndarray, start: np.ndarray, *, speed: float, dwell_s: float
+    joint_names: Sequence[str],
+    q: np.ndarray,
+    start: np.ndarray,
+    *,
+    speed: float | np.ndarray,
+    dwell_s: float,
 ) -> str:
     """:func:`trajectory_doc` as YAML text."""
     doc = trajectory_doc(joint_names, q, start, speed=speed, dwell_s=dwell_s)
