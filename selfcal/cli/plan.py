@@ -293,6 +293,7 @@ def _cmd(args: argparse.Namespace) -> int:
         doc = {
             "format": "scorbot-selfcal-plan",
             "schema_version": 1,
+            "kind": "camera",
             "robot": ref,
             "mount": args.mount,
             "count": len(plan.q),

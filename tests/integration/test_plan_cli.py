@@ -38,6 +38,7 @@ def test_plan_files_parse(tmp_path, capsys):
     assert q.shape == (6, 6)
     assert np.allclose(np.degrees(q), doc["joints_deg"], atol=1e-6)
     assert doc["predicted_tool_rms_mm"] <= doc["random_tool_rms_mm"]
+    assert doc["kind"] == "camera"  # as a tracker plan's "tracker" and --add's "add"
     assert f"{doc['predicted_tool_rms_mm']:.3f}" in line
     traj = yaml.safe_load((tmp_path / "plan/trajectory.yaml").read_text())
     assert traj["joint_names"] == list(robot.joint_names)
