@@ -204,7 +204,8 @@ def joint_refine(
         loss: ``"soft_l1"`` (robust rounds with outlier rejection, then a plain least-squares
             pass) or ``"linear"`` (plain least squares on the two-stage inliers only).
         robust_scale_px, outlier_px: soft-L1 scale; minimum outlier threshold (the threshold is
-            ``max(outlier_px, 4.5 sigma)``).
+            ``max(outlier_px, 4.5 sigma)``). The robust rounds stop once a round keeps exactly
+            the rows it was fitted to (another would solve the same problem again).
         terms: further measurements estimated with the rest (:mod:`selfcal.terms`: tracker
             positions, poses or distances, touch-probe points ...): each adds its residual and
             parameter blocks over the free kinematic parameters (block ``poses``), its residuals
@@ -366,9 +367,11 @@ def joint_refine(
         sigma = robust_sigma(e[act]) * np.sqrt(n_res / dof)
         thr = max(outlier_px, 4.5 * sigma)
         new_active = ok & (e < thr)
-        if np.array_equal(new_active, active) and rnd > 0:
+        if np.array_equal(new_active, active):
+            # the round was fitted to the rows it classifies as inliers: another robust round
+            # would solve the same problem again, so the final plain pass comes next
             active = new_active
-            rounds = rnd + 1  # classification settled: do the final plain pass next
+            rounds = rnd + 1
             continue
         active = new_active
     if not converged:
