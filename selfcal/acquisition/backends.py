@@ -59,6 +59,7 @@ from selfcal.sim.actual import apply_errors, perturb
 from selfcal.sim.analytic import project_board, project_markers
 from selfcal.sim.board_scene import board_on_table
 from selfcal.sim.collision import collision_checker
+from selfcal.sim.compliance import JointCompliance
 from selfcal.sim.kinematic_robot import KinematicRobot
 from selfcal.sim.markers import make_marker_field
 from selfcal.sim.robot_mjcf import RigConfig
@@ -102,6 +103,9 @@ class SimSetup:
     static: object = None
     """Eye-to-hand (``[camera] setup``): the cell (selfcal.sim.static_camera.StaticCameraTruth:
     the static camera, the board on the flange), or None: the cameras on the flange."""
+    compliance: JointCompliance | None = None
+    """The actual robot's joint compliance (selfcal.sim.compliance; a benchmark's misfit, not
+    in scenarios), or None: a rigid arm."""
 
     def rig(self) -> RigConfig:
         """The simulated rig: the true cameras and the baseline."""
@@ -460,6 +464,7 @@ def make_sim_robot(s: Scenario, setup: SimSetup | None = None):
         quantize=s.noise.quantize_joints,
         msaa=s.noise.msaa,
         board=None if setup.board is None else (setup.board, setup.T_world_board),
+        compliance=setup.compliance,
     )
 
 
@@ -479,7 +484,7 @@ def make_kinematic_robot(s: Scenario, setup: SimSetup | None = None) -> Kinemati
     board = None if setup.board is None else (setup.board, setup.T_world_board)
     return KinematicRobot(
         setup.robot, setup.actual, rig, setup.field, quantize=s.noise.quantize_joints,
-        board=board,
+        board=board, compliance=setup.compliance,
     )  # fmt: skip
 
 

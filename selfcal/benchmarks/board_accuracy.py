@@ -1,21 +1,28 @@
 """Benchmark: does the predicted tool-point accuracy of a board calibration hold? (issue #29)
 
 Monte Carlo on the analytic board scenario (``scenarios/mono-charuco.toml``: one wrist camera
-with a Brown-Conrady lens, a ChArUco board on the table, the ER-4u of the paper with every
-minimal parameter perturbed): per pixel noise level ``--draws`` draws, each its own truth
+with a Brown-Conrady lens, a ChArUco board on the table where the home posture looks) for each
+robot of :data:`ROBOTS` (the scenario's ``[robot] model`` replaced), every minimal parameter
+perturbed: per robot, model and pixel noise level ``--draws`` draws, each its own truth
 (perturbation, postures and noise seeded by the draw), 30 calibration postures, the board route
-as ``selfcal run`` calibrates them (:func:`selfcal.pipeline.run.run_all`: camera stage, fair
-nominal, parameter selection, bounds) and its predicted accuracy
-(:mod:`selfcal.calibration.board.accuracy`). The predicted 95 % bound and RMS of the flange's
-position and orientation are compared with the true error (the calibrated chain's flange against
-the true chain's, both in the board frame, no noise) at the workspace sample's joint vectors
-(inside the calibrated region, at its edge, over the joint limits:
-:mod:`selfcal.kinematics.tool_error`).
+as ``selfcal run`` calibrates them (:func:`selfcal.pipeline.run.run_acquire`, then
+:func:`selfcal.pipeline.board_run.calibrate_board_run`: camera stage, fair nominal, parameter
+selection, bounds) and its predicted accuracy (:mod:`selfcal.calibration.board.accuracy`). The
+predicted 95 % bound and RMS of the flange's position and orientation are compared with the true
+error (the calibrated chain's flange against the true chain's, both in the board frame, no noise)
+at the workspace sample's joint vectors (inside the calibrated region, at its edge, over the
+joint limits: :mod:`selfcal.kinematics.tool_error`).
+
+Models: ``fits`` (the true robot is a chain of the model's kind) and ``compliance`` (the
+simulated arm's joint 2 bends by 0.05 deg x cos(q2 + q3) while its encoder reads the commanded
+angle, :data:`selfcal.sim.compliance.SHOULDER`, the tracker benchmark's misfit: no constant chain
+expresses it; the true flange is then the true chain's at the bent joints).
 
 Reported per row: coverage (the share of (draw, point) pairs whose true error is within the
 predicted 95 % bound; target 90-98 %), the same for the covariance alone (no model error), the
 pooled ratio of the predicted to the true RMS (target 0.7-1.4) with the 10-90 % range of the
-per-draw ratios, the orientation's coverage, and the share of draws that counted a model error.
+per-draw ratios, the orientation's coverage with and without the model error, and the share of
+draws that counted a model error.
 
 ``--real``: the repository's real sets with a board (tests/data/real, docs/real-data.md):
 each imported and calibrated as its README says, and the held-out images' reprojection RMS that
@@ -23,13 +30,14 @@ the calibration predicts (:func:`selfcal.calibration.board.accuracy.predicted_re
 the estimate's errors, the model error, the joint and pixel noise) against the one ``selfcal
 evaluate`` measures (target 0.67-1.5x).
 
-Run: ``uv run python -m selfcal.benchmarks.board_accuracy [--draws 30] [--jobs 2] [--real]
-[--write-docs]`` (rewrites the tables in docs/tool-accuracy.md).
+Run: ``uv run python -m selfcal.benchmarks.board_accuracy [--draws 30] [--jobs 2] [--robots
+R,..] [--models M,..] [--real] [--write-docs]`` (rewrites the tables in docs/tool-accuracy.md).
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 import tempfile
 import time
@@ -42,7 +50,9 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from selfcal.acquisition.backends import SimSetup, sim_setup
 from selfcal.benchmarks.doc_blocks import ROOT, print_table, write_block
+from selfcal.benchmarks.tool_accuracy import coverage
 from selfcal.benchmarks.tool_accuracy import mark as _mark
 from selfcal.calibration.board.accuracy import (
     board_error_model_from_json,
@@ -55,8 +65,8 @@ from selfcal.calibration.board.dataset import (
     detect_board,
 )
 from selfcal.calibration.board.evaluate import evaluate_board
-from selfcal.config.scenario import load_scenario, scenarios_dir
-from selfcal.errors import InternalError
+from selfcal.config.scenario import Scenario, load_scenario, scenarios_dir
+from selfcal.errors import InternalError, UsageError
 from selfcal.estimation.joint_report import encoder_sigma
 from selfcal.io.board_calibration import read_board_calibration
 from selfcal.io.dataset import Dataset
@@ -64,14 +74,31 @@ from selfcal.io.truth import read_truth
 from selfcal.kinematics.alignment import express_in_frame
 from selfcal.kinematics.forward import fk_tool
 from selfcal.kinematics.tool_error import workspace_sample
-from selfcal.pipeline.run import run_all
+from selfcal.pipeline.board_run import calibrate_board_run
+from selfcal.pipeline.run import run_acquire
 from selfcal.robot.definition import load_robot
+from selfcal.sim.compliance import SHOULDER
 from selfcal.threads import limit_threads
 from selfcal.transforms import inv_pose
 
-__all__ = ["draw", "main", "real_set", "run", "table", "real_table", "NOISE_PX", "REAL_SETS"]
+__all__ = [
+    "draw",
+    "main",
+    "real_set",
+    "run",
+    "scenario",
+    "simulated",
+    "table",
+    "real_table",
+    "MODELS",
+    "NOISE_PX",
+    "REAL_SETS",
+    "ROBOTS",
+]
 
-NOISE_PX = (0.05, 0.2)
+ROBOTS = ("er4u-paper", "ur5e", "kr6-r900")
+MODELS = ("fits", "compliance")
+NOISE_PX = (0.05, 0.2, 0.5)
 POSES = 30
 COUNT = 128
 REGIONS = ("inside", "edge", "workspace")
@@ -99,98 +126,129 @@ def _angle(R_a: np.ndarray, R_b: np.ndarray) -> np.ndarray:
                                      .as_rotvec(), axis=1))  # fmt: skip
 
 
-def draw(args: tuple[float, int]) -> dict:
-    """One draw (noise ``sigma_px``, ``seed``): per region the predicted 95 % bound with and
-    without the model error, the predicted RMS, the true error (mm), the predicted and true
-    orientation error (deg); ``model_error_mm``; ``status``."""
-    sigma_px, seed = args
-    over = {"noise": {"render": False, "pixel_sigma": sigma_px, "seed": seed},
-            "trajectory": {"poses": POSES, "seed": seed}, "perturbation": {"seed": seed}}  # fmt: skip
+def scenario(robot: str, sigma_px: float, seed: int) -> Scenario:
+    """The draw's scenario: mono-charuco on ``robot`` with its noise and seeds."""
+    return load_scenario(SCENARIO, {
+        "robot": {"model": robot}, "noise": {"render": False, "pixel_sigma": sigma_px, "seed": seed},
+        "trajectory": {"poses": POSES, "seed": seed}, "perturbation": {"seed": seed}})  # fmt: skip
+
+
+def simulated(s: Scenario, model: str) -> SimSetup:
+    """The simulator of ``s`` with the model ``model`` (:data:`MODELS`): the scenario's own arm,
+    or with ``"compliance"`` the same arm bending (:data:`selfcal.sim.compliance.SHOULDER`)."""
+    if model not in MODELS:
+        raise UsageError(f"unknown model {model!r}: one of {', '.join(MODELS)}")
+    setup = sim_setup(s)
+    return setup if model == "fits" else dataclasses.replace(setup, compliance=SHOULDER)
+
+
+def draw(args: tuple[str, float, str, int]) -> dict:
+    """One draw (``robot``, noise ``sigma_px``, ``model``, ``seed``): per region the predicted
+    95 % bound with and without the model error, the predicted RMS, the true error (mm), the
+    predicted 95 % orientation bound with and without the model error and the true orientation
+    error (deg); ``model_error_mm``; ``status``."""
+    robot, sigma_px, model, seed = args
     try:
+        s = scenario(robot, sigma_px, seed)
+        setup = simulated(s, model)
         with (tempfile.TemporaryDirectory(prefix="selfcal-acc-") as d, warnings.catch_warnings(),
               redirect_stdout(StringIO()), redirect_stderr(StringIO())):  # fmt: skip
             warnings.simplefilter("ignore")
             out = Path(d) / "run"
-            run_all(load_scenario(SCENARIO, over), out, quiet=True, figures=False)
+            run_acquire(s, out, quiet=True, setup=setup)
+            calibrate_board_run(out, quiet=True)
             cal = read_board_calibration(out / "calibration.json")
             truth = read_truth(out / "truth.json")
         block = cal.accuracy
         assert block is not None and truth.T_world_board is not None
         em = board_error_model_from_json(block, cal.model, "calibration.json")
+        em0 = dataclasses.replace(em, model_error_m=0.0, model_error_rad=0.0)
         q_cal = board_postures_from_json(block, cal.model.n, "calibration.json")
         sample = workspace_sample(q_cal, np.asarray(block["joint_limits_si"]), count=COUNT,
                                   seed=seed + 1)  # fmt: skip
         true_b = express_in_frame(truth.true_model, inv_pose(truth.T_world_board),
                                   like=cal.model)  # fmt: skip
         tip = np.asarray(block["T_tool_point_si"])
+        bend = (lambda q: q) if setup.compliance is None else setup.compliance.bent
         row: dict = {"status": "ok",
                      "model_error_mm": (block["model_error"] or {}).get("position_mm") or 0.0}  # fmt: skip
         for name in REGIONS:
             q = getattr(sample, name)
             p = em.predicted(q)
             T_est = fk_tool(cal.model, q) @ tip
-            T_true = fk_tool(true_b, q) @ tip
+            T_true = fk_tool(true_b, bend(q)) @ tip
             row[name] = np.stack([
                 p["position_95_mm"], p["estimation_95_mm"], p["position_rms_mm"],
                 np.linalg.norm(T_est[:, :3, 3] - T_true[:, :3, 3], axis=1) * 1e3,
-                p["orientation_95_deg"], _angle(T_est[:, :3, :3], T_true[:, :3, :3]),
+                p["orientation_95_deg"], em0.predicted(q)["orientation_95_deg"],
+                _angle(T_est[:, :3, :3], T_true[:, :3, :3]),
             ])  # fmt: skip
         return row
     except Exception as exc:  # noqa: BLE001 - a benchmark counts failed draws
         return {"status": f"failed: {type(exc).__name__}: {str(exc)[:200]}"}
 
 
-def run(draws: int = 30, noise_px=NOISE_PX, jobs: int = 2) -> list[dict]:
-    """One row per (noise, region) over ``draws`` draws (``jobs`` processes)."""
+def _rows(robot: str, model: str, s: float, got: list[dict]) -> list[dict]:
+    """The rows (one per region) of one robot, model and noise level's draws ``got``."""
+    ok = [g for g in got if g["status"] == "ok"]
     rows = []
-    for s in noise_px:
-        t0 = time.perf_counter()
-        with ProcessPoolExecutor(max_workers=jobs) as pool:
-            got = list(pool.map(draw, [(s, seed) for seed in range(1, draws + 1)]))
-        ok = [g for g in got if g["status"] == "ok"]
-        print(f"{s} px: {len(ok)}/{draws} draws in {time.perf_counter() - t0:.0f} s "
-              + "; ".join(sorted({g['status'] for g in got} - {'ok'})), file=sys.stderr)  # fmt: skip
-        for region in REGIONS:
-            d = [g[region] for g in ok]
-            a = np.concatenate(d, axis=1)
-            ratio = [np.sqrt(np.mean(x[2] ** 2) / np.mean(x[3] ** 2)) for x in d]
-            rows.append({
-                "noise_px": s, "region": region, "draws": len(ok), "failed": draws - len(ok),
-                "true_rms_mm": float(np.sqrt(np.mean(a[3] ** 2))),
-                "coverage": float(np.mean(a[3] <= a[0])),
-                "coverage_covariance": float(np.mean(a[3] <= a[1])),
-                "ratio": float(np.sqrt(np.mean(a[2] ** 2) / np.mean(a[3] ** 2))),
-                "ratio_10": float(np.quantile(ratio, 0.1)),
-                "ratio_90": float(np.quantile(ratio, 0.9)),
-                "true_rot_rms_deg": float(np.sqrt(np.mean(a[5] ** 2))),
-                "coverage_rot": float(np.mean(a[5] <= a[4])),
-                "model_error_share": float(np.mean([g["model_error_mm"] > 0 for g in ok])),
-            })  # fmt: skip
+    for region in REGIONS:
+        d = [g[region] for g in ok]
+        a = np.concatenate(d, axis=1)
+        rows.append({
+            "robot": robot, "model": model, "noise_px": s, "region": region, "draws": len(ok),
+            "failed": len(got) - len(ok), **coverage(d),
+            "true_rot_rms_deg": float(np.sqrt(np.mean(a[6] ** 2))),
+            "coverage_rot": float(np.mean(a[6] <= a[4])),
+            "coverage_rot_covariance": float(np.mean(a[6] <= a[5])),
+            "model_error_share": float(np.mean([g["model_error_mm"] > 0 for g in ok])),
+        })  # fmt: skip
+    return rows
+
+
+def run(draws: int = 30, robots=ROBOTS, models=MODELS, noise_px=NOISE_PX,
+        jobs: int = 2) -> list[dict]:  # fmt: skip
+    """One row per (robot, model, noise, region) over ``draws`` draws (``jobs`` processes)."""
+    rows = []
+    for robot in robots:
+        for model in models:
+            for s in noise_px:
+                t0 = time.perf_counter()
+                args = [(robot, s, model, seed) for seed in range(1, draws + 1)]
+                with ProcessPoolExecutor(max_workers=jobs) as pool:
+                    got = list(pool.map(draw, args))
+                fails = sorted({g["status"] for g in got} - {"ok"})
+                print(f"{robot} {model} {s} px: {sum(g['status'] == 'ok' for g in got)}/{draws} "
+                      f"draws in {time.perf_counter() - t0:.0f} s " + "; ".join(fails),
+                      file=sys.stderr, flush=True)  # fmt: skip
+                rows += _rows(robot, model, s, got)
     return rows
 
 
 def table(rows: list[dict]) -> str:
     """The Markdown table of :func:`run`'s rows."""
     head = (
-        "| noise (px) | region | true RMS (mm) | coverage of the 95 % bound (target 90-98 %) | "
-        "covariance alone | predicted / true RMS (target 0.7-1.4) | per draw 10-90 % | "
-        "true orientation RMS (deg) | orientation coverage | draws with a model error |\n"
-        "|---|---|---|---|---|---|---|---|---|---|\n"
+        "| robot | model | noise (px) | region | true RMS (mm) | coverage of the 95 % bound "
+        "(target 90-98 %) | covariance alone | predicted / true RMS (target 0.7-1.4) | per draw "
+        "10-90 % | true orientation RMS (deg) | orientation coverage | orientation, covariance "
+        "alone | draws with a model error |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n"
     )
     lines = [
-        f"| {r['noise_px']:g} | {r['region']} | {r['true_rms_mm']:.3f} | "
-        f"{100 * r['coverage']:.1f} %{_mark(r['coverage'], 0.9, 0.98)} | "
+        f"| {r['robot']} | {r['model']} | {r['noise_px']:g} | {r['region']} | "
+        f"{r['true_rms_mm']:.3f} | {100 * r['coverage']:.1f} %{_mark(r['coverage'], 0.9, 0.98)} | "
         f"{100 * r['coverage_covariance']:.1f} % | {r['ratio']:.2f}{_mark(r['ratio'], 0.7, 1.4)}"
         f" | {r['ratio_10']:.2f}-{r['ratio_90']:.2f} | {r['true_rot_rms_deg']:.4f} | "
         f"{100 * r['coverage_rot']:.1f} %{_mark(r['coverage_rot'], 0.9, 0.98)} | "
-        f"{100 * r['model_error_share']:.0f} % |"
+        f"{100 * r['coverage_rot_covariance']:.1f} % | {100 * r['model_error_share']:.0f} % |"
         for r in rows
     ]
-    failed = sum(r["failed"] for r in rows[:: len(REGIONS)])
-    lines += ["", f"{rows[0]['draws'] + rows[0]['failed']} draws per noise level ({failed} failed "
-              f"in all), scenarios/mono-charuco.toml on the analytic path, {POSES} calibration "
-              f"postures, {COUNT} joint vectors per region and draw; `uv run python -m "
-              "selfcal.benchmarks.board_accuracy --write-docs`."]  # fmt: skip
+    first = [r for r in rows if r["region"] == REGIONS[0]]
+    failed = sum(r["failed"] for r in first)
+    sizes = sorted({r["draws"] + r["failed"] for r in first})
+    lines += ["", f"{'/'.join(map(str, sizes))} draws per row ({failed} failed in all), "
+              f"scenarios/mono-charuco.toml on the analytic path with each robot, {POSES} "
+              f"calibration postures, {COUNT} joint vectors per region and draw; `uv run python "
+              "-m selfcal.benchmarks.board_accuracy --write-docs`."]  # fmt: skip
     return head + "\n".join(lines)
 
 
@@ -274,9 +332,12 @@ def real_table(rows: list[dict]) -> str:
 
 def _arguments(argv: list[str] | None) -> argparse.Namespace:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    for flag, kind, text in (("--draws", int, "draws per noise level (default 30)"),
+    for flag, kind, text in (("--draws", int, "draws per row (default 30)"),
                              ("--jobs", int, "processes (default 2)")):  # fmt: skip
         ap.add_argument(flag, type=kind, default=30 if flag == "--draws" else 2, help=text)
+    for flag, default in (("--robots", ROBOTS), ("--models", MODELS)):
+        ap.add_argument(flag, type=lambda t: tuple(t.split(",")), default=default,
+                        help=f"comma-separated (default {','.join(default)})")  # fmt: skip
     for flag, text in (("--real", "the real sets' held-out images instead of the Monte Carlo"),
                        ("--write-docs", "rewrite the table in docs/tool-accuracy.md")):  # fmt: skip
         ap.add_argument(flag, action="store_true", help=text)
@@ -299,7 +360,8 @@ def main(argv: list[str] | None = None) -> int:
         if args.write_docs:
             write_block(DOC, text, BLOCK_REAL)
         return 0
-    return print_table(table(run(args.draws, jobs=args.jobs)), DOC, BLOCK, write=args.write_docs)
+    rows = run(args.draws, args.robots, args.models, jobs=args.jobs)
+    return print_table(table(rows), DOC, BLOCK, write=args.write_docs)
 
 
 if __name__ == "__main__":

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from selfcal.acquisition.acquire import acquire
-from selfcal.acquisition.backends import open_robot, plan_dataset, sim_setup
+from selfcal.acquisition.backends import SimSetup, open_robot, plan_dataset, sim_setup
 from selfcal.calibration.board.evaluate import Evaluation, evaluate_board, no_gain, worse
 from selfcal.calibration.field.calibrate import CalibrationFailedError, calibrate
 from selfcal.calibration.field.detections import detect_ahead
@@ -105,14 +105,17 @@ def run_acquire(
     dither_seed: int | None = None,
     keep: FrameCache | None = None,
     resume_command: str | None = None,
+    setup: SimSetup | None = None,
 ) -> Path:
     """Acquire the scenario's dataset into ``out`` (resumable). ``dither_seed`` (simulation):
     move the planned postures by a random fraction of an encoder count (:func:`dithered`).
     ``keep``: also keep the images in memory for :func:`run_calibrate` (:class:`FrameCache`)
     and, for the field route, detect their markers as they are taken (:func:`detect_ahead`).
     ``resume_command``: what continues it when it stops (default ``selfcal acquire ... --resume``
-    with this scenario and ``out``)."""
-    setup = sim_setup(s) if s.robot.backend == "sim" else None
+    with this scenario and ``out``). ``setup``: the simulator's (default
+    :func:`selfcal.acquisition.backends.sim_setup` of ``s``; a benchmark's changed one)."""
+    if setup is None and s.robot.backend == "sim":
+        setup = sim_setup(s)
     info = plan_dataset(s, setup)
     if dither_seed is not None and setup is not None:
         q = dithered(np.asarray(info.planned_joints_deg), setup.robot, dither_seed)

@@ -22,6 +22,7 @@ from selfcal.kinematics.mcpc import MCPCModel
 from selfcal.robot.definition import RobotDef, load_robot
 from selfcal.robot.interface import RobotError, StereoPair
 from selfcal.sim.actual import make_truth
+from selfcal.sim.compliance import JointCompliance
 from selfcal.sim.link_frames import nominal_camera_model
 from selfcal.sim.markers import MarkerField, make_marker_field
 from selfcal.sim.robot_mjcf import RigConfig
@@ -52,7 +53,10 @@ class KinematicRobot:
     (tool = left camera; default nominal), ``rig``, ``field``, ``quantize``, ``board`` (``(board,
     T_world_board)``: recorded in ``truth()``; its features are projected by
     :func:`selfcal.sim.analytic.project_board`). Starts at home.
-    ``SimRobot`` is this robot plus MuJoCo (it overrides ``_set_q``, ``truth_frame``, ``capture``).
+    ``compliance`` (:class:`selfcal.sim.compliance.JointCompliance`): the links stand at its bent
+    joints while the encoders read the commanded ones (a misfit for the benchmarks; ``truth()``'s
+    true chain does not include it). ``SimRobot`` is this robot plus MuJoCo (it overrides
+    ``_set_q``, ``truth_frame``, ``capture``).
     """
 
     image_sigma: float = 0.0
@@ -65,6 +69,7 @@ class KinematicRobot:
         field: MarkerField | None = None,
         quantize: bool = True,
         board: tuple[Board, np.ndarray] | None = None,
+        compliance: JointCompliance | None = None,
     ) -> None:
         self.robot = model_name if isinstance(model_name, RobotDef) else load_robot(model_name)
         self.model_name = self.robot.name
@@ -78,6 +83,7 @@ class KinematicRobot:
         self.field = make_marker_field() if field is None else field
         self.quantize = bool(quantize)
         self.board = board
+        self.compliance = compliance
         self._unit = joint_units(self.robot)
         self._q = self.robot.home.astype(float).copy()
         self._closed = False
@@ -123,9 +129,14 @@ class KinematicRobot:
         """The true joint positions (rad; m for prismatic), unquantised."""
         return self._q.copy()
 
+    def link_joints(self) -> np.ndarray:
+        """The joints (rad; m) the links stand at: the true joints, bent by ``compliance``."""
+        return self._q.copy() if self.compliance is None else self.compliance.bent(self._q)
+
     def truth_frame(self) -> dict:
-        """Ground truth of the current posture, as ``SimRobot.truth_frame``."""
-        T_left = fk_tool(self.actual, self._q[None])[0]
+        """Ground truth of the current posture, as ``SimRobot.truth_frame`` (the cameras where
+        the links stand, :meth:`link_joints`)."""
+        T_left = fk_tool(self.actual, self.link_joints()[None])[0]
         return {
             "joints_rad": self._q.copy(),
             "joints_deg": self._q / self._unit,

@@ -19,6 +19,7 @@ from selfcal.kinematics.mcpc import MCPCModel
 from selfcal.robot.definition import RobotDef
 from selfcal.robot.interface import StereoPair
 from selfcal.sim.board_scene import add_board
+from selfcal.sim.compliance import JointCompliance
 from selfcal.sim.kinematic_robot import KinematicRobot
 from selfcal.sim.markers import MarkerField
 from selfcal.sim.mj_camera import T_world_cam_cv
@@ -47,6 +48,7 @@ class SimRobot(KinematicRobot):
             the marker field (``selfcal.sim.board_scene``; ``field`` then only fills ``truth.json``'s
             ``marker_field``), recorded in ``truth()`` under ``board``.
         msaa: multisample anti-aliasing samples of the renderer (0: off; None: the scene's, 4).
+        compliance: the links stand at its bent joints (``KinematicRobot``'s ``compliance``).
 
     The noise of the next capture is drawn by a worker thread while the robot moves and renders
     (the draws are most of the noise's cost): the same draws from the same generator in the same
@@ -68,10 +70,11 @@ class SimRobot(KinematicRobot):
         quantize: bool = True,
         msaa: int | None = None,
         board: tuple[Board, np.ndarray] | None = None,
+        compliance: JointCompliance | None = None,
     ) -> None:
         if not image_sigma >= 0:
             raise InputError(f"image_sigma must be >= 0 (grey levels), got {image_sigma}")
-        super().__init__(model_name, actual, rig, field, quantize, board)
+        super().__init__(model_name, actual, rig, field, quantize, board, compliance)
         self._sigma = float(image_sigma)
         self._rng = np.random.default_rng(seed)
         scene_kw = {} if msaa is None else {"offsamples": int(msaa)}
@@ -160,7 +163,7 @@ class SimRobot(KinematicRobot):
     def _set_q(self, q: np.ndarray) -> None:
         super()._set_q(q)
         n = self.robot.n
-        self.mj_data.qpos[:n] = q
+        self.mj_data.qpos[:n] = self.link_joints()
         self.mj_data.qvel[:] = 0.0
         self.mj_data.ctrl[:n] = q
         mujoco.mj_forward(self.mj_model, self.mj_data)
