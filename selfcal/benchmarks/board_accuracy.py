@@ -222,6 +222,7 @@ def run(draws: int = 30, robots=ROBOTS, models=MODELS, noise_px=NOISE_PX,
                       f"draws in {time.perf_counter() - t0:.0f} s " + "; ".join(fails),
                       file=sys.stderr, flush=True)  # fmt: skip
                 rows += _rows(robot, model, s, got)
+                print(table(rows[-len(REGIONS) :]).split("\n\n")[0], file=sys.stderr, flush=True)
     return rows
 
 
