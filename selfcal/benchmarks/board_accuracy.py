@@ -68,14 +68,14 @@ from selfcal.calibration.board.evaluate import evaluate_board
 from selfcal.config.scenario import Scenario, load_scenario, scenarios_dir
 from selfcal.errors import InternalError, UsageError
 from selfcal.estimation.joint_report import encoder_sigma
-from selfcal.io.board_calibration import read_board_calibration
+from selfcal.io.board_calibration import BoardCalibrationResult, read_board_calibration
 from selfcal.io.dataset import Dataset
-from selfcal.io.truth import read_truth
+from selfcal.io.truth import Truth, read_truth
 from selfcal.kinematics.alignment import express_in_frame
 from selfcal.kinematics.forward import fk_tool
 from selfcal.kinematics.tool_error import workspace_sample
 from selfcal.pipeline.board_run import calibrate_board_run
-from selfcal.pipeline.run import run_acquire
+from selfcal.pipeline.run import run_acquire, run_all
 from selfcal.robot.definition import load_robot
 from selfcal.sim.compliance import SHOULDER
 from selfcal.threads import limit_threads
@@ -88,6 +88,7 @@ __all__ = [
     "run",
     "scenario",
     "simulated",
+    "simulated_calibration",
     "table",
     "real_table",
     "MODELS",
@@ -140,6 +141,22 @@ def simulated(s: Scenario, model: str) -> SimSetup:
         raise UsageError(f"unknown model {model!r}: one of {', '.join(MODELS)}")
     setup = sim_setup(s)
     return setup if model == "fits" else dataclasses.replace(setup, compliance=SHOULDER)
+
+
+def simulated_calibration(sigma_px: float, seed: int, noise: dict | None = None, *,
+                          scenario_file: Path = SCENARIO) -> tuple[BoardCalibrationResult, Truth]:  # fmt: skip
+    """One simulated board calibration: ``scenario_file`` (default :data:`SCENARIO`) on the
+    analytic path with corner noise ``sigma_px`` and the draw's ``seed`` (perturbation,
+    :data:`POSES` postures, noise; ``noise`` more ``[noise]`` keys) acquired and calibrated as
+    ``selfcal run`` does, quietly in a temporary folder: its calibration and truth."""
+    over = {"noise": {"render": False, "pixel_sigma": sigma_px, "seed": seed} | (noise or {}),
+            "trajectory": {"poses": POSES, "seed": seed}, "perturbation": {"seed": seed}}  # fmt: skip
+    with (tempfile.TemporaryDirectory(prefix="selfcal-acc-") as d, warnings.catch_warnings(),
+          redirect_stdout(StringIO()), redirect_stderr(StringIO())):  # fmt: skip
+        warnings.simplefilter("ignore")
+        out = Path(d) / "run"
+        run_all(load_scenario(scenario_file, over), out, quiet=True, figures=False)
+        return read_board_calibration(out / "calibration.json"), read_truth(out / "truth.json")
 
 
 def draw(args: tuple[str, float, str, int]) -> dict:

@@ -1,15 +1,19 @@
 """``selfcal check CALIBRATION_DIR NEW_DATA``: has the robot changed since its calibration?
 
-A few new tracker measurements at any postures against a tracker calibration: "unchanged"
-(exit 0) or "changed by X mm at the tool" (exit :data:`EXIT_CHANGED`), so that a robot cell can
-run it every morning. :func:`selfcal.calibration.tracker.drift.check_tracker` does the check
-(the public API's too); this prints its verdict. Image data are not checked yet.
+A few new measurements at any postures against a calibration: "unchanged" (exit 0) or "changed
+by X mm at the tool" (exit :data:`EXIT_CHANGED`), so that a robot cell can run it every morning.
+By the calibration's route: a tracker calibration (``selfcal identify``) takes new tracker rows
+(:func:`selfcal.calibration.tracker.drift.check_tracker`), a board calibration with joints
+(``selfcal calibrate`` on images of a board) a dataset of new images
+(:func:`selfcal.calibration.drift.images.check_images`); both are the public API's too. This
+picks the route and prints the verdict; any other calibration is refused.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+from typing import Any
 
 from selfcal.console.common import CliError, add_json
 
@@ -19,21 +23,55 @@ EXIT_CHANGED = 5
 """The exit code of a check that finds the robot changed (not an error: the check worked)."""
 
 HELP = f"""\
-NEW_DATA: tracker measurements in the format `selfcal identify` reads (header j1..jn,x_mm,y_mm,
-z_mm; quaternion columns are ignored: the check compares positions), any postures, a few rows.
+NEW_DATA by the calibration's route:
+  tracker (`selfcal identify`): tracker measurements in the format identify reads (header
+    j1..jn,x_mm,y_mm,z_mm; quaternion columns are ignored: the check compares positions), any
+    postures, a few rows; --joint-units required.
+  board (`selfcal calibrate` on images of a board, eye-in-hand or eye-to-hand): a dataset
+    folder in the format calibrate reads (dataset.json, joints.csv, the images; e.g. from
+    `selfcal import --joints`), a few images of the same board, not moved, at any postures;
+    the first camera's images are checked. It also says what changed (the camera, a mount,
+    the board's pose, a joint's offset) when only one of them explains the new images.
 The residuals against the calibration are tested against what the calibration predicts for
 them (its estimation error at these postures and its model error, from calibration.json's
-accuracy block, and the tracker noise --sigma-mm given to identify); exit 0: unchanged, exit {EXIT_CHANGED}: changed (p < alpha).
+accuracy block, and the noise of its fit); exit 0: unchanged, exit {EXIT_CHANGED}: changed (p < alpha).
 See docs/tool-accuracy.md."""
 
 
 def cmd_check(args: argparse.Namespace) -> int:
-    from selfcal.calibration.tracker.drift import check_tracker
+    from pathlib import Path
+
+    from selfcal.calibration.tracker.calibration_file import is_tracker_calibration
+    from selfcal.io.board_calibration import calibration_kind
 
     if not 0.0 < args.alpha < 1.0:
         raise CliError(f"--alpha {args.alpha} is not a probability", fix="e.g. --alpha 0.01")
-    res = check_tracker(args.calibration, args.new_data, args.joint_units, alpha=args.alpha,
-                        trust_units=args.trust_units)  # fmt: skip
+    src = Path(args.calibration)
+    path = src / "calibration.json" if src.is_dir() else src
+    if not path.is_file():
+        raise CliError(f"{path} not found", fix="give the DIR `selfcal identify` or `selfcal "
+                       "calibrate` wrote (or its calibration.json)")  # fmt: skip
+    res: Any
+    if is_tracker_calibration(path):
+        from selfcal.calibration.tracker.drift import check_tracker
+
+        if args.joint_units is None:
+            raise CliError(f"{path} is a tracker calibration: --joint-units is required",
+                           fix="add --joint-units deg (or rad) as given to identify")  # fmt: skip
+        res = check_tracker(path, args.new_data, args.joint_units, alpha=args.alpha,
+                            trust_units=args.trust_units)  # fmt: skip
+    elif calibration_kind(path) == "board":
+        from selfcal.calibration.drift.images import check_images
+
+        res = check_images(path, args.new_data, alpha=args.alpha)
+    else:
+        raise CliError(
+            f"{path} is neither a tracker calibration nor a board calibration: `selfcal check` "
+            "checks those two (the field route's calibration, of the marker field, is not "
+            "checked)",
+            fix="check a calibration of `selfcal identify` (tracker rows) or of `selfcal "
+            "calibrate` on images of a board",
+        )
     if args.json:
         print(json.dumps(res.to_json()))
     else:
@@ -48,18 +86,22 @@ def register(sub) -> None:
 
     sp = sub.add_parser(
         "check",
-        help=f"drift check: new tracker measurements against a calibration; exit 0 unchanged, "
+        help=f"drift check: new tracker rows or images against a calibration; exit 0 unchanged, "
         f"{EXIT_CHANGED} changed",
         description="has the robot changed since its calibration? a few new tracker "
-        "measurements at any postures against the calibration of `selfcal identify`",
+        "measurements (against the calibration of `selfcal identify`) or images of the board "
+        "(against a board calibration of `selfcal calibrate`) at any postures",
         epilog=HELP,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     sp.set_defaults(func=cmd_check)
-    sp.add_argument("calibration", help="the DIR of `selfcal identify` (or its calibration.json)")
-    sp.add_argument("new_data", help="NEW_DATA.csv: new tracker measurements (see below)")
-    sp.add_argument("--joint-units", required=True, choices=JOINT_UNITS, help=UNITS_HELP)
+    sp.add_argument("calibration", help="the DIR of `selfcal identify` or `selfcal calibrate` "
+                    "(or its calibration.json)")  # fmt: skip
+    sp.add_argument("new_data", help="new tracker measurements (a CSV) or a dataset folder of "
+                    "new images (see below)")  # fmt: skip
+    sp.add_argument("--joint-units", choices=JOINT_UNITS,
+                    help=f"tracker calibrations (required there): {UNITS_HELP}")  # fmt: skip
     sp.add_argument("--alpha", type=float, default=0.01,
                     help="false-alarm probability on an unchanged robot (0.01)")  # fmt: skip
-    sp.add_argument("--trust-units", action="store_true", help=TRUST_HELP)
+    sp.add_argument("--trust-units", action="store_true", help=f"tracker: {TRUST_HELP}")
     add_json(sp)

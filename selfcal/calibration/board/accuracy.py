@@ -324,7 +324,13 @@ def board_accuracy(obs: BoardObservations, selection: Selection, cr: BoardCramer
     sample = workspace_sample(q_cal, limits, count=count)
     note = ("no cross-validation (the frames show one arm configuration): the covariance alone, "
             "which is optimistic when the model misfits")  # fmt: skip
+    _, C, n0 = _full_covariance(cr)
+    p = len(C) - n0
     extra = {
+        # the first camera's free parameters (its order) with their correlation to `estimated`:
+        # the drift check's prediction of new pixels (selfcal/calibration/drift/images.py)
+        "camera_covariance_si": C[p:, p:].tolist(),
+        "camera_cross_si": C[:p, p:].tolist(),
         "tool_point": "the flange",
         "T_tool_point_si": np.asarray(T_tool_point, float).tolist(),
         "joint_limits_si": np.asarray(limits, float).tolist(),

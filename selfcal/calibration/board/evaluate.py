@@ -37,6 +37,8 @@ __all__ = [
     "no_gain",
     "worse",
     "evaluate_board",
+    "held_out_views",
+    "HeldOutViews",
     "rms_px",
     "read_evaluation",
     "shared_postures",
@@ -184,87 +186,116 @@ def rms_px(e: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.sum(e**2, axis=-1))))
 
 
-def evaluate_board(cal: BoardCalibrationResult, cal_where: str, root: str | Path) -> Evaluation:
-    """Predict DATASET2 (``root``) with ``cal`` (module docstring): every camera of DATASET2,
-    each with its calibrated model and extrinsics.
+@dataclass(frozen=True)
+class HeldOutViews:
+    """The board's features in the images of a dataset checked against a board calibration
+    (:func:`held_out_views`): ``root`` the dataset folder; ``q`` (m, n) rad / m its joint
+    readings; ``views`` per image that shows the board (in frame order, then camera order): its
+    file name, frame index ``f`` (into ``q``), the dataset's frame index, camera name, board
+    points ``X`` (k, 3) (board frame, m) and detected pixels ``uv`` (k, 2); ``skipped`` the
+    images without it."""
+
+    root: str
+    q: np.ndarray
+    views: tuple[tuple[str, int, int, str, np.ndarray, np.ndarray], ...]
+    skipped: tuple[str, ...]
+
+
+def held_out_views(cal: BoardCalibrationResult, root: str | Path,
+                   cameras: tuple[str, ...] | None = None) -> HeldOutViews:  # fmt: skip
+    """Read the dataset ``root`` and detect the board in its images of ``cameras`` (default:
+    every camera of the dataset), after checking that it shows the calibration's robot, target,
+    cameras (names and image sizes) and setup; warn (:class:`EvaluationWarning`) of images
+    without the board.
 
     Raises:
         InputError: the datasets' robot, target or cameras do not match the calibration's (a
-            camera the calibration does not hold, another image size), or no image of DATASET2
-            shows the board.
+            camera the calibration does not hold, another image size), or no image shows the
+            board.
     """
     ds = Dataset.open(root)
     board = dataset_board(ds)
     if ds.info.board != cal.target:
         raise InputError(
             f"{ds.root}: target {ds.info.board} differs from the calibration's {cal.target}",
-            fix="evaluate on a dataset of the same board (import it with the same --target)",
+            fix="use a dataset of the same board (import it with the same --target)",
         )
+    cams = dict(zip(cal.camera_names, cal.cameras, strict=True))
+    for cam_name in ds.info.cameras:
+        if cam_name not in cams:
+            raise InputError(
+                f"{ds.root}: camera {cam_name!r} is not one of the calibrated cameras "
+                f"{list(cal.camera_names)}",
+                fix="import the new images under the calibrated cameras' names ("
+                + ", ".join(f"--images '{c}=...'" for c in cal.camera_names)
+                + ")",
+            )
+        camera = cams[cam_name]
+        if ds.info.resolution_of(cam_name) != (camera.width, camera.height):
+            raise InputError(
+                f"{ds.root}: camera {cam_name} is {ds.info.resolution_of(cam_name)} px, the "
+                f"calibration's {(camera.width, camera.height)}",
+                fix="use images of the calibrated camera at its size",
+            )
+    n = len(cal.model.joint_types)
+    if ds.joints_deg.shape[1] != n:
+        raise InputError(f"{ds.root}: {ds.joints_deg.shape[1]} joints, the calibration's robot "
+                         f"{n}", fix="use a dataset of the calibrated robot")  # fmt: skip
+    if ds.info.setup != cal.setup:
+        raise InputError(f"{ds.root}: an {ds.info.setup} dataset, the calibration's is "
+                         f"{cal.setup}", fix="use images of the calibrated cell "
+                         "(the camera on the flange or static as calibrated)")  # fmt: skip
+    names = tuple(c for c in ds.info.cameras if cameras is None or c in cameras)
+    detected = {c: detect_board(ds, board, c) for c in names}
+    views, skipped = [], []
+    for f in range(len(ds.indices)):
+        for cam_name in names:
+            ft, name = detected[cam_name][0][f], detected[cam_name][1][f]
+            if len(ft) < board.min_features:
+                skipped.append(name)
+                continue
+            views.append((name, f, int(ds.indices[f]), cam_name, board.points(ft.ids), ft.uv))
+    if skipped:
+        warnings.warn(f"the {board.describe()} is not found in {len(skipped)} of "
+                      f"{len(ds.indices) * len(names)} image(s) of {ds.root}, left out: "
+                      f"{', '.join(skipped[:8])}", EvaluationWarning, stacklevel=3)  # fmt: skip
+    if not views:
+        raise InputError(f"{ds.root}: no image shows the {board.describe()}",
+                         fix="give images that show the board")  # fmt: skip
+    return HeldOutViews(str(ds.root), np.radians(ds.joints_deg), tuple(views), tuple(skipped))
+
+
+def evaluate_board(cal: BoardCalibrationResult, cal_where: str, root: str | Path) -> Evaluation:
+    """Predict DATASET2 (``root``) with ``cal`` (module docstring): every camera of DATASET2,
+    each with its calibrated model and extrinsics.
+
+    Raises:
+        InputError: as :func:`held_out_views`.
+    """
+    held = held_out_views(cal, root)
     T_first = np.eye(4)[None] if cal.T_first_cam is None else np.asarray(cal.T_first_cam)
     cams = {n: (cal.cameras[k], T_first[k]) for k, n in enumerate(cal.camera_names)}
     nom_cams, nom_T = cal.nominal_camera_set
     nom_T = np.eye(4)[None] if nom_T is None else np.asarray(nom_T)
     by_model = {"nominal": {n: (nom_cams[k], nom_T[k]) for k, n in enumerate(cal.camera_names)},
                 "calibrated": cams}  # fmt: skip
-    for cam_name in ds.info.cameras:
-        if cam_name not in cams:
-            raise InputError(
-                f"{ds.root}: camera {cam_name!r} is not one of the calibrated cameras "
-                f"{list(cal.camera_names)}",
-                fix="import the held-out images under the calibrated cameras' names ("
-                + ", ".join(f"--images '{c}=...'" for c in cal.camera_names)
-                + ")",
-            )
-        camera = cams[cam_name][0]
-        if ds.info.resolution_of(cam_name) != (camera.width, camera.height):
-            raise InputError(
-                f"{ds.root}: camera {cam_name} is {ds.info.resolution_of(cam_name)} px, the "
-                f"calibration's {(camera.width, camera.height)}",
-                fix="evaluate on images of the calibrated camera at its size",
-            )
-    n = len(cal.model.joint_types)
-    if ds.joints_deg.shape[1] != n:
-        raise InputError(f"{ds.root}: {ds.joints_deg.shape[1]} joints, the calibration's robot "
-                         f"{n}", fix="evaluate on a dataset of the calibrated robot")  # fmt: skip
-    if ds.info.setup != cal.setup:
-        raise InputError(f"{ds.root}: an {ds.info.setup} dataset, the calibration's is "
-                         f"{cal.setup}", fix="evaluate on images of the calibrated cell "
-                         "(the camera on the flange or static as calibrated)")  # fmt: skip
-    detected = {c: detect_board(ds, board, c) for c in ds.info.cameras}
-    q = np.radians(ds.joints_deg)
     models: dict[str, MCPCModel] = {"nominal": cal.nominal_model, "calibrated": cal.model}
     # first camera <- board: the chain's tool pose eye-to-hand, its inverse eye-in-hand
-    T = {k: fk_tool(m, q) if cal.eye_to_hand else inv_pose(fk_tool(m, q))
+    T = {k: fk_tool(m, held.q) if cal.eye_to_hand else inv_pose(fk_tool(m, held.q))
          for k, m in models.items()}  # fmt: skip
     rows: list[dict] = []
     errs: list[dict[str, np.ndarray]] = []
-    skipped: list[str] = []
-    for f in range(len(ds.indices)):
-        for cam_name in ds.info.cameras:
-            ft, name = detected[cam_name][0][f], detected[cam_name][1][f]
-            if len(ft) < board.min_features:
-                skipped.append(name)
-                continue
-            X = board.points(ft.ids)
-            row = {"image": name, "index": int(ds.indices[f]), "camera": cam_name,
-                   "features": len(ft)}  # fmt: skip
-            e: dict[str, np.ndarray] = {}
-            for k in models:
-                camera, T_first_cam = by_model[k][cam_name]
-                Tc = inv_pose(T_first_cam) @ T[k][f]  # camera c <- board
-                e[k] = camera.project(X @ Tc[:3, :3].T + Tc[:3, 3]) - ft.uv
-                row[f"{k}_px"] = rms_px(e[k])
-            rows.append(row)
-            errs.append(e)
-    n_images = len(ds.indices) * len(ds.info.cameras)
-    if skipped:
-        warnings.warn(f"the {board.describe()} is not found in {len(skipped)} of {n_images} "
-                      f"held-out image(s), left out: {', '.join(skipped[:8])}",
-                      EvaluationWarning, stacklevel=2)  # fmt: skip
-    if not rows:
-        raise InputError(f"{ds.root}: no image shows the {board.describe()}",
-                         fix="give held-out images that show the board")  # fmt: skip
-    return Evaluation.of(rows, errs, tuple(skipped), str(ds.root), cal_where)
+    for name, f, index, cam_name, X, uv in held.views:
+        row = {"image": name, "index": index, "camera": cam_name, "features": len(uv)}
+        e: dict[str, np.ndarray] = {}
+        for k in models:
+            camera, T_first_cam = by_model[k][cam_name]
+            Tc = inv_pose(T_first_cam) @ T[k][f]  # camera c <- board
+            e[k] = camera.project(X @ Tc[:3, :3].T + Tc[:3, 3]) - uv
+            row[f"{k}_px"] = rms_px(e[k])
+        rows.append(row)
+        errs.append(e)
+    return Evaluation.of(rows, errs, held.skipped, held.root, cal_where)
 
 
 def write_evaluation(path: str | Path, ev: Evaluation) -> Path:

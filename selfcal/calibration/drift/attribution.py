@@ -1,0 +1,144 @@
+"""What changed, when new images do not fit a board calibration (issue #29)?
+
+Every candidate is one kind of small change, linearised at the calibration: the camera's free
+parameters (intrinsics and lens), the chain's tool on the flange (eye-in-hand the camera's
+mount, the hand-eye; eye-to-hand the board's mount), the chain's world (eye-in-hand the board's
+pose; eye-to-hand the camera's pose) and each joint's offset alone. Each is fitted to the
+whitened residuals of :mod:`selfcal.calibration.drift.images` (generalised least squares in the
+check's own metric ``Sigma^-1``): how much each lowers the statistic is the check's directed
+test of that change (:func:`candidate_fits`). A candidate explains the change when all the
+candidates together fit no significantly better than it alone (nested: ``T_h - T_all`` against
+chi-square with the difference of their parameter counts, at ``alpha``) and leave nothing
+significant. The cause is named only when the candidates that explain it are of one kind
+(several joints' offsets are named together); otherwise "cannot tell", with the candidates that
+explain it or none.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.stats import chi2
+
+from selfcal.calibration.drift.views import ViewJacobians
+
+__all__ = ["Attribution", "Fits", "attribute", "candidate_fits"]
+
+
+@dataclass(frozen=True)
+class Attribution:
+    """The candidates (key -> what in words), their p-values after the fit, which explain the
+    change, the named ``cause`` (a kind: ``camera``, ``hand-eye``, ``world``, ``joint``) or None
+    (cannot tell) and the fitted size of each explaining candidate (words)."""
+
+    what: dict[str, str]
+    p_values: dict[str, float]
+    explaining: tuple[str, ...]
+    cause: str | None
+    sizes: dict[str, str]
+
+    def line(self) -> str:
+        """What changed, in words."""
+        if self.cause is not None:
+            parts = [f"{self.what[k]} ({self.sizes[k]})" for k in self.explaining]
+            return "what changed: " + " or ".join(parts)
+        if self.explaining:
+            return ("what changed: cannot tell (each alone explains it: "
+                    + "; ".join(f"{self.what[k]} ({self.sizes[k]})" for k in self.explaining)
+                    + ")")  # fmt: skip
+        return ("what changed: cannot tell (no single change of the camera, the mounts or one "
+                "joint's offset explains it)")  # fmt: skip
+
+    def to_json(self) -> dict:
+        return {
+            "cause": self.cause,
+            "line": self.line(),
+            "explained_by": [{"change": k, "what": self.what[k], "size": self.sizes[k],
+                              "p_value": self.p_values[k]} for k in self.explaining],
+            "p_values": dict(self.p_values),
+        }  # fmt: skip
+
+
+def _twist_size(x: np.ndarray) -> str:
+    return f"{1e3 * np.linalg.norm(x[:3]):.3f} mm, {np.degrees(np.linalg.norm(x[3:])):.4f} deg"
+
+
+@dataclass(frozen=True)
+class Fits:
+    """Every candidate's fit to the whitened residuals: by key what it is in words, ``drop``
+    (how much it lowers ``T``), ``rank`` (its parameters the views determine), ``x`` its fitted
+    change and ``se`` its standard errors; ``union_left`` and ``union_rank`` the fit of all of them together."""
+
+    what: dict[str, str]
+    drop: dict[str, float]
+    rank: dict[str, int]
+    x: dict[str, np.ndarray]
+    se: dict[str, np.ndarray]
+    union_left: float
+    union_rank: int
+
+
+def candidate_fits(white: Callable[[np.ndarray], np.ndarray], rw: np.ndarray,
+                   views: list[ViewJacobians], *, eye_to_hand: bool) -> Fits:  # fmt: skip
+    """Fit every candidate (module docstring) alone, and all of them together, to the
+    whitened residuals ``rw`` (``white`` the whitening map of the check: ``L^-1``) of
+    ``views``."""
+    n = views[0].joints.shape[1]
+    tool = ("the board's mount on the flange" if eye_to_hand
+            else "the camera's mount on the flange (hand-eye)")  # fmt: skip
+    world = "the camera's pose (base -> camera)" if eye_to_hand else "the board's pose"
+    cands: dict[str, tuple[str, np.ndarray]] = {
+        "camera": ("the camera's intrinsics", np.concatenate([v.cam for v in views])),
+        "hand-eye": (tool, np.concatenate([v.tool for v in views])),
+        "world": (world, np.concatenate([v.world for v in views])),
+    }
+    for j in range(n):
+        cands[f"joint {j + 1}"] = (f"joint {j + 1}'s offset",
+                                   np.concatenate([v.joints[:, j : j + 1] for v in views]))  # fmt: skip
+    T = float(rw @ rw)
+    drop, rank, xs, se = {}, {}, {}, {}
+    all_w = white(np.concatenate([G for _, G in cands.values()], axis=1))  # one solve
+    at = 0
+    for key, (_, G) in cands.items():
+        Gw = all_w[:, at : at + G.shape[1]]
+        at += G.shape[1]
+        x, _, rank[key], _ = np.linalg.lstsq(Gw, rw, rcond=None)
+        left = rw - Gw @ x
+        drop[key], xs[key] = T - float(left @ left), x
+        se[key] = np.sqrt(np.clip(np.diag(np.linalg.pinv(Gw.T @ Gw)), 0.0, None))
+    x, _, union_rank, _ = np.linalg.lstsq(all_w, rw, rcond=None)
+    Gw = all_w
+    left = rw - Gw @ x
+    return Fits({k: w for k, (w, _) in cands.items()}, drop, rank, xs, se, float(left @ left),
+                int(union_rank))  # fmt: skip
+
+
+def attribute(fits: Fits, T: float, dof: int, views: list[ViewJacobians], *,
+              camera_names: tuple[str, ...] = (), alpha: float) -> Attribution:  # fmt: skip
+    """Which candidates of ``fits`` explain the change (the check's statistic ``T`` with ``dof``
+    degrees of freedom): a candidate explains it when the others together improve its fit by
+    no significant amount (``P(chi2_{rank_all - rank_h} >= T_h - T_all) >= alpha``) and all of
+    them together leave nothing significant; ``camera_names`` the camera's free parameters'
+    names (for the sizes)."""
+    names = camera_names or tuple(f"p{i}" for i in range(views[0].cam.shape[1]))
+    p_values: dict[str, float] = {}
+    sizes: dict[str, str] = {}
+    whole = chi2.sf(fits.union_left, dof - fits.union_rank) >= alpha
+    for key in fits.what:
+        x, more = fits.x[key], fits.union_rank - fits.rank[key]
+        left = T - fits.drop[key]
+        p_values[key] = float(chi2.sf(left - fits.union_left, more)) if more > 0 else 1.0
+        if key == "camera":  # the two parameters the fit moves most, in standard errors
+            se = fits.se[key]
+            top = np.argsort(-np.abs(x) / np.where(se > 0, se, np.inf))[:2]
+            sizes[key] = ", ".join(f"{names[i]} {x[i]:+.4g}" for i in top)
+        elif key.startswith("joint"):
+            sizes[key] = f"{np.degrees(x[0]):+.4f} deg"
+        else:
+            sizes[key] = _twist_size(x)
+    explaining = tuple(k for k, p in p_values.items() if p >= alpha) if whole else ()
+    kinds = {k.split(" ")[0] for k in explaining}
+    cause = next(iter(kinds)) if len(kinds) == 1 else None
+    return Attribution(dict(fits.what), p_values, explaining, cause, sizes)

@@ -1,0 +1,285 @@
+"""Drift check: do new images still fit a board calibration? (issue #29)
+
+New views of the calibration's board (the first camera's images, joint readings at any
+postures) are compared with what the calibration predicts from the joints alone: the board
+points ``X`` (board frame) seen from the calibrated chain, ``uv = camera(T_cam_board(q) X)``
+(eye-in-hand ``T_cam_board = inv(fk(q))``, the board pose part of the chain; eye-to-hand
+``fk(q)``, the camera's pose part of it). Under "unchanged" the stacked residuals ``r = detected -
+predicted`` (2k px over every corner of every view) are Gaussian to first order with covariance
+
+    Sigma = H C H^T + blockdiag_i(A_i B_i^-1 M B_i^-T A_i^T + Q_i S_j Q_i^T) + s^2 I
+
+- ``H C H^T``: the calibration's estimation error, correlated between the views through the
+  shared parameters: ``H = [A J_id, J_cam]`` the pixels' derivative by the estimated kinematic
+  parameters and the first camera's free parameters, ``C`` their joint covariance (the
+  ``accuracy`` block's, :func:`estimate_covariance`);
+- the model error ``M`` per view (the ``accuracy`` block's ``m`` per tool-point coordinate and
+  per rotation coordinate, :mod:`selfcal.calibration.board.accuracy`), ``A`` the pixels'
+  derivative by a body twist of the chain's tool, ``B`` its map to the tool point (the flange);
+- the joint read-back noise ``S_j`` (``bounds.joint_sigma_deg``) through the joints' twists
+  ``Q = A tw``; the corner noise ``s`` (``bounds.pixel_sigma_px``).
+
+``T = r^T Sigma^-1 r`` is then chi-square with ``2k`` degrees of freedom. That omnibus test
+has little power against a change that moves the pixels along a few directions (a joint's
+offset, a mount) among ``2k`` (hundreds), so each candidate change of
+:mod:`selfcal.calibration.drift.attribution` (the camera, the chain's tool mount, its world, one
+joint's offset) is also tested: how much its fit lowers ``T`` is chi-square with its parameter
+count. The robot has changed when the smallest of these ``1 + 3 + n`` p-values, times their
+count (Bonferroni), is below ``alpha`` (0.01): the false alarms stay below ``alpha``. The change at the tool: the RMS over the new postures of the tool point's
+(the flange's) move by the candidate change whose directed test is the most significant, fitted
+(0 when that is the camera). A single view's own best tool-point move is no measure of it: one
+view knows it poorly along its line of sight.
+
+What changed (:mod:`selfcal.calibration.drift.attribution`) is named only when one kind of
+small change alone explains the residuals. Only the first camera is checked (a rig's other
+cameras' extrinsics have no covariance in ``calibration.json``). :func:`check_images` is the
+whole check from the files (``selfcal check`` and the public API). Nothing here reads truth.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from scipy.linalg import solve_triangular
+from scipy.stats import chi2
+
+from selfcal.calibration.board.accuracy import board_error_model_from_json
+from selfcal.calibration.board.evaluate import held_out_views
+from selfcal.calibration.drift.attribution import Attribution, attribute, candidate_fits
+from selfcal.calibration.drift.views import ViewJacobians, view_jacobians
+from selfcal.errors import InputError
+from selfcal.io.board_calibration import (
+    BoardCalibrationResult,
+    calibration_kind,
+    read_board_calibration,
+)
+from selfcal.kinematics.tool_error import ToolErrorModel
+from selfcal.threads import limited
+
+__all__ = [
+    "ALPHA",
+    "ImageDriftCheck",
+    "calibration_error_model",
+    "check_images",
+    "estimate_covariance",
+    "image_drift_check",
+]
+
+ALPHA = 0.01
+"""The false-alarm probability the check allows on an unchanged robot."""
+
+
+@dataclass(frozen=True)
+class ImageDriftCheck:
+    """Outcome of :func:`image_drift_check`.
+
+    Attributes:
+        views, corners: what was compared; statistic, dof, p_value: the chi-square test;
+        changed: ``p_value < alpha``; rms_px: the residuals' 2-D RMS; expected_rms_px: what
+        ``Sigma`` predicts for it; best: the candidate change whose directed test is the most
+        significant; change_mm: the RMS over the views of the tool point's move by it (0 for
+        the camera); mean_tip_mm: (3,) its mean (world frame); attribution: what changed, or
+        None when unchanged.
+    """
+
+    views: int
+    corners: int
+    statistic: float
+    dof: int
+    p_value: float
+    changed: bool
+    rms_px: float
+    expected_rms_px: float
+    change_mm: float
+    mean_tip_mm: np.ndarray
+    alpha: float
+    best: str = ""
+    attribution: Attribution | None = None
+
+    def line(self) -> str:
+        """The verdict in one line."""
+        what = f"{self.views} new image(s), {self.corners} corners"
+        if self.changed:
+            out = (f"changed by {self.change_mm:.3f} mm at the tool point (the flange, as the "
+                   f"best single change, {self.best}, fits it; {what}: {self.rms_px:.3f} px "
+                   f"RMS against the predicted {self.expected_rms_px:.3f} px; p = "
+                   f"{self.p_value:.2g} < {self.alpha:g})")  # fmt: skip
+            return out if self.attribution is None else f"{out}; {self.attribution.line()}"
+        return (f"unchanged: {what} within the calibration's prediction ({self.rms_px:.3f} px "
+                f"RMS, predicted {self.expected_rms_px:.3f} px; p = {self.p_value:.2g})")  # fmt: skip
+
+    def to_json(self) -> dict:
+        """The result as JSON (px, mm)."""
+        return {
+            "verdict": "changed" if self.changed else "unchanged",
+            "line": self.line(),
+            "images": self.views,
+            "corners": self.corners,
+            "statistic": self.statistic,
+            "dof": self.dof,
+            "p_value": self.p_value,
+            "alpha": self.alpha,
+            "rms_px": self.rms_px,
+            "expected_rms_px": self.expected_rms_px,
+            "change_mm": self.change_mm,
+            "best_single_change": self.best,
+            "mean_tool_point_mm": self.mean_tip_mm.tolist(),
+            "cause": None if self.attribution is None else self.attribution.to_json(),
+        }
+
+
+def _covariance(C: np.ndarray, views: list[ViewJacobians]) -> np.ndarray:
+    """``Sigma`` (module docstring) of the stacked views, ``C`` the estimate's covariance."""
+    H = np.concatenate([np.concatenate([v.kin, v.cam], axis=1) for v in views])
+    sigma = H @ C @ H.T
+    at = 0
+    for v in views:
+        k = len(v.r)
+        sigma[at : at + k, at : at + k] += v.local
+        at += k
+    return sigma
+
+
+def tool_point_moves(key: str, x: np.ndarray, views: list[ViewJacobians]) -> np.ndarray:
+    """(m, 3) m the tool point's move (world frame) at every view by the candidate change
+    ``key`` (:mod:`selfcal.calibration.drift.attribution`) of size ``x``: 0 for the camera."""
+    if key == "camera":
+        return np.zeros((len(views), 3))
+    if key == "hand-eye":
+        return np.array([(v.B @ x)[:3] for v in views])
+    if key == "world":
+        return np.array([(v.B @ v.Ad @ x)[:3] for v in views])
+    j = int(key.split(" ")[1]) - 1
+    return np.array([(v.B @ v.tw[:, j] * x[0])[:3] for v in views])
+
+
+def image_drift_check(C: np.ndarray, views: list[ViewJacobians], *,
+                      eye_to_hand: bool, camera_names: tuple[str, ...] = (),
+                      alpha: float = ALPHA) -> ImageDriftCheck:  # fmt: skip
+    """Test the linearised ``views`` (:func:`view_jacobians`) against the calibration's
+    estimate covariance ``C`` (p + c, p + c) of its estimated kinematic parameters and the
+    camera's free parameters (:func:`estimate_covariance`; module docstring; ``camera_names``
+    the camera's free parameters' names for the attribution).
+
+    Raises:
+        InputError: no view.
+    """
+    if not views:
+        raise InputError("drift check: no view of the board to compare",
+                         fix="give images that show the board")  # fmt: skip
+    r = np.concatenate([v.r for v in views])
+    sigma = _covariance(C, views)
+    L = np.linalg.cholesky(sigma)
+
+    def white(M: np.ndarray) -> np.ndarray:
+        return solve_triangular(L, M, lower=True)
+
+    rw = white(r)
+    T = float(rw @ rw)
+    dof = len(r)
+    # the omnibus test and each candidate change's directed one (how much its fit lowers T,
+    # chi-square with its rank), Bonferroni-combined
+    fits = candidate_fits(white, rw, views, eye_to_hand=eye_to_hand)
+    tests = [chi2.sf(T, dof)] + [chi2.sf(fits.drop[k], fits.rank[k]) for k in fits.what
+                                 if fits.rank[k] > 0]  # fmt: skip
+    p = float(min(1.0, len(tests) * min(tests)))
+    best = min(fits.what, key=lambda k: chi2.sf(fits.drop[k], max(fits.rank[k], 1)))
+    moves = tool_point_moves(best, fits.x[best], views)
+    changed = p < alpha
+    return ImageDriftCheck(
+        views=len(views),
+        corners=dof // 2,
+        statistic=T,
+        dof=dof,
+        p_value=p,
+        changed=changed,
+        rms_px=float(np.sqrt(np.sum(r**2) / (dof // 2))),
+        expected_rms_px=float(np.sqrt(np.trace(sigma) / (dof // 2))),
+        change_mm=float(np.sqrt(np.mean(np.sum(moves**2, axis=1)))) * 1e3,
+        mean_tip_mm=moves.mean(axis=0) * 1e3,
+        best=best,
+        alpha=alpha,
+        attribution=attribute(fits, T, dof, views, camera_names=camera_names, alpha=alpha)
+        if changed else None,
+    )  # fmt: skip
+
+
+def calibration_error_model(cal: BoardCalibrationResult, where: str) -> ToolErrorModel:
+    """The calibration's :class:`ToolErrorModel` (its ``accuracy`` block).
+
+    Raises:
+        InputError: no accuracy or bounds block (named, with the fix).
+    """
+    if cal.accuracy is None or cal.bounds is None:
+        raise InputError(
+            f"{where} has no accuracy or bounds block (written before them, or the bounds "
+            "failed: see its bounds_error)",
+            fix="re-run `selfcal calibrate` on the calibration's dataset",
+        )
+    return board_error_model_from_json(cal.accuracy, cal.model, where)
+
+
+def calibration_views(cal: BoardCalibrationResult, em: ToolErrorModel, q: np.ndarray,
+                      views: list[tuple[int, np.ndarray, np.ndarray]]) -> list[ViewJacobians]:  # fmt: skip
+    """The first camera's ``views`` (frame ``f`` into ``q`` (m, n) rad / m, board points ``X``
+    (k, 3) m, detected ``uv`` (k, 2) px) linearised at the calibration ``cal`` (``em`` its
+    error model) with its bounds' noise levels."""
+    assert cal.bounds is not None
+    js = cal.bounds.joint_sigma_deg
+    js_rad = None if js is None else np.radians(np.asarray(js, float))
+    return [view_jacobians(em, cal.cameras[0], q[f], X, uv, eye_to_hand=cal.eye_to_hand,
+                           pixel_sigma_px=cal.bounds.pixel_sigma_px, joint_sigma_rad=js_rad)
+            for f, X, uv in views]  # fmt: skip
+
+
+def estimate_covariance(cal: BoardCalibrationResult, em: ToolErrorModel) -> np.ndarray:
+    """(p + c, p + c) the covariance of the calibration's estimated kinematic parameters (``em``,
+    its ``accuracy`` block) and its first camera's free parameters with their correlation (the
+    block's ``camera_covariance_si`` and ``camera_cross_si``); a file written before them: the
+    camera's standard deviations alone, taken as independent of the kinematics."""
+    p, camera = len(em.covariance), cal.cameras[0]
+    c = len(camera.free)
+    C = np.zeros((p + c, p + c))
+    C[:p, :p] = em.covariance
+    block = cal.accuracy or {}
+    cam = np.asarray(block.get("camera_covariance_si", []), float)
+    cross = np.asarray(block.get("camera_cross_si", []), float)
+    if cam.shape == (c, c) and cross.shape == (p, c):
+        C[p:, p:], C[:p, p:], C[p:, :p] = cam, cross, cross.T
+    else:
+        std = cal.camera_std[0]
+        C[p:, p:] = np.diag(np.array([std.get(k, 0.0) for k in camera.free], float) ** 2)
+    return C
+
+
+@limited
+def check_images(calibration: str | Path, new_data: str | Path, *,
+                 alpha: float = ALPHA) -> ImageDriftCheck:  # fmt: skip
+    """Check the first camera's images of the dataset ``new_data`` (the format ``selfcal
+    calibrate`` reads: a few images of the calibration's board with joint readings, any
+    postures) against the board calibration ``calibration`` (the folder of ``selfcal
+    calibrate`` or its ``calibration.json``) with its ``accuracy`` and ``bounds`` blocks
+    (module docstring).
+
+    Raises:
+        InputError: the calibration is missing, not a board calibration or has no accuracy
+            block; ``alpha`` is not a probability; the dataset is not of the calibration's
+            robot, board, camera or setup, or no image shows the board (named).
+    """
+    src = Path(calibration)
+    path = src / "calibration.json" if src.is_dir() else src
+    if not path.is_file():
+        raise InputError(f"{path} not found", fix="give the DIR `selfcal calibrate` wrote")
+    if calibration_kind(path) != "board":
+        raise InputError(f"{path} is not a board calibration", fix="give the calibration of "
+                         "`selfcal calibrate` on images of a board")  # fmt: skip
+    if not 0.0 < alpha < 1.0:
+        raise InputError(f"alpha {alpha} is not a probability", fix="e.g. alpha 0.01")
+    cal = read_board_calibration(path)
+    em = calibration_error_model(cal, str(path))
+    held = held_out_views(cal, new_data, cameras=(cal.camera_names[0],))
+    views = calibration_views(cal, em, held.q, [(f, X, uv) for _, f, _, _, X, uv in held.views])
+    return image_drift_check(estimate_covariance(cal, em), views, eye_to_hand=cal.eye_to_hand,
+                             camera_names=cal.cameras[0].free, alpha=alpha)  # fmt: skip

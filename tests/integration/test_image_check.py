@@ -1,0 +1,68 @@
+"""``selfcal check`` with images against a board calibration: exit 0 unchanged / 5 changed and
+what changed (#29). A simulated calibration (analytic mono-charuco, 0.2 px) and six new images of
+the same robot at new postures."""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import json
+import shutil
+
+import numpy as np
+import pytest
+
+import selfcal
+from selfcal.cli.check import EXIT_CHANGED
+from selfcal.cli.main import main
+from selfcal.config.scenario import load_scenario, scenarios_dir
+from selfcal.io.board_calibration import read_board_calibration, write_board_calibration
+from selfcal.pipeline.run import run_acquire, run_all
+
+
+def _offset_joint(src, dst, column: int, deg: float) -> None:
+    """Copy the dataset ``src`` to ``dst`` with ``deg`` added to joint ``column``'s readings."""
+    shutil.copytree(src, dst)
+    rows = list(csv.reader((dst / "joints.csv").open()))
+    for r in rows[1:]:
+        r[column] = f"{float(r[column]) + deg:.6f}"
+    with (dst / "joints.csv").open("w", newline="") as f:
+        csv.writer(f).writerows(rows)
+
+
+@pytest.mark.slow
+def test_check_with_images_says_unchanged_or_changed(tmp_path, capsys):
+    scenario = scenarios_dir() / "mono-charuco.toml"
+    noise = {"render": False, "pixel_sigma": 0.2}
+    cal = tmp_path / "cal"
+    run_all(load_scenario(scenario, {"noise": noise}), cal, quiet=True, figures=False)
+    new = tmp_path / "new"  # the same robot (perturbation seed), new postures and noise
+    run_acquire(load_scenario(scenario, {"noise": noise | {"seed": 78},
+                                         "trajectory": {"poses": 6, "seed": 77}}),
+                new, quiet=True)  # fmt: skip
+    capsys.readouterr()
+    assert main(["check", str(cal), str(new)]) == 0
+    assert capsys.readouterr().out.startswith("unchanged: 6 new image(s)")
+
+    _offset_joint(new, tmp_path / "joint", 4, 0.3)  # joint 4 read 0.3 deg off
+    assert main(["check", str(cal), str(tmp_path / "joint"), "--json"]) == EXIT_CHANGED
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["verdict"] == "changed" and doc["p_value"] < 1e-6
+    assert "joint 4" in [c["change"] for c in doc["cause"]["explained_by"]]
+
+    moved = tmp_path / "moved"  # the camera 2 mm along its x axis on the flange since then
+    shutil.copytree(cal, moved)
+    c = read_board_calibration(moved)
+    shift = np.eye(4)
+    shift[0, 3] = 2e-3
+    write_board_calibration(moved / "calibration.json",
+                            dataclasses.replace(c, model=c.model.with_tool(shift)))  # fmt: skip
+    res = selfcal.check_images(moved, new)
+    assert res.changed and res.p_value < 1e-6
+    assert res.attribution is not None and "hand-eye" in res.attribution.explaining
+    assert res.best == "hand-eye" and 1.5 < res.change_mm < 2.5
+    assert main(["check", str(moved), str(new)]) == EXIT_CHANGED
+    assert capsys.readouterr().out.startswith("changed by")
+
+    assert main(["check", str(cal), str(tmp_path / "nothing")]) == 2  # no dataset: named
+    assert str(tmp_path / "nothing") in capsys.readouterr().err

@@ -1,0 +1,146 @@
+"""The drift check with images (selfcal.calibration.drift, issue #29): its test on residuals
+drawn from exactly the covariance it assumes, a joint's offset and a lens change found and
+named, and `selfcal check`'s refusals. The whole command on a simulated calibration:
+tests/integration/test_image_check.py (slow)."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+
+from selfcal.calibration.drift.images import _covariance, image_drift_check
+from selfcal.calibration.drift.views import view_jacobians
+from selfcal.camera import camera_model
+from selfcal.cli.main import main as selfcal
+from selfcal.errors import InputError
+from selfcal.kinematics.forward import fk_tool
+from selfcal.kinematics.mcpc import minimal_indices, nominal_mcpc
+from selfcal.kinematics.tool_error import ToolErrorModel
+from selfcal.robot.definition import load_robot
+
+FREE = ("fx", "mu", "cx", "cy", "k1", "k2")
+SIGMA_PX = 0.2
+
+
+@pytest.fixture(scope="module")
+def setup():
+    """Five views of 12 points each, 0.3-0.5 m in front of the camera (the chain's tool) of the
+    nominal ER-4u, with a small estimation covariance, camera covariance and model error."""
+    robot = load_robot("er4u-paper")
+    model = nominal_mcpc(robot)
+    cols = minimal_indices(model.joint_types)
+    rng = np.random.default_rng(0)
+    A = rng.normal(size=(cols.size, cols.size)) * 2e-5
+    em = ToolErrorModel(model, np.eye(4), cols, A @ A.T, 2e-5, 2e-5, np.eye(4))
+    cam = camera_model("opencv", fx=800.0, mu=1.0, cx=320.0, cy=240.0, width=640, height=480,
+                       coeffs={"k1": -0.25, "k2": 0.1}, free=FREE)  # fmt: skip
+    q = rng.uniform(robot.limits[:, 0], robot.limits[:, 1], (5, robot.n)) * 0.5
+    T = fk_tool(model, q)
+    views = []
+    for i in range(len(q)):
+        x = np.c_[rng.uniform(-0.15, 0.15, (12, 2)), rng.uniform(0.3, 0.5, 12)]  # camera frame
+        X = x @ T[i, :3, :3].T + T[i, :3, 3]  # board (world) frame
+        uv = cam.project(x)
+        views.append(view_jacobians(em, cam, q[i], X, uv, eye_to_hand=False,
+                                    pixel_sigma_px=SIGMA_PX, joint_sigma_rad=None))  # fmt: skip
+    B = np.diag([0.3, 1e-4, 0.3, 0.3, 1e-3, 1e-3]) @ rng.normal(size=(len(FREE),) * 2) / 2.5
+    C = np.zeros((cols.size + len(FREE),) * 2)
+    C[: cols.size, : cols.size] = em.covariance
+    C[cols.size :, cols.size :] = B @ B.T
+    return em, cam, q, views, C
+
+
+def _with(views, r):
+    """The views with the stacked residuals ``r``."""
+    out, at = [], 0
+    for v in views:
+        out.append(dataclasses.replace(v, r=r[at : at + len(v.r)]))
+        at += len(v.r)
+    return out
+
+
+def test_the_views_predict_their_own_pixels(setup):
+    """Pixels projected through the calibrated chain leave no residual."""
+    _, _, _, views, _ = setup
+    assert max(np.abs(v.r).max() for v in views) < 1e-9
+
+
+def test_residuals_drawn_from_the_prediction_alarm_below_alpha(setup):
+    """Residuals with exactly the covariance the check assumes are called changed in at most
+    alpha of draws, and not far fewer (the combined test is conservative): alpha = 0.2 here,
+    so that 80 draws tell (0.13 over 600 draws)."""
+    _, _, _, views, C = setup
+    L = np.linalg.cholesky(_covariance(C, views))
+    rng = np.random.default_rng(1)
+    n, changed = 80, 0
+    for _ in range(n):
+        r = L @ rng.normal(size=len(L))
+        changed += image_drift_check(C, _with(views, r), eye_to_hand=False, alpha=0.2).changed
+    assert 0.04 <= changed / n <= 0.26
+
+
+def test_a_joint_offset_is_found_and_named(setup):
+    """0.05 deg on joint 4 (linearised) with the noise: changed, and joint 4 explains it."""
+    _, _, _, views, C = setup
+    rng = np.random.default_rng(2)
+    r = np.concatenate([v.joints[:, 3] * np.radians(0.05) + rng.normal(0, SIGMA_PX, len(v.r))
+                        for v in views])  # fmt: skip
+    res = image_drift_check(C, _with(views, r), eye_to_hand=False, camera_names=FREE)
+    assert res.changed and res.p_value < 1e-4
+    assert res.attribution is not None and "joint 4" in res.attribution.explaining
+    assert res.attribution.cause in (None, "joint")
+    assert "changed by" in res.line() and "joint 4's offset" in res.line()
+
+
+def test_a_lens_change_is_named_the_camera(setup):
+    """k1 up by 0.02 (no pose change mimics a distortion): changed, the camera named, 0 mm at
+    the tool."""
+    _, _, _, views, C = setup
+    rng = np.random.default_rng(3)
+    k1 = FREE.index("k1")
+    r = np.concatenate([v.cam[:, k1] * 0.02 + rng.normal(0, SIGMA_PX, len(v.r)) for v in views])
+    res = image_drift_check(C, _with(views, r), eye_to_hand=False, camera_names=FREE)
+    assert res.changed
+    assert res.attribution is not None and res.attribution.cause == "camera"
+    assert res.best == "camera" and res.change_mm == 0.0
+    assert res.to_json()["cause"]["cause"] == "camera"
+    assert "k1 +0.0" in res.line()
+
+
+def test_a_depth_change_and_a_focal_change_cannot_be_told_apart(setup):
+    """fx up by 3 px looks like the camera 1.5 mm nearer the points (0.3-0.5 m away): both
+    explain it, and the check says it cannot tell."""
+    _, _, _, views, C = setup
+    rng = np.random.default_rng(3)
+    r = np.concatenate([v.cam[:, 0] * 3.0 + rng.normal(0, SIGMA_PX, len(v.r)) for v in views])
+    res = image_drift_check(C, _with(views, r), eye_to_hand=False, camera_names=FREE)
+    assert res.changed and res.attribution is not None
+    assert res.attribution.cause is None
+    assert {"camera", "hand-eye"} <= set(res.attribution.explaining)
+    assert "cannot tell" in res.line()
+
+
+def test_no_view_is_refused(setup):
+    _, _, _, _, C = setup
+    with pytest.raises(InputError, match="no view of the board"):
+        image_drift_check(C, [], eye_to_hand=False)
+
+
+def test_check_refuses_other_calibrations_naming_the_file(tmp_path, capsys):
+    """A field calibration is refused (naming it and what is checked); a tracker calibration
+    needs --joint-units; a missing calibration is named."""
+    field = tmp_path / "field"
+    field.mkdir()
+    (field / "calibration.json").write_text(json.dumps({"format": "scorbot-selfcal-calibration"}))
+    assert selfcal(["check", str(field), str(tmp_path / "new")]) == 2
+    err = capsys.readouterr().err
+    assert str(field / "calibration.json") in err and "board calibration" in err
+    tracker = tmp_path / "tracker.json"
+    tracker.write_text(json.dumps({"format": "scorbot-selfcal-tracker-calibration"}))
+    assert selfcal(["check", str(tracker), str(tmp_path / "new.csv")]) == 2
+    assert "--joint-units is required" in capsys.readouterr().err
+    assert selfcal(["check", str(tmp_path / "nothing"), str(tmp_path / "new")]) == 2
+    assert "nothing" in capsys.readouterr().err
