@@ -79,6 +79,18 @@ class Fits:
     union_left: float
     union_rank: int
 
+    def nested_p(self, key: str, T: float) -> float:
+        """``P(chi2_{rank_all - rank_h} >= T_h - T_all)``: do all the candidates together fit
+        significantly better than ``key`` alone (``T`` the check's statistic)? 1 when ``key``
+        spans them."""
+        more = self.union_rank - self.rank[key]
+        return float(chi2.sf(T - self.drop[key] - self.union_left, more)) if more > 0 else 1.0
+
+    def best(self, T: float) -> str:
+        """The candidate that fits best: the largest :meth:`nested_p`, ties (all 0) broken by
+        how much it lowers ``T`` beyond its parameter count."""
+        return max(self.what, key=lambda k: (self.nested_p(k, T), self.drop[k] - self.rank[k]))
+
 
 def candidate_fits(white: Callable[[np.ndarray], np.ndarray], rw: np.ndarray,
                    views: list[ViewJacobians], *, eye_to_hand: bool) -> Fits:  # fmt: skip
@@ -127,9 +139,8 @@ def attribute(fits: Fits, T: float, dof: int, views: list[ViewJacobians], *,
     sizes: dict[str, str] = {}
     whole = chi2.sf(fits.union_left, dof - fits.union_rank) >= alpha
     for key in fits.what:
-        x, more = fits.x[key], fits.union_rank - fits.rank[key]
-        left = T - fits.drop[key]
-        p_values[key] = float(chi2.sf(left - fits.union_left, more)) if more > 0 else 1.0
+        x = fits.x[key]
+        p_values[key] = fits.nested_p(key, T)
         if key == "camera":  # the two parameters the fit moves most, in standard errors
             se = fits.se[key]
             top = np.argsort(-np.abs(x) / np.where(se > 0, se, np.inf))[:2]

@@ -26,8 +26,7 @@ offset, a mount) among ``2k`` (hundreds), so each candidate change of
 joint's offset) is also tested: how much its fit lowers ``T`` is chi-square with its parameter
 count. The robot has changed when the smallest of these ``1 + 3 + n`` p-values, times their
 count (Bonferroni), is below ``alpha`` (0.01): the false alarms stay below ``alpha``. The change at the tool: the RMS over the new postures of the tool point's
-(the flange's) move by the candidate change whose directed test is the most significant, fitted
-(0 when that is the camera). A single view's own best tool-point move is no measure of it: one
+(the flange's) move by the candidate change that fits best, fitted (0 when that is the camera). A single view's own best tool-point move is no measure of it: one
 view knows it poorly along its line of sight.
 
 What changed (:mod:`selfcal.calibration.drift.attribution`) is named only when one kind of
@@ -78,8 +77,8 @@ class ImageDriftCheck:
     Attributes:
         views, corners: what was compared; statistic, dof, p_value: the chi-square test;
         changed: ``p_value < alpha``; rms_px: the residuals' 2-D RMS; expected_rms_px: what
-        ``Sigma`` predicts for it; best: the candidate change whose directed test is the most
-        significant; change_mm: the RMS over the views of the tool point's move by it (0 for
+        ``Sigma`` predicts for it; best: the candidate change that fits best
+        (:meth:`selfcal.calibration.drift.attribution.Fits.best`); change_mm: the RMS over the views of the tool point's move by it (0 for
         the camera); mean_tip_mm: (3,) its mean (world frame); attribution: what changed, or
         None when unchanged.
     """
@@ -185,7 +184,7 @@ def image_drift_check(C: np.ndarray, views: list[ViewJacobians], *,
     tests = [chi2.sf(T, dof)] + [chi2.sf(fits.drop[k], fits.rank[k]) for k in fits.what
                                  if fits.rank[k] > 0]  # fmt: skip
     p = float(min(1.0, len(tests) * min(tests)))
-    best = min(fits.what, key=lambda k: chi2.sf(fits.drop[k], max(fits.rank[k], 1)))
+    best = fits.best(T)
     moves = tool_point_moves(best, fits.x[best], views)
     changed = p < alpha
     return ImageDriftCheck(
