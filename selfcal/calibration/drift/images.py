@@ -25,9 +25,12 @@ offset, a mount) among ``2k`` (hundreds), so each candidate change of
 :mod:`selfcal.calibration.drift.attribution` (the camera, the chain's tool mount, its world, one
 joint's offset) is also tested: how much its fit lowers ``T`` is chi-square with its parameter
 count. The robot has changed when the smallest of these ``1 + 3 + n`` p-values, times their
-count (Bonferroni), is below ``alpha`` (0.01): the false alarms stay below ``alpha``. The change at the tool: the RMS over the new postures of the tool point's
-(the flange's) move by the candidate change that fits best, fitted (0 when that is the camera). A single view's own best tool-point move is no measure of it: one
-view knows it poorly along its line of sight.
+count (Bonferroni), is below ``alpha`` (0.01): when ``Sigma`` is right, at most ``alpha`` of
+the checks of an unchanged robot say "changed".
+
+The change at the tool: the RMS over the new postures of the tool point's (the flange's) move
+by the candidate change that fits best, fitted (0 when that is the camera). A single view's own
+best tool-point move is no measure of it: one view knows it poorly along its line of sight.
 
 What changed (:mod:`selfcal.calibration.drift.attribution`) is named only when one kind of
 small change alone explains the residuals. Only the first camera is checked (a rig's other
