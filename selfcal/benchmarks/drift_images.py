@@ -13,8 +13,11 @@ offset by 0.05 deg. Reported: the share of checks that say "changed"
 below 2 % unchanged, at least 95 % changed) and, of the changed ones found, the share whose
 cause is named right (the hand-eye; the joint) and wrong (cannot tell: the rest).
 
+``--setup eye-to-hand``: the same on ``scenarios/eye-to-hand.toml`` (a static camera, the board
+on a UR5e's flange; the mount shift moves the board on the flange, analytic path).
+
 Run: ``nice -n 10 uv run python -m selfcal.benchmarks.drift_images [--calibrations 30]
-[--checks 10] [--jobs 1] [--write-docs]`` (rewrites the table in docs/tool-accuracy.md).
+[--checks 10] [--setup eye-in-hand eye-to-hand] [--jobs 1] [--write-docs]`` (rewrites the table in docs/tool-accuracy.md).
 """
 
 from __future__ import annotations
@@ -26,7 +29,7 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
-from selfcal.benchmarks.board_accuracy import simulated_calibration
+from selfcal.benchmarks.board_accuracy import SCENARIO, simulated_calibration
 from selfcal.benchmarks.doc_blocks import ROOT, print_table
 from selfcal.calibration.drift.images import (
     calibration_error_model,
@@ -34,6 +37,8 @@ from selfcal.calibration.drift.images import (
     estimate_covariance,
     image_drift_check,
 )
+from selfcal.config.scenario import scenarios_dir
+from selfcal.errors import InternalError
 from selfcal.io.target_toml import parse_target
 from selfcal.kinematics.forward import fk_tool
 from selfcal.sim.analytic import project_board
@@ -49,28 +54,35 @@ SPREAD_RAD = np.radians(10.0)
 DOC = ROOT / "docs" / "tool-accuracy.md"
 BLOCK = "benchmark_drift_images"
 KINDS = ("unchanged", "tool", "joint")
+SCENARIOS = {"eye-in-hand": SCENARIO, "eye-to-hand": scenarios_dir() / "eye-to-hand.toml"}
 
 
-def calibration_checks(args: tuple[float, int, int]) -> dict:
-    """One calibration (noise ``sigma_px``, ``seed``) checked ``checks`` times: per kind the
-    count of "changed" verdicts, and of the changes the causes named right and wrong."""
-    sigma_px, seed, checks = args
+def calibration_checks(args: tuple[float, int, int, str]) -> dict:
+    """One calibration (noise ``sigma_px``, ``seed``, ``setup``) checked ``checks`` times: per
+    kind the count of "changed" verdicts, and of the changes the causes named right and
+    wrong."""
+    sigma_px, seed, checks, setup = args
+    e2h = setup == "eye-to-hand"
     out: dict = {"status": "ok"} | {k: 0 for k in KINDS} | {"checks": 0}
     out |= {f"{k}_{w}": 0 for k in ("tool", "joint") for w in ("right", "wrong")}
     try:
-        cal, truth = simulated_calibration(sigma_px, seed, {"quantize_joints": False})
+        cal, truth = simulated_calibration(sigma_px, seed, {"quantize_joints": False},
+                                           scenario_file=SCENARIOS[setup])  # fmt: skip
         board = parse_target(cal.target, "calibration.json: target")
         assert isinstance(board, Board)
         em = calibration_error_model(cal, "calibration.json")
         C = estimate_covariance(cal, em)
-        camera, T_wb, true = truth.intrinsics_left, truth.T_world_board, truth.true_model
-        assert T_wb is not None
+        camera, true = truth.intrinsics_left, truth.true_model
+        board_doc = truth.board or {}
+        T_static = np.asarray(board_doc.get("T_world_cam" if e2h else "T_world_board"), float)
         q_cal = np.array([f.joints_rad for f in truth.frames])
         rng = np.random.default_rng(seed + 7000)
         n = true.n
 
-        def seen(T_world_cam: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
-            got = project_board(T_world_cam, camera, board, T_wb, pixel_sigma=sigma_px, rng=rng)
+        def seen(T_tool: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+            """The board's features seen with the chain's tool at ``T_tool`` (world frame)."""
+            T_cam, T_board = (T_static, T_tool) if e2h else (T_tool, T_static)
+            got = project_board(T_cam, camera, board, T_board, pixel_sigma=sigma_px, rng=rng)
             if not got:
                 return None
             ids = np.array(sorted(got))
@@ -83,7 +95,9 @@ def calibration_checks(args: tuple[float, int, int]) -> dict:
             shift[:3, 3] = TOOL_SHIFT_M * u / np.linalg.norm(u)
             joint = int(rng.integers(n))
             q_new = []
-            while len(q_new) < NEW_VIEWS:
+            for _ in range(10_000):
+                if len(q_new) == NEW_VIEWS:
+                    break
                 q = q_cal[rng.integers(len(q_cal))] + rng.uniform(-SPREAD_RAD, SPREAD_RAD, n)
                 q_off = q.copy()
                 q_off[joint] += JOINT_OFFSET_RAD
@@ -95,10 +109,12 @@ def calibration_checks(args: tuple[float, int, int]) -> dict:
                     assert g is not None
                     views[k].append((len(q_new), *g))
                 q_new.append(q)
+            if len(q_new) < NEW_VIEWS:
+                raise InternalError(f"no {NEW_VIEWS} postures near the calibration's see the board")
             qs = np.array(q_new)
             for k in KINDS:
                 res = image_drift_check(C, calibration_views(cal, em, qs, views[k]),
-                                        eye_to_hand=False, camera_names=cal.cameras[0].free)  # fmt: skip
+                                        eye_to_hand=e2h, camera_names=cal.cameras[0].free)  # fmt: skip
                 out[k] += res.changed
                 if k != "unchanged" and res.attribution is not None:
                     right = "hand-eye" if k == "tool" else f"joint {joint + 1}"
@@ -112,23 +128,25 @@ def calibration_checks(args: tuple[float, int, int]) -> dict:
         return {"status": f"failed: {type(exc).__name__}: {str(exc)[:200]}"}
 
 
-def run(calibrations: int = 30, checks: int = 10, noise_px=NOISE_PX, jobs: int = 1) -> list[dict]:
-    """One row per noise level over ``calibrations`` calibrations (``jobs`` processes)."""
+def run(calibrations: int = 30, checks: int = 10, noise_px=NOISE_PX, jobs: int = 1,
+        setups: tuple[str, ...] = tuple(SCENARIOS)) -> list[dict]:  # fmt: skip
+    """One row per setup and noise level over ``calibrations`` calibrations (``jobs``
+    processes)."""
     rows = []
-    for s in noise_px:
+    for setup, s in ((u, s) for u in setups for s in noise_px):
         t0 = time.perf_counter()
-        todo = [(s, seed, checks) for seed in range(1, calibrations + 1)]
+        todo = [(s, seed, checks, setup) for seed in range(1, calibrations + 1)]
         if jobs > 1:
             with ProcessPoolExecutor(max_workers=jobs) as pool:
                 got = list(pool.map(calibration_checks, todo))
         else:
             got = [calibration_checks(a) for a in todo]
         ok = [g for g in got if g["status"] == "ok"]
-        print(f"{s} px: {len(ok)}/{calibrations} calibrations in {time.perf_counter() - t0:.0f} s "
+        print(f"{setup} {s} px: {len(ok)}/{calibrations} calibrations in {time.perf_counter() - t0:.0f} s "
               + "; ".join(sorted({g['status'] for g in got} - {'ok'})), file=sys.stderr)  # fmt: skip
         total = {k: sum(g[k] for g in ok) for k in ok[0] if k != "status"} if ok else {}
         m = max(total.get("checks", 0), 1)
-        row = {"noise_px": s, "calibrations": len(ok), "failed": calibrations - len(ok),
+        row = {"setup": setup, "noise_px": s, "calibrations": len(ok), "failed": calibrations - len(ok),
                "checks": total.get("checks", 0)}  # fmt: skip
         row |= {k: total.get(k, 0) / m for k in KINDS}
         for k in ("tool", "joint"):
@@ -142,12 +160,12 @@ def run(calibrations: int = 30, checks: int = 10, noise_px=NOISE_PX, jobs: int =
 def table(rows: list[dict], checks: int) -> str:
     """The Markdown table of :func:`run`'s rows."""
     head = (
-        "| noise (px) | calibrations | checks | 'changed' on unchanged data (target < 2 %) | "
-        "0.2 mm camera shift found (target >= 95 %) | named hand-eye / wrong | 0.05 deg joint "
-        "offset found (target >= 95 %) | named the joint / wrong |\n|---|---|---|---|---|---|---|---|\n"
+        "| setup | noise (px) | calibrations | checks | 'changed' on unchanged data (target < 2 %) | "
+        "0.2 mm mount shift found (target >= 95 %) | named the mount / wrong | 0.05 deg joint "
+        "offset found (target >= 95 %) | named the joint / wrong |\n|---|---|---|---|---|---|---|---|---|\n"
     )
     lines = [
-        f"| {r['noise_px']:g} | {r['calibrations']} | {r['checks']} | "
+        f"| {r['setup']} | {r['noise_px']:g} | {r['calibrations']} | {r['checks']} | "
         f"{100 * r['unchanged']:.1f} % | {100 * r['tool']:.1f} % | "
         f"{100 * r['tool_right']:.0f} % / {100 * r['tool_wrong']:.0f} % | "
         f"{100 * r['joint']:.1f} % | {100 * r['joint_right']:.0f} % / "
@@ -159,7 +177,8 @@ def table(rows: list[dict], checks: int) -> str:
             f"calibrations failed in all), {NEW_VIEWS} new views per check, alpha = 0.01; "
             "named: of the changes found, the share whose cause the check named (right / "
             "wrong; the rest: cannot tell). `nice -n 10 uv run python -m "
-            "selfcal.benchmarks.drift_images --write-docs`.")  # fmt: skip
+            f"selfcal.benchmarks.drift_images --calibrations {rows[0]['calibrations'] + rows[0]['failed']} "
+            f"--setup {' '.join(dict.fromkeys(r['setup'] for r in rows))} --write-docs`.")  # fmt: skip
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -171,10 +190,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--noise-px", type=float, nargs="+", default=list(NOISE_PX),
                     help="pixel noise levels (default 0.05 0.2)")  # fmt: skip
     ap.add_argument("--jobs", type=int, default=1, help="processes (default 1)")
+    ap.add_argument("--setup", nargs="+", default=list(SCENARIOS), choices=tuple(SCENARIOS),
+                    help="camera setups (default both)")  # fmt: skip
     ap.add_argument("--write-docs", action="store_true",
                     help="rewrite the table in docs/tool-accuracy.md")  # fmt: skip
     args = ap.parse_args(argv)
-    rows = run(args.calibrations, args.checks, tuple(args.noise_px), args.jobs)
+    rows = run(args.calibrations, args.checks, tuple(args.noise_px), args.jobs, tuple(args.setup))
     return print_table(table(rows, args.checks), DOC, BLOCK, write=args.write_docs)
 
 
