@@ -43,6 +43,20 @@ def test_check_with_images_says_unchanged_or_changed(tmp_path, capsys):
     capsys.readouterr()
     assert main(["check", str(cal), str(new)]) == 0
     assert capsys.readouterr().out.startswith("unchanged: 6 new image(s)")
+    block = read_board_calibration(cal).accuracy
+    assert block is not None and np.shape(block["camera_cross_si"]) == (
+        len(block["estimated"]), 8)  # fmt: skip
+
+    old = tmp_path / "old"  # a file written before the camera covariance: its sigmas alone
+    shutil.copytree(cal, old)
+    doc = json.loads((old / "calibration.json").read_text())
+    del doc["accuracy"]["camera_covariance_si"], doc["accuracy"]["camera_cross_si"]
+    (old / "calibration.json").write_text(json.dumps(doc))
+    res = selfcal.check_images(old, new)
+    assert (
+        not res.changed
+        and res.expected_rms_px > 1.2 * selfcal.check_images(cal, new).expected_rms_px
+    )
 
     _offset_joint(new, tmp_path / "joint", 4, 0.3)  # joint 4 read 0.3 deg off
     assert main(["check", str(cal), str(tmp_path / "joint"), "--json"]) == EXIT_CHANGED
