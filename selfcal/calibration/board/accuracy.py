@@ -325,6 +325,7 @@ def board_accuracy(obs: BoardObservations, selection: Selection, cr: BoardCramer
     note = ("no cross-validation (the frames show one arm configuration): the covariance alone, "
             "which is optimistic when the model misfits")  # fmt: skip
     _, C, n0 = _full_covariance(cr)
+    C = C + pos**2 * _full_covariance(cr, misfit=True)[1]  # as `covariance_si` (the misfit's)
     p = len(C) - n0
     extra = {
         # the first camera's free parameters (its order) with their correlation to `estimated`:
