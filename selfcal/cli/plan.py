@@ -53,8 +53,8 @@ dataset's and the added ones (scenario.toml replays them).
 reflector at --tool-point on the flange) for `selfcal identify`: reachable and free of collision
 and the keep-out boxes (the tracker's line of sight is not checked), chosen to minimise the
 tracker route's predicted tool-point error over the workspace in the tracker frame (its
-covariance with the parameters its rank test keeps, noise --sigma-mm per coordinate, exact
-joints); PLAN/joints.csv (add the measured x_mm,y_mm,z_mm to each row for identify),
+covariance with the parameters its rank and conditioning tests keep, noise --sigma-mm per
+coordinate, exact joints); PLAN/joints.csv (add the measured x_mm,y_mm,z_mm to each row for identify),
 trajectory.yaml and plan.json. No camera, board or mount options.
 See docs/plan.md.
 """

@@ -86,7 +86,7 @@ def cmd_tracker(args: argparse.Namespace, deviation) -> int:
             "minimal_parameters": plan.parameters,
             "criterion": (
                 "tracker route (positions of the tool point, exact joints) covariance with the "
-                "parameters its rank test keeps, the others held at the drawing, deviating "
+                "parameters its rank and conditioning tests keep, the others held at the drawing, deviating "
                 f"uniformly within +-{args.deviation_mm:g} mm and +-{args.deviation_deg:g} deg: "
                 f"RMS of the tool point's position error over {len(plan.workspace)} random "
                 f"workspace postures in the tracker frame, tracker noise {args.sigma_mm:g} mm "

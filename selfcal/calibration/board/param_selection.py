@@ -68,6 +68,7 @@ __all__ = [
     "Candidate",
     "ParameterPool",
     "Selection",
+    "ColumnSpan",
     "configurations",
     "determined",
     "determined_each",
@@ -139,7 +140,7 @@ def _offset_name(j: int) -> str:
     return f"offset_j{j + 1}"
 
 
-class _Span:
+class ColumnSpan:
     """The rank and conditioning test of step 1 over the columns of ``R`` (the triangular
     factor of the scaled identification Jacobian): :meth:`offer` accepts a column when its part
     outside the span of those accepted before is large enough, else gives the reason."""
@@ -206,7 +207,7 @@ def parameter_pool(model: MCPCModel, q: np.ndarray, terms: Sequence[Term] = ()) 
     n_rev = kinds.count("offset")
     groups = [range(n_place), range(n_place, n_place + n_rev)]
     rest = list(range(n_place + n_rev, len(names)))
-    span = _Span(R)
+    span = ColumnSpan(R)
     order: list[tuple[str, str, int]] = []
     held: dict[str, str] = {}
     counts = []
@@ -249,7 +250,7 @@ def determined_each(model: MCPCModel, q: np.ndarray, names: Sequence[tuple[str, 
     at = {nm: k for k, nm in enumerate(all_names)}
     out = []
     for group in names:
-        span = _Span(R)
+        span = ColumnSpan(R)
         out.append({nm: why for nm in group if (why := span.offer(at[nm])) is not None})
     return out
 

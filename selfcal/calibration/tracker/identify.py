@@ -20,6 +20,8 @@ Steps:
    (:func:`selfcal.kinematics.identifiability.select_identifiable`, pivoted QR when that does not reproduce the
    SVD rank). Positions alone cannot see the orientation of the tool frame: three parameters of
    ``V_n`` come out unidentifiable, numerically. Distances alone cannot see the tracker frame.
+   A kept parameter whose column adds less than 1e-3 of itself to the span of those before it
+   is held for conditioning (:func:`conditioned`, the board route's test).
 3. Too few measurements: the count of parameters these kinds of measurement identify on this
    chain (the rank at well-spread random configurations) must be below the number of equations;
    otherwise :class:`TrackerIdentificationError` says how many rows are needed. When the data
@@ -28,7 +30,9 @@ Steps:
    which these configurations miss).
 4. Levenberg-Marquardt of the one solver (:func:`selfcal.solver.solve`) on the identifiable set,
    the rest held at nominal (their Jacobian columns are never formed); standard deviations ``sigma0^2 (J^T J)^-1`` with the a-posteriori
-   ``sigma0`` (1 when the stated sigmas are right).
+   ``sigma0`` (1 when the stated sigmas are right). A solve that does not converge raises, saying
+   the estimator failed; it blames the data's pairing or units only when the placed nominal
+   misses them by more than :data:`PAIRING_RMS_MM`.
 
 Units: SI inside; result fields ending in ``_mm`` / ``_deg`` are for reports.
 """
@@ -40,6 +44,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from selfcal.calibration.board.param_selection import ColumnSpan
 from selfcal.calibration.identify import IdentificationWarning
 from selfcal.errors import EstimationError, InputError
 from selfcal.estimation.tracker import (
@@ -66,9 +71,16 @@ __all__ = [
     "TrackerIdentificationError",
     "initial_placement",
     "priority_order",
+    "conditioned",
     "identify_tracker",
     "tracker_terms",
 ]
+
+
+PAIRING_RMS_MM = 10.0
+"""RMS miss (mm) of the nominal chain placed in the tracker frame above which a failed solve is
+blamed on the data's pairing or units: an arm within its drawing's tolerance (a millimetre, half
+a degree per parameter) misses by a few millimetres at most."""
 
 
 class TrackerIdentificationError(EstimationError):
@@ -136,17 +148,33 @@ def _numerical_rank(A: np.ndarray, rank_rtol: float) -> int:
     return int(np.sum(s > rank_rtol * s[0])) if s.size else 0
 
 
+def conditioned(A: np.ndarray, order: np.ndarray, keep: np.ndarray) -> dict[int, str | None]:
+    """The conditioning test of the columns ``keep`` (k,) bool of ``A`` (e.g. those the rank
+    test keeps), offered in ``order``: column -> None when kept, else why not. The board
+    route's test (:class:`selfcal.calibration.board.param_selection.ColumnSpan`): a column whose
+    part outside the span of those accepted before is below ``COND_TOL`` (1e-3) would
+    multiply its parameter's variance by more than 1e6; it is determined by a lever the noise
+    can create (the UR5e's fifth-link lengths, seen only through a start's tool point a few
+    hundredths of a millimetre off the last axis)."""
+    span = ColumnSpan(A)
+    return {int(k): span.offer(int(k)) for k in order if keep[k]}
+
+
 def _select(
     model: MCPCModel, A: np.ndarray, cons: np.ndarray, rank_rtol: float
-) -> tuple[np.ndarray, int]:
+) -> tuple[np.ndarray, int, dict[int, str | None]]:
     """Mask (over the minimal set) of the columns of ``A`` (the minimal parameters ``cons``)
-    kept when they are offered in :func:`priority_order`, and the rank of ``A``."""
+    kept by the rank test when they are offered in :func:`priority_order`, the rank of ``A``,
+    and the conditioning test of those (:func:`conditioned`; minimal position -> None or why
+    it is held)."""
     pos = {k: i for i, k in enumerate(cons)}
     order = np.array([pos[k] for k in priority_order(model.joint_types) if k in pos], int)
     keep, rank, _ = select_identifiable(A, order, rank_rtol)
     mask = np.zeros(minimal_indices(model.joint_types).size, bool)
     mask[cons[keep]] = True
-    return mask, rank
+    reasons = conditioned(A, order, keep)
+    cond = {int(cons[k]): why for k, why in reasons.items()}
+    return mask, rank, cond
 
 
 def _spread(model: MCPCModel, meas: TrackerMeasurements, p: int) -> TrackerMeasurements:
@@ -173,6 +201,41 @@ def _spread(model: MCPCModel, meas: TrackerMeasurements, p: int) -> TrackerMeasu
         q_a=draw(rows) if meas.k else None,
         q_b=draw(rows) if meas.k else None,
         d=np.ones(rows) if meas.k else None,
+    )
+
+
+def _start_rms_mm(prob: Problem, blocks: list) -> float:
+    """RMS (mm) of the position (else distance) residuals at the problem's start: the nominal
+    chain placed in the tracker frame with its fitted tool point."""
+    ev = prob.evaluate(prob.x0)
+    r = ev[0].residuals / np.reshape(blocks[0].w, (len(blocks[0].w), -1))
+    if isinstance(blocks[0], TrackerDistanceBlock):
+        return float(np.sqrt(np.mean(r**2))) * 1e3
+    return float(np.sqrt(np.mean(np.sum(r[:, :3] ** 2, axis=1)))) * 1e3
+
+
+def _no_convergence(
+    prob: Problem, blocks: list, message: str, iterations: int, names, mask: np.ndarray
+) -> None:
+    """Raise the error of a solve that did not converge: the estimator's failure, unless the
+    placed nominal misses the data by more than :data:`PAIRING_RMS_MM` (then the data's
+    pairing or units are the likely cause, and the message shows why)."""
+    rms = _start_rms_mm(prob, blocks)
+    tried = (f"Levenberg-Marquardt on {int(mask.sum())} of {len(names)} parameters "
+             f"did not converge in {iterations} iterations ({message})")  # fmt: skip
+    if rms > PAIRING_RMS_MM:
+        raise TrackerIdentificationError(
+            f"{tried}; the nominal chain placed in the tracker frame misses the measurements "
+            f"by {rms:.3g} mm RMS (more than {PAIRING_RMS_MM:g} mm: not an arm within its "
+            "drawing's tolerance)",
+            fix="check the joint/measurement pairing (one row per rest), the units "
+            "(--joint-units, positions in mm) and the robot file",
+        )
+    raise TrackerIdentificationError(
+        f"the estimator failed: {tried}; the data look consistent (the placed nominal chain "
+        f"misses them by {rms:.3g} mm RMS, within {PAIRING_RMS_MM:g} mm)",
+        fix="hold the least determined parameters (--hold NAME,...) or add well-spread "
+        "postures (selfcal plan --measure tracker); please report it with the data",
     )
 
 
@@ -321,7 +384,7 @@ def identify_tracker(
             f"(more than {p_struct} equations), better 3 times that",
             fix=f"measure at least {need} well-spread configurations that move every joint",
         )
-    mask, rank = _select(start, _scaled_factor(start, local, sig, cons), cons, rank_rtol)
+    mask, rank, cond = _select(start, _scaled_factor(start, local, sig, cons), cons, rank_rtol)
     # Data that reach the structural rank keep the structural set: a structural dependency
     # holds at every configuration, so the ordered selection rejects the same columns. Only
     # poorly excited data need the selection at the well-spread configurations to tell the
@@ -343,6 +406,10 @@ def identify_tracker(
         warnings.warn(text, IdentificationWarning, stacklevel=2)
     for nm in lost:
         held_reason[nm] = "unidentifiable from this data"
+    for k, why in cond.items():
+        if why is not None:
+            held_reason[names[k]] = why
+            mask[k] = False
 
     # 4. estimation
     # the chain's unknowns are the estimated parameters alone (the held ones are constants of
@@ -355,10 +422,7 @@ def identify_tracker(
     prob = Problem([ParameterBlock("mcpc", start.params.reshape(-1)[est_flat])], blocks)
     sol = solve(prob, SolverOptions(tol=tol, max_iterations=max_iterations))
     if not sol.converged:
-        raise TrackerIdentificationError(
-            f"no convergence in {max_iterations} iterations ({sol.message})",
-            fix="check the joint/measurement pairing and the units (--joint-units)",
-        )
+        _no_convergence(prob, blocks, sol.message, max_iterations, names, mask)
     fit = layout.chain(sol.values)
     J = _dense_jacobian(blocks, sol.values, np.arange(est_flat.size))
     dof = max(J.shape[0] - J.shape[1], 1)

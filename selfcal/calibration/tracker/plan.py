@@ -21,11 +21,11 @@ in the tracker frame (no alignment: the tracker route's accuracy is stated in th
 frame, :mod:`selfcal.calibration.tracker.accuracy`), ``sqrt(trace(G C))`` with
 ``G = mean_w J_w^T J_w``. The greedy choice and the ordering are the board plan's
 (:func:`selfcal.calibration.board.plan.select_greedy`, :func:`~selfcal.calibration.board.plan.order_path`).
-The prediction of the chosen postures keeps the parameters the route's rank test keeps at them
-(:func:`kept_by_rank`: offered in :func:`selfcal.calibration.tracker.identify.priority_order`,
-the route's rank tolerance), every other one held at the drawing and erring by the arm's
-deviation from it (:func:`selfcal.calibration.board.plan_predict.predicted_with_held`, no
-camera parameters). Positions never see the tool frame's orientation (three angles of ``V_n``):
+The prediction of the chosen postures keeps the parameters the route's rank and conditioning
+tests keep at them (:func:`kept_by_rank`: offered in
+:func:`selfcal.calibration.tracker.identify.priority_order`, the route's rank tolerance and
+conditioning test), every other one held at the drawing and erring by the arm's deviation from
+it (:func:`selfcal.calibration.board.plan_predict.predicted_with_held`, no camera parameters). Positions never see the tool frame's orientation (three angles of ``V_n``):
 those are held and move no tool point. Units: SI inside.
 """
 
@@ -42,7 +42,7 @@ from selfcal.calibration.board.plan import (
     workspace_sample,
 )
 from selfcal.calibration.board.plan_predict import Deviation, predicted_with_held
-from selfcal.calibration.tracker.identify import priority_order
+from selfcal.calibration.tracker.identify import conditioned, priority_order
 from selfcal.kinematics.forward import fk_tool, identification_jacobian
 from selfcal.kinematics.identifiability import select_identifiable, triangular_factor
 from selfcal.kinematics.mcpc import MCPCModel, minimal_indices, nominal_mcpc
@@ -106,13 +106,16 @@ def posture_information(setup: TrackerPlanSetup, q: np.ndarray) -> np.ndarray:
 
 
 def kept_by_rank(setup: TrackerPlanSetup, q: np.ndarray) -> np.ndarray:
-    """(k,) bool: the minimal parameters the tracker route's rank test keeps at the postures
-    ``q`` (m, n) rad (module docstring)."""
+    """(k,) bool: the minimal parameters the tracker route's rank and conditioning tests keep
+    at the postures ``q`` (m, n) rad (module docstring)."""
     J = position_jacobian(setup.model, q).reshape(-1, minimal_indices(setup.model.joint_types).size)
     col = np.linalg.norm(J, axis=0)
     col = np.where(col > 1e-10 * col.max(initial=0.0), col, np.inf)
     A = triangular_factor(J / col)
-    keep, _, _ = select_identifiable(A, priority_order(setup.model.joint_types), RANK_RTOL)
+    order = priority_order(setup.model.joint_types)
+    keep, _, _ = select_identifiable(A, order, RANK_RTOL)
+    held = [k for k, why in conditioned(A, order, keep).items() if why is not None]
+    keep[held] = False
     return keep
 
 
