@@ -228,7 +228,8 @@ def cmd_identify(args: argparse.Namespace) -> int:
         print(f"distance RMS {res.rms_distance_mm:.4f} mm over {meas.k} distances (nominal "
               f"{fair.rms_distance_mm:.4f} mm)")  # fmt: skip
     print(
-        f"{kinds}: rank {res.rank}/{res.n_params}, condition number {res.condition_number:.3g}, "
+        f"{kinds}: rank {res.rank}/{res.n_params} ({int(res.estimated.sum())} estimated), "
+        f"condition number {res.condition_number:.3g}, "
         f"sigma0 {res.sigma0:.3g} (1 when --sigma-mm is the noise)"
     )
     held = ", ".join(f"{k} ({v})" for k, v in res.held_reason.items()) or "none"
