@@ -188,6 +188,17 @@ def test_the_docs_eye_to_hand_line_is_what_the_command_prints(tmp_path, capsys):
     line = capsys.readouterr().out.strip()
     assert line in page
     assert "--mount eye-to-hand --camera-pose -1062,-133,613,-90,0,-90 --count 12" in page
+    # its replay's two validation figures (unaligned, and the plan's quantity) and prediction
+    assert main(["run", str(tmp_path / "plan/scenario.toml"), "--out", str(tmp_path / "run"),
+                 "--quiet"]) == 0  # fmt: skip
+    run = capsys.readouterr().out
+    words = run[run.index("board pose on ") : run.index(" at its edge")].rsplit(", ", 1)[0]
+    assert "base -> camera left out" in words and words in page, words
+    rep = json.loads((tmp_path / "run/report.json").read_text())
+    rot = np.linalg.norm(rep["mounts"][0]["error"]["rotation_deg"])
+    z = max(m["max_abs_z"] for m in rep["mounts"])
+    flat = " ".join(page.split())
+    assert f"base -> camera is {rot:.2f} deg off the truth, the mounts within {z:.2f} sigma" in flat
 
 
 def test_tracker_plan_files_parse(tmp_path, capsys):
