@@ -56,7 +56,12 @@ from selfcal.plots.job_figures import reprojection_figure, write_figure
 from selfcal.robot.definition import RobotDef, load_robot
 from selfcal.transforms import inv_pose
 
+PREDICTED_WHERE = "in the camera frame, base -> camera's uncertainty in it"
+"""What the eye-to-hand report's predicted tool-point accuracy is, said beside it: the flange in
+the camera frame (the world of the inverted chain), unlike the plan's and the aligned figure."""
+
 __all__ = [
+    "PREDICTED_WHERE",
     "calibrate_and_report_static",
     "flange_centre_errors",
     "static_truth_report",
@@ -211,7 +216,11 @@ def write_static_truth_report(root: Path, cal: BoardCalibrationResult, truth: Tr
     md = _markdown(report)
     if section is not None:  # the predicted tool-point accuracy (issue #29)
         report["accuracy"] = section
-        md += "\n".join(accuracy_markdown(section)) + "\n"
+        acc = accuracy_markdown(section)  # its heading, the line, then the table
+        acc[4:4] = ["", f"The prediction is {PREDICTED_WHERE}: compare it with the unaligned "
+                    "board pose above, not with the flange centre after alignment nor with "
+                    "`selfcal plan`'s figure, which leave base -> camera out."]  # fmt: skip
+        md += "\n".join(acc) + "\n"
     report["figures"] = [str(p.relative_to(root)) for p in drawn + maps]
     write_report(root / "report.json", report)
     write_text_atomic(root / "report.md", md)
@@ -222,7 +231,7 @@ def static_summary(rep: dict, root: Path) -> str:
     """One line on the report: camera and mount z, the validation board poses, and the predicted
     tool-point accuracy with the cross-validated reprojection when the report has them."""
     acc = rep.get("accuracy")
-    tool = "" if not acc else f"; predicted: {accuracy_summary(acc)}"
+    tool = "" if not acc else f"; predicted {PREDICTED_WHERE}: {accuracy_summary(acc)}"
     zc = [abs(c["z"]) for c in rep["camera"].values() if c["z"] is not None]
     zm = [m["max_abs_z"] for m in rep["mounts"] if m["max_abs_z"] is not None]
     v = rep["validation"]["board_pose_in_camera"]

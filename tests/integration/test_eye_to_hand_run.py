@@ -22,6 +22,7 @@ from selfcal.config.scenario import load_scenario
 from selfcal.io.board_calibration import read_board_calibration
 from selfcal.io.dataset import Dataset
 from selfcal.pipeline.run import report_summary, run_all
+from selfcal.pipeline.static_report import PREDICTED_WHERE
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -59,7 +60,11 @@ def test_the_eye_to_hand_report_gives_the_predicted_accuracy_as_the_board_report
     assert "## Predicted tool-point accuracy" in md and acc["line"] in md
     assert "## Cross-validated reprojection" in md
     line = report_summary(rep, rendered)
-    assert f"; predicted: {acc['line']}; cross-validated RMS over the held-out corners: " in line
+    assert (
+        f"; predicted {PREDICTED_WHERE}: {acc['line']}; cross-validated RMS over the held-out corners: "
+        in line
+    )
+    assert f"The prediction is {PREDICTED_WHERE}: " in md
     assert "against the fair nominal's " in line and line.startswith("eye-to-hand: ")
 
 

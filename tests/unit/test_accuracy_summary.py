@@ -7,7 +7,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from selfcal.pipeline.report_text import report_summary
-from selfcal.pipeline.static_report import static_summary
+from selfcal.pipeline.static_report import PREDICTED_WHERE, static_summary
 
 LINE = "tool point within 0.412 mm (95 %) inside the calibrated region, 0.807 mm at its edge"
 CV = {
@@ -54,7 +54,7 @@ def test_without_a_cross_validation_the_line_is_the_prediction_alone():
 def test_the_eye_to_hand_run_prints_the_prediction_and_the_cross_validation():
     line = static_summary(_eye_to_hand({"line": LINE, "cross_validation": CV}), Path("run"))
     assert line.startswith("eye-to-hand: camera parameters within 1.20 sigma")
-    assert f"; predicted: {LINE}; {WORDS}; details in run/report.md" in line
+    assert f"; predicted {PREDICTED_WHERE}: {LINE}; {WORDS}; details in run/report.md" in line
 
 
 def test_the_eye_to_hand_line_of_a_report_without_the_block_is_unchanged():
