@@ -77,3 +77,19 @@ def test_failed_solve_on_mispaired_rows_names_the_pairing():
     with pytest.raises(TrackerIdentificationError, match="misses the measurements by") as info:
         identify_tracker(model, bad, max_iterations=1)
     assert "pairing" in info.value.fix
+
+
+def test_the_fair_nominal_blames_the_pairing_only_when_the_placed_nominal_misses():
+    # Before: a fair nominal that did not converge always told the user to check the pairing
+    # and the units, consistent data or not.
+    from selfcal.calibration.tracker.nominal import fit_nominal
+    from selfcal.errors import EstimationError
+
+    model, meas = _measurements(0)
+    with pytest.raises(EstimationError, match="the estimator failed") as info:
+        fit_nominal(model, meas, max_iterations=1)
+    assert "pairing" not in str(info.value) + str(info.value.fix)
+    bad = TrackerMeasurements(q=np.radians(meas.q), xyz=meas.xyz)  # radians read as degrees
+    with pytest.raises(EstimationError, match="misses the measurements by") as info:
+        fit_nominal(model, bad, max_iterations=1)
+    assert "pairing" in info.value.fix

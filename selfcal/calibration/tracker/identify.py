@@ -204,7 +204,7 @@ def _spread(model: MCPCModel, meas: TrackerMeasurements, p: int) -> TrackerMeasu
     )
 
 
-def _start_rms_mm(prob: Problem, blocks: list) -> float:
+def placed_miss_mm(prob: Problem, blocks: list) -> float:
     """RMS (mm) of the position (else distance) residuals at the problem's start: the nominal
     chain placed in the tracker frame with its fitted tool point."""
     ev = prob.evaluate(prob.x0)
@@ -220,7 +220,7 @@ def _no_convergence(
     """Raise the error of a solve that did not converge: the estimator's failure, unless the
     placed nominal misses the data by more than :data:`PAIRING_RMS_MM` (then the data's
     pairing or units are the likely cause, and the message shows why)."""
-    rms = _start_rms_mm(prob, blocks)
+    rms = placed_miss_mm(prob, blocks)
     tried = (f"Levenberg-Marquardt on {int(mask.sum())} of {len(names)} parameters "
              f"did not converge in {iterations} iterations ({message})")  # fmt: skip
     if rms > PAIRING_RMS_MM:
