@@ -51,3 +51,15 @@ def test_a_shift_is_changed_and_bad_rows_are_refused(setup):
     assert "changed by" in res.line()
     with pytest.raises(InputError, match="one measured position per joint row"):
         drift_check(em, q, xyz[:3], 1e-4)
+
+
+def test_a_tail_that_underflows_prints_as_a_bound_not_p_zero():
+    # Before: a chi-square tail that underflowed printed "p = 0 < 0.01", an impossible certainty.
+    from selfcal.calibration.drift.p_value import p_text
+    from selfcal.calibration.tracker.drift import DriftCheck
+
+    assert p_text(0.0) == "p < 1e-15" and p_text(3e-16) == "p < 1e-15"
+    assert p_text(0.0023) == "p = 0.0023" and p_text(1e-15) == "p = 1e-15"
+    check = DriftCheck(rows=5, statistic=900.0, dof=15, p_value=0.0, changed=True, rms_mm=2.0,
+                       expected_rms_mm=0.1, change_mm=1.9, mean_mm=np.zeros(3), alpha=0.01)  # fmt: skip
+    assert "p < 1e-15 < 0.01" in check.line() and "p = 0" not in check.line()

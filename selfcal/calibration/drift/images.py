@@ -50,6 +50,7 @@ from scipy.stats import chi2
 from selfcal.calibration.board.accuracy import board_error_model_from_json
 from selfcal.calibration.board.evaluate import held_out_views
 from selfcal.calibration.drift.attribution import Attribution, attribute, candidate_fits
+from selfcal.calibration.drift.p_value import p_text
 from selfcal.calibration.drift.views import ViewJacobians, view_jacobians
 from selfcal.errors import InputError
 from selfcal.io.board_calibration import (
@@ -106,11 +107,11 @@ class ImageDriftCheck:
         if self.changed:
             out = (f"changed by {self.change_mm:.3f} mm at the tool point (the flange, as the "
                    f"best single change, {self.best}, fits it; {what}: {self.rms_px:.3f} px "
-                   f"RMS against the predicted {self.expected_rms_px:.3f} px; p = "
-                   f"{self.p_value:.2g} < {self.alpha:g})")  # fmt: skip
+                   f"RMS against the predicted {self.expected_rms_px:.3f} px; "
+                   f"{p_text(self.p_value)} < {self.alpha:g})")  # fmt: skip
             return out if self.attribution is None else f"{out}; {self.attribution.line()}"
         return (f"unchanged: {what} within the calibration's prediction ({self.rms_px:.3f} px "
-                f"RMS, predicted {self.expected_rms_px:.3f} px; p = {self.p_value:.2g})")  # fmt: skip
+                f"RMS, predicted {self.expected_rms_px:.3f} px; {p_text(self.p_value)})")  # fmt: skip
 
     def to_json(self) -> dict:
         """The result as JSON (px, mm)."""

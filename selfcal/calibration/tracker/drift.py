@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 from scipy.stats import chi2
 
+from selfcal.calibration.drift.p_value import p_text
 from selfcal.calibration.tracker.accuracy import error_model_from_json
 from selfcal.calibration.tracker.calibration_file import (
     is_tracker_calibration,
@@ -72,13 +73,13 @@ class DriftCheck:
         if self.changed:
             return (
                 f"changed by {self.change_mm:.3f} mm at the tool (RMS over {self.rows} new rows "
-                f"beyond the predicted {self.expected_rms_mm:.3f} mm; p = {self.p_value:.2g} < "
+                f"beyond the predicted {self.expected_rms_mm:.3f} mm; {p_text(self.p_value)} < "
                 f"{self.alpha:g})"
             )
         return (
             f"unchanged: {self.rows} new rows within the calibration's prediction "
-            f"({self.rms_mm:.3f} mm RMS, predicted {self.expected_rms_mm:.3f} mm; p = "
-            f"{self.p_value:.2g})"
+            f"({self.rms_mm:.3f} mm RMS, predicted {self.expected_rms_mm:.3f} mm; "
+            f"{p_text(self.p_value)})"
         )
 
     def to_json(self) -> dict:
