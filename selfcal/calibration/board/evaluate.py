@@ -209,9 +209,9 @@ def held_out_views(cal: BoardCalibrationResult, root: str | Path,
     without the board.
 
     Raises:
-        InputError: the datasets' robot, target or cameras do not match the calibration's (a
-            camera the calibration does not hold, another image size), or no image shows the
-            board.
+        InputError: the datasets' robot (its model's name or joint count), target or cameras do
+            not match the calibration's (a camera the calibration does not hold, another image
+            size), or no image shows the board.
     """
     ds = Dataset.open(root)
     board = dataset_board(ds)
@@ -237,6 +237,12 @@ def held_out_views(cal: BoardCalibrationResult, root: str | Path,
                 f"calibration's {(camera.width, camera.height)}",
                 fix="use images of the calibrated camera at its size",
             )
+    robots = (ds.info.robot_model, cal.robot_model)
+    if robots[0] != robots[1] and not any(Path(r).suffix in (".toml", ".urdf") for r in robots):
+        raise InputError(f"{ds.root}: a dataset of robot {robots[0]!r}, the calibration's is "
+                         f"{robots[1]!r} (another chain: its joints predict other poses)",
+                         fix="use a dataset of the calibrated robot (or set robot_model in "
+                         f"its dataset.json to {robots[1]!r} if the same arm took it)")  # fmt: skip
     n = len(cal.model.joint_types)
     if ds.joints_deg.shape[1] != n:
         raise InputError(f"{ds.root}: {ds.joints_deg.shape[1]} joints, the calibration's robot "
