@@ -63,6 +63,13 @@ def cmd_check(args: argparse.Namespace) -> int:
     elif calibration_kind(path) == "board":
         from selfcal.calibration.drift.images import check_images
 
+        given = [o for o, v in (("--joint-units", args.joint_units),
+                                ("--trust-units", args.trust_units)) if v]  # fmt: skip
+        if given:
+            raise CliError(f"{path} is a board calibration, checked without {' and '.join(given)}"
+                           " (the tracker route's options; a dataset's joints.csv names its "
+                           "units)",
+                           fix=f"drop {' and '.join(given)}")  # fmt: skip
         res = check_images(path, args.new_data, alpha=args.alpha)
     else:
         raise CliError(

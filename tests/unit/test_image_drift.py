@@ -16,6 +16,7 @@ from selfcal.calibration.drift.views import view_jacobians
 from selfcal.camera import camera_model
 from selfcal.cli.main import main as selfcal
 from selfcal.errors import InputError
+from selfcal.io.board_calibration import FORMAT as BOARD_FORMAT
 from selfcal.kinematics.forward import fk_tool
 from selfcal.kinematics.mcpc import minimal_indices, nominal_mcpc
 from selfcal.kinematics.tool_error import ToolErrorModel
@@ -149,3 +150,20 @@ def test_check_refuses_other_calibrations_naming_the_file(tmp_path, capsys):
     assert "--joint-units is required" in capsys.readouterr().err
     assert selfcal(["check", str(tmp_path / "nothing"), str(tmp_path / "new")]) == 2
     assert "nothing" in capsys.readouterr().err
+
+
+def test_check_refuses_tracker_options_on_a_board_calibration(tmp_path, capsys):
+    """--joint-units and --trust-units are the tracker route's: on a board calibration they
+    were ignored in silence (its dataset's joints.csv names its units)."""
+    board = tmp_path / "board"
+    board.mkdir()
+    (board / "calibration.json").write_text(json.dumps({"format": BOARD_FORMAT}))
+    args = ["check", str(board), str(tmp_path / "new"), "--joint-units", "rad"]
+    assert selfcal(args) == 2
+    err = capsys.readouterr().err
+    assert (
+        "is a board calibration, checked without --joint-units (" in err
+        and "drop --joint-units" in err
+    )
+    assert selfcal([*args, "--trust-units"]) == 2
+    assert "drop --joint-units and --trust-units" in capsys.readouterr().err
