@@ -1,4 +1,4 @@
-"""A dataset of another robot is refused before a board calibration predicts its images
+"""A dataset of another robot (or without the checked camera) is refused before a board calibration predicts its images
 (``selfcal check`` and ``selfcal evaluate`` through :func:`held_out_views`): the ER-4u's two
 models have five joints each, and the check compared an er4u-vendor dataset with an er4u-paper
 calibration, printing 2.4e6 px RMS as a change of the camera."""
@@ -40,3 +40,15 @@ def test_a_dataset_of_another_robot_is_refused_naming_both(tmp_path, robot):
                                model=SimpleNamespace(joint_types=(0,) * 5))  # fmt: skip
     with pytest.raises(InputError, match=f"robot '{robot}', the calibration's is 'er4u-paper'"):
         held_out_views(cal, tmp_path / "new")
+
+
+def test_a_dataset_without_the_checked_camera_is_named(tmp_path):
+    """A rig's calibration is checked on its first camera: a dataset of the second camera alone
+    said 'no image shows the board' (it has images of the board, none of that camera)."""
+    _dataset(tmp_path / "new", "er4u-paper")
+    cal: Any = SimpleNamespace(target=BOARD, camera_names=("right", "left"),
+                               cameras=(SimpleNamespace(width=640, height=480),) * 2,
+                               robot_model="er4u-paper", setup="eye-in-hand",
+                               model=SimpleNamespace(joint_types=(0,) * 5))  # fmt: skip
+    with pytest.raises(InputError, match="no images of camera right .the dataset's cameras: left"):
+        held_out_views(cal, tmp_path / "new", cameras=("right",))

@@ -252,6 +252,11 @@ def held_out_views(cal: BoardCalibrationResult, root: str | Path,
                          f"{cal.setup}", fix="use images of the calibrated cell "
                          "(the camera on the flange or static as calibrated)")  # fmt: skip
     names = tuple(c for c in ds.info.cameras if cameras is None or c in cameras)
+    if not names:
+        raise InputError(f"{ds.root}: no images of camera {' or '.join(cameras or ())} (the "
+                         f"dataset's cameras: {', '.join(ds.info.cameras)})",
+                         fix="give images of the calibration's first camera under its name "
+                         "(the check compares that camera's images)")  # fmt: skip
     detected = {c: detect_board(ds, board, c) for c in names}
     views, skipped = [], []
     for f in range(len(ds.indices)):
