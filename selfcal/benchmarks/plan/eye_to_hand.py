@@ -53,15 +53,13 @@ def achieved(setup, q: np.ndarray, qw: np.ndarray, seed: int, folder: Path) -> f
     (m, n) rad for the truth and noise of ``seed`` (module docstring), acquired in a temporary
     folder under ``folder``; NaN when the calibration fails."""
     from selfcal.calibration.board.dataset import calibrate_board_dataset
-    from selfcal.calibration.board.mounts import flange_to_tool
     from selfcal.cli.main import main as selfcal
     from selfcal.cli.plan import scenario_text
     from selfcal.errors import SelfCalError
     from selfcal.io.atomic import write_text_atomic
     from selfcal.io.plan_files import joints_csv
     from selfcal.io.truth import read_truth
-    from selfcal.kinematics.accuracy import aligned_errors
-    from selfcal.kinematics.forward import fk_tool
+    from selfcal.pipeline.static_report import flange_centre_errors
     from selfcal.robot.definition import models_dir
     from selfcal.transforms import inv_pose
 
@@ -84,9 +82,8 @@ def achieved(setup, q: np.ndarray, qw: np.ndarray, seed: int, folder: Path) -> f
         truth = read_truth(root / "run/truth.json")
     assert truth.board is not None
     true_chain = truth.true_model.with_base(inv_pose(np.asarray(truth.board["T_world_cam"])))
-    p_true = fk_tool(true_chain, qw) @ inv_pose(np.asarray(truth.board["T_flange_board"]))
-    p_est = fk_tool(cal.model, qw) @ inv_pose(flange_to_tool(cal.model, robot))
-    return float(aligned_errors(p_est[:, :3, 3], p_true[:, :3, 3])["rms"]) / 1000.0
+    e = flange_centre_errors(cal.model, true_chain, truth.board["T_flange_board"], robot, qw)
+    return e["rms"] / 1000.0
 
 
 def main(argv: list[str] | None = None) -> int:
