@@ -2,19 +2,28 @@
 
 ``sim``: the simulated actual robot (nominal + injected errors) photographing a marker field;
 ``hardware``: the ACL serial adapter (``hw``). Everything backend-specific lives here; the
-acquisition loop and the calibration only see a ``Robot`` and a dataset.
+acquisition loop and the calibration only see a ``Robot`` and a dataset. The simulator's set-up of
+a scenario (the actual robot, the true cameras, the target) is
+:mod:`selfcal.acquisition.simulator_setup`.
 """
 
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from selfcal.acquisition.acquire import AcquisitionHooks
-from selfcal.acquisition.eye_to_hand import plan_static, static_cell, static_detect, static_robot
+from selfcal.acquisition.eye_to_hand import plan_static, static_detect, static_robot
+from selfcal.acquisition.simulator_setup import (
+    DICTIONARY,
+    SCALE_IDS,
+    SimSetup,
+    field_center,
+    scenario_board_pose,
+    sim_setup,
+)
 from selfcal.calibration.field.optimal_poses import plan_optimal_postures
 from selfcal.camera import Intrinsics, Rig
 from selfcal.config.scenario import (
@@ -27,7 +36,6 @@ from selfcal.config.scenario import (
     scenario_board,
     scenario_to_dict,
 )
-from selfcal.errors import InputError
 from selfcal.io.atomic import write_image_atomic
 from selfcal.io.dataset_info import DatasetInfo, scenario_digest
 from selfcal.io.target_toml import target_document
@@ -41,142 +49,29 @@ from selfcal.io.truth import (
 )
 from selfcal.kinematics.forward import fk_tool
 from selfcal.kinematics.mcpc import (
-    MCPCModel,
-    minimal_indices,
     nominal_mcpc,
-    param_is_angle,
-    param_names,
 )
 from selfcal.kinematics.self_collision import CapsuleChain
 from selfcal.kinematics.trajectory import (
     check_not_degenerate,
-    home_target_center,
     plan_postures,
 )
 from selfcal.robot.definition import RobotDef, load_robot
 from selfcal.robot.interface import Robot
-from selfcal.sim.actual import apply_errors, perturb
 from selfcal.sim.analytic import project_board, project_markers
-from selfcal.sim.board_scene import board_on_table
 from selfcal.sim.collision import collision_checker
-from selfcal.sim.compliance import JointCompliance
 from selfcal.sim.kinematic_robot import KinematicRobot
-from selfcal.sim.markers import make_marker_field
-from selfcal.sim.robot_mjcf import RigConfig
 from selfcal.sim.sim_robot import SimRobot
 from selfcal.target import CORNERS_PER_MARKER
-from selfcal.target.placement import board_pose
 from selfcal.transforms import trans
 
 __all__ = [
-    "SimSetup",
-    "sim_setup",
     "make_sim_robot",
     "make_kinematic_robot",
     "open_robot",
     "plan_dataset",
     "render_posture",
 ]
-
-DICTIONARY = "DICT_4X4_50"
-SCALE_IDS = (48, 49)
-"""The scale bar's two markers: the dictionary's last two ids (as ``selfcal.sim.markers`` places them)."""
-
-
-@dataclass
-class SimSetup:
-    """Everything the simulator needs, derived from a scenario (deterministic per seeds)."""
-
-    robot: RobotDef
-    nominal: MCPCModel
-    actual: MCPCModel
-    intrinsics: Intrinsics
-    T_left_right: np.ndarray
-    field: object  # selfcal.sim.markers.MarkerField
-    meta: dict = field(default_factory=dict)
-    board: object = None
-    """``[target] board`` (selfcal.target.boards.Board) or None: the marker field."""
-    T_world_board: np.ndarray | None = None
-    """The board's true pose on the table (board -> world, m; ``selfcal.sim.board_scene.board_on_table``)."""
-    intrinsics_right: Intrinsics | None = None
-    """The right camera's own true model (``[camera.right]``), or None: ``intrinsics``."""
-    static: object = None
-    """Eye-to-hand (``[camera] setup``): the cell (selfcal.sim.static_camera.StaticCameraTruth:
-    the static camera, the board on the flange), or None: the cameras on the flange."""
-    compliance: JointCompliance | None = None
-    """The actual robot's joint compliance (selfcal.sim.compliance; a benchmark's misfit, not
-    in scenarios), or None: a rigid arm."""
-
-    def rig(self) -> RigConfig:
-        """The simulated rig: the true cameras and the baseline."""
-        return RigConfig(intrinsics=self.intrinsics, T_left_right=self.T_left_right,
-                         intrinsics_right=self.intrinsics_right)  # fmt: skip
-
-
-def _field_center(robot: RobotDef, nominal: MCPCModel) -> tuple[float, float]:
-    """The field's centre: where the home posture's optical axis meets the table
-    (:func:`selfcal.kinematics.trajectory.home_target_center`; ``nominal``: base -> camera)."""
-    try:
-        return home_target_center(robot, nominal)
-    except InputError as exc:
-        raise ConfigError(exc.message, fix=exc.fix) from exc
-
-
-def _perturbation_table(s: Scenario, joint_types: tuple[str, ...]) -> dict[str, float]:
-    idx = minimal_indices(joint_types)
-    names = param_names(idx)
-    out = {}
-    for k, v in s.perturbation.table.items():
-        if k not in names:
-            raise ConfigError(
-                f"{s.source}: perturbation.table.{k}: unknown parameter; known: {', '.join(names)}"
-            )
-        is_angle = param_is_angle(idx)[names.index(k)]
-        out[k] = float(v) * (np.pi / 180 if is_angle else 1e-3)
-    return out
-
-
-def sim_setup(s: Scenario) -> SimSetup:
-    """The simulated actual robot, rig and marker field of a scenario."""
-    robot = load_robot(s.robot.model)
-    nominal = nominal_mcpc(robot).with_tool(robot.T_flange_cam)
-    actual = perturb(
-        nominal,
-        seed=s.perturbation.seed,
-        translation_m=s.perturbation.translation_mm / 1000,
-        rotation_rad=np.radians(s.perturbation.rotation_deg),
-    )
-    table = _perturbation_table(s, robot.joint_types)
-    if table:
-        actual = apply_errors(actual, table)
-    intr = s.camera.true_model()
-    field_ = make_marker_field(
-        n_markers=s.target.markers,
-        seed=s.target.seed,
-        center_xy_m=_field_center(robot, nominal),
-        extent_m=(s.target.extent_mm / 1000, s.target.extent_mm / 1000),
-        size_m=s.target.marker_size_mm / 1000,
-        scale_length_m=s.target.scale_length_mm / 1000,
-        dictionary=DICTIONARY,
-    )
-    T_lr = trans(np.array([s.camera.baseline_mm / 1000, 0.0, 0.0]))
-    board = scenario_board(s)
-    T_world_board = None if board is None else _board_pose(s, board, robot, nominal)
-    right = s.camera.of("right").true_model() if s.camera.own_intrinsics else None
-    static = static_cell(s, robot) if s.camera.setup == "eye-to-hand" else None
-    return SimSetup(robot, nominal, actual, intr, T_lr, field_, board=board,
-                    T_world_board=T_world_board, intrinsics_right=right,
-                    static=static)  # fmt: skip
-
-
-def _board_pose(s: Scenario, board, robot: RobotDef, nominal: MCPCModel) -> np.ndarray:
-    """The board's pose (board -> world, m): ``[target] board_pose`` or on the table where the
-    home posture looks."""
-    bp = s.target.board_pose
-    if not bp:
-        return board_on_table(board, _field_center(robot, nominal))
-    rpy = np.radians(bp[3:]) if len(bp) == 6 else None
-    return board_pose(board, np.asarray(bp[:3]) / 1000.0, rpy)
 
 
 def _file_postures(s: Scenario, robot: RobotDef) -> np.ndarray:
@@ -200,7 +95,7 @@ def planning_inputs(s: Scenario) -> dict:
     """
     robot = load_robot(s.robot.model)
     nominal = nominal_mcpc(robot).with_tool(robot.T_flange_cam)
-    cx, cy = _field_center(robot, nominal)
+    cx, cy = field_center(robot, nominal)
     board = scenario_board(s)
     if board is None:
         half_x = half_y = s.target.extent_mm / 2000.0
@@ -217,7 +112,7 @@ def planning_inputs(s: Scenario) -> dict:
         lo, hi = pts_b[:, :2].min(axis=0), pts_b[:, :2].max(axis=0)
         grid = np.array([[a, b, 0.0] for a in np.linspace(lo[0], hi[0], 6)
                          for b in np.linspace(lo[1], hi[1], 6)])  # fmt: skip
-        T = _board_pose(s, board, robot, nominal)
+        T = scenario_board_pose(s, board, robot, nominal)
         pts = grid @ T[:3, :3].T + T[:3, 3]
         normals = np.tile(-T[:3, 2], (len(pts), 1))
     return {

@@ -50,7 +50,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from selfcal.acquisition.backends import SimSetup, sim_setup
+from selfcal.acquisition.simulator_setup import SimSetup, sim_setup
 from selfcal.benchmarks.doc_blocks import ROOT, print_table, write_block
 from selfcal.benchmarks.tool_accuracy import coverage
 from selfcal.benchmarks.tool_accuracy import mark as _mark

@@ -20,7 +20,8 @@ from pathlib import Path
 import numpy as np
 
 from selfcal.acquisition.acquire import acquire
-from selfcal.acquisition.backends import SimSetup, open_robot, plan_dataset, sim_setup
+from selfcal.acquisition.backends import open_robot, plan_dataset
+from selfcal.acquisition.simulator_setup import SimSetup, sim_setup
 from selfcal.calibration.board.evaluate import Evaluation, evaluate_board, no_gain, worse
 from selfcal.calibration.field.calibrate import CalibrationFailedError, calibrate
 from selfcal.calibration.field.detections import detect_ahead
@@ -113,7 +114,7 @@ def run_acquire(
     and, for the field route, detect their markers as they are taken (:func:`detect_ahead`).
     ``resume_command``: what continues it when it stops (default ``selfcal acquire ... --resume``
     with this scenario and ``out``). ``setup``: the simulator's (default
-    :func:`selfcal.acquisition.backends.sim_setup` of ``s``; a benchmark's changed one)."""
+    :func:`selfcal.acquisition.simulator_setup.sim_setup` of ``s``; a benchmark's changed one)."""
     if setup is None and s.robot.backend == "sim":
         setup = sim_setup(s)
     info = plan_dataset(s, setup)

@@ -92,7 +92,8 @@ def measure(
     keep occluded and oblique markers and refine the lines once, the detector before issue #14),
     every detected corner's offset from its analytic projection. ``max_poses`` limits the postures (None: all); ``msaa`` sets the renderer's multisample count (None: the
     scene's, 4)."""
-    from selfcal.acquisition.backends import make_sim_robot, plan_dataset, sim_setup
+    from selfcal.acquisition.backends import make_sim_robot, plan_dataset
+    from selfcal.acquisition.simulator_setup import sim_setup
     from selfcal.camera import project
     from selfcal.config.scenario import load_scenario
     from selfcal.kinematics.forward import fk_tool

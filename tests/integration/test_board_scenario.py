@@ -9,7 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from selfcal.acquisition.backends import make_sim_robot, sim_setup
+from selfcal.acquisition.backends import make_sim_robot
+from selfcal.acquisition.simulator_setup import sim_setup
 from selfcal.config.scenario import load_scenario, scenario_board
 from selfcal.io.target_toml import parse_target, target_document
 from selfcal.pipeline.run import run_all

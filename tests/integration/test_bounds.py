@@ -37,7 +37,8 @@ from selfcal.transforms import inv_pose, kabsch, pose_from_vec, skew
 
 @pytest.fixture(scope="module")
 def tiny():
-    from selfcal.acquisition.backends import planning_inputs, sim_setup
+    from selfcal.acquisition.backends import planning_inputs
+    from selfcal.acquisition.simulator_setup import sim_setup
 
     s = load_scenario(None, {"noise": {"render": False}, "target": {"markers": 8}})
     setup = sim_setup(s)

@@ -9,7 +9,8 @@ import json
 
 import pytest
 
-from selfcal.acquisition.backends import plan_dataset, sim_setup
+from selfcal.acquisition.backends import plan_dataset
+from selfcal.acquisition.simulator_setup import sim_setup
 from selfcal.calibration.field.calibrate import dataset_camera
 from selfcal.camera import CameraSet
 from selfcal.config.scenario import ConfigError, load_scenario

@@ -6,7 +6,8 @@ import re
 
 import numpy as np
 
-from selfcal.acquisition.backends import planning_inputs, sim_setup
+from selfcal.acquisition.backends import planning_inputs
+from selfcal.acquisition.simulator_setup import sim_setup
 from selfcal.config.scenario import load_scenario
 from selfcal.target.placement import board_pose
 

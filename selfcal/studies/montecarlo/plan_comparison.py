@@ -15,13 +15,8 @@ from typing import Any
 
 import numpy as np
 
-from selfcal.acquisition.backends import (
-    SimSetup,
-    plan_dataset,
-    plan_optimal,
-    planning_inputs,
-    sim_setup,
-)
+from selfcal.acquisition.backends import plan_dataset, plan_optimal, planning_inputs
+from selfcal.acquisition.simulator_setup import SimSetup, sim_setup
 from selfcal.calibration.field.bounds import FisherSetup, cramer_rao
 from selfcal.calibration.field.bounds_setup import predicted_setup
 from selfcal.calibration.field.joint_refine import encoder_sigma

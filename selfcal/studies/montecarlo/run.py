@@ -36,7 +36,8 @@ from pathlib import Path
 import numpy as np
 
 from selfcal.acquisition.acquire import acquire
-from selfcal.acquisition.backends import open_robot, plan_dataset, sim_setup
+from selfcal.acquisition.backends import open_robot, plan_dataset
+from selfcal.acquisition.simulator_setup import sim_setup
 from selfcal.calibration.field.bounds import aligned_error_dof, cramer_rao
 from selfcal.calibration.field.bounds_setup import setup_from_output
 from selfcal.calibration.field.calibrate import calibrate_detailed, detect_dataset, observations_of

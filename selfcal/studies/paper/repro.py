@@ -66,7 +66,8 @@ def _theta4_held_distances(robot) -> np.ndarray:
 def _acquire_with_postures(s, root: Path, q_deg: np.ndarray, quiet: bool) -> None:
     """Acquire the scenario's dataset with ``q_deg`` (k, n) prepended to its trajectory."""
     from selfcal.acquisition.acquire import acquire
-    from selfcal.acquisition.backends import open_robot, plan_dataset, sim_setup
+    from selfcal.acquisition.backends import open_robot, plan_dataset
+    from selfcal.acquisition.simulator_setup import sim_setup
     from selfcal.io.dataset import DatasetWriter
 
     setup = sim_setup(s)

@@ -1,0 +1,141 @@
+"""The simulator's set-up of a scenario: the actual (perturbed) robot, the true cameras, the
+marker field or board and, eye-to-hand, the static cell (:class:`SimSetup`, :func:`sim_setup`),
+deterministic per the scenario's seeds; and the field centre and board pose the planning shares
+with it. The backends (:mod:`selfcal.acquisition.backends`) build the simulated robots from it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from selfcal.acquisition.eye_to_hand import static_cell
+from selfcal.camera import Intrinsics
+from selfcal.config.scenario import ConfigError, Scenario, scenario_board
+from selfcal.errors import InputError
+from selfcal.kinematics.mcpc import (
+    MCPCModel,
+    minimal_indices,
+    nominal_mcpc,
+    param_is_angle,
+    param_names,
+)
+from selfcal.kinematics.trajectory import home_target_center
+from selfcal.robot.definition import RobotDef, load_robot
+from selfcal.sim.actual import apply_errors, perturb
+from selfcal.sim.board_scene import board_on_table
+from selfcal.sim.compliance import JointCompliance
+from selfcal.sim.markers import make_marker_field
+from selfcal.sim.robot_mjcf import RigConfig
+from selfcal.target.placement import board_pose
+from selfcal.transforms import trans
+
+__all__ = [
+    "DICTIONARY",
+    "SCALE_IDS",
+    "SimSetup",
+    "field_center",
+    "scenario_board_pose",
+    "sim_setup",
+]
+
+DICTIONARY = "DICT_4X4_50"
+SCALE_IDS = (48, 49)
+"""The scale bar's two markers: the dictionary's last two ids (as ``selfcal.sim.markers`` places them)."""
+
+
+@dataclass
+class SimSetup:
+    """Everything the simulator needs, derived from a scenario (deterministic per seeds)."""
+
+    robot: RobotDef
+    nominal: MCPCModel
+    actual: MCPCModel
+    intrinsics: Intrinsics
+    T_left_right: np.ndarray
+    field: object  # selfcal.sim.markers.MarkerField
+    meta: dict = field(default_factory=dict)
+    board: object = None
+    """``[target] board`` (selfcal.target.boards.Board) or None: the marker field."""
+    T_world_board: np.ndarray | None = None
+    """The board's true pose on the table (board -> world, m; ``selfcal.sim.board_scene.board_on_table``)."""
+    intrinsics_right: Intrinsics | None = None
+    """The right camera's own true model (``[camera.right]``), or None: ``intrinsics``."""
+    static: object = None
+    """Eye-to-hand (``[camera] setup``): the cell (selfcal.sim.static_camera.StaticCameraTruth:
+    the static camera, the board on the flange), or None: the cameras on the flange."""
+    compliance: JointCompliance | None = None
+    """The actual robot's joint compliance (selfcal.sim.compliance; a benchmark's misfit, not
+    in scenarios), or None: a rigid arm."""
+
+    def rig(self) -> RigConfig:
+        """The simulated rig: the true cameras and the baseline."""
+        return RigConfig(intrinsics=self.intrinsics, T_left_right=self.T_left_right,
+                         intrinsics_right=self.intrinsics_right)  # fmt: skip
+
+
+def field_center(robot: RobotDef, nominal: MCPCModel) -> tuple[float, float]:
+    """The field's centre: where the home posture's optical axis meets the table
+    (:func:`selfcal.kinematics.trajectory.home_target_center`; ``nominal``: base -> camera)."""
+    try:
+        return home_target_center(robot, nominal)
+    except InputError as exc:
+        raise ConfigError(exc.message, fix=exc.fix) from exc
+
+
+def _perturbation_table(s: Scenario, joint_types: tuple[str, ...]) -> dict[str, float]:
+    idx = minimal_indices(joint_types)
+    names = param_names(idx)
+    out = {}
+    for k, v in s.perturbation.table.items():
+        if k not in names:
+            raise ConfigError(
+                f"{s.source}: perturbation.table.{k}: unknown parameter; known: {', '.join(names)}"
+            )
+        is_angle = param_is_angle(idx)[names.index(k)]
+        out[k] = float(v) * (np.pi / 180 if is_angle else 1e-3)
+    return out
+
+
+def sim_setup(s: Scenario) -> SimSetup:
+    """The simulated actual robot, rig and marker field of a scenario."""
+    robot = load_robot(s.robot.model)
+    nominal = nominal_mcpc(robot).with_tool(robot.T_flange_cam)
+    actual = perturb(
+        nominal,
+        seed=s.perturbation.seed,
+        translation_m=s.perturbation.translation_mm / 1000,
+        rotation_rad=np.radians(s.perturbation.rotation_deg),
+    )
+    table = _perturbation_table(s, robot.joint_types)
+    if table:
+        actual = apply_errors(actual, table)
+    intr = s.camera.true_model()
+    field_ = make_marker_field(
+        n_markers=s.target.markers,
+        seed=s.target.seed,
+        center_xy_m=field_center(robot, nominal),
+        extent_m=(s.target.extent_mm / 1000, s.target.extent_mm / 1000),
+        size_m=s.target.marker_size_mm / 1000,
+        scale_length_m=s.target.scale_length_mm / 1000,
+        dictionary=DICTIONARY,
+    )
+    T_lr = trans(np.array([s.camera.baseline_mm / 1000, 0.0, 0.0]))
+    board = scenario_board(s)
+    T_world_board = None if board is None else scenario_board_pose(s, board, robot, nominal)
+    right = s.camera.of("right").true_model() if s.camera.own_intrinsics else None
+    static = static_cell(s, robot) if s.camera.setup == "eye-to-hand" else None
+    return SimSetup(robot, nominal, actual, intr, T_lr, field_, board=board,
+                    T_world_board=T_world_board, intrinsics_right=right,
+                    static=static)  # fmt: skip
+
+
+def scenario_board_pose(s: Scenario, board, robot: RobotDef, nominal: MCPCModel) -> np.ndarray:
+    """The board's pose (board -> world, m): ``[target] board_pose`` or on the table where the
+    home posture looks."""
+    bp = s.target.board_pose
+    if not bp:
+        return board_on_table(board, field_center(robot, nominal))
+    rpy = np.radians(bp[3:]) if len(bp) == 6 else None
+    return board_pose(board, np.asarray(bp[:3]) / 1000.0, rpy)
