@@ -113,6 +113,8 @@ def test_import_with_joints_and_setup_gives_the_same_calibration(rendered, tmp_p
     got = read_board_calibration(out / "calibration.json")
     run = read_board_calibration(rendered / "calibration.json")
     assert got.eye_to_hand
-    np.testing.assert_allclose(got.cameras[0].values(), run.cameras[0].values(), rtol=1e-9)
+    # the two solves agree to the solver's rounding, which varies with the summation order of
+    # the threads: cy 1.07e-9 relative (2.5e-7 px) apart in one CI run, 0 in another
+    np.testing.assert_allclose(got.cameras[0].values(), run.cameras[0].values(), rtol=3e-9)
     for a, b in zip(got.mounts, run.mounts, strict=True):
         np.testing.assert_allclose(a.T, b.T, atol=1e-9)
