@@ -214,28 +214,30 @@ def placed_miss_mm(prob: Problem, blocks: list) -> float:
     return float(np.sqrt(np.mean(np.sum(r[:, :3] ** 2, axis=1)))) * 1e3
 
 
-def _no_convergence(
-    prob: Problem, blocks: list, message: str, iterations: int, names, mask: np.ndarray
-) -> None:
-    """Raise the error of a solve that did not converge: the estimator's failure, unless the
-    placed nominal misses the data by more than :data:`PAIRING_RMS_MM` (then the data's
-    pairing or units are the likely cause, and the message shows why)."""
+def no_convergence(
+    prob: Problem,
+    blocks: list,
+    tried: str,
+    fix: str,
+    error: type[EstimationError] = EstimationError,
+) -> EstimationError:
+    """The ``error`` of a solve that did not converge (``tried`` says what did not): the
+    estimator's failure (with ``fix``), unless the placed nominal misses the data by more than
+    :data:`PAIRING_RMS_MM` (then the data's pairing or units are the likely cause, and the
+    message shows why)."""
     rms = placed_miss_mm(prob, blocks)
-    tried = (f"Levenberg-Marquardt on {int(mask.sum())} of {len(names)} parameters "
-             f"did not converge in {iterations} iterations ({message})")  # fmt: skip
     if rms > PAIRING_RMS_MM:
-        raise TrackerIdentificationError(
+        return error(
             f"{tried}; the nominal chain placed in the tracker frame misses the measurements "
             f"by {rms:.3g} mm RMS (more than {PAIRING_RMS_MM:g} mm: not an arm within its "
             "drawing's tolerance)",
             fix="check the joint/measurement pairing (one row per rest), the units "
             "(--joint-units, positions in mm) and the robot file",
         )
-    raise TrackerIdentificationError(
+    return error(
         f"the estimator failed: {tried}; the data look consistent (the placed nominal chain "
         f"misses them by {rms:.3g} mm RMS, within {PAIRING_RMS_MM:g} mm)",
-        fix="hold the least determined parameters (--hold NAME,...) or add well-spread "
-        "postures (selfcal plan --measure tracker); please report it with the data",
+        fix=fix,
     )
 
 
@@ -422,7 +424,14 @@ def identify_tracker(
     prob = Problem([ParameterBlock("mcpc", start.params.reshape(-1)[est_flat])], blocks)
     sol = solve(prob, SolverOptions(tol=tol, max_iterations=max_iterations))
     if not sol.converged:
-        _no_convergence(prob, blocks, sol.message, max_iterations, names, mask)
+        raise no_convergence(
+            prob, blocks,
+            f"Levenberg-Marquardt on {int(mask.sum())} of {len(names)} parameters did not "
+            f"converge in {max_iterations} iterations ({sol.message})",
+            "hold the least determined parameters (--hold NAME,...) or add well-spread "
+            "postures (selfcal plan --measure tracker); please report it with the data",
+            TrackerIdentificationError,
+        )  # fmt: skip
     fit = layout.chain(sol.values)
     J = _dense_jacobian(blocks, sol.values, np.arange(est_flat.size))
     dof = max(J.shape[0] - J.shape[1], 1)

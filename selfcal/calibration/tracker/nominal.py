@@ -18,8 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from selfcal.calibration.tracker.identify import PAIRING_RMS_MM, placed_miss_mm
-from selfcal.errors import EstimationError
+from selfcal.calibration.tracker.identify import no_convergence
 from selfcal.estimation.tracker import TrackerMeasurements, tracker_terms
 from selfcal.kinematics.forward import fk_tool, pose_error
 from selfcal.kinematics.mcpc import MCPCModel
@@ -94,20 +93,7 @@ def fit_nominal(
         tried = ("the fair nominal (the nominal chain with the tracker frame and the tool fitted) "
                  f"did not converge in {max_iterations} Levenberg-Marquardt iterations "
                  f"({sol.message})")  # fmt: skip
-        miss = placed_miss_mm(prob, blocks)
-        if miss > PAIRING_RMS_MM:  # the data's pairing or units: the check shows it
-            raise EstimationError(
-                f"{tried}; the nominal chain placed in the tracker frame misses the measurements "
-                f"by {miss:.3g} mm RMS (more than {PAIRING_RMS_MM:g} mm: not an arm within its "
-                "drawing's tolerance)",
-                fix="check the joint/measurement pairing (one row per rest), the units "
-                "(--joint-units, positions in mm) and the robot file",
-            )
-        raise EstimationError(
-            f"the estimator failed: {tried}; the data look consistent (the placed nominal chain "
-            f"misses them by {miss:.3g} mm RMS, within {PAIRING_RMS_MM:g} mm)",
-            fix="please report it with the data",
-        )
+        raise no_convergence(prob, blocks, tried, "please report it with the data")
     lay = blocks[0].layout
     T_frame = lay.tracker_frame(sol.values)
     if lay.tool is not None:  # poses: the measured tool frame
