@@ -42,6 +42,9 @@ __all__ = [
 
 DICTIONARY = "DICT_4X4_50"
 SCALE_IDS = (48, 49)
+UNUSED_FIELD_CENTER_M = (0.5, 0.0)
+"""m: the unused marker field's centre in a board scenario whose home camera does not see the
+table (in front of the base, clear of it)."""
 """The scale bar's two markers: the dictionary's last two ids (as ``selfcal.sim.markers`` places them)."""
 
 
@@ -84,6 +87,17 @@ def field_center(robot: RobotDef, nominal: MCPCModel) -> tuple[float, float]:
         raise ConfigError(exc.message, fix=exc.fix) from exc
 
 
+def _unused_field_center(robot: RobotDef, nominal: MCPCModel) -> tuple[float, float]:
+    """The marker field's centre in a board scenario, where the field is not in the scene and
+    only fills ``truth.json``'s ``marker_field`` (a positioner or an eye-to-hand cell whose
+    flange camera never looks down must still simulate its board): :func:`field_center` where
+    the home camera sees the table, else :data:`UNUSED_FIELD_CENTER_M`."""
+    try:
+        return home_target_center(robot, nominal)
+    except InputError:
+        return UNUSED_FIELD_CENTER_M
+
+
 def _perturbation_table(s: Scenario, joint_types: tuple[str, ...]) -> dict[str, float]:
     idx = minimal_indices(joint_types)
     names = param_names(idx)
@@ -112,17 +126,17 @@ def sim_setup(s: Scenario) -> SimSetup:
     if table:
         actual = apply_errors(actual, table)
     intr = s.camera.true_model()
+    board = scenario_board(s)
     field_ = make_marker_field(
         n_markers=s.target.markers,
         seed=s.target.seed,
-        center_xy_m=field_center(robot, nominal),
+        center_xy_m=_unused_field_center(robot, nominal) if board else field_center(robot, nominal),
         extent_m=(s.target.extent_mm / 1000, s.target.extent_mm / 1000),
         size_m=s.target.marker_size_mm / 1000,
         scale_length_m=s.target.scale_length_mm / 1000,
         dictionary=DICTIONARY,
     )
     T_lr = trans(np.array([s.camera.baseline_mm / 1000, 0.0, 0.0]))
-    board = scenario_board(s)
     T_world_board = None if board is None else scenario_board_pose(s, board, robot, nominal)
     right = s.camera.of("right").true_model() if s.camera.own_intrinsics else None
     static = static_cell(s, robot) if s.camera.setup == "eye-to-hand" else None
@@ -133,8 +147,13 @@ def sim_setup(s: Scenario) -> SimSetup:
 
 def scenario_board_pose(s: Scenario, board, robot: RobotDef, nominal: MCPCModel) -> np.ndarray:
     """The board's pose (board -> world, m): ``[target] board_pose`` or on the table where the
-    home posture looks."""
+    home posture looks (eye-to-hand, where the board is on the flange and this pose unused, also
+    when the home camera does not see the table)."""
     bp = s.target.board_pose
+    if (
+        not bp and s.camera.setup == "eye-to-hand"
+    ):  # the board is on the flange: this pose is unused
+        return board_on_table(board, _unused_field_center(robot, nominal))
     if not bp:
         return board_on_table(board, field_center(robot, nominal))
     rpy = np.radians(bp[3:]) if len(bp) == 6 else None

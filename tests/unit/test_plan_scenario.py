@@ -58,3 +58,27 @@ def test_a_static_camera_pose_is_refused_where_it_does_not_fit(tmp_path):
                                      'setup = "eye-to-hand"\n' + board + "board_pose = [0, 0, 3]\n")  # fmt: skip
     with pytest.raises(ConfigError, match="leave target.board_pose out"):
         load_scenario(tmp_path / "s.toml")
+
+
+def test_an_eye_to_hand_cell_simulates_an_arm_whose_flange_camera_never_sees_the_table(tmp_path):
+    """A 2-axis positioner has no flange camera looking down at the table: its eye-to-hand
+    scenario (as `selfcal plan --mount eye-to-hand` writes it) still simulates the board on the
+    flange (sim_setup placed an unused marker field and table board where the home flange camera
+    looks, and refused the scenario); an eye-in-hand scenario of it is still refused, naming
+    home_deg."""
+    from pathlib import Path
+
+    import pytest
+
+    from selfcal.config.camera import ConfigError
+
+    robot = Path(__file__).parents[1] / "data/positioner2.toml"
+    head = f'[robot]\nmodel = "{robot}"\n[target]\nboard = "{_charuco()}"\n'
+    (tmp_path / "s.toml").write_text(
+        head + '[camera]\ncount = 1\nsetup = "eye-to-hand"\npose = [0, 600, 400, -56.3, 0, 180]\n'
+    )
+    setup = sim_setup(load_scenario(tmp_path / "s.toml"))
+    assert setup.static is not None and setup.board is not None
+    (tmp_path / "s.toml").write_text(head + "[camera]\ncount = 1\n")
+    with pytest.raises(ConfigError, match="home_deg in the robot file of positioner2"):
+        sim_setup(load_scenario(tmp_path / "s.toml"))
