@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from selfcal.benchmarks.board_accuracy import scenario, simulated
+from selfcal.benchmarks.compliance_reach import bend_spread
 from selfcal.benchmarks.tool_accuracy import coverage
 from selfcal.errors import UsageError
 from selfcal.kinematics.forward import fk_tool
@@ -61,3 +62,17 @@ def test_the_benchmarks_row_statistics():
     assert got["true_rms_mm"] == pytest.approx(np.sqrt(13.25 / 4))
     r1, r2 = np.sqrt(1 / 5.625), 2.0  # the per-draw ratios
     assert got["ratio_10"] == pytest.approx(r1 + 0.1 * (r2 - r1))
+
+
+def test_the_bends_spread_is_taken_from_its_mean_at_the_calibration_postures():
+    """selfcal.benchmarks.compliance_reach: what a calibration could see of the bend (its spread
+    over the postures, mean removed) against what a region holds (its deviation from that mean)."""
+    q_cal = np.zeros((3, 6))
+    q_cal[:, 1] = [0.0, 0.1, 0.2]  # q2 + q3 near 0: the bend near its largest
+    far = np.zeros((2, 6))
+    far[:, 1] = np.pi / 2  # q2 + q3 = 90 deg: no bend
+    got = bend_spread(SHOULDER, q_cal, {"far": far})
+    a = np.radians(0.05)
+    mean = a * np.mean(np.cos([0.0, 0.1, 0.2]))
+    assert got["postures"] == pytest.approx(a * np.cos([0.0, 0.1, 0.2]) - mean)
+    assert got["far"] == pytest.approx([-mean, -mean], abs=1e-15)
