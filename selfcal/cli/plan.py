@@ -40,9 +40,14 @@ The plan's postures show the whole board inside the image, the board's normal wi
 optical axis, a feature pitch of at least 12 px (eye-in-hand); they are chosen from --candidates random ones to
 minimise the board calibration's predicted (Cramer-Rao) tool-point error over the workspace, and
 ordered for a short joint path from home. The prediction is that of the calibration with the
-parameters its selection's rank test keeps, every other one held at the drawing and erring by
---deviation-mm / --deviation-deg. plan.json holds the prediction and that of a random plan of
-the same size from the same candidates.
+parameters its selection's cross-validation is forecast to keep (and, where its one-standard-
+error rule may keep the next smaller set, that set's: a range), every other one held at the
+drawing and erring by --deviation-mm / --deviation-deg; beside it the prediction with every
+parameter the postures identify and that of a random plan of the same size so. The second line
+gives the error without calibrating the kinematics for the same postures (the smaller of the
+chain as drawn and the fair nominal, hand-eye and board pose fitted to the pixels) and says
+whether the plan beats it clearly (at most 0.7 times it); if not, the count of postures that
+would (within 4 times --count). plan.json holds every figure.
 --add K DATASET: instead, the K postures that most lower the predicted error of the calibrated
 DATASET (its robot file, calibration.json's camera, board pose and hand-eye; --robot, --target,
 --board-pose, --count and the camera options are refused), predicted with the parameters the
@@ -232,6 +237,7 @@ def _cmd(args: argparse.Namespace) -> int:
     from selfcal.acquisition.backends import robot_reference
     from selfcal.calibration.board.plan import plan_recording
     from selfcal.calibration.field.failures import MIN_POSTURES
+    from selfcal.cli.plan_text import criterion, plan_lines, plan_sections
     from selfcal.config.scenario import load_scenario
     from selfcal.estimation.joint_report import encoder_sigma
     from selfcal.io.atomic import write_text_atomic
@@ -299,7 +305,8 @@ def _cmd(args: argparse.Namespace) -> int:
             "count": len(plan.q),
             "predicted_tool_rms_mm": round(plan.predicted_m * 1000, 4),
             "random_tool_rms_mm": round(plan.random_m * 1000, 4),
-            "criterion": _criterion(len(plan.workspace), plan.pixel_sigma_px, js, args),
+            "criterion": criterion(len(plan.workspace), plan.pixel_sigma_px, js, args),
+            **plan_sections(plan),
             "candidates": plan.candidates,
             "candidates_from": plan.drawn_from,
             "path_deg": round(float(np.degrees(plan.path_rad)), 3),
@@ -311,10 +318,7 @@ def _cmd(args: argparse.Namespace) -> int:
         }
         write_json_atomic(out / "plan.json", doc)
     note_written(args, out)
-    line = (f"plan of {len(plan.q)} postures: predicted tool-point error "
-            f"{plan.predicted_m * 1000:.3f} mm RMS (a random plan of {len(plan.q)}: "
-            f"{plan.random_m * 1000:.3f} mm); joint path {np.degrees(plan.path_rad):.0f} deg")  # fmt: skip
-    print(json.dumps(doc) if args.json else line)
+    print(json.dumps(doc) if args.json else plan_lines(plan))
     return 0
 
 
@@ -326,23 +330,11 @@ def _deviation(args: argparse.Namespace):
     return Deviation(args.deviation_mm / 1000.0, float(np.radians(args.deviation_deg)))
 
 
-def _criterion(workspace: int, pixel_sigma: float, js, args: argparse.Namespace) -> str:
-    joints = ("joints read exactly" if js is None else "joint read-back noise of the robot "
-              "file's encoder resolution (1 count / sqrt(12)), each frame's corrections "
-              "estimated")  # fmt: skip
-    return (
-        "board route Cramer-Rao bound with the parameters the selection's rank test keeps, "
-        f"the others held at the drawing, deviating uniformly within +-{args.deviation_mm:g} mm "
-        f"and +-{args.deviation_deg:g} deg: RMS of the flange centre over {workspace} random "
-        f"workspace postures after the best rigid alignment, corner noise {pixel_sigma:g} px, "
-        + joints
-    )
-
-
 def _cmd_add(args: argparse.Namespace) -> int:
     from selfcal.acquisition.backends import robot_reference
     from selfcal.calibration.board.plan import PlanOptions
     from selfcal.calibration.board.plan_add import dataset_setup, plan_additions
+    from selfcal.cli.plan_text import criterion, reference_words
     from selfcal.estimation.joint_report import encoder_sigma
     from selfcal.io.atomic import write_text_atomic
     from selfcal.io.dataset import Dataset
@@ -394,7 +386,7 @@ def _cmd_add(args: argparse.Namespace) -> int:
             "predicted_tool_rms_mm": round(add.after_m * 1000, 4),
             "kinematic_parameters_before": add.kept_before,
             "kinematic_parameters_after": add.kept_after,
-            "criterion": _criterion(len(add.workspace), args.pixel_sigma, js, args)
+            "criterion": criterion(len(add.workspace), args.pixel_sigma, js, args)
             + "; summed over the dataset and each training set of the selection's "
             "cross-validation; after: with the parameters the selection's cross-validation "
             "is forecast to keep (the swaps and the recording order it prefers)",
@@ -406,6 +398,9 @@ def _cmd_add(args: argparse.Namespace) -> int:
                     for lab, rms in zip(add.forecast.labels, add.forecast.fold_rms_px)
                 ],
             },
+            "nominal": add.reference.to_json(),
+            "beats_nominal": add.reference.beaten_by(add.after_m),
+            "verdict": reference_words(add.reference, add.after_m),
             "candidates": add.candidates,
             "candidates_from": add.drawn_from,
             "path_deg": round(float(np.degrees(add.path_rad)), 3),
@@ -418,7 +413,7 @@ def _cmd_add(args: argparse.Namespace) -> int:
     line = (f"add {len(add.q)} postures to {root} ({len(dplan.q)} frames): predicted tool-point "
             f"error {add.before_m * 1000:.3f} -> {add.after_m * 1000:.3f} mm RMS (kinematic "
             f"parameters estimated {add.kept_before} -> {add.kept_after}); joint path "
-            f"{np.degrees(add.path_rad):.0f} deg")  # fmt: skip
+            f"{np.degrees(add.path_rad):.0f} deg\n" + doc["verdict"])  # fmt: skip
     print(json.dumps(doc) if args.json else line)
     return 0
 

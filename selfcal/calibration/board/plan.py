@@ -37,6 +37,7 @@ from typing import Protocol
 
 import numpy as np
 
+from selfcal.calibration.board.nominal_fit import placement_indices
 from selfcal.calibration.board.plan_predict import (
     Deviation,
     Directions,
@@ -44,6 +45,8 @@ from selfcal.calibration.board.plan_predict import (
     kept_by_rank,
     predicted_with_held,
 )
+from selfcal.calibration.board.plan_reference import NominalReference, nominal_reference
+from selfcal.calibration.board.plan_selection import SelectionForecast, forecast_selection
 from selfcal.calibration.board.plan_views import PlanSetup, candidate_pool
 from selfcal.calibration.board.problem import board_problem
 from selfcal.errors import InputError, UsageError
@@ -69,7 +72,21 @@ __all__ = [
     "PlanOptions",
     "PlanGround",
     "plan_ground",
+    "Selected",
 ]
+
+SEARCH_FACTOR = 4
+"""A plan not predicted to beat the reference looks for the count that would among the greedy
+choice's first this many times the count (within the pool)."""
+SEARCH_STEP = 4
+"""... in steps of this many postures."""
+
+RIVAL_LOG = 0.2
+"""The next smaller candidate is the forecast choice's rival when its expected CV error is within
+``exp(RIVAL_LOG)`` (1.22) times the choice's: the selection's one-standard-error rule keeps the
+smaller of two candidates within one standard error of the folds' mean log ratio, measured 0.06
+to 0.18 on arm7's plans of 12 and 16 (tests/data/arm7.toml), where the forecast's expected fold
+errors have almost no spread."""
 
 REG = 1e-6
 """The greedy start's information: this times the identity in parameters scaled to unit mean
@@ -83,7 +100,15 @@ class RecordingPlan:
     plan of the same size from the same candidates and ``random_m`` its prediction;
     ``candidates`` the pool's size and ``drawn_from`` where it was drawn; the noise level and
     the joint path lengths (rad, the sum of the largest joint move of every step from home) of
-    the plan in its order and of the random plan in its own."""
+    the plan in its order and of the random plan in its own. ``predicted_m`` keeps every
+    parameter the rank test identifies (``kept_all`` of them beyond the placement);
+    ``selected`` the prediction with the parameters the forecast of the selection's
+    cross-validation keeps (what the calibration is expected to estimate, :class:`Selected`);
+    ``reference`` the error without
+    calibrating the kinematics (:mod:`selfcal.calibration.board.plan_reference`);
+    ``to_beat`` (count, predicted m) the smallest plan of the same greedy choice whose
+    ``selected.worst_m`` beats it clearly, when this one does not (None: it does, or no plan of up to
+    ``searched`` postures does)."""
 
     q: np.ndarray
     predicted_m: float
@@ -96,6 +121,45 @@ class RecordingPlan:
     joint_sigma: np.ndarray | None
     path_rad: float
     random_path_rad: float
+    kept_all: int
+    selected: Selected
+    reference: NominalReference
+    to_beat: tuple[int, float] | None
+    searched: int
+
+
+@dataclass(frozen=True, eq=False)
+class Selected:
+    """A plan's prediction with the parameters the selection's cross-validation is forecast to
+    keep: ``selected_m`` (m) with the ``forecast``'s choice; ``rival_m`` with the next smaller
+    candidate when its expected CV error is within ``exp(RIVAL_LOG)`` of the choice's (the
+    selection's one-standard-error rule may keep it: the forecast sees the folds' expected
+    errors, not their noise), else None."""
+
+    selected_m: float
+    forecast: SelectionForecast
+    rival_m: float | None = None
+
+    @property
+    def worst_m(self) -> float:
+        """The larger of the two predictions: what the plan stands by."""
+        return max(self.selected_m, self.rival_m or 0.0)
+
+    def kept(self, n: int) -> int:
+        """The kinematic parameters beyond the placement the forecast keeps (chain of ``n``
+        joints)."""
+        return _beyond_placement(self.forecast.kept, n)
+
+    def rival_kept(self, n: int) -> int | None:
+        """... and its rival keeps (None without one)."""
+        if self.rival_m is None:
+            return None
+        return _beyond_placement(self.forecast.kept_sets[self.forecast.chosen - 1], n)
+
+
+def _beyond_placement(kept: tuple[np.ndarray, np.ndarray], n: int) -> int:
+    """How many of ``kept`` (flat MCPC indices, offset joints) are not the placement's."""
+    return int(np.setdiff1d(kept[0], placement_indices(n)).size + len(kept[1]))
 
 
 def board_model(setup: PlanSetup) -> MCPCModel:
@@ -368,23 +432,57 @@ def plan_recording(
     pool, G, var = g.pool, g.G, g.variance
     F = frame_information(setup, pool, pixel_sigma_px, joint_sigma)
     n_cam = setup.camera.n_free
+    searched = min(len(pool), SEARCH_FACTOR * count)
+    home = setup.robot.home
     chosen = select_greedy(F, G, n_cam, count)
+    chosen = chosen[order_path(pool[chosen], home)]
     q = pool[chosen]
-    q = q[order_path(q, setup.robot.home)]
     rand = pool[:count]
-    rand_order = order_path(rand, setup.robot.home)
+    rand_order = order_path(rand, home)
+    model = board_model(setup)
+    dirs = Directions(model)
+    n_feat = np.full(len(pool), len(setup.board.layout()[0]))
+
+    def selected(idx: np.ndarray) -> tuple[Selected, NominalReference]:
+        """The pool's postures ``idx`` in recording order: the prediction with the parameters
+        the selection is forecast to keep (and its rival's) and the reference."""
+        Fs = F[idx].sum(axis=0)
+        fc = forecast_selection(model, pool[idx], F[idx], n_feat[idx], n_cam, var,
+                                pixel_sigma_px, dirs)  # fmt: skip
+        got = predict_kept(setup, pool[idx], Fs, G, var, fc.kept, dirs)
+        cv, c = fc.cv_px, fc.chosen
+        rival = None
+        if c > 0 and cv[c - 1] <= np.exp(RIVAL_LOG) * cv[c]:
+            rival = predict_kept(setup, pool[idx], Fs, G, var, fc.kept_sets[c - 1], dirs)
+        return Selected(got, fc, rival), nominal_reference(model, Fs, G, n_cam, var, dirs)
+
+    sel, ref = selected(chosen)
+    to_beat = None
+    if not ref.beaten_by(sel.worst_m):
+        picks = select_greedy(F, G, n_cam, searched)  # one by one: its first count are the plan
+        for n in range(count + SEARCH_STEP, searched + 1, SEARCH_STEP):
+            idx = picks[:n][order_path(pool[picks[:n]], home)]
+            got, r = selected(idx)
+            if r.beaten_by(got.worst_m):
+                to_beat = (n, got.worst_m)
+                break
     return RecordingPlan(
         q=q,
-        predicted_m=predict_kept(setup, q, F[chosen].sum(axis=0), G, var),
+        predicted_m=predict_kept(setup, q, F[chosen].sum(axis=0), G, var, directions=dirs),
         q_random=rand,
-        random_m=predict_kept(setup, rand, F[:count].sum(axis=0), G, var),
+        random_m=predict_kept(setup, rand, F[:count].sum(axis=0), G, var, directions=dirs),
         workspace=g.workspace,
         candidates=len(pool),
         drawn_from=g.drawn_from,
         pixel_sigma_px=float(pixel_sigma_px),
         joint_sigma=None if joint_sigma is None else np.asarray(joint_sigma, dtype=float),
-        path_rad=path_length(q, setup.robot.home),
-        random_path_rad=path_length(rand[rand_order], setup.robot.home),
+        path_rad=path_length(q, home),
+        random_path_rad=path_length(rand[rand_order], home),
+        kept_all=_beyond_placement(kept_by_rank(model, q), model.n),
+        selected=sel,
+        reference=ref,
+        to_beat=to_beat,
+        searched=searched,
     )
 
 

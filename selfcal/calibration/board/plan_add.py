@@ -49,6 +49,7 @@ from selfcal.calibration.board.plan import (
     select_greedy,
 )
 from selfcal.calibration.board.plan_predict import Directions, prior_information
+from selfcal.calibration.board.plan_reference import NominalReference, nominal_reference
 from selfcal.calibration.board.plan_selection import SelectionForecast, forecast_selection
 from selfcal.calibration.board.plan_views import PlanSetup
 from selfcal.errors import InputError
@@ -146,7 +147,9 @@ class AddedPostures:
     postures and the parameters the ``forecast`` of the selection keeps; ``kept_before``,
     ``kept_after`` how many kinematic parameters (flat MCPC and joint offsets) each estimates;
     the ``workspace`` (w, n) rad the error is averaged over, the pool's size and where it was
-    drawn, and the joint path (rad) from home through the added ones."""
+    drawn, the joint path (rad) from home through the added ones, and the ``reference``: the
+    error without calibrating the kinematics for the dataset's frames and the added ones
+    (:mod:`selfcal.calibration.board.plan_reference`)."""
 
     q: np.ndarray
     before_m: float
@@ -158,6 +161,7 @@ class AddedPostures:
     drawn_from: str
     path_rad: float
     forecast: SelectionForecast
+    reference: NominalReference
 
 
 SPARE = 8
@@ -231,4 +235,5 @@ def plan_additions(
         candidates=len(g.pool),
         drawn_from=g.drawn_from,
         path_rad=path_length(q, home),
+        reference=nominal_reference(model, F_old + F[chosen].sum(axis=0), G, n_cam, var, dirs),
     )

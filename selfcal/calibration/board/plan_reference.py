@@ -1,0 +1,113 @@
+"""What a plan's calibration has to beat: the tool-point error without calibrating the
+kinematics, predicted for the same postures (``selfcal plan``, issue #30; the developers'
+guide's fair reference).
+
+Two figures, both of the quantity the plan predicts (the flange centre, a point fixed to what
+rides on the flange, over the workspace after the best rigid alignment):
+
+- the fair nominal: the chain held at its drawing, its placement (eye-in-hand the board pose
+  ``V_0`` and the hand-eye ``V_n``; eye-to-hand base -> camera and flange -> board) and the
+  camera's free parameters fitted to the pixels, as the calibration's own fair nominal is
+  (:mod:`selfcal.calibration.board.nominal_fit`): the prediction of
+  :func:`selfcal.calibration.board.plan_predict.predicted_with_held` with the placement's
+  directions alone, i.e. the held parameters' deviation less what the fitted placement absorbs,
+  plus the placement's and the camera's noise. The fit matches the camera's poses, not the
+  flange: the hand-eye that takes up the chain's deviation where the camera sees the board
+  carries it to the flange, so this is often the worse of the two;
+- the chain as drawn, nothing fitted (what the controller's own kinematics give): the
+  deviation itself at the tool point, ``sqrt(trace(G S))`` with ``G`` the aligned tool weight
+  and ``S`` the deviation's covariance (:class:`selfcal.calibration.board.plan_predict.Deviation`:
+  every inner parameter; the placement is removed by the alignment or, for the hand-eye, not
+  counted, as the deviation does not count it).
+
+``selfcal run`` judges a simulated calibration against the second (its validation's "nominal":
+the drawn chain and mount after the best rigid alignment). The reference is the smaller of the
+two; a plan is predicted to beat it when its prediction is at most :data:`CLEAR_MARGIN` times
+that. Units: m.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from selfcal.calibration.board.nominal_fit import placement_indices
+from selfcal.calibration.board.plan_predict import Directions, predicted_with_held
+from selfcal.errors import UsageError
+from selfcal.kinematics.mcpc import MCPCModel
+
+__all__ = ["CLEAR_MARGIN", "NominalReference", "drawn_error", "nominal_reference"]
+
+CLEAR_MARGIN = 0.7
+"""A plan beats the reference clearly when its prediction is at most this times the reference:
+issue #30 holds a prediction good within 0.7 - 1.4 times the achieved error, so a plan predicted
+above 0.7 times the reference may achieve no gain."""
+
+
+@dataclass(frozen=True)
+class NominalReference:
+    """The predicted tool-point RMS (m) without calibrating the kinematics (module docstring):
+    ``fair_m`` the fair nominal's, ``drawn_m`` the chain's as drawn."""
+
+    fair_m: float
+    drawn_m: float
+
+    @property
+    def best_m(self) -> float:
+        """The smaller of the two: what a calibration has to beat."""
+        return min(self.fair_m, self.drawn_m)
+
+    @property
+    def what(self) -> str:
+        """Which of the two :attr:`best_m` is, in words."""
+        return "the chain as drawn" if self.drawn_m <= self.fair_m else "the fair nominal"
+
+    def beaten_by(self, predicted_m: float) -> bool:
+        """Whether a calibration predicted at ``predicted_m`` (m) beats the reference clearly
+        (at most :data:`CLEAR_MARGIN` times it)."""
+        return bool(predicted_m <= CLEAR_MARGIN * self.best_m)
+
+    def to_json(self) -> dict:
+        """plan.json's ``nominal`` section (mm)."""
+        return {
+            "fair_nominal_tool_rms_mm": round(self.fair_m * 1000, 4),
+            "drawn_tool_rms_mm": round(self.drawn_m * 1000, 4),
+            "reference": self.what,
+            "clear_margin": CLEAR_MARGIN,
+            "note": (
+                "the tool-point error without calibrating the kinematics, predicted for the same "
+                "postures: fair nominal = the chain at its drawing with the placement (board pose, "
+                "hand-eye) and camera fitted to the pixels, the chain's deviation less what they "
+                "absorb; drawn = the chain as drawn, nothing fitted (what selfcal run's "
+                "validation calls nominal); a plan beats the smaller clearly when predicted at "
+                "most clear_margin times it"
+            ),
+        }
+
+
+def drawn_error(G: np.ndarray, variance: np.ndarray) -> float:
+    """The chain as drawn (module docstring): ``sqrt(trace(G S))`` (m), ``G`` (k, k) the aligned
+    tool weight, ``variance`` (k,) the deviation's (m^2, rad^2)."""
+    v = np.asarray(variance, dtype=float)
+    if G.shape != (len(v), len(v)):
+        raise UsageError(f"shapes do not match: G {G.shape}, variance {v.shape}")
+    return float(np.sqrt(max(float(np.einsum("ii,i->", G, v)), 0.0)))
+
+
+def nominal_reference(
+    model: MCPCModel,
+    F: np.ndarray,
+    G: np.ndarray,
+    n_cam: int,
+    variance: np.ndarray,
+    directions: Directions | None = None,
+) -> NominalReference:
+    """Both references (module docstring) for the postures whose information is ``F`` (p, p)
+    on ``[camera (n_cam), minimal (k)]`` (:func:`selfcal.calibration.board.plan.frame_information`
+    summed), of the calibration's chain ``model``, with the aligned tool weight ``G`` (k, k) and
+    the deviation's ``variance`` (k,); ``directions`` the model's when already computed."""
+    dirs = directions or Directions(model)
+    M = dirs.of(placement_indices(model.n), np.zeros(0, np.int64))
+    fair = predicted_with_held(F, G, n_cam, M, variance)
+    return NominalReference(fair_m=fair, drawn_m=drawn_error(G, variance))

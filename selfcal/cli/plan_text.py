@@ -1,0 +1,116 @@
+"""What ``selfcal plan`` says of a camera plan: its closing lines, plan.json's sections on the
+selection's forecast and the reference without calibrating the kinematics, and the criterion
+in words (issue #30)."""
+
+from __future__ import annotations
+
+import argparse
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # the CLI's parser loads no numerical module (tests/unit/test_cli_imports.py)
+    from selfcal.calibration.board.plan_reference import NominalReference
+
+__all__ = ["criterion", "plan_lines", "plan_sections", "reference_words"]
+
+
+def reference_words(ref: NominalReference, predicted_m: float) -> str:
+    """The reference and the verdict on a calibration predicted at ``predicted_m`` (m): the
+    error without calibrating the kinematics and whether the prediction beats it clearly."""
+    from selfcal.calibration.board.plan_reference import CLEAR_MARGIN
+
+    mm = ref.best_m * 1000
+    head = (f"without calibrating the kinematics {mm:.3f} mm ({ref.what}; "
+            + ("the fair nominal, hand-eye and board pose fitted to the pixels: "
+               f"{ref.fair_m * 1000:.3f} mm" if ref.what == "the chain as drawn" else
+               f"the chain as drawn: {ref.drawn_m * 1000:.3f} mm") + ")")  # fmt: skip
+    ratio = predicted_m / ref.best_m
+    if ref.beaten_by(predicted_m):
+        return f"{head}: the calibration is predicted at {ratio:.2f} times it"
+    return (f"{head}: NOT predicted to beat it by a clear margin ({ratio:.2f} times it, a clear "
+            f"gain is at most {CLEAR_MARGIN:g}): the calibration may be no better than "
+            f"{ref.what}")  # fmt: skip
+
+
+def plan_lines(plan) -> str:
+    """The closing lines of a camera plan
+    (:class:`selfcal.calibration.board.plan.RecordingPlan`)."""
+    import numpy as np
+
+    n, dof = len(plan.q), plan.q.shape[1]
+    sel = plan.selected
+    pred = f"{sel.selected_m * 1000:.3f}"
+    kept = f"{sel.kept(dof)}"
+    if sel.rival_m is not None:
+        pred += f" - {sel.rival_m * 1000:.3f}"
+        kept += f" or {sel.rival_kept(dof)}"
+    first = (f"plan of {n} postures: predicted tool-point error {pred} mm RMS with the {kept} "
+             "kinematic parameters beyond the placement the calibration's selection is "
+             "forecast to keep")  # fmt: skip
+    if sel.kept(dof) == plan.kept_all and sel.rival_m is None:
+        first += (f", all the postures identify (a random plan of {n}: "
+                  f"{plan.random_m * 1000:.3f} mm so)")  # fmt: skip
+    else:
+        first += (f" (with all {plan.kept_all} the postures identify {plan.predicted_m * 1000:.3f}"
+                  f" mm; a random plan of {n}: {plan.random_m * 1000:.3f} mm)")  # fmt: skip
+    first += f"; joint path {np.degrees(plan.path_rad):.0f} deg"
+    second = reference_words(plan.reference, plan.selected.worst_m)
+    if not plan.reference.beaten_by(plan.selected.worst_m):
+        if plan.to_beat is not None:
+            k, got = plan.to_beat
+            second += (f"; record more postures: a plan of {k} (--count {k}) is predicted "
+                       f"{got * 1000:.3f} mm")  # fmt: skip
+        else:
+            second += (f"; no plan of up to {plan.searched} postures from these candidates is "
+                       "predicted to beat it (plan other board or camera poses to compare)")  # fmt: skip
+    return f"{first}\n{second}"
+
+
+def plan_sections(plan) -> dict:
+    """plan.json's sections of a camera plan beyond the prediction with every identified
+    parameter: the selection's forecast, its prediction, the reference and the verdict."""
+    sel, dof = plan.selected, plan.q.shape[1]
+    fc = sel.forecast
+    return {
+        "identified_kinematic_parameters": plan.kept_all,
+        "selection": {
+            "tool_rms_mm": round(sel.selected_m * 1000, 4),
+            "kinematic_parameters": sel.kept(dof),
+            "rival_tool_rms_mm": None if sel.rival_m is None else round(sel.rival_m * 1000, 4),
+            "rival_kinematic_parameters": sel.rival_kept(dof),
+            "chosen": fc.label,
+            "folds": fc.folds,
+            "candidates": [
+                {"label": lab, "fold_rms_px": [round(v, 4) for v in rms]}
+                for lab, rms in zip(fc.labels, fc.fold_rms_px)
+            ],
+            "note": (
+                "predicted with the kinematic parameters (beyond the placement) the "
+                "selection's cross-validation is forecast to keep, the others held at the "
+                "drawing; rival: the next smaller candidate, when its expected CV error is "
+                "near enough that the one-standard-error rule may keep it; "
+                "predicted_tool_rms_mm keeps every one the postures identify"
+            ),
+        },
+        "nominal": plan.reference.to_json(),
+        "beats_nominal": plan.reference.beaten_by(sel.worst_m),
+        "verdict": reference_words(plan.reference, sel.worst_m),
+        "more_postures": (
+            None
+            if plan.to_beat is None
+            else {"count": plan.to_beat[0], "tool_rms_mm": round(plan.to_beat[1] * 1000, 4)}
+        ),
+    }
+
+
+def criterion(workspace: int, pixel_sigma: float, js, args: argparse.Namespace) -> str:
+    """plan.json's criterion in words."""
+    joints = ("joints read exactly" if js is None else "joint read-back noise of the robot "
+              "file's encoder resolution (1 count / sqrt(12)), each frame's corrections "
+              "estimated")  # fmt: skip
+    return (
+        "board route Cramer-Rao bound with the parameters the selection's rank test keeps, "
+        f"the others held at the drawing, deviating uniformly within +-{args.deviation_mm:g} mm "
+        f"and +-{args.deviation_deg:g} deg: RMS of the flange centre over {workspace} random "
+        f"workspace postures after the best rigid alignment, corner noise {pixel_sigma:g} px, "
+        + joints
+    )
