@@ -18,7 +18,6 @@ Wrapping costs a few microseconds a call: the times are the run's, not a benchma
 from __future__ import annotations
 
 import argparse
-import collections
 import functools
 import importlib.abc
 import os
@@ -160,19 +159,21 @@ def report(lines: list[str]) -> str:
     for r in rows:
         pids.setdefault(r[0], "main" if not pids else f"p{len(pids)}")
     out = ["process thread          start     end    wall  thrCPU procCPU  stage"]
-    frames: dict[tuple[str, str, str], list[float]] = collections.defaultdict(lambda: [0, 0, 0])
+    frames: dict[tuple[str, str, str], list[float]] = {}
     for pid, thread, a, b, tc, pc, name in rows:
-        if name in PER_FRAME:
-            acc = frames[(pids[pid], thread, name)]
+        if name in PER_FRAME:  # calls, first start, last end, wall, thread CPU
+            acc = frames.setdefault((pids[pid], thread, name), [0, float(a), 0.0, 0.0, 0.0])
             acc[0] += 1
-            acc[1] += float(b) - float(a)
-            acc[2] += float(tc)
+            acc[2] = max(acc[2], float(b))
+            acc[3] += float(b) - float(a)
+            acc[4] += float(tc)
             continue
         out.append(f"{pids[pid]:7s} {thread[:14]:14s} {float(a):7.3f} {float(b):7.3f} "
                    f"{float(b) - float(a):7.3f} {float(tc):7.3f} {float(pc):7.3f}  {name}")  # fmt: skip
-    out += ["", "per frame, summed by thread:  calls    wall  thrCPU"]
-    for (proc, thread, name), (n, wall, cpu) in sorted(frames.items(), key=lambda kv: -kv[1][2]):
-        out.append(f"{proc:7s} {thread[:14]:14s} {name:24s} {n:4d} {wall:7.3f} {cpu:7.3f}")
+    out += ["", "per frame, summed by thread:     calls   first    last    wall  thrCPU"]
+    for (proc, thread, name), acc in sorted(frames.items(), key=lambda kv: -kv[1][4]):
+        out.append(f"{proc:7s} {thread[:14]:14s} {name:24s} {int(acc[0]):4d} "
+                   + " ".join(f"{v:7.3f}" for v in acc[1:]))  # fmt: skip
     return "\n".join(out)
 
 
