@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import gc
 import json
 import sys
 from collections.abc import Callable, Iterator
@@ -424,9 +425,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of the ``selfcal`` console script; returns the exit code (README "Exit
-    codes": 0 ok, 1 internal error, 2 bad input or usage, 3 cannot calibrate, 4 hardware, 130
-    Ctrl-C)."""
+    """The command line ``argv`` (default ``sys.argv[1:]``) run; returns the exit code (README
+    "Exit codes": 0 ok, 1 internal error, 2 bad input or usage, 3 cannot calibrate, 4 hardware,
+    130 Ctrl-C). The console script is :func:`script`."""
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
@@ -449,5 +450,16 @@ def _limited(
     return run
 
 
+def script() -> int:
+    """The ``selfcal`` console script: :func:`main`, then every object left moved to the garbage
+    collector's permanent generation (:func:`gc.freeze`), which the interpreter's exit then does
+    not walk (after ``selfcal run`` its collections took 0.12 s of CPU, 0.025 s frozen, at the
+    end of the command's wall time; issue 32). Exit handlers and flushes run as before; a
+    caller of :func:`main` in its own process (tests, studies) keeps collecting."""
+    code = main()
+    gc.freeze()
+    return code
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(script())
