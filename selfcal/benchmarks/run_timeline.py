@@ -144,21 +144,58 @@ def _child(argv: list[str]) -> int:
     rec = _Recorder(os.environ["TIMELINE_FILE"], float(os.environ["TIMELINE_T0"]))
     rec.write("interpreter started", time.time(), time.thread_time(), time.process_time())
     sys.meta_path.insert(0, _Hook(rec))
-    from selfcal.cli.main import main as selfcal_main
+    from selfcal.cli.main import script
 
+    sys.argv = ["selfcal", *argv]
     try:
-        return selfcal_main(argv)
+        return script()
     finally:
         rec.write("main returned", time.time(), 0.0, 0.0)
 
 
-def report(lines: list[str]) -> str:
-    """The timeline text of the recorded ``lines`` (see the module docstring)."""
+PHASES = (
+    ("start-up: interpreter, selfcal.cli.main", None, ("cmd_run", 2)),
+    ("imports of the run (figure worker forked)", ("cmd_run", 2), ("run_acquire", 2)),
+    ("simulator set-up and plan", ("run_acquire", 2), ("acquire", 2)),
+    ("acquisition: render, noise, PNG, detection", ("acquire", 2), ("acquire", 3)),
+    ("calibration", ("run_calibrate", 2), ("run_calibrate", 3)),
+    ("report before the figures", ("run_report", 2), ("PendingFigure.wait", 2)),
+    ("waiting for the figure processes", ("PendingFigure.wait", 2), ("PendingFigure.wait", 3)),
+    ("report after the figures, closing", ("PendingFigure.wait", 3), ("main returned", 3)),
+    ("interpreter exit", ("main returned", 3), None),
+)
+"""The main thread's phases, one after another: (label, from, to), each an edge (2 start,
+3 end) of a stage's first call (last call for an end), None the child's start or exit."""
+
+
+def critical_path(rows: list[list[str]], wall: float) -> list[str]:
+    """The main thread's :data:`PHASES` with their wall seconds: what the run's wall time is
+    made of (a phase whose stage was not called is left out)."""
+    main = [r for r in rows if r[0] == rows[0][0] and r[1] == "MainThread"]
+
+    def at(edge: tuple[str, int] | None, last: bool) -> float | None:
+        if edge is None:
+            return wall if last else 0.0
+        hits = [float(r[edge[1]]) for r in main if r[6] == edge[0]]
+        return (max(hits) if last else min(hits)) if hits else None
+
+    out = ["critical path (main thread)                    from      to    wall"]
+    for label, a, b in PHASES:
+        t0, t1 = at(a, a is not None and a[1] == 3), at(b, b is None or b[1] == 3)
+        if t0 is not None and t1 is not None:
+            out.append(f"{label:44s} {t0:7.3f} {t1:7.3f} {t1 - t0:7.3f}")
+    return out
+
+
+def report(lines: list[str], wall: float) -> str:
+    """The timeline text of the recorded ``lines`` (see the module docstring) of a run of
+    ``wall`` seconds."""
     rows = sorted((r.split("\t") for r in lines if r.strip()), key=lambda r: float(r[2]))
     pids: dict[str, str] = {}
     for r in rows:
         pids.setdefault(r[0], "main" if not pids else f"p{len(pids)}")
-    out = ["process thread          start     end    wall  thrCPU procCPU  stage"]
+    out = [*critical_path(rows, wall), ""]
+    out += ["process thread          start     end    wall  thrCPU procCPU  stage"]
     frames: dict[tuple[str, str, str], list[float]] = {}
     for pid, thread, a, b, tc, pc, name in rows:
         if name in PER_FRAME:  # calls, first start, last end, wall, thread CPU
@@ -199,7 +236,7 @@ def main(argv: list[str] | None = None) -> None:
         after = resource.getrusage(resource.RUSAGE_CHILDREN)
         if done.returncode != 0:
             print(done.stderr[-3000:], file=sys.stderr)
-        print(report(log.read_text().splitlines()))
+        print(report(log.read_text().splitlines(), wall))
     user, sys_ = after.ru_utime - before.ru_utime, after.ru_stime - before.ru_stime
     print(f"\nselfcal run (exit {done.returncode}): wall {wall:.2f} s, CPU {user + sys_:.2f} s "
           f"(user {user:.2f} + system {sys_:.2f}, every process); 1-minute load average "
