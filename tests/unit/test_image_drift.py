@@ -10,8 +10,10 @@ import json
 
 import numpy as np
 import pytest
+from scipy.stats import chi2, norm
 
 from selfcal.calibration.drift.images import _covariance, image_drift_check
+from selfcal.calibration.drift.p_value import known_change_power
 from selfcal.calibration.drift.views import view_jacobians
 from selfcal.camera import camera_model
 from selfcal.cli.main import main as selfcal
@@ -127,6 +129,33 @@ def test_a_depth_change_and_a_focal_change_cannot_be_told_apart(setup):
     assert res.attribution.cause is None
     assert {"camera", "world" if e2h else "hand-eye"} <= set(res.attribution.explaining)
     assert "cannot tell" in res.line()
+
+
+def test_a_move_of_the_mount_is_tested_as_a_translation(setup):
+    """The mount moved without turning, its pixels alone (no noise) at noncentrality 20: the
+    translation's 3-dof test finds it (p = 11 chi2_3(> 20) = 0.0019: the omnibus, the camera,
+    the mount's and the world's translation and rotation, 5 joints); with the twist as one
+    6-dof test it was missed (9 chi2_6(> 20) = 0.025 > 0.01)."""
+    e2h, _, _, views, C = setup
+    L = np.linalg.cholesky(_covariance(C, views))
+    mu = np.concatenate([v.tool[:, :3] @ np.array([0.6, -0.48, 0.64]) for v in views])
+    mu *= np.sqrt(20.0) / np.linalg.norm(np.linalg.solve(L, mu))
+    res = image_drift_check(C, _with(views, mu), eye_to_hand=e2h, camera_names=FREE)
+    assert res.statistic == pytest.approx(20.0)
+    tests = 1 + 1 + 2 * 2 + views[0].joints.shape[1]
+    assert res.changed and res.p_value == pytest.approx(tests * chi2.sf(20.0, 3), rel=1e-6)
+
+
+def test_known_change_power():
+    """The most powerful test (direction known) finds a change of noncentrality
+    (z_0.99 + z_0.95)^2 in 95 % of the checks at alpha 0.01; knowing only its 3 axes, the
+    chi-square of their fit finds it as often as simulated draws of that test say (0.81)."""
+    lam2 = (norm.isf(0.01) + norm.isf(0.05)) ** 2
+    assert known_change_power(lam2, 0.01) == pytest.approx(0.95)
+    z = np.random.default_rng(4).normal(size=(20_000, 3)) + [np.sqrt(lam2), 0.0, 0.0]
+    drawn = np.mean(np.sum(z**2, axis=1) > chi2.isf(0.01, 3))
+    assert known_change_power(lam2, 0.01, dof=3) == pytest.approx(drawn, abs=0.01)
+    assert known_change_power(0.0, 0.01, dof=3) == pytest.approx(0.01)
 
 
 def test_no_view_is_refused(setup):

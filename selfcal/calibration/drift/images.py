@@ -22,11 +22,12 @@ predicted`` (2k px over every corner of every view) are Gaussian to first order 
 ``T = r^T Sigma^-1 r`` is then chi-square with ``2k`` degrees of freedom. That omnibus test
 has little power against a change that moves the pixels along a few directions (a joint's
 offset, a mount) among ``2k`` (hundreds), so each candidate change of
-:mod:`selfcal.calibration.drift.attribution` (the camera, the chain's tool mount, its world, one
-joint's offset) is also tested: how much its fit lowers ``T`` is chi-square with its parameter
-count. The robot has changed when the smallest of these ``1 + 3 + n`` p-values, times their
-count (Bonferroni), is below ``alpha`` (0.01): when ``Sigma`` is right, at most ``alpha`` of
-the checks of an unchanged robot say "changed".
+:mod:`selfcal.calibration.drift.attribution` (the camera, the chain's tool mount's translation
+and its rotation, its world's translation and rotation, one joint's offset) is also tested: how
+much its fit lowers ``T`` is chi-square with its parameter count. The robot has changed when
+the smallest of these ``1 + 5 + n`` p-values, times their count (Bonferroni,
+:func:`selfcal.calibration.drift.p_value.combined_p`), is below ``alpha`` (0.01): when
+``Sigma`` is right, at most ``alpha`` of the checks of an unchanged robot say "changed".
 
 The change at the tool: the RMS over the new postures of the tool point's (the flange's) move
 by the candidate change that fits best, fitted (0 when that is the camera). A single view's own
@@ -45,12 +46,11 @@ from pathlib import Path
 
 import numpy as np
 from scipy.linalg import solve_triangular
-from scipy.stats import chi2
 
 from selfcal.calibration.board.accuracy import board_error_model_from_json
 from selfcal.calibration.board.evaluate import held_out_views
 from selfcal.calibration.drift.attribution import Attribution, attribute, candidate_fits
-from selfcal.calibration.drift.p_value import p_text
+from selfcal.calibration.drift.p_value import combined_p, p_text
 from selfcal.calibration.drift.views import ViewJacobians, view_jacobians
 from selfcal.errors import InputError
 from selfcal.io.board_calibration import (
@@ -185,9 +185,7 @@ def image_drift_check(C: np.ndarray, views: list[ViewJacobians], *,
     # the omnibus test and each candidate change's directed one (how much its fit lowers T,
     # chi-square with its rank), Bonferroni-combined
     fits = candidate_fits(white, rw, views, eye_to_hand=eye_to_hand)
-    tests = [chi2.sf(T, dof)] + [chi2.sf(fits.drop[k], fits.rank[k]) for k in fits.what
-                                 if fits.rank[k] > 0]  # fmt: skip
-    p = float(min(1.0, len(tests) * min(tests)))
+    p = combined_p(T, dof, fits.directed)
     best = fits.best(T)
     moves = tool_point_moves(best, fits.x[best], views)
     changed = p < alpha
