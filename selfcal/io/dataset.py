@@ -40,6 +40,7 @@ from selfcal.io.dataset_info import (
 )
 from selfcal.io.images import read_gray_image
 from selfcal.io.jsonfile import dumps
+from selfcal.io.marker_rows import marker_corners
 
 __all__ = [
     "DatasetError",  # defined with dataset.json's reader; what Dataset.open raises
@@ -139,15 +140,19 @@ def read_text(path: Path) -> str:
         raise DatasetError(f"{path}: cannot be read ({exc.strerror or exc})") from None
 
 
-def _read_csv_rows(path: Path) -> list[list[str]]:
-    """Rows of a CSV file, header excluded, ignoring a trailing partial line."""
+def _csv_lines(path: Path) -> list[str]:
+    """Lines of a CSV file, the header included, ignoring a trailing partial line."""
     if not path.is_file():
         return []
     text = read_text(path)
     if text and not text.endswith("\n"):
         text = text[: text.rfind("\n") + 1]
-    rows = list(csv.reader(text.splitlines()))
-    return rows[1:]
+    return text.splitlines()
+
+
+def _read_csv_rows(path: Path) -> list[list[str]]:
+    """Rows of a CSV file, header excluded, ignoring a trailing partial line."""
+    return list(csv.reader(_csv_lines(path)))[1:]
 
 
 class DatasetWriter:
@@ -437,10 +442,14 @@ class Dataset:
                 f"{path} holds a board's features, not the marker field's corners",
                 fix="read it with Dataset.read_features (the board route)",
             )
+        lines = _csv_lines(path)
+        fast = marker_corners(lines[1:], self.indices)  # None: a row to name, read row by row
+        if fast is not None:
+            return fast
         out: Detections = {}
         keep = set(self.indices.tolist())
         buf: dict[tuple[int, str, int], np.ndarray] = {}
-        for r in _read_csv_rows(path):
+        for r in list(csv.reader(lines))[1:]:
             try:
                 i, cam, mid, k, u, v = (
                     int(r[0]),
