@@ -143,9 +143,9 @@ def ba_against_scipy(poses: int, root: Path) -> dict:
     seen = []
     real = bundle_adjust.solve
 
-    def spy(problem, options=None):
+    def spy(problem, options=None, plans=None):
         seen.append(problem)
-        return real(problem, options)
+        return real(problem, options, plans)
 
     bundle_adjust.solve = spy
     try:

@@ -33,6 +33,7 @@ from selfcal.solver import (
     ParameterBlock,
     Problem,
     ResidualBlock,
+    SchurPlans,
     SolverOptions,
     covariance,
     inverse_block,
@@ -186,6 +187,7 @@ def bundle_adjust(
     tol: float = 1e-12,
     solver: str = "lm",
     initial_damping: float = SolverOptions.initial_damping,
+    plans: SchurPlans | None = None,
 ) -> BundleResult[C]:
     """Sparse bundle adjustment of ``camera``'s free parameters (unless ``fix_intrinsics``), the
     pose-model parameters (start ``p0``) and the points ``X`` (P, 3) m (start ``X0``; held at
@@ -197,7 +199,9 @@ def bundle_adjust(
     cauchy; scale ``f_scale_px``) on each observation's 2-D residual norm; the pose parameters are
     eliminated by a Schur complement in large problems when the pose model labels them per view
     (``param_instances``); ``initial_damping``: its first damping (a previous adjustment's
-    :attr:`BundleResult.damping` starts a nearby problem warm). ``solver="scipy"``: :func:`scipy.optimize.least_squares` (trf + lsmr,
+    :attr:`BundleResult.damping` starts a nearby problem warm); ``plans``: the Schur form's
+    structures shared with other adjustments of the same rows and the covariance
+    (:class:`selfcal.solver.SchurPlans`). ``solver="scipy"``: :func:`scipy.optimize.least_squares` (trf + lsmr,
     loss per coordinate), with the analytic Jacobian or -- when ``model.view_jacobian`` returns None
     -- finite differences restricted by ``jac_sparsity``.
 
@@ -236,13 +240,13 @@ def bundle_adjust(
             eliminate="poses" if has_instances else None,
             initial_damping=initial_damping,
         )
-        res = solve(prob.problem, opt)
+        res = solve(prob.problem, opt, plans)
         x, r, cost, nfev = res.x, res.residuals[prob.block.name], res.cost, res.nfev
         status, message, damping = res.status, res.message, res.damping
         cov = None
         if has_instances and prob.ni:  # the camera's covariance by the solver's Schur form
             cov = functools.partial(covariance, prob.problem, res.x.copy(), ["intrinsics"],
-                                    eliminate="poses")  # fmt: skip
+                                    eliminate="poses", plans=plans)  # fmt: skip
     else:
         # optional heavy import (0.15 s): only the scipy path and pose models without Jacobian
         from scipy.optimize import least_squares

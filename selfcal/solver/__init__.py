@@ -23,6 +23,7 @@ from selfcal.solver.linear import DENSE_MAX
 from selfcal.solver.lm import SolverOptions, SolverResult, cost_and_weights, solve
 from selfcal.solver.losses import LOSSES, Loss
 from selfcal.solver.problem import Evaluation, JacobianPiece, ParameterBlock, Problem, ResidualBlock
+from selfcal.solver.schur import SchurPlans
 
 __all__ = [
     "DENSE_MAX",
@@ -33,6 +34,7 @@ __all__ = [
     "ParameterBlock",
     "Problem",
     "ResidualBlock",
+    "SchurPlans",
     "SolverOptions",
     "SolverResult",
     "block_columns",

@@ -17,7 +17,7 @@ from scipy.sparse.linalg import ArpackError, LinearOperator, eigsh, splu
 
 from selfcal.solver.linear import DENSE_MAX
 from selfcal.solver.problem import Problem
-from selfcal.solver.schur import SchurAssembler
+from selfcal.solver.schur import SchurAssembler, SchurPlans
 
 __all__ = [
     "block_columns",
@@ -119,6 +119,7 @@ def covariance(
     *,
     sigma2: float = 1.0,
     eliminate: str | None = None,
+    plans: SchurPlans | None = None,
 ) -> np.ndarray:
     """``sigma2 (J^T J)^-1`` over the free coordinates of parameter ``blocks`` (in that order,
     each block's coordinates in order; ``(name, idx)`` selects the free coordinates ``idx`` of a
@@ -127,10 +128,11 @@ def covariance(
     ``eliminate``: a parameter block with instances (as :class:`selfcal.solver.SolverOptions`'s):
     when none of the selected coordinates is one of its instances', the inverse is that of the
     Schur complement of the instances in ``J^T J`` assembled as the solver assembles it (dense,
-    the kept unknowns only), instead of a sparse factorisation of the whole of ``J^T J``."""
+    the kept unknowns only), instead of a sparse factorisation of the whole of ``J^T J``;
+    ``plans`` the Schur form's structures kept from the solve (:class:`SchurPlans`)."""
     cols = block_columns(problem, blocks)
     if eliminate is not None:
-        kept = _kept_inverse(problem, x, cols, eliminate)
+        kept = _kept_inverse(problem, x, cols, eliminate, plans)
         if kept is not None:
             return sigma2 * kept
     return sigma2 * inverse_block(problem.jacobian(x), cols)
@@ -144,12 +146,14 @@ def schur_normal_matrix(problem: Problem, x: np.ndarray, eliminate: str) -> sp.c
     return _normal_of_parts(U, W, V, elim, kept, problem.n)
 
 
-def _schur_parts(problem: Problem, x: np.ndarray, eliminate: str) -> tuple[np.ndarray, ...]:
+def _schur_parts(
+    problem: Problem, x: np.ndarray, eliminate: str, plans: SchurPlans | None = None
+) -> tuple[np.ndarray, ...]:
     """``(U, W, V, elim, kept)`` of the unweighted ``J^T J`` at ``x`` in the solver's Schur form
     (:class:`selfcal.solver.linear.NormalEquations`)."""
     inst = problem.instance_of_columns(eliminate)
     evals = problem.evaluate(x, jacobian=True)
-    asm = SchurAssembler(problem, inst)
+    asm = SchurAssembler(problem, inst, plans)
     _, U, W, V = asm.assemble(evals, [np.ones(len(ev.residuals)) for ev in evals])
     return U, W, V, asm.layout.elim, asm.layout.kept
 
@@ -199,8 +203,9 @@ def _normal_of_parts(
 
 
 def _kept_inverse(
-    problem: Problem, x: np.ndarray, cols: np.ndarray, eliminate: str
-) -> np.ndarray | None:
+    problem: Problem, x: np.ndarray, cols: np.ndarray, eliminate: str,
+    plans: SchurPlans | None = None,
+) -> np.ndarray | None:  # fmt: skip
     """``(J^T J)^-1`` restricted to ``cols`` through the Schur complement of the instances of
     block ``eliminate`` (diagonally scaled like :func:`inverse_block`), or None when a column
     is one of theirs, there are none, or an instance's block is not positive definite."""
@@ -208,7 +213,7 @@ def _kept_inverse(
     if not np.any(inst >= 0) or np.any(inst[cols] >= 0):
         return None
     evals = problem.evaluate(x, jacobian=True)
-    asm = SchurAssembler(problem, inst)
+    asm = SchurAssembler(problem, inst, plans)
     _, U, W, V = asm.assemble(evals, [np.ones(len(ev.residuals)) for ev in evals])
     lay = asm.layout
     Us, Ws, Vs, dV = _unit_diagonal(U, W, V, lay.elim >= 0)
@@ -249,15 +254,17 @@ def _unit_diagonal(U, W, V, e: np.ndarray) -> tuple[np.ndarray, ...]:
 
 
 def schur_scaled_rank(
-    problem: Problem, x: np.ndarray, eliminate: str, rtol: float = 1e-9
-) -> tuple[float, int]:
+    problem: Problem, x: np.ndarray, eliminate: str, rtol: float = 1e-9,
+    plans: SchurPlans | None = None,
+) -> tuple[float, int]:  # fmt: skip
     """:func:`scaled_rank_of_normal` of :func:`schur_normal_matrix` ``(problem, x, eliminate)``;
     above :data:`selfcal.solver.linear.DENSE_MAX` unknowns without forming it: Lanczos on the
     Schur parts (products per instance), the smallest eigenvalue by shift-invert through the
     Schur complement of the instances (a dense factorisation of the kept unknowns) instead of a
     sparse factorisation of every unknown. The same numbers to rounding; a matrix that is not
-    positive definite (rank deficient) goes to :func:`scaled_rank_of_normal`."""
-    U, W, V, elim, kept = _schur_parts(problem, x, eliminate)
+    positive definite (rank deficient) goes to :func:`scaled_rank_of_normal`. ``plans``: the
+    Schur form's structures to share with the solve (:class:`SchurPlans`)."""
+    U, W, V, elim, kept = _schur_parts(problem, x, eliminate, plans)
     n, e = problem.n, elim >= 0
     if n <= DENSE_MAX or not e.any():
         return scaled_rank_of_normal(_normal_of_parts(U, W, V, elim, kept, n), rtol)

@@ -42,7 +42,7 @@ from selfcal.solver.linear import (
     assemble,
 )
 from selfcal.solver.problem import Evaluation, Problem
-from selfcal.solver.schur import SchurAssembler
+from selfcal.solver.schur import SchurAssembler, SchurPlans
 
 __all__ = ["SolverOptions", "SolverResult", "solve", "cost_and_weights"]
 
@@ -156,8 +156,12 @@ def _linear_kind(problem: Problem, opt: SolverOptions) -> tuple[str, np.ndarray 
     return kind, inst
 
 
-def solve(problem: Problem, options: SolverOptions | None = None) -> SolverResult:
+def solve(
+    problem: Problem, options: SolverOptions | None = None, plans: SchurPlans | None = None
+) -> SolverResult:
     """Minimise the problem's cost from its initial values (see the module docstring).
+    ``plans``: the Schur form's structures kept from an earlier solve or check of the same
+    structure (:class:`selfcal.solver.schur.SchurPlans`; the Schur form only).
 
     Raises:
         SolverError: NaN/inf residuals at the start, in a Jacobian or in the normal equations,
@@ -168,7 +172,7 @@ def solve(problem: Problem, options: SolverOptions | None = None) -> SolverResul
     """
     opt = options or SolverOptions()
     kind, inst = _linear_kind(problem, opt)
-    schur = SchurAssembler(problem, inst) if kind == "schur" and inst is not None else None
+    schur = SchurAssembler(problem, inst, plans) if kind == "schur" and inst is not None else None
     tol = opt.tol
     x = problem.x0.copy()
     evals = problem.evaluate(x)

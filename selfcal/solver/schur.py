@@ -26,6 +26,7 @@ weights ``w >= 0``.
 
 from __future__ import annotations
 
+import hashlib
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -34,7 +35,7 @@ import numpy as np
 from selfcal.errors import UsageError
 from selfcal.solver.problem import Evaluation, Problem
 
-__all__ = ["BATCH_ENTRIES", "CHUNK_ROWS", "SchurLayout", "SchurAssembler"]
+__all__ = ["BATCH_ENTRIES", "CHUNK_ROWS", "SchurLayout", "SchurAssembler", "SchurPlans"]
 
 CHUNK_ROWS = 32
 """Rows per chunk of a group in the batched products (a group is padded to whole chunks)."""
@@ -339,17 +340,54 @@ class _Sums:
         )
 
 
+class SchurPlans:
+    """The residual blocks' assembly structures kept from one :class:`SchurAssembler` to the
+    next: for a sequence of solves and checks of problems with the same structure (the robust
+    rounds of an adjustment that keep their rows and its final plain pass, its rank check at
+    the start and covariance at the solution), each builds a block's structure only when no
+    kept one has the same eliminated unknowns and the same global columns in every row
+    (compared by a digest of those arrays, never assumed). A caller holds one for as long as
+    such a sequence runs; it keeps the last structure of each residual block name."""
+
+    def __init__(self) -> None:
+        self._kept: dict[str, tuple[bytes, _BlockPlan]] = {}
+
+    @staticmethod
+    def digest(instance: np.ndarray, Gs: Sequence[np.ndarray], k: int, d: int) -> bytes:
+        """What a block's structure depends on: the unknowns' instances, the pieces' global
+        columns (k, c), ``k`` rows of ``d`` residuals."""
+        h = hashlib.blake2b(f"{k},{d},{len(instance)}".encode(), digest_size=20)
+        h.update(np.ascontiguousarray(instance, dtype=np.int64).tobytes())
+        for G in Gs:
+            h.update(f"|{G.shape}".encode())
+            h.update(np.ascontiguousarray(G, dtype=np.int64).tobytes())
+        return h.digest()
+
+    def find(self, name: str, key: bytes) -> _BlockPlan | None:
+        kept = self._kept.get(name)
+        return kept[1] if kept is not None and kept[0] == key else None
+
+    def keep(self, name: str, key: bytes, plan: _BlockPlan) -> None:
+        self._kept[name] = (key, plan)
+
+
 class SchurAssembler:
     """Assembles the Schur-form normal equations of ``problem`` for the instances ``instance``
     (n,) (-1 kept; :meth:`selfcal.solver.Problem.instance_of_columns`); the structure of each
-    residual block is built on the first call and reused while its column pattern is the same.
+    residual block is built on the first call and reused while its column pattern is the same,
+    or taken from ``plans`` (:class:`SchurPlans`) when an earlier assembler of the same
+    structure built it.
 
     Raises ``ValueError`` (on the first assembly) when a residual row couples two instances.
     """
 
-    def __init__(self, problem: Problem, instance: np.ndarray) -> None:
+    def __init__(
+        self, problem: Problem, instance: np.ndarray, plans: SchurPlans | None = None
+    ) -> None:
         self.problem = problem
-        self.layout = SchurLayout.of(np.asarray(instance, dtype=np.int64))
+        self.instance = np.asarray(instance, dtype=np.int64)
+        self.layout = SchurLayout.of(self.instance)
+        self.plans = plans
         self._plans: list[tuple[tuple, _BlockPlan] | None] = [None] * len(problem.residuals)
 
     def _plan(self, i: int, ev: Evaluation) -> _BlockPlan:
@@ -360,7 +398,13 @@ class SchurAssembler:
             return cached[1]
         d = int(np.prod(ev.residuals.shape[1:], dtype=np.int64)) if k else 1
         Gs = [self.problem.global_cols(pc) for pc in ev.pieces]
-        plan = _BlockPlan(Gs, k, d, self.layout, self.problem.n)
+        name = self.problem.residuals[i].name
+        digest = SchurPlans.digest(self.instance, Gs, k, d) if self.plans is not None else b""
+        plan = self.plans.find(name, digest) if self.plans is not None else None
+        if plan is None:
+            plan = _BlockPlan(Gs, k, d, self.layout, self.problem.n)
+            if self.plans is not None:
+                self.plans.keep(name, digest, plan)
         self._plans[i] = (key, plan)
         return plan
 

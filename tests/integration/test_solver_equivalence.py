@@ -35,9 +35,9 @@ def captured(tmp_path_factory):
     real = bundle_adjust.solve
 
     def spy(kind):
-        def wrapped(problem, options=None):
+        def wrapped(problem, options=None, plans=None):
             seen[kind].append(problem)
-            return real(problem, options)
+            return real(problem, options, plans)
 
         return wrapped
 

@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from selfcal.solver import Evaluation, JacobianPiece, Loss, ParameterBlock, Problem
 from selfcal.solver.linear import assemble
-from selfcal.solver.schur import SchurAssembler
+from selfcal.solver.schur import SchurAssembler, SchurPlans
 
 N_INST, N_PTS = 5, 7
 
@@ -130,6 +130,36 @@ def test_the_structure_is_reused_and_rebuilt_when_the_columns_change():
         dense = assemble(prob, evals, w, "dense")
         scale = np.abs(dense.dense_A).max()
         np.testing.assert_allclose(_full(schur), dense.dense_A, rtol=0, atol=1e-13 * scale)
+
+
+def test_kept_structures_serve_only_a_problem_of_the_same_structure():
+    """SchurPlans hands an assembler of another problem the structure an earlier one built
+    when the instances and every row's global columns are the same (a new problem object, new
+    values); a held unknown more (other global columns, same shapes) or rows that see other
+    points build their own. Every assembly, with row weights or all of them 1, is the dense
+    normal matrix."""
+    plans = SchurPlans()
+    seen = []
+    for case in ("first", "same", "moved", "held"):
+        rng = np.random.default_rng(11)
+        prob = _problem(rng)
+        if case == "held":
+            prob.parameters["p"].held[7] = True
+            prob = Problem(list(prob.parameters.values()), prob.residuals)
+        if case == "moved":
+            pc = prob.residuals[0].pieces[2]
+            prob.residuals[0].pieces[2] = JacobianPiece("x", pc.J, np.roll(pc.cols, 3, axis=0))
+        asm = SchurAssembler(prob, prob.instance_of_columns("p"), plans)
+        evals = prob.evaluate(prob.x0, jacobian=True)
+        for w in (_weights(rng, evals), [np.ones(len(ev.residuals)) for ev in evals]):
+            schur = assemble(prob, evals, w, "schur", schur=asm)
+            dense = assemble(prob, evals, w, "dense")
+            scale = np.abs(dense.dense_A).max()
+            np.testing.assert_allclose(_full(schur), dense.dense_A, rtol=0, atol=1e-13 * scale)
+            np.testing.assert_allclose(schur.g, dense.g, rtol=0, atol=1e-13 * np.abs(dense.g).max())
+        seen.append(asm._plans[0][1])
+    assert seen[1] is seen[0]  # the same structure: kept
+    assert seen[2] is not seen[1] and seen[3] is not seen[2]  # other columns: built anew
 
 
 def test_a_row_that_couples_two_instances_is_refused():

@@ -29,7 +29,7 @@ from selfcal.estimation.pose_models import FreePoses, RigPoses
 from selfcal.estimation.reprojection import reprojection_residuals, robust_sigma
 from selfcal.estimation.selfcal_errors import ConvergenceError, InsufficientDataError
 from selfcal.estimation.triangulation import ray_angle, robust_triangulate
-from selfcal.solver import SolverOptions
+from selfcal.solver import SchurPlans, SolverOptions
 from selfcal.transforms import inv_pose, make_pose
 
 __all__ = ["Reconstruction", "Adjustment", "rig_from_views", "gauge", "adjust"]
@@ -302,6 +302,7 @@ def adjust(
     n_rounds = total_nfev = 0
     rnd = 0
     damping = SolverOptions.initial_damping  # each round starts with the last one's (warm)
+    plans = SchurPlans()  # rounds on the same rows (and the covariance) share their structure
     while True:
         last = rnd == max_rounds
         a = _prune(rec, obs, active, min_view_points)
@@ -322,6 +323,7 @@ def adjust(
             max_nfev=max_nfev,
             tol=1e-12 if last else 1e-9,
             initial_damping=min(damping, SolverOptions.initial_damping),
+            plans=plans,
         )
         damping = res.damping
         n_rounds += 1

@@ -50,6 +50,7 @@ from selfcal.kinematics.forward import fk_tool, identification_jacobian
 from selfcal.kinematics.mcpc import MCPCModel, minimal_indices, param_names
 from selfcal.solver import (
     ResidualBlock,
+    SchurPlans,
     covariance,
     inverse_block,
     scaled_rank,
@@ -335,8 +336,9 @@ def cramer_rao(s: FisherSetup, *, rank_tol: float = 1e-10) -> CramerRao:
     n_unknowns, rtol = prob.n, float(np.sqrt(rank_tol))
     # the scaled eigenvalue ratio of J^T J (dense up to DENSE_MAX unknowns, Lanczos above; with
     # read-back errors on the Schur parts, as the solver eliminates them per configuration)
+    plans = SchurPlans()  # the rank check's Schur structures, for the covariance
     if s.joint_sigma is not None:
-        ratio, rank = schur_scaled_rank(prob.problem, x, "poses", rtol=rtol)
+        ratio, rank = schur_scaled_rank(prob.problem, x, "poses", rtol=rtol, plans=plans)
     else:
         J = prob.jac(x) / s.pixel_sigma_px
         ratio, rank = scaled_rank(J, rtol=rtol)
@@ -351,7 +353,7 @@ def cramer_rao(s: FisherSetup, *, rank_tol: float = 1e-10) -> CramerRao:
         pm, n = lay.pose_model, s.model.n
         sel = np.r_[np.arange(pm.k), pm.dq_cols[n * s.ref_config : n * (s.ref_config + 1)]]
         C = covariance(prob.problem, x, ["intrinsics", ("poses", sel)],
-                       sigma2=s.pixel_sigma_px**2, eliminate="poses")  # fmt: skip
+                       sigma2=s.pixel_sigma_px**2, eliminate="poses", plans=plans)  # fmt: skip
     else:
         C = inverse_block(J, np.r_[lay.kin_cols, lay.dq_ref_cols])
     nk, nc = len(lay.kin_cols), lay.n_camera

@@ -78,6 +78,7 @@ from selfcal.kinematics.mcpc import MCPCModel, minimal_indices, param_is_angle, 
 from selfcal.solver import (
     Loss,
     ResidualBlock,
+    SchurPlans,
     SolverOptions,
     covariance,
     scaled_rank,
@@ -303,6 +304,7 @@ def joint_refine(
     diag: dict = {}
     rank_info: tuple[float, int] | None = None
     status, message = 0, ""
+    plans = SchurPlans()  # rounds on the same rows, the rank check and covariance share them
     for rnd in range(rounds + 1):
         last = rnd == rounds
         act, pts_used, remap = select(active)
@@ -327,7 +329,7 @@ def joint_refine(
             rank_info = (float("nan"), -1)
         if rank_info is None and use_dq:  # J^T J as the solver assembles it (no sparse J)
             x_0 = prob.problem.x0
-            rank_info = schur_scaled_rank(prob.problem, x_0, "poses")
+            rank_info = schur_scaled_rank(prob.problem, x_0, "poses", plans=plans)
         if rank_info is None:
             rank_info = scaled_rank(prob.jac(prob.problem.x0))
             if rank_info[1] < prob.n:
@@ -342,7 +344,7 @@ def joint_refine(
             max_iterations=max_iter,
             eliminate="poses",  # the joint corrections, in large problems (Schur)
         )
-        sol = solve(prob.problem, opt)
+        sol = solve(prob.problem, opt, plans)
         x, cost, status, message = sol.x, sol.cost, sol.status, sol.message
         r = np.concatenate([v.ravel() for v in sol.residuals.values()])
         total_it += sol.iterations
@@ -397,6 +399,7 @@ def joint_refine(
             ["intrinsics", ("poses", np.arange(pose_model.k))],
             sigma2=sigma2,
             eliminate="poses",  # the joint corrections, as the solver eliminates them
+            plans=plans,
         )
     else:
         C = np.full((n_cam + pose_model.k,) * 2, np.nan)
