@@ -83,6 +83,9 @@ class JointRefinementResult(PinholeValues):
     sections: tuple = ()
     """The ``calibration.json`` section of every measurement term estimated with the images
     (:mod:`selfcal.terms`), in order."""
+    damping: float = 1e-4
+    """The damping the final pass's solve ended with (``SolverResult.damping``): a warm start
+    for a nearby problem (the fair nominal's fit starts at this estimate's camera and points)."""
 
     @property
     def T_left_right(self) -> np.ndarray:

@@ -183,6 +183,7 @@ def joint_refine(
     terms: Sequence[Term] = (),
     check_rank: bool = True,
     stds: bool = True,
+    initial_damping: float = SolverOptions.initial_damping,
 ) -> JointRefinementResult:
     """Refine kinematics, intrinsics, rig and points together from the corner observations.
 
@@ -216,6 +217,9 @@ def joint_refine(
             problem); False where a fit of more unknowns on the same rows passed it (the fair
             nominal, :mod:`selfcal.calibration.field.nominal_fit`): ``rank`` is then -1.
         stds: the covariance of the camera and the kinematic parameters (NaN without).
+        initial_damping: the first solve's damping (the later rounds' start at the default):
+            a warm start for a problem near a solved one (:attr:`JointRefinementResult.damping`,
+            the fair nominal's from its calibration).
 
     Raises:
         InputError: two terms of one kind; a ``joint_sigma`` not positive and finite.
@@ -343,6 +347,7 @@ def joint_refine(
             tol=tol if last else 1e-9,
             max_iterations=max_iter,
             eliminate="poses",  # the joint corrections, in large problems (Schur)
+            initial_damping=initial_damping if rnd == 0 else SolverOptions.initial_damping,
         )
         sol = solve(prob.problem, opt, plans)
         x, cost, status, message = sol.x, sol.cost, sol.status, sol.message
@@ -473,6 +478,7 @@ def joint_refine(
         diagnostics=diag,
         inlier=act,
         sections=tuple(r.section for r in reports if r.section is not None),
+        damping=sol.damping,
     )
 
 

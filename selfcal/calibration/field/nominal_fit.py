@@ -56,6 +56,7 @@ from selfcal.io.dataset_info import DatasetInfo
 from selfcal.kinematics.alignment import express_in_frame
 from selfcal.kinematics.mcpc import MCPCModel, nominal_mcpc
 from selfcal.robot.definition import RobotDef
+from selfcal.solver import SolverOptions
 from selfcal.transforms import kabsch
 
 __all__ = ["place_nominal", "fit_field_nominal", "fair_nominal", "judge_against_nominal"]
@@ -102,6 +103,9 @@ def fit_field_nominal(
         kw.setdefault("pixel_sigma_px", fin.diagnostics["pixel_sigma_px"])
         kw.setdefault("joint_sigma", fin.diagnostics["joint_sigma"])
         kw.setdefault("check_rank", False)  # the calibration's refinement of more unknowns did
+        # it starts at that refinement's minimum but for the chain: its first step undamped as
+        # that one's last (5 iterations where the default damping takes 7 at 300 postures)
+        kw.setdefault("initial_damping", min(fin.damping, SolverOptions.initial_damping))
     else:
         kw.setdefault("joint_sigma", encoder_sigma(robot))
     nominal = nominal_mcpc(robot).with_tool(robot.T_flange_cam)
