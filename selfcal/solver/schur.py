@@ -26,7 +26,6 @@ weights ``w >= 0``.
 
 from __future__ import annotations
 
-import hashlib
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -346,29 +345,32 @@ class SchurPlans:
     rounds of an adjustment that keep their rows and its final plain pass, its rank check at
     the start and covariance at the solution), each builds a block's structure only when no
     kept one has the same eliminated unknowns and the same global columns in every row
-    (compared by a digest of those arrays, never assumed). A caller holds one for as long as
-    such a sequence runs; it keeps the last structure of each residual block name."""
+    (compared, never assumed: a copy of those columns, 4 bytes an entry, is kept beside the
+    structure). A caller holds one for as long as such a sequence runs; it keeps the last
+    structure of each residual block name."""
 
     def __init__(self) -> None:
-        self._kept: dict[str, tuple[bytes, _BlockPlan]] = {}
+        self._kept: dict[str, tuple[np.ndarray, list[np.ndarray], int, _BlockPlan]] = {}
 
-    @staticmethod
-    def digest(instance: np.ndarray, Gs: Sequence[np.ndarray], k: int, d: int) -> bytes:
-        """What a block's structure depends on: the unknowns' instances, the pieces' global
-        columns (k, c), ``k`` rows of ``d`` residuals."""
-        h = hashlib.blake2b(f"{k},{d},{len(instance)}".encode(), digest_size=20)
-        h.update(np.ascontiguousarray(instance, dtype=np.int64).tobytes())
-        for G in Gs:
-            h.update(f"|{G.shape}".encode())
-            h.update(np.ascontiguousarray(G, dtype=np.int64).tobytes())
-        return h.digest()
-
-    def find(self, name: str, key: bytes) -> _BlockPlan | None:
+    def find(
+        self, name: str, instance: np.ndarray, Gs: Sequence[np.ndarray], d: int
+    ) -> _BlockPlan | None:
+        """The kept structure of block ``name`` if it was built for these instances (n,), the
+        pieces' global columns ``Gs`` (k, c) each and ``d`` residuals a row, else None."""
         kept = self._kept.get(name)
-        return kept[1] if kept is not None and kept[0] == key else None
+        if kept is None or kept[2] != d or not np.array_equal(kept[0], instance):
+            return None
+        if len(kept[1]) != len(Gs) or any(
+            a.shape != b.shape or not np.array_equal(a, b) for a, b in zip(kept[1], Gs)
+        ):
+            return None
+        return kept[3]
 
-    def keep(self, name: str, key: bytes, plan: _BlockPlan) -> None:
-        self._kept[name] = (key, plan)
+    def keep(
+        self, name: str, instance: np.ndarray, Gs: Sequence[np.ndarray], d: int, plan: _BlockPlan
+    ) -> None:
+        small = np.int32 if len(instance) < 2**31 else np.int64
+        self._kept[name] = (instance.copy(), [G.astype(small) for G in Gs], d, plan)
 
 
 class SchurAssembler:
@@ -399,12 +401,11 @@ class SchurAssembler:
         d = int(np.prod(ev.residuals.shape[1:], dtype=np.int64)) if k else 1
         Gs = [self.problem.global_cols(pc) for pc in ev.pieces]
         name = self.problem.residuals[i].name
-        digest = SchurPlans.digest(self.instance, Gs, k, d) if self.plans is not None else b""
-        plan = self.plans.find(name, digest) if self.plans is not None else None
+        plan = self.plans.find(name, self.instance, Gs, d) if self.plans is not None else None
         if plan is None:
             plan = _BlockPlan(Gs, k, d, self.layout, self.problem.n)
             if self.plans is not None:
-                self.plans.keep(name, digest, plan)
+                self.plans.keep(name, self.instance, Gs, d, plan)
         self._plans[i] = (key, plan)
         return plan
 
