@@ -17,7 +17,7 @@ from scipy.sparse.linalg import ArpackError, LinearOperator, eigsh, splu
 
 from selfcal.solver.linear import DENSE_MAX
 from selfcal.solver.problem import Problem
-from selfcal.solver.schur import SchurAssembler, SchurPlans
+from selfcal.solver.schur import SchurAssembler, SchurLayout, SchurPlans
 
 __all__ = [
     "block_columns",
@@ -152,10 +152,17 @@ def _schur_parts(
     """``(U, W, V, elim, kept)`` of the unweighted ``J^T J`` at ``x`` in the solver's Schur form
     (:class:`selfcal.solver.linear.NormalEquations`)."""
     inst = problem.instance_of_columns(eliminate)
+    if plans is not None:
+        parts = plans.normal_at(problem, x, inst)
+        if parts is not None:
+            return parts
     evals = problem.evaluate(x, jacobian=True)
     asm = SchurAssembler(problem, inst, plans)
     _, U, W, V = asm.assemble(evals, [np.ones(len(ev.residuals)) for ev in evals])
-    return U, W, V, asm.layout.elim, asm.layout.kept
+    parts = (U, W, V, asm.layout.elim, asm.layout.kept)
+    if plans is not None:
+        plans.keep_normal(problem, x, inst, parts)
+    return parts
 
 
 _MATRIX_CHUNK = 1 << 20  # entries per column chunk of _normal_of_parts
@@ -212,11 +219,9 @@ def _kept_inverse(
     inst = problem.instance_of_columns(eliminate)
     if not np.any(inst >= 0) or np.any(inst[cols] >= 0):
         return None
-    evals = problem.evaluate(x, jacobian=True)
-    asm = SchurAssembler(problem, inst, plans)
-    _, U, W, V = asm.assemble(evals, [np.ones(len(ev.residuals)) for ev in evals])
-    lay = asm.layout
-    Us, Ws, Vs, dV = _unit_diagonal(U, W, V, lay.elim >= 0)
+    U, W, V, elim, _ = _schur_parts(problem, x, eliminate, plans)
+    lay = SchurLayout.of(inst)
+    Us, Ws, Vs, dV = _unit_diagonal(U, W, V, elim >= 0)
     try:
         Li = np.linalg.inv(np.linalg.cholesky(Us))
     except np.linalg.LinAlgError:

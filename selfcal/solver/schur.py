@@ -347,10 +347,32 @@ class SchurPlans:
     kept one has the same eliminated unknowns and the same global columns in every row
     (compared, never assumed: a copy of those columns, 4 bytes an entry, is kept beside the
     structure). A caller holds one for as long as such a sequence runs; it keeps the last
-    structure of each residual block name."""
+    structure of each residual block name.
 
-    def __init__(self) -> None:
+    ``normal=True``: it also keeps the last unweighted ``J^T J`` a check assembled (the Schur
+    parts of :mod:`selfcal.solver.covariance`) for one more use at the same point by the same
+    problem (a rank check, then a covariance: one Jacobian and one assembly instead of two);
+    taken, it is dropped (it is as large as the coupling block ``W``)."""
+
+    def __init__(self, normal: bool = False) -> None:
         self._kept: dict[str, tuple[np.ndarray, list[np.ndarray], int, _BlockPlan]] = {}
+        self._normal_on = normal
+        self._normal: tuple[Problem, np.ndarray, np.ndarray, tuple] | None = None
+
+    def keep_normal(self, problem: Problem, x: np.ndarray, instance: np.ndarray, parts: tuple):
+        """Keep ``parts`` of ``problem`` at ``x`` (instances ``instance``) when ``normal``."""
+        if self._normal_on:
+            self._normal = (problem, np.array(x, dtype=float), instance.copy(), parts)
+
+    def normal_at(self, problem: Problem, x: np.ndarray, instance: np.ndarray) -> tuple | None:
+        """The kept parts if they are ``problem``'s (the same object) at ``x`` with these
+        instances (then dropped), else None."""
+        kept, self._normal = self._normal, None
+        if kept is None or kept[0] is not problem:
+            return None
+        if not (np.array_equal(kept[1], x) and np.array_equal(kept[2], instance)):
+            return None
+        return kept[3]
 
     def find(
         self, name: str, instance: np.ndarray, Gs: Sequence[np.ndarray], d: int

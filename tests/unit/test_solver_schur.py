@@ -162,6 +162,33 @@ def test_kept_structures_serve_only_a_problem_of_the_same_structure():
     assert seen[2] is not seen[1] and seen[3] is not seen[2]  # other columns: built anew
 
 
+def test_a_rank_check_hands_its_normal_matrix_to_the_covariance_at_the_same_point():
+    """SchurPlans(normal=True): covariance after schur_scaled_rank at the same point evaluates
+    no Jacobian and gives the same matrix as without; at another point it evaluates its own."""
+    from selfcal.solver import covariance, schur_scaled_rank
+
+    prob = _problem(np.random.default_rng(3))
+    blocks = ["a", ("x", np.arange(6))]
+    alone = covariance(prob, prob.x0, blocks, eliminate="p")
+    calls = []
+    evaluate = prob.evaluate
+
+    def counted(x, jacobian=False):
+        calls.append(jacobian)
+        return evaluate(x, jacobian)
+
+    prob.evaluate = counted
+    plans = SchurPlans(normal=True)
+    schur_scaled_rank(prob, prob.x0, "p", plans=plans)
+    shared = covariance(prob, prob.x0, blocks, eliminate="p", plans=plans)
+    assert calls == [True]  # one Jacobian for both
+    np.testing.assert_array_equal(shared, alone)
+    x1 = prob.x0 + 1e-3  # another point: its own Jacobian (the kept one was taken, and is gone)
+    schur_scaled_rank(prob, prob.x0, "p", plans=plans)
+    covariance(prob, x1, blocks, eliminate="p", plans=plans)
+    assert calls == [True, True, True]
+
+
 def test_a_row_that_couples_two_instances_is_refused():
     rng = np.random.default_rng(3)
     prob = _problem(rng)

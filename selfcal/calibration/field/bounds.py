@@ -336,7 +336,7 @@ def cramer_rao(s: FisherSetup, *, rank_tol: float = 1e-10) -> CramerRao:
     n_unknowns, rtol = prob.n, float(np.sqrt(rank_tol))
     # the scaled eigenvalue ratio of J^T J (dense up to DENSE_MAX unknowns, Lanczos above; with
     # read-back errors on the Schur parts, as the solver eliminates them per configuration)
-    plans = SchurPlans()  # the rank check's Schur structures, for the covariance
+    plans = SchurPlans(normal=True)  # the rank check's J^T J, for the covariance
     if s.joint_sigma is not None:
         ratio, rank = schur_scaled_rank(prob.problem, x, "poses", rtol=rtol, plans=plans)
     else:
