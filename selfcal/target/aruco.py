@@ -53,6 +53,13 @@ def markers_to_features(markers: Mapping[int, np.ndarray], where: str = "") -> F
     """``{marker id: corners (4, 2) px}`` (what :func:`detect_markers` returns) as features.
 
     Raises ``ValueError`` naming the marker (and ``where``) when its corners are not (4, 2)."""
+    try:  # every marker at once (a frame's 20-40 markers: a tenth of the time of the loop)
+        mids = np.fromiter(markers.keys(), dtype=np.int64, count=len(markers))
+        stacked = np.asarray(list(markers.values()), dtype=float)
+    except (TypeError, ValueError):  # a marker the loop below names (or an id int() refuses)
+        stacked = None
+    if stacked is not None and stacked.shape == (len(markers), CORNERS_PER_MARKER, 2):
+        return Features(marker_features(mids).reshape(-1), stacked.reshape(-1, 2))
     ids, uv = [], []
     for mid, corners in markers.items():
         c = np.asarray(corners, dtype=float)

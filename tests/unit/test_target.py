@@ -8,6 +8,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from selfcal.errors import InputError
 from selfcal.target import (
     CORNERS_PER_MARKER,
     ArucoField,
@@ -64,3 +65,14 @@ def test_features_validate_lengths():
     assert len(f) == 2 and f.ids.dtype == np.int64
     with pytest.raises(ValueError, match="3 ids but 2"):
         Features([1, 2, 3], np.zeros((2, 2)))
+
+
+def test_markers_to_features_stacks_markers_in_order_and_names_a_wrong_one():
+    rng = np.random.default_rng(2)
+    markers = {mid: rng.uniform(0, 640, (4, 2)) for mid in (31, 3, np.int64(12))}
+    f = markers_to_features(markers)
+    np.testing.assert_array_equal(f.ids, np.concatenate([marker_features(m) for m in (31, 3, 12)]))
+    np.testing.assert_array_equal(f.uv, np.concatenate(list(markers.values())))
+    assert f.ids.dtype == np.int64 and len(markers_to_features({})) == 0
+    with pytest.raises(InputError, match=r"marker 12 in view 4: corners must have shape \(4, 2\)"):
+        markers_to_features({**markers, 12: np.zeros((4, 3))}, "view 4")
