@@ -34,3 +34,17 @@ def board_features(
         )
         out.append(Features(np.asarray(ids)[ok], uv[ok]))
     return out
+
+
+def board_residuals(poses, fs: list[Features], pixel_sigma_px: float = 0.2):
+    """The board refinement's problem (the lab's camera and board, the chain ``poses``, a
+    :class:`selfcal.estimation.kinematic_poses.KinematicPoses`) on the features ``fs`` of its
+    frames, exact joint readings: its residuals (px) at its start and the problem."""
+    from selfcal.calibration.board.problem import board_problem
+
+    frame = np.concatenate([np.full(len(f), i) for i, f in enumerate(fs)]).astype(int)
+    rows = [(poses.layout.view(frame, 0), np.concatenate([f.ids for f in fs]),
+             np.concatenate([f.uv for f in fs]))]  # fmt: skip
+    prob = board_problem([CAMERA], poses, rows, BOARD, pixel_sigma_px=pixel_sigma_px,
+                         joint_sigma=None, n_frames=len(fs))  # fmt: skip
+    return prob.problem.residual_vector(prob.problem.x0), prob

@@ -8,11 +8,10 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg import expm
 from synthetic_board import BOARD, CAMERA, ROBOT, make_lab
-from synthetic_features import board_features
+from synthetic_features import board_features, board_residuals
 
 from selfcal.calibration.board import misfit
 from selfcal.calibration.board.bounds import board_cramer_rao
-from selfcal.calibration.board.problem import board_problem
 from selfcal.estimation.kinematic_poses import KinematicPoses
 from selfcal.kinematics.forward import fk_tool
 from selfcal.kinematics.mcpc import minimal_indices
@@ -40,13 +39,8 @@ def test_the_misfit_covariance_is_the_fits_response_to_moved_tool_poses(monkeypa
     poses = KinematicPoses(model, q, minimal_indices(model.joint_types), np.zeros((0, 4, 4)),
                            np.ones(len(q), bool))  # fmt: skip
 
-    def residuals(fs: list[Features]) -> np.ndarray:
-        frame = np.concatenate([np.full(len(f), i) for i, f in enumerate(fs)]).astype(int)
-        rows = [(poses.layout.view(frame, 0), np.concatenate([f.ids for f in fs]),
-                 np.concatenate([f.uv for f in fs]))]  # fmt: skip
-        prob = board_problem([CAMERA], poses, rows, BOARD, pixel_sigma_px=0.2, joint_sigma=None,
-                             n_frames=len(fs))  # fmt: skip
-        return prob.problem.residual_vector(prob.problem.x0), prob
+    def residuals(fs: list[Features]):
+        return board_residuals(poses, fs, 0.2)
 
     r0, prob = residuals(feats)
     J = prob.problem.jacobian(prob.problem.x0).toarray()

@@ -54,9 +54,11 @@ from selfcal.calibration.accuracy import (
     postures_from_json,
 )
 from selfcal.calibration.board.bounds import BoardCramerRao, board_cramer_rao
+from selfcal.calibration.board.held_prior import held_block, with_deviation
 from selfcal.calibration.board.misfit import pose_jacobian, tip_map, unit_rows
 from selfcal.calibration.board.nominal_fit import standard_gauge
 from selfcal.calibration.board.param_selection import Selection
+from selfcal.calibration.board.plan_predict import Deviation
 from selfcal.calibration.board.refine import BoardObservations, Refinement, predicted_points
 from selfcal.camera import CameraModel
 from selfcal.estimation.kinematic_poses import joint_twists
@@ -216,9 +218,12 @@ def _features(obs: BoardObservations, frames: np.ndarray) -> list[list]:
 
 
 def model_error(obs: BoardObservations, selection: Selection, offsets: np.ndarray,
-                T_tool_point: np.ndarray, pixel_sigma_px: float) -> ModelError | None:  # fmt: skip
-    """The model error (module docstring) from the chosen candidate's fold fits; None without
-    folds (one configuration) or when no fold was fitted."""
+                T_tool_point: np.ndarray, pixel_sigma_px: float,
+                variance: np.ndarray | None = None) -> ModelError | None:  # fmt: skip
+    """The model error (module docstring) from the chosen candidate's fold fits, ``variance``
+    (k,) the held parameters' deviation (:mod:`selfcal.calibration.board.held`) in what the
+    folds' errors explain; None without folds (one configuration) or when no fold was
+    fitted."""
     fits = selection.candidates[selection.chosen].fold_fits
     if selection.fold_of is None or not fits:
         return None
@@ -233,6 +238,8 @@ def model_error(obs: BoardObservations, selection: Selection, offsets: np.ndarra
             free_idx=free_idx, offset_joints=offset_joints, eye_to_hand=obs.eye_to_hand,
             T_tool_point=T_tool_point,
         )  # fmt: skip
+        if variance is not None:
+            cr = with_deviation(cr, variance)
         h = held_out_errors(obs, fit, out, T_tool_point, cr)
         if len(h["frame"]):
             got.append(h)
@@ -309,14 +316,19 @@ def cross_validated_reprojection(obs: BoardObservations, selection: Selection) -
 
 def board_accuracy(obs: BoardObservations, selection: Selection, cr: BoardCramerRao,
                    offsets: np.ndarray, T_tool_point: np.ndarray, limits: np.ndarray, *,
-                   pixel_sigma_px: float, count: int = SAMPLE_COUNT) -> Accuracy:  # fmt: skip
+                   pixel_sigma_px: float, count: int = SAMPLE_COUNT,
+                   deviation: Deviation | None = None) -> Accuracy:  # fmt: skip
     """The predicted accuracy of a board calibration (module docstring): ``cr`` its bounds at
     the estimate (the stored model, :func:`selfcal.calibration.board.bounds.board_bounds`),
     ``selection`` its parameter selection (the fold fits), ``offsets`` (n,) rad the joint
     offsets of the stored model's gauge, ``T_tool_point`` the flange in the chain's tool frame,
     ``limits`` (n, 2) rad / m the joint limits, ``pixel_sigma_px`` the corner noise the bounds
-    used; ``count`` joint vectors per region."""
-    me = model_error(obs, selection, offsets, T_tool_point, pixel_sigma_px)
+    used; ``count`` joint vectors per region; ``deviation``: how far the held parameters may
+    lie from the drawing (default :class:`Deviation`'s; :mod:`selfcal.calibration.board.held`)."""
+    deviation = Deviation() if deviation is None else deviation
+    variance = deviation.variance(cr.model.joint_types)
+    me = model_error(obs, selection, offsets, T_tool_point, pixel_sigma_px, variance)
+    cr = with_deviation(cr, variance)
     pos = 0.0 if me is None else me.position_m
     rot = 0.0 if me is None or me.rotation_rad is None else me.rotation_rad
     em, names = board_error_model(cr, T_tool_point, pos, rot)
@@ -336,6 +348,7 @@ def board_accuracy(obs: BoardObservations, selection: Selection, cr: BoardCramer
         "T_tool_point_si": np.asarray(T_tool_point, float).tolist(),
         "joint_limits_si": np.asarray(limits, float).tolist(),
         "cross_validation": cross_validated_reprojection(obs, selection),
+        "held_deviation": held_block(deviation),
     }
     return Accuracy(em, names, me, workspace_summary(em, sample, q_cal), sample, q_cal,
                     _what(obs.eye_to_hand), note, extra)  # fmt: skip

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from selfcal.calibration.board.held import held_error, held_response
 from selfcal.calibration.board.misfit import misfit_covariance, pose_jacobian, unit_rows
 from selfcal.calibration.board.problem import board_problem
 from selfcal.camera import CameraModel
@@ -35,7 +36,7 @@ from selfcal.estimation.kinematic_poses import KinematicPoses
 from selfcal.io.board_calibration import BoardBounds, BoardCalibrationResult, CameraBounds
 from selfcal.io.calibration_bounds import BoundParameter, ToolTipBound
 from selfcal.kinematics.alignment import regauge
-from selfcal.kinematics.forward import fk_tool
+from selfcal.kinematics.forward import fk_tool, identification_jacobian
 from selfcal.kinematics.mcpc import (
     MCPCModel,
     chain_transforms,
@@ -43,7 +44,7 @@ from selfcal.kinematics.mcpc import (
     param_is_angle,
     param_names,
 )
-from selfcal.solver import block_columns, covariance
+from selfcal.solver import block_columns, covariance, inverse_columns
 from selfcal.target.base import Features
 from selfcal.target.boards import Board
 from selfcal.transforms import inv_pose
@@ -89,6 +90,11 @@ class BoardCramerRao:
     in every frame gives the minimal parameters and the first camera's
     (:mod:`selfcal.calibration.board.misfit`'s ``G``; zero rows for held ones), None when not
     asked for (no ``T_tool_point``)."""
+    held: np.ndarray | None = None
+    """(k + c, k) the error of the minimal parameters and the first camera's per unit deviation
+    of each minimal parameter from the drawing, the fit's response to it included
+    (:mod:`selfcal.calibration.board.held`: zero in the directions the estimate spans), None
+    when not asked for (no ``T_tool_point``)."""
 
     def aligned_tool_rms(self, q: np.ndarray, T_cam_tip: np.ndarray) -> float:
         """The bound (m) of the RMS error of the point ``T_cam_tip`` (first camera -> tip, m)
@@ -160,17 +166,21 @@ def board_cramer_rao(
     n0 = cameras[0].n_free
     M = to_minimal(poses) if free_idx is not None or poses.n_kin != poses.k else None
     C_kin, cross, estimated = _kinematic_part(C, at, n0, M)
-    misfit = None
+    misfit = held_err = None
     if T_tool_point is not None:
-        G = misfit_covariance(prob.problem.jacobian(prob.problem.x0),
-                              *_unit_rows(cameras[0], model, q, features[0], board, T_tool_point,
-                                          eye_to_hand),
-                              block_columns(prob.problem, blocks))  # fmt: skip
+        J = prob.problem.jacobian(prob.problem.x0)
+        cols = block_columns(prob.problem, blocks)
+        Z = inverse_columns(J, cols)
+        rows, K, D = _unit_rows(cameras[0], model, q, features[0], board, T_tool_point,
+                                eye_to_hand)  # fmt: skip
+        G = misfit_covariance(J, rows, K, cols, Z=Z)
         G_kin, G_cross, _ = _kinematic_part(G, at, n0, M)
         misfit = np.block([[G_kin, G_cross], [G_cross.T, G[:n0, :n0]]])
+        held_err = held_error(held_response(J, Z, rows, D), M, at, n0)
     assert C_kin.shape == (minimal_indices(model.joint_types).size,) * 2
     return BoardCramerRao(model, C_kin, tuple(stds), float(pixel_sigma_px), int(n_obs),
-                          int(prob.problem.n), estimated, C[:n0, :n0], cross, misfit)  # fmt: skip
+                          int(prob.problem.n), estimated, C[:n0, :n0], cross, misfit,
+                          held_err)  # fmt: skip
 
 
 def _kinematic_part(C: np.ndarray, at: int, n0: int,
@@ -192,12 +202,14 @@ def _kinematic_part(C: np.ndarray, at: int, n0: int,
 
 def _unit_rows(camera: CameraModel, model: MCPCModel, q: np.ndarray, features: Sequence[Features],
                board: Board, T_tool_point: np.ndarray,
-               eye_to_hand: bool) -> tuple[list[np.ndarray], list[np.ndarray]]:  # fmt: skip
+               eye_to_hand: bool) -> tuple[list[np.ndarray], list[np.ndarray], list[np.ndarray]]:  # fmt: skip
     """Every frame's residual rows of the first camera (the problem's first block, two per
-    corner in order) and their :func:`selfcal.calibration.board.misfit.unit_rows`."""
+    corner in order), their :func:`selfcal.calibration.board.misfit.unit_rows` and their
+    derivative by every minimal parameter (:mod:`selfcal.calibration.board.held`)."""
     T = fk_tool(model, q)
     t = np.asarray(T_tool_point, float)[:3, 3]
-    rows, K, at = [], [], 0
+    J_id = identification_jacobian(model, q)[:, :, minimal_indices(model.joint_types)]
+    rows, K, D, at = [], [], [], 0
     for i, f in enumerate(features):
         if not len(f):
             continue
@@ -206,8 +218,9 @@ def _unit_rows(camera: CameraModel, model: MCPCModel, q: np.ndarray, features: S
         A = pose_jacobian(camera.project_free(x)[1], x, T[i], eye_to_hand)
         rows.append(np.arange(2 * at, 2 * (at + len(f))))
         K.append(unit_rows(A, x, T[i], t, eye_to_hand)[0])
+        D.append(A @ J_id[i])
         at += len(f)
-    return rows, K
+    return rows, K, D
 
 
 def to_minimal(poses: KinematicPoses) -> np.ndarray:

@@ -75,14 +75,16 @@ def unit_rows(A: np.ndarray, x: np.ndarray, T_tool: np.ndarray, t: np.ndarray,
 
 
 def misfit_covariance(J: sp.spmatrix, rows: list[np.ndarray], K: list[np.ndarray],
-                      cols: np.ndarray) -> np.ndarray:  # fmt: skip
+                      cols: np.ndarray, Z: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
     """``G`` (len(cols), len(cols)): the covariance of the unknowns ``cols`` a model error of
     unit ``m`` in every frame gives the least-squares estimate of the Jacobian ``J`` (its
     residuals in px, the estimate at ``(J^T J)^-1 J^T`` of the data), frame ``i``'s pixels the
     residual rows ``rows[i]`` (2k,) moved by ``K[i]`` (2k, 6) (:func:`unit_rows`), independently
     per frame (module docstring). Only the columns ``cols`` of ``(J^T J)^-1`` are solved for
-    (:func:`selfcal.solver.inverse_columns`), then carried through ``J^T K`` frame by frame."""
-    Jr, Z = sp.csr_matrix(J), inverse_columns(J, cols)
+    (:func:`selfcal.solver.inverse_columns`; ``Z`` when given), then carried through ``J^T K``
+    frame by frame."""
+    Jr = sp.csr_matrix(J)
+    Z = inverse_columns(J, cols) if Z is None else Z
     G = np.zeros((len(cols), len(cols)))
     for a in range(0, len(rows), CHUNK):  # J (J^T J)^-1 restricted, a chunk of frames at a time
         part = rows[a : a + CHUNK]

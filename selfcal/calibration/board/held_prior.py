@@ -1,0 +1,52 @@
+"""The prediction of a board calibration with the deviation from the drawing of the parameters
+it holds (issue #29): :mod:`selfcal.calibration.board.held`'s response ``R`` (per unit
+deviation, :attr:`selfcal.calibration.board.bounds.BoardCramerRao.held`) weighed by the prior
+``S`` (:class:`selfcal.calibration.board.plan_predict.Deviation`, the one ``selfcal plan``
+predicts with) into the bounds' covariances, ``R S R^T``. SI.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from selfcal.calibration.board.bounds import BoardCramerRao
+from selfcal.calibration.board.plan_predict import Deviation
+
+__all__ = ["held_block", "with_deviation"]
+
+
+def with_deviation(cr: BoardCramerRao, variance: np.ndarray) -> BoardCramerRao:
+    """``cr`` with the deviation from the drawing (module docstring, ``variance`` (k,) every
+    minimal parameter's, m^2 / rad^2: :meth:`Deviation.variance`) in its covariance, its first
+    camera's and their cross block, every minimal parameter among the ``estimated`` ones (the
+    covariance now covers the held ones); ``cr`` unchanged when it carries no
+    :attr:`BoardCramerRao.held` response."""
+    if cr.held is None:
+        return cr
+    var = np.asarray(variance, float)
+    k = var.size
+    V = (cr.held * var) @ cr.held.T
+    cam, cross = cr.camera_covariance, cr.camera_cross
+    return dataclasses.replace(
+        cr,
+        covariance=cr.covariance + V[:k, :k],
+        estimated=np.ones(k, bool),
+        camera_covariance=None if cam is None else cam + V[k:, k:],
+        camera_cross=None if cross is None else cross + V[:k, k:],
+        held=None,
+    )
+
+
+def held_block(deviation: Deviation) -> dict:
+    """The ``accuracy`` block's ``held_deviation``: the prior it was predicted with."""
+    return {
+        "what": "the arm's deviation from the drawing the prediction carries: each inner "
+        "minimal parameter uniform within +-translation_mm (lengths) or +-rotation_deg "
+        "(angles) of the robot file's value, less what the fit absorbs of it at the "
+        "calibration frames (the held parameters' part; `covariance_si` and its `estimated` "
+        "list cover every minimal parameter then; docs/tool-accuracy.md)",
+        "translation_mm": 1e3 * deviation.translation_m,
+        "rotation_deg": float(np.degrees(deviation.rotation_rad)),
+    }
