@@ -31,7 +31,7 @@ the estimate's errors, the model error, the joint and pixel noise) against the o
 evaluate`` measures (target 0.67-1.5x).
 
 Run: ``uv run python -m selfcal.benchmarks.board_accuracy [--draws 30] [--jobs 2] [--robots
-R,..] [--models M,..] [--real] [--write-docs]`` (rewrites the tables in docs/tool-accuracy.md).
+R,..] [--models M,..] [--noise-px S,..] [--real] [--write-docs]`` (rewrites the tables in docs/tool-accuracy.md).
 """
 
 from __future__ import annotations
@@ -65,6 +65,7 @@ from selfcal.calibration.board.dataset import (
     detect_board,
 )
 from selfcal.calibration.board.evaluate import evaluate_board
+from selfcal.calibration.board.plan_predict import Deviation
 from selfcal.config.scenario import Scenario, load_scenario, scenarios_dir
 from selfcal.errors import InternalError, UsageError
 from selfcal.estimation.joint_report import encoder_sigma
@@ -84,6 +85,7 @@ from selfcal.transforms import inv_pose
 __all__ = [
     "draw",
     "main",
+    "prior",
     "real_set",
     "run",
     "scenario",
@@ -143,19 +145,30 @@ def simulated(s: Scenario, model: str) -> SimSetup:
     return setup if model == "fits" else dataclasses.replace(setup, compliance=SHOULDER)
 
 
+def prior(s: Scenario) -> Deviation:
+    """The prior on the arm's deviation from its drawing the benchmark gives the calibration
+    (``selfcal calibrate --deviation-mm/--deviation-deg``): the simulated arm's own spread,
+    ``s``'s ``[perturbation]``, which a user would state for their arm; the calibration itself
+    never reads the simulator's perturbation."""
+    p = s.perturbation
+    return Deviation(p.translation_mm / 1e3, float(np.radians(p.rotation_deg)))
+
+
 def simulated_calibration(sigma_px: float, seed: int, noise: dict | None = None, *,
                           scenario_file: Path = SCENARIO) -> tuple[BoardCalibrationResult, Truth]:  # fmt: skip
     """One simulated board calibration: ``scenario_file`` (default :data:`SCENARIO`) on the
     analytic path with corner noise ``sigma_px`` and the draw's ``seed`` (perturbation,
     :data:`POSES` postures, noise; ``noise`` more ``[noise]`` keys) acquired and calibrated as
-    ``selfcal run`` does, quietly in a temporary folder: its calibration and truth."""
+    ``selfcal run`` does with the deviation :func:`prior`, quietly in a temporary folder: its
+    calibration and truth."""
     over = {"noise": {"render": False, "pixel_sigma": sigma_px, "seed": seed} | (noise or {}),
             "trajectory": {"poses": POSES, "seed": seed}, "perturbation": {"seed": seed}}  # fmt: skip
     with (tempfile.TemporaryDirectory(prefix="selfcal-acc-") as d, warnings.catch_warnings(),
           redirect_stdout(StringIO()), redirect_stderr(StringIO())):  # fmt: skip
         warnings.simplefilter("ignore")
         out = Path(d) / "run"
-        run_all(load_scenario(scenario_file, over), out, quiet=True, figures=False)
+        s = load_scenario(scenario_file, over)
+        run_all(s, out, quiet=True, figures=False, deviation=prior(s))
         return read_board_calibration(out / "calibration.json"), read_truth(out / "truth.json")
 
 
@@ -173,7 +186,7 @@ def draw(args: tuple[str, float, str, int]) -> dict:
             warnings.simplefilter("ignore")
             out = Path(d) / "run"
             run_acquire(s, out, quiet=True, setup=setup)
-            calibrate_board_run(out, quiet=True)
+            calibrate_board_run(out, quiet=True, deviation=prior(s))
             cal = read_board_calibration(out / "calibration.json")
             truth = read_truth(out / "truth.json")
         block = cal.accuracy
@@ -356,6 +369,9 @@ def _arguments(argv: list[str] | None) -> argparse.Namespace:
     for flag, default in (("--robots", ROBOTS), ("--models", MODELS)):
         ap.add_argument(flag, type=lambda t: tuple(t.split(",")), default=default,
                         help=f"comma-separated (default {','.join(default)})")  # fmt: skip
+    ap.add_argument("--noise-px", type=lambda t: tuple(float(x) for x in t.split(",")),
+                    default=NOISE_PX, help="comma-separated corner noise levels (px; default "
+                    f"{','.join(map(str, NOISE_PX))})")  # fmt: skip
     for flag, text in (("--real", "the real sets' held-out images instead of the Monte Carlo"),
                        ("--write-docs", "rewrite the table in docs/tool-accuracy.md")):  # fmt: skip
         ap.add_argument(flag, action="store_true", help=text)
@@ -378,7 +394,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.write_docs:
             write_block(DOC, text, BLOCK_REAL)
         return 0
-    rows = run(args.draws, args.robots, args.models, jobs=args.jobs)
+    rows = run(args.draws, args.robots, args.models, args.noise_px, jobs=args.jobs)
     return print_table(table(rows), DOC, BLOCK, write=args.write_docs)
 
 

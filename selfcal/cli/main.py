@@ -122,7 +122,8 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         calibrate_any(root, quiet=args.quiet, method=args.method,
                       allow_missing_frames=args.allow_missing_frames, figures=True,
                       tracker_args=args, joint_sigma_deg=args.joint_sigma_deg,
-                      pose_noise=args.pose_noise, camera=args.camera)  # fmt: skip
+                      pose_noise=args.pose_noise, camera=args.camera,
+                      deviation_mm_deg=(args.deviation_mm, args.deviation_deg))  # fmt: skip
     note_written(args, root / "calibration.json")
     if args.json:
         print(json.dumps(_calibration_json(root / "calibration.json")))
@@ -386,6 +387,13 @@ def build_parser() -> argparse.ArgumentParser:
         "read-back errors are estimated with the rest instead of taken as exact (default: the "
         "robot file's encoder resolution; none for a URDF, where noisy readings bias the camera)",
     )
+    sp.add_argument("--deviation-mm", type=float, default=None, metavar="MM",
+                    help="a board dataset: how far the arm's lengths may lie from its drawing, "
+                    "mm (default 1): the predicted accuracy counts the parameters the calibration "
+                    "holds at the robot file's values as uniform within +-MM "
+                    "(docs/tool-accuracy.md); as `selfcal plan --deviation-mm`")  # fmt: skip
+    sp.add_argument("--deviation-deg", type=float, default=None, metavar="DEG",
+                    help="a board dataset: how far its angles may, deg (default 0.5)")  # fmt: skip
     add_pose_noise_arg(sp)
     add_tracker_args(sp)
     add_json(sp)

@@ -28,12 +28,38 @@ from selfcal.console.progress import Progress
 # Heavy modules (scipy, OpenCV, MuJoCo, the pipeline) are imported by the functions that use
 # them, so that `selfcal --help` builds every command's parser without loading them.
 
-__all__ = ["calibrate_any", "register"]
+__all__ = ["calibrate_any", "deviation_option", "register"]
 
 
 def _say(quiet: bool, text: str) -> None:
     if not quiet:
         print(text, file=sys.stderr)
+
+
+def deviation_option(root: Path, route: str, mm: float | None, deg: float | None):
+    """The board route's :class:`selfcal.calibration.board.plan_predict.Deviation` of
+    ``--deviation-mm``/``--deviation-deg`` (None when neither is given).
+
+    Raises:
+        CliError: given for another route, or negative or not finite.
+    """
+    if mm is None and deg is None:
+        return None
+    if route != "board":
+        raise CliError(f"{root}: --deviation-mm/--deviation-deg apply to a board dataset's "
+                       "predicted accuracy (the parameters it holds at the drawing)",
+                       fix="leave them out")  # fmt: skip
+    import numpy as np
+
+    from selfcal.calibration.board.plan_predict import Deviation
+
+    d = Deviation()
+    mm = 1e3 * d.translation_m if mm is None else mm
+    deg = float(np.degrees(d.rotation_rad)) if deg is None else deg
+    if not (np.isfinite(mm) and np.isfinite(deg) and mm >= 0 and deg >= 0):
+        raise CliError(f"--deviation-mm {mm:g} and --deviation-deg {deg:g} must be finite and "
+                       ">= 0", fix="e.g. --deviation-mm 1 --deviation-deg 0.5")  # fmt: skip
+    return Deviation(mm / 1e3, float(np.radians(deg)))
 
 
 def calibrate_any(
@@ -47,6 +73,7 @@ def calibrate_any(
     joint_sigma_deg: float | None = None,
     pose_noise: str | None = None,
     camera: str | None = None,
+    deviation_mm_deg: tuple[float | None, float | None] = (None, None),
 ) -> None:
     """Calibrate the dataset in ``root`` by its target and write ``root/calibration.json``:
     the field -> :func:`selfcal.pipeline.run.run_calibrate`; a board -> the board calibration.
@@ -57,7 +84,8 @@ def calibrate_any(
     board dataset with joint readings. ``joint_sigma_deg``: the standard deviation
     of a joint reading, deg (mm for a prismatic joint), modelled instead of the robot file's
     encoder resolution. ``pose_noise``, ``camera``: ``--pose-noise`` and ``--camera`` of a pose
-    dataset (errors for the others)."""
+    dataset (errors for the others). ``deviation_mm_deg``: ``--deviation-mm`` and
+    ``--deviation-deg`` of a board dataset (None: the default; errors for the others)."""
     specs = list(getattr(tracker_args, "term", None) or [])
     from selfcal.terms.registry import parse_term_spec
 
@@ -75,6 +103,7 @@ def calibrate_any(
     units = {"joint_units": getattr(tracker_args, "joint_units", None)}
     for p in parsed:  # the values next (units, numbers), still before any work
         p.options(units)
+    deviation = deviation_option(root, route, *deviation_mm_deg)
     if route == "handeye":
         calibrate_poses(root, quiet=quiet, figures=figures, method=method,
                         joint_sigma_deg=joint_sigma_deg, tracker_args=tracker_args,
@@ -133,7 +162,8 @@ def calibrate_any(
             _say(quiet, section.summary())
         return
     board = calibrate_board_run(root, quiet=quiet, allow_missing_frames=allow_missing_frames,
-                                figures=figures, joint_sigma=joint_sigma, terms=terms)  # fmt: skip
+                                figures=figures, joint_sigma=joint_sigma, terms=terms,
+                                deviation=deviation)  # fmt: skip
     for section in board.terms:
         _say(quiet, section.summary())
 

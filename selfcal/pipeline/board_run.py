@@ -25,6 +25,7 @@ import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -53,6 +54,9 @@ from selfcal.plots.job_figures import (
 )
 from selfcal.terms.base import Term
 from selfcal.transforms import inv_pose
+
+if TYPE_CHECKING:  # imported by the calibration itself (start-up time)
+    from selfcal.calibration.board.plan_predict import Deviation
 
 __all__ = [
     "board_truth_report",
@@ -325,18 +329,25 @@ def calibrate_board_run(
     figures: bool = False,
     joint_sigma: np.ndarray | None = None,
     terms: Sequence[Term] = (),
+    deviation: Deviation | None = None,
 ) -> BoardCalibrationResult:
     """``selfcal calibrate`` of a board dataset: :func:`selfcal.calibration.board.dataset.calibrate_board_dataset`
     written as ``root/calibration.json``, its warnings logged and a one-line summary printed
     (unless ``quiet``); ``figures``: also ``root/figures/reprojection.png``; ``joint_sigma``:
     the joint read-back noise (rad / m) instead of the robot file's encoder resolution;
-    ``terms``: further measurements estimated with the images (:mod:`selfcal.terms`)."""
+    ``terms``: further measurements estimated with the images (:mod:`selfcal.terms`);
+    ``deviation``: the arm's deviation from its drawing for the predicted accuracy (default
+    :class:`selfcal.calibration.board.plan_predict.Deviation`'s)."""
     from selfcal.calibration.board.dataset import calibrate_board_dataset
 
     label = "board calibration (detection, camera, hand-eye, kinematics, bounds)"
     with Progress("calibrate", enabled=not quiet).step(label) as st:
         res = calibrate_board_dataset(
-            root, allow_missing_frames=allow_missing_frames, joint_sigma=joint_sigma, terms=terms
+            root,
+            allow_missing_frames=allow_missing_frames,
+            joint_sigma=joint_sigma,
+            terms=terms,
+            deviation=deviation,
         )
         st.result(f"reprojection RMS {res.reprojection_rms_px:.3f} px")
     write_board_calibration(Path(root) / "calibration.json", res)
@@ -399,11 +410,17 @@ def _camera_text(c: CameraModel) -> str:
 
 
 def calibrate_and_report_board(
-    s: Scenario, out: Path, *, quiet: bool = False, figures: bool = True, t0: float | None = None
+    s: Scenario,
+    out: Path,
+    *,
+    quiet: bool = False,
+    figures: bool = True,
+    t0: float | None = None,
+    deviation: Deviation | None = None,
 ) -> dict:
     """The rest of ``selfcal run`` for a board scenario once acquired in ``out``: the board
     calibration and in simulation the report against the truth; prints a summary line (total
-    time since ``t0``, :func:`time.perf_counter`).
+    time since ``t0``, :func:`time.perf_counter`); ``deviation``: as :func:`calibrate_board_run`.
 
     Raises:
         CalibrationFailedError: the report found the calibration worse than nominal.
@@ -411,7 +428,8 @@ def calibrate_and_report_board(
     from selfcal.calibration.field.calibrate import CalibrationFailedError
 
     t0 = time.perf_counter() if t0 is None else t0
-    cal = calibrate_board_run(out, quiet=quiet, figures=figures and s.robot.backend != "sim")
+    cal = calibrate_board_run(out, quiet=quiet, figures=figures and s.robot.backend != "sim",
+                              deviation=deviation)  # fmt: skip
     result: dict = {"calibration": cal}
     if s.robot.backend != "sim":
         return result

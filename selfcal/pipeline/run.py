@@ -16,6 +16,7 @@ import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -62,6 +63,9 @@ from selfcal.plots.job_figures import (
 from selfcal.robot.definition import load_robot
 from selfcal.terms.base import Term
 from selfcal.transforms import inv_pose
+
+if TYPE_CHECKING:
+    from selfcal.calibration.board.plan_predict import Deviation
 
 _log = get_logger(__name__)
 
@@ -431,9 +435,12 @@ def run_all(
     method: str = "joint",
     figures: bool = True,
     pool: FigurePool | None = None,
+    deviation: Deviation | None = None,
 ) -> dict:
     """Acquire, calibrate and (in simulation) report; prints a summary. ``figures``: the
-    report's figures in ``out/figures/``. ``pool``: the caller's
+    report's figures in ``out/figures/``. ``deviation``: a board calibration's prior on the
+    arm's deviation from its drawing (:func:`selfcal.pipeline.board_run.calibrate_board_run`;
+    the simulator's perturbation is never read for it). ``pool``: the caller's
     :func:`selfcal.plots.figure_pool.run_figure_pool` of ``s``, forked before its imports (the
     caller closes it); default: forked here and closed at the end."""
     t0 = time.perf_counter()
@@ -449,11 +456,13 @@ def run_all(
         if route == "static":  # the board on the flange
             from selfcal.pipeline.static_report import calibrate_and_report_static
 
-            return calibrate_and_report_static(out, quiet=quiet, figures=figures, t0=t0)
+            return calibrate_and_report_static(out, quiet=quiet, figures=figures, t0=t0,
+                                               deviation=deviation)  # fmt: skip
         if route == "board":  # the board route (selfcal/pipeline/board_run.py)
             from selfcal.pipeline.board_run import calibrate_and_report_board
 
-            return calibrate_and_report_board(s, out, quiet=quiet, figures=figures, t0=t0)
+            return calibrate_and_report_board(s, out, quiet=quiet, figures=figures, t0=t0,
+                                              deviation=deviation)  # fmt: skip
         # without truth (hardware) there is no report: the calibration draws what it can
         try:
             cal = run_calibrate(

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -55,6 +56,9 @@ from selfcal.pipeline.board_run import (
 from selfcal.plots.job_figures import reprojection_figure, write_figure
 from selfcal.robot.definition import RobotDef, load_robot
 from selfcal.transforms import inv_pose
+
+if TYPE_CHECKING:
+    from selfcal.calibration.board.plan_predict import Deviation
 
 PREDICTED_WHERE = "in the camera frame, base -> camera's uncertainty in it"
 """What the eye-to-hand report's predicted tool-point accuracy is, said beside it: the flange in
@@ -253,10 +257,12 @@ def static_summary(rep: dict, root: Path) -> str:
 
 
 def calibrate_and_report_static(out: Path, *, quiet: bool = False, figures: bool = True,
-                                t0: float | None = None) -> dict:  # fmt: skip
+                                t0: float | None = None,
+                                deviation: Deviation | None = None) -> dict:  # fmt: skip
     """The rest of ``selfcal run`` for an eye-to-hand scenario once acquired in ``out``: the
     calibration and the report against the truth; prints a summary line (total time since
-    ``t0``, :func:`time.perf_counter`).
+    ``t0``, :func:`time.perf_counter`); ``deviation``: as
+    :func:`selfcal.pipeline.board_run.calibrate_board_run`.
 
     Raises:
         CalibrationFailedError: the report found the calibration worse than the fair nominal.
@@ -264,7 +270,7 @@ def calibrate_and_report_static(out: Path, *, quiet: bool = False, figures: bool
     from selfcal.calibration.field.calibrate import CalibrationFailedError
 
     t0 = time.perf_counter() if t0 is None else t0
-    cal = calibrate_board_run(out, quiet=quiet, figures=False)
+    cal = calibrate_board_run(out, quiet=quiet, figures=False, deviation=deviation)
     rep = write_static_truth_report(out, cal, read_truth(out / "truth.json"), figures=figures)
     print(f"{static_summary(rep, out)}; total {time.perf_counter() - t0:.1f} s")
     if rep["failures"]:

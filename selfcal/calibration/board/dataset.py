@@ -35,6 +35,7 @@ from selfcal.calibration.board.bounds import BoardCramerRao, board_bounds
 from selfcal.calibration.board.calibrate import BoardInputError, calibrate_board
 from selfcal.calibration.board.mounts import flange_to_tool, mounts
 from selfcal.calibration.board.nominal_fit import placement
+from selfcal.calibration.board.plan_predict import Deviation
 from selfcal.calibration.board.refine import BoardObservations
 from selfcal.calibration.board.rig import calibrate_board_rig
 from selfcal.calibration.board.robot import BoardRobotCalibration, calibrate_robot_with_board
@@ -160,6 +161,7 @@ def calibrate_board_dataset(
     allow_missing_frames: bool = False,
     joint_sigma: float | np.ndarray | None = None,
     terms: Sequence[Term] = (),
+    deviation: Deviation | None = None,
 ) -> BoardCalibrationResult:
     """Calibrate camera, hand-eye, board pose and kinematics from the board dataset in ``root``
     (module docstring) and the Cramer-Rao bounds at the estimate (:mod:`selfcal.calibration.board.bounds`;
@@ -172,11 +174,18 @@ def calibrate_board_dataset(
     camera. ``terms``: further measurements of the same robot (:mod:`selfcal.terms`: touch-probe
     points, tracker rows ...) estimated with the images in every fit, the fair nominal's too
     (:mod:`selfcal.calibration.board.terms`); the result records each one's section.
+    ``deviation``: how far the arm may lie from its drawing, for the predicted accuracy of the
+    parameters the selection holds (:mod:`selfcal.calibration.board.held`; default
+    :class:`selfcal.calibration.board.plan_predict.Deviation`'s 1 mm / 0.5 deg).
 
     Raises: as :func:`calibrate_board_dataset_detailed`.
     """
     return calibrate_board_dataset_detailed(
-        root, allow_missing_frames=allow_missing_frames, joint_sigma=joint_sigma, terms=terms
+        root,
+        allow_missing_frames=allow_missing_frames,
+        joint_sigma=joint_sigma,
+        terms=terms,
+        deviation=deviation,
     ).result
 
 
@@ -186,6 +195,7 @@ def calibrate_board_dataset_detailed(
     allow_missing_frames: bool = False,
     joint_sigma: float | np.ndarray | None = None,
     terms: Sequence[Term] = (),
+    deviation: Deviation | None = None,
 ) -> BoardDatasetCalibration:
     """:func:`calibrate_board_dataset` with what it was computed from (the Monte Carlo's view).
 
@@ -358,7 +368,8 @@ def calibrate_board_dataset_detailed(
                                 tuple(terms))  # fmt: skip
         try:
             acc = board_accuracy(obs, sel, cr, res.nominal.model.joint_offsets, inv_pose(mount),
-                                 robot.limits, pixel_sigma_px=bounds.pixel_sigma_px)  # fmt: skip
+                                 robot.limits, pixel_sigma_px=bounds.pixel_sigma_px,
+                                 deviation=deviation)  # fmt: skip
             result = dataclasses.replace(result, accuracy=acc.to_json())
         except np.linalg.LinAlgError as exc:
             text = f"no predicted accuracy: a fold's Fisher information cannot be inverted ({exc})"
