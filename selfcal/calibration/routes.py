@@ -35,6 +35,7 @@ from selfcal.threads import limited
 
 if TYPE_CHECKING:
     from selfcal.calibration.board.evaluate import Evaluation
+    from selfcal.calibration.board.plan_predict import Deviation
     from selfcal.calibration.handeye.calibrate import HandEyeCalibration
     from selfcal.calibration.handeye.calibration_file import HandEyeFile
     from selfcal.calibration.handeye.eiv import PoseNoise
@@ -202,6 +203,7 @@ def calibrate(
     camera: str | None = None,
     progress=None,
     write: bool = True,
+    deviation: Deviation | None = None,
 ) -> CalibrationResult | BoardCalibrationResult | HandEyeCalibration:
     """Calibrate the dataset folder ``root`` by its route (:func:`dataset_route`) and write
     ``root/calibration.json`` (unless ``write`` is False), as ``selfcal calibrate`` does.
@@ -228,6 +230,10 @@ def calibrate(
             ``"refined"`` (:data:`selfcal.choices.HANDEYE_CAMERA`); pose datasets only.
         progress: a :class:`selfcal.console.progress.Progress`-like object the field reports to.
         write: write ``root/calibration.json``.
+        deviation: a board dataset's prior on how far the arm may lie from its drawing, as
+            ``selfcal calibrate --deviation-mm/--deviation-deg``
+            (:class:`selfcal.calibration.board.plan_predict.Deviation`; default 1 mm / 0.5
+            deg): the predicted accuracy counts the parameters held at the drawing with it.
 
     Returns:
         the field's :class:`selfcal.io.calibration.CalibrationResult` (world = the reconstruction
@@ -250,6 +256,9 @@ def calibrate(
         raise InputError(f"{root} is a {route} dataset (joint readings): camera (held or "
                          "refined) applies to a pose dataset's hand-eye; the camera here is "
                          "estimated with the rest", fix="leave it out")  # fmt: skip
+    if route != "board" and deviation is not None:
+        raise InputError(f"{root} is a {route} dataset: deviation applies to a board dataset's "
+                         "predicted accuracy", fix="leave it out")  # fmt: skip
     if route != "field" and method != "joint":
         raise InputError(f"{root} is a {route} dataset: the field's method does not apply",
                          fix="leave out method")  # fmt: skip
@@ -268,7 +277,8 @@ def calibrate(
         from selfcal.calibration.board.dataset import calibrate_board_dataset
 
         board = calibrate_board_dataset(
-            root, allow_missing_frames=allow_missing_frames, joint_sigma=joint_sigma, terms=terms
+            root, allow_missing_frames=allow_missing_frames, joint_sigma=joint_sigma, terms=terms,
+            deviation=deviation,
         )
         if write:
             write_calibration(Path(root) / "calibration.json", board)
