@@ -27,8 +27,9 @@ draws that counted a model error.
 ``--real``: the repository's real sets with a board (tests/data/real, docs/real-data.md):
 each imported and calibrated as its README says, and the held-out images' reprojection RMS that
 the calibration predicts (:func:`selfcal.calibration.board.accuracy.predicted_reprojection`:
-the estimate's errors, the model error, the joint and pixel noise) against the one ``selfcal
-evaluate`` measures (target 0.67-1.5x).
+the estimate's errors with the share of the held parameters' deviation its folds showed
+(:mod:`selfcal.calibration.board.held_prior`), the model error, the joint and pixel noise)
+against the one ``selfcal evaluate`` measures (target 0.67-1.5x).
 
 Run: ``uv run python -m selfcal.benchmarks.board_accuracy [--draws 30] [--jobs 2] [--robots
 R,..] [--models M,..] [--noise-px S,..] [--real] [--write-docs]`` (rewrites the tables in docs/tool-accuracy.md).
@@ -65,6 +66,7 @@ from selfcal.calibration.board.dataset import (
     detect_board,
 )
 from selfcal.calibration.board.evaluate import evaluate_board
+from selfcal.calibration.board.held_prior import with_deviation
 from selfcal.calibration.board.plan_predict import Deviation
 from selfcal.config.scenario import Scenario, load_scenario, scenarios_dir
 from selfcal.errors import InternalError, UsageError
@@ -320,7 +322,11 @@ def real_set(name: str, work: Path) -> dict:
     args = dict(eye_to_hand=cal.eye_to_hand, joint_sigma=js,
                 T_tool_point=np.asarray(cal.accuracy["T_tool_point_si"]))  # fmt: skip
     pts = [board.points(feats[i].ids) for i in keep]
-    pred = predicted_reprojection(out.cramer_rao, cal.cameras[0], q, pts,
+    hd = cal.accuracy.get("held_deviation") or {}
+    dev = Deviation(hd.get("translation_mm", 0.0) / 1e3, np.radians(hd.get("rotation_deg", 0.0)))
+    cr = with_deviation(out.cramer_rao,
+                        hd.get("share", 1.0) * dev.variance(cal.model.joint_types))  # fmt: skip
+    pred = predicted_reprojection(cr, cal.cameras[0], q, pts,
                                   model_error_m=(me.get("position_mm") or 0.0) / 1e3,
                                   model_error_rad=np.radians(me.get("rotation_deg") or 0.0),
                                   **args)  # fmt: skip

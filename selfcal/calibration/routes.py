@@ -277,7 +277,10 @@ def calibrate(
         from selfcal.calibration.board.dataset import calibrate_board_dataset
 
         board = calibrate_board_dataset(
-            root, allow_missing_frames=allow_missing_frames, joint_sigma=joint_sigma, terms=terms,
+            root,
+            allow_missing_frames=allow_missing_frames,
+            joint_sigma=joint_sigma,
+            terms=terms,
             deviation=deviation,
         )
         if write:

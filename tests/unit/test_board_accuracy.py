@@ -58,3 +58,18 @@ def test_model_error_of_splits_the_held_out_errors():
     assert (
         given is not None and given.position_m == 0.1 and given.held_out_rms_m == me.held_out_rms_m
     )
+
+
+def test_the_held_share_is_what_the_folds_excess_shows_of_the_prior():
+    """Held-out frames whose squared pixel errors carry 30 % of what the prior's deviation would
+    add beyond the estimate's errors and the noise: the share found is 0.3 within 10 % (4000
+    frames); none of it shows: 0; more than the prior: capped at 1."""
+    from selfcal.calibration.board.held_prior import held_share
+
+    rng = np.random.default_rng(7)
+    expected, held = rng.uniform(1.0, 3.0, 4000), rng.uniform(0.0, 2.0, 4000)
+    px2 = (expected + 0.3 * held) * rng.chisquare(20, 4000) / 20
+    assert held_share(px2, expected, held) == pytest.approx(0.3, rel=0.1)
+    assert held_share(0.9 * expected, expected, held) == 0.0
+    assert held_share(expected + 2 * held, expected, held) == 1.0
+    assert held_share(px2, expected, np.zeros(4000)) == 1.0  # the prior adds nothing

@@ -54,7 +54,7 @@ from selfcal.calibration.accuracy import (
     postures_from_json,
 )
 from selfcal.calibration.board.bounds import BoardCramerRao, board_cramer_rao
-from selfcal.calibration.board.held_prior import held_block, with_deviation
+from selfcal.calibration.board.held_prior import held_block, held_share, with_deviation
 from selfcal.calibration.board.misfit import pose_jacobian, tip_map, unit_rows
 from selfcal.calibration.board.nominal_fit import standard_gauge
 from selfcal.calibration.board.param_selection import Selection
@@ -219,14 +219,14 @@ def _features(obs: BoardObservations, frames: np.ndarray) -> list[list]:
 
 def model_error(obs: BoardObservations, selection: Selection, offsets: np.ndarray,
                 T_tool_point: np.ndarray, pixel_sigma_px: float,
-                variance: np.ndarray | None = None) -> ModelError | None:  # fmt: skip
-    """The model error (module docstring) from the chosen candidate's fold fits, ``variance``
-    (k,) the held parameters' deviation (:mod:`selfcal.calibration.board.held`) in what the
-    folds' errors explain; None without folds (one configuration) or when no fold was
-    fitted."""
+                variance: np.ndarray | None = None) -> tuple[ModelError | None, float]:  # fmt: skip
+    """The model error (module docstring) from the chosen candidate's fold fits (None without
+    folds, one configuration, or when no fold was fitted) and the share of the deviation
+    ``variance`` (k,) from the drawing (:mod:`selfcal.calibration.board.held_prior`) the folds'
+    excess shows (1 without folds or ``variance``); the model error is what is left beyond it."""
     fits = selection.candidates[selection.chosen].fold_fits
     if selection.fold_of is None or not fits:
-        return None
+        return None, 1.0
     got = []
     for f, (fit, free_idx, offset_joints) in sorted(fits.items()):
         out = selection.fold_of == f
@@ -238,19 +238,22 @@ def model_error(obs: BoardObservations, selection: Selection, offsets: np.ndarra
             free_idx=free_idx, offset_joints=offset_joints, eye_to_hand=obs.eye_to_hand,
             T_tool_point=T_tool_point,
         )  # fmt: skip
-        if variance is not None:
-            cr = with_deviation(cr, variance)
         h = held_out_errors(obs, fit, out, T_tool_point, cr)
+        h["px2_held"] = np.zeros(len(h["frame"]))
+        if variance is not None and len(h["frame"]):
+            dev = held_out_errors(obs, fit, out, T_tool_point, with_deviation(cr, variance))
+            h["px2_held"] = dev["px2_expected"] - h["px2_expected"]
         if len(h["frame"]):
             got.append(h)
     if not got:
-        return None
+        return None, 1.0
     h = {k: np.concatenate([g[k] for g in got]) for k in got[0]}
+    share = held_share(h["px2"], h["px2_expected"], h["px2_held"])
     # one size m per tool-point coordinate, m / L per rotation coordinate (L the tool point's
     # distance to the board points in view: the rotation then moves the view about as much as
     # the translation), from the pixels' excess over what the rest explains: m^2 (u + w), its
     # effect in the frame itself and through the fold's estimate (misfit.py)
-    extra = float(np.sum(h["px2"]) - np.sum(h["px2_expected"]))
+    extra = float(np.sum(h["px2"]) - np.sum(h["px2_expected"]) - share * np.sum(h["px2_held"]))
     m = 0.0
     if extra > Z_MODEL_ERROR * np.sqrt(np.sum(h["px2_var"])):
         m = float(np.sqrt(extra / (np.sum(h["px2_unit"]) + np.sum(h["px2_misfit"]))))
@@ -264,7 +267,7 @@ def model_error(obs: BoardObservations, selection: Selection, offsets: np.ndarra
     return model_error_of(r2, s2, n2, rot, folds=len(got),
                           failed=selection.folds - len(got),
                           noise_what="the pixel and joint read-back noise",
-                          given=(m, m / float(np.mean(h["lever"]))))  # fmt: skip
+                          given=(m, m / float(np.mean(h["lever"])))), share  # fmt: skip
 
 
 def _errors_px_mm(obs: BoardObservations, fit: Refinement,
@@ -327,8 +330,8 @@ def board_accuracy(obs: BoardObservations, selection: Selection, cr: BoardCramer
     lie from the drawing (default :class:`Deviation`'s; :mod:`selfcal.calibration.board.held`)."""
     deviation = Deviation() if deviation is None else deviation
     variance = deviation.variance(cr.model.joint_types)
-    me = model_error(obs, selection, offsets, T_tool_point, pixel_sigma_px, variance)
-    cr = with_deviation(cr, variance)
+    me, share = model_error(obs, selection, offsets, T_tool_point, pixel_sigma_px, variance)
+    cr = with_deviation(cr, share * variance)
     pos = 0.0 if me is None else me.position_m
     rot = 0.0 if me is None or me.rotation_rad is None else me.rotation_rad
     em, names = board_error_model(cr, T_tool_point, pos, rot)
@@ -348,7 +351,7 @@ def board_accuracy(obs: BoardObservations, selection: Selection, cr: BoardCramer
         "T_tool_point_si": np.asarray(T_tool_point, float).tolist(),
         "joint_limits_si": np.asarray(limits, float).tolist(),
         "cross_validation": cross_validated_reprojection(obs, selection),
-        "held_deviation": held_block(deviation),
+        "held_deviation": held_block(deviation, share),
     }
     return Accuracy(em, names, me, workspace_summary(em, sample, q_cal), sample, q_cal,
                     _what(obs.eye_to_hand), note, extra)  # fmt: skip

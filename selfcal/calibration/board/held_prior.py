@@ -14,7 +14,7 @@ import numpy as np
 from selfcal.calibration.board.bounds import BoardCramerRao
 from selfcal.calibration.board.plan_predict import Deviation
 
-__all__ = ["held_block", "with_deviation"]
+__all__ = ["held_block", "held_share", "with_deviation"]
 
 
 def with_deviation(cr: BoardCramerRao, variance: np.ndarray) -> BoardCramerRao:
@@ -39,8 +39,21 @@ def with_deviation(cr: BoardCramerRao, variance: np.ndarray) -> BoardCramerRao:
     )
 
 
-def held_block(deviation: Deviation) -> dict:
-    """The ``accuracy`` block's ``held_deviation``: the prior it was predicted with."""
+def held_share(px2: np.ndarray, expected: np.ndarray, held: np.ndarray) -> float:
+    """The share (0-1) of the prior's variance the cross-validated frames show: their squared
+    pixel errors ``px2`` beyond what the estimate and the noise give them (``expected``), over
+    what the prior's deviation would add (``held``; each (m,) px^2, one per held-out frame) --
+    the prior taken as an upper limit, the folds' excess as the measure of how far this arm
+    lies from its drawing along what the calibration holds (1 when the prior adds nothing)."""
+    add = float(np.sum(held))
+    if add <= 0.0:
+        return 1.0
+    return float(np.clip((np.sum(px2) - np.sum(expected)) / add, 0.0, 1.0))
+
+
+def held_block(deviation: Deviation, share: float = 1.0) -> dict:
+    """The ``accuracy`` block's ``held_deviation``: the prior it was predicted with and the
+    share of its variance the folds showed (:func:`held_share`)."""
     return {
         "what": "the arm's deviation from the drawing the prediction carries: each inner "
         "minimal parameter uniform within +-translation_mm (lengths) or +-rotation_deg "
@@ -49,4 +62,8 @@ def held_block(deviation: Deviation) -> dict:
         "list cover every minimal parameter then; docs/tool-accuracy.md)",
         "translation_mm": 1e3 * deviation.translation_m,
         "rotation_deg": float(np.degrees(deviation.rotation_rad)),
+        "share": share,
+        "share_what": "the share of the prior's variance counted: the leave-one-configuration-"
+        "out frames' pixel excess over the estimate's errors and the noise, against what the "
+        "prior would add to them (at most 1); the model error is what is left beyond it",
     }
