@@ -12,7 +12,9 @@ predicted`` (2k px over every corner of every view) are Gaussian to first order 
 - ``H C H^T``: the calibration's estimation error, correlated between the views through the
   shared parameters: ``H = [A J_id, J_cam]`` the pixels' derivative by the estimated kinematic
   parameters and the first camera's free parameters, ``C`` their joint covariance (the
-  ``accuracy`` block's, :func:`estimate_covariance`);
+  ``accuracy`` block's, :func:`estimate_covariance`; a board calibration's covers the
+  parameters it held at the drawing too, with the share of their deviation its folds showed:
+  :mod:`selfcal.calibration.board.held_prior`);
 - the model error ``M`` per view (the ``accuracy`` block's ``m`` per tool-point coordinate and
   per rotation coordinate, :mod:`selfcal.calibration.board.accuracy`), ``A`` the pixels'
   derivative by a body twist of the chain's tool, ``B`` its map to the tool point (the flange);
