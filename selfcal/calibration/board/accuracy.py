@@ -28,6 +28,11 @@ parts of :mod:`selfcal.calibration.accuracy`:
   (:class:`selfcal.calibration.accuracy.ModelError`'s held-out RMS): a single view knows it
   poorly along its line of sight, so the model error is not taken from it.
 
+The parameters the selection held at the drawing: their deviation, less what the fit absorbs
+of it, is in the covariance too, scaled to the share of the prior (``deviation``) that the
+folds' excess shows; the model error is what the folds leave beyond it
+(:mod:`selfcal.calibration.board.held`, :mod:`selfcal.calibration.board.held_prior`).
+
 What this cannot see: a model error the same in every frame is absorbed by the placement (board
 pose, hand-eye) and is not seen; a misfit that grows where the arm reaches out is taken as the
 same everywhere; held-out configurations far outside the others (few configurations) make the
@@ -91,7 +96,8 @@ def _what(eye_to_hand: bool) -> str:
     return (
         "predicted error of the calibrated tool point (the flange) and tool orientation against "
         f"the true ones, in {frame}: the Cramer-Rao covariance at the estimate carried through "
-        "the chain plus a model error estimated from the leave-one-configuration-out folds "
+        "the chain, with the share of the held parameters' deviation from the drawing the folds "
+        "show (held_deviation), plus a model error estimated from the leave-one-configuration-out folds "
         "(docs/tool-accuracy.md); 95 % bounds of the error's norm per joint vector, summarised "
         "per region: inside = joint vectors within the calibration postures' joint ranges, edge "
         f"= beyond them by up to {EDGE_FRACTION:.0%} of each joint's range, workspace = within "
