@@ -2,7 +2,9 @@
 it holds (issue #29): :mod:`selfcal.calibration.board.held`'s response ``R`` (per unit
 deviation, :attr:`selfcal.calibration.board.bounds.BoardCramerRao.held`) weighed by the prior
 ``S`` (:class:`selfcal.calibration.board.plan_predict.Deviation`, the one ``selfcal plan``
-predicts with) into the bounds' covariances, ``R S R^T``. SI.
+predicts with) into the bounds' covariances, ``c R S R^T``, ``c`` (0-1) the share of the prior the
+calibration's leave-one-configuration-out frames show (:func:`held_share`; the prior an upper
+limit: the selection holds a direction more often when the arm deviates little along it). SI.
 """
 
 from __future__ import annotations
