@@ -47,10 +47,11 @@ def posture_sets(count: int = 12, random_counts: tuple[int, ...] = (12, 30)) -> 
     return sets_of(setup, count, random_counts)
 
 
-def sets_of(setup, count: int, random_counts: tuple[int, ...]) -> dict:
+def sets_of(setup, count: int, random_counts: tuple[int, ...], pixel_sigma_px: float = 0.5) -> dict:
     """:func:`posture_sets` of any plan ``setup``
     (:class:`selfcal.calibration.board.plan_views.PlanSetup`, either mount): ``{"sets", "setup",
-    "workspace"}``, predicted with the robot file's joint read-back noise."""
+    "workspace"}``, planned and predicted for corners of ``pixel_sigma_px`` px noise and the
+    robot file's joint read-back noise."""
     from selfcal.calibration.board.plan import (
         board_model,
         frame_information,
@@ -63,7 +64,7 @@ def sets_of(setup, count: int, random_counts: tuple[int, ...]) -> dict:
 
     robot = setup.robot
     js = encoder_sigma(robot)
-    plan = plan_recording(setup, count, seed=1, joint_sigma=js)
+    plan = plan_recording(setup, count, seed=1, joint_sigma=js, pixel_sigma_px=pixel_sigma_px)
     pool, _ = candidate_pool(setup, 400, seed=1)
     G = aligned_tool_weight(board_model(setup), plan.workspace, setup.T_tool_tip)
     var = Deviation().variance(robot.joint_types)

@@ -2,7 +2,8 @@
 
 :func:`selfcal.studies.montecarlo.run.draw_one` acquires the draw on the analytic path (the board's features
 projected with the true camera at the true poses, Gaussian noise of ``pixel_sigma``,
-:func:`selfcal.sim.analytic.project_board`) and hands the dataset here: the board route calibrates it as
+:func:`selfcal.sim.analytic.project_board`), or rendered, and hands the dataset here (the row
+counts the ``frames`` and those in which every feature of the board was found, ``frames_whole``): the board route calibrates it as
 ``selfcal calibrate`` does (:func:`selfcal.calibration.board.dataset.calibrate_board_dataset_detailed`:
 OpenCV's calibration as the start, the two-stage fit -- camera stage, then the identification on
 its camera poses -- and the one-step refinement with joint corrections), and the row holds, for
@@ -49,7 +50,11 @@ def evaluate_board_draw(root: Path, pixel_sigma: float) -> dict:
     # the two-stage identification can fail on a draw (the fits then start from the nominal)
     two = None if fit.identification is None else fit.identification.model
     models = {"joint": cal.model, **({} if two is None else {"two_stage": two})}
-    row: dict = {}
+    n_features = len(dataset_board(ds).layout()[0])
+    row: dict = {  # frames whose every board feature was found (rendered: detected)
+        "frames": len(out.features[0]),
+        "frames_whole": sum(len(f.ids) == n_features for f in out.features[0]),
+    }
     for k, mdl in models.items():
         row[f"{k}_tip_rms_mm"] = aligned_errors(tool_tips(mdl, qv, T_cam_tip), p_true)["rms"]
     row["nominal_tip_rms_mm"] = aligned_errors(

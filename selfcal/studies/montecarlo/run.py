@@ -69,7 +69,7 @@ def _scenario(settings: dict):
         settings.get("config"),
         {
             "noise": {
-                "render": False,
+                "render": bool(settings.get("render", False)),
                 "pixel_sigma": float(settings["pixel_sigma"]),
                 "seed": int(settings["seed"]),
                 "quantize_joints": bool(settings.get("quantize", True)),
@@ -81,7 +81,8 @@ def _scenario(settings: dict):
 
 
 def _acquire(settings: dict, root: Path):
-    """The draw's dataset in ``root``: planned (or given) postures, dithered, analytic corners."""
+    """The draw's dataset in ``root``: planned (or given) postures, dithered, analytic corners
+    (rendered images with ``settings["render"]``)."""
     s = _scenario(settings)
     setup = sim_setup(s)
     info = plan_dataset(s, setup)
@@ -106,7 +107,8 @@ def draw_one(settings: dict) -> dict:
 
     ``settings``: ``poses``, ``pixel_sigma``, ``seed`` (noise), ``traj_seed``, ``perturb_seed``,
     ``dither`` (bool), optionally ``joints_deg`` (planned postures to use instead of the
-    scenario's plan), ``quantize``, ``config``. Returns a flat row (mm / deg); never raises: a
+    scenario's plan), ``quantize``, ``config``, ``render`` (MuJoCo images detected as ``selfcal
+    run`` with ``[noise] render = true`` does; default the analytic path). Returns a flat row (mm / deg); never raises: a
     failed draw has ``status = "failed: ..."``.
     """
     t0 = time.perf_counter()

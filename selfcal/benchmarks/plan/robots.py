@@ -1,0 +1,282 @@
+"""``python -m selfcal.benchmarks.plan.robots [--robot R ...] [--render] [--draws 30] [--jobs 1]
+[--write-docs]``: the postures of ``selfcal plan`` against random ones on every simulated robot,
+achieved in simulation on the analytic or the rendered path (docs/plan.md, issue #30).
+
+Each robot's cell is laid out like docs/plan.md's UR5e example (:func:`cell_values`): the 60 deg
+640 x 480 wrist camera of the robot file's ``[camera_mount]``, the ChArUco printed face up on
+the table (3 mm thick) where the home posture's optical axis meets it, and one keep-out box of
+the example's size placed about the base as the example's lies about its board. Per cell: the
+plan of 12 and the first 12 and 30 of its candidate pool (random postures under the same
+filters; :func:`selfcal.benchmarks.plan.compare.sets_of`), each replayed in ``--draws``
+simulated draws as :mod:`selfcal.benchmarks.plan.compare` does (one truth ``[perturbation]
+seed`` = the draw and one noise draw each, dithered read-back, calibrated by the board route as
+``selfcal calibrate`` does; :func:`selfcal.studies.montecarlo.run.draw_one`). ``--render``
+renders every posture with MuJoCo and detects the board in the images, as ``selfcal run`` with
+``[noise] render = true`` does, instead of projecting the corners with 0.5 px of noise; the
+table counts the frames in which every corner of the board was found. The achieved error is
+the validation tool tip's RMS after the best rigid alignment against the truth; the prediction
+is the plan's (:func:`selfcal.calibration.board.plan.predict_kept`, 0.5 px corner noise).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shlex
+import shutil
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from selfcal.benchmarks.doc_blocks import ROOT, print_table
+from selfcal.io.atomic import write_text_atomic
+
+__all__ = ["ROBOTS", "cell", "cell_values", "main", "table"]
+
+ROBOTS = ("ur5e", "er4u-paper", "kr6-r900")
+"""The simulated robots, docs/plan.md's example first."""
+EXAMPLE_BOARD_XY = np.array([-472.0, -133.0])
+"""mm: where the UR5e example's board lies (where its home posture looks)."""
+EXAMPLE_BOX = np.array([-300.0, 50.0, 0.0, -100.0, 400.0, 600.0])
+"""mm: the UR5e example's keep-out box."""
+BOARD_THICKNESS_MM = 3.0
+"""The board's centre height on the table (its thickness)."""
+
+
+def cell_values(robot) -> tuple[np.ndarray, np.ndarray]:
+    """Board pose (6,) mm, deg and keep-out box (1, 6) mm of ``robot``'s cell: the board face up
+    where the home posture's optical axis meets the table (rounded to 1 mm), the box of the UR5e
+    example's size with its centre turned about the base's z axis by the angle between the
+    example's board direction and this one and scaled by their distances' ratio (rounded to
+    5 mm); for the UR5e this is the example's cell."""
+    from selfcal.kinematics.mcpc import nominal_mcpc
+    from selfcal.kinematics.trajectory import home_target_center
+
+    xy = np.round(1000.0 * np.array(
+        home_target_center(robot, nominal_mcpc(robot).with_tool(robot.T_flange_cam))))  # fmt: skip
+    turn = np.arctan2(xy[1], xy[0]) - np.arctan2(EXAMPLE_BOARD_XY[1], EXAMPLE_BOARD_XY[0])
+    scale = np.linalg.norm(xy) / np.linalg.norm(EXAMPLE_BOARD_XY)
+    c, s = np.cos(turn), np.sin(turn)
+    lo, hi = EXAMPLE_BOX[:3], EXAMPLE_BOX[3:]
+    mid = (lo[:2] + hi[:2]) / 2.0
+    centre = np.round(scale * np.array([[c, -s], [s, c]]) @ mid / 5.0) * 5.0
+    half = (hi[:2] - lo[:2]) / 2.0
+    box = np.concatenate([centre - half, [lo[2]], centre + half, [hi[2]]])
+    return np.array([xy[0], xy[1], BOARD_THICKNESS_MM, 0.0, 0.0, 0.0]), box[None, :]
+
+
+def cell(name: str, rule=None):
+    """``(setup, board_pose (6,) mm deg, keep_out (1, 6) mm)`` of robot ``name``'s cell
+    (:func:`cell_values`): a :class:`selfcal.calibration.board.plan_views.PlanSetup` with the
+    view ``rule`` (:class:`selfcal.calibration.board.plan_views.ViewRule`; None: ``selfcal
+    plan``'s)."""
+    from selfcal.calibration.board.plan_views import PlanSetup, ViewRule
+    from selfcal.io.camera_file import camera_from_fov
+    from selfcal.io.target_toml import load_target
+    from selfcal.robot.definition import load_robot, models_dir
+    from selfcal.target.placement import board_pose
+
+    robot = load_robot(name)
+    bp, box = cell_values(robot)
+    board = load_target(models_dir() / "targets/charuco.toml")
+    setup = PlanSetup(robot, camera_from_fov(60.0, 640, 480), board,
+                      board_pose(board, bp[:3] / 1000.0), box / 1000.0,
+                      rule or ViewRule())  # fmt: skip
+    return setup, bp, box
+
+
+def _draw(item: tuple[str, str, str, list, int, bool, float]) -> dict:
+    from selfcal.studies.montecarlo.run import draw_one
+
+    robot, name, config, joints_deg, seed, render, sigma = item
+    row = draw_one({"config": config, "poses": len(joints_deg), "pixel_sigma": sigma,
+                    "seed": seed, "traj_seed": 1, "perturb_seed": seed, "dither": True,
+                    "joints_deg": joints_deg, "render": render})  # fmt: skip
+    return {"robot": robot, "set": name, "seed": seed, "render": render,
+            "tip_mm": row.get("joint_tip_rms_mm"), "frames": row.get("frames"),
+            "whole": row.get("frames_whole"), "sigma_px": row.get("sigma_hat_px"),
+            "held": sorted(k[5:] for k, v in row.items() if k.startswith("held_") and v),
+            "status": str(row["status"]),
+            "seconds": row["seconds"]}  # fmt: skip
+
+
+def _items(robot: str, root: Path, render: bool, draws: int, sets: tuple[str, ...], sigma: float,
+           rule):  # fmt: skip
+    """The draws of ``robot``'s cell (scenarios written under ``root``), the predictions (mm)
+    of the posture sets planned for ``sigma`` px of corner noise, and per set a function of a
+    calibration's held parameter names giving the prediction with those held too
+    (:func:`_held_prediction`)."""
+    from selfcal.benchmarks.plan.compare import sets_of
+    from selfcal.cli.plan import scenario_text
+    from selfcal.io.plan_files import joints_csv
+    from selfcal.robot.definition import models_dir
+
+    setup, bp, _ = cell(robot, rule)
+    got = sets_of(setup, 12, (12, 30), pixel_sigma_px=sigma)
+    items, predicted, held = [], {}, {}
+    for name, (q, pred) in got["sets"].items():
+        if name not in sets:
+            continue
+        predicted[name] = pred * 1000.0
+        held[name] = _held_prediction(setup, q, got["workspace"], sigma)
+        folder = root / robot / name.replace(" ", "-")
+        folder.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(models_dir() / "targets/charuco.toml", folder / "target.toml")
+        write_text_atomic(folder / "joints.csv", joints_csv(q, setup.robot.edge_unit))
+        write_text_atomic(folder / "scenario.toml", scenario_text(robot, setup.camera, bp, len(q)))
+        deg = (q / setup.robot.edge_unit).tolist()
+        cfg = str(folder / "scenario.toml")
+        items += [(robot, name, cfg, deg, s, render, sigma) for s in range(1, draws + 1)]
+    return items, predicted, held
+
+
+def _held_prediction(setup, q: np.ndarray, workspace: np.ndarray, sigma: float):
+    """``f(held names) -> mm``: the plan's prediction for the postures ``q`` with the
+    parameters the rank test keeps less those a calibration held (its joint offsets as the rank
+    test keeps them: a draw's row names only the minimal parameters held)."""
+    from selfcal.calibration.board.plan import board_model, frame_information, predict_kept
+    from selfcal.calibration.board.plan_predict import Deviation, kept_by_rank
+    from selfcal.estimation.joint_report import aligned_tool_weight, encoder_sigma
+    from selfcal.kinematics.mcpc import param_names
+
+    js = encoder_sigma(setup.robot)
+    model = board_model(setup)
+    F = frame_information(setup, q, sigma, js).sum(axis=0)
+    G = aligned_tool_weight(model, workspace, setup.T_tool_tip)
+    var = Deviation().variance(setup.robot.joint_types)
+    free, offsets = kept_by_rank(model, q)
+    cache: dict = {}
+
+    def predict(held: list[str]) -> float:
+        key = tuple(sorted(held))
+        if key not in cache:
+            keep = free[~np.isin(param_names(free), key)]
+            cache[key] = 1000.0 * predict_kept(setup, q, F, G, var, kept=(keep, offsets))
+        return cache[key]
+
+    return predict
+
+
+def table(rows: list[dict], predicted: dict, held: dict) -> str:
+    """The markdown table of the draws ``rows`` (:func:`_draw`'s), the predictions
+    ``{(robot, set): mm}`` and the predictions with each draw's held parameters
+    ``{(robot, set): f(held names) -> mm}``, with a closing line on issue #30's three criteria
+    per robot."""
+    head = ("| robot | path | postures | predicted (mm) | achieved median (mm) | 90th percentile | "
+            "median / predicted | failed | frames with every corner | corner noise (px) | "
+            "predicted with the calibration's held parameters (median) | median / that |\n"
+            "|---|---|---|---|---|---|---|---|---|---|---|---|")  # fmt: skip
+    lines, stats = [head], {}
+    for (robot, name), pred in predicted.items():
+        mine = [r for r in rows if r["robot"] == robot and r["set"] == name]
+        path = "rendered" if mine and mine[0]["render"] else "analytic"
+        e = np.array([r["tip_mm"] for r in mine if r["status"] == "ok"], dtype=float)
+        med, p90 = (np.median(e), np.percentile(e, 90)) if len(e) else (np.nan, np.nan)
+        stats[robot, name] = (med, p90, med / pred)
+        whole = sum(int(r["whole"] or 0) for r in mine if r["status"] == "ok")
+        frames = sum(int(r["frames"] or 0) for r in mine if r["status"] == "ok")
+        # the calibration's corner noise: its reprojection RMS over sqrt(2), median of the draws
+        noise = np.median([r["sigma_px"] for r in mine if r["status"] == "ok"] or [np.nan])
+        # the prediction with the parameters each calibration held (draws that name them)
+        ph = [held[robot, name](r["held"]) for r in mine if r["status"] == "ok" and "held" in r]
+        ph_med = np.median(ph) if ph else np.nan
+        lines.append(f"| {robot} | {path} | {name} | {pred:.3f} | {med:.3f} | {p90:.3f} | "
+                     f"{med / pred:.2f} | {len(mine) - len(e)} of {len(mine)} | "
+                     f"{whole} of {frames} | {noise:.3f} | {ph_med:.3f} ({len(ph)} draws) | "
+                     f"{med / ph_med:.2f} |")  # fmt: skip
+    for robot in dict.fromkeys(r for r, _ in predicted):
+        p, r30 = stats.get((robot, "plan 12")), stats.get((robot, "random 30"))
+        if p is None or r30 is None:
+            continue
+        beats = p[0] <= r30[0] and p[1] <= r30[1]
+        inside = 0.7 <= 1.0 / p[2] <= 1.4
+        lines.append(
+            f"\n{robot}: plan 12 {'<=' if beats else 'NOT <='} random 30 at the median and the "
+            f"90th percentile; predicted / achieved median {1.0 / p[2]:.2f} "
+            f"({'inside' if inside else 'NOT inside'} 0.7-1.4)."
+        )
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Draw, print the table and, with ``--write-docs``, put it in docs/plan.md."""
+    from multiprocessing import get_context
+
+    from selfcal.calibration.board.plan_views import ViewRule
+    from selfcal.robot.definition import load_robot
+
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--robot", nargs="+", default=list(ROBOTS), choices=ROBOTS)
+    ap.add_argument("--render", action="store_true", help="rendered and detected images")
+    ap.add_argument("--draws", type=int, default=30)
+    ap.add_argument("--sets", nargs="+", default=["plan 12", "random 12", "random 30"],
+                    choices=["plan 12", "random 12", "random 30"])  # fmt: skip
+    ap.add_argument(
+        "--pixel-sigma",
+        type=float,
+        default=0.5,
+        help="corner noise the plan assumes (px; analytic: also the noise drawn)",
+    )
+    ap.add_argument(
+        "--min-pitch-px",
+        type=float,
+        default=ViewRule.min_pitch_px,
+        help="the view rule's shortest feature pitch (selfcal plan's by default)",
+    )
+    ap.add_argument(
+        "--max-tilt-deg",
+        type=float,
+        default=ViewRule.max_tilt_deg,
+        help="the view rule's largest board tilt (selfcal plan's by default)",
+    )
+    ap.add_argument("--jobs", type=int, default=1)
+    ap.add_argument(
+        "--from-draws",
+        action="store_true",
+        help="table the draws of OUT's draws.jsonl instead of drawing",
+    )
+    ap.add_argument("--out", default="runs/plan-robots",
+                    help="the scenarios and draws.jsonl, under PATH[-RULE]/; a run resumes its draws")  # fmt: skip
+    ap.add_argument("--write-docs", action="store_true")
+    a = ap.parse_args(argv)
+    rule = ViewRule(min_pitch_px=a.min_pitch_px, max_tilt_deg=a.max_tilt_deg)
+    path = "rendered" if a.render else "analytic"
+    folder = path if rule == ViewRule() else f"{path}-{a.min_pitch_px:g}px-{a.max_tilt_deg:g}deg"
+    root = Path(a.out) / folder
+    items, predicted, held = [], {}, {}
+    for robot in a.robot:
+        its, pred, hp = _items(robot, root, a.render, a.draws, tuple(a.sets), a.pixel_sigma, rule)
+        items += its
+        predicted.update({(robot, k): v for k, v in pred.items()})
+        held.update({(robot, k): v for k, v in hp.items()})
+    # the plans' draws first, then the others, seed by seed: a run stopped early keeps balanced rows
+    items.sort(key=lambda it: (it[1] != "plan 12", it[4]))
+    done = root / "draws.jsonl"
+    rows = [json.loads(x) for x in done.read_text().splitlines()] if done.is_file() else []
+    if not a.from_draws:  # the draws not yet in draws.jsonl (a stopped run resumes)
+        have = {(r["robot"], r["set"], r["seed"]) for r in rows}
+        items = [it for it in items if (it[0], it[1], it[4]) not in have]
+        with get_context("spawn").Pool(a.jobs) as pool:
+            for row in pool.imap_unordered(_draw, items):
+                rows.append(row)
+                write_text_atomic(root / "draws.jsonl", "".join(json.dumps(r) + "\n" for r in rows))
+    text = table(rows, predicted, held)
+    cells = "; ".join(
+        f"{r} board at {v[0][0]:g}, {v[0][1]:g}, {v[0][2]:g} mm, keep-out "
+        + ",".join(f"{x:g}" for x in v[1][0])
+        for r, v in ((r, cell_values(load_robot(r))) for r in a.robot)
+    )
+    args = [x for x in (sys.argv[1:] if argv is None else argv)
+            if x not in ("--from-draws", "--write-docs")]  # fmt: skip
+    text += (
+        f"\n\nCells: {cells}. Command: `python -m selfcal.benchmarks.plan.robots "
+        f"{' '.join(shlex.quote(x) for x in args)}` (draws per row: the failed column's "
+        "count; a run stopped early tabled with `--from-draws`)."
+    )
+    return print_table(text, ROOT / "docs/plan.md", f"benchmark_plan_robots_{path}",
+                       write=a.write_docs)  # fmt: skip
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
