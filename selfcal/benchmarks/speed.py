@@ -143,9 +143,9 @@ def ba_against_scipy(poses: int, root: Path) -> dict:
     seen = []
     real = bundle_adjust.solve
 
-    def spy(problem, options=None, plans=None):
+    def spy(problem, *args, **kwargs):  # any commit's solve signature (--against REF)
         seen.append(problem)
-        return real(problem, options, plans)
+        return real(problem, *args, **kwargs)
 
     bundle_adjust.solve = spy
     try:
