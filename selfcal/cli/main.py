@@ -393,7 +393,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "holds at the robot file's values as uniform within +-MM "
                     "(docs/tool-accuracy.md); as `selfcal plan --deviation-mm`")  # fmt: skip
     sp.add_argument("--deviation-deg", type=float, default=None, metavar="DEG",
-                    help="a board dataset: how far its angles may, deg (default 0.5)")  # fmt: skip
+                    help="a board dataset: how far its angles may lie from it, deg (default 0.5)")  # fmt: skip
     add_pose_noise_arg(sp)
     add_tracker_args(sp)
     add_json(sp)

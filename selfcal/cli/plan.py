@@ -327,6 +327,11 @@ def _deviation(args: argparse.Namespace):
 
     if args.deviation_mm < 0 or args.deviation_deg < 0:
         raise CliError("--deviation-mm and --deviation-deg must be >= 0")
+    if args.deviation_mm == 0 and args.deviation_deg == 0:
+        raise CliError("--deviation-mm 0 --deviation-deg 0 says the arm is exactly its drawing: "
+                       "there is no kinematic error for a plan to reduce or a nominal to compare "
+                       "with; give how far your arm may lie from its drawing (e.g. "
+                       "--deviation-mm 0.2 --deviation-deg 0.05)")  # fmt: skip
     return Deviation(args.deviation_mm / 1000.0, float(np.radians(args.deviation_deg)))
 
 
@@ -475,7 +480,7 @@ def register(subparsers) -> argparse.ArgumentParser:
     sp.add_argument("--deviation-mm", type=float, default=1.0,
                     help="how far the arm's lengths may lie from its drawing, mm (default 1)")  # fmt: skip
     sp.add_argument("--deviation-deg", type=float, default=0.5,
-                    help="how far its angles may, deg (default 0.5)")  # fmt: skip
+                    help="how far its angles may lie from it, deg (default 0.5)")  # fmt: skip
     sp.add_argument("--speed-deg-s", type=float, default=10.0,
                     help="trajectory.yaml: the fastest joint's speed, deg/s (mm/s for a "
                          "prismatic joint; default 10)")  # fmt: skip

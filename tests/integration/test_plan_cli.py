@@ -267,6 +267,17 @@ def test_a_plan_refuses_bad_timing_and_a_pool_smaller_than_the_plan(tmp_path, ca
     assert not (tmp_path / "p").exists()
 
 
+def test_a_plan_refuses_an_arm_that_is_exactly_its_drawing(tmp_path, capsys):
+    """--deviation-mm 0 --deviation-deg 0 stopped the command with an internal error (a division
+    by the nominal's predicted error, 0) after planning."""
+    argv = ["plan", "--robot", "ur5e", "--target", BOARD, "--fov-deg", "60", "--resolution",
+            "640x480", "--board-pose", "-472,-133,3", "--out", str(tmp_path / "p"),
+            "--deviation-mm", "0", "--deviation-deg", "0"]  # fmt: skip
+    assert main(argv) == 2
+    assert "says the arm is exactly its drawing" in capsys.readouterr().err
+    assert not (tmp_path / "p").exists()
+
+
 @pytest.mark.parametrize("extra", [["--robot", "ur5e"], ["--target", BOARD], ["--count", "5"],
                                    ["--fov-deg", "60"], ["--board-pose", "0,0,0"]])  # fmt: skip
 def test_add_refuses_what_the_dataset_gives(tmp_path, capsys, extra):
