@@ -337,8 +337,8 @@ def _deviation(args: argparse.Namespace):
 
 def _cmd_add(args: argparse.Namespace) -> int:
     from selfcal.acquisition.backends import robot_reference
-    from selfcal.calibration.board.plan import PlanOptions
     from selfcal.calibration.board.plan_add import dataset_setup, plan_additions
+    from selfcal.calibration.board.plan_ground import PlanOptions
     from selfcal.cli.plan_text import criterion, reference_words
     from selfcal.estimation.joint_report import encoder_sigma
     from selfcal.io.atomic import write_text_atomic

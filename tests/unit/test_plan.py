@@ -8,12 +8,9 @@ import numpy as np
 import pytest
 
 from selfcal.calibration.board.bounds import board_cramer_rao
-from selfcal.calibration.board.plan import (
-    board_model,
-    order_path,
-    path_length,
-    plan_recording,
-)
+from selfcal.calibration.board.plan import plan_recording
+from selfcal.calibration.board.plan_information import board_model
+from selfcal.calibration.board.plan_path import order_path, path_length
 from selfcal.calibration.board.plan_views import PlanSetup, board_views_ok
 from selfcal.camera import project
 from selfcal.io.camera_file import camera_from_fov, read_camera_file
@@ -133,7 +130,8 @@ def test_camera_file_reads_what_export_writes(tmp_path, fmt):
 
 
 def test_prediction_with_joint_noise_is_the_board_route_bound(setup, plan):
-    from selfcal.calibration.board.plan import frame_information, predicted_error
+    from selfcal.calibration.board.plan_greedy import predicted_error
+    from selfcal.calibration.board.plan_information import frame_information
     from selfcal.estimation.joint_report import aligned_tool_weight
 
     js = np.full(6, np.radians(0.02))

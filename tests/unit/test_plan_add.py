@@ -8,13 +8,10 @@ import numpy as np
 import pytest
 
 from selfcal.calibration.board.bounds import board_cramer_rao
-from selfcal.calibration.board.plan import (
-    board_model,
-    frame_information,
-    plan_recording,
-    select_greedy,
-)
+from selfcal.calibration.board.plan import plan_recording
 from selfcal.calibration.board.plan_add import DatasetPlan, training_sets
+from selfcal.calibration.board.plan_greedy import select_greedy
+from selfcal.calibration.board.plan_information import board_model, frame_information
 from selfcal.calibration.board.plan_predict import (
     Deviation,
     estimated_directions,

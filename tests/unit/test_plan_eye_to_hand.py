@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from selfcal.calibration.board.bounds import board_cramer_rao
-from selfcal.calibration.board.plan import board_model, plan_recording
+from selfcal.calibration.board.plan import plan_recording
+from selfcal.calibration.board.plan_information import board_model
 from selfcal.calibration.board.plan_views import (
     PlanSetup,
     _plate_clear,

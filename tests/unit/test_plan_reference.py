@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from selfcal.calibration.board.nominal_fit import placement_indices
-from selfcal.calibration.board.plan import board_model, frame_information, workspace_sample
+from selfcal.calibration.board.plan_ground import workspace_sample
+from selfcal.calibration.board.plan_information import board_model, frame_information
 from selfcal.calibration.board.plan_predict import Deviation
 from selfcal.calibration.board.plan_reference import CLEAR_MARGIN, nominal_reference
 from selfcal.calibration.board.plan_views import PlanSetup, candidate_pool

@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from selfcal.benchmarks.plan.add import WRIST_SPAN_DEG, wrist_cell
-from selfcal.calibration.board.plan import board_model, frame_information, plan_recording
+from selfcal.calibration.board.plan import plan_recording
+from selfcal.calibration.board.plan_information import board_model, frame_information
 from selfcal.calibration.board.plan_predict import Deviation, kept_by_rank
 from selfcal.calibration.board.plan_selection import forecast_selection
 from selfcal.calibration.board.plan_views import feasible

@@ -52,12 +52,8 @@ def sets_of(setup, count: int, random_counts: tuple[int, ...], pixel_sigma_px: f
     (:class:`selfcal.calibration.board.plan_views.PlanSetup`, either mount): ``{"sets", "setup",
     "workspace"}``, planned and predicted for corners of ``pixel_sigma_px`` px noise and the
     robot file's joint read-back noise."""
-    from selfcal.calibration.board.plan import (
-        board_model,
-        frame_information,
-        plan_recording,
-        predict_kept,
-    )
+    from selfcal.calibration.board.plan import plan_recording, predict_kept
+    from selfcal.calibration.board.plan_information import board_model, frame_information
     from selfcal.calibration.board.plan_predict import Deviation
     from selfcal.calibration.board.plan_views import candidate_pool
     from selfcal.estimation.joint_report import aligned_tool_weight, encoder_sigma

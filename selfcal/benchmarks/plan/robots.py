@@ -142,7 +142,8 @@ def _held_prediction(setup, q: np.ndarray, workspace: np.ndarray, sigma: float):
     """``f(held names) -> mm``: the plan's prediction for the postures ``q`` with the
     parameters the rank test keeps less those a calibration held (its joint offsets as the rank
     test keeps them: a draw's row names only the minimal parameters held)."""
-    from selfcal.calibration.board.plan import board_model, frame_information, predict_kept
+    from selfcal.calibration.board.plan import predict_kept
+    from selfcal.calibration.board.plan_information import board_model, frame_information
     from selfcal.calibration.board.plan_predict import Deviation, kept_by_rank
     from selfcal.estimation.joint_report import aligned_tool_weight, encoder_sigma
     from selfcal.kinematics.mcpc import param_names

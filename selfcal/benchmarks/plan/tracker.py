@@ -52,7 +52,7 @@ def main(argv: list[str] | None = None) -> int:
     """Draw and print the table."""
     import warnings
 
-    from selfcal.calibration.board.plan import workspace_sample
+    from selfcal.calibration.board.plan_ground import workspace_sample
     from selfcal.calibration.board.plan_predict import Deviation
     from selfcal.calibration.tracker.plan import (
         TrackerPlanSetup,

@@ -6,12 +6,13 @@ The cell is the calibration's (:func:`dataset_setup`): the robot file, the calib
 board where the calibration placed it (base -> board) and the camera where it placed it on the
 flange (:func:`selfcal.calibration.board.mounts.mounts`). Candidates are drawn as for a new plan
 (:func:`selfcal.calibration.board.plan_views.candidate_pool`). The information the dataset
-already holds is its frames' (:func:`selfcal.calibration.board.plan.frame_information` at its
-read-back joints, with the board features detected in each) plus the prior of the arm's
-deviation from its drawing (:mod:`selfcal.calibration.board.plan_predict`); the greedy choice
-adds, one at a time, the candidate that lowers the predicted tool-point error most
-(:func:`selfcal.calibration.board.plan.select_greedy`) and ranks :data:`SPARE` more; the added
-postures are ordered for a short joint path from home.
+already holds is its frames'
+(:func:`selfcal.calibration.board.plan_information.frame_information` at its read-back joints,
+with the board features detected in each) plus the prior of the arm's deviation from its drawing
+(:mod:`selfcal.calibration.board.plan_predict`); the greedy choice adds, one at a time, the
+candidate that lowers the predicted tool-point error most
+(:func:`selfcal.calibration.board.plan_greedy.select_greedy`) and ranks :data:`SPARE` more; the
+added postures are ordered for a short joint path from home.
 
 The prediction after the additions is that of the calibration with the parameters its
 selection's cross-validation is forecast to keep
@@ -38,16 +39,11 @@ from selfcal.calibration.board.bounds import estimated_parameters
 from selfcal.calibration.board.dataset import dataset_board, detect_board
 from selfcal.calibration.board.mounts import mounts
 from selfcal.calibration.board.param_selection import configurations, fold_labels
-from selfcal.calibration.board.plan import (
-    PlanOptions,
-    board_model,
-    frame_information,
-    order_path,
-    path_length,
-    plan_ground,
-    predict_kept,
-    select_greedy,
-)
+from selfcal.calibration.board.plan import predict_kept
+from selfcal.calibration.board.plan_greedy import select_greedy
+from selfcal.calibration.board.plan_ground import PlanOptions, plan_ground
+from selfcal.calibration.board.plan_information import board_model, frame_information
+from selfcal.calibration.board.plan_path import order_path, path_length
 from selfcal.calibration.board.plan_predict import Directions, prior_information
 from selfcal.calibration.board.plan_reference import NominalReference, nominal_reference
 from selfcal.calibration.board.plan_selection import SelectionForecast, forecast_selection
@@ -174,7 +170,7 @@ def plan_additions(
     plan: DatasetPlan, count: int, options: PlanOptions | None = None
 ) -> AddedPostures:
     """The ``count`` postures to add to ``plan``'s dataset (module docstring), drawn and
-    predicted with ``options`` (default :class:`selfcal.calibration.board.plan.PlanOptions`).
+    predicted with ``options`` (default :class:`selfcal.calibration.board.plan_ground.PlanOptions`).
 
     Raises:
         InputError: fewer candidates than ``count``.

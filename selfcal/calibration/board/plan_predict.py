@@ -6,7 +6,7 @@ A board calibration estimates the kinematic parameters its identifiability selec
 drawing's value, and its deviation from the drawing is an error the estimated parameters only
 partly absorb. To first order, with ``F`` (p, p) the Fisher information of the camera's free
 parameters and every minimal kinematic parameter
-(:func:`selfcal.calibration.board.plan.frame_information`), ``M`` (p, e) the estimated
+(:func:`selfcal.calibration.board.plan_information.frame_information`), ``M`` (p, e) the estimated
 parameters' directions among them (the camera's own; the kinematic ones by
 :func:`selfcal.calibration.board.bounds.to_minimal`) and ``S`` (p, p) the covariance of the
 minimal parameters' deviation from the drawing::

@@ -104,9 +104,10 @@ def nominal_reference(
     directions: Directions | None = None,
 ) -> NominalReference:
     """Both references (module docstring) for the postures whose information is ``F`` (p, p)
-    on ``[camera (n_cam), minimal (k)]`` (:func:`selfcal.calibration.board.plan.frame_information`
-    summed), of the calibration's chain ``model``, with the aligned tool weight ``G`` (k, k) and
-    the deviation's ``variance`` (k,); ``directions`` the model's when already computed."""
+    on ``[camera (n_cam), minimal (k)]``
+    (:func:`selfcal.calibration.board.plan_information.frame_information` summed), of the
+    calibration's chain ``model``, with the aligned tool weight ``G`` (k, k) and the deviation's
+    ``variance`` (k,); ``directions`` the model's when already computed."""
     dirs = directions or Directions(model)
     M = dirs.of(placement_indices(model.n), np.zeros(0, np.int64))
     fair = predicted_with_held(F, G, n_cam, M, variance)

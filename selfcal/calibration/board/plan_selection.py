@@ -90,7 +90,7 @@ def forecast_selection(
     """The candidate the selection is expected to keep (module docstring) for the frames at the
     joints ``q`` (m, n) rad in recording order, of ``model`` (world = board, tool = camera):
     ``F_frames`` (m, p, p) their information on ``[camera (n_cam), minimal (k)]``
-    (:func:`selfcal.calibration.board.plan.frame_information`), ``n_features`` (m,) the
+    (:func:`selfcal.calibration.board.plan_information.frame_information`), ``n_features`` (m,) the
     features each shows, ``variance`` (k,) the deviation from the drawing, ``sigma_px`` the
     corner noise (px); ``directions`` the model's estimated directions when already computed
     (:class:`selfcal.calibration.board.plan_predict.Directions`)."""

@@ -1,0 +1,114 @@
+"""The common ground every plan is chosen on (``selfcal plan``, issue #30;
+:mod:`selfcal.calibration.board.plan`): the candidate postures
+(:func:`selfcal.calibration.board.plan_views.candidate_pool`), the random workspace postures the
+predicted tool-point error is averaged over, the aligned tool weight over them and the arm's
+deviation from its drawing. Units: SI inside.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+
+from selfcal.calibration.board.plan_information import board_model
+from selfcal.calibration.board.plan_predict import Deviation
+from selfcal.calibration.board.plan_views import PlanSetup, candidate_pool
+from selfcal.errors import InputError
+from selfcal.estimation.joint_report import aligned_tool_weight
+from selfcal.kinematics.keep_out import outside_boxes
+from selfcal.kinematics.self_collision import CapsuleChain
+from selfcal.robot.definition import RobotDef
+
+__all__ = ["PlanGround", "PlanOptions", "PostureCell", "plan_ground", "workspace_sample"]
+
+
+class PostureCell(Protocol):
+    """What :func:`workspace_sample` draws for: an arm, its collision check and keep-out boxes
+    (:class:`selfcal.calibration.board.plan_views.PlanSetup`, a tracker plan's setup)."""
+
+    @property
+    def robot(self) -> RobotDef: ...
+
+    @property
+    def chain(self) -> CapsuleChain: ...
+
+    @property
+    def boxes(self) -> np.ndarray: ...
+
+
+def workspace_sample(setup: PostureCell, n: int, *, seed: int) -> np.ndarray:
+    """(n, dof) rad: random postures of the planning window around home, free of self-collision
+    and keep-out boxes (the board need not be in view): where the predicted error is averaged,
+    and a tracker plan's candidates."""
+    r = setup.robot
+    rng = np.random.default_rng(seed)
+    lo = np.maximum(r.limits[:, 0], r.home - r.planning_span)
+    hi = np.minimum(r.limits[:, 1], r.home + r.planning_span)
+    out: list[np.ndarray] = []
+    for _ in range(50):
+        q = rng.uniform(lo, hi, size=(max(4 * n, 256), r.n))
+        ok = setup.chain.ok(q)
+        ok[ok] = outside_boxes(setup.chain, q[ok], setup.boxes)
+        out.append(q[ok])
+        if sum(map(len, out)) >= n:
+            break
+    w = np.concatenate(out)[:n]
+    if len(w) < n:
+        raise InputError(
+            f"only {len(w)} of {n} postures of the planning window around home are free of "
+            "collision and of the keep-out boxes",
+            fix="check the keep-out boxes against the robot's home posture and [planning] span_deg",
+        )
+    return w
+
+
+@dataclass(frozen=True)
+class PlanOptions:
+    """What every plan is drawn and predicted with: the ``seed`` of the candidates and the
+    workspace, the pool's size ``candidates``, the ``workspace`` postures the error is averaged
+    over, the corner noise ``pixel_sigma_px`` (px), the joint read-back noise ``joint_sigma``
+    (n,) rad (None: exact; :func:`selfcal.calibration.board.plan_information.frame_information`)
+    and the arm's ``deviation`` from its drawing
+    (:class:`selfcal.calibration.board.plan_predict.Deviation`)."""
+
+    seed: int = 1
+    candidates: int = 400
+    workspace: int = 50
+    pixel_sigma_px: float = 0.5
+    joint_sigma: np.ndarray | None = None
+    deviation: Deviation = field(default_factory=Deviation)
+
+
+@dataclass(frozen=True, eq=False)
+class PlanGround:
+    """The common ground of a plan (:func:`plan_ground`): the candidate ``pool`` (m, n) rad and
+    where it was ``drawn_from``, the ``workspace`` (w, n) rad, the aligned tool weight ``G``
+    (k, k) over it and the deviation's ``variance`` (k,)."""
+
+    pool: np.ndarray
+    drawn_from: str
+    workspace: np.ndarray
+    G: np.ndarray
+    variance: np.ndarray
+
+
+def plan_ground(setup: PlanSetup, count: int, options: PlanOptions) -> PlanGround:
+    """The candidates, the workspace and the weights a plan of ``count`` postures chooses with.
+
+    Raises:
+        InputError: fewer candidates than ``count``, or no posture sees the board.
+    """
+    pool, where = candidate_pool(setup, max(options.candidates, count), seed=options.seed)
+    if len(pool) < count:
+        raise InputError(
+            f"only {len(pool)} postures of {setup.robot.name} see the whole board without "
+            f"collision; {count} asked",
+            fix="plan fewer postures, move the board (--board-pose) nearer to where the arm "
+            "works, or remove keep-out boxes",
+        )
+    qw = workspace_sample(setup, options.workspace, seed=options.seed + 1)
+    model = board_model(setup)
+    G = aligned_tool_weight(model, qw, setup.T_tool_tip)
+    return PlanGround(pool, where, qw, G, options.deviation.variance(model.joint_types))
