@@ -45,9 +45,11 @@ error rule may keep the next smaller set, that set's: a range), every other one 
 drawing and erring by --deviation-mm / --deviation-deg; beside it the prediction with every
 parameter the postures identify and that of a random plan of the same size so. The second line
 gives the error without calibrating the kinematics for the same postures (the smaller of the
-chain as drawn and the fair nominal, hand-eye and board pose fitted to the pixels) and says
-whether the plan beats it clearly (at most 0.7 times it); if not, the count of postures that
-would (within 4 times --count). plan.json holds every figure.
+chain as drawn and the fair nominal: eye-in-hand the hand-eye and the board pose fitted to the
+pixels, eye-to-hand the camera's pose in the base and the board's on the flange) and says
+whether the calibration with the parameters the selection is forecast to keep beats it clearly
+(at most 0.7 times it), with the smaller set's figure as a caveat; if not, the count of
+postures that would (within 4 times --count). plan.json holds every figure.
 --add K DATASET: instead, the K postures that most lower the predicted error of the calibrated
 DATASET (its robot file, calibration.json's camera, board pose and hand-eye; --robot, --target,
 --board-pose, --count and the camera options are refused), predicted with the parameters the

@@ -13,22 +13,33 @@ if TYPE_CHECKING:  # the CLI's parser loads no numerical module (tests/unit/test
 __all__ = ["criterion", "plan_lines", "plan_sections", "reference_words"]
 
 
-def reference_words(ref: NominalReference, predicted_m: float) -> str:
-    """The reference and the verdict on a calibration predicted at ``predicted_m`` (m): the
-    error without calibrating the kinematics and whether the prediction beats it clearly."""
+def reference_words(ref: NominalReference, predicted_m: float, rival_m: float | None = None) -> str:
+    """The reference and the verdict on a calibration predicted at ``predicted_m`` (m, with the
+    parameters the selection is forecast to keep): the error without calibrating the kinematics
+    and whether the prediction beats it clearly; ``rival_m`` (m) the prediction with the smaller
+    set the selection may keep instead (a caveat, not the verdict's decider), None without
+    one."""
     from selfcal.calibration.board.plan_reference import CLEAR_MARGIN
 
     mm = ref.best_m * 1000
     head = (f"without calibrating the kinematics {mm:.3f} mm ({ref.what}; "
-            + ("the fair nominal, hand-eye and board pose fitted to the pixels: "
+            + (f"the fair nominal, {ref.placement} fitted to the pixels: "
                f"{ref.fair_m * 1000:.3f} mm" if ref.what == "the chain as drawn" else
                f"the chain as drawn: {ref.drawn_m * 1000:.3f} mm") + ")")  # fmt: skip
     ratio = predicted_m / ref.best_m
     if ref.beaten_by(predicted_m):
-        return f"{head}: the calibration is predicted at {ratio:.2f} times it"
-    return (f"{head}: NOT predicted to beat it by a clear margin ({ratio:.2f} times it, a clear "
-            f"gain is at most {CLEAR_MARGIN:g}): the calibration may be no better than "
-            f"{ref.what}")  # fmt: skip
+        words = f"{head}: the calibration is predicted at {ratio:.2f} times it"
+    else:
+        words = (f"{head}: NOT predicted to beat it by a clear margin ({ratio:.2f} times it, a "
+                 f"clear gain is at most {CLEAR_MARGIN:g}): the calibration may be no better "
+                 f"than {ref.what}")  # fmt: skip
+    if rival_m is None:
+        return words
+    rival = rival_m / ref.best_m
+    if ref.beaten_by(predicted_m) and not ref.beaten_by(rival_m):
+        return (f"{words}; but if the selection keeps the smaller set, {rival:.2f} times it: "
+                "no clear gain")  # fmt: skip
+    return f"{words} ({rival:.2f} times it if the selection keeps the smaller set)"
 
 
 def plan_lines(plan) -> str:
@@ -53,8 +64,8 @@ def plan_lines(plan) -> str:
         first += (f" (with all {plan.kept_all} the postures identify {plan.predicted_m * 1000:.3f}"
                   f" mm; a random plan of {n}: {plan.random_m * 1000:.3f} mm)")  # fmt: skip
     first += f"; joint path {np.degrees(plan.path_rad):.0f} deg"
-    second = reference_words(plan.reference, plan.selected.worst_m)
-    if not plan.reference.beaten_by(plan.selected.worst_m):
+    second = reference_words(plan.reference, sel.selected_m, sel.rival_m)
+    if not sel.beats(plan.reference):
         if plan.to_beat is not None:
             k, got = plan.to_beat
             second += (f"; record more postures: a plan of {k} (--count {k}) is predicted "
@@ -92,8 +103,14 @@ def plan_sections(plan) -> dict:
             ),
         },
         "nominal": plan.reference.to_json(),
-        "beats_nominal": plan.reference.beaten_by(sel.worst_m),
-        "verdict": reference_words(plan.reference, sel.worst_m),
+        "beats_nominal": sel.beats(plan.reference),
+        "rival_beats_nominal": sel.rival_beats(plan.reference),
+        "verdict": reference_words(plan.reference, sel.selected_m, sel.rival_m),
+        "verdict_note": (
+            "beats_nominal and more_postures judge the prediction with the parameters the "
+            "selection is forecast to keep (selection.tool_rms_mm); rival_beats_nominal the "
+            "smaller set it may keep instead (null: no rival)"
+        ),
         "more_postures": (
             None
             if plan.to_beat is None

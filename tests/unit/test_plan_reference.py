@@ -120,7 +120,9 @@ def test_the_plan_says_the_reference_and_whether_it_beats_it(tmp_path, capsys):
     ref = doc["nominal"]
     best = min(ref["fair_nominal_tool_rms_mm"], ref["drawn_tool_rms_mm"])
     assert f"without calibrating the kinematics {best:.3f} mm" in out
-    stands = max(doc["selection"]["tool_rms_mm"], doc["selection"]["rival_tool_rms_mm"] or 0)
-    assert doc["beats_nominal"] == (stands <= CLEAR_MARGIN * best)
+    sel = doc["selection"]
+    assert doc["beats_nominal"] == (sel["tool_rms_mm"] <= CLEAR_MARGIN * best)
+    rival = sel["rival_tool_rms_mm"]
+    assert doc["rival_beats_nominal"] == (None if rival is None else rival <= CLEAR_MARGIN * best)
     assert ("NOT predicted to beat it" in out) != doc["beats_nominal"]
     assert doc["verdict"] in out

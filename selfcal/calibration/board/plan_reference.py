@@ -48,10 +48,19 @@ above 0.7 times the reference may achieve no gain."""
 @dataclass(frozen=True)
 class NominalReference:
     """The predicted tool-point RMS (m) without calibrating the kinematics (module docstring):
-    ``fair_m`` the fair nominal's, ``drawn_m`` the chain's as drawn."""
+    ``fair_m`` the fair nominal's, ``drawn_m`` the chain's as drawn; ``eye_to_hand`` whether
+    the camera stands still and the board rides on the flange (it names the placement)."""
 
     fair_m: float
     drawn_m: float
+    eye_to_hand: bool = False
+
+    @property
+    def placement(self) -> str:
+        """What the fair nominal fits besides the camera, in words."""
+        if self.eye_to_hand:
+            return "the camera's pose in the base and the board's on the flange"
+        return "the hand-eye and the board pose"
 
     @property
     def best_m(self) -> float:
@@ -77,8 +86,8 @@ class NominalReference:
             "clear_margin": CLEAR_MARGIN,
             "note": (
                 "the tool-point error without calibrating the kinematics, predicted for the same "
-                "postures: fair nominal = the chain at its drawing with the placement (board pose, "
-                "hand-eye) and camera fitted to the pixels, the chain's deviation less what they "
+                f"postures: fair nominal = the chain at its drawing with {self.placement} and the "
+                "camera fitted to the pixels, the chain's deviation less what they "
                 "absorb; drawn = the chain as drawn, nothing fitted (what selfcal run's "
                 "validation calls nominal); a plan beats the smaller clearly when predicted at "
                 "most clear_margin times it"
@@ -102,13 +111,16 @@ def nominal_reference(
     n_cam: int,
     variance: np.ndarray,
     directions: Directions | None = None,
+    *,
+    eye_to_hand: bool = False,
 ) -> NominalReference:
     """Both references (module docstring) for the postures whose information is ``F`` (p, p)
     on ``[camera (n_cam), minimal (k)]``
     (:func:`selfcal.calibration.board.plan_information.frame_information` summed), of the
     calibration's chain ``model``, with the aligned tool weight ``G`` (k, k) and the deviation's
-    ``variance`` (k,); ``directions`` the model's when already computed."""
+    ``variance`` (k,); ``directions`` the model's when already computed; ``eye_to_hand`` the
+    mount (:attr:`NominalReference.placement`)."""
     dirs = directions or Directions(model)
     M = dirs.of(placement_indices(model.n), np.zeros(0, np.int64))
     fair = predicted_with_held(F, G, n_cam, M, variance)
-    return NominalReference(fair_m=fair, drawn_m=drawn_error(G, variance))
+    return NominalReference(fair_m=fair, drawn_m=drawn_error(G, variance), eye_to_hand=eye_to_hand)

@@ -1,0 +1,87 @@
+"""The plan's verdict (selfcal/calibration/board/plan.py, selfcal/cli/plan_text.py, issue #30)
+follows the parameters the selection is forecast to keep, not the smaller rival set it may keep
+instead: a plan whose forecast choice beats the reference clearly is said to beat it, the
+rival's prediction is a caveat beside it, and the search for more postures stops at the first
+plan whose choice beats it. The reference names what its fair nominal fits per mount."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+
+from selfcal.calibration.board.nominal_fit import placement_indices
+from selfcal.calibration.board.plan import SEARCH_STEP, Selected, count_to_beat
+from selfcal.calibration.board.plan_reference import CLEAR_MARGIN, NominalReference
+from selfcal.calibration.board.plan_selection import SelectionForecast
+from selfcal.cli.plan_text import plan_lines, plan_sections, reference_words
+
+N = 6  # joints
+REF = NominalReference(fair_m=6.149e-3, drawn_m=1.103e-3)  # docs/plan.md's UR5e example
+
+
+def _selected(selected_m: float, rival_m: float | None) -> Selected:
+    """A forecast of two nested candidates (the choice keeps 4 kinematic parameters beyond the
+    placement, its rival 2) with the predictions ``selected_m`` and ``rival_m`` (m)."""
+    place = placement_indices(N)
+    big = np.setdiff1d(np.arange(place.max() + 10), place)[:4]
+    sets = ((np.concatenate([place, big[:2]]), np.zeros(0, np.int64)),
+            (np.concatenate([place, big]), np.zeros(0, np.int64)))  # fmt: skip
+    fc = SelectionForecast("+ all", *sets[1], ("+ 2", "+ all"), ((0.9, 1.0), (0.85, 0.95)), 2,
+                           sets, 1)  # fmt: skip
+    return Selected(selected_m, fc, rival_m)
+
+
+def _plan(sel: Selected, to_beat: tuple[int, float] | None = None) -> SimpleNamespace:
+    return SimpleNamespace(q=np.zeros((12, N)), selected=sel, reference=REF, to_beat=to_beat,
+                           kept_all=4, predicted_m=sel.selected_m, random_m=1.5e-3,
+                           path_rad=1.0, searched=48)  # fmt: skip
+
+
+def test_the_forecast_choice_decides_when_the_rival_is_worse_than_the_reference():
+    sel = _selected(0.609e-3, 1.160e-3)  # the rival above the reference, the choice 0.55 of it
+    assert sel.beats(REF) and sel.rival_beats(REF) is False
+    doc = plan_sections(_plan(sel))
+    assert doc["beats_nominal"] is True and doc["rival_beats_nominal"] is False
+    assert doc["selection"]["kinematic_parameters"] == 4
+    assert doc["selection"]["rival_kinematic_parameters"] == 2
+    second = plan_lines(_plan(sel)).splitlines()[1]
+    assert second == doc["verdict"]
+    assert "the calibration is predicted at 0.55 times it" in second
+    assert "if the selection keeps the smaller set, 1.05 times it: no clear gain" in second
+    assert "NOT predicted" not in second and "record more postures" not in second
+
+
+def test_a_choice_that_does_not_beat_the_reference_is_said_so_whatever_the_rival():
+    sel = _selected(0.8e-3, 0.7e-3)  # 0.73 of the reference: above the clear margin
+    assert not sel.beats(REF) and sel.rival_beats(REF) is True
+    doc = plan_sections(_plan(sel, to_beat=(16, 0.5e-3)))
+    assert doc["beats_nominal"] is False
+    assert doc["more_postures"] == {"count": 16, "tool_rms_mm": 0.5}
+    second = plan_lines(_plan(sel, to_beat=(16, 0.5e-3))).splitlines()[1]
+    assert "NOT predicted to beat it by a clear margin (0.73 times it" in second
+    assert "(0.63 times it if the selection keeps the smaller set)" in second
+    assert second.endswith("record more postures: a plan of 16 (--count 16) is predicted 0.500 mm")
+    alone = _selected(0.8e-3, None)
+    assert alone.rival_beats(REF) is None
+    assert "smaller set" not in reference_words(REF, alone.selected_m, alone.rival_m)
+
+
+def test_the_count_search_stops_at_the_first_plan_whose_choice_beats_it():
+    at = 12 + 2 * SEARCH_STEP  # from here the choice beats the reference; the rival never does
+
+    def plan_of(n: int) -> tuple[Selected, NominalReference]:
+        chosen = (0.5 if n >= at else 1.1) * CLEAR_MARGIN * REF.best_m
+        return _selected(chosen, 2.0 * REF.best_m), REF
+
+    assert count_to_beat(12, 48, plan_of) == (at, 0.5 * CLEAR_MARGIN * REF.best_m)
+    assert count_to_beat(12, at - 1, plan_of) is None
+
+
+def test_the_reference_names_what_the_fair_nominal_fits_per_mount():
+    e2h = NominalReference(fair_m=1.241e-3, drawn_m=1.220e-3, eye_to_hand=True)
+    words = reference_words(e2h, 0.224e-3)
+    assert "the fair nominal, the camera's pose in the base and the board's on the flange" in words
+    assert "hand-eye" not in words and "hand-eye" not in e2h.to_json()["note"]
+    assert "the fair nominal, the hand-eye and the board pose fitted" in reference_words(REF, 1e-3)
+    assert "the hand-eye and the board pose" in REF.to_json()["note"]
