@@ -68,12 +68,12 @@ RIVAL_LOG = 0.2
 smaller of two candidates whose folds' mean log ratio to the best's is within its standard
 error, and the forecast's expected fold errors have no noise. The rival is a caveat beside the
 verdict, not its decider (:meth:`Selected.beats`). Measured under the paired rule
-(``selfcal run`` of the plan's scenario with ``[perturbation]`` and ``[noise] seed`` 1 .. 8 or
-1 .. 4, docs/plan.md "What a plan has to beat"): the UR5e example's plan of 12 (the rival's
-expected CV error 1.07 times the choice's) kept the rival in 4 of 8 draws; its plan of 24
-(1.08) and arm7's of 16 and 24 (1.16, 1.14; tests/data/arm7.toml) in none of 12, so the margin
-names a rival the selection rarely keeps at more postures: not re-sized (the expected errors
-alone do not tell the two cases apart)."""
+(``selfcal run`` of the plan's scenario with ``[perturbation]`` and ``[noise] seed`` 1 .. 2,
+4 or 8, docs/plan.md "What a plan has to beat"): the UR5e example's plan of 12 (the rival's
+expected CV error 1.07 times the choice's) kept the rival in 4 of 8 draws; its plans of 24 and
+48 (1.08, 1.06) and arm7's of 16 and 24 (1.16, 1.14; tests/data/arm7.toml) in none of 14, so
+the margin names a rival the selection rarely keeps at more postures: not re-sized (the
+expected errors alone do not tell the two cases apart)."""
 
 
 @dataclass(frozen=True, eq=False)
