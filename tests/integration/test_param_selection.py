@@ -20,15 +20,9 @@ from synthetic_board import BOARD, CAMERA, ROBOT, H, W, make_lab, postures
 from synthetic_features import board_features
 
 from selfcal.calibration.board.calibrate import calibrate_board
+from selfcal.calibration.board.folds import MAX_FOLDS, configurations, fold_labels
 from selfcal.calibration.board.nominal_fit import fit_nominal
-from selfcal.calibration.board.param_selection import (
-    MAX_FOLDS,
-    Candidate,
-    configurations,
-    fold_labels,
-    one_se_rule,
-    select_parameters,
-)
+from selfcal.calibration.board.param_selection import Candidate, one_se_rule, select_parameters
 from selfcal.calibration.board.refine import BoardObservations, Refinement, predict_px
 from selfcal.calibration.board.robot import calibrate_robot_with_board
 from selfcal.calibration.identify import IdentificationWarning

@@ -173,9 +173,9 @@ def test_the_command_refuses_a_bad_term_before_any_work(tmp_path, capsys):
 
 def test_the_parameter_pool_offers_what_only_a_term_determines():
     """Images whose first two joints never move cannot tell those joints' parameters apart;
-    probe touches over the whole workspace can (selfcal/calibration/board/param_selection.py
+    probe touches over the whole workspace can (selfcal/calibration/board/parameter_pool.py
     with the terms' rows, their own unknowns projected out)."""
-    from selfcal.calibration.board.param_selection import parameter_pool
+    from selfcal.calibration.board.parameter_pool import parameter_pool
 
     rng = np.random.default_rng(0)
     robot = load_robot("kr6-r900")

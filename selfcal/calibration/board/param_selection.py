@@ -3,31 +3,22 @@
 A board calibration estimates no fixed parameter set. From the placement of the nominal chain
 upward, the parameters are offered in a fixed order and kept as the data allow:
 
-1. the pool, in order: the placement (``V_0``: the board pose, ``V_n``: the hand-eye; always
-   estimated, :func:`selfcal.calibration.board.nominal_fit.placement_indices`), the zero offsets of the revolute
-   joints, then the remaining minimal MCPC parameters of the chain (``V_1 .. V_{n-1}``) in the
-   order of a pivoted QR factorisation of the identification Jacobian (the tool-pose Jacobian of
-   :func:`selfcal.kinematics.forward.identification_jacobian` at the fair nominal, rows weighted as
-   :func:`selfcal.kinematics.identifiability.analyse_identifiability`'s, columns scaled to unit norm);
-   measurement terms (:mod:`selfcal.calibration.board.terms`) add their rows, what they tell
-   of the chain beyond their own unknowns
-   (:func:`selfcal.calibration.board.terms.identification_rows`);
-   a parameter whose column adds nothing to the span of those before it is held for *rank*
-   (its orthogonal part below :data:`RANK_TOL`), one that adds too little for *conditioning*
-   (below :data:`COND_TOL`: its variance would grow by more than ``1 / COND_TOL**2``);
+1. the pool (:mod:`selfcal.calibration.board.parameter_pool`): the placement, the zero offsets of
+   the revolute joints, then the remaining minimal MCPC parameters of the chain in pivoted-QR
+   order of the identification Jacobian at the fair nominal (with the measurement terms' rows);
+   a parameter the postures cannot determine is held for *rank* or *conditioning*;
 2. nested candidates: the nominal (placement and cameras only), + the identifiable joint
    offsets, then + the further parameters in pivoted-QR order in two steps (the first half,
    then all identifiable ones);
-3. leave-one-configuration-out cross-validation (:func:`configurations`: frames whose arm
-   joints -- all but the wrist's last three, all of a chain of three or fewer -- are equal
-   within :data:`SAME_CONFIGURATION` form one configuration, at most :data:`MAX_FOLDS` folds):
-   every candidate is fitted without a fold's frames (:func:`selfcal.calibration.board.refine.refine_on_board`,
-   the calibration's own objective; a parameter the training frames cannot determine by the
-   test of step 1 -- joint offsets when they show one configuration -- held at the fair
-   nominal's value) and predicts them from their joints alone: each fold's RMS
-   (px); the candidate's CV error is their geometric mean (every fold weighs the same, one
-   configuration far outside the others does not decide alone), beside the RMS of all
-   predictions;
+3. leave-one-configuration-out cross-validation (the folds of
+   :mod:`selfcal.calibration.board.folds`: one configuration of the arm joints a fold, at most
+   :data:`selfcal.calibration.board.folds.MAX_FOLDS`): every candidate is fitted without a
+   fold's frames (:func:`selfcal.calibration.board.refine.refine_on_board`, the calibration's
+   own objective; a parameter the training frames cannot determine by the test of step 1 --
+   joint offsets when they show one configuration -- held at the fair nominal's value) and
+   predicts them from their joints alone: each fold's RMS (px); the candidate's CV error is
+   their geometric mean (every fold weighs the same, one configuration far outside the others
+   does not decide alone), beside the RMS of all predictions;
 4. the one-standard-error rule with paired folds: the best candidate has the lowest CV error;
    every candidate's log error minus the best's, fold by fold, averaged over the folds, with the
    standard error of that mean from the folds' spread of the difference; the smallest candidate
@@ -43,219 +34,37 @@ The chosen candidate's fit on every frame is the calibration. Nothing here reads
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from selfcal.calibration.board.nominal_fit import placement_indices
+from selfcal.calibration.board.folds import configurations, fold_labels
+from selfcal.calibration.board.parameter_pool import (
+    ParameterPool,
+    determined,
+    offset_name,
+    parameter_pool,
+)
 from selfcal.calibration.board.refine import (
     BoardObservations,
     Refinement,
     predict_px,
     refine_on_board,
 )
-from selfcal.calibration.board.terms import identification_rows
 from selfcal.errors import EstimationError
-from selfcal.estimation.kinematic_poses import joint_twists
-from selfcal.kinematics.forward import identification_jacobian
-from selfcal.kinematics.identifiability import pose_sigmas, triangular_factor
-from selfcal.kinematics.mcpc import MCPCModel, minimal_indices, param_names
-from selfcal.terms.base import Term
+from selfcal.kinematics.mcpc import MCPCModel, param_names
 
 __all__ = [
-    "COND_TOL",
-    "MAX_FOLDS",
-    "RANK_TOL",
-    "SAME_CONFIGURATION",
     "Candidate",
-    "ParameterPool",
     "Selection",
-    "ColumnSpan",
-    "configurations",
-    "determined",
-    "determined_each",
-    "fold_labels",
     "nested_candidates",
     "one_se_rule",
-    "parameter_pool",
     "select_parameters",
 ]
 
-RANK_TOL = 1e-8
-"""Orthogonal part (of a unit column) at or below which a parameter is not identifiable."""
-COND_TOL = 1e-3
-"""Orthogonal part below which a parameter is held for conditioning (variance x 1e6)."""
-SAME_CONFIGURATION = np.radians(0.1)
-"""Arm joints this close (rad; m for a prismatic joint: 0.1 mm) make one configuration."""
-MAX_FOLDS = 5
-"""Configurations beyond this many are dealt into this many folds (every 5th together)."""
 FOLD_TOL = 1e-6
 """The solver's relative tolerance (cost and step) in a fold's fit: its prediction then agrees
 with a fit to 1e-12 within a thousandth of a pixel, in a third of the iterations."""
-
-
-def configurations(q: np.ndarray, joint_types: tuple[str, ...]) -> np.ndarray:
-    """(m,) the configuration of every frame of the joints ``q`` (m, n) rad / m: frames whose
-    arm joints (all but the last three when there are more than three) are all within
-    :data:`SAME_CONFIGURATION` (0.1 deg, 0.1 mm) of a configuration's first frame belong to it;
-    numbered in order of appearance."""
-    q = np.atleast_2d(np.asarray(q, dtype=float))
-    n = q.shape[1]
-    arm = q[:, : n - 3] if n > 3 else q
-    tol = np.array([SAME_CONFIGURATION if t == "revolute" else 1e-4 for t in joint_types])
-    tol = tol[: arm.shape[1]]
-    reps: list[np.ndarray] = []
-    label = np.empty(len(q), dtype=int)
-    for i, a in enumerate(arm):
-        for k, r in enumerate(reps):
-            if np.all(np.abs(a - r) <= tol):
-                label[i] = k
-                break
-        else:
-            label[i] = len(reps)
-            reps.append(a)
-    return label
-
-
-def fold_labels(config: np.ndarray) -> np.ndarray:
-    """(m,) the fold of every frame: its configuration, dealt into :data:`MAX_FOLDS` folds when
-    there are more configurations (configuration ``k`` to fold ``k % MAX_FOLDS``: each fold then
-    holds configurations from the whole recording)."""
-    config = np.asarray(config, dtype=int)
-    return config % MAX_FOLDS if config.max(initial=-1) + 1 > MAX_FOLDS else config.copy()
-
-
-@dataclass(frozen=True)
-class ParameterPool:
-    """The parameters offered (:func:`parameter_pool`): ``order`` the accepted ones as
-    ``(name, kind, index)`` (``kind`` ``"mcpc"``: a flat MCPC index; ``"offset"``: a joint, 0
-    based) in the order offered; ``n_placement``, ``n_offsets`` how many of them are the
-    placement and the joint offsets; ``held`` the others by name with the reason."""
-
-    order: tuple[tuple[str, str, int], ...]
-    n_placement: int
-    n_offsets: int
-    held: dict[str, str]
-
-
-def _offset_name(j: int) -> str:
-    return f"offset_j{j + 1}"
-
-
-class ColumnSpan:
-    """The rank and conditioning test of step 1 over the columns of ``R`` (the triangular
-    factor of the scaled identification Jacobian): :meth:`offer` accepts a column when its part
-    outside the span of those accepted before is large enough, else gives the reason."""
-
-    def __init__(self, R: np.ndarray):
-        self.R = R
-        self.basis = np.zeros((R.shape[0], 0))
-
-    def orth(self, k: int) -> np.ndarray:
-        c = self.R[:, k] / max(float(np.linalg.norm(self.R[:, k])), 1e-300)
-        for _ in range(2):  # re-orthogonalise once for stability
-            c = c - self.basis @ (self.basis.T @ c)
-        return c
-
-    def offer(self, k: int, c: np.ndarray | None = None) -> str | None:
-        """None when column ``k`` (its orthogonal part ``c``) is accepted, else why not."""
-        c = self.orth(k) if c is None else c
-        s = float(np.linalg.norm(c))
-        if s <= RANK_TOL:
-            return "rank: not identifiable from these postures (a combination of the others)"
-        if s < COND_TOL:
-            return (f"conditioning: adds {s:.1e} of its column to the others' span "
-                    f"(limit {COND_TOL:g})")  # fmt: skip
-        self.basis = np.column_stack([self.basis, c / s])
-        return None
-
-
-def _columns(model: MCPCModel, q: np.ndarray, terms: Sequence[Term] = ()
-             ) -> tuple[list[str], list[str], list[int], np.ndarray]:  # fmt: skip
-    """Every parameter offered (names, kinds, indices: placement, joint offsets, the inner
-    minimal parameters) and the triangular factor of their scaled identification Jacobian at
-    ``model`` and the joints ``q`` (m, n) rad (step 1 of the module docstring), with the rows
-    of the measurement ``terms`` (what they tell of the chain beyond their own unknowns,
-    :func:`selfcal.calibration.board.terms.identification_rows`)."""
-    q = np.atleast_2d(np.asarray(q, dtype=float))
-    n = model.n
-    place = placement_indices(n)
-    inner = np.array([k for k in minimal_indices(model.joint_types) if 0 < k // 6 < n], int)
-    revolute = [j for j, t in enumerate(model.joint_types) if t == "revolute"]
-    J = identification_jacobian(model, q)
-    cols = [J[:, :, place], joint_twists(model, q)[:, :, revolute], J[:, :, inner]]
-    A = np.concatenate(cols, axis=2) / pose_sigmas(1e-4, 1e-3, len(q))[:, :, None]
-    A = A.reshape(-1, A.shape[2])
-    if terms:  # their columns [placement, inner, offsets] in the order of A's
-        T = identification_rows(terms, model, np.r_[place, inner], np.array(revolute, int))
-        order = np.r_[np.arange(len(place)), len(place) + len(inner) + np.arange(len(revolute)),
-                      len(place) + np.arange(len(inner))]  # fmt: skip
-        A = np.concatenate([A, T[:, order]])
-    norm = np.linalg.norm(A, axis=0)
-    R = triangular_factor(A / np.where(norm > 0, norm, 1.0))
-    names = ([*param_names(place)] + [_offset_name(j) for j in revolute]
-             + [*param_names(inner)])  # fmt: skip
-    kinds = ["mcpc"] * len(place) + ["offset"] * len(revolute) + ["mcpc"] * len(inner)
-    index = [*place.tolist(), *revolute, *inner.tolist()]
-    return names, kinds, index, R
-
-
-def parameter_pool(model: MCPCModel, q: np.ndarray, terms: Sequence[Term] = ()) -> ParameterPool:
-    """The pool of step 1 (module docstring) at ``model`` (world = board frame, tool = camera)
-    and the joints ``q`` (m, n) rad of the frames used, with the rows of the measurement
-    ``terms``."""
-    names, kinds, index, R = _columns(model, q, terms)
-    n_place = len(placement_indices(model.n))
-    n_rev = kinds.count("offset")
-    groups = [range(n_place), range(n_place, n_place + n_rev)]
-    rest = list(range(n_place + n_rev, len(names)))
-    span = ColumnSpan(R)
-    order: list[tuple[str, str, int]] = []
-    held: dict[str, str] = {}
-    counts = []
-
-    def offer(k: int, c: np.ndarray | None = None) -> bool:
-        why = span.offer(k, c)
-        if why is not None:
-            held[names[k]] = why
-            return False
-        order.append((names[k], kinds[k], index[k]))
-        return True
-
-    for g in groups:
-        counts.append(sum(offer(k) for k in g))
-    while rest:  # pivoted QR: the column with the largest part outside the span next
-        parts = [span.orth(k) for k in rest]
-        best = int(np.argmax([np.linalg.norm(p) for p in parts]))
-        k = rest.pop(best)
-        if not offer(k, parts[best]):
-            for r in rest:  # every further one adds less still
-                offer(r)
-            break
-    return ParameterPool(tuple(order), counts[0], counts[1], held)
-
-
-def determined(model: MCPCModel, q: np.ndarray, names: tuple[str, ...],
-               terms: Sequence[Term] = ()) -> dict[str, str]:  # fmt: skip
-    """Which of the parameters ``names`` (a candidate's, in its order) the joints ``q`` (m, n)
-    rad and the measurement ``terms`` cannot determine, by the rank and conditioning test of
-    step 1 offered in that order at ``model``: name -> reason (empty when they determine
-    all)."""
-    return determined_each(model, q, [names], terms)[0]
-
-
-def determined_each(model: MCPCModel, q: np.ndarray, names: Sequence[tuple[str, ...]],
-                    terms: Sequence[Term] = ()) -> list[dict[str, str]]:  # fmt: skip
-    """:func:`determined` of every parameter tuple in ``names`` (e.g. each nested candidate's)
-    at the same joints ``q``, from one identification Jacobian."""
-    all_names, _, _, R = _columns(model, q, terms)
-    at = {nm: k for k, nm in enumerate(all_names)}
-    out = []
-    for group in names:
-        span = ColumnSpan(R)
-        out.append({nm: why for nm in group if (why := span.offer(at[nm])) is not None})
-    return out
 
 
 @dataclass
@@ -332,7 +141,7 @@ class Selection:
     rule: str
     notes: list[str] = field(default_factory=list)
     fold_of: np.ndarray | None = field(default=None, repr=False)
-    """(m,) every frame's cross-validation fold (:func:`fold_labels`), None without folds."""
+    """(m,) every frame's cross-validation fold (:func:`selfcal.calibration.board.folds.fold_labels`), None without folds."""
 
     @property
     def fit(self) -> Refinement:
@@ -377,7 +186,7 @@ def _cross_validate(obs: BoardObservations, start: MCPCModel, cand: Candidate,
                     folds: np.ndarray, max_iter: int) -> None:  # fmt: skip
     """Fill ``cand``'s fit and CV error (step 3). Each fold's fit starts from the fit on every
     frame, except for the parameters the fold's training frames cannot determine (the test of
-    step 1 on those frames, :func:`determined`, e.g. joint offsets when they hold one
+    step 1 on those frames, :func:`selfcal.calibration.board.parameter_pool.determined`, e.g. joint offsets when they hold one
     configuration): those are held at the fair nominal's value (``start``) -- not at the fit
     on every frame's, which has seen the fold."""
     try:
@@ -390,7 +199,7 @@ def _cross_validate(obs: BoardObservations, start: MCPCModel, cand: Candidate,
         return
     full = cand.fit
     mcpc_names = param_names(cand.free_idx)
-    off_names = [_offset_name(j) for j in cand.offset_joints.tolist()]
+    off_names = [offset_name(j) for j in cand.offset_joints.tolist()]
     fold_ms, fold_n = [], []
     for f in np.unique(folds[obs.used]).tolist():
         out = folds == f

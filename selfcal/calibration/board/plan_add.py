@@ -37,8 +37,8 @@ import numpy as np
 
 from selfcal.calibration.board.bounds import estimated_parameters
 from selfcal.calibration.board.dataset import dataset_board, detect_board
+from selfcal.calibration.board.folds import configurations, fold_labels
 from selfcal.calibration.board.mounts import mounts
-from selfcal.calibration.board.param_selection import configurations, fold_labels
 from selfcal.calibration.board.plan import predict_kept
 from selfcal.calibration.board.plan_greedy import select_greedy
 from selfcal.calibration.board.plan_ground import PlanOptions, plan_ground
@@ -127,7 +127,7 @@ def training_sets(plan: DatasetPlan, F_frames: np.ndarray) -> np.ndarray:
     """(1 + f, p, p) the information of the dataset's frames ``F_frames`` (m, p, p) summed:
     all of them, then every training set of the selection's cross-validation (all but one
     fold of its arm configurations,
-    :func:`selfcal.calibration.board.param_selection.fold_labels`). A dataset of one
+    :func:`selfcal.calibration.board.folds.fold_labels`). A dataset of one
     configuration gives the whole and nothing: the fold that leaves it out fits the added
     postures alone, and they must then predict it."""
     folds = fold_labels(configurations(plan.q, plan.setup.robot.joint_types))

@@ -20,7 +20,7 @@ kinematic block. With every minimal parameter kept ``P = I``: the Cramer-Rao bou
 
 Which parameters a plan's calibration keeps: those step 1 of the selection accepts at its
 postures (rank and conditioning of the identification Jacobian at the nominal,
-:func:`selfcal.calibration.board.param_selection.parameter_pool`); its cross-validation, which
+:func:`selfcal.calibration.board.parameter_pool.parameter_pool`); its cross-validation, which
 needs the images, may hold more (their deviation is then a further error the prediction does
 not see). A calibrated dataset's: those its ``calibration.json`` names as identified.
 
@@ -39,7 +39,7 @@ import numpy as np
 
 from selfcal.calibration.board.bounds import to_minimal
 from selfcal.calibration.board.nominal_fit import placement_indices
-from selfcal.calibration.board.param_selection import parameter_pool
+from selfcal.calibration.board.parameter_pool import parameter_pool
 from selfcal.errors import UsageError
 from selfcal.estimation.kinematic_poses import KinematicPoses
 from selfcal.kinematics.mcpc import MCPCModel, minimal_indices, param_is_angle

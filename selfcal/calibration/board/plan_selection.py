@@ -10,10 +10,10 @@ the added postures of the other folds. With few of them a large candidate is bar
 there and predicts the dataset's frames badly, so the selection keeps a smaller one.
 
 The forecast runs the selection's own steps on expectations: the same pool and nested
-candidates at the joints, the same folds (:func:`selfcal.calibration.board.param_selection.configurations`,
-:func:`selfcal.calibration.board.param_selection.fold_labels`, the frames in recording order),
+candidates at the joints, the same folds (:func:`selfcal.calibration.board.folds.configurations`,
+:func:`selfcal.calibration.board.folds.fold_labels`, the frames in recording order),
 in every fold the parameters its training frames cannot determine held
-(:func:`selfcal.calibration.board.param_selection.determined`), and the same paired
+(:func:`selfcal.calibration.board.parameter_pool.determined`), and the same paired
 one-standard-error rule (:func:`selfcal.calibration.board.param_selection.one_se_rule`) on the
 folds' expected RMS. A fold's expected mean square per feature (both image coordinates): the
 corners' noise ``2 sigma^2`` plus ``sigma^2 sum_i trace(F_i C) / n``, ``F_i`` the information
@@ -32,15 +32,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from selfcal.calibration.board.param_selection import (
-    Candidate,
-    configurations,
-    determined_each,
-    fold_labels,
-    nested_candidates,
-    one_se_rule,
-    parameter_pool,
-)
+from selfcal.calibration.board.folds import configurations, fold_labels
+from selfcal.calibration.board.param_selection import Candidate, nested_candidates, one_se_rule
+from selfcal.calibration.board.parameter_pool import determined_each, parameter_pool
 from selfcal.calibration.board.plan_predict import Directions, error_covariance
 from selfcal.errors import UsageError
 from selfcal.kinematics.mcpc import MCPCModel, param_names

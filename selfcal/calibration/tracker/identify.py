@@ -44,7 +44,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from selfcal.calibration.board.param_selection import ColumnSpan
+from selfcal.calibration.board.parameter_pool import ColumnSpan
 from selfcal.calibration.identify import IdentificationWarning
 from selfcal.errors import EstimationError, InputError
 from selfcal.estimation.tracker import (
@@ -151,7 +151,7 @@ def _numerical_rank(A: np.ndarray, rank_rtol: float) -> int:
 def conditioned(A: np.ndarray, order: np.ndarray, keep: np.ndarray) -> dict[int, str | None]:
     """The conditioning test of the columns ``keep`` (k,) bool of ``A`` (e.g. those the rank
     test keeps), offered in ``order``: column -> None when kept, else why not. The board
-    route's test (:class:`selfcal.calibration.board.param_selection.ColumnSpan`): a column whose
+    route's test (:class:`selfcal.calibration.board.parameter_pool.ColumnSpan`): a column whose
     part outside the span of those accepted before is below ``COND_TOL`` (1e-3) would
     multiply its parameter's variance by more than 1e6; it is determined by a lever the noise
     can create (the UR5e's fifth-link lengths, seen only through a start's tool point a few

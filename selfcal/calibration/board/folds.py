@@ -1,0 +1,49 @@
+"""The cross-validation folds of the board route's parameter selection
+(:mod:`selfcal.calibration.board.param_selection`, step 3): frames whose arm joints -- all but the
+wrist's last three, all of a chain of three or fewer -- are equal within
+:data:`SAME_CONFIGURATION` form one configuration, and the configurations are the folds, at most
+:data:`MAX_FOLDS` of them. The plan's forecast of the selection
+(:mod:`selfcal.calibration.board.plan_selection`) and ``selfcal plan --add`` use the same folds.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["MAX_FOLDS", "SAME_CONFIGURATION", "configurations", "fold_labels"]
+
+SAME_CONFIGURATION = np.radians(0.1)
+"""Arm joints this close (rad; m for a prismatic joint: 0.1 mm) make one configuration."""
+MAX_FOLDS = 5
+"""Configurations beyond this many are dealt into this many folds (every 5th together)."""
+
+
+def configurations(q: np.ndarray, joint_types: tuple[str, ...]) -> np.ndarray:
+    """(m,) the configuration of every frame of the joints ``q`` (m, n) rad / m: frames whose
+    arm joints (all but the last three when there are more than three) are all within
+    :data:`SAME_CONFIGURATION` (0.1 deg, 0.1 mm) of a configuration's first frame belong to it;
+    numbered in order of appearance."""
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    n = q.shape[1]
+    arm = q[:, : n - 3] if n > 3 else q
+    tol = np.array([SAME_CONFIGURATION if t == "revolute" else 1e-4 for t in joint_types])
+    tol = tol[: arm.shape[1]]
+    reps: list[np.ndarray] = []
+    label = np.empty(len(q), dtype=int)
+    for i, a in enumerate(arm):
+        for k, r in enumerate(reps):
+            if np.all(np.abs(a - r) <= tol):
+                label[i] = k
+                break
+        else:
+            label[i] = len(reps)
+            reps.append(a)
+    return label
+
+
+def fold_labels(config: np.ndarray) -> np.ndarray:
+    """(m,) the fold of every frame: its configuration, dealt into :data:`MAX_FOLDS` folds when
+    there are more configurations (configuration ``k`` to fold ``k % MAX_FOLDS``: each fold then
+    holds configurations from the whole recording)."""
+    config = np.asarray(config, dtype=int)
+    return config % MAX_FOLDS if config.max(initial=-1) + 1 > MAX_FOLDS else config.copy()
