@@ -30,7 +30,6 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from selfcal.errors import InputError
 from selfcal.io.dataset_info import (
     DATASET_FIX,
     DatasetError,
@@ -38,26 +37,24 @@ from selfcal.io.dataset_info import (
     read_dataset_info,
     write_dataset_info,
 )
+from selfcal.io.detections_csv import (
+    FEATURE_HEADER,
+    MARKER_HEADER,
+    Detections,
+    board_features,
+    marker_corners,
+)
 from selfcal.io.images import read_gray_image
 from selfcal.io.jsonfile import dumps
-from selfcal.io.marker_rows import marker_corners
 
 __all__ = [
     "DatasetError",  # defined with dataset.json's reader; what Dataset.open raises
     "DatasetWriter",
     "Dataset",
-    "Detections",
+    "Detections",  # defined with detections.csv's reader
     "read_gray",
     "read_joints_csv",
 ]
-
-Detections = dict[tuple[int, str], dict[int, np.ndarray]]
-"""(frame index, camera) -> {marker id: (4, 2) corners in px, OpenCV convention}; of a board
-dataset (:meth:`Dataset.read_features`) {feature id: (1, 2) px}."""
-
-MARKER_HEADER = ["index", "camera", "marker_id", "corner", "u_px", "v_px"]
-FEATURE_HEADER = ["index", "camera", "feature_id", "u_px", "v_px"]
-"""``detections.csv``'s columns: the marker field's corners, a board's features."""
 
 
 def _resume_key(info: DatasetInfo) -> str:
@@ -408,25 +405,15 @@ class Dataset:
 
     def read_features(self) -> Detections:
         """A board's features of the analytic path from ``detections.csv``: (frame index,
-        camera) -> {feature id: (1, 2) px}, frames of ``joints.csv`` only.
+        camera) -> {feature id: (1, 2) px}, frames of ``joints.csv`` only
+        (:func:`selfcal.io.detections_csv.board_features`).
 
         Raises:
-            DatasetError: the file is missing or a row is malformed (the message names the
-                file and the row).
+            DatasetError: the file is missing or a row is wrong (the message names the file,
+                the line and the column).
         """
         path = self._detections_path()
-        keep = set(self.indices.tolist())
-        out: Detections = {}
-        for r in _read_csv_rows(path):
-            try:
-                if len(r) != len(FEATURE_HEADER):
-                    raise InputError(f"{len(r)} columns, a board's are {FEATURE_HEADER}")
-                i, cam, fid, u, v = int(r[0]), r[1], int(r[2]), float(r[3]), float(r[4])
-            except (ValueError, IndexError) as exc:
-                raise DatasetError(f"{path}: malformed row {r} ({exc})") from exc
-            if i in keep:
-                out.setdefault((i, cam), {})[fid] = np.array([[u, v]])
-        return out
+        return board_features(path, _csv_lines(path)[1:], self.indices)
 
     def _detections_path(self) -> Path:
         path = self.root / "detections.csv"
@@ -435,41 +422,18 @@ class Dataset:
         return path
 
     def read_detections(self) -> Detections:
-        """Detections of the analytic path from ``detections.csv``."""
+        """The marker field's corners of the analytic path from ``detections.csv``: (frame
+        index, camera) -> {marker id: (4, 2) px}, frames of ``joints.csv`` only
+        (:func:`selfcal.io.detections_csv.marker_corners`).
+
+        Raises:
+            DatasetError: the file is missing, holds a board's features, or a row or a marker is
+                wrong (the message names the file, the line and the column or the marker).
+        """
         path = self._detections_path()
         if self.info.board is not None:
             raise DatasetError(
                 f"{path} holds a board's features, not the marker field's corners",
                 fix="read it with Dataset.read_features (the board route)",
             )
-        lines = _csv_lines(path)
-        fast = marker_corners(lines[1:], self.indices)  # None: a row to name, read row by row
-        if fast is not None:
-            return fast
-        out: Detections = {}
-        keep = set(self.indices.tolist())
-        buf: dict[tuple[int, str, int], np.ndarray] = {}
-        for r in list(csv.reader(lines))[1:]:
-            try:
-                i, cam, mid, k, u, v = (
-                    int(r[0]),
-                    r[1],
-                    int(r[2]),
-                    int(r[3]),
-                    float(r[4]),
-                    float(r[5]),
-                )
-            except (ValueError, IndexError) as exc:
-                raise DatasetError(f"{path}: malformed row {r} ({exc})") from exc
-            if not 0 <= k < 4:
-                raise DatasetError(
-                    f"{path}: malformed row {r} (corner {k}: a marker has corners 0-3)"
-                )
-            if i not in keep:
-                continue
-            buf.setdefault((i, cam, mid), np.full((4, 2), np.nan))[k] = (u, v)
-        for (i, cam, mid), c in buf.items():
-            if np.isnan(c).any():
-                raise DatasetError(f"{path}: marker {mid} in frame {i} ({cam}) lacks corners")
-            out.setdefault((i, cam), {})[mid] = c
-        return out
+        return marker_corners(path, _csv_lines(path)[1:], self.indices)

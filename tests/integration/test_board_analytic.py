@@ -89,7 +89,7 @@ def test_a_board_feature_row_with_the_field_columns_is_named(run, tmp_path):
     shutil.copytree(out, copy)
     path = copy / "detections.csv"
     path.write_text(path.read_text() + "0,left,3,0,1.0,2.0\n")
-    with pytest.raises(DatasetError, match="detections.csv: malformed row"):
+    with pytest.raises(DatasetError, match=r"detections.csv, line \d+: 6 columns, the file's are"):
         Dataset.open(copy).read_features()
     with pytest.raises(DatasetError, match="board's features"):
         Dataset.open(copy).read_detections()
