@@ -36,6 +36,7 @@ from selfcal.config.scenario import (
     scenario_board,
     scenario_to_dict,
 )
+from selfcal.errors import InternalError
 from selfcal.io.atomic import write_image_atomic
 from selfcal.io.dataset_info import DatasetInfo, scenario_digest
 from selfcal.io.target_toml import target_document
@@ -171,7 +172,8 @@ def plan_dataset(s: Scenario, setup: SimSetup | None = None) -> DatasetInfo:
     robot, nominal, rig = p["robot"], p["model_cam"], p["rig"]
     pts, nrm = p["points_world"], p["normals_world"]
     W, H = rig.cameras[0].width, rig.cameras[0].height
-    scale_ids = tuple(int(i) for i in setup.field.scale_ids) if setup is not None else SCALE_IDS
+    fld = None if setup is None else setup.field
+    scale_ids = SCALE_IDS if fld is None else tuple(int(i) for i in fld.scale_ids)
     if s.trajectory.kind == "optimal":
         q = plan_optimal(s).q
     elif s.trajectory.kind == "file":
@@ -300,8 +302,8 @@ def open_robot(
     write_truth(truth_path, truth)
     journal.unlink(missing_ok=True)
     rng = np.random.default_rng(s.noise.seed + 7919)
-    fld = setup.field
-    corners, normals = fld.corners_world(), fld.T_world_marker[:, :3, 2]
+    fld = setup.field  # the markers' ids, corners and normals (world); a board scenario has none
+    marks = None if fld is None else (fld.ids, fld.corners_world(), fld.T_world_marker[:, :3, 2])
 
     def record_truth(index: int) -> None:
         nonlocal truth
@@ -325,14 +327,10 @@ def open_robot(
                     pixel_sigma=s.noise.pixel_sigma, rng=rng,
                 )  # fmt: skip
                 continue
+            if marks is None:  # pragma: no cover - sim_setup gives a field without a board
+                raise InternalError("a scenario without a board has no marker field")
             out_[cam] = project_markers(
-                np.asarray(T),
-                intr,
-                fld.ids,
-                corners,
-                normals,
-                pixel_sigma=s.noise.pixel_sigma,
-                rng=rng,
+                np.asarray(T), intr, *marks, pixel_sigma=s.noise.pixel_sigma, rng=rng
             )
         return out_
 
@@ -392,7 +390,7 @@ def render_posture(
     setup = sim_setup(s)
     rig = setup.rig()
     out.mkdir(parents=True, exist_ok=True)
-    board = None if setup.board is None else (setup.board, setup.T_world_board)
+    board = None if setup.T_world_board is None else (setup.board, setup.T_world_board)
     with SimRobot(robot, None, rig, setup.field, board=board) as sim:
         sim.move_to(np.degrees(q))
         pair = sim.capture()

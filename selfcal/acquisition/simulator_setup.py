@@ -13,7 +13,7 @@ import numpy as np
 from selfcal.acquisition.eye_to_hand import static_cell
 from selfcal.camera import Intrinsics
 from selfcal.config.scenario import ConfigError, Scenario, scenario_board
-from selfcal.errors import InputError
+from selfcal.errors import InputError, UsageError
 from selfcal.kinematics.mcpc import (
     MCPCModel,
     minimal_indices,
@@ -26,7 +26,7 @@ from selfcal.robot.definition import RobotDef, load_robot
 from selfcal.sim.actual import apply_errors, perturb
 from selfcal.sim.board_scene import board_on_table
 from selfcal.sim.compliance import JointCompliance
-from selfcal.sim.markers import make_marker_field
+from selfcal.sim.markers import MarkerField, make_marker_field
 from selfcal.sim.robot_mjcf import RigConfig
 from selfcal.target.placement import board_pose
 from selfcal.transforms import trans
@@ -42,9 +42,6 @@ __all__ = [
 
 DICTIONARY = "DICT_4X4_50"
 SCALE_IDS = (48, 49)
-UNUSED_FIELD_CENTER_M = (0.5, 0.0)
-"""m: the unused marker field's centre in a board scenario whose home camera does not see the
-table (in front of the base, clear of it)."""
 """The scale bar's two markers: the dictionary's last two ids (as ``selfcal.sim.markers`` places them)."""
 
 
@@ -57,12 +54,14 @@ class SimSetup:
     actual: MCPCModel
     intrinsics: Intrinsics
     T_left_right: np.ndarray
-    field: object  # selfcal.sim.markers.MarkerField
+    field: MarkerField | None
+    """The marker field in the scene, or None: a board scenario has none."""
     meta: dict = field(default_factory=dict)
     board: object = None
     """``[target] board`` (selfcal.target.boards.Board) or None: the marker field."""
     T_world_board: np.ndarray | None = None
-    """The board's true pose on the table (board -> world, m; ``selfcal.sim.board_scene.board_on_table``)."""
+    """The board's true pose on the table (board -> world, m; ``selfcal.sim.board_scene.board_on_table``),
+    or None: no board, or eye-to-hand (the board rides on the flange, ``static``)."""
     intrinsics_right: Intrinsics | None = None
     """The right camera's own true model (``[camera.right]``), or None: ``intrinsics``."""
     static: object = None
@@ -71,6 +70,13 @@ class SimSetup:
     compliance: JointCompliance | None = None
     """The actual robot's joint compliance (selfcal.sim.compliance; a benchmark's misfit, not
     in scenarios), or None: a rigid arm."""
+
+    def marker_field(self) -> MarkerField:
+        """The marker field, for what only a field scenario has (a :class:`UsageError` in a
+        board scenario, which has none)."""
+        if self.field is None:
+            raise UsageError("a board scenario has no marker field; this needs a field scenario")
+        return self.field
 
     def rig(self) -> RigConfig:
         """The simulated rig: the true cameras and the baseline."""
@@ -85,17 +91,6 @@ def field_center(robot: RobotDef, nominal: MCPCModel) -> tuple[float, float]:
         return home_target_center(robot, nominal)
     except InputError as exc:
         raise ConfigError(exc.message, fix=exc.fix) from exc
-
-
-def _unused_field_center(robot: RobotDef, nominal: MCPCModel) -> tuple[float, float]:
-    """The marker field's centre in a board scenario, where the field is not in the scene and
-    only fills ``truth.json``'s ``marker_field`` (a positioner or an eye-to-hand cell whose
-    flange camera never looks down must still simulate its board): :func:`field_center` where
-    the home camera sees the table, else :data:`UNUSED_FIELD_CENTER_M`."""
-    try:
-        return home_target_center(robot, nominal)
-    except InputError:
-        return UNUSED_FIELD_CENTER_M
 
 
 def _perturbation_table(s: Scenario, joint_types: tuple[str, ...]) -> dict[str, float]:
@@ -113,7 +108,9 @@ def _perturbation_table(s: Scenario, joint_types: tuple[str, ...]) -> dict[str, 
 
 
 def sim_setup(s: Scenario) -> SimSetup:
-    """The simulated actual robot, rig and marker field of a scenario."""
+    """The simulated actual robot, rig and marker field or board of a scenario (a board
+    scenario has no marker field; eye-to-hand its board rides on the flange, not on the table:
+    no ``T_world_board``, so an arm whose flange camera never sees the table simulates it)."""
     robot = load_robot(s.robot.model)
     nominal = nominal_mcpc(robot).with_tool(robot.T_flange_cam)
     actual = perturb(
@@ -127,33 +124,33 @@ def sim_setup(s: Scenario) -> SimSetup:
         actual = apply_errors(actual, table)
     intr = s.camera.true_model()
     board = scenario_board(s)
-    field_ = make_marker_field(
-        n_markers=s.target.markers,
-        seed=s.target.seed,
-        center_xy_m=_unused_field_center(robot, nominal) if board else field_center(robot, nominal),
-        extent_m=(s.target.extent_mm / 1000, s.target.extent_mm / 1000),
-        size_m=s.target.marker_size_mm / 1000,
-        scale_length_m=s.target.scale_length_mm / 1000,
-        dictionary=DICTIONARY,
+    field_ = (
+        None
+        if board is not None
+        else make_marker_field(
+            n_markers=s.target.markers,
+            seed=s.target.seed,
+            center_xy_m=field_center(robot, nominal),
+            extent_m=(s.target.extent_mm / 1000, s.target.extent_mm / 1000),
+            size_m=s.target.marker_size_mm / 1000,
+            scale_length_m=s.target.scale_length_mm / 1000,
+            dictionary=DICTIONARY,
+        )
     )
     T_lr = trans(np.array([s.camera.baseline_mm / 1000, 0.0, 0.0]))
-    T_world_board = None if board is None else scenario_board_pose(s, board, robot, nominal)
-    right = s.camera.of("right").true_model() if s.camera.own_intrinsics else None
     static = static_cell(s, robot) if s.camera.setup == "eye-to-hand" else None
+    T_world_board = (None if board is None or static is not None
+                     else scenario_board_pose(s, board, robot, nominal))  # fmt: skip
+    right = s.camera.of("right").true_model() if s.camera.own_intrinsics else None
     return SimSetup(robot, nominal, actual, intr, T_lr, field_, board=board,
                     T_world_board=T_world_board, intrinsics_right=right,
                     static=static)  # fmt: skip
 
 
 def scenario_board_pose(s: Scenario, board, robot: RobotDef, nominal: MCPCModel) -> np.ndarray:
-    """The board's pose (board -> world, m): ``[target] board_pose`` or on the table where the
-    home posture looks (eye-to-hand, where the board is on the flange and this pose unused, also
-    when the home camera does not see the table)."""
+    """The board's pose on the table (board -> world, m): ``[target] board_pose`` or where the
+    home posture looks (a :class:`ConfigError` when the home camera does not see the table)."""
     bp = s.target.board_pose
-    if (
-        not bp and s.camera.setup == "eye-to-hand"
-    ):  # the board is on the flange: this pose is unused
-        return board_on_table(board, _unused_field_center(robot, nominal))
     if not bp:
         return board_on_table(board, field_center(robot, nominal))
     rpy = np.radians(bp[3:]) if len(bp) == 6 else None

@@ -15,6 +15,7 @@ import numpy as np
 
 from selfcal.camera import CameraModel
 from selfcal.config.scenario import scenarios_dir
+from selfcal.sim.actual import marker_field_of
 from selfcal.target import Charuco, Features
 from selfcal.transforms import inv_pose, make_pose
 
@@ -27,7 +28,7 @@ MONO = scenarios_dir() / "mono.toml"
 def board_pose(truth, board: Charuco = BOARD) -> np.ndarray:
     """``T_world_board``: the board printed face up (board z down), centred on the marker
     field of ``truth`` (:class:`selfcal.io.truth.Truth`; world, m)."""
-    centre = np.asarray(truth.marker_field["T_world_marker_m"])[:, :3, 3].mean(axis=0)
+    centre = marker_field_of(truth).T_world_marker[:, :3, 3].mean(axis=0)
     _, pts = board.layout()
     size = pts.max(axis=0) + pts.min(axis=0)  # the corners' extent plus one square each side
     return make_pose(

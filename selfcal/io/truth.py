@@ -27,7 +27,8 @@ never opens it. All lengths in metres, angles in radians unless a key says ``_de
       "T_flange_cam": [[...]],                      # TRUE hand-eye (left camera in the flange)
       "T_flange_cam_nominal": [[...]],              # from the robot TOML
       "T_cam_tip": [[...]],                         # known rig -> tool tip (= inv(nominal hand-eye))
-      "marker_field": {...},                        # selfcal.sim.markers.MarkerField.to_dict()
+      "marker_field": {...},                        # selfcal.sim.markers.MarkerField.to_dict();
+                                                    # left out when the scene has none (a board)
       "board": {"target": {...}, "T_world_board": [[...]]},  # only with a board in the scene:
                                                     # its target TOML keys and TRUE pose
       "frames": [                                   # one per capture
@@ -147,8 +148,8 @@ class Truth:
 
     ``nominal_params`` / ``true_params`` (n + 1, 6): MCPC chains with the left camera as tool;
     ``T_flange_cam``: the true hand-eye, ``T_flange_cam_nominal`` the robot file's,
-    ``T_cam_tip`` the known rigid camera -> tool-tip transform; ``marker_field``: the scene as
-    ``selfcal.sim.markers.MarkerField.to_dict()``; ``meta``: free-form (seed, error magnitudes, ...);
+    ``T_cam_tip`` the known rigid camera -> tool-tip transform; ``marker_field``: the scene's
+    marker field as ``selfcal.sim.markers.MarkerField.to_dict()``, or None (a board scenario); ``meta``: free-form (seed, error magnitudes, ...);
     ``board``: a board of known geometry in the scene, ``{"target": its target TOML keys
     (:func:`selfcal.io.target_toml.target_document`), "T_world_board": its true pose}``, or None.
     Eye-to-hand (the camera static, the board on the flange: :mod:`selfcal.sim.static_camera`)
@@ -169,7 +170,7 @@ class Truth:
     T_flange_cam: np.ndarray
     T_flange_cam_nominal: np.ndarray
     T_cam_tip: np.ndarray
-    marker_field: dict
+    marker_field: dict | None
     frames: tuple[TruthFrame, ...] = ()
     meta: dict = dataclasses.field(default_factory=dict)
     board: dict | None = None
@@ -236,7 +237,7 @@ class Truth:
             "T_flange_cam": self.T_flange_cam.tolist(),
             "T_flange_cam_nominal": self.T_flange_cam_nominal.tolist(),
             "T_cam_tip": self.T_cam_tip.tolist(),
-            "marker_field": _jsonable(self.marker_field),
+            **({} if self.marker_field is None else {"marker_field": _jsonable(self.marker_field)}),
             "frames": [f.to_json() for f in self.frames],
             "meta": _jsonable(self.meta),
         }
@@ -258,8 +259,9 @@ class Truth:
         joints, mcpc, cams = f.sub("joints"), f.sub("mcpc"), f.sub("cameras")
         types = joints.strs("types")
         n = len(types)
-        marker_field, meta = f.raw("marker_field"), f.raw("meta") if f.has("meta") else {}
-        if not isinstance(marker_field, dict):
+        marker_field = f.raw("marker_field") if f.has("marker_field") else None
+        meta = f.raw("meta") if f.has("meta") else {}
+        if marker_field is not None and not isinstance(marker_field, dict):
             raise f.bad("marker_field", "an object", marker_field)
         if not isinstance(meta, dict):
             raise f.bad("meta", "an object", meta)

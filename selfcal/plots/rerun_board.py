@@ -47,7 +47,6 @@ def record_board_run(root: Path, rrd: Path | None, spawn: bool = False) -> Path 
     from selfcal.kinematics.forward import fk_tool
     from selfcal.kinematics.mcpc import nominal_mcpc
     from selfcal.robot.definition import load_robot
-    from selfcal.sim.markers import MarkerField, make_marker_field
     from selfcal.sim.posed_geometry import PosedGeometry
     from selfcal.sim.robot_mjcf import RigConfig
     from selfcal.transforms import inv_pose
@@ -84,11 +83,10 @@ def record_board_run(root: Path, rrd: Path | None, spawn: bool = False) -> Path 
     if truth is not None:
         chain = truth.true_model
         rig = RigConfig(intrinsics=truth.intrinsics_left, T_left_right=truth.T_left_right)
-        field = MarkerField.from_dict(truth.marker_field)
     else:
         chain = nominal_mcpc(robot).with_tool(robot.T_flange_cam)
-        rig, field = RigConfig(), make_marker_field()
-    geo = PosedGeometry(robot, chain, rig, field)
+        rig = RigConfig()
+    geo = PosedGeometry(robot, chain, rig, None)  # a board's scene: no marker field
     note = (
         f"# scorbot-selfcal board run\n\ndataset `{root}`; {len(ds.indices)} frames, "
         f"{cal.frames_used} used; target {cal.target.get('type')}; observation "

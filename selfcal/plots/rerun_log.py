@@ -68,7 +68,8 @@ def record_run(dataset_dir: str | Path, rrd_path: str | Path | None, spawn: bool
     from selfcal.kinematics.forward import fk_tool
     from selfcal.kinematics.mcpc import nominal_mcpc
     from selfcal.robot.definition import load_robot
-    from selfcal.sim.markers import MarkerField, make_marker_field
+    from selfcal.sim.actual import marker_field_of
+    from selfcal.sim.markers import make_marker_field
     from selfcal.sim.posed_geometry import PosedGeometry
     from selfcal.sim.robot_mjcf import RigConfig
     from selfcal.target import CORNERS_PER_MARKER, marker_corner, marker_features
@@ -160,7 +161,7 @@ def record_run(dataset_dir: str | Path, rrd_path: str | Path | None, spawn: bool
         chain = truth.true_model
         rig = RigConfig(intrinsics=truth.intrinsics_left, T_left_right=truth.T_left_right,
                         intrinsics_right=truth.intrinsics_right)  # fmt: skip
-        field = MarkerField.from_dict(truth.marker_field)
+        field = marker_field_of(truth)
     else:
         chain, rig, field = nominal, RigConfig(), make_marker_field()
     geo = PosedGeometry(robot, chain, rig, field)

@@ -103,10 +103,11 @@ def make_truth(
     nominal: MCPCModel,
     actual: MCPCModel,
     rig: RigConfig,
-    field: MarkerField,
+    field: MarkerField | None,
     meta: dict | None = None,
 ) -> Truth:
-    """The ground-truth header for a simulated ``robot`` with chain ``actual`` (no frames yet)."""
+    """The ground-truth header for a simulated ``robot`` with chain ``actual`` (no frames yet)
+    in the scene of the marker ``field`` (None: a scene without one, a board's)."""
     if nominal.joint_types != actual.joint_types or nominal.n != robot.n:
         raise UsageError("robot, nominal and actual models disagree on the joints")
     return Truth(
@@ -122,11 +123,14 @@ def make_truth(
         T_flange_cam=true_hand_eye(robot, actual),
         T_flange_cam_nominal=robot.T_flange_cam.copy(),
         T_cam_tip=inv_pose(robot.T_flange_cam),
-        marker_field=field.to_dict(),
+        marker_field=None if field is None else field.to_dict(),
         meta=dict(meta or {}),
     )
 
 
 def marker_field_of(truth: Truth) -> MarkerField:
-    """The marker field of a simulated run's truth as a :class:`selfcal.sim.markers.MarkerField`."""
+    """The marker field of a simulated run's truth as a :class:`selfcal.sim.markers.MarkerField`
+    (a :class:`UsageError` when the scene had none: a board's)."""
+    if truth.marker_field is None:
+        raise UsageError("this run's truth has no marker field (its scene holds a board)")
     return MarkerField.from_dict(truth.marker_field)

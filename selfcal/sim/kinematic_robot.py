@@ -50,9 +50,10 @@ class KinematicRobot:
 
     Arguments as :class:`selfcal.sim.sim_robot.SimRobot` (without image noise): ``model_name`` (a model
     name or robot file for :func:`selfcal.robot.definition.load_robot`, or the loaded robot), ``actual``
-    (tool = left camera; default nominal), ``rig``, ``field``, ``quantize``, ``board`` (``(board,
-    T_world_board)``: recorded in ``truth()``; its features are projected by
-    :func:`selfcal.sim.analytic.project_board`). Starts at home.
+    (tool = left camera; default nominal), ``rig``, ``field`` (default ``make_marker_field()``,
+    none with a board), ``quantize``, ``board`` (``(board, T_world_board)``: recorded in
+    ``truth()``; its features are projected by :func:`selfcal.sim.analytic.project_board`).
+    Starts at home.
     ``compliance`` (:class:`selfcal.sim.compliance.JointCompliance`): the links stand at its bent
     joints while the encoders read the commanded ones (a misfit for the benchmarks; ``truth()``'s
     true chain does not include it). ``SimRobot`` is this robot plus MuJoCo (it overrides
@@ -80,7 +81,9 @@ class KinematicRobot:
                 f"actual model joints {self.actual.joint_types} do not match {self.model_name}"
             )
         self.rig = RigConfig() if rig is None else rig
-        self.field = make_marker_field() if field is None else field
+        self.field: MarkerField | None = field  # the scene's markers: none with a board
+        if field is None and board is None:
+            self.field = make_marker_field()
         self.quantize = bool(quantize)
         self.board = board
         self.compliance = compliance

@@ -54,7 +54,7 @@ class PosedGeometry:
     """
 
     def __init__(
-        self, robot: RobotDef, model: MCPCModel, rig: RigConfig, field: MarkerField
+        self, robot: RobotDef, model: MCPCModel, rig: RigConfig, field: MarkerField | None
     ) -> None:
         self.m = scene_with_robot(robot, model, rig, field).compile()
         self.d = mujoco.MjData(self.m)

@@ -235,10 +235,15 @@ def robot_spec(robot: RobotDef, model: MCPCModel, rig: RigConfig | None = None) 
 
 
 def scene_with_robot(
-    robot: RobotDef, model: MCPCModel, rig: RigConfig | None, field: MarkerField, **scene_kw
+    robot: RobotDef,
+    model: MCPCModel,
+    rig: RigConfig | None,
+    field: MarkerField | None,
+    **scene_kw,
 ) -> mujoco.MjSpec:
     """The scene of ``selfcal.sim.scene.scene_spec(field)`` (table, lights, markers; rendered at the rig's
-    image size) with the robot added; names stay unprefixed (``cam_left``, ``tool_tip``, ...)."""
+    image size; no ``field``: table and lights) with the robot added; names stay unprefixed
+    (``cam_left``, ``tool_tip``, ...)."""
     rig = RigConfig() if rig is None else rig
     spec = scene_spec(field, width=rig.intrinsics.width, height=rig.intrinsics.height, **scene_kw)
     spec.modelname = f"{robot.name}_scene"

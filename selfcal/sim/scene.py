@@ -64,13 +64,14 @@ def _matte(mat: mujoco.MjsMaterial) -> None:
 
 
 def add_scene(
-    spec: mujoco.MjSpec, field: MarkerField, shadows: bool = False, markers: bool = True
+    spec: mujoco.MjSpec, field: MarkerField | None, shadows: bool = False, markers: bool = True
 ) -> None:
     """Add table, lights, blocks, scale bar and marker tiles for ``field`` to ``spec``.
 
     Does not touch existing elements and adds no robot. Lighting is even and from above (two
     directional lights + the headlight); ``shadows`` turns on shadow casting for the key light;
-    ``markers=False``: table and lights only (a scene for a board, :mod:`selfcal.sim.board_scene`).
+    ``markers=False`` or no ``field``: table and lights only (a scene for a board,
+    :mod:`selfcal.sim.board_scene`).
     Raises ``ValueError`` if ``spec`` already holds scene elements (e.g. called twice).
     """
     if any(g.name == "table" for g in spec.geoms):
@@ -115,7 +116,7 @@ def add_scene(
         light.ambient = [0.0] * 3
         light.specular = [0.0] * 3
         light.castshadow = bool(cast)
-    if not markers:
+    if not markers or field is None:
         return
 
     # blocks under raised markers, the scale bar under the scale markers
@@ -179,7 +180,7 @@ def _texture_bytes(img_rgb: np.ndarray) -> bytes:
 
 
 def scene_spec(
-    field: MarkerField,
+    field: MarkerField | None,
     width: int = 640,
     height: int = 480,
     offsamples: int = 4,

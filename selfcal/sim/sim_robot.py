@@ -39,14 +39,14 @@ class SimRobot(KinematicRobot):
         actual: the simulated robot's MCPC chain, tool = left camera (default: nominal, i.e.
             ``nominal_mcpc(robot).with_tool(robot.T_flange_cam)``); see ``selfcal.sim.actual.perturb``.
         rig: stereo rig (intrinsics, baseline); default ``RigConfig()``.
-        field: marker field; default ``make_marker_field()``.
+        field: marker field; default ``make_marker_field()`` (none with a ``board``).
         image_sigma: std of additive Gaussian image noise (grey levels, 0-255).
         seed: seed of the image-noise generator.
         quantize: report joints at encoder resolution (False: the exact angles, for noise-free
             regression tests).
         board: ``(board, T_world_board)``: a board of known geometry on the table instead of
-            the marker field (``selfcal.sim.board_scene``; ``field`` then only fills ``truth.json``'s
-            ``marker_field``), recorded in ``truth()`` under ``board``.
+            the marker field (``selfcal.sim.board_scene``; a ``field`` given too is left out of
+            the scene), recorded in ``truth()`` under ``board``.
         msaa: multisample anti-aliasing samples of the renderer (0: off; None: the scene's, 4).
         compliance: the links stand at its bent joints (``KinematicRobot``'s ``compliance``).
 

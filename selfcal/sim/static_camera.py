@@ -38,7 +38,6 @@ from selfcal.sim.analytic import project_board
 from selfcal.sim.board_scene import add_board
 from selfcal.sim.kinematic_robot import KinematicRobot
 from selfcal.sim.lens import source_pinhole
-from selfcal.sim.markers import make_marker_field
 from selfcal.sim.mj_camera import add_camera
 from selfcal.sim.render import StereoRenderer
 from selfcal.sim.robot_mjcf import RigConfig, scene_with_robot
@@ -229,8 +228,7 @@ class StaticCameraRenderer:
         T_board_rig = make_pose(_FLIP_X, np.array([0.0, 0.0, 0.03]))  # behind the board
         W, H = truth.camera.width, truth.camera.height
         rig = RigConfig(intrinsics=Pinhole.centered(500.0, 1.0, W, H))
-        spec = scene_with_robot(truth.robot, truth.actual.with_tool(T_board_rig), rig,
-                                make_marker_field(), markers=False,
+        spec = scene_with_robot(truth.robot, truth.actual.with_tool(T_board_rig), rig, None,
                                 offsamples=offsamples)  # fmt: skip
         rig_body = next(b for b in spec.bodies if b.name == "rig")
         add_board(spec, truth.board, inv_pose(T_board_rig), body=rig_body)
@@ -284,6 +282,7 @@ class StaticCameraRobot(KinematicRobot):
                  image_sigma: float = 0.0, seed: int = 0, offsamples: int = 4):  # fmt: skip
         super().__init__(truth.robot, truth.actual, RigConfig(intrinsics=truth.camera),
                          quantize=quantize)  # fmt: skip
+        self.field = None  # the cell has a board (on the flange), no marker field
         self.static = truth
         self.image_sigma = float(image_sigma)
         self._rng = np.random.default_rng(seed)

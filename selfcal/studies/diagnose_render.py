@@ -106,7 +106,7 @@ def measure(
     setup = sim_setup(s)
     info = plan_dataset(s, setup)
     q_deg = np.asarray(info.planned_joints_deg)[:max_poses]
-    fld = setup.field
+    fld = setup.marker_field()
     corners_w = fld.corners_world()
     normals = fld.T_world_marker[:, :3, 2]
     rows: dict[str, list] = {m: [] for m in refine}

@@ -63,8 +63,8 @@ def test_a_static_camera_pose_is_refused_where_it_does_not_fit(tmp_path):
 def test_an_eye_to_hand_cell_simulates_an_arm_whose_flange_camera_never_sees_the_table(tmp_path):
     """A 2-axis positioner has no flange camera looking down at the table: its eye-to-hand
     scenario (as `selfcal plan --mount eye-to-hand` writes it) still simulates the board on the
-    flange (sim_setup placed an unused marker field and table board where the home flange camera
-    looks, and refused the scenario); an eye-in-hand scenario of it is still refused, naming
+    flange (sim_setup places neither a marker field nor a board on the table where the home
+    flange camera would look); an eye-in-hand scenario of it is still refused, naming
     home_deg."""
     from pathlib import Path
 
@@ -79,6 +79,28 @@ def test_an_eye_to_hand_cell_simulates_an_arm_whose_flange_camera_never_sees_the
     )
     setup = sim_setup(load_scenario(tmp_path / "s.toml"))
     assert setup.static is not None and setup.board is not None
+    assert setup.field is None and setup.T_world_board is None
     (tmp_path / "s.toml").write_text(head + "[camera]\ncount = 1\n")
     with pytest.raises(ConfigError, match="home_deg in the robot file of positioner2"):
         sim_setup(load_scenario(tmp_path / "s.toml"))
+
+
+def test_a_board_scenarios_simulation_has_no_marker_field(tmp_path):
+    """A board scenario simulates the board alone: no marker field in the set-up, the analytic
+    robot or truth.json (a field scenario's has one)."""
+    from selfcal.acquisition.backends import make_kinematic_robot
+    from selfcal.io.truth import Truth
+
+    (tmp_path / "s.toml").write_text(
+        f'[robot]\nmodel = "ur5e"\n[camera]\ncount = 1\n[target]\nboard = "{_charuco()}"\n'
+    )
+    (tmp_path / "f.toml").write_text('[robot]\nmodel = "ur5e"\n')
+    for name, has_field in (("s.toml", False), ("f.toml", True)):
+        s = load_scenario(tmp_path / name)
+        setup = sim_setup(s)
+        robot = make_kinematic_robot(s, setup)
+        doc = robot.truth().to_json()
+        assert (setup.field is not None, robot.field is not None) == (has_field, has_field)
+        assert ("marker_field" in doc) == has_field
+        assert (Truth.from_json(doc).marker_field is not None) == has_field
+        assert (setup.T_world_board is not None) == (not has_field)

@@ -44,7 +44,7 @@ def sim_fisher_setup(
     """:func:`selfcal.calibration.field.bounds_setup.predicted_setup` of postures ``q`` (m, n) rad with the
     simulator's actual robot, stereo rig and marker field of ``setup`` and the scale markers
     ``scale_length_m`` (m) apart; ``kwargs`` go to ``predicted_setup`` (noise, reference)."""
-    fld = setup.field
+    fld = setup.marker_field()
     return predicted_setup(
         setup.actual,
         q,
