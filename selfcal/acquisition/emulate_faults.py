@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from selfcal.errors import InputError
-from selfcal.hw.emulator_faults import Fault
+from selfcal.hw.emulator.faults import Fault
 
 __all__ = ["CLI_FAULTS", "acquisition_fault", "choose_fault"]
 

@@ -1,7 +1,7 @@
-"""The simulated robot behind the ACL controller emulator: ``selfcal.hw.emulator_backends.EmulatorBackend``
+"""The simulated robot behind the ACL controller emulator: ``selfcal.hw.emulator.backends.EmulatorBackend``
 over ``selfcal.sim.sim_robot.SimRobot``.
 
-With it the hardware path (``[robot] backend = "hardware"``: ``selfcal.hw.acl_robot.AclRobot`` over a
+With it the hardware path (``[robot] backend = "hardware"``: ``selfcal.hw.acl.robot.AclRobot`` over a
 serial port, ``selfcal.hw.cameras`` reading image files) runs against the *simulated* actual robot of a
 scenario, with its injected kinematic errors, and the test still holds the ground truth.
 
@@ -47,7 +47,7 @@ def sim_robot_for_scenario(scenario: Scenario) -> SimRobot:
 
 
 class SimEmulatorBackend:
-    """A ``SimRobot`` as the arm of ``selfcal.hw.emulator.AclEmulator``.
+    """A ``SimRobot`` as the arm of ``selfcal.hw.emulator.server.AclEmulator``.
 
     Args:
         sim_robot: the simulated robot (its ``actual`` chain carries the injected errors). The

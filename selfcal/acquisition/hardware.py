@@ -1,5 +1,5 @@
 """A scenario's hardware backend: its ``[robot.hardware]`` table -> ``selfcal.hw.settings.AclSettings``
--> ``selfcal.hw.acl_robot.AclRobot``.
+-> ``selfcal.hw.acl.robot.AclRobot``.
 
 ``hw`` takes plain typed settings; this module knows where they stand in a scenario: ``port``,
 ``baudrate``, ``xonxoff``, ``cameras`` in ``[robot.hardware]`` itself, every further adapter key in
@@ -14,8 +14,8 @@ from typing import Any
 
 from selfcal.config.scenario import ConfigError, Scenario
 from selfcal.errors import InputError
-from selfcal.hw.acl_errors import AclConnectionError
-from selfcal.hw.acl_robot import AclRobot, default_encoders
+from selfcal.hw.acl.errors import AclConnectionError
+from selfcal.hw.acl.robot import AclRobot, default_encoders
 from selfcal.hw.encoders import EncoderTable
 from selfcal.hw.settings import AclSettings
 

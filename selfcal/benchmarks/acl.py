@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import time
 
-from selfcal.hw.acl_reply import ReplyAssembler
+from selfcal.hw.acl.reply import ReplyAssembler
 
 
 def time_reply(n_bytes: int = 4096) -> tuple[int, float]:

@@ -30,7 +30,7 @@ from selfcal.console.progress import Progress
 from selfcal.errors import InputError
 
 if TYPE_CHECKING:
-    from selfcal.hw.acl_robot import AclRobot
+    from selfcal.hw.acl.robot import AclRobot
 
 # Heavy modules (scipy, OpenCV, MuJoCo, the pipeline) are imported by the functions that use
 # them, so that `selfcal --help` builds every command's parser without loading them.
@@ -135,7 +135,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def _open_robot(args: argparse.Namespace) -> AclRobot:
     from selfcal.acquisition.hardware import hardware_settings
-    from selfcal.hw.acl_robot import AclRobot
+    from selfcal.hw.acl.robot import AclRobot
 
     config = load_toml(args.config) if args.config else {"port": args.port}
     robot = config.get("robot") if isinstance(config.get("robot"), dict) else {}
@@ -223,8 +223,8 @@ def emulator_from_config(
     """
     from selfcal.acquisition.emulator_backend import SimEmulatorBackend
     from selfcal.config.scenario import load_scenario
-    from selfcal.hw.emulator import AclEmulator
-    from selfcal.hw.emulator_backends import KinematicBackend
+    from selfcal.hw.emulator.backends import KinematicBackend
+    from selfcal.hw.emulator.server import AclEmulator
 
     config = dict(config or {})
     table = dict(config.get("emulator", {}))

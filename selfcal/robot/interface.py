@@ -33,7 +33,7 @@ class StereoPair:
 
 @runtime_checkable
 class Robot(Protocol):
-    """A camera-equipped arm. Implementations: ``selfcal.sim.sim_robot.SimRobot``, ``selfcal.hw.acl_robot.AclRobot``."""
+    """A camera-equipped arm. Implementations: ``selfcal.sim.sim_robot.SimRobot``, ``selfcal.hw.acl.robot.AclRobot``."""
 
     model_name: str
     """Name of the nominal kinematic model (``models/<folder>/<name>.toml``)."""

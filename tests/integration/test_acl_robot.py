@@ -13,17 +13,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from selfcal.hw.acl_errors import (
+from selfcal.hw.acl.errors import (
     AclConnectionError,
     AclControllerError,
     AclLatchedError,
     AclProtocolError,
     AclTimeoutError,
 )
-from selfcal.hw.acl_robot import AclRobot
+from selfcal.hw.acl.robot import AclRobot
 from selfcal.hw.cameras import StereoCamera
-from selfcal.hw.emulator import AclEmulator
-from selfcal.hw.emulator_backends import KinematicBackend
+from selfcal.hw.emulator.backends import KinematicBackend
+from selfcal.hw.emulator.server import AclEmulator
 from selfcal.hw.encoders import EncoderTable
 from selfcal.robot.interface import Robot, RobotError, StereoPair
 
@@ -256,7 +256,7 @@ def test_disconnect_mid_move(transport):
 
 def test_keyboard_interrupt_during_move_aborts(emu, robot, monkeypatch):
     emu.move_speed_deg_s = 100.0
-    import selfcal.hw.acl_robot as mod
+    import selfcal.hw.acl.robot as mod
 
     def interrupt(_s):
         raise KeyboardInterrupt

@@ -6,10 +6,10 @@ import cv2
 import numpy as np
 import pytest
 
-from selfcal.hw.acl_robot import AclRobot
+from selfcal.hw.acl.robot import AclRobot
 from selfcal.hw.cameras import Camera, CameraError, StereoCamera, source_kind
-from selfcal.hw.emulator import AclEmulator
-from selfcal.hw.emulator_backends import KinematicBackend
+from selfcal.hw.emulator.backends import KinematicBackend
+from selfcal.hw.emulator.server import AclEmulator
 from selfcal.robot.definition import load_robot
 from selfcal.robot.interface import StereoPair
 

@@ -8,12 +8,12 @@ import time
 import numpy as np
 import pytest
 
-from selfcal.hw.acl_errors import AclConnectionError, AclProtocolError, AclTimeoutError
-from selfcal.hw.acl_link import AclLink
-from selfcal.hw.acl_parsers import parse_listpv, parse_mflag, parse_show_speed, parse_version
-from selfcal.hw.emulator import AclEmulator
-from selfcal.hw.emulator_backends import EmulatorBackend, KinematicBackend
-from selfcal.hw.emulator_faults import Fault
+from selfcal.hw.acl.errors import AclConnectionError, AclProtocolError, AclTimeoutError
+from selfcal.hw.acl.link import AclLink
+from selfcal.hw.acl.parsers import parse_listpv, parse_mflag, parse_show_speed, parse_version
+from selfcal.hw.emulator.backends import EmulatorBackend, KinematicBackend
+from selfcal.hw.emulator.faults import Fault
+from selfcal.hw.emulator.server import AclEmulator
 from selfcal.hw.encoders import EncoderTable
 
 ENC = EncoderTable.for_robot("er4u-vendor")

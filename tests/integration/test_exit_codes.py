@@ -31,7 +31,7 @@ def test_the_kinds_carry_their_codes():
     # every class the project raises on purpose has the one root
     from selfcal.calibration.field.calibrate import CalibrationError
     from selfcal.config.scenario import ConfigError
-    from selfcal.hw.acl_errors import AclControllerError
+    from selfcal.hw.acl.errors import AclControllerError
     from selfcal.io.calibration import CalibrationFileError
     from selfcal.robot.definition import RobotDefinitionError
 

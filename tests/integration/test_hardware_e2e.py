@@ -31,10 +31,10 @@ from selfcal.config.scenario import (
     load_scenario,
     scenario_to_dict,
 )
-from selfcal.hw.acl_errors import AclConnectionError
-from selfcal.hw.acl_robot import AclRobot
-from selfcal.hw.emulator import AclEmulator
-from selfcal.hw.emulator_faults import Fault
+from selfcal.hw.acl.errors import AclConnectionError
+from selfcal.hw.acl.robot import AclRobot
+from selfcal.hw.emulator.faults import Fault
+from selfcal.hw.emulator.server import AclEmulator
 from selfcal.hw.encoders import EncoderTable
 from selfcal.io.calibration import read_calibration
 from selfcal.io.dataset import Dataset

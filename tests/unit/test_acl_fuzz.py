@@ -8,14 +8,14 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from selfcal.hw.acl_errors import (
+from selfcal.hw.acl.errors import (
     AclControllerError,
     AclProtocolError,
     extract_error_events,
     parse_error_line,
 )
-from selfcal.hw.acl_parsers import parse_listpv, parse_mflag, parse_show_speed, parse_version
-from selfcal.hw.acl_reply import AclReply, ReplyAssembler
+from selfcal.hw.acl.parsers import parse_listpv, parse_mflag, parse_show_speed, parse_version
+from selfcal.hw.acl.reply import AclReply, ReplyAssembler
 
 PARSERS = (parse_listpv, parse_mflag, parse_show_speed, parse_version)
 TYPED = (AclProtocolError, AclControllerError)

@@ -7,16 +7,16 @@ import numpy as np
 import pytest
 import serial
 
-from selfcal.hw.acl_errors import (
+from selfcal.hw.acl.errors import (
     AclConnectionError,
     AclControllerError,
     AclProtocolError,
     AclTimeoutError,
     parse_error_line,
 )
-from selfcal.hw.acl_link import AclLink, open_serial
-from selfcal.hw.acl_parsers import parse_listpv, parse_mflag, parse_show_speed, parse_version
-from selfcal.hw.acl_reply import ReplyAssembler
+from selfcal.hw.acl.link import AclLink, open_serial
+from selfcal.hw.acl.parsers import parse_listpv, parse_mflag, parse_show_speed, parse_version
+from selfcal.hw.acl.reply import ReplyAssembler
 
 # The LISTPV transcript of the notes, verbatim (prompt + echo on the first line).
 LISTPV_NOTES = (

@@ -70,5 +70,5 @@ def test_the_run_pipeline_loads_no_serial_link():
     ACL driver) load only for a hardware robot (selfcal.acquisition.backends.open_robot)."""
     mods = _loaded("import selfcal.pipeline.run")
     assert "selfcal.acquisition.backends" in mods  # the probe did import it
-    assert [m for m in ("serial", "selfcal.hw.acl_robot", "selfcal.acquisition.hardware")
+    assert [m for m in ("serial", "selfcal.hw.acl.robot", "selfcal.acquisition.hardware")
             if m in mods] == []  # fmt: skip

@@ -50,7 +50,7 @@ ALLOWED = {
         "robot name in 'er4u-vendor'",
     ): "the ACL controller's arm: the default model",
     (
-        "selfcal/hw/emulator_controller.py",
+        "selfcal/hw/emulator/controller.py",
         "compare with 5",
     ): "ACL's LISTPV Cartesian line is X Y Z P R",
 }

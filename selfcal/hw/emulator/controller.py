@@ -1,11 +1,11 @@
 """The ACL controller the emulator plays: its state (positions, control, faults) and its dialogue
-(echo, prompt, questions, the commands; ``selfcal.hw.emulator`` lists what it answers), on the arm's
-motion of ``selfcal.hw.emulator_motion``.
+(echo, prompt, questions, the commands; ``selfcal.hw.emulator.server`` lists what it answers), on the arm's
+motion of ``selfcal.hw.emulator.motion``.
 
-Each line a terminal (``selfcal.hw.emulator_transport``) delivers first brings the controller up to
+Each line a terminal (``selfcal.hw.emulator.transport``) delivers first brings the controller up to
 ``now`` (finished motions, scheduled events), then runs as one command under the lock; a fault
-(``selfcal.hw.emulator_faults``) that fires on it may swallow, garble or cut the reply, or schedule an
-impact, a disconnect or a home failure. ``selfcal.hw.emulator.AclEmulator`` serves the terminals and
+(``selfcal.hw.emulator.faults``) that fires on it may swallow, garble or cut the reply, or schedule an
+impact, a disconnect or a home failure. ``selfcal.hw.emulator.server.AclEmulator`` serves the terminals and
 writes the camera frames.
 """
 
@@ -18,10 +18,10 @@ from typing import Any
 import numpy as np
 
 from selfcal.errors import InputError, UsageTypeError
-from selfcal.hw.emulator_backends import EmulatorBackend, KinematicBackend
-from selfcal.hw.emulator_faults import Fault, drop, garble, take_fault
-from selfcal.hw.emulator_motion import ArmMotion, Segment
-from selfcal.hw.emulator_transport import Terminal
+from selfcal.hw.emulator.backends import EmulatorBackend, KinematicBackend
+from selfcal.hw.emulator.faults import Fault, drop, garble, take_fault
+from selfcal.hw.emulator.motion import ArmMotion, Segment
+from selfcal.hw.emulator.transport import Terminal
 from selfcal.hw.encoders import EncoderTable
 from selfcal.kinematics.forward import fk_nominal
 from selfcal.robot.definition import RobotDef, load_robot
@@ -33,7 +33,7 @@ class AclController(ArmMotion):
     """An emulated SCORBOT controller (Controller-A style ACL, DIRECT mode), before any terminal
     is served.
 
-    Args: see ``selfcal.hw.emulator.AclEmulator`` (``backend``, ``echo``, ``line_end``,
+    Args: see ``selfcal.hw.emulator.server.AclEmulator`` (``backend``, ``echo``, ``line_end``,
     ``move_speed_deg_s``, ``faults``, ``prompt_same_line``, ``home_duration_s``, ``encoders``,
     ``control_on``, ``xon_in_replies``).
     """

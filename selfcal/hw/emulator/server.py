@@ -14,7 +14,7 @@ once, takes time; ``PRINT MFLAG`` is the bit mask of moving axes meanwhile), ``L
 outside the backend's limits, ``AXIS DISABLED`` for motion while control is off,
 ``NO POSITION ASSIGNED TO POINT pos`` for incomplete positions.
 
-Faults (``faults=`` or ``inject_fault``; the kinds in ``selfcal.hw.emulator_faults``): ``timeout``,
+Faults (``faults=`` or ``inject_fault``; the kinds in ``selfcal.hw.emulator.faults``): ``timeout``,
 ``garble``, ``drop``, ``impact``, ``disconnect``, ``home_failure``.
 
 The arm itself is an ``EmulatorBackend``: the emulator tells it where the arm came to rest and asks
@@ -22,9 +22,9 @@ it for the stereo pair seen there. After every rest (and at start) the pair is w
 ``<frames_dir>/%06d_left.png`` / ``%06d_right.png`` -- *before* ``PRINT MFLAG`` reports 0 -- which
 ``selfcal.hw.cameras`` reads through ``cv2.VideoCapture`` (``cv2.CAP_IMAGES``, ``"latest"`` mode).
 
-The parts: ``selfcal.hw.emulator_backends`` (the arm), ``selfcal.hw.emulator_motion`` (its motion in encoder
-counts), ``selfcal.hw.emulator_controller`` (the controller's state and dialogue), ``selfcal.hw.emulator_faults``,
-``selfcal.hw.emulator_transport`` (the pty and TCP terminals); ``AclEmulator`` serves the controller on its
+The parts: ``selfcal.hw.emulator.backends`` (the arm), ``selfcal.hw.emulator.motion`` (its motion in encoder
+counts), ``selfcal.hw.emulator.controller`` (the controller's state and dialogue), ``selfcal.hw.emulator.faults``,
+``selfcal.hw.emulator.transport`` (the pty and TCP terminals); ``AclEmulator`` serves the controller on its
 terminals and writes the frames.
 """
 
@@ -40,9 +40,9 @@ from pathlib import Path
 from typing import Any
 
 from selfcal.errors import InputError, InternalError
-from selfcal.hw.emulator_backends import EmulatorBackend
-from selfcal.hw.emulator_controller import AclController
-from selfcal.hw.emulator_transport import PtyPort, TcpPort, Terminal
+from selfcal.hw.emulator.backends import EmulatorBackend
+from selfcal.hw.emulator.controller import AclController
+from selfcal.hw.emulator.transport import PtyPort, TcpPort, Terminal
 from selfcal.io.atomic import write_image_atomic
 from selfcal.robot.interface import StereoPair
 
@@ -75,7 +75,7 @@ class AclEmulator(AclController):
             stop and on a disconnect), so a config can name a port that survives restarts.
 
     ``pty``, ``tcp_port``, ``frames_dir``, ``write_frames`` and ``pty_link`` are the emulator's;
-    the other arguments go to the controller (``selfcal.hw.emulator_controller.AclController``).
+    the other arguments go to the controller (``selfcal.hw.emulator.controller.AclController``).
 
     Frames left in ``frames_dir`` by an earlier run (``NNNNNN_left.png`` / ``_right.png``) are
     deleted at start: the cameras read the newest index, which would otherwise be a stale one.

@@ -6,7 +6,7 @@ converted to encoder counts (``selfcal.hw.encoders``), written into one reserved
 once; completion is polled with ``PRINT MFLAG`` until 0 (or ``LISTPV POSITION`` until still) within a
 timeout, then the read-back is checked against the target.
 
-Safety (the base class ``selfcal.hw.acl_guard.AclGuard``):
+Safety (the base class ``selfcal.hw.acl.guard.AclGuard``):
 - a controller error that stops motion (any ``***`` line, ``AXIS DISABLED``) latches: motion is
   refused with ``AclLatchedError`` naming the axis and the controller's text until
   ``reset_errors()`` (which sends ``CON``);
@@ -31,10 +31,10 @@ from typing import Any
 import numpy as np
 
 from selfcal.errors import InputError
-from selfcal.hw.acl_errors import AclConnectionError, AclControllerError, AclProtocolError
-from selfcal.hw.acl_guard import AclGuard
-from selfcal.hw.acl_link import AclLink, port_hint
-from selfcal.hw.acl_parsers import (
+from selfcal.hw.acl.errors import AclConnectionError, AclControllerError, AclProtocolError
+from selfcal.hw.acl.guard import AclGuard
+from selfcal.hw.acl.link import AclLink, port_hint
+from selfcal.hw.acl.parsers import (
     AclVersion,
     parse_listpv,
     parse_mflag,

@@ -1,4 +1,4 @@
-"""The adapter's guarded ACL dialogue: ``AclGuard``, the base of ``selfcal.hw.acl_robot.AclRobot``.
+"""The adapter's guarded ACL dialogue: ``AclGuard``, the base of ``selfcal.hw.acl.robot.AclRobot``.
 
 - every controller error the link reports is raised (or, for read-only queries, warned about)
   with the axis and the controller's text named; an error that stops motion (any ``***`` line,
@@ -14,14 +14,14 @@ from __future__ import annotations
 import warnings
 from typing import Any
 
-from selfcal.hw.acl_errors import (
+from selfcal.hw.acl.errors import (
     AclControllerError,
     AclErrorEvent,
     AclLatchedError,
     AclProtocolError,
 )
-from selfcal.hw.acl_link import AclLink
-from selfcal.hw.acl_reply import AclReply
+from selfcal.hw.acl.link import AclLink
+from selfcal.hw.acl.reply import AclReply
 from selfcal.robot.definition import RobotDef
 from selfcal.robot.interface import RobotError
 

@@ -13,8 +13,8 @@ import re
 from dataclasses import dataclass
 from typing import Any
 
-from selfcal.hw.acl_errors import AclErrorEvent, AclProtocolError, split_error
-from selfcal.hw.acl_text import IGNORED_BYTES, LEADING_PROMPT, LINE_SPLIT, quote_bytes
+from selfcal.hw.acl.errors import AclErrorEvent, AclProtocolError, split_error
+from selfcal.hw.acl.text import IGNORED_BYTES, LEADING_PROMPT, LINE_SPLIT, quote_bytes
 
 __all__ = ["AclReply", "ReplyAssembler"]
 

@@ -10,9 +10,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from selfcal.hw.acl_errors import AclControllerError, AclProtocolError
-from selfcal.hw.acl_reply import AclReply
-from selfcal.hw.acl_text import MAX_INT_DIGITS, quote_bytes
+from selfcal.hw.acl.errors import AclControllerError, AclProtocolError
+from selfcal.hw.acl.reply import AclReply
+from selfcal.hw.acl.text import MAX_INT_DIGITS, quote_bytes
 
 __all__ = [
     "ListPV",

@@ -7,7 +7,7 @@ Kinds (``FAULT_KINDS``): ``timeout`` (no reply at all; the command still takes e
 ``at_fraction`` of it: the arm stops, ``*** IMPACT PROTECTION axis n`` is printed asynchronously,
 control goes off), ``disconnect`` (``after_s`` after the triggering command every connection is
 closed; the pty disappears), ``home_failure`` (``*** HOME FAILURE AXIS n`` instead of homing).
-The controller (``selfcal.hw.emulator_controller``) acts them out.
+The controller (``selfcal.hw.emulator.controller``) acts them out.
 """
 
 from __future__ import annotations

@@ -10,7 +10,7 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 
-from selfcal.hw.acl_text import LINE_SPLIT, MAX_INT_DIGITS
+from selfcal.hw.acl.text import LINE_SPLIT, MAX_INT_DIGITS
 from selfcal.robot.interface import RobotError
 
 __all__ = [

@@ -2,7 +2,7 @@
 
 ``serial.serial_for_url`` opens the port, so one string selects a device path,
 ``socket://host:port``, ``loop://`` or a pseudo-terminal. The link sends commands and reads their
-replies (``selfcal.hw.acl_reply``), retries queries only (a bounded number of times), resynchronises after
+replies (``selfcal.hw.acl.reply``), retries queries only (a bounded number of times), resynchronises after
 a bad reply, and sends the abort sequence (Ctrl-A, then ``CLRBUF``). ``port_hint`` says what to
 check when a port cannot be opened or does not answer.
 """
@@ -19,7 +19,7 @@ from typing import Any, TypeVar
 import serial
 
 from selfcal.errors import UsageError
-from selfcal.hw.acl_errors import (
+from selfcal.hw.acl.errors import (
     AclConnectionError,
     AclErrorEvent,
     AclProtocolError,
@@ -27,8 +27,8 @@ from selfcal.hw.acl_errors import (
     extract_error_events,
     split_error,
 )
-from selfcal.hw.acl_reply import AclReply, ReplyAssembler
-from selfcal.hw.acl_text import CTRL_A, IGNORED_BYTES, LEADING_PROMPT, LINE_SPLIT, quote_bytes
+from selfcal.hw.acl.reply import AclReply, ReplyAssembler
+from selfcal.hw.acl.text import CTRL_A, IGNORED_BYTES, LEADING_PROMPT, LINE_SPLIT, quote_bytes
 
 __all__ = ["AclLink", "open_serial", "port_hint"]
 

@@ -25,7 +25,7 @@ __all__ = ["TerminalOwner", "Terminal", "PtyPort", "TcpPort"]
 
 
 class TerminalOwner(Protocol):
-    """What a terminal needs of its controller (``selfcal.hw.emulator_controller.AclController``)."""
+    """What a terminal needs of its controller (``selfcal.hw.emulator.controller.AclController``)."""
 
     echo_default: bool
     received: bytearray

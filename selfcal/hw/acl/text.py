@@ -1,6 +1,6 @@
 """ACL text on the wire: the control bytes, line ends, the prompt, and received bytes quoted in
-error messages. Shared by the reply reader (``selfcal.hw.acl_reply``), the error-line recogniser
-(``selfcal.hw.acl_errors``) and the link (``selfcal.hw.acl_link``).
+error messages. Shared by the reply reader (``selfcal.hw.acl.reply``), the error-line recogniser
+(``selfcal.hw.acl.errors``) and the link (``selfcal.hw.acl.link``).
 """
 
 from __future__ import annotations

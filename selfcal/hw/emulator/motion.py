@@ -7,7 +7,7 @@ scheduled at their own times; ``_advance(now)`` processes them and the segment e
 so a late tick of the clock changes nothing. Whenever the arm comes to rest the backend is told
 where (``EmulatorBackend.set_joints_deg``).
 
-``selfcal.hw.emulator_controller.AclController`` builds the ACL dialogue on this; it acts on three hooks:
+``selfcal.hw.emulator.controller.AclController`` builds the ACL dialogue on this; it acts on three hooks:
 ``_rested`` (the arm came to rest), ``_homing_complete`` and ``_impacted``.
 """
 
@@ -21,9 +21,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from selfcal.hw.emulator_backends import EmulatorBackend
-from selfcal.hw.emulator_faults import Fault
-from selfcal.hw.emulator_transport import Terminal
+from selfcal.hw.emulator.backends import EmulatorBackend
+from selfcal.hw.emulator.faults import Fault
+from selfcal.hw.emulator.transport import Terminal
 from selfcal.hw.encoders import EncoderTable
 
 __all__ = ["Segment", "ArmMotion"]
