@@ -95,6 +95,8 @@ def _columns(path: Path, lines: list[str], header: list[str]) -> np.ndarray:
     dtype = [(name, _TYPES[name]) for name in header]
     if not lines:
         return np.zeros(0, dtype)
+    if not any(line.strip() for line in lines):  # (numpy would warn of a file without data)
+        raise _error(path, 0, "an empty row")
     try:
         a = np.loadtxt(lines, delimiter=",", dtype=dtype, comments=None, ndmin=1)
     except (ValueError, OverflowError):

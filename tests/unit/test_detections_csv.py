@@ -77,6 +77,7 @@ def test_a_quoted_row_is_read_unquoted():
             r"line \d: marker 3 in frame 0 \(left\) lacks corners \[2\]",
         ),
         (lambda ls: ls[:2] + [""] + ls[2:], "line 4: an empty row"),
+        (lambda ls: ["", " "], "line 2: an empty row"),
         (lambda ls: ls + ["0,left,9,4,1.0,2.0"], "line 10, column 'corner': corner 4"),
         (lambda ls: ls + ["0,left,9.0,0,1.0,2.0"], "line 10, column 'marker_id': '9.0' is not"),
         (lambda ls: ls + ["0,left,9,0,1.0,x"], "line 10, column 'v_px': 'x' is not a number"),
