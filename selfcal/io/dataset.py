@@ -42,6 +42,7 @@ from selfcal.io.detections_csv import (
     MARKER_HEADER,
     Detections,
     board_features,
+    detection_rows,
     marker_corners,
 )
 from selfcal.io.images import read_gray_image
@@ -233,17 +234,10 @@ class DatasetWriter:
         else:
             if detections is None:
                 raise DatasetError("a detections dataset needs the detections of each frame")
-            board = self.info.board is not None
+            rows = detection_rows(index, self.info.cameras, detections,
+                                  board=self.info.board is not None)  # fmt: skip
             with open(self._dets, "a", newline="") as fh:
-                w = csv.writer(fh)
-                for cam in self.info.cameras:
-                    for mid, c in sorted(detections.get(cam, {}).items()):
-                        c = np.asarray(c, dtype=float).reshape(-1, 2)
-                        if board:  # one point per feature id
-                            w.writerow([index, cam, mid, f"{c[0, 0]:.6f}", f"{c[0, 1]:.6f}"])
-                            continue
-                        for k in range(4):
-                            w.writerow([index, cam, mid, k, f"{c[k, 0]:.6f}", f"{c[k, 1]:.6f}"])
+                csv.writer(fh).writerows(rows)
                 fh.flush()
                 os.fsync(fh.fileno())
         with open(self._joints, "a", newline="") as fh:

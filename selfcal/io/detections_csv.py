@@ -1,4 +1,4 @@
-"""``detections.csv`` (the analytic path's observations): its columns and its one reader.
+"""``detections.csv`` (the analytic path's observations): its columns, its rows and its one reader.
 
 A marker field's file has one row per marker corner (:data:`MARKER_HEADER`), a board's one row
 per feature (:data:`FEATURE_HEADER`). The data rows are parsed as whole columns by numpy's CSV
@@ -21,7 +21,14 @@ import numpy as np
 
 from selfcal.io.dataset_info import DATASET_FIX, DatasetError
 
-__all__ = ["FEATURE_HEADER", "MARKER_HEADER", "Detections", "board_features", "marker_corners"]
+__all__ = [
+    "FEATURE_HEADER",
+    "MARKER_HEADER",
+    "Detections",
+    "board_features",
+    "detection_rows",
+    "marker_corners",
+]
 
 Detections = dict[tuple[int, str], dict[int, np.ndarray]]
 """(frame index, camera) -> {marker id: (4, 2) corners in px, OpenCV convention}; of a board
@@ -37,6 +44,24 @@ _CAMERA_CHARS = 64
 _TYPES = {"index": "i8", "camera": f"U{_CAMERA_CHARS}", "marker_id": "i8", "feature_id": "i8",
           "corner": "i8", "u_px": "f8", "v_px": "f8"}  # fmt: skip
 _WHAT = {"i8": "an integer", "f8": "a number"}
+
+
+def detection_rows(index: int, cameras: tuple[str, ...], detections: dict[str, dict[int, np.ndarray]],
+                   *, board: bool) -> list[list]:  # fmt: skip
+    """The rows of frame ``index`` for ``detections`` (camera -> {id: corners or a feature, px}),
+    camera by camera in the order of ``cameras``, ids ascending: a marker's four corners
+    (:data:`MARKER_HEADER`), or with ``board`` a feature's one point (:data:`FEATURE_HEADER`);
+    pixels to 6 decimals."""
+    rows: list[list] = []
+    for cam in cameras:
+        for mid, c in sorted(detections.get(cam, {}).items()):
+            c = np.asarray(c, dtype=float).reshape(-1, 2)
+            if board:  # one point per feature id
+                rows.append([index, cam, mid, f"{c[0, 0]:.6f}", f"{c[0, 1]:.6f}"])
+                continue
+            for k in range(4):
+                rows.append([index, cam, mid, k, f"{c[k, 0]:.6f}", f"{c[k, 1]:.6f}"])
+    return rows
 
 
 def _error(path: Path, row: int, text: str, *, column: str | None = None) -> DatasetError:

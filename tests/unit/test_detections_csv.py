@@ -14,7 +14,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from selfcal.io.dataset_info import DatasetError
-from selfcal.io.detections_csv import board_features, marker_corners
+from selfcal.io.detections_csv import board_features, detection_rows, marker_corners
 
 PATH = Path("data") / "detections.csv"
 KEEP = np.arange(4)
@@ -106,6 +106,21 @@ def test_a_boards_features_in_the_order_of_their_rows():
     with pytest.raises(DatasetError, match="line 3: 6 columns, the file's are index, camera, "
                                            "feature_id, u_px, v_px"):  # fmt: skip
         board_features(PATH, [lines[0], "0,left,3,0,1.0,2.0"], KEEP)
+
+
+def test_the_rows_written_are_read_back_to_the_written_precision():
+    rng = np.random.default_rng(2)
+    dets = {"left": {5: rng.uniform(0, 640, (4, 2)), 2: rng.uniform(0, 640, (4, 2))},
+            "right": {5: rng.uniform(0, 640, (4, 2))}}  # fmt: skip
+    feats = {"left": {7: rng.uniform(0, 640, (1, 2))}}
+    for data, board, read in ((dets, False, marker_corners), (feats, True, board_features)):
+        rows = detection_rows(3, ("left", "right"), data, board=board)
+        got = read(PATH, [",".join(map(str, r)) for r in rows], KEEP)
+        assert list(got) == [(3, c) for c in data] and list(got[(3, "left")]) == sorted(
+            data["left"]
+        )
+        for (_, cam), ids in got.items():
+            assert all(np.allclose(ids[m], data[cam][m], atol=5e-7, rtol=0) for m in ids)
 
 
 VALID = st.sampled_from(["0", "1", "3", "-1", "7", "2.5", "1e3", " 3", "+2", "0.125"])
