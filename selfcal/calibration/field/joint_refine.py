@@ -26,7 +26,7 @@ With ``joint_sigma`` every configuration gets corrections ``dq`` with the Gaussi
 ``dq ~ N(0, joint_sigma^2)`` (errors in variables), which makes the estimate the maximum-
 likelihood one for noisy corners *and* noisy read-back (same case: 0.007 mm).
 
-Gauge (:func:`choose_gauge`): with an unknown scene the world frame (6 dof) and the scale are
+Gauge (:func:`choose_gauge`, :mod:`selfcal.calibration.field.joint_gauge`): with an unknown scene the world frame (6 dof) and the scale are
 free. The scale is fixed by the ``d`` residual. The world frame is fixed by holding six MCPC
 parameters at their two-stage values: the four base parameters of ``V_0`` (``alpha0, beta0, lx0,
 ly0``) and two of ``V_1``. For the SCORBOT (``|alpha1| ~ 90 deg``) a rotation of the world about
@@ -54,12 +54,12 @@ import time
 from collections.abc import Sequence
 
 import numpy as np
-import scipy.linalg
 
+from selfcal.calibration.field.joint_gauge import JointRefinementError, choose_gauge
 from selfcal.calibration.identify import IdentificationResult
 from selfcal.camera import Cameras, CameraSet, first_camera
 from selfcal.camera.camera_set import free_std
-from selfcal.errors import EstimationError, UsageError
+from selfcal.errors import UsageError
 from selfcal.estimation.bundle_adjust import _Problem as _AdjustmentProblem
 from selfcal.estimation.gauge import GaugeChoice, gauge_directions
 from selfcal.estimation.joint_report import (
@@ -74,7 +74,7 @@ from selfcal.estimation.observations import Observations, views_per_point
 from selfcal.estimation.reprojection import reprojection_residuals, robust_sigma
 from selfcal.estimation.residuals import joint_prior, scale_block
 from selfcal.kinematics.forward import fk_tool
-from selfcal.kinematics.mcpc import MCPCModel, minimal_indices, param_is_angle, param_names
+from selfcal.kinematics.mcpc import minimal_indices, param_names
 from selfcal.solver import (
     Loss,
     ResidualBlock,
@@ -102,59 +102,6 @@ __all__ = [
     "refine_calibration",
     "aligned_tool_rms_bound",
 ]
-
-_BASE_HELD = ("alpha0", "beta0", "lx0", "ly0")
-_GAUGE_LENGTH_M = 0.3  # angles are compared with lengths as displacements at this radius
-
-
-class JointRefinementError(EstimationError):
-    """The joint refinement cannot give a trustworthy answer (gauge not fixed, no convergence,
-    missing scale markers); the message names the cause and the fix."""
-
-
-# --------------------------------------------------------------------------------------------
-# Gauge
-# --------------------------------------------------------------------------------------------
-
-
-def choose_gauge(model: MCPCModel, *, alpha1_tol_deg: float = 10.0) -> GaugeChoice:
-    """Choose the six held parameters: ``alpha0, beta0, lx0, ly0`` and two of the rest.
-
-    If ``|alpha1|`` is within ``alpha1_tol_deg`` of 90 deg: ``beta1, ly1``. Otherwise pivoted QR
-    on the gauge directions projected onto the complement of what the base four absorb (angles
-    scaled by 0.3 m). Raises :class:`JointRefinementError` if the resulting set is not
-    transversal to the gauge orbit (condition number > 1e8).
-    """
-    idx = minimal_indices(model.joint_types)
-    names = param_names(idx)
-    G = gauge_directions(model)
-    scale = np.where(param_is_angle(idx), _GAUGE_LENGTH_M, 1.0)
-    Gs = G * scale[:, None]
-    Gs[:, 3:] *= _GAUGE_LENGTH_M  # rotations of the world as displacements too
-    alpha1 = float(model.params[1, 0])
-    base = [names.index(b) for b in _BASE_HELD]
-    if abs(abs(np.degrees(alpha1)) - 90.0) <= alpha1_tol_deg:
-        extra = [names.index("beta1"), names.index("ly1")]
-        method = "alpha1-90"
-    else:
-        B = Gs[base]  # (4, 6)
-        N = scipy.linalg.null_space(B)  # (6, 2) world motions the base four do not see
-        rest = [i for i in range(len(names)) if i not in base]
-        _, _, piv = scipy.linalg.qr((Gs[rest] @ N).T, pivoting=True)
-        extra = [rest[i] for i in piv[:2]]
-        method = "pivoted-qr"
-    H = Gs[base + extra]
-    H = H / np.linalg.norm(H, axis=1, keepdims=True)
-    s = np.linalg.svd(H, compute_uv=False)
-    cond = float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
-    if not cond < 1e8:
-        raise JointRefinementError(
-            f"the held parameters {[names[i] for i in base + extra]} do not fix the world frame "
-            f"(gauge block condition number {cond:.3g}); the robot's first two axes are probably "
-            "(nearly) parallel -- this gauge choice does not apply"
-        )
-    return GaugeChoice(tuple(names[i] for i in base + extra), method, cond)
-
 
 # --------------------------------------------------------------------------------------------
 # Driver
