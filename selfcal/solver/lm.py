@@ -187,10 +187,10 @@ def solve(
     while it < opt.max_iterations and trials < opt.max_evaluations:
         it += 1
         jev = problem.evaluate(x, jacobian=True)
-        problem.check_finite(jev, f"iteration {it}")
         _, weights = cost_and_weights(problem, jev)
         ne = assemble(problem, jev, weights, kind, inst, schur)
-        if not ne.is_finite():
+        if not ne.is_finite():  # a NaN/inf residual or Jacobian entry ends here too: named first
+            problem.check_finite(jev, f"iteration {it}")
             raise SolverError(
                 f"the normal equations overflow (NaN/inf) at iteration {it} in residual blocks "
                 f"{_overflowing(problem, jev, weights)}",
