@@ -110,8 +110,17 @@ def views_per_point(view: np.ndarray, pidx: np.ndarray, n_points: int) -> np.nda
     view = np.asarray(view, dtype=np.int64)
     pidx = np.asarray(pidx, dtype=np.int64)
     n_v = int(view.max()) + 1 if len(view) else 1
+    if n_points * n_v <= SEEN_TABLE_MAX:  # a table of (point, view) seen: no sort of the rows
+        seen = np.zeros((n_points, n_v), bool)
+        seen[pidx, view] = True
+        return np.count_nonzero(seen, axis=1)
     key = np.unique(pidx * n_v + view)
     return np.bincount(key // n_v, minlength=n_points)
+
+
+SEEN_TABLE_MAX = 1 << 25
+"""Above this many (point, view) pairs :func:`views_per_point` sorts the rows' keys instead of
+filling a table of them (32 MB)."""
 
 
 @dataclass(frozen=True)

@@ -49,6 +49,18 @@ def test_views_per_point_counts_distinct_views():
     np.testing.assert_array_equal(views_per_point(view[:0], pidx[:0], 2), [0, 0])
 
 
+def test_views_per_point_table_and_sort_agree(monkeypatch):
+    """The (point, view) table of small problems counts as the sort of larger ones does."""
+    import selfcal.estimation.observations as observations
+
+    rng = np.random.default_rng(3)
+    view, pidx = rng.integers(0, 40, 500), rng.integers(0, 30, 500)  # repeats within views
+    table = views_per_point(view, pidx, 32)
+    monkeypatch.setattr(observations, "SEEN_TABLE_MAX", 0)
+    np.testing.assert_array_equal(table, views_per_point(view, pidx, 32))
+    assert table[30:].tolist() == [0, 0] and table.max() < 40
+
+
 def test_observations_from_features_for_one_and_three_cameras():
     f = Features([5, 9], [[1.0, 2.0], [3.0, 4.0]])
     one = Observations.from_features({(0, 0): f, (2, 0): f}, cameras=("cam",))
