@@ -299,7 +299,8 @@ class DampedSystem:
             se = np.where(e, self.s[np.maximum(elim, 0)], 1.0)
             sk = self.s[kept]
             self.Us = U * se[:, :, None] * se[:, None, :]
-            self.Ws = W * se[:, :, None] * sk[None, None, :]
+            self.Ws = W * se[:, :, None]  # then by sk in place: no second (ni, s, nk) temporary
+            self.Ws *= sk[None, None, :]
             self.Vs = V * sk[:, None] * sk[None, :]
             self.se = se
 
