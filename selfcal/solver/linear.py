@@ -25,6 +25,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.linalg
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
@@ -348,7 +349,7 @@ class DampedSystem:
             S = self.Vs - Y.T @ Y
             lge = np.einsum("iab,ib->ia", Li, ge).ravel()
             S[np.diag_indices_from(S)] += lam
-            yk = np.linalg.solve(S, gs[kept] - Y.T @ lge)
+            yk = _spd_solve(S, gs[kept] - Y.T @ lge)
             t = lge - Y @ yk
             ye = np.einsum("iba,ib->ia", Li, t.reshape(ni, s))
         else:
@@ -364,3 +365,14 @@ class DampedSystem:
         y[kept] = yk
         y[elim[e]] = ye[e]
         return y
+
+
+def _spd_solve(S: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``S^-1 b`` for the damped reduced matrix ``S`` (symmetric, positive definite: the Schur
+    complement of a positive definite matrix) by its Cholesky factor, half the work of LU; by
+    LU when floating point makes it not positive definite."""
+    try:
+        factor = scipy.linalg.cho_factor(S, check_finite=False)
+    except np.linalg.LinAlgError:
+        return np.linalg.solve(S, b)
+    return scipy.linalg.cho_solve(factor, b, check_finite=False)

@@ -11,7 +11,7 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from selfcal.solver import Evaluation, JacobianPiece, Loss, ParameterBlock, Problem
-from selfcal.solver.linear import assemble
+from selfcal.solver.linear import _spd_solve, assemble
 from selfcal.solver.schur import SchurAssembler, SchurPlans
 
 N_INST, N_PTS = 5, 7
@@ -307,3 +307,16 @@ def test_the_sparse_matrices_built_in_chunks_are_those_built_at_once(monkeypatch
     for whole, chunked in zip(*mats):
         for a, b in zip(arrays(whole), arrays(chunked)):
             np.testing.assert_array_equal(a, b)
+
+
+def test_reduced_system_solve_by_cholesky_and_its_lu_fallback():
+    """The reduced matrix is solved by its Cholesky factor, and by LU when it is not positive
+    definite (an indefinite symmetric matrix here): both give the solution."""
+    rng = np.random.default_rng(5)
+    A = rng.normal(size=(40, 12))
+    b = rng.normal(size=12)
+    spd = A.T @ A + 0.1 * np.eye(12)
+    np.testing.assert_allclose(spd @ _spd_solve(spd, b), b, rtol=0, atol=2e-15)  # 6.7e-16
+    indefinite = spd - 2.0 * np.linalg.eigvalsh(spd).max() * np.eye(12) * (np.arange(12) < 3)
+    assert np.linalg.eigvalsh(indefinite).min() < 0
+    np.testing.assert_allclose(indefinite @ _spd_solve(indefinite, b), b, rtol=0, atol=2e-15)
