@@ -296,6 +296,8 @@ def initial_reconstruction(
         views (only those points' rows are visited, in row order)."""
         sel = by_point.rows_of(np.flatnonzero(~has_X))
         sel = sel[active[sel] & reg[view[sel]]]
+        if not np.any(np.bincount(pidx[sel], minlength=n_points) >= 2):
+            return X, has_X, active  # no point with two rows: nothing to triangulate (most views)
         for _ in range(8):
             xn = camera.unproject_normalised(uv[sel])
             Xn, cnt = triangulate(T, view[sel], pidx[sel], xn, n_points)
