@@ -3,10 +3,13 @@
 Per pixel noise level: ``--calibrations`` simulated board calibrations (the analytic board
 scenario ``scenarios/mono-charuco.toml``: the ER-4u of the paper with every minimal parameter
 perturbed, one wrist camera with a Brown-Conrady lens, a ChArUco board on the table, 30
-postures, joints read back exactly; calibrated as ``selfcal run`` does, seeded by the draw),
-each checked ``--checks`` times with 5 new views at new postures (a calibration posture moved
-by up to 10 deg per joint, kept when the board is in view), the corners projected through the
-true chain and camera with the same pixel noise: unchanged, the camera moved on its mount by
+postures, joints read back at the robot file's encoder resolution as the simulated
+acquisition reads them; calibrated as ``selfcal run`` does, seeded by the draw), each checked
+``--checks`` times with 5 new views at new postures (a calibration posture moved by up to 10
+deg per joint, kept when the board is in view), the corners projected through the true chain
+and camera at that posture with the same pixel noise, the joints as the controller reads them
+back (:func:`read_joints`: rounded to the encoder count, the noise the check assumes from the
+same robot file, :func:`selfcal.estimation.joint_report.encoder_sigma`): unchanged, the camera moved on its mount by
 0.2 mm (a random direction: the hand-eye's translation changed) and one joint (drawn at random)
 offset by 0.05 deg. Reported: the share of checks that say "changed"
 (:func:`selfcal.calibration.drift.images.image_drift_check`, alpha = 0.01; the issue's target:
@@ -50,11 +53,13 @@ from selfcal.config.scenario import scenarios_dir
 from selfcal.errors import InternalError
 from selfcal.io.target_toml import parse_target
 from selfcal.kinematics.forward import fk_tool
+from selfcal.robot.definition import RobotDef, load_robot
 from selfcal.sim.analytic import project_board
+from selfcal.sim.kinematic_robot import read_back
 from selfcal.target.boards import Board
 from selfcal.threads import limit_threads
 
-__all__ = ["calibration_checks", "main", "run", "table", "NOISE_PX"]
+__all__ = ["calibration_checks", "main", "read_joints", "run", "table", "NOISE_PX"]
 
 NOISE_PX = (0.05, 0.2)
 NEW_VIEWS = 5
@@ -64,6 +69,14 @@ DOC = ROOT / "docs" / "tool-accuracy.md"
 BLOCK = "benchmark_drift_images"
 KINDS = ("unchanged", "tool", "joint")
 SCENARIOS = {"eye-in-hand": SCENARIO, "eye-to-hand": scenarios_dir() / "eye-to-hand.toml"}
+
+
+def read_joints(robot: RobotDef, q: np.ndarray) -> np.ndarray:
+    """The joints (rad / m) the controller of ``robot`` reports with the arm at the true
+    posture ``q`` (..., n): rounded to the encoder count of its robot file, as the simulated
+    acquisition reads them (:func:`selfcal.sim.kinematic_robot.read_back`); exact for a robot
+    file without an encoder resolution."""
+    return read_back(np.asarray(q, float), np.asarray(robot.counts_per_unit, float), True)
 
 
 def calibration_checks(args: tuple[float, int, int, str]) -> dict:
@@ -76,8 +89,8 @@ def calibration_checks(args: tuple[float, int, int, str]) -> dict:
     out |= {f"{k}_{w}": 0 for k in ("tool", "joint") for w in ("right", "wrong")}
     out |= {"tool_oracle": 0.0, "tool_axes": 0.0}
     try:
-        cal, truth = simulated_calibration(sigma_px, seed, {"quantize_joints": False},
-                                           scenario_file=SCENARIOS[setup])  # fmt: skip
+        cal, truth = simulated_calibration(sigma_px, seed, scenario_file=SCENARIOS[setup])
+        robot = load_robot(cal.robot_model)
         board = parse_target(cal.target, "calibration.json: target")
         assert isinstance(board, Board)
         em = calibration_error_model(cal, "calibration.json")
@@ -121,7 +134,7 @@ def calibration_checks(args: tuple[float, int, int, str]) -> dict:
                 q_new.append(q)
             if len(q_new) < NEW_VIEWS:
                 raise InternalError(f"no {NEW_VIEWS} postures near the calibration's see the board")
-            qs = np.array(q_new)
+            qs = read_joints(robot, np.array(q_new))
             for k in KINDS:
                 vj = calibration_views(cal, em, qs, views[k])
                 res = image_drift_check(C, vj, eye_to_hand=e2h, camera_names=cal.cameras[0].free)

@@ -12,12 +12,14 @@ import numpy as np
 import pytest
 from scipy.stats import chi2, norm
 
+from selfcal.benchmarks.drift_images import read_joints
 from selfcal.calibration.drift.images import _covariance, image_drift_check
 from selfcal.calibration.drift.p_value import known_change_power
 from selfcal.calibration.drift.views import view_jacobians
 from selfcal.camera import camera_model
 from selfcal.cli.main import main as selfcal
 from selfcal.errors import InputError
+from selfcal.estimation.joint_report import encoder_sigma
 from selfcal.io.board_calibration import FORMAT as BOARD_FORMAT
 from selfcal.kinematics.forward import fk_tool
 from selfcal.kinematics.mcpc import minimal_indices, nominal_mcpc
@@ -196,3 +198,47 @@ def test_check_refuses_tracker_options_on_a_board_calibration(tmp_path, capsys):
     )
     assert selfcal([*args, "--trust-units"]) == 2
     assert "drop --joint-units and --trust-units" in capsys.readouterr().err
+
+
+def _read_back_statistics(draws: int = 30) -> dict[str, float]:
+    """The mean over ``draws`` of the check's statistic per degree of freedom on unchanged
+    views of the nominal ER-4u (eye-in-hand, 5 views of 12 corners, 0.01 px corner noise, no
+    estimation or model error: the views' covariances are independent) whose joints are read
+    back rounded to the robot file's encoder counts (the drift benchmark's
+    :func:`read_joints`) or exactly, the check assuming the robot file's read-back noise
+    (:func:`encoder_sigma`) or none; keyed ``read/assumed``."""
+    robot = load_robot("er4u-paper")
+    model = nominal_mcpc(robot)
+    cols = minimal_indices(model.joint_types)
+    em = ToolErrorModel(model, np.eye(4), cols, np.zeros((cols.size, cols.size)), 0.0, 0.0)
+    cam = camera_model("opencv", fx=800.0, mu=1.0, cx=320.0, cy=240.0, width=640, height=480,
+                       coeffs={"k1": -0.25, "k2": 0.1}, free=FREE)  # fmt: skip
+    rng = np.random.default_rng(5)
+    cases = {"encoder/encoder": (True, encoder_sigma(robot)), "exact/encoder":
+             (False, encoder_sigma(robot)), "encoder/none": (True, None)}  # fmt: skip
+    stats: dict[str, list[float]] = {k: [] for k in cases}
+    for _ in range(draws):
+        q = rng.uniform(robot.limits[:, 0], robot.limits[:, 1], (5, robot.n)) * 0.5
+        q_read = read_joints(robot, q)
+        for i, T in enumerate(inv_pose(fk_tool(model, q))):  # the camera at the true posture
+            x = np.c_[rng.uniform(-0.15, 0.15, (12, 2)), rng.uniform(0.3, 0.5, 12)]
+            X = (x - T[:3, 3]) @ T[:3, :3]
+            uv = cam.project(x) + rng.normal(0.0, 0.01, (12, 2))
+            for key, (quantised, js) in cases.items():
+                v = view_jacobians(em, cam, q_read[i] if quantised else q[i], X, uv,
+                                   eye_to_hand=False, pixel_sigma_px=0.01, joint_sigma_rad=js)  # fmt: skip
+                stats[key].append(v.r @ np.linalg.solve(v.local, v.r) / len(v.r))
+    return {k: float(np.mean(v)) for k, v in stats.items()}
+
+
+def test_joints_read_back_at_the_encoder_resolution_are_what_the_check_assumes():
+    """The drift benchmark's read-back (the robot file's encoder counts, as the simulated
+    acquisition rounds them) carries the noise the check assumes from the same robot file: its
+    statistic averages its degrees of freedom (1.00 over 200 draws; 0.95-1.02 over 20 for six
+    seeds). Read back exactly (as the benchmark did before), the check that assumes the encoder
+    noise sees less than it expects (0.84: it alarms less and finds less), and encoder
+    read-backs checked as exact joints far more (85: it alarms on every check)."""
+    got = _read_back_statistics()
+    assert got["encoder/encoder"] == pytest.approx(1.0, abs=0.07)
+    assert got["exact/encoder"] < 0.92
+    assert got["encoder/none"] > 10.0
