@@ -157,14 +157,17 @@ def prior(s: Scenario) -> Deviation:
 
 
 def simulated_calibration(sigma_px: float, seed: int, noise: dict | None = None, *,
-                          scenario_file: Path = SCENARIO) -> tuple[BoardCalibrationResult, Truth]:  # fmt: skip
-    """One simulated board calibration: ``scenario_file`` (default :data:`SCENARIO`) on the
-    analytic path with corner noise ``sigma_px`` and the draw's ``seed`` (perturbation,
-    :data:`POSES` postures, noise; ``noise`` more ``[noise]`` keys) acquired and calibrated as
-    ``selfcal run`` does with the deviation :func:`prior`, quietly in a temporary folder: its
-    calibration and truth."""
+                          scenario_file: Path = SCENARIO,
+                          robot: str | None = None) -> tuple[BoardCalibrationResult, Truth]:  # fmt: skip
+    """One simulated board calibration: ``scenario_file`` (default :data:`SCENARIO`; its
+    ``[robot] model`` replaced by ``robot`` when given) on the analytic path with corner noise
+    ``sigma_px`` and the draw's ``seed`` (perturbation, :data:`POSES` postures, noise; ``noise``
+    more ``[noise]`` keys) acquired and calibrated as ``selfcal run`` does with the deviation
+    :func:`prior`, quietly in a temporary folder: its calibration and truth."""
     over = {"noise": {"render": False, "pixel_sigma": sigma_px, "seed": seed} | (noise or {}),
             "trajectory": {"poses": POSES, "seed": seed}, "perturbation": {"seed": seed}}  # fmt: skip
+    if robot is not None:
+        over["robot"] = {"model": robot}
     with (tempfile.TemporaryDirectory(prefix="selfcal-acc-") as d, warnings.catch_warnings(),
           redirect_stdout(StringIO()), redirect_stderr(StringIO())):  # fmt: skip
         warnings.simplefilter("ignore")

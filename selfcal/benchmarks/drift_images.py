@@ -24,9 +24,14 @@ without turning (the chi-square of its 3 translations alone, at the whole alpha)
 
 ``--setup eye-to-hand``: the same on ``scenarios/eye-to-hand.toml`` (a static camera, the board
 on a UR5e's flange; the mount shift moves the board on the flange, analytic path).
+``--robot``: the eye-in-hand rows on these robots' files instead of the ER-4u's (the same
+scenario, as :mod:`selfcal.benchmarks.board_accuracy` runs it on them), each with its own
+encoder read-back (e.g. the UR5e's 0.0007 deg per count; the KR 6's file states none: its
+joints are read and taken as exact).
 
 Run: ``nice -n 10 uv run python -m selfcal.benchmarks.drift_images [--calibrations 30]
-[--checks 10] [--setup eye-in-hand eye-to-hand] [--jobs 1] [--write-docs]`` (rewrites the table in docs/tool-accuracy.md).
+[--checks 10] [--setup eye-in-hand eye-to-hand] [--robot er4u-paper ur5e kr6-r900] [--jobs 1]
+[--write-docs]`` (rewrites the table in docs/tool-accuracy.md).
 """
 
 from __future__ import annotations
@@ -49,7 +54,7 @@ from selfcal.calibration.drift.images import (
     image_drift_check,
 )
 from selfcal.calibration.drift.p_value import known_change_power
-from selfcal.config.scenario import scenarios_dir
+from selfcal.config.scenario import load_scenario, scenarios_dir
 from selfcal.errors import InternalError
 from selfcal.io.target_toml import parse_target
 from selfcal.kinematics.forward import fk_tool
@@ -79,17 +84,18 @@ def read_joints(robot: RobotDef, q: np.ndarray) -> np.ndarray:
     return read_back(np.asarray(q, float), np.asarray(robot.counts_per_unit, float), True)
 
 
-def calibration_checks(args: tuple[float, int, int, str]) -> dict:
-    """One calibration (noise ``sigma_px``, ``seed``, ``setup``) checked ``checks`` times: per
-    kind the count of "changed" verdicts, and of the changes the causes named right and
-    wrong."""
-    sigma_px, seed, checks, setup = args
+def calibration_checks(args: tuple[float, int, int, str, str | None]) -> dict:
+    """One calibration (noise ``sigma_px``, ``seed``, ``setup``, ``robot``: the setup's
+    scenario's robot replaced, or None) checked ``checks`` times: per kind the count of
+    "changed" verdicts, and of the changes the causes named right and wrong."""
+    sigma_px, seed, checks, setup, robot_name = args
     e2h = setup == "eye-to-hand"
     out: dict = {"status": "ok"} | {k: 0 for k in KINDS} | {"checks": 0}
     out |= {f"{k}_{w}": 0 for k in ("tool", "joint") for w in ("right", "wrong")}
     out |= {"tool_oracle": 0.0, "tool_axes": 0.0}
     try:
-        cal, truth = simulated_calibration(sigma_px, seed, scenario_file=SCENARIOS[setup])
+        cal, truth = simulated_calibration(sigma_px, seed, scenario_file=SCENARIOS[setup],
+                                           robot=robot_name)  # fmt: skip
         robot = load_robot(cal.robot_model)
         board = parse_target(cal.target, "calibration.json: target")
         assert isinstance(board, Board)
@@ -157,24 +163,29 @@ def calibration_checks(args: tuple[float, int, int, str]) -> dict:
 
 
 def run(calibrations: int = 30, checks: int = 10, noise_px=NOISE_PX, jobs: int = 1,
-        setups: tuple[str, ...] = tuple(SCENARIOS)) -> list[dict]:  # fmt: skip
-    """One row per setup and noise level over ``calibrations`` calibrations (``jobs``
-    processes)."""
+        setups: tuple[str, ...] = tuple(SCENARIOS),
+        robots: tuple[str, ...] | None = None) -> list[dict]:  # fmt: skip
+    """One row per setup (eye-in-hand: per robot of ``robots``, default the scenario's) and
+    noise level over ``calibrations`` calibrations (``jobs`` processes)."""
     rows = []
-    for setup, s in ((u, s) for u in setups for s in noise_px):
+    cells = [(u, r) for u in setups
+             for r in (robots if robots and u == "eye-in-hand" else (None,))]  # fmt: skip
+    for (setup, robot), s in ((c, s) for c in cells for s in noise_px):
         t0 = time.perf_counter()
-        todo = [(s, seed, checks, setup) for seed in range(1, calibrations + 1)]
+        name = robot or load_scenario(SCENARIOS[setup]).robot.model
+        label = f"{setup}, {name}"
+        todo = [(s, seed, checks, setup, robot) for seed in range(1, calibrations + 1)]
         if jobs > 1:
             with ProcessPoolExecutor(max_workers=jobs) as pool:
                 got = list(pool.map(calibration_checks, todo))
         else:
             got = [calibration_checks(a) for a in todo]
         ok = [g for g in got if g["status"] == "ok"]
-        print(f"{setup} {s} px: {len(ok)}/{calibrations} calibrations in {time.perf_counter() - t0:.0f} s "
+        print(f"{label} {s} px: {len(ok)}/{calibrations} calibrations in {time.perf_counter() - t0:.0f} s "
               + "; ".join(sorted({g['status'] for g in got} - {'ok'})), file=sys.stderr)  # fmt: skip
         total = {k: sum(g[k] for g in ok) for k in ok[0] if k != "status"} if ok else {}
         m = max(total.get("checks", 0), 1)
-        row = {"setup": setup, "noise_px": s, "calibrations": len(ok), "failed": calibrations - len(ok),
+        row = {"setup": label, "noise_px": s, "calibrations": len(ok), "failed": calibrations - len(ok),
                "checks": total.get("checks", 0)}  # fmt: skip
         row |= {k: total.get(k, 0) / m for k in (*KINDS, "tool_oracle", "tool_axes")}
         for k in ("tool", "joint"):
@@ -210,7 +221,16 @@ def table(rows: list[dict], checks: int) -> str:
             "check's own covariance; named: of the changes found, the share whose cause the "
             "check named (right / wrong; the rest: cannot tell). `nice -n 10 uv run python -m "
             f"selfcal.benchmarks.drift_images --calibrations {rows[0]['calibrations'] + rows[0]['failed']} "
-            f"--setup {' '.join(dict.fromkeys(r['setup'] for r in rows))} --write-docs`.")  # fmt: skip
+            f"--setup {' '.join(dict.fromkeys(r['setup'].split(',')[0] for r in rows))}"
+            f"{robots_arg(rows)} --write-docs`.")  # fmt: skip
+
+
+def robots_arg(rows: list[dict]) -> str:
+    """`` --robot ...`` of the eye-in-hand rows when they are not the scenario's robot alone."""
+    names = list(dict.fromkeys(r["setup"].split(", ")[1] for r in rows
+                               if r["setup"].startswith("eye-in-hand")))  # fmt: skip
+    default = load_scenario(SCENARIOS["eye-in-hand"]).robot.model
+    return "" if names in ([], [default]) else " --robot " + " ".join(names)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -224,10 +244,18 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--jobs", type=int, default=1, help="processes (default 1)")
     ap.add_argument("--setup", nargs="+", default=list(SCENARIOS), choices=tuple(SCENARIOS),
                     help="camera setups (default both)")  # fmt: skip
+    ap.add_argument(
+        "--robot",
+        nargs="+",
+        default=None,
+        metavar="ROBOT",
+        help="the eye-in-hand rows on these robots (default the scenario's ER-4u)",
+    )
     ap.add_argument("--write-docs", action="store_true",
                     help="rewrite the table in docs/tool-accuracy.md")  # fmt: skip
     args = ap.parse_args(argv)
-    rows = run(args.calibrations, args.checks, tuple(args.noise_px), args.jobs, tuple(args.setup))
+    rows = run(args.calibrations, args.checks, tuple(args.noise_px), args.jobs, tuple(args.setup),
+               tuple(args.robot) if args.robot else None)  # fmt: skip
     return print_table(table(rows, args.checks), DOC, BLOCK, write=args.write_docs)
 
 
