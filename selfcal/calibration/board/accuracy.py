@@ -30,8 +30,10 @@ parts of :mod:`selfcal.calibration.accuracy`:
 
 The parameters the selection held at the drawing: their deviation, less what the fit absorbs
 of it, is in the covariance too, scaled to the share of the prior (``deviation``) that the
-folds' excess shows; the model error is what the folds leave beyond it
-(:mod:`selfcal.calibration.board.held`, :mod:`selfcal.calibration.board.held_prior`).
+folds' excess shows, counted at its upper 95 % confidence bound from the folds' spread (the
+prior unscaled without folds); the model error is what the folds leave beyond the share's
+point estimate (:mod:`selfcal.calibration.board.held`,
+:mod:`selfcal.calibration.board.held_prior`).
 
 What this cannot see: a model error the same in every frame is absorbed by the placement (board
 pose, hand-eye) and is not seen; a misfit that grows where the arm reaches out is taken as the
@@ -59,7 +61,13 @@ from selfcal.calibration.accuracy import (
     postures_from_json,
 )
 from selfcal.calibration.board.bounds import BoardCramerRao, board_cramer_rao
-from selfcal.calibration.board.held_prior import held_block, held_share, with_deviation
+from selfcal.calibration.board.held_prior import (
+    NO_FOLDS,
+    Share,
+    held_block,
+    held_share,
+    with_deviation,
+)
 from selfcal.calibration.board.misfit import pose_jacobian, tip_map, unit_rows
 from selfcal.calibration.board.nominal_fit import standard_gauge
 from selfcal.calibration.board.param_selection import Selection
@@ -97,7 +105,7 @@ def _what(eye_to_hand: bool) -> str:
         "predicted error of the calibrated tool point (the flange) and tool orientation against "
         f"the true ones, in {frame}: the Cramer-Rao covariance at the estimate carried through "
         "the chain, with the share of the held parameters' deviation from the drawing the folds "
-        "show (held_deviation), plus a model error estimated from the leave-one-configuration-out folds "
+        "show at its upper 95 % confidence bound (held_deviation), plus a model error estimated from the leave-one-configuration-out folds "
         "(docs/tool-accuracy.md); 95 % bounds of the error's norm per joint vector, summarised "
         "per region: inside = joint vectors within the calibration postures' joint ranges, edge "
         f"= beyond them by up to {EDGE_FRACTION:.0%} of each joint's range, workspace = within "
@@ -225,14 +233,15 @@ def _features(obs: BoardObservations, frames: np.ndarray) -> list[list]:
 
 def model_error(obs: BoardObservations, selection: Selection, offsets: np.ndarray,
                 T_tool_point: np.ndarray, pixel_sigma_px: float,
-                variance: np.ndarray | None = None) -> tuple[ModelError | None, float]:  # fmt: skip
+                variance: np.ndarray | None = None) -> tuple[ModelError | None, Share]:  # fmt: skip
     """The model error (module docstring) from the chosen candidate's fold fits (None without
     folds, one configuration, or when no fold was fitted) and the share of the deviation
-    ``variance`` (k,) from the drawing (:mod:`selfcal.calibration.board.held_prior`) the folds'
-    excess shows (1 without folds or ``variance``); the model error is what is left beyond it."""
+    ``variance`` (k,) from the drawing (:func:`selfcal.calibration.board.held_prior.held_share`)
+    the folds' excess shows (the prior unscaled without folds); the model error is what is left
+    beyond its point estimate."""
     fits = selection.candidates[selection.chosen].fold_fits
     if selection.fold_of is None or not fits:
-        return None, 1.0
+        return None, NO_FOLDS
     got = []
     for f, (fit, free_idx, offset_joints) in sorted(fits.items()):
         out = selection.fold_of == f
@@ -252,14 +261,17 @@ def model_error(obs: BoardObservations, selection: Selection, offsets: np.ndarra
         if len(h["frame"]):
             got.append(h)
     if not got:
-        return None, 1.0
+        return None, NO_FOLDS
+    per_fold = np.array([[np.sum(g["px2"] - g["px2_expected"]), np.sum(g["px2_held"]),
+                          np.sum(g["px2_expected"])] for g in got])  # fmt: skip
+    share = held_share(*per_fold.T)
     h = {k: np.concatenate([g[k] for g in got]) for k in got[0]}
-    share = held_share(h["px2"], h["px2_expected"], h["px2_held"])
     # one size m per tool-point coordinate, m / L per rotation coordinate (L the tool point's
     # distance to the board points in view: the rotation then moves the view about as much as
     # the translation), from the pixels' excess over what the rest explains: m^2 (u + w), its
     # effect in the frame itself and through the fold's estimate (misfit.py)
-    extra = float(np.sum(h["px2"]) - np.sum(h["px2_expected"]) - share * np.sum(h["px2_held"]))
+    extra = float(np.sum(h["px2"]) - np.sum(h["px2_expected"])
+                  - share.point * np.sum(h["px2_held"]))  # fmt: skip
     m = 0.0
     if extra > Z_MODEL_ERROR * np.sqrt(np.sum(h["px2_var"])):
         m = float(np.sqrt(extra / (np.sum(h["px2_unit"]) + np.sum(h["px2_misfit"]))))
@@ -337,7 +349,7 @@ def board_accuracy(obs: BoardObservations, selection: Selection, cr: BoardCramer
     deviation = Deviation() if deviation is None else deviation
     variance = deviation.variance(cr.model.joint_types)
     me, share = model_error(obs, selection, offsets, T_tool_point, pixel_sigma_px, variance)
-    cr = with_deviation(cr, share * variance)
+    cr = with_deviation(cr, share.used * variance)
     pos = 0.0 if me is None else me.position_m
     rot = 0.0 if me is None or me.rotation_rad is None else me.rotation_rad
     em, names = board_error_model(cr, T_tool_point, pos, rot)

@@ -3,8 +3,9 @@ it holds (issue #29): :mod:`selfcal.calibration.board.held`'s response ``R`` (pe
 deviation, :attr:`selfcal.calibration.board.bounds.BoardCramerRao.held`) weighed by the prior
 ``S`` (:class:`selfcal.calibration.board.plan_predict.Deviation`, the one ``selfcal plan``
 predicts with) into the bounds' covariances, ``c R S R^T``, ``c`` (0-1) the share of the prior the
-calibration's leave-one-configuration-out frames show (:func:`held_share`; the prior an upper
-limit: the selection holds a direction more often when the arm deviates little along it). SI.
+calibration's leave-one-configuration-out frames show, counted at its upper 95 % confidence
+bound (:func:`held_share`; the prior an upper limit: the selection holds a direction more often
+when the arm deviates little along it, and the folds lower it only as far as they show). SI.
 """
 
 from __future__ import annotations
@@ -12,11 +13,12 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+from scipy.special import stdtrit
 
 from selfcal.calibration.board.bounds import BoardCramerRao
 from selfcal.calibration.board.plan_predict import Deviation
 
-__all__ = ["held_block", "held_share", "with_deviation"]
+__all__ = ["NO_FOLDS", "SHARE_LEVEL", "Share", "held_block", "held_share", "with_deviation"]
 
 
 def with_deviation(cr: BoardCramerRao, variance: np.ndarray) -> BoardCramerRao:
@@ -41,21 +43,87 @@ def with_deviation(cr: BoardCramerRao, variance: np.ndarray) -> BoardCramerRao:
     )
 
 
-def held_share(px2: np.ndarray, expected: np.ndarray, held: np.ndarray) -> float:
-    """The share (0-1) of the prior's variance the cross-validated frames show: their squared
-    pixel errors ``px2`` beyond what the estimate and the noise give them (``expected``), over
-    what the prior's deviation would add (``held``; each (m,) px^2, one per held-out frame) --
-    the prior taken as an upper limit, the folds' excess as the measure of how far this arm
-    lies from its drawing along what the calibration holds (1 when the prior adds nothing)."""
-    add = float(np.sum(held))
-    if add <= 0.0:
-        return 1.0
-    return float(np.clip((np.sum(px2) - np.sum(expected)) / add, 0.0, 1.0))
+SHARE_LEVEL = 0.95
+"""The one-sided confidence level of the share's upper bound (:func:`held_share`): the
+prediction's bounds are 95 % statements."""
 
 
-def held_block(deviation: Deviation, share: float = 1.0) -> dict:
+@dataclasses.dataclass(frozen=True)
+class Share:
+    """The share ``c`` of the deviation prior's variance a calibration counts (module docstring).
+
+    Attributes:
+        used: the share (0-1) the prediction counts: the upper bound ``upper`` clipped to 0-1
+            when the folds measured it, else 1 (the prior unscaled).
+        basis: ``"folds"`` (measured), ``"no_folds"`` (none, or one fitted: the prior
+            unscaled) or ``"nothing_held"`` (the held directions add nothing to the folds'
+            frames: nothing to measure, and nothing added).
+        folds: the folds it was measured on.
+        estimate: the folds' point estimate (not clipped; None unless measured).
+        upper: its one-sided :data:`SHARE_LEVEL` upper confidence bound from the folds'
+            spread, Student's t with ``folds - 1`` degrees of freedom (None unless measured).
+    """
+
+    used: float
+    basis: str
+    folds: int = 0
+    estimate: float | None = None
+    upper: float | None = None
+
+    @property
+    def point(self) -> float:
+        """The point estimate clipped to 0-1 (1 unless measured): the part of the folds' excess
+        the deviation takes, the model error what is left beyond it."""
+        return 1.0 if self.estimate is None else float(np.clip(self.estimate, 0.0, 1.0))
+
+
+def held_share(excess: np.ndarray, added: np.ndarray, expected: np.ndarray) -> Share:
+    """The share of the prior's variance the leave-one-configuration-out folds show, one entry
+    per fitted fold (each (F,) px^2, summed over its held-out frames): ``excess`` their squared
+    pixel errors beyond what the estimate and the noise give them (``expected``), ``added``
+    what the prior's full deviation would add to them.
+
+    The point estimate is the ratio of the sums; its standard error the folds' spread about it
+    (``sqrt(F / (F - 1) sum r_f^2) / sum added``, ``r_f = excess_f - c added_f``), so its
+    uncertainty is that of ``F - 1`` degrees of freedom and of the arm's one deviation seen
+    from ``F`` configurations, not of the frames' count; the share counted is the one-sided
+    :data:`SHARE_LEVEL` upper bound (Student's t), the prior an upper limit: few or
+    disagreeing folds keep it near 1, and it falls below only as far as the folds show. With
+    fewer than two folds there is no spread: the prior is counted unscaled (``"no_folds"``);
+    when the prior adds nothing to the folds' frames (to rounding against what they expect)
+    there is nothing to measure (``"nothing_held"``)."""
+    x, h = np.asarray(excess, float), np.asarray(added, float)
+    total = float(np.sum(h))
+    if total <= 1e-9 * max(float(np.sum(expected)), np.finfo(float).tiny):
+        return Share(1.0, "nothing_held", x.size)
+    if x.size < 2:
+        return Share(1.0, "no_folds", x.size)
+    c = float(np.sum(x)) / total
+    r = x - c * h
+    se = float(np.sqrt(x.size / (x.size - 1) * np.sum(r**2))) / total
+    upper = c + float(stdtrit(x.size - 1, SHARE_LEVEL)) * se
+    return Share(float(np.clip(upper, 0.0, 1.0)), "folds", x.size, c, upper)
+
+
+NO_FOLDS = Share(1.0, "no_folds")
+"""The share without folds: the prior unscaled."""
+
+_BASIS = {
+    "folds": "the one-sided 95 % upper confidence bound (clipped to 0-1) of the share the "
+    "leave-one-configuration-out folds show: their held-out frames' pixel excess over the "
+    "estimate's errors and the noise against what the prior would add to them, its standard "
+    "error from the folds' spread (Student's t, folds - 1 degrees of freedom); the model error "
+    "is what the folds' excess leaves beyond the point estimate's share",
+    "no_folds": "no folds measured it (fewer than two configurations, or fewer than two folds "
+    "fitted): the prior is counted unscaled (share 1)",
+    "nothing_held": "the held directions add nothing to the folds' frames' pixels: nothing to "
+    "measure, and the prior adds nothing to the prediction",
+}
+
+
+def held_block(deviation: Deviation, share: Share = NO_FOLDS) -> dict:
     """The ``accuracy`` block's ``held_deviation``: the prior it was predicted with and the
-    share of its variance the folds showed (:func:`held_share`)."""
+    share of its variance counted (:func:`held_share`), with how it was found."""
     return {
         "what": "the arm's deviation from the drawing the prediction carries: each inner "
         "minimal parameter uniform within +-translation_mm (lengths) or +-rotation_deg "
@@ -64,8 +132,10 @@ def held_block(deviation: Deviation, share: float = 1.0) -> dict:
         "list cover every minimal parameter then; docs/tool-accuracy.md)",
         "translation_mm": 1e3 * deviation.translation_m,
         "rotation_deg": float(np.degrees(deviation.rotation_rad)),
-        "share": share,
-        "share_what": "the share of the prior's variance counted: the leave-one-configuration-"
-        "out frames' pixel excess over the estimate's errors and the noise, against what the "
-        "prior would add to them (at most 1); the model error is what is left beyond it",
+        "share": share.used,
+        "share_basis": share.basis,
+        "share_folds": share.folds,
+        "share_estimate": share.estimate,
+        "share_upper": share.upper,
+        "share_what": f"the share of the prior's variance counted: {_BASIS[share.basis]}",
     }
