@@ -4,7 +4,9 @@ Monte Carlo on the analytic board scenario (``scenarios/mono-charuco.toml``: one
 with a Brown-Conrady lens, a ChArUco board on the table where the home posture looks) for each
 robot of :data:`ROBOTS` (the scenario's ``[robot] model`` replaced), every minimal parameter
 perturbed: per robot, model and pixel noise level ``--draws`` draws, each its own truth
-(perturbation, postures and noise seeded by the draw), 30 calibration postures, the board route
+(perturbation, postures and noise seeded by the draw), 30 calibration postures (``--poses``:
+fewer make the selection hold directions, whose deviation the prediction then carries,
+:mod:`selfcal.calibration.board.held_prior`), the board route
 as ``selfcal run`` calibrates them (:func:`selfcal.pipeline.run.run_acquire`, then
 :func:`selfcal.pipeline.board_run.calibrate_board_run`: camera stage, fair nominal, parameter
 selection, bounds) and its predicted accuracy (:mod:`selfcal.calibration.board.accuracy`). The
@@ -32,7 +34,7 @@ the estimate's errors with the share of the held parameters' deviation its folds
 against the one ``selfcal evaluate`` measures (target 0.67-1.5x).
 
 Run: ``uv run python -m selfcal.benchmarks.board_accuracy [--draws 30] [--jobs 2] [--robots
-R,..] [--models M,..] [--noise-px S,..] [--real] [--write-docs]`` (rewrites the tables in docs/tool-accuracy.md).
+R,..] [--models M,..] [--noise-px S,..] [--poses 30] [--real] [--write-docs]`` (rewrites the tables in docs/tool-accuracy.md).
 """
 
 from __future__ import annotations
@@ -131,11 +133,12 @@ def _angle(R_a: np.ndarray, R_b: np.ndarray) -> np.ndarray:
                                      .as_rotvec(), axis=1))  # fmt: skip
 
 
-def scenario(robot: str, sigma_px: float, seed: int) -> Scenario:
-    """The draw's scenario: mono-charuco on ``robot`` with its noise and seeds."""
+def scenario(robot: str, sigma_px: float, seed: int, poses: int = POSES) -> Scenario:
+    """The draw's scenario: mono-charuco on ``robot`` with its noise, seeds and ``poses``
+    calibration postures."""
     return load_scenario(SCENARIO, {
         "robot": {"model": robot}, "noise": {"render": False, "pixel_sigma": sigma_px, "seed": seed},
-        "trajectory": {"poses": POSES, "seed": seed}, "perturbation": {"seed": seed}})  # fmt: skip
+        "trajectory": {"poses": poses, "seed": seed}, "perturbation": {"seed": seed}})  # fmt: skip
 
 
 def simulated(s: Scenario, model: str) -> SimSetup:
@@ -177,14 +180,16 @@ def simulated_calibration(sigma_px: float, seed: int, noise: dict | None = None,
         return read_board_calibration(out / "calibration.json"), read_truth(out / "truth.json")
 
 
-def draw(args: tuple[str, float, str, int]) -> dict:
-    """One draw (``robot``, noise ``sigma_px``, ``model``, ``seed``): per region the predicted
+def draw(args: tuple) -> dict:
+    """One draw (``robot``, noise ``sigma_px``, ``model``, ``seed``, optionally the calibration
+    postures' count, default :data:`POSES`): per region the predicted
     95 % bound with and without the model error, the predicted RMS, the true error (mm), the
     predicted 95 % orientation bound with and without the model error and the true orientation
     error (deg); ``model_error_mm``; ``status``."""
-    robot, sigma_px, model, seed = args
+    robot, sigma_px, model, seed = args[:4]
+    poses = int(args[4]) if len(args) > 4 else POSES
     try:
-        s = scenario(robot, sigma_px, seed)
+        s = scenario(robot, sigma_px, seed, poses)
         setup = simulated(s, model)
         with (tempfile.TemporaryDirectory(prefix="selfcal-acc-") as d, warnings.catch_warnings(),
               redirect_stdout(StringIO()), redirect_stderr(StringIO())):  # fmt: skip
@@ -223,7 +228,7 @@ def draw(args: tuple[str, float, str, int]) -> dict:
         return {"status": f"failed: {type(exc).__name__}: {str(exc)[:200]}"}
 
 
-def _rows(robot: str, model: str, s: float, got: list[dict]) -> list[dict]:
+def _rows(robot: str, model: str, s: float, got: list[dict], poses: int = POSES) -> list[dict]:
     """The rows (one per region) of one robot, model and noise level's draws ``got``."""
     ok = [g for g in got if g["status"] == "ok"]
     rows = []
@@ -232,6 +237,7 @@ def _rows(robot: str, model: str, s: float, got: list[dict]) -> list[dict]:
         a = np.concatenate(d, axis=1)
         rows.append({
             "robot": robot, "model": model, "noise_px": s, "region": region, "draws": len(ok),
+            "poses": poses,
             "failed": len(got) - len(ok), **coverage(d),
             "true_rot_rms_deg": float(np.sqrt(np.mean(a[6] ** 2))),
             "coverage_rot": float(np.mean(a[6] <= a[4])),
@@ -242,21 +248,22 @@ def _rows(robot: str, model: str, s: float, got: list[dict]) -> list[dict]:
 
 
 def run(draws: int = 30, robots=ROBOTS, models=MODELS, noise_px=NOISE_PX,
-        jobs: int = 2) -> list[dict]:  # fmt: skip
-    """One row per (robot, model, noise, region) over ``draws`` draws (``jobs`` processes)."""
+        jobs: int = 2, poses: int = POSES) -> list[dict]:  # fmt: skip
+    """One row per (robot, model, noise, region) over ``draws`` draws (``jobs`` processes) of
+    ``poses`` calibration postures each."""
     rows = []
     for robot in robots:
         for model in models:
             for s in noise_px:
                 t0 = time.perf_counter()
-                args = [(robot, s, model, seed) for seed in range(1, draws + 1)]
+                args = [(robot, s, model, seed, poses) for seed in range(1, draws + 1)]
                 with ProcessPoolExecutor(max_workers=jobs) as pool:
                     got = list(pool.map(draw, args))
                 fails = sorted({g["status"] for g in got} - {"ok"})
                 print(f"{robot} {model} {s} px: {sum(g['status'] == 'ok' for g in got)}/{draws} "
                       f"draws in {time.perf_counter() - t0:.0f} s " + "; ".join(fails),
                       file=sys.stderr, flush=True)  # fmt: skip
-                rows += _rows(robot, model, s, got)
+                rows += _rows(robot, model, s, got, poses)
                 print(table(rows[-len(REGIONS) :]).split("\n\n")[0], file=sys.stderr, flush=True)
     return rows
 
@@ -281,8 +288,9 @@ def table(rows: list[dict]) -> str:
     first = [r for r in rows if r["region"] == REGIONS[0]]
     failed = sum(r["failed"] for r in first)
     sizes = sorted({r["draws"] + r["failed"] for r in first})
+    poses = "/".join(map(str, sorted({r.get("poses", POSES) for r in first})))
     lines += ["", f"{'/'.join(map(str, sizes))} draws per row ({failed} failed in all), "
-              f"scenarios/mono-charuco.toml on the analytic path with each robot, {POSES} "
+              f"scenarios/mono-charuco.toml on the analytic path with each robot, {poses} "
               f"calibration postures, {COUNT} joint vectors per region and draw; `uv run python "
               "-m selfcal.benchmarks.board_accuracy --write-docs`."]  # fmt: skip
     return head + "\n".join(lines)
@@ -378,6 +386,8 @@ def _arguments(argv: list[str] | None) -> argparse.Namespace:
     for flag, default in (("--robots", ROBOTS), ("--models", MODELS)):
         ap.add_argument(flag, type=lambda t: tuple(t.split(",")), default=default,
                         help=f"comma-separated (default {','.join(default)})")  # fmt: skip
+    ap.add_argument("--poses", type=int, default=POSES,
+                    help=f"calibration postures per draw (default {POSES})")  # fmt: skip
     ap.add_argument("--noise-px", type=lambda t: tuple(float(x) for x in t.split(",")),
                     default=NOISE_PX, help="comma-separated corner noise levels (px; default "
                     f"{','.join(map(str, NOISE_PX))})")  # fmt: skip
@@ -403,7 +413,10 @@ def main(argv: list[str] | None = None) -> int:
         if args.write_docs:
             write_block(DOC, text, BLOCK_REAL)
         return 0
-    rows = run(args.draws, args.robots, args.models, args.noise_px, jobs=args.jobs)
+    if args.write_docs and args.poses != POSES:
+        raise UsageError(f"--write-docs writes the block of {POSES} postures: drop --poses")
+    rows = run(args.draws, args.robots, args.models, args.noise_px, jobs=args.jobs,
+               poses=args.poses)  # fmt: skip
     return print_table(table(rows), DOC, BLOCK, write=args.write_docs)
 
 
