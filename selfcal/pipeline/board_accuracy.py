@@ -20,6 +20,7 @@ from selfcal.calibration.board.accuracy import (
     board_error_model_from_json,
     board_postures_from_json,
 )
+from selfcal.calibration.board.held_prior import held_sentence
 from selfcal.errors import InputError
 from selfcal.io.board_calibration import BoardCalibrationResult
 from selfcal.kinematics.tool_error import accuracy_line, workspace_sample, workspace_summary
@@ -67,6 +68,7 @@ def board_accuracy_section(root: Path, cal: BoardCalibrationResult, *,
         "model_error_note": block.get("model_error_note"),
         "regions": regions,
         "cross_validation": block.get("cross_validation"),
+        "held_deviation": block.get("held_deviation"),
     }
     drawn = []
     if figures:
@@ -112,12 +114,14 @@ def accuracy_markdown(section: dict) -> list[str]:
         f"deg per coordinate from {me.get('rows')} cross-validated frames ({me.get('folds')} "
         "folds)"
     )
+    held = held_sentence(section.get("held_deviation"))
+    held = "" if held is None else f" {held[0].upper()}{held[1:]}."
     out = [
         "",
         "## Predicted tool-point accuracy",
         "",
-        f"{section['line']} ({section.get('tool_point') or 'the tool point'}). {note}. See "
-        "docs/tool-accuracy.md.",
+        f"{section['line']} ({section.get('tool_point') or 'the tool point'}). {note}.{held} "
+        "See docs/tool-accuracy.md.",
         "",
         *region_table(section["regions"], orientation=True),
     ]

@@ -97,11 +97,22 @@ def test_the_held_shares_upper_bound_covers_the_true_share_on_few_folds():
 
 
 def test_the_held_block_says_when_the_prior_was_counted_unscaled():
-    """Without folds the block counts the whole prior and says that no fold measured it."""
-    from selfcal.calibration.board.held_prior import held_block
+    """Without folds the block counts the whole prior and says that no fold measured it, in its
+    fields and in the report's words; measured, the words give the bound and the estimate."""
+    from selfcal.calibration.board.held_prior import held_block, held_sentence, held_share
     from selfcal.calibration.board.plan_predict import Deviation
 
     block = held_block(Deviation())
     assert block["share"] == 1.0 and block["share_basis"] == "no_folds"
     assert block["share_estimate"] is None
     assert "unscaled" in block["share_what"] and "no folds" in block["share_what"]
+    assert "unscaled" in held_sentence(block) and "no folds" in held_sentence(block)
+    measured = held_block(Deviation(), held_share(np.array([1.0, 3.0]), np.array([10.0, 20.0]),
+                                                  np.full(2, 5.0)))  # fmt: skip
+    assert measured["share_basis"] == "folds"
+    assert measured["share_estimate"] == pytest.approx(4 / 30)
+    words = held_sentence(measured)
+    assert f"{measured['share']:.3g} of the prior of +-1 mm / +-0.5 deg" in words
+    assert "the 2 folds' 0.133" in words
+    nothing = held_block(Deviation(), held_share(np.ones(2), np.zeros(2), np.full(2, 5.0)))
+    assert held_sentence(nothing) is None and held_sentence(None) is None

@@ -18,7 +18,15 @@ from scipy.special import stdtrit
 from selfcal.calibration.board.bounds import BoardCramerRao
 from selfcal.calibration.board.plan_predict import Deviation
 
-__all__ = ["NO_FOLDS", "SHARE_LEVEL", "Share", "held_block", "held_share", "with_deviation"]
+__all__ = [
+    "NO_FOLDS",
+    "SHARE_LEVEL",
+    "Share",
+    "held_block",
+    "held_sentence",
+    "held_share",
+    "with_deviation",
+]
 
 
 def with_deviation(cr: BoardCramerRao, variance: np.ndarray) -> BoardCramerRao:
@@ -139,3 +147,22 @@ def held_block(deviation: Deviation, share: Share = NO_FOLDS) -> dict:
         "share_upper": share.upper,
         "share_what": f"the share of the prior's variance counted: {_BASIS[share.basis]}",
     }
+
+
+def held_sentence(block: dict | None) -> str | None:
+    """The words ``selfcal report`` gives of a ``held_deviation`` block (:func:`held_block`):
+    how much of the prior the prediction counts and why; None without the block or when the
+    selection holds nothing the folds see."""
+    if not block or block.get("share_basis") == "nothing_held":
+        return None
+    prior = (f"the prior of +-{block.get('translation_mm', 0.0):g} mm / "
+             f"+-{block.get('rotation_deg', 0.0):g} deg")  # fmt: skip
+    share = float(block.get("share", 1.0))
+    if block.get("share_basis") == "no_folds":
+        return (f"the held parameters' deviation from the drawing: {prior} counted unscaled, "
+                "no folds measured its share")  # fmt: skip
+    if block.get("share_estimate") is None:  # a block written before the share's bound
+        return f"the held parameters' deviation from the drawing: {share:.3g} of {prior}"
+    return (f"the held parameters' deviation from the drawing: {share:.3g} of {prior}, the "
+            f"upper 95 % bound of the {block.get('share_folds')} folds' "
+            f"{block['share_estimate']:.3g}")  # fmt: skip
