@@ -104,12 +104,20 @@ def scenario_text(
     count: int,
     joints: str = "joints.csv",
     camera_pose: np.ndarray | None = None,
+    deviation=None,
+    seed: int = 1,
 ) -> str:
     """The scenario TOML that replays the plan in simulation (``selfcal run``): the robot, the
     plan's nominal camera as the true one, the board of ``target.toml`` at ``board_pose`` (6,) mm
     and deg (eye-in-hand) or on the flange with the camera static at ``camera_pose`` (6,) mm and
     deg (eye-to-hand), the ``count`` postures of the CSV ``joints`` (beside it), analytic
-    corners."""
+    corners, the arm's errors drawn (``[perturbation] seed``) from the plan's ``deviation``
+    (:class:`selfcal.calibration.board.plan_predict.Deviation`, None: its default), as the plan
+    predicts with it."""
+    from selfcal.calibration.board.plan_predict import Deviation
+
+    dev = deviation or Deviation()
+    mm, deg = dev.translation_m * 1000.0, float(np.degrees(dev.rotation_rad))
     v = dict(zip(camera.names, camera.values().tolist()))
     W, H = camera.width, camera.height
     lens = {n: v[n] for n in camera.names[5:] if v[n] != 0.0}
@@ -127,7 +135,7 @@ def scenario_text(
         where = ""
     return f"""# Written by `selfcal plan`: the plan replayed in simulation, `selfcal run scenario.toml`.
 # The camera below is the plan's nominal camera, simulated as the true one; the robot's errors
-# are the default simulated ones ([perturbation]).
+# are drawn from the plan's deviation ([perturbation]; another seed draws another arm).
 [robot]
 model = {json.dumps(robot_ref)}
 
@@ -149,6 +157,11 @@ board = "target.toml"
 kind = "file"
 joints = {json.dumps(joints)}
 poses = {count}
+
+[perturbation]
+seed = {seed}
+translation_mm = {mm:.10g}  # every length of the chain and its mount uniform within +-this
+rotation_deg = {deg:.10g}  # every angle likewise: the plan's --deviation-mm/--deviation-deg
 
 [noise]
 render = false  # analytic corners; true renders the MuJoCo scene
@@ -296,7 +309,7 @@ def _cmd(args: argparse.Namespace) -> int:
         ref = robot_reference(args.robot)
         write_text_atomic(out / "scenario.toml", scenario_text(
             ref, camera, None if e2h else pose, len(plan.q),
-            camera_pose=pose if e2h else None))  # fmt: skip
+            camera_pose=pose if e2h else None, deviation=_deviation(args)))  # fmt: skip
         load_scenario(out / "scenario.toml")  # what we wrote reads back
         doc = {
             "format": "scorbot-selfcal-plan",
@@ -380,7 +393,8 @@ def _cmd_add(args: argparse.Namespace) -> int:
         write_text_atomic(out / "target.toml", "# The board of " + str(root) + "\n" + "".join(
             f"{k} = {json.dumps(v)}\n" for k, v in doc_t.items()))  # fmt: skip
         write_text_atomic(out / "scenario.toml", scenario_text(ref, setup.camera, bp, len(q_all),
-                                                              joints="replay.csv"))  # fmt: skip
+                                                              joints="replay.csv",
+                                                              deviation=opts.deviation))  # fmt: skip
         doc = {
             "format": "scorbot-selfcal-plan",
             "schema_version": 1,
@@ -480,7 +494,9 @@ def register(subparsers) -> argparse.ArgumentParser:
                     help="a camera plan: the corner noise the prediction assumes, px "
                     "(default 0.5)")  # fmt: skip
     sp.add_argument("--deviation-mm", type=float, default=1.0,
-                    help="how far the arm's lengths may lie from its drawing, mm (default 1)")  # fmt: skip
+                    help="how far the arm's lengths, the mount on the flange's included, may lie "
+                    "from its drawing, mm (default 1; scenario.toml's [perturbation] draws the "
+                    "replayed arm from it)")  # fmt: skip
     sp.add_argument("--deviation-deg", type=float, default=0.5,
                     help="how far its angles may lie from it, deg (default 0.5)")  # fmt: skip
     sp.add_argument("--speed-deg-s", type=float, default=10.0,

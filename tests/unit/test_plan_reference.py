@@ -88,7 +88,13 @@ def _independent(setup: PlanSetup, q: np.ndarray, qw: np.ndarray, dev: Deviation
 
     C_e = np.linalg.inv(J_e.T @ J_e)[len(c0) :, len(c0) :]
     fair = np.sqrt(ms(T_place @ K - T_held, np.diag(var)) + ms(T_place, C_e))
-    return fair, np.sqrt(ms(T_held, np.diag(var)))
+    # nothing fitted: the placement's minimal parameters deviate too (the simulator draws
+    # them), the base's removed by the alignment, the hand-eye's not
+    mount = idx[np.isin(idx, place)]
+    var_mount = dev.drawn_variance(model.joint_types)[np.isin(idx, place)]
+    T_mount = np.stack([d(tips, x0, i, 1e-6) for i in mount], axis=1)
+    inner = ms(T_held, np.diag(var))
+    return fair, np.sqrt(inner + ms(T_mount, np.diag(var_mount))), np.sqrt(inner)
 
 
 @pytest.mark.parametrize(
@@ -99,10 +105,14 @@ def test_both_references_equal_an_independent_computation(cell, dev):
     model = board_model(setup)
     F = frame_information(setup, q, SIGMA).sum(axis=0)
     G = aligned_tool_weight(model, qw, setup.T_tool_tip)
-    got = nominal_reference(model, F, G, setup.camera.n_free, dev.variance(model.joint_types))
-    fair, drawn = _independent(setup, q, qw, dev)
+    got = nominal_reference(model, F, G, setup.camera.n_free, dev.drawn_variance(model.joint_types))
+    fair, drawn, flange = _independent(setup, q, qw, dev)
     assert got.fair_m == pytest.approx(fair, rel=5e-9)  # 1.0e-9 measured (finite differences)
     assert got.drawn_m == pytest.approx(drawn, rel=5e-9)  # 1.4e-12
+    # a tool point that the mount's deviation does not move (eye-to-hand's flange): without it
+    e2h = nominal_reference(model, F, G, setup.camera.n_free, dev.drawn_variance(model.joint_types),
+                            eye_to_hand=True)  # fmt: skip
+    assert e2h.drawn_m == pytest.approx(flange, rel=5e-9) and flange < 0.9 * drawn
     assert got.best_m == min(got.fair_m, got.drawn_m) and got.beaten_by(CLEAR_MARGIN * got.best_m)
     assert not got.beaten_by(1.01 * CLEAR_MARGIN * got.best_m)
 

@@ -17,7 +17,7 @@ from selfcal.calibration.board.plan_selection import SelectionForecast
 from selfcal.cli.plan_text import plan_lines, plan_sections, reference_words
 
 N = 6  # joints
-REF = NominalReference(fair_m=6.149e-3, drawn_m=1.103e-3)  # docs/plan.md's UR5e example
+REF = NominalReference(fair_m=6.149e-3, drawn_m=1.103e-3)  # docs/plan.md's UR5e example, as was
 
 
 def _selected(selected_m: float, rival_m: float | None) -> Selected:

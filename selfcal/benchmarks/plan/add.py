@@ -58,8 +58,8 @@ def _write(folder: Path, setup, target: Path, bp: np.ndarray, joints: str, seed:
     folder.mkdir(parents=True, exist_ok=True)
     shutil.copyfile(target, folder / "target.toml")
     n = len((folder / joints).read_text().splitlines()) - 1
-    text = scenario_text("ur5e", setup.camera, bp, n, joints=joints)
-    write_text_atomic(folder / "scenario.toml", text + f"\n[perturbation]\nseed = {seed}\n")
+    write_text_atomic(folder / "scenario.toml",
+                      scenario_text("ur5e", setup.camera, bp, n, joints=joints, seed=seed))  # fmt: skip
     return folder / "scenario.toml"
 
 

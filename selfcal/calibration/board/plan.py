@@ -200,7 +200,8 @@ def plan_recording(
         rival = None
         if c > 0 and cv[c - 1] <= np.exp(RIVAL_LOG) * cv[c]:
             rival = predict_kept(setup, pool[idx], Fs, G, var, fc.kept_sets[c - 1], dirs)
-        ref = nominal_reference(model, Fs, G, n_cam, var, dirs, eye_to_hand=setup.eye_to_hand)
+        ref = nominal_reference(model, Fs, G, n_cam, g.drawn_variance, dirs,
+                                eye_to_hand=setup.eye_to_hand)  # fmt: skip
         return Selected(got, fc, rival), ref
 
     def first(n: int) -> tuple[Selected, NominalReference]:

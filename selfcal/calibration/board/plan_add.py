@@ -219,6 +219,8 @@ def plan_additions(
             chosen, best = trial, got
     after, forecast = predicted(chosen)
     q = g.pool[chosen]
+    ref = nominal_reference(model, F_old + F[chosen].sum(axis=0), G, n_cam, g.drawn_variance, dirs,
+                            eye_to_hand=setup.eye_to_hand)  # fmt: skip
     before = predict_kept(setup, plan.q, F_old, G, var, (plan.free_idx, plan.offset_joints))
     return AddedPostures(
         q=q,
@@ -231,5 +233,5 @@ def plan_additions(
         candidates=len(g.pool),
         drawn_from=g.drawn_from,
         path_rad=path_length(q, home),
-        reference=nominal_reference(model, F_old + F[chosen].sum(axis=0), G, n_cam, var, dirs),
+        reference=ref,
     )

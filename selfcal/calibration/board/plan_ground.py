@@ -85,13 +85,16 @@ class PlanOptions:
 class PlanGround:
     """The common ground of a plan (:func:`plan_ground`): the candidate ``pool`` (m, n) rad and
     where it was ``drawn_from``, the ``workspace`` (w, n) rad, the aligned tool weight ``G``
-    (k, k) over it and the deviation's ``variance`` (k,)."""
+    (k, k) over it and the deviation's ``variance`` (k,), the inner parameters', and
+    ``drawn_variance`` (k,), the placement's included
+    (:class:`selfcal.calibration.board.plan_predict.Deviation`)."""
 
     pool: np.ndarray
     drawn_from: str
     workspace: np.ndarray
     G: np.ndarray
     variance: np.ndarray
+    drawn_variance: np.ndarray
 
 
 def plan_ground(setup: PlanSetup, count: int, options: PlanOptions) -> PlanGround:
@@ -111,4 +114,5 @@ def plan_ground(setup: PlanSetup, count: int, options: PlanOptions) -> PlanGroun
     qw = workspace_sample(setup, options.workspace, seed=options.seed + 1)
     model = board_model(setup)
     G = aligned_tool_weight(model, qw, setup.T_tool_tip)
-    return PlanGround(pool, where, qw, G, options.deviation.variance(model.joint_types))
+    dev, types = options.deviation, model.joint_types
+    return PlanGround(pool, where, qw, G, dev.variance(types), dev.drawn_variance(types))

@@ -24,11 +24,15 @@ postures (rank and conditioning of the identification Jacobian at the nominal,
 needs the images, may hold more (their deviation is then a further error the prediction does
 not see). A calibrated dataset's: those its ``calibration.json`` names as identified.
 
-The deviation from the drawing (:class:`Deviation`): every inner minimal parameter (not the
-placement, the board pose and the hand-eye, which the calibration always estimates) uniform
-within +-``translation_m`` (lengths) or +-``rotation_rad`` (angles), i.e. the standard
-deviation ``a / sqrt(3)``; by default 1 mm and 0.5 deg, the simulated robots' own
-(:class:`selfcal.config.scenario.PerturbationConfig`). Units: SI.
+The deviation from the drawing (:class:`Deviation`): every minimal parameter uniform within
++-``translation_m`` (lengths) or +-``rotation_rad`` (angles), i.e. the standard deviation
+``a / sqrt(3)``, independently: what the simulator draws (:func:`selfcal.sim.actual.perturb`,
+``[perturbation]``; by default 1 mm and 0.5 deg, the simulated robots' own,
+:class:`selfcal.config.scenario.PerturbationConfig`). The placement's deviation (the board pose
+and the hand-eye, which every calibration estimates) leaves no error where the placement is
+estimated, so the predictions use :meth:`Deviation.variance` (the inner parameters'); it does
+show where nothing is fitted, in the chain as drawn
+(:mod:`selfcal.calibration.board.plan_reference`: :meth:`Deviation.drawn_variance`). Units: SI.
 """
 
 from __future__ import annotations
@@ -63,13 +67,19 @@ class Deviation:
     translation_m: float = 1e-3
     rotation_rad: float = float(np.radians(0.5))
 
-    def variance(self, joint_types: tuple[str, ...]) -> np.ndarray:
-        """(k,) the variance of every minimal parameter's deviation (m^2, rad^2; the order of
-        :func:`selfcal.kinematics.mcpc.minimal_indices`), zero for the placement."""
+    def drawn_variance(self, joint_types: tuple[str, ...]) -> np.ndarray:
+        """(k,) the variance of every minimal parameter's deviation, the placement's included
+        (m^2, rad^2; the order of :func:`selfcal.kinematics.mcpc.minimal_indices`): what
+        :func:`selfcal.sim.actual.perturb` draws, uniform within the half-widths."""
         idx = minimal_indices(joint_types)
         a = np.where(param_is_angle(idx), self.rotation_rad, self.translation_m)
-        var = a**2 / 3.0
-        var[np.isin(idx, placement_indices(len(joint_types)))] = 0.0
+        return a**2 / 3.0
+
+    def variance(self, joint_types: tuple[str, ...]) -> np.ndarray:
+        """(k,) :meth:`drawn_variance` with zero for the placement, whose deviation every
+        calibration estimates (a prior on it would be wrong: the board may lie anywhere)."""
+        var = self.drawn_variance(joint_types)
+        var[np.isin(minimal_indices(joint_types), placement_indices(len(joint_types)))] = 0.0
         return var
 
 

@@ -14,16 +14,22 @@ rides on the flange, over the workspace after the best rigid alignment):
   plus the placement's and the camera's noise. The fit matches the camera's poses, not the
   flange: the hand-eye that takes up the chain's deviation where the camera sees the board
   carries it to the flange, so this is often the worse of the two;
-- the chain as drawn, nothing fitted (what the controller's own kinematics give): the
-  deviation itself at the tool point, ``sqrt(trace(G S))`` with ``G`` the aligned tool weight
-  and ``S`` the deviation's covariance (:class:`selfcal.calibration.board.plan_predict.Deviation`:
-  every inner parameter; the placement is removed by the alignment or, for the hand-eye, not
-  counted, as the deviation does not count it).
+- the chain as drawn, nothing fitted (the controller's own kinematics and the mount as drawn):
+  the deviation itself at the tool point, ``sqrt(trace(G S))`` with ``G`` the aligned tool
+  weight and ``S`` the deviation's covariance of every minimal parameter
+  (:meth:`selfcal.calibration.board.plan_predict.Deviation.drawn_variance`, what the simulator
+  draws), the placement's part as the tool point sees it: the base's is removed by the
+  alignment; eye-in-hand the tool point rides with the camera (a calibration from images
+  locates the camera; the flange sits where the drawing puts it from there), so the hand-eye's
+  deviation counts; eye-to-hand it is the flange itself, which the board mount's deviation does
+  not move. This is the RMS over the workspace of arms drawn within the deviation (the root of
+  the expected mean square); one arm's RMS scatters about it.
 
-``selfcal run`` judges a simulated calibration against the second (its validation's "nominal":
-the drawn chain and mount after the best rigid alignment). The reference is the smaller of the
-two; a plan is predicted to beat it when its prediction is at most :data:`CLEAR_MARGIN` times
-that. Units: m.
+``selfcal run`` measures both quantities so: eye-in-hand its validation's "nominal" is the
+second (the drawn chain and hand-eye, the point fixed to the camera, after the best rigid
+alignment); eye-to-hand its ``flange_centre_aligned_mm`` gives the first. The reference is the
+smaller of the two; a plan is predicted to beat it when its prediction is at most
+:data:`CLEAR_MARGIN` times that. Units: m.
 """
 
 from __future__ import annotations
@@ -35,7 +41,7 @@ import numpy as np
 from selfcal.calibration.board.nominal_fit import placement_indices
 from selfcal.calibration.board.plan_predict import Directions, predicted_with_held
 from selfcal.errors import UsageError
-from selfcal.kinematics.mcpc import MCPCModel
+from selfcal.kinematics.mcpc import MCPCModel, minimal_indices
 
 __all__ = ["CLEAR_MARGIN", "NominalReference", "drawn_error", "nominal_reference"]
 
@@ -79,6 +85,10 @@ class NominalReference:
 
     def to_json(self) -> dict:
         """plan.json's ``nominal`` section (mm)."""
+        drawn = ("the chain as drawn at the flange, nothing fitted (the board mount's deviation "
+                 "does not move it)" if self.eye_to_hand else
+                 "the chain and its camera mount as drawn, nothing fitted (what selfcal run's "
+                 "validation calls nominal)")  # fmt: skip
         return {
             "fair_nominal_tool_rms_mm": round(self.fair_m * 1000, 4),
             "drawn_tool_rms_mm": round(self.drawn_m * 1000, 4),
@@ -88,9 +98,8 @@ class NominalReference:
                 "the tool-point error without calibrating the kinematics, predicted for the same "
                 f"postures: fair nominal = the chain at its drawing with {self.placement} and the "
                 "camera fitted to the pixels, the chain's deviation less what they "
-                "absorb; drawn = the chain as drawn, nothing fitted (what selfcal run's "
-                "validation calls nominal); a plan beats the smaller clearly when predicted at "
-                "most clear_margin times it"
+                f"absorb; drawn = {drawn}; both the RMS over arms drawn within the deviation; "
+                "a plan beats the smaller clearly when predicted at most clear_margin times it"
             ),
         }
 
@@ -118,9 +127,15 @@ def nominal_reference(
     on ``[camera (n_cam), minimal (k)]``
     (:func:`selfcal.calibration.board.plan_information.frame_information` summed), of the
     calibration's chain ``model``, with the aligned tool weight ``G`` (k, k) and the deviation's
-    ``variance`` (k,); ``directions`` the model's when already computed; ``eye_to_hand`` the
-    mount (:attr:`NominalReference.placement`)."""
+    ``variance`` (k,) of every minimal parameter, the placement's included
+    (:meth:`selfcal.calibration.board.plan_predict.Deviation.drawn_variance`; the fair nominal
+    fits the placement, so its part leaves the fair nominal); ``directions`` the model's when
+    already computed; ``eye_to_hand`` the mount (:attr:`NominalReference.placement`; its tool
+    point, the flange, does not move with the board mount's deviation)."""
     dirs = directions or Directions(model)
-    M = dirs.of(placement_indices(model.n), np.zeros(0, np.int64))
-    fair = predicted_with_held(F, G, n_cam, M, variance)
-    return NominalReference(fair_m=fair, drawn_m=drawn_error(G, variance), eye_to_hand=eye_to_hand)
+    place = placement_indices(model.n)
+    M = dirs.of(place, np.zeros(0, np.int64))
+    inner = np.where(np.isin(minimal_indices(model.joint_types), place), 0.0, variance)
+    fair = predicted_with_held(F, G, n_cam, M, inner)
+    drawn = drawn_error(G, inner if eye_to_hand else variance)
+    return NominalReference(fair_m=fair, drawn_m=drawn, eye_to_hand=eye_to_hand)
