@@ -11,7 +11,7 @@ import pytest
 
 from selfcal.calibration.board.plan_predict import Deviation
 from selfcal.calibration.board.plan_reference import drawn_error
-from selfcal.cli.plan import scenario_text
+from selfcal.cli.plan_scenario import scenario_text
 from selfcal.config.scenario import PerturbationConfig, load_scenario
 from selfcal.estimation.joint_report import aligned_tool_weight
 from selfcal.io.camera_file import camera_from_fov

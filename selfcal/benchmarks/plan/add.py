@@ -53,7 +53,7 @@ def wrist_cell():
 
 
 def _write(folder: Path, setup, target: Path, bp: np.ndarray, joints: str, seed: int) -> Path:
-    from selfcal.cli.plan import scenario_text
+    from selfcal.cli.plan_scenario import scenario_text
 
     folder.mkdir(parents=True, exist_ok=True)
     shutil.copyfile(target, folder / "target.toml")

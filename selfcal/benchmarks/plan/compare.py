@@ -86,7 +86,7 @@ def main(argv: list[str] | None = None) -> int:
     """Draw and print the table."""
     from multiprocessing import get_context
 
-    from selfcal.cli.plan import scenario_text
+    from selfcal.cli.plan_scenario import scenario_text
     from selfcal.io.plan_files import joints_csv
     from selfcal.robot.definition import models_dir
 

@@ -54,7 +54,7 @@ def achieved(setup, q: np.ndarray, qw: np.ndarray, seed: int, folder: Path) -> f
     folder under ``folder``; NaN when the calibration fails."""
     from selfcal.calibration.board.dataset import calibrate_board_dataset
     from selfcal.cli.main import main as selfcal
-    from selfcal.cli.plan import scenario_text
+    from selfcal.cli.plan_scenario import scenario_text
     from selfcal.errors import SelfCalError
     from selfcal.io.atomic import write_text_atomic
     from selfcal.io.plan_files import joints_csv

@@ -115,7 +115,7 @@ def _items(robot: str, root: Path, render: bool, draws: int, sets: tuple[str, ..
     calibration's held parameter names giving the prediction with those held too
     (:func:`_held_prediction`)."""
     from selfcal.benchmarks.plan.compare import sets_of
-    from selfcal.cli.plan import scenario_text
+    from selfcal.cli.plan_scenario import scenario_text
     from selfcal.io.plan_files import joints_csv
     from selfcal.robot.definition import models_dir
 

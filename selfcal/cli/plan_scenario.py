@@ -1,0 +1,81 @@
+"""The scenario ``selfcal plan`` writes beside its plan: the plan replayed in simulation
+(``selfcal run PLAN/scenario.toml``), the arm's errors drawn from the plan's deviation."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+
+__all__ = ["scenario_text"]
+
+
+def scenario_text(
+    robot_ref: str,
+    camera,
+    board_pose: np.ndarray | None,
+    count: int,
+    joints: str = "joints.csv",
+    camera_pose: np.ndarray | None = None,
+    deviation=None,
+    seed: int = 1,
+) -> str:
+    """The scenario TOML that replays the plan in simulation (``selfcal run``): the robot, the
+    plan's nominal camera as the true one, the board of ``target.toml`` at ``board_pose`` (6,) mm
+    and deg (eye-in-hand) or on the flange with the camera static at ``camera_pose`` (6,) mm and
+    deg (eye-to-hand), the ``count`` postures of the CSV ``joints`` (beside it), analytic
+    corners, the arm's errors drawn (``[perturbation] seed``) from the plan's ``deviation``
+    (:class:`selfcal.calibration.board.plan_predict.Deviation`, None: its default), as the plan
+    predicts with it."""
+    from selfcal.calibration.board.plan_predict import Deviation
+
+    dev = deviation or Deviation()
+    mm, deg = dev.translation_m * 1000.0, float(np.degrees(dev.rotation_rad))
+    v = dict(zip(camera.names, camera.values().tolist()))
+    W, H = camera.width, camera.height
+    lens = {n: v[n] for n in camera.names[5:] if v[n] != 0.0}
+    dist = ", ".join(f"{k} = {x!r}" for k, x in lens.items())
+    free = ", ".join(f'"{n}"' for n in camera.free)
+    if camera_pose is None:
+        assert board_pose is not None
+        pose = ", ".join(f"{x:.6g}" for x in board_pose)
+        setup = ""
+        where = f"board_pose = [{pose}]  # mm, deg: the printed board's centre in the base frame, its rotation\n"
+    else:
+        pose = ", ".join(f"{x:.10g}" for x in camera_pose)
+        setup = ('setup = "eye-to-hand"  # the camera static, the board on the flange\n'
+                 f"pose = [{pose}]  # mm, deg: the camera's centre in the base frame, its rotation\n")  # fmt: skip
+        where = ""
+    return f"""# Written by `selfcal plan`: the plan replayed in simulation, `selfcal run scenario.toml`.
+# The camera below is the plan's nominal camera, simulated as the true one; the robot's errors
+# are drawn from the plan's deviation ([perturbation]; another seed draws another arm).
+[robot]
+model = {json.dumps(robot_ref)}
+
+[camera]
+{setup}count = 1
+resolution = [{W}, {H}]
+model = "{camera.model_name}"
+fx = {v["fx"]!r}
+mu = {v["mu"]!r}
+principal_point_offset_px = [{v["cx"] - (W - 1) / 2:.6g}, {v["cy"] - (H - 1) / 2:.6g}]
+skew_px = {v["skew"]!r}
+distortion = {{ {dist} }}
+free = [{free}]
+
+[target]
+board = "target.toml"
+{where}
+[trajectory]
+kind = "file"
+joints = {json.dumps(joints)}
+poses = {count}
+
+[perturbation]
+seed = {seed}
+translation_mm = {mm:.10g}  # every length of the chain and its mount uniform within +-this
+rotation_deg = {deg:.10g}  # every angle likewise: the plan's --deviation-mm/--deviation-deg
+
+[noise]
+render = false  # analytic corners; true renders the MuJoCo scene
+"""
