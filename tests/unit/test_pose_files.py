@@ -75,6 +75,14 @@ def test_bad_value_named_by_line_and_column(tmp_path):
         read_poses(f)
 
 
+def test_rotation_too_large_to_compute_is_named(tmp_path):
+    """A rotation vector whose norm overflows gave a NaN pose silently (found by the fuzz test)."""
+    f = tmp_path / "p.csv"
+    f.write_text("x,y,z,rx,ry,rz\n0.1,0.2,0.3,0,0,0\n0.1,0.2,0.3,1.34e154,1.34e154,0\n")
+    with pytest.raises(PoseFileError, match=r"line 3: the orientation \(rx, ry, rz\)"):
+        read_poses(f, "ur-rotvec", "m")
+
+
 def test_quaternion_in_the_wrong_order_is_named(tmp_path):
     f = tmp_path / "p.csv"
     f.write_text("x_mm,y_mm,z_mm,q1,q2,q3,q4\n1,2,3,1,0,0,0\n1,2,3,0.5,0.5,0.5,0.9\n")

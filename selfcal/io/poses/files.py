@@ -202,6 +202,15 @@ def _read_csv(path: Path, rotation: str | None, units: str | None) -> PoseRows:
                 fix="check the columns' order and names (qx,qy,qz,qw; ABB q1..q4 = w,x,y,z)",
             )
     T = make_pose(rotation_matrices(conv, O_arr), np.array(P) * POSE_UNITS[unit])
+    broken = ~np.isfinite(T).all(axis=(1, 2))
+    if broken.any():
+        k = int(np.flatnonzero(broken)[0])
+        cols = ", ".join(header[i] for i in irot)
+        raise PoseFileError(
+            f"{path}, line {lines[k]}: the orientation ({cols}) = "
+            f"{', '.join(f'{x:g}' for x in O_arr[k])} gives no rotation (too large to compute)",
+            fix=f"give the orientation as {conv} angles of an ordinary size",
+        )
     return PoseRows(T, tuple(names) if iimg is not None else None, conv, unit, path)
 
 
