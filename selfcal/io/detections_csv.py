@@ -176,9 +176,10 @@ def _dictionary(a: np.ndarray, sel: np.ndarray, first: np.ndarray, key: str,
     return out
 
 
-def _twice(path: Path, a: np.ndarray, sel: np.ndarray, slot: np.ndarray, what: str
+def _twice(path: Path, a: np.ndarray, sel: np.ndarray, slot: np.ndarray, key: str
            ) -> DatasetError | None:  # fmt: skip
-    """An error naming the second row of a ``slot`` given twice, or None."""
+    """An error naming the second row of a ``slot`` given twice (the marker and its corner,
+    or the feature, by ``key``'s id), or None."""
     _, first, counts = np.unique(slot, return_index=True, return_counts=True)
     if np.all(counts == 1):
         return None
@@ -186,7 +187,9 @@ def _twice(path: Path, a: np.ndarray, sel: np.ndarray, slot: np.ndarray, what: s
     seen[first] = True
     again = int(np.flatnonzero(~seen)[0])
     j, j0 = int(sel[again]), int(sel[np.flatnonzero(slot == slot[again])[0]])
-    return _error(path, j, f"{what} of frame {a['index'][j]} ({a['camera'][j]}) given twice "
+    what = (f"corner {a['corner'][j]} of marker {a[key][j]}" if key == "marker_id"
+            else f"feature {a[key][j]}")  # fmt: skip
+    return _error(path, j, f"{what} in frame {a['index'][j]} ({a['camera'][j]}) given twice "
                   f"(first on line {j0 + 2})")  # fmt: skip
 
 
@@ -209,7 +212,7 @@ def marker_corners(path: Path, lines: list[str], keep: np.ndarray) -> Detections
         return {}
     first, group = _groups(a, sel, "marker_id")
     slot = group * 4 + a["corner"][sel]
-    if (twice := _twice(path, a, sel, slot, "a marker's corner")) is not None:
+    if (twice := _twice(path, a, sel, slot, "marker_id")) is not None:
         raise twice
     have = np.bincount(slot, minlength=4 * len(first)).reshape(-1, 4)
     lacking = np.flatnonzero(have.min(axis=1) == 0)
@@ -235,7 +238,7 @@ def board_features(path: Path, lines: list[str], keep: np.ndarray) -> Detections
     if not len(sel):
         return {}
     first, group = _groups(a, sel, "feature_id")
-    if (twice := _twice(path, a, sel, group, "a feature")) is not None:
+    if (twice := _twice(path, a, sel, group, "feature_id")) is not None:
         raise twice
     uv = np.stack([a["u_px"][sel], a["v_px"][sel]], axis=1)[first].reshape(-1, 1, 2)
     return _dictionary(a, sel, first, "feature_id", uv)

@@ -70,7 +70,7 @@ def test_a_quoted_row_is_read_unquoted():
     [
         (
             lambda ls: ls + [ls[0]],
-            r"line 10: a marker's corner of frame 0 \(left\) given twice \(first on line 2\)",
+            r"line 10: corner 0 of marker 3 in frame 0 \(left\) given twice \(first on line 2\)",
         ),
         (
             lambda ls: [x for x in ls if not x.startswith("0,left,3,2,")],
@@ -100,7 +100,7 @@ def test_a_boards_features_in_the_order_of_their_rows():
     got = board_features(PATH, lines, KEEP)
     assert same(got, by_row(lines, corners=False)) and list(got[(2, "left")]) == [7, 1]
     with pytest.raises(
-        DatasetError, match=r"line 7: a feature of frame 0 \(left\) given twice \(first on line 3\)"
+        DatasetError, match=r"line 7: feature 3 in frame 0 \(left\) given twice \(first on line 3\)"
     ):
         board_features(PATH, [*lines, "0,left,3,3.0,4.0"], KEEP)
     with pytest.raises(DatasetError, match="line 3: 6 columns, the file's are index, camera, "
