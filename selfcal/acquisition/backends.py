@@ -342,10 +342,31 @@ def open_robot(
     return robot, hooks
 
 
+def _flange_cameras_only(s: Scenario, setup: SimSetup, what: str) -> None:
+    """Refuse an eye-to-hand scenario for ``what`` renders the cameras on the flange: its camera
+    stands still and its board rides on the flange, which the flange cameras' scene
+    (:class:`selfcal.sim.sim_robot.SimRobot`) does not hold.
+
+    Raises:
+        ConfigError: an eye-to-hand scenario, naming its file and ``[camera] setup``.
+    """
+    if setup.static is not None:
+        raise ConfigError(
+            f'{s.source}: [camera] setup = "eye-to-hand": {what} renders the cameras on the '
+            "flange, and this scenario's camera stands still with the board on the flange",
+            fix="simulate it with `selfcal run` or `selfcal acquire` (they render the still "
+            "camera), or give a scenario with the camera on the flange",
+        )
+
+
 def make_sim_robot(s: Scenario, setup: SimSetup | None = None):
     """The scenario's simulated actual robot (``selfcal.sim.sim_robot.SimRobot``): actual model, rig,
-    marker field, image noise and seeds as the scenario says."""
+    marker field, image noise and seeds as the scenario says; the cameras on the flange (an
+    eye-to-hand scenario is a :class:`ConfigError`: :func:`open_robot` simulates its still
+    camera).
+    """
     setup = setup or sim_setup(s)
+    _flange_cameras_only(s, setup, "the rendered arm (of `selfcal emulate`, `selfcal diagnose`)")
     rig = setup.rig()
     return SimRobot(
         setup.robot,
@@ -385,9 +406,14 @@ def render_posture(
     robot: RobotDef, q: np.ndarray, out: Path, config: str | None = None, model: str | None = None
 ) -> tuple[Path, Path]:
     """Render the (nominal, unperturbed) robot's stereo pair at posture ``q`` (rad) into ``out``;
-    ``model``: what ``robot`` was loaded from (a name or a robot file; default its name)."""
+    ``model``: what ``robot`` was loaded from (a name or a robot file; default its name).
+
+    Raises:
+        ConfigError: an eye-to-hand scenario (its camera is not on the flange).
+    """
     s = load_scenario(config, overrides={"robot": {"model": model or robot.name}})
     setup = sim_setup(s)
+    _flange_cameras_only(s, setup, "`selfcal render`")
     rig = setup.rig()
     out.mkdir(parents=True, exist_ok=True)
     board = None if setup.T_world_board is None else (setup.board, setup.T_world_board)

@@ -99,7 +99,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "emulate",
         help="run the ACL controller emulator until Ctrl-C",
         description="Run the ACL controller emulator until Ctrl-C. With a scenario TOML the arm is "
-        "that scenario's simulated robot (its injected errors, rendered stereo frames); with an "
+        "that scenario's simulated robot (its injected errors, the flange cameras' rendered "
+        "frames; an eye-to-hand scenario is refused); with an "
         "[emulator] TOML or nothing, a kinematic arm. Prints the pty path, the TCP address and "
         "the [robot.hardware] table to paste into a scenario.",
     )

@@ -314,8 +314,8 @@ def build_parser() -> argparse.ArgumentParser:
     sp = add(
         "render",
         cmd_render,
-        "render the stereo pair at a posture: OUT/left.png, OUT/right.png; prints their paths as "
-        "JSON",
+        "render the flange cameras' stereo pair at a posture: OUT/left.png, OUT/right.png; prints "
+        "their paths as JSON (an eye-to-hand scenario is refused)",
     )
     add_scenario_arg(sp, "for the robot, camera and target")
     sp.add_argument("--robot", default=None, help="robot model (default: the scenario's)")

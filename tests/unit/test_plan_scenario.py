@@ -5,6 +5,7 @@ from __future__ import annotations
 import re
 
 import numpy as np
+import pytest
 
 from selfcal.acquisition.backends import planning_inputs
 from selfcal.acquisition.simulator_setup import sim_setup
@@ -104,3 +105,21 @@ def test_a_board_scenarios_simulation_has_no_marker_field(tmp_path):
         assert ("marker_field" in doc) == has_field
         assert (Truth.from_json(doc).marker_field is not None) == has_field
         assert (setup.T_world_board is not None) == (not has_field)
+
+
+def test_what_renders_the_flange_cameras_refuses_an_eye_to_hand_scenario(tmp_path):
+    """The emulator's rendered arm and `selfcal render` draw the cameras on the flange: an
+    eye-to-hand scenario (its board on the flange, no board on the table since 62c2937) is
+    refused by name, not an internal error from a board without a table pose."""
+    from selfcal.acquisition.backends import make_sim_robot, render_posture
+    from selfcal.config.scenario import ConfigError, scenarios_dir
+    from selfcal.robot.definition import load_robot
+
+    path = scenarios_dir() / "eye-to-hand.toml"
+    named = re.escape(f'{path}: [camera] setup = "eye-to-hand"')
+    with pytest.raises(ConfigError, match=named + ".*`selfcal emulate`"):
+        make_sim_robot(load_scenario(path))
+    robot = load_robot("ur5e")
+    with pytest.raises(ConfigError, match=named + ": `selfcal render` renders the cameras"):
+        render_posture(robot, robot.home, tmp_path / "r", config=str(path))
+    assert not (tmp_path / "r").exists()
