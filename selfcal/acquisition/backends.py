@@ -392,8 +392,13 @@ def robot_reference(model: str) -> str:
 
 def make_kinematic_robot(s: Scenario, setup: SimSetup | None = None) -> KinematicRobot:
     """The scenario's simulated actual robot for the analytic path
-    (:class:`selfcal.sim.kinematic_robot.KinematicRobot`: forward kinematics, no MuJoCo, no images)."""
+    (:class:`selfcal.sim.kinematic_robot.KinematicRobot`: forward kinematics, no MuJoCo, no images).
+
+    Raises:
+        ConfigError: an eye-to-hand scenario (:func:`static_robot` simulates it).
+    """
     setup = setup or sim_setup(s)
+    _flange_cameras_only(s, setup, "the analytic flange-camera robot")
     rig = setup.rig()
     board = None if setup.board is None else (setup.board, setup.T_world_board)
     return KinematicRobot(

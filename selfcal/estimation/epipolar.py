@@ -153,9 +153,9 @@ def _all_pairs(vis: np.ndarray, min_shared: int) -> tuple[np.ndarray, np.ndarray
     # counted by a BLAS product of floats, exact (float32 below 2^24 points): an integer
     # product is not BLAS and took several times as long at 600 views
     vf = vis.astype(np.float32 if vis.shape[1] < 2**24 else np.float64)
-    shared = (vf @ vf.T).astype(np.int64)
+    shared = vf @ vf.T
     iu, ju = np.triu_indices(len(vis), 1)
-    s = shared[iu, ju]
+    s = shared[iu, ju].astype(np.int64)  # the pairs only: the whole table stays float
     ok = s >= min_shared
     return iu[ok], ju[ok], int(np.max(s, initial=0))
 

@@ -407,7 +407,7 @@ class Dataset:
                 the line and the column).
         """
         path = self._detections_path()
-        return board_features(path, _csv_lines(path)[1:], self.indices)
+        return board_features(path, _csv_lines(path)[1:], self.indices, self.info.cameras)
 
     def _detections_path(self) -> Path:
         path = self.root / "detections.csv"
@@ -430,4 +430,4 @@ class Dataset:
                 f"{path} holds a board's features, not the marker field's corners",
                 fix="read it with Dataset.read_features (the board route)",
             )
-        return marker_corners(path, _csv_lines(path)[1:], self.indices)
+        return marker_corners(path, _csv_lines(path)[1:], self.indices, self.info.cameras)

@@ -110,11 +110,14 @@ def _row_fault(path: Path, row: int, line: str, header: list[str]) -> DatasetErr
     return None
 
 
-def _columns(path: Path, lines: list[str], header: list[str]) -> np.ndarray:
-    """The data rows ``lines`` (header excluded) as a structured array of ``header``'s columns.
+def _columns(path: Path, lines: list[str], header: list[str], cameras: tuple[str, ...]
+             ) -> np.ndarray:  # fmt: skip
+    """The data rows ``lines`` (header excluded) as a structured array of ``header``'s columns,
+    every row's camera one of ``cameras`` (the dataset's, ``dataset.json``).
 
     Raises:
-        DatasetError: the first row that does not parse, naming line and column.
+        DatasetError: the first row that does not parse or names another camera, naming line
+            and column.
     """
     lines = _unquoted(path, lines)
     dtype = [(name, _TYPES[name]) for name in header]
@@ -136,6 +139,10 @@ def _columns(path: Path, lines: list[str], header: list[str]) -> np.ndarray:
     if len(long):  # numpy cut it to its width
         raise _error(path, int(long[0]), f"a name of {_CAMERA_CHARS} characters or more (at "
                      f"most {_CAMERA_CHARS - 1})", column="camera")  # fmt: skip
+    other = np.flatnonzero(~np.isin(a["camera"], np.array(cameras, dtype=a["camera"].dtype)))
+    if len(other):  # its rows would be read under a camera the dataset does not have
+        raise _error(path, int(other[0]), f"camera {str(a['camera'][other[0]])!r} is not one of "
+                     f"the dataset's cameras {list(cameras)} (dataset.json)", column="camera")  # fmt: skip
     for name in ("u_px", "v_px"):
         bad = np.flatnonzero(~np.isfinite(a[name]))
         if len(bad):
@@ -193,15 +200,16 @@ def _twice(path: Path, a: np.ndarray, sel: np.ndarray, slot: np.ndarray, key: st
                   f"(first on line {j0 + 2})")  # fmt: skip
 
 
-def marker_corners(path: Path, lines: list[str], keep: np.ndarray) -> Detections:
+def marker_corners(path: Path, lines: list[str], keep: np.ndarray, cameras: tuple[str, ...]
+                   ) -> Detections:  # fmt: skip
     """``(frame index, camera) -> {marker id: (4, 2) corners px}`` of a marker field's data rows
     ``lines`` (header excluded) of ``path``, the frames ``keep`` only, in the order of each
-    frame's and each marker's first row (module docstring).
+    frame's and each marker's first row (module docstring); ``cameras``: the dataset's.
 
     Raises:
         DatasetError: a row or a marker that is wrong, naming the file and the line.
     """
-    a = _columns(path, lines, MARKER_HEADER)
+    a = _columns(path, lines, MARKER_HEADER, cameras)
     out_of_range = np.flatnonzero((a["corner"] < 0) | (a["corner"] > 3))
     if len(out_of_range):
         j = int(out_of_range[0])
@@ -226,14 +234,16 @@ def marker_corners(path: Path, lines: list[str], keep: np.ndarray) -> Detections
     return _dictionary(a, sel, first, "marker_id", C)
 
 
-def board_features(path: Path, lines: list[str], keep: np.ndarray) -> Detections:
+def board_features(path: Path, lines: list[str], keep: np.ndarray, cameras: tuple[str, ...]
+                   ) -> Detections:  # fmt: skip
     """``(frame index, camera) -> {feature id: (1, 2) px}`` of a board's data rows ``lines``
-    (header excluded) of ``path``, the frames ``keep`` only, in the order of the rows.
+    (header excluded) of ``path``, the frames ``keep`` only, in the order of the rows;
+    ``cameras``: the dataset's.
 
     Raises:
         DatasetError: a row that is wrong, naming the file and the line.
     """
-    a = _columns(path, lines, FEATURE_HEADER)
+    a = _columns(path, lines, FEATURE_HEADER, cameras)
     sel = np.flatnonzero(np.isin(a["index"], keep))
     if not len(sel):
         return {}

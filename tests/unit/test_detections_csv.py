@@ -18,6 +18,7 @@ from selfcal.io.detections_csv import board_features, detection_rows, marker_cor
 
 PATH = Path("data") / "detections.csv"
 KEEP = np.arange(4)
+CAMS = ("left", "right")
 
 
 def rows_of(markers) -> list[str]:
@@ -54,7 +55,7 @@ def test_the_corners_of_the_frames_kept_in_the_order_of_their_first_rows():
     markers = [(i, c, m) for i in (3, 0, 7, 2) for c in ("right", "left") for m in (31, 3, 12)]
     lines = rows_of(markers)
     lines.remove(next(x for x in lines if x.startswith("7,left,3,2,")))  # not kept: no check
-    got = marker_corners(PATH, lines, KEEP)
+    got = marker_corners(PATH, lines, KEEP, CAMS)
     assert same(got, by_row(lines))
     assert (7, "left") not in got and len(got) == 6 and all(len(v) == 3 for v in got.values())
 
@@ -62,7 +63,7 @@ def test_the_corners_of_the_frames_kept_in_the_order_of_their_first_rows():
 def test_a_quoted_row_is_read_unquoted():
     lines = sorted(rows_of([(0, "left", 3)]))
     quoted = ['"0","left",3,{},{},{}'.format(*x.split(",")[3:]) for x in lines]
-    assert same(marker_corners(PATH, quoted, KEEP), by_row(lines))
+    assert same(marker_corners(PATH, quoted, KEEP, CAMS), by_row(lines))
 
 
 @pytest.mark.parametrize(
@@ -86,26 +87,31 @@ def test_a_quoted_row_is_read_unquoted():
         (lambda ls: ls + ["5,left,9,0,1.0,inf"], "line 10, column 'v_px': inf: a pixel"),
         (lambda ls: ls + ["0," + "c" * 70 + ",9,0,1.0,2.0"], "line 10, column 'camera': a name"),
         (lambda ls: ls + ['0,"a,b",9,0,1.0,2.0'], "line 10: the value 'a,b' holds a comma"),
+        (
+            lambda ls: ls + ["0, left,9,0,1.0,2.0"],
+            "line 10, column 'camera': camera ' left' is not one of the dataset's cameras \\['left', 'right'\\]",
+        ),
+        (lambda ls: ls + ["0,,9,0,1.0,2.0"], "line 10, column 'camera': camera '' is not one"),
     ],
 )
 def test_a_wrong_row_or_marker_is_named_by_file_line_and_column(change, named):
     lines = change(sorted(rows_of([(0, "left", 3), (0, "right", 3)])))
     with pytest.raises(DatasetError, match=re.escape(str(PATH)) + ", " + named):
-        marker_corners(PATH, lines, KEEP)
+        marker_corners(PATH, lines, KEEP, CAMS)
 
 
 def test_a_boards_features_in_the_order_of_their_rows():
     lines = ["2,left,7,1.5,2.5", "0,left,3,3.0,4.0", "2,left,1,5.0,6.0", "9,left,1,0,0",
              "0,right,3,7.0,8.0"]  # fmt: skip
-    got = board_features(PATH, lines, KEEP)
+    got = board_features(PATH, lines, KEEP, CAMS)
     assert same(got, by_row(lines, corners=False)) and list(got[(2, "left")]) == [7, 1]
     with pytest.raises(
         DatasetError, match=r"line 7: feature 3 in frame 0 \(left\) given twice \(first on line 3\)"
     ):
-        board_features(PATH, [*lines, "0,left,3,3.0,4.0"], KEEP)
+        board_features(PATH, [*lines, "0,left,3,3.0,4.0"], KEEP, CAMS)
     with pytest.raises(DatasetError, match="line 3: 6 columns, the file's are index, camera, "
                                            "feature_id, u_px, v_px"):  # fmt: skip
-        board_features(PATH, [lines[0], "0,left,3,0,1.0,2.0"], KEEP)
+        board_features(PATH, [lines[0], "0,left,3,0,1.0,2.0"], KEEP, CAMS)
 
 
 def test_the_rows_written_are_read_back_to_the_written_precision():
@@ -115,7 +121,7 @@ def test_the_rows_written_are_read_back_to_the_written_precision():
     feats = {"left": {7: rng.uniform(0, 640, (1, 2))}}
     for data, board, read in ((dets, False, marker_corners), (feats, True, board_features)):
         rows = detection_rows(3, ("left", "right"), data, board=board)
-        got = read(PATH, [",".join(map(str, r)) for r in rows], KEEP)
+        got = read(PATH, [",".join(map(str, r)) for r in rows], KEEP, CAMS)
         assert list(got) == [(3, c) for c in data] and list(got[(3, "left")]) == sorted(
             data["left"]
         )
@@ -140,7 +146,7 @@ def test_it_reads_what_the_rows_say_or_names_a_line(markers, uv, extra, rnd):
     lines += [",".join(r) for r in extra]
     rnd.shuffle(lines)
     try:
-        got = marker_corners(PATH, lines, KEEP)
+        got = marker_corners(PATH, lines, KEEP, CAMS)
     except DatasetError as exc:
         assert re.match(re.escape(str(PATH)) + r", line \d+", exc.message), exc.message
         return

@@ -108,10 +108,10 @@ def test_a_board_scenarios_simulation_has_no_marker_field(tmp_path):
 
 
 def test_what_renders_the_flange_cameras_refuses_an_eye_to_hand_scenario(tmp_path):
-    """The emulator's rendered arm and `selfcal render` draw the cameras on the flange: an
+    """The emulator's rendered arm, `selfcal render` and the analytic robot put the cameras on the flange: an
     eye-to-hand scenario (its board on the flange, no board on the table since 62c2937) is
     refused by name, not an internal error from a board without a table pose."""
-    from selfcal.acquisition.backends import make_sim_robot, render_posture
+    from selfcal.acquisition.backends import make_kinematic_robot, make_sim_robot, render_posture
     from selfcal.config.scenario import ConfigError, scenarios_dir
     from selfcal.robot.definition import load_robot
 
@@ -119,6 +119,8 @@ def test_what_renders_the_flange_cameras_refuses_an_eye_to_hand_scenario(tmp_pat
     named = re.escape(f'{path}: [camera] setup = "eye-to-hand"')
     with pytest.raises(ConfigError, match=named + ".*`selfcal emulate`"):
         make_sim_robot(load_scenario(path))
+    with pytest.raises(ConfigError, match=named + ": the analytic flange-camera robot"):
+        make_kinematic_robot(load_scenario(path))
     robot = load_robot("ur5e")
     with pytest.raises(ConfigError, match=named + ": `selfcal render` renders the cameras"):
         render_posture(robot, robot.home, tmp_path / "r", config=str(path))
