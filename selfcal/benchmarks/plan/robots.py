@@ -249,6 +249,12 @@ def main(argv: list[str] | None = None) -> int:
         default=ViewRule.max_tilt_deg,
         help="the view rule's largest board tilt (selfcal plan's by default)",
     )
+    ap.add_argument(
+        "--min-module-px",
+        type=float,
+        default=ViewRule.min_module_px,
+        help="the view rule's shortest marker cell (selfcal plan's by default)",
+    )
     ap.add_argument("--jobs", type=int, default=1)
     ap.add_argument(
         "--from-draws",
@@ -259,9 +265,11 @@ def main(argv: list[str] | None = None) -> int:
                     help="the scenarios and draws.jsonl, under PATH[-RULE]/; a run resumes its draws")  # fmt: skip
     ap.add_argument("--write-docs", action="store_true")
     a = ap.parse_args(argv)
-    rule = ViewRule(min_pitch_px=a.min_pitch_px, max_tilt_deg=a.max_tilt_deg)
+    rule = ViewRule(min_pitch_px=a.min_pitch_px, max_tilt_deg=a.max_tilt_deg,
+                    min_module_px=a.min_module_px)  # fmt: skip
     path = "rendered" if a.render else "analytic"
-    folder = path if rule == ViewRule() else f"{path}-{a.min_pitch_px:g}px-{a.max_tilt_deg:g}deg"
+    folder = path if rule == ViewRule() else \
+        f"{path}-{a.min_pitch_px:g}px-{a.max_tilt_deg:g}deg-{a.min_module_px:g}cell"  # fmt: skip
     root = Path(a.out) / folder
     items, predicted, held = [], {}, {}
     for robot in a.robot:

@@ -9,10 +9,10 @@ posture ``q`` (rad, within the robot file's joint ranges) is a candidate when
   or the board) neither folds onto itself nor touches the table (the base frame's z = 0 plane),
   nor enters a keep-out box (:mod:`selfcal.kinematics.keep_out`) or the board's own plate
   (eye-in-hand); eye-to-hand the board's plate stays above the table and out of the keep-out
-  boxes, the arm (but the wrist that holds the board) out of the plate, the arm
-  :data:`CAMERA_CLEARANCE_M` from the static camera, and no link crosses the lines of sight from
-  the camera to the board's printed corners and centre (the capsule radius and clearance to
-  spare);
+  boxes, the arm (but the wrist that holds the board) out of the plate and the arm
+  :data:`CAMERA_CLEARANCE_M` from the static camera;
+- either mount: no link of the arm and no keep-out box crosses the lines of sight from the
+  camera to the board's printed image (:mod:`selfcal.calibration.board.plan_sight`);
 - the nominal camera sees every feature of the board and every corner of its printed image
   inside the image with :attr:`ViewRule.margin_px` to spare, at least
   :attr:`ViewRule.min_depth_m` in front of it;
@@ -20,10 +20,14 @@ posture ``q`` (rad, within the robot file's joint ranges) is a candidate when
   the board) is at most :attr:`ViewRule.max_tilt_deg` (beyond it the far squares foreshorten
   past what the corner detectors handle);
 - the board is large enough in the image: one feature pitch (the closest two features) spans at
-  least :attr:`ViewRule.min_pitch_px` along each edge of the feature grid.
+  least :attr:`ViewRule.min_pitch_px` along each edge of the feature grid, and (a board with
+  markers) one cell of its markers spans at least :attr:`ViewRule.min_module_px` at every
+  feature in the direction the view foreshortens most (:func:`module_m`): measured on rendered
+  plans of the three simulated robots (docs/plan.md), the ChArUco detector lost 0.1 - 2 % of
+  the corners whose cell spanned 1.6 - 2.4 px and none at 2.5 px and more.
 
-Eye-to-hand asks a longer pitch and a smaller tilt (:data:`EYE_TO_HAND_RULE`, measured on
-rendered replays).
+Eye-to-hand asks a longer pitch and a smaller tilt and no marker cell size
+(:data:`EYE_TO_HAND_RULE`, measured on rendered replays).
 
 Candidates are drawn uniformly in the robot file's planning window around home
 (``[planning] span_deg``); when too few lie there (a board far from where home looks), in the
@@ -37,6 +41,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from selfcal.calibration.board.plan_sight import sight_clear, sight_grid
 from selfcal.camera import CameraModel
 from selfcal.errors import InputError
 from selfcal.kinematics.forward import fk_tool
@@ -53,6 +58,7 @@ __all__ = [
     "ViewRule",
     "PlanSetup",
     "board_views_ok",
+    "module_m",
     "feasible",
     "candidate_pool",
 ]
@@ -70,9 +76,10 @@ class ViewRule:
     min_depth_m: float = 0.05
     max_tilt_deg: float = 60.0
     min_pitch_px: float = 12.0
+    min_module_px: float = 2.5
 
 
-EYE_TO_HAND_RULE = ViewRule(min_pitch_px=24.0, max_tilt_deg=45.0)
+EYE_TO_HAND_RULE = ViewRule(min_pitch_px=24.0, max_tilt_deg=45.0, min_module_px=0.0)
 """What an eye-to-hand view asks: a longer pitch and a smaller tilt than eye-in-hand's default.
 Measured: rendered with MuJoCo and detected (the slow test of tests/integration/test_plan_cli.py),
 a ChArUco on an arm's flange 0.5 - 0.9 m from a still camera lost corners in frames of a
@@ -192,15 +199,57 @@ def board_views_ok(setup: PlanSetup, T_cam_board: np.ndarray) -> np.ndarray:
     ok = T_cb[:, 2, 2] >= np.cos(np.radians(rule.max_tilt_deg))
     X = setup.board_points()
     ok[ok] = _in_view(setup, T_cb[ok], X[-4:])  # the printed corners first: cheap
-    ok[ok] = _in_view(setup, T_cb[ok], X)  # then every feature (a lens bends the edges)
     grid, pitch = _pitch_edges(setup.board)
+    module = module_m(setup.board) if rule.min_module_px > 0 else None
+    if module is not None:  # the feature grid's corners first (most views fail there): cheap
+        ok[ok] = _module_px(setup, T_cb[ok], grid, module) >= rule.min_module_px
+    ok[ok] = _in_view(setup, T_cb[ok], X)  # then every feature (a lens bends the edges)
     Gc = np.einsum("mij,kj->mki", T_cb[ok, :3, :3], grid) + T_cb[ok, None, :3, 3]
     uv = setup.camera.project(Gc)
     side_px = np.linalg.norm(uv - np.roll(uv, -1, axis=1), axis=-1)  # (m, 4)
     side_m = np.linalg.norm(grid - np.roll(grid, -1, axis=0), axis=-1)  # (4,)
     has = side_m > 1e-9  # a one-row grid has two sides of zero length
     ok[ok] = (side_px[:, has] / side_m[has] * pitch).min(axis=1) >= rule.min_pitch_px
+    if module is not None and ok.any():  # at every feature
+        ok[ok] = _module_px(setup, T_cb[ok], X[:-4], module) >= rule.min_module_px
     return ok
+
+
+def _module_words(setup: PlanSetup) -> str:
+    """The marker cell rule for a message ("" for a board without markers)."""
+    module = module_m(setup.board)
+    if module is None or setup.rule.min_module_px <= 0:
+        return ""
+    return (
+        f", every cell of its {module * 1000:.2f} mm marker cells at least "
+        f"{setup.rule.min_module_px:g} px across"
+    )
+
+
+def module_m(board: Board) -> float | None:
+    """The side of one cell of the board's markers (m): a ChArUco's marker or an AprilGrid's
+    tag over its bits plus their black border (``markerSize + 2``); None for a board without
+    markers (a chessboard, a circles grid)."""
+    cv_board = getattr(board, "cv_board", None)
+    if cv_board is None:
+        return None
+    b = cv_board()
+    length = b.getMarkerLength() if hasattr(b, "getMarkerLength") else None
+    if length is None:
+        return None
+    return float(length) / (b.getDictionary().markerSize + 2)
+
+
+def _module_px(setup: PlanSetup, T_cb: np.ndarray, X: np.ndarray, module: float) -> np.ndarray:
+    """(m,) the shortest image length (px) of one marker cell ``module`` (m) over the board
+    points ``X`` (k, 3): at each point the smaller singular value of the projection's derivative
+    along the board's plane (px per m) times the cell, so a board turned about any axis counts
+    its foreshortened direction."""
+    R = T_cb[:, :3, :3]
+    Xc = np.einsum("mij,kj->mki", R, X) + T_cb[:, None, :3, 3]
+    _, J_uv_X, _ = setup.camera.project_jacobians(Xc)  # (m, k, 2, 3) px per m
+    J = J_uv_X @ R[:, None, :, :2]  # along the board's x and y axes: (m, k, 2, 2)
+    return np.linalg.svd(J, compute_uv=False)[..., -1].min(axis=1) * module
 
 
 def _off_board(setup: PlanSetup, q: np.ndarray) -> np.ndarray:
@@ -246,25 +295,23 @@ def _plate_clear(setup: PlanSetup, q: np.ndarray) -> np.ndarray:
     return ok & ~_in_plate(setup, Pb)
 
 
-def _sight_clear(setup: PlanSetup, q: np.ndarray, samples: int = 24) -> np.ndarray:
-    """(m,) bool, eye-to-hand: the arm keeps :data:`CAMERA_CLEARANCE_M` from the static camera,
-    and no sample of it (the board's own mount left out) lies within the capsule radius plus
-    clearance of a line of sight from the camera to the board's printed corners and centre,
-    each stopped that distance and 1 cm before the board."""
-    assert setup.T_base_cam is not None
+def _sight_clear(setup: PlanSetup, q: np.ndarray) -> np.ndarray:
+    """(m,) bool: the lines of sight from the camera to the board's printed image clear of the
+    arm and the keep-out boxes (:func:`selfcal.calibration.board.plan_sight.sight_clear`);
+    eye-to-hand also the arm :data:`CAMERA_CLEARANCE_M` from the static camera."""
     chain = setup.chain
-    g = chain.radius_m + chain.clearance_m
+    grid = sight_grid(setup.board.image(1.0).extent_m, chain.radius_m + chain.clearance_m)
+    if setup.T_base_cam is None:  # eye-in-hand: the camera on the flange, the board static
+        C = fk_tool(setup.model_cam, q)[:, :3, 3]
+        T = setup.T_base_board
+        P = np.broadcast_to(grid @ T[:3, :3].T + T[:3, 3], (len(q), *grid.shape))
+        return sight_clear(chain, q, C, P, setup.boxes, tool_is_camera=True)
     C = setup.T_base_cam[:3, 3]
     pts = chain_samples(chain, q)[:, :-SAMPLES]  # (m, s, 3) without flange -> board
     ok = np.all(np.linalg.norm(pts - C, axis=-1) > chain.radius_m + CAMERA_CLEARANCE_M, axis=1)
-    P = _plate_points(setup, q)[:, ::2]  # every other of the 3 x 3: corners, centre (m, 5, 3)
-    d = np.linalg.norm(P - C, axis=-1, keepdims=True)
-    t = np.linspace(0.0, 1.0, samples)
-    ray = C + (P - C)[:, :, None] * (t * np.maximum(1.0 - (g + 0.01) / d, 0.0))[..., None]
-    ray = ray.reshape(len(q), -1, 3)  # (m, 5 samples, 3)
-    for k in np.flatnonzero(ok):  # one posture at a time: (m, 5 samples, s) would not fit
-        near = np.linalg.norm(ray[k][:, None] - pts[k][None], axis=-1).min()
-        ok[k] = near > g
+    T = fk_tool(setup.model_tool, q[ok])
+    P = np.einsum("mij,kj->mki", T[:, :3, :3], grid) + T[:, None, :3, 3]
+    ok[ok] = sight_clear(chain, q[ok], C, P, setup.boxes, tool_is_camera=False)
     return ok
 
 
@@ -277,8 +324,8 @@ def feasible(setup: PlanSetup, q: np.ndarray) -> np.ndarray:
         lambda x: board_views_ok(setup, setup.T_cam_board(x)),
         setup.chain.ok,
         lambda x: outside_boxes(setup.chain, x, setup.boxes),
-        *((lambda x: _plate_clear(setup, x), lambda x: _sight_clear(setup, x))
-          if setup.eye_to_hand else (lambda x: _off_board(setup, x),)),
+        (lambda x: _plate_clear(setup, x)) if setup.eye_to_hand else (lambda x: _off_board(setup, x)),
+        lambda x: _sight_clear(setup, x),
     )  # fmt: skip
     for check in checks:
         if not ok.any():
@@ -357,9 +404,11 @@ def candidate_pool(
             f"none of {drawn} postures of {r.name} sees the whole board within the image "
             f"(margin {setup.rule.margin_px:g} px, board normal within "
             f"{setup.rule.max_tilt_deg:g} deg of the optical axis, a feature pitch of at least "
-            f"{setup.rule.min_pitch_px:g} px) without collision",
+            f"{setup.rule.min_pitch_px:g} px{_module_words(setup)}) without collision and with "
+            "the arm out of the camera's lines of sight",
             fix="check --board-pose (the centre of the printed board in the base frame, mm) or "
             "--camera-pose and the camera (--camera or --fov-deg/--resolution); a board too large for the view at a "
-            "working distance needs a wider lens, one too small a closer approach",
+            "working distance needs a wider lens, one too small (or its markers) a closer "
+            "approach, a longer lens, more pixels or larger markers",
         )
     return pool, where
