@@ -262,14 +262,17 @@ def main(argv: list[str] | None = None) -> int:
         help="table the draws of OUT's draws.jsonl instead of drawing",
     )
     ap.add_argument("--out", default="runs/plan-robots",
-                    help="the scenarios and draws.jsonl, under PATH[-RULE]/; a run resumes its draws")  # fmt: skip
+                    help="the scenarios and draws.jsonl, under PATH[-NOISE][-RULE]/ (the docs "
+                         "block's name too); a run resumes its draws")  # fmt: skip
     ap.add_argument("--write-docs", action="store_true")
     a = ap.parse_args(argv)
     rule = ViewRule(min_pitch_px=a.min_pitch_px, max_tilt_deg=a.max_tilt_deg,
                     min_module_px=a.min_module_px)  # fmt: skip
     path = "rendered" if a.render else "analytic"
-    folder = path if rule == ViewRule() else \
-        f"{path}-{a.min_pitch_px:g}px-{a.max_tilt_deg:g}deg-{a.min_module_px:g}cell"  # fmt: skip
+    noise = "" if a.pixel_sigma == 0.5 else f"-{a.pixel_sigma:g}px-noise"
+    rules = "" if rule == ViewRule() else \
+        f"-{a.min_pitch_px:g}px-{a.max_tilt_deg:g}deg-{a.min_module_px:g}cell"  # fmt: skip
+    folder = f"{path}{noise}{rules}"
     root = Path(a.out) / folder
     items, predicted, held = [], {}, {}
     for robot in a.robot:

@@ -9,11 +9,10 @@ link whose axis crosses the pyramid from the camera to the printed board comes w
 distance of one of them. Each line stops that distance and 1 cm before the board (a link
 touching the board is the collision checks' business). A posture is refused when
 
-- a segment of the chain, the camera's own mount left out, comes within the capsule radius
-  plus clearance of a line of sight. Eye-in-hand the camera rides on the chain: the segments
-  whose capsule holds the camera's centre are its mount (the flange -> camera piece, a wrist
-  link it sits against); eye-to-hand the board rides on it and the last segment (flange ->
-  board) is left out;
+- a segment of the chain but its last (the link the flange is on, which holds the camera
+  eye-in-hand and the board eye-to-hand) comes within the capsule radius plus clearance of a
+  line of sight. Another link near the camera counts: the ER-4u's forearm, with the camera 3.9 cm
+  from its axis, hid half the board in a rendered view (docs/plan.md);
 - a line of sight crosses a keep-out box grown by the clearance, but a box that holds the
   camera's centre (the camera's own stand or housing).
 
@@ -79,13 +78,11 @@ def sight_clear(
     C: np.ndarray,
     P: np.ndarray,
     boxes: np.ndarray,
-    *,
-    tool_is_camera: bool,
 ) -> np.ndarray:
     """(m,) bool: which postures ``q`` (m, n) rad keep every line of sight from the camera
     centre ``C`` (m, 3) or (3,) to the board points ``P`` (m, g, 3) (base frame, m) clear of the
-    arm's capsules and of the keep-out ``boxes`` (b, 6) (module docstring). ``tool_is_camera``:
-    the chain's tool is the camera (eye-in-hand), else the board (eye-to-hand)."""
+    arm's capsules and of the keep-out ``boxes`` (b, 6) (module docstring); either mount, the
+    last link holds the camera or the board and is left out."""
     q = np.atleast_2d(np.asarray(q, dtype=float))
     m = len(q)
     C = np.broadcast_to(np.asarray(C, dtype=float), (m, 3))
@@ -98,11 +95,8 @@ def sight_clear(
         a, b = sight_lines(C[k], P[k], gap + LINE_STOP_M)  # (c, g, 3)
         pts = chain.points(q[k])[:, 1:]  # F_1 .. tool: the base stands below the first joint
         s0, s1 = pts[:, :-1], pts[:, 1:]  # (c, n_seg, 3)
-        if tool_is_camera:  # the camera's mount: the segments whose capsule holds the camera
-            mount = segment_distances(s0, s1, C[k, None], C[k, None]) < gap
-        else:  # the board's mount: flange -> board
-            mount = np.zeros(s0.shape[:2], dtype=bool)
-            mount[:, -1] = True
+        mount = np.zeros(s0.shape[:2], dtype=bool)  # the last link: the camera's or board's
+        mount[:, -1] = True
         d = segment_distances(a[:, :, None], b[:, :, None], s0[:, None], s1[:, None])
         d = np.where(mount[:, None], np.inf, d)  # (c, g, n_seg)
         ok[k] = np.all(d > gap, axis=(1, 2))

@@ -305,13 +305,13 @@ def _sight_clear(setup: PlanSetup, q: np.ndarray) -> np.ndarray:
         C = fk_tool(setup.model_cam, q)[:, :3, 3]
         T = setup.T_base_board
         P = np.broadcast_to(grid @ T[:3, :3].T + T[:3, 3], (len(q), *grid.shape))
-        return sight_clear(chain, q, C, P, setup.boxes, tool_is_camera=True)
+        return sight_clear(chain, q, C, P, setup.boxes)
     C = setup.T_base_cam[:3, 3]
     pts = chain_samples(chain, q)[:, :-SAMPLES]  # (m, s, 3) without flange -> board
     ok = np.all(np.linalg.norm(pts - C, axis=-1) > chain.radius_m + CAMERA_CLEARANCE_M, axis=1)
     T = fk_tool(setup.model_tool, q[ok])
     P = np.einsum("mij,kj->mki", T[:, :3, :3], grid) + T[:, None, :3, 3]
-    ok[ok] = sight_clear(chain, q[ok], C, P, setup.boxes, tool_is_camera=False)
+    ok[ok] = sight_clear(chain, q[ok], C, P, setup.boxes)
     return ok
 
 
