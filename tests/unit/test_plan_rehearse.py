@@ -21,7 +21,8 @@ def _plan(beats: bool, rival: float | None, more: dict | None = None) -> dict:
     return {"selection": {"tool_rms_mm": 0.6, "kinematic_parameters": 18,
                           "rival_tool_rms_mm": rival,
                           "rival_kinematic_parameters": None if rival is None else 11},
-            "nominal": {"drawn_tool_rms_mm": 1.5, "fair_nominal_tool_rms_mm": 6.0},
+            "nominal": {"drawn_tool_rms_mm": 1.5, "fair_nominal_tool_rms_mm": 6.0,
+                        "clear_margin": 0.7},
             "beats_nominal": beats, "more_postures": more}  # fmt: skip
 
 
@@ -48,6 +49,7 @@ def test_aggregate_takes_the_rms_over_the_runs_and_leaves_failed_ones_out() -> N
     np.testing.assert_allclose(s["ur5e:12"]["calibrated_mm"], (np.sqrt(25.0 / 3.0), 0.0, 4.0))
     np.testing.assert_allclose(s["ur5e:12"]["fair_mm"], (np.sqrt(44.0 / 3.0), 2.0, 6.0))
     assert list(s["ur5e:12"]["kept"].items()) == [(18, 2), (11, 1)]  # most common first
+    np.testing.assert_allclose(s["ur5e:12"]["ratios"], [3.0, 4.0, 0.0])
     assert s["arm7:12"]["failed"] == 1 and s["arm7:12"]["calibrated_mm"] is None
 
 
@@ -59,16 +61,17 @@ def test_table_states_the_plans_prediction_and_verdict_and_the_runs() -> None:
         "arm7:12": _plan(False, None, {"count": 16, "tool_rms_mm": 0.663}),
     }
     lines = table(plans, rows).splitlines()
-    assert len(lines) == 4 and all(line.count("|") == 11 for line in lines)
+    assert len(lines) == 4 and all(line.count("|") == 12 for line in lines)
     ur5e = [c.strip() for c in lines[2].split("|")[1:-1]]
     # the reference is the smaller of the drawn chain and the fair nominal: 1.5 mm
     assert ur5e[:6] == ["ur5e 12", "18: 0.600 (11: 1.200)", "beats: 0.40 (smaller set 0.80)",
                         "1.500", "6.000", "2"]  # fmt: skip
     assert ur5e[6] == f"{np.sqrt((0.09 + 0.16) / 2):.3f} (0.30 - 0.40)"
-    assert ur5e[7:] == ["1.500", "6.000", "18 x 2"]  # one value: no range
+    # the drawn chain and the fair nominal the same in both runs: no range
+    assert ur5e[7:] == ["1.500", "6.000", "18 x 2", "0.20 - 0.27 (at most 0.7 in 2 of 2)"]
     arm7 = [c.strip() for c in lines[3].split("|")[1:-1]]
     assert arm7[1:3] == ["18: 0.600", "NOT: 0.40; 16 postures: 0.663 mm"]
-    assert arm7[5:] == ["0", "", "", "", ""]  # no runs yet
+    assert arm7[5:] == ["0", "", "", "", "", ""]  # no runs yet
 
 
 def test_plan_args_are_the_docs_commands() -> None:

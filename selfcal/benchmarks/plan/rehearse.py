@@ -118,13 +118,15 @@ def _plan(item: tuple[str, str]) -> dict:
 def aggregate(rows: list[dict]) -> dict:
     """Per plan of the run ``rows`` (:func:`rehearse_row`'s): ``runs``, ``failed``, for each
     of ``calibrated_mm``, ``drawn_mm``, ``fair_mm`` the RMS over the runs, their minimum and
-    maximum (mm), and ``kept`` ``{count: runs}`` (most common first)."""
+    maximum (mm), ``kept`` ``{count: runs}`` (most common first) and ``ratios``: each run's
+    calibrated RMS over its chain as drawn's (the same arm)."""
     out: dict = {}
     for spec in dict.fromkeys(r["plan"] for r in rows):
         mine = [r for r in rows if r["plan"] == spec]
         ok = [r for r in mine if "error" not in r]
         s: dict = {"runs": len(mine), "failed": len(mine) - len(ok),
-                   "kept": dict(Counter(r["kept"] for r in ok).most_common())}  # fmt: skip
+                   "kept": dict(Counter(r["kept"] for r in ok).most_common()),
+                   "ratios": [r["calibrated_mm"] / r["drawn_mm"] for r in ok]}  # fmt: skip
         for key in ("calibrated_mm", "drawn_mm", "fair_mm"):
             e = np.array([r[key] for r in ok], dtype=float)
             s[key] = ((float(np.sqrt(np.mean(e**2))), float(e.min()), float(e.max()))
@@ -156,27 +158,32 @@ def _verdict(doc: dict) -> str:
 def table(plans: dict, rows: list[dict]) -> str:
     """The markdown table of the ``plans`` ``{spec: plan.json}`` and their runs ``rows``
     (:func:`rehearse_row`'s): predictions as plan.json states them, achieved RMS over the seeds
-    (range), the parameters kept."""
+    (range), the parameters kept, each run's calibrated RMS over its drawn chain's against the
+    plan's clear margin."""
     head = ("| plan | predicted: kept, mm (smaller set) | verdict: times the reference | "
             "chain as drawn, predicted (mm) | fair nominal, predicted (mm) | runs | "
             "calibrated: RMS (range) | chain as drawn: RMS (range) | "
-            "fair nominal: RMS (range) | kept in the runs: count x runs |\n"
-            "|---|---|---|---|---|---|---|---|---|---|")  # fmt: skip
+            "fair nominal: RMS (range) | kept in the runs: count x runs | "
+            "calibrated / drawn, same draw |\n"
+            "|---|---|---|---|---|---|---|---|---|---|---|")  # fmt: skip
     lines, stats = [head], aggregate(rows)
     for spec, doc in plans.items():
         sel, nom = doc["selection"], doc["nominal"]
         pred = f"{sel['kinematic_parameters']}: {sel['tool_rms_mm']:.3f}"
         if sel.get("rival_tool_rms_mm") is not None:
             pred += f" ({sel['rival_kinematic_parameters']}: {sel['rival_tool_rms_mm']:.3f})"
-        s = stats.get(spec, {"runs": 0, "failed": 0, "kept": {},
+        s = stats.get(spec, {"runs": 0, "failed": 0, "kept": {}, "ratios": [],
                              "calibrated_mm": None, "drawn_mm": None, "fair_mm": None})  # fmt: skip
         runs = f"{s['runs']}" + (f" ({s['failed']} failed)" if s["failed"] else "")
         kept = ", ".join(f"{k} x {n}" for k, n in s["kept"].items())
+        r, margin = np.array(s["ratios"]), nom["clear_margin"]
+        clear = (f"{r.min():.2f} - {r.max():.2f} (at most {margin:g} in {int(np.sum(r <= margin))} "
+                 f"of {len(r)})" if len(r) else "")  # fmt: skip
         robot, count = spec.split(":")
         lines.append(f"| {robot} {count} | {pred} | {_verdict(doc)} | "
                      f"{nom['drawn_tool_rms_mm']:.3f} | {nom['fair_nominal_tool_rms_mm']:.3f} | "
                      f"{runs} | {_rms(s['calibrated_mm'])} | {_rms(s['drawn_mm'])} | "
-                     f"{_rms(s['fair_mm'])} | {kept} |")  # fmt: skip
+                     f"{_rms(s['fair_mm'])} | {kept} | {clear} |")  # fmt: skip
     return "\n".join(lines)
 
 
