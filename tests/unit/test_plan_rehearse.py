@@ -64,13 +64,13 @@ def test_table_states_the_plans_prediction_and_verdict_and_the_runs() -> None:
     assert len(lines) == 4 and all(line.count("|") == 12 for line in lines)
     ur5e = [c.strip() for c in lines[2].split("|")[1:-1]]
     # the reference is the smaller of the drawn chain and the fair nominal: 1.5 mm
-    assert ur5e[:6] == ["ur5e 12", "18: 0.600 (11: 1.200)", "beats: 0.40 (smaller set 0.80)",
-                        "1.500", "6.000", "2"]  # fmt: skip
+    assert ur5e[:6] == ["ur5e 12", "18: 0.6000 (11: 1.2000)", "beats: 0.40 (smaller set 0.80)",
+                        "1.5000", "6.0000", "2"]  # fmt: skip
     assert ur5e[6] == f"{np.sqrt((0.09 + 0.16) / 2):.3f} (0.30 - 0.40)"
     # the drawn chain and the fair nominal the same in both runs: no range
     assert ur5e[7:] == ["1.500", "6.000", "18 x 2", "0.20 - 0.27 (at most 0.7 in 2 of 2)"]
     arm7 = [c.strip() for c in lines[3].split("|")[1:-1]]
-    assert arm7[1:3] == ["18: 0.600", "NOT: 0.40; 16 postures: 0.663 mm"]
+    assert arm7[1:3] == ["18: 0.6000", "NOT: 0.40; 16 postures: 0.6630 mm"]
     assert arm7[5:] == ["0", "", "", "", "", ""]  # no runs yet
 
 

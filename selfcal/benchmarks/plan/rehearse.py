@@ -151,13 +151,14 @@ def _verdict(doc: dict) -> str:
         cell += f" (smaller set {sel['rival_tool_rms_mm'] / ref:.2f})"
     more = doc.get("more_postures")
     if not doc["beats_nominal"] and more:
-        cell += f"; {more['count']} postures: {more['tool_rms_mm']:.3f} mm"
+        cell += f"; {more['count']} postures: {more['tool_rms_mm']:.4f} mm"
     return cell
 
 
 def table(plans: dict, rows: list[dict]) -> str:
     """The markdown table of the ``plans`` ``{spec: plan.json}`` and their runs ``rows``
-    (:func:`rehearse_row`'s): predictions as plan.json states them, achieved RMS over the seeds
+    (:func:`rehearse_row`'s): predictions as plan.json states them (to 0.1 um as it stores them:
+    rounded again to 1 um they could differ by one from what ``selfcal plan`` prints), achieved RMS over the seeds
     (range), the parameters kept, each run's calibrated RMS over its drawn chain's against the
     plan's clear margin."""
     head = ("| plan | predicted: kept, mm (smaller set) | verdict: times the reference | "
@@ -169,9 +170,9 @@ def table(plans: dict, rows: list[dict]) -> str:
     lines, stats = [head], aggregate(rows)
     for spec, doc in plans.items():
         sel, nom = doc["selection"], doc["nominal"]
-        pred = f"{sel['kinematic_parameters']}: {sel['tool_rms_mm']:.3f}"
+        pred = f"{sel['kinematic_parameters']}: {sel['tool_rms_mm']:.4f}"
         if sel.get("rival_tool_rms_mm") is not None:
-            pred += f" ({sel['rival_kinematic_parameters']}: {sel['rival_tool_rms_mm']:.3f})"
+            pred += f" ({sel['rival_kinematic_parameters']}: {sel['rival_tool_rms_mm']:.4f})"
         s = stats.get(spec, {"runs": 0, "failed": 0, "kept": {}, "ratios": [],
                              "calibrated_mm": None, "drawn_mm": None, "fair_mm": None})  # fmt: skip
         runs = f"{s['runs']}" + (f" ({s['failed']} failed)" if s["failed"] else "")
@@ -181,7 +182,7 @@ def table(plans: dict, rows: list[dict]) -> str:
                  f"of {len(r)})" if len(r) else "")  # fmt: skip
         robot, count = spec.split(":")
         lines.append(f"| {robot} {count} | {pred} | {_verdict(doc)} | "
-                     f"{nom['drawn_tool_rms_mm']:.3f} | {nom['fair_nominal_tool_rms_mm']:.3f} | "
+                     f"{nom['drawn_tool_rms_mm']:.4f} | {nom['fair_nominal_tool_rms_mm']:.4f} | "
                      f"{runs} | {_rms(s['calibrated_mm'])} | {_rms(s['drawn_mm'])} | "
                      f"{_rms(s['fair_mm'])} | {kept} | {clear} |")  # fmt: skip
     return "\n".join(lines)
