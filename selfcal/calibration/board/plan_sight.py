@@ -94,11 +94,9 @@ def sight_clear(
         k = slice(s, min(s + CHUNK, m))
         a, b = sight_lines(C[k], P[k], gap + LINE_STOP_M)  # (c, g, 3)
         pts = chain.points(q[k])[:, 1:]  # F_1 .. tool: the base stands below the first joint
-        s0, s1 = pts[:, :-1], pts[:, 1:]  # (c, n_seg, 3)
-        mount = np.zeros(s0.shape[:2], dtype=bool)  # the last link: the camera's or board's
-        mount[:, -1] = True
+        # the segments but the last (the camera's or the board's link): (c, n_seg - 1, 3)
+        s0, s1 = pts[:, :-2], pts[:, 1:-1]
         d = segment_distances(a[:, :, None], b[:, :, None], s0[:, None], s1[:, None])
-        d = np.where(mount[:, None], np.inf, d)  # (c, g, n_seg)
         ok[k] = np.all(d > gap, axis=(1, 2))
         for box in boxes:
             grown = box + np.r_[-1.0, -1.0, -1.0, 1.0, 1.0, 1.0] * chain.clearance_m
