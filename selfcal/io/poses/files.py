@@ -190,12 +190,12 @@ def _read_csv(path: Path, rotation: str | None, units: str | None) -> PoseRows:
         raise PoseFileError(f"{path}: a header but no poses", fix="give one row per image")
     lines = [line for line, _ in rows[1:]]
     O_arr = np.array(rot)
+    cols = ", ".join(header[i] for i in irot)
     if conv in ("quaternion-xyzw", "abb-quaternion"):
         q = O_arr if conv == "quaternion-xyzw" else O_arr[:, [1, 2, 3, 0]]
         _, bad = unit_quaternions(q)
         if bad.any():
             k = int(np.flatnonzero(bad)[0])
-            cols = ", ".join(header[i] for i in irot)
             raise PoseFileError(
                 f"{path}, line {lines[k]}: the quaternion ({cols}) has norm "
                 f"{np.linalg.norm(q[k]):.4f}, not 1 ({int(bad.sum())} row(s) so)",
@@ -205,7 +205,6 @@ def _read_csv(path: Path, rotation: str | None, units: str | None) -> PoseRows:
     broken = ~np.isfinite(T).all(axis=(1, 2))
     if broken.any():
         k = int(np.flatnonzero(broken)[0])
-        cols = ", ".join(header[i] for i in irot)
         raise PoseFileError(
             f"{path}, line {lines[k]}: the orientation ({cols}) = "
             f"{', '.join(f'{x:g}' for x in O_arr[k])} gives no rotation (too large to compute)",
