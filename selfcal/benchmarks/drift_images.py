@@ -78,10 +78,10 @@ SCENARIOS = {"eye-in-hand": SCENARIO, "eye-to-hand": scenarios_dir() / "eye-to-h
 
 def read_joints(robot: RobotDef, q: np.ndarray) -> np.ndarray:
     """The joints (rad / m) the controller of ``robot`` reports with the arm at the true
-    posture ``q`` (..., n): rounded to the encoder count of its robot file, as the simulated
-    acquisition reads them (:func:`selfcal.sim.kinematic_robot.read_back`); exact for a robot
-    file without an encoder resolution."""
-    return read_back(np.asarray(q, float), np.asarray(robot.counts_per_unit, float), True)
+    posture ``q`` (..., n): its motors' counts rounded as its robot file's encoder table reads
+    them, as the simulated acquisition does (:func:`selfcal.sim.kinematic_robot.read_back`);
+    exact for a robot file without an encoder resolution."""
+    return read_back(np.asarray(q, float), robot.encoder, True)
 
 
 def calibration_checks(args: tuple[float, int, int, str, str | None]) -> dict:

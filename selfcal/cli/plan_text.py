@@ -122,7 +122,7 @@ def plan_sections(plan) -> dict:
 def criterion(workspace: int, pixel_sigma: float, js, args: argparse.Namespace) -> str:
     """plan.json's criterion in words."""
     joints = ("joints read exactly" if js is None else "joint read-back noise of the robot "
-              "file's encoder resolution (1 count / sqrt(12)), each frame's corrections "
+              "file's encoder table (its motors' counts rounded), each frame's corrections "
               "estimated")  # fmt: skip
     return (
         "board route Cramer-Rao bound with the parameters the selection's rank test keeps, "

@@ -77,12 +77,12 @@ def tool_point_covariance(
 
 
 def encoder_sigma(robot) -> np.ndarray | None:
-    """Standard deviation (n,) rad / m of a read-back rounded to the nearest encoder count,
-    ``1 / (counts_per_unit sqrt(12))``; None if the robot has no finite encoder resolution."""
-    cpu = np.asarray(getattr(robot, "counts_per_unit", np.full(robot.n, np.inf)), dtype=float)
-    if not np.all(np.isfinite(cpu) & (cpu > 0)):
-        return None
-    return 1.0 / (cpu * np.sqrt(12.0))
+    """Standard deviation (n,) rad / m of the joint read-back, the motors' counts rounded:
+    the robot file's encoder table's (:attr:`selfcal.robot.encoder.EncoderSpec.read_back_sigma`,
+    ``1 / (c sqrt 12)``, ``sqrt 2`` that of the half-count on a differential wrist); None if the
+    robot has no finite encoder resolution (its joints are taken as exact)."""
+    enc = getattr(robot, "encoder", None)
+    return None if enc is None else np.array(enc.read_back_sigma)
 
 
 def aligned_tool_weight(model: MCPCModel, q: np.ndarray, T_cam_point: np.ndarray) -> np.ndarray:

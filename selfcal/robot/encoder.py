@@ -15,6 +15,16 @@ needed for the simulator's read-back, the others describe the real controller):
   differential joints). Gives the exact table where ``counts_per_deg`` is rounded.
 - ``differential_joints``: 1-based ``[pitch, roll]`` joints of a differential wrist, whose motors
   read ``pitch + roll`` and ``roll - pitch`` (default: none).
+
+The read-back (:meth:`EncoderSpec.read_back`) and its noise (:attr:`EncoderSpec.read_back_sigma`)
+live here, for the simulator and the calibration alike: every motor's count is rounded to the
+nearest integer from the encoder zero. A joint read by its own motor errs by a uniform
+fraction of one count, standard deviation ``1 / (c sqrt 12)`` (``c`` counts per rad); pitch and
+roll of a differential wrist are the half-difference and half-sum of two motors' rounded counts,
+``(e1 -/+ e2) / (2 c)`` with ``c`` each motor's counts per rad of joint motion, so their errors
+have standard deviation ``sqrt(2 / 12) / (2 c) = 1 / (c sqrt 24)``: ``sqrt 2`` times what one
+joint read at the file's ``counts_per_deg`` (``2 c``) would have, and uncorrelated with each
+other (the two motors' errors enter the difference and the sum with equal weight).
 """
 
 from __future__ import annotations
@@ -46,6 +56,39 @@ class EncoderSpec:
     zero: np.ndarray
     zero_stated: bool
     differential: tuple[int, int] | None
+
+    @property
+    def read_back_sigma(self) -> np.ndarray:
+        """(n,) standard deviation (rad / m) of each joint's read-back error, the motors'
+        counts rounded (module docstring): ``1 / (|c| sqrt 12)``, on the differential wrist
+        ``1 / (|c| sqrt 24)``. The errors of different joints are uncorrelated."""
+        sigma = 1.0 / (np.abs(self.counts_per_unit) * np.sqrt(12.0))
+        if self.differential is not None:
+            sigma[list(self.differential)] /= np.sqrt(2.0)
+        return sigma
+
+    @property
+    def count_step(self) -> np.ndarray:
+        """(n,) joint motion (rad / m) that turns a joint's motor(s) by one count: ``1 / |c|``.
+        A posture moved by a uniform fraction of it in every joint puts each motor at a
+        uniformly distributed fraction of its count (on the differential wrist too)."""
+        return 1.0 / np.abs(self.counts_per_unit)
+
+    def read_back(self, q: np.ndarray) -> np.ndarray:
+        """The joints (rad / m, shape of ``q``) the controller reports with the arm at the true
+        posture ``q`` (..., n): every motor's count from the encoder zero rounded to the
+        nearest integer, converted back (the differential wrist's pitch and roll from its two
+        motors' rounded counts, as :class:`selfcal.hw.encoders.EncoderTable` converts them)."""
+        q = np.asarray(q, dtype=float)
+        counts = (q - self.zero) * self.counts_per_unit
+        read = np.rint(counts)
+        if self.differential is not None:
+            p, r = self.differential
+            m1 = np.rint(counts[..., p] + counts[..., r])
+            m2 = np.rint(counts[..., r] - counts[..., p])
+            read[..., p] = (m1 - m2) / 2.0
+            read[..., r] = (m1 + m2) / 2.0
+        return self.zero + read / self.counts_per_unit
 
 
 def _per_joint(table: dict[str, Any], key: str, n: int) -> np.ndarray | None:

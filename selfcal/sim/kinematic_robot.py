@@ -20,6 +20,7 @@ from selfcal.io.truth import Truth
 from selfcal.kinematics.forward import fk_tool
 from selfcal.kinematics.mcpc import MCPCModel
 from selfcal.robot.definition import RobotDef, load_robot
+from selfcal.robot.encoder import EncoderSpec
 from selfcal.robot.interface import RobotError, StereoPair
 from selfcal.sim.actual import make_truth
 from selfcal.sim.compliance import JointCompliance
@@ -37,12 +38,13 @@ def joint_units(robot: RobotDef) -> np.ndarray:
     return robot.edge_unit
 
 
-def read_back(q: np.ndarray, counts_per_unit: np.ndarray, quantize: bool) -> np.ndarray:
-    """Joint read-back (rad / m) of true positions ``q``: rounded to the nearest encoder count
-    where the resolution ``counts_per_unit`` (per rad / per m) is finite and ``quantize``."""
-    finite = np.isfinite(counts_per_unit) & bool(quantize)
-    cpu = np.where(finite, counts_per_unit, 1.0)
-    return np.where(finite, np.round(q * cpu) / cpu, q)
+def read_back(q: np.ndarray, encoder: EncoderSpec | None, quantize: bool) -> np.ndarray:
+    """Joint read-back (rad / m) of true positions ``q`` (..., n): the motors' counts rounded
+    as the controller's ``encoder`` table reads them (:meth:`EncoderSpec.read_back`, the
+    differential wrist included) when ``quantize``; exact without a table (a robot file
+    without an encoder resolution, which the calibration also takes as exact)."""
+    q = np.asarray(q, dtype=float)
+    return encoder.read_back(q) if quantize and encoder is not None else q.copy()
 
 
 class KinematicRobot:
@@ -113,9 +115,9 @@ class KinematicRobot:
         self._set_q(q)
 
     def joints(self) -> np.ndarray:
-        """Joint angles (deg; mm for prismatic) as the encoders report them: the true position
-        rounded to the nearest encoder count."""
-        return read_back(self.true_joints(), self.robot.counts_per_unit, self.quantize) / self._unit
+        """Joint angles (deg; mm for prismatic) as the encoders report them: the true position's
+        motor counts rounded to the nearest count (:func:`read_back`)."""
+        return read_back(self.true_joints(), self.robot.encoder, self.quantize) / self._unit
 
     def capture(self) -> StereoPair:
         """Not available: this robot renders nothing (use ``SimRobot`` for images)."""

@@ -45,7 +45,8 @@ class CornerOffsets:
     (px per coordinate, NaN if it gives none); ``pose_err_m`` the largest camera-position
     difference between MuJoCo and the actual chain (m), ``joint_quant_rad`` the largest
     |reported - true| angle, ``joint_err`` (m, n) reported - true per posture and joint and
-    ``joint_step`` (n,) one encoder count (rad)."""
+    ``joint_step`` (n,) one count of the robot file's ``counts_per_deg`` (rad), ``joint_sigma``
+    (n,) the read-back noise its encoder table gives (rad; inf without one)."""
 
     d: np.ndarray
     uv: np.ndarray
@@ -59,6 +60,7 @@ class CornerOffsets:
     joint_quant_rad: float
     joint_err: np.ndarray
     joint_step: np.ndarray
+    joint_sigma: np.ndarray
     intrinsics_err_px: float
 
     def scale_error(self) -> float:
@@ -175,6 +177,7 @@ def measure(
             joint_quant_rad=quant,
             joint_err=np.asarray(jerr),
             joint_step=1.0 / np.asarray(setup.robot.counts_per_unit, dtype=float),
+            joint_sigma=_read_back_sigma(setup.robot),
             intrinsics_err_px=intr_err,
         )
     return out
@@ -255,13 +258,21 @@ def plot(results: dict[str, CornerOffsets], path: Path) -> None:
     plt.close(fig)
 
 
+def _read_back_sigma(robot) -> np.ndarray:
+    """(n,) the read-back noise (rad / m) of ``robot``'s encoder table, inf without one."""
+    from selfcal.estimation.joint_report import encoder_sigma
+
+    sigma = encoder_sigma(robot)
+    return np.full(robot.n, np.inf) if sigma is None else sigma
+
+
 def _readback_line(o: CornerOffsets) -> str:
-    """Per joint: the read-back rounding error's RMS in units of the uniform model's
-    ``step / sqrt(12)`` (the calibration's read-back prior) and its largest value in half steps."""
-    rms = np.sqrt(np.mean(o.joint_err**2, axis=0)) / (o.joint_step / np.sqrt(12.0))
+    """Per joint: the read-back rounding error's RMS in units of the encoder table's read-back
+    sigma (the calibration's read-back prior) and its largest value in half steps."""
+    rms = np.sqrt(np.mean(o.joint_err**2, axis=0)) / o.joint_sigma
     half = np.abs(o.joint_err).max(axis=0) / (o.joint_step / 2.0)
     return (
-        "read-back - true joints per joint: RMS / (step / sqrt 12) "
+        "read-back - true joints per joint: RMS / read-back sigma "
         f"{' '.join(f'{v:.2f}' for v in rms)}; max / (step / 2) "
         f"{' '.join(f'{v:.2f}' for v in half)}; mean / step "
         f"{' '.join(f'{v:+.2f}' for v in o.joint_err.mean(axis=0) / o.joint_step)}"

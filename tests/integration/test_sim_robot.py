@@ -36,21 +36,32 @@ def test_is_a_robot(sim):
 
 def test_move_and_quantised_read_back(sim):
     robot = sim.robot
-    cpd = robot.counts_per_unit * np.pi / 180  # counts per degree
+    enc = robot.encoder
+    step = np.degrees(enc.count_step)  # one motor count, deg
+    zero = np.degrees(enc.zero)
+    p, r = enc.differential  # pitch, roll: from the two wrist motors' counts
     rng = np.random.default_rng(0)
     for _ in range(20):
         q_deg = np.degrees(rng.uniform(robot.limits[:, 0], robot.limits[:, 1]))
         sim.move_to(q_deg)
-        # the true posture is the command; the read-back is on the encoder grid, within half a count
+        # the true posture is the command; the read-back is on the motors' count grid from the
+        # encoder zero, within half a count of each motor
         np.testing.assert_allclose(np.degrees(sim.true_joints()), q_deg, atol=1e-12)
         read = sim.joints()
-        counts = read * cpd
-        np.testing.assert_allclose(counts, np.round(counts), atol=1e-6)
-        assert np.all(np.abs(read - q_deg) <= 0.5 / cpd + 1e-9)
+        counts = (read - zero) / step
+        motors = counts.copy()
+        motors[[p, r]] = counts[p] + counts[r], counts[r] - counts[p]
+        np.testing.assert_allclose(motors, np.round(motors), atol=1e-6)
+        true = (q_deg - zero) / step
+        true[[p, r]] = true[p] + true[r], true[r] - true[p]
+        assert np.all(np.abs(motors - true) <= 0.5 + 1e-6)
     sim.home()
     np.testing.assert_allclose(sim.true_joints(), robot.home, atol=1e-15)
-    # quantisation is visible: the home posture is not on the encoder grid of every joint
-    assert np.abs(sim.joints() - np.degrees(robot.home)).max() > 1e-4
+    # the encoders read zero at their zero (er4u-paper: home), and 0.2 counts off it still (the
+    # wrist motors turn by the sum and the difference of pitch and roll: 0.4 and 0 counts)
+    np.testing.assert_allclose(sim.joints(), np.degrees(robot.home), atol=1e-9)
+    sim.move_to(np.degrees(robot.home + 0.2 * enc.count_step))
+    np.testing.assert_allclose(sim.joints(), np.degrees(robot.home), atol=1e-9)
 
 
 def test_out_of_range_is_refused_before_moving(sim):
