@@ -92,13 +92,16 @@ def scenario_arg(s: Scenario) -> str:
 
 def dithered(planned_deg: np.ndarray, robot, seed: int) -> np.ndarray:
     """The postures ``planned_deg`` (m, n) deg moved by a uniform random fraction of one
-    encoder count of ``robot`` (draw ``seed``), within the joint limits: in a Monte Carlo the
-    read-back rounding errors become a fresh uniform draw instead of the same in every draw."""
+    motor count of ``robot`` (:attr:`selfcal.robot.encoder.EncoderSpec.count_step`; draw
+    ``seed``), within the joint limits: in a Monte Carlo the read-back rounding errors become a
+    fresh uniform draw instead of the same in every draw. Unmoved without an encoder table."""
     rng = np.random.default_rng(int(seed) + 104_729)
-    cpd = np.asarray(robot.counts_per_unit, dtype=float) * np.pi / 180.0
     q = np.asarray(planned_deg, dtype=float)
+    if robot.encoder is None:
+        return q.copy()
+    step_deg = robot.encoder.count_step / robot.edge_unit
     lo, hi = np.degrees(robot.limits).T
-    return np.clip(q + rng.uniform(-0.5, 0.5, q.shape) / cpd, lo, hi)
+    return np.clip(q + rng.uniform(-0.5, 0.5, q.shape) * step_deg, lo, hi)
 
 
 def run_acquire(

@@ -11,14 +11,14 @@ from selfcal.robot.definition import load_robot
 from selfcal.studies.montecarlo.render import run_draws, summarise
 
 
-def test_dithered_postures_move_within_half_an_encoder_count():
+def test_dithered_postures_move_within_half_a_motor_count():
     robot = load_robot("er4u-paper")
     planned = np.tile(np.degrees(robot.home), (50, 1))
     a, b = dithered(planned, robot, 1), dithered(planned, robot, 2)
-    half = 0.5 / (robot.counts_per_unit * np.pi / 180.0)  # deg
+    half = 0.5 * np.degrees(robot.encoder.count_step)  # deg
     assert np.all(np.abs(a - planned) <= half) and np.all(np.abs(b - planned) <= half)
     assert not np.allclose(a, b) and np.array_equal(a, dithered(planned, robot, 1))
-    # a uniform fraction of a count: the spread the calibration's read-back prior assumes
+    # a uniform fraction of a motor count in every joint
     np.testing.assert_allclose(np.std(a - planned, axis=0), 2 * half / np.sqrt(12), rtol=0.3)
 
 
