@@ -76,6 +76,9 @@ class ModelError:
             explain (``sqrt(mean tr S)``); noise_m, noise_rad: the measurement noise per
             coordinate taken out (``sqrt(mean tr N / 3)``).
         noise_what: what the noise is (e.g. the tracker's stated sigma).
+        reach_distance: when the model error grows with the distance from the calibration
+            postures (:class:`selfcal.kinematics.tool_error.ToolErrorModel`), the distance at
+            which it is ``position_m``; 0: the same everywhere.
     """
 
     position_m: float
@@ -90,6 +93,7 @@ class ModelError:
     noise_m: float
     noise_rad: float
     noise_what: str = "the tracker noise"
+    reach_distance: float = 0.0
 
     def to_json(self) -> dict:
         def num(x: float | None, k: float) -> float | None:
@@ -111,6 +115,7 @@ class ModelError:
             "estimation_rms_deg": num(self.estimation_rms_rad, deg),
             "noise_mm": num(self.noise_m, 1e3),
             "noise_deg": num(self.noise_rad, deg),
+            "reach_distance": self.reach_distance or None,
         }
 
 
@@ -124,13 +129,15 @@ def model_error_of(
     failed: int,
     noise_what: str,
     given: tuple[float, float | None] | None = None,
+    reach_distance: float = 0.0,
 ) -> ModelError | None:
     """The :class:`ModelError` of held-out rows given fold by fold: their squared tool-point
     errors ``r2`` (m^2), what the folds' covariances explain ``s2`` (``tr S``, m^2) and what the
     noise explains ``n2`` (``tr N``, m^2), each a list of per-fold arrays; ``rot`` the same
     three for the orientation (rad^2) or None; ``given``: the model error (position m, rotation
     rad) when the route estimated it otherwise (the board route, from the pixels), None for
-    :func:`excess` of the squared norms. None without rows."""
+    :func:`excess` of the squared norms; ``reach_distance``: :attr:`ModelError.reach_distance`.
+    None without rows."""
     if not r2 or sum(len(v) for v in r2) == 0:
         return None
     n_rows = int(sum(len(v) for v in r2))
@@ -155,6 +162,7 @@ def model_error_of(
         noise_m=float(np.sqrt(en2 / 3.0)),
         noise_rad=float(np.sqrt(en2r / 3.0)),
         noise_what=noise_what,
+        reach_distance=reach_distance if pos > 0 else 0.0,
     )
 
 

@@ -9,7 +9,12 @@ error against the robot's true pose has two parts, both treated as zero-mean Gau
   rotated into the output frame (rows: position m, orientation rad as a rotation vector);
 - the *model* error: what the model cannot express (compliance, a wrong link, a tracker's
   systematic error), a per-coordinate standard deviation estimated from held-out residuals by the
-  calibration route (e.g. :mod:`selfcal.calibration.tracker.accuracy`), the same at every posture.
+  calibration route (e.g. :mod:`selfcal.calibration.tracker.accuracy`), the same at every posture;
+  or, when the route measured how it grows (the board route), a smooth function of the joints
+  that the fit matched at the calibration postures: its standard deviation grows in proportion
+  to the posture's distance (:func:`posture_distance`) from the nearest calibration posture,
+  ``m (d / d_ref)`` with ``m`` its size at the distance ``d_ref`` the held-out postures had
+  (:meth:`ToolErrorModel.model_error_factor`).
 
 The 95 % bound of the error's norm (position mm, orientation deg) at ``q`` is the 95 % quantile of
 ``|e|`` for ``e ~ N(0, S(q) + m^2 I)``, by Satterthwaite's scaled chi-square (``|e|^2 ~ a chi2_f``
@@ -35,6 +40,7 @@ from selfcal.kinematics.mcpc import MCPCModel
 __all__ = [
     "ToolErrorModel",
     "norm_quantile",
+    "posture_distance",
     "WorkspaceSample",
     "workspace_sample",
     "EDGE_FRACTION",
@@ -60,6 +66,18 @@ def norm_quantile(cov: np.ndarray, p: float = 0.95) -> np.ndarray:
     return np.sqrt(a * (2.0 * gammaincinv(f / 2.0, p)))
 
 
+def posture_distance(q: np.ndarray, q_ref: np.ndarray, span: np.ndarray) -> np.ndarray:
+    """(m,) every joint vector of ``q`` (m, n)'s distance to the nearest of ``q_ref`` (k, n)
+    (rad / m), each joint measured in units of its ``span`` (n,) (e.g. its limits' range: a
+    unit-free distance, 1 = one joint moved across its whole range)."""
+    q, q_ref = np.atleast_2d(q), np.atleast_2d(q_ref)
+    span = np.asarray(span, dtype=float)
+    d = np.full(len(q), np.inf)
+    for r in q_ref:  # (m,) at a time: no (m, k, n) array for a large sample
+        d = np.minimum(d, np.linalg.norm((q - r) / span, axis=1))
+    return d
+
+
 @dataclass(frozen=True)
 class ToolErrorModel:
     """What the predicted tool error depends on (SI).
@@ -74,6 +92,10 @@ class ToolErrorModel:
             None when the calibration does not determine the tool frame's orientation.
         T_tool_point: (4, 4) the tool point's frame in the chain's tool frame (m), e.g. the
             flange seen from a camera that is the chain's tool; None: the tool frame itself.
+        reach_postures: (k, n) the calibration postures the model error grows from, or None: the
+            model error the same everywhere (module docstring).
+        reach_span: (n,) the joints' spans of :func:`posture_distance` (rad / m).
+        reach_distance: ``d_ref``, the distance at which the model error is ``model_error_m``.
     """
 
     model: MCPCModel
@@ -83,6 +105,19 @@ class ToolErrorModel:
     model_error_m: float
     model_error_rad: float | None = None
     T_tool_point: np.ndarray | None = None
+    reach_postures: np.ndarray | None = None
+    reach_span: np.ndarray | None = None
+    reach_distance: float = 0.0
+
+    def model_error_factor(self, q: np.ndarray) -> np.ndarray:
+        """(m,) the model error's variance at joints ``q`` (m, n) over ``model_error_m^2``: 1
+        everywhere, or ``(d / d_ref)^2`` when it grows from the calibration postures (module
+        docstring)."""
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        if self.reach_postures is None or self.reach_span is None or self.reach_distance <= 0:
+            return np.ones(len(q))
+        d = posture_distance(q, self.reach_postures, self.reach_span)
+        return (d / self.reach_distance) ** 2
 
     def _point(self) -> np.ndarray:
         """(3,) the tool point in the chain's tool frame (m)."""
@@ -118,7 +153,7 @@ class ToolErrorModel:
         (``sqrt(tr Sigma)``), and ``orientation_95_deg`` (m,) (nan without an orientation)."""
         q = np.atleast_2d(np.asarray(q, dtype=float))
         S = self.estimation_covariance(q)
-        eye = np.eye(3)
+        eye = self.model_error_factor(q)[:, None, None] * np.eye(3)
         Sp = S[:, :3, :3]
         Sp_tot = Sp + self.model_error_m**2 * eye
         if self.model_error_rad is None:

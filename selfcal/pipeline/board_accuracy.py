@@ -114,6 +114,12 @@ def accuracy_markdown(section: dict) -> list[str]:
         f"deg per coordinate from {me.get('rows')} cross-validated frames ({me.get('folds')} "
         "folds)"
     )
+    if not section.get("model_error_note") and me.get("reach_distance"):
+        note += (
+            f" at their mean distance from the other postures ({me['reach_distance']:.3f} of the "
+            "joints' ranges), growing in proportion to a posture's distance from the "
+            "calibration postures"
+        )
     held = held_sentence(section.get("held_deviation"))
     held = "" if held is None else f" {held[0].upper()}{held[1:]}."
     out = [

@@ -8,8 +8,11 @@ import pytest
 from scipy.linalg import expm
 
 from selfcal.calibration.accuracy import model_error_of
+from selfcal.calibration.board.accuracy import board_error_model_from_json, grown_size
 from selfcal.calibration.board.misfit import pose_jacobian
 from selfcal.camera import camera_model
+from selfcal.kinematics.mcpc import minimal_indices, nominal_mcpc, param_names
+from selfcal.robot.definition import load_robot
 from selfcal.transforms import inv_pose, pose_from_vec, skew
 
 
@@ -116,3 +119,39 @@ def test_the_held_block_says_when_the_prior_was_counted_unscaled():
     assert "the 2 folds' 0.133" in words
     nothing = held_block(Deviation(), held_share(np.ones(2), np.zeros(2), np.full(2, 5.0)))
     assert held_sentence(nothing) is None and held_sentence(None) is None
+
+
+def test_grown_size_counts_each_frames_share_at_its_distance():
+    rng = np.random.default_rng(5)
+    u, w = rng.uniform(1e6, 3e6, 40), rng.uniform(1e5, 3e5, 40)  # px^2 per m^2
+    d = rng.uniform(0.02, 0.2, 40)
+    m_true = 3e-5
+    far = np.sum(m_true**2 * (u * (d / d.mean()) ** 2 + w))  # the model the term assumes
+    m, reach = grown_size(float(far), u, w, d)
+    assert reach == pytest.approx(d.mean()) and m == pytest.approx(m_true)
+    # the same excess read as the same everywhere (no distances) gives another size
+    m_flat, reach_flat = grown_size(float(far), u, w, np.zeros(40))
+    assert reach_flat == 0.0
+    assert m_flat == pytest.approx(np.sqrt(far / (u.sum() + w.sum())))
+    assert abs(m_flat - m_true) > 0.01 * m_true
+
+
+def test_an_accuracy_block_keeps_the_model_errors_growth():
+    robot = load_robot("er4u-paper")
+    model = nominal_mcpc(robot)
+    q_cal = np.random.default_rng(1).uniform(-0.5, 0.5, (5, robot.n))
+    block = {
+        "estimated": [param_names(minimal_indices(model.joint_types))[0]],
+        "covariance_si": [[1e-8]],
+        "model_error": {"position_mm": 0.05, "rotation_deg": 0.01, "reach_distance": 0.04},
+        "calibration_postures_si": q_cal.tolist(),
+        "joint_limits_si": robot.limits.tolist(),
+        "T_tool_point_si": np.eye(4).tolist(),
+    }
+    em = board_error_model_from_json(block, model, "calibration.json")
+    assert em.reach_distance == 0.04 and np.allclose(em.reach_postures, q_cal)
+    assert np.allclose(em.reach_span, np.diff(robot.limits, axis=1)[:, 0])
+    assert np.allclose(em.model_error_factor(q_cal), 0.0)
+    del block["model_error"]["reach_distance"]  # an older file: the same everywhere
+    old = board_error_model_from_json(block, model, "calibration.json")
+    assert old.reach_postures is None and np.allclose(old.model_error_factor(q_cal), 1.0)

@@ -14,6 +14,7 @@ from selfcal.kinematics.tool_error import (
     ToolErrorModel,
     accuracy_line,
     norm_quantile,
+    posture_distance,
     workspace_sample,
     workspace_summary,
 )
@@ -128,3 +129,33 @@ def test_summary_and_line(er4u):
     assert line.startswith(f"tool point within {inside.max():.3f} mm (95 %) inside")
     assert f"{summ['edge']['position_95_mm_max']:.3f} mm at its edge" in line
     assert "orientation within" in line
+
+
+def test_posture_distance_is_to_the_nearest_posture_in_units_of_the_spans():
+    q_ref = np.array([[0.0, 0.0], [1.0, 1.0]])
+    span = np.array([2.0, 0.5])
+    q = np.array([[0.2, 0.0], [1.0, 0.9], [0.0, 0.5]])
+    d = posture_distance(q, q_ref, span)
+    assert d == pytest.approx([0.1, 0.2, 1.0])
+
+
+def test_a_grown_model_error_is_none_at_the_calibration_postures_and_grows_with_the_distance(er4u):
+    rng = np.random.default_rng(2)
+    em0 = _error_model(er4u, rng)
+    span = er4u.limits[:, 1] - er4u.limits[:, 0]
+    q_cal = rng.uniform(er4u.limits[:, 0], er4u.limits[:, 1], (4, er4u.n))
+    m, rot, reach = 2e-4, 1e-4, 0.05
+    em = dataclasses.replace(em0, model_error_m=m, model_error_rad=rot, reach_postures=q_cal,
+                             reach_span=span, reach_distance=reach)  # fmt: skip
+    flat = dataclasses.replace(em0, model_error_m=m, model_error_rad=rot)
+    q = q_cal[:1].copy()
+    q[0, 0] += 0.1 * span[0]  # 2 reach from the first posture, farther from the others
+    assert posture_distance(q, q_cal, span) == pytest.approx([0.1])
+    S = em0.estimation_covariance(q)[:, :3, :3]
+    p, p_flat = em.predicted(q), flat.predicted(q)
+    assert p["position_rms_mm"] == pytest.approx(np.sqrt(np.trace(S[0]) + 3 * (2 * m) ** 2) * 1e3)
+    assert p_flat["position_rms_mm"] == pytest.approx(np.sqrt(np.trace(S[0]) + 3 * m**2) * 1e3)
+    assert p["orientation_95_deg"][0] > p_flat["orientation_95_deg"][0]
+    at_cal = em.predicted(q_cal)  # the fit saw these: the covariance alone
+    assert np.allclose(at_cal["position_95_mm"], at_cal["estimation_95_mm"])
+    assert np.allclose(flat.model_error_factor(q), 1.0)

@@ -22,7 +22,13 @@ parts of :mod:`selfcal.calibration.accuracy`:
   frame itself and through what the same error in the fold's training frames did to its
   estimate (:mod:`selfcal.calibration.board.misfit`: a fold that extrapolates is thrown far by
   it, and is not read as a large model error everywhere). The calibration's covariance gets
-  the same (``m^2 G`` of its own frames) in its prediction. Each held-out
+  the same (``m^2 G`` of its own frames) in its prediction. The model error is taken as a
+  smooth function of the joints that the fit matched at the postures it saw: away from them it
+  grows in proportion to the distance (each joint in units of its limits' range) to the nearest,
+  so its variance with the squared distance; each held-out frame's excess is read at its own
+  distance from its fold's training postures, ``m`` is the size at their mean distance
+  (:func:`grown_size`, :attr:`ModelError.reach_distance`) and a workspace point gets
+  ``m^2 (d / reach)^2`` (:class:`selfcal.kinematics.tool_error.ToolErrorModel`). Each held-out
   frame's tool-point error as the pose correction that fits its pixels best (linear least
   squares on the projection's Jacobian, ``B xi``) is kept beside it
   (:class:`selfcal.calibration.accuracy.ModelError`'s held-out RMS): a single view knows it
@@ -36,9 +42,12 @@ point estimate (:mod:`selfcal.calibration.board.held`,
 :mod:`selfcal.calibration.board.held_prior`).
 
 What this cannot see: a model error the same in every frame is absorbed by the placement (board
-pose, hand-eye) and is not seen; a misfit that grows where the arm reaches out is taken as the
-same everywhere; held-out configurations far outside the others (few configurations) make the
-folds' extrapolation, not the calibration's, the measure.
+pose, hand-eye) and is not seen; how fast a misfit grows is assumed (linearly with the distance
+from the postures), not measured: the folds' held-out frames lie about as far from their
+training postures as each other, too close together to tell the growth's power; a misfit the
+folds do not show (below two standard errors) is not counted anywhere, however it would grow;
+held-out configurations far outside the others (few configurations) make the folds'
+extrapolation, not the calibration's, the measure.
 
 Beside it, the cross-validated reprojection (``accuracy.cross_validation``): every fold's
 held-out frames predicted by the chosen candidate and by the fair nominal (the first candidate,
@@ -48,6 +57,8 @@ predicted pose, against the predicted corner). Nothing here reads truth.
 """
 
 from __future__ import annotations
+
+import dataclasses
 
 import numpy as np
 
@@ -80,6 +91,7 @@ from selfcal.kinematics.mcpc import MCPCModel, minimal_indices, param_names
 from selfcal.kinematics.tool_error import (
     EDGE_FRACTION,
     ToolErrorModel,
+    posture_distance,
     workspace_sample,
     workspace_summary,
 )
@@ -91,7 +103,9 @@ __all__ = [
     "board_error_model_from_json",
     "board_postures_from_json",
     "cross_validated_reprojection",
+    "grown_size",
     "held_out_errors",
+    "joint_spans",
     "model_error",
     "predicted_reprojection",
 ]
@@ -114,7 +128,8 @@ def _what(eye_to_hand: bool) -> str:
 
 
 def board_error_model(cr: BoardCramerRao, T_tool_point: np.ndarray, position_m: float = 0.0,
-                      rotation_rad: float = 0.0) -> tuple[ToolErrorModel, tuple[str, ...]]:  # fmt: skip
+                      rotation_rad: float = 0.0, reach: tuple[np.ndarray, np.ndarray, float] | None = None,
+                      ) -> tuple[ToolErrorModel, tuple[str, ...]]:  # fmt: skip
     """The :class:`ToolErrorModel` of the bounds ``cr`` (world = the chain's, the tool point
     ``T_tool_point`` in the chain's tool frame) with the model error ``position_m`` /
     ``rotation_rad`` per coordinate, and the names of the parameters its covariance covers (the
@@ -125,9 +140,18 @@ def board_error_model(cr: BoardCramerRao, T_tool_point: np.ndarray, position_m: 
     est = np.ones(idx.size, bool) if cr.estimated is None else np.asarray(cr.estimated, bool)
     p = int(est.sum())
     cov = cr.covariance[np.ix_(est, est)] + position_m**2 * _full_covariance(cr, True)[1][:p, :p]
+    q_reach, span, d_ref = (None, None, 0.0) if reach is None else reach
     em = ToolErrorModel(cr.model, np.eye(4), idx[est], cov, position_m, rotation_rad,
-                        np.asarray(T_tool_point, float))  # fmt: skip
+                        np.asarray(T_tool_point, float), q_reach, span, d_ref)  # fmt: skip
     return em, tuple(param_names(idx[est]))
+
+
+def joint_spans(limits: np.ndarray) -> np.ndarray | None:
+    """(n,) every joint's range between its limits ``limits`` (n, 2) (rad / m), the unit of
+    :func:`selfcal.kinematics.tool_error.posture_distance`; None when a range is not finite and
+    positive (the model error is then taken as the same everywhere)."""
+    span = np.diff(np.asarray(limits, dtype=float), axis=1)[:, 0]
+    return span if np.all(np.isfinite(span) & (span > 0)) else None
 
 
 def _full_covariance(cr: BoardCramerRao,
@@ -225,6 +249,27 @@ def held_out_errors(obs: BoardObservations, fit: Refinement, frames: np.ndarray,
     return {k: np.array(val) for k, val in out.items()}
 
 
+def grown_size(extra: float, unit: np.ndarray, misfit: np.ndarray,
+               distance: np.ndarray) -> tuple[float, float]:  # fmt: skip
+    """The model error's size ``m`` (m per tool-point coordinate) and the distance ``reach`` at
+    which it has that size, from the held-out frames' squared-pixel excess ``extra`` (px^2,
+    their sum) and per frame what a unit model error adds to it in the frame itself ``unit``
+    (``u``, px^2 per m^2), through the fold's estimate ``misfit`` (``w``) and the frame's
+    distance to its fold's training postures ``distance`` (:func:`posture_distance`).
+
+    The model error grows in proportion to the distance from the postures the fit saw (module
+    docstring): a frame at ``d`` has ``m^2 (d / reach)^2`` in itself, ``reach`` the frames' mean
+    distance; the training frames' share (``w``) is taken at ``reach``, as the calibration's
+    own covariance takes it. So ``extra = m^2 (sum u (d / reach)^2 + sum w)``; with every
+    distance 0 (no spans) the same everywhere, ``extra = m^2 (sum u + sum w)`` and ``reach``
+    0."""
+    unit, distance = np.asarray(unit, float), np.asarray(distance, float)
+    reach = float(np.mean(distance)) if distance.size else 0.0
+    grow = (distance / reach) ** 2 if reach > 0 else np.ones(unit.size)
+    m = float(np.sqrt(extra / (np.sum(unit * grow) + np.sum(misfit))))
+    return m, reach
+
+
 def _features(obs: BoardObservations, frames: np.ndarray) -> list[list]:
     """Every camera's features of the frames ``frames`` (m,) bool, in order."""
     k = np.flatnonzero(frames).tolist()
@@ -233,12 +278,17 @@ def _features(obs: BoardObservations, frames: np.ndarray) -> list[list]:
 
 def model_error(obs: BoardObservations, selection: Selection, offsets: np.ndarray,
                 T_tool_point: np.ndarray, pixel_sigma_px: float,
-                variance: np.ndarray | None = None) -> tuple[ModelError | None, Share]:  # fmt: skip
+                variance: np.ndarray | None = None,
+                span: np.ndarray | None = None) -> tuple[ModelError | None, Share]:  # fmt: skip
     """The model error (module docstring) from the chosen candidate's fold fits (None without
     folds, one configuration, or when no fold was fitted) and the share of the deviation
     ``variance`` (k,) from the drawing (:func:`selfcal.calibration.board.held_prior.held_share`)
     the folds' excess shows (the prior unscaled without folds); the model error is what is left
-    beyond its point estimate."""
+    beyond its point estimate. ``span`` (n,): the joints' spans (:func:`joint_spans`) when the
+    model error grows with the distance from the calibration postures (module docstring): each
+    held-out frame's own share of it is then scaled by its squared distance to its fold's
+    training postures over their mean, the error's size ``m`` is the one at that mean distance
+    (:attr:`ModelError.reach_distance`)."""
     fits = selection.candidates[selection.chosen].fold_fits
     if selection.fold_of is None or not fits:
         return None, NO_FOLDS
@@ -255,6 +305,8 @@ def model_error(obs: BoardObservations, selection: Selection, offsets: np.ndarra
         )  # fmt: skip
         h = held_out_errors(obs, fit, out, T_tool_point, cr)
         h["px2_held"] = np.zeros(len(h["frame"]))
+        h["distance"] = (np.zeros(len(h["frame"])) if span is None else
+                         posture_distance(obs.q[h["frame"].astype(int)], obs.q[train], span))  # fmt: skip
         if variance is not None and len(h["frame"]):
             dev = held_out_errors(obs, fit, out, T_tool_point, with_deviation(cr, variance))
             h["px2_held"] = dev["px2_expected"] - h["px2_expected"]
@@ -272,9 +324,9 @@ def model_error(obs: BoardObservations, selection: Selection, offsets: np.ndarra
     # effect in the frame itself and through the fold's estimate (misfit.py)
     extra = float(np.sum(h["px2"]) - np.sum(h["px2_expected"])
                   - share.point * np.sum(h["px2_held"]))  # fmt: skip
-    m = 0.0
+    m, reach = 0.0, 0.0
     if extra > Z_MODEL_ERROR * np.sqrt(np.sum(h["px2_var"])):
-        m = float(np.sqrt(extra / (np.sum(h["px2_unit"]) + np.sum(h["px2_misfit"]))))
+        m, reach = grown_size(extra, h["px2_unit"], h["px2_misfit"], h["distance"])
     e, S, N = h["e"], h["S"], h["N"]
 
     def parts(b: slice) -> tuple[list[np.ndarray], list[np.ndarray], list[np.ndarray]]:
@@ -285,7 +337,8 @@ def model_error(obs: BoardObservations, selection: Selection, offsets: np.ndarra
     return model_error_of(r2, s2, n2, rot, folds=len(got),
                           failed=selection.folds - len(got),
                           noise_what="the pixel and joint read-back noise",
-                          given=(m, m / float(np.mean(h["lever"])))), share  # fmt: skip
+                          given=(m, m / float(np.mean(h["lever"]))),
+                          reach_distance=reach), share  # fmt: skip
 
 
 def _errors_px_mm(obs: BoardObservations, fit: Refinement,
@@ -348,12 +401,16 @@ def board_accuracy(obs: BoardObservations, selection: Selection, cr: BoardCramer
     lie from the drawing (default :class:`Deviation`'s; :mod:`selfcal.calibration.board.held`)."""
     deviation = Deviation() if deviation is None else deviation
     variance = deviation.variance(cr.model.joint_types)
-    me, share = model_error(obs, selection, offsets, T_tool_point, pixel_sigma_px, variance)
+    span = joint_spans(limits)
+    me, share = model_error(obs, selection, offsets, T_tool_point, pixel_sigma_px, variance, span)
     cr = with_deviation(cr, share.used * variance)
     pos = 0.0 if me is None else me.position_m
     rot = 0.0 if me is None or me.rotation_rad is None else me.rotation_rad
-    em, names = board_error_model(cr, T_tool_point, pos, rot)
     q_cal = np.asarray(obs.q[obs.used], dtype=float)
+    reach = None
+    if me is not None and me.reach_distance > 0 and span is not None:
+        reach = (q_cal, span, me.reach_distance)
+    em, names = board_error_model(cr, T_tool_point, pos, rot, reach)
     sample = workspace_sample(q_cal, limits, count=count)
     note = ("no cross-validation (the frames show one arm configuration): the covariance alone, "
             "which is optimistic when the model misfits")  # fmt: skip
@@ -378,7 +435,9 @@ def board_accuracy(obs: BoardObservations, selection: Selection, cr: BoardCramer
 def predicted_reprojection(cr: BoardCramerRao, camera: CameraModel, q: np.ndarray,
                            points: list[np.ndarray], T_tool_point: np.ndarray, *,
                            eye_to_hand: bool, joint_sigma: np.ndarray | float | None,
-                           model_error_m: float, model_error_rad: float) -> float:  # fmt: skip
+                           model_error_m: float, model_error_rad: float,
+                           reach: tuple[np.ndarray, np.ndarray, float] | None = None,
+                           ) -> float:  # fmt: skip
     """The predicted 2-D RMS (px) of the reprojection errors of new frames of the first camera
     ``camera`` at the joints ``q`` (m, n) rad, ``points[i]`` (k_i, 3) the board points it sees in
     frame ``i`` (board frame, m): what the calibration's errors (kinematics and camera, ``cr``
@@ -386,13 +445,18 @@ def predicted_reprojection(cr: BoardCramerRao, camera: CameraModel, q: np.ndarra
     :attr:`BoardCramerRao.misfit`), the model error per tool-point coordinate (``model_error_m``,
     ``model_error_rad``), the joint read-back noise ``joint_sigma`` and the pixel noise
     (``cr.pixel_sigma_px``) give them, to first order -- to compare with ``selfcal evaluate``'s
-    measured held-out RMS."""
+    measured held-out RMS. ``reach``: the calibration postures, the joints' spans and the
+    reference distance the model error grows from (:func:`board_error_model`), or None."""
     cols, C, n0 = _full_covariance(cr)
     C = C + model_error_m**2 * _full_covariance(cr, misfit=True)[1]
     t = np.asarray(T_tool_point, float)[:3, 3]
     M = np.diag([model_error_m**2] * 3 + [model_error_rad**2] * 3)
+    q = np.atleast_2d(q)
+    grow = np.ones(len(q))
+    if reach is not None and reach[2] > 0:
+        grow = (posture_distance(q, reach[0], reach[1]) / reach[2]) ** 2
     total, count = 0.0, 0
-    for qi, X in zip(np.atleast_2d(q), points, strict=True):
+    for qi, X, g in zip(q, points, grow, strict=True):
         T = fk_tool(cr.model, qi[None])[0]
         T_cam_board = T if eye_to_hand else inv_pose(T)
         x = X @ T_cam_board[:3, :3].T + T_cam_board[:3, 3]
@@ -401,7 +465,7 @@ def predicted_reprojection(cr: BoardCramerRao, camera: CameraModel, q: np.ndarra
         H = np.concatenate([A @ identification_jacobian(cr.model, qi[None])[0][:, cols],
                             Jc.reshape(-1, n0)], axis=1)  # fmt: skip
         Binv = np.linalg.inv(tip_map(T, t))
-        cov = H @ C @ H.T + A @ Binv @ M @ Binv.T @ A.T
+        cov = H @ C @ H.T + g * (A @ Binv @ M @ Binv.T @ A.T)
         if joint_sigma is not None:
             tw = A @ joint_twists(cr.model, qi[None])[0]
             cov = cov + tw @ np.diag(np.broadcast_to(np.asarray(joint_sigma, float) ** 2,
@@ -419,8 +483,14 @@ def board_error_model_from_json(block: dict, model: MCPCModel, where: str) -> To
     """
     names = tuple(param_names(minimal_indices(model.joint_types)))
     tip = np.asarray(block.get("T_tool_point_si", np.eye(4)), dtype=float)
-    return error_model_from_json(block, model, np.eye(4), names, True, where, fix=_FIX,
-                                 T_tool_point=tip)  # fmt: skip
+    em = error_model_from_json(block, model, np.eye(4), names, True, where, fix=_FIX,
+                               T_tool_point=tip)  # fmt: skip
+    reach = float((block.get("model_error") or {}).get("reach_distance") or 0.0)
+    span = None if "joint_limits_si" not in block else joint_spans(block["joint_limits_si"])
+    if reach > 0 and span is not None:  # an older file without it: the same everywhere
+        q_cal = postures_from_json(block, model.n, where, fix=_FIX)
+        em = dataclasses.replace(em, reach_postures=q_cal, reach_span=span, reach_distance=reach)
+    return em
 
 
 def board_postures_from_json(block: dict, n: int, where: str) -> np.ndarray:

@@ -70,7 +70,7 @@ def view_jacobians(em: ToolErrorModel, camera: CameraModel, q: np.ndarray, X: np
     B = tip_map(T, t)
     tip = A @ np.linalg.inv(B)  # pixels by a move of the tool point and a rotation (world)
     rot = 0.0 if em.model_error_rad is None else em.model_error_rad
-    m2 = np.r_[np.full(3, em.model_error_m**2), np.full(3, rot**2)]
+    m2 = np.r_[np.full(3, em.model_error_m**2), np.full(3, rot**2)] * em.model_error_factor(q)[0]
     tw = joint_twists(model, q[None])[0]
     joints = A @ tw
     Ad = adjoint(inv_pose(T))
