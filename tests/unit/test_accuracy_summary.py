@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from selfcal.pipeline.board_accuracy import accuracy_markdown
 from selfcal.pipeline.report_text import report_summary
 from selfcal.pipeline.static_report import PREDICTED_WHERE, static_summary
 
@@ -61,3 +62,13 @@ def test_the_eye_to_hand_line_of_a_report_without_the_block_is_unchanged():
     line = static_summary(_eye_to_hand(None), Path("run"))
     assert "tool point" not in line and line.endswith("calibrated 0.230 mm RMS; details in "
                                                       "run/report.md")  # fmt: skip
+
+
+def test_report_md_says_when_the_model_error_grows_away_from_the_postures():
+    regions = {k: {"points": 0} for k in ("calibration_postures", "inside", "edge", "workspace")}
+    me = {"position_mm": 0.03, "rotation_deg": 0.004, "rows": 30, "folds": 5}
+    section = {"line": "tool point within 0.3 mm (95 %)", "regions": regions, "model_error": me}
+    flat = "\n".join(accuracy_markdown(section))
+    grown = "\n".join(accuracy_markdown({**section, "model_error": {**me, "reach_distance": 0.12}}))
+    assert "model error 0.0300 mm" in flat and "growing" not in flat
+    assert "(0.120 of the joints' ranges), growing in proportion" in grown
