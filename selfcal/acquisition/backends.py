@@ -15,7 +15,6 @@ from pathlib import Path
 import numpy as np
 
 from selfcal.acquisition.acquire import AcquisitionHooks
-from selfcal.acquisition.eye_to_hand import plan_static, static_detect, static_robot
 from selfcal.acquisition.simulator_setup import (
     DICTIONARY,
     SCALE_IDS,
@@ -227,6 +226,8 @@ def plan_dataset(s: Scenario, setup: SimSetup | None = None) -> DatasetInfo:
 
 def _static_info(s: Scenario) -> DatasetInfo:
     """:func:`plan_dataset` of an eye-to-hand scenario."""
+    from selfcal.acquisition.eye_to_hand import plan_static  # lazy: see open_robot
+
     robot = load_robot(s.robot.model)
     q, qv = plan_static(s, robot, _file_postures(s, robot) if s.trajectory.kind == "file" else None)
     board = scenario_board(s)
@@ -287,6 +288,10 @@ def open_robot(
     setup = setup or sim_setup(s)
     # the analytic path needs no images: the MuJoCo-free simulator serves any serial arm
     if setup.static is not None:
+        # the still camera's simulator (its scene and the board's placement: 0.05-0.1 s of
+        # imports) loads for an eye-to-hand scenario only
+        from selfcal.acquisition.eye_to_hand import static_detect, static_robot
+
         robot = static_robot(s, setup.static)
     elif s.noise.render:
         robot = make_sim_robot(s, setup)

@@ -10,7 +10,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from selfcal.acquisition.eye_to_hand import static_cell
 from selfcal.camera import Intrinsics
 from selfcal.config.scenario import ConfigError, Scenario, scenario_board
 from selfcal.errors import InputError, UsageError
@@ -28,7 +27,6 @@ from selfcal.sim.board_scene import board_on_table
 from selfcal.sim.compliance import JointCompliance
 from selfcal.sim.markers import MarkerField, make_marker_field
 from selfcal.sim.robot_mjcf import RigConfig
-from selfcal.target.placement import board_pose
 from selfcal.transforms import trans
 
 __all__ = [
@@ -138,7 +136,11 @@ def sim_setup(s: Scenario) -> SimSetup:
         )
     )
     T_lr = trans(np.array([s.camera.baseline_mm / 1000, 0.0, 0.0]))
-    static = static_cell(s, robot) if s.camera.setup == "eye-to-hand" else None
+    static = None
+    if s.camera.setup == "eye-to-hand":  # its simulator's modules load for such a scenario only
+        from selfcal.acquisition.eye_to_hand import static_cell
+
+        static = static_cell(s, robot)
     T_world_board = (None if board is None or static is not None
                      else scenario_board_pose(s, board, robot, nominal))  # fmt: skip
     right = s.camera.of("right").true_model() if s.camera.own_intrinsics else None
@@ -153,5 +155,7 @@ def scenario_board_pose(s: Scenario, board, robot: RobotDef, nominal: MCPCModel)
     bp = s.target.board_pose
     if not bp:
         return board_on_table(board, field_center(robot, nominal))
+    from selfcal.target.placement import board_pose  # lazy: a marker field needs no placement
+
     rpy = np.radians(bp[3:]) if len(bp) == 6 else None
     return board_pose(board, np.asarray(bp[:3]) / 1000.0, rpy)

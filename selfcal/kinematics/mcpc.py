@@ -42,6 +42,7 @@ __all__ = [
     "chain_transforms",
     "minimal_indices",
     "param_names",
+    "chain_param_names",
     "param_is_angle",
 ]
 
@@ -220,6 +221,14 @@ def minimal_indices(joint_types: tuple[str, ...]) -> np.ndarray:
 def param_names(indices: np.ndarray) -> list[str]:
     """Names such as ``alpha0``, ``lx1``, ``gamma5`` for flat parameter indices."""
     return [f"{COLUMNS[k % 6]}{k // 6}" for k in np.asarray(indices)]
+
+
+def chain_param_names(joint_types: tuple[str, ...]) -> tuple[str, ...]:
+    """The minimal parameters of the joints' chain: all but the base (row 0) and the tool
+    (row n), i.e. what a nominal model keeps at the drawing's values."""
+    n = len(joint_types)
+    idx = minimal_indices(joint_types)
+    return tuple(param_names(np.array([k for k in idx if k // 6 not in (0, n)])))
 
 
 def param_is_angle(indices: np.ndarray) -> np.ndarray:

@@ -11,7 +11,6 @@ from pathlib import Path
 import numpy as np
 
 from selfcal.kinematics.accuracy import format_table_iv
-from selfcal.pipeline.board_accuracy import accuracy_summary
 from selfcal.pipeline.report_cameras import rig_camera_markdown
 from selfcal.pipeline.report_fit import bound_markdown, figure_links, parameter_markdown
 
@@ -51,7 +50,7 @@ def report_summary(report: dict, root: Path) -> str:
         verdict = report.get("verdict")
         verdict = "" if not verdict else "; NO GAIN: " + verdict.removeprefix("no gain: ")
         acc = report.get("accuracy")
-        tool = "" if not acc else f"; {accuracy_summary(acc)}"
+        tool = "" if not acc else f"; {_accuracy_summary(acc)}"
         return (f"report (no truth): fit {report['fit']['reprojection_rms_px']:.3f} px RMS; "
                 f"{held}{verdict}{tool}; {Path(root) / 'report.json'}")  # fmt: skip
     if report.get("kind") == "eye-to-hand-truth":
@@ -63,12 +62,20 @@ def report_summary(report: dict, root: Path) -> str:
     bound = v.get("tool_tip_bound_mm")
     b = "" if bound is None else f", bound {bound:.3f} mm"
     acc = report.get("accuracy")
-    tool = "" if not acc else f"; predicted: {accuracy_summary(acc)}"
+    tool = "" if not acc else f"; predicted: {_accuracy_summary(acc)}"
     return (
         f"report: tool-tip error {t['calibrated']['rms']:.3f} mm RMS calibrated, "
         f"{t['nominal']['rms']:.3f} mm nominal over {v['poses']} validation postures{b}"
         f"{tool}; {Path(root) / 'report.json'}"
     )
+
+
+def _accuracy_summary(acc: dict) -> str:
+    """:func:`selfcal.pipeline.board_accuracy.accuracy_summary`: the board route's modules load
+    for a report that has a predicted accuracy only (a field run's has none)."""
+    from selfcal.pipeline.board_accuracy import accuracy_summary
+
+    return accuracy_summary(acc)
 
 
 def _predicted(r: dict) -> str:

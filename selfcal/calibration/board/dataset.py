@@ -53,7 +53,7 @@ from selfcal.io.board_calibration import BoardCalibrationResult
 from selfcal.io.dataset import Dataset, DatasetError, read_gray
 from selfcal.io.target_toml import parse_target
 from selfcal.kinematics.forward import fk_tool
-from selfcal.kinematics.mcpc import minimal_indices, nominal_mcpc, param_names
+from selfcal.kinematics.mcpc import nominal_mcpc
 from selfcal.robot.definition import RobotDef, load_robot
 from selfcal.target.base import Features
 from selfcal.target.boards import Board
@@ -69,7 +69,6 @@ __all__ = [
     "BoardDatasetCalibration",
     "calibrate_board_dataset",
     "calibrate_board_dataset_detailed",
-    "chain_param_names",
 ]
 
 
@@ -421,11 +420,3 @@ def _data_notes(ds: Dataset, board: Board, feats: list[Features], names: list[st
     scale = scale_warning(ms, robot.name, f"the board ({scaled_sizes(sizes, 1.0)})",
                           f"{scaled_sizes(sizes, ms.scale)} would match the arm")  # fmt: skip
     return [] if scale is None else [scale]
-
-
-def chain_param_names(joint_types: tuple[str, ...]) -> tuple[str, ...]:
-    """The minimal parameters of the joints' chain: all but the base (row 0) and the tool
-    (row n), i.e. what a nominal model keeps at the drawing's values."""
-    n = len(joint_types)
-    idx = minimal_indices(joint_types)
-    return tuple(param_names(np.array([k for k in idx if k // 6 not in (0, n)])))

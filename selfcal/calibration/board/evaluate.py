@@ -21,7 +21,6 @@ from pathlib import Path
 
 import numpy as np
 
-from selfcal.calibration.board.dataset import dataset_board, detect_board
 from selfcal.errors import InputError, SelfCalWarning
 from selfcal.io.board_calibration import BoardCalibrationResult
 from selfcal.io.dataset import Dataset
@@ -213,6 +212,10 @@ def held_out_views(cal: BoardCalibrationResult, root: str | Path,
             not match the calibration's (a camera the calibration does not hold, another image
             size), or no image shows the board.
     """
+    # the board route's detection and its calibration modules load where a board is evaluated:
+    # the field route takes this module's verdict rules (no_gain, worse, rms_px) alone
+    from selfcal.calibration.board.dataset import dataset_board, detect_board
+
     ds = Dataset.open(root)
     board = dataset_board(ds)
     if ds.info.board != cal.target:

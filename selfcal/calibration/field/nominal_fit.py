@@ -34,7 +34,6 @@ from dataclasses import replace
 
 import numpy as np
 
-from selfcal.calibration.board.dataset import chain_param_names
 from selfcal.calibration.field.joint_refine import joint_refine
 from selfcal.calibration.field.quality import model_reprojection_rms_px
 from selfcal.calibration.field.results import CalibrationOutput, hand_eye, rig_cameras
@@ -54,7 +53,7 @@ from selfcal.io.calibration_blocks import (
 )
 from selfcal.io.dataset_info import DatasetInfo
 from selfcal.kinematics.alignment import express_in_frame
-from selfcal.kinematics.mcpc import MCPCModel, nominal_mcpc
+from selfcal.kinematics.mcpc import MCPCModel, chain_param_names, nominal_mcpc
 from selfcal.robot.definition import RobotDef
 from selfcal.solver import SolverOptions
 from selfcal.transforms import kabsch
