@@ -246,26 +246,36 @@ def _refine_pass(
     width = int(n_off.max())
     col = np.arange(width)
     offs = -hw_p[:, None] + _STEP / 2 + _STEP * col[None, :]  # (Np, width)
-    pts = (base[:, None, :] + offs[..., None] * nrm_p[:, None, :]).astype(np.float32)
-    flat = pts.reshape(-1, 2)
-    total = len(flat)
+    total = len(offs) * width
     rows = -(-total // _REMAP_WIDTH)
-    grid = np.zeros((rows * _REMAP_WIDTH, 2), np.float32)
-    grid[:total] = flat
+    grid = np.empty((rows * _REMAP_WIDTH, 2), np.float32)
+    grid[total:] = 0.0
+    # the sample points base + offs * nrm, x and y each as one (Np, width) product in float64
+    # rounded to float32 in the map (a broadcast over the last axis of two is several times
+    # slower: numpy's inner loop would run over two elements)
+    pts = grid[:total].reshape(-1, width, 2)
+    for k in range(2):
+        xy = offs * nrm_p[:, k, None]
+        xy += base[:, k, None]
+        pts[..., k] = xy
     maps = grid.reshape(rows, _REMAP_WIDTH, 2)
     prof = cv2.remap(
         g, maps[..., 0], maps[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
     )
     prof = prof.reshape(-1)[:total].reshape(-1, width).astype(np.float64)
     inside = col[None, :] < no_p[:, None]
-    prof = np.where(inside, prof, 0.0)
+    outside = ~inside
+    prof[outside] = 0.0
     cs = np.cumsum(prof, axis=1)
     r_idx = np.arange(len(prof))
     black = cs[r_idx, ne_p - 1] / ne_p
     white = (cs[r_idx, no_p - 1] - cs[r_idx, no_p - 1 - ne_p]) / ne_p
     contrast = white - black
-    frac_black = np.clip((white[:, None] - prof) / np.maximum(contrast, 1e-6)[:, None], -0.5, 1.5)
-    edge = -hw_p + _STEP * np.where(inside, frac_black, 0.0).sum(axis=1)  # any symmetric blur
+    frac_black = white[:, None] - prof  # in place below: the same values, fewer arrays
+    frac_black /= np.maximum(contrast, 1e-6)[:, None]
+    np.clip(frac_black, -0.5, 1.5, out=frac_black)
+    frac_black[outside] = 0.0
+    edge = -hw_p + _STEP * frac_black.sum(axis=1)  # any symmetric blur
     P = base + edge[:, None] * nrm_p  # (Np, 2)
     # pad the edge points into (sides, max samples) for the line fits
     S = 4 * n
