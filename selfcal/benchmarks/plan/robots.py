@@ -206,7 +206,8 @@ def table(rows: list[dict], predicted: dict, held: dict) -> str:
             continue
         parts = [f"every frame of the plan's draws with every corner {p[3]} of {p[4]} "
                  f"({verdict[p[3] == p[4]]})"]  # fmt: skip
-        if r30 is not None:  # a set with draws
+        if r30 is not None:  # a set with draws; its frames must satisfy the same view rule
+            parts.append(f"of the random 30's {r30[3]} of {r30[4]} ({verdict[r30[3] == r30[4]]})")
             parts.append(
                 f"plan 12 against random 30 at the median {p[0]:.3f} / {r30[0]:.3f} mm "
                 f"({verdict[bool(p[0] <= r30[0])]}) and the 90th percentile {p[1]:.3f} / "
