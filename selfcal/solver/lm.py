@@ -72,8 +72,10 @@ class SolverResult:
     ``residuals``: residual block name -> (k, d) at ``x``; ``cost`` ``1/2 sum rho``; ``iterations``
     (Jacobian evaluations), ``nfev`` (residual evaluations incl. the start), ``trials`` (budget
     used); ``status`` 0 budget, 1 gradient, 2 cost/step, 3 damping saturated; ``message``;
-    ``damping``: the damping ``lam`` the loop ended with (a warm start,
-    ``SolverOptions.initial_damping``, for the next solve of a nearby problem)."""
+    ``damping``: the damping ``lam`` after the loop's last accepted step (the start's when
+    none was accepted): a warm start, ``SolverOptions.initial_damping``, for the next solve of
+    a nearby problem; a loop that ended on rejected steps (damping saturated, the budget) had
+    raised it past any use for that."""
 
     x: np.ndarray
     values: dict[str, np.ndarray]
@@ -181,6 +183,7 @@ def solve(
     nfev = trials = 1
     it = 0
     lam, nu = opt.initial_damping, 2.0
+    lam_accepted = lam  # the damping after the last accepted step (SolverResult.damping)
     status, message = 0, "maximum number of iterations or evaluations reached"
     bad_block: str | None = None  # the block whose NaN/inf rejected the last trial
     singular: str | None = None  # why the last trial's damped system could not be solved
@@ -229,7 +232,7 @@ def solve(
                     small_cost = cost - cost_new <= tol * cost
                     x, evals, cost = x_new, ev_new, cost_new
                     lam *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
-                    nu = 2.0
+                    lam_accepted, nu = lam, 2.0
                     improved = True
                     if small_step or small_cost or cost <= 1e-30:
                         status, message = 2, "cost/step tolerance reached"
@@ -265,5 +268,5 @@ def solve(
         status=status,
         message=message,
         linear_solver=kind,
-        damping=float(lam),
+        damping=float(lam_accepted),
     )

@@ -183,6 +183,22 @@ def test_nan_at_every_trial_ends_within_the_budget(budget):
     assert blk.calls <= 2 + min(budget - 1, 12)
 
 
+def test_the_damping_handed_on_is_the_last_accepted_steps():
+    """A loop that ends on rejected steps (here: no tolerance, so it runs until no step
+    decreases the cost and the damping saturates past 1e16) hands on the damping of its last
+    accepted step as the next nearby solve's warm start, not the one its rejections raised."""
+    res = solve(_problem(ExpFit(_data())), SolverOptions(tol=0.0))
+    assert res.status == 3 and res.iterations > 5
+    assert 0 < res.damping <= 1e16  # measured 1.8e3 (its lam ended at 6.3e16)
+    # its last iteration accepted no step: the damping is the one the iteration before ended
+    # with (the same loop stopped there by its budget)
+    before = SolverOptions(tol=0.0, max_iterations=res.iterations - 1)
+    assert solve(_problem(ExpFit(_data())), before).damping == res.damping
+    # a loop that stops at a tolerance hands on the damping it ended with, as before
+    again = solve(_problem(ExpFit(_data())), SolverOptions(tol=1e-12))
+    assert again.status == 2 and 0 < again.damping < SolverOptions.initial_damping
+
+
 def test_unfactorable_system_ends_within_the_budget(monkeypatch):
     def fail(self, lam):
         raise linear_mod.SingularSystem("injected")
