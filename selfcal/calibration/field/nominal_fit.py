@@ -105,8 +105,9 @@ def fit_field_nominal(
         # it starts at that refinement's minimum but for the chain: its first step undamped as
         # that one's last (5 iterations where the default damping takes 7 at 300 postures)
         kw.setdefault("initial_damping", min(fin.damping, SolverOptions.initial_damping))
-    else:
+    else:  # the nominal chain starts far from the camera stage's minimum: cold
         kw.setdefault("joint_sigma", encoder_sigma(robot))
+        kw.setdefault("initial_damping", SolverOptions.initial_damping)
     nominal = nominal_mcpc(robot).with_tool(robot.T_flange_cam)
     start = place_nominal(nominal, q[used], sc.T_world_cam[used, 0])
     return joint_refine(

@@ -99,7 +99,8 @@ class SelfCalibrationResult(PinholeValues):
     ``cx``, ``cy``, ``width``, ``height`` are its values); with ``cameras`` (a
     :class:`selfcal.camera.CameraSet`: each camera of the rig its own model) ``camera`` is the
     first camera's, and ``cov_fx_mu`` covers every camera's free parameters (``cameras.free``
-    order).
+    order). ``damping``: the damping the final adjustment's solve ended with
+    (``SolverResult.damping``), a warm start for the joint refinement that starts from here.
     """
 
     camera: Pinhole
@@ -128,6 +129,7 @@ class SelfCalibrationResult(PinholeValues):
     sign_choice: SignChoice | None = None
     diagnostics: dict = field(default_factory=dict)
     cameras: CameraSet | None = None
+    damping: float = 1e-4
 
     @property
     def intrinsics(self) -> Pinhole:
@@ -473,6 +475,7 @@ def _result(
         mu_init=float(init.camera_init.mu),
         diagnostics=diag,
         cameras=cams,
+        damping=fit.bundle.damping,
     )
 
 
