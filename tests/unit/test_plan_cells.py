@@ -1,7 +1,7 @@
 """The plan Monte Carlo's cells (selfcal/benchmarks/plan/robots.py): the rule that lays out each
 robot's cell gives docs/plan.md's UR5e example for the UR5e, puts every robot's board where its
 home posture looks, keeps the keep-out box off the board, and leaves postures that reach, do not
-collide and see the board whole."""
+collide and see the board whole by selfcal plan's view rule."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import pytest
 
 from selfcal.benchmarks.plan.compare import BOARD_POSE, KEEP_OUT
 from selfcal.benchmarks.plan.robots import ROBOTS, cell, cell_values
-from selfcal.calibration.board.plan_views import ViewRule, candidate_pool, feasible
+from selfcal.calibration.board.plan_views import candidate_pool, feasible
 from selfcal.kinematics.forward import fk_tool
 from selfcal.kinematics.mcpc import nominal_mcpc
 from selfcal.robot.definition import load_robot
@@ -24,9 +24,8 @@ def test_the_rule_gives_the_ur5e_example_its_own_cell() -> None:
 
 @pytest.mark.parametrize("name", ROBOTS)
 def test_each_cell_sees_its_board_from_home_and_has_postures(name: str) -> None:
-    # the ER-4u sees this board's marker cells at 2.1 px at most: selfcal plan's rule refuses
-    # every posture (tests/unit/test_plan_sight.py), so its cell is checked without that limit
-    setup, bp, box = cell(name, ViewRule(min_module_px=0.0) if name == "er4u-paper" else None)
+    # selfcal plan's view rule (the ER-4u's board of 5 mm marker cells: cell_target)
+    setup, bp, box = cell(name)
     robot = setup.robot
     # the optical axis at home meets the table's plane (z = 0) within 1 mm of the board's centre
     T = fk_tool(nominal_mcpc(robot).with_tool(robot.T_flange_cam), robot.home[None])[0]

@@ -1,12 +1,15 @@
 """``python -m selfcal.benchmarks.plan.robots [--robot R ...] [--render] [--draws 30] [--jobs 1]
 [--sets SET ...] [--pixel-sigma PX] [--min-pitch-px PX --max-tilt-deg DEG] [--from-draws]
-[--write-docs]``: the postures of ``selfcal plan`` against random ones on every simulated robot,
-achieved in simulation on the analytic or the rendered path (docs/plan.md, issue #30).
+[--block NAME] [--write-docs]``: the postures of ``selfcal plan`` against random ones on every
+simulated robot, achieved in simulation on the analytic or the rendered path (docs/plan.md,
+issue #30).
 
 Each robot's cell is laid out like docs/plan.md's UR5e example (:func:`cell_values`): the 60 deg
-640 x 480 wrist camera of the robot file's ``[camera_mount]``, the ChArUco printed face up on
-the table (3 mm thick) where the home posture's optical axis meets it, and one keep-out box of
-the example's size placed about the base as the example's lies about its board. Per cell: the
+640 x 480 wrist camera of the robot file's ``[camera_mount]``, the ChArUco (the example's, or
+one of larger markers where the camera cannot see the example's: :data:`CELL_TARGETS`) printed
+face up on the table (3 mm thick) where the home posture's optical axis meets it, and one
+keep-out box of the example's size placed about the base as the example's lies about its board.
+Per cell: the
 plan of 12 and the first 12 and 30 of its candidate pool (random postures under the same
 filters; :func:`selfcal.benchmarks.plan.compare.sets_of`), each replayed in ``--draws``
 simulated draws as :mod:`selfcal.benchmarks.plan.compare` does (one truth ``[perturbation]
@@ -39,7 +42,7 @@ import numpy as np
 from selfcal.benchmarks.doc_blocks import ROOT, print_table
 from selfcal.io.atomic import write_text_atomic
 
-__all__ = ["ROBOTS", "cell", "cell_values", "main", "table"]
+__all__ = ["CELL_TARGETS", "ROBOTS", "cell", "cell_target", "cell_values", "main", "table"]
 
 ROBOTS = ("ur5e", "er4u-paper", "kr6-r900")
 """The simulated robots, docs/plan.md's example first."""
@@ -49,6 +52,10 @@ EXAMPLE_BOX = np.array([-300.0, 50.0, 0.0, -100.0, 400.0, 600.0])
 """mm: the UR5e example's keep-out box."""
 BOARD_THICKNESS_MM = 3.0
 """The board's centre height on the table (its thickness)."""
+CELL_TARGETS = {"er4u-paper": "charuco-a3.toml"}
+"""The boards of cells whose 640 x 480 camera cannot see the example's ChArUco's marker cells
+(2.1 mm) at 2.5 px from a posture that reaches (the ER-4u's board lies 650 mm from its base:
+2.1 px at most): an A3 board of 5 mm cells (``models/targets/``)."""
 
 
 def cell_values(robot) -> tuple[np.ndarray, np.ndarray]:
@@ -73,20 +80,28 @@ def cell_values(robot) -> tuple[np.ndarray, np.ndarray]:
     return np.array([xy[0], xy[1], BOARD_THICKNESS_MM, 0.0, 0.0, 0.0]), box[None, :]
 
 
+def cell_target(name: str) -> Path:
+    """The printed board of robot ``name``'s cell: :data:`CELL_TARGETS`'s, else the UR5e
+    example's ChArUco (``models/targets/charuco.toml``)."""
+    from selfcal.robot.definition import models_dir
+
+    return models_dir() / "targets" / CELL_TARGETS.get(name, "charuco.toml")
+
+
 def cell(name: str, rule=None):
     """``(setup, board_pose (6,) mm deg, keep_out (1, 6) mm)`` of robot ``name``'s cell
-    (:func:`cell_values`): a :class:`selfcal.calibration.board.plan_views.PlanSetup` with the
-    view ``rule`` (:class:`selfcal.calibration.board.plan_views.ViewRule`; None: ``selfcal
-    plan``'s)."""
+    (:func:`cell_values`, :func:`cell_target`): a
+    :class:`selfcal.calibration.board.plan_views.PlanSetup` with the view ``rule``
+    (:class:`selfcal.calibration.board.plan_views.ViewRule`; None: ``selfcal plan``'s)."""
     from selfcal.calibration.board.plan_views import PlanSetup, ViewRule
     from selfcal.io.camera_file import camera_from_fov
     from selfcal.io.target_toml import load_target
-    from selfcal.robot.definition import load_robot, models_dir
+    from selfcal.robot.definition import load_robot
     from selfcal.target.placement import board_pose
 
     robot = load_robot(name)
     bp, box = cell_values(robot)
-    board = load_target(models_dir() / "targets/charuco.toml")
+    board = load_target(cell_target(name))
     setup = PlanSetup(robot, camera_from_fov(60.0, 640, 480), board,
                       board_pose(board, bp[:3] / 1000.0), box / 1000.0,
                       rule or ViewRule())  # fmt: skip
@@ -117,7 +132,6 @@ def _items(robot: str, root: Path, render: bool, draws: int, sets: tuple[str, ..
     from selfcal.benchmarks.plan.compare import sets_of
     from selfcal.cli.plan_scenario import scenario_text
     from selfcal.io.plan_files import joints_csv
-    from selfcal.robot.definition import models_dir
 
     setup, bp, _ = cell(robot, rule)
     got = sets_of(setup, 12, (12, 30), pixel_sigma_px=sigma)
@@ -129,7 +143,7 @@ def _items(robot: str, root: Path, render: bool, draws: int, sets: tuple[str, ..
         held[name] = _held_prediction(setup, q, got["workspace"], sigma)
         folder = root / robot / name.replace(" ", "-")
         folder.mkdir(parents=True, exist_ok=True)
-        shutil.copyfile(models_dir() / "targets/charuco.toml", folder / "target.toml")
+        shutil.copyfile(cell_target(robot), folder / "target.toml")
         write_text_atomic(folder / "joints.csv", joints_csv(q, setup.robot.edge_unit))
         write_text_atomic(folder / "scenario.toml", scenario_text(robot, setup.camera, bp, len(q)))
         deg = (q / setup.robot.edge_unit).tolist()
@@ -265,6 +279,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", default="runs/plan-robots",
                     help="the scenarios and draws.jsonl, under PATH[-NOISE][-RULE]/ (the docs "
                          "block's name too); a run resumes its draws")  # fmt: skip
+    ap.add_argument("--block", default=None,
+                    help="the docs block's name after benchmark_plan_robots_ (default: the "
+                         "run's folder, PATH[-NOISE][-RULE])")  # fmt: skip
     ap.add_argument("--write-docs", action="store_true")
     a = ap.parse_args(argv)
     rule = ViewRule(min_pitch_px=a.min_pitch_px, max_tilt_deg=a.max_tilt_deg,
@@ -294,7 +311,7 @@ def main(argv: list[str] | None = None) -> int:
                 write_text_atomic(root / "draws.jsonl", "".join(json.dumps(r) + "\n" for r in rows))
     text = table(rows, predicted, held)
     cells = "; ".join(
-        f"{r} board at {v[0][0]:g}, {v[0][1]:g}, {v[0][2]:g} mm, keep-out "
+        f"{r} board ({cell_target(r).name}) at {v[0][0]:g}, {v[0][1]:g}, {v[0][2]:g} mm, keep-out "
         + ",".join(f"{x:g}" for x in v[1][0])
         for r, v in ((r, cell_values(load_robot(r))) for r in a.robot)
     )
@@ -305,7 +322,7 @@ def main(argv: list[str] | None = None) -> int:
         f"{' '.join(shlex.quote(x) for x in args)}` (draws per row: the failed column's "
         "count; a run stopped early tabled with `--from-draws`)."
     )
-    return print_table(text, ROOT / "docs/plan.md", f"benchmark_plan_robots_{folder}",
+    return print_table(text, ROOT / "docs/plan.md", f"benchmark_plan_robots_{a.block or folder}",
                        write=a.write_docs)  # fmt: skip
 
 
