@@ -26,6 +26,13 @@ pooled ratio of the predicted to the true RMS (target 0.7-1.4) with the 10-90 % 
 per-draw ratios, the orientation's coverage with and without the model error, and the share of
 draws that counted a model error.
 
+``--render``: the draws' images rendered with MuJoCo and detected by the board route's
+detector, as ``selfcal run`` with ``[noise] render = true`` does (``MUJOCO_GL=egl``), at the
+image noise levels :data:`IMAGE_SIGMA` (grey levels, ``image_sigma``; ``--noise-px`` sets them);
+each row also gives the detector's corner noise, the detected corners against their true
+projections (:mod:`selfcal.benchmarks.corner_noise`), and goes to its own block. ``--rows-out FILE`` appends
+each finished row to ``FILE``; ``--from-rows FILE`` tables them (a run split into pieces).
+
 ``--real``: the repository's real sets with a board (tests/data/real, docs/real-data.md):
 each imported and calibrated as its README says, and the held-out images' reprojection RMS that
 the calibration predicts (:func:`selfcal.calibration.board.accuracy.predicted_reprojection`:
@@ -34,13 +41,15 @@ the estimate's errors with the share of the held parameters' deviation its folds
 against the one ``selfcal evaluate`` measures (target 0.67-1.5x).
 
 Run: ``uv run python -m selfcal.benchmarks.board_accuracy [--draws 30] [--jobs 2] [--robots
-R,..] [--models M,..] [--noise-px S,..] [--poses 30] [--real] [--write-docs]`` (rewrites the tables in docs/tool-accuracy.md).
+R,..] [--models M,..] [--noise-px S,..] [--poses 30] [--render] [--rows-out FILE] [--from-rows
+FILE] [--real] [--write-docs]`` (rewrites the tables in docs/tool-accuracy.md).
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import json
 import sys
 import tempfile
 import time
@@ -54,6 +63,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from selfcal.acquisition.simulator_setup import SimSetup, sim_setup
+from selfcal.benchmarks.corner_noise import corner_noise, corner_stats
 from selfcal.benchmarks.doc_blocks import ROOT, print_table, write_block
 from selfcal.benchmarks.tool_accuracy import coverage
 from selfcal.benchmarks.tool_accuracy import mark as _mark
@@ -73,6 +83,7 @@ from selfcal.calibration.board.plan_predict import Deviation
 from selfcal.config.scenario import Scenario, load_scenario, scenarios_dir
 from selfcal.errors import InternalError, UsageError
 from selfcal.estimation.joint_report import encoder_sigma
+from selfcal.io.atomic import write_text_atomic
 from selfcal.io.board_calibration import BoardCalibrationResult, read_board_calibration
 from selfcal.io.dataset import Dataset
 from selfcal.io.truth import Truth, read_truth
@@ -106,6 +117,8 @@ __all__ = [
 ROBOTS = ("er4u-paper", "ur5e", "kr6-r900")
 MODELS = ("fits", "compliance")
 NOISE_PX = (0.05, 0.2, 0.5)
+IMAGE_SIGMA = (2.0, 8.0, 16.0)
+"""``--render``'s image noise levels (grey levels): the scenarios' default and a noisy sensor."""
 POSES = 30
 COUNT = 128
 REGIONS = ("inside", "edge", "workspace")
@@ -113,6 +126,7 @@ SCENARIO = scenarios_dir() / "mono-charuco.toml"
 DOC = ROOT / "docs" / "tool-accuracy.md"
 BLOCK = "benchmark_board_accuracy"
 BLOCK_REAL = "benchmark_board_accuracy_real"
+BLOCK_RENDER = "benchmark_board_accuracy_rendered"
 REAL = ROOT / "tests" / "data" / "real"
 REAL_SETS = {
     "nachi-2025-01-17-photoneo": ("nachi_mz25.urdf",
@@ -133,11 +147,15 @@ def _angle(R_a: np.ndarray, R_b: np.ndarray) -> np.ndarray:
                                      .as_rotvec(), axis=1))  # fmt: skip
 
 
-def scenario(robot: str, sigma_px: float, seed: int, poses: int = POSES) -> Scenario:
+def scenario(robot: str, sigma_px: float, seed: int, poses: int = POSES,
+             image_sigma: float | None = None) -> Scenario:  # fmt: skip
     """The draw's scenario: mono-charuco on ``robot`` with its noise, seeds and ``poses``
-    calibration postures."""
+    calibration postures; analytic with corner noise ``sigma_px``, or with ``image_sigma``
+    (grey levels) rendered with that sensor noise and detected (``sigma_px`` then unused)."""
+    noise = ({"render": False, "pixel_sigma": sigma_px} if image_sigma is None
+             else {"render": True, "image_sigma": image_sigma})  # fmt: skip
     return load_scenario(SCENARIO, {
-        "robot": {"model": robot}, "noise": {"render": False, "pixel_sigma": sigma_px, "seed": seed},
+        "robot": {"model": robot}, "noise": noise | {"seed": seed},
         "trajectory": {"poses": poses, "seed": seed}, "perturbation": {"seed": seed}})  # fmt: skip
 
 
@@ -182,14 +200,17 @@ def simulated_calibration(sigma_px: float, seed: int, noise: dict | None = None,
 
 def draw(args: tuple) -> dict:
     """One draw (``robot``, noise ``sigma_px``, ``model``, ``seed``, optionally the calibration
-    postures' count, default :data:`POSES`): per region the predicted
+    postures' count, default :data:`POSES`, and the rendered path's image noise, default None:
+    analytic): per region the predicted
     95 % bound with and without the model error, the predicted RMS, the true error (mm), the
     predicted 95 % orientation bound with and without the model error and the true orientation
-    error (deg); ``model_error_mm``; ``status``."""
+    error (deg); ``model_error_mm``; rendered, the detector's ``corners``
+    (:func:`selfcal.benchmarks.corner_noise.corner_noise`); ``status``."""
     robot, sigma_px, model, seed = args[:4]
     poses = int(args[4]) if len(args) > 4 else POSES
+    image_sigma = args[5] if len(args) > 5 else None
     try:
-        s = scenario(robot, sigma_px, seed, poses)
+        s = scenario(robot, sigma_px, seed, poses, image_sigma)
         setup = simulated(s, model)
         with (tempfile.TemporaryDirectory(prefix="selfcal-acc-") as d, warnings.catch_warnings(),
               redirect_stdout(StringIO()), redirect_stderr(StringIO())):  # fmt: skip
@@ -199,6 +220,7 @@ def draw(args: tuple) -> dict:
             calibrate_board_run(out, quiet=True, deviation=prior(s))
             cal = read_board_calibration(out / "calibration.json")
             truth = read_truth(out / "truth.json")
+            corners = None if image_sigma is None else corner_noise(out).to_json()
         block = cal.accuracy
         assert block is not None and truth.T_world_board is not None
         em = board_error_model_from_json(block, cal.model, "calibration.json")
@@ -210,7 +232,7 @@ def draw(args: tuple) -> dict:
                                   like=cal.model)  # fmt: skip
         tip = np.asarray(block["T_tool_point_si"])
         bend = (lambda q: q) if setup.compliance is None else setup.compliance.bent
-        row: dict = {"status": "ok",
+        row: dict = {"status": "ok", "corners": corners,
                      "model_error_mm": (block["model_error"] or {}).get("position_mm") or 0.0}  # fmt: skip
         for name in REGIONS:
             q = getattr(sample, name)
@@ -243,20 +265,24 @@ def _rows(robot: str, model: str, s: float, got: list[dict], poses: int = POSES)
             "coverage_rot": float(np.mean(a[6] <= a[4])),
             "coverage_rot_covariance": float(np.mean(a[6] <= a[5])),
             "model_error_share": float(np.mean([g["model_error_mm"] > 0 for g in ok])),
+            **corner_stats([g["corners"] for g in ok if g.get("corners")]),
         })  # fmt: skip
     return rows
 
 
 def run(draws: int = 30, robots=ROBOTS, models=MODELS, noise_px=NOISE_PX,
-        jobs: int = 2, poses: int = POSES) -> list[dict]:  # fmt: skip
+        jobs: int = 2, poses: int = POSES, *, render: bool = False,
+        rows_file: Path | None = None) -> list[dict]:  # fmt: skip
     """One row per (robot, model, noise, region) over ``draws`` draws (``jobs`` processes) of
-    ``poses`` calibration postures each."""
+    ``poses`` calibration postures each; ``render``: ``noise_px`` are the rendered images'
+    sensor noise levels (grey levels); ``rows_file``: each finished row appended (JSON lines)."""
     rows = []
     for robot in robots:
         for model in models:
             for s in noise_px:
                 t0 = time.perf_counter()
-                args = [(robot, s, model, seed, poses) for seed in range(1, draws + 1)]
+                args = [(robot, 0.0 if render else s, model, seed, poses, s if render else None)
+                        for seed in range(1, draws + 1)]  # fmt: skip
                 with ProcessPoolExecutor(max_workers=jobs) as pool:
                     got = list(pool.map(draw, args))
                 fails = sorted({g["status"] for g in got} - {"ok"})
@@ -264,7 +290,12 @@ def run(draws: int = 30, robots=ROBOTS, models=MODELS, noise_px=NOISE_PX,
                       f"draws in {time.perf_counter() - t0:.0f} s " + "; ".join(fails),
                       file=sys.stderr, flush=True)  # fmt: skip
                 rows += _rows(robot, model, s, got, poses)
-                print(table(rows[-len(REGIONS) :]).split("\n\n")[0], file=sys.stderr, flush=True)
+                shown = table_rendered if render else table
+                print(shown(rows[-len(REGIONS) :]).split("\n\n")[0], file=sys.stderr, flush=True)
+                if rows_file is not None:  # appended: the file's rows and the new ones
+                    old = rows_file.read_text() if rows_file.exists() else ""
+                    new = "".join(json.dumps(r) + "\n" for r in rows[-len(REGIONS) :])
+                    write_text_atomic(rows_file, old + new)
     return rows
 
 
@@ -293,6 +324,40 @@ def table(rows: list[dict]) -> str:
               f"scenarios/mono-charuco.toml on the analytic path with each robot, {poses} "
               f"calibration postures, {COUNT} joint vectors per region and draw; `uv run python "
               "-m selfcal.benchmarks.board_accuracy --write-docs`."]  # fmt: skip
+    return head + "\n".join(lines)
+
+
+def table_rendered(rows: list[dict]) -> str:
+    """The Markdown table of :func:`run`'s rendered rows (``noise_px`` the image noise)."""
+    head = (
+        "| robot | model | image noise (grey levels) | detector corner noise (px, median / "
+        "largest draw) | its bias / 99 % (px) | region | true RMS (mm) | coverage of the 95 % "
+        "bound (target 90-98 %) | covariance alone | predicted / true RMS (target 0.7-1.4) | per "
+        "draw 10-90 % | orientation coverage | draws with a model error |\n"
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|\n"
+    )
+    lines = [
+        f"| {r['robot']} | {r['model']} | {r['noise_px']:g} | {r['corner_sigma_px']:.3f} / "
+        f"{r['corner_sigma_max_px']:.3f} | {r['corner_bias_px']:.3f} / {r['corner_p99_px']:.2f} | "
+        f"{r['region']} | {r['true_rms_mm']:.3f} | {100 * r['coverage']:.1f} %"
+        f"{_mark(r['coverage'], 0.9, 0.98)} | {100 * r['coverage_covariance']:.1f} % | "
+        f"{r['ratio']:.2f}{_mark(r['ratio'], 0.7, 1.4)} | {r['ratio_10']:.2f}-{r['ratio_90']:.2f} | "
+        f"{100 * r['coverage_rot']:.1f} %{_mark(r['coverage_rot'], 0.9, 0.98)} | "
+        f"{100 * r['model_error_share']:.0f} % |"
+        for r in rows
+    ]  # fmt: skip
+    first = [r for r in rows if r["region"] == REGIONS[0]]
+    sizes = "/".join(map(str, sorted({r["draws"] + r["failed"] for r in first})))
+    robots, models, levels = (",".join(dict.fromkeys(f"{r[k]:g}" if k == "noise_px" else r[k]
+                                                     for r in first))
+                              for k in ("robot", "model", "noise_px"))  # fmt: skip
+    lines += ["", f"{sizes} draws per row ({sum(r['failed'] for r in first)} failed in all), "
+              "scenarios/mono-charuco.toml rendered with MuJoCo and detected as `selfcal run` "
+              "does (`[noise] render = true`, the image noise as `image_sigma`), "
+              f"{POSES} calibration postures, {COUNT} joint vectors per region and draw; the "
+              "corner noise is the detected corners against their true projections; "
+              f"`MUJOCO_GL=egl uv run python -m selfcal.benchmarks.board_accuracy --render "
+              f"--robots {robots} --models {models} --noise-px {levels} --jobs 1 --write-docs`."]  # fmt: skip
     return head + "\n".join(lines)
 
 
@@ -395,8 +460,14 @@ def _arguments(argv: list[str] | None) -> argparse.Namespace:
                     default=NOISE_PX, help="comma-separated corner noise levels (px; default "
                     f"{','.join(map(str, NOISE_PX))})")  # fmt: skip
     for flag, text in (("--real", "the real sets' held-out images instead of the Monte Carlo"),
+                       ("--render", "render and detect the images (MUJOCO_GL=egl); --noise-px "
+                        f"are then the image noise levels (grey levels, default "
+                        f"{','.join(map(str, IMAGE_SIGMA))})"),
                        ("--write-docs", "rewrite the table in docs/tool-accuracy.md")):  # fmt: skip
         ap.add_argument(flag, action="store_true", help=text)
+    ap.add_argument("--rows-out", type=Path, help="append each finished row here (JSON lines)")
+    ap.add_argument("--from-rows", type=Path,
+                    help="table the rows of an earlier --rows-out instead of running")  # fmt: skip
     return ap.parse_args(argv)
 
 
@@ -418,9 +489,15 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     if args.write_docs and args.poses != POSES:
         raise UsageError(f"--write-docs writes the block of {POSES} postures: drop --poses")
-    rows = run(args.draws, args.robots, args.models, args.noise_px, jobs=args.jobs,
-               poses=args.poses)  # fmt: skip
-    return print_table(table(rows), DOC, BLOCK, write=args.write_docs)
+    if args.from_rows is not None:
+        rows = [json.loads(line) for line in args.from_rows.read_text().splitlines() if line]
+        args.render = all("corner_sigma_px" in r for r in rows)
+    else:
+        noise = IMAGE_SIGMA if args.render and args.noise_px == NOISE_PX else args.noise_px
+        rows = run(args.draws, args.robots, args.models, noise, jobs=args.jobs,
+                   poses=args.poses, render=args.render, rows_file=args.rows_out)  # fmt: skip
+    shown = table_rendered(rows) if args.render else table(rows)
+    return print_table(shown, DOC, BLOCK_RENDER if args.render else BLOCK, write=args.write_docs)
 
 
 if __name__ == "__main__":

@@ -1,0 +1,57 @@
+"""The rendered board benchmark's corner noise: detected against true corners (issue #29)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from selfcal.benchmarks.board_accuracy import scenario
+from selfcal.benchmarks.corner_noise import corner_noise
+from selfcal.pipeline.run import run_acquire
+
+
+@pytest.mark.parametrize("sigma", [0.0, 0.3])
+def test_corner_noise_measures_the_drawn_corner_noise(tmp_path, sigma):
+    """On the analytic path the stored corners are the true projections plus the drawn
+    Gaussian noise: the measurement returns that noise (no bias), so the frames' truths and
+    the board's pose are matched to the right corners."""
+    s = scenario("ur5e", sigma, seed=3, poses=8)
+    run_acquire(s, tmp_path / "ds", quiet=True)
+    c = corner_noise(tmp_path / "ds")
+    assert c.count > 8 * 18
+    if sigma == 0.0:
+        assert c.rms_px < 1e-5  # the stored detections' rounding
+    else:  # ~600 corners, 2 coordinates: the estimate's relative spread ~2 %
+        assert c.sigma_px == pytest.approx(sigma, rel=0.08)
+        assert np.max(np.abs(c.mean_px)) < 4 * sigma / np.sqrt(c.count)
+        assert c.rms_px >= c.sigma_px
+
+
+def test_rendered_rows_table_the_detectors_corner_noise(tmp_path, capsys):
+    """A rendered row carries its draws' corner noise (median, largest, bias, 99 %) and
+    ``--from-rows`` tables the rows a run appended, as the rendered block."""
+    import json
+
+    from selfcal.benchmarks.board_accuracy import REGIONS, _rows, main
+
+    rng = np.random.default_rng(0)
+    got = []
+    for k, sig in enumerate((0.05, 0.07, 0.06)):
+        e = rng.uniform(0.1, 1.0, (4, 16))
+        e[0] = 2 * e[2]  # the 95 % bound twice the predicted RMS
+        e[3] = e[2] * (0.5 if k else 3.0)  # one draw's true error beyond its bound
+        got.append({"status": "ok", "model_error_mm": 0.0, **{r: np.vstack([e, e[:3]]) for r in REGIONS},
+                    "corners": {"sigma_px": sig, "mean_u_px": -0.01 * k, "mean_v_px": 0.0, "p99_px": 3 * sig}})  # fmt: skip
+    got.append({"status": "failed: DetectionError: none"})
+    rows = _rows("ur5e", "fits", 8.0, got)
+    assert rows[0]["corner_sigma_px"] == pytest.approx(0.06)
+    assert rows[0]["corner_sigma_max_px"] == pytest.approx(0.07)
+    assert rows[0]["corner_bias_px"] == pytest.approx(0.02)
+    assert rows[0]["failed"] == 1 and rows[0]["coverage"] == pytest.approx(2 / 3)
+    path = tmp_path / "rows.jsonl"
+    path.write_text("".join(json.dumps(r) + "\n" for r in rows))
+    assert main(["--from-rows", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "| ur5e | fits | 8 | 0.060 / 0.070 | 0.020 / 0.18 | inside |" in out
+    assert "3 draws per row (1 failed in all)" not in out and "4 draws per row (1 failed" in out
+    assert "--render --robots ur5e --models fits --noise-px 8 --jobs 1" in out
