@@ -77,9 +77,9 @@ from selfcal.calibration.board.dataset import (
     dataset_board,
     detect_board,
 )
+from selfcal.calibration.board.deviation import Deviation
 from selfcal.calibration.board.evaluate import evaluate_board
 from selfcal.calibration.board.held_prior import with_deviation
-from selfcal.calibration.board.plan_predict import Deviation
 from selfcal.config.scenario import Scenario, load_scenario, scenarios_dir
 from selfcal.errors import InternalError, UsageError
 from selfcal.estimation.joint_report import encoder_sigma

@@ -34,8 +34,8 @@ from selfcal.io.poses.dataset import is_pose_dataset
 from selfcal.threads import limited
 
 if TYPE_CHECKING:
+    from selfcal.calibration.board.deviation import Deviation
     from selfcal.calibration.board.evaluate import Evaluation
-    from selfcal.calibration.board.plan_predict import Deviation
     from selfcal.calibration.handeye.calibrate import HandEyeCalibration
     from selfcal.calibration.handeye.calibration_file import HandEyeFile
     from selfcal.calibration.handeye.eiv import PoseNoise
@@ -232,7 +232,7 @@ def calibrate(
         write: write ``root/calibration.json``.
         deviation: a board dataset's prior on how far the arm may lie from its drawing, as
             ``selfcal calibrate --deviation-mm/--deviation-deg``
-            (:class:`selfcal.calibration.board.plan_predict.Deviation`; default 1 mm / 0.5
+            (:class:`selfcal.calibration.board.deviation.Deviation`; default 1 mm / 0.5
             deg): the predicted accuracy counts the parameters held at the drawing with it.
 
     Returns:

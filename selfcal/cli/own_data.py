@@ -37,7 +37,7 @@ def _say(quiet: bool, text: str) -> None:
 
 
 def deviation_option(root: Path, route: str, mm: float | None, deg: float | None):
-    """The board route's :class:`selfcal.calibration.board.plan_predict.Deviation` of
+    """The board route's :class:`selfcal.calibration.board.deviation.Deviation` of
     ``--deviation-mm``/``--deviation-deg`` (None when neither is given).
 
     Raises:
@@ -51,7 +51,7 @@ def deviation_option(root: Path, route: str, mm: float | None, deg: float | None
                        fix="leave them out")  # fmt: skip
     import numpy as np
 
-    from selfcal.calibration.board.plan_predict import Deviation
+    from selfcal.calibration.board.deviation import Deviation
 
     d = Deviation()
     mm = 1e3 * d.translation_m if mm is None else mm

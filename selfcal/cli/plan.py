@@ -1,6 +1,6 @@
 """``selfcal plan``: the postures to record for your own arm, wrist camera and board (issue #30):
-the command of :mod:`selfcal.calibration.board.plan` (and, with ``--add K DATASET``, of
-:mod:`selfcal.calibration.board.plan_add`), writing PLAN/joints.csv, trajectory.yaml,
+the command of :mod:`selfcal.calibration.board.plan.planner` (and, with ``--add K DATASET``, of
+:mod:`selfcal.calibration.board.plan.add`), writing PLAN/joints.csv, trajectory.yaml,
 scenario.toml (with target.toml beside it; replay.csv with --add) and plan.json."""
 
 from __future__ import annotations
@@ -122,7 +122,7 @@ def _setup(args: argparse.Namespace, robot, camera, board, boxes):
     """The plan's cell and the pose the user gave, resolved (6,) mm and deg: the board's
     (eye-in-hand, face up without a rotation) or the static camera's (eye-to-hand, looking at
     the board's centre at home without a rotation)."""
-    from selfcal.calibration.board.plan_views import PlanSetup
+    from selfcal.calibration.board.plan.views import PlanSetup
     from selfcal.kinematics.forward import fk_tool
     from selfcal.kinematics.mcpc import nominal_mcpc
     from selfcal.target.placement import (
@@ -182,7 +182,7 @@ def _check_mount(args: argparse.Namespace) -> None:
 
 def _cmd(args: argparse.Namespace) -> int:
     from selfcal.acquisition.backends import robot_reference
-    from selfcal.calibration.board.plan import plan_recording
+    from selfcal.calibration.board.plan.planner import plan_recording
     from selfcal.calibration.field.failures import MIN_POSTURES
     from selfcal.cli.plan_scenario import scenario_text
     from selfcal.cli.plan_text import criterion, plan_lines, plan_sections
@@ -271,7 +271,7 @@ def _cmd(args: argparse.Namespace) -> int:
 
 
 def _deviation(args: argparse.Namespace):
-    from selfcal.calibration.board.plan_predict import Deviation
+    from selfcal.calibration.board.deviation import Deviation
 
     if args.deviation_mm < 0 or args.deviation_deg < 0:
         raise CliError("--deviation-mm and --deviation-deg must be >= 0")
@@ -285,8 +285,8 @@ def _deviation(args: argparse.Namespace):
 
 def _cmd_add(args: argparse.Namespace) -> int:
     from selfcal.acquisition.backends import robot_reference
-    from selfcal.calibration.board.plan_add import dataset_setup, plan_additions
-    from selfcal.calibration.board.plan_ground import PlanOptions
+    from selfcal.calibration.board.plan.add import dataset_setup, plan_additions
+    from selfcal.calibration.board.plan.ground import PlanOptions
     from selfcal.cli.plan_scenario import scenario_text
     from selfcal.cli.plan_text import criterion, reference_words
     from selfcal.estimation.joint_report import encoder_sigma

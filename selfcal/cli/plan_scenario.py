@@ -25,9 +25,9 @@ def scenario_text(
     and deg (eye-in-hand) or on the flange with the camera static at ``camera_pose`` (6,) mm and
     deg (eye-to-hand), the ``count`` postures of the CSV ``joints`` (beside it), analytic
     corners, the arm's errors drawn (``[perturbation] seed``) from the plan's ``deviation``
-    (:class:`selfcal.calibration.board.plan_predict.Deviation`, None: its default), as the plan
+    (:class:`selfcal.calibration.board.deviation.Deviation`, None: its default), as the plan
     predicts with it."""
-    from selfcal.calibration.board.plan_predict import Deviation
+    from selfcal.calibration.board.deviation import Deviation
 
     dev = deviation or Deviation()
     mm, deg = dev.translation_m * 1000.0, float(np.degrees(dev.rotation_rad))

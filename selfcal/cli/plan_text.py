@@ -8,7 +8,7 @@ import argparse
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:  # the CLI's parser loads no numerical module (tests/unit/test_cli_imports.py)
-    from selfcal.calibration.board.plan_reference import NominalReference
+    from selfcal.calibration.board.plan.reference import NominalReference
 
 __all__ = ["criterion", "plan_lines", "plan_sections", "reference_words"]
 
@@ -19,7 +19,7 @@ def reference_words(ref: NominalReference, predicted_m: float, rival_m: float | 
     and whether the prediction beats it clearly; ``rival_m`` (m) the prediction with the smaller
     set the selection may keep instead (a caveat, not the verdict's decider), None without
     one."""
-    from selfcal.calibration.board.plan_reference import CLEAR_MARGIN
+    from selfcal.calibration.board.plan.reference import CLEAR_MARGIN
 
     mm = ref.best_m * 1000
     head = (f"without calibrating the kinematics {mm:.3f} mm ({ref.what}; "
@@ -44,7 +44,7 @@ def reference_words(ref: NominalReference, predicted_m: float, rival_m: float | 
 
 def plan_lines(plan) -> str:
     """The closing lines of a camera plan
-    (:class:`selfcal.calibration.board.plan.RecordingPlan`)."""
+    (:class:`selfcal.calibration.board.plan.planner.RecordingPlan`)."""
     import numpy as np
 
     n, dof = len(plan.q), plan.q.shape[1]

@@ -52,7 +52,7 @@ def _check(args: argparse.Namespace) -> None:
 
 def cmd_tracker(args: argparse.Namespace, deviation) -> int:
     """Plan, write and print (module docstring); ``deviation`` the arm's deviation from its
-    drawing (:class:`selfcal.calibration.board.plan_predict.Deviation`)."""
+    drawing (:class:`selfcal.calibration.board.deviation.Deviation`)."""
     from selfcal.acquisition.backends import robot_reference
     from selfcal.calibration.tracker.plan import TrackerPlanSetup, plan_tracker
     from selfcal.io.atomic import write_text_atomic

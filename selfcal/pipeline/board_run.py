@@ -56,7 +56,7 @@ from selfcal.terms.base import Term
 from selfcal.transforms import inv_pose
 
 if TYPE_CHECKING:  # imported by the calibration itself (start-up time)
-    from selfcal.calibration.board.plan_predict import Deviation
+    from selfcal.calibration.board.deviation import Deviation
 
 __all__ = [
     "board_truth_report",
@@ -337,7 +337,7 @@ def calibrate_board_run(
     the joint read-back noise (rad / m) instead of the robot file's encoder resolution;
     ``terms``: further measurements estimated with the images (:mod:`selfcal.terms`);
     ``deviation``: the arm's deviation from its drawing for the predicted accuracy (default
-    :class:`selfcal.calibration.board.plan_predict.Deviation`'s)."""
+    :class:`selfcal.calibration.board.deviation.Deviation`'s)."""
     from selfcal.calibration.board.dataset import calibrate_board_dataset
 
     label = "board calibration (detection, camera, hand-eye, kinematics, bounds)"

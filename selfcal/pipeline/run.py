@@ -65,7 +65,7 @@ from selfcal.terms.base import Term
 from selfcal.transforms import inv_pose
 
 if TYPE_CHECKING:
-    from selfcal.calibration.board.plan_predict import Deviation
+    from selfcal.calibration.board.deviation import Deviation
 
 _log = get_logger(__name__)
 

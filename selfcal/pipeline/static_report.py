@@ -58,7 +58,7 @@ from selfcal.robot.definition import RobotDef, load_robot
 from selfcal.transforms import inv_pose
 
 if TYPE_CHECKING:
-    from selfcal.calibration.board.plan_predict import Deviation
+    from selfcal.calibration.board.deviation import Deviation
 
 PREDICTED_WHERE = "in the camera frame, base -> camera's uncertainty in it"
 """What the eye-to-hand report's predicted tool-point accuracy is, said beside it: the flange in

@@ -12,8 +12,8 @@ from synthetic_features import board_features, board_residuals
 
 from selfcal.calibration.board.accuracy import board_error_model
 from selfcal.calibration.board.bounds import board_cramer_rao, to_minimal
+from selfcal.calibration.board.deviation import Deviation
 from selfcal.calibration.board.held_prior import with_deviation
-from selfcal.calibration.board.plan_predict import Deviation
 from selfcal.estimation.kinematic_poses import KinematicPoses
 from selfcal.kinematics.mcpc import MCPCModel, minimal_indices, param_names
 from selfcal.robot.definition import load_robot

@@ -102,8 +102,8 @@ def test_the_held_shares_upper_bound_covers_the_true_share_on_few_folds():
 def test_the_held_block_says_when_the_prior_was_counted_unscaled():
     """Without folds the block counts the whole prior and says that no fold measured it, in its
     fields and in the report's words; measured, the words give the bound and the estimate."""
+    from selfcal.calibration.board.deviation import Deviation
     from selfcal.calibration.board.held_prior import held_block, held_sentence, held_share
-    from selfcal.calibration.board.plan_predict import Deviation
 
     block = held_block(Deviation())
     assert block["share"] == 1.0 and block["share_basis"] == "no_folds"

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from selfcal.calibration.board.plan_predict import Deviation
+from selfcal.calibration.board.deviation import Deviation
 from selfcal.cli.own_data import deviation_option
 from selfcal.console.common import CliError
 

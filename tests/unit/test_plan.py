@@ -1,4 +1,4 @@
-"""selfcal plan's mathematics (selfcal/calibration/board/plan.py, plan_views.py): the planned
+"""selfcal plan's mathematics (selfcal/calibration/board/plan/planner.py, plan/views.py): the planned
 postures are reachable, collision-free, outside the keep-out boxes and see the whole board; the
 prediction is the board route's Cramer-Rao bound and beats a random plan of the same size."""
 
@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from selfcal.calibration.board.bounds import board_cramer_rao
-from selfcal.calibration.board.plan import plan_recording
-from selfcal.calibration.board.plan_information import board_model
-from selfcal.calibration.board.plan_path import order_path, path_length
-from selfcal.calibration.board.plan_views import PlanSetup, board_views_ok
+from selfcal.calibration.board.plan.information import board_model
+from selfcal.calibration.board.plan.path import order_path, path_length
+from selfcal.calibration.board.plan.planner import plan_recording
+from selfcal.calibration.board.plan.views import PlanSetup, board_views_ok
 from selfcal.camera import project
 from selfcal.io.camera_file import camera_from_fov, read_camera_file
 from selfcal.io.target_toml import load_target
@@ -130,8 +130,8 @@ def test_camera_file_reads_what_export_writes(tmp_path, fmt):
 
 
 def test_prediction_with_joint_noise_is_the_board_route_bound(setup, plan):
-    from selfcal.calibration.board.plan_greedy import predicted_error
-    from selfcal.calibration.board.plan_information import frame_information
+    from selfcal.calibration.board.plan.greedy import predicted_error
+    from selfcal.calibration.board.plan.information import frame_information
     from selfcal.estimation.joint_report import aligned_tool_weight
 
     js = np.full(6, np.radians(0.02))

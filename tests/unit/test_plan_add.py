@@ -1,5 +1,5 @@
-"""The prediction with the parameters the selection keeps (selfcal/calibration/board/plan_predict.py)
-and the postures added to a dataset (plan_add.py): a held parameter's deviation is an error the
+"""The prediction with the parameters the selection keeps (selfcal/calibration/board/plan/predict.py)
+and the postures added to a dataset (plan/add.py): a held parameter's deviation is an error the
 bound alone does not see; with every parameter kept the prediction is the Cramer-Rao bound."""
 
 from __future__ import annotations
@@ -8,17 +8,17 @@ import numpy as np
 import pytest
 
 from selfcal.calibration.board.bounds import board_cramer_rao
-from selfcal.calibration.board.plan import plan_recording
-from selfcal.calibration.board.plan_add import DatasetPlan, training_sets
-from selfcal.calibration.board.plan_greedy import select_greedy
-from selfcal.calibration.board.plan_information import board_model, frame_information
-from selfcal.calibration.board.plan_predict import (
-    Deviation,
+from selfcal.calibration.board.deviation import Deviation
+from selfcal.calibration.board.plan.add import DatasetPlan, training_sets
+from selfcal.calibration.board.plan.greedy import select_greedy
+from selfcal.calibration.board.plan.information import board_model, frame_information
+from selfcal.calibration.board.plan.planner import plan_recording
+from selfcal.calibration.board.plan.predict import (
     estimated_directions,
     kept_by_rank,
     predicted_with_held,
 )
-from selfcal.calibration.board.plan_views import PlanSetup
+from selfcal.calibration.board.plan.views import PlanSetup
 from selfcal.camera import project
 from selfcal.estimation.joint_report import aligned_tool_weight
 from selfcal.io.camera_file import camera_from_fov

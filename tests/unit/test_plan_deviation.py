@@ -9,8 +9,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from selfcal.calibration.board.plan_predict import Deviation
-from selfcal.calibration.board.plan_reference import drawn_error
+from selfcal.calibration.board.deviation import Deviation
+from selfcal.calibration.board.plan.reference import drawn_error
 from selfcal.cli.plan_scenario import scenario_text
 from selfcal.config.scenario import PerturbationConfig, load_scenario
 from selfcal.estimation.joint_report import aligned_tool_weight

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from selfcal.calibration.board.bounds import board_cramer_rao
-from selfcal.calibration.board.plan import plan_recording
-from selfcal.calibration.board.plan_information import board_model
-from selfcal.calibration.board.plan_views import (
+from selfcal.calibration.board.plan.information import board_model
+from selfcal.calibration.board.plan.planner import plan_recording
+from selfcal.calibration.board.plan.views import (
     PlanSetup,
     _plate_clear,
     _sight_clear,

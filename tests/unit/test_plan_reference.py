@@ -1,4 +1,4 @@
-"""What a plan has to beat (selfcal/calibration/board/plan_reference.py, issue #30): the fair
+"""What a plan has to beat (selfcal/calibration/board/plan/reference.py, issue #30): the fair
 nominal's predicted tool-point error and the chain's as drawn equal an independent computation
 (finite differences of the projected corners and the tool point, the placement and camera
 fitted by least squares to the pixels a deviation of the chain moves), and `selfcal plan` says
@@ -11,12 +11,12 @@ import json
 import numpy as np
 import pytest
 
+from selfcal.calibration.board.deviation import Deviation
 from selfcal.calibration.board.nominal_fit import placement_indices
-from selfcal.calibration.board.plan_ground import workspace_sample
-from selfcal.calibration.board.plan_information import board_model, frame_information
-from selfcal.calibration.board.plan_predict import Deviation
-from selfcal.calibration.board.plan_reference import CLEAR_MARGIN, nominal_reference
-from selfcal.calibration.board.plan_views import PlanSetup, candidate_pool
+from selfcal.calibration.board.plan.ground import workspace_sample
+from selfcal.calibration.board.plan.information import board_model, frame_information
+from selfcal.calibration.board.plan.reference import CLEAR_MARGIN, nominal_reference
+from selfcal.calibration.board.plan.views import PlanSetup, candidate_pool
 from selfcal.estimation.joint_report import aligned_tool_weight
 from selfcal.io.camera_file import camera_from_fov
 from selfcal.io.target_toml import load_target

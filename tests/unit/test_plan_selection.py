@@ -1,4 +1,4 @@
-"""The forecast of the selection's cross-validation (selfcal/calibration/board/plan_selection.py):
+"""The forecast of the selection's cross-validation (selfcal/calibration/board/plan/selection.py):
 a dataset recorded in one arm configuration is left out whole by one fold, whose fit has only
 the added postures of the other folds; with too few of them the large candidates cannot predict
 it and the selection keeps fewer parameters than the rank test on every frame accepts."""
@@ -11,11 +11,12 @@ import numpy as np
 import pytest
 
 from selfcal.benchmarks.plan.add import WRIST_SPAN_DEG, wrist_cell
-from selfcal.calibration.board.plan import plan_recording
-from selfcal.calibration.board.plan_information import board_model, frame_information
-from selfcal.calibration.board.plan_predict import Deviation, kept_by_rank
-from selfcal.calibration.board.plan_selection import forecast_selection
-from selfcal.calibration.board.plan_views import feasible
+from selfcal.calibration.board.deviation import Deviation
+from selfcal.calibration.board.plan.information import board_model, frame_information
+from selfcal.calibration.board.plan.planner import plan_recording
+from selfcal.calibration.board.plan.predict import kept_by_rank
+from selfcal.calibration.board.plan.selection import forecast_selection
+from selfcal.calibration.board.plan.views import feasible
 
 JS = np.full(6, np.radians(0.01))
 
@@ -90,7 +91,7 @@ def test_the_folds_refit_the_camera_as_the_selection_does():
     identifiable' folds predicting the second fold at 1.4 - 1.7 px. With the camera taken as
     known in the folds the forecast expected 1.0 px there and kept all 22; refitted, as the
     folds refit it, 1.18 px and the 13."""
-    from selfcal.calibration.board.plan_views import PlanSetup
+    from selfcal.calibration.board.plan.views import PlanSetup
     from selfcal.estimation.joint_report import encoder_sigma
     from selfcal.io.camera_file import camera_from_fov
     from selfcal.io.target_toml import load_target

@@ -1,5 +1,5 @@
-"""The plan's lines of sight and marker cells (selfcal/calibration/board/plan_sight.py,
-plan_views.py): a posture is refused when a link of the arm or a keep-out box stands between the
+"""The plan's lines of sight and marker cells (selfcal/calibration/board/plan/sight.py,
+plan/views.py): a posture is refused when a link of the arm or a keep-out box stands between the
 camera and the board, and a view whose marker cells span too few pixels for the detector is
 refused (issue #30: planned postures render with the whole board detected)."""
 
@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from selfcal.benchmarks.plan.robots import cell
-from selfcal.calibration.board.plan_sight import sight_clear
-from selfcal.calibration.board.plan_views import (
+from selfcal.calibration.board.plan.sight import sight_clear
+from selfcal.calibration.board.plan.views import (
     PlanSetup,
     ViewRule,
     _sight_clear,

@@ -1,4 +1,4 @@
-"""The plan's verdict (selfcal/calibration/board/plan.py, selfcal/cli/plan_text.py, issue #30)
+"""The plan's verdict (selfcal/calibration/board/plan/planner.py, selfcal/cli/plan_text.py, issue #30)
 follows the parameters the selection is forecast to keep, not the smaller rival set it may keep
 instead: a plan whose forecast choice beats the reference clearly is said to beat it, the
 rival's prediction is a caveat beside it, and the search for more postures stops at the first
@@ -11,9 +11,9 @@ from types import SimpleNamespace
 import numpy as np
 
 from selfcal.calibration.board.nominal_fit import placement_indices
-from selfcal.calibration.board.plan import SEARCH_STEP, Selected, count_to_beat
-from selfcal.calibration.board.plan_reference import CLEAR_MARGIN, NominalReference
-from selfcal.calibration.board.plan_selection import SelectionForecast
+from selfcal.calibration.board.plan.planner import SEARCH_STEP, Selected, count_to_beat
+from selfcal.calibration.board.plan.reference import CLEAR_MARGIN, NominalReference
+from selfcal.calibration.board.plan.selection import SelectionForecast
 from selfcal.cli.plan_text import plan_lines, plan_sections, reference_words
 
 N = 6  # joints

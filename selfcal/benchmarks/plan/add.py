@@ -32,10 +32,10 @@ WRIST_SPAN_DEG = (40.0, 40.0, 90.0)
 
 
 def wrist_cell():
-    """The benchmark's cell: a :class:`selfcal.calibration.board.plan_views.PlanSetup` (UR5e,
+    """The benchmark's cell: a :class:`selfcal.calibration.board.plan.views.PlanSetup` (UR5e,
     60 deg 640 x 480 camera, the ChArUco board on the table where home looks), the target
     file and the board pose (mm, deg)."""
-    from selfcal.calibration.board.plan_views import PlanSetup
+    from selfcal.calibration.board.plan.views import PlanSetup
     from selfcal.io.camera_file import camera_from_fov
     from selfcal.io.target_toml import load_target
     from selfcal.kinematics.mcpc import nominal_mcpc
@@ -77,7 +77,7 @@ def _achieved(scenario: Path, out: Path) -> float:
 def wrist_only_row(root: Path, seed: int, add: int = 5) -> dict:
     """One truth (module docstring) in ``root``: predicted and achieved tool-point RMS (mm)
     before and after adding ``add`` postures, and the parameters each calibration kept."""
-    from selfcal.calibration.board.plan_views import feasible
+    from selfcal.calibration.board.plan.views import feasible
     from selfcal.cli.main import main as selfcal
     from selfcal.io.plan_files import joints_csv
 

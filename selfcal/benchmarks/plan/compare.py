@@ -8,7 +8,7 @@ candidate pool (random postures under the same filters). Every draw is one simul
 read-back, calibrated by the board route as ``selfcal calibrate`` does
 (:func:`selfcal.studies.montecarlo.run.draw_one`); the achieved error is the validation tool
 tip's RMS after the best rigid alignment against the truth. Prints, per posture set, the
-prediction (:func:`selfcal.calibration.board.plan.predict_kept`) and the achieved median and
+prediction (:func:`selfcal.calibration.board.plan.planner.predict_kept`) and the achieved median and
 90th percentile, and their ratio (each draw also in ``DIR/draws.jsonl`` as it ends).
 """
 
@@ -34,7 +34,7 @@ KEEP_OUT = np.array([[-300.0, 50.0, 0.0, -100.0, 400.0, 600.0]])
 def posture_sets(count: int = 12, random_counts: tuple[int, ...] = (12, 30)) -> dict:
     """``{name: (q (m, n) rad, predicted tool-point RMS m)}``: the plan of ``count`` and the
     pool's first ``random_counts`` postures, and the setup's robot and camera."""
-    from selfcal.calibration.board.plan_views import PlanSetup
+    from selfcal.calibration.board.plan.views import PlanSetup
     from selfcal.io.camera_file import camera_from_fov
     from selfcal.io.target_toml import load_target
     from selfcal.robot.definition import load_robot, models_dir
@@ -49,13 +49,13 @@ def posture_sets(count: int = 12, random_counts: tuple[int, ...] = (12, 30)) -> 
 
 def sets_of(setup, count: int, random_counts: tuple[int, ...], pixel_sigma_px: float = 0.5) -> dict:
     """:func:`posture_sets` of any plan ``setup``
-    (:class:`selfcal.calibration.board.plan_views.PlanSetup`, either mount): ``{"sets", "setup",
+    (:class:`selfcal.calibration.board.plan.views.PlanSetup`, either mount): ``{"sets", "setup",
     "workspace"}``, planned and predicted for corners of ``pixel_sigma_px`` px noise and the
     robot file's joint read-back noise."""
-    from selfcal.calibration.board.plan import plan_recording, predict_kept
-    from selfcal.calibration.board.plan_information import board_model, frame_information
-    from selfcal.calibration.board.plan_predict import Deviation
-    from selfcal.calibration.board.plan_views import candidate_pool
+    from selfcal.calibration.board.deviation import Deviation
+    from selfcal.calibration.board.plan.information import board_model, frame_information
+    from selfcal.calibration.board.plan.planner import plan_recording, predict_kept
+    from selfcal.calibration.board.plan.views import candidate_pool
     from selfcal.estimation.joint_report import aligned_tool_weight, encoder_sigma
 
     robot = setup.robot

@@ -35,7 +35,7 @@ def posture_sets(count: int = 12, random_counts: tuple[int, ...] = (12, 30)) -> 
     the plan of ``count`` and the pool's first ``random_counts`` postures
     (:func:`selfcal.benchmarks.plan.compare.sets_of`)."""
     from selfcal.benchmarks.plan.compare import sets_of
-    from selfcal.calibration.board.plan_views import PlanSetup
+    from selfcal.calibration.board.plan.views import PlanSetup
     from selfcal.io.camera_file import camera_from_fov
     from selfcal.io.target_toml import load_target
     from selfcal.robot.definition import load_robot, models_dir

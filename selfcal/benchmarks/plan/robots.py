@@ -19,7 +19,7 @@ renders every posture with MuJoCo and detects the board in the images, as ``self
 ``[noise] render = true`` does, instead of projecting the corners with 0.5 px of noise; the
 table counts the frames in which every corner of the board was found. The achieved error is
 the validation tool tip's RMS after the best rigid alignment against the truth; the prediction
-is the plan's (:func:`selfcal.calibration.board.plan.predict_kept`), for ``--pixel-sigma`` of
+is the plan's (:func:`selfcal.calibration.board.plan.planner.predict_kept`), for ``--pixel-sigma`` of
 corner noise (0.5 px; the plan is made for it too), with the view rule ``selfcal plan`` uses
 unless ``--min-pitch-px``/``--max-tilt-deg`` say otherwise. The table also gives, per set, how
 many calibrations held parameters the plan's rank test keeps (their cross-validation decides)
@@ -91,9 +91,9 @@ def cell_target(name: str) -> Path:
 def cell(name: str, rule=None):
     """``(setup, board_pose (6,) mm deg, keep_out (1, 6) mm)`` of robot ``name``'s cell
     (:func:`cell_values`, :func:`cell_target`): a
-    :class:`selfcal.calibration.board.plan_views.PlanSetup` with the view ``rule``
-    (:class:`selfcal.calibration.board.plan_views.ViewRule`; None: ``selfcal plan``'s)."""
-    from selfcal.calibration.board.plan_views import PlanSetup, ViewRule
+    :class:`selfcal.calibration.board.plan.views.PlanSetup` with the view ``rule``
+    (:class:`selfcal.calibration.board.plan.views.ViewRule`; None: ``selfcal plan``'s)."""
+    from selfcal.calibration.board.plan.views import PlanSetup, ViewRule
     from selfcal.io.camera_file import camera_from_fov
     from selfcal.io.target_toml import load_target
     from selfcal.robot.definition import load_robot
@@ -156,9 +156,10 @@ def _held_prediction(setup, q: np.ndarray, workspace: np.ndarray, sigma: float):
     """``f(held names) -> mm``: the plan's prediction for the postures ``q`` with the
     parameters the rank test keeps less those a calibration held (its joint offsets as the rank
     test keeps them: a draw's row names only the minimal parameters held)."""
-    from selfcal.calibration.board.plan import predict_kept
-    from selfcal.calibration.board.plan_information import board_model, frame_information
-    from selfcal.calibration.board.plan_predict import Deviation, kept_by_rank
+    from selfcal.calibration.board.deviation import Deviation
+    from selfcal.calibration.board.plan.information import board_model, frame_information
+    from selfcal.calibration.board.plan.planner import predict_kept
+    from selfcal.calibration.board.plan.predict import kept_by_rank
     from selfcal.estimation.joint_report import aligned_tool_weight, encoder_sigma
     from selfcal.kinematics.mcpc import param_names
 
@@ -237,7 +238,7 @@ def main(argv: list[str] | None = None) -> int:
     """Draw, print the table and, with ``--write-docs``, put it in docs/plan.md."""
     from multiprocessing import get_context
 
-    from selfcal.calibration.board.plan_views import ViewRule
+    from selfcal.calibration.board.plan.views import ViewRule
     from selfcal.robot.definition import load_robot
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])

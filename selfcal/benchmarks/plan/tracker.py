@@ -52,8 +52,8 @@ def main(argv: list[str] | None = None) -> int:
     """Draw and print the table."""
     import warnings
 
-    from selfcal.calibration.board.plan_ground import workspace_sample
-    from selfcal.calibration.board.plan_predict import Deviation
+    from selfcal.calibration.board.deviation import Deviation
+    from selfcal.calibration.board.plan.ground import workspace_sample
     from selfcal.calibration.tracker.plan import (
         TrackerPlanSetup,
         plan_tracker,

@@ -72,6 +72,7 @@ from selfcal.calibration.accuracy import (
     postures_from_json,
 )
 from selfcal.calibration.board.bounds import BoardCramerRao, board_cramer_rao
+from selfcal.calibration.board.deviation import Deviation
 from selfcal.calibration.board.held_prior import (
     NO_FOLDS,
     Share,
@@ -82,7 +83,6 @@ from selfcal.calibration.board.held_prior import (
 from selfcal.calibration.board.misfit import pose_jacobian, tip_map, unit_rows
 from selfcal.calibration.board.nominal_fit import standard_gauge
 from selfcal.calibration.board.param_selection import Selection
-from selfcal.calibration.board.plan_predict import Deviation
 from selfcal.calibration.board.refine import BoardObservations, Refinement, predicted_points
 from selfcal.camera import CameraModel
 from selfcal.estimation.kinematic_poses import joint_twists

@@ -33,9 +33,9 @@ import numpy as np
 from selfcal.calibration.board.accuracy import board_accuracy
 from selfcal.calibration.board.bounds import BoardCramerRao, board_bounds
 from selfcal.calibration.board.calibrate import BoardInputError, calibrate_board
+from selfcal.calibration.board.deviation import Deviation
 from selfcal.calibration.board.mounts import flange_to_tool, mounts
 from selfcal.calibration.board.nominal_fit import placement
-from selfcal.calibration.board.plan_predict import Deviation
 from selfcal.calibration.board.refine import BoardObservations
 from selfcal.calibration.board.rig import calibrate_board_rig
 from selfcal.calibration.board.robot import BoardRobotCalibration, calibrate_robot_with_board
@@ -175,7 +175,7 @@ def calibrate_board_dataset(
     (:mod:`selfcal.calibration.board.terms`); the result records each one's section.
     ``deviation``: how far the arm may lie from its drawing, for the predicted accuracy of the
     parameters the selection holds (:mod:`selfcal.calibration.board.held`; default
-    :class:`selfcal.calibration.board.plan_predict.Deviation`'s 1 mm / 0.5 deg).
+    :class:`selfcal.calibration.board.deviation.Deviation`'s 1 mm / 0.5 deg).
 
     Raises: as :func:`calibrate_board_dataset_detailed`.
     """

@@ -3,7 +3,7 @@
 wrist's last three, all of a chain of three or fewer -- are equal within
 :data:`SAME_CONFIGURATION` form one configuration, and the configurations are the folds, at most
 :data:`MAX_FOLDS` of them. The plan's forecast of the selection
-(:mod:`selfcal.calibration.board.plan_selection`) and ``selfcal plan --add`` use the same folds.
+(:mod:`selfcal.calibration.board.plan.selection`) and ``selfcal plan --add`` use the same folds.
 """
 
 from __future__ import annotations

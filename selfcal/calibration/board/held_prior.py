@@ -1,7 +1,7 @@
 """The prediction of a board calibration with the deviation from the drawing of the parameters
 it holds (issue #29): :mod:`selfcal.calibration.board.held`'s response ``R`` (per unit
 deviation, :attr:`selfcal.calibration.board.bounds.BoardCramerRao.held`) weighed by the prior
-``S`` (:class:`selfcal.calibration.board.plan_predict.Deviation`, the one ``selfcal plan``
+``S`` (:class:`selfcal.calibration.board.deviation.Deviation`, the one ``selfcal plan``
 predicts with) into the bounds' covariances, ``c R S R^T``, ``c`` (0-1) the share of the prior the
 calibration's leave-one-configuration-out frames show, counted at its upper 95 % confidence
 bound (:func:`held_share`; the prior an upper limit: the selection holds a direction more often
@@ -16,7 +16,7 @@ import numpy as np
 from scipy.special import stdtrit
 
 from selfcal.calibration.board.bounds import BoardCramerRao
-from selfcal.calibration.board.plan_predict import Deviation
+from selfcal.calibration.board.deviation import Deviation
 
 __all__ = [
     "NO_FOLDS",

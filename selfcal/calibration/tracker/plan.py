@@ -5,7 +5,7 @@ predicts the smallest tool-point error (``selfcal plan --measure tracker``, issu
 Candidates: postures drawn uniformly in the robot file's planning window around home
 (``[planning] span_deg``), within the joint ranges, free of self-collision, of the table and of
 the keep-out boxes (the capsule chain with the tool point as its tool;
-:func:`selfcal.calibration.board.plan_ground.workspace_sample`). No line of sight is asked:
+:func:`selfcal.calibration.board.plan.ground.workspace_sample`). No line of sight is asked:
 a tracker's view of its reflector is not modelled (check it at the cell).
 
 Information: the tracker route's position rows, ``(y_i - p(q_i)) / sigma_t`` per coordinate, at
@@ -20,13 +20,13 @@ Criterion: the predicted RMS of the tool point's position error over a sample of
 in the tracker frame (no alignment: the tracker route's accuracy is stated in the tracker's
 frame, :mod:`selfcal.calibration.tracker.accuracy`), ``sqrt(trace(G C))`` with
 ``G = mean_w J_w^T J_w``. The greedy choice and the ordering are the board plan's
-(:func:`selfcal.calibration.board.plan_greedy.select_greedy`,
-:func:`~selfcal.calibration.board.plan_path.order_path`).
+(:func:`selfcal.calibration.board.plan.greedy.select_greedy`,
+:func:`~selfcal.calibration.board.plan.path.order_path`).
 The prediction of the chosen postures keeps the parameters the route's rank and conditioning
 tests keep at them (:func:`kept_by_rank`: offered in
 :func:`selfcal.calibration.tracker.identify.priority_order`, the route's rank tolerance and
 conditioning test), every other one held at the drawing and erring by the arm's deviation from
-it (:func:`selfcal.calibration.board.plan_predict.predicted_with_held`, no camera parameters). Positions never see the tool frame's orientation (three angles of ``V_n``):
+it (:func:`selfcal.calibration.board.plan.predict.predicted_with_held`, no camera parameters). Positions never see the tool frame's orientation (three angles of ``V_n``):
 those are held and move no tool point. Units: SI inside.
 """
 
@@ -36,10 +36,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from selfcal.calibration.board.plan_greedy import select_greedy
-from selfcal.calibration.board.plan_ground import workspace_sample
-from selfcal.calibration.board.plan_path import order_path, path_length
-from selfcal.calibration.board.plan_predict import Deviation, predicted_with_held
+from selfcal.calibration.board.deviation import Deviation
+from selfcal.calibration.board.plan.greedy import select_greedy
+from selfcal.calibration.board.plan.ground import workspace_sample
+from selfcal.calibration.board.plan.path import order_path, path_length
+from selfcal.calibration.board.plan.predict import predicted_with_held
 from selfcal.calibration.tracker.identify import conditioned, priority_order
 from selfcal.kinematics.forward import fk_tool, identification_jacobian
 from selfcal.kinematics.identifiability import select_identifiable, triangular_factor

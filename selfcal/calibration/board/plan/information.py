@@ -1,6 +1,6 @@
 """What one posture of a plan tells the board calibration: the Fisher information of each
 candidate frame about the camera's free parameters and the chain's minimal kinematic parameters
-(``selfcal plan``, issue #30; :mod:`selfcal.calibration.board.plan`). The board route's problem
+(``selfcal plan``, issue #30; :mod:`selfcal.calibration.board.plan.planner`). The board route's problem
 (:func:`selfcal.calibration.board.problem.board_problem`) at the nominal chain and camera, one
 Jacobian over every frame, each frame's joint read-back corrections eliminated under their
 prior. Units: SI and px.
@@ -12,7 +12,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from selfcal.calibration.board.plan_views import PlanSetup
+from selfcal.calibration.board.plan.views import PlanSetup
 from selfcal.calibration.board.problem import board_problem
 from selfcal.errors import InputError, UsageError
 from selfcal.estimation.kinematic_poses import KinematicPoses
@@ -24,7 +24,7 @@ __all__ = ["board_model", "frame_information"]
 def board_model(setup: PlanSetup) -> MCPCModel:
     """The nominal chain the board calibration fits: eye-in-hand board frame -> camera (world =
     the board, tool = the camera), eye-to-hand camera -> board (world = the camera, tool = the
-    board; :meth:`selfcal.calibration.board.plan_views.PlanSetup.calibration_model`)."""
+    board; :meth:`selfcal.calibration.board.plan.views.PlanSetup.calibration_model`)."""
     return setup.calibration_model()
 
 

@@ -1,5 +1,5 @@
 """The postures a recording plan may use: reachable, collision-free, and seeing the whole board
-well (the candidate pool of :mod:`selfcal.calibration.board.plan`).
+well (the candidate pool of :mod:`selfcal.calibration.board.plan.planner`).
 
 Two mounts (:class:`PlanSetup`): eye-in-hand (the camera on the flange, the board static in the
 base frame) and eye-to-hand (the camera static in the base frame, the board on the flange). A
@@ -12,7 +12,7 @@ posture ``q`` (rad, within the robot file's joint ranges) is a candidate when
   boxes, the arm (but the wrist that holds the board) out of the plate and the arm
   :data:`CAMERA_CLEARANCE_M` from the static camera;
 - either mount: no link of the arm and no keep-out box crosses the lines of sight from the
-  camera to the board's printed image (:mod:`selfcal.calibration.board.plan_sight`);
+  camera to the board's printed image (:mod:`selfcal.calibration.board.plan.sight`);
 - the nominal camera sees every feature of the board and every corner of its printed image
   inside the image with :attr:`ViewRule.margin_px` to spare, at least
   :attr:`ViewRule.min_depth_m` in front of it;
@@ -41,7 +41,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from selfcal.calibration.board.plan_sight import sight_clear, sight_grid
+from selfcal.calibration.board.plan.sight import sight_clear, sight_grid
 from selfcal.camera import CameraModel
 from selfcal.errors import InputError
 from selfcal.kinematics.forward import fk_tool
@@ -297,7 +297,7 @@ def _plate_clear(setup: PlanSetup, q: np.ndarray) -> np.ndarray:
 
 def _sight_clear(setup: PlanSetup, q: np.ndarray) -> np.ndarray:
     """(m,) bool: the lines of sight from the camera to the board's printed image clear of the
-    arm and the keep-out boxes (:func:`selfcal.calibration.board.plan_sight.sight_clear`);
+    arm and the keep-out boxes (:func:`selfcal.calibration.board.plan.sight.sight_clear`);
     eye-to-hand also the arm :data:`CAMERA_CLEARANCE_M` from the static camera."""
     chain = setup.chain
     grid = sight_grid(setup.board.image(1.0).extent_m, chain.radius_m + chain.clearance_m)

@@ -3,7 +3,7 @@ cross-validation forecast from the information alone (``selfcal plan --add``, is
 
 The selection (:mod:`selfcal.calibration.board.param_selection`) keeps the smallest nested
 candidate that predicts the frames of every left-out configuration fold clearly better than the
-nominal does. Its rank test alone (:func:`selfcal.calibration.board.plan_predict.kept_by_rank`)
+nominal does. Its rank test alone (:func:`selfcal.calibration.board.plan.predict.kept_by_rank`)
 says what every frame together determines, not what each fold's training frames can predict:
 a dataset recorded in one arm configuration is left out whole by one fold, whose fit has only
 the added postures of the other folds. With few of them a large candidate is barely determined
@@ -18,7 +18,7 @@ one-standard-error rule (:func:`selfcal.calibration.board.param_selection.one_se
 folds' expected RMS. A fold's expected mean square per feature (both image coordinates): the
 corners' noise ``2 sigma^2`` plus ``sigma^2 sum_i trace(F_i C) / n``, ``F_i`` the information
 of the fold's frames (``n`` features), ``C`` the error covariance of the fit on the other
-folds' frames (:func:`selfcal.calibration.board.plan_predict.error_covariance`: the noise and
+folds' frames (:func:`selfcal.calibration.board.plan.predict.error_covariance`: the noise and
 the held parameters' deviation from the drawing), the camera's free parameters fitted with
 the kinematics as each fold's fit does (it starts from the camera of the fit on every frame and
 fits it again on the fold's training frames: taken as known, a fold of few training frames
@@ -35,7 +35,7 @@ import numpy as np
 from selfcal.calibration.board.folds import configurations, fold_labels
 from selfcal.calibration.board.param_selection import Candidate, nested_candidates, one_se_rule
 from selfcal.calibration.board.parameter_pool import determined_each, parameter_pool
-from selfcal.calibration.board.plan_predict import Directions, error_covariance
+from selfcal.calibration.board.plan.predict import Directions, error_covariance
 from selfcal.errors import UsageError
 from selfcal.kinematics.mcpc import MCPCModel, param_names
 
@@ -84,10 +84,10 @@ def forecast_selection(
     """The candidate the selection is expected to keep (module docstring) for the frames at the
     joints ``q`` (m, n) rad in recording order, of ``model`` (world = board, tool = camera):
     ``F_frames`` (m, p, p) their information on ``[camera (n_cam), minimal (k)]``
-    (:func:`selfcal.calibration.board.plan_information.frame_information`), ``n_features`` (m,) the
+    (:func:`selfcal.calibration.board.plan.information.frame_information`), ``n_features`` (m,) the
     features each shows, ``variance`` (k,) the deviation from the drawing, ``sigma_px`` the
     corner noise (px); ``directions`` the model's estimated directions when already computed
-    (:class:`selfcal.calibration.board.plan_predict.Directions`)."""
+    (:class:`selfcal.calibration.board.plan.predict.Directions`)."""
     q = np.atleast_2d(np.asarray(q, dtype=float))
     n_features = np.asarray(n_features, dtype=float)
     if len(F_frames) != len(q) or len(n_features) != len(q):

@@ -1,6 +1,6 @@
 """The common ground every plan is chosen on (``selfcal plan``, issue #30;
-:mod:`selfcal.calibration.board.plan`): the candidate postures
-(:func:`selfcal.calibration.board.plan_views.candidate_pool`), the random workspace postures the
+:mod:`selfcal.calibration.board.plan.planner`): the candidate postures
+(:func:`selfcal.calibration.board.plan.views.candidate_pool`), the random workspace postures the
 predicted tool-point error is averaged over, the aligned tool weight over them and the arm's
 deviation from its drawing. Units: SI inside.
 """
@@ -12,9 +12,9 @@ from typing import Protocol
 
 import numpy as np
 
-from selfcal.calibration.board.plan_information import board_model
-from selfcal.calibration.board.plan_predict import Deviation
-from selfcal.calibration.board.plan_views import PlanSetup, candidate_pool
+from selfcal.calibration.board.deviation import Deviation
+from selfcal.calibration.board.plan.information import board_model
+from selfcal.calibration.board.plan.views import PlanSetup, candidate_pool
 from selfcal.errors import InputError
 from selfcal.estimation.joint_report import aligned_tool_weight
 from selfcal.kinematics.keep_out import outside_boxes
@@ -26,7 +26,7 @@ __all__ = ["PlanGround", "PlanOptions", "PostureCell", "plan_ground", "workspace
 
 class PostureCell(Protocol):
     """What :func:`workspace_sample` draws for: an arm, its collision check and keep-out boxes
-    (:class:`selfcal.calibration.board.plan_views.PlanSetup`, a tracker plan's setup)."""
+    (:class:`selfcal.calibration.board.plan.views.PlanSetup`, a tracker plan's setup)."""
 
     @property
     def robot(self) -> RobotDef: ...
@@ -69,9 +69,9 @@ class PlanOptions:
     """What every plan is drawn and predicted with: the ``seed`` of the candidates and the
     workspace, the pool's size ``candidates``, the ``workspace`` postures the error is averaged
     over, the corner noise ``pixel_sigma_px`` (px), the joint read-back noise ``joint_sigma``
-    (n,) rad (None: exact; :func:`selfcal.calibration.board.plan_information.frame_information`)
+    (n,) rad (None: exact; :func:`selfcal.calibration.board.plan.information.frame_information`)
     and the arm's ``deviation`` from its drawing
-    (:class:`selfcal.calibration.board.plan_predict.Deviation`)."""
+    (:class:`selfcal.calibration.board.deviation.Deviation`)."""
 
     seed: int = 1
     candidates: int = 400
@@ -87,7 +87,7 @@ class PlanGround:
     where it was ``drawn_from``, the ``workspace`` (w, n) rad, the aligned tool weight ``G``
     (k, k) over it and the deviation's ``variance`` (k,), the inner parameters', and
     ``drawn_variance`` (k,), the placement's included
-    (:class:`selfcal.calibration.board.plan_predict.Deviation`)."""
+    (:class:`selfcal.calibration.board.deviation.Deviation`)."""
 
     pool: np.ndarray
     drawn_from: str

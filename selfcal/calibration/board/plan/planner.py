@@ -5,9 +5,9 @@ the board on the flange (eye-to-hand: the board route's inverted chain, world = 
 = the board, :class:`selfcal.estimation.kinematic_poses.KinematicPoses`); the tool point is the
 flange's origin either way.
 
-Candidates: :func:`selfcal.calibration.board.plan_views.candidate_pool` (reachable, free of
+Candidates: :func:`selfcal.calibration.board.plan.views.candidate_pool` (reachable, free of
 collision and keep-out boxes, the whole board well in view), with the workspace sample the error
-is averaged over (:mod:`selfcal.calibration.board.plan_ground`). Criterion: the Cramer-Rao bound
+is averaged over (:mod:`selfcal.calibration.board.plan.ground`). Criterion: the Cramer-Rao bound
 of the board route (:func:`selfcal.calibration.board.bounds.board_cramer_rao`: the camera's free
 parameters and every minimal kinematic parameter of the chain in the board frame, the board
 known, Gaussian corner noise of ``pixel_sigma_px`` and, optionally, joint read-back noise
@@ -17,16 +17,16 @@ alignment, as the calibration reports it
 (:func:`selfcal.estimation.joint_report.aligned_tool_weight`). Every other parameter is shared
 by the frames and a frame's own joint corrections are eliminated frame by frame, so the Fisher
 information is the sum of each frame's
-(:func:`selfcal.calibration.board.plan_information.frame_information`): the greedy choice
-(:func:`selfcal.calibration.board.plan_greedy.select_greedy`) adds, step by step, the candidate
+(:func:`selfcal.calibration.board.plan.information.frame_information`): the greedy choice
+(:func:`selfcal.calibration.board.plan.greedy.select_greedy`) adds, step by step, the candidate
 that lowers the predicted error most (from a slightly regularised start, so the first few frames
 count while the information is not yet of full rank; a dataset's additions start from its
 frames and the prior of the arm's deviation from its drawing,
-:mod:`selfcal.calibration.board.plan_add`). The prediction of the chosen postures is that of
+:mod:`selfcal.calibration.board.plan.add`). The prediction of the chosen postures is that of
 the calibration with the parameters its selection keeps, every other one held at the drawing
-(:func:`predict_kept`, :mod:`selfcal.calibration.board.plan_predict`). The chosen postures are
+(:func:`predict_kept`, :mod:`selfcal.calibration.board.plan.predict`). The chosen postures are
 then ordered for a short joint-space path from home
-(:func:`selfcal.calibration.board.plan_path.order_path`). The random plan of the same size (the
+(:func:`selfcal.calibration.board.plan.path.order_path`). The random plan of the same size (the
 pool's first postures: the same filters) is predicted the same way, for contrast. Units: SI
 inside.
 """
@@ -38,21 +38,21 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from selfcal.calibration.board.deviation import Deviation
 from selfcal.calibration.board.nominal_fit import placement_indices
-from selfcal.calibration.board.plan_greedy import select_greedy
-from selfcal.calibration.board.plan_ground import PlanOptions, plan_ground
-from selfcal.calibration.board.plan_information import board_model, frame_information
-from selfcal.calibration.board.plan_path import order_path, path_length
-from selfcal.calibration.board.plan_predict import (
-    Deviation,
+from selfcal.calibration.board.plan.greedy import select_greedy
+from selfcal.calibration.board.plan.ground import PlanOptions, plan_ground
+from selfcal.calibration.board.plan.information import board_model, frame_information
+from selfcal.calibration.board.plan.path import order_path, path_length
+from selfcal.calibration.board.plan.predict import (
     Directions,
     estimated_directions,
     kept_by_rank,
     predicted_with_held,
 )
-from selfcal.calibration.board.plan_reference import NominalReference, nominal_reference
-from selfcal.calibration.board.plan_selection import SelectionForecast, forecast_selection
-from selfcal.calibration.board.plan_views import PlanSetup
+from selfcal.calibration.board.plan.reference import NominalReference, nominal_reference
+from selfcal.calibration.board.plan.selection import SelectionForecast, forecast_selection
+from selfcal.calibration.board.plan.views import PlanSetup
 
 __all__ = ["RecordingPlan", "Selected", "count_to_beat", "plan_recording", "predict_kept"]
 
@@ -88,7 +88,7 @@ class RecordingPlan:
     ``selected`` the prediction with the parameters the forecast of the selection's
     cross-validation keeps (what the calibration is expected to estimate, :class:`Selected`);
     ``reference`` the error without
-    calibrating the kinematics (:mod:`selfcal.calibration.board.plan_reference`);
+    calibrating the kinematics (:mod:`selfcal.calibration.board.plan.reference`);
     ``to_beat`` (count, predicted m) the smallest plan of the same greedy choice that beats it
     clearly (:meth:`Selected.beats`), when this one does not (None: it does, or no plan of up
     to ``searched`` postures does)."""
@@ -262,7 +262,7 @@ def predict_kept(
     ``G`` and the deviation's ``variance`` (k,): its ``kept`` parameters (flat MCPC indices,
     offset joints) estimated, by default those the selection's rank and conditioning test
     accepts at ``q``, the others held at the drawing
-    (:func:`selfcal.calibration.board.plan_predict.predicted_with_held`); ``directions`` the
+    (:func:`selfcal.calibration.board.plan.predict.predicted_with_held`); ``directions`` the
     model's when already computed."""
     model = board_model(setup)
     free_idx, offsets = kept_by_rank(model, q) if kept is None else kept

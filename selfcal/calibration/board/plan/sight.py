@@ -1,5 +1,5 @@
 """Lines of sight of a planned view: no part of the arm and no keep-out box stands between the
-camera and the board (the candidate pool of :mod:`selfcal.calibration.board.plan_views`).
+camera and the board (the candidate pool of :mod:`selfcal.calibration.board.plan.views`).
 
 The arm is the capsule chain of :class:`selfcal.kinematics.self_collision.CapsuleChain` (the
 self-collision check's shapes: segments through the chain's frame origins, one radius). A view's

@@ -6,7 +6,7 @@ A board calibration estimates the kinematic parameters its identifiability selec
 drawing's value, and its deviation from the drawing is an error the estimated parameters only
 partly absorb. To first order, with ``F`` (p, p) the Fisher information of the camera's free
 parameters and every minimal kinematic parameter
-(:func:`selfcal.calibration.board.plan_information.frame_information`), ``M`` (p, e) the estimated
+(:func:`selfcal.calibration.board.plan.information.frame_information`), ``M`` (p, e) the estimated
 parameters' directions among them (the camera's own; the kinematic ones by
 :func:`selfcal.calibration.board.bounds.to_minimal`) and ``S`` (p, p) the covariance of the
 minimal parameters' deviation from the drawing::
@@ -24,7 +24,7 @@ postures (rank and conditioning of the identification Jacobian at the nominal,
 needs the images, may hold more (their deviation is then a further error the prediction does
 not see). A calibrated dataset's: those its ``calibration.json`` names as identified.
 
-The deviation from the drawing (:class:`Deviation`): every minimal parameter uniform within
+The deviation from the drawing (:class:`selfcal.calibration.board.deviation.Deviation`): every minimal parameter uniform within
 +-``translation_m`` (lengths) or +-``rotation_rad`` (angles), i.e. the standard deviation
 ``a / sqrt(3)``, independently: what the simulator draws (:func:`selfcal.sim.actual.perturb`,
 ``[perturbation]``; by default 1 mm and 0.5 deg, the simulated robots' own,
@@ -32,12 +32,10 @@ The deviation from the drawing (:class:`Deviation`): every minimal parameter uni
 and the hand-eye, which every calibration estimates) leaves no error where the placement is
 estimated, so the predictions use :meth:`Deviation.variance` (the inner parameters'); it does
 show where nothing is fitted, in the chain as drawn
-(:mod:`selfcal.calibration.board.plan_reference`: :meth:`Deviation.drawn_variance`). Units: SI.
+(:mod:`selfcal.calibration.board.plan.reference`: :meth:`Deviation.drawn_variance`). Units: SI.
 """
 
 from __future__ import annotations
-
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -46,10 +44,9 @@ from selfcal.calibration.board.nominal_fit import placement_indices
 from selfcal.calibration.board.parameter_pool import parameter_pool
 from selfcal.errors import UsageError
 from selfcal.estimation.kinematic_poses import KinematicPoses
-from selfcal.kinematics.mcpc import MCPCModel, minimal_indices, param_is_angle
+from selfcal.kinematics.mcpc import MCPCModel, minimal_indices
 
 __all__ = [
-    "Deviation",
     "Directions",
     "kept_by_rank",
     "error_covariance",
@@ -57,30 +54,6 @@ __all__ = [
     "prior_information",
     "predicted_with_held",
 ]
-
-
-@dataclass(frozen=True)
-class Deviation:
-    """How far the arm's geometry may lie from its drawing (module docstring): every inner
-    minimal parameter uniform within +-``translation_m`` (m) or +-``rotation_rad`` (rad)."""
-
-    translation_m: float = 1e-3
-    rotation_rad: float = float(np.radians(0.5))
-
-    def drawn_variance(self, joint_types: tuple[str, ...]) -> np.ndarray:
-        """(k,) the variance of every minimal parameter's deviation, the placement's included
-        (m^2, rad^2; the order of :func:`selfcal.kinematics.mcpc.minimal_indices`): what
-        :func:`selfcal.sim.actual.perturb` draws, uniform within the half-widths."""
-        idx = minimal_indices(joint_types)
-        a = np.where(param_is_angle(idx), self.rotation_rad, self.translation_m)
-        return a**2 / 3.0
-
-    def variance(self, joint_types: tuple[str, ...]) -> np.ndarray:
-        """(k,) :meth:`drawn_variance` with zero for the placement, whose deviation every
-        calibration estimates (a prior on it would be wrong: the board may lie anywhere)."""
-        var = self.drawn_variance(joint_types)
-        var[np.isin(minimal_indices(joint_types), placement_indices(len(joint_types)))] = 0.0
-        return var
 
 
 def kept_by_rank(model: MCPCModel, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -1,7 +1,7 @@
 """The greedy choice of a plan's postures: one candidate at a time, the one that lowers the
-predicted tool-point error most (``selfcal plan``, issue #30; :mod:`selfcal.calibration.board.plan`,
+predicted tool-point error most (``selfcal plan``, issue #30; :mod:`selfcal.calibration.board.plan.planner`,
 the tracker plan :mod:`selfcal.calibration.tracker.plan` and ``--add``
-:mod:`selfcal.calibration.board.plan_add` share it). The error is ``sqrt(trace(G C))``, ``C``
+:mod:`selfcal.calibration.board.plan.add` share it). The error is ``sqrt(trace(G C))``, ``C``
 the kinematic block of the inverse information and ``G`` the aligned tool weight. Units: m.
 """
 

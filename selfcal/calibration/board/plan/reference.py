@@ -9,7 +9,7 @@ rides on the flange, over the workspace after the best rigid alignment):
   ``V_0`` and the hand-eye ``V_n``; eye-to-hand base -> camera and flange -> board) and the
   camera's free parameters fitted to the pixels, as the calibration's own fair nominal is
   (:mod:`selfcal.calibration.board.nominal_fit`): the prediction of
-  :func:`selfcal.calibration.board.plan_predict.predicted_with_held` with the placement's
+  :func:`selfcal.calibration.board.plan.predict.predicted_with_held` with the placement's
   directions alone, i.e. the held parameters' deviation less what the fitted placement absorbs,
   plus the placement's and the camera's noise. The fit matches the camera's poses, not the
   flange: the hand-eye that takes up the chain's deviation where the camera sees the board
@@ -17,7 +17,7 @@ rides on the flange, over the workspace after the best rigid alignment):
 - the chain as drawn, nothing fitted (the controller's own kinematics and the mount as drawn):
   the deviation itself at the tool point, ``sqrt(trace(G S))`` with ``G`` the aligned tool
   weight and ``S`` the deviation's covariance of every minimal parameter
-  (:meth:`selfcal.calibration.board.plan_predict.Deviation.drawn_variance`, what the simulator
+  (:meth:`selfcal.calibration.board.deviation.Deviation.drawn_variance`, what the simulator
   draws), the placement's part as the tool point sees it: the base's is removed by the
   alignment; eye-in-hand the tool point rides with the camera (a calibration from images
   locates the camera; the flange sits where the drawing puts it from there), so the hand-eye's
@@ -39,7 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from selfcal.calibration.board.nominal_fit import placement_indices
-from selfcal.calibration.board.plan_predict import Directions, predicted_with_held
+from selfcal.calibration.board.plan.predict import Directions, predicted_with_held
 from selfcal.errors import UsageError
 from selfcal.kinematics.mcpc import MCPCModel, minimal_indices
 
@@ -125,10 +125,10 @@ def nominal_reference(
 ) -> NominalReference:
     """Both references (module docstring) for the postures whose information is ``F`` (p, p)
     on ``[camera (n_cam), minimal (k)]``
-    (:func:`selfcal.calibration.board.plan_information.frame_information` summed), of the
+    (:func:`selfcal.calibration.board.plan.information.frame_information` summed), of the
     calibration's chain ``model``, with the aligned tool weight ``G`` (k, k) and the deviation's
     ``variance`` (k,) of every minimal parameter, the placement's included
-    (:meth:`selfcal.calibration.board.plan_predict.Deviation.drawn_variance`; the fair nominal
+    (:meth:`selfcal.calibration.board.deviation.Deviation.drawn_variance`; the fair nominal
     fits the placement, so its part leaves the fair nominal); ``directions`` the model's when
     already computed; ``eye_to_hand`` the mount (:attr:`NominalReference.placement`; its tool
     point, the flange, does not move with the board mount's deviation)."""

@@ -5,18 +5,18 @@ tool-point error of its calibration, given the frames it holds (``selfcal plan -
 The cell is the calibration's (:func:`dataset_setup`): the robot file, the calibrated camera, the
 board where the calibration placed it (base -> board) and the camera where it placed it on the
 flange (:func:`selfcal.calibration.board.mounts.mounts`). Candidates are drawn as for a new plan
-(:func:`selfcal.calibration.board.plan_views.candidate_pool`). The information the dataset
+(:func:`selfcal.calibration.board.plan.views.candidate_pool`). The information the dataset
 already holds is its frames'
-(:func:`selfcal.calibration.board.plan_information.frame_information` at its read-back joints,
+(:func:`selfcal.calibration.board.plan.information.frame_information` at its read-back joints,
 with the board features detected in each) plus the prior of the arm's deviation from its drawing
-(:mod:`selfcal.calibration.board.plan_predict`); the greedy choice adds, one at a time, the
+(:mod:`selfcal.calibration.board.plan.predict`); the greedy choice adds, one at a time, the
 candidate that lowers the predicted tool-point error most
-(:func:`selfcal.calibration.board.plan_greedy.select_greedy`) and ranks :data:`SPARE` more; the
+(:func:`selfcal.calibration.board.plan.greedy.select_greedy`) and ranks :data:`SPARE` more; the
 added postures are ordered for a short joint path from home.
 
 The prediction after the additions is that of the calibration with the parameters its
 selection's cross-validation is forecast to keep
-(:func:`selfcal.calibration.board.plan_selection.forecast_selection`: the folds depend on the
+(:func:`selfcal.calibration.board.plan.selection.forecast_selection`: the folds depend on the
 recording order, the dataset's frames first and the added ones after in the planned order).
 Then, where the forecast prediction falls by :data:`GAIN` or more, a spare pick replaces a
 chosen posture, and another added posture is recorded last (the one a dataset of one
@@ -39,15 +39,15 @@ from selfcal.calibration.board.bounds import estimated_parameters
 from selfcal.calibration.board.dataset import dataset_board, detect_board
 from selfcal.calibration.board.folds import configurations, fold_labels
 from selfcal.calibration.board.mounts import mounts
-from selfcal.calibration.board.plan import predict_kept
-from selfcal.calibration.board.plan_greedy import select_greedy
-from selfcal.calibration.board.plan_ground import PlanOptions, plan_ground
-from selfcal.calibration.board.plan_information import board_model, frame_information
-from selfcal.calibration.board.plan_path import order_path, path_length
-from selfcal.calibration.board.plan_predict import Directions, prior_information
-from selfcal.calibration.board.plan_reference import NominalReference, nominal_reference
-from selfcal.calibration.board.plan_selection import SelectionForecast, forecast_selection
-from selfcal.calibration.board.plan_views import PlanSetup, ViewRule
+from selfcal.calibration.board.plan.greedy import select_greedy
+from selfcal.calibration.board.plan.ground import PlanOptions, plan_ground
+from selfcal.calibration.board.plan.information import board_model, frame_information
+from selfcal.calibration.board.plan.path import order_path, path_length
+from selfcal.calibration.board.plan.planner import predict_kept
+from selfcal.calibration.board.plan.predict import Directions, prior_information
+from selfcal.calibration.board.plan.reference import NominalReference, nominal_reference
+from selfcal.calibration.board.plan.selection import SelectionForecast, forecast_selection
+from selfcal.calibration.board.plan.views import PlanSetup, ViewRule
 from selfcal.errors import InputError
 from selfcal.io.board_calibration import read_board_calibration
 from selfcal.io.dataset import Dataset
@@ -154,7 +154,7 @@ class AddedPostures:
     the ``workspace`` (w, n) rad the error is averaged over, the pool's size and where it was
     drawn, the joint path (rad) from home through the added ones, and the ``reference``: the
     error without calibrating the kinematics for the dataset's frames and the added ones
-    (:mod:`selfcal.calibration.board.plan_reference`)."""
+    (:mod:`selfcal.calibration.board.plan.reference`)."""
 
     q: np.ndarray
     before_m: float
@@ -179,7 +179,7 @@ def plan_additions(
     plan: DatasetPlan, count: int, options: PlanOptions | None = None
 ) -> AddedPostures:
     """The ``count`` postures to add to ``plan``'s dataset (module docstring), drawn and
-    predicted with ``options`` (default :class:`selfcal.calibration.board.plan_ground.PlanOptions`).
+    predicted with ``options`` (default :class:`selfcal.calibration.board.plan.ground.PlanOptions`).
 
     Raises:
         InputError: fewer candidates than ``count``.

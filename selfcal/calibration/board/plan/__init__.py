@@ -1,0 +1,1 @@
+"""Planning a board recording: postures chosen for the predicted tool-point error (`selfcal plan`)."""
