@@ -27,6 +27,11 @@ GOLDEN_DIR = Path(__file__).resolve().parent / "golden"
 
 # Keys whose values are measurements of this machine, not results of the estimation.
 VOLATILE_KEYS = frozenset({"seconds"})
+# An LM solve's iteration count follows the floating-point path near the minimum: warm-started,
+# the rendered golden run took 20 or 23 joint iterations depending on the BLAS threads' rounding
+# (the same minimum, every estimate within the golden tolerance), so counts compare within a
+# quarter of the golden one (at least 3): a solve that needs many more iterations still fails.
+ITERATION_KEYS = frozenset({"iterations"})
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:
@@ -97,7 +102,7 @@ def compare_json(expected, actual, *, rtol: float, atol: float, path: str = "") 
     """Differences between two JSON trees: numbers within ``atol + rtol * max(|a|, |b|)``.
 
     Keys of ``expected`` must be present in ``actual`` (new keys are allowed); strings, booleans
-    and None must be equal; VOLATILE_KEYS are skipped.
+    and None must be equal; VOLATILE_KEYS are skipped; ITERATION_KEYS compare within a quarter.
     """
     out: list[str] = []
     if isinstance(expected, dict):
@@ -108,6 +113,10 @@ def compare_json(expected, actual, *, rtol: float, atol: float, path: str = "") 
                 continue
             if k not in actual:
                 out.append(f"{path}.{k}: missing")
+                continue
+            if k in ITERATION_KEYS and isinstance(v, int) and isinstance(actual[k], int):
+                if abs(actual[k] - v) > max(3, v // 4):
+                    out.append(f"{path}.{k}: {actual[k]} != golden {v} (within {max(3, v // 4)})")
                 continue
             out += compare_json(v, actual[k], rtol=rtol, atol=atol, path=f"{path}.{k}")
         return out
