@@ -40,6 +40,7 @@ from selfcal.kinematics.mcpc import MCPCModel
 __all__ = [
     "ToolErrorModel",
     "norm_quantile",
+    "growth_factor",
     "posture_distance",
     "WorkspaceSample",
     "workspace_sample",
@@ -64,6 +65,18 @@ def norm_quantile(cov: np.ndarray, p: float = 0.95) -> np.ndarray:
     a = np.where(ok, tr2 / np.where(ok, tr, 1.0), 0.0)
     f = np.where(ok, tr**2 / np.where(tr2 > 0, tr2, 1.0), 1.0)
     return np.sqrt(a * (2.0 * gammaincinv(f / 2.0, p)))
+
+
+def growth_factor(q: np.ndarray, q_ref: np.ndarray | None, span: np.ndarray | None,
+                  d_ref: float) -> np.ndarray:  # fmt: skip
+    """(m,) a model error's variance at joints ``q`` (m, n) over its variance at the distance
+    ``d_ref`` from the calibration postures ``q_ref`` (k, n): ``(d / d_ref)^2`` with ``d`` the
+    :func:`posture_distance` in units of ``span`` (n,); 1 everywhere when ``q_ref`` or ``span``
+    is None or ``d_ref`` is not positive (the model error the same everywhere)."""
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    if q_ref is None or span is None or d_ref <= 0:
+        return np.ones(len(q))
+    return (posture_distance(q, q_ref, span) / d_ref) ** 2
 
 
 def posture_distance(q: np.ndarray, q_ref: np.ndarray, span: np.ndarray) -> np.ndarray:
@@ -113,11 +126,7 @@ class ToolErrorModel:
         """(m,) the model error's variance at joints ``q`` (m, n) over ``model_error_m^2``: 1
         everywhere, or ``(d / d_ref)^2`` when it grows from the calibration postures (module
         docstring)."""
-        q = np.atleast_2d(np.asarray(q, dtype=float))
-        if self.reach_postures is None or self.reach_span is None or self.reach_distance <= 0:
-            return np.ones(len(q))
-        d = posture_distance(q, self.reach_postures, self.reach_span)
-        return (d / self.reach_distance) ** 2
+        return growth_factor(q, self.reach_postures, self.reach_span, self.reach_distance)
 
     def _point(self) -> np.ndarray:
         """(3,) the tool point in the chain's tool frame (m)."""

@@ -91,6 +91,7 @@ from selfcal.kinematics.mcpc import MCPCModel, minimal_indices, param_names
 from selfcal.kinematics.tool_error import (
     EDGE_FRACTION,
     ToolErrorModel,
+    growth_factor,
     posture_distance,
     workspace_sample,
     workspace_summary,
@@ -452,9 +453,7 @@ def predicted_reprojection(cr: BoardCramerRao, camera: CameraModel, q: np.ndarra
     t = np.asarray(T_tool_point, float)[:3, 3]
     M = np.diag([model_error_m**2] * 3 + [model_error_rad**2] * 3)
     q = np.atleast_2d(q)
-    grow = np.ones(len(q))
-    if reach is not None and reach[2] > 0:
-        grow = (posture_distance(q, reach[0], reach[1]) / reach[2]) ** 2
+    grow = growth_factor(q, *reach) if reach is not None else np.ones(len(q))
     total, count = 0.0, 0
     for qi, X, g in zip(q, points, grow, strict=True):
         T = fk_tool(cr.model, qi[None])[0]
