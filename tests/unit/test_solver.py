@@ -254,7 +254,9 @@ def test_an_elimination_with_nothing_to_eliminate_solves_densely():
     auto = solve(prob, SolverOptions(eliminate="ab"))
     schur = solve(prob, SolverOptions(linear_solver="schur", eliminate="ab"))
     assert auto.linear_solver == "dense" and auto.converged and schur.converged
-    assert schur.x == pytest.approx(auto.x, rel=1e-9)
+    # Both stop on the relative cost decrease (tol 1e-12), which leaves x within ~sqrt(tol) of
+    # the minimum: they agree to 3e-9 on one machine and exactly on another.
+    assert schur.x == pytest.approx(auto.x, rel=1e-8)
 
 
 def test_scaled_rank_above_dense_max_matches_the_dense_eigenvalues(monkeypatch):
