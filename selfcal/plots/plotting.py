@@ -25,6 +25,7 @@ __all__ = [
     "log_y",
     "close_figure",
     "save_figure",
+    "PNG_COMPRESS_LEVEL",
     "legend_outside",
     "legend_overlaps",
     "unlabelled_axes",
@@ -106,13 +107,22 @@ def close_figure(fig: Any) -> None:
         pyplot().close(fig)
 
 
+PNG_COMPRESS_LEVEL = 1
+"""zlib level of the figures' PNG files (Pillow's default is 6): the same pixels, files ~10 %
+larger, the encoding ~40 % of its CPU cheaper (about 35 -> 20 ms of a figure's 0.25-0.4 s
+under load, ``selfcal run`` waits on its figures at the end)."""
+
+
 def save_figure(fig: Any, path: str | Path, **kwargs: Any) -> Path:
     """``fig.savefig`` to ``path`` atomically (:mod:`selfcal.io.atomic`), in the format of its
     extension; at the figure's own dpi unless ``dpi=`` says otherwise (drawn once: text laid out
-    at another dpi is measured again)."""
+    at another dpi is measured again); a PNG at :data:`PNG_COMPRESS_LEVEL` unless ``pil_kwargs``
+    says otherwise."""
     path = Path(path)
     fmt = path.suffix.lstrip(".") or "png"
     kwargs.setdefault("dpi", "figure")
+    if fmt == "png":
+        kwargs.setdefault("pil_kwargs", {"compress_level": PNG_COMPRESS_LEVEL})
     return write_with_atomic(path, lambda tmp: fig.savefig(tmp, format=fmt, **kwargs))
 
 

@@ -21,6 +21,7 @@ from selfcal.plots.plotting import (
     legend_overlaps,
     new_figure,
     pyplot,
+    save_figure,
     stack_layout,
     unlabelled_axes,
 )
@@ -186,3 +187,17 @@ def test_the_residual_histogram_separates_each_images_shift():
     fig = reprojection_figure(ev, "calibration images")
     assert any("less its image's shift (std 0.01" in t for t in _legend_texts(fig))
     assert figure_problems(fig) == []
+
+
+def test_a_figure_png_is_written_at_the_fast_level_with_the_same_pixels(tmp_path):
+    """save_figure's PNG (zlib level 1) holds the pixels of Pillow's default level (6)."""
+    from PIL import Image
+
+    fig = new_figure(3.0, 2.0)
+    ax = fig.add_subplot()
+    ax.plot(np.arange(50), np.sin(np.arange(50) / 5.0), "o-", label="a line")
+    ax.set_title("some text to draw")
+    fast = save_figure(fig, tmp_path / "fast.png")
+    default = save_figure(fig, tmp_path / "default.png", pil_kwargs={})
+    assert fast.read_bytes() != default.read_bytes()  # another zlib level: other bytes
+    assert np.array_equal(np.asarray(Image.open(fast)), np.asarray(Image.open(default)))
