@@ -14,6 +14,7 @@ from concurrent.futures import Future, ThreadPoolExecutor
 import mujoco
 import numpy as np
 
+from selfcal.camera import Intrinsics
 from selfcal.errors import InputError, InternalError
 from selfcal.kinematics.mcpc import MCPCModel
 from selfcal.robot.definition import RobotDef
@@ -99,15 +100,19 @@ class SimRobot(KinematicRobot):
     def _draw_noise(self, shapes: list[tuple[int, ...]]) -> list[np.ndarray]:
         return [noise_field(shape, self._sigma, self._rng) for shape in shapes]
 
+    def _noise_ahead(self, shapes: list[tuple[int, ...]]) -> None:
+        """Start drawing the next capture's noise fields on the worker thread."""
+        if self._noise_pool is None:
+            self._noise_pool = ThreadPoolExecutor(1, thread_name_prefix="image-noise")
+        self._next_noise = self._noise_pool.submit(self._draw_noise, shapes)
+
     def _noise(self, shapes: list[tuple[int, ...]]) -> list[np.ndarray]:
         """This capture's noise fields (drawn ahead when possible) and the next one's started."""
         ahead, self._next_noise = self._next_noise, None
         z = ahead.result() if ahead is not None else self._draw_noise(shapes)
         if [f.shape for f in z] != shapes:  # pragma: no cover - one renderer, fixed sizes
             raise InternalError(f"noise drawn for images {[f.shape for f in z]}, got {shapes}")
-        if self._noise_pool is None:
-            self._noise_pool = ThreadPoolExecutor(1, thread_name_prefix="image-noise")
-        self._next_noise = self._noise_pool.submit(self._draw_noise, shapes)
+        self._noise_ahead(shapes)
         return z
 
     def capture(self) -> StereoPair:
@@ -115,12 +120,14 @@ class SimRobot(KinematicRobot):
         configured Gaussian intensity noise."""
         self._check_open()
         if self._renderer is None:
+            if self._sigma > 0:  # the first capture's noise is drawn while the renderer starts
+                self._noise_ahead([(c.height, c.width, 3) for c in self._lenses()])
             self._renderer = StereoRenderer(
                 self.mj_model,
                 self.rig.intrinsics.width,
                 self.rig.intrinsics.height,
                 camera_names=CAMERA_NAMES,
-                lenses=(self.rig.intrinsics, self.rig.right),
+                lenses=self._lenses(),
             )
         left, right = self._renderer.render(self.mj_data)
         if self._sigma > 0:
@@ -134,6 +141,11 @@ class SimRobot(KinematicRobot):
         }
         self._n_captures += 1
         return StereoPair(left=left, right=right, meta=meta)
+
+    def _lenses(self) -> tuple[Intrinsics, Intrinsics]:
+        """The true camera model of each rendered camera (left, right): their sizes are the
+        images'."""
+        return (self.rig.intrinsics, self.rig.right)
 
     def close(self) -> None:
         """Free the renderer (idempotent); later moves and captures raise ``RobotError``."""

@@ -11,6 +11,7 @@ from selfcal.robot.interface import Robot, RobotError, StereoPair
 from selfcal.sim.actual import apply_errors, perturb
 from selfcal.sim.link_frames import nominal_camera_model
 from selfcal.sim.markers import make_marker_field
+from selfcal.sim.render import apply_noise, noise_field
 from selfcal.sim.sim_robot import SimRobot
 from selfcal.transforms import inv_pose
 
@@ -153,3 +154,19 @@ def test_capture_noise_is_seeded():
     np.testing.assert_array_equal(imgs[0], imgs[1])
     diff = imgs[0] - imgs[2]
     assert 2.0 < diff.std() < 6.0  # difference of two sigma-3 noises: ~4.2 before clipping
+
+
+@pytest.mark.render
+def test_noisy_captures_take_the_generators_draws_in_order():
+    """The first capture's noise is drawn while the renderer starts, each next one's during the
+    capture before (on a worker thread): the images are still the noiseless ones plus the seeded
+    generator's draws, image after image (left, right, left, right)."""
+    field = make_marker_field(n_markers=6, seed=2)
+    with SimRobot("er4u-paper", field=field, image_sigma=3.0, seed=7) as r:
+        noisy = [r.capture() for _ in range(2)]
+    with SimRobot("er4u-paper", field=field, seed=7) as r:
+        clean = [r.capture() for _ in range(2)]
+    rng = np.random.default_rng(7)
+    for n, c in zip(noisy, clean, strict=True):
+        for a, b in ((n.left, c.left), (n.right, c.right)):
+            np.testing.assert_array_equal(a, apply_noise(b, noise_field(b.shape, 3.0, rng)))
