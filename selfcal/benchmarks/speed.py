@@ -6,7 +6,8 @@ Measures, in one run on this machine:
 
 - ``selfcal --help`` and ``selfcal fk`` as whole processes (median of ``--repeat`` runs);
 - ``selfcal run`` of the default scenario (rendered, 30 poses) as a whole process, and again
-  beside a process that spins one core (the ratio to the quiet run: #17 asks for <= 1.5x);
+  beside a process that spins one core (the ratio to the quiet run: #17 asks for <= 1.5x), each
+  the median of ``--run-repeat`` runs (3);
 - ``calibrate`` in-process on analytic-path datasets of the default scenario with 30, 100, 300
   and 1000 poses (``[trajectory] poses``; ``--large`` adds 3000 and 10,000, minutes and ~4 GB),
   wall and CPU seconds, and the acquisition of each;
@@ -52,6 +53,7 @@ import sys
 import tempfile
 import time
 import warnings
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -201,13 +203,25 @@ def pybotics_ratio(n: int, repeats_ours: int = 10, repeats_pybotics: int = 3) ->
     return row
 
 
-def beside_a_busy_process(argv: list[str]) -> tuple[float, float]:
-    """:func:`process_seconds` of ``argv`` once while another process spins one core (a
-    CPU-bound neighbour on the shared machine: #17 asks for at most 1.5x the quiet time)."""
+def run_seconds(selfcal: list[str], out: Path, repeat: int) -> tuple[float, float]:
+    """Median wall and CPU seconds of ``selfcal run --quiet`` (the default scenario) over
+    ``repeat`` runs, each into its own folder ``out-K`` (a single run's CPU varies from run to
+    run)."""
+    runs = [
+        process_seconds([*selfcal, "run", "--quiet", "--out", f"{out}-{k}"], 1)
+        for k in range(repeat)
+    ]
+    return statistics.median(w for w, _ in runs), statistics.median(c for _, c in runs)
+
+
+def beside_a_busy_process(seconds: Callable[[], tuple[float, float]]) -> tuple[float, float]:
+    """``seconds()`` (wall, CPU: :func:`process_seconds`, :func:`run_seconds`) while another
+    process spins one core (a CPU-bound neighbour on the shared machine: #17 asks for at most
+    1.5x the quiet time)."""
     busy = subprocess.Popen([sys.executable, "-c", "while True: pass"])
     try:
         time.sleep(0.5)  # the neighbour runs before the command starts
-        return process_seconds(argv, 1)
+        return seconds()
     finally:
         busy.kill()
         busy.wait()
@@ -226,12 +240,11 @@ def measure(args: argparse.Namespace) -> dict:
         warnings.simplefilter("ignore")
         root = Path(d)
         if not args.skip_run:
-            fig["run"] = process_seconds([*selfcal, "run", "--quiet", "--out", str(root / "run")],
-                                         1)  # fmt: skip
+            fig["run"] = run_seconds(selfcal, root / "run", args.run_repeat)
             print(f"selfcal run (default scenario) {fig['run']} s (wall, CPU)")
             fig["load"].append(load())
             fig["run_loaded"] = beside_a_busy_process(
-                [*selfcal, "run", "--quiet", "--out", str(root / "run-loaded")]
+                lambda: run_seconds(selfcal, root / "run-loaded", args.run_repeat)
             )
             print(f"selfcal run beside a CPU-bound process {fig['run_loaded']} s (wall, CPU)")
             fig["load"].append(load())
@@ -289,7 +302,7 @@ def table(fig: dict) -> str:
         f"{fig['fk'][0]:.2f} |",
     ]
     if "run" in fig:
-        lines.append(f"| `selfcal run` default scenario (rendered, 30 poses; process; CPU "
+        lines.append(f"| `selfcal run` default scenario (rendered, 30 poses; process, median; CPU "
                      f"{fig['run'][1]:.2f} s) | {fig['run'][0]:.2f} |")  # fmt: skip
     if "run_loaded" in fig:
         r = fig["run_loaded"][0] / fig["run"][0]
@@ -407,6 +420,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--ba-poses", type=int, default=300)
     ap.add_argument("--repeat", type=int, default=5, help="runs of --help and fk (median)")
     ap.add_argument("--skip-run", action="store_true", help="leave out `selfcal run`")
+    ap.add_argument("--run-repeat", type=int, default=3,
+                    help="runs of `selfcal run`, quiet and beside a CPU-bound process (median)")  # fmt: skip
     ap.add_argument(
         "--with-pybotics",
         action="store_true",

@@ -108,9 +108,9 @@ def close_figure(fig: Any) -> None:
 
 
 PNG_COMPRESS_LEVEL = 1
-"""zlib level of the figures' PNG files (Pillow's default is 6): the same pixels, files ~10 %
-larger, the encoding ~40 % of its CPU cheaper (about 35 -> 20 ms of a figure's 0.25-0.4 s
-under load, ``selfcal run`` waits on its figures at the end)."""
+"""zlib level of the figures' PNG files (Pillow's default is 6): the same pixels in slightly
+larger files, for less of the encoding's CPU (``selfcal run`` waits on its figures at the end;
+the commit that set it gives the measurement)."""
 
 
 def save_figure(fig: Any, path: str | Path, **kwargs: Any) -> Path:

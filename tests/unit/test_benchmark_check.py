@@ -28,3 +28,19 @@ def test_figures_more_than_the_tolerance_off_are_named():
     assert len(bad) == 1 and bad[0].startswith("`selfcal run`") and "1.38x" in bad[0]
     faster = _scaled(stated, "`selfcal fk", 1 / (TOLERANCE * 1.05))
     assert [b for b in check(faster, stated) if b.startswith("`selfcal fk")]
+
+
+def test_selfcal_run_is_timed_into_a_new_folder_each_time(tmp_path):
+    """run_seconds: ``--run-repeat`` runs, each into its own folder (a second run into the same
+    one would fail here), the median of their wall and CPU seconds."""
+    import pathlib
+    import sys
+
+    from selfcal.benchmarks.speed import beside_a_busy_process, run_seconds
+
+    fake = [sys.executable, "-c", "import pathlib, sys; pathlib.Path(sys.argv[-1]).mkdir()"]
+    wall, cpu = run_seconds(fake, tmp_path / "run", 3)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run-0", "run-1", "run-2"]
+    assert 0.0 < cpu and 0.0 < wall < 60.0
+    loaded = beside_a_busy_process(lambda: run_seconds(fake, tmp_path / "loaded", 1))
+    assert pathlib.Path(tmp_path / "loaded-0").is_dir() and len(loaded) == 2
