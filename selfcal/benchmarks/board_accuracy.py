@@ -403,12 +403,10 @@ def real_set(name: str, work: Path) -> dict:
     cr = with_deviation(out.cramer_rao,
                         hd.get("share", 1.0) * dev.variance(cal.model.joint_types))  # fmt: skip
     em = board_error_model_from_json(cal.accuracy, cal.model, "calibration.json")
-    reach = None if em.reach_postures is None else (em.reach_postures, em.reach_span,
-                                                    em.reach_distance)  # fmt: skip
     pred = predicted_reprojection(cr, cal.cameras[0], q, pts,
                                   model_error_m=(me.get("position_mm") or 0.0) / 1e3,
                                   model_error_rad=np.radians(me.get("rotation_deg") or 0.0),
-                                  reach=reach, **args)  # fmt: skip
+                                  reach=em.reach, **args)  # fmt: skip
     cov_only = predicted_reprojection(out.cramer_rao, cal.cameras[0], q, pts, model_error_m=0.0,
                                       model_error_rad=0.0, **args)  # fmt: skip
     cv = cal.accuracy.get("cross_validation") or {}

@@ -38,8 +38,11 @@ from selfcal.kinematics.forward import fk_frames, identification_jacobian
 from selfcal.kinematics.mcpc import MCPCModel
 
 __all__ = [
+    "Reach",
     "ToolErrorModel",
     "norm_quantile",
+    "GROWTH_POWER",
+    "distance_growth",
     "growth_factor",
     "posture_distance",
     "WorkspaceSample",
@@ -67,6 +70,17 @@ def norm_quantile(cov: np.ndarray, p: float = 0.95) -> np.ndarray:
     return np.sqrt(a * (2.0 * gammaincinv(f / 2.0, p)))
 
 
+GROWTH_POWER = 1.0
+"""How a model error's standard deviation grows with the distance from the calibration postures:
+``(d / d_ref)^GROWTH_POWER``."""
+
+
+def distance_growth(d: np.ndarray, d_ref: float) -> np.ndarray:
+    """(m,) a model error's variance at the distances ``d`` (m,) over its variance at ``d_ref``
+    (positive): ``(d / d_ref)^(2 GROWTH_POWER)`` (:data:`GROWTH_POWER`)."""
+    return (np.asarray(d, dtype=float) / d_ref) ** (2.0 * GROWTH_POWER)
+
+
 def growth_factor(q: np.ndarray, q_ref: np.ndarray | None, span: np.ndarray | None,
                   d_ref: float) -> np.ndarray:  # fmt: skip
     """(m,) a model error's variance at joints ``q`` (m, n) over its variance at the distance
@@ -76,7 +90,7 @@ def growth_factor(q: np.ndarray, q_ref: np.ndarray | None, span: np.ndarray | No
     q = np.atleast_2d(np.asarray(q, dtype=float))
     if q_ref is None or span is None or d_ref <= 0:
         return np.ones(len(q))
-    return (posture_distance(q, q_ref, span) / d_ref) ** 2
+    return distance_growth(posture_distance(q, q_ref, span), d_ref)
 
 
 def posture_distance(q: np.ndarray, q_ref: np.ndarray, span: np.ndarray) -> np.ndarray:
@@ -89,6 +103,22 @@ def posture_distance(q: np.ndarray, q_ref: np.ndarray, span: np.ndarray) -> np.n
     for r in q_ref:  # (m,) at a time: no (m, k, n) array for a large sample
         d = np.minimum(d, np.linalg.norm((q - r) / span, axis=1))
     return d
+
+
+@dataclass(frozen=True)
+class Reach:
+    """Where a model error grows from (module docstring): its variance at joints ``q`` is
+    ``(d / distance)^2`` times its size's square, ``d`` the :func:`posture_distance` of ``q`` to
+    ``postures`` (k, n) rad / m in units of ``span`` (n,) rad / m; ``distance`` (unit-free,
+    positive) the distance at which it has its size."""
+
+    postures: np.ndarray
+    span: np.ndarray
+    distance: float
+
+    def factor(self, q: np.ndarray) -> np.ndarray:
+        """(m,) the model error's variance at joints ``q`` (m, n) over its size's square."""
+        return growth_factor(q, self.postures, self.span, self.distance)
 
 
 @dataclass(frozen=True)
@@ -121,6 +151,13 @@ class ToolErrorModel:
     reach_postures: np.ndarray | None = None
     reach_span: np.ndarray | None = None
     reach_distance: float = 0.0
+
+    @property
+    def reach(self) -> Reach | None:
+        """The :class:`Reach` the model error grows from, or None (the same everywhere)."""
+        if self.reach_postures is None or self.reach_span is None or self.reach_distance <= 0:
+            return None
+        return Reach(self.reach_postures, self.reach_span, self.reach_distance)
 
     def model_error_factor(self, q: np.ndarray) -> np.ndarray:
         """(m,) the model error's variance at joints ``q`` (m, n) over ``model_error_m^2``: 1

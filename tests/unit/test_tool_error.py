@@ -159,3 +159,7 @@ def test_a_grown_model_error_is_none_at_the_calibration_postures_and_grows_with_
     at_cal = em.predicted(q_cal)  # the fit saw these: the covariance alone
     assert np.allclose(at_cal["position_95_mm"], at_cal["estimation_95_mm"])
     assert np.allclose(flat.model_error_factor(q), 1.0)
+    # the board route's Reach is the same three numbers, typed: the same factor both ways
+    assert em.reach is not None and flat.reach is None
+    assert em.reach.factor(q) == pytest.approx([4.0])
+    assert np.allclose(em.reach.factor(q_cal), em.model_error_factor(q_cal))

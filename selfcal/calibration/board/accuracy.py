@@ -90,8 +90,9 @@ from selfcal.kinematics.forward import fk_tool, identification_jacobian
 from selfcal.kinematics.mcpc import MCPCModel, minimal_indices, param_names
 from selfcal.kinematics.tool_error import (
     EDGE_FRACTION,
+    Reach,
     ToolErrorModel,
-    growth_factor,
+    distance_growth,
     posture_distance,
     workspace_sample,
     workspace_summary,
@@ -129,21 +130,24 @@ def _what(eye_to_hand: bool) -> str:
 
 
 def board_error_model(cr: BoardCramerRao, T_tool_point: np.ndarray, position_m: float = 0.0,
-                      rotation_rad: float = 0.0, reach: tuple[np.ndarray, np.ndarray, float] | None = None,
+                      rotation_rad: float = 0.0, reach: Reach | None = None,
                       ) -> tuple[ToolErrorModel, tuple[str, ...]]:  # fmt: skip
     """The :class:`ToolErrorModel` of the bounds ``cr`` (world = the chain's, the tool point
     ``T_tool_point`` in the chain's tool frame) with the model error ``position_m`` /
     ``rotation_rad`` per coordinate, and the names of the parameters its covariance covers (the
-    minimal parameters the estimate moved); the covariance is the Cramer-Rao one plus what the
+    minimal parameters the estimate moved); ``reach``: where the model error grows from
+    (:class:`Reach`), None: the same everywhere; the covariance is the Cramer-Rao one plus what the
     model error in the calibration's frames gives the estimate (``position_m^2 G``,
     :mod:`selfcal.calibration.board.misfit`)."""
     idx = minimal_indices(cr.model.joint_types)
     est = np.ones(idx.size, bool) if cr.estimated is None else np.asarray(cr.estimated, bool)
     p = int(est.sum())
     cov = cr.covariance[np.ix_(est, est)] + position_m**2 * _full_covariance(cr, True)[1][:p, :p]
-    q_reach, span, d_ref = (None, None, 0.0) if reach is None else reach
     em = ToolErrorModel(cr.model, np.eye(4), idx[est], cov, position_m, rotation_rad,
-                        np.asarray(T_tool_point, float), q_reach, span, d_ref)  # fmt: skip
+                        np.asarray(T_tool_point, float))  # fmt: skip
+    if reach is not None:
+        em = dataclasses.replace(em, reach_postures=reach.postures, reach_span=reach.span,
+                                 reach_distance=reach.distance)  # fmt: skip
     return em, tuple(param_names(idx[est]))
 
 
@@ -266,7 +270,7 @@ def grown_size(extra: float, unit: np.ndarray, misfit: np.ndarray,
     0."""
     unit, distance = np.asarray(unit, float), np.asarray(distance, float)
     reach = float(np.mean(distance)) if distance.size else 0.0
-    grow = (distance / reach) ** 2 if reach > 0 else np.ones(unit.size)
+    grow = distance_growth(distance, reach) if reach > 0 else np.ones(unit.size)
     m = float(np.sqrt(extra / (np.sum(unit * grow) + np.sum(misfit))))
     return m, reach
 
@@ -410,7 +414,7 @@ def board_accuracy(obs: BoardObservations, selection: Selection, cr: BoardCramer
     q_cal = np.asarray(obs.q[obs.used], dtype=float)
     reach = None
     if me is not None and me.reach_distance > 0 and span is not None:
-        reach = (q_cal, span, me.reach_distance)
+        reach = Reach(q_cal, span, me.reach_distance)
     em, names = board_error_model(cr, T_tool_point, pos, rot, reach)
     sample = workspace_sample(q_cal, limits, count=count)
     note = ("no cross-validation (the frames show one arm configuration): the covariance alone, "
@@ -437,7 +441,7 @@ def predicted_reprojection(cr: BoardCramerRao, camera: CameraModel, q: np.ndarra
                            points: list[np.ndarray], T_tool_point: np.ndarray, *,
                            eye_to_hand: bool, joint_sigma: np.ndarray | float | None,
                            model_error_m: float, model_error_rad: float,
-                           reach: tuple[np.ndarray, np.ndarray, float] | None = None,
+                           reach: Reach | None = None,
                            ) -> float:  # fmt: skip
     """The predicted 2-D RMS (px) of the reprojection errors of new frames of the first camera
     ``camera`` at the joints ``q`` (m, n) rad, ``points[i]`` (k_i, 3) the board points it sees in
@@ -446,14 +450,14 @@ def predicted_reprojection(cr: BoardCramerRao, camera: CameraModel, q: np.ndarra
     :attr:`BoardCramerRao.misfit`), the model error per tool-point coordinate (``model_error_m``,
     ``model_error_rad``), the joint read-back noise ``joint_sigma`` and the pixel noise
     (``cr.pixel_sigma_px``) give them, to first order -- to compare with ``selfcal evaluate``'s
-    measured held-out RMS. ``reach``: the calibration postures, the joints' spans and the
-    reference distance the model error grows from (:func:`board_error_model`), or None."""
+    measured held-out RMS. ``reach``: where the model error grows from (the calibration
+    postures, the joints' spans and the reference distance, :class:`Reach`), or None."""
     cols, C, n0 = _full_covariance(cr)
     C = C + model_error_m**2 * _full_covariance(cr, misfit=True)[1]
     t = np.asarray(T_tool_point, float)[:3, 3]
     M = np.diag([model_error_m**2] * 3 + [model_error_rad**2] * 3)
     q = np.atleast_2d(q)
-    grow = growth_factor(q, *reach) if reach is not None else np.ones(len(q))
+    grow = reach.factor(q) if reach is not None else np.ones(len(q))
     total, count = 0.0, 0
     for qi, X, g in zip(q, points, grow, strict=True):
         T = fk_tool(cr.model, qi[None])[0]
