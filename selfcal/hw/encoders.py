@@ -8,7 +8,9 @@ zeroed by HOME, so by default ``home_counts = 0`` at the home posture).
 The ER-4u wrist is a differential: motors 4 and 5 both turn for pitch and for roll. In motor
 counts ``pitch = (enc4 - enc5) / 2`` and ``roll = (enc4 + enc5) / 2``, so
 ``enc4 = pitch + roll`` and ``enc5 = roll - pitch``; ``counts_per_deg`` of the pitch and roll axes
-is in those (half-sum / half-difference) counts per joint degree.
+is in those (half-sum / half-difference) counts per joint degree. That arithmetic has one home,
+:func:`selfcal.robot.encoder.motor_counts` / :func:`~selfcal.robot.encoder.joint_counts`, which
+the simulator's read-back (:meth:`selfcal.robot.encoder.EncoderSpec.read_back`) uses too.
 
 The numbers live in the robot file's ``[encoder]`` table (keys: :mod:`selfcal.robot.encoder`;
 ER-4u: ``models/scorbot_er4u/er4u-vendor.toml``). ``EncoderTable.for_robot(model)`` builds the table of a
@@ -26,6 +28,7 @@ import numpy as np
 
 from selfcal.errors import InputError
 from selfcal.robot.definition import RobotDef, load_robot, robot_files
+from selfcal.robot.encoder import joint_counts, motor_counts
 
 __all__ = ["EncoderTable"]
 
@@ -162,10 +165,9 @@ class EncoderTable:
     @property
     def resolution_deg(self) -> np.ndarray:
         """(n,) joint angle of one motor count (deg); half that on the differential axes."""
-        res = 1.0 / np.abs(self.counts_per_deg)
-        if self.differential:
-            res[list(self.differential)] /= 2.0
-        return res
+        # one motor's count moves each joint it drives by this many joint-space counts
+        per_motor = np.abs(joint_counts(np.eye(self.n), self.differential)).max(axis=0)
+        return per_motor / np.abs(self.counts_per_deg)
 
     def _check(self, x: np.ndarray, what: str) -> np.ndarray:
         x = np.asarray(x, dtype=float)
@@ -179,31 +181,10 @@ class EncoderTable:
         """Joint angles (deg, shape (..., n)) -> nearest integer encoder counts (int64)."""
         q = self._check(joints_deg, "joints_deg")
         c = self.counts_per_deg * (q - self.home_deg)  # joint-space counts relative to home
-        if self.differential:
-            p, r = self.differential
-            hp, hr = self._home_pitch_roll()
-            pc, rc = c[..., p] + hp, c[..., r] + hr
-            out = np.rint(c + self.home_counts).astype(np.int64)
-            out[..., p] = np.rint(pc + rc).astype(np.int64)
-            out[..., r] = np.rint(rc - pc).astype(np.int64)
-            return out
-        return np.rint(c + self.home_counts).astype(np.int64)
+        return np.rint(motor_counts(c, self.differential) + self.home_counts).astype(np.int64)
 
     def to_degrees(self, counts: np.ndarray) -> np.ndarray:
         """Encoder counts (shape (..., n)) -> joint angles (deg)."""
         e = self._check(counts, "counts")
-        rel = e - self.home_counts
-        if self.differential:
-            p, r = self.differential
-            hp, hr = self._home_pitch_roll()
-            pc = (e[..., p] - e[..., r]) / 2.0
-            rc = (e[..., p] + e[..., r]) / 2.0
-            rel = rel.copy()
-            rel[..., p] = pc - hp
-            rel[..., r] = rc - hr
+        rel = joint_counts(e - self.home_counts, self.differential)
         return self.home_deg + rel / self.counts_per_deg
-
-    def _home_pitch_roll(self) -> tuple[float, float]:
-        p, r = self.differential  # type: ignore[misc]
-        h4, h5 = float(self.home_counts[p]), float(self.home_counts[r])
-        return (h4 - h5) / 2.0, (h4 + h5) / 2.0

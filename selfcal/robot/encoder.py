@@ -36,7 +36,7 @@ import numpy as np
 
 from selfcal.errors import InputError
 
-__all__ = ["EncoderSpec", "encoder_spec"]
+__all__ = ["EncoderSpec", "encoder_spec", "joint_counts", "motor_counts"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -78,17 +78,40 @@ class EncoderSpec:
         """The joints (rad / m, shape of ``q``) the controller reports with the arm at the true
         posture ``q`` (..., n): every motor's count from the encoder zero rounded to the
         nearest integer, converted back (the differential wrist's pitch and roll from its two
-        motors' rounded counts, as :class:`selfcal.hw.encoders.EncoderTable` converts them)."""
+        motors' rounded counts: :func:`motor_counts`, :func:`joint_counts`)."""
         q = np.asarray(q, dtype=float)
         counts = (q - self.zero) * self.counts_per_unit
-        read = np.rint(counts)
-        if self.differential is not None:
-            p, r = self.differential
-            m1 = np.rint(counts[..., p] + counts[..., r])
-            m2 = np.rint(counts[..., r] - counts[..., p])
-            read[..., p] = (m1 - m2) / 2.0
-            read[..., r] = (m1 + m2) / 2.0
+        read = joint_counts(np.rint(motor_counts(counts, self.differential)), self.differential)
         return self.zero + read / self.counts_per_unit
+
+
+def motor_counts(joint: np.ndarray, differential: tuple[int, int] | None) -> np.ndarray:
+    """The motors' counts (..., n) of joint-space counts ``joint`` (..., n), both from the
+    encoder zero, not rounded: each joint's own motor, except on a differential wrist
+    (0-based ``(pitch, roll)``), whose motors read ``pitch + roll`` and ``roll - pitch``.
+    Unit-free (counts in, counts out); :func:`joint_counts` is its inverse."""
+    joint = np.asarray(joint, dtype=float)
+    if differential is None:
+        return joint.copy()
+    p, r = differential
+    out = joint.copy()
+    out[..., p] = joint[..., p] + joint[..., r]
+    out[..., r] = joint[..., r] - joint[..., p]
+    return out
+
+
+def joint_counts(motor: np.ndarray, differential: tuple[int, int] | None) -> np.ndarray:
+    """The joint-space counts (..., n) of motor counts ``motor`` (..., n), the inverse of
+    :func:`motor_counts`: on a differential wrist pitch is the half-difference and roll the
+    half-sum of its two motors' counts."""
+    motor = np.asarray(motor, dtype=float)
+    if differential is None:
+        return motor.copy()
+    p, r = differential
+    out = motor.copy()
+    out[..., p] = (motor[..., p] - motor[..., r]) / 2.0
+    out[..., r] = (motor[..., p] + motor[..., r]) / 2.0
+    return out
 
 
 def _per_joint(table: dict[str, Any], key: str, n: int) -> np.ndarray | None:

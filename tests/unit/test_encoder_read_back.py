@@ -59,3 +59,26 @@ def test_a_robot_without_an_encoder_table_reads_exactly():
     assert robot.encoder is None and encoder_sigma(robot) is None
     q = _postures(robot, 5, 3)
     np.testing.assert_array_equal(read_back(q, robot.encoder, True), q)
+
+
+def test_the_differential_wrist_arithmetic_has_one_home():
+    """The ER-4u's motors 4 and 5 read pitch + roll and roll - pitch; the hardware's encoder
+    table and the simulator's read-back both convert through motor_counts / joint_counts."""
+    from selfcal.robot.encoder import joint_counts, motor_counts
+
+    diff = (3, 4)
+    joint = np.array([[10.0, -20.0, 30.0, 1.0, 0.0], [0.0, 0.0, 0.0, 3.0, 5.0]])
+    motors = motor_counts(joint, diff)
+    np.testing.assert_array_equal(motors, [[10, -20, 30, 1, -1], [0, 0, 0, 8, 2]])
+    np.testing.assert_array_equal(joint_counts(motors, diff), joint)
+    np.testing.assert_array_equal(motor_counts(joint, None), joint)
+    table = EncoderTable.for_robot("er4u-vendor")
+    assert table.differential == diff
+    counts = table.to_counts(np.zeros(5) + table.home_deg)
+    np.testing.assert_array_equal(counts, table.home_counts)
+    step = np.zeros(5)
+    step[3] = 1.0 / table.counts_per_deg[3]  # one joint-space count of pitch
+    np.testing.assert_array_equal(table.to_counts(table.home_deg + step), [0, 0, 0, 1, -1])
+    np.testing.assert_allclose(
+        table.resolution_deg, 1 / np.abs(table.counts_per_deg) / [1, 1, 1, 2, 2]
+    )
