@@ -56,6 +56,7 @@ from selfcal.kinematics.identifiability import (
     analyse_identifiability,
     pose_sigmas,
     priority_order,
+    still_joints,
     triangular_factor,
 )
 from selfcal.kinematics.mcpc import (
@@ -377,12 +378,13 @@ def identify(
         if not auto_hold:
             raise IdentificationError(
                 f"rank {ana.rank} < {int(ana.considered.sum())} parameters: {list(ana.unidentifiable)} "
-                "cannot be identified from these configurations (e.g. a joint that never moves); "
+                f"cannot be identified from these configurations ({still_joints(q, model.joint_types)}); "
                 "add them to hold=, pass auto_hold=True, or move every joint"
             )
         _note(
             notes,
-            f"held at nominal, not identifiable from these configurations: {list(ana.unidentifiable)}",
+            f"held at nominal, not identifiable from these configurations: {list(ana.unidentifiable)} "
+            f"({still_joints(q, model.joint_types)})",
         )
         held_reason.update({nm: "unidentifiable from this data" for nm in ana.unidentifiable})
     estimated = ana.identifiable.copy()

@@ -46,8 +46,15 @@ __all__ = [
     "pose_sigmas",
     "priority_order",
     "select_identifiable",
+    "still_joints",
     "triangular_factor",
 ]
+
+#: A joint whose readings spread by less than this (rad; m for a prismatic joint, scaled by
+#: ``STILL_M_PER_RAD``) over every configuration counts as one that never moves: 0.001 deg,
+#: below any arm's repeatability, above a controller's last printed digit.
+STILL_RAD = np.radians(1e-3)
+STILL_M_PER_RAD = 1e-3 / np.radians(1.0)  # 1 mm of a prismatic joint counts as 1 deg
 
 #: Physical column scale for the Borm & Menq index: 1 mm for lengths, 1 mrad for angles.
 O1_SCALE_M = 1e-3
@@ -155,6 +162,30 @@ def select_identifiable(
     keep = np.zeros(A.shape[1], dtype=bool)
     keep[piv[:rank]] = True
     return keep, rank, "pivoted-qr"
+
+
+def still_joints(q: np.ndarray, joint_types: tuple[str, ...]) -> str:
+    """What the configurations ``q`` (m, n; rad, m for prismatic joints) show about a rank loss,
+    in words for a message: the joints that never move (``"j6 never moves (17.189 deg in every
+    row)"``, deg or mm), else that every joint moves and by how much at most (a check of the
+    data, so a message never guesses at the cause). Empty for no configurations."""
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    if q.size == 0:
+        return ""
+    prism = np.array([t == "prismatic" for t in joint_types])
+    scale = np.where(prism, 1e3, np.degrees(1.0))  # rad -> deg, m -> mm
+    unit = ["mm" if p else "deg" for p in prism]
+    spread = q.max(axis=0) - q.min(axis=0)
+    still = spread < np.where(prism, STILL_RAD * STILL_M_PER_RAD, STILL_RAD)
+    if still.any():
+        return "; ".join(
+            f"j{j + 1} never moves ({q[0, j] * scale[j]:.3f} {unit[j]} in every row)"
+            for j in np.flatnonzero(still)
+        )
+    parts = ", ".join(f"j{j + 1} {spread[j] * scale[j]:.3g} {unit[j]}" for j in range(q.shape[1]))
+    return (
+        f"every joint moves, by at most {parts}: spread the configurations over the joints' ranges"
+    )
 
 
 def triangular_factor(A: np.ndarray) -> np.ndarray:

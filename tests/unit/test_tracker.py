@@ -163,10 +163,28 @@ def test_a_joint_that_never_moves_is_held_with_a_warning():
         warnings.simplefilter("always")
         res = identify_tracker(case.nominal, TrackerMeasurements(q, xyz))
     assert any(issubclass(w.category, IdentificationWarning) for w in caught)
+    # the message names the joint that never moves (a check of the data, not a guess)
+    note = next(str(w.message) for w in caught if issubclass(w.category, IdentificationWarning))
+    assert "j6 never moves (17.189 deg in every row)" in note, note
+    assert "e.g." not in note
     assert res.held_reason["alpha6"].startswith("not identifiable from position")
     data_held = [k for k, v in res.held_reason.items() if v == "unidentifiable from this data"]
     assert data_held and all(nm.endswith("5") for nm in data_held)  # joint 6's axis
     assert res.rms_mm < 1e-6
+
+
+def test_a_rank_loss_with_every_joint_moving_says_so():
+    """Every joint moves, but only within a few degrees of one posture: no joint is blamed for
+    never moving, and the message names the joints' spread and the fix."""
+    case = make_case(ROBOTS["ur5e"]())
+    q = case.configurations(1, 1) + np.random.default_rng(4).normal(0, 1e-3, (40, 6))
+    xyz, _ = measure(case, q, 0.0, 1)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        identify_tracker(case.nominal, TrackerMeasurements(q, xyz))
+    notes = [str(w.message) for w in caught if issubclass(w.category, IdentificationWarning)]
+    assert notes and "never moves" not in notes[0], notes
+    assert "every joint moves" in notes[0] and "spread the configurations" in notes[0], notes
 
 
 def test_distances_and_positions_combine():

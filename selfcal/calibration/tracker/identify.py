@@ -59,7 +59,11 @@ from selfcal.estimation.tracker import (
 from selfcal.estimation.tracker_start import pose_placement
 from selfcal.kinematics.alignment import wrap_params
 from selfcal.kinematics.forward import fk_tool
-from selfcal.kinematics.identifiability import select_identifiable, triangular_factor
+from selfcal.kinematics.identifiability import (
+    select_identifiable,
+    still_joints,
+    triangular_factor,
+)
 from selfcal.kinematics.mcpc import MCPCModel, minimal_indices, param_is_angle, param_names
 from selfcal.kinematics.parameter_estimates import ParameterEstimates
 from selfcal.solver import ParameterBlock, Problem, SolverOptions, solve
@@ -177,13 +181,19 @@ def _select(
     return mask, rank, cond
 
 
+def _configurations(meas: TrackerMeasurements) -> np.ndarray:
+    """Every configuration (rad / m, (k, n)) the measurements were taken at: the rows' and
+    both ends of every distance."""
+    return np.concatenate([a for a in (meas.q, meas.q_a, meas.q_b) if a is not None and len(a)])
+
+
 def _spread(model: MCPCModel, meas: TrackerMeasurements, p: int) -> TrackerMeasurements:
     """Noise-free measurements of the same kinds at ``p + 10`` well-spread random
     configurations (revolute joints over a full turn, prismatic ones over the data's range
     +- 0.1 m), deterministic: what these kinds of measurement identify on this chain."""
     rng = np.random.default_rng(0)
     rows = p + 10
-    data_q = np.concatenate([a for a in (meas.q, meas.q_a, meas.q_b) if a is not None and len(a)])
+    data_q = _configurations(meas)
     lo, hi = data_q.min(axis=0) - 0.1, data_q.max(axis=0) + 0.1
     rev = np.array([t == "revolute" for t in model.joint_types])
 
@@ -402,7 +412,7 @@ def identify_tracker(
     if rank < p_struct:
         text = (
             f"rank {rank} < {p_struct}: {lost} cannot be identified from these configurations "
-            "(e.g. a joint that never moves); held at nominal"
+            f"({still_joints(_configurations(meas), start.joint_types)}); held at nominal"
         )
         notes.append(text)
         warnings.warn(text, IdentificationWarning, stacklevel=2)
