@@ -27,7 +27,8 @@ NEW_DATA by the calibration's route:
   tracker (`selfcal identify`): tracker measurements in the format identify reads (header
     j1..jn,x_mm,y_mm,z_mm; quaternion columns are ignored: the check compares positions), any
     postures, a few rows; --joint-units required.
-  board (`selfcal calibrate` on images of a board, eye-in-hand or eye-to-hand): a dataset
+  board (`selfcal calibrate` on images of a board and joint readings, eye-in-hand or
+    eye-to-hand; not a hand-eye calibration from flange poses, see `selfcal evaluate`): a dataset
     folder in the format calibrate reads (dataset.json, joints.csv, the images; e.g. from
     `selfcal import --joints`), a few images of the same board, not moved, at any postures;
     the first camera's images are checked. It also says what changed (the camera, a mount,
@@ -41,6 +42,7 @@ See docs/tool-accuracy.md."""
 def cmd_check(args: argparse.Namespace) -> int:
     from pathlib import Path
 
+    from selfcal.calibration.handeye.calibration_file import is_handeye
     from selfcal.calibration.tracker.calibration_file import is_tracker_calibration
     from selfcal.io.board_calibration import calibration_kind
 
@@ -71,6 +73,15 @@ def cmd_check(args: argparse.Namespace) -> int:
                            "units)",
                            fix=f"drop {' and '.join(given)}")  # fmt: skip
         res = check_images(path, args.new_data, alpha=args.alpha)
+    elif is_handeye(path):
+        raise CliError(
+            f"{path} is a hand-eye calibration from flange poses (`selfcal import --poses`): "
+            "`selfcal check` does not test those (it checks joint-based board calibrations and "
+            "tracker calibrations)",
+            fix=f"import the new images with their flange poses the same way and run `selfcal "
+            f"evaluate {src} NEW_DATASET`: it predicts them from their poses beside the fair "
+            "nominal",
+        )
     else:
         raise CliError(
             f"{path} is neither a tracker calibration nor a board calibration: `selfcal check` "
