@@ -293,6 +293,15 @@ def _check_joint_columns(table: Table, prefix: str, robot) -> list[str]:
     present = sorted(
         (c for c, i in numbered.items() if i is not None), key=lambda c: numbered[c] or 0
     )
+    beyond = [c for c in present if (numbered[c] or 0) > robot.n]
+    if beyond:  # a log of a longer arm: never dropped, even where the robot's names match
+        raise TrackerFileError(
+            f"{table.path}: {len(present)} joint columns ({', '.join(present)}): column "
+            f"{beyond[0]} names a joint robot {robot.name} does not have (it has {robot.n} "
+            "joints)",
+            fix="choose the robot the log was recorded on (--robot), or rename the column if "
+            "it holds no joint",
+        )
     want = _joint_names(prefix, robot.n)
     named = [prefix + str(j).lower() for j in getattr(robot, "joint_names", ())]
     if present != want and len(named) == robot.n and all(c in by_name for c in named):

@@ -156,3 +156,23 @@ def test_one_joint_in_two_columns_is_an_error(tmp_path):
     names = [*ROBOT.joint_names, ROBOT.joint_names[0].upper()]  # KUKA's a1..a6 and A1
     with pytest.raises(TrackerFileError, match="name the same joint"):
         read_joint_rows(write(tmp_path, _csv(np.c_[Q_DEG, Q_DEG[:, 0]], head=names)), ROBOT, "deg")
+
+
+@pytest.mark.parametrize("robot_file", ["kr6-r900", "nachi"])
+def test_a_joint_column_beyond_the_robots_joints_is_an_error(tmp_path, robot_file):
+    """A log of a 7-joint arm (header j1..j7) given with a 6-joint robot: the column j7 names a
+    joint the robot does not have (a wrong --robot, most likely), never silently dropped; also
+    for a URDF whose own joint names are j1..j6 (the real Nachi set's)."""
+    from pathlib import Path
+
+    robot = ROBOT
+    if robot_file == "nachi":
+        urdf = Path(__file__).resolve().parents[1] / "data" / "real" / \
+            "nachi-2025-01-17-photoneo" / "inputs" / "nachi_mz25.urdf"  # fmt: skip
+        robot = load_robot(str(urdf))
+        assert [str(j) for j in robot.joint_names] == [f"j{i}" for i in range(1, 7)]
+    rows = [",".join(f"{v}" for v in (*r, 0.0)) for r in Q_DEG]
+    p = write(tmp_path, "\n".join(["j1,j2,j3,j4,j5,j6,j7", *rows]) + "\n")
+    with pytest.raises(TrackerFileError, match=r"column j7 names a joint .* 6 joints") as exc:
+        read_joint_rows(p, robot, "deg")
+    assert str(p) in str(exc.value) and "--robot" in str(exc.value)
