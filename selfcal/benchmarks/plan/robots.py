@@ -35,6 +35,7 @@ import json
 import shlex
 import shutil
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -42,7 +43,16 @@ import numpy as np
 from selfcal.benchmarks.doc_blocks import ROOT, print_table
 from selfcal.io.atomic import write_text_atomic
 
-__all__ = ["CELL_TARGETS", "ROBOTS", "cell", "cell_target", "cell_values", "main", "table"]
+__all__ = [
+    "CELL_TARGETS",
+    "ROBOTS",
+    "Forecast",
+    "cell",
+    "cell_target",
+    "cell_values",
+    "main",
+    "table",
+]
 
 ROBOTS = ("ur5e", "er4u-paper", "kr6-r900")
 """The simulated robots, docs/plan.md's example first."""
@@ -139,7 +149,7 @@ def _items(robot: str, root: Path, render: bool, draws: int, sets: tuple[str, ..
     for name, (q, pred) in got["sets"].items():
         if name not in sets:
             continue
-        predicted[name] = pred * 1000.0
+        predicted[name] = Forecast(pred * 1000.0, *_spread(setup, q, got["workspace"], sigma))
         held[name] = _held_prediction(setup, q, got["workspace"], sigma)
         folder = root / robot / name.replace(" ", "-")
         folder.mkdir(parents=True, exist_ok=True)
@@ -150,6 +160,38 @@ def _items(robot: str, root: Path, render: bool, draws: int, sets: tuple[str, ..
         cfg = str(folder / "scenario.toml")
         items += [(robot, name, cfg, deg, s, render, sigma) for s in range(1, draws + 1)]
     return items, predicted, held
+
+
+@dataclass(frozen=True)
+class Forecast:
+    """A posture set's forecast (mm): ``mean`` the plan's prediction (every parameter the rank
+    test keeps), ``median`` and ``p90`` those of the calibration's error over arms and noise
+    draws with its selection drawn in each, and ``smaller`` the share of those draws whose
+    selection kept fewer parameters than its largest candidate
+    (:func:`selfcal.calibration.board.plan.spread.selection_spread`)."""
+
+    mean: float
+    median: float
+    p90: float
+    smaller: float
+
+
+def _spread(setup, q: np.ndarray, workspace: np.ndarray, sigma: float) -> tuple[float, ...]:
+    """(median mm, 90th percentile mm, share of draws keeping a smaller set) of the
+    linearised draws of the calibration at the postures ``q``, its selection drawn in each."""
+    from selfcal.calibration.board.deviation import Deviation
+    from selfcal.calibration.board.plan.information import board_model, frame_information
+    from selfcal.calibration.board.plan.spread import selection_spread
+    from selfcal.estimation.joint_report import aligned_tool_weight, encoder_sigma
+
+    model = board_model(setup)
+    F = frame_information(setup, q, sigma, encoder_sigma(setup.robot))
+    n = np.full(len(q), len(setup.board.layout()[0]))
+    G = aligned_tool_weight(model, workspace, setup.T_tool_tip)
+    var = Deviation().variance(setup.robot.joint_types)
+    sp = selection_spread(model, q, G, F, n, setup.camera.n_free, var, sigma, seed=1)
+    smaller = 1.0 - sp.kept_share(len(sp.labels) - 1)
+    return 1000.0 * sp.percentile(50), 1000.0 * sp.percentile(90), smaller
 
 
 def _held_prediction(setup, q: np.ndarray, workspace: np.ndarray, sigma: float):
@@ -182,17 +224,19 @@ def _held_prediction(setup, q: np.ndarray, workspace: np.ndarray, sigma: float):
 
 
 def table(rows: list[dict], predicted: dict, held: dict) -> str:
-    """The markdown table of the draws ``rows`` (:func:`_draw`'s), the predictions
-    ``{(robot, set): mm}`` and the predictions with each draw's held parameters
+    """The markdown table of the draws ``rows`` (:func:`_draw`'s), the forecasts
+    ``{(robot, set): Forecast}`` (mm) and the predictions with each draw's held parameters
     ``{(robot, set): f(held names) -> mm}``, with a closing line on issue #30's three criteria
     per robot."""
     head = ("| robot | path | postures | predicted (mm) | achieved median (mm) | 90th percentile | "
-            "median / predicted | failed | frames with every corner | corner noise (px) | "
-            "held more than the rank test | predicted with the held (median) | "
-            "achieved / that (median) |\n"
-            "|---|---|---|---|---|---|---|---|---|---|---|---|---|")  # fmt: skip
+            "median / predicted | forecast median / 90th, selection drawn (mm) | "
+            "failed | frames with every corner | corner noise (px) | "
+            "held more than the rank test | forecast: a smaller set kept | "
+            "predicted with the held (median) | achieved / that (median) |\n"
+            "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")  # fmt: skip
     lines, stats = [head], {}
-    for (robot, name), pred in predicted.items():
+    for (robot, name), fc in predicted.items():
+        pred = fc.mean
         mine = [r for r in rows if r["robot"] == robot and r["set"] == name]
         if not mine:
             continue
@@ -201,7 +245,7 @@ def table(rows: list[dict], predicted: dict, held: dict) -> str:
         med, p90 = (np.median(e), np.percentile(e, 90)) if len(e) else (np.nan, np.nan)
         whole = sum(int(r["whole"] or 0) for r in mine if r["status"] == "ok")
         frames = sum(int(r["frames"] or 0) for r in mine if r["status"] == "ok")
-        stats[robot, name] = (med, p90, med / pred, whole, frames)
+        stats[robot, name] = (med, p90, med / pred, whole, frames, fc)
         # the calibration's corner noise: its reprojection RMS over sqrt(2), median of the draws
         noise = np.median([r["sigma_px"] for r in mine if r["status"] == "ok"] or [np.nan])
         # the prediction with the parameters each calibration held (draws that name them), and
@@ -211,8 +255,10 @@ def table(rows: list[dict], predicted: dict, held: dict) -> str:
         ratio = np.median([r["tip_mm"] for r in ok] / ph) if len(ok) else np.nan
         more = int(np.sum(ph > pred * (1 + 1e-9)))
         lines.append(f"| {robot} | {path} | {name} | {pred:.3f} | {med:.3f} | {p90:.3f} | "
-                     f"{med / pred:.2f} | {len(mine) - len(e)} of {len(mine)} | "
+                     f"{med / pred:.2f} | {fc.median:.3f} / {fc.p90:.3f} | "
+                     f"{len(mine) - len(e)} of {len(mine)} | "
                      f"{whole} of {frames} | {noise:.3f} | {more} of {len(ok)} | "
+                     f"{100 * fc.smaller:.0f} % | "
                      f"{np.median(ph) if len(ok) else np.nan:.3f} | {ratio:.2f} |")  # fmt: skip
     verdict = {True: "met", False: "NOT met"}
     for robot in dict.fromkeys(r for r, _ in predicted):
@@ -230,6 +276,10 @@ def table(rows: list[dict], predicted: dict, held: dict) -> str:
             )
         inside = bool(0.7 <= 1.0 / p[2] <= 1.4)
         parts.append(f"predicted / achieved median {1.0 / p[2]:.2f} ({verdict[inside]}: 0.7-1.4)")
+        if r30 is not None:  # what the forecast with the selection drawn expected
+            parts.append(f"forecast with the selection drawn, plan 12 against random 30: median "
+                         f"{p[5].median:.3f} / {r30[5].median:.3f} mm, 90th percentile "
+                         f"{p[5].p90:.3f} / {r30[5].p90:.3f} mm")  # fmt: skip
         lines.append(f"\n{robot}: " + "; ".join(parts) + ".")
     return "\n".join(lines)
 

@@ -51,6 +51,7 @@ __all__ = [
     "kept_by_rank",
     "error_covariance",
     "estimated_directions",
+    "linear_estimator",
     "prior_information",
     "predicted_with_held",
 ]
@@ -119,6 +120,27 @@ def error_covariance(
     directions, ``variance`` (k,) the deviation's; None when the estimated parameters'
     information is singular."""
     k = len(variance)
+    if F.shape[0] != n_cam + k:
+        raise UsageError(f"shapes do not match: F {F.shape}, k {k}")
+    got = linear_estimator(F, n_cam, M)
+    if got is None:
+        return None
+    C, R = got
+    S = np.zeros(n_cam + k)
+    S[n_cam:] = variance
+    return (R * S) @ R.T + C
+
+
+def linear_estimator(
+    F: np.ndarray, n_cam: int, M: np.ndarray
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """The first-order estimate on ``[camera (n_cam), minimal (k)]`` that fits the camera's
+    free parameters and the kinematic directions ``M`` (k, e) to data of information ``F``
+    (p, p) (module docstring): ``(C, R)``, ``C`` (p, p) its covariance ``Mf (Mf^T F Mf)^-1
+    Mf^T`` (also the map of the data's information-weighted noise ``g ~ N(0, F)`` to the
+    estimate's error, ``C g``) and ``R = I - C F`` (what it leaves of a deviation ``d``: the
+    error is ``-R d + C g``); None when the estimated parameters' information is singular."""
+    k = F.shape[0] - n_cam
     if F.shape != (n_cam + k, n_cam + k) or M.shape[0] != k:
         raise UsageError(f"shapes do not match: F {F.shape}, M {M.shape}, k {k}")
     Mf = np.zeros((n_cam + k, n_cam + M.shape[1]))
@@ -130,10 +152,7 @@ def error_covariance(
     if not np.all(np.isfinite(As)) or np.linalg.cond(As) > 1e12:
         return None
     C = Mf @ (np.linalg.inv(As) / np.outer(d, d)) @ Mf.T  # the estimate's covariance
-    R = np.eye(n_cam + k) - C @ F  # I - P: what the estimate leaves of a deviation
-    S = np.zeros(n_cam + k)
-    S[n_cam:] = variance
-    return (R * S) @ R.T + C
+    return C, np.eye(n_cam + k) - C @ F  # I - P: what the estimate leaves of a deviation
 
 
 def predicted_with_held(

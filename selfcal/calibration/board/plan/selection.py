@@ -39,7 +39,7 @@ from selfcal.calibration.board.plan.predict import Directions, error_covariance
 from selfcal.errors import UsageError
 from selfcal.kinematics.mcpc import MCPCModel, param_names
 
-__all__ = ["SelectionForecast", "forecast_selection"]
+__all__ = ["SelectionFolds", "SelectionForecast", "forecast_selection", "selection_folds"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -93,23 +93,16 @@ def forecast_selection(
     if len(F_frames) != len(q) or len(n_features) != len(q):
         raise UsageError(f"{len(q)} frames, {len(F_frames)} informations, "
                          f"{len(n_features)} feature counts")  # fmt: skip
-    cands = nested_candidates(parameter_pool(model, q))
-    folds = fold_labels(configurations(q, model.joint_types))
-    labels = np.unique(folds)
+    folds = selection_folds(model, q, directions)
+    cands = folds.candidates
     first = cands[0]
-    if len(labels) < 2:  # no cross-validation: the selection keeps the nominal
+    if len(folds.labels) < 2:  # no cross-validation: the selection keeps the nominal
         return SelectionForecast(first.label, first.free_idx, first.offset_joints,
                                  (first.label,), ((),), 1,
                                  ((first.free_idx, first.offset_joints),), 0)  # fmt: skip
-    last = cands[-1]  # the candidates are nested: every direction is one of the last's
-    M = (directions or Directions(model)).of(last.free_idx, last.offset_joints)
-    column = {nm: k for k, nm in enumerate(_names(last))}
-    rms = np.array([[_fold_rms(F_frames, n_features, folds == f, n_cam,
-                               M[:, [column[nm] for nm in _names(c) if nm not in held]],
-                               variance, sigma_px)
-                     for c, held in zip(cands, determined_each(
-                         model, q[folds != f], [c.names for c in cands]))]
-                    for f in labels])  # fmt: skip
+    rms = np.array([[_fold_rms(F_frames, n_features, folds.out(f), n_cam, Mc, variance, sigma_px)
+                     for Mc in folds.directions[f]]
+                    for f in range(len(folds.labels))])  # fmt: skip
     for c, r in zip(cands, rms.T):
         c.fold_rms_px = tuple(r.tolist())
         c.cv_px = float(np.exp(np.mean(np.log(r))))
@@ -117,9 +110,48 @@ def forecast_selection(
     c = cands[chosen]
     return SelectionForecast(
         c.label, c.free_idx, c.offset_joints, tuple(x.label for x in cands),
-        tuple(x.fold_rms_px for x in cands), len(labels),
+        tuple(x.fold_rms_px for x in cands), len(folds.labels),
         tuple((x.free_idx, x.offset_joints) for x in cands), chosen,
     )  # fmt: skip
+
+
+@dataclass(frozen=True, eq=False)
+class SelectionFolds:
+    """What the selection cross-validates at the joints of :func:`selection_folds`: its nested
+    ``candidates``, each frame's fold ``of_frame`` (m,) and the folds' ``labels``, and per fold
+    and candidate the kinematic directions (k, e) its fit on the other folds' frames estimates
+    (``directions[fold][candidate]``: those the training frames determine)."""
+
+    candidates: list[Candidate]
+    of_frame: np.ndarray
+    labels: np.ndarray
+    directions: tuple[tuple[np.ndarray, ...], ...]
+
+    def out(self, fold: int) -> np.ndarray:
+        """(m,) bool: the frames fold number ``fold`` leaves out."""
+        return self.of_frame == self.labels[fold]
+
+
+def selection_folds(
+    model: MCPCModel, q: np.ndarray, directions: Directions | None = None
+) -> SelectionFolds:
+    """The selection's candidates and folds at the joints ``q`` (m, n) rad in recording order
+    of ``model`` (module docstring); ``directions`` the model's when already computed (no
+    directions with fewer than two folds)."""
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    cands = nested_candidates(parameter_pool(model, q))
+    folds = fold_labels(configurations(q, model.joint_types))
+    labels = np.unique(folds)
+    if len(labels) < 2:
+        return SelectionFolds(cands, folds, labels, ())
+    last = cands[-1]  # the candidates are nested: every direction is one of the last's
+    M = (directions or Directions(model)).of(last.free_idx, last.offset_joints)
+    column = {nm: k for k, nm in enumerate(_names(last))}
+    dirs = tuple(tuple(M[:, [column[nm] for nm in _names(c) if nm not in held]]
+                       for c, held in zip(cands, determined_each(
+                           model, q[folds != f], [c.names for c in cands])))
+                 for f in labels)  # fmt: skip
+    return SelectionFolds(cands, folds, labels, dirs)
 
 
 def _names(cand: Candidate) -> list[str]:

@@ -1,0 +1,156 @@
+"""The spread of what a board calibration reaches at planned postures over the arms and noise
+draws a plan may meet, with its selection deciding in each (``selfcal plan``, issue #30).
+
+The plan's prediction (:mod:`selfcal.calibration.board.plan.predict`) is an RMS over every arm
+within the deviation and every noise draw, with the parameters the selection's forecast keeps
+(:mod:`selfcal.calibration.board.plan.selection`). The forecast sees the folds' expected errors,
+but the selection decides on one recording's: where the arm's deviation along the parameters
+the larger candidate adds happens to be small, or the noise of the folds hides it, the
+one-standard-error rule keeps a smaller candidate, and the deviation it holds is an error the
+expectation averages away (the ER-4u's cell at 0.5 px, docs/plan.md: 6 of the plan's 30 draws
+held five parameters, and three of them were its three worst).
+
+This module draws that decision, to first order, as the calibration would meet it: per draw one
+arm's deviation ``d`` (every inner minimal parameter uniform within the deviation's half-width,
+as the simulator draws it) and per fold the information-weighted noise of its frames
+``h_f ~ N(0, F_f)`` (``F_f`` the fold's information; the folds partition the frames, so the
+noise of a fit on several folds is the sum of theirs). A fit of the directions ``M`` on frames
+of information ``F`` and noise ``g`` errs by ``-R d + C g``
+(:func:`selfcal.calibration.board.plan.predict.linear_estimator`); a fold's RMS per feature is
+``sqrt(sigma^2 (chi2_2n - 2 h^T e + e^T F_out e) / n)`` with ``e`` the training fit's error,
+``n`` the fold's features and ``chi2_2n`` its corners' squared noise over ``sigma^2``; the
+candidates' fold errors go through the selection's own paired one-standard-error rule
+(:func:`selfcal.calibration.board.param_selection.one_se_rule`), and the chosen candidate's fit on
+every frame errs by ``-R d + C sum_f h_f``, carried to the tool point by the aligned weight
+``G``. Linear (the first order of the problem at the drawing), the camera's free parameters
+fitted in every fit, the correlation of a fold's ``chi2`` with its ``h`` neglected. Units: SI,
+px.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from selfcal.calibration.board.param_selection import one_se_rule
+from selfcal.calibration.board.plan.predict import Directions, linear_estimator
+from selfcal.calibration.board.plan.selection import selection_folds
+from selfcal.errors import UsageError
+from selfcal.kinematics.mcpc import MCPCModel
+
+__all__ = ["SelectionSpread", "selection_spread"]
+
+DRAWS = 400
+"""Draws of :func:`selection_spread` by default: the 90th percentile of 400 draws has a
+standard error near 2 % of it (a 90th percentile's, ``sqrt(0.09 / 400) / density``)."""
+
+
+@dataclass(frozen=True, eq=False)
+class SelectionSpread:
+    """:func:`selection_spread`'s draws: ``tool_m`` (draws,) the tool point's RMS error (m)
+    over the workspace after the best rigid alignment, ``chosen`` (draws,) the candidate the
+    selection kept (an index into ``labels``, the nested candidates' labels)."""
+
+    tool_m: np.ndarray
+    chosen: np.ndarray
+    labels: tuple[str, ...]
+
+    def percentile(self, p: float) -> float:
+        """The ``p``-th percentile (0-100) of the tool-point error (m)."""
+        return float(np.percentile(self.tool_m, p))
+
+    def kept_share(self, candidate: int) -> float:
+        """The share of the draws whose selection kept ``candidate``."""
+        return float(np.mean(self.chosen == candidate))
+
+
+def selection_spread(
+    model: MCPCModel,
+    q: np.ndarray,
+    G: np.ndarray,
+    F_frames: np.ndarray,
+    n_features: np.ndarray,
+    n_cam: int,
+    variance: np.ndarray,
+    sigma_px: float,
+    *,
+    draws: int = DRAWS,
+    seed: int = 0,
+    directions: Directions | None = None,
+) -> SelectionSpread:
+    """The calibration's tool-point error in ``draws`` linearised draws (module docstring) at
+    the joints ``q`` (m, n) rad in recording order of ``model`` (world = board, tool = camera),
+    ``G`` (k, k) the aligned tool weight over the workspace: ``F_frames`` (m, p, p) the frames'
+    information on ``[camera (n_cam), minimal (k)]``
+    (:func:`selfcal.calibration.board.plan.information.frame_information`), ``n_features`` (m,)
+    the features each shows, ``variance`` (k,) the deviation from the drawing (the placement's
+    zero: every fit estimates it), ``sigma_px`` the corner noise (px); deterministic for a
+    ``seed``. With fewer than two folds the selection keeps the nominal in every draw."""
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    F_frames = np.asarray(F_frames, dtype=float)
+    n_features = np.asarray(n_features, dtype=float)
+    variance = np.asarray(variance, dtype=float)
+    k = len(variance)
+    p = n_cam + k
+    if F_frames.shape != (len(q), p, p) or len(n_features) != len(q) or G.shape != (k, k):
+        raise UsageError(f"shapes do not match: {len(q)} frames, F {F_frames.shape}, "
+                         f"features {n_features.shape}, G {G.shape}, k {k}")  # fmt: skip
+    dirs = directions or Directions(model)
+    folds = selection_folds(model, q, dirs)
+    cands = folds.candidates
+    nf = len(folds.labels)
+    F_all = F_frames.sum(axis=0)
+    full = [linear_estimator(F_all, n_cam, dirs.of(c.free_idx, c.offset_joints)) for c in cands]
+    rng = np.random.default_rng(seed)
+    half = np.sqrt(3.0 * variance)
+    if nf < 2:
+        F_fold = [F_all]
+        fits: list[list] = []
+    else:
+        F_fold = [F_frames[folds.out(f)].sum(axis=0) for f in range(nf)]
+        fits = [[linear_estimator(F_all - F_fold[f], n_cam, Mc) for Mc in folds.directions[f]]
+                for f in range(nf)]  # fmt: skip
+        n_out = np.array([n_features[folds.out(f)].sum() for f in range(nf)])
+    roots = [_root(Ff) for Ff in F_fold]
+    Gp = np.zeros((p, p))
+    Gp[n_cam:, n_cam:] = G
+    tool = np.empty(draws)
+    chosen = np.zeros(draws, np.int64)
+    for t in range(draws):
+        d = np.concatenate([np.zeros(n_cam), rng.uniform(-half, half)])
+        h = [L @ rng.standard_normal(L.shape[1]) for L in roots]
+        if nf >= 2:
+            chi2 = rng.chisquare(2.0 * n_out)
+            trial = []
+            for c, ci in enumerate(cands):
+                rms = []
+                for f in range(nf):
+                    fit = fits[f][c]
+                    if fit is None:
+                        rms.append(float("inf"))
+                        continue
+                    C, R = fit
+                    e = -R @ d + C @ (sum(h) - h[f])
+                    ss = chi2[f] - 2.0 * h[f] @ e + e @ F_fold[f] @ e
+                    rms.append(float(sigma_px * np.sqrt(max(ss, 0.0) / n_out[f])))
+                r = np.array(rms)
+                trial.append(replace(ci, fold_rms_px=tuple(r.tolist()),
+                                     cv_px=float(np.exp(np.mean(np.log(r))))))  # fmt: skip
+            chosen[t] = one_se_rule(trial)[0]
+        fit = full[chosen[t]]
+        if fit is None:
+            tool[t] = float("inf")
+            continue
+        C, R = fit
+        e = -R @ d + C @ sum(h)
+        tool[t] = float(np.sqrt(max(e @ Gp @ e, 0.0)))
+    return SelectionSpread(tool, chosen, tuple(c.label for c in cands))
+
+
+def _root(F: np.ndarray) -> np.ndarray:
+    """(p, r) ``L`` with ``L L^T = F`` (``F`` symmetric, positive semi-definite): ``L z``,
+    ``z`` standard normal, is a draw of ``N(0, F)``."""
+    w, V = np.linalg.eigh((F + F.T) / 2.0)
+    keep = w > w.max() * 1e-14
+    return V[:, keep] * np.sqrt(w[keep])

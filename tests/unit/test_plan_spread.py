@@ -1,0 +1,73 @@
+"""The spread of a plan's calibration over arms and noise draws, its selection deciding in each
+(selfcal/calibration/board/plan/spread.py): where the selection has no folds and keeps the
+nominal, the draws' RMS is the plan's prediction with the nominal's parameters; more corner noise makes the one-standard-error rule keep
+smaller sets more often."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from selfcal.benchmarks.plan.add import WRIST_SPAN_DEG, wrist_cell
+from selfcal.calibration.board.deviation import Deviation
+from selfcal.calibration.board.plan.information import board_model, frame_information
+from selfcal.calibration.board.plan.planner import plan_recording
+from selfcal.calibration.board.plan.predict import Directions, predicted_with_held
+from selfcal.calibration.board.plan.selection import selection_folds
+from selfcal.calibration.board.plan.spread import selection_spread
+from selfcal.calibration.board.plan.views import feasible
+from selfcal.errors import UsageError
+from selfcal.estimation.joint_report import aligned_tool_weight
+
+JS = np.full(6, np.radians(0.01))
+
+
+@pytest.fixture(scope="module")
+def cell():
+    setup, _, _ = wrist_cell()
+    plan = plan_recording(setup, 8, seed=3, candidates=80, workspace=20, joint_sigma=JS)
+    model = board_model(setup)
+    G = aligned_tool_weight(model, plan.workspace, setup.T_tool_tip)
+    return setup, model, plan.q, G, Directions(model)
+
+
+def _spread(cell, sigma, draws=300, seed=0):
+    setup, model, q, G, dirs = cell
+    F = frame_information(setup, q, sigma, JS)
+    n = np.full(len(q), len(setup.board.layout()[0]))
+    var = Deviation().variance(model.joint_types)
+    sp = selection_spread(model, q, G, F, n, setup.camera.n_free, var, sigma, draws=draws,
+                          seed=seed, directions=dirs)  # fmt: skip
+    return sp, F.sum(axis=0), var
+
+
+def test_one_configuration_keeps_the_nominal_and_gives_its_prediction(cell):
+    setup, model, q, G, dirs = cell
+    rng = np.random.default_rng(1)
+    w = np.tile(setup.robot.home, (2000, 1))
+    w[:, 3:] += rng.uniform(-1, 1, size=(2000, 3)) * np.radians(WRIST_SPAN_DEG)
+    wrist = w[feasible(setup, w)][:6]  # one configuration: no cross-validation
+    sp, F, var = _spread((setup, model, wrist, G, dirs), 0.5, draws=400)
+    assert np.all(sp.chosen == 0) and sp.labels[0].startswith("nominal")
+    cand = selection_folds(model, wrist, dirs).candidates[0]
+    pred = predicted_with_held(F, G, setup.camera.n_free,
+                               dirs.of(cand.free_idx, cand.offset_joints), var)  # fmt: skip
+    rms = float(np.sqrt(np.mean(sp.tool_m**2)))
+    assert abs(rms / pred - 1.0) < 0.1  # 400 draws: the RMS's standard error is ~3 %
+
+
+def test_more_noise_keeps_smaller_sets_more_often(cell):
+    low, _, _ = _spread(cell, 0.05)
+    high, _, _ = _spread(cell, 2.0)
+    assert high.chosen.mean() < low.chosen.mean() - 0.3
+    assert high.percentile(90) > high.percentile(50) > 0
+
+
+def test_a_seed_repeats_and_shapes_are_checked(cell):
+    a, _, _ = _spread(cell, 0.5, draws=20, seed=4)
+    b, _, _ = _spread(cell, 0.5, draws=20, seed=4)
+    assert np.array_equal(a.tool_m, b.tool_m) and np.array_equal(a.chosen, b.chosen)
+    setup, model, q, G, dirs = cell
+    with pytest.raises(UsageError, match="shapes do not match"):
+        selection_spread(model, q, G, np.zeros((len(q), 3, 3)), np.ones(len(q)), 2,
+                         np.ones(4), 0.5)  # fmt: skip
