@@ -1,4 +1,4 @@
-"""``python -m selfcal.benchmarks.plan.robots [--robot R ...] [--render] [--draws 30] [--jobs 1]
+"""``python -m selfcal.benchmarks.plan.robots [--robot R ...] [--render] [--draws 30] [--first-seed 1] [--jobs 1]
 [--sets SET ...] [--pixel-sigma PX] [--min-pitch-px PX --max-tilt-deg DEG] [--from-draws]
 [--block NAME] [--write-docs]``: the postures of ``selfcal plan`` against random ones on every
 simulated robot, achieved in simulation on the analytic or the rendered path (docs/plan.md,
@@ -133,9 +133,10 @@ def _draw(item: tuple[str, str, str, list, int, bool, float]) -> dict:
             "seconds": row["seconds"]}  # fmt: skip
 
 
-def _items(robot: str, root: Path, render: bool, draws: int, sets: tuple[str, ...], sigma: float,
+def _items(robot: str, root: Path, render: bool, seeds: range, sets: tuple[str, ...], sigma: float,
            rule):  # fmt: skip
-    """The draws of ``robot``'s cell (scenarios written under ``root``), the predictions (mm)
+    """The draws of ``robot``'s cell, one per set and seed of ``seeds`` (scenarios written under
+    ``root``), the forecasts (mm, :class:`Forecast`)
     of the posture sets planned for ``sigma`` px of corner noise, and per set a function of a
     calibration's held parameter names giving the prediction with those held too
     (:func:`_held_prediction`)."""
@@ -158,7 +159,7 @@ def _items(robot: str, root: Path, render: bool, draws: int, sets: tuple[str, ..
         write_text_atomic(folder / "scenario.toml", scenario_text(robot, setup.camera, bp, len(q)))
         deg = (q / setup.robot.edge_unit).tolist()
         cfg = str(folder / "scenario.toml")
-        items += [(robot, name, cfg, deg, s, render, sigma) for s in range(1, draws + 1)]
+        items += [(robot, name, cfg, deg, s, render, sigma) for s in seeds]
     return items, predicted, held
 
 
@@ -295,6 +296,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--robot", nargs="+", default=list(ROBOTS), choices=ROBOTS)
     ap.add_argument("--render", action="store_true", help="rendered and detected images")
     ap.add_argument("--draws", type=int, default=30)
+    ap.add_argument(
+        "--first-seed",
+        type=int,
+        default=1,
+        help="the draws' seeds are this .. this + draws - 1 (a second seed set: 31)",
+    )
     ap.add_argument("--sets", nargs="+", default=["plan 12", "random 12", "random 30"],
                     choices=["plan 12", "random 12", "random 30"])  # fmt: skip
     ap.add_argument(
@@ -345,7 +352,8 @@ def main(argv: list[str] | None = None) -> int:
     root = Path(a.out) / folder
     items, predicted, held = [], {}, {}
     for robot in a.robot:
-        its, pred, hp = _items(robot, root, a.render, a.draws, tuple(a.sets), a.pixel_sigma, rule)
+        seeds = range(a.first_seed, a.first_seed + a.draws)
+        its, pred, hp = _items(robot, root, a.render, seeds, tuple(a.sets), a.pixel_sigma, rule)
         items += its
         predicted.update({(robot, k): v for k, v in pred.items()})
         held.update({(robot, k): v for k, v in hp.items()})
