@@ -38,12 +38,24 @@ from selfcal.calibration.tracker.accuracy import tracker_accuracy
 from selfcal.calibration.tracker.identify import identify_tracker
 from selfcal.estimation.tracker import TrackerMeasurements
 from selfcal.kinematics.forward import fk_tool
-from selfcal.kinematics.tool_error import workspace_sample
+from selfcal.kinematics.tool_error import ToolErrorModel, workspace_sample
 from selfcal.robot.definition import load_robot
 from selfcal.sim.compliance import SHOULDER
 from selfcal.threads import limit_threads
 
-__all__ = ["run", "table", "main", "mark", "coverage", "ROBOTS", "NOISE_MM", "MODELS"]
+__all__ = [
+    "run",
+    "table",
+    "main",
+    "mark",
+    "coverage",
+    "coverage_if_right",
+    "right_range",
+    "ROBOTS",
+    "NOISE_MM",
+    "MODELS",
+    "RIGHT_DRAWS",
+]
 
 ROBOTS = ("er4u-paper", "ur5e")
 NOISE_MM = (0.02, 0.1, 0.5)
@@ -51,6 +63,8 @@ MODELS = ("fits", "compliance")
 ROWS = 30
 SPAN = 0.7
 COUNT = 128
+RIGHT_DRAWS = 400
+"""Errors drawn from a draw's own prediction by :func:`coverage_if_right`."""
 REGIONS = ("inside", "edge", "workspace")
 DOC = ROOT / "docs" / "tool-accuracy.md"
 BLOCK = "benchmark_tool_accuracy"
@@ -125,6 +139,43 @@ def coverage(d: list[np.ndarray]) -> dict[str, float]:
         "ratio_90": float(np.quantile(ratio, 0.9)),
         "true_rms_mm": float(np.sqrt(np.mean(a[3] ** 2))),
     }
+
+
+def coverage_if_right(em: ToolErrorModel, q: np.ndarray, seed: int,
+                      count: int = RIGHT_DRAWS) -> np.ndarray:  # fmt: skip
+    """(2, count) the coverage a right prediction would show at the joint vectors ``q`` (m, n):
+    ``count`` errors of the whole chain drawn from the prediction ``em`` itself (the estimated
+    parameters' error from their covariance, carried through the chain to every joint vector
+    at once, so correlated as the calibration's one error is; the model error per coordinate
+    with its growth, drawn independently at every joint vector, which the prediction does not
+    correlate), each one's share of ``q`` within the predicted 95 % bound: position (row 0) and
+    orientation (row 1; nan without one). Seeded by ``seed``.
+
+    One calibration's errors at the joint vectors are one draw of the parameters' error: over a
+    few calibrations the pooled coverage of even a right bound spreads widely
+    (:func:`right_range`), the more so the fewer parameter directions move the tool."""
+    rng = np.random.default_rng(seed)
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    w, V = np.linalg.eigh(em.covariance)
+    delta = rng.standard_normal((count, w.size)) @ (V * np.sqrt(np.clip(w, 0.0, None))).T
+    e = np.einsum("mip,kp->kmi", em.jacobian(q), delta)  # (count, m, 6)
+    grow = np.sqrt(em.model_error_factor(q))[None, :, None]
+    e[:, :, :3] += rng.standard_normal((count, len(q), 3)) * em.model_error_m * grow
+    e[:, :, 3:] += rng.standard_normal((count, len(q), 3)) * (em.model_error_rad or 0.0) * grow
+    p = em.predicted(q)
+    pos = np.linalg.norm(e[:, :, :3], axis=2) * 1e3 <= p["position_95_mm"]
+    rot = np.degrees(np.linalg.norm(e[:, :, 3:], axis=2)) <= p["orientation_95_deg"]
+    has_rot = bool(np.all(np.isfinite(p["orientation_95_deg"])))
+    return np.stack([pos.mean(axis=1), rot.mean(axis=1) if has_rot else np.full(count, np.nan)])
+
+
+def right_range(per_draw: list[np.ndarray], level: float = 0.9) -> tuple[np.ndarray, np.ndarray]:
+    """The central ``level`` range (low (k,), high (k,)) of the coverage a right prediction would
+    pool over a row's draws, ``per_draw`` each (k, count) from :func:`coverage_if_right` (the
+    same ``count``): the j-th pooled value the mean of every draw's j-th."""
+    pooled = np.mean(np.stack(per_draw), axis=0)  # (k, count)
+    lo, hi = np.quantile(pooled, [(1 - level) / 2, (1 + level) / 2], axis=1)
+    return lo, hi
 
 
 def mark(v: float, lo: float, hi: float) -> str:
