@@ -46,8 +46,8 @@ the estimate's errors with the share of the held parameters' deviation its folds
 against the one ``selfcal evaluate`` measures (target 0.67-1.5x).
 
 Run: ``uv run python -m selfcal.benchmarks.board_accuracy [--draws 30] [--jobs 2] [--robots
-R,..] [--models M,..] [--noise-px S,..] [--poses 30] [--first-seed 1] [--render] [--rows-out
-FILE] [--from-rows FILE] [--real] [--write-docs]`` (rewrites the tables in docs/tool-accuracy.md).
+R,..] [--models M,..] [--noise-px S,..] [--poses 30] [--first-seed 1] [--read-back rounded]
+[--render] [--rows-out FILE] [--from-rows FILE] [--real] [--write-docs]`` (rewrites the tables in docs/tool-accuracy.md).
 """
 
 from __future__ import annotations
@@ -59,6 +59,7 @@ import sys
 import tempfile
 import time
 import warnings
+import zlib
 from concurrent.futures import ProcessPoolExecutor
 from contextlib import redirect_stderr, redirect_stdout
 from io import StringIO
@@ -98,11 +99,13 @@ from selfcal.kinematics.tool_error import workspace_sample
 from selfcal.pipeline.board_run import calibrate_board_run
 from selfcal.pipeline.run import run_acquire, run_all
 from selfcal.robot.definition import load_robot
+from selfcal.robot.encoder import EncoderSpec
 from selfcal.sim.compliance import SHOULDER
 from selfcal.threads import limit_threads
 from selfcal.transforms import inv_pose
 
 __all__ = [
+    "GaussianReadBack",
     "draw",
     "main",
     "prior",
@@ -203,10 +206,25 @@ def simulated_calibration(sigma_px: float, seed: int, noise: dict | None = None,
         return read_board_calibration(out / "calibration.json"), read_truth(out / "truth.json")
 
 
+class GaussianReadBack(EncoderSpec):
+    """The simulated controller's read-back with a Gaussian error of the rounded counts'
+    standard deviation (:attr:`EncoderSpec.read_back_sigma`, uncorrelated between joints; the
+    same for the same posture) instead of the rounding: ``--read-back gaussian``, to tell the
+    rounding's bounded error from the rest of a row's coverage. The calibration still reads
+    the robot file's table (the same standard deviation)."""
+
+    def read_back(self, q: np.ndarray) -> np.ndarray:
+        """``q`` (rad / m) plus the Gaussian read-back error (class docstring)."""
+        q = np.asarray(q, dtype=float)
+        rng = np.random.default_rng(zlib.crc32(q.tobytes()))
+        return q + rng.standard_normal(q.shape) * self.read_back_sigma
+
+
 def draw(args: tuple) -> dict:
     """One draw (``robot``, noise ``sigma_px``, ``model``, ``seed``, optionally the calibration
     postures' count, default :data:`POSES`, and the rendered path's image noise, default None:
-    analytic): per region the predicted
+    analytic, and the simulated read-back, default ``"rounded"``, or ``"gaussian"``:
+    :class:`GaussianReadBack`): per region the predicted
     95 % bound with and without the model error, the predicted RMS, the true error (mm), the
     predicted 95 % orientation bound with and without the model error and the true orientation
     error (deg); per region also ``<region>_right``, the coverage a right prediction would show
@@ -216,9 +234,14 @@ def draw(args: tuple) -> dict:
     robot, sigma_px, model, seed = args[:4]
     poses = int(args[4]) if len(args) > 4 else POSES
     image_sigma = args[5] if len(args) > 5 else None
+    read_back = args[6] if len(args) > 6 else "rounded"
     try:
         s = scenario(robot, sigma_px, seed, poses, image_sigma)
         setup = simulated(s, model)
+        if read_back == "gaussian" and setup.robot.encoder is not None:
+            enc = GaussianReadBack(**{f.name: getattr(setup.robot.encoder, f.name)
+                                      for f in dataclasses.fields(EncoderSpec)})  # fmt: skip
+            setup = dataclasses.replace(setup, robot=dataclasses.replace(setup.robot, encoder=enc))
         with (tempfile.TemporaryDirectory(prefix="selfcal-acc-") as d, warnings.catch_warnings(),
               redirect_stdout(StringIO()), redirect_stderr(StringIO())):  # fmt: skip
             warnings.simplefilter("ignore")
@@ -301,18 +324,20 @@ def _range(r: dict, key: str) -> str:
 
 def run(draws: int = 30, robots=ROBOTS, models=MODELS, noise_px=NOISE_PX,
         jobs: int = 2, poses: int = POSES, *, render: bool = False,
-        rows_file: Path | None = None, first_seed: int = 1) -> list[dict]:  # fmt: skip
+        rows_file: Path | None = None, first_seed: int = 1,
+        read_back: str = "rounded") -> list[dict]:  # fmt: skip
     """One row per (robot, model, noise, region) over ``draws`` draws (``jobs`` processes) of
     ``poses`` calibration postures each, seeded ``first_seed``, ``first_seed + 1``, ... (every
     row the same seeds); ``render``: ``noise_px`` are the rendered images' sensor noise levels
-    (grey levels); ``rows_file``: each finished row appended (JSON lines)."""
+    (grey levels); ``rows_file``: each finished row appended (JSON lines); ``read_back``: the
+    simulated joint read-back (:func:`draw`)."""
     rows = []
     for robot in robots:
         for model in models:
             for s in noise_px:
                 t0 = time.perf_counter()
-                args = [(robot, 0.0 if render else s, model, seed, poses, s if render else None)
-                        for seed in range(first_seed, first_seed + draws)]  # fmt: skip
+                args = [(robot, 0.0 if render else s, model, seed, poses, s if render else None,
+                         read_back) for seed in range(first_seed, first_seed + draws)]  # fmt: skip
                 with ProcessPoolExecutor(max_workers=jobs) as pool:
                     got = list(pool.map(draw, args))
                 fails = sorted({g["status"] for g in got} - {"ok"})
@@ -486,6 +511,9 @@ def _arguments(argv: list[str] | None) -> argparse.Namespace:
     for flag, default in (("--robots", ROBOTS), ("--models", MODELS)):
         ap.add_argument(flag, type=lambda t: tuple(t.split(",")), default=default,
                         help=f"comma-separated (default {','.join(default)})")  # fmt: skip
+    ap.add_argument("--read-back", choices=("rounded", "gaussian"), default="rounded",
+                    help="the simulated joint read-back: the motor counts rounded (default) or a "
+                    "Gaussian error of the same standard deviation")  # fmt: skip
     ap.add_argument("--first-seed", type=int, default=1,
                     help="the first draw's seed (default 1; other seeds: other draws)")  # fmt: skip
     ap.add_argument("--poses", type=int, default=POSES,
@@ -523,9 +551,9 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     if args.write_docs and args.poses != POSES:
         raise UsageError(f"--write-docs writes the block of {POSES} postures: drop --poses")
-    if args.write_docs and args.first_seed != 1:
-        raise UsageError("--write-docs writes the block of the draws seeded 1, 2, ...: drop "
-                         "--first-seed")  # fmt: skip
+    if args.write_docs and (args.first_seed != 1 or args.read_back != "rounded"):
+        raise UsageError("--write-docs writes the block of the draws seeded 1, 2, ... with the "
+                         "rounded read-back: drop --first-seed and --read-back")  # fmt: skip
     if args.from_rows is not None:
         rows = [json.loads(line) for line in args.from_rows.read_text().splitlines() if line]
         args.render = all("corner_sigma_px" in r for r in rows)
@@ -533,7 +561,7 @@ def main(argv: list[str] | None = None) -> int:
         noise = IMAGE_SIGMA if args.render and args.noise_px == NOISE_PX else args.noise_px
         rows = run(args.draws, args.robots, args.models, noise, jobs=args.jobs,
                    poses=args.poses, render=args.render, rows_file=args.rows_out,
-                   first_seed=args.first_seed)  # fmt: skip
+                   first_seed=args.first_seed, read_back=args.read_back)  # fmt: skip
     shown = table_rendered(rows) if args.render else table(rows)
     return print_table(shown, DOC, BLOCK_RENDER if args.render else BLOCK, write=args.write_docs)
 
