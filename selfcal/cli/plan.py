@@ -354,6 +354,7 @@ def _cmd_add(args: argparse.Namespace) -> int:
                 ],
             },
             "nominal": add.reference.to_json(),
+            "nominal_before": add.reference_before.to_json(),
             "beats_nominal": add.reference.beaten_by(add.after_m),
             "verdict": reference_words(add.reference, add.after_m),
             "candidates": add.candidates,
@@ -368,7 +369,9 @@ def _cmd_add(args: argparse.Namespace) -> int:
     line = (f"add {len(add.q)} postures to {root} ({len(dplan.q)} frames): predicted tool-point "
             f"error {add.before_m * 1000:.3f} -> {add.after_m * 1000:.3f} mm RMS (kinematic "
             f"parameters estimated {add.kept_before} -> {add.kept_after}); joint path "
-            f"{np.degrees(add.path_rad):.0f} deg\n" + doc["verdict"])  # fmt: skip
+            f"{np.degrees(add.path_rad):.0f} deg\nbefore, "
+            + reference_words(add.reference_before, add.before_m)
+            + "\nafter, " + doc["verdict"])  # fmt: skip
     print(json.dumps(doc) if args.json else line)
     return 0
 

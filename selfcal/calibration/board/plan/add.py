@@ -154,7 +154,8 @@ class AddedPostures:
     the ``workspace`` (w, n) rad the error is averaged over, the pool's size and where it was
     drawn, the joint path (rad) from home through the added ones, and the ``reference``: the
     error without calibrating the kinematics for the dataset's frames and the added ones
-    (:mod:`selfcal.calibration.board.plan.reference`)."""
+    (:mod:`selfcal.calibration.board.plan.reference`); ``reference_before`` the same for the
+    dataset's frames alone (what ``before_m`` is judged against)."""
 
     q: np.ndarray
     before_m: float
@@ -167,6 +168,7 @@ class AddedPostures:
     path_rad: float
     forecast: SelectionForecast
     reference: NominalReference
+    reference_before: NominalReference
 
 
 SPARE = 8
@@ -228,8 +230,11 @@ def plan_additions(
             chosen, best = trial, got
     after, forecast = predicted(chosen)
     q = g.pool[chosen]
-    ref = nominal_reference(model, F_old + F[chosen].sum(axis=0), G, n_cam, g.drawn_variance, dirs,
-                            eye_to_hand=setup.eye_to_hand)  # fmt: skip
+
+    def reference(F_sum: np.ndarray) -> NominalReference:
+        return nominal_reference(model, F_sum, G, n_cam, g.drawn_variance, dirs,
+                                 eye_to_hand=setup.eye_to_hand)  # fmt: skip
+
     before = predict_kept(setup, plan.q, F_old, G, var, (plan.free_idx, plan.offset_joints))
     return AddedPostures(
         q=q,
@@ -242,5 +247,6 @@ def plan_additions(
         candidates=len(g.pool),
         drawn_from=g.drawn_from,
         path_rad=path_length(q, home),
-        reference=ref,
+        reference=reference(F_old + F[chosen].sum(axis=0)),
+        reference_before=reference(F_old),
     )
