@@ -103,32 +103,9 @@ _MECHEYE = (
     "held-out 1.067 px (NO GAIN) against the reference's 0.615 px with offsets j2..j5, whose own "
     "leave-group-2-out is worse than nominal (4.19 against 0.88 px)"
 )
-_CHECK_CAUSE = (
-    "; the calibration's accuracy block counts no model error (0 mm: the folds' excess went to "
-    "the held parameters' share, one prior common to every view), and the held-out "
-    "configuration's own misfit is in none of the check's terms: with a per-view model error of "
-    "0.3 mm (a script outside the repository, photoneo) the check says unchanged, but predicts "
-    "3.1 px; each view's joint read-back noise (0.005 deg, the fit's excess over a free pose per "
-    "image) does not help (p = 5.6e-10)"
-)
-_CHECK_PHOTONEO = (
-    "selfcal check says changed (exit 5, p = 9.6e-11) on group 6, recorded in the same session "
-    "on the unchanged arm, though its 0.812 px RMS is below the predicted 1.197 px (T = 181 for "
-    "704 dof): every directed test rejects (the camera 7e-7, the mounts 4e-12 and 3e-10, each "
-    "joint's offset 1e-16..1e-12); with --joint-sigma-deg 0.01: p = 1e-18, 3.0 px against "
-    "2.25 px" + _CHECK_CAUSE
-)
-_CHECK_MECHEYE = (
-    "selfcal check says changed (exit 5, p = 1.2e-21) on group 6, recorded in the same session "
-    "on the unchanged arm, though its 1.067 px RMS is below the predicted 1.106 px (T = 236 for "
-    "704 dof): every directed test rejects (the camera 5e-14, the mounts 2e-19 and 2e-21, each "
-    "joint's offset 3e-34..2e-21)" + _CHECK_CAUSE
-)
 XFAIL = {
     ("reference", MECHEYE): _MECHEYE,
     ("beats_nominal", MECHEYE): _MECHEYE,
-    ("check", PHOTONEO): _CHECK_PHOTONEO,
-    ("check", MECHEYE): _CHECK_MECHEYE,
 }
 
 

@@ -39,6 +39,7 @@ from selfcal.calibration.board.nominal_fit import placement
 from selfcal.calibration.board.refine import BoardObservations
 from selfcal.calibration.board.rig import calibrate_board_rig
 from selfcal.calibration.board.robot import BoardRobotCalibration, calibrate_robot_with_board
+from selfcal.calibration.board.view_jitter import KEY, ViewJitter, view_jitter
 from selfcal.calibration.frame_checks import (
     UnusedFramesWarning,
     check_distinct_frames,
@@ -382,11 +383,28 @@ def calibrate_board_dataset_detailed(
             acc = board_accuracy(obs, sel, cr, res.nominal.model.joint_offsets, inv_pose(mount),
                                  robot.limits, pixel_sigma_px=bounds.pixel_sigma_px,
                                  deviation=deviation)  # fmt: skip
-            result = dataclasses.replace(result, accuracy=acc.to_json())
+            jitter = _view_jitter(obs, result, bounds.pixel_sigma_px)
+            block = acc.to_json() | ({} if jitter is None else {KEY: jitter.to_json()})
+            result = dataclasses.replace(result, accuracy=block)
         except np.linalg.LinAlgError as exc:
             text = f"no predicted accuracy: a fold's Fisher information cannot be inverted ({exc})"
             result = dataclasses.replace(result, warnings=(*result.warnings, text))
     return BoardDatasetCalibration(result, res, all_feats, q, cr)
+
+
+def _view_jitter(obs: BoardObservations, result: BoardCalibrationResult,
+                 pixel_sigma_px: float) -> ViewJitter | None:  # fmt: skip
+    """The per-view misfit of the stored calibration ``result`` in its own first-camera frames
+    (the inlier rows of ``obs``, the corner noise ``pixel_sigma_px``:
+    :mod:`selfcal.calibration.board.view_jitter`); None with
+    fewer than 2 frames of 4 corners (nothing to estimate it from)."""
+    v, f, uv = obs.rows(obs.used)[0]
+    frames = [(int(i), obs.board.points(f[v == i]), uv[v == i]) for i in np.unique(v)]
+    if sum(len(fr[1]) >= 4 for fr in frames) < 2:
+        return None
+    return view_jitter(result.model, result.cameras[0], obs.q, frames,
+                       eye_to_hand=obs.eye_to_hand, pixel_sigma_px=pixel_sigma_px,
+                       joint_sigma=obs.joint_sigma)  # fmt: skip
 
 
 def _mounts(model, robot: RobotDef, covariance: np.ndarray) -> tuple:

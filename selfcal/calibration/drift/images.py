@@ -7,7 +7,8 @@ points ``X`` (board frame) seen from the calibrated chain, ``uv = camera(T_cam_b
 ``fk(q)``, the camera's pose part of it). Under "unchanged" the stacked residuals ``r = detected -
 predicted`` (2k px over every corner of every view) are Gaussian to first order with covariance
 
-    Sigma = H C H^T + blockdiag_i(A_i B_i^-1 M B_i^-T A_i^T + Q_i S_j Q_i^T) + s^2 I
+    Sigma = H C H^T + blockdiag_i(A_i B_i^-1 M B_i^-T A_i^T + A_i J A_i^T + Q_i S_j Q_i^T)
+            + s^2 I
 
 - ``H C H^T``: the calibration's estimation error, correlated between the views through the
   shared parameters: ``H = [A J_id, J_cam]`` the pixels' derivative by the estimated kinematic
@@ -19,7 +20,10 @@ predicted`` (2k px over every corner of every view) are Gaussian to first order 
   per rotation coordinate, :mod:`selfcal.calibration.board.accuracy`), ``A`` the pixels'
   derivative by a body twist of the chain's tool, ``B`` its map to the tool point (the flange);
 - the joint read-back noise ``S_j`` (``bounds.joint_sigma_deg``) through the joints' twists
-  ``Q = A tw``; the corner noise ``s`` (``bounds.pixel_sigma_px``).
+  ``Q = A tw``; the corner noise ``s`` (``bounds.pixel_sigma_px``);
+- when the calibration's own frames showed a per-view misfit (the ``accuracy`` block's
+  ``view_jitter``, :mod:`selfcal.calibration.board.view_jitter`): ``A_i J A_i^T`` per view,
+  ``J`` (6, 6) the jitter of the chain's tool pose.
 
 ``T = r^T Sigma^-1 r`` is then chi-square with ``2k`` degrees of freedom. That omnibus test
 has little power against a change that moves the pixels along a few directions (a joint's
@@ -51,6 +55,7 @@ from scipy.linalg import solve_triangular
 
 from selfcal.calibration.board.accuracy import board_error_model_from_json
 from selfcal.calibration.board.evaluate import held_out_views
+from selfcal.calibration.board.view_jitter import view_jitter_from_json
 from selfcal.calibration.drift.attribution import Attribution, attribute, candidate_fits
 from selfcal.calibration.drift.p_value import combined_p, p_text
 from selfcal.calibration.drift.views import ViewJacobians, view_jacobians
@@ -232,8 +237,11 @@ def calibration_views(cal: BoardCalibrationResult, em: ToolErrorModel, q: np.nda
     assert cal.bounds is not None
     js = cal.bounds.joint_sigma_deg
     js_rad = None if js is None else np.radians(np.asarray(js, float))
+    found = view_jitter_from_json(cal.accuracy, "calibration.json")
+    jitter = found.covariance if found is not None and found.counted else None
     return [view_jacobians(em, cal.cameras[0], q[f], X, uv, eye_to_hand=cal.eye_to_hand,
-                           pixel_sigma_px=cal.bounds.pixel_sigma_px, joint_sigma_rad=js_rad)
+                           pixel_sigma_px=cal.bounds.pixel_sigma_px, joint_sigma_rad=js_rad,
+                           jitter=jitter)
             for f, X, uv in views]  # fmt: skip
 
 

@@ -29,7 +29,8 @@ class ViewJacobians:
 
     Attributes:
         r: (2k,) detected - predicted pixels.
-        local: (2k, 2k) its own covariance (model error, joint read-back and corner noise).
+        local: (2k, 2k) its own covariance (model error, per-view jitter, joint read-back and corner
+            noise).
         kin: (2k, p) derivative by the estimated kinematic parameters; cam: (2k, c) by the
             camera's free parameters.
         tool: (2k, 6) by a body twist of the chain's tool (eye-in-hand the camera on the
@@ -55,11 +56,14 @@ class ViewJacobians:
 
 def view_jacobians(em: ToolErrorModel, camera: CameraModel, q: np.ndarray, X: np.ndarray,
                    uv: np.ndarray, *, eye_to_hand: bool, pixel_sigma_px: float,
-                   joint_sigma_rad: np.ndarray | None) -> ViewJacobians:  # fmt: skip
+                   joint_sigma_rad: np.ndarray | None,
+                   jitter: np.ndarray | None = None) -> ViewJacobians:  # fmt: skip
     """The view of board points ``X`` (k, 3) (board frame, m) detected at ``uv`` (k, 2) px by
     ``camera`` at the joints ``q`` (n,) rad / m, linearised at the calibration ``em`` (its
-    chain, estimated columns and model error) with the corner noise ``pixel_sigma_px`` and the
-    joint read-back noise ``joint_sigma_rad`` (n,) or None."""
+    chain, estimated columns and model error) with the corner noise ``pixel_sigma_px``, the
+    joint read-back noise ``joint_sigma_rad`` (n,) or None and the per-view jitter ``jitter``
+    (6, 6) of the chain's tool pose (body twist, m and rad;
+    :mod:`selfcal.calibration.board.view_jitter`) or None."""
     model = em.model
     T = fk_tool(model, q[None])[0]
     T_cam_board = T if eye_to_hand else inv_pose(T)
@@ -75,6 +79,8 @@ def view_jacobians(em: ToolErrorModel, camera: CameraModel, q: np.ndarray, X: np
     joints = A @ tw
     Ad = adjoint(inv_pose(T))
     local = (tip * m2) @ tip.T + pixel_sigma_px**2 * np.eye(len(A))
+    if jitter is not None:
+        local += A @ np.asarray(jitter, float) @ A.T
     if joint_sigma_rad is not None:
         local += (joints * np.asarray(joint_sigma_rad, float) ** 2) @ joints.T
     return ViewJacobians(

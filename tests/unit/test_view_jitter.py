@@ -1,0 +1,92 @@
+"""The per-view misfit of a board calibration as a jitter of the tool pose
+(selfcal/calibration/board/view_jitter.py) and the drift check's use of it."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from selfcal.calibration.board.view_jitter import KEY, view_jitter, view_jitter_from_json
+from selfcal.calibration.drift.images import image_drift_check
+from selfcal.calibration.drift.views import view_jacobians
+from selfcal.camera import camera_model
+from selfcal.errors import InputError
+from selfcal.kinematics.forward import fk_tool
+from selfcal.kinematics.mcpc import minimal_indices, nominal_mcpc
+from selfcal.kinematics.tool_error import ToolErrorModel
+from selfcal.robot.definition import load_robot
+from selfcal.transforms import inv_pose
+
+SIGMA_PX = 0.2
+JITTER = np.array([0.3e-3, 0.3e-3, 0.2e-3, 0.5e-3, 0.5e-3, 0.3e-3])  # m, rad (std)
+
+
+def _frames(jitter: np.ndarray, m: int, seed: int):
+    """``m`` eye-in-hand views of 20 board points each of the nominal ER-4u: pixels moved by a
+    body twist of the camera drawn with the std ``jitter`` (6,) and corner noise SIGMA_PX."""
+    robot = load_robot("er4u-paper")
+    model = nominal_mcpc(robot)
+    cols = minimal_indices(model.joint_types)
+    em = ToolErrorModel(model, np.eye(4), cols, np.zeros((cols.size,) * 2), 0.0, 0.0, np.eye(4))
+    cam = camera_model("opencv", fx=800.0, mu=1.0, cx=320.0, cy=240.0, width=640, height=480,
+                       coeffs={"k1": -0.25, "k2": 0.1}, free=("fx", "mu", "cx", "cy"))  # fmt: skip
+    rng = np.random.default_rng(seed)
+    q = rng.uniform(robot.limits[:, 0], robot.limits[:, 1], (m, robot.n)) * 0.5
+    T = fk_tool(model, q)
+    frames, views = [], []
+    for i in range(m):
+        x = np.c_[rng.uniform(-0.15, 0.15, (20, 2)), rng.uniform(0.3, 0.5, 20)]  # camera frame
+        Tcb = inv_pose(T[i])
+        X = (x - Tcb[:3, 3]) @ Tcb[:3, :3]
+        v = view_jacobians(em, cam, q[i], X, cam.project(x), eye_to_hand=False,
+                           pixel_sigma_px=SIGMA_PX, joint_sigma_rad=None)  # fmt: skip
+        dv = v.tool @ (rng.normal(size=6) * jitter) + rng.normal(0, SIGMA_PX, len(v.r))
+        uv = cam.project(x) + dv.reshape(-1, 2)
+        frames.append((i, X, uv))
+        views.append(dataclasses.replace(v, r=dv))
+    return model, cam, q, frames, views
+
+
+def test_white_noise_alone_shows_no_jitter():
+    """Corner noise alone: the statistic stays within its 6 m and nothing is counted."""
+    model, cam, q, frames, _ = _frames(np.zeros(6), 40, 0)
+    res = view_jitter(model, cam, q, frames, eye_to_hand=False, pixel_sigma_px=SIGMA_PX,
+                      joint_sigma=None)  # fmt: skip
+    assert not res.counted and np.all(res.covariance == 0.0)
+    assert abs(res.statistic / (6 * 40) - 1) < 0.25  # 1.16 here: the gate is at 1.18
+    assert abs(res.rest_rms_px / SIGMA_PX - 1) < 0.05
+
+
+def test_a_pose_jitter_is_found_at_its_size():
+    """A per-view twist of the camera: counted, each coordinate's std within 30 % of the one
+    drawn (80 views), most of the residuals in the pose span."""
+    model, cam, q, frames, _ = _frames(JITTER, 80, 1)
+    res = view_jitter(model, cam, q, frames, eye_to_hand=False, pixel_sigma_px=SIGMA_PX,
+                      joint_sigma=None)  # fmt: skip
+    assert res.counted and res.statistic > 6 * 80 * 30  # 82 times its 6 m here
+    ratio = np.sqrt(np.diag(res.covariance)) / JITTER
+    assert np.all((ratio > 0.7) & (ratio < 1.3)), ratio
+    assert res.pose_share > 0.8  # 0.94 here
+    back = view_jitter_from_json({KEY: res.to_json()}, "cal.json")
+    assert back is not None and np.allclose(back.covariance, res.covariance) and back.counted
+
+
+def test_the_check_with_the_jitter_passes_an_unchanged_arm():
+    """New views with the same jitter: without its term the check alarms, with the term the
+    calibration's frames gave it the views are unchanged."""
+    model, cam, q, frames, _ = _frames(JITTER, 60, 2)
+    J = view_jitter(model, cam, q, frames, eye_to_hand=False, pixel_sigma_px=SIGMA_PX,
+                    joint_sigma=None).covariance  # fmt: skip
+    _, _, _, _, new = _frames(JITTER, 5, 3)
+    C = np.zeros((new[0].kin.shape[1] + new[0].cam.shape[1],) * 2)
+    assert image_drift_check(C, new, eye_to_hand=False).changed
+    with_j = [dataclasses.replace(v, local=v.local + v.tool @ J @ v.tool.T) for v in new]
+    assert not image_drift_check(C, with_j, eye_to_hand=False).changed
+
+
+def test_a_malformed_block_is_named():
+    with pytest.raises(InputError, match=r"cal.json: accuracy.view_jitter"):
+        view_jitter_from_json({KEY: {"covariance_si": [[1.0]]}}, "cal.json")
+    assert view_jitter_from_json({}, "cal.json") is None
