@@ -7,21 +7,34 @@ from pathlib import Path
 
 from selfcal.io.atomic import write_text_atomic
 
-__all__ = ["ROOT", "write_block", "print_table"]
+__all__ = ["ROOT", "print_table", "read_block", "write_block"]
 
 ROOT = Path(__file__).resolve().parents[2]
 """The repository's root (README.md and docs/ are in it)."""
 
 
-def write_block(path: Path, block: str, name: str = "benchmark_speed") -> None:
-    """Replace what stands between ``<!-- NAME: begin -->`` and ``<!-- NAME: end -->`` in
-    ``path`` by ``block``; no markers is an error naming the file."""
+def _split(path: Path, name: str) -> tuple[str, str, str, str, str]:
+    """``path``'s text around the ``name`` block: (head, begin marker, block, end marker,
+    tail); no markers is an error naming the file."""
     begin, end = f"<!-- {name}: begin -->", f"<!-- {name}: end -->"
     text = path.read_text()
     if begin not in text or end not in text:
         raise SystemExit(f"{path}: no {begin} ... {end} markers to write between")
     head, rest = text.split(begin, 1)
-    tail = rest.split(end, 1)[1]
+    block, tail = rest.split(end, 1)
+    return head, begin, block, end, tail
+
+
+def read_block(path: Path, name: str) -> str:
+    """What stands between ``<!-- NAME: begin -->`` and ``<!-- NAME: end -->`` in ``path``
+    (stripped); no markers is an error naming the file."""
+    return _split(path, name)[2].strip()
+
+
+def write_block(path: Path, block: str, name: str = "benchmark_speed") -> None:
+    """Replace what stands between ``<!-- NAME: begin -->`` and ``<!-- NAME: end -->`` in
+    ``path`` by ``block``; no markers is an error naming the file."""
+    head, begin, _, end, tail = _split(path, name)
     write_text_atomic(path, f"{head}{begin}\n{block}\n{end}{tail}")
 
 

@@ -31,13 +31,15 @@ joints are read and taken as exact).
 
 Run: ``nice -n 10 uv run python -m selfcal.benchmarks.drift_images [--calibrations 30]
 [--checks 10] [--setup eye-in-hand eye-to-hand] [--robot er4u-paper ur5e kr6-r900] [--jobs 1]
-[--write-docs]`` (rewrites the table in docs/tool-accuracy.md).
+[--views 5] [--min-p] [--write-docs]`` (rewrites the rows of the setups, robots and noise levels it ran
+in the table of docs/tool-accuracy.md and keeps the others, :func:`docs_rows`).
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import re
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
@@ -45,7 +47,7 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 
 from selfcal.benchmarks.board_accuracy import SCENARIO, simulated_calibration
-from selfcal.benchmarks.doc_blocks import ROOT, print_table
+from selfcal.benchmarks.doc_blocks import ROOT, print_table, read_block
 from selfcal.calibration.drift.images import (
     ALPHA,
     calibration_error_model,
@@ -64,7 +66,17 @@ from selfcal.sim.kinematic_robot import read_back
 from selfcal.target.boards import Board
 from selfcal.threads import limit_threads
 
-__all__ = ["calibration_checks", "main", "read_joints", "run", "table", "NOISE_PX"]
+__all__ = [
+    "NOISE_PX",
+    "calibration_checks",
+    "docs_rows",
+    "main",
+    "merge_rows",
+    "parse_block",
+    "read_joints",
+    "run",
+    "table",
+]
 
 NOISE_PX = (0.05, 0.2)
 NEW_VIEWS = 5
@@ -84,11 +96,16 @@ def read_joints(robot: RobotDef, q: np.ndarray) -> np.ndarray:
     return read_back(np.asarray(q, float), robot.encoder, True)
 
 
-def calibration_checks(args: tuple[float, int, int, str, str | None]) -> dict:
+def calibration_checks(args: tuple) -> dict:
     """One calibration (noise ``sigma_px``, ``seed``, ``setup``, ``robot``: the setup's
-    scenario's robot replaced, or None) checked ``checks`` times: per kind the count of
-    "changed" verdicts, and of the changes the causes named right and wrong."""
-    sigma_px, seed, checks, setup, robot_name = args
+    scenario's robot replaced, or None; optionally the new views per check, default
+    :data:`NEW_VIEWS`, and whether the check combines its tests by their smallest p-value's
+    exact distribution rather than Bonferroni's bound: ``exact`` of
+    :func:`selfcal.calibration.drift.images.image_drift_check`) checked ``checks`` times: per kind the count of "changed" verdicts, and
+    of the changes the causes named right and wrong."""
+    sigma_px, seed, checks, setup, robot_name = args[:5]
+    new_views = int(args[5]) if len(args) > 5 else NEW_VIEWS
+    exact = bool(args[6]) if len(args) > 6 else False
     e2h = setup == "eye-to-hand"
     out: dict = {"status": "ok"} | {k: 0 for k in KINDS} | {"checks": 0}
     out |= {f"{k}_{w}": 0 for k in ("tool", "joint") for w in ("right", "wrong")}
@@ -125,7 +142,7 @@ def calibration_checks(args: tuple[float, int, int, str, str | None]) -> dict:
             joint = int(rng.integers(n))
             q_new = []
             for _ in range(10_000):
-                if len(q_new) == NEW_VIEWS:
+                if len(q_new) == new_views:
                     break
                 q = q_cal[rng.integers(len(q_cal))] + rng.uniform(-SPREAD_RAD, SPREAD_RAD, n)
                 q_off = q.copy()
@@ -138,12 +155,13 @@ def calibration_checks(args: tuple[float, int, int, str, str | None]) -> dict:
                     assert g is not None
                     views[k].append((len(q_new), *g))
                 q_new.append(q)
-            if len(q_new) < NEW_VIEWS:
-                raise InternalError(f"no {NEW_VIEWS} postures near the calibration's see the board")
+            if len(q_new) < new_views:
+                raise InternalError(f"no {new_views} postures near the calibration's see the board")
             qs = read_joints(robot, np.array(q_new))
             for k in KINDS:
                 vj = calibration_views(cal, em, qs, views[k])
-                res = image_drift_check(C, vj, eye_to_hand=e2h, camera_names=cal.cameras[0].free)
+                res = image_drift_check(C, vj, eye_to_hand=e2h, camera_names=cal.cameras[0].free,
+                                        exact=exact)  # fmt: skip
                 if k == "tool":  # the shift's own pixels' statistic: mu^T Sigma^-1 mu
                     mean = [dataclasses.replace(v, r=v.tool[:, :3] @ shift[:3, 3]) for v in vj]
                     lam2 = image_drift_check(C, mean, eye_to_hand=e2h).statistic
@@ -163,10 +181,11 @@ def calibration_checks(args: tuple[float, int, int, str, str | None]) -> dict:
 
 
 def run(calibrations: int = 30, checks: int = 10, noise_px=NOISE_PX, jobs: int = 1,
-        setups: tuple[str, ...] = tuple(SCENARIOS),
-        robots: tuple[str, ...] | None = None) -> list[dict]:  # fmt: skip
+        setups: tuple[str, ...] = tuple(SCENARIOS), robots: tuple[str, ...] | None = None,
+        views: int = NEW_VIEWS, exact: bool = False) -> list[dict]:  # fmt: skip
     """One row per setup (eye-in-hand: per robot of ``robots``, default the scenario's) and
-    noise level over ``calibrations`` calibrations (``jobs`` processes)."""
+    noise level over ``calibrations`` calibrations (``jobs`` processes), ``views`` new views
+    per check (``exact``: :func:`calibration_checks`)."""
     rows = []
     cells = [(u, r) for u in setups
              for r in (robots if robots and u == "eye-in-hand" else (None,))]  # fmt: skip
@@ -174,7 +193,8 @@ def run(calibrations: int = 30, checks: int = 10, noise_px=NOISE_PX, jobs: int =
         t0 = time.perf_counter()
         name = robot or load_scenario(SCENARIOS[setup]).robot.model
         label = f"{setup}, {name}"
-        todo = [(s, seed, checks, setup, robot) for seed in range(1, calibrations + 1)]
+        todo = [(s, seed, checks, setup, robot, views, exact)
+                for seed in range(1, calibrations + 1)]  # fmt: skip
         if jobs > 1:
             with ProcessPoolExecutor(max_workers=jobs) as pool:
                 got = list(pool.map(calibration_checks, todo))
@@ -186,7 +206,7 @@ def run(calibrations: int = 30, checks: int = 10, noise_px=NOISE_PX, jobs: int =
         total = {k: sum(g[k] for g in ok) for k in ok[0] if k != "status"} if ok else {}
         m = max(total.get("checks", 0), 1)
         row = {"setup": label, "noise_px": s, "calibrations": len(ok), "failed": calibrations - len(ok),
-               "checks": total.get("checks", 0)}  # fmt: skip
+               "checks": total.get("checks", 0), "views": views, "exact": exact}  # fmt: skip
         row |= {k: total.get(k, 0) / m for k in (*KINDS, "tool_oracle", "tool_axes")}
         for k in ("tool", "joint"):
             found = max(total.get(k, 0), 1)
@@ -214,15 +234,77 @@ def table(rows: list[dict], checks: int) -> str:
         for r in rows
     ]
     failed = sum(r["failed"] for r in rows)
+    views = rows[0].get("views", NEW_VIEWS)
+    docs = views == NEW_VIEWS and not rows[0].get("exact", False)
+    extra = "" if views == NEW_VIEWS else f" --views {views}"
+    extra += " --min-p" if rows[0].get("exact", False) else ""
     return (head + "\n".join(lines) + f"\n\n{checks} checks per calibration ({failed} "
-            f"calibrations failed in all), {NEW_VIEWS} new views per check, alpha = 0.01; "
+            f"calibrations failed in all), {views} new views per check, alpha = 0.01; "
             "a test knowing: the mean power at alpha of a test that knew the shift's direction "
             "(the most powerful) or only its 3 axes (the mount's translation alone), from the "
             "check's own covariance; named: of the changes found, the share whose cause the "
             "check named (right / wrong; the rest: cannot tell). `nice -n 10 uv run python -m "
             f"selfcal.benchmarks.drift_images --calibrations {rows[0]['calibrations'] + rows[0]['failed']} "
             f"--setup {' '.join(dict.fromkeys(r['setup'].split(',')[0] for r in rows))}"
-            f"{robots_arg(rows)} --write-docs`.")  # fmt: skip
+            f"{robots_arg(rows)}{extra}{' --write-docs' if docs else ''}`.")  # fmt: skip
+
+
+def _percent(cell: str) -> float:
+    return float(cell.strip().removesuffix("%")) / 100.0
+
+
+def parse_block(text: str) -> tuple[list[dict], int, int]:
+    """The rows of a table :func:`table` wrote (``text``, the docs block), the calibrations
+    each row asked for and the checks per calibration (from its footnote): what
+    :func:`merge_rows` keeps of the rows a run did not redo."""
+    asked = re.search(r"--calibrations (\d+)", text)
+    per = re.search(r"(\d+) checks per calibration", text)
+    if asked is None or per is None:
+        raise SystemExit(f"{DOC}: the {BLOCK} block names no --calibrations or checks per "
+                         "calibration: run every setup and robot to rewrite it whole")  # fmt: skip
+    rows = []
+    for line in text.splitlines():
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if len(cells) != 10 or not cells[1].replace(".", "", 1).isdigit():
+            continue  # the header, its rule, the footnote
+        oracle, axes = cells[6].split("/")
+        tool_right, tool_wrong = cells[7].split("/")
+        joint_right, joint_wrong = cells[9].split("/")
+        rows.append({
+            "setup": cells[0], "noise_px": float(cells[1]), "calibrations": int(cells[2]),
+            "failed": int(asked.group(1)) - int(cells[2]), "checks": int(cells[3]),
+            "unchanged": _percent(cells[4]), "tool": _percent(cells[5]),
+            "tool_oracle": _percent(oracle), "tool_axes": _percent(axes),
+            "tool_right": _percent(tool_right), "tool_wrong": _percent(tool_wrong),
+            "joint": _percent(cells[8]), "joint_right": _percent(joint_right),
+            "joint_wrong": _percent(joint_wrong),
+        })  # fmt: skip
+    return rows, int(asked.group(1)), int(per.group(1))
+
+
+def merge_rows(old: list[dict], new: list[dict]) -> list[dict]:
+    """``old``'s rows with those of the same setup (robot included) and noise level replaced
+    by ``new``'s, in place; ``new``'s other rows after them."""
+    fresh = {(r["setup"], r["noise_px"]): r for r in new}
+    out = [fresh.pop((r["setup"], r["noise_px"]), r) for r in old]
+    return out + list(fresh.values())
+
+
+def docs_rows(rows: list[dict], calibrations: int, checks: int) -> list[dict]:
+    """The rows the docs block should hold after a run of ``rows`` (``calibrations`` asked per
+    row, ``checks`` per calibration): the block's rows of the setups, robots and noise levels
+    the run did not cover are kept (:func:`merge_rows`).
+
+    Raises:
+        SystemExit: the block was measured with another ``--calibrations`` or ``--checks``
+            (its rows would not be alike), naming the doc and the options to give.
+    """
+    old, asked, per = parse_block(read_block(DOC, BLOCK))
+    if (asked, per) != (calibrations, checks):
+        raise SystemExit(f"{DOC}: the {BLOCK} block's rows were measured with --calibrations "
+                         f"{asked} --checks {per}, this run with --calibrations {calibrations} "
+                         f"--checks {checks}: give those, or run every setup and robot")  # fmt: skip
+    return merge_rows(old, rows)
 
 
 def robots_arg(rows: list[dict]) -> str:
@@ -242,6 +324,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--noise-px", type=float, nargs="+", default=list(NOISE_PX),
                     help="pixel noise levels (default 0.05 0.2)")  # fmt: skip
     ap.add_argument("--jobs", type=int, default=1, help="processes (default 1)")
+    ap.add_argument("--views", type=int, default=NEW_VIEWS,
+                    help=f"new views per check (default {NEW_VIEWS}, the docs block's)")  # fmt: skip
+    ap.add_argument("--min-p", action="store_true",
+                    help="combine the check's tests by their smallest p-value's exact "
+                    "distribution, not Bonferroni's bound (not the docs block's)")  # fmt: skip
     ap.add_argument("--setup", nargs="+", default=list(SCENARIOS), choices=tuple(SCENARIOS),
                     help="camera setups (default both)")  # fmt: skip
     ap.add_argument(
@@ -252,10 +339,16 @@ def main(argv: list[str] | None = None) -> int:
         help="the eye-in-hand rows on these robots (default the scenario's ER-4u)",
     )
     ap.add_argument("--write-docs", action="store_true",
-                    help="rewrite the table in docs/tool-accuracy.md")  # fmt: skip
+                    help="rewrite the rows of the setups, robots and noise levels run in the "
+                    "table of docs/tool-accuracy.md (the others kept)")  # fmt: skip
     args = ap.parse_args(argv)
+    if args.write_docs and (args.views != NEW_VIEWS or args.min_p):
+        ap.error(f"--write-docs writes the table of the check as it is, {NEW_VIEWS} views: "
+                 "leave out --views and --min-p, or --write-docs")  # fmt: skip
     rows = run(args.calibrations, args.checks, tuple(args.noise_px), args.jobs, tuple(args.setup),
-               tuple(args.robot) if args.robot else None)  # fmt: skip
+               tuple(args.robot) if args.robot else None, args.views, args.min_p)  # fmt: skip
+    if args.write_docs:
+        rows = docs_rows(rows, args.calibrations, args.checks)
     return print_table(table(rows, args.checks), DOC, BLOCK, write=args.write_docs)
 
 

@@ -78,7 +78,8 @@ class Fits:
     (how much it lowers ``T``), ``rank`` (its parameters the views determine), ``x`` its fitted
     change and ``se`` its standard errors; ``union_left`` and ``union_rank`` the fit of all of them together;
     ``directed`` the directed tests (module docstring): by name how much the fit lowers ``T``
-    and the rank, chi-square with that rank under "unchanged"."""
+    and the rank, chi-square with that rank under "unchanged"; ``directed_columns`` by the
+    same name the test's whitened columns (its fit's design)."""
 
     what: dict[str, str]
     drop: dict[str, float]
@@ -88,6 +89,7 @@ class Fits:
     union_left: float
     union_rank: int
     directed: dict[str, tuple[float, int]]
+    directed_columns: dict[str, np.ndarray]
 
     def nested_p(self, key: str, T: float) -> float:
         """``P(chi2_{rank_all - rank_h} >= T_h - T_all)``: do all the candidates together fit
@@ -122,6 +124,7 @@ def candidate_fits(white: Callable[[np.ndarray], np.ndarray], rw: np.ndarray,
     T = float(rw @ rw)
     drop, rank, xs, se = {}, {}, {}, {}
     directed: dict[str, tuple[float, int]] = {}
+    columns: dict[str, np.ndarray] = {}
     all_w = white(np.concatenate([G for _, G in cands.values()], axis=1))  # one solve
     at = 0
     for key, (_, G) in cands.items():
@@ -134,13 +137,15 @@ def candidate_fits(white: Callable[[np.ndarray], np.ndarray], rw: np.ndarray,
         if key in ("hand-eye", "world"):  # a twist: its translation and its rotation apart
             for part, cols in (("translation", slice(0, 3)), ("rotation", slice(3, 6))):
                 directed[f"{key} {part}"] = _drop(Gw[:, cols], rw)
+                columns[f"{key} {part}"] = Gw[:, cols]
         else:
             directed[key] = (drop[key], int(rank[key]))
+            columns[key] = Gw
     x, _, union_rank, _ = np.linalg.lstsq(all_w, rw, rcond=None)
     Gw = all_w
     left = rw - Gw @ x
     return Fits({k: w for k, (w, _) in cands.items()}, drop, rank, xs, se, float(left @ left),
-                int(union_rank), directed)  # fmt: skip
+                int(union_rank), directed, columns)  # fmt: skip
 
 
 def _drop(Gw: np.ndarray, rw: np.ndarray) -> tuple[float, int]:

@@ -57,7 +57,7 @@ from selfcal.calibration.board.accuracy import board_error_model_from_json
 from selfcal.calibration.board.evaluate import held_out_views
 from selfcal.calibration.board.view_jitter import view_jitter_from_json
 from selfcal.calibration.drift.attribution import Attribution, attribute, candidate_fits
-from selfcal.calibration.drift.p_value import combined_p, p_text
+from selfcal.calibration.drift.p_value import combined_p, min_p, p_text
 from selfcal.calibration.drift.views import ViewJacobians, view_jacobians
 from selfcal.errors import InputError
 from selfcal.io.board_calibration import (
@@ -167,11 +167,15 @@ def tool_point_moves(key: str, x: np.ndarray, views: list[ViewJacobians]) -> np.
 
 def image_drift_check(C: np.ndarray, views: list[ViewJacobians], *,
                       eye_to_hand: bool, camera_names: tuple[str, ...] = (),
-                      alpha: float = ALPHA) -> ImageDriftCheck:  # fmt: skip
+                      alpha: float = ALPHA, exact: bool = False) -> ImageDriftCheck:  # fmt: skip
     """Test the linearised ``views`` (:func:`view_jacobians`) against the calibration's
     estimate covariance ``C`` (p + c, p + c) of its estimated kinematic parameters and the
     camera's free parameters (:func:`estimate_covariance`; module docstring; ``camera_names``
-    the camera's free parameters' names for the attribution).
+    the camera's free parameters' names for the attribution). ``exact``: the tests combined by
+    their smallest p-value's distribution under "unchanged"
+    (:func:`selfcal.calibration.drift.p_value.min_p`, Monte Carlo) rather than Bonferroni's
+    bound, which the tests' correlation makes conservative; the default stays Bonferroni
+    (``python -m selfcal.benchmarks.drift_images --min-p`` measures the difference).
 
     Raises:
         InputError: no view.
@@ -192,7 +196,8 @@ def image_drift_check(C: np.ndarray, views: list[ViewJacobians], *,
     # the omnibus test and each candidate change's directed one (how much its fit lowers T,
     # chi-square with its rank), Bonferroni-combined
     fits = candidate_fits(white, rw, views, eye_to_hand=eye_to_hand)
-    p = combined_p(T, dof, fits.directed)
+    p = (min_p(T, dof, fits.directed, fits.directed_columns) if exact
+         else combined_p(T, dof, fits.directed))  # fmt: skip
     best = fits.best(T)
     moves = tool_point_moves(best, fits.x[best], views)
     changed = p < alpha

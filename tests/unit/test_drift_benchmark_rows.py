@@ -1,0 +1,57 @@
+"""The image drift benchmark's docs block (selfcal.benchmarks.drift_images, issue #29): a run of
+some setups and robots rewrites their rows and keeps the others, and refuses to mix rows
+measured with other options."""
+
+from __future__ import annotations
+
+import pytest
+
+from selfcal.benchmarks import drift_images
+from selfcal.benchmarks.doc_blocks import read_block
+from selfcal.benchmarks.drift_images import BLOCK, DOC, docs_rows, merge_rows, parse_block, table
+
+
+def _row(setup: str, noise: float, tool: float) -> dict:
+    return {"setup": setup, "noise_px": noise, "calibrations": 29, "failed": 1, "checks": 290,
+            "unchanged": 0.01, "tool": tool, "tool_oracle": 0.9, "tool_axes": 0.8,
+            "tool_right": 0.5, "tool_wrong": 0.0, "joint": 1.0, "joint_right": 0.4,
+            "joint_wrong": 0.1, "views": 5}  # fmt: skip
+
+
+def test_the_docs_block_reads_back_as_written():
+    """The block in docs/tool-accuracy.md parses into its rows and prints as it stands."""
+    text = read_block(DOC, BLOCK)
+    rows, calibrations, checks = parse_block(text)
+    assert len(rows) >= 2 and calibrations > 0 and checks > 0
+    assert table(rows, checks) == text
+
+
+def test_a_run_rewrites_its_rows_and_keeps_the_others():
+    old = [_row("eye-in-hand, er4u-paper", 0.05, 1.0), _row("eye-in-hand, er4u-paper", 0.2, 0.9),
+           _row("eye-in-hand, ur5e", 0.2, 1.0), _row("eye-to-hand, ur5e", 0.2, 1.0)]  # fmt: skip
+    new = [_row("eye-in-hand, er4u-paper", 0.2, 0.7), _row("eye-in-hand, kr6-r900", 0.2, 0.99)]
+    got = merge_rows(old, new)
+    assert [(r["setup"], r["noise_px"]) for r in got] == [
+        ("eye-in-hand, er4u-paper", 0.05), ("eye-in-hand, er4u-paper", 0.2),
+        ("eye-in-hand, ur5e", 0.2), ("eye-to-hand, ur5e", 0.2), ("eye-in-hand, kr6-r900", 0.2),
+    ]  # fmt: skip
+    assert [r["tool"] for r in got] == [1.0, 0.7, 1.0, 1.0, 0.99]
+    text = table(got, 10)
+    assert "| eye-in-hand, er4u-paper | 0.2 | 29 | 290 | 1.0 % | 70.0 % |" in text
+    assert "(5 calibrations failed in all)" in text
+    # the command that remakes the whole block names every setup and robot in it
+    assert "--calibrations 30 --setup eye-in-hand eye-to-hand --robot er4u-paper ur5e" in text
+    assert parse_block(text)[0] == [{k: v for k, v in r.items() if k != "views"} for r in got]
+
+
+def test_rows_of_other_options_are_not_mixed_in(monkeypatch, tmp_path):
+    doc = tmp_path / "doc.md"
+    block = table([_row("eye-in-hand, ur5e", 0.2, 1.0)], 10)
+    doc.write_text(f"text\n<!-- {BLOCK}: begin -->\n{block}\n<!-- {BLOCK}: end -->\nmore\n")
+    monkeypatch.setattr(drift_images, "DOC", doc)
+    new = [_row("eye-in-hand, er4u-paper", 0.2, 0.7)]
+    assert len(docs_rows(new, 30, 10)) == 2
+    with pytest.raises(SystemExit, match="--calibrations 30 --checks 10"):
+        docs_rows(new, 20, 10)
+    with pytest.raises(SystemExit, match="--calibrations 30 --checks 10"):
+        docs_rows(new, 30, 5)
