@@ -236,7 +236,9 @@ def table(rows: list[dict], checks: int) -> str:
     failed = sum(r["failed"] for r in rows)
     views = rows[0].get("views", NEW_VIEWS)
     docs = views == NEW_VIEWS and not rows[0].get("exact", False)
-    extra = "" if views == NEW_VIEWS else f" --views {views}"
+    noise = list(dict.fromkeys(r["noise_px"] for r in rows))
+    extra = "" if noise == list(NOISE_PX) else " --noise-px " + " ".join(f"{s:g}" for s in noise)
+    extra += "" if views == NEW_VIEWS else f" --views {views}"
     extra += " --min-p" if rows[0].get("exact", False) else ""
     return (head + "\n".join(lines) + f"\n\n{checks} checks per calibration ({failed} "
             f"calibrations failed in all), {views} new views per check, alpha = 0.01; "
