@@ -7,6 +7,7 @@ from __future__ import annotations
 import csv
 import dataclasses
 import json
+import re
 import shutil
 
 import numpy as np
@@ -16,6 +17,7 @@ import selfcal
 from selfcal.cli.check import EXIT_CHANGED
 from selfcal.cli.main import main
 from selfcal.config.scenario import load_scenario, scenarios_dir
+from selfcal.errors import InputError
 from selfcal.io.board_calibration import read_board_calibration, write_board_calibration
 from selfcal.pipeline.run import run_acquire, run_all
 
@@ -57,6 +59,14 @@ def test_check_with_images_says_unchanged_or_changed(tmp_path, capsys):
         not res.changed
         and res.expected_rms_px > 1.2 * selfcal.check_images(cal, new).expected_rms_px
     )
+
+    bad = tmp_path / "bad"  # a hand-edited per-view misfit: the error names the file
+    shutil.copytree(cal, bad)
+    doc = json.loads((bad / "calibration.json").read_text())
+    doc["accuracy"]["view_jitter"] = {"covariance_si": "not a matrix"}
+    (bad / "calibration.json").write_text(json.dumps(doc))
+    with pytest.raises(InputError, match=re.escape(f"{bad / 'calibration.json'}: accuracy.")):
+        selfcal.check_images(bad, new)
 
     _offset_joint(new, tmp_path / "joint", 4, 0.3)  # joint 4 read 0.3 deg off
     assert main(["check", str(cal), str(tmp_path / "joint"), "--json"]) == EXIT_CHANGED

@@ -235,14 +235,20 @@ def calibration_error_model(cal: BoardCalibrationResult, where: str) -> ToolErro
 
 
 def calibration_views(cal: BoardCalibrationResult, em: ToolErrorModel, q: np.ndarray,
-                      views: list[tuple[int, np.ndarray, np.ndarray]]) -> list[ViewJacobians]:  # fmt: skip
+                      views: list[tuple[int, np.ndarray, np.ndarray]], *,
+                      where: str = "calibration.json") -> list[ViewJacobians]:  # fmt: skip
     """The first camera's ``views`` (frame ``f`` into ``q`` (m, n) rad / m, board points ``X``
     (k, 3) m, detected ``uv`` (k, 2) px) linearised at the calibration ``cal`` (``em`` its
-    error model) with its bounds' noise levels."""
+    error model) with its bounds' noise levels and its per-view pose misfit; ``where`` the
+    calibration's file, for the error a malformed block raises.
+
+    Raises:
+        InputError: the accuracy block's ``view_jitter`` is malformed (names ``where``).
+    """
     assert cal.bounds is not None
     js = cal.bounds.joint_sigma_deg
     js_rad = None if js is None else np.radians(np.asarray(js, float))
-    found = view_jitter_from_json(cal.accuracy, "calibration.json")
+    found = view_jitter_from_json(cal.accuracy, where)
     jitter = found.covariance if found is not None and found.counted else None
     return [view_jacobians(em, cal.cameras[0], q[f], X, uv, eye_to_hand=cal.eye_to_hand,
                            pixel_sigma_px=cal.bounds.pixel_sigma_px, joint_sigma_rad=js_rad,
@@ -296,6 +302,8 @@ def check_images(calibration: str | Path, new_data: str | Path, *,
     cal = read_board_calibration(path)
     em = calibration_error_model(cal, str(path))
     held = held_out_views(cal, new_data, cameras=(cal.camera_names[0],))
-    views = calibration_views(cal, em, held.q, [(f, X, uv) for _, f, _, _, X, uv in held.views])
+    views = calibration_views(
+        cal, em, held.q, [(f, X, uv) for _, f, _, _, X, uv in held.views], where=str(path)
+    )
     return image_drift_check(estimate_covariance(cal, em), views, eye_to_hand=cal.eye_to_hand,
                              camera_names=cal.cameras[0].free, alpha=alpha)  # fmt: skip
