@@ -80,7 +80,7 @@ from selfcal.calibration.board.held_prior import (
     held_share,
     with_deviation,
 )
-from selfcal.calibration.board.misfit import pose_jacobian, tip_map, unit_rows
+from selfcal.calibration.board.misfit import board_view, pose_jacobian, tip_map, unit_rows
 from selfcal.calibration.board.nominal_fit import standard_gauge
 from selfcal.calibration.board.param_selection import Selection
 from selfcal.calibration.board.refine import BoardObservations, Refinement, predicted_points
@@ -97,7 +97,6 @@ from selfcal.kinematics.tool_error import (
     workspace_sample,
     workspace_summary,
 )
-from selfcal.transforms import inv_pose
 
 __all__ = [
     "board_accuracy",
@@ -461,10 +460,7 @@ def predicted_reprojection(cr: BoardCramerRao, camera: CameraModel, q: np.ndarra
     total, count = 0.0, 0
     for qi, X, g in zip(q, points, grow, strict=True):
         T = fk_tool(cr.model, qi[None])[0]
-        T_cam_board = T if eye_to_hand else inv_pose(T)
-        x = X @ T_cam_board[:3, :3].T + T_cam_board[:3, 3]
-        _, Jx, Jc = camera.project_free(x)
-        A = pose_jacobian(Jx, x, T, eye_to_hand)
+        x, _, A, Jc = board_view(camera, T, X, eye_to_hand)
         H = np.concatenate([A @ identification_jacobian(cr.model, qi[None])[0][:, cols],
                             Jc.reshape(-1, n0)], axis=1)  # fmt: skip
         Binv = np.linalg.inv(tip_map(T, t))

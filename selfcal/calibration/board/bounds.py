@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from selfcal.calibration.board.held import held_error, held_response
-from selfcal.calibration.board.misfit import misfit_covariance, pose_jacobian, unit_rows
+from selfcal.calibration.board.misfit import board_view, misfit_covariance, unit_rows
 from selfcal.calibration.board.problem import board_problem
 from selfcal.camera import CameraModel
 from selfcal.camera.camera_set import std_by_name
@@ -213,9 +213,7 @@ def _unit_rows(camera: CameraModel, model: MCPCModel, q: np.ndarray, features: S
     for i, f in enumerate(features):
         if not len(f):
             continue
-        T_cam_board = T[i] if eye_to_hand else inv_pose(T[i])
-        x = board.points(f.ids) @ T_cam_board[:3, :3].T + T_cam_board[:3, 3]
-        A = pose_jacobian(camera.project_free(x)[1], x, T[i], eye_to_hand)
+        x, _, A, _ = board_view(camera, T[i], board.points(f.ids), eye_to_hand)
         rows.append(np.arange(2 * at, 2 * (at + len(f))))
         K.append(unit_rows(A, x, T[i], t, eye_to_hand)[0])
         D.append(A @ J_id[i])

@@ -26,13 +26,18 @@ the camera in the board frame, eye-to-hand the board in the camera frame); SI; p
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 import scipy.sparse as sp
 
 from selfcal.solver import inverse_columns
-from selfcal.transforms import skew
+from selfcal.transforms import inv_pose, skew
 
-__all__ = ["CHUNK", "misfit_covariance", "pose_jacobian", "tip_map", "unit_rows"]
+if TYPE_CHECKING:
+    from selfcal.camera import CameraModel
+
+__all__ = ["CHUNK", "board_view", "misfit_covariance", "pose_jacobian", "tip_map", "unit_rows"]
 
 CHUNK = 256
 """Frames per product in :func:`misfit_covariance` (its memory: their rows times the unknowns
@@ -51,6 +56,19 @@ def pose_jacobian(Jx: np.ndarray, x: np.ndarray, T_tool: np.ndarray,
     else:  # camera <- board = inv(tool pose); the twist moves the camera
         dX = np.concatenate([np.broadcast_to(-np.eye(3), (len(x), 3, 3)), skew(x)], 2)
     return (Jx @ dX).reshape(-1, 6)
+
+
+def board_view(camera: CameraModel, T_tool: np.ndarray, X: np.ndarray,
+               eye_to_hand: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
+    """The board points ``X`` (k, 3) (board frame, m) seen by ``camera`` at the chain's tool
+    pose ``T_tool`` (4, 4) (eye-in-hand the camera in the board frame, eye-to-hand the board in
+    the camera frame): their points ``x`` (k, 3) in the camera frame (m), predicted pixels
+    (k, 2), derivative by a body twist of the tool pose ``A`` (2k, 6) (:func:`pose_jacobian`)
+    and by the camera's free parameters (k, 2, c)."""
+    T_cam_board = T_tool if eye_to_hand else inv_pose(T_tool)
+    x = np.asarray(X, float) @ T_cam_board[:3, :3].T + T_cam_board[:3, 3]
+    uv, Jx, Jc = camera.project_free(x)
+    return x, uv, pose_jacobian(Jx, x, T_tool, eye_to_hand), Jc
 
 
 def tip_map(T_tool: np.ndarray, t: np.ndarray) -> np.ndarray:

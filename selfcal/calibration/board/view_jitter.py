@@ -36,13 +36,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from selfcal.calibration.accuracy import Z_MODEL_ERROR
-from selfcal.calibration.board.misfit import pose_jacobian
+from selfcal.calibration.board.misfit import board_view
 from selfcal.camera import CameraModel
 from selfcal.errors import InputError
 from selfcal.estimation.kinematic_poses import joint_twists
 from selfcal.kinematics.forward import fk_tool
 from selfcal.kinematics.mcpc import MCPCModel
-from selfcal.transforms import inv_pose
 
 __all__ = ["KEY", "ViewJitter", "view_jitter", "view_jitter_from_json"]
 
@@ -101,14 +100,11 @@ def view_jitter(model: MCPCModel, camera: CameraModel, q: np.ndarray,
     if len(frames) < 2:
         raise InputError("view jitter: fewer than 2 frames with 4 corners or more",
                          fix="give more images of the board")  # fmt: skip
-    T = fk_tool(model, np.asarray(q, float)[[f for f, _, _ in frames]])
-    tw = joint_twists(model, np.asarray(q, float)[[f for f, _, _ in frames]])
+    q_frames = np.asarray(q, float)[[f for f, _, _ in frames]]
+    T, tw = fk_tool(model, q_frames), joint_twists(model, q_frames)
     xis, infos, rest, dof, total = [], [], 0.0, 0, 0.0
     for (_, X, uv), Ti in zip(frames, T, strict=True):
-        T_cam_board = Ti if eye_to_hand else inv_pose(Ti)
-        x = np.asarray(X, float) @ T_cam_board[:3, :3].T + T_cam_board[:3, 3]
-        uv_hat, Jx, _ = camera.project_free(x)
-        A = pose_jacobian(Jx, x, Ti, eye_to_hand)
+        _, uv_hat, A, _ = board_view(camera, Ti, X, eye_to_hand)
         r = (np.asarray(uv, float) - uv_hat).reshape(-1)
         xi, *_ = np.linalg.lstsq(A, r, rcond=None)
         e = r - A @ xi

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from selfcal.calibration.board.accuracy import pose_jacobian, tip_map
+from selfcal.calibration.board.misfit import board_view, tip_map
 from selfcal.camera import CameraModel
 from selfcal.estimation.kinematic_poses import joint_twists
 from selfcal.kinematics.forward import fk_tool, identification_jacobian
@@ -66,10 +66,7 @@ def view_jacobians(em: ToolErrorModel, camera: CameraModel, q: np.ndarray, X: np
     :mod:`selfcal.calibration.board.view_jitter`) or None."""
     model = em.model
     T = fk_tool(model, q[None])[0]
-    T_cam_board = T if eye_to_hand else inv_pose(T)
-    x = X @ T_cam_board[:3, :3].T + T_cam_board[:3, 3]
-    uv_hat, Jx, Jc = camera.project_free(x)
-    A = pose_jacobian(Jx, x, T, eye_to_hand)
+    _, uv_hat, A, Jc = board_view(camera, T, X, eye_to_hand)
     t = np.zeros(3) if em.T_tool_point is None else np.asarray(em.T_tool_point)[:3, 3]
     B = tip_map(T, t)
     tip = A @ np.linalg.inv(B)  # pixels by a move of the tool point and a rotation (world)
