@@ -54,7 +54,7 @@ def test_white_noise_alone_shows_no_jitter():
     model, cam, q, frames, _ = _frames(np.zeros(6), 40, 0)
     res = view_jitter(model, cam, q, frames, eye_to_hand=False, pixel_sigma_px=SIGMA_PX,
                       joint_sigma=None)  # fmt: skip
-    assert not res.counted and np.all(res.covariance == 0.0)
+    assert res is not None and not res.counted and np.all(res.covariance == 0.0)
     assert abs(res.statistic / (6 * 40) - 1) < 0.25  # 1.16 here: the gate is at 1.18
     assert abs(res.rest_rms_px / SIGMA_PX - 1) < 0.05
 
@@ -65,7 +65,7 @@ def test_a_pose_jitter_is_found_at_its_size():
     model, cam, q, frames, _ = _frames(JITTER, 80, 1)
     res = view_jitter(model, cam, q, frames, eye_to_hand=False, pixel_sigma_px=SIGMA_PX,
                       joint_sigma=None)  # fmt: skip
-    assert res.counted and res.statistic > 6 * 80 * 30  # 82 times its 6 m here
+    assert res is not None and res.counted and res.statistic > 6 * 80 * 30  # 82 times its 6 m here
     ratio = np.sqrt(np.diag(res.covariance)) / JITTER
     assert np.all((ratio > 0.7) & (ratio < 1.3)), ratio
     assert res.pose_share > 0.8  # 0.94 here
@@ -77,13 +77,26 @@ def test_the_check_with_the_jitter_passes_an_unchanged_arm():
     """New views with the same jitter: without its term the check alarms, with the term the
     calibration's frames gave it the views are unchanged."""
     model, cam, q, frames, _ = _frames(JITTER, 60, 2)
-    J = view_jitter(model, cam, q, frames, eye_to_hand=False, pixel_sigma_px=SIGMA_PX,
-                    joint_sigma=None).covariance  # fmt: skip
+    found = view_jitter(model, cam, q, frames, eye_to_hand=False, pixel_sigma_px=SIGMA_PX,
+                        joint_sigma=None)  # fmt: skip
+    assert found is not None
+    J = found.covariance
     _, _, _, _, new = _frames(JITTER, 5, 3)
     C = np.zeros((new[0].kin.shape[1] + new[0].cam.shape[1],) * 2)
     assert image_drift_check(C, new, eye_to_hand=False).changed
     with_j = [dataclasses.replace(v, local=v.local + v.tool @ J @ v.tool.T) for v in new]
     assert not image_drift_check(C, with_j, eye_to_hand=False).changed
+
+
+def test_too_few_frames_give_no_jitter():
+    """Fewer than 2 frames of 4 corners or more: nothing to estimate from (None), the one place
+    of that rule (calibrate stores no block then)."""
+    model, cam, q, frames, _ = _frames(np.zeros(6), 2, 4)
+    one = [frames[0], (frames[1][0], frames[1][1][:3], frames[1][2][:3])]
+    assert view_jitter(model, cam, q, one, eye_to_hand=False, pixel_sigma_px=SIGMA_PX,
+                       joint_sigma=None) is None  # fmt: skip
+    assert view_jitter(model, cam, q, frames, eye_to_hand=False, pixel_sigma_px=SIGMA_PX,
+                       joint_sigma=None) is not None  # fmt: skip
 
 
 def test_a_malformed_block_is_named():

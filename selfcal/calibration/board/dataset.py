@@ -396,12 +396,10 @@ def _view_jitter(obs: BoardObservations, result: BoardCalibrationResult,
                  pixel_sigma_px: float) -> ViewJitter | None:  # fmt: skip
     """The per-view misfit of the stored calibration ``result`` in its own first-camera frames
     (the inlier rows of ``obs``, the corner noise ``pixel_sigma_px``:
-    :mod:`selfcal.calibration.board.view_jitter`); None with
-    fewer than 2 frames of 4 corners (nothing to estimate it from)."""
+    :mod:`selfcal.calibration.board.view_jitter`); None when it has too few frames to estimate
+    it from (its rule)."""
     v, f, uv = obs.rows(obs.used)[0]
     frames = [(int(i), obs.board.points(f[v == i]), uv[v == i]) for i in np.unique(v)]
-    if sum(len(fr[1]) >= 4 for fr in frames) < 2:
-        return None
     return view_jitter(result.model, result.cameras[0], obs.q, frames,
                        eye_to_hand=obs.eye_to_hand, pixel_sigma_px=pixel_sigma_px,
                        joint_sigma=obs.joint_sigma)  # fmt: skip
