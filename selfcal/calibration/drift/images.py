@@ -22,8 +22,11 @@ predicted`` (2k px over every corner of every view) are Gaussian to first order 
 - the joint read-back noise ``S_j`` (``bounds.joint_sigma_deg``) through the joints' twists
   ``Q = A tw``; the corner noise ``s`` (``bounds.pixel_sigma_px``);
 - when the calibration's own frames showed a per-view misfit (the ``accuracy`` block's
-  ``view_jitter``, :mod:`selfcal.calibration.board.view_jitter`): ``A_i J A_i^T`` per view,
-  ``J`` (6, 6) the jitter of the chain's tool pose.
+  ``view_jitter``, :mod:`selfcal.calibration.board.view_jitter`): ``A_i J A_i^T + c^2 U_i U_i^T``
+  per view, ``J`` (6, 6) the jitter of the chain's tool pose, ``c`` the misfit per camera
+  direction ``U_i`` (orthonormal, outside the pose span), and ``s`` is then the block's white
+  noise outside both (the bounds' from the fit's RMS holds the misfit's energy: it counted it
+  twice).
 
 ``T = r^T Sigma^-1 r`` is then chi-square with ``2k`` degrees of freedom. That omnibus test
 has little power against a change that moves the pixels along a few directions (a joint's
@@ -71,10 +74,12 @@ from selfcal.threads import limited
 __all__ = [
     "ALPHA",
     "ImageDriftCheck",
+    "ViewNoise",
     "calibration_error_model",
     "check_images",
     "estimate_covariance",
     "image_drift_check",
+    "view_noise",
 ]
 
 ALPHA = 0.01
@@ -234,13 +239,26 @@ def calibration_error_model(cal: BoardCalibrationResult, where: str) -> ToolErro
     return board_error_model_from_json(cal.accuracy, cal.model, where)
 
 
-def calibration_views(cal: BoardCalibrationResult, em: ToolErrorModel, q: np.ndarray,
-                      views: list[tuple[int, np.ndarray, np.ndarray]], *,
-                      where: str = "calibration.json") -> list[ViewJacobians]:  # fmt: skip
-    """The first camera's ``views`` (frame ``f`` into ``q`` (m, n) rad / m, board points ``X``
-    (k, 3) m, detected ``uv`` (k, 2) px) linearised at the calibration ``cal`` (``em`` its
-    error model) with its bounds' noise levels and its per-view pose misfit; ``where`` the
-    calibration's file, for the error a malformed block raises.
+@dataclass(frozen=True)
+class ViewNoise:
+    """A calibration's noise levels for new views (:func:`view_noise`): the white corner noise
+    ``pixel_sigma_px`` (px), the joint read-back ``joint_sigma_rad`` (n,) or None, the per-view
+    pose ``jitter`` (6, 6) (m, rad) or None and the misfit per camera direction
+    ``camera_misfit_px`` (px)."""
+
+    pixel_sigma_px: float
+    joint_sigma_rad: np.ndarray | None
+    jitter: np.ndarray | None
+    camera_misfit_px: float
+
+
+def view_noise(cal: BoardCalibrationResult, where: str = "calibration.json") -> ViewNoise:
+    """The noise the check gives each new view of the calibration ``cal``: its bounds' corner and
+    joint noise and, when its own frames showed a per-view misfit (``accuracy.view_jitter``
+    counted), that jitter, its camera misfit and its white corner noise in place of the bounds'
+    (which holds the misfit's energy: :mod:`selfcal.calibration.board.view_jitter`); a file
+    written before those two keeps the bounds' noise. ``where`` the calibration's file, for the
+    error a malformed block raises.
 
     Raises:
         InputError: the accuracy block's ``view_jitter`` is malformed (names ``where``).
@@ -249,10 +267,29 @@ def calibration_views(cal: BoardCalibrationResult, em: ToolErrorModel, q: np.nda
     js = cal.bounds.joint_sigma_deg
     js_rad = None if js is None else np.radians(np.asarray(js, float))
     found = view_jitter_from_json(cal.accuracy, where)
-    jitter = found.covariance if found is not None and found.counted else None
+    if found is None or not found.counted:
+        return ViewNoise(cal.bounds.pixel_sigma_px, js_rad, None, 0.0)
+    if found.white_px is None:
+        return ViewNoise(cal.bounds.pixel_sigma_px, js_rad, found.covariance, 0.0)
+    return ViewNoise(found.white_px, js_rad, found.covariance, found.camera_misfit_px or 0.0)
+
+
+def calibration_views(cal: BoardCalibrationResult, em: ToolErrorModel, q: np.ndarray,
+                      views: list[tuple[int, np.ndarray, np.ndarray]], *,
+                      where: str = "calibration.json") -> list[ViewJacobians]:  # fmt: skip
+    """The first camera's ``views`` (frame ``f`` into ``q`` (m, n) rad / m, board points ``X``
+    (k, 3) m, detected ``uv`` (k, 2) px) linearised at the calibration ``cal`` (``em`` its
+    error model) with its noise (:func:`view_noise`); ``where`` the calibration's file, for the
+    error a malformed block raises.
+
+    Raises:
+        InputError: the accuracy block's ``view_jitter`` is malformed (names ``where``).
+    """
+    noise = view_noise(cal, where)
     return [view_jacobians(em, cal.cameras[0], q[f], X, uv, eye_to_hand=cal.eye_to_hand,
-                           pixel_sigma_px=cal.bounds.pixel_sigma_px, joint_sigma_rad=js_rad,
-                           jitter=jitter)
+                           pixel_sigma_px=noise.pixel_sigma_px,
+                           joint_sigma_rad=noise.joint_sigma_rad, jitter=noise.jitter,
+                           camera_misfit_px=noise.camera_misfit_px)
             for f, X, uv in views]  # fmt: skip
 
 
