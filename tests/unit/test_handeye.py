@@ -151,19 +151,27 @@ def _convention_csv(path, convention: str, T) -> None:
                     + "".join(",".join(f"{v:.17g}" for v in r) + "\n" for r in rows))  # fmt: skip
 
 
+@pytest.fixture(scope="module")
+def convention_case():
+    """The flange poses, their features and the hand-eye calibration from the poses as arrays
+    (the reference of every convention below: one calibration, not one per convention)."""
+    X, B, F = _scene("eye-to-hand", 10, seed=11)
+    feats = _features(X, B, chain_motions("eye-to-hand", F), 0.2, 3)
+    ref = calibrate_hand_eye(BOARD, feats, F, "eye-to-hand", 1280, 960, free=CAMERA.free,
+                             pose_noise=EXACT, camera="refined").calibrated  # fmt: skip
+    return F, feats, ref
+
+
 @pytest.mark.parametrize(
     "convention", ["quaternion-xyzw", "abb-quaternion", "kuka-abc", "fanuc-wpr", "ur-rotvec"]
 )
-def test_each_rotation_convention_gives_the_same_hand_eye(tmp_path, convention):
+def test_each_rotation_convention_gives_the_same_hand_eye(tmp_path, convention, convention_case):
     from selfcal.io.poses.files import read_poses
 
-    X, B, F = _scene("eye-to-hand", 10, seed=11)
-    feats = _features(X, B, chain_motions("eye-to-hand", F), 0.2, 3)
+    F, feats, ref = convention_case
     _convention_csv(tmp_path / "poses.csv", convention, F)
     rows = read_poses(tmp_path / "poses.csv", "ur-rotvec" if convention == "ur-rotvec" else None)
     assert rows.convention == convention
-    ref = calibrate_hand_eye(BOARD, feats, F, "eye-to-hand", 1280, 960, free=CAMERA.free,
-                             pose_noise=EXACT, camera="refined").calibrated  # fmt: skip
     got = calibrate_hand_eye(BOARD, feats, rows.T_base_flange, "eye-to-hand", 1280, 960,
                              free=CAMERA.free, pose_noise=EXACT, camera="refined").calibrated  # fmt: skip
     np.testing.assert_allclose(got.X, ref.X, atol=1e-9)
