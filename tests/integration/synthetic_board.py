@@ -9,6 +9,7 @@ MCPC parameter perturbed (1 mm, 0.3 deg standard deviation).
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -36,7 +37,13 @@ CAMERA = BrownConrady.from_pinhole(
 )
 """The true camera: an ordinary lens (k1 = -0.2) and the principal point (+12, -8) px off
 centre."""
-_REMAP = LensRemap(CAMERA)
+
+
+@functools.cache
+def _camera_remap() -> LensRemap:
+    """:data:`CAMERA`'s lens remap, built on first use: 1 CPU s that every test process paid
+    at collection when it was built on import, whether or not it rendered."""
+    return LensRemap(CAMERA)
 
 
 @dataclass(frozen=True)
@@ -71,10 +78,11 @@ def postures(lab: Lab, n: int, seed: int) -> np.ndarray:
 
 
 def render(
-    lab: Lab, q: np.ndarray, rng: np.random.Generator, remap: LensRemap = _REMAP
+    lab: Lab, q: np.ndarray, rng: np.random.Generator, remap: LensRemap | None = None
 ) -> np.ndarray:
     """The camera's gray image of the board at posture ``q`` (rad); ``remap``: the lens of
     another camera (``LensRemap(camera)``; default :data:`CAMERA`'s)."""
+    remap = _camera_remap() if remap is None else remap
     T = inv_pose(fk_tool(lab.true_model, q[None])[0]) @ lab.T_world_board
     img = BOARD.image(px_per_mm=6.0)
     ppm, (x0, y0) = img.px_per_m, img.extent_m[:2]

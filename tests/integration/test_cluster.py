@@ -25,7 +25,6 @@ from pathlib import Path
 
 import cloudpickle
 import pytest
-from distributed import LocalCluster
 from threadpoolctl import threadpool_info
 
 from selfcal.cli.main import main
@@ -86,6 +85,9 @@ def test_without_the_extra_cluster_is_an_input_error(tmp_path, monkeypatch, caps
 
 
 def test_a_task_failing_on_every_try_is_recorded(tmp_path, capsys):
+    from distributed import LocalCluster  # here, not at the top: the collection of every test
+    # process paid dask's and tornado's import (0.35 CPU s) for the one default test using it
+
     calls = tmp_path / "calls.txt"
     with LocalCluster(n_workers=1, threads_per_worker=2, processes=False) as lc:
         rows = run_study(
@@ -120,6 +122,8 @@ def test_the_failed_row_keeps_the_settings():
 # ------------------------------------------------------------------------------- slow tier
 @pytest.fixture(scope="module")
 def cluster():
+    from distributed import LocalCluster
+
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=True) as lc:
         yield lc.scheduler_address
 
