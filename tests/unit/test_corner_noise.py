@@ -55,3 +55,17 @@ def test_rendered_rows_table_the_detectors_corner_noise(tmp_path, capsys):
     assert "| ur5e | fits | 8 | 0.060 / 0.070 | 0.020 / 0.18 | inside |" in out
     assert "3 draws per row (1 failed in all)" not in out and "4 draws per row (1 failed" in out
     assert "--render --robots ur5e --models fits --noise-px 8 --jobs 1" in out
+
+
+def test_the_analytic_rows_default_to_60_draws_and_the_rendered_to_30():
+    """The analytic block pools 60 draws a row (30 left the ER-4u's coverage at the far end of a
+    right bound's spread on one seed block: docs/tool-accuracy.md), the rendered one 30; a
+    given count is kept and a count below one refused."""
+    from selfcal.benchmarks.board_accuracy import draws_per_row
+    from selfcal.errors import UsageError
+
+    assert draws_per_row(None, render=False) == 60
+    assert draws_per_row(None, render=True) == 30
+    assert draws_per_row(7, render=True) == 7
+    with pytest.raises(UsageError, match="--draws 0"):
+        draws_per_row(0, render=False)
