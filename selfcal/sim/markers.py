@@ -205,13 +205,15 @@ def _rect_corners(cx: float, cy: float, yaw: float, half_l: float, half_w: float
 
 
 def _rects_overlap(a: np.ndarray, b: np.ndarray) -> bool:
-    """Whether convex polygons ``a`` and ``b`` (4, 2) overlap (separating axis theorem)."""
+    """Whether convex polygons ``a`` and ``b`` (4, 2) overlap (separating axis theorem). The
+    projections' extremes are taken over Python floats (the same values as numpy's reductions,
+    at a fraction of their call cost: the field's placement runs this ~2000 times)."""
     for poly in (a, b):
         for i in range(4):
             e = poly[(i + 1) % 4] - poly[i]
             n = np.array([-e[1], e[0]])
-            pa, pb = a @ n, b @ n
-            if pa.max() < pb.min() or pb.max() < pa.min():
+            pa, pb = (a @ n).tolist(), (b @ n).tolist()
+            if max(pa) < min(pb) or max(pb) < min(pa):
                 return False
     return True
 
@@ -261,7 +263,7 @@ def make_marker_field(
         for i in range(4):
             p0, p1 = poly[i], poly[(i + 1) % 4]
             e = p1 - p0
-            t = np.clip(-(p0 @ e) / (e @ e), 0.0, 1.0)
+            t = min(max(-(p0 @ e) / (e @ e), 0.0), 1.0)  # np.clip's value, without its call
             if np.hypot(*(p0 + t * e)) <= _BASE_CLEARANCE_M:
                 return False
         return not _rects_overlap(poly, np.zeros((4, 2)))
@@ -315,12 +317,15 @@ def make_marker_field(
                 r_out = half * np.sqrt(2.0)
                 if np.hypot(x - bx, y - by) < r_out + bar_r_out and _rects_overlap(poly, bar_poly):
                     continue
-                if any(
-                    np.hypot(x - q[0], y - q[1]) < r_out + halves[i] * np.sqrt(2.0)
-                    and _rects_overlap(poly, polys[i])
-                    for i, q in enumerate(centres)
-                ):
-                    continue
+                # the placed markers near enough to overlap (one vectorised test, the same
+                # values as marker by marker), then the exact test on those alone
+                if centres:
+                    placed = np.asarray(centres)
+                    near = np.hypot(x - placed[:, 0], y - placed[:, 1]) < (
+                        r_out + halves[: len(centres)] * np.sqrt(2.0)
+                    )
+                    if any(_rects_overlap(poly, polys[i]) for i in np.flatnonzero(near)):
+                        continue
                 polys.append(poly)
                 centres.append((float(x), float(y)))
                 yaws.append(float(yaw))
