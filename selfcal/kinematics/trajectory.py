@@ -85,6 +85,15 @@ def visible_counts(
     return rule.points(camera, T_world_cam, points_world, normals_world).sum(axis=1)
 
 
+_DRAWS = 4096
+"""Postures :func:`plan_postures` draws at a time (the random sequence, and with it every plan,
+depends on it)."""
+
+_JUDGED = 512
+"""Postures :func:`plan_postures` judges at a time: the default scenario keeps ~3 % of its draws,
+so its 30 postures are found in the first ~1000 of a batch of :data:`_DRAWS`."""
+
+
 def plan_postures(
     robot: RobotDef,
     model_cam: MCPCModel,
@@ -128,17 +137,24 @@ def plan_postures(
     lo = np.maximum(robot.limits[:, 0], robot.home - span)
     hi = np.minimum(robot.limits[:, 1], robot.home + span)
     found: list[np.ndarray] = []
-    tried = 0
-    while sum(len(f) for f in found) < n_poses and tried < max_candidates:
-        q = rng.uniform(lo, hi, size=(4096, robot.n))
-        tried += len(q)
-        seen = rig.visible_points(
-            PLANNING_VISIBILITY, fk_tool(model_cam, q), points_world, normals_world
-        )
-        keep = (seen.sum(axis=2) >= min_visible).all(axis=1)
-        if collision_ok is not None and keep.any():
-            keep[keep] = np.asarray(collision_ok(q[keep]), dtype=bool)
-        found.append(q[keep])
+    n_found = tried = 0
+    while n_found < n_poses and tried < max_candidates:
+        batch = rng.uniform(lo, hi, size=(_DRAWS, robot.n))
+        tried += len(batch)
+        # judged a slice at a time, up to the slice that completes the plan: the postures kept
+        # are the same (each row is judged alone), the rest of the draws are never judged
+        for start in range(0, _DRAWS, _JUDGED):
+            q = batch[start : start + _JUDGED]
+            seen = rig.visible_points(
+                PLANNING_VISIBILITY, fk_tool(model_cam, q), points_world, normals_world
+            )
+            keep = (seen.sum(axis=2) >= min_visible).all(axis=1)
+            if collision_ok is not None and keep.any():
+                keep[keep] = np.asarray(collision_ok(q[keep]), dtype=bool)
+            found.append(q[keep])
+            n_found += int(keep.sum())
+            if n_found >= n_poses:
+                break
     allq = np.concatenate(found) if found else np.zeros((0, robot.n))
     if len(allq) < n_poses:
         raise DegenerateTrajectoryError(
