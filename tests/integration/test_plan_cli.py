@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import csv
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -28,7 +29,13 @@ def _plan(out, count: int = 6, candidates: int = 60) -> None:
     assert main(argv) == 0
 
 
-def test_plan_files_parse(tmp_path, capsys):
+def test_plan_files_parse(tmp_path, capsys, monkeypatch):
+    import selfcal.plots.plan_figure as plan_figure
+
+    drawn = []  # the figure plan.png is saved from
+    draw = plan_figure.plan_spread_figure
+    monkeypatch.setattr(plan_figure, "plan_spread_figure",
+                        lambda *a: drawn.append(draw(*a)) or drawn[-1])  # fmt: skip
     _plan(tmp_path / "plan")
     line = capsys.readouterr().out.strip()
     assert line.startswith("plan of 6 postures: predicted tool-point error")
@@ -53,6 +60,23 @@ def test_plan_files_parse(tmp_path, capsys):
     assert s.target.board_pose[:3] == [-472.0, -133.0, 3.0]
     with open(tmp_path / "plan/joints.csv") as f:
         assert next(csv.reader(f)) == [f"j{k}" for k in range(1, 7)]
+    # the forecast's draws: the plan's and the random plan's median and 90th percentile, in the
+    # third line, plan.json and the figure's legend
+    fc = doc["forecast_draws"]
+    assert fc["draws"] == 400 and fc["seed"] == 1
+    third = line.splitlines()[2]
+    assert third.startswith("forecast over 400 draws of the arm")
+    legend = " ".join(t.get_text() for t in drawn[0].axes[0].get_legend().get_texts())
+    for key, label in (("plan", "the plan of 6"), ("random", "a random plan of 6")):
+        got = fc[key]
+        assert got["label"] == label
+        said = rf"{label}:\s+median ([0-9.]+) mm, 90th percentile ([0-9.]+) mm"
+        for text in (third, legend):
+            median, p90 = map(float, re.search(said, text).groups())
+            assert abs(median - got["median_mm"]) < 6e-4 and abs(p90 - got["p90_mm"]) < 6e-4
+        assert 0 < got["median_standard_error_mm"] < 0.1 * got["median_mm"]
+        assert 0.0 <= got["smaller_set_share"] <= 1.0
+    assert (tmp_path / "plan/plan.png").stat().st_size > 10_000
 
 
 def test_plan_refuses_a_board_no_posture_sees(tmp_path, capsys):
@@ -63,7 +87,7 @@ def test_plan_refuses_a_board_no_posture_sees(tmp_path, capsys):
 
 
 @pytest.mark.slow
-def test_run_of_the_plan_sees_the_board_in_every_posture(tmp_path):
+def test_run_of_the_plan_sees_the_board_in_every_posture(tmp_path, capsys):
     _plan(tmp_path / "plan", count=10, candidates=200)
     assert main(["run", str(tmp_path / "plan/scenario.toml"), "--out", str(tmp_path / "run"),
                  "--quiet"]) == 0  # fmt: skip
@@ -72,6 +96,20 @@ def test_run_of_the_plan_sees_the_board_in_every_posture(tmp_path):
     per_frame = np.bincount([int(r["index"]) for r in rows], minlength=10)
     n_features = 88  # the ChArUco's 11 x 8 inner corners: every one in every planned view
     assert per_frame.tolist() == [n_features] * 10
+    # --add to the calibrated replay: its last line and plan.json give the forecast's draws of
+    # the dataset's postures and of them with the added ones, plan.png draws them
+    argv = ["plan", "--add", "2", str(tmp_path / "run"), "--candidates", "60", "--out",
+            str(tmp_path / "add"), "--quiet"]  # fmt: skip
+    assert main(argv) == 0
+    last = capsys.readouterr().out.strip().splitlines()[-1]
+    fc = json.loads((tmp_path / "add/plan.json").read_text())["forecast_draws"]
+    for key, label in (("before", "the dataset's 10 postures recorded anew"),
+                       ("after", "with the 2 added")):  # fmt: skip
+        assert fc[key]["label"] == label
+        median, p90 = map(float, re.search(rf"{label}: median ([0-9.]+) mm, 90th percentile "
+                                           r"([0-9.]+) mm", last).groups())  # fmt: skip
+        assert abs(median - fc[key]["median_mm"]) < 6e-4 and abs(p90 - fc[key]["p90_mm"]) < 6e-4
+    assert (tmp_path / "add/plan.png").stat().st_size > 10_000
 
 
 @pytest.mark.slow
@@ -85,6 +123,11 @@ def test_the_docs_plan_line_is_what_the_command_prints(tmp_path, capsys):
     line = capsys.readouterr().out.strip()
     assert line in page
     assert "--board-pose -472,-133,3 --count 12 --keep-out -300,50,0,-100,400,600" in page
+    # the Monte Carlo error the page gives the forecast's percentiles (2 - 4 %)
+    fc = json.loads((tmp_path / "plan/plan.json").read_text())["forecast_draws"]
+    for got in (fc["plan"], fc["random"]):
+        for p in ("median", "p90"):
+            assert 0.01 < got[f"{p}_standard_error_mm"] / got[f"{p}_mm"] < 0.045, got
 
 
 def _plan_e2h(out, *extra: str, count: int = 8, candidates: int = 80) -> int:

@@ -14,7 +14,7 @@ from selfcal.calibration.board.plan.information import board_model, frame_inform
 from selfcal.calibration.board.plan.planner import plan_recording
 from selfcal.calibration.board.plan.predict import Directions, predicted_with_held
 from selfcal.calibration.board.plan.selection import selection_folds
-from selfcal.calibration.board.plan.spread import selection_spread
+from selfcal.calibration.board.plan.spread import plan_spread, selection_spread
 from selfcal.calibration.board.plan.views import feasible
 from selfcal.errors import UsageError
 from selfcal.estimation.joint_report import aligned_tool_weight
@@ -68,6 +68,13 @@ def test_a_seed_repeats_and_shapes_are_checked(cell):
     b, _, _ = _spread(cell, 0.5, draws=20, seed=4)
     assert np.array_equal(a.tool_m, b.tool_m) and np.array_equal(a.chosen, b.chosen)
     setup, model, q, G, dirs = cell
+    # plan_spread (selfcal plan's): the same draws from the setup, each reported once
+    calls = []
+    var = Deviation().variance(model.joint_types)
+    c = plan_spread(setup, q, G, var, 0.5, JS, draws=20, seed=4, on_draw=lambda: calls.append(1))
+    assert np.array_equal(c.tool_m, a.tool_m) and len(calls) == 20
+    with pytest.raises(UsageError, match="frames' features for"):
+        plan_spread(setup, q[:1], G, var, 0.5, seen=[np.arange(4)] * 2, draws=2)
     with pytest.raises(UsageError, match="shapes do not match"):
         selection_spread(model, q, G, np.zeros((len(q), 3, 3)), np.ones(len(q)), 2,
                          np.ones(4), 0.5)  # fmt: skip

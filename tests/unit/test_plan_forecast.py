@@ -1,0 +1,43 @@
+"""What `selfcal plan` shows of its forecast's draws (selfcal/cli/plan_forecast.py,
+selfcal/plots/plan_figure.py): the percentiles' Monte Carlo standard error is the spread a
+percentile of that many draws has from seed to seed, and the figure carries the draws' own
+median and 90th percentile in its legend, laid out without overlaps."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from selfcal.calibration.board.plan.spread import SelectionSpread
+from selfcal.plots.plan_figure import plan_spread_figure, spread_words
+from selfcal.plots.plotting import figure_problems
+
+
+def _spread(rng: np.random.Generator, n: int, scale: float) -> SelectionSpread:
+    tool = scale * np.abs(rng.standard_normal(n)) + scale / 4  # m, skewed as the draws are
+    chosen = np.ones(n, np.int64)
+    chosen[rng.permutation(n)[: n * 3 // 20]] = 0  # 15 % keep the smaller set
+    return SelectionSpread(tool, chosen, ("nominal", "all"))
+
+
+def test_the_standard_error_is_the_seed_to_seed_spread_of_a_percentile():
+    rng = np.random.default_rng(3)
+    runs = [_spread(rng, 400, 1e-3) for _ in range(300)]
+    for p in (50, 90):
+        seen = np.std([r.percentile(p) for r in runs])
+        said = np.median([r.standard_error(p) for r in runs])
+        assert 0.75 < said / seen < 1.33, (p, said, seen)
+
+
+def test_the_figure_shows_the_draws_numbers():
+    rng = np.random.default_rng(5)
+    plan, rand = _spread(rng, 400, 0.6e-3), _spread(rng, 400, 1.7e-3)
+    fig = plan_spread_figure([("the plan of 12", plan), ("a random plan of 12", rand)], 1.408,
+                             "the chain as drawn", "title")  # fmt: skip
+    texts = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
+    for label, sp in (("the plan of 12", plan), ("a random plan of 12", rand)):
+        (mine,) = [t for t in texts if t.startswith(label + ":")]
+        assert spread_words(sp) in mine
+        assert f"median {1000 * np.median(sp.tool_m):.3f} mm" in mine
+        assert "kept in 15 % of draws" in mine
+    assert any("1.408 mm (the chain as drawn)" in t for t in texts)
+    assert figure_problems(fig) == []
