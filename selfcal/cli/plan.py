@@ -13,7 +13,12 @@ from pathlib import Path
 
 import numpy as np
 
-from selfcal.cli.plan_args import check_common, keep_out_boxes, plan_inputs
+from selfcal.cli.plan_args import (
+    check_common,
+    keep_out_boxes,
+    plan_inputs,
+    trajectory_joint_names,
+)
 from selfcal.console.common import CliError, add_json, note_written, parse_floats, writing
 
 __all__ = ["register"]
@@ -223,6 +228,7 @@ def _cmd(args: argparse.Namespace) -> int:
     if args.add:
         return _cmd_add(args)
     robot = load_robot(args.robot)
+    names = trajectory_joint_names(args, robot.joint_names)
     camera = _camera(args)
     board = load_target(args.target)
     if not isinstance(board, Board):
@@ -254,7 +260,7 @@ def _cmd(args: argparse.Namespace) -> int:
         write_text_atomic(out / "joints.csv", joints_csv(plan.q, robot.edge_unit))
         speed = args.speed_deg_s * robot.edge_unit  # rad/s, m/s for a prismatic joint
         write_text_atomic(out / "trajectory.yaml", trajectory_yaml(
-            robot.joint_names, plan.q, robot.home, speed=speed, dwell_s=args.dwell_s))  # fmt: skip
+            names, plan.q, robot.home, speed=speed, dwell_s=args.dwell_s))  # fmt: skip
         shutil.copyfile(args.target, out / "target.toml")
         ref = robot_reference(args.robot)
         write_text_atomic(out / "scenario.toml", scenario_text(
@@ -331,6 +337,7 @@ def _cmd_add(args: argparse.Namespace) -> int:
     dplan = dataset_setup(root, keep_out_boxes(args))
     setup = dplan.setup
     robot = setup.robot
+    names = trajectory_joint_names(args, robot.joint_names)
     js = encoder_sigma(robot)
     opts = PlanOptions(seed=args.seed, candidates=args.candidates,
                        pixel_sigma_px=args.pixel_sigma, joint_sigma=js, deviation=_deviation(args))  # fmt: skip
@@ -352,7 +359,7 @@ def _cmd_add(args: argparse.Namespace) -> int:
     with writing(args, out):
         write_text_atomic(out / "joints.csv", joints_csv(add.q, robot.edge_unit))
         write_text_atomic(out / "trajectory.yaml", trajectory_yaml(
-            robot.joint_names, add.q, robot.home, speed=args.speed_deg_s * robot.edge_unit,
+            names, add.q, robot.home, speed=args.speed_deg_s * robot.edge_unit,
             dwell_s=args.dwell_s))  # fmt: skip
         write_text_atomic(out / "replay.csv", joints_csv(q_all, robot.edge_unit))
         doc_t = target_document(setup.board)  # flat: strings, numbers and lists of numbers
@@ -476,6 +483,10 @@ def register(subparsers) -> argparse.ArgumentParser:
     sp.add_argument("--speed-deg-s", type=float, default=10.0,
                     help="trajectory.yaml: the fastest joint's speed, deg/s (mm/s for a "
                          "prismatic joint; default 10)")  # fmt: skip
+    sp.add_argument("--joint-names", default=None, metavar="N1,N2,...",
+                    help="trajectory.yaml: the controller's joint names, one per joint of the "
+                    "robot file in its order (default: the robot file's; a FollowJointTrajectory "
+                    "goal with names the controller does not know is refused)")  # fmt: skip
     sp.add_argument("--dwell-s", type=float, default=2.0,
                     help="trajectory.yaml: rest at each posture, s (default 2)")  # fmt: skip
     add_json(sp)

@@ -1,5 +1,6 @@
 """What ``selfcal plan``'s commands share (:mod:`selfcal.cli.plan`, :mod:`selfcal.cli.plan_tracker`):
-the keep-out boxes of the command line and plan.json's last keys."""
+the keep-out boxes of the command line, trajectory.yaml's joint names and plan.json's last
+keys."""
 
 from __future__ import annotations
 
@@ -9,7 +10,7 @@ import numpy as np
 
 from selfcal.console.common import CliError, parse_floats
 
-__all__ = ["check_common", "keep_out_boxes", "plan_inputs"]
+__all__ = ["check_common", "keep_out_boxes", "plan_inputs", "trajectory_joint_names"]
 
 
 def plan_inputs(args: argparse.Namespace, boxes: np.ndarray, edge_unit: np.ndarray,
@@ -51,3 +52,19 @@ def check_common(args: argparse.Namespace, count: int) -> None:
         raise CliError(f"--candidates {args.candidates}: fewer than the {count} postures to "
                        "choose from them", fix=f"give --candidates of at least {count} (the "
                        "default 400)")  # fmt: skip
+
+
+def trajectory_joint_names(args: argparse.Namespace, robot_names: tuple[str, ...]) -> list[str]:
+    """trajectory.yaml's ``joint_names``: ``--joint-names`` (the controller's, one per joint of
+    the robot file in its order) or the robot file's ``robot_names``."""
+    if args.joint_names is None:
+        return list(robot_names)
+    names = [n.strip() for n in args.joint_names.split(",")]
+    if len(names) != len(robot_names) or not all(names) or len(set(names)) != len(names):
+        raise CliError(
+            f"--joint-names {args.joint_names}: give {len(robot_names)} different names, one per "
+            f"joint of the robot file in its order ({', '.join(robot_names)})",
+            fix="e.g. a UR ROS driver's: --joint-names shoulder_pan_joint,shoulder_lift_joint,"
+            "elbow_joint,wrist_1_joint,wrist_2_joint,wrist_3_joint",
+        )
+    return names

@@ -10,7 +10,12 @@ from pathlib import Path
 
 import numpy as np
 
-from selfcal.cli.plan_args import check_common, keep_out_boxes, plan_inputs
+from selfcal.cli.plan_args import (
+    check_common,
+    keep_out_boxes,
+    plan_inputs,
+    trajectory_joint_names,
+)
 from selfcal.console.common import CliError, note_written, parse_floats, writing
 
 __all__ = ["CAMERA_OPTIONS", "cmd_tracker"]
@@ -62,6 +67,7 @@ def cmd_tracker(args: argparse.Namespace, deviation) -> int:
 
     _check(args)
     robot = load_robot(args.robot)
+    names = trajectory_joint_names(args, robot.joint_names)
     tool = parse_floats(args.tool_point, 3, "--tool-point (mm)")
     boxes = keep_out_boxes(args)
     setup = TrackerPlanSetup(robot, tool / 1000.0, boxes, args.sigma_mm / 1000.0)
@@ -72,7 +78,7 @@ def cmd_tracker(args: argparse.Namespace, deviation) -> int:
     with writing(args, out):
         write_text_atomic(out / "joints.csv", joints_csv(plan.q, robot.edge_unit))
         write_text_atomic(out / "trajectory.yaml", trajectory_yaml(
-            robot.joint_names, plan.q, robot.home, speed=args.speed_deg_s * robot.edge_unit,
+            names, plan.q, robot.home, speed=args.speed_deg_s * robot.edge_unit,
             dwell_s=args.dwell_s))  # fmt: skip
         doc = {
             "format": "scorbot-selfcal-plan",

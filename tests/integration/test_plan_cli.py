@@ -371,3 +371,31 @@ def test_pixel_sigma_is_a_positive_camera_option(tmp_path, capsys, measure, says
     assert main([*argv, "--pixel-sigma", "0", "--out", str(tmp_path / "p")]) == 2
     assert says in capsys.readouterr().err
     assert not (tmp_path / "p").exists()
+
+
+UR_DRIVER = ["shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint",
+             "wrist_2_joint", "wrist_3_joint"]  # fmt: skip
+"""The joint names of the UR ROS driver's controllers (the robot file's are shoulder_pan, ...)."""
+
+
+def test_the_trajectory_takes_the_controllers_joint_names(tmp_path):
+    """trajectory.yaml named the robot file's joints (ur5e: shoulder_pan, ...), which a UR
+    driver's FollowJointTrajectory controller refuses; --joint-names gives the controller's."""
+    argv = ["plan", "--measure", "tracker", "--robot", "ur5e", "--count", "6", "--candidates",
+            "60", "--joint-names", ",".join(UR_DRIVER), "--out", str(tmp_path / "plan"),
+            "--quiet"]  # fmt: skip
+    assert main(argv) == 0
+    traj = yaml.safe_load((tmp_path / "plan/trajectory.yaml").read_text())
+    assert traj["joint_names"] == UR_DRIVER
+
+
+@pytest.mark.parametrize("names", [UR_DRIVER[:5], UR_DRIVER[:5] + UR_DRIVER[:1]])
+def test_joint_names_are_one_per_joint_before_any_planning(tmp_path, capsys, names):
+    argv = ["plan", "--robot", "ur5e", "--target", BOARD, "--fov-deg", "60", "--resolution",
+            "640x480", "--board-pose", "-472,-133,3", "--joint-names", ",".join(names), "--out",
+            str(tmp_path / "p")]  # fmt: skip
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "give 6 different names, one per joint of the robot file in its order" in err
+    assert "shoulder_pan, shoulder_lift, elbow, wrist_1, wrist_2, wrist_3" in err
+    assert not (tmp_path / "p").exists()
