@@ -47,10 +47,8 @@ __all__ = ["DRAWS", "SelectionSpread", "plan_spread", "selection_spread"]
 DRAWS = 400
 """Draws of :func:`selection_spread` by default (and ``selfcal plan``'s): the 90th percentile of
 400 draws has a standard error near 2 % of it (a 90th percentile's, ``sqrt(0.09 / 400) /
-density``). Measured: five seeds of 400 draws at the UR5e example's plan of 12 and its random
-plan of 12 (docs/plan.md) gave medians and 90th percentiles whose spread over the seeds is
-1.8 - 2.2 % of their mean; :meth:`SelectionSpread.standard_error` estimates it from one run's
-draws."""
+density``); :meth:`SelectionSpread.standard_error` estimates it from one run's draws (2 - 4 %
+of the percentiles of the UR5e example's plan of 12 and its random plan, docs/plan.md)."""
 
 
 @dataclass(frozen=True, eq=False)
