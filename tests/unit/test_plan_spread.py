@@ -78,3 +78,29 @@ def test_a_seed_repeats_and_shapes_are_checked(cell):
     with pytest.raises(UsageError, match="shapes do not match"):
         selection_spread(model, q, G, np.zeros((len(q), 3, 3)), np.ones(len(q)), 2,
                          np.ones(4), 0.5)  # fmt: skip
+
+
+def test_selfcal_plans_draws_show_progress_on_a_terminal(cell, monkeypatch):
+    """`selfcal plan`'s forecast (selfcal/cli/plan_forecast.py) draws a bar on a terminal's
+    stderr, counting the draws, and nothing with --quiet."""
+    import argparse
+    import io
+    import sys
+
+    from selfcal.cli.plan_forecast import DrawSet, forecast_draws
+
+    class Terminal(io.StringIO):
+        def isatty(self) -> bool:
+            return True
+
+    setup, model, q, G, dirs = cell
+    rng = np.random.default_rng(2)
+    workspace = setup.robot.home + rng.uniform(-0.3, 0.3, size=(20, 6))
+    for quiet in (False, True):
+        err = Terminal()
+        monkeypatch.setattr(sys, "stderr", err)
+        args = argparse.Namespace(pixel_sigma=0.5, seed=1, quiet=quiet, json=False)
+        fc = forecast_draws(args, setup, workspace, [DrawSet("plan", "the plan", q)], JS,
+                            Deviation())  # fmt: skip
+        assert fc.draws == 400 and len(fc.sets[0][1].tool_m) == 400
+        assert ("forecast" in err.getvalue() and "400/400" in err.getvalue()) != quiet
