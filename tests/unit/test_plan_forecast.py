@@ -41,3 +41,19 @@ def test_the_figure_shows_the_draws_numbers():
         assert "kept in 15 % of draws" in mine
     assert any("1.408 mm (the chain as drawn)" in t for t in texts)
     assert figure_problems(fig) == []
+
+
+def test_sets_far_apart_are_drawn_on_a_log_axis():
+    """--add to a poorly identified dataset: 40 mm before, 0.2 mm after (the real Nachi set):
+    on a linear axis the after's curve is a vertical line at zero."""
+    rng = np.random.default_rng(7)
+    before, after = _spread(rng, 400, 40e-3), _spread(rng, 400, 0.2e-3)
+    fig = plan_spread_figure([("before", before), ("after", after)], 5.1, "the chain as drawn",
+                             "title")  # fmt: skip
+    ax = fig.axes[0]
+    assert ax.get_xscale() == "log"
+    lo, hi = ax.get_xlim()
+    assert lo < 1000 * after.tool_m.min() and hi > 1000 * before.tool_m.max()
+    assert figure_problems(fig) == []
+    near = plan_spread_figure([("plan", after), ("random", after)], 0.5, "x", "title")
+    assert near.axes[0].get_xscale() == "linear"
