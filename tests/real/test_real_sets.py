@@ -26,6 +26,7 @@ from __future__ import annotations
 import fcntl
 import json
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -350,6 +351,21 @@ def test_plan_add_five_postures_to_the_calibrated_set(name, deviation, outcome, 
     before_ref = doc["nominal_before"]["fair_nominal_tool_rms_mm"]
     assert before_ref >= doc["nominal"]["fair_nominal_tool_rms_mm"], doc
     assert "before, without calibrating" in p.stdout, p.stdout
+    # docs/plan.md quotes the lines (the default deviation) and the forecast's draws (both):
+    # the draws' percentiles within twice their Monte Carlo standard error (they move by more
+    # than their last digit between calibrations that agree to the first lines' digits)
+    page = (Path(__file__).resolve().parents[2] / "docs/plan.md").read_text()
+    lines = p.stdout.replace(str(runs_dir / name / "calib"), "calib").strip().splitlines()
+    assert len(lines) == 4, p.stdout
+    if not deviation:
+        assert all(line in page for line in lines[:3]), p.stdout
+    flat = " ".join(page.split())
+    fc = doc["forecast_draws"]
+    for key in ("before", "after"):
+        said = re.findall(rf"{fc[key]['label']}: median ([0-9.]+) mm, 90th percentile "
+                          r"([0-9.]+) mm", flat)[1 if deviation else 0]  # fmt: skip
+        for v, p_ in zip(map(float, said), ("median", "p90")):
+            assert abs(v - fc[key][f"{p_}_mm"]) < 2 * fc[key][f"{p_}_standard_error_mm"], fc
     q = np.radians(doc["joints_deg"])
     limits = load_robot(real.root / real.robot).limits
     assert len(q) == 5 and np.all((q >= limits[:, 0]) & (q <= limits[:, 1]))
