@@ -88,6 +88,8 @@ def cmd_tracker(args: argparse.Namespace, deviation) -> int:
             "count": len(plan.q),
             "predicted_tool_rms_mm": round(plan.predicted_m * 1000, 4),
             "random_tool_rms_mm": round(plan.random_m * 1000, 4),
+            "greedy_tool_rms_mm": round(plan.greedy_m * 1000, 4),
+            "chosen_by": plan.chosen_by,
             "kinematic_parameters": plan.kept,
             "minimal_parameters": plan.parameters,
             "criterion": (
@@ -111,5 +113,8 @@ def cmd_tracker(args: argparse.Namespace, deviation) -> int:
             f"{plan.predicted_m * 1000:.3f} mm RMS (a random plan of {len(plan.q)}: "
             f"{plan.random_m * 1000:.3f} mm; {plan.kept} of {plan.parameters} parameters "
             f"identified); joint path {np.degrees(plan.path_rad):.0f} deg")  # fmt: skip
+    if not plan.chosen_by.startswith("greedy"):
+        line += (f"; the greedy choice predicted {plan.greedy_m * 1000:.3f} mm, so the plan is "
+                 f"the pool's {plan.chosen_by}")  # fmt: skip
     print(json.dumps(doc) if args.json else line)
     return 0

@@ -246,10 +246,10 @@ def test_the_docs_eye_to_hand_line_is_what_the_command_prints(tmp_path, capsys):
 
 def test_tracker_plan_files_parse(tmp_path, capsys):
     argv = ["plan", "--measure", "tracker", "--robot", "ur5e", "--tool-point", "0,0,50",
-            "--count", "8", "--candidates", "100", "--out", str(tmp_path / "plan"), "--quiet"]  # fmt: skip
+            "--count", "10", "--candidates", "100", "--out", str(tmp_path / "plan"), "--quiet"]  # fmt: skip
     assert main(argv) == 0
     line = capsys.readouterr().out.strip()
-    assert line.startswith("tracker plan of 8 postures: predicted tool-point error")
+    assert line.startswith("tracker plan of 10 postures: predicted tool-point error")
     doc = json.loads((tmp_path / "plan/plan.json").read_text())
     assert doc["kind"] == "tracker" and doc["tool_point_mm"] == [0, 0, 50]
     assert doc["predicted_tool_rms_mm"] < doc["random_tool_rms_mm"]
@@ -260,6 +260,20 @@ def test_tracker_plan_files_parse(tmp_path, capsys):
     assert np.allclose(np.array([p["positions"] for p in traj["points"]])[::2], q, atol=1e-8)
     assert sorted(p.name for p in (tmp_path / "plan").iterdir()) == [
         "joints.csv", "plan.json", "trajectory.yaml"]  # fmt: skip
+
+
+@pytest.mark.parametrize("candidates", ["400", "60"])
+def test_a_tracker_plan_of_fewer_postures_than_the_route_needs_is_refused(
+    tmp_path, capsys, candidates
+):
+    """Issue #30: ``--count 6`` printed 2.441 mm (15.6 mm of 60 candidates) against a random
+    1.063 mm for postures the route refuses to identify from (18 equations, 27 parameters)."""
+    argv = ["plan", "--measure", "tracker", "--robot", "ur5e", "--count", "6", "--candidates",
+            candidates, "--out", str(tmp_path / "p")]  # fmt: skip
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "--count 6: the tracker route" in err and "(--count 10)" in err
+    assert not (tmp_path / "p").exists()
 
 
 @pytest.mark.parametrize("extra", [["--fov-deg", "40"], ["--mount", "eye-in-hand"],
@@ -381,7 +395,7 @@ UR_DRIVER = ["shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_
 def test_the_trajectory_takes_the_controllers_joint_names(tmp_path):
     """trajectory.yaml named the robot file's joints (ur5e: shoulder_pan, ...), which a UR
     driver's FollowJointTrajectory controller refuses; --joint-names gives the controller's."""
-    argv = ["plan", "--measure", "tracker", "--robot", "ur5e", "--count", "6", "--candidates",
+    argv = ["plan", "--measure", "tracker", "--robot", "ur5e", "--count", "10", "--candidates",
             "60", "--joint-names", ",".join(UR_DRIVER), "--out", str(tmp_path / "plan"),
             "--quiet"]  # fmt: skip
     assert main(argv) == 0

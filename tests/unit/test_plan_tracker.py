@@ -8,17 +8,25 @@ import numpy as np
 import pytest
 
 from selfcal.benchmarks.plan.tracker import TOOL_POINT_M, achieved
+from selfcal.calibration.board.deviation import Deviation
+from selfcal.calibration.board.plan.ground import workspace_sample
+from selfcal.calibration.tracker.identify import TrackerIdentificationError, identify_tracker
 from selfcal.calibration.tracker.plan import (
     TrackerPlanSetup,
     kept_by_rank,
+    minimum_count,
     plan_tracker,
+    position_jacobian,
     posture_information,
+    predict_tracker,
 )
-from selfcal.estimation.tracker import ChainLayout, TrackerPositionBlock
+from selfcal.errors import InputError
+from selfcal.estimation.tracker import ChainLayout, TrackerMeasurements, TrackerPositionBlock
 from selfcal.kinematics.forward import fk_tool
 from selfcal.kinematics.keep_out import outside_boxes
-from selfcal.kinematics.mcpc import minimal_indices, param_names
+from selfcal.kinematics.mcpc import minimal_indices, nominal_mcpc, param_names
 from selfcal.robot.definition import load_robot
+from selfcal.sim.actual import perturb
 
 BOX = np.array([[0.2, -0.2, 0.0, 0.6, 0.2, 0.3]])  # m: a fixture in front of the UR5e
 
@@ -50,6 +58,34 @@ def test_postures_reach_do_not_collide_and_beat_random(setup, plan):
     assert np.all((plan.q >= lim[:, 0]) & (plan.q <= lim[:, 1]))
     assert setup.chain.ok(plan.q).all() and outside_boxes(setup.chain, plan.q, BOX).all()
     assert plan.predicted_m < plan.random_m
+
+
+def test_the_plan_is_its_best_set_by_its_own_prediction(setup, plan):
+    """The plan's prediction is that of its postures, and no worse than the greedy choice's or
+    the random plan's by the same criterion (issue #30: at 6 postures the greedy choice was 2-15
+    times worse than random by it)."""
+    F = posture_information(setup, plan.q).sum(axis=0)
+    Jw = position_jacobian(setup.model, plan.workspace)
+    G = np.einsum("wri,wrj->ij", Jw, Jw) / len(Jw)
+    var = Deviation().variance(setup.model.joint_types)
+    assert predict_tracker(setup, plan.q, F, G, var) == pytest.approx(plan.predicted_m, rel=1e-9)
+    assert plan.predicted_m <= min(plan.greedy_m, plan.random_m)
+    assert plan.chosen_by.startswith(("greedy", "random set "))
+
+
+def test_the_planner_refuses_fewer_postures_than_the_route_identifies_from(setup):
+    """6 postures are 18 equations for the UR5e's 27: the route refuses them (it said so when
+    the planner still predicted 2.4 mm for them), and so does the planner, at the same count."""
+    need, rank = minimum_count(setup)
+    assert (need, rank) == (10, 27)
+    pool = workspace_sample(setup, need - 1, seed=3)
+    true = perturb(setup.model, seed=1, translation_m=1e-3, rotation_rad=np.radians(0.5))
+    meas = TrackerMeasurements(q=pool, xyz=fk_tool(true, pool)[:, :3, 3])
+    with pytest.raises(TrackerIdentificationError, match=f"need at least {need} positions"):
+        identify_tracker(nominal_mcpc(setup.robot), meas)
+    for candidates in (400, 60):
+        with pytest.raises(InputError, match=f"refuses fewer than {need} postures"):
+            plan_tracker(setup, 6, seed=1, candidates=candidates)
 
 
 def test_positions_never_identify_the_tool_frames_orientation(setup, plan):

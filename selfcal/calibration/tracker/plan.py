@@ -22,6 +22,19 @@ frame, :mod:`selfcal.calibration.tracker.accuracy`), ``sqrt(trace(G C))`` with
 ``G = mean_w J_w^T J_w``. The greedy choice and the ordering are the board plan's
 (:func:`selfcal.calibration.board.plan.greedy.select_greedy`,
 :func:`~selfcal.calibration.board.plan.path.order_path`).
+The greedy choice lowers the error with every parameter estimated (from a slight
+regularisation, or from the deviation's prior), not the prediction below, which holds what the
+route cannot estimate: with fewer position rows than parameters (e.g. 6 postures, 18 rows for
+30 parameters) its choice can be several times worse by the prediction than random postures
+(issue #30: 2.4 and 15.6 mm against 1.06 mm on the UR5e, 6 postures of 400 and of 60
+candidates). So the plan is the best, by the prediction, of the two greedy choices and the
+pool's disjoint sets of ``count`` in draw order (the first of them the random plan): never worse
+than the random plan by its own criterion; :attr:`TrackerPlan.chosen_by` says which won.
+
+Too few postures: the route refuses to identify from no more position equations than the
+parameters positions identify on the robot (its structural rank, e.g. 27 on the UR5e: at least
+10 postures); a plan of fewer would predict a calibration the route never makes, so the planner
+refuses it the same way (:func:`minimum_count`).
 The prediction of the chosen postures keeps the parameters the route's rank and conditioning
 tests keep at them (:func:`kept_by_rank`: offered in
 :func:`selfcal.calibration.tracker.identify.priority_order`, the route's rank tolerance and
@@ -40,8 +53,9 @@ from selfcal.calibration.board.deviation import Deviation
 from selfcal.calibration.board.plan.greedy import select_greedy
 from selfcal.calibration.board.plan.ground import workspace_sample
 from selfcal.calibration.board.plan.path import order_path, path_length
-from selfcal.calibration.board.plan.predict import predicted_with_held
+from selfcal.calibration.board.plan.predict import predicted_with_held, prior_information
 from selfcal.calibration.tracker.identify import conditioned, priority_order
+from selfcal.errors import InputError
 from selfcal.kinematics.forward import fk_tool, identification_jacobian
 from selfcal.kinematics.identifiability import select_identifiable, triangular_factor
 from selfcal.kinematics.mcpc import MCPCModel, minimal_indices, nominal_mcpc
@@ -56,6 +70,7 @@ __all__ = [
     "position_jacobian",
     "posture_information",
     "kept_by_rank",
+    "minimum_count",
     "predict_tracker",
     "plan_tracker",
 ]
@@ -104,13 +119,28 @@ def posture_information(setup: TrackerPlanSetup, q: np.ndarray) -> np.ndarray:
     return np.einsum("mri,mrj->mij", J, J)
 
 
-def kept_by_rank(setup: TrackerPlanSetup, q: np.ndarray) -> np.ndarray:
-    """(k,) bool: the minimal parameters the tracker route's rank and conditioning tests keep
-    at the postures ``q`` (m, n) rad (module docstring)."""
+def _scaled(setup: TrackerPlanSetup, q: np.ndarray) -> np.ndarray:
+    """The position Jacobian at ``q`` (m, n) rad stacked (3m, k), columns scaled to unit norm
+    (the route's scaling; zero columns left as zero), as the triangular factor."""
     J = position_jacobian(setup.model, q).reshape(-1, minimal_indices(setup.model.joint_types).size)
     col = np.linalg.norm(J, axis=0)
     col = np.where(col > 1e-10 * col.max(initial=0.0), col, np.inf)
-    A = triangular_factor(J / col)
+    return triangular_factor(J / col)
+
+
+def minimum_count(setup: TrackerPlanSetup) -> tuple[int, int]:
+    """``(need, rank)``: the fewest postures the tracker route identifies from, ``3 need >
+    rank``, with ``rank`` the most minimal parameters positions identify: all but the tool
+    frame's three angles, which only re-express the tool point (the route's count on an arm
+    whose tool point is off the last axis, as every real one is; module docstring)."""
+    rank = int(minimal_indices(setup.model.joint_types).size) - 3
+    return rank // 3 + 1, rank
+
+
+def kept_by_rank(setup: TrackerPlanSetup, q: np.ndarray) -> np.ndarray:
+    """(k,) bool: the minimal parameters the tracker route's rank and conditioning tests keep
+    at the postures ``q`` (m, n) rad (module docstring)."""
+    A = _scaled(setup, q)
     order = priority_order(setup.model.joint_types)
     keep, _, _ = select_identifiable(A, order, RANK_RTOL)
     held = [k for k, why in conditioned(A, order, keep).items() if why is not None]
@@ -136,7 +166,10 @@ class TrackerPlan:
     tool-point RMS (m) over the ``workspace`` (w, n) rad; ``q_random`` the pool's first N
     postures and ``random_m`` their prediction; ``kept`` how many minimal parameters the route
     estimates on the plan (of ``parameters``); the pool's size and the joint paths (rad) of the
-    plan and of the random plan, each in its own short order."""
+    plan and of the random plan, each in its own short order; ``greedy_m`` the prediction of
+    the greedy choice (the better of its two starts) and ``chosen_by`` which set the plan is
+    (``"greedy"``, ``"greedy from the prior"`` or ``"random set i of s"``, module
+    docstring)."""
 
     q: np.ndarray
     predicted_m: float
@@ -148,6 +181,8 @@ class TrackerPlan:
     candidates: int
     path_rad: float
     random_path_rad: float
+    greedy_m: float
+    chosen_by: str
 
 
 def plan_tracker(
@@ -162,28 +197,52 @@ def plan_tracker(
     """``count`` postures for ``setup`` (module docstring), deterministic for a ``seed``.
 
     Raises:
-        InputError: fewer free postures than ``count`` or ``workspace``.
+        InputError: fewer free postures than ``count`` or ``workspace``; ``count`` fewer than
+            the route identifies from (:func:`minimum_count`).
     """
     pool = workspace_sample(setup, max(candidates, count), seed=seed)
+    need, rank = minimum_count(setup)
+    if count < need:
+        raise InputError(
+            f"--count {count}: the tracker route identifies from more position equations than "
+            f"the {rank} parameters positions can identify on {setup.robot.name} ({3 * count} "
+            f"equations); it refuses fewer than {need} postures, so no plan of {count} predicts "
+            "a calibration it makes",
+            fix=f"plan at least {need} postures (--count {need}), better 3 times that",
+        )
     qw = workspace_sample(setup, workspace, seed=seed + 1)
     Jw = position_jacobian(setup.model, qw)
     G = np.einsum("wri,wrj->ij", Jw, Jw) / len(qw)
     var = (deviation or Deviation()).variance(setup.model.joint_types)
     F = posture_information(setup, pool)
-    chosen = select_greedy(F, G, 0, count)
+    predict = lambda i: predict_tracker(setup, pool[i], F[i].sum(axis=0), G, var)  # noqa: E731
+    greedy = {
+        "greedy": select_greedy(F, G, 0, count),
+        "greedy from the prior": select_greedy(F, G, 0, count, start=prior_information(var, 0)),
+    }
+    sets = len(pool) // count
+    tried = {name: (predict(i), i) for name, i in greedy.items()}
+    greedy_m = min(m for m, _ in tried.values())
+    for s in range(sets):
+        i = np.arange(s * count, (s + 1) * count)
+        tried[f"random set {s + 1} of {sets}"] = (predict(i), i)
+    chosen_by = min(tried, key=lambda name: tried[name][0])  # the first of equals: greedy
+    predicted_m, chosen = tried[chosen_by]
     home = setup.robot.home
     q = pool[chosen]
     q = q[order_path(q, home)]
     rand = pool[:count]
     return TrackerPlan(
         q=q,
-        predicted_m=predict_tracker(setup, q, F[chosen].sum(axis=0), G, var),
+        predicted_m=predicted_m,
         q_random=rand,
-        random_m=predict_tracker(setup, rand, F[:count].sum(axis=0), G, var),
+        random_m=tried[f"random set 1 of {sets}"][0],
         workspace=qw,
         kept=int(kept_by_rank(setup, q).sum()),
         parameters=int(minimal_indices(setup.model.joint_types).size),
         candidates=len(pool),
         path_rad=path_length(q, home),
         random_path_rad=path_length(rand[order_path(rand, home)], home),
+        greedy_m=greedy_m,
+        chosen_by=chosen_by,
     )
