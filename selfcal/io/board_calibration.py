@@ -42,6 +42,7 @@ m); the MCPC chain's tool is the first camera (OpenCV frame). Keys (units in the
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -393,6 +394,8 @@ def _camera_from(c: Fields) -> CameraModel:
     (w, h), coeffs = res, {k: p.finite(k) for k in lens_names(model)}
     fx, fy, cx, cy = (p.positive("fx"), p.positive("fy"), p.finite("cx"), p.finite("cy"))
     skew, free = p.finite("skew") if p.has("skew") else 0.0, c.strs("free")
+    if not math.isfinite(fy / fx):  # both above zero, one subnormal: the aspect overflows
+        raise p.bad("fx", f"a focal length whose ratio to fy ({fy}) is a finite number", fx)
     try:  # the checks above first: an InputError is a ValueError too
         return camera_model(model, fx=fx, mu=fy / fx, cx=cx, cy=cy, width=w, height=h,
                             coeffs=coeffs, free=free, skew=skew)  # fmt: skip

@@ -366,10 +366,11 @@ def _initial(cam: Fields, model: str) -> dict | None:
         or not isinstance(doc.get("source"), str)
         or not {"fx", "fy", "cx", "cy"} <= set(vals) <= names
         or not all(isinstance(v, (int, float)) and np.isfinite(v) for v in vals.values())
-        or not (vals["fx"] > 0 and vals["fy"] > 0)
+        or not (vals["fx"] > 0 and vals["fy"] > 0 and np.isfinite(vals["fy"] / vals["fx"]))
     ):
         raise cam.bad("initial", f'{{"source": ..., "values": {{fx, fy, cx, cy and lens '
-                      f"coefficients of {model}}}}} with fx, fy > 0", doc)  # fmt: skip
+                      f"coefficients of {model}}}}} with fx, fy > 0 and fy / fx "
+                      "finite", doc)  # fmt: skip
     return dict(doc)
 
 

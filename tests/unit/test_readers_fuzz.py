@@ -398,6 +398,17 @@ def test_board_calibration_json_reader_is_total(data):
     _total(read_board, _file(text, "calibration.json"), board_err, check)
 
 
+def test_a_subnormal_focal_length_is_named():
+    """fx = 5e-324 (above zero, finite) makes fy / fx overflow: the reader names the key (before:
+    a camera with an infinite aspect ratio, found by the fuzz test above)."""
+    _, _, read_board, board_err = _calibration_readers()
+    doc = _board_doc()
+    doc["cameras"][1]["parameters"]["fx"] = 5e-324
+    path = _file(json.dumps(doc), "calibration.json")
+    with pytest.raises(board_err, match=r"fx"):
+        read_board(path)
+
+
 @FUZZ
 @given(st.lists(ODD_JOINT, min_size=1, max_size=2), st.integers(0, 4))
 def test_joint_headers_are_total(er4u, odd, at):
@@ -412,3 +423,19 @@ def test_joint_headers_are_total(er4u, odd, at):
     path = _file("\n".join([header, *rows]) + "\n", "MEASUREMENTS.csv")
     for read in (read_measurements, read_joints):
         _total(lambda p, read=read: read(p, er4u, "deg"), path, TrackerFileError)
+
+
+def test_a_subnormal_initial_focal_length_is_named():
+    """A dataset camera's ``initial`` values with fx = 5e-324: fy / fx overflows, so the entry
+    is refused naming the key (before: accepted, a camera with an infinite aspect ratio)."""
+    from selfcal.errors import InputError
+    from selfcal.io.dataset_info import _initial
+    from selfcal.io.jsonfile import Fields
+
+    def entry(fx: float) -> Fields:
+        values = {"fx": fx, "fy": 800.0, "cx": 320.0, "cy": 240.0}
+        return Fields({"initial": {"source": "test", "values": values}}, "dataset.json", "fix")
+
+    assert _initial(entry(800.0), "pinhole") is not None
+    with pytest.raises(InputError, match="initial"):
+        _initial(entry(5e-324), "pinhole")
