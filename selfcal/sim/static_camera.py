@@ -47,6 +47,8 @@ from selfcal.target.placement import board_on_flange
 from selfcal.transforms import inv_pose, make_pose
 
 __all__ = [
+    "CONFIGURATION_DRAWS",
+    "POSTURE_DRAWS",
     "STATIC_CAMERA",
     "StaticCameraTruth",
     "StaticCameraRenderer",
@@ -157,6 +159,17 @@ def _sees_board(truth: StaticCameraTruth, q: np.ndarray) -> bool:
         == truth.board.n_features  # fmt: skip
 
 
+CONFIGURATION_DRAWS = 50
+"""Arm configurations :func:`plan_static_postures` draws for one of the plan before it gives
+up: a draw near the edge of the arm's window can carry the board out of the camera's view at
+every wrist orientation (the UR5e's cell at trajectory seeds 6 and 29: its shoulder and elbow
+both +7 deg, 50 of the board's 88 corners in view); it is drawn again."""
+
+POSTURE_DRAWS = 200
+"""Wrist orientations :func:`plan_static_postures` draws for one posture of a configuration
+before it draws the configuration again."""
+
+
 def plan_static_postures(
     truth: StaticCameraTruth,
     configurations: int,
@@ -170,32 +183,52 @@ def plan_static_postures(
     (``truth.home``), the arm joints
     (all but the last three) drawn within ``arm_deg`` once per configuration and the wrist's
     last three within ``wrist_deg`` per posture, each kept when the camera sees every feature
-    of the board (within the joint ranges). Deterministic for ``seed``.
+    of the board (within the joint ranges). A configuration where one of its postures finds no
+    such wrist orientation in :data:`POSTURE_DRAWS` draws (the arm carried the board out of
+    view) is dropped with its postures and drawn again, up to :data:`CONFIGURATION_DRAWS`
+    draws per configuration kept. Deterministic for ``seed``.
 
     Raises:
-        InputError: no such posture found in 200 draws per posture (a camera that cannot see
-            the board around the cell's home).
+        InputError: no configuration found in :data:`CONFIGURATION_DRAWS` draws (a camera
+            that cannot see the board around the cell's home), naming what was tried.
     """
     robot = truth.robot
     rng = np.random.default_rng(seed)
     n = robot.n
     arm = np.arange(n) < max(n - 3, 0) if n > 3 else np.ones(n, bool)
     lo, hi = robot.limits[:, 0], robot.limits[:, 1]
-    out = []
-    for _ in range(configurations):
+
+    def configuration() -> list[np.ndarray] | None:
+        """One configuration's postures, or None when one of them finds no view."""
         base = truth.home.astype(float).copy()
         base[arm] += np.radians(rng.uniform(-arm_deg, arm_deg, int(arm.sum())))
+        got = []
         for _ in range(per_configuration):
-            for _ in range(200):
+            for _ in range(POSTURE_DRAWS):
                 q = base.copy()
                 q[~arm] += np.radians(rng.uniform(-wrist_deg, wrist_deg, int((~arm).sum())))
                 if np.all((q >= lo) & (q <= hi)) and _sees_board(truth, q):
-                    out.append(q)
+                    got.append(q)
                     break
             else:
-                raise InputError("no posture around home shows the whole board to the camera",
-                                 fix="a larger camera image or focal length, or a smaller "
-                                 "board")  # fmt: skip
+                return None
+        return got
+
+    out: list[np.ndarray] = []
+    for k in range(configurations):
+        for _ in range(CONFIGURATION_DRAWS):
+            got = configuration()
+            if got is not None:
+                out += got
+                break
+        else:
+            raise InputError(
+                f"no posture around home shows the whole board to the camera: configuration "
+                f"{k + 1} of {configurations} found none in {CONFIGURATION_DRAWS} draws of the arm "
+                f"joints within {arm_deg:g} deg of the cell's home, each with up to "
+                f"{POSTURE_DRAWS} wrist orientations within {wrist_deg:g} deg",
+                fix="a larger camera image or focal length, or a smaller board",
+            )
     return np.array(out)
 
 
