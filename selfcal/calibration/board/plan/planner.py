@@ -22,7 +22,12 @@ information is the sum of each frame's
 that lowers the predicted error most (from a slightly regularised start, so the first few frames
 count while the information is not yet of full rank; a dataset's additions start from its
 frames and the prior of the arm's deviation from its drawing,
-:mod:`selfcal.calibration.board.plan.add`). The prediction of the chosen postures is that of
+:mod:`selfcal.calibration.board.plan.add`), and the exchange
+(:func:`selfcal.calibration.board.plan.greedy.exchange`) then swaps a chosen posture for another
+candidate while a swap lowers the same criterion (eye-in-hand only: on eye-to-hand the first
+exchanged plan tried, the slow CLI test's 10 postures of 200 candidates, replayed rendered by
+``selfcal run``, stopped in the fair nominal's fit, not converged within 100 iterations; that
+mount keeps the greedy choice until this is understood). The prediction of the chosen postures is that of
 the calibration with the parameters its selection keeps, every other one held at the drawing
 (:func:`predict_kept`, :mod:`selfcal.calibration.board.plan.predict`). The chosen postures are
 then ordered for a short joint-space path from home
@@ -40,7 +45,7 @@ import numpy as np
 
 from selfcal.calibration.board.deviation import Deviation
 from selfcal.calibration.board.nominal_fit import placement_indices
-from selfcal.calibration.board.plan.greedy import select_greedy
+from selfcal.calibration.board.plan.greedy import exchange, select_greedy
 from selfcal.calibration.board.plan.ground import PlanOptions, plan_ground
 from selfcal.calibration.board.plan.information import board_model, frame_information
 from selfcal.calibration.board.plan.path import order_path, path_length
@@ -181,6 +186,8 @@ def plan_recording(
     searched = min(len(pool), SEARCH_FACTOR * count)
     home = setup.robot.home
     chosen = select_greedy(F, G, n_cam, count)
+    if not setup.eye_to_hand:  # eye-to-hand: the greedy choice (module docstring)
+        chosen = exchange(F, G, n_cam, chosen)
     chosen = chosen[order_path(pool[chosen], home)]
     q = pool[chosen]
     rand = pool[:count]
@@ -205,14 +212,16 @@ def plan_recording(
         return Selected(got, fc, rival), ref
 
     def first(n: int) -> tuple[Selected, NominalReference]:
-        """The greedy choice's first ``n`` postures (its first ``count`` are the plan)."""
-        idx = picks[:n][order_path(pool[picks[:n]], home)]
+        """The greedy choice's first ``n`` postures, eye-in-hand improved by swaps (the plan of
+        ``n``)."""
+        idx = picks[:n] if setup.eye_to_hand else exchange(F, G, n_cam, picks[:n])
+        idx = idx[order_path(pool[idx], home)]
         return selected(idx)
 
     sel, ref = selected(chosen)
     to_beat = None
     if not sel.beats(ref):
-        picks = select_greedy(F, G, n_cam, searched)  # one by one: its first count are the plan
+        picks = select_greedy(F, G, n_cam, searched)  # one by one: the first n start a plan of n
         to_beat = count_to_beat(count, searched, first)
     return RecordingPlan(
         q=q,
