@@ -36,7 +36,7 @@ def test_the_documented_recording_imports_and_calibrates(tmp_path, monkeypatch, 
     monkeypatch.chdir(tmp_path)
     board = str(models_dir() / "targets/charuco.toml")
     assert main(["plan", "--robot", "ur5e", "--target", board, "--fov-deg", "60",
-                 "--resolution", "640x480", "--board-pose", "-472,-133,3", "--count", "6",
+                 "--resolution", "640x480", "--board-pose", "-472,-133,3", "--count", "12",
                  "--candidates", "60", "--keep-out", "-300,50,0,-100,400,600", "--out",
                  "runs/plan-ur5e", "--quiet"]) == 0  # fmt: skip
     scenario = Path("runs/plan-ur5e/scenario.toml")
@@ -56,7 +56,7 @@ def test_the_documented_recording_imports_and_calibrates(tmp_path, monkeypatch, 
     for argv in commands:
         assert main([*argv, "--quiet"]) == 0, argv
     doc = json.loads(Path("my-dataset/calibration.json").read_text())
-    assert len(logged) == 6 and doc["dataset"]["frames_used"] == 6  # every planned posture
+    assert len(logged) == 12 and doc["dataset"]["frames_used"] == 12  # every planned posture
     # rendered corners: 0.057 px on the example's 12 postures (measured), the nominal 1.1 px
     assert doc["reprojection_rms_px"] < 0.2 < doc["nominal_reprojection_rms_px"]
     capsys.readouterr()
