@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import json
 import shutil
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +21,7 @@ from selfcal.cli.plan_args import (
     trajectory_joint_names,
 )
 from selfcal.console.common import CliError, add_json, note_written, parse_floats, writing
+from selfcal.errors import SelfCalWarning
 
 __all__ = ["register"]
 
@@ -254,6 +256,8 @@ def _cmd(args: argparse.Namespace) -> int:
     fc = forecast_draws(args, setup, plan.workspace, [
         DrawSet("plan", f"the plan of {n}", plan.q),
         DrawSet("random", f"a random plan of {n}", plan.q_random)], js, _deviation(args))  # fmt: skip
+    if (behind := fc.behind("plan", "random")) is not None:
+        warnings.warn(behind, SelfCalWarning, stacklevel=2)
 
     out = Path(args.out)
     with writing(args, out):

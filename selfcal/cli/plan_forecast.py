@@ -56,6 +56,19 @@ class Forecast:
         return (f"forecast over {self.draws} draws of the arm within its deviation and of the "
                 "noise, the selection deciding in each, " + "; ".join(parts))  # fmt: skip
 
+    def behind(self, key: str, other: str) -> str | None:
+        """A sentence for a warning when the set ``key``'s median (the plan's) is not below the
+        set ``other``'s (a random plan's): by the draws the planner's choice does not pay at this
+        size; None when it is below."""
+        by = {s.key: (s, sp) for s, sp in self.sets}
+        (a, sa), (b, sb) = by[key], by[other]
+        ma, mb = sa.percentile(50), sb.percentile(50)
+        if ma < mb:
+            return None
+        return (f"the forecast puts {a.label} (median {1000 * ma:.3f} mm) no better than "
+                f"{b.label} (median {1000 * mb:.3f} mm): with so few postures the planner's "
+                "choice does not pay; plan more postures (--count)")  # fmt: skip
+
     def section(self) -> dict:
         """plan.json's ``forecast_draws``: per set the median and 90th percentile (mm), their
         Monte Carlo standard errors and the share of draws keeping a smaller set."""

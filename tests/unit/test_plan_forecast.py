@@ -57,3 +57,19 @@ def test_sets_far_apart_are_drawn_on_a_log_axis():
     assert figure_problems(fig) == []
     near = plan_spread_figure([("plan", after), ("random", after)], 0.5, "x", "title")
     assert near.axes[0].get_xscale() == "linear"
+
+
+def test_a_plan_behind_the_random_one_by_the_draws_is_named():
+    """Forecast.behind: a sentence with both medians when the plan's median is not below the
+    random plan's (selfcal plan warns with it), None when it is."""
+    from selfcal.cli.plan_forecast import DrawSet, Forecast
+
+    rng = np.random.default_rng(5)
+    q = np.zeros((6, 6))
+    small, large = _spread(rng, 400, 1e-3), _spread(rng, 400, 3e-3)
+    plan, rand = DrawSet("plan", "the plan of 6", q), DrawSet("random", "a random plan of 6", q)
+    assert Forecast(((plan, small), (rand, large)), 400, 0).behind("plan", "random") is None
+    said = Forecast(((plan, large), (rand, small)), 400, 0).behind("plan", "random")
+    assert said is not None and "the plan of 6" in said and "--count" in said
+    assert f"{1000 * large.percentile(50):.3f} mm" in said
+    assert f"{1000 * small.percentile(50):.3f} mm" in said
