@@ -352,8 +352,11 @@ def test_plan_add_five_postures_to_the_calibrated_set(name, deviation, outcome, 
     assert before_ref >= doc["nominal"]["fair_nominal_tool_rms_mm"], doc
     assert "before, without calibrating" in p.stdout, p.stdout
     # docs/plan.md quotes the lines (the default deviation) and the forecast's draws (both):
-    # the draws' percentiles within twice their Monte Carlo standard error (they move by more
-    # than their last digit between calibrations that agree to the first lines' digits)
+    # the draws' percentiles as the page's within the Monte Carlo error of a difference of two
+    # runs (they move by more than their last digit between calibrations that agree to the
+    # first lines' digits): sqrt 2 standard errors, 3.5 of them for the 8 comparisons of both
+    # runs (2 standard errors failed a clean-clone CI: 0.1568 against the page's 0.164 mm,
+    # standard error 0.0034)
     page = (Path(__file__).resolve().parents[2] / "docs/plan.md").read_text()
     lines = p.stdout.replace(str(runs_dir / name / "calib"), "calib").strip().splitlines()
     assert len(lines) == 4, p.stdout
@@ -365,7 +368,8 @@ def test_plan_add_five_postures_to_the_calibrated_set(name, deviation, outcome, 
         said = re.findall(rf"{fc[key]['label']}: median ([0-9.]+) mm, 90th percentile "
                           r"([0-9.]+) mm", flat)[1 if deviation else 0]  # fmt: skip
         for v, p_ in zip(map(float, said), ("median", "p90")):
-            assert abs(v - fc[key][f"{p_}_mm"]) < 2 * fc[key][f"{p_}_standard_error_mm"], fc
+            se = fc[key][f"{p_}_standard_error_mm"]
+            assert abs(v - fc[key][f"{p_}_mm"]) < 3.5 * np.sqrt(2) * se, fc
     q = np.radians(doc["joints_deg"])
     limits = load_robot(real.root / real.robot).limits
     assert len(q) == 5 and np.all((q >= limits[:, 0]) & (q <= limits[:, 1]))
