@@ -155,10 +155,10 @@ def static_truth_report(root: Path, cal: BoardCalibrationResult, truth: Truth) -
         failures.append(f"the calibrated chain predicts the validation postures worse than the "
                         f"fair nominal in both figures ({figures}): the calibration is wrong")  # fmt: skip
     else:
+        verdict = cal.cv_verdict()
         for what, no in (("in the camera frame", no_gain(p_cal, p_nom)),
                          ("in the kinematic part", no_gain(a_cal, a_nom))):  # fmt: skip
             if no:
-                verdict = cal.cv_verdict()
                 notes.append(f"NO GAIN {what}: the calibrated chain predicts the validation "
                              f"postures no better there than the fair nominal ({figures})"
                              + ("" if verdict is None else f"; {verdict}"))  # fmt: skip
@@ -201,7 +201,7 @@ def _markdown(r: dict) -> str:
     v = r["validation"]["board_pose_in_camera"]
     lines = ["# Eye-to-hand calibration against the truth", "",
              f"Status: **{r['status']}**"
-             + "".join(f"\n- {f}" for f in r["failures"] + r.get("notes", [])), "",
+             + "".join(f"\n- {f}" for f in r["failures"] + r["notes"]), "",
              f"Reprojection RMS {r['reprojection_rms_px']:.3f} px over {r['frames']['used']} of "
              f"{r['frames']['planned']} frames.", "", "## Camera", "",
              "| parameter | estimate | truth | std | z |", "|---|---|---|---|---|"]  # fmt: skip
