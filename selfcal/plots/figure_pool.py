@@ -96,12 +96,35 @@ def _warm_up(parent: int) -> None:
     load the default font, the part of a first figure that does not depend on its data."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     _die_with_parent(parent)
+    _skip_set_docstrings()
     import selfcal.plots.job_figures  # noqa: F401 - unpickles the figures' data
     from selfcal.plots.plotting import new_figure
 
     fig = new_figure(1.0, 1.0)
     fig.text(0.5, 0.5, "0.1")
     fig.canvas.draw()
+
+
+def _skip_set_docstrings() -> None:
+    """In the worker, before matplotlib's artists load: every ``Artist`` subclass writes the
+    docstring of its ``set()`` when it is defined (``matplotlib.artist.kwdoc``, the property
+    table ``help()`` shows), 0.12 of the 0.6 s CPU that loading matplotlib and the font took
+    the worker (2 loaded cores). The worker only draws and never shows a docstring: here
+    ``kwdoc`` writes none. ``set()`` itself, its signature and every drawing are unchanged (the
+    same files: ``tests/unit/test_figure_pool.py``). Artists already loaded (a test process
+    that forks the worker) keep theirs; without ``kwdoc`` (another matplotlib) nothing
+    changes."""
+    try:
+        import matplotlib.artist as artist  # loads no artist subclass yet
+    except ImportError:  # pragma: no cover - matplotlib is a dependency
+        return
+    if callable(getattr(artist, "kwdoc", None)):
+        artist.kwdoc = _no_kwdoc
+
+
+def _no_kwdoc(artist: object) -> str:
+    """``matplotlib.artist.kwdoc`` in the figure worker: no property table."""
+    return ""
 
 
 def _die_with_parent(parent: int) -> None:

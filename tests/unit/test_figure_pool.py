@@ -115,6 +115,26 @@ def test_a_dead_worker_loses_no_figure(tmp_path):
         assert later.wait().is_file()  # and the figures after it are drawn here too
 
 
+def test_the_worker_writes_no_set_docstrings_and_set_still_works():
+    """The worker's matplotlib (selfcal.plots.figure_pool._skip_set_docstrings, before its
+    artists load) writes no property table into ``set()``'s docstring, the import CPU it
+    saves; ``set()`` and its signature are as before. In a new process: this one has its
+    artists loaded."""
+    code = (
+        "import inspect\n"
+        "from selfcal.plots.figure_pool import _skip_set_docstrings\n"
+        "_skip_set_docstrings()\n"
+        "from matplotlib.lines import Line2D\n"
+        "line = Line2D([0.0], [0.0])\n"
+        "line.set(color='r', linewidth=3.0)\n"
+        "assert (line.get_color(), line.get_linewidth()) == ('r', 3.0)\n"
+        "assert 'linewidth' in inspect.signature(Line2D.set).parameters\n"
+        "assert 'drawstyle' not in Line2D.set.__doc__, Line2D.set.__doc__\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+
+
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="PR_SET_PDEATHSIG is Linux's")
 def test_the_worker_ends_with_a_killed_parent():
     """An idle worker of a parent killed before it closed the pool ends too (it held the
