@@ -93,7 +93,7 @@ class StereoRenderer:
         self._rects = [mujoco.MjrRect(0, 0, w, h) for w, h in sizes]
         self._gl = mujoco.GLContext(gw, gh)
         self._gl.make_current()
-        self._ctx = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_100)
+        self._ctx = _context(model)
         mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, self._ctx)
         self._bufs = [np.empty((h, w, 3), dtype=np.uint8) for w, h in sizes]
 
@@ -172,6 +172,23 @@ class StereoRenderer:
             self.close()
         except Exception:  # noqa: BLE001 - interpreter shutdown: GL may already be gone
             pass
+
+
+def _context(model: mujoco.MjModel) -> mujoco.MjrContext:
+    """The ``MjrContext`` of ``model`` (the GL context current). Without a light that casts a
+    shadow (the scenes of ``selfcal.sim.scene`` unless ``shadows``), ``mjr_render`` draws no
+    shadow map: the context is made without one (``vis.quality.shadowsize`` 0 while it is made,
+    then restored), where MuJoCo allocated a 4096 x 4096 depth texture for it (64 MB; 16,000
+    page faults and ~0.05 s CPU of the renderer's start under Mesa llvmpipe). The same
+    pixels."""
+    quality = model.vis.quality
+    size = int(quality.shadowsize)
+    if not np.any(model.light_castshadow):
+        quality.shadowsize = 0
+    try:
+        return mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_100)
+    finally:
+        quality.shadowsize = size
 
 
 def noise_field(shape: tuple[int, ...], sigma: float, rng: np.random.Generator) -> np.ndarray:
