@@ -88,6 +88,27 @@ def test_the_planner_refuses_fewer_postures_than_the_route_identifies_from(setup
             plan_tracker(setup, 6, seed=1, candidates=candidates)
 
 
+@pytest.mark.parametrize("robot", ["ur5e", "er4u-vendor"])
+@pytest.mark.parametrize("truth", ["nominal", "measured"])
+def test_the_planner_counts_by_the_routes_rule_with_the_reflector_on_the_flange(robot, truth):
+    """The planner's refusal and the route's error are one rule (rows.rows_needed). With the
+    reflector at the flange's origin (--tool-point's default, on the last joint's axis) the route
+    asked 9 positions of a nominal arm's data on the UR5e (7 on the ER-4u) and 10 (8) of a
+    measured arm's: the count now is the generic one, the same for both and for the planner."""
+    setup = TrackerPlanSetup(load_robot(robot), np.zeros(3))
+    need, rank = minimum_count(setup)
+    assert rank == minimal_indices(setup.model.joint_types).size - 3
+    true = setup.model
+    if truth == "measured":
+        true = perturb(true, seed=2, translation_m=1e-3, rotation_rad=np.radians(0.5))
+    pool = workspace_sample(setup, need, seed=4)
+    meas = TrackerMeasurements(q=pool[:-1], xyz=fk_tool(true, pool[:-1])[:, :3, 3])
+    with pytest.raises(
+        TrackerIdentificationError, match=f"{rank} parameters .* need at least {need} positions"
+    ):
+        identify_tracker(nominal_mcpc(setup.robot), meas)
+
+
 def test_positions_never_identify_the_tool_frames_orientation(setup, plan):
     names = param_names(minimal_indices(setup.model.joint_types))
     held = {n for n, k in zip(names, kept_by_rank(setup, plan.q), strict=True) if not k}

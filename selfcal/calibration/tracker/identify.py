@@ -24,7 +24,8 @@ Steps:
    is held for conditioning (:func:`conditioned`, the board route's test).
 3. Too few measurements: the count of parameters these kinds of measurement identify on this
    chain (the rank at well-spread random configurations) must be below the number of equations;
-   otherwise :class:`TrackerIdentificationError` says how many rows are needed. When the data
+   otherwise :class:`TrackerIdentificationError` says how many rows are needed (the one rule:
+   :func:`selfcal.calibration.tracker.rows.rows_needed`, which the planner asks too). When the data
    reach that rank their selection is the structural one; only for poorly excited data does the
    selection also run at the well-spread configurations (which parameters the kinds cannot see,
    which these configurations miss).
@@ -46,24 +47,26 @@ import numpy as np
 
 from selfcal.calibration.board.parameter_pool import ColumnSpan
 from selfcal.calibration.identify import IdentificationWarning
+from selfcal.calibration.tracker.rows import (
+    configurations,
+    considered_mask,
+    dense_jacobian,
+    measurement_blocks,
+    rows_needed_at,
+    scaled_factor,
+)
 from selfcal.errors import EstimationError, InputError
 from selfcal.estimation.tracker import (
     ChainLayout,
     TrackerDistanceBlock,
     TrackerMeasurements,
-    TrackerPoseBlock,
-    TrackerPositionBlock,
     initial_placement,
     tracker_terms,
 )
 from selfcal.estimation.tracker_start import pose_placement
 from selfcal.kinematics.alignment import wrap_params
 from selfcal.kinematics.forward import fk_tool
-from selfcal.kinematics.identifiability import (
-    select_identifiable,
-    still_joints,
-    triangular_factor,
-)
+from selfcal.kinematics.identifiability import select_identifiable, still_joints, triangular_factor
 from selfcal.kinematics.mcpc import MCPCModel, minimal_indices, param_is_angle, param_names
 from selfcal.kinematics.parameter_estimates import ParameterEstimates
 from selfcal.solver import ParameterBlock, Problem, SolverOptions, solve
@@ -107,51 +110,6 @@ def priority_order(joint_types: tuple[str, ...]) -> np.ndarray:
     return np.argsort(group, kind="stable")
 
 
-def _blocks(layout: ChainLayout, meas: TrackerMeasurements, sig: tuple[float, float, float]):
-    st, sr, sd = sig
-    blocks: list = []
-    if meas.m and meas.R is not None:
-        T = make_pose(meas.R, meas.xyz)
-        blocks.append(TrackerPoseBlock(layout, meas.q, T, st, sr))
-    elif meas.m:
-        blocks.append(TrackerPositionBlock(layout, meas.q, meas.xyz, st))
-    if meas.k:
-        blocks.append(TrackerDistanceBlock(layout, *meas.distances(), sd))
-    return blocks
-
-
-def _dense_jacobian(blocks: list, values: dict, flat: np.ndarray) -> np.ndarray:
-    """The weighted Jacobian (rows, len(flat)) of the blocks w.r.t. the coordinates ``flat`` of
-    their chain block (over a whole-chain layout: the flat MCPC parameters), dense: small
-    problems need no sparse assembly."""
-    out = []
-    for b in blocks:
-        (piece,) = b.evaluate(values, True).pieces
-        k, d, c = piece.J.shape
-        out.append(piece.J.reshape(k * d, c)[:, flat])
-    return np.vstack(out)
-
-
-def _scaled_factor(
-    model: MCPCModel, meas: TrackerMeasurements, sig, cons: np.ndarray
-) -> np.ndarray:
-    """The triangular factor of the blocks' weighted Jacobian w.r.t. the minimal parameters
-    ``cons`` (positions into the minimal set), each column scaled to unit norm (columns that are
-    zero up to rounding, e.g. the base for distances, stay zero)."""
-    idx = minimal_indices(model.joint_types)
-    blocks = _blocks(ChainLayout.whole(model), meas, sig)
-    J = _dense_jacobian(blocks, {"mcpc": model.params.reshape(-1)}, idx[cons])
-    col = np.linalg.norm(J, axis=0)
-    col = np.where(col > 1e-10 * col.max(initial=0.0), col, np.inf)
-    return triangular_factor(J / col)
-
-
-def _numerical_rank(A: np.ndarray, rank_rtol: float) -> int:
-    """Singular values above ``rank_rtol`` sigma_max (the rule of :func:`select_identifiable`)."""
-    s = np.linalg.svd(A, compute_uv=False)
-    return int(np.sum(s > rank_rtol * s[0])) if s.size else 0
-
-
 def conditioned(A: np.ndarray, order: np.ndarray, keep: np.ndarray) -> dict[int, str | None]:
     """The conditioning test of the columns ``keep`` (k,) bool of ``A`` (e.g. those the rank
     test keeps), offered in ``order``: column -> None when kept, else why not. The board
@@ -179,39 +137,6 @@ def _select(
     reasons = conditioned(A, order, keep)
     cond = {int(cons[k]): why for k, why in reasons.items()}
     return mask, rank, cond
-
-
-def _configurations(meas: TrackerMeasurements) -> np.ndarray:
-    """Every configuration (rad / m, (k, n)) the measurements were taken at: the rows' and
-    both ends of every distance."""
-    return np.concatenate([a for a in (meas.q, meas.q_a, meas.q_b) if a is not None and len(a)])
-
-
-def _spread(model: MCPCModel, meas: TrackerMeasurements, p: int) -> TrackerMeasurements:
-    """Noise-free measurements of the same kinds at ``p + 10`` well-spread random
-    configurations (revolute joints over a full turn, prismatic ones over the data's range
-    +- 0.1 m), deterministic: what these kinds of measurement identify on this chain."""
-    rng = np.random.default_rng(0)
-    rows = p + 10
-    data_q = _configurations(meas)
-    lo, hi = data_q.min(axis=0) - 0.1, data_q.max(axis=0) + 0.1
-    rev = np.array([t == "revolute" for t in model.joint_types])
-
-    def draw(k: int) -> np.ndarray:
-        return np.where(
-            rev, rng.uniform(-np.pi, np.pi, (k, model.n)), rng.uniform(lo, hi, (k, model.n))
-        )
-
-    q = draw(rows)
-    T = fk_tool(model, q)
-    return TrackerMeasurements(
-        q=q if meas.m else q[:0],
-        xyz=T[:, :3, 3] if meas.m else np.zeros((0, 3)),
-        R=T[:, :3, :3] if meas.R is not None else None,
-        q_a=draw(rows) if meas.k else None,
-        q_b=draw(rows) if meas.k else None,
-        d=np.ones(rows) if meas.k else None,
-    )
 
 
 def placed_miss_mm(prob: Problem, blocks: list) -> float:
@@ -346,12 +271,7 @@ def identify_tracker(
                          fix="check the robot file the model comes from")  # fmt: skip
     idx = minimal_indices(model.joint_types)
     names = tuple(param_names(idx))
-    unknown = [h for h in hold if h not in names]
-    if unknown:
-        raise InputError(
-            f"cannot hold {unknown}: not minimal parameters of this robot",
-            fix=f"name parameters among {', '.join(names)}",
-        )
+    considered = considered_mask(model, hold)
     notes: list[str] = []
     sig = (float(sigma_t_m), float(sigma_r_rad), float(sigma_d_m))
 
@@ -381,22 +301,17 @@ def identify_tracker(
     )
 
     # 2./3. identifiability and the count of equations
-    considered = np.array([nm not in set(hold) for nm in names])
     cons = np.flatnonzero(considered)
-    A_spread = _scaled_factor(start, _spread(start, local, cons.size), sig, cons)
-    p_struct = _numerical_rank(A_spread, rank_rtol)
-    n_eq = meas.equations()
-    if n_eq <= p_struct:
-        per = 6 if meas.R is not None else 3 if meas.m else 1
-        what = "poses" if meas.R is not None else "positions" if meas.m else "distances"
-        need = (p_struct - (n_eq - per * (meas.m if meas.m else meas.k))) // per + 1
+    count, A_spread = rows_needed_at(start, local, sig, cons, rank_rtol)
+    p_struct, n_eq, need, what = count.rank, count.equations, count.need, count.what
+    if not count.enough:
         raise TrackerIdentificationError(
             f"too few measurements: {n_eq} equations for the {p_struct} parameters that "
             f"{what} identify on this robot; need at least {need} {what} "
             f"(more than {p_struct} equations), better 3 times that",
             fix=f"measure at least {need} well-spread configurations that move every joint",
         )
-    mask, rank, cond = _select(start, _scaled_factor(start, local, sig, cons), cons, rank_rtol)
+    mask, rank, cond = _select(start, scaled_factor(start, local, sig, cons), cons, rank_rtol)
     # Data that reach the structural rank keep the structural set: a structural dependency
     # holds at every configuration, so the ordered selection rejects the same columns. Only
     # poorly excited data need the selection at the well-spread configurations to tell the
@@ -412,7 +327,7 @@ def identify_tracker(
     if rank < p_struct:
         text = (
             f"rank {rank} < {p_struct}: {lost} cannot be identified from these configurations "
-            f"({still_joints(_configurations(meas), start.joint_types)}); held at nominal"
+            f"({still_joints(configurations(meas), start.joint_types)}); held at nominal"
         )
         notes.append(text)
         warnings.warn(text, IdentificationWarning, stacklevel=2)
@@ -430,7 +345,7 @@ def identify_tracker(
     coords = np.full(6 * (start.n + 1), -1, np.int64)
     coords[est_flat] = np.arange(est_flat.size)
     layout = ChainLayout(start, "mcpc", coords)
-    blocks = _blocks(layout, local, sig)
+    blocks = measurement_blocks(layout, local, sig)
     prob = Problem([ParameterBlock("mcpc", start.params.reshape(-1)[est_flat])], blocks)
     sol = solve(prob, SolverOptions(tol=tol, max_iterations=max_iterations))
     if not sol.converged:
@@ -443,7 +358,7 @@ def identify_tracker(
             TrackerIdentificationError,
         )  # fmt: skip
     fit = layout.chain(sol.values)
-    J = _dense_jacobian(blocks, sol.values, np.arange(est_flat.size))
+    J = dense_jacobian(blocks, sol.values, np.arange(est_flat.size))
     dof = max(J.shape[0] - J.shape[1], 1)
     sigma0 = float(np.sqrt(2.0 * sol.cost / dof))
     col = np.linalg.norm(J, axis=0)

@@ -32,9 +32,10 @@ pool's disjoint sets of ``count`` in draw order (the first of them the random pl
 than the random plan by its own criterion; :attr:`TrackerPlan.chosen_by` says which won.
 
 Too few postures: the route refuses to identify from no more position equations than the
-parameters positions identify on the robot (its structural rank, e.g. 27 on the UR5e: at least
-10 postures); a plan of fewer would predict a calibration the route never makes, so the planner
-refuses it the same way (:func:`minimum_count`).
+parameters positions identify on the robot (its structural rank, e.g. 27 on the UR5e: at
+least 10 postures); a plan of fewer would predict a calibration the route never makes, so the planner
+refuses it by the route's own rule (:func:`minimum_count`:
+:func:`selfcal.calibration.tracker.rows.rows_needed`).
 The prediction of the chosen postures keeps the parameters the route's rank and conditioning
 tests keep at them (:func:`kept_by_rank`: offered in
 :func:`selfcal.calibration.tracker.identify.priority_order`, the route's rank tolerance and
@@ -55,7 +56,9 @@ from selfcal.calibration.board.plan.ground import workspace_sample
 from selfcal.calibration.board.plan.path import order_path, path_length
 from selfcal.calibration.board.plan.predict import predicted_with_held, prior_information
 from selfcal.calibration.tracker.identify import conditioned, priority_order
+from selfcal.calibration.tracker.rows import rows_needed
 from selfcal.errors import InputError
+from selfcal.estimation.tracker import TrackerMeasurements
 from selfcal.kinematics.forward import fk_tool, identification_jacobian
 from selfcal.kinematics.identifiability import select_identifiable, triangular_factor
 from selfcal.kinematics.mcpc import MCPCModel, minimal_indices, nominal_mcpc
@@ -129,12 +132,17 @@ def _scaled(setup: TrackerPlanSetup, q: np.ndarray) -> np.ndarray:
 
 
 def minimum_count(setup: TrackerPlanSetup) -> tuple[int, int]:
-    """``(need, rank)``: the fewest postures the tracker route identifies from, ``3 need >
-    rank``, with ``rank`` the most minimal parameters positions identify: all but the tool
-    frame's three angles, which only re-express the tool point (the route's count on an arm
-    whose tool point is off the last axis, as every real one is; module docstring)."""
-    rank = int(minimal_indices(setup.model.joint_types).size) - 3
-    return rank // 3 + 1, rank
+    """``(need, rank)``: the fewest postures the tracker route identifies from (``3 need >
+    rank``) and ``rank`` the count of minimal parameters positions identify on the arm with the
+    setup's tool point, by the route's own rule
+    (:func:`selfcal.calibration.tracker.rows.rows_needed`, its rank tolerance and the setup's
+    noise) at the nominal chain with the setup's tool point: 27 on the UR5e and the KR 6 (10
+    postures), 23 on the ER-4u (8)."""
+    model = setup.model
+    q = np.asarray(setup.robot.home, float)[None]
+    meas = TrackerMeasurements(q=q, xyz=fk_tool(model, q)[:, :3, 3])
+    count = rows_needed(model, meas, sigmas=(setup.sigma_m,) * 3, rank_rtol=RANK_RTOL)
+    return count.need, count.rank
 
 
 def kept_by_rank(setup: TrackerPlanSetup, q: np.ndarray) -> np.ndarray:
