@@ -13,9 +13,13 @@ import pytest
 
 
 @pytest.mark.slow
-def test_the_draw_whose_identification_turned_the_base_calibrates(tmp_path):
+def test_the_draw_whose_identification_turned_the_base_calibrates(tmp_path, monkeypatch):
+    import selfcal.calibration.board.plan.planner as planner
     from selfcal.benchmarks.plan.eye_to_hand import achieved, posture_sets
 
+    # the plan of 12 the draw was found with: the greedy choice, before eye-to-hand plans were
+    # improved by swaps
+    monkeypatch.setattr(planner, "exchange", lambda F, G, n_cam, chosen, start=None: chosen)
     got = posture_sets()
     q, predicted = got["sets"]["plan 12"]
     with warnings.catch_warnings():

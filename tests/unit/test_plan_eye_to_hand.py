@@ -9,7 +9,9 @@ import numpy as np
 import pytest
 
 from selfcal.calibration.board.bounds import board_cramer_rao
-from selfcal.calibration.board.plan.information import board_model
+from selfcal.calibration.board.plan.greedy import exchange, select_greedy
+from selfcal.calibration.board.plan.ground import PlanOptions, plan_ground
+from selfcal.calibration.board.plan.information import board_model, frame_information
 from selfcal.calibration.board.plan.planner import plan_recording
 from selfcal.calibration.board.plan.views import (
     PlanSetup,
@@ -106,3 +108,16 @@ def test_prediction_is_the_eye_to_hand_board_route_bound_and_beats_random(setup,
     bound = cr.aligned_tool_rms(plan.workspace, setup.T_tool_tip)
     assert plan.predicted_m == pytest.approx(bound, rel=1e-6)
     assert plan.predicted_m < plan.random_m
+
+
+def test_the_plan_is_where_no_swap_lowers_its_criterion(setup, plan):
+    """Eye-to-hand plans are improved by swaps as eye-in-hand's are (Fedorov's exchange after
+    the greedy choice): no single swap of a planned posture for another candidate lowers the
+    criterion (the greedy choice alone left one here)."""
+    opts = PlanOptions(seed=3, candidates=80, workspace=20)
+    g = plan_ground(setup, 8, opts)
+    F = frame_information(setup, g.pool, opts.pixel_sigma_px, opts.joint_sigma)
+    n_cam = setup.camera.n_free
+    chosen = np.array([int(np.flatnonzero((g.pool == q).all(axis=1))[0]) for q in plan.q])
+    assert sorted(exchange(F, g.G, n_cam, chosen)) == sorted(chosen)
+    assert sorted(select_greedy(F, g.G, n_cam, 8)) != sorted(chosen)
