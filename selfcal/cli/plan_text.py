@@ -63,6 +63,10 @@ def plan_lines(plan) -> str:
     else:
         first += (f" (with all {plan.kept_all} the postures identify {plan.predicted_m * 1000:.3f}"
                   f" mm; a random plan of {n}: {plan.random_m * 1000:.3f} mm)")  # fmt: skip
+    if plan.chosen_by != "greedy":
+        first += (f"; the pool's {plan.chosen_by}: the greedy choice (its criterion estimates "
+                  f"every parameter) predicted {plan.greedy_m * 1000:.3f} mm with those its "
+                  "selection is forecast to keep")  # fmt: skip
     first += f"; joint path {np.degrees(plan.path_rad):.0f} deg"
     second = reference_words(plan.reference, sel.selected_m, sel.rival_m)
     if not sel.beats(plan.reference):
@@ -82,6 +86,11 @@ def plan_sections(plan) -> dict:
     sel, dof = plan.selected, plan.q.shape[1]
     fc = sel.forecast
     return {
+        "chosen_by": plan.chosen_by,
+        "greedy_selection_tool_rms_mm": round(plan.greedy_m * 1000, 4),
+        "random_selection_tool_rms_mm": (
+            None if plan.random_selected_m is None else round(plan.random_selected_m * 1000, 4)
+        ),
         "identified_kinematic_parameters": plan.kept_all,
         "selection": {
             "tool_rms_mm": round(sel.selected_m * 1000, 4),

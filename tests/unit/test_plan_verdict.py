@@ -35,7 +35,8 @@ def _selected(selected_m: float, rival_m: float | None) -> Selected:
 def _plan(sel: Selected, to_beat: tuple[int, float] | None = None) -> SimpleNamespace:
     return SimpleNamespace(q=np.zeros((12, N)), selected=sel, reference=REF, to_beat=to_beat,
                            kept_all=4, predicted_m=sel.selected_m, random_m=1.5e-3,
-                           path_rad=1.0, searched=48)  # fmt: skip
+                           path_rad=1.0, searched=48, chosen_by="greedy",
+                           greedy_m=sel.selected_m, random_selected_m=None)  # fmt: skip
 
 
 def test_the_forecast_choice_decides_when_the_rival_is_worse_than_the_reference():
@@ -85,3 +86,26 @@ def test_the_reference_names_what_the_fair_nominal_fits_per_mount():
     assert "hand-eye" not in words and "hand-eye" not in e2h.to_json()["note"]
     assert "the fair nominal, the hand-eye and the board pose fitted" in reference_words(REF, 1e-3)
     assert "the hand-eye and the board pose" in REF.to_json()["note"]
+
+
+def test_with_the_selection_in_view_the_pool_set_that_predicts_best_is_the_plan():
+    """When the selection is forecast to drop parameters the greedy criterion counted on, the
+    plan is the best of the greedy choice and the pool's disjoint sets by the prediction with
+    the parameters each one's selection keeps; equal to the greedy: the greedy."""
+    from selfcal.calibration.board.plan.planner import _best_with_the_selection
+
+    got = {0: 4e-3, 6: 3e-3, 12: 3e-3, 18: 5e-3}  # by each set's first index: sets 1 - 4 of 26
+    seen: list[np.ndarray] = []
+
+    def selected(idx):
+        seen.append(idx)
+        return _selected(got[int(idx.min())], None), REF
+
+    greedy = (np.array([3, 9, 20, 25, 1, 7]), _selected(8e-3, None), REF)
+    idx, sel, _, by, random_m = _best_with_the_selection(26, 6, greedy, selected, lambda i: i[::-1])
+    assert by == "random set 2 of 4" and sel.selected_m == 3e-3  # the first of two equal sets
+    assert random_m == 4e-3  # the random plan's: the first set's
+    assert idx.tolist() == list(range(11, 5, -1))  # in the order given
+    assert [s.min() for s in seen] == [0, 6, 12, 18]
+    greedy = (greedy[0], _selected(3e-3, None), REF)
+    assert _best_with_the_selection(26, 6, greedy, selected, lambda i: i)[3] == "greedy"

@@ -28,7 +28,14 @@ candidate while a swap lowers the same criterion (both mounts: on eye-to-hand th
 example's plan of 12 predicts 0.191 mm with it, 0.224 mm without, docs/plan.md). The prediction
 of the chosen postures is that of
 the calibration with the parameters its selection keeps, every other one held at the drawing
-(:func:`predict_kept`, :mod:`selfcal.calibration.board.plan.predict`). The chosen postures are
+(:func:`predict_kept`, :mod:`selfcal.calibration.board.plan.predict`). The greedy criterion
+estimates every parameter the postures identify; when the selection is forecast to keep fewer
+(few postures: the UR5e example's 6 of 60 candidates keep none of its 18 beyond the placement,
+and the greedy choice's postures, those the deviation moves most, then leave the fair nominal
+8.19 mm off where the pool's first 6 leave it 4.36 mm off; docs/plan.md "A plan of 6"), the plan is
+the best by that prediction of the greedy choice and the pool's disjoint sets of ``count`` in
+draw order, as the tracker plan's (:func:`_best_with_the_selection`); a plan whose forecast
+keeps every parameter (the tables' plans of 12) is the greedy choice. The chosen postures are
 then ordered for a short joint-space path from home
 (:func:`selfcal.calibration.board.plan.path.order_path`). The random plan of the same size (the
 pool's first postures: the same filters) is predicted the same way, for contrast. Units: SI
@@ -95,7 +102,12 @@ class RecordingPlan:
     calibrating the kinematics (:mod:`selfcal.calibration.board.plan.reference`);
     ``to_beat`` (count, predicted m) the smallest plan of the same greedy choice that beats it
     clearly (:meth:`Selected.beats`), when this one does not (None: it does, or no plan of up
-    to ``searched`` postures does)."""
+    to ``searched`` postures does); ``chosen_by`` which set the plan is: ``"greedy"`` (the
+    greedy choice improved by swaps) or, when the selection is forecast to keep fewer
+    parameters than the greedy criterion counted on, ``"random set i of s"`` of the pool's
+    disjoint sets in draw order if one predicts better with the parameters its own selection is
+    forecast to keep (module docstring); ``greedy_m`` the greedy choice's prediction so (m),
+    ``random_selected_m`` the random plan's when the sets were judged (None when not)."""
 
     q: np.ndarray
     predicted_m: float
@@ -113,6 +125,9 @@ class RecordingPlan:
     reference: NominalReference
     to_beat: tuple[int, float] | None
     searched: int
+    chosen_by: str = "greedy"
+    greedy_m: float = float("nan")
+    random_selected_m: float | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -186,7 +201,6 @@ def plan_recording(
     home = setup.robot.home
     chosen = exchange(F, G, n_cam, select_greedy(F, G, n_cam, count))
     chosen = chosen[order_path(pool[chosen], home)]
-    q = pool[chosen]
     rand = pool[:count]
     rand_order = order_path(rand, home)
     model = board_model(setup)
@@ -215,6 +229,14 @@ def plan_recording(
         return selected(idx)
 
     sel, ref = selected(chosen)
+    kept_all = _beyond_placement(kept_by_rank(model, pool[chosen]), model.n)
+    chosen_by, greedy_m, random_sel_m = "greedy", sel.selected_m, None
+    if sel.kept(model.n) < kept_all:  # the criterion counted on parameters the CV will drop
+        chosen, sel, ref, chosen_by, random_sel_m = _best_with_the_selection(
+            len(pool), count, (chosen, sel, ref), selected, lambda i: i[order_path(pool[i], home)]
+        )
+        kept_all = _beyond_placement(kept_by_rank(model, pool[chosen]), model.n)
+    q = pool[chosen]
     to_beat = None
     if not sel.beats(ref):
         picks = select_greedy(F, G, n_cam, searched)  # one by one: the first n start a plan of n
@@ -231,12 +253,40 @@ def plan_recording(
         joint_sigma=None if joint_sigma is None else np.asarray(joint_sigma, dtype=float),
         path_rad=path_length(q, home),
         random_path_rad=path_length(rand[rand_order], home),
-        kept_all=_beyond_placement(kept_by_rank(model, q), model.n),
+        kept_all=kept_all,
         selected=sel,
         reference=ref,
         to_beat=to_beat,
         searched=searched,
+        chosen_by=chosen_by,
+        greedy_m=greedy_m,
+        random_selected_m=random_sel_m,
     )
+
+
+def _best_with_the_selection(
+    size: int,
+    count: int,
+    plan: tuple[np.ndarray, Selected, NominalReference],
+    selected: Callable[[np.ndarray], tuple[Selected, NominalReference]],
+    ordered: Callable[[np.ndarray], np.ndarray],
+) -> tuple[np.ndarray, Selected, NominalReference, str, float]:
+    """``(indices, prediction, reference, chosen_by, random_m)``: of the greedy choice ``plan`` (its
+    indices into the pool of ``size``, prediction and reference) and the pool's disjoint sets
+    of ``count`` in draw order (``ordered`` puts indices in recording order; the first set is
+    the random plan), the one ``selected`` predicts best with the parameters the selection is
+    forecast to keep (:attr:`Selected.selected_m`); the first of equals: the greedy choice.
+    ``chosen_by`` names it (``"greedy"`` or ``"random set i of s"``); ``random_m`` the first
+    set's (the random plan's) prediction so (m)."""
+    best = (*plan, "greedy")
+    sets, random_m = size // count, float("nan")
+    for k in range(sets):
+        idx = ordered(np.arange(k * count, (k + 1) * count))
+        got, ref = selected(idx)
+        random_m = got.selected_m if k == 0 else random_m
+        if got.selected_m < best[1].selected_m:
+            best = (idx, got, ref, f"random set {k + 1} of {sets}")
+    return (*best, random_m)
 
 
 def count_to_beat(
