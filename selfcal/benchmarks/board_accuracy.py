@@ -54,29 +54,43 @@ R,..] [--models M,..] [--noise-px S,..] [--poses 30] [--first-seed 1] [--read-ba
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import sys
 import tempfile
 import time
 import warnings
-import zlib
 from concurrent.futures import ProcessPoolExecutor
 from contextlib import redirect_stderr, redirect_stdout
 from io import StringIO
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
-from selfcal.acquisition.simulator_setup import SimSetup, sim_setup
-from selfcal.benchmarks.corner_noise import corner_noise, corner_stats
+from selfcal.benchmarks.board_accuracy_draw import (
+    MODELS,
+    POSES,
+    REGIONS,
+    ROBOTS,
+    GaussianReadBack,
+    draw,
+    prior,
+    scenario,
+    simulated,
+    simulated_calibration,
+)
+from selfcal.benchmarks.board_accuracy_tables import (
+    BLOCK,
+    BLOCK_REAL,
+    BLOCK_RENDER,
+    DOC,
+    pooled_rows,
+    real_table,
+    table,
+    table_rendered,
+)
 from selfcal.benchmarks.doc_blocks import ROOT, print_table, write_block
-from selfcal.benchmarks.tool_accuracy import coverage, coverage_if_right, right_range
-from selfcal.benchmarks.tool_accuracy import mark as _mark
 from selfcal.calibration.board.accuracy import (
     board_error_model_from_json,
-    board_postures_from_json,
     predicted_reprojection,
 )
 from selfcal.calibration.board.dataset import (
@@ -87,23 +101,12 @@ from selfcal.calibration.board.dataset import (
 from selfcal.calibration.board.deviation import Deviation
 from selfcal.calibration.board.evaluate import evaluate_board
 from selfcal.calibration.board.held_prior import with_deviation
-from selfcal.config.scenario import Scenario, load_scenario, scenarios_dir
 from selfcal.errors import InternalError, UsageError
 from selfcal.estimation.joint_report import encoder_sigma
 from selfcal.io.atomic import write_text_atomic
-from selfcal.io.board_calibration import BoardCalibrationResult, read_board_calibration
 from selfcal.io.dataset import Dataset
-from selfcal.io.truth import Truth, read_truth
-from selfcal.kinematics.alignment import express_in_frame
-from selfcal.kinematics.forward import fk_tool
-from selfcal.kinematics.tool_error import workspace_sample
-from selfcal.pipeline.board_run import calibrate_board_run
-from selfcal.pipeline.run import run_acquire, run_all
 from selfcal.robot.definition import load_robot
-from selfcal.robot.encoder import EncoderSpec
-from selfcal.sim.compliance import SHOULDER
 from selfcal.threads import limit_threads
-from selfcal.transforms import inv_pose
 
 __all__ = [
     "GaussianReadBack",
@@ -126,12 +129,9 @@ __all__ = [
     "ROBOTS",
 ]
 
-ROBOTS = ("er4u-paper", "ur5e", "kr6-r900")
-MODELS = ("fits", "compliance")
 NOISE_PX = (0.05, 0.2, 0.5)
 IMAGE_SIGMA = (2.0, 8.0, 16.0)
 """``--render``'s image noise levels (grey levels): the scenarios' default and a noisy sensor."""
-POSES = 30
 DRAWS = 60
 """Draws per row on the analytic path: one calibration's errors over a region are one draw of its
 parameters' error, so 30 draws left the ER-4u's pooled coverage at the far end of a right
@@ -139,13 +139,6 @@ bound's spread on one seed block and not on the next (docs/tool-accuracy.md); ev
 same draws, none chosen."""
 DRAWS_RENDERED = 30
 """Draws per row on the rendered path (``--render``; every image rendered and detected)."""
-COUNT = 128
-REGIONS = ("inside", "edge", "workspace")
-SCENARIO = scenarios_dir() / "mono-charuco.toml"
-DOC = ROOT / "docs" / "tool-accuracy.md"
-BLOCK = "benchmark_board_accuracy"
-BLOCK_REAL = "benchmark_board_accuracy_real"
-BLOCK_RENDER = "benchmark_board_accuracy_rendered"
 REAL = ROOT / "tests" / "data" / "real"
 REAL_SETS = {
     "nachi-2025-01-17-photoneo": ("nachi_mz25.urdf",
@@ -158,179 +151,6 @@ REAL_SETS = {
                      "inputs/images_heldout/*.png"),
 }  # fmt: skip
 """Per set: the robot file in its inputs/, the calibration and the held-out images (its README)."""
-
-
-def _angle(R_a: np.ndarray, R_b: np.ndarray) -> np.ndarray:
-    """(m,) deg the rotation angles between (m, 3, 3) rotations."""
-    return np.degrees(np.linalg.norm(Rotation.from_matrix(R_a @ np.swapaxes(R_b, 1, 2))
-                                     .as_rotvec(), axis=1))  # fmt: skip
-
-
-def scenario(robot: str, sigma_px: float, seed: int, poses: int = POSES,
-             image_sigma: float | None = None) -> Scenario:  # fmt: skip
-    """The draw's scenario: mono-charuco on ``robot`` with its noise, seeds and ``poses``
-    calibration postures; analytic with corner noise ``sigma_px``, or with ``image_sigma``
-    (grey levels) rendered with that sensor noise and detected (``sigma_px`` then unused)."""
-    noise = ({"render": False, "pixel_sigma": sigma_px} if image_sigma is None
-             else {"render": True, "image_sigma": image_sigma})  # fmt: skip
-    return load_scenario(SCENARIO, {
-        "robot": {"model": robot}, "noise": noise | {"seed": seed},
-        "trajectory": {"poses": poses, "seed": seed}, "perturbation": {"seed": seed}})  # fmt: skip
-
-
-def simulated(s: Scenario, model: str) -> SimSetup:
-    """The simulator of ``s`` with the model ``model`` (:data:`MODELS`): the scenario's own arm,
-    or with ``"compliance"`` the same arm bending (:data:`selfcal.sim.compliance.SHOULDER`)."""
-    if model not in MODELS:
-        raise UsageError(f"unknown model {model!r}: one of {', '.join(MODELS)}")
-    setup = sim_setup(s)
-    return setup if model == "fits" else dataclasses.replace(setup, compliance=SHOULDER)
-
-
-def prior(s: Scenario) -> Deviation:
-    """The prior on the arm's deviation from its drawing the benchmark gives the calibration
-    (``selfcal calibrate --deviation-mm/--deviation-deg``): the simulated arm's own spread,
-    ``s``'s ``[perturbation]``, which a user would state for their arm; the calibration itself
-    never reads the simulator's perturbation."""
-    p = s.perturbation
-    return Deviation(p.translation_mm / 1e3, float(np.radians(p.rotation_deg)))
-
-
-def simulated_calibration(sigma_px: float, seed: int, noise: dict | None = None, *,
-                          scenario_file: Path = SCENARIO,
-                          robot: str | None = None) -> tuple[BoardCalibrationResult, Truth]:  # fmt: skip
-    """One simulated board calibration: ``scenario_file`` (default :data:`SCENARIO`; its
-    ``[robot] model`` replaced by ``robot`` when given) on the analytic path with corner noise
-    ``sigma_px`` and the draw's ``seed`` (perturbation, :data:`POSES` postures, noise; ``noise``
-    more ``[noise]`` keys) acquired and calibrated as ``selfcal run`` does with the deviation
-    :func:`prior`, quietly in a temporary folder: its calibration and truth."""
-    over = {"noise": {"render": False, "pixel_sigma": sigma_px, "seed": seed} | (noise or {}),
-            "trajectory": {"poses": POSES, "seed": seed}, "perturbation": {"seed": seed}}  # fmt: skip
-    if robot is not None:
-        over["robot"] = {"model": robot}
-    with (tempfile.TemporaryDirectory(prefix="selfcal-acc-") as d, warnings.catch_warnings(),
-          redirect_stdout(StringIO()), redirect_stderr(StringIO())):  # fmt: skip
-        warnings.simplefilter("ignore")
-        out = Path(d) / "run"
-        s = load_scenario(scenario_file, over)
-        run_all(s, out, quiet=True, figures=False, deviation=prior(s))
-        return read_board_calibration(out / "calibration.json"), read_truth(out / "truth.json")
-
-
-class GaussianReadBack(EncoderSpec):
-    """The simulated controller's read-back with a Gaussian error of the rounded counts'
-    standard deviation (:attr:`EncoderSpec.read_back_sigma`, uncorrelated between joints; the
-    same for the same posture) instead of the rounding: ``--read-back gaussian``, to tell the
-    rounding's bounded error from the rest of a row's coverage. The calibration still reads
-    the robot file's table (the same standard deviation)."""
-
-    def read_back(self, q: np.ndarray) -> np.ndarray:
-        """``q`` (rad / m) plus the Gaussian read-back error (class docstring)."""
-        q = np.asarray(q, dtype=float)
-        rng = np.random.default_rng(zlib.crc32(q.tobytes()))
-        return q + rng.standard_normal(q.shape) * self.read_back_sigma
-
-
-def draw(args: tuple) -> dict:
-    """One draw (``robot``, noise ``sigma_px``, ``model``, ``seed``, optionally the calibration
-    postures' count, default :data:`POSES`, and the rendered path's image noise, default None:
-    analytic, and the simulated read-back, default ``"rounded"``, or ``"gaussian"``:
-    :class:`GaussianReadBack`): per region the predicted
-    95 % bound with and without the model error, the predicted RMS, the true error (mm), the
-    predicted 95 % orientation bound with and without the model error and the true orientation
-    error (deg); per region also ``<region>_right``, the coverage a right prediction would show
-    there (:func:`selfcal.benchmarks.tool_accuracy.coverage_if_right`); ``model_error_mm``;
-    rendered, the detector's ``corners``
-    (:func:`selfcal.benchmarks.corner_noise.corner_noise`); ``status``."""
-    robot, sigma_px, model, seed = args[:4]
-    poses = int(args[4]) if len(args) > 4 else POSES
-    image_sigma = args[5] if len(args) > 5 else None
-    read_back = args[6] if len(args) > 6 else "rounded"
-    try:
-        s = scenario(robot, sigma_px, seed, poses, image_sigma)
-        setup = simulated(s, model)
-        if read_back == "gaussian" and setup.robot.encoder is not None:
-            enc = GaussianReadBack(**{f.name: getattr(setup.robot.encoder, f.name)
-                                      for f in dataclasses.fields(EncoderSpec)})  # fmt: skip
-            setup = dataclasses.replace(setup, robot=dataclasses.replace(setup.robot, encoder=enc))
-        with (tempfile.TemporaryDirectory(prefix="selfcal-acc-") as d, warnings.catch_warnings(),
-              redirect_stdout(StringIO()), redirect_stderr(StringIO())):  # fmt: skip
-            warnings.simplefilter("ignore")
-            out = Path(d) / "run"
-            run_acquire(s, out, quiet=True, setup=setup)
-            calibrate_board_run(out, quiet=True, deviation=prior(s))
-            cal = read_board_calibration(out / "calibration.json")
-            truth = read_truth(out / "truth.json")
-            corners = None if image_sigma is None else corner_noise(out).to_json()
-        block = cal.accuracy
-        assert block is not None and truth.T_world_board is not None
-        em = board_error_model_from_json(block, cal.model, "calibration.json")
-        em0 = dataclasses.replace(em, model_error_m=0.0, model_error_rad=0.0)
-        q_cal = board_postures_from_json(block, cal.model.n, "calibration.json")
-        sample = workspace_sample(q_cal, np.asarray(block["joint_limits_si"]), count=COUNT,
-                                  seed=seed + 1)  # fmt: skip
-        true_b = express_in_frame(truth.true_model, inv_pose(truth.T_world_board),
-                                  like=cal.model)  # fmt: skip
-        tip = np.asarray(block["T_tool_point_si"])
-        bend = (lambda q: q) if setup.compliance is None else setup.compliance.bent
-        row: dict = {"status": "ok", "corners": corners,
-                     "model_error_mm": (block["model_error"] or {}).get("position_mm") or 0.0}  # fmt: skip
-        for name in REGIONS:
-            q = getattr(sample, name)
-            p = em.predicted(q)
-            T_est = fk_tool(cal.model, q) @ tip
-            T_true = fk_tool(true_b, bend(q)) @ tip
-            row[name] = np.stack([
-                p["position_95_mm"], p["estimation_95_mm"], p["position_rms_mm"],
-                np.linalg.norm(T_est[:, :3, 3] - T_true[:, :3, 3], axis=1) * 1e3,
-                p["orientation_95_deg"], em0.predicted(q)["orientation_95_deg"],
-                _angle(T_est[:, :3, :3], T_true[:, :3, :3]),
-            ])  # fmt: skip
-            row[f"{name}_right"] = coverage_if_right(em, q, seed)
-        return row
-    except Exception as exc:  # noqa: BLE001 - a benchmark counts failed draws
-        return {"status": f"failed: {type(exc).__name__}: {str(exc)[:200]}"}
-
-
-def _rows(robot: str, model: str, s: float, got: list[dict], poses: int = POSES) -> list[dict]:
-    """The rows (one per region) of one robot, model and noise level's draws ``got``."""
-    ok = [g for g in got if g["status"] == "ok"]
-    rows = []
-    for region in REGIONS:
-        d = [g[region] for g in ok]
-        a = np.concatenate(d, axis=1)
-        rows.append({
-            "robot": robot, "model": model, "noise_px": s, "region": region, "draws": len(ok),
-            "poses": poses,
-            "failed": len(got) - len(ok), **coverage(d),
-            "true_rot_rms_deg": float(np.sqrt(np.mean(a[6] ** 2))),
-            "coverage_rot": float(np.mean(a[6] <= a[4])),
-            "coverage_rot_covariance": float(np.mean(a[6] <= a[5])),
-            "model_error_share": float(np.mean([g["model_error_mm"] > 0 for g in ok])),
-            **corner_stats([g["corners"] for g in ok if g.get("corners")]),
-            **_right(ok, region),
-        })  # fmt: skip
-    return rows
-
-
-def _right(ok: list[dict], region: str) -> dict:
-    """The central 90 % range of the coverage a right prediction would pool over the draws
-    ``ok`` in ``region`` (position, orientation; :func:`right_range`); none for draws without
-    it."""
-    got = [g[f"{region}_right"] for g in ok if f"{region}_right" in g]
-    if not got or len(got) < len(ok):
-        return {}
-    lo, hi = right_range(got)
-    return {
-        "coverage_right": [float(lo[0]), float(hi[0])],
-        "coverage_rot_right": [float(lo[1]), float(hi[1])],
-    }
-
-
-def _range(r: dict, key: str) -> str:
-    """A table cell: the row's 90 % range ``key`` (:func:`_right`) in %, or "-"."""
-    lo, hi = r.get(key) or (np.nan, np.nan)
-    return "-" if not np.isfinite(lo) else f"{100 * lo:.1f}-{100 * hi:.1f} %"
 
 
 def draws_per_row(draws: int | None, render: bool) -> int:
@@ -369,7 +189,7 @@ def run(draws: int = DRAWS, robots=ROBOTS, models=MODELS, noise_px=NOISE_PX,
                 print(f"{robot} {model} {s} px: {sum(g['status'] == 'ok' for g in got)}/{draws} "
                       f"draws in {time.perf_counter() - t0:.0f} s " + "; ".join(fails),
                       file=sys.stderr, flush=True)  # fmt: skip
-                rows += _rows(robot, model, s, got, poses)
+                rows += pooled_rows(robot, model, s, got, poses)
                 shown = table_rendered if render else table
                 print(shown(rows[-len(REGIONS) :]).split("\n\n")[0], file=sys.stderr, flush=True)
                 if rows_file is not None:  # appended: the file's rows and the new ones
@@ -377,72 +197,6 @@ def run(draws: int = DRAWS, robots=ROBOTS, models=MODELS, noise_px=NOISE_PX,
                     new = "".join(json.dumps(r) + "\n" for r in rows[-len(REGIONS) :])
                     write_text_atomic(rows_file, old + new)
     return rows
-
-
-def table(rows: list[dict]) -> str:
-    """The Markdown table of :func:`run`'s rows."""
-    head = (
-        "| robot | model | noise (px) | region | true RMS (mm) | coverage of the 95 % bound "
-        "(target 90-98 %) | a right bound's, 90 % range | covariance alone | predicted / true RMS "
-        "(target 0.7-1.4) | per draw 10-90 % | true orientation RMS (deg) | orientation coverage "
-        "| a right bound's | orientation, covariance alone | draws with a model error |\n"
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n"
-    )
-    lines = [
-        f"| {r['robot']} | {r['model']} | {r['noise_px']:g} | {r['region']} | "
-        f"{r['true_rms_mm']:.3f} | {100 * r['coverage']:.1f} %{_mark(r['coverage'], 0.9, 0.98)} | "
-        f"{_range(r, 'coverage_right')} | "
-        f"{100 * r['coverage_covariance']:.1f} % | {r['ratio']:.2f}{_mark(r['ratio'], 0.7, 1.4)}"
-        f" | {r['ratio_10']:.2f}-{r['ratio_90']:.2f} | {r['true_rot_rms_deg']:.4f} | "
-        f"{100 * r['coverage_rot']:.1f} %{_mark(r['coverage_rot'], 0.9, 0.98)} | "
-        f"{_range(r, 'coverage_rot_right')} | "
-        f"{100 * r['coverage_rot_covariance']:.1f} % | {100 * r['model_error_share']:.0f} % |"
-        for r in rows
-    ]
-    first = [r for r in rows if r["region"] == REGIONS[0]]
-    failed = sum(r["failed"] for r in first)
-    sizes = sorted({r["draws"] + r["failed"] for r in first})
-    poses = "/".join(map(str, sorted({r.get("poses", POSES) for r in first})))
-    lines += ["", f"{'/'.join(map(str, sizes))} draws per row ({failed} failed in all), "
-              f"scenarios/mono-charuco.toml on the analytic path with each robot, {poses} "
-              f"calibration postures, {COUNT} joint vectors per region and draw; `uv run python "
-              "-m selfcal.benchmarks.board_accuracy --write-docs`."]  # fmt: skip
-    return head + "\n".join(lines)
-
-
-def table_rendered(rows: list[dict]) -> str:
-    """The Markdown table of :func:`run`'s rendered rows (``noise_px`` the image noise)."""
-    head = (
-        "| robot | model | image noise (grey levels) | detector corner noise (px, median / "
-        "largest draw) | its bias / 99 % (px) | region | true RMS (mm) | coverage of the 95 % "
-        "bound (target 90-98 %) | a right bound's, 90 % range | covariance alone | predicted / "
-        "true RMS (target 0.7-1.4) | per draw 10-90 % | orientation coverage | a right bound's | "
-        "draws with a model error |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n"
-    )
-    lines = [
-        f"| {r['robot']} | {r['model']} | {r['noise_px']:g} | {r['corner_sigma_px']:.3f} / "
-        f"{r['corner_sigma_max_px']:.3f} | {r['corner_bias_px']:.3f} / {r['corner_p99_px']:.2f} | "
-        f"{r['region']} | {r['true_rms_mm']:.3f} | {100 * r['coverage']:.1f} %"
-        f"{_mark(r['coverage'], 0.9, 0.98)} | {_range(r, 'coverage_right')} | "
-        f"{100 * r['coverage_covariance']:.1f} % | "
-        f"{r['ratio']:.2f}{_mark(r['ratio'], 0.7, 1.4)} | {r['ratio_10']:.2f}-{r['ratio_90']:.2f} | "
-        f"{100 * r['coverage_rot']:.1f} %{_mark(r['coverage_rot'], 0.9, 0.98)} | "
-        f"{_range(r, 'coverage_rot_right')} | {100 * r['model_error_share']:.0f} % |"
-        for r in rows
-    ]  # fmt: skip
-    first = [r for r in rows if r["region"] == REGIONS[0]]
-    sizes = "/".join(map(str, sorted({r["draws"] + r["failed"] for r in first})))
-    robots, models, levels = (",".join(dict.fromkeys(f"{r[k]:g}" if k == "noise_px" else r[k]
-                                                     for r in first))
-                              for k in ("robot", "model", "noise_px"))  # fmt: skip
-    lines += ["", f"{sizes} draws per row ({sum(r['failed'] for r in first)} failed in all), "
-              "scenarios/mono-charuco.toml rendered with MuJoCo and detected as `selfcal run` "
-              "does (`[noise] render = true`, the image noise as `image_sigma`), "
-              f"{POSES} calibration postures, {COUNT} joint vectors per region and draw; the "
-              "corner noise is the detected corners against their true projections; "
-              f"`MUJOCO_GL=egl uv run python -m selfcal.benchmarks.board_accuracy --render "
-              f"--robots {robots} --models {models} --noise-px {levels} --jobs 1 --write-docs`."]  # fmt: skip
-    return head + "\n".join(lines)
 
 
 def _selfcal(*argv: str) -> None:
@@ -505,27 +259,6 @@ def real_set(name: str, work: Path) -> dict:
         "cv_px": (cv.get("calibrated") or {}).get("reprojection_rms_px"),
         "cv_nominal_px": (cv.get("nominal") or {}).get("reprojection_rms_px"),
     }
-
-
-def _real_row(r: dict) -> str:
-    k = r["predicted_px"] / r["measured_px"]
-    cv = "-" if r["cv_px"] is None else f"{r['cv_px']:.3f} / {r['cv_nominal_px']:.3f}"
-    cells = [r["set"], str(r["images"]), f"{r['measured_px']:.3f}", f"{r['predicted_px']:.3f}",
-             f"{k:.2f}{_mark(k, 0.67, 1.5)}", f"{r['covariance_px']:.3f}",
-             f"{r['model_error_mm'] or 0.0:.3f}", cv]  # fmt: skip
-    return "| " + " | ".join(cells) + " |"
-
-
-def real_table(rows: list[dict]) -> str:
-    """The Markdown table of the real sets."""
-    cols = ["set", "held-out images", "measured held-out RMS (px)", "predicted (px)",
-            "predicted / measured (target 0.67-1.5)", "covariance alone (px)",
-            "model error (mm)", "cross-validated calibrated / fair nominal (px)"]  # fmt: skip
-    return "\n".join([
-        "| " + " | ".join(cols) + " |", "|" + "---|" * len(cols), *map(_real_row, rows), "",
-        "the sets' README commands (docs/real-data.md); "
-        "`uv run python -m selfcal.benchmarks.board_accuracy --real --write-docs`.",
-    ])  # fmt: skip
 
 
 def _arguments(argv: list[str] | None) -> argparse.Namespace:

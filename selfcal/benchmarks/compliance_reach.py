@@ -29,7 +29,8 @@ from pathlib import Path
 
 import numpy as np
 
-from selfcal.benchmarks.board_accuracy import COUNT, DOC, REGIONS, ROBOTS, scenario, simulated
+from selfcal.benchmarks.board_accuracy_draw import COUNT, REGIONS, ROBOTS, scenario, simulated
+from selfcal.benchmarks.board_accuracy_tables import DOC
 from selfcal.benchmarks.doc_blocks import print_table
 from selfcal.io.dataset import Dataset
 from selfcal.kinematics.tool_error import workspace_sample

@@ -32,7 +32,9 @@ def test_rendered_rows_table_the_detectors_corner_noise(tmp_path, capsys):
     ``--from-rows`` tables the rows a run appended, as the rendered block."""
     import json
 
-    from selfcal.benchmarks.board_accuracy import REGIONS, _rows, main
+    from selfcal.benchmarks.board_accuracy import main
+    from selfcal.benchmarks.board_accuracy_draw import REGIONS
+    from selfcal.benchmarks.board_accuracy_tables import pooled_rows
 
     rng = np.random.default_rng(0)
     got = []
@@ -43,7 +45,7 @@ def test_rendered_rows_table_the_detectors_corner_noise(tmp_path, capsys):
         got.append({"status": "ok", "model_error_mm": 0.0, **{r: np.vstack([e, e[:3]]) for r in REGIONS},
                     "corners": {"sigma_px": sig, "mean_u_px": -0.01 * k, "mean_v_px": 0.0, "p99_px": 3 * sig}})  # fmt: skip
     got.append({"status": "failed: DetectionError: none"})
-    rows = _rows("ur5e", "fits", 8.0, got)
+    rows = pooled_rows("ur5e", "fits", 8.0, got)
     assert rows[0]["corner_sigma_px"] == pytest.approx(0.06)
     assert rows[0]["corner_sigma_max_px"] == pytest.approx(0.07)
     assert rows[0]["corner_bias_px"] == pytest.approx(0.02)

@@ -1,0 +1,192 @@
+"""One draw of the board accuracy Monte Carlo (:mod:`selfcal.benchmarks.board_accuracy`, issue
+#29): the draw's scenario and simulator, the calibration's deviation prior, and one simulated
+board calibration with its predicted against its true flange error over the workspace sample.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import tempfile
+import warnings
+import zlib
+from contextlib import redirect_stderr, redirect_stdout
+from io import StringIO
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from selfcal.acquisition.simulator_setup import SimSetup, sim_setup
+from selfcal.benchmarks.corner_noise import corner_noise
+from selfcal.benchmarks.tool_accuracy import coverage_if_right
+from selfcal.calibration.board.accuracy import (
+    board_error_model_from_json,
+    board_postures_from_json,
+)
+from selfcal.calibration.board.deviation import Deviation
+from selfcal.config.scenario import Scenario, load_scenario, scenarios_dir
+from selfcal.errors import UsageError
+from selfcal.io.board_calibration import BoardCalibrationResult, read_board_calibration
+from selfcal.io.truth import Truth, read_truth
+from selfcal.kinematics.alignment import express_in_frame
+from selfcal.kinematics.forward import fk_tool
+from selfcal.kinematics.tool_error import workspace_sample
+from selfcal.pipeline.board_run import calibrate_board_run
+from selfcal.pipeline.run import run_acquire, run_all
+from selfcal.robot.encoder import EncoderSpec
+from selfcal.sim.compliance import SHOULDER
+from selfcal.transforms import inv_pose
+
+__all__ = [
+    "GaussianReadBack",
+    "draw",
+    "prior",
+    "scenario",
+    "simulated",
+    "simulated_calibration",
+    "COUNT",
+    "MODELS",
+    "POSES",
+    "REGIONS",
+    "ROBOTS",
+    "SCENARIO",
+]
+
+ROBOTS = ("er4u-paper", "ur5e", "kr6-r900")
+MODELS = ("fits", "compliance")
+POSES = 30
+COUNT = 128
+REGIONS = ("inside", "edge", "workspace")
+SCENARIO = scenarios_dir() / "mono-charuco.toml"
+
+
+def _angle(R_a: np.ndarray, R_b: np.ndarray) -> np.ndarray:
+    """(m,) deg the rotation angles between (m, 3, 3) rotations."""
+    return np.degrees(np.linalg.norm(Rotation.from_matrix(R_a @ np.swapaxes(R_b, 1, 2))
+                                     .as_rotvec(), axis=1))  # fmt: skip
+
+
+def scenario(robot: str, sigma_px: float, seed: int, poses: int = POSES,
+             image_sigma: float | None = None) -> Scenario:  # fmt: skip
+    """The draw's scenario: mono-charuco on ``robot`` with its noise, seeds and ``poses``
+    calibration postures; analytic with corner noise ``sigma_px``, or with ``image_sigma``
+    (grey levels) rendered with that sensor noise and detected (``sigma_px`` then unused)."""
+    noise = ({"render": False, "pixel_sigma": sigma_px} if image_sigma is None
+             else {"render": True, "image_sigma": image_sigma})  # fmt: skip
+    return load_scenario(SCENARIO, {
+        "robot": {"model": robot}, "noise": noise | {"seed": seed},
+        "trajectory": {"poses": poses, "seed": seed}, "perturbation": {"seed": seed}})  # fmt: skip
+
+
+def simulated(s: Scenario, model: str) -> SimSetup:
+    """The simulator of ``s`` with the model ``model`` (:data:`MODELS`): the scenario's own arm,
+    or with ``"compliance"`` the same arm bending (:data:`selfcal.sim.compliance.SHOULDER`)."""
+    if model not in MODELS:
+        raise UsageError(f"unknown model {model!r}: one of {', '.join(MODELS)}")
+    setup = sim_setup(s)
+    return setup if model == "fits" else dataclasses.replace(setup, compliance=SHOULDER)
+
+
+def prior(s: Scenario) -> Deviation:
+    """The prior on the arm's deviation from its drawing the benchmark gives the calibration
+    (``selfcal calibrate --deviation-mm/--deviation-deg``): the simulated arm's own spread,
+    ``s``'s ``[perturbation]``, which a user would state for their arm; the calibration itself
+    never reads the simulator's perturbation."""
+    p = s.perturbation
+    return Deviation(p.translation_mm / 1e3, float(np.radians(p.rotation_deg)))
+
+
+def simulated_calibration(sigma_px: float, seed: int, noise: dict | None = None, *,
+                          scenario_file: Path = SCENARIO,
+                          robot: str | None = None) -> tuple[BoardCalibrationResult, Truth]:  # fmt: skip
+    """One simulated board calibration: ``scenario_file`` (default :data:`SCENARIO`; its
+    ``[robot] model`` replaced by ``robot`` when given) on the analytic path with corner noise
+    ``sigma_px`` and the draw's ``seed`` (perturbation, :data:`POSES` postures, noise; ``noise``
+    more ``[noise]`` keys) acquired and calibrated as ``selfcal run`` does with the deviation
+    :func:`prior`, quietly in a temporary folder: its calibration and truth."""
+    over = {"noise": {"render": False, "pixel_sigma": sigma_px, "seed": seed} | (noise or {}),
+            "trajectory": {"poses": POSES, "seed": seed}, "perturbation": {"seed": seed}}  # fmt: skip
+    if robot is not None:
+        over["robot"] = {"model": robot}
+    with (tempfile.TemporaryDirectory(prefix="selfcal-acc-") as d, warnings.catch_warnings(),
+          redirect_stdout(StringIO()), redirect_stderr(StringIO())):  # fmt: skip
+        warnings.simplefilter("ignore")
+        out = Path(d) / "run"
+        s = load_scenario(scenario_file, over)
+        run_all(s, out, quiet=True, figures=False, deviation=prior(s))
+        return read_board_calibration(out / "calibration.json"), read_truth(out / "truth.json")
+
+
+class GaussianReadBack(EncoderSpec):
+    """The simulated controller's read-back with a Gaussian error of the rounded counts'
+    standard deviation (:attr:`EncoderSpec.read_back_sigma`, uncorrelated between joints; the
+    same for the same posture) instead of the rounding: ``--read-back gaussian``, to tell the
+    rounding's bounded error from the rest of a row's coverage. The calibration still reads
+    the robot file's table (the same standard deviation)."""
+
+    def read_back(self, q: np.ndarray) -> np.ndarray:
+        """``q`` (rad / m) plus the Gaussian read-back error (class docstring)."""
+        q = np.asarray(q, dtype=float)
+        rng = np.random.default_rng(zlib.crc32(q.tobytes()))
+        return q + rng.standard_normal(q.shape) * self.read_back_sigma
+
+
+def draw(args: tuple) -> dict:
+    """One draw (``robot``, noise ``sigma_px``, ``model``, ``seed``, optionally the calibration
+    postures' count, default :data:`POSES`, and the rendered path's image noise, default None:
+    analytic, and the simulated read-back, default ``"rounded"``, or ``"gaussian"``:
+    :class:`GaussianReadBack`): per region the predicted
+    95 % bound with and without the model error, the predicted RMS, the true error (mm), the
+    predicted 95 % orientation bound with and without the model error and the true orientation
+    error (deg); per region also ``<region>_right``, the coverage a right prediction would show
+    there (:func:`selfcal.benchmarks.tool_accuracy.coverage_if_right`); ``model_error_mm``;
+    rendered, the detector's ``corners``
+    (:func:`selfcal.benchmarks.corner_noise.corner_noise`); ``status``."""
+    robot, sigma_px, model, seed = args[:4]
+    poses = int(args[4]) if len(args) > 4 else POSES
+    image_sigma = args[5] if len(args) > 5 else None
+    read_back = args[6] if len(args) > 6 else "rounded"
+    try:
+        s = scenario(robot, sigma_px, seed, poses, image_sigma)
+        setup = simulated(s, model)
+        if read_back == "gaussian" and setup.robot.encoder is not None:
+            enc = GaussianReadBack(**{f.name: getattr(setup.robot.encoder, f.name)
+                                      for f in dataclasses.fields(EncoderSpec)})  # fmt: skip
+            setup = dataclasses.replace(setup, robot=dataclasses.replace(setup.robot, encoder=enc))
+        with (tempfile.TemporaryDirectory(prefix="selfcal-acc-") as d, warnings.catch_warnings(),
+              redirect_stdout(StringIO()), redirect_stderr(StringIO())):  # fmt: skip
+            warnings.simplefilter("ignore")
+            out = Path(d) / "run"
+            run_acquire(s, out, quiet=True, setup=setup)
+            calibrate_board_run(out, quiet=True, deviation=prior(s))
+            cal = read_board_calibration(out / "calibration.json")
+            truth = read_truth(out / "truth.json")
+            corners = None if image_sigma is None else corner_noise(out).to_json()
+        block = cal.accuracy
+        assert block is not None and truth.T_world_board is not None
+        em = board_error_model_from_json(block, cal.model, "calibration.json")
+        em0 = dataclasses.replace(em, model_error_m=0.0, model_error_rad=0.0)
+        q_cal = board_postures_from_json(block, cal.model.n, "calibration.json")
+        sample = workspace_sample(q_cal, np.asarray(block["joint_limits_si"]), count=COUNT,
+                                  seed=seed + 1)  # fmt: skip
+        true_b = express_in_frame(truth.true_model, inv_pose(truth.T_world_board),
+                                  like=cal.model)  # fmt: skip
+        tip = np.asarray(block["T_tool_point_si"])
+        bend = (lambda q: q) if setup.compliance is None else setup.compliance.bent
+        row: dict = {"status": "ok", "corners": corners,
+                     "model_error_mm": (block["model_error"] or {}).get("position_mm") or 0.0}  # fmt: skip
+        for name in REGIONS:
+            q = getattr(sample, name)
+            p = em.predicted(q)
+            T_est = fk_tool(cal.model, q) @ tip
+            T_true = fk_tool(true_b, bend(q)) @ tip
+            row[name] = np.stack([
+                p["position_95_mm"], p["estimation_95_mm"], p["position_rms_mm"],
+                np.linalg.norm(T_est[:, :3, 3] - T_true[:, :3, 3], axis=1) * 1e3,
+                p["orientation_95_deg"], em0.predicted(q)["orientation_95_deg"],
+                _angle(T_est[:, :3, :3], T_true[:, :3, :3]),
+            ])  # fmt: skip
+            row[f"{name}_right"] = coverage_if_right(em, q, seed)
+        return row
+    except Exception as exc:  # noqa: BLE001 - a benchmark counts failed draws
+        return {"status": f"failed: {type(exc).__name__}: {str(exc)[:200]}"}

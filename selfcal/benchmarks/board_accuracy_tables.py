@@ -1,0 +1,159 @@
+"""The board accuracy Monte Carlo's rows and Markdown tables (:mod:`selfcal.benchmarks.board_accuracy`,
+issue #29): the draws of a row pooled per region, the simulated (analytic and rendered) and the
+real sets' tables, and the docs/tool-accuracy.md blocks they go to.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from selfcal.benchmarks.board_accuracy_draw import COUNT, POSES, REGIONS
+from selfcal.benchmarks.corner_noise import corner_stats
+from selfcal.benchmarks.doc_blocks import ROOT
+from selfcal.benchmarks.tool_accuracy import coverage, right_range
+from selfcal.benchmarks.tool_accuracy import mark as _mark
+
+__all__ = [
+    "pooled_rows",
+    "table",
+    "table_rendered",
+    "real_table",
+    "BLOCK",
+    "BLOCK_REAL",
+    "BLOCK_RENDER",
+    "DOC",
+]
+
+DOC = ROOT / "docs" / "tool-accuracy.md"
+BLOCK = "benchmark_board_accuracy"
+BLOCK_REAL = "benchmark_board_accuracy_real"
+BLOCK_RENDER = "benchmark_board_accuracy_rendered"
+
+
+def pooled_rows(robot: str, model: str, s: float, got: list[dict],
+                poses: int = POSES) -> list[dict]:  # fmt: skip
+    """The rows (one per region) of one robot, model and noise level's draws ``got``."""
+    ok = [g for g in got if g["status"] == "ok"]
+    rows = []
+    for region in REGIONS:
+        d = [g[region] for g in ok]
+        a = np.concatenate(d, axis=1)
+        rows.append({
+            "robot": robot, "model": model, "noise_px": s, "region": region, "draws": len(ok),
+            "poses": poses,
+            "failed": len(got) - len(ok), **coverage(d),
+            "true_rot_rms_deg": float(np.sqrt(np.mean(a[6] ** 2))),
+            "coverage_rot": float(np.mean(a[6] <= a[4])),
+            "coverage_rot_covariance": float(np.mean(a[6] <= a[5])),
+            "model_error_share": float(np.mean([g["model_error_mm"] > 0 for g in ok])),
+            **corner_stats([g["corners"] for g in ok if g.get("corners")]),
+            **_right(ok, region),
+        })  # fmt: skip
+    return rows
+
+
+def _right(ok: list[dict], region: str) -> dict:
+    """The central 90 % range of the coverage a right prediction would pool over the draws
+    ``ok`` in ``region`` (position, orientation; :func:`right_range`); none for draws without
+    it."""
+    got = [g[f"{region}_right"] for g in ok if f"{region}_right" in g]
+    if not got or len(got) < len(ok):
+        return {}
+    lo, hi = right_range(got)
+    return {
+        "coverage_right": [float(lo[0]), float(hi[0])],
+        "coverage_rot_right": [float(lo[1]), float(hi[1])],
+    }
+
+
+def _range(r: dict, key: str) -> str:
+    """A table cell: the row's 90 % range ``key`` (:func:`_right`) in %, or "-"."""
+    lo, hi = r.get(key) or (np.nan, np.nan)
+    return "-" if not np.isfinite(lo) else f"{100 * lo:.1f}-{100 * hi:.1f} %"
+
+
+def table(rows: list[dict]) -> str:
+    """The Markdown table of :func:`selfcal.benchmarks.board_accuracy.run`'s rows."""
+    head = (
+        "| robot | model | noise (px) | region | true RMS (mm) | coverage of the 95 % bound "
+        "(target 90-98 %) | a right bound's, 90 % range | covariance alone | predicted / true RMS "
+        "(target 0.7-1.4) | per draw 10-90 % | true orientation RMS (deg) | orientation coverage "
+        "| a right bound's | orientation, covariance alone | draws with a model error |\n"
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n"
+    )
+    lines = [
+        f"| {r['robot']} | {r['model']} | {r['noise_px']:g} | {r['region']} | "
+        f"{r['true_rms_mm']:.3f} | {100 * r['coverage']:.1f} %{_mark(r['coverage'], 0.9, 0.98)} | "
+        f"{_range(r, 'coverage_right')} | "
+        f"{100 * r['coverage_covariance']:.1f} % | {r['ratio']:.2f}{_mark(r['ratio'], 0.7, 1.4)}"
+        f" | {r['ratio_10']:.2f}-{r['ratio_90']:.2f} | {r['true_rot_rms_deg']:.4f} | "
+        f"{100 * r['coverage_rot']:.1f} %{_mark(r['coverage_rot'], 0.9, 0.98)} | "
+        f"{_range(r, 'coverage_rot_right')} | "
+        f"{100 * r['coverage_rot_covariance']:.1f} % | {100 * r['model_error_share']:.0f} % |"
+        for r in rows
+    ]
+    first = [r for r in rows if r["region"] == REGIONS[0]]
+    failed = sum(r["failed"] for r in first)
+    sizes = sorted({r["draws"] + r["failed"] for r in first})
+    poses = "/".join(map(str, sorted({r.get("poses", POSES) for r in first})))
+    lines += ["", f"{'/'.join(map(str, sizes))} draws per row ({failed} failed in all), "
+              f"scenarios/mono-charuco.toml on the analytic path with each robot, {poses} "
+              f"calibration postures, {COUNT} joint vectors per region and draw; `uv run python "
+              "-m selfcal.benchmarks.board_accuracy --write-docs`."]  # fmt: skip
+    return head + "\n".join(lines)
+
+
+def table_rendered(rows: list[dict]) -> str:
+    """The Markdown table of :func:`selfcal.benchmarks.board_accuracy.run`'s rendered rows (``noise_px`` the image noise)."""
+    head = (
+        "| robot | model | image noise (grey levels) | detector corner noise (px, median / "
+        "largest draw) | its bias / 99 % (px) | region | true RMS (mm) | coverage of the 95 % "
+        "bound (target 90-98 %) | a right bound's, 90 % range | covariance alone | predicted / "
+        "true RMS (target 0.7-1.4) | per draw 10-90 % | orientation coverage | a right bound's | "
+        "draws with a model error |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n"
+    )
+    lines = [
+        f"| {r['robot']} | {r['model']} | {r['noise_px']:g} | {r['corner_sigma_px']:.3f} / "
+        f"{r['corner_sigma_max_px']:.3f} | {r['corner_bias_px']:.3f} / {r['corner_p99_px']:.2f} | "
+        f"{r['region']} | {r['true_rms_mm']:.3f} | {100 * r['coverage']:.1f} %"
+        f"{_mark(r['coverage'], 0.9, 0.98)} | {_range(r, 'coverage_right')} | "
+        f"{100 * r['coverage_covariance']:.1f} % | "
+        f"{r['ratio']:.2f}{_mark(r['ratio'], 0.7, 1.4)} | {r['ratio_10']:.2f}-{r['ratio_90']:.2f} | "
+        f"{100 * r['coverage_rot']:.1f} %{_mark(r['coverage_rot'], 0.9, 0.98)} | "
+        f"{_range(r, 'coverage_rot_right')} | {100 * r['model_error_share']:.0f} % |"
+        for r in rows
+    ]  # fmt: skip
+    first = [r for r in rows if r["region"] == REGIONS[0]]
+    sizes = "/".join(map(str, sorted({r["draws"] + r["failed"] for r in first})))
+    robots, models, levels = (",".join(dict.fromkeys(f"{r[k]:g}" if k == "noise_px" else r[k]
+                                                     for r in first))
+                              for k in ("robot", "model", "noise_px"))  # fmt: skip
+    lines += ["", f"{sizes} draws per row ({sum(r['failed'] for r in first)} failed in all), "
+              "scenarios/mono-charuco.toml rendered with MuJoCo and detected as `selfcal run` "
+              "does (`[noise] render = true`, the image noise as `image_sigma`), "
+              f"{POSES} calibration postures, {COUNT} joint vectors per region and draw; the "
+              "corner noise is the detected corners against their true projections; "
+              f"`MUJOCO_GL=egl uv run python -m selfcal.benchmarks.board_accuracy --render "
+              f"--robots {robots} --models {models} --noise-px {levels} --jobs 1 --write-docs`."]  # fmt: skip
+    return head + "\n".join(lines)
+
+
+def _real_row(r: dict) -> str:
+    k = r["predicted_px"] / r["measured_px"]
+    cv = "-" if r["cv_px"] is None else f"{r['cv_px']:.3f} / {r['cv_nominal_px']:.3f}"
+    cells = [r["set"], str(r["images"]), f"{r['measured_px']:.3f}", f"{r['predicted_px']:.3f}",
+             f"{k:.2f}{_mark(k, 0.67, 1.5)}", f"{r['covariance_px']:.3f}",
+             f"{r['model_error_mm'] or 0.0:.3f}", cv]  # fmt: skip
+    return "| " + " | ".join(cells) + " |"
+
+
+def real_table(rows: list[dict]) -> str:
+    """The Markdown table of the real sets."""
+    cols = ["set", "held-out images", "measured held-out RMS (px)", "predicted (px)",
+            "predicted / measured (target 0.67-1.5)", "covariance alone (px)",
+            "model error (mm)", "cross-validated calibrated / fair nominal (px)"]  # fmt: skip
+    return "\n".join([
+        "| " + " | ".join(cols) + " |", "|" + "---|" * len(cols), *map(_real_row, rows), "",
+        "the sets' README commands (docs/real-data.md); "
+        "`uv run python -m selfcal.benchmarks.board_accuracy --real --write-docs`.",
+    ])  # fmt: skip
