@@ -25,12 +25,13 @@ from selfcal.calibration.board.accuracy import (
 )
 from selfcal.calibration.board.deviation import Deviation
 from selfcal.config.scenario import Scenario, load_scenario, scenarios_dir
-from selfcal.errors import UsageError
+from selfcal.errors import InternalError, UsageError
 from selfcal.io.board_calibration import BoardCalibrationResult, read_board_calibration
 from selfcal.io.truth import Truth, read_truth
 from selfcal.kinematics.alignment import express_in_frame
 from selfcal.kinematics.forward import fk_tool
-from selfcal.kinematics.tool_error import workspace_sample
+from selfcal.kinematics.mcpc import MCPCModel
+from selfcal.kinematics.tool_error import WorkspaceSample, workspace_sample
 from selfcal.pipeline.board_run import calibrate_board_run
 from selfcal.pipeline.run import run_acquire, run_all
 from selfcal.robot.encoder import EncoderSpec
@@ -39,11 +40,14 @@ from selfcal.transforms import inv_pose
 
 __all__ = [
     "GaussianReadBack",
+    "calibrated",
     "draw",
+    "draw_sample",
     "prior",
     "scenario",
     "simulated",
     "simulated_calibration",
+    "true_chain",
     "COUNT",
     "MODELS",
     "POSES",
@@ -67,14 +71,18 @@ def _angle(R_a: np.ndarray, R_b: np.ndarray) -> np.ndarray:
 
 
 def scenario(robot: str, sigma_px: float, seed: int, poses: int = POSES,
-             image_sigma: float | None = None) -> Scenario:  # fmt: skip
+             image_sigma: float | None = None, *,
+             noise_seed: int | None = None) -> Scenario:  # fmt: skip
     """The draw's scenario: mono-charuco on ``robot`` with its noise, seeds and ``poses``
     calibration postures; analytic with corner noise ``sigma_px``, or with ``image_sigma``
-    (grey levels) rendered with that sensor noise and detected (``sigma_px`` then unused)."""
+    (grey levels) rendered with that sensor noise and detected (``sigma_px`` then unused);
+    ``noise_seed``: the noise's own seed (default ``seed``: a new truth with its own noise;
+    another one keeps the truth and postures of ``seed`` and draws new noise)."""
     noise = ({"render": False, "pixel_sigma": sigma_px} if image_sigma is None
              else {"render": True, "image_sigma": image_sigma})  # fmt: skip
     return load_scenario(SCENARIO, {
-        "robot": {"model": robot}, "noise": noise | {"seed": seed},
+        "robot": {"model": robot},
+        "noise": noise | {"seed": seed if noise_seed is None else noise_seed},
         "trajectory": {"poses": poses, "seed": seed}, "perturbation": {"seed": seed}})  # fmt: skip
 
 
@@ -131,6 +139,44 @@ class GaussianReadBack(EncoderSpec):
         return q + rng.standard_normal(q.shape) * self.read_back_sigma
 
 
+def calibrated(s: Scenario, setup: SimSetup, *,
+               rendered: bool = False) -> tuple[BoardCalibrationResult, Truth, dict | None]:  # fmt: skip
+    """``s`` acquired with the simulator ``setup`` and calibrated as ``selfcal run`` does with
+    the deviation :func:`prior`, quietly in a temporary folder: its calibration, its truth and,
+    ``rendered``, the detector's corner noise
+    (:func:`selfcal.benchmarks.corner_noise.corner_noise`; else None)."""
+    with (tempfile.TemporaryDirectory(prefix="selfcal-acc-") as d, warnings.catch_warnings(),
+          redirect_stdout(StringIO()), redirect_stderr(StringIO())):  # fmt: skip
+        warnings.simplefilter("ignore")
+        out = Path(d) / "run"
+        run_acquire(s, out, quiet=True, setup=setup)
+        calibrate_board_run(out, quiet=True, deviation=prior(s))
+        cal = read_board_calibration(out / "calibration.json")
+        truth = read_truth(out / "truth.json")
+        corners = corner_noise(out).to_json() if rendered else None
+    if cal.accuracy is None or truth.T_world_board is None:
+        raise InternalError("the simulated board calibration wrote no accuracy block or its "
+                            "truth no board pose")  # fmt: skip
+    return cal, truth, corners
+
+
+def draw_sample(cal: BoardCalibrationResult, seed: int) -> WorkspaceSample:
+    """The draw's workspace sample (:data:`COUNT` joint vectors per region, seeded ``seed + 1``)
+    around the calibration postures of ``cal``'s accuracy block."""
+    block = cal.accuracy
+    assert block is not None
+    q_cal = board_postures_from_json(block, cal.model.n, "calibration.json")
+    return workspace_sample(q_cal, np.asarray(block["joint_limits_si"]), count=COUNT,
+                            seed=seed + 1)  # fmt: skip
+
+
+def true_chain(cal: BoardCalibrationResult, truth: Truth) -> MCPCModel:
+    """The true chain in the board frame with ``cal``'s joint offsets: its minimal parameters
+    compare with the calibration's one by one (:func:`selfcal.kinematics.alignment.express_in_frame`)."""
+    assert truth.T_world_board is not None
+    return express_in_frame(truth.true_model, inv_pose(truth.T_world_board), like=cal.model)
+
+
 def draw(args: tuple) -> dict:
     """One draw (``robot``, noise ``sigma_px``, ``model``, ``seed``, optionally the calibration
     postures' count, default :data:`POSES`, and the rendered path's image noise, default None:
@@ -153,24 +199,13 @@ def draw(args: tuple) -> dict:
             enc = GaussianReadBack(**{f.name: getattr(setup.robot.encoder, f.name)
                                       for f in dataclasses.fields(EncoderSpec)})  # fmt: skip
             setup = dataclasses.replace(setup, robot=dataclasses.replace(setup.robot, encoder=enc))
-        with (tempfile.TemporaryDirectory(prefix="selfcal-acc-") as d, warnings.catch_warnings(),
-              redirect_stdout(StringIO()), redirect_stderr(StringIO())):  # fmt: skip
-            warnings.simplefilter("ignore")
-            out = Path(d) / "run"
-            run_acquire(s, out, quiet=True, setup=setup)
-            calibrate_board_run(out, quiet=True, deviation=prior(s))
-            cal = read_board_calibration(out / "calibration.json")
-            truth = read_truth(out / "truth.json")
-            corners = None if image_sigma is None else corner_noise(out).to_json()
+        cal, truth, corners = calibrated(s, setup, rendered=image_sigma is not None)
         block = cal.accuracy
-        assert block is not None and truth.T_world_board is not None
+        assert block is not None
         em = board_error_model_from_json(block, cal.model, "calibration.json")
         em0 = dataclasses.replace(em, model_error_m=0.0, model_error_rad=0.0)
-        q_cal = board_postures_from_json(block, cal.model.n, "calibration.json")
-        sample = workspace_sample(q_cal, np.asarray(block["joint_limits_si"]), count=COUNT,
-                                  seed=seed + 1)  # fmt: skip
-        true_b = express_in_frame(truth.true_model, inv_pose(truth.T_world_board),
-                                  like=cal.model)  # fmt: skip
+        sample = draw_sample(cal, seed)
+        true_b = true_chain(cal, truth)
         tip = np.asarray(block["T_tool_point_si"])
         bend = (lambda q: q) if setup.compliance is None else setup.compliance.bent
         row: dict = {"status": "ok", "corners": corners,

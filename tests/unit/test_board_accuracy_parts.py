@@ -1,0 +1,45 @@
+"""The board accuracy Monte Carlo's look inside a row: the orientation covariance's directions
+(selfcal.benchmarks.board_accuracy_parts, issue #29)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from selfcal.benchmarks.board_accuracy_parts import directions, table
+
+
+def _draw(dp: np.ndarray) -> dict:
+    """A draw whose parameters' covariance is diag(4, 1, 0.25) and whose orientation moves
+    with each parameter about its own axis (J = I at two joint vectors)."""
+    J = np.stack([np.eye(3), np.eye(3)])
+    return {"status": "ok", "names": ["a", "b", "c"], "error": dp, "cov": np.diag([4.0, 1.0, 0.25]),
+            "J": J, "e_rot": np.einsum("mij,j->mi", J, dp)}  # fmt: skip
+
+
+def test_the_directions_are_the_covariances_largest_orientation_parts():
+    """Each direction's share is its variance's part of the predicted orientation variance,
+    largest first; an error of one standard deviation along the first is z = +-1 there and 0
+    elsewhere; the realised over the predicted mean square is the error's part (4 of 5.25)."""
+    d = directions(_draw(np.array([2.0, 0.0, 0.0])))
+    assert d["share"] == pytest.approx(np.array([4.0, 1.0, 0.25]) / 5.25)
+    assert d["z"] ** 2 == pytest.approx([1.0, 0.0, 0.0], abs=1e-12)
+    assert np.abs(d["load"][:, 0]) == pytest.approx([1.0, 0.0, 0.0], abs=1e-12)
+    assert d["ratio"] == pytest.approx(4.0 / 5.25)
+    assert d["linear"] < 1e-12
+
+
+def test_an_error_not_carried_to_the_orientation_shows_in_linear():
+    """A true orientation error the parameters' Jacobian does not give (another frame or
+    convention) is the ``linear`` misfit: here all of it."""
+    g = _draw(np.array([2.0, 0.0, 0.0]))
+    g["e_rot"] = -g["e_rot"]
+    assert directions(g)["linear"] == pytest.approx(2.0)
+
+
+def test_the_table_counts_failed_draws_and_lists_every_parameter():
+    """The table names the draws, the failed ones and every parameter's mean z and z^2."""
+    text = table([_draw(np.array([2.0, -1.0, 0.5])), {"status": "failed: X"}], "t")
+    assert "1 draws (1 failed)" in text
+    assert "| a | +1.00 | 1.00 |" in text and "| b | -1.00 | 1.00 |" in text
+    assert "| all 3 | +0.33 | 1.00 |" in text
