@@ -46,7 +46,7 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
-from selfcal.benchmarks.board_accuracy import SCENARIO, simulated_calibration
+from selfcal.benchmarks.board_accuracy_draw import SCENARIO, simulated_calibration
 from selfcal.benchmarks.doc_blocks import ROOT, print_table, read_block
 from selfcal.calibration.drift.images import (
     ALPHA,

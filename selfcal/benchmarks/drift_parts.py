@@ -25,7 +25,7 @@ import sys
 
 import numpy as np
 
-from selfcal.benchmarks.board_accuracy import SCENARIO, simulated_calibration
+from selfcal.benchmarks.board_accuracy_draw import SCENARIO, simulated_calibration
 from selfcal.benchmarks.drift_images import NEW_VIEWS, SPREAD_RAD, TOOL_SHIFT_M, read_joints
 from selfcal.calibration.drift.images import (
     ALPHA,
