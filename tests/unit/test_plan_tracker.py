@@ -4,12 +4,15 @@ plan's prediction beats a random plan's and is what the route achieves in simula
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 
 from selfcal.benchmarks.plan.tracker import TOOL_POINT_M, achieved
 from selfcal.calibration.board.deviation import Deviation
 from selfcal.calibration.board.plan.ground import workspace_sample
+from selfcal.calibration.identify import IdentificationWarning
 from selfcal.calibration.tracker.identify import TrackerIdentificationError, identify_tracker
 from selfcal.calibration.tracker.plan import (
     TrackerPlanSetup,
@@ -124,3 +127,19 @@ def test_the_prediction_is_what_the_route_achieves(setup, plan):
     assert np.isfinite(e).sum() >= 7
     ratio = np.median(e[np.isfinite(e)]) / plan.predicted_m
     assert 0.7 <= ratio <= 1.4
+
+
+@pytest.mark.parametrize("robot", ["ur5e", "er4u-vendor"])
+def test_a_nominal_arm_measured_at_the_flange_origin_gets_no_rank_warning(robot):
+    """The generic count refuses too few rows, but the data are compared with their own chain:
+    with the reflector on the last joint's axis a nominal arm's positions cannot reach the
+    generic rank, and telling the user to spread configurations would be wrong advice (the
+    route warned 'rank 25 < 27: ['lx5', 'ly5'] cannot be identified from these configurations'
+    on the UR5e when the structural factor was the moved chain's)."""
+    setup = TrackerPlanSetup(load_robot(robot), np.zeros(3))
+    pool = workspace_sample(setup, 30, seed=4)
+    meas = TrackerMeasurements(q=pool, xyz=fk_tool(setup.model, pool)[:, :3, 3])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", IdentificationWarning)
+        result = identify_tracker(nominal_mcpc(setup.robot), meas)
+    assert not [n for n in result.warnings if "cannot be identified" in n]

@@ -302,13 +302,13 @@ def identify_tracker(
 
     # 2./3. identifiability and the count of equations
     cons = np.flatnonzero(considered)
-    count, A_spread = rows_needed_at(start, local, sig, cons, rank_rtol)
-    p_struct, n_eq, need, what = count.rank, count.equations, count.need, count.what
+    count, A_spread, p_struct = rows_needed_at(start, local, sig, cons, rank_rtol)
+    n_eq, need, what = count.equations, count.need, count.what
     if not count.enough:
         raise TrackerIdentificationError(
-            f"too few measurements: {n_eq} equations for the {p_struct} parameters that "
+            f"too few measurements: {n_eq} equations for the {count.rank} parameters that "
             f"{what} identify on this robot; need at least {need} {what} "
-            f"(more than {p_struct} equations), better 3 times that",
+            f"(more than {count.rank} equations), better 3 times that",
             fix=f"measure at least {need} well-spread configurations that move every joint",
         )
     mask, rank, cond = _select(start, scaled_factor(start, local, sig, cons), cons, rank_rtol)

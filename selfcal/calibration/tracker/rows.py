@@ -184,23 +184,28 @@ def rows_needed_at(
     sig: tuple[float, float, float],
     cons: np.ndarray,
     rank_rtol: float,
-) -> tuple[RowsNeeded, np.ndarray]:
+) -> tuple[RowsNeeded, np.ndarray, int]:
     """:func:`rows_needed` for the considered minimal positions ``cons`` (into the minimal set)
-    and the weights ``sig`` (m, rad, m), with the triangular factor (scaled columns ``cons``) at
-    the well-spread configurations it counts from."""
-    A_spread = scaled_factor(model, spread_measurements(model, meas, cons.size), sig, cons)
-    rank = numerical_rank(A_spread, rank_rtol)
+    and the weights ``sig`` (m, rad, m), with the triangular factor (scaled columns ``cons``)
+    of ``model`` itself at the well-spread configurations and that factor's rank.
+
+    The count (``RowsNeeded.rank``) is the generic one; the factor and its rank are the chain's
+    as given: with its tool point exactly on the last joint's axis they count fewer, and the
+    route's structural selection and its rank warning must compare the data with this chain,
+    not with a moved one (else a nominal arm's data would be told to spread configurations
+    that cannot help)."""
+    A_own = scaled_factor(model, spread_measurements(model, meas, cons.size), sig, cons)
+    rank_own = numerical_rank(A_own, rank_rtol)
+    rank = rank_own
     if rank < cons.size:  # the generic count: a tool point exactly on an axis counts fewer
         moved = model.with_tool(trans(GENERIC_TOOL_SHIFT_M))
         A_moved = scaled_factor(moved, spread_measurements(moved, meas, cons.size), sig, cons)
-        rank_moved = numerical_rank(A_moved, rank_rtol)
-        if rank_moved > rank:
-            A_spread, rank = A_moved, rank_moved
+        rank = max(rank, numerical_rank(A_moved, rank_rtol))
     n_eq = meas.equations()
     per = 6 if meas.R is not None else 3 if meas.m else 1
     what = "poses" if meas.R is not None else "positions" if meas.m else "distances"
     need = (rank - (n_eq - per * (meas.m if meas.m else meas.k))) // per + 1
-    return RowsNeeded(rank=rank, need=need, what=what, equations=n_eq), A_spread
+    return RowsNeeded(rank=rank, need=need, what=what, equations=n_eq), A_own, rank_own
 
 
 def rows_needed(
