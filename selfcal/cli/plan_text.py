@@ -62,7 +62,12 @@ def plan_lines(plan) -> str:
                   f"{plan.random_m * 1000:.3f} mm so)")  # fmt: skip
     else:
         first += (f" (with all {plan.kept_all} the postures identify {plan.predicted_m * 1000:.3f}"
-                  f" mm; a random plan of {n}: {plan.random_m * 1000:.3f} mm)")  # fmt: skip
+                  f" mm; a random plan of {n}: ")  # fmt: skip
+        if plan.random_selected_m is None:
+            first += f"{plan.random_m * 1000:.3f} mm)"
+        else:  # the plan's figure beside the random plan's on the same basis, then with all
+            first += (f"{plan.random_selected_m * 1000:.3f} mm with what its selection is "
+                      f"forecast to keep, {plan.random_m * 1000:.3f} mm with all)")  # fmt: skip
     if plan.chosen_by != "greedy":
         first += (f"; the pool's {plan.chosen_by}: the greedy choice (its criterion estimates "
                   f"every parameter) predicted {plan.greedy_m * 1000:.3f} mm with those its "

@@ -54,6 +54,11 @@ def test_plan_files_parse(tmp_path, capsys, monkeypatch):
     assert doc["selection"]["kinematic_parameters"] < doc["identified_kinematic_parameters"]
     assert doc["selection"]["tool_rms_mm"] < doc["greedy_selection_tool_rms_mm"]
     assert doc["random_selection_tool_rms_mm"] < doc["greedy_selection_tool_rms_mm"]
+    # the first line sets the plan's figure beside the random plan's on the same basis (the
+    # parameters each selection is forecast to keep), not beside its all-parameter figure
+    assert doc["selection"]["tool_rms_mm"] <= doc["random_selection_tool_rms_mm"]
+    rand = rf"a random plan of 6: {doc['random_selection_tool_rms_mm']:.3f} mm with what its"
+    assert re.search(rand, line)
     draws = doc["forecast_draws"]
     assert draws["plan"]["median_mm"] < draws["random"]["median_mm"]
     assert draws["plan"]["p90_mm"] < draws["random"]["p90_mm"]
