@@ -11,7 +11,9 @@ import json
 import math
 import os
 import sys
+from collections.abc import Callable
 from pathlib import Path
+from typing import TypeVar
 
 import pytest
 from hypothesis import settings
@@ -32,6 +34,8 @@ sys.dont_write_bytecode = False
 # the day's draw. What a local run finds is kept in .hypothesis/ and becomes a regression test.
 settings.register_profile("ci", derandomize=True, database=None, print_blob=True)
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "default"))
+
+T = TypeVar("T")
 
 GOLDEN_DIR = Path(__file__).resolve().parent / "golden"
 
@@ -72,10 +76,38 @@ def golden(request: pytest.FixtureRequest):
     return check
 
 
+def shared_run(
+    tmp_path_factory: pytest.TempPathFactory, name: str, build: Callable[[Path], T]
+) -> T:
+    """``build(folder)`` once per test run, not once per xdist worker: a deterministic session
+    fixture's value (picklable; its files in ``folder``) is built by the first worker that asks,
+    under a file lock in the run's temporary folder, which every worker shares
+    (``getbasetemp().parent``, pytest-xdist's documented pattern; ``fcntl.flock`` for the lock),
+    and the others wait for it and read the pickle. Each worker built the default scenario's
+    calibrations before (14 CPU s each for the analytic one). Without xdist it builds in the
+    process's own temporary folder. A failed build leaves no pickle: the next worker tries again
+    (and fails the same way)."""
+    if os.environ.get("PYTEST_XDIST_WORKER") is None:
+        return build(tmp_path_factory.mktemp(name))
+    import fcntl
+    import pickle
+
+    root = tmp_path_factory.getbasetemp().parent
+    with open(root / f"{name}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
+        done = root / name / "built.pickle"
+        if done.is_file():
+            return pickle.loads(done.read_bytes())
+        (root / name).mkdir(exist_ok=True)
+        value = build(root / name)
+        done.write_bytes(pickle.dumps(value))
+        return value
+
+
 @pytest.fixture(scope="session")
 def default_analytic(tmp_path_factory):
     """The default scenario on the analytic path (0.5 px corner noise, quantised joints) acquired,
-    calibrated and reported once per test process (the golden files', the pipeline's and the
+    calibrated and reported once per test run (the golden files', the pipeline's and the
     compensation's tests each ran this same run): (folder, the calibration result, what
     ``run_calibrate`` printed on stderr, the report). Read it, never write into the folder."""
     import contextlib
@@ -84,28 +116,34 @@ def default_analytic(tmp_path_factory):
     from selfcal.config.scenario import load_scenario
     from selfcal.pipeline.run import run_acquire, run_calibrate, run_report
 
-    out = tmp_path_factory.mktemp("default-analytic") / "ds"
-    run_acquire(load_scenario(overrides={"noise": {"render": False}}), out, quiet=True)
-    said = io.StringIO()
-    with contextlib.redirect_stderr(said):
-        result = run_calibrate(out, quiet=False)
-    return out, result, said.getvalue(), run_report(out, quiet=True)
+    def build(folder: Path):
+        out = folder / "ds"
+        run_acquire(load_scenario(overrides={"noise": {"render": False}}), out, quiet=True)
+        said = io.StringIO()
+        with contextlib.redirect_stderr(said):
+            result = run_calibrate(out, quiet=False)
+        return out, result, said.getvalue(), run_report(out, quiet=True)
+
+    return shared_run(tmp_path_factory, "default-analytic", build)
 
 
 @pytest.fixture(scope="session")
 def default_noise_free(tmp_path_factory):
     """The default scenario without noise (analytic corners, no pixel noise, joints not
-    quantised) acquired, calibrated and reported once per test process (the pipeline's and the
+    quantised) acquired, calibrated and reported once per test run (the pipeline's and the
     joint refinement's noise-free tests each ran this same run): (folder, the calibration
     result, the report). Copy the folder to change it (`selfcal report` on it writes the same
     report.json again)."""
     from selfcal.config.scenario import load_scenario
     from selfcal.pipeline.run import run_acquire, run_calibrate, run_report
 
-    out = tmp_path_factory.mktemp("default-noise-free") / "ds"
-    noise = {"render": False, "pixel_sigma": 0.0, "quantize_joints": False}
-    run_acquire(load_scenario(overrides={"noise": noise}), out, quiet=True)
-    return out, run_calibrate(out, quiet=True), run_report(out, quiet=True)
+    def build(folder: Path):
+        out = folder / "ds"
+        noise = {"render": False, "pixel_sigma": 0.0, "quantize_joints": False}
+        run_acquire(load_scenario(overrides={"noise": noise}), out, quiet=True)
+        return out, run_calibrate(out, quiet=True), run_report(out, quiet=True)
+
+    return shared_run(tmp_path_factory, "default-noise-free", build)
 
 
 def compare_json(expected, actual, *, rtol: float, atol: float, path: str = "") -> list[str]:
