@@ -76,6 +76,24 @@ def golden(request: pytest.FixtureRequest):
     return check
 
 
+@pytest.fixture(scope="session", autouse=True)
+def _one_blas_thread_per_test_process() -> None:
+    """Each test process computes with ``SELFCAL_THREADS`` (else 1) BLAS threads from its first
+    test on, as every ``selfcal`` process does (selfcal/threads.py). The pools started at the
+    core count and shrank only once some test ran ``cli.main``, so what came before ran two
+    OpenBLAS threads in each of the two xdist workers on two cores: the default scenario's
+    calibration took 14.2 CPU s so against 1.2 s with one thread (time.process_time around
+    run_calibrate, under load). Only this process's pools: the environment is left alone, so a
+    test of what a child process or worker pool sets (tests/integration/test_threads.py) still
+    sees only what the code sets. scipy's own OpenBLAS is loaded first so the limit reaches it."""
+    import scipy.linalg  # noqa: F401  (its own OpenBLAS, loaded before the limit)
+    from threadpoolctl import threadpool_limits
+
+    from selfcal.threads import thread_count
+
+    threadpool_limits(limits=thread_count())
+
+
 def shared_run(
     tmp_path_factory: pytest.TempPathFactory, name: str, build: Callable[[Path], T]
 ) -> T:
