@@ -102,8 +102,8 @@ def shared_run(
     under a file lock in the run's temporary folder, which every worker shares
     (``getbasetemp().parent``, pytest-xdist's documented pattern; ``fcntl.flock`` for the lock),
     and the others wait for it and read the pickle. Each worker built the default scenario's
-    calibrations before (14 CPU s each for the analytic one). Without xdist it builds in the
-    process's own temporary folder. A failed build leaves no pickle: the next worker tries again
+    two calibrations before (1.5-1.9 CPU s each with one BLAS thread). Without xdist it builds
+    in the process's own temporary folder. A failed build leaves no pickle: the next worker tries again
     (and fails the same way)."""
     if os.environ.get("PYTEST_XDIST_WORKER") is None:
         return build(tmp_path_factory.mktemp(name))
