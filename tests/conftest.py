@@ -164,6 +164,29 @@ def default_noise_free(tmp_path_factory):
     return shared_run(tmp_path_factory, "default-noise-free", build)
 
 
+@pytest.fixture(scope="session")
+def ur5e_wrist_plan(tmp_path_factory):
+    """The plan benchmark's UR5e cell (selfcal.benchmarks.plan.add.wrist_cell: a 60 deg 640 x 480
+    camera, the ChArUco board on the table where home looks) and its plan of 8 postures from 80
+    candidates (seed 3, workspace 20, joint sigma 0.01 deg), made once per test run: the plan
+    tests of --add, the spread and the selection each made this same plan (3.0 CPU s each,
+    time.process_time, one BLAS thread): (setup, plan). Read them, never change them."""
+
+    def build(_folder: Path):
+        import numpy as np
+
+        from selfcal.benchmarks.plan.add import wrist_cell
+        from selfcal.calibration.board.plan.planner import plan_recording
+
+        setup, _, _ = wrist_cell()
+        sigma = np.full(6, np.radians(0.01))
+        return setup, plan_recording(
+            setup, 8, seed=3, candidates=80, workspace=20, joint_sigma=sigma
+        )
+
+    return shared_run(tmp_path_factory, "ur5e-wrist-plan", build)
+
+
 def compare_json(expected, actual, *, rtol: float, atol: float, path: str = "") -> list[str]:
     """Differences between two JSON trees: numbers within ``atol + rtol * max(|a|, |b|)``.
 

@@ -12,7 +12,6 @@ from selfcal.calibration.board.deviation import Deviation
 from selfcal.calibration.board.plan.add import DatasetPlan, training_sets
 from selfcal.calibration.board.plan.greedy import select_greedy
 from selfcal.calibration.board.plan.information import board_model, frame_information
-from selfcal.calibration.board.plan.planner import plan_recording
 from selfcal.calibration.board.plan.predict import (
     estimated_directions,
     kept_by_rank,
@@ -21,12 +20,8 @@ from selfcal.calibration.board.plan.predict import (
 from selfcal.calibration.board.plan.views import PlanSetup
 from selfcal.camera import project
 from selfcal.estimation.joint_report import aligned_tool_weight
-from selfcal.io.camera_file import camera_from_fov
-from selfcal.io.target_toml import load_target
 from selfcal.kinematics.forward import fk_tool
-from selfcal.kinematics.mcpc import minimal_indices, nominal_mcpc
-from selfcal.kinematics.trajectory import home_target_center
-from selfcal.robot.definition import load_robot, models_dir
+from selfcal.kinematics.mcpc import minimal_indices
 from selfcal.target.base import Features
 from selfcal.target.placement import board_pose, board_pose_values
 from selfcal.transforms import inv_pose
@@ -35,17 +30,15 @@ JS = np.full(6, np.radians(0.01))
 
 
 @pytest.fixture(scope="module")
-def setup() -> PlanSetup:
-    robot = load_robot("ur5e")
-    cx, cy = home_target_center(robot, nominal_mcpc(robot).with_tool(robot.T_flange_cam))
-    board = load_target(models_dir() / "targets/charuco.toml")
-    return PlanSetup(robot, camera_from_fov(60.0, 640, 480), board,
-                     board_pose(board, np.array([cx, cy, 0.003])))  # fmt: skip
+def setup(ur5e_wrist_plan) -> PlanSetup:
+    return ur5e_wrist_plan[0]  # the UR5e cell, shared with the other plan tests (conftest.py)
 
 
 @pytest.fixture(scope="module")
-def plan(setup):
-    return plan_recording(setup, 8, seed=3, candidates=80, workspace=20, joint_sigma=JS)
+def plan(ur5e_wrist_plan):
+    plan = ur5e_wrist_plan[1]  # 8 of 80 candidates, seed 3, workspace 20
+    assert np.array_equal(plan.joint_sigma, JS)
+    return plan
 
 
 @pytest.fixture(scope="module")

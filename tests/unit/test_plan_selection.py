@@ -10,10 +10,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from selfcal.benchmarks.plan.add import WRIST_SPAN_DEG, wrist_cell
+from selfcal.benchmarks.plan.add import WRIST_SPAN_DEG
 from selfcal.calibration.board.deviation import Deviation
 from selfcal.calibration.board.plan.information import board_model, frame_information
-from selfcal.calibration.board.plan.planner import plan_recording
 from selfcal.calibration.board.plan.predict import kept_by_rank
 from selfcal.calibration.board.plan.selection import forecast_selection
 from selfcal.calibration.board.plan.views import feasible
@@ -22,9 +21,9 @@ JS = np.full(6, np.radians(0.01))
 
 
 @pytest.fixture(scope="module")
-def cell():
-    setup, _, _ = wrist_cell()
-    plan = plan_recording(setup, 8, seed=3, candidates=80, workspace=20, joint_sigma=JS)
+def cell(ur5e_wrist_plan):
+    setup, plan = ur5e_wrist_plan  # 8 of 80 candidates, seed 3, workspace 20 (conftest.py)
+    assert np.array_equal(plan.joint_sigma, JS)
     rng = np.random.default_rng(1)
     q = np.tile(setup.robot.home, (2000, 1))
     q[:, 3:] += rng.uniform(-1, 1, size=(2000, 3)) * np.radians(WRIST_SPAN_DEG)

@@ -8,10 +8,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from selfcal.benchmarks.plan.add import WRIST_SPAN_DEG, wrist_cell
+from selfcal.benchmarks.plan.add import WRIST_SPAN_DEG
 from selfcal.calibration.board.deviation import Deviation
 from selfcal.calibration.board.plan.information import board_model, frame_information
-from selfcal.calibration.board.plan.planner import plan_recording
 from selfcal.calibration.board.plan.predict import Directions, predicted_with_held
 from selfcal.calibration.board.plan.selection import selection_folds
 from selfcal.calibration.board.plan.spread import plan_spread, selection_spread
@@ -23,9 +22,9 @@ JS = np.full(6, np.radians(0.01))
 
 
 @pytest.fixture(scope="module")
-def cell():
-    setup, _, _ = wrist_cell()
-    plan = plan_recording(setup, 8, seed=3, candidates=80, workspace=20, joint_sigma=JS)
+def cell(ur5e_wrist_plan):
+    setup, plan = ur5e_wrist_plan  # 8 of 80 candidates, seed 3, workspace 20 (conftest.py)
+    assert np.array_equal(plan.joint_sigma, JS)
     model = board_model(setup)
     G = aligned_tool_weight(model, plan.workspace, setup.T_tool_tip)
     return setup, model, plan.q, G, Directions(model)
