@@ -32,7 +32,7 @@ the calibration with the parameters its selection keeps, every other one held at
 estimates every parameter the postures identify; when the selection is forecast to keep fewer
 (few postures: the UR5e example's 6 of 60 candidates keep none of its 18 beyond the placement,
 and the greedy choice's postures, those the deviation moves most, then leave the fair nominal
-8.19 mm off where the pool's first 6 leave it 4.36 mm off; docs/plan.md "A plan of 6"), the plan is
+8.19 mm off where the pool's first 6 leave it 4.36 mm off; docs/plan.md "A plan of a few postures"), the plan is
 the best by that prediction of the greedy choice and the pool's disjoint sets of ``count`` in
 draw order, as the tracker plan's (:func:`_best_with_the_selection`); a plan whose forecast
 keeps every parameter (the tables' plans of 12) is the greedy choice. The chosen postures are
