@@ -51,7 +51,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from selfcal.calibration.board.deviation import Deviation
-from selfcal.calibration.board.plan.greedy import select_greedy
+from selfcal.calibration.board.plan.greedy import pool_sets, select_greedy
 from selfcal.calibration.board.plan.ground import workspace_sample
 from selfcal.calibration.board.plan.path import order_path, path_length
 from selfcal.calibration.board.plan.predict import predicted_with_held, prior_information
@@ -228,12 +228,11 @@ def plan_tracker(
         "greedy": select_greedy(F, G, 0, count),
         "greedy from the prior": select_greedy(F, G, 0, count, start=prior_information(var, 0)),
     }
-    sets = len(pool) // count
     tried = {name: (predict(i), i) for name, i in greedy.items()}
     greedy_m = min(m for m, _ in tried.values())
-    for s in range(sets):
-        i = np.arange(s * count, (s + 1) * count)
-        tried[f"random set {s + 1} of {sets}"] = (predict(i), i)
+    rivals = pool_sets(len(pool), count)
+    for name, i in rivals:
+        tried[name] = (predict(i), i)
     chosen_by = min(tried, key=lambda name: tried[name][0])  # the first of equals: greedy
     predicted_m, chosen = tried[chosen_by]
     home = setup.robot.home
@@ -244,7 +243,7 @@ def plan_tracker(
         q=q,
         predicted_m=predicted_m,
         q_random=rand,
-        random_m=tried[f"random set 1 of {sets}"][0],
+        random_m=tried[rivals[0][0]][0],
         workspace=qw,
         kept=int(kept_by_rank(setup, q).sum()),
         parameters=int(minimal_indices(setup.model.joint_types).size),

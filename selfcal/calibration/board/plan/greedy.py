@@ -99,6 +99,18 @@ def exchange(
     return chosen
 
 
+def pool_sets(size: int, count: int) -> list[tuple[str, np.ndarray]]:
+    """The pool's disjoint sets of ``count`` candidates in draw order, each with its name
+    (``"random set k of s"``; the first is the random plan of that size): the rivals a plan is
+    judged against when its criterion may not be what the calibration reaches (the camera
+    planner with few postures, the tracker planner always). Indices into the pool of ``size``."""
+    sets = size // count
+    return [
+        (f"random set {k + 1} of {sets}", np.arange(k * count, (k + 1) * count))
+        for k in range(sets)
+    ]
+
+
 def _scaled(
     F: np.ndarray, G: np.ndarray, n_cam: int, start: np.ndarray | None
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

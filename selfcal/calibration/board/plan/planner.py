@@ -51,7 +51,7 @@ import numpy as np
 
 from selfcal.calibration.board.deviation import Deviation
 from selfcal.calibration.board.nominal_fit import placement_indices
-from selfcal.calibration.board.plan.greedy import exchange, select_greedy
+from selfcal.calibration.board.plan.greedy import exchange, pool_sets, select_greedy
 from selfcal.calibration.board.plan.ground import PlanOptions, plan_ground
 from selfcal.calibration.board.plan.information import board_model, frame_information
 from selfcal.calibration.board.plan.path import order_path, path_length
@@ -278,14 +278,13 @@ def _best_with_the_selection(
     forecast to keep (:attr:`Selected.selected_m`); the first of equals: the greedy choice.
     ``chosen_by`` names it (``"greedy"`` or ``"random set i of s"``); ``random_m`` the first
     set's (the random plan's) prediction so (m)."""
-    best = (*plan, "greedy")
-    sets, random_m = size // count, float("nan")
-    for k in range(sets):
-        idx = ordered(np.arange(k * count, (k + 1) * count))
+    best, random_m = (*plan, "greedy"), float("nan")
+    for k, (name, drawn) in enumerate(pool_sets(size, count)):
+        idx = ordered(drawn)
         got, ref = selected(idx)
         random_m = got.selected_m if k == 0 else random_m
         if got.selected_m < best[1].selected_m:
-            best = (idx, got, ref, f"random set {k + 1} of {sets}")
+            best = (idx, got, ref, name)
     return (*best, random_m)
 
 
