@@ -3,8 +3,9 @@ against what they show (issue #29).
 
 The check's covariance of a view's residuals (:mod:`selfcal.calibration.drift.images`) is a sum
 of parts: the calibration's estimate carried to the view (``H C H^T``), the model error and the
-joint read-back, the per-view pose jitter (``A J A^T``), the per-view misfit in the camera's
-directions (``c^2 U U^T``) and the white corner noise (``s^2 I``;
+joint read-back, the per-view misfit in the pose span (``g^2 P``, ``P`` the projection on the
+span of the view's 6 pose columns; ``A J A^T``, the pose jitter, in a file written before
+``pose_misfit_px``), the per-view misfit in the camera's directions (``c^2 U U^T``) and the white corner noise (``s^2 I``;
 :func:`selfcal.calibration.drift.images.view_noise`). Per dataset given (the calibration's own,
 the held-out one) this prints each part's predicted energy per corner (px^2, both coordinates)
 in three orthogonal subspaces of each view, beside the residuals' own energy there: the span of
@@ -41,7 +42,7 @@ from selfcal.threads import limit_threads
 
 __all__ = ["PARTS", "SPACES", "main", "parts"]
 
-PARTS = ("estimate", "model error and joints", "pose jitter", "camera misfit", "white noise")
+PARTS = ("estimate", "model error and joints", "pose misfit", "camera misfit", "white noise")
 SPACES = ("pose span", "camera directions", "rest")
 
 
@@ -64,13 +65,13 @@ def parts(calibration: Path, dataset: Path) -> dict:
         U = camera_directions(v.tool, v.cam)
         Pc = U @ U.T
         J = np.zeros((6, 6)) if noise.jitter is None else noise.jitter
-        jit = v.tool @ J @ v.tool.T
+        jit = v.tool @ J @ v.tool.T + noise.pose_misfit_px**2 * P
         cam = noise.camera_misfit_px**2 * Pc
         white = noise.pixel_sigma_px**2 * np.eye(n2)
         blocks = {
             "estimate": H @ C @ H.T,
             "model error and joints": v.local - jit - cam - white,
-            "pose jitter": jit,
+            "pose misfit": jit,
             "camera misfit": cam,
             "white noise": white,
             "measured": np.outer(v.r, v.r),

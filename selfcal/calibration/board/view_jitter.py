@@ -1,4 +1,5 @@
-"""The per-view misfit of a board calibration as a jitter of the chain's tool pose (issue #29).
+"""The per-view misfit of a board calibration, as a jitter of the chain's tool pose or per pose
+direction (issue #29).
 
 A calibration whose model misfits leaves residuals in its own frames (its first camera's pixels
 predicted from the joints alone by the stored model) that do not look like corner noise: on
@@ -37,8 +38,22 @@ free parameters' pixel columns with the frame's pose span projected out, :func:`
   the check's test of a camera change rejects the unchanged arm's held-out group (photoneo
   p = 1e-5 before Bonferroni), with it not.
 
-The jitter is then the mean of ``xi_i xi_i^T - N_i`` with ``w`` in ``N_i``. The drift check adds
-``A_i J A_i^T + c^2 U_i U_i^T + w^2 I`` to every new view in place of the bounds' ``s^2 I``
+The jitter is then the mean of ``xi_i xi_i^T - N_i`` with ``w`` in ``N_i``. That mean is right
+for a rigid pose error of each view, but a misfit of the pixels that merely lies in the pose
+span (a lens's, a board's) gives each frame a pose error ``xi_i`` that is large along what that
+frame measures poorly and costs it few pixels; carried to new views that measure it well, the
+mean predicts far more than they show (mecheye: 2.75 px^2 per corner on its own frames against
+their 0.75 in the pose span; a frame's ``xi_i`` alone carried to the others gives them 22 px^2).
+So a second form is weighed against it: a per-view misfit ``g`` in each of the 6 orthonormal
+directions of a view's pose span (in pixels, :attr:`ViewJitter.pose_misfit_px`), ``g^2`` the
+frames' pose-span energy beyond ``w`` and the joints' read-back over their ``6 m`` directions.
+Each frame's ``xi_i`` is predicted from the other frames by each form (``J`` the others' mean,
+and ``g^2 (A_i^T A_i)^-1``, each plus ``N_i``) and the form with the larger Gaussian
+log-likelihood summed over the frames is kept (:func:`_per_direction`): ``g`` on mecheye, the
+jitter on photoneo and on a simulated rigid jitter (tests/unit/test_view_jitter.py).
+
+The drift check adds ``A_i J A_i^T`` (or ``g^2 P_i``, ``P_i`` the projection on the view's pose
+span) ``+ c^2 U_i U_i^T + w^2 I`` to every new view in place of the bounds' ``s^2 I``
 (:func:`selfcal.calibration.drift.images.calibration_views`); a calibration whose jitter is not
 counted keeps the bounds' noise and nothing else. Nothing here reads truth.
 """
@@ -76,7 +91,9 @@ class ViewJitter:
             of freedom); white_px: the white corner noise outside the pose spans and the camera's
             directions, camera_misfit_px: the per-view misfit per camera direction (module
             docstring; px; None in a file written before them: the check keeps the bounds'
-            noise then).
+            noise then); pose_misfit_px: the per-view misfit per pose direction (px) when its
+            frames' likelihood prefers it to the jitter (module docstring), else None (and in
+            a file written before it): the check carries the jitter then.
     """
 
     covariance: np.ndarray
@@ -87,12 +104,14 @@ class ViewJitter:
     rest_rms_px: float
     white_px: float | None = None
     camera_misfit_px: float | None = None
+    pose_misfit_px: float | None = None
 
     def to_json(self) -> dict:
         """The block (SI; px)."""
         return {
             "white_px": self.white_px,
             "camera_misfit_px": self.camera_misfit_px,
+            "pose_misfit_px": self.pose_misfit_px,
             "covariance_si": self.covariance.tolist(),
             "statistic": self.statistic,
             "views": self.views,
@@ -101,8 +120,9 @@ class ViewJitter:
             "rest_rms_px": self.rest_rms_px,
             "what": "per-view jitter of the chain's tool pose (body twist, m and rad) that the "
             "calibration's own frames show beyond the corner noise; the drift check adds it to "
-            "every new view, with camera_misfit_px per camera direction and white_px in place "
-            "of the bounds' corner noise",
+            "every new view (or, where pose_misfit_px is given, that misfit in each of the "
+            "view's 6 pose directions instead), with camera_misfit_px per camera direction and "
+            "white_px in place of the bounds' corner noise",
         }
 
 
@@ -132,7 +152,10 @@ def view_jitter(model: MCPCModel, camera: CameraModel, q: np.ndarray,
     q_frames = np.asarray(q, float)[[f for f, _, _ in frames]]
     T, tw = fk_tool(model, q_frames), joint_twists(model, q_frames)
     xis, infos, rest, dof, total, in_cam, cam_dof = [], [], 0.0, 0, 0.0, 0.0, 0
-    for (_, X, uv), Ti in zip(frames, T, strict=True):
+    js2 = 0.0 if joint_sigma is None else np.broadcast_to(np.asarray(joint_sigma, float) ** 2,
+                                                          (tw.shape[2],))  # fmt: skip
+    in_pose, joints_px2 = [], []  # per frame: the pose span's energy, the joints' there (px^2)
+    for (_, X, uv), Ti, twi in zip(frames, T, tw, strict=True):
         _, uv_hat, A, Jc = board_view(camera, Ti, X, eye_to_hand)
         r = (np.asarray(uv, float) - uv_hat).reshape(-1)
         xi, *_ = np.linalg.lstsq(A, r, rcond=None)
@@ -145,13 +168,13 @@ def view_jitter(model: MCPCModel, camera: CameraModel, q: np.ndarray,
         cam_dof += U.shape[1]
         xis.append(xi)
         infos.append(A.T @ A)
+        in_pose.append(float(r @ r - e @ e))
+        joints_px2.append(float(np.sum((A @ twi) ** 2 * js2)))
     # the white corner noise and the camera directions' misfit beyond it (module docstring)
     white2 = (rest - in_cam) / max(dof - cam_dof, 1)
     cam2 = max(in_cam / max(cam_dof - len(camera.free), 1) - white2, 0.0)
     s2 = pixel_sigma_px**2
     n = len(frames)
-    js2 = 0.0 if joint_sigma is None else np.broadcast_to(np.asarray(joint_sigma, float) ** 2,
-                                                          (tw.shape[2],))  # fmt: skip
     N = [s2 * np.linalg.inv(info) + (tw[i] * js2) @ tw[i].T for i, info in enumerate(infos)]
     stat = float(sum(x @ np.linalg.solve(Ni, x) for x, Ni in zip(xis, N, strict=True)))
     share = 1.0 - rest / total if total > 0 else 0.0
@@ -161,9 +184,42 @@ def view_jitter(model: MCPCModel, camera: CameraModel, q: np.ndarray,
         return ViewJitter(np.zeros((6, 6)), stat, n, False, share, rest_rms, white, cam)
     # counted: the corner noise in N_i is the white one (module docstring)
     N = [Ni + (white2 - s2) * np.linalg.inv(info) for Ni, info in zip(N, infos, strict=True)]
-    J = np.mean([np.outer(x, x) - Ni for x, Ni in zip(xis, N, strict=True)], axis=0)
-    w, V = np.linalg.eigh((J + J.T) / 2)
-    return ViewJitter((V * np.clip(w, 0.0, None)) @ V.T, stat, n, True, share, rest_rms, white, cam)
+    S = [np.outer(x, x) - Ni for x, Ni in zip(xis, N, strict=True)]
+    # the pose span's energy per frame beyond the white noise and the joints' read-back
+    excess = np.array(in_pose) - 6 * white2 - np.array(joints_px2)
+    pose = _per_direction(xis, infos, N, S, excess)
+    return ViewJitter(_psd(np.mean(S, axis=0)), stat, n, True, share, rest_rms, white, cam, pose)
+
+
+def _psd(M: np.ndarray) -> np.ndarray:
+    """The symmetric ``M`` with its negative eigenvalues set to 0."""
+    w, V = np.linalg.eigh((M + M.T) / 2)
+    return (V * np.clip(w, 0.0, None)) @ V.T
+
+
+def _log_likelihood(x: np.ndarray, cov: np.ndarray) -> float:
+    """The Gaussian log-density of ``x`` under the covariance ``cov``, less its constant."""
+    _, logdet = np.linalg.slogdet(cov)
+    return -0.5 * (float(x @ np.linalg.solve(cov, x)) + logdet)
+
+
+def _per_direction(xis: list[np.ndarray], infos: list[np.ndarray], N: list[np.ndarray],
+                   S: list[np.ndarray], excess: np.ndarray) -> float | None:  # fmt: skip
+    """The misfit per pose direction ``g`` (px) when it predicts each frame's pose error ``xi_i``
+    (from the others) better than the jitter's mean does, else None (module docstring): per
+    frame ``i`` left out, ``J`` the mean of the others' ``S_j = xi_j xi_j^T - N_j`` and ``g^2``
+    their pose-span energy ``excess`` over their ``6`` directions, each frame's Gaussian
+    log-likelihood under ``J + N_i`` and under ``g^2 (A_i^T A_i)^-1 + N_i`` summed."""
+    n = len(xis)
+    tot_S, tot_e = np.sum(S, axis=0), float(np.sum(excess))
+    jitter = per_direction = 0.0
+    for x, info, Ni, Si, ei in zip(xis, infos, N, S, excess, strict=True):
+        g2 = max((tot_e - ei) / (6 * (n - 1)), 0.0)
+        jitter += _log_likelihood(x, _psd((tot_S - Si) / (n - 1)) + Ni)
+        per_direction += _log_likelihood(x, g2 * np.linalg.inv(info) + Ni)
+    if per_direction <= jitter:
+        return None
+    return float(np.sqrt(max(tot_e / (6 * n), 0.0)))
 
 
 def view_jitter_from_json(block: dict | None, where: str) -> ViewJitter | None:
@@ -178,7 +234,7 @@ def view_jitter_from_json(block: dict | None, where: str) -> ViewJitter | None:
     try:
         C = np.asarray(doc["covariance_si"], float)
         extra = [None if doc.get(k) is None else float(doc[k])
-                 for k in ("white_px", "camera_misfit_px")]  # fmt: skip
+                 for k in ("white_px", "camera_misfit_px", "pose_misfit_px")]  # fmt: skip
         out = ViewJitter(C, float(doc["statistic"]), int(doc["views"]), bool(doc["counted"]),
                          float(doc["pose_share"]), float(doc["rest_rms_px"]), *extra)  # fmt: skip
     except (KeyError, TypeError, ValueError) as exc:

@@ -23,10 +23,11 @@ predicted`` (2k px over every corner of every view) are Gaussian to first order 
   ``Q = A tw``; the corner noise ``s`` (``bounds.pixel_sigma_px``);
 - when the calibration's own frames showed a per-view misfit (the ``accuracy`` block's
   ``view_jitter``, :mod:`selfcal.calibration.board.view_jitter`): ``A_i J A_i^T + c^2 U_i U_i^T``
-  per view, ``J`` (6, 6) the jitter of the chain's tool pose, ``c`` the misfit per camera
-  direction ``U_i`` (orthonormal, outside the pose span), and ``s`` is then the block's white
-  noise outside both (the bounds' from the fit's RMS holds the misfit's energy: it counted it
-  twice).
+  per view, ``J`` (6, 6) the jitter of the chain's tool pose (or ``g^2 P_i``, a misfit ``g``
+  per direction of the view's pose span, ``P_i`` the projection on it, where the block gives
+  ``pose_misfit_px``), ``c`` the misfit per camera direction ``U_i`` (orthonormal, outside the
+  pose span), and ``s`` is then the block's white noise outside both (the bounds' from the
+  fit's RMS holds the misfit's energy: it counted it twice).
 
 ``T = r^T Sigma^-1 r`` is then chi-square with ``2k`` degrees of freedom. That omnibus test
 has little power against a change that moves the pixels along a few directions (a joint's
@@ -243,21 +244,24 @@ def calibration_error_model(cal: BoardCalibrationResult, where: str) -> ToolErro
 class ViewNoise:
     """A calibration's noise levels for new views (:func:`view_noise`): the white corner noise
     ``pixel_sigma_px`` (px), the joint read-back ``joint_sigma_rad`` (n,) or None, the per-view
-    pose ``jitter`` (6, 6) (m, rad) or None and the misfit per camera direction
-    ``camera_misfit_px`` (px)."""
+    pose ``jitter`` (6, 6) (m, rad) or None (a file written before ``pose_misfit_px``), the
+    misfit per camera direction ``camera_misfit_px`` (px) and per direction of a view's pose
+    span ``pose_misfit_px`` (px; 0 where ``jitter`` is used or nothing is counted)."""
 
     pixel_sigma_px: float
     joint_sigma_rad: np.ndarray | None
     jitter: np.ndarray | None
     camera_misfit_px: float
+    pose_misfit_px: float = 0.0
 
 
 def view_noise(cal: BoardCalibrationResult, where: str = "calibration.json") -> ViewNoise:
     """The noise the check gives each new view of the calibration ``cal``: its bounds' corner and
     joint noise and, when its own frames showed a per-view misfit (``accuracy.view_jitter``
-    counted), that jitter, its camera misfit and its white corner noise in place of the bounds'
-    (which holds the misfit's energy: :mod:`selfcal.calibration.board.view_jitter`); a file
-    written before those two keeps the bounds' noise. ``where`` the calibration's file, for the
+    counted), that jitter (or its misfit per pose direction, where the block gives one), its
+    camera misfit and its white corner noise in place of the bounds' (which holds the misfit's
+    energy: :mod:`selfcal.calibration.board.view_jitter`); a file written before the white
+    noise keeps the bounds' noise. ``where`` the calibration's file, for the
     error a malformed block raises.
 
     Raises:
@@ -271,7 +275,10 @@ def view_noise(cal: BoardCalibrationResult, where: str = "calibration.json") -> 
         return ViewNoise(cal.bounds.pixel_sigma_px, js_rad, None, 0.0)
     if found.white_px is None:
         return ViewNoise(cal.bounds.pixel_sigma_px, js_rad, found.covariance, 0.0)
-    return ViewNoise(found.white_px, js_rad, found.covariance, found.camera_misfit_px or 0.0)
+    cam = found.camera_misfit_px or 0.0
+    if found.pose_misfit_px is None:  # written before it: the jitter's mean carried to the view
+        return ViewNoise(found.white_px, js_rad, found.covariance, cam)
+    return ViewNoise(found.white_px, js_rad, None, cam, found.pose_misfit_px)
 
 
 def calibration_views(cal: BoardCalibrationResult, em: ToolErrorModel, q: np.ndarray,
@@ -289,7 +296,8 @@ def calibration_views(cal: BoardCalibrationResult, em: ToolErrorModel, q: np.nda
     return [view_jacobians(em, cal.cameras[0], q[f], X, uv, eye_to_hand=cal.eye_to_hand,
                            pixel_sigma_px=noise.pixel_sigma_px,
                            joint_sigma_rad=noise.joint_sigma_rad, jitter=noise.jitter,
-                           camera_misfit_px=noise.camera_misfit_px)
+                           camera_misfit_px=noise.camera_misfit_px,
+                           pose_misfit_px=noise.pose_misfit_px)
             for f, X, uv in views]  # fmt: skip
 
 

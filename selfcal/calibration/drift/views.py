@@ -30,8 +30,8 @@ class ViewJacobians:
 
     Attributes:
         r: (2k,) detected - predicted pixels.
-        local: (2k, 2k) its own covariance (model error, per-view jitter in the pose and the
-            camera's directions, joint read-back and corner noise).
+        local: (2k, 2k) its own covariance (model error, per-view misfit in the pose span and
+            the camera's directions, joint read-back and corner noise).
         kin: (2k, p) derivative by the estimated kinematic parameters; cam: (2k, c) by the
             camera's free parameters.
         tool: (2k, 6) by a body twist of the chain's tool (eye-in-hand the camera on the
@@ -58,15 +58,17 @@ class ViewJacobians:
 def view_jacobians(em: ToolErrorModel, camera: CameraModel, q: np.ndarray, X: np.ndarray,
                    uv: np.ndarray, *, eye_to_hand: bool, pixel_sigma_px: float,
                    joint_sigma_rad: np.ndarray | None,
-                   jitter: np.ndarray | None = None,
-                   camera_misfit_px: float = 0.0) -> ViewJacobians:  # fmt: skip
+                   jitter: np.ndarray | None = None, camera_misfit_px: float = 0.0,
+                   pose_misfit_px: float = 0.0) -> ViewJacobians:  # fmt: skip
     """The view of board points ``X`` (k, 3) (board frame, m) detected at ``uv`` (k, 2) px by
     ``camera`` at the joints ``q`` (n,) rad / m, linearised at the calibration ``em`` (its
     chain, estimated columns and model error) with the corner noise ``pixel_sigma_px``, the
     joint read-back noise ``joint_sigma_rad`` (n,) or None and the per-view jitter ``jitter``
     (6, 6) of the chain's tool pose (body twist, m and rad;
     :mod:`selfcal.calibration.board.view_jitter`) or None, with its per-view misfit
-    ``camera_misfit_px`` (px) in each of the camera's directions the pose cannot mimic."""
+    ``camera_misfit_px`` (px) in each of the camera's directions the pose cannot mimic, and
+    ``pose_misfit_px`` (px) in each direction of the view's pose span (orthonormal, in pixels:
+    what the calibration's frames carry there when it is known, in place of ``jitter``)."""
     model = em.model
     T = fk_tool(model, q[None])[0]
     _, uv_hat, A, Jc = board_view(camera, T, X, eye_to_hand)
@@ -81,6 +83,8 @@ def view_jacobians(em: ToolErrorModel, camera: CameraModel, q: np.ndarray, X: np
     local = (tip * m2) @ tip.T + pixel_sigma_px**2 * np.eye(len(A))
     if jitter is not None:
         local += A @ np.asarray(jitter, float) @ A.T
+    if pose_misfit_px > 0.0:
+        local += pose_misfit_px**2 * (A @ np.linalg.pinv(A))
     if camera_misfit_px > 0.0:
         U = camera_directions(A, Jc.reshape(len(A), -1))
         local += camera_misfit_px**2 * (U @ U.T)
