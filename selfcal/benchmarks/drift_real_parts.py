@@ -14,6 +14,11 @@ the view's 6 pose columns ``A``, the camera's directions outside it (``U``,
 predicted and measured 2-D RMS, their ratio and the check's verdict. Residuals of the
 calibration's own frames are fitted ones (smaller than a new view's by what the fit absorbed).
 
+``--frames``: how the calibration's own frames' pose errors ``xi_i`` carry to one another
+(:mod:`selfcal.calibration.board.view_jitter`): the frame whose ``xi_i`` carried to every frame
+(``A_j xi_i``) gives them the most energy, and each frame's pose-span energy predicted from the
+other frames by the jitter's mean and by a misfit per pose direction, against its own.
+
 Run: ``uv run python -m selfcal.benchmarks.drift_real_parts CAL DATASET [DATASET ...]`` (CAL the
 folder of ``selfcal calibrate`` or its calibration.json; each DATASET a folder of ``selfcal
 import``), e.g. on the real tier's sets after ``uv run pytest -m real`` has imported and
@@ -91,13 +96,57 @@ def parts(calibration: Path, dataset: Path) -> dict:
     return out
 
 
+def carried(calibration: Path) -> dict:
+    """The ``--frames`` figures (module docstring) on the calibration's own frames (energy per
+    corner, px^2, the pose spans only): ``frame`` the index whose pose error carried to all
+    frames gives the most, ``own`` its own, ``carried`` what it gives them (mean per corner);
+    ``mean_ratio`` and ``direction_ratio``: every frame's predicted from the others by the
+    jitter's mean and by the misfit per pose direction, summed, over their own summed."""
+    path = calibration / "calibration.json" if calibration.is_dir() else calibration
+    cal = read_board_calibration(path)
+    em = calibration_error_model(cal, str(path))
+    noise = view_noise(cal, str(path))
+    folder = path.parent
+    held = held_out_views(cal, folder, cameras=(cal.camera_names[0],))
+    views = calibration_views(cal, em, held.q, [(f, X, uv) for _, f, _, _, X, uv in held.views])
+    w2 = noise.pixel_sigma_px**2
+    js2 = 0.0 if noise.joint_sigma_rad is None else noise.joint_sigma_rad**2
+    A = [v.tool for v in views]
+    k = np.array([len(v.r) / 2 for v in views])
+    xi = [np.linalg.pinv(a) @ v.r for a, v in zip(A, views, strict=True)]
+    own = np.array([float(x @ a.T @ a @ x) for x, a in zip(xi, A, strict=True)])
+    S = [np.outer(x, x) - w2 * np.linalg.inv(a.T @ a) - (v.tw * js2) @ v.tw.T
+         for x, a, v in zip(xi, A, views, strict=True)]  # fmt: skip
+    excess = own - 6 * w2 - np.array([float(np.sum((a @ v.tw) ** 2 * js2))
+                                      for a, v in zip(A, views, strict=True)])  # fmt: skip
+    E = np.array([[float(x @ a.T @ a @ x) / kj for x in xi] for a, kj in zip(A, k, strict=True)])
+    top = int(np.argmax(E.mean(axis=0)))
+    n, mean_pred, dir_pred = len(views), 0.0, 0.0
+    for i, a in enumerate(A):
+        J = (np.sum(S, axis=0) - S[i]) / (n - 1)
+        w, V = np.linalg.eigh((J + J.T) / 2)
+        mean_pred += float(np.trace(a @ (V * np.clip(w, 0.0, None)) @ V.T @ a.T))
+        dir_pred += 6 * max((excess.sum() - excess[i]) / (6 * (n - 1)), 0.0)
+    return {"frame": top, "own": float(own[top] / k[top]), "carried": float(E[:, top].mean()),
+            "mean_ratio": mean_pred / own.sum(), "direction_ratio": dir_pred / own.sum()}  # fmt: skip
+
+
 def main(argv: list[str] | None = None) -> int:
     """Print the parts (module docstring) per dataset."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("calibration", type=Path)
     ap.add_argument("datasets", type=Path, nargs="+")
+    ap.add_argument("--frames", action="store_true",
+                    help="also how the calibration's own frames' pose errors carry to one "
+                    "another (module docstring)")  # fmt: skip
     args = ap.parse_args(argv)
     limit_threads(1)
+    if args.frames:
+        c = carried(args.calibration)
+        print(f"calibration's frames: frame {c['frame']}'s pose error ({c['own']:.3f} px^2 per "
+              f"corner in its own pose span) carried to every frame gives {c['carried']:.3f}; "
+              f"each frame predicted from the others / its own: the jitter's mean "
+              f"{c['mean_ratio']:.2f}, a misfit per pose direction {c['direction_ratio']:.2f}")  # fmt: skip
     for ds in args.datasets:
         res = parts(args.calibration, ds)
         print(f"{ds}: {res['corners']} corners; energy per corner (px^2)")
