@@ -19,7 +19,7 @@ joint read-back noise (``S_j``, ``tw_i`` the joints' body twists) give it. The j
 counted when ``sum_i xi_i^T N_i^-1 xi_i`` exceeds its ``6 m`` by more than
 :data:`selfcal.calibration.accuracy.Z_MODEL_ERROR` standard errors (``sqrt(12 m)``): its
 covariance (6, 6) is then the mean of ``xi_i xi_i^T - N_i`` (negative eigenvalues set to 0),
-else 0. A calibration that fits (the simulated ones) has none: the fit absorbs part of each
+else 0. A calibration that fits (the simulated ones, nearly all) has none: the fit absorbs part of each
 frame's pose span, so its statistic lies below ``6 m``.
 
 Counted, the jitter holds the misfit's energy in the pose spans, so the corner noise beside it
