@@ -123,6 +123,19 @@ def shared_run(
 
 
 @pytest.fixture(scope="session")
+def shared(tmp_path_factory) -> Callable[[str, Callable[[Path], T]], T]:
+    """``shared(name, build)``: :func:`shared_run` for a test module's own fixture (a module
+    fixture whose value is deterministic and picklable, and which no test changes), built once
+    per test run instead of once per xdist worker that runs one of the module's tests. ``name``
+    is unique in the run (the module's name and the fixture's)."""
+
+    def run(name: str, build: Callable[[Path], T]) -> T:
+        return shared_run(tmp_path_factory, name, build)
+
+    return run
+
+
+@pytest.fixture(scope="session")
 def default_analytic(tmp_path_factory):
     """The default scenario on the analytic path (0.5 px corner noise, quantised joints) acquired,
     calibrated and reported once per test run (the golden files', the pipeline's and the

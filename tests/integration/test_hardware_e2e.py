@@ -78,30 +78,36 @@ def backend():
 
 
 @pytest.fixture(scope="module")
-def runs(tmp_path_factory, backend):
-    """The default scenario acquired and calibrated through the hardware path and the sim backend."""
-    tmp = tmp_path_factory.mktemp("e2e")
-    with AclEmulator(backend, move_speed_deg_s=FAST, tcp_port=None, frames_dir=tmp / "f") as emu:
-        s_hw = load_scenario(scenario_file(tmp / "hw.toml", emu.hardware_snippet()))
-        assert s_hw.robot.backend == "hardware" and s_hw.robot.hardware.port == emu.pty_path
-        t0 = time.perf_counter()
-        run_acquire(s_hw, tmp / "hw", quiet=True)
-        t_acq = time.perf_counter() - t0
-        rests = list(backend.rests)
-    doc_hw = run_calibrate(tmp / "hw", quiet=True)
-    s_sim = load_scenario()
-    run_acquire(s_sim, tmp / "sim", quiet=True)
-    doc_sim = run_calibrate(tmp / "sim", quiet=True)
-    return {
-        "s_hw": s_hw,
-        "s_sim": s_sim,
-        "hw": tmp / "hw",
-        "sim": tmp / "sim",
-        "doc_hw": doc_hw,
-        "doc_sim": doc_sim,
-        "rests": rests,
-        "t_acq": t_acq,
-    }
+def runs(shared, backend):
+    """The default scenario acquired and calibrated through the hardware path and the sim backend,
+    once per test run (shared in tests/conftest.py; the first worker's ``backend`` moves): read
+    the datasets, never write into them."""
+
+    def build(tmp: Path) -> dict:
+        f = tmp / "f"
+        with AclEmulator(backend, move_speed_deg_s=FAST, tcp_port=None, frames_dir=f) as emu:
+            s_hw = load_scenario(scenario_file(tmp / "hw.toml", emu.hardware_snippet()))
+            assert s_hw.robot.backend == "hardware" and s_hw.robot.hardware.port == emu.pty_path
+            t0 = time.perf_counter()
+            run_acquire(s_hw, tmp / "hw", quiet=True)
+            t_acq = time.perf_counter() - t0
+            rests = list(backend.rests)
+        doc_hw = run_calibrate(tmp / "hw", quiet=True)
+        s_sim = load_scenario()
+        run_acquire(s_sim, tmp / "sim", quiet=True)
+        doc_sim = run_calibrate(tmp / "sim", quiet=True)
+        return {
+            "s_hw": s_hw,
+            "s_sim": s_sim,
+            "hw": tmp / "hw",
+            "sim": tmp / "sim",
+            "doc_hw": doc_hw,
+            "doc_sim": doc_sim,
+            "rests": rests,
+            "t_acq": t_acq,
+        }
+
+    return shared("hardware-e2e-runs", build)
 
 
 @pytest.mark.slow
