@@ -65,13 +65,19 @@ from selfcal.transforms import inv_pose, make_pose
 
 
 @pytest.fixture(scope="module")
-def lab(tmp_path_factory):
-    root = tmp_path_factory.mktemp("lab")
-    world = make_lab(seed=0)
-    cal = write_lab_data(world, root / "cal", 20, seed=1)
-    held = write_lab_data(world, root / "held", 10, seed=2)
-    (root / "board.toml").write_text(TARGET_TOML)
-    return root, cal, held
+def lab(shared):
+    """The lab's 20 calibration and 10 held-out images (rendered), their joints and the board,
+    made once per test run (shared in tests/conftest.py): (folder, (images, joints) of the
+    calibration, the same of the held-out set). Read them, never write into the folder."""
+
+    def build(root: Path):
+        world = make_lab(seed=0)
+        cal = write_lab_data(world, root / "cal", 20, seed=1)
+        held = write_lab_data(world, root / "held", 10, seed=2)
+        (root / "board.toml").write_text(TARGET_TOML)
+        return root, cal, held
+
+    return shared("own-data-lab", build)
 
 
 def run_import(root, images, joints, out, units="rad", target="board.toml", *extra):
@@ -81,8 +87,10 @@ def run_import(root, images, joints, out, units="rad", target="board.toml", *ext
 
 
 @pytest.mark.slow  # over 2 s on 2 cores: the default tier keeps to ~90 s
-def test_import_calibrate_evaluate(lab, capsys):
-    root, (ci, cj), (hi, hj) = lab
+def test_import_calibrate_evaluate(lab, tmp_path, capsys):
+    lab_root, (ci, cj), (hi, hj) = lab
+    root = tmp_path  # this test's folders; the shared lab is only read
+    shutil.copy(lab_root / "board.toml", root)
     assert run_import(root, ci, cj, "ds") == 0
     assert run_import(root, hi, hj, "ds2", "rad", "board.toml", "--link") == 0
     assert (root / "ds2" / "frames" / "0000_cam0.png").is_symlink()
@@ -581,10 +589,12 @@ def test_import_errors_exit_2_with_the_fix(lab, tmp_path, capsys):
 
 
 @pytest.mark.slow
-def test_a_pinhole_calibration_of_the_same_lens_is_clearly_worse(lab, capsys):
+def test_a_pinhole_calibration_of_the_same_lens_is_clearly_worse(lab, tmp_path, capsys):
     """The lens matters: the same data calibrated as a pinhole (``--camera-model pinhole``)
     predicts the held-out images far worse than the default lens model."""
-    root, (ci, cj), (hi, hj) = lab
+    lab_root, (ci, cj), (hi, hj) = lab
+    root = tmp_path  # this test's folders; the shared lab is only read
+    shutil.copy(lab_root / "board.toml", root)
     for name, images, joints in (("pin", ci, cj), ("pin2", hi, hj)):
         assert run_import(root, images, joints, name, "rad", "board.toml", "--link",
                           "--camera-model", "pinhole") == 0  # fmt: skip
