@@ -54,15 +54,21 @@ def _calibrate(root: Path):
 
 
 @pytest.fixture(scope="module")
-def lab(tmp_path_factory):
-    root = tmp_path_factory.mktemp("roslab")
-    ci, cj = write_lab_data(make_lab(seed=0), root / "cal", 8, seed=1)
-    (root / "board.toml").write_text(TARGET_TOML)
-    import_dataset(ROBOT, [CameraImages.parse(f"cam0={ci}/*.png")], cj, "rad",
-                   root / "board.toml", root / "ds")  # fmt: skip
-    cal = _calibrate(root / "ds")
-    write_board_calibration(root / "ds" / "calibration.json", cal)
-    return root, cal
+def lab(shared):
+    """The lab's 8 rendered images imported as a dataset and its board calibration, made once
+    per test run (shared in tests/conftest.py): (folder, calibration). Copy the dataset to
+    change it."""
+
+    def build(root: Path):
+        ci, cj = write_lab_data(make_lab(seed=0), root / "cal", 8, seed=1)
+        (root / "board.toml").write_text(TARGET_TOML)
+        import_dataset(ROBOT, [CameraImages.parse(f"cam0={ci}/*.png")], cj, "rad",
+                       root / "board.toml", root / "ds")  # fmt: skip
+        cal = _calibrate(root / "ds")
+        write_board_calibration(root / "ds" / "calibration.json", cal)
+        return root, cal
+
+    return shared("ros-bags-lab", build)
 
 
 def _import(root: Path, bag: Path, out: Path, *extra: str) -> int:
