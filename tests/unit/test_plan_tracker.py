@@ -110,6 +110,11 @@ def test_the_planner_counts_by_the_routes_rule_with_the_reflector_on_the_flange(
         TrackerIdentificationError, match=f"{rank} parameters .* need at least {need} positions"
     ):
         identify_tracker(nominal_mcpc(setup.robot), meas)
+    # and with the rows the rule asks for, the route goes on (no refusal)
+    meas = TrackerMeasurements(q=pool, xyz=fk_tool(true, pool)[:, :3, 3])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", IdentificationWarning)  # few rows: conditioning notes
+        identify_tracker(nominal_mcpc(setup.robot), meas)
 
 
 def test_positions_never_identify_the_tool_frames_orientation(setup, plan):
