@@ -38,8 +38,8 @@ __all__ = [
 
 FAIR_NOMINAL_ITERATIONS = 400
 """The fair nominal's budget of Levenberg-Marquardt iterations (the route's other fits have 100).
-It is the one fit of the route whose residuals hold the arm's deviation from its drawing by
-construction (the chain is held), and Gauss-Newton converges only linearly on such a
+Its residuals hold the arm's deviation from its drawing by construction (the chain is held),
+and it starts from the closed-form placement: Gauss-Newton converges only linearly on such a
 large-residual problem along its weakest direction: the camera's rotation against its principal
 point (a turn about the optical x / y axis moves the image as cy / cx do; the column-scaled
 information, its condition number 3e5 - 5e5 on the greedy and the exchanged plan alike, has
@@ -50,7 +50,9 @@ greedy and exchanged, ``[perturbation] seed`` 1 - 6, analytic and rendered; the 
 2000 iterations): 23 converged in 10 - 58 iterations, the exchanged plan's rendered seed 1 in
 101, its cost at 90 iterations 2e-5 above the optimum (a chi-square of 4e-5: within the data's
 own uncertainty, but not the solver's tolerance). Four times the worst measured; a fit that
-still does not converge fails and says what was tried."""
+still does not converge fails and says what was tried. The selection's candidates (the
+placement-only one and the folds included) hold the chain too, but start from this fit's
+result, not from the placement: they keep the 100."""
 
 
 def placement_indices(n: int) -> np.ndarray:
