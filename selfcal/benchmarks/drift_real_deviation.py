@@ -32,6 +32,7 @@ from selfcal.calibration.board.dataset import calibrate_board_dataset_detailed
 from selfcal.calibration.board.deviation import Deviation
 from selfcal.calibration.board.evaluate import held_out_views
 from selfcal.calibration.board.held_prior import with_deviation
+from selfcal.calibration.board.view_jitter import psd_part
 from selfcal.calibration.drift.images import (
     calibration_error_model,
     calibration_views,
@@ -101,8 +102,7 @@ def _net_misfit(cal: BoardCalibrationResult, own: list[ViewJacobians], V: np.nda
         A = v.tool
         if noise.jitter is not None:
             old = A @ noise.jitter @ A.T
-            w, U = np.linalg.eigh(np.mean(S, axis=0))
-            added = A @ (U * np.clip(w, 0.0, None)) @ U.T @ A.T
+            added = A @ psd_part(np.mean(S, axis=0)) @ A.T
         else:
             P = A @ np.linalg.pinv(A)
             old = noise.pose_misfit_px**2 * P

@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from selfcal.calibration.board.evaluate import held_out_views
-from selfcal.calibration.board.view_jitter import camera_directions
+from selfcal.calibration.board.view_jitter import camera_directions, psd_part
 from selfcal.calibration.drift.images import (
     calibration_error_model,
     calibration_views,
@@ -123,9 +123,8 @@ def carried(calibration: Path) -> dict:
     top = int(np.argmax(E.mean(axis=0)))
     n, mean_pred, dir_pred = len(views), 0.0, 0.0
     for i, a in enumerate(A):
-        J = (np.sum(S, axis=0) - S[i]) / (n - 1)
-        w, V = np.linalg.eigh((J + J.T) / 2)
-        mean_pred += float(np.trace(a @ (V * np.clip(w, 0.0, None)) @ V.T @ a.T))
+        J = psd_part((np.sum(S, axis=0) - S[i]) / (n - 1))
+        mean_pred += float(np.trace(a @ J @ a.T))
         dir_pred += 6 * max((excess.sum() - excess[i]) / (6 * (n - 1)), 0.0)
     return {"frame": top, "own": float(own[top] / k[top]), "carried": float(E[:, top].mean()),
             "mean_ratio": mean_pred / own.sum(), "direction_ratio": dir_pred / own.sum()}  # fmt: skip

@@ -72,7 +72,14 @@ from selfcal.estimation.kinematic_poses import joint_twists
 from selfcal.kinematics.forward import fk_tool
 from selfcal.kinematics.mcpc import MCPCModel
 
-__all__ = ["KEY", "ViewJitter", "camera_directions", "view_jitter", "view_jitter_from_json"]
+__all__ = [
+    "KEY",
+    "ViewJitter",
+    "camera_directions",
+    "psd_part",
+    "view_jitter",
+    "view_jitter_from_json",
+]
 
 KEY = "view_jitter"
 """The ``accuracy`` block's key of :meth:`ViewJitter.to_json`."""
@@ -188,11 +195,14 @@ def view_jitter(model: MCPCModel, camera: CameraModel, q: np.ndarray,
     # the pose span's energy per frame beyond the white noise and the joints' read-back
     excess = np.array(in_pose) - 6 * white2 - np.array(joints_px2)
     pose = _per_direction(xis, infos, N, S, excess)
-    return ViewJitter(_psd(np.mean(S, axis=0)), stat, n, True, share, rest_rms, white, cam, pose)
+    return ViewJitter(
+        psd_part(np.mean(S, axis=0)), stat, n, True, share, rest_rms, white, cam, pose
+    )
 
 
-def _psd(M: np.ndarray) -> np.ndarray:
-    """The symmetric ``M`` with its negative eigenvalues set to 0."""
+def psd_part(M: np.ndarray) -> np.ndarray:
+    """The symmetric part of ``M`` with its negative eigenvalues set to 0 (the jitter's
+    covariance from the mean of ``xi_i xi_i^T - N_i``, module docstring)."""
     w, V = np.linalg.eigh((M + M.T) / 2)
     return (V * np.clip(w, 0.0, None)) @ V.T
 
@@ -215,7 +225,7 @@ def _per_direction(xis: list[np.ndarray], infos: list[np.ndarray], N: list[np.nd
     jitter = per_direction = 0.0
     for x, info, Ni, Si, ei in zip(xis, infos, N, S, excess, strict=True):
         g2 = max((tot_e - ei) / (6 * (n - 1)), 0.0)
-        jitter += _log_likelihood(x, _psd((tot_S - Si) / (n - 1)) + Ni)
+        jitter += _log_likelihood(x, psd_part((tot_S - Si) / (n - 1)) + Ni)
         per_direction += _log_likelihood(x, g2 * np.linalg.inv(info) + Ni)
     if per_direction <= jitter:
         return None
