@@ -43,6 +43,7 @@ from selfcal.kinematics.mcpc import MCPCModel, minimal_indices, param_is_angle, 
 __all__ = [
     "Identifiability",
     "analyse_identifiability",
+    "numerical_rank",
     "pose_sigmas",
     "priority_order",
     "select_identifiable",
@@ -135,6 +136,16 @@ def priority_order(joint_types: tuple[str, ...]) -> np.ndarray:
     return np.argsort(group, kind="stable")
 
 
+def numerical_rank(A: np.ndarray, rank_rtol: float) -> tuple[int, float]:
+    """The numerical rank of ``A``: its singular values above ``rank_rtol * sigma_max(A)``,
+    and that threshold (0 for an empty ``A``). The one rank rule of the identification."""
+    s = np.linalg.svd(A, compute_uv=False)
+    if not s.size:
+        return 0, 0.0
+    tol = rank_rtol * float(s[0])
+    return int(np.sum(s > tol)), tol
+
+
 def select_identifiable(
     A: np.ndarray, order: np.ndarray, rank_rtol: float
 ) -> tuple[np.ndarray, int, str]:
@@ -144,8 +155,7 @@ def select_identifiable(
     kept ones exceeds ``rank_rtol * sigma_max(A)``. Falls back to pivoted QR when the count does not
     match the SVD rank. Returns ``(mask of kept columns, rank, method)``.
     """
-    s = np.linalg.svd(A, compute_uv=False)
-    rank = int(np.sum(s > rank_rtol * s[0])) if s.size else 0
+    rank, tol = numerical_rank(A, rank_rtol)
     keep = np.zeros(A.shape[1], dtype=bool)
     basis = np.zeros((A.shape[0], 0))
     for k in order:
@@ -153,7 +163,7 @@ def select_identifiable(
         for _ in range(2):  # re-orthogonalise once for stability
             c = c - basis @ (basis.T @ c)
         nrm = np.linalg.norm(c)
-        if nrm > rank_rtol * s[0]:
+        if nrm > tol:
             keep[k] = True
             basis = np.column_stack([basis, c / nrm])
     if int(keep.sum()) == rank:

@@ -32,7 +32,7 @@ from selfcal.estimation.tracker import (
     TrackerPositionBlock,
 )
 from selfcal.kinematics.forward import fk_tool
-from selfcal.kinematics.identifiability import triangular_factor
+from selfcal.kinematics.identifiability import numerical_rank, triangular_factor
 from selfcal.kinematics.mcpc import MCPCModel, minimal_indices, param_names
 from selfcal.transforms import make_pose, trans
 
@@ -45,7 +45,6 @@ __all__ = [
     "measurement_blocks",
     "dense_jacobian",
     "scaled_factor",
-    "numerical_rank",
     "configurations",
     "spread_measurements",
 ]
@@ -96,12 +95,6 @@ def scaled_factor(model: MCPCModel, meas: TrackerMeasurements, sig, cons: np.nda
     col = np.linalg.norm(J, axis=0)
     col = np.where(col > 1e-10 * col.max(initial=0.0), col, np.inf)
     return triangular_factor(J / col)
-
-
-def numerical_rank(A: np.ndarray, rank_rtol: float) -> int:
-    """Singular values above ``rank_rtol`` sigma_max (the rule of :func:`select_identifiable`)."""
-    s = np.linalg.svd(A, compute_uv=False)
-    return int(np.sum(s > rank_rtol * s[0])) if s.size else 0
 
 
 def configurations(meas: TrackerMeasurements) -> np.ndarray:
@@ -195,12 +188,12 @@ def rows_needed_at(
     not with a moved one (else a nominal arm's data would be told to spread configurations
     that cannot help)."""
     A_own = scaled_factor(model, spread_measurements(model, meas, cons.size), sig, cons)
-    rank_own = numerical_rank(A_own, rank_rtol)
+    rank_own = numerical_rank(A_own, rank_rtol)[0]
     rank = rank_own
     if rank < cons.size:  # the generic count: a tool point exactly on an axis counts fewer
         moved = model.with_tool(trans(GENERIC_TOOL_SHIFT_M))
         A_moved = scaled_factor(moved, spread_measurements(moved, meas, cons.size), sig, cons)
-        rank = max(rank, numerical_rank(A_moved, rank_rtol))
+        rank = max(rank, numerical_rank(A_moved, rank_rtol)[0])
     n_eq = meas.equations()
     per = 6 if meas.R is not None else 3 if meas.m else 1
     what = "poses" if meas.R is not None else "positions" if meas.m else "distances"
