@@ -28,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
+from selfcal.calibration.board.bounds import BoardCramerRao
 from selfcal.calibration.board.dataset import calibrate_board_dataset_detailed
 from selfcal.calibration.board.deviation import Deviation
 from selfcal.calibration.board.evaluate import held_out_views
@@ -44,24 +45,29 @@ from selfcal.calibration.drift.views import ViewJacobians
 from selfcal.io.board_calibration import BoardCalibrationResult, read_board_calibration
 from selfcal.threads import limit_threads
 
-__all__ = ["deviation_covariance", "main"]
+__all__ = ["deviation_covariance", "deviation_part", "main", "with_share"]
+
+
+def with_share(cr: BoardCramerRao, share: float) -> np.ndarray:
+    """(k + c, k + c) the estimate covariance of the bounds ``cr`` with the deviation at the
+    ``share`` of :class:`Deviation`'s prior (every minimal parameter, then the first camera's
+    free ones: ``estimate_covariance``'s order; SI)."""
+    b = with_deviation(cr, share * Deviation().variance(cr.model.joint_types))
+    assert b.camera_covariance is not None and b.camera_cross is not None
+    return np.block([[b.covariance, b.camera_cross], [b.camera_cross.T, b.camera_covariance]])
+
+
+def deviation_part(cr: BoardCramerRao, share: float) -> np.ndarray:
+    """The deviation's part of :func:`with_share` (SI)."""
+    return with_share(cr, share) - with_share(cr, 0.0)
 
 
 def deviation_covariance(cal_dir: Path, share: float) -> np.ndarray:
-    """(k + c, k + c) the deviation's part of the calibration's estimate covariance (every
-    minimal parameter, then the first camera's free ones: ``estimate_covariance``'s order) at
-    the ``share`` of the prior, from the calibration of ``cal_dir`` run again."""
+    """:func:`deviation_part` of the calibration of ``cal_dir`` run again."""
     cr = calibrate_board_dataset_detailed(cal_dir).cramer_rao
     if cr is None:
         raise SystemExit(f"{cal_dir}: no Cramer-Rao bounds")
-    var = Deviation().variance(cr.model.joint_types)
-
-    def full(v: np.ndarray) -> np.ndarray:
-        b = with_deviation(cr, v)
-        assert b.camera_covariance is not None and b.camera_cross is not None
-        return np.block([[b.covariance, b.camera_cross], [b.camera_cross.T, b.camera_covariance]])
-
-    return full(share * var) - full(0 * var)
+    return deviation_part(cr, share)
 
 
 def _in_pose_span(views: list[ViewJacobians], M: np.ndarray) -> float:

@@ -71,8 +71,9 @@ from selfcal.calibration.accuracy import (
     model_error_of,
     postures_from_json,
 )
-from selfcal.calibration.board.bounds import BoardCramerRao, board_cramer_rao
+from selfcal.calibration.board.bounds import BoardCramerRao
 from selfcal.calibration.board.deviation import Deviation
+from selfcal.calibration.board.fold_fits import fold_bounds
 from selfcal.calibration.board.held_prior import (
     NO_FOLDS,
     Share,
@@ -81,7 +82,6 @@ from selfcal.calibration.board.held_prior import (
     with_deviation,
 )
 from selfcal.calibration.board.misfit import board_view, pose_jacobian, tip_map, unit_rows
-from selfcal.calibration.board.nominal_fit import standard_gauge
 from selfcal.calibration.board.param_selection import Selection
 from selfcal.calibration.board.refine import BoardObservations, Refinement, predicted_points
 from selfcal.camera import CameraModel
@@ -274,12 +274,6 @@ def grown_size(extra: float, unit: np.ndarray, misfit: np.ndarray,
     return m, reach
 
 
-def _features(obs: BoardObservations, frames: np.ndarray) -> list[list]:
-    """Every camera's features of the frames ``frames`` (m,) bool, in order."""
-    k = np.flatnonzero(frames).tolist()
-    return [[fc[i] for i in k] for fc in (obs.features, *obs.rig_features)]
-
-
 def model_error(obs: BoardObservations, selection: Selection, offsets: np.ndarray,
                 T_tool_point: np.ndarray, pixel_sigma_px: float,
                 variance: np.ndarray | None = None,
@@ -293,20 +287,9 @@ def model_error(obs: BoardObservations, selection: Selection, offsets: np.ndarra
     held-out frame's own share of it is then scaled by its squared distance to its fold's
     training postures over their mean, the error's size ``m`` is the one at that mean distance
     (:attr:`ModelError.reach_distance`)."""
-    fits = selection.candidates[selection.chosen].fold_fits
-    if selection.fold_of is None or not fits:
-        return None, NO_FOLDS
     got = []
-    for f, (fit, free_idx, offset_joints) in sorted(fits.items()):
-        out = selection.fold_of == f
+    for out, fit, cr in fold_bounds(obs, selection, offsets, T_tool_point, pixel_sigma_px):
         train = obs.used & ~out
-        model = standard_gauge(fit.model, offsets)
-        cr = board_cramer_rao(
-            obs.board, fit.cameras, model, obs.q[train], _features(obs, train), pixel_sigma_px,
-            joint_sigma=obs.joint_sigma, T_first_cam=None if obs.rig is None else fit.T_first_cam,
-            free_idx=free_idx, offset_joints=offset_joints, eye_to_hand=obs.eye_to_hand,
-            T_tool_point=T_tool_point,
-        )  # fmt: skip
         h = held_out_errors(obs, fit, out, T_tool_point, cr)
         h["px2_held"] = np.zeros(len(h["frame"]))
         h["distance"] = (np.zeros(len(h["frame"])) if span is None else

@@ -174,6 +174,9 @@ class BoardDatasetCalibration:
     q: np.ndarray
     cramer_rao: BoardCramerRao | None = None
     """The bounds at the estimate (None when the Fisher information could not be inverted)."""
+    observations: BoardObservations | None = None
+    """What the fits shared (:class:`selfcal.calibration.board.refine.BoardObservations`: the
+    fold fits' data, for the benchmarks that replay them; None without bounds)."""
 
 
 def calibrate_board_dataset(
@@ -360,6 +363,7 @@ def calibrate_board_dataset_detailed(
     )
     all_feats = (feats, *(o[0] for o in others))
     k = np.flatnonzero(used).tolist()
+    obs = None
     try:  # the tool tip: the flange's origin in the tool's frame
         bounds, cr = board_bounds(
             board, result, [[fc[i] for i in k] for fc in all_feats], q[used],
@@ -389,7 +393,7 @@ def calibrate_board_dataset_detailed(
         except np.linalg.LinAlgError as exc:
             text = f"no predicted accuracy: a fold's Fisher information cannot be inverted ({exc})"
             result = dataclasses.replace(result, warnings=(*result.warnings, text))
-    return BoardDatasetCalibration(result, res, all_feats, q, cr)
+    return BoardDatasetCalibration(result, res, all_feats, q, cr, obs)
 
 
 def _view_jitter(obs: BoardObservations, result: BoardCalibrationResult,

@@ -1,0 +1,220 @@
+"""Benchmark: a real calibration's drift-check prediction on its own folds, and the held
+deviation's share and the per-view misfit's scale estimated together from them (issue #29,
+docs/real-data.md).
+
+The check predicts a new view (:mod:`selfcal.calibration.drift.images`) with the held
+parameters' deviation at the share ``c`` of the prior the folds showed (its upper bound,
+:mod:`selfcal.calibration.board.held_prior`; one error shared by every view) and the per-view
+misfit its own frames show (:mod:`selfcal.calibration.board.view_jitter`; each view's own). The
+frames' residuals hold the deviation's part too, so it is counted twice; taking it out of either
+alone makes the check reject the unchanged held-out group (``drift_real_deviation``).
+
+Here each fold of the calibration (the chosen candidate fitted without one arm configuration,
+:func:`selfcal.calibration.board.fold_fits.fold_bounds`) is the calibration and its held-out
+frames the new views: what the check would predict for them (the fold's own covariance, the
+deviation at share ``c``, the calibration's per-view misfit scaled by ``a``, its camera misfit,
+white and joint read-back noise; no model error: both real sets have none) against their
+residuals. It prints the predicted / measured RMS per fold and pooled at the calibration's
+``(c, 1)``; then ``(c, a)`` solved from the folds' residual energy in the span of the
+deviation's pixels and outside it (two moments, two unknowns; the span's rank cut at a relative
+eigenvalue ``tol``, three of them), the folds' ratios there, and the check of NEW with it;
+``--grid``: each fold's check over a grid of ``(c, a)``.
+
+Run: ``uv run python -m selfcal.benchmarks.drift_real_folds CAL NEW`` (CAL the folder of
+``selfcal calibrate``, NEW a folder of ``selfcal import``; the real tier's, docs/real-data.md).
+A minute: the calibration runs again.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from selfcal.benchmarks.drift_real_deviation import deviation_part, with_share
+from selfcal.calibration.board.accuracy import board_error_model
+from selfcal.calibration.board.dataset import calibrate_board_dataset_detailed
+from selfcal.calibration.board.deviation import Deviation
+from selfcal.calibration.board.evaluate import held_out_views
+from selfcal.calibration.board.fold_fits import fold_bounds
+from selfcal.calibration.board.held_prior import with_deviation
+from selfcal.calibration.drift.images import (
+    ViewNoise,
+    calibration_error_model,
+    calibration_views,
+    estimate_covariance,
+    image_drift_check,
+    view_noise,
+)
+from selfcal.calibration.drift.views import ViewJacobians, view_jacobians
+from selfcal.io.board_calibration import read_board_calibration
+from selfcal.threads import limit_threads
+
+__all__ = ["Fold", "fold_covariance", "folds_of", "joint_moments", "main", "pose_misfit", "ratios"]
+
+GRID_C, GRID_A = (0.0, 0.01, 0.05, 0.2, 1.0), (0.5, 1.0, 2.0, 5.0)
+"""``--grid``: the shares ``c`` and misfit scales ``a`` at which each fold's check is printed."""
+TOLERANCES = (1e-2, 1e-3, 1e-4)
+"""The relative eigenvalues at which the deviation's pixel span is cut (:func:`joint_moments`)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Fold:
+    """One fold's held-out frames as new views of the fold's fit (px; SI).
+
+    Attributes:
+        views: every held-out frame linearised at the fold's fit, its ``local`` covariance
+            without the pose misfit (every minimal parameter estimated: ``kin``); misfit: per
+            view (2k, 2k) px^2 the calibration's per-view pose misfit carried to it. C0: (P, P)
+            the fold's estimate covariance without the deviation; V: its deviation's part at
+            the full prior (share 1).
+    """
+
+    views: list[ViewJacobians]
+    misfit: list[np.ndarray]
+    C0: np.ndarray
+    V: np.ndarray
+
+    def at(self, a: float) -> list[ViewJacobians]:
+        """The views with the pose misfit scaled by ``a``."""
+        return [dataclasses.replace(v, local=v.local + a * M)
+                for v, M in zip(self.views, self.misfit, strict=True)]  # fmt: skip
+
+
+def pose_misfit(noise: ViewNoise, A: np.ndarray) -> np.ndarray:
+    """(2k, 2k) px^2 the per-view pose misfit the check adds to a view whose pixels' derivative
+    by a body twist of the chain's tool is ``A`` (2k, 6): the jitter ``A J A^T`` or the misfit
+    per pose direction ``g^2 P`` (:mod:`selfcal.calibration.board.view_jitter`)."""
+    if noise.jitter is not None:
+        return A @ noise.jitter @ A.T
+    return noise.pose_misfit_px**2 * (A @ np.linalg.pinv(A))
+
+
+def folds_of(cal_dir: Path) -> tuple[list[Fold], np.ndarray]:
+    """Every fold of the calibration of ``cal_dir`` (run again; module docstring) and the
+    deviation's part of the calibration's own estimate covariance at the full prior (SI)."""
+    det = calibrate_board_dataset_detailed(cal_dir)
+    cal, obs, cr = det.result, det.observations, det.cramer_rao
+    if obs is None or cr is None or cal.bounds is None or det.fit.nominal is None:
+        raise SystemExit(f"{cal_dir}: no Cramer-Rao bounds")
+    assert det.fit.selection is not None
+    noise = view_noise(cal)
+    T_tp = calibration_error_model(cal, str(cal_dir)).T_tool_point
+    assert T_tp is not None
+    var = Deviation().variance(cr.model.joint_types)
+    out = []
+    for held, fit, fcr in fold_bounds(obs, det.fit.selection, det.fit.nominal.model.joint_offsets,
+                                      T_tp, cal.bounds.pixel_sigma_px):  # fmt: skip
+        em, _ = board_error_model(with_deviation(fcr, var), T_tp, 0.0, 0.0, None)
+        v, f, uv = obs.rows(held & obs.used)[0]
+        views = [view_jacobians(em, fit.cameras[0], obs.q[i], obs.board.points(f[v == i]),
+                                uv[v == i], eye_to_hand=obs.eye_to_hand,
+                                pixel_sigma_px=noise.pixel_sigma_px,
+                                joint_sigma_rad=noise.joint_sigma_rad,
+                                camera_misfit_px=noise.camera_misfit_px)
+                 for i in np.unique(v)]  # fmt: skip
+        if views:
+            out.append(Fold(views, [pose_misfit(noise, x.tool) for x in views],
+                            with_share(fcr, 0.0), deviation_part(fcr, 1.0)))  # fmt: skip
+    return out, deviation_part(cr, 1.0)
+
+
+def fold_covariance(fold: Fold, c: float, a: float) -> np.ndarray:
+    """(n, n) px^2 what the check predicts for the fold's stacked views with the deviation at the
+    share ``c`` of the prior and the per-view pose misfit scaled by ``a``."""
+    H = np.concatenate([np.concatenate([v.kin, v.cam], axis=1) for v in fold.views])
+    S = H @ (fold.C0 + c * fold.V) @ H.T
+    at = 0
+    for v in fold.at(a):
+        k = len(v.r)
+        S[at : at + k, at : at + k] += v.local
+        at += k
+    return S
+
+
+def ratios(folds: list[Fold], c: float, a: float) -> tuple[list[float], float]:
+    """The predicted / measured RMS of each fold's held-out pixels and of them all pooled at
+    ``(c, a)`` (:func:`fold_covariance`)."""
+    pred = [float(np.trace(fold_covariance(f, c, a))) for f in folds]
+    meas = [float(sum(v.r @ v.r for v in f.views)) for f in folds]
+    each = [float(np.sqrt(p / m)) for p, m in zip(pred, meas, strict=True)]
+    return each, float(np.sqrt(sum(pred) / sum(meas)))
+
+
+def joint_moments(folds: list[Fold], tol: float) -> tuple[float, float]:
+    """``(c, a)`` that predict the folds' summed residual energy both in the span of the
+    deviation's pixels ``H V H^T`` (its eigenvectors above ``tol`` times its largest
+    eigenvalue, per fold) and outside it: two linear equations in ``c`` and ``a``."""
+    lhs, rhs = np.zeros((2, 2)), np.zeros(2)
+    for f in folds:
+        H = np.concatenate([np.concatenate([v.kin, v.cam], axis=1) for v in f.views])
+        r = np.concatenate([v.r for v in f.views])
+        D = H @ f.V @ H.T
+        w, U = np.linalg.eigh(D)
+        Uk = U[:, w > tol * w.max()]
+        base = fold_covariance(f, 0.0, 0.0)
+        M = fold_covariance(f, 0.0, 1.0) - base
+
+        def energy(X: np.ndarray, Uk: np.ndarray = Uk) -> tuple[float, float]:
+            inside = float(np.trace(Uk.T @ X @ Uk))  # in the span; outside: the rest
+            return inside, float(np.trace(X)) - inside
+
+        for j, (d, m, b, e) in enumerate(
+            zip(energy(D), energy(M), energy(base), energy(np.outer(r, r)), strict=True)
+        ):
+            lhs[j] += [d, m]
+            rhs[j] += e - b
+    c, a = np.linalg.solve(lhs, rhs)
+    return float(c), float(a)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Print the folds' ratios, the joint estimate and NEW's check with it (module docstring)."""
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("calibration", type=Path, help="the folder of `selfcal calibrate`")
+    ap.add_argument("new", type=Path, help="a folder of `selfcal import`: new views")
+    ap.add_argument("--grid", action="store_true",
+                    help="also each fold's check over c in 0-1 and a in 0.5-5")  # fmt: skip
+    args = ap.parse_args(argv)
+    limit_threads(1)
+    path = args.calibration / "calibration.json"
+    folds, V = folds_of(args.calibration)
+    cal = read_board_calibration(path)
+    em = calibration_error_model(cal, str(path))
+    C = estimate_covariance(cal, em)
+    used = float((cal.accuracy or {})["held_deviation"]["share"])
+    h = held_out_views(cal, args.new, cameras=(cal.camera_names[0],))
+    new = calibration_views(cal, em, h.q, [(f, X, uv) for _, f, _, _, X, uv in h.views])
+    noise = view_noise(cal)
+    misfit = [pose_misfit(noise, v.tool) for v in new]
+
+    def line(label: str, c: float, a: float) -> None:
+        each, pooled = ratios(folds, c, a)
+        vs = [dataclasses.replace(v, local=v.local + (a - 1.0) * M)
+              for v, M in zip(new, misfit, strict=True)]  # fmt: skip
+        res = image_drift_check(C + (c - used) * V, vs, eye_to_hand=cal.eye_to_hand,
+                                camera_names=cal.cameras[0].free)  # fmt: skip
+        ps = [image_drift_check(f.C0 + c * f.V, f.at(a), eye_to_hand=cal.eye_to_hand).p_value
+              for f in folds]  # fmt: skip
+        print(f"  {label}: c = {c:.4g}, a = {a:.3g}; folds' predicted/measured RMS "
+              f"{' '.join(f'{x:.2f}' for x in each)}, pooled {pooled:.2f}, their check's p "
+              f"{' '.join(f'{x:.2g}' for x in ps)}; {args.new}: p = {res.p_value:.2g}, "
+              f"predicted/measured {res.expected_rms_px / res.rms_px:.2f}")  # fmt: skip
+
+    print(f"{len(folds)} folds of {args.calibration}")
+    line("as the check predicts (the share used, the misfit as estimated)", used, 1.0)
+    for tol in TOLERANCES:
+        line(f"joint estimate (span cut at {tol:g})", *joint_moments(folds, tol))
+    for c, a in ((c, a) for c in GRID_C for a in GRID_A) if args.grid else ():
+        ps = [image_drift_check(f.C0 + c * f.V, f.at(a), eye_to_hand=cal.eye_to_hand).p_value
+              for f in folds]  # fmt: skip
+        print(f"  c = {c:g}, a = {a:g}: the folds' check p {' '.join(f'{x:.2g}' for x in ps)}, "
+              f"predicted/measured pooled {ratios(folds, c, a)[1]:.2f}")  # fmt: skip
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
