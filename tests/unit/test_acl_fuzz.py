@@ -5,6 +5,7 @@ the reader analyses each line once and caps the reply size."""
 from __future__ import annotations
 
 import pytest
+from conftest import examples
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -39,7 +40,7 @@ def _digits(n: int) -> str:
     return "7" * n
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=examples(300), deadline=None)
 @given(_chunks, st.sampled_from(["LISTPV POSITION", "PRINT MFLAG", "SHOW SPEED", "VER", None]))
 def test_any_bytes_end_in_a_reply_or_the_typed_error(chunks, command):
     asm = ReplyAssembler(command)
@@ -57,7 +58,7 @@ def test_any_bytes_end_in_a_reply_or_the_typed_error(chunks, command):
             pass
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=examples(300), deadline=None)
 @given(st.text(max_size=200), st.integers(0, 6000))
 def test_error_lines_are_total(text, n):
     for line in (text, f"*** IMPACT PROTECTION AXIS {_digits(n)}", f"AXIS DISABLED {_digits(n)}"):

@@ -14,6 +14,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
+from conftest import examples
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -47,7 +48,7 @@ def _points(seed: int, n: int = 30) -> np.ndarray:
     return np.c_[rng.uniform(-2, 2, (n, 2)), np.ones(n)] * rng.uniform(0.01, 100, (n, 1))
 
 
-@settings(max_examples=200, deadline=None)
+@settings(max_examples=examples(200), deadline=None)
 @given(cameras(), st.integers(0, 2**32 - 1))
 def test_pinhole_matches_opencv_project_points(cam, seed):
     X = _points(seed)
@@ -57,7 +58,7 @@ def test_pinhole_matches_opencv_project_points(cam, seed):
     assert np.all(np.abs(cam.project(X) - ref.reshape(-1, 2)) <= 6 * EPS * scale)
 
 
-@settings(max_examples=100, deadline=None)
+@settings(max_examples=examples(100), deadline=None)
 @given(cameras(skewed=True), st.integers(0, 2**32 - 1))
 def test_pinhole_jacobians_match_central_differences(cam, seed):
     X = _points(seed, 10)
@@ -92,7 +93,7 @@ def central_differences(cam, X: np.ndarray, rel_h: float):
     return J_point, J_par, steps
 
 
-@settings(max_examples=200, deadline=None)
+@settings(max_examples=examples(200), deadline=None)
 @given(cameras(skewed=True), st.integers(0, 2**32 - 1))
 def test_unproject_inverts_project(cam, seed):
     X = _points(seed)

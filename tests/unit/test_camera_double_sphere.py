@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import examples
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
@@ -66,7 +67,7 @@ def _points(
     return d, d * rng.uniform(0.01, 100.0, (len(d), 1))
 
 
-@settings(max_examples=150, deadline=None)
+@settings(max_examples=examples(150), deadline=None)
 @given(cam=cameras(), seed=st.integers(0, 2**32 - 1))
 def test_unproject_inverts_project_wherever_the_model_projects(cam, seed):
     d, X = _points(cam, seed)
@@ -75,7 +76,7 @@ def test_unproject_inverts_project_wherever_the_model_projects(cam, seed):
     assert np.all(np.abs(cam.unproject(uv) - d) <= 12000 * EPS)
 
 
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=examples(60), deadline=None)
 @given(cam=cameras(xi=(-0.9, 1.0)), seed=st.integers(0, 2**32 - 1))
 def test_jacobians_match_central_differences(cam, seed):
     _, X = _points(cam, seed, within=0.9)

@@ -13,6 +13,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
+from conftest import examples
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from test_camera import central_differences
@@ -77,7 +78,7 @@ def _opencv(cam, X):
 
 
 @pytest.mark.parametrize("kind,tol,tol_back", [("opencv", 2.1, 24.0), ("fisheye", 4.5, 44.0)])
-@settings(max_examples=100, deadline=None)
+@settings(max_examples=examples(100), deadline=None)
 @given(data=st.data(), seed=st.integers(0, 2**32 - 1))
 def test_lens_projection_matches_opencv_and_unprojects(kind, tol, tol_back, data, seed):
     cam = data.draw(lens_cameras(kind))
@@ -91,7 +92,7 @@ def test_lens_projection_matches_opencv_and_unprojects(kind, tol, tol_back, data
 @pytest.mark.parametrize(
     "kind,tol_pt,tol_par", [("opencv", 6e-10, 1.5e-8), ("fisheye", 8e-10, 1e-8)]
 )
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=examples(60), deadline=None)
 @given(data=st.data(), seed=st.integers(0, 2**32 - 1))
 def test_lens_jacobians_match_central_differences(kind, tol_pt, tol_par, data, seed):
     cam = data.draw(lens_cameras(kind, skewed=data.draw(st.booleans())))

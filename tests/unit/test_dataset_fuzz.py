@@ -10,6 +10,7 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
+from conftest import examples
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from test_readers_fuzz import ANY_TEXT, CELL
@@ -74,7 +75,9 @@ def _open_all(root: Path) -> None:
 
 
 # 60 draws per reader, fewer than the other readers' 150: each draw writes a dataset folder
-FUZZ = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+FUZZ = settings(
+    max_examples=examples(60), deadline=None, suppress_health_check=[HealthCheck.too_slow]
+)
 INDEX = st.one_of(st.integers(-2, 6).map(str), CELL)
 
 

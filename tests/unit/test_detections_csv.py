@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import examples
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -136,7 +137,7 @@ MARKER = st.tuples(st.sampled_from(["0", "1", "3", "7", " 2", "+1"]),
                    st.sampled_from(["3", "-4", "12", "9"]))  # fmt: skip
 
 
-@settings(max_examples=100, deadline=None)
+@settings(max_examples=examples(100), deadline=None)
 @given(st.lists(MARKER, max_size=6, unique=True), st.lists(st.lists(NUMBER, min_size=2,
        max_size=2), min_size=4, max_size=4), st.lists(st.lists(NUMBER, min_size=6, max_size=6),
        max_size=1),

@@ -10,6 +10,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+from conftest import examples
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
@@ -68,7 +69,7 @@ def test_table_one_cartesian_pitch_is_not_joint_four():
     assert abs(np.degrees(pitch) - (-30 + 45 - 63.54 - 90)) < 1e-9
 
 
-@settings(max_examples=60, deadline=None, derandomize=True)
+@settings(max_examples=examples(60), deadline=None, derandomize=True)
 @given(name=st.sampled_from(ROBOTS), u=st.lists(st.floats(0, 1), min_size=5, max_size=5))
 def test_pitch_roll_match_geometric_definition(name, u):
     """Independent geometry: pitch from atan2 of the tool axis against r_hat; roll = theta5 +
@@ -117,7 +118,7 @@ def test_tool_point_on_base_axis_needs_azimuth():
 
 
 @settings(
-    max_examples=150,
+    max_examples=examples(150),
     deadline=None,
     derandomize=True,
     suppress_health_check=[HealthCheck.filter_too_much],

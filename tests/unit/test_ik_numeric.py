@@ -10,6 +10,7 @@ import functools
 
 import numpy as np
 import pytest
+from conftest import examples
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
@@ -50,7 +51,7 @@ def _assert_same_pose(model, q, T, tol=TOL):
 @pytest.mark.parametrize(
     "name", [pytest.param(n, marks=pytest.mark.slow) if n == "er4u-vendor" else n for n in ROBOTS]
 )
-@settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(15), deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(u=st.lists(st.floats(0.0, 1.0), min_size=7, max_size=7))
 @example(u=[0.0, 0.0, 0.0, 0.4375, 1e-08, 0.0, 0.0])
 def test_ik_of_fk_reproduces_the_pose(name, u):

@@ -10,6 +10,7 @@ import warnings
 
 import numpy as np
 import pytest
+from conftest import examples
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
@@ -29,7 +30,10 @@ from selfcal.transforms import make_pose, rot_z
 ROBOTS = ("er4u-paper", "er4u-vendor")
 DEG = np.pi / 180
 SETTINGS = settings(
-    max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow], derandomize=True
+    max_examples=examples(40),
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow],
+    derandomize=True,
 )
 
 
@@ -119,7 +123,7 @@ def _perturbed(model: MCPCModel, rng: np.random.Generator) -> MCPCModel:
     return model.with_params(model.params + d)
 
 
-@settings(max_examples=25, deadline=None, derandomize=True)
+@settings(max_examples=examples(25), deadline=None, derandomize=True)
 @given(seed=seeds, name=st.sampled_from(ROBOTS), camera=st.booleans())
 def test_identification_jacobian_matches_finite_differences(seed, name, camera):
     robot = _robot(name)

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import examples
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -110,7 +111,9 @@ def _finite_robot(robot) -> None:
     assert not np.any(np.isnan(robot.limits))
 
 
-FUZZ = settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+FUZZ = settings(
+    max_examples=examples(150), deadline=None, suppress_health_check=[HealthCheck.too_slow]
+)
 
 
 @FUZZ
@@ -349,7 +352,7 @@ def _sane_camera(K_fx, K_fy):
     assert np.isfinite([K_fx, K_fy]).all() and K_fx > 0 and K_fy > 0
 
 
-@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(100), deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.data())
 def test_calibration_json_reader_is_total(data):
     """Any key of the golden calibration.json replaced by null, NaN, huge, wrong types: a result
@@ -382,7 +385,7 @@ def _board_doc() -> dict:
     ).to_json()  # fmt: skip
 
 
-@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(60), deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.data())
 def test_board_calibration_json_reader_is_total(data):
     _, _, read_board, board_err = _calibration_readers()

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import examples
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
@@ -15,7 +16,7 @@ coords = st.floats(-1.0, 1.0, allow_nan=False)
 points = st.lists(coords, min_size=3, max_size=3)
 
 
-@settings(max_examples=100, deadline=None)
+@settings(max_examples=examples(100), deadline=None)
 @given(a0=points, a1=points, b0=points, b1=points)
 # a 3e-10 m segment against a point: the closed form alone overestimated by 2e-10 (found by
 # hypothesis in CI); the endpoint candidates make it exact

@@ -7,6 +7,7 @@ import warnings
 
 import numpy as np
 import pytest
+from conftest import examples
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
@@ -33,7 +34,7 @@ def _wrapped(d: np.ndarray) -> np.ndarray:
     return np.abs(np.angle(np.exp(1j * d)))  # +pi and -pi are the same angle
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=examples(300), deadline=None)
 @given(quats)
 def test_euler_and_quaternion_match_scipy(q):
     R = Rotation.from_quat(q).as_matrix()
