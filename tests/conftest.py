@@ -45,6 +45,9 @@ def examples(count: int) -> int:
     return count if HYPOTHESIS_PROFILE == "ci" else max(5, -(-count // 3))
 
 
+# `uv run pytest --cpu-durations DIR`: each test phase's CPU seconds (tests/cpu_durations.py)
+pytest_plugins = ["cpu_durations"]
+
 T = TypeVar("T")
 
 GOLDEN_DIR = Path(__file__).resolve().parent / "golden"
