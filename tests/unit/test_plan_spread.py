@@ -10,7 +10,11 @@ import pytest
 
 from selfcal.benchmarks.plan.add import WRIST_SPAN_DEG
 from selfcal.calibration.board.deviation import Deviation
-from selfcal.calibration.board.plan.information import board_model, frame_information
+from selfcal.calibration.board.plan.information import (
+    board_model,
+    frame_information,
+    prediction_information,
+)
 from selfcal.calibration.board.plan.predict import Directions, predicted_with_held
 from selfcal.calibration.board.plan.selection import selection_folds
 from selfcal.calibration.board.plan.spread import plan_spread, selection_spread
@@ -33,10 +37,11 @@ def cell(ur5e_wrist_plan):
 def _spread(cell, sigma, draws=300, seed=0):
     setup, model, q, G, dirs = cell
     F = frame_information(setup, q, sigma, JS)
+    A = prediction_information(setup, q, sigma, JS)  # the left-out folds from their joints alone
     n = np.full(len(q), len(setup.board.layout()[0]))
     var = Deviation().variance(model.joint_types)
     sp = selection_spread(model, q, G, F, n, setup.camera.n_free, var, sigma, draws=draws,
-                          seed=seed, directions=dirs)  # fmt: skip
+                          seed=seed, directions=dirs, held_out=A)  # fmt: skip
     return sp, F.sum(axis=0), var
 
 

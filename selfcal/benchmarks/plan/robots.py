@@ -181,16 +181,14 @@ def _spread(setup, q: np.ndarray, workspace: np.ndarray, sigma: float) -> tuple[
     """(median mm, 90th percentile mm, share of draws keeping a smaller set) of the
     linearised draws of the calibration at the postures ``q``, its selection drawn in each."""
     from selfcal.calibration.board.deviation import Deviation
-    from selfcal.calibration.board.plan.information import board_model, frame_information
-    from selfcal.calibration.board.plan.spread import selection_spread
+    from selfcal.calibration.board.plan.information import board_model
+    from selfcal.calibration.board.plan.spread import plan_spread
     from selfcal.estimation.joint_report import aligned_tool_weight, encoder_sigma
 
     model = board_model(setup)
-    F = frame_information(setup, q, sigma, encoder_sigma(setup.robot))
-    n = np.full(len(q), len(setup.board.layout()[0]))
     G = aligned_tool_weight(model, workspace, setup.T_tool_tip)
     var = Deviation().variance(setup.robot.joint_types)
-    sp = selection_spread(model, q, G, F, n, setup.camera.n_free, var, sigma, seed=1)
+    sp = plan_spread(setup, q, G, var, sigma, encoder_sigma(setup.robot), seed=1)
     smaller = 1.0 - sp.kept_share(len(sp.labels) - 1)
     return 1000.0 * sp.percentile(50), 1000.0 * sp.percentile(90), smaller
 

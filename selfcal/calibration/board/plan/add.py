@@ -41,7 +41,11 @@ from selfcal.calibration.board.folds import configurations, fold_labels
 from selfcal.calibration.board.mounts import mounts
 from selfcal.calibration.board.plan.greedy import select_greedy
 from selfcal.calibration.board.plan.ground import PlanOptions, plan_ground
-from selfcal.calibration.board.plan.information import board_model, frame_information
+from selfcal.calibration.board.plan.information import (
+    board_model,
+    frame_information,
+    prediction_information,
+)
 from selfcal.calibration.board.plan.path import order_path, path_length
 from selfcal.calibration.board.plan.planner import predict_kept
 from selfcal.calibration.board.plan.predict import Directions, prior_information
@@ -193,6 +197,8 @@ def plan_additions(
     F_frames = frame_information(setup, plan.q, opts.pixel_sigma_px, opts.joint_sigma, plan.seen)
     F_old = F_frames.sum(axis=0)
     F = frame_information(setup, g.pool, opts.pixel_sigma_px, opts.joint_sigma)
+    A_old = prediction_information(setup, plan.q, opts.pixel_sigma_px, opts.joint_sigma, plan.seen)
+    A = prediction_information(setup, g.pool, opts.pixel_sigma_px, opts.joint_sigma)
     picks = select_greedy(F, G, n_cam, min(count + SPARE, len(F)),
                           start=training_sets(plan, F_frames) + prior_information(var, n_cam))  # fmt: skip
     home = setup.robot.home
@@ -205,7 +211,8 @@ def plan_additions(
         q_all = np.concatenate([plan.q, g.pool[idx]])
         F_all = np.concatenate([F_frames, F[idx]])
         nf = np.concatenate([n_feat[: len(plan.q)], n_feat[len(plan.q) + idx]])
-        fc = forecast_selection(model, q_all, F_all, nf, n_cam, var, opts.pixel_sigma_px, dirs)
+        fc = forecast_selection(model, q_all, F_all, nf, n_cam, var, opts.pixel_sigma_px, dirs,
+                                held_out=np.concatenate([A_old, A[idx]]))  # fmt: skip
         return predict_kept(setup, q_all, F_all.sum(axis=0), G, var, fc.kept, dirs), fc
 
     def in_path_order(idx: np.ndarray) -> np.ndarray:

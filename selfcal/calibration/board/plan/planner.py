@@ -53,7 +53,11 @@ from selfcal.calibration.board.deviation import Deviation
 from selfcal.calibration.board.nominal_fit import placement_indices
 from selfcal.calibration.board.plan.greedy import exchange, pool_sets, select_greedy
 from selfcal.calibration.board.plan.ground import PlanOptions, plan_ground
-from selfcal.calibration.board.plan.information import board_model, frame_information
+from selfcal.calibration.board.plan.information import (
+    board_model,
+    frame_information,
+    prediction_information,
+)
 from selfcal.calibration.board.plan.path import order_path, path_length
 from selfcal.calibration.board.plan.predict import (
     Directions,
@@ -196,6 +200,7 @@ def plan_recording(
     g = plan_ground(setup, count, opts)
     pool, G, var = g.pool, g.G, g.variance
     F = frame_information(setup, pool, pixel_sigma_px, joint_sigma)
+    A = prediction_information(setup, pool, pixel_sigma_px, joint_sigma)
     n_cam = setup.camera.n_free
     searched = min(len(pool), SEARCH_FACTOR * count)
     home = setup.robot.home
@@ -212,7 +217,7 @@ def plan_recording(
         the selection is forecast to keep (and its rival's) and the reference."""
         Fs = F[idx].sum(axis=0)
         fc = forecast_selection(model, pool[idx], F[idx], n_feat[idx], n_cam, var,
-                                pixel_sigma_px, dirs)  # fmt: skip
+                                pixel_sigma_px, dirs, held_out=A[idx])  # fmt: skip
         got = predict_kept(setup, pool[idx], Fs, G, var, fc.kept, dirs)
         cv, c = fc.cv_px, fc.chosen
         rival = None

@@ -16,8 +16,13 @@ in every fold the parameters its training frames cannot determine held
 (:func:`selfcal.calibration.board.parameter_pool.determined`), and the same paired
 one-standard-error rule (:func:`selfcal.calibration.board.param_selection.one_se_rule`) on the
 folds' expected RMS. A fold's expected mean square per feature (both image coordinates): the
-corners' noise ``2 sigma^2`` plus ``sigma^2 sum_i trace(F_i C) / n``, ``F_i`` the information
-of the fold's frames (``n`` features), ``C`` the error covariance of the fit on the other
+corners' noise ``2 sigma^2`` plus ``sigma^2 sum_i (trace(A_i C) + trace(Z_i)) / n``, ``A_i``
+the information of the fold's frames with their joints (``n`` features; the selection predicts
+a left-out fold from its joints alone, their read-back corrections not fitted:
+:func:`selfcal.calibration.board.plan.information.prediction_information`, whose ``Z_i`` is
+what the frame's read-back errors add; with the corrections eliminated, as the training fits
+have them, the ER-4u A3 cell's plan of 12 expected its nominal's folds at 0.47 px where its
+calibrations measured 2.2 - 3.1 px, docs/plan.md), ``C`` the error covariance of the fit on the other
 folds' frames (:func:`selfcal.calibration.board.plan.predict.error_covariance`: the noise and
 the held parameters' deviation from the drawing), the camera's free parameters fitted with
 the kinematics as each fold's fit does (it starts from the camera of the fit on every frame and
@@ -80,6 +85,7 @@ def forecast_selection(
     variance: np.ndarray,
     sigma_px: float,
     directions: Directions | None = None,
+    held_out: np.ndarray | None = None,
 ) -> SelectionForecast:
     """The candidate the selection is expected to keep (module docstring) for the frames at the
     joints ``q`` (m, n) rad in recording order, of ``model`` (world = board, tool = camera):
@@ -87,12 +93,16 @@ def forecast_selection(
     (:func:`selfcal.calibration.board.plan.information.frame_information`), ``n_features`` (m,) the
     features each shows, ``variance`` (k,) the deviation from the drawing, ``sigma_px`` the
     corner noise (px); ``directions`` the model's estimated directions when already computed
-    (:class:`selfcal.calibration.board.plan.predict.Directions`)."""
+    (:class:`selfcal.calibration.board.plan.predict.Directions`); ``held_out`` (m, p + j, p + j)
+    what each frame's prediction from its joints alone errs by
+    (:func:`selfcal.calibration.board.plan.information.prediction_information`; None:
+    ``F_frames``, the joints exact)."""
     q = np.atleast_2d(np.asarray(q, dtype=float))
     n_features = np.asarray(n_features, dtype=float)
-    if len(F_frames) != len(q) or len(n_features) != len(q):
-        raise UsageError(f"{len(q)} frames, {len(F_frames)} informations, "
-                         f"{len(n_features)} feature counts")  # fmt: skip
+    A = F_frames if held_out is None else np.asarray(held_out, dtype=float)
+    if len(F_frames) != len(q) or len(n_features) != len(q) or len(A) != len(q):
+        raise UsageError(f"{len(q)} frames, {len(F_frames)} informations, {len(A)} held-out "
+                         f"informations, {len(n_features)} feature counts")  # fmt: skip
     folds = selection_folds(model, q, directions)
     cands = folds.candidates
     first = cands[0]
@@ -100,7 +110,8 @@ def forecast_selection(
         return SelectionForecast(first.label, first.free_idx, first.offset_joints,
                                  (first.label,), ((),), 1,
                                  ((first.free_idx, first.offset_joints),), 0)  # fmt: skip
-    rms = np.array([[_fold_rms(F_frames, n_features, folds.out(f), n_cam, Mc, variance, sigma_px)
+    rms = np.array([[_fold_rms(F_frames, A, n_features, folds.out(f), n_cam, Mc, variance,
+                               sigma_px)
                      for Mc in folds.directions[f]]
                     for f in range(len(folds.labels))])  # fmt: skip
     for c, r in zip(cands, rms.T):
@@ -160,13 +171,18 @@ def _names(cand: Candidate) -> list[str]:
     return [*param_names(cand.free_idx), *(f"offset_j{j + 1}" for j in cand.offset_joints)]
 
 
-def _fold_rms(F, n_features, out, n_cam, M, variance, sigma_px) -> float:
+def _fold_rms(F, A, n_features, out, n_cam, M, variance, sigma_px) -> float:
     """The expected RMS (px) of the fit on the frames outside ``out`` predicting those in it
-    (module docstring): ``F`` (m, p, p) the frames' information on ``[camera (n_cam), minimal]``,
-    ``M`` the kinematic directions the fit estimates (those its training frames determine)
-    with the camera's free parameters."""
+    (module docstring): ``F`` (m, p, p) the frames' information on ``[camera (n_cam), minimal]``
+    (the training fit's, the joints' corrections eliminated), ``A`` (m, p + j, p + j) the
+    left-out frames' prediction from their joints alone
+    (:func:`selfcal.calibration.board.plan.information.prediction_information`: its read-back
+    errors' ``j`` last), ``M`` the kinematic directions the fit estimates (those its training
+    frames determine) with the camera's free parameters."""
     C = error_covariance(F[~out].sum(axis=0), n_cam, M, variance)
     if C is None:
         return float("inf")
-    spread = float(np.einsum("mij,ji->", F[out], C))
+    p = len(C)
+    A_out = A[out].sum(axis=0)
+    spread = float(np.einsum("ij,ji->", A_out[:p, :p], C)) + float(np.trace(A_out[p:, p:]))
     return float(np.sqrt(2.0 * sigma_px**2 + sigma_px**2 * spread / n_features[out].sum()))

@@ -17,14 +17,19 @@ as the simulator draws it) and per fold the information-weighted noise of its fr
 noise of a fit on several folds is the sum of theirs). A fit of the directions ``M`` on frames
 of information ``F`` and noise ``g`` errs by ``-R d + C g``
 (:func:`selfcal.calibration.board.plan.predict.linear_estimator`); a fold's RMS per feature is
-``sqrt(sigma^2 (chi2_2n - 2 h^T e + e^T F_out e) / n)`` with ``e`` the training fit's error,
+``sqrt(sigma^2 (chi2_2n - 2 h^T e + sum_i x_i^T A_i x_i) / n)``, ``x_i = [e, z_i]``, with ``e``
+the training fit's error, ``A_i`` a left-out frame's information with its joints and ``z_i``
+its read-back errors drawn
+(:func:`selfcal.calibration.board.plan.information.prediction_information`: the fold is
+predicted from its joints alone),
 ``n`` the fold's features and ``chi2_2n`` its corners' squared noise over ``sigma^2``; the
 candidates' fold errors go through the selection's own paired one-standard-error rule
 (:func:`selfcal.calibration.board.param_selection.one_se_rule`), and the chosen candidate's fit on
 every frame errs by ``-R d + C sum_f h_f``, carried to the tool point by the aligned weight
 ``G``. Linear (the first order of the problem at the drawing), the camera's free parameters
-fitted in every fit, the correlation of a fold's ``chi2`` with its ``h`` neglected. Units: SI,
-px.
+fitted in every fit, the correlation of a fold's ``chi2`` with its ``h`` neglected (and its
+``h`` that of the training fits, its joints' corrections eliminated, in the cross term of its
+prediction too). Units: SI, px.
 """
 
 from __future__ import annotations
@@ -35,7 +40,11 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from selfcal.calibration.board.param_selection import one_se_rule
-from selfcal.calibration.board.plan.information import board_model, frame_information
+from selfcal.calibration.board.plan.information import (
+    board_model,
+    frame_information,
+    prediction_information,
+)
 from selfcal.calibration.board.plan.predict import Directions, linear_estimator
 from selfcal.calibration.board.plan.selection import selection_folds
 from selfcal.calibration.board.plan.views import PlanSetup
@@ -102,6 +111,7 @@ def selection_spread(
     seed: int = 0,
     directions: Directions | None = None,
     on_draw: Callable[[], None] | None = None,
+    held_out: np.ndarray | None = None,
 ) -> SelectionSpread:
     """The calibration's tool-point error in ``draws`` linearised draws (module docstring) at
     the joints ``q`` (m, n) rad in recording order of ``model`` (world = board, tool = camera),
@@ -111,16 +121,23 @@ def selection_spread(
     the features each shows, ``variance`` (k,) the deviation from the drawing (the placement's
     zero: every fit estimates it), ``sigma_px`` the corner noise (px); deterministic for a
     ``seed``. With fewer than two folds the selection keeps the nominal in every draw.
-    ``on_draw``: called after each draw (a progress bar)."""
+    ``on_draw``: called after each draw (a progress bar). ``held_out`` (m, p + j, p + j) what
+    each frame's prediction from its joints alone errs by
+    (:func:`selfcal.calibration.board.plan.information.prediction_information`: the left-out
+    fold's frames are predicted without their joints' corrections, and their read-back errors,
+    ``j`` standard normal coordinates drawn per frame, move their features; None:
+    ``F_frames``, the joints exact)."""
     q = np.atleast_2d(np.asarray(q, dtype=float))
     F_frames = np.asarray(F_frames, dtype=float)
     n_features = np.asarray(n_features, dtype=float)
     variance = np.asarray(variance, dtype=float)
     k = len(variance)
     p = n_cam + k
-    if F_frames.shape != (len(q), p, p) or len(n_features) != len(q) or G.shape != (k, k):
-        raise UsageError(f"shapes do not match: {len(q)} frames, F {F_frames.shape}, "
-                         f"features {n_features.shape}, G {G.shape}, k {k}")  # fmt: skip
+    A = F_frames if held_out is None else np.asarray(held_out, dtype=float)
+    if F_frames.shape != (len(q), p, p) or len(n_features) != len(q) or G.shape != (k, k) \
+            or A.shape[:2] != (len(q), A.shape[2]) or A.shape[1] < p:  # fmt: skip
+        raise UsageError(f"shapes do not match: {len(q)} frames, F {F_frames.shape}, held-out "
+                         f"{A.shape}, features {n_features.shape}, G {G.shape}, k {k}")  # fmt: skip
     dirs = directions or Directions(model)
     folds = selection_folds(model, q, dirs)
     cands = folds.candidates
@@ -137,6 +154,8 @@ def selection_spread(
         fits = [[linear_estimator(F_all - F_fold[f], n_cam, Mc) for Mc in folds.directions[f]]
                 for f in range(nf)]  # fmt: skip
         n_out = np.array([n_features[folds.out(f)].sum() for f in range(nf)])
+        A_fold = [A[folds.out(f)].sum(axis=0)[:p, :p] for f in range(nf)]
+        z_at = [np.flatnonzero(folds.out(f)) for f in range(nf)]
     roots = [_root(Ff) for Ff in F_fold]
     Gp = np.zeros((p, p))
     Gp[n_cam:, n_cam:] = G
@@ -147,6 +166,7 @@ def selection_spread(
         h = [L @ rng.standard_normal(L.shape[1]) for L in roots]
         if nf >= 2:
             chi2 = rng.chisquare(2.0 * n_out)
+            z = rng.standard_normal((len(q), A.shape[1] - p))  # the read-back errors
             trial = []
             for c, ci in enumerate(cands):
                 rms = []
@@ -157,7 +177,9 @@ def selection_spread(
                         continue
                     C, R = fit
                     e = -R @ d + C @ (sum(h) - h[f])
-                    ss = chi2[f] - 2.0 * h[f] @ e + e @ F_fold[f] @ e
+                    ss = chi2[f] - 2.0 * h[f] @ e + e @ A_fold[f] @ e
+                    for i in z_at[f]:  # the left-out frames' read-back errors
+                        ss += 2.0 * e @ A[i, :p, p:] @ z[i] + z[i] @ A[i, p:, p:] @ z[i]
                     rms.append(float(sigma_px * np.sqrt(max(ss, 0.0) / n_out[f])))
                 r = np.array(rms)
                 trial.append(replace(ci, fold_rms_px=tuple(r.tolist()),
@@ -201,9 +223,11 @@ def plan_spread(
     ids = np.asarray(setup.board.layout()[0])
     shown = [*seen, *([ids] * (len(q) - len(seen)))]
     F = frame_information(setup, q, pixel_sigma_px, joint_sigma, shown)
+    A = prediction_information(setup, q, pixel_sigma_px, joint_sigma, shown)
     n = np.array([len(s) for s in shown], dtype=float)
     return selection_spread(board_model(setup), q, G, F, n, setup.camera.n_free, variance,
-                            pixel_sigma_px, draws=draws, seed=seed, on_draw=on_draw)  # fmt: skip
+                            pixel_sigma_px, draws=draws, seed=seed, on_draw=on_draw,
+                            held_out=A)  # fmt: skip
 
 
 def _root(F: np.ndarray) -> np.ndarray:
