@@ -31,6 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from selfcal.benchmarks.plan.robots import ROBOTS, cell, cell_target
+from selfcal.io.atomic import write_text_atomic
 
 __all__ = ["linear_fold_rms", "main"]
 
@@ -81,9 +82,9 @@ def _acquire_draw(robot: str, root: Path, seed: int, sigma: float, render: bool,
     setup, bp, _ = cell(robot)
     q, _ = sets_of(setup, 12, (12,), pixel_sigma_px=sigma)["sets"]["plan 12"]
     root.mkdir(parents=True, exist_ok=True)
-    (root / "joints.csv").write_text(joints_csv(q, setup.robot.edge_unit))
-    (root / "scenario.toml").write_text(scenario_text(robot, setup.camera, bp, len(q)))
-    (root / "target.toml").write_text(cell_target(robot).read_text())
+    write_text_atomic(root / "joints.csv", joints_csv(q, setup.robot.edge_unit))
+    write_text_atomic(root / "scenario.toml", scenario_text(robot, setup.camera, bp, len(q)))
+    shutil.copyfile(cell_target(robot), root / "target.toml")
     deg = (q / setup.robot.edge_unit).tolist()
     shutil.rmtree(root / f"seed{seed}", ignore_errors=True)  # this script's own draw, acquired anew
     _acquire({"config": str(root / "scenario.toml"), "poses": len(deg), "pixel_sigma": sigma,
