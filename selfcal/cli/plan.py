@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from selfcal.cli import plan_field
 from selfcal.cli.plan_args import (
     check_common,
     keep_out_boxes,
@@ -80,7 +81,6 @@ tracker route's predicted tool-point error over the workspace in the tracker fra
 covariance with the parameters its rank and conditioning tests keep, noise --sigma-mm per
 coordinate, exact joints); PLAN/joints.csv (add the measured x_mm,y_mm,z_mm to each row for identify),
 trajectory.yaml and plan.json. No camera, board or mount options.
-See docs/plan.md.
 """
 
 
@@ -226,6 +226,9 @@ def _cmd(args: argparse.Namespace) -> int:
     if not args.pixel_sigma > 0:
         raise CliError(f"--pixel-sigma {args.pixel_sigma:g}: the corner noise must be > 0 px",
                        fix="e.g. --pixel-sigma 0.5 (the default)")  # fmt: skip
+    if args.target and not args.add and plan_field.is_field(args.target):
+        return plan_field.cmd_field(args, _camera, _deviation)
+    plan_field.check_field_options(args)
     _check_mount(args)
     if args.add:
         return _cmd_add(args)
@@ -233,9 +236,7 @@ def _cmd(args: argparse.Namespace) -> int:
     names = trajectory_joint_names(args, robot.joint_names)
     camera = _camera(args)
     board = load_target(args.target)
-    if not isinstance(board, Board):
-        raise CliError(f"--target {args.target}: the plan needs a board (chessboard, charuco, "
-                       "circles, aprilgrid), not a marker field")  # fmt: skip
+    assert isinstance(board, Board)  # a marker field took cmd_field above
     boxes = keep_out_boxes(args)
     if args.count < MIN_POSTURES:
         raise CliError(f"--count {args.count}: a camera plan needs at least {MIN_POSTURES} "
@@ -434,7 +435,7 @@ def register(subparsers) -> argparse.ArgumentParser:
         "(selfcal run replays a camera plan in simulation), plan.json (the predicted "
         "tool-point error against a random plan) and plan.png (its spread over draws of the "
         "arm and the noise against a random plan's).",
-        epilog=EPILOG,
+        epilog=EPILOG + plan_field.FIELD_EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     sp.add_argument("--robot", default=None,
@@ -493,6 +494,7 @@ def register(subparsers) -> argparse.ArgumentParser:
                     "goal with names the controller does not know is refused)")  # fmt: skip
     sp.add_argument("--dwell-s", type=float, default=2.0,
                     help="trajectory.yaml: rest at each posture, s (default 2)")  # fmt: skip
+    plan_field.add_field_options(sp)
     add_json(sp)
     sp.set_defaults(func=_cmd)
     return sp

@@ -10,7 +10,8 @@ import numpy as np
 
 from selfcal.console.common import CliError, parse_floats
 
-__all__ = ["check_common", "keep_out_boxes", "plan_inputs", "trajectory_joint_names"]
+__all__ = ["check_common", "keep_out_boxes", "plan_inputs", "trajectory_joint_names",
+           "write_postures"]  # fmt: skip
 
 
 def plan_inputs(args: argparse.Namespace, boxes: np.ndarray, edge_unit: np.ndarray,
@@ -68,3 +69,15 @@ def trajectory_joint_names(args: argparse.Namespace, robot_names: tuple[str, ...
             "elbow_joint,wrist_1_joint,wrist_2_joint,wrist_3_joint",
         )
     return names
+
+
+def write_postures(args: argparse.Namespace, out, names: list[str], q: np.ndarray, robot) -> None:
+    """PLAN/joints.csv (the import's format, edge units) and trajectory.yaml (the controller's
+    joint ``names``, ``--speed-deg-s`` and ``--dwell-s``) of postures ``q`` (m, n) SI of the
+    ``robot`` (a :class:`selfcal.robot.definition.RobotDef`) into the folder ``out``."""
+    from selfcal.io.atomic import write_text_atomic
+    from selfcal.io.plan_files import joints_csv, trajectory_yaml
+
+    write_text_atomic(out / "joints.csv", joints_csv(q, robot.edge_unit))
+    write_text_atomic(out / "trajectory.yaml", trajectory_yaml(
+        names, q, robot.home, speed=args.speed_deg_s * robot.edge_unit, dwell_s=args.dwell_s))  # fmt: skip

@@ -19,6 +19,7 @@ def scenario_text(
     camera_pose: np.ndarray | None = None,
     deviation=None,
     seed: int = 1,
+    field: dict[str, float] | None = None,
 ) -> str:
     """The scenario TOML that replays the plan in simulation (``selfcal run``): the robot, the
     plan's nominal camera as the true one, the board of ``target.toml`` at ``board_pose`` (6,) mm
@@ -26,7 +27,9 @@ def scenario_text(
     deg (eye-to-hand), the ``count`` postures of the CSV ``joints`` (beside it), analytic
     corners, the arm's errors drawn (``[perturbation] seed``) from the plan's ``deviation``
     (:class:`selfcal.calibration.board.deviation.Deviation`, None: its default), as the plan
-    predicts with it."""
+    predicts with it. ``field``: instead of the board, the simulated marker field's ``[target]``
+    keys (``markers``, ``extent_mm``, ``marker_size_mm``, ``scale_length_mm``), centred where the
+    home posture looks."""
     from selfcal.calibration.board.deviation import Deviation
 
     dev = deviation or Deviation()
@@ -36,7 +39,9 @@ def scenario_text(
     lens = {n: v[n] for n in camera.names[5:] if v[n] != 0.0}
     dist = ", ".join(f"{k} = {x!r}" for k, x in lens.items())
     free = ", ".join(f'"{n}"' for n in camera.free)
-    if camera_pose is None:
+    if field is not None:
+        setup = where = ""
+    elif camera_pose is None:
         assert board_pose is not None
         pose = ", ".join(f"{x:.6g}" for x in board_pose)
         setup = ""
@@ -46,6 +51,11 @@ def scenario_text(
         setup = ('setup = "eye-to-hand"  # the camera static, the board on the flange\n'
                  f"pose = [{pose}]  # mm, deg: the camera's centre in the base frame, its rotation\n")  # fmt: skip
         where = ""
+    target = (
+        "".join(f"{k} = {v!r}\n" for k, v in field.items())
+        if field is not None
+        else f'board = "target.toml"\n{where}'
+    )
     return f"""# Written by `selfcal plan`: the plan replayed in simulation, `selfcal run scenario.toml`.
 # The camera below is the plan's nominal camera, simulated as the true one; the robot's errors
 # are drawn from the plan's deviation ([perturbation]; another seed draws another arm).
@@ -64,8 +74,7 @@ distortion = {{ {dist} }}
 free = [{free}]
 
 [target]
-board = "target.toml"
-{where}
+{target}
 [trajectory]
 kind = "file"
 joints = {json.dumps(joints)}

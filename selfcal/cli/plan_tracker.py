@@ -15,6 +15,7 @@ from selfcal.cli.plan_args import (
     keep_out_boxes,
     plan_inputs,
     trajectory_joint_names,
+    write_postures,
 )
 from selfcal.console.common import CliError, note_written, parse_floats, writing
 
@@ -60,9 +61,7 @@ def cmd_tracker(args: argparse.Namespace, deviation) -> int:
     drawing (:class:`selfcal.calibration.board.deviation.Deviation`)."""
     from selfcal.acquisition.backends import robot_reference
     from selfcal.calibration.tracker.plan import TrackerPlanSetup, plan_tracker
-    from selfcal.io.atomic import write_text_atomic
     from selfcal.io.jsonfile import write_json_atomic
-    from selfcal.io.plan_files import joints_csv, trajectory_yaml
     from selfcal.robot.definition import load_robot
 
     _check(args)
@@ -76,10 +75,7 @@ def cmd_tracker(args: argparse.Namespace, deviation) -> int:
     out = Path(args.out)
     ref = robot_reference(args.robot)
     with writing(args, out):
-        write_text_atomic(out / "joints.csv", joints_csv(plan.q, robot.edge_unit))
-        write_text_atomic(out / "trajectory.yaml", trajectory_yaml(
-            names, plan.q, robot.home, speed=args.speed_deg_s * robot.edge_unit,
-            dwell_s=args.dwell_s))  # fmt: skip
+        write_postures(args, out, names, plan.q, robot)
         doc = {
             "format": "scorbot-selfcal-plan",
             "schema_version": 1,

@@ -1,0 +1,239 @@
+"""``selfcal plan`` on a marker field (issue #30): the postures to record for the field route (the
+paper's self-calibration: the camera's focal length and lens unknown, the markers' positions
+unknown, one known distance for the scale, the MCPC parameters identified) and their forecast.
+
+The postures are the field route's D-optimal choice (:func:`selfcal.calibration.field.
+optimal_poses.plan_optimal_postures`) from random candidates of the planning window around home
+(the robot file's ``[planning] span_deg``) that
+
+- lie within the joint ranges;
+- are free of self-collision and of the table (the capsule chain of
+  :class:`selfcal.kinematics.self_collision.CapsuleChain`, its tool the camera) and of the
+  keep-out boxes (:func:`selfcal.kinematics.keep_out.outside_boxes`): the board plan's checks
+  where they apply (a field has no plate to keep clear of; the lines of sight to the markers are
+  not checked);
+- show every camera of the rig at least ``min_visible`` of the 36 points of a 6 x 6 grid over the
+  field's region (:data:`selfcal.kinematics.trajectory.PLANNING_VISIBILITY`: the planner's rule,
+  in front at a working distance, inside the image, facing).
+
+The field's region is a square on the table (z = 0, base frame) centred where the home posture's
+optical axis meets it (:func:`selfcal.kinematics.trajectory.home_target_center`), as the simulated
+field lies. The random plan of the same size is the first ``count`` candidates of the same
+filters (:func:`selfcal.kinematics.trajectory.plan_postures` with the same seed).
+
+The forecast (:func:`field_forecast`) is the field route's Cramer-Rao bound
+(:mod:`selfcal.calibration.field.bounds`) of the one-step calibration at the postures, for a given
+marker layout: it estimates the camera's free parameters (focal length, aspect ratio, lens), the
+markers' corners (unknown points), the rig, the read-back errors of the joints and every minimal
+MCPC parameter beyond the world gauge, with the scale fixed by the two scale markers' known
+distance; its figure is the RMS error of the flange centre over random postures of the workspace
+after the best rigid alignment (the report's tool-point metric). It is a bound: the estimator's
+error, the detector's misses and the two-stage route's larger error are not in it. SI units.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+
+from selfcal.calibration.board.plan.ground import workspace_sample
+from selfcal.calibration.board.plan.path import order_path, path_length
+from selfcal.calibration.field.bounds import BoundsError, cramer_rao
+from selfcal.calibration.field.bounds_setup import predicted_setup
+from selfcal.calibration.field.optimal_poses import plan_optimal_postures
+from selfcal.camera import Rig
+from selfcal.kinematics.keep_out import check_boxes, outside_boxes
+from selfcal.kinematics.mcpc import MCPCModel, nominal_mcpc
+from selfcal.kinematics.self_collision import CapsuleChain
+from selfcal.kinematics.trajectory import home_target_center, plan_postures
+from selfcal.robot.definition import RobotDef
+from selfcal.target import CORNERS_PER_MARKER
+from selfcal.transforms import inv_pose
+
+__all__ = [
+    "FieldPlanSetup",
+    "FieldPlan",
+    "FieldLayout",
+    "FieldForecast",
+    "plan_field",
+    "field_forecast",
+    "forecast_workspace",
+    "GRID_SIDE",
+]
+
+GRID_SIDE = 6
+"""The planning grid over the field's region: GRID_SIDE x GRID_SIDE points (the scenarios')."""
+
+
+@dataclass(frozen=True)
+class FieldPlanSetup:
+    """The cell of a field plan: the ``robot`` (its ``[camera_mount]`` puts the rig's first
+    camera on the flange), the camera ``rig``, the square region of side ``extent_m`` (m) holding
+    the markers, centred where the home posture looks, the keep-out ``boxes`` (b, 6) m (base
+    frame) and ``min_visible``: the grid points every camera must see."""
+
+    robot: RobotDef
+    rig: Rig
+    extent_m: float
+    boxes: np.ndarray
+    min_visible: int = 6
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "boxes", check_boxes(np.asarray(self.boxes, dtype=float)))
+
+    @property
+    def model_cam(self) -> MCPCModel:
+        """The nominal chain whose tool is the first camera (OpenCV frame)."""
+        return nominal_mcpc(self.robot).with_tool(self.robot.T_flange_cam)
+
+    @cached_property
+    def chain(self) -> CapsuleChain:
+        """The capsule chain of the nominal arm with the camera as its tool."""
+        return CapsuleChain(nominal_mcpc(self.robot), self.robot.T_flange_cam)
+
+    def centre_m(self) -> tuple[float, float]:
+        """The region's centre (x, y) m on the table: where the home optical axis meets it
+        (:class:`selfcal.errors.InputError` naming the robot file when it does not)."""
+        return home_target_center(self.robot, self.model_cam)
+
+    def grid(self) -> tuple[np.ndarray, np.ndarray]:
+        """The planning grid: (36, 3) points m over the region and their normals (up)."""
+        cx, cy = self.centre_m()
+        h = self.extent_m / 2
+        a = np.linspace(-h, h, GRID_SIDE)
+        pts = np.array([[cx + x, cy + y, 0.0] for x in a for y in a])
+        return pts, np.tile([0.0, 0.0, 1.0], (len(pts), 1))
+
+    def collision_ok(self, q: np.ndarray) -> np.ndarray:
+        """(m,) bool: postures ``q`` (m, n) rad free of self-collision, the table and the
+        keep-out boxes."""
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        ok = self.chain.ok(q)
+        ok[ok] = outside_boxes(self.chain, q[ok], self.boxes)
+        return ok
+
+
+@dataclass
+class FieldPlan:
+    """A field plan: ``q`` (count, n) rad in the order to record them (a short joint path from
+    home, :func:`selfcal.calibration.board.plan.path.order_path`), ``q_random`` the random plan of
+    the same size; ``path_rad``/``random_path_rad`` their joint paths (the sum of every step's
+    largest joint move); ``candidates`` in the pool after the collision check
+    (``rejected_collision`` removed); ``logdet``/``logdet_random`` the selector's proxy
+    information of each; ``exchanges`` the selector's swaps."""
+
+    q: np.ndarray
+    q_random: np.ndarray
+    path_rad: float
+    random_path_rad: float
+    candidates: int
+    rejected_collision: int
+    logdet: float
+    logdet_random: float
+    exchanges: int
+
+
+def plan_field(
+    setup: FieldPlanSetup,
+    count: int,
+    *,
+    seed: int,
+    candidates: int,
+    markers: int,
+    pixel_sigma_px: float,
+    joint_sigma: np.ndarray | None,
+) -> FieldPlan:
+    """The ``count`` postures of the field route's D-optimal selector for ``setup`` (module
+    docstring) from ``candidates`` random ones (seeded by ``seed``), each grid point worth the
+    corners of ``markers`` markers spread over the grid, ``pixel_sigma_px`` px of corner noise and
+    the read-back noise ``joint_sigma`` (n,) rad (None: exact).
+
+    Raises:
+        DegenerateTrajectoryError: too few feasible candidates.
+    """
+    pts, nrm = setup.grid()
+    opt = plan_optimal_postures(
+        setup.robot, setup.model_cam, setup.rig, pts, count, seed=seed,
+        min_visible=setup.min_visible, normals_world=nrm, n_candidates=candidates,
+        collision_ok=setup.collision_ok, pixel_sigma_px=pixel_sigma_px,
+        corners_per_point=CORNERS_PER_MARKER * markers / len(pts), joint_sigma=joint_sigma,
+    )  # fmt: skip
+    q_random = plan_postures(setup.robot, setup.model_cam, setup.rig, pts, count, seed=seed,
+                             min_visible=setup.min_visible, normals_world=nrm,
+                             collision_ok=setup.collision_ok)  # fmt: skip
+    home = setup.robot.home
+    q = opt.q[order_path(opt.q, home)]
+    return FieldPlan(
+        q=q,
+        q_random=q_random,
+        path_rad=path_length(q, home),
+        random_path_rad=path_length(q_random, home),
+        candidates=opt.candidates,
+        rejected_collision=opt.rejected_collision,
+        logdet=opt.logdet,
+        logdet_random=opt.logdet_random,
+        exchanges=opt.exchanges,
+    )
+
+
+@dataclass(frozen=True)
+class FieldLayout:
+    """The markers a forecast assumes: ``ids`` (K,), their corners ``corners_world`` (K, 4, 3) m
+    and normals (K, 3) in the base frame, the two ``scale_ids`` whose centres lie the known
+    ``scale_length_m`` (m) apart."""
+
+    ids: np.ndarray
+    corners_world: np.ndarray
+    normals_world: np.ndarray
+    scale_ids: tuple[int, int]
+    scale_length_m: float
+
+
+@dataclass
+class FieldForecast:
+    """The forecast of one plan: ``tool_rms_m`` the bound of the flange centre's RMS error over
+    the workspace postures after the best rigid alignment (m; None when the bound does not exist,
+    ``why`` says why), ``fx_std_px`` the bound of the focal length (px), ``observations`` the
+    corners predicted seen."""
+
+    tool_rms_m: float | None
+    fx_std_px: float | None
+    observations: int
+    why: str = ""
+
+
+def field_forecast(
+    setup: FieldPlanSetup,
+    layout: FieldLayout,
+    q: np.ndarray,
+    workspace: np.ndarray,
+    *,
+    pixel_sigma_px: float,
+    joint_sigma: np.ndarray | None,
+) -> FieldForecast:
+    """The field route's Cramer-Rao forecast (module docstring) of postures ``q`` (m, n) rad with
+    the markers of ``layout`` seen by the rig as the analytic simulator decides it, at the
+    nominal chain, ``pixel_sigma_px`` px of corner noise and the read-back noise ``joint_sigma``
+    (n,) rad; the tool-point figure over ``workspace`` (w, n) rad. A plan whose data do not
+    determine every unknown (a scale marker seen fewer than twice, a singular information) has
+    no bound: ``tool_rms_m`` None and ``why`` the reason."""
+    try:
+        fs = predicted_setup(
+            setup.model_cam, q, setup.rig, layout.ids, layout.corners_world,
+            layout.normals_world, layout.scale_ids, layout.scale_length_m,
+            pixel_sigma_px=pixel_sigma_px, joint_sigma=joint_sigma,
+        )  # fmt: skip
+        cr = cramer_rao(fs)
+    except BoundsError as exc:
+        return FieldForecast(None, None, 0, why=exc.message)
+    rms = cr.aligned_tool_rms(workspace, inv_pose(setup.robot.T_flange_cam))
+    return FieldForecast(float(rms), float(cr.fx_std), cr.n_observations)
+
+
+def forecast_workspace(setup: FieldPlanSetup, n: int = 50, *, seed: int) -> np.ndarray:
+    """(n, dof) rad: the workspace postures the forecast averages over (the board plan's: random
+    postures of the planning window, free of collision and the keep-out boxes; the board plan
+    seeds them with its ``--seed`` + 1)."""
+    return workspace_sample(setup, n, seed=seed)

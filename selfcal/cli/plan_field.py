@@ -1,0 +1,232 @@
+"""``selfcal plan --target FIELD.toml``: the postures to record over a marker field (the field
+route, the paper's self-calibration), the command of :mod:`selfcal.calibration.field.plan`:
+writes PLAN/joints.csv, trajectory.yaml, scenario.toml (the plan replayed over a simulated field)
+and plan.json. Eye-in-hand only so far."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import tempfile
+import warnings
+from collections.abc import Callable
+from pathlib import Path
+
+from selfcal.console.common import CliError, note_written, writing
+from selfcal.errors import EstimationError, SelfCalWarning
+
+__all__ = ["FIELD_EPILOG", "add_field_options", "check_field_options", "cmd_field", "is_field"]
+
+FIELD_DEFAULTS = {"markers": 20, "field_extent_mm": 300.0, "marker_mm": 30.0}
+"""The field options' defaults: the simulated scenarios' field (``[target]`` of
+:mod:`selfcal.config.scenario`)."""
+
+FIELD_EPILOG = """\
+--target FIELD.toml (type = "field", with its scale_marker_ids and scale_length_mm): a plan over
+a marker field for the field route (the camera's focal length and lens, the markers' positions
+and the kinematics estimated, the scale from the one known distance). The field lies on the
+table (z = 0) in a square of --field-extent-mm centred where the home posture's optical axis
+meets it (as the simulated field does); every posture shows each camera at least 6 points of a
+6 x 6 grid over it (the planner's visibility rule), lies within the joint ranges and is free of
+self-collision, the table and the keep-out boxes; the postures are the field route's D-optimal
+choice from --candidates random ones. The forecast is the field route's Cramer-Rao bound of the
+flange centre's error over 50 workspace postures (the plan's and a random plan's of the same
+size) for --markers markers of --marker-mm laid as scenario.toml's simulated field lays them.
+Eye-in-hand, one camera; --board-pose, --camera-pose and --mount eye-to-hand are refused,
+as is --add to a field's dataset.
+See docs/plan.md.
+"""
+
+
+def add_field_options(sp: argparse.ArgumentParser) -> None:
+    """The options of a plan over a marker field (their defaults None: refused with a board)."""
+    sp.add_argument("--markers", type=int, default=None,
+                    help="a marker field: its markers (default 20)")  # fmt: skip
+    sp.add_argument("--field-extent-mm", type=float, default=None, metavar="MM",
+                    help="a marker field: the side of the square it covers, mm (default 300)")  # fmt: skip
+    sp.add_argument("--marker-mm", type=float, default=None, metavar="MM",
+                    help="a marker field: the printed markers' side, mm (default 30)")  # fmt: skip
+
+
+def is_field(path: str) -> bool:
+    """Whether the target TOML ``path`` declares a marker field (errors name the file)."""
+    from selfcal.io.target_toml import load_target
+    from selfcal.target import ArucoField
+
+    return isinstance(load_target(path), ArucoField)
+
+
+def check_field_options(args: argparse.Namespace) -> None:
+    """A clear error for a field's option given with a board or ``--add``, and for ``--add`` to
+    a marker field's dataset (its additions are not planned yet)."""
+    given = [f"--{k.replace('_', '-')}" for k in FIELD_DEFAULTS if getattr(args, k) is not None]
+    if given:
+        raise CliError(f"{', '.join(given)} describe{'s' if len(given) == 1 else ''} a marker "
+                       "field (--target FIELD.toml), not a board or a dataset",
+                       fix=f"leave out {', '.join(given)}")  # fmt: skip
+    if args.add:
+        from selfcal.calibration.routes import dataset_route
+        from selfcal.io.dataset_info import DatasetError
+
+        try:
+            route = dataset_route(args.add[1])
+        except DatasetError:  # no dataset: the board's --add says so after its option checks
+            return
+        if route == "field":
+            raise CliError(f"--add {' '.join(args.add)}: the additions to a marker field's "
+                           "dataset are not planned yet (--add takes a board dataset)",
+                           fix="plan the field anew with selfcal plan --robot ROBOT --target "
+                           "FIELD.toml --count N and record that plan")  # fmt: skip
+
+
+def _check(args: argparse.Namespace) -> None:
+    """The refusals of a field plan (what is not supported yet, with the fix)."""
+    from selfcal.calibration.field.failures import MIN_POSTURES
+
+    if args.mount == "eye-to-hand":
+        raise CliError("a plan over a marker field is eye-in-hand only so far (the field route "
+                       "calibrates a camera on the flange over a field on the table)",
+                       fix="give --mount eye-in-hand, or a board target (e.g. "
+                       "models/targets/charuco.toml) with --mount eye-to-hand")  # fmt: skip
+    given = [o for o, v in (("--board-pose", args.board_pose), ("--camera-pose", args.camera_pose))
+             if v]  # fmt: skip
+    if given:
+        raise CliError(f"{given[0]}: a marker field lies where the home posture looks (its "
+                       "centre where the home optical axis meets the table); another place is "
+                       "not supported yet", fix=f"leave out {given[0]}")  # fmt: skip
+    for key, d in FIELD_DEFAULTS.items():
+        setattr(args, key, d if getattr(args, key) is None else getattr(args, key))
+    args.count = 12 if args.count is None else args.count
+    if args.count < MIN_POSTURES:
+        raise CliError(f"--count {args.count}: the field route calibrates from {MIN_POSTURES} "
+                       f"postures at the least", fix=f"give --count {MIN_POSTURES} or more")  # fmt: skip
+    if args.markers < 4 or args.field_extent_mm <= 0 or args.marker_mm <= 0:
+        raise CliError(f"--markers {args.markers}, --field-extent-mm {args.field_extent_mm:g}, "
+                       f"--marker-mm {args.marker_mm:g}: give at least 4 markers and positive "
+                       "sizes", fix="e.g. the defaults: --markers 20 --field-extent-mm 300 "
+                       "--marker-mm 30")  # fmt: skip
+
+
+def forecast_words(markers: int, scale_mm: float, free: tuple[str, ...], workspace: int) -> str:
+    """What the forecast includes and what not (plan.json's ``criterion``, the second line)."""
+    return (f"the field route's Cramer-Rao bound of the flange centre's RMS error over {workspace} "
+            f"workspace postures after the best rigid alignment, estimating the camera "
+            f"({', '.join(free)}), the {markers} markers' corners (positions unknown), the joints' "
+            "read-back errors and every kinematic parameter, the scale from the one known "
+            f"distance ({scale_mm:g} mm), at the nominal chain; a bound, not an achieved error: "
+            "the estimator's and the detector's losses and the comparison with the fair nominal "
+            "are not in it")  # fmt: skip
+
+
+def cmd_field(
+    args: argparse.Namespace,
+    camera_of: Callable[[argparse.Namespace], object],
+    deviation_of: Callable[[argparse.Namespace], object],
+) -> int:
+    """``selfcal plan`` over the marker field ``args.target`` (see :data:`FIELD_EPILOG`);
+    ``camera_of`` and ``deviation_of`` read the camera and the arm's deviation as a board plan
+    does. Returns the exit code."""
+    import numpy as np
+
+    from selfcal.acquisition.backends import robot_reference
+    from selfcal.acquisition.simulator_setup import sim_setup
+    from selfcal.calibration.field.joint_refine import encoder_sigma
+    from selfcal.calibration.field.plan import (
+        FieldLayout,
+        FieldPlanSetup,
+        field_forecast,
+        forecast_workspace,
+        plan_field,
+    )
+    from selfcal.camera import Rig
+    from selfcal.cli.plan_args import (
+        check_common,
+        keep_out_boxes,
+        plan_inputs,
+        trajectory_joint_names,
+        write_postures,
+    )
+    from selfcal.cli.plan_scenario import scenario_text
+    from selfcal.config.scenario import load_scenario
+    from selfcal.io.atomic import write_text_atomic
+    from selfcal.io.jsonfile import write_json_atomic
+    from selfcal.io.target_toml import load_field_scale
+    from selfcal.robot.definition import load_robot
+
+    _check(args)
+    check_common(args, args.count)
+    (_, _), scale_m = load_field_scale(args.target)
+    robot = load_robot(args.robot)
+    names = trajectory_joint_names(args, robot.joint_names)
+    camera = camera_of(args)
+    boxes = keep_out_boxes(args)
+    setup = FieldPlanSetup(robot, Rig((camera,), np.eye(4)[None], ("left",)),
+                           args.field_extent_mm / 1000.0, boxes)  # fmt: skip
+    js = encoder_sigma(robot)
+    plan = plan_field(setup, args.count, seed=args.seed, candidates=args.candidates,
+                      markers=args.markers, pixel_sigma_px=args.pixel_sigma, joint_sigma=js)  # fmt: skip
+    ref = robot_reference(args.robot)
+    field = {"markers": args.markers, "extent_mm": float(args.field_extent_mm),
+             "marker_size_mm": float(args.marker_mm), "scale_length_mm": scale_m * 1000.0}  # fmt: skip
+    n = len(plan.q)
+    scenario = scenario_text(ref, camera, None, n, deviation=deviation_of(args), field=field)
+    with tempfile.TemporaryDirectory() as tmp:  # the forecast's markers: the replay's field
+        (Path(tmp) / "scenario.toml").write_text(scenario)
+        fld = sim_setup(load_scenario(Path(tmp) / "scenario.toml")).marker_field()
+    layout = FieldLayout(fld.ids, fld.corners_world(), fld.T_world_marker[:, :3, 2],
+                         (int(fld.scale_ids[0]), int(fld.scale_ids[1])), scale_m)  # fmt: skip
+    ws = forecast_workspace(setup, seed=args.seed + 1)
+    fc = {k: field_forecast(setup, layout, q, ws, pixel_sigma_px=args.pixel_sigma,
+                            joint_sigma=js) for k, q in (("plan", plan.q), ("random", plan.q_random))}  # fmt: skip
+    if fc["plan"].tool_rms_m is None:
+        raise EstimationError(f"the plan of {n} postures over the field does not determine the "
+                              f"field route's unknowns: {fc['plan'].why}",
+                              fix="give a larger --count (the 12 of docs/plan.md's example "
+                              "determine them), more --markers or a camera with fewer free "
+                              "parameters")  # fmt: skip
+    mm = {k: None if f.tool_rms_m is None else round(f.tool_rms_m * 1000, 4) for k, f in fc.items()}
+    if mm["random"] is not None and mm["plan"] > mm["random"]:
+        warnings.warn(f"the field plan's forecast ({mm['plan']:.3f} mm) is behind the random "
+                      f"plan's ({mm['random']:.3f} mm)", SelfCalWarning, stacklevel=2)  # fmt: skip
+    out = Path(args.out)
+    with writing(args, out):
+        write_postures(args, out, names, plan.q, robot)
+        write_text_atomic(out / "scenario.toml", scenario)
+        criterion = forecast_words(args.markers, scale_m * 1000, camera.free, len(ws))
+        doc = {
+            "format": "scorbot-selfcal-plan",
+            "schema_version": 1,
+            "kind": "field",
+            "robot": ref,
+            "mount": "eye-in-hand",
+            "count": n,
+            "predicted_tool_rms_mm": mm["plan"],
+            "random_tool_rms_mm": mm["random"],
+            "predicted_fx_std_px": fc["plan"].fx_std_px,
+            "random_fx_std_px": fc["random"].fx_std_px,
+            "no_bound": {k: f.why for k, f in fc.items() if f.tool_rms_m is None},
+            "criterion": criterion,
+            "field": field,
+            "candidates": plan.candidates,
+            "path_deg": round(float(np.degrees(plan.path_rad)), 3),
+            "random_path_deg": round(float(np.degrees(plan.random_path_rad)), 3),
+            "seed": args.seed,
+            **plan_inputs(args, boxes, robot.edge_unit, plan.q, plan.q_random),
+        }
+        write_json_atomic(out / "plan.json", doc)
+    note_written(args, out)
+    print(json.dumps(doc) if args.json else _lines(plan, fc, n, criterion))
+    return 0
+
+
+def _lines(plan, fc: dict, n: int, criterion: str) -> str:
+    """The two closing lines of a field plan."""
+    import numpy as np
+
+    def mm(f) -> str:
+        return f"{f.tool_rms_m * 1000:.3f} mm" if f.tool_rms_m is not None else f"none ({f.why})"
+
+    return (f"field plan of {n} postures: predicted tool-point error {mm(fc['plan'])} RMS "
+            f"(a random plan of {n}: {mm(fc['random'])}); joint path "
+            f"{np.degrees(plan.path_rad):.0f} deg (random {np.degrees(plan.random_path_rad):.0f} "
+            f"deg)\nthe forecast: {criterion}")  # fmt: skip
