@@ -130,3 +130,35 @@ def test_add_to_a_field_dataset_is_refused(planned, tmp_path, capsys):
     argv = ["plan", "--add", "2", str(planned / "run"), "--out", str(tmp_path / "p")]
     assert main(argv) == 2
     assert "not planned yet" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_the_docs_field_lines_are_what_the_commands_print(tmp_path, capsys):
+    """docs/plan.md's field section shows the lines its command prints and its replay's numbers
+    (the same commands, here into tmp_path)."""
+    import re
+    from pathlib import Path
+
+    page = (Path(__file__).resolve().parents[2] / "docs/plan.md").read_text()
+    argv = ["plan", "--robot", "ur5e", "--target", FIELD, "--fov-deg", "60", "--resolution",
+            "640x480", "--count", "12", "--out", str(tmp_path / "plan"), "--quiet"]  # fmt: skip
+    assert main(argv) == 0
+    for line in capsys.readouterr().out.strip().splitlines():
+        assert line in page
+    assert "--fov-deg 60 --resolution 640x480 \\\n             --count 12 --out" in page
+    assert main(["run", str(tmp_path / "plan/scenario.toml"), "--out", str(tmp_path / "run"),
+                 "--quiet"]) == 0  # fmt: skip
+    val = json.loads((tmp_path / "run/report.json").read_text())["validation"]
+    doc = json.loads((tmp_path / "plan/plan.json").read_text())
+    said = re.search(r"calibrates to ([0-9.]+) mm RMS of the tool tip on\s+its 20 validation "
+                     r"postures \(the drawn chain: ([0-9.]+) mm; the run's own bound for its "
+                     r"postures\s+([0-9.]+) mm\): the forecast of ([0-9.]+) mm is ([0-9.]+) "
+                     r"times", page)  # fmt: skip
+    assert said is not None
+    got = (val["tool_tip_error_mm"]["calibrated"]["rms"], val["tool_tip_error_mm"]["nominal"]["rms"],
+           val["tool_tip_bound_mm"], doc["predicted_tool_rms_mm"],
+           doc["predicted_tool_rms_mm"] / val["tool_tip_error_mm"]["calibrated"]["rms"])  # fmt: skip
+    assert [float(v) for v in said.groups()] == [round(g, 2 if i == 4 else 3)
+                                                 for i, g in enumerate(got)]  # fmt: skip
+    assert "0.45 px here, the random plan's 0.91 px" in page
+    assert (round(doc["predicted_fx_std_px"], 2), round(doc["random_fx_std_px"], 2)) == (0.45, 0.91)
