@@ -171,7 +171,7 @@ def cmd_field(
     n = len(plan.q)
     scenario = scenario_text(ref, camera, None, n, deviation=deviation_of(args), field=field)
     with tempfile.TemporaryDirectory() as tmp:  # the forecast's markers: the replay's field
-        (Path(tmp) / "scenario.toml").write_text(scenario)
+        write_text_atomic(Path(tmp) / "scenario.toml", scenario)
         fld = sim_setup(load_scenario(Path(tmp) / "scenario.toml")).marker_field()
     layout = FieldLayout(fld.ids, fld.corners_world(), fld.T_world_marker[:, :3, 2],
                          (int(fld.scale_ids[0]), int(fld.scale_ids[1])), scale_m)  # fmt: skip

@@ -17,13 +17,15 @@ from __future__ import annotations
 import argparse
 import json
 import shutil
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from selfcal.io.atomic import write_text_atomic
 
-__all__ = ["BOARD_POSE", "KEEP_OUT", "main", "posture_sets", "sets_of"]
+__all__ = ["BOARD_POSE", "KEEP_OUT", "arguments", "draw_all", "main", "posture_sets", "sets_of"]
 
 BOARD_POSE = np.array([-472.0, -133.0, 3.0, 0.0, 0.0, 0.0])
 """mm, deg: docs/plan.md's board."""
@@ -82,19 +84,37 @@ def _draw(item: tuple[str, str, list, int]) -> tuple[str, int, float, str]:
     return name, seed, float(row.get("joint_tip_rms_mm") or np.nan), str(row["status"])
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Draw and print the table."""
+def arguments(argv: list[str] | None, doc: str, out: str, jobs: int) -> argparse.Namespace:
+    """A plan benchmark's ``--draws`` (30), ``--jobs`` (``jobs``) and ``--out`` (``out``)."""
+    ap = argparse.ArgumentParser(description=doc.split("\n\n")[0])
+    ap.add_argument("--draws", type=int, default=30)
+    ap.add_argument("--jobs", type=int, default=jobs)
+    ap.add_argument("--out", default=out)
+    return ap.parse_args(argv)
+
+
+def draw_all(
+    draw: Callable[[Any], Any], items: list, jobs: int, root: Path, done: list | None = None
+) -> list:
+    """``draw`` of every item in ``jobs`` spawned processes, each row written to
+    ``root/draws.jsonl`` as it ends (in the order they end) after the rows ``done`` before."""
     from multiprocessing import get_context
 
+    rows: list = list(done or [])
+    with get_context("spawn").Pool(jobs) as pool:
+        for row in pool.imap_unordered(draw, items):
+            rows.append(row)
+            write_text_atomic(root / "draws.jsonl", "".join(json.dumps(r) + "\n" for r in rows))
+    return rows
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Draw and print the table."""
     from selfcal.cli.plan_scenario import scenario_text
     from selfcal.io.plan_files import joints_csv
     from selfcal.robot.definition import models_dir
 
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--draws", type=int, default=30)
-    ap.add_argument("--jobs", type=int, default=2)
-    ap.add_argument("--out", default="runs/plan-compare")
-    a = ap.parse_args(argv)
+    a = arguments(argv, __doc__ or "", "runs/plan-compare", 2)
     got = posture_sets()
     setup, sets = got["setup"], got["sets"]
     root = Path(a.out)
@@ -109,11 +129,7 @@ def main(argv: list[str] | None = None) -> int:
         )
         deg = (q / setup.robot.edge_unit).tolist()
         items += [(name, str(folder / "scenario.toml"), deg, s) for s in range(1, a.draws + 1)]
-    rows: list = []
-    with get_context("spawn").Pool(a.jobs) as pool:
-        for row in pool.imap_unordered(_draw, items):
-            rows.append(row)
-            write_text_atomic(root / "draws.jsonl", "".join(json.dumps(r) + "\n" for r in rows))
+    rows = draw_all(_draw, items, a.jobs, root)
     print("| postures | predicted (mm) | achieved median (mm) | 90th percentile | median / "
           "predicted | failed |")  # fmt: skip
     print("|---|---|---|---|---|---|")

@@ -142,6 +142,11 @@ def _evaluate(root: Path, pixel_sigma: float) -> dict:
     row["nominal_tip_rms_mm"] = aligned_errors(
         tool_tips(truth.nominal_model, qv, truth.T_cam_tip), p_true
     )["rms"]
+    fair = out.result.nominal_model  # the fair nominal's chain (None: its fit failed)
+    row["fair_nominal_tip_rms_mm"] = (
+        float("nan") if fair is None
+        else aligned_errors(tool_tips(fair, qv, truth.T_cam_tip), p_true)["rms"]
+    )  # fmt: skip
     row["joint_fx_err_px"] = out.joint.fx - truth.intrinsics_left.fx
     row["two_stage_fx_err_px"] = out.selfcal.fx - truth.intrinsics_left.fx
     # parameters in the reference-camera frame (the true one for the truth, like selfcal report)

@@ -1,0 +1,123 @@
+"""``python -m selfcal.benchmarks.plan.field_compare [--draws 30] [--jobs 1] [--out DIR]``: a
+field plan of ``selfcal plan --target FIELD.toml`` against random postures, achieved in
+simulation (docs/plan.md, "A marker field"; issue #30).
+
+The cell of docs/plan.md's field example (UR5e, 60 deg 640 x 480 wrist camera, the 20-marker
+field of 300 mm where the home posture looks, its scale 200 mm): the plan of 12 and the first 30
+of the same candidate sequence (random postures under the same filters:
+:func:`selfcal.calibration.field.plan.plan_field`; the random 12 the command prints beside the
+plan are their first 12). Every draw is one simulated truth
+(``[perturbation] seed`` = the draw: the arm within 1 mm and 0.5 deg) and one noise draw, on the
+analytic path with dithered read-back, calibrated by the field route
+(:func:`selfcal.studies.montecarlo.run.draw_one`); the achieved error is the one-step
+calibration's validation tool-tip RMS after the best rigid alignment against the truth, beside
+the fair nominal's (the nominal chain with the camera, the hand-eye and the points fitted to the
+same pixels). Prints per posture set the forecast
+(:func:`selfcal.calibration.field.plan.field_forecast`), the achieved median and 90th
+percentile, their ratio, the fair nominal's median and the failed draws (each draw also in
+``DIR/draws.jsonl`` as it ends; the draws run seed by seed, every set's in turn, and a run
+stopped before resumes from that journal).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from selfcal.io.atomic import write_text_atomic
+
+__all__ = ["field_sets", "main"]
+
+FIELD = {"markers": 20, "extent_mm": 300.0, "marker_size_mm": 30.0, "scale_length_mm": 200.0}
+"""docs/plan.md's field (the plan's defaults, models/targets/field.toml's scale)."""
+
+
+def field_sets(root: Path, count: int = 12, random_counts: tuple[int, ...] = (30,)) -> dict:
+    """``{name: (scenario path, q (m, n) rad, forecast m)}``: the plan of ``count`` and the
+    first ``random_counts`` random postures, each written as a replay scenario under ``root``."""
+    from selfcal.acquisition.simulator_setup import sim_setup
+    from selfcal.calibration.field.joint_refine import encoder_sigma
+    from selfcal.calibration.field.plan import (
+        FieldLayout,
+        FieldPlanSetup,
+        field_forecast,
+        forecast_workspace,
+        plan_field,
+    )
+    from selfcal.camera import Rig
+    from selfcal.cli.plan_scenario import scenario_text
+    from selfcal.config.scenario import load_scenario
+    from selfcal.io.camera_file import camera_from_fov
+    from selfcal.io.plan_files import joints_csv
+    from selfcal.robot.definition import load_robot
+
+    robot = load_robot("ur5e")
+    camera = camera_from_fov(60.0, 640, 480)
+    setup = FieldPlanSetup(robot, Rig((camera,), np.eye(4)[None], ("left",)),
+                           FIELD["extent_mm"] / 1000, np.zeros((0, 6)))  # fmt: skip
+    js = encoder_sigma(robot)
+    sets = {f"plan {count}": plan_field(setup, count, seed=1, candidates=400, markers=20,
+                                        pixel_sigma_px=0.5, joint_sigma=js).q}  # fmt: skip
+    for n in random_counts:
+        sets[f"random {n}"] = plan_field(setup, n, seed=1, candidates=400, markers=20,
+                                         pixel_sigma_px=0.5, joint_sigma=js).q_random  # fmt: skip
+    ws = forecast_workspace(setup, seed=2)
+    out: dict = {}
+    for name, q in sets.items():
+        folder = root / name.replace(" ", "-")
+        folder.mkdir(parents=True, exist_ok=True)
+        write_text_atomic(folder / "joints.csv", joints_csv(q, robot.edge_unit))
+        write_text_atomic(folder / "scenario.toml",
+                          scenario_text("ur5e", camera, None, len(q), field=FIELD))  # fmt: skip
+        f = sim_setup(load_scenario(folder / "scenario.toml")).marker_field()
+        layout = FieldLayout(f.ids, f.corners_world(), f.T_world_marker[:, :3, 2],
+                             (int(f.scale_ids[0]), int(f.scale_ids[1])), 0.2)  # fmt: skip
+        fc = field_forecast(setup, layout, q, ws, pixel_sigma_px=0.5, joint_sigma=js)
+        out[name] = (folder / "scenario.toml", q / robot.edge_unit, fc.tool_rms_m)
+    return out
+
+
+def _draw(item: tuple[str, str, list, int]) -> dict:
+    from selfcal.studies.montecarlo.run import draw_one
+
+    name, config, joints_deg, seed = item
+    row = draw_one({"config": config, "poses": len(joints_deg), "pixel_sigma": 0.5,
+                    "seed": seed, "traj_seed": 1, "perturb_seed": seed, "dither": True,
+                    "joints_deg": joints_deg})  # fmt: skip
+    keys = ("joint_tip_rms_mm", "fair_nominal_tip_rms_mm", "nominal_tip_rms_mm")
+    return {"set": name, "seed": seed, "status": str(row["status"]),
+            **{k: float(row.get(k) or np.nan) for k in keys}}  # fmt: skip
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Draw and print the table."""
+    from selfcal.benchmarks.plan.compare import arguments, draw_all
+
+    a = arguments(argv, __doc__ or "", "runs/plan-field-compare", 1)
+    root = Path(a.out)
+    sets = field_sets(root)
+    journal = root / "draws.jsonl"  # a run stopped before resumes: its draws are not redone
+    done = [json.loads(x) for x in journal.read_text().splitlines()] if journal.exists() else []
+    have = {(r["set"], r["seed"]) for r in done}
+    items = [(name, str(path), q.tolist(), s) for s in range(1, a.draws + 1)
+             for name, (path, q, _) in sets.items() if (name, s) not in have]  # fmt: skip
+    rows: list[dict] = draw_all(_draw, items, a.jobs, root, done)
+    print("| postures | forecast (mm) | achieved median (mm) | 90th percentile | median / "
+          "forecast | fair nominal median (mm) | failed |")  # fmt: skip
+    print("|---|---|---|---|---|---|---|")
+    for name, (_, _, pred) in sets.items():
+        ok = [r for r in rows if r["set"] == name and r["status"] == "ok"]
+        e = np.array([r["joint_tip_rms_mm"] for r in ok])
+        fair = np.nanmedian([r["fair_nominal_tip_rms_mm"] for r in ok])
+        med, p90 = np.median(e), np.percentile(e, 90)
+        p = "none" if pred is None else f"{pred * 1000:.3f}"
+        ratio = "-" if pred is None else f"{med / (pred * 1000):.2f}"
+        print(f"| {name} | {p} | {med:.3f} | {p90:.3f} | {ratio} | {fair:.3f} | "
+              f"{sum(1 for r in rows if r['set'] == name) - len(ok)} |")  # fmt: skip
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
