@@ -16,7 +16,8 @@ same pixels). Prints per posture set the forecast
 (:func:`selfcal.calibration.field.plan.field_forecast`), the achieved median and 90th
 percentile, their ratio, the fair nominal's median and the failed draws (each draw also in
 ``DIR/draws.jsonl`` as it ends; the draws run seed by seed, every set's in turn, and a run
-stopped before resumes from that journal).
+stopped before resumes from that journal: ``--draws`` of a journal's seeds alone prints their
+table without drawing).
 """
 
 from __future__ import annotations
@@ -103,7 +104,7 @@ def main(argv: list[str] | None = None) -> int:
     have = {(r["set"], r["seed"]) for r in done}
     items = [(name, str(path), q.tolist(), s) for s in range(1, a.draws + 1)
              for name, (path, q, _) in sets.items() if (name, s) not in have]  # fmt: skip
-    rows: list[dict] = draw_all(_draw, items, a.jobs, root, done)
+    rows = [r for r in draw_all(_draw, items, a.jobs, root, done) if r["seed"] <= a.draws]
     print("| postures | forecast (mm) | achieved median (mm) | 90th percentile | median / "
           "forecast | fair nominal median (mm) | failed |")  # fmt: skip
     print("|---|---|---|---|---|---|---|")
