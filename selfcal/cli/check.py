@@ -36,6 +36,9 @@ NEW_DATA by the calibration's route:
 The residuals against the calibration are tested against what the calibration predicts for
 them (its estimation error at these postures and its model error, from calibration.json's
 accuracy block, and the noise of its fit); exit 0: unchanged, exit {EXIT_CHANGED}: changed (p < alpha).
+A board check's "changed" says how many new images are at arm configurations (the joints but the
+wrist's last three) the calibration did not see: its false-alarm rate there is measured in
+simulation only, and on real arms it has said changed for unchanged ones (docs/real-data.md).
 See docs/tool-accuracy.md."""
 
 

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 import selfcal
+from selfcal.calibration.drift.images import UNSEEN_NOTE
 from selfcal.cli.check import EXIT_CHANGED
 from selfcal.cli.main import main
 from selfcal.config.scenario import load_scenario, scenarios_dir
@@ -73,6 +74,9 @@ def test_check_with_images_says_unchanged_or_changed(tmp_path, capsys):
     doc = json.loads(capsys.readouterr().out)
     assert doc["verdict"] == "changed" and doc["p_value"] < 1e-6
     assert "joint 4" in [c["change"] for c in doc["cause"]["explained_by"]]
+    # every new posture is a configuration the calibration did not see: the verdict says that
+    # its false-alarm rate there is measured in simulation only
+    assert doc["unseen_configuration_images"] == 6 and UNSEEN_NOTE in doc["line"]
 
     moved = tmp_path / "moved"  # the camera 2 mm along its x axis on the flange since then
     shutil.copytree(cal, moved)

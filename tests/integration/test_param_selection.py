@@ -20,7 +20,7 @@ from synthetic_board import BOARD, CAMERA, ROBOT, H, W, make_lab, postures
 from synthetic_features import board_features
 
 from selfcal.calibration.board.calibrate import calibrate_board
-from selfcal.calibration.board.folds import MAX_FOLDS, configurations, fold_labels
+from selfcal.calibration.board.folds import MAX_FOLDS, configurations, fold_labels, unseen
 from selfcal.calibration.board.nominal_fit import fit_nominal
 from selfcal.calibration.board.param_selection import Candidate, one_se_rule, select_parameters
 from selfcal.calibration.board.refine import BoardObservations, Refinement, predict_px
@@ -46,6 +46,14 @@ def test_a_configuration_is_the_arm_joints_the_wrist_may_move():
     assert configurations(q3, ("revolute",) * 3).tolist() == [0, 1, 0]
     many = np.arange(25)
     assert fold_labels(many).max() == MAX_FOLDS - 1
+    # a new frame is unseen unless some calibration frame has its configuration (the drift
+    # check's note, selfcal.calibration.drift.images)
+    new = np.zeros((3, 6))
+    new[0, 3:] = [1.0, 2.0, 3.0]  # a calibration configuration, another wrist pose
+    new[1, 0] = np.radians(0.2)  # an arm joint 0.2 deg away: unseen
+    new[2, 1] = np.radians(0.25)  # 0.25 deg away, but 0.05 deg from frame 3's configuration
+    assert unseen(new, q, types6).tolist() == [False, True, False]
+    assert unseen(q, q, types6).tolist() == [False] * 5
 
 
 def _selection(q_true: np.ndarray, seed: int):

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["MAX_FOLDS", "SAME_CONFIGURATION", "configurations", "fold_labels"]
+__all__ = ["MAX_FOLDS", "SAME_CONFIGURATION", "configurations", "fold_labels", "unseen"]
 
 SAME_CONFIGURATION = np.radians(0.1)
 """Arm joints this close (rad; m for a prismatic joint: 0.1 mm) make one configuration."""
@@ -18,16 +18,22 @@ MAX_FOLDS = 5
 """Configurations beyond this many are dealt into this many folds (every 5th together)."""
 
 
+def _arm(q: np.ndarray, joint_types: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """The arm joints (m, a) of the joints ``q`` (m, n) rad / m (all but the last three when
+    there are more than three) and their tolerance (a,) for one configuration."""
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    n = q.shape[1]
+    arm = q[:, : n - 3] if n > 3 else q
+    tol = np.array([SAME_CONFIGURATION if t == "revolute" else 1e-4 for t in joint_types])
+    return arm, tol[: arm.shape[1]]
+
+
 def configurations(q: np.ndarray, joint_types: tuple[str, ...]) -> np.ndarray:
     """(m,) the configuration of every frame of the joints ``q`` (m, n) rad / m: frames whose
     arm joints (all but the last three when there are more than three) are all within
     :data:`SAME_CONFIGURATION` (0.1 deg, 0.1 mm) of a configuration's first frame belong to it;
     numbered in order of appearance."""
-    q = np.atleast_2d(np.asarray(q, dtype=float))
-    n = q.shape[1]
-    arm = q[:, : n - 3] if n > 3 else q
-    tol = np.array([SAME_CONFIGURATION if t == "revolute" else 1e-4 for t in joint_types])
-    tol = tol[: arm.shape[1]]
+    arm, tol = _arm(q, joint_types)
     reps: list[np.ndarray] = []
     label = np.empty(len(q), dtype=int)
     for i, a in enumerate(arm):
@@ -47,3 +53,13 @@ def fold_labels(config: np.ndarray) -> np.ndarray:
     holds configurations from the whole recording)."""
     config = np.asarray(config, dtype=int)
     return config % MAX_FOLDS if config.max(initial=-1) + 1 > MAX_FOLDS else config.copy()
+
+
+def unseen(q: np.ndarray, q_cal: np.ndarray, joint_types: tuple[str, ...]) -> np.ndarray:
+    """(m,) bool: the frames of the joints ``q`` (m, n) rad / m whose arm configuration is none
+    of the calibration's postures ``q_cal`` (k, n): no posture's arm joints are all within
+    :data:`SAME_CONFIGURATION` of theirs (the rule of :func:`configurations`)."""
+    arm, tol = _arm(q, joint_types)
+    cal, _ = _arm(q_cal, joint_types)
+    near = np.all(np.abs(arm[:, None, :] - cal[None, :, :]) <= tol, axis=2)
+    return ~np.any(near, axis=1)
