@@ -18,7 +18,11 @@ residuals. It prints the predicted / measured RMS per fold and pooled at the cal
 ``(c, 1)``; then ``(c, a)`` solved from the folds' residual energy in the span of the
 deviation's pixels and outside it (two moments, two unknowns; the span's rank cut at a relative
 eigenvalue ``tol``, three of them), the folds' ratios there, and the check of NEW with it;
-``--grid``: each fold's check over a grid of ``(c, a)``.
+``--grid``: each fold's check over a grid of ``(c, a)``. ``--shared``: each fold's held-out
+configuration's one error shared by its views, a twist of the chain's world (eye-in-hand the
+board's pose) fitted to them, and each fold's check with such an error of the size the other
+folds show (isotropic in translation and in rotation, net of each fit's own variance) added to
+its covariance: whether the folds' false alarms are an error shared by a configuration's views.
 
 Run: ``uv run python -m selfcal.benchmarks.drift_real_folds CAL NEW`` (CAL the folder of
 ``selfcal calibrate``, NEW a folder of ``selfcal import``; the real tier's, docs/real-data.md).
@@ -42,6 +46,7 @@ from selfcal.calibration.board.evaluate import held_out_views
 from selfcal.calibration.board.fold_fits import fold_bounds
 from selfcal.calibration.board.held_prior import with_deviation
 from selfcal.calibration.drift.images import (
+    ImageDriftCheck,
     ViewNoise,
     calibration_error_model,
     calibration_views,
@@ -53,7 +58,17 @@ from selfcal.calibration.drift.views import ViewJacobians, view_jacobians
 from selfcal.io.board_calibration import read_board_calibration
 from selfcal.threads import limit_threads
 
-__all__ = ["Fold", "fold_covariance", "folds_of", "joint_moments", "main", "pose_misfit", "ratios"]
+__all__ = [
+    "Fold",
+    "fold_covariance",
+    "folds_of",
+    "joint_moments",
+    "main",
+    "pose_misfit",
+    "ratios",
+    "shared_check",
+    "shared_twist",
+]
 
 GRID_C, GRID_A = (0.0, 0.01, 0.05, 0.2, 1.0), (0.5, 1.0, 2.0, 5.0)
 """``--grid``: the shares ``c`` and misfit scales ``a`` at which each fold's check is printed."""
@@ -171,6 +186,52 @@ def joint_moments(folds: list[Fold], tol: float) -> tuple[float, float]:
     return float(c), float(a)
 
 
+def shared_twist(fold: Fold, c: float) -> tuple[np.ndarray, np.ndarray]:
+    """(6,) m, rad the twist of the chain's world shared by the fold's held-out views that fits
+    their residuals best under the check's covariance at the share ``c`` (generalised least
+    squares), and its (6, 6) covariance under that covariance."""
+    S = fold_covariance(fold, c, 1.0)
+    W = np.concatenate([v.world for v in fold.views])
+    r = np.concatenate([v.r for v in fold.views])
+    SW = np.linalg.solve(S, W)
+    F = W.T @ SW
+    return np.linalg.solve(F, SW.T @ r), np.linalg.inv(F)
+
+
+def shared_check(fold: Fold, c: float, G: np.ndarray, *, eye_to_hand: bool) -> ImageDriftCheck:
+    """The check of the fold's held-out views at the share ``c`` with a world twist of
+    covariance ``G`` (6, 6) m^2, rad^2 shared by them added (as six more estimated parameters)."""
+    p = fold.views[0].kin.shape[1]
+    C = fold.C0 + c * fold.V
+    keep = np.r_[0:p, p + 6 : len(C) + 6]
+    Cn = np.zeros((len(C) + 6, len(C) + 6))
+    Cn[np.ix_(keep, keep)] = C
+    Cn[p : p + 6, p : p + 6] = G
+    views = [dataclasses.replace(v, kin=np.concatenate([v.kin, v.world], axis=1))
+             for v in fold.at(1.0)]  # fmt: skip
+    return image_drift_check(Cn, views, eye_to_hand=eye_to_hand)
+
+
+def _print_shared(folds: list[Fold], c: float, eye_to_hand: bool) -> None:
+    """``--shared`` (module docstring)."""
+    fits = [shared_twist(f, c) for f in folds]
+    for i, (x, P) in enumerate(fits):
+        sd = np.sqrt(np.diag(P)) * 1e3
+        print(f"  fold {i + 1}: shared world twist {np.round(x[:3] * 1e3, 3)} mm "
+              f"(sd {np.round(sd[:3], 3)}), {np.round(x[3:] * 1e3, 3)} mrad "
+              f"(sd {np.round(sd[3:], 3)})")  # fmt: skip
+    for i, f in enumerate(folds):
+        others = [fits[j] for j in range(len(folds)) if j != i]
+        t2, w2 = (float(np.mean([max(x[s] @ x[s] - np.trace(P[s, s]), 0.0) for x, P in others]))
+                  / 3 for s in (slice(0, 3), slice(3, 6)))  # fmt: skip
+        zero, res = (shared_check(f, c, G, eye_to_hand=eye_to_hand)
+                     for G in (np.zeros((6, 6)), np.diag([t2] * 3 + [w2] * 3)))  # fmt: skip
+        print(f"  fold {i + 1}: p {zero.p_value:.2g} ({zero.best}); with the other folds' "
+              f"shared twist ({np.sqrt(t2) * 1e3:.3f} mm, {np.sqrt(w2) * 1e3:.3f} mrad) p "
+              f"{res.p_value:.2g} ({res.best}), predicted/measured "
+              f"{res.expected_rms_px / res.rms_px:.2f}")  # fmt: skip
+
+
 def main(argv: list[str] | None = None) -> int:
     """Print the folds' ratios, the joint estimate and NEW's check with it (module docstring)."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -178,6 +239,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("new", type=Path, help="a folder of `selfcal import`: new views")
     ap.add_argument("--grid", action="store_true",
                     help="also each fold's check over c in 0-1 and a in 0.5-5")  # fmt: skip
+    ap.add_argument("--shared", action="store_true",
+                    help="also each fold's error shared by its views (module docstring)")  # fmt: skip
     args = ap.parse_args(argv)
     limit_threads(1)
     path = args.calibration / "calibration.json"
@@ -213,6 +276,9 @@ def main(argv: list[str] | None = None) -> int:
               for f in folds]  # fmt: skip
         print(f"  c = {c:g}, a = {a:g}: the folds' check p {' '.join(f'{x:.2g}' for x in ps)}, "
               f"predicted/measured pooled {ratios(folds, c, a)[1]:.2f}")  # fmt: skip
+    if args.shared:
+        print("  an error shared by each held-out configuration's views (--shared):")
+        _print_shared(folds, used, cal.eye_to_hand)
     return 0
 
 

@@ -4,9 +4,17 @@ the deviation's pixel span and outside it."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
-from selfcal.benchmarks.drift_real_folds import Fold, joint_moments, ratios
+from selfcal.benchmarks.drift_real_folds import (
+    Fold,
+    joint_moments,
+    ratios,
+    shared_check,
+    shared_twist,
+)
 from selfcal.calibration.drift.views import ViewJacobians
 
 
@@ -47,3 +55,22 @@ def test_the_joint_estimate_finds_the_share_and_the_misfit_it_was_drawn_with():
     assert abs(ratios(folds, c, a)[1] - 1.0) < 1e-9
     # the other way round (the deviation's share read as the misfit) is far off
     assert abs(ratios(folds, a, c)[1] - 1.0) > 0.1
+
+
+def test_the_shared_twist_is_found_and_a_shared_error_of_its_size_accepts_it():
+    """A fold whose views' residuals hold one world twist ``x`` shared by them (the check's
+    covariance knows nothing of it): the fit finds ``x`` within 3 of its standard deviations,
+    the check as it is says changed, and with ``x``'s size as the shared error's covariance it
+    does not."""
+    rng = np.random.default_rng(3)
+    (fold,) = _folds(0.0, 1.0, 1, rng)
+    x = np.array([3.0, -2.0, 1.0, 0.5, 1.5, -1.0])
+    views = []
+    for v in fold.views:
+        W = rng.normal(size=(12, 6))
+        views.append(dataclasses.replace(v, world=W, r=v.r + W @ x))
+    fold = dataclasses.replace(fold, views=views)
+    fit, P = shared_twist(fold, 0.0)
+    assert np.all(np.abs(fit - x) < 3 * np.sqrt(np.diag(P))), (fit, x)
+    assert shared_check(fold, 0.0, np.zeros((6, 6)), eye_to_hand=False).changed
+    assert not shared_check(fold, 0.0, np.diag(x**2), eye_to_hand=False).changed
