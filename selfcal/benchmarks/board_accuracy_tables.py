@@ -94,13 +94,29 @@ def table(rows: list[dict]) -> str:
     ]
     first = [r for r in rows if r["region"] == REGIONS[0]]
     failed = sum(r["failed"] for r in first)
-    sizes = sorted({r["draws"] + r["failed"] for r in first})
     poses = "/".join(map(str, sorted({r.get("poses", POSES) for r in first})))
-    lines += ["", f"{'/'.join(map(str, sizes))} draws per row ({failed} failed in all), "
+    lines += ["", f"{_sizes(first)} draws per row ({failed} failed in all), "
               f"scenarios/mono-charuco.toml on the analytic path with each robot, {poses} "
               f"calibration postures, {COUNT} joint vectors per region and draw; `uv run python "
-              "-m selfcal.benchmarks.board_accuracy --write-docs`."]  # fmt: skip
+              f"-m selfcal.benchmarks.board_accuracy {_options(first)} --jobs 1 --write-docs`."]  # fmt: skip
     return head + "\n".join(lines)
+
+
+def _sizes(first: list[dict]) -> str:
+    """The rows' draws per row (failed ones included), "/"-joined when they differ."""
+    return "/".join(map(str, sorted({r["draws"] + r["failed"] for r in first})))
+
+
+def _options(first: list[dict]) -> str:
+    """The benchmark's options that make the rows ``first`` (one per robot, model and noise):
+    ``--draws`` (when every row has the same count), ``--robots``, ``--models``, ``--noise-px``
+    in the rows' order."""
+    robots, models, levels = (",".join(dict.fromkeys(f"{r[k]:g}" if k == "noise_px" else r[k]
+                                                     for r in first))
+                              for k in ("robot", "model", "noise_px"))  # fmt: skip
+    draws = _sizes(first)
+    count = "" if "/" in draws else f"--draws {draws} "
+    return f"{count}--robots {robots} --models {models} --noise-px {levels}"
 
 
 def table_rendered(rows: list[dict]) -> str:
@@ -124,17 +140,14 @@ def table_rendered(rows: list[dict]) -> str:
         for r in rows
     ]  # fmt: skip
     first = [r for r in rows if r["region"] == REGIONS[0]]
-    sizes = "/".join(map(str, sorted({r["draws"] + r["failed"] for r in first})))
-    robots, models, levels = (",".join(dict.fromkeys(f"{r[k]:g}" if k == "noise_px" else r[k]
-                                                     for r in first))
-                              for k in ("robot", "model", "noise_px"))  # fmt: skip
+    sizes = _sizes(first)
     lines += ["", f"{sizes} draws per row ({sum(r['failed'] for r in first)} failed in all), "
               "scenarios/mono-charuco.toml rendered with MuJoCo and detected as `selfcal run` "
               "does (`[noise] render = true`, the image noise as `image_sigma`), "
               f"{POSES} calibration postures, {COUNT} joint vectors per region and draw; the "
               "corner noise is the detected corners against their true projections; "
               f"`MUJOCO_GL=egl uv run python -m selfcal.benchmarks.board_accuracy --render "
-              f"--robots {robots} --models {models} --noise-px {levels} --jobs 1 --write-docs`."]  # fmt: skip
+              f"{_options(first)} --jobs 1 --write-docs`."]  # fmt: skip
     return head + "\n".join(lines)
 
 

@@ -56,18 +56,40 @@ def test_rendered_rows_table_the_detectors_corner_noise(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "| ur5e | fits | 8 | 0.060 / 0.070 | 0.020 / 0.18 | inside |" in out
     assert "3 draws per row (1 failed in all)" not in out and "4 draws per row (1 failed" in out
-    assert "--render --robots ur5e --models fits --noise-px 8 --jobs 1" in out
+    assert "--render --draws 4 --robots ur5e --models fits --noise-px 8 --jobs 1" in out
 
 
-def test_the_analytic_rows_default_to_60_draws_and_the_rendered_to_30():
-    """The analytic block pools 60 draws a row (30 left the ER-4u's coverage at the far end of a
-    right bound's spread on one seed block: docs/tool-accuracy.md), the rendered one 30; a
-    given count is kept and a count below one refused."""
+def test_the_analytic_rows_default_to_90_draws_and_the_rendered_to_30():
+    """The analytic block pools 90 draws a row (30 left the ER-4u's coverage at the far end of a
+    right bound's spread on one seed block, 60 its orientation: docs/tool-accuracy.md), the
+    rendered one 30; a given count is kept and a count below one refused."""
     from selfcal.benchmarks.board_accuracy import draws_per_row
     from selfcal.errors import UsageError
 
-    assert draws_per_row(None, render=False) == 60
+    assert draws_per_row(None, render=False) == 90
     assert draws_per_row(None, render=True) == 30
     assert draws_per_row(7, render=True) == 7
     with pytest.raises(UsageError, match="--draws 0"):
         draws_per_row(0, render=False)
+
+
+def test_the_analytic_tables_command_makes_its_rows():
+    """The analytic block's last line names the options that make its rows (draws, robots,
+    models, noise levels in the rows' order), and no ``--draws`` when the rows' counts differ
+    (rows of several runs tabled with ``--from-rows``)."""
+    from selfcal.benchmarks.board_accuracy_draw import REGIONS
+    from selfcal.benchmarks.board_accuracy_tables import pooled_rows, table
+
+    rng = np.random.default_rng(1)
+
+    def got(n):
+        e = rng.uniform(0.1, 1.0, (7, 16))
+        return [{"status": "ok", "model_error_mm": 0.0, **{r: e for r in REGIONS}}] * n
+
+    rows = [*pooled_rows("ur5e", "fits", 0.2, got(3)), *pooled_rows("ur5e", "compliance", 0.2, got(3)),
+            *pooled_rows("kr6-r900", "fits", 0.5, got(3))]  # fmt: skip
+    assert ("3 draws per row (0 failed in all)" in table(rows) and "board_accuracy --draws 3 "
+            "--robots ur5e,kr6-r900 --models fits,compliance --noise-px 0.2,0.5 --jobs 1 "
+            "--write-docs`" in table(rows))  # fmt: skip
+    mixed = table([*rows, *pooled_rows("kr6-r900", "fits", 0.05, got(4))])
+    assert "3/4 draws per row" in mixed and "--draws" not in mixed
