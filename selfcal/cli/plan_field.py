@@ -13,7 +13,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from selfcal.console.common import CliError, note_written, writing
-from selfcal.errors import EstimationError, SelfCalWarning
+from selfcal.errors import EstimationError, SelfCalError, SelfCalWarning
 
 __all__ = ["FIELD_EPILOG", "add_field_options", "check_field_options", "cmd_field", "is_field"]
 
@@ -107,6 +107,21 @@ def _check(args: argparse.Namespace) -> None:
                        "--marker-mm 30")  # fmt: skip
 
 
+def _warn_unlike_the_replay(target: str, dictionary: str, scale_ids: tuple[int, int]) -> None:
+    """A warning when the target file's dictionary or scale markers are not the simulated
+    field's: the postures and the forecast hold for the user's field (they depend on its extent,
+    markers and scale length), the replay's ``scenario.toml`` simulates the other one."""
+    from selfcal.io.target_toml import load_field_scale, load_target
+
+    theirs = (getattr(load_target(target), "dictionary", None), load_field_scale(target)[0])
+    if theirs != (dictionary, tuple(int(i) for i in scale_ids)):
+        warnings.warn(f"{target}: dictionary {theirs[0]}, scale markers {list(theirs[1])}; the "
+                      f"replay's scenario.toml simulates a {dictionary} field with scale markers "
+                      f"{[int(i) for i in scale_ids]} (the postures and the forecast depend on "
+                      "the field's extent, markers and scale length only)", SelfCalWarning,
+                      stacklevel=3)  # fmt: skip
+
+
 def forecast_words(markers: int, scale_mm: float, free: tuple[str, ...], workspace: int) -> str:
     """What the forecast includes and what not (plan.json's ``criterion``, the second line)."""
     return (f"the field route's Cramer-Rao bound of the flange centre's RMS error over {workspace} "
@@ -151,6 +166,7 @@ def cmd_field(
     from selfcal.io.atomic import write_text_atomic
     from selfcal.io.jsonfile import write_json_atomic
     from selfcal.io.target_toml import load_field_scale
+    from selfcal.kinematics.trajectory import DegenerateTrajectoryError
     from selfcal.robot.definition import load_robot
 
     _check(args)
@@ -163,18 +179,38 @@ def cmd_field(
     setup = FieldPlanSetup(robot, Rig((camera,), np.eye(4)[None], ("left",)),
                            args.field_extent_mm / 1000.0, boxes)  # fmt: skip
     js = encoder_sigma(robot)
-    plan = plan_field(setup, args.count, seed=args.seed, candidates=args.candidates,
-                      markers=args.markers, pixel_sigma_px=args.pixel_sigma, joint_sigma=js)  # fmt: skip
     ref = robot_reference(args.robot)
     field = {"markers": args.markers, "extent_mm": float(args.field_extent_mm),
              "marker_size_mm": float(args.marker_mm), "scale_length_mm": scale_m * 1000.0}  # fmt: skip
-    n = len(plan.q)
-    scenario = scenario_text(ref, camera, None, n, deviation=deviation_of(args), field=field)
-    with tempfile.TemporaryDirectory() as tmp:  # the forecast's markers: the replay's field
+    # the forecast's markers are the replay's simulated field: built (and checked) before planning
+    scenario = scenario_text(ref, camera, None, args.count, deviation=deviation_of(args),
+                             field=field)  # fmt: skip
+    with tempfile.TemporaryDirectory() as tmp:
         write_text_atomic(Path(tmp) / "scenario.toml", scenario)
-        fld = sim_setup(load_scenario(Path(tmp) / "scenario.toml")).marker_field()
+        try:
+            fld = sim_setup(load_scenario(Path(tmp) / "scenario.toml")).marker_field()
+        except SelfCalError as e:  # the field's options: named, not the temporary file's keys
+            why = e.message.replace(f"{Path(tmp) / 'scenario.toml'}: ", "")
+            raise CliError(f"--markers {args.markers}, --field-extent-mm "
+                           f"{args.field_extent_mm:g}, --marker-mm {args.marker_mm:g} and "
+                           f"{args.target}'s scale_length_mm {scale_m * 1000:g} make no "
+                           f"simulated field: {why}",
+                           fix="e.g. the defaults --markers 20 --field-extent-mm 300 "
+                           "--marker-mm 30; at most 48 markers (DICT_4X4_50 less the two "
+                           "scale markers), a scale length inside the extent") from e  # fmt: skip
+    _warn_unlike_the_replay(args.target, fld.dictionary, fld.scale_ids)
     layout = FieldLayout(fld.ids, fld.corners_world(), fld.T_world_marker[:, :3, 2],
                          (int(fld.scale_ids[0]), int(fld.scale_ids[1])), scale_m)  # fmt: skip
+    try:
+        plan = plan_field(setup, args.count, seed=args.seed, candidates=args.candidates,
+                          markers=args.markers, pixel_sigma_px=args.pixel_sigma, joint_sigma=js)  # fmt: skip
+    except DegenerateTrajectoryError as e:
+        raise CliError(f"no field plan of {args.count} postures: {e.message}",
+                       fix="free the arm's room (fewer or smaller --keep-out boxes), give more "
+                       "--candidates, or a camera that sees the field from more postures "
+                       "(a wider --fov-deg)") from e  # fmt: skip
+    n = len(plan.q)
+    scenario = scenario_text(ref, camera, None, n, deviation=deviation_of(args), field=field)
     ws = forecast_workspace(setup, seed=args.seed + 1)
     fc = {k: field_forecast(setup, layout, q, ws, pixel_sigma_px=args.pixel_sigma,
                             joint_sigma=js) for k, q in (("plan", plan.q), ("random", plan.q_random))}  # fmt: skip
