@@ -84,12 +84,17 @@ def _draw(item: tuple[str, str, list, int]) -> tuple[str, int, float, str]:
     return name, seed, float(row.get("joint_tip_rms_mm") or np.nan), str(row["status"])
 
 
-def arguments(argv: list[str] | None, doc: str, out: str, jobs: int) -> argparse.Namespace:
-    """A plan benchmark's ``--draws`` (30), ``--jobs`` (``jobs``) and ``--out`` (``out``)."""
+def arguments(
+    argv: list[str] | None, doc: str, out: str, jobs: int, write_docs: bool = False
+) -> argparse.Namespace:
+    """A plan benchmark's ``--draws`` (30), ``--jobs`` (``jobs``) and ``--out`` (``out``), and
+    ``--write-docs`` where ``write_docs``."""
     ap = argparse.ArgumentParser(description=doc.split("\n\n")[0])
     ap.add_argument("--draws", type=int, default=30)
     ap.add_argument("--jobs", type=int, default=jobs)
     ap.add_argument("--out", default=out)
+    if write_docs:
+        ap.add_argument("--write-docs", action="store_true", help="write the table into the docs")
     return ap.parse_args(argv)
 
 

@@ -14,10 +14,12 @@ calibration's validation tool-tip RMS after the best rigid alignment against the
 the fair nominal's (the nominal chain with the camera, the hand-eye and the points fitted to the
 same pixels). Prints per posture set the forecast
 (:func:`selfcal.calibration.field.plan.field_forecast`), the achieved median and 90th
-percentile, their ratio, the fair nominal's median and the failed draws (each draw also in
+percentile, their ratio, the fair nominal's median and the draws that ran and ended ok (each draw also in
 ``DIR/draws.jsonl`` as it ends; the draws run seed by seed, every set's in turn, and a run
 stopped before resumes from that journal: ``--draws`` of a journal's seeds alone prints their
-table without drawing).
+table without drawing; a table short of ``--draws`` draws in a set is printed, not written to
+the docs, and exits 1; ``--write-docs`` writes it between docs/plan.md's
+``benchmark_plan_field_compare`` markers).
 """
 
 from __future__ import annotations
@@ -27,12 +29,15 @@ from pathlib import Path
 
 import numpy as np
 
+from selfcal.benchmarks.doc_blocks import ROOT
 from selfcal.io.atomic import write_text_atomic
 
 __all__ = ["field_sets", "main"]
 
 FIELD = {"markers": 20, "extent_mm": 300.0, "marker_size_mm": 30.0, "scale_length_mm": 200.0}
 """docs/plan.md's field (the plan's defaults, models/targets/field.toml's scale)."""
+DOCS = ROOT / "docs/plan.md"
+BLOCK = "benchmark_plan_field_compare"
 
 
 def field_sets(root: Path, count: int = 12, random_counts: tuple[int, ...] = (30,)) -> dict:
@@ -94,9 +99,10 @@ def _draw(item: tuple[str, str, list, int]) -> dict:
 
 def main(argv: list[str] | None = None) -> int:
     """Draw and print the table."""
+    from selfcal.benchmarks.doc_blocks import print_table
     from selfcal.benchmarks.plan.compare import arguments, draw_all
 
-    a = arguments(argv, __doc__ or "", "runs/plan-field-compare", 1)
+    a = arguments(argv, __doc__ or "", "runs/plan-field-compare", 1, write_docs=True)
     root = Path(a.out)
     sets = field_sets(root)
     journal = root / "draws.jsonl"  # a run stopped before resumes: its draws are not redone
@@ -105,19 +111,30 @@ def main(argv: list[str] | None = None) -> int:
     items = [(name, str(path), q.tolist(), s) for s in range(1, a.draws + 1)
              for name, (path, q, _) in sets.items() if (name, s) not in have]  # fmt: skip
     rows = [r for r in draw_all(_draw, items, a.jobs, root, done) if r["seed"] <= a.draws]
-    print("| postures | forecast (mm) | achieved median (mm) | 90th percentile | median / "
-          "forecast | fair nominal median (mm) | failed |")  # fmt: skip
-    print("|---|---|---|---|---|---|---|")
+    lines = ["| postures | draws (ok of run) | forecast (mm) | achieved median (mm) | 90th "
+             "percentile | median / forecast | fair nominal median (mm) |",
+             "|---|---|---|---|---|---|---|"]  # fmt: skip
+    short = []
     for name, (_, _, pred) in sets.items():
-        ok = [r for r in rows if r["set"] == name and r["status"] == "ok"]
+        run = [r for r in rows if r["set"] == name]
+        ok = [r for r in run if r["status"] == "ok"]
+        if len(run) < a.draws:
+            short.append(f"{name}: {len(run)} of {a.draws} draws")
         e = np.array([r["joint_tip_rms_mm"] for r in ok])
         fair = np.nanmedian([r["fair_nominal_tip_rms_mm"] for r in ok])
         med, p90 = np.median(e), np.percentile(e, 90)
         p = "none" if pred is None else f"{pred * 1000:.3f}"
         ratio = "-" if pred is None else f"{med / (pred * 1000):.2f}"
-        print(f"| {name} | {p} | {med:.3f} | {p90:.3f} | {ratio} | {fair:.3f} | "
-              f"{sum(1 for r in rows if r['set'] == name) - len(ok)} |")  # fmt: skip
-    return 0
+        lines.append(f"| {name} | {len(ok)} of {len(run)} | {p} | {med:.3f} | {p90:.3f} | "
+                     f"{ratio} | {fair:.3f} |")  # fmt: skip
+    lines.append(f"\n`uv run python -m selfcal.benchmarks.plan.field_compare --draws {a.draws} "
+                 "--jobs 1 --write-docs` (seeds 1 - %d)" % a.draws)  # fmt: skip
+    text = "\n".join(lines)
+    if short:
+        print(text)
+        print(f"NOT every draw run ({'; '.join(short)}): the table is not written to the docs")
+        return 1
+    return print_table(text, DOCS, BLOCK, write=a.write_docs)
 
 
 if __name__ == "__main__":

@@ -1,0 +1,48 @@
+"""The field plan benchmark's table (selfcal.benchmarks.plan.field_compare): it counts the draws
+each set ran, and a table short of ``--draws`` draws is printed but never written to the docs."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from selfcal.benchmarks import doc_blocks
+from selfcal.benchmarks.plan import compare, field_compare
+
+
+@pytest.fixture
+def journal(tmp_path, monkeypatch):
+    """Two sets with their forecasts (m) and a journal of draws; no planning, no drawing."""
+    q = np.zeros((1, 6))
+    sets = {"plan 12": (tmp_path, q, 0.0003), "random 30": (tmp_path, q, 0.0002)}
+    monkeypatch.setattr(field_compare, "field_sets", lambda root: sets)
+    monkeypatch.setattr(compare, "draw_all", lambda draw, items, jobs, root, done: done)
+
+    def write(seeds: dict[str, int]) -> None:
+        rows = [{"set": name, "seed": s, "status": "ok", "joint_tip_rms_mm": 0.1 * s,
+                 "fair_nominal_tip_rms_mm": 1.0} for name, n in seeds.items()
+                for s in range(1, n + 1)]  # fmt: skip
+        (tmp_path / "draws.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
+
+    return tmp_path, write
+
+
+def test_a_short_table_is_not_written(journal, capsys, monkeypatch):
+    root, write = journal
+    written = []
+    monkeypatch.setattr(doc_blocks, "write_block", lambda *a: written.append(a))
+    write({"plan 12": 3, "random 30": 2})
+    assert field_compare.main(["--draws", "3", "--out", str(root), "--write-docs"]) == 1
+    out = capsys.readouterr().out
+    assert "| random 30 | 2 of 2 |" in out and "random 30: 2 of 3 draws" in out
+    assert not written
+
+
+def test_a_whole_table_counts_its_draws(journal, capsys):
+    root, write = journal
+    write({"plan 12": 3, "random 30": 3})
+    assert field_compare.main(["--draws", "3", "--out", str(root)]) == 0
+    out = capsys.readouterr().out
+    assert "| plan 12 | 3 of 3 | 0.300 | 0.200 | 0.280 | 0.67 | 1.000 |" in out
