@@ -11,6 +11,11 @@ import tempfile
 import warnings
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from selfcal.calibration.field.plan import FieldLayout
+    from selfcal.sim.markers import MarkerField
 
 from selfcal.console.common import CliError, note_written, writing
 from selfcal.errors import EstimationError, SelfCalError, SelfCalWarning
@@ -107,6 +112,21 @@ def _check(args: argparse.Namespace) -> None:
                        "--marker-mm 30")  # fmt: skip
 
 
+def replay_layout(scenario: Path, scale_m: float) -> tuple[FieldLayout, MarkerField]:
+    """The simulated marker field of the replay ``scenario`` (a plan's ``scenario.toml``) as the
+    forecast's :class:`~selfcal.calibration.field.plan.FieldLayout` (world frame, m; the scale
+    ``scale_m`` between its two scale markers) and the field itself
+    (:class:`~selfcal.sim.markers.MarkerField`). Raises the scenario's or the field's
+    :class:`~selfcal.errors.SelfCalError`."""
+    from selfcal.acquisition.simulator_setup import sim_setup
+    from selfcal.calibration.field.plan import FieldLayout
+    from selfcal.config.scenario import load_scenario
+
+    f = sim_setup(load_scenario(scenario)).marker_field()
+    ids = (int(f.scale_ids[0]), int(f.scale_ids[1]))
+    return FieldLayout(f.ids, f.corners_world(), f.T_world_marker[:, :3, 2], ids, scale_m), f
+
+
 def _warn_unlike_the_replay(target: str, dictionary: str, scale_ids: tuple[int, int]) -> None:
     """A warning when the target file's dictionary or scale markers are not the simulated
     field's: the postures and the forecast hold for the user's field (they depend on its extent,
@@ -144,10 +164,8 @@ def cmd_field(
     import numpy as np
 
     from selfcal.acquisition.backends import robot_reference
-    from selfcal.acquisition.simulator_setup import sim_setup
     from selfcal.calibration.field.joint_refine import encoder_sigma
     from selfcal.calibration.field.plan import (
-        FieldLayout,
         FieldPlanSetup,
         field_forecast,
         forecast_workspace,
@@ -162,7 +180,6 @@ def cmd_field(
         write_postures,
     )
     from selfcal.cli.plan_scenario import scenario_text
-    from selfcal.config.scenario import load_scenario
     from selfcal.io.atomic import write_text_atomic
     from selfcal.io.jsonfile import write_json_atomic
     from selfcal.io.target_toml import load_field_scale
@@ -188,7 +205,7 @@ def cmd_field(
     with tempfile.TemporaryDirectory() as tmp:
         write_text_atomic(Path(tmp) / "scenario.toml", scenario)
         try:
-            fld = sim_setup(load_scenario(Path(tmp) / "scenario.toml")).marker_field()
+            layout, fld = replay_layout(Path(tmp) / "scenario.toml", scale_m)
         except SelfCalError as e:  # the field's options: named, not the temporary file's keys
             why = e.message.replace(f"{Path(tmp) / 'scenario.toml'}: ", "")
             raise CliError(f"--markers {args.markers}, --field-extent-mm "
@@ -199,8 +216,6 @@ def cmd_field(
                            "--marker-mm 30; at most 48 markers (DICT_4X4_50 less the two "
                            "scale markers), a scale length inside the extent") from e  # fmt: skip
     _warn_unlike_the_replay(args.target, fld.dictionary, fld.scale_ids)
-    layout = FieldLayout(fld.ids, fld.corners_world(), fld.T_world_marker[:, :3, 2],
-                         (int(fld.scale_ids[0]), int(fld.scale_ids[1])), scale_m)  # fmt: skip
     try:
         plan = plan_field(setup, args.count, seed=args.seed, candidates=args.candidates,
                           markers=args.markers, pixel_sigma_px=args.pixel_sigma, joint_sigma=js)  # fmt: skip

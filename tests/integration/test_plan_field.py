@@ -84,16 +84,14 @@ def test_the_forecast_is_the_routes_bound_of_the_replay(planned):
     """The plan's forecast, evaluated at the replay's validation postures, is the bound the
     calibration of the replay reports for them (that one at the true arm and the fitted corner
     noise: 0.356 against 0.362 mm when written)."""
-    from selfcal.acquisition.simulator_setup import sim_setup
     from selfcal.calibration.field.joint_refine import encoder_sigma
-    from selfcal.calibration.field.plan import FieldLayout, field_forecast
-    from selfcal.config.scenario import load_scenario
+    from selfcal.calibration.field.plan import field_forecast
+    from selfcal.cli.plan_field import replay_layout
 
     doc = json.loads((planned / "plan/plan.json").read_text())
     setup = _setup(doc)
-    f = sim_setup(load_scenario(planned / "plan/scenario.toml")).marker_field()
-    layout = FieldLayout(f.ids, f.corners_world(), f.T_world_marker[:, :3, 2],
-                         (int(f.scale_ids[0]), int(f.scale_ids[1])), 0.2)  # fmt: skip
+    scale_m = doc["field"]["scale_length_mm"] / 1000
+    layout, _ = replay_layout(planned / "plan/scenario.toml", scale_m)
     info = json.loads((planned / "run/dataset.json").read_text())
     fc = field_forecast(setup, layout, np.radians(doc["joints_deg"]),
                         np.radians(info["validation_joints_deg"]), pixel_sigma_px=0.5,

@@ -43,18 +43,16 @@ BLOCK = "benchmark_plan_field_compare"
 def field_sets(root: Path, count: int = 12, random_counts: tuple[int, ...] = (30,)) -> dict:
     """``{name: (scenario path, q (m, n) rad, forecast m)}``: the plan of ``count`` and the
     first ``random_counts`` random postures, each written as a replay scenario under ``root``."""
-    from selfcal.acquisition.simulator_setup import sim_setup
     from selfcal.calibration.field.joint_refine import encoder_sigma
     from selfcal.calibration.field.plan import (
-        FieldLayout,
         FieldPlanSetup,
         field_forecast,
         forecast_workspace,
         plan_field,
     )
     from selfcal.camera import Rig
+    from selfcal.cli.plan_field import replay_layout
     from selfcal.cli.plan_scenario import scenario_text
-    from selfcal.config.scenario import load_scenario
     from selfcal.io.camera_file import camera_from_fov
     from selfcal.io.plan_files import joints_csv
     from selfcal.robot.definition import load_robot
@@ -77,9 +75,7 @@ def field_sets(root: Path, count: int = 12, random_counts: tuple[int, ...] = (30
         write_text_atomic(folder / "joints.csv", joints_csv(q, robot.edge_unit))
         write_text_atomic(folder / "scenario.toml",
                           scenario_text("ur5e", camera, None, len(q), field=FIELD))  # fmt: skip
-        f = sim_setup(load_scenario(folder / "scenario.toml")).marker_field()
-        layout = FieldLayout(f.ids, f.corners_world(), f.T_world_marker[:, :3, 2],
-                             (int(f.scale_ids[0]), int(f.scale_ids[1])), 0.2)  # fmt: skip
+        layout, _ = replay_layout(folder / "scenario.toml", FIELD["scale_length_mm"] / 1000)
         fc = field_forecast(setup, layout, q, ws, pixel_sigma_px=0.5, joint_sigma=js)
         out[name] = (folder / "scenario.toml", q / robot.edge_unit, fc.tool_rms_m)
     return out
