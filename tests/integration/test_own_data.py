@@ -264,6 +264,9 @@ def test_a_board_declared_at_the_wrong_size_is_named_with_the_size_that_fits(lab
     assert any("square_mm = 14.99 would match the arm" in w for w in res.warnings)
 
 
+# slow: an import and a board calibration of 20 images (4.8 CPU s); the shift and its sentence
+# stay in the default tier through tests/unit/test_scale_check.py
+@pytest.mark.slow
 def test_joints_rows_a_row_off_their_images_are_named(lab, tmp_path):
     """The log starts one row late and ends with a row of no image: every count matches, no
     robot fits, and the error says which pairing would."""
