@@ -107,6 +107,9 @@ def test_dataset_carries_no_truth_and_calibrates_identically_without_truth_json(
     assert a == b
 
 
+# slow (1.3 CPU s): beta2 recovered and no DH table stay in the default tier through
+# tests/unit/test_identify.py::test_non_parallel_beta2_is_recovered_and_not_dh
+@pytest.mark.slow
 def test_non_parallel_axes_that_dh_cannot_represent(tmp_path):
     """Joints 2 and 3 not parallel (beta2 = 0.2 deg): DH has no continuous parameter for it."""
     out, rep = run(
@@ -251,6 +254,9 @@ def test_degenerate_trajectory(small_analytic, tmp_path):
         calibrate(ds)
 
 
+# slow (1.5 CPU s): the scale check and its sentence stay in the default tier through
+# tests/unit/test_scale_check.py
+@pytest.mark.slow
 def test_a_known_distance_declared_wrong_is_named(small_analytic, tmp_path):
     """The distance between the scale markers declared 3 % long: the reconstruction, the
     kinematic fit and the reprojection take the scale without a sign, only the arm's nominal
