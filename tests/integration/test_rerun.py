@@ -111,13 +111,13 @@ def test_board_run_records_its_cameras_and_the_board(tmp_path):
     assert any(p.startswith("/world/robot/") for p in paths)
 
 
-def test_record_needs_a_calibration(tmp_path):
+def test_record_needs_a_calibration(default_analytic, tmp_path):
     from selfcal.io.dataset import DatasetError
 
-    ds = tmp_path / "ds"  # acquired, not calibrated (analytic: no images needed for the refusal)
-    s = load_scenario(None, {"noise": {"render": False}, "trajectory": {"poses": 6},
-                             "validation": {"poses": 3}})  # fmt: skip
-    run_acquire(s, ds, quiet=True)
+    # acquired, not calibrated: a copy of the shared analytic run without its calibration.json
+    # (the refusal needs no images; acquiring a run of its own cost 1.3 CPU s)
+    ds = shutil.copytree(default_analytic[0], tmp_path / "ds")
+    (ds / "calibration.json").unlink()
     with pytest.raises(DatasetError, match="calibrate"):
         rerun_log.record_run(ds, tmp_path / "x.rrd")
 
