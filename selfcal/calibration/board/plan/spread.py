@@ -167,6 +167,11 @@ def selection_spread(
         if nf >= 2:
             chi2 = rng.chisquare(2.0 * n_out)
             z = rng.standard_normal((len(q), A.shape[1] - p))  # the read-back errors
+            # per fold what its left-out frames' read-back errors add: 2 e^T b + zz (the same
+            # for every candidate's fit)
+            b = [np.einsum("ipj,ij->p", A[i, :p, p:], z[i]) for i in z_at]
+            zz = [float(np.einsum("ij,ijk,ik->", z[i], A[i, p:, p:], z[i])) for i in z_at]
+            H = sum(h)
             trial = []
             for c, ci in enumerate(cands):
                 rms = []
@@ -176,10 +181,8 @@ def selection_spread(
                         rms.append(float("inf"))
                         continue
                     C, R = fit
-                    e = -R @ d + C @ (sum(h) - h[f])
-                    ss = chi2[f] - 2.0 * h[f] @ e + e @ A_fold[f] @ e
-                    for i in z_at[f]:  # the left-out frames' read-back errors
-                        ss += 2.0 * e @ A[i, :p, p:] @ z[i] + z[i] @ A[i, p:, p:] @ z[i]
+                    e = -R @ d + C @ (H - h[f])
+                    ss = chi2[f] - 2.0 * h[f] @ e + e @ A_fold[f] @ e + 2.0 * e @ b[f] + zz[f]
                     rms.append(float(sigma_px * np.sqrt(max(ss, 0.0) / n_out[f])))
                 r = np.array(rms)
                 trial.append(replace(ci, fold_rms_px=tuple(r.tolist()),
