@@ -7,6 +7,8 @@ convention; ``x_b^T F x_a = 0``.
 
 from __future__ import annotations
 
+import os
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import cv2
@@ -82,7 +84,8 @@ def fundamental_pairs(
     pairs) plus up to ``max_pairs`` other pairs (random, reproducible with ``seed``; above
     :data:`DENSE_VIEWS` views drawn without counting every pair's shared points) are
     estimated; a homography is fitted to the same points and pairs it explains (>= 90 % of the
-    F inliers within ``ransac_px``) are flagged ``homography_like``. Raises
+    F inliers within ``ransac_px``) are flagged ``homography_like``. The pairs are estimated on
+    two threads where there are two cores (:func:`_pair_estimate`, the same results). Raises
     :class:`InsufficientDataError` if no pair qualifies.
     """
     if min_shared < 8:
@@ -109,36 +112,57 @@ def fundamental_pairs(
     other = np.flatnonzero(~rig)
     if len(other) > max_pairs:
         other = np.sort(rng.choice(other, max_pairs, replace=False))
-    out: list[PairEstimate] = []
-    for s in np.concatenate([rig_sel, other]):
-        a, b = int(iu[s]), int(ju[s])
-        common = np.flatnonzero(vis[a] & vis[b])
-        p1, p2 = table[a, common], table[b, common]
-        F = robust_cv(cv2.findFundamentalMat, p1, p2, cv2.USAC_MAGSAC, ransac_px, 0.9999, 10000)
-        if F is None or F.shape != (3, 3):
-            continue
-        F = F / np.linalg.norm(F)
-        d = _sampson(F, p1, p2)
-        inl = d < ransac_px
-        if inl.sum() < 8:
-            continue
-        H = robust_cv(
-            cv2.findHomography,
-            p1,
-            p2,
-            cv2.USAC_MAGSAC,
-            ransac_px,
-            maxIters=10000,
-            confidence=0.9999,
-        )
-        n_h = int((_transfer(H, p1, p2) < ransac_px).sum()) if H is not None else 0
-        out.append(PairEstimate(a, b, common, F, inl, n_h, bool(n_h >= 0.9 * inl.sum()), d))
+    chosen = [(int(iu[s]), int(ju[s])) for s in np.concatenate([rig_sel, other])]
+
+    def estimate(pair: tuple[int, int]) -> PairEstimate | None:
+        return _pair_estimate(table, vis, pair[0], pair[1], ransac_px)
+
+    # OpenCV's estimators release the GIL: the pairs go to two threads (issue 32: this loop was
+    # 15 % of `selfcal run`'s calibration CPU, on one core while the other idled; two, not every
+    # core: a parallel study's worker processes each calibrate). A pair's estimate does not
+    # depend on the thread or the order: the same pairs in the same order as one by one.
+    workers = min(os.cpu_count() or 1, 2, len(chosen))
+    if workers > 1:
+        with ThreadPoolExecutor(max_workers=workers, thread_name_prefix="epipolar") as pool:
+            found = list(pool.map(estimate, chosen))
+    else:
+        found = [estimate(pair) for pair in chosen]
+    out = [p for p in found if p is not None]
     if not out:
         raise InsufficientDataError(
             "no fundamental matrix could be estimated from the view pairs; check the "
             "correspondences (ids consistent across views?) and the pixel noise"
         )
     return out
+
+
+def _pair_estimate(
+    table: np.ndarray, vis: np.ndarray, a: int, b: int, ransac_px: float
+) -> PairEstimate | None:
+    """The epipolar estimate of views ``a`` and ``b`` from their shared points (``table``,
+    ``vis``: :func:`uv_table` and its visibility), or None where OpenCV finds no fundamental
+    matrix or it has fewer than 8 inliers (one pair of :func:`fundamental_pairs`)."""
+    common = np.flatnonzero(vis[a] & vis[b])
+    p1, p2 = table[a, common], table[b, common]
+    F = robust_cv(cv2.findFundamentalMat, p1, p2, cv2.USAC_MAGSAC, ransac_px, 0.9999, 10000)
+    if F is None or F.shape != (3, 3):
+        return None
+    F = F / np.linalg.norm(F)
+    d = _sampson(F, p1, p2)
+    inl = d < ransac_px
+    if inl.sum() < 8:
+        return None
+    H = robust_cv(
+        cv2.findHomography,
+        p1,
+        p2,
+        cv2.USAC_MAGSAC,
+        ransac_px,
+        maxIters=10000,
+        confidence=0.9999,
+    )
+    n_h = int((_transfer(H, p1, p2) < ransac_px).sum()) if H is not None else 0
+    return PairEstimate(a, b, common, F, inl, n_h, bool(n_h >= 0.9 * inl.sum()), d)
 
 
 DENSE_VIEWS = 1000

@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from selfcal.estimation.epipolar import _all_pairs, _sampled_pairs
+import selfcal.estimation.epipolar as epipolar
+from selfcal.calibration.field.synthetic import synthetic_stereo_scene
+from selfcal.estimation.epipolar import _all_pairs, _sampled_pairs, fundamental_pairs
 from selfcal.estimation.observations import ViewLayout
 
 
@@ -46,3 +48,17 @@ def test_sampled_pairs_cover_the_qualifying_pairs_uniformly():
         o = ~lay.same_frame(su, sj)
         got.append(np.mean(np.abs(su - sj)[o] > 100))
     assert abs(np.mean(got) - want) < 0.03, (np.mean(got), want)
+
+
+def test_pairs_on_two_threads_are_the_pairs_one_by_one(monkeypatch):
+    """The pairs estimated on two threads are the pairs estimated one after another, in the
+    same order, to the bit (OpenCV's estimators do not depend on the thread)."""
+    obs = synthetic_stereo_scene(12, seed=3, noise_px=0.5).observations()
+    threaded = fundamental_pairs(obs, max_pairs=40)
+    monkeypatch.setattr(epipolar.os, "cpu_count", lambda: 1)
+    serial = fundamental_pairs(obs, max_pairs=40)
+    assert len(threaded) == len(serial) > 20
+    for t, s in zip(threaded, serial, strict=True):
+        assert (t.view_a, t.view_b, t.n_h_inliers) == (s.view_a, s.view_b, s.n_h_inliers)
+        assert np.array_equal(t.F, s.F) and np.array_equal(t.pidx, s.pidx)
+        assert np.array_equal(t.inlier, s.inlier) and np.array_equal(t.sampson_px, s.sampson_px)
