@@ -20,14 +20,19 @@ record (:class:`ModelError`), the ``accuracy`` block of ``calibration.json``
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from selfcal.errors import InputError
 from selfcal.kinematics.mcpc import MCPCModel, minimal_indices
-from selfcal.kinematics.tool_error import ToolErrorModel, WorkspaceSample
+from selfcal.kinematics.tool_error import ToolErrorModel, WorkspaceSample, joint_spans
+
+if TYPE_CHECKING:
+    from selfcal.calibration.growth import Variogram
 
 __all__ = [
     "SAMPLE_COUNT",
@@ -38,6 +43,7 @@ __all__ = [
     "excess",
     "model_error_of",
     "postures_from_json",
+    "unmeasured_beyond",
 ]
 
 SAMPLE_COUNT = 256
@@ -79,6 +85,8 @@ class ModelError:
         reach_distance: when the model error grows with the distance from the calibration
             postures (:class:`selfcal.kinematics.tool_error.ToolErrorModel`), the distance at
             which it is ``position_m``; 0: the same everywhere.
+        growth: how the held-out rows' model error grows with their distance
+            (:mod:`selfcal.calibration.growth`), or None when not read.
     """
 
     position_m: float
@@ -94,6 +102,15 @@ class ModelError:
     noise_rad: float
     noise_what: str = "the tracker noise"
     reach_distance: float = 0.0
+    growth: Variogram | None = None
+
+    @property
+    def reach_floor(self) -> float:
+        """The share (0-1) of the model error's variance at :attr:`reach_distance` that does
+        not grow with the distance (1 when the growth was not shown)."""
+        if self.growth is None or self.reach_distance <= 0:
+            return 0.0
+        return self.growth.floor(self.reach_distance)
 
     def to_json(self) -> dict:
         def num(x: float | None, k: float) -> float | None:
@@ -116,6 +133,25 @@ class ModelError:
             "noise_mm": num(self.noise_m, 1e3),
             "noise_deg": num(self.noise_rad, deg),
             "reach_distance": self.reach_distance or None,
+            **(
+                {}
+                if self.growth is None
+                else {
+                    "constant_share": self.reach_floor,
+                    "growth_shown": self.growth.shown,
+                    "growth_t": num(self.growth.t, 1.0),
+                    "growth_what": "the model error's variance per coordinate c0 + c1 d^2 at the "
+                    "distance d from the calibration postures: c1 counted at its one-sided 95 % upper "
+                    "bound from the held-out rows (growth_t: its estimate over its standard error; "
+                    "shown above 2)",
+                    "measured_to_distance": self.growth.measured_to,
+                    "beyond_measured": None
+                    if self.growth.shown
+                    else "beyond the held-out configurations' largest distance from the calibration "
+                    "postures (measured_to_distance, a fraction of the joints' ranges): model error "
+                    "not measured (the folds did not show how it grows; its upper bound is used)",
+                }
+            ),
         }
 
 
@@ -130,13 +166,15 @@ def model_error_of(
     noise_what: str,
     given: tuple[float, float | None] | None = None,
     reach_distance: float = 0.0,
+    growth: Variogram | None = None,
 ) -> ModelError | None:
     """The :class:`ModelError` of held-out rows given fold by fold: their squared tool-point
     errors ``r2`` (m^2), what the folds' covariances explain ``s2`` (``tr S``, m^2) and what the
     noise explains ``n2`` (``tr N``, m^2), each a list of per-fold arrays; ``rot`` the same
     three for the orientation (rad^2) or None; ``given``: the model error (position m, rotation
     rad) when the route estimated it otherwise (the board route, from the pixels), None for
-    :func:`excess` of the squared norms; ``reach_distance``: :attr:`ModelError.reach_distance`.
+    :func:`excess` of the squared norms; ``reach_distance``, ``growth``:
+    :attr:`ModelError.reach_distance`, :attr:`ModelError.growth`.
     None without rows."""
     if not r2 or sum(len(v) for v in r2) == 0:
         return None
@@ -163,6 +201,7 @@ def model_error_of(
         noise_rad=float(np.sqrt(en2r / 3.0)),
         noise_what=noise_what,
         reach_distance=reach_distance if pos > 0 else 0.0,
+        growth=growth if pos > 0 else None,
     )
 
 
@@ -215,7 +254,9 @@ def error_model_from_json(
 ) -> ToolErrorModel:
     """The :class:`ToolErrorModel` of a calibration file's ``accuracy`` block (``names``: the
     model's minimal parameter names, ``poses``: whether the orientation is predicted, ``fix``:
-    how to write the block again, ``T_tool_point``: the tool point in the chain's tool frame).
+    how to write the block again, ``T_tool_point``: the tool point in the chain's tool frame);
+    the model error grows from the calibration postures when the block says so
+    (``model_error.reach_distance``, ``constant_share``, ``joint_limits_si``).
 
     Raises:
         InputError: the block's parameters are not the file's or its covariance is malformed.
@@ -232,7 +273,28 @@ def error_model_from_json(
     pos = (me.get("position_mm") or 0.0) / 1e3
     rot = np.radians(me.get("rotation_deg") or 0.0) if poses else None
     tip = None if T_tool_point is None else np.asarray(T_tool_point, float)
-    return ToolErrorModel(model, np.asarray(T_out_world, float), cols, cov, pos, rot, tip)
+    em = ToolErrorModel(model, np.asarray(T_out_world, float), cols, cov, pos, rot, tip)
+    reach = float(me.get("reach_distance") or 0.0)
+    floor = float(me.get("constant_share") or 0.0)  # an older file: all of it grows
+    span = None if "joint_limits_si" not in block else joint_spans(block["joint_limits_si"])
+    if reach > 0 and span is not None:  # an older file without it: the same everywhere
+        q_cal = postures_from_json(block, model.n, where, fix=fix)
+        em = dataclasses.replace(em, reach_postures=q_cal, reach_span=span, reach_distance=reach,
+                                 reach_floor=floor, measured_to=unmeasured_beyond(me))  # fmt: skip
+    return em
+
+
+def unmeasured_beyond(model_error: ModelError | dict | None) -> float:
+    """The distance from the calibration postures beyond which ``model_error`` (a
+    :class:`ModelError` or its ``to_json``) is not measured: the held-out rows' largest when
+    they did not show how it grows, else infinite (:mod:`selfcal.calibration.growth`)."""
+    if isinstance(model_error, ModelError):
+        g = model_error.growth
+        shown, to = (True, 0.0) if g is None else (g.shown, g.measured_to)
+    else:
+        me = model_error or {}
+        shown, to = me.get("growth_shown", True), me.get("measured_to_distance") or 0.0
+    return np.inf if shown or to <= 0 else float(to)
 
 
 def postures_from_json(block: dict, n: int, where: str, *, fix: str) -> np.ndarray:

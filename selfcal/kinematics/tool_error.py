@@ -10,10 +10,11 @@ error against the robot's true pose has two parts, both treated as zero-mean Gau
 - the *model* error: what the model cannot express (compliance, a wrong link, a tracker's
   systematic error), a per-coordinate standard deviation estimated from held-out residuals by the
   calibration route (e.g. :mod:`selfcal.calibration.tracker.accuracy`), the same at every posture;
-  or, when the route measured how it grows (the board route), a smooth function of the joints
-  that the fit matched at the calibration postures: its standard deviation grows in proportion
-  to the posture's distance (:func:`posture_distance`) from the nearest calibration posture,
-  ``m (d / d_ref)`` with ``m`` its size at the distance ``d_ref`` the held-out postures had
+  or, when the route's held-out rows showed how it grows (:mod:`selfcal.calibration.growth`), a
+  smooth function of the joints that the fit matched at the calibration postures: its variance
+  grows with the square of the posture's distance ``d`` (:func:`posture_distance`) from the
+  nearest calibration posture, ``m^2 (f + (1 - f) (d / d_ref)^2)`` with ``m`` its size at the
+  distance ``d_ref`` the held-out postures had and ``f`` the share of it that does not grow
   (:meth:`ToolErrorModel.model_error_factor`).
 
 The 95 % bound of the error's norm (position mm, orientation deg) at ``q`` is the 95 % quantile of
@@ -44,6 +45,7 @@ __all__ = [
     "GROWTH_POWER",
     "distance_growth",
     "growth_factor",
+    "joint_spans",
     "posture_distance",
     "WorkspaceSample",
     "workspace_sample",
@@ -83,15 +85,17 @@ def distance_growth(d: np.ndarray, d_ref: float) -> np.ndarray:
 
 
 def growth_factor(q: np.ndarray, q_ref: np.ndarray | None, span: np.ndarray | None,
-                  d_ref: float) -> np.ndarray:  # fmt: skip
+                  d_ref: float, floor: float = 0.0) -> np.ndarray:  # fmt: skip
     """(m,) a model error's variance at joints ``q`` (m, n) over its variance at the distance
-    ``d_ref`` from the calibration postures ``q_ref`` (k, n): ``(d / d_ref)^2`` with ``d`` the
-    :func:`posture_distance` in units of ``span`` (n,); 1 everywhere when ``q_ref`` or ``span``
-    is None or ``d_ref`` is not positive (the model error the same everywhere)."""
+    ``d_ref`` from the calibration postures ``q_ref`` (k, n): ``floor + (1 - floor) (d /
+    d_ref)^2`` with ``d`` the :func:`posture_distance` in units of ``span`` (n,) and ``floor``
+    (0-1) the share of that variance that does not grow (a variogram's level,
+    :mod:`selfcal.calibration.growth`); 1 everywhere when ``q_ref`` or ``span`` is None or
+    ``d_ref`` is not positive (the model error the same everywhere)."""
     q = np.atleast_2d(np.asarray(q, dtype=float))
     if q_ref is None or span is None or d_ref <= 0:
         return np.ones(len(q))
-    return distance_growth(posture_distance(q, q_ref, span), d_ref)
+    return floor + (1.0 - floor) * distance_growth(posture_distance(q, q_ref, span), d_ref)
 
 
 def posture_distance(q: np.ndarray, q_ref: np.ndarray, span: np.ndarray) -> np.ndarray:
@@ -106,20 +110,30 @@ def posture_distance(q: np.ndarray, q_ref: np.ndarray, span: np.ndarray) -> np.n
     return d
 
 
+def joint_spans(limits: np.ndarray) -> np.ndarray | None:
+    """(n,) every joint's range between its limits ``limits`` (n, 2) (rad / m), the unit of
+    :func:`posture_distance`; None when a range is not finite and
+    positive (the model error is then taken as the same everywhere)."""
+    span = np.diff(np.asarray(limits, dtype=float), axis=1)[:, 0]
+    return span if np.all(np.isfinite(span) & (span > 0)) else None
+
+
 @dataclass(frozen=True)
 class Reach:
     """Where a model error grows from (module docstring): its variance at joints ``q`` is
-    ``(d / distance)^2`` times its size's square, ``d`` the :func:`posture_distance` of ``q`` to
-    ``postures`` (k, n) rad / m in units of ``span`` (n,) rad / m; ``distance`` (unit-free,
-    positive) the distance at which it has its size."""
+    ``floor + (1 - floor) (d / distance)^2`` times its size's square, ``d`` the
+    :func:`posture_distance` of ``q`` to ``postures`` (k, n) rad / m in units of ``span`` (n,)
+    rad / m; ``distance`` (unit-free, positive) the distance at which it has its size; ``floor``
+    (0-1) the share of it that does not grow (0: none, in proportion to the distance)."""
 
     postures: np.ndarray
     span: np.ndarray
     distance: float
+    floor: float = 0.0
 
     def factor(self, q: np.ndarray) -> np.ndarray:
         """(m,) the model error's variance at joints ``q`` (m, n) over its size's square."""
-        return growth_factor(q, self.postures, self.span, self.distance)
+        return growth_factor(q, self.postures, self.span, self.distance, self.floor)
 
 
 @dataclass(frozen=True)
@@ -140,6 +154,11 @@ class ToolErrorModel:
             model error the same everywhere (module docstring).
         reach_span: (n,) the joints' spans of :func:`posture_distance` (rad / m).
         reach_distance: ``d_ref``, the distance at which the model error is ``model_error_m``.
+        reach_floor: the share (0-1) of the model error's variance at ``d_ref`` that does not
+            grow (:class:`Reach`).
+        measured_to: the distance from the calibration postures out to which the held-out rows
+            measured a model error that does not grow (``reach_floor`` 1); beyond it the model
+            error is not measured (:meth:`unmeasured`). Infinite: no such limit.
     """
 
     model: MCPCModel
@@ -152,19 +171,32 @@ class ToolErrorModel:
     reach_postures: np.ndarray | None = None
     reach_span: np.ndarray | None = None
     reach_distance: float = 0.0
+    reach_floor: float = 0.0
+    measured_to: float = np.inf
 
     @property
     def reach(self) -> Reach | None:
         """The :class:`Reach` the model error grows from, or None (the same everywhere)."""
         if self.reach_postures is None or self.reach_span is None or self.reach_distance <= 0:
             return None
-        return Reach(self.reach_postures, self.reach_span, self.reach_distance)
+        return Reach(self.reach_postures, self.reach_span, self.reach_distance, self.reach_floor)
 
     def model_error_factor(self, q: np.ndarray) -> np.ndarray:
         """(m,) the model error's variance at joints ``q`` (m, n) over ``model_error_m^2``: 1
-        everywhere, or ``(d / d_ref)^2`` when it grows from the calibration postures (module
-        docstring)."""
-        return growth_factor(q, self.reach_postures, self.reach_span, self.reach_distance)
+        everywhere, or ``floor + (1 - floor) (d / d_ref)^2`` when it grows from the calibration
+        postures (module docstring)."""
+        return growth_factor(q, self.reach_postures, self.reach_span, self.reach_distance,
+                             self.reach_floor)  # fmt: skip
+
+    def unmeasured(self, q: np.ndarray) -> np.ndarray:
+        """(m,) bool: the joints ``q`` (m, n) where the model error is not measured (farther
+        from the calibration postures than :attr:`measured_to`, the held-out rows not having
+        shown how it grows); none without a model error or such a limit."""
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        if (not np.isfinite(self.measured_to) or self.model_error_m <= 0
+                or self.reach_postures is None or self.reach_span is None):  # fmt: skip
+            return np.zeros(len(q), bool)
+        return posture_distance(q, self.reach_postures, self.reach_span) > self.measured_to
 
     def _point(self) -> np.ndarray:
         """(3,) the tool point in the chain's tool frame (m)."""
@@ -283,13 +315,18 @@ def _region(em: ToolErrorModel, q: np.ndarray) -> dict:
     if np.all(np.isfinite(rot)):
         out["orientation_95_deg_max"] = float(rot.max())
         out["orientation_95_deg_median"] = float(np.median(rot))
+    far = em.unmeasured(q)
+    if far.any():
+        out["model_error_not_measured_share"] = float(np.mean(far))
     return out
 
 
 def workspace_summary(em: ToolErrorModel, sample: WorkspaceSample, q_cal: np.ndarray) -> dict:
     """The predicted errors over the regions of ``sample`` and at the calibration postures
     ``q_cal`` (m, n): per region its point count, the largest and the median 95 % bound (mm,
-    deg) and the RMS over it (mm); at the postures also each one's 95 % bounds."""
+    deg) and the RMS over it (mm), and the share of its points where the model error is not
+    measured (:meth:`ToolErrorModel.unmeasured`) when there are any; at the postures also each
+    one's 95 % bounds."""
     out = {name: _region(em, getattr(sample, name)) for name in ("inside", "edge", "workspace")}
     at_cal = em.predicted(q_cal)
     out["calibration_postures"] = {
@@ -304,7 +341,8 @@ def workspace_summary(em: ToolErrorModel, sample: WorkspaceSample, q_cal: np.nda
 def accuracy_line(regions: dict) -> str:
     """The one line of a report on a :func:`workspace_summary`: the largest 95 % bound of the
     tool point's position inside the calibrated region and at its edge (mm), and of the tool's
-    orientation when predicted (deg)."""
+    orientation when predicted (deg); and the share of the workspace where the model error is not
+    measured, when there is one."""
     inside, edge = regions["inside"], regions["edge"]
     text = (
         f"tool point within {inside['position_95_mm_max']:.3f} mm (95 %) inside the calibrated "
@@ -318,4 +356,10 @@ def accuracy_line(regions: dict) -> str:
         text += f"; orientation within {inside['orientation_95_deg_max']:.4f} deg"
         if "orientation_95_deg_max" in edge:
             text += f", {edge['orientation_95_deg_max']:.4f} deg at the edge"
+    far = (regions.get("workspace") or {}).get("model_error_not_measured_share")
+    if far:
+        text += (
+            f"; beyond the calibrated region the model error is not measured at {far:.0%} of "
+            "the workspace's points (the cross-validation did not show how it grows)"
+        )
     return text

@@ -106,6 +106,28 @@ def accuracy_summary(section: dict) -> str:
     )
 
 
+def _growth_words(me: dict) -> str:
+    """How the model error ``me`` (the block's ``model_error``) grows with a posture's distance
+    from the calibration postures, in words (:mod:`selfcal.calibration.growth`)."""
+    at = (
+        f" at their mean distance from the other postures ({me['reach_distance']:.3f} of the "
+        "joints' ranges)"
+    )
+    if me.get("growth_shown") is None:  # an older file: the growth was assumed
+        return f"{at}, growing in proportion to a posture's distance from the calibration postures"
+    text = (
+        f"{at}, its variance growing with the squared distance from the calibration postures "
+        f"({me['constant_share']:.0%} of it there constant)"
+    )
+    if me["growth_shown"]:
+        return f"{text} as the folds show; measured out to {me['measured_to_distance']:.3f}"
+    return (
+        f"{text} at the most the folds allow (their 95 % upper bound: they did not show it "
+        f"grow); beyond {me['measured_to_distance']:.3f} of the joints' ranges from the "
+        "calibration postures it is not measured"
+    )
+
+
 def accuracy_markdown(section: dict) -> list[str]:
     """The report.md lines of :func:`board_accuracy_section`'s section."""
     me = section.get("model_error") or {}
@@ -115,11 +137,7 @@ def accuracy_markdown(section: dict) -> list[str]:
         "folds)"
     )
     if not section.get("model_error_note") and me.get("reach_distance"):
-        note += (
-            f" at their mean distance from the other postures ({me['reach_distance']:.3f} of the "
-            "joints' ranges), growing in proportion to a posture's distance from the "
-            "calibration postures"
-        )
+        note += _growth_words(me)
     held = held_sentence(section.get("held_deviation"))
     held = "" if held is None else f" {held[0].upper()}{held[1:]}."
     out = [

@@ -72,3 +72,14 @@ def test_report_md_says_when_the_model_error_grows_away_from_the_postures():
     grown = "\n".join(accuracy_markdown({**section, "model_error": {**me, "reach_distance": 0.12}}))
     assert "model error 0.0300 mm" in flat and "growing" not in flat
     assert "(0.120 of the joints' ranges), growing in proportion" in grown
+    # how the folds saw it grow (selfcal/calibration/growth.py): shown, or only bounded
+    read = {**me, "reach_distance": 0.12, "constant_share": 0.25, "measured_to_distance": 0.31}
+    shown = "\n".join(accuracy_markdown({**section, "model_error": {**read, "growth_shown": True}}))
+    assert "(25% of it there constant) as the folds show; measured out to 0.310" in shown
+    bound = "\n".join(accuracy_markdown({**section, "model_error": {**read,
+                                                                    "growth_shown": False}}))  # fmt: skip
+    assert "at the most the folds allow" in bound
+    assert (
+        "beyond 0.310 of the joints' ranges from the calibration postures it is not measured"
+        in bound
+    )

@@ -3,6 +3,8 @@ and the model-error split it shares with the tracker route (selfcal.calibration.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 from scipy.linalg import expm
@@ -122,18 +124,31 @@ def test_the_held_block_says_when_the_prior_was_counted_unscaled():
 
 
 def test_grown_size_counts_each_frames_share_at_its_distance():
+    """Frames whose pixel excess is the board route's variogram (their own share ``u`` at their
+    distance, the fold's ``w`` at the mean distance) plus the excess's own noise: the growth is
+    found and the size at the mean distance is the true one; a level alone shows no growth."""
     rng = np.random.default_rng(5)
     u, w = rng.uniform(1e6, 3e6, 40), rng.uniform(1e5, 3e5, 40)  # px^2 per m^2
-    d = rng.uniform(0.02, 0.2, 40)
-    m_true = 3e-5
-    far = np.sum(m_true**2 * (u * (d / d.mean()) ** 2 + w))  # the model the term assumes
-    m, reach = grown_size(float(far), u, w, d)
-    assert reach == pytest.approx(d.mean()) and m == pytest.approx(m_true)
-    # the same excess read as the same everywhere (no distances) gives another size
-    m_flat, reach_flat = grown_size(float(far), u, w, np.zeros(40))
-    assert reach_flat == 0.0
-    assert m_flat == pytest.approx(np.sqrt(far / (u.sum() + w.sum())))
-    assert abs(m_flat - m_true) > 0.01 * m_true
+    d = rng.uniform(0.02, 0.3, 40)
+    reach = d.mean()
+    var = np.full(40, 0.005**2)  # px^4: the excess's variance without a model error
+    c0, c1 = (2e-5) ** 2, (5e-4) ** 2  # m^2, m^2 per squared distance
+    clean = c0 * (u + w) + c1 * (u * d**2 + w * reach**2)
+    m, at, gram = grown_size(clean + rng.normal(0, 0.005, 40), var, u, w, d)
+    assert at == pytest.approx(reach) and gram is not None and gram.shown
+    assert m == pytest.approx(np.sqrt(c0 + c1 * reach**2), rel=0.05)
+    # the same level everywhere: no growth shown, its upper bound counted, the level the rest
+    flat = 10 * c0 * (u + w) + rng.normal(0, 0.005, 40)
+    m_flat, _, gram_flat = grown_size(flat, var, u, w, d)
+    assert gram_flat is not None and not gram_flat.shown
+    assert 0 < gram_flat.growth * reach**2 < 0.2 * gram_flat.level
+    b = u * d**2 + w * reach**2
+    assert gram_flat.level * (u + w).sum() + gram_flat.growth * b.sum() == pytest.approx(flat.sum())
+    assert m_flat == pytest.approx(np.sqrt(np.sum(flat) / (u.sum() + w.sum())), rel=0.05)
+    # without distances (no spans) the same everywhere
+    m0, reach0, none = grown_size(clean, var, u, w, np.zeros(40))
+    assert reach0 == 0.0 and none is None
+    assert m0 == pytest.approx(np.sqrt(clean.sum() / (u.sum() + w.sum())))
 
 
 def test_an_accuracy_block_keeps_the_model_errors_growth():
@@ -155,3 +170,36 @@ def test_an_accuracy_block_keeps_the_model_errors_growth():
     del block["model_error"]["reach_distance"]  # an older file: the same everywhere
     old = board_error_model_from_json(block, model, "calibration.json")
     assert old.reach_postures is None and np.allclose(old.model_error_factor(q_cal), 1.0)
+
+
+def test_an_accuracy_block_keeps_how_the_folds_saw_the_model_error_grow():
+    """The block written by ModelError.to_json carries the variogram's level share and how far
+    it was measured; read back, a growth not shown is the same everywhere and not measured
+    beyond that distance, a growth shown has no such limit."""
+    from selfcal.calibration.accuracy import ModelError
+    from selfcal.calibration.growth import Variogram
+
+    robot = load_robot("er4u-paper")
+    model = nominal_mcpc(robot)
+    q_cal = np.random.default_rng(1).uniform(-0.5, 0.5, (5, robot.n))
+    flat = Variogram(level=1e-8, growth=0.0, estimate=-1e-9, shown=False, t=0.4, measured_to=0.3)
+    me = ModelError(1e-4, 1e-5, 5, 5, 0, 2e-4, 1e-4, 1e-4, 1e-4, 1e-5, 1e-5,
+                    reach_distance=0.1, growth=flat)  # fmt: skip
+    js = me.to_json()
+    assert js["constant_share"] == 1.0 and js["growth_shown"] is False
+    assert js["measured_to_distance"] == 0.3 and "not measured" in js["beyond_measured"]
+    block = {
+        "estimated": [param_names(minimal_indices(model.joint_types))[0]],
+        "covariance_si": [[1e-8]],
+        "model_error": js,
+        "calibration_postures_si": q_cal.tolist(),
+        "joint_limits_si": robot.limits.tolist(),
+    }
+    em = board_error_model_from_json(block, model, "calibration.json")
+    assert em.reach_floor == 1.0 and em.measured_to == 0.3
+    assert np.allclose(em.model_error_factor(q_cal), 1.0)
+    grown = Variogram(level=1e-8, growth=3e-8, estimate=2e-8, shown=True, t=3.1, measured_to=0.3)
+    block["model_error"] = dataclasses.replace(me, growth=grown).to_json()
+    em = board_error_model_from_json(block, model, "calibration.json")
+    assert em.reach_floor == pytest.approx(1e-8 / (1e-8 + 3e-8 * 0.01))
+    assert em.measured_to == np.inf and not em.unmeasured(q_cal + 1.0).any()

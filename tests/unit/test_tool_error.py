@@ -163,3 +163,28 @@ def test_a_grown_model_error_is_none_at_the_calibration_postures_and_grows_with_
     assert em.reach is not None and flat.reach is None
     assert em.reach.factor(q) == pytest.approx([4.0])
     assert np.allclose(em.reach.factor(q_cal), em.model_error_factor(q_cal))
+
+
+def test_a_level_that_does_not_grow_and_where_the_model_error_is_not_measured(er4u):
+    """A variogram's level (``reach_floor``) stays at the calibration postures and the rest
+    grows; a model error the folds measured only out to some distance, without a growth, is
+    flagged beyond it, in the summary and its line."""
+    rng = np.random.default_rng(4)
+    em0 = _error_model(er4u, rng)
+    span = er4u.limits[:, 1] - er4u.limits[:, 0]
+    q_cal = rng.uniform(er4u.limits[:, 0], er4u.limits[:, 1], (4, er4u.n))
+    q = q_cal[:1].copy()
+    q[0, 0] += 0.1 * span[0]  # at the distance 0.1, twice the reference distance
+    em = dataclasses.replace(em0, model_error_m=2e-4, reach_postures=q_cal, reach_span=span,
+                             reach_distance=0.05, reach_floor=0.25)  # fmt: skip
+    assert em.model_error_factor(q_cal) == pytest.approx(np.full(4, 0.25))
+    assert em.model_error_factor(q) == pytest.approx([0.25 + 0.75 * 4.0])
+    assert not em.unmeasured(q).any()  # no limit: the growth was shown
+    flat = dataclasses.replace(em, reach_floor=1.0, measured_to=0.08)
+    assert flat.model_error_factor(q) == pytest.approx([1.0])
+    assert flat.unmeasured(np.vstack([q_cal, q])).tolist() == [False] * 4 + [True]
+    assert not dataclasses.replace(flat, model_error_m=0.0).unmeasured(q).any()
+    summ = workspace_summary(flat, workspace_sample(q_cal, er4u.limits, count=40), q_cal)
+    far = summ["workspace"]["model_error_not_measured_share"]
+    assert 0 < far <= 1 and "model_error_not_measured_share" not in summ["calibration_postures"]
+    assert f"not measured at {far:.0%} of the workspace's points" in accuracy_line(summ)

@@ -23,12 +23,12 @@ parts of :mod:`selfcal.calibration.accuracy`:
   estimate (:mod:`selfcal.calibration.board.misfit`: a fold that extrapolates is thrown far by
   it, and is not read as a large model error everywhere). The calibration's covariance gets
   the same (``m^2 G`` of its own frames) in its prediction. The model error is taken as a
-  smooth function of the joints that the fit matched at the postures it saw: away from them it
-  grows in proportion to the distance (each joint in units of its limits' range) to the nearest,
-  so its variance with the squared distance; each held-out frame's excess is read at its own
-  distance from its fold's training postures, ``m`` is the size at their mean distance
-  (:func:`grown_size`, :attr:`ModelError.reach_distance`) and a workspace point gets
-  ``m^2 (d / reach)^2`` (:class:`selfcal.kinematics.tool_error.ToolErrorModel`). Each held-out
+  smooth function of the joints that the fit matched at the postures it saw: its variance at the
+  distance ``d`` (each joint in units of its limits' range) from the nearest is ``c0 + c1 d^2``,
+  read from each held-out frame's excess at its own distance from its fold's training postures
+  (:func:`grown_size`, :mod:`selfcal.calibration.growth`: ``c1`` at its 95 % upper bound); ``m``
+  is the size at their mean distance (:attr:`ModelError.reach_distance`) and a workspace point
+  gets ``c0 + c1 d^2`` (:class:`selfcal.kinematics.tool_error.ToolErrorModel`). Each held-out
   frame's tool-point error as the pose correction that fits its pixels best (linear least
   squares on the projection's Jacobian, ``B xi``) is kept beside it
   (:class:`selfcal.calibration.accuracy.ModelError`'s held-out RMS): a single view knows it
@@ -42,10 +42,11 @@ point estimate (:mod:`selfcal.calibration.board.held`,
 :mod:`selfcal.calibration.board.held_prior`).
 
 What this cannot see: a model error the same in every frame is absorbed by the placement (board
-pose, hand-eye) and is not seen; how fast a misfit grows is assumed (linearly with the distance
-from the postures), not measured: the folds' held-out frames lie about as far from their
-training postures as each other, too close together to tell the growth's power; a misfit the
-folds do not show (below two standard errors) is not counted anywhere, however it would grow;
+pose, hand-eye) and is not seen; how fast a misfit grows is read only out to the held-out
+frames' largest distance from their training postures (``measured_to_distance``: beyond it, the
+growth's bound extrapolated, and when the folds did not show a growth the block says the model
+error is not measured there); the power of the growth (2 for the variance) is assumed; a misfit
+the folds do not show (below two standard errors) is not counted anywhere, however it would grow;
 held-out configurations far outside the others (few configurations) make the folds'
 extrapolation, not the calibration's, the measure.
 
@@ -70,6 +71,7 @@ from selfcal.calibration.accuracy import (
     error_model_from_json,
     model_error_of,
     postures_from_json,
+    unmeasured_beyond,
 )
 from selfcal.calibration.board.bounds import BoardCramerRao
 from selfcal.calibration.board.deviation import Deviation
@@ -84,6 +86,7 @@ from selfcal.calibration.board.held_prior import (
 from selfcal.calibration.board.misfit import board_view, pose_jacobian, tip_map, unit_rows
 from selfcal.calibration.board.param_selection import Selection
 from selfcal.calibration.board.refine import BoardObservations, Refinement, predicted_points
+from selfcal.calibration.growth import Variogram, fit_variogram
 from selfcal.camera import CameraModel
 from selfcal.estimation.kinematic_poses import joint_twists
 from selfcal.kinematics.forward import fk_tool, identification_jacobian
@@ -92,7 +95,7 @@ from selfcal.kinematics.tool_error import (
     EDGE_FRACTION,
     Reach,
     ToolErrorModel,
-    distance_growth,
+    joint_spans,
     posture_distance,
     workspace_sample,
     workspace_summary,
@@ -146,16 +149,8 @@ def board_error_model(cr: BoardCramerRao, T_tool_point: np.ndarray, position_m: 
                         np.asarray(T_tool_point, float))  # fmt: skip
     if reach is not None:
         em = dataclasses.replace(em, reach_postures=reach.postures, reach_span=reach.span,
-                                 reach_distance=reach.distance)  # fmt: skip
+                                 reach_distance=reach.distance, reach_floor=reach.floor)  # fmt: skip
     return em, tuple(param_names(idx[est]))
-
-
-def joint_spans(limits: np.ndarray) -> np.ndarray | None:
-    """(n,) every joint's range between its limits ``limits`` (n, 2) (rad / m), the unit of
-    :func:`selfcal.kinematics.tool_error.posture_distance`; None when a range is not finite and
-    positive (the model error is then taken as the same everywhere)."""
-    span = np.diff(np.asarray(limits, dtype=float), axis=1)[:, 0]
-    return span if np.all(np.isfinite(span) & (span > 0)) else None
 
 
 def _full_covariance(cr: BoardCramerRao,
@@ -253,25 +248,28 @@ def held_out_errors(obs: BoardObservations, fit: Refinement, frames: np.ndarray,
     return {k: np.array(val) for k, val in out.items()}
 
 
-def grown_size(extra: float, unit: np.ndarray, misfit: np.ndarray,
-               distance: np.ndarray) -> tuple[float, float]:  # fmt: skip
-    """The model error's size ``m`` (m per tool-point coordinate) and the distance ``reach`` at
-    which it has that size, from the held-out frames' squared-pixel excess ``extra`` (px^2,
-    their sum) and per frame what a unit model error adds to it in the frame itself ``unit``
-    (``u``, px^2 per m^2), through the fold's estimate ``misfit`` (``w``) and the frame's
-    distance to its fold's training postures ``distance`` (:func:`posture_distance`).
+def grown_size(excess: np.ndarray, var: np.ndarray, unit: np.ndarray, misfit: np.ndarray,
+               distance: np.ndarray) -> tuple[float, float, Variogram | None]:  # fmt: skip
+    """The model error's size ``m`` (m per tool-point coordinate) at the distance ``reach``
+    and how it grows (:class:`selfcal.calibration.growth.Variogram`, None without distances),
+    from the held-out frames' squared-pixel excess ``excess`` (px^2, per frame), its variance
+    without a model error ``var`` (px^4), what a unit model error adds to it in the frame
+    itself ``unit`` (``u``, px^2 per m^2), through the fold's estimate ``misfit`` (``w``) and
+    the frame's distance to its fold's training postures ``distance``
+    (:func:`posture_distance`).
 
-    The model error grows in proportion to the distance from the postures the fit saw (module
-    docstring): a frame at ``d`` has ``m^2 (d / reach)^2`` in itself, ``reach`` the frames' mean
-    distance; the training frames' share (``w``) is taken at ``reach``, as the calibration's
-    own covariance takes it. So ``extra = m^2 (sum u (d / reach)^2 + sum w)``; with every
-    distance 0 (no spans) the same everywhere, ``extra = m^2 (sum u + sum w)`` and ``reach``
-    0."""
-    unit, distance = np.asarray(unit, float), np.asarray(distance, float)
-    reach = float(np.mean(distance)) if distance.size else 0.0
-    grow = distance_growth(distance, reach) if reach > 0 else np.ones(unit.size)
-    m = float(np.sqrt(extra / (np.sum(unit * grow) + np.sum(misfit))))
-    return m, reach
+    A frame at ``d`` has the variance ``c0 + c1 d^2`` in itself; the training frames' share
+    (``w``) is taken at ``reach``, the frames' mean distance, as the calibration's own
+    covariance takes it: ``excess_i ~ c0 (u_i + w_i) + c1 (u_i d_i^2 + w_i reach^2)``
+    (:func:`selfcal.calibration.growth.fit_variogram`; ``c1 = 0`` unless the folds show the
+    growth). ``m^2 = c0 + c1 reach^2``; with every distance 0 (no spans) the same everywhere,
+    ``m^2 = sum excess / (sum u + sum w)`` and ``reach`` 0."""
+    y, v, u, w, d = (np.asarray(x, dtype=float) for x in (excess, var, unit, misfit, distance))
+    reach = float(np.mean(d)) if d.size else 0.0
+    if reach <= 0:
+        return float(np.sqrt(max(np.sum(y), 0.0) / (np.sum(u) + np.sum(w)))), 0.0, None
+    gram = fit_variogram(y, v, u + w, u * d**2 + w * reach**2, d, Z_MODEL_ERROR)
+    return float(np.sqrt(gram.at(reach))), reach, gram
 
 
 def model_error(obs: BoardObservations, selection: Selection, offsets: np.ndarray,
@@ -284,8 +282,8 @@ def model_error(obs: BoardObservations, selection: Selection, offsets: np.ndarra
     the folds' excess shows (the prior unscaled without folds); the model error is what is left
     beyond its point estimate. ``span`` (n,): the joints' spans (:func:`joint_spans`) when the
     model error grows with the distance from the calibration postures (module docstring): each
-    held-out frame's own share of it is then scaled by its squared distance to its fold's
-    training postures over their mean, the error's size ``m`` is the one at that mean distance
+    held-out frame's excess is then read at its distance to its fold's training postures
+    (:func:`grown_size`), the error's size ``m`` is the one at their mean distance
     (:attr:`ModelError.reach_distance`)."""
     got = []
     for out, fit, cr in fold_bounds(obs, selection, offsets, T_tool_point, pixel_sigma_px):
@@ -311,9 +309,11 @@ def model_error(obs: BoardObservations, selection: Selection, offsets: np.ndarra
     # effect in the frame itself and through the fold's estimate (misfit.py)
     extra = float(np.sum(h["px2"]) - np.sum(h["px2_expected"])
                   - share.point * np.sum(h["px2_held"]))  # fmt: skip
-    m, reach = 0.0, 0.0
+    m, reach, gram = 0.0, 0.0, None
     if extra > Z_MODEL_ERROR * np.sqrt(np.sum(h["px2_var"])):
-        m, reach = grown_size(extra, h["px2_unit"], h["px2_misfit"], h["distance"])
+        y = h["px2"] - h["px2_expected"] - share.point * h["px2_held"]
+        m, reach, gram = grown_size(y, h["px2_var"], h["px2_unit"], h["px2_misfit"],
+                                    h["distance"])  # fmt: skip
     e, S, N = h["e"], h["S"], h["N"]
 
     def parts(b: slice) -> tuple[list[np.ndarray], list[np.ndarray], list[np.ndarray]]:
@@ -325,7 +325,7 @@ def model_error(obs: BoardObservations, selection: Selection, offsets: np.ndarra
                           failed=selection.folds - len(got),
                           noise_what="the pixel and joint read-back noise",
                           given=(m, m / float(np.mean(h["lever"]))),
-                          reach_distance=reach), share  # fmt: skip
+                          reach_distance=reach, growth=gram), share  # fmt: skip
 
 
 def _errors_px_mm(obs: BoardObservations, fit: Refinement,
@@ -396,8 +396,9 @@ def board_accuracy(obs: BoardObservations, selection: Selection, cr: BoardCramer
     q_cal = np.asarray(obs.q[obs.used], dtype=float)
     reach = None
     if me is not None and me.reach_distance > 0 and span is not None:
-        reach = Reach(q_cal, span, me.reach_distance)
+        reach = Reach(q_cal, span, me.reach_distance, me.reach_floor)
     em, names = board_error_model(cr, T_tool_point, pos, rot, reach)
+    em = dataclasses.replace(em, measured_to=unmeasured_beyond(me))
     sample = workspace_sample(q_cal, limits, count=count)
     note = ("no cross-validation (the frames show one arm configuration): the covariance alone, "
             "which is optimistic when the model misfits")  # fmt: skip
@@ -465,14 +466,8 @@ def board_error_model_from_json(block: dict, model: MCPCModel, where: str) -> To
     """
     names = tuple(param_names(minimal_indices(model.joint_types)))
     tip = np.asarray(block.get("T_tool_point_si", np.eye(4)), dtype=float)
-    em = error_model_from_json(block, model, np.eye(4), names, True, where, fix=_FIX,
-                               T_tool_point=tip)  # fmt: skip
-    reach = float((block.get("model_error") or {}).get("reach_distance") or 0.0)
-    span = None if "joint_limits_si" not in block else joint_spans(block["joint_limits_si"])
-    if reach > 0 and span is not None:  # an older file without it: the same everywhere
-        q_cal = postures_from_json(block, model.n, where, fix=_FIX)
-        em = dataclasses.replace(em, reach_postures=q_cal, reach_span=span, reach_distance=reach)
-    return em
+    return error_model_from_json(block, model, np.eye(4), names, True, where, fix=_FIX,
+                                 T_tool_point=tip)  # fmt: skip
 
 
 def board_postures_from_json(block: dict, n: int, where: str) -> np.ndarray:

@@ -15,6 +15,14 @@ row left out, ``nu`` the tracker's noise per coordinate (``sigma_t`` as given, t
 when that is below 1: a stated noise above what the fit shows is not subtracted) and ``m`` the
 model error per coordinate, counted only when the excess over ``mean tr S + 3 nu^2`` is
 significant (:data:`Z_MODEL_ERROR`). The same for the orientation of a fit of poses.
+How it grows away from the calibration postures is read from the same rows
+(:mod:`selfcal.calibration.growth`): each row's excess against its distance ``d`` from its
+fold's training postures (each joint in units of its limits' range), ``m^2(d) = c0 + c1 d^2``,
+``c1`` kept only when it exceeds two standard errors; ``m`` is then the size at the rows' mean
+distance and a workspace point gets ``c0 + c1 d^2`` of its own distance from the calibration
+postures (the orientation's model error, when there is one, grows the same way). Without that
+growth shown the model error is the same everywhere and, beyond the rows' largest distance,
+not measured (the block says so, ``model_error.beyond_measured``).
 What cannot be told apart: noise above the stated ``sigma_t`` is counted as model error (the
 prediction is then pessimistic), a model error the postures cannot show (it repeats at every
 row alike) is not counted.
@@ -27,6 +35,7 @@ its reading back are the routes' shared :mod:`selfcal.calibration.accuracy`. SI 
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 
 import numpy as np
@@ -37,8 +46,10 @@ from selfcal.calibration.accuracy import (
     Z_MODEL_ERROR,
     ModelError,
     model_error_of,
+    unmeasured_beyond,
 )
 from selfcal.calibration.accuracy import Accuracy as TrackerAccuracy
+from selfcal.calibration.growth import fit_variogram
 from selfcal.calibration.tracker.identify import TrackerResult, identify_tracker
 from selfcal.calibration.tracker.nominal import pose_errors
 from selfcal.errors import EstimationError
@@ -47,6 +58,8 @@ from selfcal.kinematics.mcpc import MCPCModel, minimal_indices
 from selfcal.kinematics.tool_error import (
     EDGE_FRACTION,
     ToolErrorModel,
+    joint_spans,
+    posture_distance,
     workspace_sample,
     workspace_summary,
 )
@@ -110,17 +123,21 @@ def model_error(
     sigma_t_m: float,
     sigma_r_rad: float,
     folds: int = MAX_FOLDS,
+    span: np.ndarray | None = None,
     **identify_kw,
 ) -> ModelError | None:
     """Cross-validate ``res`` (:func:`identify_tracker` of ``model`` on ``meas``) and estimate
     the model error (module docstring); None without position / pose rows or when no fold could
-    be fitted. ``identify_kw``: the identification's further options (``sigma_d_m``, ``hold``)."""
+    be fitted. ``span`` (n,): the joints' spans (:func:`selfcal.kinematics.tool_error.joint_spans`)
+    to read how the model error grows with a held-out row's distance from its fold's training
+    postures (:mod:`selfcal.calibration.growth`), None: the same everywhere. ``identify_kw``: the
+    identification's further options (``sigma_d_m``, ``hold``)."""
     if meas.m < 2:
         return None
     k = min(meas.m, folds)
     fold = fold_index(meas.q, k)
     poses = meas.R is not None
-    r2, r2_rot, s2, s2_rot = [], [], [], []
+    r2, r2_rot, s2, s2_rot, dist = [], [], [], [], []
     failed = 0
     for f in range(k):
         out = fold == f
@@ -140,6 +157,8 @@ def model_error(
         S = error_model(fit, 0.0).estimation_covariance(q)
         r2.append(pos**2 / 1e6)
         s2.append(np.trace(S[:, :3, :3], axis1=1, axis2=2))
+        if span is not None:
+            dist.append(posture_distance(q, meas.q[~out], span))
         if ang is not None:
             r2_rot.append(np.radians(ang) ** 2)
             s2_rot.append(np.trace(S[:, 3:, 3:], axis1=1, axis2=2))
@@ -149,8 +168,24 @@ def model_error(
     nu, nu_r = sigma_t_m * scale, sigma_r_rad * scale
     n2 = [np.full(len(v), 3.0 * nu**2) for v in r2]
     rot = (r2_rot, s2_rot, [np.full(len(v), 3.0 * nu_r**2) for v in r2_rot]) if poses else None
+    me = model_error_of(r2, s2, n2, rot, folds=k - failed, failed=failed,
+                        noise_what="the tracker noise")  # fmt: skip
+    if me is None or me.position_m <= 0 or not dist:
+        return me
+    # how it grows: each row's excess over what the fold's estimate and the noise explain
+    # (variance 2/3 (tr S + tr N)^2 without a model error), 3 c0 + 3 c1 d^2 (growth.py)
+    e, d = np.concatenate(r2), np.concatenate(dist)
+    expected = np.concatenate(s2) + np.concatenate(n2)
+    gram = fit_variogram(
+        e - expected, 2.0 / 3.0 * expected**2, np.full(e.size, 3.0), 3.0 * d**2, d, Z_MODEL_ERROR
+    )
+    reach = float(np.mean(d))
+    if reach <= 0:
+        return me
     return model_error_of(r2, s2, n2, rot, folds=k - failed, failed=failed,
-                          noise_what="the tracker noise")  # fmt: skip
+                          noise_what="the tracker noise",
+                          given=(float(np.sqrt(gram.at(reach))), me.rotation_rad),
+                          reach_distance=reach, growth=gram)  # fmt: skip
 
 
 def tracker_accuracy(
@@ -170,16 +205,22 @@ def tracker_accuracy(
     frame)."""
     if meas.m == 0:
         return None
-    me = model_error(model, meas, res, sigma_t_m=sigma_t_m, sigma_r_rad=sigma_r_rad,
+    span = joint_spans(limits)
+    me = model_error(model, meas, res, sigma_t_m=sigma_t_m, sigma_r_rad=sigma_r_rad, span=span,
                      **identify_kw)  # fmt: skip
     pos = 0.0 if me is None else me.position_m
     rot = None if meas.R is None else (0.0 if me is None else me.rotation_rad)
     em = error_model(res, pos, rot)
+    if me is not None and me.reach_distance > 0 and span is not None:
+        em = dataclasses.replace(em, reach_postures=np.array(meas.q, dtype=float),
+                                 reach_span=span, reach_distance=me.reach_distance,
+                                 reach_floor=me.reach_floor,
+                                 measured_to=unmeasured_beyond(me))  # fmt: skip
     sample = workspace_sample(meas.q, limits, count=count)
     names = tuple(n for n, e in zip(res.names, res.estimated) if e)
     summary = workspace_summary(em, sample, meas.q)
     return TrackerAccuracy(em, names, me, summary, sample, np.array(meas.q, dtype=float),
-                           WHAT, NOTE)  # fmt: skip
+                           WHAT, NOTE, {"joint_limits_si": np.asarray(limits, float).tolist()})  # fmt: skip
 
 
 _FIX = "re-run `selfcal identify` to write the block again"

@@ -1,0 +1,70 @@
+"""The model error's growth with the distance from the calibration postures, read from held-out
+rows (selfcal.calibration.growth, issue #29)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from selfcal.calibration.accuracy import Z_MODEL_ERROR
+from selfcal.calibration.growth import beyond_measured, fit_variogram
+
+
+def _rows(level: float, growth: float, seed: int, k: int = 60) -> tuple[np.ndarray, ...]:
+    """Held-out 3-vectors at distances 0.05-0.5 whose error per coordinate has the variance
+    ``noise^2 + level + growth d^2`` (m^2), the noise known: the tracker route's excess
+    ``|r|^2 - 3 noise^2``, its variance without a model error ``2/3 (3 noise^2)^2``."""
+    rng = np.random.default_rng(seed)
+    d = rng.uniform(0.05, 0.5, k)
+    noise = 1e-4
+    sd = np.sqrt(noise**2 + level + growth * d**2)
+    r = rng.normal(size=(k, 3)) * sd[:, None]
+    excess = np.sum(r**2, axis=1) - 3 * noise**2
+    var = np.full(k, 2.0 / 3.0 * (3 * noise**2) ** 2)
+    return excess, var, np.full(k, 3.0), 3.0 * d**2, d
+
+
+def test_a_growing_model_error_is_found():
+    level, growth = (0.5e-4) ** 2, (8e-4) ** 2  # 0.05 mm, growing by 0.8 mm per unit distance
+    got = [fit_variogram(*_rows(level, growth, seed), Z_MODEL_ERROR) for seed in range(20)]
+    assert all(g.shown for g in got)
+    slope = np.sqrt(np.clip([g.estimate for g in got], 0.0, None))
+    assert np.median(slope) == pytest.approx(8e-4, rel=0.1)
+    # counted: its upper bound, unless that alone explains more than the rows' excess
+    assert all(g.growth >= g.estimate or g.level == 0.0 for g in got)
+    assert got[0].measured_to == pytest.approx(0.5, abs=0.02)
+    # at the far end of the held-out rows the counted size is the true one (median of 20)
+    far = np.sqrt([g.at(0.5) for g in got])
+    assert np.median(far) == pytest.approx(np.sqrt(level + growth * 0.25), rel=0.03)
+
+
+def test_a_constant_model_error_gives_no_growth():
+    level = (3e-4) ** 2
+    got = [fit_variogram(*_rows(level, 0.0, seed), Z_MODEL_ERROR) for seed in range(40)]
+    # one-sided two standard errors: a false growth in about 1 fit in 40
+    assert sum(g.shown for g in got) <= 3
+    assert abs(np.median([g.t for g in got])) < 0.5  # the estimate ~0
+    # the size at the rows' mean distance is the level; the counted growth is only its upper
+    # bound, which at the rows' far end (0.5) adds less than the level itself (median)
+    assert np.median(np.sqrt([g.at(0.275) for g in got])) == pytest.approx(3e-4, rel=0.05)
+    assert 0 < np.median([g.growth * 0.25 / g.level for g in got]) < 1.5
+
+
+def test_beyond_what_the_folds_measured():
+    excess, var, a, b, d = _rows((3e-4) ** 2, 0.0, 1)
+    flat = fit_variogram(excess, var, a, b, d, Z_MODEL_ERROR)
+    assert not flat.shown
+    far = np.array([0.1, flat.measured_to + 0.01, 1.0])
+    assert beyond_measured(far, flat).tolist() == [False, True, True]
+    grown = fit_variogram(*_rows(0.0, (8e-4) ** 2, 1), Z_MODEL_ERROR)
+    assert grown.shown and grown.floor(0.3) < 0.1
+    assert not beyond_measured(far, grown).any()
+    assert not beyond_measured(far, None).any()
+
+
+def test_distances_all_alike_cannot_show_a_growth():
+    excess, var, a, _, d = _rows((3e-4) ** 2, 0.0, 2)
+    same = np.full_like(d, 0.2)
+    got = fit_variogram(excess, var, a, 3.0 * same**2, same, Z_MODEL_ERROR)
+    assert not got.shown and got.growth == 0.0 and got.floor(0.2) == 1.0
+    assert got.level == pytest.approx(np.sum(excess) / np.sum(a))
