@@ -81,9 +81,16 @@ def test_a_misfit_enters_as_model_error(er4u):
         return qb
 
     xyz = fk_tool(case.true, bent(q))[:, :3, 3] + np.random.default_rng(7).normal(0, SIGMA, (30, 3))
-    _, acc = _calibrate(er4u, q, xyz)
+    res, acc = _calibrate(er4u, q, xyz)
     assert acc.model_error.position_m > SIGMA
+    # how it grows was read from the folds (growth.py) and the block rebuilds it
+    me = acc.model_error
+    assert me.growth is not None and me.reach_distance > 0 and 0 <= me.reach_floor < 1
+    assert acc.error_model.reach is not None
+    em = error_model_from_json(acc.to_json(), res.model, res.T_meas_fit, res.names, False, "c")
     qw = case.configurations(300, 8)
+    assert np.allclose(em.predicted(qw)["position_95_mm"],
+                       acc.error_model.predicted(qw)["position_95_mm"], rtol=1e-12)  # fmt: skip
     pred = acc.error_model.predicted(qw)
     e = np.linalg.norm(pred["position_mm"] - fk_tool(case.true, bent(qw))[:, :3, 3] * 1e3, axis=1)
     covered = np.mean(e <= pred["position_95_mm"])
