@@ -42,6 +42,27 @@ def test_residuals_drawn_from_the_prediction_alarm_at_alpha(setup):
     assert 0.0025 < changed / n < 0.025
 
 
+def test_a_grown_model_error_is_expected_at_each_rows_distance(setup):
+    """A model error that grows from the calibration postures (growth.py) enters each new row at
+    its own distance: far rows expect more, a row at a calibration posture only the level."""
+    import dataclasses
+
+    em, q = setup
+    span = np.full(em.model.n, 2 * np.pi)
+    grown = dataclasses.replace(em, reach_postures=q[:2], reach_span=span, reach_distance=0.05,
+                                reach_floor=0.5)  # fmt: skip
+    xyz = em.tool_positions(q)
+    flat, far = drift_check(em, q, xyz, 1e-4), drift_check(grown, q, xyz, 1e-4)
+    factor = grown.model_error_factor(q)
+    assert factor[:2] == pytest.approx([0.5, 0.5]) and np.all(factor[2:] > 1)
+    Jp = em.jacobian(q)[:, :3].reshape(15, -1)
+    want = np.trace(Jp @ em.covariance @ Jp.T) / 5 + 3 * np.mean(
+        em.model_error_m**2 * factor + 1e-8
+    )
+    assert far.expected_rms_mm == pytest.approx(np.sqrt(want) * 1e3)
+    assert far.expected_rms_mm > flat.expected_rms_mm
+
+
 def test_a_shift_is_changed_and_bad_rows_are_refused(setup):
     em, q = setup
     xyz = em.tool_positions(q) + np.array([1e-3, 0.0, 0.0])

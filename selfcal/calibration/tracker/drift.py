@@ -115,7 +115,8 @@ def drift_check(
                          f"{xyz_m.shape}", fix="give one measured position per joint row")  # fmt: skip
     r = (xyz_m - em.tool_positions(q)).reshape(-1)
     Jp = em.jacobian(q)[:, :3].reshape(3 * k, -1)
-    sigma = Jp @ em.covariance @ Jp.T + (em.model_error_m**2 + noise_m**2) * np.eye(3 * k)
+    m2 = np.repeat(em.model_error_m**2 * em.model_error_factor(q), 3)  # grown at each row's q
+    sigma = Jp @ em.covariance @ Jp.T + np.diag(m2 + noise_m**2)
     T = float(r @ np.linalg.solve(sigma, r))
     p = float(chi2.sf(T, 3 * k))
     rms2 = float(np.sum(r**2) / k)
