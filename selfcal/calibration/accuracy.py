@@ -145,11 +145,9 @@ class ModelError:
                     "bound from the held-out rows (growth_t: its estimate over its standard error; "
                     "shown above 2)",
                     "measured_to_distance": self.growth.measured_to,
-                    "beyond_measured": None
-                    if self.growth.shown
-                    else "beyond the held-out configurations' largest distance from the calibration "
-                    "postures (measured_to_distance, a fraction of the joints' ranges): model error "
-                    "not measured (the folds did not show how it grows; its upper bound is used)",
+                    "beyond_measured": "beyond the held-out rows' largest distance from the "
+                    "calibration postures (measured_to_distance, a fraction of the joints' "
+                    "ranges): model error not measured, held at its value there",
                 }
             ),
         }
@@ -286,15 +284,13 @@ def error_model_from_json(
 
 def unmeasured_beyond(model_error: ModelError | dict | None) -> float:
     """The distance from the calibration postures beyond which ``model_error`` (a
-    :class:`ModelError` or its ``to_json``) is not measured: the held-out rows' largest when
-    they did not show how it grows, else infinite (:mod:`selfcal.calibration.growth`)."""
+    :class:`ModelError` or its ``to_json``) is not measured: the held-out rows' largest
+    (:mod:`selfcal.calibration.growth`); infinite without one (an older file: no limit)."""
     if isinstance(model_error, ModelError):
-        g = model_error.growth
-        shown, to = (True, 0.0) if g is None else (g.shown, g.measured_to)
+        to = 0.0 if model_error.growth is None else model_error.growth.measured_to
     else:
-        me = model_error or {}
-        shown, to = me.get("growth_shown", True), me.get("measured_to_distance") or 0.0
-    return np.inf if shown or to <= 0 else float(to)
+        to = (model_error or {}).get("measured_to_distance") or 0.0
+    return float(to) if to > 0 else np.inf
 
 
 def postures_from_json(block: dict, n: int, where: str, *, fix: str) -> np.ndarray:

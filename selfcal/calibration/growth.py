@@ -27,8 +27,10 @@ explains their excess. Whether a model error is counted at all is the routes' ow
 before; this only splits it.
 
 What the folds measure reaches as far as their held-out rows lie (``measured_to``, the largest
-distance): beyond it ``c0 + c1 d^2`` is an extrapolation, and when the growth was not shown it
-is only bounded, not measured (:func:`beyond_measured`). Unit-free distances; the excess in any
+distance): beyond it ``c0 + c1 d^2`` would be an extrapolation (a bounded misfit, as a joint's
+compliance, stops growing; a quadratic does not), so the prediction holds the model error at its
+value there and says it is not measured (:func:`beyond_measured`,
+:meth:`selfcal.kinematics.tool_error.ToolErrorModel.unmeasured`). Unit-free distances; the excess in any
 unit (m^2, px^2), ``c0`` in it per unit of ``a``.
 """
 
@@ -112,10 +114,9 @@ def fit_variogram(excess: np.ndarray, var: np.ndarray, unit_level: np.ndarray,
 
 def beyond_measured(distance: np.ndarray, gram: Variogram | None) -> np.ndarray:
     """(m,) bool: the points at ``distance`` (m,) (unit-free) where the model error is not
-    measured: beyond the held-out rows' largest distance when the folds did not show how it
-    grows (module docstring); none without a variogram or with the growth shown (there it is
-    the fitted variogram's extrapolation)."""
+    measured: beyond the held-out rows' largest distance (module docstring); none without a
+    variogram."""
     d = np.asarray(distance, dtype=float)
-    if gram is None or gram.shown:
+    if gram is None:
         return np.zeros(d.shape, bool)
     return d > gram.measured_to

@@ -14,8 +14,10 @@ error against the robot's true pose has two parts, both treated as zero-mean Gau
   smooth function of the joints that the fit matched at the calibration postures: its variance
   grows with the square of the posture's distance ``d`` (:func:`posture_distance`) from the
   nearest calibration posture, ``m^2 (f + (1 - f) (d / d_ref)^2)`` with ``m`` its size at the
-  distance ``d_ref`` the held-out postures had and ``f`` the share of it that does not grow
-  (:meth:`ToolErrorModel.model_error_factor`).
+  distance ``d_ref`` the held-out postures had and ``f`` the share of it that does not grow,
+  out to the farthest distance the held-out rows measured it and held there beyond
+  (:meth:`ToolErrorModel.model_error_factor`; there it is not measured:
+  :meth:`ToolErrorModel.unmeasured`).
 
 The 95 % bound of the error's norm (position mm, orientation deg) at ``q`` is the 95 % quantile of
 ``|e|`` for ``e ~ N(0, S(q) + m^2 I)``, by Satterthwaite's scaled chi-square (``|e|^2 ~ a chi2_f``
@@ -85,17 +87,19 @@ def distance_growth(d: np.ndarray, d_ref: float) -> np.ndarray:
 
 
 def growth_factor(q: np.ndarray, q_ref: np.ndarray | None, span: np.ndarray | None,
-                  d_ref: float, floor: float = 0.0) -> np.ndarray:  # fmt: skip
+                  d_ref: float, floor: float = 0.0, limit: float = np.inf) -> np.ndarray:  # fmt: skip
     """(m,) a model error's variance at joints ``q`` (m, n) over its variance at the distance
     ``d_ref`` from the calibration postures ``q_ref`` (k, n): ``floor + (1 - floor) (d /
-    d_ref)^2`` with ``d`` the :func:`posture_distance` in units of ``span`` (n,) and ``floor``
-    (0-1) the share of that variance that does not grow (a variogram's level,
+    d_ref)^2`` with ``d`` the :func:`posture_distance` in units of ``span`` (n,), held at
+    ``limit`` beyond it (the farthest the model error was measured), and ``floor`` (0-1) the
+    share of that variance that does not grow (a variogram's level,
     :mod:`selfcal.calibration.growth`); 1 everywhere when ``q_ref`` or ``span`` is None or
     ``d_ref`` is not positive (the model error the same everywhere)."""
     q = np.atleast_2d(np.asarray(q, dtype=float))
     if q_ref is None or span is None or d_ref <= 0:
         return np.ones(len(q))
-    return floor + (1.0 - floor) * distance_growth(posture_distance(q, q_ref, span), d_ref)
+    d = np.minimum(posture_distance(q, q_ref, span), limit)
+    return floor + (1.0 - floor) * distance_growth(d, d_ref)
 
 
 def posture_distance(q: np.ndarray, q_ref: np.ndarray, span: np.ndarray) -> np.ndarray:
@@ -124,16 +128,18 @@ class Reach:
     ``floor + (1 - floor) (d / distance)^2`` times its size's square, ``d`` the
     :func:`posture_distance` of ``q`` to ``postures`` (k, n) rad / m in units of ``span`` (n,)
     rad / m; ``distance`` (unit-free, positive) the distance at which it has its size; ``floor``
-    (0-1) the share of it that does not grow (0: none, in proportion to the distance)."""
+    (0-1) the share of it that does not grow (0: none, in proportion to the distance); ``limit``
+    the distance beyond which it is held (the farthest it was measured; infinite: none)."""
 
     postures: np.ndarray
     span: np.ndarray
     distance: float
     floor: float = 0.0
+    limit: float = np.inf
 
     def factor(self, q: np.ndarray) -> np.ndarray:
         """(m,) the model error's variance at joints ``q`` (m, n) over its size's square."""
-        return growth_factor(q, self.postures, self.span, self.distance, self.floor)
+        return growth_factor(q, self.postures, self.span, self.distance, self.floor, self.limit)
 
 
 @dataclass(frozen=True)
@@ -157,8 +163,8 @@ class ToolErrorModel:
         reach_floor: the share (0-1) of the model error's variance at ``d_ref`` that does not
             grow (:class:`Reach`).
         measured_to: the distance from the calibration postures out to which the held-out rows
-            measured a model error that does not grow (``reach_floor`` 1); beyond it the model
-            error is not measured (:meth:`unmeasured`). Infinite: no such limit.
+            measured the model error; beyond it the model error is not measured
+            (:meth:`unmeasured`) and is held at its value there. Infinite: no such limit.
     """
 
     model: MCPCModel
@@ -179,19 +185,20 @@ class ToolErrorModel:
         """The :class:`Reach` the model error grows from, or None (the same everywhere)."""
         if self.reach_postures is None or self.reach_span is None or self.reach_distance <= 0:
             return None
-        return Reach(self.reach_postures, self.reach_span, self.reach_distance, self.reach_floor)
+        return Reach(self.reach_postures, self.reach_span, self.reach_distance, self.reach_floor,
+                     self.measured_to)  # fmt: skip
 
     def model_error_factor(self, q: np.ndarray) -> np.ndarray:
         """(m,) the model error's variance at joints ``q`` (m, n) over ``model_error_m^2``: 1
         everywhere, or ``floor + (1 - floor) (d / d_ref)^2`` when it grows from the calibration
         postures (module docstring)."""
         return growth_factor(q, self.reach_postures, self.reach_span, self.reach_distance,
-                             self.reach_floor)  # fmt: skip
+                             self.reach_floor, self.measured_to)  # fmt: skip
 
     def unmeasured(self, q: np.ndarray) -> np.ndarray:
         """(m,) bool: the joints ``q`` (m, n) where the model error is not measured (farther
-        from the calibration postures than :attr:`measured_to`, the held-out rows not having
-        shown how it grows); none without a model error or such a limit."""
+        from the calibration postures than :attr:`measured_to`, the held-out rows' largest
+        distance); none without a model error or such a limit."""
         q = np.atleast_2d(np.asarray(q, dtype=float))
         if (not np.isfinite(self.measured_to) or self.model_error_m <= 0
                 or self.reach_postures is None or self.reach_span is None):  # fmt: skip
@@ -359,7 +366,8 @@ def accuracy_line(regions: dict) -> str:
     far = (regions.get("workspace") or {}).get("model_error_not_measured_share")
     if far:
         text += (
-            f"; beyond the calibrated region the model error is not measured at {far:.0%} of "
-            "the workspace's points (the cross-validation did not show how it grows)"
+            f"; the model error is not measured at {far:.0%} of the workspace's points (farther "
+            "from the calibration postures than the cross-validation reached: held at its value "
+            "there)"
         )
     return text

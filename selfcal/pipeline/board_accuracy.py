@@ -119,13 +119,13 @@ def _growth_words(me: dict) -> str:
         f"{at}, its variance growing with the squared distance from the calibration postures "
         f"({me['constant_share']:.0%} of it there constant)"
     )
-    if me["growth_shown"]:
-        return f"{text} as the folds show; measured out to {me['measured_to_distance']:.3f}"
-    return (
-        f"{text} at the most the folds allow (their 95 % upper bound: they did not show it "
-        f"grow); beyond {me['measured_to_distance']:.3f} of the joints' ranges from the "
-        "calibration postures it is not measured"
+    far = (
+        f"; beyond {me['measured_to_distance']:.3f} of the joints' ranges from the calibration "
+        "postures it is not measured (held at its value there)"
     )
+    if me["growth_shown"]:
+        return f"{text} as the folds show{far}"
+    return f"{text} at the most the folds allow (their 95 % upper bound: they did not show it grow){far}"
 
 
 def accuracy_markdown(section: dict) -> list[str]:

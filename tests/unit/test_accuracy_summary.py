@@ -75,7 +75,7 @@ def test_report_md_says_when_the_model_error_grows_away_from_the_postures():
     # how the folds saw it grow (selfcal/calibration/growth.py): shown, or only bounded
     read = {**me, "reach_distance": 0.12, "constant_share": 0.25, "measured_to_distance": 0.31}
     shown = "\n".join(accuracy_markdown({**section, "model_error": {**read, "growth_shown": True}}))
-    assert "(25% of it there constant) as the folds show; measured out to 0.310" in shown
+    assert "(25% of it there constant) as the folds show; beyond 0.310 of the joints'" in shown
     bound = "\n".join(accuracy_markdown({**section, "model_error": {**read,
                                                                     "growth_shown": False}}))  # fmt: skip
     assert "at the most the folds allow" in bound
@@ -83,3 +83,4 @@ def test_report_md_says_when_the_model_error_grows_away_from_the_postures():
         "beyond 0.310 of the joints' ranges from the calibration postures it is not measured"
         in bound
     )
+    assert "held at its value there" in bound and "held at its value there" in shown

@@ -174,8 +174,8 @@ def test_an_accuracy_block_keeps_the_model_errors_growth():
 
 def test_an_accuracy_block_keeps_how_the_folds_saw_the_model_error_grow():
     """The block written by ModelError.to_json carries the variogram's level share and how far
-    it was measured; read back, a growth not shown is the same everywhere and not measured
-    beyond that distance, a growth shown has no such limit."""
+    it was measured; read back, a growth not shown is the same everywhere, a growth shown grows,
+    and either is not measured beyond that distance."""
     from selfcal.calibration.accuracy import ModelError
     from selfcal.calibration.growth import Variogram
 
@@ -202,4 +202,5 @@ def test_an_accuracy_block_keeps_how_the_folds_saw_the_model_error_grow():
     block["model_error"] = dataclasses.replace(me, growth=grown).to_json()
     em = board_error_model_from_json(block, model, "calibration.json")
     assert em.reach_floor == pytest.approx(1e-8 / (1e-8 + 3e-8 * 0.01))
-    assert em.measured_to == np.inf and not em.unmeasured(q_cal + 1.0).any()
+    assert em.measured_to == 0.3 and em.unmeasured(q_cal + 1.0).all()
+    assert not em.unmeasured(q_cal).any()

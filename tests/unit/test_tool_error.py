@@ -167,8 +167,8 @@ def test_a_grown_model_error_is_none_at_the_calibration_postures_and_grows_with_
 
 def test_a_level_that_does_not_grow_and_where_the_model_error_is_not_measured(er4u):
     """A variogram's level (``reach_floor``) stays at the calibration postures and the rest
-    grows; a model error the folds measured only out to some distance, without a growth, is
-    flagged beyond it, in the summary and its line."""
+    grows, out to the distance the folds measured it and held there; beyond it it is flagged,
+    in the summary and its line."""
     rng = np.random.default_rng(4)
     em0 = _error_model(er4u, rng)
     span = er4u.limits[:, 1] - er4u.limits[:, 0]
@@ -179,7 +179,12 @@ def test_a_level_that_does_not_grow_and_where_the_model_error_is_not_measured(er
                              reach_distance=0.05, reach_floor=0.25)  # fmt: skip
     assert em.model_error_factor(q_cal) == pytest.approx(np.full(4, 0.25))
     assert em.model_error_factor(q) == pytest.approx([0.25 + 0.75 * 4.0])
-    assert not em.unmeasured(q).any()  # no limit: the growth was shown
+    assert not em.unmeasured(q).any()  # no limit (an older file)
+    held = dataclasses.replace(em, measured_to=0.08)  # measured out to 0.08: held there
+    assert held.model_error_factor(q) == pytest.approx([0.25 + 0.75 * (0.08 / 0.05) ** 2])
+    assert held.reach is not None and held.reach.factor(q) == pytest.approx(
+        held.model_error_factor(q)
+    )
     flat = dataclasses.replace(em, reach_floor=1.0, measured_to=0.08)
     assert flat.model_error_factor(q) == pytest.approx([1.0])
     assert flat.unmeasured(np.vstack([q_cal, q])).tolist() == [False] * 4 + [True]

@@ -149,7 +149,8 @@ def board_error_model(cr: BoardCramerRao, T_tool_point: np.ndarray, position_m: 
                         np.asarray(T_tool_point, float))  # fmt: skip
     if reach is not None:
         em = dataclasses.replace(em, reach_postures=reach.postures, reach_span=reach.span,
-                                 reach_distance=reach.distance, reach_floor=reach.floor)  # fmt: skip
+                                 reach_distance=reach.distance, reach_floor=reach.floor,
+                                 measured_to=reach.limit)  # fmt: skip
     return em, tuple(param_names(idx[est]))
 
 
@@ -396,9 +397,8 @@ def board_accuracy(obs: BoardObservations, selection: Selection, cr: BoardCramer
     q_cal = np.asarray(obs.q[obs.used], dtype=float)
     reach = None
     if me is not None and me.reach_distance > 0 and span is not None:
-        reach = Reach(q_cal, span, me.reach_distance, me.reach_floor)
+        reach = Reach(q_cal, span, me.reach_distance, me.reach_floor, unmeasured_beyond(me))
     em, names = board_error_model(cr, T_tool_point, pos, rot, reach)
-    em = dataclasses.replace(em, measured_to=unmeasured_beyond(me))
     sample = workspace_sample(q_cal, limits, count=count)
     note = ("no cross-validation (the frames show one arm configuration): the covariance alone, "
             "which is optimistic when the model misfits")  # fmt: skip
