@@ -107,7 +107,7 @@ class ModelError:
     @property
     def reach_floor(self) -> float:
         """The share (0-1) of the model error's variance at :attr:`reach_distance` that does
-        not grow with the distance (1 when the growth was not shown)."""
+        not grow with the distance (1: none of it grows)."""
         if self.growth is None or self.reach_distance <= 0:
             return 0.0
         return self.growth.floor(self.reach_distance)

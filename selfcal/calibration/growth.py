@@ -21,9 +21,10 @@ counted is ``c1``'s one-sided upper confidence bound (:data:`GROWTH_UPPER_Z` sta
 above it, clipped at 0), as the board route counts the held parameters' deviation
 (:mod:`selfcal.calibration.board.held_prior`): the held-out rows lie close to their training
 postures, so ``c1`` is poorly known, and its point estimate, often below 0 where the truth
-grows, would make an extrapolation look measured. The level is then what the pooled excess
-leaves, ``c0 = max(0, (sum y - c1 sum b) / sum a)``: where the rows are, the model error still
-explains their excess. Whether a model error is counted at all is the routes' own test, made
+grows, would make an extrapolation look measured. The bound is capped at what alone explains the
+rows' pooled excess (``c1 sum b = sum y``: all of it growing, in proportion to the distance), and
+the level is what the pooled excess leaves, ``c0 = max(0, (sum y - c1 sum b) / sum a)``: where
+the rows are, the model error still explains their excess. Whether a model error is counted at all is the routes' own test, made
 before; this only splits it.
 
 What the folds measure reaches as far as their held-out rows lie (``measured_to``, the largest

@@ -28,7 +28,8 @@ parts of :mod:`selfcal.calibration.accuracy`:
   read from each held-out frame's excess at its own distance from its fold's training postures
   (:func:`grown_size`, :mod:`selfcal.calibration.growth`: ``c1`` at its 95 % upper bound); ``m``
   is the size at their mean distance (:attr:`ModelError.reach_distance`) and a workspace point
-  gets ``c0 + c1 d^2`` (:class:`selfcal.kinematics.tool_error.ToolErrorModel`). Each held-out
+  gets ``c0 + c1 d^2``, held beyond the held-out frames' largest distance
+  (:class:`selfcal.kinematics.tool_error.ToolErrorModel`). Each held-out
   frame's tool-point error as the pose correction that fits its pixels best (linear least
   squares on the projection's Jacobian, ``B xi``) is kept beside it
   (:class:`selfcal.calibration.accuracy.ModelError`'s held-out RMS): a single view knows it
@@ -43,9 +44,9 @@ point estimate (:mod:`selfcal.calibration.board.held`,
 
 What this cannot see: a model error the same in every frame is absorbed by the placement (board
 pose, hand-eye) and is not seen; how fast a misfit grows is read only out to the held-out
-frames' largest distance from their training postures (``measured_to_distance``: beyond it, the
-growth's bound extrapolated, and when the folds did not show a growth the block says the model
-error is not measured there); the power of the growth (2 for the variance) is assumed; a misfit
+frames' largest distance from their training postures (``measured_to_distance``: beyond it the
+model error is held at its value there and the block says it is not measured); the power of the
+growth (2 for the variance) is assumed; a misfit
 the folds do not show (below two standard errors) is not counted anywhere, however it would grow;
 held-out configurations far outside the others (few configurations) make the folds'
 extrapolation, not the calibration's, the measure.
@@ -262,8 +263,8 @@ def grown_size(excess: np.ndarray, var: np.ndarray, unit: np.ndarray, misfit: np
     A frame at ``d`` has the variance ``c0 + c1 d^2`` in itself; the training frames' share
     (``w``) is taken at ``reach``, the frames' mean distance, as the calibration's own
     covariance takes it: ``excess_i ~ c0 (u_i + w_i) + c1 (u_i d_i^2 + w_i reach^2)``
-    (:func:`selfcal.calibration.growth.fit_variogram`; ``c1 = 0`` unless the folds show the
-    growth). ``m^2 = c0 + c1 reach^2``; with every distance 0 (no spans) the same everywhere,
+    (:func:`selfcal.calibration.growth.fit_variogram`: ``c1`` at its upper confidence bound).
+    ``m^2 = c0 + c1 reach^2``; with every distance 0 (no spans) the same everywhere,
     ``m^2 = sum excess / (sum u + sum w)`` and ``reach`` 0."""
     y, v, u, w, d = (np.asarray(x, dtype=float) for x in (excess, var, unit, misfit, distance))
     reach = float(np.mean(d)) if d.size else 0.0
