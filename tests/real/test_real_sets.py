@@ -390,6 +390,63 @@ def test_check_finds_the_held_out_group_unchanged(name, outcome, runs_dir):
     assert p.returncode == 0 and doc["verdict"] == "unchanged", doc["line"]
 
 
+def _renamed_with(src: Path, extra: Path, out: Path) -> None:
+    """A dataset ``out`` holding the frames of the dataset ``src`` in reversed order under other
+    names (frame i of n becomes n - 1 - i: another file, joints.csv row and planned posture),
+    then those of ``extra``: the same images and joint readings as the two, re-exported."""
+    info = json.loads((src / "dataset.json").read_text())
+    more = json.loads((extra / "dataset.json").read_text())
+    rows = [r.split(",", 1)[1] for r in (src / "joints.csv").read_text().splitlines()[1:]]
+    rows_x = [r.split(",", 1)[1] for r in (extra / "joints.csv").read_text().splitlines()[1:]]
+    n = len(rows)
+    assert n == len(info["trajectory_joints_deg"]), "a frame without its joints row"
+    (out / "frames").mkdir(parents=True)
+    order = [(src, i) for i in reversed(range(n))] + [(extra, i) for i in range(len(rows_x))]
+    joints, sources = [], []
+    for k, (ds, i) in enumerate(order):
+        shutil.copy(ds / "frames" / f"{i:04d}_cam0.png", out / "frames" / f"{k:04d}_cam0.png")
+        joints.append(f"{k},{(rows if ds == src else rows_x)[i]}")
+        sources.append(f"{k},cam0,{ds / 'frames' / f'{i:04d}_cam0.png'}")
+    head = (src / "joints.csv").read_text().splitlines()[0]
+    (out / "joints.csv").write_text("\n".join([head, *joints]) + "\n")
+    (out / "sources.csv").write_text("\n".join(["index,camera,source", *sources]) + "\n")
+    info["trajectory_joints_deg"] = (info["trajectory_joints_deg"][::-1]
+                                     + more["trajectory_joints_deg"])  # fmt: skip
+    (out / "dataset.json").write_text(json.dumps(info))
+    shutil.copytree(src / "robot", out / "robot")
+
+
+@pytest.mark.parametrize("name", [c for c in cases("check") if c.values[0] != ICAL])
+def test_check_leaves_out_the_calibrations_own_images(name, outcome, runs_dir):
+    """`selfcal check CAL CAL` (the calibration's own images, what a new user tries first) said
+    on photoneo "changed by 0.000 mm at the tool point ... p = 0.001; what changed: the
+    camera's intrinsics (fx +1.727, k1 -0.008)": their residuals are the fit's, which the check's
+    directed tests, weighing each view by its own misfit, read as a camera change
+    (selfcal/calibration/drift/own.py). Its own images are now left out and counted: unchanged
+    (exit 0), nothing tested. Found by content, not by name: the same images re-exported in
+    reversed order under other names, with the held-out group beside them, leave the held-out
+    images tested (unchanged, as test_check_finds_the_held_out_group_unchanged) and the
+    calibration's own counted."""
+    outcome.held_out_rms()  # import and calibrate ran
+    cal, held = runs_dir / name / "calib", runs_dir / name / "held"
+    n_cal, n_held = len(outcome.kept["calib"]), len(outcome.kept["held"])
+    p = subprocess.run([_selfcal_exe(), "check", str(cal), str(cal), "--json"],
+                       capture_output=True, text=True, timeout=1200, check=False)  # fmt: skip
+    assert p.returncode == 0, p.stdout + p.stderr
+    doc = json.loads(p.stdout)
+    assert doc["verdict"] == "unchanged" and doc["images"] == 0 and doc["own_images"] == n_cal
+    assert doc["line"].startswith(f"unchanged as far as these images can tell: all {n_cal} ")
+
+    mixed = runs_dir / name / "renamed-with-held"
+    _renamed_with(cal, held, mixed)
+    p = subprocess.run([_selfcal_exe(), "check", str(cal), str(mixed), "--json"],
+                       capture_output=True, text=True, timeout=1200, check=False)  # fmt: skip
+    assert p.returncode == 0, p.stdout + p.stderr
+    doc = json.loads(p.stdout)
+    assert doc["images"] == n_held and doc["own_images"] == n_cal, doc["line"]
+    assert f"{n_cal} more image(s) are the calibration's own" in doc["line"]
+
+
 @pytest.mark.parametrize("name", [c for c in cases("check_lens") if c.values[0] != ICAL])
 def test_check_finds_a_small_lens_change_in_the_calibration(name, outcome, runs_dir):
     """The held-out group (real images of the unchanged arm) checked against the calibration

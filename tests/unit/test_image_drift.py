@@ -138,6 +138,46 @@ def test_a_lens_change_is_named_the_camera(setup):
     assert res.best == "camera" and res.change_mm == 0.0
     assert res.to_json()["cause"]["cause"] == "camera"
     assert "k1 +0.0" in res.line()
+    # a camera change moves no tool point: the verdict says so, not "changed by 0.000 mm"
+    assert "changed by" not in res.line() and "moves no tool point" in res.line()
+    assert res.tool_bound_mm > 0.0 and f"at most {res.tool_bound_mm:.3f} mm" in res.line()
+
+
+def test_a_wrist_roll_offset_says_it_turns_the_tool(setup):
+    """0.3 deg on joint 5, the ER-4u's wrist roll, whose axis runs through the tool point: the
+    change moves that point by nothing (1e-16 m), which the verdict said as "changed by 0.000
+    mm"; it now says that it turns the tool, by the fitted 0.31 deg RMS."""
+    e2h, _, _, views, C = setup
+    rng = np.random.default_rng(2)
+    r = np.concatenate([v.joints[:, 4] * np.radians(0.3) + rng.normal(0, SIGMA_PX, len(v.r))
+                        for v in views])  # fmt: skip
+    res = image_drift_check(C, _with(views, r), eye_to_hand=e2h, camera_names=FREE)
+    assert res.changed and res.best == "joint 5" and res.change_mm < 1e-9
+    assert res.turn_deg == pytest.approx(0.3, abs=0.03)
+    assert "changed by" not in res.line()
+    assert f"turns the tool by {res.turn_deg:.4f} deg RMS" in res.line()
+
+
+def test_a_camera_change_bounds_a_hidden_move_of_the_mount(setup):
+    """The lens change of the test above with the camera's mount (eye-to-hand the board's) moved
+    0.5 mm in a random direction beside it, under the assumed noise: the camera still fits best,
+    and the verdict's tool-point bound (95 %) covers the mount's 0.5 mm move in every one of 20
+    draws (40 of 40 over 40 draws; the bound's median 1.9 / 5.0 mm eye-in-hand / eye-to-hand,
+    the largest over the kinematic changes, each fitted beside the camera's)."""
+    e2h, _, _, views, C = setup
+    L = np.linalg.cholesky(_covariance(C, views))
+    rng = np.random.default_rng(5)
+    k1 = FREE.index("k1")
+    for _ in range(20):
+        t = rng.normal(size=3)
+        t *= 0.5e-3 / np.linalg.norm(t)
+        r = np.concatenate([v.cam[:, k1] * 0.02 + v.tool[:, :3] @ t for v in views])
+        res = image_drift_check(C, _with(views, r + L @ rng.normal(size=len(L))),
+                                eye_to_hand=e2h, camera_names=FREE)  # fmt: skip
+        moved = np.sqrt(np.mean([np.sum((v.B[:3, :3] @ t) ** 2) for v in views])) * 1e3
+        assert res.changed and res.best == "camera"
+        assert moved == pytest.approx(0.5) and res.tool_bound_mm >= moved
+        assert res.to_json()["tool_bound_mm"] == res.tool_bound_mm
 
 
 def test_a_depth_change_and_a_focal_change_cannot_be_told_apart(setup):

@@ -39,8 +39,14 @@ the smallest of these ``1 + 5 + n`` p-values, times their count (Bonferroni,
 :func:`selfcal.calibration.drift.p_value.combined_p`), is below ``alpha`` (0.01): when
 ``Sigma`` is right, at most ``alpha`` of the checks of an unchanged robot say "changed".
 
+New images that are the calibration's own frames (the same joint readings and detections) are
+left out of the test and counted (:mod:`selfcal.calibration.drift.own`: their residuals are the
+fit's, not independent of its estimate; the test read them as a camera change on a real set).
+
 The change at the tool: the RMS over the new postures of the tool point's (the flange's) move
-by the candidate change that fits best, fitted (0 when that is the camera). A single view's own
+by the candidate change that fits best, fitted; when that is the camera (which moves no tool
+point) the verdict bounds what a kinematic change fitted beside it moves the tool point
+(:func:`kinematic_bound_mm`). A single view's own
 best tool-point move is no measure of it: one view knows it poorly along its line of sight.
 
 What changed (:mod:`selfcal.calibration.drift.attribution`) is named only when one kind of
@@ -56,12 +62,14 @@ from pathlib import Path
 
 import numpy as np
 from scipy.linalg import solve_triangular
+from scipy.stats import chi2
 
 from selfcal.calibration.board.accuracy import board_error_model_from_json, board_postures_from_json
 from selfcal.calibration.board.evaluate import held_out_views
 from selfcal.calibration.board.folds import unseen
 from selfcal.calibration.board.view_jitter import view_jitter_from_json
-from selfcal.calibration.drift.attribution import Attribution, attribute, candidate_fits
+from selfcal.calibration.drift.attribution import Attribution, Fits, attribute, candidate_fits
+from selfcal.calibration.drift.own import own_views
 from selfcal.calibration.drift.p_value import combined_p, min_p, p_text
 from selfcal.calibration.drift.views import ViewJacobians, view_jacobians
 from selfcal.errors import InputError
@@ -94,6 +102,14 @@ UNSEEN_NOTE = (
 )
 """What a "changed" verdict adds when views are at arm configurations the calibration did not
 see (issue #29: each real Nachi set's held-out configurations, docs/real-data.md)."""
+OWN_NOTE = (
+    "a change the calibration absorbed cannot show in them: check with images recorded since "
+    "the calibration"
+)
+"""What a verdict says of new images that are the calibration's own frames (their joint
+readings and board detections, :mod:`selfcal.calibration.drift.own`): left out of the test."""
+BOUND_LEVEL = 0.95
+"""The confidence of the tool-point bound a camera change's verdict gives."""
 
 
 @dataclass(frozen=True)
@@ -109,7 +125,15 @@ class ImageDriftCheck:
         None when unchanged; unseen: how many views are at an arm configuration none of the
         calibration's postures has (:func:`selfcal.calibration.board.folds.unseen`; 0 where
         not known): the check's false-alarm rate there is measured in simulation only
-        (:data:`UNSEEN_NOTE`).
+        (:data:`UNSEEN_NOTE`); own: how many new images are the calibration's own frames
+        (:mod:`selfcal.calibration.drift.own`), left out of the test (``views`` counts the
+        others; none left: nothing tested, ``p_value`` 1, ``expected_rms_px`` NaN and
+        ``rms_px`` their fit's RMS); tool_bound_mm: when the best change is the camera's (it
+        moves no tool point), the largest RMS tool-point move a kinematic change fitted beside
+        it reaches at :data:`BOUND_LEVEL` confidence (:func:`kinematic_bound_mm`; 0 otherwise);
+        turn_deg: the RMS over the views of the tool's rotation by the best change (deg; the
+        verdict gives it where the tool point moves less than 0.001 mm, as a wrist joint's
+        offset turns the tool about the flange).
     """
 
     views: int
@@ -126,22 +150,46 @@ class ImageDriftCheck:
     best: str = ""
     attribution: Attribution | None = None
     unseen: int = 0
+    own: int = 0
+    tool_bound_mm: float = 0.0
+    turn_deg: float = 0.0
+
+    def _own_line(self) -> str:
+        if not self.own:
+            return ""
+        return (f"; {self.own} more image(s) are the calibration's own (its frames' joint "
+                f"readings and board detections), left out of the test: {OWN_NOTE}")  # fmt: skip
 
     def line(self) -> str:
         """The verdict in one line."""
+        if self.views == 0:
+            return (f"unchanged as far as these images can tell: all {self.own} are the "
+                    f"calibration's own (its frames' joint readings and board detections; "
+                    f"{self.rms_px:.3f} px RMS, its fit's), not tested: {OWN_NOTE}")  # fmt: skip
         what = f"{self.views} new image(s), {self.corners} corners"
-        if self.changed:
+        fit = (f"{what}: {self.rms_px:.3f} px RMS against the predicted "
+               f"{self.expected_rms_px:.3f} px; {p_text(self.p_value)} < {self.alpha:g}")  # fmt: skip
+        if self.changed and self.best == "camera":
+            out = (f"changed (the best single change, the camera's intrinsics, moves no tool "
+                   f"point; a change of a mount or of one joint's offset fitted beside it "
+                   f"moves the tool point, the flange, by at most {self.tool_bound_mm:.3f} mm "
+                   f"RMS at {BOUND_LEVEL:.0%} confidence; {fit})")  # fmt: skip
+        elif self.changed and self.change_mm < 5e-4:  # it turns the tool about its point
+            out = (f"changed (the best single change, {self.best}, moves the tool point, the "
+                   f"flange, by less than 0.001 mm and turns the tool by {self.turn_deg:.4f} "
+                   f"deg RMS; {fit})")  # fmt: skip
+        elif self.changed:
             out = (f"changed by {self.change_mm:.3f} mm at the tool point (the flange, as the "
-                   f"best single change, {self.best}, fits it; {what}: {self.rms_px:.3f} px "
-                   f"RMS against the predicted {self.expected_rms_px:.3f} px; "
-                   f"{p_text(self.p_value)} < {self.alpha:g})")  # fmt: skip
+                   f"best single change, {self.best}, fits it; {fit})")  # fmt: skip
+        if self.changed:
             out = out if self.attribution is None else f"{out}; {self.attribution.line()}"
             if self.unseen:
                 out += (f"; {self.unseen} of {self.views} image(s) at arm configurations the "
                         f"calibration did not see: {UNSEEN_NOTE}")  # fmt: skip
-            return out
+            return out + self._own_line()
         return (f"unchanged: {what} within the calibration's prediction ({self.rms_px:.3f} px "
-                f"RMS, predicted {self.expected_rms_px:.3f} px; {p_text(self.p_value)})")  # fmt: skip
+                f"RMS, predicted {self.expected_rms_px:.3f} px; {p_text(self.p_value)})"
+                + self._own_line())  # fmt: skip
 
     def to_json(self) -> dict:
         """The result as JSON (px, mm)."""
@@ -149,14 +197,19 @@ class ImageDriftCheck:
             "verdict": "changed" if self.changed else "unchanged",
             "line": self.line(),
             "images": self.views,
+            "own_images": self.own,
             "corners": self.corners,
             "statistic": self.statistic,
             "dof": self.dof,
             "p_value": self.p_value,
             "alpha": self.alpha,
             "rms_px": self.rms_px,
-            "expected_rms_px": self.expected_rms_px,
+            "expected_rms_px": (
+                self.expected_rms_px if np.isfinite(self.expected_rms_px) else None
+            ),  # fmt: skip
             "change_mm": self.change_mm,
+            "tool_bound_mm": self.tool_bound_mm,
+            "turn_deg": self.turn_deg,
             "best_single_change": self.best,
             "mean_tool_point_mm": self.mean_tip_mm.tolist(),
             "cause": None if self.attribution is None else self.attribution.to_json(),
@@ -176,17 +229,51 @@ def _covariance(C: np.ndarray, views: list[ViewJacobians]) -> np.ndarray:
     return sigma
 
 
-def tool_point_moves(key: str, x: np.ndarray, views: list[ViewJacobians]) -> np.ndarray:
-    """(m, 3) m the tool point's move (world frame) at every view by the candidate change
-    ``key`` (:mod:`selfcal.calibration.drift.attribution`) of size ``x``: 0 for the camera."""
-    if key == "camera":
-        return np.zeros((len(views), 3))
+def _twist_map(key: str, views: list[ViewJacobians]) -> np.ndarray:
+    """(m, 6, d) the tool point's move (m) and the tool's rotation (rad), world frame, at every
+    view per unit of the kinematic candidate ``key``'s d parameters
+    (:mod:`selfcal.calibration.drift.attribution`)."""
     if key == "hand-eye":
-        return np.array([(v.B @ x)[:3] for v in views])
+        return np.array([v.B for v in views])
     if key == "world":
-        return np.array([(v.B @ v.Ad @ x)[:3] for v in views])
+        return np.array([v.B @ v.Ad for v in views])
     j = int(key.split(" ")[1]) - 1
-    return np.array([(v.B @ v.tw[:, j] * x[0])[:3] for v in views])
+    return np.array([v.B @ v.tw[:, j : j + 1] for v in views])
+
+
+def tool_point_moves(key: str, x: np.ndarray, views: list[ViewJacobians]) -> np.ndarray:
+    """(m, 6) the tool point's move (m) and the tool's rotation (rad), world frame, at every
+    view by the candidate change ``key`` (:mod:`selfcal.calibration.drift.attribution`) of
+    size ``x``: 0 for the camera."""
+    if key == "camera":
+        return np.zeros((len(views), 6))
+    return _twist_map(key, views) @ x
+
+
+def kinematic_bound_mm(fits: Fits, rw: np.ndarray, views: list[ViewJacobians],
+                       level: float = BOUND_LEVEL) -> float:  # fmt: skip
+    """The largest RMS tool-point move (over the views, mm) that a kinematic candidate (the
+    mounts, a joint's offset) fitted beside the camera's change reaches at confidence ``level``:
+    per candidate its fitted move plus the confidence ellipsoid's largest RMS move (the whitened
+    fit's parameters have the covariance ``(D^T D)^-1``), the largest over the candidates.
+    ``fits`` the candidates' whitened columns, ``rw`` the whitened residuals."""
+    cols = fits.directed_columns
+    cam = cols["camera"]
+    worst = 0.0
+    for key in fits.what:
+        if key == "camera":
+            continue
+        G = (np.concatenate([cols[f"{key} translation"], cols[f"{key} rotation"]], axis=1)
+             if key in ("hand-eye", "world") else cols[key])  # fmt: skip
+        D = np.concatenate([cam, G], axis=1)
+        x = np.linalg.lstsq(D, rw, rcond=None)[0][cam.shape[1] :]
+        cov = np.linalg.pinv(D.T @ D)[cam.shape[1] :, cam.shape[1] :]
+        M = _twist_map(key, views)[:, :3].reshape(-1, G.shape[1]) / np.sqrt(len(views))
+        # |M x| = the moves' RMS
+        spread = float(np.max(np.linalg.eigvalsh(M @ cov @ M.T)))
+        reach = np.linalg.norm(M @ x) + np.sqrt(chi2.ppf(level, G.shape[1]) * max(spread, 0.0))
+        worst = max(worst, float(reach))
+    return worst * 1e3
 
 
 def image_drift_check(C: np.ndarray, views: list[ViewJacobians], *,
@@ -223,8 +310,10 @@ def image_drift_check(C: np.ndarray, views: list[ViewJacobians], *,
     p = (min_p(T, dof, fits.directed, fits.directed_columns) if exact
          else combined_p(T, dof, fits.directed))  # fmt: skip
     best = fits.best(T)
-    moves = tool_point_moves(best, fits.x[best], views)
+    twists = tool_point_moves(best, fits.x[best], views)
+    moves = twists[:, :3]
     changed = p < alpha
+    bound = kinematic_bound_mm(fits, rw, views) if changed and best == "camera" else 0.0
     return ImageDriftCheck(
         views=len(views),
         corners=dof // 2,
@@ -235,11 +324,13 @@ def image_drift_check(C: np.ndarray, views: list[ViewJacobians], *,
         rms_px=float(np.sqrt(np.sum(r**2) / (dof // 2))),
         expected_rms_px=float(np.sqrt(np.trace(sigma) / (dof // 2))),
         change_mm=float(np.sqrt(np.mean(np.sum(moves**2, axis=1)))) * 1e3,
+        turn_deg=float(np.degrees(np.sqrt(np.mean(np.sum(twists[:, 3:] ** 2, axis=1))))),
         mean_tip_mm=moves.mean(axis=0) * 1e3,
         best=best,
         alpha=alpha,
         attribution=attribute(fits, T, dof, views, camera_names=camera_names, alpha=alpha)
         if changed else None,
+        tool_bound_mm=bound,
     )  # fmt: skip
 
 
@@ -346,7 +437,8 @@ def check_images(calibration: str | Path, new_data: str | Path, *,
     calibrate`` reads: a few images of the calibration's board with joint readings, any
     postures) against the board calibration ``calibration`` (the folder of ``selfcal
     calibrate`` or its ``calibration.json``) with its ``accuracy`` and ``bounds`` blocks
-    (module docstring).
+    (module docstring). New images that are the calibration's own frames (their joint readings
+    and detections, :mod:`selfcal.calibration.drift.own`) are left out of the test and counted.
 
     Raises:
         InputError: the calibration is missing, not a board calibration or has no accuracy
@@ -365,12 +457,21 @@ def check_images(calibration: str | Path, new_data: str | Path, *,
     cal = read_board_calibration(path)
     em = calibration_error_model(cal, str(path))
     held = held_out_views(cal, new_data, cameras=(cal.camera_names[0],))
+    own = own_views(cal, path, held, cal.camera_names[0])
     views = calibration_views(
         cal, em, held.q, [(f, X, uv) for _, f, _, _, X, uv in held.views], where=str(path)
     )
-    res = image_drift_check(estimate_covariance(cal, em), views, eye_to_hand=cal.eye_to_hand,
+    tested = [v for v, o in zip(views, own, strict=True) if not o]
+    if not tested:  # every image is the calibration's own: nothing the test may use
+        r = np.concatenate([v.r for v in views])
+        rms = float(np.sqrt(np.sum(r**2) / (len(r) // 2)))
+        return ImageDriftCheck(views=0, corners=0, statistic=0.0, dof=0, p_value=1.0,
+                               changed=False, rms_px=rms, expected_rms_px=float("nan"),
+                               change_mm=0.0, mean_tip_mm=np.zeros(3), alpha=alpha,
+                               own=len(views))  # fmt: skip
+    res = image_drift_check(estimate_covariance(cal, em), tested, eye_to_hand=cal.eye_to_hand,
                             camera_names=cal.cameras[0].free, alpha=alpha)  # fmt: skip
     q_cal = board_postures_from_json(cal.accuracy or {}, cal.model.n, str(path))
-    frames = [f for _, f, _, _, _, _ in held.views]
+    frames = [v[1] for v, o in zip(held.views, own, strict=True) if not o]
     new = unseen(held.q[frames], q_cal, cal.model.joint_types)
-    return replace(res, unseen=int(np.count_nonzero(new)))
+    return replace(res, unseen=int(np.count_nonzero(new)), own=int(np.count_nonzero(own)))
