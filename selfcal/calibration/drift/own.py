@@ -70,9 +70,17 @@ def own_views(cal: BoardCalibrationResult, path: Path, held: HeldOutViews,
     """(len(held.views),) bool: which of the new views ``held`` (of ``camera``) are frames of
     the calibration ``cal`` (its file ``path``) by their joints and detections (module
     docstring); all False when the calibration's dataset is not beside its file."""
+    # only views at the calibration's own postures (its accuracy block's) can be its frames:
+    # without one the check reads nothing more (the calibration's images are not detected)
+    q_cal = board_postures_from_json(cal.accuracy or {}, cal.model.n, str(path))
+
+    def posed(q: np.ndarray) -> bool:
+        return bool(np.any(np.all(np.abs(q_cal - q) <= JOINT_TOL, axis=1)))
+
+    none = np.zeros(len(held.views), bool)
     root = calibration_dataset(path)
-    if root is None:
-        return np.zeros(len(held.views), bool)
+    if root is None or not any(posed(held.q[v[1]]) for v in held.views):
+        return none
     if Path(held.root).resolve() == root.resolve():
         mine = held  # the same folder: its views were read already
     else:
@@ -81,13 +89,10 @@ def own_views(cal: BoardCalibrationResult, path: Path, held: HeldOutViews,
                 warnings.simplefilter("ignore")
                 mine = held_out_views(cal, root, cameras=(camera,))
         except SelfCalError:  # a folder beside it that is not its dataset (edited, moved)
-            return np.zeros(len(held.views), bool)
-    # only frames at the calibration's own postures (its accuracy block's): a dataset beside
-    # the file that is not the one it calibrated has none of its frames
-    q_cal = board_postures_from_json(cal.accuracy or {}, cal.model.n, str(path))
+            return none
     by_points: dict[int, list[tuple]] = {}
-    for v in mine.views:
-        if np.any(np.all(np.abs(q_cal - mine.q[v[1]]) <= JOINT_TOL, axis=1)):
+    for v in mine.views:  # a dataset beside the file that it did not calibrate: none of these
+        if posed(mine.q[v[1]]):
             by_points.setdefault(len(v[4]), []).append(v)
     return np.array([any(_same(v, m, held.q, mine.q) for m in by_points.get(len(v[4]), []))
                      for v in held.views], bool)  # fmt: skip
