@@ -18,7 +18,7 @@ if TYPE_CHECKING:
     from selfcal.sim.markers import MarkerField
 
 from selfcal.console.common import CliError, note_written, writing
-from selfcal.errors import EstimationError, SelfCalError, SelfCalWarning
+from selfcal.errors import EstimationError, InputError, SelfCalError, SelfCalWarning
 
 __all__ = ["FIELD_EPILOG", "add_field_options", "check_field_options", "cmd_field", "is_field"]
 
@@ -33,10 +33,12 @@ and the kinematics estimated, the scale from the one known distance). The field 
 table (z = 0) in a square of --field-extent-mm centred where the home posture's optical axis
 meets it (as the simulated field does); every posture shows each camera at least 6 points of a
 6 x 6 grid over it (the planner's visibility rule), lies within the joint ranges and is free of
-self-collision, the table and the keep-out boxes; the postures are the field route's D-optimal
-choice from --candidates random ones. The forecast is the field route's Cramer-Rao bound of the
-flange centre's error over 50 workspace postures (the plan's and a random plan's of the same
-size) for --markers markers of --marker-mm laid as scenario.toml's simulated field lays them.
+self-collision, the table and the keep-out boxes. The forecast is the field route's Cramer-Rao
+bound of the flange centre's error over 50 workspace postures (the plan's and a random plan's
+of the same size) for --markers markers of --marker-mm laid as scenario.toml's simulated field
+lays them; the postures are, of --candidates random ones, the choice with the least forecast
+of three: the field route's D-optimal choice, and the board plan's greedy choice and exchange
+on the predicted tool-point error (plan.json's chosen_by and choices_tool_rms_mm).
 Eye-in-hand, one camera; --board-pose, --camera-pose and --mount eye-to-hand are refused,
 as is --add to a field's dataset.
 See docs/plan.md.
@@ -216,17 +218,18 @@ def cmd_field(
                            "--marker-mm 30; at most 48 markers (DICT_4X4_50 less the two "
                            "scale markers), a scale length inside the extent") from e  # fmt: skip
     _warn_unlike_the_replay(args.target, fld.dictionary, fld.scale_ids)
-    try:
-        plan = plan_field(setup, args.count, seed=args.seed, candidates=args.candidates,
-                          markers=args.markers, pixel_sigma_px=args.pixel_sigma, joint_sigma=js)  # fmt: skip
-    except DegenerateTrajectoryError as e:
+    try:  # the workspace the forecast averages over: where the plan's choice is judged too
+        ws = forecast_workspace(setup, seed=args.seed + 1)
+        plan = plan_field(setup, args.count, layout, ws, seed=args.seed,
+                          candidates=args.candidates, markers=args.markers,
+                          pixel_sigma_px=args.pixel_sigma, joint_sigma=js)  # fmt: skip
+    except (DegenerateTrajectoryError, InputError) as e:
         raise CliError(f"no field plan of {args.count} postures: {e.message}",
                        fix="free the arm's room (fewer or smaller --keep-out boxes), give more "
                        "--candidates, or a camera that sees the field from more postures "
                        "(a wider --fov-deg)") from e  # fmt: skip
     n = len(plan.q)
     scenario = scenario_text(ref, camera, None, n, deviation=deviation_of(args), field=field)
-    ws = forecast_workspace(setup, seed=args.seed + 1)
     fc = {k: field_forecast(setup, layout, q, ws, pixel_sigma_px=args.pixel_sigma,
                             joint_sigma=js) for k, q in (("plan", plan.q), ("random", plan.q_random))}  # fmt: skip
     if fc["plan"].tool_rms_m is None:
@@ -256,6 +259,10 @@ def cmd_field(
             "predicted_fx_std_px": fc["plan"].fx_std_px,
             "random_fx_std_px": fc["random"].fx_std_px,
             "no_bound": {k: f.why for k, f in fc.items() if f.tool_rms_m is None},
+            "chosen_by": plan.chosen_by,
+            "choices_tool_rms_mm": {
+                k: None if v is None else round(v * 1000, 4) for k, v in plan.choices.items()
+            },  # fmt: skip
             "criterion": criterion,
             "field": field,
             "candidates": plan.candidates,

@@ -70,6 +70,19 @@ def test_the_postures_reach_do_not_collide_and_see_the_field(planned):
     assert doc["path_deg"] < doc["random_path_deg"]
 
 
+def test_the_plan_is_the_choice_with_the_least_forecast(planned):
+    """Of the three choices (the D-optimal one, the tool-point greedy choice and exchange, the
+    D-optimal one exchanged), the plan is the one whose forecast is least, and that forecast is
+    the one the command reports for the plan (the same workspace and markers)."""
+    from selfcal.calibration.field.plan import CHOICES
+
+    doc = json.loads((planned / "plan/plan.json").read_text())
+    got = doc["choices_tool_rms_mm"]
+    assert set(got) == set(CHOICES) and doc["chosen_by"] in CHOICES
+    assert got[doc["chosen_by"]] == min(got.values())
+    assert got[doc["chosen_by"]] == pytest.approx(doc["predicted_tool_rms_mm"], abs=2e-4)
+
+
 def test_the_replay_sees_the_field_in_every_posture_and_calibrates(planned):
     with open(planned / "run/detections.csv") as f:
         frames = {int(r["index"]) for r in csv.DictReader(f)}

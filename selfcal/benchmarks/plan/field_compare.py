@@ -62,20 +62,24 @@ def field_sets(root: Path, count: int = 12, random_counts: tuple[int, ...] = (30
     setup = FieldPlanSetup(robot, Rig((camera,), np.eye(4)[None], ("left",)),
                            FIELD["extent_mm"] / 1000, np.zeros((0, 6)))  # fmt: skip
     js = encoder_sigma(robot)
-    sets = {f"plan {count}": plan_field(setup, count, seed=1, candidates=400, markers=20,
-                                        pixel_sigma_px=0.5, joint_sigma=js).q}  # fmt: skip
-    for n in random_counts:
-        sets[f"random {n}"] = plan_field(setup, n, seed=1, candidates=400, markers=20,
-                                         pixel_sigma_px=0.5, joint_sigma=js).q_random  # fmt: skip
     ws = forecast_workspace(setup, seed=2)
+    names = [f"plan {count}"] + [f"random {n}" for n in random_counts]
+    for name in names:
+        (root / name.replace(" ", "-")).mkdir(parents=True, exist_ok=True)
+    # the forecast's markers: the replays' simulated field (the same for every set)
+    first = root / names[0].replace(" ", "-") / "scenario.toml"
+    write_text_atomic(first, scenario_text("ur5e", camera, None, count, field=FIELD))
+    layout, _ = replay_layout(first, FIELD["scale_length_mm"] / 1000)
+    kw = {"seed": 1, "candidates": 400, "markers": 20, "pixel_sigma_px": 0.5, "joint_sigma": js}
+    sets = {names[0]: plan_field(setup, count, layout, ws, **kw).q}
+    for name, n in zip(names[1:], random_counts, strict=True):
+        sets[name] = plan_field(setup, n, layout, ws, **kw).q_random
     out: dict = {}
     for name, q in sets.items():
         folder = root / name.replace(" ", "-")
-        folder.mkdir(parents=True, exist_ok=True)
         write_text_atomic(folder / "joints.csv", joints_csv(q, robot.edge_unit))
         write_text_atomic(folder / "scenario.toml",
                           scenario_text("ur5e", camera, None, len(q), field=FIELD))  # fmt: skip
-        layout, _ = replay_layout(folder / "scenario.toml", FIELD["scale_length_mm"] / 1000)
         fc = field_forecast(setup, layout, q, ws, pixel_sigma_px=0.5, joint_sigma=js)
         out[name] = (folder / "scenario.toml", q / robot.edge_unit, fc.tool_rms_m)
     return out

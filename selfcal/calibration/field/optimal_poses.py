@@ -62,7 +62,9 @@ class OptimalPlan:
     """A D-optimal plan: ``q`` (n_poses, n) rad; ``logdet`` of the proxy information of the
     free kinematic parameters (``free`` names); ``candidates`` in the pool after the collision
     check (``rejected_collision`` removed); ``exchanges`` made; ``logdet_random`` of the first
-    ``n_poses`` pool postures (a random plan of the same size, for contrast)."""
+    ``n_poses`` pool postures (a random plan of the same size, for contrast); ``pool`` (c, n)
+    rad the candidates after the collision check and ``chosen`` (n_poses,) the indices of
+    ``q`` in it."""
 
     q: np.ndarray
     logdet: float
@@ -71,6 +73,8 @@ class OptimalPlan:
     candidates: int
     rejected_collision: int
     exchanges: int
+    pool: np.ndarray
+    chosen: np.ndarray
 
 
 def _camera_info(
@@ -272,7 +276,8 @@ def plan_optimal_postures(
     B = kinematic_information(model_cam, pool, W, idx[free])
     chosen, logdet, exch = select_d_optimal(B, n_poses, max_passes=max_passes)
     Fr = np.einsum("nir,njr->ij", B[:n_poses], B[:n_poses])
-    q = pool[np.sort(chosen)]
+    chosen = np.sort(chosen)
+    q = pool[chosen]
     check_not_degenerate(fk_tool(model_cam, q))
     return OptimalPlan(
         q=q,
@@ -282,4 +287,6 @@ def plan_optimal_postures(
         candidates=int(len(pool)),
         rejected_collision=rejected,
         exchanges=exch,
+        pool=pool,
+        chosen=chosen,
     )

@@ -2,9 +2,8 @@
 paper's self-calibration: the camera's focal length and lens unknown, the markers' positions
 unknown, one known distance for the scale, the MCPC parameters identified) and their forecast.
 
-The postures are the field route's D-optimal choice (:func:`selfcal.calibration.field.
-optimal_poses.plan_optimal_postures`) from random candidates of the planning window around home
-(the robot file's ``[planning] span_deg``) that
+The postures are chosen from random candidates of the planning window around home (the robot
+file's ``[planning] span_deg``) that
 
 - lie within the joint ranges;
 - are free of self-collision and of the table (the capsule chain of
@@ -18,7 +17,17 @@ optimal_poses.plan_optimal_postures`) from random candidates of the planning win
 
 The field's region is a square on the table (z = 0, base frame) centred where the home posture's
 optical axis meets it (:func:`selfcal.kinematics.trajectory.home_target_center`), as the simulated
-field lies. The random plan of the same size is the first ``count`` candidates of the same
+field lies. Of the candidates, three choices of ``count`` (:data:`CHOICES`) are forecast and
+the plan is the one with the smallest forecast tool-point error (:func:`field_forecast`, what
+the plan is judged by): the field route's D-optimal choice (:func:`selfcal.calibration.field.
+optimal_poses.plan_optimal_postures`: the log-determinant of the kinematic parameters' proxy
+information), and the board plan's criterion and code on the field's information (the
+predicted tool-point error over the workspace, ``sqrt(trace(G C))``,
+:mod:`selfcal.calibration.field.plan_information`): its greedy choice improved by its exchange
+(:func:`selfcal.calibration.board.plan.greedy.select_greedy`, :func:`~selfcal.calibration.
+board.plan.greedy.exchange`), and its exchange started from the D-optimal choice. That
+criterion takes the markers' corners as known (the forecast estimates them), so no one choice
+is best on every cell. The random plan of the same size is the first ``count`` candidates of the same
 filters (:func:`selfcal.kinematics.trajectory.plan_postures` with the same seed).
 
 The forecast (:func:`field_forecast`) is the field route's Cramer-Rao bound
@@ -38,11 +47,17 @@ from functools import cached_property
 
 import numpy as np
 
+from selfcal.calibration.board.plan.greedy import exchange, select_greedy
 from selfcal.calibration.board.plan.ground import workspace_sample
 from selfcal.calibration.board.plan.path import order_path, path_length
 from selfcal.calibration.field.bounds import BoundsError, cramer_rao
 from selfcal.calibration.field.bounds_setup import predicted_setup
 from selfcal.calibration.field.optimal_poses import plan_optimal_postures
+from selfcal.calibration.field.plan_information import (
+    FieldLayout,
+    frame_information,
+    tool_weight,
+)
 from selfcal.camera import Rig
 from selfcal.kinematics.keep_out import check_boxes, outside_boxes
 from selfcal.kinematics.mcpc import MCPCModel, nominal_mcpc
@@ -57,6 +72,7 @@ __all__ = [
     "FieldPlan",
     "FieldLayout",
     "FieldForecast",
+    "CHOICES",
     "plan_field",
     "field_forecast",
     "forecast_workspace",
@@ -65,6 +81,8 @@ __all__ = [
 
 GRID_SIDE = 6
 """The planning grid over the field's region: GRID_SIDE x GRID_SIDE points (the scenarios')."""
+CHOICES = ("D-optimal", "tool-point exchange", "D-optimal, tool-point exchange")
+"""The choices a field plan is the best of by its forecast (module docstring)."""
 
 
 @dataclass(frozen=True)
@@ -121,8 +139,10 @@ class FieldPlan:
     home, :func:`selfcal.calibration.board.plan.path.order_path`), ``q_random`` the random plan of
     the same size; ``path_rad``/``random_path_rad`` their joint paths (the sum of every step's
     largest joint move); ``candidates`` in the pool after the collision check
-    (``rejected_collision`` removed); ``logdet``/``logdet_random`` the selector's proxy
-    information of each; ``exchanges`` the selector's swaps."""
+    (``rejected_collision`` removed); ``logdet``/``logdet_random`` the D-optimal selector's proxy
+    information of its choice and of the random plan; ``exchanges`` its swaps; ``chosen_by``
+    which of :data:`CHOICES` the plan is and ``choices`` every choice's forecast (m; None: no
+    bound), the plan's the smallest (module docstring)."""
 
     q: np.ndarray
     q_random: np.ndarray
@@ -133,11 +153,15 @@ class FieldPlan:
     logdet: float
     logdet_random: float
     exchanges: int
+    chosen_by: str
+    choices: dict[str, float | None]
 
 
 def plan_field(
     setup: FieldPlanSetup,
     count: int,
+    layout: FieldLayout,
+    workspace: np.ndarray,
     *,
     seed: int,
     candidates: int,
@@ -145,10 +169,12 @@ def plan_field(
     pixel_sigma_px: float,
     joint_sigma: np.ndarray | None,
 ) -> FieldPlan:
-    """The ``count`` postures of the field route's D-optimal selector for ``setup`` (module
-    docstring) from ``candidates`` random ones (seeded by ``seed``), each grid point worth the
-    corners of ``markers`` markers spread over the grid, ``pixel_sigma_px`` px of corner noise and
-    the read-back noise ``joint_sigma`` (n,) rad (None: exact).
+    """The ``count`` postures for ``setup`` (module docstring) from ``candidates`` random ones
+    (seeded by ``seed``) with the least forecast tool-point error over the ``workspace``
+    postures (w, n) rad for the markers of ``layout``: of the D-optimal selector's choice (each
+    grid point worth the corners of ``markers`` markers spread over the grid) and the
+    tool-point choices of :data:`CHOICES`; ``pixel_sigma_px`` px of corner noise and the
+    read-back noise ``joint_sigma`` (n,) rad (None: exact).
 
     Raises:
         DegenerateTrajectoryError: too few feasible candidates.
@@ -163,8 +189,27 @@ def plan_field(
     q_random = plan_postures(setup.robot, setup.model_cam, setup.rig, pts, count, seed=seed,
                              min_visible=setup.min_visible, normals_world=nrm,
                              collision_ok=setup.collision_ok)  # fmt: skip
+    sets = {CHOICES[0]: opt.chosen}
+    try:
+        F = frame_information(setup.model_cam, setup.rig, opt.pool, layout,
+                              pixel_sigma_px=pixel_sigma_px, joint_sigma=joint_sigma)  # fmt: skip
+    except BoundsError:  # the pool does not see a scale marker twice: the D-optimal choice
+        F = None
+    if F is not None:
+        G = tool_weight(setup.model_cam, workspace, setup.robot.T_flange_cam)
+        n_cam = F.shape[1] - len(G)
+        sets[CHOICES[1]] = exchange(F, G, n_cam, select_greedy(F, G, n_cam, count))
+        sets[CHOICES[2]] = exchange(F, G, n_cam, opt.chosen)
+    choices = {
+        k: field_forecast(setup, layout, opt.pool[i], workspace, pixel_sigma_px=pixel_sigma_px,
+                          joint_sigma=joint_sigma).tool_rms_m
+        for k, i in sets.items()
+    }  # fmt: skip
+    rms = {k: np.inf if v is None else v for k, v in choices.items()}
+    best = min(rms, key=rms.__getitem__)
     home = setup.robot.home
-    q = opt.q[order_path(opt.q, home)]
+    q = opt.pool[sets[best]]
+    q = q[order_path(q, home)]
     return FieldPlan(
         q=q,
         q_random=q_random,
@@ -175,20 +220,9 @@ def plan_field(
         logdet=opt.logdet,
         logdet_random=opt.logdet_random,
         exchanges=opt.exchanges,
+        chosen_by=best,
+        choices=choices,
     )
-
-
-@dataclass(frozen=True)
-class FieldLayout:
-    """The markers a forecast assumes: ``ids`` (K,), their corners ``corners_world`` (K, 4, 3) m
-    and normals (K, 3) in the base frame, the two ``scale_ids`` whose centres lie the known
-    ``scale_length_m`` (m) apart."""
-
-    ids: np.ndarray
-    corners_world: np.ndarray
-    normals_world: np.ndarray
-    scale_ids: tuple[int, int]
-    scale_length_m: float
 
 
 @dataclass

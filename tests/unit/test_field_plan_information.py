@@ -1,0 +1,84 @@
+"""The field plan's per-posture information and tool weight (selfcal/calibration/field/
+plan_information.py, issue #30): the postures' informations add up to the field route's own
+(its whole Jacobian, the read-back errors eliminated, the corners known), and the weight turns the
+route's Cramer-Rao covariance into its tool-point bound."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from selfcal.robot.definition import load_robot
+
+
+@pytest.fixture(scope="module")
+def cell(tmp_path_factory):
+    """The docs example's cell (UR5e, 60 deg 640 x 480, the 20-marker field), 12 random postures
+    of the planner's filters and the replay's marker layout."""
+    from selfcal.calibration.field.joint_refine import encoder_sigma
+    from selfcal.calibration.field.plan import FieldPlanSetup
+    from selfcal.camera import Rig
+    from selfcal.cli.plan_field import replay_layout
+    from selfcal.cli.plan_scenario import scenario_text
+    from selfcal.io.camera_file import camera_from_fov
+    from selfcal.kinematics.trajectory import plan_postures
+
+    robot = load_robot("ur5e")
+    camera = camera_from_fov(60.0, 640, 480)
+    setup = FieldPlanSetup(robot, Rig((camera,), np.eye(4)[None], ("left",)), 0.3, np.zeros((0, 6)))
+    field = {"markers": 20, "extent_mm": 300.0, "marker_size_mm": 30.0, "scale_length_mm": 200.0}
+    path = tmp_path_factory.mktemp("field-info") / "scenario.toml"
+    path.write_text(scenario_text("ur5e", camera, None, 12, field=field))
+    layout, _ = replay_layout(path, 0.2)
+    pts, nrm = setup.grid()
+    q = plan_postures(robot, setup.model_cam, setup.rig, pts, 12, seed=1, min_visible=6,
+                      normals_world=nrm)  # fmt: skip
+    return setup, layout, q, encoder_sigma(robot)
+
+
+def test_the_postures_informations_add_up_to_the_routes(cell):
+    """Summed over the postures, each one's information (its read-back errors eliminated) is
+    the Schur complement of the route's whole whitened J^T J over the camera and the free
+    kinematic parameters, every posture's read-back errors eliminated together."""
+    from selfcal.calibration.field.bounds import fisher_jacobian
+    from selfcal.calibration.field.bounds_setup import predicted_setup
+    from selfcal.calibration.field.plan_information import frame_information
+
+    setup, layout, q, js = cell
+    F = frame_information(setup.model_cam, setup.rig, q, layout, pixel_sigma_px=0.5,
+                          joint_sigma=js)  # fmt: skip
+    fs = predicted_setup(setup.model_cam, q, setup.rig, layout.ids, layout.corners_world,
+                         layout.normals_world, layout.scale_ids, 0.2, pixel_sigma_px=0.5,
+                         joint_sigma=js)  # fmt: skip
+    J, lay = fisher_jacobian(fs)
+    kin = lay.kin_cols
+    dq = lay.n_camera + np.asarray(lay.pose_model.dq_cols)
+    H = (J.T @ J).toarray()
+    whole = H[np.ix_(kin, kin)] - H[np.ix_(kin, dq)] @ np.linalg.solve(H[np.ix_(dq, dq)],
+                                                                       H[np.ix_(dq, kin)])  # fmt: skip
+    assert F.shape == (len(q), len(kin), len(kin))
+    assert np.allclose(F.sum(axis=0), whole, rtol=1e-9, atol=1e-9 * np.abs(whole).max())
+    exact = frame_information(setup.model_cam, setup.rig, q, layout, pixel_sigma_px=0.5,
+                              joint_sigma=None)  # fmt: skip
+    assert np.all(np.trace(exact, axis1=1, axis2=2) > np.trace(F, axis1=1, axis2=2))
+
+
+def test_the_tool_weight_gives_the_routes_tool_point_bound(cell):
+    """sqrt(trace(G C)) with the route's Cramer-Rao covariance of the free kinematic parameters
+    is its bound of the flange centre after the best rigid alignment (the same parameters in the
+    same order)."""
+    from selfcal.calibration.field.bounds import cramer_rao
+    from selfcal.calibration.field.bounds_setup import predicted_setup
+    from selfcal.calibration.field.plan import forecast_workspace
+    from selfcal.calibration.field.plan_information import tool_weight
+    from selfcal.transforms import inv_pose
+
+    setup, layout, q, js = cell
+    fs = predicted_setup(setup.model_cam, q, setup.rig, layout.ids, layout.corners_world,
+                         layout.normals_world, layout.scale_ids, 0.2, pixel_sigma_px=0.5,
+                         joint_sigma=js)  # fmt: skip
+    cr = cramer_rao(fs)
+    ws = forecast_workspace(setup, 20, seed=2)
+    G = tool_weight(setup.model_cam, ws, setup.robot.T_flange_cam)
+    bound = cr.aligned_tool_rms(ws, inv_pose(setup.robot.T_flange_cam))
+    assert np.sqrt(np.trace(G @ cr.cov_free)) == pytest.approx(bound, rel=1e-6)
