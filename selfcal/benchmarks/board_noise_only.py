@@ -54,6 +54,7 @@ from selfcal.benchmarks.board_accuracy_draw import (
 from selfcal.benchmarks.board_accuracy_parts import directions
 from selfcal.calibration.board.accuracy import board_error_model_from_json
 from selfcal.camera.spec import values_by_name
+from selfcal.io.atomic import write_bytes_atomic
 from selfcal.kinematics.forward import fk_tool
 from selfcal.kinematics.mcpc import param_is_angle, param_names
 from selfcal.kinematics.tool_error import norm_quantile
@@ -265,7 +266,7 @@ def main(argv: list[str] | None = None) -> int:
         q = g["q"]
         got.append(g)
         if a.save:
-            Path(a.save).write_bytes(pickle.dumps(got))
+            write_bytes_atomic(a.save, pickle.dumps(got))
         print(f"draw {len(got)} (noise seed {n}) done", file=sys.stderr, flush=True)
     print(report(got, f"{a.robot} fits {a.noise_px:g} px, the truth and postures of seed "
                       f"{a.seed}, noise seeds {a.first_noise_seed}-"
