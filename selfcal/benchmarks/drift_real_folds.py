@@ -23,6 +23,10 @@ configuration's one error shared by its views, a twist of the chain's world (eye
 board's pose) fitted to them, and each fold's check with such an error of the size the other
 folds show (isotropic in translation and in rotation, net of each fit's own variance) added to
 its covariance: whether the folds' false alarms are an error shared by a configuration's views.
+``--sandwich``: each fold's check with its estimate covariance's white-noise part (the corner
+noise ``s``, the bounds', on every pixel alike) replaced by the sandwich of its training frames
+under the noise the check gives a view (:func:`sandwich_excess`): whether the folds' false
+alarms are the per-view misfit the fit averaged as white noise.
 
 Run: ``uv run python -m selfcal.benchmarks.drift_real_folds CAL NEW`` (CAL the folder of
 ``selfcal calibrate``, NEW a folder of ``selfcal import``; the real tier's, docs/real-data.md).
@@ -45,6 +49,8 @@ from selfcal.calibration.board.deviation import Deviation
 from selfcal.calibration.board.evaluate import held_out_views
 from selfcal.calibration.board.fold_fits import fold_bounds
 from selfcal.calibration.board.held_prior import with_deviation
+from selfcal.calibration.board.refine import BoardObservations
+from selfcal.calibration.board.view_jitter import psd_part
 from selfcal.calibration.drift.images import (
     ImageDriftCheck,
     ViewNoise,
@@ -55,7 +61,9 @@ from selfcal.calibration.drift.images import (
     view_noise,
 )
 from selfcal.calibration.drift.views import ViewJacobians, view_jacobians
+from selfcal.camera import CameraModel
 from selfcal.io.board_calibration import read_board_calibration
+from selfcal.kinematics.tool_error import ToolErrorModel
 from selfcal.threads import limit_threads
 
 __all__ = [
@@ -66,6 +74,7 @@ __all__ = [
     "main",
     "pose_misfit",
     "ratios",
+    "sandwich_excess",
     "shared_check",
     "shared_twist",
 ]
@@ -85,13 +94,15 @@ class Fold:
             without the pose misfit (every minimal parameter estimated: ``kin``); misfit: per
             view (2k, 2k) px^2 the calibration's per-view pose misfit carried to it. C0: (P, P)
             the fold's estimate covariance without the deviation; V: its deviation's part at
-            the full prior (share 1).
+            the full prior (share 1); excess: (P, P) what the sandwich of its training frames
+            adds to ``C0`` (:func:`sandwich_excess`; None when not computed).
     """
 
     views: list[ViewJacobians]
     misfit: list[np.ndarray]
     C0: np.ndarray
     V: np.ndarray
+    excess: np.ndarray | None = None
 
     def at(self, a: float) -> list[ViewJacobians]:
         """The views with the pose misfit scaled by ``a``."""
@@ -106,6 +117,39 @@ def pose_misfit(noise: ViewNoise, A: np.ndarray) -> np.ndarray:
     if noise.jitter is not None:
         return A @ noise.jitter @ A.T
     return noise.pose_misfit_px**2 * (A @ np.linalg.pinv(A))
+
+
+def sandwich_excess(views: list[ViewJacobians], fitted: np.ndarray, s2: float) -> np.ndarray:
+    """(P, P) the sandwich ``(H^T H)^-1 H^T L H (H^T H)^-1`` less the white-noise covariance
+    ``s2 (H^T H)^-1`` of the least-squares estimate of the ``fitted`` (P,) columns of the
+    ``views``' ``[kin, cam]`` (the calibration's own frames, ``H`` their stacked columns, ``L``
+    their ``local`` covariances block-diagonal; zero rows and columns for the others): what an
+    estimate covariance computed as if every pixel had the white noise ``s2`` (px^2) misses when
+    the pixels have the per-view covariance the check gives a view (or counts too much, where it
+    is negative)."""
+    H = np.concatenate([np.concatenate([v.kin, v.cam], axis=1) for v in views])[:, fitted]
+    P = np.linalg.pinv(H.T @ H)
+    at, HtLH = 0, np.zeros_like(P)
+    for v in views:
+        Hv = H[at : at + len(v.r)]
+        HtLH += Hv.T @ v.local @ Hv
+        at += len(v.r)
+    idx = np.flatnonzero(fitted)
+    out = np.zeros((len(fitted), len(fitted)))
+    out[np.ix_(idx, idx)] = P @ HtLH @ P - s2 * P
+    return out
+
+
+def _views(obs: BoardObservations, mask: np.ndarray, em: ToolErrorModel, camera: CameraModel,
+           noise: ViewNoise) -> list[ViewJacobians]:  # fmt: skip
+    """The first camera's inlier frames of ``mask`` linearised at the fold's ``em`` and
+    ``camera`` with the calibration's ``noise`` less its pose misfit (:class:`Fold`)."""
+    v, f, uv = obs.rows(mask & obs.used)[0]
+    return [view_jacobians(em, camera, obs.q[i], obs.board.points(f[v == i]), uv[v == i],
+                           eye_to_hand=obs.eye_to_hand, pixel_sigma_px=noise.pixel_sigma_px,
+                           joint_sigma_rad=noise.joint_sigma_rad,
+                           camera_misfit_px=noise.camera_misfit_px)
+            for i in np.unique(v)]  # fmt: skip
 
 
 def folds_of(cal_dir: Path) -> tuple[list[Fold], np.ndarray]:
@@ -124,16 +168,15 @@ def folds_of(cal_dir: Path) -> tuple[list[Fold], np.ndarray]:
     for held, fit, fcr in fold_bounds(obs, det.fit.selection, det.fit.nominal.model.joint_offsets,
                                       T_tp, cal.bounds.pixel_sigma_px):  # fmt: skip
         em, _ = board_error_model(with_deviation(fcr, var), T_tp, 0.0, 0.0, None)
-        v, f, uv = obs.rows(held & obs.used)[0]
-        views = [view_jacobians(em, fit.cameras[0], obs.q[i], obs.board.points(f[v == i]),
-                                uv[v == i], eye_to_hand=obs.eye_to_hand,
-                                pixel_sigma_px=noise.pixel_sigma_px,
-                                joint_sigma_rad=noise.joint_sigma_rad,
-                                camera_misfit_px=noise.camera_misfit_px)
-                 for i in np.unique(v)]  # fmt: skip
+        views, train = (_views(obs, mask, em, fit.cameras[0], noise) for mask in (held, ~held))
         if views:
+            est = np.ones(len(fcr.covariance), bool) if fcr.estimated is None else fcr.estimated
+            fitted = np.r_[est, np.ones(views[0].cam.shape[1], bool)]
+            train = [dataclasses.replace(x, local=x.local + pose_misfit(noise, x.tool))
+                     for x in train]  # fmt: skip
             out.append(Fold(views, [pose_misfit(noise, x.tool) for x in views],
-                            with_share(fcr, 0.0), deviation_part(fcr, 1.0)))  # fmt: skip
+                            with_share(fcr, 0.0), deviation_part(fcr, 1.0),
+                            sandwich_excess(train, fitted, cal.bounds.pixel_sigma_px**2)))  # fmt: skip
     return out, deviation_part(cr, 1.0)
 
 
@@ -232,6 +275,23 @@ def _print_shared(folds: list[Fold], c: float, eye_to_hand: bool) -> None:
               f"{res.expected_rms_px / res.rms_px:.2f}")  # fmt: skip
 
 
+def _print_sandwich(folds: list[Fold], c: float, eye_to_hand: bool) -> None:
+    """``--sandwich`` (module docstring): each fold's check at the share ``c`` with and without
+    its sandwich excess (negative eigenvalues of the sum set to 0)."""
+    print("  the estimate covariance with the training frames' sandwich (--sandwich):")
+    for i, f in enumerate(folds):
+        assert f.excess is not None
+        C = psd_part(f.C0 + c * f.V + f.excess)
+        base = image_drift_check(f.C0 + c * f.V, f.at(1.0), eye_to_hand=eye_to_hand)
+        res = image_drift_check(C, f.at(1.0), eye_to_hand=eye_to_hand)
+        k = f.views[0].cam.shape[1]
+        ratio = np.sqrt(np.diag(C)[-k:] / np.diag(f.C0 + c * f.V)[-k:])
+        print(f"  fold {i + 1}: p {base.p_value:.2g} ({base.best}), predicted/measured "
+              f"{base.expected_rms_px / base.rms_px:.2f}; with the sandwich p {res.p_value:.2g} "
+              f"({res.best}), predicted/measured {res.expected_rms_px / res.rms_px:.2f}; the "
+              f"camera's sd x {' '.join(f'{x:.2f}' for x in ratio)}")  # fmt: skip
+
+
 def main(argv: list[str] | None = None) -> int:
     """Print the folds' ratios, the joint estimate and NEW's check with it (module docstring)."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -241,6 +301,9 @@ def main(argv: list[str] | None = None) -> int:
                     help="also each fold's check over c in 0-1 and a in 0.5-5")  # fmt: skip
     ap.add_argument("--shared", action="store_true",
                     help="also each fold's error shared by its views (module docstring)")  # fmt: skip
+    ap.add_argument("--sandwich", action="store_true",
+                    help="also each fold's check with its training frames' sandwich covariance "
+                    "(module docstring)")  # fmt: skip
     args = ap.parse_args(argv)
     limit_threads(1)
     path = args.calibration / "calibration.json"
@@ -279,6 +342,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.shared:
         print("  an error shared by each held-out configuration's views (--shared):")
         _print_shared(folds, used, cal.eye_to_hand)
+    if args.sandwich:
+        _print_sandwich(folds, used, cal.eye_to_hand)
     return 0
 
 
