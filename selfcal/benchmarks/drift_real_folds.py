@@ -26,7 +26,9 @@ its covariance: whether the folds' false alarms are an error shared by a configu
 ``--sandwich``: each fold's check with its estimate covariance's white-noise part (the corner
 noise ``s``, the bounds', on every pixel alike) replaced by the sandwich of its training frames
 under the noise the check gives a view (:func:`sandwich_excess`): whether the folds' false
-alarms are the per-view misfit the fit averaged as white noise.
+alarms are the per-view misfit the fit averaged as white noise; then NEW checked against CAL
+(and the files ``--also``: CAL's with a change written into them, as the real tier's) as is and
+with CAL's own frames' sandwich in the covariance the check reads (:func:`check_with`).
 
 Run: ``uv run python -m selfcal.benchmarks.drift_real_folds CAL NEW`` (CAL the folder of
 ``selfcal calibrate``, NEW a folder of ``selfcal import``; the real tier's, docs/real-data.md).
@@ -51,6 +53,7 @@ from selfcal.calibration.board.fold_fits import fold_bounds
 from selfcal.calibration.board.held_prior import with_deviation
 from selfcal.calibration.board.refine import BoardObservations
 from selfcal.calibration.board.view_jitter import psd_part
+from selfcal.calibration.drift import images
 from selfcal.calibration.drift.images import (
     ImageDriftCheck,
     ViewNoise,
@@ -62,12 +65,13 @@ from selfcal.calibration.drift.images import (
 )
 from selfcal.calibration.drift.views import ViewJacobians, view_jacobians
 from selfcal.camera import CameraModel
-from selfcal.io.board_calibration import read_board_calibration
+from selfcal.io.board_calibration import BoardCalibrationResult, read_board_calibration
 from selfcal.kinematics.tool_error import ToolErrorModel
 from selfcal.threads import limit_threads
 
 __all__ = [
     "Fold",
+    "check_with",
     "fold_covariance",
     "folds_of",
     "joint_moments",
@@ -152,16 +156,19 @@ def _views(obs: BoardObservations, mask: np.ndarray, em: ToolErrorModel, camera:
             for i in np.unique(v)]  # fmt: skip
 
 
-def folds_of(cal_dir: Path) -> tuple[list[Fold], np.ndarray]:
-    """Every fold of the calibration of ``cal_dir`` (run again; module docstring) and the
-    deviation's part of the calibration's own estimate covariance at the full prior (SI)."""
+def folds_of(cal_dir: Path) -> tuple[list[Fold], np.ndarray, np.ndarray]:
+    """Every fold of the calibration of ``cal_dir`` (run again; module docstring), the
+    deviation's part of the calibration's own estimate covariance at the full prior and the
+    sandwich excess of its own frames (:func:`sandwich_excess`; SI, ``estimate_covariance``'s
+    order)."""
     det = calibrate_board_dataset_detailed(cal_dir)
     cal, obs, cr = det.result, det.observations, det.cramer_rao
     if obs is None or cr is None or cal.bounds is None or det.fit.nominal is None:
         raise SystemExit(f"{cal_dir}: no Cramer-Rao bounds")
     assert det.fit.selection is not None
     noise = view_noise(cal)
-    T_tp = calibration_error_model(cal, str(cal_dir)).T_tool_point
+    em_cal = calibration_error_model(cal, str(cal_dir))
+    T_tp = em_cal.T_tool_point
     assert T_tp is not None
     var = Deviation().variance(cr.model.joint_types)
     out = []
@@ -177,7 +184,11 @@ def folds_of(cal_dir: Path) -> tuple[list[Fold], np.ndarray]:
             out.append(Fold(views, [pose_misfit(noise, x.tool) for x in views],
                             with_share(fcr, 0.0), deviation_part(fcr, 1.0),
                             sandwich_excess(train, fitted, cal.bounds.pixel_sigma_px**2)))  # fmt: skip
-    return out, deviation_part(cr, 1.0)
+    own = [dataclasses.replace(x, local=x.local + pose_misfit(noise, x.tool))
+           for x in _views(obs, obs.used, em_cal, cal.cameras[0], noise)]  # fmt: skip
+    est = np.ones(len(cr.covariance), bool) if cr.estimated is None else cr.estimated
+    fitted = np.r_[est, np.ones(own[0].cam.shape[1], bool)]
+    return out, deviation_part(cr, 1.0), sandwich_excess(own, fitted, cal.bounds.pixel_sigma_px**2)
 
 
 def fold_covariance(fold: Fold, c: float, a: float) -> np.ndarray:
@@ -275,6 +286,21 @@ def _print_shared(folds: list[Fold], c: float, eye_to_hand: bool) -> None:
               f"{res.expected_rms_px / res.rms_px:.2f}")  # fmt: skip
 
 
+def check_with(path: Path, new: Path, extra: np.ndarray | float) -> ImageDriftCheck:
+    """The check of ``new`` against the calibration file ``path`` with ``extra`` (P, P) added
+    to the estimate covariance it reads (negative eigenvalues of the sum set to 0)."""
+    orig = images.estimate_covariance
+
+    def more(cal: BoardCalibrationResult, em: ToolErrorModel) -> np.ndarray:
+        return psd_part(orig(cal, em) + extra)
+
+    images.estimate_covariance = more
+    try:
+        return images.check_images(path, new)
+    finally:
+        images.estimate_covariance = orig
+
+
 def _print_sandwich(folds: list[Fold], c: float, eye_to_hand: bool) -> None:
     """``--sandwich`` (module docstring): each fold's check at the share ``c`` with and without
     its sandwich excess (negative eigenvalues of the sum set to 0)."""
@@ -304,10 +330,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--sandwich", action="store_true",
                     help="also each fold's check with its training frames' sandwich covariance "
                     "(module docstring)")  # fmt: skip
+    ap.add_argument("--also", type=Path, nargs="*", default=[],
+                    help="--sandwich: calibration files (CAL's with a change written into "
+                    "them) also checked against NEW with CAL's own frames' sandwich")  # fmt: skip
     args = ap.parse_args(argv)
     limit_threads(1)
     path = args.calibration / "calibration.json"
-    folds, V = folds_of(args.calibration)
+    folds, V, E = folds_of(args.calibration)
     cal = read_board_calibration(path)
     em = calibration_error_model(cal, str(path))
     C = estimate_covariance(cal, em)
@@ -344,6 +373,12 @@ def main(argv: list[str] | None = None) -> int:
         _print_shared(folds, used, cal.eye_to_hand)
     if args.sandwich:
         _print_sandwich(folds, used, cal.eye_to_hand)
+        for f in (path, *args.also):
+            for label, extra in (("as is", 0.0), ("with its own frames' sandwich", E)):
+                res = check_with(f, args.new, extra)
+                verdict = "changed" if res.changed else "unchanged"
+                print(f"  {f} against {args.new} {label}: {verdict}, p = {res.p_value:.2g} "
+                      f"({res.best}), predicted/measured {res.expected_rms_px / res.rms_px:.2f}")  # fmt: skip
     return 0
 
 
