@@ -10,6 +10,10 @@ functions (``selfcal.calibrate``, ``selfcal.evaluate``, ...: docs/api.md) run un
 program that calls them as a library gets the command's limit without having its own process
 changed. Parallel studies and Monte Carlo runs use the cores through worker processes, not
 through BLAS.
+
+Pools of Python threads that run OpenCV calls releasing the GIL (image decoding and marker
+detection, the epipolar pairs) are not BLAS threads: :func:`helper_threads` sizes them, from the
+cores this process may run on (its CPU affinity, not the machine's count), capped by the caller.
 """
 
 from __future__ import annotations
@@ -28,6 +32,7 @@ __all__ = [
     "DEFAULT_THREADS",
     "THREADS_ENV",
     "THREAD_VARS",
+    "helper_threads",
     "limit_threads",
     "limited",
     "thread_count",
@@ -106,3 +111,16 @@ def limited(func: Callable[_P, _R]) -> Callable[_P, _R]:
             return func(*args, **kwargs)
 
     return run
+
+
+def helper_threads(jobs: int, cap: int | None = None) -> int:
+    """Threads for a pool of ``jobs`` calls that release the GIL (OpenCV's decoding, detection
+    and estimators): the cores this process may run on (``os.sched_getaffinity``, else
+    ``os.cpu_count``), at most ``cap`` (None: no cap) and ``jobs``; at least 1. The one place
+    such pools are sized (the BLAS limit, :func:`thread_count`, does not apply to them)."""
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):  # not on Linux
+        cores = os.cpu_count() or 1
+    n = min(cores, int(jobs), cap if cap is not None else cores)
+    return max(1, n)

@@ -7,7 +7,6 @@ convention; ``x_b^T F x_a = 0``.
 
 from __future__ import annotations
 
-import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
@@ -17,6 +16,7 @@ import numpy as np
 from selfcal.errors import InputError
 from selfcal.estimation.observations import Observations, ViewLayout
 from selfcal.estimation.selfcal_errors import InsufficientDataError
+from selfcal.threads import helper_threads
 
 __all__ = ["PairEstimate", "fundamental_pairs", "epipolar_sigma", "robust_cv"]
 
@@ -121,7 +121,7 @@ def fundamental_pairs(
     # 15 % of `selfcal run`'s calibration CPU, on one core while the other idled; two, not every
     # core: a parallel study's worker processes each calibrate). A pair's estimate does not
     # depend on the thread or the order: the same pairs in the same order as one by one.
-    workers = min(os.cpu_count() or 1, 2, len(chosen))
+    workers = helper_threads(len(chosen), cap=2)
     if workers > 1:
         with ThreadPoolExecutor(max_workers=workers, thread_name_prefix="epipolar") as pool:
             found = list(pool.map(estimate, chosen))

@@ -52,3 +52,18 @@ def test_the_cli_limits_its_own_process(monkeypatch, capsys):
     assert os.environ[THREADS_ENV] == os.environ["OPENBLAS_NUM_THREADS"] == "1"
     assert main(["--threads", "0", "fk", "--joints", "0,0,0,0,0"]) == 2  # bad input
     assert "--threads must be at least 1" in capsys.readouterr().err
+
+
+def test_helper_threads_follow_the_cores_this_process_may_use(monkeypatch):
+    """A pool of GIL-releasing calls gets the cores of the process's CPU affinity (not the
+    machine's count), at most the cap and the jobs, and at least one thread."""
+    import os
+
+    from selfcal.threads import helper_threads
+
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 1, 2}, raising=False)
+    monkeypatch.setattr(os, "cpu_count", lambda: 64)
+    assert helper_threads(100) == 3
+    assert helper_threads(100, cap=2) == 2
+    assert helper_threads(1) == 1
+    assert helper_threads(0) == 1

@@ -54,8 +54,9 @@ def test_pairs_on_two_threads_are_the_pairs_one_by_one(monkeypatch):
     """The pairs estimated on two threads are the pairs estimated one after another, in the
     same order, to the bit (OpenCV's estimators do not depend on the thread)."""
     obs = synthetic_stereo_scene(12, seed=3, noise_px=0.5).observations()
+    monkeypatch.setattr(epipolar, "helper_threads", lambda jobs, cap=None: 2)
     threaded = fundamental_pairs(obs, max_pairs=40)
-    monkeypatch.setattr(epipolar.os, "cpu_count", lambda: 1)
+    monkeypatch.setattr(epipolar, "helper_threads", lambda jobs, cap=None: 1)
     serial = fundamental_pairs(obs, max_pairs=40)
     assert len(threaded) == len(serial) > 20
     for t, s in zip(threaded, serial, strict=True):

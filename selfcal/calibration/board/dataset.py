@@ -21,7 +21,6 @@ and stores base -> camera and flange -> board with their sigmas
 from __future__ import annotations
 
 import dataclasses
-import os
 import warnings
 from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
@@ -59,6 +58,7 @@ from selfcal.robot.definition import RobotDef, load_robot
 from selfcal.target.base import Features
 from selfcal.target.boards import Board
 from selfcal.terms.base import Term
+from selfcal.threads import helper_threads
 from selfcal.transforms import inv_pose
 
 __all__ = [
@@ -156,7 +156,7 @@ def detect_board(ds: Dataset, board: Board, camera: str) -> tuple[list[Features]
         return board.detect(img)
 
     # OpenCV releases the GIL while decoding and detecting: use every core, keep the order.
-    with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
+    with ThreadPoolExecutor(max_workers=helper_threads(len(paths))) as pool:
         feats = list(pool.map(detect, paths))
     return feats, [p.name for _, p in paths]
 

@@ -5,7 +5,6 @@ names were seen."""
 
 from __future__ import annotations
 
-import os
 import warnings
 from collections.abc import Mapping
 from concurrent.futures import ThreadPoolExecutor
@@ -31,6 +30,7 @@ from selfcal.io.dataset import Dataset, DatasetError, Detections, read_gray
 from selfcal.io.dataset_info import DatasetInfo
 from selfcal.io.frame_cache import FrameCache
 from selfcal.target.aruco_detect import detect_markers, detect_markers_noise
+from selfcal.threads import helper_threads
 
 
 class NoMarkersWarning(SelfCalWarning):
@@ -114,8 +114,9 @@ def detect_dataset(
         return index, cam, {k: flat.distorted(c) for k, c in dets.items()}, {}
 
     # OpenCV releases the GIL while decoding and detecting: use every core, keep the order.
-    with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
-        for index, cam, dets, sig in pool.map(detect, ds.image_paths()):
+    images = list(ds.image_paths())
+    with ThreadPoolExecutor(max_workers=helper_threads(len(images))) as pool:
+        for index, cam, dets, sig in pool.map(detect, images):
             noise += sig.values()
             if dets:
                 out[(index, cam)] = dets
