@@ -39,7 +39,9 @@ accuracy block, and the noise of its fit); exit 0: unchanged, exit {EXIT_CHANGED
 A board check's "changed" says how many new images are at arm configurations (the joints but the
 wrist's last three) the calibration did not see: its false-alarm rate there is measured in
 simulation only, and on real arms it has said changed for unchanged ones (docs/real-data.md).
-See docs/tool-accuracy.md."""
+New images that are the calibration's own frames (the same joint readings and board detections,
+whatever their file names) are left out of the test and counted; when all are, nothing can be
+tested and the check stops with exit 2 (record new images). See docs/tool-accuracy.md."""
 
 
 def cmd_check(args: argparse.Namespace) -> int:

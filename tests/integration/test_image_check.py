@@ -47,17 +47,21 @@ def test_check_with_images_says_unchanged_or_changed(tmp_path, capsys):
     assert main(["check", str(cal), str(new)]) == 0
     assert capsys.readouterr().out.startswith("unchanged: 6 new image(s)")
 
-    # the calibration's own images, in its folder or copied elsewhere: left out and counted
-    # (their residuals are the fit's, selfcal/calibration/drift/own.py)
-    assert main(["check", str(cal), str(cal)]) == 0
-    assert capsys.readouterr().out.startswith("unchanged as far as these images can tell: all ")
+    # the calibration's own images, in its folder or copied elsewhere: nothing to test, an
+    # input error naming the folder (their residuals are the fit's,
+    # selfcal/calibration/drift/own.py); a cell's morning check of the wrong folder must not pass
+    assert main(["check", str(cal), str(cal)]) == 2
+    assert "are the calibration's own frames" in capsys.readouterr().err
     copy = tmp_path / "copy"
     shutil.copytree(cal, copy, ignore=shutil.ignore_patterns("calibration.json"))
-    own = selfcal.check_images(cal, copy)
-    assert own.views == 0 and own.own > 0 and not own.changed
+    with pytest.raises(
+        InputError, match=r"copy: all \d+ image\(s\) are the calibration's own"
+    ) as err:
+        selfcal.check_images(cal, copy)
+    n_own = int(re.findall(r"all (\d+) image", str(err.value))[0])
     _offset_joint(cal, tmp_path / "own-joint", 4, 0.3)  # its frames, joint 4 read 0.3 deg off
     res = selfcal.check_images(cal, tmp_path / "own-joint")
-    assert res.own == 0 and res.views == own.own and res.changed and "joint 4" in res.line()
+    assert res.own == 0 and res.views == n_own and res.changed and "joint 4" in res.line()
     block = read_board_calibration(cal).accuracy
     assert block is not None and np.shape(block["camera_cross_si"]) == (
         len(block["estimated"]), 8)  # fmt: skip

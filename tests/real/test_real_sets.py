@@ -422,8 +422,8 @@ def test_check_leaves_out_the_calibrations_own_images(name, outcome, runs_dir):
     on photoneo "changed by 0.000 mm at the tool point ... p = 0.001; what changed: the
     camera's intrinsics (fx +1.727, k1 -0.008)": their residuals are the fit's, which the check's
     directed tests, weighing each view by its own misfit, read as a camera change
-    (selfcal/calibration/drift/own.py). Its own images are now left out and counted: unchanged
-    (exit 0), nothing tested. Found by content, not by name: the same images re-exported in
+    (selfcal/calibration/drift/own.py). Its own images are now left out and counted; with
+    nothing left to test the check is refused (exit 2, the folder named). Found by content, not by name: the same images re-exported in
     reversed order under other names, with the held-out group beside them, leave the held-out
     images tested (unchanged, as test_check_finds_the_held_out_group_unchanged) and the
     calibration's own counted."""
@@ -432,10 +432,8 @@ def test_check_leaves_out_the_calibrations_own_images(name, outcome, runs_dir):
     n_cal, n_held = len(outcome.kept["calib"]), len(outcome.kept["held"])
     p = subprocess.run([_selfcal_exe(), "check", str(cal), str(cal), "--json"],
                        capture_output=True, text=True, timeout=1200, check=False)  # fmt: skip
-    assert p.returncode == 0, p.stdout + p.stderr
-    doc = json.loads(p.stdout)
-    assert doc["verdict"] == "unchanged" and doc["images"] == 0 and doc["own_images"] == n_cal
-    assert doc["line"].startswith(f"unchanged as far as these images can tell: all {n_cal} ")
+    assert p.returncode == 2, p.stdout + p.stderr
+    assert f"all {n_cal} image(s) are the calibration's own frames" in p.stderr, p.stderr
 
     mixed = runs_dir / name / "renamed-with-held"
     _renamed_with(cal, held, mixed)

@@ -162,10 +162,6 @@ class ImageDriftCheck:
 
     def line(self) -> str:
         """The verdict in one line."""
-        if self.views == 0:
-            return (f"unchanged as far as these images can tell: all {self.own} are the "
-                    f"calibration's own (its frames' joint readings and board detections; "
-                    f"{self.rms_px:.3f} px RMS, its fit's), not tested: {OWN_NOTE}")  # fmt: skip
         what = f"{self.views} new image(s), {self.corners} corners"
         fit = (f"{what}: {self.rms_px:.3f} px RMS against the predicted "
                f"{self.expected_rms_px:.3f} px; {p_text(self.p_value)} < {self.alpha:g}")  # fmt: skip
@@ -443,7 +439,8 @@ def check_images(calibration: str | Path, new_data: str | Path, *,
     Raises:
         InputError: the calibration is missing, not a board calibration or has no accuracy
             block; ``alpha`` is not a probability; the dataset is not of the calibration's
-            robot, board, camera or setup, or no image shows the board (named).
+            robot, board, camera or setup, or no image shows the board (named); every new
+            image is one of the calibration's own frames (nothing to test).
     """
     src = Path(calibration)
     path = src / "calibration.json" if src.is_dir() else src
@@ -463,12 +460,13 @@ def check_images(calibration: str | Path, new_data: str | Path, *,
     )
     tested = [v for v, o in zip(views, own, strict=True) if not o]
     if not tested:  # every image is the calibration's own: nothing the test may use
-        r = np.concatenate([v.r for v in views])
-        rms = float(np.sqrt(np.sum(r**2) / (len(r) // 2)))
-        return ImageDriftCheck(views=0, corners=0, statistic=0.0, dof=0, p_value=1.0,
-                               changed=False, rms_px=rms, expected_rms_px=float("nan"),
-                               change_mm=0.0, mean_tip_mm=np.zeros(3), alpha=alpha,
-                               own=len(views))  # fmt: skip
+        raise InputError(
+            f"{new_data}: all {len(views)} image(s) are the calibration's own frames (their "
+            f"joint readings and board detections, as in {path.parent}): a check of them cannot "
+            "find a change, since the calibration fitted them",
+            fix="give images recorded after the calibration (e.g. `selfcal record` at a few "
+            "postures), not the calibration's dataset",
+        )
     res = image_drift_check(estimate_covariance(cal, em), tested, eye_to_hand=cal.eye_to_hand,
                             camera_names=cal.cameras[0].free, alpha=alpha)  # fmt: skip
     q_cal = board_postures_from_json(cal.accuracy or {}, cal.model.n, str(path))

@@ -32,7 +32,7 @@ import numpy as np
 
 from selfcal.calibration.board.accuracy import board_postures_from_json
 from selfcal.calibration.board.evaluate import HeldOutViews, held_out_views
-from selfcal.errors import SelfCalError
+from selfcal.errors import SelfCalError, SelfCalWarning
 from selfcal.io.board_calibration import BoardCalibrationResult
 
 __all__ = ["JOINT_TOL", "UV_TOL", "calibration_dataset", "own_views"]
@@ -88,7 +88,14 @@ def own_views(cal: BoardCalibrationResult, path: Path, held: HeldOutViews,
             with warnings.catch_warnings():  # its images without the board: its own news
                 warnings.simplefilter("ignore")
                 mine = held_out_views(cal, root, cameras=(camera,))
-        except SelfCalError:  # a folder beside it that is not its dataset (edited, moved)
+        except SelfCalError as exc:  # a folder beside it that is not its dataset (edited, moved)
+            warnings.warn(
+                f"{root}: not read as the calibration's dataset ({exc}); new images at its "
+                "postures that are its own frames are tested as new ones (their residuals are "
+                "the fit's, which can read as a change)",
+                SelfCalWarning,
+                stacklevel=2,
+            )
             return none
     by_points: dict[int, list[tuple]] = {}
     for v in mine.views:  # a dataset beside the file that it did not calibrate: none of these
