@@ -44,7 +44,6 @@ __all__ = [
     "Reach",
     "ToolErrorModel",
     "norm_quantile",
-    "GROWTH_POWER",
     "distance_growth",
     "growth_factor",
     "joint_spans",
@@ -74,16 +73,12 @@ def norm_quantile(cov: np.ndarray, p: float = 0.95) -> np.ndarray:
     return np.sqrt(a * (2.0 * gammaincinv(f / 2.0, p)))
 
 
-GROWTH_POWER = 1.0
-"""How a model error's standard deviation grows with the distance from the calibration postures:
-``(d / d_ref)^GROWTH_POWER``. Assumed, not measured (docs/tool-accuracy.md: 2 was evaluated on
-the compliance rows and predicted several times the true RMS over the workspace)."""
-
-
 def distance_growth(d: np.ndarray, d_ref: float) -> np.ndarray:
-    """(m,) a model error's variance at the distances ``d`` (m,) over its variance at ``d_ref``
-    (positive): ``(d / d_ref)^(2 GROWTH_POWER)`` (:data:`GROWTH_POWER`)."""
-    return (np.asarray(d, dtype=float) / d_ref) ** (2.0 * GROWTH_POWER)
+    """(m,) a model error's growing variance at the distances ``d`` (m,) over its value at
+    ``d_ref`` (positive): ``(d / d_ref)^2``, the ``d^2`` of the variogram the folds fit
+    (:mod:`selfcal.calibration.growth`: its standard deviation grows in proportion to the
+    distance; the power is assumed, not measured)."""
+    return (np.asarray(d, dtype=float) / d_ref) ** 2
 
 
 def growth_factor(q: np.ndarray, q_ref: np.ndarray | None, span: np.ndarray | None,

@@ -18,11 +18,13 @@ significant (:data:`Z_MODEL_ERROR`). The same for the orientation of a fit of po
 How it grows away from the calibration postures is read from the same rows
 (:mod:`selfcal.calibration.growth`): each row's excess against its distance ``d`` from its
 fold's training postures (each joint in units of its limits' range), ``m^2(d) = c0 + c1 d^2``,
-``c1`` kept only when it exceeds two standard errors; ``m`` is then the size at the rows' mean
-distance and a workspace point gets ``c0 + c1 d^2`` of its own distance from the calibration
-postures (the orientation's model error, when there is one, grows the same way). Without that
-growth shown the model error is the same everywhere and, beyond the rows' largest distance,
-not measured (the block says so, ``model_error.beyond_measured``).
+``c1`` counted at its one-sided upper confidence bound whether or not the rows show a growth
+(``growth_shown``: above two standard errors), capped at what alone explains the rows' pooled
+excess, ``c0`` the excess that leaves; ``m`` is then the size at the rows' mean distance and a
+workspace point gets ``c0 + c1 d^2`` of its own distance from the calibration postures (the
+orientation's model error, when there is one, grows the same way), held at its value at the
+rows' largest distance beyond it, where it is not measured (the block says so,
+``model_error.beyond_measured``).
 What cannot be told apart: noise above the stated ``sigma_t`` is counted as model error (the
 prediction is then pessimistic), a model error the postures cannot show (it repeats at every
 row alike) is not counted.
