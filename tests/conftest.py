@@ -174,6 +174,26 @@ def default_analytic(tmp_path_factory):
 
 
 @pytest.fixture(scope="session")
+def default_analytic_15(tmp_path_factory):
+    """The default scenario on the analytic path with 15 postures (0.5 px corner noise,
+    quantised joints, 20 validation postures), calibrated and reported with figures once per
+    test run (the main job's outputs and the exports each acquired and calibrated this same
+    run; the validation postures are drawn apart and never calibrate): (folder, the report).
+    Read it, never write into the folder: copy it (tests/integration/test_job_report.py)."""
+    from selfcal.config.scenario import load_scenario
+    from selfcal.pipeline.run import run_acquire, run_calibrate, run_report
+
+    def build(folder: Path):
+        out = folder / "ds"
+        s = load_scenario(overrides={"noise": {"render": False}, "trajectory": {"poses": 15}})
+        run_acquire(s, out, quiet=True)
+        run_calibrate(out, quiet=True, figures=True)
+        return out, run_report(out, quiet=True, figures=True)
+
+    return shared_run(tmp_path_factory, "default-analytic-15", build)
+
+
+@pytest.fixture(scope="session")
 def default_noise_free(tmp_path_factory):
     """The default scenario without noise (analytic corners, no pixel noise, joints not
     quantised) acquired, calibrated and reported once per test run (the pipeline's and the

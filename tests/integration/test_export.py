@@ -47,19 +47,11 @@ ROBOT = load_robot("er4u-paper")
 
 
 @pytest.fixture(scope="module")
-def calibration(tmp_path_factory):
+def calibration(default_analytic_15):
     """A real calibration (folder, result read back from calibration.json) from a small analytic
-    scenario (~3 s)."""
-    out = tmp_path_factory.mktemp("cal") / "ds"
-    s = load_scenario(
-        overrides={
-            "noise": {"render": False},
-            "trajectory": {"poses": 15},
-            "validation": {"poses": 4},
-        }
-    )
-    run_acquire(s, out, quiet=True)
-    run_calibrate(out, quiet=True)
+    scenario (15 postures), the one the main job's tests report (tests/conftest.py, built once per
+    test run). Read only: the exports are written elsewhere."""
+    out, _ = default_analytic_15
     return out, read_calibration(out)
 
 

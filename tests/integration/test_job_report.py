@@ -18,7 +18,7 @@ import pytest
 
 from selfcal.config.scenario import load_scenario
 from selfcal.io.calibration import read_calibration
-from selfcal.pipeline.run import report_summary, run_acquire, run_calibrate, run_report
+from selfcal.pipeline.run import report_summary, run_acquire, run_report
 from selfcal.plots.job_figures import parameter_figure, reprojection_figure, tool_tip_figure
 from selfcal.plots.plotting import figure_problems
 
@@ -27,11 +27,10 @@ OUTPUTS = ("truth.json", "report.json", "report.md", "table_iv.md", "validation.
 
 
 @pytest.fixture(scope="module")
-def job(tmp_path_factory):
-    out = tmp_path_factory.mktemp("job") / "ds"
-    run_acquire(load_scenario(overrides=SECTIONS), out, quiet=True)
-    run_calibrate(out, quiet=True, figures=True)
-    return out, run_report(out, quiet=True, figures=True)
+def job(default_analytic_15):
+    """The default scenario with SECTIONS calibrated and reported with figures, once per test
+    run (tests/conftest.py; tests/integration/test_export.py exports the same calibration)."""
+    return default_analytic_15
 
 
 @pytest.fixture(scope="module")
