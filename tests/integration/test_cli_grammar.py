@@ -122,8 +122,15 @@ def test_dataset_records_its_encoder_model_and_a_mismatch_is_refused(tmp_path, c
     assert "robot_model is 'er4u-vendor'" in err and " -- acquire again with" in err
 
 
-@pytest.mark.slow  # over 2 s on 2 cores: the default tier keeps to ~90 s
 def test_montecarlo_json_and_where_it_wrote(tmp_path, capsys, monkeypatch):
+    """The command line's grammar, not the draws: each draw is a row made from its settings (the
+    real draws' rows and summaries: tests/integration/test_bounds.py, slow tier, and
+    tests/unit/test_seeds_and_checks.py for the command's seeds)."""
+    from selfcal.studies.montecarlo import run as montecarlo
+    from selfcal.studies.row_checks import check_fields
+
+    row = {"status": "fake", "seconds": 0.0, **check_fields([])}
+    monkeypatch.setattr(montecarlo, "draw_one", lambda st: {"seed": st["seed"], **row})
     monkeypatch.chdir(tmp_path)  # --out defaults to runs/montecarlo
     code, out, err = run(
         capsys, "montecarlo", "--draws", "2", "--jobs", "1", "--poses", "8", "--json", "-q"
