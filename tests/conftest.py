@@ -213,6 +213,22 @@ def default_noise_free(tmp_path_factory):
 
 
 @pytest.fixture(scope="session")
+def paper_montecarlo_12(tmp_path_factory):
+    """The paper's scenario's Monte Carlo of 8 noise draws (seeds 1-8) of 12 postures, the truth
+    and the trajectory of seed 1, in a local pool of 2 processes (one BLAS thread each), once
+    per test run: (rows, summary). The bound's consistency test takes every draw and the
+    cluster's tests seeds 5-7, which they computed again before (a draw is a function of its
+    settings alone). Read them, never change them."""
+
+    def build(_folder: Path):
+        from selfcal.studies.montecarlo.run import run_montecarlo
+
+        return run_montecarlo(8, None, poses=12, jobs=2, quiet=True)
+
+    return shared_run(tmp_path_factory, "paper-montecarlo-12", build)
+
+
+@pytest.fixture(scope="session")
 def ur5e_wrist_plan(tmp_path_factory):
     """The plan benchmark's UR5e cell (selfcal.benchmarks.plan.add.wrist_cell: a 60 deg 640 x 480
     camera, the ChArUco board on the table where home looks) and its plan of 8 postures from 80

@@ -198,11 +198,10 @@ def test_aligned_error_dof_matches_sampled_alignments(tiny):
 
 
 @pytest.fixture(scope="module")
-def mc_rows():
-    from selfcal.studies.montecarlo.run import run_montecarlo
-
-    rows, summary = run_montecarlo(8, None, poses=12, jobs=1, quiet=True)
-    return rows, summary
+def mc_rows(paper_montecarlo_12):
+    """8 draws of 12 postures (tests/conftest.py; tests/integration/test_cluster.py compares
+    three of them with the same draws on a cluster)."""
+    return paper_montecarlo_12
 
 
 @pytest.mark.slow
