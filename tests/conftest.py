@@ -194,6 +194,24 @@ def default_analytic_15(tmp_path_factory):
 
 
 @pytest.fixture(scope="session")
+def default_exact_joints(tmp_path_factory) -> Path:
+    """The default scenario on the analytic path with 0.5 px corner noise (seed 4) and exact joint
+    read-back, acquired (not calibrated) once per test run: the folder of the dataset. The
+    tracker tests (tests/integration/test_calibrate_tracker.py, test_joint_tracker.py) each
+    acquired this same dataset. Never write into it: copy it (shutil.copytree)."""
+    from selfcal.config.scenario import load_scenario
+    from selfcal.pipeline.run import run_acquire
+
+    def build(folder: Path) -> Path:
+        out = folder / "ds"
+        noise = {"render": False, "pixel_sigma": 0.5, "seed": 4, "quantize_joints": False}
+        run_acquire(load_scenario(overrides={"noise": noise}), out, quiet=True)
+        return out
+
+    return shared_run(tmp_path_factory, "default-exact-joints", build)
+
+
+@pytest.fixture(scope="session")
 def default_noise_free(tmp_path_factory):
     """The default scenario without noise (analytic corners, no pixel noise, joints not
     quantised) acquired, calibrated and reported once per test run (the pipeline's and the

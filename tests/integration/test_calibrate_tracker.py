@@ -20,12 +20,10 @@ import numpy as np
 import pytest
 
 from selfcal.cli.main import main as cli_main
-from selfcal.config.scenario import load_scenario
 from selfcal.io.dataset import Dataset
 from selfcal.io.truth import read_truth
 from selfcal.kinematics.accuracy import aligned_errors, tool_tips
 from selfcal.kinematics.forward import fk_tool
-from selfcal.pipeline.run import run_acquire
 from selfcal.terms.registry import read_calibration
 from selfcal.transforms import pose_from_vec, trans
 
@@ -41,12 +39,12 @@ def _write_rows(path, header, rows) -> None:
 
 
 @pytest.fixture(scope="module")
-def acquired(tmp_path_factory):
-    """The dataset (not calibrated), the tracker file of its postures and the validation joints."""
+def acquired(tmp_path_factory, default_exact_joints):
+    """The dataset (not calibrated: a copy of the one tests/conftest.py acquires once per test
+    run), the tracker file of its postures and the validation joints."""
     tmp = tmp_path_factory.mktemp("ct")
     images = tmp / "images"
-    noise = {"render": False, "pixel_sigma": 0.5, "seed": 4, "quantize_joints": False}
-    run_acquire(load_scenario(overrides={"noise": noise}), images, quiet=True)
+    shutil.copytree(default_exact_joints, images)
     ds = Dataset.open(images)
     truth = read_truth(images / "truth.json")
     q_deg = np.asarray(ds.joints_deg)

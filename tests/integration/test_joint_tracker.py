@@ -11,6 +11,7 @@ tool point) and both in one estimate (its estimated tool point); with tracker po
 
 from __future__ import annotations
 
+import shutil
 import warnings
 
 import numpy as np
@@ -19,13 +20,11 @@ import pytest
 from selfcal.calibration.field.calibrate import calibrate_detailed, detect_dataset, observations_of
 from selfcal.calibration.field.joint_refine import refine_calibration
 from selfcal.calibration.tracker.identify import TrackerMeasurements, identify_tracker
-from selfcal.config.scenario import load_scenario
 from selfcal.io.dataset import Dataset
 from selfcal.io.truth import read_truth
 from selfcal.kinematics.accuracy import aligned_errors, tool_tips
 from selfcal.kinematics.forward import fk_tool
 from selfcal.kinematics.mcpc import nominal_mcpc
-from selfcal.pipeline.run import run_acquire
 from selfcal.robot.definition import load_robot
 from selfcal.terms.tracker import TrackerTerm
 from selfcal.transforms import pose_from_vec, trans
@@ -35,10 +34,9 @@ SIGMA_RAD = 1e-4
 
 
 @pytest.fixture(scope="module")
-def case(tmp_path_factory):
-    root = tmp_path_factory.mktemp("jt")
-    noise = {"render": False, "pixel_sigma": 0.5, "seed": 4, "quantize_joints": False}
-    run_acquire(load_scenario(overrides={"noise": noise}), root, quiet=True)
+def case(tmp_path_factory, default_exact_joints):
+    root = tmp_path_factory.mktemp("jt") / "ds"  # a copy of the dataset (tests/conftest.py)
+    shutil.copytree(default_exact_joints, root)
     ds = Dataset.open(root)
     truth = read_truth(root / "truth.json")
     q = np.radians(ds.joints_deg)
