@@ -122,19 +122,36 @@ def test_a_board_seen_from_behind_or_cut_below_its_minimum_is_not_seen():
     assert got == {} or len(got) >= board.min_features
 
 
+BOARD_MC = ["montecarlo", str(MONO_CHARUCO), "--draws", "2", "--poses", "15", "--jobs", "1"]
+
+
+@pytest.fixture(scope="module")
+def board_montecarlo(shared):
+    """``selfcal montecarlo`` of MONO_CHARUCO's board, 2 draws of 15 postures (seeds 1 and 2),
+    run once per test run (tests/conftest.py ``shared``): its folder. Read it or copy it."""
+
+    def build(folder):
+        from selfcal.cli.main import main
+
+        out = folder / "mc"
+        assert main([*BOARD_MC, "--out", str(out), "--quiet"]) == 0
+        return out
+
+    return shared("test_board_analytic-board_montecarlo", build)
+
+
 @pytest.mark.slow  # two draws and a resume: ~5 s
-def test_selfcal_montecarlo_runs_a_board_scenario_and_resumes(tmp_path, capsys):
+def test_selfcal_montecarlo_runs_a_board_scenario_and_resumes(board_montecarlo, tmp_path, capsys):
     """``selfcal montecarlo`` of a board scenario: the draws run the board route on the
     analytic path against its bound (runs.csv, summary.json with both methods and the camera
     ratios, summary.md), and the same command again runs no draw (the journal)."""
     import json
+    import shutil
 
     from selfcal.cli.main import main
 
     out = tmp_path / "mc"
-    argv = ["montecarlo", str(MONO_CHARUCO), "--draws", "2", "--poses", "15", "--jobs", "1",
-            "--out", str(out), "--quiet"]  # fmt: skip
-    assert main(argv) == 0
+    shutil.copytree(board_montecarlo, out)  # the command's folder, resumed below
     s = json.loads((out / "summary.json").read_text())
     assert s["ok"] == 2 and s["failed"] == 0
     assert s["tool_tip_bound_mm"] > 0
@@ -144,24 +161,31 @@ def test_selfcal_montecarlo_runs_a_board_scenario_and_resumes(tmp_path, capsys):
     assert "Camera parameters of the joint method" in (out / "summary.md").read_text()
     assert len((out / "runs.csv").read_text().splitlines()) == 3
     capsys.readouterr()
-    assert main([a for a in argv if a != "--quiet"]) == 0
+    assert main([*BOARD_MC, "--out", str(out)]) == 0
     assert "2 of 2 draws done before" in capsys.readouterr().err
 
 
 @pytest.mark.slow  # one stereo draw: ~3 s
-def test_a_stereo_board_draw_records_both_cameras_against_the_rig_bound(tmp_path):
+def test_a_stereo_board_draw_records_both_cameras_against_the_rig_bound(board_montecarlo, tmp_path):
     """A Monte Carlo draw of the stereo pair photographing the board (``camera.count = 2``):
     both cameras' free parameters get errors and bounds (the further camera's as right_fx ...),
-    and the rig's tool-tip bound is below the one camera's (more data, one chain)."""
+    and the rig's tool-tip bound is below the one camera's (more data, one chain). The one
+    camera's draw is seed 1 of ``selfcal montecarlo``'s (the same settings: 15 postures, 0.5 px,
+    truth and trajectory of seed 1, dithered)."""
+    import json
+
+    from selfcal.studies.montecarlo.journal import JOURNAL
     from selfcal.studies.montecarlo.run import draw_one
 
+    journal = [json.loads(ln)["row"] for ln in (board_montecarlo / JOURNAL).open()]
+    rows = {1: next(r for r in journal if r["seed"] == 1)}
+    assert rows[1]["poses"] == 15 and rows[1]["dither"] and rows[1]["pixel_sigma"] == 0.5
+    toml = tmp_path / "board2.toml"
     text = MONO_CHARUCO.read_text().replace("../models/", f"{MONO_CHARUCO.parents[1]}/models/")
-    rows = {}
+    toml.write_text(text.replace("count = 1", "count = 2"))
+    rows[2] = draw_one({"poses": 15, "pixel_sigma": 0.5, "seed": 1, "traj_seed": 1,
+                        "perturb_seed": 1, "dither": True, "config": str(toml)})  # fmt: skip
     for count in (1, 2):
-        toml = tmp_path / f"board{count}.toml"
-        toml.write_text(text.replace("count = 1", f"count = {count}"))
-        rows[count] = draw_one({"poses": 15, "pixel_sigma": 0.5, "seed": 1, "traj_seed": 1,
-                                "perturb_seed": 1, "dither": True, "config": str(toml)})  # fmt: skip
         assert rows[count]["status"] == "ok", rows[count]["status"]
     free = load_scenario(MONO_CHARUCO).camera.free
     r = rows[2]
