@@ -6,7 +6,10 @@ residual row's norm. Stopping rules (``tol`` relative):
 
 1. gradient: ``max |S g| <= 1e-3 tol sqrt(2 cost)`` (``S g`` the Marquardt-scaled gradient);
 2. cost/step: an accepted step with ``cost_old - cost_new <= tol cost_old`` or
-   ``|dx| <= tol (|x| + tol)``, or ``cost <= 1e-30``;
+   ``|dx| <= tol (|x| + tol)``, or ``cost <= 1e-30``; or a trial that does not lower the cost
+   though the model predicted a decrease of at most ``tol cost_old`` (> 0; x is then the minimum to
+   the tolerance: the cost's rounding rejects such steps, and raising the damping only shrinks
+   them; x stays);
 3. damping saturated: ``lam > 1e16`` after a failure;
 0. budget: ``max_iterations`` Jacobian evaluations or ``max_evaluations`` trials.
 
@@ -236,6 +239,11 @@ def solve(
                     improved = True
                     if small_step or small_cost or cost <= 1e-30:
                         status, message = 2, "cost/step tolerance reached"
+                    break
+                if 0 < predicted <= tol * cost:
+                    # the model promises at most the cost tolerance and the cost did not fall:
+                    # x is the minimum to the tolerance (more damping only shrinks the step)
+                    status, message = 2, "cost/step tolerance reached"
                     break
             lam *= nu
             nu *= 2
