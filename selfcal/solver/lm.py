@@ -7,9 +7,9 @@ residual row's norm. Stopping rules (``tol`` relative):
 1. gradient: ``max |S g| <= 1e-3 tol sqrt(2 cost)`` (``S g`` the Marquardt-scaled gradient);
 2. cost/step: an accepted step with ``cost_old - cost_new <= tol cost_old`` or
    ``|dx| <= tol (|x| + tol)``, or ``cost <= 1e-30``; or a trial that does not lower the cost
-   though the model predicted a decrease of at most ``tol cost_old`` (> 0; x is then the minimum to
-   the tolerance: the cost's rounding rejects such steps, and raising the damping only shrinks
-   them; x stays);
+   though the model predicted a decrease (> 0) below the cost's rounding,
+   ``min(tol, COST_ROUNDING) cost_old``: x is the minimum to rounding, where raising the damping
+   only shrinks steps that the rounding rejects (x stays);
 3. damping saturated: ``lam > 1e16`` after a failure;
 0. budget: ``max_iterations`` Jacobian evaluations or ``max_evaluations`` trials.
 
@@ -47,7 +47,11 @@ from selfcal.solver.linear import (
 from selfcal.solver.problem import Evaluation, Problem
 from selfcal.solver.schur import SchurAssembler, SchurPlans
 
-__all__ = ["SolverOptions", "SolverResult", "solve", "cost_and_weights"]
+__all__ = ["SolverOptions", "SolverResult", "solve", "cost_and_weights", "COST_ROUNDING"]
+
+COST_ROUNDING = 1e-14
+"""A decrease of the cost below this fraction of it is within the rounding of its sum over many
+rows (about 50 machine epsilons): a rejected trial step that promised no more is the end."""
 
 
 @dataclass(frozen=True)
@@ -240,9 +244,9 @@ def solve(
                     if small_step or small_cost or cost <= 1e-30:
                         status, message = 2, "cost/step tolerance reached"
                     break
-                if 0 < predicted <= tol * cost:
-                    # the model promises at most the cost tolerance and the cost did not fall:
-                    # x is the minimum to the tolerance (more damping only shrinks the step)
+                if 0 < predicted <= min(tol, COST_ROUNDING) * cost:
+                    # the model promises less than the cost's rounding and the cost did not
+                    # fall: x is the minimum to rounding (more damping only shrinks the step)
                     status, message = 2, "cost/step tolerance reached"
                     break
             lam *= nu

@@ -21,7 +21,10 @@ from selfcal.config.scenario import load_scenario
 from selfcal.pipeline.run import run_acquire
 from selfcal.solver import Problem, SolverOptions, solve
 
-REL_COST = 5e-14  # measured <= 1.5e-14 (rounding); issue 11 asks for 1e-9
+# measured <= 5.7e-14 (rounding; the engine stops at a cost change of 1e-12 relative, and the
+# captured problems follow the floating-point path of the calibration that captures them: 1.5e-14
+# before the solver's stop at the cost's rounding); issue 11 asks for 1e-9
+REL_COST = 1.5e-13
 REL_STEP = 2e-10  # one step, each linear solver against dense LU: measured <= 6.1e-11
 
 

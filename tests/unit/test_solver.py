@@ -344,9 +344,9 @@ def test_dense_normal_equations_with_unused_slots_match_the_sparse_ones(seed, k,
 def test_a_solve_at_its_minimum_stops_at_the_first_step_the_model_calls_negligible():
     """Started at its minimum with almost no damping (a warm start from a solve of the same rows),
     the first steps lie at the cost's rounding: a trial that does not lower the cost though the
-    model promised at most the cost tolerance ends the solve (status 2) at once, where raising the
-    damping step by step took a residual evaluation each (8 at the joint refinement's final pass,
-    300 postures) and moved x by nothing that counts."""
+    model promised less than the cost's rounding ends the solve (status 2) at once, where raising
+    the damping step by step took a residual evaluation each (8 at the joint refinement's final
+    pass, 300 postures) and moved x by nothing that counts."""
     first = solve(_problem(ExpFit(_data())), SolverOptions(tol=1e-12))
     blk = ExpFit(_data())
     again = solve(
