@@ -37,7 +37,7 @@ def test_a_shifted_grid_gives_one_posture_the_roundings_error_anew_per_draw():
     rng = np.random.default_rng(11)
     e = np.array([_dithered(rng.uniform(-0.5, 0.5, 5)).read_back(q) - q for _ in range(4000)])
     sigma = _dithered(np.zeros(5)).read_back_sigma
-    assert np.std(e, axis=0) == pytest.approx(sigma, rel=0.05)
+    assert np.std(e, axis=0) == pytest.approx(sigma, rel=0.035)  # 3 sampling sd
     assert np.all(np.abs(e.mean(axis=0)) < 4 * sigma / np.sqrt(len(e)))
     assert len(np.unique(e[:, 0])) > 100
 
@@ -53,4 +53,4 @@ def test_the_ratios_are_the_empirical_variance_along_the_predicted_directions():
     P = Q @ np.diag([18.0, 4.0, 1.0]) @ Q.T
     rat, lam = ratios(E, P)
     assert lam == pytest.approx([18.0, 4.0, 1.0])
-    assert rat == pytest.approx([0.5, 1.0, 1.0], rel=0.05)
+    assert rat == pytest.approx([0.5, 1.0, 1.0], rel=0.03)  # 3 sampling sd
