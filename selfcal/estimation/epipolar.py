@@ -21,6 +21,11 @@ from selfcal.threads import helper_threads
 __all__ = ["PairEstimate", "fundamental_pairs", "epipolar_sigma", "robust_cv"]
 
 
+MIN_SHARED = 16
+"""Points two views must share for their fundamental matrix (:func:`fundamental_pairs`' default):
+a view that shares fewer with every other is not registered by the field route's first pass."""
+
+
 @dataclass
 class PairEstimate:
     """Epipolar geometry of views ``view_a``, ``view_b``: ``x_b^T F x_a = 0`` (pixels).
@@ -72,7 +77,7 @@ def uv_table(obs: Observations, pidx: np.ndarray, n_points: int) -> np.ndarray:
 def fundamental_pairs(
     obs: Observations,
     *,
-    min_shared: int = 16,
+    min_shared: int = MIN_SHARED,
     max_pairs: int = 150,
     max_rig_pairs: int = 10,
     ransac_px: float = 3.0,

@@ -186,5 +186,5 @@ def test_the_docs_field_lines_are_what_the_commands_print(tmp_path, capsys):
            doc["predicted_tool_rms_mm"] / val["tool_tip_error_mm"]["calibrated"]["rms"])  # fmt: skip
     assert [float(v) for v in said.groups()] == [round(g, 2 if i == 4 else 3)
                                                  for i, g in enumerate(got)]  # fmt: skip
-    assert "0.45 px here, the random plan's 0.91 px" in page
-    assert (round(doc["predicted_fx_std_px"], 2), round(doc["random_fx_std_px"], 2)) == (0.45, 0.91)
+    assert "0.46 px here, the random plan's 0.91 px" in page
+    assert (round(doc["predicted_fx_std_px"], 2), round(doc["random_fx_std_px"], 2)) == (0.46, 0.91)

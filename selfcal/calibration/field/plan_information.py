@@ -28,6 +28,7 @@ from selfcal.calibration.field.bounds import fisher_jacobian
 from selfcal.calibration.field.bounds_setup import predicted_setup
 from selfcal.calibration.field.joint_refine import choose_gauge
 from selfcal.camera import Rig
+from selfcal.estimation.epipolar import MIN_SHARED
 from selfcal.estimation.joint_report import aligned_tool_weight
 from selfcal.estimation.observations import ViewLayout
 from selfcal.kinematics.mcpc import MCPCModel, minimal_indices, param_names
@@ -84,7 +85,10 @@ def frame_information(
     the field route (module docstring): the markers of ``layout`` seen by ``rig`` at the nominal
     chain ``model_cam`` (tool = the first camera) as the analytic simulator decides it, corner
     noise ``pixel_sigma_px`` px, the read-back noise ``joint_sigma`` (n,) rad eliminated per
-    posture (None: exact joints). A posture that sees no marker adds nothing (zeros).
+    posture (None: exact joints). A posture that sees no marker adds nothing (zeros), nor does
+    one whose first camera sees fewer than :data:`selfcal.estimation.epipolar.MIN_SHARED`
+    corners: the route's first pass cannot register its view (no pair shares enough points),
+    so a recording drops it (a plan's posture that saw 2 of 20 markers was dropped so).
 
     Raises:
         BoundsError: a scale marker is not seen twice among the postures.
@@ -104,7 +108,11 @@ def frame_information(
     p = len(cols)
     F = np.zeros((m, p, p))
     prior = None if joint_sigma is None else np.diag(1.0 / np.broadcast_to(joint_sigma, (n,)) ** 2)
+    views = ViewLayout(m, rig.n_cameras)
+    first = np.bincount(frame[views.camera(np.asarray(fs.view)) == 0], minlength=m)
     for i in range(m):
+        if first[i] < MIN_SHARED:
+            continue  # unregistered: no information
         Ri = R[(ends[i - 1] if i else 0) : ends[i]]
         A = Ri[:, cols].toarray()
         F[i] = A.T @ A
