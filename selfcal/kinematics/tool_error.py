@@ -48,6 +48,7 @@ __all__ = [
     "growth_factor",
     "joint_spans",
     "posture_distance",
+    "revolute_joints",
     "WorkspaceSample",
     "workspace_sample",
     "EDGE_FRACTION",
@@ -82,31 +83,47 @@ def distance_growth(d: np.ndarray, d_ref: float) -> np.ndarray:
 
 
 def growth_factor(q: np.ndarray, q_ref: np.ndarray | None, span: np.ndarray | None,
-                  d_ref: float, floor: float = 0.0, limit: float = np.inf) -> np.ndarray:  # fmt: skip
+                  d_ref: float, floor: float = 0.0, limit: float = np.inf,
+                  revolute: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
     """(m,) a model error's variance at joints ``q`` (m, n) over its variance at the distance
     ``d_ref`` from the calibration postures ``q_ref`` (k, n): ``floor + (1 - floor) (d /
     d_ref)^2`` with ``d`` the :func:`posture_distance` in units of ``span`` (n,), held at
-    ``limit`` beyond it (the farthest the model error was measured), and ``floor`` (0-1) the
+    ``limit`` beyond it (the farthest the model error was measured; ``revolute``: the joints it
+    wraps), and ``floor`` (0-1) the
     share of that variance that does not grow (a variogram's level,
     :mod:`selfcal.calibration.growth`); 1 everywhere when ``q_ref`` or ``span`` is None or
     ``d_ref`` is not positive (the model error the same everywhere)."""
     q = np.atleast_2d(np.asarray(q, dtype=float))
     if q_ref is None or span is None or d_ref <= 0:
         return np.ones(len(q))
-    d = np.minimum(posture_distance(q, q_ref, span), limit)
+    d = np.minimum(posture_distance(q, q_ref, span, revolute), limit)
     return floor + (1.0 - floor) * distance_growth(d, d_ref)
 
 
-def posture_distance(q: np.ndarray, q_ref: np.ndarray, span: np.ndarray) -> np.ndarray:
+def posture_distance(q: np.ndarray, q_ref: np.ndarray, span: np.ndarray,
+                     revolute: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
     """(m,) every joint vector of ``q`` (m, n)'s distance to the nearest of ``q_ref`` (k, n)
     (rad / m), each joint measured in units of its ``span`` (n,) (e.g. its limits' range: a
-    unit-free distance, 1 = one joint moved across its whole range)."""
+    unit-free distance, 1 = one joint moved across its whole range). The joints ``revolute``
+    (n,) bool (:func:`revolute_joints`; None: none) differ by their readings' difference wrapped
+    to -pi..pi: readings a whole turn apart put the links at the same pose, so a kinematic
+    misfit is the same there (a UR5e's joints turn +-360 deg)."""
     q, q_ref = np.atleast_2d(q), np.atleast_2d(q_ref)
     span = np.asarray(span, dtype=float)
+    wrap = np.zeros(q.shape[1], bool) if revolute is None else np.asarray(revolute, bool)
     d = np.full(len(q), np.inf)
     for r in q_ref:  # (m,) at a time: no (m, k, n) array for a large sample
-        d = np.minimum(d, np.linalg.norm((q - r) / span, axis=1))
+        x = q - r
+        x = np.where(wrap, np.remainder(x + np.pi, 2.0 * np.pi) - np.pi, x)
+        d = np.minimum(d, np.linalg.norm(x / span, axis=1))
     return d
+
+
+def revolute_joints(joint_types: tuple[str, ...]) -> np.ndarray:
+    """(n,) bool: which of the joints ``joint_types`` (a chain's, e.g.
+    :attr:`selfcal.kinematics.mcpc.MCPCModel.joint_types`) are revolute, the joints
+    :func:`posture_distance` wraps."""
+    return np.array([t == "revolute" for t in joint_types], bool)
 
 
 def joint_spans(limits: np.ndarray) -> np.ndarray | None:
@@ -124,17 +141,20 @@ class Reach:
     :func:`posture_distance` of ``q`` to ``postures`` (k, n) rad / m in units of ``span`` (n,)
     rad / m; ``distance`` (unit-free, positive) the distance at which it has its size; ``floor``
     (0-1) the share of it that does not grow (0: none, in proportion to the distance); ``limit``
-    the distance beyond which it is held (the farthest it was measured; infinite: none)."""
+    the distance beyond which it is held (the farthest it was measured; infinite: none);
+    ``revolute`` (n,) bool the joints whose turns :func:`posture_distance` wraps (None: none)."""
 
     postures: np.ndarray
     span: np.ndarray
     distance: float
     floor: float = 0.0
     limit: float = np.inf
+    revolute: np.ndarray | None = None
 
     def factor(self, q: np.ndarray) -> np.ndarray:
         """(m,) the model error's variance at joints ``q`` (m, n) over its size's square."""
-        return growth_factor(q, self.postures, self.span, self.distance, self.floor, self.limit)
+        return growth_factor(q, self.postures, self.span, self.distance, self.floor, self.limit,
+                             self.revolute)  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -181,14 +201,15 @@ class ToolErrorModel:
         if self.reach_postures is None or self.reach_span is None or self.reach_distance <= 0:
             return None
         return Reach(self.reach_postures, self.reach_span, self.reach_distance, self.reach_floor,
-                     self.measured_to)  # fmt: skip
+                     self.measured_to, revolute_joints(self.model.joint_types))  # fmt: skip
 
     def model_error_factor(self, q: np.ndarray) -> np.ndarray:
         """(m,) the model error's variance at joints ``q`` (m, n) over ``model_error_m^2``: 1
         everywhere, or ``floor + (1 - floor) (d / d_ref)^2`` when it grows from the calibration
         postures (module docstring)."""
         return growth_factor(q, self.reach_postures, self.reach_span, self.reach_distance,
-                             self.reach_floor, self.measured_to)  # fmt: skip
+                             self.reach_floor, self.measured_to,
+                             revolute_joints(self.model.joint_types))  # fmt: skip
 
     def unmeasured(self, q: np.ndarray) -> np.ndarray:
         """(m,) bool: the joints ``q`` (m, n) where the model error is not measured (farther
@@ -198,7 +219,9 @@ class ToolErrorModel:
         if (not np.isfinite(self.measured_to) or self.model_error_m <= 0
                 or self.reach_postures is None or self.reach_span is None):  # fmt: skip
             return np.zeros(len(q), bool)
-        return posture_distance(q, self.reach_postures, self.reach_span) > self.measured_to
+        d = posture_distance(q, self.reach_postures, self.reach_span,
+                             revolute_joints(self.model.joint_types))  # fmt: skip
+        return d > self.measured_to
 
     def _point(self) -> np.ndarray:
         """(3,) the tool point in the chain's tool frame (m)."""

@@ -15,6 +15,7 @@ from selfcal.kinematics.tool_error import (
     accuracy_line,
     norm_quantile,
     posture_distance,
+    revolute_joints,
     workspace_sample,
     workspace_summary,
 )
@@ -137,6 +138,29 @@ def test_posture_distance_is_to_the_nearest_posture_in_units_of_the_spans():
     q = np.array([[0.2, 0.0], [1.0, 0.9], [0.0, 0.5]])
     d = posture_distance(q, q_ref, span)
     assert d == pytest.approx([0.1, 0.2, 1.0])
+
+
+def test_a_revolute_joint_a_turn_away_is_at_the_same_posture(er4u):
+    """Readings a whole turn apart put the links at the same pose: the distance wraps a
+    revolute joint's difference to -pi..pi (the UR5e's joints turn +-360 deg), not a prismatic
+    one's."""
+    span = np.array([4 * np.pi, 4 * np.pi, 1.0])
+    q_ref = np.array([[0.0, 0.0, 0.0]])
+    q = np.array([[2 * np.pi, 0.0, 0.0], [0.0, 1.5 * np.pi, 0.0], [0.0, 0.0, 2 * np.pi]])
+    revolute = np.array([True, True, False])
+    assert posture_distance(q, q_ref, span, revolute) == pytest.approx([0.0, 0.125, 2 * np.pi])
+    assert posture_distance(q, q_ref, span) == pytest.approx([0.5, 0.375, 2 * np.pi])
+    # the chain's own joints: every ER-4u joint is revolute, and its model error wraps them
+    em0 = _error_model(er4u, np.random.default_rng(5))
+    assert revolute_joints(em0.model.joint_types).all()
+    q_cal = np.zeros((1, er4u.n))
+    turned = q_cal.copy()
+    turned[0, -1] = 2 * np.pi  # the wrist roll a turn on: the same pose
+    em = dataclasses.replace(em0, model_error_m=2e-4, reach_postures=q_cal,
+                             reach_span=np.diff(er4u.limits, axis=1)[:, 0], reach_distance=0.05,
+                             measured_to=0.01)  # fmt: skip
+    assert em.model_error_factor(turned) == pytest.approx([0.0])
+    assert not em.unmeasured(turned).any()
 
 
 def test_a_grown_model_error_is_none_at_the_calibration_postures_and_grows_with_the_distance(er4u):

@@ -98,6 +98,7 @@ from selfcal.kinematics.tool_error import (
     ToolErrorModel,
     joint_spans,
     posture_distance,
+    revolute_joints,
     workspace_sample,
     workspace_summary,
 )
@@ -293,7 +294,8 @@ def model_error(obs: BoardObservations, selection: Selection, offsets: np.ndarra
         h = held_out_errors(obs, fit, out, T_tool_point, cr)
         h["px2_held"] = np.zeros(len(h["frame"]))
         h["distance"] = (np.zeros(len(h["frame"])) if span is None else
-                         posture_distance(obs.q[h["frame"].astype(int)], obs.q[train], span))  # fmt: skip
+                         posture_distance(obs.q[h["frame"].astype(int)], obs.q[train], span,
+                                          revolute_joints(cr.model.joint_types)))  # fmt: skip
         if variance is not None and len(h["frame"]):
             dev = held_out_errors(obs, fit, out, T_tool_point, with_deviation(cr, variance))
             h["px2_held"] = dev["px2_expected"] - h["px2_expected"]
@@ -398,7 +400,8 @@ def board_accuracy(obs: BoardObservations, selection: Selection, cr: BoardCramer
     q_cal = np.asarray(obs.q[obs.used], dtype=float)
     reach = None
     if me is not None and me.reach_distance > 0 and span is not None:
-        reach = Reach(q_cal, span, me.reach_distance, me.reach_floor, unmeasured_beyond(me))
+        reach = Reach(q_cal, span, me.reach_distance, me.reach_floor, unmeasured_beyond(me),
+                      revolute_joints(cr.model.joint_types))  # fmt: skip
     em, names = board_error_model(cr, T_tool_point, pos, rot, reach)
     sample = workspace_sample(q_cal, limits, count=count)
     note = ("no cross-validation (the frames show one arm configuration): the covariance alone, "

@@ -17,7 +17,8 @@ model error per coordinate, counted only when the excess over ``mean tr S + 3 nu
 significant (:data:`Z_MODEL_ERROR`). The same for the orientation of a fit of poses.
 How it grows away from the calibration postures is read from the same rows
 (:mod:`selfcal.calibration.growth`): each row's excess against its distance ``d`` from its
-fold's training postures (each joint in units of its limits' range), ``m^2(d) = c0 + c1 d^2``,
+fold's training postures (each joint in units of its limits' range, a revolute joint's turns
+wrapped), ``m^2(d) = c0 + c1 d^2``,
 ``c1`` counted at its one-sided upper confidence bound whether or not the rows show a growth
 (``growth_shown``: above two standard errors), capped at what alone explains the rows' pooled
 excess, ``c0`` the excess that leaves; ``m`` is then the size at the rows' mean distance and a
@@ -62,6 +63,7 @@ from selfcal.kinematics.tool_error import (
     ToolErrorModel,
     joint_spans,
     posture_distance,
+    revolute_joints,
     workspace_sample,
     workspace_summary,
 )
@@ -139,6 +141,7 @@ def model_error(
     k = min(meas.m, folds)
     fold = fold_index(meas.q, k)
     poses = meas.R is not None
+    revolute = revolute_joints(model.joint_types)
     r2, r2_rot, s2, s2_rot, dist = [], [], [], [], []
     failed = 0
     for f in range(k):
@@ -160,7 +163,7 @@ def model_error(
         r2.append(pos**2 / 1e6)
         s2.append(np.trace(S[:, :3, :3], axis1=1, axis2=2))
         if span is not None:
-            dist.append(posture_distance(q, meas.q[~out], span))
+            dist.append(posture_distance(q, meas.q[~out], span, revolute))
         if ang is not None:
             r2_rot.append(np.radians(ang) ** 2)
             s2_rot.append(np.trace(S[:, 3:, 3:], axis1=1, axis2=2))
