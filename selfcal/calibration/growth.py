@@ -30,9 +30,9 @@ before; this only splits it.
 What the folds measure reaches as far as their held-out rows lie (``measured_to``, the largest
 distance): beyond it ``c0 + c1 d^2`` would be an extrapolation (a bounded misfit, as a joint's
 compliance, stops growing; a quadratic does not), so the prediction holds the model error at its
-value there and says it is not measured (:func:`beyond_measured`,
-:meth:`selfcal.kinematics.tool_error.ToolErrorModel.unmeasured`). Unit-free distances; the excess in any
-unit (m^2, px^2), ``c0`` in it per unit of ``a``.
+value there and says it is not measured
+(:meth:`selfcal.kinematics.tool_error.ToolErrorModel.unmeasured`, the one place that compares).
+Unit-free distances; the excess in any unit (m^2, px^2), ``c0`` in it per unit of ``a``.
 """
 
 from __future__ import annotations
@@ -41,7 +41,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["GROWTH_UPPER_Z", "Variogram", "beyond_measured", "fit_variogram"]
+__all__ = ["GROWTH_UPPER_Z", "Variogram", "fit_variogram"]
 
 GROWTH_UPPER_Z = 1.645
 """The growth counted is its estimate plus this many standard errors: its one-sided 95 % upper
@@ -111,13 +111,3 @@ def fit_variogram(excess: np.ndarray, var: np.ndarray, unit_level: np.ndarray,
         growth = max(total, 0.0) / float(np.sum(b))
     level = max((total - growth * float(np.sum(b))) / float(np.sum(a)), 0.0)
     return Variogram(level, growth, float(c[1]), bool(t > z), t, measured)
-
-
-def beyond_measured(distance: np.ndarray, gram: Variogram | None) -> np.ndarray:
-    """(m,) bool: the points at ``distance`` (m,) (unit-free) where the model error is not
-    measured: beyond the held-out rows' largest distance (module docstring); none without a
-    variogram."""
-    d = np.asarray(distance, dtype=float)
-    if gram is None:
-        return np.zeros(d.shape, bool)
-    return d > gram.measured_to

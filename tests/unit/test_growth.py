@@ -6,8 +6,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from selfcal.calibration.accuracy import Z_MODEL_ERROR
-from selfcal.calibration.growth import beyond_measured, fit_variogram
+from selfcal.calibration.accuracy import Z_MODEL_ERROR, model_error_of, unmeasured_beyond
+from selfcal.calibration.growth import fit_variogram
+from selfcal.kinematics.mcpc import nominal_mcpc
+from selfcal.kinematics.tool_error import ToolErrorModel
+from selfcal.robot.definition import load_robot
 
 
 def _rows(level: float, growth: float, seed: int, k: int = 60) -> tuple[np.ndarray, ...]:
@@ -50,17 +53,36 @@ def test_a_constant_model_error_gives_no_growth():
     assert 0 < np.median([g.growth * 0.25 / g.level for g in got]) < 1.5
 
 
+def _unmeasured(gram, d: np.ndarray) -> np.ndarray:
+    """Where a tool-error prediction whose model error the rows ``gram`` read (None: the
+    same everywhere) says it is not measured, at the distances ``d`` (the first joint moved, in
+    units of a unit span): the production path, the route's ModelError carried into the
+    ToolErrorModel (selfcal.calibration.accuracy.unmeasured_beyond)."""
+    rows = [np.full(4, 1e-8)]
+    me = model_error_of(rows, rows, rows, None, folds=1, failed=0, noise_what="noise",
+                        given=(1e-4, None), reach_distance=0.1, growth=gram)  # fmt: skip
+    assert me is not None
+    model = nominal_mcpc(load_robot("er4u-paper"))
+    q_cal = np.zeros((1, model.n))
+    em = ToolErrorModel(model, np.eye(4), np.arange(0), np.zeros((0, 0)), 1e-4,
+                        reach_postures=q_cal, reach_span=np.ones(model.n), reach_distance=0.1,
+                        measured_to=unmeasured_beyond(me))  # fmt: skip
+    q = np.zeros((len(d), model.n))
+    q[:, 0] = d
+    return em.unmeasured(q)
+
+
 def test_beyond_what_the_folds_measured():
     excess, var, a, b, d = _rows((3e-4) ** 2, 0.0, 1)
     flat = fit_variogram(excess, var, a, b, d, Z_MODEL_ERROR)
     assert not flat.shown
     far = np.array([0.1, flat.measured_to + 0.01, 1.0])
-    assert beyond_measured(far, flat).tolist() == [False, True, True]
+    assert _unmeasured(flat, far).tolist() == [False, True, True]
     grown = fit_variogram(*_rows(0.0, (8e-4) ** 2, 1), Z_MODEL_ERROR)
     assert grown.shown and grown.floor(0.3) < 0.1
     # shown or not, beyond the rows' largest distance it is not measured
-    assert beyond_measured(far, grown).tolist() == [False, True, True]
-    assert not beyond_measured(far, None).any()
+    assert _unmeasured(grown, far).tolist() == [False, True, True]
+    assert not _unmeasured(None, far).any()
 
 
 def test_distances_all_alike_cannot_show_a_growth():
