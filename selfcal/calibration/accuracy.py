@@ -20,7 +20,6 @@ record (:class:`ModelError`), the ``accuracy`` block of ``calibration.json``
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
@@ -29,7 +28,7 @@ import numpy as np
 
 from selfcal.errors import InputError
 from selfcal.kinematics.mcpc import MCPCModel, minimal_indices
-from selfcal.kinematics.tool_error import ToolErrorModel, WorkspaceSample, joint_spans
+from selfcal.kinematics.tool_error import Reach, ToolErrorModel, WorkspaceSample, joint_spans
 
 if TYPE_CHECKING:
     from selfcal.calibration.growth import Variogram
@@ -277,8 +276,7 @@ def error_model_from_json(
     span = None if "joint_limits_si" not in block else joint_spans(block["joint_limits_si"])
     if reach > 0 and span is not None:  # an older file without it: the same everywhere
         q_cal = postures_from_json(block, model.n, where, fix=fix)
-        em = dataclasses.replace(em, reach_postures=q_cal, reach_span=span, reach_distance=reach,
-                                 reach_floor=floor, measured_to=unmeasured_beyond(me))  # fmt: skip
+        em = em.with_reach(Reach(q_cal, span, reach, floor, unmeasured_beyond(me)))
     return em
 
 

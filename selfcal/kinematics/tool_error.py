@@ -32,7 +32,7 @@ limits. SI inside; ``_mm`` / ``_deg`` at the edges.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.special import gammaincinv
@@ -202,6 +202,16 @@ class ToolErrorModel:
             return None
         return Reach(self.reach_postures, self.reach_span, self.reach_distance, self.reach_floor,
                      self.measured_to, revolute_joints(self.model.joint_types))  # fmt: skip
+
+    def with_reach(self, reach: Reach | None) -> ToolErrorModel:
+        """This model with its model error growing from ``reach`` (its postures, spans,
+        reference distance, level's share and measured distance; the joints it wraps are this
+        chain's own), or unchanged when ``reach`` is None (the same everywhere)."""
+        if reach is None:
+            return self
+        return replace(self, reach_postures=np.array(reach.postures, dtype=float),
+                       reach_span=reach.span, reach_distance=reach.distance,
+                       reach_floor=reach.floor, measured_to=reach.limit)  # fmt: skip
 
     def model_error_factor(self, q: np.ndarray) -> np.ndarray:
         """(m,) the model error's variance at joints ``q`` (m, n) over ``model_error_m^2``: 1

@@ -60,8 +60,6 @@ predicted pose, against the predicted corner). Nothing here reads truth.
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 
 from selfcal.calibration.accuracy import (
@@ -149,10 +147,7 @@ def board_error_model(cr: BoardCramerRao, T_tool_point: np.ndarray, position_m: 
     cov = cr.covariance[np.ix_(est, est)] + position_m**2 * _full_covariance(cr, True)[1][:p, :p]
     em = ToolErrorModel(cr.model, np.eye(4), idx[est], cov, position_m, rotation_rad,
                         np.asarray(T_tool_point, float))  # fmt: skip
-    if reach is not None:
-        em = dataclasses.replace(em, reach_postures=reach.postures, reach_span=reach.span,
-                                 reach_distance=reach.distance, reach_floor=reach.floor,
-                                 measured_to=reach.limit)  # fmt: skip
+    em = em.with_reach(reach)
     return em, tuple(param_names(idx[est]))
 
 

@@ -38,7 +38,6 @@ its reading back are the routes' shared :mod:`selfcal.calibration.accuracy`. SI 
 
 from __future__ import annotations
 
-import dataclasses
 import warnings
 
 import numpy as np
@@ -60,6 +59,7 @@ from selfcal.estimation.tracker import TrackerMeasurements
 from selfcal.kinematics.mcpc import MCPCModel, minimal_indices
 from selfcal.kinematics.tool_error import (
     EDGE_FRACTION,
+    Reach,
     ToolErrorModel,
     joint_spans,
     posture_distance,
@@ -217,10 +217,8 @@ def tracker_accuracy(
     rot = None if meas.R is None else (0.0 if me is None else me.rotation_rad)
     em = error_model(res, pos, rot)
     if me is not None and me.reach_distance > 0 and span is not None:
-        em = dataclasses.replace(em, reach_postures=np.array(meas.q, dtype=float),
-                                 reach_span=span, reach_distance=me.reach_distance,
-                                 reach_floor=me.reach_floor,
-                                 measured_to=unmeasured_beyond(me))  # fmt: skip
+        em = em.with_reach(Reach(meas.q, span, me.reach_distance, me.reach_floor,
+                                 unmeasured_beyond(me)))  # fmt: skip
     sample = workspace_sample(meas.q, limits, count=count)
     names = tuple(n for n, e in zip(res.names, res.estimated) if e)
     summary = workspace_summary(em, sample, meas.q)
