@@ -98,8 +98,9 @@ def fit_variogram(excess: np.ndarray, var: np.ndarray, unit_level: np.ndarray,
     w = 1.0 / np.maximum(v, np.finfo(float).tiny)
     X = np.stack([a, b], axis=1)
     XtWX = X.T @ (w[:, None] * X)
-    if np.linalg.cond(XtWX) > 1e12:  # the distances all alike: no growth to tell
-        return flat
+    scale = np.sqrt(np.diag(XtWX))  # the test on unit columns: any unit of the distance
+    if np.any(scale <= 0) or np.linalg.cond(XtWX / np.outer(scale, scale)) > 1e12:
+        return flat  # the distances all alike: no growth to tell
     cov = np.linalg.inv(XtWX)
     c = cov @ (X.T @ (w * y))
     spread = float(np.sum(w * (y - X @ c) ** 2)) / (y.size - 2)

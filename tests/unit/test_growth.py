@@ -91,3 +91,16 @@ def test_distances_all_alike_cannot_show_a_growth():
     got = fit_variogram(excess, var, a, 3.0 * same**2, same, Z_MODEL_ERROR)
     assert not got.shown and got.growth == 0.0 and got.floor(0.2) == 1.0
     assert got.level == pytest.approx(np.sum(excess) / np.sum(a))
+
+
+def test_the_unit_of_the_distance_does_not_matter():
+    """Distances in another unit (here 1e-4 of it: the growth's column 1e8 times smaller than
+    the level's) give the same fit in that unit, not a flat one: the test for distances all
+    alike is made on the columns scaled to unit size."""
+    excess, var, a, b, d = _rows(0.0, (8e-4) ** 2, 1)
+    got = fit_variogram(excess, var, a, b, d, Z_MODEL_ERROR)
+    small = fit_variogram(excess, var, a, b * 1e-8, d * 1e-4, Z_MODEL_ERROR)
+    assert got.shown and small.shown
+    assert small.t == pytest.approx(got.t, rel=1e-6)
+    assert small.growth == pytest.approx(got.growth * 1e8, rel=1e-6)
+    assert small.at(d * 1e-4) == pytest.approx(got.at(d), rel=1e-6)
