@@ -74,6 +74,16 @@ class Variogram:
         """The variance ``c0 + c1 d^2`` at the distances ``d``."""
         return self.level + self.growth * np.square(np.asarray(d, dtype=float))
 
+    def carried(self, rows: np.ndarray, d: float) -> float:
+        """The factor that carries a variance pooled over held-out rows at the distances
+        ``rows`` (k,) (their mean excess) to the distance ``d`` under this variogram's shape:
+        ``at(d) / mean(at(rows))`` (1 where the variogram is zero). E.g. the tracker's
+        orientation model error, read from the same rows as the position's but pooled: at the
+        rows' mean distance the pooled variance overstates it by ``mean(d^2) / mean(d)^2``
+        of the growing part (~1.2 for distances spread evenly)."""
+        pooled = float(np.mean(self.at(rows))) if np.size(rows) else 0.0
+        return float(self.at(d)) / pooled if pooled > 0 else 1.0
+
     def floor(self, d_ref: float) -> float:
         """The level's share of the variance at ``d_ref``: 1 without growth, 0 without level."""
         total = float(self.at(d_ref))

@@ -104,3 +104,24 @@ def test_the_unit_of_the_distance_does_not_matter():
     assert small.t == pytest.approx(got.t, rel=1e-6)
     assert small.growth == pytest.approx(got.growth * 1e8, rel=1e-6)
     assert small.at(d * 1e-4) == pytest.approx(got.at(d), rel=1e-6)
+
+
+def test_a_pooled_variance_is_carried_to_the_mean_distance():
+    """A second quantity of the same rows that grows the same way (the tracker's orientation
+    beside its position), known only pooled over the rows: carried by the position's variogram
+    to the rows' mean distance it is its true variance there (median over 40 seeded draws, 1.003
+    of it; one draw's ratio spreads 0.16), where the pooled one overstates it by mean(d^2) /
+    mean(d)^2 (1.22 for distances even in 0.05-0.5; 1.20 here)."""
+    growth, k = (8e-4) ** 2, 0.25  # the second quantity's variance: k times the first's
+    carried, pooled, truth = [], [], []
+    for seed in range(40):
+        excess, var, a, b, d = _rows(0.0, growth, seed)
+        gram = fit_variogram(excess, var, a, b, d, Z_MODEL_ERROR)
+        rng = np.random.default_rng(seed + 100)
+        second = np.sum(rng.normal(size=(d.size, 3)) ** 2, axis=1) * k * growth * d**2
+        reach = float(np.mean(d))
+        pooled.append(np.mean(second) / 3.0)
+        carried.append(pooled[-1] * gram.carried(d, reach))
+        truth.append(k * growth * reach**2)
+    assert np.median(np.divide(carried, truth)) == pytest.approx(1.0, abs=0.01)  # 1.003
+    assert 1.15 < np.median(np.divide(pooled, truth)) < 1.25  # 1.20

@@ -23,7 +23,9 @@ wrapped), ``m^2(d) = c0 + c1 d^2``,
 (``growth_shown``: above two standard errors), capped at what alone explains the rows' pooled
 excess, ``c0`` the excess that leaves; ``m`` is then the size at the rows' mean distance and a
 workspace point gets ``c0 + c1 d^2`` of its own distance from the calibration postures (the
-orientation's model error, when there is one, grows the same way), held at its value at the
+orientation's model error, when there is one, grows the same way: its rows' pooled excess is
+carried to the rows' mean distance by the position's variogram, not read from its own, which
+would need its own growth in the block and ``ToolErrorModel``), held at its value at the
 rows' largest distance beyond it, where it is not measured (the block says so,
 ``model_error.beyond_measured``).
 What cannot be told apart: noise above the stated ``sigma_t`` is counted as model error (the
@@ -187,9 +189,12 @@ def model_error(
     reach = float(np.mean(d))
     if reach <= 0:
         return me
+    # the orientation's excess is pooled over the same rows: carried to `reach` by the
+    # position's variogram (the same shape assumed; growth.Variogram.carried)
+    rot_m = None if me.rotation_rad is None else me.rotation_rad * np.sqrt(gram.carried(d, reach))
     return model_error_of(r2, s2, n2, rot, folds=k - failed, failed=failed,
                           noise_what="the tracker noise",
-                          given=(float(np.sqrt(gram.at(reach))), me.rotation_rad),
+                          given=(float(np.sqrt(gram.at(reach))), rot_m),
                           reach_distance=reach, growth=gram)  # fmt: skip
 
 
