@@ -44,6 +44,9 @@ from selfcal.sim.compliance import SHOULDER
 from selfcal.threads import limit_threads
 
 __all__ = [
+    "calibrate",
+    "draw",
+    "true_points",
     "run",
     "table",
     "main",
@@ -76,9 +79,10 @@ def _bend(q: np.ndarray, model: str) -> np.ndarray:
     return q if model == "fits" else SHOULDER.bent(q)
 
 
-def draw(robot, sigma_m: float, model: str, seed: int) -> dict[str, np.ndarray]:
-    """One draw: per region, the predicted 95 % bound, the predicted RMS without and with the
-    model error, and the true error (mm) at its joint vectors."""
+def calibrate(robot, sigma_m: float, model: str, seed: int):
+    """One draw's simulated case (:func:`selfcal.benchmarks.tracker.sim.make_case`), its
+    training joints ``q`` (ROWS, n) and its calibration's predicted accuracy
+    (:class:`selfcal.calibration.tracker.accuracy.TrackerAccuracy`)."""
     case = make_case(robot, seed=seed)
     rng = np.random.default_rng(seed + 500)
     lim = np.clip(robot.limits, -np.radians(170.0), np.radians(170.0))
@@ -92,12 +96,24 @@ def draw(robot, sigma_m: float, model: str, seed: int) -> dict[str, np.ndarray]:
         acc = tracker_accuracy(case.nominal, meas, res, robot.limits, sigma_t_m=sigma_m,
                                sigma_r_rad=1e-4, count=COUNT)  # fmt: skip
     assert acc is not None
+    return case, q, acc
+
+
+def true_points(case, model: str, q: np.ndarray) -> np.ndarray:
+    """(m, 3) the true robot's tool points (mm) at the readings ``q`` (m, n)."""
+    return fk_tool(case.true, _bend(q, model))[:, :3, 3] * 1e3
+
+
+def draw(robot, sigma_m: float, model: str, seed: int) -> dict[str, np.ndarray]:
+    """One draw: per region, the predicted 95 % bound, the predicted RMS without and with the
+    model error, and the true error (mm) at its joint vectors."""
+    case, q, acc = calibrate(robot, sigma_m, model, seed)
     sample = workspace_sample(q, robot.limits, count=COUNT, seed=seed + 1)
     out = {}
     for name in REGIONS:
         qq = getattr(sample, name)
         p = acc.error_model.predicted(qq)
-        true = fk_tool(case.true, _bend(qq, model))[:, :3, 3] * 1e3
+        true = true_points(case, model, qq)
         out[name] = np.stack([p["position_95_mm"], p["estimation_95_mm"], p["position_rms_mm"],
                               np.linalg.norm(p["position_mm"] - true, axis=1)])  # fmt: skip
     return out

@@ -12,8 +12,8 @@ error against the robot's true pose has two parts, both treated as zero-mean Gau
   calibration route (e.g. :mod:`selfcal.calibration.tracker.accuracy`), the same at every posture;
   or, when the route's held-out rows showed how it grows (:mod:`selfcal.calibration.growth`), a
   smooth function of the joints that the fit matched at the calibration postures: its variance
-  grows with the square of the posture's distance ``d`` (:func:`posture_distance`) from the
-  nearest calibration posture, ``m^2 (f + (1 - f) (d / d_ref)^2)`` with ``m`` its size at the
+  grows with the square of the posture's distance ``d`` (:func:`posture_distance`, a revolute
+  joint's turns wrapped) from the nearest calibration posture, ``m^2 (f + (1 - f) (d / d_ref)^2)`` with ``m`` its size at the
   distance ``d_ref`` the held-out postures had and ``f`` the share of it that does not grow,
   out to the farthest distance the held-out rows measured it and held there beyond
   (:meth:`ToolErrorModel.model_error_factor`; there it is not measured:

@@ -1,0 +1,85 @@
+"""Probe: how the tracker benchmark's model error grows with the distance, true and predicted
+(issue #29, docs/tool-accuracy.md).
+
+The draws of :mod:`selfcal.benchmarks.tool_accuracy` (the same set-up and seeds). Per draw: the
+variogram the calibration read from its folds (:mod:`selfcal.calibration.growth`: the level
+``c0`` and the growth counted ``c1`` as sizes, mm and mm per unit distance; the growth's point
+estimate, signed, and its t; whether the cap set it; the held-out rows' largest distance and the
+reference distance) and per region (inside, edge, workspace) the median distance from the
+calibration postures, the true model error and the predicted one (per coordinate, mm). The true
+model error is what the true error leaves beyond the estimation's predicted part: ``sqrt(mean(|e|^2
+- tr S) / 3)`` over the region's joint vectors (the benchmark knows the truth; the calibration
+does not). The last lines pool them over the draws (root of the mean variance).
+
+Run: ``uv run python -m selfcal.benchmarks.tool_accuracy_growth --robot ur5e --noise-mm 0.1
+[--draws 20] [--model compliance]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+import numpy as np
+
+from selfcal.benchmarks.tool_accuracy import COUNT, MODELS, REGIONS, calibrate, true_points
+from selfcal.kinematics.tool_error import posture_distance, revolute_joints, workspace_sample
+from selfcal.robot.definition import load_robot
+from selfcal.threads import limit_threads
+
+__all__ = ["probe", "main"]
+
+
+def probe(robot_name: str, noise_mm: float, draws: int, model: str) -> list[str]:
+    """The lines the module docstring describes, one per draw and one per region."""
+    robot = load_robot(robot_name)
+    lines, pooled = [], {r: [] for r in REGIONS}
+    for seed in range(draws):
+        case, q, acc = calibrate(robot, noise_mm / 1e3, model, seed)
+        me, em = acc.model_error, acc.error_model
+        g = None if me is None else me.growth
+        if g is None:
+            head = f"draw {seed:2d}: no growing model error counted"
+        else:
+            capped = g.level == 0.0
+            head = (f"draw {seed:2d}: c0 {np.sqrt(g.level) * 1e3:.3f} mm, c1 "
+                    f"{np.sqrt(g.growth) * 1e3:.3f} mm/unit (estimate "
+                    f"{np.sign(g.estimate) * np.sqrt(abs(g.estimate)) * 1e3:+.3f}, t {g.t:+.2f}"
+                    f"{', capped' if capped else ''}), measured to {g.measured_to:.3f}, reach "
+                    f"{me.reach_distance:.3f}")  # fmt: skip
+        sample = workspace_sample(q, robot.limits, count=COUNT, seed=seed + 1)
+        for name in REGIONS:
+            qq = getattr(sample, name)
+            p = em.predicted(qq)
+            e2 = np.sum((p["position_mm"] - true_points(case, model, qq)) ** 2, axis=1)
+            est2 = np.trace(em.estimation_covariance(qq)[:, :3, :3], axis1=1, axis2=2) * 1e6
+            true2 = float(np.mean(e2 - est2)) / 3.0
+            pred2 = float(np.mean(em.model_error_factor(qq))) * (em.model_error_m * 1e3) ** 2
+            d = posture_distance(qq, q, np.diff(robot.limits, axis=1)[:, 0],
+                                 revolute_joints(em.model.joint_types))  # fmt: skip
+            pooled[name].append((true2, pred2))
+            head += (f" | {name}: d {np.median(d):.2f}, true {np.sqrt(max(true2, 0.0)):.3f}, "
+                     f"predicted {np.sqrt(pred2):.3f} mm")  # fmt: skip
+        lines.append(head)
+    for name in REGIONS:
+        t, p = np.mean(pooled[name], axis=0)
+        lines.append(f"{robot_name} {noise_mm:g} mm {model} {name}: model error per coordinate "
+                     f"true {np.sqrt(max(t, 0.0)):.3f} mm, predicted {np.sqrt(p):.3f} mm")  # fmt: skip
+    return lines
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Print the probe's lines (one BLAS thread)."""
+    limit_threads(1)
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--robot", default="ur5e", help="robot file (default ur5e)")
+    ap.add_argument("--noise-mm", type=float, default=0.1, help="tracker noise (default 0.1)")
+    ap.add_argument("--draws", type=int, default=20, help="draws (default 20)")
+    ap.add_argument("--model", choices=MODELS, default="compliance", help="default compliance")
+    args = ap.parse_args(argv)
+    print("\n".join(probe(args.robot, args.noise_mm, args.draws, args.model)))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
