@@ -13,8 +13,9 @@ error against the robot's true pose has two parts, both treated as zero-mean Gau
   or, when the route's held-out rows showed how it grows (:mod:`selfcal.calibration.growth`), a
   smooth function of the joints that the fit matched at the calibration postures: its variance
   grows with the square of the posture's distance ``d`` (:func:`posture_distance`, a revolute
-  joint's turns wrapped) from the nearest calibration posture, ``m^2 (f + (1 - f) (d / d_ref)^2)`` with ``m`` its size at the
-  distance ``d_ref`` the held-out postures had and ``f`` the share of it that does not grow,
+  joint's turns wrapped) from the nearest calibration posture, ``m^2 (f + (1 - f) (d /
+  d_ref)^2)`` with ``m`` its size at the distance ``d_ref`` the held-out postures had and ``f``
+  the share of it that does not grow,
   out to the farthest distance the held-out rows measured it and held there beyond
   (:meth:`ToolErrorModel.model_error_factor`; there it is not measured:
   :meth:`ToolErrorModel.unmeasured`).
@@ -89,8 +90,7 @@ def growth_factor(q: np.ndarray, q_ref: np.ndarray | None, span: np.ndarray | No
     ``d_ref`` from the calibration postures ``q_ref`` (k, n): ``floor + (1 - floor) (d /
     d_ref)^2`` with ``d`` the :func:`posture_distance` in units of ``span`` (n,), held at
     ``limit`` beyond it (the farthest the model error was measured; ``revolute``: the joints it
-    wraps), and ``floor`` (0-1) the
-    share of that variance that does not grow (a variogram's level,
+    wraps), and ``floor`` (0-1) the share of that variance that does not grow (a variogram's level,
     :mod:`selfcal.calibration.growth`); 1 everywhere when ``q_ref`` or ``span`` is None or
     ``d_ref`` is not positive (the model error the same everywhere)."""
     q = np.atleast_2d(np.asarray(q, dtype=float))

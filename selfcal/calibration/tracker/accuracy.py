@@ -18,8 +18,8 @@ significant (:data:`Z_MODEL_ERROR`). The same for the orientation of a fit of po
 How it grows away from the calibration postures is read from the same rows
 (:mod:`selfcal.calibration.growth`): each row's excess against its distance ``d`` from its
 fold's training postures (each joint in units of its limits' range, a revolute joint's turns
-wrapped), ``m^2(d) = c0 + c1 d^2``,
-``c1`` counted at its one-sided upper confidence bound whether or not the rows show a growth
+wrapped), ``m^2(d) = c0 + c1 d^2``, ``c1`` counted at its one-sided upper confidence bound
+whether or not the rows show a growth
 (``growth_shown``: above two standard errors), capped at what alone explains the rows' pooled
 excess, ``c0`` the excess that leaves; ``m`` is then the size at the rows' mean distance and a
 workspace point gets ``c0 + c1 d^2`` of its own distance from the calibration postures (the
