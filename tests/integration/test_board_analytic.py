@@ -79,6 +79,27 @@ def test_the_report_compares_with_the_truth_and_the_bound(run):
     assert "Cramér-Rao bound" in (out / "report.md").read_text()
 
 
+def test_without_the_accuracy_block_the_estimate_and_bounds_are_the_same(run):
+    """calibrate_board_dataset_detailed(accuracy=False) (each Monte Carlo draw's calibration)
+    leaves the predicted accuracy block out, after the estimate: the chain, the camera and the
+    tool tip's bound those of the run's calibration.json (to 1e-9: the board route's start
+    rounds differently run to run), and no accuracy block."""
+    from selfcal.calibration.board.dataset import calibrate_board_dataset_detailed
+
+    _, out, _ = run
+    cal, stored = (
+        calibrate_board_dataset_detailed(out, accuracy=False).result,
+        read_board_calibration(out),
+    )
+    assert stored.accuracy is not None and cal.accuracy is None
+    np.testing.assert_allclose(cal.model.params, stored.model.params, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(cal.cameras[0].values(), stored.cameras[0].values(), rtol=1e-9)
+    assert cal.bounds is not None and stored.bounds is not None
+    assert cal.bounds.tool_tip_rms_mm.bound == pytest.approx(
+        stored.bounds.tool_tip_rms_mm.bound, rel=1e-9
+    )
+
+
 def test_a_board_feature_row_with_the_field_columns_is_named(run, tmp_path):
     """detections.csv of a board holds one row per feature; a row of the marker field's six
     columns is an error naming the file and the row."""

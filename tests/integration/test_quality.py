@@ -174,6 +174,22 @@ def test_the_fair_nominal_fits_the_calibrations_rows_from_its_estimate(dataset, 
     assert fair.reprojection_rms_px > 2 * out.result.reprojection_rms_px
 
 
+def test_without_the_fair_nominal_the_estimate_is_the_same_and_the_result_says_so(
+    dataset, detailed
+):
+    """calibrate_detailed(fair_nominal=False) (the Monte Carlo acceptance tests' draws) fits no
+    fair nominal, after the estimate: the chain, the camera and the bounds bit for bit those of
+    the whole calibration, no nominal nor its check in the result, and a warning naming it."""
+    out = calibrate_detailed(dataset, fair_nominal=False)
+    r, full = out.result, detailed.result
+    assert full.nominal is not None and r.nominal is None
+    np.testing.assert_array_equal(out.model.params, detailed.model.params)
+    mine, theirs = r.to_json(), full.to_json()
+    for key in ("intrinsics", "bounds", "accuracy", "failures", "status"):
+        assert mine.get(key) == theirs.get(key), key
+    assert any("fair_nominal=False" in w for w in r.warnings), r.warnings
+
+
 def test_the_refinement_starts_warm_at_the_camera_stages_damping(dataset, detailed):
     """The joint refinement's first solve starts with the damping the camera stage's final
     adjustment ended with (near that minimum a nearly undamped step converges at once): the

@@ -220,8 +220,14 @@ def calibrate_board_dataset_detailed(
     joint_sigma: float | np.ndarray | None = None,
     terms: Sequence[Term] = (),
     deviation: Deviation | None = None,
+    accuracy: bool = True,
 ) -> BoardDatasetCalibration:
     """:func:`calibrate_board_dataset` with what it was computed from (the Monte Carlo's view).
+
+    ``accuracy``: False leaves the predicted tool-point accuracy block out of the result (its
+    cross-validation folds' fits were a quarter of a Monte Carlo draw's CPU, and a draw reads
+    only the estimate; :mod:`selfcal.studies.montecarlo.board`): no ``accuracy`` in the result,
+    the estimate and its bounds are the same.
 
     Raises:
         DatasetError: missing or damaged dataset files, or
@@ -379,10 +385,11 @@ def calibrate_board_dataset_detailed(
         result = dataclasses.replace(
             result, bounds_error=text, warnings=(*result.warnings, f"no Cramer-Rao bound: {text}")
         )
-    else:  # the predicted tool-point accuracy over the workspace (issue #29)
-        assert cr is not None
+    else:
         obs = BoardObservations(board, res.board, feats, q, rig, [o[0] for o in others], js, e2h,
                                 tuple(terms))  # fmt: skip
+    if obs is not None and accuracy:  # the predicted tool-point accuracy (issue #29)
+        assert cr is not None
         try:
             acc = board_accuracy(obs, sel, cr, res.nominal.model.joint_offsets, inv_pose(mount),
                                  robot.limits, pixel_sigma_px=bounds.pixel_sigma_px,

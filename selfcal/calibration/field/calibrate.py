@@ -70,7 +70,7 @@ from selfcal.camera import (
 from selfcal.errors import InitialCameraWarning, InputError
 from selfcal.estimation.selfcal_errors import DegenerateConfigurationError, SelfCalibrationError
 from selfcal.io.calibration import CalibrationResult
-from selfcal.io.calibration_blocks import ScenePoints
+from selfcal.io.calibration_blocks import FairNominal, ScenePoints
 from selfcal.io.dataset import Dataset, DatasetError
 from selfcal.io.dataset_info import CAMERAS, DatasetInfo
 from selfcal.io.frame_cache import FrameCache
@@ -135,6 +135,7 @@ def calibrate_detailed(
     terms: Sequence[Term] = (),
     cache: FrameCache | None = None,
     joint_sigma: float | np.ndarray | None = None,
+    fair_nominal: bool = True,
 ) -> CalibrationOutput:
     """Run the whole calibration on the dataset in ``root`` (see the module docstring) and keep
     the live estimates behind the result.
@@ -153,6 +154,9 @@ def calibrate_detailed(
     ``cache``: images and detections already in memory (:func:`detect_dataset`).
     ``joint_sigma``: the standard deviation of a joint reading (rad / m; one value or one per
     joint) the one-step refinement models, instead of the robot file's encoder resolution.
+    ``fair_nominal``: False skips the fair nominal's fit (15 % of a Monte Carlo draw's CPU; a
+    caller that reads only the estimate and its bounds): no ``nominal`` in the result, its
+    check not run, a warning saying so.
 
     Raises:
         ValueError: unknown ``method``.
@@ -297,8 +301,11 @@ def calibrate_detailed(
     ok = np.isfinite(X).all(axis=1)
     scene = ScenePoints(tuple(int(i) for i in ids[ok]), np.asarray(X[ok], dtype=float))
     out = dataclasses.replace(out, result=result)
+    fair: FairNominal | None = None
+    why: str | None = "the fair nominal was not fitted (asked: fair_nominal=False)"
     with _stage(progress, "fair nominal (the nominal chain fitted to the same pixels)") as st:
-        fair, why = judge_against_nominal(out, obs, q, robot, ds.info, terms=terms)
+        if fair_nominal:
+            fair, why = judge_against_nominal(out, obs, q, robot, ds.info, terms=terms)
         if fair is not None:
             st(f"predicts the calibration images with "
                f"{fair.calibration_images_rms_px['nominal']:.3f} px RMS")  # fmt: skip

@@ -4,7 +4,8 @@
 projected with the true camera at the true poses, Gaussian noise of ``pixel_sigma``,
 :func:`selfcal.sim.analytic.project_board`), or rendered, and hands the dataset here (the row
 counts the ``frames`` and those in which every feature of the board was found, ``frames_whole``): the board route calibrates it as
-``selfcal calibrate`` does (:func:`selfcal.calibration.board.dataset.calibrate_board_dataset_detailed`:
+``selfcal calibrate`` does, less the predicted accuracy block, which the row does not read
+(:func:`selfcal.calibration.board.dataset.calibrate_board_dataset_detailed`:
 OpenCV's calibration as the start, the two-stage fit -- camera stage, then the identification on
 its camera poses -- and the one-step refinement with joint corrections), and the row holds, for
 both methods as the field's (:mod:`selfcal.studies.montecarlo.run`), the validation tool tip's RMS after
@@ -39,7 +40,7 @@ __all__ = ["evaluate_board_draw"]
 def evaluate_board_draw(root: Path, pixel_sigma: float) -> dict:
     """The row (mm / deg / px; module docstring) of the board dataset acquired in ``root``."""
     ds = Dataset.open(root)
-    out = calibrate_board_dataset_detailed(root)
+    out = calibrate_board_dataset_detailed(root, accuracy=False)  # the row reads no accuracy
     cal, fit = out.result, out.fit
     truth = read_truth(root / "truth.json")
     assert truth.T_world_board is not None  # a board scenario's truth

@@ -108,7 +108,9 @@ def draw_one(settings: dict) -> dict:
     ``settings``: ``poses``, ``pixel_sigma``, ``seed`` (noise), ``traj_seed``, ``perturb_seed``,
     ``dither`` (bool), optionally ``joints_deg`` (planned postures to use instead of the
     scenario's plan), ``quantize``, ``config``, ``render`` (MuJoCo images detected as ``selfcal
-    run`` with ``[noise] render = true`` does; default the analytic path). Returns a flat row (mm / deg); never raises: a
+    run`` with ``[noise] render = true`` does; default the analytic path), ``fair_nominal``
+    (default True; False: the field calibration skips its fair nominal and the row's
+    ``fair_nominal_tip_rms_mm`` is NaN). Returns a flat row (mm / deg); never raises: a
     failed draw has ``status = "failed: ..."``.
     """
     t0 = time.perf_counter()
@@ -119,8 +121,10 @@ def draw_one(settings: dict) -> dict:
             warnings.simplefilter("ignore")
             root = Path(d) / "run"
             s = _acquire(settings, root)
-            evaluate = evaluate_board_draw if s.target.board else _evaluate
-            row.update(evaluate(root, float(settings["pixel_sigma"])))
+            sigma = float(settings["pixel_sigma"])
+            fair = bool(settings.get("fair_nominal", True))
+            row.update(evaluate_board_draw(root, sigma) if s.target.board
+                       else _evaluate(root, sigma, fair_nominal=fair))  # fmt: skip
         row["status"] = "ok"
     except Exception as exc:  # noqa: BLE001 - a study records failures instead of stopping
         row["status"] = f"failed: {type(exc).__name__}: {str(exc)[:200]}"
@@ -128,8 +132,8 @@ def draw_one(settings: dict) -> dict:
     return row
 
 
-def _evaluate(root: Path, pixel_sigma: float) -> dict:
-    out = calibrate_detailed(root, method="joint")
+def _evaluate(root: Path, pixel_sigma: float, *, fair_nominal: bool = True) -> dict:
+    out = calibrate_detailed(root, method="joint", fair_nominal=fair_nominal)
     ds = Dataset.open(root)
     robot = load_robot(ds.info.robot_model)
     truth = read_truth(root / "truth.json")
