@@ -194,7 +194,9 @@ def _emulator(backend, tmp: Path) -> AclEmulator:
 
 
 def _fault_scenario(tmp: Path, emu: AclEmulator):
-    extra = "\n[robot.hardware.options]\nquery_timeout_s = 0.5\npoll_interval_s = 0.01\n"
+    # the link's default reply deadline (2 s): with 0.5 s the abort's CLRBUF prompt came too late
+    # on loaded cores and the timeout fault's "abort sequence sent" was lost (slow tier, load ~20)
+    extra = "\n[robot.hardware.options]\nquery_timeout_s = 2.0\npoll_interval_s = 0.01\n"
     return load_scenario(
         scenario_file(tmp / "hw.toml", emu.hardware_snippet(), extra), overrides=FAULT_SECTIONS
     )
