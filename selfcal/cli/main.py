@@ -41,6 +41,7 @@ from selfcal.console.common import (
     run_command,
     writing,
 )
+from selfcal.console.numpy_extras import defer_numpy_extras
 from selfcal.console.progress import Progress
 from selfcal.plots.rerun_log import register as register_record
 from selfcal.studies.diagnose_render import register as register_diagnose
@@ -449,9 +450,12 @@ def _limited(
     func: Callable[[argparse.Namespace], int | None],
 ) -> Callable[[argparse.Namespace], int | None]:
     """``func`` after limiting the BLAS/OpenMP threads to ``--threads`` (a bad value is an
-    ``InputError`` that :func:`run_command` reports like any other)."""
+    ``InputError`` that :func:`run_command` reports like any other) and deferring numpy's
+    subpackages that scipy's import would load unused
+    (:func:`selfcal.console.numpy_extras.defer_numpy_extras`)."""
 
     def run(args: argparse.Namespace) -> int | None:
+        defer_numpy_extras()
         limit_threads(args.threads)
         return func(args)
 
