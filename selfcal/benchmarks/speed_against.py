@@ -154,6 +154,8 @@ def named(fig: dict) -> dict[str, float]:
         out[f"`calibrate`, analytic, {r['poses']} poses (in-process)"] = r["wall"]
     for r in fig.get("calibrate", []):
         out[f"acquisition, analytic, {r['poses']} poses"] = r["acquire"]
+        if "acquire_cpu" in r:  # a figures file of an older speed.py has none
+            out[f"same, {r['poses']} poses, CPU"] = r["acquire_cpu"]
     if "ba" in fig:
         out[f"bundle adjustment, {fig['ba']['poses']} poses, engine"] = fig["ba"]["engine"]
     if "memory" in fig:
