@@ -101,6 +101,60 @@ class SelfcalParser(argparse.ArgumentParser):
         self.print_usage(sys.stderr)
         self.exit(EXIT_USAGE, f"selfcal: error: {message} -- see `{self.prog} --help`\n")
 
+    def parse_args(self, args=None, namespace=None):  # type: ignore[no-untyped-def, override]
+        """As argparse's, but arguments no option takes are reported by the command they were
+        given to (its usage and ``--help``), and an option that belongs to other commands names
+        them (``selfcal calibrate DIR --spread 10``: ``--spread`` is ``selfcal identify``'s)."""
+        ns, extra = self.parse_known_args(args, namespace)
+        if extra:
+            command = _chosen_parser(self, ns)
+            elsewhere = _commands_with_options(self, extra, command)
+            command.error(f"unrecognized arguments: {' '.join(extra)}{elsewhere}")
+        return ns
+
+
+def _subcommands(parser: argparse.ArgumentParser) -> dict[str, argparse.ArgumentParser]:
+    """The sub-command parsers of ``parser`` by name (none for a leaf command)."""
+    return {
+        name: sub
+        for action in parser._actions
+        if isinstance(action, argparse._SubParsersAction)
+        for name, sub in action.choices.items()
+    }
+
+
+def _chosen_parser(
+    parser: argparse.ArgumentParser, ns: argparse.Namespace
+) -> argparse.ArgumentParser:
+    """The parser of the (nested) command chosen in ``ns`` (``parser`` itself if none)."""
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            chosen = action.choices.get(getattr(ns, action.dest, None) or "")
+            if chosen is not None:
+                return _chosen_parser(chosen, ns)
+    return parser
+
+
+def _commands_with_options(
+    top: argparse.ArgumentParser, extra: list[str], command: argparse.ArgumentParser
+) -> str:
+    """``` (`--spread` is an option of `selfcal identify`)``` for every option in ``extra``
+    that other commands of ``top`` have, else an empty string."""
+    leaves: list[argparse.ArgumentParser] = []
+    todo = [top]
+    while todo:
+        p = todo.pop()
+        subs = _subcommands(p)
+        todo += list(subs.values())
+        if not subs and p is not command:
+            leaves.append(p)
+    notes = []
+    for token in dict.fromkeys(t.split("=", 1)[0] for t in extra if t.startswith("--")):
+        progs = sorted({p.prog for p in leaves if token in p._option_string_actions})
+        if progs:
+            notes.append(f"`{token}` is an option of " + ", ".join(f"`{q}`" for q in progs))
+    return f" ({'; '.join(notes)})" if notes else ""
+
 
 def add_verbosity(p: argparse.ArgumentParser, *, top: bool = False) -> None:
     """``-v/--verbose`` (tracebacks, debug messages) and ``-q/--quiet`` (no progress, no notes;

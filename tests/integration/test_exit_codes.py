@@ -237,6 +237,24 @@ def test_usage_errors_exit_2_in_the_same_style(capsys):
     assert last.endswith("-- see `selfcal fk --help`")
 
 
+def test_an_option_of_another_command_is_named_with_its_command(capsys, tmp_path):
+    # issue 29 spells the run-to-run spread `selfcal calibrate ... --spread N`; it is an option
+    # of `selfcal identify` (tracker rows): the error said "unrecognized arguments: --spread 10
+    # -- see `selfcal --help`", under the top-level usage, and named neither command
+    code, out, err = run(capsys, "calibrate", tmp_path, "--spread", "10")
+    assert code == 2 and out == ""
+    assert err.startswith("usage: selfcal calibrate ")
+    last = err.splitlines()[-1]
+    assert last.startswith("selfcal: error: unrecognized arguments: --spread 10")
+    assert "`--spread` is an option of `selfcal identify`" in last
+    assert last.endswith("-- see `selfcal calibrate --help`")
+    # an option no command has gets no such note; a nested command names itself
+    code, _, err = run(capsys, "hw", "joints", "--no-such-option")
+    last = err.splitlines()[-1]
+    assert code == 2 and "is an option of" not in last
+    assert last.endswith("-- see `selfcal hw joints --help`")
+
+
 def test_python_warnings_become_counted_log_lines(capsys, monkeypatch):
     import warnings
 
