@@ -194,6 +194,7 @@ def tracker_input(args: argparse.Namespace, robot):
 def cmd_identify(args: argparse.Namespace) -> int:
     from selfcal.calibration.tracker.calibrate import calibrate_tracker
     from selfcal.calibration.tracker.calibration_file import write_tracker_calibration
+    from selfcal.calibration.tracker.identify import stated_noise_note
     from selfcal.calibration.tracker.spread import spread_line
     from selfcal.io.atomic import write_text_atomic
     from selfcal.kinematics.tool_error import accuracy_line
@@ -216,6 +217,8 @@ def cmd_identify(args: argparse.Namespace) -> int:
         write_text_atomic(out / "residuals.csv", _residuals_csv(table, res, meas))
         note_written(args, out / "residuals.csv")
     kinds = " + ".join(res.kinds)
+    if (note := stated_noise_note(res, args.sigma_mm)) is not None:
+        get_logger(__name__).warning("%s", note)
     if args.json:
         print(json.dumps(_identify_json(res, meas, cal, path)))
         return 0

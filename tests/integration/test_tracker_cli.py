@@ -23,10 +23,10 @@ def _write(path, header, rows, fmt="{:.6f}", sep=","):
     return str(path)
 
 
-def _measurements(tmp_path, robot, m=40, seed=2, poses=False, units="deg"):
+def _measurements(tmp_path, robot, m=40, seed=2, poses=False, units="deg", sigma=SIGMA):
     case = make_case(robot, seed=seed)
     q = case.configurations(m, 3)
-    xyz, R = measure(case, q, SIGMA, 1, poses=poses)
+    xyz, R = measure(case, q, sigma, 1, poses=poses)
     qq = np.degrees(q) if units == "deg" else q
     header = [f"j{i + 1}" for i in range(robot.n)] + ["x_mm", "y_mm", "z_mm"]
     rows = np.column_stack([qq, xyz * 1e3])
@@ -105,6 +105,25 @@ def test_poses_and_a_robot_file_path(tmp_path, capsys):
     code, text, err = _run([*argv, "--out", str(tmp_path / "o")], capsys)
     assert code == 0, err
     assert "over 30 poses" in text and "rank 30/30" in text
+
+
+def test_a_tracker_five_times_better_than_stated_is_named(tmp_path, capsys, er4u):
+    """A tracker of 0.02 mm identified with the default --sigma-mm 0.1: the fit printed sigma0
+    0.22 and nothing else, and `selfcal check` (which tests new rows against the stated
+    noise) then called 12 new rows shifted by 0.2 mm "unchanged" (p = 0.09) on a 3-joint arm."""
+    _, header, rows = _measurements(tmp_path, er4u, sigma=2e-5)
+    meas = _write(tmp_path / "m.csv", header, rows)
+    argv = ["identify", meas, "--robot", "er4u-paper", "--joint-units", "deg"]
+    code, _, err = _run([*argv, "--out", str(tmp_path / "o")], capsys)
+    assert code == 0, err
+    note = next(x for x in err.splitlines() if "stated tracker noise" in x)
+    assert note.startswith("selfcal: warning: ") and "--sigma-mm 0.1 " in note, note
+    sigma = float(note.split("nearer ")[1].split(" mm")[0])
+    assert 0.015 < sigma < 0.03, note  # the drawn noise, 0.02 mm per coordinate
+    assert "selfcal check" in note and f"--sigma-mm {sigma:.2g}" in note, note
+    # stated right, no note
+    code, _, err = _run([*argv, "--sigma-mm", "0.02", "--out", str(tmp_path / "p")], capsys)
+    assert code == 0 and "stated tracker noise" not in err, err
 
 
 def _with_distances(tmp_path, er4u, mm_per_unit=1e3):

@@ -232,6 +232,37 @@ class TrackerResult(ParameterEstimates):
         return self.T_meas_fit @ fk_tool(self.model, np.atleast_2d(q))
 
 
+NOISE_NOTE_RATIO = 0.5
+"""``sigma0`` below which :func:`stated_noise_note` speaks (the stated noise twice the real)."""
+NOISE_NOTE_P = 1e-3
+"""and the chi-square's lower tail below which that is not chance."""
+
+
+def stated_noise_note(res: TrackerResult, sigma_mm: float) -> str | None:
+    """A note when the fit's residuals show the tracker far better than ``sigma_mm`` (mm per
+    coordinate, as given to the fit): ``sigma0`` below :data:`NOISE_NOTE_RATIO` and
+    ``sigma0^2 dof`` in the chi-square's lower tail below :data:`NOISE_NOTE_P`; else ``None``.
+    `selfcal check` tests new rows against the stated noise, so a stated noise far above the real
+    one hides changes (docs/tool-accuracy.md)."""
+    from scipy.stats import chi2
+
+    dof = res.n_equations - int(np.count_nonzero(res.estimated))
+    if dof <= 0 or not res.sigma0 < NOISE_NOTE_RATIO:
+        return None
+    p = float(chi2.cdf(res.sigma0**2 * dof, dof))
+    if p >= NOISE_NOTE_P:
+        return None
+    real = sigma_mm * res.sigma0
+    deg = " (and --sigma-deg for the poses)" if "pose" in res.kinds else ""
+    return (
+        f"the fit's residuals are {res.sigma0:.2f} times the stated tracker noise --sigma-mm "
+        f"{sigma_mm:g}{deg} (chi-square over {dof} degrees of freedom, p = {p:.1g}: not chance): "
+        f"the tracker is nearer {real:.3g} mm per coordinate. The predicted accuracy takes the "
+        f"smaller noise, but `selfcal check` tests new rows against the stated one and misses "
+        f"changes the real noise would show -- identify again with --sigma-mm {real:.2g}"
+    )
+
+
 def identify_tracker(
     model: MCPCModel,
     meas: TrackerMeasurements,
