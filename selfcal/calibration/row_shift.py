@@ -7,7 +7,8 @@ joints row ``i + k`` for small shifts ``k`` and fits the nominal chain to each p
 (placement and hand-eye free, :func:`selfcal.kinematics.alignment.fit_placement_and_hand_eye`): the true
 pairing fits to the arm's kinematic errors (a millimetre), a wrong one by centimetres.
 :func:`shift_note` says so in a sentence when a shift fits clearly better than the rows as
-given.
+given and fits at all (:data:`SHIFT_FIT_M`); :func:`order_note` when neither the rows as given
+nor any shift fits (rows in another order than the images', e.g. a log sorted otherwise).
 """
 
 from __future__ import annotations
@@ -18,9 +19,14 @@ from selfcal.kinematics.alignment import AXIS_TIPS, fit_placement_and_hand_eye
 from selfcal.kinematics.forward import fk_tool
 from selfcal.kinematics.mcpc import MCPCModel
 
-__all__ = ["row_shift_misfits", "shift_note"]
+__all__ = ["SHIFT_FIT_M", "order_note", "row_shift_misfits", "shift_note"]
 
 _MIN_PAIRS = 6
+SHIFT_FIT_M = 0.02
+"""A pairing of rows and images whose misfit (:func:`row_shift_misfits`) is above this (m) does
+not fit the nominal arm: the true pairing fits to the arm's kinematic errors (millimetres; 1.2 mm
+in tests/unit/test_scale_check.py), a wrong one by centimetres (the photoneo set's 20 rows
+shuffled: 265 - 993 mm)."""
 
 
 def row_shift_misfits(
@@ -52,11 +58,12 @@ def row_shift_misfits(
 
 def shift_note(misfits: dict[int, float], joints: str) -> str | None:
     """A sentence naming the shift that fits at least 3 times better than the rows as given (``0``)
-    in ``misfits`` (:func:`row_shift_misfits`), or None. ``joints``: the file, for the message."""
+    in ``misfits`` (:func:`row_shift_misfits`) and within :data:`SHIFT_FIT_M`, or None.
+    ``joints``: the file, for the message."""
     if 0 not in misfits or len(misfits) < 2:
         return None
     k = min(misfits, key=lambda s: misfits[s])
-    if k == 0 or misfits[k] * 3 > misfits[0]:
+    if k == 0 or misfits[k] * 3 > misfits[0] or misfits[k] > SHIFT_FIT_M:
         return None
     return (
         f"the joints rows fit the images when shifted by {k:+d}: row i{k:+d} of {joints} with "
@@ -68,4 +75,22 @@ def shift_note(misfits: dict[int, float], joints: str) -> str | None:
             else f"the first {-k} image(s) probably have no row and the file ends with {-k} "
             "row(s) of no image"
         )  # fmt: skip
+    )
+
+
+def order_note(misfits: dict[int, float], joints: str) -> str | None:
+    """A sentence saying that neither the rows as given nor any shift in ``misfits``
+    (:func:`row_shift_misfits`) fits the nominal arm (each above :data:`SHIFT_FIT_M`), or None.
+    Checked after the target's scale (a wrong square size also leaves a misfit; its check says
+    so first). ``joints``: the file, for the message."""
+    if 0 not in misfits or min(misfits.values()) <= SHIFT_FIT_M:
+        return None
+    k = min(misfits, key=lambda s: misfits[s])
+    best = "" if k == 0 else f", the best shift ({k:+d} rows) {misfits[k] * 1000:.1f} mm"
+    return (
+        f"the rows of {joints} do not fit their images in the order given: the nominal arm "
+        f"fitted to the camera poses (placement and hand-eye free) is {misfits[0] * 1000:.1f} mm "
+        f"off them{best}, where rows paired with their own images leave the arm's own errors "
+        f"(millimetres): the rows are in another order than the images (sorted file names; an "
+        f"`image` column pairs them by name), or are another arm's"
     )

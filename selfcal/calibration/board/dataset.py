@@ -45,7 +45,7 @@ from selfcal.calibration.frame_checks import (
     unused_frames_message,
 )
 from selfcal.calibration.identify import IdentificationError
-from selfcal.calibration.row_shift import row_shift_misfits, shift_note
+from selfcal.calibration.row_shift import order_note, row_shift_misfits, shift_note
 from selfcal.calibration.scale_check import check_scale, motion_scale, scale_warning, scaled_sizes
 from selfcal.errors import EXIT_INTERNAL, EstimationError, SelfCalError, SelfCalWarning
 from selfcal.estimation.joint_report import encoder_sigma
@@ -455,8 +455,12 @@ def _data_notes(ds: Dataset, board: Board, feats: list[Features], names: list[st
         return [shift]  # a wrong pairing also spoils the scale: that one first
     sizes = {k: float(v) for k, v in (ds.info.board or {}).items() if k.endswith("_mm")}
     if int(cb.used.sum()) < 3:
-        return []
+        order = order_note(misfits, f"{ds.root}/joints.csv")
+        return [] if order is None else [order]
     ms = motion_scale(nominal_mcpc(robot), q[cb.used], T[cb.used], mount0)
     scale = scale_warning(ms, robot.name, f"the board ({scaled_sizes(sizes, 1.0)})",
                           f"{scaled_sizes(sizes, ms.scale)} would match the arm")  # fmt: skip
-    return [] if scale is None else [scale]
+    if scale is not None:
+        return [scale]
+    order = order_note(misfits, f"{ds.root}/joints.csv")
+    return [] if order is None else [order]

@@ -170,8 +170,8 @@ def refine_on_board(
         listed = ", ".join(free[:8]) + (" ..." if len(free) > 8 else "")
         ended = "stopped" if sol.status < 0 else f"did not converge within {max_iter} iterations"
         raise EstimationError(
-            f"the fit of {what} on the board {ended} ({sol.message}): the estimator failed, no "
-            f"check of the data found them wrong; tried: Levenberg-Marquardt from the start "
+            f"the fit of {what} on the board {ended} ({sol.message}): the estimator failed; "
+            f"tried: Levenberg-Marquardt from the start "
             f"model, {len(free)} kinematic parameter(s) free ({listed or 'none'}), every "
             f"camera's free parameters, {int(used.sum())} frames, tolerance {tol:g}"
             + (", joint read-back errors estimated" if obs.joint_sigma is not None else "")
