@@ -237,6 +237,8 @@ def fit_markdown(r: dict, figures: list[str]) -> str:
     lines += ["", "## Camera", "", f"{cam} (± 1 sigma).", "",
               *rig_camera_markdown(r.get("cameras", {})), "## Parameters", "",
               parameter_markdown(r["parameters"], truth=False)]  # fmt: skip
+    if gauge := gauge_note(r["parameters"], idf.get("selection", {}).get("identified", [])):
+        lines += ["", gauge]
     lines += figure_links(figures)
     if r["warnings"]:
         lines += ["", "## Warnings", ""] + [f"- {w}" for w in r["warnings"]]
@@ -258,6 +260,37 @@ def selection_markdown(sel: dict) -> list[str]:
         folds = ", ".join("-" if v is None else f"{v:.3f}" for v in c["fold_rms_px"])
         out.append(f"| {c['label']} | {c['n_parameters']} | {fit} | {cv} | {folds} |")
     return out
+
+
+def gauge_note(rows: list[dict], identified: list[str]) -> str | None:
+    """Why identified parameters have no row and held ones moved, or None: ``calibration.json``
+    writes the chain in the MCPC gauge with the fair nominal's joint offsets
+    (:func:`selfcal.calibration.board.nominal_fit.standard_gauge`), which writes an identified
+    joint offset into the link parameters (held ones too: the fit held them, the gauge moves
+    them); identified parameters outside the minimal set the table shows are named apart.
+    ``rows``: the parameter table (:func:`parameter_markdown`'s, mm / deg); ``identified``: the
+    selection's names."""
+    names = {p["name"] for p in rows}
+    offsets = [n for n in identified if n not in names and n.startswith("offset_j")]
+    others = [n for n in identified if n not in names and not n.startswith("offset_j")]
+    moved = [p for p in rows if p.get("held") and abs(p["estimate"] - p["nominal"]) >= 5e-5]
+    if not offsets and not others:
+        return None
+    text = ""
+    if offsets:
+        text = (f"The identified {', '.join(offsets)} have no rows: calibration.json writes the "
+                "chain with the nominal's joint offsets (the MCPC gauge), which writes an offset "
+                "into the link parameters")  # fmt: skip
+        if moved:
+            shown = ", ".join(f"{p['name']} {p['estimate'] - p['nominal']:+.4f} {p['unit']}"
+                              for p in moved)  # fmt: skip
+            text += (f"; so held parameters differ from the nominal ({shown}): not estimated, "
+                     "they carry the offsets")  # fmt: skip
+        text += ". "
+    if others:
+        text += (f"{', '.join(others)} (identified) have no rows: the table shows the MCPC's "
+                 "minimal parameters, which do not include them.")  # fmt: skip
+    return text.strip()
 
 
 def parameter_markdown(rows: list[dict], *, truth: bool) -> str:
