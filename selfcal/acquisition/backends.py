@@ -95,19 +95,20 @@ def planning_inputs(s: Scenario) -> dict:
     """
     robot = load_robot(s.robot.model)
     nominal = nominal_mcpc(robot).with_tool(robot.T_flange_cam)
-    cx, cy = field_center(robot, nominal)
     board = scenario_board(s)
-    if board is None:
-        half_x = half_y = s.target.extent_mm / 2000.0
-    else:  # the span of the board's features, centred where the home posture looks
-        _, pts_b = board.layout()
-        half_x, half_y = (pts_b[:, :2].max(axis=0) - pts_b[:, :2].min(axis=0)) / 2
-    pts = np.array(
-        [[cx + a, cy + b, 0.0] for a in np.linspace(-half_x, half_x, 6)
-         for b in np.linspace(-half_y, half_y, 6)]
-    )  # fmt: skip
-    normals = np.tile([0.0, 0.0, 1.0], (len(pts), 1))
-    if board is not None and s.target.board_pose:  # the grid over the board where it is
+    if board is None or not s.target.board_pose:  # the target where the home posture looks
+        cx, cy = field_center(robot, nominal)  # (refused when it does not look at the table)
+        if board is None:
+            half_x = half_y = s.target.extent_mm / 2000.0
+        else:  # the span of the board's features
+            _, pts_b = board.layout()
+            half_x, half_y = (pts_b[:, :2].max(axis=0) - pts_b[:, :2].min(axis=0)) / 2
+        pts = np.array(
+            [[cx + a, cy + b, 0.0] for a in np.linspace(-half_x, half_x, 6)
+             for b in np.linspace(-half_y, half_y, 6)]
+        )  # fmt: skip
+        normals = np.tile([0.0, 0.0, 1.0], (len(pts), 1))
+    else:  # the grid over the board where [target] board_pose puts it
         _, pts_b = board.layout()
         lo, hi = pts_b[:, :2].min(axis=0), pts_b[:, :2].max(axis=0)
         grid = np.array([[a, b, 0.0] for a in np.linspace(lo[0], hi[0], 6)
