@@ -38,7 +38,9 @@ bound of the flange centre's error over 50 workspace postures (the plan's and a 
 of the same size) for --markers markers of --marker-mm laid as scenario.toml's simulated field
 lays them; the postures are, of --candidates random ones, the choice with the least forecast
 of three: the field route's D-optimal choice, and the board plan's greedy choice and exchange
-on the predicted tool-point error (plan.json's chosen_by and choices_tool_rms_mm).
+on the predicted tool-point error (plan.json's chosen_by and choices_tool_rms_mm). A plan of
+fewer than 30 postures whose forecast is behind a random plan of 30's says so and gives the
+count whose plan is not (plan.json's count_to_match).
 Eye-in-hand, one camera; --board-pose, --camera-pose and --mount eye-to-hand are refused,
 as is --add to a field's dataset.
 See docs/plan.md.
@@ -168,6 +170,7 @@ def cmd_field(
     from selfcal.acquisition.backends import robot_reference
     from selfcal.calibration.field.joint_refine import encoder_sigma
     from selfcal.calibration.field.plan import (
+        MATCH_RANDOM,
         FieldPlanSetup,
         field_forecast,
         forecast_workspace,
@@ -260,6 +263,10 @@ def cmd_field(
             "random_fx_std_px": fc["random"].fx_std_px,
             "no_bound": {k: f.why for k, f in fc.items() if f.tool_rms_m is None},
             "chosen_by": plan.chosen_by,
+            "random_match_count": MATCH_RANDOM,
+            "random_match_tool_rms_mm": _mm(plan.random_match_m),
+            "count_to_match": None if plan.to_match is None else plan.to_match[0],
+            "count_to_match_tool_rms_mm": None if plan.to_match is None else _mm(plan.to_match[1]),
             "choices_tool_rms_mm": {
                 k: None if v is None else round(v * 1000, 4) for k, v in plan.choices.items()
             },  # fmt: skip
@@ -277,14 +284,31 @@ def cmd_field(
     return 0
 
 
+def _mm(m: float | None) -> float | None:
+    """A forecast in m as plan.json's mm (None stays None)."""
+    return None if m is None else round(m * 1000, 4)
+
+
 def _lines(plan, fc: dict, n: int, criterion: str) -> str:
-    """The two closing lines of a field plan."""
+    """The closing lines of a field plan: the forecasts, what they are and, for a plan behind
+    the random plan of :data:`selfcal.calibration.field.plan.MATCH_RANDOM`, the count that is
+    not."""
     import numpy as np
+
+    from selfcal.calibration.field.plan import MATCH_RANDOM
 
     def mm(f) -> str:
         return f"{f.tool_rms_m * 1000:.3f} mm" if f.tool_rms_m is not None else f"none ({f.why})"
 
-    return (f"field plan of {n} postures: predicted tool-point error {mm(fc['plan'])} RMS "
+    text = (f"field plan of {n} postures: predicted tool-point error {mm(fc['plan'])} RMS "
             f"(a random plan of {n}: {mm(fc['random'])}); joint path "
             f"{np.degrees(plan.path_rad):.0f} deg (random {np.degrees(plan.random_path_rad):.0f} "
             f"deg)\nthe forecast: {criterion}")  # fmt: skip
+    r = plan.random_match_m
+    if r is None or fc["plan"].tool_rms_m is None or fc["plan"].tool_rms_m <= r:
+        return text
+    more = ("no plan of up to that many reaches it" if plan.to_match is None else
+            f"a plan of {plan.to_match[0]} reaches it (the tool-point greedy choice: "
+            f"{plan.to_match[1] * 1000:.3f} mm): give --count {plan.to_match[0]}")  # fmt: skip
+    return (f"{text}\nbehind the forecast of a random plan of {MATCH_RANDOM} postures "
+            f"({r * 1000:.3f} mm); {more}")  # fmt: skip

@@ -16,7 +16,7 @@ from selfcal.errors import InputError
 from selfcal.kinematics.forward import fk_frames
 from selfcal.kinematics.self_collision import CapsuleChain
 
-__all__ = ["SAMPLES", "check_boxes", "outside_boxes", "chain_samples"]
+__all__ = ["SAMPLES", "check_boxes", "collision_free", "outside_boxes", "chain_samples"]
 
 SAMPLES = 9
 """Points per segment of the chain (ends included): the gap between two is at most a ninth of
@@ -63,3 +63,13 @@ def outside_boxes(chain: CapsuleChain, q: np.ndarray, boxes: np.ndarray) -> np.n
         for box in b:
             good &= ~np.all((cam > box[:3] - c) & (cam < box[3:] + c), axis=-1)
     return good
+
+
+def collision_free(chain: CapsuleChain, q: np.ndarray, boxes: np.ndarray) -> np.ndarray:
+    """(m,) bool: which postures ``q`` (m, n) rad are free of self-collision and the table
+    (:meth:`CapsuleChain.ok`) and keep out of every box of ``boxes`` (b, 6) m: the planners'
+    one collision filter (a field plan's candidates, every plan's workspace sample)."""
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    ok = chain.ok(q)
+    ok[ok] = outside_boxes(chain, q[ok], boxes)
+    return ok

@@ -83,6 +83,38 @@ def test_the_plan_is_the_choice_with_the_least_forecast(planned):
     assert got[doc["chosen_by"]] == pytest.approx(doc["predicted_tool_rms_mm"], abs=2e-4)
 
 
+def test_the_plan_is_set_against_a_random_plan_of_30(planned, capsys):
+    """plan.json gives the forecast of the random plan of MATCH_RANDOM (the same candidate
+    sequence as the random plan of COUNT, its first COUNT) and, for a plan behind it, the
+    smallest count of the tool-point greedy choice whose forecast is not."""
+    from selfcal.calibration.field.joint_refine import encoder_sigma
+    from selfcal.calibration.field.plan import (
+        MATCH_RANDOM,
+        field_forecast,
+        forecast_workspace,
+        random_plan,
+    )
+    from selfcal.cli.plan_field import replay_layout
+
+    doc = json.loads((planned / "plan/plan.json").read_text())
+    setup = _setup(doc)
+    q30 = random_plan(setup, MATCH_RANDOM, seed=doc["seed"])
+    assert np.allclose(np.degrees(q30[:COUNT]), doc["random_joints_deg"], atol=1e-6)
+    layout, _ = replay_layout(
+        planned / "plan/scenario.toml", doc["field"]["scale_length_mm"] / 1000
+    )
+    ws = forecast_workspace(setup, seed=doc["seed"] + 1)
+    fc = field_forecast(setup, layout, q30, ws, pixel_sigma_px=0.5,
+                        joint_sigma=encoder_sigma(setup.robot))  # fmt: skip
+    assert doc["random_match_count"] == MATCH_RANDOM
+    assert doc["random_match_tool_rms_mm"] == pytest.approx(fc.tool_rms_m * 1000, abs=1e-4)
+    if doc["predicted_tool_rms_mm"] > doc["random_match_tool_rms_mm"]:
+        assert COUNT < doc["count_to_match"] <= MATCH_RANDOM
+        assert doc["count_to_match_tool_rms_mm"] <= doc["random_match_tool_rms_mm"]
+    else:
+        assert doc["count_to_match"] is None
+
+
 def test_the_replay_sees_the_field_in_every_posture_and_calibrates(planned):
     with open(planned / "run/detections.csv") as f:
         frames = {int(r["index"]) for r in csv.DictReader(f)}

@@ -32,7 +32,7 @@ import numpy as np
 from selfcal.benchmarks.doc_blocks import ROOT
 from selfcal.io.atomic import write_text_atomic
 
-__all__ = ["field_sets", "main"]
+__all__ = ["field_cell", "field_sets", "main"]
 
 FIELD = {"markers": 20, "extent_mm": 300.0, "marker_size_mm": 30.0, "scale_length_mm": 200.0}
 """docs/plan.md's field (the plan's defaults, models/targets/field.toml's scale)."""
@@ -40,21 +40,17 @@ DOCS = ROOT / "docs/plan.md"
 BLOCK = "benchmark_plan_field_compare"
 
 
-def field_sets(root: Path, count: int = 12, random_counts: tuple[int, ...] = (30,)) -> dict:
-    """``{name: (scenario path, q (m, n) rad, forecast m)}``: the plan of ``count`` and the
-    first ``random_counts`` random postures, each written as a replay scenario under ``root``."""
+def field_cell(root: Path) -> dict:
+    """The benchmark's cell (docs/plan.md's field example): ``robot``, ``camera``, the plan's
+    ``setup``, the read-back noise ``joint_sigma`` (n,) rad, the forecast's ``workspace`` (w, n)
+    rad, the replay's marker ``layout`` (its scenario written under ``root``) and the planner's
+    keywords ``plan_kw``."""
     from selfcal.calibration.field.joint_refine import encoder_sigma
-    from selfcal.calibration.field.plan import (
-        FieldPlanSetup,
-        field_forecast,
-        forecast_workspace,
-        plan_field,
-    )
+    from selfcal.calibration.field.plan import FieldPlanSetup, forecast_workspace
     from selfcal.camera import Rig
     from selfcal.cli.plan_field import replay_layout
     from selfcal.cli.plan_scenario import scenario_text
     from selfcal.io.camera_file import camera_from_fov
-    from selfcal.io.plan_files import joints_csv
     from selfcal.robot.definition import load_robot
 
     robot = load_robot("ur5e")
@@ -62,18 +58,32 @@ def field_sets(root: Path, count: int = 12, random_counts: tuple[int, ...] = (30
     setup = FieldPlanSetup(robot, Rig((camera,), np.eye(4)[None], ("left",)),
                            FIELD["extent_mm"] / 1000, np.zeros((0, 6)))  # fmt: skip
     js = encoder_sigma(robot)
-    ws = forecast_workspace(setup, seed=2)
+    # the forecast's markers: the replays' simulated field (the same for every set)
+    root.mkdir(parents=True, exist_ok=True)
+    first = root / "field-scenario.toml"
+    write_text_atomic(first, scenario_text("ur5e", camera, None, 12, field=FIELD))
+    layout, _ = replay_layout(first, FIELD["scale_length_mm"] / 1000)
+    kw = {"seed": 1, "candidates": 400, "markers": 20, "pixel_sigma_px": 0.5, "joint_sigma": js}
+    return {"robot": robot, "camera": camera, "setup": setup, "joint_sigma": js,
+            "workspace": forecast_workspace(setup, seed=2), "layout": layout, "plan_kw": kw}  # fmt: skip
+
+
+def field_sets(root: Path, count: int = 12, random_counts: tuple[int, ...] = (30,)) -> dict:
+    """``{name: (scenario path, q (m, n) rad, forecast m)}``: the plan of ``count`` and the
+    first ``random_counts`` random postures, each written as a replay scenario under ``root``."""
+    from selfcal.calibration.field.plan import field_forecast, plan_field, random_plan
+    from selfcal.cli.plan_scenario import scenario_text
+    from selfcal.io.plan_files import joints_csv
+
+    cell = field_cell(root)
+    robot, camera, setup, js = cell["robot"], cell["camera"], cell["setup"], cell["joint_sigma"]
+    ws, layout, kw = cell["workspace"], cell["layout"], cell["plan_kw"]
     names = [f"plan {count}"] + [f"random {n}" for n in random_counts]
     for name in names:
         (root / name.replace(" ", "-")).mkdir(parents=True, exist_ok=True)
-    # the forecast's markers: the replays' simulated field (the same for every set)
-    first = root / names[0].replace(" ", "-") / "scenario.toml"
-    write_text_atomic(first, scenario_text("ur5e", camera, None, count, field=FIELD))
-    layout, _ = replay_layout(first, FIELD["scale_length_mm"] / 1000)
-    kw = {"seed": 1, "candidates": 400, "markers": 20, "pixel_sigma_px": 0.5, "joint_sigma": js}
     sets = {names[0]: plan_field(setup, count, layout, ws, **kw).q}
     for name, n in zip(names[1:], random_counts, strict=True):
-        sets[name] = plan_field(setup, n, layout, ws, **kw).q_random
+        sets[name] = random_plan(setup, n, seed=kw["seed"])  # the plan's candidate sequence
     out: dict = {}
     for name, q in sets.items():
         folder = root / name.replace(" ", "-")

@@ -42,6 +42,7 @@ error, the detector's misses and the two-stage route's larger error are not in i
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -59,7 +60,7 @@ from selfcal.calibration.field.plan_information import (
     tool_weight,
 )
 from selfcal.camera import Rig
-from selfcal.kinematics.keep_out import check_boxes, outside_boxes
+from selfcal.kinematics.keep_out import check_boxes, collision_free
 from selfcal.kinematics.mcpc import MCPCModel, nominal_mcpc
 from selfcal.kinematics.self_collision import CapsuleChain
 from selfcal.kinematics.trajectory import home_target_center, plan_postures
@@ -77,12 +78,19 @@ __all__ = [
     "field_forecast",
     "forecast_workspace",
     "GRID_SIDE",
+    "MATCH_RANDOM",
+    "count_to_match",
+    "random_plan",
 ]
 
 GRID_SIDE = 6
 """The planning grid over the field's region: GRID_SIDE x GRID_SIDE points (the scenarios')."""
 CHOICES = ("D-optimal", "tool-point exchange", "D-optimal, tool-point exchange")
 """The choices a field plan is the best of by its forecast (module docstring)."""
+MATCH_RANDOM = 30
+"""The random plan a field plan's count advice is set against (issue #30: a plan of 12 against
+a random plan of 30): a plan of fewer postures whose forecast is behind that random plan's
+gives the count whose plan is not (:func:`count_to_match`)."""
 
 
 @dataclass(frozen=True)
@@ -127,10 +135,7 @@ class FieldPlanSetup:
     def collision_ok(self, q: np.ndarray) -> np.ndarray:
         """(m,) bool: postures ``q`` (m, n) rad free of self-collision, the table and the
         keep-out boxes."""
-        q = np.atleast_2d(np.asarray(q, dtype=float))
-        ok = self.chain.ok(q)
-        ok[ok] = outside_boxes(self.chain, q[ok], self.boxes)
-        return ok
+        return collision_free(self.chain, q, self.boxes)
 
 
 @dataclass
@@ -155,6 +160,8 @@ class FieldPlan:
     exchanges: int
     chosen_by: str
     choices: dict[str, float | None]
+    random_match_m: float | None = None
+    to_match: tuple[int, float] | None = None
 
 
 def plan_field(
@@ -174,7 +181,9 @@ def plan_field(
     postures (w, n) rad for the markers of ``layout``: of the D-optimal selector's choice (each
     grid point worth the corners of ``markers`` markers spread over the grid) and the
     tool-point choices of :data:`CHOICES`; ``pixel_sigma_px`` px of corner noise and the
-    read-back noise ``joint_sigma`` (n,) rad (None: exact).
+    read-back noise ``joint_sigma`` (n,) rad (None: exact). A plan of fewer than
+    :data:`MATCH_RANDOM` postures is set against the random plan of that many (the pool's
+    first) and, when its forecast is behind, gives the count that is not (``to_match``).
 
     Raises:
         DegenerateTrajectoryError: too few feasible candidates.
@@ -186,27 +195,32 @@ def plan_field(
         collision_ok=setup.collision_ok, pixel_sigma_px=pixel_sigma_px,
         corners_per_point=CORNERS_PER_MARKER * markers / len(pts), joint_sigma=joint_sigma,
     )  # fmt: skip
-    q_random = plan_postures(setup.robot, setup.model_cam, setup.rig, pts, count, seed=seed,
-                             min_visible=setup.min_visible, normals_world=nrm,
-                             collision_ok=setup.collision_ok)  # fmt: skip
+    q_random = random_plan(setup, count, seed=seed)
     sets = {CHOICES[0]: opt.chosen}
+    G = tool_weight(setup.model_cam, workspace, setup.robot.T_flange_cam)
     try:
         F = frame_information(setup.model_cam, setup.rig, opt.pool, layout,
                               pixel_sigma_px=pixel_sigma_px, joint_sigma=joint_sigma)  # fmt: skip
     except BoundsError:  # the pool does not see a scale marker twice: the D-optimal choice
         F = None
     if F is not None:
-        G = tool_weight(setup.model_cam, workspace, setup.robot.T_flange_cam)
         n_cam = F.shape[1] - len(G)
         sets[CHOICES[1]] = exchange(F, G, n_cam, select_greedy(F, G, n_cam, count))
         sets[CHOICES[2]] = exchange(F, G, n_cam, opt.chosen)
-    choices = {
-        k: field_forecast(setup, layout, opt.pool[i], workspace, pixel_sigma_px=pixel_sigma_px,
-                          joint_sigma=joint_sigma).tool_rms_m
-        for k, i in sets.items()
-    }  # fmt: skip
+
+    def forecast(q: np.ndarray) -> float | None:
+        return field_forecast(setup, layout, q, workspace, pixel_sigma_px=pixel_sigma_px,
+                              joint_sigma=joint_sigma).tool_rms_m  # fmt: skip
+
+    choices = {k: forecast(opt.pool[i]) for k, i in sets.items()}
     rms = {k: np.inf if v is None else v for k, v in choices.items()}
     best = min(rms, key=rms.__getitem__)
+    random_match = to_match = None
+    if np.isfinite(rms[best]) and count < MATCH_RANDOM <= len(opt.pool):
+        random_match = forecast(random_plan(setup, MATCH_RANDOM, seed=seed))
+    if random_match is not None and F is not None and rms[best] > random_match:
+        order = select_greedy(F, G, F.shape[1] - len(G), MATCH_RANDOM)
+        to_match = count_to_match(count, lambda n: forecast(opt.pool[order[:n]]), random_match)
     home = setup.robot.home
     q = opt.pool[sets[best]]
     q = q[order_path(q, home)]
@@ -222,7 +236,40 @@ def plan_field(
         exchanges=opt.exchanges,
         chosen_by=best,
         choices=choices,
+        random_match_m=random_match,
+        to_match=to_match,
     )
+
+
+def random_plan(setup: FieldPlanSetup, count: int, *, seed: int) -> np.ndarray:
+    """(count, n) rad: the random plan of ``count`` postures, the first of the candidate
+    sequence :func:`plan_field` seeded by ``seed`` chooses from (the same filters)."""
+    pts, nrm = setup.grid()
+    return plan_postures(setup.robot, setup.model_cam, setup.rig, pts, count, seed=seed,
+                         min_visible=setup.min_visible, normals_world=nrm,
+                         collision_ok=setup.collision_ok)  # fmt: skip
+
+
+def count_to_match(
+    count: int, forecast_of: Callable[[int], float | None], target_m: float
+) -> tuple[int, float] | None:
+    """(n, forecast m) of the smallest plan of ``count`` + 1 ... :data:`MATCH_RANDOM` postures
+    whose forecast ``forecast_of(n)`` (m; None: no bound) is at most ``target_m`` (m); None when
+    none is. The plans are nested (the tool-point greedy choice's first ``n``), so their
+    forecast falls with ``n`` (a posture more adds information) and the count is found by
+    bisection."""
+    lo, hi = count, MATCH_RANDOM  # the forecast of lo is above the target; hi's is unknown
+    at_hi = forecast_of(hi)
+    if at_hi is None or at_hi > target_m:
+        return None
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        got = forecast_of(mid)
+        if got is not None and got <= target_m:
+            hi, at_hi = mid, got
+        else:
+            lo = mid
+    return hi, at_hi
 
 
 @dataclass

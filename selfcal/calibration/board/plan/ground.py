@@ -17,7 +17,7 @@ from selfcal.calibration.board.plan.information import board_model
 from selfcal.calibration.board.plan.views import PlanSetup, candidate_pool
 from selfcal.errors import InputError
 from selfcal.estimation.joint_report import aligned_tool_weight
-from selfcal.kinematics.keep_out import outside_boxes
+from selfcal.kinematics.keep_out import collision_free
 from selfcal.kinematics.self_collision import CapsuleChain
 from selfcal.robot.definition import RobotDef
 
@@ -49,9 +49,7 @@ def workspace_sample(setup: PostureCell, n: int, *, seed: int) -> np.ndarray:
     out: list[np.ndarray] = []
     for _ in range(50):
         q = rng.uniform(lo, hi, size=(max(4 * n, 256), r.n))
-        ok = setup.chain.ok(q)
-        ok[ok] = outside_boxes(setup.chain, q[ok], setup.boxes)
-        out.append(q[ok])
+        out.append(q[collision_free(setup.chain, q, setup.boxes)])
         if sum(map(len, out)) >= n:
             break
     w = np.concatenate(out)[:n]
