@@ -94,3 +94,51 @@ def test_the_tool_weight_gives_the_routes_tool_point_bound(cell):
     G = tool_weight(setup.model_cam, ws, setup.robot.T_flange_cam)
     bound = cr.aligned_tool_rms(ws, inv_pose(setup.robot.T_flange_cam))
     assert np.sqrt(np.trace(G @ cr.cov_free)) == pytest.approx(bound, rel=1e-6)
+
+
+def test_with_exact_joints_the_corner_criterion_is_the_forecast(cell):
+    """The per-marker Schur complement of the corners (selfcal/calibration/field/plan_corners.py)
+    with exact joints is the field route's Cramer-Rao bound of the tool point (the markers'
+    corners unknown), over the postures the route registers; with the read-back errors it
+    approximates it, and the exchange on it never raises it."""
+    from selfcal.calibration.field.plan import field_forecast, forecast_workspace
+    from selfcal.calibration.field.plan_corners import (
+        corner_blocks,
+        corner_criterion,
+        corner_exchange,
+    )
+    from selfcal.calibration.field.plan_information import (
+        frame_information,
+        posture_rows,
+        tool_weight,
+    )
+
+    setup, layout, q, js = cell
+    F = frame_information(setup.model_cam, setup.rig, q, layout, pixel_sigma_px=0.5,
+                          joint_sigma=None)  # fmt: skip
+    kept = np.flatnonzero(np.trace(F, axis1=1, axis2=2) > 0)  # the registered postures
+    ws = forecast_workspace(setup, 20, seed=2)
+    G = tool_weight(setup.model_cam, ws, setup.robot.T_flange_cam)
+    cb = corner_blocks(posture_rows(_setup_of(cell, q[kept], None), 1))
+    fc = field_forecast(setup, layout, q[kept], ws, pixel_sigma_px=0.5, joint_sigma=None)
+    every = np.arange(len(kept))
+    # -5.7e-6 measured (the corner blocks' regularisation)
+    assert corner_criterion(cb, G, every) == pytest.approx(fc.tool_rms_m, rel=2e-5)
+    cbq = corner_blocks(posture_rows(_setup_of(cell, q[kept], js), 1))
+    fcq = field_forecast(setup, layout, q[kept], ws, pixel_sigma_px=0.5, joint_sigma=js)
+    # 0.90 measured: the coupling the read-back errors make between two markers is dropped
+    assert 0.7 < corner_criterion(cbq, G, every) / fcq.tool_rms_m < 1.3
+    start = every[: len(kept) - 3]
+    got = corner_exchange(cbq, G, start)
+    assert len(set(got.tolist())) == len(start)
+    assert corner_criterion(cbq, G, got) <= corner_criterion(cbq, G, start)
+
+
+def _setup_of(cell, q, joint_sigma):
+    """The field route's predicted setup of postures ``q`` in the cell."""
+    from selfcal.calibration.field.bounds_setup import predicted_setup
+
+    setup, layout, _, _ = cell
+    return predicted_setup(setup.model_cam, q, setup.rig, layout.ids, layout.corners_world,
+                           layout.normals_world, layout.scale_ids, 0.2, pixel_sigma_px=0.5,
+                           joint_sigma=joint_sigma)  # fmt: skip

@@ -147,7 +147,12 @@ class FieldPlan:
     (``rejected_collision`` removed); ``logdet``/``logdet_random`` the D-optimal selector's proxy
     information of its choice and of the random plan; ``exchanges`` its swaps; ``chosen_by``
     which of :data:`CHOICES` the plan is and ``choices`` every choice's forecast (m; None: no
-    bound), the plan's the smallest (module docstring)."""
+    bound), the plan's the smallest (module docstring); ``random_match_m`` the forecast of the
+    random plan of :data:`MATCH_RANDOM` (m; None: not computed, the plan has that many postures
+    or more, the pool fewer, or no bound) and ``to_match`` (count, forecast m) the smallest
+    plan that reaches it when this one does not (:func:`count_to_match`; None: it does, or none
+    of up to :data:`MATCH_RANDOM` postures does); ``pool`` (c, n) rad the candidates and
+    ``chosen`` the indices of ``q`` in it."""
 
     q: np.ndarray
     q_random: np.ndarray
@@ -162,6 +167,8 @@ class FieldPlan:
     choices: dict[str, float | None]
     random_match_m: float | None = None
     to_match: tuple[int, float] | None = None
+    pool: np.ndarray | None = None
+    chosen: np.ndarray | None = None
 
 
 def plan_field(
@@ -222,8 +229,9 @@ def plan_field(
         order = select_greedy(F, G, F.shape[1] - len(G), MATCH_RANDOM)
         to_match = count_to_match(count, lambda n: forecast(opt.pool[order[:n]]), random_match)
     home = setup.robot.home
-    q = opt.pool[sets[best]]
-    q = q[order_path(q, home)]
+    chosen = np.asarray(sets[best])
+    chosen = chosen[order_path(opt.pool[chosen], home)]
+    q = opt.pool[chosen]
     return FieldPlan(
         q=q,
         q_random=q_random,
@@ -238,6 +246,8 @@ def plan_field(
         choices=choices,
         random_match_m=random_match,
         to_match=to_match,
+        pool=opt.pool,
+        chosen=chosen,
     )
 
 

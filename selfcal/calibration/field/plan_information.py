@@ -21,10 +21,12 @@ SI units, px.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+from scipy import sparse
 
-from selfcal.calibration.field.bounds import fisher_jacobian
+from selfcal.calibration.field.bounds import FisherSetup, fisher_jacobian
 from selfcal.calibration.field.bounds_setup import predicted_setup
 from selfcal.calibration.field.joint_refine import choose_gauge
 from selfcal.camera import Rig
@@ -34,7 +36,14 @@ from selfcal.estimation.observations import ViewLayout
 from selfcal.kinematics.mcpc import MCPCModel, minimal_indices, param_names
 from selfcal.transforms import inv_pose
 
-__all__ = ["FieldLayout", "free_kinematics", "frame_information", "tool_weight"]
+__all__ = [
+    "FieldLayout",
+    "PostureRows",
+    "free_kinematics",
+    "frame_information",
+    "posture_rows",
+    "tool_weight",
+]
 
 
 @dataclass(frozen=True)
@@ -93,31 +102,65 @@ def frame_information(
     Raises:
         BoundsError: a scale marker is not seen twice among the postures.
     """
-    q = np.atleast_2d(np.asarray(q, dtype=float))
-    m, n = q.shape
     fs = predicted_setup(model_cam, q, rig, layout.ids, layout.corners_world,
                          layout.normals_world, layout.scale_ids, layout.scale_length_m,
                          pixel_sigma_px=pixel_sigma_px, joint_sigma=joint_sigma)  # fmt: skip
-    J, lay = fisher_jacobian(fs)  # whitened: J^T J is the information
-    frame = ViewLayout(m, rig.n_cameras).frame(np.asarray(fs.view))
-    rows = np.repeat(frame, 2)  # the reprojection block's rows, u and v of each corner, first
-    order = np.argsort(rows, kind="stable")
-    ends = np.cumsum(np.bincount(rows, minlength=m))
-    R = J[: len(rows)][order].tocsr()
-    cols = lay.kin_cols
-    p = len(cols)
-    F = np.zeros((m, p, p))
-    prior = None if joint_sigma is None else np.diag(1.0 / np.broadcast_to(joint_sigma, (n,)) ** 2)
-    views = ViewLayout(m, rig.n_cameras)
-    first = np.bincount(frame[views.camera(np.asarray(fs.view)) == 0], minlength=m)
-    for i in range(m):
-        if first[i] < MIN_SHARED:
-            continue  # unregistered: no information
-        Ri = R[(ends[i - 1] if i else 0) : ends[i]]
+    pr = posture_rows(fs, rig.n_cameras)
+    m = len(pr.registered)
+    cols = pr.lay.kin_cols
+    F = np.zeros((m, len(cols), len(cols)))
+    for i in map(int, np.flatnonzero(pr.registered)):  # unregistered: no information
+        Ri = pr.R[pr.rows(i)]
         A = Ri[:, cols].toarray()
         F[i] = A.T @ A
-        if prior is not None and len(A):  # eliminate the posture's read-back errors
-            B = Ri[:, lay.n_camera + lay.pose_model.dq_cols[n * i : n * (i + 1)]].toarray()
+        if pr.prior is not None and len(A):  # eliminate the posture's read-back errors
+            B = Ri[:, pr.dq_cols(i)].toarray()
             BA = B.T @ A
-            F[i] -= BA.T @ np.linalg.solve(B.T @ B + prior, BA)
+            F[i] -= BA.T @ np.linalg.solve(B.T @ B + pr.prior, BA)
     return F
+
+
+@dataclass(frozen=True)
+class PostureRows:
+    """The field route's whitened Jacobian of candidate postures (``J``, ``lay``:
+    :func:`selfcal.calibration.field.bounds.fisher_jacobian` of the setup ``fs``) with its
+    reprojection rows sorted by posture: ``R`` (csr) those rows, ``point`` (rows,) each row's
+    point index, ``ends`` (m,) where each posture's rows end; ``registered`` (m,) the postures
+    whose first camera sees :data:`selfcal.estimation.epipolar.MIN_SHARED` corners or more;
+    ``prior`` (n, n) the read-back errors' information (None: exact joints)."""
+
+    fs: FisherSetup
+    J: sparse.csr_matrix
+    lay: Any
+    R: sparse.csr_matrix
+    point: np.ndarray
+    ends: np.ndarray
+    registered: np.ndarray
+    prior: np.ndarray | None
+
+    def rows(self, i: int) -> slice:
+        """Posture ``i``'s rows of ``R``."""
+        return slice(int(self.ends[i - 1]) if i else 0, int(self.ends[i]))
+
+    def dq_cols(self, i: int) -> np.ndarray:
+        """Posture ``i``'s read-back errors' columns of ``J``."""
+        n = self.fs.model.n
+        return self.lay.n_camera + np.asarray(self.lay.pose_model.dq_cols[n * i : n * (i + 1)])
+
+
+def posture_rows(fs: FisherSetup, n_cameras: int) -> PostureRows:
+    """The :class:`PostureRows` of the setup ``fs`` (its ``n_cameras`` cameras' views of the
+    markers at the postures, e.g. :func:`selfcal.calibration.field.bounds_setup.predicted_setup`:
+    as the analytic simulator decides it; its read-back noise ``joint_sigma``, None: exact)."""
+    m, n = np.atleast_2d(fs.q).shape
+    joint_sigma = fs.joint_sigma
+    J, lay = fisher_jacobian(fs)  # whitened: J^T J is the information
+    views = ViewLayout(m, n_cameras)
+    frame = views.frame(np.asarray(fs.view))
+    rows = np.repeat(frame, 2)  # the reprojection block's rows, u and v of each corner, first
+    order = np.argsort(rows, kind="stable")
+    first = np.bincount(frame[views.camera(np.asarray(fs.view)) == 0], minlength=m)
+    prior = None if joint_sigma is None else np.diag(1.0 / np.broadcast_to(joint_sigma, (n,)) ** 2)
+    return PostureRows(fs, J.tocsr(), lay, J[: len(rows)][order].tocsr(),
+                       np.repeat(np.asarray(fs.pidx), 2)[order],
+                       np.cumsum(np.bincount(rows, minlength=m)), first >= MIN_SHARED, prior)  # fmt: skip
