@@ -9,7 +9,8 @@ import dataclasses
 import tempfile
 import warnings
 import zlib
-from contextlib import redirect_stderr, redirect_stdout
+from collections.abc import Iterator
+from contextlib import contextmanager, redirect_stderr, redirect_stdout
 from io import StringIO
 from pathlib import Path
 
@@ -41,6 +42,7 @@ from selfcal.transforms import inv_pose
 __all__ = [
     "GaussianReadBack",
     "calibrated",
+    "calibrated_folder",
     "draw",
     "draw_sample",
     "prior",
@@ -139,18 +141,27 @@ class GaussianReadBack(EncoderSpec):
         return q + rng.standard_normal(q.shape) * self.read_back_sigma
 
 
-def calibrated(s: Scenario, setup: SimSetup, *,
-               rendered: bool = False) -> tuple[BoardCalibrationResult, Truth, dict | None]:  # fmt: skip
+@contextmanager
+def calibrated_folder(s: Scenario, setup: SimSetup) -> Iterator[Path]:
     """``s`` acquired with the simulator ``setup`` and calibrated as ``selfcal run`` does with
-    the deviation :func:`prior`, quietly in a temporary folder: its calibration, its truth and,
-    ``rendered``, the detector's corner noise
-    (:func:`selfcal.benchmarks.corner_noise.corner_noise`; else None)."""
+    the deviation :func:`prior`, quietly, in a temporary folder (its dataset, ``truth.json``
+    and ``calibration.json``) that lives as long as the context."""
     with (tempfile.TemporaryDirectory(prefix="selfcal-acc-") as d, warnings.catch_warnings(),
           redirect_stdout(StringIO()), redirect_stderr(StringIO())):  # fmt: skip
         warnings.simplefilter("ignore")
         out = Path(d) / "run"
         run_acquire(s, out, quiet=True, setup=setup)
         calibrate_board_run(out, quiet=True, deviation=prior(s))
+        yield out
+
+
+def calibrated(s: Scenario, setup: SimSetup, *,
+               rendered: bool = False) -> tuple[BoardCalibrationResult, Truth, dict | None]:  # fmt: skip
+    """``s`` acquired with the simulator ``setup`` and calibrated as ``selfcal run`` does with
+    the deviation :func:`prior`, quietly in a temporary folder: its calibration, its truth and,
+    ``rendered``, the detector's corner noise
+    (:func:`selfcal.benchmarks.corner_noise.corner_noise`; else None)."""
+    with calibrated_folder(s, setup) as out:
         cal = read_board_calibration(out / "calibration.json")
         truth = read_truth(out / "truth.json")
         corners = corner_noise(out).to_json() if rendered else None

@@ -42,6 +42,9 @@ the smallest of these ``1 + 5 + n`` p-values, times their count (Bonferroni,
 New images that are the calibration's own frames (the same joint readings and detections) are
 left out of the test and counted (:mod:`selfcal.calibration.drift.own`: their residuals are the
 fit's, not independent of its estimate; the test read them as a camera change on a real set).
+New images at a calibration frame's posture are tested by their residuals' difference from that
+frame's (:mod:`selfcal.calibration.drift.paired`: the misfit of that posture and the estimate's
+error cancel; ``Sigma``'s blocks of them are both views' noise, with no ``H C H^T``).
 
 The change at the tool: the RMS over the new postures of the tool point's (the flange's) move
 by the candidate change that fits best, fitted; when that is the camera (which moves no tool
@@ -69,8 +72,9 @@ from selfcal.calibration.board.evaluate import held_out_views
 from selfcal.calibration.board.folds import unseen
 from selfcal.calibration.board.view_jitter import view_jitter_from_json
 from selfcal.calibration.drift.attribution import Attribution, Fits, attribute, candidate_fits
-from selfcal.calibration.drift.own import own_views
+from selfcal.calibration.drift.own import JOINT_TOL, calibration_frames, own_views
 from selfcal.calibration.drift.p_value import combined_p, min_p, p_text
+from selfcal.calibration.drift.paired import POSTURE_TOL, pair_views
 from selfcal.calibration.drift.views import ViewJacobians, view_jacobians
 from selfcal.errors import InputError
 from selfcal.io.board_calibration import (
@@ -133,7 +137,9 @@ class ImageDriftCheck:
         it reaches at :data:`BOUND_LEVEL` confidence (:func:`kinematic_bound_mm`; 0 otherwise);
         turn_deg: the RMS over the views of the tool's rotation by the best change (deg; the
         verdict gives it where the tool point moves less than 0.001 mm, as a wrist joint's
-        offset turns the tool about the flange).
+        offset turns the tool about the flange); paired: how many of the ``views`` were
+        tested against the calibration's frame at the same posture
+        (:mod:`selfcal.calibration.drift.paired`).
     """
 
     views: int
@@ -153,6 +159,7 @@ class ImageDriftCheck:
     own: int = 0
     tool_bound_mm: float = 0.0
     turn_deg: float = 0.0
+    paired: int = 0
 
     def _own_line(self) -> str:
         if not self.own:
@@ -163,6 +170,9 @@ class ImageDriftCheck:
     def line(self) -> str:
         """The verdict in one line."""
         what = f"{self.views} new image(s), {self.corners} corners"
+        if self.paired:
+            what += (f" ({self.paired} at the calibration's postures, each against its frame "
+                     "there)")  # fmt: skip
         fit = (f"{what}: {self.rms_px:.3f} px RMS against the predicted "
                f"{self.expected_rms_px:.3f} px; {p_text(self.p_value)} < {self.alpha:g}")  # fmt: skip
         if self.changed and self.best == "camera":
@@ -194,6 +204,7 @@ class ImageDriftCheck:
             "line": self.line(),
             "images": self.views,
             "own_images": self.own,
+            "paired_images": self.paired,
             "corners": self.corners,
             "statistic": self.statistic,
             "dof": self.dof,
@@ -215,8 +226,8 @@ class ImageDriftCheck:
 
 def _covariance(C: np.ndarray, views: list[ViewJacobians]) -> np.ndarray:
     """``Sigma`` (module docstring) of the stacked views, ``C`` the estimate's covariance."""
-    H = np.concatenate([np.concatenate([v.kin, v.cam], axis=1) for v in views])
-    sigma = H @ C @ H.T
+    H = np.concatenate([np.concatenate([v.kin, v.cam], axis=1) * (not v.paired) for v in views])
+    sigma = H @ C @ H.T  # a paired view's estimate cancels (selfcal.calibration.drift.paired)
     at = 0
     for v in views:
         k = len(v.r)
@@ -454,22 +465,28 @@ def check_images(calibration: str | Path, new_data: str | Path, *,
     cal = read_board_calibration(path)
     em = calibration_error_model(cal, str(path))
     held = held_out_views(cal, new_data, cameras=(cal.camera_names[0],))
-    own = own_views(cal, path, held, cal.camera_names[0])
-    views = calibration_views(
-        cal, em, held.q, [(f, X, uv) for _, f, _, _, X, uv in held.views], where=str(path)
-    )
-    tested = [v for v, o in zip(views, own, strict=True) if not o]
-    if not tested:  # every image is the calibration's own: nothing the test may use
+    mine = calibration_frames(cal, path, held, cal.camera_names[0], POSTURE_TOL)
+    own = own_views(cal, path, held, mine)
+    new = [(f, X, uv) for (_, f, _, _, X, uv), o in zip(held.views, own, strict=True) if not o]
+    if not new:  # every image is the calibration's own: nothing the test may use
         raise InputError(
-            f"{new_data}: all {len(views)} image(s) are the calibration's own frames (their "
+            f"{new_data}: all {len(held.views)} image(s) are the calibration's own frames (their "
             f"joint readings and board detections, as in {path.parent}): a check of them cannot "
             "find a change, since the calibration fitted them",
             fix="give images recorded after the calibration (e.g. `selfcal record` at a few "
             "postures), not the calibration's dataset",
         )
+    q_cal = board_postures_from_json(cal.accuracy or {}, cal.model.n, str(path))
+    tested = calibration_views(cal, em, held.q, new, where=str(path))
+    if mine is not None:  # new views at its frames' postures: each against its frame
+        frames = [(f, X, uv) for _, f, _, _, X, uv in mine.views
+                  if np.any(np.all(np.abs(q_cal - mine.q[f]) <= JOINT_TOL, axis=1))]  # fmt: skip
+        noise = view_noise(cal, str(path))
+        tested = pair_views(tested, new, held.q, frames, mine.q, em=em, camera=cal.cameras[0],
+                            eye_to_hand=cal.eye_to_hand, pixel_sigma_px=noise.pixel_sigma_px,
+                            joint_sigma_rad=noise.joint_sigma_rad)  # fmt: skip
     res = image_drift_check(estimate_covariance(cal, em), tested, eye_to_hand=cal.eye_to_hand,
                             camera_names=cal.cameras[0].free, alpha=alpha)  # fmt: skip
-    q_cal = board_postures_from_json(cal.accuracy or {}, cal.model.n, str(path))
-    frames = [v[1] for v, o in zip(held.views, own, strict=True) if not o]
-    new = unseen(held.q[frames], q_cal, cal.model.joint_types)
-    return replace(res, unseen=int(np.count_nonzero(new)), own=int(np.count_nonzero(own)))
+    far = unseen(held.q[[f for f, _, _ in new]], q_cal, cal.model.joint_types)
+    return replace(res, unseen=int(np.count_nonzero(far)), own=int(np.count_nonzero(own)),
+                   paired=sum(v.paired for v in tested))  # fmt: skip

@@ -35,7 +35,7 @@ from selfcal.calibration.board.evaluate import HeldOutViews, held_out_views
 from selfcal.errors import SelfCalError, SelfCalWarning
 from selfcal.io.board_calibration import BoardCalibrationResult
 
-__all__ = ["JOINT_TOL", "UV_TOL", "calibration_dataset", "own_views"]
+__all__ = ["JOINT_TOL", "UV_TOL", "calibration_dataset", "calibration_frames", "own_views"]
 
 JOINT_TOL = 1e-6
 """rad / m: joint readings this close are the same reading (a CSV round trip in degrees with six
@@ -65,41 +65,51 @@ def _same(a: tuple, b: tuple, qa: np.ndarray, qb: np.ndarray) -> bool:
     )
 
 
-def own_views(cal: BoardCalibrationResult, path: Path, held: HeldOutViews,
-              camera: str) -> np.ndarray:  # fmt: skip
-    """(len(held.views),) bool: which of the new views ``held`` (of ``camera``) are frames of
-    the calibration ``cal`` (its file ``path``) by their joints and detections (module
-    docstring); all False when the calibration's dataset is not beside its file."""
-    # only views at the calibration's own postures (its accuracy block's) can be its frames:
+def _posed(q_cal: np.ndarray, q: np.ndarray, tol: float) -> bool:
+    """Is ``q`` (n,) one of the postures ``q_cal`` (m, n), every joint within ``tol``?"""
+    return bool(np.any(np.all(np.abs(q_cal - q) <= tol, axis=1)))
+
+
+def calibration_frames(cal: BoardCalibrationResult, path: Path, held: HeldOutViews,
+                       camera: str, tol: float = JOINT_TOL) -> HeldOutViews | None:  # fmt: skip
+    """The views (of ``camera``) of the dataset the calibration ``cal`` (its file ``path``)
+    calibrated, read when a new view of ``held`` is at one of its postures (its ``accuracy``
+    block's: every joint within ``tol``, rad / m); None when none is or no dataset lies beside
+    the file (a folder there that is not its dataset: warned, None)."""
+    # only views at the calibration's own postures can be its frames or share their misfit:
     # without one the check reads nothing more (the calibration's images are not detected)
     q_cal = board_postures_from_json(cal.accuracy or {}, cal.model.n, str(path))
-
-    def posed(q: np.ndarray) -> bool:
-        return bool(np.any(np.all(np.abs(q_cal - q) <= JOINT_TOL, axis=1)))
-
-    none = np.zeros(len(held.views), bool)
     root = calibration_dataset(path)
-    if root is None or not any(posed(held.q[v[1]]) for v in held.views):
-        return none
+    if root is None or not any(_posed(q_cal, held.q[v[1]], tol) for v in held.views):
+        return None
     if Path(held.root).resolve() == root.resolve():
-        mine = held  # the same folder: its views were read already
-    else:
-        try:
-            with warnings.catch_warnings():  # its images without the board: its own news
-                warnings.simplefilter("ignore")
-                mine = held_out_views(cal, root, cameras=(camera,))
-        except SelfCalError as exc:  # a folder beside it that is not its dataset (edited, moved)
-            warnings.warn(
-                f"{root}: not read as the calibration's dataset ({exc}); new images at its "
-                "postures that are its own frames are tested as new ones (their residuals are "
-                "the fit's, which can read as a change)",
-                SelfCalWarning,
-                stacklevel=2,
-            )
-            return none
+        return held  # the same folder: its views were read already
+    try:
+        with warnings.catch_warnings():  # its images without the board: its own news
+            warnings.simplefilter("ignore")
+            return held_out_views(cal, root, cameras=(camera,))
+    except SelfCalError as exc:  # a folder beside it that is not its dataset (edited, moved)
+        warnings.warn(
+            f"{root}: not read as the calibration's dataset ({exc}); new images at its "
+            "postures are tested as new ones (the calibration's own frames' residuals are the "
+            "fit's, which can read as a change)",
+            SelfCalWarning,
+            stacklevel=2,
+        )
+        return None
+
+
+def own_views(cal: BoardCalibrationResult, path: Path, held: HeldOutViews,
+              mine: HeldOutViews | None) -> np.ndarray:  # fmt: skip
+    """(len(held.views),) bool: which of the new views ``held`` are frames of the calibration
+    ``cal`` (its file ``path``) by their joints and detections (module docstring); ``mine``
+    the calibration's dataset's views (:func:`calibration_frames`), all False when None."""
+    if mine is None:
+        return np.zeros(len(held.views), bool)
+    q_cal = board_postures_from_json(cal.accuracy or {}, cal.model.n, str(path))
     by_points: dict[int, list[tuple]] = {}
     for v in mine.views:  # a dataset beside the file that it did not calibrate: none of these
-        if posed(mine.q[v[1]]):
+        if _posed(q_cal, mine.q[v[1]], JOINT_TOL):
             by_points.setdefault(len(v[4]), []).append(v)
     return np.array([any(_same(v, m, held.q, mine.q) for m in by_points.get(len(v[4]), []))
                      for v in held.views], bool)  # fmt: skip

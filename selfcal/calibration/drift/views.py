@@ -41,6 +41,9 @@ class ViewJacobians:
         B: (6, 6) the map of a body twist of the chain's tool to the move of the tool point
             (the flange) and the rotation, world frame; Ad: (6, 6) of a world twist to a body
             twist; tw: (6, n) every joint's body twist.
+        paired: ``r`` is the difference from the calibration's own frame at the same posture
+            (:mod:`selfcal.calibration.drift.paired`): the calibration's estimate cancels in
+            it (no ``H C H^T`` term) and ``local`` is both views' noise.
     """
 
     r: np.ndarray
@@ -53,6 +56,7 @@ class ViewJacobians:
     B: np.ndarray
     Ad: np.ndarray
     tw: np.ndarray
+    paired: bool = False
 
 
 def view_jacobians(em: ToolErrorModel, camera: CameraModel, q: np.ndarray, X: np.ndarray,
