@@ -42,9 +42,11 @@ the smallest of these ``1 + 5 + n`` p-values, times their count (Bonferroni,
 New images that are the calibration's own frames (the same joint readings and detections) are
 left out of the test and counted (:mod:`selfcal.calibration.drift.own`: their residuals are the
 fit's, not independent of its estimate; the test read them as a camera change on a real set).
-New images at a calibration frame's posture are tested by their residuals' difference from that
-frame's (:mod:`selfcal.calibration.drift.paired`: the misfit of that posture and the estimate's
-error cancel; ``Sigma``'s blocks of them are both views' noise, with no ``H C H^T``).
+New images at a calibration frame's posture, when its frames showed a per-view misfit, are tested
+by their residuals' difference from that frame's (:mod:`selfcal.calibration.drift.paired`: the
+misfit of that posture and the estimate's error cancel; ``Sigma``'s blocks of them are both
+views' noise, with no ``H C H^T``); without a misfit the new view alone is the stronger test (its
+noise once, not twice).
 
 The change at the tool: the RMS over the new postures of the tool point's (the flange's) move
 by the candidate change that fits best, fitted; when that is the camera (which moves no tool
@@ -370,6 +372,12 @@ class ViewNoise:
     camera_misfit_px: float
     pose_misfit_px: float = 0.0
 
+    @property
+    def misfit_counted(self) -> bool:
+        """Did the calibration's own frames show a per-view misfit beyond the corner noise (what
+        :mod:`selfcal.calibration.drift.paired` cancels at their postures)?"""
+        return self.jitter is not None or self.pose_misfit_px > 0 or self.camera_misfit_px > 0
+
 
 def view_noise(cal: BoardCalibrationResult, where: str = "calibration.json") -> ViewNoise:
     """The noise the check gives each new view of the calibration ``cal``: its bounds' corner and
@@ -465,7 +473,9 @@ def check_images(calibration: str | Path, new_data: str | Path, *,
     cal = read_board_calibration(path)
     em = calibration_error_model(cal, str(path))
     held = held_out_views(cal, new_data, cameras=(cal.camera_names[0],))
-    mine = calibration_frames(cal, path, held, cal.camera_names[0], POSTURE_TOL)
+    noise = view_noise(cal, str(path))
+    tol = POSTURE_TOL if noise.misfit_counted else JOINT_TOL  # paired, or only its own frames
+    mine = calibration_frames(cal, path, held, cal.camera_names[0], tol)
     own = own_views(cal, path, held, mine)
     new = [(f, X, uv) for (_, f, _, _, X, uv), o in zip(held.views, own, strict=True) if not o]
     if not new:  # every image is the calibration's own: nothing the test may use
@@ -478,10 +488,9 @@ def check_images(calibration: str | Path, new_data: str | Path, *,
         )
     q_cal = board_postures_from_json(cal.accuracy or {}, cal.model.n, str(path))
     tested = calibration_views(cal, em, held.q, new, where=str(path))
-    if mine is not None:  # new views at its frames' postures: each against its frame
+    if mine is not None and noise.misfit_counted:  # at its frames' postures: each against its frame
         frames = [(f, X, uv) for _, f, _, _, X, uv in mine.views
                   if np.any(np.all(np.abs(q_cal - mine.q[f]) <= JOINT_TOL, axis=1))]  # fmt: skip
-        noise = view_noise(cal, str(path))
         tested = pair_views(tested, new, held.q, frames, mine.q, em=em, camera=cal.cameras[0],
                             eye_to_hand=cal.eye_to_hand, pixel_sigma_px=noise.pixel_sigma_px,
                             joint_sigma_rad=noise.joint_sigma_rad)  # fmt: skip

@@ -18,6 +18,12 @@ noise (the file's white noise, or the bounds' when no per-view misfit was counte
 read-back noise: ``Sigma_d = Sigma_new + Sigma_cal`` with no model error. A change since the
 calibration moves ``uv_new`` alone, by the same columns as an unpaired view's.
 
+Only where the calibration's own frames showed a per-view misfit beyond the corner noise
+(``accuracy.view_jitter`` counted: :attr:`selfcal.calibration.drift.images.ViewNoise.misfit_counted`):
+without it the new view alone is the stronger test, its noise counted once rather than twice (a
+0.2 mm mount shift at 0.2 px found in 86 % of the simulated checks at the calibration's postures
+alone, 55 % paired: ``python -m selfcal.benchmarks.drift_morning``).
+
 What this assumes: the misfit at a posture repeats when the arm returns to it (the readings
 within :data:`POSTURE_TOL`). A misfit that differs between exposures at one posture (a board
 that moved, a warm-up) is not counted and reads as a change; the real sets have no repeated
