@@ -43,6 +43,7 @@ from selfcal.calibration.drift.images import (
     view_noise,
 )
 from selfcal.calibration.drift.paired import pair_views
+from selfcal.errors import InternalError
 from selfcal.io.board_calibration import read_board_calibration
 from selfcal.io.target_toml import parse_target
 from selfcal.io.truth import read_truth
@@ -113,7 +114,7 @@ def morning_checks(args: tuple) -> dict:
                                     pixel_sigma_px=noise.pixel_sigma_px,
                                     joint_sigma_rad=noise.joint_sigma_rad)  # fmt: skip
                 if not all(v.paired for v in paired):
-                    raise RuntimeError("a view at a calibration posture was not paired")
+                    raise InternalError("a view at a calibration posture was not paired")
                 now = paired if noise.misfit_counted else vj  # as selfcal check chooses
                 for way, tested in (("new", vj), ("paired", paired), ("now", now)):
                     res = image_drift_check(C, tested, eye_to_hand=cal.eye_to_hand)

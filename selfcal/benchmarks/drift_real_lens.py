@@ -39,6 +39,7 @@ from selfcal.calibration.drift.images import (
     estimate_covariance,
 )
 from selfcal.calibration.drift.p_value import known_change_power
+from selfcal.io.atomic import write_text_atomic
 from selfcal.io.board_calibration import read_board_calibration
 from selfcal.threads import limit_threads
 
@@ -63,8 +64,9 @@ def main(argv: list[str] | None = None) -> int:
     doc = json.loads(path.read_text())
     doc["cameras"][0]["parameters"]["k3"] = doc["cameras"][0]["parameters"].get("k3", 0.0) + a.k3
     with tempfile.TemporaryDirectory() as d:
-        (moved_path := Path(d) / "calibration.json").write_text(json.dumps(doc))
-        moved = read_board_calibration(moved_path)
+        moved = read_board_calibration(
+            write_text_atomic(Path(d) / "calibration.json", json.dumps(doc))
+        )
     em = calibration_error_model(cal, str(path))
     h = held_out_views(cal, a.held, cameras=(cal.camera_names[0],))
     new = [(f, X, uv) for _, f, _, _, X, uv in h.views]
