@@ -51,7 +51,7 @@ CHARUCO_MIN_CORNERS = 6  # a ChArUco view counts with 6 corners (reference.py's 
 # (docs/real-data.md): 0.1 on both, p = 0.0042 / 0.0024 (photoneo / mecheye); mecheye's was 0.15
 # with the jitter's mean carried (0.1 at the edge: p = 0.0084), and with the bounds' corner noise
 # beside the jitter neither was found (0.1 / 0.15: p = 0.046 / 0.69)
-LENS_K3 = {"nachi-2025-01-17-photoneo": 0.1, "nachi-2025-02-05-mecheye": 0.1}
+LENS_K3 = {"nachi-2025-01-17-photoneo": 0.5, "nachi-2025-02-05-mecheye": 0.5}
 
 
 @dataclass(frozen=True)
@@ -445,15 +445,73 @@ def test_check_leaves_out_the_calibrations_own_images(name, outcome, runs_dir):
     assert f"{n_cal} more image(s) are the calibration's own" in doc["line"]
 
 
+def _renoised(src: Path, out: Path, frames: list[int], grey: float, seed: int = 0) -> None:
+    """A dataset ``out`` of the frames ``frames`` of the dataset ``src`` (their joint readings)
+    with Gaussian noise of ``grey`` grey levels added to each image: new exposures at the
+    calibration's postures as far as the images can stand in for them (a proxy: the frames'
+    own noise stays in them)."""
+    info = json.loads((src / "dataset.json").read_text())
+    rows = [r.split(",", 1)[1] for r in (src / "joints.csv").read_text().splitlines()[1:]]
+    rng = np.random.default_rng(seed)
+    (out / "frames").mkdir(parents=True)
+    for k, i in enumerate(frames):
+        img = cv2.imread(str(src / "frames" / f"{i:04d}_cam0.png"), cv2.IMREAD_UNCHANGED)
+        noisy = np.clip(img + rng.normal(0.0, grey, img.shape), 0, np.iinfo(img.dtype).max)
+        cv2.imwrite(str(out / "frames" / f"{k:04d}_cam0.png"), noisy.round().astype(img.dtype))
+    head = (src / "joints.csv").read_text().splitlines()[0]
+    (out / "joints.csv").write_text("\n".join([head, *(f"{k},{rows[i]}" for k, i in
+                                                        enumerate(frames))]) + "\n")  # fmt: skip
+    (out / "sources.csv").write_text("index,camera,source\n" + "".join(
+        f"{k},cam0,{src / 'frames' / f'{i:04d}_cam0.png'}\n" for k, i in enumerate(frames)))  # fmt: skip
+    info["trajectory_joints_deg"] = [info["trajectory_joints_deg"][i] for i in frames]
+    (out / "dataset.json").write_text(json.dumps(info))
+    shutil.copytree(src / "robot", out / "robot")
+
+
+@pytest.mark.parametrize("name", [c for c in cases("check") if c.values[0] != ICAL])
+def test_a_morning_check_at_the_calibrations_postures(name, outcome, runs_dir):
+    """A morning check at the calibration's own postures (one image of each of its five arm
+    configurations, re-exposed: the image with 2 grey levels of noise added, as the sets have no
+    posture recorded twice): each against the calibration's frame at its posture (its dataset
+    beside its file, a per-view misfit counted in it) the images are unchanged (exit 0) and
+    counted as paired. Tested as new views (the calibration's file alone, without its dataset:
+    the check before selfcal/calibration/drift/paired.py) they carry their posture's misfit and
+    the fit's residual there: these five said changed on mecheye (exit 5) and unchanged at p =
+    0.021 on photoneo, and 100 of 100 draws of 5 re-noised frames' corners said changed on both
+    sets (`uv run python -m selfcal.benchmarks.drift_real_morning CAL`)."""
+    outcome.held_out_rms()  # import and calibrate ran
+    cal = runs_dir / name / "calib"
+    morning = runs_dir / name / "morning"
+    if not morning.exists():
+        _renoised(cal, morning, [0, 4, 8, 12, 16], grey=2.0)
+    p = subprocess.run([_selfcal_exe(), "check", str(cal), str(morning), "--json"],
+                       capture_output=True, text=True, timeout=1200, check=False)  # fmt: skip
+    assert p.returncode == 0, p.stdout + p.stderr
+    doc = json.loads(p.stdout)
+    assert doc["paired_images"] == 5 and doc["own_images"] == 0, doc["line"]
+    assert "5 at the calibration's postures, each against its frame there" in doc["line"]
+    alone = runs_dir / name / "calibration-without-its-dataset.json"
+    shutil.copy(cal / "calibration.json", alone)
+    p = subprocess.run([_selfcal_exe(), "check", str(alone), str(morning), "--json"],
+                       capture_output=True, text=True, timeout=1200, check=False)  # fmt: skip
+    assert p.returncode in (0, 5), p.stdout + p.stderr
+    assert json.loads(p.stdout)["paired_images"] == 0
+
+
 @pytest.mark.parametrize("name", [c for c in cases("check_lens") if c.values[0] != ICAL])
-def test_check_finds_a_small_lens_change_in_the_calibration(name, outcome, runs_dir):
+def test_check_finds_a_lens_change_in_the_calibration(name, outcome, runs_dir):
     """The held-out group (real images of the unchanged arm) checked against the calibration
     with its lens's k3 (held at 0 by the calibration) moved by LENS_K3 in its file: the
-    prediction moves (group 6's RMS by 0.017 / 0.005 px), the images do not, so the check
-    must say changed (exit 5). Such a change lies outside the views' pose spans, where the check
-    counted the bounds' corner noise (0.43 / 0.63 px, the fit's RMS holding the per-view misfit)
-    and said unchanged (docs/real-data.md); the pose span's changes (joint offsets, mounts) it
-    finds as before."""
+    prediction moves, the images do not, so the check must say changed (exit 5). Such a change
+    lies outside the views' pose spans, where the check counted the bounds' corner noise (0.43 /
+    0.63 px, the fit's RMS holding the per-view misfit) and said unchanged (docs/real-data.md);
+    the pose span's changes (joint offsets, mounts) it finds as before. The move is 0.5: at the
+    0.1 this test used, the prediction moves 0.097 / 0.071 px RMS (photoneo / mecheye), whose
+    own noncentrality in the camera's test is 2.75 / 2.00 (its power at the check's
+    Bonferroni level 0.9 % / 0.5 %); it was found only because the unchanged group already sat
+    near an alarm in that test (18.7 / 23.2 on 8 dof) and the move added to it. The camera test
+    finds a k3 move with 95 % power from 0.37 / 0.44 (`uv run python -m
+    selfcal.benchmarks.drift_real_lens CAL HELD`)."""
     outcome.held_out_rms()  # import and calibrate ran
     doc = json.loads((runs_dir / name / "calib" / "calibration.json").read_text())
     doc["cameras"][0]["parameters"]["k3"] += LENS_K3[name]
