@@ -4,9 +4,10 @@ Every scipy subpackage imports ``scipy._lib._util``, which imports its vendored
 ``array_api_compat.numpy``; that clones numpy's namespace (``from numpy import *`` and a
 ``hasattr`` of every name in ``dir(numpy)``), and numpy loads its subpackages on first attribute
 access (PEP 562), so the clone imports ``numpy.f2py`` (with ``charset_normalizer``),
-``numpy.testing``, ``numpy.ma`` and ``numpy.polynomial``. Of those ``selfcal run`` uses only
-``numpy.ma`` (``numpy.unique`` loads it, so it stays as it is); the three others cost more CPU
-than the rest of ``import scipy.sparse`` (issue 32):
+``numpy.testing``, ``numpy.ma`` and ``numpy.polynomial``. ``numpy.ma`` (``numpy.unique``
+loads it) and ``numpy.polynomial`` (``scipy.stats`` imports it at its own import: ``selfcal
+check`` and ``identify`` load it) stay as they are; ``numpy.f2py`` and ``numpy.testing``, which no command uses, cost more CPU than the
+rest of ``import scipy.sparse`` (issue 32):
 ``uv run python -X importtime -c "import scipy.sparse"``.
 
 :func:`defer_numpy_extras` binds each of them, not yet imported, as an
@@ -23,10 +24,12 @@ import sys
 
 __all__ = ["DEFERRED", "defer_numpy_extras"]
 
-# numpy's subpackages that scipy's namespace clone loads and no command uses (numpy.ma is not
-# deferred: numpy.unique loads it, on whatever thread calls it first, and before Python 3.12 a
-# lazy module's load is not safe against a second thread using the module meanwhile)
-DEFERRED = ("numpy.f2py", "numpy.testing", "numpy.polynomial")
+# numpy's subpackages that scipy's namespace clone loads and no command uses. Not deferred: a
+# module a command may load on a worker thread, because before Python 3.12 a lazy module's
+# load is not safe against a second thread using it meanwhile (four threads' first
+# np.polynomial.Polynomial raised AttributeError): numpy.ma (numpy.unique loads it) and
+# numpy.polynomial (scipy.stats imports it).
+DEFERRED = ("numpy.f2py", "numpy.testing")
 
 
 def defer_numpy_extras() -> list[str]:
