@@ -12,4 +12,8 @@ from selfcal.studies.montecarlo.run import draw_one
 
 def draw_without_fair_nominal(settings: dict) -> dict:
     """``draw_one`` of ``settings`` with the fair nominal left out (module docstring)."""
-    return draw_one({**settings, "fair_nominal": False})
+    row = draw_one({**settings, "fair_nominal": False})
+    assert row.get("fair_nominal") is False, (
+        "the row must tell a skipped fair nominal from a failed one"
+    )
+    return row

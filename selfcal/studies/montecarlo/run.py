@@ -109,8 +109,9 @@ def draw_one(settings: dict) -> dict:
     ``dither`` (bool), optionally ``joints_deg`` (planned postures to use instead of the
     scenario's plan), ``quantize``, ``config``, ``render`` (MuJoCo images detected as ``selfcal
     run`` with ``[noise] render = true`` does; default the analytic path), ``fair_nominal``
-    (default True; False: the field calibration skips its fair nominal and the row's
-    ``fair_nominal_tip_rms_mm`` is NaN). Returns a flat row (mm / deg); never raises: a
+    (default True; False: the field calibration skips its fair nominal, the row's
+    ``fair_nominal_tip_rms_mm`` is NaN and its ``fair_nominal`` False, which tells the skip from
+    a failed fit). Returns a flat row (mm / deg); never raises: a
     failed draw has ``status = "failed: ..."``.
     """
     t0 = time.perf_counter()
@@ -123,6 +124,7 @@ def draw_one(settings: dict) -> dict:
             s = _acquire(settings, root)
             sigma = float(settings["pixel_sigma"])
             fair = bool(settings.get("fair_nominal", True))
+            row["fair_nominal"] = fair  # NaN below: skipped, not failed
             row.update(evaluate_board_draw(root, sigma) if s.target.board
                        else _evaluate(root, sigma, fair_nominal=fair))  # fmt: skip
         row["status"] = "ok"
