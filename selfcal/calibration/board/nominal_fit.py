@@ -22,10 +22,10 @@ from dataclasses import replace
 import numpy as np
 
 from selfcal.calibration.board.refine import BoardObservations, Refinement, refine_on_board
-from selfcal.kinematics.alignment import AXIS_TIPS, fit_rigid_transform, regauge
+from selfcal.kinematics.alignment import AXIS_TIPS, fit_placement_and_hand_eye, regauge
 from selfcal.kinematics.forward import fk_tool
 from selfcal.kinematics.mcpc import MCPCModel, chain_transforms
-from selfcal.transforms import inv_pose, make_pose
+from selfcal.transforms import make_pose
 
 __all__ = [
     "FAIR_NOMINAL_ITERATIONS",
@@ -81,24 +81,20 @@ def placement(
 ) -> tuple[np.ndarray, np.ndarray]:
     """``(B, C)`` with ``B @ F[i] @ C ~ T[i]`` for the chain's tool poses ``F`` (m, 4, 4) and the
     measured ones ``T`` (m): alternating closed-form rigid fits
-    (:func:`selfcal.kinematics.alignment.fit_rigid_transform`) from ``C`` = the identity, the
-    round whose axis tips fit best kept (with little wrist motion the alternation can drift
-    off: ``C`` is then weakly determined by the poses). ``any_mount``: the mount is unknown
+    (:func:`selfcal.kinematics.alignment.fit_placement_and_hand_eye`, each round lowering the
+    misfit of the axis tips) from ``C`` = the identity. ``any_mount``: the mount is unknown
     (eye-to-hand: a board on the flange any way round), so the alternation starts from each of
-    the 24 quarter-turn rotations as well and the best fit wins (from the identity alone it can
-    stall half a turn away)."""
+    the 24 quarter-turn rotations as well and the best fit wins (each descent ends in a local
+    minimum of the misfit, not necessarily the least)."""
 
     def misfit(B: np.ndarray, C: np.ndarray) -> float:
         return float(np.sum(((B @ F @ C - T) @ AXIS_TIPS)[:, :3] ** 2))
 
     best: tuple[float, np.ndarray, np.ndarray] | None = None
     for C0 in _turns() if any_mount else [np.eye(4)]:
-        C = C0
-        for _ in range(20):
-            B = fit_rigid_transform(T, F @ C)
-            if best is None or misfit(B, C) < best[0]:
-                best = (misfit(B, C), B, C)
-            C = inv_pose(fit_rigid_transform(inv_pose(T), inv_pose(B @ F)))
+        B, C = fit_placement_and_hand_eye(T, F, C0)
+        if best is None or misfit(B, C) < best[0]:
+            best = (misfit(B, C), B, C)
     assert best is not None
     return best[1], best[2]
 
