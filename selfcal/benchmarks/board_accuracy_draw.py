@@ -194,8 +194,11 @@ def draw(args: tuple) -> dict:
     analytic, and the simulated read-back, default ``"rounded"``, or ``"gaussian"``:
     :class:`GaussianReadBack`): per region the predicted
     95 % bound with and without the model error, the predicted RMS, the true error (mm), the
-    predicted 95 % orientation bound with and without the model error and the true orientation
-    error (deg); per region also ``<region>_right``, the coverage a right prediction would show
+    predicted 95 % orientation bound with and without the model error, the true orientation
+    error (deg) and whether the calibration says its model error is not measured there (1.0,
+    else 0.0: :meth:`selfcal.kinematics.tool_error.ToolErrorModel.unmeasured`, from the
+    calibration alone); ``measured_to``: the folds' reach (unit-free distance, infinite without
+    a growing model error); per region also ``<region>_right``, the coverage a right prediction would show
     there (:func:`selfcal.benchmarks.tool_accuracy.coverage_if_right`); ``model_error_mm``;
     rendered, the detector's ``corners``
     (:func:`selfcal.benchmarks.corner_noise.corner_noise`); ``status``."""
@@ -220,7 +223,8 @@ def draw(args: tuple) -> dict:
         tip = np.asarray(block["T_tool_point_si"])
         bend = (lambda q: q) if setup.compliance is None else setup.compliance.bent
         row: dict = {"status": "ok", "corners": corners,
-                     "model_error_mm": (block["model_error"] or {}).get("position_mm") or 0.0}  # fmt: skip
+                     "model_error_mm": (block["model_error"] or {}).get("position_mm") or 0.0,
+                     "measured_to": float(em.measured_to)}  # fmt: skip
         for name in REGIONS:
             q = getattr(sample, name)
             p = em.predicted(q)
@@ -230,7 +234,7 @@ def draw(args: tuple) -> dict:
                 p["position_95_mm"], p["estimation_95_mm"], p["position_rms_mm"],
                 np.linalg.norm(T_est[:, :3, 3] - T_true[:, :3, 3], axis=1) * 1e3,
                 p["orientation_95_deg"], em0.predicted(q)["orientation_95_deg"],
-                _angle(T_est[:, :3, :3], T_true[:, :3, :3]),
+                _angle(T_est[:, :3, :3], T_true[:, :3, :3]), em.unmeasured(q),
             ])  # fmt: skip
             row[f"{name}_right"] = coverage_if_right(em, q, seed)
         return row

@@ -46,10 +46,33 @@ def pooled_rows(robot: str, model: str, s: float, got: list[dict],
             "coverage_rot": float(np.mean(a[6] <= a[4])),
             "coverage_rot_covariance": float(np.mean(a[6] <= a[5])),
             "model_error_share": float(np.mean([g["model_error_mm"] > 0 for g in ok])),
+            **_measured(d, [g.get("measured_to") for g in ok]),
             **corner_stats([g["corners"] for g in ok if g.get("corners")]),
             **_right(ok, region),
         })  # fmt: skip
     return rows
+
+
+def _measured(d: list[np.ndarray], reach: list[float | None]) -> dict:
+    """The coverage and the pooled predicted / true RMS apart at the points where the calibration
+    measured its model error and where it says it did not (a draw's row 7, 1.0 there:
+    :func:`selfcal.benchmarks.board_accuracy_draw.draw`), the share not measured, and the
+    median of the draws' reach ``reach`` (the folds' largest held-out distance, unit-free) over
+    the draws whose model error grows; none for draws without row 7 (older rows)."""
+    if not d or any(len(x) < 8 for x in d):
+        return {}
+    far = np.concatenate([x[7] for x in d]) > 0.5
+    out: dict = {"not_measured_share": float(np.mean(far))}
+    for key, pick in (("measured", False), ("not_measured", True)):
+        parts = [x[:, (x[7] > 0.5) == pick] for x in d]
+        parts = [x for x in parts if x.shape[1]]
+        if parts:
+            c = coverage(parts)
+            out[f"coverage_{key}"], out[f"ratio_{key}"] = c["coverage"], c["ratio"]
+    finite = [r for r in reach if r is not None and np.isfinite(r)]
+    if finite:
+        out["reach_median"] = float(np.median(finite))
+    return out
 
 
 def _right(ok: list[dict], region: str) -> dict:
@@ -78,8 +101,10 @@ def table(rows: list[dict]) -> str:
         "| robot | model | noise (px) | region | true RMS (mm) | coverage of the 95 % bound "
         "(target 90-98 %) | a right bound's, 90 % range | covariance alone | predicted / true RMS "
         "(target 0.7-1.4) | per draw 10-90 % | true orientation RMS (deg) | orientation coverage "
-        "| a right bound's | orientation, covariance alone | draws with a model error |\n"
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n"
+        "| a right bound's | orientation, covariance alone | draws with a model error | points "
+        "where it is not measured | coverage where measured / not measured | predicted / true "
+        "RMS where measured / not measured | the folds' reach (median) |\n"
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n"
     )
     lines = [
         f"| {r['robot']} | {r['model']} | {r['noise_px']:g} | {r['region']} | "
@@ -89,7 +114,8 @@ def table(rows: list[dict]) -> str:
         f" | {r['ratio_10']:.2f}-{r['ratio_90']:.2f} | {r['true_rot_rms_deg']:.4f} | "
         f"{100 * r['coverage_rot']:.1f} %{_mark(r['coverage_rot'], 0.9, 0.98)} | "
         f"{_range(r, 'coverage_rot_right')} | "
-        f"{100 * r['coverage_rot_covariance']:.1f} % | {100 * r['model_error_share']:.0f} % |"
+        f"{100 * r['coverage_rot_covariance']:.1f} % | {100 * r['model_error_share']:.0f} % | "
+        f"{_split(r)} |"
         for r in rows
     ]
     first = [r for r in rows if r["region"] == REGIONS[0]]
@@ -100,6 +126,26 @@ def table(rows: list[dict]) -> str:
               f"calibration postures, {COUNT} joint vectors per region and draw; `uv run python "
               f"-m selfcal.benchmarks.board_accuracy {_options(first)} --jobs 1 --write-docs`."]  # fmt: skip
     return head + "\n".join(lines)
+
+
+def _split(r: dict) -> str:
+    """A row's cells of :func:`_measured`: the share of points not measured, the coverage and
+    the predicted / true RMS where measured / not measured (the targets marked where measured;
+    "-" where there are no such points), the folds' reach ("-" without any)."""
+    if "not_measured_share" not in r:
+        return "- | - | - | -"
+
+    def pair(key: str, fmt: str, scale: float, lo: float, hi: float) -> str:
+        got = [r.get(f"{key}_{k}") for k in ("measured", "not_measured")]
+        unit = " %" if scale == 100 else ""
+        cells = ["-" if v is None else f"{scale * v:{fmt}}{unit}" for v in got]
+        if got[0] is not None:
+            cells[0] += _mark(got[0], lo, hi)
+        return " / ".join(cells)
+
+    reach = r.get("reach_median")
+    return (f"{100 * r['not_measured_share']:.0f} % | {pair('coverage', '.1f', 100, 0.9, 0.98)} | "
+            f"{pair('ratio', '.2f', 1, 0.7, 1.4)} | {'-' if reach is None else f'{reach:.2f}'}")  # fmt: skip
 
 
 def _sizes(first: list[dict]) -> str:

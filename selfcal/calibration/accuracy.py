@@ -86,6 +86,10 @@ class ModelError:
             which it is ``position_m``; 0: the same everywhere.
         growth: how the held-out rows' model error grows with their distance
             (:mod:`selfcal.calibration.growth`), or None when not read.
+        measured_to: the held-out rows' largest distance from their folds' training postures
+            (unit-free, :func:`selfcal.kinematics.tool_error.posture_distance`), whether or not
+            they showed a model error: beyond it no fold tested the model, so a model error
+            found there or not is not measured (:attr:`limit`); infinite: not read.
     """
 
     position_m: float
@@ -102,6 +106,14 @@ class ModelError:
     noise_what: str = "the tracker noise"
     reach_distance: float = 0.0
     growth: Variogram | None = None
+    measured_to: float = np.inf
+
+    @property
+    def limit(self) -> float:
+        """The distance beyond which the model error is not measured: the variogram's reach when
+        it grows, else :attr:`measured_to` (infinite when neither was read)."""
+        to = self.growth.measured_to if self.growth is not None else self.measured_to
+        return float(to) if np.isfinite(to) and to > 0 else np.inf
 
     @property
     def reach_floor(self) -> float:
@@ -143,10 +155,17 @@ class ModelError:
                     "distance d from the calibration postures: c1 counted at its one-sided 95 % upper "
                     "bound from the held-out rows (growth_t: its estimate over its standard error; "
                     "shown above 2)",
-                    "measured_to_distance": self.growth.measured_to,
+                }
+            ),
+            **(
+                {}
+                if not np.isfinite(self.limit)
+                else {
+                    "measured_to_distance": self.limit,
                     "beyond_measured": "beyond the held-out rows' largest distance from the "
                     "calibration postures (measured_to_distance, a fraction of the joints' "
-                    "ranges): model error not measured, held at its value there",
+                    "ranges) no fold tested the model: model error not measured (found or not), "
+                    "held at its value there",
                 }
             ),
         }
@@ -164,14 +183,16 @@ def model_error_of(
     given: tuple[float, float | None] | None = None,
     reach_distance: float = 0.0,
     growth: Variogram | None = None,
+    measured_to: float = np.inf,
 ) -> ModelError | None:
     """The :class:`ModelError` of held-out rows given fold by fold: their squared tool-point
     errors ``r2`` (m^2), what the folds' covariances explain ``s2`` (``tr S``, m^2) and what the
     noise explains ``n2`` (``tr N``, m^2), each a list of per-fold arrays; ``rot`` the same
     three for the orientation (rad^2) or None; ``given``: the model error (position m, rotation
     rad) when the route estimated it otherwise (the board route, from the pixels), None for
-    :func:`excess` of the squared norms; ``reach_distance``, ``growth``:
-    :attr:`ModelError.reach_distance`, :attr:`ModelError.growth`.
+    :func:`excess` of the squared norms; ``reach_distance``, ``growth``, ``measured_to``:
+    :attr:`ModelError.reach_distance`, :attr:`ModelError.growth`, :attr:`ModelError.measured_to`
+    (kept whether or not a model error is found).
     None without rows."""
     if not r2 or sum(len(v) for v in r2) == 0:
         return None
@@ -199,6 +220,7 @@ def model_error_of(
         noise_what=noise_what,
         reach_distance=reach_distance if pos > 0 else 0.0,
         growth=growth if pos > 0 else None,
+        measured_to=measured_to,
     )
 
 
@@ -253,7 +275,8 @@ def error_model_from_json(
     model's minimal parameter names, ``poses``: whether the orientation is predicted, ``fix``:
     how to write the block again, ``T_tool_point``: the tool point in the chain's tool frame);
     the model error grows from the calibration postures when the block says so
-    (``model_error.reach_distance``, ``constant_share``, ``joint_limits_si``).
+    (``model_error.reach_distance``, ``constant_share``, ``joint_limits_si``) and is not measured
+    beyond ``model_error.measured_to_distance``, whether or not one was found.
 
     Raises:
         InputError: the block's parameters are not the file's or its covariance is malformed.
@@ -274,20 +297,21 @@ def error_model_from_json(
     reach = float(me.get("reach_distance") or 0.0)
     floor = float(me.get("constant_share") or 0.0)  # an older file: all of it grows
     span = None if "joint_limits_si" not in block else joint_spans(block["joint_limits_si"])
-    if reach > 0 and span is not None:  # an older file without it: the same everywhere
+    limit = unmeasured_beyond(me)
+    if span is not None and (reach > 0 or np.isfinite(limit)):  # an older file: none of it
         q_cal = postures_from_json(block, model.n, where, fix=fix)
-        em = em.with_reach(Reach(q_cal, span, reach, floor, unmeasured_beyond(me)))
+        em = em.with_reach(Reach(q_cal, span, reach, floor if reach > 0 else 0.0, limit))
     return em
 
 
 def unmeasured_beyond(model_error: ModelError | dict | None) -> float:
     """The distance from the calibration postures beyond which ``model_error`` (a
     :class:`ModelError` or its ``to_json``) is not measured: the held-out rows' largest
-    (:mod:`selfcal.calibration.growth`); infinite without one (an older file: no limit)."""
+    (:attr:`ModelError.limit`), whether or not they showed a model error; infinite without one
+    (an older file: no limit)."""
     if isinstance(model_error, ModelError):
-        to = 0.0 if model_error.growth is None else model_error.growth.measured_to
-    else:
-        to = (model_error or {}).get("measured_to_distance") or 0.0
+        return model_error.limit
+    to = (model_error or {}).get("measured_to_distance") or 0.0
     return float(to) if to > 0 else np.inf
 
 

@@ -139,10 +139,12 @@ class Reach:
     """Where a model error grows from (module docstring): its variance at joints ``q`` is
     ``floor + (1 - floor) (d / distance)^2`` times its size's square, ``d`` the
     :func:`posture_distance` of ``q`` to ``postures`` (k, n) rad / m in units of ``span`` (n,)
-    rad / m; ``distance`` (unit-free, positive) the distance at which it has its size; ``floor``
+    rad / m; ``distance`` (unit-free) the distance at which it has its size; ``floor``
     (0-1) the share of it that does not grow (0: none, in proportion to the distance); ``limit``
     the distance beyond which it is held (the farthest it was measured; infinite: none);
-    ``revolute`` (n,) bool the joints whose turns :func:`posture_distance` wraps (None: none)."""
+    ``revolute`` (n,) bool the joints whose turns :func:`posture_distance` wraps (None: none).
+    ``distance`` 0: the model error does not grow (the same everywhere), only ``limit`` says how
+    far it was measured."""
 
     postures: np.ndarray
     span: np.ndarray
@@ -178,7 +180,7 @@ class ToolErrorModel:
         reach_floor: the share (0-1) of the model error's variance at ``d_ref`` that does not
             grow (:class:`Reach`).
         measured_to: the distance from the calibration postures out to which the held-out rows
-            measured the model error; beyond it the model error is not measured
+            measured the model error (found or not); beyond it the model error is not measured
             (:meth:`unmeasured`) and is held at its value there. Infinite: no such limit.
     """
 
@@ -224,10 +226,11 @@ class ToolErrorModel:
     def unmeasured(self, q: np.ndarray) -> np.ndarray:
         """(m,) bool: the joints ``q`` (m, n) where the model error is not measured (farther
         from the calibration postures than :attr:`measured_to`, the held-out rows' largest
-        distance); none without a model error or such a limit."""
+        distance), whether or not the held-out rows showed one: no fold tested the model there;
+        none without such a limit."""
         q = np.atleast_2d(np.asarray(q, dtype=float))
-        if (not np.isfinite(self.measured_to) or self.model_error_m <= 0
-                or self.reach_postures is None or self.reach_span is None):  # fmt: skip
+        if (not np.isfinite(self.measured_to) or self.reach_postures is None
+                or self.reach_span is None):  # fmt: skip
             return np.zeros(len(q), bool)
         d = posture_distance(q, self.reach_postures, self.reach_span,
                              revolute_joints(self.model.joint_types))  # fmt: skip

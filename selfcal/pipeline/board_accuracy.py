@@ -138,6 +138,11 @@ def accuracy_markdown(section: dict) -> list[str]:
     )
     if not section.get("model_error_note") and me.get("reach_distance"):
         note += _growth_words(me)
+    elif not section.get("model_error_note") and me.get("measured_to_distance"):
+        note += (
+            f"; beyond {me['measured_to_distance']:.3f} of the joints' ranges from the calibration "
+            "postures no fold tested the model: a model error there is not measured"
+        )
     held = held_sentence(section.get("held_deviation"))
     held = "" if held is None else f" {held[0].upper()}{held[1:]}."
     out = [

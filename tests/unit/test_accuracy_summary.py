@@ -84,3 +84,9 @@ def test_report_md_says_when_the_model_error_grows_away_from_the_postures():
         in bound
     )
     assert "held at its value there" in bound and "held at its value there" in shown
+    # none found: how far the folds tested the model is said all the same
+    none = {**me, "position_mm": 0.0, "measured_to_distance": 0.07}
+    untested = "\n".join(accuracy_markdown({**section, "model_error": none}))
+    assert ("model error 0.0000 mm" in untested and "beyond 0.070 of the joints' ranges from the "
+            "calibration postures no fold tested the model" in untested)  # fmt: skip
+    assert "no fold tested" not in flat

@@ -204,3 +204,15 @@ def test_an_accuracy_block_keeps_how_the_folds_saw_the_model_error_grow():
     assert em.reach_floor == pytest.approx(1e-8 / (1e-8 + 3e-8 * 0.01))
     assert em.measured_to == 0.3 and em.unmeasured(q_cal + 1.0).all()
     assert not em.unmeasured(q_cal).any()
+    # the folds found no model error: how far they tested the model is kept all the same, and
+    # beyond it the model error (none) is not measured; it does not grow
+    none = dataclasses.replace(me, position_m=0.0, rotation_rad=0.0, reach_distance=0.0,
+                               growth=None, measured_to=0.25)  # fmt: skip
+    assert none.to_json()["measured_to_distance"] == 0.25
+    block["model_error"] = none.to_json()
+    em = board_error_model_from_json(block, model, "calibration.json")
+    assert em.model_error_m == 0.0 and em.reach is None and em.measured_to == 0.25
+    assert em.unmeasured(q_cal + 1.0).all() and not em.unmeasured(q_cal).any()
+    assert np.allclose(em.model_error_factor(q_cal + 1.0), 1.0)
+    never = dataclasses.replace(none, measured_to=np.inf).to_json()  # not read: no limit
+    assert "measured_to_distance" not in never

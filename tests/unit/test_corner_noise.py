@@ -93,3 +93,29 @@ def test_the_analytic_tables_command_makes_its_rows():
             "--write-docs`" in table(rows))  # fmt: skip
     mixed = table([*rows, *pooled_rows("kr6-r900", "fits", 0.05, got(4))])
     assert "3/4 draws per row" in mixed and "--draws" not in mixed
+
+
+def test_the_rows_split_the_coverage_where_the_calibration_measured_its_model_error():
+    """A draw's row 7 (1 where the calibration says its model error is not measured) splits the
+    pooled coverage and RMS ratio into the measured and the not-measured points; the table gives
+    both beside the share not measured and the folds' median reach; older rows give "-"."""
+    from selfcal.benchmarks.board_accuracy_draw import REGIONS
+    from selfcal.benchmarks.board_accuracy_tables import pooled_rows, table
+
+    e = np.ones((8, 4))
+    e[0], e[2] = 2.0, 1.0  # the bound 2, the predicted RMS 1
+    e[3] = [1.0, 1.0, 3.0, 4.0]  # the last two beyond the bound, where not measured
+    e[7] = [0.0, 0.0, 1.0, 1.0]
+    got = [{"status": "ok", "model_error_mm": 0.0, "measured_to": m, **{r: e for r in REGIONS}}
+           for m in (0.2, 0.4, np.inf)]  # fmt: skip
+    r = pooled_rows("ur5e", "compliance", 0.05, got)[0]
+    assert r["coverage"] == 0.5 and r["not_measured_share"] == 0.5
+    assert r["coverage_measured"] == 1.0 and r["coverage_not_measured"] == 0.0
+    assert r["ratio_measured"] == pytest.approx(1.0)
+    assert r["ratio_not_measured"] == pytest.approx(1 / np.sqrt(12.5))
+    assert r["reach_median"] == pytest.approx(0.3)  # the draws without a limit left out
+    assert "| 50 % | 100.0 % (outside) / 0.0 % | 1.00 / 0.28 | 0.30 |" in table([r])
+    old = pooled_rows("ur5e", "compliance", 0.05, [{**g, **{k: e[:7] for k in REGIONS}}
+                                                   for g in got])[0]  # fmt: skip
+    assert "not_measured_share" not in old
+    assert table([old]).split("\n")[2].endswith("| - | - | - | - |")

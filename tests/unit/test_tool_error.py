@@ -212,7 +212,11 @@ def test_a_level_that_does_not_grow_and_where_the_model_error_is_not_measured(er
     flat = dataclasses.replace(em, reach_floor=1.0, measured_to=0.08)
     assert flat.model_error_factor(q) == pytest.approx([1.0])
     assert flat.unmeasured(np.vstack([q_cal, q])).tolist() == [False] * 4 + [True]
-    assert not dataclasses.replace(flat, model_error_m=0.0).unmeasured(q).any()
+    # no model error found: beyond the folds' reach still not measured (no fold tested it there)
+    none = dataclasses.replace(flat, model_error_m=0.0, reach_distance=0.0)
+    assert none.unmeasured(np.vstack([q_cal, q])).tolist() == [False] * 4 + [True]
+    assert none.reach is None and np.allclose(none.model_error_factor(q), 1.0)
+    assert not dataclasses.replace(none, measured_to=np.inf).unmeasured(q).any()
     summ = workspace_summary(flat, workspace_sample(q_cal, er4u.limits, count=40), q_cal)
     far = summ["workspace"]["model_error_not_measured_share"]
     assert 0 < far <= 1 and "model_error_not_measured_share" not in summ["calibration_postures"]

@@ -45,7 +45,8 @@ point estimate (:mod:`selfcal.calibration.board.held`,
 What this cannot see: a model error the same in every frame is absorbed by the placement (board
 pose, hand-eye) and is not seen; how fast a misfit grows is read only out to the held-out
 frames' largest distance from their training postures (``measured_to_distance``: beyond it the
-model error is held at its value there and the block says it is not measured); the power of the
+model error is held at its value there and the block says it is not measured; so too when the
+folds found none: no fold tested the model there); the power of the
 growth (2 for the variance) is assumed; a misfit
 the folds do not show (below two standard errors) is not counted anywhere, however it would grow;
 held-out configurations far outside the others (few configurations) make the folds'
@@ -282,7 +283,8 @@ def model_error(obs: BoardObservations, selection: Selection, offsets: np.ndarra
     model error grows with the distance from the calibration postures (module docstring): each
     held-out frame's excess is then read at its distance to its fold's training postures
     (:func:`grown_size`), the error's size ``m`` is the one at their mean distance
-    (:attr:`ModelError.reach_distance`)."""
+    (:attr:`ModelError.reach_distance`); the held-out frames' largest distance is how far the
+    folds tested the model (:attr:`ModelError.measured_to`), found or not."""
     got = []
     for out, fit, cr in fold_bounds(obs, selection, offsets, T_tool_point, pixel_sigma_px):
         train = obs.used & ~out
@@ -320,11 +322,13 @@ def model_error(obs: BoardObservations, selection: Selection, offsets: np.ndarra
                 [np.trace(N[:, b, b], axis1=1, axis2=2)])  # fmt: skip
 
     (r2, s2, n2), rot = parts(slice(0, 3)), parts(slice(3, 6))  # position, orientation
+    reached = float(np.max(h["distance"])) if span is not None else np.inf
     return model_error_of(r2, s2, n2, rot, folds=len(got),
                           failed=selection.folds - len(got),
                           noise_what="the pixel and joint read-back noise",
                           given=(m, m / float(np.mean(h["lever"]))),
-                          reach_distance=reach, growth=gram), share  # fmt: skip
+                          reach_distance=reach, growth=gram,
+                          measured_to=reached if reached > 0 else np.inf), share  # fmt: skip
 
 
 def _errors_px_mm(obs: BoardObservations, fit: Refinement,
@@ -393,8 +397,8 @@ def board_accuracy(obs: BoardObservations, selection: Selection, cr: BoardCramer
     pos = 0.0 if me is None else me.position_m
     rot = 0.0 if me is None or me.rotation_rad is None else me.rotation_rad
     q_cal = np.asarray(obs.q[obs.used], dtype=float)
-    reach = None
-    if me is not None and me.reach_distance > 0 and span is not None:
+    reach = None  # where it grows from and how far the folds tested the model (found or not)
+    if me is not None and span is not None and (me.reach_distance > 0 or np.isfinite(me.limit)):
         reach = Reach(q_cal, span, me.reach_distance, me.reach_floor, unmeasured_beyond(me),
                       revolute_joints(cr.model.joint_types))  # fmt: skip
     em, names = board_error_model(cr, T_tool_point, pos, rot, reach)
