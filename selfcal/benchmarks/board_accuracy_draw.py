@@ -197,9 +197,9 @@ def draw(args: tuple) -> dict:
     predicted 95 % orientation bound with and without the model error, the true orientation
     error (deg) and whether the calibration says its model error is not measured there (1.0,
     else 0.0: :meth:`selfcal.kinematics.tool_error.ToolErrorModel.unmeasured`, from the
-    calibration alone); ``measured_to``: the folds' reach (unit-free distance, infinite without
-    a growing model error); per region also ``<region>_right``, the coverage a right prediction would show
-    there (:func:`selfcal.benchmarks.tool_accuracy.coverage_if_right`); ``model_error_mm``;
+    calibration alone); ``measured_to``: the folds' reach (unit-free distance, infinite
+    without folds); per region also ``<region>_right``, the coverage a right prediction would
+    show there (:func:`selfcal.benchmarks.tool_accuracy.coverage_if_right`); ``model_error_mm``;
     rendered, the detector's ``corners``
     (:func:`selfcal.benchmarks.corner_noise.corner_noise`); ``status``."""
     robot, sigma_px, model, seed = args[:4]

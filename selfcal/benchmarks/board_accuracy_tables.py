@@ -58,7 +58,7 @@ def _measured(d: list[np.ndarray], reach: list[float | None]) -> dict:
     measured its model error and where it says it did not (a draw's row 7, 1.0 there:
     :func:`selfcal.benchmarks.board_accuracy_draw.draw`), the share not measured, and the
     median of the draws' reach ``reach`` (the folds' largest held-out distance, unit-free) over
-    the draws whose model error grows; none for draws without row 7 (older rows)."""
+    the draws that have one (finite); none for draws without row 7 (older rows)."""
     if not d or any(len(x) < 8 for x in d):
         return {}
     far = np.concatenate([x[7] for x in d]) > 0.5
