@@ -6,7 +6,8 @@ Rebuilds the prediction from ``calibration.json``'s ``accuracy`` block
 the calibrated region, Y mm at its edge", the regions' summary, the model error, the
 leave-one-configuration-out reprojection of the calibrated model and the fair nominal (px and
 mm at the board), and the workspace map ``figures/workspace_accuracy.png``
-(:mod:`selfcal.plots.workspace_map`).
+(:mod:`selfcal.plots.workspace_map`); and the run-to-run spread of the tool point over the
+folds (:mod:`selfcal.calibration.board.spread`) when the block has it.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ from selfcal.calibration.board.accuracy import (
     board_postures_from_json,
 )
 from selfcal.calibration.board.held_prior import held_sentence
+from selfcal.calibration.spread import spread_line
 from selfcal.errors import InputError
 from selfcal.io.board_calibration import BoardCalibrationResult
 from selfcal.kinematics.tool_error import accuracy_line, workspace_sample, workspace_summary
@@ -69,6 +71,7 @@ def board_accuracy_section(root: Path, cal: BoardCalibrationResult, *,
         "regions": regions,
         "cross_validation": block.get("cross_validation"),
         "held_deviation": block.get("held_deviation"),
+        "spread": block.get("spread"),
     }
     drawn = []
     if figures:
@@ -154,6 +157,10 @@ def accuracy_markdown(section: dict) -> list[str]:
         "",
         *region_table(section["regions"], orientation=True),
     ]
+    spread = section.get("spread")
+    if spread:
+        text = spread_line(spread)
+        out += ["", text[0].upper() + text[1:] + ' (docs/tool-accuracy.md "Run-to-run spread").']
     cv = cross_validation_line(section.get("cross_validation"))
     if cv is not None:
         out += ["", "## Cross-validated reprojection", "", cv[0].upper() + cv[1:] + "."]

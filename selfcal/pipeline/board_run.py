@@ -31,6 +31,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from selfcal.calibration.board.evaluate import evaluate_board
+from selfcal.calibration.spread import spread_line
 from selfcal.camera import CameraModel, opencv_values
 from selfcal.config.scenario import Scenario
 from selfcal.console.log import get_logger
@@ -358,6 +359,9 @@ def calibrate_board_run(
     for text in res.warnings:
         _log.warning("%s", text)
     _say(quiet, summary(res))
+    spread = (res.accuracy or {}).get("spread")
+    if spread:  # the run-to-run spread over the folds (issue #29)
+        _say(quiet, spread_line(spread))
     return res
 
 

@@ -100,6 +100,32 @@ def test_without_the_accuracy_block_the_estimate_and_bounds_are_the_same(run):
     )
 
 
+def test_the_run_to_run_spread_over_the_folds_is_the_estimation_error(run):
+    """The jackknife over the cross-validation folds (selfcal.calibration.board.spread): 15
+    configurations dealt into 5 folds, every fold fitted; without misfit (analytic corners, the
+    true model's form) the median spread inside the calibrated region is near the predicted RMS
+    of the covariance (0.5-1.5x as the tracker's bootstrap; 5 folds are 4 degrees of freedom);
+    report.md says it in the words of the line."""
+    from selfcal.calibration.spread import spread_line
+
+    _, out, _ = run
+    block = read_board_calibration(out).accuracy
+    assert (
+        block is not None
+        and block["model_error"] is None
+        or block["model_error"]["position_mm"] == 0
+    )
+    spread = block["spread"]
+    assert spread["method"] == "jackknife" and spread["resamplings"] == 5 and spread["failed"] == 0
+    assert spread["held_folds"] == 0
+    predicted = block["regions"]["inside"]["position_rms_mm"]
+    got = spread["regions"]["inside"]["spread_mm_median"]
+    assert 0.5 * predicted < got < 1.5 * predicted, (got, predicted)
+    regions = spread["regions"]
+    assert regions["inside"]["spread_mm_max"] <= regions["workspace"]["spread_mm_max"]
+    assert f"R{spread_line(spread)[1:]}" in (out / "report.md").read_text()
+
+
 def test_a_board_feature_row_with_the_field_columns_is_named(run, tmp_path):
     """detections.csv of a board holds one row per feature; a row of the marker field's six
     columns is an error naming the file and the row."""

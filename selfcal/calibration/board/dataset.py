@@ -38,6 +38,7 @@ from selfcal.calibration.board.nominal_fit import placement
 from selfcal.calibration.board.refine import BoardObservations
 from selfcal.calibration.board.rig import calibrate_board_rig
 from selfcal.calibration.board.robot import BoardRobotCalibration, calibrate_robot_with_board
+from selfcal.calibration.board.spread import jackknife_spread
 from selfcal.calibration.board.view_jitter import KEY, ViewJitter, view_jitter
 from selfcal.calibration.frame_checks import (
     UnusedFramesWarning,
@@ -396,6 +397,8 @@ def calibrate_board_dataset_detailed(
                                  deviation=deviation)  # fmt: skip
             jitter = _view_jitter(obs, result, bounds.pixel_sigma_px)
             block = acc.to_json() | ({} if jitter is None else {KEY: jitter.to_json()})
+            spread = jackknife_spread(sel, inv_pose(mount), acc.sample, acc.q_cal)
+            block["spread"] = None if spread is None else spread.to_json()  # run to run
             result = dataclasses.replace(result, accuracy=block)
         except np.linalg.LinAlgError as exc:
             text = f"no predicted accuracy: a fold's Fisher information cannot be inverted ({exc})"

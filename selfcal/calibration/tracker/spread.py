@@ -16,10 +16,10 @@ error that every resample shares does not spread.
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
 
 import numpy as np
 
+from selfcal.calibration.spread import BOOTSTRAP, REGIONS, Spread, region_spread, spread_line
 from selfcal.calibration.tracker.identify import TrackerResult, identify_tracker
 from selfcal.errors import EstimationError
 from selfcal.estimation.tracker import TrackerMeasurements
@@ -28,29 +28,10 @@ from selfcal.kinematics.tool_error import WorkspaceSample
 
 __all__ = ["Spread", "bootstrap_spread", "spread_line"]
 
-REGIONS = ("inside", "edge", "workspace", "calibration_postures")
-
-
-@dataclass(frozen=True)
-class Spread:
-    """Outcome of :func:`bootstrap_spread`: ``resamplings`` fitted, ``failed`` not, and per
-    region (``inside``, ``edge``, ``workspace``, ``calibration_postures``) the largest and the
-    median spread (mm RMS over the resamples) of its joint vectors (absent for an empty
-    region)."""
-
-    resamplings: int
-    failed: int
-    regions: dict
-
-    def to_json(self) -> dict:
-        """The ``spread`` entry of the ``accuracy`` block (mm)."""
-        return {
-            "what": "bootstrap over the position / pose rows: RMS distance of the resampled "
-            "calibrations' tool points from this calibration's, per joint vector (mm)",
-            "resamplings": self.resamplings,
-            "failed": self.failed,
-            "regions": self.regions,
-        }
+WHAT = (
+    "bootstrap over the position / pose rows: RMS distance of the resampled calibrations' tool "
+    "points from this calibration's, per joint vector (mm)"
+)
 
 
 def bootstrap_spread(
@@ -93,22 +74,5 @@ def bootstrap_spread(
             sq[k] += np.sum((fit.predict(qs[k]) - p) ** 2, axis=1)
     if done == 0:
         return None
-    regions = {}
-    for k in REGIONS:
-        if k not in sq:
-            continue
-        s = np.sqrt(sq[k] / done) * 1e3
-        regions[k] = {"spread_mm_max": float(s.max()), "spread_mm_median": float(np.median(s))}
-    return Spread(done, failed, regions)
-
-
-def spread_line(spread: dict) -> str:
-    """One line on a :meth:`Spread.to_json` block."""
-    r = spread["regions"]
-    text = (
-        f"run-to-run spread over {spread['resamplings']} bootstrap resamplings of the rows: "
-        f"{r['inside']['spread_mm_max']:.3f} mm RMS at most inside the calibrated region"
-    )
-    if "edge" in r:
-        text += f", {r['edge']['spread_mm_max']:.3f} mm at its edge"
-    return text
+    regions = region_spread({k: v / done for k, v in sq.items()})
+    return Spread(done, failed, regions, WHAT, BOOTSTRAP)

@@ -1,0 +1,77 @@
+"""Run-to-run spread of a board calibration: the jackknife over its cross-validation folds
+(issue #29).
+
+Would the same images, taken again at other postures of the same kind, give the same tool point?
+The board route already refits its chosen candidate without each fold of arm configurations
+(:mod:`selfcal.calibration.board.param_selection`, the folds :mod:`selfcal.calibration.board.folds`):
+those ``k`` fits are a delete-a-group jackknife. At a joint vector with the fold fits' tool points
+``t_i`` (the flange, in the chain's world frame: the board frame, eye-to-hand the first camera's)
+the jackknife variance of the calibration's tool point is
+
+    var = (k - 1) / k * sum_i |t_i - t_mean|^2
+
+(the squared spread summed over the three coordinates, as the tracker's bootstrap spread,
+:mod:`selfcal.calibration.tracker.spread`); the spread is its square root (mm), kept per region
+of the workspace sample and at the calibration postures as the largest and the median value
+(:class:`selfcal.calibration.spread.Spread`, ``accuracy.spread``). It costs no fit beyond the
+cross-validation's.
+
+The folds are symmetric in it, so the order of the dataset's frames does not change it as long
+as the configurations are the folds (at most :data:`selfcal.calibration.board.folds.MAX_FOLDS`);
+beyond that the configurations are dealt into the folds in their order of appearance. What it
+cannot see: a model error every fold shares; with few folds (``k - 1`` degrees of freedom) the
+spread is itself uncertain (about +-35 % at 5 folds, 1 standard deviation); a fold whose
+training frames could not determine some parameters held them at the fair nominal's value
+(``held_folds``): its fit differs in kind, and the spread then over-states.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from selfcal.calibration.board.param_selection import Selection
+from selfcal.calibration.spread import JACKKNIFE, REGIONS, Spread, region_spread
+from selfcal.kinematics.forward import fk_tool
+from selfcal.kinematics.tool_error import WorkspaceSample
+
+__all__ = ["WHAT", "jackknife_spread"]
+
+WHAT = (
+    "delete-a-configuration jackknife over the cross-validation folds' fits of the chosen "
+    "candidate: sqrt((k - 1) / k * sum |t_i - t_mean|^2) of the folds' tool points t_i, per "
+    "joint vector (mm)"
+)
+
+
+def _tool_points(model, q: np.ndarray, T_tool_point: np.ndarray) -> np.ndarray:
+    """(m, 3) the tool point ``T_tool_point`` (in the chain's tool frame) of ``model`` at the
+    joints ``q`` (m, n), in the chain's world frame (m)."""
+    T = fk_tool(model, np.atleast_2d(q))
+    return T[:, :3, :3] @ np.asarray(T_tool_point, float)[:3, 3] + T[:, :3, 3]
+
+
+def jackknife_spread(selection: Selection, T_tool_point: np.ndarray, sample: WorkspaceSample,
+                     q_cal: np.ndarray) -> Spread | None:  # fmt: skip
+    """The jackknife spread of the board calibration whose parameter selection is ``selection``
+    (module docstring): ``T_tool_point`` the flange in the chain's tool frame, ``sample`` the
+    workspace sample, ``q_cal`` (m, n) rad / m the calibration postures; the block's
+    ``held_folds`` counts the folds whose fit held parameters at the fair nominal. None without
+    folds or with fewer than two fitted."""
+    if selection.fold_of is None:
+        return None
+    cand = selection.candidates[selection.chosen]
+    fits = [fit for _, (fit, _, _) in sorted(cand.fold_fits.items())]
+    k = len(fits)
+    if k < 2:
+        return None
+    qs = {name: getattr(sample, name) for name in REGIONS[:3]}
+    qs["calibration_postures"] = np.asarray(q_cal, dtype=float)
+    squared = {}
+    for name, q in qs.items():
+        if not len(q):
+            continue
+        t = np.stack([_tool_points(fit.model, q, T_tool_point) for fit in fits])  # (k, m, 3)
+        squared[name] = (k - 1) / k * np.sum((t - t.mean(axis=0)) ** 2, axis=(0, 2))
+    held = sum(1 for f in cand.fold_fits if cand.fold_held.get(f))
+    return Spread(k, selection.folds - k, region_spread(squared), WHAT, JACKKNIFE,
+                  {"held_folds": held})  # fmt: skip
