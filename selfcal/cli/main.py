@@ -369,7 +369,9 @@ def build_parser() -> argparse.ArgumentParser:
         "calibrate",
         cmd_calibrate,
         "dataset -> DIR/calibration.json (never reads truth.json); the ArUco field: "
-        "self-calibration, a board: the board calibration (--method applies to the field)",
+        "self-calibration, a board: the board calibration, its predicted tool-point accuracy and "
+        "the tool point's run-to-run spread over its folds (docs/tool-accuracy.md; --method "
+        "applies to the field)",
     )
     sp.add_argument("dataset", help="dataset folder (the output goes into it)")
     sp.add_argument("--method", choices=METHODS, default="joint", help=METHOD_HELP)
