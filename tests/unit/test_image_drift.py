@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import warnings
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -15,11 +17,18 @@ from scipy.stats import chi2, norm
 from selfcal.benchmarks.drift_images import read_joints
 from selfcal.calibration.drift.images import _covariance, image_drift_check
 from selfcal.calibration.drift.p_value import known_change_power
-from selfcal.calibration.drift.paired import POSTURE_TOL, pair_views, same_posture
+from selfcal.calibration.drift.paired import (
+    POSTURE_TOL,
+    _pair,
+    pair_views,
+    paired_views,
+    posture_tol,
+    same_posture,
+)
 from selfcal.calibration.drift.views import view_jacobians
 from selfcal.camera import camera_model
 from selfcal.cli.main import main as selfcal
-from selfcal.errors import InputError
+from selfcal.errors import InputError, SelfCalWarning
 from selfcal.estimation.joint_report import encoder_sigma
 from selfcal.io.board_calibration import FORMAT as BOARD_FORMAT
 from selfcal.kinematics.forward import fk_tool
@@ -296,6 +305,92 @@ def test_a_joint_offset_is_found_against_the_calibrations_frames(scene):
     assert same_posture(far, scene["q"]).tolist() == [-1] * 5
     assert same_posture(scene["q"] + POSTURE_TOL / 2, scene["q"]).tolist() == list(range(5))
     assert not any(v.paired for v in _paired(scene, new, frames)[1])
+
+
+def _at_one_posture(scene, misfit, rng, jitter):
+    """Three new exposures at posture 0 (the misfit repeating, new noise), with the calibration's frames exposed once: the views linearised with the
+    misfit's ``jitter`` counted (as the check does when its frames showed one), the new
+    ``(frame, X, uv)`` and the frames."""
+    e2h, em, cam, q = scene["e2h"], scene["em"], scene["cam"], scene["q"]
+    frames = _exposures(scene, misfit, rng)
+    new = _exposures(scene, misfit, rng)
+    new = [new[0], *(_exposures(scene, misfit, rng)[0] for _ in range(2))]
+    vj = [view_jacobians(em, cam, q[f], X, uv, eye_to_hand=e2h, pixel_sigma_px=SIGMA_PX,
+                         joint_sigma_rad=None, jitter=jitter) for f, X, uv in new]  # fmt: skip
+    return vj, new, frames
+
+
+def test_a_frame_is_paired_with_one_new_view_alone(scene):
+    """Three new views at one calibration posture: paired all with the one frame there, their
+    differences share its noise, which the check's covariance does not hold (false alarms well
+    above alpha 0.05: 11 and 14 of 40 eye-in-hand / eye-to-hand here); the frame paired with
+    the first alone, the two others tested as new ones with the misfit counted: at most about
+    alpha (1 and 2 of 40 here)."""
+    rng = np.random.default_rng(11)
+    misfit, _ = _misfit_and_frames(scene, rng)
+    jitter = np.diag(np.r_[np.full(3, 5e-4**2), np.full(3, 1e-3**2)])  # the misfit's, per view
+    e2h, em, cam, q, C = scene["e2h"], scene["em"], scene["cam"], scene["q"], scene["C"]
+    kw = {"em": em, "camera": cam, "eye_to_hand": e2h, "pixel_sigma_px": SIGMA_PX,
+          "joint_sigma_rad": None}  # fmt: skip
+    n, once, every = 40, 0, 0
+    for _ in range(n):
+        vj, new, frames = _at_one_posture(scene, misfit, rng, jitter)
+        pv, repeated = _pair(vj, new, q, frames, q, tol=POSTURE_TOL, **kw)
+        assert [v.paired for v in pv] == [True, False, False]
+        assert repeated == 2
+        assert all(
+            np.array_equal(a.r, b.r) for a, b in zip(pv, pair_views(vj, new, q, frames, q, **kw))
+        )
+        all_paired = [pair_views([v], [w], q, frames, q, **kw)[0] for v, w in zip(vj, new)]
+        assert all(v.paired for v in all_paired)
+        once += image_drift_check(C, pv, eye_to_hand=e2h, alpha=0.05).changed
+        every += image_drift_check(C, all_paired, eye_to_hand=e2h, alpha=0.05).changed
+    assert once <= 0.1 * n
+    assert every >= 0.15 * n
+
+
+def test_a_posture_driven_again_a_count_off_is_paired_on_the_er4u():
+    """The ER-4u's joints read one encoder count off (1.23e-4 .. 3.13e-4 rad, more than the
+    least tolerance POSTURE_TOL) are at the same posture within the tolerance the read-back's
+    noise gives (4 counts, 2.8 of the differential wrist's), 10 counts off they are not."""
+    robot = load_robot("er4u-paper")
+    step = robot.encoder.count_step
+    assert np.all(step > POSTURE_TOL)
+    tol = posture_tol(encoder_sigma(robot), robot.n)
+    assert np.all((tol >= 2 * step) & (tol <= 4 * step + 1e-12))
+    q = np.random.default_rng(12).uniform(robot.limits[:, 0], robot.limits[:, 1], (3, robot.n))
+    for j in range(robot.n):
+        off = q + np.eye(robot.n)[j] * step
+        assert same_posture(off, q, tol).tolist() == [0, 1, 2]
+        assert same_posture(off, q).tolist() == [-1] * 3  # the former fixed 1e-4 rad
+        assert same_posture(q + np.eye(robot.n)[j] * 10 * step, q, tol).tolist() == [-1] * 3
+    assert np.all(posture_tol(None, robot.n) == POSTURE_TOL)
+
+
+def test_images_at_the_calibrations_postures_without_its_dataset_warn(tmp_path):
+    """A calibration that counted a misfit whose dataset is not beside its file: new images at
+    its postures cannot be paired, and the check says how many and how to fix it; its dataset
+    there (read or warned of by calibration_frames), no misfit counted, or no image at its
+    postures: no warning."""
+    q = np.random.default_rng(13).uniform(-1.0, 1.0, (4, 5))
+    cal = SimpleNamespace(accuracy={"calibration_postures_si": q[:3].tolist()},
+                          model=SimpleNamespace(n=5))  # fmt: skip
+    held = SimpleNamespace(q=q)
+    new = [(f, None, None) for f in (0, 2, 3)]  # two at its postures, one elsewhere
+    noise = SimpleNamespace(misfit_counted=True, pixel_sigma_px=0.2, joint_sigma_rad=None)
+    path = tmp_path / "calibration.json"
+    args = (cal, path, held, None, new, ["a", "b", "c"])
+    with pytest.warns(SelfCalWarning, match=r"2 image\(s\) at the calibration's postures not "
+                      r"paired: its dataset is not beside .*calibration.json.*fix: put the "
+                      "calibration's dataset"):  # fmt: skip
+        assert paired_views(*args, em=None, noise=noise) == (["a", "b", "c"], 0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        quiet = SimpleNamespace(misfit_counted=False, pixel_sigma_px=0.2, joint_sigma_rad=None)
+        paired_views(*args, em=None, noise=quiet)
+        paired_views(cal, path, held, None, new[2:], ["c"], em=None, noise=noise)
+        (tmp_path / "dataset.json").write_text("{}")
+        paired_views(*args, em=None, noise=noise)
 
 
 def test_known_change_power():

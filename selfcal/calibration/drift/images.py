@@ -76,7 +76,7 @@ from selfcal.calibration.board.view_jitter import view_jitter_from_json
 from selfcal.calibration.drift.attribution import Attribution, Fits, attribute, candidate_fits
 from selfcal.calibration.drift.own import JOINT_TOL, calibration_frames, own_views
 from selfcal.calibration.drift.p_value import combined_p, min_p, p_text
-from selfcal.calibration.drift.paired import POSTURE_TOL, pair_views
+from selfcal.calibration.drift.paired import paired_views, posture_tol
 from selfcal.calibration.drift.views import ViewJacobians, view_jacobians
 from selfcal.errors import InputError
 from selfcal.io.board_calibration import (
@@ -140,8 +140,8 @@ class ImageDriftCheck:
         turn_deg: the RMS over the views of the tool's rotation by the best change (deg; the
         verdict gives it where the tool point moves less than 0.001 mm, as a wrist joint's
         offset turns the tool about the flange); paired: how many of the ``views`` were
-        tested against the calibration's frame at the same posture
-        (:mod:`selfcal.calibration.drift.paired`).
+        tested against the calibration's frame at the same posture, repeated: how many more
+        there were tested as new (:mod:`selfcal.calibration.drift.paired`).
     """
 
     views: int
@@ -162,6 +162,7 @@ class ImageDriftCheck:
     tool_bound_mm: float = 0.0
     turn_deg: float = 0.0
     paired: int = 0
+    repeated: int = 0
 
     def _own_line(self) -> str:
         if not self.own:
@@ -173,8 +174,9 @@ class ImageDriftCheck:
         """The verdict in one line."""
         what = f"{self.views} new image(s), {self.corners} corners"
         if self.paired:
+            again = f", {self.repeated} more there tested as new" if self.repeated else ""
             what += (f" ({self.paired} at the calibration's postures, each against its frame "
-                     "there)")  # fmt: skip
+                     f"there{again})")  # fmt: skip
         fit = (f"{what}: {self.rms_px:.3f} px RMS against the predicted "
                f"{self.expected_rms_px:.3f} px; {p_text(self.p_value)} < {self.alpha:g}")  # fmt: skip
         if self.changed and self.best == "camera":
@@ -207,6 +209,7 @@ class ImageDriftCheck:
             "images": self.views,
             "own_images": self.own,
             "paired_images": self.paired,
+            "repeated_posture_images": self.repeated,
             "corners": self.corners,
             "statistic": self.statistic,
             "dof": self.dof,
@@ -474,7 +477,7 @@ def check_images(calibration: str | Path, new_data: str | Path, *,
     em = calibration_error_model(cal, str(path))
     held = held_out_views(cal, new_data, cameras=(cal.camera_names[0],))
     noise = view_noise(cal, str(path))
-    tol = POSTURE_TOL if noise.misfit_counted else JOINT_TOL  # paired, or only its own frames
+    tol = posture_tol(noise.joint_sigma_rad, cal.model.n) if noise.misfit_counted else JOINT_TOL
     mine = calibration_frames(cal, path, held, cal.camera_names[0], tol)
     own = own_views(cal, path, held, mine)
     new = [(f, X, uv) for (_, f, _, _, X, uv), o in zip(held.views, own, strict=True) if not o]
@@ -487,15 +490,10 @@ def check_images(calibration: str | Path, new_data: str | Path, *,
             "postures), not the calibration's dataset",
         )
     q_cal = board_postures_from_json(cal.accuracy or {}, cal.model.n, str(path))
-    tested = calibration_views(cal, em, held.q, new, where=str(path))
-    if mine is not None and noise.misfit_counted:  # at its frames' postures: each against its frame
-        frames = [(f, X, uv) for _, f, _, _, X, uv in mine.views
-                  if np.any(np.all(np.abs(q_cal - mine.q[f]) <= JOINT_TOL, axis=1))]  # fmt: skip
-        tested = pair_views(tested, new, held.q, frames, mine.q, em=em, camera=cal.cameras[0],
-                            eye_to_hand=cal.eye_to_hand, pixel_sigma_px=noise.pixel_sigma_px,
-                            joint_sigma_rad=noise.joint_sigma_rad)  # fmt: skip
+    views = calibration_views(cal, em, held.q, new, where=str(path))
+    tested, repeated = paired_views(cal, path, held, mine, new, views, em=em, noise=noise)
     res = image_drift_check(estimate_covariance(cal, em), tested, eye_to_hand=cal.eye_to_hand,
                             camera_names=cal.cameras[0].free, alpha=alpha)  # fmt: skip
     far = unseen(held.q[[f for f, _, _ in new]], q_cal, cal.model.joint_types)
     return replace(res, unseen=int(np.count_nonzero(far)), own=int(np.count_nonzero(own)),
-                   paired=sum(v.paired for v in tested))  # fmt: skip
+                   paired=sum(v.paired for v in tested), repeated=repeated)  # fmt: skip

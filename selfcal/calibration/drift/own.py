@@ -65,17 +65,19 @@ def _same(a: tuple, b: tuple, qa: np.ndarray, qb: np.ndarray) -> bool:
     )
 
 
-def _posed(q_cal: np.ndarray, q: np.ndarray, tol: float) -> bool:
-    """Is ``q`` (n,) one of the postures ``q_cal`` (m, n), every joint within ``tol``?"""
+def _posed(q_cal: np.ndarray, q: np.ndarray, tol: float | np.ndarray) -> bool:
+    """Is ``q`` (n,) one of the postures ``q_cal`` (m, n), every joint within ``tol`` (a number
+    or (n,) per joint)?"""
     return bool(np.any(np.all(np.abs(q_cal - q) <= tol, axis=1)))
 
 
-def calibration_frames(cal: BoardCalibrationResult, path: Path, held: HeldOutViews,
-                       camera: str, tol: float = JOINT_TOL) -> HeldOutViews | None:  # fmt: skip
+def calibration_frames(cal: BoardCalibrationResult, path: Path, held: HeldOutViews, camera: str,
+                       tol: float | np.ndarray = JOINT_TOL) -> HeldOutViews | None:  # fmt: skip
     """The views (of ``camera``) of the dataset the calibration ``cal`` (its file ``path``)
     calibrated, read when a new view of ``held`` is at one of its postures (its ``accuracy``
-    block's: every joint within ``tol``, rad / m); None when none is or no dataset lies beside
-    the file (a folder there that is not its dataset: warned, None)."""
+    block's: every joint within ``tol``, rad / m, a number or (n,) per joint); None when none
+    is or no dataset lies beside the file (a folder there that is not its dataset: warned,
+    None)."""
     # only views at the calibration's own postures can be its frames or share their misfit:
     # without one the check reads nothing more (the calibration's images are not detected)
     q_cal = board_postures_from_json(cal.accuracy or {}, cal.model.n, str(path))

@@ -24,8 +24,12 @@ without it the new view alone is the stronger test, its noise counted once rathe
 0.2 mm mount shift at 0.2 px found in 86 % of the simulated checks at the calibration's postures
 alone, 55 % paired: ``python -m selfcal.benchmarks.drift_morning``).
 
+Each frame is paired with one new view, the first at its posture: two differences from one
+frame share its noise, which the check's covariance (independent per view) does not hold; a
+further view there is tested as a new one and counted.
+
 What this assumes: the misfit at a posture repeats when the arm returns to it (the readings
-within :data:`POSTURE_TOL`). A misfit that differs between exposures at one posture (a board
+within a few encoder counts, :func:`posture_tol`). A misfit that differs between exposures at one posture (a board
 that moved, a warm-up) is not counted and reads as a change; the real sets have no repeated
 posture to measure it on (docs/real-data.md). Neglected: the correlation of ``d`` with the
 other, unpaired, views' residuals through the frame's own noise in the calibration's estimate
@@ -35,32 +39,79 @@ other, unpaired, views' residuals through the frame's own noise in the calibrati
 from __future__ import annotations
 
 import dataclasses
+import warnings
+from pathlib import Path
+from typing import Protocol
 
 import numpy as np
 
+from selfcal.calibration.board.accuracy import board_postures_from_json
+from selfcal.calibration.board.evaluate import HeldOutViews
+from selfcal.calibration.drift.own import JOINT_TOL, calibration_dataset
 from selfcal.calibration.drift.views import ViewJacobians, view_jacobians
 from selfcal.camera import CameraModel
+from selfcal.errors import SelfCalWarning
+from selfcal.io.board_calibration import BoardCalibrationResult
 from selfcal.kinematics.tool_error import ToolErrorModel
 
-__all__ = ["MIN_SHARED", "POSTURE_TOL", "pair_views", "same_posture"]
+__all__ = [
+    "MIN_SHARED",
+    "Noise",
+    "POSTURE_COUNTS",
+    "POSTURE_TOL",
+    "pair_views",
+    "paired_views",
+    "posture_tol",
+    "same_posture",
+]
 
 POSTURE_TOL = 1e-4
-"""rad / m: joint readings this close (every joint) are the same posture (a taught posture
-driven again reads within a few encoder counts: 0.0007 deg, 1.2e-5 rad, per count on a UR5e)."""
+"""rad / m: the least tolerance of :func:`posture_tol` (joint readings this close, every joint,
+are the same posture where the read-back's noise is not known or finer: 1.2e-5 rad per count
+on a UR5e)."""
+POSTURE_COUNTS = 4.0
+"""Encoder counts of each joint within which a posture driven again is the same posture: one
+count is ``sqrt 12`` times the read-back's standard deviation of a joint read by its own motor
+(:attr:`selfcal.robot.encoder.EncoderSpec.read_back_sigma`), 1.23e-4 .. 3.13e-4 rad on the
+ER-4u (models/scorbot_er4u/er4u-paper.toml); on a differential wrist that is 0.71 of a motor
+count, so the tolerance there is 2.8 of its counts."""
 MIN_SHARED = 4
 """Board points a new view and its frame must both detect to be compared (fewer: the view is
 tested as a new one)."""
 
 
-def same_posture(q_new: np.ndarray, q_frames: np.ndarray, tol: float = POSTURE_TOL) -> np.ndarray:
+class Noise(Protocol):
+    """What the pairing needs of the check's noise
+    (:class:`selfcal.calibration.drift.images.ViewNoise`)."""
+
+    @property
+    def pixel_sigma_px(self) -> float: ...
+    @property
+    def joint_sigma_rad(self) -> np.ndarray | None: ...
+    @property
+    def misfit_counted(self) -> bool: ...
+
+
+def posture_tol(joint_sigma: np.ndarray | None, n: int) -> np.ndarray:
+    """(n,) rad / m per joint: readings this close are the same posture, :data:`POSTURE_COUNTS`
+    counts of the read-back whose standard deviation ``joint_sigma`` (n,) is (the calibration's
+    ``bounds.joint_sigma_deg`` in rad: the encoder's quantisation, ``count / sqrt 12``), at
+    least :data:`POSTURE_TOL`; :data:`POSTURE_TOL` where it is None."""
+    if joint_sigma is None:
+        return np.full(n, POSTURE_TOL)
+    return np.maximum(POSTURE_COUNTS * np.sqrt(12.0) * np.asarray(joint_sigma, float), POSTURE_TOL)
+
+
+def same_posture(q_new: np.ndarray, q_frames: np.ndarray,
+                 tol: float | np.ndarray = POSTURE_TOL) -> np.ndarray:  # fmt: skip
     """(m,) per joint vector of ``q_new`` (m, n) the index into ``q_frames`` (c, n) (rad / m)
-    of the frame at the same posture (every joint within ``tol``; the nearest of several), or
-    -1 when none is."""
+    of the frame at the same posture (every joint within ``tol``, a number or (n,) per joint;
+    the nearest of several in units of it), or -1 when none is."""
     if len(q_frames) == 0:
         return np.full(len(q_new), -1)
-    gap = np.max(np.abs(q_new[:, None, :] - q_frames[None, :, :]), axis=2)
+    gap = np.max(np.abs(q_new[:, None, :] - q_frames[None, :, :]) / tol, axis=2)
     best = np.argmin(gap, axis=1)
-    return np.where(gap[np.arange(len(q_new)), best] <= tol, best, -1)
+    return np.where(gap[np.arange(len(q_new)), best] <= 1.0, best, -1)
 
 
 def _shared(Xa: np.ndarray, Xb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -74,31 +125,86 @@ def _shared(Xa: np.ndarray, Xb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def pair_views(views: list[ViewJacobians], new: list[tuple[int, np.ndarray, np.ndarray]],
                q: np.ndarray, frames: list[tuple[int, np.ndarray, np.ndarray]],
                q_frames: np.ndarray, *, em: ToolErrorModel, camera: CameraModel,
-               eye_to_hand: bool, pixel_sigma_px: float,
-               joint_sigma_rad: np.ndarray | None) -> list[ViewJacobians]:  # fmt: skip
+               eye_to_hand: bool, pixel_sigma_px: float, joint_sigma_rad: np.ndarray | None,
+               tol: float | np.ndarray = POSTURE_TOL) -> list[ViewJacobians]:  # fmt: skip
     """``views`` (:func:`selfcal.calibration.drift.views.view_jacobians` of the new views
     ``new``: frame ``f`` into ``q`` (m, n) rad / m, board points ``X`` (k, 3) m, detected
-    ``uv`` (k, 2) px) with each one at the posture of a calibration frame (``frames``, the
-    calibration's dataset's views of the same camera in the same form, ``f`` into
-    ``q_frames``) that shares at least :data:`MIN_SHARED` board points replaced by its paired
-    difference from that frame (module docstring; ``paired`` set), linearised at the
-    calibration ``em``, ``camera`` with the white corner noise ``pixel_sigma_px`` (px) and the
-    joint read-back ``joint_sigma_rad`` (n,) or None of each view; the others as they are."""
+    ``uv`` (k, 2) px) with the first one at the posture (within ``tol``, :func:`same_posture`)
+    of a calibration frame (``frames``, the calibration's dataset's views of the same camera in
+    the same form, ``f`` into ``q_frames``) that shares at least :data:`MIN_SHARED` board
+    points replaced by its paired difference from that frame (module docstring; ``paired``
+    set), linearised at the calibration ``em``, ``camera`` with the white corner noise
+    ``pixel_sigma_px`` (px) and the joint read-back ``joint_sigma_rad`` (n,) or None of each
+    view; the others as they are (a further view at a frame's posture too:
+    :func:`_pair`)."""
+    return _pair(views, new, q, frames, q_frames, em=em, camera=camera,
+                 eye_to_hand=eye_to_hand, pixel_sigma_px=pixel_sigma_px,
+                 joint_sigma_rad=joint_sigma_rad, tol=tol)[0]  # fmt: skip
+
+
+def _pair(views: list[ViewJacobians], new: list[tuple[int, np.ndarray, np.ndarray]],
+          q: np.ndarray, frames: list[tuple[int, np.ndarray, np.ndarray]], q_frames: np.ndarray,
+          *, em: ToolErrorModel, camera: CameraModel, eye_to_hand: bool, pixel_sigma_px: float,
+          joint_sigma_rad: np.ndarray | None,
+          tol: float | np.ndarray) -> tuple[list[ViewJacobians], int]:  # fmt: skip
+    """:func:`pair_views` and how many further new views at a paired frame's posture it tested
+    as new ones: each frame is paired once, since two differences from one frame share its
+    noise (``Cov(d1, d2) = Sigma_cal`` on their shared points), which the check's covariance,
+    independent per view, does not hold (3 / 5 new views at one posture all paired: 25 % /
+    50 % false alarms at alpha 0.05 in the unit test's scene)."""
     if not frames:
-        return list(views)
+        return list(views), 0
     at = same_posture(
-        np.array([q[f] for f, _, _ in new]), np.asarray(q_frames)[[f for f, _, _ in frames]]
+        np.array([q[f] for f, _, _ in new]), np.asarray(q_frames)[[f for f, _, _ in frames]], tol
     )
     quiet = dataclasses.replace(em, model_error_m=0.0, model_error_rad=0.0)  # it repeats: cancels
-    out = []
+    out, used, repeated = [], set(), 0
     for v, (f, X, uv), i in zip(views, new, at, strict=True):
         ia, ib = _shared(X, frames[i][1]) if i >= 0 else ((), ())
-        if len(ia) < MIN_SHARED:
+        if len(ia) < MIN_SHARED or i in used:
+            repeated += bool(len(ia) >= MIN_SHARED)
             out.append(v)
             continue
+        used.add(i)
         fc, Xc, uvc = frames[i]
         a, b = (view_jacobians(quiet, camera, qv, Xv, uvv, eye_to_hand=eye_to_hand,
                                pixel_sigma_px=pixel_sigma_px, joint_sigma_rad=joint_sigma_rad)
                 for qv, Xv, uvv in ((q[f], X[ia], uv[ia]), (q_frames[fc], Xc[ib], uvc[ib])))  # fmt: skip
         out.append(dataclasses.replace(a, r=a.r - b.r, local=a.local + b.local, paired=True))
-    return out
+    return out, repeated
+
+
+def paired_views(cal: BoardCalibrationResult, path: Path, held: HeldOutViews,
+                 mine: HeldOutViews | None, new: list[tuple[int, np.ndarray, np.ndarray]],
+                 tested: list[ViewJacobians], *, em: ToolErrorModel,
+                 noise: Noise) -> tuple[list[ViewJacobians], int]:  # fmt: skip
+    """The check's pairing (:func:`selfcal.calibration.drift.images.check_images`): the new
+    views ``tested`` (of ``new``, frames into ``held.q``) at the postures of the frames of the
+    calibration ``cal`` (file ``path``; ``mine`` its dataset's views,
+    :func:`selfcal.calibration.drift.own.calibration_frames`) each against its frame
+    (:func:`pair_views`) when its frames showed a per-view misfit (``noise``, the check's
+    :class:`selfcal.calibration.drift.images.ViewNoise`: ``misfit_counted``), and how
+    many further views at a paired posture were tested as new. Warns (SelfCalWarning) when
+    such views are at its postures but its dataset is not beside ``path`` to pair them with."""
+    if not noise.misfit_counted:
+        return list(tested), 0
+    pixel_sigma_px, joint_sigma_rad = noise.pixel_sigma_px, noise.joint_sigma_rad
+    q_cal = board_postures_from_json(cal.accuracy or {}, cal.model.n, str(path))
+    tol = posture_tol(joint_sigma_rad, cal.model.n)
+    if mine is None:
+        near = same_posture(np.array([held.q[f] for f, _, _ in new]), q_cal, tol) >= 0
+        if np.any(near) and calibration_dataset(path) is None:
+            warnings.warn(
+                f"{np.count_nonzero(near)} image(s) at the calibration's postures not paired: "
+                f"its dataset is not beside {path} (they are tested as new images, which counts "
+                "the misfit that repeats at a posture as a change); fix: put the calibration's "
+                f"dataset (its dataset.json and images) in {path.parent}",
+                SelfCalWarning,
+                stacklevel=3,
+            )
+        return list(tested), 0
+    frames = [(f, X, uv) for _, f, _, _, X, uv in mine.views
+              if np.any(np.all(np.abs(q_cal - mine.q[f]) <= JOINT_TOL, axis=1))]  # fmt: skip
+    return _pair(tested, new, held.q, frames, mine.q, em=em, camera=cal.cameras[0],
+                 eye_to_hand=cal.eye_to_hand, pixel_sigma_px=pixel_sigma_px,
+                 joint_sigma_rad=joint_sigma_rad, tol=tol)  # fmt: skip
