@@ -126,56 +126,6 @@ def test_the_run_to_run_spread_over_the_folds_is_the_estimation_error(run):
     assert f"R{spread_line(spread)[1:]}" in (out / "report.md").read_text()
 
 
-def _shuffled(src: Path, dst: Path, perm: np.ndarray) -> None:
-    """A copy of the dataset ``src`` in ``dst`` whose frame ``i`` is ``src``'s frame
-    ``perm[i]``: joints.csv, detections.csv and dataset.json's trajectory re-indexed."""
-    import csv
-    import json
-    import shutil
-
-    shutil.copytree(src, dst)
-    new_of = {int(old): i for i, old in enumerate(perm)}
-    with open(src / "joints.csv", newline="") as f:
-        head, *rows = list(csv.reader(f))
-    by_old = {int(r[0]): r[1:] for r in rows}
-    with open(dst / "joints.csv", "w", newline="") as f:
-        csv.writer(f).writerows([head, *([str(i), *by_old[int(o)]] for i, o in enumerate(perm))])
-    with open(src / "detections.csv", newline="") as f:
-        head, *rows = list(csv.reader(f))
-    rows = [[str(new_of[int(r[0])]), *r[1:]] for r in rows]
-    rows.sort(key=lambda r: int(r[0]))  # frame by frame, the features within in their order
-    with open(dst / "detections.csv", "w", newline="") as f:
-        csv.writer(f).writerows([head, *rows])
-    info = json.loads((src / "dataset.json").read_text())
-    info["trajectory_joints_deg"] = [info["trajectory_joints_deg"][int(o)] for o in perm]
-    (dst / "dataset.json").write_text(json.dumps(info))
-
-
-@pytest.mark.slow
-def test_the_order_of_the_frames_changes_neither_the_calibration_nor_its_spread(run, tmp_path):
-    """The run's dataset with its 15 frames shuffled (15 configurations: more than the folds,
-    so they are dealt into the folds by their joints, not their order) calibrates to the same
-    chain, the same parameter selection and the same run-to-run spread (to 1e-6: the board
-    route's start rounds differently run to run)."""
-    from selfcal.calibration.board.dataset import calibrate_board_dataset
-
-    _, out, _ = run
-    stored = read_board_calibration(out)
-    perm = np.random.default_rng(4).permutation(stored.frames)
-    _shuffled(out, tmp_path / "shuffled", perm)
-    again = calibrate_board_dataset(tmp_path / "shuffled")
-    assert stored.accuracy is not None and again.accuracy is not None
-    np.testing.assert_allclose(again.model.params, stored.model.params, rtol=1e-6, atol=1e-9)
-    sel, sel0 = again.selection, stored.selection
-    assert sel["chosen"] == sel0["chosen"] and sel["folds"] == sel0["folds"] == 5
-    for c, c0 in zip(sel["candidates"], sel0["candidates"], strict=True):
-        assert c["cv_px"] == pytest.approx(c0["cv_px"], rel=1e-6), c["label"]
-    spread, spread0 = again.accuracy["spread"], stored.accuracy["spread"]
-    for region, values in spread0["regions"].items():
-        for key, v in values.items():
-            assert spread["regions"][region][key] == pytest.approx(v, rel=1e-6), (region, key)
-
-
 def test_a_board_feature_row_with_the_field_columns_is_named(run, tmp_path):
     """detections.csv of a board holds one row per feature; a row of the marker field's six
     columns is an error naming the file and the row."""

@@ -3,9 +3,7 @@
 wrist's last three, all of a chain of three or fewer -- are equal within
 :data:`SAME_CONFIGURATION` form one configuration, and the configurations are the folds, at most
 :data:`MAX_FOLDS` of them. The plan's forecast of the selection
-(:mod:`selfcal.calibration.board.plan.selection`) and ``selfcal plan --add`` use the same rule,
-with the configurations numbered in the order of their postures; the calibration's selection
-numbers them by their joints, so that the order of the frames does not matter (issue #29).
+(:mod:`selfcal.calibration.board.plan.selection`) and ``selfcal plan --add`` use the same folds.
 """
 
 from __future__ import annotations
@@ -30,16 +28,11 @@ def _arm(q: np.ndarray, joint_types: tuple[str, ...]) -> tuple[np.ndarray, np.nd
     return arm, tol[: arm.shape[1]]
 
 
-def configurations(q: np.ndarray, joint_types: tuple[str, ...], *,
-                   by_joints: bool = False) -> np.ndarray:  # fmt: skip
+def configurations(q: np.ndarray, joint_types: tuple[str, ...]) -> np.ndarray:
     """(m,) the configuration of every frame of the joints ``q`` (m, n) rad / m: frames whose
     arm joints (all but the last three when there are more than three) are all within
     :data:`SAME_CONFIGURATION` (0.1 deg, 0.1 mm) of a configuration's first frame belong to it;
-    numbered in order of appearance; ``by_joints``: in the order of their mean arm joints
-    (lexicographic, the first joint first), so that the order of the frames changes neither the
-    labels nor the folds :func:`fold_labels` deals from them (issue #29: the order of the input
-    rows is irrelevant; the calibration's selection numbers them so, the plan's forecast of it
-    in the order of its postures)."""
+    numbered in order of appearance."""
     arm, tol = _arm(q, joint_types)
     reps: list[np.ndarray] = []
     label = np.empty(len(q), dtype=int)
@@ -51,20 +44,13 @@ def configurations(q: np.ndarray, joint_types: tuple[str, ...], *,
         else:
             label[i] = len(reps)
             reps.append(a)
-    if not reps or not by_joints:
-        return label
-    means = np.array([arm[label == k].mean(axis=0) for k in range(len(reps))])
-    order = np.lexsort(means.T[::-1])  # the first joint the primary key
-    rank = np.empty(len(reps), dtype=int)
-    rank[order] = np.arange(len(reps))
-    return rank[label]
+    return label
 
 
 def fold_labels(config: np.ndarray) -> np.ndarray:
     """(m,) the fold of every frame: its configuration, dealt into :data:`MAX_FOLDS` folds when
-    there are more configurations (configuration ``k`` to fold ``k % MAX_FOLDS``: each fold then holds configurations from
-    the whole recording, or numbered by their joints, :func:`configurations`, from the whole
-    range of the first joint)."""
+    there are more configurations (configuration ``k`` to fold ``k % MAX_FOLDS``: each fold then
+    holds configurations from the whole recording)."""
     config = np.asarray(config, dtype=int)
     return config % MAX_FOLDS if config.max(initial=-1) + 1 > MAX_FOLDS else config.copy()
 

@@ -256,7 +256,7 @@ def select_parameters(obs: BoardObservations, nominal_fit: MCPCModel, *,
     used = obs.used
     pool = parameter_pool(nominal_fit, obs.q[used], obs.terms)
     cands = nested_candidates(pool)
-    config = configurations(obs.q, nominal_fit.joint_types, by_joints=True)  # order-free
+    config = configurations(obs.q, nominal_fit.joint_types)
     n_config = len(np.unique(config[used]))
     folds = fold_labels(config)
     n_folds = len(np.unique(folds[used]))
