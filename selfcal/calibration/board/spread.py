@@ -31,7 +31,7 @@ import numpy as np
 
 from selfcal.calibration.board.param_selection import Selection
 from selfcal.calibration.spread import JACKKNIFE, REGIONS, Spread, region_spread
-from selfcal.kinematics.forward import fk_tool
+from selfcal.kinematics.accuracy import tool_tips
 from selfcal.kinematics.tool_error import WorkspaceSample
 
 __all__ = ["WHAT", "jackknife_spread"]
@@ -41,13 +41,6 @@ WHAT = (
     "candidate: sqrt((k - 1) / k * sum |t_i - t_mean|^2) of the folds' tool points t_i, per "
     "joint vector (mm)"
 )
-
-
-def _tool_points(model, q: np.ndarray, T_tool_point: np.ndarray) -> np.ndarray:
-    """(m, 3) the tool point ``T_tool_point`` (in the chain's tool frame) of ``model`` at the
-    joints ``q`` (m, n), in the chain's world frame (m)."""
-    T = fk_tool(model, np.atleast_2d(q))
-    return T[:, :3, :3] @ np.asarray(T_tool_point, float)[:3, 3] + T[:, :3, 3]
 
 
 def jackknife_spread(selection: Selection, T_tool_point: np.ndarray, sample: WorkspaceSample,
@@ -70,7 +63,7 @@ def jackknife_spread(selection: Selection, T_tool_point: np.ndarray, sample: Wor
     for name, q in qs.items():
         if not len(q):
             continue
-        t = np.stack([_tool_points(fit.model, q, T_tool_point) for fit in fits])  # (k, m, 3)
+        t = np.stack([tool_tips(fit.model, q, T_tool_point) for fit in fits])  # (k, m, 3)
         squared[name] = (k - 1) / k * np.sum((t - t.mean(axis=0)) ** 2, axis=(0, 2))
     held = sum(1 for f in cand.fold_fits if cand.fold_held.get(f))
     return Spread(k, selection.folds - k, region_spread(squared), WHAT, JACKKNIFE,
