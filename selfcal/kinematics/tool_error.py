@@ -141,22 +141,24 @@ class Reach:
     :func:`posture_distance` of ``q`` to ``postures`` (k, n) rad / m in units of ``span`` (n,)
     rad / m; ``distance`` (unit-free) the distance at which it has its size; ``floor``
     (0-1) the share of it that does not grow (0: none, in proportion to the distance); ``limit``
-    the distance beyond which it is held (the farthest it was measured; infinite: none);
-    ``revolute`` (n,) bool the joints whose turns :func:`posture_distance` wraps (None: none).
+    the distance beyond which it is held (the farthest it was measured; infinite: none).
     ``distance`` 0: the model error does not grow (the same everywhere), only ``limit`` says how
-    far it was measured."""
+    far it was measured. Which joints' turns :func:`posture_distance` wraps is not a field: it is
+    the chain's own (its ``joint_types``, the one source, given to :meth:`factor`; a
+    :class:`ToolErrorModel` uses its model's)."""
 
     postures: np.ndarray
     span: np.ndarray
     distance: float
     floor: float = 0.0
     limit: float = np.inf
-    revolute: np.ndarray | None = None
 
-    def factor(self, q: np.ndarray) -> np.ndarray:
-        """(m,) the model error's variance at joints ``q`` (m, n) over its size's square."""
+    def factor(self, q: np.ndarray, joint_types: tuple[str, ...]) -> np.ndarray:
+        """(m,) the model error's variance at joints ``q`` (m, n) over its size's square, the
+        revolute joints of ``joint_types`` (the chain's, e.g.
+        :attr:`selfcal.kinematics.mcpc.MCPCModel.joint_types`) wrapped."""
         return growth_factor(q, self.postures, self.span, self.distance, self.floor, self.limit,
-                             self.revolute)  # fmt: skip
+                             revolute_joints(joint_types))  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -203,12 +205,13 @@ class ToolErrorModel:
         if self.reach_postures is None or self.reach_span is None or self.reach_distance <= 0:
             return None
         return Reach(self.reach_postures, self.reach_span, self.reach_distance, self.reach_floor,
-                     self.measured_to, revolute_joints(self.model.joint_types))  # fmt: skip
+                     self.measured_to)  # fmt: skip
 
     def with_reach(self, reach: Reach | None) -> ToolErrorModel:
         """This model with its model error growing from ``reach`` (its postures, spans,
         reference distance, level's share and measured distance; the joints it wraps are this
-        chain's own), or unchanged when ``reach`` is None (the same everywhere)."""
+        chain's revolute ones, :attr:`model`'s ``joint_types``), or unchanged when ``reach`` is
+        None (the same everywhere)."""
         if reach is None:
             return self
         return replace(self, reach_postures=np.array(reach.postures, dtype=float),
@@ -219,9 +222,10 @@ class ToolErrorModel:
         """(m,) the model error's variance at joints ``q`` (m, n) over ``model_error_m^2``: 1
         everywhere, or ``floor + (1 - floor) (d / d_ref)^2`` when it grows from the calibration
         postures (module docstring)."""
-        return growth_factor(q, self.reach_postures, self.reach_span, self.reach_distance,
-                             self.reach_floor, self.measured_to,
-                             revolute_joints(self.model.joint_types))  # fmt: skip
+        reach = self.reach
+        if reach is None:
+            return np.ones(len(np.atleast_2d(q)))
+        return reach.factor(q, self.model.joint_types)
 
     def unmeasured(self, q: np.ndarray) -> np.ndarray:
         """(m,) bool: the joints ``q`` (m, n) where the model error is not measured (farther

@@ -9,8 +9,9 @@ import pytest
 from scipy.stats import chi2
 
 from selfcal.kinematics.forward import fk_tool
-from selfcal.kinematics.mcpc import minimal_indices, nominal_mcpc
+from selfcal.kinematics.mcpc import MCPCModel, gauge_fix, minimal_indices, nominal_mcpc
 from selfcal.kinematics.tool_error import (
+    Reach,
     ToolErrorModel,
     accuracy_line,
     norm_quantile,
@@ -163,6 +164,29 @@ def test_a_revolute_joint_a_turn_away_is_at_the_same_posture(er4u):
     assert not em.unmeasured(turned).any()
 
 
+def test_the_joints_a_model_error_wraps_are_its_chain_s_revolute_ones():
+    """One source for which joints wrap: the chain's ``joint_types``. A revolute joint a turn
+    on is at the calibration posture; a prismatic joint moved by the same number (m) is half its
+    span away, beyond the folds' reach; a :class:`Reach` set on the model and read back carries
+    the same factor."""
+    types = ("revolute", "revolute", "prismatic", "revolute")
+    rng = np.random.default_rng(7)
+    G = [pose_from_vec(rng.normal(size=6) * 0.3) for _ in range(len(types) + 1)]
+    params, offsets = gauge_fix(G, types)
+    model = MCPCModel(params, types, offsets)
+    cols = minimal_indices(types)[:2]
+    em = ToolErrorModel(model, np.eye(4), cols, 1e-8 * np.eye(cols.size), 2e-4)
+    reach = Reach(np.zeros((1, 4)), np.full(4, 4 * np.pi), 0.05, 0.0, 0.3)
+    em = em.with_reach(reach)
+    q = np.zeros((3, 4))
+    q[0, 1], q[1, 2], q[2, 3] = 2 * np.pi, 2 * np.pi, -2 * np.pi
+    held = (0.3 / 0.05) ** 2  # the prismatic joint 0.5 span away: held at the measured 0.3
+    assert em.model_error_factor(q) == pytest.approx([0.0, held, 0.0], abs=1e-12)
+    assert em.unmeasured(q).tolist() == [False, True, False]
+    assert em.reach is not None
+    assert em.reach.factor(q, model.joint_types) == pytest.approx(em.model_error_factor(q))
+
+
 def test_a_grown_model_error_is_none_at_the_calibration_postures_and_grows_with_the_distance(er4u):
     rng = np.random.default_rng(2)
     em0 = _error_model(er4u, rng)
@@ -185,8 +209,8 @@ def test_a_grown_model_error_is_none_at_the_calibration_postures_and_grows_with_
     assert np.allclose(flat.model_error_factor(q), 1.0)
     # the board route's Reach is the same three numbers, typed: the same factor both ways
     assert em.reach is not None and flat.reach is None
-    assert em.reach.factor(q) == pytest.approx([4.0])
-    assert np.allclose(em.reach.factor(q_cal), em.model_error_factor(q_cal))
+    assert em.reach.factor(q, er4u.joint_types) == pytest.approx([4.0])
+    assert np.allclose(em.reach.factor(q_cal, er4u.joint_types), em.model_error_factor(q_cal))
 
 
 def test_a_level_that_does_not_grow_and_where_the_model_error_is_not_measured(er4u):
@@ -206,7 +230,7 @@ def test_a_level_that_does_not_grow_and_where_the_model_error_is_not_measured(er
     assert not em.unmeasured(q).any()  # no limit (an older file)
     held = dataclasses.replace(em, measured_to=0.08)  # measured out to 0.08: held there
     assert held.model_error_factor(q) == pytest.approx([0.25 + 0.75 * (0.08 / 0.05) ** 2])
-    assert held.reach is not None and held.reach.factor(q) == pytest.approx(
+    assert held.reach is not None and held.reach.factor(q, er4u.joint_types) == pytest.approx(
         held.model_error_factor(q)
     )
     flat = dataclasses.replace(em, reach_floor=1.0, measured_to=0.08)

@@ -399,8 +399,7 @@ def board_accuracy(obs: BoardObservations, selection: Selection, cr: BoardCramer
     q_cal = np.asarray(obs.q[obs.used], dtype=float)
     reach = None  # where it grows from and how far the folds tested the model (found or not)
     if me is not None and span is not None and (me.reach_distance > 0 or np.isfinite(me.limit)):
-        reach = Reach(q_cal, span, me.reach_distance, me.reach_floor, unmeasured_beyond(me),
-                      revolute_joints(cr.model.joint_types))  # fmt: skip
+        reach = Reach(q_cal, span, me.reach_distance, me.reach_floor, unmeasured_beyond(me))
     em, names = board_error_model(cr, T_tool_point, pos, rot, reach)
     sample = workspace_sample(q_cal, limits, count=count)
     note = ("no cross-validation (the frames show one arm configuration): the covariance alone, "
@@ -437,13 +436,14 @@ def predicted_reprojection(cr: BoardCramerRao, camera: CameraModel, q: np.ndarra
     ``model_error_rad``), the joint read-back noise ``joint_sigma`` and the pixel noise
     (``cr.pixel_sigma_px``) give them, to first order -- to compare with ``selfcal evaluate``'s
     measured held-out RMS. ``reach``: where the model error grows from (the calibration
-    postures, the joints' spans and the reference distance, :class:`Reach`), or None."""
+    postures, the joints' spans and the reference distance, :class:`Reach`; the joints it wraps:
+    ``cr.model``'s revolute ones), or None."""
     cols, C, n0 = _full_covariance(cr)
     C = C + model_error_m**2 * _full_covariance(cr, misfit=True)[1]
     t = np.asarray(T_tool_point, float)[:3, 3]
     M = np.diag([model_error_m**2] * 3 + [model_error_rad**2] * 3)
     q = np.atleast_2d(q)
-    grow = reach.factor(q) if reach is not None else np.ones(len(q))
+    grow = reach.factor(q, cr.model.joint_types) if reach is not None else np.ones(len(q))
     total, count = 0.0, 0
     for qi, X, g in zip(q, points, grow, strict=True):
         T = fk_tool(cr.model, qi[None])[0]
