@@ -59,7 +59,6 @@ import sys
 import tempfile
 import time
 import warnings
-from concurrent.futures import ProcessPoolExecutor
 from contextlib import redirect_stderr, redirect_stdout
 from io import StringIO
 from pathlib import Path
@@ -89,6 +88,7 @@ from selfcal.benchmarks.board_accuracy_tables import (
     table_rendered,
 )
 from selfcal.benchmarks.doc_blocks import ROOT, print_table, write_block
+from selfcal.benchmarks.pool import map_jobs
 from selfcal.calibration.board.accuracy import (
     board_error_model_from_json,
     predicted_reprojection,
@@ -184,8 +184,7 @@ def run(draws: int = DRAWS, robots=ROBOTS, models=MODELS, noise_px=NOISE_PX,
                 t0 = time.perf_counter()
                 args = [(robot, 0.0 if render else s, model, seed, poses, s if render else None,
                          read_back) for seed in range(first_seed, first_seed + draws)]  # fmt: skip
-                with ProcessPoolExecutor(max_workers=jobs) as pool:
-                    got = list(pool.map(draw, args))
+                got = map_jobs(draw, args, jobs)
                 fails = sorted({g["status"] for g in got} - {"ok"})
                 print(f"{robot} {model} {s} px: {sum(g['status'] == 'ok' for g in got)}/{draws} "
                       f"draws in {time.perf_counter() - t0:.0f} s " + "; ".join(fails),

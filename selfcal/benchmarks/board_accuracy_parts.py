@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -43,6 +42,7 @@ from selfcal.benchmarks.board_accuracy_draw import (
     simulated,
     true_chain,
 )
+from selfcal.benchmarks.pool import map_jobs
 from selfcal.calibration.board.accuracy import board_error_model_from_json
 from selfcal.camera.spec import values_by_name
 from selfcal.kinematics.forward import fk_tool
@@ -173,8 +173,7 @@ def main(argv: list[str] | None = None) -> int:
     limit_threads(1)
     a = _arguments(argv)
     seeds = range(a.first_seed, a.first_seed + a.draws)
-    with ProcessPoolExecutor(max_workers=a.jobs) as pool:
-        got = list(pool.map(draw_parts, [(a.robot, a.noise_px, s, a.fixed_truth) for s in seeds]))
+    got = map_jobs(draw_parts, [(a.robot, a.noise_px, s, a.fixed_truth) for s in seeds], a.jobs)
     truth = "a new truth each" if a.fixed_truth is None else f"the truth of seed {a.fixed_truth}"
     print(table(got, f"{a.robot} fits {a.noise_px:g} px, seeds {seeds.start}-{seeds.stop - 1} "
                      f"({truth})"))  # fmt: skip

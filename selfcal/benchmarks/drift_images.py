@@ -42,12 +42,12 @@ import dataclasses
 import re
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
 from selfcal.benchmarks.board_accuracy_draw import SCENARIO, simulated_calibration
 from selfcal.benchmarks.doc_blocks import ROOT, print_table, read_block
+from selfcal.benchmarks.pool import map_jobs
 from selfcal.calibration.drift.images import (
     ALPHA,
     calibration_error_model,
@@ -195,11 +195,7 @@ def run(calibrations: int = 30, checks: int = 10, noise_px=NOISE_PX, jobs: int =
         label = f"{setup}, {name}"
         todo = [(s, seed, checks, setup, robot, views, exact)
                 for seed in range(1, calibrations + 1)]  # fmt: skip
-        if jobs > 1:
-            with ProcessPoolExecutor(max_workers=jobs) as pool:
-                got = list(pool.map(calibration_checks, todo))
-        else:
-            got = [calibration_checks(a) for a in todo]
+        got = map_jobs(calibration_checks, todo, jobs)
         ok = [g for g in got if g["status"] == "ok"]
         print(f"{label} {s} px: {len(ok)}/{calibrations} calibrations in {time.perf_counter() - t0:.0f} s "
               + "; ".join(sorted({g['status'] for g in got} - {'ok'})), file=sys.stderr)  # fmt: skip

@@ -28,12 +28,12 @@ import argparse
 import dataclasses
 import sys
 import warnings
-from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
 from selfcal.benchmarks.board_accuracy_draw import calibrated_folder, scenario, simulated
 from selfcal.benchmarks.drift_images import JOINT_OFFSET_RAD, NEW_VIEWS, TOOL_SHIFT_M, read_joints
+from selfcal.benchmarks.pool import map_jobs
 from selfcal.calibration.board.evaluate import held_out_views
 from selfcal.calibration.drift.images import (
     calibration_error_model,
@@ -136,11 +136,7 @@ def run(calibrations: int, checks: int, noise_px: tuple[float, ...], models: tup
         for s in noise_px:
             todo = [(robot, s, model, seed, checks, views, amplitude_rad)
                     for seed in range(1, calibrations + 1)]  # fmt: skip
-            if jobs > 1:
-                with ProcessPoolExecutor(max_workers=jobs) as pool:
-                    got = list(pool.map(morning_checks, todo))
-            else:
-                got = [morning_checks(a) for a in todo]
+            got = map_jobs(morning_checks, todo, jobs)
             ok = [g for g in got if g["status"] == "ok"]
             for g in got:
                 if g["status"] != "ok":
