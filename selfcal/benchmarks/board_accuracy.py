@@ -37,7 +37,9 @@ detector, as ``selfcal run`` with ``[noise] render = true`` does (``MUJOCO_GL=eg
 image noise levels :data:`IMAGE_SIGMA` (grey levels, ``image_sigma``; ``--noise-px`` sets them);
 each row also gives the detector's corner noise, the detected corners against their true
 projections (:mod:`selfcal.benchmarks.corner_noise`), and goes to its own block. ``--rows-out FILE`` appends
-each finished row to ``FILE``; ``--from-rows FILE`` tables them (a run split into pieces).
+each finished row to ``FILE``, with the code that measured it (its commit); ``--from-rows FILE ..``
+tables them (a run split into pieces; a later file's rows replace an earlier one's in their
+place, :func:`merged_rows`), and the table names the code that measured which rows.
 
 ``--real``: the repository's real sets with a board (tests/data/real, docs/real-data.md):
 each imported and calibrated as its README says, and the held-out images' reprojection RMS that
@@ -48,7 +50,7 @@ against the one ``selfcal evaluate`` measures (target 0.67-1.5x).
 
 Run: ``uv run python -m selfcal.benchmarks.board_accuracy [--draws 90] [--jobs 2] [--robots
 R,..] [--models M,..] [--noise-px S,..] [--poses 30] [--first-seed 1] [--read-back rounded]
-[--render] [--rows-out FILE] [--from-rows FILE] [--real] [--write-docs]`` (rewrites the tables in docs/tool-accuracy.md).
+[--render] [--rows-out FILE] [--from-rows FILE ..] [--real] [--write-docs]`` (rewrites the tables in docs/tool-accuracy.md).
 """
 
 from __future__ import annotations
@@ -87,7 +89,7 @@ from selfcal.benchmarks.board_accuracy_tables import (
     table,
     table_rendered,
 )
-from selfcal.benchmarks.doc_blocks import ROOT, print_table, write_block
+from selfcal.benchmarks.doc_blocks import ROOT, code_version, print_table, write_block
 from selfcal.benchmarks.pool import map_jobs
 from selfcal.calibration.board.accuracy import (
     board_error_model_from_json,
@@ -101,7 +103,7 @@ from selfcal.calibration.board.dataset import (
 from selfcal.calibration.board.deviation import Deviation
 from selfcal.calibration.board.evaluate import evaluate_board
 from selfcal.calibration.board.held_prior import with_deviation
-from selfcal.errors import InternalError, UsageError
+from selfcal.errors import InputError, InternalError, UsageError
 from selfcal.estimation.joint_report import encoder_sigma
 from selfcal.io.atomic import write_text_atomic
 from selfcal.io.dataset import Dataset
@@ -113,6 +115,7 @@ __all__ = [
     "draw",
     "draws_per_row",
     "main",
+    "merged_rows",
     "prior",
     "real_set",
     "run",
@@ -176,8 +179,10 @@ def run(draws: int = DRAWS, robots=ROBOTS, models=MODELS, noise_px=NOISE_PX,
     ``poses`` calibration postures each, seeded ``first_seed``, ``first_seed + 1``, ... (every
     row the same seeds); ``render``: ``noise_px`` are the rendered images' sensor noise levels
     (grey levels); ``rows_file``: each finished row appended (JSON lines); ``read_back``: the
-    simulated joint read-back (:func:`draw`)."""
+    simulated joint read-back (:func:`draw`). Each row's ``code`` is the code that measured it
+    (:func:`selfcal.benchmarks.doc_blocks.code_version`), which the table names."""
     rows = []
+    code = code_version()
     for robot in robots:
         for model in models:
             for s in noise_px:
@@ -189,7 +194,7 @@ def run(draws: int = DRAWS, robots=ROBOTS, models=MODELS, noise_px=NOISE_PX,
                 print(f"{robot} {model} {s} px: {sum(g['status'] == 'ok' for g in got)}/{draws} "
                       f"draws in {time.perf_counter() - t0:.0f} s " + "; ".join(fails),
                       file=sys.stderr, flush=True)  # fmt: skip
-                rows += pooled_rows(robot, model, s, got, poses)
+                rows += [r | {"code": code} for r in pooled_rows(robot, model, s, got, poses)]
                 shown = table_rendered if render else table
                 print(shown(rows[-len(REGIONS) :]).split("\n\n")[0], file=sys.stderr, flush=True)
                 if rows_file is not None:  # appended: the file's rows and the new ones
@@ -261,6 +266,29 @@ def real_set(name: str, work: Path) -> dict:
     }
 
 
+def merged_rows(files: list[Path]) -> list[dict]:
+    """The rows of the ``--rows-out`` files ``files`` (JSON lines) in order, a later file's row
+    replacing an earlier one's of the same robot, model, noise level and region in its place
+    (a block made of a whole run and a rerun of some of its rows; each row keeps its ``code``).
+
+    Raises:
+        InputError: a line is not a JSON row (the file and line named).
+    """
+    rows: dict[tuple, dict] = {}
+    for path in files:
+        for n, line in enumerate(path.read_text().splitlines(), 1):
+            if not line.strip():
+                continue
+            try:
+                r = json.loads(line)
+                key = (r["robot"], r["model"], r["noise_px"], r["region"])
+            except (json.JSONDecodeError, KeyError, TypeError) as exc:
+                raise InputError(f"{path}: line {n} is not a row of --rows-out ({exc})",
+                                 fix="give files that --rows-out wrote") from exc  # fmt: skip
+            rows[key] = r
+    return list(rows.values())
+
+
 def _arguments(argv: list[str] | None) -> argparse.Namespace:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--draws", type=int, help=f"draws per row (default {DRAWS}, rendered "
@@ -286,8 +314,10 @@ def _arguments(argv: list[str] | None) -> argparse.Namespace:
                        ("--write-docs", "rewrite the table in docs/tool-accuracy.md")):  # fmt: skip
         ap.add_argument(flag, action="store_true", help=text)
     ap.add_argument("--rows-out", type=Path, help="append each finished row here (JSON lines)")
-    ap.add_argument("--from-rows", type=Path,
-                    help="table the rows of an earlier --rows-out instead of running")  # fmt: skip
+    ap.add_argument("--from-rows", type=Path, nargs="+", metavar="FILE",
+                    help="table the rows of earlier --rows-out files instead of running (a later "
+                    "file's row replaces an earlier one's of the same robot, model, noise and "
+                    "region in its place)")  # fmt: skip
     return ap.parse_args(argv)
 
 
@@ -313,7 +343,7 @@ def main(argv: list[str] | None = None) -> int:
         raise UsageError("--write-docs writes the block of the draws seeded 1, 2, ... with the "
                          "rounded read-back: drop --first-seed and --read-back")  # fmt: skip
     if args.from_rows is not None:
-        rows = [json.loads(line) for line in args.from_rows.read_text().splitlines() if line]
+        rows = merged_rows(args.from_rows)
         args.render = all("corner_sigma_px" in r for r in rows)
     else:
         noise = IMAGE_SIGMA if args.render and args.noise_px == NOISE_PX else args.noise_px

@@ -3,14 +3,30 @@
 
 from __future__ import annotations
 
+import subprocess
 from pathlib import Path
 
 from selfcal.io.atomic import write_text_atomic
 
-__all__ = ["ROOT", "print_table", "read_block", "write_block"]
+__all__ = ["ROOT", "code_version", "print_table", "read_block", "write_block"]
 
 ROOT = Path(__file__).resolve().parents[2]
 """The repository's root (README.md and docs/ are in it)."""
+
+
+def code_version(root: Path = ROOT) -> str | None:
+    """The code that measures a benchmark's rows: the commit checked out at ``root`` (short
+    hash), with ``+changes`` when its tracked files differ from it; None outside a git checkout
+    (or without git)."""
+    git = ["git", "-C", str(root)]
+    try:
+        head = subprocess.run([*git, "rev-parse", "--short=7", "HEAD"], capture_output=True,
+                              text=True, check=True).stdout.strip()  # fmt: skip
+        changed = subprocess.run([*git, "status", "--porcelain", "--untracked-files=no"],
+                                 capture_output=True, text=True, check=True).stdout.strip()  # fmt: skip
+    except (OSError, subprocess.CalledProcessError):
+        return None
+    return head + ("+changes" if changed else "")
 
 
 def _split(path: Path, name: str) -> tuple[str, str, str, str, str]:

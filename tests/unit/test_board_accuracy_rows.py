@@ -1,0 +1,76 @@
+"""The board accuracy benchmark's rows (selfcal.benchmarks.board_accuracy): each says which code
+measured it, the table names the codes, and ``--from-rows`` merges a rerun of some rows into a
+whole run's."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from selfcal.benchmarks import board_accuracy
+from selfcal.benchmarks.board_accuracy_draw import REGIONS
+from selfcal.benchmarks.board_accuracy_tables import pooled_rows, table
+from selfcal.errors import InputError
+
+
+def _got(n: int, seed: int = 1) -> list[dict]:
+    e = np.random.default_rng(seed).uniform(0.1, 1.0, (7, 16))
+    return [{"status": "ok", "model_error_mm": 0.0, **{r: e for r in REGIONS}}] * n
+
+
+def _rows(robot: str, model: str, s: float, code: str | None, seed: int = 1) -> list[dict]:
+    rows = pooled_rows(robot, model, s, _got(3, seed))
+    return rows if code is None else [r | {"code": code} for r in rows]
+
+
+def _write(path, rows):
+    path.write_text("".join(json.dumps(r) + "\n" for r in rows))
+    return path
+
+
+def test_a_run_stamps_its_rows_with_the_code_that_measured_them(tmp_path, monkeypatch):
+    monkeypatch.setattr(board_accuracy, "code_version", lambda: "abc1234")
+    monkeypatch.setattr(board_accuracy, "draw", lambda args: _got(1, args[3])[0])
+    out = tmp_path / "rows.jsonl"
+    rows = board_accuracy.run(2, ("ur5e",), ("fits",), (0.2,), jobs=1, rows_file=out)
+    assert [r["code"] for r in rows] == ["abc1234"] * len(REGIONS)
+    assert [json.loads(line)["code"] for line in out.read_text().splitlines()] == ["abc1234"] * 3
+    assert table(rows).endswith("--jobs 1 --write-docs`, measured by the code at abc1234.")
+
+
+def test_the_table_names_which_code_measured_which_rows():
+    now = [*_rows("er4u-paper", "fits", 0.2, "abc1234"),
+           *_rows("er4u-paper", "compliance", 0.2, "abc1234")]  # fmt: skip
+    old = _rows("ur5e", "fits", 0.2, None)
+    assert table([*now, *old]).endswith(
+        "measured by the code at abc1234 (er4u-paper) and an earlier code, not recorded (ur5e)."
+    )
+    split = [*now[:3], *_rows("er4u-paper", "compliance", 0.2, None),
+             *_rows("er4u-paper", "compliance", 0.5, "abc1234")]  # fmt: skip
+    assert table(split).endswith(
+        "measured by the code at abc1234 (er4u-paper fits, er4u-paper compliance 0.5 px) and an "
+        "earlier code, not recorded (er4u-paper compliance 0.2 px)."
+    )
+    assert "measured by" not in table(old)  # no row records its code: nothing said
+
+
+def test_from_rows_puts_a_reruns_rows_in_the_place_of_the_whole_runs(tmp_path, capsys):
+    whole = _write(tmp_path / "whole.jsonl", [*_rows("er4u-paper", "fits", 0.2, None),
+                                              *_rows("ur5e", "fits", 0.2, None)])  # fmt: skip
+    again = _write(tmp_path / "again.jsonl", [*_rows("ur5e", "fits", 0.2, "abc1234", seed=2),
+                                              *_rows("kr6-r900", "fits", 0.2, "abc1234")])  # fmt: skip
+    rows = board_accuracy.merged_rows([whole, again])
+    assert [(r["robot"], r.get("code")) for r in rows[::3]] == [
+        ("er4u-paper", None), ("ur5e", "abc1234"), ("kr6-r900", "abc1234")]  # fmt: skip
+    assert rows[3] == _rows("ur5e", "fits", 0.2, "abc1234", seed=2)[0]
+    assert board_accuracy.main(["--from-rows", str(whole), str(again)]) == 0
+    assert (
+        "measured by an earlier code, not recorded (er4u-paper) and the code at abc1234 "
+        "(ur5e, kr6-r900)."
+    ) in capsys.readouterr().out
+    bad = tmp_path / "bad.jsonl"
+    bad.write_text(whole.read_text() + "{not json\n")
+    with pytest.raises(InputError, match=r"bad.jsonl: line 7 is not a row"):
+        board_accuracy.merged_rows([bad])
