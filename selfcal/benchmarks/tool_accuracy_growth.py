@@ -5,11 +5,14 @@ The draws of :mod:`selfcal.benchmarks.tool_accuracy` (the same set-up and seeds)
 variogram the calibration read from its folds (:mod:`selfcal.calibration.growth`: the level
 ``c0`` and the growth counted ``c1`` as sizes, mm and mm per unit distance; the growth's point
 estimate, signed, and its t; whether the cap set it; the held-out rows' largest distance and the
-reference distance) and per region (inside, edge, workspace) the median distance from the
+reference distance), or, when it counts no model error, the folds' held-out excess in standard
+errors and the smallest model error the test counts
+(:func:`selfcal.calibration.accuracy.excess_test`); and per region (inside, edge, workspace) the median distance from the
 calibration postures, the true model error and the predicted one (per coordinate, mm). The true
 model error is what the true error leaves beyond the estimation's predicted part: ``sqrt(mean(|e|^2
 - tr S) / 3)`` over the region's joint vectors (the benchmark knows the truth; the calibration
-does not). The last lines pool them over the draws (root of the mean variance).
+does not). The last lines pool them over the draws (root of the mean variance), and the folds'
+held-out excess per coordinate (what a model error would have to explain, counted or not).
 
 Run: ``uv run python -m selfcal.benchmarks.tool_accuracy_growth --robot ur5e --noise-mm 0.1
 [--draws 20] [--model compliance]``.
@@ -23,6 +26,7 @@ import sys
 import numpy as np
 
 from selfcal.benchmarks.tool_accuracy import COUNT, MODELS, REGIONS, calibrate, true_points
+from selfcal.calibration.accuracy import Z_MODEL_ERROR, ModelError, excess_test
 from selfcal.kinematics.tool_error import posture_distance, revolute_joints, workspace_sample
 from selfcal.robot.definition import load_robot
 from selfcal.threads import limit_threads
@@ -33,13 +37,15 @@ __all__ = ["probe", "main"]
 def probe(robot_name: str, noise_mm: float, draws: int, model: str) -> list[str]:
     """The lines the module docstring describes, one per draw and one per region."""
     robot = load_robot(robot_name)
-    lines, pooled = [], {r: [] for r in REGIONS}
+    lines, pooled, held = [], {r: [] for r in REGIONS}, []
     for seed in range(draws):
         case, q, acc = calibrate(robot, noise_mm / 1e3, model, seed)
         me, em = acc.model_error, acc.error_model
         g = None if me is None else me.growth
+        if me is not None:  # the folds' excess per coordinate, m^2, whether counted or not
+            held.append((me.held_out_rms_m**2 - me.estimation_rms_m**2) / 3.0 - me.noise_m**2)
         if g is None:
-            head = f"draw {seed:2d}: no growing model error counted"
+            head = f"draw {seed:2d}: no growing model error counted{_test(me)}"
         else:
             capped = g.level == 0.0
             head = (f"draw {seed:2d}: c0 {np.sqrt(g.level) * 1e3:.3f} mm, c1 "
@@ -65,7 +71,26 @@ def probe(robot_name: str, noise_mm: float, draws: int, model: str) -> list[str]
         t, p = np.mean(pooled[name], axis=0)
         lines.append(f"{robot_name} {noise_mm:g} mm {model} {name}: model error per coordinate "
                      f"true {np.sqrt(max(t, 0.0)):.3f} mm, predicted {np.sqrt(p):.3f} mm")  # fmt: skip
+    if held:
+        h = float(np.mean(held))
+        lines.append(f"{robot_name} {noise_mm:g} mm {model}: the folds' held-out excess pooled "
+                     f"over the draws, per coordinate {np.sign(h) * np.sqrt(abs(h)) * 1e3:+.3f} "
+                     "mm (signed root of the mean; counted in a draw or not)")  # fmt: skip
     return lines
+
+
+def _test(me: ModelError | None) -> str:
+    """The held-out test's line part when no model error is counted: the folds' excess in
+    standard errors against the :data:`Z_MODEL_ERROR` needed, and the smallest model error per
+    coordinate it would count (:func:`excess_test`)."""
+    if me is None:
+        return ""
+    expected = me.estimation_rms_m**2 + 3.0 * me.noise_m**2
+    z, smallest = excess_test(me.held_out_rms_m**2, expected, me.rows)
+    return (
+        f" (held-out excess {z:+.2f} standard errors, {Z_MODEL_ERROR:g} needed: counted from "
+        f"{smallest * 1e3:.3f} mm per coordinate)"
+    )
 
 
 def main(argv: list[str] | None = None) -> int:

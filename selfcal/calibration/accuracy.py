@@ -40,6 +40,7 @@ __all__ = [
     "ModelError",
     "error_model_from_json",
     "excess",
+    "excess_test",
     "model_error_of",
     "postures_from_json",
     "unmeasured_beyond",
@@ -56,16 +57,26 @@ be mostly the sampling noise of the held-out errors, which clipped at 0 inflates
 prediction."""
 
 
+def excess_test(total2: float, expected2: float, rows: int) -> tuple[float, float]:
+    """The held-out test of :func:`excess`: what ``total2`` (the mean squared norm of ``rows``
+    held-out 3-vectors) leaves beyond ``expected2`` (what the estimation error and the noise
+    explain) in standard errors of ``total2`` under no model error (a squared norm of three
+    Gaussian coordinates has variance 2/3 of its square mean; +-inf when that is 0), and the
+    smallest per-coordinate model error the test counts, ``sqrt(Z se / 3)`` (the unit of
+    ``total2``'s root, e.g. m)."""
+    extra, se = total2 - expected2, expected2 * np.sqrt(2.0 / (3.0 * rows))
+    z = extra / se if se > 0 else (np.inf if extra > 0 else -np.inf)
+    return float(z), float(np.sqrt(Z_MODEL_ERROR * se / 3.0))
+
+
 def excess(total2: float, expected2: float, rows: int) -> float:
     """Per-coordinate standard deviation of what ``total2`` (the mean squared norm of ``rows``
     held-out 3-vectors) leaves beyond ``expected2`` (what the estimation error and the noise
     explain); 0 unless that excess exceeds :data:`Z_MODEL_ERROR` standard errors of ``total2``
-    under no model error (a squared norm of three Gaussian coordinates has variance 2/3 of its
-    square mean)."""
-    extra = total2 - expected2
-    if extra <= Z_MODEL_ERROR * expected2 * np.sqrt(2.0 / (3.0 * rows)):
+    under no model error (:func:`excess_test`)."""
+    if excess_test(total2, expected2, rows)[0] <= Z_MODEL_ERROR:
         return 0.0
-    return float(np.sqrt(extra / 3.0))
+    return float(np.sqrt((total2 - expected2) / 3.0))
 
 
 @dataclass(frozen=True)

@@ -145,3 +145,21 @@ def test_the_order_of_the_rows_does_not_matter(er4u):
     for region in ("inside", "edge", "workspace"):
         for key, v in a.summary[region].items():
             assert b.summary[region][key] == pytest.approx(v, rel=1e-6), (region, key)
+
+
+def test_the_held_out_test_counts_an_excess_beyond_two_standard_errors():
+    """The excess of the held-out squared norms over what the estimate and the noise explain, in
+    standard errors of their mean under no model error (2/3 of the square mean over the rows),
+    and the smallest model error the test counts: 6 rows expecting 1 have a standard error of
+    1/3, so 2 is 3 standard errors (counted, sqrt(1/3) per coordinate) and 1.5 is 1.5 (not);
+    the smallest counted is sqrt(2 / 3 / 3)."""
+    from selfcal.calibration.accuracy import Z_MODEL_ERROR, excess, excess_test
+
+    assert Z_MODEL_ERROR == 2.0
+    assert excess_test(2.0, 1.0, 6) == pytest.approx((3.0, np.sqrt(2.0 / 9.0)))
+    assert excess(2.0, 1.0, 6) == pytest.approx(np.sqrt(1.0 / 3.0))
+    assert excess_test(1.5, 1.0, 6)[0] == pytest.approx(1.5) and excess(1.5, 1.0, 6) == 0.0
+    assert excess_test(1.0, 0.0, 6)[0] == np.inf and excess(1.0, 0.0, 6) == pytest.approx(
+        np.sqrt(1.0 / 3.0)
+    )
+    assert excess_test(0.0, 0.0, 6)[0] == -np.inf and excess(0.0, 0.0, 6) == 0.0
