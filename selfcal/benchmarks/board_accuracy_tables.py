@@ -222,7 +222,7 @@ def table_rendered(rows: list[dict]) -> str:
               f"{POSES} calibration postures, {COUNT} joint vectors per region and draw; the "
               "corner noise is the detected corners against their true projections; "
               f"`MUJOCO_GL=egl uv run python -m selfcal.benchmarks.board_accuracy --render "
-              f"{_options(first)} --jobs 1 --write-docs`."]  # fmt: skip
+              f"{_options(first)} --jobs 1 --write-docs`{_codes(first)}."]  # fmt: skip
     return head + "\n".join(lines)
 
 
