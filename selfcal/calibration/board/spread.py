@@ -29,10 +29,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from selfcal.calibration.board.bootstrap import SpreadPoints
 from selfcal.calibration.board.param_selection import Selection
-from selfcal.calibration.spread import JACKKNIFE, REGIONS, Spread, region_spread
+from selfcal.calibration.spread import JACKKNIFE, Spread, region_spread
 from selfcal.kinematics.accuracy import tool_tips
-from selfcal.kinematics.tool_error import WorkspaceSample
 
 __all__ = ["WHAT", "jackknife_spread"]
 
@@ -43,13 +43,11 @@ WHAT = (
 )
 
 
-def jackknife_spread(selection: Selection, T_tool_point: np.ndarray, sample: WorkspaceSample,
-                     q_cal: np.ndarray) -> Spread | None:  # fmt: skip
+def jackknife_spread(selection: Selection, points: SpreadPoints) -> Spread | None:
     """The jackknife spread of the board calibration whose parameter selection is ``selection``
-    (module docstring): ``T_tool_point`` the flange in the chain's tool frame, ``sample`` the
-    workspace sample, ``q_cal`` (m, n) rad / m the calibration postures; the block's
-    ``held_folds`` counts the folds whose fit held parameters at the fair nominal. None without
-    folds or with fewer than two fitted."""
+    (module docstring) at ``points`` (the workspace sample's regions and the calibration
+    postures, the tool point); the block's ``held_folds`` counts the folds whose fit held
+    parameters at the fair nominal. None without folds or with fewer than two fitted."""
     if selection.fold_of is None:
         return None
     cand = selection.candidates[selection.chosen]
@@ -57,13 +55,9 @@ def jackknife_spread(selection: Selection, T_tool_point: np.ndarray, sample: Wor
     k = len(fits)
     if k < 2:
         return None
-    qs = {name: getattr(sample, name) for name in REGIONS[:3]}
-    qs["calibration_postures"] = np.asarray(q_cal, dtype=float)
     squared = {}
-    for name, q in qs.items():
-        if not len(q):
-            continue
-        t = np.stack([tool_tips(fit.model, q, T_tool_point) for fit in fits])  # (k, m, 3)
+    for name, q in points.qs.items():
+        t = np.stack([tool_tips(fit.model, q, points.T_tool_point) for fit in fits])  # (k, m, 3)
         squared[name] = (k - 1) / k * np.sum((t - t.mean(axis=0)) ** 2, axis=(0, 2))
     held = sum(1 for f in cand.fold_fits if cand.fold_held.get(f))
     return Spread(k, selection.folds - k, region_spread(squared), WHAT, JACKKNIFE,
