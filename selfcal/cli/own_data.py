@@ -127,6 +127,11 @@ def calibrate_any(
                        "(flange poses); this one has joint readings and its camera is estimated "
                        "with the rest", fix="leave --camera out")  # fmt: skip
     ds = Dataset.open(root)
+    if bootstrap is not None and len(ds.info.cameras) > 1:
+        raise CliError(f"{root}: --spread N refits one camera's images; this dataset has "
+                       f"{len(ds.info.cameras)} cameras (a rig's refit is not written yet)",
+                       fix="leave out --spread: calibration.json accuracy.spread holds the "
+                       "jackknife over the folds")  # fmt: skip
     joint_sigma = None
     if joint_sigma_deg is not None:
         import numpy as np

@@ -31,13 +31,13 @@ from typing import TYPE_CHECKING
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from selfcal.calibration.board.bootstrap import KEY
 from selfcal.calibration.board.evaluate import evaluate_board
 from selfcal.calibration.spread import spread_line
 from selfcal.camera import CameraModel, opencv_values
 from selfcal.config.scenario import Scenario
 from selfcal.console.log import get_logger
 from selfcal.console.progress import Progress
+from selfcal.errors import InputError
 from selfcal.io.atomic import write_text_atomic
 from selfcal.io.board_calibration import BoardCalibrationResult, write_board_calibration
 from selfcal.io.dataset import Dataset, DatasetError
@@ -348,6 +348,7 @@ def calibrate_board_run(
     run-to-run spread over refits of resampled configurations (``--spread N``,
     :mod:`selfcal.pipeline.board_spread`), written as ``accuracy.bootstrap_spread`` and drawn in
     ``root/figures/spread.png`` (with ``figures``)."""
+    from selfcal.calibration.board.bootstrap import KEY
     from selfcal.calibration.board.dataset import calibrate_board_dataset_detailed
 
     label = "board calibration (detection, camera, hand-eye, kinematics, bounds)"
@@ -364,8 +365,13 @@ def calibrate_board_run(
     if bootstrap is not None:  # refits of resampled configurations (issue #29)
         from selfcal.pipeline.board_spread import run_bootstrap, with_bootstrap
 
-        spread = run_bootstrap(detailed, bootstrap, quiet=quiet)
-        res = dataclasses.replace(res, accuracy=with_bootstrap(res.accuracy or {}, spread))
+        try:
+            spread = run_bootstrap(detailed, bootstrap, quiet=quiet)
+        except InputError as exc:  # no workspace to spread over: the calibration still stands
+            text = f"no bootstrap spread (--spread {bootstrap.count}): {exc.message}"
+            res = dataclasses.replace(res, warnings=(*res.warnings, text))
+        else:
+            res = dataclasses.replace(res, accuracy=with_bootstrap(res.accuracy or {}, spread))
     write_board_calibration(Path(root) / "calibration.json", res)
     if figures:
         ev = evaluate_board(res, str(Path(root) / "calibration.json"), root)

