@@ -328,14 +328,14 @@ BOOT_REFITS = 6
 
 
 @pytest.mark.slow
-def test_the_bootstrap_spread_is_the_estimation_error_and_does_not_depend_on_order(run, tmp_path):
+def test_the_bootstrap_spread_bounds_the_estimation_error_and_ignores_order(run, tmp_path):
     """``selfcal calibrate --spread N``'s bootstrap (selfcal.calibration.board.bootstrap) on
     the analytic run (15 configurations, no misfit): over 6 refits of resampled configurations
     the RMS spread inside the calibrated region lies within 1-7x the covariance's predicted RMS
     and the folds' jackknife (20 refits on seeds 1-3 gave 2.0-4.6x and 2.3-5.2x: the bootstrap
-    over-states on so few configurations, docs/tool-accuracy.md); a refit
-    repeated gives the same tool points; the frames shuffled give the same resamples, frame
-    for frame, at the same joint vectors."""
+    over-states on so few configurations, docs/tool-accuracy.md); a refit repeated gives the
+    same tool points (to rounding); the frames shuffled give the same resamples, frame for
+    frame, at the same joint vectors."""
     from selfcal.calibration.board.bootstrap import bootstrap_spread, refit_row
     from selfcal.calibration.board.dataset import calibrate_board_dataset_detailed
     from selfcal.pipeline.board_spread import BootstrapRun, bootstrap_items
@@ -354,9 +354,9 @@ def test_the_bootstrap_spread_is_the_estimation_error_and_does_not_depend_on_ord
     jack = acc["spread"]["regions"]["inside"]["spread_mm_rms"]
     assert 1.0 * predicted < got < 7.0 * predicted, (got, predicted)
     assert 1.0 * jack < got < 7.0 * jack, (got, jack)
-    again = refit_row(items[0])
+    again = refit_row(items[0])  # equal to rounding: 6e-16 m seen, the solver's sums vary
     for name, tips in outcomes[0]["tips"].items():
-        np.testing.assert_array_equal(again["tips"][name], tips)
+        np.testing.assert_allclose(again["tips"][name], tips, rtol=1e-9, atol=1e-12)
     perm = np.random.default_rng(4).permutation(cal.q.shape[0])
     _shuffled(out, tmp_path / "shuffled", perm)
     other = calibrate_board_dataset_detailed(tmp_path / "shuffled")
