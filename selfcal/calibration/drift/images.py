@@ -274,11 +274,14 @@ def _covariance(C: np.ndarray, views: list[ViewJacobians]) -> np.ndarray:
     """``Sigma`` (module docstring) of the stacked views, ``C`` the estimate's covariance."""
     H = np.concatenate([np.concatenate([v.kin, v.cam], axis=1) * (not v.paired) for v in views])
     sigma = H @ C @ H.T  # a paired view's estimate cancels (selfcal.calibration.drift.paired)
-    at = 0
-    for v in views:
-        k = len(v.r)
-        sigma[at : at + k, at : at + k] += v.local
-        at += k
+    at = np.cumsum([0] + [len(v.r) for v in views])
+    for i, v in enumerate(views):
+        sigma[at[i] : at[i + 1], at[i] : at[i + 1]] += v.local
+        for j, w in enumerate(views[:i]):  # views paired with one frame share its noise
+            if v.frame is not None and w.frame is not None and w.frame[0] == v.frame[0]:
+                shared = v.frame[2][np.ix_(v.frame[1], w.frame[1])]
+                sigma[at[i] : at[i + 1], at[j] : at[j + 1]] += shared
+                sigma[at[j] : at[j + 1], at[i] : at[i + 1]] += shared.T
     return sigma
 
 

@@ -52,6 +52,10 @@ class ViewJacobians:
         paired: ``r`` is the difference from the calibration's own frame at the same posture
             (:mod:`selfcal.calibration.drift.paired`): the calibration's estimate cancels in
             it (no ``H C H^T`` term) and ``local`` is both views' noise.
+        frame: a paired view's frame, ``(key, rows, noise)``: the frame's index among the
+            calibration's, the rows (2k,) of its pixels ``r`` subtracts and the frame's noise
+            (2K, 2K) px^2 over all its pixels: two views paired with one frame share its noise
+            on their common rows (``Cov(d1, d2) = noise[rows1, rows2]``); None otherwise.
     """
 
     r: np.ndarray
@@ -65,6 +69,7 @@ class ViewJacobians:
     Ad: np.ndarray
     tw: np.ndarray
     paired: bool = False
+    frame: tuple[int, np.ndarray, np.ndarray] | None = None
 
 
 def tool_pose_error(A: np.ndarray, B: np.ndarray, m2: np.ndarray) -> np.ndarray:
