@@ -16,11 +16,11 @@ of the workspace sample and at the calibration postures as the largest and the m
 (:class:`selfcal.calibration.spread.Spread`, ``accuracy.spread``). It costs no fit beyond the
 cross-validation's.
 
-The folds are symmetric in it, so the order of the dataset's frames does not change it as long
-as the configurations are the folds (at most :data:`selfcal.calibration.board.folds.MAX_FOLDS`);
-beyond that the configurations are dealt into the folds in their order of appearance. What it
-cannot see: a model error every fold shares; with few folds (``k - 1`` degrees of freedom) the
-spread is itself uncertain (about +-35 % at 5 folds, 1 standard deviation); a fold whose
+The folds are symmetric in it, and the configurations are numbered by their joints before they
+are dealt into the folds (:func:`selfcal.calibration.board.folds.configurations`), so the order
+of the dataset's frames does not change it (tests/integration/test_board_analytic.py shuffles
+them through ``selfcal calibrate``). What it cannot see: a model error every fold shares; with
+few folds (``k - 1`` degrees of freedom) the spread is itself uncertain (about +-35 % at 5 folds, 1 standard deviation); a fold whose
 training frames could not determine some parameters held them at the fair nominal's value
 (``held_folds``): its fit differs in kind, and the spread then over-states.
 """
