@@ -20,9 +20,10 @@ The folds are symmetric in it, and the configurations are numbered by their join
 are dealt into the folds (:func:`selfcal.calibration.board.folds.configurations`), so the order
 of the dataset's frames does not change it (tests/integration/test_board_analytic.py shuffles
 them through ``selfcal calibrate``). What it cannot see: a model error every fold shares; with
-few folds (``k - 1`` degrees of freedom) the spread is itself uncertain (about +-35 % at 5 folds, 1 standard deviation); a fold whose
-training frames could not determine some parameters held them at the fair nominal's value
-(``held_folds``): its fit differs in kind, and the spread then over-states.
+few folds (``k - 1`` degrees of freedom) the spread is itself uncertain (about +-35 % at 5
+folds, 1 standard deviation); a fold whose training frames could not determine some parameters
+held them at the fair nominal's value (``held_folds``): its fit differs in kind, and the spread
+then over-states.
 """
 
 from __future__ import annotations
