@@ -418,9 +418,11 @@ def test_the_bootstrap_spread_bounds_the_estimation_error_and_ignores_order(run,
     jack = acc["spread"]["regions"]["inside"]["spread_mm_rms"]
     assert 1.0 * predicted < got < 7.0 * predicted, (got, predicted)
     assert 1.0 * jack < got < 7.0 * jack, (got, jack)
-    again = refit_row(items[0])  # equal to rounding: 6e-16 m seen, the solver's sums vary
+    # a repeated refit equals the first to the solver's stopping tolerance, not bit for bit (its
+    # sums vary in the last bits run to run): 6e-16 m and 6.3e-10 m seen (two trees), so 2 nm
+    again = refit_row(items[0])
     for name, tips in outcomes[0]["tips"].items():
-        np.testing.assert_allclose(again["tips"][name], tips, rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(again["tips"][name], tips, rtol=0, atol=2e-9)
     perm = np.random.default_rng(4).permutation(cal.q.shape[0])
     _shuffled(out, tmp_path / "shuffled", perm)
     other = calibrate_board_dataset_detailed(tmp_path / "shuffled")
