@@ -132,6 +132,42 @@ def test_run_of_the_plan_sees_the_board_in_every_posture(tmp_path, capsys):
                                            r"([0-9.]+) mm", last).groups())  # fmt: skip
         assert abs(median - fc[key]["median_mm"]) < 6e-4 and abs(p90 - fc[key]["p90_mm"]) < 6e-4
     assert (tmp_path / "add/plan.png").stat().st_size > 10_000
+    _add_without_a_camera_mount(tmp_path, capsys)
+
+
+def _add_without_a_camera_mount(tmp_path, capsys) -> None:
+    """--add to the same calibrated dataset whose robot file has no [camera_mount] (the camera
+    at the flange, 67 mm from the UR5e's mount): the predictions use the calibrated hand-eye,
+    so they do not change, but the chain as drawn, which would go by the file's mount, is no
+    reference; the verdicts are against the fair nominal (before, the chain as drawn's figure
+    assumed the file's mount within the deviation and was the reference)."""
+    with_mount = json.loads((tmp_path / "add/plan.json").read_text())
+    assert with_mount["nominal_before"]["drawn_not_a_reference"] is None
+    text = (models_dir() / "universal_robots_ur5e/ur5e.toml").read_text()
+    bare = re.sub(r"\n\[(camera_mount|mjcf)\]\n(?:[^\[\n][^\n]*\n)*", "\n", text)
+    assert "[camera_mount]" not in bare and "[encoder]" in bare
+    (tmp_path / "ur5e-bare.toml").write_text(bare)
+    info = json.loads((tmp_path / "run/dataset.json").read_text())
+    info["robot_model"] = info["encoder_model"] = str(tmp_path / "ur5e-bare.toml")  # same table
+    (tmp_path / "run/dataset.json").write_text(json.dumps(info))
+    argv = ["plan", "--add", "2", str(tmp_path / "run"), "--candidates", "60", "--out",
+            str(tmp_path / "add-bare"), "--quiet"]  # fmt: skip
+    assert main(argv) == 0
+    out = capsys.readouterr().out
+    doc = json.loads((tmp_path / "add-bare/plan.json").read_text())
+    for key in ("predicted_before_tool_rms_mm", "predicted_tool_rms_mm"):
+        assert doc[key] == pytest.approx(with_mount[key], rel=1e-6)
+    for key in ("nominal_before", "nominal"):
+        ref = doc[key]
+        assert ref["reference"] == "the fair nominal" and ref["drawn_tool_rms_mm"] is None
+        assert ref["fair_nominal_tool_rms_mm"] == with_mount[key]["fair_nominal_tool_rms_mm"]
+        said = re.search(r"lies ([0-9.]+) deg and ([0-9.]+) mm from the calibrated one",
+                         ref["drawn_not_a_reference"])  # fmt: skip
+        assert said is not None and float(said.group(1)) < 1.0  # the deviation's part only
+        assert abs(float(said.group(2)) - 67.1) < 3.0  # the UR5e's mount: 60 and 30 mm
+    fair = doc["nominal_before"]["fair_nominal_tool_rms_mm"]
+    assert f"before, without calibrating the kinematics {fair:.3f} mm (the fair nominal" in out
+    assert "the chain as drawn is no reference" in out
 
 
 @pytest.mark.slow
