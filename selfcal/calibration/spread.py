@@ -2,7 +2,7 @@
 
 Would another set of postures of the same kind give the same tool point? Each route refits on
 resamples of its postures (the tracker: a bootstrap over its rows,
-:mod:`selfcal.calibration.tracker.spread`; the board: a delete-a-configuration jackknife over its
+:mod:`selfcal.calibration.tracker.spread`; the board: a delete-a-fold jackknife over its
 cross-validation folds, :mod:`selfcal.calibration.board.spread`) and predicts the refits' tool
 points at the workspace sample's joint vectors and at the calibration postures. The spread at a
 joint vector is an RMS distance (mm); this module holds the block they write
@@ -76,7 +76,7 @@ def spread_line(spread: dict) -> str:
     r = spread["regions"]
     n = spread["resamplings"]
     if spread.get("method", BOOTSTRAP) == JACKKNIFE:
-        how = f"a delete-a-configuration jackknife over the {n} cross-validation folds"
+        how = f"a delete-a-fold jackknife over the {n} cross-validation folds"
     elif spread.get("resampled") == "configurations":
         how = (f"{n} bootstrap refits of the {spread['configurations']} arm configurations "
                f"resampled (seed {spread['seed']})")  # fmt: skip
