@@ -37,14 +37,23 @@ HYPOTHESIS_PROFILE = os.environ.get("HYPOTHESIS_PROFILE", "default")
 settings.load_profile(HYPOTHESIS_PROFILE)
 
 
+# `uv run pytest --all-examples` (.ci/run's slow-tier step): every property test draws its full
+# example count; without it a third. Read by `examples`, set before any test module is imported.
+ALL_EXAMPLES = False
+
+
 def examples(count: int) -> int:
-    """A property test's ``max_examples``: ``count`` under the ci profile (.ci/run), a third of it
-    (at least 5) in a local run of the default profile. The property tests with their own counts
-    took 25 of the default tier's 249 CPU s (process_time per test, load 6-8); a local run draws
-    new examples each time, so the runs together still explore, and CI keeps the full count. A
-    test that sets ``derandomize=True`` itself (test_kinematics, test_ik) draws the same first
-    third on every local run: its later examples are tried by CI only."""
-    return count if HYPOTHESIS_PROFILE == "ci" else max(5, -(-count // 3))
+    """A property test's ``max_examples``: ``count`` in a run given ``--all-examples`` (.ci/run
+    runs every property test so in its slow-tier step, ``-m 'slow or property'``), a third of it
+    (at least 5) otherwise, in the default tier under either profile. The property tests took 25
+    of the default tier's 249 CPU s locally (process_time per test, load 6-8), and at their full
+    count under the ci profile 30.3 CPU s, a third of it 13.9 (`HYPOTHESIS_PROFILE=ci uv run
+    pytest -n 0 --cpu-durations DIR` on their 18 modules, load 20-30): the default tier draws a
+    third (derandomized in CI), the slow tier the whole count, and a local run draws new examples
+    each time, so the runs together still explore. A test that sets ``derandomize=True`` itself
+    (test_kinematics, test_ik) draws the same first third on every default-tier run: its later
+    examples are tried by the slow tier only."""
+    return count if ALL_EXAMPLES else max(5, -(-count // 3))
 
 
 # `uv run pytest --cpu-durations DIR`: each test phase's CPU seconds (tests/cpu_durations.py)
@@ -69,6 +78,25 @@ def pytest_addoption(parser: pytest.Parser) -> None:
         action="store_true",
         help="rewrite tests/golden/* from the current code instead of comparing against them",
     )
+    parser.addoption(
+        "--all-examples",
+        action="store_true",
+        help="property tests draw their full example count (`examples`), not a third",
+    )
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    global ALL_EXAMPLES
+    ALL_EXAMPLES = bool(config.getoption("--all-examples"))
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Every hypothesis test is marked ``property`` (before ``-m`` selects), so .ci/run's slow
+    tier selects them with ``-m 'slow or property' --all-examples`` at their full count."""
+    for item in items:
+        if getattr(getattr(item, "obj", None), "is_hypothesis_test", False):
+            item.add_marker(pytest.mark.property)
 
 
 @pytest.fixture

@@ -42,18 +42,22 @@ import dataclasses
 import re
 import sys
 import time
+from functools import partial
 
 import numpy as np
 
 from selfcal.benchmarks.board_accuracy_draw import SCENARIO, simulated_calibration
 from selfcal.benchmarks.doc_blocks import ROOT, print_table, read_block
 from selfcal.benchmarks.pool import map_jobs
+from selfcal.calibration.drift.fold_error import fold_error_model
 from selfcal.calibration.drift.images import (
     ALPHA,
     calibration_error_model,
     calibration_views,
     estimate_covariance,
+    fold_recheck,
     image_drift_check,
+    view_noise,
 )
 from selfcal.calibration.drift.p_value import known_change_power
 from selfcal.config.scenario import load_scenario, scenarios_dir
@@ -109,7 +113,8 @@ def calibration_checks(args: tuple) -> dict:
     e2h = setup == "eye-to-hand"
     out: dict = {"status": "ok"} | {k: 0 for k in KINDS} | {"checks": 0}
     out |= {f"{k}_{w}": 0 for k in ("tool", "joint") for w in ("right", "wrong")}
-    out |= {"tool_oracle": 0.0, "tool_axes": 0.0}
+    out |= {"tool_oracle": 0.0, "tool_axes": 0.0, "fold_error": 0}
+    out |= {f"{k}_cannot_tell": 0 for k in KINDS}
     try:
         cal, truth = simulated_calibration(sigma_px, seed, scenario_file=SCENARIOS[setup],
                                            robot=robot_name)  # fmt: skip
@@ -118,6 +123,8 @@ def calibration_checks(args: tuple) -> dict:
         assert isinstance(board, Board)
         em = calibration_error_model(cal, "calibration.json")
         C = estimate_covariance(cal, em)
+        wide = fold_error_model(em, cal.accuracy, view_noise(cal).misfit_counted)  # as check's
+        out["fold_error"] = int(wide is not None)
         camera, true = truth.intrinsics_left, truth.true_model
         board_doc = truth.board or {}
         T_static = np.asarray(board_doc.get("T_world_cam" if e2h else "T_world_board"), float)
@@ -162,6 +169,9 @@ def calibration_checks(args: tuple) -> dict:
                 vj = calibration_views(cal, em, qs, views[k])
                 res = image_drift_check(C, vj, eye_to_hand=e2h, camera_names=cal.cameras[0].free,
                                         exact=exact)  # fmt: skip
+                res = fold_recheck(res, wide, partial(calibration_views, cal, q=qs, views=views[k]),
+                                   C, eye_to_hand=e2h)  # fmt: skip
+                out[f"{k}_cannot_tell"] += res.undecided
                 if k == "tool":  # the shift's own pixels' statistic: mu^T Sigma^-1 mu
                     mean = [dataclasses.replace(v, r=v.tool[:, :3] @ shift[:3, 3]) for v in vj]
                     lam2 = image_drift_check(C, mean, eye_to_hand=e2h).statistic
@@ -200,6 +210,9 @@ def run(calibrations: int = 30, checks: int = 10, noise_px=NOISE_PX, jobs: int =
         print(f"{label} {s} px: {len(ok)}/{calibrations} calibrations in {time.perf_counter() - t0:.0f} s "
               + "; ".join(sorted({g['status'] for g in got} - {'ok'})), file=sys.stderr)  # fmt: skip
         total = {k: sum(g[k] for g in ok) for k in ok[0] if k != "status"} if ok else {}
+        print(f"  the folds' error at left-out configurations counted in {total.get('fold_error', 0)} "
+              f"calibrations; 'cannot tell' (not counted as changed): "
+              + ", ".join(f"{k} {total.get(f'{k}_cannot_tell', 0)}" for k in KINDS), file=sys.stderr)  # fmt: skip
         m = max(total.get("checks", 0), 1)
         row = {"setup": label, "noise_px": s, "calibrations": len(ok), "failed": calibrations - len(ok),
                "checks": total.get("checks", 0), "views": views, "exact": exact}  # fmt: skip

@@ -54,16 +54,18 @@ from selfcal.calibration.board.held_prior import with_deviation
 from selfcal.calibration.board.refine import BoardObservations
 from selfcal.calibration.board.view_jitter import psd_part
 from selfcal.calibration.drift import images
+from selfcal.calibration.drift.fold_error import fold_excess
 from selfcal.calibration.drift.images import (
     ImageDriftCheck,
     ViewNoise,
     calibration_error_model,
     calibration_views,
+    check_images,
     estimate_covariance,
     image_drift_check,
     view_noise,
 )
-from selfcal.calibration.drift.views import ViewJacobians, view_jacobians
+from selfcal.calibration.drift.views import ViewJacobians, tool_pose_error, view_jacobians
 from selfcal.camera import CameraModel
 from selfcal.io.board_calibration import BoardCalibrationResult, read_board_calibration
 from selfcal.kinematics.tool_error import ToolErrorModel
@@ -318,6 +320,35 @@ def _print_sandwich(folds: list[Fold], c: float, eye_to_hand: bool) -> None:
               f"camera's sd x {' '.join(f'{x:.2f}' for x in ratio)}")  # fmt: skip
 
 
+def _print_fold_error(folds: list[Fold], used: float, cal: BoardCalibrationResult,
+                      cal_dir: Path, new: Path) -> None:  # fmt: skip
+    """Each fold's verdict as the check gives it (:func:`selfcal.calibration.drift.images.
+    fold_recheck`), a failed fold tested again with the calibration's own folds' error at the
+    configurations they left out (:func:`selfcal.calibration.drift.fold_error.fold_excess`: CAL's,
+    measured on these folds, each fold's own held-out configuration among them: a stand-in for
+    the fold's own folds, which are not fitted), and NEW's ``selfcal check`` against CAL."""
+    pos, rot = fold_excess(cal.accuracy) if view_noise(cal).misfit_counted else (0.0, 0.0)
+    m2 = np.r_[np.full(3, pos**2), np.full(3, rot**2)]
+    said = []
+    for f in folds:
+        first = image_drift_check(f.C0 + used * f.V, f.at(1.0), eye_to_hand=cal.eye_to_hand)
+        if not first.changed:
+            said.append(f"unchanged (p {first.p_value:.2g})")
+            continue
+        wide = [dataclasses.replace(v, local=v.local + tool_pose_error(v.tool, v.B, m2))
+                for v in f.at(1.0)]  # fmt: skip
+        again = image_drift_check(f.C0 + used * f.V, wide, eye_to_hand=cal.eye_to_hand)
+        verdict = "changed" if again.changed else "cannot tell"
+        said.append(f"{verdict} (p {first.p_value:.2g}, with the folds' error {again.p_value:.2g})")
+    print(f"  with the folds' error at left-out configurations ({pos * 1e3:.3f} mm, "
+          f"{np.degrees(rot):.3f} deg per coordinate): the folds' verdicts {'; '.join(said)}")  # fmt: skip
+    res = check_images(cal_dir, new)
+    verdict = "changed" if res.changed else "cannot tell" if res.undecided else "unchanged"
+    print(f"  selfcal check {cal_dir} {new}: {verdict}, p = {res.p_value:.2g}, with the folds' "
+          f"error {res.fold_p_value:.2g}; predicted / measured {res.expected_rms_px:.3f} / "
+          f"{res.rms_px:.3f} px")  # fmt: skip
+
+
 def main(argv: list[str] | None = None) -> int:
     """Print the folds' ratios, the joint estimate and NEW's check with it (module docstring)."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -361,6 +392,7 @@ def main(argv: list[str] | None = None) -> int:
 
     print(f"{len(folds)} folds of {args.calibration}")
     line("as the check predicts (the share used, the misfit as estimated)", used, 1.0)
+    _print_fold_error(folds, used, cal, args.calibration, args.new)
     for tol in TOLERANCES:
         line(f"joint estimate (span cut at {tol:g})", *joint_moments(folds, tol))
     for c, a in ((c, a) for c in GRID_C for a in GRID_A) if args.grid else ():

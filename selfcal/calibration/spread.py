@@ -2,7 +2,7 @@
 
 Would another set of postures of the same kind give the same tool point? Each route refits on
 resamples of its postures (the tracker: a bootstrap over its rows,
-:mod:`selfcal.calibration.tracker.spread`; the board: a delete-a-configuration jackknife over its
+:mod:`selfcal.calibration.tracker.spread`; the board: a delete-a-fold jackknife over its
 cross-validation folds, :mod:`selfcal.calibration.board.spread`) and predicts the refits' tool
 points at the workspace sample's joint vectors and at the calibration postures. The spread at a
 joint vector is an RMS distance (mm); this module holds the block they write
@@ -53,28 +53,47 @@ class Spread:
 
 def region_spread(squared: dict[str, np.ndarray]) -> dict:
     """Per region of :data:`REGIONS` present in ``squared`` (the squared spread, m^2, of each
-    of its joint vectors) the largest and the median spread (mm)."""
+    of its joint vectors) the largest, the median, the RMS over the region and the 95th
+    percentile of the spread (mm)."""
     out = {}
     for k in REGIONS:
         if k in squared and len(squared[k]):
-            s = np.sqrt(np.asarray(squared[k], dtype=float)) * 1e3
-            out[k] = {"spread_mm_max": float(s.max()), "spread_mm_median": float(np.median(s))}
+            sq = np.asarray(squared[k], dtype=float)
+            s = np.sqrt(sq) * 1e3
+            out[k] = {
+                "spread_mm_max": float(s.max()),
+                "spread_mm_median": float(np.median(s)),
+                "spread_mm_rms": float(np.sqrt(sq.mean()) * 1e3),
+                "spread_mm_p95": float(np.percentile(s, 95)),
+            }
     return out
 
 
 def spread_line(spread: dict) -> str:
     """One line on a :meth:`Spread.to_json` block (a block without ``method``, written before
-    it, is a bootstrap's)."""
+    it, is a bootstrap's of rows): how it was resampled, the largest spread inside the
+    calibrated region and at its edge, and the refits that failed."""
     r = spread["regions"]
+    n = spread["resamplings"]
     if spread.get("method", BOOTSTRAP) == JACKKNIFE:
-        how = (f"a delete-a-configuration jackknife over the {spread['resamplings']} "
-               "cross-validation folds")  # fmt: skip
+        how = f"a delete-a-fold jackknife over the {n} cross-validation folds"
+    elif spread.get("resampled") == "configurations":
+        how = (f"{n} bootstrap refits of the {spread['configurations']} arm configurations "
+               f"resampled (seed {spread['seed']})")  # fmt: skip
     else:
-        how = f"{spread['resamplings']} bootstrap resamplings of the rows"
+        how = f"{n} bootstrap resamplings of the rows"
+    failed = spread.get("failed", 0)
+    tail = ""
+    if failed:
+        reasons = spread.get("failures") or []
+        first = f" (first: {reasons[0]['reason']})" if reasons else ""
+        tail = f"; {failed} refit(s) failed and were left out{first}"
+    if "inside" not in r:
+        return f"no run-to-run spread over {how}: fewer than two refits succeeded{tail}"
     text = (
         f"run-to-run spread over {how}: "
         f"{r['inside']['spread_mm_max']:.3f} mm RMS at most inside the calibrated region"
     )
     if "edge" in r:
         text += f", {r['edge']['spread_mm_max']:.3f} mm at its edge"
-    return text
+    return text + tail

@@ -24,6 +24,7 @@ from selfcal.cli.own_data import register as register_own_data
 from selfcal.cli.plan import register as register_plan
 from selfcal.cli.pose import POSE_HELP, add_pose_args
 from selfcal.cli.ros import export_run
+from selfcal.cli.spread import add_spread_args, bootstrap_option
 from selfcal.cli.tracker import add_tracker_args
 from selfcal.cli.tracker import register as register_tracker
 from selfcal.config.defaults import DEFAULT_ROBOT
@@ -124,7 +125,8 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
                       allow_missing_frames=args.allow_missing_frames, figures=True,
                       tracker_args=args, joint_sigma_deg=args.joint_sigma_deg,
                       pose_noise=args.pose_noise, camera=args.camera,
-                      deviation_mm_deg=(args.deviation_mm, args.deviation_deg))  # fmt: skip
+                      deviation_mm_deg=(args.deviation_mm, args.deviation_deg),
+                      bootstrap=bootstrap_option(args))  # fmt: skip
     note_written(args, root / "calibration.json")
     if args.json:
         print(json.dumps(_calibration_json(root / "calibration.json")))
@@ -398,6 +400,7 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--deviation-deg", type=float, default=None, metavar="DEG",
                     help="a board dataset: how far its angles may lie from it, deg (default 0.5)")  # fmt: skip
     add_pose_noise_arg(sp)
+    add_spread_args(sp)
     add_tracker_args(sp)
     add_json(sp)
 

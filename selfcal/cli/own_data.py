@@ -12,6 +12,7 @@ import argparse
 import json
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from selfcal.cli.handeye import (
     add_pose_import_args,
@@ -24,6 +25,9 @@ from selfcal.cli.ros import add_import_args as add_bag_import_args
 from selfcal.cli.ros import cmd_import_bag, cmd_import_bag_poses
 from selfcal.console.common import CliError, add_json, note_written, writing
 from selfcal.console.progress import Progress
+
+if TYPE_CHECKING:
+    from selfcal.pipeline.board_spread import BootstrapRun
 
 # Heavy modules (scipy, OpenCV, MuJoCo, the pipeline) are imported by the functions that use
 # them, so that `selfcal --help` builds every command's parser without loading them.
@@ -74,6 +78,7 @@ def calibrate_any(
     pose_noise: str | None = None,
     camera: str | None = None,
     deviation_mm_deg: tuple[float | None, float | None] = (None, None),
+    bootstrap: BootstrapRun | None = None,
 ) -> None:
     """Calibrate the dataset in ``root`` by its target and write ``root/calibration.json``:
     the field -> :func:`selfcal.pipeline.run.run_calibrate`; a board -> the board calibration.
@@ -85,7 +90,9 @@ def calibrate_any(
     of a joint reading, deg (mm for a prismatic joint), modelled instead of the robot file's
     encoder resolution. ``pose_noise``, ``camera``: ``--pose-noise`` and ``--camera`` of a pose
     dataset (errors for the others). ``deviation_mm_deg``: ``--deviation-mm`` and
-    ``--deviation-deg`` of a board dataset (None: the default; errors for the others)."""
+    ``--deviation-deg`` of a board dataset (None: the default; errors for the others).
+    ``bootstrap``: ``--spread N`` of a board dataset (:mod:`selfcal.cli.spread`; an error for
+    the others)."""
     specs = list(getattr(tracker_args, "term", None) or [])
     from selfcal.terms.registry import parse_term_spec
 
@@ -104,6 +111,9 @@ def calibrate_any(
     for p in parsed:  # the values next (units, numbers), still before any work
         p.options(units)
     deviation = deviation_option(root, route, *deviation_mm_deg)
+    if bootstrap is not None and route != "board":
+        raise CliError(f"{root}: --spread N refits a board dataset; this one is a {route} "
+                       "dataset", fix="leave out --spread")  # fmt: skip
     if route == "handeye":
         calibrate_poses(root, quiet=quiet, figures=figures, method=method,
                         joint_sigma_deg=joint_sigma_deg, tracker_args=tracker_args,
@@ -117,6 +127,11 @@ def calibrate_any(
                        "(flange poses); this one has joint readings and its camera is estimated "
                        "with the rest", fix="leave --camera out")  # fmt: skip
     ds = Dataset.open(root)
+    if bootstrap is not None and len(ds.info.cameras) > 1:
+        raise CliError(f"{root}: --spread N refits one camera's images; this dataset has "
+                       f"{len(ds.info.cameras)} cameras (a rig's refit is not written yet)",
+                       fix="leave out --spread: calibration.json accuracy.spread holds the "
+                       "jackknife over the folds")  # fmt: skip
     joint_sigma = None
     if joint_sigma_deg is not None:
         import numpy as np
@@ -163,7 +178,7 @@ def calibrate_any(
         return
     board = calibrate_board_run(root, quiet=quiet, allow_missing_frames=allow_missing_frames,
                                 figures=figures, joint_sigma=joint_sigma, terms=terms,
-                                deviation=deviation)  # fmt: skip
+                                deviation=deviation, bootstrap=bootstrap)  # fmt: skip
     for section in board.terms:
         _say(quiet, section.summary())
 

@@ -37,8 +37,10 @@ self-collision, the table and the keep-out boxes. The forecast is the field rout
 bound of the flange centre's error over 50 workspace postures (the plan's and a random plan's
 of the same size) for --markers markers of --marker-mm laid as scenario.toml's simulated field
 lays them; the postures are, of --candidates random ones, the choice with the least forecast
-of three: the field route's D-optimal choice, and the board plan's greedy choice and exchange
-on the predicted tool-point error (plan.json's chosen_by and choices_tool_rms_mm). A plan of
+of four: the field route's D-optimal choice, the board plan's greedy choice and exchange on the
+predicted tool-point error with the markers' corners known, and the best of these exchanged
+with the corners unknown, as the route estimates them (plan.json's chosen_by and
+choices_tool_rms_mm). A plan of
 fewer than 30 postures whose forecast is behind a random plan of 30's says so and gives the
 count whose plan is not (plan.json's count_to_match).
 Eye-in-hand, one camera; --board-pose, --camera-pose and --mount eye-to-hand are refused,

@@ -23,7 +23,9 @@ def reference_words(ref: NominalReference, predicted_m: float, rival_m: float | 
 
     mm = ref.best_m * 1000
     head = (f"without calibrating the kinematics {mm:.3f} mm ({ref.what}; "
-            + (f"the fair nominal, {ref.placement} fitted to the pixels: "
+            + (f"{ref.placement} fitted to the pixels; the chain as drawn is no reference: "
+               f"{ref.drawn_why}" if ref.drawn_why else
+               f"the fair nominal, {ref.placement} fitted to the pixels: "
                f"{ref.fair_m * 1000:.3f} mm" if ref.what == "the chain as drawn" else
                f"the chain as drawn: {ref.drawn_m * 1000:.3f} mm") + ")")  # fmt: skip
     ratio = predicted_m / ref.best_m

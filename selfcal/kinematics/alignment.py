@@ -85,7 +85,11 @@ def fit_placement_and_hand_eye(
     origins and axis tips of ``B F C`` against ``T``'s, :data:`AXIS_TIPS`), so every round
     lowers it (the hand-eye fitted on the inverted poses, another misfit, could climb away from a
     guess a quarter turn off); rounds until it falls by less than :data:`PLACEMENT_RTOL` of
-    itself, at most ``rounds``."""
+    itself, at most ``rounds`` (at least 1: :class:`~selfcal.errors.UsageError` otherwise)."""
+    if rounds < 1:
+        raise UsageError(
+            f"fit_placement_and_hand_eye needs at least one round, got rounds={rounds}"
+        )
     T = np.asarray(T_world_cam, dtype=float)
     F = np.asarray(T_base_flange, dtype=float)
     C = np.asarray(T_flange_cam, dtype=float)

@@ -36,6 +36,7 @@ __all__ = [
     "accuracy_summary",
     "board_accuracy_section",
     "cross_validation_line",
+    "spread_markdown",
 ]
 
 FIGURE = "workspace_accuracy.png"
@@ -72,6 +73,7 @@ def board_accuracy_section(root: Path, cal: BoardCalibrationResult, *,
         "cross_validation": block.get("cross_validation"),
         "held_deviation": block.get("held_deviation"),
         "spread": block.get("spread"),
+        "bootstrap_spread": block.get("bootstrap_spread"),
     }
     drawn = []
     if figures:
@@ -131,6 +133,23 @@ def _growth_words(me: dict) -> str:
     return f"{text} at the most the folds allow (their 95 % upper bound: they did not show it grow){far}"
 
 
+def spread_markdown(boot: dict, jack: dict | None) -> list[str]:
+    """The report's lines on ``selfcal calibrate --spread N``'s bootstrap block ``boot``: its
+    line and, per region, its spread (mm: RMS over the region's joint vectors, 95th percentile,
+    largest) beside the jackknife's ``jack`` (absent in an older block: "-")."""
+    text = spread_line(boot)
+    rows = ["", text[0].upper() + text[1:] + ' (docs/tool-accuracy.md "Run-to-run spread").', "",
+            "| region | bootstrap RMS | bootstrap 95 % | bootstrap max | jackknife RMS | "
+            "jackknife max |", "|---|---|---|---|---|---|"]  # fmt: skip
+    for name, got in boot["regions"].items():
+        other = ((jack or {}).get("regions") or {}).get(name) or {}
+        cells = [got["spread_mm_rms"], got["spread_mm_p95"], got["spread_mm_max"],
+                 other.get("spread_mm_rms"), other.get("spread_mm_max")]  # fmt: skip
+        words = ["-" if v is None else f"{v:.3f} mm" for v in cells]
+        rows.append(f"| {name.replace('_', ' ')} | " + " | ".join(words) + " |")
+    return rows
+
+
 def accuracy_markdown(section: dict) -> list[str]:
     """The report.md lines of :func:`board_accuracy_section`'s section."""
     me = section.get("model_error") or {}
@@ -161,6 +180,9 @@ def accuracy_markdown(section: dict) -> list[str]:
     if spread:
         text = spread_line(spread)
         out += ["", text[0].upper() + text[1:] + ' (docs/tool-accuracy.md "Run-to-run spread").']
+    boot = section.get("bootstrap_spread")
+    if boot:
+        out += spread_markdown(boot, spread)
     cv = cross_validation_line(section.get("cross_validation"))
     if cv is not None:
         out += ["", "## Cross-validated reprojection", "", cv[0].upper() + cv[1:] + "."]

@@ -21,6 +21,7 @@ Units: mm and deg in the report, px for the camera.
 
 from __future__ import annotations
 
+import dataclasses
 import sys
 import time
 from collections.abc import Sequence
@@ -36,6 +37,7 @@ from selfcal.camera import CameraModel, opencv_values
 from selfcal.config.scenario import Scenario
 from selfcal.console.log import get_logger
 from selfcal.console.progress import Progress
+from selfcal.errors import InputError
 from selfcal.io.atomic import write_text_atomic
 from selfcal.io.board_calibration import BoardCalibrationResult, write_board_calibration
 from selfcal.io.dataset import Dataset, DatasetError
@@ -58,6 +60,7 @@ from selfcal.transforms import inv_pose
 
 if TYPE_CHECKING:  # imported by the calibration itself (start-up time)
     from selfcal.calibration.board.deviation import Deviation
+    from selfcal.pipeline.board_spread import BootstrapRun
 
 __all__ = [
     "board_truth_report",
@@ -71,6 +74,8 @@ __all__ = [
 ]
 
 _log = get_logger(__name__)
+SPREAD_FIGURE = "spread.png"
+"""``selfcal calibrate --spread N``'s figure of the run-to-run spreads (in ``DIR/figures``)."""
 
 
 def pose_errors(T_pred: np.ndarray, T_true: np.ndarray) -> dict:
@@ -331,6 +336,7 @@ def calibrate_board_run(
     joint_sigma: np.ndarray | None = None,
     terms: Sequence[Term] = (),
     deviation: Deviation | None = None,
+    bootstrap: BootstrapRun | None = None,
 ) -> BoardCalibrationResult:
     """``selfcal calibrate`` of a board dataset: :func:`selfcal.calibration.board.dataset.calibrate_board_dataset`
     written as ``root/calibration.json``, its warnings logged and a one-line summary printed
@@ -338,19 +344,34 @@ def calibrate_board_run(
     the joint read-back noise (rad / m) instead of the robot file's encoder resolution;
     ``terms``: further measurements estimated with the images (:mod:`selfcal.terms`);
     ``deviation``: the arm's deviation from its drawing for the predicted accuracy (default
-    :class:`selfcal.calibration.board.deviation.Deviation`'s)."""
-    from selfcal.calibration.board.dataset import calibrate_board_dataset
+    :class:`selfcal.calibration.board.deviation.Deviation`'s); ``bootstrap``: also the
+    run-to-run spread over refits of resampled configurations (``--spread N``,
+    :mod:`selfcal.pipeline.board_spread`), written as ``accuracy.bootstrap_spread`` and drawn in
+    ``root/figures/spread.png`` (with ``figures``)."""
+    from selfcal.calibration.board.bootstrap import KEY
+    from selfcal.calibration.board.dataset import calibrate_board_dataset_detailed
 
     label = "board calibration (detection, camera, hand-eye, kinematics, bounds)"
     with Progress("calibrate", enabled=not quiet).step(label) as st:
-        res = calibrate_board_dataset(
+        detailed = calibrate_board_dataset_detailed(
             root,
             allow_missing_frames=allow_missing_frames,
             joint_sigma=joint_sigma,
             terms=terms,
             deviation=deviation,
         )
+        res = detailed.result
         st.result(f"reprojection RMS {res.reprojection_rms_px:.3f} px")
+    if bootstrap is not None:  # refits of resampled configurations (issue #29)
+        from selfcal.pipeline.board_spread import run_bootstrap, with_bootstrap
+
+        try:
+            spread = run_bootstrap(detailed, bootstrap, quiet=quiet)
+        except InputError as exc:  # no workspace to spread over: the calibration still stands
+            text = f"no bootstrap spread (--spread {bootstrap.count}): {exc.message}"
+            res = dataclasses.replace(res, warnings=(*res.warnings, text))
+        else:
+            res = dataclasses.replace(res, accuracy=with_bootstrap(res.accuracy or {}, spread))
     write_board_calibration(Path(root) / "calibration.json", res)
     if figures:
         ev = evaluate_board(res, str(Path(root) / "calibration.json"), root)
@@ -362,6 +383,13 @@ def calibrate_board_run(
     spread = (res.accuracy or {}).get("spread")
     if spread:  # the run-to-run spread over the folds (issue #29)
         _say(quiet, spread_line(spread))
+    boot = (res.accuracy or {}).get(KEY)
+    if boot:
+        _say(quiet, spread_line(boot))
+        if figures:
+            from selfcal.plots.spread_figure import spread_figure
+
+            _say(quiet, f"figure: {write_figure(spread_figure(res.accuracy), root, SPREAD_FIGURE)}")
     return res
 
 

@@ -2,8 +2,8 @@
 
 The fit (reprojection RMS, inliers, frames used), a held-out reprojection -- from
 ``DIR/evaluation.json`` when ``selfcal evaluate`` wrote one with a second dataset, else the
-leave-some-poses-out check (:func:`selfcal.calibration.field.holdout.leave_poses_out`: every 5th frame predicted by
-a calibration of the others) -- the parameters with their standard deviations against the fair
+leave-some-poses-out check (:func:`selfcal.calibration.field.holdout.leave_poses_out`: every 5th
+frame in the order of their joints predicted by a calibration of the others) -- the parameters with their standard deviations against the fair
 nominal (the nominal chain with hand-eye, camera, rig and marker corners fitted to the same
 pixels: ``calibration.json`` ``nominal``, :mod:`selfcal.calibration.field.nominal_fit`),
 and the identifiability (rank, condition number, held parameters and why). Never the simulator.
@@ -61,7 +61,8 @@ def _held_out(root: Path, method: str, every: int) -> dict:
         "features": sum(i["features"] for i in ev.images),
         "reprojection_rms_px": dict(ev.rms),
         "note": (
-            f"every {every}th frame held out, the other {len(h.fitted)} calibrated afresh with the "
+            f"every {every}th frame (in the order of their joint readings, so not chosen by the "
+            f"rows' order) held out, the other {len(h.fitted)} calibrated afresh with the "
             f"same method ({method}); the held-out images predicted from their joint readings "
             "alone"
         ),

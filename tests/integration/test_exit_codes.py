@@ -238,15 +238,15 @@ def test_usage_errors_exit_2_in_the_same_style(capsys):
 
 
 def test_an_option_of_another_command_is_named_with_its_command(capsys, tmp_path):
-    # issue 29 spells the run-to-run spread `selfcal calibrate ... --spread N`; it is an option
-    # of `selfcal identify` (tracker rows): the error said "unrecognized arguments: --spread 10
-    # -- see `selfcal --help`", under the top-level usage, and named neither command
-    code, out, err = run(capsys, "calibrate", tmp_path, "--spread", "10")
+    # an option of `selfcal identify` (tracker rows) given to `selfcal calibrate`: the error said
+    # "unrecognized arguments: ... -- see `selfcal --help`", under the top-level usage, and
+    # named neither command (issue 29's `--spread N` was such an option; calibrate has it now)
+    code, out, err = run(capsys, "calibrate", tmp_path, "--hold", "beta1")
     assert code == 2 and out == ""
     assert err.startswith("usage: selfcal calibrate ")
     last = err.splitlines()[-1]
-    assert last.startswith("selfcal: error: unrecognized arguments: --spread 10")
-    assert "`--spread` is an option of `selfcal identify`" in last
+    assert last.startswith("selfcal: error: unrecognized arguments: --hold beta1")
+    assert "`--hold` is an option of `selfcal identify`" in last
     assert last.endswith("-- see `selfcal calibrate --help`")
     # an option no command has gets no such note; a nested command names itself
     code, _, err = run(capsys, "hw", "joints", "--no-such-option")

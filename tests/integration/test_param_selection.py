@@ -34,7 +34,9 @@ READ_NOISE = np.radians(0.01)
 
 def test_a_configuration_is_the_arm_joints_the_wrist_may_move():
     """Frames whose first three joints agree within 0.1 deg are one configuration, whatever the
-    wrist does; a chain of three joints or fewer compares every joint."""
+    wrist does; a chain of three joints or fewer compares every joint. They are grouped and
+    numbered in the order of their arm joints, so a shuffle of the frames shuffles their labels
+    and folds alike (issue #29)."""
     types6 = ("revolute",) * 6
     q = np.zeros((5, 6))
     q[1, 3:] = [0.5, -0.2, 1.0]  # the wrist moves: same configuration
@@ -46,6 +48,27 @@ def test_a_configuration_is_the_arm_joints_the_wrist_may_move():
     assert configurations(q3, ("revolute",) * 3).tolist() == [0, 1, 0]
     many = np.arange(25)
     assert fold_labels(many).max() == MAX_FOLDS - 1
+    # numbered by the first joint (then the second, the third), not by the frames' order
+    order = np.zeros((3, 6))
+    order[:, 0] = np.radians([10.0, -10.0, 0.0])
+    order[1, 1] = order[2, 2] = 0.5
+    assert configurations(order, types6).tolist() == [2, 0, 1]
+    # frames 0.08 deg apart in a row: grouped from the smallest, whatever the order they came in
+    row = np.zeros((3, 6))
+    row[:, 0] = np.radians([0.08, 0.16, 0.0])
+    assert configurations(row, types6).tolist() == [0, 1, 0]
+    assert configurations(row[[1, 0, 2]], types6).tolist() == [1, 0, 0]
+    rng = np.random.default_rng(1)
+    arms = np.radians(rng.uniform(-90, 90, (12, 6))).repeat(2, axis=0)  # 12 configurations
+    arms[1::2, 3:] += 0.2  # each seen twice, the wrist moved
+    arms[1::2, :3] += np.radians(0.06)  # and its arm joints within the tolerance
+    config = configurations(arms, types6)
+    assert len(set(config)) == 12
+    for seed in range(5):
+        shuffle = np.random.default_rng(seed).permutation(len(arms))
+        again = configurations(arms[shuffle], types6)
+        assert again.tolist() == config[shuffle].tolist()
+        assert fold_labels(again).tolist() == fold_labels(config)[shuffle].tolist()
     # a new frame is unseen unless some calibration frame has its configuration (the drift
     # check's note, selfcal.calibration.drift.images)
     new = np.zeros((3, 6))

@@ -29,7 +29,7 @@ def _plan(out, count: int = 6, candidates: int = 60) -> None:
     assert main(argv) == 0
 
 
-def test_plan_files_parse(tmp_path, capsys, monkeypatch):
+def test_plan_files_parse(tmp_path, capsys, monkeypatch, recwarn):
     import selfcal.plots.plan_figure as plan_figure
 
     drawn = []  # the figure plan.png is saved from
@@ -45,24 +45,28 @@ def test_plan_files_parse(tmp_path, capsys, monkeypatch):
     q = read_joint_rows(tmp_path / "plan/joints.csv", robot, "deg").q
     assert q.shape == (6, 6)
     assert np.allclose(np.degrees(q), doc["joints_deg"], atol=1e-6)
-    # 6 of 60 candidates: the selection is forecast to keep none of the 18 parameters the greedy
-    # criterion counts on, and with the fair nominal's figure the greedy choice (8.190 mm) was
-    # behind the pool's first 6 (4.356 mm): the plan is the pool's set that predicts best so
-    # (3.034 mm). The draws put the greedy choice behind the random 6 (median 4.157 against
-    # 2.963 mm, with a warning); this plan ahead of it, no warning
-    assert doc["chosen_by"] == "random set 6 of 10" and "the pool's random set 6 of 10" in line
+    # 6 of 60 candidates: the selection is forecast to keep fewer parameters than the greedy
+    # criterion counts on, so the plan is the pool's set (the greedy choice or one of its 10
+    # disjoint random sets of 6, the first the random plan) that predicts best with what the
+    # selection is forecast to keep, and the line says which
     assert doc["selection"]["kinematic_parameters"] < doc["identified_kinematic_parameters"]
-    assert doc["selection"]["tool_rms_mm"] < doc["greedy_selection_tool_rms_mm"]
-    assert doc["random_selection_tool_rms_mm"] < doc["greedy_selection_tool_rms_mm"]
+    chosen = doc["chosen_by"]
+    assert re.fullmatch(r"greedy|random set ([1-9]|10) of 10", chosen), chosen
+    assert chosen == "greedy" or f"the pool's {chosen}" in line
+    best = min(doc["greedy_selection_tool_rms_mm"], doc["random_selection_tool_rms_mm"])
+    assert doc["selection"]["tool_rms_mm"] <= best
     # the first line sets the plan's figure beside the random plan's on the same basis (the
     # parameters each selection is forecast to keep), not beside its all-parameter figure
-    assert doc["selection"]["tool_rms_mm"] <= doc["random_selection_tool_rms_mm"]
     rand = rf"a random plan of 6: {doc['random_selection_tool_rms_mm']:.3f} mm with what its"
     assert re.search(rand, line)
+    # the draws: a warning exactly when the plan's median is not below the random plan's (this
+    # plan of 6, the pool's random set 4: level, 3.150 against 3.137 mm, with the configurations
+    # dealt into the folds by their joints; dealt in posture order the forecast chose set 6,
+    # ahead of the random plan)
     draws = doc["forecast_draws"]
-    assert draws["plan"]["median_mm"] < draws["random"]["median_mm"]
-    assert draws["plan"]["p90_mm"] < draws["random"]["p90_mm"]
-    assert "the forecast puts the plan of 6" not in printed.err
+    behind = draws["plan"]["median_mm"] >= draws["random"]["median_mm"]
+    said = [str(w.message) for w in recwarn if "the forecast puts the plan of 6" in str(w.message)]
+    assert behind == bool(said), (draws, said)
     assert doc["kind"] == "camera"  # as a tracker plan's "tracker" and --add's "add"
     assert f"{doc['predicted_tool_rms_mm']:.3f}" in line
     traj = yaml.safe_load((tmp_path / "plan/trajectory.yaml").read_text())
@@ -128,6 +132,42 @@ def test_run_of_the_plan_sees_the_board_in_every_posture(tmp_path, capsys):
                                            r"([0-9.]+) mm", last).groups())  # fmt: skip
         assert abs(median - fc[key]["median_mm"]) < 6e-4 and abs(p90 - fc[key]["p90_mm"]) < 6e-4
     assert (tmp_path / "add/plan.png").stat().st_size > 10_000
+    _add_without_a_camera_mount(tmp_path, capsys)
+
+
+def _add_without_a_camera_mount(tmp_path, capsys) -> None:
+    """--add to the same calibrated dataset whose robot file has no [camera_mount] (the camera
+    at the flange, 67 mm from the UR5e's mount): the predictions use the calibrated hand-eye,
+    so they do not change, but the chain as drawn, which would go by the file's mount, is no
+    reference; the verdicts are against the fair nominal (before, the chain as drawn's figure
+    assumed the file's mount within the deviation and was the reference)."""
+    with_mount = json.loads((tmp_path / "add/plan.json").read_text())
+    assert with_mount["nominal_before"]["drawn_not_a_reference"] is None
+    text = (models_dir() / "universal_robots_ur5e/ur5e.toml").read_text()
+    bare = re.sub(r"\n\[(camera_mount|mjcf)\]\n(?:[^\[\n][^\n]*\n)*", "\n", text)
+    assert "[camera_mount]" not in bare and "[encoder]" in bare
+    (tmp_path / "ur5e-bare.toml").write_text(bare)
+    info = json.loads((tmp_path / "run/dataset.json").read_text())
+    info["robot_model"] = info["encoder_model"] = str(tmp_path / "ur5e-bare.toml")  # same table
+    (tmp_path / "run/dataset.json").write_text(json.dumps(info))
+    argv = ["plan", "--add", "2", str(tmp_path / "run"), "--candidates", "60", "--out",
+            str(tmp_path / "add-bare"), "--quiet"]  # fmt: skip
+    assert main(argv) == 0
+    out = capsys.readouterr().out
+    doc = json.loads((tmp_path / "add-bare/plan.json").read_text())
+    for key in ("predicted_before_tool_rms_mm", "predicted_tool_rms_mm"):
+        assert doc[key] == pytest.approx(with_mount[key], rel=1e-6)
+    for key in ("nominal_before", "nominal"):
+        ref = doc[key]
+        assert ref["reference"] == "the fair nominal" and ref["drawn_tool_rms_mm"] is None
+        assert ref["fair_nominal_tool_rms_mm"] == with_mount[key]["fair_nominal_tool_rms_mm"]
+        said = re.search(r"lies ([0-9.]+) deg and ([0-9.]+) mm from the calibrated one",
+                         ref["drawn_not_a_reference"])  # fmt: skip
+        assert said is not None and float(said.group(1)) < 1.0  # the deviation's part only
+        assert abs(float(said.group(2)) - 67.1) < 3.0  # the UR5e's mount: 60 and 30 mm
+    fair = doc["nominal_before"]["fair_nominal_tool_rms_mm"]
+    assert f"before, without calibrating the kinematics {fair:.3f} mm (the fair nominal" in out
+    assert "the chain as drawn is no reference" in out
 
 
 @pytest.mark.slow

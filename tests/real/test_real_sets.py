@@ -494,7 +494,8 @@ def test_a_morning_check_at_the_calibrations_postures(name, outcome, runs_dir):
     shutil.copy(cal / "calibration.json", alone)
     p = subprocess.run([_selfcal_exe(), "check", str(alone), str(morning), "--json"],
                        capture_output=True, text=True, timeout=1200, check=False)  # fmt: skip
-    assert p.returncode in (0, 5), p.stdout + p.stderr
+    # 6: "cannot tell" (the fit's residuals there within the folds' error, drift/fold_error.py)
+    assert p.returncode in (0, 5, 6), p.stdout + p.stderr
     assert json.loads(p.stdout)["paired_images"] == 0
 
 

@@ -4,6 +4,7 @@ at image stamps and the five verdicts (rest, moving, gap, outside, empty)."""
 from __future__ import annotations
 
 import numpy as np
+from conftest import examples
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -19,7 +20,7 @@ def track(t_s, q, types=("revolute",)):
     )
 
 
-@settings(max_examples=50, deadline=None)
+@settings(max_examples=examples(50), deadline=None)
 @given(st.lists(st.integers(0, 10**12), min_size=2, max_size=40, unique=True),
        st.integers(0, 2**31))  # fmt: skip
 def test_readings_at_their_stamps_come_back_unchanged(stamps, seed):

@@ -6,6 +6,7 @@ board poses' noise of a real camera stage."""
 from __future__ import annotations
 
 import numpy as np
+from conftest import examples
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
@@ -44,7 +45,7 @@ def _errors(T: np.ndarray, truth: np.ndarray) -> tuple[float, float]:
     return float(np.degrees(dR)), float(np.linalg.norm(T[:3, 3] - truth[:3, 3]))
 
 
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=examples(60), deadline=None)
 @given(seed=st.integers(0, 2**32 - 1), n=st.integers(4, 12),
        setup=st.sampled_from(["eye-in-hand", "eye-to-hand"]))  # fmt: skip
 def test_noise_free_motions_give_the_exact_hand_eye(seed, n, setup):
@@ -57,7 +58,7 @@ def test_noise_free_motions_give_the_exact_hand_eye(seed, n, setup):
         assert deg < 3e-12 and m < 1e-13  # measured worst over 3000 draws: 6e-13 deg, 2e-14 m
 
 
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=examples(60), deadline=None)
 @given(seed=st.integers(0, 2**32 - 1), n=st.integers(4, 12),
        setup=st.sampled_from(["eye-in-hand", "eye-to-hand"]))  # fmt: skip
 def test_noisy_board_poses_keep_the_right_branch(seed, n, setup):

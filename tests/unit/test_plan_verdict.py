@@ -109,3 +109,38 @@ def test_with_the_selection_in_view_the_pool_set_that_predicts_best_is_the_plan(
     assert [s.min() for s in seen] == [0, 6, 12, 18]
     greedy = (greedy[0], _selected(3e-3, None), REF)
     assert _best_with_the_selection(26, 6, greedy, selected, lambda i: i)[3] == "greedy"
+
+
+def test_a_chain_as_drawn_without_its_mount_is_no_reference():
+    """`plan --add` on a robot file whose camera mount is not the calibrated one (no
+    [camera_mount]): the chain as drawn would go by that mount, so the fair nominal is the
+    reference even where the drawn figure is smaller, plan.json gives no drawn figure and the
+    words say why (before, 5.132 mm of a drawn chain that had no hand-eye was the reference)."""
+    why = "the robot file's camera mount lies 91.0 deg and 167.1 mm from the calibrated one"
+    ref = NominalReference(fair_m=18.419e-3, drawn_m=5.132e-3, drawn_why=why)
+    assert ref.best_m == 18.419e-3 and ref.what == "the fair nominal"
+    doc = ref.to_json()
+    assert doc["drawn_tool_rms_mm"] is None and doc["drawn_not_a_reference"] == why
+    assert doc["reference"] == "the fair nominal"
+    words = reference_words(ref, 39.827e-3)
+    assert words.startswith("without calibrating the kinematics 18.419 mm (the fair nominal; ")
+    assert f"the chain as drawn is no reference: {why})" in words and "5.132" not in words
+    assert "2.16 times it" in words and ref.beaten_by(0.7 * 18.419e-3)
+    assert REF.to_json()["drawn_not_a_reference"] is None and REF.what == "the chain as drawn"
+
+
+def test_the_drawn_mount_stands_within_five_times_the_deviation():
+    """The rule of `plan --add` (selfcal/calibration/board/plan/add.py): the robot file's mount
+    counts as drawn within MOUNT_FACTOR times the deviation of the calibrated one, in rotation
+    and in translation each."""
+    from selfcal.calibration.board.deviation import Deviation
+    from selfcal.calibration.board.plan.add import MOUNT_FACTOR, drawn_mount_words
+
+    dev = Deviation(1e-3, float(np.radians(0.5)))
+    near = SimpleNamespace(mount_off=(0.99 * MOUNT_FACTOR * dev.rotation_rad, 4.9e-3))
+    assert drawn_mount_words(near, dev) == ""  # type: ignore[arg-type]
+    for off in ((1.01 * MOUNT_FACTOR * dev.rotation_rad, 0.0), (0.0, 5.1e-3)):
+        words = drawn_mount_words(SimpleNamespace(mount_off=off), dev)  # type: ignore[arg-type]
+        assert "the chain as drawn has no hand-eye to go by" in words
+    words = drawn_mount_words(SimpleNamespace(mount_off=(np.radians(91.0), 0.1671)), dev)  # type: ignore[arg-type]
+    assert words.startswith("the robot file's camera mount lies 91.0 deg and 167.1 mm from")

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import examples
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
@@ -52,7 +53,7 @@ def test_nominal_mcpc_reproduces_the_description(name):
         assert np.abs(dp - along).max() < 1e-14
 
 
-@settings(max_examples=25, deadline=None)
+@settings(max_examples=examples(25), deadline=None)
 @given(
     seed=st.integers(0, 2**31 - 1),
     prismatic=st.lists(st.booleans(), min_size=1, max_size=12),

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import examples
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.optimize import least_squares
@@ -319,7 +320,7 @@ class _Pieces:
                               JacobianPiece("b", self.J_b, np.arange(k)[:, None])))  # fmt: skip
 
 
-@settings(max_examples=40, deadline=None)
+@settings(max_examples=examples(40), deadline=None)
 @given(seed=st.integers(0, 2**31 - 1), k=st.integers(2, 30), p_unused=st.floats(0.05, 0.6))
 def test_dense_normal_equations_with_unused_slots_match_the_sparse_ones(seed, k, p_unused):
     """Unused (-1) slots of a wide shared piece: the dense assembly equals ``J^T W J`` (it once

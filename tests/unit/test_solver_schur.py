@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import examples
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
@@ -98,7 +99,7 @@ def _weights(rng, evals):
     return [rng.uniform(0.2, 1.0, len(ev.residuals)) for ev in evals]
 
 
-@settings(max_examples=25, deadline=None)
+@settings(max_examples=examples(25), deadline=None)
 @given(seed=st.integers(0, 2**31 - 1))
 def test_schur_assembly_is_the_dense_normal_matrix(seed):
     rng = np.random.default_rng(seed)
@@ -201,7 +202,7 @@ def test_a_row_that_couples_two_instances_is_refused():
         assemble(prob, evals, _weights(rng, evals), "schur", prob.instance_of_columns("p"))
 
 
-@settings(max_examples=10, deadline=None)
+@settings(max_examples=examples(10), deadline=None)
 @given(seed=st.integers(0, 2**31 - 1))
 def test_the_covariance_of_kept_unknowns_through_the_schur_complement(seed):
     """covariance(..., eliminate=) of kept unknowns (the shared ``a``, two of ``p``'s shared
@@ -224,7 +225,7 @@ def test_the_covariance_of_kept_unknowns_through_the_schur_complement(seed):
     )
 
 
-@settings(max_examples=10, deadline=None)
+@settings(max_examples=examples(10), deadline=None)
 @given(seed=st.integers(0, 2**31 - 1))
 def test_the_normal_matrix_assembled_in_schur_form_is_that_of_the_sparse_jacobian(seed):
     """schur_normal_matrix (the joint refinement's rank check without a sparse Jacobian of

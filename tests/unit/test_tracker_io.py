@@ -7,6 +7,7 @@ import json
 import hypothesis.strategies as st
 import numpy as np
 import pytest
+from conftest import examples
 from hypothesis import given, settings
 from hypothesis.extra.numpy import arrays
 
@@ -95,7 +96,7 @@ def test_newer_or_damaged_tracker_calibration_is_refused(tmp_path):
         read_tracker_calibration(path)
 
 
-@settings(max_examples=40, deadline=None)
+@settings(max_examples=examples(40), deadline=None)
 @given(
     values=arrays(
         float,

@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from selfcal.calibration.board.accuracy import board_accuracy
+from selfcal.calibration.board.bootstrap import BoardFitInputs, SpreadPoints
 from selfcal.calibration.board.bounds import BoardCramerRao, board_bounds
 from selfcal.calibration.board.calibrate import BoardInputError, calibrate_board
 from selfcal.calibration.board.deviation import Deviation
@@ -178,6 +179,10 @@ class BoardDatasetCalibration:
     observations: BoardObservations | None = None
     """What the fits shared (:class:`selfcal.calibration.board.refine.BoardObservations`: the
     fold fits' data, for the benchmarks that replay them; None without bounds)."""
+    inputs: BoardFitInputs | None = None
+    """What the fit was given, for refits of resampled frames (None for a rig of cameras)."""
+    spread_points: SpreadPoints | None = None
+    """Where the run-to-run spread is evaluated (the accuracy block's sample; None without)."""
 
 
 def calibrate_board_dataset(
@@ -389,6 +394,7 @@ def calibrate_board_dataset_detailed(
     else:
         obs = BoardObservations(board, res.board, feats, q, rig, [o[0] for o in others], js, e2h,
                                 tuple(terms))  # fmt: skip
+    points = None
     if obs is not None and accuracy:  # the predicted tool-point accuracy (issue #29)
         assert cr is not None
         try:
@@ -397,13 +403,18 @@ def calibrate_board_dataset_detailed(
                                  deviation=deviation)  # fmt: skip
             jitter = _view_jitter(obs, result, bounds.pixel_sigma_px)
             block = acc.to_json() | ({} if jitter is None else {KEY: jitter.to_json()})
-            spread = jackknife_spread(sel, inv_pose(mount), acc.sample, acc.q_cal)
+            points = SpreadPoints.of(acc.sample, acc.q_cal, inv_pose(mount))
+            spread = jackknife_spread(sel, points)
             block["spread"] = None if spread is None else spread.to_json()  # run to run
             result = dataclasses.replace(result, accuracy=block)
         except np.linalg.LinAlgError as exc:
             text = f"no predicted accuracy: a fold's Fisher information cannot be inverted ({exc})"
             result = dataclasses.replace(result, warnings=(*result.warnings, text))
-    return BoardDatasetCalibration(result, res, all_feats, q, cr, obs)
+    inputs = None
+    if rig is None:
+        inputs = BoardFitInputs(board, tuple(feats), q, nominal, (W, H), model_name, tuple(free),
+                                tuple(names), js, ds.info.initial_camera(cam), e2h, tuple(terms))  # fmt: skip
+    return BoardDatasetCalibration(result, res, all_feats, q, cr, obs, inputs, points)
 
 
 def _view_jitter(obs: BoardObservations, result: BoardCalibrationResult,

@@ -4,6 +4,11 @@ wrist's last three, all of a chain of three or fewer -- are equal within
 :data:`SAME_CONFIGURATION` form one configuration, and the configurations are the folds, at most
 :data:`MAX_FOLDS` of them. The plan's forecast of the selection
 (:mod:`selfcal.calibration.board.plan.selection`) and ``selfcal plan --add`` use the same folds.
+
+The order of the frames is irrelevant (issue #29): the frames are grouped in the lexicographic
+order of their arm joints (the first joint first) and the configurations numbered in that order,
+so the labels, and the folds dealt from them, are a function of each frame's joints and the set
+of all frames' joints, never of the rows' order.
 """
 
 from __future__ import annotations
@@ -29,14 +34,17 @@ def _arm(q: np.ndarray, joint_types: tuple[str, ...]) -> tuple[np.ndarray, np.nd
 
 
 def configurations(q: np.ndarray, joint_types: tuple[str, ...]) -> np.ndarray:
-    """(m,) the configuration of every frame of the joints ``q`` (m, n) rad / m: frames whose
-    arm joints (all but the last three when there are more than three) are all within
-    :data:`SAME_CONFIGURATION` (0.1 deg, 0.1 mm) of a configuration's first frame belong to it;
-    numbered in order of appearance."""
+    """(m,) the configuration of every frame of the joints ``q`` (m, n) rad / m: taken in the
+    lexicographic order of their arm joints (all but the last three when there are more than
+    three; the first joint first), a frame whose arm joints are all within
+    :data:`SAME_CONFIGURATION` (0.1 deg, 0.1 mm) of a configuration's first frame belongs to it,
+    else starts the next. So the configurations are numbered by their joints (the smallest first
+    joint first), and a permutation of the rows permutes the labels alike (module docstring)."""
     arm, tol = _arm(q, joint_types)
+    label = np.empty(len(arm), dtype=int)
     reps: list[np.ndarray] = []
-    label = np.empty(len(q), dtype=int)
-    for i, a in enumerate(arm):
+    for i in np.lexsort(arm.T[::-1]):  # stable; rows it ties are equal and so labelled alike
+        a = arm[i]
         for k, r in enumerate(reps):
             if np.all(np.abs(a - r) <= tol):
                 label[i] = k
@@ -49,8 +57,9 @@ def configurations(q: np.ndarray, joint_types: tuple[str, ...]) -> np.ndarray:
 
 def fold_labels(config: np.ndarray) -> np.ndarray:
     """(m,) the fold of every frame: its configuration, dealt into :data:`MAX_FOLDS` folds when
-    there are more configurations (configuration ``k`` to fold ``k % MAX_FOLDS``: each fold then
-    holds configurations from the whole recording)."""
+    there are more configurations (configuration ``k`` to fold ``k % MAX_FOLDS``: numbered by
+    their joints, :func:`configurations`, each fold then holds configurations from the whole
+    range of the first joint)."""
     config = np.asarray(config, dtype=int)
     return config % MAX_FOLDS if config.max(initial=-1) + 1 > MAX_FOLDS else config.copy()
 

@@ -141,7 +141,8 @@ class Selection:
     rule: str
     notes: list[str] = field(default_factory=list)
     fold_of: np.ndarray | None = field(default=None, repr=False)
-    """(m,) every frame's cross-validation fold (:func:`selfcal.calibration.board.folds.fold_labels`), None without folds."""
+    """(m,) every frame's cross-validation fold (:func:`selfcal.calibration.board.folds.fold_labels`
+    of the frames with the board; -1: a frame without it), None without folds."""
 
     @property
     def fit(self) -> Refinement:
@@ -256,9 +257,13 @@ def select_parameters(obs: BoardObservations, nominal_fit: MCPCModel, *,
     used = obs.used
     pool = parameter_pool(nominal_fit, obs.q[used], obs.terms)
     cands = nested_candidates(pool)
-    config = configurations(obs.q, nominal_fit.joint_types)
+    # the frames with the board alone are numbered and dealt (a frame without it, -1, is in no
+    # fold): the plan's forecast of the same postures deals the same folds
+    config = np.full(len(obs.q), -1)
+    config[used] = configurations(obs.q[used], nominal_fit.joint_types)
     n_config = len(np.unique(config[used]))
-    folds = fold_labels(config)
+    folds = np.full(len(obs.q), -1)
+    folds[used] = fold_labels(config[used])
     n_folds = len(np.unique(folds[used]))
     notes = []
     if n_folds < 2:

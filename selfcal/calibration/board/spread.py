@@ -16,40 +16,44 @@ of the workspace sample and at the calibration postures as the largest and the m
 (:class:`selfcal.calibration.spread.Spread`, ``accuracy.spread``). It costs no fit beyond the
 cross-validation's.
 
-The folds are symmetric in it, so the order of the dataset's frames does not change it as long
-as the configurations are the folds (at most :data:`selfcal.calibration.board.folds.MAX_FOLDS`);
-beyond that the configurations are dealt into the folds in their order of appearance. What it
-cannot see: a model error every fold shares; with few folds (``k - 1`` degrees of freedom) the
-spread is itself uncertain (about +-35 % at 5 folds, 1 standard deviation); a fold whose
-training frames could not determine some parameters held them at the fair nominal's value
-(``held_folds``): its fit differs in kind, and the spread then over-states.
+The folds are symmetric in it, and the configurations are numbered by their joints before they
+are dealt into the folds (:func:`selfcal.calibration.board.folds.configurations`), so the order
+of the dataset's frames does not change it (tests/integration/test_board_analytic.py shuffles
+them through ``selfcal calibrate``). What it cannot see: a model error every fold shares; with
+few folds (``k - 1`` degrees of freedom) the spread is itself uncertain (about +-35 % at 5
+folds, 1 standard deviation); a fold whose training frames could not determine some parameters
+held them at the fair nominal's value (``held_folds``): its fit differs in kind, and the spread
+then over-states. And the jackknife's
+variance is biased upward (Efron and Stein) when a fold holds a large share of the information,
+few configurations for many parameters: for a linear least-squares fit with 15 configurations
+of 2 rows in 5 folds it over-states the variance 1.08 times on average with one parameter, 1.25
+with four and 1.55 with eight, 1.04-1.05 with 150 rows or 60 configurations for four
+(:mod:`selfcal.benchmarks.jackknife_bias`); a board fit has tens of parameters.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from selfcal.calibration.board.bootstrap import SpreadPoints
 from selfcal.calibration.board.param_selection import Selection
-from selfcal.calibration.spread import JACKKNIFE, REGIONS, Spread, region_spread
+from selfcal.calibration.spread import JACKKNIFE, Spread, region_spread
 from selfcal.kinematics.accuracy import tool_tips
-from selfcal.kinematics.tool_error import WorkspaceSample
 
 __all__ = ["WHAT", "jackknife_spread"]
 
 WHAT = (
-    "delete-a-configuration jackknife over the cross-validation folds' fits of the chosen "
+    "delete-a-fold jackknife over the cross-validation folds' fits of the chosen "
     "candidate: sqrt((k - 1) / k * sum |t_i - t_mean|^2) of the folds' tool points t_i, per "
     "joint vector (mm)"
 )
 
 
-def jackknife_spread(selection: Selection, T_tool_point: np.ndarray, sample: WorkspaceSample,
-                     q_cal: np.ndarray) -> Spread | None:  # fmt: skip
+def jackknife_spread(selection: Selection, points: SpreadPoints) -> Spread | None:
     """The jackknife spread of the board calibration whose parameter selection is ``selection``
-    (module docstring): ``T_tool_point`` the flange in the chain's tool frame, ``sample`` the
-    workspace sample, ``q_cal`` (m, n) rad / m the calibration postures; the block's
-    ``held_folds`` counts the folds whose fit held parameters at the fair nominal. None without
-    folds or with fewer than two fitted."""
+    (module docstring) at ``points`` (the workspace sample's regions and the calibration
+    postures, the tool point); the block's ``held_folds`` counts the folds whose fit held
+    parameters at the fair nominal. None without folds or with fewer than two fitted."""
     if selection.fold_of is None:
         return None
     cand = selection.candidates[selection.chosen]
@@ -57,13 +61,9 @@ def jackknife_spread(selection: Selection, T_tool_point: np.ndarray, sample: Wor
     k = len(fits)
     if k < 2:
         return None
-    qs = {name: getattr(sample, name) for name in REGIONS[:3]}
-    qs["calibration_postures"] = np.asarray(q_cal, dtype=float)
     squared = {}
-    for name, q in qs.items():
-        if not len(q):
-            continue
-        t = np.stack([tool_tips(fit.model, q, T_tool_point) for fit in fits])  # (k, m, 3)
+    for name, q in points.qs.items():
+        t = np.stack([tool_tips(fit.model, q, points.T_tool_point) for fit in fits])  # (k, m, 3)
         squared[name] = (k - 1) / k * np.sum((t - t.mean(axis=0)) ** 2, axis=(0, 2))
     held = sum(1 for f in cand.fold_fits if cand.fold_held.get(f))
     return Spread(k, selection.folds - k, region_spread(squared), WHAT, JACKKNIFE,

@@ -37,7 +37,11 @@ and its rotation, its world's translation and rotation, one joint's offset) is a
 much its fit lowers ``T`` is chi-square with its parameter count. The robot has changed when
 the smallest of these ``1 + 5 + n`` p-values, times their count (Bonferroni,
 :func:`selfcal.calibration.drift.p_value.combined_p`), is below ``alpha`` (0.01): when
-``Sigma`` is right, at most ``alpha`` of the checks of an unchanged robot say "changed".
+``Sigma`` is right, at most ``alpha`` of the checks of an unchanged robot say "changed". Where
+the calibration's frames showed a per-view misfit, a failed test is run again with its own
+folds' error at the configurations they left out as each view's model error
+(:mod:`selfcal.calibration.drift.fold_error`, :func:`fold_recheck`): "changed" only if it fails
+that too, else "cannot tell" (on real arms ``Sigma`` is wrong at a new configuration).
 
 New images that are the calibration's own frames (the same joint readings and detections) are
 left out of the test and counted (:mod:`selfcal.calibration.drift.own`: their residuals are the
@@ -49,10 +53,8 @@ views' noise, with no ``H C H^T``); without a misfit the new view alone is the s
 noise once, not twice).
 
 The change at the tool: the RMS over the new postures of the tool point's (the flange's) move
-by the candidate change that fits best, fitted; when that is the camera (which moves no tool
-point) the verdict bounds what a kinematic change fitted beside it moves the tool point
-(:func:`kinematic_bound_mm`). A single view's own
-best tool-point move is no measure of it: one view knows it poorly along its line of sight.
+by the best-fitting candidate change; the camera (no tool point move) gives the bound of a
+kinematic change fitted beside it (:func:`kinematic_bound_mm`).
 
 What changed (:mod:`selfcal.calibration.drift.attribution`) is named only when one kind of
 small change alone explains the residuals. Only the first camera is checked (a rig's other
@@ -62,6 +64,7 @@ whole check from the files (``selfcal check`` and the public API). Nothing here 
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -72,12 +75,17 @@ from scipy.stats import chi2
 from selfcal.calibration.board.accuracy import board_error_model_from_json, board_postures_from_json
 from selfcal.calibration.board.evaluate import held_out_views
 from selfcal.calibration.board.folds import unseen
-from selfcal.calibration.board.view_jitter import view_jitter_from_json
 from selfcal.calibration.drift.attribution import Attribution, Fits, attribute, candidate_fits
+from selfcal.calibration.drift.fold_error import fold_error_model
 from selfcal.calibration.drift.own import JOINT_TOL, calibration_frames, own_views
 from selfcal.calibration.drift.p_value import combined_p, min_p, p_text
 from selfcal.calibration.drift.paired import paired_views, posture_tol
-from selfcal.calibration.drift.views import ViewJacobians, view_jacobians
+from selfcal.calibration.drift.views import (
+    ViewJacobians,
+    ViewNoise,
+    calibration_views,
+    view_noise,
+)
 from selfcal.errors import InputError
 from selfcal.io.board_calibration import (
     BoardCalibrationResult,
@@ -95,6 +103,7 @@ __all__ = [
     "calibration_error_model",
     "check_images",
     "estimate_covariance",
+    "fold_recheck",
     "image_drift_check",
     "view_noise",
 ]
@@ -114,6 +123,12 @@ OWN_NOTE = (
 )
 """What a verdict says of new images that are the calibration's own frames (their joint
 readings and board detections, :mod:`selfcal.calibration.drift.own`): left out of the test."""
+CANNOT_TELL_NOTE = (
+    "a change this small cannot be told from how the calibration predicts configurations it did "
+    "not see; check with images at the calibration's own postures (paired with its frames "
+    "there) or calibrate with these configurations"
+)
+"""What a "cannot tell" verdict adds (:func:`fold_recheck`)."""
 BOUND_LEVEL = 0.95
 """The confidence of the tool-point bound a camera change's verdict gives."""
 
@@ -141,7 +156,9 @@ class ImageDriftCheck:
         verdict gives it where the tool point moves less than 0.001 mm, as a wrist joint's
         offset turns the tool about the flange); paired: how many of the ``views`` were
         tested against the calibration's frame at the same posture, repeated: how many more
-        there were tested as new (:mod:`selfcal.calibration.drift.paired`).
+        there were tested as new (:mod:`selfcal.calibration.drift.paired`). undecided: "cannot
+        tell": failed, but not with the folds' error fold_error_mm / _deg per coordinate
+        (:func:`fold_recheck`; 0 when not applied) as the views' model error (p fold_p_value).
     """
 
     views: int
@@ -163,6 +180,10 @@ class ImageDriftCheck:
     turn_deg: float = 0.0
     paired: int = 0
     repeated: int = 0
+    undecided: bool = False
+    fold_error_mm: float = 0.0
+    fold_error_deg: float = 0.0
+    fold_p_value: float = float("nan")
 
     def _own_line(self) -> str:
         if not self.own:
@@ -191,9 +212,20 @@ class ImageDriftCheck:
         elif self.changed:
             out = (f"changed by {self.change_mm:.3f} mm at the tool point (the flange, as the "
                    f"best single change, {self.best}, fits it; {fit})")  # fmt: skip
+        if self.undecided:
+            return (f"cannot tell: {fit}, but this calibration's own folds missed the arm "
+                    f"configurations they left out by {self.fold_error_mm:.3f} mm and "
+                    f"{self.fold_error_deg:.3f} deg of tool pose per coordinate beyond their "
+                    f"estimate and noise, and with that error the new images fit "
+                    f"({p_text(self.fold_p_value)}): {CANNOT_TELL_NOTE}" + self._own_line())  # fmt: skip
         if self.changed:
             out = out if self.attribution is None else f"{out}; {self.attribution.line()}"
-            if self.unseen:
+            if np.isfinite(self.fold_p_value):
+                out += (f"; changed also with the calibration's own folds' error at "
+                        f"configurations they left out ({self.fold_error_mm:.3f} mm, "
+                        f"{self.fold_error_deg:.3f} deg per coordinate; "
+                        f"{p_text(self.fold_p_value)})")  # fmt: skip
+            elif self.unseen:
                 out += (f"; {self.unseen} of {self.views} image(s) at arm configurations the "
                         f"calibration did not see: {UNSEEN_NOTE}")  # fmt: skip
             return out + self._own_line()
@@ -204,7 +236,11 @@ class ImageDriftCheck:
     def to_json(self) -> dict:
         """The result as JSON (px, mm)."""
         return {
-            "verdict": "changed" if self.changed else "unchanged",
+            "verdict": "changed"
+            if self.changed
+            else "cannot tell"
+            if self.undecided
+            else "unchanged",
             "line": self.line(),
             "images": self.views,
             "own_images": self.own,
@@ -226,6 +262,11 @@ class ImageDriftCheck:
             "mean_tool_point_mm": self.mean_tip_mm.tolist(),
             "cause": None if self.attribution is None else self.attribution.to_json(),
             "unseen_configuration_images": self.unseen,
+            "fold_model_error_mm": self.fold_error_mm,
+            "fold_model_error_deg": self.fold_error_deg,
+            "p_value_with_fold_error": (
+                self.fold_p_value if np.isfinite(self.fold_p_value) else None
+            ),  # fmt: skip
         }
 
 
@@ -233,11 +274,14 @@ def _covariance(C: np.ndarray, views: list[ViewJacobians]) -> np.ndarray:
     """``Sigma`` (module docstring) of the stacked views, ``C`` the estimate's covariance."""
     H = np.concatenate([np.concatenate([v.kin, v.cam], axis=1) * (not v.paired) for v in views])
     sigma = H @ C @ H.T  # a paired view's estimate cancels (selfcal.calibration.drift.paired)
-    at = 0
-    for v in views:
-        k = len(v.r)
-        sigma[at : at + k, at : at + k] += v.local
-        at += k
+    at = np.cumsum([0] + [len(v.r) for v in views])
+    for i, v in enumerate(views):
+        sigma[at[i] : at[i + 1], at[i] : at[i + 1]] += v.local
+        for j, w in enumerate(views[:i]):  # views paired with one frame share its noise
+            if v.frame is not None and w.frame is not None and w.frame[0] == v.frame[0]:
+                shared = v.frame[2][np.ix_(v.frame[1], w.frame[1])]
+                sigma[at[i] : at[i + 1], at[j] : at[j + 1]] += shared
+                sigma[at[j] : at[j + 1], at[i] : at[i + 1]] += shared.T
     return sigma
 
 
@@ -346,6 +390,23 @@ def image_drift_check(C: np.ndarray, views: list[ViewJacobians], *,
     )  # fmt: skip
 
 
+def fold_recheck(res: ImageDriftCheck, wide: ToolErrorModel | None,
+                 views_of: Callable[[ToolErrorModel], list[ViewJacobians]], C: np.ndarray, *,
+                 eye_to_hand: bool, alpha: float = ALPHA) -> ImageDriftCheck:  # fmt: skip
+    """The verdict ``res`` of the views ``views_of(em)``, when it says changed, tested again at
+    ``wide`` (:func:`selfcal.calibration.drift.fold_error.fold_error_model`, the calibration's
+    folds' error at configurations they left out as the model error; None: ``res`` stands):
+    changed when they fail that too, else "cannot tell" (``undecided``); ``C`` as before."""
+    if not res.changed or wide is None:
+        return res
+    again = image_drift_check(C, views_of(wide), eye_to_hand=eye_to_hand, alpha=alpha)
+    res = replace(res, fold_error_mm=wide.model_error_m * 1e3, fold_p_value=again.p_value,
+                  fold_error_deg=float(np.degrees(wide.model_error_rad or 0.0)))  # fmt: skip
+    if again.changed:
+        return res
+    return replace(res, changed=False, undecided=True, attribution=None, tool_bound_mm=0.0)
+
+
 def calibration_error_model(cal: BoardCalibrationResult, where: str) -> ToolErrorModel:
     """The calibration's :class:`ToolErrorModel` (its ``accuracy`` block).
 
@@ -359,73 +420,6 @@ def calibration_error_model(cal: BoardCalibrationResult, where: str) -> ToolErro
             fix="re-run `selfcal calibrate` on the calibration's dataset",
         )
     return board_error_model_from_json(cal.accuracy, cal.model, where)
-
-
-@dataclass(frozen=True)
-class ViewNoise:
-    """A calibration's noise levels for new views (:func:`view_noise`): the white corner noise
-    ``pixel_sigma_px`` (px), the joint read-back ``joint_sigma_rad`` (n,) or None, the per-view
-    pose ``jitter`` (6, 6) (m, rad) or None (a file written before ``pose_misfit_px``), the
-    misfit per camera direction ``camera_misfit_px`` (px) and per direction of a view's pose
-    span ``pose_misfit_px`` (px; 0 where ``jitter`` is used or nothing is counted)."""
-
-    pixel_sigma_px: float
-    joint_sigma_rad: np.ndarray | None
-    jitter: np.ndarray | None
-    camera_misfit_px: float
-    pose_misfit_px: float = 0.0
-
-    @property
-    def misfit_counted(self) -> bool:
-        """Did the calibration's own frames show a per-view misfit beyond the corner noise (what
-        :mod:`selfcal.calibration.drift.paired` cancels at their postures)?"""
-        return self.jitter is not None or self.pose_misfit_px > 0 or self.camera_misfit_px > 0
-
-
-def view_noise(cal: BoardCalibrationResult, where: str = "calibration.json") -> ViewNoise:
-    """The noise the check gives each new view of the calibration ``cal``: its bounds' corner and
-    joint noise and, when its own frames showed a per-view misfit (``accuracy.view_jitter``
-    counted), that jitter (or its misfit per pose direction, where the block gives one), its
-    camera misfit and its white corner noise in place of the bounds' (which holds the misfit's
-    energy: :mod:`selfcal.calibration.board.view_jitter`); a file written before the white
-    noise keeps the bounds' noise. ``where`` the calibration's file, for the
-    error a malformed block raises.
-
-    Raises:
-        InputError: the accuracy block's ``view_jitter`` is malformed (names ``where``).
-    """
-    assert cal.bounds is not None
-    js = cal.bounds.joint_sigma_deg
-    js_rad = None if js is None else np.radians(np.asarray(js, float))
-    found = view_jitter_from_json(cal.accuracy, where)
-    if found is None or not found.counted:
-        return ViewNoise(cal.bounds.pixel_sigma_px, js_rad, None, 0.0)
-    if found.white_px is None:
-        return ViewNoise(cal.bounds.pixel_sigma_px, js_rad, found.covariance, 0.0)
-    cam = found.camera_misfit_px or 0.0
-    if found.pose_misfit_px is None:  # written before it: the jitter's mean carried to the view
-        return ViewNoise(found.white_px, js_rad, found.covariance, cam)
-    return ViewNoise(found.white_px, js_rad, None, cam, found.pose_misfit_px)
-
-
-def calibration_views(cal: BoardCalibrationResult, em: ToolErrorModel, q: np.ndarray,
-                      views: list[tuple[int, np.ndarray, np.ndarray]], *,
-                      where: str = "calibration.json") -> list[ViewJacobians]:  # fmt: skip
-    """The first camera's ``views`` (frame ``f`` into ``q`` (m, n) rad / m, board points ``X``
-    (k, 3) m, detected ``uv`` (k, 2) px) linearised at the calibration ``cal`` (``em`` its
-    error model) with its noise (:func:`view_noise`); ``where`` the calibration's file, for the
-    error a malformed block raises.
-
-    Raises:
-        InputError: the accuracy block's ``view_jitter`` is malformed (names ``where``).
-    """
-    noise = view_noise(cal, where)
-    return [view_jacobians(em, cal.cameras[0], q[f], X, uv, eye_to_hand=cal.eye_to_hand,
-                           pixel_sigma_px=noise.pixel_sigma_px,
-                           joint_sigma_rad=noise.joint_sigma_rad, jitter=noise.jitter,
-                           camera_misfit_px=noise.camera_misfit_px,
-                           pose_misfit_px=noise.pose_misfit_px)
-            for f, X, uv in views]  # fmt: skip
 
 
 def estimate_covariance(cal: BoardCalibrationResult, em: ToolErrorModel) -> np.ndarray:
@@ -490,10 +484,18 @@ def check_images(calibration: str | Path, new_data: str | Path, *,
             "postures), not the calibration's dataset",
         )
     q_cal = board_postures_from_json(cal.accuracy or {}, cal.model.n, str(path))
+
+    def views_of(m: ToolErrorModel) -> list[ViewJacobians]:
+        views = calibration_views(cal, m, held.q, new, where=str(path))
+        return paired_views(cal, path, held, mine, new, views, em=m, noise=noise)[0]
+
     views = calibration_views(cal, em, held.q, new, where=str(path))
     tested, repeated = paired_views(cal, path, held, mine, new, views, em=em, noise=noise)
-    res = image_drift_check(estimate_covariance(cal, em), tested, eye_to_hand=cal.eye_to_hand,
+    C = estimate_covariance(cal, em)
+    res = image_drift_check(C, tested, eye_to_hand=cal.eye_to_hand,
                             camera_names=cal.cameras[0].free, alpha=alpha)  # fmt: skip
+    res = fold_recheck(res, fold_error_model(em, cal.accuracy, noise.misfit_counted), views_of, C,
+                       eye_to_hand=cal.eye_to_hand, alpha=alpha)  # fmt: skip
     far = unseen(held.q[[f for f, _, _ in new]], q_cal, cal.model.joint_types)
     return replace(res, unseen=int(np.count_nonzero(far)), own=int(np.count_nonzero(own)),
                    paired=sum(v.paired for v in tested), repeated=repeated)  # fmt: skip

@@ -24,9 +24,11 @@ without it the new view alone is the stronger test, its noise counted once rathe
 0.2 mm mount shift at 0.2 px found in 86 % of the simulated checks at the calibration's postures
 alone, 55 % paired: ``python -m selfcal.benchmarks.drift_morning``).
 
-Each frame is paired with one new view, the first at its posture: two differences from one
-frame share its noise, which the check's covariance (independent per view) does not hold; a
-further view there is tested as a new one and counted.
+Every new view at a frame's posture is paired with it; two differences from one frame share
+its noise on the points both compare (``Cov(d1, d2) = Sigma_cal`` there), which the check's
+covariance holds as the off-diagonal blocks of those views
+(:func:`selfcal.calibration.drift.images._covariance`; before, each frame was paired with one
+new view and the further ones tested as new).
 
 What this assumes: the misfit at a posture repeats when the arm returns to it (the readings
 within a few encoder counts, :func:`posture_tol`). A misfit that differs between exposures at one posture (a board
@@ -148,30 +150,41 @@ def _pair(views: list[ViewJacobians], new: list[tuple[int, np.ndarray, np.ndarra
           joint_sigma_rad: np.ndarray | None,
           tol: float | np.ndarray) -> tuple[list[ViewJacobians], int]:  # fmt: skip
     """:func:`pair_views` and how many further new views at a paired frame's posture it tested
-    as new ones: each frame is paired once, since two differences from one frame share its
-    noise (``Cov(d1, d2) = Sigma_cal`` on their shared points), which the check's covariance,
-    independent per view, does not hold (3 / 5 new views at one posture all paired: 25 % /
-    50 % false alarms at alpha 0.05 in the unit test's scene)."""
+    as new ones (none: every view at a frame's posture is paired with it). Two differences from
+    one frame share its noise (``Cov(d1, d2) = Sigma_cal`` on their shared points): each paired
+    view carries its frame's noise over all the frame's points (``frame``), from which the
+    check's covariance takes those blocks (without them 3 / 5 new views at one posture all
+    paired gave 25 % / 50 % false alarms at alpha 0.05 in the unit test's scene)."""
     if not frames:
         return list(views), 0
     at = same_posture(
         np.array([q[f] for f, _, _ in new]), np.asarray(q_frames)[[f for f, _, _ in frames]], tol
     )
     quiet = dataclasses.replace(em, model_error_m=0.0, model_error_rad=0.0)  # it repeats: cancels
-    out, used, repeated = [], set(), 0
+
+    def lin(qv: np.ndarray, Xv: np.ndarray, uvv: np.ndarray) -> ViewJacobians:
+        return view_jacobians(quiet, camera, qv, Xv, uvv, eye_to_hand=eye_to_hand,
+                              pixel_sigma_px=pixel_sigma_px, joint_sigma_rad=joint_sigma_rad)  # fmt: skip
+
+    whole: dict[int, ViewJacobians] = {}  # each paired frame over all its points
+    out = []
     for v, (f, X, uv), i in zip(views, new, at, strict=True):
-        ia, ib = _shared(X, frames[i][1]) if i >= 0 else ((), ())
-        if len(ia) < MIN_SHARED or i in used:
-            repeated += bool(len(ia) >= MIN_SHARED)
+        if i < 0:
             out.append(v)
             continue
-        used.add(i)
+        ia, ib = _shared(X, frames[i][1])
+        if len(ia) < MIN_SHARED:
+            out.append(v)
+            continue
         fc, Xc, uvc = frames[i]
-        a, b = (view_jacobians(quiet, camera, qv, Xv, uvv, eye_to_hand=eye_to_hand,
-                               pixel_sigma_px=pixel_sigma_px, joint_sigma_rad=joint_sigma_rad)
-                for qv, Xv, uvv in ((q[f], X[ia], uv[ia]), (q_frames[fc], Xc[ib], uvc[ib])))  # fmt: skip
-        out.append(dataclasses.replace(a, r=a.r - b.r, local=a.local + b.local, paired=True))
-    return out, repeated
+        if i not in whole:
+            whole[i] = lin(q_frames[fc], Xc, uvc)
+        a, b = lin(q[f], X[ia], uv[ia]), whole[i]
+        rows = np.stack([2 * ib, 2 * ib + 1], axis=1).reshape(-1)
+        out.append(dataclasses.replace(a, r=a.r - b.r[rows], paired=True,
+                                       local=a.local + b.local[np.ix_(rows, rows)],
+                                       frame=(int(i), rows, b.local)))  # fmt: skip
+    return out, 0
 
 
 def paired_views(cal: BoardCalibrationResult, path: Path, held: HeldOutViews,

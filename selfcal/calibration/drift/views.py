@@ -14,14 +14,22 @@ from dataclasses import dataclass
 import numpy as np
 
 from selfcal.calibration.board.misfit import board_view, tip_map
-from selfcal.calibration.board.view_jitter import camera_directions
+from selfcal.calibration.board.view_jitter import camera_directions, view_jitter_from_json
 from selfcal.camera import CameraModel
 from selfcal.estimation.kinematic_poses import joint_twists
+from selfcal.io.board_calibration import BoardCalibrationResult
 from selfcal.kinematics.forward import fk_tool, identification_jacobian
 from selfcal.kinematics.tool_error import ToolErrorModel
 from selfcal.transforms import adjoint, inv_pose
 
-__all__ = ["ViewJacobians", "view_jacobians"]
+__all__ = [
+    "ViewJacobians",
+    "ViewNoise",
+    "calibration_views",
+    "tool_pose_error",
+    "view_jacobians",
+    "view_noise",
+]
 
 
 @dataclass(frozen=True)
@@ -44,6 +52,10 @@ class ViewJacobians:
         paired: ``r`` is the difference from the calibration's own frame at the same posture
             (:mod:`selfcal.calibration.drift.paired`): the calibration's estimate cancels in
             it (no ``H C H^T`` term) and ``local`` is both views' noise.
+        frame: a paired view's frame, ``(key, rows, noise)``: the frame's index among the
+            calibration's, the rows (2k,) of its pixels ``r`` subtracts and the frame's noise
+            (2K, 2K) px^2 over all its pixels: two views paired with one frame share its noise
+            on their common rows (``Cov(d1, d2) = noise[rows1, rows2]``); None otherwise.
     """
 
     r: np.ndarray
@@ -57,6 +69,16 @@ class ViewJacobians:
     Ad: np.ndarray
     tw: np.ndarray
     paired: bool = False
+    frame: tuple[int, np.ndarray, np.ndarray] | None = None
+
+
+def tool_pose_error(A: np.ndarray, B: np.ndarray, m2: np.ndarray) -> np.ndarray:
+    """(2k, 2k) px^2 a view's covariance from an error of the tool pose with the variances
+    ``m2`` (6,) per tool-point coordinate (m^2) and rotation coordinate (rad^2), world frame:
+    ``A`` (2k, 6) the pixels' derivative by a body twist of the chain's tool, ``B`` (6, 6) its
+    map to the tool point's move and rotation (:class:`ViewJacobians`)."""
+    tip = A @ np.linalg.inv(B)  # pixels by a move of the tool point and a rotation (world)
+    return (tip * m2) @ tip.T
 
 
 def view_jacobians(em: ToolErrorModel, camera: CameraModel, q: np.ndarray, X: np.ndarray,
@@ -78,13 +100,12 @@ def view_jacobians(em: ToolErrorModel, camera: CameraModel, q: np.ndarray, X: np
     _, uv_hat, A, Jc = board_view(camera, T, X, eye_to_hand)
     t = np.zeros(3) if em.T_tool_point is None else np.asarray(em.T_tool_point)[:3, 3]
     B = tip_map(T, t)
-    tip = A @ np.linalg.inv(B)  # pixels by a move of the tool point and a rotation (world)
     rot = 0.0 if em.model_error_rad is None else em.model_error_rad
     m2 = np.r_[np.full(3, em.model_error_m**2), np.full(3, rot**2)] * em.model_error_factor(q)[0]
     tw = joint_twists(model, q[None])[0]
     joints = A @ tw
     Ad = adjoint(inv_pose(T))
-    local = (tip * m2) @ tip.T + pixel_sigma_px**2 * np.eye(len(A))
+    local = tool_pose_error(A, B, m2) + pixel_sigma_px**2 * np.eye(len(A))
     if jitter is not None:
         local += A @ np.asarray(jitter, float) @ A.T
     if pose_misfit_px > 0.0:
@@ -106,3 +127,70 @@ def view_jacobians(em: ToolErrorModel, camera: CameraModel, q: np.ndarray, X: np
         Ad=Ad,
         tw=tw,
     )
+
+
+@dataclass(frozen=True)
+class ViewNoise:
+    """A calibration's noise levels for new views (:func:`view_noise`): the white corner noise
+    ``pixel_sigma_px`` (px), the joint read-back ``joint_sigma_rad`` (n,) or None, the per-view
+    pose ``jitter`` (6, 6) (m, rad) or None (a file written before ``pose_misfit_px``), the
+    misfit per camera direction ``camera_misfit_px`` (px) and per direction of a view's pose
+    span ``pose_misfit_px`` (px; 0 where ``jitter`` is used or nothing is counted)."""
+
+    pixel_sigma_px: float
+    joint_sigma_rad: np.ndarray | None
+    jitter: np.ndarray | None
+    camera_misfit_px: float
+    pose_misfit_px: float = 0.0
+
+    @property
+    def misfit_counted(self) -> bool:
+        """Did the calibration's own frames show a per-view misfit beyond the corner noise (what
+        :mod:`selfcal.calibration.drift.paired` cancels at their postures)?"""
+        return self.jitter is not None or self.pose_misfit_px > 0 or self.camera_misfit_px > 0
+
+
+def view_noise(cal: BoardCalibrationResult, where: str = "calibration.json") -> ViewNoise:
+    """The noise the check gives each new view of the calibration ``cal``: its bounds' corner and
+    joint noise and, when its own frames showed a per-view misfit (``accuracy.view_jitter``
+    counted), that jitter (or its misfit per pose direction, where the block gives one), its
+    camera misfit and its white corner noise in place of the bounds' (which holds the misfit's
+    energy: :mod:`selfcal.calibration.board.view_jitter`); a file written before the white
+    noise keeps the bounds' noise. ``where`` the calibration's file, for the
+    error a malformed block raises.
+
+    Raises:
+        InputError: the accuracy block's ``view_jitter`` is malformed (names ``where``).
+    """
+    assert cal.bounds is not None
+    js = cal.bounds.joint_sigma_deg
+    js_rad = None if js is None else np.radians(np.asarray(js, float))
+    found = view_jitter_from_json(cal.accuracy, where)
+    if found is None or not found.counted:
+        return ViewNoise(cal.bounds.pixel_sigma_px, js_rad, None, 0.0)
+    if found.white_px is None:
+        return ViewNoise(cal.bounds.pixel_sigma_px, js_rad, found.covariance, 0.0)
+    cam = found.camera_misfit_px or 0.0
+    if found.pose_misfit_px is None:  # written before it: the jitter's mean carried to the view
+        return ViewNoise(found.white_px, js_rad, found.covariance, cam)
+    return ViewNoise(found.white_px, js_rad, None, cam, found.pose_misfit_px)
+
+
+def calibration_views(cal: BoardCalibrationResult, em: ToolErrorModel, q: np.ndarray,
+                      views: list[tuple[int, np.ndarray, np.ndarray]], *,
+                      where: str = "calibration.json") -> list[ViewJacobians]:  # fmt: skip
+    """The first camera's ``views`` (frame ``f`` into ``q`` (m, n) rad / m, board points ``X``
+    (k, 3) m, detected ``uv`` (k, 2) px) linearised at the calibration ``cal`` (``em`` its
+    error model) with its noise (:func:`view_noise`); ``where`` the calibration's file, for the
+    error a malformed block raises.
+
+    Raises:
+        InputError: the accuracy block's ``view_jitter`` is malformed (names ``where``).
+    """
+    noise = view_noise(cal, where)
+    return [view_jacobians(em, cal.cameras[0], q[f], X, uv, eye_to_hand=cal.eye_to_hand,
+                           pixel_sigma_px=noise.pixel_sigma_px,
+                           joint_sigma_rad=noise.joint_sigma_rad, jitter=noise.jitter,
+                           camera_misfit_px=noise.camera_misfit_px,
+                           pose_misfit_px=noise.pose_misfit_px)
+            for f, X, uv in views]  # fmt: skip

@@ -1,6 +1,9 @@
 """A held-out check of a dataset without a second one: leave some poses out.
 
-Every ``every``-th frame (from the first) is held out; the rest is calibrated afresh (the same
+Every ``every``-th frame, the frames taken in the lexicographic order of their joint readings
+(the first joint first; :func:`held_out_frames`), is held out, so the rows' order in
+``joints.csv`` does not choose them (issue #29; frames of equal joints keep their order);
+the rest is calibrated afresh (the same
 method as the full calibration) and the held-out frames are predicted from their joint readings
 alone with that calibration (:func:`selfcal.calibration.field.evaluate.evaluate_field` for the ArUco field,
 :func:`selfcal.calibration.board.evaluate.evaluate_board` for a board): the reprojection RMS (px) of images the fit
@@ -14,6 +17,8 @@ import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from selfcal.calibration.board.dataset import calibrate_board_dataset
 from selfcal.calibration.board.evaluate import Evaluation, evaluate_board
 from selfcal.calibration.field.calibrate import calibrate
@@ -21,7 +26,7 @@ from selfcal.calibration.field.evaluate import evaluate_field
 from selfcal.io.dataset import Dataset, DatasetError
 from selfcal.io.dataset_subset import subset_dataset
 
-__all__ = ["HoldOut", "leave_poses_out", "MIN_FIT_FRAMES"]
+__all__ = ["HoldOut", "held_out_frames", "leave_poses_out", "MIN_FIT_FRAMES"]
 
 MIN_FIT_FRAMES = 8
 """Fewest frames left to fit (the calibration needs 6 postures; 8 leaves a margin)."""
@@ -37,6 +42,17 @@ class HoldOut:
     evaluation: Evaluation
 
 
+def held_out_frames(joints: np.ndarray, every: int) -> np.ndarray:
+    """(m,) bool: the frames of the joint readings ``joints`` (m, n) (any unit) the check holds
+    out: every ``every``-th, from the first, in the lexicographic order of the readings (the
+    first joint first; a stable sort, so frames of equal readings keep their order). A
+    permutation of the rows permutes the answer alike."""
+    joints = np.atleast_2d(np.asarray(joints, dtype=float))
+    take = np.zeros(len(joints), dtype=bool)
+    take[np.lexsort(joints.T[::-1])[::every]] = True
+    return take
+
+
 def leave_poses_out(root: str | Path, *, every: int = 5, method: str = "joint") -> HoldOut:
     """Calibrate ``root`` without every ``every``-th frame and predict those (module docstring).
 
@@ -48,11 +64,12 @@ def leave_poses_out(root: str | Path, *, every: int = 5, method: str = "joint") 
     if every < 2:
         raise DatasetError(f"leave-poses-out: every = {every}; hold out every 2nd frame or fewer")
     ds = Dataset.open(root)
-    idx = [int(i) for i in ds.indices]
-    held, fit = idx[::every], [i for k, i in enumerate(idx) if k % every]
+    take = held_out_frames(ds.joints_deg, every)
+    held = sorted(int(i) for i in ds.indices[take])
+    fit = [int(i) for i in ds.indices[~take]]
     if len(fit) < MIN_FIT_FRAMES:
         raise DatasetError(
-            f"{ds.root}: {len(idx)} frames leave {len(fit)} to fit when every {every}th is held "
+            f"{ds.root}: {len(ds.indices)} frames leave {len(fit)} to fit when every {every}th is held "
             f"out; the check needs {MIN_FIT_FRAMES}",
             fix="take more frames, or a second dataset for `selfcal evaluate`",
         )

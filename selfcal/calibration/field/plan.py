@@ -17,7 +17,7 @@ file's ``[planning] span_deg``) that
 
 The field's region is a square on the table (z = 0, base frame) centred where the home posture's
 optical axis meets it (:func:`selfcal.kinematics.trajectory.home_target_center`), as the simulated
-field lies. Of the candidates, three choices of ``count`` (:data:`CHOICES`) are forecast and
+field lies. Of the candidates, four choices of ``count`` (:data:`CHOICES`) are forecast and
 the plan is the one with the smallest forecast tool-point error (:func:`field_forecast`, what
 the plan is judged by): the field route's D-optimal choice (:func:`selfcal.calibration.field.
 optimal_poses.plan_optimal_postures`: the log-determinant of the kinematic parameters' proxy
@@ -27,7 +27,11 @@ predicted tool-point error over the workspace, ``sqrt(trace(G C))``,
 (:func:`selfcal.calibration.board.plan.greedy.select_greedy`, :func:`~selfcal.calibration.
 board.plan.greedy.exchange`), and its exchange started from the D-optimal choice. That
 criterion takes the markers' corners as known (the forecast estimates them), so no one choice
-is best on every cell. The random plan of the same size is the first ``count`` candidates of the same
+is best on every cell; the fourth, the best of those three exchanged on the criterion with the
+corners unknown (:mod:`selfcal.calibration.field.plan_corners`: each marker's corners
+eliminated in one small block, as the field route estimates them), is the one that seeks views
+that fix the corners (docs/plan.md's example: 0.259 mm against the three's best 0.295 mm,
+forecast). The random plan of the same size is the first ``count`` candidates of the same
 filters (:func:`selfcal.kinematics.trajectory.plan_postures` with the same seed).
 
 The forecast (:func:`field_forecast`) is the field route's Cramer-Rao bound
@@ -54,9 +58,11 @@ from selfcal.calibration.board.plan.path import order_path, path_length
 from selfcal.calibration.field.bounds import BoundsError, cramer_rao
 from selfcal.calibration.field.bounds_setup import predicted_setup
 from selfcal.calibration.field.optimal_poses import plan_optimal_postures
+from selfcal.calibration.field.plan_corners import corner_blocks, corner_exchange
 from selfcal.calibration.field.plan_information import (
     FieldLayout,
-    frame_information,
+    posture_rows,
+    rows_information,
     tool_weight,
 )
 from selfcal.camera import Rig
@@ -85,8 +91,14 @@ __all__ = [
 
 GRID_SIDE = 6
 """The planning grid over the field's region: GRID_SIDE x GRID_SIDE points (the scenarios')."""
-CHOICES = ("D-optimal", "tool-point exchange", "D-optimal, tool-point exchange")
-"""The choices a field plan is the best of by its forecast (module docstring)."""
+CHOICES = (
+    "D-optimal",
+    "tool-point exchange",
+    "D-optimal, tool-point exchange",
+    "corners-unknown exchange",
+)
+"""The choices a field plan is the best of by its forecast (module docstring); the last starts
+from the best of the others."""
 MATCH_RANDOM = 30
 """The random plan a field plan's count advice is set against (issue #30: a plan of 12 against
 a random plan of 30): a plan of fewer postures whose forecast is behind that random plan's
@@ -152,7 +164,8 @@ class FieldPlan:
     or more, the pool fewer, or no bound) and ``to_match`` (count, forecast m) the smallest
     plan that reaches it when this one does not (:func:`count_to_match`; None: it does, or none
     of up to :data:`MATCH_RANDOM` postures does); ``pool`` (c, n) rad the candidates and
-    ``chosen`` the indices of ``q`` in it."""
+    ``chosen`` the indices of ``q`` in it; ``start`` the indices the corners-unknown exchange
+    started from, the choice ``start_by`` (None, "": it did not run)."""
 
     q: np.ndarray
     q_random: np.ndarray
@@ -169,6 +182,8 @@ class FieldPlan:
     to_match: tuple[int, float] | None = None
     pool: np.ndarray | None = None
     chosen: np.ndarray | None = None
+    start: np.ndarray | None = None
+    start_by: str = ""
 
 
 def plan_field(
@@ -206,10 +221,14 @@ def plan_field(
     sets = {CHOICES[0]: opt.chosen}
     G = tool_weight(setup.model_cam, workspace, setup.robot.T_flange_cam)
     try:
-        F = frame_information(setup.model_cam, setup.rig, opt.pool, layout,
-                              pixel_sigma_px=pixel_sigma_px, joint_sigma=joint_sigma)  # fmt: skip
+        fs = predicted_setup(setup.model_cam, opt.pool, setup.rig, layout.ids,
+                             layout.corners_world, layout.normals_world, layout.scale_ids,
+                             layout.scale_length_m, pixel_sigma_px=pixel_sigma_px,
+                             joint_sigma=joint_sigma)  # fmt: skip
+        rows = posture_rows(fs, setup.rig.n_cameras)
     except BoundsError:  # the pool does not see a scale marker twice: the D-optimal choice
-        F = None
+        rows = None
+    F = None if rows is None else rows_information(rows)
     if F is not None:
         n_cam = F.shape[1] - len(G)
         sets[CHOICES[1]] = exchange(F, G, n_cam, select_greedy(F, G, n_cam, count))
@@ -222,6 +241,13 @@ def plan_field(
     choices = {k: forecast(opt.pool[i]) for k, i in sets.items()}
     rms = {k: np.inf if v is None else v for k, v in choices.items()}
     best = min(rms, key=rms.__getitem__)
+    start, start_by = None, ""
+    if rows is not None and np.isfinite(rms[best]):  # the corners unknown, from the best so far
+        start, start_by = np.asarray(sets[best]), best
+        sets[CHOICES[3]] = corner_exchange(corner_blocks(rows), G, start)
+        got = forecast(opt.pool[sets[CHOICES[3]]])
+        choices[CHOICES[3]], rms[CHOICES[3]] = got, np.inf if got is None else got
+        best = min(rms, key=rms.__getitem__)
     random_match = to_match = None
     if np.isfinite(rms[best]) and count < MATCH_RANDOM <= len(opt.pool):
         random_match = forecast(random_plan(setup, MATCH_RANDOM, seed=seed))
@@ -248,6 +274,8 @@ def plan_field(
         to_match=to_match,
         pool=opt.pool,
         chosen=chosen,
+        start=start,
+        start_by=start_by,
     )
 
 

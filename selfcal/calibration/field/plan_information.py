@@ -42,6 +42,7 @@ __all__ = [
     "free_kinematics",
     "frame_information",
     "posture_rows",
+    "rows_information",
     "tool_weight",
 ]
 
@@ -105,7 +106,13 @@ def frame_information(
     fs = predicted_setup(model_cam, q, rig, layout.ids, layout.corners_world,
                          layout.normals_world, layout.scale_ids, layout.scale_length_m,
                          pixel_sigma_px=pixel_sigma_px, joint_sigma=joint_sigma)  # fmt: skip
-    pr = posture_rows(fs, rig.n_cameras)
+    return rows_information(posture_rows(fs, rig.n_cameras))
+
+
+def rows_information(pr: PostureRows) -> np.ndarray:
+    """(m, p, p) :func:`frame_information` of the candidates of ``pr``
+    (:func:`posture_rows`), for a caller that also needs the rows (the corners-unknown
+    criterion, :func:`selfcal.calibration.field.plan_corners.corner_blocks`)."""
     m = len(pr.registered)
     cols = pr.lay.kin_cols
     F = np.zeros((m, len(cols), len(cols)))

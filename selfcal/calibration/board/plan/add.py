@@ -24,6 +24,13 @@ configuration shares its fold with when the configurations outnumber the folds).
 
 Predicted before: the dataset's calibration with the parameters its selection identified
 (``calibration.json``), every other minimal parameter held at the drawing. Units: SI inside.
+
+The hand-eye of every prediction is the calibration's (the dataset fitted it), not the robot
+file's. The chain as drawn (:mod:`selfcal.calibration.board.plan.reference`) assumes the robot
+file's camera mount within the arm's deviation; when that mount lies farther than
+:data:`MOUNT_FACTOR` times the deviation from the calibrated one (a robot file without
+``[camera_mount]`` puts the camera at the flange), the chain as drawn is no reference and the
+verdicts are against the fair nominal, whose hand-eye is fitted from the dataset.
 """
 
 from __future__ import annotations
@@ -34,9 +41,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from selfcal.calibration.board.bounds import estimated_parameters
 from selfcal.calibration.board.dataset import dataset_board, detect_board
+from selfcal.calibration.board.deviation import Deviation
 from selfcal.calibration.board.folds import configurations, fold_labels
 from selfcal.calibration.board.mounts import mounts
 from selfcal.calibration.board.plan.greedy import select_greedy
@@ -56,9 +65,12 @@ from selfcal.errors import InputError
 from selfcal.io.board_calibration import read_board_calibration
 from selfcal.io.dataset import Dataset
 from selfcal.robot.definition import load_robot
+from selfcal.transforms import inv_pose
 
 __all__ = [
     "ADD_RULE",
+    "MOUNT_FACTOR",
+    "drawn_mount_words",
     "AddedPostures",
     "DatasetPlan",
     "dataset_setup",
@@ -78,14 +90,16 @@ it 0.87 mm. Why the nearer views the limit asks make that calibration fail is no
 class DatasetPlan:
     """What a calibrated dataset gives the planner: the cell ``setup``, the read-back joints
     ``q`` (m, n) rad of the frames its calibration used, the board features ``seen`` in each
-    (m arrays of feature ids), and the kinematic parameters it identified (``free_idx`` flat
-    MCPC indices, ``offset_joints`` 0 based)."""
+    (m arrays of feature ids), the kinematic parameters it identified (``free_idx`` flat
+    MCPC indices, ``offset_joints`` 0 based) and ``mount_off`` (rad, m): how far the robot
+    file's camera mount lies from the calibrated one (``setup.robot``'s)."""
 
     setup: PlanSetup
     q: np.ndarray
     seen: tuple[np.ndarray, ...]
     free_idx: np.ndarray
     offset_joints: np.ndarray
+    mount_off: tuple[float, float] = (0.0, 0.0)
 
     @property
     def n_features(self) -> np.ndarray:
@@ -118,6 +132,9 @@ def dataset_setup(root: str | Path, boxes: np.ndarray | None = None) -> DatasetP
     ds = Dataset.open(root)
     robot = load_robot(ds.robot_source)
     T_flange_cam, T_base_board = (m.T for m in mounts(cal.model, robot, eye_to_hand=False))
+    d = inv_pose(robot.T_flange_cam) @ T_flange_cam
+    mount_off = (float(Rotation.from_matrix(d[:3, :3]).magnitude()), float(np.linalg.norm(
+        T_flange_cam[:3, 3] - robot.T_flange_cam[:3, 3])))  # fmt: skip
     robot = dataclasses.replace(robot, T_flange_cam=T_flange_cam)
     board = dataset_board(ds)
     with warnings.catch_warnings():
@@ -133,7 +150,29 @@ def dataset_setup(root: str | Path, boxes: np.ndarray | None = None) -> DatasetP
                       ADD_RULE)  # fmt: skip
     free_idx, offsets = estimated_parameters(cal)
     seen = tuple(np.asarray(f.ids, np.int64) for f, u in zip(features, used) if u)
-    return DatasetPlan(setup, q, seen, free_idx, offsets)
+    return DatasetPlan(setup, q, seen, free_idx, offsets, mount_off)
+
+
+MOUNT_FACTOR = 5.0
+"""The robot file's camera mount stands for the drawn one when it lies within this many times
+the deviation's half-widths (rotation and translation) of the calibrated mount; the deviation
+itself never moves it farther than once."""
+
+
+def drawn_mount_words(plan: DatasetPlan, deviation: Deviation) -> str:
+    """Why the chain as drawn is no reference for ``plan``'s dataset (module docstring): the
+    robot file's camera mount lies more than :data:`MOUNT_FACTOR` times ``deviation`` from the
+    calibrated one; empty when it does not."""
+    rot, tr = plan.mount_off
+    if (
+        rot <= MOUNT_FACTOR * deviation.rotation_rad
+        and tr <= MOUNT_FACTOR * deviation.translation_m
+    ):
+        return ""
+    return (f"the robot file's camera mount lies {np.degrees(rot):.1f} deg and {tr * 1000:.1f} mm "
+            "from the calibrated one (no [camera_mount]: the camera at the flange), beyond "
+            f"{MOUNT_FACTOR:g} times the deviation, so the chain as drawn has no hand-eye to go "
+            "by")  # fmt: skip
 
 
 def training_sets(plan: DatasetPlan, F_frames: np.ndarray) -> np.ndarray:
@@ -240,7 +279,8 @@ def plan_additions(
 
     def reference(F_sum: np.ndarray) -> NominalReference:
         return nominal_reference(model, F_sum, G, n_cam, g.drawn_variance, dirs,
-                                 eye_to_hand=setup.eye_to_hand)  # fmt: skip
+                                 eye_to_hand=setup.eye_to_hand,
+                                 drawn_why=drawn_mount_words(plan, opts.deviation))  # fmt: skip
 
     before = predict_kept(setup, plan.q, F_old, G, var, (plan.free_idx, plan.offset_joints))
     return AddedPostures(

@@ -55,11 +55,14 @@ above 0.7 times the reference may achieve no gain."""
 class NominalReference:
     """The predicted tool-point RMS (m) without calibrating the kinematics (module docstring):
     ``fair_m`` the fair nominal's, ``drawn_m`` the chain's as drawn; ``eye_to_hand`` whether
-    the camera stands still and the board rides on the flange (it names the placement)."""
+    the camera stands still and the board rides on the flange (it names the placement);
+    ``drawn_why`` when the chain as drawn is no reference, why (its mount is not the one the
+    data show: ``selfcal plan --add`` on a robot file without ``[camera_mount]``), else empty."""
 
     fair_m: float
     drawn_m: float
     eye_to_hand: bool = False
+    drawn_why: str = ""
 
     @property
     def placement(self) -> str:
@@ -70,13 +73,16 @@ class NominalReference:
 
     @property
     def best_m(self) -> float:
-        """The smaller of the two: what a calibration has to beat."""
-        return min(self.fair_m, self.drawn_m)
+        """The smaller of the two (the fair nominal's when the chain as drawn is no reference):
+        what a calibration has to beat."""
+        return self.fair_m if self.drawn_why else min(self.fair_m, self.drawn_m)
 
     @property
     def what(self) -> str:
         """Which of the two :attr:`best_m` is, in words."""
-        return "the chain as drawn" if self.drawn_m <= self.fair_m else "the fair nominal"
+        if self.drawn_why or self.drawn_m > self.fair_m:
+            return "the fair nominal"
+        return "the chain as drawn"
 
     def beaten_by(self, predicted_m: float) -> bool:
         """Whether a calibration predicted at ``predicted_m`` (m) beats the reference clearly
@@ -91,7 +97,8 @@ class NominalReference:
                  "validation calls nominal)")  # fmt: skip
         return {
             "fair_nominal_tool_rms_mm": round(self.fair_m * 1000, 4),
-            "drawn_tool_rms_mm": round(self.drawn_m * 1000, 4),
+            "drawn_tool_rms_mm": None if self.drawn_why else round(self.drawn_m * 1000, 4),
+            "drawn_not_a_reference": self.drawn_why or None,
             "reference": self.what,
             "clear_margin": CLEAR_MARGIN,
             "note": (
@@ -122,6 +129,7 @@ def nominal_reference(
     directions: Directions | None = None,
     *,
     eye_to_hand: bool = False,
+    drawn_why: str = "",
 ) -> NominalReference:
     """Both references (module docstring) for the postures whose information is ``F`` (p, p)
     on ``[camera (n_cam), minimal (k)]``
@@ -131,11 +139,14 @@ def nominal_reference(
     (:meth:`selfcal.calibration.board.deviation.Deviation.drawn_variance`; the fair nominal
     fits the placement, so its part leaves the fair nominal); ``directions`` the model's when
     already computed; ``eye_to_hand`` the mount (:attr:`NominalReference.placement`; its tool
-    point, the flange, does not move with the board mount's deviation)."""
+    point, the flange, does not move with the board mount's deviation); ``drawn_why`` why the
+    chain as drawn is no reference (:attr:`NominalReference.drawn_why`), empty when it is."""
     dirs = directions or Directions(model)
     place = placement_indices(model.n)
     M = dirs.of(place, np.zeros(0, np.int64))
     inner = np.where(np.isin(minimal_indices(model.joint_types), place), 0.0, variance)
     fair = predicted_with_held(F, G, n_cam, M, inner)
     drawn = drawn_error(G, inner if eye_to_hand else variance)
-    return NominalReference(fair_m=fair, drawn_m=drawn, eye_to_hand=eye_to_hand)
+    return NominalReference(
+        fair_m=fair, drawn_m=drawn, eye_to_hand=eye_to_hand, drawn_why=drawn_why
+    )

@@ -11,7 +11,8 @@ there and predicts the dataset's frames badly, so the selection keeps a smaller 
 
 The forecast runs the selection's own steps on expectations: the same pool and nested
 candidates at the joints, the same folds (:func:`selfcal.calibration.board.folds.configurations`,
-:func:`selfcal.calibration.board.folds.fold_labels`, the frames in recording order),
+:func:`selfcal.calibration.board.folds.fold_labels`: numbered by their joints, whatever the
+order of the postures),
 in every fold the parameters its training frames cannot determine held
 (:func:`selfcal.calibration.board.parameter_pool.determined`), and the same paired
 one-standard-error rule (:func:`selfcal.calibration.board.param_selection.one_se_rule`) on the
@@ -88,7 +89,8 @@ def forecast_selection(
     held_out: np.ndarray | None = None,
 ) -> SelectionForecast:
     """The candidate the selection is expected to keep (module docstring) for the frames at the
-    joints ``q`` (m, n) rad in recording order, of ``model`` (world = board, tool = camera):
+    joints ``q`` (m, n) rad (in any order: the folds are dealt by the joints), of ``model``
+    (world = board, tool = camera):
     ``F_frames`` (m, p, p) their information on ``[camera (n_cam), minimal (k)]``
     (:func:`selfcal.calibration.board.plan.information.frame_information`), ``n_features`` (m,) the
     features each shows, ``variance`` (k,) the deviation from the drawing, ``sigma_px`` the
@@ -146,7 +148,7 @@ class SelectionFolds:
 def selection_folds(
     model: MCPCModel, q: np.ndarray, directions: Directions | None = None
 ) -> SelectionFolds:
-    """The selection's candidates and folds at the joints ``q`` (m, n) rad in recording order
+    """The selection's candidates and folds at the joints ``q`` (m, n) rad
     of ``model`` (module docstring); ``directions`` the model's when already computed (no
     directions with fewer than two folds)."""
     q = np.atleast_2d(np.asarray(q, dtype=float))
