@@ -363,31 +363,6 @@ def test_the_hand_eye_exports_near_the_truth_within_its_sigmas(run, tmp_path, ca
             assert np.linalg.norm(dt_mm) < 1.8 and np.linalg.norm(dw_deg) < 0.17
 
 
-def _shuffled(src: Path, dst: Path, perm: np.ndarray) -> None:
-    """A copy of the dataset ``src`` in ``dst`` whose frame ``i`` is ``src``'s frame
-    ``perm[i]``: joints.csv, detections.csv and dataset.json's trajectory re-indexed."""
-    import csv
-    import json
-    import shutil
-
-    shutil.copytree(src, dst)
-    new_of = {int(old): i for i, old in enumerate(perm)}
-    with open(src / "joints.csv", newline="") as f:
-        head, *rows = list(csv.reader(f))
-    by_old = {int(r[0]): r[1:] for r in rows}
-    with open(dst / "joints.csv", "w", newline="") as f:
-        csv.writer(f).writerows([head, *([str(i), *by_old[int(o)]] for i, o in enumerate(perm))])
-    with open(src / "detections.csv", newline="") as f:
-        head, *rows = list(csv.reader(f))
-    rows = [[str(new_of[int(r[0])]), *r[1:]] for r in rows]
-    rows.sort(key=lambda r: int(r[0]))  # frame by frame, the features within in their order
-    with open(dst / "detections.csv", "w", newline="") as f:
-        csv.writer(f).writerows([head, *rows])
-    info = json.loads((src / "dataset.json").read_text())
-    info["trajectory_joints_deg"] = [info["trajectory_joints_deg"][int(o)] for o in perm]
-    (dst / "dataset.json").write_text(json.dumps(info))
-
-
 BOOT_REFITS = 6
 
 
