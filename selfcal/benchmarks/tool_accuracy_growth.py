@@ -51,7 +51,7 @@ def probe(robot_name: str, noise_mm: float, draws: int, model: str) -> list[str]
             head = (f"draw {seed:2d}: c0 {np.sqrt(g.level) * 1e3:.3f} mm, c1 "
                     f"{np.sqrt(g.growth) * 1e3:.3f} mm/unit (estimate "
                     f"{np.sign(g.estimate) * np.sqrt(abs(g.estimate)) * 1e3:+.3f}, t {g.t:+.2f}"
-                    f"{', capped' if capped else ''}), measured to {g.measured_to:.3f}, reach "
+                    f"{', capped' if capped else ''}), measured to {me.limit:.3f}, reach "
                     f"{me.reach_distance:.3f}")  # fmt: skip
         sample = workspace_sample(q, robot.limits, count=COUNT, seed=seed + 1)
         for name in REGIONS:

@@ -100,7 +100,10 @@ class ModelError:
         measured_to: the held-out rows' largest distance from their folds' training postures
             (unit-free, :func:`selfcal.kinematics.tool_error.posture_distance`), whether or not
             they showed a model error: beyond it no fold tested the model, so a model error
-            found there or not is not measured (:attr:`limit`); infinite: not read.
+            found there or not is not measured (:attr:`limit`); 0: the folds tested it only at
+            training postures (everything beyond them not measured); None: not read (no limit).
+            The one source of this distance (a :class:`Variogram` read from the same rows does
+            not keep it).
     """
 
     position_m: float
@@ -117,14 +120,13 @@ class ModelError:
     noise_what: str = "the tracker noise"
     reach_distance: float = 0.0
     growth: Variogram | None = None
-    measured_to: float = np.inf
+    measured_to: float | None = None
 
     @property
     def limit(self) -> float:
-        """The distance beyond which the model error is not measured: the variogram's reach when
-        it grows, else :attr:`measured_to` (infinite when neither was read)."""
-        to = self.growth.measured_to if self.growth is not None else self.measured_to
-        return float(to) if np.isfinite(to) and to > 0 else np.inf
+        """The distance beyond which the model error is not measured: :attr:`measured_to`
+        (0 included: nothing beyond the training postures measured), infinite when not read."""
+        return np.inf if self.measured_to is None else float(self.measured_to)
 
     @property
     def reach_floor(self) -> float:
@@ -194,7 +196,7 @@ def model_error_of(
     given: tuple[float, float | None] | None = None,
     reach_distance: float = 0.0,
     growth: Variogram | None = None,
-    measured_to: float = np.inf,
+    measured_to: float | None = None,
 ) -> ModelError | None:
     """The :class:`ModelError` of held-out rows given fold by fold: their squared tool-point
     errors ``r2`` (m^2), what the folds' covariances explain ``s2`` (``tr S``, m^2) and what the
@@ -319,11 +321,11 @@ def unmeasured_beyond(model_error: ModelError | dict | None) -> float:
     """The distance from the calibration postures beyond which ``model_error`` (a
     :class:`ModelError` or its ``to_json``) is not measured: the held-out rows' largest
     (:attr:`ModelError.limit`), whether or not they showed a model error; infinite without one
-    (an older file: no limit)."""
+    (an older file: no limit); 0 is a limit (nothing beyond the calibration postures measured)."""
     if isinstance(model_error, ModelError):
         return model_error.limit
-    to = (model_error or {}).get("measured_to_distance") or 0.0
-    return float(to) if to > 0 else np.inf
+    to = (model_error or {}).get("measured_to_distance")
+    return np.inf if to is None else float(to)
 
 
 def postures_from_json(block: dict, n: int, where: str, *, fix: str) -> np.ndarray:

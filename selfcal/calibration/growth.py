@@ -27,8 +27,8 @@ the level is what the pooled excess leaves, ``c0 = max(0, (sum y - c1 sum b) / s
 the rows are, the model error still explains their excess. Whether a model error is counted at all is the routes' own test, made
 before; this only splits it.
 
-What the folds measure reaches as far as their held-out rows lie (``measured_to``, the largest
-distance): beyond it ``c0 + c1 d^2`` would be an extrapolation (a bounded misfit, as a joint's
+What the folds measure reaches as far as their held-out rows lie (the largest distance, kept by the
+route as :attr:`selfcal.calibration.accuracy.ModelError.measured_to`, found or not): beyond it ``c0 + c1 d^2`` would be an extrapolation (a bounded misfit, as a joint's
 compliance, stops growing; a quadratic does not), so the prediction holds the model error at its
 value there and says it is not measured
 (:meth:`selfcal.kinematics.tool_error.ToolErrorModel.unmeasured`, the one place that compares).
@@ -60,7 +60,6 @@ class Variogram:
         shown: whether the held-out rows showed the growth (``t`` above the threshold).
         t: ``c1``'s estimate over its standard error (nan with fewer than 3 rows or
             distances all alike).
-        measured_to: the largest held-out distance (unit-free).
     """
 
     level: float
@@ -68,7 +67,6 @@ class Variogram:
     estimate: float
     shown: bool
     t: float
-    measured_to: float
 
     def at(self, d: np.ndarray | float) -> np.ndarray:
         """The variance ``c0 + c1 d^2`` at the distances ``d``."""
@@ -100,9 +98,8 @@ def fit_variogram(excess: np.ndarray, var: np.ndarray, unit_level: np.ndarray,
     :data:`selfcal.calibration.accuracy.Z_MODEL_ERROR`)."""
     y, v, a, b, d = (np.asarray(x, dtype=float).reshape(-1)
                      for x in (excess, var, unit_level, unit_growth, distance))  # fmt: skip
-    measured = float(np.max(d)) if d.size else 0.0
     pooled = max(float(np.sum(y) / np.sum(a)), 0.0) if d.size and np.sum(a) > 0 else 0.0
-    flat = Variogram(pooled, 0.0, float("nan"), False, float("nan"), measured)
+    flat = Variogram(pooled, 0.0, float("nan"), False, float("nan"))
     if y.size < 3:
         return flat
     w = 1.0 / np.maximum(v, np.finfo(float).tiny)
@@ -121,4 +118,4 @@ def fit_variogram(excess: np.ndarray, var: np.ndarray, unit_level: np.ndarray,
     if growth * float(np.sum(b)) > total:  # the bound alone exceeds the rows' excess
         growth = max(total, 0.0) / float(np.sum(b))
     level = max((total - growth * float(np.sum(b))) / float(np.sum(a)), 0.0)
-    return Variogram(level, growth, float(c[1]), bool(t > z), t, measured)
+    return Variogram(level, growth, float(c[1]), bool(t > z), t)

@@ -160,7 +160,7 @@ def accuracy_markdown(section: dict) -> list[str]:
     )
     if not section.get("model_error_note") and me.get("reach_distance"):
         note += _growth_words(me)
-    elif not section.get("model_error_note") and me.get("measured_to_distance"):
+    elif not section.get("model_error_note") and me.get("measured_to_distance") is not None:
         note += (
             f"; beyond {me['measured_to_distance']:.3f} of the joints' ranges from the calibration "
             "postures no fold tested the model: a model error there is not measured"

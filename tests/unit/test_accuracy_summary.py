@@ -90,3 +90,7 @@ def test_report_md_says_when_the_model_error_grows_away_from_the_postures():
     assert ("model error 0.0000 mm" in untested and "beyond 0.070 of the joints' ranges from the "
             "calibration postures no fold tested the model" in untested)  # fmt: skip
     assert "no fold tested" not in flat
+    # tested only at the training postures (0): a limit too, said as one
+    zero = "\n".join(accuracy_markdown({**section, "model_error": {**none,
+                                                                   "measured_to_distance": 0.0}}))  # fmt: skip
+    assert "beyond 0.000 of the joints' ranges from the calibration postures no fold" in zero

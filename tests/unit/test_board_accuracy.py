@@ -182,9 +182,9 @@ def test_an_accuracy_block_keeps_how_the_folds_saw_the_model_error_grow():
     robot = load_robot("er4u-paper")
     model = nominal_mcpc(robot)
     q_cal = np.random.default_rng(1).uniform(-0.5, 0.5, (5, robot.n))
-    flat = Variogram(level=1e-8, growth=0.0, estimate=-1e-9, shown=False, t=0.4, measured_to=0.3)
+    flat = Variogram(level=1e-8, growth=0.0, estimate=-1e-9, shown=False, t=0.4)
     me = ModelError(1e-4, 1e-5, 5, 5, 0, 2e-4, 1e-4, 1e-4, 1e-4, 1e-5, 1e-5,
-                    reach_distance=0.1, growth=flat)  # fmt: skip
+                    reach_distance=0.1, growth=flat, measured_to=0.3)  # fmt: skip
     js = me.to_json()
     assert js["constant_share"] == 1.0 and js["growth_shown"] is False
     assert js["measured_to_distance"] == 0.3 and "not measured" in js["beyond_measured"]
@@ -198,7 +198,7 @@ def test_an_accuracy_block_keeps_how_the_folds_saw_the_model_error_grow():
     em = board_error_model_from_json(block, model, "calibration.json")
     assert em.reach_floor == 1.0 and em.measured_to == 0.3
     assert np.allclose(em.model_error_factor(q_cal), 1.0)
-    grown = Variogram(level=1e-8, growth=3e-8, estimate=2e-8, shown=True, t=3.1, measured_to=0.3)
+    grown = Variogram(level=1e-8, growth=3e-8, estimate=2e-8, shown=True, t=3.1)
     block["model_error"] = dataclasses.replace(me, growth=grown).to_json()
     em = board_error_model_from_json(block, model, "calibration.json")
     assert em.reach_floor == pytest.approx(1e-8 / (1e-8 + 3e-8 * 0.01))
@@ -214,5 +214,5 @@ def test_an_accuracy_block_keeps_how_the_folds_saw_the_model_error_grow():
     assert em.model_error_m == 0.0 and em.reach is None and em.measured_to == 0.25
     assert em.unmeasured(q_cal + 1.0).all() and not em.unmeasured(q_cal).any()
     assert np.allclose(em.model_error_factor(q_cal + 1.0), 1.0)
-    never = dataclasses.replace(none, measured_to=np.inf).to_json()  # not read: no limit
+    never = dataclasses.replace(none, measured_to=None).to_json()  # not read: no limit
     assert "measured_to_distance" not in never

@@ -35,7 +35,6 @@ def test_a_growing_model_error_is_found():
     assert np.median(slope) == pytest.approx(8e-4, rel=0.1)
     # counted: its upper bound, unless that alone explains more than the rows' excess
     assert all(g.growth >= g.estimate or g.level == 0.0 for g in got)
-    assert got[0].measured_to == pytest.approx(0.5, abs=0.02)
     # at the far end of the held-out rows the counted size is the true one (median of 20)
     far = np.sqrt([g.at(0.5) for g in got])
     assert np.median(far) == pytest.approx(np.sqrt(level + growth * 0.25), rel=0.02)
@@ -53,14 +52,16 @@ def test_a_constant_model_error_gives_no_growth():
     assert 0 < np.median([g.growth * 0.25 / g.level for g in got]) < 1.5
 
 
-def _unmeasured(gram, d: np.ndarray) -> np.ndarray:
+def _unmeasured(gram, measured_to: float | None, d: np.ndarray) -> np.ndarray:
     """Where a tool-error prediction whose model error the rows ``gram`` read (None: the
-    same everywhere) says it is not measured, at the distances ``d`` (the first joint moved, in
-    units of a unit span): the production path, the route's ModelError carried into the
-    ToolErrorModel (selfcal.calibration.accuracy.unmeasured_beyond)."""
+    same everywhere) out to the distance ``measured_to`` (None: not read) says it is not
+    measured, at the distances ``d`` (the first joint moved, in units of a unit span): the
+    production path, the route's ModelError carried into the ToolErrorModel
+    (selfcal.calibration.accuracy.unmeasured_beyond)."""
     rows = [np.full(4, 1e-8)]
     me = model_error_of(rows, rows, rows, None, folds=1, failed=0, noise_what="noise",
-                        given=(1e-4, None), reach_distance=0.1, growth=gram)  # fmt: skip
+                        given=(1e-4, None), reach_distance=0.1, growth=gram,
+                        measured_to=measured_to)  # fmt: skip
     assert me is not None
     model = nominal_mcpc(load_robot("er4u-paper"))
     q_cal = np.zeros((1, model.n))
@@ -76,13 +77,29 @@ def test_beyond_what_the_folds_measured():
     excess, var, a, b, d = _rows((3e-4) ** 2, 0.0, 1)
     flat = fit_variogram(excess, var, a, b, d, Z_MODEL_ERROR)
     assert not flat.shown
-    far = np.array([0.1, flat.measured_to + 0.01, 1.0])
-    assert _unmeasured(flat, far).tolist() == [False, True, True]
+    to = float(np.max(d))  # the rows' largest distance (0.5 at most)
+    far = np.array([0.1, to + 0.01, 1.0])
+    assert _unmeasured(flat, to, far).tolist() == [False, True, True]
     grown = fit_variogram(*_rows(0.0, (8e-4) ** 2, 1), Z_MODEL_ERROR)
     assert grown.shown and grown.floor(0.3) < 0.1
     # shown or not, beyond the rows' largest distance it is not measured
-    assert _unmeasured(grown, far).tolist() == [False, True, True]
-    assert not _unmeasured(None, far).any()
+    assert _unmeasured(grown, to, far).tolist() == [False, True, True]
+    assert not _unmeasured(None, None, far).any()  # not read: no limit
+
+
+def test_held_out_rows_at_training_postures_measure_nothing_beyond_them():
+    """Held-out rows all at their folds' training postures (largest distance 0) tested the
+    model nowhere beyond them: everything farther is not measured, in the ModelError and through
+    its calibration.json block (0 is a limit; only a distance not read means none)."""
+    flat = fit_variogram(*_rows((3e-4) ** 2, 0.0, 1), Z_MODEL_ERROR)
+    far = np.array([0.0, 1e-3, 0.1, 1.0])
+    assert _unmeasured(flat, 0.0, far).tolist() == [False, True, True, True]
+    assert _unmeasured(None, 0.0, far).tolist() == [False, True, True, True]
+    rows = [np.full(4, 1e-8)]
+    me = model_error_of(rows, rows, rows, None, folds=1, failed=0, noise_what="noise",
+                        measured_to=0.0)  # fmt: skip
+    assert me is not None and me.limit == 0.0
+    assert unmeasured_beyond(me.to_json()) == 0.0
 
 
 def test_distances_all_alike_cannot_show_a_growth():

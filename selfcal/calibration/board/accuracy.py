@@ -322,13 +322,13 @@ def model_error(obs: BoardObservations, selection: Selection, offsets: np.ndarra
                 [np.trace(N[:, b, b], axis1=1, axis2=2)])  # fmt: skip
 
     (r2, s2, n2), rot = parts(slice(0, 3)), parts(slice(3, 6))  # position, orientation
-    reached = float(np.max(h["distance"])) if span is not None else np.inf
+    reached = float(np.max(h["distance"])) if span is not None else None  # None: not read
     return model_error_of(r2, s2, n2, rot, folds=len(got),
                           failed=selection.folds - len(got),
                           noise_what="the pixel and joint read-back noise",
                           given=(m, m / float(np.mean(h["lever"]))),
                           reach_distance=reach, growth=gram,
-                          measured_to=reached if reached > 0 else np.inf), share  # fmt: skip
+                          measured_to=reached), share  # fmt: skip
 
 
 def _errors_px_mm(obs: BoardObservations, fit: Refinement,

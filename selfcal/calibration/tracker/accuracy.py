@@ -195,7 +195,8 @@ def model_error(
     return model_error_of(r2, s2, n2, rot, folds=k - failed, failed=failed,
                           noise_what="the tracker noise",
                           given=(float(np.sqrt(gram.at(reach))), rot_m),
-                          reach_distance=reach, growth=gram)  # fmt: skip
+                          reach_distance=reach, growth=gram,
+                          measured_to=float(np.max(d)))  # fmt: skip
 
 
 def tracker_accuracy(
