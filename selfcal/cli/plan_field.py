@@ -42,7 +42,8 @@ predicted tool-point error with the markers' corners known, and the best of thes
 with the corners unknown, as the route estimates them (plan.json's chosen_by and
 choices_tool_rms_mm). A plan of
 fewer than 30 postures whose forecast is behind a random plan of 30's says so and gives the
-count whose plan is not (plan.json's count_to_match).
+count whose plan is not (plan.json's count_to_match: this plan grown one posture at a time
+on the corners-unknown criterion).
 Eye-in-hand, one camera; --board-pose, --camera-pose and --mount eye-to-hand are refused,
 as is --add to a field's dataset.
 See docs/plan.md.
@@ -269,6 +270,7 @@ def cmd_field(
             "random_match_tool_rms_mm": _mm(plan.random_match_m),
             "count_to_match": None if plan.to_match is None else plan.to_match[0],
             "count_to_match_tool_rms_mm": None if plan.to_match is None else _mm(plan.to_match[1]),
+            "count_to_match_joints_deg": _match_deg(plan, robot.edge_unit),
             "choices_tool_rms_mm": {
                 k: None if v is None else round(v * 1000, 4) for k, v in plan.choices.items()
             },  # fmt: skip
@@ -284,6 +286,15 @@ def cmd_field(
     note_written(args, out)
     print(json.dumps(doc) if args.json else _lines(plan, fc, n, criterion))
     return 0
+
+
+def _match_deg(plan, edge_unit) -> list | None:
+    """The advised plan's postures (``plan.match``) in edge units (deg), None without one."""
+    import numpy as np
+
+    if plan.match is None or plan.pool is None:
+        return None
+    return np.round(plan.pool[plan.match] / edge_unit, 6).tolist()
 
 
 def _mm(m: float | None) -> float | None:
@@ -310,7 +321,7 @@ def _lines(plan, fc: dict, n: int, criterion: str) -> str:
     if r is None or fc["plan"].tool_rms_m is None or fc["plan"].tool_rms_m <= r:
         return text
     more = ("no plan of up to that many reaches it" if plan.to_match is None else
-            f"a plan of {plan.to_match[0]} reaches it (the tool-point greedy choice: "
+            f"a plan of {plan.to_match[0]} reaches it (this plan grown on its criterion: "
             f"{plan.to_match[1] * 1000:.3f} mm): give --count {plan.to_match[0]}")  # fmt: skip
     return (f"{text}\nbehind the forecast of a random plan of {MATCH_RANDOM} postures "
             f"({r * 1000:.3f} mm); {more}")  # fmt: skip

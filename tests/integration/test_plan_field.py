@@ -89,7 +89,8 @@ def test_the_plan_is_the_choice_with_the_least_forecast(planned):
 def test_the_plan_is_set_against_a_random_plan_of_30(planned, capsys):
     """plan.json gives the forecast of the random plan of MATCH_RANDOM (the same candidate
     sequence as the random plan of COUNT, its first COUNT) and, for a plan behind it, the
-    smallest count of the tool-point greedy choice whose forecast is not."""
+    smallest count whose forecast is not: of the plan grown one posture at a time on the
+    criterion it is chosen by (the corners unknown)."""
     from selfcal.calibration.field.joint_refine import encoder_sigma
     from selfcal.calibration.field.plan import (
         MATCH_RANDOM,
@@ -112,10 +113,25 @@ def test_the_plan_is_set_against_a_random_plan_of_30(planned, capsys):
     assert doc["random_match_count"] == MATCH_RANDOM
     assert doc["random_match_tool_rms_mm"] == pytest.approx(fc.tool_rms_m * 1000, abs=1e-4)
     if doc["predicted_tool_rms_mm"] > doc["random_match_tool_rms_mm"]:
-        assert COUNT < doc["count_to_match"] <= MATCH_RANDOM
+        n = doc["count_to_match"]
+        assert COUNT < n <= MATCH_RANDOM
         assert doc["count_to_match_tool_rms_mm"] <= doc["random_match_tool_rms_mm"]
+        # the advice's plan is this plan grown on its own criterion (the corners unknown), the
+        # smallest of them that reaches the random 30: the plan's postures first
+        qm = np.radians(doc["count_to_match_joints_deg"])
+        assert qm.shape == (n, setup.robot.n)
+        plan_rows = sorted(map(tuple, np.round(doc["joints_deg"], 4)))
+        assert sorted(map(tuple, np.round(np.degrees(qm[:COUNT]), 4))) == plan_rows
+
+        def mm(q):
+            return 1000 * field_forecast(setup, layout, q, ws, pixel_sigma_px=0.5,
+                                         joint_sigma=encoder_sigma(setup.robot)).tool_rms_m  # fmt: skip
+
+        assert mm(qm) == pytest.approx(doc["count_to_match_tool_rms_mm"], abs=1e-4)
+        assert mm(qm[:-1]) > doc["random_match_tool_rms_mm"]
     else:
         assert doc["count_to_match"] is None
+        assert doc["count_to_match_joints_deg"] is None
 
 
 def test_the_replay_sees_the_field_in_every_posture_and_calibrates(planned):

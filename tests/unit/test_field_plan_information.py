@@ -142,3 +142,33 @@ def _setup_of(cell, q, joint_sigma):
     return predicted_setup(setup.model_cam, q, setup.rig, layout.ids, layout.corners_world,
                            layout.normals_world, layout.scale_ids, 0.2, pixel_sigma_px=0.5,
                            joint_sigma=joint_sigma)  # fmt: skip
+
+
+def test_the_count_advice_grows_the_plan_on_the_corner_criterion(cell):
+    """The plans ``selfcal plan``'s count advice searches (plan_corners.corner_grow): the
+    given postures first, then each added posture the one that lowers the corners-unknown
+    criterion most (the criterion the plan is chosen by, not the corners-known one), so the
+    criterion never rises with the count."""
+    from selfcal.calibration.field.plan import forecast_workspace
+    from selfcal.calibration.field.plan_corners import corner_blocks, corner_criterion, corner_grow
+    from selfcal.calibration.field.plan_information import posture_rows, tool_weight
+
+    setup, _, q, js = cell
+    G = tool_weight(
+        setup.model_cam, forecast_workspace(setup, 20, seed=2), setup.robot.T_flange_cam
+    )
+    cb = corner_blocks(posture_rows(_setup_of(cell, q, js), 1))
+    start = np.array([5, 0, 7, 2, 9, 4, 11])
+    got = corner_grow(cb, G, start, len(q))
+    assert got[: len(start)].tolist() == start.tolist()
+    assert sorted(got.tolist()) == list(range(len(q)))
+    crit = [corner_criterion(cb, G, got[:n]) for n in range(len(start), len(q) + 1)]
+    for n in range(len(start), len(q)):
+        rest = [j for j in range(len(q)) if j not in got[:n]]
+        best = min(rest, key=lambda j: corner_criterion(cb, G, np.append(got[:n], j)))
+        assert corner_criterion(cb, G, got[: n + 1]) == pytest.approx(
+            corner_criterion(cb, G, np.append(got[:n], best)), rel=1e-9
+        )
+    assert all(b <= a * (1 + 1e-9) for a, b in zip(crit, crit[1:], strict=False))
+    with pytest.raises(ValueError, match="candidates"):
+        corner_grow(cb, G, start, len(q) + 1)

@@ -58,7 +58,7 @@ from selfcal.calibration.board.plan.path import order_path, path_length
 from selfcal.calibration.field.bounds import BoundsError, cramer_rao
 from selfcal.calibration.field.bounds_setup import predicted_setup
 from selfcal.calibration.field.optimal_poses import plan_optimal_postures
-from selfcal.calibration.field.plan_corners import corner_blocks, corner_exchange
+from selfcal.calibration.field.plan_corners import corner_blocks, corner_exchange, corner_grow
 from selfcal.calibration.field.plan_information import (
     FieldLayout,
     posture_rows,
@@ -165,7 +165,10 @@ class FieldPlan:
     plan that reaches it when this one does not (:func:`count_to_match`; None: it does, or none
     of up to :data:`MATCH_RANDOM` postures does); ``pool`` (c, n) rad the candidates and
     ``chosen`` the indices of ``q`` in it; ``start`` the indices the corners-unknown exchange
-    started from, the choice ``start_by`` (None, "": it did not run)."""
+    started from, the choice ``start_by`` (None, "": it did not run); ``match`` the indices in
+    ``pool`` of the plan of ``to_match``'s count (None with it): ``chosen`` first, then the
+    postures the corners-unknown criterion adds one at a time
+    (:func:`selfcal.calibration.field.plan_corners.corner_grow`)."""
 
     q: np.ndarray
     q_random: np.ndarray
@@ -184,6 +187,7 @@ class FieldPlan:
     chosen: np.ndarray | None = None
     start: np.ndarray | None = None
     start_by: str = ""
+    match: np.ndarray | None = None
 
 
 def plan_field(
@@ -205,7 +209,9 @@ def plan_field(
     tool-point choices of :data:`CHOICES`; ``pixel_sigma_px`` px of corner noise and the
     read-back noise ``joint_sigma`` (n,) rad (None: exact). A plan of fewer than
     :data:`MATCH_RANDOM` postures is set against the random plan of that many (the pool's
-    first) and, when its forecast is behind, gives the count that is not (``to_match``).
+    first) and, when its forecast is behind, gives the count that is not (``to_match``): of
+    the plan grown one posture at a time on the corners-unknown criterion (the plan's own,
+    :func:`selfcal.calibration.field.plan_corners.corner_grow`), the smallest that reaches it.
 
     Raises:
         DegenerateTrajectoryError: too few feasible candidates.
@@ -242,18 +248,20 @@ def plan_field(
     rms = {k: np.inf if v is None else v for k, v in choices.items()}
     best = min(rms, key=rms.__getitem__)
     start, start_by = None, ""
-    if rows is not None and np.isfinite(rms[best]):  # the corners unknown, from the best so far
+    cb = None if rows is None else corner_blocks(rows)
+    if cb is not None and np.isfinite(rms[best]):  # the corners unknown, from the best so far
         start, start_by = np.asarray(sets[best]), best
-        sets[CHOICES[3]] = corner_exchange(corner_blocks(rows), G, start)
+        sets[CHOICES[3]] = corner_exchange(cb, G, start)
         got = forecast(opt.pool[sets[CHOICES[3]]])
         choices[CHOICES[3]], rms[CHOICES[3]] = got, np.inf if got is None else got
         best = min(rms, key=rms.__getitem__)
-    random_match = to_match = None
+    random_match = to_match = match = None
     if np.isfinite(rms[best]) and count < MATCH_RANDOM <= len(opt.pool):
         random_match = forecast(random_plan(setup, MATCH_RANDOM, seed=seed))
-    if random_match is not None and F is not None and rms[best] > random_match:
-        order = select_greedy(F, G, F.shape[1] - len(G), MATCH_RANDOM)
-        to_match = count_to_match(count, lambda n: forecast(opt.pool[order[:n]]), random_match)
+    if random_match is not None and cb is not None and rms[best] > random_match:
+        grown = corner_grow(cb, G, sets[best], MATCH_RANDOM)  # the plan, then the criterion's
+        to_match = count_to_match(count, lambda n: forecast(opt.pool[grown[:n]]), random_match)
+        match = grown[: to_match[0]] if to_match is not None else None
     home = setup.robot.home
     chosen = np.asarray(sets[best])
     chosen = chosen[order_path(opt.pool[chosen], home)]
@@ -276,6 +284,7 @@ def plan_field(
         chosen=chosen,
         start=start,
         start_by=start_by,
+        match=match,
     )
 
 
@@ -293,7 +302,8 @@ def count_to_match(
 ) -> tuple[int, float] | None:
     """(n, forecast m) of the smallest plan of ``count`` + 1 ... :data:`MATCH_RANDOM` postures
     whose forecast ``forecast_of(n)`` (m; None: no bound) is at most ``target_m`` (m); None when
-    none is. The plans are nested (the tool-point greedy choice's first ``n``), so their
+    none is. The plans are nested (:func:`plan_field`'s: the plan, then the postures the
+    corners-unknown criterion, by which the plan is chosen, adds one at a time), so their
     forecast falls with ``n`` (a posture more adds information) and the count is found by
     bisection."""
     lo, hi = count, MATCH_RANDOM  # the forecast of lo is above the target; hi's is unknown

@@ -28,7 +28,7 @@ import numpy as np
 from selfcal.calibration.field.plan_information import PostureRows
 from selfcal.target import CORNERS_PER_MARKER
 
-__all__ = ["CornerBlocks", "corner_blocks", "corner_criterion", "corner_exchange"]
+__all__ = ["CornerBlocks", "corner_blocks", "corner_criterion", "corner_exchange", "corner_grow"]
 
 EPS = 1e-9
 """A marker's corner block is regularised by this share of its trace: a marker seen in one view
@@ -156,3 +156,20 @@ def corner_exchange(cb: CornerBlocks, G: np.ndarray, chosen: np.ndarray) -> np.n
         cost, k, j = best
         chosen[k] = j
     return chosen
+
+
+def corner_grow(cb: CornerBlocks, G: np.ndarray, chosen: np.ndarray, total: int) -> np.ndarray:
+    """(total,) indices: ``chosen`` (count,) first, then one candidate at a time the one whose
+    addition lowers :func:`corner_criterion` most (the greedy choice on it, started from
+    ``chosen``); nested plans of every size from ``count`` to ``total``, each one greedy step
+    (a single pass of :func:`corner_exchange`'s search per added posture). ``total`` at most the
+    candidates."""
+    held = np.asarray(chosen, dtype=np.int64)
+    if not len(held) <= total <= len(cb.F):
+        raise ValueError(f"total {total}: from {len(held)} to {len(cb.F)} candidates")
+    W = _weight(cb, G)
+    while len(held) < total:
+        c = _costs(cb, W, held, add=True)
+        c[held] = np.inf
+        held = np.append(held, int(np.argmin(c)))
+    return held
