@@ -170,5 +170,7 @@ def test_the_count_advice_grows_the_plan_on_the_corner_criterion(cell):
             corner_criterion(cb, G, np.append(got[:n], best)), rel=1e-9
         )
     assert all(b <= a * (1 + 1e-9) for a, b in zip(crit, crit[1:], strict=False))
-    with pytest.raises(ValueError, match="candidates"):
+    from selfcal.errors import UsageError
+
+    with pytest.raises(UsageError, match="the candidates"):
         corner_grow(cb, G, start, len(q) + 1)

@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from selfcal.calibration.field.plan_information import PostureRows
+from selfcal.errors import UsageError
 from selfcal.target import CORNERS_PER_MARKER
 
 __all__ = ["CornerBlocks", "corner_blocks", "corner_criterion", "corner_exchange", "corner_grow"]
@@ -163,10 +164,13 @@ def corner_grow(cb: CornerBlocks, G: np.ndarray, chosen: np.ndarray, total: int)
     addition lowers :func:`corner_criterion` most (the greedy choice on it, started from
     ``chosen``); nested plans of every size from ``count`` to ``total``, each one greedy step
     (a single pass of :func:`corner_exchange`'s search per added posture). ``total`` at most the
-    candidates."""
+    candidates (:class:`selfcal.errors.UsageError` else)."""
     held = np.asarray(chosen, dtype=np.int64)
     if not len(held) <= total <= len(cb.F):
-        raise ValueError(f"total {total}: from {len(held)} to {len(cb.F)} candidates")
+        raise UsageError(
+            f"corner_grow: total {total}, not from {len(held)} (the postures given) to "
+            f"{len(cb.F)} (the candidates)"
+        )
     W = _weight(cb, G)
     while len(held) < total:
         c = _costs(cb, W, held, add=True)
