@@ -17,12 +17,12 @@ def journal(tmp_path, monkeypatch):
     """Two sets with their forecasts (m) and a journal of draws; no planning, no drawing."""
     q = np.zeros((1, 6))
     sets = {"plan 12": (tmp_path, q, 0.0003), "random 30": (tmp_path, q, 0.0002)}
-    monkeypatch.setattr(field_compare, "field_sets", lambda root: sets)
+    monkeypatch.setattr(field_compare, "field_sets", lambda root, **kw: sets)
     monkeypatch.setattr(compare, "draw_all", lambda draw, items, jobs, root, done: done)
 
-    def write(seeds: dict[str, int]) -> None:
+    def write(seeds: dict[str, int], **extra) -> None:
         rows = [{"set": name, "seed": s, "status": "ok", "joint_tip_rms_mm": 0.1 * s,
-                 "fair_nominal_tip_rms_mm": 1.0} for name, n in seeds.items()
+                 "fair_nominal_tip_rms_mm": 1.0, **extra} for name, n in seeds.items()
                 for s in range(1, n + 1)]  # fmt: skip
         (tmp_path / "draws.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
 
@@ -45,4 +45,19 @@ def test_a_whole_table_counts_its_draws(journal, capsys):
     write({"plan 12": 3, "random 30": 3})
     assert field_compare.main(["--draws", "3", "--out", str(root)]) == 0
     out = capsys.readouterr().out
-    assert "| plan 12 | 3 of 3 | 0.300 | 0.200 | 0.280 | 0.67 | 1.000 |" in out
+    assert "| plan 12 | 3 of 3 | not recorded | 0.300 | 0.200 | 0.280 | 0.67 | 1.000 |" in out
+
+
+def test_the_frames_used_are_summed_and_another_cell_has_its_own_block(
+    journal, capsys, monkeypatch
+):
+    root, write = journal
+    written = []
+    monkeypatch.setattr(doc_blocks, "write_block", lambda *a: written.append(a))
+    write({"plan 12": 3, "random 30": 3}, frames=12, frames_used=11)
+    argv = ["--robot", "kr6-r900", "--render", "--pixel-sigma", "0.1", "--draws", "3"]
+    assert field_compare.main([*argv, "--out", str(root), "--write-docs"]) == 0
+    out = capsys.readouterr().out
+    assert "| plan 12 | 3 of 3 | 33 of 36 | 0.300 |" in out
+    assert "field_compare --robot kr6-r900 --render --pixel-sigma 0.1 --draws 3" in out
+    assert [a[2] for a in written] == ["benchmark_plan_field_compare_kr6-r900-rendered"]

@@ -1,25 +1,30 @@
-"""``python -m selfcal.benchmarks.plan.field_compare [--draws 30] [--jobs 1] [--out DIR]``: a
-field plan of ``selfcal plan --target FIELD.toml`` against random postures, achieved in
-simulation (docs/plan.md, "A marker field"; issue #30).
+"""``python -m selfcal.benchmarks.plan.field_compare [--robot ur5e] [--render] [--pixel-sigma 0.5]
+[--draws 30] [--jobs 1] [--out DIR]``: a field plan of ``selfcal plan --target FIELD.toml``
+against random postures, achieved in simulation (docs/plan.md, "A marker field"; issue #30).
 
-The cell of docs/plan.md's field example (UR5e, 60 deg 640 x 480 wrist camera, the 20-marker
-field of 300 mm where the home posture looks, its scale 200 mm): the plan of 12 and the first 30
+The cell of docs/plan.md's field example (the UR5e, or ``--robot``'s arm with the same camera
+and field; 60 deg 640 x 480 wrist camera, the 20-marker field of 300 mm where the home posture
+looks, its scale 200 mm): the plan of 12 and the first 30
 of the same candidate sequence (random postures under the same filters:
 :func:`selfcal.calibration.field.plan.plan_field`; the random 12 the command prints beside the
 plan are their first 12). Every draw is one simulated truth
 (``[perturbation] seed`` = the draw: the arm within 1 mm and 0.5 deg) and one noise draw, on the
-analytic path with dithered read-back, calibrated by the field route
+analytic path (``--render``: rendered with MuJoCo and detected, as ``selfcal run`` with
+``[noise] render = true`` does; the plan and the forecast then for ``--pixel-sigma``'s corner
+noise, the images' own noise whatever it is) with dithered read-back, calibrated by the field route
 (:func:`selfcal.studies.montecarlo.run.draw_one`); the achieved error is the one-step
 calibration's validation tool-tip RMS after the best rigid alignment against the truth, beside
 the fair nominal's (the nominal chain with the camera, the hand-eye and the points fitted to the
 same pixels). Prints per posture set the forecast
 (:func:`selfcal.calibration.field.plan.field_forecast`), the achieved median and 90th
-percentile, their ratio, the fair nominal's median and the draws that ran and ended ok (each draw also in
+percentile, their ratio, the fair nominal's median, the draws that ran and ended ok and the
+frames the calibrations used of those planned (each draw also in
 ``DIR/draws.jsonl`` as it ends; the draws run seed by seed, every set's in turn, and a run
 stopped before resumes from that journal: ``--draws`` of a journal's seeds alone prints their
 table without drawing; a table short of ``--draws`` draws in a set is printed, not written to
 the docs, and exits 1; ``--write-docs`` writes it between docs/plan.md's
-``benchmark_plan_field_compare`` markers).
+``benchmark_plan_field_compare`` markers; another robot's or the rendered path's block
+``benchmark_plan_field_compare_ROBOT[-rendered]``).
 """
 
 from __future__ import annotations
@@ -40,8 +45,8 @@ DOCS = ROOT / "docs/plan.md"
 BLOCK = "benchmark_plan_field_compare"
 
 
-def field_cell(root: Path) -> dict:
-    """The benchmark's cell (docs/plan.md's field example): ``robot``, ``camera``, the plan's
+def field_cell(root: Path, robot_name: str = "ur5e", pixel_sigma_px: float = 0.5) -> dict:
+    """The benchmark's cell (docs/plan.md's field example; ``robot_name``'s arm): ``robot``, ``camera``, the plan's
     ``setup``, the read-back noise ``joint_sigma`` (n,) rad, the forecast's ``workspace`` (w, n)
     rad, the replay's marker ``layout`` (its scenario written under ``root``) and the planner's
     keywords ``plan_kw``."""
@@ -53,7 +58,7 @@ def field_cell(root: Path) -> dict:
     from selfcal.io.camera_file import camera_from_fov
     from selfcal.robot.definition import load_robot
 
-    robot = load_robot("ur5e")
+    robot = load_robot(robot_name)
     camera = camera_from_fov(60.0, 640, 480)
     setup = FieldPlanSetup(robot, Rig((camera,), np.eye(4)[None], ("left",)),
                            FIELD["extent_mm"] / 1000, np.zeros((0, 6)))  # fmt: skip
@@ -61,21 +66,29 @@ def field_cell(root: Path) -> dict:
     # the forecast's markers: the replays' simulated field (the same for every set)
     root.mkdir(parents=True, exist_ok=True)
     first = root / "field-scenario.toml"
-    write_text_atomic(first, scenario_text("ur5e", camera, None, 12, field=FIELD))
+    write_text_atomic(first, scenario_text(robot_name, camera, None, 12, field=FIELD))
     layout, _ = replay_layout(first, FIELD["scale_length_mm"] / 1000)
-    kw = {"seed": 1, "candidates": 400, "markers": 20, "pixel_sigma_px": 0.5, "joint_sigma": js}
+    kw = {"seed": 1, "candidates": 400, "markers": 20, "pixel_sigma_px": pixel_sigma_px,
+          "joint_sigma": js}  # fmt: skip
     return {"robot": robot, "camera": camera, "setup": setup, "joint_sigma": js,
             "workspace": forecast_workspace(setup, seed=2), "layout": layout, "plan_kw": kw}  # fmt: skip
 
 
-def field_sets(root: Path, count: int = 12, random_counts: tuple[int, ...] = (30,)) -> dict:
+def field_sets(
+    root: Path,
+    count: int = 12,
+    random_counts: tuple[int, ...] = (30,),
+    robot_name: str = "ur5e",
+    pixel_sigma_px: float = 0.5,
+) -> dict:
     """``{name: (scenario path, q (m, n) rad, forecast m)}``: the plan of ``count`` and the
-    first ``random_counts`` random postures, each written as a replay scenario under ``root``."""
+    first ``random_counts`` random postures of ``robot_name``'s cell, each written as a replay
+    scenario under ``root``; planned and forecast for ``pixel_sigma_px`` of corner noise."""
     from selfcal.calibration.field.plan import field_forecast, plan_field, random_plan
     from selfcal.cli.plan_scenario import scenario_text
     from selfcal.io.plan_files import joints_csv
 
-    cell = field_cell(root)
+    cell = field_cell(root, robot_name, pixel_sigma_px)
     robot, camera, setup, js = cell["robot"], cell["camera"], cell["setup"], cell["joint_sigma"]
     ws, layout, kw = cell["workspace"], cell["layout"], cell["plan_kw"]
     names = [f"plan {count}"] + [f"random {n}" for n in random_counts]
@@ -89,41 +102,68 @@ def field_sets(root: Path, count: int = 12, random_counts: tuple[int, ...] = (30
         folder = root / name.replace(" ", "-")
         write_text_atomic(folder / "joints.csv", joints_csv(q, robot.edge_unit))
         write_text_atomic(folder / "scenario.toml",
-                          scenario_text("ur5e", camera, None, len(q), field=FIELD))  # fmt: skip
-        fc = field_forecast(setup, layout, q, ws, pixel_sigma_px=0.5, joint_sigma=js)
+                          scenario_text(robot_name, camera, None, len(q), field=FIELD))  # fmt: skip
+        fc = field_forecast(setup, layout, q, ws, pixel_sigma_px=pixel_sigma_px, joint_sigma=js)
         out[name] = (folder / "scenario.toml", q / robot.edge_unit, fc.tool_rms_m)
     return out
 
 
-def _draw(item: tuple[str, str, list, int]) -> dict:
+def _draw(item: tuple[str, str, list, int, bool, float]) -> dict:
     from selfcal.studies.montecarlo.run import draw_one
 
-    name, config, joints_deg, seed = item
-    row = draw_one({"config": config, "poses": len(joints_deg), "pixel_sigma": 0.5,
+    name, config, joints_deg, seed, render, sigma = item
+    row = draw_one({"config": config, "poses": len(joints_deg), "pixel_sigma": sigma,
                     "seed": seed, "traj_seed": 1, "perturb_seed": seed, "dither": True,
-                    "joints_deg": joints_deg})  # fmt: skip
-    keys = ("joint_tip_rms_mm", "fair_nominal_tip_rms_mm", "nominal_tip_rms_mm")
+                    "joints_deg": joints_deg, "render": render})  # fmt: skip
+    keys = ("joint_tip_rms_mm", "fair_nominal_tip_rms_mm", "nominal_tip_rms_mm", "sigma_hat_px")
     return {"set": name, "seed": seed, "status": str(row["status"]),
+            "frames_used": row.get("frames_used"), "frames": row.get("frames"),
             **{k: float(row.get(k) or np.nan) for k in keys}}  # fmt: skip
+
+
+def _options(argv: list[str] | None):
+    """The benchmark's options: :func:`selfcal.benchmarks.plan.compare.arguments`' and the cell's."""
+    import argparse
+
+    from selfcal.benchmarks.plan.compare import arguments
+
+    ap = argparse.ArgumentParser(add_help=False)
+    ap.add_argument("--robot", default="ur5e", help="the arm (a model name; default ur5e)")
+    ap.add_argument("--render", action="store_true", help="rendered and detected images")
+    ap.add_argument("--pixel-sigma", type=float, default=0.5,
+                    help="the corner noise the plan and the forecast assume (px; default 0.5)")  # fmt: skip
+    cell, rest = ap.parse_known_args(argv)
+    a = arguments(rest, __doc__ or "", "runs/plan-field-compare", 1, write_docs=True)
+    for k, v in vars(cell).items():
+        setattr(a, k, v)
+    return a
+
+
+def _frames(run: list[dict]) -> str:
+    """The frames used of those planned over the draws ``run`` ("not recorded" for older journals)."""
+    if not run or any(r.get("frames") is None for r in run):
+        return "not recorded"
+    return f"{sum(r['frames_used'] for r in run)} of {sum(r['frames'] for r in run)}"
 
 
 def main(argv: list[str] | None = None) -> int:
     """Draw and print the table."""
     from selfcal.benchmarks.doc_blocks import print_table
-    from selfcal.benchmarks.plan.compare import arguments, draw_all
+    from selfcal.benchmarks.plan.compare import draw_all
 
-    a = arguments(argv, __doc__ or "", "runs/plan-field-compare", 1, write_docs=True)
+    a = _options(argv)
     root = Path(a.out)
-    sets = field_sets(root)
+    sets = field_sets(root, robot_name=a.robot, pixel_sigma_px=a.pixel_sigma)
     journal = root / "draws.jsonl"  # a run stopped before resumes: its draws are not redone
     done = [json.loads(x) for x in journal.read_text().splitlines()] if journal.exists() else []
     have = {(r["set"], r["seed"]) for r in done}
-    items = [(name, str(path), q.tolist(), s) for s in range(1, a.draws + 1)
+    items = [(name, str(path), q.tolist(), s, a.render, a.pixel_sigma)
+             for s in range(1, a.draws + 1)
              for name, (path, q, _) in sets.items() if (name, s) not in have]  # fmt: skip
     rows = [r for r in draw_all(_draw, items, a.jobs, root, done) if r["seed"] <= a.draws]
-    lines = ["| postures | draws (ok of run) | forecast (mm) | achieved median (mm) | 90th "
-             "percentile | median / forecast | fair nominal median (mm) |",
-             "|---|---|---|---|---|---|---|"]  # fmt: skip
+    lines = ["| postures | draws (ok of run) | frames used (of planned) | forecast (mm) | "
+             "achieved median (mm) | 90th percentile | median / forecast | fair nominal "
+             "median (mm) |", "|---|---|---|---|---|---|---|---|"]  # fmt: skip
     short = []
     for name, (_, _, pred) in sets.items():
         run = [r for r in rows if r["set"] == name]
@@ -135,16 +175,21 @@ def main(argv: list[str] | None = None) -> int:
         med, p90 = np.median(e), np.percentile(e, 90)
         p = "none" if pred is None else f"{pred * 1000:.3f}"
         ratio = "-" if pred is None else f"{med / (pred * 1000):.2f}"
-        lines.append(f"| {name} | {len(ok)} of {len(run)} | {p} | {med:.3f} | {p90:.3f} | "
-                     f"{ratio} | {fair:.3f} |")  # fmt: skip
-    lines.append(f"\n`uv run python -m selfcal.benchmarks.plan.field_compare --draws {a.draws} "
-                 "--jobs 1 --write-docs` (seeds 1 - %d)" % a.draws)  # fmt: skip
+        lines.append(f"| {name} | {len(ok)} of {len(run)} | {_frames(ok)} | {p} | {med:.3f} | "
+                     f"{p90:.3f} | {ratio} | {fair:.3f} |")  # fmt: skip
+    cell = "" if a.robot == "ur5e" else f" --robot {a.robot}"
+    cell += " --render" if a.render else ""
+    cell += "" if a.pixel_sigma == 0.5 else f" --pixel-sigma {a.pixel_sigma:g}"
+    lines.append(f"\n`uv run python -m selfcal.benchmarks.plan.field_compare{cell} --draws "
+                 f"{a.draws} --jobs 1 --write-docs` (seeds 1 - {a.draws})")  # fmt: skip
     text = "\n".join(lines)
     if short:
         print(text)
         print(f"NOT every draw run ({'; '.join(short)}): the table is not written to the docs")
         return 1
-    return print_table(text, DOCS, BLOCK, write=a.write_docs)
+    block = BLOCK if (a.robot, a.render) == ("ur5e", False) else \
+        f"{BLOCK}_{a.robot}{'-rendered' if a.render else ''}"  # fmt: skip
+    return print_table(text, DOCS, block, write=a.write_docs)
 
 
 if __name__ == "__main__":

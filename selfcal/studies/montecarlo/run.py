@@ -143,6 +143,8 @@ def _evaluate(root: Path, pixel_sigma: float, *, fair_nominal: bool = True) -> d
     p_true = tool_tips(truth.true_model, qv, truth.T_cam_tip)
     models = {"joint": out.model, "two_stage": out.identification.model}
     row: dict = check_fields(out.result.failures)  # the checks `selfcal calibrate` reports
+    row["frames_used"] = int(len(out.frames_used))
+    row["frames"] = int(len(ds.indices))
     for k, mdl in models.items():
         row[f"{k}_tip_rms_mm"] = aligned_errors(tool_tips(mdl, qv, truth.T_cam_tip), p_true)["rms"]
     row["nominal_tip_rms_mm"] = aligned_errors(
