@@ -12,6 +12,7 @@ import os
 import sys
 from pathlib import Path
 
+from selfcal.cli.check import EXIT_CANNOT_TELL, EXIT_CHANGED
 from selfcal.cli.main import build_parser
 from selfcal.console.common import leaf_parsers
 from selfcal.io.atomic import write_text_atomic
@@ -60,11 +61,12 @@ once). A command that writes files ends with one line naming them and counting t
 | 2 | bad input: scenario, dataset, robot file, calibration file, argument or command line |
 | 3 | cannot calibrate from this data: too few postures, degenerate geometry, no convergence |
 | 4 | robot or hardware fault: controller error, serial link, camera |
-| 5 | `selfcal check`: the robot has changed since its calibration (the check worked) |
+| {changed} | `selfcal check`: the robot has changed since its calibration (the check worked) |
+| {cannot} | `selfcal check` of a board calibration: cannot tell (the new images miss the prediction, but by no more than the calibration's own folds missed the arm configurations they left out: check at its own postures) |
 | 130 | interrupted (Ctrl-C) |
 
 ## Commands
-"""
+""".format(changed=EXIT_CHANGED, cannot=EXIT_CANNOT_TELL)
 
 
 def _help(p: argparse.ArgumentParser) -> str:

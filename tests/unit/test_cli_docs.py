@@ -18,3 +18,11 @@ def test_every_command_is_documented_once():
         assert text.count(f"### `selfcal {cmd}`") == 1
     # hidden deprecated spellings stay out of the documentation
     assert "--model" not in text.replace("--camera-model", "") and "--rerun" not in text
+
+
+def test_every_exit_code_of_check_is_in_the_table():
+    from selfcal.cli.check import EXIT_CANNOT_TELL, EXIT_CHANGED
+
+    table = cli_markdown().split("## Messages and exit codes")[1].split("## Commands")[0]
+    for code in (EXIT_CHANGED, EXIT_CANNOT_TELL):
+        assert f"\n| {code} | `selfcal check`" in table
