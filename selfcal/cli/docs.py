@@ -23,7 +23,7 @@ DOC = Path(__file__).resolve().parents[2] / "docs" / "cli.md"
 WIDTH = 100
 """Columns of the help text (fixed, so the file does not depend on the terminal)."""
 
-HEADER = """\
+HEADER = f"""\
 # The `selfcal` command line
 
 Generated from the parser by `python -m selfcal.cli.docs --write` (do not edit by hand;
@@ -61,12 +61,12 @@ once). A command that writes files ends with one line naming them and counting t
 | 2 | bad input: scenario, dataset, robot file, calibration file, argument or command line |
 | 3 | cannot calibrate from this data: too few postures, degenerate geometry, no convergence |
 | 4 | robot or hardware fault: controller error, serial link, camera |
-| {changed} | `selfcal check`: the robot has changed since its calibration (the check worked) |
-| {cannot} | `selfcal check` of a board calibration: cannot tell (the new images miss the prediction, but by no more than the calibration's own folds missed the arm configurations they left out: check at its own postures) |
+| {EXIT_CHANGED} | `selfcal check`: the robot has changed since its calibration (the check worked) |
+| {EXIT_CANNOT_TELL} | `selfcal check` of a board calibration: cannot tell (the new images miss the prediction, but by no more than the calibration's own folds missed the arm configurations they left out: check at its own postures) |
 | 130 | interrupted (Ctrl-C) |
 
 ## Commands
-""".format(changed=EXIT_CHANGED, cannot=EXIT_CANNOT_TELL)
+"""
 
 
 def _help(p: argparse.ArgumentParser) -> str:

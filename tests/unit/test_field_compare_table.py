@@ -61,3 +61,17 @@ def test_the_frames_used_are_summed_and_another_cell_has_its_own_block(
     assert "| plan 12 | 3 of 3 | 33 of 36 | 0.300 |" in out
     assert "field_compare --robot kr6-r900 --render --pixel-sigma 0.1 --draws 3" in out
     assert [a[2] for a in written] == ["benchmark_plan_field_compare_kr6-r900-rendered"]
+
+
+def test_the_sets_are_compared_draw_by_draw_with_a_sign_test(journal, capsys):
+    root, _ = journal
+    plan = [0.1, 0.3, 0.2, 0.4]  # errs less than the random set in draws 1, 3 and 4 of 4
+    rand = [0.2, 0.2, 0.3, 0.5]
+    rows = [{"set": name, "seed": s + 1, "status": "ok", "joint_tip_rms_mm": e[s],
+             "fair_nominal_tip_rms_mm": 1.0} for name, e in (("plan 12", plan), ("random 30", rand))
+            for s in range(4)]  # fmt: skip
+    (root / "draws.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
+    assert field_compare.main(["--draws", "4", "--out", str(root)]) == 0
+    out = capsys.readouterr().out
+    # P(X >= 3 | 4, 1/2) = 5/16
+    assert "plan 12 errs less in 3 of 4 draws (one-sided sign test p = 0.31)" in out
