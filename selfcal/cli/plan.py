@@ -68,8 +68,10 @@ noise, the selection's cross-validation deciding in each, for the plan and the r
 both distributions beside the error without calibrating the kinematics. plan.json holds every
 figure.
 --add K DATASET: instead, the K postures that most lower the predicted error of the calibrated
-DATASET (its robot file, calibration.json's camera, board pose and hand-eye; --robot, --target,
---board-pose, --count and the camera options are refused), predicted with the parameters the
+DATASET of one camera, either mount (its robot file and calibration.json's camera and mounts:
+the board pose and the hand-eye, or eye-to-hand the camera's pose in the base and the board's on
+the flange, with that mount's view rules; --robot, --target, --mount, --board-pose,
+--camera-pose, --count and the camera options are refused), predicted with the parameters the
 selection's cross-validation is forecast to keep; PLAN/joints.csv and trajectory.yaml hold the
 added postures in the order to record them (it sets the cross-validation's folds), replay.csv the
 dataset's and the added ones (scenario.toml replays them); the last line and plan.png give the
@@ -99,6 +101,7 @@ ADD_TAKES_FROM_DATASET = (
     ("--fov-deg", "fov_deg"),
     ("--resolution", "resolution"),
     ("--board-pose", "board_pose"),
+    ("--camera-pose", "camera_pose"),
     ("--count", "count"),
 )
 """What a new plan takes and ``--add`` refuses (the dataset and its calibration give them)."""
@@ -164,8 +167,17 @@ def _setup(args: argparse.Namespace, robot, camera, board, boxes):
     return PlanSetup.eye_to_hand_setup(robot, camera, board, T_bc, T_fb, boxes), cp
 
 
-def _check_mount(args: argparse.Namespace) -> None:
-    """A clear error for an option the mount does not take, or one it needs."""
+def _check_mount(args: argparse.Namespace, mount: str | None) -> None:
+    """A clear error for an option the mount does not take, or one it needs (``mount`` the
+    ``--mount`` given, None: none), or that ``--add`` takes from the dataset."""
+    if args.add:
+        given = [o for o, k in ADD_TAKES_FROM_DATASET if getattr(args, k) is not None]
+        given = (["--mount"] if mount is not None else []) + given
+        if given:
+            raise CliError(f"--add takes the robot, the mount, the camera, the board and their "
+                           f"poses from the dataset and K as the count: {', '.join(given)} "
+                           "would not be used", fix=f"leave out {', '.join(given)} with --add")  # fmt: skip
+        return
     e2h = args.mount == "eye-to-hand"
     wrong = [o for o, v in (("--board-pose", args.board_pose if e2h else None),
                             ("--camera-pose", None if e2h else args.camera_pose)) if v]  # fmt: skip
@@ -176,16 +188,6 @@ def _check_mount(args: argparse.Namespace) -> None:
                if e2h else "the camera rides on the flange and the board lies still (--board-pose)"),
             fix="give --board-pose with --mount eye-in-hand, --camera-pose with --mount eye-to-hand",
         )  # fmt: skip
-    if e2h and args.add:
-        raise CliError("--add plans the additions to an eye-in-hand dataset only",
-                       fix="leave out --mount eye-to-hand with --add")  # fmt: skip
-    if args.add:
-        given = [o for o, k in ADD_TAKES_FROM_DATASET if getattr(args, k) is not None]
-        if given:
-            raise CliError(f"--add takes the robot, camera, board and its pose from the dataset "
-                           f"and K as the count: {', '.join(given)} would not be used",
-                           fix=f"leave out {', '.join(given)} with --add")  # fmt: skip
-        return
     args.count = 12 if args.count is None else args.count
     pose = "--camera-pose" if e2h else "--board-pose"
     missing = [o for o, v in (("--robot", args.robot), ("--target", args.target),
@@ -221,7 +223,7 @@ def _cmd(args: argparse.Namespace) -> int:
         raise CliError(f"{', '.join(given)} describe{'s' if len(given) == 1 else ''} a laser "
                        "tracker's measurement, not a camera's",
                        fix="add --measure tracker, or leave them out")  # fmt: skip
-    args.mount = args.mount or "eye-in-hand"
+    mount, args.mount = args.mount, args.mount or "eye-in-hand"
     args.pixel_sigma = 0.5 if args.pixel_sigma is None else args.pixel_sigma
     if not args.pixel_sigma > 0:
         raise CliError(f"--pixel-sigma {args.pixel_sigma:g}: the corner noise must be > 0 px",
@@ -229,7 +231,7 @@ def _cmd(args: argparse.Namespace) -> int:
     if args.target and not args.add and plan_field.is_field(args.target):
         return plan_field.cmd_field(args, _camera, _deviation)
     plan_field.check_field_options(args)
-    _check_mount(args)
+    _check_mount(args, mount)
     if args.add:
         return _cmd_add(args)
     robot = load_robot(args.robot)
@@ -320,7 +322,7 @@ def _cmd_add(args: argparse.Namespace) -> int:
     from selfcal.calibration.board.plan.add import dataset_setup, plan_additions
     from selfcal.calibration.board.plan.ground import PlanOptions
     from selfcal.cli.plan_forecast import DrawSet, forecast_draws, write_figure
-    from selfcal.cli.plan_scenario import scenario_text
+    from selfcal.cli.plan_scenario import cell_fields, scenario_text
     from selfcal.cli.plan_text import criterion, reference_words
     from selfcal.console.progress import Progress
     from selfcal.estimation.joint_report import encoder_sigma
@@ -329,7 +331,6 @@ def _cmd_add(args: argparse.Namespace) -> int:
     from selfcal.io.jsonfile import write_json_atomic
     from selfcal.io.plan_files import joints_csv, trajectory_yaml
     from selfcal.io.target_toml import target_document
-    from selfcal.target.placement import board_pose_values
 
     k_text, root = args.add
     try:
@@ -356,8 +357,7 @@ def _cmd_add(args: argparse.Namespace) -> int:
         DrawSet("before", f"the dataset's {m} postures recorded anew", dplan.q, dplan.seen),
         DrawSet("after", f"with the {len(add.q)} added", np.concatenate([dplan.q, add.q]),
                 dplan.seen)], js, opts.deviation)  # fmt: skip
-    centre, rpy = board_pose_values(setup.board, setup.T_base_board)
-    bp = np.concatenate([centre * 1000.0, np.degrees(rpy)])
+    where, cell = cell_fields(setup)
     ref = robot_reference(str(Dataset.open(root).robot_source))
     out = Path(args.out)
     q_all = np.concatenate([dplan.q, add.q])
@@ -370,9 +370,9 @@ def _cmd_add(args: argparse.Namespace) -> int:
         doc_t = target_document(setup.board)  # flat: strings, numbers and lists of numbers
         write_text_atomic(out / "target.toml", "# The board of " + str(root) + "\n" + "".join(
             f"{k} = {json.dumps(v)}\n" for k, v in doc_t.items()))  # fmt: skip
-        write_text_atomic(out / "scenario.toml", scenario_text(ref, setup.camera, bp, len(q_all),
+        write_text_atomic(out / "scenario.toml", scenario_text(ref, setup.camera, count=len(q_all),
                                                               joints="replay.csv",
-                                                              deviation=opts.deviation))  # fmt: skip
+                                                              deviation=opts.deviation, **where))  # fmt: skip
         write_figure(fc, add.reference, f"{robot.name}: {root} ({m} frames) before and after "
                      f"adding {len(add.q)} postures, predicted over {fc.draws} draws of the arm "
                      "and the noise", out / "plan.png")  # fmt: skip
@@ -409,7 +409,7 @@ def _cmd_add(args: argparse.Namespace) -> int:
             "candidates_from": add.drawn_from,
             "path_deg": round(float(np.degrees(add.path_rad)), 3),
             "seed": args.seed,
-            "board_pose_mm_deg": np.round(bp, 6).tolist(),
+            **cell,
             **plan_inputs(args, setup.boxes, robot.edge_unit, add.q),
         }
         write_json_atomic(out / "plan.json", doc)

@@ -7,7 +7,35 @@ import json
 
 import numpy as np
 
-__all__ = ["scenario_text"]
+__all__ = ["cell_fields", "scenario_text"]
+
+REPLAY_BOARD = (
+    "the calibrated flange -> board is in the dataset's calibration.json (mounts); the replay's "
+    "scenario.toml mounts the simulated board as selfcal run's eye-to-hand cell does"
+)
+"""Where ``--add``'s replay puts an eye-to-hand dataset's board (the scenario has no key for a
+board mount: :func:`selfcal.target.placement.board_on_flange`)."""
+
+
+def cell_fields(setup) -> tuple[dict, dict]:
+    """The cell of a :class:`selfcal.calibration.board.plan.views.PlanSetup` ``setup`` as
+    :func:`scenario_text`'s keywords (``board_pose`` / ``camera_pose`` (6,) mm and deg) and as
+    plan.json's keys: eye-in-hand the still board's pose, eye-to-hand the still camera's and
+    where the board rides."""
+    from selfcal.target.placement import board_pose_values, camera_pose_values
+
+    if setup.eye_to_hand:
+        centre, rpy = camera_pose_values(setup.T_base_cam)
+        cp = np.concatenate([centre * 1000.0, np.degrees(rpy)])
+        return {"board_pose": None, "camera_pose": cp}, {
+            "mount": "eye-to-hand", "camera_pose_mm_deg": np.round(cp, 6).tolist(),
+            "board_on_flange": REPLAY_BOARD}  # fmt: skip
+    centre, rpy = board_pose_values(setup.board, setup.T_base_board)
+    bp = np.concatenate([centre * 1000.0, np.degrees(rpy)])
+    return {"board_pose": bp}, {
+        "mount": "eye-in-hand",
+        "board_pose_mm_deg": np.round(bp, 6).tolist(),
+    }
 
 
 def scenario_text(

@@ -394,15 +394,16 @@ def test_a_plan_refuses_an_arm_that_is_exactly_its_drawing(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("extra", [["--robot", "ur5e"], ["--target", BOARD], ["--count", "5"],
-                                   ["--fov-deg", "60"], ["--board-pose", "0,0,0"]])  # fmt: skip
+                                   ["--fov-deg", "60"], ["--board-pose", "0,0,0"],
+                                   ["--camera-pose", "0,0,1"], ["--mount", "eye-to-hand"]])  # fmt: skip
 def test_add_refuses_what_the_dataset_gives(tmp_path, capsys, extra):
     """--add takes the cell from the dataset: these options were silently not used."""
     argv = ["plan", "--add", "5", str(tmp_path / "data"), "--out", str(tmp_path / "p"), *extra]
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert (
-        f"--add takes the robot, camera, board and its pose from the dataset and K as the "
-        f"count: {extra[0]} would not be used" in err
+        f"--add takes the robot, the mount, the camera, the board and their poses from the "
+        f"dataset and K as the count: {extra[0]} would not be used" in err
     )
     assert not (tmp_path / "p").exists()
 

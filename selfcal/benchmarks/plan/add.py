@@ -1,5 +1,5 @@
-"""``python -m selfcal.benchmarks.plan.add [--truths 6] [--add 5] [--jobs 2] [--out DIR]
-[--write-docs]``:
+"""``python -m selfcal.benchmarks.plan.add [--truths 6] [--add 5] [--mount eye-in-hand|eye-to-hand]
+[--jobs 2] [--out DIR] [--write-docs]``:
 ``selfcal plan --add`` on a poorly identified dataset, simulated (docs/plan.md, issue #30).
 
 For every truth (the scenario's ``[perturbation] seed``): a UR5e with a 60 deg wrist camera
@@ -11,6 +11,18 @@ calibrated. A row: the predicted tool-point RMS before and after (``plan.json``)
 achieved one (``report.json``'s validation tool tip against the simulated truth). Prints the
 table and the medians of the before/after ratios; ``--write-docs`` puts them between
 docs/plan.md's ``benchmark_plan_add_K`` markers (K the ``--add``).
+
+``--mount eye-to-hand`` (:func:`still_camera_row`): the nominal cell of
+``scenarios/eye-to-hand.toml`` (:func:`still_cell`: the UR5e, the ChArUco on its flange, a
+900 px 640 x 480 camera still 0.6 m in front of the board at the cell's home) records
+:data:`STILL_POSTURES` postures of one arm configuration (the wrist alone moves, as the
+scenario's own postures are planned: :func:`selfcal.sim.static_camera.plan_static_postures`
+with one configuration); the arm drawn within the plan's default deviation (1 mm, 0.5 deg);
+the rest as above, and the achieved error is the quantity the plan predicts: the flange centre over the same 50 workspace postures before and after (the plan's
+workspace sample of the nominal cell, seed 2) after the best rigid alignment, against the
+truth (:func:`selfcal.pipeline.static_report.flange_centre_errors`). Markers
+``benchmark_plan_add_e2h_K``. A truth whose calibration stops with an error is a row that says
+so, left out of the medians.
 """
 
 from __future__ import annotations
@@ -25,10 +37,12 @@ import numpy as np
 from selfcal.benchmarks.doc_blocks import ROOT, print_table
 from selfcal.io.atomic import write_text_atomic
 
-__all__ = ["wrist_cell", "wrist_only_row", "main"]
+__all__ = ["STILL_POSTURES", "still_camera_row", "wrist_cell", "wrist_only_row", "main"]
 
 WRIST_SPAN_DEG = (40.0, 40.0, 90.0)
 """How far the wrist's three joints move from home in the wrist-only dataset (deg)."""
+STILL_POSTURES = 12
+"""Eye-to-hand: the postures of the one arm configuration of the dataset."""
 
 
 def wrist_cell():
@@ -52,14 +66,18 @@ def wrist_cell():
     return PlanSetup(robot, camera, board, board_pose(board, bp[:3] / 1000.0)), target, bp
 
 
-def _write(folder: Path, setup, target: Path, bp: np.ndarray, joints: str, seed: int) -> Path:
+def _write(folder: Path, setup, target: Path, pose: np.ndarray, joints: str, seed: int) -> Path:
+    """The scenario replaying ``joints`` in ``folder``: the board at ``pose`` (mm, deg) or,
+    eye-to-hand, the camera there."""
     from selfcal.cli.plan_scenario import scenario_text
 
     folder.mkdir(parents=True, exist_ok=True)
     shutil.copyfile(target, folder / "target.toml")
     n = len((folder / joints).read_text().splitlines()) - 1
-    write_text_atomic(folder / "scenario.toml",
-                      scenario_text("ur5e", setup.camera, bp, n, joints=joints, seed=seed))  # fmt: skip
+    e2h = setup.eye_to_hand
+    write_text_atomic(folder / "scenario.toml", scenario_text(
+        "ur5e", setup.camera, None if e2h else pose, n, joints=joints, seed=seed,
+        camera_pose=pose if e2h else None))  # fmt: skip
     return folder / "scenario.toml"
 
 
@@ -106,8 +124,102 @@ def wrist_only_row(root: Path, seed: int, add: int = 5) -> dict:
             "achieved_after_mm": after, "kept_before": kept[0], "kept_after": kept[1]}  # fmt: skip
 
 
-def _row(item: tuple[str, int, int]) -> dict:
-    root, seed, add = item
+def _flange_rms(run: Path, qw: np.ndarray) -> float:
+    """The flange centre's RMS error (mm) over ``qw`` (w, n) rad of the eye-to-hand
+    calibration in ``run`` against its truth, after the best rigid alignment."""
+    from selfcal.io.board_calibration import read_board_calibration
+    from selfcal.io.truth import read_truth
+    from selfcal.pipeline.static_report import flange_centre_errors
+    from selfcal.robot.definition import load_robot
+    from selfcal.transforms import inv_pose
+
+    cal, truth = read_board_calibration(run), read_truth(run / "truth.json")
+    assert truth.board is not None
+    chain = truth.true_model.with_base(inv_pose(np.asarray(truth.board["T_world_cam"])))
+    return flange_centre_errors(cal.model, chain, truth.board["T_flange_board"],
+                                load_robot("ur5e"), qw)["rms"]  # fmt: skip
+
+
+def still_cell():
+    """The eye-to-hand benchmark's cell: a :class:`selfcal.calibration.board.plan.views.PlanSetup`
+    (UR5e, the ChArUco on its flange, a 900 px 640 x 480 camera 0.6 m in front of the board at
+    the cell's home: the nominal cell of ``scenarios/eye-to-hand.toml``,
+    :func:`selfcal.sim.static_camera.static_camera_truth`), the simulator's nominal cell, the
+    target file and the camera's pose (mm, deg)."""
+    from selfcal.calibration.board.plan.views import PlanSetup
+    from selfcal.camera import Intrinsics
+    from selfcal.io.target_toml import load_target
+    from selfcal.robot.definition import load_robot, models_dir
+    from selfcal.sim.static_camera import static_camera_truth
+    from selfcal.target.placement import camera_pose_values
+
+    robot = load_robot("ur5e")
+    target = models_dir() / "targets/charuco.toml"
+    board = load_target(target)
+    camera = Intrinsics.centered(900.0, 1.0, 640, 480)
+    cell = static_camera_truth(robot, board, camera, translation_m=0.0, rotation_rad=0.0)
+    centre, rpy = camera_pose_values(cell.T_base_cam)
+    pose = np.concatenate([centre * 1000.0, np.degrees(rpy)])
+    setup = PlanSetup.eye_to_hand_setup(robot, camera, board, cell.T_base_cam,
+                                        cell.T_flange_board_nominal)  # fmt: skip
+    return setup, cell, target, pose
+
+
+def still_camera_row(root: Path, seed: int, add: int = 5) -> dict:
+    """One eye-to-hand truth (module docstring) in ``root``: as :func:`wrist_only_row`, the
+    achieved errors over the plan's workspace sample; ``error`` says why a calibration
+    stopped (the figures it would have given NaN)."""
+    from selfcal.calibration.board.plan.ground import workspace_sample
+    from selfcal.cli.main import main as selfcal
+    from selfcal.io.plan_files import joints_csv
+    from selfcal.sim.static_camera import plan_static_postures
+
+    setup, cell, target, pose = still_cell()
+    qw = workspace_sample(setup, 50, seed=2)
+    q = plan_static_postures(cell, 1, STILL_POSTURES, seed=seed)
+    nan = float("nan")
+    row: dict = {"seed": seed, "frames": len(q), "error": ""}
+    row |= dict.fromkeys(("predicted_before_mm", "achieved_before_mm", "predicted_after_mm",
+                          "achieved_after_mm", "kept_before", "kept_after"), nan)  # fmt: skip
+    first = root / "wrist"
+    first.mkdir(parents=True, exist_ok=True)
+    write_text_atomic(first / "joints.csv", joints_csv(q, setup.robot.edge_unit))
+    scenario = _write(first, setup, target, pose, "joints.csv", seed)
+    if not (root / "dataset/calibration.json").is_file():
+        selfcal(["run", str(scenario), "--out", str(root / "dataset"), "--quiet"])
+    if not (root / "dataset/calibration.json").is_file():
+        return row | {"error": "the dataset's calibration stopped (selfcal run)"}
+    row |= {"achieved_before_mm": _flange_rms(root / "dataset", qw),
+            "kept_before": _kept(root / "dataset")}  # fmt: skip
+    plan = root / "plan"
+    if not (plan / "plan.json").is_file():
+        selfcal(["plan", "--add", str(add), str(root / "dataset"), "--out", str(plan), "--quiet"])
+    if not (plan / "plan.json").is_file():
+        return row | {"error": "selfcal plan --add stopped"}
+    doc = json.loads((plan / "plan.json").read_text())
+    row |= {"predicted_before_mm": doc["predicted_before_tool_rms_mm"],
+            "predicted_after_mm": doc["predicted_tool_rms_mm"]}  # fmt: skip
+    second = root / "added"
+    second.mkdir(parents=True, exist_ok=True)
+    shutil.copyfile(plan / "replay.csv", second / "replay.csv")
+    scenario = _write(second, setup, target, pose, "replay.csv", seed)
+    if not (root / "calibrated/calibration.json").is_file():
+        selfcal(["run", str(scenario), "--out", str(root / "calibrated"), "--quiet"])
+    if not (root / "calibrated/calibration.json").is_file():
+        return row | {"error": "the calibration with the added postures stopped (selfcal run)"}
+    return row | {"achieved_after_mm": _flange_rms(root / "calibrated", qw),
+                  "kept_after": _kept(root / "calibrated")}  # fmt: skip
+
+
+def _kept(run: Path) -> int:
+    """How many parameters the calibration in ``run`` identified."""
+    return len(json.loads((run / "calibration.json").read_text())["selection"]["identified"])
+
+
+def _row(item: tuple[str, int, int, str]) -> dict:
+    root, seed, add, mount = item
+    if mount == "eye-to-hand":
+        return still_camera_row(Path(root) / f"truth{seed}", seed, add)
     return wrist_only_row(Path(root) / f"truth{seed}", seed, add)
 
 
@@ -119,27 +231,36 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--truths", type=int, default=6)
     ap.add_argument("--add", type=int, default=5)
     ap.add_argument("--jobs", type=int, default=2)
-    ap.add_argument("--out", default="runs/plan-add")
+    ap.add_argument("--mount", default="eye-in-hand", choices=["eye-in-hand", "eye-to-hand"],
+                    help="the wrist camera's dataset (default) or the still camera's")  # fmt: skip
+    ap.add_argument("--out", default=None, help="default runs/plan-add[-e2h]")
     ap.add_argument("--write-docs", action="store_true",
-                    help="rewrite the table of this --add in docs/plan.md")  # fmt: skip
+                    help="rewrite the table of this --add (and mount) in docs/plan.md")  # fmt: skip
     a = ap.parse_args(argv)
-    items = [(a.out, s, a.add) for s in range(1, a.truths + 1)]
+    e2h = a.mount == "eye-to-hand"
+    out = a.out or ("runs/plan-add-e2h" if e2h else "runs/plan-add")
+    items = [(out, s, a.add, a.mount) for s in range(1, a.truths + 1)]
     with get_context("spawn").Pool(a.jobs) as pool:
         rows = pool.map(_row, items)
     lines = ["| truth | frames | predicted before -> after (mm) | achieved before -> after (mm) "
              "| parameters kept |", "|---|---|---|---|---|"]  # fmt: skip
     for r in rows:
+        kept = (f"{r['kept_before']} -> {r['kept_after']}" if not r.get("error") else
+                f"{r['error']}")  # fmt: skip
         lines.append(f"| {r['seed']} | {r['frames']} + {a.add} | {r['predicted_before_mm']:.3f} -> "
                      f"{r['predicted_after_mm']:.3f} | {r['achieved_before_mm']:.3f} -> "
-                     f"{r['achieved_after_mm']:.3f} | {r['kept_before']} -> {r['kept_after']} |")  # fmt: skip
-    pr = np.median([r["predicted_before_mm"] / r["predicted_after_mm"] for r in rows])
-    ac = np.median([r["achieved_before_mm"] / r["achieved_after_mm"] for r in rows])
-    fit = np.median([r["achieved_after_mm"] / r["predicted_after_mm"] for r in rows])
-    lines += ["", f"Median ratio before/after: predicted {pr:.2f}, achieved {ac:.2f}; "
+                     f"{r['achieved_after_mm']:.3f} | {kept} |")  # fmt: skip
+    ok = [r for r in rows if not r.get("error")]
+    pr = np.median([r["predicted_before_mm"] / r["predicted_after_mm"] for r in ok])
+    ac = np.median([r["achieved_before_mm"] / r["achieved_after_mm"] for r in ok])
+    fit = np.median([r["achieved_after_mm"] / r["predicted_after_mm"] for r in ok])
+    of = f" of the {len(ok)} truths that calibrated" if len(ok) < len(rows) else ""
+    mount = " --mount eye-to-hand" if e2h else ""
+    lines += ["", f"Median ratio before/after{of}: predicted {pr:.2f}, achieved {ac:.2f}; "
               f"achieved/predicted after {fit:.2f} (`python -m selfcal.benchmarks.plan.add "
-              f"--truths {a.truths} --add {a.add} --write-docs`)."]  # fmt: skip
-    return print_table("\n".join(lines), ROOT / "docs" / "plan.md",
-                       f"benchmark_plan_add_{a.add}", write=a.write_docs)  # fmt: skip
+              f"--truths {a.truths} --add {a.add}{mount} --write-docs`)."]  # fmt: skip
+    marker = f"benchmark_plan_add_{'e2h_' if e2h else ''}{a.add}"
+    return print_table("\n".join(lines), ROOT / "docs" / "plan.md", marker, write=a.write_docs)
 
 
 if __name__ == "__main__":

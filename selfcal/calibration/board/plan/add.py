@@ -2,9 +2,11 @@
 tool-point error of its calibration, given the frames it holds (``selfcal plan --add``, issue
 #30).
 
-The cell is the calibration's (:func:`dataset_setup`): the robot file, the calibrated camera, the
-board where the calibration placed it (base -> board) and the camera where it placed it on the
-flange (:func:`selfcal.calibration.board.mounts.mounts`). Candidates are drawn as for a new plan
+The cell is the calibration's (:func:`dataset_setup`): the robot file, the calibrated camera and
+the cell's two mounts where the calibration placed them, either mount (eye-in-hand the board in
+the base and the camera on the flange, eye-to-hand the camera in the base and the board on the
+flange: :func:`selfcal.calibration.board.plan.add_cell.calibrated_cell`, what differs between
+the mounts; everything below is the same code for both). Candidates are drawn as for a new plan
 (:func:`selfcal.calibration.board.plan.views.candidate_pool`). The information the dataset
 already holds is its frames'
 (:func:`selfcal.calibration.board.plan.information.frame_information` at its read-back joints,
@@ -35,19 +37,17 @@ verdicts are against the fair nominal, whose hand-eye is fitted from the dataset
 
 from __future__ import annotations
 
-import dataclasses
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from selfcal.calibration.board.bounds import estimated_parameters
 from selfcal.calibration.board.dataset import dataset_board, detect_board
 from selfcal.calibration.board.deviation import Deviation
 from selfcal.calibration.board.folds import configurations, fold_labels
-from selfcal.calibration.board.mounts import mounts
+from selfcal.calibration.board.plan.add_cell import ADD_RULE, calibrated_cell
 from selfcal.calibration.board.plan.greedy import select_greedy
 from selfcal.calibration.board.plan.ground import PlanOptions, plan_ground
 from selfcal.calibration.board.plan.information import (
@@ -60,12 +60,11 @@ from selfcal.calibration.board.plan.planner import predict_kept
 from selfcal.calibration.board.plan.predict import Directions, prior_information
 from selfcal.calibration.board.plan.reference import NominalReference, nominal_reference
 from selfcal.calibration.board.plan.selection import SelectionForecast, forecast_selection
-from selfcal.calibration.board.plan.views import PlanSetup, ViewRule
+from selfcal.calibration.board.plan.views import PlanSetup
 from selfcal.errors import InputError
 from selfcal.io.board_calibration import read_board_calibration
 from selfcal.io.dataset import Dataset
 from selfcal.robot.definition import load_robot
-from selfcal.transforms import inv_pose
 
 __all__ = [
     "ADD_RULE",
@@ -78,13 +77,6 @@ __all__ = [
     "training_sets",
 ]
 
-ADD_RULE = ViewRule(min_module_px=0.0)
-"""The view rule of the added postures: a new plan's without its marker cell limit. With the
-limit, the simulated wrist-only benchmark's third truth (``python -m
-selfcal.benchmarks.plan.add``, tests/integration/test_plan_add_wrist.py) calibrated its 6 + 5
-frames to 4.52 mm (the camera 6.4 sigma from its truth) where its 6 frames gave 2.13 mm; without
-it 0.87 mm. Why the nearer views the limit asks make that calibration fail is not found."""
-
 
 @dataclass(frozen=True, eq=False)
 class DatasetPlan:
@@ -92,7 +84,8 @@ class DatasetPlan:
     ``q`` (m, n) rad of the frames its calibration used, the board features ``seen`` in each
     (m arrays of feature ids), the kinematic parameters it identified (``free_idx`` flat
     MCPC indices, ``offset_joints`` 0 based) and ``mount_off`` (rad, m): how far the robot
-    file's camera mount lies from the calibrated one (``setup.robot``'s)."""
+    file's camera mount lies from the calibrated one (``setup.robot``'s; eye-to-hand zero: no
+    camera rides on the flange)."""
 
     setup: PlanSetup
     q: np.ndarray
@@ -114,28 +107,28 @@ def dataset_setup(root: str | Path, boxes: np.ndarray | None = None) -> DatasetP
     detected again), those showing fewer than the board's minimum left out as the calibration
     leaves them.
 
+    Either mount (:func:`selfcal.calibration.board.plan.add_cell.calibrated_cell`).
+
     Raises:
-        InputError: no calibration.json, an eye-to-hand or multi-camera calibration (not
-            planned yet), or no frame showing the board.
+        InputError: no calibration.json, a calibration of more than one camera (not planned
+            yet), or no frame showing the board.
     """
     root = Path(root)
     if not (root / "calibration.json").is_file():
         raise InputError(f"{root}: no calibration.json",
                          fix=f"calibrate the dataset first: selfcal calibrate {root}")  # fmt: skip
     cal = read_board_calibration(root)
-    if cal.eye_to_hand or len(cal.cameras) > 1:
+    if len(cal.cameras) > 1:
         raise InputError(
-            f"{root}/calibration.json: --add plans for one wrist camera (eye-in-hand) only; this "
-            f"calibration is {cal.setup} with {len(cal.cameras)} camera(s)",
-            fix="plan the additions of one camera's dataset",
+            f"{root}/calibration.json: --add plans for one camera (either mount) only; this "
+            f"calibration is {cal.setup} with {len(cal.cameras)} cameras "
+            f"({', '.join(cal.camera_names)})",
+            fix="plan the additions of one camera's dataset: import the images of one camera "
+            "(selfcal import --images 'cam0=...') into a dataset of its own, calibrate it "
+            "(selfcal calibrate) and give that dataset to --add",
         )
     ds = Dataset.open(root)
     robot = load_robot(ds.robot_source)
-    T_flange_cam, T_base_board = (m.T for m in mounts(cal.model, robot, eye_to_hand=False))
-    d = inv_pose(robot.T_flange_cam) @ T_flange_cam
-    mount_off = (float(Rotation.from_matrix(d[:3, :3]).magnitude()), float(np.linalg.norm(
-        T_flange_cam[:3, 3] - robot.T_flange_cam[:3, 3])))  # fmt: skip
-    robot = dataclasses.replace(robot, T_flange_cam=T_flange_cam)
     board = dataset_board(ds)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # a frame without the board: left out below, as calibrate
@@ -145,9 +138,9 @@ def dataset_setup(root: str | Path, boxes: np.ndarray | None = None) -> DatasetP
         raise InputError(f"{root}: no frame shows the board",
                          fix="calibrate a dataset whose images show the board")  # fmt: skip
     q = np.radians(ds.joints_deg)[used]
-    setup = PlanSetup(robot, cal.cameras[0], board, T_base_board,
-                      np.zeros((0, 6)) if boxes is None else np.asarray(boxes, dtype=float),
-                      ADD_RULE)  # fmt: skip
+    setup, mount_off = calibrated_cell(
+        cal, robot, cal.cameras[0], board,
+        np.zeros((0, 6)) if boxes is None else np.asarray(boxes, dtype=float))  # fmt: skip
     free_idx, offsets = estimated_parameters(cal)
     seen = tuple(np.asarray(f.ids, np.int64) for f, u in zip(features, used) if u)
     return DatasetPlan(setup, q, seen, free_idx, offsets, mount_off)
