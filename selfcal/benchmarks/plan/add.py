@@ -233,12 +233,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--mount", default="eye-in-hand", choices=["eye-in-hand", "eye-to-hand"],
                     help="the wrist camera's dataset (default) or the still camera's")  # fmt: skip
-    ap.add_argument("--out", default=None, help="default runs/plan-add[-e2h]")
+    ap.add_argument("--out", default=None, help="default runs/plan-add, runs/plan-add-e2h-K")
     ap.add_argument("--write-docs", action="store_true",
                     help="rewrite the table of this --add (and mount) in docs/plan.md")  # fmt: skip
     a = ap.parse_args(argv)
     e2h = a.mount == "eye-to-hand"
-    out = a.out or ("runs/plan-add-e2h" if e2h else "runs/plan-add")
+    out = a.out or (f"runs/plan-add-e2h-{a.add}" if e2h else "runs/plan-add")
     items = [(out, s, a.add, a.mount) for s in range(1, a.truths + 1)]
     with get_context("spawn").Pool(a.jobs) as pool:
         rows = pool.map(_row, items)
