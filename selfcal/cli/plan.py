@@ -75,7 +75,11 @@ the flange, with that mount's view rules; --robot, --target, --mount, --board-po
 selection's cross-validation is forecast to keep; PLAN/joints.csv and trajectory.yaml hold the
 added postures in the order to record them (it sets the cross-validation's folds), replay.csv the
 dataset's and the added ones (scenario.toml replays them); the last line and plan.png give the
-draws (as above) of the dataset's frames alone and with the added ones.
+draws (as above) of the dataset's frames alone and with the added ones. The error is averaged over
+the robot file's planning window, or without one over the dataset's joint region grown by 10 % of
+each joint's range; the held parameters' deviation, unless --deviation-mm / --deviation-deg are
+given, is sized so that the forecast expects the fair nominal's folds at the misfit the dataset's
+calibration measured on them (the second line says which and why).
 --measure tracker: instead, the postures at which a laser tracker measures a tool point (the
 reflector at --tool-point on the flange) for `selfcal identify`: reachable and free of collision
 and the keep-out boxes (the tracker's line of sight is not checked), chosen to minimise the
@@ -213,6 +217,9 @@ def _cmd(args: argparse.Namespace) -> int:
     from selfcal.robot.definition import load_robot
     from selfcal.target.boards import Board
 
+    args.deviation_given = args.deviation_mm is not None or args.deviation_deg is not None
+    args.deviation_mm = 1.0 if args.deviation_mm is None else args.deviation_mm
+    args.deviation_deg = 0.5 if args.deviation_deg is None else args.deviation_deg
     if args.measure == "tracker":
         from selfcal.cli.plan_tracker import cmd_tracker
 
@@ -321,6 +328,7 @@ def _cmd_add(args: argparse.Namespace) -> int:
     from selfcal.acquisition.backends import robot_reference
     from selfcal.calibration.board.plan.add import dataset_setup, plan_additions
     from selfcal.calibration.board.plan.ground import PlanOptions
+    from selfcal.cli.plan_add_ground import add_ground
     from selfcal.cli.plan_forecast import DrawSet, forecast_draws, write_figure
     from selfcal.cli.plan_scenario import cell_fields, scenario_text
     from selfcal.cli.plan_text import criterion, reference_words
@@ -347,10 +355,11 @@ def _cmd_add(args: argparse.Namespace) -> int:
     js = encoder_sigma(robot)
     opts = PlanOptions(seed=args.seed, candidates=args.candidates,
                        pixel_sigma_px=args.pixel_sigma, joint_sigma=js, deviation=_deviation(args))  # fmt: skip
+    opts, ws, dev = add_ground(args, root, dplan, opts)  # the dataset's, not the defaults
     with Progress("plan", enabled=not (args.quiet or args.json)).step(
         f"choosing {count} postures to add"
     ) as st:
-        add = plan_additions(dplan, count, opts)
+        add = plan_additions(dplan, count, opts, ws.q)
         st.result(f"from {add.candidates} candidates")
     m = len(dplan.q)
     fc = forecast_draws(args, setup, add.workspace, [
@@ -400,6 +409,8 @@ def _cmd_add(args: argparse.Namespace) -> int:
                     for lab, rms in zip(add.forecast.labels, add.forecast.fold_rms_px)
                 ],
             },
+            "workspace": ws.to_json(),
+            "deviation": dev,
             "nominal": add.reference.to_json(),
             "nominal_before": add.reference_before.to_json(),
             "beats_nominal": add.reference.beaten_by(add.after_m),
@@ -416,8 +427,9 @@ def _cmd_add(args: argparse.Namespace) -> int:
     note_written(args, out)
     line = (f"add {len(add.q)} postures to {root} ({len(dplan.q)} frames): predicted tool-point "
             f"error {add.before_m * 1000:.3f} -> {add.after_m * 1000:.3f} mm RMS (kinematic "
-            f"parameters estimated {add.kept_before} -> {add.kept_after}); joint path "
-            f"{np.degrees(add.path_rad):.0f} deg\nbefore, "
+            f"parameters estimated {add.kept_before} -> {add.kept_after}) over {ws.words}; "
+            f"joint path {np.degrees(add.path_rad):.0f} deg\nthe held parameters' {dev['words']}"
+            "\nbefore, "
             + reference_words(add.reference_before, add.before_m)
             + "\nafter, " + doc["verdict"] + "\n" + fc.line())  # fmt: skip
     print(json.dumps(doc) if args.json else line)
@@ -479,12 +491,14 @@ def register(subparsers) -> argparse.ArgumentParser:
     sp.add_argument("--pixel-sigma", type=float, default=None,
                     help="a camera plan: the corner noise the prediction assumes, px "
                     "(default 0.5)")  # fmt: skip
-    sp.add_argument("--deviation-mm", type=float, default=1.0,
+    sp.add_argument("--deviation-mm", type=float, default=None,
                     help="how far the arm's lengths, the mount on the flange's included, may lie "
-                    "from its drawing, mm (default 1; scenario.toml's [perturbation] draws the "
+                    "from its drawing, mm (default 1; with --add sized from the dataset's "
+                    "cross-validation, see below; scenario.toml's [perturbation] draws the "
                     "replayed arm from it)")  # fmt: skip
-    sp.add_argument("--deviation-deg", type=float, default=0.5,
-                    help="how far its angles may lie from it, deg (default 0.5)")  # fmt: skip
+    sp.add_argument("--deviation-deg", type=float, default=None,
+                    help="how far its angles may lie from it, deg (default 0.5; with --add "
+                    "sized with --deviation-mm)")  # fmt: skip
     sp.add_argument("--speed-deg-s", type=float, default=10.0,
                     help="trajectory.yaml: the fastest joint's speed, deg/s (mm/s for a "
                          "prismatic joint; default 10)")  # fmt: skip

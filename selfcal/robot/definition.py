@@ -219,6 +219,8 @@ class RobotDef:
         encoder: the controller's encoder table (``[encoder]``, :mod:`selfcal.robot.encoder`), or
             ``None`` for a robot without encoder data.
         mjcf: the generated MuJoCo files' settings (``[mjcf]``), or None when none are committed.
+        planning_window: whether the robot file gives ``[planning] span_deg`` (a URDF never
+            does): False when ``planning_span`` is the default window around ``home``.
     """
 
     name: str
@@ -235,6 +237,7 @@ class RobotDef:
     simulation: SimulationGains
     encoder: EncoderSpec | None = None
     mjcf: MjcfSettings | None = None
+    planning_window: bool = False
 
     @property
     def n(self) -> int:
@@ -390,6 +393,7 @@ def _assemble(path: Path, data: dict, kin: Kinematics, T_flange_cam: np.ndarray)
         simulation=gains,
         encoder=encoder,
         mjcf=_mjcf(data.get("mjcf"), f"{path}: [mjcf]", str(data.get("name", path.stem))),
+        planning_window="span_deg" in data.get("planning", {}),
     )
     try:
         robot.check_joints(robot.home)

@@ -332,8 +332,9 @@ def test_evaluate_nominal_is_the_fair_one(name, outcome):
 def test_plan_add_five_postures_to_the_calibrated_set(name, deviation, outcome, runs_dir):
     """`selfcal plan --add 5` on the calibrated groups 1-5 (docs/plan.md quotes the lines):
     the predicted tool-point error falls at least 2x and more parameters are kept, with the
-    simulated robots' deviation from the drawing (1 mm, 0.5 deg) and with one 10x smaller
-    (whose forecast nominal fold RMS, 1.8-3.8 px, matches the calibration's 1.6-2.6 px)."""
+    deviation from the drawing sized from the calibration's folds (the default: the forecast's
+    fair-nominal folds at the misfit they measured) and with one given, 0.1 mm and 0.05 deg;
+    the workspace is the dataset's region (the URDF has no planning window)."""
     from selfcal.robot.definition import load_robot
 
     outcome.held_out_rms()  # import and calibrate ran
@@ -345,8 +346,19 @@ def test_plan_add_five_postures_to_the_calibrated_set(name, deviation, outcome, 
     assert p.returncode == 0, p.stdout + p.stderr
     doc = json.loads((out / "plan.json").read_text())
     gain = doc["predicted_before_tool_rms_mm"] / doc["predicted_tool_rms_mm"]
-    assert gain >= 2.0, doc  # measured 210 (39.8 -> 0.190 mm) and 20 (4.00 -> 0.202 mm)
+    assert gain >= 2.0, doc  # measured GAIN_NOTE
     assert doc["kinematic_parameters_after"] > doc["kinematic_parameters_before"]  # 30, 16
+    assert doc["workspace"]["source"] == "dataset region", doc["workspace"]
+    dev = doc["deviation"]
+    if deviation:
+        assert dev["source"] == "given", dev
+    else:  # sized: the forecast's fair-nominal folds at the misfit the calibration measured
+        folds = json.loads((runs_dir / name / "calib/calibration.json").read_text())
+        measured = np.array(folds["selection"]["candidates"][0]["fold_rms_px"])
+        assert dev["source"] == "sized" and dev["folds"] == len(measured), dev
+        rms = float(np.sqrt(np.mean(measured**2)))
+        assert abs(dev["nominal_folds_forecast_px"] - rms) < 1e-3, dev
+        assert dev["nominal_folds_forecast_at_default_px"] > 5 * rms, dev  # 23.9 px, 1.9 px
     # "before" is judged against the reference for the dataset's frames alone, which the added
     # postures can only lower (more information on the same placement)
     before_ref = doc["nominal_before"]["fair_nominal_tool_rms_mm"]
@@ -360,9 +372,9 @@ def test_plan_add_five_postures_to_the_calibrated_set(name, deviation, outcome, 
     # standard error 0.0034)
     page = (Path(__file__).resolve().parents[2] / "docs/plan.md").read_text()
     lines = p.stdout.replace(str(runs_dir / name / "calib"), "calib").strip().splitlines()
-    assert len(lines) == 4, p.stdout
+    assert len(lines) == 5, p.stdout
     if not deviation:
-        assert all(line in page for line in lines[:3]), p.stdout
+        assert all(line in page for line in lines[:4]), p.stdout
     flat = " ".join(page.split())
     fc = doc["forecast_draws"]
     for key in ("before", "after"):

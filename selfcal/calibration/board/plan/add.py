@@ -214,17 +214,23 @@ GAIN = 0.01
 
 
 def plan_additions(
-    plan: DatasetPlan, count: int, options: PlanOptions | None = None
+    plan: DatasetPlan,
+    count: int,
+    options: PlanOptions | None = None,
+    workspace: np.ndarray | None = None,
 ) -> AddedPostures:
     """The ``count`` postures to add to ``plan``'s dataset (module docstring), drawn and
-    predicted with ``options`` (default :class:`selfcal.calibration.board.plan.ground.PlanOptions`).
+    predicted with ``options`` (default :class:`selfcal.calibration.board.plan.ground.PlanOptions`)
+    over the ``workspace`` postures (w, n) rad (None: the robot file's planning window around
+    home, as a new plan's; ``selfcal plan --add`` gives
+    :func:`selfcal.calibration.board.plan.add_ground.dataset_workspace`'s).
 
     Raises:
         InputError: fewer candidates than ``count``.
     """
     opts = options or PlanOptions()
     setup = plan.setup
-    g = plan_ground(setup, count, opts)
+    g = plan_ground(setup, count, opts, workspace)
     G, var, n_cam = g.G, g.variance, setup.camera.n_free
     F_frames = frame_information(setup, plan.q, opts.pixel_sigma_px, opts.joint_sigma, plan.seen)
     F_old = F_frames.sum(axis=0)

@@ -38,14 +38,24 @@ class PostureCell(Protocol):
     def boxes(self) -> np.ndarray: ...
 
 
-def workspace_sample(setup: PostureCell, n: int, *, seed: int) -> np.ndarray:
-    """(n, dof) rad: random postures of the planning window around home, free of self-collision
-    and keep-out boxes (the board need not be in view): where the predicted error is averaged,
-    and a tracker plan's candidates."""
+def workspace_sample(
+    setup: PostureCell,
+    n: int,
+    *,
+    seed: int,
+    window: tuple[np.ndarray, np.ndarray] | None = None,
+) -> np.ndarray:
+    """(n, dof) rad: random postures of the planning window around home (or of ``window``,
+    (lower, upper) (dof,) rad within the joint limits), free of self-collision and keep-out
+    boxes (the board need not be in view): where the predicted error is averaged, and a
+    tracker plan's candidates."""
     r = setup.robot
     rng = np.random.default_rng(seed)
-    lo = np.maximum(r.limits[:, 0], r.home - r.planning_span)
-    hi = np.minimum(r.limits[:, 1], r.home + r.planning_span)
+    if window is None:
+        lo = np.maximum(r.limits[:, 0], r.home - r.planning_span)
+        hi = np.minimum(r.limits[:, 1], r.home + r.planning_span)
+    else:
+        lo, hi = (np.asarray(w, dtype=float) for w in window)
     out: list[np.ndarray] = []
     for _ in range(50):
         q = rng.uniform(lo, hi, size=(max(4 * n, 256), r.n))
@@ -54,9 +64,10 @@ def workspace_sample(setup: PostureCell, n: int, *, seed: int) -> np.ndarray:
             break
     w = np.concatenate(out)[:n]
     if len(w) < n:
+        where = "the planning window around home" if window is None else "the window asked"
         raise InputError(
-            f"only {len(w)} of {n} postures of the planning window around home are free of "
-            "collision and of the keep-out boxes",
+            f"only {len(w)} of {n} postures of {where} are free of collision and of the "
+            "keep-out boxes",
             fix="check the keep-out boxes against the robot's home posture and [planning] span_deg",
         )
     return w
@@ -95,8 +106,12 @@ class PlanGround:
     drawn_variance: np.ndarray
 
 
-def plan_ground(setup: PlanSetup, count: int, options: PlanOptions) -> PlanGround:
-    """The candidates, the workspace and the weights a plan of ``count`` postures chooses with.
+def plan_ground(
+    setup: PlanSetup, count: int, options: PlanOptions, workspace: np.ndarray | None = None
+) -> PlanGround:
+    """The candidates, the workspace and the weights a plan of ``count`` postures chooses with;
+    ``workspace`` (w, n) rad the postures the error is averaged over (None: the planning
+    window's, :func:`workspace_sample`).
 
     Raises:
         InputError: fewer candidates than ``count``, or no posture sees the board.
@@ -109,7 +124,8 @@ def plan_ground(setup: PlanSetup, count: int, options: PlanOptions) -> PlanGroun
             fix="plan fewer postures, move the board (--board-pose) nearer to where the arm "
             "works, or remove keep-out boxes",
         )
-    qw = workspace_sample(setup, options.workspace, seed=options.seed + 1)
+    qw = (workspace_sample(setup, options.workspace, seed=options.seed + 1)
+          if workspace is None else np.atleast_2d(np.asarray(workspace, dtype=float)))  # fmt: skip
     model = board_model(setup)
     G = aligned_tool_weight(model, qw, setup.T_tool_tip)
     dev, types = options.deviation, model.joint_types

@@ -45,7 +45,13 @@ from selfcal.calibration.board.plan.predict import Directions, error_covariance
 from selfcal.errors import UsageError
 from selfcal.kinematics.mcpc import MCPCModel, param_names
 
-__all__ = ["SelectionFolds", "SelectionForecast", "forecast_selection", "selection_folds"]
+__all__ = [
+    "SelectionFolds",
+    "SelectionForecast",
+    "candidate_fold_rms",
+    "forecast_selection",
+    "selection_folds",
+]
 
 
 @dataclass(frozen=True, eq=False)
@@ -165,6 +171,25 @@ def selection_folds(
                            model, q[folds != f], [c.names for c in cands])))
                  for f in labels)  # fmt: skip
     return SelectionFolds(cands, folds, labels, dirs)
+
+
+def candidate_fold_rms(
+    folds: SelectionFolds,
+    candidate: int,
+    F_frames: np.ndarray,
+    held_out: np.ndarray,
+    n_features: np.ndarray,
+    n_cam: int,
+    variance: np.ndarray,
+    sigma_px: float,
+) -> np.ndarray:
+    """(f,) the expected RMS (px) of every fold of ``folds`` for its candidate number
+    ``candidate`` (as :func:`forecast_selection` computes them; inf where a fold's fit is
+    singular): the arguments as :func:`forecast_selection`'s, ``held_out`` given."""
+    return np.array([_fold_rms(F_frames, held_out, np.asarray(n_features, dtype=float),
+                               folds.out(f), n_cam, folds.directions[f][candidate], variance,
+                               sigma_px)
+                     for f in range(len(folds.labels))])  # fmt: skip
 
 
 def _names(cand: Candidate) -> list[str]:
