@@ -21,10 +21,10 @@ the forecast expects that misfit, per fold, at ``sqrt(a_f + b_f s^2)`` px (``a_f
 and read-back noise's share, ``b_f`` the default deviation's, ``s`` its scale:
 :func:`selfcal.calibration.board.plan.selection.candidate_fold_rms`). The rule: the one scale
 ``s`` at which the forecast's mean square over the folds equals the measured one,
-``s^2 = (mean(measured^2) - mean(a)) / mean(b)`` (the mean square is linear in ``s^2``: no
-search needed), within :data:`SCALE_RANGE`; lengths and angles scale together (the default's
-ratio kept). The mean square, not the selection's geometric mean, because it is linear in
-``s^2`` (matching geometric means by bisection, tried first, gave much the same).
+``s^2 = (mean(measured^2) - mean(a)) / mean(b)``, within :data:`SCALE_RANGE`; lengths and
+angles scale together (the default's ratio kept). The mean square rather than the selection's
+geometric mean because it is linear in ``s^2``: no search needed (matching geometric means by
+bisection, tried first, gave much the same).
 
 Its bias: the measured misfit holds everything the fair nominal misses, so the sized deviation
 carries it all as geometry. Model error the chain cannot express (compliance, a lens misfit)
@@ -36,10 +36,10 @@ drawn within a set deviation, one calibration each) the sized deviation was 0.72
 times the set one at the median of the test's 5 arms (the default deviation and 0.3 times it);
 its helper run with 20 arms (not kept as a command) gave 0.88 (10 to 90 %: 0.52 to 1.16) at
 0.3, 1 and 3 times the default and 0.76 at 0.1 times it, where the noise outweighs it: biased
-low by about 12 %, a factor 2 either way for one arm. Where the folds
-measured no more than the noise explains the scale is the range's floor; a calibration without
-cross-validation (one arm configuration: a wrist-only dataset) cannot size it, and the default
-is kept and said. Units: SI, px.
+low by about 12 %, and one arm's anywhere from about half to 1.2 times the truth. Where the
+folds measured no more than the noise explains the scale is the range's floor; a calibration
+without cross-validation (one arm configuration: a wrist-only dataset) cannot size it, and the
+default is kept and said. Units: SI, px.
 """
 
 from __future__ import annotations
