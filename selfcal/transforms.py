@@ -259,15 +259,18 @@ def vec_from_pose(T: np.ndarray) -> np.ndarray:
 
 def kabsch(A: np.ndarray, B: np.ndarray) -> np.ndarray:
     """Best proper rigid ``T_b_a`` (4x4: rotation and translation, no scale, no mirror)
-    minimising ``sum |R A_i + t - B_i|^2`` over point sets (k, 3), k >= 3."""
+    minimising ``sum |R A_i + t - B_i|^2`` over point sets (..., k, 3), k >= 3: one fit per
+    leading index, (..., 4, 4)."""
     A = np.asarray(A, dtype=float)
     B = np.asarray(B, dtype=float)
-    if A.shape != B.shape or A.ndim != 2 or A.shape[1] != 3 or len(A) < 3:
+    if A.shape != B.shape or A.ndim < 2 or A.shape[-1] != 3 or A.shape[-2] < 3:
         raise UsageError(
             f"kabsch needs two (k, 3) point sets with k >= 3, got {A.shape}, {B.shape}"
         )
-    ca, cb = A.mean(axis=0), B.mean(axis=0)
-    U, _, Vt = np.linalg.svd((A - ca).T @ (B - cb))
-    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(Vt.T @ U.T)) or 1.0])
-    R = Vt.T @ D @ U.T
-    return make_pose(R, cb - R @ ca)
+    ca, cb = A.mean(axis=-2), B.mean(axis=-2)
+    U, _, Vt = np.linalg.svd(np.swapaxes(A - ca[..., None, :], -1, -2) @ (B - cb[..., None, :]))
+    V, Ut = np.swapaxes(Vt, -1, -2), np.swapaxes(U, -1, -2)
+    d = np.sign(np.linalg.det(V @ Ut))  # -1 where the best orthogonal map mirrors
+    D = np.stack(np.broadcast_arrays(1.0, 1.0, np.where(d == 0, 1.0, d)), axis=-1)
+    R = (V * D[..., None, :]) @ Ut  # V diag(D) U^T
+    return make_pose(R, cb - (R @ ca[..., None])[..., 0])

@@ -50,11 +50,19 @@ def fit_rigid_transform(T_a: np.ndarray, T_b: np.ndarray, length_m: float = 0.1)
     """
     T_a = np.asarray(T_a, dtype=float).reshape(-1, 4, 4)
     T_b = np.asarray(T_b, dtype=float).reshape(-1, 4, 4)
+    return _rigid_fits(T_a, T_b, length_m)
+
+
+def _rigid_fits(T_a: np.ndarray, T_b: np.ndarray, length_m: float = 0.1) -> np.ndarray:
+    """:func:`fit_rigid_transform` of each pair of pose sets (..., m, 4, 4) (broadcast over the
+    leading axes): (..., 4, 4)."""
+    T_a, T_b = np.broadcast_arrays(T_a, T_b)
 
     def pts(T: np.ndarray) -> np.ndarray:
-        o = T[:, :3, 3]
-        ax = np.swapaxes(T[:, :3, :3], -1, -2) * length_m  # rows: scaled axes
-        return np.concatenate([o, (o[:, None, :] + ax).reshape(-1, 3)], axis=0)
+        o = T[..., :3, 3]
+        ax = np.swapaxes(T[..., :3, :3], -1, -2) * length_m  # rows: scaled axes
+        tips = (o[..., None, :] + ax).reshape(T.shape[:-3] + (-1, 3))
+        return np.concatenate([o, tips], axis=-2)
 
     return kabsch(pts(T_b), pts(T_a))
 
@@ -85,25 +93,37 @@ def fit_placement_and_hand_eye(
     origins and axis tips of ``B F C`` against ``T``'s, :data:`AXIS_TIPS`), so every round
     lowers it (the hand-eye fitted on the inverted poses, another misfit, could climb away from a
     guess a quarter turn off); rounds until it falls by less than :data:`PLACEMENT_RTOL` of
-    itself, at most ``rounds`` (at least 1: :class:`~selfcal.errors.UsageError` otherwise)."""
+    itself, at most ``rounds`` (at least 1: :class:`~selfcal.errors.UsageError` otherwise).
+
+    ``T_flange_cam`` may be several guesses (s, 4, 4): each descends on its own, as it would
+    alone (the same rounds and stop), the ones still descending in one array pass per round
+    (:func:`selfcal.calibration.board.nominal_fit.placement`'s 24 starts: one round of all of
+    them costs little more than one round of one); ``B`` and ``C`` then are (s, 4, 4)."""
     if rounds < 1:
         raise UsageError(
             f"fit_placement_and_hand_eye needs at least one round, got rounds={rounds}"
         )
     T = np.asarray(T_world_cam, dtype=float)
     F = np.asarray(T_base_flange, dtype=float)
-    C = np.asarray(T_flange_cam, dtype=float)
+    guess = np.asarray(T_flange_cam, dtype=float)
+    C = guess.reshape(-1, 4, 4).copy()
+    B = np.empty_like(C)
     eye = np.broadcast_to(np.eye(4), T.shape)
-    last = np.inf
+    last = np.full(len(C), np.inf)
+    going = np.arange(len(C))  # the guesses still descending
     for _ in range(rounds):
-        B = fit_rigid_transform(T, F @ C)  # the best B for this C
+        B_now = _rigid_fits(T, F @ C[going, None])  # the best B for each C
+        BF = B_now[:, None] @ F
         # the best C for this B: sum |B F C e - T e|^2 = sum |C e - (B F)^-1 T e|^2
-        C = fit_rigid_transform(inv_pose(B @ F) @ T, eye)
-        now = float(np.sum(((B @ F @ C - T) @ AXIS_TIPS)[:, :3] ** 2))
-        if now >= last * (1.0 - PLACEMENT_RTOL):
+        C_now = _rigid_fits(inv_pose(BF) @ T, eye)
+        now = np.sum(((BF @ C_now[:, None] - T) @ AXIS_TIPS)[..., :3, :] ** 2, axis=(1, 2, 3))
+        B[going], C[going] = B_now, C_now
+        lower = now < last[going] * (1.0 - PLACEMENT_RTOL)
+        last[going] = now
+        going = going[lower]
+        if not going.size:
             break
-        last = now
-    return B, C
+    return B.reshape(guess.shape), C.reshape(guess.shape)
 
 
 def regauge(

@@ -86,17 +86,12 @@ def placement(
     (eye-to-hand: a board on the flange any way round), so the alternation starts from each of
     the 24 quarter-turn rotations as well and the best fit wins (each descent ends in a local
     minimum of the misfit, not necessarily the least)."""
-
-    def misfit(B: np.ndarray, C: np.ndarray) -> float:
-        return float(np.sum(((B @ F @ C - T) @ AXIS_TIPS)[:, :3] ** 2))
-
-    best: tuple[float, np.ndarray, np.ndarray] | None = None
-    for C0 in _turns() if any_mount else [np.eye(4)]:
-        B, C = fit_placement_and_hand_eye(T, F, C0)
-        if best is None or misfit(B, C) < best[0]:
-            best = (misfit(B, C), B, C)
-    assert best is not None
-    return best[1], best[2]
+    starts = _turns() if any_mount else np.eye(4)[None]
+    B, C = fit_placement_and_hand_eye(T, F, starts)  # each start descends on its own
+    misfit = np.sum(((B[:, None] @ F @ C[:, None] - T) @ AXIS_TIPS)[..., :3, :] ** 2,
+                    axis=(1, 2, 3))  # fmt: skip
+    best = int(np.argmin(misfit))  # the first of the least
+    return B[best], C[best]
 
 
 def place_nominal(nominal: MCPCModel, q: np.ndarray, T_board_cam: np.ndarray, *,
