@@ -221,6 +221,8 @@ class RobotDef:
         mjcf: the generated MuJoCo files' settings (``[mjcf]``), or None when none are committed.
         planning_window: whether the robot file gives ``[planning] span_deg`` (a URDF never
             does): False when ``planning_span`` is the default window around ``home``.
+        camera_mount_given: whether the robot file gives ``[camera_mount]`` (a URDF never
+            does): False when ``T_flange_cam`` is the default, the camera at the flange.
     """
 
     name: str
@@ -238,6 +240,7 @@ class RobotDef:
     encoder: EncoderSpec | None = None
     mjcf: MjcfSettings | None = None
     planning_window: bool = False
+    camera_mount_given: bool = False
 
     @property
     def n(self) -> int:
@@ -394,6 +397,7 @@ def _assemble(path: Path, data: dict, kin: Kinematics, T_flange_cam: np.ndarray)
         encoder=encoder,
         mjcf=_mjcf(data.get("mjcf"), f"{path}: [mjcf]", str(data.get("name", path.stem))),
         planning_window="span_deg" in data.get("planning", {}),
+        camera_mount_given="camera_mount" in data,
     )
     try:
         robot.check_joints(robot.home)

@@ -139,8 +139,17 @@ def test_the_drawn_mount_stands_within_five_times_the_deviation():
     dev = Deviation(1e-3, float(np.radians(0.5)))
     near = SimpleNamespace(mount_off=(0.99 * MOUNT_FACTOR * dev.rotation_rad, 4.9e-3))
     assert drawn_mount_words(near, dev) == ""  # type: ignore[arg-type]
+
+    def plan(off, given=False):
+        robot = SimpleNamespace(camera_mount_given=given)
+        return SimpleNamespace(mount_off=off, setup=SimpleNamespace(robot=robot))
+
     for off in ((1.01 * MOUNT_FACTOR * dev.rotation_rad, 0.0), (0.0, 5.1e-3)):
-        words = drawn_mount_words(SimpleNamespace(mount_off=off), dev)  # type: ignore[arg-type]
+        words = drawn_mount_words(plan(off), dev)  # type: ignore[arg-type]
         assert "the chain as drawn has no hand-eye to go by" in words
-    words = drawn_mount_words(SimpleNamespace(mount_off=(np.radians(91.0), 0.1671)), dev)  # type: ignore[arg-type]
+    words = drawn_mount_words(plan((np.radians(91.0), 0.1671)), dev)  # type: ignore[arg-type]
     assert words.startswith("the robot file's camera mount lies 91.0 deg and 167.1 mm from")
+    assert "(no [camera_mount]: the camera at the flange)" in words
+    # a robot file that gives a mount, only a wrong one, is not told it has none (review 22, 8)
+    words = drawn_mount_words(plan((np.radians(91.0), 0.1671), given=True), dev)  # type: ignore[arg-type]
+    assert "(its [camera_mount])" in words and "no [camera_mount]" not in words

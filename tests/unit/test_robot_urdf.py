@@ -43,6 +43,7 @@ def test_a_toml_beside_the_urdf_adds_home_and_camera():
     assert urdf.name == "kr6-urdf" and urdf.joint_names[0] == "joint_a1"
     np.testing.assert_allclose(urdf.home, mdh.home)
     np.testing.assert_allclose(urdf.T_flange_cam, mdh.T_flange_cam)
+    assert urdf.camera_mount_given and mdh.camera_mount_given
 
 
 def test_direct_urdf_defaults():
@@ -52,6 +53,7 @@ def test_direct_urdf_defaults():
     assert robot.name == "kr6_r900" and "base_link -> tool0" in robot.description
     np.testing.assert_array_equal(robot.home, np.zeros(6))
     np.testing.assert_array_equal(robot.T_flange_cam, np.eye(4))
+    assert not robot.camera_mount_given
 
 
 def _variant(tmp_path, old, new, toml_extra=None):

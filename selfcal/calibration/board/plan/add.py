@@ -162,10 +162,11 @@ def drawn_mount_words(plan: DatasetPlan, deviation: Deviation) -> str:
         and tr <= MOUNT_FACTOR * deviation.translation_m
     ):
         return ""
+    which = ("its [camera_mount]" if plan.setup.robot.camera_mount_given
+             else "no [camera_mount]: the camera at the flange")  # fmt: skip
     return (f"the robot file's camera mount lies {np.degrees(rot):.1f} deg and {tr * 1000:.1f} mm "
-            "from the calibrated one (no [camera_mount]: the camera at the flange), beyond "
-            f"{MOUNT_FACTOR:g} times the deviation, so the chain as drawn has no hand-eye to go "
-            "by")  # fmt: skip
+            f"from the calibrated one ({which}), beyond {MOUNT_FACTOR:g} times the deviation, so "
+            "the chain as drawn has no hand-eye to go by")  # fmt: skip
 
 
 def training_sets(plan: DatasetPlan, F_frames: np.ndarray) -> np.ndarray:
