@@ -27,11 +27,26 @@ import numpy as np
 
 from selfcal.benchmarks.tool_accuracy import COUNT, MODELS, REGIONS, calibrate, true_points
 from selfcal.calibration.accuracy import Z_MODEL_ERROR, ModelError, excess_test
-from selfcal.kinematics.tool_error import posture_distance, revolute_joints, workspace_sample
+from selfcal.errors import InputError
+from selfcal.kinematics.tool_error import (
+    joint_spans,
+    posture_distance,
+    revolute_joints,
+    workspace_sample,
+)
 from selfcal.robot.definition import load_robot
 from selfcal.threads import limit_threads
 
 __all__ = ["probe", "main"]
+
+
+def _spans(limits: np.ndarray, revolute: np.ndarray) -> np.ndarray:
+    """The joints' spans (:func:`joint_spans`) of the robot's ``limits`` (n, 2) rad / m."""
+    span = joint_spans(limits, revolute)
+    if span is None:
+        raise InputError("the robot's joint limits are not finite ranges",
+                         fix="give the robot file finite joint limits")  # fmt: skip
+    return span
 
 
 def probe(robot_name: str, noise_mm: float, draws: int, model: str) -> list[str]:
@@ -61,8 +76,8 @@ def probe(robot_name: str, noise_mm: float, draws: int, model: str) -> list[str]
             est2 = np.trace(em.estimation_covariance(qq)[:, :3, :3], axis1=1, axis2=2) * 1e6
             true2 = float(np.mean(e2 - est2)) / 3.0
             pred2 = float(np.mean(em.model_error_factor(qq))) * (em.model_error_m * 1e3) ** 2
-            d = posture_distance(qq, q, np.diff(robot.limits, axis=1)[:, 0],
-                                 revolute_joints(em.model.joint_types))  # fmt: skip
+            wrap = revolute_joints(em.model.joint_types)
+            d = posture_distance(qq, q, _spans(robot.limits, wrap), wrap)
             pooled[name].append((true2, pred2))
             head += (f" | {name}: d {np.median(d):.2f}, true {np.sqrt(max(true2, 0.0)):.3f}, "
                      f"predicted {np.sqrt(pred2):.3f} mm")  # fmt: skip

@@ -43,6 +43,8 @@ __all__ = [
     "excess_test",
     "model_error_of",
     "postures_from_json",
+    "spans_from_json",
+    "spans_json",
     "unmeasured_beyond",
 ]
 
@@ -177,8 +179,8 @@ class ModelError:
                     "measured_to_distance": self.limit,
                     "beyond_measured": "beyond the held-out rows' largest distance from the "
                     "calibration postures (measured_to_distance, a fraction of the joints' "
-                    "ranges) no fold tested the model: model error not measured (found or not), "
-                    "held at its value there",
+                    "ranges, a revolute joint's at most a turn: joint_spans_si) no fold tested "
+                    "the model: model error not measured (found or not), held at its value there",
                 }
             ),
         }
@@ -309,7 +311,7 @@ def error_model_from_json(
     em = ToolErrorModel(model, np.asarray(T_out_world, float), cols, cov, pos, rot, tip)
     reach = float(me.get("reach_distance") or 0.0)
     floor = float(me.get("constant_share") or 0.0)  # an older file: all of it grows
-    span = None if "joint_limits_si" not in block else joint_spans(block["joint_limits_si"])
+    span = spans_from_json(block, model.n, where, fix=fix)
     limit = unmeasured_beyond(me)
     if span is not None and (reach > 0 or np.isfinite(limit)):  # an older file: none of it
         q_cal = postures_from_json(block, model.n, where, fix=fix)
@@ -326,6 +328,33 @@ def unmeasured_beyond(model_error: ModelError | dict | None) -> float:
         return model_error.limit
     to = (model_error or {}).get("measured_to_distance")
     return np.inf if to is None else float(to)
+
+
+def spans_json(span: np.ndarray | None) -> dict:
+    """The ``accuracy`` block's ``joint_spans_si`` (the unit of its distances, read back by
+    :func:`spans_from_json`) of the spans ``span`` (n,) rad / m, or nothing without spans."""
+    return {} if span is None else {"joint_spans_si": np.asarray(span, float).tolist()}
+
+
+def spans_from_json(block: dict, n: int, where: str, *, fix: str) -> np.ndarray | None:
+    """The unit (n,) rad / m of an ``accuracy`` block's distances (``reach_distance``,
+    ``measured_to_distance``): its ``joint_spans_si`` (:func:`joint_spans`: each joint's range, a
+    revolute joint's at most a turn); an older block without it measured them in the limits'
+    full ranges (``joint_limits_si``), kept so that its numbers mean what they meant; None
+    without either (the model error the same everywhere).
+
+    Raises:
+        InputError: ``joint_spans_si`` is not n finite positive values.
+    """
+    if "joint_spans_si" not in block:
+        return (
+            None if "joint_limits_si" not in block else joint_spans(block["joint_limits_si"], None)
+        )
+    span = np.asarray(block["joint_spans_si"], dtype=float)
+    if span.shape != (n,) or not np.all(np.isfinite(span) & (span > 0)):
+        raise InputError(f"{where}: accuracy.joint_spans_si must be {n} positive joint ranges "
+                         "(rad / m)", fix=fix)  # fmt: skip
+    return span
 
 
 def postures_from_json(block: dict, n: int, where: str, *, fix: str) -> np.ndarray:

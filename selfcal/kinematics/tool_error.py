@@ -103,11 +103,12 @@ def growth_factor(q: np.ndarray, q_ref: np.ndarray | None, span: np.ndarray | No
 def posture_distance(q: np.ndarray, q_ref: np.ndarray, span: np.ndarray,
                      revolute: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
     """(m,) every joint vector of ``q`` (m, n)'s distance to the nearest of ``q_ref`` (k, n)
-    (rad / m), each joint measured in units of its ``span`` (n,) (e.g. its limits' range: a
-    unit-free distance, 1 = one joint moved across its whole range). The joints ``revolute``
-    (n,) bool (:func:`revolute_joints`; None: none) differ by their readings' difference wrapped
-    to -pi..pi: readings a whole turn apart put the links at the same pose, so a kinematic
-    misfit is the same there (a UR5e's joints turn +-360 deg)."""
+    (rad / m), each joint measured in units of its ``span`` (n,) (:func:`joint_spans`: its
+    limits' range, at most a turn for a revolute joint; a unit-free distance, 1 = one joint moved
+    across all of its distinct postures). The joints ``revolute`` (n,) bool
+    (:func:`revolute_joints`; None: none) differ by their readings' difference wrapped to
+    -pi..pi: readings a whole turn apart put the links at the same pose, so a kinematic misfit is
+    the same there (a UR5e's joints turn +-360 deg)."""
     q, q_ref = np.atleast_2d(q), np.atleast_2d(q_ref)
     span = np.asarray(span, dtype=float)
     wrap = np.zeros(q.shape[1], bool) if revolute is None else np.asarray(revolute, bool)
@@ -126,11 +127,18 @@ def revolute_joints(joint_types: tuple[str, ...]) -> np.ndarray:
     return np.array([t == "revolute" for t in joint_types], bool)
 
 
-def joint_spans(limits: np.ndarray) -> np.ndarray | None:
-    """(n,) every joint's range between its limits ``limits`` (n, 2) (rad / m), the unit of
-    :func:`posture_distance`; None when a range is not finite and
-    positive (the model error is then taken as the same everywhere)."""
+def joint_spans(limits: np.ndarray, revolute: np.ndarray | None) -> np.ndarray | None:
+    """(n,) the unit of :func:`posture_distance` per joint (rad / m): its range between its
+    limits ``limits`` (n, 2), for the joints ``revolute`` (n,) bool (:func:`revolute_joints` of
+    the chain's ``joint_types``) at most a whole turn, 2 pi (the distance wraps their
+    differences to at most pi, so a UR5e joint's +-360 deg would otherwise count a half turn as
+    0.125 of its range: with the cap, 1 is one joint moved across all its distinct postures);
+    ``revolute`` None: no cap (the unit an older calibration file's distances were measured in).
+    None when a range is not finite and positive (the model error is then taken as the same
+    everywhere)."""
     span = np.diff(np.asarray(limits, dtype=float), axis=1)[:, 0]
+    if revolute is not None:
+        span = np.where(np.asarray(revolute, bool), np.minimum(span, 2.0 * np.pi), span)
     return span if np.all(np.isfinite(span) & (span > 0)) else None
 
 

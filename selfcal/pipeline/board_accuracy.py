@@ -69,6 +69,7 @@ def board_accuracy_section(root: Path, cal: BoardCalibrationResult, *,
         "tool_point": block.get("tool_point"),
         "model_error": block.get("model_error"),
         "model_error_note": block.get("model_error_note"),
+        "distance_unit": distance_unit(block),
         "regions": regions,
         "cross_validation": block.get("cross_validation"),
         "held_deviation": block.get("held_deviation"),
@@ -81,6 +82,16 @@ def board_accuracy_section(root: Path, cal: BoardCalibrationResult, *,
         drawn.append(write_figure(workspace_map_figure(em, sample, q_cal, line, frame), root,
                                   FIGURE))  # fmt: skip
     return section, drawn
+
+
+def distance_unit(block: dict) -> str:
+    """What an ``accuracy`` block's distances (``reach_distance``, ``measured_to_distance``) are
+    fractions of, in words: the joints' ranges with a revolute joint's at most a turn (its
+    ``joint_spans_si``, :func:`selfcal.kinematics.tool_error.joint_spans`; 1 = one joint moved
+    across all its distinct postures), or in an older block the limits' full ranges."""
+    if "joint_spans_si" in block:
+        return "the joints' ranges, a revolute joint's at most a turn"
+    return "the joints' full ranges between their limits"
 
 
 def cross_validation_line(cv: dict | None) -> str | None:
@@ -111,13 +122,11 @@ def accuracy_summary(section: dict) -> str:
     )
 
 
-def _growth_words(me: dict) -> str:
+def _growth_words(me: dict, unit: str) -> str:
     """How the model error ``me`` (the block's ``model_error``) grows with a posture's distance
-    from the calibration postures, in words (:mod:`selfcal.calibration.growth`)."""
-    at = (
-        f" at their mean distance from the other postures ({me['reach_distance']:.3f} of the "
-        "joints' ranges)"
-    )
+    (fractions of ``unit``, :func:`distance_unit`) from the calibration postures, in words
+    (:mod:`selfcal.calibration.growth`)."""
+    at = f" at their mean distance from the other postures ({me['reach_distance']:.3f} of {unit})"
     if me.get("growth_shown") is None:  # an older file: the growth was assumed
         return f"{at}, growing in proportion to a posture's distance from the calibration postures"
     text = (
@@ -125,7 +134,7 @@ def _growth_words(me: dict) -> str:
         f"({me['constant_share']:.0%} of it there constant)"
     )
     far = (
-        f"; beyond {me['measured_to_distance']:.3f} of the joints' ranges from the calibration "
+        f"; beyond {me['measured_to_distance']:.3f} of {unit} from the calibration "
         "postures it is not measured (held at its value there)"
     )
     if me["growth_shown"]:
@@ -158,11 +167,12 @@ def accuracy_markdown(section: dict) -> list[str]:
         f"deg per coordinate from {me.get('rows')} cross-validated frames ({me.get('folds')} "
         "folds)"
     )
+    unit = section.get("distance_unit") or "the joints' ranges"
     if not section.get("model_error_note") and me.get("reach_distance"):
-        note += _growth_words(me)
+        note += _growth_words(me, unit)
     elif not section.get("model_error_note") and me.get("measured_to_distance") is not None:
         note += (
-            f"; beyond {me['measured_to_distance']:.3f} of the joints' ranges from the calibration "
+            f"; beyond {me['measured_to_distance']:.3f} of {unit} from the calibration "
             "postures no fold tested the model: a model error there is not measured"
         )
     held = held_sentence(section.get("held_deviation"))

@@ -14,6 +14,7 @@ from selfcal.kinematics.tool_error import (
     Reach,
     ToolErrorModel,
     accuracy_line,
+    joint_spans,
     norm_quantile,
     posture_distance,
     revolute_joints,
@@ -139,6 +140,35 @@ def test_posture_distance_is_to_the_nearest_posture_in_units_of_the_spans():
     q = np.array([[0.2, 0.0], [1.0, 0.9], [0.0, 0.5]])
     d = posture_distance(q, q_ref, span)
     assert d == pytest.approx([0.1, 0.2, 1.0])
+
+
+def test_the_distance_unit_is_a_joint_s_distinct_postures():
+    """1 = one joint moved across all its distinct postures (review 21, finding 3): a revolute
+    joint's span is its range capped at a turn (the distance wraps its difference to at most
+    pi), so a UR5e joint (+-360 deg) moved by pi is 0.5, not 0.25; a prismatic joint is neither
+    capped nor wrapped; a narrow revolute range is kept; a multi-turn joint on a mixed arm (the
+    KR6's joint 6, 700 deg) weighs as much per radian as its single-turn joint 4 (370 deg: a
+    turn); without the joint types (an older file's unit) the full ranges."""
+    ur5e = load_robot("ur5e")
+    wrap = revolute_joints(ur5e.joint_types)
+    span = joint_spans(ur5e.limits, wrap)
+    assert span == pytest.approx(np.full(6, 2 * np.pi))
+    q = np.zeros((1, 6))
+    q[0, 2] = np.pi
+    assert posture_distance(q, np.zeros((1, 6)), span, wrap) == pytest.approx([0.5])
+    assert joint_spans(ur5e.limits, None) == pytest.approx(np.full(6, 4 * np.pi))
+    kr6 = load_robot("kr6-r900")
+    s = joint_spans(kr6.limits, revolute_joints(kr6.joint_types))
+    assert s[5] == pytest.approx(s[3]) == pytest.approx(2 * np.pi)
+    assert s[4] == pytest.approx(np.radians(240.0))  # its 240 deg kept
+    mixed = np.array([[-np.pi, np.pi], [-2.0, 2.0]])  # a revolute turn and a 4 m prismatic axis
+    s = joint_spans(mixed, np.array([True, False]))
+    assert s == pytest.approx([2 * np.pi, 4.0])
+    far = np.array([[np.pi, 2 * np.pi]])
+    assert posture_distance(far, np.zeros((1, 2)), s, np.array([True, False])) == pytest.approx(
+        [np.hypot(0.5, 0.5 * np.pi)]
+    )
+    assert joint_spans(np.array([[0.0, 0.0]]), np.array([True])) is None
 
 
 def test_a_revolute_joint_a_turn_away_is_at_the_same_posture(er4u):

@@ -24,7 +24,8 @@ parts of :mod:`selfcal.calibration.accuracy`:
   it, and is not read as a large model error everywhere). The calibration's covariance gets
   the same (``m^2 G`` of its own frames) in its prediction. The model error is taken as a
   smooth function of the joints that the fit matched at the postures it saw: its variance at the
-  distance ``d`` (each joint in units of its limits' range) from the nearest is ``c0 + c1 d^2``,
+  distance ``d`` (each joint in units of its limits' range, a revolute joint's at most a turn:
+  :func:`joint_spans`) from the nearest is ``c0 + c1 d^2``,
   read from each held-out frame's excess at its own distance from its fold's training postures
   (:func:`grown_size`, :mod:`selfcal.calibration.growth`: ``c1`` at its 95 % upper bound); ``m``
   is the size at their mean distance (:attr:`ModelError.reach_distance`) and a workspace point
@@ -71,6 +72,7 @@ from selfcal.calibration.accuracy import (
     error_model_from_json,
     model_error_of,
     postures_from_json,
+    spans_json,
     unmeasured_beyond,
 )
 from selfcal.calibration.board.bounds import BoardCramerRao
@@ -391,7 +393,7 @@ def board_accuracy(obs: BoardObservations, selection: Selection, cr: BoardCramer
     lie from the drawing (default :class:`Deviation`'s; :mod:`selfcal.calibration.board.held`)."""
     deviation = Deviation() if deviation is None else deviation
     variance = deviation.variance(cr.model.joint_types)
-    span = joint_spans(limits)
+    span = joint_spans(limits, revolute_joints(cr.model.joint_types))
     me, share = model_error(obs, selection, offsets, T_tool_point, pixel_sigma_px, variance, span)
     cr = with_deviation(cr, share.used * variance)
     pos = 0.0 if me is None else me.position_m
@@ -415,6 +417,7 @@ def board_accuracy(obs: BoardObservations, selection: Selection, cr: BoardCramer
         "tool_point": "the flange",
         "T_tool_point_si": np.asarray(T_tool_point, float).tolist(),
         "joint_limits_si": np.asarray(limits, float).tolist(),
+        **spans_json(span),
         "cross_validation": cross_validated_reprojection(obs, selection),
         "held_deviation": held_block(deviation, share),
     }

@@ -17,9 +17,9 @@ model error per coordinate, counted only when the excess over ``mean tr S + 3 nu
 significant (:data:`Z_MODEL_ERROR`). The same for the orientation of a fit of poses.
 How it grows away from the calibration postures is read from the same rows
 (:mod:`selfcal.calibration.growth`): each row's excess against its distance ``d`` from its
-fold's training postures (each joint in units of its limits' range, a revolute joint's turns
-wrapped), ``m^2(d) = c0 + c1 d^2``, ``c1`` counted at its one-sided upper confidence bound
-whether or not the rows show a growth
+fold's training postures (each joint in units of its limits' range, a revolute joint's at most a
+turn, its turns wrapped), ``m^2(d) = c0 + c1 d^2``, ``c1`` counted at its one-sided upper
+confidence bound whether or not the rows show a growth
 (``growth_shown``: above two standard errors), capped at what alone explains the rows' pooled
 excess, ``c0`` the excess that leaves; ``m`` is then the size at the rows' mean distance and a
 workspace point gets ``c0 + c1 d^2`` of its own distance from the calibration postures (the
@@ -50,6 +50,7 @@ from selfcal.calibration.accuracy import (
     Z_MODEL_ERROR,
     ModelError,
     model_error_of,
+    spans_json,
     unmeasured_beyond,
 )
 from selfcal.calibration.accuracy import Accuracy as TrackerAccuracy
@@ -216,7 +217,7 @@ def tracker_accuracy(
     frame)."""
     if meas.m == 0:
         return None
-    span = joint_spans(limits)
+    span = joint_spans(limits, revolute_joints(model.joint_types))
     me = model_error(model, meas, res, sigma_t_m=sigma_t_m, sigma_r_rad=sigma_r_rad, span=span,
                      **identify_kw)  # fmt: skip
     pos = 0.0 if me is None else me.position_m
@@ -229,7 +230,8 @@ def tracker_accuracy(
     names = tuple(n for n, e in zip(res.names, res.estimated) if e)
     summary = workspace_summary(em, sample, meas.q)
     return TrackerAccuracy(em, names, me, summary, sample, np.array(meas.q, dtype=float),
-                           WHAT, NOTE, {"joint_limits_si": np.asarray(limits, float).tolist()})  # fmt: skip
+                           WHAT, NOTE, {"joint_limits_si": np.asarray(limits, float).tolist(),
+                                       **spans_json(span)})  # fmt: skip
 
 
 _FIX = "re-run `selfcal identify` to write the block again"
