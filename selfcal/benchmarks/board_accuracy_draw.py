@@ -32,7 +32,13 @@ from selfcal.io.truth import Truth, read_truth
 from selfcal.kinematics.alignment import express_in_frame
 from selfcal.kinematics.forward import fk_tool
 from selfcal.kinematics.mcpc import MCPCModel
-from selfcal.kinematics.tool_error import WorkspaceSample, workspace_sample
+from selfcal.kinematics.tool_error import (
+    WorkspaceSample,
+    joint_spans,
+    posture_distance,
+    revolute_joints,
+    workspace_sample,
+)
 from selfcal.pipeline.board_run import calibrate_board_run
 from selfcal.pipeline.run import run_acquire, run_all
 from selfcal.robot.encoder import EncoderSpec
@@ -197,7 +203,9 @@ def draw(args: tuple) -> dict:
     predicted 95 % orientation bound with and without the model error, the true orientation
     error (deg) and whether the calibration says its model error is not measured there (1.0,
     else 0.0: :meth:`selfcal.kinematics.tool_error.ToolErrorModel.unmeasured`, from the
-    calibration alone); ``measured_to``: the folds' reach (unit-free distance, infinite
+    calibration alone), and its posture distance to the nearest calibration posture
+    (:func:`selfcal.kinematics.tool_error.posture_distance` in the unit of
+    :func:`selfcal.kinematics.tool_error.joint_spans`); ``measured_to``: the folds' reach (unit-free distance, infinite
     without folds); per region also ``<region>_right``, the coverage a right prediction would
     show there (:func:`selfcal.benchmarks.tool_accuracy.coverage_if_right`); ``model_error_mm``;
     rendered, the detector's ``corners``
@@ -222,6 +230,10 @@ def draw(args: tuple) -> dict:
         true_b = true_chain(cal, truth)
         tip = np.asarray(block["T_tool_point_si"])
         bend = (lambda q: q) if setup.compliance is None else setup.compliance.bent
+        q_cal = board_postures_from_json(block, cal.model.n, "calibration.json")
+        wrap = revolute_joints(cal.model.joint_types)
+        span = joint_spans(np.asarray(block["joint_limits_si"]), wrap)
+        assert span is not None
         row: dict = {"status": "ok", "corners": corners,
                      "model_error_mm": (block["model_error"] or {}).get("position_mm") or 0.0,
                      "measured_to": float(em.measured_to)}  # fmt: skip
@@ -235,6 +247,7 @@ def draw(args: tuple) -> dict:
                 np.linalg.norm(T_est[:, :3, 3] - T_true[:, :3, 3], axis=1) * 1e3,
                 p["orientation_95_deg"], em0.predicted(q)["orientation_95_deg"],
                 _angle(T_est[:, :3, :3], T_true[:, :3, :3]), em.unmeasured(q),
+                posture_distance(q, q_cal, span, wrap),
             ])  # fmt: skip
             row[f"{name}_right"] = coverage_if_right(em, q, seed)
         return row
