@@ -37,7 +37,9 @@ detector, as ``selfcal run`` with ``[noise] render = true`` does (``MUJOCO_GL=eg
 image noise levels :data:`IMAGE_SIGMA` (grey levels, ``image_sigma``; ``--noise-px`` sets them);
 each row also gives the detector's corner noise, the detected corners against their true
 projections (:mod:`selfcal.benchmarks.corner_noise`), and goes to its own block. ``--rows-out FILE`` appends
-each finished row to ``FILE``, with the code that measured it (its commit); ``--from-rows FILE ..``
+each finished row to ``FILE``, with the code that measured it (its commit) and its seeds; a row
+already in ``FILE`` from the same clean commit, seeds, read-back and draws is kept, not measured
+again (:func:`done_rows`: an interrupted run started again goes on where it stopped); ``--from-rows FILE ..``
 tables them (a run split into pieces; a later file's rows replace an earlier one's in their
 place, :func:`merged_rows`), and the table names the code that measured which rows.
 
@@ -113,6 +115,7 @@ from selfcal.threads import limit_threads
 __all__ = [
     "GaussianReadBack",
     "draw",
+    "done_rows",
     "draws_per_row",
     "main",
     "merged_rows",
@@ -183,9 +186,19 @@ def run(draws: int = DRAWS, robots=ROBOTS, models=MODELS, noise_px=NOISE_PX,
     (:func:`selfcal.benchmarks.doc_blocks.code_version`), which the table names."""
     rows = []
     code = code_version()
+    stamp = {"code": code, "first_seed": first_seed, "read_back": read_back}
     for robot in robots:
         for model in models:
             for s in noise_px:
+                kept = done_rows(rows_file, stamp | {"robot": robot, "model": model,
+                                                     "noise_px": s, "poses": poses},
+                                 draws, render)  # fmt: skip
+                if kept:  # the file's rows of this code and these seeds: not measured again
+                    print(f"{robot} {model} {s} px: kept from {rows_file} (the code at {code}, "
+                          f"seeds {first_seed}-{first_seed + draws - 1})", file=sys.stderr,
+                          flush=True)  # fmt: skip
+                    rows += kept
+                    continue
                 t0 = time.perf_counter()
                 args = [(robot, 0.0 if render else s, model, seed, poses, s if render else None,
                          read_back) for seed in range(first_seed, first_seed + draws)]  # fmt: skip
@@ -194,7 +207,7 @@ def run(draws: int = DRAWS, robots=ROBOTS, models=MODELS, noise_px=NOISE_PX,
                 print(f"{robot} {model} {s} px: {sum(g['status'] == 'ok' for g in got)}/{draws} "
                       f"draws in {time.perf_counter() - t0:.0f} s " + "; ".join(fails),
                       file=sys.stderr, flush=True)  # fmt: skip
-                rows += [r | {"code": code} for r in pooled_rows(robot, model, s, got, poses)]
+                rows += [r | stamp for r in pooled_rows(robot, model, s, got, poses)]
                 shown = table_rendered if render else table
                 print(shown(rows[-len(REGIONS) :]).split("\n\n")[0], file=sys.stderr, flush=True)
                 if rows_file is not None:  # appended: the file's rows and the new ones
@@ -202,6 +215,31 @@ def run(draws: int = DRAWS, robots=ROBOTS, models=MODELS, noise_px=NOISE_PX,
                     new = "".join(json.dumps(r) + "\n" for r in rows[-len(REGIONS) :])
                     write_text_atomic(rows_file, old + new)
     return rows
+
+
+def done_rows(rows_file: Path | None, key: dict, draws: int, render: bool) -> list[dict]:
+    """The rows (one per region) of ``rows_file`` (``--rows-out``, JSON lines) that this run
+    would measure again, to be kept instead: the same ``key`` (robot, model, ``noise_px``,
+    ``poses``, ``code``, ``first_seed``, ``read_back``; a row without ``first_seed`` /
+    ``read_back`` was measured with 1 / ``"rounded"``), ``draws`` draws (failed ones included)
+    and path (``render``: rendered rows have the detector's corner noise); [] when the file or
+    one region's row is missing, or the code is not a clean commit (None or ``+changes``: the
+    same name need not be the same code), so an interrupted run goes on where it stopped.
+
+    Raises:
+        InputError: a line of the file is not a row (:func:`merged_rows`).
+    """
+    code = key.get("code")
+    if rows_file is None or not rows_file.exists() or not code or code.endswith("+changes"):
+        return []
+    old = {"first_seed": 1, "read_back": "rounded"}
+
+    def same(r: dict) -> bool:
+        return (all((old | r).get(k) == v for k, v in key.items())
+                and r["draws"] + r["failed"] == draws and ("corner_sigma_px" in r) == render)  # fmt: skip
+
+    found = {r["region"]: r for r in merged_rows([rows_file]) if same(r)}
+    return [found[g] for g in REGIONS] if all(g in found for g in REGIONS) else []
 
 
 def _selfcal(*argv: str) -> None:

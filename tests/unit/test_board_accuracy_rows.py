@@ -40,6 +40,33 @@ def test_a_run_stamps_its_rows_with_the_code_that_measured_them(tmp_path, monkey
     assert table(rows).endswith("--jobs 1 --write-docs`, measured by the code at abc1234.")
 
 
+def test_a_run_started_again_keeps_the_rows_its_code_and_seeds_measured(tmp_path, monkeypatch):
+    """--rows-out resumes: a row already in the file from the same clean commit, seeds and
+    draws is kept, not drawn again; another commit, other seeds, other draws or a tree with
+    changes measure it again (and append it)."""
+    calls = []
+    monkeypatch.setattr(board_accuracy, "draw", lambda args: calls.append(args) or _got(1)[0])
+    out = tmp_path / "rows.jsonl"
+
+    def again(code: str, draws: int = 2, first_seed: int = 1) -> list[dict]:
+        calls.clear()
+        monkeypatch.setattr(board_accuracy, "code_version", lambda: code)
+        return board_accuracy.run(draws, ("ur5e",), ("fits",), (0.2, 0.5), jobs=1,
+                                  rows_file=out, first_seed=first_seed)  # fmt: skip
+
+    first = again("abc1234")
+    assert len(calls) == 4 and len(out.read_text().splitlines()) == 6
+    assert again("abc1234") == first and calls == []  # both rows kept
+    assert len(out.read_text().splitlines()) == 6
+    lines = out.read_text().splitlines()
+    out.write_text("\n".join(lines[:4]) + "\n")  # stopped within the 0.5 px row
+    assert again("abc1234") == first and [a[1] for a in calls] == [0.5, 0.5]
+    for code, draws, seed in (("def5678", 2, 1), ("abc1234", 3, 1), ("abc1234", 2, 4),
+                              ("abc1234+changes", 2, 1)):  # fmt: skip
+        again(code, draws, seed)
+        assert len(calls) == 2 * draws, (code, draws, seed)
+
+
 def test_the_table_names_which_code_measured_which_rows():
     now = [*_rows("er4u-paper", "fits", 0.2, "abc1234"),
            *_rows("er4u-paper", "compliance", 0.2, "abc1234")]  # fmt: skip
