@@ -17,6 +17,7 @@ from selfcal.calibration.board.bootstrap import (
     refit_row,
     resamples,
 )
+from selfcal.calibration.board.folds import configurations
 from selfcal.calibration.spread import spread_line
 from selfcal.target.base import Features
 
@@ -48,6 +49,25 @@ def test_the_resamples_do_not_depend_on_the_order_of_the_frames():
     q, feats = _frames()
     perm = np.random.default_rng(3).permutation(len(q))
     assert _drawn(q[perm], [feats[i] for i in perm], seed=7) == _drawn(q, feats, seed=7)
+
+
+def test_the_configurations_are_the_folds_numbering_also_when_their_first_joints_tie():
+    """Two configurations whose first joints lie within 0.1 deg (the folds' tolerance) are
+    told apart by the next joint and numbered as the folds number them (by the arm joints of
+    their first frame in joint order), whatever the order of the frames; a frame within 0.1 deg
+    of a configuration's first frame joins it. Frames (A, A', B): A' 0.09 deg past A on the
+    first joint, B 0.03 deg past A (its mean first joint below A's and A'`s mean: a numbering by
+    the mean arm joints would put B first), its second joint 0.5 rad away."""
+    d = np.radians(0.01)
+    q = np.array([[0.0, 0.2, 0.0, 0.1, 0.0, 0.0],  # A
+                  [9 * d, 0.2, 0.0, -0.3, 0.0, 0.0],  # A', the wrist turned
+                  [3 * d, 0.7, 0.0, 0.0, 0.0, 0.0]])  # B  # fmt: skip
+    rng = np.random.default_rng(1)
+    feats = [Features(np.arange(12), rng.uniform(0, 640, (12, 2))) for _ in q]
+    assert configurations(q, TYPES).tolist() == [0, 0, 1]
+    for perm in ([0, 1, 2], [2, 1, 0], [1, 2, 0]):
+        groups = canonical_frames(q[perm], [feats[i] for i in perm], TYPES)
+        assert [np.array(perm)[g].tolist() for g in groups] == [[0, 1], [2]]
 
 
 def test_the_seed_fixes_the_resamples_and_each_holds_whole_configurations():

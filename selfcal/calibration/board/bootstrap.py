@@ -18,9 +18,10 @@ over the ``B`` refits that succeeded (summed over the three coordinates, as the 
 :mod:`selfcal.calibration.board.spread`). It is taken about the refits' own mean, not the
 calibration's tool point, so that it depends on the resamples alone.
 
-The order of the dataset's frames does not change it: the configurations are numbered by their
-mean arm joints (the first joint first) and the frames within one by their joints, then by their
-detections (:func:`canonical_frames`), and the resamples are drawn on that numbering, so a
+The order of the dataset's frames does not change it: the configurations are numbered as the
+folds number them (by their arm joints, the first joint first:
+:func:`selfcal.calibration.board.folds.configurations`) and the frames within one by their
+joints, then by their detections (:func:`canonical_frames`), and the resamples are drawn on that numbering, so a
 shuffled dataset gives the same resamples, frame for frame, and the refits (deterministic in
 their inputs) the same tool points. A refit that fails (an estimation error: too few distinct
 configurations drawn to fit the chain, ...) is counted and its reason kept, never dropped
@@ -126,20 +127,17 @@ class SpreadPoints:
 def canonical_frames(q: np.ndarray, features: Sequence[Features],
                      joint_types: tuple[str, ...]) -> list[np.ndarray]:  # fmt: skip
     """The frames of every arm configuration of the joints ``q`` (m, n) rad / m, as lists of
-    frame indices: the configurations (the folds' rule) in the order of their mean arm joints
-    (lexicographic, the first joint first), the frames within one by their joints, then by
-    their detections' count and sums (the tie of two images at one posture); so the same
-    frames in another order give the same lists of the same frames."""
+    frame indices: the configurations in the folds' numbering (:func:`configurations`, which
+    owns the arm-joint rule and numbers them by their joints, the first joint first), the
+    frames within one by their joints, then by their detections' count and sums (the tie of two
+    images at one posture); so the same frames in another order give the same lists of the same
+    frames."""
     q = np.atleast_2d(np.asarray(q, dtype=float))
     label = configurations(q, joint_types)
-    groups = [np.flatnonzero(label == k) for k in range(int(label.max(initial=-1)) + 1)]
-    n_arm = q.shape[1] - 3 if q.shape[1] > 3 else q.shape[1]
-    means = np.array([q[g, :n_arm].mean(axis=0) for g in groups]).reshape(len(groups), n_arm)
-    order = np.lexsort(means.T[::-1])
     tie = np.array([[len(f), float(np.sum(f.uv)), float(np.sum(f.ids))] for f in features])
     out = []
-    for k in order:
-        g = groups[k]
+    for k in range(int(label.max(initial=-1)) + 1):
+        g = np.flatnonzero(label == k)
         keys = np.column_stack([q[g], tie[g]])
         out.append(g[np.lexsort(keys.T[::-1])])
     return out
