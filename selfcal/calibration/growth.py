@@ -4,7 +4,8 @@ rows (issue #29, docs/tool-accuracy.md): a variogram shared by the routes' model
 A misfit the chain cannot express (a joint bending under load, a link of another shape) is a
 smooth function of the joints that the fit matched as well as a chain can at the postures it
 saw; a held-out row at the distance ``d`` (:func:`selfcal.kinematics.tool_error.posture_distance`,
-each joint in units of its range) from its fold's training postures shows what is left there.
+each joint in units of its range, a revolute joint's at most a turn) from its fold's training
+postures shows what is left there.
 Its variance per coordinate is modelled as
 
     m^2(d) = c0 + c1 d^2          (c0 = m0^2 the level, c1 = s^2 the growth, both >= 0)
