@@ -9,11 +9,13 @@ import numpy as np
 import pytest
 from scipy.linalg import expm
 
-from selfcal.calibration.accuracy import model_error_of
+from selfcal.calibration.accuracy import model_error_of, spans_json
 from selfcal.calibration.board.accuracy import board_error_model_from_json, grown_size
 from selfcal.calibration.board.misfit import pose_jacobian
 from selfcal.camera import camera_model
+from selfcal.errors import InputError
 from selfcal.kinematics.mcpc import minimal_indices, nominal_mcpc, param_names
+from selfcal.kinematics.tool_error import joint_spans, revolute_joints
 from selfcal.robot.definition import load_robot
 from selfcal.transforms import inv_pose, pose_from_vec, skew
 
@@ -167,6 +169,14 @@ def test_an_accuracy_block_keeps_the_model_errors_growth():
     assert em.reach_distance == 0.04 and np.allclose(em.reach_postures, q_cal)
     assert np.allclose(em.reach_span, np.diff(robot.limits, axis=1)[:, 0])
     assert np.allclose(em.model_error_factor(q_cal), 0.0)
+    # the spans its distances were measured in (joint_spans_si, session 22) are read as written;
+    # without them (an older file, above) the full ranges it was measured in; malformed: refused
+    spans = joint_spans(robot.limits, revolute_joints(model.joint_types))
+    assert spans is not None and spans[4] == pytest.approx(2 * np.pi)  # the wrist roll: a turn
+    em = board_error_model_from_json(block | spans_json(spans), model, "calibration.json")
+    assert np.allclose(em.reach_span, spans)
+    with pytest.raises(InputError, match="accuracy.joint_spans_si must be 5 positive"):
+        board_error_model_from_json(block | {"joint_spans_si": [1.0] * 4}, model, "c.json")
     del block["model_error"]["reach_distance"]  # an older file: the same everywhere
     old = board_error_model_from_json(block, model, "calibration.json")
     assert old.reach_postures is None and np.allclose(old.model_error_factor(q_cal), 1.0)
