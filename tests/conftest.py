@@ -202,6 +202,24 @@ def default_analytic(tmp_path_factory):
 
 
 @pytest.fixture(scope="session")
+def default_rendered(tmp_path_factory):
+    """The default scenario as it is (rendered images, detected) acquired, calibrated and
+    reported once per test run: the rendered golden files' test and the pipeline's rendered
+    accuracy test (both slow) each ran this same run. (folder, the report). Read it, never
+    write into the folder."""
+    from selfcal.config.scenario import load_scenario
+    from selfcal.pipeline.run import run_acquire, run_calibrate, run_report
+
+    def build(folder: Path):
+        out = folder / "ds"
+        run_acquire(load_scenario(), out, quiet=True)
+        run_calibrate(out, quiet=True)
+        return out, run_report(out, quiet=True)
+
+    return shared_run(tmp_path_factory, "default_rendered", build)
+
+
+@pytest.fixture(scope="session")
 def default_analytic_15(tmp_path_factory):
     """The default scenario on the analytic path with 15 postures (0.5 px corner noise,
     quantised joints, 20 validation postures), calibrated and reported with figures once per

@@ -6,16 +6,13 @@ import json
 
 import pytest
 
-from selfcal.config.scenario import load_scenario
-from selfcal.pipeline.run import run_acquire, run_calibrate, run_report
-
 pytestmark = pytest.mark.render
 
 
 @pytest.mark.slow
-def test_default_scenario_rendered_matches_golden(tmp_path, golden):
-    run_acquire(load_scenario(), tmp_path, quiet=True)
-    run_calibrate(tmp_path, quiet=True)
-    run_report(tmp_path, quiet=True)
-    golden("rendered/calibration.json", json.loads((tmp_path / "calibration.json").read_text()))
-    golden("rendered/report.json", json.loads((tmp_path / "report.json").read_text()))
+def test_default_scenario_rendered_matches_golden(default_rendered, golden):
+    """The files of tests/conftest.py's ``default_rendered`` run (acquire, calibrate, report of
+    the default scenario: the rendered pipeline's accuracy test reads the same run)."""
+    out, _ = default_rendered
+    golden("rendered/calibration.json", json.loads((out / "calibration.json").read_text()))
+    golden("rendered/report.json", json.loads((out / "report.json").read_text()))
