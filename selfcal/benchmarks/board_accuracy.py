@@ -59,6 +59,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import shutil
 import sys
 import tempfile
 import time
@@ -251,14 +252,28 @@ def _selfcal(*argv: str) -> None:
         raise InternalError(f"the benchmark's `selfcal {' '.join(argv)}` exited {code}")
 
 
-def real_set(name: str, work: Path) -> dict:
+IMPORTED = ("dataset.json", "joints.csv", "sources.csv", "frames", "robot")
+"""What ``selfcal import`` writes into a dataset folder (and all :func:`real_set` reads)."""
+
+
+def real_set(name: str, work: Path, imported: tuple[Path, Path] | None = None) -> dict:
     """The predicted against the measured held-out reprojection RMS (px) of the real set
-    ``name`` (:data:`REAL_SETS`) calibrated in ``work``."""
+    ``name`` (:data:`REAL_SETS`) calibrated in ``work``.
+
+    ``imported``: the set's calibration and held-out splits as ``selfcal import`` wrote them
+    with this set's files (robot, images, joints in rad, target: the tests/real tier imports
+    them so already), whose import's files (:data:`IMPORTED`) are copied into ``work`` instead
+    of importing the images again; anything else in those folders (a calibration) is ignored.
+    """
     robot_file, cal_glob, held_glob = REAL_SETS[name]
     d = REAL / name
     inp = d / "inputs"
-    for out, glob, joints in (("cal", cal_glob, "joints_calib.csv"),
-                              ("held", held_glob, "joints_heldout.csv")):  # fmt: skip
+    given = imported or (None, None)
+    for out, glob, joints, src in (("cal", cal_glob, "joints_calib.csv", given[0]),
+                                   ("held", held_glob, "joints_heldout.csv", given[1])):  # fmt: skip
+        if src is not None:
+            _copy_import(Path(src), work / out)
+            continue
         _selfcal("import", "--robot", str(inp / robot_file), "--images", f"cam0={d / glob}",
                  "--joints", str(inp / joints), "--joint-units", "rad", "--target",
                  str(inp / "target.toml"), "--out", str(work / out))  # fmt: skip
@@ -302,6 +317,24 @@ def real_set(name: str, work: Path) -> dict:
         "cv_px": (cv.get("calibrated") or {}).get("reprojection_rms_px"),
         "cv_nominal_px": (cv.get("nominal") or {}).get("reprojection_rms_px"),
     }
+
+
+def _copy_import(src: Path, dst: Path) -> None:
+    """The files ``selfcal import`` wrote in ``src`` (:data:`IMPORTED`) copied to ``dst``.
+
+    Raises:
+        InputError: ``src`` lacks one of them (not an imported dataset folder).
+    """
+    missing = [n for n in IMPORTED if not (src / n).exists()]
+    if missing:
+        raise InputError(f"{src}: no {', '.join(missing)}: not a folder `selfcal import` wrote; "
+                         "import the set there first, or leave `imported` out")  # fmt: skip
+    dst.mkdir(parents=True)
+    for n in IMPORTED:
+        if (src / n).is_dir():
+            shutil.copytree(src / n, dst / n)
+        else:
+            shutil.copy2(src / n, dst / n)
 
 
 def merged_rows(files: list[Path]) -> list[dict]:
