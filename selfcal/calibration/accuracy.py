@@ -106,6 +106,11 @@ class ModelError:
             training postures (everything beyond them not measured); None: not read (no limit).
             The one source of this distance (a :class:`Variogram` read from the same rows does
             not keep it).
+        held_rms_m, held_rms_rad: what the deviation from the drawing of the parameters the
+            calibration held adds to the held-out errors' norms (``sqrt(mean tr(S_c - S))``,
+            ``S_c`` the folds' covariances with the share ``c`` of the deviation the calibration
+            counts, :mod:`selfcal.calibration.board.held_prior`): the board route's; None where
+            not measured (the tracker route, a file written before it).
     """
 
     position_m: float
@@ -123,6 +128,8 @@ class ModelError:
     reach_distance: float = 0.0
     growth: Variogram | None = None
     measured_to: float | None = None
+    held_rms_m: float | None = None
+    held_rms_rad: float | None = None
 
     @property
     def limit(self) -> float:
@@ -158,6 +165,14 @@ class ModelError:
             "estimation_rms_deg": num(self.estimation_rms_rad, deg),
             "noise_mm": num(self.noise_m, 1e3),
             "noise_deg": num(self.noise_rad, deg),
+            **(
+                {}
+                if self.held_rms_m is None
+                else {
+                    "held_deviation_rms_mm": num(self.held_rms_m, 1e3),
+                    "held_deviation_rms_deg": num(self.held_rms_rad, deg),
+                }
+            ),
             "reach_distance": self.reach_distance or None,
             **(
                 {}

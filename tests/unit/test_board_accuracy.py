@@ -65,6 +65,12 @@ def test_model_error_of_splits_the_held_out_errors():
     assert (
         given is not None and given.position_m == 0.1 and given.held_out_rms_m == me.held_out_rms_m
     )
+    # the held deviation's share at the held-out rows (the board route's) is written when
+    # measured, in mm and deg, and left out where not (the tracker route)
+    assert "held_deviation_rms_mm" not in me.to_json()
+    held = dataclasses.replace(me, held_rms_m=2.5e-3, held_rms_rad=np.radians(0.25)).to_json()
+    assert held["held_deviation_rms_mm"] == pytest.approx(2.5)
+    assert held["held_deviation_rms_deg"] == pytest.approx(0.25)
 
 
 def test_the_held_share_is_what_the_folds_excess_shows_of_the_prior():

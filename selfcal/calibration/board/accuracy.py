@@ -62,6 +62,8 @@ predicted pose, against the predicted corner). Nothing here reads truth.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from selfcal.calibration.accuracy import (
@@ -292,12 +294,14 @@ def model_error(obs: BoardObservations, selection: Selection, offsets: np.ndarra
         train = obs.used & ~out
         h = held_out_errors(obs, fit, out, T_tool_point, cr)
         h["px2_held"] = np.zeros(len(h["frame"]))
+        h["S_held"] = np.zeros_like(h["S"])
         h["distance"] = (np.zeros(len(h["frame"])) if span is None else
                          posture_distance(obs.q[h["frame"].astype(int)], obs.q[train], span,
                                           revolute_joints(cr.model.joint_types)))  # fmt: skip
         if variance is not None and len(h["frame"]):
             dev = held_out_errors(obs, fit, out, T_tool_point, with_deviation(cr, variance))
             h["px2_held"] = dev["px2_expected"] - h["px2_expected"]
+            h["S_held"] = dev["S"] - h["S"]  # the deviation's at the held-out configuration
         if len(h["frame"]):
             got.append(h)
     if not got:
@@ -325,12 +329,17 @@ def model_error(obs: BoardObservations, selection: Selection, offsets: np.ndarra
 
     (r2, s2, n2), rot = parts(slice(0, 3)), parts(slice(3, 6))  # position, orientation
     reached = float(np.max(h["distance"])) if span is not None else None  # None: not read
-    return model_error_of(r2, s2, n2, rot, folds=len(got),
-                          failed=selection.folds - len(got),
-                          noise_what="the pixel and joint read-back noise",
-                          given=(m, m / float(np.mean(h["lever"]))),
-                          reach_distance=reach, growth=gram,
-                          measured_to=reached), share  # fmt: skip
+    me = model_error_of(r2, s2, n2, rot, folds=len(got), failed=selection.folds - len(got),
+                        noise_what="the pixel and joint read-back noise",
+                        given=(m, m / float(np.mean(h["lever"]))),
+                        reach_distance=reach, growth=gram, measured_to=reached)  # fmt: skip
+    if me is None or variance is None:
+        return me, share
+    # the deviation's share the calibration counts (its covariance's), at the held-out rows
+    held = share.used * np.trace(h["S_held"][:, :3, :3], axis1=1, axis2=2)
+    held_rot = share.used * np.trace(h["S_held"][:, 3:, 3:], axis1=1, axis2=2)
+    return dataclasses.replace(me, held_rms_m=float(np.sqrt(max(np.mean(held), 0.0))),
+                               held_rms_rad=float(np.sqrt(max(np.mean(held_rot), 0.0)))), share  # fmt: skip
 
 
 def _errors_px_mm(obs: BoardObservations, fit: Refinement,

@@ -24,6 +24,22 @@ drawing, which the check carries as one error shared by the views and which held
 alarms within its alpha in simulation (docs/tool-accuracy.md); counted again per view it would
 only cost power.
 
+Why not sharper (issue #29, session 22): the block gives the share of the held deviation the
+calibration counts at the folds' held-out rows in tool pose too (``held_deviation_rms_mm`` /
+``_deg``: ``sqrt(mean c tr D_f)``, ``D_f`` the prior's deviation carried through each fold to its
+held-out frame, ``c`` the share its covariance counts), so the double count can be taken out:
+``f^2 = (held^2 - est^2 - held_deviation^2 - 3 noise^2) / 3``. It is not, for on real data it
+takes out more than the deviation's part: on the photoneo set the share counts 2.50 mm RMS
+against a miss of 1.68 mm (the share is measured in pixels, and its tool-pose trace is
+dominated by the directions a view sees poorly, along its line of sight), and the folds' error
+falls 0.880 -> 0 mm (mecheye 1.198 -> 0.832 mm; the 9-image NO GAIN subset 1.221 -> 0 mm, whose
+check of group 6 then says "changed", p 2e-19: ``tests/real/test_real_subset.py`` fails). In the
+pixels' own metric the share leaves nothing either (the block's ``position_mm``, the folds'
+pixel excess beyond the share's point estimate, is 0 on both sets): what the second null catches
+on real arms is the prediction's shape at a new configuration, not the deviation counted
+twice. The figures: ``selfcal calibrate`` on the real tier's folders, their calibration.json's
+``accuracy.model_error``.
+
 :func:`fold_error_model` is the calibration's error model with that excess as its model error (a
 tool-pose error per view, each view its own, the error model's growth with the distance kept), or
 None when the folds show none beyond the block's own. The check
