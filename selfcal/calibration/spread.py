@@ -16,7 +16,17 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["BOOTSTRAP", "JACKKNIFE", "REGIONS", "Spread", "region_spread", "spread_line"]
+from selfcal.kinematics.tool_error import WorkspaceSample
+
+__all__ = [
+    "BOOTSTRAP",
+    "JACKKNIFE",
+    "REGIONS",
+    "Spread",
+    "SpreadPoints",
+    "region_spread",
+    "spread_line",
+]
 
 REGIONS = ("inside", "edge", "workspace", "calibration_postures")
 """The regions of the workspace sample (:mod:`selfcal.kinematics.tool_error`) and the postures."""
@@ -51,6 +61,24 @@ class Spread:
         }
 
 
+@dataclass(frozen=True, eq=False)
+class SpreadPoints:
+    """Where a spread is evaluated: per region of :data:`selfcal.calibration.spread.REGIONS`
+    the joint vectors (k, n) rad / m (``qs``), and the tool point, ``T_tool_point`` the flange
+    in the chain's tool frame (4, 4)."""
+
+    qs: dict[str, np.ndarray]
+    T_tool_point: np.ndarray
+
+    @classmethod
+    def of(cls, sample: WorkspaceSample, q_cal: np.ndarray,
+           T_tool_point: np.ndarray) -> SpreadPoints:  # fmt: skip
+        """The workspace ``sample``'s regions and the calibration postures ``q_cal``."""
+        qs = {name: np.asarray(getattr(sample, name), dtype=float) for name in REGIONS[:3]}
+        qs["calibration_postures"] = np.asarray(q_cal, dtype=float)
+        return cls({k: v for k, v in qs.items() if len(v)}, np.asarray(T_tool_point, float))
+
+
 def region_spread(squared: dict[str, np.ndarray]) -> dict:
     """Per region of :data:`REGIONS` present in ``squared`` (the squared spread, m^2, of each
     of its joint vectors) the largest, the median, the RMS over the region and the 95th
@@ -79,15 +107,23 @@ def spread_line(spread: dict) -> str:
         how = f"a delete-a-fold jackknife over the {n} cross-validation folds"
     elif spread.get("resampled") == "configurations":
         how = (f"{n} bootstrap refits of the {spread['configurations']} arm configurations "
-               f"resampled (seed {spread['seed']})")  # fmt: skip
+               f"resampled (seed {spread['seed']}"
+               + ("; model selection held" if spread.get("selection") == "held" else "")
+               + ")")  # fmt: skip
     else:
         how = f"{n} bootstrap resamplings of the rows"
     failed = spread.get("failed", 0)
     tail = ""
+    other = spread.get("refits_other_parameters") or 0
+    if other and spread.get("selection") == "free":
+        tail += f"; {other} refit(s) selected other kinematic parameters than the calibration"
+    elif other:
+        tail += (f"; {other} refit(s) held some of the chosen parameters at the fair nominal "
+                 "(their resample could not determine them)")  # fmt: skip
     if failed:
         reasons = spread.get("failures") or []
         first = f" (first: {reasons[0]['reason']})" if reasons else ""
-        tail = f"; {failed} refit(s) failed and were left out{first}"
+        tail += f"; {failed} refit(s) failed and were left out{first}"
     if "inside" not in r:
         return f"no run-to-run spread over {how}: fewer than two refits succeeded{tail}"
     text = (

@@ -25,10 +25,12 @@ def add_spread_args(sp: argparse.ArgumentParser) -> None:
         default=0,
         metavar="N",
         help="a board dataset: also the tool point's run-to-run spread over N refits, each of "
-        "the arm configurations resampled with replacement (a bootstrap; N calibrations more, "
-        "e.g. 20): mm over the workspace's regions in calibration.json accuracy.bootstrap_spread "
-        "beside the folds' jackknife, DIR/figures/spread.png; on few configurations it "
-        "over-states (2-5x on 15, 1.0-1.5x on 30: docs/tool-accuracy.md)",
+        "the arm configurations resampled with replacement (a bootstrap; N fits more, e.g. 20) "
+        "with the model selection held (every refit fits the calibration's chosen kinematic "
+        "parameters): the estimation spread of the chosen model over resampled configurations, "
+        "mm over the workspace's regions in calibration.json accuracy.bootstrap_spread beside "
+        "the folds' jackknife, DIR/figures/spread.png (against the predicted RMS error: "
+        "docs/tool-accuracy.md)",
     )
     sp.add_argument("--seed", type=int, default=0,
                     help="with --spread: the resamples' seed (default 0; the same seed gives "

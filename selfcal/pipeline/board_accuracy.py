@@ -147,7 +147,12 @@ def spread_markdown(boot: dict, jack: dict | None) -> list[str]:
     line and, per region, its spread (mm: RMS over the region's joint vectors, 95th percentile,
     largest) beside the jackknife's ``jack`` (absent in an older block: "-")."""
     text = spread_line(boot)
-    rows = ["", text[0].upper() + text[1:] + ' (docs/tool-accuracy.md "Run-to-run spread").', "",
+    what = ""
+    if boot.get("selection") == "held":
+        what = (" It is the estimation spread of the calibration's chosen model over resampled "
+                "configurations: every refit fits the chosen kinematic parameters.")  # fmt: skip
+    rows = ["", text[0].upper() + text[1:] + ' (docs/tool-accuracy.md "Run-to-run spread").'
+            + what, "",
             "| region | bootstrap RMS | bootstrap 95 % | bootstrap max | jackknife RMS | "
             "jackknife max |", "|---|---|---|---|---|---|"]  # fmt: skip
     for name, got in boot["regions"].items():

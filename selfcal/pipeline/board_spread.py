@@ -53,11 +53,14 @@ def serial_runner(fn: Callable[[dict], dict], items: list[dict],
 @dataclass(frozen=True)
 class BootstrapRun:
     """The bootstrap a command asks for: ``count`` resamples drawn with ``seed``, refitted by
-    ``runner`` (default in this process)."""
+    ``runner`` (default in this process); ``held``: every refit fits the calibration's chosen
+    kinematic parameters (the default), False: each runs its own parameter selection (a
+    benchmark's comparison, ``selfcal.benchmarks.board_spread --selection free``)."""
 
     count: int
     seed: int = 0
     runner: Runner = serial_runner
+    held: bool = True
 
 
 def bootstrap_items(cal: BoardDatasetCalibration, run: BootstrapRun) -> tuple[list[dict], int]:
@@ -65,7 +68,8 @@ def bootstrap_items(cal: BoardDatasetCalibration, run: BootstrapRun) -> tuple[li
     bootstrap ``run`` of the board calibration ``cal`` (the detailed result of
     :func:`selfcal.calibration.board.dataset.calibrate_board_dataset_detailed`, with its
     accuracy block) and its number of arm configurations: the frames its fit used, resampled
-    by configuration.
+    by configuration, each refit to fit the calibration's chosen kinematic parameters (the
+    model selection held, as the jackknife's fold fits; ``run.held`` False: to select its own).
 
     Raises:
         InputError: fewer than 2 resamples, a calibration of a rig of cameras (its refit is not
@@ -88,7 +92,10 @@ def bootstrap_items(cal: BoardDatasetCalibration, run: BootstrapRun) -> tuple[li
     groups = canonical_frames(inputs.q[index], [inputs.features[i] for i in index],
                               inputs.nominal.joint_types)  # fmt: skip
     picks = [index[p] for p in resamples(groups, run.count, run.seed)]
-    return [{"inputs": inputs, "pick": p, "points": cal.spread_points} for p in picks], len(groups)
+    keep = None if cal.fit.selection is None or not run.held else cal.fit.selection.identified
+    items = [{"inputs": inputs, "pick": p, "points": cal.spread_points, "keep": keep}
+             for p in picks]  # fmt: skip
+    return items, len(groups)
 
 
 def run_bootstrap(
@@ -113,7 +120,9 @@ def run_bootstrap(
             progress.advance()
     finally:
         progress.finish()
-    return bootstrap_spread(outcomes, seed=run.seed, configurations=configurations)
+    chosen = None if cal.fit.selection is None else cal.fit.selection.identified
+    return bootstrap_spread(outcomes, seed=run.seed, configurations=configurations,
+                            chosen=chosen, held=run.held)  # fmt: skip
 
 
 def with_bootstrap(accuracy: dict, spread: Spread) -> dict:

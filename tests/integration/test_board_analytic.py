@@ -364,15 +364,21 @@ def test_the_hand_eye_exports_near_the_truth_within_its_sigmas(run, tmp_path, ca
 
 
 BOOT_REFITS = 6
+BOOT_BAND = (0.5, 2.0)
+"""The held bootstrap's RMS spread inside over the predicted RMS (see the test's docstring)."""
 
 
 @pytest.mark.slow
 def test_the_bootstrap_spread_bounds_the_estimation_error_and_ignores_order(run, tmp_path):
     """``selfcal calibrate --spread N``'s bootstrap (selfcal.calibration.board.bootstrap) on
-    the analytic run (15 configurations, no misfit): over 6 refits of resampled configurations
-    the RMS spread inside the calibrated region lies within 1-7x the covariance's predicted RMS
-    and the folds' jackknife (20 refits on seeds 1-3 gave 2.0-4.6x and 2.3-5.2x: the bootstrap
-    over-states on so few configurations, docs/tool-accuracy.md); a refit repeated gives the
+    the analytic run (15 configurations, no misfit), the model selection held (every refit fits
+    the calibration's chosen parameters): over 6 refits of resampled configurations the RMS
+    spread inside the calibrated region lies within BOOT_BAND times the covariance's predicted
+    RMS (6 refits on seeds 1 / 2 / 3 gave 1.08 / 1.31 / 1.66x: the band is the mean 1.35 -/+
+    about 3 times their spread 0.29, the upper side cut to 2.0). The upper bound fails if the
+    refits select again: seed 1's 6 refits with their own selection gave 2.65x (one resample of
+    8 distinct configurations fell back to a candidate 4.3 mm away; the 6 refits held: 1.08x);
+    every refit fits the chosen set; a refit repeated gives the
     same tool points (to rounding); the frames shuffled give the same resamples, frame for
     frame, at the same joint vectors."""
     from selfcal.calibration.board.bootstrap import bootstrap_spread, refit_row
@@ -383,16 +389,18 @@ def test_the_bootstrap_spread_bounds_the_estimation_error_and_ignores_order(run,
     cal = calibrate_board_dataset_detailed(out)
     items, k = bootstrap_items(cal, BootstrapRun(BOOT_REFITS, seed=1))
     assert k == 15
+    assert cal.fit.selection is not None
+    chosen = cal.fit.selection.identified
+    assert all(item["keep"] == chosen for item in items)
     outcomes = [refit_row(item) for item in items]
-    block = bootstrap_spread(outcomes, seed=1, configurations=k).to_json()
+    block = bootstrap_spread(outcomes, seed=1, configurations=k, chosen=chosen).to_json()
     assert block["failed"] == 0 and block["resamplings"] == BOOT_REFITS
+    assert block["selection"] == "held" and block["refits_other_parameters"] == 0
     acc = cal.result.accuracy
     assert acc is not None
     got = block["regions"]["inside"]["spread_mm_rms"]
     predicted = acc["regions"]["inside"]["position_rms_mm"]
-    jack = acc["spread"]["regions"]["inside"]["spread_mm_rms"]
-    assert 1.0 * predicted < got < 7.0 * predicted, (got, predicted)
-    assert 1.0 * jack < got < 7.0 * jack, (got, jack)
+    assert BOOT_BAND[0] * predicted < got < BOOT_BAND[1] * predicted, (got, predicted)
     # a repeated refit equals the first to the solver's stopping tolerance, not bit for bit (its
     # sums vary in the last bits run to run): 6e-16 m and 6.3e-10 m seen (two trees), so 2 nm
     again = refit_row(items[0])

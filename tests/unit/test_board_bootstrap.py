@@ -11,14 +11,14 @@ import pytest
 
 from selfcal.calibration.board.bootstrap import (
     BoardFitInputs,
-    SpreadPoints,
     bootstrap_spread,
     canonical_frames,
     refit_row,
     resamples,
 )
 from selfcal.calibration.board.folds import configurations
-from selfcal.calibration.spread import spread_line
+from selfcal.calibration.spread import SpreadPoints, spread_line
+from selfcal.pipeline.board_accuracy import spread_markdown
 from selfcal.target.base import Features
 
 TYPES = ("revolute",) * 6
@@ -105,9 +105,14 @@ def test_the_spread_is_the_bootstraps_standard_error_and_failed_refits_are_count
     assert got["spread_mm_rms"] == pytest.approx(np.sqrt(np.mean(expected**2)))
     assert block["resamplings"] == 4 and block["failed"] == 2 and block["requested"] == 6
     assert block["failures"] == [{"reason": "EstimationError: too few configurations", "count": 2}]
-    assert block["method"] == "bootstrap" and block["seed"] == 3
+    assert block["method"] == "bootstrap" and block["seed"] == 3 and block["selection"] == "held"
+    assert "model selection held" in block["what"]
     line = spread_line(block)
     assert "4 bootstrap refits of the 8 arm configurations" in line
+    assert "(seed 3; model selection held)" in line
+    assert (
+        "the estimation spread of the calibration's chosen model" in spread_markdown(block, None)[1]
+    )
     assert "2 refit(s) failed" in line and "too few configurations" in line
 
 
@@ -157,3 +162,40 @@ def test_the_spread_figure_shows_the_runs_numbers_without_overlap():
     assert (
         "3 bootstrap refits of 9 arm configurations (seed 4, 0 failed)" in fig.axes[0].get_title()
     )
+
+
+def test_the_parameters_a_refit_keeps_are_found_by_their_names():
+    """The held refit's parameters by name (parameter_indices): the pool's own names give back
+    its flat MCPC indices and joint offsets, in the names' order; a name the chain does not
+    offer is an error, not a parameter silently left out."""
+    from selfcal.calibration.board.parameter_pool import parameter_indices, parameter_pool
+    from selfcal.kinematics.mcpc import nominal_mcpc
+    from selfcal.robot.definition import load_robot
+
+    robot = load_robot("ur5e")
+    model = nominal_mcpc(robot).with_tool(robot.T_flange_cam)
+    q = np.random.default_rng(2).uniform(-1.5, 1.5, (12, robot.n))
+    order = parameter_pool(model, q).order[::-1]  # any order: kept as given
+    idx, joints = parameter_indices(model, [nm for nm, _, _ in order])
+    assert idx.tolist() == [i for _, kind, i in order if kind == "mcpc"]
+    assert joints.tolist() == [i for _, kind, i in order if kind == "offset"]
+    assert len(idx) + len(joints) == len(order) and len(joints) > 0
+    with pytest.raises(KeyError):
+        parameter_indices(model, ["offset_j9"])
+
+
+def test_refits_that_fitted_other_parameters_are_counted_and_said():
+    """Held (the default): a refit whose resample could not determine a chosen parameter fits
+    fewer and is counted; free: a refit whose selection chose another set is counted, and the
+    line says which of the two it is."""
+    tip = {"inside": np.zeros((2, 3))}
+    outcomes = [{"tips": tip, "parameters": ["a", "b"]}, {"tips": tip, "parameters": ["b", "a"]},
+                {"tips": tip, "parameters": ["a"]}, {"failed": "X"}]  # fmt: skip
+    held = bootstrap_spread(outcomes, seed=0, configurations=8, chosen=("a", "b")).to_json()
+    assert held["refits_other_parameters"] == 1 and held["selection"] == "held"
+    assert "1 refit(s) held some of the chosen parameters at the fair nominal" in spread_line(held)
+    free = bootstrap_spread(outcomes, seed=0, configurations=8, chosen=("a", "b"), held=False)
+    block = free.to_json()
+    assert block["selection"] == "free" and "its own parameter selection" in block["what"]
+    assert "1 refit(s) selected other kinematic parameters" in spread_line(block)
+    assert "model selection held" not in spread_line(block)

@@ -9,10 +9,9 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from selfcal.calibration.board.bootstrap import SpreadPoints
 from selfcal.calibration.board.param_selection import Candidate, Selection
 from selfcal.calibration.board.spread import jackknife_spread
-from selfcal.calibration.spread import spread_line
+from selfcal.calibration.spread import SpreadPoints, spread_line
 from selfcal.kinematics.mcpc import MCPCModel
 
 

@@ -7,8 +7,16 @@ tool point? The frames are grouped into arm configurations by the folds' rule
 configurations as there are, with replacement, and takes every frame of each drawn one (a frame
 drawn twice weighs twice). Each resample is calibrated again by the same route
 (:func:`selfcal.calibration.board.robot.calibrate_robot_with_board`: camera, hand-eye, board
-pose, the parameter selection's cross-validation and the final fit; no bounds, no predicted
-accuracy, as a Monte Carlo draw) and its tool point is predicted at the joint vectors of the
+pose and the final fit; no bounds, no predicted accuracy, as a Monte Carlo draw) with the model
+selection held: the refit fits the calibration's chosen kinematic parameters, as the
+jackknife's fold fits do (:func:`selfcal.calibration.board.param_selection.held_selection`; one
+the resample cannot determine is held at its fair nominal). The spread is therefore the
+estimation spread of the chosen model over resampled configurations. Letting each refit select
+again measured something else: a resample holds about 9.5 distinct configurations of the 15 of
+a small dataset (a configuration drawn twice falls in one fold), and one with 7-8 could not
+cross-validate the larger candidates, so its selection fell back to the fair nominal or a
+smaller candidate 4-8 mm away, and those few refits made the spread 2-5x the covariance's
+prediction (docs/tool-accuracy.md). Its tool point is predicted at the joint vectors of the
 accuracy block's workspace sample and at the calibration postures (:class:`SpreadPoints`). The
 spread at a joint vector is the bootstrap's standard error of the tool point,
 
@@ -43,12 +51,11 @@ import numpy as np
 
 from selfcal.calibration.board.folds import configurations
 from selfcal.calibration.board.robot import BoardRobotCalibration, calibrate_robot_with_board
-from selfcal.calibration.spread import BOOTSTRAP, REGIONS, Spread, region_spread
+from selfcal.calibration.spread import BOOTSTRAP, Spread, region_spread
 from selfcal.camera import Pinhole
 from selfcal.errors import EXIT_INTERNAL, SelfCalError
 from selfcal.kinematics.accuracy import tool_tips
 from selfcal.kinematics.mcpc import MCPCModel
-from selfcal.kinematics.tool_error import WorkspaceSample
 from selfcal.target.base import Features
 from selfcal.target.boards import Board
 from selfcal.terms.base import Term
@@ -56,8 +63,8 @@ from selfcal.terms.base import Term
 __all__ = [
     "KEY",
     "WHAT",
+    "WHAT_FREE",
     "BoardFitInputs",
-    "SpreadPoints",
     "bootstrap_spread",
     "canonical_frames",
     "refit_row",
@@ -68,8 +75,16 @@ KEY = "bootstrap_spread"
 """The block's key in ``calibration.json``'s ``accuracy`` (beside the jackknife's ``spread``)."""
 WHAT = (
     "bootstrap over the arm configurations (drawn with replacement, every frame of a drawn "
-    "configuration, each resample calibrated again): sqrt(1 / (B - 1) * sum |t_b - t_mean|^2) "
-    "of the B refits' tool points t_b, per joint vector (mm)"
+    "configuration, each resample calibrated again with the calibration's chosen kinematic "
+    "parameters: the estimation spread of the chosen model, model selection held): "
+    "sqrt(1 / (B - 1) * sum |t_b - t_mean|^2) of the B refits' tool points t_b, per joint "
+    "vector (mm)"
+)
+WHAT_FREE = (
+    "bootstrap over the arm configurations (drawn with replacement, every frame of a drawn "
+    "configuration, each resample calibrated again with its own parameter selection: the "
+    "spread of model selection and estimation together): sqrt(1 / (B - 1) * sum "
+    "|t_b - t_mean|^2) of the B refits' tool points t_b, per joint vector (mm)"
 )
 
 
@@ -95,33 +110,17 @@ class BoardFitInputs:
     eye_to_hand: bool
     terms: tuple[Term, ...] = ()
 
-    def fit(self, pick: np.ndarray) -> BoardRobotCalibration:
-        """The calibration of the frames ``pick`` (indices, repeats allowed, in their order)."""
+    def fit(self, pick: np.ndarray, keep: Sequence[str] | None = None) -> BoardRobotCalibration:
+        """The calibration of the frames ``pick`` (indices, repeats allowed, in their order):
+        of the kinematic parameters ``keep`` (the selection held), or None: of those its own
+        selection chooses."""
         pick = np.asarray(pick, dtype=int)
         return calibrate_robot_with_board(
             self.board, [self.features[i] for i in pick], self.q[pick], self.nominal,
             *self.size, free=self.free, model=self.model,
             names=[self.names[i] for i in pick], joint_sigma=self.joint_sigma,
-            initial=self.initial, eye_to_hand=self.eye_to_hand, terms=self.terms,
+            initial=self.initial, eye_to_hand=self.eye_to_hand, terms=self.terms, keep=keep,
         )  # fmt: skip
-
-
-@dataclass(frozen=True, eq=False)
-class SpreadPoints:
-    """Where a spread is evaluated: per region of :data:`selfcal.calibration.spread.REGIONS`
-    the joint vectors (k, n) rad / m (``qs``), and the tool point, ``T_tool_point`` the flange
-    in the chain's tool frame (4, 4)."""
-
-    qs: dict[str, np.ndarray]
-    T_tool_point: np.ndarray
-
-    @classmethod
-    def of(cls, sample: WorkspaceSample, q_cal: np.ndarray,
-           T_tool_point: np.ndarray) -> SpreadPoints:  # fmt: skip
-        """The workspace ``sample``'s regions and the calibration postures ``q_cal``."""
-        qs = {name: np.asarray(getattr(sample, name), dtype=float) for name in REGIONS[:3]}
-        qs["calibration_postures"] = np.asarray(q_cal, dtype=float)
-        return cls({k: v for k, v in qs.items() if len(v)}, np.asarray(T_tool_point, float))
 
 
 def canonical_frames(q: np.ndarray, features: Sequence[Features],
@@ -155,14 +154,16 @@ def resamples(groups: Sequence[np.ndarray], count: int, seed: int) -> list[np.nd
 
 def refit_row(item: dict) -> dict:
     """One refit (a process pool's task): ``item`` holds ``inputs`` (:class:`BoardFitInputs`),
-    ``pick`` (its frames) and ``points`` (:class:`SpreadPoints`). Returns ``{"tips": {region:
-    (k, 3) m}}`` of the refit's tool points, or ``{"failed": reason}`` when the refit could not
-    be made (an estimation error; a bug is raised)."""
+    ``pick`` (its frames), ``points`` (:class:`SpreadPoints`) and ``keep`` (the calibration's
+    chosen kinematic parameters, fitted as they are; absent or None: the refit's own selection
+    chooses). Returns ``{"tips": {region: (k, 3) m}, "parameters": [name, ..]}`` of the refit's
+    tool points and the kinematic parameters it fitted, or ``{"failed": reason}`` when the
+    refit could not be made (an estimation error; a bug is raised)."""
     inputs, points = item["inputs"], item["points"]
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # the calibration's own warnings were said
-            fit = inputs.fit(item["pick"])
+            fit = inputs.fit(item["pick"], item.get("keep"))
     except SelfCalError as exc:
         if exc.exit_code == EXIT_INTERNAL:
             raise
@@ -171,15 +172,24 @@ def refit_row(item: dict) -> dict:
         return {"failed": f"a singular system ({exc})"}
     if not np.isfinite(fit.model.params).all():
         return {"failed": "the refit gave non-finite parameters"}
-    return {"tips": {k: tool_tips(fit.model, q, points.T_tool_point) for k, q in points.qs.items()}}
+    tips = {k: tool_tips(fit.model, q, points.T_tool_point) for k, q in points.qs.items()}
+    return {
+        "tips": tips,
+        "parameters": [] if fit.selection is None else list(fit.selection.identified),
+    }
 
 
-def bootstrap_spread(outcomes: Sequence[dict], *, seed: int, configurations: int) -> Spread:
+def bootstrap_spread(outcomes: Sequence[dict], *, seed: int, configurations: int,
+                     chosen: Sequence[str] | None = None, held: bool = True) -> Spread:  # fmt: skip
     """The bootstrap spread (module docstring) of the refits' ``outcomes`` (:func:`refit_row`'s
     rows, or ``{"failed": reason}`` of a task that raised), drawn with ``seed`` from
     ``configurations`` arm configurations. ``resamplings`` counts the refits used, ``failed``
     the others, whose reasons (with their counts) the block's ``failures`` lists; with fewer
-    than two refits no spread is computed (``regions`` empty)."""
+    than two refits no spread is computed (``regions`` empty). ``held``: the refits fitted the
+    calibration's chosen parameters (the default; False: each ran its own selection);
+    ``chosen``: those parameters, and ``refits_other_parameters`` counts the refits that fitted
+    another set (held: some the resample could not determine were held at the fair nominal;
+    not held: the selection chose another candidate)."""
     tips = [o["tips"] for o in outcomes if "tips" in o]
     reasons = Counter(str(o.get("failed", "no result")) for o in outcomes if "tips" not in o)
     squared = {}
@@ -191,7 +201,13 @@ def bootstrap_spread(outcomes: Sequence[dict], *, seed: int, configurations: int
         "requested": len(outcomes),
         "seed": int(seed),
         "resampled": "configurations",
+        "selection": "held" if held else "free",
         "configurations": int(configurations),
         "failures": [{"reason": r, "count": c} for r, c in reasons.most_common()],
     }
-    return Spread(len(tips), sum(reasons.values()), region_spread(squared), WHAT, BOOTSTRAP, extra)
+    if chosen is not None:
+        extra["refits_other_parameters"] = sum(
+            set(o.get("parameters", ())) != set(chosen) for o in outcomes if "tips" in o
+        )
+    what = WHAT if held else WHAT_FREE
+    return Spread(len(tips), sum(reasons.values()), region_spread(squared), what, BOOTSTRAP, extra)

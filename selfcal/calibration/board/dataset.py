@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from selfcal.calibration.board.accuracy import board_accuracy
-from selfcal.calibration.board.bootstrap import BoardFitInputs, SpreadPoints
+from selfcal.calibration.board.bootstrap import BoardFitInputs
 from selfcal.calibration.board.bounds import BoardCramerRao, board_bounds
 from selfcal.calibration.board.calibrate import BoardInputError, calibrate_board
 from selfcal.calibration.board.deviation import Deviation
@@ -49,6 +49,7 @@ from selfcal.calibration.frame_checks import (
 from selfcal.calibration.identify import IdentificationError
 from selfcal.calibration.row_shift import order_note, row_shift_misfits, shift_note
 from selfcal.calibration.scale_check import check_scale, motion_scale, scale_warning, scaled_sizes
+from selfcal.calibration.spread import SpreadPoints
 from selfcal.errors import EXIT_INTERNAL, EstimationError, SelfCalError, SelfCalWarning
 from selfcal.estimation.joint_report import encoder_sigma
 from selfcal.io.board_calibration import BoardCalibrationResult

@@ -43,6 +43,7 @@ from selfcal.calibration.board.parameter_pool import (
     ParameterPool,
     determined,
     offset_name,
+    parameter_indices,
     parameter_pool,
 )
 from selfcal.calibration.board.refine import (
@@ -57,6 +58,7 @@ from selfcal.kinematics.mcpc import MCPCModel, param_names
 __all__ = [
     "Candidate",
     "Selection",
+    "held_selection",
     "nested_candidates",
     "one_se_rule",
     "select_parameters",
@@ -306,6 +308,47 @@ def select_parameters(obs: BoardObservations, nominal_fit: MCPCModel, *,
                               f"{cands[chosen].label}: not clearly better")  # fmt: skip
     return Selection(cands, chosen, cands[chosen].names, held, n_config, n_folds, rule, notes,
                      folds if n_folds >= 2 else None)  # fmt: skip
+
+
+def held_selection(obs: BoardObservations, nominal_fit: MCPCModel, names: tuple[str, ...], *,
+                   max_iter: int = 100) -> Selection:  # fmt: skip
+    """The model selection held: the kinematic parameters ``names`` (another calibration's
+    chosen candidate, in its order; e.g. a bootstrap refit's, :mod:`selfcal.calibration.board.bootstrap`)
+    fitted on every frame of ``obs`` from ``nominal_fit`` (the fair nominal's model), with no
+    cross-validation. As in a fold's fit (:func:`_cross_validate`), a parameter these frames
+    cannot determine (the test of step 1 on them,
+    :func:`selfcal.calibration.board.parameter_pool.determined`) is held at the fair nominal's
+    value; the outcome's ``held`` names it with the reason, and every parameter not in
+    ``names`` as held by the selection given.
+
+    Raises:
+        EstimationError: the fit of ``names`` failed (the message says what was tried).
+    """
+    used = obs.used
+    undetermined = determined(nominal_fit, obs.q[used], names, obs.terms)
+    free = tuple(nm for nm in names if nm not in undetermined)
+    free_idx, offset_joints = parameter_indices(nominal_fit, free)
+    cand = Candidate(f"held: {len(names)} parameters given", free, free_idx, offset_joints)
+    try:
+        cand.fit = refine_on_board(obs, nominal_fit, free_idx, offset_joints, max_iter=max_iter)
+    except (EstimationError, np.linalg.LinAlgError) as exc:
+        raise EstimationError(
+            f"the fit of the {len(names)} parameters given failed ({_why(exc)}; tried: "
+            f"Levenberg-Marquardt from the fair nominal, {len(free)} parameters free"
+            + (f", {len(undetermined)} held at the fair nominal as these frames cannot "
+               f"determine them" if undetermined else "")
+            + f", {max_iter} iterations)",
+            fix="let the selection run on these frames (no parameters given)",
+        ) from exc  # fmt: skip
+    pool = parameter_pool(nominal_fit, obs.q[used], obs.terms)
+    held = {nm: "not among the parameters given (the selection held)"
+            for nm in (*(n for n, _, _ in pool.order), *pool.held) if nm not in names}  # fmt: skip
+    held.update(undetermined)
+    config = configurations(obs.q[used], nominal_fit.joint_types)
+    rule = (f"the selection held: the {len(names)} parameters given, no cross-validation"
+            + (f"; {len(undetermined)} of them held at the fair nominal (these frames cannot "
+               "determine them)" if undetermined else ""))  # fmt: skip
+    return Selection([cand], 0, free, held, len(np.unique(config)), 0, rule)
 
 
 def _px(v: float) -> str:

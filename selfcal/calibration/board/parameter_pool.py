@@ -38,6 +38,7 @@ __all__ = [
     "determined",
     "determined_each",
     "offset_name",
+    "parameter_indices",
     "parameter_pool",
 ]
 
@@ -93,6 +94,33 @@ class ColumnSpan:
         return None
 
 
+def _offered(model: MCPCModel) -> tuple[np.ndarray, list[int], np.ndarray]:
+    """The parameters offered, by kind: the placement's flat MCPC indices, the revolute joints
+    (0 based; their zero offsets) and the inner minimal parameters' flat indices."""
+    n = model.n
+    inner = np.array([k for k in minimal_indices(model.joint_types) if 0 < k // 6 < n], int)
+    revolute = [j for j, t in enumerate(model.joint_types) if t == "revolute"]
+    return placement_indices(n), revolute, inner
+
+
+def parameter_indices(model: MCPCModel, names: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
+    """The flat MCPC indices and the joints (0 based) of the zero offsets among the parameters
+    ``names`` (the pool's names, e.g. a candidate's) of ``model``'s chain, each in the order of
+    ``names``.
+
+    Raises:
+        KeyError: a name that is no parameter offered on this chain.
+    """
+    place, revolute, inner = _offered(model)
+    at: dict[str, tuple[str, int]] = {
+        nm: ("mcpc", int(k)) for nm, k in zip(param_names(np.r_[place, inner]), np.r_[place, inner])
+    }
+    at.update({offset_name(j): ("offset", j) for j in revolute})
+    kinds = [at[nm] for nm in names]
+    return (np.array([i for k, i in kinds if k == "mcpc"], dtype=np.int64),
+            np.array([i for k, i in kinds if k == "offset"], dtype=np.int64))  # fmt: skip
+
+
 def _columns(model: MCPCModel, q: np.ndarray, terms: Sequence[Term] = ()
              ) -> tuple[list[str], list[str], list[int], np.ndarray]:  # fmt: skip
     """Every parameter offered (names, kinds, indices: placement, joint offsets, the inner
@@ -101,10 +129,7 @@ def _columns(model: MCPCModel, q: np.ndarray, terms: Sequence[Term] = ()
     of the measurement ``terms`` (what they tell of the chain beyond their own unknowns,
     :func:`selfcal.calibration.board.terms.identification_rows`)."""
     q = np.atleast_2d(np.asarray(q, dtype=float))
-    n = model.n
-    place = placement_indices(n)
-    inner = np.array([k for k in minimal_indices(model.joint_types) if 0 < k // 6 < n], int)
-    revolute = [j for j, t in enumerate(model.joint_types) if t == "revolute"]
+    place, revolute, inner = _offered(model)
     J = identification_jacobian(model, q)
     cols = [J[:, :, place], joint_twists(model, q)[:, :, revolute], J[:, :, inner]]
     A = np.concatenate(cols, axis=2) / pose_sigmas(1e-4, 1e-3, len(q))[:, :, None]

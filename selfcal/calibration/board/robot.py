@@ -56,7 +56,11 @@ import numpy as np
 
 from selfcal.calibration.board.calibrate import BoardCalibration, calibrate_board
 from selfcal.calibration.board.nominal_fit import fit_nominal, standard_gauge
-from selfcal.calibration.board.param_selection import Selection, select_parameters
+from selfcal.calibration.board.param_selection import (
+    Selection,
+    held_selection,
+    select_parameters,
+)
 from selfcal.calibration.board.refine import BoardObservations, Refinement
 from selfcal.calibration.board.rig import BoardRigCalibration
 from selfcal.calibration.identify import (
@@ -125,6 +129,7 @@ def calibrate_robot_with_board(
     initial: Pinhole | None = None,
     eye_to_hand: bool = False,
     terms: Sequence[Term] = (),
+    keep: Sequence[str] | None = None,
 ) -> BoardRobotCalibration:
     """Calibrate the camera and the robot from the board ``features`` of one camera image per
     frame and the joint read-backs ``q`` (m, n) rad; ``model``, ``free``: the camera model
@@ -140,13 +145,16 @@ def calibrate_robot_with_board(
     fair nominal fits it) and the model returned has world = the first camera, tool = the board.
     ``terms``: further measurements of the same robot (:mod:`selfcal.terms`) estimated with the
     images in every fit, the fair nominal's too (their context:
-    :mod:`selfcal.calibration.board.terms`). See the module docstring.
+    :mod:`selfcal.calibration.board.terms`). ``keep``: the kinematic parameters to fit (another
+    calibration's chosen ones, e.g. a bootstrap refit's) instead of running the selection
+    (:func:`selfcal.calibration.board.param_selection.held_selection`); None: select them. See
+    the module docstring.
 
     Raises:
         selfcal.calibration.board.calibrate.BoardInputError / BoardMismatchError: as :func:`calibrate_board`.
         InputError: two terms of one kind, or a term's data that do not fit the chain.
         EstimationError: not even the fair nominal could be fitted (the selection's other
-            candidates that fail are noted and left out).
+            candidates that fail are noted and left out), or the fit of ``keep`` failed.
     """
     q = np.atleast_2d(np.asarray(q, dtype=float))
     check_terms(terms)
@@ -168,10 +176,14 @@ def calibrate_robot_with_board(
             ident = identify(nominal, q[used], obs.tool_poses()[used])
     except IdentificationError as exc:
         ident_error = exc.message
-    selection = select_parameters(obs, nominal_fit.model, max_iter=max_iter)
-    # the nominal chosen: the calibration IS the fair nominal (the same numbers, not a refit
-    # that differs in the ninth digit and reads as a gain)
-    fit = nominal_fit if selection.chosen == 0 else selection.fit
+    if keep is None:
+        selection = select_parameters(obs, nominal_fit.model, max_iter=max_iter)
+        # the nominal chosen: the calibration IS the fair nominal (the same numbers, not a refit
+        # that differs in the ninth digit and reads as a gain)
+        fit = nominal_fit if selection.chosen == 0 else selection.fit
+    else:
+        selection = held_selection(obs, nominal_fit.model, tuple(keep), max_iter=max_iter)
+        fit = selection.fit
     return BoardRobotCalibration(
         model=standard_gauge(fit.model, nominal_fit.model.joint_offsets),
         camera=fit.cameras[0],

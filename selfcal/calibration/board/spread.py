@@ -35,9 +35,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from selfcal.calibration.board.bootstrap import SpreadPoints
 from selfcal.calibration.board.param_selection import Selection
-from selfcal.calibration.spread import JACKKNIFE, Spread, region_spread
+from selfcal.calibration.spread import JACKKNIFE, Spread, SpreadPoints, region_spread
 from selfcal.kinematics.accuracy import tool_tips
 
 __all__ = ["WHAT", "jackknife_spread"]
