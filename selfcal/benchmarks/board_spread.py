@@ -26,7 +26,9 @@ markers; about 2 s of CPU per refit on 15 postures, idle).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
+import sys
 import tempfile
 import warnings
 from collections.abc import Callable, Iterable
@@ -73,9 +75,9 @@ def measure(poses: int, seeds: list[int], refits: int, held: bool, jobs: int,
     """The table rows of one posture count and the sentence under the table."""
     out = scratch / f"poses{poses}"
     s = load_scenario(SCENARIO, {"noise": {"render": False}, "trajectory": {"poses": poses}})
-    with warnings.catch_warnings():
+    with warnings.catch_warnings(), contextlib.redirect_stdout(sys.stderr):
         warnings.simplefilter("ignore")  # the calibration's warnings are no finding here
-        run_all(s, out, quiet=True, figures=False)
+        run_all(s, out, quiet=True, figures=False)  # its summary: not the table's
         cal = calibrate_board_dataset_detailed(out)
     acc = cal.result.accuracy
     if acc is None or acc.get("spread") is None:
@@ -102,6 +104,7 @@ def measure(poses: int, seeds: list[int], refits: int, held: bool, jobs: int,
             + " / ".join(f"{g / j:.2f}" for g, j in zip(got, jack, strict=True)) + " | "
             + f"{block.get('refits_other_parameters', '-')} | {block['failed']} |"
         )  # fmt: skip
+        print(rows[-1], file=sys.stderr, flush=True)  # as it comes: a long run's progress
     sel = cal.fit.selection
     if sel is None:
         raise SystemExit(f"{out}: the calibration has no parameter selection")
