@@ -12,7 +12,7 @@ selection held: the refit fits the calibration's chosen kinematic parameters, as
 jackknife's fold fits do (:func:`selfcal.calibration.board.param_selection.held_selection`; one
 the resample cannot determine is held at its fair nominal). The spread is therefore the
 estimation spread of the chosen model over resampled configurations. Letting each refit select
-again measured something else: a resample holds about 9.5 distinct configurations of the 15 of
+again measured something else: a resample holds about 9.7 distinct configurations of the 15 of
 a small dataset (a configuration drawn twice falls in one fold), and one with 7-8 could not
 cross-validate the larger candidates, so its selection fell back to the fair nominal or a
 smaller candidate 4-8 mm away, and those few refits made the spread 2-5x the covariance's
