@@ -30,7 +30,7 @@ def add_spread_args(sp: argparse.ArgumentParser) -> None:
         "parameters): the estimation spread of the chosen model over resampled configurations, "
         "mm over the workspace's regions in calibration.json accuracy.bootstrap_spread beside "
         "the folds' jackknife, DIR/figures/spread.png (1.2-1.6x the predicted RMS error on 15 "
-        "configurations, 1.2-1.3x on 30: docs/tool-accuracy.md)",
+        "configurations, 1.1-1.3x on 30: docs/tool-accuracy.md)",
     )
     sp.add_argument("--seed", type=int, default=0,
                     help="with --spread: the resamples' seed (default 0; the same seed gives "
