@@ -279,7 +279,7 @@ def calibrate_detailed(
     result = two_stage_result(
         ds, robot, sc, ident, used, skipped_images=skipped, warnings=[*notes, *ident.warnings]
     )
-    out = CalibrationOutput(result, sc, ident, ident.model, ds.indices[used])
+    out = CalibrationOutput(result, sc, ident, ident.model, ds.indices[used], observations=obs)
     if method == "joint":
         with _stage(progress, "one-step refinement (all images)") as st:
             kw: dict = {"terms": terms}
@@ -288,7 +288,7 @@ def calibrate_detailed(
             res = refine_calibration(out, obs, q, robot, ds.info, **kw)
             st(f"reprojection RMS {res.rms_px:.3f} px, sigma {res.sigma_px:.3f} px")
         result = dataclasses.replace(with_joint(result, res, robot), terms=res.sections)
-        out = CalibrationOutput(result, sc, ident, res.model, ds.indices[used], res)
+        out = CalibrationOutput(result, sc, ident, res.model, ds.indices[used], res, obs)
     # the bound's corner noise: the detector's own estimate where it has one (it excludes a
     # bias of whole sides, which the fit residuals would carry into the bound), else residuals
     with _stage(progress, "Cramer-Rao bounds"):

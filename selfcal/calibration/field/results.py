@@ -92,6 +92,9 @@ class CalibrationOutput:
     frames_used: np.ndarray
     joint: JointRefinementResult | None = None
     """The one-step refinement when ``method="joint"``."""
+    observations: Observations | None = None
+    """The detections the final fit used (with a lens model estimated: those detected again
+    through it, which may hold other corners than a plain detection of the images)."""
 
 
 def parameter_table(

@@ -168,7 +168,10 @@ def _evaluate(root: Path, pixel_sigma: float, *, fair_nominal: bool = True) -> d
         for name, e in zip(out.joint.names, err):
             row[f"{k}_err_{name}"] = float(e)
     # the bound at this draw's joint estimate, with the true noise levels
-    obs = observations_of(ds, detect_dataset(ds).detections)
+    # the calibration's own detections: with a lens estimated it detected again through it
+    obs = out.observations
+    if obs is None:
+        obs = observations_of(ds, detect_dataset(ds).detections)
     q = np.radians(ds.joints_deg)
     s = setup_from_output(out, obs, q, robot, ds.info, pixel_sigma_px=pixel_sigma)
     cr = cramer_rao(s)
