@@ -43,7 +43,9 @@ echo "== selfcal render (MuJoCo scene and marker textures from the package data)
 MUJOCO_GL=${MUJOCO_GL:-egl} "$work/venv/bin/selfcal" render --joints 38.15,-30,45,-63.54,0
 test -s render/left.png && test -s render/right.png
 echo "== selfcal scenarios; a shipped scenario by name, its board from the package data"
-"$work/venv/bin/selfcal" scenarios | grep -q '^mono-charuco '
+# the list read whole first (a `| grep -q` closes the pipe at the first match: a race under pipefail)
+listed=$("$work/venv/bin/selfcal" scenarios)
+grep -q '^mono-charuco ' <<<"$listed"
 "$work/venv/bin/python" -c "from selfcal.config.scenario import load_scenario, scenario_board; print(scenario_board(load_scenario('mono-charuco')))"
 # nothing of the checkout was used: the installed package is outside $repo
 "$work/venv/bin/python" -c "import selfcal.robot.definition as r, sys; d = r.models_dir(); print('models:', d); sys.exit(str(d).startswith('$repo'))"

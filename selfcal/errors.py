@@ -28,12 +28,16 @@ __all__ = [
     "EXIT_OK",
     "EXIT_INTERNAL",
     "EXIT_INTERRUPTED",
+    "EXIT_BROKEN_PIPE",
 ]
 
 EXIT_OK = 0
 EXIT_INTERNAL = 1
 """An error the project did not raise on purpose: a bug (``SELFCAL_DEBUG=1`` shows the trace)."""
 EXIT_INTERRUPTED = 130
+EXIT_BROKEN_PIPE = 141
+"""The reader of the output went away (``selfcal scenarios | head -1``): 128 + SIGPIPE, the status
+a Unix tool ends with there; nothing is reported."""
 
 
 class SelfCalError(Exception):

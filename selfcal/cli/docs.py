@@ -15,6 +15,7 @@ from pathlib import Path
 from selfcal.cli.check import EXIT_CANNOT_TELL, EXIT_CHANGED
 from selfcal.cli.main import build_parser
 from selfcal.console.common import leaf_parsers
+from selfcal.errors import EXIT_BROKEN_PIPE
 from selfcal.io.atomic import write_text_atomic
 
 __all__ = ["cli_markdown", "DOC", "main"]
@@ -64,6 +65,7 @@ once). A command that writes files ends with one line naming them and counting t
 | {EXIT_CHANGED} | `selfcal check`: the robot has changed since its calibration (the check worked) |
 | {EXIT_CANNOT_TELL} | `selfcal check` of a board calibration: cannot tell (the new images miss the prediction, but by no more than the calibration's own folds missed the arm configurations they left out: check at its own postures) |
 | 130 | interrupted (Ctrl-C) |
+| {EXIT_BROKEN_PIPE} | the reader of the output went away (`selfcal scenarios \\| head -1`): stopped quietly |
 
 ## Commands
 """

@@ -441,7 +441,8 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     """The command line ``argv`` (default ``sys.argv[1:]``) run; returns the exit code (README
     "Exit codes": 0 ok, 1 internal error, 2 bad input or usage, 3 cannot calibrate, 4 hardware,
-    130 Ctrl-C). The console script is :func:`script`."""
+    5 / 6 ``selfcal check``'s changed / cannot tell, 130 Ctrl-C, 141 the output's reader gone).
+    The console script is :func:`script`."""
     parser = build_parser()
     try:
         args = parser.parse_args(argv)

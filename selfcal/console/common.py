@@ -5,7 +5,7 @@ Every failure is one line on stderr, ``selfcal: error: <what> (<file/key/row>) -
 no traceback unless ``-v``. Exit codes (README "Exit codes", docs/cli.md): 0 ok; 1 an internal
 error (a bug: ``-v`` prints the traceback, ``SELFCAL_DEBUG=1`` re-raises it); 2 bad input or a
 bad command line; 3 the data cannot determine the calibration; 4 a robot or hardware fault; 130
-interrupted (Ctrl-C). 2, 3 and 4 are the ``exit_code`` of the :class:`selfcal.errors.SelfCalError`
+interrupted (Ctrl-C); 141 the reader of stdout went away (a closed pipe: nothing reported). 2, 3 and 4 are the ``exit_code`` of the :class:`selfcal.errors.SelfCalError`
 kinds.
 """
 
@@ -26,7 +26,13 @@ from typing import NoReturn
 import numpy as np
 
 from selfcal.console.log import command_logging, get_logger, wrote_line
-from selfcal.errors import EXIT_INTERNAL, EXIT_INTERRUPTED, InputError, SelfCalError
+from selfcal.errors import (
+    EXIT_BROKEN_PIPE,
+    EXIT_INTERNAL,
+    EXIT_INTERRUPTED,
+    InputError,
+    SelfCalError,
+)
 
 __all__ = [
     "writing",
@@ -266,6 +272,9 @@ def run_command(func: Callable[[argparse.Namespace], int | None], args: argparse
             get_logger("cli").warning("%s", note)
         try:
             code = int(func(args) or 0)
+            sys.stdout.flush()  # a closed pipe shows here, not at the interpreter's exit
+        except BrokenPipeError:
+            return _reader_gone()
         except KeyboardInterrupt:
             print("selfcal: error: interrupted", file=sys.stderr)
             return EXIT_INTERRUPTED
@@ -288,6 +297,19 @@ def run_command(func: Callable[[argparse.Namespace], int | None], args: argparse
         if line:
             print(line, file=sys.stderr, flush=True)
         return code
+
+
+def _reader_gone() -> int:
+    """The reader of stdout closed it (``selfcal scenarios | head -1``): stop quietly, as a Unix
+    tool killed by SIGPIPE does, with stdout pointed at /dev/null so that the interpreter's
+    last flush does not raise again."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError):  # no file descriptor behind sys.stdout (captured): nothing to do
+        pass
+    return EXIT_BROKEN_PIPE
 
 
 def _internal(exc: Exception, trace: bool) -> int:
