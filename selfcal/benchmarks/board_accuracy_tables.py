@@ -9,7 +9,7 @@ import numpy as np
 
 from selfcal.benchmarks.board_accuracy_draw import COUNT, POSES, REGIONS
 from selfcal.benchmarks.corner_noise import corner_stats
-from selfcal.benchmarks.doc_blocks import ROOT
+from selfcal.benchmarks.doc_blocks import ROOT, codes_note
 from selfcal.benchmarks.tool_accuracy import coverage, right_range
 from selfcal.benchmarks.tool_accuracy import mark as _mark
 
@@ -132,29 +132,8 @@ def table(rows: list[dict]) -> str:
 def _codes(first: list[dict]) -> str:
     """The end of the table's last line: the code that measured the rows ``first`` (one per
     robot, model and noise; their ``code``, :func:`selfcal.benchmarks.board_accuracy.run`),
-    per code the robots (or robot and model, or robot, model and noise) it measured when they
-    are not all one code's; "" when no row records one (older rows)."""
-    code = [r.get("code") for r in first]
-    if not any(code):
-        return ""
-    name = {c: f"the code at {c}" if c else "an earlier code, not recorded" for c in code}
-    if len(set(code)) == 1:
-        return f", measured by {name[code[0]]}"
-    parts: dict[str | None, list[str]] = {}
-    for robot in dict.fromkeys(r["robot"] for r in first):
-        mine = [(r, c) for r, c in zip(first, code, strict=True) if r["robot"] == robot]
-        if len({c for _, c in mine}) == 1:
-            parts.setdefault(mine[0][1], []).append(robot)
-            continue
-        for model in dict.fromkeys(r["model"] for r, _ in mine):
-            its = [(r, c) for r, c in mine if r["model"] == model]
-            if len({c for _, c in its}) == 1:
-                parts.setdefault(its[0][1], []).append(f"{robot} {model}")
-                continue
-            for r, c in its:
-                parts.setdefault(c, []).append(f"{robot} {model} {r['noise_px']:g} px")
-    said = [f"{name[c]} ({', '.join(labels)})" for c, labels in parts.items()]
-    return ", measured by " + ", ".join(said[:-1]) + " and " + said[-1]
+    :func:`selfcal.benchmarks.doc_blocks.codes_note`."""
+    return codes_note(first, ("robot", "model", "noise_px"))
 
 
 def _split(r: dict) -> str:

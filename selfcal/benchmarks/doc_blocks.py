@@ -3,12 +3,22 @@
 
 from __future__ import annotations
 
+import re
 import subprocess
+from collections.abc import Sequence
 from pathlib import Path
 
 from selfcal.io.atomic import write_text_atomic
 
-__all__ = ["ROOT", "code_version", "print_table", "read_block", "write_block"]
+__all__ = [
+    "ROOT",
+    "code_version",
+    "codes_note",
+    "codes_of",
+    "print_table",
+    "read_block",
+    "write_block",
+]
 
 ROOT = Path(__file__).resolve().parents[2]
 """The repository's root (README.md and docs/ are in it)."""
@@ -27,6 +37,60 @@ def code_version(root: Path = ROOT) -> str | None:
     except (OSError, subprocess.CalledProcessError):
         return None
     return head + ("+changes" if changed else "")
+
+
+def _label(prefix: str, value: object) -> str:
+    """A row's label in :func:`codes_note`: the values of its keys, a number as ``N px``."""
+    cell = f"{value:g} px" if isinstance(value, (int, float)) else str(value)
+    return f"{prefix} {cell}" if prefix else cell
+
+
+def codes_note(rows: list[dict], keys: Sequence[str]) -> str:
+    """The end of a benchmark table's last line: the code that measured ``rows`` (each row's
+    ``code``, :func:`code_version`; None: an earlier code, not recorded), per code the rows it
+    measured when they are not all one code's, named by the values of ``keys`` (e.g. robot,
+    model, noise: a robot when all its rows are one code's, else its models, else its noise
+    levels); "" when no row records one (older rows)."""
+    code = [r.get("code") for r in rows]
+    if not any(code):
+        return ""
+    name = {c: f"the code at {c}" if c else "an earlier code, not recorded" for c in code}
+    if len(set(code)) == 1:
+        return f", measured by {name[code[0]]}"
+    parts: dict[str | None, list[str]] = {}
+
+    def group(mine: list[tuple[dict, str | None]], depth: int, prefix: str) -> None:
+        key = keys[depth]
+        for value in dict.fromkeys(r[key] for r, _ in mine):
+            its = [(r, c) for r, c in mine if r[key] == value]
+            label = _label(prefix, value)
+            if len({c for _, c in its}) == 1 or depth + 1 == len(keys):
+                parts.setdefault(its[0][1], []).append(label)
+            else:
+                group(its, depth + 1, label)
+
+    group(list(zip(rows, code, strict=True)), 0, "")
+    said = [f"{name[c]} ({', '.join(labels)})" for c, labels in parts.items()]
+    return ", measured by " + ", ".join(said[:-1]) + " and " + said[-1]
+
+
+def codes_of(text: str, rows: list[dict], keys: Sequence[str]) -> list[str | None]:
+    """The code of each of ``rows`` (parsed back from a table) that the note :func:`codes_note`
+    wrote into ``text`` names (None: not recorded, or no note)."""
+    sha = r"([0-9a-f]+(?:\+changes)?)"
+    one = re.search(rf", measured by the code at {sha}\.?$", text.rstrip())
+    if one:
+        return [one.group(1)] * len(rows)
+    groups = [(m.group(1), f", {m.group(2)}, ")
+              for m in re.finditer(rf"(?:the code at {sha}|an earlier code, not recorded) \(([^)]*)\)", text)]  # fmt: skip
+    out: list[str | None] = []
+    for r in rows:
+        labels, prefix = [], ""
+        for key in keys:
+            prefix = _label(prefix, r[key])
+            labels.append(f", {prefix}, ")
+        out.append(next((c for c, said in groups if any(x in said for x in labels)), None))
+    return out
 
 
 def _split(path: Path, name: str) -> tuple[str, str, str, str, str]:

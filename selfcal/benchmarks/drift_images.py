@@ -47,7 +47,14 @@ from functools import partial
 import numpy as np
 
 from selfcal.benchmarks.board_accuracy_draw import SCENARIO, simulated_calibration
-from selfcal.benchmarks.doc_blocks import ROOT, print_table, read_block
+from selfcal.benchmarks.doc_blocks import (
+    ROOT,
+    code_version,
+    codes_note,
+    codes_of,
+    print_table,
+    read_block,
+)
 from selfcal.benchmarks.pool import map_jobs
 from selfcal.calibration.drift.fold_error import fold_error_model
 from selfcal.calibration.drift.images import (
@@ -89,6 +96,8 @@ SPREAD_RAD = np.radians(10.0)
 DOC = ROOT / "docs" / "tool-accuracy.md"
 BLOCK = "benchmark_drift_images"
 KINDS = ("unchanged", "tool", "joint")
+CODE_KEYS = ("setup", "noise_px")
+"""The keys that name a row in the note of the code that measured it (:func:`table`)."""
 SCENARIOS = {"eye-in-hand": SCENARIO, "eye-to-hand": scenarios_dir() / "eye-to-hand.toml"}
 
 
@@ -196,7 +205,7 @@ def run(calibrations: int = 30, checks: int = 10, noise_px=NOISE_PX, jobs: int =
     """One row per setup (eye-in-hand: per robot of ``robots``, default the scenario's) and
     noise level over ``calibrations`` calibrations (``jobs`` processes), ``views`` new views
     per check (``exact``: :func:`calibration_checks`)."""
-    rows = []
+    rows, code = [], code_version()
     cells = [(u, r) for u in setups
              for r in (robots if robots and u == "eye-in-hand" else (None,))]  # fmt: skip
     for (setup, robot), s in ((c, s) for c in cells for s in noise_px):
@@ -215,8 +224,9 @@ def run(calibrations: int = 30, checks: int = 10, noise_px=NOISE_PX, jobs: int =
               + ", ".join(f"{k} {total.get(f'{k}_cannot_tell', 0)}" for k in KINDS), file=sys.stderr)  # fmt: skip
         m = max(total.get("checks", 0), 1)
         row = {"setup": label, "noise_px": s, "calibrations": len(ok), "failed": calibrations - len(ok),
-               "checks": total.get("checks", 0), "views": views, "exact": exact}  # fmt: skip
+               "checks": total.get("checks", 0), "views": views, "exact": exact, "code": code}  # fmt: skip
         row |= {k: total.get(k, 0) / m for k in (*KINDS, "tool_oracle", "tool_axes")}
+        row |= {f"{k}_cannot_tell": total.get(f"{k}_cannot_tell", 0) for k in KINDS}
         for k in ("tool", "joint"):
             found = max(total.get(k, 0), 1)
             row[f"{k}_right"] = total.get(f"{k}_right", 0) / found
@@ -231,7 +241,8 @@ def table(rows: list[dict], checks: int) -> str:
         "| setup | noise (px) | calibrations | checks | 'changed' on unchanged data (target < 2 %) | "
         "0.2 mm mount shift found (target >= 95 %) | a test knowing its direction / its 3 axes | "
         "named the mount / wrong | 0.05 deg joint offset found (target >= 95 %) | named the joint "
-        "/ wrong |\n|---|---|---|---|---|---|---|---|---|---|\n"
+        "/ wrong | 'cannot tell' verdicts: unchanged / shift / offset |\n"
+        "|---|---|---|---|---|---|---|---|---|---|---|\n"
     )
     lines = [
         f"| {r['setup']} | {r['noise_px']:g} | {r['calibrations']} | {r['checks']} | "
@@ -239,7 +250,7 @@ def table(rows: list[dict], checks: int) -> str:
         f"{100 * r['tool_oracle']:.1f} % / {100 * r['tool_axes']:.1f} % | "
         f"{100 * r['tool_right']:.0f} % / {100 * r['tool_wrong']:.0f} % | "
         f"{100 * r['joint']:.1f} % | {100 * r['joint_right']:.0f} % / "
-        f"{100 * r['joint_wrong']:.0f} % |"
+        f"{100 * r['joint_wrong']:.0f} % | {_undecided(r)} |"
         for r in rows
     ]
     failed = sum(r["failed"] for r in rows)
@@ -254,10 +265,22 @@ def table(rows: list[dict], checks: int) -> str:
             "a test knowing: the mean power at alpha of a test that knew the shift's direction "
             "(the most powerful) or only its 3 axes (the mount's translation alone), from the "
             "check's own covariance; named: of the changes found, the share whose cause the "
-            "check named (right / wrong; the rest: cannot tell). `nice -n 10 uv run python -m "
+            "check named (right / wrong; the rest: cause not named); 'cannot tell' verdicts: "
+            "of the checks of unchanged data, of the shifted mount and of the offset joint, "
+            "how many said neither 'changed' nor 'unchanged' (not counted as "
+            "changed; - : not recorded). `nice -n 10 uv run python -m "
             f"selfcal.benchmarks.drift_images --calibrations {rows[0]['calibrations'] + rows[0]['failed']} "
             f"--setup {' '.join(dict.fromkeys(r['setup'].split(',')[0] for r in rows))}"
-            f"{robots_arg(rows)}{extra}{' --write-docs' if docs else ''}`.")  # fmt: skip
+            f"{robots_arg(rows)}{extra}{' --write-docs' if docs else ''}`"
+            f"{codes_note(rows, CODE_KEYS)}.")  # fmt: skip
+
+
+def _undecided(r: dict) -> str:
+    """A row's 'cannot tell' counts per kind (unchanged / shift / offset), "-" when its
+    run did not record them."""
+    if f"{KINDS[0]}_cannot_tell" not in r:
+        return "-"
+    return " / ".join(str(r[f"{k}_cannot_tell"]) for k in KINDS)
 
 
 def _percent(cell: str) -> float:
@@ -276,7 +299,7 @@ def parse_block(text: str) -> tuple[list[dict], int, int]:
     rows = []
     for line in text.splitlines():
         cells = [c.strip() for c in line.strip().strip("|").split("|")]
-        if len(cells) != 10 or not cells[1].replace(".", "", 1).isdigit():
+        if len(cells) != 11 or not cells[1].replace(".", "", 1).isdigit():
             continue  # the header, its rule, the footnote
         oracle, axes = cells[6].split("/")
         tool_right, tool_wrong = cells[7].split("/")
@@ -290,6 +313,13 @@ def parse_block(text: str) -> tuple[list[dict], int, int]:
             "joint": _percent(cells[8]), "joint_right": _percent(joint_right),
             "joint_wrong": _percent(joint_wrong),
         })  # fmt: skip
+        if cells[10] != "-":
+            rows[-1] |= {
+                f"{k}_cannot_tell": int(n) for k, n in zip(KINDS, cells[10].split("/"), strict=True)
+            }
+    for r, code in zip(rows, codes_of(text, rows, CODE_KEYS), strict=True):
+        if code is not None or "measured by" in text:
+            r["code"] = code
     return rows, int(asked.group(1)), int(per.group(1))
 
 
