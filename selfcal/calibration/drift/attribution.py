@@ -10,8 +10,9 @@ test of that change (:func:`candidate_fits`). A candidate explains the change wh
 candidates together fit no significantly better than it alone (nested: ``T_h - T_all`` against
 chi-square with the difference of their parameter counts, at ``alpha``) and leave nothing
 significant. The cause is named only when the candidates that explain it are of one kind
-(several joints' offsets are named together); otherwise "cannot tell", with the candidates that
-explain it or none.
+(several joints' offsets are named together); otherwise "cause not named", with the candidates
+that explain it or none (not the check's verdict "cannot tell", which says whether anything
+changed).
 
 The directed tests (:attr:`Fits.directed`) are the candidates' drops, except that the chain's
 tool and world are each tested as two changes, their translation and their rotation (3
@@ -38,7 +39,7 @@ __all__ = ["Attribution", "Fits", "attribute", "candidate_fits"]
 class Attribution:
     """The candidates (key -> what in words), their p-values after the fit, which explain the
     change, the named ``cause`` (a kind: ``camera``, ``hand-eye``, ``world``, ``joint``) or None
-    (cannot tell) and the fitted size of each explaining candidate (words)."""
+    (cause not named) and the fitted size of each explaining candidate (words)."""
 
     what: dict[str, str]
     p_values: dict[str, float]
@@ -52,10 +53,10 @@ class Attribution:
             parts = [f"{self.what[k]} ({self.sizes[k]})" for k in self.explaining]
             return "what changed: " + " or ".join(parts)
         if self.explaining:
-            return ("what changed: cannot tell (each alone explains it: "
+            return ("what changed: cause not named (each alone explains it: "
                     + "; ".join(f"{self.what[k]} ({self.sizes[k]})" for k in self.explaining)
                     + ")")  # fmt: skip
-        return ("what changed: cannot tell (no single change of the camera, the mounts or one "
+        return ("what changed: cause not named (no single change of the camera, the mounts or one "
                 "joint's offset explains it)")  # fmt: skip
 
     def to_json(self) -> dict:
