@@ -45,7 +45,14 @@ from pathlib import Path
 import numpy as np
 
 from selfcal.benchmarks.drift_real_deviation import deviation_part, with_share
-from selfcal.calibration.board.accuracy import board_error_model
+from selfcal.calibration.accuracy import model_error_of
+from selfcal.calibration.board.accuracy import (
+    ORIENTATION,
+    POSITION,
+    board_error_model,
+    held_out_errors,
+    pose_error_terms,
+)
 from selfcal.calibration.board.dataset import calibrate_board_dataset_detailed
 from selfcal.calibration.board.deviation import Deviation
 from selfcal.calibration.board.evaluate import held_out_views
@@ -74,6 +81,7 @@ from selfcal.threads import limit_threads
 __all__ = [
     "Fold",
     "check_with",
+    "excess_without",
     "fold_covariance",
     "folds_of",
     "joint_moments",
@@ -101,7 +109,10 @@ class Fold:
             view (2k, 2k) px^2 the calibration's per-view pose misfit carried to it. C0: (P, P)
             the fold's estimate covariance without the deviation; V: its deviation's part at
             the full prior (share 1); excess: (P, P) what the sandwich of its training frames
-            adds to ``C0`` (:func:`sandwich_excess`; None when not computed).
+            adds to ``C0`` (:func:`sandwich_excess`; None when not computed); tool: its held-out
+            frames' flange errors as the accuracy block's folds read them
+            (:func:`selfcal.calibration.board.accuracy.held_out_errors`; None when not
+            computed), what :func:`excess_without` pools.
     """
 
     views: list[ViewJacobians]
@@ -109,6 +120,7 @@ class Fold:
     C0: np.ndarray
     V: np.ndarray
     excess: np.ndarray | None = None
+    tool: dict[str, np.ndarray] | None = None
 
     def at(self, a: float) -> list[ViewJacobians]:
         """The views with the pose misfit scaled by ``a``."""
@@ -185,12 +197,29 @@ def folds_of(cal_dir: Path) -> tuple[list[Fold], np.ndarray, np.ndarray]:
                      for x in train]  # fmt: skip
             out.append(Fold(views, [pose_misfit(noise, x.tool) for x in views],
                             with_share(fcr, 0.0), deviation_part(fcr, 1.0),
-                            sandwich_excess(train, fitted, cal.bounds.pixel_sigma_px**2)))  # fmt: skip
+                            sandwich_excess(train, fitted, cal.bounds.pixel_sigma_px**2),
+                            held_out_errors(obs, fit, held, T_tp, fcr)))  # fmt: skip
     own = [dataclasses.replace(x, local=x.local + pose_misfit(noise, x.tool))
            for x in _views(obs, obs.used, em_cal, cal.cameras[0], noise)]  # fmt: skip
     est = np.ones(len(cr.covariance), bool) if cr.estimated is None else cr.estimated
     fitted = np.r_[est, np.ones(own[0].cam.shape[1], bool)]
     return out, deviation_part(cr, 1.0), sandwich_excess(own, fitted, cal.bounds.pixel_sigma_px**2)
+
+
+def excess_without(folds: list[Fold], left: int | None) -> tuple[float, float]:
+    """The folds' error at the configurations they left out (per coordinate, m and rad:
+    :func:`selfcal.calibration.drift.fold_error.fold_excess`, the check's second null) from the
+    held-out frames of every fold but ``left`` (its index; None: all of them, the calibration's
+    own figure). Without ``left``'s own frames it is out of sample for that fold's check: its
+    own miss does not size the error that may excuse it."""
+    h = [f.tool for i, f in enumerate(folds) if i != left and f.tool is not None]
+    if not h:
+        return 0.0, 0.0
+    pos, rot = (list(zip(*(pose_error_terms(x, b) for x in h), strict=True))
+                for b in (POSITION, ORIENTATION))  # fmt: skip
+    me = model_error_of(pos[0], pos[1], pos[2], (rot[0], rot[1], rot[2]), folds=len(h),
+                        failed=0, noise_what="")  # fmt: skip
+    return fold_excess({"model_error": me.to_json()} if me is not None else None)
 
 
 def fold_covariance(fold: Fold, c: float, a: float) -> np.ndarray:
@@ -323,28 +352,46 @@ def _print_sandwich(folds: list[Fold], c: float, eye_to_hand: bool) -> None:
 def _print_fold_error(folds: list[Fold], used: float, cal: BoardCalibrationResult,
                       cal_dir: Path, new: Path) -> None:  # fmt: skip
     """Each fold's verdict as the check gives it (:func:`selfcal.calibration.drift.images.
-    fold_recheck`), a failed fold tested again with the calibration's own folds' error at the
-    configurations they left out (:func:`selfcal.calibration.drift.fold_error.fold_excess`: CAL's,
-    measured on these folds, each fold's own held-out configuration among them: a stand-in for
-    the fold's own folds, which are not fitted), and NEW's ``selfcal check`` against CAL."""
-    pos, rot = fold_excess(cal.accuracy) if view_noise(cal).misfit_counted else (0.0, 0.0)
-    m2 = np.r_[np.full(3, pos**2), np.full(3, rot**2)]
-    said = []
-    for f in folds:
-        first = image_drift_check(f.C0 + used * f.V, f.at(1.0), eye_to_hand=cal.eye_to_hand)
-        if not first.changed:
-            said.append(f"unchanged (p {first.p_value:.2g})")
-            continue
+    fold_recheck`), a failed fold tested again with the folds' error at the configurations they
+    left out (:func:`selfcal.calibration.drift.fold_error.fold_excess`) sized two ways: from
+    the other folds' held-out frames only (:func:`excess_without`: out of sample, the fold's
+    own miss not in it; a stand-in for the fold's own folds, which are not fitted) and from
+    CAL's block, every fold's own configuration in it (in sample: an upper bound on the rule's
+    effect, the largest misses sizing the error that excuses them); then NEW's ``selfcal check``
+    against CAL."""
+    counted = view_noise(cal).misfit_counted
+    pos, rot = fold_excess(cal.accuracy) if counted else (0.0, 0.0)
+    again_pos, again_rot = excess_without(folds, None) if counted else (0.0, 0.0)
+    print(f"  the folds' error at left-out configurations, in sample (CAL's block; an upper "
+          f"bound): {pos * 1e3:.3f} mm, {np.degrees(rot):.3f} deg per coordinate (from these "
+          f"folds again: {again_pos * 1e3:.3f} mm, {np.degrees(again_rot):.3f} deg)")  # fmt: skip
+
+    def verdict(f: Fold, pos: float, rot: float) -> tuple[str, float]:
+        m2 = np.r_[np.full(3, pos**2), np.full(3, rot**2)]
         wide = [dataclasses.replace(v, local=v.local + tool_pose_error(v.tool, v.B, m2))
                 for v in f.at(1.0)]  # fmt: skip
         again = image_drift_check(f.C0 + used * f.V, wide, eye_to_hand=cal.eye_to_hand)
-        verdict = "changed" if again.changed else "cannot tell"
-        said.append(f"{verdict} (p {first.p_value:.2g}, with the folds' error {again.p_value:.2g})")
-    print(f"  with the folds' error at left-out configurations ({pos * 1e3:.3f} mm, "
-          f"{np.degrees(rot):.3f} deg per coordinate): the folds' verdicts {'; '.join(said)}")  # fmt: skip
+        return ("changed" if again.changed else "cannot tell"), again.p_value
+
+    said, changed = [], [0, 0]
+    for i, f in enumerate(folds):
+        first = image_drift_check(f.C0 + used * f.V, f.at(1.0), eye_to_hand=cal.eye_to_hand)
+        if not first.changed:
+            said.append(f"fold {i + 1} unchanged (p {first.p_value:.2g})")
+            continue
+        out = excess_without(folds, i) if counted else (0.0, 0.0)
+        (v_in, p_in), (v_out, p_out) = verdict(f, pos, rot), verdict(f, *out)
+        changed[0] += v_out == "changed"
+        changed[1] += v_in == "changed"
+        said.append(f"fold {i + 1} p {first.p_value:.2g}; out of sample ({out[0] * 1e3:.3f} mm, "
+                    f"{np.degrees(out[1]):.3f} deg) {v_out} (p {p_out:.2g}); in sample {v_in} "
+                    f"(p {p_in:.2g})")  # fmt: skip
+    print(f"  with the folds' error at left-out configurations: {'; '.join(said)}")
+    print(f"  false 'changed' of {len(folds)} folds: {changed[0]} with the folds' error out of "
+          f"sample, {changed[1]} in sample (an upper bound on the rule's effect)")  # fmt: skip
     res = check_images(cal_dir, new)
-    verdict = "changed" if res.changed else "cannot tell" if res.undecided else "unchanged"
-    print(f"  selfcal check {cal_dir} {new}: {verdict}, p = {res.p_value:.2g}, with the folds' "
+    verdict_new = "changed" if res.changed else "cannot tell" if res.undecided else "unchanged"
+    print(f"  selfcal check {cal_dir} {new}: {verdict_new}, p = {res.p_value:.2g}, with the folds' "
           f"error {res.fold_p_value:.2g}; predicted / measured {res.expected_rms_px:.3f} / "
           f"{res.rms_px:.3f} px")  # fmt: skip
 

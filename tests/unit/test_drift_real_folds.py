@@ -7,9 +7,11 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+import pytest
 
 from selfcal.benchmarks.drift_real_folds import (
     Fold,
+    excess_without,
     joint_moments,
     ratios,
     sandwich_excess,
@@ -103,3 +105,30 @@ def test_the_sandwich_excess_is_what_the_per_view_misfit_adds_to_the_estimate_sp
     assert np.all(np.abs(var - want) < 3 * want * np.sqrt(2 / 4000)), (var, want)
     assert np.all(var > 2 * np.diag(white)), (var, np.diag(white))
     assert not E[1].any() and not E[:, 1].any()
+
+
+def test_a_folds_own_miss_does_not_size_the_error_that_excuses_it():
+    """Five folds of 4 held-out frames whose flange errors are what their estimation error
+    explains (|e|^2 = tr S = 3e-6 m^2, no noise), but fold 3 misses by 2 mm per coordinate
+    more (|e|^2 = 15e-6): pooled over all folds (in sample) the excess is sqrt(2.4e-6 / 3) =
+    0.894 mm (z = 4.4 > 2); without fold 3's own frames it is 0 (its check is not excused by
+    its own miss), and another fold's out-of-sample figure still holds fold 3's miss:
+    sqrt(3e-6 / 3) = 1 mm. The orientation, with no excess, is 0 throughout."""
+    rng = np.random.default_rng(2)
+
+    def tool(e2: float) -> dict[str, np.ndarray]:
+        u = rng.normal(size=(4, 3))
+        e = np.zeros((4, 6))
+        e[:, :3] = np.sqrt(e2) * u / np.linalg.norm(u, axis=1, keepdims=True)
+        e[:, 3:] = 1e-3 / np.sqrt(3.0)  # |w|^2 = 1e-6 rad^2 = tr S's orientation part
+        S = np.tile(np.diag([1e-6] * 3 + [1e-6 / 3] * 3), (4, 1, 1))
+        return {"e": e, "S": S, "N": np.zeros((4, 6, 6))}
+
+    base = _folds(0.0, 1.0, 1, rng)[0]
+    folds = [dataclasses.replace(base, tool=tool(15e-6 if i == 2 else 3e-6)) for i in range(5)]
+    pos, rot = excess_without(folds, None)
+    assert pos == pytest.approx(np.sqrt(2.4e-6 / 3.0)) and rot == 0.0
+    assert excess_without(folds, 2) == (0.0, 0.0)
+    assert excess_without(folds, 0)[0] == pytest.approx(1e-3)
+    # without the flange errors (not computed) there is nothing to size it from
+    assert excess_without([base] * 3, None) == (0.0, 0.0)

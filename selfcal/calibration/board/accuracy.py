@@ -107,6 +107,8 @@ from selfcal.kinematics.tool_error import (
 )
 
 __all__ = [
+    "ORIENTATION",
+    "POSITION",
     "board_accuracy",
     "board_error_model",
     "board_error_model_from_json",
@@ -116,6 +118,7 @@ __all__ = [
     "held_out_errors",
     "joint_spans",
     "model_error",
+    "pose_error_terms",
     "predicted_reprojection",
 ]
 
@@ -275,6 +278,18 @@ def grown_size(excess: np.ndarray, var: np.ndarray, unit: np.ndarray, misfit: np
     return float(np.sqrt(gram.at(reach))), reach, gram
 
 
+POSITION, ORIENTATION = slice(0, 3), slice(3, 6)
+"""The flange error's coordinates (position, orientation) in :func:`held_out_errors`."""
+
+
+def pose_error_terms(h: dict, b: slice) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per frame of :func:`held_out_errors`' ``h``, its flange error's coordinates ``b``
+    (:data:`POSITION`, m; :data:`ORIENTATION`, rad): squared norm, traces of ``S`` and ``N``
+    (``r2``, ``s2``, ``n2`` of :func:`selfcal.calibration.accuracy.model_error_of`)."""
+    e, S, N = h["e"][:, b], h["S"][:, b, b], h["N"][:, b, b]
+    return np.sum(e**2, axis=1), np.trace(S, axis1=1, axis2=2), np.trace(N, axis1=1, axis2=2)
+
+
 def model_error(obs: BoardObservations, selection: Selection, offsets: np.ndarray,
                 T_tool_point: np.ndarray, pixel_sigma_px: float,
                 variance: np.ndarray | None = None,
@@ -321,15 +336,10 @@ def model_error(obs: BoardObservations, selection: Selection, offsets: np.ndarra
         y = h["px2"] - h["px2_expected"] - share.point * h["px2_held"]
         m, reach, gram = grown_size(y, h["px2_var"], h["px2_unit"], h["px2_misfit"],
                                     h["distance"])  # fmt: skip
-    e, S, N = h["e"], h["S"], h["N"]
-
-    def parts(b: slice) -> tuple[list[np.ndarray], list[np.ndarray], list[np.ndarray]]:
-        return ([np.sum(e[:, b] ** 2, axis=1)], [np.trace(S[:, b, b], axis1=1, axis2=2)],
-                [np.trace(N[:, b, b], axis1=1, axis2=2)])  # fmt: skip
-
-    (r2, s2, n2), rot = parts(slice(0, 3)), parts(slice(3, 6))  # position, orientation
+    r2, s2, n2 = ([x] for x in pose_error_terms(h, POSITION))
+    r2r, s2r, n2r = ([x] for x in pose_error_terms(h, ORIENTATION))
     reached = float(np.max(h["distance"])) if span is not None else None  # None: not read
-    me = model_error_of(r2, s2, n2, rot, folds=len(got), failed=selection.folds - len(got),
+    me = model_error_of(r2, s2, n2, (r2r, s2r, n2r), folds=len(got), failed=selection.folds - len(got),
                         noise_what="the pixel and joint read-back noise",
                         given=(m, m / float(np.mean(h["lever"]))),
                         reach_distance=reach, growth=gram, measured_to=reached)  # fmt: skip
