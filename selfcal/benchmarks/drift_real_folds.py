@@ -356,14 +356,15 @@ def _print_fold_error(folds: list[Fold], used: float, cal: BoardCalibrationResul
     left out (:func:`selfcal.calibration.drift.fold_error.fold_excess`) sized two ways: from
     the other folds' held-out frames only (:func:`excess_without`: out of sample, the fold's
     own miss not in it; a stand-in for the fold's own folds, which are not fitted) and from
-    CAL's block, every fold's own configuration in it (in sample: an upper bound on the rule's
-    effect, the largest misses sizing the error that excuses them); then NEW's ``selfcal check``
-    against CAL."""
+    CAL's block, every fold's own configuration in it (in sample: optimistic for the folds whose
+    own miss is large, which then size the error that excuses them, though not a bound for each
+    fold: leaving out a fold that missed less than the others raises it); then NEW's
+    ``selfcal check`` against CAL."""
     counted = view_noise(cal).misfit_counted
     pos, rot = fold_excess(cal.accuracy) if counted else (0.0, 0.0)
     again_pos, again_rot = excess_without(folds, None) if counted else (0.0, 0.0)
-    print(f"  the folds' error at left-out configurations, in sample (CAL's block; an upper "
-          f"bound): {pos * 1e3:.3f} mm, {np.degrees(rot):.3f} deg per coordinate (from these "
+    print(f"  the folds' error at left-out configurations, in sample (CAL's block, each fold's "
+          f"own configuration in it): {pos * 1e3:.3f} mm, {np.degrees(rot):.3f} deg per coordinate (from these "
           f"folds again: {again_pos * 1e3:.3f} mm, {np.degrees(again_rot):.3f} deg)")  # fmt: skip
 
     def verdict(f: Fold, pos: float, rot: float) -> tuple[str, float]:
@@ -388,7 +389,7 @@ def _print_fold_error(folds: list[Fold], used: float, cal: BoardCalibrationResul
                     f"(p {p_in:.2g})")  # fmt: skip
     print(f"  with the folds' error at left-out configurations: {'; '.join(said)}")
     print(f"  false 'changed' of {len(folds)} folds: {changed[0]} with the folds' error out of "
-          f"sample, {changed[1]} in sample (an upper bound on the rule's effect)")  # fmt: skip
+          f"sample, {changed[1]} in sample (each fold's own miss in its error)")  # fmt: skip
     res = check_images(cal_dir, new)
     verdict_new = "changed" if res.changed else "cannot tell" if res.undecided else "unchanged"
     print(f"  selfcal check {cal_dir} {new}: {verdict_new}, p = {res.p_value:.2g}, with the folds' "
