@@ -14,13 +14,17 @@ same robot file, :func:`selfcal.estimation.joint_report.encoder_sigma`): unchang
 offset by 0.05 deg. Reported: the share of checks that say "changed"
 (:func:`selfcal.calibration.drift.images.image_drift_check`, alpha = 0.01; the issue's target:
 below 2 % unchanged, at least 95 % changed) and, of the changed ones found, the share whose
-cause is named right (the hand-eye; the joint) and wrong (cannot tell: the rest). Beside the
+cause is named right (the hand-eye; the joint) and wrong (the rest: cause not named). Beside the
 mount shift's share, what a test that knew more would find, the mean over the checks of its
 power (:func:`selfcal.calibration.drift.p_value.known_change_power`) from the noncentrality
 ``mu^T Sigma^-1 mu`` of the shift's linearised pixels ``mu`` under the check's own covariance
 ``Sigma`` (the calibration's uncertainty, the assumed joint and corner noise): the oracle that
 knew the shift's direction (no test does better) and one that knew only that the mount moved
-without turning (the chi-square of its 3 translations alone, at the whole alpha).
+without turning (the chi-square of its 3 translations alone, at the whole alpha). Each row also
+counts the checks per kind that answered "cannot tell" (the verdict, exit 6: not counted as
+changed) and records the code that measured it (:func:`selfcal.benchmarks.doc_blocks.
+code_version`), which the table's last line names (:func:`selfcal.benchmarks.doc_blocks.
+codes_note`).
 
 ``--setup eye-to-hand``: the same on ``scenarios/eye-to-hand.toml`` (a static camera, the board
 on a UR5e's flange; the mount shift moves the board on the flange, analytic path).
