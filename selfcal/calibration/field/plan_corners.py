@@ -111,14 +111,28 @@ def _costs(cb: CornerBlocks, W: np.ndarray, held: np.ndarray, add: bool) -> np.n
     candidate in turn ((m,)), else of ``held`` alone ((1,))."""
     H = cb.F[held].sum(axis=0)[None] + (cb.F if add else 0.0)
     for Bg, Dg, Pg in zip(cb.B, cb.D, cb.prior, strict=True):
-        b = Bg[held].sum(axis=0)[None] + (Bg if add else 0.0)
-        d = Dg[held].sum(axis=0)[None] + (Dg if add else 0.0)  # the views' (not the prior's)
-        eps = EPS * np.maximum(np.einsum("mii->m", d), 1.0)[:, None, None]  # unseen: b = 0
-        d = d + Pg + eps * np.eye(d.shape[-1])
-        H = H - b @ np.linalg.solve(d, np.swapaxes(b, 1, 2))
+        b = Bg[held].sum(axis=0)[None]
+        d = Dg[held].sum(axis=0)[None]  # the views' (not the prior's)
+        if not add:
+            H = H - _corner_term(b, d, Pg)
+            continue
+        # a candidate that does not see the group adds zeros to b and d: its term is the held
+        # set's, computed once (the same numbers as adding its zeros, at a share of the solves)
+        sees = np.flatnonzero(Bg.any(axis=(1, 2)) | Dg.any(axis=(1, 2)))
+        term = np.repeat(_corner_term(b, d, Pg), len(Bg), axis=0)
+        term[sees] = _corner_term(b + Bg[sees], d + Dg[sees], Pg)
+        H = H - term
     s = cb.scale
     C = np.linalg.inv(H / np.outer(s, s) + EPS * np.eye(len(s)))
     return np.einsum("ij,mji->m", W / np.outer(s, s), C)
+
+
+def _corner_term(b: np.ndarray, d: np.ndarray, prior: np.ndarray) -> np.ndarray:
+    """(m, p, p) ``b (d + prior)^-1 b^T`` of a marker group's (m, p, c) ``b`` and (m, c, c) views'
+    ``d``, each ``d`` regularised by :data:`EPS` of its trace (unseen: ``b = 0``)."""
+    eps = EPS * np.maximum(np.einsum("mii->m", d), 1.0)[:, None, None]
+    d = d + prior + eps * np.eye(d.shape[-1])
+    return b @ np.linalg.solve(d, np.swapaxes(b, 1, 2))
 
 
 def _weight(cb: CornerBlocks, G: np.ndarray) -> np.ndarray:
