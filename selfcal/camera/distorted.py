@@ -22,8 +22,14 @@ from typing import ClassVar
 
 import numpy as np
 
-from selfcal.camera.lens import LensMap, brown_conrady, kannala_brandt, undistort
-from selfcal.camera.model import perspective_jacobian
+from selfcal.camera.lens import (
+    LensMap,
+    brown_conrady,
+    brown_conrady_points,
+    kannala_brandt,
+    undistort,
+)
+from selfcal.camera.model import perspective, perspective_jacobian
 from selfcal.camera.pinhole import Pinhole
 from selfcal.errors import InputError
 
@@ -99,7 +105,8 @@ class LensCamera(Pinhole):
         return undistort(self.pinhole.normalised(uv), self.lens, np.asarray(self.coeffs))
 
     def project(self, X_cam: np.ndarray) -> np.ndarray:
-        return self.project_jacobians(X_cam)[0]
+        # the chain of project_jacobians without the derivatives (the same numbers)
+        return self.pixels(self.distort_normalised(perspective(X_cam)))
 
     def distort_normalised(self, xn: np.ndarray) -> np.ndarray:
         """The lens map alone: distorted normalised coordinates (..., 2) of ``xn`` (..., 2)."""
@@ -114,6 +121,9 @@ class BrownConrady(LensCamera):
     lens_names = ("k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6")
     model_name = "opencv"
     lens: ClassVar[LensMap] = staticmethod(brown_conrady)  # type: ignore[assignment]
+
+    def distort_normalised(self, xn: np.ndarray) -> np.ndarray:
+        return brown_conrady_points(xn, np.asarray(self.coeffs))
 
     @property
     def dist_coeffs(self) -> np.ndarray:
