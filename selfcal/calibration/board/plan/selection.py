@@ -118,10 +118,8 @@ def forecast_selection(
         return SelectionForecast(first.label, first.free_idx, first.offset_joints,
                                  (first.label,), ((),), 1,
                                  ((first.free_idx, first.offset_joints),), 0)  # fmt: skip
-    rms = np.array([[_fold_rms(F_frames, A, n_features, folds.out(f), n_cam, Mc, variance,
-                               sigma_px)
-                     for Mc in folds.directions[f]]
-                    for f in range(len(folds.labels))])  # fmt: skip
+    rms = np.stack([candidate_fold_rms(folds, k, F_frames, A, n_features, n_cam, variance,
+                                       sigma_px) for k in range(len(cands))], axis=1)  # fmt: skip
     for c, r in zip(cands, rms.T):
         c.fold_rms_px = tuple(r.tolist())
         c.cv_px = float(np.exp(np.mean(np.log(r))))
