@@ -85,11 +85,17 @@ def _draw(item: tuple[str, str, list, int]) -> tuple[str, int, float, str]:
 
 
 def arguments(
-    argv: list[str] | None, doc: str, out: str, jobs: int, write_docs: bool = False
+    argv: list[str] | None,
+    doc: str,
+    out: str,
+    jobs: int,
+    write_docs: bool = False,
+    parents: tuple[argparse.ArgumentParser, ...] = (),
 ) -> argparse.Namespace:
-    """A plan benchmark's ``--draws`` (30), ``--jobs`` (``jobs``) and ``--out`` (``out``), and
-    ``--write-docs`` where ``write_docs``."""
-    ap = argparse.ArgumentParser(description=doc.split("\n\n")[0])
+    """A plan benchmark's ``--draws`` (30), ``--jobs`` (``jobs``) and ``--out`` (``out``),
+    ``--write-docs`` where ``write_docs``, and the options of ``parents`` (parsers made with
+    ``add_help=False``: the script's own)."""
+    ap = argparse.ArgumentParser(description=doc.split("\n\n")[0], parents=list(parents))
     ap.add_argument("--draws", type=int, default=30)
     ap.add_argument("--jobs", type=int, default=jobs)
     ap.add_argument("--out", default=out)

@@ -134,11 +134,8 @@ def _options(argv: list[str] | None):
     ap.add_argument("--render", action="store_true", help="rendered and detected images")
     ap.add_argument("--pixel-sigma", type=float, default=0.5,
                     help="the corner noise the plan and the forecast assume (px; default 0.5)")  # fmt: skip
-    cell, rest = ap.parse_known_args(argv)
-    a = arguments(rest, __doc__ or "", "runs/plan-field-compare", 1, write_docs=True)
-    for k, v in vars(cell).items():
-        setattr(a, k, v)
-    return a
+    return arguments(argv, __doc__ or "", "runs/plan-field-compare", 1, write_docs=True,
+                     parents=(ap,))  # fmt: skip
 
 
 def _frames(run: list[dict]) -> str:
