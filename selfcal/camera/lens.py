@@ -26,6 +26,7 @@ renderer's exact inverse remap).
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import NamedTuple
 
 import numpy as np
 
@@ -35,31 +36,56 @@ LensMap = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray, np.nd
 """``(xn (..., 2), coeffs (n,)) -> (xd (..., 2), J_xn (..., 2, 2), J_coeffs (..., 2, n))``."""
 
 
-def brown_conrady(xn: np.ndarray, coeffs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """OpenCV's radial-tangential (rational) distortion of normalised coordinates ``xn`` (..., 2)
-    with ``coeffs = (k1, k2, p1, p2, k3, k4, k5, k6)`` (unitless); see the module docstring."""
-    xn = np.asarray(xn, dtype=float)
-    k1, k2, p1, p2, k3, k4, k5, k6 = (float(c) for c in np.asarray(coeffs, float).reshape(8))
+class _RadialTangential(NamedTuple):
+    """The intermediate values of the rational radial-tangential map at each point (unitless)."""
+
+    x: np.ndarray
+    y: np.ndarray
+    r2: np.ndarray
+    a: np.ndarray  # the radial numerator 1 + k1 r^2 + k2 r^4 + k3 r^6
+    b: np.ndarray  # the radial denominator 1 + k4 r^2 + k5 r^4 + k6 r^6
+    radial: np.ndarray
+    xd: np.ndarray  # distorted normalised coordinates (...,), (...,)
+    yd: np.ndarray
+
+
+def _radial_tangential(xn: np.ndarray, k: tuple[float, ...]) -> _RadialTangential:
+    """The distorted normalised coordinates of ``xn`` (..., 2) and the values the Jacobians
+    reuse: the one place the map's value is written out."""
+    k1, k2, p1, p2, k3, k4, k5, k6 = k
     x, y = xn[..., 0], xn[..., 1]
     r2 = x * x + y * y
     r4, r6 = r2 * r2, r2 * r2 * r2
     a = 1.0 + k1 * r2 + k2 * r4 + k3 * r6
     b = 1.0 + k4 * r2 + k5 * r4 + k6 * r6
     radial = a / b
+    xy = x * y
+    xd = x * radial + 2.0 * p1 * xy + p2 * (r2 + 2.0 * x * x)
+    yd = y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * xy
+    return _RadialTangential(x, y, r2, a, b, radial, xd, yd)
+
+
+def brown_conrady(xn: np.ndarray, coeffs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """OpenCV's radial-tangential (rational) distortion of normalised coordinates ``xn`` (..., 2)
+    with ``coeffs = (k1, k2, p1, p2, k3, k4, k5, k6)`` (unitless); see the module docstring."""
+    xn = np.asarray(xn, dtype=float)
+    k = tuple(float(c) for c in np.asarray(coeffs, float).reshape(8))
+    k1, k2, p1, p2, k3, k4, k5, k6 = k
+    x, y, r2, a, b, radial, xd, yd = _radial_tangential(xn, k)
+    r4 = r2 * r2
     da = k1 + 2.0 * k2 * r2 + 3.0 * k3 * r4
     db = k4 + 2.0 * k5 * r2 + 3.0 * k6 * r4
     drad = (da * b - a * db) / (b * b)  # d radial / d r2
     xy = x * y
-    xd = x * radial + 2.0 * p1 * xy + p2 * (r2 + 2.0 * x * x)
-    yd = y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * xy
     J = np.empty(xn.shape[:-1] + (2, 2))
     J[..., 0, 0] = radial + 2.0 * x * x * drad + 2.0 * p1 * y + 6.0 * p2 * x
     J[..., 0, 1] = 2.0 * xy * drad + 2.0 * p1 * x + 2.0 * p2 * y
     J[..., 1, 0] = 2.0 * xy * drad + 2.0 * p1 * x + 2.0 * p2 * y
     J[..., 1, 1] = radial + 2.0 * y * y * drad + 6.0 * p1 * y + 2.0 * p2 * x
     Jc = np.empty(xn.shape[:-1] + (2, 8))
-    num = np.stack([r2, r4, r6], axis=-1) / b[..., None]  # d radial / d (k1, k2, k3)
-    den = -np.stack([r2, r4, r6], axis=-1) * (a / (b * b))[..., None]  # ... / d (k4, k5, k6)
+    powers = np.stack([r2, r4, r4 * r2], axis=-1)
+    num = powers / b[..., None]  # d radial / d (k1, k2, k3)
+    den = -powers * (a / (b * b))[..., None]  # ... / d (k4, k5, k6)
     for j, col in ((0, 0), (1, 1), (2, 4)):
         Jc[..., 0, col] = x * num[..., j]
         Jc[..., 1, col] = y * num[..., j]
@@ -77,16 +103,9 @@ def brown_conrady_points(xn: np.ndarray, coeffs: np.ndarray) -> np.ndarray:
     """:func:`brown_conrady`'s distorted normalised coordinates (..., 2) alone, without its
     Jacobians: the same arithmetic, so the same numbers, at a share of the cost (a projection
     that needs no derivative, e.g. a planner's visibility test of thousands of postures)."""
-    xn = np.asarray(xn, dtype=float)
-    k1, k2, p1, p2, k3, k4, k5, k6 = (float(c) for c in np.asarray(coeffs, float).reshape(8))
-    x, y = xn[..., 0], xn[..., 1]
-    r2 = x * x + y * y
-    r4, r6 = r2 * r2, r2 * r2 * r2
-    radial = (1.0 + k1 * r2 + k2 * r4 + k3 * r6) / (1.0 + k4 * r2 + k5 * r4 + k6 * r6)
-    xy = x * y
-    xd = x * radial + 2.0 * p1 * xy + p2 * (r2 + 2.0 * x * x)
-    yd = y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * xy
-    return np.stack([xd, yd], axis=-1)
+    k = tuple(float(c) for c in np.asarray(coeffs, float).reshape(8))
+    m = _radial_tangential(np.asarray(xn, dtype=float), k)
+    return np.stack([m.xd, m.yd], axis=-1)
 
 
 _SMALL_R = 1e-4
