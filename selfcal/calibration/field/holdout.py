@@ -46,7 +46,9 @@ def held_out_frames(joints: np.ndarray, every: int) -> np.ndarray:
     """(m,) bool: the frames of the joint readings ``joints`` (m, n) (any unit) the check holds
     out: every ``every``-th, from the first, in the lexicographic order of the readings (the
     first joint first; a stable sort, so frames of equal readings keep their order). A
-    permutation of the rows permutes the answer alike."""
+    permutation of rows of distinct readings permutes the answer alike; among frames of equal
+    readings (a configuration recorded more than once) which one is held out follows the rows'
+    order, and the held-out readings are the same either way."""
     joints = np.atleast_2d(np.asarray(joints, dtype=float))
     take = np.zeros(len(joints), dtype=bool)
     take[np.lexsort(joints.T[::-1])[::every]] = True
