@@ -30,7 +30,9 @@ m); the MCPC chain's tool is the first camera (OpenCV frame). Keys (units in the
                       the Cramer-Rao covariance in deg and mm, null without)
     accuracy          the predicted tool-point (flange) error over the workspace and the
                       cross-validated reprojection (:mod:`selfcal.calibration.board.accuracy`,
-                      docs/tool-accuracy.md), absent in older files and without bounds
+                      docs/tool-accuracy.md), absent in older files and without bounds;
+                      schema 3 when its distances are in ``joint_spans_si`` (a revolute
+                      joint's range capped at one turn; 1 or 2 measured them in full ranges)
     sources, KIND     with measurement terms estimated with the images (touch-probe points,
                       tracker rows: :mod:`selfcal.calibration.board.terms`): ``["images",
                       KIND ...]`` and each term's section under its kind, as the field's
@@ -71,9 +73,11 @@ __all__ = [
 ]
 
 FORMAT = "scorbot-selfcal-board-calibration"
-SCHEMA_VERSION = 2
-"""The newest schema read; 2 is written for eye-to-hand alone (older code would take its chain
-for a wrist camera's), 1 otherwise."""
+SCHEMA_VERSION = 3
+"""The newest schema read. Written: 3 when the ``accuracy`` block measures its distances in
+``joint_spans_si`` (a revolute joint's range capped at one turn: code that reads 2 or less would
+measure them in the full ranges and flag the wrong postures "not measured"), else 2 for
+eye-to-hand (older code would take its chain for a wrist camera's), 1 otherwise."""
 WORLD_FRAME = "the board frame (the target's declared feature points, m)"
 WORLD_FRAME_STATIC = "the first camera's OpenCV frame (static; the board rides on the flange)"
 _FIX = "re-run `selfcal calibrate DATASET` to write DATASET/calibration.json again"
@@ -256,11 +260,18 @@ class BoardCalibrationResult:
         return (f"the calibrated model's cross-validated error ({c:.3f} px) is not below the fair "
                 f"nominal's ({n:.3f} px)")  # fmt: skip
 
+    def schema_written(self) -> int:
+        """The ``schema_version`` this result is written with (:data:`SCHEMA_VERSION`): the
+        oldest one whose readers read every key of it as meant."""
+        if self.accuracy is not None and "joint_spans_si" in self.accuracy:
+            return 3
+        return 2 if self.eye_to_hand else 1
+
     def to_json(self) -> dict:
         """The document (key order fixed)."""
         return {
             "format": FORMAT,
-            SCHEMA_KEY: 2 if self.eye_to_hand else 1,
+            SCHEMA_KEY: self.schema_written(),
             "robot_model": self.robot_model,
             **({"setup": self.setup} if self.eye_to_hand else {}),
             "world_frame": WORLD_FRAME_STATIC if self.eye_to_hand else WORLD_FRAME,

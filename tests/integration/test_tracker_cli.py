@@ -65,7 +65,9 @@ def test_identify_then_predict_round_trip(tmp_path, capsys, er4u):
     assert f"tool point in the nominal flange frame: ({tool}) mm" in text
     # the true tool point sits on the true flange, which is within ~1 mm of the nominal one
     assert np.abs(np.array(doc["tool_point_mm"]) - case.tool_m * 1e3).max() < 3.0
-    assert doc["format"] == "scorbot-selfcal-tracker-calibration" and doc["schema_version"] == 1
+    assert doc["format"] == "scorbot-selfcal-tracker-calibration"
+    # its accuracy block measures distances in joint_spans_si: schema 2 (older readers refuse it)
+    assert doc["schema_version"] == 2 and "joint_spans_si" in doc["accuracy"]
     assert set(doc["identifiable"]) | {"alpha5", "beta5", "gamma5"} == {
         p["name"] for p in doc["parameters"]
     }

@@ -89,3 +89,25 @@ def test_the_export_is_the_eye_on_base_setup():
     tf = to_tf_yaml(ex)
     assert "parent: base_link" in tf and "child: camera_optical_frame" in tf
     assert "parent: tool0" in tf and "child: board" in tf
+
+
+@pytest.mark.parametrize("setup", ["eye-in-hand", "eye-to-hand"])
+def test_an_accuracy_block_in_joint_spans_is_schema_3(tmp_path, setup):
+    """A block whose distances are in ``joint_spans_si`` (a revolute joint's range capped at one
+    turn) is written as schema 3, so code that reads 2 at most, and would measure the distances
+    in the full ranges, refuses it with "upgrade" instead of flagging the wrong postures."""
+    robot = load_robot("ur5e")
+    cam = Pinhole(800.0, 1.0, 320.0, 240.0, 640, 480)
+    cal = BoardCalibrationResult(
+        robot_model=robot.name, target=BOARD, camera_names=("left",), cameras=(cam,),
+        camera_std=({},), model=nominal_mcpc(robot), nominal_model=nominal_mcpc(robot),
+        reprojection_rms_px=0.1, frames=8, frames_used=8, setup=setup,
+        mounts=MOUNTS if setup == "eye-to-hand" else (),
+        accuracy={"joint_spans_si": [2 * np.pi] * robot.n},
+    )  # fmt: skip
+    path = write_board_calibration(tmp_path / "calibration.json", cal)
+    assert json.loads(path.read_text())["schema_version"] == 3
+    assert read_board_calibration(path).accuracy["joint_spans_si"] == [2 * np.pi] * robot.n
+    old = dataclasses.replace(cal, accuracy={"joint_limits_si": [[-1.0, 1.0]] * robot.n})
+    doc = json.loads(write_board_calibration(tmp_path / "old.json", old).read_text())
+    assert doc["schema_version"] == (2 if setup == "eye-to-hand" else 1)

@@ -13,6 +13,7 @@ from hypothesis.extra.numpy import arrays
 
 from selfcal.benchmarks.tracker.sim import RRPRR_DH, dh_robot, make_case, measure
 from selfcal.calibration.tracker.calibration_file import (
+    SCHEMA_VERSION,
     TrackerCalibrationFileError,
     from_result,
     read_tracker_calibration,
@@ -85,11 +86,12 @@ def test_tracker_calibration_round_trip(tmp_path):
 def test_newer_or_damaged_tracker_calibration_is_refused(tmp_path):
     _, _, path = _calibration(tmp_path)
     doc = json.loads(path.read_text())
-    doc["schema_version"] = 2
+    written = doc["schema_version"]
+    doc["schema_version"] = SCHEMA_VERSION + 1
     path.write_text(json.dumps(doc))
     with pytest.raises(TrackerCalibrationFileError, match="newer than this scorbot-selfcal"):
         read_tracker_calibration(path)
-    doc["schema_version"] = 1
+    doc["schema_version"] = written
     del doc["mcpc"]["params"]
     path.write_text(json.dumps(doc))
     with pytest.raises(TrackerCalibrationFileError, match="missing key 'mcpc.params'"):

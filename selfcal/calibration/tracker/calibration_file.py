@@ -1,6 +1,7 @@
 """``calibration.json`` of ``selfcal identify``: the tracker calibration, its writer and reader.
 
-Its own format (``scorbot-selfcal-tracker-calibration``, ``schema_version`` 1), not the image
+Its own format (``scorbot-selfcal-tracker-calibration``, ``schema_version`` 1, or 2 with
+``accuracy.joint_spans_si``), not the image
 calibration's (:mod:`selfcal.io.calibration`): no cameras, scene or images, but a measurement
 frame. Keys:
 
@@ -60,7 +61,10 @@ __all__ = [
 ]
 
 FORMAT = "scorbot-selfcal-tracker-calibration"
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
+"""The newest schema read. Written: 2 when the ``accuracy`` block measures its distances in
+``joint_spans_si`` (a revolute joint's range capped at one turn: code that reads only 1 would
+measure them in the full ranges), 1 otherwise."""
 _FIX = "re-run `selfcal identify MEASUREMENTS.csv --robot ROBOT --joint-units UNITS --out DIR`"
 JOINT_TYPES = ("revolute", "prismatic")
 
@@ -140,7 +144,7 @@ class TrackerCalibration:
         G = chain_transforms(self.model)
         return {
             "format": FORMAT,
-            "schema_version": SCHEMA_VERSION,
+            "schema_version": 2 if self.accuracy and "joint_spans_si" in self.accuracy else 1,
             "robot": {
                 "name": self.robot,
                 "given_as": self.robot_source,
