@@ -20,13 +20,20 @@ def journal(tmp_path, monkeypatch):
     monkeypatch.setattr(field_compare, "field_sets", lambda root, **kw: sets)
     monkeypatch.setattr(compare, "draw_all", lambda draw, items, jobs, root, done: done)
 
-    def write(seeds: dict[str, int], **extra) -> None:
+    def write(seeds: dict[str, int], cell: str = "ur5e analytic 0.5 px", **extra) -> None:
         rows = [{"set": name, "seed": s, "status": "ok", "joint_tip_rms_mm": 0.1 * s,
-                 "fair_nominal_tip_rms_mm": 1.0, **extra} for name, n in seeds.items()
-                for s in range(1, n + 1)]  # fmt: skip
+                 "fair_nominal_tip_rms_mm": 1.0, "cell": stamp(cell), **extra}
+                for name, n in seeds.items() for s in range(1, n + 1)]  # fmt: skip
         (tmp_path / "draws.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
 
     return tmp_path, write
+
+
+def stamp(cell: str) -> str:
+    """The fixture's sets' stamp (both sets hold the same postures) for ``cell`` = "ROBOT PATH
+    SIGMA px"."""
+    robot, path, sigma, _ = cell.split()
+    return field_compare.cell_stamp(robot, path == "rendered", float(sigma), np.zeros((1, 6)))
 
 
 def test_a_short_table_is_not_written(journal, capsys, monkeypatch):
@@ -54,7 +61,7 @@ def test_the_frames_used_are_summed_and_another_cell_has_its_own_block(
     root, write = journal
     written = []
     monkeypatch.setattr(doc_blocks, "write_block", lambda *a: written.append(a))
-    write({"plan 12": 3, "random 30": 3}, frames=12, frames_used=11)
+    write({"plan 12": 3, "random 30": 3}, "kr6-r900 rendered 0.1 px", frames=12, frames_used=11)
     argv = ["--robot", "kr6-r900", "--render", "--pixel-sigma", "0.1", "--draws", "3"]
     assert field_compare.main([*argv, "--out", str(root), "--write-docs"]) == 0
     out = capsys.readouterr().out
@@ -68,10 +75,60 @@ def test_the_sets_are_compared_draw_by_draw_with_a_sign_test(journal, capsys):
     plan = [0.1, 0.3, 0.2, 0.4]  # errs less than the random set in draws 1, 3 and 4 of 4
     rand = [0.2, 0.2, 0.3, 0.5]
     rows = [{"set": name, "seed": s + 1, "status": "ok", "joint_tip_rms_mm": e[s],
-             "fair_nominal_tip_rms_mm": 1.0} for name, e in (("plan 12", plan), ("random 30", rand))
-            for s in range(4)]  # fmt: skip
+             "fair_nominal_tip_rms_mm": 1.0, "cell": stamp("ur5e analytic 0.5 px")}
+            for name, e in (("plan 12", plan), ("random 30", rand)) for s in range(4)]  # fmt: skip
     (root / "draws.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
     assert field_compare.main(["--draws", "4", "--out", str(root)]) == 0
     out = capsys.readouterr().out
     # P(X >= 3 | 4, 1/2) = 5/16
     assert "plan 12 errs less in 3 of 4 draws (one-sided sign test p = 0.31)" in out
+
+
+@pytest.mark.parametrize(
+    ("cell", "argv"),
+    [
+        ("ur5e analytic 0.5 px", ["--robot", "kr6-r900"]),  # another arm
+        ("ur5e analytic 0.5 px", ["--render"]),  # the rendered path
+        ("ur5e analytic 0.5 px", ["--pixel-sigma", "0.1"]),  # another corner noise
+        (None, []),  # an older journal: no stamp
+    ],
+)
+def test_a_journal_of_another_cell_is_refused(journal, capsys, monkeypatch, cell, argv):
+    """Resuming from a folder holding another cell's draws would table them as this cell's."""
+    from selfcal.errors import InputError
+
+    root, write = journal
+    written = []
+    monkeypatch.setattr(doc_blocks, "write_block", lambda *a: written.append(a))
+    write({"plan 12": 3, "random 30": 3})
+    if cell is None:
+        rows = [json.loads(x) for x in (root / "draws.jsonl").read_text().splitlines()]
+        (root / "draws.jsonl").write_text(
+            "".join(json.dumps({k: v for k, v in r.items() if k != "cell"}) + "\n" for r in rows)
+        )
+    with pytest.raises(
+        InputError, match="draws.jsonl: 6 of its 6 draws were made for another"
+    ) as e:
+        field_compare.main([*argv, "--draws", "3", "--out", str(root), "--write-docs"])
+    assert "its own --out" in e.value.fix and not written
+
+
+def test_another_plan_in_the_same_cell_is_refused(journal, monkeypatch):
+    """The same cell, but the planner now picks other postures: the old draws are not its."""
+    from selfcal.errors import InputError
+
+    root, write = journal
+    write({"plan 12": 3, "random 30": 3})
+    moved = {
+        "plan 12": (root, np.ones((1, 6)), 0.0003),
+        "random 30": (root, np.zeros((1, 6)), 0.0002),
+    }
+    monkeypatch.setattr(field_compare, "field_sets", lambda root, **kw: moved)
+    with pytest.raises(InputError, match="3 of its 6 draws .* set 'plan 12', seed 1"):
+        field_compare.main(["--draws", "3", "--out", str(root)])
+
+
+def test_the_default_folder_is_the_cells_own():
+    a = field_compare._options(["--robot", "kr6-r900", "--render"])
+    assert a.out == "runs/benchmark_plan_field_compare_kr6-r900-rendered"
+    assert field_compare._options([]).out == "runs/benchmark_plan_field_compare"

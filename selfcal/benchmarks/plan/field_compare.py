@@ -21,7 +21,8 @@ percentile, their ratio, the fair nominal's median, the draws that ran and ended
 frames the calibrations used of those planned, then draw by draw (the same seed draws the same
 arm for every set) how often the plan errs less than each other set, with the sign test's p-value
 (each draw also in
-``DIR/draws.jsonl`` as it ends; the draws run seed by seed, every set's in turn, and a run
+``DIR/draws.jsonl`` as it ends, stamped with the cell and the set's postures, and a journal
+holding another's draws is refused; ``DIR`` by default ``runs/`` and the cell's docs block; the draws run seed by seed, every set's in turn, and a run
 stopped before resumes from that journal: ``--draws`` of a journal's seeds alone prints their
 table without drawing; a table short of ``--draws`` draws in a set is printed, not written to
 the docs, and exits 1; ``--write-docs`` writes it between docs/plan.md's
@@ -31,6 +32,7 @@ the docs, and exits 1; ``--write-docs`` writes it between docs/plan.md's
 
 from __future__ import annotations
 
+import hashlib
 import json
 from pathlib import Path
 
@@ -39,12 +41,14 @@ import numpy as np
 from selfcal.benchmarks.doc_blocks import ROOT
 from selfcal.io.atomic import write_text_atomic
 
-__all__ = ["field_cell", "field_sets", "main"]
+__all__ = ["cell_stamp", "field_cell", "field_sets", "main"]
 
 FIELD = {"markers": 20, "extent_mm": 300.0, "marker_size_mm": 30.0, "scale_length_mm": 200.0}
 """docs/plan.md's field (the plan's defaults, models/targets/field.toml's scale)."""
 DOCS = ROOT / "docs/plan.md"
 BLOCK = "benchmark_plan_field_compare"
+DEFAULT_OUT = "runs/BLOCK"
+"""``--out``'s default, read as ``runs/`` and the cell's docs block (:func:`_block`)."""
 
 
 def field_cell(root: Path, robot_name: str = "ur5e", pixel_sigma_px: float = 0.5) -> dict:
@@ -110,15 +114,46 @@ def field_sets(
     return out
 
 
-def _draw(item: tuple[str, str, list, int, bool, float]) -> dict:
+def cell_stamp(robot_name: str, render: bool, pixel_sigma_px: float, joints_deg: np.ndarray) -> str:
+    """What a journal row was drawn for: the arm, the path (rendered or analytic), the corner
+    noise (px) the draws simulate and a digest of the set's postures (deg), so a resumed run
+    never tables another cell's or another plan's draws as its own."""
+    q = np.ascontiguousarray(np.round(np.asarray(joints_deg, dtype=float), 9))
+    digest = hashlib.sha1(q.tobytes()).hexdigest()[:12]
+    path = "rendered" if render else "analytic"
+    return f"{robot_name} {path} {pixel_sigma_px:g} px postures {digest}"
+
+
+def _foreign(done: list[dict], stamps: dict[str, str], journal: Path) -> None:
+    """Refuse a journal holding a draw of another cell or posture set (:func:`cell_stamp`).
+
+    Raises:
+        InputError: naming the journal, the first such draw and the fix.
+    """
+    from selfcal.errors import InputError
+
+    other = [r for r in done if r.get("cell") != stamps.get(r["set"])]
+    if other:
+        r = other[0]
+        raise InputError(
+            f"{journal}: {len(other)} of its {len(done)} draws were made for another cell or "
+            f"posture set (first: set {r['set']!r}, seed {r['seed']}, drawn for "
+            f"{r.get('cell') or 'a cell not recorded (an older journal)'}; this run's is "
+            f"{stamps.get(r['set'], 'a set it does not draw')})",
+            fix="give this cell its own --out (the default names the robot and the path), or "
+            "move the journal away to draw again",
+        )
+
+
+def _draw(item: tuple[str, str, list, int, bool, float, str]) -> dict:
     from selfcal.studies.montecarlo.run import draw_one
 
-    name, config, joints_deg, seed, render, sigma = item
+    name, config, joints_deg, seed, render, sigma, cell = item
     row = draw_one({"config": config, "poses": len(joints_deg), "pixel_sigma": sigma,
                     "seed": seed, "traj_seed": 1, "perturb_seed": seed, "dither": True,
                     "joints_deg": joints_deg, "render": render})  # fmt: skip
     keys = ("joint_tip_rms_mm", "fair_nominal_tip_rms_mm", "nominal_tip_rms_mm", "sigma_hat_px")
-    return {"set": name, "seed": seed, "status": str(row["status"]),
+    return {"set": name, "seed": seed, "cell": cell, "status": str(row["status"]),
             "frames_used": row.get("frames_used"), "frames": row.get("frames"),
             **{k: float(row.get(k) or np.nan) for k in keys}}  # fmt: skip
 
@@ -134,8 +169,17 @@ def _options(argv: list[str] | None):
     ap.add_argument("--render", action="store_true", help="rendered and detected images")
     ap.add_argument("--pixel-sigma", type=float, default=0.5,
                     help="the corner noise the plan and the forecast assume (px; default 0.5)")  # fmt: skip
-    return arguments(argv, __doc__ or "", "runs/plan-field-compare", 1, write_docs=True,
-                     parents=(ap,))  # fmt: skip
+    a = arguments(argv, __doc__ or "", DEFAULT_OUT, 1, write_docs=True, parents=(ap,))
+    if a.out == DEFAULT_OUT:  # each cell its own journal
+        a.out = f"runs/{_block(a.robot, a.render)}"
+    return a
+
+
+def _block(robot_name: str, render: bool) -> str:
+    """The docs block (and the default run folder's name) of a cell."""
+    if (robot_name, render) == ("ur5e", False):
+        return BLOCK
+    return f"{BLOCK}_{robot_name}{'-rendered' if render else ''}"
 
 
 def _frames(run: list[dict]) -> str:
@@ -176,8 +220,11 @@ def main(argv: list[str] | None = None) -> int:
     sets = field_sets(root, robot_name=a.robot, pixel_sigma_px=a.pixel_sigma)
     journal = root / "draws.jsonl"  # a run stopped before resumes: its draws are not redone
     done = [json.loads(x) for x in journal.read_text().splitlines()] if journal.exists() else []
+    stamps = {name: cell_stamp(a.robot, a.render, a.pixel_sigma, q)
+              for name, (_, q, _) in sets.items()}  # fmt: skip
+    _foreign(done, stamps, journal)
     have = {(r["set"], r["seed"]) for r in done}
-    items = [(name, str(path), q.tolist(), s, a.render, a.pixel_sigma)
+    items = [(name, str(path), q.tolist(), s, a.render, a.pixel_sigma, stamps[name])
              for s in range(1, a.draws + 1)
              for name, (path, q, _) in sets.items() if (name, s) not in have]  # fmt: skip
     rows = [r for r in draw_all(_draw, items, a.jobs, root, done) if r["seed"] <= a.draws]
@@ -208,9 +255,7 @@ def main(argv: list[str] | None = None) -> int:
         print(text)
         print(f"NOT every draw run ({'; '.join(short)}): the table is not written to the docs")
         return 1
-    block = BLOCK if (a.robot, a.render) == ("ur5e", False) else \
-        f"{BLOCK}_{a.robot}{'-rendered' if a.render else ''}"  # fmt: skip
-    return print_table(text, DOCS, block, write=a.write_docs)
+    return print_table(text, DOCS, _block(a.robot, a.render), write=a.write_docs)
 
 
 if __name__ == "__main__":
