@@ -15,6 +15,7 @@ import argparse
 import contextlib
 import os
 import re
+import select
 import shlex
 import sys
 import time
@@ -273,8 +274,12 @@ def run_command(func: Callable[[argparse.Namespace], int | None], args: argparse
         try:
             code = int(func(args) or 0)
             sys.stdout.flush()  # a closed pipe shows here, not at the interpreter's exit
-        except BrokenPipeError:
-            return _reader_gone()
+        except BrokenPipeError as exc:
+            if _stdout_gone():
+                return _reader_gone()
+            if reraise:  # a pipe or socket of the command's own: a bug, not a reader gone
+                raise
+            return _internal(exc, trace)
         except KeyboardInterrupt:
             print("selfcal: error: interrupted", file=sys.stderr)
             return EXIT_INTERRUPTED
@@ -297,6 +302,22 @@ def run_command(func: Callable[[argparse.Namespace], int | None], args: argparse
         if line:
             print(line, file=sys.stderr, flush=True)
         return code
+
+
+def _stdout_gone() -> bool:
+    """Whether stdout is a pipe whose reader has closed it (poll reports an error on its write
+    end), so a BrokenPipeError came from our output and not from a pipe of the command's own;
+    False where stdout has no file descriptor (captured)."""
+    try:
+        fd = sys.stdout.fileno()
+    except (OSError, ValueError, AttributeError):
+        return False
+    try:
+        poll = select.poll()
+    except AttributeError:  # no poll() on this platform: take the error for stdout's
+        return True
+    poll.register(fd, select.POLLOUT)
+    return any(event & select.POLLERR for _, event in poll.poll(0))
 
 
 def _reader_gone() -> int:
