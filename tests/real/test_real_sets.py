@@ -42,6 +42,7 @@ import pytest
 
 from selfcal.benchmarks.board_accuracy import REAL_SETS, real_set
 from selfcal.calibration.board.evaluate import SAME_RMS
+from selfcal.calibration.board.plan.add_ground import SCALE_RANGE
 from selfcal.tomlfile import read_toml
 
 pytestmark = pytest.mark.real
@@ -378,6 +379,9 @@ def test_plan_add_five_postures_to_the_calibrated_set(name, deviation, outcome, 
         measured = np.array(folds["selection"]["candidates"][0]["fold_rms_px"])
         assert dev["source"] == "sized" and dev["folds"] == len(measured), dev
         rms = float(np.sqrt(np.mean(measured**2)))
+        # the scale solves forecast(s) = measured in closed form: the match is the check of that
+        # arithmetic, and it only means "sized from the data" when the scale was not clipped
+        assert SCALE_RANGE[0] < dev["scale_of_default"] < SCALE_RANGE[1], dev
         assert abs(dev["nominal_folds_forecast_px"] - rms) < 1e-3, dev
         assert dev["nominal_folds_forecast_at_default_px"] > 5 * rms, dev  # 23.9 px, 1.9 px
     # "before" is judged against the reference for the dataset's frames alone, which the added
