@@ -45,7 +45,7 @@ from pathlib import Path
 import numpy as np
 
 from selfcal.benchmarks.drift_real_deviation import deviation_part, with_share
-from selfcal.calibration.accuracy import model_error_of
+from selfcal.calibration.accuracy import model_error_of, whitened_excess
 from selfcal.calibration.board.accuracy import (
     ORIENTATION,
     POSITION,
@@ -206,12 +206,15 @@ def folds_of(cal_dir: Path) -> tuple[list[Fold], np.ndarray, np.ndarray]:
     return out, deviation_part(cr, 1.0), sandwich_excess(own, fitted, cal.bounds.pixel_sigma_px**2)
 
 
-def excess_without(folds: list[Fold], left: int | None) -> tuple[float, float]:
+def excess_without(folds: list[Fold], left: int | None,
+                   whitened: bool = True) -> tuple[float, float]:  # fmt: skip
     """The folds' error at the configurations they left out (per coordinate, m and rad:
     :func:`selfcal.calibration.drift.fold_error.fold_excess`, the check's second null) from the
     held-out frames of every fold but ``left`` (its index; None: all of them, the calibration's
     own figure). Without ``left``'s own frames it is out of sample for that fold's check: its
-    own miss does not size the error that may excuse it."""
+    own miss does not size the error that may excuse it. ``whitened``: each row in its own
+    metric (:func:`selfcal.calibration.accuracy.whitened_excess`, the block's figure), else the
+    squared norms' excess over isotropic standard errors (the block's before it)."""
     h = [f.tool for i, f in enumerate(folds) if i != left and f.tool is not None]
     if not h:
         return 0.0, 0.0
@@ -219,6 +222,11 @@ def excess_without(folds: list[Fold], left: int | None) -> tuple[float, float]:
                 for b in (POSITION, ORIENTATION))  # fmt: skip
     me = model_error_of(pos[0], pos[1], pos[2], (rot[0], rot[1], rot[2]), folds=len(h),
                         failed=0, noise_what="")  # fmt: skip
+    if me is not None and whitened:  # as the accuracy block gives it (board/accuracy.py)
+        e, V = (np.concatenate([x[k] for x in h]) for k in ("e", "S"))
+        V = V + np.concatenate([x["N"] for x in h])
+        me = dataclasses.replace(me, whitened_m=whitened_excess(e[:, POSITION], V[:, POSITION, POSITION]),
+                                 whitened_rad=whitened_excess(e[:, ORIENTATION], V[:, ORIENTATION, ORIENTATION]))  # fmt: skip
     return fold_excess({"model_error": me.to_json()} if me is not None else None)
 
 
@@ -363,9 +371,11 @@ def _print_fold_error(folds: list[Fold], used: float, cal: BoardCalibrationResul
     counted = view_noise(cal).misfit_counted
     pos, rot = fold_excess(cal.accuracy) if counted else (0.0, 0.0)
     again_pos, again_rot = excess_without(folds, None) if counted else (0.0, 0.0)
+    iso_pos, iso_rot = excess_without(folds, None, whitened=False) if counted else (0.0, 0.0)
     print(f"  the folds' error at left-out configurations, in sample (CAL's block, each fold's "
           f"own configuration in it): {pos * 1e3:.3f} mm, {np.degrees(rot):.3f} deg per coordinate (from these "
-          f"folds again: {again_pos * 1e3:.3f} mm, {np.degrees(again_rot):.3f} deg)")  # fmt: skip
+          f"folds again: {again_pos * 1e3:.3f} mm, {np.degrees(again_rot):.3f} deg; isotropic "
+          f"{iso_pos * 1e3:.3f} mm, {np.degrees(iso_rot):.3f} deg)")  # fmt: skip
 
     def verdict(f: Fold, pos: float, rot: float) -> tuple[str, float]:
         m2 = np.r_[np.full(3, pos**2), np.full(3, rot**2)]
@@ -374,22 +384,27 @@ def _print_fold_error(folds: list[Fold], used: float, cal: BoardCalibrationResul
         again = image_drift_check(f.C0 + used * f.V, wide, eye_to_hand=cal.eye_to_hand)
         return ("changed" if again.changed else "cannot tell"), again.p_value
 
-    said, changed = [], [0, 0]
+    said, changed, iso = [], [0, 0], 0
     for i, f in enumerate(folds):
         first = image_drift_check(f.C0 + used * f.V, f.at(1.0), eye_to_hand=cal.eye_to_hand)
         if not first.changed:
             said.append(f"fold {i + 1} unchanged (p {first.p_value:.2g})")
             continue
         out = excess_without(folds, i) if counted else (0.0, 0.0)
+        old = excess_without(folds, i, whitened=False) if counted else (0.0, 0.0)
         (v_in, p_in), (v_out, p_out) = verdict(f, pos, rot), verdict(f, *out)
+        v_old, p_old = verdict(f, *old)
         changed[0] += v_out == "changed"
         changed[1] += v_in == "changed"
+        iso += v_old == "changed"
         said.append(f"fold {i + 1} p {first.p_value:.2g}; out of sample ({out[0] * 1e3:.3f} mm, "
                     f"{np.degrees(out[1]):.3f} deg) {v_out} (p {p_out:.2g}); in sample {v_in} "
-                    f"(p {p_in:.2g})")  # fmt: skip
+                    f"(p {p_in:.2g}); out of sample isotropic ({old[0] * 1e3:.3f} mm, "
+                    f"{np.degrees(old[1]):.3f} deg) {v_old} (p {p_old:.2g})")  # fmt: skip
     print(f"  with the folds' error at left-out configurations: {'; '.join(said)}")
     print(f"  false 'changed' of {len(folds)} folds: {changed[0]} with the folds' error out of "
-          f"sample, {changed[1]} in sample (each fold's own miss in its error)")  # fmt: skip
+          f"sample, {changed[1]} in sample (each fold's own miss in its error); {iso} out of "
+          "sample with the squared norms' isotropic excess (the rule before the whitened one)")  # fmt: skip
     res = check_images(cal_dir, new)
     verdict_new = "changed" if res.changed else "cannot tell" if res.undecided else "unchanged"
     print(f"  selfcal check {cal_dir} {new}: {verdict_new}, p = {res.p_value:.2g}, with the folds' "

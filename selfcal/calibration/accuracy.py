@@ -46,6 +46,7 @@ __all__ = [
     "spans_from_json",
     "spans_json",
     "unmeasured_beyond",
+    "whitened_excess",
 ]
 
 SAMPLE_COUNT = 256
@@ -81,6 +82,37 @@ def excess(total2: float, expected2: float, rows: int) -> float:
     return float(np.sqrt((total2 - expected2) / 3.0))
 
 
+def whitened_excess(e: np.ndarray, V: np.ndarray) -> float:
+    """Per-coordinate standard deviation ``m`` of an isotropic error of the held-out ``d``-vectors
+    ``e`` (rows, d) beyond what each row's own covariance ``V`` (rows, d, d) explains (the
+    estimation error and the noise: ``S_i + N_i``), every row weighed in its own metric: the
+    ``m`` at which ``sum_i e_i^T (V_i + m^2 I)^-1 e_i = d rows`` (the moment of the whitened
+    rows; unit of ``e``). 0 unless ``sum_i e_i^T V_i^-1 e_i``, chi-square with ``d rows``
+    degrees of freedom under no excess, exceeds its mean by :data:`Z_MODEL_ERROR` standard
+    errors (``sqrt(2 d rows)``). Unlike :func:`excess` of the squared norms, a row's poorly
+    known direction (a single view's depth along its line of sight) neither hides an excess in
+    the well known ones nor, by its own spread, passes for one."""
+    e, V = np.asarray(e, float), np.asarray(V, float)
+    rows, d = e.shape
+    if rows == 0:
+        return 0.0
+    eye = np.eye(d)
+
+    def whitened(m2: float) -> float:
+        return float(np.sum(e * np.linalg.solve(V + m2 * eye, e[..., None])[..., 0]))
+
+    dof = d * rows
+    if (whitened(0.0) - dof) / np.sqrt(2.0 * dof) <= Z_MODEL_ERROR:
+        return 0.0
+    lo, hi = 0.0, max(float(np.mean(np.sum(e**2, axis=1))) / d, np.finfo(float).tiny)
+    while whitened(hi) > dof:  # the whitened sum falls as m^2 grows
+        lo, hi = hi, 2.0 * hi
+    for _ in range(100):  # bisection to the float's resolution
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if whitened(mid) > dof else (lo, mid)
+    return float(np.sqrt(0.5 * (lo + hi)))
+
+
 @dataclass(frozen=True)
 class ModelError:
     """The model error estimated from held-out rows (module docstring); SI.
@@ -111,6 +143,9 @@ class ModelError:
             ``S_c`` the folds' covariances with the share ``c`` of the deviation the calibration
             counts, :mod:`selfcal.calibration.board.held_prior`): the board route's; None where
             not measured (the tracker route, a file written before it).
+        whitened_m, whitened_rad: the held-out rows' tool-pose excess with each row in its own
+            metric (:func:`whitened_excess` of ``e_i`` against ``S_i + N_i``), per coordinate;
+            None where not measured (the tracker route, a file written before it).
     """
 
     position_m: float
@@ -130,6 +165,8 @@ class ModelError:
     measured_to: float | None = None
     held_rms_m: float | None = None
     held_rms_rad: float | None = None
+    whitened_m: float | None = None
+    whitened_rad: float | None = None
 
     @property
     def limit(self) -> float:
@@ -171,6 +208,17 @@ class ModelError:
                 else {
                     "held_deviation_rms_mm": num(self.held_rms_m, 1e3),
                     "held_deviation_rms_deg": num(self.held_rms_rad, deg),
+                }
+            ),
+            **(
+                {}
+                if self.whitened_m is None
+                else {
+                    "whitened_excess_mm": num(self.whitened_m, 1e3),
+                    "whitened_excess_deg": num(self.whitened_rad, deg),
+                    "whitened_what": "per-coordinate size of the held-out tool poses' excess "
+                    "with each row weighed by its own estimation and noise covariance (a "
+                    "single view's pose is known far worse along its line of sight)",
                 }
             ),
             "reach_distance": self.reach_distance or None,

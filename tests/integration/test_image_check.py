@@ -14,7 +14,11 @@ import numpy as np
 import pytest
 
 import selfcal
-from selfcal.calibration.drift.images import UNSEEN_NOTE
+from selfcal.calibration.drift.images import (
+    UNSEEN_NOTE,
+    calibration_error_model,
+    estimate_covariance,
+)
 from selfcal.cli.check import EXIT_CHANGED
 from selfcal.cli.main import main
 from selfcal.config.scenario import load_scenario, scenarios_dir
@@ -65,6 +69,16 @@ def test_check_with_images_says_unchanged_or_changed(tmp_path, capsys):
     block = read_board_calibration(cal).accuracy
     assert block is not None and np.shape(block["camera_cross_si"]) == (
         len(block["estimated"]), 8)  # fmt: skip
+    # the estimate's part from the frames' noise alone (the pairing's cross term): within the
+    # whole covariance (which adds the held deviation's share), the same order
+    em = calibration_error_model(read_board_calibration(cal), "calibration.json")
+    whole, part = (
+        estimate_covariance(read_board_calibration(cal), em),
+        np.array(block["noise_covariance_si"]),
+    )
+    assert part.shape == whole.shape and np.linalg.eigvalsh(part).min() > -1e-9 * np.abs(part).max()
+    assert np.linalg.eigvalsh(whole - part).min() > -1e-6 * np.abs(whole).max()
+    assert np.any(part != 0)
 
     old = tmp_path / "old"  # a file written before the camera covariance: its sigmas alone
     shutil.copytree(cal, old)

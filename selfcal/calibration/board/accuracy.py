@@ -34,7 +34,10 @@ parts of :mod:`selfcal.calibration.accuracy`:
   frame's tool-point error as the pose correction that fits its pixels best (linear least
   squares on the projection's Jacobian, ``B xi``) is kept beside it
   (:class:`selfcal.calibration.accuracy.ModelError`'s held-out RMS): a single view knows it
-  poorly along its line of sight, so the model error is not taken from it.
+  poorly along its line of sight, so the model error is not taken from it; its excess with each
+  frame in its own metric (``whitened_excess_mm`` / ``_deg``,
+  :func:`selfcal.calibration.accuracy.whitened_excess`) is the drift check's second null
+  (:mod:`selfcal.calibration.drift.fold_error`).
 
 The parameters the selection held at the drawing: their deviation, less what the fit absorbs
 of it, is in the covariance too, scaled to the share of the prior (``deviation``) that the
@@ -76,6 +79,7 @@ from selfcal.calibration.accuracy import (
     postures_from_json,
     spans_json,
     unmeasured_beyond,
+    whitened_excess,
 )
 from selfcal.calibration.board.bounds import BoardCramerRao
 from selfcal.calibration.board.deviation import Deviation
@@ -181,6 +185,19 @@ def _full_covariance(cr: BoardCramerRao,
         C[:p, p:] = cr.camera_cross[est]
         C[p:, :p] = cr.camera_cross[est].T
     return idx[est], C, n0
+
+
+def _noise_covariance(cr: BoardCramerRao, cols: np.ndarray) -> np.ndarray:
+    """(p + c, p + c) the covariance of ``cr``'s estimate from the noise alone (no deviation, no
+    model error) in the order of the block's ``estimated`` (the flat minimal indices ``cols``
+    (p,); a parameter ``cr`` held has zero rows) and the first camera's free parameters: what a
+    calibration frame's noise shares with the estimate (:mod:`selfcal.calibration.drift.paired`)."""
+    idx, C0, n0 = _full_covariance(cr)
+    at = {int(k): j for j, k in enumerate(cols)}
+    keep = np.r_[[at[int(k)] for k in idx], len(cols) + np.arange(n0)].astype(int)
+    C = np.zeros((len(cols) + n0, len(cols) + n0))
+    C[np.ix_(keep, keep)] = C0
+    return C
 
 
 def _sqrt_psd(C: np.ndarray) -> np.ndarray:
@@ -343,6 +360,11 @@ def model_error(obs: BoardObservations, selection: Selection, offsets: np.ndarra
                         noise_what="the pixel and joint read-back noise",
                         given=(m, m / float(np.mean(h["lever"]))),
                         reach_distance=reach, growth=gram, measured_to=reached)  # fmt: skip
+    if me is not None:  # the same rows' excess with each in its own metric (drift check)
+        V = h["S"] + h["N"]
+        e, P, R = h["e"], POSITION, ORIENTATION
+        me = dataclasses.replace(me, whitened_m=whitened_excess(e[:, P], V[:, P, P]),
+                                 whitened_rad=whitened_excess(e[:, R], V[:, R, R]))  # fmt: skip
     if me is None or variance is None:
         return me, share
     # the deviation's share the calibration counts (its covariance's), at the held-out rows
@@ -414,6 +436,7 @@ def board_accuracy(obs: BoardObservations, selection: Selection, cr: BoardCramer
     variance = deviation.variance(cr.model.joint_types)
     span = joint_spans(limits, revolute_joints(cr.model.joint_types))
     me, share = model_error(obs, selection, offsets, T_tool_point, pixel_sigma_px, variance, span)
+    noisy = cr  # the estimate's error from the pixels' and joints' noise alone (drift check)
     cr = with_deviation(cr, share.used * variance)
     pos = 0.0 if me is None else me.position_m
     rot = 0.0 if me is None or me.rotation_rad is None else me.rotation_rad
@@ -425,7 +448,7 @@ def board_accuracy(obs: BoardObservations, selection: Selection, cr: BoardCramer
     sample = workspace_sample(q_cal, limits, count=count)
     note = ("no cross-validation (the frames show one arm configuration): the covariance alone, "
             "which is optimistic when the model misfits")  # fmt: skip
-    _, C, n0 = _full_covariance(cr)
+    cols, C, n0 = _full_covariance(cr)
     C = C + pos**2 * _full_covariance(cr, misfit=True)[1]  # as `covariance_si` (the misfit's)
     p = len(C) - n0
     extra = {
@@ -433,6 +456,7 @@ def board_accuracy(obs: BoardObservations, selection: Selection, cr: BoardCramer
         # the drift check's prediction of new pixels (selfcal/calibration/drift/images.py)
         "camera_covariance_si": C[p:, p:].tolist(),
         "camera_cross_si": C[:p, p:].tolist(),
+        "noise_covariance_si": _noise_covariance(noisy, cols).tolist(),
         "tool_point": "the flange",
         "T_tool_point_si": np.asarray(T_tool_point, float).tolist(),
         "joint_limits_si": np.asarray(limits, float).tolist(),

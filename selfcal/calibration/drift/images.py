@@ -49,7 +49,8 @@ fit's, not independent of its estimate; the test read them as a camera change on
 New images at a calibration frame's posture, when its frames showed a per-view misfit, are tested
 by their residuals' difference from that frame's (:mod:`selfcal.calibration.drift.paired`: the
 misfit of that posture and the estimate's error cancel; ``Sigma``'s blocks of them are both
-views' noise, with no ``H C H^T``); without a misfit the new view alone is the stronger test (its
+views' noise, with no ``H C H^T``, and their blocks with an unpaired view ``H_b C_e H_u^T``, the
+frame's noise in the estimate); without a misfit the new view alone is the stronger test (its
 noise once, not twice).
 
 The change at the tool: the RMS over the new postures of the tool point's (the flange's) move
@@ -79,7 +80,7 @@ from selfcal.calibration.drift.attribution import Attribution, Fits, attribute, 
 from selfcal.calibration.drift.fold_error import fold_error_model
 from selfcal.calibration.drift.own import JOINT_TOL, calibration_frames, own_views
 from selfcal.calibration.drift.p_value import combined_p, min_p, p_text
-from selfcal.calibration.drift.paired import paired_views, posture_tol
+from selfcal.calibration.drift.paired import noise_covariance, paired_views, posture_tol
 from selfcal.calibration.drift.views import (
     ViewJacobians,
     ViewNoise,
@@ -270,10 +271,18 @@ class ImageDriftCheck:
         }
 
 
-def _covariance(C: np.ndarray, views: list[ViewJacobians]) -> np.ndarray:
-    """``Sigma`` (module docstring) of the stacked views, ``C`` the estimate's covariance."""
+def _covariance(C: np.ndarray, views: list[ViewJacobians],
+                C_noise: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
+    """``Sigma`` (module docstring) of the stacked views, ``C`` the estimate's covariance,
+    ``C_noise`` its part from the calibration frames' noise (None: a file written before it,
+    the paired views' cross term left out)."""
     H = np.concatenate([np.concatenate([v.kin, v.cam], axis=1) * (not v.paired) for v in views])
     sigma = H @ C @ H.T  # a paired view's estimate cancels (selfcal.calibration.drift.paired)
+    if C_noise is not None:  # but its frame's noise moved the estimate the others hold
+        Y = np.concatenate([np.zeros((len(v.r), H.shape[1])) if v.frame_H is None else v.frame_H
+                            for v in views])  # fmt: skip
+        cross = Y @ C_noise @ H.T
+        sigma += cross + cross.T
     at = np.cumsum([0] + [len(v.r) for v in views])
     for i, v in enumerate(views):
         sigma[at[i] : at[i + 1], at[i] : at[i + 1]] += v.local
@@ -334,7 +343,8 @@ def kinematic_bound_mm(fits: Fits, rw: np.ndarray, views: list[ViewJacobians],
 
 def image_drift_check(C: np.ndarray, views: list[ViewJacobians], *,
                       eye_to_hand: bool, camera_names: tuple[str, ...] = (),
-                      alpha: float = ALPHA, exact: bool = False) -> ImageDriftCheck:  # fmt: skip
+                      alpha: float = ALPHA, exact: bool = False,
+                      C_noise: np.ndarray | None = None) -> ImageDriftCheck:  # fmt: skip
     """Test the linearised ``views`` (:func:`view_jacobians`) against the calibration's
     estimate covariance ``C`` (p + c, p + c) of its estimated kinematic parameters and the
     camera's free parameters (:func:`estimate_covariance`; module docstring; ``camera_names``
@@ -343,6 +353,9 @@ def image_drift_check(C: np.ndarray, views: list[ViewJacobians], *,
     (:func:`selfcal.calibration.drift.p_value.min_p`, Monte Carlo) rather than Bonferroni's
     bound, which the tests' correlation makes conservative; the default stays Bonferroni
     (``python -m selfcal.benchmarks.drift_images --min-p`` measures the difference).
+    ``C_noise``: the part of ``C`` from the calibration frames' noise
+    (:func:`noise_covariance`), for a paired view's correlation with the others (None: left
+    out).
 
     Raises:
         InputError: no view.
@@ -351,7 +364,7 @@ def image_drift_check(C: np.ndarray, views: list[ViewJacobians], *,
         raise InputError("drift check: no view of the board to compare",
                          fix="give images that show the board")  # fmt: skip
     r = np.concatenate([v.r for v in views])
-    sigma = _covariance(C, views)
+    sigma = _covariance(C, views, C_noise)
     L = np.linalg.cholesky(sigma)
 
     def white(M: np.ndarray) -> np.ndarray:
@@ -392,14 +405,17 @@ def image_drift_check(C: np.ndarray, views: list[ViewJacobians], *,
 
 def fold_recheck(res: ImageDriftCheck, wide: ToolErrorModel | None,
                  views_of: Callable[[ToolErrorModel], list[ViewJacobians]], C: np.ndarray, *,
-                 eye_to_hand: bool, alpha: float = ALPHA) -> ImageDriftCheck:  # fmt: skip
+                 eye_to_hand: bool, alpha: float = ALPHA,
+                 C_noise: np.ndarray | None = None) -> ImageDriftCheck:  # fmt: skip
     """The verdict ``res`` of the views ``views_of(em)``, when it says changed, tested again at
     ``wide`` (:func:`selfcal.calibration.drift.fold_error.fold_error_model`, the calibration's
     folds' error at configurations they left out as the model error; None: ``res`` stands):
-    changed when they fail that too, else "cannot tell" (``undecided``); ``C`` as before."""
+    changed when they fail that too, else "cannot tell" (``undecided``); ``C``, ``C_noise`` as
+    before."""
     if not res.changed or wide is None:
         return res
-    again = image_drift_check(C, views_of(wide), eye_to_hand=eye_to_hand, alpha=alpha)
+    again = image_drift_check(C, views_of(wide), eye_to_hand=eye_to_hand, alpha=alpha,
+                              C_noise=C_noise)  # fmt: skip
     res = replace(res, fold_error_mm=wide.model_error_m * 1e3, fold_p_value=again.p_value,
                   fold_error_deg=float(np.degrees(wide.model_error_rad or 0.0)))  # fmt: skip
     if again.changed:
@@ -491,11 +507,11 @@ def check_images(calibration: str | Path, new_data: str | Path, *,
 
     views = calibration_views(cal, em, held.q, new, where=str(path))
     tested, repeated = paired_views(cal, path, held, mine, new, views, em=em, noise=noise)
-    C = estimate_covariance(cal, em)
+    C, C_noise = estimate_covariance(cal, em), noise_covariance(cal, em)
     res = image_drift_check(C, tested, eye_to_hand=cal.eye_to_hand,
-                            camera_names=cal.cameras[0].free, alpha=alpha)  # fmt: skip
+                            camera_names=cal.cameras[0].free, alpha=alpha, C_noise=C_noise)  # fmt: skip
     res = fold_recheck(res, fold_error_model(em, cal.accuracy, noise.misfit_counted), views_of, C,
-                       eye_to_hand=cal.eye_to_hand, alpha=alpha)  # fmt: skip
+                       eye_to_hand=cal.eye_to_hand, alpha=alpha, C_noise=C_noise)  # fmt: skip
     far = unseen(held.q[[f for f, _, _ in new]], q_cal, cal.model.joint_types)
     return replace(res, unseen=int(np.count_nonzero(far)), own=int(np.count_nonzero(own)),
                    paired=sum(v.paired for v in tested), repeated=repeated)  # fmt: skip

@@ -51,11 +51,15 @@ class ViewJacobians:
             twist; tw: (6, n) every joint's body twist.
         paired: ``r`` is the difference from the calibration's own frame at the same posture
             (:mod:`selfcal.calibration.drift.paired`): the calibration's estimate cancels in
-            it (no ``H C H^T`` term) and ``local`` is both views' noise.
+            it (no ``H C H^T`` term of its own) and ``local`` is both views' noise.
         frame: a paired view's frame, ``(key, rows, noise)``: the frame's index among the
             calibration's, the rows (2k,) of its pixels ``r`` subtracts and the frame's noise
             (2K, 2K) px^2 over all its pixels: two views paired with one frame share its noise
             on their common rows (``Cov(d1, d2) = noise[rows1, rows2]``); None otherwise.
+        frame_H: a paired view's frame's ``[kin, cam]`` on those rows (2k, p + c): its noise
+            moved the calibration's estimate, so the difference shares ``H_b C_e H_u^T`` with
+            every other new view's residuals (``C_e`` the estimate's covariance from the noise,
+            :func:`selfcal.calibration.drift.images._covariance`); None otherwise.
     """
 
     r: np.ndarray
@@ -70,6 +74,7 @@ class ViewJacobians:
     tw: np.ndarray
     paired: bool = False
     frame: tuple[int, np.ndarray, np.ndarray] | None = None
+    frame_H: np.ndarray | None = None
 
 
 def tool_pose_error(A: np.ndarray, B: np.ndarray, m2: np.ndarray) -> np.ndarray:
