@@ -5,9 +5,11 @@ correlation with the unpaired ones through its frame's noise in the calibration'
 import dataclasses
 
 import numpy as np
+import pytest
 from scipy.spatial.transform import Rotation
 
 from selfcal.calibration.accuracy import excess, whitened_excess
+from selfcal.calibration.drift.fold_error import fold_excess
 from selfcal.calibration.drift.images import _covariance, image_drift_check
 from selfcal.calibration.drift.views import ViewJacobians
 
@@ -104,3 +106,15 @@ def test_a_paired_view_shares_its_frames_noise_in_the_estimate_with_the_others()
                                 eye_to_hand=False, alpha=0.2, C_noise=C).changed
               for r in R[:200]]  # fmt: skip
     assert np.mean(alarms) <= 0.26
+
+
+def test_the_check_takes_the_folds_whitened_excess_where_the_block_gives_it():
+    """The block's ``whitened_excess_mm`` / ``_deg`` is the second null's size; a file written
+    before it keeps the squared norms' rule (here 0.80 mm held out against 0.2 mm estimation
+    and 0.1 mm noise over 30 rows: an excess of 0.45 mm per coordinate)."""
+    old = {"held_out_rms_mm": 0.80, "estimation_rms_mm": 0.2, "noise_mm": 0.1, "rows": 30}
+    pos, rot = fold_excess({"model_error": old})
+    assert pos * 1e3 == pytest.approx(np.sqrt((0.80**2 - 0.2**2 - 3 * 0.1**2) / 3)) and rot == 0.0
+    new = old | {"whitened_excess_mm": 0.3, "whitened_excess_deg": 0.05}
+    assert fold_excess({"model_error": new}) == pytest.approx((3e-4, np.radians(0.05)))
+    assert fold_excess({"model_error": old | {"whitened_excess_mm": 0.0}}) == (0.0, 0.0)
