@@ -19,21 +19,37 @@ predicted standard deviations. Besides, the realised mean square orientation err
 predicted one, and how far the first-order carriage ``J dp`` of the parameter error is from the
 true orientation error (the same frame and convention when near 0).
 
+The orientation bound itself (:func:`bound_check`): the 95 % bound of the orientation error's
+norm (:func:`selfcal.kinematics.tool_error.norm_quantile` of ``J C J^T``, the covariance alone,
+as the Monte Carlo's column "orientation, covariance alone" at the inside region) against the
+true errors: the pooled coverage; each draw's probability integral transform at the first inside
+joint vector, ``u = P(|x| <= |e|)`` for ``x`` from the prediction (Satterthwaite's chi-square, the
+bound's own), uniform on 0-1 over the draws for a right prediction whatever the draws' truths,
+so its mean (0.5 +- ``sqrt(1 / 12 d)``), the Kolmogorov-Smirnov test of it and the count of draws
+beyond the bound there (``u > 0.95``: binomial, ``d`` draws at 5 %) say whether the bound is
+too wide with every draw's whole error, not only whether it fell inside; the realised over the
+predicted mean square with a bootstrap 90 % range over the draws; and the Satterthwaite
+quantile against the exact one (each draw's covariance sampled).
+
 ``--fixed-truth SEED``: every draw keeps the truth and postures of ``SEED`` and draws only new
 pixel noise (seeds ``--first-seed``...): the spread over the draws is the pixel noise's part
-alone, the mean the joint read-back's (the same rounded counts in every draw).
+alone, the mean the joint read-back's (the same rounded counts in every draw). ``--keep DIR``:
+each draw's result is kept in ``DIR`` (one ``.npz`` a draw, named by robot, noise, seed and fixed
+truth) and read from there when it is already in it (the numbers the same: each draw is seeded).
 
 Run: ``uv run python -m selfcal.benchmarks.board_accuracy_parts [--robot er4u-paper]
-[--noise-px 0.2] [--draws 20] [--first-seed 1] [--fixed-truth SEED] [--jobs 1]``.
+[--noise-px 0.2] [--draws 20] [--first-seed 1] [--fixed-truth SEED] [--jobs 1] [--keep DIR]``.
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
 import numpy as np
 from scipy.spatial.transform import Rotation
+from scipy.stats import binom, chi2, kstest
 
 from selfcal.benchmarks.board_accuracy_draw import (
     calibrated,
@@ -47,9 +63,10 @@ from selfcal.calibration.board.accuracy import board_error_model_from_json
 from selfcal.camera.spec import values_by_name
 from selfcal.kinematics.forward import fk_tool
 from selfcal.kinematics.mcpc import param_is_angle, param_names
+from selfcal.kinematics.tool_error import norm_quantile
 from selfcal.threads import limit_threads
 
-__all__ = ["draw_parts", "directions", "main", "table"]
+__all__ = ["bound_check", "bound_lines", "draw_parts", "directions", "kept_draw", "main", "table"]
 
 DIRECTIONS = 4
 """The orientation covariance's directions :func:`table` lists (the ER-4u's first two carry
@@ -125,6 +142,102 @@ def directions(g: dict) -> dict:
     }
 
 
+def kept_draw(args: tuple) -> dict:
+    """:func:`draw_parts` of ``args[:4]``, kept in the folder ``args[4]`` (one ``.npz`` a draw;
+    None: not kept) and read from there when it is already in it."""
+    robot, sigma_px, seed, truth_seed, keep = args
+    if keep is None:
+        return draw_parts((robot, sigma_px, seed, truth_seed))
+    path = Path(keep) / f"{robot}_{sigma_px:g}px_seed{seed}_truth{truth_seed}.npz"
+    if path.exists():
+        with np.load(path, allow_pickle=False) as z:
+            g = {k: z[k] for k in z.files}
+        g["status"], g["names"] = str(g["status"]), [str(n) for n in g["names"]]
+        return g
+    g = draw_parts((robot, sigma_px, seed, truth_seed))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    np.savez(path, **{k: np.asarray(v) for k, v in g.items()})
+    return g
+
+
+EXACT_SAMPLES = 200_000
+"""Samples of a draw's predicted orientation covariance for the exact 95 % quantile of the norm
+:func:`bound_check` compares the bound's with (its sampling error about 0.2 %)."""
+
+EXACT_DRAWS = 30
+"""At most this many draws (spread evenly over them) get that comparison, at their first joint
+vector."""
+
+
+def bound_check(got: list[dict], seed: int = 0, samples: int = EXACT_SAMPLES) -> dict:
+    """The orientation bound's test over the draws ``got`` (:func:`draw_parts`; the ok ones;
+    module docstring): ``draws``; ``coverage`` the share of (draw, joint vector) pairs within
+    the 95 % bound; ``pit`` (d,) each draw's ``P(|x| <= |e|)`` at its first joint vector with
+    ``pit_mean`` and the Kolmogorov-Smirnov p ``pit_ks_p`` against the uniform; ``beyond`` the
+    draws with ``pit`` above 0.95, ``beyond_range`` a right bound's central 90 % range of that
+    count and ``beyond_p`` the chance of at most ``beyond``; ``ratio`` the pooled realised over
+    predicted mean square orientation error (every joint vector) with ``ratio_range`` its
+    bootstrap 90 % range over the draws; ``quantile_excess`` the largest and the median
+    relative excess of the bound's 95 % quantile over the exact one (``samples`` samples of the
+    covariance at the first joint vector of at most :data:`EXACT_DRAWS` draws); seeded by
+    ``seed``."""
+    ok = [g for g in got if g["status"] == "ok"]
+    rng = np.random.default_rng(seed)
+    z2 = rng.standard_normal((samples, 3)) ** 2
+    exact_of = set(np.linspace(0, len(ok) - 1, min(len(ok), EXACT_DRAWS)).round().astype(int))
+    inside, pit, sq, tr_mean, excess = [], [], [], [], []
+    for i, g in enumerate(ok):
+        J, e = g["J"], g["e_rot"]
+        p = J.shape[2]
+        S = J @ g["cov"][:p, :p] @ np.swapaxes(J, 1, 2)
+        n2 = np.sum(e**2, axis=1)
+        inside.append(n2 <= norm_quantile(S) ** 2)
+        tr, tr2 = np.trace(S, axis1=1, axis2=2), np.einsum("mij,mji->m", S, S)
+        pit.append(float(chi2.cdf(n2[0] * tr[0] / tr2[0], tr[0] ** 2 / tr2[0])))
+        sq.append(n2.mean())
+        tr_mean.append(tr.mean())
+        if i in exact_of:
+            exact = np.sqrt(np.quantile(z2 @ np.linalg.eigvalsh(S[0]), 0.95))
+            excess.append(float(norm_quantile(S[0])) / exact - 1.0)
+    d = len(ok)
+    u, sq_a, tr_a, ex = np.array(pit), np.array(sq), np.array(tr_mean), np.array(excess)
+    boot = rng.integers(0, d, (4000, d))
+    beyond = int(np.sum(u > 0.95))
+    return {
+        "draws": d,
+        "coverage": float(np.mean(np.concatenate(inside))),
+        "pit": u,
+        "pit_mean": float(u.mean()),
+        "pit_ks_p": float(kstest(u, "uniform").pvalue),
+        "beyond": beyond,
+        "beyond_range": (int(binom.ppf(0.05, d, 0.05)), int(binom.ppf(0.95, d, 0.05))),
+        "beyond_p": float(binom.cdf(beyond, d, 0.05)),
+        "ratio": float(sq_a.sum() / tr_a.sum()),
+        "ratio_range": tuple(
+            float(x)
+            for x in np.quantile(sq_a[boot].sum(axis=1) / tr_a[boot].sum(axis=1), [0.05, 0.95])
+        ),  # fmt: skip
+        "quantile_excess": (float(ex.max()), float(np.median(ex))),
+    }
+
+
+def bound_lines(b: dict) -> list[str]:
+    """The lines :func:`table` prints of a :func:`bound_check`."""
+    lo, hi = b["beyond_range"]
+    return [
+        f"orientation's 95 % bound (covariance alone, inside): covers {100 * b['coverage']:.1f} % "
+        f"of the points; at each draw's first point u = P(|x| <= |e|) has mean "
+        f"{b['pit_mean']:.3f} (a right bound's 0.5 +- {np.sqrt(1 / 12 / b['draws']):.3f}), "
+        f"Kolmogorov-Smirnov p = {b['pit_ks_p']:.2f} against the uniform, {b['beyond']} draws "
+        f"beyond the bound (a right bound's {lo}-{hi}, P(<= {b['beyond']}) = "
+        f"{b['beyond_p']:.2f}); realised / predicted mean square {b['ratio']:.2f} (bootstrap "
+        f"90 % {b['ratio_range'][0]:.2f}-{b['ratio_range'][1]:.2f}); Satterthwaite's 95 % "
+        f"quantile over the exact one: at most {100 * b['quantile_excess'][0]:+.2f} % "
+        f"(median {100 * b['quantile_excess'][1]:+.2f} %)",
+        "",
+    ]
+
+
 def table(got: list[dict], title: str) -> str:
     """The Markdown tables of the draws ``got`` (:func:`draw_parts`; failed ones counted)."""
     ok = [g for g in got if g["status"] == "ok"]
@@ -145,7 +258,8 @@ def table(got: list[dict], title: str) -> str:
                      + ", ".join(f"{names[i]} {load[i]:.2f}" for i in top)
                      + f" | {np.mean([d['z'][j] ** 2 for d in dirs]):.2f} |")  # fmt: skip
     ratio = np.array([d["ratio"] for d in dirs])
-    lines += ["", f"realised / predicted mean square orientation error (inside): pooled "
+    lines += ["", *bound_lines(bound_check(ok)),
+              f"realised / predicted mean square orientation error (inside): pooled "
               f"{ratio.mean():.2f}; first-order carriage J dp against the true error: at most "
               f"{max(d['linear'] for d in dirs):.1e} of its RMS", "",
               "| parameter | mean z | mean z^2 |", "|---|---|---|"]  # fmt: skip
@@ -165,6 +279,8 @@ def _arguments(argv: list[str] | None) -> argparse.Namespace:
     ap.add_argument("--fixed-truth", type=int, metavar="SEED",
                     help="keep the truth and postures of SEED, draw only the pixel noise")  # fmt: skip
     ap.add_argument("--jobs", type=int, default=1, help="processes (default 1)")
+    ap.add_argument("--keep", type=Path, metavar="DIR",
+                    help="keep each draw in DIR and read it from there when it is there")  # fmt: skip
     return ap.parse_args(argv)
 
 
@@ -173,7 +289,8 @@ def main(argv: list[str] | None = None) -> int:
     limit_threads(1)
     a = _arguments(argv)
     seeds = range(a.first_seed, a.first_seed + a.draws)
-    got = map_jobs(draw_parts, [(a.robot, a.noise_px, s, a.fixed_truth) for s in seeds], a.jobs)
+    got = map_jobs(kept_draw, [(a.robot, a.noise_px, s, a.fixed_truth, a.keep) for s in seeds],
+                   a.jobs)  # fmt: skip
     truth = "a new truth each" if a.fixed_truth is None else f"the truth of seed {a.fixed_truth}"
     print(table(got, f"{a.robot} fits {a.noise_px:g} px, seeds {seeds.start}-{seeds.stop - 1} "
                      f"({truth})"))  # fmt: skip
