@@ -33,12 +33,16 @@ quantile against the exact one (each draw's covariance sampled).
 
 ``--fixed-truth SEED``: every draw keeps the truth and postures of ``SEED`` and draws only new
 pixel noise (seeds ``--first-seed``...): the spread over the draws is the pixel noise's part
-alone, the mean the joint read-back's (the same rounded counts in every draw). ``--keep DIR``:
+alone, the mean the joint read-back's (the same rounded counts in every draw). ``--noise-offset
+N``: every draw keeps its own seed's truth and postures and draws its pixel noise with the seed
+``N`` higher (other noise on the same truths: whether what a set of draws shows sits with its
+truths or with its noise). ``--keep DIR``:
 each draw's result is kept in ``DIR`` (one ``.npz`` a draw, named by robot, noise, seed and fixed
 truth) and read from there when it is already in it (the numbers the same: each draw is seeded).
 
 Run: ``uv run python -m selfcal.benchmarks.board_accuracy_parts [--robot er4u-paper]
-[--noise-px 0.2] [--draws 20] [--first-seed 1] [--fixed-truth SEED] [--jobs 1] [--keep DIR]``.
+[--noise-px 0.2] [--draws 20] [--first-seed 1] [--fixed-truth SEED | --noise-offset N] [--jobs 1]
+[--keep DIR]``.
 """
 
 from __future__ import annotations
@@ -61,6 +65,7 @@ from selfcal.benchmarks.board_accuracy_draw import (
 from selfcal.benchmarks.pool import map_jobs
 from selfcal.calibration.board.accuracy import board_error_model_from_json
 from selfcal.camera.spec import values_by_name
+from selfcal.errors import UsageError
 from selfcal.kinematics.forward import fk_tool
 from selfcal.kinematics.mcpc import param_is_angle, param_names
 from selfcal.kinematics.tool_error import norm_quantile
@@ -278,6 +283,8 @@ def _arguments(argv: list[str] | None) -> argparse.Namespace:
     ap.add_argument("--first-seed", type=int, default=1, help="the first draw's seed (default 1)")
     ap.add_argument("--fixed-truth", type=int, metavar="SEED",
                     help="keep the truth and postures of SEED, draw only the pixel noise")  # fmt: skip
+    ap.add_argument("--noise-offset", type=int, metavar="N",
+                    help="keep each draw's truth, draw its noise with the seed N higher")  # fmt: skip
     ap.add_argument("--jobs", type=int, default=1, help="processes (default 1)")
     ap.add_argument("--keep", type=Path, metavar="DIR",
                     help="keep each draw in DIR and read it from there when it is there")  # fmt: skip
@@ -289,9 +296,16 @@ def main(argv: list[str] | None = None) -> int:
     limit_threads(1)
     a = _arguments(argv)
     seeds = range(a.first_seed, a.first_seed + a.draws)
-    got = map_jobs(kept_draw, [(a.robot, a.noise_px, s, a.fixed_truth, a.keep) for s in seeds],
-                   a.jobs)  # fmt: skip
-    truth = "a new truth each" if a.fixed_truth is None else f"the truth of seed {a.fixed_truth}"
+    if a.fixed_truth is not None and a.noise_offset is not None:
+        raise UsageError("--fixed-truth and --noise-offset exclude each other: give one")
+    if a.noise_offset is not None:
+        items = [(a.robot, a.noise_px, s + a.noise_offset, s, a.keep) for s in seeds]
+        truth = f"a new truth each, its noise from the seed {a.noise_offset} higher"
+    else:
+        items = [(a.robot, a.noise_px, s, a.fixed_truth, a.keep) for s in seeds]
+        truth = ("a new truth each" if a.fixed_truth is None
+                 else f"the truth of seed {a.fixed_truth}")  # fmt: skip
+    got = map_jobs(kept_draw, items, a.jobs)
     print(table(got, f"{a.robot} fits {a.noise_px:g} px, seeds {seeds.start}-{seeds.stop - 1} "
                      f"({truth})"))  # fmt: skip
     return 0

@@ -6,7 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from selfcal.benchmarks.board_accuracy_parts import bound_check, directions, table
+from selfcal.benchmarks.board_accuracy_parts import bound_check, directions, kept_draw, main, table
+from selfcal.errors import UsageError
 
 
 def _draw(dp: np.ndarray) -> dict:
@@ -73,3 +74,22 @@ def test_the_bound_check_finds_a_bound_twice_too_wide():
     assert b["coverage"] > 0.99 and b["pit_mean"] < 0.3 and b["pit_ks_p"] < 1e-6
     assert b["beyond"] < b["beyond_range"][0] and b["beyond_p"] < 0.01
     assert b["ratio_range"][1] < 0.3
+
+
+def test_a_kept_draw_is_read_back_as_it_was_kept(tmp_path):
+    """``--keep``: a draw kept in the folder under its robot, noise, seed and truth is read
+    from there (no calibration run), its status and names as strings, its arrays equal."""
+    g = _draw(np.array([2.0, -1.0, 0.5]))
+    np.savez(
+        tmp_path / "ur5e_0.2px_seed7_truthNone.npz", **{k: np.asarray(v) for k, v in g.items()}
+    )
+    got = kept_draw(("ur5e", 0.2, 7, None, tmp_path))
+    assert got["status"] == "ok" and got["names"] == ["a", "b", "c"]
+    assert np.array_equal(got["cov"], g["cov"]) and np.array_equal(got["e_rot"], g["e_rot"])
+
+
+def test_a_fixed_truth_and_a_noise_offset_are_refused_together():
+    """``--fixed-truth`` and ``--noise-offset`` say two things about the truths: refused before
+    any draw runs."""
+    with pytest.raises(UsageError, match="--noise-offset"):
+        main(["--fixed-truth", "1", "--noise-offset", "500", "--draws", "1"])
