@@ -124,7 +124,7 @@ def table(rows: list[dict]) -> str:
     lines += ["", f"{_sizes(first)} draws per row ({failed} failed in all), "
               f"scenarios/mono-charuco.toml on the analytic path with each robot, {poses} "
               f"calibration postures, {COUNT} joint vectors per region and draw; `uv run python "
-              f"-m selfcal.benchmarks.board_accuracy {_options(first)} --jobs 1 --write-docs`"
+              f"-m selfcal.benchmarks.board_accuracy {_options(first)}`"
               f"{_codes(first)}."]  # fmt: skip
     return head + "\n".join(lines)
 
@@ -164,13 +164,20 @@ def _sizes(first: list[dict]) -> str:
 def _options(first: list[dict]) -> str:
     """The benchmark's options that make the rows ``first`` (one per robot, model and noise):
     ``--draws`` (when every row has the same count), ``--robots``, ``--models``, ``--noise-px``
-    in the rows' order."""
+    in the rows' order, ``--first-seed`` / ``--read-back`` when not the defaults, then ``--jobs 1``
+    and ``--write-docs`` where the block takes such rows."""
     robots, models, levels = (",".join(dict.fromkeys(f"{r[k]:g}" if k == "noise_px" else r[k]
                                                      for r in first))
                               for k in ("robot", "model", "noise_px"))  # fmt: skip
     draws = _sizes(first)
     count = "" if "/" in draws else f"--draws {draws} "
-    return f"{count}--robots {robots} --models {models} --noise-px {levels}"
+    seeds = sorted({int(r.get("first_seed", 1)) for r in first})
+    backs = sorted({str(r.get("read_back", "rounded")) for r in first})
+    other = (f" --first-seed {'/'.join(map(str, seeds))}" if seeds != [1] else "") + \
+        (f" --read-back {'/'.join(backs)}" if backs != ["rounded"] else "")  # fmt: skip
+    # --write-docs writes only the block of seeds 1, 2, ... with the rounded read-back
+    docs = " --jobs 1" if other else " --jobs 1 --write-docs"
+    return f"{count}--robots {robots} --models {models} --noise-px {levels}{other}{docs}"
 
 
 def table_rendered(rows: list[dict]) -> str:
@@ -201,7 +208,7 @@ def table_rendered(rows: list[dict]) -> str:
               f"{POSES} calibration postures, {COUNT} joint vectors per region and draw; the "
               "corner noise is the detected corners against their true projections; "
               f"`MUJOCO_GL=egl uv run python -m selfcal.benchmarks.board_accuracy --render "
-              f"{_options(first)} --jobs 1 --write-docs`{_codes(first)}."]  # fmt: skip
+              f"{_options(first)}`{_codes(first)}."]  # fmt: skip
     return head + "\n".join(lines)
 
 

@@ -40,6 +40,17 @@ def test_a_run_stamps_its_rows_with_the_code_that_measured_them(tmp_path, monkey
     assert table(rows).endswith("--jobs 1 --write-docs`, measured by the code at abc1234.")
 
 
+def test_the_tables_command_names_other_seeds_and_then_writes_no_docs(monkeypatch):
+    """Rows of seeds 91, 92, ... say so in the table's command, without --write-docs (which
+    refuses --first-seed): the printed command makes those rows again."""
+    monkeypatch.setattr(board_accuracy, "code_version", lambda: "abc1234")
+    monkeypatch.setattr(board_accuracy, "draw", lambda args: _got(1, args[3])[0])
+    rows = board_accuracy.run(2, ("ur5e",), ("fits",), (0.2,), jobs=1, first_seed=91)
+    text = table(rows)
+    assert "--noise-px 0.2 --first-seed 91 --jobs 1`, measured by the code at abc1234." in text
+    assert "--write-docs" not in text
+
+
 def test_a_run_started_again_keeps_the_rows_its_code_and_seeds_measured(tmp_path, monkeypatch):
     """--rows-out resumes: a row already in the file from the same clean commit, seeds and
     draws is kept, not drawn again; another commit, other seeds, other draws or a tree with
