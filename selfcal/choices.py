@@ -12,6 +12,7 @@ __all__ = [
     "BAG_FORMATS",
     "JOINT_TOPIC",
     "HANDEYE_CAMERA",
+    "SETUPS",
 ]
 
 CAMERA_MODELS = ("pinhole", "opencv", "fisheye")
@@ -36,3 +37,6 @@ HANDEYE_CAMERA = ("auto", "held", "refined")
 """How a pose dataset's hand-eye treats the camera in its answer (``selfcal calibrate --camera``,
 :func:`selfcal.calibration.handeye.calibrate.calibrate_hand_eye`'s ``camera``): chosen by
 cross-validation, held at the board calibration's, refined with the hand-eye."""
+SETUPS = ("eye-in-hand", "eye-to-hand")
+"""Where the camera is (a scenario's ``[camera] setup``, ``dataset.json``'s ``setup``, ``--setup``):
+on the flange with the board static, or static in the cell with the board on the flange."""

@@ -11,7 +11,7 @@ import json
 import sys
 from pathlib import Path
 
-from selfcal.choices import HANDEYE_CAMERA
+from selfcal.choices import HANDEYE_CAMERA, SETUPS
 from selfcal.console.common import CliError, note_written
 from selfcal.errors import SelfCalError
 
@@ -28,8 +28,6 @@ __all__ = [
 
 ROTATIONS = ("quaternion-xyzw", "abb-quaternion", "kuka-abc", "fanuc-wpr", "ur-rotvec")
 """``--rotation``: :data:`selfcal.io.poses.conventions.CONVENTIONS` (kept here so --help needs no scipy)."""
-SETUP_CHOICES = ("eye-in-hand", "eye-to-hand")
-"""``--setup``: :data:`selfcal.io.poses.dataset.SETUPS`."""
 _POSE_ONLY = ("pose_units", "rotation", "setup")
 POSE_NOISE_HELP = (
     "pose datasets: the flange poses' noise per axis, MM,DEG (e.g. 0.5,0.05: each pose then gets "
@@ -93,7 +91,7 @@ def add_pose_import_args(sp: argparse.ArgumentParser) -> None:
         "(W,P,R deg, fixed X-Y-Z), ur-rotvec (rx,ry,rz rad); default: from the column names",
     )  # fmt: skip
     sp.add_argument(
-        "--setup", default=None, choices=SETUP_CHOICES,
+        "--setup", default=None, choices=SETUPS,
         help="eye-in-hand (camera on the flange, board static) or eye-to-hand (camera static, "
         "board on the flange): needed with --poses and a --bag's --tf-parent/--tf-child; with "
         "--joints default eye-in-hand, recorded in dataset.json so calibrate takes the board "

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from selfcal.choices import SETUPS
 from selfcal.cli import plan_field
 from selfcal.cli.plan_args import (
     check_common,
@@ -463,7 +464,7 @@ def register(subparsers) -> argparse.ArgumentParser:
     sp.add_argument("--measure", default="camera", choices=["camera", "tracker"],
                     help="what measures the arm: a camera seeing a board (default) or a laser "
                     "tracker measuring a tool point (selfcal identify); see below")  # fmt: skip
-    sp.add_argument("--mount", default=None, choices=["eye-in-hand", "eye-to-hand"],
+    sp.add_argument("--mount", default=None, choices=SETUPS,
                     help="where the camera is (default eye-in-hand: on the flange, the board "
                     "still; eye-to-hand: still, the board on the flange)")  # fmt: skip
     sp.add_argument("--board-pose", default=None, metavar="X,Y,Z[,RX,RY,RZ]",

@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from selfcal.camera import MODELS, CameraModel, camera_model, centered_principal_point, lens_names
+from selfcal.choices import SETUPS
 from selfcal.errors import InputError
 
 __all__ = ["CameraConfig", "ConfigError", "PER_CAMERA_KEYS", "SETUPS", "check_setup",
@@ -150,10 +151,6 @@ def validate_camera(f: str, c: CameraConfig, key: str) -> None:
             )
     if "fx" not in c.free or len(set(c.free)) != len(c.free):
         raise ConfigError(f"{f}: {key}.free must list distinct names and include 'fx'")
-
-
-SETUPS = ("eye-in-hand", "eye-to-hand")
-"""``[camera] setup``: the camera on the flange, or static with the board on the flange."""
 
 
 def check_setup(s: Any) -> None:

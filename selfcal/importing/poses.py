@@ -4,7 +4,7 @@ Inputs: the images (a glob, :class:`selfcal.importing.dataset.CameraImages`; or 
 industrial_calibration ``cal_data.yaml`` names), a flange pose file
 (:func:`selfcal.io.poses.files.read_poses`: base -> flange, one row per image in sorted file-name
 order or by its image column), the target TOML of a board and the setup (``eye-in-hand`` or
-``eye-to-hand``, :data:`selfcal.io.poses.dataset.SETUPS`). Checked as ``selfcal import`` checks a
+``eye-to-hand``, :data:`selfcal.choices.SETUPS`). Checked as ``selfcal import`` checks a
 joints dataset: row and image counts, one image size, the board found (the others named, counted
 and skipped with a :class:`selfcal.importing.dataset.TargetNotFoundWarning`), the declared geometry
 against the detections. Writes :mod:`selfcal.io.poses.dataset`'s folder. No robot model is needed:
@@ -21,12 +21,12 @@ from pathlib import Path
 
 import numpy as np
 
-from selfcal.choices import DEFAULT_MODEL
+from selfcal.choices import DEFAULT_MODEL, SETUPS
 from selfcal.importing.checks import ImportError_, check_geometry, warn_not_found
 from selfcal.importing.dataset import CameraImages, camera_choice, detect_images
 from selfcal.io.atomic import write_text_atomic
 from selfcal.io.outlock import removed_on_failure
-from selfcal.io.poses.dataset import SETUPS, PoseDataset, write_pose_dataset
+from selfcal.io.poses.dataset import PoseDataset, write_pose_dataset
 from selfcal.io.poses.files import read_poses
 from selfcal.io.target_toml import load_target, target_document
 from selfcal.target.boards import Board

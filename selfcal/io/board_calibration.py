@@ -52,6 +52,7 @@ from pathlib import Path
 import numpy as np
 
 from selfcal.camera import MODELS, CameraModel, camera_model, lens_names, opencv_values
+from selfcal.choices import SETUPS
 from selfcal.errors import InputError
 from selfcal.io.calibration_bounds import BoundParameter, CameraBounds, ToolTipBound
 from selfcal.io.calibration_terms import IMAGES, Section, SectionType, read_sections
@@ -360,8 +361,8 @@ class BoardCalibrationResult:
                for c in (f.items("nominal_cameras") if f.has("nominal_cameras") else [])]  # fmt: skip
         d = f.sub("dataset")
         setup = f.str("setup") if f.has("setup") else "eye-in-hand"
-        if setup not in ("eye-in-hand", "eye-to-hand"):
-            raise f.bad("setup", "eye-in-hand or eye-to-hand", setup)
+        if setup not in SETUPS:
+            raise f.bad("setup", " or ".join(SETUPS), setup)
         return cls(
             robot_model=f.str("robot_model"),
             target=dict(f.sub("target").doc),

@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from selfcal.camera import MODELS, Pinhole, camera_model, canonical_free, lens_names
+from selfcal.choices import SETUPS
 from selfcal.errors import InputError
 from selfcal.io.jsonfile import (
     SCHEMA_KEY,
@@ -38,7 +39,6 @@ from selfcal.io.jsonfile import (
     load_json,
     write_json_atomic,
 )
-from selfcal.io.poses.dataset import SETUPS
 from selfcal.io.target_toml import dictionary_name, length_m, parse_target
 
 __all__ = [
@@ -121,7 +121,7 @@ class DatasetInfo:
     ``"per_camera_intrinsics": true`` in a schema-3 file (older code would estimate one camera
     for the rig, so it refuses the file); absent otherwise (schema 2, as before)."""
     setup: str = "eye-in-hand"
-    """Where the cameras are (:data:`selfcal.io.poses.dataset.SETUPS`): ``"eye-in-hand"`` on the
+    """Where the cameras are (:data:`selfcal.choices.SETUPS`): ``"eye-in-hand"`` on the
     flange, the board static; ``"eye-to-hand"`` static in the cell, the board on the flange
     (written as ``"setup"`` in a schema-4 file; absent: eye-in-hand)."""
 

@@ -27,11 +27,11 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from selfcal.choices import DEFAULT_MODEL
+from selfcal.choices import DEFAULT_MODEL, SETUPS
 from selfcal.importing.dataset import CameraImages, ImportError_
 from selfcal.importing.poses import import_pose_dataset
 from selfcal.io.atomic import write_text_atomic
-from selfcal.io.poses.dataset import SETUPS, PoseDataset
+from selfcal.io.poses.dataset import PoseDataset
 from selfcal.ros.bag_import import ImageTopic
 from selfcal.ros.bag_rest import GAP, MOVING, OUTSIDE, RestRule, pair_frames, thin_rests
 from selfcal.ros.bag_stage import name_frames, stage_images, warn_skipped

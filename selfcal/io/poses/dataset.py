@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from selfcal.choices import SETUPS
 from selfcal.errors import InputError
 from selfcal.io.atomic import write_text_atomic
 from selfcal.io.jsonfile import SCHEMA_KEY, check_header, load_json, write_json_atomic
@@ -38,8 +39,6 @@ __all__ = [
 ]
 
 POSE_FORMAT = "scorbot-selfcal-pose-dataset"
-SETUPS = ("eye-in-hand", "eye-to-hand")
-"""Where the camera is: on the flange (the board static) or static (the board on the flange)."""
 _FIX = "import it again with `selfcal import --poses FILE ...` (docs/handeye.md)"
 _HEADER = ["index", "x_mm", "y_mm", "z_mm", "qx", "qy", "qz", "qw"]
 
