@@ -23,7 +23,6 @@ from selfcal.acquisition.simulator_setup import (
     scenario_board_pose,
     sim_setup,
 )
-from selfcal.calibration.field.optimal_poses import plan_optimal_postures
 from selfcal.camera import Intrinsics, Rig
 from selfcal.config.scenario import (
     CameraConfig,
@@ -39,7 +38,6 @@ from selfcal.errors import InternalError
 from selfcal.io.atomic import write_image_atomic
 from selfcal.io.dataset_info import DatasetInfo, scenario_digest
 from selfcal.io.target_toml import target_document
-from selfcal.io.tracker import read_joints
 from selfcal.io.truth import (
     TRUTH_JOURNAL,
     append_truth_frame,
@@ -80,6 +78,10 @@ def _file_postures(s: Scenario, robot: RobotDef) -> np.ndarray:
     if not path.is_file():
         raise ConfigError(f"{s.source}: trajectory.joints = {s.trajectory.joints!r}: no such file "
                           f"{path}", fix="give a joints CSV relative to the scenario file")  # fmt: skip
+    # Here, not at the top: the joints' reader comes with the tracker's estimation and so the
+    # solver and scipy, which a run with planned postures needs only once it calibrates (#32).
+    from selfcal.io.tracker import read_joints
+
     return read_joints(path, robot, "deg", guess=False)
 
 
@@ -144,6 +146,10 @@ def plan_optimal(s: Scenario, *, collisions: bool = True, **kw):
     """The D-optimal plan (:class:`selfcal.calibration.field.optimal_poses.OptimalPlan`, ``q`` rad) for scenario ``s``
     over the planning grid of :func:`planning_inputs`, checked for self-collision with MuJoCo
     (:mod:`selfcal.sim.collision`), with ``corners_per_point = corners of the markers / 36``."""
+    # Here, not at the top: the planner loads scipy.linalg, which a run with planned random postures
+    # (the default scenario) needs only once it calibrates (issue #32).
+    from selfcal.calibration.field.optimal_poses import plan_optimal_postures
+
     inp = planning_inputs(s)
     inp.pop("collision_ok")  # the MuJoCo shapes below check it
     corners = CORNERS_PER_MARKER * s.target.markers

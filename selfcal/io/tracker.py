@@ -32,7 +32,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from selfcal.choices import JOINT_UNITS
 from selfcal.errors import InputError
@@ -352,6 +351,9 @@ def read_measurements(
                 "not 1",
                 fix="give unit quaternions (columns qw, qx, qy, qz, in any order)",
             )
+        # Here, not at the top: scipy.spatial (~0.3 s) is needed by no acquisition (issue #32).
+        from scipy.spatial.transform import Rotation
+
         R = Rotation.from_quat(quat[:, [1, 2, 3, 0]] / nrm[:, None]).as_matrix()
     used = set(jcols) | set(XYZ) | (set(QUAT) if R is not None else set())
     t = Table(t.path, t.columns, t.values, t.lines, tuple(c for c in t.columns if c not in used))
@@ -442,6 +444,9 @@ def positions_csv(
     cols = [T[:, :3, 3] * 1e3]
     names = list(XYZ)
     if orientation:
+        # Here, not at the top: scipy.spatial (~0.3 s), as in read_measurements.
+        from scipy.spatial.transform import Rotation
+
         q = Rotation.from_matrix(T[:, :3, :3]).as_quat()[:, [3, 0, 1, 2]]
         cols.append(q * np.where(q[:, :1] < 0, -1.0, 1.0))  # qw >= 0: one of the two signs
         names += QUAT

@@ -89,3 +89,22 @@ def test_the_run_pipeline_loads_no_serial_link_nor_the_other_routes():
     assert [m for m in ("serial", "selfcal.hw.acl.robot", "selfcal.acquisition.hardware")
             if m in mods] == []  # fmt: skip
     assert [m for m in OTHER_ROUTES if m in mods] == []
+
+
+def test_the_acquisition_loads_no_scipy():
+    """`selfcal run` imports the acquisition before its first frame, and the acquisition needs no
+    scipy (issue 32: ~0.3 s of the serial start): the D-optimal planner and the joints file's
+    reader load it where they run. Setups are :data:`selfcal.choices.SETUPS`, not the pose
+    datasets' module (which loads scipy.spatial)."""
+    mods = _loaded("import selfcal.acquisition.acquire, selfcal.acquisition.backends")
+    assert "selfcal.acquisition.backends" in mods  # the probe did import it
+    assert [m for m in mods if m == "scipy" or m.startswith("scipy.")] == []
+
+
+def test_the_setups_are_one_tuple():
+    from selfcal.choices import SETUPS
+    from selfcal.config.camera import SETUPS as CONFIG_SETUPS
+    from selfcal.io.poses.dataset import SETUPS as POSE_SETUPS
+
+    assert SETUPS == ("eye-in-hand", "eye-to-hand")
+    assert CONFIG_SETUPS is SETUPS and POSE_SETUPS is SETUPS
