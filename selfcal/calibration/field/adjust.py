@@ -9,8 +9,9 @@ view (:class:`FreePoses`).
 
 :func:`adjust` runs the sparse bundle adjustment (:func:`selfcal.estimation.bundle_adjust.bundle_adjust`) with a
 soft-L1 loss, re-triangulates every point robustly with the adjusted poses, reclassifies the
-observations (threshold ``max(outlier_px, 4.5 sigma)``) until a round keeps every row it was
-fitted to, then does a final least-squares pass over the rows the last round keeps. Views:
+observations (threshold ``max(outlier_px, 4.5 sigma)``, ``outlier_px`` by default
+:data:`OUTLIER_FLOOR_PX`) until a round keeps every row it was fitted to, then does a final
+least-squares pass over the rows the last round keeps. Views:
 :class:`selfcal.estimation.observations.ViewLayout`.
 """
 
@@ -32,7 +33,17 @@ from selfcal.estimation.triangulation import ray_angle, robust_triangulate
 from selfcal.solver import SchurPlans, SolverOptions
 from selfcal.transforms import inv_pose, make_pose
 
-__all__ = ["Reconstruction", "Adjustment", "rig_from_views", "gauge", "adjust"]
+__all__ = ["Reconstruction", "Adjustment", "rig_from_views", "gauge", "adjust", "OUTLIER_FLOOR_PX"]
+
+OUTLIER_FLOOR_PX = 0.5
+"""The field route's least outlier threshold (px; its camera stage's and its one-step
+refinement's: a corner is an outlier beyond ``max(OUTLIER_FLOOR_PX, 4.5 sigma)``, sigma the
+residuals' robust noise per coordinate). The floor keeps near-noise-free data from rejecting
+rows on a tiny sigma; above ~0.11 px of noise 4.5 sigma is the threshold. It was 3 px, which
+kept corners 1 - 3.4 px off among corners with 0.015 px of noise: on rendered field images a
+marker partly hidden behind a raised neighbour gives such corners, and the one or two kept
+raised the calibration's noise estimate from ~0.02 to 0.05 - 0.09 px and its tool-point error
+several times over (docs/plan.md, "Rendered, on the KR 6's cell")."""
 
 
 def rig_from_views(
@@ -285,7 +296,7 @@ def adjust(
     obs: Observations,
     active: np.ndarray,
     *,
-    outlier_px: float = 3.0,
+    outlier_px: float = OUTLIER_FLOOR_PX,
     robust_scale_px: float = 1.0,
     max_rounds: int = 5,
     max_nfev: int = 200,

@@ -55,6 +55,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from selfcal.calibration.field.adjust import OUTLIER_FLOOR_PX
 from selfcal.calibration.field.joint_gauge import JointRefinementError, choose_gauge
 from selfcal.calibration.identify import IdentificationResult
 from selfcal.camera import Cameras, CameraSet, first_camera
@@ -123,7 +124,7 @@ def joint_refine(
     min_pixel_sigma_px: float = 0.01,
     loss: str = "soft_l1",
     robust_scale_px: float = 1.0,
-    outlier_px: float = 3.0,
+    outlier_px: float = OUTLIER_FLOOR_PX,
     max_rounds: int = 5,
     max_iter: int = 100,
     tol: float = 1e-12,
@@ -153,7 +154,8 @@ def joint_refine(
         loss: ``"soft_l1"`` (robust rounds with outlier rejection, then a plain least-squares
             pass) or ``"linear"`` (plain least squares on the two-stage inliers only).
         robust_scale_px, outlier_px: soft-L1 scale; minimum outlier threshold (the threshold is
-            ``max(outlier_px, 4.5 sigma)``). The robust rounds stop once a round keeps exactly
+            ``max(outlier_px, 4.5 sigma)``; :data:`selfcal.calibration.field.adjust.
+            OUTLIER_FLOOR_PX`, the camera stage's). The robust rounds stop once a round keeps exactly
             the rows it was fitted to (another would solve the same problem again).
         terms: further measurements estimated with the rest (:mod:`selfcal.terms`: tracker
             positions, poses or distances, touch-probe points ...): each adds its residual and

@@ -40,6 +40,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from selfcal.calibration.field.adjust import (
+    OUTLIER_FLOOR_PX,
     Adjustment,
     Reconstruction,
     adjust,
@@ -212,7 +213,7 @@ def self_calibrate(
     fx_bounds: tuple[float, float] | None = None,
     mu_bounds: tuple[float, float] = (0.75, 1.33),
     ransac_px: float = 3.0,
-    outlier_px: float = 3.0,
+    outlier_px: float = OUTLIER_FLOOR_PX,
     robust_scale_px: float = 1.0,
     max_rounds: int = 5,
     max_nfev: int = 200,
@@ -242,7 +243,8 @@ def self_calibrate(
     (the first camera's fx and mu the initialisation's).
     ``fx_guess``/``mu_guess`` skip the fundamental-matrix estimate of fx/mu (use when it is
     degenerate). Thresholds in px: ``ransac_px`` (epipolar/PnP RANSAC), ``outlier_px`` (minimum
-    rejection threshold; the actual one is ``max(outlier_px, 4.5 sigma)``), ``robust_scale_px``
+    rejection threshold, :data:`selfcal.calibration.field.adjust.OUTLIER_FLOOR_PX`; the
+    actual one is ``max(outlier_px, 4.5 sigma)``), ``robust_scale_px``
     (soft-L1 scale).
 
     Raises :class:`InsufficientDataError` (too few views/points), :class:`DegenerateConfiguration
