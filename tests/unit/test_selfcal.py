@@ -193,10 +193,10 @@ def test_gross_outliers_rejected():
 
 
 def test_pixel_outliers_rejected_on_fine_corners():
-    """Corners 1.5 px off among 0.02 px of noise (a rendered field's marker partly hidden
-    behind a raised neighbour, docs/plan.md): every one is rejected, which the former 3 px
-    floor of the threshold did not do (their residuals stay below it)."""
-    sc = synthetic_stereo_scene(30, seed=11, noise_px=0.02, outlier_fraction=0.02, outlier_px=1.5)
+    """Corners 2 px off among 0.02 px of noise (a rendered field's marker partly hidden
+    behind a raised neighbour, docs/plan.md): every one is rejected (the 1 px floor), which the
+    former 3 px floor of the threshold did not do (their residuals stay below it)."""
+    sc = synthetic_stereo_scene(30, seed=11, noise_px=0.02, outlier_fraction=0.02, outlier_px=2.0)
     bad = _assert_outliers_rejected(sc, _calibrate(sc), 0.02)
     assert _calibrate(sc, outlier_px=3.0).n_outliers < bad  # the former floor kept some
 
