@@ -45,7 +45,7 @@ from pathlib import Path
 import numpy as np
 
 from selfcal.benchmarks.drift_real_deviation import deviation_part, with_share
-from selfcal.calibration.accuracy import model_error_of, whitened_excess
+from selfcal.calibration.accuracy import model_error_of, with_whitened
 from selfcal.calibration.board.accuracy import (
     ORIENTATION,
     POSITION,
@@ -223,10 +223,8 @@ def excess_without(folds: list[Fold], left: int | None,
     me = model_error_of(pos[0], pos[1], pos[2], (rot[0], rot[1], rot[2]), folds=len(h),
                         failed=0, noise_what="")  # fmt: skip
     if me is not None and whitened:  # as the accuracy block gives it (board/accuracy.py)
-        e, V = (np.concatenate([x[k] for x in h]) for k in ("e", "S"))
-        V = V + np.concatenate([x["N"] for x in h])
-        me = dataclasses.replace(me, whitened_m=whitened_excess(e[:, POSITION], V[:, POSITION, POSITION]),
-                                 whitened_rad=whitened_excess(e[:, ORIENTATION], V[:, ORIENTATION, ORIENTATION]))  # fmt: skip
+        e, S, N = (np.concatenate([x[k] for x in h]) for k in ("e", "S", "N"))
+        me = with_whitened(me, e, S + N, POSITION, ORIENTATION)
     return fold_excess({"model_error": me.to_json()} if me is not None else None)
 
 

@@ -21,10 +21,11 @@ record (:class:`ModelError`), the ``accuracy`` block of ``calibration.json``
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
+from scipy.optimize import brentq
 
 from selfcal.errors import InputError
 from selfcal.kinematics.mcpc import MCPCModel, minimal_indices
@@ -47,6 +48,7 @@ __all__ = [
     "spans_json",
     "unmeasured_beyond",
     "whitened_excess",
+    "with_whitened",
 ]
 
 SAMPLE_COUNT = 256
@@ -107,10 +109,8 @@ def whitened_excess(e: np.ndarray, V: np.ndarray) -> float:
     lo, hi = 0.0, max(float(np.mean(np.sum(e**2, axis=1))) / d, np.finfo(float).tiny)
     while whitened(hi) > dof:  # the whitened sum falls as m^2 grows
         lo, hi = hi, 2.0 * hi
-    for _ in range(100):  # bisection to the float's resolution
-        mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if whitened(mid) > dof else (lo, mid)
-    return float(np.sqrt(0.5 * (lo + hi)))
+    m2 = brentq(lambda m2: whitened(m2) - dof, lo, hi, xtol=np.finfo(float).tiny, maxiter=200)
+    return float(np.sqrt(m2))
 
 
 @dataclass(frozen=True)
@@ -247,6 +247,17 @@ class ModelError:
                 }
             ),
         }
+
+
+def with_whitened(me: ModelError, e: np.ndarray, V: np.ndarray, position: slice,
+                  orientation: slice) -> ModelError:  # fmt: skip
+    """``me`` with its held-out rows' excess in each row's own metric (:func:`whitened_excess`
+    of the tool-pose errors ``e`` (rows, 6) against their covariances ``V`` (rows, 6, 6), the
+    estimation's and the noise's; m and rad), the ``position`` and the ``orientation``
+    coordinates apart (the drift check's second null)."""
+    P, R = position, orientation
+    return replace(me, whitened_m=whitened_excess(e[:, P], V[:, P, P]),
+                   whitened_rad=whitened_excess(e[:, R], V[:, R, R]))  # fmt: skip
 
 
 def model_error_of(

@@ -79,7 +79,7 @@ from selfcal.calibration.accuracy import (
     postures_from_json,
     spans_json,
     unmeasured_beyond,
-    whitened_excess,
+    with_whitened,
 )
 from selfcal.calibration.board.bounds import BoardCramerRao
 from selfcal.calibration.board.deviation import Deviation
@@ -361,10 +361,7 @@ def model_error(obs: BoardObservations, selection: Selection, offsets: np.ndarra
                         given=(m, m / float(np.mean(h["lever"]))),
                         reach_distance=reach, growth=gram, measured_to=reached)  # fmt: skip
     if me is not None:  # the same rows' excess with each in its own metric (drift check)
-        V = h["S"] + h["N"]
-        e, P, R = h["e"], POSITION, ORIENTATION
-        me = dataclasses.replace(me, whitened_m=whitened_excess(e[:, P], V[:, P, P]),
-                                 whitened_rad=whitened_excess(e[:, R], V[:, R, R]))  # fmt: skip
+        me = with_whitened(me, h["e"], h["S"] + h["N"], POSITION, ORIENTATION)
     if me is None or variance is None:
         return me, share
     # the deviation's share the calibration counts (its covariance's), at the held-out rows
