@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from selfcal.benchmarks.doc_blocks import ROOT, print_table
+from selfcal.choices import SETUPS
 from selfcal.io.atomic import write_text_atomic
 
 __all__ = ["STILL_POSTURES", "still_camera_row", "wrist_cell", "wrist_only_row", "main"]
@@ -231,7 +232,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--truths", type=int, default=6)
     ap.add_argument("--add", type=int, default=5)
     ap.add_argument("--jobs", type=int, default=2)
-    ap.add_argument("--mount", default="eye-in-hand", choices=["eye-in-hand", "eye-to-hand"],
+    ap.add_argument("--mount", default="eye-in-hand", choices=SETUPS,
                     help="the wrist camera's dataset (default) or the still camera's")  # fmt: skip
     ap.add_argument("--out", default=None, help="default runs/plan-add, runs/plan-add-e2h-K")
     ap.add_argument("--write-docs", action="store_true",
