@@ -14,15 +14,17 @@ from selfcal.benchmarks.plan import compare, field_compare
 
 @pytest.fixture
 def journal(tmp_path, monkeypatch):
-    """Two sets with their forecasts (m) and a journal of draws; no planning, no drawing."""
+    """Two sets with their forecasts (m) and a journal of draws; no planning, no drawing; the
+    code checked out is abc1234."""
     q = np.zeros((1, 6))
     sets = {"plan 12": (tmp_path, q, 0.0003), "random 30": (tmp_path, q, 0.0002)}
     monkeypatch.setattr(field_compare, "field_sets", lambda root, **kw: sets)
+    monkeypatch.setattr(field_compare, "code_version", lambda: "abc1234")
     monkeypatch.setattr(compare, "draw_all", lambda draw, items, jobs, root, done: done)
 
     def write(seeds: dict[str, int], cell: str = "ur5e analytic 0.5 px", **extra) -> None:
         rows = [{"set": name, "seed": s, "status": "ok", "joint_tip_rms_mm": 0.1 * s,
-                 "fair_nominal_tip_rms_mm": 1.0, "cell": stamp(cell), **extra}
+                 "fair_nominal_tip_rms_mm": 1.0, "cell": stamp(cell), "code": "abc1234", **extra}
                 for name, n in seeds.items() for s in range(1, n + 1)]  # fmt: skip
         (tmp_path / "draws.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
 
@@ -67,6 +69,7 @@ def test_the_frames_used_are_summed_and_another_cell_has_its_own_block(
     out = capsys.readouterr().out
     assert "| plan 12 | 3 of 3 | 33 of 36 | 0.300 |" in out
     assert "field_compare --robot kr6-r900 --render --pixel-sigma 0.1 --draws 3" in out
+    assert "(seeds 1 - 3), measured by the code at abc1234" in written[0][1]
     assert [a[2] for a in written] == ["benchmark_plan_field_compare_kr6-r900-rendered"]
 
 
@@ -75,7 +78,8 @@ def test_the_sets_are_compared_draw_by_draw_with_a_sign_test(journal, capsys):
     plan = [0.1, 0.3, 0.2, 0.4]  # errs less than the random set in draws 1, 3 and 4 of 4
     rand = [0.2, 0.2, 0.3, 0.5]
     rows = [{"set": name, "seed": s + 1, "status": "ok", "joint_tip_rms_mm": e[s],
-             "fair_nominal_tip_rms_mm": 1.0, "cell": stamp("ur5e analytic 0.5 px")}
+             "fair_nominal_tip_rms_mm": 1.0, "cell": stamp("ur5e analytic 0.5 px"),
+             "code": "abc1234"}
             for name, e in (("plan 12", plan), ("random 30", rand)) for s in range(4)]  # fmt: skip
     (root / "draws.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
     assert field_compare.main(["--draws", "4", "--out", str(root)]) == 0
@@ -132,3 +136,19 @@ def test_the_default_folder_is_the_cells_own():
     a = field_compare._options(["--robot", "kr6-r900", "--render"])
     assert a.out == "runs/benchmark_plan_field_compare_kr6-r900-rendered"
     assert field_compare._options([]).out == "runs/benchmark_plan_field_compare"
+
+
+@pytest.mark.parametrize("code", ["0123456", None])  # other code; an older journal: none recorded
+def test_a_journal_of_other_code_is_refused(journal, monkeypatch, code):
+    """The same cell and postures drawn by other code: resuming would table two codes' draws as
+    one code's (review of session 23)."""
+    from selfcal.errors import InputError
+
+    root, write = journal
+    written = []
+    monkeypatch.setattr(doc_blocks, "write_block", lambda *a: written.append(a))
+    write({"plan 12": 3, "random 30": 3}, code=code)
+    with pytest.raises(InputError, match="6 of its 6 draws were made by other code") as e:
+        field_compare.main(["--draws", "3", "--out", str(root), "--write-docs"])
+    assert ("the code at 0123456" if code else "not recorded") in str(e.value)
+    assert "check out that code" in e.value.fix and not written

@@ -21,8 +21,9 @@ percentile, their ratio, the fair nominal's median, the draws that ran and ended
 frames the calibrations used of those planned, then draw by draw (the same seed draws the same
 arm for every set) how often the plan errs less than each other set, with the sign test's p-value
 (each draw also in
-``DIR/draws.jsonl`` as it ends, stamped with the cell and the set's postures, and a journal
-holding another's draws is refused; ``DIR`` by default ``runs/`` and the cell's docs block; the draws run seed by seed, every set's in turn, and a run
+``DIR/draws.jsonl`` as it ends, stamped with the cell, the set's postures and the code that drew
+it (:func:`selfcal.benchmarks.doc_blocks.code_version`), and a journal holding another's draws,
+or draws of other code, is refused; the table's last line names the code; ``DIR`` by default ``runs/`` and the cell's docs block; the draws run seed by seed, every set's in turn, and a run
 stopped before resumes from that journal: ``--draws`` of a journal's seeds alone prints their
 table without drawing; a table short of ``--draws`` draws in a set is printed, not written to
 the docs, and exits 1; ``--write-docs`` writes it between docs/plan.md's
@@ -38,7 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
-from selfcal.benchmarks.doc_blocks import ROOT
+from selfcal.benchmarks.doc_blocks import ROOT, code_version, codes_note
 from selfcal.io.atomic import write_text_atomic
 
 __all__ = ["cell_stamp", "field_cell", "field_sets", "main"]
@@ -145,15 +146,39 @@ def _foreign(done: list[dict], stamps: dict[str, str], journal: Path) -> None:
         )
 
 
-def _draw(item: tuple[str, str, list, int, bool, float, str]) -> dict:
+def _other_code(done: list[dict], code: str | None, journal: Path) -> None:
+    """Refuse a journal holding a draw made by other code than ``code`` (this run's,
+    :func:`code_version`; a draw without ``code`` is an older journal's), so one table is never
+    drawn by two codes.
+
+    Raises:
+        InputError: naming the journal, the first such draw and the fix.
+    """
+    from selfcal.errors import InputError
+
+    other = [r for r in done if r.get("code") != code]
+    if other:
+        r = other[0]
+        was = (
+            f"the code at {r['code']}" if r.get("code") else "code not recorded (an older journal)"
+        )
+        raise InputError(
+            f"{journal}: {len(other)} of its {len(done)} draws were made by other code (first: "
+            f"set {r['set']!r}, seed {r['seed']}, by {was}; this run is the code at {code})",
+            fix="check out that code to go on with the journal, or give this run its own --out, "
+            "or move the journal away to draw again",
+        )
+
+
+def _draw(item: tuple[str, str, list, int, bool, float, str, str | None]) -> dict:
     from selfcal.studies.montecarlo.run import draw_one
 
-    name, config, joints_deg, seed, render, sigma, cell = item
+    name, config, joints_deg, seed, render, sigma, cell, code = item
     row = draw_one({"config": config, "poses": len(joints_deg), "pixel_sigma": sigma,
                     "seed": seed, "traj_seed": 1, "perturb_seed": seed, "dither": True,
                     "joints_deg": joints_deg, "render": render})  # fmt: skip
     keys = ("joint_tip_rms_mm", "fair_nominal_tip_rms_mm", "nominal_tip_rms_mm", "sigma_hat_px")
-    return {"set": name, "seed": seed, "cell": cell, "status": str(row["status"]),
+    return {"set": name, "seed": seed, "cell": cell, "code": code, "status": str(row["status"]),
             "frames_used": row.get("frames_used"), "frames": row.get("frames"),
             **{k: float(row.get(k) or np.nan) for k in keys}}  # fmt: skip
 
@@ -223,8 +248,10 @@ def main(argv: list[str] | None = None) -> int:
     stamps = {name: cell_stamp(a.robot, a.render, a.pixel_sigma, q)
               for name, (_, q, _) in sets.items()}  # fmt: skip
     _foreign(done, stamps, journal)
+    code = code_version()
+    _other_code(done, code, journal)
     have = {(r["set"], r["seed"]) for r in done}
-    items = [(name, str(path), q.tolist(), s, a.render, a.pixel_sigma, stamps[name])
+    items = [(name, str(path), q.tolist(), s, a.render, a.pixel_sigma, stamps[name], code)
              for s in range(1, a.draws + 1)
              for name, (path, q, _) in sets.items() if (name, s) not in have]  # fmt: skip
     rows = [r for r in draw_all(_draw, items, a.jobs, root, done) if r["seed"] <= a.draws]
@@ -249,7 +276,8 @@ def main(argv: list[str] | None = None) -> int:
     cell += " --render" if a.render else ""
     cell += "" if a.pixel_sigma == 0.5 else f" --pixel-sigma {a.pixel_sigma:g}"
     lines.append(f"\n`uv run python -m selfcal.benchmarks.plan.field_compare{cell} --draws "
-                 f"{a.draws} --jobs 1 --write-docs` (seeds 1 - {a.draws})")  # fmt: skip
+                 f"{a.draws} --jobs 1 --write-docs` (seeds 1 - {a.draws})"
+                 f"{codes_note(rows, ('set',))}")  # fmt: skip
     text = "\n".join(lines)
     if short:
         print(text)
