@@ -61,7 +61,7 @@ from selfcal.calibration.board.evaluate import HeldOutViews
 from selfcal.calibration.drift.own import JOINT_TOL, calibration_dataset
 from selfcal.calibration.drift.views import ViewJacobians, view_jacobians
 from selfcal.camera import CameraModel
-from selfcal.errors import SelfCalWarning
+from selfcal.errors import InputError, SelfCalWarning
 from selfcal.io.board_calibration import BoardCalibrationResult
 from selfcal.kinematics.tool_error import ToolErrorModel
 
@@ -239,7 +239,24 @@ def noise_covariance(cal: BoardCalibrationResult, em: ToolErrorModel) -> np.ndar
     (:func:`selfcal.calibration.drift.images.estimate_covariance`, in its order) from the
     calibration frames' noise alone (the ``accuracy`` block's ``noise_covariance_si``: no held
     deviation, no model error): what a paired frame's noise shares with the estimate (module
-    docstring); None for a file written before it (the cross term is then left out)."""
+    docstring); None for a file written before it (the cross term is then left out).
+
+    Raises:
+        InputError: the key is there but not a (p + c, p + c) matrix (named, with the fix).
+    """
     p, c = len(em.covariance), len(cal.cameras[0].free)
-    C = np.asarray((cal.accuracy or {}).get("noise_covariance_si", []), float)
-    return C if C.shape == (p + c, p + c) else None
+    value = (cal.accuracy or {}).get("noise_covariance_si")
+    if value is None:
+        return None
+    try:
+        C = np.asarray(value, float)
+    except (TypeError, ValueError):
+        C = np.empty(0)
+    if C.shape != (p + c, p + c):
+        raise InputError(
+            f"calibration.json: accuracy.noise_covariance_si is not a {p + c} x {p + c} matrix "
+            f"(the error model's {p} parameters and the camera's {c} free ones; its shape is "
+            f"{C.shape if C.size else 'not a matrix'})",
+            fix="re-run `selfcal calibrate` on the calibration's dataset",
+        )
+    return C
