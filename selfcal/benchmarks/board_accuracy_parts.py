@@ -38,7 +38,9 @@ N``: every draw keeps its own seed's truth and postures and draws its pixel nois
 ``N`` higher (other noise on the same truths: whether what a set of draws shows sits with its
 truths or with its noise). ``--keep DIR``:
 each draw's result is kept in ``DIR`` (one ``.npz`` a draw, named by robot, noise, seed and fixed
-truth) and read from there when it is already in it (the numbers the same: each draw is seeded).
+truth, holding the code that drew it: :func:`selfcal.benchmarks.doc_blocks.code_version`) and
+read from there when it is already in it and was drawn by the code checked out, a clean commit
+(the numbers the same: each draw is seeded); else it is drawn again and kept in its place.
 
 Run: ``uv run python -m selfcal.benchmarks.board_accuracy_parts [--robot er4u-paper]
 [--noise-px 0.2] [--draws 20] [--first-seed 1] [--fixed-truth SEED | --noise-offset N] [--jobs 1]
@@ -62,6 +64,7 @@ from selfcal.benchmarks.board_accuracy_draw import (
     simulated,
     true_chain,
 )
+from selfcal.benchmarks.doc_blocks import code_version
 from selfcal.benchmarks.pool import map_jobs
 from selfcal.calibration.board.accuracy import board_error_model_from_json
 from selfcal.camera.spec import values_by_name
@@ -149,17 +152,23 @@ def directions(g: dict) -> dict:
 
 def kept_draw(args: tuple) -> dict:
     """:func:`draw_parts` of ``args[:4]``, kept in the folder ``args[4]`` (one ``.npz`` a draw;
-    None: not kept) and read from there when it is already in it."""
-    robot, sigma_px, seed, truth_seed, keep = args
+    None: not kept) with the code that drew it, ``args[5]`` (:func:`code_version`), and read from
+    there when it is already in it, drawn by that same code, a clean commit (a draw of other
+    code, of a code with uncommitted changes or of none recorded is drawn again and kept in its
+    place: the same name need not be the same numbers)."""
+    robot, sigma_px, seed, truth_seed, keep, code = args
     if keep is None:
         return draw_parts((robot, sigma_px, seed, truth_seed))
     path = Path(keep) / f"{robot}_{sigma_px:g}px_seed{seed}_truth{truth_seed}.npz"
-    if path.exists():
+    clean = bool(code) and not code.endswith("+changes")
+    if path.exists() and clean:
         with np.load(path, allow_pickle=False) as z:
             g = {k: z[k] for k in z.files}
-        g["status"], g["names"] = str(g["status"]), [str(n) for n in g["names"]]
-        return g
-    g = draw_parts((robot, sigma_px, seed, truth_seed))
+        if "code" in g and str(g["code"]) == code:
+            g["status"], g["names"] = str(g["status"]), [str(n) for n in g["names"]]
+            g["code"] = code
+            return g
+    g = draw_parts((robot, sigma_px, seed, truth_seed)) | {"code": code or ""}
     path.parent.mkdir(parents=True, exist_ok=True)
     np.savez(path, **{k: np.asarray(v) for k, v in g.items()})
     return g
@@ -305,7 +314,8 @@ def main(argv: list[str] | None = None) -> int:
         items = [(a.robot, a.noise_px, s, a.fixed_truth, a.keep) for s in seeds]
         truth = ("a new truth each" if a.fixed_truth is None
                  else f"the truth of seed {a.fixed_truth}")  # fmt: skip
-    got = map_jobs(kept_draw, items, a.jobs)
+    code = code_version()
+    got = map_jobs(kept_draw, [(*item, code) for item in items], a.jobs)
     print(table(got, f"{a.robot} fits {a.noise_px:g} px, seeds {seeds.start}-{seeds.stop - 1} "
                      f"({truth})"))  # fmt: skip
     return 0

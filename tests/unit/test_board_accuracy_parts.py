@@ -77,15 +77,41 @@ def test_the_bound_check_finds_a_bound_twice_too_wide():
 
 
 def test_a_kept_draw_is_read_back_as_it_was_kept(tmp_path):
-    """``--keep``: a draw kept in the folder under its robot, noise, seed and truth is read
-    from there (no calibration run), its status and names as strings, its arrays equal."""
-    g = _draw(np.array([2.0, -1.0, 0.5]))
+    """``--keep``: a draw kept in the folder under its robot, noise, seed and truth by the code
+    checked out is read from there (no calibration run), its status and names as strings, its
+    arrays equal."""
+    g = _draw(np.array([2.0, -1.0, 0.5])) | {"code": "abc1234"}
     np.savez(
         tmp_path / "ur5e_0.2px_seed7_truthNone.npz", **{k: np.asarray(v) for k, v in g.items()}
     )
-    got = kept_draw(("ur5e", 0.2, 7, None, tmp_path))
+    got = kept_draw(("ur5e", 0.2, 7, None, tmp_path, "abc1234"))
     assert got["status"] == "ok" and got["names"] == ["a", "b", "c"]
     assert np.array_equal(got["cov"], g["cov"]) and np.array_equal(got["e_rot"], g["e_rot"])
+
+
+@pytest.mark.parametrize(
+    ("kept_by", "code"),
+    [
+        ("0123456", "abc1234"),  # kept by other code
+        (None, "abc1234"),  # kept before the code was recorded
+        ("abc1234+changes", "abc1234+changes"),  # uncommitted changes: not the same code
+    ],
+)
+def test_a_draw_kept_by_other_code_is_drawn_again(tmp_path, monkeypatch, kept_by, code):
+    """``--keep`` never reuses a draw that the code checked out did not draw (review of session
+    23: the file's name holds robot, noise, seed and truth only): it is drawn again and kept in
+    its place with this code."""
+    from selfcal.benchmarks import board_accuracy_parts
+
+    old = _draw(np.array([2.0, -1.0, 0.5])) | ({"code": kept_by} if kept_by else {})
+    path = tmp_path / "ur5e_0.2px_seed7_truthNone.npz"
+    np.savez(path, **{k: np.asarray(v) for k, v in old.items()})
+    new = _draw(np.array([0.1, 0.2, 0.3]))
+    monkeypatch.setattr(board_accuracy_parts, "draw_parts", lambda args: dict(new))
+    got = kept_draw(("ur5e", 0.2, 7, None, tmp_path, code))
+    assert np.array_equal(got["error"], new["error"])
+    with np.load(path) as z:
+        assert str(z["code"]) == code and np.array_equal(z["error"], new["error"])
 
 
 def test_a_fixed_truth_and_a_noise_offset_are_refused_together():
