@@ -12,11 +12,13 @@ from selfcal.io.atomic import write_text_atomic
 
 __all__ = [
     "ROOT",
+    "UNRECOVERABLE",
     "code_version",
     "codes_note",
     "codes_of",
     "print_table",
     "read_block",
+    "stamp_problems",
     "write_block",
 ]
 
@@ -24,19 +26,59 @@ ROOT = Path(__file__).resolve().parents[2]
 """The repository's root (README.md and docs/ are in it)."""
 
 
+CODE_PATHS = ("selfcal", "pyproject.toml", "uv.lock")
+"""What runs a benchmark: the package (its models and scenarios too) and its dependencies; a
+change elsewhere (the docs being written, a test) leaves the code the commit's."""
+
+
 def code_version(root: Path = ROOT) -> str | None:
     """The code that measures a benchmark's rows: the commit checked out at ``root`` (short
-    hash), with ``+changes`` when its tracked files differ from it; None outside a git checkout
-    (or without git)."""
+    hash), with ``+changes`` when its files of :data:`CODE_PATHS` differ from it (a new file
+    there too); None outside a git checkout (or without git)."""
     git = ["git", "-C", str(root)]
     try:
         head = subprocess.run([*git, "rev-parse", "--short=7", "HEAD"], capture_output=True,
                               text=True, check=True).stdout.strip()  # fmt: skip
-        changed = subprocess.run([*git, "status", "--porcelain", "--untracked-files=no"],
+        changed = subprocess.run([*git, "status", "--porcelain", "--", *CODE_PATHS],
                                  capture_output=True, text=True, check=True).stdout.strip()  # fmt: skip
     except (OSError, subprocess.CalledProcessError):
         return None
     return head + ("+changes" if changed else "")
+
+
+STAMP = re.compile(r"the code at ([0-9a-f]{7,40})(\+changes)?", re.IGNORECASE)
+"""A code stamp in a block's text (:func:`codes_note`, "Measured by the code at X")."""
+
+
+def stamp_problems(text: str, root: Path = ROOT) -> list[str]:
+    """The code stamps in ``text`` that name code no one can check out: with uncommitted
+    changes (``X+changes``) or not a commit of the history of ``root``'s HEAD (unknown, or a
+    branch's commit that a rebase replaced), each with why; [] outside a git checkout."""
+    if code_version(root) is None:
+        return []
+    out = []
+    for sha, dirty in dict.fromkeys(STAMP.findall(text)):
+        if dirty:
+            out.append(f"{sha}+changes (uncommitted changes)")
+            continue
+        known = subprocess.run(["git", "-C", str(root), "merge-base", "--is-ancestor", sha,
+                                "HEAD"], capture_output=True).returncode == 0  # fmt: skip
+        if not known:
+            out.append(f"{sha} (not a commit of HEAD's history)")
+    return out
+
+
+UNRECOVERABLE = "not recoverable"
+"""A row's ``code`` when the commit its stamp named cannot be checked out and no commit of the
+history can be shown to hold the code it measured (:func:`stamp_problems`; the docs say which
+and why): :func:`codes_note` names it "code that is not recoverable"."""
+
+
+def _code_name(code: str | None) -> str:
+    """How :func:`codes_note` names a row's code."""
+    if not code:
+        return "an earlier code, not recorded"
+    return "code that is not recoverable" if code == UNRECOVERABLE else f"the code at {code}"
 
 
 def _label(prefix: str, value: object) -> str:
@@ -47,14 +89,14 @@ def _label(prefix: str, value: object) -> str:
 
 def codes_note(rows: list[dict], keys: Sequence[str]) -> str:
     """The end of a benchmark table's last line: the code that measured ``rows`` (each row's
-    ``code``, :func:`code_version`; None: an earlier code, not recorded), per code the rows it
-    measured when they are not all one code's, named by the values of ``keys`` (e.g. robot,
-    model, noise: a robot when all its rows are one code's, else its models, else its noise
-    levels); "" when no row records one (older rows)."""
+    ``code``, :func:`code_version`; None: an earlier code, not recorded; :data:`UNRECOVERABLE`),
+    per code the rows it measured when they are not all one code's, named by the values of
+    ``keys`` (e.g. robot, model, noise: a robot when all its rows are one code's, else its
+    models, else its noise levels); "" when no row records one (older rows)."""
     code = [r.get("code") for r in rows]
     if not any(code):
         return ""
-    name = {c: f"the code at {c}" if c else "an earlier code, not recorded" for c in code}
+    name = {c: _code_name(c) for c in code}
     if len(set(code)) == 1:
         return f", measured by {name[code[0]]}"
     parts: dict[str | None, list[str]] = {}
@@ -78,11 +120,13 @@ def codes_of(text: str, rows: list[dict], keys: Sequence[str]) -> list[str | Non
     """The code of each of ``rows`` (parsed back from a table) that the note :func:`codes_note`
     wrote into ``text`` names (None: not recorded, or no note)."""
     sha = r"([0-9a-f]+(?:\+changes)?)"
-    one = re.search(rf", measured by the code at {sha}\.?$", text.rstrip())
+    lost = "(code that is not recoverable)"
+    one = re.search(rf", measured by (?:the code at {sha}|{lost})\.?$", text.rstrip())
     if one:
-        return [one.group(1)] * len(rows)
-    groups = [(m.group(1), f", {m.group(2)}, ")
-              for m in re.finditer(rf"(?:the code at {sha}|an earlier code, not recorded) \(([^)]*)\)", text)]  # fmt: skip
+        return [one.group(1) or UNRECOVERABLE] * len(rows)
+    groups = [(m.group(1) or (UNRECOVERABLE if m.group(2) else None), f", {m.group(3)}, ")
+              for m in re.finditer(rf"(?:the code at {sha}|{lost}|an earlier code, not recorded) "
+                                   r"\(([^)]*)\)", text)]  # fmt: skip
     out: list[str | None] = []
     for r in rows:
         labels, prefix = [], ""
@@ -113,7 +157,16 @@ def read_block(path: Path, name: str) -> str:
 
 def write_block(path: Path, block: str, name: str = "benchmark_speed") -> None:
     """Replace what stands between ``<!-- NAME: begin -->`` and ``<!-- NAME: end -->`` in
-    ``path`` by ``block``; no markers is an error naming the file."""
+    ``path`` by ``block``; no markers is an error naming the file, and so is a block naming
+    code no one can check out (:func:`stamp_problems`)."""
+    bad = stamp_problems(block)
+    if bad:
+        raise SystemExit(
+            f"{path}: the {name} block would say its rows were measured by code that cannot be "
+            f"checked out: {'; '.join(bad)}; not written. Fix: commit the code and measure again "
+            "(a block's rows measured on a branch before its rebase: name the main commit whose "
+            "selfcal/ tree is the one measured, `git diff X C -- selfcal` empty, or measure again)"
+        )
     head, begin, _, end, tail = _split(path, name)
     write_text_atomic(path, f"{head}{begin}\n{block}\n{end}{tail}")
 
