@@ -296,7 +296,8 @@ def _arguments(argv: list[str] | None) -> argparse.Namespace:
                     help="keep each draw's truth, draw its noise with the seed N higher")  # fmt: skip
     ap.add_argument("--jobs", type=int, default=1, help="processes (default 1)")
     ap.add_argument("--keep", type=Path, metavar="DIR",
-                    help="keep each draw in DIR and read it from there when it is there")  # fmt: skip
+                    help="keep each draw in DIR and read it from there when the code checked out "
+                         "(a clean commit) drew it")  # fmt: skip
     return ap.parse_args(argv)
 
 
