@@ -13,8 +13,10 @@ Here each fold of the calibration (the chosen candidate fitted without one arm c
 :func:`selfcal.calibration.board.fold_fits.fold_bounds`) is the calibration and its held-out
 frames the new views: what the check would predict for them (the fold's own covariance, the
 deviation at share ``c``, the calibration's per-view misfit scaled by ``a``, its camera misfit,
-white and joint read-back noise; no model error: both real sets have none) against their
-residuals. It prints the predicted / measured RMS per fold and pooled at the calibration's
+white and joint read-back noise, each view's own white noise where above the calibration's as
+the check gives it; no model error: both real sets have none) against their residuals: first
+each fold's chi-square, its best directed test and each view's own white noise and p alone
+(what drives a fold's verdict). It prints the predicted / measured RMS per fold and pooled at the calibration's
 ``(c, 1)``; then ``(c, a)`` solved from the folds' residual energy in the span of the
 deviation's pixels and outside it (two moments, two unknowns; the span's rank cut at a relative
 eigenvalue ``tol``, three of them), the folds' ratios there, and the check of NEW with it;
@@ -72,7 +74,12 @@ from selfcal.calibration.drift.images import (
     image_drift_check,
     view_noise,
 )
-from selfcal.calibration.drift.views import ViewJacobians, tool_pose_error, view_jacobians
+from selfcal.calibration.drift.views import (
+    ViewJacobians,
+    tool_pose_error,
+    view_jacobians,
+    view_white_px,
+)
 from selfcal.camera import CameraModel
 from selfcal.io.board_calibration import BoardCalibrationResult, read_board_calibration
 from selfcal.kinematics.tool_error import ToolErrorModel
@@ -159,14 +166,16 @@ def sandwich_excess(views: list[ViewJacobians], fitted: np.ndarray, s2: float) -
 
 
 def _views(obs: BoardObservations, mask: np.ndarray, em: ToolErrorModel, camera: CameraModel,
-           noise: ViewNoise) -> list[ViewJacobians]:  # fmt: skip
+           noise: ViewNoise, held: bool) -> list[ViewJacobians]:  # fmt: skip
     """The first camera's inlier frames of ``mask`` linearised at the fold's ``em`` and
-    ``camera`` with the calibration's ``noise`` less its pose misfit (:class:`Fold`)."""
+    ``camera`` with the calibration's ``noise`` less its pose misfit (:class:`Fold`); ``held``:
+    new views, each with its own white noise where larger, as the check gives them
+    (:func:`selfcal.calibration.drift.views.view_white_px`)."""
     v, f, uv = obs.rows(mask & obs.used)[0]
     return [view_jacobians(em, camera, obs.q[i], obs.board.points(f[v == i]), uv[v == i],
                            eye_to_hand=obs.eye_to_hand, pixel_sigma_px=noise.pixel_sigma_px,
                            joint_sigma_rad=noise.joint_sigma_rad,
-                           camera_misfit_px=noise.camera_misfit_px)
+                           camera_misfit_px=noise.camera_misfit_px, own_white=held)
             for i in np.unique(v)]  # fmt: skip
 
 
@@ -189,7 +198,8 @@ def folds_of(cal_dir: Path) -> tuple[list[Fold], np.ndarray, np.ndarray]:
     for held, fit, fcr in fold_bounds(obs, det.fit.selection, det.fit.nominal.model.joint_offsets,
                                       T_tp, cal.bounds.pixel_sigma_px):  # fmt: skip
         em, _ = board_error_model(with_deviation(fcr, var), T_tp, 0.0, 0.0, None)
-        views, train = (_views(obs, mask, em, fit.cameras[0], noise) for mask in (held, ~held))
+        views, train = (_views(obs, mask, em, fit.cameras[0], noise, new)
+                        for mask, new in ((held, True), (~held, False)))  # fmt: skip
         if views:
             est = np.ones(len(fcr.covariance), bool) if fcr.estimated is None else fcr.estimated
             fitted = np.r_[est, np.ones(views[0].cam.shape[1], bool)]
@@ -200,7 +210,7 @@ def folds_of(cal_dir: Path) -> tuple[list[Fold], np.ndarray, np.ndarray]:
                             sandwich_excess(train, fitted, cal.bounds.pixel_sigma_px**2),
                             held_out_errors(obs, fit, held, T_tp, fcr)))  # fmt: skip
     own = [dataclasses.replace(x, local=x.local + pose_misfit(noise, x.tool))
-           for x in _views(obs, obs.used, em_cal, cal.cameras[0], noise)]  # fmt: skip
+           for x in _views(obs, obs.used, em_cal, cal.cameras[0], noise, False)]  # fmt: skip
     est = np.ones(len(cr.covariance), bool) if cr.estimated is None else cr.estimated
     fitted = np.r_[est, np.ones(own[0].cam.shape[1], bool)]
     return out, deviation_part(cr, 1.0), sandwich_excess(own, fitted, cal.bounds.pixel_sigma_px**2)
@@ -410,6 +420,24 @@ def _print_fold_error(folds: list[Fold], used: float, cal: BoardCalibrationResul
           f"{res.rms_px:.3f} px")  # fmt: skip
 
 
+def _print_evidence(folds: list[Fold], used: float, noise: ViewNoise, eye_to_hand: bool) -> None:
+    """Each fold's check as it is (at the share ``used``): its chi-square of all the residuals
+    against its degrees of freedom, the smallest directed test, and what drives it: each
+    held-out view's own white corner noise (outside its pose span and the camera's directions,
+    :func:`selfcal.calibration.drift.views.view_white_px`) against the calibration's, and the
+    combined p of each view alone."""
+    for i, f in enumerate(folds):
+        res = image_drift_check(f.C0 + used * f.V, f.at(1.0), eye_to_hand=eye_to_hand)
+        own = [view_white_px(v.r, v.tool, v.cam) for v in f.views]
+        alone = [image_drift_check(f.C0 + used * f.V, [v], eye_to_hand=eye_to_hand).p_value
+                 for v in f.at(1.0)]  # fmt: skip
+        print(f"  fold {i + 1}: chi-square {res.statistic:.1f} on {res.dof}, p {res.p_value:.2g} "
+              f"(best {res.best}); the views' own white noise "
+              f"{' '.join('-' if w is None else f'{w:.3f}' for w in own)} px against the "
+              f"calibration's {noise.pixel_sigma_px:.3f}; each view alone p "
+              f"{' '.join(f'{p:.2g}' for p in alone)}")  # fmt: skip
+
+
 def main(argv: list[str] | None = None) -> int:
     """Print the folds' ratios, the joint estimate and NEW's check with it (module docstring)."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -452,6 +480,7 @@ def main(argv: list[str] | None = None) -> int:
               f"predicted/measured {res.expected_rms_px / res.rms_px:.2f}")  # fmt: skip
 
     print(f"{len(folds)} folds of {args.calibration}")
+    _print_evidence(folds, used, noise, cal.eye_to_hand)
     line("as the check predicts (the share used, the misfit as estimated)", used, 1.0)
     _print_fold_error(folds, used, cal, args.calibration, args.new)
     for tol in TOLERANCES:

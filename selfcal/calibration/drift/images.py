@@ -27,7 +27,13 @@ predicted`` (2k px over every corner of every view) are Gaussian to first order 
   per direction of the view's pose span, ``P_i`` the projection on it, where the block gives
   ``pose_misfit_px``), ``c`` the misfit per camera direction ``U_i`` (orthonormal, outside the
   pose span), and ``s`` is then the block's white noise outside both (the bounds' from the
-  fit's RMS holds the misfit's energy: it counted it twice).
+  fit's RMS holds the misfit's energy: it counted it twice);
+- each new view's own white corner noise in place of ``s`` where its pixels outside its pose
+  span and the camera's directions (which no change considered and no estimation error reach)
+  show more at :data:`selfcal.calibration.drift.views.WHITE_LEVEL`
+  (:func:`selfcal.calibration.drift.views.view_white_px`): real images differ in their noise,
+  and one noisier than the calibration's frames read as a change (two of the real Nachi sets'
+  left-out configurations, docs/real-data.md).
 
 ``T = r^T Sigma^-1 r`` is then chi-square with ``2k`` degrees of freedom. That omnibus test
 has little power against a change that moves the pixels along a few directions (a joint's

@@ -12,6 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.stats import chi2
 
 from selfcal.calibration.board.misfit import board_view, tip_map
 from selfcal.calibration.board.view_jitter import camera_directions, view_jitter_from_json
@@ -27,9 +28,23 @@ __all__ = [
     "ViewNoise",
     "calibration_views",
     "tool_pose_error",
+    "MIN_WHITE_DOF",
+    "WHITE_LEVEL",
     "view_jacobians",
     "view_noise",
+    "view_white_px",
 ]
+
+MIN_WHITE_DOF = 30
+"""The fewest degrees of freedom (a view's pixels outside its pose span and the camera's
+directions) from which :func:`view_white_px` estimates a view's own white corner noise (its
+relative standard error ``sqrt(2 / dof)``: 26 % here, 11 % for a board of 88 corners)."""
+WHITE_LEVEL = 0.01
+"""A view's own white noise replaces the calibration's only where it is above it at this level
+(its squared sum there beyond the calibration's chi-square quantile): taken wherever larger, it
+is larger in half the views of the calibration's own noise by chance and the check spends less
+than its alpha (in tests/unit/test_drift_view_noise.py's scene 6 false alarms of 60 at alpha 0.2
+where the assumed covariance gives 9), which is power lost."""
 
 
 @dataclass(frozen=True)
@@ -77,6 +92,30 @@ class ViewJacobians:
     frame_H: np.ndarray | None = None
 
 
+def view_white_px(r: np.ndarray, A: np.ndarray, Jc: np.ndarray,
+                  than_px: float = 0.0) -> float | None:  # fmt: skip
+    """The white corner noise (px) a view's own residuals ``r`` (2k,) px show outside the span
+    of its pose columns ``A`` (2k, 6) and its camera columns ``Jc`` (2k, c): their RMS over the
+    ``2k - rank`` degrees of freedom there, which no change the drift check considers (every
+    kinematic one moves the pixels in the pose span, the camera's in its columns) and no
+    estimation error reaches; None below :data:`MIN_WHITE_DOF` of them, or where it is not
+    above ``than_px`` (the calibration's white noise) at :data:`WHITE_LEVEL`.
+
+    Real images differ in their corner noise (blur, focus, the board's angle: on the real
+    mecheye set one calibration frame shows 0.41 px there where the others show 0.06-0.13 px),
+    so one white noise for every new view is wrong for some of them; in this span a view
+    measures its own."""
+    Q, s, _ = np.linalg.svd(np.concatenate([A, Jc], axis=1), full_matrices=False)
+    Q = Q[:, s > 1e-9 * s[0]] if s.size and s[0] > 0 else Q[:, :0]
+    dof = len(r) - Q.shape[1]
+    if dof < MIN_WHITE_DOF:
+        return None
+    e = r - Q @ (Q.T @ r)
+    if e @ e <= than_px**2 * chi2.isf(WHITE_LEVEL, dof):
+        return None
+    return float(np.sqrt(e @ e / dof))
+
+
 def tool_pose_error(A: np.ndarray, B: np.ndarray, m2: np.ndarray) -> np.ndarray:
     """(2k, 2k) px^2 a view's covariance from an error of the tool pose with the variances
     ``m2`` (6,) per tool-point coordinate (m^2) and rotation coordinate (rad^2), world frame:
@@ -90,7 +129,7 @@ def view_jacobians(em: ToolErrorModel, camera: CameraModel, q: np.ndarray, X: np
                    uv: np.ndarray, *, eye_to_hand: bool, pixel_sigma_px: float,
                    joint_sigma_rad: np.ndarray | None,
                    jitter: np.ndarray | None = None, camera_misfit_px: float = 0.0,
-                   pose_misfit_px: float = 0.0) -> ViewJacobians:  # fmt: skip
+                   pose_misfit_px: float = 0.0, own_white: bool = False) -> ViewJacobians:  # fmt: skip
     """The view of board points ``X`` (k, 3) (board frame, m) detected at ``uv`` (k, 2) px by
     ``camera`` at the joints ``q`` (n,) rad / m, linearised at the calibration ``em`` (its
     chain, estimated columns and model error) with the corner noise ``pixel_sigma_px``, the
@@ -99,7 +138,10 @@ def view_jacobians(em: ToolErrorModel, camera: CameraModel, q: np.ndarray, X: np
     :mod:`selfcal.calibration.board.view_jitter`) or None, with its per-view misfit
     ``camera_misfit_px`` (px) in each of the camera's directions the pose cannot mimic, and
     ``pose_misfit_px`` (px) in each direction of the view's pose span (orthonormal, in pixels:
-    what the calibration's frames carry there when it is known, in place of ``jitter``)."""
+    what the calibration's frames carry there when it is known, in place of ``jitter``).
+    ``own_white``: the corner noise is the view's own where it is above ``pixel_sigma_px``
+    (:func:`view_white_px`, where it has the degrees of freedom): an image noisier than the
+    calibration's frames is not read as a change."""
     model = em.model
     T = fk_tool(model, q[None])[0]
     _, uv_hat, A, Jc = board_view(camera, T, X, eye_to_hand)
@@ -110,21 +152,25 @@ def view_jacobians(em: ToolErrorModel, camera: CameraModel, q: np.ndarray, X: np
     tw = joint_twists(model, q[None])[0]
     joints = A @ tw
     Ad = adjoint(inv_pose(T))
+    r = (np.asarray(uv, float) - uv_hat).reshape(-1)
+    cam = Jc.reshape(len(A), -1)
+    own = view_white_px(r, A, cam, pixel_sigma_px) if own_white else None
+    pixel_sigma_px = pixel_sigma_px if own is None else own
     local = tool_pose_error(A, B, m2) + pixel_sigma_px**2 * np.eye(len(A))
     if jitter is not None:
         local += A @ np.asarray(jitter, float) @ A.T
     if pose_misfit_px > 0.0:
         local += pose_misfit_px**2 * (A @ np.linalg.pinv(A))
     if camera_misfit_px > 0.0:
-        U = camera_directions(A, Jc.reshape(len(A), -1))
+        U = camera_directions(A, cam)
         local += camera_misfit_px**2 * (U @ U.T)
     if joint_sigma_rad is not None:
         local += (joints * np.asarray(joint_sigma_rad, float) ** 2) @ joints.T
     return ViewJacobians(
-        r=(np.asarray(uv, float) - uv_hat).reshape(-1),
+        r=r,
         local=local,
         kin=A @ identification_jacobian(model, q[None])[0][:, em.columns],
-        cam=Jc.reshape(len(A), -1),
+        cam=cam,
         tool=A,
         world=A @ Ad,
         joints=joints,
@@ -197,5 +243,5 @@ def calibration_views(cal: BoardCalibrationResult, em: ToolErrorModel, q: np.nda
                            pixel_sigma_px=noise.pixel_sigma_px,
                            joint_sigma_rad=noise.joint_sigma_rad, jitter=noise.jitter,
                            camera_misfit_px=noise.camera_misfit_px,
-                           pose_misfit_px=noise.pose_misfit_px)
+                           pose_misfit_px=noise.pose_misfit_px, own_white=True)
             for f, X, uv in views]  # fmt: skip
