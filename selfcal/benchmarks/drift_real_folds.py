@@ -16,7 +16,8 @@ deviation at share ``c``, the calibration's per-view misfit scaled by ``a``, its
 white and joint read-back noise, each view's own white noise where above the calibration's as
 the check gives it; no model error: both real sets have none) against their residuals: first
 each fold's chi-square, its best directed test and each view's own white noise and p alone
-(what drives a fold's verdict). It prints the predicted / measured RMS per fold and pooled at the calibration's
+with one white noise for every view, as the check was, and with each view's own (what drives
+a fold's verdict). It prints the predicted / measured RMS per fold and pooled at the calibration's
 ``(c, 1)``; then ``(c, a)`` solved from the folds' residual energy in the span of the
 deviation's pixels and outside it (two moments, two unknowns; the span's rank cut at a relative
 eigenvalue ``tol``, three of them), the folds' ratios there, and the check of NEW with it;
@@ -420,22 +421,36 @@ def _print_fold_error(folds: list[Fold], used: float, cal: BoardCalibrationResul
           f"{res.rms_px:.3f} px")  # fmt: skip
 
 
+def _pooled(v: ViewJacobians, white_px: float) -> ViewJacobians:
+    """The new view ``v`` with the calibration's white noise ``white_px`` in place of its own
+    (the check before :func:`selfcal.calibration.drift.views.view_white_px`)."""
+    own = view_white_px(v.r, v.tool, v.cam, white_px)
+    extra = 0.0 if own is None else own**2 - white_px**2
+    return dataclasses.replace(v, local=v.local - extra * np.eye(len(v.r)))
+
+
 def _print_evidence(folds: list[Fold], used: float, noise: ViewNoise, eye_to_hand: bool) -> None:
-    """Each fold's check as it is (at the share ``used``): its chi-square of all the residuals
-    against its degrees of freedom, the smallest directed test, and what drives it: each
-    held-out view's own white corner noise (outside its pose span and the camera's directions,
-    :func:`selfcal.calibration.drift.views.view_white_px`) against the calibration's, and the
-    combined p of each view alone."""
+    """Each fold's check (at the share ``used``) with one white noise for every view (the
+    calibration's, as the check was) and with each view's own where above it (as it is): the
+    chi-square of all the residuals against its degrees of freedom, the combined p, the best
+    change and each view's p alone; and each held-out view's own white corner noise (outside its
+    pose span and the camera's directions, :func:`selfcal.calibration.drift.views.
+    view_white_px`) against the calibration's: what drives a fold's verdict."""
+    w = noise.pixel_sigma_px
     for i, f in enumerate(folds):
-        res = image_drift_check(f.C0 + used * f.V, f.at(1.0), eye_to_hand=eye_to_hand)
+        C = f.C0 + used * f.V
         own = [view_white_px(v.r, v.tool, v.cam) for v in f.views]
-        alone = [image_drift_check(f.C0 + used * f.V, [v], eye_to_hand=eye_to_hand).p_value
-                 for v in f.at(1.0)]  # fmt: skip
-        print(f"  fold {i + 1}: chi-square {res.statistic:.1f} on {res.dof}, p {res.p_value:.2g} "
-              f"(best {res.best}); the views' own white noise "
-              f"{' '.join('-' if w is None else f'{w:.3f}' for w in own)} px against the "
-              f"calibration's {noise.pixel_sigma_px:.3f}; each view alone p "
-              f"{' '.join(f'{p:.2g}' for p in alone)}")  # fmt: skip
+        said = []
+        for label, views in (("one white noise", [_pooled(v, w) for v in f.at(1.0)]),
+                             ("each view's own", f.at(1.0))):  # fmt: skip
+            res = image_drift_check(C, views, eye_to_hand=eye_to_hand)
+            alone = [image_drift_check(C, [v], eye_to_hand=eye_to_hand).p_value for v in views]
+            said.append(f"{label}: chi-square {res.statistic:.1f} on {res.dof}, p "
+                        f"{res.p_value:.2g} (best {res.best}), each view alone p "
+                        f"{' '.join(f'{p:.2g}' for p in alone)}")  # fmt: skip
+        print(f"  fold {i + 1}: the views' own white noise "
+              f"{' '.join('-' if x is None else f'{x:.3f}' for x in own)} px against the "
+              f"calibration's {w:.3f}; {'; '.join(said)}")  # fmt: skip
 
 
 def main(argv: list[str] | None = None) -> int:
