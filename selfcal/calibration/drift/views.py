@@ -101,10 +101,11 @@ def view_white_px(r: np.ndarray, A: np.ndarray, Jc: np.ndarray,
     estimation error reaches; None below :data:`MIN_WHITE_DOF` of them, or where it is not
     above ``than_px`` (the calibration's white noise) at :data:`WHITE_LEVEL`.
 
-    Real images differ in their corner noise (blur, focus, the board's angle: on the real
-    mecheye set one calibration frame shows 0.41 px there where the others show 0.06-0.13 px),
-    so one white noise for every new view is wrong for some of them; in this span a view
-    measures its own."""
+    Real images differ in their corner noise (blur, focus, the board's angle: the real mecheye
+    set's group 2 shows 0.126 and 0.118 px there in two of its images where the calibration's
+    white noise is 0.078 px, ``python -m selfcal.benchmarks.drift_real_folds``), so one white
+    noise for every new view is wrong for some of them; in this span a view measures its
+    own."""
     Q, s, _ = np.linalg.svd(np.concatenate([A, Jc], axis=1), full_matrices=False)
     Q = Q[:, s > 1e-9 * s[0]] if s.size and s[0] > 0 else Q[:, :0]
     dof = len(r) - Q.shape[1]
