@@ -9,7 +9,7 @@ import pytest
 
 from selfcal.calibration.board.bounds import board_cramer_rao
 from selfcal.calibration.board.deviation import Deviation
-from selfcal.calibration.board.plan.add import DatasetPlan, training_sets
+from selfcal.calibration.board.plan.add import DatasetPlan, swap_spares, training_sets
 from selfcal.calibration.board.plan.greedy import select_greedy
 from selfcal.calibration.board.plan.information import board_model, frame_information
 from selfcal.calibration.board.plan.predict import (
@@ -150,3 +150,14 @@ def test_a_frame_counts_the_features_it_shows(setup, plan):
     whole = frame_information(setup, plan.q[:1], 0.5)
     assert np.allclose(even + odd, whole, rtol=1e-10, atol=1e-10 * np.abs(whole).max())
     assert not np.allclose(even, whole, rtol=0.1)
+
+
+def test_swaps_take_a_spare_only_where_the_cost_falls_by_the_gain():
+    # a toy cost: the set's sum, one spare lowering it by 2 %, one by less than GAIN (1 %)
+    values = {0: 1.0, 1: 1.0, 2: 1.0, 3: 0.94, 4: 0.995, 5: 1.5}
+    cost = lambda idx: float(sum(values[int(i)] for i in idx))  # noqa: E731
+    got = swap_spares(np.array([0, 1, 2]), np.array([5, 4, 3]), cost, np.sort)
+    assert got.tolist() == [1, 2, 3]  # 3 swapped in (and ordered); 4 and 5 not
+    assert cost(got) <= cost(np.array([0, 1, 2]))
+    same = swap_spares(np.array([0, 1, 2]), np.array([4, 5]), cost, np.sort)
+    assert same.tolist() == [0, 1, 2]
