@@ -7,7 +7,8 @@ records 12 postures that move only the wrist (the arm's first three joints at ho
 on the table where home looks: as the Nachi groups of real data), ``selfcal run`` acquires and
 calibrates them; ``selfcal plan --add K`` plans K postures for that dataset; the dataset's
 postures and the added ones are acquired again in simulation with the same truth and
-calibrated. A row: the predicted tool-point RMS before and after (``plan.json``) and the
+calibrated. A row: the predicted tool-point RMS before and after (``plan.json``), the median
+after of its forecast's draws (the selection deciding in each: ``forecast_draws``) and the
 achieved one (``report.json``'s validation tool tip against the simulated truth). Prints the
 table and the medians of the before/after ratios; ``--write-docs`` puts them between
 docs/plan.md's ``benchmark_plan_add_K`` markers (K the ``--add``).
@@ -122,6 +123,7 @@ def wrist_only_row(root: Path, seed: int, add: int = 5) -> dict:
             for d in ("dataset", "calibrated")]  # fmt: skip
     return {"seed": seed, "frames": len(q), "predicted_before_mm": doc["predicted_before_tool_rms_mm"],
             "achieved_before_mm": before, "predicted_after_mm": doc["predicted_tool_rms_mm"],
+            "drawn_after_mm": doc["forecast_draws"]["after"]["median_mm"],
             "achieved_after_mm": after, "kept_before": kept[0], "kept_after": kept[1]}  # fmt: skip
 
 
@@ -181,6 +183,7 @@ def still_camera_row(root: Path, seed: int, add: int = 5) -> dict:
     nan = float("nan")
     row: dict = {"seed": seed, "frames": len(q), "error": ""}
     row |= dict.fromkeys(("predicted_before_mm", "achieved_before_mm", "predicted_after_mm",
+                          "drawn_after_mm",
                           "achieved_after_mm", "kept_before", "kept_after"), nan)  # fmt: skip
     first = root / "wrist"
     first.mkdir(parents=True, exist_ok=True)
@@ -199,7 +202,8 @@ def still_camera_row(root: Path, seed: int, add: int = 5) -> dict:
         return row | {"error": "selfcal plan --add stopped"}
     doc = json.loads((plan / "plan.json").read_text())
     row |= {"predicted_before_mm": doc["predicted_before_tool_rms_mm"],
-            "predicted_after_mm": doc["predicted_tool_rms_mm"]}  # fmt: skip
+            "predicted_after_mm": doc["predicted_tool_rms_mm"],
+            "drawn_after_mm": doc["forecast_draws"]["after"]["median_mm"]}  # fmt: skip
     second = root / "added"
     second.mkdir(parents=True, exist_ok=True)
     shutil.copyfile(plan / "replay.csv", second / "replay.csv")
@@ -243,21 +247,24 @@ def main(argv: list[str] | None = None) -> int:
     items = [(out, s, a.add, a.mount) for s in range(1, a.truths + 1)]
     with get_context("spawn").Pool(a.jobs) as pool:
         rows = pool.map(_row, items)
-    lines = ["| truth | frames | predicted before -> after (mm) | achieved before -> after (mm) "
-             "| parameters kept |", "|---|---|---|---|---|"]  # fmt: skip
+    lines = ["| truth | frames | predicted before -> after (mm) | draws' median after (mm) "
+             "| achieved before -> after (mm) | parameters kept |",
+             "|---|---|---|---|---|---|"]  # fmt: skip
     for r in rows:
         kept = (f"{r['kept_before']} -> {r['kept_after']}" if not r.get("error") else
                 f"{r['error']}")  # fmt: skip
         lines.append(f"| {r['seed']} | {r['frames']} + {a.add} | {r['predicted_before_mm']:.3f} -> "
-                     f"{r['predicted_after_mm']:.3f} | {r['achieved_before_mm']:.3f} -> "
-                     f"{r['achieved_after_mm']:.3f} | {kept} |")  # fmt: skip
+                     f"{r['predicted_after_mm']:.3f} | {r['drawn_after_mm']:.3f} | "
+                     f"{r['achieved_before_mm']:.3f} -> {r['achieved_after_mm']:.3f} | {kept} |")  # fmt: skip
     ok = [r for r in rows if not r.get("error")]
     pr = np.median([r["predicted_before_mm"] / r["predicted_after_mm"] for r in ok])
+    dr = np.median([r["predicted_before_mm"] / r["drawn_after_mm"] for r in ok])
     ac = np.median([r["achieved_before_mm"] / r["achieved_after_mm"] for r in ok])
     fit = np.median([r["achieved_after_mm"] / r["predicted_after_mm"] for r in ok])
     of = f" of the {len(ok)} truths that calibrated" if len(ok) < len(rows) else ""
     mount = " --mount eye-to-hand" if e2h else ""
-    lines += ["", f"Median ratio before/after{of}: predicted {pr:.2f}, achieved {ac:.2f}; "
+    lines += ["", f"Median ratio before/after{of}: predicted {pr:.2f} (to the draws' median "
+              f"{dr:.2f}), achieved {ac:.2f}; "
               f"achieved/predicted after {fit:.2f} (`python -m selfcal.benchmarks.plan.add "
               f"--truths {a.truths} --add {a.add}{mount} --write-docs`)."]  # fmt: skip
     marker = f"benchmark_plan_add_{'e2h_' if e2h else ''}{a.add}"
