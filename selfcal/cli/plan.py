@@ -401,7 +401,7 @@ def _cmd_add(args: argparse.Namespace) -> int:
             "criterion": criterion(len(add.workspace), args.pixel_sigma, js, args)
             + "; summed over the dataset and each training set of the selection's "
             "cross-validation; after: with the parameters the selection's cross-validation "
-            "is forecast to keep (the swaps and the recording order it prefers)",
+            "is forecast to keep (the swaps: by the RMS over draws, the selection deciding in each)",
             "forecast": {
                 "chosen": add.forecast.label,
                 "folds": add.forecast.folds,
