@@ -56,6 +56,7 @@ CHARUCO_MIN_CORNERS = 6  # a ChArUco view counts with 6 corners (reference.py's 
 # (docs/real-data.md): 0.1 on both, p = 0.0042 / 0.0024 (photoneo / mecheye); mecheye's was 0.15
 # with the jitter's mean carried (0.1 at the edge: p = 0.0084), and with the bounds' corner noise
 # beside the jitter neither was found (0.1 / 0.15: p = 0.046 / 0.69)
+AFTER_OF_NOMINAL = 0.4  # plan --add 5's prediction / its fair nominal: 0.20 (or 0.15), 0.11
 PREDICTED_BAND = (0.67, 1.5)  # issue #29's band of predicted / measured held-out RMS
 LENS_K3 = {"nachi-2025-01-17-photoneo": 0.5, "nachi-2025-02-05-mecheye": 0.5}
 
@@ -384,11 +385,27 @@ def test_plan_add_five_postures_to_the_calibrated_set(name, deviation, outcome, 
         assert SCALE_RANGE[0] < dev["scale_of_default"] < SCALE_RANGE[1], dev
         assert abs(dev["nominal_folds_forecast_px"] - rms) < 1e-3, dev
         assert dev["nominal_folds_forecast_at_default_px"] > 5 * rms, dev  # 23.9 px, 1.9 px
-    # "before" is judged against the reference for the dataset's frames alone, which the added
-    # postures can only lower (more information on the same placement)
-    before_ref = doc["nominal_before"]["fair_nominal_tool_rms_mm"]
-    assert before_ref >= doc["nominal"]["fair_nominal_tool_rms_mm"], doc
-    assert "before, without calibrating" in p.stdout, p.stdout
+    # each verdict is against the fair nominal for its own postures: "before" the dataset's
+    # frames alone, "after" with the 5 added (the URDF's mount is no reference). Not one against
+    # the other: more postures lower the fair nominal's noise part, but not its bias, the held
+    # parameters' deviation that the placement fitted to the pixels carries to the tool point
+    # ((I - P) S (I - P)^T, P the projection weighted by the postures' information; the fit
+    # matches the camera's poses, not the flange): with the draws' swaps it rose 2.738 ->
+    # 2.788 mm (0.1 mm, 0.05 deg; 1.967 -> 1.863 mm with the sized one). So: each printed verdict
+    # is the one of its own figures in plan.json, and the calibration after beats its reference
+    for key, ref_key, pred_key in (("before", "nominal_before", "predicted_before_tool_rms_mm"),
+                                   ("after", "nominal", "predicted_tool_rms_mm")):  # fmt: skip
+        ref = doc[ref_key]
+        assert ref["reference"] == "the fair nominal" and ref["drawn_tool_rms_mm"] is None, ref
+        line = next(s for s in p.stdout.splitlines() if s.startswith(f"{key}, without"))
+        ratio = doc[pred_key] / ref["fair_nominal_tool_rms_mm"]
+        assert f"kinematics {ref['fair_nominal_tool_rms_mm']:.3f} mm" in line, line
+        said = float(re.findall(r"([0-9.]+) times it", line)[0])  # plan.json's are rounded
+        assert abs(said - ratio) < 0.006, (ratio, line)
+        assert line.startswith(f"{key}, without") and (
+            ("NOT predicted" in line) == (ratio > ref["clear_margin"])), line  # fmt: skip
+    assert doc["predicted_tool_rms_mm"] <= AFTER_OF_NOMINAL * doc["nominal"][
+        "fair_nominal_tool_rms_mm"], doc  # fmt: skip
     # docs/plan.md quotes the lines (the default deviation) and the forecast's draws (both):
     # the draws' percentiles as the page's within the Monte Carlo error of a difference of two
     # runs (they move by more than their last digit between calibrations that agree to the
@@ -398,7 +415,8 @@ def test_plan_add_five_postures_to_the_calibrated_set(name, deviation, outcome, 
     page = (Path(__file__).resolve().parents[2] / "docs/plan.md").read_text()
     lines = p.stdout.replace(str(runs_dir / name / "calib"), "calib").strip().splitlines()
     assert len(lines) == 5, p.stdout
-    if not deviation:
+    if not deviation:  # NOT reproducible yet: calibrate's 12th digit flips the added postures
+        # (0.371 mm quoted, 0.308 mm on other runs; docs/plan.md says so), so this fails then
         assert all(line in page for line in lines[:4]), p.stdout
     flat = " ".join(page.split())
     fc = doc["forecast_draws"]
