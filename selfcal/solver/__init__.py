@@ -6,7 +6,8 @@
 - :mod:`selfcal.solver.linear`: dense, sparse and Schur-complement normal equations, damped solves;
 - :mod:`selfcal.solver.schur`: the Schur form's assembly, its structure built once per solve;
 - :mod:`selfcal.solver.lm`: the LM loop, its options, budget and result;
-- :mod:`selfcal.solver.covariance`: blocks of ``(J^T J)^-1`` after a solve.
+- :mod:`selfcal.solver.covariance`: blocks of ``(J^T J)^-1`` after a solve; a covariance's symmetric
+  square root, to draw from it.
 """
 
 from selfcal.solver.covariance import (
@@ -14,6 +15,7 @@ from selfcal.solver.covariance import (
     covariance,
     inverse_block,
     inverse_columns,
+    psd_sqrt,
     scaled_rank,
     scaled_rank_of_normal,
     schur_normal_matrix,
@@ -42,6 +44,7 @@ __all__ = [
     "covariance",
     "inverse_block",
     "inverse_columns",
+    "psd_sqrt",
     "scaled_rank",
     "scaled_rank_of_normal",
     "schur_normal_matrix",

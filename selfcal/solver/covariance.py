@@ -15,6 +15,7 @@ import scipy.linalg
 import scipy.sparse as sp
 from scipy.sparse.linalg import ArpackError, LinearOperator, eigsh, splu
 
+from selfcal.errors import UsageError
 from selfcal.solver.linear import DENSE_MAX
 from selfcal.solver.problem import Problem
 from selfcal.solver.schur import SchurAssembler, SchurLayout, SchurPlans
@@ -28,6 +29,7 @@ __all__ = [
     "scaled_rank_of_normal",
     "schur_scaled_rank",
     "normal_matrix",
+    "psd_sqrt",
     "schur_normal_matrix",
 ]
 
@@ -35,6 +37,22 @@ __all__ = [
 _DENSE_COLUMN = 0.125  # a column in more than this fraction of the rows is multiplied densely
 NORMAL_CHUNK = 1 << 16
 """Rows of ``J`` per chunk of :func:`normal_matrix` (one chunk: the product at once)."""
+
+
+def psd_sqrt(C: np.ndarray) -> np.ndarray:
+    """The symmetric positive semi-definite square root ``S`` (p, p) of the symmetric positive
+    semi-definite ``C`` (p, p), any units: ``S S = S S^T = C`` (``V diag(sqrt(w)) V^T`` from the
+    eigen-decomposition of ``(C + C^T) / 2``, round-off's negative eigenvalues taken as 0).
+    Unlike ``V diag(sqrt(w))`` it is a function of ``C`` alone, not of the signs and order of the
+    eigenvectors the decomposition happens to return: ``S z`` (``z`` standard normal) is a draw
+    of ``N(0, C)`` that a change of ``C`` in its last digits changes in its last digits (the
+    forecast draws of ``selfcal plan``, issue #30)."""
+    C = np.asarray(C, dtype=float)
+    if C.ndim != 2 or C.shape[0] != C.shape[1] or not np.all(np.isfinite(C)):
+        raise UsageError(f"psd_sqrt needs a finite square matrix, got shape {C.shape}")
+    w, V = np.linalg.eigh((C + C.T) / 2.0)
+    S = (V * np.sqrt(np.clip(w, 0.0, None))) @ V.T
+    return (S + S.T) / 2.0
 
 
 def normal_matrix(J: sp.spmatrix | np.ndarray) -> sp.csc_matrix:

@@ -109,6 +109,7 @@ from selfcal.kinematics.tool_error import (
     workspace_sample,
     workspace_summary,
 )
+from selfcal.solver.covariance import psd_sqrt
 
 __all__ = [
     "ORIENTATION",
@@ -200,12 +201,6 @@ def _noise_covariance(cr: BoardCramerRao, cols: np.ndarray) -> np.ndarray:
     return C
 
 
-def _sqrt_psd(C: np.ndarray) -> np.ndarray:
-    """A square root ``R`` (p, p) of the symmetric positive semi-definite ``C``: ``R R^T = C``."""
-    w, V = np.linalg.eigh(C)
-    return V * np.sqrt(np.clip(w, 0.0, None))
-
-
 def held_out_errors(obs: BoardObservations, fit: Refinement, frames: np.ndarray,
                     T_tool_point: np.ndarray, cr: BoardCramerRao) -> dict[str, np.ndarray]:  # fmt: skip
     """For every frame of ``frames`` (m,) bool with first-camera rows, ``fit``'s prediction from
@@ -224,8 +219,8 @@ def held_out_errors(obs: BoardObservations, fit: Refinement, frames: np.ndarray,
     t = np.asarray(T_tool_point, float)[:3, 3]
     js = obs.joint_sigma
     cols, C, n0 = _full_covariance(cr)
-    C_half = _sqrt_psd(C)
-    G_half = _sqrt_psd(_full_covariance(cr, misfit=True)[1])
+    C_half = psd_sqrt(C)
+    G_half = psd_sqrt(_full_covariance(cr, misfit=True)[1])
     s2 = cr.pixel_sigma_px**2
     keys = ("frame", "px2", "px2_expected", "px2_var", "px2_unit", "px2_misfit", "lever", "e",
             "S", "N")  # fmt: skip

@@ -13,7 +13,9 @@ held five parameters, and three of them were its three worst).
 This module draws that decision, to first order, as the calibration would meet it: per draw one
 arm's deviation ``d`` (every inner minimal parameter uniform within the deviation's half-width,
 as the simulator draws it) and per fold the information-weighted noise of its frames
-``h_f ~ N(0, F_f)`` (``F_f`` the fold's information; the folds partition the frames, so the
+``h_f ~ N(0, F_f)`` (``F_f`` the fold's information, drawn through its symmetric square root
+:func:`selfcal.solver.covariance.psd_sqrt`, so a draw changes with ``F_f`` continuously and not
+with the signs round-off gives its eigenvectors; the folds partition the frames, so the
 noise of a fit on several folds is the sum of theirs). A fit of the directions ``M`` on frames
 of information ``F`` and noise ``g`` errs by ``-R d + C g``
 (:func:`selfcal.calibration.board.plan.predict.linear_estimator`); a fold's RMS per feature is
@@ -50,6 +52,7 @@ from selfcal.calibration.board.plan.selection import selection_folds
 from selfcal.calibration.board.plan.views import PlanSetup
 from selfcal.errors import UsageError
 from selfcal.kinematics.mcpc import MCPCModel
+from selfcal.solver.covariance import psd_sqrt
 
 __all__ = ["DRAWS", "SelectionSpread", "plan_spread", "selection_spread"]
 
@@ -156,7 +159,7 @@ def selection_spread(
         n_out = np.array([n_features[folds.out(f)].sum() for f in range(nf)])
         A_fold = [A[folds.out(f)].sum(axis=0)[:p, :p] for f in range(nf)]
         z_at = [np.flatnonzero(folds.out(f)) for f in range(nf)]
-    roots = [_root(Ff) for Ff in F_fold]
+    roots = [psd_sqrt(Ff) for Ff in F_fold]
     Gp = np.zeros((p, p))
     Gp[n_cam:, n_cam:] = G
     tool = np.empty(draws)
@@ -231,11 +234,3 @@ def plan_spread(
     return selection_spread(board_model(setup), q, G, F, n, setup.camera.n_free, variance,
                             pixel_sigma_px, draws=draws, seed=seed, on_draw=on_draw,
                             held_out=A)  # fmt: skip
-
-
-def _root(F: np.ndarray) -> np.ndarray:
-    """(p, r) ``L`` with ``L L^T = F`` (``F`` symmetric, positive semi-definite): ``L z``,
-    ``z`` standard normal, is a draw of ``N(0, F)``."""
-    w, V = np.linalg.eigh((F + F.T) / 2.0)
-    keep = w > w.max() * 1e-14
-    return V[:, keep] * np.sqrt(w[keep])
