@@ -17,8 +17,8 @@ def test_adding_five_postures_to_a_wrist_only_dataset(tmp_path):
     rows = [wrist_only_row(tmp_path / f"truth{s}", s, 5) for s in (1, 2, 3)]
     predicted = [r["predicted_before_mm"] / r["predicted_after_mm"] for r in rows]
     achieved = [r["achieved_before_mm"] / r["achieved_after_mm"] for r in rows]
-    assert min(predicted) >= 2.0  # measured 2.54 - 4.08
-    assert np.median(achieved) >= 2.0  # measured 2.82 (0.75 - 4.85)
+    assert min(predicted) >= 2.0  # measured 2.49 - 4.34 (the benchmark's truths 1 - 3)
+    assert np.median(achieved) >= 2.0  # measured 2.51 (0.80 - 4.72)
     # the added postures let the selection identify parameters the wrist alone could not
     assert all(r["kept_before"] == 12 for r in rows)
     assert np.median([r["kept_after"] for r in rows]) > 12

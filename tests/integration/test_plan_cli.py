@@ -182,9 +182,10 @@ def test_the_docs_plan_line_is_what_the_command_prints(tmp_path, capsys):
     assert all(line in page for line in lines[:-1]), lines
     assert "--board-pose -472,-133,3 --count 12 --keep-out -300,50,0,-100,400,600" in page
     # the forecast's draws (the last line): their percentiles as the page's within the Monte
-    # Carlo error of a difference of two runs, as the real tier checks the --add lines (a draw's
-    # random numbers go through an eigen-decomposition whose vectors' signs follow the machine's
-    # round-off: two machines print other digits)
+    # Carlo error of a difference of two runs, as the real tier checks the --add lines (the
+    # draws go through the information's symmetric square root, a function of the matrix alone,
+    # but another machine's round-off can still tip a draw whose selection sits on the
+    # one-standard-error rule's edge: a percentile moves by a draw's step then)
     fc = json.loads((tmp_path / "plan/plan.json").read_text())["forecast_draws"]
     flat = " ".join(page.split())
     assert lines[-1].split(": median")[0] in page
