@@ -24,6 +24,11 @@ workspace sample of the nominal cell, seed 2) after the best rigid alignment, ag
 truth (:func:`selfcal.pipeline.static_report.flange_centre_errors`). Markers
 ``benchmark_plan_add_e2h_K``. A truth whose calibration stops with an error is a row that says
 so, left out of the medians.
+
+A truth's folder is reused (a stopped run goes on, ``--write-docs`` tables a finished one) only
+when its ``benchmark.json`` names this run's ``--add``, mount and code, a clean commit
+(:func:`selfcal.benchmarks.doc_blocks.code_version`); any other folder is measured anew, so a
+table never holds rows of another K or of other code.
 """
 
 from __future__ import annotations
@@ -35,11 +40,12 @@ from pathlib import Path
 
 import numpy as np
 
-from selfcal.benchmarks.doc_blocks import ROOT, print_table
+from selfcal.benchmarks.doc_blocks import ROOT, code_version, print_table
 from selfcal.choices import SETUPS
 from selfcal.io.atomic import write_text_atomic
 
-__all__ = ["STILL_POSTURES", "still_camera_row", "wrist_cell", "wrist_only_row", "main"]
+__all__ = ["STILL_POSTURES", "fresh_truth", "still_camera_row", "wrist_cell", "wrist_only_row",
+           "main"]  # fmt: skip
 
 WRIST_SPAN_DEG = (40.0, 40.0, 90.0)
 """How far the wrist's three joints move from home in the wrist-only dataset (deg)."""
@@ -221,11 +227,27 @@ def _kept(run: Path) -> int:
     return len(json.loads((run / "calibration.json").read_text())["selection"]["identified"])
 
 
+def fresh_truth(root: Path, add: int, mount: str) -> None:
+    """Make ``root`` a truth's folder for ``--add add`` on ``mount`` with this code: kept when
+    its ``benchmark.json`` says so and the code is a clean commit, else emptied (its plan and
+    calibrations were made for another K, mount or code, or by uncommitted code that need not be
+    this), and the stamp written."""
+    stamp = {"add": add, "mount": mount, "code": code_version()}
+    file = root / "benchmark.json"
+    clean = stamp["code"] is not None and not str(stamp["code"]).endswith("+changes")
+    if root.exists() and not (clean and file.is_file() and json.loads(file.read_text()) == stamp):
+        shutil.rmtree(root)
+    root.mkdir(parents=True, exist_ok=True)
+    write_text_atomic(file, json.dumps(stamp) + "\n")
+
+
 def _row(item: tuple[str, int, int, str]) -> dict:
     root, seed, add, mount = item
+    folder = Path(root) / f"truth{seed}"
+    fresh_truth(folder, add, mount)
     if mount == "eye-to-hand":
-        return still_camera_row(Path(root) / f"truth{seed}", seed, add)
-    return wrist_only_row(Path(root) / f"truth{seed}", seed, add)
+        return still_camera_row(folder, seed, add)
+    return wrist_only_row(folder, seed, add)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -238,12 +260,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--mount", default="eye-in-hand", choices=SETUPS,
                     help="the wrist camera's dataset (default) or the still camera's")  # fmt: skip
-    ap.add_argument("--out", default=None, help="default runs/plan-add, runs/plan-add-e2h-K")
+    ap.add_argument("--out", default=None, help="default runs/plan-add-K, runs/plan-add-e2h-K")
     ap.add_argument("--write-docs", action="store_true",
                     help="rewrite the table of this --add (and mount) in docs/plan.md")  # fmt: skip
     a = ap.parse_args(argv)
     e2h = a.mount == "eye-to-hand"
-    out = a.out or (f"runs/plan-add-e2h-{a.add}" if e2h else "runs/plan-add")
+    out = a.out or (f"runs/plan-add-e2h-{a.add}" if e2h else f"runs/plan-add-{a.add}")
     items = [(out, s, a.add, a.mount) for s in range(1, a.truths + 1)]
     with get_context("spawn").Pool(a.jobs) as pool:
         rows = pool.map(_row, items)
