@@ -422,6 +422,9 @@ def test_plan_add_five_postures_to_the_calibrated_set(name, deviation, outcome, 
         # moved by 1e-12 (docs/plan.md; through the eigenvectors' root 3 of 10 runs flipped them)
         assert all(line in page for line in lines[:4]), p.stdout
     flat = " ".join(page.split())
+    if deviation:  # its prose quotes the first line's figures and joint path (the same postures)
+        said = re.search(r"error ([0-9.]+ -> [0-9.]+ mm) RMS .*; (joint path [0-9]+ deg)", lines[0])
+        assert said and f"prints {said[1]} ({said[2]})" in flat, lines[0]
     fc = doc["forecast_draws"]
     for key in ("before", "after"):
         said = re.findall(rf"{fc[key]['label']}: median ([0-9.]+) mm, 90th percentile "
