@@ -48,7 +48,7 @@ from pathlib import Path
 import numpy as np
 
 from selfcal.benchmarks.drift_real_deviation import deviation_part, with_share
-from selfcal.calibration.accuracy import model_error_of, with_whitened
+from selfcal.calibration.accuracy import model_error_of
 from selfcal.calibration.board.accuracy import (
     ORIENTATION,
     POSITION,
@@ -81,6 +81,7 @@ from selfcal.calibration.drift.views import (
     view_jacobians,
     view_white_px,
 )
+from selfcal.calibration.whitened import whitened_rows, with_whitened
 from selfcal.camera import CameraModel
 from selfcal.io.board_calibration import BoardCalibrationResult, read_board_calibration
 from selfcal.kinematics.tool_error import ToolErrorModel
@@ -224,7 +225,7 @@ def excess_without(folds: list[Fold], left: int | None,
     held-out frames of every fold but ``left`` (its index; None: all of them, the calibration's
     own figure). Without ``left``'s own frames it is out of sample for that fold's check: its
     own miss does not size the error that may excuse it. ``whitened``: each row in its own
-    metric (:func:`selfcal.calibration.accuracy.whitened_excess`, the block's figure), else the
+    metric (:func:`selfcal.calibration.whitened.whitened_excess`, the block's figure), else the
     squared norms' excess over isotropic standard errors (the block's before it)."""
     h = [f.tool for i, f in enumerate(folds) if i != left and f.tool is not None]
     if not h:
@@ -234,8 +235,8 @@ def excess_without(folds: list[Fold], left: int | None,
     me = model_error_of(pos[0], pos[1], pos[2], (rot[0], rot[1], rot[2]), folds=len(h),
                         failed=0, noise_what="")  # fmt: skip
     if me is not None and whitened:  # as the accuracy block gives it (board/accuracy.py)
-        e, S, N = (np.concatenate([x[k] for x in h]) for k in ("e", "S", "N"))
-        me = with_whitened(me, e, S + N, POSITION, ORIENTATION)
+        e, V, between = whitened_rows(h)
+        me = with_whitened(me, e, V, POSITION, ORIENTATION, between)
     return fold_excess({"model_error": me.to_json()} if me is not None else None)
 
 

@@ -21,11 +21,10 @@ record (:class:`ModelError`), the ``accuracy`` block of ``calibration.json``
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.optimize import brentq
 
 from selfcal.errors import InputError
 from selfcal.kinematics.mcpc import MCPCModel, minimal_indices
@@ -47,8 +46,6 @@ __all__ = [
     "spans_from_json",
     "spans_json",
     "unmeasured_beyond",
-    "whitened_excess",
-    "with_whitened",
 ]
 
 SAMPLE_COUNT = 256
@@ -84,35 +81,6 @@ def excess(total2: float, expected2: float, rows: int) -> float:
     return float(np.sqrt((total2 - expected2) / 3.0))
 
 
-def whitened_excess(e: np.ndarray, V: np.ndarray) -> float:
-    """Per-coordinate standard deviation ``m`` of an isotropic error of the held-out ``d``-vectors
-    ``e`` (rows, d) beyond what each row's own covariance ``V`` (rows, d, d) explains (the
-    estimation error and the noise: ``S_i + N_i``), every row weighed in its own metric: the
-    ``m`` at which ``sum_i e_i^T (V_i + m^2 I)^-1 e_i = d rows`` (the moment of the whitened
-    rows; unit of ``e``). 0 unless ``sum_i e_i^T V_i^-1 e_i``, chi-square with ``d rows``
-    degrees of freedom under no excess, exceeds its mean by :data:`Z_MODEL_ERROR` standard
-    errors (``sqrt(2 d rows)``). Unlike :func:`excess` of the squared norms, a row's poorly
-    known direction (a single view's depth along its line of sight) neither hides an excess in
-    the well known ones nor, by its own spread, passes for one."""
-    e, V = np.asarray(e, float), np.asarray(V, float)
-    rows, d = e.shape
-    if rows == 0:
-        return 0.0
-    eye = np.eye(d)
-
-    def whitened(m2: float) -> float:
-        return float(np.sum(e * np.linalg.solve(V + m2 * eye, e[..., None])[..., 0]))
-
-    dof = d * rows
-    if (whitened(0.0) - dof) / np.sqrt(2.0 * dof) <= Z_MODEL_ERROR:
-        return 0.0
-    lo, hi = 0.0, max(float(np.mean(np.sum(e**2, axis=1))) / d, np.finfo(float).tiny)
-    while whitened(hi) > dof:  # the whitened sum falls as m^2 grows
-        lo, hi = hi, 2.0 * hi
-    m2 = brentq(lambda m2: whitened(m2) - dof, lo, hi, xtol=np.finfo(float).tiny, maxiter=200)
-    return float(np.sqrt(m2))
-
-
 @dataclass(frozen=True)
 class ModelError:
     """The model error estimated from held-out rows (module docstring); SI.
@@ -144,7 +112,7 @@ class ModelError:
             counts, :mod:`selfcal.calibration.board.held_prior`): the board route's; None where
             not measured (the tracker route, a file written before it).
         whitened_m, whitened_rad: the held-out rows' tool-pose excess with each row in its own
-            metric (:func:`whitened_excess` of ``e_i`` against ``S_i + N_i``), per coordinate;
+            metric (:func:`selfcal.calibration.whitened.whitened_excess` of ``e_i`` against ``S_i + N_i``), per coordinate;
             None where not measured (the tracker route, a file written before it).
     """
 
@@ -247,17 +215,6 @@ class ModelError:
                 }
             ),
         }
-
-
-def with_whitened(me: ModelError, e: np.ndarray, V: np.ndarray, position: slice,
-                  orientation: slice) -> ModelError:  # fmt: skip
-    """``me`` with its held-out rows' excess in each row's own metric (:func:`whitened_excess`
-    of the tool-pose errors ``e`` (rows, 6) against their covariances ``V`` (rows, 6, 6), the
-    estimation's and the noise's; m and rad), the ``position`` and the ``orientation``
-    coordinates apart (the drift check's second null)."""
-    P, R = position, orientation
-    return replace(me, whitened_m=whitened_excess(e[:, P], V[:, P, P]),
-                   whitened_rad=whitened_excess(e[:, R], V[:, R, R]))  # fmt: skip
 
 
 def model_error_of(

@@ -116,16 +116,23 @@ def test_a_folds_own_miss_does_not_size_the_error_that_excuses_it():
     sqrt(3e-6 / 3) = 1 mm. The orientation, with no excess, is 0 throughout."""
     rng = np.random.default_rng(2)
 
-    def tool(e2: float) -> dict[str, np.ndarray]:
+    def tool(e2: float, fold: int) -> dict[str, np.ndarray]:
         u = rng.normal(size=(4, 3))
         e = np.zeros((4, 6))
         e[:, :3] = np.sqrt(e2) * u / np.linalg.norm(u, axis=1, keepdims=True)
         e[:, 3:] = 1e-3 / np.sqrt(3.0)  # |w|^2 = 1e-6 rad^2 = tr S's orientation part
         S = np.tile(np.diag([1e-6] * 3 + [1e-6 / 3] * 3), (4, 1, 1))
-        return {"e": e, "S": S, "N": np.zeros((4, 6, 6))}
+        # each frame's estimation error its own (6 parameters of 120, S = G C G^T, no
+        # information shared between the folds' fits): the rows independent
+        G = np.zeros((4, 6, 120))
+        for r in range(4):
+            G[r, :, 6 * (4 * fold + r) : 6 * (4 * fold + r + 1)] = np.sqrt(S[r])
+        C, A = np.tile(np.eye(120), (4, 1, 1)), np.zeros((4, 120, 120))
+        return {"frame": np.arange(4), "e": e, "S": S, "N": np.zeros((4, 6, 6)), "G": G,
+                "C": C, "A": A}  # fmt: skip
 
     base = _folds(0.0, 1.0, 1, rng)[0]
-    folds = [dataclasses.replace(base, tool=tool(15e-6 if i == 2 else 3e-6)) for i in range(5)]
+    folds = [dataclasses.replace(base, tool=tool(15e-6 if i == 2 else 3e-6, i)) for i in range(5)]
     pos, rot = excess_without(folds, None)
     assert pos == pytest.approx(np.sqrt(2.4e-6 / 3.0)) and rot == 0.0
     assert excess_without(folds, 2) == (0.0, 0.0)

@@ -36,7 +36,7 @@ parts of :mod:`selfcal.calibration.accuracy`:
   (:class:`selfcal.calibration.accuracy.ModelError`'s held-out RMS): a single view knows it
   poorly along its line of sight, so the model error is not taken from it; its excess with each
   frame in its own metric (``whitened_excess_mm`` / ``_deg``,
-  :func:`selfcal.calibration.accuracy.whitened_excess`) is the drift check's second null
+  :func:`selfcal.calibration.whitened.whitened_excess`) is the drift check's second null
   (:mod:`selfcal.calibration.drift.fold_error`).
 
 The parameters the selection held at the drawing: their deviation, less what the fit absorbs
@@ -79,7 +79,6 @@ from selfcal.calibration.accuracy import (
     postures_from_json,
     spans_json,
     unmeasured_beyond,
-    with_whitened,
 )
 from selfcal.calibration.board.bounds import BoardCramerRao
 from selfcal.calibration.board.deviation import Deviation
@@ -95,6 +94,7 @@ from selfcal.calibration.board.misfit import board_view, pose_jacobian, tip_map,
 from selfcal.calibration.board.param_selection import Selection
 from selfcal.calibration.board.refine import BoardObservations, Refinement, predicted_points
 from selfcal.calibration.growth import Variogram, fit_variogram
+from selfcal.calibration.whitened import whitened_rows, with_whitened
 from selfcal.camera import CameraModel
 from selfcal.estimation.kinematic_poses import joint_twists
 from selfcal.kinematics.forward import fk_tool, identification_jacobian
@@ -201,6 +201,21 @@ def _noise_covariance(cr: BoardCramerRao, cols: np.ndarray) -> np.ndarray:
     return C
 
 
+def _padded_covariance(cr: BoardCramerRao) -> np.ndarray:
+    """(k + c, k + c) the covariance of ``cr``'s estimate in every minimal parameter's order
+    (zero rows where it holds one) then the first camera's ``c`` free parameters."""
+    k = len(cr.covariance)
+    n0 = 0 if cr.camera_covariance is None else len(cr.camera_covariance)
+    C = np.zeros((k + n0, k + n0))
+    C[:k, :k] = cr.covariance
+    if n0:
+        assert cr.camera_cross is not None
+        C[k:, k:] = cr.camera_covariance
+        C[:k, k:] = cr.camera_cross
+        C[k:, :k] = cr.camera_cross.T
+    return C
+
+
 def held_out_errors(obs: BoardObservations, fit: Refinement, frames: np.ndarray,
                     T_tool_point: np.ndarray, cr: BoardCramerRao) -> dict[str, np.ndarray]:  # fmt: skip
     """For every frame of ``frames`` (m,) bool with first-camera rows, ``fit``'s prediction from
@@ -214,7 +229,11 @@ def held_out_errors(obs: BoardObservations, fit: Refinement, frames: np.ndarray,
     the estimate (:mod:`selfcal.calibration.board.misfit`); ``lever`` the tool point's mean
     distance (m) to the board points in view; the flange's error as the best pose correction of the pixels ``e`` (6,) (position m, orientation
     rad, world frame) with the covariances the estimate's errors ``S`` (6, 6) and the noise
-    ``N`` (6, 6) give it."""
+    ``N`` (6, 6) give it, ``G`` (6, k + c) what an error of the estimate gives it (``S = G C
+    G^T``), ``C`` (k + c, k + c) that covariance (the same for every frame of ``fit``) and ``A``
+    (k + c, k + c) the information the frame's first-camera pixels (under the pixel and joint
+    read-back noise) give an estimate, all in every minimal parameter's order (zero where ``cr``
+    holds one) then the first camera's free parameters: :func:`whitened_rows`."""
     cam, v, Xc, uv, _ = predicted_points(obs, fit, frames)[0]
     t = np.asarray(T_tool_point, float)[:3, 3]
     js = obs.joint_sigma
@@ -223,7 +242,9 @@ def held_out_errors(obs: BoardObservations, fit: Refinement, frames: np.ndarray,
     G_half = psd_sqrt(_full_covariance(cr, misfit=True)[1])
     s2 = cr.pixel_sigma_px**2
     keys = ("frame", "px2", "px2_expected", "px2_var", "px2_unit", "px2_misfit", "lever", "e",
-            "S", "N")  # fmt: skip
+            "S", "N", "G", "C", "A")  # fmt: skip
+    idx = minimal_indices(cr.model.joint_types)
+    C_all = _padded_covariance(cr)
     out: dict[str, list] = {k: [] for k in keys}
     for i in np.unique(v).tolist():
         rows = v == i
@@ -234,16 +255,20 @@ def held_out_errors(obs: BoardObservations, fit: Refinement, frames: np.ndarray,
         A = pose_jacobian(Jx, x, T, obs.eye_to_hand)
         AtA_inv = np.linalg.inv(A.T @ A)
         B = tip_map(T, t)
-        H = np.concatenate([A @ identification_jacobian(cr.model, obs.q[i][None])[0][:, cols],
-                            Jc.reshape(-1, n0)], axis=1)  # fmt: skip
+        J = identification_jacobian(cr.model, obs.q[i][None])[0]
+        H = np.concatenate([A @ J[:, cols], Jc.reshape(-1, n0)], axis=1)
+        H_all = np.concatenate([A @ J[:, idx], Jc.reshape(-1, n0)], axis=1)
         U = H @ C_half  # the estimate's pixel errors: U U^T
         P = AtA_inv @ A.T  # pixels -> the pose correction (body twist)
         N = s2 * B @ AtA_inv @ B.T
+        info = H_all.T @ H_all / s2  # the frame's information on the estimate (Woodbury)
         if js is not None:
             tw = joint_twists(cr.model, obs.q[i][None])[0]  # (6, n) body twists
             Q = tw * np.broadcast_to(np.asarray(js, float), (tw.shape[1],))
             U = np.concatenate([U, A @ Q], axis=1)
             N = N + B @ Q @ Q.T @ B.T
+            HU = H_all.T @ (A @ Q)
+            info -= HU @ np.linalg.solve(s2 * np.eye(Q.shape[1]) + (A @ Q).T @ (A @ Q), HU.T) / s2
         K, lever = unit_rows(A, x, T, t, obs.eye_to_hand)
         UtU = U.T @ U
         vals = {
@@ -260,6 +285,9 @@ def held_out_errors(obs: BoardObservations, fit: Refinement, frames: np.ndarray,
             "e": -B @ P @ r,
             "S": B @ P @ (H @ C @ H.T) @ P.T @ B.T,
             "N": N,
+            "G": B @ P @ H_all,
+            "C": C_all,
+            "A": info,
         }
         for k in keys:
             out[k].append(vals[k])
@@ -356,7 +384,8 @@ def model_error(obs: BoardObservations, selection: Selection, offsets: np.ndarra
                         given=(m, m / float(np.mean(h["lever"]))),
                         reach_distance=reach, growth=gram, measured_to=reached)  # fmt: skip
     if me is not None:  # the same rows' excess with each in its own metric (drift check)
-        me = with_whitened(me, h["e"], h["S"] + h["N"], POSITION, ORIENTATION)
+        e, V, between = whitened_rows(got)
+        me = with_whitened(me, e, V, POSITION, ORIENTATION, between)
     if me is None or variance is None:
         return me, share
     # the deviation's share the calibration counts (its covariance's), at the held-out rows

@@ -47,7 +47,7 @@ two-standard-error rule, which assumes three equal variances, counts an excess w
 none (10 % of the draws in ``tests/unit/test_drift_null.py``'s scene, where the rule means
 2.3 %) and misses one the lateral directions show plainly (22 % found where the whitened rule
 finds every one). The block's ``whitened_excess_mm`` / ``_deg``
-(:func:`selfcal.calibration.accuracy.whitened_excess`: the isotropic ``m`` at which the rows,
+(:func:`selfcal.calibration.whitened.whitened_excess`: the isotropic ``m`` at which the rows,
 each whitened by its own ``S_i + N_i + m^2 I``, have their expected chi-square) is the figure
 used; a file written before it keeps the squared norms' rule.
 
@@ -75,7 +75,7 @@ def fold_excess(block: dict | None) -> tuple[float, float]:
     block's folds at the configurations they left out beyond their estimation error and the noise
     (module docstring; 0 where not beyond two standard errors, or the block has no such rows):
     the whitened excess (``whitened_excess_mm`` / ``_deg``, each held-out row in its own metric,
-    :func:`selfcal.calibration.accuracy.whitened_excess`) where the block gives it, else (a file
+    :func:`selfcal.calibration.whitened.whitened_excess`) where the block gives it, else (a file
     written before it) the excess of the rows' squared norms over isotropic standard errors."""
     me = (block or {}).get("model_error") or {}
     if me.get("whitened_excess_mm") is not None:
