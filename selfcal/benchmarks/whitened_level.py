@@ -18,12 +18,15 @@ holds some of their perturbed parameters at the drawing: an excess the folds sho
 deviation (which the check carries otherwise) or chance.
 
 Run: ``nice -n 10 uv run python -m selfcal.benchmarks.whitened_level --draws 10 --setup
-eye-to-hand [--robot ur5e er4u-paper] [--noise-px 0.2] [--jobs 1]``.
+eye-to-hand [--robot ur5e er4u-paper] [--noise-px 0.2] [--jobs 1]``; ``--calibration CAL
+[CAL ...]``: the same of folders ``selfcal calibrate`` wrote (calibrated again with the default
+deviation), e.g. the real tier's (docs/real-data.md).
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import tempfile
 import warnings
@@ -42,6 +45,7 @@ from selfcal.calibration.board.accuracy import (
     held_out_errors,
 )
 from selfcal.calibration.board.dataset import calibrate_board_dataset_detailed
+from selfcal.calibration.board.deviation import Deviation
 from selfcal.calibration.board.fold_fits import fold_bounds
 from selfcal.calibration.whitened import whitened_null, whitened_rows, whitened_threshold
 from selfcal.config.scenario import load_scenario, scenarios_dir
@@ -54,7 +58,7 @@ SCENARIOS = {"eye-in-hand": SCENARIO, "eye-to-hand": scenarios_dir() / "eye-to-h
 POSES = 30
 
 
-def _rows(root: Path, sigma_px: float, deviation) -> tuple[dict, tuple | None]:
+def _rows(root: Path, sigma_px: float, deviation: Deviation | None) -> tuple[dict, tuple | None]:
     """The calibration of the dataset ``root`` and its folds' whitened rows (``e``, ``V``,
     ``between``; None without folds)."""
     det = calibrate_board_dataset_detailed(root, deviation=deviation)
@@ -67,6 +71,34 @@ def _rows(root: Path, sigma_px: float, deviation) -> tuple[dict, tuple | None]:
          for out, fit, cr in fold_bounds(obs, det.fit.selection,
                                          det.fit.nominal.model.joint_offsets, T_tp, sigma_px)]  # fmt: skip
     return me, whitened_rows(h)
+
+
+def _statistics(rows: tuple, me: dict) -> dict:
+    """Per coordinate set of the whitened ``rows`` (``e``, ``V``, ``between``): the whitened sum,
+    its degrees of freedom, its threshold, the estimation's share, the null variance's ratio,
+    both rules' verdicts and the calibration's own figure (``me``: its block's
+    ``model_error``)."""
+    e, V, between = rows
+    out: dict = {}
+    for name, b, key in (("position", POSITION, "whitened_excess_mm"),
+                         ("orientation", ORIENTATION, "whitened_excess_deg")):  # fmt: skip
+        x, Vb, Bb = e[:, b], V[:, b, b], between[:, b, :, b]
+        k = np.arange(len(x))
+        S = Bb[k, :, k, :]  # the diagonal blocks: each row's own estimation error S_i
+        Q = float(np.sum(x * np.linalg.solve(Vb, x[..., None])[..., 0]))
+        dof, var, _ = whitened_null(Vb, Bb)
+        threshold = whitened_threshold(Vb, Bb)
+        out[name] = {
+            "Q": Q,
+            "dof": dof,
+            "threshold": threshold,
+            "var_ratio": var / (2.0 * dof),
+            "share": float(np.mean(np.trace(np.linalg.solve(Vb, S), axis1=1, axis2=2)) / 3.0),
+            "old": bool((Q - dof) / np.sqrt(2.0 * dof) > Z_MODEL_ERROR),
+            "new": bool(Q > threshold),
+            "figure": bool((me.get(key) or 0.0) > 0.0),
+        }
+    return out
 
 
 def draw(args: tuple) -> dict:
@@ -89,25 +121,7 @@ def draw(args: tuple) -> dict:
         return {"status": f"failed: {type(exc).__name__}: {exc}"}
     if rows is None:
         return {"status": "no folds"}
-    e, V, between = rows
-    out: dict = {"status": "ok", "rows": len(e)}
-    for name, b, key in (("position", POSITION, "whitened_excess_mm"),
-                         ("orientation", ORIENTATION, "whitened_excess_deg")):  # fmt: skip
-        x, Vb, Bb = e[:, b], V[:, b, b], between[:, b, :, b]
-        k = np.arange(len(x))
-        S = Bb[k, :, k, :]  # the diagonal blocks: each row's own estimation error S_i
-        Q = float(np.sum(x * np.linalg.solve(Vb, x[..., None])[..., 0]))
-        dof, var, _ = whitened_null(Vb, Bb)
-        out[name] = {
-            "Q": Q,
-            "dof": dof,
-            "var_ratio": var / (2.0 * dof),
-            "share": float(np.mean(np.trace(np.linalg.solve(Vb, S), axis1=1, axis2=2)) / 3.0),
-            "old": bool((Q - dof) / np.sqrt(2.0 * dof) > Z_MODEL_ERROR),
-            "new": bool(Q > whitened_threshold(Vb, Bb)),
-            "figure": bool((me.get(key) or 0.0) > 0.0),
-        }
-    return out
+    return {"status": "ok", "rows": len(rows[0])} | _statistics(rows, me)
 
 
 def _summary(got: list[dict]) -> str:
@@ -134,8 +148,27 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--noise-px", type=float, nargs="+", default=[0.2])
     ap.add_argument("--seed", type=int, default=0, help="the first draw's seed")
     ap.add_argument("--jobs", type=int, default=1)
+    ap.add_argument("--calibration", nargs="+", type=Path, default=[],
+                    help="instead: these folders of selfcal calibrate (a board dataset "
+                    "calibrated; run again), their folds' rows")  # fmt: skip
     a = ap.parse_args(argv)
     limit_threads()
+    for root in a.calibration:
+        sigma = float(
+            json.loads((root / "calibration.json").read_text())["bounds"]["pixel_sigma_px"]
+        )
+        me, rows = _rows(root, sigma, None)
+        if rows is None:
+            print(f"{root}: no folds")
+            continue
+        for name, g in _statistics(rows, me).items():
+            print(f"{root} {name}: {len(rows[0])} rows, whitened sum / dof {g['Q'] / g['dof']:.2f} "
+                  f"against the threshold's {g['threshold'] / g['dof']:.2f} (independent rows: "
+                  f"{whitened_threshold(rows[1][:, :3, :3]) / g['dof']:.2f}), null variance / "
+                  f"(2 dof) {g['var_ratio']:.2f}, estimation share {g['share']:.3f}; counted by "
+                  f"the rule {g['new']}, session 23's {g['old']}")  # fmt: skip
+    if a.calibration:
+        return 0
     for setup in a.setup:
         for robot in a.robot if setup == "eye-in-hand" else [None]:
             for sigma in a.noise_px:

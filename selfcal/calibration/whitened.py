@@ -163,11 +163,11 @@ def _covariance_share(Kw: np.ndarray, Kb: np.ndarray, tol: float = 1e-9) -> floa
 
 
 def whitened_rows(folds: Sequence[dict]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The held-out frames of the folds ``folds`` (each :func:`selfcal.calibration.board.accuracy.held_out_errors` of one fold's fit
-    at its own frames), as :func:`with_whitened` weighs them: their
-    flange errors ``e`` (rows, 6; m, rad), covariances ``S + N`` (rows, 6, 6) and the covariance
-    between them that the folds' estimate errors give (rows, 6, rows, 6;
-    :func:`fold_row_covariance`: a fold's frames share its error,
+    """The held-out frames of the folds ``folds`` (each
+    :func:`selfcal.calibration.board.accuracy.held_out_errors` of one fold's fit at its own
+    frames), as :func:`with_whitened` weighs them: their flange errors ``e`` (rows, 6; m, rad),
+    covariances ``S + N`` (rows, 6, 6) and the covariance between them that the folds' estimate
+    errors give (rows, 6, rows, 6; :func:`fold_row_covariance`: a fold's frames share its error,
     and the folds' fits share their training frames; each fold's information its frames' first
     camera's, a rig's other cameras' left out)."""
     got = [h for h in folds if len(h["frame"])]
