@@ -81,6 +81,11 @@ from selfcal.calibration.accuracy import (
     unmeasured_beyond,
 )
 from selfcal.calibration.board.bounds import BoardCramerRao
+from selfcal.calibration.board.covariances import (
+    estimate_covariance,
+    noise_covariance,
+    padded_covariance,
+)
 from selfcal.calibration.board.deviation import Deviation
 from selfcal.calibration.board.fold_fits import fold_bounds
 from selfcal.calibration.board.held_prior import (
@@ -157,63 +162,11 @@ def board_error_model(cr: BoardCramerRao, T_tool_point: np.ndarray, position_m: 
     idx = minimal_indices(cr.model.joint_types)
     est = np.ones(idx.size, bool) if cr.estimated is None else np.asarray(cr.estimated, bool)
     p = int(est.sum())
-    cov = cr.covariance[np.ix_(est, est)] + position_m**2 * _full_covariance(cr, True)[1][:p, :p]
+    cov = cr.covariance[np.ix_(est, est)] + position_m**2 * estimate_covariance(cr, True)[1][:p, :p]
     em = ToolErrorModel(cr.model, np.eye(4), idx[est], cov, position_m, rotation_rad,
                         np.asarray(T_tool_point, float))  # fmt: skip
     em = em.with_reach(reach)
     return em, tuple(param_names(idx[est]))
-
-
-def _full_covariance(cr: BoardCramerRao,
-                     misfit: bool = False) -> tuple[np.ndarray, np.ndarray, int]:  # fmt: skip
-    """The estimated minimal parameters' flat indices, the joint covariance (p + c, p + c) of
-    them and the first camera's free parameters (with their correlation), and ``c``;
-    ``misfit``: instead of the covariance, what a unit model error gives them
-    (:attr:`BoardCramerRao.misfit`, zero when the bounds carry none)."""
-    idx = minimal_indices(cr.model.joint_types)
-    est = np.ones(idx.size, bool) if cr.estimated is None else np.asarray(cr.estimated, bool)
-    p = int(est.sum())
-    n0 = 0 if cr.camera_covariance is None else len(cr.camera_covariance)
-    if misfit:
-        keep = np.r_[np.flatnonzero(est), idx.size + np.arange(n0)]
-        G = np.zeros((p + n0, p + n0)) if cr.misfit is None else cr.misfit[np.ix_(keep, keep)]
-        return idx[est], G, n0
-    C = np.zeros((p + n0, p + n0))
-    C[:p, :p] = cr.covariance[np.ix_(est, est)]
-    if n0:
-        assert cr.camera_cross is not None
-        C[p:, p:] = cr.camera_covariance
-        C[:p, p:] = cr.camera_cross[est]
-        C[p:, :p] = cr.camera_cross[est].T
-    return idx[est], C, n0
-
-
-def _noise_covariance(cr: BoardCramerRao, cols: np.ndarray) -> np.ndarray:
-    """(p + c, p + c) the covariance of ``cr``'s estimate from the noise alone (no deviation, no
-    model error) in the order of the block's ``estimated`` (the flat minimal indices ``cols``
-    (p,); a parameter ``cr`` held has zero rows) and the first camera's free parameters: what a
-    calibration frame's noise shares with the estimate (:mod:`selfcal.calibration.drift.paired`)."""
-    idx, C0, n0 = _full_covariance(cr)
-    at = {int(k): j for j, k in enumerate(cols)}
-    keep = np.r_[[at[int(k)] for k in idx], len(cols) + np.arange(n0)].astype(int)
-    C = np.zeros((len(cols) + n0, len(cols) + n0))
-    C[np.ix_(keep, keep)] = C0
-    return C
-
-
-def _padded_covariance(cr: BoardCramerRao) -> np.ndarray:
-    """(k + c, k + c) the covariance of ``cr``'s estimate in every minimal parameter's order
-    (zero rows where it holds one) then the first camera's ``c`` free parameters."""
-    k = len(cr.covariance)
-    n0 = 0 if cr.camera_covariance is None else len(cr.camera_covariance)
-    C = np.zeros((k + n0, k + n0))
-    C[:k, :k] = cr.covariance
-    if n0:
-        assert cr.camera_cross is not None
-        C[k:, k:] = cr.camera_covariance
-        C[:k, k:] = cr.camera_cross
-        C[k:, :k] = cr.camera_cross.T
-    return C
 
 
 def held_out_errors(obs: BoardObservations, fit: Refinement, frames: np.ndarray,
@@ -237,14 +190,14 @@ def held_out_errors(obs: BoardObservations, fit: Refinement, frames: np.ndarray,
     cam, v, Xc, uv, _ = predicted_points(obs, fit, frames)[0]
     t = np.asarray(T_tool_point, float)[:3, 3]
     js = obs.joint_sigma
-    cols, C, n0 = _full_covariance(cr)
+    cols, C, n0 = estimate_covariance(cr)
     C_half = psd_sqrt(C)
-    G_half = psd_sqrt(_full_covariance(cr, misfit=True)[1])
+    G_half = psd_sqrt(estimate_covariance(cr, misfit=True)[1])
     s2 = cr.pixel_sigma_px**2
     keys = ("frame", "px2", "px2_expected", "px2_var", "px2_unit", "px2_misfit", "lever", "e",
             "S", "N", "G", "C", "A")  # fmt: skip
     idx = minimal_indices(cr.model.joint_types)
-    C_all = _padded_covariance(cr)
+    C_all = padded_covariance(cr)
     out: dict[str, list] = {k: [] for k in keys}
     for i in np.unique(v).tolist():
         rows = v == i
@@ -469,15 +422,15 @@ def board_accuracy(obs: BoardObservations, selection: Selection, cr: BoardCramer
     sample = workspace_sample(q_cal, limits, count=count)
     note = ("no cross-validation (the frames show one arm configuration): the covariance alone, "
             "which is optimistic when the model misfits")  # fmt: skip
-    cols, C, n0 = _full_covariance(cr)
-    C = C + pos**2 * _full_covariance(cr, misfit=True)[1]  # as `covariance_si` (the misfit's)
+    cols, C, n0 = estimate_covariance(cr)
+    C = C + pos**2 * estimate_covariance(cr, misfit=True)[1]  # as `covariance_si` (the misfit's)
     p = len(C) - n0
     extra = {
         # the first camera's free parameters (its order) with their correlation to `estimated`:
         # the drift check's prediction of new pixels (selfcal/calibration/drift/images.py)
         "camera_covariance_si": C[p:, p:].tolist(),
         "camera_cross_si": C[:p, p:].tolist(),
-        "noise_covariance_si": _noise_covariance(noisy, cols).tolist(),
+        "noise_covariance_si": noise_covariance(noisy, cols).tolist(),
         "tool_point": "the flange",
         "T_tool_point_si": np.asarray(T_tool_point, float).tolist(),
         "joint_limits_si": np.asarray(limits, float).tolist(),
@@ -505,8 +458,8 @@ def predicted_reprojection(cr: BoardCramerRao, camera: CameraModel, q: np.ndarra
     measured held-out RMS. ``reach``: where the model error grows from (the calibration
     postures, the joints' spans and the reference distance, :class:`Reach`; the joints it wraps:
     ``cr.model``'s revolute ones), or None."""
-    cols, C, n0 = _full_covariance(cr)
-    C = C + model_error_m**2 * _full_covariance(cr, misfit=True)[1]
+    cols, C, n0 = estimate_covariance(cr)
+    C = C + model_error_m**2 * estimate_covariance(cr, misfit=True)[1]
     t = np.asarray(T_tool_point, float)[:3, 3]
     M = np.diag([model_error_m**2] * 3 + [model_error_rad**2] * 3)
     q = np.atleast_2d(q)
