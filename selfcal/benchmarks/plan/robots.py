@@ -51,6 +51,7 @@ __all__ = [
     "cell_target",
     "cell_values",
     "main",
+    "parser",
     "table",
 ]
 
@@ -283,12 +284,10 @@ def table(rows: list[dict], predicted: dict, held: dict) -> str:
     return "\n".join(lines)
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Draw, print the table and, with ``--write-docs``, put it in docs/plan.md."""
-    from multiprocessing import get_context
-
+def parser() -> argparse.ArgumentParser:
+    """The command line of :func:`main` (also how
+    :mod:`selfcal.benchmarks.plan.robots_forecast` reads a docs block's command back)."""
     from selfcal.calibration.board.plan.views import ViewRule
-    from selfcal.robot.definition import load_robot
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--robot", nargs="+", default=list(ROBOTS), choices=ROBOTS)
@@ -339,7 +338,17 @@ def main(argv: list[str] | None = None) -> int:
                     help="the docs block's name after benchmark_plan_robots_ (default: the "
                          "run's folder, PATH[-NOISE][-RULE])")  # fmt: skip
     ap.add_argument("--write-docs", action="store_true")
-    a = ap.parse_args(argv)
+    return ap
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Draw, print the table and, with ``--write-docs``, put it in docs/plan.md."""
+    from multiprocessing import get_context
+
+    from selfcal.calibration.board.plan.views import ViewRule
+    from selfcal.robot.definition import load_robot
+
+    a = parser().parse_args(argv)
     rule = ViewRule(min_pitch_px=a.min_pitch_px, max_tilt_deg=a.max_tilt_deg,
                     min_module_px=a.min_module_px)  # fmt: skip
     path = "rendered" if a.render else "analytic"
