@@ -122,16 +122,20 @@ def _check(args: argparse.Namespace) -> None:
 def replay_layout(scenario: Path, scale_m: float) -> tuple[FieldLayout, MarkerField]:
     """The simulated marker field of the replay ``scenario`` (a plan's ``scenario.toml``) as the
     forecast's :class:`~selfcal.calibration.field.plan.FieldLayout` (world frame, m; the scale
-    ``scale_m`` between its two scale markers) and the field itself
+    ``scale_m`` between its two scale markers; its raised supports, which can hide a marker)
+    and the field itself
     (:class:`~selfcal.sim.markers.MarkerField`). Raises the scenario's or the field's
     :class:`~selfcal.errors.SelfCalError`."""
     from selfcal.acquisition.simulator_setup import sim_setup
     from selfcal.calibration.field.plan import FieldLayout
+    from selfcal.calibration.field.plan_sight import Supports
     from selfcal.config.scenario import load_scenario
 
     f = sim_setup(load_scenario(scenario)).marker_field()
     ids = (int(f.scale_ids[0]), int(f.scale_ids[1]))
-    return FieldLayout(f.ids, f.corners_world(), f.T_world_marker[:, :3, 2], ids, scale_m), f
+    sup = Supports(*f.support_boxes(), tile_ratio=f.tile_size_m / f.size_m)
+    return FieldLayout(f.ids, f.corners_world(), f.T_world_marker[:, :3, 2], ids, scale_m,
+                       sup), f  # fmt: skip
 
 
 def _warn_unlike_the_replay(target: str, dictionary: str, scale_ids: tuple[int, int]) -> None:

@@ -139,6 +139,30 @@ class MarkerField:
         """Side of the printed tile including the white quiet zone (m)."""
         return self.size_m * (self.n_modules + 2 * self.quiet_zone_modules) / self.n_modules
 
+    def support_boxes(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The raised supports as the scene builds them (:mod:`selfcal.sim.scene`): ``T`` (s, 4,
+        4) each box's centre and axes in the world, ``half`` (s, 3) its half sizes (m) and
+        ``of_marker`` (k,) the box each marker lies on (-1: the table); the blocks first, the
+        scale bar last."""
+        foot = self.tile_size_m + 2 * BLOCK_MARGIN_M
+        scale_rows = {self.index_of(i) for i in self.scale_ids}
+        T, half, of = [], [], -np.ones(len(self.ids), dtype=int)
+        for row, h in enumerate(self.support_height_m):
+            if row in scale_rows or h <= 0:
+                continue
+            Tb = self.T_world_marker[row].copy()
+            Tb[2, 3] = h / 2
+            of[row] = len(T)
+            T.append(Tb)
+            half.append([foot / 2, foot / 2, h / 2])
+        length, width, thick = self.scale_bar_size_m
+        Tb = self.scale_bar_T_world.copy()
+        Tb[:3, 3] -= Tb[:3, 2] * thick / 2
+        of[sorted(scale_rows)] = len(T)
+        T.append(Tb)
+        half.append([length / 2, width / 2, thick / 2])
+        return np.array(T), np.array(half), of
+
     def index_of(self, marker_id: int) -> int:
         """Row of ``marker_id`` in ``ids``; raises ``KeyError`` if absent."""
         hits = np.flatnonzero(self.ids == int(marker_id))

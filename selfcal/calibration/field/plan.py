@@ -13,7 +13,12 @@ file's ``[planning] span_deg``) that
   not checked);
 - show every camera of the rig at least ``min_visible`` of the 36 points of a 6 x 6 grid over the
   field's region (:data:`selfcal.kinematics.trajectory.PLANNING_VISIBILITY`: the planner's rule,
-  in front at a working distance, inside the image, facing).
+  in front at a working distance, inside the image, facing);
+- and, for the plan (not the random plan, which is drawn under the filters above), let every
+  camera find enough markers for the field route to register its view, as the renderer and the
+  detector find them (:meth:`FieldPlanSetup.registers`, :mod:`selfcal.calibration.field.
+  plan_sight`: within the detector's foreshortening limit, 12 px inside the image, not hidden by
+  a raised support).
 
 The field's region is a square on the table (z = 0, base frame) centred where the home posture's
 optical axis meets it (:func:`selfcal.kinematics.trajectory.home_target_center`), as the simulated
@@ -65,7 +70,9 @@ from selfcal.calibration.field.plan_information import (
     rows_information,
     tool_weight,
 )
+from selfcal.calibration.field.plan_sight import found_markers, registers
 from selfcal.camera import Rig
+from selfcal.kinematics.forward import fk_tool
 from selfcal.kinematics.keep_out import check_boxes, collision_free
 from selfcal.kinematics.mcpc import MCPCModel, nominal_mcpc
 from selfcal.kinematics.self_collision import CapsuleChain
@@ -144,6 +151,19 @@ class FieldPlanSetup:
         pts = np.array([[cx + x, cy + y, 0.0] for x in a for y in a])
         return pts, np.tile([0.0, 0.0, 1.0], (len(pts), 1))
 
+    def registers(self, q: np.ndarray, layout: FieldLayout) -> np.ndarray:
+        """(m,) bool: postures ``q`` (m, n) rad at which every camera of the rig (at the
+        nominal chain) finds enough of ``layout``'s markers for the field route to register
+        its view (:func:`selfcal.calibration.field.plan_sight.found_markers`,
+        :func:`~selfcal.calibration.field.plan_sight.registers`)."""
+        T = fk_tool(self.model_cam, np.atleast_2d(q))
+        ok = np.ones(len(T), dtype=bool)
+        for cam, T_first_cam in zip(self.rig.cameras, self.rig.T_first_cam, strict=True):
+            found = found_markers(cam, T @ T_first_cam, layout.corners_world,
+                                  layout.normals_world, layout.supports)  # fmt: skip
+            ok &= registers(found)
+        return ok
+
     def collision_ok(self, q: np.ndarray) -> np.ndarray:
         """(m,) bool: postures ``q`` (m, n) rad free of self-collision, the table and the
         keep-out boxes."""
@@ -156,7 +176,8 @@ class FieldPlan:
     home, :func:`selfcal.calibration.board.plan.path.order_path`), ``q_random`` the random plan of
     the same size; ``path_rad``/``random_path_rad`` their joint paths (the sum of every step's
     largest joint move); ``candidates`` in the pool after the collision check
-    (``rejected_collision`` removed); ``logdet``/``logdet_random`` the D-optimal selector's proxy
+    (``rejected_collision`` removed) and the detector's (``rejected_unseen`` removed: free, but
+    their camera would not find enough markers to register, :meth:`FieldPlanSetup.registers`); ``logdet``/``logdet_random`` the D-optimal selector's proxy
     information of its choice and of the random plan; ``exchanges`` its swaps; ``chosen_by``
     which of :data:`CHOICES` the plan is and ``choices`` every choice's forecast (m; None: no
     bound), the plan's the smallest (module docstring); ``random_match_m`` the forecast of the
@@ -188,6 +209,7 @@ class FieldPlan:
     start: np.ndarray | None = None
     start_by: str = ""
     match: np.ndarray | None = None
+    rejected_unseen: int = 0
 
 
 def plan_field(
@@ -217,10 +239,18 @@ def plan_field(
         DegenerateTrajectoryError: too few feasible candidates.
     """
     pts, nrm = setup.grid()
+    unseen = [0]
+
+    def feasible(q: np.ndarray) -> np.ndarray:  # free, and the detector registers its view
+        free = setup.collision_ok(q)
+        seen = setup.registers(q, layout)
+        unseen[0] = int(np.sum(free & ~seen))
+        return free & seen
+
     opt = plan_optimal_postures(
         setup.robot, setup.model_cam, setup.rig, pts, count, seed=seed,
         min_visible=setup.min_visible, normals_world=nrm, n_candidates=candidates,
-        collision_ok=setup.collision_ok, pixel_sigma_px=pixel_sigma_px,
+        collision_ok=feasible, pixel_sigma_px=pixel_sigma_px,
         corners_per_point=CORNERS_PER_MARKER * markers / len(pts), joint_sigma=joint_sigma,
     )  # fmt: skip
     q_random = random_plan(setup, count, seed=seed)
@@ -272,7 +302,8 @@ def plan_field(
         path_rad=path_length(q, home),
         random_path_rad=path_length(q_random, home),
         candidates=opt.candidates,
-        rejected_collision=opt.rejected_collision,
+        rejected_collision=opt.rejected_collision - unseen[0],
+        rejected_unseen=unseen[0],
         logdet=opt.logdet,
         logdet_random=opt.logdet_random,
         exchanges=opt.exchanges,

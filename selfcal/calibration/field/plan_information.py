@@ -29,6 +29,7 @@ from scipy import sparse
 from selfcal.calibration.field.bounds import FisherSetup, fisher_jacobian
 from selfcal.calibration.field.bounds_setup import predicted_setup
 from selfcal.calibration.field.joint_refine import choose_gauge
+from selfcal.calibration.field.plan_sight import Supports
 from selfcal.camera import Rig
 from selfcal.estimation.epipolar import MIN_SHARED
 from selfcal.estimation.joint_report import aligned_tool_weight
@@ -51,13 +52,16 @@ __all__ = [
 class FieldLayout:
     """The markers a forecast assumes: ``ids`` (K,), their corners ``corners_world`` (K, 4, 3) m
     and normals (K, 3) in the base frame, the two ``scale_ids`` whose centres lie the known
-    ``scale_length_m`` (m) apart."""
+    ``scale_length_m`` (m) apart; ``supports`` the raised supports that can hide a marker from
+    a planned posture (:class:`selfcal.calibration.field.plan_sight.Supports`; None: none
+    known, no line of sight checked)."""
 
     ids: np.ndarray
     corners_world: np.ndarray
     normals_world: np.ndarray
     scale_ids: tuple[int, int]
     scale_length_m: float
+    supports: Supports | None = None
 
 
 def free_kinematics(model_cam: MCPCModel) -> np.ndarray:
