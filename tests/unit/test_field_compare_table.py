@@ -64,6 +64,7 @@ def test_the_frames_used_are_summed_and_another_cell_has_its_own_block(
     written = []
     monkeypatch.setattr(doc_blocks, "write_block", lambda *a: written.append(a))
     write({"plan 12": 3, "random 30": 3}, "kr6-r900 rendered 0.1 px", frames=12, frames_used=11)
+    noise = _measured_noise(monkeypatch)
     argv = ["--robot", "kr6-r900", "--render", "--pixel-sigma", "0.1", "--draws", "3"]
     assert field_compare.main([*argv, "--out", str(root), "--write-docs"]) == 0
     out = capsys.readouterr().out
@@ -71,6 +72,31 @@ def test_the_frames_used_are_summed_and_another_cell_has_its_own_block(
     assert "field_compare --robot kr6-r900 --render --pixel-sigma 0.1 --draws 3" in out
     assert "(seeds 1 - 3), measured by the code at abc1234" in written[0][1]
     assert [a[2] for a in written] == ["benchmark_plan_field_compare_kr6-r900-rendered"]
+    # the noise measured apart from the draws (seed 0) and the forecast at it, per set
+    assert noise == [(0.1, "kr6-r900")]
+    assert "seed 0, 500 corners against the truth, 2 beyond the route's 1 px floor" in out
+    assert ": 0.030 px; the forecast at it: plan 12 0.100 mm (median / it 2.00); random 30" in out
+
+
+def _measured_noise(monkeypatch) -> list:
+    """The rendered table's noise measurement replaced (no images): 0.03 px over 500 corners,
+    the forecast at it 0.1 mm for every set; returns the (pixel sigma, robot) it was asked for."""
+    from selfcal.benchmarks.plan import field_noise
+
+    asked: list = []
+
+    def measured(root, config, joints_deg, cell, pixel_sigma_px):
+        asked.append(pixel_sigma_px)
+        return {"cell": cell, "seed": 0, "count": 500, "sigma_px": 0.03, "outliers": 2}
+
+    def at(root, robot_name, sets, pixel_sigma_px):
+        asked[-1] = (asked[-1], robot_name)
+        assert pixel_sigma_px == 0.03
+        return dict.fromkeys(sets, 1e-4)
+
+    monkeypatch.setattr(field_noise, "measured_noise", measured)
+    monkeypatch.setattr(field_compare, "forecasts_at", at)
+    return asked
 
 
 def test_the_sets_are_compared_draw_by_draw_with_a_sign_test(journal, capsys):

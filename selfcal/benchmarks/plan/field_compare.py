@@ -115,6 +115,44 @@ def field_sets(
     return out
 
 
+def forecasts_at(root: Path, robot_name: str, sets: dict, pixel_sigma_px: float) -> dict:
+    """``{name: forecast m}`` of the posture sets ``sets`` (:func:`field_sets`' (path, q deg,
+    forecast)) at ``pixel_sigma_px`` px of corner noise, in ``robot_name``'s cell (None: no
+    bound)."""
+    from selfcal.calibration.field.plan import field_forecast
+
+    cell = field_cell(root, robot_name, pixel_sigma_px)
+    unit = cell["robot"].edge_unit
+    return {name: field_forecast(cell["setup"], cell["layout"], q * unit, cell["workspace"],
+                                 pixel_sigma_px=pixel_sigma_px,
+                                 joint_sigma=cell["joint_sigma"]).tool_rms_m
+            for name, (_, q, _) in sets.items()}  # fmt: skip
+
+
+def noise_lines(root: Path, a, sets: dict, stamps: dict[str, str], rows: list[dict]) -> list[str]:
+    """The rendered table's closing lines: the corner noise measured apart from its draws (on
+    the largest set's postures, :func:`selfcal.benchmarks.plan.field_noise.measured_noise`)
+    and each set's forecast at that noise against its achieved median."""
+    from selfcal.benchmarks.plan.field_noise import NOISE_SEED, measured_noise
+    from selfcal.calibration.field.adjust import OUTLIER_FLOOR_PX
+
+    name = max(sets, key=lambda k: len(sets[k][1]))
+    path, q, _ = sets[name]
+    noise = measured_noise(root, path, q.tolist(), stamps[name], a.pixel_sigma)
+    sigma = float(noise["sigma_px"])
+    fc = forecasts_at(root, a.robot, sets, sigma)
+    parts = []
+    for k, f in fc.items():
+        e = [r["joint_tip_rms_mm"] for r in rows if r["set"] == k and r["status"] == "ok"]
+        ratio = "-" if f is None or not e else f"{np.median(e) / (f * 1000):.2f}"
+        parts.append(f"{k} {'none' if f is None else f'{f * 1000:.3f}'} mm (median / it {ratio})")
+    return [f"\nthe renderer's and detector's corner noise, measured apart from the draws (the "
+            f"{name}'s postures rendered for seed {NOISE_SEED}, {noise['count']} corners against "
+            f"the truth, {noise['outliers']} beyond the route's {OUTLIER_FLOOR_PX:g} px floor left "
+            f"out): "
+            f"{sigma:.3f} px; the forecast at it: {'; '.join(parts)}"]  # fmt: skip
+
+
 def cell_stamp(robot_name: str, render: bool, pixel_sigma_px: float, joints_deg: np.ndarray) -> str:
     """What a journal row was drawn for: the arm, the path (rendered or analytic), the corner
     noise (px) the draws simulate and a digest of the set's postures (deg), so a resumed run
@@ -272,6 +310,8 @@ def main(argv: list[str] | None = None) -> int:
         lines.append(f"| {name} | {len(ok)} of {len(run)} | {_frames(ok)} | {p} | {med:.3f} | "
                      f"{p90:.3f} | {ratio} | {fair:.3f} |")  # fmt: skip
     lines += _paired(rows, list(sets))
+    if a.render:
+        lines += noise_lines(root, a, sets, stamps, rows)
     cell = "" if a.robot == "ur5e" else f" --robot {a.robot}"
     cell += " --render" if a.render else ""
     cell += "" if a.pixel_sigma == 0.5 else f" --pixel-sigma {a.pixel_sigma:g}"

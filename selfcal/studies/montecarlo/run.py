@@ -60,7 +60,7 @@ from selfcal.studies.parallel import run_tasks
 from selfcal.studies.row_checks import check_fields
 from selfcal.transforms import inv_pose
 
-__all__ = ["draw_one", "run_montecarlo", "write_csv"]
+__all__ = ["acquire_draw", "draw_one", "run_montecarlo", "write_csv"]
 
 
 # ------------------------------------------------------------------------------ one draw
@@ -80,9 +80,10 @@ def _scenario(settings: dict):
     )
 
 
-def _acquire(settings: dict, root: Path):
-    """The draw's dataset in ``root``: planned (or given) postures, dithered, analytic corners
-    (rendered images with ``settings["render"]``)."""
+def acquire_draw(settings: dict, root: Path):
+    """The draw's dataset in ``root`` (``settings`` as :func:`draw_one`'s): planned (or given)
+    postures, dithered, analytic corners (rendered images with ``settings["render"]``); returns
+    the draw's scenario."""
     s = _scenario(settings)
     setup = sim_setup(s)
     info = plan_dataset(s, setup)
@@ -121,7 +122,7 @@ def draw_one(settings: dict) -> dict:
         with tempfile.TemporaryDirectory(prefix="selfcal-mc-") as d, warnings.catch_warnings():
             warnings.simplefilter("ignore")
             root = Path(d) / "run"
-            s = _acquire(settings, root)
+            s = acquire_draw(settings, root)
             sigma = float(settings["pixel_sigma"])
             fair = bool(settings.get("fair_nominal", True))
             row["fair_nominal"] = fair  # NaN below: skipped, not failed
