@@ -26,7 +26,9 @@ it (:func:`selfcal.benchmarks.doc_blocks.code_version`), and a journal holding a
 or draws of other code, is refused; the table's last line names the code; ``DIR`` by default ``runs/`` and the cell's docs block; the draws run seed by seed, every set's in turn, and a run
 stopped before resumes from that journal: ``--draws`` of a journal's seeds alone prints their
 table without drawing; a table short of ``--draws`` draws in a set is printed, not written to
-the docs, and exits 1; ``--write-docs`` writes it between docs/plan.md's
+the docs, and exits 1; rendered, the table closes with the corner noise the renderer and the
+detector make, measured apart from the draws (:mod:`selfcal.benchmarks.plan.field_noise`), and
+each set's forecast at it; ``--write-docs`` writes it between docs/plan.md's
 ``benchmark_plan_field_compare`` markers; another robot's or the rendered path's block
 ``benchmark_plan_field_compare_ROBOT[-rendered]``).
 """
