@@ -165,6 +165,45 @@ def _tests(C: np.ndarray, views: list) -> dict[str, float]:
     return out
 
 
+def _per_view(views: list) -> np.ndarray:
+    """(2k, m n) every view's joint columns (px per rad), zero on the other views' rows."""
+    at = np.cumsum([0] + [len(v.r) for v in views])
+    n = views[0].joints.shape[1]
+    out = np.zeros((at[-1], len(views) * n))
+    for i, v in enumerate(views):
+        out[at[i] : at[i + 1], i * n : (i + 1) * n] = v.joints
+    return out
+
+
+def _sigma(arm) -> np.ndarray | float:
+    """(n,) the robot's joint read-back standard deviation (rad / m), 0 without an encoder
+    table (its joints read exactly)."""
+    return np.asarray(arm.encoder.read_back_sigma) if arm.encoder is not None else 0.0
+
+
+def _rounded_power(weights: np.ndarray, lam2: float, q: np.ndarray, arm, rng,
+                   draws: int = 20_000) -> float:  # fmt: skip
+    """The power at :data:`ALPHA` of the test told the shift's direction (the whitened
+    residuals' projection ``z`` on its pixels, noncentrality ``lam2``) with its critical value
+    from the joint read-back's own distribution, the controller's rounded counts at the
+    postures ``q`` (m, n) (bounded, not normal; the differential wrist's two motors included),
+    instead of the normal one of the same variance; ``weights`` (m, n) ``z``'s change per rad
+    of each view's joint read-back. The rest of ``z``'s unit variance (the corner noise, the
+    calibration's estimate) stays normal. ``draws`` draws each for the critical value and the
+    power (``rng``)."""
+    rest = max(1.0 - float(np.sum((weights * _sigma(arm)) ** 2)), 0.0)
+
+    def drawn() -> np.ndarray:
+        z = rng.standard_normal(draws) * np.sqrt(rest)
+        for qi, w in zip(q, weights, strict=True):  # a posture's rounding: its counts' fraction
+            near = qi + rng.uniform(-0.01, 0.01, (draws, len(qi)))
+            z += (read_joints(arm, near) - near) @ w
+        return z
+
+    crit = float(np.quantile(drawn(), 1.0 - ALPHA))
+    return float(np.mean(drawn() + np.sqrt(lam2) > crit))
+
+
 def per_draw(sigma_px: float, seed: int, checks: int, robot: str | None) -> list[dict]:
     """Per check of the calibration of draw ``seed`` at ``sigma_px`` (5 new views near its
     postures, as :func:`noncentralities` draws them, each seen unchanged and with the camera
@@ -210,9 +249,12 @@ def per_draw(sigma_px: float, seed: int, checks: int, robot: str | None) -> list
         vj = {k: calibration_views(cal, em, qs, v) for k, v in seen.items()}
         G = np.concatenate([v.tool[:, :3] for v in vj["unchanged"]])
         r = np.concatenate([v.r for v in vj["unchanged"]])
-        M = change_information(C, vj["unchanged"], np.c_[G, r])  # F, y = G^T Sigma^-1 r
+        joints = _per_view(vj["unchanged"])
+        # F, y = G^T Sigma^-1 r, and G^T Sigma^-1 of every view's joint columns
+        M = change_information(C, vj["unchanged"], np.c_[G, r, joints])
         F, y = M[:3, :3], M[:3, 3]
         lam2 = float(x @ F @ x)
+        weights = (x @ M[:3, 4:]).reshape(NEW_VIEWS, n) / np.sqrt(lam2)
         checked = {k: image_drift_check(C, v, eye_to_hand=False) for k, v in vj.items()}
         views = vj["unchanged"]
         mu = G @ x
@@ -224,6 +266,9 @@ def per_draw(sigma_px: float, seed: int, checks: int, robot: str | None) -> list
             "p_unchanged": checked["unchanged"].p_value, "p_shifted": checked["shifted"].p_value,
             "smallest": min(tests, key=tests.__getitem__), "tests": len(tests),
             "told_direction": float(known_change_power(lam2, ALPHA)),
+            "told_direction_rounded": _rounded_power(weights, lam2, np.array(q_new), arm,
+                                                     np.random.default_rng([seed, len(out)])),
+            "read_back_share": float(np.sum((weights * _sigma(arm)) ** 2)),
             "told_size": known_size_power(F, x, ALPHA),
             "told_axes": float(known_change_power(lam2, ALPHA, dof=3)),
             "axes_bonferroni": float(known_change_power(lam2, ALPHA / len(tests), dof=3)),
@@ -260,6 +305,10 @@ def per_draw_summary(rows: list[dict], label: str) -> str:
          f"over the check's {int(col['tests'][0])} tests",
          " / ".join(mean(k) for k in ("told_direction", "told_size", "told_axes",
                                       "axes_bonferroni"))),
+        ("the joint read-back's share of the noise along the shift: percentiles",
+         q("read_back_share")),
+        ("the test told the direction with the read-back's rounded counts (bounded) in its "
+         "critical value, not their normal distribution", mean("told_direction_rounded")),
         ("checks where even the test told the direction has less than 95 % power",
          f"{100 * np.mean(col['told_direction'] < 0.95):.0f} %"),
     ]  # fmt: skip

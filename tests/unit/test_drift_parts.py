@@ -6,9 +6,9 @@ import dataclasses
 
 import numpy as np
 import pytest
-from scipy.stats import chi2
+from scipy.stats import chi2, norm
 
-from selfcal.benchmarks.drift_parts import _tests, per_draw_summary
+from selfcal.benchmarks.drift_parts import _rounded_power, _tests, per_draw_summary
 from selfcal.calibration.drift.images import _covariance, change_information, image_drift_check
 from selfcal.calibration.drift.views import view_jacobians
 from selfcal.camera import camera_model
@@ -91,10 +91,31 @@ def test_the_statistics_read_against_their_null_have_it(scene):
     assert np.mean(np.array(axes) > chi2.isf(0.05, 3)) == pytest.approx(0.05, abs=0.015)
 
 
+def test_the_rounded_read_back_power_is_the_bounded_distributions():
+    """All of the projection's noise one joint's rounding (uniform over a count, the ER-4u's
+    base joint): the test's critical value is the uniform's 99th percentile and its power the
+    uniform's share beyond it less the shift; no read-back table (exact joints): the normal
+    test's power."""
+    arm = load_robot("er4u-paper")
+    q = np.zeros((1, arm.n))
+    w = np.zeros((1, arm.n))
+    w[0, 0] = 1.0 / arm.encoder.read_back_sigma[0]  # z = the rounding error / its sigma
+    half = np.sqrt(3.0)
+    crit = half * (1 - 2 * 0.01)
+    for lam in (0.5, 1.0, 2.0):
+        want = np.clip((half - (crit - lam)) / (2 * half), 0.0, 1.0)
+        got = _rounded_power(w, lam**2, q, arm, np.random.default_rng(1))
+        assert got == pytest.approx(want, abs=0.012)
+    exact = dataclasses.replace(arm, encoder=None)
+    got = _rounded_power(w, 4.0, q, exact, np.random.default_rng(1))
+    assert got == pytest.approx(norm.sf(norm.isf(0.01) - 2.0), abs=0.01)
+
+
 def test_the_summary_reads_its_rows():
     rows = [{"corners": 300, "signal_px": 0.25, "lam2": l2, "z": z, "axes_null": 3.0,
              "p_unchanged": 0.5, "p_shifted": p, "smallest": "hand-eye translation",
-             "tests": 11, "told_direction": 0.96, "told_size": 0.9, "told_axes": 0.88,
+             "tests": 11, "told_direction": 0.96, "told_direction_rounded": 0.95,
+             "read_back_share": 0.5, "told_size": 0.9, "told_axes": 0.88,
              "axes_bonferroni": 0.77, "noise_px": 0.2, "noise_dof": 4000, "views": 5}
             for l2, z, p in ((20.0, -1.0, 0.001), (30.0, 1.0, 0.5))]  # fmt: skip
     text = per_draw_summary(rows, "test")
