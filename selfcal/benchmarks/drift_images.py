@@ -19,8 +19,12 @@ mount shift's share, what a test that knew more would find, the mean over the ch
 power (:func:`selfcal.calibration.drift.p_value.known_change_power`) from the noncentrality
 ``mu^T Sigma^-1 mu`` of the shift's linearised pixels ``mu`` under the check's own covariance
 ``Sigma`` (the calibration's uncertainty, the assumed joint and corner noise): the oracle that
-knew the shift's direction (no test does better) and one that knew only that the mount moved
-without turning (the chi-square of its 3 translations alone, at the whole alpha). Each row also
+knew the shift's direction (no test does better), one that knew its size and that the mount
+moved without turning but not the direction (:func:`selfcal.calibration.drift.p_value.
+known_size_power`: the likelihood ratio averaged over the directions, the largest mean power a
+test of the benchmark's random 0.2 mm shifts can have without being told the direction) and one
+that knew only that the mount moved without turning (the chi-square of its 3 translations alone,
+at the whole alpha). Each row also
 counts the checks per kind that answered "cannot tell" (the verdict, exit 6: not counted as
 changed) and records the code that measured it (:func:`selfcal.benchmarks.doc_blocks.
 code_version`), which the table's last line names (:func:`selfcal.benchmarks.doc_blocks.
@@ -42,7 +46,6 @@ in the table of docs/tool-accuracy.md and keeps the others, :func:`docs_rows`).
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import re
 import sys
 import time
@@ -65,12 +68,13 @@ from selfcal.calibration.drift.images import (
     ALPHA,
     calibration_error_model,
     calibration_views,
+    change_information,
     estimate_covariance,
     fold_recheck,
     image_drift_check,
     view_noise,
 )
-from selfcal.calibration.drift.p_value import known_change_power
+from selfcal.calibration.drift.p_value import known_change_power, known_size_power
 from selfcal.config.scenario import load_scenario, scenarios_dir
 from selfcal.errors import InternalError
 from selfcal.io.target_toml import parse_target
@@ -126,7 +130,7 @@ def calibration_checks(args: tuple) -> dict:
     e2h = setup == "eye-to-hand"
     out: dict = {"status": "ok"} | {k: 0 for k in KINDS} | {"checks": 0}
     out |= {f"{k}_{w}": 0 for k in ("tool", "joint") for w in ("right", "wrong")}
-    out |= {"tool_oracle": 0.0, "tool_axes": 0.0, "fold_error": 0}
+    out |= {"tool_oracle": 0.0, "tool_size": 0.0, "tool_axes": 0.0, "fold_error": 0}
     out |= {f"{k}_cannot_tell": 0 for k in KINDS}
     try:
         cal, truth = simulated_calibration(sigma_px, seed, scenario_file=SCENARIOS[setup],
@@ -185,10 +189,11 @@ def calibration_checks(args: tuple) -> dict:
                 res = fold_recheck(res, wide, partial(calibration_views, cal, q=qs, views=views[k]),
                                    C, eye_to_hand=e2h)  # fmt: skip
                 out[f"{k}_cannot_tell"] += res.undecided
-                if k == "tool":  # the shift's own pixels' statistic: mu^T Sigma^-1 mu
-                    mean = [dataclasses.replace(v, r=v.tool[:, :3] @ shift[:3, 3]) for v in vj]
-                    lam2 = image_drift_check(C, mean, eye_to_hand=e2h).statistic
+                if k == "tool":  # the shift's own pixels' noncentrality: mu^T Sigma^-1 mu
+                    F = change_information(C, vj, np.concatenate([v.tool[:, :3] for v in vj]))
+                    lam2 = float(shift[:3, 3] @ F @ shift[:3, 3])
                     out["tool_oracle"] += float(known_change_power(lam2, ALPHA))
+                    out["tool_size"] += known_size_power(F, shift[:3, 3], ALPHA)
                     out["tool_axes"] += float(known_change_power(lam2, ALPHA, dof=3))
                 out[k] += res.changed
                 if k != "unchanged" and res.attribution is not None:
@@ -229,7 +234,7 @@ def run(calibrations: int = 30, checks: int = 10, noise_px=NOISE_PX, jobs: int =
         m = max(total.get("checks", 0), 1)
         row = {"setup": label, "noise_px": s, "calibrations": len(ok), "failed": calibrations - len(ok),
                "checks": total.get("checks", 0), "views": views, "exact": exact, "code": code}  # fmt: skip
-        row |= {k: total.get(k, 0) / m for k in (*KINDS, "tool_oracle", "tool_axes")}
+        row |= {k: total.get(k, 0) / m for k in (*KINDS, "tool_oracle", "tool_size", "tool_axes")}
         row |= {f"{k}_cannot_tell": total.get(f"{k}_cannot_tell", 0) for k in KINDS}
         for k in ("tool", "joint"):
             found = max(total.get(k, 0), 1)
@@ -243,7 +248,8 @@ def table(rows: list[dict], checks: int) -> str:
     """The Markdown table of :func:`run`'s rows."""
     head = (
         "| setup | noise (px) | calibrations | checks | 'changed' on unchanged data (target < 2 %) | "
-        "0.2 mm mount shift found (target >= 95 %) | a test knowing its direction / its 3 axes | "
+        "0.2 mm mount shift found (target >= 95 %) | a test knowing its direction / its size / "
+        "its 3 axes | "
         "named the mount / wrong | 0.05 deg joint offset found (target >= 95 %) | named the joint "
         "/ wrong | 'cannot tell' verdicts: unchanged / shift / offset |\n"
         "|---|---|---|---|---|---|---|---|---|---|---|\n"
@@ -251,7 +257,7 @@ def table(rows: list[dict], checks: int) -> str:
     lines = [
         f"| {r['setup']} | {r['noise_px']:g} | {r['calibrations']} | {r['checks']} | "
         f"{100 * r['unchanged']:.1f} % | {100 * r['tool']:.1f} % | "
-        f"{100 * r['tool_oracle']:.1f} % / {100 * r['tool_axes']:.1f} % | "
+        f"{100 * r['tool_oracle']:.1f} % / {_size(r)} / {100 * r['tool_axes']:.1f} % | "
         f"{100 * r['tool_right']:.0f} % / {100 * r['tool_wrong']:.0f} % | "
         f"{100 * r['joint']:.1f} % | {100 * r['joint_right']:.0f} % / "
         f"{100 * r['joint_wrong']:.0f} % | {_undecided(r)} |"
@@ -267,8 +273,10 @@ def table(rows: list[dict], checks: int) -> str:
     return (head + "\n".join(lines) + f"\n\n{checks} checks per calibration ({failed} "
             f"calibrations failed in all), {views} new views per check, alpha = 0.01; "
             "a test knowing: the mean power at alpha of a test that knew the shift's direction "
-            "(the most powerful) or only its 3 axes (the mount's translation alone), from the "
-            "check's own covariance; named: of the changes found, the share whose cause the "
+            "(the most powerful), only its size, 0.2 mm of the mount's translation in a direction "
+            "it is not told (the likelihood ratio averaged over the directions: no test of the "
+            "mount's translation alone does better on average; - : not recorded) or only its 3 "
+            "axes (their chi-square), from the check's own covariance; named: of the changes found, the share whose cause the "
             "check named (right / wrong; the rest: cause not named); 'cannot tell' verdicts: "
             "of the checks of unchanged data, of the shifted mount and of the offset joint, "
             "how many said neither 'changed' nor 'unchanged' (not counted as "
@@ -277,6 +285,12 @@ def table(rows: list[dict], checks: int) -> str:
             f"--setup {' '.join(dict.fromkeys(r['setup'].split(',')[0] for r in rows))}"
             f"{robots_arg(rows)}{extra}{' --write-docs' if docs else ''}`"
             f"{codes_note(rows, CODE_KEYS)}.")  # fmt: skip
+
+
+def _size(r: dict) -> str:
+    """A row's power of the test knowing the shift's size alone, "-" when its run did not
+    record it."""
+    return "-" if "tool_size" not in r else f"{100 * r['tool_size']:.1f} %"
 
 
 def _undecided(r: dict) -> str:
@@ -305,18 +319,20 @@ def parse_block(text: str) -> tuple[list[dict], int, int]:
         cells = [c.strip() for c in line.strip().strip("|").split("|")]
         if len(cells) != 11 or not cells[1].replace(".", "", 1).isdigit():
             continue  # the header, its rule, the footnote
-        oracle, axes = cells[6].split("/")
+        *oracle, axes = cells[6].split("/")
         tool_right, tool_wrong = cells[7].split("/")
         joint_right, joint_wrong = cells[9].split("/")
         rows.append({
             "setup": cells[0], "noise_px": float(cells[1]), "calibrations": int(cells[2]),
             "failed": int(asked.group(1)) - int(cells[2]), "checks": int(cells[3]),
             "unchanged": _percent(cells[4]), "tool": _percent(cells[5]),
-            "tool_oracle": _percent(oracle), "tool_axes": _percent(axes),
+            "tool_oracle": _percent(oracle[0]), "tool_axes": _percent(axes),
             "tool_right": _percent(tool_right), "tool_wrong": _percent(tool_wrong),
             "joint": _percent(cells[8]), "joint_right": _percent(joint_right),
             "joint_wrong": _percent(joint_wrong),
         })  # fmt: skip
+        if len(oracle) == 2 and oracle[1].strip() != "-":
+            rows[-1]["tool_size"] = _percent(oracle[1])
         if cells[10] != "-":
             rows[-1] |= {
                 f"{k}_cannot_tell": int(n) for k, n in zip(KINDS, cells[10].split("/"), strict=True)

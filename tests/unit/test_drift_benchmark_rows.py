@@ -13,7 +13,7 @@ from selfcal.benchmarks.drift_images import BLOCK, DOC, docs_rows, merge_rows, p
 
 def _row(setup: str, noise: float, tool: float) -> dict:
     return {"setup": setup, "noise_px": noise, "calibrations": 29, "failed": 1, "checks": 290,
-            "unchanged": 0.01, "tool": tool, "tool_oracle": 0.9, "tool_axes": 0.8,
+            "unchanged": 0.01, "tool": tool, "tool_oracle": 0.9, "tool_size": 0.85, "tool_axes": 0.8,
             "tool_right": 0.5, "tool_wrong": 0.0, "joint": 1.0, "joint_right": 0.4,
             "joint_wrong": 0.1, "views": 5, "unchanged_cannot_tell": 2, "tool_cannot_tell": 19,
             "joint_cannot_tell": 7}  # fmt: skip
@@ -67,7 +67,8 @@ def test_the_table_names_the_code_that_measured_each_row_and_reads_it_back():
            _row("eye-to-hand, ur5e", 0.05, 1.0) | {"code": "abc1234"}]  # fmt: skip
     text = table(now, 10)
     assert text.endswith("--write-docs`, measured by the code at abc1234.")
-    old = {k: v for k, v in _row("eye-to-hand, ur5e", 0.2, 1.0).items() if "cannot" not in k}
+    old = {k: v for k, v in _row("eye-to-hand, ur5e", 0.2, 1.0).items()
+           if "cannot" not in k and k != "tool_size"}  # fmt: skip
     mixed = [*now, old | {"code": None}]
     text = table(mixed, 10)
     assert text.endswith(
@@ -75,9 +76,12 @@ def test_the_table_names_the_code_that_measured_each_row_and_reads_it_back():
         "and an earlier code, not recorded (eye-to-hand, ur5e 0.2 px)."
     )
     assert "| 40 % / 10 % | - |" in text
+    assert "| 90.0 % / 85.0 % / 80.0 % |" in text  # direction / size / 3 axes
     got = parse_block(text)[0]
     assert [r["code"] for r in got] == ["abc1234", "abc1234", None]
     assert [r.get("tool_cannot_tell") for r in got] == [19, 19, None]
+    assert "| 90.0 % / - / 80.0 % |" in text  # a row whose run did not record the size's test
+    assert [r.get("tool_size") for r in got] == [0.85, 0.85, None]
     assert table(got, 10) == text
 
 

@@ -16,8 +16,13 @@ from scipy.stats import chi2, norm
 
 from selfcal.benchmarks.drift_images import read_joints
 from selfcal.calibration.drift.fold_error import fold_error_model, fold_excess
-from selfcal.calibration.drift.images import _covariance, fold_recheck, image_drift_check
-from selfcal.calibration.drift.p_value import known_change_power
+from selfcal.calibration.drift.images import (
+    _covariance,
+    change_information,
+    fold_recheck,
+    image_drift_check,
+)
+from selfcal.calibration.drift.p_value import known_change_power, known_size_power
 from selfcal.calibration.drift.paired import (
     POSTURE_TOL,
     _pair,
@@ -406,6 +411,42 @@ def test_known_change_power():
     drawn = np.mean(np.sum(z**2, axis=1) > chi2.isf(0.01, 3))
     assert known_change_power(lam2, 0.01, dof=3) == pytest.approx(drawn, abs=0.01)
     assert known_change_power(0.0, 0.01, dof=3) == pytest.approx(0.01)
+
+
+def test_known_size_power_lies_between_the_tests_that_know_less_and_more():
+    """Told a change's size but not its direction: where the pixels tell every direction
+    alike it is the chi-square of the 3 parameters (the same test); where one direction is
+    almost unseen (the camera's depth) it finds the seen directions more often than the
+    chi-square and the unseen one less, more on average over random directions, and never
+    more than the test told the direction."""
+    size = 0.2e-3
+    lam2 = (norm.isf(0.01) + norm.isf(0.05)) ** 2
+    x = np.array([size, 0.0, 0.0])
+    iso = known_size_power(np.eye(3) * lam2 / size**2, x, 0.01)
+    assert iso == pytest.approx(known_change_power(lam2, 0.01, dof=3), abs=0.015)
+    F = np.diag([3.0, 1.0, 0.02]) * lam2 / size**2
+    rng = np.random.default_rng(5)
+    u = rng.normal(size=(40, 3))
+    xs = size * u / np.linalg.norm(u, axis=1, keepdims=True)
+    lams = np.einsum("ki,ij,kj->k", xs, F, xs)
+    told = known_change_power(lams, 0.01)
+    axes = known_change_power(lams, 0.01, dof=3)
+    sized = np.array([known_size_power(F, x, 0.01, draws=5000) for x in xs])
+    assert np.mean(sized) > np.mean(axes) + 0.02
+    assert np.all(sized <= told + 0.03)
+    unseen = known_size_power(F, np.array([0.0, 0.0, size]), 0.01)
+    assert unseen < known_change_power(F[2, 2] * size**2, 0.01, dof=3)
+
+
+def test_change_information_is_the_noncentrality_the_check_sees(setup):
+    """``x^T F x`` of a mount translation ``x`` is the check's statistic of that translation's
+    own pixels (``mu^T Sigma^-1 mu``, as the drift benchmark computed it before)."""
+    e2h, _, _, views, C = setup
+    F = change_information(C, views, np.concatenate([v.tool[:, :3] for v in views]))
+    x = np.array([1e-4, -2e-4, 1.5e-4])
+    mean = [dataclasses.replace(v, r=v.tool[:, :3] @ x) for v in views]
+    assert x @ F @ x == pytest.approx(image_drift_check(C, mean, eye_to_hand=e2h).statistic,
+                                      rel=1e-9)  # fmt: skip
 
 
 def test_no_view_is_refused(setup):

@@ -300,6 +300,18 @@ def _covariance(C: np.ndarray, views: list[ViewJacobians],
     return sigma
 
 
+def change_information(C: np.ndarray, views: list[ViewJacobians], G: np.ndarray,
+                       C_noise: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
+    """(d, d) ``G^T Sigma^-1 G``: what the stacked ``views`` (``Sigma`` their covariance in the
+    check, ``C`` and ``C_noise`` as in :func:`image_drift_check`) tell of a change whose pixels
+    move by ``G`` (2k, d) per unit of its d parameters (e.g. a mount's translation, px per m):
+    ``x^T (G^T Sigma^-1 G) x`` is the noncentrality of the change ``x``
+    (:func:`selfcal.calibration.drift.p_value.known_change_power`)."""
+    L = np.linalg.cholesky(_covariance(C, views, C_noise))
+    Gw = solve_triangular(L, np.asarray(G, float), lower=True)
+    return Gw.T @ Gw
+
+
 def _twist_map(key: str, views: list[ViewJacobians]) -> np.ndarray:
     """(m, 6, d) the tool point's move (m) and the tool's rotation (rad), world frame, at every
     view per unit of the kinematic candidate ``key``'s d parameters
