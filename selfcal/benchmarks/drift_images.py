@@ -63,12 +63,12 @@ from selfcal.benchmarks.doc_blocks import (
     read_block,
 )
 from selfcal.benchmarks.pool import map_jobs
+from selfcal.calibration.drift.covariance import change_information
 from selfcal.calibration.drift.fold_error import fold_error_model
 from selfcal.calibration.drift.images import (
     ALPHA,
     calibration_error_model,
     calibration_views,
-    change_information,
     estimate_covariance,
     fold_recheck,
     image_drift_check,

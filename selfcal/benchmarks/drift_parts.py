@@ -39,11 +39,11 @@ from scipy.stats import chi2
 
 from selfcal.benchmarks.board_accuracy_draw import SCENARIO, simulated_calibration
 from selfcal.benchmarks.drift_images import NEW_VIEWS, SPREAD_RAD, TOOL_SHIFT_M, read_joints
+from selfcal.calibration.drift.covariance import change_information
 from selfcal.calibration.drift.images import (
     ALPHA,
     calibration_error_model,
     calibration_views,
-    change_information,
     estimate_covariance,
     image_drift_check,
 )

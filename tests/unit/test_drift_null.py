@@ -10,8 +10,9 @@ from scipy.spatial.transform import Rotation
 from scipy.special import ndtr
 
 from selfcal.calibration.accuracy import Z_MODEL_ERROR, excess
+from selfcal.calibration.drift.covariance import view_covariance
 from selfcal.calibration.drift.fold_error import fold_excess
-from selfcal.calibration.drift.images import _covariance, image_drift_check
+from selfcal.calibration.drift.images import image_drift_check
 from selfcal.calibration.drift.views import ViewJacobians
 from selfcal.calibration.whitened import (
     fold_row_covariance,
@@ -194,7 +195,7 @@ def test_a_paired_view_shares_its_frames_noise_in_the_estimate_with_the_others()
     R = _paired_residuals(C, Hb, Hu, 4000, rng)
     spread = {}
     for label, C_noise in (("with", C), ("without", None)):
-        W = np.linalg.solve(np.linalg.cholesky(_covariance(C, views, C_noise)), R.T).T
+        W = np.linalg.solve(np.linalg.cholesky(view_covariance(C, views, C_noise)), R.T).T
         ev = np.linalg.eigvalsh(np.cov(W.T))
         spread[label] = (ev.min(), ev.max())
     assert 0.7 <= spread["with"][0] and spread["with"][1] <= 1.35

@@ -9,7 +9,8 @@ import pytest
 from scipy.stats import chi2, norm
 
 from selfcal.benchmarks.drift_parts import _rounded_power, _tests, per_draw_summary
-from selfcal.calibration.drift.images import _covariance, change_information, image_drift_check
+from selfcal.calibration.drift.covariance import change_information, view_covariance
+from selfcal.calibration.drift.images import image_drift_check
 from selfcal.calibration.drift.views import view_jacobians
 from selfcal.camera import camera_model
 from selfcal.kinematics.forward import fk_tool
@@ -57,7 +58,7 @@ def test_the_per_draw_tests_are_the_checks_own(scene):
     """Each test's p-value from the Gram matrix, Bonferroni-combined, is the check's p-value, on
     residuals of its own covariance and with a mount shift added."""
     views, C = scene
-    L = np.linalg.cholesky(_covariance(C, views))
+    L = np.linalg.cholesky(view_covariance(C, views))
     rng = np.random.default_rng(2)
     G = np.concatenate([v.tool[:, :3] for v in views])
     for shift in (np.zeros(3), np.array([2e-4, -1e-4, 1e-4])):
@@ -75,7 +76,7 @@ def test_the_statistics_read_against_their_null_have_it(scene):
     a standard normal and their chi-square on the mount's 3 axes has 3 degrees of freedom
     (2000 draws: the per-draw summary's null lines read this)."""
     views, C = scene
-    L = np.linalg.cholesky(_covariance(C, views))
+    L = np.linalg.cholesky(view_covariance(C, views))
     G = np.concatenate([v.tool[:, :3] for v in views])
     x = np.array([1e-4, 1e-4, -1.5e-4])
     rng = np.random.default_rng(3)

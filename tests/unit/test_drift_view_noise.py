@@ -12,7 +12,8 @@ import dataclasses
 import numpy as np
 import pytest
 
-from selfcal.calibration.drift.images import _covariance, image_drift_check
+from selfcal.calibration.drift.covariance import view_covariance
+from selfcal.calibration.drift.images import image_drift_check
 from selfcal.calibration.drift.views import MIN_WHITE_DOF, view_jacobians, view_white_px
 from selfcal.camera import camera_model
 from selfcal.kinematics.forward import fk_tool
@@ -115,7 +116,7 @@ def test_the_views_own_noise_keeps_the_null_and_the_power(scene):
     em, C = scene["em"], scene["C"]
     exact = [uv for _, uv in scene["new"]]
     base = _views(scene, exact, False)
-    L = np.linalg.cholesky(_covariance(C, base))
+    L = np.linalg.cholesky(view_covariance(C, base))
     rng = np.random.default_rng(5)
     draws, changed = 60, {False: 0, True: 0}
     found = {False: 0, True: 0}

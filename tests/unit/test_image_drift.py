@@ -15,10 +15,9 @@ import pytest
 from scipy.stats import chi2, norm
 
 from selfcal.benchmarks.drift_images import read_joints
+from selfcal.calibration.drift.covariance import change_information, view_covariance
 from selfcal.calibration.drift.fold_error import fold_error_model, fold_excess
 from selfcal.calibration.drift.images import (
-    _covariance,
-    change_information,
     fold_recheck,
     image_drift_check,
 )
@@ -107,7 +106,7 @@ def test_residuals_drawn_from_the_prediction_alarm_below_alpha(setup):
     alpha of draws, and not far fewer (the combined test is conservative): alpha = 0.2 here,
     so that 80 draws tell (0.12 eye-in-hand, 0.15 eye-to-hand over 600 draws)."""
     e2h, _, _, views, C = setup
-    L = np.linalg.cholesky(_covariance(C, views))
+    L = np.linalg.cholesky(view_covariance(C, views))
     rng = np.random.default_rng(1)
     n, changed = 80, 0
     for _ in range(n):
@@ -123,7 +122,7 @@ def test_the_exact_min_p_spends_the_whole_alpha(setup):
     over 200, where Bonferroni gives 0.14 / 0.16 and 0.11 / 0.16); every p-value lies between
     the smallest test's p-value and Bonferroni's."""
     e2h, _, _, views, C = setup
-    L = np.linalg.cholesky(_covariance(C, views))
+    L = np.linalg.cholesky(view_covariance(C, views))
     rng = np.random.default_rng(1)
     n, changed, bonferroni = 100, 0, 0
     for _ in range(n):
@@ -197,7 +196,7 @@ def test_a_camera_change_bounds_a_hidden_move_of_the_mount(setup):
     most ``moved + 2 radius`` (the largest of the 20 bounds is 1.24 / 1.51 times ``moved +
     radius``, 0.72 / 0.81 times the limit)."""
     e2h, _, _, views, C = setup
-    L = np.linalg.cholesky(_covariance(C, views))
+    L = np.linalg.cholesky(view_covariance(C, views))
     rng = np.random.default_rng(5)
     k1 = FREE.index("k1")
     lens = [v.cam[:, k1] * 0.02 for v in views]
@@ -237,7 +236,7 @@ def test_a_move_of_the_mount_is_tested_as_a_translation(setup):
     the mount's and the world's translation and rotation, 5 joints); with the twist as one
     6-dof test it was missed (9 chi2_6(> 20) = 0.025 > 0.01)."""
     e2h, _, _, views, C = setup
-    L = np.linalg.cholesky(_covariance(C, views))
+    L = np.linalg.cholesky(view_covariance(C, views))
     mu = np.concatenate([v.tool[:, :3] @ np.array([0.6, -0.48, 0.64]) for v in views])
     mu *= np.sqrt(20.0) / np.linalg.norm(np.linalg.solve(L, mu))
     res = image_drift_check(C, _with(views, mu), eye_to_hand=e2h, camera_names=FREE)
@@ -289,7 +288,7 @@ def test_new_views_at_the_calibrations_postures_are_tested_against_its_frames(sc
         paired += image_drift_check(C, pv, eye_to_hand=e2h, alpha=0.2).changed
     assert as_new == n
     assert 1 <= paired <= 0.26 * n
-    assert np.allclose(_covariance(C, pv), np.kron(np.eye(5), 2 * SIGMA_PX**2 * np.eye(24)))
+    assert np.allclose(view_covariance(C, pv), np.kron(np.eye(5), 2 * SIGMA_PX**2 * np.eye(24)))
 
 
 def test_a_joint_offset_is_found_against_the_calibrations_frames(scene):
@@ -348,7 +347,7 @@ def test_several_new_views_at_one_posture_are_all_paired_sharing_its_frames_nois
             np.array_equal(a.r, b.r) for a, b in zip(pv, pair_views(vj, new, q, frames, q, **kw))
         )
         k = len(pv[0].r)
-        sigma = _covariance(C, pv)
+        sigma = view_covariance(C, pv)
         assert np.allclose(sigma[:k, k : 2 * k], SIGMA_PX**2 * np.eye(k))  # the frame's noise
         apart = [dataclasses.replace(v, frame=None) for v in pv]
         shared += image_drift_check(C, pv, eye_to_hand=e2h, alpha=0.05).changed

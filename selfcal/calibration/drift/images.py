@@ -83,6 +83,7 @@ from selfcal.calibration.board.accuracy import board_error_model_from_json, boar
 from selfcal.calibration.board.evaluate import held_out_views
 from selfcal.calibration.board.folds import unseen
 from selfcal.calibration.drift.attribution import Attribution, Fits, attribute, candidate_fits
+from selfcal.calibration.drift.covariance import view_covariance
 from selfcal.calibration.drift.fold_error import fold_error_model
 from selfcal.calibration.drift.own import JOINT_TOL, calibration_frames, own_views
 from selfcal.calibration.drift.p_value import combined_p, min_p, p_text
@@ -277,41 +278,6 @@ class ImageDriftCheck:
         }
 
 
-def _covariance(C: np.ndarray, views: list[ViewJacobians],
-                C_noise: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
-    """``Sigma`` (module docstring) of the stacked views, ``C`` the estimate's covariance,
-    ``C_noise`` its part from the calibration frames' noise (None: a file written before it,
-    the paired views' cross term left out)."""
-    H = np.concatenate([np.concatenate([v.kin, v.cam], axis=1) * (not v.paired) for v in views])
-    sigma = H @ C @ H.T  # a paired view's estimate cancels (selfcal.calibration.drift.paired)
-    if C_noise is not None:  # but its frame's noise moved the estimate the others hold
-        Y = np.concatenate([np.zeros((len(v.r), H.shape[1])) if v.frame_H is None else v.frame_H
-                            for v in views])  # fmt: skip
-        cross = Y @ C_noise @ H.T
-        sigma += cross + cross.T
-    at = np.cumsum([0] + [len(v.r) for v in views])
-    for i, v in enumerate(views):
-        sigma[at[i] : at[i + 1], at[i] : at[i + 1]] += v.local
-        for j, w in enumerate(views[:i]):  # views paired with one frame share its noise
-            if v.frame is not None and w.frame is not None and w.frame[0] == v.frame[0]:
-                shared = v.frame[2][np.ix_(v.frame[1], w.frame[1])]
-                sigma[at[i] : at[i + 1], at[j] : at[j + 1]] += shared
-                sigma[at[j] : at[j + 1], at[i] : at[i + 1]] += shared.T
-    return sigma
-
-
-def change_information(C: np.ndarray, views: list[ViewJacobians], G: np.ndarray,
-                       C_noise: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
-    """(d, d) ``G^T Sigma^-1 G``: what the stacked ``views`` (``Sigma`` their covariance in the
-    check, ``C`` and ``C_noise`` as in :func:`image_drift_check`) tell of a change whose pixels
-    move by ``G`` (2k, d) per unit of its d parameters (e.g. a mount's translation, px per m):
-    ``x^T (G^T Sigma^-1 G) x`` is the noncentrality of the change ``x``
-    (:func:`selfcal.calibration.drift.p_value.known_change_power`)."""
-    L = np.linalg.cholesky(_covariance(C, views, C_noise))
-    Gw = solve_triangular(L, np.asarray(G, float), lower=True)
-    return Gw.T @ Gw
-
-
 def _twist_map(key: str, views: list[ViewJacobians]) -> np.ndarray:
     """(m, 6, d) the tool point's move (m) and the tool's rotation (rad), world frame, at every
     view per unit of the kinematic candidate ``key``'s d parameters
@@ -382,7 +348,7 @@ def image_drift_check(C: np.ndarray, views: list[ViewJacobians], *,
         raise InputError("drift check: no view of the board to compare",
                          fix="give images that show the board")  # fmt: skip
     r = np.concatenate([v.r for v in views])
-    sigma = _covariance(C, views, C_noise)
+    sigma = view_covariance(C, views, C_noise)
     L = np.linalg.cholesky(sigma)
 
     def white(M: np.ndarray) -> np.ndarray:

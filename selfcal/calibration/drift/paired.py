@@ -27,7 +27,7 @@ alone, 55 % paired: ``python -m selfcal.benchmarks.drift_morning``).
 Every new view at a frame's posture is paired with it; two differences from one frame share
 its noise on the points both compare (``Cov(d1, d2) = Sigma_cal`` there), which the check's
 covariance holds as the off-diagonal blocks of those views
-(:func:`selfcal.calibration.drift.images._covariance`; before, each frame was paired with one
+(:func:`selfcal.calibration.drift.covariance.view_covariance`; before, each frame was paired with one
 new view and the further ones tested as new).
 
 What this assumes: the misfit at a posture repeats when the arm returns to it (the readings

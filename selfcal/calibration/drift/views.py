@@ -74,7 +74,7 @@ class ViewJacobians:
         frame_H: a paired view's frame's ``[kin, cam]`` on those rows (2k, p + c): its noise
             moved the calibration's estimate, so the difference shares ``H_b C_e H_u^T`` with
             every other new view's residuals (``C_e`` the estimate's covariance from the noise,
-            :func:`selfcal.calibration.drift.images._covariance`); None otherwise.
+            :func:`selfcal.calibration.drift.covariance.view_covariance`); None otherwise.
     """
 
     r: np.ndarray
