@@ -37,7 +37,7 @@ from selfcal.io.truth import read_truth
 from selfcal.kinematics.forward import fk_tool
 from selfcal.kinematics.mcpc import nominal_mcpc
 from selfcal.robot.definition import load_robot
-from selfcal.studies.montecarlo.run import _acquire
+from selfcal.studies.montecarlo.run import acquire_draw
 from selfcal.transforms import inv_pose
 
 __all__ = ["run", "main", "run_opencv4"]
@@ -94,7 +94,7 @@ def _case(perturbed: bool, workdir: Path, seed: int = 1) -> dict:
         )
         settings["config"] = str(cfg)
     s = load_scenario(settings["config"])
-    _acquire(settings, root)
+    acquire_draw(settings, root)
     ds, truth = Dataset.open(root), read_truth(root / "truth.json")
     robot = load_robot(ds.info.robot_model)
     T_world_board = board_pose(truth)

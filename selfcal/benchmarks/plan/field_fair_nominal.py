@@ -52,12 +52,12 @@ def one_draw(config: Path, joints_deg: np.ndarray, seed: int) -> dict:
     from selfcal.kinematics.accuracy import aligned_errors, tool_tips
     from selfcal.kinematics.mcpc import nominal_mcpc
     from selfcal.robot.definition import load_robot
-    from selfcal.studies.montecarlo.run import _acquire
+    from selfcal.studies.montecarlo.run import acquire_draw
 
     with tempfile.TemporaryDirectory() as d, warnings.catch_warnings():
         warnings.simplefilter("ignore")
         root = Path(d) / "run"
-        _acquire({"config": str(config), "poses": len(joints_deg), "pixel_sigma": 0.5,
+        acquire_draw({"config": str(config), "poses": len(joints_deg), "pixel_sigma": 0.5,
                   "seed": seed, "traj_seed": 1, "perturb_seed": seed, "dither": True,
                   "joints_deg": np.asarray(joints_deg).tolist()}, root)  # fmt: skip
         out = calibrate_detailed(root, method="joint")

@@ -77,7 +77,7 @@ def _acquire_draw(robot: str, root: Path, seed: int, sigma: float, render: bool,
     from selfcal.benchmarks.plan.compare import sets_of
     from selfcal.cli.plan_scenario import scenario_text
     from selfcal.io.plan_files import joints_csv
-    from selfcal.studies.montecarlo.run import _acquire
+    from selfcal.studies.montecarlo.run import acquire_draw
 
     setup, bp, _ = cell(robot)
     q, _ = sets_of(setup, 12, (12,), pixel_sigma_px=sigma)["sets"]["plan 12"]
@@ -87,7 +87,7 @@ def _acquire_draw(robot: str, root: Path, seed: int, sigma: float, render: bool,
     shutil.copyfile(cell_target(robot), root / "target.toml")
     deg = (q / setup.robot.edge_unit).tolist()
     shutil.rmtree(root / f"seed{seed}", ignore_errors=True)  # this script's own draw, acquired anew
-    _acquire({"config": str(root / "scenario.toml"), "poses": len(deg), "pixel_sigma": sigma,
+    acquire_draw({"config": str(root / "scenario.toml"), "poses": len(deg), "pixel_sigma": sigma,
               "seed": seed, "traj_seed": 1, "perturb_seed": seed, "dither": True,
               "joints_deg": deg, "render": render, "quantize": not exact},
              root / f"seed{seed}")  # fmt: skip
