@@ -31,9 +31,9 @@ from scipy.stats import chi2, ncx2
 
 from selfcal.calibration.board.evaluate import held_out_views
 from selfcal.calibration.board.view_jitter import psd_part
+from selfcal.calibration.drift.covariance import view_covariance
 from selfcal.calibration.drift.images import (
     ALPHA,
-    _covariance,
     calibration_error_model,
     calibration_views,
     estimate_covariance,
@@ -83,7 +83,7 @@ def main(argv: list[str] | None = None) -> int:
 
         metrics.append(("with its own frames' sandwich", psd_part(C + folds_of(a.calibration)[2])))
     for label, CC in metrics:
-        L = np.linalg.cholesky(_covariance(CC, v0))
+        L = np.linalg.cholesky(view_covariance(CC, v0))
         G = np.linalg.solve(L, np.concatenate([v.cam for v in v0]))
         P = G @ np.linalg.pinv(G)
         w0, wm = np.linalg.solve(L, r0), np.linalg.solve(L, rk - r0)

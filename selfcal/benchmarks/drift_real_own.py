@@ -27,8 +27,8 @@ from scipy.stats import chi2
 
 from selfcal.calibration.board.evaluate import held_out_views
 from selfcal.calibration.drift.attribution import candidate_fits
+from selfcal.calibration.drift.covariance import view_covariance
 from selfcal.calibration.drift.images import (
-    _covariance,
     calibration_error_model,
     calibration_views,
     estimate_covariance,
@@ -81,7 +81,7 @@ def main(argv: list[str] | None = None) -> int:
         fit = G @ np.linalg.lstsq(G, r, rcond=None)[0]
         left.append(f"{key} {float(fit @ fit) / float(r @ r):.1e}")
     print("equal-weight fit of each change, share of the squared residuals: " + "; ".join(left))
-    sigma = _covariance(C, views)
+    sigma = view_covariance(C, views)
     print("the check's covariance: " + _tests(sigma, r, views, e2h))
     print("without H C H^T: " + _tests(sigma - H @ C @ H.T, r, views, e2h))
     s = view_noise(cal, str(path)).pixel_sigma_px
