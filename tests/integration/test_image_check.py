@@ -122,5 +122,26 @@ def test_check_with_images_says_unchanged_or_changed(tmp_path, capsys):
     assert main(["check", str(moved), str(new)]) == EXIT_CHANGED
     assert capsys.readouterr().out.startswith("changed by")
 
+    # one corner of one new image detected 5 px off: dropped by the calibration's outlier rule
+    # after its view's own pose fit (not read as a noisy image or a change) and named
+    off = tmp_path / "outlier"
+    shutil.copytree(new, off)
+    rows = list(csv.reader((off / "detections.csv").open()))
+    col = rows[0].index("u_px")
+    rows[1][col] = f"{float(rows[1][col]) + 5.0:.6f}"
+    with (off / "detections.csv").open("w", newline="") as f:
+        csv.writer(f).writerows(rows)
+    res = selfcal.check_images(cal, off)
+    assert not res.changed and len(res.outliers) == 1, res.line()
+    name, u, _, err = res.outliers[0]
+    assert u == pytest.approx(float(rows[1][col])) and 4.0 < err < 6.0
+    assert main(["check", str(cal), str(off)]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("unchanged: 6 new image(s)") and f"{name} at ({u:.1f}," in out
+    # a real change beside it is still found
+    _offset_joint(off, tmp_path / "outlier-joint", 4, 0.3)
+    res = selfcal.check_images(cal, tmp_path / "outlier-joint")
+    assert res.changed and len(res.outliers) == 1 and "joint 4" in res.line()
+
     assert main(["check", str(cal), str(tmp_path / "nothing")]) == 2  # no dataset: named
     assert str(tmp_path / "nothing") in capsys.readouterr().err

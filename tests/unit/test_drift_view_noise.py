@@ -14,7 +14,12 @@ import pytest
 
 from selfcal.calibration.drift.covariance import view_covariance
 from selfcal.calibration.drift.images import image_drift_check
-from selfcal.calibration.drift.views import MIN_WHITE_DOF, view_jacobians, view_white_px
+from selfcal.calibration.drift.outliers import drop_outliers
+from selfcal.calibration.drift.views import (
+    MIN_WHITE_DOF,
+    view_jacobians,
+    view_white_px,
+)
 from selfcal.camera import camera_model
 from selfcal.kinematics.forward import fk_tool
 from selfcal.kinematics.mcpc import minimal_indices, nominal_mcpc
@@ -141,3 +146,73 @@ def test_the_views_own_noise_keeps_the_null_and_the_power(scene):
     assert 0.04 * draws <= changed[True] <= 0.26 * draws, changed
     assert abs(changed[True] - changed[False]) <= 3, changed
     assert abs(found[True] - found[False]) <= 3, found
+
+
+def _outlier_draw(scene, rng, em=None):
+    """The scene's views with the calibration's corner noise, of the arm ``em`` (default the
+    scene's calibration), corner 7 of view 1 moved 5 px in a random direction: the detected
+    pixels."""
+    exact = [uv for _, uv in scene["new"]]
+    shift = (
+        [v.r for v in _views(scene, exact, False, em=em)]
+        if em
+        else [np.zeros(uv.size) for uv in exact]
+    )
+    uvs = [uv - np.reshape(s, uv.shape) + rng.normal(0.0, SIGMA_PX, uv.shape)
+           for uv, s in zip(exact, shift, strict=True)]  # fmt: skip
+    turn = rng.uniform(0, 2 * np.pi)
+    uvs[1][7] += 5.0 * np.array([np.cos(turn), np.sin(turn)])
+    return uvs
+
+
+def _kept(scene, uvs):
+    new = [(i, X, uv) for i, ((X, _), uv) in enumerate(zip(scene["new"], uvs, strict=True))]
+    kept, dropped = drop_outliers(scene["em"], scene["cam"], scene["q"], new,
+                                  [f"view{i}.png" for i in range(len(new))], eye_to_hand=False)  # fmt: skip
+    return [uv for _, _, uv in kept], [X for _, X, _ in kept], dropped
+
+
+def test_a_corner_5_px_off_is_dropped_by_the_calibrations_rule_and_named(scene):
+    """One corner of an unchanged view moved 5 px: kept (as before), the view counts as noisy
+    (its own white noise above the calibration's) in every draw (20 of 20 here); dropped by the
+    calibration's outlier rule, it is the only corner dropped, named (image, pixel, 4.4-5.6 px
+    off) and the view is neither noisy (at most 1 of 20 draws, WHITE_LEVEL; 0 here) nor changed
+    (at most 1 of 20 at alpha 0.01; 0 here)."""
+    rng = np.random.default_rng(6)
+    noisy, noisy_kept, changed = 0, 0, 0
+    for _ in range(20):
+        uvs = _outlier_draw(scene, rng)
+        v = _views(scene, uvs, False)[1]
+        noisy += view_white_px(v.r, v.tool, v.cam, SIGMA_PX) is not None
+        kept, Xs, dropped = _kept(scene, uvs)
+        assert [d[0] for d in dropped] == ["view1.png"], dropped
+        assert dropped[0][1:3] == (uvs[1][7, 0], uvs[1][7, 1]) and 4.4 < dropped[0][3] < 5.6
+        views = [view_jacobians(scene["em"], scene["cam"], scene["q"][i], X, uv,
+                                eye_to_hand=False, pixel_sigma_px=SIGMA_PX,
+                                joint_sigma_rad=None, own_white=True)
+                 for i, (X, uv) in enumerate(zip(Xs, kept, strict=True))]  # fmt: skip
+        noisy_kept += view_white_px(views[1].r, views[1].tool, views[1].cam, SIGMA_PX) is not None
+        changed += image_drift_check(scene["C"], views, eye_to_hand=False).changed
+    assert noisy == 20 and noisy_kept <= 1 and changed <= 1, (noisy, noisy_kept, changed)
+
+
+def test_a_drift_is_not_dropped_and_still_found_beside_an_outlier(scene):
+    """The camera 0.2 mm off on the flange since the calibration (about 0.4 px), and 5 mm (about
+    10 px, every corner of a view coherently, far beyond the rule's 3 px): the rule, applied
+    after the view's own pose fit, drops the 5 px corner alone, and the check says changed in
+    every draw (20 of 20)."""
+    rng = np.random.default_rng(7)
+    em = scene["em"]
+    for mm, draws in ((0.2, 20), (5.0, 3)):
+        shift = np.eye(4)
+        shift[0, 3] = mm * 1e-3
+        moved = dataclasses.replace(em, model=em.model.with_tool(shift))
+        for _ in range(draws):
+            uvs = _outlier_draw(scene, rng, em=moved)
+            kept, Xs, dropped = _kept(scene, uvs)
+            assert len(dropped) == 1 and dropped[0][0] == "view1.png", dropped
+            views = [view_jacobians(em, scene["cam"], scene["q"][i], X, uv, eye_to_hand=False,
+                                    pixel_sigma_px=SIGMA_PX, joint_sigma_rad=None,
+                                    own_white=True)
+                     for i, (X, uv) in enumerate(zip(Xs, kept, strict=True))]  # fmt: skip
+            assert image_drift_check(scene["C"], views, eye_to_hand=False).changed

@@ -62,6 +62,9 @@ __all__ = [
     "BoardMismatchError",
     "BoardNotFoundWarning",
     "InitialCameraWarning",
+    "MAX_OUTLIER_SHARE",
+    "OUTLIER_PX",
+    "OUTLIER_SIGMAS",
     "OpenCVCalibration",
     "calibrate_board",
     "opencv_calibration",
@@ -352,6 +355,19 @@ def _usable(
     return ok, skipped
 
 
+OUTLIER_PX = 3.0
+"""A feature is an outlier where its 2-D reprojection error (px) after the robust fit of its
+view's pose and the camera is at least ``max(OUTLIER_PX, OUTLIER_SIGMAS * robust sigma)``
+(:func:`calibrate_board`; the drift check drops new corners by the same rule,
+:func:`selfcal.calibration.drift.views.view_outliers`)."""
+OUTLIER_SIGMAS = 4.5
+"""The robust sigmas (:func:`selfcal.estimation.reprojection.robust_sigma`) of the outlier rule
+(:data:`OUTLIER_PX`)."""
+MAX_OUTLIER_SHARE = 0.25
+"""The largest share of the features the outlier rule may reject: beyond it the declared
+geometry is not the board's (:class:`BoardMismatchError`)."""
+
+
 def calibrate_board(
     board: Board,
     features: Sequence[Features],
@@ -362,7 +378,7 @@ def calibrate_board(
     model: str = "pinhole",
     names: Sequence[str] | None = None,
     min_views: int = 3,
-    outlier_px: float = 3.0,
+    outlier_px: float = OUTLIER_PX,
     mismatch_px: float = 3.0,
     max_nfev: int = 200,
     initial: Pinhole | None = None,
@@ -426,7 +442,7 @@ def calibrate_board(
         if loss == "soft_l1":  # reclassify every row with the robust estimate
             e = _errors(camera, res.T_cam_world, X, view, pidx, uv)
             sigma = robust_sigma(e[active])
-            active = e < max(outlier_px, 4.5 * sigma)
+            active = e < max(outlier_px, OUTLIER_SIGMAS * sigma)
     assert res is not None and res.jac is not None  # the analytic Jacobian of ViewPoses
     e_all = _errors(camera, res.T_cam_world, X, view, pidx, uv)
     rms = float(np.sqrt(np.mean(e_all[active] ** 2)))
@@ -484,7 +500,7 @@ def _check_ids(board: Board, features: Sequence[Features]) -> None:
 def _check_geometry(board: Board, rms: float, active: np.ndarray, mismatch_px: float) -> None:
     """:class:`BoardMismatchError` when the fit shows the declared geometry is not the board's."""
     frac_out = 1.0 - float(np.mean(active))
-    if rms <= mismatch_px and frac_out <= 0.25:
+    if rms <= mismatch_px and frac_out <= MAX_OUTLIER_SHARE:
         return
     raise _mismatch(
         board,

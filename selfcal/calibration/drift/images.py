@@ -49,7 +49,8 @@ folds' error at the configurations they left out as each view's model error
 (:mod:`selfcal.calibration.drift.fold_error`, :func:`fold_recheck`): "changed" only if it fails
 that too, else "cannot tell" (on real arms ``Sigma`` is wrong at a new configuration).
 
-New images that are the calibration's own frames (the same joint readings and detections) are
+Corners the calibration's outlier rule would drop are left out and named
+(:mod:`selfcal.calibration.drift.outliers`). New images that are the calibration's own frames (the same joint readings and detections) are
 left out of the test and counted (:mod:`selfcal.calibration.drift.own`: their residuals are the
 fit's, not independent of its estimate; the test read them as a camera change on a real set).
 New images at a calibration frame's posture, when its frames showed a per-view misfit, are tested
@@ -85,6 +86,7 @@ from selfcal.calibration.board.folds import unseen
 from selfcal.calibration.drift.attribution import Attribution, Fits, attribute, candidate_fits
 from selfcal.calibration.drift.covariance import view_covariance
 from selfcal.calibration.drift.fold_error import fold_error_model
+from selfcal.calibration.drift.outliers import Outlier, drop_outliers, outlier_line
 from selfcal.calibration.drift.own import JOINT_TOL, calibration_frames, own_views
 from selfcal.calibration.drift.p_value import combined_p, min_p, p_text
 from selfcal.calibration.drift.paired import noise_covariance, paired_views, posture_tol
@@ -167,6 +169,8 @@ class ImageDriftCheck:
         there were tested as new (:mod:`selfcal.calibration.drift.paired`). undecided: "cannot
         tell": failed, but not with the folds' error fold_error_mm / _deg per coordinate
         (:func:`fold_recheck`; 0 when not applied) as the views' model error (p fold_p_value).
+        outliers: the corners left out by the calibration's outlier rule
+        (:mod:`selfcal.calibration.drift.outliers`).
     """
 
     views: int
@@ -192,11 +196,13 @@ class ImageDriftCheck:
     fold_error_mm: float = 0.0
     fold_error_deg: float = 0.0
     fold_p_value: float = float("nan")
+    outliers: tuple[Outlier, ...] = ()
 
     def _own_line(self) -> str:
+        out = outlier_line(self.outliers)
         if not self.own:
-            return ""
-        return (f"; {self.own} more image(s) are the calibration's own (its frames' joint "
+            return out
+        return out + (f"; {self.own} more image(s) are the calibration's own (its frames' joint "
                 f"readings and board detections), left out of the test: {OWN_NOTE}")  # fmt: skip
 
     def line(self) -> str:
@@ -270,6 +276,9 @@ class ImageDriftCheck:
             "mean_tool_point_mm": self.mean_tip_mm.tolist(),
             "cause": None if self.attribution is None else self.attribution.to_json(),
             "unseen_configuration_images": self.unseen,
+            "outlier_corners": [
+                {"image": n, "u_px": u, "v_px": v, "error_px": e} for n, u, v, e in self.outliers
+            ],
             "fold_model_error_mm": self.fold_error_mm,
             "fold_model_error_deg": self.fold_error_deg,
             "p_value_with_fold_error": (
@@ -475,6 +484,9 @@ def check_images(calibration: str | Path, new_data: str | Path, *,
     mine = calibration_frames(cal, path, held, cal.camera_names[0], tol)
     own = own_views(cal, path, held, mine)
     new = [(f, X, uv) for (_, f, _, _, X, uv), o in zip(held.views, own, strict=True) if not o]
+    new, outliers = drop_outliers(em, cal.cameras[0], held.q, new,
+                                  [v[0] for v, o in zip(held.views, own, strict=True) if not o],
+                                  eye_to_hand=cal.eye_to_hand)  # fmt: skip
     if not new:  # every image is the calibration's own: nothing the test may use
         raise InputError(
             f"{new_data}: all {len(held.views)} image(s) are the calibration's own frames (their "
@@ -498,4 +510,5 @@ def check_images(calibration: str | Path, new_data: str | Path, *,
                        eye_to_hand=cal.eye_to_hand, alpha=alpha, C_noise=C_noise)  # fmt: skip
     far = unseen(held.q[[f for f, _, _ in new]], q_cal, cal.model.joint_types)
     return replace(res, unseen=int(np.count_nonzero(far)), own=int(np.count_nonzero(own)),
-                   paired=sum(v.paired for v in tested), repeated=repeated)  # fmt: skip
+                   paired=sum(v.paired for v in tested), repeated=repeated,
+                   outliers=outliers)  # fmt: skip
