@@ -359,7 +359,7 @@ OUTLIER_PX = 3.0
 """A feature is an outlier where its 2-D reprojection error (px) after the robust fit of its
 view's pose and the camera is at least ``max(OUTLIER_PX, OUTLIER_SIGMAS * robust sigma)``
 (:func:`calibrate_board`; the drift check drops new corners by the same rule,
-:func:`selfcal.calibration.drift.views.view_outliers`)."""
+:func:`selfcal.calibration.drift.outliers.view_outliers`)."""
 OUTLIER_SIGMAS = 4.5
 """The robust sigmas (:func:`selfcal.estimation.reprojection.robust_sigma`) of the outlier rule
 (:data:`OUTLIER_PX`)."""
