@@ -216,3 +216,20 @@ def test_a_drift_is_not_dropped_and_still_found_beside_an_outlier(scene):
                                     own_white=True)
                      for i, (X, uv) in enumerate(zip(Xs, kept, strict=True))]  # fmt: skip
             assert image_drift_check(scene["C"], views, eye_to_hand=False).changed
+
+
+def test_a_view_misfitting_widely_or_with_few_corners_keeps_them_all(scene):
+    """More than MAX_OUTLIER_SHARE of a view's corners 5 px off: none of that view dropped (what
+        the test is for), the 5 px corner of another view still; a view with fewer than
+        MIN_WHITE_DOF degrees of freedom beyond its pose (17 corners: 34 - 6 = 28): none dropped, with
+    18 (30) the corner moved 5 px."""
+    rng = np.random.default_rng(8)
+    uvs = _outlier_draw(scene, rng)
+    uvs[3][:12] += 5.0  # 12 of 40 (30 %)
+    _, _, dropped = _kept(scene, uvs)
+    assert [d[0] for d in dropped] == ["view1.png"], dropped
+    X, uv = scene["new"][1][0], uvs[1]
+    for k, named in ((17, []), (18, ["a"])):  # 28 and 30 degrees of freedom beyond the pose
+        _, dropped = drop_outliers(scene["em"], scene["cam"], scene["q"], [(1, X[:k], uv[:k])],
+                                   ["a"], eye_to_hand=False)  # fmt: skip
+        assert [d[0] for d in dropped] == named, (k, dropped)
