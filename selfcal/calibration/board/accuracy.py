@@ -82,9 +82,9 @@ from selfcal.calibration.accuracy import (
 )
 from selfcal.calibration.board.bounds import BoardCramerRao
 from selfcal.calibration.board.covariances import (
-    estimate_covariance,
-    noise_covariance,
-    padded_covariance,
+    bounds_covariance,
+    bounds_noise_covariance,
+    padded_bounds_covariance,
 )
 from selfcal.calibration.board.deviation import Deviation
 from selfcal.calibration.board.fold_fits import fold_bounds
@@ -162,7 +162,7 @@ def board_error_model(cr: BoardCramerRao, T_tool_point: np.ndarray, position_m: 
     idx = minimal_indices(cr.model.joint_types)
     est = np.ones(idx.size, bool) if cr.estimated is None else np.asarray(cr.estimated, bool)
     p = int(est.sum())
-    cov = cr.covariance[np.ix_(est, est)] + position_m**2 * estimate_covariance(cr, True)[1][:p, :p]
+    cov = cr.covariance[np.ix_(est, est)] + position_m**2 * bounds_covariance(cr, True)[1][:p, :p]
     em = ToolErrorModel(cr.model, np.eye(4), idx[est], cov, position_m, rotation_rad,
                         np.asarray(T_tool_point, float))  # fmt: skip
     em = em.with_reach(reach)
@@ -190,14 +190,14 @@ def held_out_errors(obs: BoardObservations, fit: Refinement, frames: np.ndarray,
     cam, v, Xc, uv, _ = predicted_points(obs, fit, frames)[0]
     t = np.asarray(T_tool_point, float)[:3, 3]
     js = obs.joint_sigma
-    cols, C, n0 = estimate_covariance(cr)
+    cols, C, n0 = bounds_covariance(cr)
     C_half = psd_sqrt(C)
-    G_half = psd_sqrt(estimate_covariance(cr, misfit=True)[1])
+    G_half = psd_sqrt(bounds_covariance(cr, misfit=True)[1])
     s2 = cr.pixel_sigma_px**2
     keys = ("frame", "px2", "px2_expected", "px2_var", "px2_unit", "px2_misfit", "lever", "e",
             "S", "N", "G", "C", "A")  # fmt: skip
     idx = minimal_indices(cr.model.joint_types)
-    C_all = padded_covariance(cr)
+    C_all = padded_bounds_covariance(cr)
     out: dict[str, list] = {k: [] for k in keys}
     for i in np.unique(v).tolist():
         rows = v == i
@@ -422,15 +422,15 @@ def board_accuracy(obs: BoardObservations, selection: Selection, cr: BoardCramer
     sample = workspace_sample(q_cal, limits, count=count)
     note = ("no cross-validation (the frames show one arm configuration): the covariance alone, "
             "which is optimistic when the model misfits")  # fmt: skip
-    cols, C, n0 = estimate_covariance(cr)
-    C = C + pos**2 * estimate_covariance(cr, misfit=True)[1]  # as `covariance_si` (the misfit's)
+    cols, C, n0 = bounds_covariance(cr)
+    C = C + pos**2 * bounds_covariance(cr, misfit=True)[1]  # as `covariance_si` (the misfit's)
     p = len(C) - n0
     extra = {
         # the first camera's free parameters (its order) with their correlation to `estimated`:
         # the drift check's prediction of new pixels (selfcal/calibration/drift/images.py)
         "camera_covariance_si": C[p:, p:].tolist(),
         "camera_cross_si": C[:p, p:].tolist(),
-        "noise_covariance_si": noise_covariance(noisy, cols).tolist(),
+        "noise_covariance_si": bounds_noise_covariance(noisy, cols).tolist(),
         "tool_point": "the flange",
         "T_tool_point_si": np.asarray(T_tool_point, float).tolist(),
         "joint_limits_si": np.asarray(limits, float).tolist(),
@@ -458,8 +458,8 @@ def predicted_reprojection(cr: BoardCramerRao, camera: CameraModel, q: np.ndarra
     measured held-out RMS. ``reach``: where the model error grows from (the calibration
     postures, the joints' spans and the reference distance, :class:`Reach`; the joints it wraps:
     ``cr.model``'s revolute ones), or None."""
-    cols, C, n0 = estimate_covariance(cr)
-    C = C + model_error_m**2 * estimate_covariance(cr, misfit=True)[1]
+    cols, C, n0 = bounds_covariance(cr)
+    C = C + model_error_m**2 * bounds_covariance(cr, misfit=True)[1]
     t = np.asarray(T_tool_point, float)[:3, 3]
     M = np.diag([model_error_m**2] * 3 + [model_error_rad**2] * 3)
     q = np.atleast_2d(q)

@@ -10,10 +10,10 @@ import numpy as np
 from selfcal.calibration.board.bounds import BoardCramerRao
 from selfcal.kinematics.mcpc import minimal_indices
 
-__all__ = ["estimate_covariance", "noise_covariance", "padded_covariance"]
+__all__ = ["bounds_covariance", "bounds_noise_covariance", "padded_bounds_covariance"]
 
 
-def estimate_covariance(cr: BoardCramerRao,
+def bounds_covariance(cr: BoardCramerRao,
                         misfit: bool = False) -> tuple[np.ndarray, np.ndarray, int]:  # fmt: skip
     """The estimated minimal parameters' flat indices, the joint covariance (p + c, p + c) of
     them and the first camera's free parameters (with their correlation), and ``c``;
@@ -27,15 +27,15 @@ def estimate_covariance(cr: BoardCramerRao,
     if misfit:
         G = np.zeros((p + n0, p + n0)) if cr.misfit is None else cr.misfit[np.ix_(keep, keep)]
         return idx[est], G, n0
-    return idx[est], padded_covariance(cr)[np.ix_(keep, keep)], n0
+    return idx[est], padded_bounds_covariance(cr)[np.ix_(keep, keep)], n0
 
 
-def noise_covariance(cr: BoardCramerRao, cols: np.ndarray) -> np.ndarray:
+def bounds_noise_covariance(cr: BoardCramerRao, cols: np.ndarray) -> np.ndarray:
     """(p + c, p + c) the covariance of ``cr``'s estimate from the noise alone (no deviation, no
     model error) in the order of the block's ``estimated`` (the flat minimal indices ``cols``
     (p,); a parameter ``cr`` held has zero rows) and the first camera's free parameters: what a
     calibration frame's noise shares with the estimate (:mod:`selfcal.calibration.drift.paired`)."""
-    idx, C0, n0 = estimate_covariance(cr)
+    idx, C0, n0 = bounds_covariance(cr)
     at = {int(k): j for j, k in enumerate(cols)}
     keep = np.r_[[at[int(k)] for k in idx], len(cols) + np.arange(n0)].astype(int)
     C = np.zeros((len(cols) + n0, len(cols) + n0))
@@ -43,7 +43,7 @@ def noise_covariance(cr: BoardCramerRao, cols: np.ndarray) -> np.ndarray:
     return C
 
 
-def padded_covariance(cr: BoardCramerRao) -> np.ndarray:
+def padded_bounds_covariance(cr: BoardCramerRao) -> np.ndarray:
     """(k + c, k + c) the covariance of ``cr``'s estimate in every minimal parameter's order
     (zero rows where it holds one) then the first camera's ``c`` free parameters."""
     k = len(cr.covariance)
