@@ -9,8 +9,10 @@ import numpy as np
 from scipy.linalg import solve_triangular
 
 from selfcal.calibration.drift.views import ViewJacobians
+from selfcal.io.board_calibration import BoardCalibrationResult
+from selfcal.kinematics.tool_error import ToolErrorModel
 
-__all__ = ["change_information", "view_covariance"]
+__all__ = ["change_information", "estimate_covariance", "view_covariance"]
 
 
 def view_covariance(C: np.ndarray, views: list[ViewJacobians],
@@ -46,3 +48,23 @@ def change_information(C: np.ndarray, views: list[ViewJacobians], G: np.ndarray,
     L = np.linalg.cholesky(view_covariance(C, views, C_noise))
     Gw = solve_triangular(L, np.asarray(G, float), lower=True)
     return Gw.T @ Gw
+
+
+def estimate_covariance(cal: BoardCalibrationResult, em: ToolErrorModel) -> np.ndarray:
+    """(p + c, p + c) the covariance of the calibration's estimated kinematic parameters (``em``,
+    its ``accuracy`` block) and its first camera's free parameters with their correlation (the
+    block's ``camera_covariance_si`` and ``camera_cross_si``); a file written before them: the
+    camera's standard deviations alone, taken as independent of the kinematics."""
+    p, camera = len(em.covariance), cal.cameras[0]
+    c = len(camera.free)
+    C = np.zeros((p + c, p + c))
+    C[:p, :p] = em.covariance
+    block = cal.accuracy or {}
+    cam = np.asarray(block.get("camera_covariance_si", []), float)
+    cross = np.asarray(block.get("camera_cross_si", []), float)
+    if cam.shape == (c, c) and cross.shape == (p, c):
+        C[p:, p:], C[:p, p:], C[p:, :p] = cam, cross, cross.T
+    else:
+        std = cal.camera_std[0]
+        C[p:, p:] = np.diag(np.array([std.get(k, 0.0) for k in camera.free], float) ** 2)
+    return C

@@ -84,7 +84,7 @@ from selfcal.calibration.board.accuracy import board_error_model_from_json, boar
 from selfcal.calibration.board.evaluate import held_out_views
 from selfcal.calibration.board.folds import unseen
 from selfcal.calibration.drift.attribution import Attribution, Fits, attribute, candidate_fits
-from selfcal.calibration.drift.covariance import view_covariance
+from selfcal.calibration.drift.covariance import estimate_covariance, view_covariance
 from selfcal.calibration.drift.fold_error import fold_error_model
 from selfcal.calibration.drift.outliers import Outlier, drop_outliers, outlier_line
 from selfcal.calibration.drift.own import JOINT_TOL, calibration_frames, own_views
@@ -429,26 +429,6 @@ def calibration_error_model(cal: BoardCalibrationResult, where: str) -> ToolErro
             fix="re-run `selfcal calibrate` on the calibration's dataset",
         )
     return board_error_model_from_json(cal.accuracy, cal.model, where)
-
-
-def estimate_covariance(cal: BoardCalibrationResult, em: ToolErrorModel) -> np.ndarray:
-    """(p + c, p + c) the covariance of the calibration's estimated kinematic parameters (``em``,
-    its ``accuracy`` block) and its first camera's free parameters with their correlation (the
-    block's ``camera_covariance_si`` and ``camera_cross_si``); a file written before them: the
-    camera's standard deviations alone, taken as independent of the kinematics."""
-    p, camera = len(em.covariance), cal.cameras[0]
-    c = len(camera.free)
-    C = np.zeros((p + c, p + c))
-    C[:p, :p] = em.covariance
-    block = cal.accuracy or {}
-    cam = np.asarray(block.get("camera_covariance_si", []), float)
-    cross = np.asarray(block.get("camera_cross_si", []), float)
-    if cam.shape == (c, c) and cross.shape == (p, c):
-        C[p:, p:], C[:p, p:], C[p:, :p] = cam, cross, cross.T
-    else:
-        std = cal.camera_std[0]
-        C[p:, p:] = np.diag(np.array([std.get(k, 0.0) for k in camera.free], float) ** 2)
-    return C
 
 
 @limited

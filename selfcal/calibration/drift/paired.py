@@ -236,7 +236,7 @@ def paired_views(cal: BoardCalibrationResult, path: Path, held: HeldOutViews,
 
 def noise_covariance(cal: BoardCalibrationResult, em: ToolErrorModel) -> np.ndarray | None:
     """(p + c, p + c) the part of the check's estimate covariance
-    (:func:`selfcal.calibration.drift.images.estimate_covariance`, in its order) from the
+    (:func:`selfcal.calibration.drift.covariance.estimate_covariance`, in its order) from the
     calibration frames' noise alone (the ``accuracy`` block's ``noise_covariance_si``: no held
     deviation, no model error): what a paired frame's noise shares with the estimate (module
     docstring); None for a file written before it (the cross term is then left out).
