@@ -10,7 +10,7 @@ import numpy as np
 
 from selfcal.console.common import CliError, parse_floats
 
-__all__ = ["check_common", "keep_out_boxes", "plan_inputs", "trajectory_joint_names",
+__all__ = ["check_common", "deviation", "keep_out_boxes", "plan_inputs", "trajectory_joint_names",
            "write_postures"]  # fmt: skip
 
 
@@ -81,3 +81,18 @@ def write_postures(args: argparse.Namespace, out, names: list[str], q: np.ndarra
     write_text_atomic(out / "joints.csv", joints_csv(q, robot.edge_unit))
     write_text_atomic(out / "trajectory.yaml", trajectory_yaml(
         names, q, robot.home, speed=args.speed_deg_s * robot.edge_unit, dwell_s=args.dwell_s))  # fmt: skip
+
+
+def deviation(args: argparse.Namespace):
+    """The arm's deviation from its drawing the plan is made for (``--deviation-mm`` /
+    ``--deviation-deg``, SI inside: m, rad)."""
+    from selfcal.calibration.board.deviation import Deviation
+
+    if args.deviation_mm < 0 or args.deviation_deg < 0:
+        raise CliError("--deviation-mm and --deviation-deg must be >= 0")
+    if args.deviation_mm == 0 and args.deviation_deg == 0:
+        raise CliError("--deviation-mm 0 --deviation-deg 0 says the arm is exactly its drawing: "
+                       "there is no kinematic error for a plan to reduce or a nominal to compare "
+                       "with; give how far your arm may lie from its drawing (e.g. "
+                       "--deviation-mm 0.2 --deviation-deg 0.05)")  # fmt: skip
+    return Deviation(args.deviation_mm / 1000.0, float(np.radians(args.deviation_deg)))

@@ -1,0 +1,136 @@
+"""``selfcal plan --add K DATASET`` (issue #30): the postures to add to a recorded dataset
+(:mod:`selfcal.calibration.board.plan.add`), written as PLAN/joints.csv, trajectory.yaml,
+replay.csv, target.toml, scenario.toml, plan.json and plan.png."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+
+from selfcal.cli.plan_args import (
+    check_common,
+    deviation,
+    keep_out_boxes,
+    plan_inputs,
+    trajectory_joint_names,
+)
+from selfcal.console.common import CliError, note_written, writing
+
+__all__ = ["cmd_add"]
+
+
+def cmd_add(args: argparse.Namespace) -> int:
+    """``selfcal plan --add K DATASET``: the K postures that most lower the dataset's predicted
+    tool-point error (mm at the edges), written to PLAN/ with the forecast before and after."""
+    from selfcal.acquisition.backends import robot_reference
+    from selfcal.calibration.board.plan.add import dataset_setup, plan_additions
+    from selfcal.calibration.board.plan.ground import PlanOptions
+    from selfcal.cli.plan_add_ground import add_ground
+    from selfcal.cli.plan_forecast import DrawSet, forecast_draws, write_figure
+    from selfcal.cli.plan_scenario import cell_fields, scenario_text
+    from selfcal.cli.plan_text import criterion, reference_words
+    from selfcal.console.progress import Progress
+    from selfcal.estimation.joint_report import encoder_sigma
+    from selfcal.io.atomic import write_text_atomic
+    from selfcal.io.dataset import Dataset
+    from selfcal.io.jsonfile import write_json_atomic
+    from selfcal.io.plan_files import joints_csv, trajectory_yaml
+    from selfcal.io.target_toml import target_document
+
+    k_text, root = args.add
+    try:
+        count = int(k_text)
+    except ValueError:
+        raise CliError(f"--add {k_text} {root}: K must be a whole number of postures") from None
+    if count < 1:
+        raise CliError(f"--add {count}: add at least 1 posture")
+    check_common(args, count)
+    dplan = dataset_setup(root, keep_out_boxes(args))
+    setup = dplan.setup
+    robot = setup.robot
+    names = trajectory_joint_names(args, robot.joint_names)
+    js = encoder_sigma(robot)
+    opts = PlanOptions(seed=args.seed, candidates=args.candidates,
+                       pixel_sigma_px=args.pixel_sigma, joint_sigma=js, deviation=deviation(args))  # fmt: skip
+    opts, ws, dev = add_ground(args, root, dplan, opts)  # the dataset's, not the defaults
+    with Progress("plan", enabled=not (args.quiet or args.json)).step(
+        f"choosing {count} postures to add"
+    ) as st:
+        add = plan_additions(dplan, count, opts, ws.q)
+        st.result(f"from {add.candidates} candidates")
+    m = len(dplan.q)
+    fc = forecast_draws(args, setup, add.workspace, [
+        DrawSet("before", f"the dataset's {m} postures recorded anew", dplan.q, dplan.seen),
+        DrawSet("after", f"with the {len(add.q)} added", np.concatenate([dplan.q, add.q]),
+                dplan.seen)], js, opts.deviation)  # fmt: skip
+    where, cell = cell_fields(setup)
+    ref = robot_reference(str(Dataset.open(root).robot_source))
+    out = Path(args.out)
+    q_all = np.concatenate([dplan.q, add.q])
+    with writing(args, out):
+        write_text_atomic(out / "joints.csv", joints_csv(add.q, robot.edge_unit))
+        write_text_atomic(out / "trajectory.yaml", trajectory_yaml(
+            names, add.q, robot.home, speed=args.speed_deg_s * robot.edge_unit,
+            dwell_s=args.dwell_s))  # fmt: skip
+        write_text_atomic(out / "replay.csv", joints_csv(q_all, robot.edge_unit))
+        doc_t = target_document(setup.board)  # flat: strings, numbers and lists of numbers
+        write_text_atomic(out / "target.toml", "# The board of " + str(root) + "\n" + "".join(
+            f"{k} = {json.dumps(v)}\n" for k, v in doc_t.items()))  # fmt: skip
+        write_text_atomic(out / "scenario.toml", scenario_text(ref, setup.camera, count=len(q_all),
+                                                              joints="replay.csv",
+                                                              deviation=opts.deviation, **where))  # fmt: skip
+        write_figure(fc, add.reference, f"{robot.name}: {root} ({m} frames) before and after "
+                     f"adding {len(add.q)} postures, predicted over {fc.draws} draws of the arm "
+                     "and the noise", out / "plan.png")  # fmt: skip
+        doc = {
+            "format": "scorbot-selfcal-plan",
+            "schema_version": 1,
+            "kind": "add",
+            "dataset": str(root),
+            "dataset_frames": len(dplan.q),
+            "robot": ref,
+            "count": len(add.q),
+            "predicted_before_tool_rms_mm": round(add.before_m * 1000, 4),
+            "predicted_tool_rms_mm": round(add.after_m * 1000, 4),
+            "kinematic_parameters_before": add.kept_before,
+            "kinematic_parameters_after": add.kept_after,
+            "criterion": criterion(len(add.workspace), args.pixel_sigma, js, args)
+            + "; summed over the dataset and each training set of the selection's "
+            "cross-validation; after: with the parameters the selection's cross-validation "
+            "is forecast to keep (the swaps: by the RMS over draws, the selection deciding in each)",
+            "forecast": {
+                "chosen": add.forecast.label,
+                "folds": add.forecast.folds,
+                "candidates": [
+                    {"label": lab, "fold_rms_px": [round(v, 4) for v in rms]}
+                    for lab, rms in zip(add.forecast.labels, add.forecast.fold_rms_px)
+                ],
+            },
+            "workspace": ws.to_json(),
+            "deviation": dev,
+            "nominal": add.reference.to_json(),
+            "nominal_before": add.reference_before.to_json(),
+            "beats_nominal": add.reference.beaten_by(add.after_m),
+            "verdict": reference_words(add.reference, add.after_m),
+            "forecast_draws": fc.section(),
+            "candidates": add.candidates,
+            "candidates_from": add.drawn_from,
+            "path_deg": round(float(np.degrees(add.path_rad)), 3),
+            "seed": args.seed,
+            **cell,
+            **plan_inputs(args, setup.boxes, robot.edge_unit, add.q),
+        }
+        write_json_atomic(out / "plan.json", doc)
+    note_written(args, out)
+    line = (f"add {len(add.q)} postures to {root} ({len(dplan.q)} frames): predicted tool-point "
+            f"error {add.before_m * 1000:.3f} -> {add.after_m * 1000:.3f} mm RMS (kinematic "
+            f"parameters estimated {add.kept_before} -> {add.kept_after}) over {ws.words}; "
+            f"joint path {np.degrees(add.path_rad):.0f} deg\nthe held parameters' {dev['words']}"
+            "\nbefore, "
+            + reference_words(add.reference_before, add.before_m)
+            + "\nafter, " + doc["verdict"] + "\n" + fc.line())  # fmt: skip
+    print(json.dumps(doc) if args.json else line)
+    return 0
