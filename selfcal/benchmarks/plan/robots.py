@@ -47,6 +47,7 @@ __all__ = [
     "CELL_TARGETS",
     "ROBOTS",
     "Forecast",
+    "forecast_spread",
     "cell",
     "cell_target",
     "cell_values",
@@ -151,7 +152,9 @@ def _items(robot: str, root: Path, render: bool, seeds: range, sets: tuple[str, 
     for name, (q, pred) in got["sets"].items():
         if name not in sets:
             continue
-        predicted[name] = Forecast(pred * 1000.0, *_spread(setup, q, got["workspace"], sigma))
+        predicted[name] = Forecast(
+            pred * 1000.0, *forecast_spread(setup, q, got["workspace"], sigma)
+        )
         held[name] = _held_prediction(setup, q, got["workspace"], sigma)
         folder = root / robot / name.replace(" ", "-")
         folder.mkdir(parents=True, exist_ok=True)
@@ -178,7 +181,7 @@ class Forecast:
     smaller: float
 
 
-def _spread(setup, q: np.ndarray, workspace: np.ndarray, sigma: float) -> tuple[float, ...]:
+def forecast_spread(setup, q: np.ndarray, workspace: np.ndarray, sigma: float) -> tuple[float, ...]:
     """(median mm, 90th percentile mm, share of draws keeping a smaller set) of the
     linearised draws of the calibration at the postures ``q``, its selection drawn in each."""
     from selfcal.calibration.board.deviation import Deviation

@@ -6,7 +6,7 @@ keeping every other column as its simulated draws measured them (issue #30: the 
 draws changed their square root, the draws were not kept).
 
 The forecast is a function of the posture set and the cell alone
-(:func:`selfcal.benchmarks.plan.robots._spread`, seed 1): no simulated draw enters it. The
+(:func:`selfcal.benchmarks.plan.robots.forecast_spread`, seed 1): no simulated draw enters it. The
 block's own ``Command:`` line gives the cell (robots, corner noise, view rule); each posture
 set is made again (:func:`selfcal.benchmarks.plan.compare.sets_of`, deterministic) and must
 give the table's ``predicted (mm)`` figure to its printed digits, else the block is refused
@@ -126,7 +126,7 @@ def forecasts_now(block: str, name: str) -> dict[tuple[str, str], Forecast]:
     the code of now for the cell, noise and view rule of the block's command (:func:`rewrite`
     checks their predictions against the table's)."""
     from selfcal.benchmarks.plan.compare import sets_of
-    from selfcal.benchmarks.plan.robots import _spread, cell
+    from selfcal.benchmarks.plan.robots import cell, forecast_spread
     from selfcal.calibration.board.plan.views import ViewRule
 
     _, rows = table_rows(block, name)
@@ -141,7 +141,9 @@ def forecasts_now(block: str, name: str) -> dict[tuple[str, str], Forecast]:
             if r != robot:
                 continue
             q, pred = got["sets"][s]
-            out[r, s] = Forecast(1000.0 * pred, *_spread(setup, q, got["workspace"], a.pixel_sigma))
+            out[r, s] = Forecast(
+                1000.0 * pred, *forecast_spread(setup, q, got["workspace"], a.pixel_sigma)
+            )
             print(f"{r} {s}: {out[r, s]}", flush=True)
     return out
 
