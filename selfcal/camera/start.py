@@ -8,7 +8,7 @@ coordinates (the rays turned so that their mean is the optical axis: a target be
 camera past 180 deg). :func:`ray_poses` returns the poses and their reprojection RMS (px; a
 detection the model does not project counts as the image's diagonal); the board calibration
 refines each of the model's guesses on the one solver and keeps the lowest cost
-(:func:`selfcal.calibration.board.calibrate.ray_start`): the double sphere's ``fx``, ``xi`` and
+(:func:`selfcal.calibration.board.camera_start.ray_start`): the double sphere's ``fx``, ``xi`` and
 ``alpha`` trade off, and a guess too long in focal length ends in a local minimum.
 """
 
