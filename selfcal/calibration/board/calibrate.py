@@ -61,6 +61,7 @@ __all__ = [
     "OpenCVCalibration",
     "calibrate_board",
     "opencv_calibration",
+    "outlier_limit_px",
     "ray_start",
 ]
 
@@ -145,14 +146,23 @@ def _usable(
 OUTLIER_PX = 3.0
 """A feature is an outlier where its 2-D reprojection error (px) after the robust fit of its
 view's pose and the camera is at least ``max(OUTLIER_PX, OUTLIER_SIGMAS * robust sigma)``
-(:func:`calibrate_board`; the drift check drops new corners by the same rule,
-:func:`selfcal.calibration.drift.outliers.view_outliers`)."""
+(:func:`outlier_limit_px`, the one place the rule is written: :func:`calibrate_board`; the
+drift check drops new corners by it, :func:`selfcal.calibration.drift.outliers.view_outliers`)."""
 OUTLIER_SIGMAS = 4.5
 """The robust sigmas (:func:`selfcal.estimation.reprojection.robust_sigma`) of the outlier rule
 (:data:`OUTLIER_PX`)."""
 MAX_OUTLIER_SHARE = 0.25
 """The largest share of the features the outlier rule may reject: beyond it the declared
 geometry is not the board's (:class:`BoardMismatchError`)."""
+
+
+def outlier_limit_px(kept_px: np.ndarray, floor_px: float = OUTLIER_PX) -> float:
+    """The outlier rule's limit (px): ``max(floor_px, OUTLIER_SIGMAS * robust sigma)``, the
+    robust sigma (:func:`selfcal.estimation.reprojection.robust_sigma`) of the 2-D reprojection
+    errors ``kept_px`` (k,) px of the rows still kept; a row is an outlier where its error is at
+    least the limit (:data:`OUTLIER_PX`; :func:`calibrate_board` and the drift check's
+    :func:`selfcal.calibration.drift.outliers.view_outliers`)."""
+    return max(floor_px, OUTLIER_SIGMAS * robust_sigma(kept_px))
 
 
 def calibrate_board(
@@ -228,8 +238,7 @@ def calibrate_board(
         poses = ViewPoses(np.where(ok[:, None, None], res.T_cam_world, np.nan), ok)
         if loss == "soft_l1":  # reclassify every row with the robust estimate
             e = _errors(camera, res.T_cam_world, X, view, pidx, uv)
-            sigma = robust_sigma(e[active])
-            active = e < max(outlier_px, OUTLIER_SIGMAS * sigma)
+            active = e < outlier_limit_px(e[active], outlier_px)
     assert res is not None and res.jac is not None  # the analytic Jacobian of ViewPoses
     e_all = _errors(camera, res.T_cam_world, X, view, pidx, uv)
     rms = float(np.sqrt(np.mean(e_all[active] ** 2)))

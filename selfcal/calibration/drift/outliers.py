@@ -13,11 +13,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from selfcal.calibration.board.calibrate import MAX_OUTLIER_SHARE, OUTLIER_PX, OUTLIER_SIGMAS
+from selfcal.calibration.board.calibrate import MAX_OUTLIER_SHARE, outlier_limit_px
 from selfcal.calibration.board.misfit import board_view
 from selfcal.calibration.drift.views import MIN_WHITE_DOF
 from selfcal.camera import CameraModel
-from selfcal.estimation.reprojection import robust_sigma
 from selfcal.kinematics.forward import fk_tool
 from selfcal.kinematics.tool_error import ToolErrorModel
 
@@ -39,7 +38,7 @@ def view_outliers(rs: list[np.ndarray], As: list[np.ndarray],
     the corners kept, as the calibration fits each view's pose and the camera and then
     reclassifies; out where ``e >= max(OUTLIER_PX, OUTLIER_SIGMAS * sigma)``, ``sigma`` the
     robust sigma of all the kept corners
-    (:data:`selfcal.calibration.board.calibrate.OUTLIER_PX`, the calibration's rule).
+    (:func:`selfcal.calibration.board.calibrate.outlier_limit_px`, the calibration's rule).
 
     Applied to these residuals, not the raw ones: every change the drift check considers (a
     mount, the world, a joint's offset) moves a view's pixels by a change of its pose, to first
@@ -67,7 +66,7 @@ def view_outliers(rs: list[np.ndarray], As: list[np.ndarray],
         rows = np.repeat(~out, 2)
         coef = np.linalg.lstsq(M[rows], r[rows], rcond=None)[0]
         e = np.linalg.norm((r - M @ coef).reshape(-1, 2), axis=1)
-        out = e >= max(OUTLIER_PX, OUTLIER_SIGMAS * robust_sigma(e[~out]))
+        out = e >= outlier_limit_px(e[~out])
     found, at = [], 0
     for ri in rs:
         k = len(ri) // 2
