@@ -214,8 +214,7 @@ def _cmd(args: argparse.Namespace) -> int:
     from selfcal.console.progress import Progress
     from selfcal.estimation.joint_report import encoder_sigma
     from selfcal.io.atomic import write_text_atomic
-    from selfcal.io.jsonfile import write_json_atomic
-    from selfcal.io.plan_files import joints_csv, trajectory_yaml
+    from selfcal.io.plan_files import joints_csv, trajectory_yaml, write_plan
     from selfcal.io.target_toml import load_target
     from selfcal.robot.definition import load_robot
     from selfcal.target.boards import Board
@@ -287,10 +286,7 @@ def _cmd(args: argparse.Namespace) -> int:
         write_figure(fc, plan.reference, f"{robot.name}, {args.mount}: the plan of {n} postures "
                      f"against a random plan of {n}, predicted over {fc.draws} draws of the arm "
                      "and the noise", out / "plan.png")  # fmt: skip
-        doc = {
-            "format": "scorbot-selfcal-plan",
-            "schema_version": 1,
-            "kind": "camera",
+        body = {
             "robot": ref,
             "mount": args.mount,
             "count": len(plan.q),
@@ -308,7 +304,7 @@ def _cmd(args: argparse.Namespace) -> int:
             **({"board_on_flange": BOARD_ON_FLANGE} if e2h else {}),
             **plan_inputs(args, boxes, robot.edge_unit, plan.q, plan.q_random),
         }
-        write_json_atomic(out / "plan.json", doc)
+        doc = write_plan(out / "plan.json", "camera", body)
     note_written(args, out)
     print(json.dumps(doc) if args.json else plan_lines(plan) + "\n" + fc.line())
     return 0

@@ -36,8 +36,7 @@ def cmd_add(args: argparse.Namespace) -> int:
     from selfcal.estimation.joint_report import encoder_sigma
     from selfcal.io.atomic import write_text_atomic
     from selfcal.io.dataset import Dataset
-    from selfcal.io.jsonfile import write_json_atomic
-    from selfcal.io.plan_files import joints_csv, trajectory_yaml
+    from selfcal.io.plan_files import joints_csv, trajectory_yaml, write_plan
     from selfcal.io.target_toml import target_document
 
     k_text, root = args.add
@@ -85,10 +84,7 @@ def cmd_add(args: argparse.Namespace) -> int:
         write_figure(fc, add.reference, f"{robot.name}: {root} ({m} frames) before and after "
                      f"adding {len(add.q)} postures, predicted over {fc.draws} draws of the arm "
                      "and the noise", out / "plan.png")  # fmt: skip
-        doc = {
-            "format": "scorbot-selfcal-plan",
-            "schema_version": 1,
-            "kind": "add",
+        body = {
             "dataset": str(root),
             "dataset_frames": len(dplan.q),
             "robot": ref,
@@ -123,7 +119,7 @@ def cmd_add(args: argparse.Namespace) -> int:
             **cell,
             **plan_inputs(args, setup.boxes, robot.edge_unit, add.q),
         }
-        write_json_atomic(out / "plan.json", doc)
+        doc = write_plan(out / "plan.json", "add", body)
     note_written(args, out)
     line = (f"add {len(add.q)} postures to {root} ({len(dplan.q)} frames): predicted tool-point "
             f"error {add.before_m * 1000:.3f} -> {add.after_m * 1000:.3f} mm RMS (kinematic "

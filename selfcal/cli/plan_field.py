@@ -193,7 +193,7 @@ def cmd_field(
     )
     from selfcal.cli.plan_scenario import scenario_text
     from selfcal.io.atomic import write_text_atomic
-    from selfcal.io.jsonfile import write_json_atomic
+    from selfcal.io.plan_files import write_plan
     from selfcal.io.target_toml import load_field_scale
     from selfcal.kinematics.trajectory import DegenerateTrajectoryError
     from selfcal.robot.definition import load_robot
@@ -257,10 +257,7 @@ def cmd_field(
         write_postures(args, out, names, plan.q, robot)
         write_text_atomic(out / "scenario.toml", scenario)
         criterion = forecast_words(args.markers, scale_m * 1000, camera.free, len(ws))
-        doc = {
-            "format": "scorbot-selfcal-plan",
-            "schema_version": 1,
-            "kind": "field",
+        body = {
             "robot": ref,
             "mount": "eye-in-hand",
             "count": n,
@@ -286,7 +283,7 @@ def cmd_field(
             "seed": args.seed,
             **plan_inputs(args, boxes, robot.edge_unit, plan.q, plan.q_random),
         }
-        write_json_atomic(out / "plan.json", doc)
+        doc = write_plan(out / "plan.json", "field", body)
     note_written(args, out)
     print(json.dumps(doc) if args.json else _lines(plan, fc, n, criterion))
     return 0

@@ -61,7 +61,7 @@ def cmd_tracker(args: argparse.Namespace, deviation) -> int:
     drawing (:class:`selfcal.calibration.board.deviation.Deviation`)."""
     from selfcal.acquisition.backends import robot_reference
     from selfcal.calibration.tracker.plan import TrackerPlanSetup, plan_tracker
-    from selfcal.io.jsonfile import write_json_atomic
+    from selfcal.io.plan_files import write_plan
     from selfcal.robot.definition import load_robot
 
     _check(args)
@@ -76,10 +76,7 @@ def cmd_tracker(args: argparse.Namespace, deviation) -> int:
     ref = robot_reference(args.robot)
     with writing(args, out):
         write_postures(args, out, names, plan.q, robot)
-        doc = {
-            "format": "scorbot-selfcal-plan",
-            "schema_version": 1,
-            "kind": "tracker",
+        body = {
             "robot": ref,
             "count": len(plan.q),
             "predicted_tool_rms_mm": round(plan.predicted_m * 1000, 4),
@@ -103,7 +100,7 @@ def cmd_tracker(args: argparse.Namespace, deviation) -> int:
             "tool_point_mm": tool.tolist(),
             **plan_inputs(args, boxes, robot.edge_unit, plan.q, plan.q_random),
         }
-        write_json_atomic(out / "plan.json", doc)
+        doc = write_plan(out / "plan.json", "tracker", body)
     note_written(args, out)
     line = (f"tracker plan of {len(plan.q)} postures: predicted tool-point error "
             f"{plan.predicted_m * 1000:.3f} mm RMS (a random plan of {len(plan.q)}: "

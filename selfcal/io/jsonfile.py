@@ -1,6 +1,6 @@
 """The JSON files of a run: one text form, atomic writes, and checked reading.
 
-Every JSON file this package writes (``dataset.json``, ``calibration.json``, ``truth.json``,
+Every JSON file this package writes (``dataset.json``, ``calibration.json``, ``truth.json``, ``plan.json``,
 ``report.json``) starts with ``format`` (what the file is) and ``schema_version`` (an integer, raised whenever
 the file's keys change in a way older code cannot read). A reader accepts its own format at any
 schema_version from 1 up to the one this code writes. Files written before ``schema_version``

@@ -6,13 +6,12 @@ the refusal of a calibration of two cameras."""
 
 from __future__ import annotations
 
-import json
-
 import numpy as np
 import pytest
 
 from selfcal.cli.main import main
 from selfcal.io.board_calibration import BoardCalibrationResult, write_board_calibration
+from selfcal.io.plan_files import read_plan
 from selfcal.io.truth import read_truth
 from selfcal.robot.definition import load_robot
 from selfcal.transforms import inv_pose
@@ -71,7 +70,7 @@ def test_add_plans_for_an_eye_to_hand_dataset(dataset, tmp_path, capsys, monkeyp
     for name in ("joints.csv", "trajectory.yaml", "plan.json", "plan.png", "scenario.toml",
                  "replay.csv"):  # fmt: skip
         assert (out / name).is_file(), name
-    doc = json.loads((out / "plan.json").read_text())
+    doc = read_plan(out / "plan.json")
     assert doc["kind"] == "add" and doc["mount"] == "eye-to-hand"
     assert "board_pose_mm_deg" not in doc
     # the cell read out of calibration.json is the truth's: the camera where the simulator put it

@@ -15,6 +15,7 @@ import yaml
 
 from selfcal.cli.main import main
 from selfcal.config.scenario import load_scenario
+from selfcal.io.plan_files import read_plan
 from selfcal.io.tracker import read_joint_rows
 from selfcal.robot.definition import load_robot, models_dir
 
@@ -41,7 +42,7 @@ def test_plan_files_parse(tmp_path, capsys, monkeypatch, recwarn):
     line = printed.out.strip()
     assert line.startswith("plan of 6 postures: predicted tool-point error")
     robot = load_robot("ur5e")
-    doc = json.loads((tmp_path / "plan/plan.json").read_text())
+    doc = read_plan(tmp_path / "plan/plan.json")
     q = read_joint_rows(tmp_path / "plan/joints.csv", robot, "deg").q
     assert q.shape == (6, 6)
     assert np.allclose(np.degrees(q), doc["joints_deg"], atol=1e-6)
@@ -124,7 +125,7 @@ def test_run_of_the_plan_sees_the_board_in_every_posture(tmp_path, capsys):
             str(tmp_path / "add"), "--quiet"]  # fmt: skip
     assert main(argv) == 0
     last = capsys.readouterr().out.strip().splitlines()[-1]
-    fc = json.loads((tmp_path / "add/plan.json").read_text())["forecast_draws"]
+    fc = read_plan(tmp_path / "add/plan.json")["forecast_draws"]
     for key, label in (("before", "the dataset's 10 postures recorded anew"),
                        ("after", "with the 2 added")):  # fmt: skip
         assert fc[key]["label"] == label
@@ -141,7 +142,7 @@ def _add_without_a_camera_mount(tmp_path, capsys) -> None:
     so they do not change, but the chain as drawn, which would go by the file's mount, is no
     reference; the verdicts are against the fair nominal (before, the chain as drawn's figure
     assumed the file's mount within the deviation and was the reference)."""
-    with_mount = json.loads((tmp_path / "add/plan.json").read_text())
+    with_mount = read_plan(tmp_path / "add/plan.json")
     assert with_mount["nominal_before"]["drawn_not_a_reference"] is None
     text = (models_dir() / "universal_robots_ur5e/ur5e.toml").read_text()
     bare = re.sub(r"\n\[(camera_mount|mjcf)\]\n(?:[^\[\n][^\n]*\n)*", "\n", text)
@@ -154,7 +155,7 @@ def _add_without_a_camera_mount(tmp_path, capsys) -> None:
             str(tmp_path / "add-bare"), "--quiet"]  # fmt: skip
     assert main(argv) == 0
     out = capsys.readouterr().out
-    doc = json.loads((tmp_path / "add-bare/plan.json").read_text())
+    doc = read_plan(tmp_path / "add-bare/plan.json")
     for key in ("predicted_before_tool_rms_mm", "predicted_tool_rms_mm"):
         assert doc[key] == pytest.approx(with_mount[key], rel=1e-6)
     for key in ("nominal_before", "nominal"):
@@ -186,7 +187,7 @@ def test_the_docs_plan_line_is_what_the_command_prints(tmp_path, capsys):
     # draws go through the information's symmetric square root, a function of the matrix alone,
     # but another machine's round-off can still tip a draw whose selection sits on the
     # one-standard-error rule's edge: a percentile moves by a draw's step then)
-    fc = json.loads((tmp_path / "plan/plan.json").read_text())["forecast_draws"]
+    fc = read_plan(tmp_path / "plan/plan.json")["forecast_draws"]
     flat = " ".join(page.split())
     assert lines[-1].split(": median")[0] in page
     for key in ("plan", "random"):
@@ -214,7 +215,7 @@ def test_eye_to_hand_plan_files_parse(tmp_path, capsys):
     from selfcal.target.placement import camera_pose
 
     assert _plan_e2h(tmp_path / "plan") == 0
-    doc = json.loads((tmp_path / "plan/plan.json").read_text())
+    doc = read_plan(tmp_path / "plan/plan.json")
     assert doc["mount"] == "eye-to-hand" and "board_pose_mm_deg" not in doc
     assert doc["predicted_tool_rms_mm"] <= doc["random_tool_rms_mm"]
     cp = np.array(doc["camera_pose_mm_deg"])
@@ -321,7 +322,7 @@ def test_tracker_plan_files_parse(tmp_path, capsys):
     assert main(argv) == 0
     line = capsys.readouterr().out.strip()
     assert line.startswith("tracker plan of 10 postures: predicted tool-point error")
-    doc = json.loads((tmp_path / "plan/plan.json").read_text())
+    doc = read_plan(tmp_path / "plan/plan.json")
     assert doc["kind"] == "tracker" and doc["tool_point_mm"] == [0, 0, 50]
     assert doc["predicted_tool_rms_mm"] < doc["random_tool_rms_mm"]
     robot = load_robot("ur5e")

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from selfcal.cli.main import main
+from selfcal.io.plan_files import read_plan
 from selfcal.robot.definition import load_robot, models_dir
 
 FIELD = str(models_dir() / "targets/field.toml")
@@ -57,7 +58,7 @@ def test_the_postures_reach_do_not_collide_and_see_the_field(planned):
     from selfcal.kinematics.forward import fk_tool
     from selfcal.kinematics.trajectory import PLANNING_VISIBILITY
 
-    doc = json.loads((planned / "plan/plan.json").read_text())
+    doc = read_plan(planned / "plan/plan.json")
     robot = load_robot("ur5e")
     q = read_joint_rows(planned / "plan/joints.csv", robot, "deg").q
     assert q.shape == (COUNT, robot.n)
@@ -84,7 +85,7 @@ def test_the_plan_is_the_choice_with_the_least_forecast(planned):
     fix the corners, which the other three take as known: it improves on the best of them."""
     from selfcal.calibration.field.plan import CHOICES
 
-    doc = json.loads((planned / "plan/plan.json").read_text())
+    doc = read_plan(planned / "plan/plan.json")
     got = doc["choices_tool_rms_mm"]
     assert set(got) == set(CHOICES) and doc["chosen_by"] in CHOICES
     assert got[doc["chosen_by"]] == min(got.values())
@@ -106,7 +107,7 @@ def test_the_plan_is_set_against_a_random_plan_of_30(planned, capsys):
     )
     from selfcal.cli.plan_field import replay_layout
 
-    doc = json.loads((planned / "plan/plan.json").read_text())
+    doc = read_plan(planned / "plan/plan.json")
     setup = _setup(doc)
     q30 = random_plan(setup, MATCH_RANDOM, seed=doc["seed"])
     assert np.allclose(np.degrees(q30[:COUNT]), doc["random_joints_deg"], atol=1e-6)
@@ -158,7 +159,7 @@ def test_the_forecast_is_the_routes_bound_of_the_replay(planned):
     from selfcal.calibration.field.plan import field_forecast
     from selfcal.cli.plan_field import replay_layout
 
-    doc = json.loads((planned / "plan/plan.json").read_text())
+    doc = read_plan(planned / "plan/plan.json")
     setup = _setup(doc)
     scale_m = doc["field"]["scale_length_mm"] / 1000
     layout, _ = replay_layout(planned / "plan/scenario.toml", scale_m)
@@ -232,7 +233,7 @@ def test_the_docs_field_lines_are_what_the_commands_print(tmp_path, capsys):
     assert main(["run", str(tmp_path / "plan/scenario.toml"), "--out", str(tmp_path / "run"),
                  "--quiet"]) == 0  # fmt: skip
     val = json.loads((tmp_path / "run/report.json").read_text())["validation"]
-    doc = json.loads((tmp_path / "plan/plan.json").read_text())
+    doc = read_plan(tmp_path / "plan/plan.json")
     said = re.search(r"calibrates to ([0-9.]+) mm RMS of the tool tip on\s+its 20 validation "
                      r"postures \(the drawn chain: ([0-9.]+) mm; the run's own bound for its "
                      r"postures\s+([0-9.]+) mm\): the forecast of ([0-9.]+) mm is ([0-9.]+) "

@@ -6,8 +6,6 @@ both and whether the plan beats them."""
 
 from __future__ import annotations
 
-import json
-
 import numpy as np
 import pytest
 
@@ -19,6 +17,7 @@ from selfcal.calibration.board.plan.reference import CLEAR_MARGIN, nominal_refer
 from selfcal.calibration.board.plan.views import PlanSetup, candidate_pool
 from selfcal.estimation.joint_report import aligned_tool_weight
 from selfcal.io.camera_file import camera_from_fov
+from selfcal.io.plan_files import read_plan
 from selfcal.io.target_toml import load_target
 from selfcal.kinematics.forward import fk_tool
 from selfcal.kinematics.mcpc import minimal_indices
@@ -126,7 +125,7 @@ def test_the_plan_says_the_reference_and_whether_it_beats_it(tmp_path, capsys):
             "--count", "8", "--candidates", "60", "--out", str(tmp_path / "p"), "--quiet"]  # fmt: skip
     assert main(argv) == 0
     out = capsys.readouterr().out
-    doc = json.loads((tmp_path / "p/plan.json").read_text())
+    doc = read_plan(tmp_path / "p/plan.json")
     ref = doc["nominal"]
     best = min(ref["fair_nominal_tool_rms_mm"], ref["drawn_tool_rms_mm"])
     assert f"without calibrating the kinematics {best:.3f} mm" in out

@@ -105,7 +105,7 @@ def wrist_only_row(root: Path, seed: int, add: int = 5) -> dict:
     before and after adding ``add`` postures, and the parameters each calibration kept."""
     from selfcal.calibration.board.plan.views import feasible
     from selfcal.cli.main import main as selfcal
-    from selfcal.io.plan_files import joints_csv
+    from selfcal.io.plan_files import joints_csv, read_plan
 
     setup, target, bp = wrist_cell()
     robot = setup.robot
@@ -120,7 +120,7 @@ def wrist_only_row(root: Path, seed: int, add: int = 5) -> dict:
     plan = root / "plan"
     if not (plan / "plan.json").is_file():
         selfcal(["plan", "--add", str(add), str(root / "dataset"), "--out", str(plan), "--quiet"])
-    doc = json.loads((plan / "plan.json").read_text())
+    doc = read_plan(plan / "plan.json", ("add",))
     second = root / "added"
     second.mkdir(parents=True, exist_ok=True)
     shutil.copyfile(plan / "replay.csv", second / "replay.csv")
@@ -180,7 +180,7 @@ def still_camera_row(root: Path, seed: int, add: int = 5) -> dict:
     stopped (the figures it would have given NaN)."""
     from selfcal.calibration.board.plan.ground import workspace_sample
     from selfcal.cli.main import main as selfcal
-    from selfcal.io.plan_files import joints_csv
+    from selfcal.io.plan_files import joints_csv, read_plan
     from selfcal.sim.static_camera import plan_static_postures
 
     setup, cell, target, pose = still_cell()
@@ -206,7 +206,7 @@ def still_camera_row(root: Path, seed: int, add: int = 5) -> dict:
         selfcal(["plan", "--add", str(add), str(root / "dataset"), "--out", str(plan), "--quiet"])
     if not (plan / "plan.json").is_file():
         return row | {"error": "selfcal plan --add stopped"}
-    doc = json.loads((plan / "plan.json").read_text())
+    doc = read_plan(plan / "plan.json", ("add",))
     row |= {"predicted_before_mm": doc["predicted_before_tool_rms_mm"],
             "predicted_after_mm": doc["predicted_tool_rms_mm"],
             "drawn_after_mm": doc["forecast_draws"]["after"]["median_mm"]}  # fmt: skip

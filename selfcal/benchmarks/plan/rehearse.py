@@ -109,10 +109,11 @@ def rehearse_row(item: tuple[str, str, int]) -> dict:
 
 def _plan(item: tuple[str, str]) -> dict:
     from selfcal.cli.main import main as selfcal
+    from selfcal.io.plan_files import read_plan
 
     spec, out = item
     selfcal(plan_args(spec, Path(out)))
-    return json.loads((Path(out) / "plan.json").read_text())
+    return read_plan(Path(out) / "plan.json", ("camera",))
 
 
 def aggregate(rows: list[dict]) -> dict:
