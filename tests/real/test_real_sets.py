@@ -43,6 +43,7 @@ import pytest
 from selfcal.benchmarks.board_accuracy import REAL_SETS, real_set
 from selfcal.calibration.board.evaluate import SAME_RMS
 from selfcal.calibration.board.plan.add_ground import SCALE_RANGE
+from selfcal.io.plan_files import read_plan
 from selfcal.tomlfile import read_toml
 
 pytestmark = pytest.mark.real
@@ -367,7 +368,7 @@ def test_plan_add_five_postures_to_the_calibrated_set(name, deviation, outcome, 
     p = subprocess.run([_selfcal_exe(), *argv], capture_output=True, text=True, timeout=1200,
                        check=False)  # fmt: skip
     assert p.returncode == 0, p.stdout + p.stderr
-    doc = json.loads((out / "plan.json").read_text())
+    doc = read_plan(out / "plan.json")
     gain = doc["predicted_before_tool_rms_mm"] / doc["predicted_tool_rms_mm"]
     assert gain >= 2.0, doc  # measured GAIN_NOTE
     assert doc["kinematic_parameters_after"] > doc["kinematic_parameters_before"]  # 30, 16
