@@ -140,8 +140,9 @@ class MarkerField:
         return self.size_m * (self.n_modules + 2 * self.quiet_zone_modules) / self.n_modules
 
     def support_boxes(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The raised supports as the scene builds them (:mod:`selfcal.sim.scene`): ``T`` (s, 4,
-        4) each box's centre and axes in the world, ``half`` (s, 3) its half sizes (m) and
+        """The raised supports, the one source of the boxes the scene builds
+        (:func:`selfcal.sim.scene.add_scene`) and the field plan sees past: ``T`` (s, 4, 4) each
+        box's centre and axes in the world, ``half`` (s, 3) its half sizes (m) and
         ``of_marker`` (k,) the box each marker lies on (-1: the table); the blocks first, the
         scale bar last."""
         foot = self.tile_size_m + 2 * BLOCK_MARGIN_M

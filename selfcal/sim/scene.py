@@ -13,7 +13,7 @@ import mujoco
 import numpy as np
 
 from selfcal.errors import InputError, UsageError
-from selfcal.sim.markers import BLOCK_MARGIN_M, MARKER_THICKNESS_M, MarkerField, marker_texture_rgb
+from selfcal.sim.markers import MARKER_THICKNESS_M, MarkerField, marker_texture_rgb
 
 __all__ = ["add_scene", "scene_spec", "configure_visual", "PIXELS_PER_MODULE"]
 
@@ -119,29 +119,20 @@ def add_scene(
     if not markers or field is None:
         return
 
-    # blocks under raised markers, the scale bar under the scale markers
-    scale_rows = {field.index_of(i) for i in field.scale_ids}
-    foot = field.tile_size_m + 2 * BLOCK_MARGIN_M
-    for row, (mid, h) in enumerate(zip(field.ids, field.support_height_m, strict=True)):
-        if row in scale_rows or h <= 0:
-            continue
-        T = field.T_world_marker[row]
+    # blocks under raised markers, the scale bar under the scale markers: the field's own boxes
+    # (MarkerField.support_boxes, which the field plan's lines of sight use too)
+    T_box, half, of_marker = field.support_boxes()
+    for k, (T, h) in enumerate(zip(T_box, half, strict=True)):
         b = wb.add_geom()
-        b.name = f"block_{mid}"
+        if k == len(T_box) - 1:
+            b.name, b.rgba = "scalebar", list(_BAR_RGBA)
+        else:
+            b.name = f"block_{field.ids[int(np.flatnonzero(of_marker == k)[0])]}"
+            b.rgba = list(_BLOCK_RGBA)
         b.type = mujoco.mjtGeom.mjGEOM_BOX
-        b.size = [foot / 2, foot / 2, h / 2]
-        b.pos = [T[0, 3], T[1, 3], h / 2]
+        b.size = list(h)
+        b.pos = list(T[:3, 3])
         b.quat = _quat_from_T(T)
-        b.rgba = list(_BLOCK_RGBA)
-    L, Wd, th = field.scale_bar_size_m
-    Tb = field.scale_bar_T_world
-    bar = wb.add_geom()
-    bar.name = "scalebar"
-    bar.type = mujoco.mjtGeom.mjGEOM_BOX
-    bar.size = [L / 2, Wd / 2, th / 2]
-    bar.pos = list(Tb[:3, 3] - Tb[:3, 2] * th / 2)
-    bar.quat = _quat_from_T(Tb)
-    bar.rgba = list(_BAR_RGBA)
 
     # marker tiles: thin boxes whose top face carries the texture (upright image: texture
     # columns along marker +x, rows along marker -y; pinned by tests/integration/test_projection.py)

@@ -10,6 +10,7 @@ import pytest
 
 from selfcal.sim.markers import (
     BLOCK_MARGIN_M,
+    MARKER_THICKNESS_M,
     MarkerField,
     make_marker_field,
     marker_texture_rgb,
@@ -164,3 +165,31 @@ def test_rendered_top_view_matches_corner_order():
     P = project(intr, inv_pose(T_world_cam_cv(model, data, "top")), f.corners_world())
     for mid, c in det.items():
         assert np.abs(c - P[f.index_of(mid)]).max() < 0.5, mid
+
+
+@pytest.mark.parametrize("seed", [1, 4])
+def test_the_scene_builds_the_fields_support_boxes(seed):
+    """The rendered blocks and scale bar are the boxes of ``MarkerField.support_boxes`` (the
+    field plan's lines of sight pass them): same centre, axes and half sizes, each block named
+    by the marker it carries, whose tile lies on the block's top face."""
+    import mujoco
+
+    from selfcal.sim.scene import scene_spec
+
+    f = make_marker_field(seed=seed)
+    model = scene_spec(f).compile()
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    T, half, of = f.support_boxes()
+    names = [f"block_{f.ids[int(np.flatnonzero(of == k)[0])]}" for k in range(len(T) - 1)]
+    names.append("scalebar")
+    boxes = [model.geom(i).name for i in range(model.ngeom) if model.geom(i).name.startswith(("block_", "scalebar"))]  # fmt: skip
+    assert boxes == names and len(names) > 2
+    for k, name in enumerate(names):
+        g = model.geom(name).id
+        assert np.allclose(data.geom_xpos[g], T[k][:3, 3], rtol=0.0, atol=1e-12)
+        assert np.allclose(data.geom_xmat[g].reshape(3, 3), T[k][:3, :3], rtol=0.0, atol=1e-9)
+        assert np.allclose(model.geom_size[g], half[k], rtol=0.0, atol=1e-12)
+        for row in np.flatnonzero(of == k):  # the marker's tile lies on the box's top face
+            top = T[k][:3, 3] + T[k][:3, 2] * half[k][2]
+            assert abs(f.T_world_marker[row][2, 3] - MARKER_THICKNESS_M - top[2]) < 1e-12
