@@ -26,9 +26,12 @@ ROOT = Path(__file__).resolve().parents[2]
 """The repository's root (README.md and docs/ are in it)."""
 
 
-CODE_PATHS = ("selfcal", "pyproject.toml", "uv.lock")
-"""What runs a benchmark: the package (its models and scenarios too) and its dependencies; a
-change elsewhere (the docs being written, a test) leaves the code the commit's."""
+CODE_PATHS = ("selfcal", "models", "scenarios", "tests/data", "pyproject.toml", "uv.lock")
+"""What runs a benchmark: the package, the data it reads from the checkout (the robot models
+and targets of ``models/``, :func:`selfcal.robot.definition.models_dir`; the shipped scenarios
+of ``scenarios/``, :data:`selfcal.config.shipped.SHIPPED_DIR`; the test data some benchmarks
+draw or calibrate, ``tests/data``: arm7, the real sets) and its dependencies; a change
+elsewhere (the docs being written, a test) leaves the code the commit's."""
 
 
 def code_version(root: Path = ROOT) -> str | None:

@@ -73,6 +73,22 @@ def test_only_the_package_changes_the_code(repo):
     assert code_version(root) == f"{head}+changes"
 
 
+@pytest.mark.parametrize(
+    "path", ["models/arm/robot.toml", "scenarios/cell.toml", "tests/data/arm7.toml", "uv.lock"]
+)
+def test_the_data_the_benchmarks_read_is_the_code_too(repo, path):
+    """A robot model, a scenario or the test data a benchmark reads (a shipped arm, a cell,
+    arm7, the real sets) edited after the commit make its draws another code's (review of
+    session 24: an edited robot TOML kept a clean stamp); a test's change does not."""
+    root, _, head, _ = repo
+    (root / "tests" / "unit").mkdir(parents=True)
+    (root / "tests" / "unit" / "test_a.py").write_text("def test(): pass\n")
+    assert code_version(root) == head
+    (root / path).parent.mkdir(parents=True, exist_ok=True)
+    (root / path).write_text("x = 1\n")
+    assert code_version(root) == f"{head}+changes"
+
+
 @pytest.mark.skipif(code_version() is None, reason="the project is not a git checkout here")
 @pytest.mark.parametrize("stamp", ["0123abc", "HEAD+changes"])
 def test_a_block_naming_code_that_cannot_be_checked_out_is_not_written(tmp_path, stamp):
