@@ -81,6 +81,40 @@ def test_round_off_in_the_matrix_moves_the_root_by_round_off():
     assert dS < 2e-10  # full rank: Lipschitz, ~cond * 1e-12 (this draw: 5.8e-11)
 
 
+@settings(max_examples=examples(60), deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), p=st.integers(1, 9), data=st.data())
+def test_a_rank_deficient_matrix_has_a_root_that_squares_back_to_it(seed, p, data):
+    """LAPACK's own decomposition (nothing replaced) of a C with ``p - rank`` zero eigenvalues:
+    round-off leaves them at ~1e-16 of the largest, either sign; the root still squares back
+    to C and stays (nearly) off C's null space."""
+    rank = data.draw(st.integers(0, p - 1))
+    repeat = data.draw(st.integers(0, rank))
+    w, V = _spectrum(seed, p, rank, repeat)
+    C = (V * w) @ V.T
+    S = psd_sqrt(C)
+    scale = w.max(initial=0.0) or 1.0
+    assert np.array_equal(S, S.T)
+    # 3000 such draws reach 3.7e-15 of the largest eigenvalue
+    assert np.abs(S @ S - C).max() < 1e-14 * scale
+    # a null direction's root: the square root of round-off (3000 draws: 2.1e-8 of the root)
+    assert np.abs(S @ V[:, rank:]).max() < 6e-8 * np.sqrt(scale)
+
+
+def test_round_off_in_a_rank_deficient_matrix_moves_the_root_by_its_square_root():
+    """Not Lipschitz at a zero eigenvalue: a relative change e of C moves the root by up to
+    ~sqrt(e) (psd_sqrt's docstring: the draws then differ in their 6th digit, not their last)."""
+    w, V = _spectrum(4, 8, 6, 0)  # rank 6 of 8
+    C = (V * w) @ V.T
+    E = np.random.default_rng(4).standard_normal((8, 8))
+    dS = []
+    for e in (1e-12, 1e-14):
+        C2 = C + e * np.abs(C).max() * (E + E.T)
+        dS.append(np.abs(psd_sqrt(C2) - psd_sqrt(C)).max() / np.abs(psd_sqrt(C)).max())
+    # this draw: 4.5e-7 (full rank: below 2e-10, the test above; other draws reach 1.6e-6)
+    assert 1.5e-7 < dS[0] < 1.5e-6
+    assert 5.0 < dS[0] / dS[1] < 20.0  # 100 times smaller a change, 12 times smaller a move
+
+
 @pytest.mark.parametrize("bad", [np.ones((2, 3)), np.ones(3), np.array([[1.0, np.nan], [0, 1]])])
 def test_a_matrix_that_is_not_square_and_finite_is_refused(bad):
     with pytest.raises(UsageError, match="finite square matrix"):
