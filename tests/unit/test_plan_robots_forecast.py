@@ -10,6 +10,7 @@ from pathlib import Path
 
 import pytest
 
+from selfcal.benchmarks.doc_blocks import code_version
 from selfcal.benchmarks.plan import robots_forecast as rf
 from selfcal.benchmarks.plan.robots import Forecast, table
 
@@ -79,11 +80,23 @@ def test_the_command_line_is_read_back() -> None:
 
 
 def test_main_writes_the_block(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The block is written with a note naming the command and the code that drew the
+    columns (review of session 24: the note said "the code of now" and named no commit), and
+    not written when that code has uncommitted changes."""
     doc = tmp_path / "plan.md"
     name = "benchmark_plan_robots_kr6-test"
-    doc.write_text(f"before\n<!-- {name}: begin -->\n{_block(OLD)}\n<!-- {name}: end -->\nafter\n")
+    before = f"before\n<!-- {name}: begin -->\n{_block(OLD)}\n<!-- {name}: end -->\nafter\n"
+    doc.write_text(before)
     monkeypatch.setattr(rf, "_forecasts", lambda block, where: NEW)
+    head = (code_version() or "abc1234").removesuffix("+changes")
+    monkeypatch.setattr(rf, "code_version", lambda: f"{head}+changes")
+    if code_version() is not None:  # a git checkout: the stamp is checked
+        with pytest.raises(SystemExit, match="cannot be checked out"):
+            rf.main(["--block", "kr6-test", "--doc", str(doc), "--write-docs"])
+        assert doc.read_text() == before
+    monkeypatch.setattr(rf, "code_version", lambda: head)
     assert rf.main(["--block", "kr6-test", "--doc", str(doc), "--write-docs"]) == 0
     text = doc.read_text()
     assert text.startswith("before\n") and text.endswith("after\n")
-    assert _block(NEW) in text and "robots_forecast --block kr6-test`" in text
+    assert _block(NEW) in text
+    assert f"robots_forecast --block kr6-test` with the code at {head}:" in text

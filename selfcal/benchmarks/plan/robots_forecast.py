@@ -1,7 +1,7 @@
 """``python -m selfcal.benchmarks.plan.robots_forecast --block NAME [--write-docs]``: draw
 again the two forecast columns of one docs/plan.md table of
 :mod:`selfcal.benchmarks.plan.robots` (``forecast median / 90th, selection drawn (mm)`` and
-``forecast: a smaller set kept``, and the closing lines' forecast) with the code of now,
+``forecast: a smaller set kept``, and the closing lines' forecast) with the code checked out,
 keeping every other column as its simulated draws measured them (issue #30: the forecast's
 draws changed their square root, the draws were not kept).
 
@@ -11,7 +11,9 @@ block's own ``Command:`` line gives the cell (robots, corner noise, view rule); 
 set is made again (:func:`selfcal.benchmarks.plan.compare.sets_of`, deterministic) and must
 give the table's ``predicted (mm)`` figure to its printed digits, else the block is refused
 (the plan the table was measured with is not the plan of now: its forecast cannot be drawn
-without its postures). The block gets a closing note naming this command.
+without its postures). The block gets a closing note naming this command and the code that
+drew the columns (:func:`selfcal.benchmarks.doc_blocks.code_version`; a block is not written
+naming code that cannot be checked out).
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ import shlex
 from collections.abc import Callable
 from pathlib import Path
 
-from selfcal.benchmarks.doc_blocks import ROOT, print_table, read_block
+from selfcal.benchmarks.doc_blocks import ROOT, code_version, print_table, read_block
 from selfcal.benchmarks.plan.robots import Forecast
 
 __all__ = ["FORECAST_COLUMNS", "NOTE", "command_of", "main", "rewrite", "table_rows"]
@@ -160,10 +162,12 @@ def main(argv: list[str] | None = None) -> int:
     name = f"benchmark_plan_robots_{a.block}"
     where = f"{a.doc.name}'s {name} block"
     block = read_block(a.doc, name)
+    code = code_version()
+    by = f" with the code at {code}" if code else " (the code not recorded: not a git checkout)"
     note = (
         f"{NOTE} (the closing lines' forecast too) by `python -m "
-        f"selfcal.benchmarks.plan.robots_forecast --block {a.block}`: each posture set made "
-        "again by the code of now for the command's cell, noise and view rule, its prediction "
+        f"selfcal.benchmarks.plan.robots_forecast --block {a.block}`{by}: each posture set made "
+        "again by that code for the command's cell, noise and view rule, its prediction "
         "the table's `predicted (mm)` to its 3 decimals, the forecast's draws through the "
         "symmetric root (issue #30); every other column is the simulated draws' as the command "
         "measured them."
