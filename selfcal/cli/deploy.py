@@ -34,7 +34,7 @@ from selfcal.cli.calibration_files import (
 from selfcal.cli.pose import add_pose_args, parse_pose_args
 from selfcal.cli.ros import BAG_FORMATS, cmd_export_bag
 from selfcal.cli.ros import add_export_args as add_bag_export_args
-from selfcal.console.common import CliError, note_written
+from selfcal.console.common import CliError, add_json, note_written
 
 # Heavy modules (scipy, OpenCV, MuJoCo, the pipeline) are imported by the functions that use
 # them, so that `selfcal --help` builds every command's parser without loading them.
@@ -369,6 +369,7 @@ def register(subparsers) -> None:
         "reports its flange poses in (a UR controller's base is `base`, not `base_link`)",
     )  # fmt: skip
     add_bag_export_args(sp)
+    add_json(sp, always=True)
     sp.set_defaults(func=cmd_export)
 
     ik = subparsers.choices.get("ik")

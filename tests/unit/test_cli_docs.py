@@ -26,3 +26,22 @@ def test_every_exit_code_of_check_is_in_the_table():
     table = cli_markdown().split("## Messages and exit codes")[1].split("## Commands")[0]
     for code in (EXIT_CHANGED, EXIT_CANNOT_TELL):
         assert f"\n| {code} | `selfcal check`" in table
+
+
+def test_every_command_that_always_prints_json_accepts_json():
+    """The grammar says `fk`, `ik`, `render`, `export` and `hw` always print JSON and `--json` is
+    the one spelling of it: `selfcal export DIR --format opencv --json` was refused with
+    "unrecognized arguments: --json" (session 25's new-user trip)."""
+    import argparse
+
+    from selfcal.cli.main import build_parser
+
+    grammar = cli_markdown().split("## Grammar")[1].split("##")[0]
+    assert "`fk`, `ik`, `render`, `export` and `hw` always print JSON" in grammar
+    sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    hw = next(a for a in sub.choices["hw"]._actions if isinstance(a, argparse._SubParsersAction))
+    parsers = {name: sub.choices[name] for name in ("fk", "ik", "render", "export")}
+    parsers.update({f"hw {name}": p for name, p in hw.choices.items()})
+    for name, p in parsers.items():
+        flags = {s for a in p._actions for s in a.option_strings}
+        assert "--json" in flags, f"selfcal {name} lacks --json"
