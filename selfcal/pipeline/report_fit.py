@@ -36,7 +36,11 @@ HOLDOUT_EVERY = 5
 """The leave-some-poses-out check holds out every 5th frame (6 of the default 30)."""
 
 
-def _held_out(root: Path, method: str, every: int) -> dict:
+def _held_out(root: Path, method: str, every: int, chosen: str | None = None) -> dict:
+    """The held-out check of ``report.json``: ``DIR/evaluation.json`` when there, else the
+    leave-poses-out check; ``chosen``: the candidate the dataset's board calibration chose
+    (its ``selection.chosen``), beside which the check's own calibration's choice is named when
+    they differ (``selection_note``: the check then judges another model than the file's)."""
     ev_path = root / "evaluation.json"
     if ev_path.is_file():
         ev = read_evaluation(ev_path)
@@ -53,8 +57,17 @@ def _held_out(root: Path, method: str, every: int) -> dict:
             raise
         return {"source": "leave-poses-out", "error": str(exc)}
     ev = h.evaluation
+    differs = {}
+    if chosen is not None and h.chosen is not None and h.chosen != chosen:
+        differs["selection_note"] = (
+            f"that calibration chose {h.chosen} where calibration.json chose {chosen}: these "
+            "held-out figures judge its choice, not calibration.json's (selfcal evaluate with a "
+            "second dataset, --out DIR/evaluation.json, judges the file itself)"
+        )
     return {
         "source": "leave-poses-out",
+        **({} if h.chosen is None else {"chosen": h.chosen}),
+        **differs,
         "every": every,
         "held_out_frames": list(h.held_out),
         "images": len(ev.images),
@@ -161,7 +174,7 @@ def board_fit_report(
             "frames_used": cal.frames_used,
             "reprojection_rms_px": cal.reprojection_rms_px,
         },
-        "held_out": _held_out(root, "board", every),
+        "held_out": _held_out(root, "board", every, (cal.selection or {}).get("chosen")),
         "intrinsics": {n: {"estimate": values[n], "std": std.get(n)} for n in cam.free},
         "parameters": params,
         "parameters_note": (
@@ -196,8 +209,13 @@ def fit_markdown(r: dict, figures: list[str]) -> str:
         rms = h["reprojection_rms_px"]
         src = (f"`selfcal evaluate` on {h['dataset']}" if h["source"] == "selfcal evaluate"
                else h["note"])  # fmt: skip
+        note = (
+            f" {h['selection_note'][0].upper()}{h['selection_note'][1:]}."
+            if "selection_note" in h
+            else ""
+        )
         lines += [
-            f"{src}: {h['features']} features in {h['images']} images.",
+            f"{src}: {h['features']} features in {h['images']} images.{note}",
             "",
             "| model | held-out reprojection RMS (px) |",
             "|---|---|",

@@ -46,7 +46,8 @@ def report_summary(report: dict, root: Path) -> str:
         else:
             r = h["reprojection_rms_px"]
             held = (f"held-out reprojection {r['calibrated']:.3f} px RMS calibrated, "
-                    f"{r['nominal']:.3f} px nominal over {h['images']} images ({h['source']})")  # fmt: skip
+                    f"{r['nominal']:.3f} px nominal over {h['images']} images ({h['source']}"
+                    + (f"; {h['selection_note']}" if "selection_note" in h else "") + ")")  # fmt: skip
         verdict = report.get("verdict")
         verdict = "" if not verdict else "; NO GAIN: " + verdict.removeprefix("no gain: ")
         acc = report.get("accuracy")

@@ -9,11 +9,15 @@ alone with that calibration (:func:`selfcal.calibration.field.evaluate.evaluate_
 :func:`selfcal.calibration.board.evaluate.evaluate_board` for a board): the reprojection RMS (px) of images the fit
 never saw, of the calibrated model and of the nominal reference. ``selfcal report`` runs it on
 real data (no truth), where no second dataset was taken for ``selfcal evaluate``.
+The fresh calibration's warnings are issued again, each naming that calibration (not the
+dataset's ``calibration.json``, whose warnings the report lists), and a board's records which
+candidate its selection chose: it may differ from the full calibration's.
 """
 
 from __future__ import annotations
 
 import tempfile
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -35,11 +39,14 @@ MIN_FIT_FRAMES = 8
 @dataclass(frozen=True)
 class HoldOut:
     """The frames held out and fitted (dataset indices) and the evaluation of the held-out ones
-    with the calibration of the others."""
+    with the calibration of the others; ``chosen``: the candidate that calibration's selection
+    chose (a board's ``selection.chosen``, e.g. "+ joint offsets"; None for the field or a
+    calibration without a selection)."""
 
     held_out: tuple[int, ...]
     fitted: tuple[int, ...]
     evaluation: Evaluation
+    chosen: str | None = None
 
 
 def held_out_frames(joints: np.ndarray, every: int) -> np.ndarray:
@@ -75,7 +82,12 @@ def leave_poses_out(root: str | Path, *, every: int = 5, method: str = "joint") 
             f"out; the check needs {MIN_FIT_FRAMES}",
             fix="take more frames, or a second dataset for `selfcal evaluate`",
         )
-    with tempfile.TemporaryDirectory(prefix="selfcal-holdout-") as tmp:
+    chosen = None
+    with (
+        tempfile.TemporaryDirectory(prefix="selfcal-holdout-") as tmp,
+        warnings.catch_warnings(record=True) as caught,
+    ):
+        warnings.simplefilter("always")
         fit_ds = subset_dataset(ds.root, fit, Path(tmp) / "fit")
         held_ds = subset_dataset(ds.root, held, Path(tmp) / "held")
         if ds.info.board is None:
@@ -85,4 +97,11 @@ def leave_poses_out(root: str | Path, *, every: int = 5, method: str = "joint") 
         else:
             board_cal = calibrate_board_dataset(fit_ds.root, allow_missing_frames=True)
             ev = evaluate_board(board_cal, "leave-poses-out fit", held_ds.root)
-    return HoldOut(tuple(held), tuple(fit), ev)
+            chosen = (board_cal.selection or {}).get("chosen")
+    # the warnings of a calibration the user did not ask for, said as such: printed bare they read
+    # as the dataset's own calibration's, with other numbers
+    whose = (f"the held-out check's calibration of {len(fit)} of {len(ds.indices)} frames "
+             f"(every {every}th held out; not {ds.root / 'calibration.json'})")  # fmt: skip
+    for w in caught:
+        warnings.warn(f"{whose}: {w.message}", w.category, stacklevel=2)
+    return HoldOut(tuple(held), tuple(fit), ev, chosen)
