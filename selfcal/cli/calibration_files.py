@@ -8,16 +8,20 @@ naming the file and what to give instead."""
 from __future__ import annotations
 
 import json
+import warnings
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+import numpy as np
+
 from selfcal.console.common import CliError
+from selfcal.errors import SelfCalError, SelfCalWarning
 
 if TYPE_CHECKING:
     from selfcal.io.calibration import CalibrationResult
 
 # Heavy modules are imported by the functions that use them (`selfcal --help` stays fast).
-__all__ = ["calibration_robot", "load_calibration", "load_handeye"]
+__all__ = ["NoCameraMountWarning", "calibration_robot", "load_calibration", "load_handeye"]
 
 
 def _calibration_file(path: str) -> Path:
@@ -67,18 +71,53 @@ def calibration_robot(path: str, robot_name: str):
 
     p = _calibration_file(path)
     if p.suffix == ".json":
-        return _robot_file(p) or load_robot(robot_name)
+        return _mount_said(_robot_file(p) or load_robot(robot_name), p)
     if robot_name in list_robots():
-        return load_robot(robot_name)
+        return _mount_said(load_robot(robot_name), p)
     src = Path(from_toml(p.read_text()).source)
     if src.suffix == ".json" and src.is_file() and (robot := _robot_file(src)) is not None:
-        return robot
+        return _mount_said(robot, p)
     raise CliError(
         f"{p}: robot {robot_name!r} is neither a shipped model nor found through the file's "
         f"source {str(src)!r}",
         fix="give the calibration.json the TOML was exported from (its folder keeps the robot "
         "file), or export again from it",
     )
+
+
+class NoCameraMountWarning(SelfCalWarning):
+    """The calibration's robot file gives no camera mount: its tool tip is the camera."""
+
+
+def _mount_said(robot, calibration: Path):
+    """``robot``, warning when its file gives no ``[camera_mount]`` (a URDF never does): the
+    calibrated tool tip is then ``inv(T_flange_cam)`` = the identity past the camera, the
+    camera's optical frame (z along the view), not the flange, whatever the flange -> camera
+    the calibration found (named in mm and deg when ``calibration`` gives it)."""
+    if robot.camera_mount_given:
+        return robot
+    where = ""
+    if calibration.suffix == ".json":
+        try:
+            T = next(t.T for t in load_handeye(str(calibration)).transforms
+                     if t.what == "flange -> camera")  # fmt: skip
+        except (CliError, SelfCalError, StopIteration):
+            pass
+        else:
+            angle = np.degrees(np.arccos(np.clip((np.trace(T[:3, :3]) - 1.0) / 2.0, -1.0, 1.0)))
+            where = (f", {np.linalg.norm(T[:3, 3]) * 1000.0:.1f} mm and {angle:.1f} deg from the "
+                     "flange as calibrated")  # fmt: skip
+    warnings.warn(
+        f"{calibration}: the robot file of {robot.name} gives no [camera_mount] (a URDF never "
+        f"does), so the tool tip here is the calibrated camera's optical frame (z along its view"
+        f"{where}), not the flange or your tool: the calibrated chain to the camera is right, the "
+        "tool point is not; for a tool point give the camera's mount on the flange "
+        "([camera_mount] xyz_mm, x_axis, z_axis) in a robot TOML that wraps the URDF ([urdf] "
+        "file = ...) and import with that --robot (docs/own-data.md)",
+        NoCameraMountWarning,
+        stacklevel=3,
+    )
+    return robot
 
 
 def _named(calibration: Path, name: str):

@@ -1,0 +1,43 @@
+"""A robot file without ``[camera_mount]`` (a URDF never has one) makes the calibrated tool tip
+the camera's optical frame. Session 25's new-user trip: the photoneo set's calibration (its
+robot the Nachi URDF) exported as URDF and solved by ``selfcal ik --calibration`` without a
+word, the joints 15 deg (j2) and 87 deg (j6) from the nominal's for the same target, because
+the "tool tip" was the camera 167.1 mm and 91.0 deg from the flange. Now ``fk``/``ik
+--calibration`` and ``export`` warn, naming the file and the fix."""
+
+from __future__ import annotations
+
+import json
+import warnings
+from pathlib import Path
+
+import pytest
+
+from selfcal.cli.calibration_files import NoCameraMountWarning, calibration_robot
+
+NACHI = (Path(__file__).resolve().parents[1] / "data" / "real" / "nachi-2025-01-17-photoneo"
+         / "inputs" / "nachi_mz25.urdf")  # fmt: skip
+
+
+def _calibration(tmp_path: Path, robot_model: str) -> Path:
+    p = tmp_path / "calibration.json"
+    p.write_text(json.dumps({"robot_model": robot_model}))
+    return p
+
+
+def test_a_robot_file_without_camera_mount_is_said(tmp_path):
+    p = _calibration(tmp_path, str(NACHI))
+    with pytest.warns(NoCameraMountWarning) as got:
+        robot = calibration_robot(str(tmp_path), "nachi_mz25")
+    assert not robot.camera_mount_given
+    text = str(got.list[0].message)
+    assert text.startswith(f"{p}: the robot file of nachi_mz25 gives no [camera_mount]")
+    assert "the tool tip here is the calibrated camera's optical frame" in text
+    assert "[camera_mount] xyz_mm, x_axis, z_axis" in text and "[urdf] file" in text
+
+
+def test_a_shipped_model_with_its_mount_is_not(tmp_path):
+    _calibration(tmp_path, "ur5e")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert calibration_robot(str(tmp_path), "ur5e").camera_mount_given
