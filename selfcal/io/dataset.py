@@ -333,8 +333,9 @@ class Dataset:
         meta = root / "dataset.json"
         if not meta.is_file():
             raise DatasetError(
-                f"{root}: no dataset.json; is this a dataset folder? (create one with "
-                "`selfcal acquire CONFIG --out DIR`)"
+                f"{root}: no dataset.json: not a dataset folder",
+                fix="make one from your images and joint readings with `selfcal import ... --out "
+                "DIR` (docs/own-data.md), or in simulation with `selfcal acquire CONFIG --out DIR`",
             )
         info = read_dataset_info(meta)
         _check_robot_model(root, info.robot_model, meta)

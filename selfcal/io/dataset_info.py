@@ -62,7 +62,8 @@ CAMERAS = ("left", "right")
 OBSERVATIONS = ("images", "detections")
 """The observation kinds: images (``frames/``) or detections (``detections.csv``)."""
 DATASET_FIX = (
-    "give a dataset folder written by `selfcal acquire CONFIG --out DIR`, or re-acquire it"
+    "give a dataset folder written by `selfcal import ... --out DIR` (your own images) or "
+    "`selfcal acquire CONFIG --out DIR` (simulation), or write it again the same way"
 )
 """The ``fix=`` hint of a damaged dataset file."""
 

@@ -106,8 +106,18 @@ def test_missing_frame_is_a_clear_error(tmp_path):
 
 
 def test_not_a_dataset(tmp_path):
-    with pytest.raises(DatasetError, match="no dataset.json"):
+    with pytest.raises(DatasetError, match="no dataset.json") as err:
         Dataset.open(tmp_path)
+    # the fix names the real-data route too: `selfcal check cal nothere` told a user of their own
+    # images to make the folder with `selfcal acquire CONFIG` alone (session 25's new-user trip)
+    assert err.value.message == f"{tmp_path}: no dataset.json: not a dataset folder"
+    assert "`selfcal import ... --out DIR` (docs/own-data.md)" in err.value.fix
+    assert "`selfcal acquire CONFIG --out DIR`" in err.value.fix
+    # and a damaged dataset.json's fix, which said "re-acquire it" to an imported dataset too
+    (tmp_path / "dataset.json").write_text("{}")
+    with pytest.raises(DatasetError) as err:
+        Dataset.open(tmp_path)
+    assert "`selfcal import ... --out DIR` (your own images)" in str(err.value.fix), err.value
 
 
 def test_one_camera_dataset_writes_and_reads_its_frames(tmp_path):
