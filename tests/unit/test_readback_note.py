@@ -17,3 +17,6 @@ def test_the_note_names_both_causes_and_the_held_out_judge():
     assert "--joint-sigma-deg" in text and "misfits" in text
     assert "the data do not tell which" in text and "selfcal evaluate" in text
     assert "nachi_mz25 states no encoder resolution" in text
+    # "with and without the option" on one folder: the second calibrate overwrote the first
+    # (session 25's new-user trip); a copy keeps both for selfcal evaluate
+    assert "calibrate a copy of the dataset folder with it" in text

@@ -113,7 +113,8 @@ def readback_note(fit_px: float, camera_px: float, robot_name: str) -> str:
         "selfcal calibrate --joint-sigma-deg, e.g. 0.003) or the model misfits (what its "
         "parameters cannot express: a compliance, a link's bend); the data do not tell which: "
         "keep the calibration that predicts held-out images better (selfcal evaluate, with and "
-        "without the option)"
+        "without the option; calibrate a copy of the dataset folder with it, as selfcal "
+        "calibrate rewrites DIR/calibration.json)"
     )
 
 
