@@ -251,6 +251,11 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     write_evaluation(out, ev)
     note_written(args, out)
     print(json.dumps({"evaluation": str(out), **ev.to_json()}) if args.json else ev.line())
+    beside = cal_dir / "evaluation.json"
+    if out.resolve() != beside.resolve():  # the README's commands wrote it elsewhere: not used
+        _say(getattr(args, "quiet", False),
+             f"note: selfcal report and export read {beside}, not {out}; for them to use this "
+             f"held-out check: selfcal evaluate {args.calibration} {args.dataset} --out {beside}")  # fmt: skip
     if ev.failures:
         raise CalibrationFailedError.of(ev.failures, out)
     return 0

@@ -115,8 +115,14 @@ def test_import_calibrate_evaluate(lab, tmp_path, capsys):
     assert not [w for w in cal.warnings if "stated sigmas" in w], cal.warnings
     capsys.readouterr()
     assert main(["evaluate", str(root / "ds"), str(root / "ds2")]) == 0
-    line = capsys.readouterr().out
+    line, err = capsys.readouterr()
     assert "nominal" in line and "calibrated" in line
+    # written into ds2, where report and export do not look: said, with the command that puts it
+    # there (session 25's new-user trip: the README's `--out ev.json`, then report's own check)
+    beside = root / "ds" / "evaluation.json"
+    assert (f"note: selfcal report and export read {beside}, not {root / 'ds2' / 'evaluation.json'}"
+            f"; for them to use this held-out check: selfcal evaluate {root / 'ds'} "
+            f"{root / 'ds2'} --out {beside}") in err, err  # fmt: skip
     ev = json.loads((root / "ds2" / "evaluation.json").read_text())
     rms = ev["reprojection_rms_px"]
     assert rms["calibrated"] < 0.4 and rms["nominal"] > 1.5  # measured 0.121 and 2.26 px
