@@ -355,5 +355,9 @@ def register(subparsers) -> None:
     add_json(sp)
     sp.add_argument("calibration", help="calibrated dataset folder (or its calibration.json)")
     sp.add_argument("dataset", help="held-out dataset folder (same robot, camera and board)")
-    sp.add_argument("--out", default=None, help="default DATASET/evaluation.json")
+    sp.add_argument(
+        "--out", default=None,
+        help="default DATASET/evaluation.json; selfcal report and export read "
+        "CALIBRATION/evaluation.json: --out there for them to use this check",
+    )  # fmt: skip
     sp.set_defaults(func=cmd_evaluate)

@@ -45,3 +45,10 @@ def test_every_command_that_always_prints_json_accepts_json():
     for name, p in parsers.items():
         flags = {s for a in p._actions for s in a.option_strings}
         assert "--json" in flags, f"selfcal {name} lacks --json"
+
+
+def test_evaluate_out_says_where_report_reads_it():
+    """`selfcal evaluate --out`'s help said only its default (the held-out dataset), where
+    `selfcal report` and `export` never look (session 25's new-user trip)."""
+    text = cli_markdown().split("### `selfcal evaluate`")[1].split("### `selfcal")[0]
+    assert "selfcal report and export read CALIBRATION/evaluation.json" in " ".join(text.split())
