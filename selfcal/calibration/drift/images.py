@@ -472,8 +472,9 @@ def check_images(calibration: str | Path, new_data: str | Path, *,
             f"{new_data}: all {len(held.views)} image(s) are the calibration's own frames (their "
             f"joint readings and board detections, as in {path.parent}): a check of them cannot "
             "find a change, since the calibration fitted them",
-            fix="give images recorded after the calibration (e.g. `selfcal record` at a few "
-            "postures), not the calibration's dataset",
+            fix="give images recorded after the calibration at a few postures (`selfcal import "
+            "... --out NEW` of them with their joint readings; `selfcal acquire` in simulation), "
+            "not the calibration's dataset",
         )
     q_cal = board_postures_from_json(cal.accuracy or {}, cal.model.n, str(path))
 
