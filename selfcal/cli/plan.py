@@ -244,6 +244,16 @@ def _cmd(args: argparse.Namespace) -> int:
     if args.add:
         return cmd_add(args)
     robot = load_robot(args.robot)
+    if args.mount == "eye-in-hand" and not robot.camera_mount_given:
+        warnings.warn(
+            f"{args.robot}: no [camera_mount] (a URDF never has one), so the plan puts the camera "
+            "at the flange, looking along its z axis; a camera mounted elsewhere sees the board "
+            "from other postures than planned: give its mount ([camera_mount] xyz_mm, x_axis, "
+            "z_axis) in a robot TOML that wraps the URDF ([urdf] file = ...) and plan with that "
+            "--robot",
+            SelfCalWarning,
+            stacklevel=2,
+        )
     names = trajectory_joint_names(args, robot.joint_names)
     camera = _camera(args)
     board = load_target(args.target)

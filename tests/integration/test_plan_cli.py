@@ -109,6 +109,23 @@ def test_plan_refuses_a_board_no_posture_sees(tmp_path, capsys):
     assert "sees the whole board" in capsys.readouterr().err
 
 
+def test_a_urdf_without_camera_mount_is_said_to_plan_for_a_camera_at_the_flange(tmp_path, capsys):
+    """The Nachi URDF (tests/data/real) has no [camera_mount]: its plan put the camera at the
+    flange without a word, where the real one sits 167 mm and 91 deg from it (session 25's
+    new-user trip). Said before anything else is checked (--count 1 is then refused)."""
+    urdf = (Path(__file__).resolve().parents[1] / "data/real/nachi-2025-01-17-photoneo/inputs"
+            / "nachi_mz25.urdf")  # fmt: skip
+    argv = ["plan", "--robot", str(urdf), "--target", BOARD, "--fov-deg", "60", "--resolution",
+            "640x480", "--board-pose", "700,0,500", "--count", "1", "--out", str(tmp_path / "p")]  # fmt: skip
+    with pytest.warns(UserWarning, match="no \\[camera_mount\\]"):
+        assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert (
+        f"{urdf}: no [camera_mount] (a URDF never has one), so the plan puts the camera at" in err
+    )
+    assert "--count 1" in err  # the refusal that follows
+
+
 @pytest.mark.slow
 def test_run_of_the_plan_sees_the_board_in_every_posture(tmp_path, capsys):
     _plan(tmp_path / "plan", count=10, candidates=200)
