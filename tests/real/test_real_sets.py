@@ -465,6 +465,10 @@ def test_export_of_a_urdf_robot_says_its_tool_tip_is_the_camera(name, outcome, r
                        check=False)  # fmt: skip
     assert p.returncode == 0, p.stdout + p.stderr
     assert "gives no [camera_mount]" in p.stderr, p.stderr
+    # and the predicted tool-point accuracy is the camera's, which it called "the flange"
+    acc = json.loads((runs_dir / name / "calib" / "calibration.json").read_text())["accuracy"]
+    assert acc["tool_point"].startswith("the camera: the robot file gives no [camera_mount]")
+    assert "tool point (the camera: " in acc["what"], acc["what"]
     assert re.search(
         r"\(z along its view, 1[67]\d\.\d mm and 9[01]\.\d deg from the flange", p.stderr
     )

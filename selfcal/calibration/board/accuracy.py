@@ -135,10 +135,10 @@ __all__ = [
 _FIX = "re-run `selfcal calibrate` to write the block again"
 
 
-def _what(eye_to_hand: bool) -> str:
+def _what(eye_to_hand: bool, tool_point: str) -> str:
     frame = "the first camera's frame" if eye_to_hand else "the board frame"
     return (
-        "predicted error of the calibrated tool point (the flange) and tool orientation against "
+        f"predicted error of the calibrated tool point ({tool_point}) and tool orientation against "
         f"the true ones, in {frame}: the Cramer-Rao covariance at the estimate carried through "
         "the chain, with the share of the held parameters' deviation from the drawing the folds "
         "show at its upper 95 % confidence bound (held_deviation), plus a model error estimated from the leave-one-configuration-out folds "
@@ -398,14 +398,16 @@ def cross_validated_reprojection(obs: BoardObservations, selection: Selection) -
 def board_accuracy(obs: BoardObservations, selection: Selection, cr: BoardCramerRao,
                    offsets: np.ndarray, T_tool_point: np.ndarray, limits: np.ndarray, *,
                    pixel_sigma_px: float, count: int = SAMPLE_COUNT,
-                   deviation: Deviation | None = None) -> Accuracy:  # fmt: skip
+                   deviation: Deviation | None = None, tool_point: str = "the flange",
+                   ) -> Accuracy:  # fmt: skip
     """The predicted accuracy of a board calibration (module docstring): ``cr`` its bounds at
     the estimate (the stored model, :func:`selfcal.calibration.board.bounds.board_bounds`),
     ``selection`` its parameter selection (the fold fits), ``offsets`` (n,) rad the joint
     offsets of the stored model's gauge, ``T_tool_point`` the flange in the chain's tool frame,
     ``limits`` (n, 2) rad / m the joint limits, ``pixel_sigma_px`` the corner noise the bounds
     used; ``count`` joint vectors per region; ``deviation``: how far the held parameters may
-    lie from the drawing (default :class:`Deviation`'s; :mod:`selfcal.calibration.board.held`)."""
+    lie from the drawing (default :class:`Deviation`'s; :mod:`selfcal.calibration.board.held`);
+    ``tool_point``: what ``T_tool_point`` is, in words (the camera where the file has no mount)."""
     deviation = Deviation() if deviation is None else deviation
     variance = deviation.variance(cr.model.joint_types)
     span = joint_spans(limits, revolute_joints(cr.model.joint_types))
@@ -431,7 +433,7 @@ def board_accuracy(obs: BoardObservations, selection: Selection, cr: BoardCramer
         "camera_covariance_si": C[p:, p:].tolist(),
         "camera_cross_si": C[:p, p:].tolist(),
         "noise_covariance_si": bounds_noise_covariance(noisy, cols).tolist(),
-        "tool_point": "the flange",
+        "tool_point": tool_point,
         "T_tool_point_si": np.asarray(T_tool_point, float).tolist(),
         "joint_limits_si": np.asarray(limits, float).tolist(),
         **spans_json(span),
@@ -439,7 +441,7 @@ def board_accuracy(obs: BoardObservations, selection: Selection, cr: BoardCramer
         "held_deviation": held_block(deviation, share),
     }
     return Accuracy(em, names, me, workspace_summary(em, sample, q_cal), sample, q_cal,
-                    _what(obs.eye_to_hand), note, extra)  # fmt: skip
+                    _what(obs.eye_to_hand, tool_point), note, extra)  # fmt: skip
 
 
 def predicted_reprojection(cr: BoardCramerRao, camera: CameraModel, q: np.ndarray,

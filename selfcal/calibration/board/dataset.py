@@ -400,9 +400,12 @@ def calibrate_board_dataset_detailed(
     if obs is not None and accuracy:  # the predicted tool-point accuracy (issue #29)
         assert cr is not None
         try:
+            # without a mount in the robot file the flange is taken at the camera: said so
+            at = ("the flange" if e2h or robot.camera_mount_given else "the camera: the robot "
+                  "file gives no [camera_mount], so the flange is taken at the camera")  # fmt: skip
             acc = board_accuracy(obs, sel, cr, res.nominal.model.joint_offsets, inv_pose(mount),
                                  robot.limits, pixel_sigma_px=bounds.pixel_sigma_px,
-                                 deviation=deviation)  # fmt: skip
+                                 deviation=deviation, tool_point=at)  # fmt: skip
             jitter = _view_jitter(obs, result, bounds.pixel_sigma_px)
             block = acc.to_json() | ({} if jitter is None else {KEY: jitter.to_json()})
             points = SpreadPoints.of(acc.sample, acc.q_cal, inv_pose(mount))
