@@ -5,6 +5,7 @@ installed wheel, through the source checkout otherwise, never through the workin
 from __future__ import annotations
 
 import importlib.resources
+import re
 from pathlib import Path
 
 import tomllib
@@ -44,6 +45,20 @@ def test_shipped_scenarios_found_beside_the_models(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     assert scenarios_dir() == ROOT / "scenarios"
     assert default_scenario_path().is_file()
+
+
+def test_shipped_scenarios_describe_themselves_to_a_new_user():
+    """`selfcal scenarios` listed "eye-to-hand  Eye-to-hand (issue #28)" and three lines citing
+    "issue #12", numbers of this project's tracker a new user cannot look up, and eye-to-hand's
+    header named models/robots/ur5e.toml, which does not exist (session 25's new-user trip)."""
+    from selfcal.config.shipped import SHIPPED_DIR, shipped_scenarios
+
+    for name, description in shipped_scenarios().items():
+        assert "issue #" not in description and len(description.split()) >= 5, (name, description)
+    for path in SHIPPED_DIR.glob("*.toml"):
+        head = "\n".join(line for line in path.read_text().splitlines() if line.startswith("#"))
+        for ref in re.findall(r"\b((?:models|scenarios)/[\w./-]+\.toml)", head):
+            assert (ROOT / ref).is_file(), (path.name, ref)
 
 
 def test_shipped_scenarios_are_reachable_by_name_from_anywhere(tmp_path, monkeypatch, capsys):
