@@ -41,6 +41,7 @@ from selfcal.kinematics.mcpc import MCPCModel, nominal_mcpc
 from selfcal.transforms import pose_from_vec
 
 __all__ = [
+    "DISAGREES",
     "SCALE_TOL",
     "MotionScale",
     "ScaleWarning",
@@ -57,6 +58,9 @@ link is up to 1 mm and 0.5 deg off its nominal shows up to 0.4 % (the KR 6,
 arm), a board printed at another scale typically 2-6 %. An arm that misfits its nominal more
 widens it (:attr:`MotionScale.tolerance`)."""
 
+
+DISAGREES = "the target's scale disagrees with the arm's"
+"""How :func:`scale_warning` begins (``calibration.json`` keeps it among its ``warnings``)."""
 
 _FD_STEP = 1e-6
 """Central-difference step of the fit's Jacobian (rad of the rotation vectors, m, log scale)."""
@@ -136,7 +140,7 @@ def scale_warning(ms: MotionScale, robot: str, target: str, correct: str) -> str
         return None
     measured = abs(1.0 / ms.scale - 1.0)  # the target's motion against the arm's
     return (
-        f"the target's scale disagrees with the arm's: {target} measures the camera's motion "
+        f"{DISAGREES}: {target} measures the camera's motion "
         f"{measured * 100:.1f} % {'smaller' if off > 0 else 'larger'} than the nominal "
         f"kinematics of {robot} make it (scale {ms.scale:.4f} +- {ms.std:.4f} over "
         f"{ms.postures} postures); the calibration has taken this into the link lengths, so its "

@@ -71,6 +71,7 @@ def calibration_robot(path: str, robot_name: str):
 
     p = _calibration_file(path)
     if p.suffix == ".json":
+        _scale_said(p)
         return _mount_said(_robot_file(p) or load_robot(robot_name), p)
     if robot_name in list_robots():
         return _mount_said(load_robot(robot_name), p)
@@ -83,6 +84,16 @@ def calibration_robot(path: str, robot_name: str):
         fix="give the calibration.json the TOML was exported from (its folder keeps the robot "
         "file), or export again from it",
     )
+
+
+def _scale_said(calibration: Path) -> None:
+    """The scale warning ``calibration`` (a calibration.json) keeps, warned again: the robot
+    read from it carries that scale in its link lengths (it was said once, by calibrate)."""
+    from selfcal.calibration.scale_check import DISAGREES, ScaleWarning
+
+    for text in json.loads(calibration.read_text()).get("warnings") or ():
+        if isinstance(text, str) and text.startswith(DISAGREES):
+            warnings.warn(f"{calibration} warns that {text}", ScaleWarning, stacklevel=3)
 
 
 class NoCameraMountWarning(SelfCalWarning):
