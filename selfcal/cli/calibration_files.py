@@ -177,7 +177,7 @@ def _refuse_no_gain(path: str, force: bool) -> None:
     (:func:`selfcal.calibration.board.evaluate.no_gain`)."""
     import warnings
 
-    from selfcal.calibration.board.evaluate import no_gain, read_evaluation
+    from selfcal.calibration.board.evaluate import evaluates, no_gain, read_evaluation
     from selfcal.errors import SelfCalWarning
     from selfcal.io.board_calibration import calibration_kind, read_board_calibration
 
@@ -190,7 +190,7 @@ def _refuse_no_gain(path: str, force: bool) -> None:
     if why is None and ev_path.is_file():
         ev = read_evaluation(ev_path)
         rms = ev.rms
-        if Path(ev.calibration).resolve() not in (p.resolve(), p.parent.resolve()):
+        if not evaluates(ev, p):
             warnings.warn(f"{ev_path} evaluates {ev.calibration}, not {p}: its held-out check is "
                           "not used", SelfCalWarning, stacklevel=2)  # fmt: skip
         elif no_gain(rms["calibrated"], rms["nominal"]):

@@ -78,3 +78,25 @@ def test_report_says_the_check_judged_another_choice(subset_calibration):
     with pytest.warns(ReadbackWarning):
         same = _held_out(subset_calibration.root, "board", 5, NOMINAL)
     assert "selection_note" not in same
+
+
+def test_an_evaluation_of_another_calibration_is_not_the_reports(subset_calibration):
+    """own-data.md says an evaluation.json beside the calibration that evaluates another one is
+    not used, and export did not use it, but report did: `selfcal evaluate cal-js held --out
+    cal3/evaluation.json` made `selfcal report cal3` say NO GAIN (1.848 / 1.848 px, cal-js's
+    figures) of a calibration whose own check is 0.812 against 1.731 px."""
+    from selfcal.calibration.board.evaluate import write_evaluation
+    from selfcal.errors import SelfCalWarning
+
+    root = Path(subset_calibration.root)
+    root.mkdir()
+    write_evaluation(root / "evaluation.json", _evaluation())  # of "fit", elsewhere
+    with (
+        pytest.warns(ReadbackWarning),  # the leave-poses-out check's own calibration
+        pytest.warns(SelfCalWarning, match=r"evaluation\.json evaluates fit, not .*: its held-"),
+    ):
+        h = _held_out(root, "board", 5, OFFSETS)
+    assert h["source"] == "leave-poses-out"
+    ev = _evaluation()
+    write_evaluation(root / "evaluation.json", Evaluation(ev.rms, ev.images, (), "held", str(root)))
+    assert _held_out(root, "board", 5, OFFSETS)["source"] == "selfcal evaluate"

@@ -32,6 +32,7 @@ from selfcal.transforms import inv_pose
 __all__ = [
     "EVAL_FORMAT",
     "Evaluation",
+    "evaluates",
     "SAME_RMS",
     "no_gain",
     "worse",
@@ -337,3 +338,13 @@ def read_evaluation(path: str | Path) -> Evaluation:
     return Evaluation(dict(f.float_map("reprojection_rms_px")), images,
                       f.strs("skipped_images"), f.str("dataset"), f.str("calibration"),
                       cameras=per_cam)  # fmt: skip
+
+
+def evaluates(ev: Evaluation, calibration: str | Path) -> bool:
+    """Whether ``ev`` (an ``evaluation.json`` read back) evaluates ``calibration`` (its
+    ``calibration.json`` or that file's folder): the path ``selfcal evaluate`` was given, taken
+    from the working directory, is the file or its folder. An evaluation kept beside another
+    calibration's file judges that one, not this."""
+    p = Path(calibration)
+    p = p / "calibration.json" if p.is_dir() else p
+    return Path(ev.calibration).resolve() in (p.resolve(), p.parent.resolve())
