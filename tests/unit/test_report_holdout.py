@@ -100,3 +100,19 @@ def test_an_evaluation_of_another_calibration_is_not_the_reports(subset_calibrat
     ev = _evaluation()
     write_evaluation(root / "evaluation.json", Evaluation(ev.rms, ev.images, (), "held", str(root)))
     assert _held_out(root, "board", 5, OFFSETS)["source"] == "selfcal evaluate"
+
+
+def test_an_evaluation_named_relative_to_another_folder_is_still_the_reports(tmp_path, monkeypatch):
+    """`selfcal evaluate cal held --out cal/evaluation.json` records "cal" as typed; a report or
+    an export of that folder from another working directory is still of that calibration."""
+    from selfcal.calibration.board.evaluate import evaluates
+
+    root = tmp_path / "lab" / "cal"
+    root.mkdir(parents=True)
+    ev = _evaluation()
+    of = lambda name: Evaluation(ev.rms, ev.images, (), "held", name)  # noqa: E731
+    monkeypatch.chdir(tmp_path)  # not lab/, where evaluate ran
+    assert evaluates(of("cal"), root) and evaluates(of("./cal/calibration.json"), root)
+    assert evaluates(of("../lab/cal"), root) and evaluates(of(str(root)), root)
+    assert not evaluates(of("cal-js"), root) and not evaluates(of("cal3"), root)
+    assert not evaluates(of(str(tmp_path / "cal")), root)  # absolute: exactly

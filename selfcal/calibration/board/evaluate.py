@@ -342,9 +342,16 @@ def read_evaluation(path: str | Path) -> Evaluation:
 
 def evaluates(ev: Evaluation, calibration: str | Path) -> bool:
     """Whether ``ev`` (an ``evaluation.json`` read back) evaluates ``calibration`` (its
-    ``calibration.json`` or that file's folder): the path ``selfcal evaluate`` was given, taken
-    from the working directory, is the file or its folder. An evaluation kept beside another
-    calibration's file judges that one, not this."""
+    ``calibration.json`` or that file's folder): the path ``selfcal evaluate`` was given is the
+    file or its folder, from this working directory or, relative, from the one evaluate ran in
+    (not recorded: its parts after any ``..`` end the file's or folder's path). An evaluation
+    kept beside another calibration's file judges that one, not this."""
     p = Path(calibration)
     p = p / "calibration.json" if p.is_dir() else p
-    return Path(ev.calibration).resolve() in (p.resolve(), p.parent.resolve())
+    targets = (p.resolve(), p.parent.resolve())
+    given = Path(ev.calibration)
+    if given.resolve() in targets or given.is_absolute():
+        return given.resolve() in targets
+    parts = [x for x in given.parts if x != "."]
+    tail = tuple(parts[len(parts) - parts[::-1].index("..") :] if ".." in parts else parts)
+    return bool(tail) and any(t.parts[-len(tail) :] == tail for t in targets)
