@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 
-from selfcal.errors import InputError
+from selfcal.errors import InputError, SelfCalWarning
 from selfcal.hw.acl.errors import AclConnectionError, AclControllerError, AclProtocolError
 from selfcal.hw.acl.guard import AclGuard
 from selfcal.hw.acl.link import AclLink, port_hint
@@ -149,6 +149,7 @@ class AclRobot(AclGuard):
                 "TOML home_deg). On a real arm they read zero where HOME leaves it: give "
                 "[robot.hardware.options.encoders] home_deg in this model's convention (or "
                 f"[encoder] zero_deg in {robot_files().get(robot.name, 'its robot file')})",
+                SelfCalWarning,
                 stacklevel=3,
             )
         opened = link is None
