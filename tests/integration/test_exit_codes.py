@@ -267,7 +267,8 @@ def test_python_warnings_become_counted_log_lines(capsys, monkeypatch):
         return 0
 
     monkeypatch.setattr(cli, "cmd_fk", warn)
-    code, out, err = run(capsys, "fk", "--joints", "0,0,0,0,0")
+    with pytest.warns(SelfCalWarning, match="first"), pytest.warns(RuntimeWarning, match="second"):
+        code, out, err = run(capsys, "fk", "--joints", "0,0,0,0,0")
     assert code == 0 and out == ""
     assert err.splitlines() == [
         "selfcal: warning: the first thing",

@@ -282,7 +282,10 @@ def test_few_poses_hold_what_they_cannot_carry(m: int) -> None:
     rng = np.random.default_rng(21)
     q = configs(robot, rng, m)
     T_w = random_world(rng)
-    with pytest.warns(IdentificationWarning, match="too few poses"):
+    with (
+        pytest.warns(IdentificationWarning, match="too few poses"),
+        pytest.warns(IdentificationWarning, match="not identifiable from these configurations"),
+    ):
         res = identify(nom, q, T_w @ fk_tool(perturbed(nom, rng), q))
     assert res.converged and int(res.estimated.sum()) <= 6 * (m - 1)
     assert all(res.estimated[res.names.index(k)] for k in ("alpha0", "beta0", "lx0", "ly0"))
