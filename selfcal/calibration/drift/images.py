@@ -62,7 +62,8 @@ noise once, not twice).
 
 The change at the tool: the RMS over the new postures of the tool point's (the flange's) move
 by the best-fitting candidate change; the camera (no tool point move) gives the bound of a
-kinematic change fitted beside it (:func:`kinematic_bound_mm`).
+kinematic change fitted beside it
+(:func:`selfcal.calibration.drift.tool_moves.kinematic_bound_mm`).
 
 What changed (:mod:`selfcal.calibration.drift.attribution`) is named only when one kind of
 small change alone explains the residuals. Only the first camera is checked (a rig's other
@@ -78,18 +79,18 @@ from pathlib import Path
 
 import numpy as np
 from scipy.linalg import solve_triangular
-from scipy.stats import chi2
 
 from selfcal.calibration.board.accuracy import board_error_model_from_json, board_postures_from_json
 from selfcal.calibration.board.evaluate import held_out_views
 from selfcal.calibration.board.folds import unseen
-from selfcal.calibration.drift.attribution import Attribution, Fits, attribute, candidate_fits
+from selfcal.calibration.drift.attribution import Attribution, attribute, candidate_fits
 from selfcal.calibration.drift.covariance import estimate_covariance, view_covariance
 from selfcal.calibration.drift.fold_error import fold_error_model
 from selfcal.calibration.drift.outliers import Outlier, drop_outliers, outlier_line
 from selfcal.calibration.drift.own import JOINT_TOL, calibration_frames, own_views
 from selfcal.calibration.drift.p_value import combined_p, min_p, p_text
 from selfcal.calibration.drift.paired import noise_covariance, paired_views, posture_tol
+from selfcal.calibration.drift.tool_moves import BOUND_LEVEL, kinematic_bound_mm, tool_point_moves
 from selfcal.calibration.drift.views import (
     ViewJacobians,
     ViewNoise,
@@ -139,8 +140,6 @@ CANNOT_TELL_NOTE = (
     "there) or calibrate with these configurations"
 )
 """What a "cannot tell" verdict adds (:func:`fold_recheck`)."""
-BOUND_LEVEL = 0.95
-"""The confidence of the tool-point bound a camera change's verdict gives."""
 
 
 @dataclass(frozen=True)
@@ -161,7 +160,7 @@ class ImageDriftCheck:
         others; none left: nothing tested, ``p_value`` 1, ``expected_rms_px`` NaN and
         ``rms_px`` their fit's RMS); tool_bound_mm: when the best change is the camera's (it
         moves no tool point), the largest RMS tool-point move a kinematic change fitted beside
-        it reaches at :data:`BOUND_LEVEL` confidence (:func:`kinematic_bound_mm`; 0 otherwise);
+        it reaches at :data:`BOUND_LEVEL` confidence (:func:`~selfcal.calibration.drift.tool_moves.kinematic_bound_mm`; 0 otherwise);
         turn_deg: the RMS over the views of the tool's rotation by the best change (deg; the
         verdict gives it where the tool point moves less than 0.001 mm, as a wrist joint's
         offset turns the tool about the flange); paired: how many of the ``views`` were
@@ -285,53 +284,6 @@ class ImageDriftCheck:
                 self.fold_p_value if np.isfinite(self.fold_p_value) else None
             ),  # fmt: skip
         }
-
-
-def _twist_map(key: str, views: list[ViewJacobians]) -> np.ndarray:
-    """(m, 6, d) the tool point's move (m) and the tool's rotation (rad), world frame, at every
-    view per unit of the kinematic candidate ``key``'s d parameters
-    (:mod:`selfcal.calibration.drift.attribution`)."""
-    if key == "hand-eye":
-        return np.array([v.B for v in views])
-    if key == "world":
-        return np.array([v.B @ v.Ad for v in views])
-    j = int(key.split(" ")[1]) - 1
-    return np.array([v.B @ v.tw[:, j : j + 1] for v in views])
-
-
-def tool_point_moves(key: str, x: np.ndarray, views: list[ViewJacobians]) -> np.ndarray:
-    """(m, 6) the tool point's move (m) and the tool's rotation (rad), world frame, at every
-    view by the candidate change ``key`` (:mod:`selfcal.calibration.drift.attribution`) of
-    size ``x``: 0 for the camera."""
-    if key == "camera":
-        return np.zeros((len(views), 6))
-    return _twist_map(key, views) @ x
-
-
-def kinematic_bound_mm(fits: Fits, rw: np.ndarray, views: list[ViewJacobians],
-                       level: float = BOUND_LEVEL) -> float:  # fmt: skip
-    """The largest RMS tool-point move (over the views, mm) that a kinematic candidate (the
-    mounts, a joint's offset) fitted beside the camera's change reaches at confidence ``level``:
-    per candidate its fitted move plus the confidence ellipsoid's largest RMS move (the whitened
-    fit's parameters have the covariance ``(D^T D)^-1``), the largest over the candidates.
-    ``fits`` the candidates' whitened columns, ``rw`` the whitened residuals."""
-    cols = fits.directed_columns
-    cam = cols["camera"]
-    worst = 0.0
-    for key in fits.what:
-        if key == "camera":
-            continue
-        G = (np.concatenate([cols[f"{key} translation"], cols[f"{key} rotation"]], axis=1)
-             if key in ("hand-eye", "world") else cols[key])  # fmt: skip
-        D = np.concatenate([cam, G], axis=1)
-        x = np.linalg.lstsq(D, rw, rcond=None)[0][cam.shape[1] :]
-        cov = np.linalg.pinv(D.T @ D)[cam.shape[1] :, cam.shape[1] :]
-        M = _twist_map(key, views)[:, :3].reshape(-1, G.shape[1]) / np.sqrt(len(views))
-        # |M x| = the moves' RMS
-        spread = float(np.max(np.linalg.eigvalsh(M @ cov @ M.T)))
-        reach = np.linalg.norm(M @ x) + np.sqrt(chi2.ppf(level, G.shape[1]) * max(spread, 0.0))
-        worst = max(worst, float(reach))
-    return worst * 1e3
 
 
 def image_drift_check(C: np.ndarray, views: list[ViewJacobians], *,
