@@ -271,7 +271,8 @@ def _print_fold_error(folds: list[Fold], used: float, cal: BoardCalibrationResul
     for i, f in enumerate(folds):
         first = image_drift_check(f.C0 + used * f.V, f.at(1.0), eye_to_hand=cal.eye_to_hand)
         if not first.changed:
-            said.append(f"fold {i + 1} unchanged (p {first.p_value:.2g})")
+            what = "cannot tell (noisier images)" if first.undecided else "unchanged"
+            said.append(f"fold {i + 1} {what} (p {first.p_value:.2g})")
             continue
         out = excess_without(folds, i) if counted else (0.0, 0.0)
         old = excess_without(folds, i, whitened=False) if counted else (0.0, 0.0)

@@ -24,7 +24,9 @@ EXIT_CHANGED = 5
 EXIT_CANNOT_TELL = 6
 """The exit code of a board check that cannot tell: the new images miss the calibration's
 prediction, but not by more than its own folds missed the configurations they left out
-(:mod:`selfcal.calibration.drift.fold_error`; not an error)."""
+(:mod:`selfcal.calibration.drift.fold_error`), or they fit it only with the own corner noise
+of images noisier than the calibration's frames, which would hide a change the check does not
+model (:mod:`selfcal.calibration.drift.noisy`); not an error."""
 
 HELP = f"""\
 NEW_DATA by the calibration's route:
@@ -46,6 +48,10 @@ and noise) as each new view's model error: still failing, "changed" (exit 5); el
 tell" (exit {EXIT_CANNOT_TELL}): the images miss the prediction by no more than the calibration
 missed configurations it did not see (on real arms the check's prediction there has said changed
 for unchanged ones, docs/real-data.md); check at the calibration's own postures instead.
+An image with more corner noise than the calibration's frames (outside every change the check
+considers) is tested with its own noise; a check that then does not fail says "cannot tell" (exit
+{EXIT_CANNOT_TELL}), naming those images and their noise: a noisier image, or a change the check
+does not model (a lens term the calibration holds, the focus, the board), which that noise hides.
 New images that are the calibration's own frames (the same joint readings and board detections,
 whatever their file names) are left out of the test and counted; when all are, nothing can be
 tested and the check stops with exit 2 (record new images). See docs/tool-accuracy.md."""

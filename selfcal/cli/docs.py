@@ -63,7 +63,7 @@ once). A command that writes files ends with one line naming them and counting t
 | 3 | cannot calibrate from this data: too few postures, degenerate geometry, no convergence |
 | 4 | robot or hardware fault: controller error, serial link, camera |
 | {EXIT_CHANGED} | `selfcal check`: the robot has changed since its calibration (the check worked) |
-| {EXIT_CANNOT_TELL} | `selfcal check` of a board calibration: cannot tell (the new images miss the prediction, but by no more than the calibration's own folds missed the arm configurations they left out: check at its own postures) |
+| {EXIT_CANNOT_TELL} | `selfcal check` of a board calibration: cannot tell (the new images miss the prediction, but by no more than the calibration's own folds missed the arm configurations they left out: check at its own postures; or they fit it only with the own noise of images noisier than the calibration's frames, which would hide a change the check does not model) |
 | 130 | interrupted (Ctrl-C) |
 | {EXIT_BROKEN_PIPE} | the reader of the output went away (`selfcal scenarios \\| head -1`): stopped quietly |
 

@@ -75,6 +75,10 @@ class ViewJacobians:
             moved the calibration's estimate, so the difference shares ``H_b C_e H_u^T`` with
             every other new view's residuals (``C_e`` the estimate's covariance from the noise,
             :func:`selfcal.calibration.drift.covariance.view_covariance`); None otherwise.
+        own_px: ``(own, calibration's)`` the view's own white corner noise (px) where it
+            replaced the calibration's (:func:`view_white_px`, ``own_white``) and the
+            calibration's it was above; None where the calibration's is used. Such a view never
+            gives "unchanged" (:mod:`selfcal.calibration.drift.noisy`).
     """
 
     r: np.ndarray
@@ -90,6 +94,7 @@ class ViewJacobians:
     paired: bool = False
     frame: tuple[int, np.ndarray, np.ndarray] | None = None
     frame_H: np.ndarray | None = None
+    own_px: tuple[float, float] | None = None
 
 
 def view_white_px(r: np.ndarray, A: np.ndarray, Jc: np.ndarray,
@@ -142,7 +147,7 @@ def view_jacobians(em: ToolErrorModel, camera: CameraModel, q: np.ndarray, X: np
     what the calibration's frames carry there when it is known, in place of ``jitter``).
     ``own_white``: the corner noise is the view's own where it is above ``pixel_sigma_px``
     (:func:`view_white_px`, where it has the degrees of freedom): an image noisier than the
-    calibration's frames is not read as a change."""
+    calibration's frames is not read as a change, nor as no change (``own_px``)."""
     model = em.model
     T = fk_tool(model, q[None])[0]
     _, uv_hat, A, Jc = board_view(camera, T, X, eye_to_hand)
@@ -156,8 +161,8 @@ def view_jacobians(em: ToolErrorModel, camera: CameraModel, q: np.ndarray, X: np
     r = (np.asarray(uv, float) - uv_hat).reshape(-1)
     cam = Jc.reshape(len(A), -1)
     own = view_white_px(r, A, cam, pixel_sigma_px) if own_white else None
-    pixel_sigma_px = pixel_sigma_px if own is None else own
-    local = tool_pose_error(A, B, m2) + pixel_sigma_px**2 * np.eye(len(A))
+    white = pixel_sigma_px if own is None else own
+    local = tool_pose_error(A, B, m2) + white**2 * np.eye(len(A))
     if jitter is not None:
         local += A @ np.asarray(jitter, float) @ A.T
     if pose_misfit_px > 0.0:
@@ -178,6 +183,7 @@ def view_jacobians(em: ToolErrorModel, camera: CameraModel, q: np.ndarray, X: np
         B=B,
         Ad=Ad,
         tw=tw,
+        own_px=None if own is None else (own, float(pixel_sigma_px)),
     )
 
 
