@@ -146,8 +146,9 @@ def pair_views(views: list[ViewJacobians], new: list[tuple[int, np.ndarray, np.n
     the same form, ``f`` into ``q_frames``) that shares at least :data:`MIN_SHARED` board
     points replaced by its paired difference from that frame (module docstring; ``paired``
     set), linearised at the calibration ``em``, ``camera`` with the white corner noise
-    ``pixel_sigma_px`` (px) and the joint read-back ``joint_sigma_rad`` (n,) or None of each
-    view; the others as they are (a further view at a frame's posture too:
+    ``pixel_sigma_px`` (px; a new image's own where it is above it, as an unpaired view's:
+    :func:`selfcal.calibration.drift.views.view_white_px`) and the joint read-back
+    ``joint_sigma_rad`` (n,) or None of each view; the others as they are (a further view at a frame's posture too:
     :func:`_pair`)."""
     return _pair(views, new, q, frames, q_frames, em=em, camera=camera,
                  eye_to_hand=eye_to_hand, pixel_sigma_px=pixel_sigma_px,
@@ -172,9 +173,10 @@ def _pair(views: list[ViewJacobians], new: list[tuple[int, np.ndarray, np.ndarra
     )
     quiet = dataclasses.replace(em, model_error_m=0.0, model_error_rad=0.0)  # it repeats: cancels
 
-    def lin(qv: np.ndarray, Xv: np.ndarray, uvv: np.ndarray) -> ViewJacobians:
+    def lin(qv: np.ndarray, Xv: np.ndarray, uvv: np.ndarray, own: bool) -> ViewJacobians:
         return view_jacobians(quiet, camera, qv, Xv, uvv, eye_to_hand=eye_to_hand,
-                              pixel_sigma_px=pixel_sigma_px, joint_sigma_rad=joint_sigma_rad)  # fmt: skip
+                              pixel_sigma_px=pixel_sigma_px, joint_sigma_rad=joint_sigma_rad,
+                              own_white=own)  # fmt: skip
 
     whole: dict[int, ViewJacobians] = {}  # each paired frame over all its points
     out = []
@@ -188,8 +190,8 @@ def _pair(views: list[ViewJacobians], new: list[tuple[int, np.ndarray, np.ndarra
             continue
         fc, Xc, uvc = frames[i]
         if i not in whole:
-            whole[i] = lin(q_frames[fc], Xc, uvc)
-        a, b = lin(q[f], X[ia], uv[ia]), whole[i]
+            whole[i] = lin(q_frames[fc], Xc, uvc, False)
+        a, b = lin(q[f], X[ia], uv[ia], True), whole[i]  # the new image's own noise, as unpaired
         rows = np.stack([2 * ib, 2 * ib + 1], axis=1).reshape(-1)
         out.append(dataclasses.replace(a, r=a.r - b.r[rows], paired=True,
                                        local=a.local + b.local[np.ix_(rows, rows)],
