@@ -59,6 +59,8 @@ __all__ = [
     "OUTLIER_PX",
     "OUTLIER_SIGMAS",
     "OpenCVCalibration",
+    "ROBUST_LOSS",
+    "ROBUST_SCALE_PX",
     "calibrate_board",
     "opencv_calibration",
     "outlier_limit_px",
@@ -151,6 +153,12 @@ drift check drops new corners by it, :func:`selfcal.calibration.drift.outliers.v
 OUTLIER_SIGMAS = 4.5
 """The robust sigmas (:func:`selfcal.estimation.reprojection.robust_sigma`) of the outlier rule
 (:data:`OUTLIER_PX`)."""
+ROBUST_LOSS = "soft_l1"
+"""The loss of the first, robust pass (:func:`calibrate_board`; the drift check's outlier fit,
+:func:`selfcal.calibration.drift.outliers.view_outliers`, uses it too): on each feature's 2-D
+reprojection error, scale :data:`ROBUST_SCALE_PX`."""
+ROBUST_SCALE_PX = 1.0
+"""The scale (px) of :data:`ROBUST_LOSS`."""
 MAX_OUTLIER_SHARE = 0.25
 """The largest share of the features the outlier rule may reject: beyond it the declared
 geometry is not the board's (:class:`BoardMismatchError`)."""
@@ -229,14 +237,14 @@ def calibrate_board(
     camera = cv_res.camera
     active = np.ones(len(view), bool)
     res = None
-    for loss in ("soft_l1", "linear"):
+    for loss in (ROBUST_LOSS, "linear"):
         res = bundle_adjust(
             poses, poses.initial_params(), X, view[active], pidx[active], uv[active], camera,
-            fix_points=True, loss=loss, f_scale_px=1.0, max_nfev=max_nfev,
+            fix_points=True, loss=loss, f_scale_px=ROBUST_SCALE_PX, max_nfev=max_nfev,
         )  # fmt: skip
         camera = res.camera
         poses = ViewPoses(np.where(ok[:, None, None], res.T_cam_world, np.nan), ok)
-        if loss == "soft_l1":  # reclassify every row with the robust estimate
+        if loss == ROBUST_LOSS:  # reclassify every row with the robust estimate
             e = _errors(camera, res.T_cam_world, X, view, pidx, uv)
             active = e < outlier_limit_px(e[active], outlier_px)
     assert res is not None and res.jac is not None  # the analytic Jacobian of ViewPoses

@@ -1,7 +1,8 @@
 """Corners of new views the drift check leaves out (issue #29): those the calibration's own
 outlier rule would drop (:func:`selfcal.calibration.board.calibrate.calibrate_board`: beyond
 ``max(OUTLIER_PX, OUTLIER_SIGMAS * robust sigma)`` after the fit of each view's pose and the
-camera), with the same constants, applied after the same fit (:func:`view_outliers` says why).
+camera), with the same constants, applied after the same robust fit, the calibration's loss and
+scale (:func:`view_outliers` says why).
 
 A real image with one corner detected 5.3 px off (after the views' own fit; the real mecheye
 set's group 2, tests/real/test_real_left_out_check.py) otherwise counted as noisy (its own white noise, :func:`selfcal.calibration.drift.views.view_white_px`)
@@ -11,14 +12,22 @@ out (:func:`outlier_line`).
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import numpy as np
 
-from selfcal.calibration.board.calibrate import MAX_OUTLIER_SHARE, outlier_limit_px
+from selfcal.calibration.board.calibrate import (
+    MAX_OUTLIER_SHARE,
+    ROBUST_LOSS,
+    ROBUST_SCALE_PX,
+    outlier_limit_px,
+)
 from selfcal.calibration.board.misfit import board_view
 from selfcal.calibration.drift.views import MIN_WHITE_DOF
 from selfcal.camera import CameraModel
 from selfcal.kinematics.forward import fk_tool
 from selfcal.kinematics.tool_error import ToolErrorModel
+from selfcal.solver import Evaluation, JacobianPiece, Loss, ParameterBlock, Problem, solve
 
 __all__ = ["Outlier", "drop_outliers", "outlier_line", "view_outliers"]
 
@@ -29,16 +38,52 @@ SHOWN = 5
 """The most corners a verdict's line names (its JSON names all)."""
 
 
+class _Corners:
+    """The corners' 2-D residuals ``Q y - r`` (k, 2) px after a change ``y`` in the orthonormal
+    columns ``Q`` (2k, m) of every view's pose and the camera, with the board calibration's
+    robust loss (:data:`selfcal.calibration.board.calibrate.ROBUST_LOSS`, its scale): a residual
+    block of the one solver."""
+
+    name, dim = "corners", 2
+
+    def __init__(self, Q: np.ndarray, r: np.ndarray) -> None:
+        self.Q, self.r = Q, r
+        self.loss = Loss(ROBUST_LOSS, ROBUST_SCALE_PX)
+        self.cols = np.broadcast_to(np.arange(Q.shape[1]), (len(r) // 2, Q.shape[1]))
+
+    def evaluate(self, values: Mapping[str, np.ndarray], jacobian: bool) -> Evaluation:
+        """The residuals (k, 2) px and their derivative by the change (k, 2, m)."""
+        e = (self.Q @ values["change"] - self.r).reshape(-1, 2)
+        if not jacobian:
+            return Evaluation(e)
+        J = self.Q.reshape(len(e), 2, -1)
+        return Evaluation(e, (JacobianPiece("change", J, self.cols),))
+
+
+def _robust_errors(M: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """(k,) every corner's 2-D error (px) after the fit of the residuals ``r`` (2k,) px by the
+    columns ``M`` (2k, c) with the board calibration's robust loss and scale, as its first pass
+    fits each view's pose and the camera (:func:`selfcal.calibration.board.calibrate.
+    calibrate_board`): a plain least-squares fit is pulled by a cluster of outliers (a
+    misdetected marker's corners, all off one way) until none of them is beyond the rule."""
+    U, s, _ = np.linalg.svd(M, full_matrices=False)
+    Q = U[:, s > 1e-9 * s[0]] if s.size and s[0] > 0 else U[:, :0]
+    block = _Corners(Q, r)
+    res = solve(Problem([ParameterBlock("change", Q.T @ r)], [block]))
+    return np.linalg.norm(res.residuals["corners"], axis=1)
+
+
 def view_outliers(rs: list[np.ndarray], As: list[np.ndarray],
                   Jcs: list[np.ndarray]) -> list[tuple[np.ndarray, np.ndarray]]:  # fmt: skip
     """The corners of each view the calibration's outlier rule drops: per view ``(out, e)``,
-    ``out`` (k,) bool and ``e`` (k,) px every corner's 2-D residual after a least-squares fit of
-    all the views' residuals ``rs`` (2k,) px by each view's own pose (its columns ``As`` (2k,
-    6)) and one camera change shared by all (their columns ``Jcs`` (2k, c)), refitted once on
-    the corners kept, as the calibration fits each view's pose and the camera and then
-    reclassifies; out where ``e >= max(OUTLIER_PX, OUTLIER_SIGMAS * sigma)``, ``sigma`` the
-    robust sigma of all the kept corners
-    (:func:`selfcal.calibration.board.calibrate.outlier_limit_px`, the calibration's rule).
+    ``out`` (k,) bool and ``e`` (k,) px every corner's 2-D residual after the least-squares fit
+    on the corners kept. As the calibration (its robust pass, then the plain one on the
+    inliers): all the views' residuals ``rs`` (2k,) px are fitted by each view's own pose (its
+    columns ``As`` (2k, 6)) and one camera change shared by all (their columns ``Jcs`` (2k, c))
+    with the calibration's robust loss and scale (:func:`_robust_errors`); out where the error
+    after it is at least ``max(OUTLIER_PX, OUTLIER_SIGMAS * sigma)``, ``sigma`` the robust sigma
+    of all the corners' (:func:`selfcal.calibration.board.calibrate.outlier_limit_px`, the
+    calibration's rule); then a plain least-squares fit of the corners kept gives ``e``.
 
     Applied to these residuals, not the raw ones: every change the drift check considers (a
     mount, the world, a joint's offset) moves a view's pixels by a change of its pose, to first
@@ -61,12 +106,11 @@ def view_outliers(rs: list[np.ndarray], As: list[np.ndarray],
         M[at : at + len(A), c + 6 * i : c + 6 * i + 6] = A
         at += len(A)
     r = np.concatenate(rs)
-    out = np.zeros(len(r) // 2, bool)
-    for _ in range(2):
-        rows = np.repeat(~out, 2)
-        coef = np.linalg.lstsq(M[rows], r[rows], rcond=None)[0]
-        e = np.linalg.norm((r - M @ coef).reshape(-1, 2), axis=1)
-        out = e >= outlier_limit_px(e[~out])
+    first = _robust_errors(M, r)
+    out = first >= outlier_limit_px(first)
+    rows = np.repeat(~out, 2)
+    coef = np.linalg.lstsq(M[rows], r[rows], rcond=None)[0]
+    e = np.linalg.norm((r - M @ coef).reshape(-1, 2), axis=1)
     found, at = [], 0
     for ri in rs:
         k = len(ri) // 2
