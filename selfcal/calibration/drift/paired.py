@@ -59,7 +59,7 @@ import numpy as np
 from selfcal.calibration.board.accuracy import board_postures_from_json
 from selfcal.calibration.board.evaluate import HeldOutViews
 from selfcal.calibration.drift.own import JOINT_TOL, calibration_dataset
-from selfcal.calibration.drift.views import ViewJacobians, view_jacobians
+from selfcal.calibration.drift.views import ViewJacobians, view_jacobians, view_white_px
 from selfcal.camera import CameraModel
 from selfcal.errors import InputError, SelfCalWarning
 from selfcal.io.board_calibration import BoardCalibrationResult
@@ -146,9 +146,9 @@ def pair_views(views: list[ViewJacobians], new: list[tuple[int, np.ndarray, np.n
     the same form, ``f`` into ``q_frames``) that shares at least :data:`MIN_SHARED` board
     points replaced by its paired difference from that frame (module docstring; ``paired``
     set), linearised at the calibration ``em``, ``camera`` with the white corner noise
-    ``pixel_sigma_px`` (px; a new image's own where it is above it, as an unpaired view's:
-    :func:`selfcal.calibration.drift.views.view_white_px`) and the joint read-back
-    ``joint_sigma_rad`` (n,) or None of each view; the others as they are (a further view at a frame's posture too:
+    ``pixel_sigma_px`` (px; a new image's own where its difference shows more, as an unpaired
+    view's: :func:`_own_noise`) and the joint read-back ``joint_sigma_rad`` (n,) or None of
+    each view; the others as they are (a further view at a frame's posture too:
     :func:`_pair`)."""
     return _pair(views, new, q, frames, q_frames, em=em, camera=camera,
                  eye_to_hand=eye_to_hand, pixel_sigma_px=pixel_sigma_px,
@@ -173,10 +173,9 @@ def _pair(views: list[ViewJacobians], new: list[tuple[int, np.ndarray, np.ndarra
     )
     quiet = dataclasses.replace(em, model_error_m=0.0, model_error_rad=0.0)  # it repeats: cancels
 
-    def lin(qv: np.ndarray, Xv: np.ndarray, uvv: np.ndarray, own: bool) -> ViewJacobians:
+    def lin(qv: np.ndarray, Xv: np.ndarray, uvv: np.ndarray) -> ViewJacobians:
         return view_jacobians(quiet, camera, qv, Xv, uvv, eye_to_hand=eye_to_hand,
-                              pixel_sigma_px=pixel_sigma_px, joint_sigma_rad=joint_sigma_rad,
-                              own_white=own)  # fmt: skip
+                              pixel_sigma_px=pixel_sigma_px, joint_sigma_rad=joint_sigma_rad)  # fmt: skip
 
     whole: dict[int, ViewJacobians] = {}  # each paired frame over all its points
     out = []
@@ -190,14 +189,36 @@ def _pair(views: list[ViewJacobians], new: list[tuple[int, np.ndarray, np.ndarra
             continue
         fc, Xc, uvc = frames[i]
         if i not in whole:
-            whole[i] = lin(q_frames[fc], Xc, uvc, False)
-        a, b = lin(q[f], X[ia], uv[ia], True), whole[i]  # the new image's own noise, as unpaired
+            whole[i] = lin(q_frames[fc], Xc, uvc)
+        a, b = lin(q[f], X[ia], uv[ia]), whole[i]
         rows = np.stack([2 * ib, 2 * ib + 1], axis=1).reshape(-1)
-        out.append(dataclasses.replace(a, r=a.r - b.r[rows], paired=True,
-                                       local=a.local + b.local[np.ix_(rows, rows)],
+        d = a.r - b.r[rows]
+        extra, own = _own_noise(a, d, pixel_sigma_px)
+        out.append(dataclasses.replace(a, r=d, paired=True, own_px=own,
+                                       local=a.local + b.local[np.ix_(rows, rows)] + extra,
                                        frame=(int(i), rows, b.local),
                                        frame_H=np.concatenate([b.kin, b.cam], axis=1)[rows]))  # fmt: skip
     return out, 0
+
+
+def _own_noise(a: ViewJacobians, d: np.ndarray,
+               white_px: float) -> tuple[np.ndarray | float, tuple[float, float] | None]:  # fmt: skip
+    """For the paired difference ``d`` (2k,) px of the new view ``a`` from its frame: its
+    covariance's extra white noise (2k, 2k) px^2 (0.0 for none) and ``own_px``
+    (:class:`selfcal.calibration.drift.views.ViewJacobians`): where ``d`` outside the view's
+    pose span and the camera's directions shows more than two exposures of the calibration's
+    white noise ``white_px`` (:func:`selfcal.calibration.drift.views.view_white_px` at
+    ``sqrt(2) white_px``), the excess is the new image's (the frame's noise taken as the
+    calibration's) and the view is a noisy one, as an unpaired view noisier than the frames.
+    Measured on the difference, not on the new view's residuals alone: what repeats at the
+    posture (the frame's own out-of-span residuals, a lens term the calibration holds) cancels
+    there, so a re-exposure as noisy as its frame is not noisy, while a change since the
+    calibration that the check does not model, or a noisier new image, is."""
+    w = view_white_px(d, a.tool, a.cam, np.sqrt(2.0) * white_px)
+    if w is None:
+        return 0.0, None
+    extra = (w**2 - 2.0 * white_px**2) * np.eye(len(d))
+    return extra, (float(np.sqrt(w**2 - white_px**2)), float(white_px))
 
 
 def paired_views(cal: BoardCalibrationResult, path: Path, held: HeldOutViews,
