@@ -132,7 +132,7 @@ def test_a_change_the_check_does_not_model_is_never_unchanged(scene):
     moves each view's pixels only outside its pose span and the camera's directions, 0.08 px
     RMS per coordinate on the 0.1 px noise: called changed in nearly every draw with the
     calibration's noise (20 of 20 here); with each view's own noise it is that noise, the test
-    does not fail (0 of 20 changed here), and the views that took their own noise make the
+    does not fail (at most 2 of 20 changed; 0 here), and the views that took their own noise make the
     verdict "cannot tell", never "unchanged" (at least 18 of 20; 20 here, review of session 24,
     finding 1: before, "unchanged" in 20 of 20)."""
     exact = [uv for _, uv in scene["new"]]
@@ -143,7 +143,7 @@ def test_a_change_the_check_does_not_model_is_never_unchanged(scene):
         s = rng.normal(size=len(v.r))
         s -= Q @ (Q.T @ s)  # outside the pose span and the camera's directions
         shape.append(0.08 * s / np.sqrt(np.mean(s**2)))
-    draws, said, told = 20, 0, 0
+    draws, said, told, hidden = 20, 0, 0, 0
     for _ in range(draws):
         uvs = [uv + s.reshape(-1, 2) + rng.normal(0.0, SIGMA_PX, uv.shape)
                for uv, s in zip(exact, shape, strict=True)]  # fmt: skip
@@ -151,7 +151,8 @@ def test_a_change_the_check_does_not_model_is_never_unchanged(scene):
         res = image_drift_check(scene["C"], _views(scene, uvs, True), eye_to_hand=False)
         assert res.changed or res.undecided or not res.noisy, res.line()
         told += res.changed or res.undecided
-    assert said >= 0.9 * draws and told >= 0.9 * draws, (said, told)
+        hidden += not res.changed
+    assert said >= 0.9 * draws and told >= 0.9 * draws and hidden >= 0.9 * draws, (said, told)
 
 
 def test_the_views_own_noise_keeps_the_null_and_the_power(scene):
