@@ -27,7 +27,7 @@ from selfcal.calibration.board.fold_fits import fold_bounds
 from selfcal.calibration.board.held_prior import with_deviation
 from selfcal.calibration.board.refine import BoardObservations
 from selfcal.calibration.drift.images import ViewNoise, calibration_error_model, view_noise
-from selfcal.calibration.drift.views import ViewJacobians, view_jacobians
+from selfcal.calibration.drift.views import ViewJacobians, view_jacobians, white_level
 from selfcal.camera import CameraModel
 from selfcal.kinematics.tool_error import ToolErrorModel
 
@@ -97,13 +97,15 @@ def _views(obs: BoardObservations, mask: np.ndarray, em: ToolErrorModel, camera:
            noise: ViewNoise, held: bool) -> list[ViewJacobians]:  # fmt: skip
     """The first camera's inlier frames of ``mask`` linearised at the fold's ``em`` and
     ``camera`` with the calibration's ``noise`` less its pose misfit (:class:`Fold`); ``held``:
-    new views, each with its own white noise where larger, as the check gives them
-    (:func:`selfcal.calibration.drift.views.view_white_px`)."""
+    new views, each with its own white noise where larger at the check's level, as the check
+    gives them (:func:`selfcal.calibration.drift.views.view_white_px`)."""
     v, f, uv = obs.rows(mask & obs.used)[0]
+    level = white_level(len(np.unique(v)))
     return [view_jacobians(em, camera, obs.q[i], obs.board.points(f[v == i]), uv[v == i],
                            eye_to_hand=obs.eye_to_hand, pixel_sigma_px=noise.pixel_sigma_px,
                            joint_sigma_rad=noise.joint_sigma_rad,
-                           camera_misfit_px=noise.camera_misfit_px, own_white=held)
+                           camera_misfit_px=noise.camera_misfit_px, own_white=held,
+                           white_level=level)
             for i in np.unique(v)]  # fmt: skip
 
 

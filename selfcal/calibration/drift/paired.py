@@ -59,7 +59,12 @@ import numpy as np
 from selfcal.calibration.board.accuracy import board_postures_from_json
 from selfcal.calibration.board.evaluate import HeldOutViews
 from selfcal.calibration.drift.own import JOINT_TOL, calibration_dataset
-from selfcal.calibration.drift.views import ViewJacobians, view_jacobians, view_white_px
+from selfcal.calibration.drift.views import (
+    ViewJacobians,
+    view_jacobians,
+    view_white_px,
+    white_level,
+)
 from selfcal.camera import CameraModel
 from selfcal.errors import InputError, SelfCalWarning
 from selfcal.io.board_calibration import BoardCalibrationResult
@@ -193,7 +198,7 @@ def _pair(views: list[ViewJacobians], new: list[tuple[int, np.ndarray, np.ndarra
         a, b = lin(q[f], X[ia], uv[ia]), whole[i]
         rows = np.stack([2 * ib, 2 * ib + 1], axis=1).reshape(-1)
         d = a.r - b.r[rows]
-        extra, own = _own_noise(a, d, pixel_sigma_px)
+        extra, own = _own_noise(a, d, pixel_sigma_px, white_level(len(new)))
         out.append(dataclasses.replace(a, r=d, paired=True, own_px=own,
                                        local=a.local + b.local[np.ix_(rows, rows)] + extra,
                                        frame=(int(i), rows, b.local),
@@ -201,20 +206,20 @@ def _pair(views: list[ViewJacobians], new: list[tuple[int, np.ndarray, np.ndarra
     return out, 0
 
 
-def _own_noise(a: ViewJacobians, d: np.ndarray,
-               white_px: float) -> tuple[np.ndarray | float, tuple[float, float] | None]:  # fmt: skip
+def _own_noise(a: ViewJacobians, d: np.ndarray, white_px: float,
+               level: float) -> tuple[np.ndarray | float, tuple[float, float] | None]:  # fmt: skip
     """For the paired difference ``d`` (2k,) px of the new view ``a`` from its frame: its
     covariance's extra white noise (2k, 2k) px^2 (0.0 for none) and ``own_px``
     (:class:`selfcal.calibration.drift.views.ViewJacobians`): where ``d`` outside the view's
     pose span and the camera's directions shows more than two exposures of the calibration's
     white noise ``white_px`` (:func:`selfcal.calibration.drift.views.view_white_px` at
-    ``sqrt(2) white_px``), the excess is the new image's (the frame's noise taken as the
+    ``sqrt(2) white_px`` and the check's ``level`` a view), the excess is the new image's (the frame's noise taken as the
     calibration's) and the view is a noisy one, as an unpaired view noisier than the frames.
     Measured on the difference, not on the new view's residuals alone: what repeats at the
     posture (the frame's own out-of-span residuals, a lens term the calibration holds) cancels
     there, so a re-exposure as noisy as its frame is not noisy, while a change since the
     calibration that the check does not model, or a noisier new image, is."""
-    w = view_white_px(d, a.tool, a.cam, np.sqrt(2.0) * white_px)
+    w = view_white_px(d, a.tool, a.cam, np.sqrt(2.0) * white_px, level)
     if w is None:
         return 0.0, None
     extra = (w**2 - 2.0 * white_px**2) * np.eye(len(d))

@@ -30,6 +30,7 @@ __all__ = [
     "tool_pose_error",
     "MIN_WHITE_DOF",
     "WHITE_LEVEL",
+    "white_level",
     "view_jacobians",
     "view_noise",
     "view_white_px",
@@ -44,7 +45,17 @@ WHITE_LEVEL = 0.01
 (its squared sum there beyond the calibration's chi-square quantile): taken wherever larger, it
 is larger in half the views of the calibration's own noise by chance and the check spends less
 than its alpha (in tests/unit/test_drift_view_noise.py's scene 6 false alarms of 60 at alpha 0.2
-where the assumed covariance gives 9), which is power lost."""
+where the assumed covariance gives 9), which is power lost. The level is the whole check's:
+each of its ``n`` views is held to ``WHITE_LEVEL / n`` (:func:`white_level`), since a view
+tested with its own noise makes the check's verdict "cannot tell" at best, so an unchanged arm
+imaged with the calibration's noise is called noisy in at most 1 % of checks (at 1 % a view, 5 %
+of five-view checks)."""
+
+
+def white_level(n_views: int) -> float:
+    """The level at which each of a check's ``n_views`` new views is called noisier than the
+    calibration (:data:`WHITE_LEVEL` shared among them, Bonferroni)."""
+    return WHITE_LEVEL / max(1, int(n_views))
 
 
 @dataclass(frozen=True)
@@ -97,14 +108,15 @@ class ViewJacobians:
     own_px: tuple[float, float] | None = None
 
 
-def view_white_px(r: np.ndarray, A: np.ndarray, Jc: np.ndarray,
-                  than_px: float = 0.0) -> float | None:  # fmt: skip
+def view_white_px(r: np.ndarray, A: np.ndarray, Jc: np.ndarray, than_px: float = 0.0,
+                  level: float = WHITE_LEVEL) -> float | None:  # fmt: skip
     """The white corner noise (px) a view's own residuals ``r`` (2k,) px show outside the span
     of its pose columns ``A`` (2k, 6) and its camera columns ``Jc`` (2k, c): their RMS over the
     ``2k - rank`` degrees of freedom there, which no change the drift check considers (every
     kinematic one moves the pixels in the pose span, the camera's in its columns) and no
     estimation error reaches; None below :data:`MIN_WHITE_DOF` of them, or where it is not
-    above ``than_px`` (the calibration's white noise) at :data:`WHITE_LEVEL`.
+    above ``than_px`` (the calibration's white noise) at ``level`` (a check's views:
+    :func:`white_level`).
 
     Real images differ in their corner noise (blur, focus, the board's angle: the real mecheye
     set's group 2 shows 0.126 and 0.118 px there in two of its images where the calibration's
@@ -117,7 +129,7 @@ def view_white_px(r: np.ndarray, A: np.ndarray, Jc: np.ndarray,
     if dof < MIN_WHITE_DOF:
         return None
     e = r - Q @ (Q.T @ r)
-    if e @ e <= than_px**2 * chi2.isf(WHITE_LEVEL, dof):
+    if e @ e <= than_px**2 * chi2.isf(level, dof):
         return None
     return float(np.sqrt(e @ e / dof))
 
@@ -135,7 +147,8 @@ def view_jacobians(em: ToolErrorModel, camera: CameraModel, q: np.ndarray, X: np
                    uv: np.ndarray, *, eye_to_hand: bool, pixel_sigma_px: float,
                    joint_sigma_rad: np.ndarray | None,
                    jitter: np.ndarray | None = None, camera_misfit_px: float = 0.0,
-                   pose_misfit_px: float = 0.0, own_white: bool = False) -> ViewJacobians:  # fmt: skip
+                   pose_misfit_px: float = 0.0, own_white: bool = False,
+                   white_level: float = WHITE_LEVEL) -> ViewJacobians:  # fmt: skip
     """The view of board points ``X`` (k, 3) (board frame, m) detected at ``uv`` (k, 2) px by
     ``camera`` at the joints ``q`` (n,) rad / m, linearised at the calibration ``em`` (its
     chain, estimated columns and model error) with the corner noise ``pixel_sigma_px``, the
@@ -147,7 +160,8 @@ def view_jacobians(em: ToolErrorModel, camera: CameraModel, q: np.ndarray, X: np
     what the calibration's frames carry there when it is known, in place of ``jitter``).
     ``own_white``: the corner noise is the view's own where it is above ``pixel_sigma_px``
     (:func:`view_white_px`, where it has the degrees of freedom): an image noisier than the
-    calibration's frames is not read as a change, nor as no change (``own_px``)."""
+    calibration's frames is not read as a change, nor as no change (``own_px``);
+    ``white_level`` that test's level."""
     model = em.model
     T = fk_tool(model, q[None])[0]
     _, uv_hat, A, Jc = board_view(camera, T, X, eye_to_hand)
@@ -160,7 +174,7 @@ def view_jacobians(em: ToolErrorModel, camera: CameraModel, q: np.ndarray, X: np
     Ad = adjoint(inv_pose(T))
     r = (np.asarray(uv, float) - uv_hat).reshape(-1)
     cam = Jc.reshape(len(A), -1)
-    own = view_white_px(r, A, cam, pixel_sigma_px) if own_white else None
+    own = view_white_px(r, A, cam, pixel_sigma_px, white_level) if own_white else None
     white = pixel_sigma_px if own is None else own
     local = tool_pose_error(A, B, m2) + white**2 * np.eye(len(A))
     if jitter is not None:
@@ -250,5 +264,6 @@ def calibration_views(cal: BoardCalibrationResult, em: ToolErrorModel, q: np.nda
                            pixel_sigma_px=noise.pixel_sigma_px,
                            joint_sigma_rad=noise.joint_sigma_rad, jitter=noise.jitter,
                            camera_misfit_px=noise.camera_misfit_px,
-                           pose_misfit_px=noise.pose_misfit_px, own_white=True)
+                           pose_misfit_px=noise.pose_misfit_px, own_white=True,
+                           white_level=white_level(len(views)))
             for f, X, uv in views]  # fmt: skip
