@@ -74,7 +74,18 @@ from selfcal.kinematics.mcpc import param_is_angle, param_names
 from selfcal.kinematics.tool_error import norm_quantile
 from selfcal.threads import limit_threads
 
-__all__ = ["bound_check", "bound_lines", "draw_parts", "directions", "kept_draw", "main", "table"]
+__all__ = [
+    "bound_check",
+    "bound_lines",
+    "draw_options",
+    "draw_parts",
+    "directions",
+    "first_point",
+    "kept_draw",
+    "main",
+    "orientation_covariance",
+    "table",
+]
 
 DIRECTIONS = 4
 """The orientation covariance's directions :func:`table` lists (the ER-4u's first two carry
@@ -174,6 +185,25 @@ def kept_draw(args: tuple) -> dict:
     return g
 
 
+def orientation_covariance(g: dict) -> np.ndarray:
+    """(m, 3, 3) rad^2 a draw's (:func:`draw_parts`) predicted orientation covariance at its
+    inside joint vectors, ``J C J^T`` (the covariance alone, board frame)."""
+    J = g["J"]
+    p = J.shape[2]
+    return J @ g["cov"][:p, :p] @ np.swapaxes(J, 1, 2)
+
+
+def first_point(g: dict) -> tuple[float, float]:
+    """A draw's (:func:`draw_parts`) orientation error against its prediction at its first
+    inside joint vector: ``u = P(|x| <= |e|)`` for ``x`` from the prediction (Satterthwaite's
+    chi-square, the bound's own; uniform on 0-1 over draws for a right prediction) and the
+    whitened ``e^T S^-1 e`` (chi-square with 3 degrees of freedom, mean 3, for a right ``S``)."""
+    S, e = orientation_covariance(g)[0], g["e_rot"][0]
+    tr, tr2 = np.trace(S), float(np.sum(S * S.T))
+    n2 = float(e @ e)
+    return float(chi2.cdf(n2 * tr / tr2, tr**2 / tr2)), float(e @ np.linalg.solve(S, e))
+
+
 EXACT_SAMPLES = 200_000
 """Samples of a draw's predicted orientation covariance for the exact 95 % quantile of the norm
 :func:`bound_check` compares the bound's with (its sampling error about 0.2 %)."""
@@ -189,7 +219,8 @@ def bound_check(got: list[dict], seed: int = 0, samples: int = EXACT_SAMPLES) ->
     the 95 % bound; ``pit`` (d,) each draw's ``P(|x| <= |e|)`` at its first joint vector with
     ``pit_mean`` and the Kolmogorov-Smirnov p ``pit_ks_p`` against the uniform; ``beyond`` the
     draws with ``pit`` above 0.95, ``beyond_range`` a right bound's central 90 % range of that
-    count and ``beyond_p`` the chance of at most ``beyond``; ``ratio`` the pooled realised over
+    count and ``beyond_p`` the chance of at most ``beyond``; ``whitened`` the mean of the draws' whitened
+    error at that point (:func:`first_point`; 3 +- ``sqrt(6 / d)`` for a right prediction); ``ratio`` the pooled realised over
     predicted mean square orientation error (every joint vector) with ``ratio_range`` its
     bootstrap 90 % range over the draws; ``quantile_excess`` the largest and the median
     relative excess of the bound's 95 % quantile over the exact one (``samples`` samples of the
@@ -199,17 +230,16 @@ def bound_check(got: list[dict], seed: int = 0, samples: int = EXACT_SAMPLES) ->
     rng = np.random.default_rng(seed)
     z2 = rng.standard_normal((samples, 3)) ** 2
     exact_of = set(np.linspace(0, len(ok) - 1, min(len(ok), EXACT_DRAWS)).round().astype(int))
-    inside, pit, sq, tr_mean, excess = [], [], [], [], []
+    inside, pit, white, sq, tr_mean, excess = [], [], [], [], [], []
     for i, g in enumerate(ok):
-        J, e = g["J"], g["e_rot"]
-        p = J.shape[2]
-        S = J @ g["cov"][:p, :p] @ np.swapaxes(J, 1, 2)
+        S, e = orientation_covariance(g), g["e_rot"]
         n2 = np.sum(e**2, axis=1)
         inside.append(n2 <= norm_quantile(S) ** 2)
-        tr, tr2 = np.trace(S, axis1=1, axis2=2), np.einsum("mij,mji->m", S, S)
-        pit.append(float(chi2.cdf(n2[0] * tr[0] / tr2[0], tr[0] ** 2 / tr2[0])))
+        u, w = first_point(g)
+        pit.append(u)
+        white.append(w)
         sq.append(n2.mean())
-        tr_mean.append(tr.mean())
+        tr_mean.append(np.trace(S, axis1=1, axis2=2).mean())
         if i in exact_of:
             exact = np.sqrt(np.quantile(z2 @ np.linalg.eigvalsh(S[0]), 0.95))
             excess.append(float(norm_quantile(S[0])) / exact - 1.0)
@@ -223,6 +253,7 @@ def bound_check(got: list[dict], seed: int = 0, samples: int = EXACT_SAMPLES) ->
         "pit": u,
         "pit_mean": float(u.mean()),
         "pit_ks_p": float(kstest(u, "uniform").pvalue),
+        "whitened": float(np.mean(white)),
         "beyond": beyond,
         "beyond_range": (int(binom.ppf(0.05, d, 0.05)), int(binom.ppf(0.95, d, 0.05))),
         "beyond_p": float(binom.cdf(beyond, d, 0.05)),
@@ -244,7 +275,9 @@ def bound_lines(b: dict) -> list[str]:
         f"{b['pit_mean']:.3f} (a right bound's 0.5 +- {np.sqrt(1 / 12 / b['draws']):.3f}), "
         f"Kolmogorov-Smirnov p = {b['pit_ks_p']:.2f} against the uniform, {b['beyond']} draws "
         f"beyond the bound (a right bound's {lo}-{hi}, P(<= {b['beyond']}) = "
-        f"{b['beyond_p']:.2f}); realised / predicted mean square {b['ratio']:.2f} (bootstrap "
+        f"{b['beyond_p']:.2f}); whitened e^T S^-1 e there: mean {b['whitened']:.2f} (a right "
+        f"prediction's 3 +- {np.sqrt(6 / b['draws']):.2f}); realised / predicted mean square "
+        f"{b['ratio']:.2f} (bootstrap "
         f"90 % {b['ratio_range'][0]:.2f}-{b['ratio_range'][1]:.2f}); Satterthwaite's 95 % "
         f"quantile over the exact one: at most {100 * b['quantile_excess'][0]:+.2f} % "
         f"(median {100 * b['quantile_excess'][1]:+.2f} %)",
@@ -284,20 +317,27 @@ def table(got: list[dict], title: str) -> str:
     return "\n".join(lines)
 
 
-def _arguments(argv: list[str] | None) -> argparse.Namespace:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--robot", default="er4u-paper", help="the robot (default er4u-paper)")
+def draw_options(ap: argparse.ArgumentParser, draws: int) -> None:
+    """The draws' options ``ap`` gets (this script's and
+    :mod:`selfcal.benchmarks.board_accuracy_shared`'s): ``--noise-px``, ``--draws`` (default
+    ``draws``), ``--first-seed``, ``--jobs`` and ``--keep``."""
     ap.add_argument("--noise-px", type=float, default=0.2, help="corner noise (px, default 0.2)")
-    ap.add_argument("--draws", type=int, default=20, help="draws (default 20)")
+    ap.add_argument("--draws", type=int, default=draws, help=f"draws (default {draws})")
     ap.add_argument("--first-seed", type=int, default=1, help="the first draw's seed (default 1)")
-    ap.add_argument("--fixed-truth", type=int, metavar="SEED",
-                    help="keep the truth and postures of SEED, draw only the pixel noise")  # fmt: skip
-    ap.add_argument("--noise-offset", type=int, metavar="N",
-                    help="keep each draw's truth, draw its noise with the seed N higher")  # fmt: skip
     ap.add_argument("--jobs", type=int, default=1, help="processes (default 1)")
     ap.add_argument("--keep", type=Path, metavar="DIR",
                     help="keep each draw in DIR and read it from there when the code checked out "
                          "(a clean commit) drew it")  # fmt: skip
+
+
+def _arguments(argv: list[str] | None) -> argparse.Namespace:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--robot", default="er4u-paper", help="the robot (default er4u-paper)")
+    draw_options(ap, 20)
+    ap.add_argument("--fixed-truth", type=int, metavar="SEED",
+                    help="keep the truth and postures of SEED, draw only the pixel noise")  # fmt: skip
+    ap.add_argument("--noise-offset", type=int, metavar="N",
+                    help="keep each draw's truth, draw its noise with the seed N higher")  # fmt: skip
     return ap.parse_args(argv)
 
 

@@ -6,7 +6,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from selfcal.benchmarks.board_accuracy_parts import bound_check, directions, kept_draw, main, table
+from selfcal.benchmarks.board_accuracy_parts import (
+    bound_check,
+    directions,
+    first_point,
+    kept_draw,
+    main,
+    table,
+)
 from selfcal.errors import UsageError
 
 
@@ -119,3 +126,14 @@ def test_a_fixed_truth_and_a_noise_offset_are_refused_together():
     any draw runs."""
     with pytest.raises(UsageError, match="--noise-offset"):
         main(["--fixed-truth", "1", "--noise-offset", "500", "--draws", "1"])
+
+
+def test_the_whitened_error_is_a_chi_square_with_three_degrees_of_freedom():
+    """Errors drawn from the prediction: the whitened error's mean over 400 draws is 3 within
+    3 of its standard errors (sqrt(6 / 400) = 0.12); errors half the size: a quarter of it."""
+    assert abs(bound_check(_draws(1.0))["whitened"] - 3.0) < 3 * np.sqrt(6 / 400)
+    assert bound_check(_draws(0.5))["whitened"] == pytest.approx(
+        bound_check(_draws(1.0))["whitened"] / 4
+    )
+    u, w = first_point(_draw(np.array([2.0, 1.0, 0.5])))
+    assert w == pytest.approx(3.0) and 0.0 < u < 1.0
