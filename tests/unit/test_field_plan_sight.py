@@ -133,8 +133,9 @@ def test_a_posture_the_rendered_replay_dropped_is_not_planned(ur5e_cell):
 def test_a_posture_showing_a_partly_hidden_marker_is_not_planned(ur5e_cell):
     """A posture of the UR5e cell's random 30 (`field_compare`'s, seed 1): its camera finds 14
     markers whole (56 corners, the view registers), and shows a 15th partly behind a raised
-    neighbour, whose corners the detector may return off. The planner's check refuses it."""
-    from selfcal.calibration.field.plan_sight import partly_hidden
+    neighbour, whose corners the detector may return off. A plan with clear views refuses it;
+    the default plan takes it."""
+    import dataclasses
 
     setup, layout, _, _ = ur5e_cell
     q = np.radians([[11.377809, -99.985743, 88.85419, -100.693046, -107.23014, -66.114666]])
@@ -143,7 +144,8 @@ def test_a_posture_showing_a_partly_hidden_marker_is_not_planned(ur5e_cell):
     assert registers(found_markers(*args)).all()
     assert found_markers(*args).sum() == 14
     assert partly_hidden(*args).sum() == 1
-    assert not setup.registers(q, layout)[0]
+    assert setup.registers(q, layout)[0]
+    assert not dataclasses.replace(setup, clear_views=True).registers(q, layout)[0]
 
 
 def test_every_candidate_of_a_field_plan_registers(ur5e_cell):
@@ -158,3 +160,21 @@ def test_every_candidate_of_a_field_plan_registers(ur5e_cell):
     assert setup.registers(plan.q, layout).all()
     assert plan.rejected_unseen > 0
     assert plan.candidates + plan.rejected_unseen + plan.rejected_collision <= 60
+
+
+def test_a_plan_with_clear_views_shows_no_partly_hidden_marker(ur5e_cell):
+    """With ``clear_views`` every candidate (and so every planned posture) registers and shows
+    no marker partly hidden; it refuses more candidates than the default plan."""
+    import dataclasses
+
+    from selfcal.calibration.field.plan import plan_field
+
+    setup, layout, ws, js = ur5e_cell
+    kw = {"seed": 1, "candidates": 60, "markers": 20, "pixel_sigma_px": 0.1, "joint_sigma": js}
+    clear = dataclasses.replace(setup, clear_views=True)
+    plan = plan_field(clear, 6, layout, ws, **kw)
+    T = fk_tool(setup.model_cam, plan.pool)
+    assert not partly_hidden(CAMERA, T, layout.corners_world, layout.normals_world,
+                             layout.supports).any()  # fmt: skip
+    assert clear.registers(plan.q, layout).all()
+    assert plan.rejected_unseen > plan_field(setup, 6, layout, ws, **kw).rejected_unseen
