@@ -12,8 +12,9 @@ finds fewer than :data:`selfcal.estimation.epipolar.MIN_SHARED` corners is dropp
 route's first pass, so a field plan takes only postures whose camera finds that many by
 :func:`found_markers`: every corner :data:`FOUND.margin_px <FOUND>` inside the image, the
 marker's foreshortening in the image at least :data:`MIN_ASPECT`, and the lines of sight to its
-tile's corners (the printed square with its quiet zone) clear of every other support. Nor does
-it take a posture whose camera shows a marker partly hidden by another's support
+tile's corners (the printed square with its quiet zone) clear of every other support. A plan
+with clear views (:attr:`selfcal.calibration.field.plan.FieldPlanSetup.clear_views`) takes no
+posture whose camera shows a marker partly hidden by another's support either
 (:func:`partly_hidden`): the detector may return such a marker with corners off by more than
 the noise and less than the field route's outlier floor, which keeps them. SI units.
 """
@@ -138,15 +139,21 @@ def found_markers(
     ``supports`` no line of sight is checked."""
     T = np.asarray(T_world_cam, dtype=float)
     c = np.asarray(corners_world, dtype=float)
-    ok = FOUND.markers(camera, T, c, normals_world)
-    T_cw = inv_pose(T)
-    Xc = np.einsum("mij,kcj->mkci", T_cw[:, :3, :3], c) + T_cw[:, None, None, :3, 3]
-    uv = camera.project_valid(Xc.reshape(-1, 3))[0].reshape(len(T), len(c), 4, 2)
-    with np.errstate(invalid="ignore"):
-        ok &= foreshortening(uv.reshape(-1, 4, 2)).reshape(len(T), len(c)) >= MIN_ASPECT
+    ok = FOUND.markers(camera, T, c, normals_world) & _upright(camera, T, c)
     if supports is not None:
         ok &= ~supports.hidden(T[:, :3, 3], supports.tiles(c))
     return ok
+
+
+def _upright(camera: CameraModel, T_world_cam: np.ndarray, corners_world: np.ndarray) -> np.ndarray:
+    """(m, K) bool: the markers (corners (K, 4, 3) m) whose image from poses ``T_world_cam``
+    (m, 4, 4) is foreshortened no more than the detector's :data:`MIN_ASPECT` allows."""
+    T_cw = inv_pose(T_world_cam)
+    c = corners_world
+    Xc = np.einsum("mij,kcj->mkci", T_cw[:, :3, :3], c) + T_cw[:, None, None, :3, 3]
+    uv = camera.project_valid(Xc.reshape(-1, 3))[0].reshape(len(T_cw), len(c), 4, 2)
+    with np.errstate(invalid="ignore"):
+        return foreshortening(uv.reshape(-1, 4, 2)).reshape(len(T_cw), len(c)) >= MIN_ASPECT
 
 
 def partly_hidden(
@@ -163,16 +170,11 @@ def partly_hidden(
     quiet zone (:meth:`Supports.sight_grid`) another marker's support hides and some not. On
     rendered KR 6 views the detector returned such markers with corners 0.2 - 4 px off
     (the raised neighbour's edge across the square or beside it), and the field route's 1 px
-    outlier floor keeps those below 1 px (docs/plan.md, "A marker field"): a planned view
-    must show none."""
+    outlier floor keeps those below 1 px (docs/plan.md, "A marker field"): a plan with clear
+    views shows none."""
     T = np.asarray(T_world_cam, dtype=float)
     c = np.asarray(corners_world, dtype=float)
-    ok = Visibility().markers(camera, T, c, normals_world)
-    T_cw = inv_pose(T)
-    Xc = np.einsum("mij,kcj->mkci", T_cw[:, :3, :3], c) + T_cw[:, None, None, :3, 3]
-    uv = camera.project_valid(Xc.reshape(-1, 3))[0].reshape(len(T), len(c), 4, 2)
-    with np.errstate(invalid="ignore"):
-        ok &= foreshortening(uv.reshape(-1, 4, 2)).reshape(len(T), len(c)) >= MIN_ASPECT
+    ok = Visibility().markers(camera, T, c, normals_world) & _upright(camera, T, c)
     h = supports.hidden_points(T[:, :3, 3], supports.sight_grid(c))
     return ok & h.any(axis=2) & ~h.all(axis=2)
 
