@@ -54,9 +54,12 @@ DEFAULT_OUT = "runs/BLOCK"
 """``--out``'s default, read as ``runs/`` and the cell's docs block (:func:`_block`)."""
 
 
-def field_cell(root: Path, robot_name: str = "ur5e", pixel_sigma_px: float = 0.5) -> dict:
+def field_cell(
+    root: Path, robot_name: str = "ur5e", pixel_sigma_px: float = 0.5, render: bool = False
+) -> dict:
     """The benchmark's cell (docs/plan.md's field example; ``robot_name``'s arm): ``robot``, ``camera``, the plan's
-    ``setup``, the read-back noise ``joint_sigma`` (n,) rad, the forecast's ``workspace`` (w, n)
+    ``setup`` (rendered: with ``clear_views``, no planned view shows a marker partly hidden,
+    whose corners the detector may return off; the analytic simulator's corners are not), the read-back noise ``joint_sigma`` (n,) rad, the forecast's ``workspace`` (w, n)
     rad, the replay's marker ``layout`` (its scenario written under ``root``) and the planner's
     keywords ``plan_kw``."""
     from selfcal.calibration.field.joint_refine import encoder_sigma
@@ -70,7 +73,7 @@ def field_cell(root: Path, robot_name: str = "ur5e", pixel_sigma_px: float = 0.5
     robot = load_robot(robot_name)
     camera = camera_from_fov(60.0, 640, 480)
     setup = FieldPlanSetup(robot, Rig((camera,), np.eye(4)[None], ("left",)),
-                           FIELD["extent_mm"] / 1000, np.zeros((0, 6)))  # fmt: skip
+                           FIELD["extent_mm"] / 1000, np.zeros((0, 6)), clear_views=render)  # fmt: skip
     js = encoder_sigma(robot)
     # the forecast's markers: the replays' simulated field (the same for every set)
     root.mkdir(parents=True, exist_ok=True)
@@ -89,15 +92,17 @@ def field_sets(
     random_counts: tuple[int, ...] = (30,),
     robot_name: str = "ur5e",
     pixel_sigma_px: float = 0.5,
+    render: bool = False,
 ) -> dict:
     """``{name: (scenario path, q (m, n) rad, forecast m)}``: the plan of ``count`` and the
-    first ``random_counts`` random postures of ``robot_name``'s cell, each written as a replay
-    scenario under ``root``; planned and forecast for ``pixel_sigma_px`` of corner noise."""
+    first ``random_counts`` random postures of ``robot_name``'s cell (``render``: the rendered
+    cell's, :func:`field_cell`), each written as a replay scenario under ``root``; planned and
+    forecast for ``pixel_sigma_px`` of corner noise."""
     from selfcal.calibration.field.plan import field_forecast, plan_field, random_plan
     from selfcal.cli.plan_scenario import scenario_text
     from selfcal.io.plan_files import joints_csv
 
-    cell = field_cell(root, robot_name, pixel_sigma_px)
+    cell = field_cell(root, robot_name, pixel_sigma_px, render)
     robot, camera, setup, js = cell["robot"], cell["camera"], cell["setup"], cell["joint_sigma"]
     ws, layout, kw = cell["workspace"], cell["layout"], cell["plan_kw"]
     names = [f"plan {count}"] + [f"random {n}" for n in random_counts]
@@ -282,7 +287,7 @@ def main(argv: list[str] | None = None) -> int:
 
     a = _options(argv)
     root = Path(a.out)
-    sets = field_sets(root, robot_name=a.robot, pixel_sigma_px=a.pixel_sigma)
+    sets = field_sets(root, robot_name=a.robot, pixel_sigma_px=a.pixel_sigma, render=a.render)
     journal = root / "draws.jsonl"  # a run stopped before resumes: its draws are not redone
     done = [json.loads(x) for x in journal.read_text().splitlines()] if journal.exists() else []
     stamps = {name: cell_stamp(a.robot, a.render, a.pixel_sigma, q)

@@ -7,7 +7,10 @@ candidate sequence) and the plan of 30, each posture set's forecast
 (:func:`selfcal.calibration.field.plan.field_forecast`: the markers' corners unknown, as the
 field route estimates them) beside the same bound with the corners known (the planner's
 criterion, :func:`selfcal.calibration.field.plan_information.frame_information` summed:
-``sqrt(trace(G C))``), the markers seen per view and the views per marker, and the unknowns
+``sqrt(trace(G C))``) and the corners-unknown exchange's criterion
+(:func:`selfcal.calibration.field.plan_corners.corner_criterion`: the corners unknown, each
+posture's read-back errors eliminated within each marker's rows, their coupling between markers
+dropped), the markers seen per view and the views per marker, and the unknowns
 (camera, kinematics, corners of the markers seen twice, the joints' read-back errors) against
 the equations (two per corner seen). Then the plan's forecast for each of ``--counts``
 postures (:func:`selfcal.calibration.field.plan.plan_field`; its ``to_match``, the count
@@ -37,8 +40,14 @@ BLOCK = "benchmark_plan_field_count"
 def _row(cell: dict, name: str, q: np.ndarray) -> str:
     """One posture set's table row (module docstring)."""
     from selfcal.calibration.board.plan.greedy import predicted_error
+    from selfcal.calibration.field.bounds_setup import predicted_setup
     from selfcal.calibration.field.plan import field_forecast
-    from selfcal.calibration.field.plan_information import frame_information, tool_weight
+    from selfcal.calibration.field.plan_corners import corner_blocks, corner_criterion
+    from selfcal.calibration.field.plan_information import (
+        frame_information,
+        posture_rows,
+        tool_weight,
+    )
     from selfcal.camera import Visibility
     from selfcal.kinematics.forward import fk_tool
 
@@ -49,13 +58,18 @@ def _row(cell: dict, name: str, q: np.ndarray) -> str:
     G = tool_weight(setup.model_cam, ws, setup.robot.T_flange_cam)
     n_cam = F.shape[1] - len(G)
     known = predicted_error(F.sum(axis=0), G, n_cam)
+    fs = predicted_setup(setup.model_cam, q, setup.rig, layout.ids, layout.corners_world,
+                         layout.normals_world, layout.scale_ids, layout.scale_length_m,
+                         pixel_sigma_px=0.5, joint_sigma=js)  # fmt: skip
+    crit = corner_criterion(corner_blocks(posture_rows(fs, setup.rig.n_cameras)), G,
+                            np.arange(len(q)))  # fmt: skip
     vis = setup.rig.visible_markers(Visibility(), fk_tool(setup.model_cam, q),
                                     layout.corners_world, layout.normals_world)[:, 0]  # fmt: skip
     per_view, per_marker = vis.sum(axis=1), vis.sum(axis=0)
     corners = 3 * 4 * int((per_marker >= 2).sum())
     unknowns = (n_cam, len(G), corners, q.shape[1] * len(q))
     rms = "none" if fc.tool_rms_m is None else f"{fc.tool_rms_m * 1000:.3f}"
-    return (f"| {name} | {rms} | {known * 1000:.3f} | {fc.fx_std_px:.2f} | "
+    return (f"| {name} | {rms} | {known * 1000:.3f} | {crit * 1000:.3f} | {fc.fx_std_px:.2f} | "
             f"{per_view.mean():.1f} ({per_view.min()} - {per_view.max()}) | "
             f"{per_marker.mean():.1f} ({per_marker.min()} - {per_marker.max()}) | "
             f"{' + '.join(map(str, unknowns))} = {sum(unknowns)} | {2 * fc.observations} |")  # fmt: skip
@@ -82,9 +96,10 @@ def main(argv: list[str] | None = None) -> int:
     assert p12.pool is not None and p12.chosen is not None
     if p12.start is not None:  # the other choices' best: where the corners' exchange began
         sets[f"plan 12 before the corners' exchange ({p12.start_by})"] = p12.pool[p12.start]
-    lines = ["| postures | forecast (mm) | corners known (mm) | fx bound (px) | markers per "
-             "view, mean (range) | views per marker, mean (range) | unknowns: camera + "
-             "kinematics + corners + read-back | equations |", "|---|---|---|---|---|---|---|---|"]  # fmt: skip
+    lines = ["| postures | forecast (mm) | corners known (mm) | the exchange's criterion (mm) | "
+             "fx bound (px) | markers per view, mean (range) | views per marker, mean (range) | "
+             "unknowns: camera + kinematics + corners + read-back | equations |",
+             "|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
     lines += [_row(cell, name, q) for name, q in sets.items()]
     r30 = field_forecast(setup, layout, sets["random 30"], ws, pixel_sigma_px=0.5,
                          joint_sigma=cell["joint_sigma"]).tool_rms_m  # fmt: skip

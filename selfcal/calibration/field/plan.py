@@ -18,7 +18,8 @@ file's ``[planning] span_deg``) that
   camera find enough markers for the field route to register its view, as the renderer and the
   detector find them (:meth:`FieldPlanSetup.registers`, :mod:`selfcal.calibration.field.
   plan_sight`: within the detector's foreshortening limit, 12 px inside the image, not hidden by
-  a raised support).
+  a raised support), and, with ``clear_views``, show no marker partly hidden by a raised
+  support (whose corners the detector may return off).
 
 The field's region is a square on the table (z = 0, base frame) centred where the home posture's
 optical axis meets it (:func:`selfcal.kinematics.trajectory.home_target_center`), as the simulated
@@ -70,7 +71,7 @@ from selfcal.calibration.field.plan_information import (
     rows_information,
     tool_weight,
 )
-from selfcal.calibration.field.plan_sight import found_markers, registers
+from selfcal.calibration.field.plan_sight import found_markers, partly_hidden, registers
 from selfcal.camera import Rig
 from selfcal.kinematics.forward import fk_tool
 from selfcal.kinematics.keep_out import check_boxes, collision_free
@@ -117,13 +118,16 @@ class FieldPlanSetup:
     """The cell of a field plan: the ``robot`` (its ``[camera_mount]`` puts the rig's first
     camera on the flange), the camera ``rig``, the square region of side ``extent_m`` (m) holding
     the markers, centred where the home posture looks, the keep-out ``boxes`` (b, 6) m (base
-    frame) and ``min_visible``: the grid points every camera must see."""
+    frame) and ``min_visible``: the grid points every camera must see; with ``clear_views`` a
+    planned posture's camera shows no marker partly hidden by a raised support of the field
+    (:meth:`registers`)."""
 
     robot: RobotDef
     rig: Rig
     extent_m: float
     boxes: np.ndarray
     min_visible: int = 6
+    clear_views: bool = False
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "boxes", check_boxes(np.asarray(self.boxes, dtype=float)))
@@ -155,13 +159,19 @@ class FieldPlanSetup:
         """(m,) bool: postures ``q`` (m, n) rad at which every camera of the rig (at the
         nominal chain) finds enough of ``layout``'s markers for the field route to register
         its view (:func:`selfcal.calibration.field.plan_sight.found_markers`,
-        :func:`~selfcal.calibration.field.plan_sight.registers`)."""
+        :func:`~selfcal.calibration.field.plan_sight.registers`) and, with
+        :attr:`clear_views`, shows no marker partly hidden behind another's support
+        (:func:`~selfcal.calibration.field.plan_sight.partly_hidden`: the detector may return
+        its corners off)."""
         T = fk_tool(self.model_cam, np.atleast_2d(q))
         ok = np.ones(len(T), dtype=bool)
         for cam, T_first_cam in zip(self.rig.cameras, self.rig.T_first_cam, strict=True):
             found = found_markers(cam, T @ T_first_cam, layout.corners_world,
                                   layout.normals_world, layout.supports)  # fmt: skip
             ok &= registers(found)
+            if self.clear_views and layout.supports is not None:
+                ok &= ~partly_hidden(cam, T @ T_first_cam, layout.corners_world,
+                                     layout.normals_world, layout.supports).any(axis=1)  # fmt: skip
         return ok
 
     def collision_ok(self, q: np.ndarray) -> np.ndarray:
