@@ -9,6 +9,8 @@ overlap); at most one frame is in flight, and a frame is complete on disk before
 is handed over. With a :class:`selfcal.io.frame_cache.FrameCache` another helper thread keeps
 each image meanwhile as the gray pixels the calibration would read back (``selfcal run``
 calibrates from memory) and detects its markers there (:attr:`FrameCache.on_image`).
+With :class:`selfcal.acquisition.held_frames.HeldFrames` (a simulated ``selfcal run``) the
+frames' files are written after the loop instead, beside the calibration.
 """
 
 from __future__ import annotations
@@ -19,17 +21,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from selfcal.acquisition.held_frames import HeldFrames
+from selfcal.acquisition.stopped import AcquisitionError, stopped
 from selfcal.console.progress import Progress
-from selfcal.errors import HardwareError
 from selfcal.io.dataset import DatasetWriter
 from selfcal.io.frame_cache import FrameCache
 from selfcal.robot.interface import Robot
 
 __all__ = ["AcquisitionError", "AcquisitionHooks", "acquire"]
-
-
-class AcquisitionError(HardwareError):
-    """Acquisition stopped; the message says how many frames are safe and how to resume."""
 
 
 @dataclass
@@ -55,11 +54,15 @@ def acquire(
     progress: Progress | None = None,
     keep: FrameCache | None = None,
     resume_command: str | None = None,
+    held: HeldFrames | None = None,
 ) -> int:
     """Take every planned frame that the dataset does not hold yet; returns frames taken now.
     ``keep``: also keep the images taken in memory (:meth:`FrameCache.add`). ``resume_command``:
     the command that continues this acquisition, named when it stops (default ``selfcal acquire
-    SCENARIO --out ROOT --resume``).
+    SCENARIO --out ROOT --resume``). ``held``: hand the captured frames to it instead of
+    writing them (:class:`HeldFrames`: written once the loop ends, while the caller goes on;
+    the caller's ``with held:`` waits for them); when the loop stops on an error, every frame
+    taken before is written first.
 
     Raises:
         AcquisitionError: a robot or camera failure; every frame taken before it is kept on disk
@@ -75,10 +78,18 @@ def acquire(
         progress.start(len(plan), done=len(plan) - len(todo))
     pending: list[tuple[int, Future]] = []  # the frame the worker is writing
     cameras = writer.info.cameras
+    resume_command = resume_command or f"selfcal acquire SCENARIO --out {writer.root} --resume"
+    if held is not None:
+        held.attach(writer, len(plan), resume_command)
 
     def store(i: int, q: np.ndarray, left: np.ndarray, right: np.ndarray | None) -> None:
         """Write frame ``i`` (the worker thread; the second image on ``helpers``) and keep its
         images meanwhile (on the other helper: the cache's gray images and detections)."""
+        if held is not None:  # keep the images (here), the files later
+            if keep is not None:
+                keep.add(i, {c: v for c, v in (("left", left), ("right", right)) if c in cameras})
+            held.hold(i, q, left, right)
+            return
         kept = None
         if keep is not None:
             shown = {c: v for c, v in (("left", left), ("right", right)) if c in cameras}
@@ -89,6 +100,12 @@ def acquire(
             if kept is not None:
                 kept.result()
 
+    def stop(j: int, exc: BaseException) -> AcquisitionError:
+        """The error that stops the acquisition at frame ``j``, the frames held written first."""
+        if held is not None:
+            held.drain()
+        return stopped(j, len(plan), writer, exc, resume_command)
+
     def settle() -> None:
         """Wait for the frame in flight; its failure stops the acquisition at that frame."""
         while pending:
@@ -96,7 +113,7 @@ def acquire(
             try:
                 fut.result()
             except (Exception, KeyboardInterrupt) as exc:
-                raise _stopped(j, len(plan), writer, exc, resume_command) from exc
+                raise stop(j, exc) from exc
 
     with (
         ThreadPoolExecutor(max_workers=1, thread_name_prefix="frame-writer") as pool,
@@ -111,7 +128,7 @@ def acquire(
                         writer.add_frame(i, q, detections=hooks.detect())
                     else:
                         pair = robot.capture()
-                        settle()  # the previous frame is on disk before this one is handed over
+                        settle()  # the previous frame is on disk (or held) before this one is handed over
                         fut = pool.submit(store, i, q, pair.left, pair.right)
                         pending.append((i, fut))
                     if hooks.record_truth is not None:
@@ -120,11 +137,13 @@ def acquire(
                     raise
                 except (Exception, KeyboardInterrupt) as exc:
                     settle()
-                    raise _stopped(i, len(plan), writer, exc, resume_command) from exc
+                    raise stop(i, exc) from exc
                 taken += 1
                 if progress is not None:
                     progress.advance()
             settle()
+            if held is not None:
+                held.release()
         finally:
             for _, fut in pending:  # an error elsewhere: let the frame in flight land
                 fut.exception()
@@ -133,19 +152,3 @@ def acquire(
     if progress is not None:
         progress.finish()
     return taken
-
-
-def _stopped(
-    i: int, n: int, writer: DatasetWriter, exc: BaseException, resume_command: str | None
-) -> AcquisitionError:
-    """The error that stops the acquisition at frame ``i`` of ``n``: why, what is kept and the
-    command that continues (a Ctrl-C's ``KeyboardInterrupt`` has no text of its own)."""
-    if isinstance(exc, KeyboardInterrupt):
-        reason = "interrupted (Ctrl-C)"
-    else:
-        reason = str(exc) or type(exc).__name__
-    command = resume_command or f"selfcal acquire SCENARIO --out {writer.root} --resume"
-    return AcquisitionError(
-        f"acquisition stopped at frame {i} of {n}: {reason}. "
-        f"{writer.n_done} frames are kept in {writer.root}; continue with `{command}`"
-    )

@@ -21,8 +21,9 @@ partial rows of the frame that was being written.
 from __future__ import annotations
 
 import csv
+import io
 import os
-from collections.abc import Iterator
+from collections.abc import Container, Iterator
 from concurrent.futures import Executor, wait
 from dataclasses import dataclass
 from pathlib import Path
@@ -53,6 +54,7 @@ __all__ = [
     "DatasetWriter",
     "Dataset",
     "Detections",  # defined with detections.csv's reader
+    "joints_row",
     "read_gray",
     "read_joints_csv",
 ]
@@ -93,6 +95,14 @@ def _encode_png(rgb: np.ndarray) -> bytes:
     if not ok:  # pragma: no cover
         raise DatasetError("could not encode a PNG image")
     return buf.tobytes()
+
+
+def joints_row(index: int, joints_deg: np.ndarray) -> str:
+    """Frame ``index``'s row of ``joints.csv`` as :class:`DatasetWriter` writes it: the index,
+    then each joint reading (deg) to 6 decimals, CRLF-terminated (the csv module's default)."""
+    text = io.StringIO()
+    csv.writer(text).writerow([index] + [f"{v:.6f}" for v in np.asarray(joints_deg)])
+    return text.getvalue()
 
 
 def _robot_source(root: Path, ref: str) -> str | Path:
@@ -241,7 +251,7 @@ class DatasetWriter:
                 fh.flush()
                 os.fsync(fh.fileno())
         with open(self._joints, "a", newline="") as fh:
-            csv.writer(fh).writerow([index] + [f"{v:.6f}" for v in np.asarray(joints_deg)])
+            fh.write(joints_row(index, joints_deg))
             fh.flush()
             os.fsync(fh.fileno())
         self.done.append(index)
@@ -262,16 +272,21 @@ def _frame_list(indices: tuple[int, ...] | list[int]) -> str:
     return f"{word} {', '.join(str(i) for i in indices[:20])}{more}"
 
 
-def read_joints_csv(path: Path, n_joints: int) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
+def read_joints_csv(
+    path: Path, n_joints: int, text: str | None = None
+) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
     """The frames of a dataset's ``joints.csv``: indices (m,), joint read-back (m, n) deg, and
     the cut-off rows left out (a last line without its newline -- an interrupted write -- or a
     row of fewer than ``n_joints`` values), one description each naming line and frame.
+    ``text``: the file's text as its writer will leave it, read instead of the file (the
+    messages still name ``path``).
 
     Raises:
         DatasetError: a value that is not a number, NaN or inf, too many values, a frame index
             twice (each naming the file, line and frame).
     """
-    text = read_text(path) if path.is_file() else ""
+    if text is None:
+        text = read_text(path) if path.is_file() else ""
     lines = text.splitlines()
     cut: list[str] = []
     idx: list[int] = []
@@ -327,8 +342,11 @@ class Dataset:
     """The cut-off rows of ``joints.csv``, one description each (line, frame, what is wrong)."""
 
     @classmethod
-    def open(cls, root: str | Path) -> Dataset:
-        """Open ``root``; raises DatasetError if it is not a complete dataset."""
+    def open(cls, root: str | Path, *, joints_csv: str | None = None) -> Dataset:
+        """Open ``root``; raises DatasetError if it is not a complete dataset. ``joints_csv``:
+        the text of ``joints.csv`` as its writer will leave it, taken instead of the file
+        (``selfcal run`` calibrates while its last frames are still being written:
+        :class:`selfcal.acquisition.held_frames.HeldFrames`)."""
         root = Path(root)
         meta = root / "dataset.json"
         if not meta.is_file():
@@ -340,7 +358,8 @@ class Dataset:
         info = read_dataset_info(meta)
         _check_robot_model(root, info.robot_model, meta)
         info.check_encoder_model(meta)
-        idx, q, cut = read_joints_csv(root / "joints.csv", info.planned_joints_deg.shape[1])
+        n = info.planned_joints_deg.shape[1]
+        idx, q, cut = read_joints_csv(root / "joints.csv", n, joints_csv)
         if not len(idx) and not cut:
             raise DatasetError(f"{root}: joints.csv holds no frames; acquire first")
         missing = sorted(set(range(len(info.planned_joints_deg))) - set(idx.tolist()))
@@ -382,13 +401,17 @@ class Dataset:
         suffix = self.info.image_suffix
         return tuple(self.root / "frames" / f"{index:04d}_{c}{suffix}" for c in self.info.cameras)
 
-    def image_paths(self) -> list[tuple[int, str, Path]]:
+    def image_paths(
+        self, in_memory: Container[tuple[int, str]] = ()
+    ) -> list[tuple[int, str, Path]]:
         """``(index, camera, path)`` of every image; raises DatasetError for a missing frame
-        before anything is read."""
+        before anything is read. ``in_memory``: the ``(index, camera)`` images the reader has
+        in memory (:class:`selfcal.io.frame_cache.FrameCache`), whose files are not looked
+        for (they may still be being written)."""
         out = []
         for i in self.indices:
             for cam, path in zip(self.info.cameras, self.frame_paths(int(i))):
-                if not path.is_file():
+                if (int(i), cam) not in in_memory and not path.is_file():
                     raise _missing(path, int(i))
                 out.append((int(i), cam, path))
         return out

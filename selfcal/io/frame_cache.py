@@ -13,10 +13,14 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from selfcal.errors import UsageError
+
+if TYPE_CHECKING:
+    from selfcal.io.dataset import Dataset
 
 __all__ = ["gray_of_png", "FrameCache"]
 
@@ -67,6 +71,13 @@ class FrameCache:
     """Called with ``(index, camera, gray)`` for every image :meth:`add` is given, kept or not
     (``selfcal run`` detects the markers there, while the acquisition goes on:
     :func:`selfcal.calibration.field.detections.detect_ahead`)."""
+    left_out: int = 0
+    """Images :meth:`add` was given and did not keep (over ``max_bytes``, or of another kind)."""
+    dataset: Dataset | None = None
+    """The dataset as its writer will leave it, while its last frames are still being written
+    (``selfcal run``: :class:`selfcal.acquisition.held_frames.HeldFrames`; every image of those
+    frames is in ``images`` then): the calibration takes it instead of opening the folder.
+    None: open the folder."""
 
     def add(self, index: int, images: dict[str, np.ndarray]) -> None:
         """Keep frame ``index``'s images (uint8 RGB or gray, by camera) while they fit; an image
@@ -74,11 +85,14 @@ class FrameCache:
         full = False
         for cam, img in images.items():
             if not _is_png_rgb_or_gray(img):
+                self.left_out += 1
                 continue
             gray = gray_of_png(img)
             if self.on_image is not None:
                 self.on_image(index, cam, gray)
             full = full or self.nbytes + gray.nbytes > self.max_bytes
-            if not full:
+            if full:
+                self.left_out += 1
+            else:
                 self.images[(index, cam)] = gray
                 self.nbytes += gray.nbytes

@@ -20,18 +20,20 @@ from pathlib import Path
 
 import numpy as np
 
-from selfcal.calibration.board.evaluate import evaluates, read_evaluation
+from selfcal.calibration.board.evaluate import evaluates, no_gain, read_evaluation, worse
 from selfcal.errors import EXIT_INTERNAL, SelfCalError, SelfCalWarning
+from selfcal.io.atomic import write_text_atomic
 from selfcal.io.board_calibration import BoardCalibrationResult
 from selfcal.io.calibration import CalibrationResult
 from selfcal.io.dataset import Dataset
+from selfcal.io.jsonfile import write_report
 from selfcal.kinematics.accuracy import parameter_table
 from selfcal.kinematics.alignment import express_in_frame
 from selfcal.kinematics.mcpc import nominal_mcpc
 from selfcal.pipeline.report_cameras import rig_camera_markdown, rig_camera_rows
 from selfcal.robot.definition import load_robot
 
-__all__ = ["fit_report", "board_fit_report", "fit_markdown", "HOLDOUT_EVERY"]
+__all__ = ["fit_report", "board_fit_report", "fit_markdown", "write_fit_report", "HOLDOUT_EVERY"]
 
 HOLDOUT_EVERY = 5
 """The leave-some-poses-out check holds out every 5th frame (6 of the default 30)."""
@@ -356,3 +358,29 @@ def figure_links(figures: list[str]) -> list[str]:
     if not figures:
         return []
     return ["", "## Figures", ""] + [f"![{Path(p).stem}]({p})" for p in figures]
+
+
+def write_fit_report(root: Path, report: dict, drawn: list[Path], *, quiet: bool) -> dict:
+    """Write ``root/report.json`` and ``report.md`` of a fit ``report`` (:func:`fit_report`,
+    :func:`board_fit_report`) with the figures ``drawn``: its verdict "no gain" when the held-out
+    reprojection of the calibrated model is not below the nominal reference's, a failure when it
+    is worse; returns the report."""
+    report["figures"] = [str(p.relative_to(root)) for p in drawn]
+    failures = list(report.get("failures", []))
+    rms = report["held_out"].get("reprojection_rms_px")
+    if rms is not None and "verdict" not in report and no_gain(rms["calibrated"], rms["nominal"]):
+        report["verdict"] = (
+            f"no gain: the held-out reprojection of the calibrated model "
+            f"({rms['calibrated']:.3f} px) is not below the nominal reference's "
+            f"({rms['nominal']:.3f} px)"
+        )
+    if rms is not None and worse(rms["calibrated"], rms["nominal"]):
+        failures.append(
+            f"the held-out reprojection of the calibrated model ({rms['calibrated']:.3f} px) is "
+            f"worse than the nominal reference's ({rms['nominal']:.3f} px): do not use it"
+        )
+    report["status"], report["failures"] = ("failed" if failures else "ok"), failures
+    write_report(root / "report.json", report)
+    md = fit_markdown(report, report["figures"])
+    write_text_atomic(root / "report.md", md)
+    return report

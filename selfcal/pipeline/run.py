@@ -14,7 +14,7 @@ import dataclasses
 import shlex
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -22,6 +22,7 @@ import numpy as np
 
 from selfcal.acquisition.acquire import acquire
 from selfcal.acquisition.backends import open_robot, plan_dataset
+from selfcal.acquisition.held_frames import HeldFrames
 from selfcal.acquisition.simulator_setup import SimSetup, sim_setup
 from selfcal.calibration.board.evaluate import Evaluation, evaluate_board, no_gain, worse
 from selfcal.calibration.field.calibrate import CalibrationFailedError, calibrate
@@ -46,11 +47,7 @@ from selfcal.io.truth import read_truth
 from selfcal.kinematics.accuracy import aligned_errors, format_table_iv, parameter_table, tool_tips
 from selfcal.kinematics.alignment import express_in_frame
 from selfcal.pipeline.report_cameras import camera_rows, rig_camera_rows
-from selfcal.pipeline.report_fit import (
-    board_fit_report,
-    fit_markdown,
-    fit_report,
-)
+from selfcal.pipeline.report_fit import board_fit_report, fit_report, write_fit_report
 from selfcal.pipeline.report_text import _markdown, _validation_csv, report_summary
 from selfcal.plots.figure_pool import FigurePool, run_figure_pool
 from selfcal.plots.job_figures import (
@@ -114,6 +111,7 @@ def run_acquire(
     keep: FrameCache | None = None,
     resume_command: str | None = None,
     setup: SimSetup | None = None,
+    held: HeldFrames | None = None,
 ) -> Path:
     """Acquire the scenario's dataset into ``out`` (resumable). ``dither_seed`` (simulation):
     move the planned postures by a random fraction of an encoder count (:func:`dithered`).
@@ -121,7 +119,9 @@ def run_acquire(
     and, for the field route, detect their markers as they are taken (:func:`detect_ahead`).
     ``resume_command``: what continues it when it stops (default ``selfcal acquire ... --resume``
     with this scenario and ``out``). ``setup``: the simulator's (default
-    :func:`selfcal.acquisition.simulator_setup.sim_setup` of ``s``; a benchmark's changed one)."""
+    :func:`selfcal.acquisition.simulator_setup.sim_setup` of ``s``; a benchmark's changed one).
+    ``held``: the frames' files are written after the acquisition, by it (:class:`HeldFrames`;
+    the caller's ``with held:`` waits for them)."""
     if setup is None and s.robot.backend == "sim":
         setup = sim_setup(s)
     info = plan_dataset(s, setup)
@@ -129,6 +129,7 @@ def run_acquire(
         q = dithered(np.asarray(info.planned_joints_deg), setup.robot, dither_seed)
         info = dataclasses.replace(info, planned_joints_deg=q)
     writer = DatasetWriter(out, info, resume=resume)
+    before = writer.n_done
     if keep is not None and _route(s) == "field":
         detect_ahead(info, keep)
     robot, hooks = open_robot(s, out, setup)
@@ -141,10 +142,11 @@ def run_acquire(
             keep=keep,
             resume_command=resume_command
             or f"selfcal acquire {scenario_arg(s)} --out {shlex.quote(str(out))} --resume",
+            held=held,
         )
     finally:
         robot.close()
-    _say(quiet, f"acquired {n} new frame(s); {writer.n_done} in {out}")
+    _say(quiet, f"acquired {n} new frame(s); {before + n} in {out}")  # held ones included
     return out
 
 
@@ -167,6 +169,7 @@ def run_calibrate(
     terms: Sequence[Term] = (),
     cache: FrameCache | None = None,
     joint_sigma: np.ndarray | None = None,
+    before_write: Callable[[], None] | None = None,
 ) -> CalibrationResult:
     """Calibrate the dataset in ``root`` and write ``root/calibration.json``; returns the
     result. Its warnings are printed (unless ``quiet``). ``raise_failed=False``: return a
@@ -176,7 +179,10 @@ def run_calibrate(
     :class:`selfcal.terms.tracker.TrackerTerm`).
     ``cache``: the images the acquisition of this run kept in memory (the rest is read); the
     detections are added to it. ``joint_sigma``: the joint read-back noise (rad / m) to model
-    instead of the robot file's encoder resolution.
+    instead of the robot file's encoder resolution. ``before_write``: called when the
+    calibration is done, before ``calibration.json`` is written (``selfcal run``: waits for
+    the dataset's frames still being written, :meth:`HeldFrames.drain`, so that no calibration
+    file stands beside a dataset missing its frames).
 
     Raises:
         CalibrationFailedError: the calibration failed a check of :mod:`selfcal.calibration.field.quality`; it is
@@ -185,6 +191,8 @@ def run_calibrate(
     res = calibrate(root, progress=Progress("detect", enabled=not quiet), method=method,
                     allow_missing_frames=allow_missing_frames, terms=terms,
                     cache=cache, joint_sigma=joint_sigma)  # fmt: skip
+    if before_write is not None:
+        before_write()
     path = write_calibration(Path(root) / "calibration.json", res)
     if figures:
         _say(quiet, f"figure: {reprojection_figures(root, evaluate_field(res, root, root, cache))}")
@@ -384,7 +392,7 @@ def _report_without_truth(
     root: Path, cal: CalibrationResult, *, quiet: bool, figures: bool, cache: FrameCache | None
 ) -> dict:
     drawn = [reprojection_figures(root, evaluate_field(cal, root, root, cache))] if figures else []
-    return _write_fit_report(root, fit_report(root, cal), drawn, quiet=quiet)
+    return write_fit_report(root, fit_report(root, cal), drawn, quiet=quiet)
 
 
 def _board_report(root: Path, cal: BoardCalibrationResult, *, quiet: bool, figures: bool) -> dict:
@@ -404,29 +412,7 @@ def _board_report(root: Path, cal: BoardCalibrationResult, *, quiet: bool, figur
     section, maps = board_accuracy_section(root, cal, figures=figures)
     if section is not None:
         report["accuracy"] = section
-    return _write_fit_report(root, report, drawn + maps, quiet=quiet)
-
-
-def _write_fit_report(root: Path, report: dict, drawn: list[Path], *, quiet: bool) -> dict:
-    report["figures"] = [str(p.relative_to(root)) for p in drawn]
-    failures = list(report.get("failures", []))
-    rms = report["held_out"].get("reprojection_rms_px")
-    if rms is not None and "verdict" not in report and no_gain(rms["calibrated"], rms["nominal"]):
-        report["verdict"] = (
-            f"no gain: the held-out reprojection of the calibrated model "
-            f"({rms['calibrated']:.3f} px) is not below the nominal reference's "
-            f"({rms['nominal']:.3f} px)"
-        )
-    if rms is not None and worse(rms["calibrated"], rms["nominal"]):
-        failures.append(
-            f"the held-out reprojection of the calibrated model ({rms['calibrated']:.3f} px) is "
-            f"worse than the nominal reference's ({rms['nominal']:.3f} px): do not use it"
-        )
-    report["status"], report["failures"] = ("failed" if failures else "ok"), failures
-    write_report(root / "report.json", report)
-    md = fit_markdown(report, report["figures"])
-    write_text_atomic(root / "report.md", md)
-    return report
+    return write_fit_report(root, report, drawn + maps, quiet=quiet)
 
 
 def run_all(
@@ -451,11 +437,15 @@ def run_all(
     # the report's figures: a worker forked now (before any thread or GL context) loads
     # matplotlib while this process acquires and calibrates (selfcal/plots/figure_pool.py)
     own = run_figure_pool(s, figures) if pool is None else contextlib.nullcontext(pool)
-    with own as pool:
+    route = _route(s)
+    # a simulation's field dataset: the PNGs are written beside the calibration (one core),
+    # not during the acquisition (two); leaving the block waits for them, also on an error
+    held = HeldFrames() if route == "field" and s.robot.backend == "sim" else None
+    with own as pool, held or contextlib.nullcontext():
         again = f"selfcal run {scenario_arg(s)} --out {shlex.quote(str(out))}"
         again += "" if method == "joint" else f" --method {method}"
-        run_acquire(s, out, resume=resume, quiet=quiet, keep=kept, resume_command=again)
-        route = _route(s)
+        run_acquire(s, out, resume=resume, quiet=quiet, keep=kept, resume_command=again,
+                    held=held)  # fmt: skip
         if route == "static":  # the board on the flange
             from selfcal.pipeline.static_report import calibrate_and_report_static
 
@@ -466,6 +456,10 @@ def run_all(
 
             return calibrate_and_report_board(s, out, quiet=quiet, figures=figures, t0=t0,
                                               deviation=deviation)  # fmt: skip
+        if held is not None and held.pending and not kept.left_out:
+            kept.dataset = held.dataset()  # calibrated from memory while the files are written
+        elif held is not None:
+            held.drain()
         # without truth (hardware) there is no report: the calibration draws what it can
         try:
             cal = run_calibrate(
@@ -474,6 +468,7 @@ def run_all(
                 method=method,
                 figures=figures and s.robot.backend != "sim",
                 cache=kept,
+                before_write=None if held is None else held.drain,
             )
         except CalibrationFailedError:
             if s.robot.backend == "sim":

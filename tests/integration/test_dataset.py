@@ -135,18 +135,24 @@ def test_one_camera_dataset_writes_and_reads_its_frames(tmp_path):
     np.testing.assert_array_equal(got[0][2], img)
 
 
-def test_a_frame_that_cannot_be_written_stops_the_acquisition_at_that_frame(tmp_path, monkeypatch):
-    """Frames are written by a worker thread while the robot moves on: a write failure still
-    names its own frame and keeps the frames before it."""
-    w = DatasetWriter(tmp_path, info())
+def failing_writer(root, at: int) -> DatasetWriter:
+    """A writer whose frame ``at`` cannot be written (``OSError("disk full")``)."""
+    w = DatasetWriter(root, info())
     real = w.add_frame
 
     def add_frame(index, *a, **k):
-        if index == 2:
+        if index == at:
             raise OSError("disk full")
         real(index, *a, **k)
 
-    monkeypatch.setattr(w, "add_frame", add_frame)
+    w.add_frame = add_frame  # type: ignore[method-assign]
+    return w
+
+
+def test_a_frame_that_cannot_be_written_stops_the_acquisition_at_that_frame(tmp_path):
+    """Frames are written by a worker thread while the robot moves on: a write failure still
+    names its own frame and keeps the frames before it."""
+    w = failing_writer(tmp_path, 2)
     with pytest.raises(AcquisitionError, match="stopped at frame 2 of 5: disk full.*2 frames"):
         acquire(FakeRobot(), w)
     assert Dataset.open(tmp_path).indices.tolist() == [0, 1]

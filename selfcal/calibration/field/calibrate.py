@@ -151,7 +151,8 @@ def calibrate_detailed(
     poses and distances, touch-probe points ...) estimated with the images in the one-step
     refinement (method ``joint`` only); the result records each term's section
     (``CalibrationResult.terms``).
-    ``cache``: images and detections already in memory (:func:`detect_dataset`).
+    ``cache``: images and detections already in memory (:func:`detect_dataset`), and the
+    dataset itself while its frames are still being written (:attr:`FrameCache.dataset`).
     ``joint_sigma``: the standard deviation of a joint reading (rad / m; one value or one per
     joint) the one-step refinement models, instead of the robot file's encoder resolution.
     ``fair_nominal``: False skips the fair nominal's fit (15 % of a Monte Carlo draw's CPU; a
@@ -177,7 +178,7 @@ def calibrate_detailed(
             fix=f"use the default method (joint) with {kinds} measurements",
         )
     t0 = time.perf_counter()
-    ds = Dataset.open(root)
+    ds = Dataset.open(root) if cache is None or cache.dataset is None else cache.dataset
     incomplete = ds.check_complete(allow_missing=allow_missing_frames)
     robot = load_robot(ds.robot_source)
     if ds.info.board is None and ds.info.cameras == CAMERAS[::-1]:

@@ -114,7 +114,7 @@ def detect_dataset(
         return index, cam, {k: flat.distorted(c) for k, c in dets.items()}, {}
 
     # OpenCV releases the GIL while decoding and detecting: use every core, keep the order.
-    images = list(ds.image_paths())
+    images = list(ds.image_paths(in_memory=() if cache is None else cache.images))
     with ThreadPoolExecutor(max_workers=helper_threads(len(images))) as pool:
         for index, cam, dets, sig in pool.map(detect, images):
             noise += sig.values()

@@ -1,0 +1,153 @@
+"""Frames a simulated ``selfcal run`` has taken but not yet written: their PNGs are encoded and
+written after the acquisition, while the calibration runs from the images in memory.
+
+The simulator keeps both cores busy while it acquires (rendering, the image noise, the marker
+detection); the calibration after it runs on one. Encoding the PNGs (a fifth of the
+acquisition's CPU) therefore costs wall time during the acquisition and none beside the
+calibration. :class:`HeldFrames` holds each frame's images from the acquisition loop
+(:func:`selfcal.acquisition.acquire.acquire`), writes them on one thread of its own once the
+loop ends (or sooner, when they exceed :data:`HOLD_BYTES`), in order and by
+:meth:`selfcal.io.dataset.DatasetWriter.add_frame` (the same files, byte for byte; a frame counts
+as taken once its joints row follows its images, as always), and hands the calibration the
+dataset as the writer will leave it (:meth:`HeldFrames.dataset`).
+
+Nothing taken is lost on an error or Ctrl-C: leaving the ``with`` block writes every frame held
+before the error goes on (:meth:`HeldFrames.drain`), and the interpreter's exit waits for the
+writing thread as well. A frame that cannot be written stops the writing there, as in the
+loop: the error names the frame, the frames kept and the command that continues.
+"""
+
+from __future__ import annotations
+
+from concurrent.futures import Future, ThreadPoolExecutor
+from types import TracebackType
+
+import numpy as np
+
+from selfcal.acquisition.stopped import stopped
+from selfcal.errors import InternalError
+from selfcal.io.dataset import Dataset, DatasetWriter, joints_row, read_text
+
+__all__ = ["HOLD_BYTES", "HeldFrames"]
+
+HOLD_BYTES = 256 * 2**20
+"""Images held before the writing starts while the acquisition goes on (~140 stereo frames
+of 640 x 480 RGB); past it each frame is written as it comes, beside the acquisition."""
+
+_Frame = tuple[int, np.ndarray, np.ndarray, np.ndarray | None]
+
+
+class HeldFrames:
+    """The frames of one acquisition whose files are written after it (module docstring).
+
+    Use it as a context manager around the acquisition and what runs from memory after it;
+    :func:`selfcal.acquisition.acquire.acquire` ``held=`` attaches it to its writer."""
+
+    def __init__(self, max_bytes: int = HOLD_BYTES) -> None:
+        self.max_bytes = max_bytes
+        self._writer: DatasetWriter | None = None
+        self._n_planned = 0
+        self._resume_command: str | None = None
+        self._joints_csv = ""  # joints.csv as the writer will leave it
+        self._frames: list[_Frame] = []  # held, not yet handed to the thread
+        self._nbytes = 0
+        self._pool: ThreadPoolExecutor | None = None
+        self._writes: list[tuple[int, Future]] = []
+        self._failed = False
+
+    def attach(self, writer: DatasetWriter, n_planned: int, resume_command: str | None) -> None:
+        """Write into ``writer``'s dataset (``n_planned`` frames planned; ``resume_command``
+        continues it after a failed write, as :func:`selfcal.acquisition.stopped.stopped`)."""
+        self._writer = writer
+        self._n_planned = n_planned
+        self._resume_command = resume_command
+        self._joints_csv = read_text(writer.root / "joints.csv")
+
+    @property
+    def pending(self) -> int:
+        """Frames held whose files are not yet known to be on disk."""
+        return len(self._frames) + sum(not f.done() for _, f in self._writes)
+
+    def hold(
+        self, index: int, joints_deg: np.ndarray, left: np.ndarray, right: np.ndarray | None
+    ) -> None:
+        """Keep frame ``index`` (its joint read-back, deg, and images) to be written later; it
+        is written now when the writing has begun (:meth:`release`, or over ``max_bytes``)."""
+        writer = self._require()
+        self._joints_csv += joints_row(index, joints_deg)
+        frame = (index, np.asarray(joints_deg), left, right)
+        if self._pool is not None:
+            self._submit(writer, frame)
+            return
+        self._frames.append(frame)
+        self._nbytes += left.nbytes + (0 if right is None else right.nbytes)
+        if self._nbytes > self.max_bytes:
+            self.release()
+
+    def dataset(self) -> Dataset:
+        """The dataset as the writer will leave it, every frame held included (its
+        ``joints.csv`` rows from memory; dataset.json from the folder)."""
+        return Dataset.open(self._require().root, joints_csv=self._joints_csv)
+
+    def release(self) -> None:
+        """Begin writing the frames held, in order, on the writing thread."""
+        if self._pool is None:
+            self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="held-writer")
+        frames, self._frames, self._nbytes = self._frames, [], 0
+        for frame in frames:
+            self._submit(self._require(), frame)
+
+    def drain(self) -> None:
+        """Write every frame held and wait until they are on disk.
+
+        Raises:
+            AcquisitionError: a frame could not be written (the frames after it are not
+                written either): the message names it, the frames kept and the command that
+                continues.
+        """
+        self.release()
+        writes, self._writes = self._writes, []
+        failure: tuple[int, BaseException] | None = None
+        for index, fut in writes:
+            exc = fut.exception()
+            if exc is not None and failure is None:
+                failure = (index, exc)
+        if failure is not None:
+            index, exc = failure
+            writer = self._require()
+            raise stopped(index, self._n_planned, writer, exc, self._resume_command) from exc
+
+    def __enter__(self) -> HeldFrames:
+        return self
+
+    def __exit__(
+        self,
+        kind: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        try:
+            self.drain()
+        finally:
+            if self._pool is not None:
+                self._pool.shutdown(wait=True)
+
+    def _submit(self, writer: DatasetWriter, frame: _Frame) -> None:
+        assert self._pool is not None
+        self._writes.append((frame[0], self._pool.submit(self._write, writer, frame)))
+
+    def _write(self, writer: DatasetWriter, frame: _Frame) -> None:
+        """Frame ``frame`` into the dataset; none after a failed one (its error is raised)."""
+        index, q, left, right = frame
+        if self._failed:
+            raise InternalError(f"frame {index} not written: an earlier frame failed")
+        try:
+            writer.add_frame(index, q, left=left, right=right)
+        except BaseException:
+            self._failed = True
+            raise
+
+    def _require(self) -> DatasetWriter:
+        if self._writer is None:
+            raise InternalError("HeldFrames.attach(writer, ...) first (acquire(held=...) does)")
+        return self._writer
