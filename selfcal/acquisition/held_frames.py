@@ -31,7 +31,7 @@ from selfcal.io.dataset import Dataset, DatasetWriter, joints_row, read_text
 __all__ = ["HOLD_BYTES", "HeldFrames"]
 
 HOLD_BYTES = 256 * 2**20
-"""Images held before the writing starts while the acquisition goes on (~140 stereo frames
+"""Images held before the writing starts while the acquisition goes on (~145 stereo frames
 of 640 x 480 RGB); past it each frame is written as it comes, beside the acquisition."""
 
 _Frame = tuple[int, np.ndarray, np.ndarray, np.ndarray | None]

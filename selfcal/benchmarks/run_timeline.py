@@ -46,6 +46,7 @@ STAGES: dict[str, tuple[str, ...]] = {
     "selfcal.acquisition.simulator_setup": ("sim_setup",),
     "selfcal.acquisition.backends": ("plan_dataset", "open_robot"),
     "selfcal.acquisition.acquire": ("acquire",),
+    "selfcal.acquisition.held_frames": ("HeldFrames.dataset", "HeldFrames.drain"),
     "selfcal.sim.render": ("StereoRenderer.__init__", "StereoRenderer.render"),
     "selfcal.sim.sim_robot": ("SimRobot.capture", "SimRobot._draw_noise", "apply_noise"),
     "selfcal.io.dataset": ("DatasetWriter.add_frame", "_encode_png", "_write_bytes_atomic"),
