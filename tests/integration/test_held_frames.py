@@ -106,6 +106,7 @@ def test_ctrl_c_during_the_acquisition_keeps_the_frames_taken_and_resumes(tmp_pa
     assert Dataset.open(root).indices.tolist() == [0, 1, 2]
     with HeldFrames() as held:
         assert acquire(FakeRobot(), DatasetWriter(root, info(), resume=True), held=held) == 2
+        assert held.dataset().indices.tolist() == [0, 1, 2, 3, 4]  # the kept ones and the held
     acquire(FakeRobot(), DatasetWriter(tmp_path / "loop", info()))
     assert _files(root) == _files(tmp_path / "loop")
 
