@@ -14,7 +14,10 @@ dataset as the writer will leave it (:meth:`HeldFrames.dataset`).
 Nothing taken is lost on an error or Ctrl-C: leaving the ``with`` block writes every frame held
 before the error goes on (:meth:`HeldFrames.drain`), and the interpreter's exit waits for the
 writing thread as well. A frame that cannot be written stops the writing there, as in the
-loop: the error names the frame, the frames kept and the command that continues.
+loop: the error names the frame, the frames kept and the command that continues. A process
+killed outright (SIGKILL, or SIGTERM, which Python does not turn into an exception) loses the
+frames still held, where the loop loses at most the frame in flight: the simulator renders them
+again on ``selfcal run``'s resume.
 """
 
 from __future__ import annotations
