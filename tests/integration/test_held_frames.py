@@ -162,3 +162,30 @@ def test_run_calibrates_from_memory_and_ctrl_c_there_leaves_the_files_of_the_loo
     got, want = (json.loads((tmp_path / f).read_text()) for f in ("memory.json", "files.json"))
     got.pop("seconds"), want.pop("seconds")
     assert got == want
+
+
+@pytest.mark.render
+@pytest.mark.slow
+def test_run_leaves_the_files_calibration_and_report_of_the_loop(tmp_path):
+    """An uninterrupted `selfcal run` (figures off) against `selfcal acquire`, `calibrate`
+    and `report` of the same scenario: the same files, byte for byte, but the calibration's
+    wall time."""
+    from selfcal.config.scenario import load_scenario
+    from selfcal.pipeline import run as pipeline
+
+    s = load_scenario(None, {"trajectory": {"poses": 8}, "validation": {"poses": 3}})
+    loop, root = tmp_path / "loop", tmp_path / "run"
+    pipeline.run_acquire(s, loop, quiet=True)
+    pipeline.run_calibrate(loop, quiet=True)
+    pipeline.run_report(loop, quiet=True)
+    pipeline.run_all(s, root, quiet=True, figures=False)
+    assert _files(root) == _files(loop)
+    names = sorted(p.name for p in root.iterdir() if p.is_file())
+    assert names == sorted(p.name for p in loop.iterdir() if p.is_file())
+    for name in names:
+        if name == "calibration.json":
+            got, want = (json.loads((d / name).read_text()) for d in (root, loop))
+            got.pop("seconds"), want.pop("seconds")
+            assert got == want
+        else:
+            assert (root / name).read_bytes() == (loop / name).read_bytes(), name
