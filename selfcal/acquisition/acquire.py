@@ -10,7 +10,7 @@ is handed over. With a :class:`selfcal.io.frame_cache.FrameCache` another helper
 each image meanwhile as the gray pixels the calibration would read back (``selfcal run``
 calibrates from memory) and detects its markers there (:attr:`FrameCache.on_image`).
 With :class:`selfcal.acquisition.held_frames.HeldFrames` (a simulated ``selfcal run``) the
-frames' files are written after the loop instead, beside the calibration.
+frames' files are written by its thread of low priority instead, into the calibration's time.
 """
 
 from __future__ import annotations
@@ -60,8 +60,8 @@ def acquire(
     ``keep``: also keep the images taken in memory (:meth:`FrameCache.add`). ``resume_command``:
     the command that continues this acquisition, named when it stops (default ``selfcal acquire
     SCENARIO --out ROOT --resume``). ``held``: hand the captured frames to it instead of
-    writing them (:class:`HeldFrames`: written once the loop ends, while the caller goes on;
-    the caller's ``with held:`` waits for them); when the loop stops on an error, every frame
+    writing them (:class:`HeldFrames`: written on its thread of low priority, while the loop
+    and the caller go on; the caller's ``with held:`` waits for them); when the loop stops on an error, every frame
     taken before is written first.
 
     Raises:
@@ -142,8 +142,6 @@ def acquire(
                 if progress is not None:
                     progress.advance()
             settle()
-            if held is not None:
-                held.release()
         finally:
             for _, fut in pending:  # an error elsewhere: let the frame in flight land
                 fut.exception()

@@ -1,15 +1,17 @@
 """Frames a simulated ``selfcal run`` has taken but not yet written: their PNGs are encoded and
-written after the acquisition, while the calibration runs from the images in memory.
+written by a thread of low priority, what the acquisition leaves of the cores and beside the
+calibration, which runs from the images in memory.
 
 The simulator keeps both cores busy while it acquires (rendering, the image noise, the marker
 detection); the calibration after it runs on one. Encoding the PNGs (a fifth of the
-acquisition's CPU) therefore costs wall time during the acquisition and none beside the
-calibration. :class:`HeldFrames` holds each frame's images from the acquisition loop
-(:func:`selfcal.acquisition.acquire.acquire`), writes them on one thread of its own once the
-loop ends (or sooner, when they exceed :data:`HOLD_BYTES`), in order and by
-:meth:`selfcal.io.dataset.DatasetWriter.add_frame` (the same files, byte for byte; a frame counts
-as taken once its joints row follows its images, as always), and hands the calibration the
-dataset as the writer will leave it (:meth:`HeldFrames.dataset`).
+acquisition's CPU) therefore costs wall time during the acquisition and little beside the
+calibration. :class:`HeldFrames` takes each frame's images from the acquisition loop
+(:func:`selfcal.acquisition.acquire.acquire`) and writes them on one thread of its own, at the
+lowest priority (Linux: nice :data:`WRITER_NICE`; it runs when a core would idle), from the
+loop's first frame, in order and by :meth:`selfcal.io.dataset.DatasetWriter.add_frame` (the same
+files, byte for byte; a frame counts as taken once its joints row follows its images, as
+always); the loop waits when the frames not yet written exceed :data:`HOLD_BYTES`. It hands the
+calibration the dataset as the writer will leave it (:meth:`HeldFrames.dataset`).
 
 Nothing taken is lost on an error or Ctrl-C: leaving the ``with`` block writes every frame held
 before the error goes on (:meth:`HeldFrames.drain`), and the interpreter's exit waits for the
@@ -22,6 +24,9 @@ again on ``selfcal run``'s resume.
 
 from __future__ import annotations
 
+import os
+import sys
+import threading
 from concurrent.futures import Future, ThreadPoolExecutor
 from types import TracebackType
 
@@ -31,11 +36,22 @@ from selfcal.acquisition.stopped import stopped
 from selfcal.errors import InternalError
 from selfcal.io.dataset import Dataset, DatasetWriter, joints_row, read_text
 
-__all__ = ["HOLD_BYTES", "HeldFrames"]
+__all__ = ["HOLD_BYTES", "WRITER_NICE", "HeldFrames"]
 
 HOLD_BYTES = 256 * 2**20
-"""Images held before the writing starts while the acquisition goes on (~145 stereo frames
-of 640 x 480 RGB); past it each frame is written as it comes, beside the acquisition."""
+"""Images not yet written before the acquisition waits for the writer (~145 stereo frames of
+640 x 480 RGB)."""
+WRITER_NICE = 19
+"""The writing thread's nice value on Linux (the lowest priority): it takes a core only where
+the process's other threads leave it idle."""
+
+
+def _lower_priority() -> None:
+    """Give the calling thread the nice value :data:`WRITER_NICE` (Linux: a thread's own; the
+    process keeps its own). Elsewhere nothing: the thread runs at the process's priority."""
+    if sys.platform == "linux":
+        os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), WRITER_NICE)
+
 
 _Frame = tuple[int, np.ndarray, np.ndarray, np.ndarray | None]
 
@@ -52,10 +68,8 @@ class HeldFrames:
         self._n_planned = 0
         self._resume_command: str | None = None
         self._joints_csv = ""  # joints.csv as the writer will leave it
-        self._frames: list[_Frame] = []  # held, not yet handed to the thread
-        self._nbytes = 0
         self._pool: ThreadPoolExecutor | None = None
-        self._writes: list[tuple[int, Future]] = []
+        self._writes: list[tuple[int, int, Future]] = []  # index, bytes, its write
         self._failed = False
 
     def attach(self, writer: DatasetWriter, n_planned: int, resume_command: str | None) -> None:
@@ -65,40 +79,34 @@ class HeldFrames:
         self._n_planned = n_planned
         self._resume_command = resume_command
         self._joints_csv = read_text(writer.root / "joints.csv")
+        self._pool = ThreadPoolExecutor(
+            max_workers=1, thread_name_prefix="held-writer", initializer=_lower_priority
+        )
 
     @property
     def pending(self) -> int:
         """Frames held whose files are not yet known to be on disk."""
-        return len(self._frames) + sum(not f.done() for _, f in self._writes)
+        return sum(not f.done() for _, _, f in self._writes)
 
     def hold(
         self, index: int, joints_deg: np.ndarray, left: np.ndarray, right: np.ndarray | None
     ) -> None:
-        """Keep frame ``index`` (its joint read-back, deg, and images) to be written later; it
-        is written now when the writing has begun (:meth:`release`, or over ``max_bytes``)."""
+        """Hand frame ``index`` (its joint read-back, deg, and images) to the writing thread;
+        waits while the frames not yet written exceed ``max_bytes``."""
         writer = self._require()
+        assert self._pool is not None
         self._joints_csv += joints_row(index, joints_deg)
         frame = (index, np.asarray(joints_deg), left, right)
-        if self._pool is not None:
-            self._submit(writer, frame)
-            return
-        self._frames.append(frame)
-        self._nbytes += left.nbytes + (0 if right is None else right.nbytes)
-        if self._nbytes > self.max_bytes:
-            self.release()
+        nbytes = left.nbytes + (0 if right is None else right.nbytes)
+        self._writes.append((index, nbytes, self._pool.submit(self._write, writer, frame)))
+        unwritten = [(n, f) for _, n, f in self._writes if not f.done()]
+        while unwritten and sum(n for n, _ in unwritten) > self.max_bytes:
+            unwritten.pop(0)[1].exception()  # the oldest written (or failed): drain reports it
 
     def dataset(self) -> Dataset:
         """The dataset as the writer will leave it, every frame held included (its
         ``joints.csv`` rows from memory; dataset.json from the folder)."""
         return Dataset.open(self._require().root, joints_csv=self._joints_csv)
-
-    def release(self) -> None:
-        """Begin writing the frames held, in order, on the writing thread."""
-        if self._pool is None:
-            self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="held-writer")
-        frames, self._frames, self._nbytes = self._frames, [], 0
-        for frame in frames:
-            self._submit(self._require(), frame)
 
     def drain(self) -> None:
         """Write every frame held and wait until they are on disk.
@@ -108,10 +116,9 @@ class HeldFrames:
                 written either): the message names it, the frames kept and the command that
                 continues.
         """
-        self.release()
         writes, self._writes = self._writes, []
         failure: tuple[int, BaseException] | None = None
-        for index, fut in writes:
+        for index, _, fut in writes:
             exc = fut.exception()
             if exc is not None and failure is None:
                 failure = (index, exc)
@@ -134,10 +141,6 @@ class HeldFrames:
         finally:
             if self._pool is not None:
                 self._pool.shutdown(wait=True)
-
-    def _submit(self, writer: DatasetWriter, frame: _Frame) -> None:
-        assert self._pool is not None
-        self._writes.append((frame[0], self._pool.submit(self._write, writer, frame)))
 
     def _write(self, writer: DatasetWriter, frame: _Frame) -> None:
         """Frame ``frame`` into the dataset; none after a failed one (its error is raised)."""

@@ -1,12 +1,11 @@
-"""A simulated `selfcal run` writes its frames' PNGs after the acquisition, beside the
-calibration (selfcal/acquisition/held_frames.py): the same files as the loop writes them, and
+"""A simulated `selfcal run` writes its frames' PNGs on a thread of low priority, finishing
+beside the calibration (selfcal/acquisition/held_frames.py): the same files as the loop writes them, and
 nothing taken is lost on Ctrl-C or a failed write (issue 32)."""
 
 from __future__ import annotations
 
 import json
 import threading
-import time
 from pathlib import Path
 
 import numpy as np
@@ -30,6 +29,19 @@ def _files(root: Path) -> dict[str, bytes]:
     }
 
 
+def gated_writes(monkeypatch) -> threading.Event:
+    """Hold every PNG write until the returned event is set (at most 10 s)."""
+    go = threading.Event()
+    real = dataset_module._write_png
+
+    def write_png(path, rgb):
+        assert go.wait(10)
+        real(path, rgb)
+
+    monkeypatch.setattr(dataset_module, "_write_png", write_png)
+    return go
+
+
 class WatchedRobot(FakeRobot):
     """Counts the PNG files on disk at each move; raises KeyboardInterrupt at move ``ctrl_c``."""
 
@@ -44,50 +56,68 @@ class WatchedRobot(FakeRobot):
         super().move_to(joints_deg)
 
 
-def test_held_frames_are_written_after_the_loop_as_the_loop_writes_them(tmp_path):
+def test_held_frames_are_written_as_the_loop_writes_them(tmp_path):
     acquire(FakeRobot(), DatasetWriter(tmp_path / "loop", info()))
-    robot = WatchedRobot(tmp_path / "held")
     with HeldFrames() as held:
-        assert acquire(robot, DatasetWriter(tmp_path / "held", info()), held=held) == 5
+        assert acquire(FakeRobot(), DatasetWriter(tmp_path / "held", info()), held=held) == 5
         mine = held.dataset()  # what the calibration takes while the files are written
-    assert robot.pngs == [0] * 5  # nothing written while the robot moved
     assert _files(tmp_path / "held") == _files(tmp_path / "loop")
     ds = Dataset.open(tmp_path / "held")
     assert mine.indices.tolist() == ds.indices.tolist() == [0, 1, 2, 3, 4]
     np.testing.assert_array_equal(mine.joints_deg, ds.joints_deg)
 
 
-def test_over_the_memory_bound_the_frames_are_written_as_they_come(tmp_path):
-    """Past ``max_bytes`` the writing begins without waiting for the loop's end."""
+def test_the_writing_thread_runs_at_the_lowest_priority(tmp_path):
+    """Linux: nice 19 for the writing thread alone (the process keeps its own)."""
+    import os
+    import sys
+
+    from selfcal.acquisition.held_frames import WRITER_NICE
+
+    if sys.platform != "linux":
+        pytest.skip("a thread's own nice value is Linux's")
+    seen = []
+    real = DatasetWriter.add_frame
+
+    def add_frame(self, *a, **k):
+        seen.append(os.getpriority(os.PRIO_PROCESS, threading.get_native_id()))
+        real(self, *a, **k)
+
+    mine = os.getpriority(os.PRIO_PROCESS, 0)
+    with HeldFrames() as held:
+        DatasetWriter.add_frame = add_frame  # type: ignore[method-assign]
+        try:
+            acquire(FakeRobot(), DatasetWriter(tmp_path, info()), held=held)
+            held.drain()
+        finally:
+            DatasetWriter.add_frame = real  # type: ignore[method-assign]
+    assert seen == [max(mine, WRITER_NICE)] * 5 and os.getpriority(os.PRIO_PROCESS, 0) == mine
+
+
+def test_over_the_memory_bound_the_acquisition_waits_for_the_writer(tmp_path, monkeypatch):
+    """Past ``max_bytes`` of frames not yet written, a frame handed over waits for the
+    oldest to be written."""
+    go = gated_writes(monkeypatch)
     w = DatasetWriter(tmp_path, info())
     img = FakeRobot().capture().left
     with HeldFrames(max_bytes=2 * img.nbytes) as held:  # one stereo frame
         held.attach(w, 5, None)
-        held.hold(0, np.zeros(5), img, img)
-        time.sleep(0.2)
-        assert w.n_done == 0  # held
-        held.hold(1, np.ones(5), img, img)  # over the bound: both written, not waiting
-        for _ in range(500):
-            if w.n_done == 2:
-                break
-            time.sleep(0.01)
-        assert w.n_done == 2
-        held.hold(2, np.ones(5), img, img)
-    assert Dataset.open(tmp_path).indices.tolist() == [0, 1, 2]
+        held.hold(0, np.zeros(5), img, img)  # within the bound: returns at once
+        second = threading.Thread(target=held.hold, args=(1, np.ones(5), img, img))
+        second.start()
+        second.join(0.3)
+        assert second.is_alive() and w.n_done == 0  # waits for frame 0
+        go.set()
+        second.join(10)
+        assert not second.is_alive() and w.n_done >= 1
+    assert Dataset.open(tmp_path).indices.tolist() == [0, 1]
 
 
 def test_ctrl_c_after_the_acquisition_writes_every_frame_held(tmp_path, monkeypatch):
     """Ctrl-C while the calibration runs (the files still being written: held here until the
     interrupt) leaves every frame taken on disk, whole; the dataset is complete."""
     acquire(FakeRobot(), DatasetWriter(tmp_path / "loop", info()))
-    go = threading.Event()
-    real = dataset_module._write_png
-
-    def write_png(path, rgb):
-        assert go.wait(10)
-        real(path, rgb)
-
-    monkeypatch.setattr(dataset_module, "_write_png", write_png)
+    go = gated_writes(monkeypatch)
     root = tmp_path / "held"
     with pytest.raises(KeyboardInterrupt), HeldFrames() as held:
         acquire(FakeRobot(), DatasetWriter(root, info()), held=held)
@@ -139,12 +169,8 @@ def test_run_calibrates_from_memory_and_ctrl_c_there_leaves_the_files_of_the_loo
     s = load_scenario(None, {"trajectory": {"poses": 8}, "validation": {"poses": 3}})
     loop, root = tmp_path / "loop", tmp_path / "run"
     pipeline.run_acquire(s, loop, quiet=True)
-    go = threading.Event()
-    real_write, real_calibrate = dataset_module._write_png, pipeline.calibrate
-
-    def write_png(path, rgb):
-        assert go.wait(10)
-        real_write(path, rgb)
+    go = gated_writes(monkeypatch)
+    real_calibrate = pipeline.calibrate
 
     def calibrate(where, *, cache, **kwargs):
         assert cache.dataset is not None and len(cache.dataset.indices) == 8
@@ -153,7 +179,6 @@ def test_run_calibrates_from_memory_and_ctrl_c_there_leaves_the_files_of_the_loo
         go.set()
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(dataset_module, "_write_png", write_png)
     monkeypatch.setattr(pipeline, "calibrate", calibrate)
     with pytest.raises(KeyboardInterrupt):
         pipeline.run_all(s, root, quiet=True, figures=False)
