@@ -240,8 +240,8 @@ def cmd_field(
     except (DegenerateTrajectoryError, InputError) as e:
         raise CliError(f"no field plan of {args.count} postures: {e.message}",
                        fix="free the arm's room (fewer or smaller --keep-out boxes), give more "
-                       "--candidates, or a camera that sees the field from more postures "
-                       "(a wider --fov-deg)") from e  # fmt: skip
+                       "--candidates, a camera that sees the field from more postures "
+                       "(a wider --fov-deg), or plan without --clear-views") from e  # fmt: skip
     n = len(plan.q)
     scenario = scenario_text(ref, camera, None, n, deviation=deviation_of(args), field=field)
     fc = {k: field_forecast(setup, layout, q, ws, pixel_sigma_px=args.pixel_sigma,

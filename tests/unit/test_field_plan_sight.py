@@ -178,3 +178,24 @@ def test_a_plan_with_clear_views_shows_no_partly_hidden_marker(ur5e_cell):
                              layout.supports).any()  # fmt: skip
     assert clear.registers(plan.q, layout).all()
     assert plan.rejected_unseen > plan_field(setup, 6, layout, ws, **kw).rejected_unseen
+
+
+def test_a_pool_the_detectors_check_empties_says_so(ur5e_cell):
+    """Too few candidates left for the plan, most of them refused by the detector's check (not
+    by a collision): the error names that check and how many it refused, not only "collision-free
+    candidate postures" with a fix about keep-out boxes."""
+    import dataclasses
+
+    from selfcal.calibration.field.plan import plan_field
+    from selfcal.kinematics.trajectory import DegenerateTrajectoryError
+
+    setup, layout, ws, js = ur5e_cell
+    clear = dataclasses.replace(setup, clear_views=True)
+    with pytest.raises(DegenerateTrajectoryError) as e:
+        plan_field(clear, 12, layout, ws, seed=1, candidates=30, markers=20,
+                   pixel_sigma_px=0.1, joint_sigma=js)  # fmt: skip
+    text = e.value.message
+    assert "the detector would not register the field" in text, text
+    assert "partly hidden" in text, text
+    unseen = int(text.split(" are free but")[0].rsplit(" ", 1)[1])
+    assert unseen > 0, text

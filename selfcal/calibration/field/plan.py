@@ -77,7 +77,11 @@ from selfcal.kinematics.forward import fk_tool
 from selfcal.kinematics.keep_out import check_boxes, collision_free
 from selfcal.kinematics.mcpc import MCPCModel, nominal_mcpc
 from selfcal.kinematics.self_collision import CapsuleChain
-from selfcal.kinematics.trajectory import home_target_center, plan_postures
+from selfcal.kinematics.trajectory import (
+    DegenerateTrajectoryError,
+    home_target_center,
+    plan_postures,
+)
 from selfcal.robot.definition import RobotDef
 from selfcal.target import CORNERS_PER_MARKER
 from selfcal.transforms import inv_pose
@@ -249,20 +253,32 @@ def plan_field(
         DegenerateTrajectoryError: too few feasible candidates.
     """
     pts, nrm = setup.grid()
-    unseen = [0]
+    unseen, colliding, looking = [0], [0], [0]
 
     def feasible(q: np.ndarray) -> np.ndarray:  # free, and the detector registers its view
         free = setup.collision_ok(q)
         seen = setup.registers(q, layout)
-        unseen[0] = int(np.sum(free & ~seen))
+        unseen[0], colliding[0], looking[0] = int(np.sum(free & ~seen)), int(np.sum(~free)), len(q)
         return free & seen
 
-    opt = plan_optimal_postures(
-        setup.robot, setup.model_cam, setup.rig, pts, count, seed=seed,
-        min_visible=setup.min_visible, normals_world=nrm, n_candidates=candidates,
-        collision_ok=feasible, pixel_sigma_px=pixel_sigma_px,
-        corners_per_point=CORNERS_PER_MARKER * markers / len(pts), joint_sigma=joint_sigma,
-    )  # fmt: skip
+    try:
+        opt = plan_optimal_postures(
+            setup.robot, setup.model_cam, setup.rig, pts, count, seed=seed,
+            min_visible=setup.min_visible, normals_world=nrm, n_candidates=candidates,
+            collision_ok=feasible, pixel_sigma_px=pixel_sigma_px,
+            corners_per_point=CORNERS_PER_MARKER * markers / len(pts), joint_sigma=joint_sigma,
+        )  # fmt: skip
+    except DegenerateTrajectoryError as e:
+        if unseen[0] == 0:
+            raise
+        hidden = " or shows a marker partly hidden (clear views)" if setup.clear_views else ""
+        ok = looking[0] - colliding[0] - unseen[0]
+        raise DegenerateTrajectoryError(
+            f"only {ok} usable candidate postures for {count}: of the {looking[0]} candidates "
+            f"that face the field, {colliding[0]} collide or leave the room and {unseen[0]} are "
+            f"free but the detector would not register the field from them (too few of its "
+            f"markers found whole{hidden}: selfcal.calibration.field.plan_sight)"
+        ) from e
     q_random = random_plan(setup, count, seed=seed)
     sets = {CHOICES[0]: opt.chosen}
     G = tool_weight(setup.model_cam, workspace, setup.robot.T_flange_cam)
