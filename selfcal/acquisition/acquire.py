@@ -10,7 +10,7 @@ is handed over. With a :class:`selfcal.io.frame_cache.FrameCache` another helper
 each image meanwhile as the gray pixels the calibration would read back (``selfcal run``
 calibrates from memory) and detects its markers there (:attr:`FrameCache.on_image`).
 With :class:`selfcal.acquisition.held_frames.HeldFrames` (a simulated ``selfcal run``) the
-frames' files are written by its thread of low priority instead, into the calibration's time.
+frames' files are written by its own thread instead, into the calibration's time.
 """
 
 from __future__ import annotations
@@ -60,7 +60,7 @@ def acquire(
     ``keep``: also keep the images taken in memory (:meth:`FrameCache.add`). ``resume_command``:
     the command that continues this acquisition, named when it stops (default ``selfcal acquire
     SCENARIO --out ROOT --resume``). ``held``: hand the captured frames to it instead of
-    writing them (:class:`HeldFrames`: written on its thread of low priority, while the loop
+    writing them (:class:`HeldFrames`: written on its own thread, while the loop
     and the caller go on; the caller's ``with held:`` waits for them); when the loop stops on an error, every frame
     taken before is written first.
 

@@ -1,15 +1,15 @@
 """Frames a simulated ``selfcal run`` has taken but not yet written: their PNGs are encoded and
-written by a thread of low priority, what the acquisition leaves of the cores and beside the
-calibration, which runs from the images in memory.
+written by a thread of their own, beside the acquisition and the calibration, which runs from
+the images in memory.
 
 The simulator keeps both cores busy while it acquires (rendering, the image noise, the marker
 detection); the calibration after it runs on one. Encoding the PNGs (a fifth of the
 acquisition's CPU) therefore costs wall time during the acquisition and little beside the
 calibration. :class:`HeldFrames` takes each frame's images from the acquisition loop
 (:func:`selfcal.acquisition.acquire.acquire`) and writes them on one thread of its own, at the
-lowest priority (Linux: nice :data:`WRITER_NICE`; it runs when a core would idle), from the
-loop's first frame, in order and by :meth:`selfcal.io.dataset.DatasetWriter.add_frame` (the same
-files, byte for byte; a frame counts as taken once its joints row follows its images, as
+process's priority (at the lowest, nice 19, tried: as fast on an idle machine, 9 % slower
+than the loop beside one CPU-bound process, which starved it), from the loop's first frame, in
+order and by :meth:`selfcal.io.dataset.DatasetWriter.add_frame` (the same files, byte for byte; a frame counts as taken once its joints row follows its images, as
 always); the loop waits when the frames not yet written exceed :data:`HOLD_BYTES`. It hands the
 calibration the dataset as the writer will leave it (:meth:`HeldFrames.dataset`).
 
@@ -24,9 +24,6 @@ again on ``selfcal run``'s resume.
 
 from __future__ import annotations
 
-import os
-import sys
-import threading
 from concurrent.futures import Future, ThreadPoolExecutor
 from types import TracebackType
 
@@ -36,22 +33,11 @@ from selfcal.acquisition.stopped import stopped
 from selfcal.errors import InternalError
 from selfcal.io.dataset import Dataset, DatasetWriter, joints_row, read_text
 
-__all__ = ["HOLD_BYTES", "WRITER_NICE", "HeldFrames"]
+__all__ = ["HOLD_BYTES", "HeldFrames"]
 
 HOLD_BYTES = 256 * 2**20
 """Images not yet written before the acquisition waits for the writer (~145 stereo frames of
 640 x 480 RGB)."""
-WRITER_NICE = 19
-"""The writing thread's nice value on Linux (the lowest priority): it takes a core only where
-the process's other threads leave it idle."""
-
-
-def _lower_priority() -> None:
-    """Give the calling thread the nice value :data:`WRITER_NICE` (Linux: a thread's own; the
-    process keeps its own). Elsewhere nothing: the thread runs at the process's priority."""
-    if sys.platform == "linux":
-        os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), WRITER_NICE)
-
 
 _Frame = tuple[int, np.ndarray, np.ndarray, np.ndarray | None]
 
@@ -79,9 +65,7 @@ class HeldFrames:
         self._n_planned = n_planned
         self._resume_command = resume_command
         self._joints_csv = read_text(writer.root / "joints.csv")
-        self._pool = ThreadPoolExecutor(
-            max_workers=1, thread_name_prefix="held-writer", initializer=_lower_priority
-        )
+        self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="held-writer")
 
     @property
     def pending(self) -> int:

@@ -120,7 +120,7 @@ def run_acquire(
     ``resume_command``: what continues it when it stops (default ``selfcal acquire ... --resume``
     with this scenario and ``out``). ``setup``: the simulator's (default
     :func:`selfcal.acquisition.simulator_setup.sim_setup` of ``s``; a benchmark's changed one).
-    ``held``: the frames' files are written by it, on a thread of low priority, into what runs
+    ``held``: the frames' files are written by it, on a thread of its own, into what runs
     after the acquisition (:class:`HeldFrames`; the caller's ``with held:`` waits for them)."""
     if setup is None and s.robot.backend == "sim":
         setup = sim_setup(s)

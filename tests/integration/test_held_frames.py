@@ -1,4 +1,4 @@
-"""A simulated `selfcal run` writes its frames' PNGs on a thread of low priority, finishing
+"""A simulated `selfcal run` writes its frames' PNGs on a thread of its own, finishing
 beside the calibration (selfcal/acquisition/held_frames.py): the same files as the loop writes them, and
 nothing taken is lost on Ctrl-C or a failed write (issue 32)."""
 
@@ -65,33 +65,6 @@ def test_held_frames_are_written_as_the_loop_writes_them(tmp_path):
     ds = Dataset.open(tmp_path / "held")
     assert mine.indices.tolist() == ds.indices.tolist() == [0, 1, 2, 3, 4]
     np.testing.assert_array_equal(mine.joints_deg, ds.joints_deg)
-
-
-def test_the_writing_thread_runs_at_the_lowest_priority(tmp_path):
-    """Linux: nice 19 for the writing thread alone (the process keeps its own)."""
-    import os
-    import sys
-
-    from selfcal.acquisition.held_frames import WRITER_NICE
-
-    if sys.platform != "linux":
-        pytest.skip("a thread's own nice value is Linux's")
-    seen = []
-    real = DatasetWriter.add_frame
-
-    def add_frame(self, *a, **k):
-        seen.append(os.getpriority(os.PRIO_PROCESS, threading.get_native_id()))
-        real(self, *a, **k)
-
-    mine = os.getpriority(os.PRIO_PROCESS, 0)
-    with HeldFrames() as held:
-        DatasetWriter.add_frame = add_frame  # type: ignore[method-assign]
-        try:
-            acquire(FakeRobot(), DatasetWriter(tmp_path, info()), held=held)
-            held.drain()
-        finally:
-            DatasetWriter.add_frame = real  # type: ignore[method-assign]
-    assert seen == [max(mine, WRITER_NICE)] * 5 and os.getpriority(os.PRIO_PROCESS, 0) == mine
 
 
 def test_over_the_memory_bound_the_acquisition_waits_for_the_writer(tmp_path, monkeypatch):
