@@ -133,6 +133,15 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     return 0
 
 
+def report_label(root: Path) -> str:
+    """The progress line of ``selfcal report`` of the calibration in ``root``: a simulated
+    dataset (``truth.json``) is checked against the truth on its validation postures, the
+    user's own data by its held-out check (:func:`selfcal.pipeline.run.run_report`)."""
+    if (root / "truth.json").is_file():
+        return "report (validation, figures)"
+    return "report (held-out check, figures)"
+
+
 def cmd_report(args: argparse.Namespace) -> int:
     from selfcal.calibration.field.calibrate import CalibrationFailedError
     from selfcal.calibration.handeye.calibration_file import is_handeye
@@ -153,7 +162,7 @@ def cmd_report(args: argparse.Namespace) -> int:
     else:
         from selfcal.pipeline.run import report_summary, run_report
 
-        with Progress("report", enabled=not quiet).step("report (validation, figures)") as st:
+        with Progress("report", enabled=not quiet).step(report_label(root)) as st:
             report = run_report(root, quiet=quiet, figures=True)
             st.result(report["status"])
         summary = report_summary(report, root)

@@ -117,3 +117,14 @@ def test_board_calibrate_and_report_show_their_progress(tmp_path, monkeypatch):
         shown = _shown(tty)
         assert any(ln.endswith(" ...") for ln in shown), shown  # the spinner while it runs
         assert any(re.fullmatch(line, ln) for ln in shown), shown
+
+
+def test_the_report_of_own_data_does_not_say_validation(tmp_path):
+    """`selfcal report` of a user's own data labelled its progress "report (validation,
+    figures)", though there is no validation against a truth there (new user's trip): the
+    label says its held-out check; a simulated dataset keeps "validation"."""
+    from selfcal.cli.main import report_label
+
+    assert report_label(tmp_path) == "report (held-out check, figures)"
+    (tmp_path / "truth.json").write_text("{}")
+    assert report_label(tmp_path) == "report (validation, figures)"
