@@ -23,7 +23,7 @@ from selfcal.calibration.board.calibrate import (
     outlier_limit_px,
 )
 from selfcal.calibration.board.misfit import board_view
-from selfcal.calibration.drift.views import MIN_WHITE_DOF
+from selfcal.calibration.drift.views import MIN_WHITE_DOF, span_basis
 from selfcal.camera import CameraModel
 from selfcal.kinematics.forward import fk_tool
 from selfcal.kinematics.tool_error import ToolErrorModel
@@ -66,8 +66,7 @@ def _robust_errors(M: np.ndarray, r: np.ndarray) -> np.ndarray:
     fits each view's pose and the camera (:func:`selfcal.calibration.board.calibrate.
     calibrate_board`): a plain least-squares fit is pulled by a cluster of outliers (a
     misdetected marker's corners, all off one way) until none of them is beyond the rule."""
-    U, s, _ = np.linalg.svd(M, full_matrices=False)
-    Q = U[:, s > 1e-9 * s[0]] if s.size and s[0] > 0 else U[:, :0]
+    Q = span_basis(M)
     block = _Corners(Q, r)
     res = solve(Problem([ParameterBlock("change", Q.T @ r)], [block]))
     return np.linalg.norm(res.residuals["corners"], axis=1)

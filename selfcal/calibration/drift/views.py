@@ -34,6 +34,7 @@ __all__ = [
     "view_jacobians",
     "view_noise",
     "view_white_px",
+    "span_basis",
 ]
 
 MIN_WHITE_DOF = 30
@@ -108,6 +109,14 @@ class ViewJacobians:
     own_px: tuple[float, float] | None = None
 
 
+def span_basis(M: np.ndarray) -> np.ndarray:
+    """(r, q) an orthonormal basis of the span of the columns ``M`` (r, c) (a view's pose and
+    camera columns, px): its left singular vectors above ``1e-9`` of the largest singular
+    value; (r, 0) for a zero or empty ``M``."""
+    Q, s, _ = np.linalg.svd(M, full_matrices=False)
+    return Q[:, s > 1e-9 * s[0]] if s.size and s[0] > 0 else Q[:, :0]
+
+
 def view_white_px(r: np.ndarray, A: np.ndarray, Jc: np.ndarray, than_px: float = 0.0,
                   level: float = WHITE_LEVEL) -> float | None:  # fmt: skip
     """The white corner noise (px) a view's own residuals ``r`` (2k,) px show outside the span
@@ -123,8 +132,7 @@ def view_white_px(r: np.ndarray, A: np.ndarray, Jc: np.ndarray, than_px: float =
     white noise is 0.078 px, ``python -m selfcal.benchmarks.drift_real_folds``), so one white
     noise for every new view is wrong for some of them; in this span a view measures its
     own."""
-    Q, s, _ = np.linalg.svd(np.concatenate([A, Jc], axis=1), full_matrices=False)
-    Q = Q[:, s > 1e-9 * s[0]] if s.size and s[0] > 0 else Q[:, :0]
+    Q = span_basis(np.concatenate([A, Jc], axis=1))
     dof = len(r) - Q.shape[1]
     if dof < MIN_WHITE_DOF:
         return None
