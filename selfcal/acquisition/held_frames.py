@@ -55,7 +55,8 @@ class HeldFrames:
         self._resume_command: str | None = None
         self._joints_csv = ""  # joints.csv as the writer will leave it
         self._pool: ThreadPoolExecutor | None = None
-        self._writes: list[tuple[int, int, Future]] = []  # index, bytes, its write
+        # index, bytes and write of each frame not yet on disk (or whose write failed)
+        self._writes: list[tuple[int, int, Future]] = []
         self._failed = False
 
     def attach(self, writer: DatasetWriter, n_planned: int, resume_command: str | None) -> None:
@@ -83,6 +84,9 @@ class HeldFrames:
         frame = (index, np.asarray(joints_deg), left, right)
         nbytes = left.nbytes + (0 if right is None else right.nbytes)
         self._writes.append((index, nbytes, self._pool.submit(self._write, writer, frame)))
+        # frames on disk are forgotten (a failed one is kept for drain): the list, and this scan,
+        # stay as long as the frames not yet written, not the whole acquisition
+        self._writes = [w for w in self._writes if not w[2].done() or w[2].exception() is not None]
         unwritten = [(n, f) for _, n, f in self._writes if not f.done()]
         while unwritten and sum(n for n, _ in unwritten) > self.max_bytes:
             unwritten.pop(0)[1].exception()  # the oldest written (or failed): drain reports it
