@@ -16,7 +16,10 @@ calibration the dataset as the writer will leave it (:meth:`HeldFrames.dataset`)
 Nothing taken is lost on an error or Ctrl-C: leaving the ``with`` block writes every frame held
 before the error goes on (:meth:`HeldFrames.drain`), and the interpreter's exit waits for the
 writing thread as well. A frame that cannot be written stops the writing there, as in the
-loop: the error names the frame, the frames kept and the command that continues. A process
+loop: the error names the frame, the frames kept and the command that continues. It stops the
+acquisition too: the next frame handed over (:meth:`HeldFrames.hold`) raises it, so the loop
+stops at the frame after that (the loop itself at the next one; before, the simulator rendered
+every posture left and the error came only at the end). A process
 killed outright (SIGKILL, or SIGTERM, which Python does not turn into an exception) loses the
 frames still held, where the loop loses at most the frame in flight: the simulator renders them
 again on ``selfcal run``'s resume.
@@ -29,7 +32,7 @@ from types import TracebackType
 
 import numpy as np
 
-from selfcal.acquisition.stopped import stopped
+from selfcal.acquisition.stopped import AcquisitionError, stopped
 from selfcal.errors import InternalError
 from selfcal.io.dataset import Dataset, DatasetWriter, joints_row, read_text
 
@@ -77,9 +80,17 @@ class HeldFrames:
         self, index: int, joints_deg: np.ndarray, left: np.ndarray, right: np.ndarray | None
     ) -> None:
         """Hand frame ``index`` (its joint read-back, deg, and images) to the writing thread;
-        waits while the frames not yet written exceed ``max_bytes``."""
+        waits while the frames not yet written exceed ``max_bytes``.
+
+        Raises:
+            AcquisitionError: an earlier frame could not be written (:meth:`drain`'s error; the
+                failed write stays held, so the acquisition's :meth:`drain` raises it again).
+        """
         writer = self._require()
         assert self._pool is not None
+        failure = self._failure()
+        if failure is not None:  # stop the acquisition now, not after every posture left
+            raise self._stopped(*failure) from failure[1]
         self._joints_csv += joints_row(index, joints_deg)
         frame = (index, np.asarray(joints_deg), left, right)
         nbytes = left.nbytes + (0 if right is None else right.nbytes)
@@ -104,16 +115,12 @@ class HeldFrames:
                 written either): the message names it, the frames kept and the command that
                 continues.
         """
-        writes, self._writes = self._writes, []
-        failure: tuple[int, BaseException] | None = None
-        for index, _, fut in writes:
-            exc = fut.exception()
-            if exc is not None and failure is None:
-                failure = (index, exc)
+        for _, _, fut in self._writes:
+            fut.exception()  # wait for it
+        failure = self._failure()
+        self._writes = []
         if failure is not None:
-            index, exc = failure
-            writer = self._require()
-            raise stopped(index, self._n_planned, writer, exc, self._resume_command) from exc
+            raise self._stopped(*failure) from failure[1]
 
     def __enter__(self) -> HeldFrames:
         return self
@@ -140,6 +147,19 @@ class HeldFrames:
         except BaseException:
             self._failed = True
             raise
+
+    def _failure(self) -> tuple[int, BaseException] | None:
+        """The first held frame whose write has failed, with its error (None: none has yet)."""
+        for index, _, fut in self._writes:
+            exc = fut.exception() if fut.done() else None
+            if exc is not None:
+                return index, exc
+        return None
+
+    def _stopped(self, index: int, exc: BaseException) -> AcquisitionError:
+        """The error that stops the acquisition at the held frame ``index`` whose write failed
+        with ``exc``."""
+        return stopped(index, self._n_planned, self._require(), exc, self._resume_command)
 
     def _require(self) -> DatasetWriter:
         if self._writer is None:

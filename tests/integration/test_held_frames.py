@@ -127,6 +127,38 @@ def test_a_held_frame_that_cannot_be_written_stops_the_writing_at_that_frame(tmp
     ]  # fmt: skip
 
 
+def test_a_failed_held_write_stops_the_acquisition_at_the_frame_after_the_next(tmp_path):
+    """A held frame that cannot be written (disk full) stops the acquisition: the next frame
+    handed over raises it and the loop stops at the frame after that, where before the robot
+    went on to every posture left (12 planned: all 12 moved) and the error came at the end."""
+    w = DatasetWriter(tmp_path, info(m=12))
+    real = w.add_frame
+
+    def add_frame(index, *a, **k):
+        if index == 2:
+            raise OSError("disk full")
+        real(index, *a, **k)
+
+    w.add_frame = add_frame  # type: ignore[method-assign]
+    held = HeldFrames()
+
+    class Robot(FakeRobot):
+        def move_to(self, joints_deg):
+            if self.moves == 3:  # frame 2's write is over (failed) before frame 3 is taken
+                for _ in range(1000):
+                    if not held.pending:
+                        break
+                    threading.Event().wait(0.01)
+            super().move_to(joints_deg)
+
+    robot = Robot()
+    with pytest.raises(AcquisitionError, match="stopped at frame 2 of 12: disk full.*2 frames"):
+        with held:
+            acquire(robot, w, held=held)
+    assert robot.moves == 5  # frames 3 and 4 after the failed one, not the 9 left
+    assert Dataset.open(tmp_path).indices.tolist() == [0, 1]
+
+
 @pytest.mark.render
 def test_run_calibrates_from_memory_and_ctrl_c_there_leaves_the_files_of_the_loop(
     tmp_path, monkeypatch
