@@ -191,7 +191,7 @@ def _refuse_no_gain(path: str, force: bool) -> None:
         ev = read_evaluation(ev_path)
         rms = ev.rms
         if not evaluates(ev, p):
-            warnings.warn(f"{ev_path} evaluates {ev.calibration}, not {p}: its held-out check is "
+            warnings.warn(f"{ev_path} evaluates {ev.calibration_file or ev.calibration}, not {p}: its held-out check is "
                           "not used", SelfCalWarning, stacklevel=2)  # fmt: skip
         elif no_gain(rms["calibrated"], rms["nominal"]):
             why = (f"its held-out reprojection in {ev_path} ({rms['calibrated']:.3f} px) is not "

@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from selfcal.calibration.board.evaluate import names_calibration
 from selfcal.calibration.handeye.calibration_file import (
     camera_text,
     flange_poses_text,
@@ -57,8 +58,8 @@ def _held_out(root: Path, cal_path: Path) -> dict:
     if not ev_path.is_file():
         return {"error": f"no held-out check: {ev_path} is missing; {fix}"}
     ev = json.loads(ev_path.read_text())
-    if "held_out_rms_px" not in ev or Path(ev.get("calibration", "")).resolve() not in (
-        cal_path.resolve(), cal_path.parent.resolve()):  # fmt: skip
+    if "held_out_rms_px" not in ev or not names_calibration(
+        ev.get("calibration", ""), ev.get("calibration_file"), cal_path):  # fmt: skip
         return {"error": f"no held-out check: {ev_path} is not an evaluation of {cal_path}; {fix}"}
     return {"source": "selfcal evaluate", "file": str(ev_path), "dataset": ev["dataset"],
             "frames": ev["frames"], "corners": ev["corners"],

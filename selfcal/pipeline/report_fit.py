@@ -51,7 +51,7 @@ def _held_out(root: Path, method: str, every: int, chosen: str | None = None) ->
                 "images": len(ev.images), "features": sum(i["features"] for i in ev.images),
                 "reprojection_rms_px": dict(ev.rms)}  # fmt: skip
     if ev is not None:  # as export: an evaluation of another calibration judges that one
-        warnings.warn(f"{ev_path} evaluates {ev.calibration}, not {root}: its held-out check is "
+        warnings.warn(f"{ev_path} evaluates {ev.calibration_file or ev.calibration}, not {root}: its held-out check is "
                       "not used", SelfCalWarning, stacklevel=3)  # fmt: skip
     # the held-out calibrations (both routes' calibrators) load for a report without truth only
     from selfcal.calibration.field.holdout import leave_poses_out

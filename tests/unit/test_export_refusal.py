@@ -77,3 +77,21 @@ def test_a_field_calibration_of_no_gain_held_out_is_refused_too(tmp_path):
         _refuse_no_gain(str(cal_dir), force=True)
     _evaluation(cal_dir, str(cal_dir), 0.75, 5.0)
     _refuse_no_gain(str(cal_dir), force=False)
+
+
+def test_an_evaluation_of_dot_refuses_the_export_from_another_folder(cal_dir, tmp_path,
+                                                                     monkeypatch):  # fmt: skip
+    """`selfcal evaluate . HELD --out evaluation.json` in the calibration's folder, then `selfcal
+    export` from another: the evaluation (no gain) is of this calibration and refuses it (it
+    recorded "." alone and was set aside, "evaluates ., not ...", review of session 25)."""
+    import numpy as np
+
+    monkeypatch.chdir(cal_dir)
+    errs = [{"nominal": np.ones((3, 2)), "calibrated": np.full((3, 2), 2.0)}]
+    rows = [{"image": "0000_left.png", "camera": "left", "features": 3}]
+    write_evaluation(cal_dir / "evaluation.json", Evaluation.of(rows, errs, (), "held", "."))
+    monkeypatch.chdir(tmp_path)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(CliError, match="not exported"):
+            _refuse_no_gain("cal", force=False)

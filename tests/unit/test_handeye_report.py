@@ -75,6 +75,13 @@ def test_report_of_a_pose_calibration(tmp_path, capsys):
     write_json_atomic(tmp_path / "evaluation.json", ev)
     assert main(["report", str(tmp_path), "-q"]) == 0
     assert "is not an evaluation of" in capsys.readouterr().out
+    # `selfcal evaluate . HELD` run in CAL records "." and its calibration.json's absolute path,
+    # which names it from this working directory too ("." alone named the cwd: not used)
+    ev.update(calibration=".", calibration_file=str(tmp_path / "calibration.json"))
+    write_json_atomic(tmp_path / "evaluation.json", ev)
+    assert main(["report", str(tmp_path), "-q"]) == 0
+    line = capsys.readouterr().out
+    assert "is not an evaluation of" not in line and "held-out reprojection 0.430 px" in line
 
 
 def test_held_out_corners_behind_the_camera_and_frames_without_the_board():

@@ -116,3 +116,33 @@ def test_an_evaluation_named_relative_to_another_folder_is_still_the_reports(tmp
     assert evaluates(of("../lab/cal"), root) and evaluates(of(str(root)), root)
     assert not evaluates(of("cal-js"), root) and not evaluates(of("cal3"), root)
     assert not evaluates(of(str(tmp_path / "cal")), root)  # absolute: exactly
+
+
+@pytest.mark.parametrize("typed", [".", "./", "./calibration.json"])
+def test_an_evaluation_of_dot_is_the_reports_from_any_folder(tmp_path, monkeypatch, typed):
+    """`selfcal evaluate . held --out evaluation.json` in the calibration's folder records "."
+    as typed, which names no folder from another working directory: report and export warned
+    "evaluates ., not ..." and ran their own check (review of session 25). The evaluation
+    records its calibration.json's absolute path too, which names it from anywhere; another
+    calibration's evaluation (".", there) does not name this one."""
+    from selfcal.calibration.board.evaluate import evaluates, read_evaluation, write_evaluation
+
+    root, other = tmp_path / "lab" / "cal", tmp_path / "lab" / "cal2"
+    for d in (root, other):
+        d.mkdir(parents=True)
+        (d / "calibration.json").write_text("{}")
+    errs = [{"nominal": np.ones((3, 2)), "calibrated": np.zeros((3, 2))}]
+    for d in (root, other):
+        monkeypatch.chdir(d)  # where evaluate ran
+        made = Evaluation.of([{"image": "0000_cam0.png", "camera": "cam0", "features": 3}], errs,
+                             (), "held", typed)  # fmt: skip
+        write_evaluation(d / "evaluation.json", made)
+    monkeypatch.chdir(tmp_path)  # report and export run here
+    ev = read_evaluation(root / "evaluation.json")
+    assert ev.calibration == typed and ev.calibration_file == str(root / "calibration.json")
+    assert evaluates(ev, root) and evaluates(ev, root / "calibration.json")
+    assert evaluates(ev, "lab/cal") and not evaluates(ev, other)
+    assert not evaluates(read_evaluation(other / "evaluation.json"), root)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # not "evaluates ., not ...": its check is used
+        assert _held_out(root, "board", 5)["source"] == "selfcal evaluate"

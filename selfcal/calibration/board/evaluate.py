@@ -32,7 +32,9 @@ from selfcal.transforms import inv_pose
 __all__ = [
     "EVAL_FORMAT",
     "Evaluation",
+    "calibration_file",
     "evaluates",
+    "names_calibration",
     "SAME_RMS",
     "no_gain",
     "worse",
@@ -90,7 +92,9 @@ class Evaluation:
     ``skipped``: images without the target; ``cameras``: per camera name (in the rig's order) its
     ``images``, ``features`` and ``reprojection_rms_px`` by model; ``residuals``: by model,
     every feature's predicted - detected (k, 2) px in the order of ``images`` (not written to
-    ``evaluation.json``; figures draw them)."""
+    ``evaluation.json``; figures draw them); ``calibration`` the calibration's path as
+    ``selfcal evaluate`` was given it, ``calibration_file`` its ``calibration.json``'s absolute
+    path there (:func:`calibration_file`; empty in a file written before it)."""
 
     rms: dict[str, float]
     images: tuple[dict, ...]
@@ -99,6 +103,7 @@ class Evaluation:
     calibration: str
     residuals: dict[str, np.ndarray] = field(default_factory=dict, compare=False, repr=False)
     cameras: dict[str, dict] = field(default_factory=dict)
+    calibration_file: str = ""
 
     @classmethod
     def of(
@@ -124,7 +129,8 @@ class Evaluation:
                                         for k in models},
             }  # fmt: skip
         rms = {k: rms_px(v) for k, v in res.items()}
-        return cls(rms, tuple(rows), skipped, dataset, calibration, res, per_cam)
+        return cls(rms, tuple(rows), skipped, dataset, calibration, res, per_cam,
+                   str(calibration_file(calibration)))  # fmt: skip
 
     @property
     def failures(self) -> tuple[str, ...]:
@@ -145,6 +151,7 @@ class Evaluation:
             "format": EVAL_FORMAT,
             SCHEMA_KEY: 1,
             "calibration": self.calibration,
+            "calibration_file": self.calibration_file or None,
             "dataset": self.dataset,
             "status": "failed" if self.failures else "ok",
             "failures": list(self.failures),
@@ -337,19 +344,39 @@ def read_evaluation(path: str | Path) -> Evaluation:
     }  # fmt: skip
     return Evaluation(dict(f.float_map("reprojection_rms_px")), images,
                       f.strs("skipped_images"), f.str("dataset"), f.str("calibration"),
-                      cameras=per_cam)  # fmt: skip
+                      cameras=per_cam,
+                      calibration_file=f.opt_str("calibration_file") or "")  # fmt: skip
+
+
+def calibration_file(calibration: str | Path) -> Path:
+    """The absolute path of the ``calibration.json`` at ``calibration`` (the file or its folder,
+    relative to this working directory): what an evaluation records beside the path as given,
+    so that a report or an export from another directory knows its calibration (a path as
+    typed, ``.``, names nothing there)."""
+    p = Path(calibration)
+    return (p / "calibration.json" if p.is_dir() else p).resolve()
 
 
 def evaluates(ev: Evaluation, calibration: str | Path) -> bool:
     """Whether ``ev`` (an ``evaluation.json`` read back) evaluates ``calibration`` (its
-    ``calibration.json`` or that file's folder): the path ``selfcal evaluate`` was given is the
-    file or its folder, from this working directory or, relative, from the one evaluate ran in
-    (not recorded: its parts after any ``..`` end the file's or folder's path). An evaluation
-    kept beside another calibration's file judges that one, not this."""
-    p = Path(calibration)
-    p = p / "calibration.json" if p.is_dir() else p
-    targets = (p.resolve(), p.parent.resolve())
-    given = Path(ev.calibration)
+    ``calibration.json`` or that file's folder): :func:`names_calibration` of its recorded
+    paths. An evaluation kept beside another calibration's file judges that one, not this."""
+    return names_calibration(ev.calibration, ev.calibration_file, calibration)
+
+
+def names_calibration(given_path: str, absolute: str | None, calibration: str | Path) -> bool:
+    """Whether a check that recorded the calibration's path as given (``given_path``) and its
+    ``calibration.json``'s absolute path then (``absolute``, :func:`calibration_file`; empty or
+    None in files written before it) is of ``calibration`` (its ``calibration.json`` or that
+    file's folder): the absolute path is that file (another file still there: not); else (a
+    file written before it, or the calibration moved since) the path given is the file or its folder, from this working directory
+    or, relative, from the one the check ran in (not recorded: its parts after any ``..`` end
+    the file's or folder's path; ``.`` names nothing)."""
+    p = calibration_file(calibration)
+    if absolute and (Path(absolute) == p or Path(absolute).is_file()):
+        return Path(absolute) == p  # another calibration's file, still there: not this one
+    targets = (p, p.parent)
+    given = Path(given_path)
     if given.resolve() in targets or given.is_absolute():
         return given.resolve() in targets
     parts = [x for x in given.parts if x != "."]
