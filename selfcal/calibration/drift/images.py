@@ -89,7 +89,13 @@ from selfcal.calibration.board.folds import unseen
 from selfcal.calibration.drift.attribution import Attribution, attribute, candidate_fits
 from selfcal.calibration.drift.covariance import estimate_covariance, view_covariance
 from selfcal.calibration.drift.fold_error import fold_error_model
-from selfcal.calibration.drift.noisy import Noisy, noisy_line, noisy_views
+from selfcal.calibration.drift.noisy import (
+    Noisy,
+    noisy_frame_line,
+    noisy_frames,
+    noisy_line,
+    noisy_views,
+)
 from selfcal.calibration.drift.outliers import Outlier, drop_outliers, outlier_line
 from selfcal.calibration.drift.own import JOINT_TOL, calibration_frames, own_views
 from selfcal.calibration.drift.p_value import combined_p, min_p, p_text
@@ -174,6 +180,9 @@ class ImageDriftCheck:
         (:func:`fold_recheck`; 0 when not applied) as the views' model error (p fold_p_value),
         or not failed but with views noisier than the calibration's frames (``noisy``, each
         tested with its own noise: :mod:`selfcal.calibration.drift.noisy`; fold_p_value NaN).
+        noisy_frames: paired views whose frame, the calibration's own image at that posture,
+        is the noisy one (each the new image's name, the frame's noise and the calibration's,
+        px; named in the line, the verdict unchanged by them).
         outliers: the corners left out by the calibration's outlier rule
         (:mod:`selfcal.calibration.drift.outliers`).
     """
@@ -203,9 +212,12 @@ class ImageDriftCheck:
     fold_p_value: float = float("nan")
     outliers: tuple[Outlier, ...] = ()
     noisy: tuple[Noisy, ...] = ()
+    noisy_frames: tuple[Noisy, ...] = ()
 
     def _own_line(self) -> str:
         out = outlier_line(self.outliers)
+        if self.noisy_frames:
+            out += f"; {noisy_frame_line(self.noisy_frames)}"
         if not self.own:
             return out
         return out + (f"; {self.own} more image(s) are the calibration's own (its frames' joint "
@@ -290,6 +302,10 @@ class ImageDriftCheck:
             "noisy_images": [
                 {"image": n, "white_px": w, "calibration_white_px": c} for n, w, c in self.noisy
             ],
+            "noisy_calibration_images": [
+                {"at_image": n, "white_px": w, "calibration_white_px": c}
+                for n, w, c in self.noisy_frames
+            ],
             "outlier_corners": [
                 {"image": n, "u_px": u, "v_px": v, "error_px": e} for n, u, v, e in self.outliers
             ],
@@ -366,6 +382,7 @@ def image_drift_check(C: np.ndarray, views: list[ViewJacobians], *,
         tool_bound_mm=bound,
         undecided=not changed and bool(noisy),
         noisy=noisy,
+        noisy_frames=noisy_frames(views, names),
     )  # fmt: skip
 
 

@@ -55,12 +55,14 @@ from pathlib import Path
 from typing import Protocol
 
 import numpy as np
+from scipy.stats import ncx2
 
 from selfcal.calibration.board.accuracy import board_postures_from_json
 from selfcal.calibration.board.evaluate import HeldOutViews
 from selfcal.calibration.drift.own import JOINT_TOL, calibration_dataset
 from selfcal.calibration.drift.views import (
     ViewJacobians,
+    span_basis,
     view_jacobians,
     view_white_px,
     white_level,
@@ -92,6 +94,8 @@ count is ``sqrt 12`` times the read-back's standard deviation of a joint read by
 (:attr:`selfcal.robot.encoder.EncoderSpec.read_back_sigma`), 1.23e-4 .. 3.13e-4 rad on the
 ER-4u (models/scorbot_er4u/er4u-paper.toml); on a differential wrist that is 0.71 of a motor
 count, so the tolerance there is 2.8 of its counts."""
+Px = tuple[float, float] | None
+"""A view's white corner noise beside the calibration's (px), or None."""
 MIN_SHARED = 4
 """Board points a new view and its frame must both detect to be compared (fewer: the view is
 tested as a new one)."""
@@ -152,7 +156,7 @@ def pair_views(views: list[ViewJacobians], new: list[tuple[int, np.ndarray, np.n
     points replaced by its paired difference from that frame (module docstring; ``paired``
     set), linearised at the calibration ``em``, ``camera`` with the white corner noise
     ``pixel_sigma_px`` (px; a new image's own where its difference shows more, as an unpaired
-    view's: :func:`_own_noise`) and the joint read-back ``joint_sigma_rad`` (n,) or None of
+    view's, or its frame named where that is the noisy one: :func:`_own_noise`) and the joint read-back ``joint_sigma_rad`` (n,) or None of
     each view; the others as they are (a further view at a frame's posture too:
     :func:`_pair`)."""
     return _pair(views, new, q, frames, q_frames, em=em, camera=camera,
@@ -198,32 +202,60 @@ def _pair(views: list[ViewJacobians], new: list[tuple[int, np.ndarray, np.ndarra
         a, b = lin(q[f], X[ia], uv[ia]), whole[i]
         rows = np.stack([2 * ib, 2 * ib + 1], axis=1).reshape(-1)
         d = a.r - b.r[rows]
-        extra, own = _own_noise(a, d, pixel_sigma_px, white_level(len(new)))
-        out.append(dataclasses.replace(a, r=d, paired=True, own_px=own,
+        extra, own, frame_px = _own_noise(a, d, b.r[rows], pixel_sigma_px, white_level(len(new)))
+        out.append(dataclasses.replace(a, r=d, paired=True, own_px=own, frame_px=frame_px,
                                        local=a.local + b.local[np.ix_(rows, rows)] + extra,
                                        frame=(int(i), rows, b.local),
                                        frame_H=np.concatenate([b.kin, b.cam], axis=1)[rows]))  # fmt: skip
     return out, 0
 
 
-def _own_noise(a: ViewJacobians, d: np.ndarray, white_px: float,
-               level: float) -> tuple[np.ndarray | float, tuple[float, float] | None]:  # fmt: skip
-    """For the paired difference ``d`` (2k,) px of the new view ``a`` from its frame: its
-    covariance's extra white noise (2k, 2k) px^2 (0.0 for none) and ``own_px``
-    (:class:`selfcal.calibration.drift.views.ViewJacobians`): where ``d`` outside the view's
+def _own_noise(a: ViewJacobians, d: np.ndarray, frame_r: np.ndarray, white_px: float,
+               level: float) -> tuple[np.ndarray | float, Px, Px]:  # fmt: skip
+    """For the paired difference ``d`` (2k,) px of the new view ``a`` from its frame (whose
+    residuals on the same rows are ``frame_r`` (2k,) px): its covariance's extra white noise
+    (2k, 2k) px^2 (0.0 for none), ``own_px`` and ``frame_px``
+    (:class:`selfcal.calibration.drift.views.ViewJacobians`). Where ``d`` outside the view's
     pose span and the camera's directions shows more than two exposures of the calibration's
     white noise ``white_px`` (:func:`selfcal.calibration.drift.views.view_white_px` at
-    ``sqrt(2) white_px`` and the check's ``level`` a view), the excess is the new image's (the frame's noise taken as the
-    calibration's) and the view is a noisy one, as an unpaired view noisier than the frames.
-    Measured on the difference, not on the new view's residuals alone: what repeats at the
-    posture (the frame's own out-of-span residuals, a lens term the calibration holds) cancels
-    there, so a re-exposure as noisy as its frame is not noisy, while a change since the
-    calibration that the check does not model, or a noisier new image, is."""
+    ``sqrt(2) white_px`` and the check's ``level`` a view), the excess is one image's or
+    both's. The frame's own residuals there tell which: a frame as noisy as the calibration's
+    leaves the excess to the new image (``own_px``, its noise beside the calibration's), a
+    noisy view, as an unpaired view noisier than the frames; a frame above the calibration's
+    (at ``level``) is named (``frame_px``: the calibration's image at that posture is the noisy
+    one, which no new image helps), and the new image is noisy too only where ``d`` shows
+    more there than the frame's residuals and the calibration's noise together
+    (:func:`_new_noisier`; its own the difference's less the frame's). Measured on the
+    difference, not on the new view's residuals alone: what repeats at the posture (a lens term
+    the calibration holds) cancels there, so a re-exposure as noisy as its frame is not noisy,
+    while a change since the calibration that the check does not model, or a noisier new image,
+    is (review of session 25: a noisy frame's excess was given to the new image, whose
+    verdict then named a sharp image noisy)."""
     w = view_white_px(d, a.tool, a.cam, np.sqrt(2.0) * white_px, level)
     if w is None:
-        return 0.0, None
+        return 0.0, None, None
     extra = (w**2 - 2.0 * white_px**2) * np.eye(len(d))
-    return extra, (float(np.sqrt(w**2 - white_px**2)), float(white_px))
+    c = view_white_px(frame_r, a.tool, a.cam, white_px, level)
+    if c is None:  # the frame as noisy as the calibration's: the excess is the new image's
+        return extra, (float(np.sqrt(w**2 - white_px**2)), float(white_px)), None
+    frame = (float(c), float(white_px))
+    if not _new_noisier(d, frame_r, a, white_px, level):
+        return extra, None, frame
+    return extra, (float(np.sqrt(max(w**2 - c**2, white_px**2))), float(white_px)), frame
+
+
+def _new_noisier(d: np.ndarray, frame_r: np.ndarray, a: ViewJacobians, white_px: float,
+                 level: float) -> bool:  # fmt: skip
+    """Does the paired difference ``d`` = new - frame (2k,) px show more than the frame's
+    residuals ``frame_r`` (2k,) px and the calibration's white noise ``white_px`` together,
+    outside the new view ``a``'s pose span and the camera's directions, at ``level``? There,
+    given the frame's noise ``e`` (its residuals projected), ``|P d|^2 / white_px^2`` of a new
+    image with the calibration's noise is non-central chi-square with the degrees of freedom
+    and ``|P e|^2 / white_px^2``."""
+    Q = span_basis(np.concatenate([a.tool, a.cam], axis=1))
+    dof = len(d) - Q.shape[1]
+    e_d, e_f = d - Q @ (Q.T @ d), frame_r - Q @ (Q.T @ frame_r)
+    return bool(e_d @ e_d > white_px**2 * ncx2.isf(level, dof, e_f @ e_f / white_px**2))
 
 
 def paired_views(cal: BoardCalibrationResult, path: Path, held: HeldOutViews,

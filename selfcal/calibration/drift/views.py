@@ -91,6 +91,10 @@ class ViewJacobians:
             replaced the calibration's (:func:`view_white_px`, ``own_white``) and the
             calibration's it was above; None where the calibration's is used. Such a view never
             gives "unchanged" (:mod:`selfcal.calibration.drift.noisy`).
+        frame_px: a paired view's ``(frame's, calibration's)`` white corner noise (px) where
+            its frame, the calibration's own image at that posture, shows more than the
+            calibration's (:func:`selfcal.calibration.drift.paired.pair_views`): the
+            difference's excess is (also) that image's, named as such; None otherwise.
     """
 
     r: np.ndarray
@@ -107,6 +111,7 @@ class ViewJacobians:
     frame: tuple[int, np.ndarray, np.ndarray] | None = None
     frame_H: np.ndarray | None = None
     own_px: tuple[float, float] | None = None
+    frame_px: tuple[float, float] | None = None
 
 
 def span_basis(M: np.ndarray) -> np.ndarray:
