@@ -62,6 +62,9 @@ def run(tmp_path_factory):
     assert main(["evaluate", str(out["calib"]), str(out["held"]), "-q"]) == 0
     cal = json.loads((out["calib"] / "calibration.json").read_text())
     ev = json.loads((out["held"] / "evaluation.json").read_text())
+    # the calibration as given and its file's absolute path, by which report knows it anywhere
+    assert ev["calibration"] == str(out["calib"])
+    assert ev["calibration_file"] == str((out["calib"] / "calibration.json").resolve())
     return cal, ev
 
 
