@@ -278,6 +278,7 @@ def test_a_noisy_calibration_image_at_a_paired_posture_is_named_not_the_new_one(
             frame = {n: w for n, w, _ in res.noisy_frames}
             assert list(frame) == ["view 2"] and 0.37 < frame["view 2"] < 0.63, frame
             assert "the calibration's own images" in res.line()
+            assert [d["at_image"] for d in res.to_json()["noisy_calibration_images"]] == ["view 2"]
             named = {n: w for n, w, _ in res.noisy}
             if new_loud == 1.0:
                 assert "view 2" not in named, named
