@@ -33,11 +33,11 @@ predicted tool-point error over the workspace, ``sqrt(trace(G C))``,
 (:func:`selfcal.calibration.board.plan.greedy.select_greedy`, :func:`~selfcal.calibration.
 board.plan.greedy.exchange`), and its exchange started from the D-optimal choice. That
 criterion takes the markers' corners as known (the forecast estimates them), so no one choice
-is best on every cell; the fourth, the best of those three exchanged on the criterion with the
-corners unknown (:mod:`selfcal.calibration.field.plan_corners`: each marker's corners
-eliminated in one small block, as the field route estimates them), is the one that seeks views
-that fix the corners (docs/plan.md's example: 0.259 mm against the three's best 0.295 mm,
-forecast). The random plan of the same size is the first ``count`` candidates of the same
+is best on every cell; the fourth, the best of those three exchanged on the forecast itself
+(:mod:`selfcal.calibration.field.plan_corners`: the corners unknown and each posture's
+read-back errors eliminated over its rows, as the field route estimates them, updated per
+candidate by its rank), is the one that seeks views that fix the corners (docs/plan.md's
+example: the table of ``python -m selfcal.benchmarks.plan.field_count``). The random plan of the same size is the first ``count`` candidates of the same
 filters (:func:`selfcal.kinematics.trajectory.plan_postures` with the same seed).
 
 The forecast (:func:`field_forecast`) is the field route's Cramer-Rao bound

@@ -1,22 +1,27 @@
 """A field plan's tool-point criterion with the markers' corners unknown, as the field route
 estimates them (``selfcal plan --target FIELD.toml``, issue #30; docs/plan.md "What limits a
-field plan of 12").
+field plan of 12"): the field route's Cramer-Rao bound of the tool point, the plan's forecast
+(:func:`selfcal.calibration.field.plan.field_forecast`), computed for candidate sets fast enough
+to exchange postures on it.
 
 :mod:`selfcal.calibration.field.plan_information` takes the corners as known, and a plan chosen
-so sees each marker in few views (the docs example's plan of 12: 6.5 on the mean, the random 30
-11.0), which leaves the corners' positions to absorb the arm's error. With the corners unknown
-the information is not a sum over the postures, but each marker's 12 corner coordinates (the two
-scale markers' 24 together: the known distance joins them) meet the other unknowns only through
-the postures that see it, so their Schur complement is one small block per marker: for a set
-``S`` of postures, ``H(S) = sum_i F_i - sum_k B_k D_k^-1 B_k^T`` with ``B_k = sum_i B_ik``
-(parameters x the marker's corners) and ``D_k = sum_i D_ik`` (its corners), and the criterion is
-``sqrt(trace(G C))``, ``C`` the kinematic block of ``H(S)^-1`` (the board plan's criterion,
-:mod:`selfcal.calibration.board.plan.greedy`). With exact joints this is the field route's
-Cramer-Rao bound of the tool point (the forecast,
-:func:`selfcal.calibration.field.plan.field_forecast`); with the joints' read-back errors each
-posture's are eliminated within its own rows of a marker, the coupling they make between two
-markers' corners dropped, so it approximates the forecast, and the plan is judged by the
-forecast. SI units, px.
+so sees each marker in few views, which leaves the corners' positions to absorb the arm's error.
+With the corners unknown the information is not a sum over the postures' parameter blocks: each
+posture's read-back errors meet every corner it sees, so eliminating them couples those corners
+(dropping that coupling, session 25's criterion, rated the UR5e's plan of 12 ahead of the random
+30 where the forecast rates it behind). Here the unknowns ``z`` are the camera's free
+parameters, the free kinematic parameters, the rig and every marker corner; posture ``i``'s
+read-back errors are eliminated from its own rows exactly (the Schur complement over its rows
+and their prior: ``M_i = I - Q_i (Q_i^T Q_i + P)^-1 Q_i^T``), which leaves its information over
+``z`` as ``V_i V_i^T`` (``V_i = R_i^T chol(M_i)``, nonzero on the columns it sees), and a set
+``S`` of postures has the information ``Lambda(S) = prior + sum_i V_i V_i^T`` (the prior: the
+known distance's row). The criterion is ``sqrt(trace(G C))``, ``C`` the free kinematic block of
+``Lambda(S)^-1`` (the board plan's, :mod:`selfcal.calibration.board.plan.greedy`): the forecast
+itself. A candidate added to a set updates the inverse by its rank (the Woodbury identity), so
+one inverse per set ranks every candidate (or, where it would leave less than :data:`CANCEL`
+of the set's criterion, a difference of large numbers, that candidate's own inverse).
+A corner no posture of the set sees twice is held by a regulariser of :data:`EPS` of its
+scale (the forecast drops it), which passes on none of its information. SI units, px.
 """
 
 from __future__ import annotations
@@ -24,122 +29,128 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import sparse
 
 from selfcal.calibration.field.plan_information import PostureRows
 from selfcal.errors import UsageError
-from selfcal.target import CORNERS_PER_MARKER
 
 __all__ = ["CornerBlocks", "corner_blocks", "corner_criterion", "corner_exchange", "corner_grow"]
 
 EPS = 1e-9
-"""A marker's corner block is regularised by this share of its trace: a marker seen in one view
-only (singular block) then passes on none of its information, as the bound drops it."""
-PASSES = 200
-"""The exchange's swaps at most (each lowers the criterion, so it ends anyway)."""
+"""Every unknown's information is regularised by this share of its scale (the mean information
+of one candidate): a corner seen in one view only (singular) then passes on none of its
+information, as the bound drops it."""
+CANCEL = 0.5
+"""A candidate whose addition would leave less than this share of the held set's squared
+criterion is costed directly, not by the update (module docstring)."""
+PASSES = 50
+"""The exchange's rounds of the chosen postures at most (each swap lowers the criterion, so it
+ends anyway)."""
 
 
 @dataclass(frozen=True)
 class CornerBlocks:
-    """Every candidate's pieces of the criterion (module docstring): ``F`` (m, p, p) its
-    information about ``[camera's free parameters, free kinematic parameters]`` with its
-    read-back errors eliminated, ``B`` and ``D`` one (m, p, c) and (m, c, c) array per marker
-    group (c its corner coordinates, 12 or 24), ``prior`` (c, c) each group's information
-    without postures (the known distance's, zeros elsewhere), ``scale`` (p,) the parameters'
-    scaling (the root of their mean information per candidate)."""
+    """Every candidate's piece of the criterion (module docstring), in scaled unknowns ``z s``:
+    ``cols[i]`` the unknowns candidate ``i``'s rows touch (indices into ``z``), ``R[i]``
+    (r, len(cols[i])) its whitened rows over them (csr; no rows: it adds nothing, its view not
+    registered), ``E[i]`` (r, r) ``I + Q_i P^-1 Q_i^T`` (the identity with exact joints), so that
+    its information is ``R_i^T E_i^-1 R_i``; ``prior`` (z, z) the information without postures (the known distance's, and the
+    regulariser); ``kin`` the indices into ``z`` of the free kinematic parameters (the tool
+    weight's order); ``scale`` (z,) ``s``: the root of each unknown's mean information per
+    candidate (the joints exact)."""
 
-    F: np.ndarray
-    B: tuple[np.ndarray, ...]
-    D: tuple[np.ndarray, ...]
-    prior: tuple[np.ndarray, ...]
+    R: tuple[sparse.csr_matrix, ...]
+    E: tuple[np.ndarray, ...]
+    cols: tuple[np.ndarray, ...]
+    prior: np.ndarray
+    kin: np.ndarray
     scale: np.ndarray
 
 
 def corner_blocks(pr: PostureRows) -> CornerBlocks:
     """The pieces of the criterion for the candidate postures of ``pr``
     (:func:`selfcal.calibration.field.plan_information.posture_rows` of the field route's setup
-    at the nominal chain: the markers the one camera sees, the corner noise and the read-back
+    at the nominal chain: the markers the cameras see, the corner noise and the read-back
     noise). A candidate whose camera sees fewer than
     :data:`selfcal.estimation.epipolar.MIN_SHARED` corners adds nothing (the route does not
     register it)."""
-    fs, J, m = pr.fs, pr.J, len(pr.registered)
-    n_points = len(fs.X_world)
-    x0 = J.shape[1] - 3 * n_points  # the points' columns come last
-    group = np.arange(n_points) // CORNERS_PER_MARKER
-    sa, sb = (np.asarray(s) for s in fs.scale_points)
-    group[sb] = group[sa[0]]  # the known distance joins the scale markers
-    names, group = np.unique(group, return_inverse=True)
-    cols = [(x0 + 3 * np.flatnonzero(group == g)[:, None] + np.arange(3)).ravel()
-            for g in range(len(names))]  # fmt: skip
-    th = pr.lay.kin_cols
-    p = len(th)
-    F = np.zeros((m, p, p))
-    B = [np.zeros((m, p, len(c))) for c in cols]
-    D = [np.zeros((m, len(c), len(c))) for c in cols]
-    for i in map(int, np.flatnonzero(pr.registered)):  # unregistered: nothing
-        at = pr.rows(i)
-        Ri = pr.R[at]
-        A = Ri[:, th].toarray()
-        dq = None  # the posture's read-back errors' columns and their elimination
-        if pr.prior is not None:
-            Bq = Ri[:, pr.dq_cols(i)].toarray()
-            dq = (Bq, np.linalg.solve(Bq.T @ Bq + pr.prior, Bq.T))
-        MA = _eliminated(A, dq)
-        F[i] = A.T @ MA
-        for g in np.unique(group[pr.point[at]]):
-            X = Ri[:, cols[g]].toarray()
-            B[g][i] = MA.T @ X
-            D[g][i] = X.T @ _eliminated(X, dq)
-    extra = J[
-        pr.R.shape[0] :
-    ].tocsc()  # the known distance's row (and the joints' prior: no corners)
-    pri = []
-    for c in cols:
-        S = extra[:, c].toarray()
-        pri.append(S.T @ S)
-    scale = np.sqrt(np.maximum(np.einsum("mii->i", F) / m, 1e-300))
-    return CornerBlocks(F, tuple(B), tuple(D), tuple(pri), scale)
-
-
-def _eliminated(X: np.ndarray, dq: tuple[np.ndarray, np.ndarray] | None) -> np.ndarray:
-    """``M X`` with ``M = I - Bq (Bq^T Bq + prior)^-1 Bq^T`` (``dq = (Bq, that inverse times
-    Bq^T)``): the posture's read-back errors eliminated from the rows ``X``; ``X`` when exact."""
-    return X if dq is None else X - dq[0] @ (dq[1] @ X)
-
-
-def _costs(cb: CornerBlocks, W: np.ndarray, held: np.ndarray, add: bool) -> np.ndarray:
-    """``trace(W C)`` (squared criterion, m^2) of the postures ``held`` plus, with ``add``, each
-    candidate in turn ((m,)), else of ``held`` alone ((1,))."""
-    H = cb.F[held].sum(axis=0)[None] + (cb.F if add else 0.0)
-    for Bg, Dg, Pg in zip(cb.B, cb.D, cb.prior, strict=True):
-        b = Bg[held].sum(axis=0)[None]
-        d = Dg[held].sum(axis=0)[None]  # the views' (not the prior's)
-        if not add:
-            H = H - _corner_term(b, d, Pg)
+    J, m = pr.J, len(pr.registered)
+    n = pr.fs.model.n
+    dq_all = pr.lay.n_camera + np.asarray(pr.lay.pose_model.dq_cols, dtype=np.int64)
+    z = np.setdiff1d(np.arange(J.shape[1]), dq_all)  # every unknown but the read-back errors
+    Rz = pr.R[:, z].tocsr()
+    sq = Rz.multiply(Rz)
+    scale = np.sqrt(np.asarray(sq[: int(pr.ends[-1])].sum(axis=0)).ravel() / m)
+    scale = np.where(scale > 0, scale, 1.0)
+    Rz = (Rz @ sparse.diags(1.0 / scale)).tocsr()
+    shared = np.arange(len(pr.lay.kin_cols))  # the camera and kinematics: always touched
+    R: list[sparse.csr_matrix] = []
+    E: list[np.ndarray] = []
+    cols: list[np.ndarray] = []
+    cov = None if pr.prior is None else np.linalg.inv(pr.prior)
+    for i in range(m):
+        at = pr.rows(i) if pr.registered[i] else slice(0, 0)
+        Ri = Rz[at]
+        c = np.union1d(shared, Ri.indices) if Ri.shape[0] else np.zeros(0, np.int64)
+        R.append(Ri[:, c].tocsr())
+        cols.append(c)
+        if cov is None:
+            E.append(np.eye(Ri.shape[0]))
             continue
-        # a candidate that does not see the group adds zeros to b and d: its term is the held
-        # set's, computed once (the same numbers as adding its zeros, at a share of the solves)
-        sees = np.flatnonzero(Bg.any(axis=(1, 2)) | Dg.any(axis=(1, 2)))
-        term = np.repeat(_corner_term(b, d, Pg), len(Bg), axis=0)
-        term[sees] = _corner_term(b + Bg[sees], d + Dg[sees], Pg)
-        H = H - term
-    s = cb.scale
-    C = np.linalg.inv(H / np.outer(s, s) + EPS * np.eye(len(s)))
-    return np.einsum("ij,mji->m", W / np.outer(s, s), C)
+        Q = pr.R[at][:, dq_all[n * i : n * (i + 1)]].toarray()
+        E.append(np.eye(len(Q)) + Q @ cov @ Q.T)
+    extra = J[pr.R.shape[0] :][:, z].toarray() / scale  # the known distance's row (no joints)
+    prior = extra.T @ extra + EPS * np.eye(len(z))
+    kin = np.arange(pr.lay.n_camera, len(pr.lay.kin_cols))
+    return CornerBlocks(tuple(R), tuple(E), tuple(cols), prior, kin, scale)
 
 
-def _corner_term(b: np.ndarray, d: np.ndarray, prior: np.ndarray) -> np.ndarray:
-    """(m, p, p) ``b (d + prior)^-1 b^T`` of a marker group's (m, p, c) ``b`` and (m, c, c) views'
-    ``d``, each ``d`` regularised by :data:`EPS` of its trace (unseen: ``b = 0``)."""
-    eps = EPS * np.maximum(np.einsum("mii->m", d), 1.0)[:, None, None]
-    d = d + prior + eps * np.eye(d.shape[-1])
-    return b @ np.linalg.solve(d, np.swapaxes(b, 1, 2))
+def _inverse(cb: CornerBlocks, held: np.ndarray) -> np.ndarray:
+    """``Lambda(held)^-1`` in the scaled unknowns (module docstring)."""
+    L = cb.prior.copy()
+    for i in map(int, held):
+        c = cb.cols[i]
+        A = cb.R[i].toarray()
+        L[np.ix_(c, c)] += A.T @ np.linalg.solve(cb.E[i], A)
+    return np.linalg.inv(L)
 
 
 def _weight(cb: CornerBlocks, G: np.ndarray) -> np.ndarray:
-    p = cb.F.shape[1]
-    W = np.zeros((p, p))
-    W[p - len(G) :, p - len(G) :] = G
-    return W
+    """(k, g) a factor ``F F^T`` of the tool weight ``G`` in the scaled kinematic unknowns."""
+    s = cb.scale[cb.kin]
+    if G.shape != (len(s), len(s)):
+        raise UsageError(f"the tool weight is {G.shape}, not ({len(s)}, {len(s)}): "
+                         "the free kinematic parameters of the same chain")  # fmt: skip
+    w, U = np.linalg.eigh(G / np.outer(s, s))
+    keep = w > 0
+    return U[:, keep] * np.sqrt(w[keep])
+
+
+def _costs(cb: CornerBlocks, Fw: np.ndarray, held: np.ndarray, add: bool) -> np.ndarray:
+    """``trace(G C)`` (squared criterion, m^2) of the postures ``held`` plus, with ``add``, each
+    candidate in turn ((m,); a candidate that adds nothing: the held set's), else of ``held``
+    alone ((1,)). A candidate ``j`` adds its rows ``R_j`` with its read-back errors (prior
+    ``P``) as unknowns of their own: with ``S = Lambda(held)^-1``,
+    ``K = E_j + R_j S R_j^T`` and ``Z = R_j S_kin F`` (``G = F F^T``) it lowers ``trace(G C)``
+    by ``trace(Z^T K^-1 Z)`` (the Woodbury identity)."""
+    S = _inverse(cb, held)
+    SF = S[:, cb.kin] @ Fw  # (z, g)
+    base = float(np.sum(Fw * (S[np.ix_(cb.kin, cb.kin)] @ Fw)))
+    if not add:
+        return np.array([base])
+    out = np.full(len(cb.R), base)
+    for j, (Rj, Ej, c) in enumerate(zip(cb.R, cb.E, cb.cols, strict=True)):
+        if not Rj.shape[0]:
+            continue
+        T = Rj @ S[np.ix_(c, c)]  # (r, c)
+        K = Ej + np.asarray(Rj @ T.T)
+        Z = np.asarray(Rj @ SF[c])  # (r, g)
+        out[j] = base - float(np.sum(Z * np.linalg.solve(K, Z)))
+    # a drop of more than half is a difference of large numbers (a held set that leaves some
+    # unknown to the regulariser): those candidates' costs directly
+    for low in map(int, np.flatnonzero(out < CANCEL * base)):
+        out[low] = _costs(cb, Fw, np.append(held, low), add=False)[0]
+    return out
 
 
 def corner_criterion(cb: CornerBlocks, G: np.ndarray, chosen: np.ndarray) -> float:
@@ -151,43 +162,42 @@ def corner_criterion(cb: CornerBlocks, G: np.ndarray, chosen: np.ndarray) -> flo
 
 
 def corner_exchange(cb: CornerBlocks, G: np.ndarray, chosen: np.ndarray) -> np.ndarray:
-    """``chosen`` (count,) indices improved by swaps on :func:`corner_criterion`: while a chosen
-    candidate swapped for another lowers it by more than a millionth, the swap that lowers it most
-    is made (at most :data:`PASSES`; Fedorov's exchange, steepest descent, as
-    :func:`selfcal.calibration.board.plan.greedy.exchange`); each swap keeps its place."""
+    """``chosen`` (count,) indices improved by swaps on :func:`corner_criterion` (Fedorov's
+    exchange): each chosen candidate in turn, cyclically, is swapped for the candidate that
+    lowers the criterion most when that lowers it by more than a millionth, until every place
+    has been tried once since the last swap (at most :data:`PASSES` times round); each swap
+    keeps its place."""
     chosen = np.asarray(chosen, dtype=np.int64).copy()
-    W = _weight(cb, G)
-    cost = _costs(cb, W, chosen, add=False)[0]
-    for _ in range(PASSES):
-        best = (cost, -1, -1)
-        for k in range(len(chosen)):
-            c = _costs(cb, W, np.delete(chosen, k), add=True)
-            c[chosen] = np.inf
-            j = int(np.argmin(c))
-            if c[j] < best[0]:
-                best = (float(c[j]), k, j)
-        if best[1] < 0 or best[0] >= cost * (1.0 - 1e-6):
+    Fw = _weight(cb, G)
+    cost = _costs(cb, Fw, chosen, add=False)[0]
+    since = 0
+    for step in range(PASSES * len(chosen)):
+        if since == len(chosen):
             break
-        cost, k, j = best
-        chosen[k] = j
+        k = step % len(chosen)
+        c = _costs(cb, Fw, np.delete(chosen, k), add=True)
+        c[chosen] = np.inf
+        j = int(np.argmin(c))
+        since += 1
+        if c[j] < cost * (1.0 - 1e-6):
+            cost, chosen[k], since = float(c[j]), j, 0
     return chosen
 
 
 def corner_grow(cb: CornerBlocks, G: np.ndarray, chosen: np.ndarray, total: int) -> np.ndarray:
     """(total,) indices: ``chosen`` (count,) first, then one candidate at a time the one whose
     addition lowers :func:`corner_criterion` most (the greedy choice on it, started from
-    ``chosen``); nested plans of every size from ``count`` to ``total``, each one greedy step
-    (a single pass of :func:`corner_exchange`'s search per added posture). ``total`` at most the
+    ``chosen``); nested plans of every size from ``count`` to ``total``. ``total`` at most the
     candidates (:class:`selfcal.errors.UsageError` else)."""
     held = np.asarray(chosen, dtype=np.int64)
-    if not len(held) <= total <= len(cb.F):
+    if not len(held) <= total <= len(cb.R):
         raise UsageError(
             f"corner_grow: total {total}, not from {len(held)} (the postures given) to "
-            f"{len(cb.F)} (the candidates)"
+            f"{len(cb.R)} (the candidates)"
         )
-    W = _weight(cb, G)
+    Fw = _weight(cb, G)
     while len(held) < total:
-        c = _costs(cb, W, held, add=True)
+        c = _costs(cb, Fw, held, add=True)
         c[held] = np.inf
         held = np.append(held, int(np.argmin(c)))
     return held
