@@ -9,9 +9,9 @@ field route estimates them) beside the same bound with the corners known (the pl
 criterion, :func:`selfcal.calibration.field.plan_information.frame_information` summed:
 ``sqrt(trace(G C))``) and the corners-unknown exchange's criterion
 (:func:`selfcal.calibration.field.plan_corners.corner_criterion`: the corners unknown, each
-posture's read-back errors eliminated within each marker's rows, their coupling between markers
-dropped), the markers seen per view and the views per marker, and the unknowns
-(camera, kinematics, corners of the markers seen twice, the joints' read-back errors) against
+posture's read-back errors eliminated over its own rows: the forecast, over the postures whose
+view the route registers; until session 26 their coupling between markers was dropped), the
+markers seen per view and the views per marker, and the unknowns (camera, kinematics, corners of the markers seen twice, the joints' read-back errors) against
 the equations (two per corner seen). Then the plan's forecast for each of ``--counts``
 postures (:func:`selfcal.calibration.field.plan.plan_field`; its ``to_match``, the count
 ``selfcal plan`` advises) against the random 30's, and the plan of 12 before the exchange with
