@@ -246,3 +246,34 @@ def test_the_docs_field_lines_are_what_the_commands_print(tmp_path, capsys):
         assert abs(float(v) - g) <= (6e-3 if i == 4 else 6e-4), (i, v, g)
     assert "0.39 px here, the random plan's 0.91 px" in page
     assert (round(doc["predicted_fx_std_px"], 2), round(doc["random_fx_std_px"], 2)) == (0.39, 0.91)
+
+
+@pytest.mark.slow
+def test_the_docs_plan_from_1200_candidates_is_what_the_commands_print(tmp_path, capsys):
+    """docs/plan.md's plan of 12 from `--candidates 1200`: forecast ahead of the random 30 (no
+    third line), and its replay's one draw, as the page states them."""
+    import re
+    from pathlib import Path
+
+    page = (Path(__file__).resolve().parents[2] / "docs/plan.md").read_text()
+    argv = ["plan", "--robot", "ur5e", "--target", FIELD, "--fov-deg", "60", "--resolution",
+            "640x480", "--count", "12", "--candidates", "1200", "--out", str(tmp_path / "plan"),
+            "--quiet"]  # fmt: skip
+    assert main(argv) == 0
+    out = capsys.readouterr().out.strip().splitlines()
+    assert len(out) == 2 and "behind" not in " ".join(out)
+    doc = read_plan(tmp_path / "plan/plan.json")
+    assert doc["predicted_tool_rms_mm"] < doc["random_match_tool_rms_mm"]
+    said = re.search(r"`--candidates 1200`\s+\((\d+) left after the checks, the default 400 "
+                     r"leaving 320\) plans 12 postures forecast at\s+([0-9.]+) mm, ahead of the "
+                     r"random 30's ([0-9.]+) mm", page)  # fmt: skip
+    assert said is not None
+    assert int(said.group(1)) == doc["candidates"]
+    assert float(said.group(2)) == round(doc["predicted_tool_rms_mm"], 3)
+    assert float(said.group(3)) == round(doc["random_match_tool_rms_mm"], 3)
+    assert main(["run", str(tmp_path / "plan/scenario.toml"), "--out", str(tmp_path / "run"),
+                 "--quiet"]) == 0  # fmt: skip
+    val = json.loads((tmp_path / "run/report.json").read_text())["validation"]
+    got = val["tool_tip_error_mm"]["calibrated"]["rms"]
+    said_run = re.search(r"calibrates to ([0-9.]+) mm in its one draw \(the default plan's", page)
+    assert said_run is not None and abs(float(said_run.group(1)) - got) <= 6e-4
