@@ -81,7 +81,8 @@ frames and units:
   joint values = the controller's joint readings. MJCF/URDF in m and rad, TOML in mm and deg.
 formats (chosen by --format only, never by the --out file's suffix):
   mjcf  the robot of models/scorbot_er4u/<robot>.xml with calibrated frames (same names)
-  urdf  base_link, link1..link<n>, tool_tip, cam_left, cam_right (kinematics only)
+  urdf  base_link, link1..link<n>, tool_tip and the camera's optical frame:
+        camera_optical_frame (one camera) or cam_left, cam_right (a pair); kinematics only
   toml  MCPC parameters with std, joint offsets and the DH table where one exists
   opencv       the estimated camera as cv2.FileStorage YAML (camera_matrix,
                distortion_coefficients, image_width, image_height, distortion_model)

@@ -32,8 +32,8 @@ Exports of a :class:`DeployedModel` (pure functions returning text; MJCF is in
   DH table in the robot's own convention (standard or modified DH; none for a URDF robot) where
   one exists;
 - :func:`selfcal.export.urdf.to_urdf`: links ``base_link``, ``link1..link<n>``, ``tool_tip``,
-  ``cam_left``, ``cam_right``, revolute joints named like the robot's joints (the MJCF's), full
-  float precision.
+  the camera (``camera_optical_frame`` alone, ``cam_left`` and ``cam_right`` a pair), revolute
+  joints named like the robot's joints (the MJCF's), full float precision.
 """
 
 from __future__ import annotations
@@ -181,7 +181,10 @@ def as_rigid(T, what: str) -> np.ndarray:
     """``T`` as a float 4x4 with its rotation re-orthonormalised (JSON rounds to 9 digits)."""
     T = np.asarray(T, dtype=float)
     if T.shape != (4, 4) or not np.all(np.isfinite(T)):
-        raise DeployError(f"{what} must be a finite 4x4 transform, got shape {T.shape}")
+        raise DeployError(
+            f"{what} must be a finite 4x4 transform, got shape {T.shape}"
+            + ("" if T.shape != (4, 4) else " with entries that are not finite")
+        )
     U, s, Vt = np.linalg.svd(T[:3, :3])
     if np.max(np.abs(s - 1.0)) > 1e-6 or np.linalg.det(U @ Vt) < 0:
         raise DeployError(f"{what} is not a rigid transform (singular values {s})")
@@ -215,8 +218,8 @@ def deploy_chain(
     )
     try:
         T_world_base = canonical_base(model_cam, robot)
-    except ValueError as exc:
-        raise DeployError(f"cannot build the robot base frame: {exc}") from exc
+    except InputError as exc:
+        raise DeployError(f"cannot build the robot base frame: {exc.message}", fix=exc.fix) from exc
     G = chain_transforms(model_cam)
     offsets = nominal_offsets(robot)
     chain = [inv_pose(T_world_base) @ G[0], *G[1:-1], G[-1] @ T_cam_tip]
@@ -267,7 +270,8 @@ def deploy(
         raise DeployError(
             f"the calibration is of robot {calibration.robot_model!r}, not {robot.name!r}"
         )
-    T_lr = as_rigid(calibration.rig.T_left_right_m, "rig.T_left_right_m")
+    T = calibration.rig.T_left_right_m
+    T_lr = None if np.isnan(T).all() else as_rigid(T, "rig.T_left_right_m")  # NaN: one camera
     return deploy_chain(
         calibration.model,
         robot,

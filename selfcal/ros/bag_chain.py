@@ -2,10 +2,12 @@
 chain when the dataset folder holds a ``calibration.json`` (field or board), else the nominal
 one, in the frames of the exported URDF (:func:`selfcal.export.urdf.to_urdf`, base frame =
 ``base_link``): ``/tf_static`` holds its fixed edges (the last link -> ``tool_tip``, the last link
--> ``cam_left``, ``cam_left`` -> ``cam_right``) and ``/tf`` the moving ones (``base_link`` ->
+-> the first camera, ``cam_left`` -> ``cam_right``) and ``/tf`` the moving ones (``base_link`` ->
 ``link1`` -> ... at every joint state). The images' ``frame_id`` is the camera's frame in that
-tree: ``cam_left`` for the first camera, ``cam_right`` for the second (OpenCV/ROS optical
-frames); a further camera keeps its name and has no transform. Metres, ``T_parent_child``.
+tree, the URDF's link (:func:`selfcal.export.urdf.camera_frame_names`): ``camera_optical_frame``
+for a dataset of one camera, ``cam_left`` and ``cam_right`` for a rig's first two (OpenCV/ROS
+optical frames); a further camera keeps its name and has no transform. Metres,
+``T_parent_child``.
 """
 
 from __future__ import annotations
@@ -15,24 +17,24 @@ from pathlib import Path
 import numpy as np
 
 from selfcal.export.deploy import DeployedModel, as_rigid, body_poses, deploy, deploy_chain
+from selfcal.export.urdf import camera_frame_names
 from selfcal.io.board_calibration import calibration_kind, read_board_calibration
 from selfcal.io.calibration import read_calibration
 from selfcal.kinematics.mcpc import nominal_mcpc
 from selfcal.robot.definition import RobotDef
 from selfcal.transforms import rot_z, trans
 
-__all__ = ["CAMERA_FRAMES", "camera_frames", "bag_chain", "static_edges", "moving_edges"]
-
-CAMERA_FRAMES = ("cam_left", "cam_right")
-"""The exported URDF's camera links, in the dataset's camera order."""
+__all__ = ["camera_frames", "bag_chain", "static_edges", "moving_edges"]
 
 Edge = tuple[str, str, np.ndarray]
 """``(parent, child, T_parent_child)`` (4, 4), metres."""
 
 
 def camera_frames(cameras: tuple[str, ...]) -> dict[str, str]:
-    """Each camera's ``frame_id``: its URDF link for the first two, else its own name."""
-    return {c: CAMERA_FRAMES[k] if k < len(CAMERA_FRAMES) else c for k, c in enumerate(cameras)}
+    """Each camera's ``frame_id`` (in the dataset's camera order): its URDF link for the first
+    two (:func:`selfcal.export.urdf.camera_frame_names`), else its own name."""
+    links = camera_frame_names(len(cameras))
+    return {c: links[k] if k < len(links) else c for k, c in enumerate(cameras)}
 
 
 def bag_chain(root: Path, robot: RobotDef) -> tuple[DeployedModel, bool]:
@@ -53,14 +55,16 @@ def _links(n: int) -> list[str]:
     return ["base_link"] + [f"link{k + 1}" for k in range(n)]
 
 
-def static_edges(dep: DeployedModel) -> list[Edge]:
-    """The chain's fixed edges (``/tf_static``)."""
+def static_edges(dep: DeployedModel, cameras: tuple[str, ...]) -> list[Edge]:
+    """The chain's fixed edges (``/tf_static``) in the frames of the dataset's ``cameras``
+    (:func:`camera_frames`)."""
     n = dep.model.n
     tip = body_poses(dep.model)[n]
     last = _links(n)[-1]
-    edges = [(last, "tool_tip", tip), (last, CAMERA_FRAMES[0], tip @ dep.T_tip_cam)]
-    if dep.T_left_right is not None and np.isfinite(dep.T_left_right).all():
-        edges.append((CAMERA_FRAMES[0], CAMERA_FRAMES[1], np.asarray(dep.T_left_right, float)))
+    links = list(camera_frames(cameras).values())
+    edges = [(last, "tool_tip", tip), (last, links[0], tip @ dep.T_tip_cam)]
+    if len(links) > 1 and dep.T_left_right is not None and np.isfinite(dep.T_left_right).all():
+        edges.append((links[0], links[1], np.asarray(dep.T_left_right, float)))
     return edges
 
 

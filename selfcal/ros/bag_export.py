@@ -14,7 +14,8 @@ uncalibrated (K all zeros, the model's ``distortion_model``).
 ``/robot_description`` (``std_msgs/String``, once at the start): the robot's NOMINAL URDF.
 ``/tf_static`` (once at the start) and ``/tf`` (at every joint state): the calibrated chain when
 the folder holds a ``calibration.json``, else the nominal one (:mod:`selfcal.ros.bag_chain`); the
-images' and camera_infos' ``frame_id`` is the camera's frame in it (``cam_left``, ``cam_right``).
+images' and camera_infos' ``frame_id`` is the camera's frame in it (``camera_optical_frame`` for
+one camera, ``cam_left``, ``cam_right`` for a rig: :func:`selfcal.ros.bag_chain.camera_frames`).
 Truth never goes into the bag (``truth.json`` is not read).
 """
 
@@ -85,17 +86,17 @@ def nominal_urdf(ds: Dataset) -> str:
 
         table = read_toml(src).get("urdf", {})
         return (src.parent / str(table["file"])).read_text()
-    return _dh_urdf(robot)
+    return _dh_urdf(robot, len(ds.info.cameras))
 
 
-def _dh_urdf(robot: RobotDef) -> str:
+def _dh_urdf(robot: RobotDef, cameras: int) -> str:
     dep = deploy_chain(nominal_mcpc(robot).with_tool(robot.T_flange_cam), robot,
                        source="nominal robot model")  # fmt: skip
     with warnings.catch_warnings():
         # a nominal frame at exactly +-90 deg pitch: scipy's rpy sets the third angle to zero and
         # still represents the rotation; its warning would only puzzle the user
         warnings.filterwarnings("ignore", "Gimbal lock detected", UserWarning)
-        return to_urdf(dep, calibrated=False)
+        return to_urdf(dep, calibrated=False, cameras=cameras)
 
 
 def _camera_infos(ds: Dataset) -> dict[str, CameraInfo]:
@@ -177,7 +178,7 @@ def export_bag(
     frames = camera_frames(ds.info.cameras)
     with BagWriter(out, fmt) as w:
         w.string("/robot_description", start, urdf)
-        w.tf("/tf_static", start, static_edges(chain))
+        w.tf("/tf_static", start, static_edges(chain, ds.info.cameras))
         k = 0
         for t in ticks:
             while k < n and int(stamps[k]) < t:

@@ -252,6 +252,37 @@ def test_urdf_chain_reproduces_tool_tip(deployed):
     assert worst < TOL_M
 
 
+def test_a_single_camera_is_not_called_left(deployed, calibration):
+    """A calibration of one camera (the rig all NaN in calibration.json, as a one-camera field
+    calibration writes it) deploys (it raised "rig.T_left_right_m must be a finite 4x4
+    transform") and its URDF names the camera's optical frame camera_optical_frame, not
+    cam_left (new user's trip, session 25); the pair keeps cam_left / cam_right, and a bag's
+    frame_id and /tf_static name the same links (selfcal/ros/bag_chain.py)."""
+    from selfcal.io.calibration_blocks import Rig
+    from selfcal.ros.bag_chain import camera_frames, static_edges
+
+    one = dataclasses.replace(calibration[1], rig=Rig(np.full((4, 4), np.nan)))
+    mono = deploy(one, source="test")
+    assert mono.T_left_right is None
+    root = ET.fromstring(to_urdf(mono))
+    links = {lk.get("name") for lk in root.findall("link")}
+    joints = {j.get("name"): j for j in root.findall("joint")}
+    assert "camera_optical_frame" in links and not links & {"cam_left", "cam_right"}
+    cam = joints["camera_optical_frame_joint"]
+    assert cam.find("child").get("link") == "camera_optical_frame"
+    np.testing.assert_allclose(_origin(cam), _origin(joints["tool_tip_joint"]) @ mono.T_tip_cam,
+                               atol=1e-12)  # fmt: skip
+    assert camera_frames(("cam0",)) == {"cam0": "camera_optical_frame"}
+    assert {e[1] for e in static_edges(mono, ("cam0",))} == {"tool_tip", "camera_optical_frame"}
+    assert camera_frames(("left", "right", "c")) == {"left": "cam_left", "right": "cam_right",
+                                                     "c": "c"}  # fmt: skip
+    pair = {e[:2] for e in static_edges(deployed, ("left", "right"))}
+    assert ("cam_left", "cam_right") in pair
+    # a bag's nominal URDF of a stereo dataset (no rig in the nominal chain) names cam_left
+    stereo = ET.fromstring(to_urdf(mono, calibrated=False, cameras=2))
+    assert "cam_left" in {lk.get("name") for lk in stereo.findall("link")}
+
+
 # ----------------------------------------------------------------------------- TOML
 
 

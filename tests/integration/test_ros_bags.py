@@ -219,16 +219,17 @@ def test_exported_bag_content(lab, tmp_path):
         js = [(m.header.stamp.sec * 10**9 + m.header.stamp.nanosec, list(m.name),
                np.array(m.position)) for _, _, m in r.messages(["/joint_states"])]  # fmt: skip
     assert "<robot" in urdf and "_calibrated" not in urdf and 'name="a1"' in urdf
-    # the images are in the URDF's camera frame (they said cam0), on the CALIBRATED chain
-    assert frame_ids == {"cam_left"} and '<link name="cam_left"' in urdf
-    assert set(static) == {("link6", "tool_tip"), ("link6", "cam_left")}
+    # the images are in the URDF's camera frame (they said cam0; then cam_left, though the one
+    # camera is no left one), on the CALIBRATED chain
+    assert frame_ids == {"camera_optical_frame"} and '<link name="camera_optical_frame"' in urdf
+    assert set(static) == {("link6", "tool_tip"), ("link6", "camera_optical_frame")}
     by_stamp = dict(moving)
     cams = []
     for s in imgs:
         T = np.eye(4)
         for k in range(6):
             T = T @ by_stamp[s][("base_link" if k == 0 else f"link{k}", f"link{k + 1}")]
-        cams.append(T @ static[("link6", "cam_left")])
+        cams.append(T @ static[("link6", "camera_optical_frame")])
     F = fk_tool(cal.model, np.radians(ds.joints_deg))  # the calibration's camera poses
     for k in range(1, 8):  # the same motions (the world frames differ)
         np.testing.assert_allclose(inv_pose(cams[0]) @ cams[k], inv_pose(F[0]) @ F[k], atol=1e-9)
