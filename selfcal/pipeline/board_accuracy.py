@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from selfcal.calibration.accuracy import SAMPLE_COUNT
+from selfcal.calibration.accuracy import SAMPLE_COUNT, Z_MODEL_ERROR
 from selfcal.calibration.board.accuracy import (
     board_error_model_from_json,
     board_postures_from_json,
@@ -37,6 +37,7 @@ __all__ = [
     "board_accuracy_section",
     "cross_validation_line",
     "spread_markdown",
+    "zero_model_error_words",
 ]
 
 FIGURE = "workspace_accuracy.png"
@@ -164,6 +165,34 @@ def spread_markdown(boot: dict, jack: dict | None) -> list[str]:
     return rows
 
 
+def zero_model_error_words(me: dict, held: dict | None, cv: dict | None) -> str:
+    """Why the model error ``me`` (the block's ``model_error``) is zero, in words (empty when it
+    is not): the folds' excess is counted as the held parameters' deviation ``held`` (the
+    block's ``held_deviation``), whose share is the ratio of the same sums, so nothing is left
+    unless the excess passes the whole prior (:mod:`selfcal.calibration.board.accuracy`); or the
+    folds show no excess; or what is left is within :data:`Z_MODEL_ERROR` standard errors.
+    ``cv``: the block's ``cross_validation`` (its calibrated figure is quoted)."""
+    if me.get("position_mm") is None or me["position_mm"] > 0:
+        return ""
+    held = held or {}
+    est = held.get("share_estimate")
+    c = (cv or {}).get("calibrated") or {}
+    px = (f" (cross-validated {c['reprojection_rms_px']:.3f} px)"
+          if c.get("reprojection_rms_px") is not None else "")  # fmt: skip
+    if held.get("share_basis") == "folds" and est is not None and 0 < est <= 1:
+        return (f": none left, as the folds' excess over what the estimate's errors and the "
+                f"noise give their held-out frames{px} is counted as the held parameters' "
+                f"deviation from the drawing (below), whose share ({est:.3g} of the prior) is "
+                "the ratio of the same sums: a model error is counted only where that excess "
+                "passes the whole prior")  # fmt: skip
+    if held.get("share_basis") == "folds" and est is not None and est <= 0:
+        return (f": none, as the folds' held-out frames{px} show no excess over what the "
+                "estimate's errors and the noise give them")  # fmt: skip
+    return (f": none counted, as what the folds' held-out frames{px} show beyond the "
+            "estimate's errors, the noise and the held parameters' deviation is within "
+            f"{Z_MODEL_ERROR:g} standard errors of it")  # fmt: skip
+
+
 def accuracy_markdown(section: dict) -> list[str]:
     """The report.md lines of :func:`board_accuracy_section`'s section."""
     me = section.get("model_error") or {}
@@ -171,6 +200,9 @@ def accuracy_markdown(section: dict) -> list[str]:
         f"model error {me.get('position_mm', 0.0):.4f} mm and {me.get('rotation_deg', 0.0):.4f} "
         f"deg per coordinate from {me.get('rows')} cross-validated frames ({me.get('folds')} "
         "folds)"
+        + zero_model_error_words(
+            me, section.get("held_deviation"), section.get("cross_validation")
+        )  # fmt: skip
     )
     unit = section.get("distance_unit") or "the joints' ranges"
     if not section.get("model_error_note") and me.get("reach_distance"):

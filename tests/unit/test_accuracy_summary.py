@@ -94,3 +94,40 @@ def test_report_md_says_when_the_model_error_grows_away_from_the_postures():
     zero = "\n".join(accuracy_markdown({**section, "model_error": {**none,
                                                                    "measured_to_distance": 0.0}}))  # fmt: skip
     assert "beyond 0.000 of the joints' ranges from the calibration postures no fold" in zero
+
+
+def test_report_md_says_why_the_model_error_is_zero():
+    """report.md said "model error 0.0000 mm" beside a cross-validated 1.768 px against the
+    fit's 0.600 px with no reason (photoneo, new user's trip, session 25). The reason: the
+    board route counts the folds' excess as the held parameters' deviation, whose share's point
+    estimate is the ratio of the same sums (selfcal/calibration/board/accuracy.py
+    `model_error`), so none is left unless the excess passes the whole prior; the line now says
+    so, or that the folds show no excess, or that what is left is within 2 standard errors."""
+    regions = {k: {"points": 0} for k in ("calibration_postures", "inside", "edge", "workspace")}
+    me = {"position_mm": 0.0, "rotation_deg": 0.0, "rows": 20, "folds": 5,
+          "measured_to_distance": 0.172}  # fmt: skip
+    held = {"share": 0.0203, "share_basis": "folds", "share_folds": 5, "share_estimate": 0.0141,
+            "translation_mm": 1.0, "rotation_deg": 0.5}  # fmt: skip
+    cv = {"configurations": 5, "folds": 5,
+          "calibrated": {"reprojection_rms_px": 1.768, "at_board_rms_mm": 0.41},
+          "nominal": {"reprojection_rms_px": 1.96, "at_board_rms_mm": 0.45}}  # fmt: skip
+    section = {"line": "tool point within 6.7 mm (95 %)", "regions": regions, "model_error": me,
+               "held_deviation": held, "cross_validation": cv}  # fmt: skip
+    text = "\n".join(accuracy_markdown(section))
+    assert ("model error 0.0000 mm and 0.0000 deg per coordinate from 20 cross-validated frames "
+            "(5 folds): none left, as the folds' excess over what the estimate's errors and the "
+            "noise give their held-out frames (cross-validated 1.768 px) is counted as the held "
+            "parameters' deviation from the drawing (below), whose share (0.0141 of the prior) "
+            "is the ratio of the same sums") in text  # fmt: skip
+    assert "beyond 0.172 of the joints' ranges" in text  # the limit still said after it
+    none = "\n".join(
+        accuracy_markdown({**section, "held_deviation": {**held, "share_estimate": -0.2}})
+    )
+    assert "none, as the folds' held-out frames (cross-validated 1.768 px) show no excess" in none
+    small = "\n".join(
+        accuracy_markdown({**section, "held_deviation": {**held, "share_estimate": 1.4}})
+    )
+    assert "none counted, as what the folds' held-out frames" in small
+    assert "within 2 standard errors of it" in small
+    found = "\n".join(accuracy_markdown({**section, "model_error": {**me, "position_mm": 0.03}}))
+    assert "model error 0.0300 mm" in found and "none" not in found
