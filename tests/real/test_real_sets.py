@@ -217,7 +217,7 @@ def run(real: RealSet, out: Path) -> Outcome:
     if res.imports["calib"].returncode == 0:
         res.calibrate = selfcal("calibrate", str(out / "calib"))
     if res.calibrate and res.calibrate.returncode == 0 and res.imports["held"].returncode == 0:
-        ev = out / "evaluation.json"
+        ev = out / "calib" / "evaluation.json"  # beside the calibration, as the READMEs write it
         res.evaluate = selfcal("evaluate", str(out / "calib"), str(out / "held"), "--out", str(ev))
         if res.evaluate.returncode == 0:
             res.evaluation = json.loads(ev.read_text())

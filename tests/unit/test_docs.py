@@ -151,3 +151,31 @@ def test_docs_cite_nothing_outside_the_repository():
             if OUTSIDE.search(path) or (first in tops and not (ROOT / path).exists()):
                 bad.append(f"{doc.name}: `{path}` is not in the repository")
     assert bad == []
+
+
+def _evaluate_lines() -> list[tuple[str, list[str]]]:
+    """Every ``selfcal evaluate`` line of the docs' ``sh`` blocks and of the real sets' READMEs
+    (tests/data/real/*/README.md: a user runs them as written)."""
+    found = [(w, a) for w, a in commands() if a[:1] == ["evaluate"]]
+    for readme in sorted((ROOT / "tests/data/real").glob("*/README.md")):
+        text = readme.read_text()
+        for m in FENCE.finditer(text):
+            for line in m.group(2).replace("\\\n", " ").splitlines():
+                argv = shlex.split(line, comments=True)
+                if argv[:2] == ["selfcal", "evaluate"]:
+                    found.append((str(readme.relative_to(ROOT)), argv[1:]))
+    return found
+
+
+def test_evaluate_lines_write_where_report_and_export_read():
+    """`selfcal evaluate CAL DATASET2 --out FILE` is used by report and export only as
+    CAL/evaluation.json: every such line in the docs and the real sets' READMEs writes there or
+    gives no --out (the READMEs said `--out ev.json`, which neither reads: new user's trip,
+    session 25)."""
+    lines = _evaluate_lines()
+    readmes = [w for w, _ in lines if w.startswith("tests/data/real")]
+    assert len(readmes) >= 2, lines  # photoneo's and ical-charuco's (mecheye's points to them)
+    for where, argv in lines:
+        args = build_parser().parse_args(argv)
+        if args.out is not None:
+            assert Path(args.out) == Path(args.calibration) / "evaluation.json", (where, argv)
