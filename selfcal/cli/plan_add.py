@@ -31,10 +31,11 @@ def cmd_add(args: argparse.Namespace) -> int:
     from selfcal.cli.plan_add_ground import add_ground
     from selfcal.cli.plan_forecast import DrawSet, forecast_draws, write_figure
     from selfcal.cli.plan_scenario import cell_fields, scenario_text
-    from selfcal.cli.plan_text import criterion, reference_words
+    from selfcal.cli.plan_text import criterion, forecast_note, measured_gain, reference_words
     from selfcal.console.progress import Progress
     from selfcal.estimation.joint_report import encoder_sigma
     from selfcal.io.atomic import write_text_atomic
+    from selfcal.io.board_calibration import read_board_calibration
     from selfcal.io.dataset import Dataset
     from selfcal.io.plan_files import joints_csv, trajectory_yaml, write_plan
     from selfcal.io.target_toml import target_document
@@ -61,6 +62,12 @@ def cmd_add(args: argparse.Namespace) -> int:
         add = plan_additions(dplan, count, opts, ws.q)
         st.result(f"from {add.candidates} candidates")
     m = len(dplan.q)
+    before = reference_words(add.reference_before, add.before_m)
+    measured = (None if add.reference_before.beaten_by(add.before_m) else
+                measured_gain(read_board_calibration(root).selection, *_held_out(root)))  # fmt: skip
+    if measured is not None:  # the forecast's verdict beside this arm's measured gain
+        before += forecast_note(measured, f"+-{args.deviation_mm:.3g} mm, "
+                                          f"+-{args.deviation_deg:.3g} deg")  # fmt: skip
     fc = forecast_draws(args, setup, add.workspace, [
         DrawSet("before", f"the dataset's {m} postures recorded anew", dplan.q, dplan.seen),
         DrawSet("after", f"with the {len(add.q)} added", np.concatenate([dplan.q, add.q]),
@@ -109,6 +116,17 @@ def cmd_add(args: argparse.Namespace) -> int:
             "deviation": dev,
             "nominal": add.reference.to_json(),
             "nominal_before": add.reference_before.to_json(),
+            "verdict_before": before,
+            "measured_before": None
+            if measured is None
+            else {
+                "cross_validated_px": measured.get("cv_px"),
+                "held_out_px": measured.get("held_out_px"),
+                "note": "what the dataset's calibration measured against its fair nominal on "
+                "its own images (calibrated, nominal), given where the forecast before says no "
+                "clear gain: the forecast is of arms drawn within the deviation, the "
+                "measurement of this arm",
+            },
             "beats_nominal": add.reference.beaten_by(add.after_m),
             "verdict": reference_words(add.reference, add.after_m),
             "forecast_draws": fc.section(),
@@ -125,8 +143,20 @@ def cmd_add(args: argparse.Namespace) -> int:
             f"error {add.before_m * 1000:.3f} -> {add.after_m * 1000:.3f} mm RMS (kinematic "
             f"parameters estimated {add.kept_before} -> {add.kept_after}) over {ws.words}; "
             f"joint path {np.degrees(add.path_rad):.0f} deg\nthe held parameters' {dev['words']}"
-            "\nbefore, "
-            + reference_words(add.reference_before, add.before_m)
-            + "\nafter, " + doc["verdict"] + "\n" + fc.line())  # fmt: skip
+            "\nbefore, " + before + "\nafter, " + doc["verdict"] + "\n" + fc.line())  # fmt: skip
     print(json.dumps(doc) if args.json else line)
     return 0
+
+
+def _held_out(root: str | Path) -> tuple[tuple[float, float] | None, str]:
+    """The held-out check of the calibration in ``root`` (calibrated, nominal px) from
+    ``root/evaluation.json`` when that evaluates this calibration (else None), and its path."""
+    from selfcal.calibration.board.evaluate import evaluates, read_evaluation
+
+    path = Path(root) / "evaluation.json"
+    if not path.is_file():
+        return None, str(path)
+    ev = read_evaluation(path)
+    if not evaluates(ev, root):
+        return None, str(path)
+    return (ev.rms["calibrated"], ev.rms["nominal"]), str(path)

@@ -10,7 +10,14 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:  # the CLI's parser loads no numerical module (tests/unit/test_cli_imports.py)
     from selfcal.calibration.board.plan.reference import NominalReference
 
-__all__ = ["criterion", "plan_lines", "plan_sections", "reference_words"]
+__all__ = [
+    "criterion",
+    "forecast_note",
+    "measured_gain",
+    "plan_lines",
+    "plan_sections",
+    "reference_words",
+]
 
 
 def reference_words(ref: NominalReference, predicted_m: float, rival_m: float | None = None) -> str:
@@ -147,3 +154,53 @@ def criterion(workspace: int, pixel_sigma: float, js, args: argparse.Namespace) 
         f"workspace postures after the best rigid alignment, corner noise {pixel_sigma:g} px, "
         + joints
     )
+
+
+def measured_gain(selection: dict | None, held_out: tuple[float, float] | None,
+                  held_out_file: str = "evaluation.json") -> dict | None:  # fmt: skip
+    """What a dataset's calibration measured against its fair nominal on its own images, when
+    it measured a gain: ``cv_px`` (calibrated, fair nominal) from its ``selection`` (its
+    calibration.json's block: the chosen candidate's and the nominal's cross-validation, the
+    folds' geometric mean, px) when the chosen candidate is not the nominal and predicts better,
+    and ``held_out_px`` = ``held_out`` (calibrated, nominal px: the held-out check of this
+    calibration, ``held_out_file``) when it shows a gain (the rule of
+    :func:`selfcal.calibration.board.evaluate.no_gain`); ``words`` says them. None when neither
+    measured a gain."""
+    from selfcal.calibration.board.evaluate import no_gain
+
+    out: dict = {}
+    sel = selection or {}
+    cands = {c["label"]: c for c in sel.get("candidates", [])}
+    if cands and sel.get("chosen") in cands:
+        first, chosen = sel["candidates"][0], cands[sel["chosen"]]
+        c, n = chosen.get("cv_px"), first.get("cv_px")
+        if chosen is not first and c is not None and n is not None and not no_gain(c, n):
+            out["cv_px"], out["chosen"] = (c, n), chosen["label"]
+    if held_out is not None and not no_gain(*held_out):
+        out["held_out_px"] = held_out
+    if not out:
+        return None
+    parts = []
+    if "cv_px" in out:
+        c, n = out["cv_px"]
+        parts.append(f"cross-validated {c:.3f} px against the fair nominal's {n:.3f} px "
+                     f"({out['chosen']}; geometric means over the folds)")  # fmt: skip
+    if "held_out_px" in out:
+        c, n = out["held_out_px"]
+        parts.append(f"held out {c:.3f} px against the fair nominal's {n:.3f} px "
+                     f"({held_out_file})")  # fmt: skip
+    out["words"] = ", ".join(parts)
+    return out
+
+
+def forecast_note(measured: dict, deviation_words: str) -> str:
+    """What a forecast that the dataset's calibration is no gain is, beside the gain that
+    calibration measured (:func:`measured_gain`'s ``measured``): they answer different
+    questions, the tool point's error over the workspace expected of arms drawn within the
+    deviation ``deviation_words``, and this arm's pixels in images the calibration did not fit
+    (no measurement of its tool point)."""
+    return (f"; that is a forecast, not a measurement: the tool point's error over the region "
+            f"expected of arms whose every kinematic parameter deviates alike within "
+            f"{deviation_words}; this arm's calibration measured a gain in the pixels of images "
+            f"it did not fit ({measured['words']}), a different question: nothing measured its "
+            "tool point")  # fmt: skip

@@ -409,6 +409,17 @@ def test_plan_add_five_postures_to_the_calibrated_set(name, deviation, outcome, 
             ("NOT predicted" in line) == (ratio > ref["clear_margin"])), line  # fmt: skip
     assert doc["predicted_tool_rms_mm"] <= AFTER_OF_NOMINAL * doc["nominal"][
         "fair_nominal_tool_rms_mm"], doc  # fmt: skip
+    # "before" forecasts no clear gain where the calibration measured one (its cross-validation
+    # and evaluate's held-out check beside it): the line says which is which (it did not: new
+    # user's trip, session 25)
+    line = next(s for s in p.stdout.splitlines() if s.startswith("before, without"))
+    held = outcome.held_out_rms()
+    measured = doc["measured_before"]
+    assert "NOT predicted" in line and measured is not None, line
+    assert measured["held_out_px"] == pytest.approx([held["calibrated"], held["nominal"]])
+    assert ("that is a forecast, not a measurement" in line
+            and f"held out {held['calibrated']:.3f} px against the fair nominal's "
+            f"{held['nominal']:.3f} px" in line), line  # fmt: skip
     # docs/plan.md quotes the lines (the default deviation) and the forecast's draws (both):
     # the draws' percentiles as the page's within the Monte Carlo error of a difference of two
     # runs: sqrt 2 standard errors, 3.5 of them for the 8 comparisons of both runs (2 standard
