@@ -242,7 +242,15 @@ def canonical_base(
         ValueError: prismatic joints, or axes 1 and 2 nearly parallel.
     """
     if any(t != "revolute" for t in model.joint_types[:2]):
-        raise InputError("no canonical base frame: joints 1 and 2 must be revolute")
+        kinds = " and ".join(model.joint_types[:2])
+        raise InputError(
+            f"no canonical base frame: joints 1 and 2 must be revolute ({robot.name}'s are "
+            f"{kinds}): the robot's base frame is rebuilt on two revolute axes",
+            fix="a chain that starts with a prismatic joint (an arm on a track, a virtual chain "
+            "standing in for flange poses) has no such frame: export the hand-eye alone "
+            "(selfcal export DIR --format tf, easy_handeye or matrix), or import flange poses "
+            "as they are with selfcal import --poses (docs/handeye.md)",
+        )
     nominal = _axes_frame(nominal_mcpc(robot), parallel_tol_deg)
     try:
         return _axes_frame(model, parallel_tol_deg) @ inv_pose(nominal)

@@ -333,6 +333,21 @@ def test_initial_base_and_rigid_fit() -> None:
     assert np.abs(fk_tool(placed, q) - T_meas).max() < 1e-12
 
 
+def test_no_canonical_base_of_a_chain_that_starts_prismatic_names_the_robot_and_the_fix():
+    """ical-charuco's virtual chain (prismatic joints 1-3) has no base frame rebuilt on axes 1
+    and 2: `selfcal plan --add 5 cal` and `selfcal export cal --format urdf --force` said only
+    "no canonical base frame: joints 1 and 2 must be revolute" (new user's trip, session 26);
+    the error now names the robot, its joints' kinds and what can be done instead."""
+    from selfcal.errors import InputError
+
+    robot = load_robot(str(models_dir().parent / "tests" / "data" / "virtual_chain_xyz.urdf"))
+    with pytest.raises(InputError) as got:
+        canonical_base(nominal_mcpc(robot), robot)
+    err = got.value
+    assert f"({robot.name}'s are prismatic and prismatic)" in err.message
+    assert err.fix is not None and "--format tf" in err.fix and "import --poses" in err.fix
+
+
 def test_canonical_base_removes_the_world_gauge() -> None:
     """The same model in two random world frames, re-expressed in canonical_base, has identical
     minimal parameters (1e-9 mm / deg), although its parameters in the two worlds differ beyond

@@ -121,7 +121,8 @@ def dataset_setup(root: str | Path, boxes: np.ndarray | None = None) -> DatasetP
 
     Raises:
         InputError: no calibration.json, a calibration of more than one camera (not planned
-            yet), or no frame showing the board.
+            yet), no frame showing the board, or a chain whose base frame cannot be rebuilt
+            (joints 1 and 2 not revolute).
     """
     root = Path(root)
     if not (root / "calibration.json").is_file():
@@ -148,9 +149,13 @@ def dataset_setup(root: str | Path, boxes: np.ndarray | None = None) -> DatasetP
         raise InputError(f"{root}: no frame shows the board",
                          fix="calibrate a dataset whose images show the board")  # fmt: skip
     q = np.radians(ds.joints_deg)[used]
-    setup, mount_off = calibrated_cell(
-        cal, robot, cal.cameras[0], board,
-        np.zeros((0, 6)) if boxes is None else np.asarray(boxes, dtype=float))  # fmt: skip
+    try:
+        setup, mount_off = calibrated_cell(
+            cal, robot, cal.cameras[0], board,
+            np.zeros((0, 6)) if boxes is None else np.asarray(boxes, dtype=float))  # fmt: skip
+    except InputError as exc:  # no base frame to place the cell in (prismatic joints 1, 2)
+        raise InputError(f"{root}/calibration.json: --add cannot place its cell in the robot's "
+                         f"base frame: {exc.message}", fix=exc.fix) from exc  # fmt: skip
     free_idx, offsets = estimated_parameters(cal)
     seen = tuple(np.asarray(f.ids, np.int64) for f, u in zip(features, used) if u)
     return DatasetPlan(setup, q, seen, free_idx, offsets, mount_off)
