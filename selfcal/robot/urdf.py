@@ -139,13 +139,17 @@ def _load(path: Path):
     level = log.level
     log.setLevel(logging.CRITICAL)  # its parse errors become ours (one message), then restored
     try:
-        return yourdfpy.URDF.load(
-            str(path),
-            build_scene_graph=False,
-            load_meshes=False,
-            build_collision_scene_graph=False,
-            load_collision_meshes=False,
-        ).robot
+        # a non-finite <origin> or <axis> (nan, inf, 1e309) makes its transform non-finite in
+        # the parser's trigonometry and products: refused below with the joint's name
+        # (urdf_chain checks every number it takes), so numpy's "invalid value" is not the user's
+        with np.errstate(invalid="ignore", over="ignore"):
+            return yourdfpy.URDF.load(
+                str(path),
+                build_scene_graph=False,
+                load_meshes=False,
+                build_collision_scene_graph=False,
+                load_collision_meshes=False,
+            ).robot
     except Exception as exc:  # yourdfpy raises lxml, ValueError, ... on malformed files
         raise UrdfError(
             f"{path}: not a readable URDF ({type(exc).__name__}: {exc})",

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from selfcal.cli.main import main
+from selfcal.errors import SelfCalWarning
 from selfcal.io.plan_files import read_plan
 from selfcal.robot.definition import load_robot, models_dir
 
@@ -196,7 +197,8 @@ def test_a_field_file_unlike_the_replay_is_warned_of(tmp_path, capsys):
     mine = tmp_path / "mine.toml"
     mine.write_text('type = "field"\ndictionary = "DICT_6X6_250"\nscale_marker_ids = [0, 1]\n'
                     "scale_length_mm = 200.0\n")  # fmt: skip
-    assert main(_argv(tmp_path / "p", "--count", "6", target=str(mine))) == 3  # warned first
+    with pytest.warns(SelfCalWarning, match="the replay's scenario.toml simulates"):
+        assert main(_argv(tmp_path / "p", "--count", "6", target=str(mine))) == 3  # warned first
     err = capsys.readouterr().err
     assert "DICT_6X6_250, scale markers [0, 1]" in err and "DICT_4X4_50 field" in err
 
