@@ -5,8 +5,9 @@ independent reference splits it.
 
     uv run python examples/api_example.py [OUT_DIR]
 
-OUT_DIR (default: a temporary folder) receives the two dataset folders ``cal`` and ``held``,
-``cal/calibration.json`` and ``held/evaluation.json``.
+OUT_DIR (default: a temporary folder) receives the two dataset folders ``cal`` and ``held``
+and ``cal/calibration.json``; ``selfcal.evaluate`` writes nothing (``selfcal evaluate cal held
+--out cal/evaluation.json`` keeps the check where ``selfcal report`` and ``export`` read it).
 """
 
 from __future__ import annotations
