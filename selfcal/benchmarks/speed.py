@@ -22,9 +22,13 @@ Measures, in one run on this machine:
   (``uv run --with pybotics``): fit times (best of repeats, wall and CPU), their ratio and both
   held-out errors (equal accuracy is part of the comparison).
 
-With ``--against REF`` also git ``REF`` measured the same way in a temporary worktree, both
-side by side, and issue 32's goals met or not (:mod:`selfcal.benchmarks.speed_against`);
-``--memory`` adds ``selfcal calibrate``'s peak memory per posture. The checkout's ``selfcal/`` is
+With ``--against REF`` also git ``REF`` measured the same way in a temporary worktree, the two
+trees in turn part by part (:data:`PARTS`, ``--rounds`` rounds, each part a process running this
+file with ``--part P --json FILE``: :mod:`selfcal.benchmarks.speed_pairs`), both side by side with
+the ratio of each pair, and issue 32's goals met or not
+(:mod:`selfcal.benchmarks.speed_against`); ``--memory`` adds ``selfcal calibrate``'s peak memory
+per posture. What runs for a part (``--json``) imports only modules every commit of the
+project has: REF's tree runs it with its own package. The checkout's ``selfcal/`` is
 compiled first, as ``pip install`` compiles a wheel (where ``PYTHONDONTWRITEBYTECODE`` is set,
 every process would compile it again).
 
@@ -35,17 +39,15 @@ too). The 1-minute load average before and after each
 part is printed and written with the table: the machines are shared.
 
 Run: ``MUJOCO_GL=egl uv run python -m selfcal.benchmarks.speed [--large] [--with-pybotics]
-[--write-docs] [--write-readme] [--check] [--against REF] [--memory]``.
+[--write-docs] [--write-readme] [--check] [--against REF [--rounds N]] [--memory]``.
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
-import datetime
 import json
 import os
-import re
 import resource
 import statistics
 import subprocess
@@ -60,10 +62,6 @@ import numpy as np
 
 from selfcal.benchmarks.doc_blocks import ROOT, write_block
 from selfcal.io.atomic import write_text_atomic
-
-BEGIN, END = "<!-- benchmark_speed: begin -->", "<!-- benchmark_speed: end -->"
-TOLERANCE = 1.3
-COMMAND = "MUJOCO_GL=egl uv run python -m selfcal.benchmarks.speed --write-docs --write-readme"
 
 
 def load() -> float:
@@ -229,34 +227,68 @@ def beside_a_busy_process(seconds: Callable[[], tuple[float, float]]) -> tuple[f
         busy.wait()
 
 
-def measure(args: argparse.Namespace) -> dict:
-    """Every figure of the table, with the load average around each part."""
-    script = Path(sys.executable).parent / "selfcal"  # the installed console script
-    selfcal = [str(script)] if script.is_file() else [sys.executable, "-m", "selfcal.cli.main"]
+PARTS = ("start", "run", "run_loaded", "calibrate", "ba", "memory")
+"""The benchmark's parts in the order they run (``--part P`` measures one): the start-up
+commands, ``selfcal run`` quiet and beside a CPU-bound process, ``calibrate`` at each pose
+count, the bundle adjustment against scipy, ``selfcal calibrate``'s peak memory (with
+``--memory``). ``--against REF`` runs each in a process of its own, by the two trees in turn
+(:mod:`selfcal.benchmarks.speed_pairs`)."""
+
+
+def _selfcal() -> list[str]:
+    """The installed console script of this interpreter's environment (else the module)."""
+    script = Path(sys.executable).parent / "selfcal"
+    return [str(script)] if script.is_file() else [sys.executable, "-m", "selfcal.cli.main"]
+
+
+def measure_part(part: str, args: argparse.Namespace, root: Path) -> dict:
+    """The figures of one of :data:`PARTS`, measured now (``root``: a new folder for the
+    runs' outputs)."""
+    selfcal = _selfcal()
+    if part == "start":
+        fig = {"help": process_seconds([*selfcal, "--help"], args.repeat),
+               "fk": process_seconds([*selfcal, "fk", "--joints", "10,-20,30,-40,50"],
+                                     args.repeat)}  # fmt: skip
+        print(f"selfcal --help {fig['help']} s, selfcal fk {fig['fk']} s (median wall, CPU)")
+        return fig
+    if part == "run":
+        run = run_seconds(selfcal, root / "run", args.run_repeat)
+        print(f"selfcal run (default scenario) {run} s (wall, CPU)")
+        return {"run": run}
+    if part == "run_loaded":
+        run = beside_a_busy_process(
+            lambda: run_seconds(selfcal, root / "run-loaded", args.run_repeat)
+        )
+        print(f"selfcal run beside a CPU-bound process {run} s (wall, CPU)")
+        return {"run_loaded": run}
+    if part == "calibrate":
+        return {"calibrate": calibrate_scaling(args.poses, root)}
+    if part == "ba":
+        return {"ba": ba_against_scipy(args.ba_poses, root)}
+    if part == "memory":
+        return {"memory": calibrate_memory(args.poses)}
+    raise ValueError(f"unknown part {part!r}: one of {', '.join(PARTS)}")
+
+
+def parts_of(args: argparse.Namespace) -> list[str]:
+    """The parts ``args`` asks for, in :data:`PARTS`' order (``--part``: that one alone)."""
+    if args.part:
+        return [args.part]
+    skip = {"run", "run_loaded"} if args.skip_run else set()
+    if not (args.memory or args.against):
+        skip.add("memory")
+    return [p for p in PARTS if p not in skip]
+
+
+def measure(args: argparse.Namespace, parts: list[str]) -> dict:
+    """The figures of ``parts`` (:data:`PARTS`), with the 1-minute load average before the
+    first and after each."""
     fig: dict = {"load": [load()]}
-    fig["help"] = process_seconds([*selfcal, "--help"], args.repeat)
-    fig["fk"] = process_seconds([*selfcal, "fk", "--joints", "10,-20,30,-40,50"], args.repeat)
-    print(f"selfcal --help {fig['help']} s, selfcal fk {fig['fk']} s (median wall, CPU)")
-    fig["load"].append(load())
     with tempfile.TemporaryDirectory(prefix="selfcal-speed-") as d, warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        root = Path(d)
-        if not args.skip_run:
-            fig["run"] = run_seconds(selfcal, root / "run", args.run_repeat)
-            print(f"selfcal run (default scenario) {fig['run']} s (wall, CPU)")
+        for part in parts:
+            fig |= measure_part(part, args, Path(d))
             fig["load"].append(load())
-            fig["run_loaded"] = beside_a_busy_process(
-                lambda: run_seconds(selfcal, root / "run-loaded", args.run_repeat)
-            )
-            print(f"selfcal run beside a CPU-bound process {fig['run_loaded']} s (wall, CPU)")
-            fig["load"].append(load())
-        fig["calibrate"] = calibrate_scaling(args.poses, root)
-        fig["load"].append(load())
-        fig["ba"] = ba_against_scipy(args.ba_poses, root)
-        fig["load"].append(load())
-    if args.with_pybotics:
-        fig["pybotics"] = pybotics_ratio(args.pybotics_n)
-        fig["load"].append(load())
     return fig
 
 
@@ -269,8 +301,7 @@ def calibrate_memory(poses: list[int]) -> dict:
     from selfcal.config.scenario import load_scenario
     from selfcal.pipeline.run import run_acquire
 
-    script = Path(sys.executable).parent / "selfcal"
-    selfcal = [str(script)] if script.is_file() else [sys.executable, "-m", "selfcal.cli.main"]
+    selfcal = _selfcal()
     ends = sorted({min(poses), max(poses)})
     peaks = []
     with tempfile.TemporaryDirectory(prefix="selfcal-memory-") as d:
@@ -289,128 +320,27 @@ def calibrate_memory(poses: list[int]) -> dict:
     return {"poses": ends, "peak_mb": peaks, "mb_per_posture": per}
 
 
-def table(fig: dict) -> str:
-    """The Markdown block (README and docs/performance.md)."""
-    when = datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d %H:%M UTC")
-    loads = ", ".join(f"{v:.1f}" for v in fig["load"])
-    lines = [
-        f"Measured {when} with `{COMMAND}` ({os.cpu_count()} CPUs; 1-minute load average "
-        f"during the parts: {loads}; 1 BLAS thread).",
-        "",
-        "| what | seconds |",
-        "|---|---|",
-        f"| `selfcal --help` (process, median; CPU {fig['help'][1]:.2f} s) | {fig['help'][0]:.2f} |",
-        f"| `selfcal fk --joints ...` (process, median; CPU {fig['fk'][1]:.2f} s) | "
-        f"{fig['fk'][0]:.2f} |",
-    ]
-    if "run" in fig:
-        lines.append(f"| `selfcal run` default scenario (rendered, 30 poses; process, median; CPU "
-                     f"{fig['run'][1]:.2f} s) | {fig['run'][0]:.2f} |")  # fmt: skip
-    if "run_loaded" in fig:
-        r = fig["run_loaded"][0] / fig["run"][0]
-        lines.append(f"| same, beside a CPU-bound process (CPU {fig['run_loaded'][1]:.2f} s; "
-                     f"{r:.2f}x the quiet run) | {fig['run_loaded'][0]:.2f} |")  # fmt: skip
-    for r in fig["calibrate"]:
-        lines.append(
-            f"| `calibrate`, analytic, {r['poses']} poses ({r['used']} used; in-process wall, "
-            f"CPU {r['cpu']:.2f} s, {1000 * r['wall'] / r['poses']:.0f} ms/pose) | "
-            f"{r['wall']:.2f} |"
-        )
-    for r in fig["calibrate"]:
-        lines.append(f"| acquisition, analytic, {r['poses']} poses | {r['acquire']:.2f} |")
-    b = fig["ba"]
-    lines += [
-        f"| bundle adjustment, {b['poses']} poses ({b['unknowns']} unknowns), engine "
-        f"({b['solver']}; cost {b['engine_cost']:.6g}) | {b['engine']:.2f} |",
-        f"| same, `scipy.optimize.least_squares` trf + lsmr, sparse Jacobian (cost "
-        f"{b['scipy_cost']:.6g}; {b['scipy'] / b['engine']:.1f}x the engine's time) | "
-        f"{b['scipy']:.2f} |",
-    ]
-    if "pybotics" in fig:
-        lines += _pybotics_lines(fig["pybotics"])
-    return "\n".join(lines)
-
-
-def _pybotics_lines(r: dict) -> list[str]:
-    """The identification rows: ours, and pybotics with the ratio (or why it is missing)."""
-    what = f"identification from tracker positions, UR5e, {r['N']} configurations"
-    lines = [
-        f"| {what}: ours (`identify_tracker`, best of 10; CPU {r['ours_cpu_s']:.4f} s; "
-        f"held-out {r['ours_mm']:.3f} mm) | {r['ours_s']:.4f} |"
-    ]
-    if r["pyb_s"] is None:
-        return lines + [f"| same, pybotics: not measured ({r['note']}) | n/a |"]
-    return lines + [
-        f"| same, {r['note']} `least_squares` in its own environment (best of 3; CPU "
-        f"{r['pyb_cpu_s']:.3f} s; held-out {r['pyb_mm']:.3f} mm; {r['pyb_s'] / r['ours_s']:.0f}x "
-        f"ours' time, {r['pyb_cpu_s'] / r['ours_cpu_s']:.0f}x by CPU) | {r['pyb_s']:.3f} |"
-    ]
-
-
-def figures_of(text: str) -> dict[str, float]:
-    """``what -> seconds`` of a table written by :func:`table` (for --check)."""
-    out = {}
-    for m in re.finditer(r"^\| (.+?) \| ([0-9.]+) \|$", text, flags=re.M):
-        key = re.sub(r"\(.*?\)|cost [0-9.e+-]+|[0-9.]+x", "", m.group(1)).strip()
-        out[key] = float(m.group(2))
-    return out
-
-
-def readme_block() -> str:
-    text = (ROOT / "README.md").read_text()
-    if BEGIN not in text or END not in text:
-        return ""
-    return text.split(BEGIN, 1)[1].split(END, 1)[0]
-
-
-def check(new: str, stated: str | None = None) -> list[str]:
-    """Figures of the table ``new`` more than TOLERANCE off (either way) those of ``stated``
-    (default: the README's block), one sentence each."""
-    old = figures_of(readme_block() if stated is None else stated)
-    bad = []
-    for k, v in figures_of(new).items():
-        if k in old and old[k] > 0 and v > 0:
-            r = v / old[k]
-            if r > TOLERANCE or r < 1 / TOLERANCE:
-                bad.append(f"{k}: measured {v:.2f} s, README {old[k]:.2f} s ({r:.2f}x)")
-    return bad
-
-
-def linear_growth(rows: list[dict]) -> str:
-    """How `calibrate`'s time grows from the first to the last pose count (1.0 = linear)."""
-    a, b = rows[0], rows[-1]
-    return (
-        f"calibrate {a['poses']} -> {b['poses']} poses: time x{b['wall'] / a['wall']:.1f} "
-        f"(wall), x{b['cpu'] / a['cpu']:.1f} (CPU) for poses x{b['poses'] / a['poses']:.1f}"
-    )
-
-
 def add_against_options(ap: argparse.ArgumentParser) -> None:
-    """``--against REF``, ``--memory`` and ``--json`` (selfcal/benchmarks/speed_against.py)."""
+    """``--against REF``, ``--rounds``, ``--memory``, ``--part`` and ``--json``
+    (selfcal/benchmarks/speed_against.py)."""
     ap.add_argument("--against", metavar="REF",
                     help="also measure git REF (commit, branch, tag; HEAD~1: the previous commit) "
-                    "in a temporary worktree with its own environment, the same way, and print "
-                    "both side by side with the ratio and issue 32's goals met or not")  # fmt: skip
+                    "in a temporary worktree with its own environment, the two trees in turn "
+                    "part by part (--rounds), and print both side by side with the medians, the "
+                    "ratio of each pair and issue 32's goals met or not")  # fmt: skip
+    ap.add_argument("--rounds", type=int, default=9,
+                    help="with --against: rounds of every part by each tree, in turn (each "
+                    "`selfcal run` once a round: the rounds replace --run-repeat)")  # fmt: skip
     ap.add_argument("--memory", action="store_true",
                     help="also `selfcal calibrate`'s peak memory (a process at the fewest and "
                     "the most --poses) and its growth per posture; implied by --against")  # fmt: skip
+    ap.add_argument("--part", choices=PARTS,
+                    help="measure this part of the benchmark alone (a round of --against)")  # fmt: skip
     ap.add_argument(
         "--json",
         metavar="FILE",
-        help="write the figures as JSON to FILE and stop (REF's run of --against)",
+        help="write the figures as JSON to FILE and stop (a part of --against)",
     )
-
-
-def against_and_goals(args: argparse.Namespace, fig: dict, argv: list[str]) -> str:
-    """Issue 32's goals for ``fig`` and, with ``--against REF``, REF measured by the same
-    options ``argv`` side by side (:mod:`selfcal.benchmarks.speed_against`)."""
-    from selfcal.benchmarks.speed_against import comparison, measure_ref, ref_argv
-
-    if not args.against:
-        return comparison(fig)
-    ref, commit = measure_ref(args.against, ref_argv(argv))
-    named = commit.startswith(args.against) or args.against.startswith(commit)
-    return comparison(fig, ref, args.against if named else f"{args.against} ({commit})")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -437,6 +367,7 @@ def main(argv: list[str] | None = None) -> int:
                     help="exit 1 if > 1.3x off the README even with --write-readme (without "
                     "--write-readme it always does)")  # fmt: skip
     add_against_options(ap)
+    argv = sys.argv[1:] if argv is None else argv
     args = ap.parse_args(argv)
     args.with_pybotics = args.with_pybotics or args.write_docs or args.write_readme
     from selfcal.threads import limit_threads
@@ -444,19 +375,26 @@ def main(argv: list[str] | None = None) -> int:
     limit_threads(None)
     if args.large:
         args.poses = sorted(set(args.poses) | set(LARGE))
-    if not args.json:  # as installed (pip compiles); REF's run of --against compiles its own
-        from selfcal.benchmarks.speed_against import compile_tree
-
-        compile_tree(ROOT)
-    fig = measure(args)
-    if args.memory or args.against:
-        fig["memory"] = calibrate_memory(args.poses)
-    if args.json:  # REF's run of --against
+    if args.json:  # a part of --against (its caller compiled the tree)
+        fig = measure(args, parts_of(args))
         write_text_atomic(Path(args.json), json.dumps(fig))
         return 0
-    block = table(fig)
+    # the rest of this file runs only in this checkout: REF's tree may lack these modules
+    from selfcal.benchmarks.speed_against import comparison, compile_tree, measure_against
+    from selfcal.benchmarks.speed_table import TOLERANCE, check, command_text, linear_growth, table
+
+    compile_tree(ROOT)  # as installed (pip compiles); REF's tree is compiled by its run
+    label, pairs, ref = "", None, None
+    if args.against:
+        label, fig, ref, pairs = measure_against(args.against, argv, parts_of(args), args.rounds)
+    else:
+        fig = measure(args, parts_of(args))
+    if args.with_pybotics:  # this tree alone
+        fig["pybotics"] = pybotics_ratio(args.pybotics_n)
+        fig["load"].append(load())
+    block = table(fig, command_text(argv))
     growth = linear_growth(fig["calibrate"])
-    goals = against_and_goals(args, fig, sys.argv[1:] if argv is None else argv)
+    goals = comparison(fig, ref, label, pairs)
     print()
     print(block)
     print()

@@ -1,18 +1,22 @@
 """The speed benchmark (:mod:`selfcal.benchmarks.speed`) side by side with a git ref, and issue
 32's speed goals met or not.
 
-``python -m selfcal.benchmarks.speed --against REF`` measures this checkout, then the commit
-``REF`` (a commit, branch or tag; ``HEAD~1`` is the previous commit) the same way: in a
-temporary worktree (``git worktree add --detach``) with its own environment (``uv sync --locked
---compile-bytecode``), by this checkout's ``speed.py`` run with REF's interpreter, so that both
-columns come from the same measuring code and differ only in the code measured. Both trees'
-``selfcal/`` are compiled first (:func:`compile_tree`; ``speed.py`` always compiles its own), as
+``python -m selfcal.benchmarks.speed --against REF`` measures this checkout and the commit
+``REF`` (a commit, branch or tag; ``HEAD~1`` is the previous commit) in turn, part by part
+(:mod:`selfcal.benchmarks.speed_pairs`: ``--rounds`` rounds, each part of the benchmark by one
+tree and at once by the other, the first alternating), so that a drifting machine moves both
+columns alike. REF runs in a temporary worktree (``git worktree add --detach``) with its own
+environment (``uv sync --locked --compile-bytecode``). Every part of either tree is a process of
+its own running the same copy of this checkout's ``speed.py`` (``--part P --json FILE``) with
+that tree's interpreter, so that both columns come from the same measuring code and differ only
+in the code measured. Both trees' ``selfcal/`` are compiled first (:func:`compile_tree`), as
 ``pip install`` leaves a wheel: where ``PYTHONDONTWRITEBYTECODE`` is set every process would
 compile them again (``uv sync --compile-bytecode`` compiles the dependencies, not the editable
 project). The worktree is removed at the end.
 
-Prints one row per figure (this tree, REF, ratio) and one row per goal of issue 32 (:data:`GOALS`):
-met or not met, for each column.
+Prints one row per figure (each tree's median over the rounds, the median of the rounds' ratios
+this / REF and their range) and one row per goal of issue 32 (:data:`GOALS`): met or not met,
+for each column.
 """
 
 from __future__ import annotations
@@ -24,18 +28,31 @@ import shutil
 import subprocess
 import sys
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
 from selfcal.benchmarks.doc_blocks import ROOT
+from selfcal.benchmarks.speed_pairs import Paired, interleave, median_figures, named, paired
 
-__all__ = ["GOALS", "Goal", "compile_tree", "measure_ref", "ref_argv", "named", "comparison"]
+__all__ = [
+    "GOALS",
+    "Goal",
+    "compile_tree",
+    "measure_against",
+    "ref_tree",
+    "part_argv",
+    "named",
+    "comparison",
+]
 
 _DROPPED = {"--against": 1, "--json": 1, "--write-docs": 0, "--write-readme": 0, "--check": 0,
-            "--with-pybotics": 0, "--pybotics-n": 1}  # fmt: skip
-"""Options of this run not passed to REF's (value count): what REF measures is the same set
-of figures, without the pybotics comparison and without writing anything."""
+            "--with-pybotics": 0, "--pybotics-n": 1, "--part": 1, "--rounds": 1,
+            "--run-repeat": 1, "--memory": 0, "--skip-run": 0}  # fmt: skip
+"""Options of this run not passed to a part's (value count): a part measures the same figures
+as the whole run, without the pybotics comparison, without writing anything, and each
+``selfcal run`` once (the rounds are its repeats); which parts run is the caller's choice."""
 
 
 @dataclass(frozen=True)
@@ -84,10 +101,10 @@ def compile_tree(root: Path, python: str = sys.executable) -> None:
                    stdout=subprocess.DEVNULL)  # fmt: skip
 
 
-def ref_argv(argv: list[str]) -> list[str]:
-    """This run's options as REF's run takes them: less what :data:`_DROPPED` names (``--opt v``
-    or ``--opt=v``), with ``--memory`` (its goal needs it)."""
-    out: list[str] = []
+def part_argv(argv: list[str], part: str, out: Path) -> list[str]:
+    """This run's options as a part's run takes them (:data:`_DROPPED` left out, ``--opt v``
+    or ``--opt=v``): ``--part part --json out`` and one ``selfcal run`` a round."""
+    kept: list[str] = []
     skip = 0
     for a in argv:
         if skip:
@@ -97,8 +114,8 @@ def ref_argv(argv: list[str]) -> list[str]:
         if name in _DROPPED:
             skip = 0 if "=" in a else _DROPPED[name]
             continue
-        out.append(a)
-    return out if "--memory" in out else [*out, "--memory"]
+        kept.append(a)
+    return [*kept, "--run-repeat", "1", "--part", part, "--json", str(out)]
 
 
 def _clean_env() -> dict[str, str]:
@@ -107,10 +124,11 @@ def _clean_env() -> dict[str, str]:
     return {k: v for k, v in os.environ.items() if k not in drop}
 
 
-def measure_ref(ref: str, argv: list[str]) -> tuple[dict, str]:
-    """The figures of git ``ref`` (and its commit, short): measured by this checkout's
-    ``speed.py`` with ``argv`` (:func:`ref_argv`) in a temporary worktree of ``ref`` with its own
-    environment; the worktree is removed afterwards."""
+@contextmanager
+def ref_tree(ref: str) -> Iterator[tuple[Path, str, str]]:
+    """``(tree, python, commit)``: git ``ref`` checked out in a temporary worktree with its own
+    environment and its ``selfcal/`` compiled, its interpreter and its short commit; the
+    worktree is removed on leaving."""
     if shutil.which("uv") is None:
         raise SystemExit("--against needs uv on PATH (it makes REF's environment)")
     git = ["git", "-C", str(ROOT)]
@@ -119,50 +137,50 @@ def measure_ref(ref: str, argv: list[str]) -> tuple[dict, str]:
     if found.returncode != 0:
         raise SystemExit(f"--against {ref}: not a commit of {ROOT} ({found.stderr.strip()})")
     commit = found.stdout.strip()
-    env = _clean_env()
     with tempfile.TemporaryDirectory(prefix="selfcal-against-") as d:
-        tree, out = Path(d) / "tree", Path(d) / "figures.json"
-        script = Path(d) / "speed.py"  # alone in its folder: nothing beside it shadows a module
-        shutil.copy(Path(__file__).with_name("speed.py"), script)
+        tree = Path(d) / "tree"
         subprocess.run([*git, "worktree", "add", "--detach", "--quiet", str(tree), commit],
                        check=True)  # fmt: skip
         try:
             print(f"--against {ref}: {commit} in {tree}; uv sync --locked --compile-bytecode")
             subprocess.run(["uv", "sync", "--locked", "--compile-bytecode", "--quiet"], cwd=tree,
-                           env=env, check=True)  # fmt: skip
+                           env=_clean_env(), check=True)  # fmt: skip
             python = str(tree / ".venv" / "bin" / "python")
             compile_tree(tree, python)
-            subprocess.run([python, str(script), "--json", str(out), *argv], cwd=tree, env=env,
-                           check=True)  # fmt: skip
-            return json.loads(out.read_text()), commit
+            yield tree, python, commit
         finally:
             subprocess.run([*git, "worktree", "remove", "--force", str(tree)], check=False)
 
 
-def named(fig: dict) -> dict[str, float]:
-    """The figures of one measurement by name (seconds unless the name says otherwise)."""
-    out = {
-        "`selfcal --help` (process, median)": fig["help"][0],
-        "`selfcal fk --joints ...` (process, median)": fig["fk"][0],
-    }
-    if "run" in fig:
-        out["`selfcal run` default scenario (process)"] = fig["run"][0]
-        out["same, CPU"] = fig["run"][1]
-    if "run_loaded" in fig:
-        out["same, beside a CPU-bound process"] = fig["run_loaded"][0]
-    for r in fig.get("calibrate", []):
-        out[f"`calibrate`, analytic, {r['poses']} poses (in-process)"] = r["wall"]
-    for r in fig.get("calibrate", []):
-        out[f"acquisition, analytic, {r['poses']} poses"] = r["acquire"]
-        if "acquire_cpu" in r:  # a figures file of an older speed.py has none
-            out[f"same, {r['poses']} poses, CPU"] = r["acquire_cpu"]
-    if "ba" in fig:
-        out[f"bundle adjustment, {fig['ba']['poses']} poses, engine"] = fig["ba"]["engine"]
-    if "memory" in fig:
-        m = fig["memory"]
-        for n, mb in zip(m["poses"], m["peak_mb"], strict=True):
-            out[f"`selfcal calibrate` peak memory, {n} poses (MB)"] = mb
-    return out
+def measure_against(
+    ref: str, argv: list[str], parts: list[str], rounds: int
+) -> tuple[str, dict, dict, dict[str, Paired]]:
+    """This tree and git ``ref`` measured in turn, part by part
+    (:func:`selfcal.benchmarks.speed_pairs.interleave`): REF's label (the ref, with its commit
+    when the ref is not one), each tree's medians over the rounds
+    (:func:`selfcal.benchmarks.speed_pairs.median_figures`) and every figure paired
+    (:func:`selfcal.benchmarks.speed_pairs.paired`). Each part is a process of its own running
+    one copy of this checkout's ``speed.py`` (``argv``: this run's options,
+    :func:`part_argv`) with the tree's interpreter, in the tree."""
+    with tempfile.TemporaryDirectory(prefix="selfcal-parts-") as d, ref_tree(ref) as found:
+        tree, python, commit = found
+        script = Path(d) / "speed.py"  # alone in its folder: nothing beside it shadows a module
+        shutil.copy(Path(__file__).with_name("speed.py"), script)
+        where = {"this": (ROOT, sys.executable, os.environ.copy()),
+                 "ref": (tree, python, _clean_env())}  # fmt: skip
+
+        def measure(which: str, part: str, k: int) -> dict:
+            root, py, env = where[which]
+            out = Path(d) / f"{which}-{part}-{k}.json"
+            print(f"round {k + 1}/{rounds}, {part}: {'this tree' if which == 'this' else ref}")
+            subprocess.run([py, str(script), *part_argv(argv, part, out)], cwd=root, env=env,
+                           check=True)  # fmt: skip
+            return json.loads(out.read_text())
+
+        got = interleave(parts, rounds, measure)
+    label = ref if commit.startswith(ref) or ref.startswith(commit) else f"{ref} ({commit})"
+    pairs = paired(got["this"], got["ref"])
+    return label, median_figures(got["this"]), median_figures(got["ref"]), pairs
 
 
 def _cell(v: float | None) -> str:
@@ -175,30 +193,41 @@ def _verdict(goal: Goal, v: float | None) -> str:
     return f"{_cell(v)} {goal.unit}: {'met' if v <= goal.limit else 'NOT met'}"
 
 
-def comparison(fig: dict, ref: dict | None = None, label: str = "") -> str:
-    """The goals table of ``fig`` (this tree) and, with ``ref`` (:func:`measure_ref`, named
-    ``label``), every figure side by side with the ratio this / REF."""
-    loads = lambda f: ", ".join(f"{v:.1f}" for v in f.get("load", []))  # noqa: E731
+def _load_range(fig: dict) -> str:
+    v = fig.get("load", [])
+    return f"{min(v):.1f}-{max(v):.1f}" if v else "n/a"
+
+
+def comparison(
+    fig: dict, ref: dict | None = None, label: str = "", pairs: dict[str, Paired] | None = None
+) -> str:
+    """The goals table of ``fig`` (this tree) and, with ``ref`` and ``pairs``
+    (:func:`measure_against`, REF named ``label``), every figure side by side: each tree's
+    median over the rounds and the median of the rounds' ratios this / REF with their range."""
     lines = []
-    if ref is not None:
-        a, b = named(fig), named(ref)
+    if ref is not None and pairs is not None:
+        n = fig.get("rounds", 1)
         lines += [
-            f"This tree against {label} (1-minute load average during the parts: this tree "
-            f"{loads(fig)}; {label} {loads(ref)}):",
+            f"This tree against {label}, interleaved: {n} rounds, in each every part of the "
+            f"benchmark run by one tree and at once by the other (the first alternating round to "
+            f"round); each tree's median over the rounds and the median of the {n} rounds' "
+            f"ratios this / {label} with their range (1-minute load average over the parts: "
+            f"this tree {_load_range(fig)}, {label} {_load_range(ref)}):",
             "",
-            f"| what | this tree | {label} | this / {label} |",
+            f"| what | this tree | {label} | this / {label}, paired (range) |",
             "|---|---|---|---|",
         ]
-        for k in dict.fromkeys([*a, *b]):
-            x, y = a.get(k), b.get(k)
-            ratio = f"{x / y:.2f}" if x is not None and y else "n/a"
-            lines.append(f"| {k} | {_cell(x)} | {_cell(y)} | {ratio} |")
+        for k, p in pairs.items():
+            ratio = (f"{p.ratio:.3f} ({min(p.ratios):.2f}-{max(p.ratios):.2f})"
+                     if p.ratio is not None else "n/a")  # fmt: skip
+            lines.append(f"| {k} | {_cell(p.this)} | {_cell(p.ref)} | {ratio} |")
         lines.append("")
-    head = f"| goal (issue 32) | at most | this tree |{f' {label} |' if ref is not None else ''}"
-    lines += [head, "|---|---|---|" + ("---|" if ref is not None else "")]
+    both = ref is not None
+    head = f"| goal (issue 32) | at most | this tree |{f' {label} |' if both else ''}"
+    lines += [head, "|---|---|---|" + ("---|" if both else "")]
     for g in GOALS:
         row = f"| {g.what} | {g.limit:g} {g.unit} | {_verdict(g, g.value(fig))} |"
-        if ref is not None:
+        if both:
             row += f" {_verdict(g, g.value(ref))} |"
         lines.append(row)
     if max(fig.get("load", [0.0])) > 0.5:

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import re
 
-from selfcal.benchmarks.speed import TOLERANCE, check, figures_of, readme_block
+from selfcal.benchmarks.speed_table import TOLERANCE, check, figures_of, readme_block
 
 
 def _scaled(block: str, row: str, factor: float) -> str:

@@ -1,9 +1,12 @@
-"""The speed benchmark side by side with a git ref (#32): REF is measured with this run's
+"""The speed benchmark side by side with a git ref (#32): each part is measured with this run's
 options less the writing ones, and each goal of the issue is judged met or not for each column."""
 
 from __future__ import annotations
 
-from selfcal.benchmarks.speed_against import GOALS, comparison, named, ref_argv
+from pathlib import Path
+
+from selfcal.benchmarks.speed_against import GOALS, comparison, named, part_argv
+from selfcal.benchmarks.speed_pairs import paired
 
 
 def _fig(run: float, loaded: float, cal300: float, mb: float, load: float = 0.2) -> dict:
@@ -21,16 +24,19 @@ def _fig(run: float, loaded: float, cal300: float, mb: float, load: float = 0.2)
     }  # fmt: skip
 
 
-def test_ref_is_measured_with_the_same_options_less_the_writing_ones():
+def test_a_part_is_measured_with_the_same_options_less_the_writing_ones():
     argv = ["--poses", "30", "300", "--against", "HEAD~1", "--write-docs", "--pybotics-n=50",
-            "--repeat", "3", "--check", "--against=main", "--with-pybotics"]  # fmt: skip
-    assert ref_argv(argv) == ["--poses", "30", "300", "--repeat", "3", "--memory"]
-    assert ref_argv(["--memory", "--skip-run"]) == ["--memory", "--skip-run"]
+            "--repeat", "3", "--check", "--against=main", "--with-pybotics", "--rounds", "9",
+            "--run-repeat=3", "--memory", "--skip-run"]  # fmt: skip
+    out = Path("/tmp/f.json")
+    assert part_argv(argv, "run", out) == ["--poses", "30", "300", "--repeat", "3",
+                                           "--run-repeat", "1", "--part", "run", "--json",
+                                           "/tmp/f.json"]  # fmt: skip
 
 
 def test_each_goal_is_judged_for_each_column():
     new, old = _fig(2.6, 3.6, 1.9, 0.25), _fig(3.5, 5.6, 4.0, 0.5)
-    text = comparison(new, old, "HEAD~1")
+    text = comparison(new, old, "HEAD~1", paired([new], [old]))
     rows = {line.split(" | ")[0][2:]: line for line in text.splitlines() if line.startswith("| ")}
     assert len([r for r in rows.values() if "met" in r]) == len(GOALS)
     assert rows["`selfcal run` default scenario, on an idle 2-core machine"].endswith(
@@ -40,7 +46,7 @@ def test_each_goal_is_judged_for_each_column():
     assert "1.9 s: met | 4 s: NOT met" in rows[GOALS[2].what]
     assert "0.25 MB: met | 0.5 MB: NOT met" in rows[GOALS[3].what]
     run = rows["`selfcal run` default scenario (process)"]
-    assert run == "| `selfcal run` default scenario (process) | 2.6 | 3.5 | 0.74 |"
+    assert run == "| `selfcal run` default scenario (process) | 2.6 | 3.5 | 0.743 (0.74-0.74) |"
     assert "not idle" not in text
 
 
