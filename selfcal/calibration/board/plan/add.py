@@ -295,6 +295,7 @@ def plan_additions(
     options: PlanOptions | None = None,
     workspace: np.ndarray | None = None,
     more: int = 0,
+    spare: int = SPARE,
 ) -> AddedPostures:
     """The ``count`` postures to add to ``plan``'s dataset (module docstring), drawn and
     predicted with ``options`` (default :class:`selfcal.calibration.board.plan.ground.PlanOptions`)
@@ -304,6 +305,9 @@ def plan_additions(
     the result's ``halving`` says how many postures, up to ``count + more``, are predicted to
     halve the error before (:func:`first_halving`; each larger count planned from the same
     candidates as ``count`` is: the greedy choice is nested, the swaps its own); 0: not asked.
+    ``spare``: how many of the greedy's next picks may replace a chosen posture (more than the
+    pool holds: every candidate, one pass of swaps over the whole pool; a benchmark's question,
+    ``python -m selfcal.benchmarks.plan.add_pool``).
 
     Raises:
         InputError: fewer candidates than ``count``.
@@ -318,7 +322,7 @@ def plan_additions(
     A_old = prediction_information(setup, plan.q, opts.pixel_sigma_px, opts.joint_sigma, plan.seen)
     A = prediction_information(setup, g.pool, opts.pixel_sigma_px, opts.joint_sigma)
     most = min(count + max(more, 0), len(F))
-    picks = select_greedy(F, G, n_cam, min(most + SPARE, len(F)),
+    picks = select_greedy(F, G, n_cam, min(most + spare, len(F)),
                           start=training_sets(plan, F_frames) + prior_information(var, n_cam))  # fmt: skip
     home = setup.robot.home
     n_feat = np.concatenate([plan.n_features, np.full(len(F), len(setup.board.layout()[0]))])
@@ -351,8 +355,8 @@ def plan_additions(
         return idx[order_path(g.pool[idx], home)]
 
     def choose(n: int) -> np.ndarray:
-        """The ``n`` postures: the greedy's first ``n`` with its next :data:`SPARE` swapped in."""
-        return swap_spares(in_path_order(picks[:n]), picks[n : n + SPARE], drawn, in_path_order)
+        """The ``n`` postures: the greedy's first ``n`` with its next ``spare`` swapped in."""
+        return swap_spares(in_path_order(picks[:n]), picks[n : n + spare], drawn, in_path_order)
 
     chosen = choose(count)
     after, forecast = predicted(chosen)
