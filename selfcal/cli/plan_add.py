@@ -7,6 +7,7 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -19,14 +20,17 @@ from selfcal.cli.plan_args import (
 )
 from selfcal.console.common import CliError, note_written, writing
 
-__all__ = ["cmd_add"]
+if TYPE_CHECKING:
+    from selfcal.calibration.board.plan.add import AddedPostures
+
+__all__ = ["cmd_add", "halved_words"]
 
 
 def cmd_add(args: argparse.Namespace) -> int:
     """``selfcal plan --add K DATASET``: the K postures that most lower the dataset's predicted
     tool-point error (mm at the edges), written to PLAN/ with the forecast before and after."""
     from selfcal.acquisition.backends import robot_reference
-    from selfcal.calibration.board.plan.add import dataset_setup, plan_additions
+    from selfcal.calibration.board.plan.add import HALVE_MORE, dataset_setup, plan_additions
     from selfcal.calibration.board.plan.ground import PlanOptions
     from selfcal.cli.plan_add_ground import add_ground
     from selfcal.cli.plan_forecast import DrawSet, forecast_draws, write_figure
@@ -59,7 +63,7 @@ def cmd_add(args: argparse.Namespace) -> int:
     with Progress("plan", enabled=not (args.quiet or args.json)).step(
         f"choosing {count} postures to add"
     ) as st:
-        add = plan_additions(dplan, count, opts, ws.q)
+        add = plan_additions(dplan, count, opts, ws.q, more=HALVE_MORE)
         st.result(f"from {add.candidates} candidates")
     m = len(dplan.q)
     before = reference_words(add.reference_before, add.before_m)
@@ -129,6 +133,7 @@ def cmd_add(args: argparse.Namespace) -> int:
             },
             "beats_nominal": add.reference.beaten_by(add.after_m),
             "verdict": reference_words(add.reference, add.after_m),
+            "halved_with": _halved_json(add),
             "forecast_draws": fc.section(),
             "candidates": add.candidates,
             "candidates_from": add.drawn_from,
@@ -144,6 +149,8 @@ def cmd_add(args: argparse.Namespace) -> int:
             f"parameters estimated {add.kept_before} -> {add.kept_after}) over {ws.words}; "
             f"joint path {np.degrees(add.path_rad):.0f} deg\nthe held parameters' {dev['words']}"
             "\nbefore, " + before + "\nafter, " + doc["verdict"] + "\n" + fc.line())  # fmt: skip
+    if short := halved_words(add, str(root)):
+        line += "\n" + short
     print(json.dumps(doc) if args.json else line)
     return 0
 
@@ -160,3 +167,29 @@ def _held_out(root: str | Path) -> tuple[tuple[float, float] | None, str]:
     if not evaluates(ev, root):
         return None, str(path)
     return (ev.rms["calibrated"], ev.rms["nominal"]), str(path)
+
+
+def _halved_json(add: AddedPostures) -> dict:
+    """plan.json's ``halved_with``: the fewest postures predicted to halve the error before
+    (``count`` null: none up to ``tried``), and their predicted tool-point RMS (mm)."""
+    h = add.halving
+    assert h is not None  # cmd_add asks for it
+    return {"count": h.count, "tried_up_to": h.tried,
+            "predicted_tool_rms_mm": None if h.count is None else round(h.after_m * 1000, 4)}  # fmt: skip
+
+
+def halved_words(add: AddedPostures, root: str) -> str:
+    """The line for a plan not predicted to halve the dataset's error: how many postures are
+    (with the command that plans them) or none up to the largest count tried; empty when the
+    plan's own count is."""
+    h = add.halving
+    assert h is not None  # cmd_add asks for it
+    k = len(add.q)
+    if h.count == k:
+        return ""
+    short = (f"not predicted to halve the error with {k} added postures ({add.before_m * 1000:.3f}"
+             f" -> {add.after_m * 1000:.3f} mm, {add.before_m / add.after_m:.2f} times lower)")  # fmt: skip
+    if h.count is None:
+        return f"{short}, nor with any count up to {h.tried} (each planned as {k} are)"
+    return (f"{short}; {h.count} are predicted to ({add.before_m * 1000:.3f} -> "
+            f"{h.after_m * 1000:.3f} mm): selfcal plan --add {h.count} {root}")  # fmt: skip

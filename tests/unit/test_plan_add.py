@@ -9,7 +9,12 @@ import pytest
 
 from selfcal.calibration.board.bounds import board_cramer_rao
 from selfcal.calibration.board.deviation import Deviation
-from selfcal.calibration.board.plan.add import DatasetPlan, swap_spares, training_sets
+from selfcal.calibration.board.plan.add import (
+    DatasetPlan,
+    first_halving,
+    swap_spares,
+    training_sets,
+)
 from selfcal.calibration.board.plan.greedy import select_greedy
 from selfcal.calibration.board.plan.information import board_model, frame_information
 from selfcal.calibration.board.plan.predict import (
@@ -161,3 +166,21 @@ def test_swaps_take_a_spare_only_where_the_cost_falls_by_the_gain():
     assert cost(got) <= cost(np.array([0, 1, 2]))
     same = swap_spares(np.array([0, 1, 2]), np.array([4, 5]), cost, np.sort)
     assert same.tolist() == [0, 1, 2]
+
+
+def test_the_fewest_postures_that_halve_the_error_are_found_in_order():
+    # a toy prediction per count (m): 5 postures 1.16 times lower than 1.25, 6 and 8 halve it
+    after = {5: 1.08, 6: 0.6, 7: 0.7, 8: 0.3}
+    asked: list[int] = []
+
+    def predicted(n: int) -> float:
+        asked.append(n)
+        return after[n]
+
+    got = first_halving(1.25, 5, predicted, 8)
+    assert (got.count, got.after_m, got.tried) == (6, 0.6, 6)
+    assert asked == [5, 6]  # stopped at the first: no count above it planned
+    short = first_halving(1.25, 5, predicted, 5)
+    assert short.count is None and np.isnan(short.after_m) and short.tried == 5
+    exact = first_halving(1.2, 6, predicted, 8)  # at most half, not below
+    assert exact.count == 6

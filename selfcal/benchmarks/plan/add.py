@@ -8,9 +8,12 @@ on the table where home looks: as the Nachi groups of real data), ``selfcal run`
 calibrates them; ``selfcal plan --add K`` plans K postures for that dataset; the dataset's
 postures and the added ones are acquired again in simulation with the same truth and
 calibrated. A row: the predicted tool-point RMS before and after (``plan.json``), the median
-after of its forecast's draws (the selection deciding in each: ``forecast_draws``) and the
-achieved one (``report.json``'s validation tool tip against the simulated truth). Prints the
-table and the medians of the before/after ratios; ``--write-docs`` puts them between
+after of its forecast's draws (the selection deciding in each: ``forecast_draws``), the
+achieved one (``report.json``'s validation tool tip against the simulated truth), the
+parameters each calibration kept and how many postures ``plan.json`` predicts to halve the error
+(``halved_with``: K or more, planned as K is). Prints the table, the medians of the before/after
+ratios (the achieved ratio's quartiles and range) and in how many truths K are predicted to
+halve it; ``--write-docs`` puts them between
 docs/plan.md's ``benchmark_plan_add_K`` markers (K the ``--add``).
 
 ``--mount eye-to-hand`` (:func:`still_camera_row`): the nominal cell of
@@ -130,7 +133,7 @@ def wrist_only_row(root: Path, seed: int, add: int = 5) -> dict:
     return {"seed": seed, "frames": len(q), "predicted_before_mm": doc["predicted_before_tool_rms_mm"],
             "achieved_before_mm": before, "predicted_after_mm": doc["predicted_tool_rms_mm"],
             "drawn_after_mm": doc["forecast_draws"]["after"]["median_mm"],
-            "achieved_after_mm": after, "kept_before": kept[0], "kept_after": kept[1]}  # fmt: skip
+            "halved_with": _halved(doc), "achieved_after_mm": after, "kept_before": kept[0], "kept_after": kept[1]}  # fmt: skip
 
 
 def _flange_rms(run: Path, qw: np.ndarray) -> float:
@@ -187,7 +190,7 @@ def still_camera_row(root: Path, seed: int, add: int = 5) -> dict:
     qw = workspace_sample(setup, 50, seed=2)
     q = plan_static_postures(cell, 1, STILL_POSTURES, seed=seed)
     nan = float("nan")
-    row: dict = {"seed": seed, "frames": len(q), "error": ""}
+    row: dict = {"seed": seed, "frames": len(q), "error": "", "halved_with": ""}
     row |= dict.fromkeys(("predicted_before_mm", "achieved_before_mm", "predicted_after_mm",
                           "drawn_after_mm",
                           "achieved_after_mm", "kept_before", "kept_after"), nan)  # fmt: skip
@@ -209,7 +212,8 @@ def still_camera_row(root: Path, seed: int, add: int = 5) -> dict:
     doc = read_plan(plan / "plan.json", ("add",))
     row |= {"predicted_before_mm": doc["predicted_before_tool_rms_mm"],
             "predicted_after_mm": doc["predicted_tool_rms_mm"],
-            "drawn_after_mm": doc["forecast_draws"]["after"]["median_mm"]}  # fmt: skip
+            "drawn_after_mm": doc["forecast_draws"]["after"]["median_mm"],
+            "halved_with": _halved(doc)}  # fmt: skip
     second = root / "added"
     second.mkdir(parents=True, exist_ok=True)
     shutil.copyfile(plan / "replay.csv", second / "replay.csv")
@@ -220,6 +224,13 @@ def still_camera_row(root: Path, seed: int, add: int = 5) -> dict:
         return row | {"error": "the calibration with the added postures stopped (selfcal run)"}
     return row | {"achieved_after_mm": _flange_rms(root / "calibrated", qw),
                   "kept_after": _kept(root / "calibrated")}  # fmt: skip
+
+
+def _halved(doc: dict) -> str:
+    """How many postures ``plan.json`` predicts to halve the error: a count, or none up to the
+    largest tried."""
+    h = doc["halved_with"]
+    return str(h["count"]) if h["count"] is not None else f"none up to {h['tried_up_to']}"
 
 
 def _kept(run: Path) -> int:
@@ -270,23 +281,29 @@ def main(argv: list[str] | None = None) -> int:
     with get_context("spawn").Pool(a.jobs) as pool:
         rows = pool.map(_row, items)
     lines = ["| truth | frames | predicted before -> after (mm) | draws' median after (mm) "
-             "| achieved before -> after (mm) | parameters kept |",
-             "|---|---|---|---|---|---|"]  # fmt: skip
+             "| achieved before -> after (mm) | parameters kept | postures predicted to halve |",
+             "|---|---|---|---|---|---|---|"]  # fmt: skip
     for r in rows:
         kept = (f"{r['kept_before']} -> {r['kept_after']}" if not r.get("error") else
                 f"{r['error']}")  # fmt: skip
         lines.append(f"| {r['seed']} | {r['frames']} + {a.add} | {r['predicted_before_mm']:.3f} -> "
                      f"{r['predicted_after_mm']:.3f} | {r['drawn_after_mm']:.3f} | "
-                     f"{r['achieved_before_mm']:.3f} -> {r['achieved_after_mm']:.3f} | {kept} |")  # fmt: skip
+                     f"{r['achieved_before_mm']:.3f} -> {r['achieved_after_mm']:.3f} | {kept} | "
+                     f"{r['halved_with']} |")  # fmt: skip
     ok = [r for r in rows if not r.get("error")]
     pr = np.median([r["predicted_before_mm"] / r["predicted_after_mm"] for r in ok])
     dr = np.median([r["predicted_before_mm"] / r["drawn_after_mm"] for r in ok])
-    ac = np.median([r["achieved_before_mm"] / r["achieved_after_mm"] for r in ok])
+    ratios = np.array([r["achieved_before_mm"] / r["achieved_after_mm"] for r in ok])
+    ac = np.median(ratios)
+    q1, q3 = np.percentile(ratios, [25, 75])
+    halved = sum(r["halved_with"] == str(a.add) for r in ok)
     fit = np.median([r["achieved_after_mm"] / r["predicted_after_mm"] for r in ok])
     of = f" of the {len(ok)} truths that calibrated" if len(ok) < len(rows) else ""
     mount = " --mount eye-to-hand" if e2h else ""
     lines += ["", f"Median ratio before/after{of}: predicted {pr:.2f} (to the draws' median "
-              f"{dr:.2f}), achieved {ac:.2f}; "
+              f"{dr:.2f}), achieved {ac:.2f} (quartiles {q1:.2f} - {q3:.2f}, {ratios.min():.2f} - "
+              f"{ratios.max():.2f} in all); predicted halved by {a.add} postures in {halved} of "
+              f"{len(ok)}; "
               f"achieved/predicted after {fit:.2f} (`python -m selfcal.benchmarks.plan.add "
               f"--truths {a.truths} --add {a.add}{mount} --write-docs`)."]  # fmt: skip
     marker = f"benchmark_plan_add_{'e2h_' if e2h else ''}{a.add}"

@@ -81,6 +81,9 @@ __all__ = [
     "drawn_mount_words",
     "AddedPostures",
     "DatasetPlan",
+    "HALVE_MORE",
+    "Halving",
+    "first_halving",
     "dataset_setup",
     "plan_additions",
     "swap_spares",
@@ -207,7 +210,8 @@ class AddedPostures:
     drawn, the joint path (rad) from home through the added ones, and the ``reference``: the
     error without calibrating the kinematics for the dataset's frames and the added ones
     (:mod:`selfcal.calibration.board.plan.reference`); ``reference_before`` the same for the
-    dataset's frames alone (what ``before_m`` is judged against)."""
+    dataset's frames alone (what ``before_m`` is judged against); ``halving`` how many postures
+    are predicted to halve ``before_m`` (None: not asked)."""
 
     q: np.ndarray
     before_m: float
@@ -221,6 +225,35 @@ class AddedPostures:
     forecast: SelectionForecast
     reference: NominalReference
     reference_before: NominalReference
+    halving: Halving | None = None
+
+
+@dataclass(frozen=True)
+class Halving:
+    """How many postures the plan predicts to halve the dataset's error (:func:`first_halving`):
+    ``count`` the fewest (None: none of those tried), ``after_m`` its predicted tool-point RMS
+    (m; NaN without a count), ``tried`` the largest count tried."""
+
+    count: int | None
+    after_m: float
+    tried: int
+
+
+HALVE_MORE = 3
+"""When ``count`` added postures are not predicted to halve the error, :func:`plan_additions`
+plans this many larger counts in turn (each as ``count`` is planned) and reports the first that
+is (:class:`Halving`); each costs about as much as the plan itself."""
+
+
+def first_halving(before_m: float, count: int, after: Callable[[int], float], most: int) -> Halving:
+    """The fewest postures from ``count`` up to ``most`` whose predicted tool-point RMS
+    ``after(n)`` (m) is at most half ``before_m`` (m), tried in increasing order and stopped at
+    the first; ``after`` is called for no count above it."""
+    for n in range(count, most + 1):
+        got = after(n)
+        if got <= 0.5 * before_m:
+            return Halving(n, got, n)
+    return Halving(None, float("nan"), most)
 
 
 SPARE = 16
@@ -266,12 +299,20 @@ def plan_additions(
     count: int,
     options: PlanOptions | None = None,
     workspace: np.ndarray | None = None,
+    more: int = 0,
+    spare: int = SPARE,
 ) -> AddedPostures:
     """The ``count`` postures to add to ``plan``'s dataset (module docstring), drawn and
     predicted with ``options`` (default :class:`selfcal.calibration.board.plan.ground.PlanOptions`)
     over the ``workspace`` postures (w, n) rad (None: the robot file's planning window around
     home, as a new plan's; ``selfcal plan --add`` gives
-    :func:`selfcal.calibration.board.plan.add_ground.dataset_workspace`'s).
+    :func:`selfcal.calibration.board.plan.add_ground.dataset_workspace`'s). With ``more`` > 0
+    the result's ``halving`` says how many postures, up to ``count + more``, are predicted to
+    halve the error before (:func:`first_halving`; each larger count planned from the same
+    candidates as ``count`` is: the greedy choice is nested, the swaps its own); 0: not asked.
+    ``spare``: how many of the greedy's next picks may replace a chosen posture (more than the
+    pool holds: every candidate, one pass of swaps over the whole pool; a benchmark's question,
+    ``python -m selfcal.benchmarks.plan.add_pool``).
 
     Raises:
         InputError: fewer candidates than ``count``.
@@ -285,7 +326,8 @@ def plan_additions(
     F = frame_information(setup, g.pool, opts.pixel_sigma_px, opts.joint_sigma)
     A_old = prediction_information(setup, plan.q, opts.pixel_sigma_px, opts.joint_sigma, plan.seen)
     A = prediction_information(setup, g.pool, opts.pixel_sigma_px, opts.joint_sigma)
-    picks = select_greedy(F, G, n_cam, min(count + SPARE, len(F)),
+    most = min(count + max(more, 0), len(F))
+    picks = select_greedy(F, G, n_cam, min(most + spare, len(F)),
                           start=training_sets(plan, F_frames) + prior_information(var, n_cam))  # fmt: skip
     home = setup.robot.home
     n_feat = np.concatenate([plan.n_features, np.full(len(F), len(setup.board.layout()[0]))])
@@ -317,7 +359,11 @@ def plan_additions(
     def in_path_order(idx: np.ndarray) -> np.ndarray:
         return idx[order_path(g.pool[idx], home)]
 
-    chosen = swap_spares(in_path_order(picks[:count]), picks[count:], drawn, in_path_order)
+    def choose(n: int) -> np.ndarray:
+        """The ``n`` postures: the greedy's first ``n`` with its next ``spare`` swapped in."""
+        return swap_spares(in_path_order(picks[:n]), picks[n : n + spare], drawn, in_path_order)
+
+    chosen = choose(count)
     after, forecast = predicted(chosen)
     q = g.pool[chosen]
 
@@ -327,6 +373,10 @@ def plan_additions(
                                  drawn_why=drawn_mount_words(plan, opts.deviation))  # fmt: skip
 
     before = predict_kept(setup, plan.q, F_old, G, var, (plan.free_idx, plan.offset_joints))
+    halving = None
+    if more > 0:
+        halving = first_halving(before, count, lambda n: after if n == count
+                                else predicted(choose(n))[0], most)  # fmt: skip
     return AddedPostures(
         q=q,
         before_m=before,
@@ -340,4 +390,5 @@ def plan_additions(
         path_rad=path_length(q, home),
         reference=reference(F_old + F[chosen].sum(axis=0)),
         reference_before=reference(F_old),
+        halving=halving,
     )
