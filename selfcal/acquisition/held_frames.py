@@ -7,9 +7,9 @@ detection); the calibration after it runs on one. Encoding the PNGs (a fifth of 
 acquisition's CPU) therefore costs wall time during the acquisition and little beside the
 calibration. :class:`HeldFrames` takes each frame's images from the acquisition loop
 (:func:`selfcal.acquisition.acquire.acquire`) and writes them on one thread of its own, at the
-process's priority (at the lowest, nice 19, tried: as fast on an idle machine, 9 % slower
-than the loop beside one CPU-bound process, which starved it), from the loop's first frame, in
-order and by :meth:`selfcal.io.dataset.DatasetWriter.add_frame` (the same files, byte for byte; a frame counts as taken once its joints row follows its images, as
+process's priority (the lowest was tried and dropped: any CPU-bound process beside it can
+starve it until the loop waits on it, :data:`HOLD_BYTES`, and idle it has nothing to yield
+to), from the loop's first frame, in order and by :meth:`selfcal.io.dataset.DatasetWriter.add_frame` (the same files, byte for byte; a frame counts as taken once its joints row follows its images, as
 always); the loop waits when the frames not yet written exceed :data:`HOLD_BYTES`. It hands the
 calibration the dataset as the writer will leave it (:meth:`HeldFrames.dataset`).
 
