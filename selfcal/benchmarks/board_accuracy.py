@@ -52,7 +52,10 @@ against the one ``selfcal evaluate`` measures (target 0.67-1.5x).
 
 Run: ``uv run python -m selfcal.benchmarks.board_accuracy [--draws 90] [--jobs 2] [--robots
 R,..] [--models M,..] [--noise-px S,..] [--poses 30] [--first-seed 1] [--read-back rounded]
-[--render] [--rows-out FILE] [--from-rows FILE ..] [--real] [--write-docs]`` (rewrites the tables in docs/tool-accuracy.md).
+[--render] [--rows-out FILE] [--from-rows FILE ..] [--real] [--write-docs]`` (rewrites the tables in docs/tool-accuracy.md:
+the analytic draws seeded 1, 2, ... and 181, 182, ..., ``--first-seed 181``, have a block each,
+:data:`selfcal.benchmarks.board_accuracy_tables.BLOCK_SEEDS`; an option no block takes is refused
+in one line before anything runs).
 """
 
 from __future__ import annotations
@@ -83,10 +86,9 @@ from selfcal.benchmarks.board_accuracy_draw import (
     simulated_calibration,
 )
 from selfcal.benchmarks.board_accuracy_tables import (
-    BLOCK,
     BLOCK_REAL,
-    BLOCK_RENDER,
     DOC,
+    docs_block,
     pooled_rows,
     real_table,
     table,
@@ -106,7 +108,7 @@ from selfcal.calibration.board.dataset import (
 from selfcal.calibration.board.deviation import Deviation
 from selfcal.calibration.board.evaluate import evaluate_board
 from selfcal.calibration.board.held_prior import with_deviation
-from selfcal.errors import InputError, InternalError, UsageError
+from selfcal.errors import InputError, InternalError
 from selfcal.estimation.joint_report import encoder_sigma
 from selfcal.io.atomic import write_text_atomic
 from selfcal.io.dataset import Dataset
@@ -122,6 +124,7 @@ __all__ = [
     "merged_rows",
     "prior",
     "real_set",
+    "rows_block",
     "run",
     "scenario",
     "simulated",
@@ -166,12 +169,12 @@ def draws_per_row(draws: int | None, render: bool) -> int:
     path and :data:`DRAWS_RENDERED` with ``render``.
 
     Raises:
-        UsageError: ``draws`` is not positive.
+        InputError: ``draws`` is not positive (``--draws``).
     """
     if draws is None:
         return DRAWS_RENDERED if render else DRAWS
     if draws < 1:
-        raise UsageError(f"--draws {draws}: give at least 1 draw per row")
+        raise InputError(f"--draws {draws}: give at least 1 draw per row")
     return int(draws)
 
 
@@ -393,9 +396,25 @@ def _arguments(argv: list[str] | None) -> argparse.Namespace:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the benchmark (one BLAS thread per process) and print, or write, the table."""
+    """Run the benchmark (one BLAS thread per process) and print, or write, the table; an
+    option the blocks do not take, or a bad ``--from-rows`` file, is one line on stderr (exit
+    2), before anything runs."""
     limit_threads(1)
     args = _arguments(argv)
+    try:
+        return _main(args)
+    except InputError as exc:
+        print(f"board_accuracy: error: {exc}", file=sys.stderr)
+        return exc.exit_code
+
+
+def _main(args: argparse.Namespace) -> int:
+    """:func:`main` after the options are read.
+
+    Raises:
+        InputError: ``--write-docs`` with rows no block holds (:func:`rows_block`), or a
+            ``--from-rows`` file that is not rows.
+    """
     if args.real:
         rows = []
         for name in REAL_SETS:
@@ -408,22 +427,46 @@ def main(argv: list[str] | None = None) -> int:
         if args.write_docs:
             write_block(DOC, text, BLOCK_REAL)
         return 0
-    if args.write_docs and args.poses != POSES:
-        raise UsageError(f"--write-docs writes the block of {POSES} postures: drop --poses")
-    if args.write_docs and (args.first_seed != 1 or args.read_back != "rounded"):
-        raise UsageError("--write-docs writes the block of the draws seeded 1, 2, ... with the "
-                         "rounded read-back: drop --first-seed and --read-back")  # fmt: skip
+    block = ""
     if args.from_rows is not None:
         rows = merged_rows(args.from_rows)
         args.render = all("corner_sigma_px" in r for r in rows)
+        block = rows_block(rows, args.first_seed, args.from_rows) if args.write_docs else ""
     else:
+        if args.write_docs:  # refused before any draw runs
+            block = docs_block(args.first_seed, args.read_back, args.poses, args.render)
         noise = IMAGE_SIGMA if args.render and args.noise_px == NOISE_PX else args.noise_px
         draws = draws_per_row(args.draws, args.render)
         rows = run(draws, args.robots, args.models, noise, jobs=args.jobs,
                    poses=args.poses, render=args.render, rows_file=args.rows_out,
                    first_seed=args.first_seed, read_back=args.read_back)  # fmt: skip
     shown = table_rendered(rows) if args.render else table(rows)
-    return print_table(shown, DOC, BLOCK_RENDER if args.render else BLOCK, write=args.write_docs)
+    return print_table(shown, DOC, block, write=args.write_docs)
+
+
+def rows_block(rows: list[dict], first_seed: int, files: list[Path]) -> str:
+    """The block ``--write-docs`` writes the rows ``rows`` of the ``--from-rows`` files
+    ``files`` into (:func:`docs_block`): all of one first seed, ``first_seed`` (``--first-seed``,
+    so that the command names the block it writes), one read-back and :data:`POSES` postures.
+
+    Raises:
+        InputError: the rows differ in those, their seed is not ``first_seed``, or no block
+            holds them.
+    """
+    if not rows:
+        raise InputError(f"--from-rows {' '.join(map(str, files))}: no rows",
+                         fix="give files that --rows-out wrote")  # fmt: skip
+    old = {"first_seed": 1, "read_back": "rounded", "poses": POSES}
+    kinds = {tuple((old | r)[k] for k in old) for r in rows}
+    if len(kinds) != 1:
+        raise InputError("--from-rows: the rows mix first seeds, read-backs or postures "
+                         f"{sorted(kinds)}: a block holds one of them",
+                         fix="give the files of one run, or drop --write-docs")  # fmt: skip
+    seed, read_back, poses = kinds.pop()
+    if seed != first_seed:
+        raise InputError(f"--from-rows: the rows are of the draws seeded {seed}, ... and "
+                         f"--first-seed is {first_seed}", fix=f"give --first-seed {seed}")  # fmt: skip
+    return docs_block(seed, read_back, poses, all("corner_sigma_px" in r for r in rows))
 
 
 if __name__ == "__main__":

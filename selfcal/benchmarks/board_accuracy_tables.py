@@ -12,6 +12,7 @@ from selfcal.benchmarks.corner_noise import corner_stats
 from selfcal.benchmarks.doc_blocks import ROOT, codes_note
 from selfcal.benchmarks.tool_accuracy import coverage, right_range
 from selfcal.benchmarks.tool_accuracy import mark as _mark
+from selfcal.errors import InputError
 
 __all__ = [
     "pooled_rows",
@@ -21,13 +22,42 @@ __all__ = [
     "BLOCK",
     "BLOCK_REAL",
     "BLOCK_RENDER",
+    "BLOCK_SEEDS",
     "DOC",
+    "docs_block",
 ]
 
 DOC = ROOT / "docs" / "tool-accuracy.md"
 BLOCK = "benchmark_board_accuracy"
 BLOCK_REAL = "benchmark_board_accuracy_real"
 BLOCK_RENDER = "benchmark_board_accuracy_rendered"
+BLOCK_SEEDS = {1: BLOCK, 181: "benchmark_board_accuracy_seeds_181"}
+"""The analytic path's blocks by the draws' first seed (``--first-seed``): the Monte Carlo of
+seeds 1, 2, ... and the new draws of seeds 181, 182, ... that check its orientation's
+over-coverage (docs/tool-accuracy.md); the rendered path's block is of seeds 1, 2, ...."""
+
+
+def docs_block(first_seed: int, read_back: str, poses: int, render: bool) -> str:
+    """The docs/tool-accuracy.md block that rows of draws seeded ``first_seed``, ... with the
+    joint read-back ``read_back``, ``poses`` postures each and ``render`` go to
+    (``--write-docs``).
+
+    Raises:
+        InputError: no block holds such rows; the message names the option to drop or change.
+    """
+    blocks = {1: BLOCK_RENDER} if render else BLOCK_SEEDS
+    if poses != POSES:
+        raise InputError(f"--poses {poses}: --write-docs writes blocks of {POSES} postures",
+                         fix="drop --poses, or --write-docs")  # fmt: skip
+    if read_back != "rounded":
+        raise InputError(f"--read-back {read_back}: --write-docs writes blocks of the rounded "
+                         "read-back", fix="drop --read-back, or --write-docs")  # fmt: skip
+    if first_seed not in blocks:
+        seeds = " or ".join(f"--first-seed {s}" for s in blocks)
+        path = "rendered" if render else "analytic"
+        raise InputError(f"--first-seed {first_seed}: --write-docs writes the {path} path's "
+                         f"blocks of {seeds}", fix=f"give {seeds}, or drop --write-docs")  # fmt: skip
+    return blocks[first_seed]
 
 
 def pooled_rows(robot: str, model: str, s: float, got: list[dict],
@@ -165,7 +195,7 @@ def _options(first: list[dict]) -> str:
     """The benchmark's options that make the rows ``first`` (one per robot, model and noise):
     ``--draws`` (when every row has the same count), ``--robots``, ``--models``, ``--noise-px``
     in the rows' order, ``--first-seed`` / ``--read-back`` when not the defaults, then ``--jobs 1``
-    and ``--write-docs`` where the block takes such rows."""
+    and ``--write-docs`` where a block takes such rows (:data:`BLOCK_SEEDS`)."""
     robots, models, levels = (",".join(dict.fromkeys(f"{r[k]:g}" if k == "noise_px" else r[k]
                                                      for r in first))
                               for k in ("robot", "model", "noise_px"))  # fmt: skip
@@ -175,8 +205,9 @@ def _options(first: list[dict]) -> str:
     backs = sorted({str(r.get("read_back", "rounded")) for r in first})
     other = (f" --first-seed {'/'.join(map(str, seeds))}" if seeds != [1] else "") + \
         (f" --read-back {'/'.join(backs)}" if backs != ["rounded"] else "")  # fmt: skip
-    # --write-docs writes only the block of seeds 1, 2, ... with the rounded read-back
-    docs = " --jobs 1" if other else " --jobs 1 --write-docs"
+    # --write-docs writes the blocks of BLOCK_SEEDS's seeds with the rounded read-back
+    block = len(seeds) == 1 and seeds[0] in BLOCK_SEEDS and backs == ["rounded"]
+    docs = " --jobs 1 --write-docs" if block else " --jobs 1"
     return f"{count}--robots {robots} --models {models} --noise-px {levels}{other}{docs}"
 
 

@@ -11,7 +11,8 @@ import pytest
 
 from selfcal.benchmarks import board_accuracy
 from selfcal.benchmarks.board_accuracy_draw import REGIONS
-from selfcal.benchmarks.board_accuracy_tables import pooled_rows, table
+from selfcal.benchmarks.board_accuracy_tables import BLOCK_SEEDS, pooled_rows, table
+from selfcal.benchmarks.doc_blocks import read_block
 from selfcal.errors import InputError
 
 
@@ -41,8 +42,8 @@ def test_a_run_stamps_its_rows_with_the_code_that_measured_them(tmp_path, monkey
 
 
 def test_the_tables_command_names_other_seeds_and_then_writes_no_docs(monkeypatch):
-    """Rows of seeds 91, 92, ... say so in the table's command, without --write-docs (which
-    refuses --first-seed): the printed command makes those rows again."""
+    """Rows of seeds 91, 92, ... say so in the table's command, without --write-docs (no block
+    holds them: :data:`BLOCK_SEEDS`): the printed command makes those rows again."""
     monkeypatch.setattr(board_accuracy, "code_version", lambda: "abc1234")
     monkeypatch.setattr(board_accuracy, "draw", lambda args: _got(1, args[3])[0])
     rows = board_accuracy.run(2, ("ur5e",), ("fits",), (0.2,), jobs=1, first_seed=91)
@@ -112,3 +113,72 @@ def test_from_rows_puts_a_reruns_rows_in_the_place_of_the_whole_runs(tmp_path, c
     bad.write_text(whole.read_text() + "{not json\n")
     with pytest.raises(InputError, match=r"bad.jsonl: line 7 is not a row"):
         board_accuracy.merged_rows([bad])
+
+
+def _seeded(rows: list[dict], first_seed: int) -> list[dict]:
+    return [r | {"first_seed": first_seed} for r in rows]
+
+
+def test_the_draws_seeded_181_have_a_block_of_their_own(tmp_path, monkeypatch, capsys):
+    """``--from-rows FILE --first-seed 181 --write-docs`` writes the rows of seeds 181, 182, ...
+    into their own block (the one the table's command names), leaving the block of seeds 1, 2,
+    ... as it was; the table's command then says ``--first-seed 181 ... --write-docs``."""
+    doc = tmp_path / "tool-accuracy.md"
+    seeds_1, seeds_181 = BLOCK_SEEDS[1], BLOCK_SEEDS[181]
+    doc.write_text("".join(f"<!-- {b}: begin -->\nold {b}\n<!-- {b}: end -->\n"
+                           for b in (seeds_1, seeds_181)))  # fmt: skip
+    monkeypatch.setattr(board_accuracy, "DOC", doc)
+    rows = _seeded([*_rows("er4u-paper", "fits", 0.05, None), *_rows("ur5e", "fits", 0.2, None)],
+                   181)  # fmt: skip
+    path = _write(tmp_path / "rows.jsonl", rows)
+    assert board_accuracy.main(["--from-rows", str(path), "--first-seed", "181",
+                                "--write-docs"]) == 0  # fmt: skip
+    written = read_block(doc, seeds_181)
+    assert written == table(rows) and written in capsys.readouterr().out
+    assert ("--robots er4u-paper,ur5e --models fits --noise-px 0.05,0.2 --first-seed 181 "
+            "--jobs 1 --write-docs`.") in written  # fmt: skip
+    assert read_block(doc, seeds_1) == f"old {seeds_1}"
+
+
+@pytest.mark.parametrize(
+    ("argv", "said"),
+    [(["--first-seed", "91"], "--first-seed 91: --write-docs writes the analytic path's blocks "
+      "of --first-seed 1 or --first-seed 181"),
+     (["--read-back", "gaussian"], "--read-back gaussian: --write-docs writes blocks of the "
+      "rounded read-back"),
+     (["--poses", "12"], "--poses 12: --write-docs writes blocks of 30 postures"),
+     (["--render", "--first-seed", "181"], "--write-docs writes the rendered path's blocks of "
+      "--first-seed 1"),
+     (["--draws", "0"], "--draws 0: give at least 1 draw per row")],
+)  # fmt: skip
+def test_options_no_block_takes_are_one_line_before_any_draw(argv, said, monkeypatch, capsys):
+    """``--write-docs`` with draws no block holds (other seeds, read-back, postures) is refused
+    in one line on stderr, exit 2, before a draw runs (no traceback)."""
+    monkeypatch.setattr(board_accuracy, "draw", lambda args: pytest.fail("a draw ran"))
+    assert board_accuracy.main([*argv, "--write-docs"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("board_accuracy: error: ") and said in err, err
+    assert err.count("\n") == 1 and "Traceback" not in err
+
+
+def test_from_rows_writes_docs_only_for_the_seeds_it_is_given(tmp_path, monkeypatch, capsys):
+    """``--from-rows --write-docs``: rows of seeds 181, ... without ``--first-seed 181`` are
+    refused (the command would name the block of seeds 1), so are rows of several seeds and an
+    empty file; each in one line, and the docs are not touched."""
+    doc = tmp_path / "tool-accuracy.md"
+    doc.write_text("untouched\n")
+    monkeypatch.setattr(board_accuracy, "DOC", doc)
+    ur5e = _rows("ur5e", "fits", 0.2, None)
+    cases = [
+        ([*_seeded(ur5e, 181)], [], "the rows are of the draws seeded 181, ... and --first-seed "
+         "is 1 (fix: give --first-seed 181)"),
+        ([*_seeded(ur5e, 181), *_rows("er4u-paper", "fits", 0.2, None)], ["--first-seed", "181"],
+         "the rows mix first seeds, read-backs or postures"),
+        ([], [], "no rows"),
+    ]  # fmt: skip
+    for k, (rows, argv, said) in enumerate(cases):
+        path = _write(tmp_path / f"rows{k}.jsonl", rows)
+        assert board_accuracy.main(["--from-rows", str(path), *argv, "--write-docs"]) == 2
+        err = capsys.readouterr().err
+        assert said in err and err.count("\n") == 1, err
+    assert doc.read_text() == "untouched\n"

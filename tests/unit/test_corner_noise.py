@@ -64,12 +64,12 @@ def test_the_analytic_rows_default_to_90_draws_and_the_rendered_to_30():
     right bound's spread on one seed block, 60 its orientation: docs/tool-accuracy.md), the
     rendered one 30; a given count is kept and a count below one refused."""
     from selfcal.benchmarks.board_accuracy import draws_per_row
-    from selfcal.errors import UsageError
+    from selfcal.errors import InputError
 
     assert draws_per_row(None, render=False) == 90
     assert draws_per_row(None, render=True) == 30
     assert draws_per_row(7, render=True) == 7
-    with pytest.raises(UsageError, match="--draws 0"):
+    with pytest.raises(InputError, match="--draws 0"):
         draws_per_row(0, render=False)
 
 
