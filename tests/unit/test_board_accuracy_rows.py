@@ -182,3 +182,12 @@ def test_from_rows_writes_docs_only_for_the_seeds_it_is_given(tmp_path, monkeypa
         err = capsys.readouterr().err
         assert said in err and err.count("\n") == 1, err
     assert doc.read_text() == "untouched\n"
+
+
+def test_docs_hold_a_block_for_each_seed_block_write_docs_writes():
+    """docs/tool-accuracy.md has the markers of every block of :data:`BLOCK_SEEDS`, so
+    ``--write-docs`` of those seeds has where to write (a missing pair is an error there)."""
+    from selfcal.benchmarks.board_accuracy_tables import DOC
+
+    for name in BLOCK_SEEDS.values():
+        assert "|---|" in read_block(DOC, name), name
