@@ -96,12 +96,19 @@ def distance_unit(block: dict) -> str:
 
 
 def cross_validation_line(cv: dict | None) -> str | None:
-    """One sentence of the cross-validated reprojection (None without it)."""
+    """One sentence of the cross-validated reprojection (None without it): the RMS over every
+    fold's held-out corners together, which is not the selection table's figure (each
+    candidate's geometric mean over the folds' RMS,
+    :func:`selfcal.pipeline.report_fit.selection_markdown`): the sentence says which it is, as
+    the two differ when one fold predicts much worse than the others."""
     if not cv or not cv.get("calibrated") or not cv.get("nominal"):
         return None
     c, n = cv["calibrated"], cv["nominal"]
+    corners = f"the {c['corners']} " if c.get("corners") else "the "
     return (
-        f"cross-validated over {cv['configurations']} configurations in {cv['folds']} folds: "
+        f"cross-validated over {cv['configurations']} configurations in {cv['folds']} folds, "
+        f"RMS over {corners}held-out corners of all folds together (the parameter selection's "
+        "table gives each fold's RMS and their geometric mean): "
         f"calibrated {c['reprojection_rms_px']:.3f} px ({c['at_board_rms_mm']:.3f} mm at the "
         f"board), fair nominal {n['reprojection_rms_px']:.3f} px "
         f"({n['at_board_rms_mm']:.3f} mm)"

@@ -272,11 +272,13 @@ def fit_markdown(r: dict, figures: list[str]) -> str:
 
 def selection_markdown(sel: dict) -> list[str]:
     """The parameter selection of a board calibration (calibration.json ``selection``): what
-    was identified, the rule and every candidate's cross-validated errors."""
+    was identified, the rule and every candidate's cross-validated errors: the geometric mean
+    over the folds (``cv_px``, what the selection compares) and each fold's RMS."""
     out = [
         f"Identified: {', '.join(sel['identified'])} (chosen: {sel['chosen']}; {sel['rule']}).",
         "",
-        "| candidate | parameters | fit (px) | cross-validated (px) | per fold (px) |",
+        "| candidate | parameters | fit (px) | cross-validated (px, geometric mean over the folds) "
+        "| per fold (px, RMS) |",
         "|---|---|---|---|---|",
     ]
     for c in sel["candidates"]:
