@@ -80,8 +80,11 @@ BASE_FRAME = (
     "has the nominal offset at joint reading 0"
 )
 TOOL_FRAME = (
-    "tool tip: the identified left camera composed with the known T_cam_tip = "
-    "inv(robot.T_flange_cam); orientation of the nominal flange (z = tool axis)"
+    "tool tip: the identified camera (a stereo pair's left, a rig's first) composed with the "
+    "known T_cam_tip = inv(robot.T_flange_cam) of the robot file's [camera_mount]; orientation "
+    "of the nominal flange (z = tool axis); a robot file without [camera_mount] (a URDF never "
+    "has one) puts the camera at the flange, so the tool tip is then the calibrated camera's "
+    "optical frame (z along its view), not the flange"
 )
 
 

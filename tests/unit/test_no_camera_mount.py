@@ -41,3 +41,15 @@ def test_a_shipped_model_with_its_mount_is_not(tmp_path):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         assert calibration_robot(str(tmp_path), "ur5e").camera_mount_given
+
+
+def test_the_exported_tool_frame_words_hold_without_a_camera_mount():
+    """``export --format urdf``'s JSON ``tool_frame`` (and the URDF's and TOML's comment) said
+    "the identified left camera ...; orientation of the nominal flange" for the photoneo set's
+    single camera and its Nachi URDF, while the same command warned that the tool tip is the
+    camera's optical frame (session 26's new user): the words now say both cases."""
+    from selfcal.export.deploy import TOOL_FRAME
+
+    assert "left camera composed" not in TOOL_FRAME  # a single camera has no left
+    assert "without [camera_mount]" in TOOL_FRAME
+    assert "the calibrated camera's optical frame (z along its view), not the flange" in TOOL_FRAME
