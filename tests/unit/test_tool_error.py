@@ -274,4 +274,23 @@ def test_a_level_that_does_not_grow_and_where_the_model_error_is_not_measured(er
     summ = workspace_summary(flat, workspace_sample(q_cal, er4u.limits, count=40), q_cal)
     far = summ["workspace"]["model_error_not_measured_share"]
     assert 0 < far <= 1 and "model_error_not_measured_share" not in summ["calibration_postures"]
-    assert f"not measured at {far:.0%} of the workspace's points" in accuracy_line(summ)
+    assert f"{far:.0%} of the workspace's points (farther" in accuracy_line(summ)
+
+
+def test_the_line_names_the_edge_s_unmeasured_share_whose_figure_it_gives():
+    """The photoneo set's report (session 26's new user): 31 % of the edge's points beyond the
+    folds' reach, 100 % of the workspace's; the line gave the edge's 28.882 mm and named only
+    the workspace's share, whose figure it does not print."""
+    region = {"points": 256, "position_95_mm_max": 6.7338}
+    regions = {
+        "inside": region,
+        "edge": {**region, "position_95_mm_max": 28.8824, "model_error_not_measured_share": 0.3125},
+        "workspace": {**region, "model_error_not_measured_share": 1.0},
+    }
+    line = accuracy_line(regions)
+    assert line.startswith("tool point within 6.734 mm (95 %) inside the calibrated region, "
+                           "28.882 mm at its edge; the model error is not measured at 31% of the "
+                           "edge's points, 100% of the workspace's points (farther")  # fmt: skip
+    assert "of the inside's points" not in line
+    measured = accuracy_line({**regions, "edge": region, "workspace": region})
+    assert "not measured" not in measured
