@@ -179,3 +179,15 @@ def test_evaluate_lines_write_where_report_and_export_read():
         args = build_parser().parse_args(argv)
         if args.out is not None:
             assert Path(args.out) == Path(args.calibration) / "evaluation.json", (where, argv)
+
+
+def test_the_readme_table_s_evaluate_writes_where_report_and_export_read():
+    """The README's command table gave `selfcal evaluate CALIBRATION_DIR DATASET2` with its
+    output `DATASET2/evaluation.json`, which report and export do not read (new user's trip,
+    session 26: the command's own note then names the --out): the row gives the --out."""
+    rows = [r for r in (ROOT / "README.md").read_text().splitlines()
+            if r.startswith("| `selfcal evaluate ")]  # fmt: skip
+    assert len(rows) == 1, rows
+    argv = shlex.split(rows[0].split("`")[1])[1:]
+    args = build_parser().parse_args(argv)
+    assert args.out is not None and Path(args.out) == Path(args.calibration) / "evaluation.json"
