@@ -230,8 +230,9 @@ def _export_camera(args: argparse.Namespace, fmt: str, out: Path) -> int:
         if camera is not None and camera not in board.camera_names:
             raise CliError(f"--camera {camera}: {p} calibrates the cameras "
                            f"{', '.join(board.camera_names)}")  # fmt: skip
-        cam = board.cameras[0 if camera is None else board.camera_names.index(camera)]
-        which = f"camera {camera or board.camera_names[0]}"
+        camera = camera or board.camera_names[0]  # named as the message and a bag's topics name it
+        cam = board.cameras[board.camera_names.index(camera)]
+        which = f"camera {camera}"
     else:
         cam = _field_camera(_usable(read_calibration(p), p), p, camera)
         which = f"camera {camera}" if camera else "the calibrated camera"
@@ -341,7 +342,8 @@ def register(subparsers) -> None:
     sp.add_argument(
         "--camera-name",
         default=None,
-        help="camera_name of a camera_info file (default: --camera's name, else camera)",
+        help="camera_name of a camera_info file (default: the exported camera's name, --camera's "
+        "or a board calibration's first camera's, as a bag's topics name it; else camera)",
     )
     sp.add_argument(
         "--camera", default=None, metavar="NAME",
