@@ -28,8 +28,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.stats import chi2
 
+from selfcal.calibration.drift.p_value import chi2_sf
 from selfcal.calibration.drift.views import ViewJacobians
 
 __all__ = ["Attribution", "Fits", "attribute", "candidate_fits"]
@@ -97,7 +97,7 @@ class Fits:
         significantly better than ``key`` alone (``T`` the check's statistic)? 1 when ``key``
         spans them."""
         more = self.union_rank - self.rank[key]
-        return float(chi2.sf(T - self.drop[key] - self.union_left, more)) if more > 0 else 1.0
+        return float(chi2_sf(T - self.drop[key] - self.union_left, more)) if more > 0 else 1.0
 
     def best(self, T: float) -> str:
         """The candidate that fits best: the largest :meth:`nested_p`, ties (all 0) broken by
@@ -167,7 +167,7 @@ def attribute(fits: Fits, T: float, dof: int, views: list[ViewJacobians], *,
     names = camera_names or tuple(f"p{i}" for i in range(views[0].cam.shape[1]))
     p_values: dict[str, float] = {}
     sizes: dict[str, str] = {}
-    whole = chi2.sf(fits.union_left, dof - fits.union_rank) >= alpha
+    whole = chi2_sf(fits.union_left, dof - fits.union_rank) >= alpha
     for key in fits.what:
         x = fits.x[key]
         p_values[key] = fits.nested_p(key, T)

@@ -4,6 +4,7 @@ knew the change would have, and the p-value as the verdict line prints it."""
 from __future__ import annotations
 
 import numpy as np
+from scipy.special import chdtrc, chdtri
 from scipy.stats import chi2, ncx2, norm
 
 from selfcal.solver.covariance import psd_sqrt
@@ -12,6 +13,8 @@ __all__ = [
     "MIN_P_DRAWS",
     "P_FLOOR",
     "SIZE_DRAWS",
+    "chi2_isf",
+    "chi2_sf",
     "combined_p",
     "known_change_power",
     "known_size_power",
@@ -21,6 +24,25 @@ __all__ = [
 
 P_FLOOR = 1e-15
 """Below this a chi-square tail is rounding (and 0.0 where it underflows): printed as a bound."""
+
+
+def chi2_sf(x: float, dof: float) -> float:
+    """``P(chi2_dof >= x)``: ``scipy.stats.chi2.sf``'s own formula, ``chdtrc(dof, x)``, and its
+    answers at the edges (1 where ``x <= 0``, NaN where ``dof <= 0``): the same numbers without
+    its generic argument handling, 10 against 140 us a call (under load), which the drift check
+    makes for every test of every check (tens of thousands in its Monte Carlo tests)."""
+    if not dof > 0:
+        return np.float64(np.nan)
+    return chdtrc(dof, np.maximum(x, 0.0))
+
+
+def chi2_isf(p: float, dof: float) -> float:
+    """The ``x`` with ``P(chi2_dof >= x) = p`` (``p`` in [0, 1]): ``scipy.stats.chi2.isf``'s own
+    formula, ``chdtri(dof, p)``, NaN where ``dof <= 0`` as it gives: the same numbers without
+    its generic argument handling (:func:`chi2_sf`)."""
+    if not dof > 0:
+        return np.float64(np.nan)
+    return chdtri(dof, p)
 
 
 def p_text(p: float) -> str:
@@ -36,7 +58,7 @@ def combined_p(T: float, dof: int, directed: dict[str, tuple[float, int]]) -> fl
     count (Bonferroni; directed tests of rank 0 are left out), at most 1. Below ``alpha`` in at
     most ``alpha`` of the checks of an unchanged robot whose residuals have the assumed
     covariance, whatever the tests' correlation."""
-    tests = [chi2.sf(T, dof)] + [chi2.sf(d, k) for d, k in directed.values() if k > 0]
+    tests = [chi2_sf(T, dof)] + [chi2_sf(d, k) for d, k in directed.values() if k > 0]
     return float(min(1.0, len(tests) * min(tests)))
 
 
@@ -126,7 +148,7 @@ def min_p(T: float, dof: int, directed: dict[str, tuple[float, int]],
     smallest p-value and :func:`combined_p` (Bonferroni's bound); below what the draws resolve
     it is :func:`combined_p`."""
     keys = [k for k, (_, rank) in directed.items() if rank > 0]
-    p_seen = [chi2.sf(T, dof)] + [chi2.sf(directed[k][0], directed[k][1]) for k in keys]
+    p_seen = [chi2_sf(T, dof)] + [chi2_sf(directed[k][0], directed[k][1]) for k in keys]
     smallest, bonferroni = float(min(p_seen)), combined_p(T, dof, directed)
     if not keys:
         return bonferroni
@@ -142,8 +164,8 @@ def min_p(T: float, dof: int, directed: dict[str, tuple[float, int]],
     rest = rng.chisquare(dof - Q.shape[1], draws) if dof > Q.shape[1] else np.zeros(draws)
     # a draw's smallest p-value is at most the one seen when a statistic reaches its test's
     # quantile at that level
-    hit = np.sum(z**2, axis=1) + rest >= chi2.isf(smallest, dof)
+    hit = np.sum(z**2, axis=1) + rest >= chi2_isf(smallest, dof)
     for U in bases:
-        hit |= np.sum((z @ U) ** 2, axis=1) >= chi2.isf(smallest, U.shape[1])
+        hit |= np.sum((z @ U) ** 2, axis=1) >= chi2_isf(smallest, U.shape[1])
     hits = int(np.sum(hit))
     return float(np.clip((1 + hits) / (1 + draws), smallest, bonferroni))

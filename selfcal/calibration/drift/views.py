@@ -12,10 +12,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.stats import chi2
 
 from selfcal.calibration.board.misfit import board_view, tip_map
 from selfcal.calibration.board.view_jitter import camera_directions, view_jitter_from_json
+from selfcal.calibration.drift.p_value import chi2_isf
 from selfcal.camera import CameraModel
 from selfcal.estimation.kinematic_poses import joint_twists
 from selfcal.io.board_calibration import BoardCalibrationResult
@@ -142,7 +142,7 @@ def view_white_px(r: np.ndarray, A: np.ndarray, Jc: np.ndarray, than_px: float =
     if dof < MIN_WHITE_DOF:
         return None
     e = r - Q @ (Q.T @ r)
-    if e @ e <= than_px**2 * chi2.isf(level, dof):
+    if e @ e <= than_px**2 * chi2_isf(level, dof):
         return None
     return float(np.sqrt(e @ e / dof))
 
