@@ -192,9 +192,11 @@ def test_impact_latches_until_reset(emu, robot):
 
 
 def test_timeout_during_move_aborts(emu):
-    emu.move_speed_deg_s = 30.0  # a 1 s move; three 0.1 s query attempts fail well before its end
+    # a 3 s move; three 0.3 s query attempts fail well before its end (0.1 s, with a 1 s move,
+    # timed out the SETPV before the move on a loaded machine: the emulator's reply came late)
+    emu.move_speed_deg_s = 10.0
     emu.inject_fault("timeout", on="PRINT MFLAG", count=-1)
-    with _robot(emu, query_timeout_s=0.1) as robot:
+    with _robot(emu, query_timeout_s=0.3) as robot:
         with pytest.raises(AclTimeoutError, match=r"PRINT MFLAG.*after 3 attempts") as ei:
             robot.move_to(HOME + [30.0, 0, 0, 0, 0])
         assert any("abort sequence" in n for n in ei.value.__notes__)
