@@ -183,3 +183,52 @@ def test_the_count_advice_grows_the_plan_on_the_corner_criterion(cell):
 
     with pytest.raises(UsageError, match="the candidates"):
         corner_grow(cb, G, start, len(q) + 1)
+
+
+def test_the_split_noise_forecast_is_the_bound_for_white_corners_and_a_monte_carlo_else(cell):
+    """bounds_split (issue #30): with the marker centres' and shapes' noise both the setup's,
+    the route's covariance is the Cramer-Rao bound's; with only the centres erring it is what a
+    Monte Carlo of the linearised route gives (each view of a marker shifted as a whole), and
+    less than the bound at that noise; observations not in a marker's four corners in turn are
+    refused."""
+    import dataclasses
+
+    from selfcal.calibration.field.bounds import BoundsError, _fisher_problem, cramer_rao
+    from selfcal.calibration.field.bounds_setup import predicted_setup
+    from selfcal.calibration.field.bounds_split import split_covariance, split_tool_rms
+    from selfcal.transforms import inv_pose
+
+    setup, layout, q, js = cell
+    fs = predicted_setup(setup.model_cam, q, setup.rig, layout.ids, layout.corners_world,
+                         layout.normals_world, layout.scale_ids, 0.2, pixel_sigma_px=0.5,
+                         joint_sigma=js)  # fmt: skip
+    cr = cramer_rao(fs)
+    T = inv_pose(setup.robot.T_flange_cam)
+    white = split_covariance(fs, centre_sigma_px=0.5, shape_sigma_px=0.5)
+    big = np.abs(cr.cov_free).max()  # the dense solve against the route's: 5e-8 of it apart
+    np.testing.assert_allclose(white, cr.cov_free, rtol=1e-5, atol=2e-7 * big)
+    # the linearised route's estimate of draws of centre-only noise (0.5 px), the read-back
+    # errors drawn from their prior
+    prob, x, lay = _fisher_problem(fs)
+    J = (prob.jac(x) / 0.5).toarray()
+    N = J.T @ J
+    cols = lay.kin_cols[lay.n_camera :]
+    rng = np.random.default_rng(0)
+    n_obs = len(fs.view)
+    draws = 4000
+    # each view of a marker shifted by 0.25 px per coordinate (whitened by 0.5 px): the
+    # centre's noise of white corners of 0.5 px (their mean's spread 0.5 / 2)
+    shift = rng.normal(0.0, 0.5, (draws, n_obs // 4, 1, 2))
+    w = np.concatenate([np.broadcast_to(shift, (draws, n_obs // 4, 4, 2)).reshape(draws, -1),
+                        rng.normal(0.0, 1.0, (draws, J.shape[0] - 2 * n_obs))], axis=1)  # fmt: skip
+    est = np.linalg.solve(N, J.T @ w.T)[cols]  # (k, draws)
+    sample = est @ est.T / draws
+    got = split_tool_rms(fs, q, T, centre_sigma_px=0.5, shape_sigma_px=0.0, bound=cr)
+    mc = dataclasses.replace(cr, cov_free=sample).aligned_tool_rms(q, T)
+    assert got == pytest.approx(mc, rel=0.05)  # 4000 draws: ~1 % spread
+    assert got < cr.aligned_tool_rms(q, T)
+    swapped = dataclasses.replace(fs, view=fs.view[::-1].copy(), pidx=fs.pidx[::-1].copy())
+    assert split_covariance(swapped, centre_sigma_px=0.5, shape_sigma_px=0.5).shape == white.shape
+    odd = dataclasses.replace(fs, pidx=np.roll(fs.pidx, 1))
+    with pytest.raises(BoundsError, match="four corners per view"):
+        split_covariance(odd, centre_sigma_px=0.5, shape_sigma_px=0.5)
