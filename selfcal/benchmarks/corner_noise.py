@@ -22,7 +22,15 @@ from selfcal.io.truth import Truth, read_truth
 from selfcal.target.base import Features
 from selfcal.transforms import inv_pose
 
-__all__ = ["CornerNoise", "corner_errors", "corner_noise", "corner_stats", "field_corner_noise"]
+__all__ = [
+    "CornerNoise",
+    "corner_errors",
+    "corner_noise",
+    "corner_stats",
+    "field_corner_noise",
+    "marker_centre_sigma",
+    "marker_shape_sigma",
+]
 
 
 @dataclass(frozen=True)
@@ -42,12 +50,28 @@ class CornerNoise:
     outliers: int = 0
     """Corners left out of the figures above (:func:`field_corner_noise`: farther than the
     field route's outlier floor from the truth)."""
+    centre_sigma_px: float | None = None
+    """:func:`field_corner_noise`'s markers: twice the RMS per coordinate of each detected
+    marker's mean corner error, its centre's (every corner within the floor; None for a
+    board): the white corner noise whose marker centres err as much. A rendered marker's four
+    corners err together less than white noise of ``sigma_px`` makes them (their errors move
+    the corners against each other, which the field route's tool point hardly feels; issue #30,
+    docs/plan.md "What the rendered draws gain over the forecast")."""
+    shape_sigma_px: float | None = None
+    """The same markers' corners' errors less their mean, as a noise level per coordinate of
+    the six coordinates of a marker's shape (:func:`marker_shape_sigma`; None for a board):
+    with :attr:`centre_sigma_px` the noise of
+    :func:`selfcal.calibration.field.bounds_split.split_tool_rms`."""
 
     def to_json(self) -> dict:
         """Plain numbers for a benchmark's row."""
-        return {"count": self.count, "mean_u_px": self.mean_px[0], "mean_v_px": self.mean_px[1],
-                "sigma_px": self.sigma_px, "rms_px": self.rms_px, "p99_px": self.p99_px,
-                "outliers": self.outliers}  # fmt: skip
+        out = {"count": self.count, "mean_u_px": self.mean_px[0], "mean_v_px": self.mean_px[1],
+               "sigma_px": self.sigma_px, "rms_px": self.rms_px, "p99_px": self.p99_px,
+               "outliers": self.outliers}  # fmt: skip
+        if self.centre_sigma_px is not None:
+            out["centre_sigma_px"] = self.centre_sigma_px
+            out["shape_sigma_px"] = self.shape_sigma_px
+        return out
 
 
 def corner_errors(truth: Truth, points: list[np.ndarray], features: list[Features],
@@ -80,8 +104,10 @@ def corner_noise(root: Path) -> CornerNoise:
     return _noise(d)
 
 
-def _noise(d: np.ndarray, outliers: int = 0) -> CornerNoise:
-    """The :class:`CornerNoise` of detected minus true corners ``d`` (k, 2) px."""
+def _noise(d: np.ndarray, outliers: int = 0, markers: np.ndarray | None = None) -> CornerNoise:
+    """The :class:`CornerNoise` of detected minus true corners ``d`` (k, 2) px (``markers``:
+    the errors (M, 4, 2) px of the markers whose corners are all kept, for the centres' and
+    shapes' noise)."""
     mean = d.mean(axis=0)
     return CornerNoise(
         count=len(d),
@@ -90,7 +116,46 @@ def _noise(d: np.ndarray, outliers: int = 0) -> CornerNoise:
         rms_px=float(np.sqrt(np.mean(d**2))),
         p99_px=float(np.percentile(np.linalg.norm(d, axis=1), 99)),
         outliers=outliers,
+        centre_sigma_px=None if markers is None else marker_centre_sigma(markers),
+        shape_sigma_px=None if markers is None else marker_shape_sigma(markers),
     )
+
+
+def marker_centre_sigma(d: np.ndarray) -> float:
+    """Twice the RMS per coordinate (px) of the mean of each marker's four corner errors ``d``
+    (M, 4, 2) px: for independent corner noise of ``s`` px per coordinate it is ``s``, and
+    errors that move a marker's corners against each other (their mean zero) add nothing
+    (:attr:`CornerNoise.centre_sigma_px`).
+
+    Raises:
+        InternalError: ``d`` is not (M, 4, 2) with M > 0.
+    """
+    return float(2.0 * np.sqrt(np.mean(_markers(d).mean(axis=1) ** 2)))
+
+
+def marker_shape_sigma(d: np.ndarray) -> float:
+    """The RMS (px) of each marker's corner errors ``d`` (M, 4, 2) px less their mean, per
+    coordinate of the six a marker's shape has (the eight less its centre's two): for
+    independent corner noise of ``s`` px per coordinate it is ``s``; a shared shift adds nothing.
+
+    Raises:
+        InternalError: ``d`` is not (M, 4, 2) with M > 0.
+    """
+    d = _markers(d)
+    rest = d - d.mean(axis=1, keepdims=True)
+    return float(np.sqrt(np.sum(rest**2) / (6.0 * len(d))))
+
+
+def _markers(d: np.ndarray) -> np.ndarray:
+    """``d`` as (M, 4, 2) float.
+
+    Raises:
+        InternalError: ``d`` is not (M, 4, 2) with M > 0.
+    """
+    d = np.asarray(d, dtype=float)
+    if d.ndim != 3 or d.shape[1:] != (4, 2) or len(d) == 0:
+        raise InternalError(f"marker corner errors of shape {d.shape}, not (M, 4, 2)")
+    return d
 
 
 def field_corner_noise(root: Path) -> CornerNoise:
@@ -100,7 +165,8 @@ def field_corner_noise(root: Path) -> CornerNoise:
     (``root/truth.json``). Corners farther from the truth than the route's outlier floor
     (:data:`selfcal.calibration.field.adjust.OUTLIER_FLOOR_PX`: a marker partly hidden, which
     the calibration rejects) are counted in ``outliers`` and left out of the figures, so the
-    sigma is the noise of the corners a calibration keeps.
+    sigma is the noise of the corners a calibration keeps; the markers whose four corners are
+    all kept give :attr:`CornerNoise.centre_sigma_px` (:func:`marker_centre_sigma`).
 
     Raises:
         InternalError: the dataset is not a simulated field, or no corner was detected.
@@ -116,7 +182,7 @@ def field_corner_noise(root: Path) -> CornerNoise:
     field = MarkerField.from_dict(truth.marker_field)
     corners = dict(zip(field.ids.tolist(), field.corners_world(), strict=True))
     cam = ds.info.cameras[0]
-    out = [np.zeros((0, 2))]
+    out = [np.zeros((0, 4, 2))]
     for (index, name), found in detect_dataset(ds).detections.items():
         fr = truth.frame(int(index))
         if name != cam or fr is None or not found:
@@ -124,12 +190,14 @@ def field_corner_noise(root: Path) -> CornerNoise:
         T = inv_pose(fr.T_world_cam_left)
         for mid, uv in found.items():
             X = corners[int(mid)] @ T[:3, :3].T + T[:3, 3]
-            out.append(np.asarray(uv, dtype=float).reshape(4, 2) - truth.intrinsics_left.project(X))
-    d = np.concatenate(out)
-    if len(d) == 0:
+            e = np.asarray(uv, dtype=float).reshape(4, 2) - truth.intrinsics_left.project(X)
+            out.append(e[None])
+    m = np.concatenate(out)  # (markers, 4, 2)
+    if len(m) == 0:
         raise InternalError(f"{root}: no marker corner detected to compare with the truth")
-    near = np.linalg.norm(d, axis=1) <= OUTLIER_FLOOR_PX
-    return _noise(d[near], outliers=int(np.sum(~near)))
+    near = np.linalg.norm(m, axis=2) <= OUTLIER_FLOOR_PX
+    whole = near.all(axis=1)
+    return _noise(m[near], outliers=int(np.sum(~near)), markers=m[whole] if whole.any() else None)
 
 
 def corner_stats(c: list[dict]) -> dict:

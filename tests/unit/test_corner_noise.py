@@ -139,3 +139,44 @@ def test_field_corner_noise_measures_the_drawn_corner_noise(tmp_path, sigma):
         assert c.sigma_px == pytest.approx(sigma, rel=0.08)
         assert np.max(np.abs(c.mean_px)) < 4 * sigma / np.sqrt(c.count)
         assert c.outliers < 0.02 * c.count
+
+
+def test_a_markers_centre_noise_is_what_white_noise_would_make_of_it():
+    """The marker centres' noise (issue #30: the part of a rendered marker's corner errors the
+    field route's tool point feels) is the corner noise for independent corners, nothing for
+    errors that move a marker's corners against each other, and twice a shared shift."""
+    from selfcal.benchmarks.corner_noise import marker_centre_sigma, marker_shape_sigma
+    from selfcal.errors import InternalError
+
+    rng = np.random.default_rng(5)
+    white = rng.normal(0.0, 0.02, (4000, 4, 2))  # the estimates' relative spread ~1 %
+    assert marker_centre_sigma(white) == pytest.approx(0.02, rel=0.03)
+    assert marker_shape_sigma(white) == pytest.approx(0.02, rel=0.03)
+    square = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
+    grown = rng.normal(0.0, 0.02, (4000, 1, 1)) * square  # each marker larger or smaller
+    assert np.sqrt(np.mean(grown**2)) > 0.015 and marker_centre_sigma(grown) < 1e-12
+    assert marker_shape_sigma(grown) == pytest.approx(0.02 * np.sqrt(8 / 6), rel=0.03)
+    shifted = np.broadcast_to([0.01, -0.01], (10, 4, 2))
+    assert marker_centre_sigma(shifted) == pytest.approx(0.02)
+    assert marker_shape_sigma(shifted) < 1e-12
+    for f in (marker_centre_sigma, marker_shape_sigma):
+        with pytest.raises(InternalError, match=r"\(3, 2\)"):
+            f(np.zeros((3, 2)))
+
+
+def test_the_corner_parts_split_the_rendered_errors():
+    """field_corner_parts' variants: the centres and the shapes add up to the rendered errors,
+    the shuffle deals the same values, the white noise has their RMS, exact is none."""
+    from selfcal.benchmarks.corner_noise import marker_centre_sigma
+    from selfcal.benchmarks.plan.field_corner_parts import VARIANTS, variants
+
+    rng = np.random.default_rng(2)
+    E = rng.normal(0.0, 0.03, (500, 4, 2)) + rng.normal(0.0, 0.01, (500, 1, 2))
+    v = variants(E, np.random.default_rng(0))
+    assert tuple(v) == VARIANTS and all(x.shape == E.shape for x in v.values())
+    np.testing.assert_allclose(v["centres"] + v["shapes"], E, atol=1e-15)
+    assert marker_centre_sigma(v["shapes"]) < 1e-12
+    assert marker_centre_sigma(v["centres"]) == pytest.approx(marker_centre_sigma(E))
+    assert np.array_equal(np.sort(v["shuffled"].ravel()), np.sort(E.ravel()))
+    assert not np.array_equal(v["shuffled"], E) and not v["exact"].any()
+    assert np.sqrt(np.mean(v["white"] ** 2)) == pytest.approx(np.sqrt(np.mean(E**2)), rel=0.04)

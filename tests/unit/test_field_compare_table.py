@@ -72,27 +72,32 @@ def test_the_frames_used_are_summed_and_another_cell_has_its_own_block(
     assert "field_compare --robot kr6-r900 --render --pixel-sigma 0.1 --draws 3" in out
     assert "(seeds 1 - 3), measured by the code at abc1234" in written[0][1]
     assert [a[2] for a in written] == ["benchmark_plan_field_compare_kr6-r900-rendered"]
-    # the noise measured apart from the draws (seed 0) and the forecast at it, per set
-    assert noise == [(0.1, "kr6-r900")]
-    assert "seed 0, 500 corners against the truth, 2 beyond the route's 1 px floor" in out
-    assert ": 0.030 px; the forecast at it: plan 12 0.100 mm (median / it 2.00); random 30" in out
+    # each set's noise measured apart from the draws (seed 0, its own postures, in its own
+    # folder) and its forecast at it and at its marker centres' noise
+    assert noise == [(root / "plan-12", 0.1), (root / "random-30", 0.1)]
+    assert "rendered for seed 0, corners against the truth, those beyond the route's 1 px" in out
+    assert ("plan 12 0.030 px (500 corners, 2 left out), its marker centres' and shapes' "
+            "0.010 and 0.034 px; the forecast at it 0.100 mm (median / it 2.00); at the centres' "
+            "and shapes' 0.050 mm (median / it 4.00) | random 30") in out  # fmt: skip
 
 
 def _measured_noise(monkeypatch) -> list:
     """The rendered table's noise measurement replaced (no images): 0.03 px over 500 corners,
-    the forecast at it 0.1 mm for every set; returns the (pixel sigma, robot) it was asked for."""
+    the marker centres' 0.01 px and shapes' 0.034 px, the forecast 0.1 mm at 0.03 px and
+    0.05 mm at the centres' and shapes' for every set; returns the (folder, pixel sigma) each
+    measurement was asked for."""
     from selfcal.benchmarks.plan import field_noise
 
     asked: list = []
 
     def measured(root, config, joints_deg, cell, pixel_sigma_px):
-        asked.append(pixel_sigma_px)
-        return {"cell": cell, "seed": 0, "count": 500, "sigma_px": 0.03, "outliers": 2}
+        asked.append((root, pixel_sigma_px))
+        return {"cell": cell, "seed": 0, "count": 500, "sigma_px": 0.03, "outliers": 2,
+                "centre_sigma_px": 0.01, "shape_sigma_px": 0.034}  # fmt: skip
 
-    def at(root, robot_name, sets, pixel_sigma_px):
-        asked[-1] = (asked[-1], robot_name)
-        assert pixel_sigma_px == 0.03
-        return dict.fromkeys(sets, 1e-4)
+    def at(root, robot_name, sets, pixel_sigma_px, split=None):
+        assert robot_name == "kr6-r900" and len(sets) == 1 and pixel_sigma_px == 0.03
+        return dict.fromkeys(sets, {None: 1e-4, (0.01, 0.034): 5e-5}[split])
 
     monkeypatch.setattr(field_noise, "measured_noise", measured)
     monkeypatch.setattr(field_compare, "forecasts_at", at)

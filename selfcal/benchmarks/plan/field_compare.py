@@ -26,9 +26,10 @@ it (:func:`selfcal.benchmarks.doc_blocks.code_version`), and a journal holding a
 or draws of other code, is refused; the table's last line names the code; ``DIR`` by default ``runs/`` and the cell's docs block; the draws run seed by seed, every set's in turn, and a run
 stopped before resumes from that journal: ``--draws`` of a journal's seeds alone prints their
 table without drawing; a table short of ``--draws`` draws in a set is printed, not written to
-the docs, and exits 1; rendered, the table closes with the corner noise the renderer and the
-detector make, measured apart from the draws (:mod:`selfcal.benchmarks.plan.field_noise`), and
-each set's forecast at it; ``--write-docs`` writes it between docs/plan.md's
+the docs, and exits 1; rendered, the table closes with each set's corner noise the renderer and
+the detector make at its postures, measured apart from the draws
+(:mod:`selfcal.benchmarks.plan.field_noise`), and the set's forecast at it and at its marker
+centres' noise (the part of the corners' error the tool point feels, issue #30); ``--write-docs`` writes it between docs/plan.md's
 ``benchmark_plan_field_compare`` markers; another robot's or the rendered path's block
 ``benchmark_plan_field_compare_ROBOT[-rendered]``).
 """
@@ -122,42 +123,79 @@ def field_sets(
     return out
 
 
-def forecasts_at(root: Path, robot_name: str, sets: dict, pixel_sigma_px: float) -> dict:
+def forecasts_at(
+    root: Path,
+    robot_name: str,
+    sets: dict,
+    pixel_sigma_px: float,
+    split: tuple[float, float] | None = None,
+) -> dict:
     """``{name: forecast m}`` of the posture sets ``sets`` (:func:`field_sets`' (path, q deg,
     forecast)) at ``pixel_sigma_px`` px of corner noise, in ``robot_name``'s cell (None: no
-    bound)."""
+    bound); ``split``: the marker centres' and shapes' noise (px), the route weighting for
+    ``pixel_sigma_px`` (:func:`selfcal.calibration.field.bounds_split.split_tool_rms`)."""
+    from selfcal.calibration.field.bounds import BoundsError
+    from selfcal.calibration.field.bounds_setup import predicted_setup
+    from selfcal.calibration.field.bounds_split import split_tool_rms
     from selfcal.calibration.field.plan import field_forecast
+    from selfcal.transforms import inv_pose
 
     cell = field_cell(root, robot_name, pixel_sigma_px)
+    setup, lay, js, ws = cell["setup"], cell["layout"], cell["joint_sigma"], cell["workspace"]
     unit = cell["robot"].edge_unit
-    return {name: field_forecast(cell["setup"], cell["layout"], q * unit, cell["workspace"],
-                                 pixel_sigma_px=pixel_sigma_px,
-                                 joint_sigma=cell["joint_sigma"]).tool_rms_m
-            for name, (_, q, _) in sets.items()}  # fmt: skip
+    out: dict = {}
+    for name, (_, q, _) in sets.items():
+        if split is None:
+            out[name] = field_forecast(setup, lay, q * unit, ws, pixel_sigma_px=pixel_sigma_px,
+                                       joint_sigma=js).tool_rms_m  # fmt: skip
+            continue
+        try:
+            fs = predicted_setup(setup.model_cam, q * unit, setup.rig, lay.ids, lay.corners_world,
+                                 lay.normals_world, lay.scale_ids, lay.scale_length_m,
+                                 pixel_sigma_px=pixel_sigma_px, joint_sigma=js)  # fmt: skip
+            out[name] = split_tool_rms(fs, ws, inv_pose(setup.robot.T_flange_cam),
+                                       centre_sigma_px=split[0], shape_sigma_px=split[1])  # fmt: skip
+        except BoundsError:
+            out[name] = None
+    return out
 
 
 def noise_lines(root: Path, a, sets: dict, stamps: dict[str, str], rows: list[dict]) -> list[str]:
-    """The rendered table's closing lines: the corner noise measured apart from its draws (on
-    the largest set's postures, :func:`selfcal.benchmarks.plan.field_noise.measured_noise`)
-    and each set's forecast at that noise against its achieved median."""
+    """The rendered table's closing lines: each set's corner noise measured apart from its
+    draws (the set's own postures: a plan with clear views shows cleaner corners than random
+    postures; :func:`selfcal.benchmarks.plan.field_noise.measured_noise`, in the set's folder)
+    and its forecast at that noise, and at its marker centres' and shapes' noise
+    (:func:`selfcal.calibration.field.bounds_split.split_tool_rms`: the rendered corners'
+    errors move a marker's corners against each other, which the tool point hardly feels;
+    issue #30), each against the set's achieved median."""
     from selfcal.benchmarks.plan.field_noise import NOISE_SEED, measured_noise
     from selfcal.calibration.field.adjust import OUTLIER_FLOOR_PX
 
-    name = max(sets, key=lambda k: len(sets[k][1]))
-    path, q, _ = sets[name]
-    noise = measured_noise(root, path, q.tolist(), stamps[name], a.pixel_sigma)
-    sigma = float(noise["sigma_px"])
-    fc = forecasts_at(root, a.robot, sets, sigma)
     parts = []
-    for k, f in fc.items():
-        e = [r["joint_tip_rms_mm"] for r in rows if r["set"] == k and r["status"] == "ok"]
-        ratio = "-" if f is None or not e else f"{np.median(e) / (f * 1000):.2f}"
-        parts.append(f"{k} {'none' if f is None else f'{f * 1000:.3f}'} mm (median / it {ratio})")
-    return [f"\nthe renderer's and detector's corner noise, measured apart from the draws (the "
-            f"{name}'s postures rendered for seed {NOISE_SEED}, {noise['count']} corners against "
-            f"the truth, {noise['outliers']} beyond the route's {OUTLIER_FLOOR_PX:g} px floor left "
-            f"out): "
-            f"{sigma:.3f} px; the forecast at it: {'; '.join(parts)}"]  # fmt: skip
+    for name, (path, q, _) in sets.items():
+        folder = root / name.replace(" ", "-")
+        noise = measured_noise(folder, path, q.tolist(), stamps[name], a.pixel_sigma)
+        e = [r["joint_tip_rms_mm"] for r in rows if r["set"] == name and r["status"] == "ok"]
+        sigma = float(noise["sigma_px"])
+        centre, shape = noise.get("centre_sigma_px"), noise.get("shape_sigma_px")
+        split = None if centre is None or shape is None else (float(centre), float(shape))
+        figs = []
+        for what, sp in (("at it", None), ("at the centres' and shapes'", split)):
+            if what != "at it" and sp is None:
+                continue
+            f = forecasts_at(root, a.robot, {name: sets[name]}, sigma, sp)[name]
+            ratio = "-" if f is None or not e else f"{np.median(e) / (f * 1000):.2f}"
+            figs.append(f"{what} {'none' if f is None else f'{f * 1000:.3f}'} mm (median / it "
+                        f"{ratio})")  # fmt: skip
+        parts_of = "not measured" if split is None else f"{split[0]:.3f} and {split[1]:.3f} px"
+        parts.append(f"{name} {sigma:.3f} px ({noise['count']} corners, {noise['outliers']} "
+                     f"left out), its marker centres' and shapes' {parts_of}; the forecast "
+                     f"{'; '.join(figs)}")  # fmt: skip
+    return [f"\nthe renderer's and detector's corner noise, measured apart from the draws (each "
+            f"set's postures rendered for seed {NOISE_SEED}, corners against the truth, those "
+            f"beyond the route's {OUTLIER_FLOOR_PX:g} px floor left out; a marker's centre: its "
+            f"four corners' mean error, its shape: the rest, each as the white noise that errs "
+            f"as much): {' | '.join(parts)}"]  # fmt: skip
 
 
 def cell_stamp(robot_name: str, render: bool, pixel_sigma_px: float, joints_deg: np.ndarray) -> str:

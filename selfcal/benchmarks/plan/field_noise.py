@@ -6,7 +6,9 @@ A rendered image's noise is what the renderer and the detector make of it, a pro
 cell one can measure: the set's postures rendered once more for a draw the table does not hold
 (:data:`NOISE_SEED`: its own arm and image noise), every detected corner against the true
 corner's projection (:func:`selfcal.benchmarks.corner_noise.field_corner_noise`), the corners
-beyond the field route's outlier floor left out. The forecast at that noise then predicts the
+beyond the field route's outlier floor left out; with the marker centres' noise
+(:attr:`~selfcal.benchmarks.corner_noise.CornerNoise.centre_sigma_px`), the part of a rendered
+marker's corner errors the field route's tool point feels (issue #30). The forecast at that noise then predicts the
 draws without having seen them (never fitted to the outcome). The measurement is kept with the
 cell, the seed and the code that made it (:func:`selfcal.benchmarks.doc_blocks.code_version`),
 as the draws' journal is, and made again when any of them is not this run's.
