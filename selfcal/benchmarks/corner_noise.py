@@ -54,9 +54,9 @@ class CornerNoise:
     """:func:`field_corner_noise`'s markers: twice the RMS per coordinate of each detected
     marker's mean corner error, its centre's (every corner within the floor; None for a
     board): the white corner noise whose marker centres err as much. A rendered marker's four
-    corners err together less than white noise of ``sigma_px`` makes them (their errors move
-    the corners against each other, which the field route's tool point hardly feels; issue #30,
-    docs/plan.md "What the rendered draws gain over the forecast")."""
+    corners err together less than white noise of ``sigma_px`` makes them (most of their error
+    moves the corners against each other; issue #30, docs/plan.md "What the rendered draws gain
+    over the forecast")."""
     shape_sigma_px: float | None = None
     """The same markers' corners' errors less their mean, as a noise level per coordinate of
     the six coordinates of a marker's shape (:func:`marker_shape_sigma`; None for a board):

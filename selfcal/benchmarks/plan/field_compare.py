@@ -29,7 +29,7 @@ table without drawing; a table short of ``--draws`` draws in a set is printed, n
 the docs, and exits 1; rendered, the table closes with each set's corner noise the renderer and
 the detector make at its postures, measured apart from the draws
 (:mod:`selfcal.benchmarks.plan.field_noise`), and the set's forecast at it and at its marker
-centres' noise (the part of the corners' error the tool point feels, issue #30); ``--write-docs`` writes it between docs/plan.md's
+centres' and shapes' noise (:mod:`selfcal.calibration.field.bounds_split`, issue #30); ``--write-docs`` writes it between docs/plan.md's
 ``benchmark_plan_field_compare`` markers; another robot's or the rendered path's block
 ``benchmark_plan_field_compare_ROBOT[-rendered]``).
 """
@@ -165,9 +165,9 @@ def noise_lines(root: Path, a, sets: dict, stamps: dict[str, str], rows: list[di
     draws (the set's own postures: a plan with clear views shows cleaner corners than random
     postures; :func:`selfcal.benchmarks.plan.field_noise.measured_noise`, in the set's folder)
     and its forecast at that noise, and at its marker centres' and shapes' noise
-    (:func:`selfcal.calibration.field.bounds_split.split_tool_rms`: the rendered corners'
-    errors move a marker's corners against each other, which the tool point hardly feels;
-    issue #30), each against the set's achieved median."""
+    (:func:`selfcal.calibration.field.bounds_split.split_tool_rms`: most of the rendered
+    corners' error moves a marker's corners against each other; issue #30), each against the
+    set's achieved median."""
     from selfcal.benchmarks.plan.field_noise import NOISE_SEED, measured_noise
     from selfcal.calibration.field.adjust import OUTLIER_FLOOR_PX
 

@@ -3,8 +3,8 @@ marker's centre and its shape err with noise levels of their own (issue #30).
 
 A rendered marker's four detected corners err together less than independent noise of their
 RMS makes them: most of their error moves the corners against each other (the marker's shape),
-which the tool point hardly feels, and its centre errs less (docs/plan.md, "What the rendered
-draws gain over the forecast"; :mod:`selfcal.benchmarks.plan.field_corner_parts`). Split each
+and its centre errs less (docs/plan.md, "What the rendered draws gain over the forecast";
+:mod:`selfcal.benchmarks.plan.field_corner_parts`). Split each
 view of a marker's eight corner coordinates ``e`` into its centre's part ``P_c e`` (every corner
 moved by the four corners' mean error) and its shape's ``P_s e = e - P_c e``, with covariances
 ``centre_sigma^2 P_c`` and ``shape_sigma^2 P_s`` (px; white noise of ``s`` px per coordinate
