@@ -12,7 +12,8 @@ true camera pose give its errors ``E`` (4, 2) px; the route then calibrates (one
 analytic path: the corners written as a detections dataset, so each variant's corners are used
 as given) the true projections plus:
 
-- ``rendered``: ``E`` (the rendered draw's own corners, first detection pass);
+- ``rendered``: ``E`` (the rendered draw's own corners, first detection pass; markers with a
+  corner beyond the route's outlier floor left out, :func:`corner_errors_of`);
 - ``exact``: nothing (the route's error without corner noise: the model's bias);
 - ``centres``: each marker's mean error on all four of its corners;
 - ``shapes``: ``E`` less that mean (the corners moved against each other);
@@ -61,14 +62,18 @@ def variants(E: np.ndarray, rng: np.random.Generator) -> dict[str, np.ndarray]:
 
 
 def corner_errors_of(root: Path) -> tuple[list[tuple[int, int]], np.ndarray, np.ndarray]:
-    """The markers the field route detects in the rendered one-camera field dataset ``root``:
-    ``(keys, true, E)``: (frame index, marker id) per marker, the true projections of its
-    corners (M, 4, 2) px at the frame's true camera pose (``root/truth.json``) and the detected
-    minus true corners ``E`` (M, 4, 2) px.
+    """The markers the field route detects in the rendered one-camera field dataset ``root``
+    whose four corners all lie within the route's outlier floor of the truth
+    (:data:`selfcal.calibration.field.adjust.OUTLIER_FLOOR_PX`; a partly hidden marker's
+    corners beyond it, which the route rejects, would otherwise swell every variant's noise but
+    the rendered one's): ``(keys, true, E)``: (frame index, marker id) per marker, the true
+    projections of its corners (M, 4, 2) px at the frame's true camera pose
+    (``root/truth.json``) and the detected minus true corners ``E`` (M, 4, 2) px.
 
     Raises:
         InternalError: not a one-camera simulated field, or no marker detected.
     """
+    from selfcal.calibration.field.adjust import OUTLIER_FLOOR_PX
     from selfcal.calibration.field.detections import detect_dataset
     from selfcal.errors import InternalError
     from selfcal.io.dataset import Dataset
@@ -87,9 +92,12 @@ def corner_errors_of(root: Path) -> tuple[list[tuple[int, int]], np.ndarray, np.
         T = inv_pose(truth.frame(int(index)).T_world_cam_left)
         for mid, uv in sorted(found.items()):
             t = truth.intrinsics_left.project(corners[int(mid)] @ T[:3, :3].T + T[:3, 3])
+            e = np.asarray(uv, dtype=float).reshape(4, 2) - t
+            if np.linalg.norm(e, axis=1).max() > OUTLIER_FLOOR_PX:
+                continue
             keys.append((int(index), int(mid)))
             true.append(t)
-            err.append(np.asarray(uv, dtype=float).reshape(4, 2) - t)
+            err.append(e)
     if not keys:
         raise InternalError(f"{root}: no marker detected")
     return keys, np.array(true), np.array(err)
