@@ -619,8 +619,8 @@ def test_the_check_states_its_own_power(setup):
     """The power the check states for its views (``shift_power``: its statistics drawn from the
     candidates' Gram matrix) is what the check finds on residuals drawn from its covariance with
     the mount moved 0.4 mm in random directions: 0.34 / 0.72 stated, 0.33 / 0.74 found in 400
-    checks (eye-in-hand / eye-to-hand); here 150 checks, within 3 binomial standard errors
-    (0.12 at these powers)."""
+    checks (eye-in-hand / eye-to-hand); here 150 checks (0.28 / 0.72 found), within 3
+    binomial standard errors (0.12 at these powers)."""
     e2h, _, _, views, C = setup
     stated = shift_power(C, views, eye_to_hand=e2h, alpha=0.01, size_mm=0.4, search=False)
     found = _power_draws(e2h, views, C, 0.4e-3, 150, 3)

@@ -72,19 +72,22 @@ class ShiftPower:
     without turning, in a random direction: ``power`` with these ``images``;
     ``images_for_target`` about how many images like these reach :data:`TARGET_POWER` (None:
     more than :data:`MOST_IMAGES`, or views paired with the calibration's frames); ``upper``:
-    the folds' second null runs on this calibration, so the check finds at most that."""
+    the folds' second null runs on this calibration, so the check finds at most that;
+    ``mount``: what the mount holds on the flange (eye-in-hand the camera, eye-to-hand the
+    board)."""
 
     size_mm: float
     power: float
     images: int
     images_for_target: int | None
     upper: bool = False
+    mount: str = "camera"
 
     def line(self) -> str:
         """The power in one line."""
         how = "at most " if self.upper else ""
         out = (f"power: {self.images} image(s) like these find a {self.size_mm:g} mm move of "
-               f"the camera's or board's mount on the flange (a random direction, not turned) "
+               f"the {self.mount}'s mount on the flange (a random direction, not turned) "
                f"in {how}{self.power:.0%} of checks")  # fmt: skip
         if self.power >= TARGET_POWER:
             return out
@@ -97,7 +100,7 @@ class ShiftPower:
         """The power as JSON."""
         return {"size_mm": self.size_mm, "power": self.power, "images": self.images,
                 "target_power": TARGET_POWER, "images_for_target": self.images_for_target,
-                "upper_bound": self.upper}  # fmt: skip
+                "upper_bound": self.upper, "mount": self.mount}  # fmt: skip
 
 
 def check_power(K: np.ndarray, tests: dict[str, tuple[slice, int]], dof: float, shift: slice,
@@ -174,7 +177,7 @@ def shift_power(C: np.ndarray, views: list[ViewJacobians], *, eye_to_hand: bool,
             mid = (lo + hi) // 2
             lo, hi = (lo, mid) if reaches(mid) else (mid, hi)
         need = hi if found else None
-    return ShiftPower(size_mm, power, n, need, upper)
+    return ShiftPower(size_mm, power, n, need, upper, "board" if eye_to_hand else "camera")
 
 
 def _replicated(C: np.ndarray, views: list[ViewJacobians],
