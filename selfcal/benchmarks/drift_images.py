@@ -24,7 +24,11 @@ moved without turning but not the direction (:func:`selfcal.calibration.drift.p_
 known_size_power`: the likelihood ratio averaged over the directions, the largest mean power a
 test of the benchmark's random 0.2 mm shifts can have without being told the direction) and one
 that knew only that the mount moved without turning (the chi-square of its 3 translations alone,
-at the whole alpha). Each row also
+at the whole alpha). The log line of each row also gives the check's own power against the
+shift as ``selfcal check`` states it (:func:`selfcal.calibration.drift.power.shift_power`,
+averaged over the checks) beside the share it found. ``--choose POOL``: each check's new views
+are the ones of POOL postures drawn so that, one by one, each raises that power most
+(:func:`chosen_views`), not the first drawn. Each row also
 counts the checks per kind that answered "cannot tell" (the verdict, exit 6: not counted as
 changed) and records the code that measured it (:func:`selfcal.benchmarks.doc_blocks.
 code_version`), which the table's last line names (:func:`selfcal.benchmarks.doc_blocks.
@@ -39,7 +43,7 @@ joints are read and taken as exact).
 
 Run: ``nice -n 10 uv run python -m selfcal.benchmarks.drift_images [--calibrations 30]
 [--checks 10] [--setup eye-in-hand eye-to-hand] [--robot er4u-paper ur5e kr6-r900] [--jobs 1]
-[--views 5] [--min-p] [--write-docs]`` (rewrites the rows of the setups, robots and noise levels it ran
+[--views 5] [--min-p] [--choose POOL] [--write-docs]`` (rewrites the rows of the setups, robots and noise levels it ran
 in the table of docs/tool-accuracy.md and keeps the others, :func:`docs_rows`).
 """
 
@@ -75,6 +79,8 @@ from selfcal.calibration.drift.images import (
     view_noise,
 )
 from selfcal.calibration.drift.p_value import known_change_power, known_size_power
+from selfcal.calibration.drift.power import shift_power
+from selfcal.calibration.drift.views import ViewJacobians
 from selfcal.config.scenario import load_scenario, scenarios_dir
 from selfcal.errors import InternalError
 from selfcal.io.target_toml import parse_target
@@ -88,6 +94,7 @@ from selfcal.threads import limit_threads
 __all__ = [
     "NOISE_PX",
     "calibration_checks",
+    "chosen_views",
     "docs_rows",
     "main",
     "merge_rows",
@@ -117,20 +124,41 @@ def read_joints(robot: RobotDef, q: np.ndarray) -> np.ndarray:
     return read_back(np.asarray(q, float), robot.encoder, True)
 
 
+def chosen_views(C: np.ndarray, pool: list[ViewJacobians], count: int, *,
+                 eye_to_hand: bool) -> list[int]:  # fmt: skip
+    """``count`` of the linearised views ``pool`` (their indices), chosen one by one, each the
+    one that raises the check's power against the 0.2 mm mount shift most
+    (:func:`selfcal.calibration.drift.power.shift_power`, 500 draws; ``C`` the calibration's
+    covariance)."""
+    pick: list[int] = []
+
+    def power(i: int) -> float:
+        views = [pool[j] for j in (*pick, i)]
+        return shift_power(C, views, eye_to_hand=eye_to_hand, alpha=ALPHA, draws=500,
+                           search=False).power  # fmt: skip
+
+    for _ in range(count):
+        pick.append(max((i for i in range(len(pool)) if i not in pick), key=power))
+    return pick
+
+
 def calibration_checks(args: tuple) -> dict:
     """One calibration (noise ``sigma_px``, ``seed``, ``setup``, ``robot``: the setup's
     scenario's robot replaced, or None; optionally the new views per check, default
-    :data:`NEW_VIEWS`, and whether the check combines its tests by their smallest p-value's
+    :data:`NEW_VIEWS`, whether the check combines its tests by their smallest p-value's
     exact distribution rather than Bonferroni's bound: ``exact`` of
-    :func:`selfcal.calibration.drift.images.image_drift_check`) checked ``checks`` times: per kind the count of "changed" verdicts, and
+    :func:`selfcal.calibration.drift.images.image_drift_check`, and a pool of postures to
+    choose the views from, 0: none, :func:`chosen_views`) checked ``checks`` times: per kind the count of "changed" verdicts, and
     of the changes the causes named right and wrong."""
     sigma_px, seed, checks, setup, robot_name = args[:5]
     new_views = int(args[5]) if len(args) > 5 else NEW_VIEWS
     exact = bool(args[6]) if len(args) > 6 else False
+    choose = int(args[7]) if len(args) > 7 else 0
     e2h = setup == "eye-to-hand"
     out: dict = {"status": "ok"} | {k: 0 for k in KINDS} | {"checks": 0}
     out |= {f"{k}_{w}": 0 for k in ("tool", "joint") for w in ("right", "wrong")}
-    out |= {"tool_oracle": 0.0, "tool_size": 0.0, "tool_axes": 0.0, "fold_error": 0}
+    out |= {"tool_oracle": 0.0, "tool_size": 0.0, "tool_axes": 0.0, "tool_power": 0.0}
+    out["fold_error"] = 0
     out |= {f"{k}_cannot_tell": 0 for k in KINDS}
     try:
         cal, truth = simulated_calibration(sigma_px, seed, scenario_file=SCENARIOS[setup],
@@ -164,9 +192,9 @@ def calibration_checks(args: tuple) -> dict:
             shift = np.eye(4)
             shift[:3, 3] = TOOL_SHIFT_M * u / np.linalg.norm(u)
             joint = int(rng.integers(n))
-            q_new = []
+            q_new, drawn = [], max(new_views, choose)
             for _ in range(10_000):
-                if len(q_new) == new_views:
+                if len(q_new) == drawn:
                     break
                 q = q_cal[rng.integers(len(q_cal))] + rng.uniform(-SPREAD_RAD, SPREAD_RAD, n)
                 q_off = q.copy()
@@ -179,8 +207,14 @@ def calibration_checks(args: tuple) -> dict:
                     assert g is not None
                     views[k].append((len(q_new), *g))
                 q_new.append(q)
-            if len(q_new) < new_views:
-                raise InternalError(f"no {new_views} postures near the calibration's see the board")
+            if len(q_new) < drawn:
+                raise InternalError(f"no {drawn} postures near the calibration's see the board")
+            if choose:
+                pool = calibration_views(cal, em, read_joints(robot, np.array(q_new)),
+                                         views["unchanged"])  # fmt: skip
+                pick = chosen_views(C, pool, new_views, eye_to_hand=e2h)
+                q_new = [q_new[i] for i in pick]
+                views = {k: [(j, *views[k][i][1:]) for j, i in enumerate(pick)] for k in KINDS}
             qs = read_joints(robot, np.array(q_new))
             for k in KINDS:
                 vj = calibration_views(cal, em, qs, views[k])
@@ -195,6 +229,8 @@ def calibration_checks(args: tuple) -> dict:
                     out["tool_oracle"] += float(known_change_power(lam2, ALPHA))
                     out["tool_size"] += known_size_power(F, shift[:3, 3], ALPHA)
                     out["tool_axes"] += float(known_change_power(lam2, ALPHA, dof=3))
+                    out["tool_power"] += shift_power(C, vj, eye_to_hand=e2h, alpha=ALPHA,
+                                                     search=False).power  # fmt: skip
                 out[k] += res.changed
                 if k != "unchanged" and res.attribution is not None:
                     right = "hand-eye" if k == "tool" else f"joint {joint + 1}"
@@ -210,10 +246,10 @@ def calibration_checks(args: tuple) -> dict:
 
 def run(calibrations: int = 30, checks: int = 10, noise_px=NOISE_PX, jobs: int = 1,
         setups: tuple[str, ...] = tuple(SCENARIOS), robots: tuple[str, ...] | None = None,
-        views: int = NEW_VIEWS, exact: bool = False) -> list[dict]:  # fmt: skip
+        views: int = NEW_VIEWS, exact: bool = False, choose: int = 0) -> list[dict]:  # fmt: skip
     """One row per setup (eye-in-hand: per robot of ``robots``, default the scenario's) and
     noise level over ``calibrations`` calibrations (``jobs`` processes), ``views`` new views
-    per check (``exact``: :func:`calibration_checks`)."""
+    per check (``exact``, ``choose``: :func:`calibration_checks`)."""
     rows, code = [], code_version()
     cells = [(u, r) for u in setups
              for r in (robots if robots and u == "eye-in-hand" else (None,))]  # fmt: skip
@@ -221,7 +257,7 @@ def run(calibrations: int = 30, checks: int = 10, noise_px=NOISE_PX, jobs: int =
         t0 = time.perf_counter()
         name = robot or load_scenario(SCENARIOS[setup]).robot.model
         label = f"{setup}, {name}"
-        todo = [(s, seed, checks, setup, robot, views, exact)
+        todo = [(s, seed, checks, setup, robot, views, exact, choose)
                 for seed in range(1, calibrations + 1)]  # fmt: skip
         got = map_jobs(calibration_checks, todo, jobs)
         ok = [g for g in got if g["status"] == "ok"]
@@ -232,9 +268,14 @@ def run(calibrations: int = 30, checks: int = 10, noise_px=NOISE_PX, jobs: int =
               f"calibrations; 'cannot tell' (not counted as changed): "
               + ", ".join(f"{k} {total.get(f'{k}_cannot_tell', 0)}" for k in KINDS), file=sys.stderr)  # fmt: skip
         m = max(total.get("checks", 0), 1)
+        print(f"  the check's own power against the mount shift (selfcal check's power line): "
+              f"{100 * total.get('tool_power', 0) / m:.1f} % on average; found "
+              f"{100 * total.get('tool', 0) / m:.1f} %", file=sys.stderr)  # fmt: skip
         row = {"setup": label, "noise_px": s, "calibrations": len(ok), "failed": calibrations - len(ok),
-               "checks": total.get("checks", 0), "views": views, "exact": exact, "code": code}  # fmt: skip
-        row |= {k: total.get(k, 0) / m for k in (*KINDS, "tool_oracle", "tool_size", "tool_axes")}
+               "checks": total.get("checks", 0), "views": views, "exact": exact, "code": code,
+               "choose": choose}  # fmt: skip
+        row |= {k: total.get(k, 0) / m
+                for k in (*KINDS, "tool_oracle", "tool_size", "tool_axes", "tool_power")}  # fmt: skip
         row |= {f"{k}_cannot_tell": total.get(f"{k}_cannot_tell", 0) for k in KINDS}
         for k in ("tool", "joint"):
             found = max(total.get(k, 0), 1)
@@ -265,11 +306,13 @@ def table(rows: list[dict], checks: int) -> str:
     ]
     failed = sum(r["failed"] for r in rows)
     views = rows[0].get("views", NEW_VIEWS)
-    docs = views == NEW_VIEWS and not rows[0].get("exact", False)
+    choose = rows[0].get("choose", 0)
+    docs = views == NEW_VIEWS and not rows[0].get("exact", False) and not choose
     noise = list(dict.fromkeys(r["noise_px"] for r in rows))
     extra = "" if noise == list(NOISE_PX) else " --noise-px " + " ".join(f"{s:g}" for s in noise)
     extra += "" if views == NEW_VIEWS else f" --views {views}"
     extra += " --min-p" if rows[0].get("exact", False) else ""
+    extra += f" --choose {choose}" if choose else ""
     return (head + "\n".join(lines) + f"\n\n{checks} checks per calibration ({failed} "
             f"calibrations failed in all), {views} new views per check, alpha = 0.01; "
             "a test knowing: the mean power at alpha of a test that knew the shift's direction "
@@ -390,6 +433,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--min-p", action="store_true",
                     help="combine the check's tests by their smallest p-value's exact "
                     "distribution, not Bonferroni's bound (not the docs block's)")  # fmt: skip
+    ap.add_argument("--choose", type=int, default=0, metavar="POOL",
+                    help="choose each check's new views from POOL postures by the check's own "
+                    "power (not the docs block's)")  # fmt: skip
     ap.add_argument("--setup", nargs="+", default=list(SCENARIOS), choices=tuple(SCENARIOS),
                     help="camera setups (default both)")  # fmt: skip
     ap.add_argument(
@@ -403,11 +449,14 @@ def main(argv: list[str] | None = None) -> int:
                     help="rewrite the rows of the setups, robots and noise levels run in the "
                     "table of docs/tool-accuracy.md (the others kept)")  # fmt: skip
     args = ap.parse_args(argv)
-    if args.write_docs and (args.views != NEW_VIEWS or args.min_p):
+    if args.write_docs and (args.views != NEW_VIEWS or args.min_p or args.choose):
         ap.error(f"--write-docs writes the table of the check as it is, {NEW_VIEWS} views: "
-                 "leave out --views and --min-p, or --write-docs")  # fmt: skip
+                 "leave out --views, --min-p and --choose, or --write-docs")  # fmt: skip
+    if args.choose and args.choose < args.views:
+        ap.error(f"--choose {args.choose}: the pool must hold at least --views {args.views}")
     rows = run(args.calibrations, args.checks, tuple(args.noise_px), args.jobs, tuple(args.setup),
-               tuple(args.robot) if args.robot else None, args.views, args.min_p)  # fmt: skip
+               tuple(args.robot) if args.robot else None, args.views, args.min_p,
+               args.choose)  # fmt: skip
     if args.write_docs:
         rows = docs_rows(rows, args.calibrations, args.checks)
     return print_table(table(rows, args.checks), DOC, BLOCK, write=args.write_docs)

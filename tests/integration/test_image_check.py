@@ -49,7 +49,11 @@ def test_check_with_images_says_unchanged_or_changed(tmp_path, capsys):
                 new, quiet=True)  # fmt: skip
     capsys.readouterr()
     assert main(["check", str(cal), str(new)]) == 0
-    assert capsys.readouterr().out.startswith("unchanged: 6 new image(s)")
+    out = capsys.readouterr().out
+    assert out.startswith("unchanged: 6 new image(s)")
+    # the check's power for these images against a 0.2 mm move of the camera's mount, from the
+    # calibration's covariance (selfcal/calibration/drift/power.py)
+    assert out.splitlines()[1].startswith("power: 6 image(s) like these find a 0.2 mm move")
 
     # the calibration's own images, in its folder or copied elsewhere: nothing to test, an
     # input error naming the folder (their residuals are the fit's,
@@ -107,6 +111,8 @@ def test_check_with_images_says_unchanged_or_changed(tmp_path, capsys):
     assert main(["check", str(cal), str(tmp_path / "joint"), "--json"]) == EXIT_CHANGED
     doc = json.loads(capsys.readouterr().out)
     assert doc["verdict"] == "changed" and doc["p_value"] < 1e-6
+    power = doc["mount_shift_power"]
+    assert power["images"] == 6 and power["size_mm"] == 0.2 and 0.0 <= power["power"] <= 1.0
     assert "joint 4" in [c["change"] for c in doc["cause"]["explained_by"]]
     # every new posture is a configuration the calibration did not see: the verdict says that
     # its false-alarm rate there is measured in simulation only

@@ -100,6 +100,7 @@ from selfcal.calibration.drift.outliers import Outlier, drop_outliers, outlier_l
 from selfcal.calibration.drift.own import JOINT_TOL, calibration_frames, own_views
 from selfcal.calibration.drift.p_value import combined_p, min_p, p_text
 from selfcal.calibration.drift.paired import noise_covariance, paired_views, posture_tol
+from selfcal.calibration.drift.power import ShiftPower, shift_power
 from selfcal.calibration.drift.tool_moves import BOUND_LEVEL, kinematic_bound_mm, tool_point_moves
 from selfcal.calibration.drift.views import (
     ViewJacobians,
@@ -184,7 +185,9 @@ class ImageDriftCheck:
         is the noisy one (each the new image's name, the frame's noise and the calibration's,
         px; named in the line, the verdict unchanged by them).
         outliers: the corners left out by the calibration's outlier rule
-        (:mod:`selfcal.calibration.drift.outliers`).
+        (:mod:`selfcal.calibration.drift.outliers`). power: what the check of these views
+        finds of a 0.2 mm move of the mount (:mod:`selfcal.calibration.drift.power`; None
+        where not computed: :func:`image_drift_check` alone).
     """
 
     views: int
@@ -213,6 +216,7 @@ class ImageDriftCheck:
     outliers: tuple[Outlier, ...] = ()
     noisy: tuple[Noisy, ...] = ()
     noisy_frames: tuple[Noisy, ...] = ()
+    power: ShiftPower | None = None
 
     def _own_line(self) -> str:
         out = outlier_line(self.outliers)
@@ -314,6 +318,7 @@ class ImageDriftCheck:
             "p_value_with_fold_error": (
                 self.fold_p_value if np.isfinite(self.fold_p_value) else None
             ),  # fmt: skip
+            "mount_shift_power": None if self.power is None else self.power.to_json(),
         }
 
 
@@ -430,6 +435,8 @@ def check_images(calibration: str | Path, new_data: str | Path, *,
     calibrate`` or its ``calibration.json``) with its ``accuracy`` and ``bounds`` blocks
     (module docstring). New images that are the calibration's own frames (their joint readings
     and detections, :mod:`selfcal.calibration.drift.own`) are left out of the test and counted.
+    The result states the check's power for the views tested (``power``,
+    :mod:`selfcal.calibration.drift.power`).
 
     Raises:
         InputError: the calibration is missing, not a board calibration or has no accuracy
@@ -478,9 +485,12 @@ def check_images(calibration: str | Path, new_data: str | Path, *,
     res = image_drift_check(C, tested, eye_to_hand=cal.eye_to_hand,
                             camera_names=cal.cameras[0].free, alpha=alpha, C_noise=C_noise,
                             names=names)  # fmt: skip
-    res = fold_recheck(res, fold_error_model(em, cal.accuracy, noise.misfit_counted), views_of, C,
-                       eye_to_hand=cal.eye_to_hand, alpha=alpha, C_noise=C_noise)  # fmt: skip
+    wide = fold_error_model(em, cal.accuracy, noise.misfit_counted)
+    res = fold_recheck(res, wide, views_of, C, eye_to_hand=cal.eye_to_hand, alpha=alpha,
+                       C_noise=C_noise)  # fmt: skip
+    power = shift_power(C, tested, eye_to_hand=cal.eye_to_hand, alpha=alpha, C_noise=C_noise,
+                        upper=wide is not None)  # fmt: skip
     far = unseen(held.q[[f for f, _, _ in new]], q_cal, cal.model.joint_types)
     return replace(res, unseen=int(np.count_nonzero(far)), own=int(np.count_nonzero(own)),
                    paired=sum(v.paired for v in tested), repeated=repeated,
-                   outliers=outliers)  # fmt: skip
+                   outliers=outliers, power=power)  # fmt: skip
