@@ -249,15 +249,15 @@ class StereoCamera:
             raise InputError(
                 f"cameras must be a list [left, right] of two sources, got {sources!r}"
             )
-        kw = dict(
-            expected_size=expected_size,
-            sequence_mode=sequence_mode,
-            flush_frames=flush_frames,
-            timeout_s=timeout_s,
-        )
-        left = Camera(sources[0], name="left", **kw)
+
+        def open_one(source: str | int, name: str) -> Camera:
+            return Camera(source, name=name, expected_size=expected_size,
+                          sequence_mode=sequence_mode, flush_frames=flush_frames,
+                          timeout_s=timeout_s)  # fmt: skip
+
+        left = open_one(sources[0], "left")
         try:
-            right = Camera(sources[1], name="right", **kw)
+            right = open_one(sources[1], "right")
         except BaseException:
             left.close()
             raise

@@ -20,6 +20,16 @@ from selfcal.transforms import inv_pose
 __all__ = ["project_board", "project_markers"]
 
 
+def _noise_rng(pixel_sigma: float, rng: np.random.Generator | None) -> np.random.Generator:
+    """The generator for pixel noise of ``pixel_sigma`` px: ``rng``; without noise an unused
+    stand-in. Raises ``UsageError`` for noise without ``rng`` (reproducibility)."""
+    if rng is not None:
+        return rng
+    if pixel_sigma > 0:
+        raise UsageError("pixel_sigma > 0 needs a random generator (rng) for reproducibility")
+    return np.random.default_rng(0)  # never drawn from: pixel_sigma == 0
+
+
 def project_markers(
     T_world_cam: np.ndarray,
     intr: CameraModel,
@@ -43,8 +53,7 @@ def project_markers(
     Returns:
         ``{marker id: (4, 2) corners}``.
     """
-    if pixel_sigma > 0 and rng is None:
-        raise UsageError("pixel_sigma > 0 needs a random generator (rng) for reproducibility")
+    noise = _noise_rng(pixel_sigma, rng)
     rule = visibility or Visibility()
     T = np.asarray(T_world_cam, dtype=float)
     ok = rule.markers(intr, T[None], corners_world, normals_world)[0]
@@ -53,7 +62,7 @@ def project_markers(
     for k in np.flatnonzero(ok):
         c = uv[k].copy()
         if pixel_sigma > 0:
-            c += rng.normal(0.0, pixel_sigma, size=c.shape)
+            c += noise.normal(0.0, pixel_sigma, size=c.shape)
             # like a detector, never report a corner outside the image
             if not (np.all((c >= 0) & (c <= [intr.width - 1, intr.height - 1]))):
                 continue
@@ -81,8 +90,7 @@ def project_board(
         of a board whose detector finds the whole grid or nothing (``whole_grid``: chessboard,
         circles grid) a view without every feature).
     """
-    if pixel_sigma > 0 and rng is None:
-        raise UsageError("pixel_sigma > 0 needs a random generator (rng) for reproducibility")
+    noise = _noise_rng(pixel_sigma, rng)
     rule = visibility or Visibility()
     ids, pts = board.layout()
     Tb = np.asarray(T_world_board, dtype=float)
@@ -92,7 +100,7 @@ def project_board(
     ok = rule.points(camera, T[None], X, normals)[0]
     uv = project(camera, inv_pose(T), X[ok])
     if pixel_sigma > 0:
-        uv = uv + rng.normal(0.0, pixel_sigma, size=uv.shape)
+        uv = uv + noise.normal(0.0, pixel_sigma, size=uv.shape)
     inside = np.all((uv >= 0) & (uv <= [camera.width - 1, camera.height - 1]), axis=1)
     if inside.sum() < (board.n_features if board.whole_grid else board.min_features):
         return {}

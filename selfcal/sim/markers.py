@@ -147,7 +147,9 @@ class MarkerField:
         scale bar last."""
         foot = self.tile_size_m + 2 * BLOCK_MARGIN_M
         scale_rows = {self.index_of(i) for i in self.scale_ids}
-        T, half, of = [], [], -np.ones(len(self.ids), dtype=int)
+        T: list[np.ndarray] = []
+        half: list[list[float]] = []
+        of = -np.ones(len(self.ids), dtype=int)
         for row, h in enumerate(self.support_height_m):
             if row in scale_rows or h <= 0:
                 continue
@@ -206,6 +208,12 @@ class MarkerField:
     def from_dict(cls, d: dict) -> MarkerField:
         """Inverse of :meth:`to_dict`; raises ``KeyError`` naming a missing key."""
         try:
+            bar = [float(v) for v in d["scale_bar_size_m"]]
+            if len(bar) != 3:
+                raise InputError(
+                    f"marker field dict's scale_bar_size_m must be (length, width, thickness) "
+                    f"in m, got {len(bar)} values"
+                )
             return cls(
                 dictionary=d["dictionary"],
                 ids=np.asarray(d["ids"], dtype=int),
@@ -215,7 +223,7 @@ class MarkerField:
                 scale_length_m=float(d["scale_length_m"]),
                 support_height_m=np.asarray(d["support_height_m"], dtype=float),
                 scale_bar_T_world=np.asarray(d["scale_bar_T_world_m"], dtype=float),
-                scale_bar_size_m=tuple(float(v) for v in d["scale_bar_size_m"]),
+                scale_bar_size_m=(bar[0], bar[1], bar[2]),
                 quiet_zone_modules=int(d.get("quiet_zone_modules", 1)),
                 meta=dict(d.get("meta", {})),
             )

@@ -142,7 +142,11 @@ def intrinsics_from_model(model: mujoco.MjModel, camera_name: str) -> Intrinsics
     return Intrinsics(fx=fx, mu=fy / fx, cx=cx, cy=cy, width=W, height=H)
 
 
-def look_at_cv(eye: np.ndarray, target: np.ndarray, up: np.ndarray = (0.0, 0.0, 1.0)) -> np.ndarray:
+def look_at_cv(
+    eye: np.ndarray,
+    target: np.ndarray,
+    up: np.ndarray | tuple[float, float, float] = (0.0, 0.0, 1.0),
+) -> np.ndarray:
     """OpenCV camera pose ``T_world_cam`` (4, 4) at ``eye`` looking at ``target`` (m), with the
     image's "up" (-y) as close as possible to ``up``. Raises ``ValueError`` if the viewing
     direction is parallel to ``up`` or eye == target."""

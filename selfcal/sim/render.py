@@ -54,8 +54,8 @@ class StereoRenderer:
         max_geom: int = 2000,
         lenses: Sequence[Pinhole] | None = None,
     ) -> None:
-        self._gl = None
-        self._ctx = None
+        self._gl: mujoco.GLContext | None = None
+        self._ctx: mujoco.MjrContext | None = None
         self.model = model
         self.width, self.height = int(width), int(height)
         self.camera_names = tuple(camera_names)
@@ -118,7 +118,7 @@ class StereoRenderer:
         ``image_sigma`` > 0 adds i.i.d. Gaussian noise of that standard deviation (grey levels,
         0-255 scale) to every channel, then rounds and clips; ``rng`` makes it reproducible.
         """
-        if self._ctx is None:
+        if self._ctx is None or self._gl is None:
             raise InternalError("StereoRenderer is closed")
         if image_sigma < 0:
             raise InputError(f"image_sigma must be >= 0, got {image_sigma}")
@@ -154,7 +154,8 @@ class StereoRenderer:
     def close(self) -> None:
         """Free the GL resources (idempotent)."""
         if self._ctx is not None:
-            self._gl.make_current()
+            if self._gl is not None:
+                self._gl.make_current()
             self._ctx.free()
             self._ctx = None
         if self._gl is not None:

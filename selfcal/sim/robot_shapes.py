@@ -122,7 +122,7 @@ def shape_rig(b: GeomBuilder, body, T_left_right: np.ndarray, T_cam_link: np.nda
     c_r = T_left_right[:3, 3]
     centre = c_r / 2.0
     x_dir = c_r if np.linalg.norm(c_r) > 1e-6 else np.array([1.0, 0.0, 0.0])
-    R = box_frame(x_dir, [0, 0, 1])
+    R = box_frame(x_dir, np.array([0.0, 0.0, 1.0]))
     half_len = float(np.linalg.norm(c_r)) / 2.0 + 0.02
     back = np.array([0.0, 0.0, -0.021])
     b.box(body, centre + back, R, [half_len, 0.017, 0.016], "dark")

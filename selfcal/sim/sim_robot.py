@@ -76,7 +76,7 @@ class SimRobot(KinematicRobot):
         if not image_sigma >= 0:
             raise InputError(f"image_sigma must be >= 0 (grey levels), got {image_sigma}")
         super().__init__(model_name, actual, rig, field, quantize, board, compliance)
-        self._sigma = float(image_sigma)
+        self.image_sigma = float(image_sigma)
         self._rng = np.random.default_rng(seed)
         scene_kw = {} if msaa is None else {"offsamples": int(msaa)}
         spec = scene_with_robot(
@@ -86,19 +86,14 @@ class SimRobot(KinematicRobot):
             add_board(spec, board[0], board[1])
         self.mj_model = spec.compile()
         self.mj_data = mujoco.MjData(self.mj_model)
-        self._renderer = None
+        self._renderer: StereoRenderer | None = None
         self._n_captures = 0
         self._noise_pool: ThreadPoolExecutor | None = None
         self._next_noise: Future | None = None  # the next capture's draws, (left, right)
         self.home()
 
-    @property
-    def image_sigma(self) -> float:
-        """Std of the Gaussian image noise (grey levels, 0-255), fixed at construction."""
-        return self._sigma
-
     def _draw_noise(self, shapes: list[tuple[int, ...]]) -> list[np.ndarray]:
-        return [noise_field(shape, self._sigma, self._rng) for shape in shapes]
+        return [noise_field(shape, self.image_sigma, self._rng) for shape in shapes]
 
     def _noise_ahead(self, shapes: list[tuple[int, ...]]) -> None:
         """Start drawing the next capture's noise fields on the worker thread."""
@@ -120,7 +115,7 @@ class SimRobot(KinematicRobot):
         configured Gaussian intensity noise."""
         self._check_open()
         if self._renderer is None:
-            if self._sigma > 0:  # the first capture's noise is drawn while the renderer starts
+            if self.image_sigma > 0:  # the first capture's noise is drawn while the renderer starts
                 self._noise_ahead([(c.height, c.width, 3) for c in self._lenses()])
             self._renderer = StereoRenderer(
                 self.mj_model,
@@ -130,7 +125,7 @@ class SimRobot(KinematicRobot):
                 lenses=self._lenses(),
             )
         left, right = self._renderer.render(self.mj_data)
-        if self._sigma > 0:
+        if self.image_sigma > 0:
             z = self._noise([left.shape, right.shape])
             left, right = apply_noise(left, z[0]), apply_noise(right, z[1])
         meta = {
@@ -181,4 +176,4 @@ class SimRobot(KinematicRobot):
         mujoco.mj_forward(self.mj_model, self.mj_data)
 
     def __repr__(self) -> str:
-        return f"SimRobot({self.model_name!r}, image_sigma={self._sigma})"
+        return f"SimRobot({self.model_name!r}, image_sigma={self.image_sigma})"

@@ -313,6 +313,8 @@ class StaticCameraRobot(KinematicRobot):
 
     def __init__(self, truth: StaticCameraTruth, *, quantize: bool = True, render: bool = True,
                  image_sigma: float = 0.0, seed: int = 0, offsamples: int = 4):  # fmt: skip
+        if not isinstance(truth.camera, Pinhole):
+            raise UsageTypeError("the static camera must be a camera model of selfcal.camera")
         super().__init__(truth.robot, truth.actual, RigConfig(intrinsics=truth.camera),
                          quantize=quantize)  # fmt: skip
         self.field = None  # the cell has a board (on the flange), no marker field

@@ -8,6 +8,7 @@ import cv2
 import numpy as np
 import pytest
 
+from selfcal.errors import InputError
 from selfcal.sim.markers import (
     BLOCK_MARGIN_M,
     MARKER_THICKNESS_M,
@@ -107,6 +108,13 @@ def test_json_round_trip():
     np.testing.assert_array_equal(g.ids, f.ids)
     assert g.scale_ids == f.scale_ids and g.scale_length_m == f.scale_length_m
     np.testing.assert_array_equal(g.corners_world(), f.corners_world())
+
+
+def test_from_dict_refuses_a_scale_bar_without_three_sizes():
+    d = make_marker_field(seed=9).to_dict()
+    d["scale_bar_size_m"] = d["scale_bar_size_m"][:2]
+    with pytest.raises(InputError, match="scale_bar_size_m .* got 2 values"):
+        MarkerField.from_dict(d)
 
 
 def test_bad_inputs_raise():

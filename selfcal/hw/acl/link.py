@@ -33,11 +33,13 @@ from selfcal.hw.acl.text import CTRL_A, IGNORED_BYTES, LEADING_PROMPT, LINE_SPLI
 __all__ = ["AclLink", "open_serial", "port_hint"]
 
 try:  # tcdrain/tcflush on a vanished pty raise termios.error, which is not an OSError
-    from termios import error as _TermiosError
-except ImportError:  # pragma: no cover - not POSIX
-    _TermiosError = OSError
+    import termios
 
-_LINK_ERRORS = (serial.SerialException, OSError, _TermiosError)
+    _TERMIOS_ERRORS: tuple[type[Exception], ...] = (termios.error,)
+except ImportError:  # pragma: no cover - not POSIX
+    _TERMIOS_ERRORS = ()
+
+_LINK_ERRORS = (serial.SerialException, OSError, *_TERMIOS_ERRORS)
 """Exceptions from pyserial ports that mean the link itself failed."""
 
 T = TypeVar("T")

@@ -237,10 +237,10 @@ class AclEmulator(AclController):
     def _rested(self) -> None:
         if self.write_frames and self.frames_dir is not None:
             pair = self.backend.capture()
-            self._write_pair(pair)
+            self._write_pair(self.frames_dir, pair)
 
-    def _write_pair(self, pair: StereoPair) -> None:
+    def _write_pair(self, frames_dir: Path, pair: StereoPair) -> None:
         i = self._frame_index
         for side, img in (("right", pair.right), ("left", pair.left)):  # right first: see cameras
-            write_image_atomic(self.frames_dir / f"{i:06d}_{side}.png", img)
+            write_image_atomic(frames_dir / f"{i:06d}_{side}.png", img)
         self._frame_index = i + 1
