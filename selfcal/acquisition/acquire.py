@@ -46,6 +46,15 @@ class AcquisitionHooks:
     finish: Callable[[], None] | None = None
 
 
+def _shown(
+    cameras: tuple[str, ...], left: np.ndarray, right: np.ndarray | None
+) -> dict[str, np.ndarray]:
+    """The images of a frame by camera name, of the dataset's ``cameras`` (a camera without an
+    image, e.g. ``right`` of a one-camera robot, left out)."""
+    images = {"left": left, "right": right}
+    return {c: v for c, v in images.items() if c in cameras and v is not None}
+
+
 def acquire(
     robot: Robot,
     writer: DatasetWriter,
@@ -87,13 +96,12 @@ def acquire(
         images meanwhile (on the other helper: the cache's gray images and detections)."""
         if held is not None:  # keep the images (here), the files later
             if keep is not None:
-                keep.add(i, {c: v for c, v in (("left", left), ("right", right)) if c in cameras})
+                keep.add(i, _shown(cameras, left, right))
             held.hold(i, q, left, right)
             return
         kept = None
         if keep is not None:
-            shown = {c: v for c, v in (("left", left), ("right", right)) if c in cameras}
-            kept = helpers.submit(keep.add, i, shown)
+            kept = helpers.submit(keep.add, i, _shown(cameras, left, right))
         try:
             writer.add_frame(i, q, left=left, right=right, executor=helpers)
         finally:

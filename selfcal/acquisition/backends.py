@@ -179,7 +179,7 @@ def plan_dataset(s: Scenario, setup: SimSetup | None = None) -> DatasetInfo:
     pts, nrm = p["points_world"], p["normals_world"]
     W, H = rig.cameras[0].width, rig.cameras[0].height
     fld = None if setup is None else setup.field
-    scale_ids = SCALE_IDS if fld is None else tuple(int(i) for i in fld.scale_ids)
+    scale_ids = SCALE_IDS if fld is None else (int(fld.scale_ids[0]), int(fld.scale_ids[1]))
     if s.trajectory.kind == "optimal":
         q = plan_optimal(s).q
     elif s.trajectory.kind == "file":
@@ -238,9 +238,12 @@ def _static_info(s: Scenario) -> DatasetInfo:
     robot = load_robot(s.robot.model)
     q, qv = plan_static(s, robot, _file_postures(s, robot) if s.trajectory.kind == "file" else None)
     board = scenario_board(s)
+    if board is None:  # pragma: no cover - validate_camera refuses eye-to-hand without one
+        raise InternalError(f"{s.source}: an eye-to-hand scenario without a [target] board")
+    W, H = s.camera.resolution
     return DatasetInfo(
         robot_model=robot_reference(s.robot.model), encoder_model=robot_reference(s.robot.model),
-        backend=s.robot.backend, resolution=tuple(s.camera.resolution), dictionary=DICTIONARY,
+        backend=s.robot.backend, resolution=(int(W), int(H)), dictionary=DICTIONARY,
         scale_ids=SCALE_IDS, scale_length_m=s.target.scale_length_mm / 1000,
         observation="images" if s.noise.render else "detections",
         planned_joints_deg=np.round(np.degrees(q), 6),
@@ -299,7 +302,8 @@ def open_robot(
         # imports) loads for an eye-to-hand scenario only
         from selfcal.acquisition.eye_to_hand import static_detect, static_robot
 
-        robot = static_robot(s, setup.static)
+        still = static_robot(s, setup.static)
+        robot: KinematicRobot = still
     elif s.noise.render:
         robot = make_sim_robot(s, setup)
     else:
@@ -326,16 +330,17 @@ def open_robot(
         write_truth(truth_path, truth)
         journal.unlink(missing_ok=True)
 
-    def detect() -> dict:
+    def detect() -> dict[str, dict[int, np.ndarray]]:
         fr = robot.truth_frame()
+        board = setup.board_pose()
         out_ = {}
         for cam, T, intr in (
             ("left", fr["T_world_cam_left"], rig.intrinsics),
             ("right", fr["T_world_cam_right"], rig.right),
         ):
-            if setup.board is not None:  # a board's features: points, one id each
+            if board is not None:  # a board's features: points, one id each
                 out_[cam] = project_board(
-                    np.asarray(T), intr, setup.board, setup.T_world_board,
+                    np.asarray(T), intr, board[0], board[1],
                     pixel_sigma=s.noise.pixel_sigma, rng=rng,
                 )  # fmt: skip
                 continue
@@ -347,7 +352,7 @@ def open_robot(
         return out_
 
     if setup.static is not None:
-        detect = static_detect(s, robot, rng)  # type: ignore[arg-type]
+        detect = static_detect(s, still, rng)
     hooks = AcquisitionHooks(
         detect=None if s.noise.render else detect, record_truth=record_truth, finish=finish
     )
@@ -389,7 +394,7 @@ def make_sim_robot(s: Scenario, setup: SimSetup | None = None):
         seed=s.noise.seed,
         quantize=s.noise.quantize_joints,
         msaa=s.noise.msaa,
-        board=None if setup.board is None else (setup.board, setup.T_world_board),
+        board=setup.board_pose(),
         compliance=setup.compliance,
     )
 
@@ -412,7 +417,7 @@ def make_kinematic_robot(s: Scenario, setup: SimSetup | None = None) -> Kinemati
     setup = setup or sim_setup(s)
     _flange_cameras_only(s, setup, "the analytic flange-camera robot")
     rig = setup.rig()
-    board = None if setup.board is None else (setup.board, setup.T_world_board)
+    board = setup.board_pose()
     return KinematicRobot(
         setup.robot, setup.actual, rig, setup.field, quantize=s.noise.quantize_joints,
         board=board, compliance=setup.compliance,
@@ -433,7 +438,7 @@ def render_posture(
     _flange_cameras_only(s, setup, "`selfcal render`")
     rig = setup.rig()
     out.mkdir(parents=True, exist_ok=True)
-    board = None if setup.T_world_board is None else (setup.board, setup.T_world_board)
+    board = setup.board_pose()
     with SimRobot(robot, None, rig, setup.field, board=board) as sim:
         sim.move_to(np.degrees(q))
         pair = sim.capture()

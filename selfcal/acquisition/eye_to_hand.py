@@ -14,6 +14,7 @@ truth goes to ``truth.json`` alone.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import replace
 
 import numpy as np
@@ -68,23 +69,23 @@ def plan_static(
     cell = static_cell(s, robot, nominal=True)
     if q_file is not None:
         q = np.asarray(q_file, dtype=float)
-        qv: list[np.ndarray] = []
+        near: list[np.ndarray] = []
         for i in range(s.validation.poses + 3 * len(q)):  # around the postures in turn
-            if len(qv) == s.validation.poses:
+            if len(near) == s.validation.poses:
                 break
             try:
-                qv.append(plan_static_postures(replace(cell, home=q[i % len(q)]), 1, 1,
+                near.append(plan_static_postures(replace(cell, home=q[i % len(q)]), 1, 1,
                                                seed=10_000 + s.validation.seed + i)[0])  # fmt: skip
             except InputError:  # none near this one: the next
                 continue
-        if len(qv) < s.validation.poses:
+        if len(near) < s.validation.poses:
             raise InputError(
-                f"{s.source}: only {len(qv)} of {s.validation.poses} validation postures near the "
+                f"{s.source}: only {len(near)} of {s.validation.poses} validation postures near the "
                 "trajectory's show the whole board to the camera",
                 fix="ask fewer validation postures ([validation] poses) or plan postures that "
                 "show the board with room to spare",
             )
-        return q, np.array(qv)
+        return q, np.array(near)
     n_config = max(2, int(np.ceil(s.trajectory.poses / PER_CONFIGURATION)))
     q = plan_static_postures(cell, n_config, PER_CONFIGURATION, seed=s.trajectory.seed)
     qv = plan_static_postures(cell, s.validation.poses, 1, seed=10_000 + s.validation.seed)
@@ -98,12 +99,14 @@ def static_robot(s: Scenario, cell: StaticCameraTruth) -> StaticCameraRobot:
                              offsamples=s.noise.msaa)  # fmt: skip
 
 
-def static_detect(s: Scenario, robot: StaticCameraRobot, rng: np.random.Generator):
+def static_detect(
+    s: Scenario, robot: StaticCameraRobot, rng: np.random.Generator
+) -> Callable[[], dict[str, dict[int, np.ndarray]]]:
     """The analytic path's detection hook: the board's features in the static camera at the
     robot's true posture, with ``[noise] pixel_sigma``."""
     cell = robot.static
 
-    def detect() -> dict:
+    def detect() -> dict[str, dict[int, np.ndarray]]:
         T = fk_tool(cell.actual, robot.true_joints()[None])[0]
         return {"left": project_board(cell.T_base_cam, cell.camera, cell.board, T,
                                       pixel_sigma=s.noise.pixel_sigma, rng=rng)}  # fmt: skip

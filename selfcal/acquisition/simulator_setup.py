@@ -6,13 +6,15 @@ with it. The backends (:mod:`selfcal.acquisition.backends`) build the simulated 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import dataclasses
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from selfcal.camera import Intrinsics
 from selfcal.config.scenario import ConfigError, Scenario, scenario_board
-from selfcal.errors import InputError, UsageError
+from selfcal.errors import InputError, InternalError, UsageError
 from selfcal.kinematics.mcpc import (
     MCPCModel,
     minimal_indices,
@@ -28,6 +30,10 @@ from selfcal.sim.compliance import JointCompliance
 from selfcal.sim.markers import MarkerField, make_marker_field
 from selfcal.sim.robot_mjcf import RigConfig
 from selfcal.transforms import trans
+
+if TYPE_CHECKING:  # their modules load where they are used (OpenCV, the still camera's scene)
+    from selfcal.sim.static_camera import StaticCameraTruth
+    from selfcal.target.boards import Board
 
 __all__ = [
     "DICTIONARY",
@@ -54,15 +60,15 @@ class SimSetup:
     T_left_right: np.ndarray
     field: MarkerField | None
     """The marker field in the scene, or None: a board scenario has none."""
-    meta: dict = field(default_factory=dict)
-    board: object = None
+    meta: dict = dataclasses.field(default_factory=dict)
+    board: Board | None = None
     """``[target] board`` (selfcal.target.boards.Board) or None: the marker field."""
     T_world_board: np.ndarray | None = None
     """The board's true pose on the table (board -> world, m; ``selfcal.sim.board_scene.board_on_table``),
     or None: no board, or eye-to-hand (the board rides on the flange, ``static``)."""
     intrinsics_right: Intrinsics | None = None
     """The right camera's own true model (``[camera.right]``), or None: ``intrinsics``."""
-    static: object = None
+    static: StaticCameraTruth | None = None
     """Eye-to-hand (``[camera] setup``): the cell (selfcal.sim.static_camera.StaticCameraTruth:
     the static camera, the board on the flange), or None: the cameras on the flange."""
     compliance: JointCompliance | None = None
@@ -75,6 +81,19 @@ class SimSetup:
         if self.field is None:
             raise UsageError("a board scenario has no marker field; this needs a field scenario")
         return self.field
+
+    def board_pose(self) -> tuple[Board, np.ndarray] | None:
+        """The board and its true pose on the table (board -> world, m) for a scene with the
+        cameras on the flange, or None: the marker field. An eye-to-hand cell's board rides on
+        the flange (an :class:`InternalError`: its scene is :attr:`static`'s)."""
+        if self.board is None:
+            return None
+        if self.T_world_board is None:
+            raise InternalError(
+                "the board of an eye-to-hand scenario rides on the flange: it has no pose on "
+                "the table (simulate it with its still camera, SimSetup.static)"
+            )
+        return self.board, self.T_world_board
 
     def rig(self) -> RigConfig:
         """The simulated rig: the true cameras and the baseline."""

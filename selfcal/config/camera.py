@@ -11,7 +11,7 @@ import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 
-from selfcal.camera import MODELS, CameraModel, camera_model, centered_principal_point, lens_names
+from selfcal.camera import MODELS, Pinhole, camera_model, centered_principal_point, lens_names
 from selfcal.choices import SETUPS
 from selfcal.errors import InputError
 
@@ -102,11 +102,11 @@ class CameraConfig:
         """True when the right camera differs (a ``[camera.right]`` table, two cameras)."""
         return bool(self.right) and self.count > 1
 
-    def true_models(self) -> tuple[CameraModel, ...]:
+    def true_models(self) -> tuple[Pinhole, ...]:
         """The simulated camera of every name of :attr:`names`."""
         return tuple(self.of(n).true_model() for n in self.names)
 
-    def true_model(self) -> CameraModel:
+    def true_model(self) -> Pinhole:
         """The simulated (left) camera (principal point offset, lens) with the ``free``
         selection."""
         W, H = self.resolution

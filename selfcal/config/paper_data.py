@@ -80,6 +80,7 @@ PAPER_TABLE_IV = {
 def table_ii_postures(robot) -> tuple[np.ndarray, float, float]:
     """Joint postures (rad, (5, n)) reaching Table II's rows with the Cartesian tool pitch and
     roll of row 1 held, and that pitch and roll (rad). Raises ``UnreachableError`` if not."""
-    _, pitch, roll = tool_pose(fk_nominal(robot, robot.home)[0, -1])
+    _, pitch_, roll_ = tool_pose(fk_nominal(robot, robot.home)[0, -1])
+    pitch, roll = float(pitch_), float(roll_)
     q = np.array([ik_nearest(robot, p / 1000, pitch, roll) for p in TABLE_II_MM])
-    return q, float(pitch), float(roll)
+    return q, pitch, roll

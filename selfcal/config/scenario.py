@@ -11,7 +11,7 @@ import dataclasses
 import typing
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from selfcal.calibration.field.failures import MIN_POSTURES  # not .calibrate: 0.6 s of imports
 from selfcal.config.camera import (
@@ -26,6 +26,9 @@ from selfcal.config.shipped import scenario_file, shipped_model_file, shipped_sc
 from selfcal.errors import InternalError
 from selfcal.robot.definition import models_dir
 from selfcal.tomlfile import read_toml
+
+if TYPE_CHECKING:  # OpenCV: imported where a board is loaded (scenario_board)
+    from selfcal.target.boards import Board
 
 __all__ = [
     "Scenario",
@@ -408,7 +411,7 @@ def joints_path(s: Scenario) -> Path:
     return (base / s.trajectory.joints).resolve()
 
 
-def scenario_board(s: Scenario):
+def scenario_board(s: Scenario) -> Board | None:
     """The board of ``[target] board`` (:class:`selfcal.target.boards.Board`, SI) or None: the
     ArUco field.
 
