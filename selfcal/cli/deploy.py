@@ -211,6 +211,7 @@ def _export_camera(args: argparse.Namespace, fmt: str, out: Path) -> int:
     rig's cameras), a board calibration's camera ``--camera`` (None: the first) under its
     model."""
     from selfcal.calibration.handeye.calibration_file import is_handeye, read_handeye
+    from selfcal.camera import Pinhole
     from selfcal.export.camera import to_camera_info_yaml, to_opencv_yaml
     from selfcal.io.atomic import write_text_atomic
     from selfcal.io.board_calibration import calibration_kind, read_board_calibration
@@ -236,6 +237,9 @@ def _export_camera(args: argparse.Namespace, fmt: str, out: Path) -> int:
     else:
         cam = _field_camera(_usable(read_calibration(p), p), p, camera)
         which = f"camera {camera}" if camera else "the calibrated camera"
+    if not isinstance(cam, Pinhole):  # pragma: no cover - every model of selfcal.camera is one
+        raise CliError(f"{p}: {which} ({cam.model_name} model) has no pinhole camera matrix K "
+                       f"for --format {fmt}")  # fmt: skip
     name = camera_name or camera or "camera"  # camera_info's camera_name: the camera exported
     text = to_opencv_yaml(cam) if fmt == "opencv" else to_camera_info_yaml(cam, name)
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -268,13 +272,14 @@ def cmd_ik_calibrated(args: argparse.Namespace) -> int:
     robot = calibration_robot(args.calibration, dep.robot_name)
     pose = parse_pose_args(args, robot)
     try:
-        if pose.pitch_rad is not None:
+        er = pose.pitch_roll
+        if er is not None:
             res = solve_compensated(
                 dep,
                 robot,
                 pose.xyz_m,
-                pose.pitch_rad,
-                pose.roll_rad,
+                er[0],
+                er[1],
                 reference=pose.reference,
                 branch=getattr(args, "branch", None) or None,
             )

@@ -139,8 +139,10 @@ def _open_robot(args: argparse.Namespace) -> AclRobot:
     from selfcal.hw.acl.robot import AclRobot
 
     config = load_toml(args.config) if args.config else {"port": args.port}
-    robot = config.get("robot") if isinstance(config.get("robot"), dict) else {}
-    named = robot.get("model") or (robot.get("hardware") or {}).get("model")
+    section = config.get("robot")
+    robot = section if isinstance(section, dict) else {}
+    hardware = robot.get("hardware")
+    named = robot.get("model") or (hardware.get("model") if isinstance(hardware, dict) else None)
     # the one default (selfcal.config.scenario.DEFAULT_ROBOT) unless the command line or config names one
     overrides = {"model": args.robot or (None if named else DEFAULT_ROBOT)}
     overrides = {k: v for k, v in overrides.items() if v}
@@ -224,7 +226,7 @@ def emulator_from_config(
     """
     from selfcal.acquisition.emulator_backend import SimEmulatorBackend
     from selfcal.config.scenario import load_scenario
-    from selfcal.hw.emulator.backends import KinematicBackend
+    from selfcal.hw.emulator.backends import EmulatorBackend, KinematicBackend
     from selfcal.hw.emulator.server import AclEmulator
 
     config = dict(config or {})
@@ -245,7 +247,9 @@ def emulator_from_config(
                 f"[emulator] model {model!r} contradicts the scenario's [robot] model "
                 f"{scenario.robot.model!r}: the simulated robot is the scenario's"
             )
-        backend = SimEmulatorBackend.from_scenario(scenario, seed=scenario.noise.seed)
+        backend: EmulatorBackend = SimEmulatorBackend.from_scenario(
+            scenario, seed=scenario.noise.seed
+        )
     else:
         backend = KinematicBackend(model or DEFAULT_ROBOT, image_size=tuple(cfg["image_size"]))
     try:

@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     from selfcal.calibration.field.plan import FieldLayout
+    from selfcal.camera import CameraModel
     from selfcal.sim.markers import MarkerField
 
 from selfcal.console.common import CliError, note_written, writing
@@ -170,7 +171,7 @@ def forecast_words(markers: int, scale_mm: float, free: tuple[str, ...], workspa
 
 def cmd_field(
     args: argparse.Namespace,
-    camera_of: Callable[[argparse.Namespace], object],
+    camera_of: Callable[[argparse.Namespace], CameraModel],
     deviation_of: Callable[[argparse.Namespace], object],
 ) -> int:
     """``selfcal plan`` over the marker field ``args.target`` (see :data:`FIELD_EPILOG`);
@@ -246,16 +247,18 @@ def cmd_field(
     scenario = scenario_text(ref, camera, None, n, deviation=deviation_of(args), field=field)
     fc = {k: field_forecast(setup, layout, q, ws, pixel_sigma_px=args.pixel_sigma,
                             joint_sigma=js) for k, q in (("plan", plan.q), ("random", plan.q_random))}  # fmt: skip
-    if fc["plan"].tool_rms_m is None:
+    plan_rms, random_rms = fc["plan"].tool_rms_m, fc["random"].tool_rms_m
+    if plan_rms is None:
         raise EstimationError(f"the plan of {n} postures over the field does not determine the "
                               f"field route's unknowns: {fc['plan'].why}",
                               fix="give a larger --count (the 12 of docs/plan.md's example "
                               "determine them), more --markers or a camera with fewer free "
                               "parameters")  # fmt: skip
-    mm = {k: None if f.tool_rms_m is None else round(f.tool_rms_m * 1000, 4) for k, f in fc.items()}
-    if mm["random"] is not None and mm["plan"] > mm["random"]:
-        warnings.warn(f"the field plan's forecast ({mm['plan']:.3f} mm) is behind the random "
-                      f"plan's ({mm['random']:.3f} mm)", SelfCalWarning, stacklevel=2)  # fmt: skip
+    plan_mm = round(plan_rms * 1000, 4)
+    random_mm = None if random_rms is None else round(random_rms * 1000, 4)
+    if random_mm is not None and plan_mm > random_mm:
+        warnings.warn(f"the field plan's forecast ({plan_mm:.3f} mm) is behind the random "
+                      f"plan's ({random_mm:.3f} mm)", SelfCalWarning, stacklevel=2)  # fmt: skip
     out = Path(args.out)
     with writing(args, out):
         write_postures(args, out, names, plan.q, robot)
@@ -265,8 +268,8 @@ def cmd_field(
             "robot": ref,
             "mount": "eye-in-hand",
             "count": n,
-            "predicted_tool_rms_mm": mm["plan"],
-            "random_tool_rms_mm": mm["random"],
+            "predicted_tool_rms_mm": plan_mm,
+            "random_tool_rms_mm": random_mm,
             "predicted_fx_std_px": fc["plan"].fx_std_px,
             "random_fx_std_px": fc["random"].fx_std_px,
             "no_bound": {k: f.why for k, f in fc.items() if f.tool_rms_m is None},

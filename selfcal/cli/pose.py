@@ -54,6 +54,14 @@ class PoseArgs:
     rotation: np.ndarray | None
     reference: np.ndarray | None
 
+    @property
+    def pitch_roll(self) -> tuple[float, float] | None:
+        """``(pitch_rad, roll_rad)`` of an ER-convention target (``--pitch [--roll]``), or
+        None: a rotation or the position only."""
+        if self.pitch_rad is None or self.roll_rad is None:
+            return None
+        return self.pitch_rad, self.roll_rad
+
 
 def add_pose_args(sp: argparse.ArgumentParser, *, xyz_help: str) -> None:
     """Add ``--xyz``, the orientation options and ``--reference`` to an ``ik`` parser."""

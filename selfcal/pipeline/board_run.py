@@ -380,16 +380,17 @@ def calibrate_board_run(
     for text in res.warnings:
         _log.warning("%s", text)
     _say(quiet, summary(res))
-    spread = (res.accuracy or {}).get("spread")
-    if spread:  # the run-to-run spread over the folds (issue #29)
-        _say(quiet, spread_line(spread))
-    boot = (res.accuracy or {}).get(KEY)
+    accuracy = res.accuracy or {}
+    folds = accuracy.get("spread")
+    if folds:  # the run-to-run spread over the folds (issue #29)
+        _say(quiet, spread_line(folds))
+    boot = accuracy.get(KEY)
     if boot:
         _say(quiet, spread_line(boot))
         if figures:
             from selfcal.plots.spread_figure import spread_figure
 
-            _say(quiet, f"figure: {write_figure(spread_figure(res.accuracy), root, SPREAD_FIGURE)}")
+            _say(quiet, f"figure: {write_figure(spread_figure(accuracy), root, SPREAD_FIGURE)}")
     return res
 
 

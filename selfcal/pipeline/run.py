@@ -16,7 +16,7 @@ import sys
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -474,7 +474,7 @@ def run_all(
             if s.robot.backend == "sim":
                 run_report(out, quiet=True)  # report.json marked failed as well
             raise
-        result = {"calibration": cal}
+        result: dict[str, Any] = {"calibration": cal}
         if s.robot.backend == "sim":
             rep = run_report(out, quiet=True, figures=figures, cache=kept, pool=pool)
             result["report"] = rep

@@ -91,7 +91,10 @@ def _mount_rows(cal: BoardCalibrationResult, truth_chain, robot) -> list[dict]:
         w = Rotation.from_matrix(est.T[:3, :3] @ true.T[:3, :3].T).as_rotvec()
         d = est.T[:3, 3] - true.T[:3, 3]
         s_r, s_t = est.sigma_rotation_rad, est.sigma_xyz_m
-        z = None if s_r is None or s_t is None else np.r_[w / s_r, d / s_t]
+        z, sigma = None, None
+        if s_r is not None and s_t is not None:
+            z = np.r_[w / s_r, d / s_t]
+            sigma = {"rotation_deg": np.degrees(s_r).tolist(), "xyz_mm": (1000 * s_t).tolist()}
         rows.append({
             "transform": est.what,
             "estimate": {"xyz_mm": (1000 * est.T[:3, 3]).tolist(),
@@ -101,8 +104,7 @@ def _mount_rows(cal: BoardCalibrationResult, truth_chain, robot) -> list[dict]:
                       "rotvec_deg": np.degrees(Rotation.from_matrix(true.T[:3, :3])
                                                .as_rotvec()).tolist()},
             "error": {"rotation_deg": np.degrees(w).tolist(), "xyz_mm": (1000 * d).tolist()},
-            "sigma": None if z is None else {"rotation_deg": np.degrees(s_r).tolist(),
-                                             "xyz_mm": (1000 * s_t).tolist()},
+            "sigma": sigma,
             "z": None if z is None else z.tolist(),
             "max_abs_z": None if z is None else float(np.abs(z).max()),
         })  # fmt: skip

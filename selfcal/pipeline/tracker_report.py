@@ -10,6 +10,7 @@ and the workspace map ``DIR/figures/workspace_accuracy.png``
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 from selfcal.calibration.tracker.accuracy import (
     SAMPLE_COUNT,
@@ -52,7 +53,7 @@ def tracker_report(root: Path, *, figures: bool = True) -> dict:
     sample = workspace_sample(q_cal, cal.joint_limits, count=SAMPLE_COUNT)
     regions = workspace_summary(em, sample, q_cal)
     line = accuracy_line(regions)
-    report = {
+    report: dict[str, Any] = {
         "kind": "tracker",
         "status": "ok",
         "failures": [],
