@@ -206,11 +206,12 @@ def cmd_run(args: argparse.Namespace) -> int:
     if args.rrd:
         from selfcal.plots.rerun_log import record_run
 
-        path = record_run(out, Path(args.rrd), spawn=args.spawn)
-        note_written(args, path)
-        doc["rrd"] = str(path)
+        rrd = Path(args.rrd)
+        record_run(out, rrd, spawn=args.spawn)  # writes rrd (returns None only without one)
+        note_written(args, rrd)
+        doc["rrd"] = str(rrd)
         if not args.json:
-            print(f"Rerun recording: {path} (open it with `rerun {path}`)")
+            print(f"Rerun recording: {rrd} (open it with `rerun {rrd}`)")
     if args.json:
         print(json.dumps(doc))
     return 0

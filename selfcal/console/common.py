@@ -108,7 +108,7 @@ class SelfcalParser(argparse.ArgumentParser):
         self.print_usage(sys.stderr)
         self.exit(EXIT_USAGE, f"selfcal: error: {message} -- see `{self.prog} --help`\n")
 
-    def parse_args(self, args=None, namespace=None):  # type: ignore[no-untyped-def, override]
+    def parse_args(self, args=None, namespace=None):
         """As argparse's, but arguments no option takes are reported by the command they were
         given to (its usage and ``--help``), and an option that belongs to other commands names
         them (``selfcal calibrate DIR --spread 10``: ``--spread`` is ``selfcal identify``'s)."""

@@ -23,7 +23,11 @@ import sys
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
-from typing import TextIO
+from typing import TYPE_CHECKING, TextIO
+
+if TYPE_CHECKING:  # rich: imported when a bar is drawn (_start_bar)
+    from rich.progress import Progress as RichProgress
+    from rich.progress import TaskID
 
 __all__ = ["Progress", "Step", "TaskCounts", "format_seconds"]
 
@@ -108,8 +112,9 @@ class Progress:
         self.done = 0
         self.t0 = time.perf_counter()
         self.start_done = 0
-        self._bar = None  # the rich.progress.Progress of a counted stage on a terminal
-        self._task = None
+        # the rich.progress.Progress of a counted stage on a terminal
+        self._bar: RichProgress | None = None
+        self._task: TaskID | None = None
 
     # ----------------------------------------------------------------- counted stages
     def start(self, total: int, done: int = 0) -> None:
@@ -180,7 +185,7 @@ class Progress:
         self._bar = bar
 
     def _draw(self) -> None:
-        if self._bar is None:
+        if self._bar is None or self._task is None:
             return
         self._bar.update(self._task, completed=self.done, state=self.state(), refresh=True)
 

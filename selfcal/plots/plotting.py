@@ -164,9 +164,9 @@ def _data_boxes(ax: Any) -> list[tuple[str, np.ndarray]]:
             for path in art.get_paths():
                 v = tr.transform(path.vertices)
                 out += [(f"collection {art.get_label()!r}", np.r_[p, p]) for p in v]
-            offs = art.get_offsets()
+            offs = np.asarray(art.get_offsets(), float)
             if len(offs):
-                pts = art.get_offset_transform().transform(np.asarray(offs, float))
+                pts = art.get_offset_transform().transform(offs)
                 out += [(f"points {art.get_label()!r}", np.r_[p, p]) for p in pts]
     return out
 

@@ -109,7 +109,7 @@ def record_board_run(root: Path, rrd: Path | None, spawn: bool = False) -> Path 
             log_camera(rec, f"world/estimate/cam_{cam}", T_est[k] @ T_first_cam[c],
                        cal.cameras[c], EST_COLOR, img,
                        {int(j): uv[None] for j, uv in zip(f.ids, f.uv)})  # fmt: skip
-            if fr is not None:
+            if fr is not None and truth is not None:
                 T_true = fr.T_world_cam_left if c == 0 else fr.T_world_cam_right
                 true_cam = truth.intrinsics_left if c == 0 else truth.intrinsics_right
                 log_camera(rec, f"world/truth/cam_{cam}", T_true, true_cam, GT_COLOR)

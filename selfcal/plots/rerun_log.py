@@ -43,7 +43,9 @@ from selfcal.plots.rerun_parts import EST_COLOR, GT_COLOR, archetypes, log_camer
 __all__ = ["record_run", "register"]
 
 
-def record_run(dataset_dir: str | Path, rrd_path: str | Path | None, spawn: bool = False) -> Path:
+def record_run(
+    dataset_dir: str | Path, rrd_path: str | Path | None, spawn: bool = False
+) -> Path | None:
     """Record the finished run in ``dataset_dir`` into ``rrd_path`` (and/or a spawned viewer).
 
     Needs ``dataset.json``, ``joints.csv`` and ``calibration.json``; ``truth.json`` is used when
@@ -82,7 +84,7 @@ def record_run(dataset_dir: str | Path, rrd_path: str | Path | None, spawn: bool
         raise DatasetError(f"{cal_path} is missing: run `selfcal calibrate {root}` first")
     if calibration_kind(cal_path) == "board":  # the known-board route's calibration
         rrd_board = None if rrd_path is None else Path(rrd_path)
-        return record_board_run(root, rrd_board, spawn)  # type: ignore[return-value]
+        return record_board_run(root, rrd_board, spawn)
     cal = read_calibration(cal_path)
     robot = load_robot(ds.info.robot_model)
     nominal = nominal_mcpc(robot).with_tool(robot.T_flange_cam)
@@ -265,7 +267,7 @@ def record_run(dataset_dir: str | Path, rrd_path: str | Path | None, spawn: bool
         for key, arch in archetypes(geo, geo.moving).items():
             rec.log(f"world/robot/{key}", arch)
         rec.log("joints_deg", rr.Scalars(np.degrees(q)))
-        if fr is not None:
+        if fr is not None and truth is not None:
             for cam in cams:
                 left = cam == "left"
                 log_camera(

@@ -113,7 +113,7 @@ def open_recording(root: Path, rrd: Path | None, spawn: bool, who: str):
     rec = rr.RecordingStream("scorbot-selfcal", recording_id=str(Path(root).resolve()))
     if spawn:
         rec.spawn(connect=False)  # start the viewer; the sinks below connect to it
-    sinks = []
+    sinks: list[rr.FileSink | rr.GrpcSink] = []
     if rrd is not None:
         rrd.parent.mkdir(parents=True, exist_ok=True)
         sinks.append(rr.FileSink(str(rrd)))

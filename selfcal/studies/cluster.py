@@ -143,8 +143,8 @@ def cluster_tasks(
                 if f.status == "finished":
                     row = f.result()
                 else:
-                    exc = f.exception() if f.status == "error" else None
-                    row = error_row(items[i], exc or RuntimeError(f"task {f.status}"))
+                    err = f.exception() if f.status == "error" else None
+                    row = error_row(items[i], err or RuntimeError(f"task {f.status}"))
                 f.release()
                 yield i, row
         finally:

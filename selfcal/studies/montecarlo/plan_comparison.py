@@ -52,7 +52,7 @@ def sim_fisher_setup(
         fld.ids,
         fld.corners_world(),
         fld.T_world_marker[:, :3, 2],
-        tuple(int(i) for i in fld.scale_ids),
+        (int(fld.scale_ids[0]), int(fld.scale_ids[1])),
         scale_length_m,
         **kwargs,
     )
@@ -181,8 +181,9 @@ def run_plan_comparison(
                 "joint_ratio_ci95": summ.get("joint", {}).get("tool_tip_ratio_ci95"),
                 "two_stage_rms_mm": summ.get("two_stage", {}).get("tool_tip_rms_mm"),
             }
-    res = {"bounds": [{k: v for k, v in r.items() if k != "q_deg"} for r in rows], "montecarlo": mc}
-    write_csv(res["bounds"], out / "plans.csv")
+    bounds = [{k: v for k, v in r.items() if k != "q_deg"} for r in rows]
+    res = {"bounds": bounds, "montecarlo": mc}
+    write_csv(bounds, out / "plans.csv")
     write_text_atomic(out / "plans.json", json.dumps(res, indent=2))
     write_text_atomic(out / "plans.md", plans_markdown(res))
     _plot_plans(res, out / "optimal_poses.png")

@@ -43,7 +43,7 @@ def run_draws(
     from, ``residual_sigma_px`` the final fit's)."""
     rows = []
     for k in range(1, draws + 1):
-        noise = {"seed": k, "quantize_joints": quantize}
+        noise: dict[str, float | int | bool] = {"seed": k, "quantize_joints": quantize}
         if image_sigma is not None:
             noise["image_sigma"] = image_sigma
         s = load_scenario(config, overrides={"noise": noise})

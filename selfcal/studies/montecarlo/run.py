@@ -45,6 +45,7 @@ from selfcal.camera import values_by_name
 from selfcal.config.scenario import load_scenario
 from selfcal.console.log import get_logger
 from selfcal.console.progress import Progress, TaskCounts
+from selfcal.errors import InternalError
 from selfcal.io.dataset import Dataset, DatasetWriter
 from selfcal.io.truth import read_truth
 from selfcal.kinematics.accuracy import aligned_errors, tool_tips
@@ -137,6 +138,9 @@ def draw_one(settings: dict) -> dict:
 
 def _evaluate(root: Path, pixel_sigma: float, *, fair_nominal: bool = True) -> dict:
     out = calibrate_detailed(root, method="joint", fair_nominal=fair_nominal)
+    joint = out.joint
+    if joint is None:  # pragma: no cover - method="joint" sets it
+        raise InternalError(f"{root}: the joint calibration gave no joint refinement")
     ds = Dataset.open(root)
     robot = load_robot(ds.info.robot_model)
     truth = read_truth(root / "truth.json")
@@ -156,17 +160,17 @@ def _evaluate(root: Path, pixel_sigma: float, *, fair_nominal: bool = True) -> d
         float("nan") if fair is None
         else aligned_errors(tool_tips(fair, qv, truth.T_cam_tip), p_true)["rms"]
     )  # fmt: skip
-    row["joint_fx_err_px"] = out.joint.fx - truth.intrinsics_left.fx
+    row["joint_fx_err_px"] = joint.fx - truth.intrinsics_left.fx
     row["two_stage_fx_err_px"] = out.selfcal.fx - truth.intrinsics_left.fx
     # parameters in the reference-camera frame (the true one for the truth, like selfcal report)
     frames = {f.frame_index: f for f in truth.frames}
     idx = minimal_indices(out.model.joint_types)
     scale = np.where(param_is_angle(idx), 180.0 / np.pi, 1000.0)
     for k, mdl in models.items():
-        ref = out.joint.ref_config if k == "joint" else out.selfcal.ref_config
+        ref = joint.ref_config if k == "joint" else out.selfcal.ref_config
         T = inv_pose(frames[int(ds.indices[ref])].T_world_cam_left)
         err = minimal_difference(mdl, express_in_frame(truth.true_model, T, like=mdl)) * scale
-        for name, e in zip(out.joint.names, err):
+        for name, e in zip(joint.names, err):
             row[f"{k}_err_{name}"] = float(e)
     # the bound at this draw's joint estimate, with the true noise levels
     # the calibration's own detections: with a lens estimated it detected again through it
@@ -185,8 +189,8 @@ def _evaluate(root: Path, pixel_sigma: float, *, fair_nominal: bool = True) -> d
     # every free camera parameter (px or unitless); a rig whose cameras have their own
     # intrinsics adds the others' as "right.k1" ..., each against its own truth
     trues = {"left": truth.intrinsics_left, "right": truth.intrinsics_right}
-    est = dict(zip(out.joint.cameras.names, out.joint.cameras.cameras)) if out.joint.cameras \
-        else {"left": out.joint.camera}  # fmt: skip
+    est = dict(zip(joint.cameras.names, joint.cameras.cameras)) if joint.cameras \
+        else {"left": joint.camera}  # fmt: skip
     bounds = cr.cameras_std or {"left": cr.camera_std}
     for cam, stds in bounds.items():
         # by the model's names and OpenCV's (fy = mu fx has a bound of its own)
@@ -195,8 +199,8 @@ def _evaluate(root: Path, pixel_sigma: float, *, fair_nominal: bool = True) -> d
         for name, b in stds.items():
             row[f"joint_cam_err_{pre}{name}"] = est_cam[name] - true_cam.get(name, 0.0)
             row[f"bound_cam_{pre}{name}"] = float(b)
-    row["sigma_hat_px"] = out.joint.sigma_px
-    row["outliers"] = out.joint.n_outliers
+    row["sigma_hat_px"] = joint.sigma_px
+    row["outliers"] = joint.n_outliers
     for name, b in zip(cr.names, cr.std_ref * scale):
         row[f"bound_{name}"] = float(b) if np.isfinite(b) else None
         row[f"held_{name}"] = name in cr.held and not cr.held[name].startswith("gauge")

@@ -58,7 +58,7 @@ def _theta4_held_distances(robot) -> np.ndarray:
     from selfcal.config.paper_data import TABLE_II_MM, TABLE_II_THETA4_DEG
     from selfcal.kinematics.ik import nearest_reachable
 
-    fixed = {3: np.radians(TABLE_II_THETA4_DEG), 4: 0.0}
+    fixed: dict[int | str, float] = {3: float(np.radians(TABLE_II_THETA4_DEG)), 4: 0.0}
     return np.array([nearest_reachable(robot, p / 1000, fixed)[1] * 1000 for p in TABLE_II_MM])
 
 
