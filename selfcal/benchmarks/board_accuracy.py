@@ -70,6 +70,7 @@ import warnings
 from contextlib import redirect_stderr, redirect_stdout
 from io import StringIO
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -282,31 +283,31 @@ def real_set(name: str, work: Path, imported: tuple[Path, Path] | None = None) -
                  str(inp / "target.toml"), "--out", str(work / out))  # fmt: skip
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        out = calibrate_board_dataset_detailed(work / "cal")
-        cal = out.result
+        det = calibrate_board_dataset_detailed(work / "cal")
+        cal = det.result
         ev = evaluate_board(cal, str(work / "cal" / "calibration.json"), work / "held")
         held = Dataset.open(work / "held")
         board = dataset_board(held)
         feats, _ = detect_board(held, board, held.info.cameras[0])
-    assert out.cramer_rao is not None and cal.accuracy is not None
+    assert det.cramer_rao is not None and cal.accuracy is not None
     keep = [i for i, f in enumerate(feats) if len(f) >= board.min_features]
     q = np.radians(held.joints_deg)[keep]
     me = cal.accuracy.get("model_error") or {}
     robot = load_robot(Dataset.open(work / "cal").robot_source)
     js = encoder_sigma(robot)
-    args = dict(eye_to_hand=cal.eye_to_hand, joint_sigma=js,
+    args: dict[str, Any] = dict(eye_to_hand=cal.eye_to_hand, joint_sigma=js,
                 T_tool_point=np.asarray(cal.accuracy["T_tool_point_si"]))  # fmt: skip
     pts = [board.points(feats[i].ids) for i in keep]
     hd = cal.accuracy.get("held_deviation") or {}
     dev = Deviation(hd.get("translation_mm", 0.0) / 1e3, np.radians(hd.get("rotation_deg", 0.0)))
-    cr = with_deviation(out.cramer_rao,
+    cr = with_deviation(det.cramer_rao,
                         hd.get("share", 1.0) * dev.variance(cal.model.joint_types))  # fmt: skip
     em = board_error_model_from_json(cal.accuracy, cal.model, "calibration.json")
     pred = predicted_reprojection(cr, cal.cameras[0], q, pts,
                                   model_error_m=(me.get("position_mm") or 0.0) / 1e3,
                                   model_error_rad=np.radians(me.get("rotation_deg") or 0.0),
                                   reach=em.reach, **args)  # fmt: skip
-    cov_only = predicted_reprojection(out.cramer_rao, cal.cameras[0], q, pts, model_error_m=0.0,
+    cov_only = predicted_reprojection(det.cramer_rao, cal.cameras[0], q, pts, model_error_m=0.0,
                                       model_error_rad=0.0, **args)  # fmt: skip
     cv = cal.accuracy.get("cross_validation") or {}
     return {

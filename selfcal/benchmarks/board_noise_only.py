@@ -105,15 +105,15 @@ def noise_draw(robot: str, sigma_px: float, seed: int, noise_seed: int, q: dict 
         )
         setup = dataclasses.replace(setup, robot=robot_def)
     cal, truth, _ = calibrated(s, setup)
-    block = cal.accuracy
-    assert block is not None
+    block, bounds = cal.accuracy, cal.bounds
+    assert block is not None and bounds is not None
     em = board_error_model_from_json(block, cal.model, "calibration.json")
     if q is None:
         sample = draw_sample(cal, seed)
         q = {r: getattr(sample, r)[:POINTS] for r in REGIONS}
     true_b = true_chain(cal, truth)
     tip = np.asarray(block["T_tool_point_si"])
-    out: dict = {"q": q, "sigma_px": float(cal.bounds.pixel_sigma_px),
+    out: dict = {"q": q, "sigma_px": float(bounds.pixel_sigma_px),
                  "model_error": bool(em.model_error_m > 0)}  # fmt: skip
     for r in REGIONS:
         T_est, T_true = fk_tool(cal.model, q[r]) @ tip, fk_tool(true_b, q[r]) @ tip
@@ -251,8 +251,8 @@ def main(argv: list[str] | None = None) -> int:
     limit_threads(1)
     a = _arguments(argv)
     if a.load:
-        got = [g for f in a.load for g in pickle.loads(Path(f).read_bytes())]
-        print(report(got, f"{a.robot} fits {a.noise_px:g} px, draws of {', '.join(a.load)}",
+        loaded = [g for f in a.load for g in pickle.loads(Path(f).read_bytes())]
+        print(report(loaded, f"{a.robot} fits {a.noise_px:g} px, draws of {', '.join(a.load)}",
                      a.noise_px))  # fmt: skip
         return 0
     got: list[dict] = []

@@ -117,11 +117,11 @@ def run(runs: int, poses: int) -> str:
         "not computing, s / task | CPU s / task | start-up s | load (1-min average) |",
         "|---|---|---|---|---|---|---|---|",
     ]
-    for k, (label, workers, wall, start, _, l0, l1, busy, cpu) in enumerate(results):
+    for k, (label, workers, wall, start_s, _, l0, l1, busy, cpu) in enumerate(results):
         idle = (wall * workers - busy) / runs
         speed = "" if workers == 1 else f"{results[k - 1][2] / wall:.2f}"
-        extra = "" if start is None else f"{(wall - results[k - 2][2]) * workers / runs:+.2f}"
-        st = "" if start is None else f"{start:.1f}"
+        extra = "" if start_s is None else f"{(wall - results[k - 2][2]) * workers / runs:+.2f}"
+        st = "" if start_s is None else f"{start_s:.1f}"
         lines.append(
             f"| {label} | {wall:.1f} | {speed} | {extra} | {idle:.2f} | {cpu:.2f} | {st} | {l0:.1f} .. {l1:.1f} |"
         )

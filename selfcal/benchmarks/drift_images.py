@@ -192,7 +192,8 @@ def calibration_checks(args: tuple) -> dict:
             shift = np.eye(4)
             shift[:3, 3] = TOOL_SHIFT_M * u / np.linalg.norm(u)
             joint = int(rng.integers(n))
-            q_new, drawn = [], max(new_views, choose)
+            q_new: list[np.ndarray] = []
+            drawn = max(new_views, choose)
             for _ in range(10_000):
                 if len(q_new) == drawn:
                     break

@@ -222,7 +222,7 @@ def per_draw(sigma_px: float, seed: int, checks: int, robot: str | None) -> list
     rng = np.random.default_rng(seed + 7000)
     n = q_cal.shape[1]
     noise_dof = 2 * cal.bounds.observations - cal.bounds.unknowns
-    out = []
+    out: list[dict] = []
     for _ in range(checks):
         u = rng.normal(size=3)
         x = TOOL_SHIFT_M * u / np.linalg.norm(u)

@@ -30,6 +30,7 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -62,7 +63,7 @@ def parts(calibration: Path, dataset: Path) -> dict:
     noise = view_noise(cal, str(path))
     held = held_out_views(cal, dataset, cameras=(cal.camera_names[0],))
     views = calibration_views(cal, em, held.q, [(f, X, uv) for _, f, _, _, X, uv in held.views])
-    out = {key: dict.fromkeys(SPACES, 0.0) for key in (*PARTS, "measured")}
+    out: dict[str, Any] = {key: dict.fromkeys(SPACES, 0.0) for key in (*PARTS, "measured")}
     for v in views:
         n2 = len(v.r)
         H = np.concatenate([v.kin, v.cam], axis=1)

@@ -56,6 +56,8 @@ def run(poses: list[int], seeds: list[int], pixel_sigma: float) -> None:
                     out = calibrate_detailed(root, method="joint")
                     total = time.perf_counter() - t0
                 jr = out.joint
+                if jr is None:  # pragma: no cover - method="joint" sets it
+                    raise SystemExit(f"{root}: the joint calibration gave no joint refinement")
                 truth = read_truth(root / "truth.json")
                 qv = np.radians(Dataset.open(root).info.validation_joints_deg)
                 p_true = tool_tips(truth.true_model, qv, truth.T_cam_tip)

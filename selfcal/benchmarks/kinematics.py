@@ -44,8 +44,10 @@ def _time(fn: Callable[[], object], repeat: int) -> float:
 
 def _analytic_ik_rows(robot, qs: np.ndarray) -> list[tuple[str, float, str]]:
     """The ER-4u's closed-form IK (``selfcal.kinematics.ik``)."""
-    poses = [tool_pose(T, azimuth_rad=a) for T, a in zip(fk_nominal(robot, qs)[:, -1], qs[:, 0])]
-    poses = [(x, p, r) for x, p, r in poses if np.hypot(x[0], x[1]) > 1e-3]
+    all_poses = [
+        tool_pose(T, azimuth_rad=a) for T, a in zip(fk_nominal(robot, qs)[:, -1], qs[:, 0])
+    ]
+    poses = [(x, float(p), float(r)) for x, p, r in all_poses if np.hypot(x[0], x[1]) > 1e-3]
     k = len(poses)
     t_ik = _time(lambda: [ik(robot, x, p, r) for x, p, r in poses], 3) / k
     reachable = [(x, p, r) for x, p, r in poses if any(s.in_range for s in ik(robot, x, p, r))]
@@ -55,7 +57,7 @@ def _analytic_ik_rows(robot, qs: np.ndarray) -> list[tuple[str, float, str]]:
             ik_nearest(robot, x, p, r)
 
     t_ikn = _time(_ikn, 3) / max(len(reachable), 1)
-    fixed = {3: robot.home[3], 4: robot.home[4]}
+    fixed: dict[int | str, float] = {3: float(robot.home[3]), 4: float(robot.home[4])}
     t_nr = _time(lambda: [nearest_reachable(robot, x, fixed) for x, _, _ in poses[:5]], 1) / 5
     return [
         ("ik (all branches), per target", t_ik, f"mean over {k} targets"),

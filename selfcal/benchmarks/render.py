@@ -81,7 +81,12 @@ def _breakdown(r: StereoRenderer, data: mujoco.MjData, n: int) -> None:
     """Per-stage medians for one camera (uses the renderer's internals on purpose)."""
     cam, rect = r._cams[0], r._rects[0]
     buf = np.empty_like(r._bufs[0])
-    stages = {"update_scene": [], "mjr_render": [], "readPixels": [], "flip+copy": []}
+    stages: dict[str, list[float]] = {
+        "update_scene": [],
+        "mjr_render": [],
+        "readPixels": [],
+        "flip+copy": [],
+    }
     for _ in range(n):
         t0 = time.perf_counter()
         mujoco.mjv_updateScene(

@@ -227,7 +227,7 @@ def comparison(
     lines += [head, "|---|---|---|" + ("---|" if both else "")]
     for g in GOALS:
         row = f"| {g.what} | {g.limit:g} {g.unit} | {_verdict(g, g.value(fig))} |"
-        if both:
+        if ref is not None:
             row += f" {_verdict(g, g.value(ref))} |"
         lines.append(row)
     if max(fig.get("load", [0.0])) > 0.5:

@@ -45,7 +45,7 @@ def command_text(argv: list[str]) -> str:
 def table(fig: dict, command: str = COMMAND) -> str:
     """The Markdown block (README and docs/performance.md). ``fig`` with ``rounds``: the
     medians of that many rounds measured in turn with another tree (``--against``)."""
-    when = datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d %H:%M UTC")
+    when = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
     how = (f"each figure the median of {fig['rounds']} rounds, interleaved part by part with the "
            "other tree below; " if "rounds" in fig else "")  # fmt: skip
     lines = [

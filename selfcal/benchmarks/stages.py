@@ -75,7 +75,7 @@ def bench(poses: int, root: Path) -> dict:
         obs,
         W,
         H,
-        scale_markers=tuple(ds.info.scale_ids),
+        scale_markers=(int(ds.info.scale_ids[0]), int(ds.info.scale_ids[1])),
         scale_distance_m=ds.info.scale_length_m,
         nominal_cam_positions=fk_tool(nominal, q)[:, :3, 3],
     )

@@ -52,7 +52,8 @@ def _spans(limits: np.ndarray, revolute: np.ndarray) -> np.ndarray:
 def probe(robot_name: str, noise_mm: float, draws: int, model: str) -> list[str]:
     """The lines the module docstring describes, one per draw and one per region."""
     robot = load_robot(robot_name)
-    lines, pooled, held = [], {r: [] for r in REGIONS}, []
+    pooled: dict[str, list[tuple[float, float]]] = {r: [] for r in REGIONS}
+    lines, held = [], []
     for seed in range(draws):
         case, q, acc = calibrate(robot, noise_mm / 1e3, model, seed)
         me, em = acc.model_error, acc.error_model

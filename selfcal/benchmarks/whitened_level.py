@@ -66,7 +66,7 @@ def _rows(root: Path, sigma_px: float, deviation: Deviation | None) -> tuple[dic
     me = ((cal.accuracy or {}).get("model_error")) or {}
     if obs is None or det.fit.selection is None or det.fit.nominal is None or not me:
         return me, None
-    T_tp = np.asarray(cal.accuracy["T_tool_point_si"], float)
+    T_tp = np.asarray((cal.accuracy or {})["T_tool_point_si"], dtype=float)
     h = [held_out_errors(obs, fit, out, T_tp, cr)
          for out, fit, cr in fold_bounds(obs, det.fit.selection,
                                          det.fit.nominal.model.joint_offsets, T_tp, sigma_px)]  # fmt: skip

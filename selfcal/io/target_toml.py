@@ -29,10 +29,10 @@ from selfcal.errors import InputError, UsageTypeError
 from selfcal.io.jsonfile import Fields
 from selfcal.target import ArucoField, Target
 from selfcal.target.aruco_detect import aruco_dictionary
-from selfcal.target.boards import AprilGrid, Charuco, Chessboard, CirclesGrid
+from selfcal.target.boards import AprilGrid, Board, Charuco, Chessboard, CirclesGrid
 from selfcal.tomlfile import read_toml
 
-__all__ = ["TargetFileError", "load_target", "parse_target", "target_document", "TARGET_TYPES",
+__all__ = ["TargetFileError", "load_target", "load_board", "parse_target", "target_document", "TARGET_TYPES",
            "length_m", "dictionary_name", "MAX_LENGTH_MM",
            "load_field_scale"]  # fmt: skip
 
@@ -58,6 +58,21 @@ def load_target(path: str | Path) -> Target:
     p = Path(path)
     doc = read_toml(p, TargetFileError, _FIX, what="target file")
     return parse_target(doc, str(p))
+
+
+def load_board(path: str | Path) -> Board:
+    """The board declared in the target TOML ``path`` (:func:`load_target`).
+
+    Raises :class:`TargetFileError` naming the file and its key at fault, or the file if it
+    declares the ArUco field (no board)."""
+    target = load_target(path)
+    if not isinstance(target, Board):
+        raise TargetFileError(
+            f'{path}: declares the ArUco field (type = "field"), not a board',
+            fix="give a board's target TOML (chessboard, charuco, circles, aprilgrid; "
+            "models/targets/)",
+        )
+    return target
 
 
 def load_field_scale(path: str | Path) -> tuple[tuple[int, int], float]:

@@ -9,7 +9,13 @@ import cv2
 import numpy as np
 import pytest
 
-from selfcal.io.target_toml import TargetFileError, load_target, parse_target, target_document
+from selfcal.io.target_toml import (
+    TargetFileError,
+    load_board,
+    load_target,
+    parse_target,
+    target_document,
+)
 from selfcal.target import AprilGrid, ArucoField, Board, Charuco, Chessboard, CirclesGrid
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -129,6 +135,13 @@ def test_board_image_extent_matches_its_pixels(name):
 def test_examples_load():
     kinds = {type(load_target(p)) for p in EXAMPLES}
     assert kinds == {ArucoField, Chessboard, Charuco, CirclesGrid, AprilGrid}
+
+
+def test_load_board_refuses_the_field_by_its_file():
+    models = ROOT / "models" / "targets"
+    assert isinstance(load_board(models / "charuco.toml"), Charuco)
+    with pytest.raises(TargetFileError, match=r"field\.toml: declares the ArUco field"):
+        load_board(models / "field.toml")
 
 
 def test_docs_examples_are_the_example_files():

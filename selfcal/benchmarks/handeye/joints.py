@@ -93,7 +93,7 @@ def _case(perturbed: bool, workdir: Path, seed: int = 1) -> dict:
             cfg, MONO.read_text() + "\n[perturbation]\ntranslation_mm = 0.0\nrotation_deg = 0.0\n"
         )
         settings["config"] = str(cfg)
-    s = load_scenario(settings["config"])
+    s = load_scenario(str(settings["config"]))
     acquire_draw(settings, root)
     ds, truth = Dataset.open(root), read_truth(root / "truth.json")
     robot = load_robot(ds.info.robot_model)

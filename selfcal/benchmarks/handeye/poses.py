@@ -208,13 +208,16 @@ def _ours(s: Split, held: np.ndarray) -> tuple[dict, np.ndarray]:
             s.board, s.train, s.train_flange, s.setup, s.width, s.height, model="opencv",
             free=FREE, pose_noise=noise, camera=camera)  # fmt: skip
         cal = fit("auto", "auto")
+        if cal.refined is None:  # pragma: no cover - camera="auto" refines it
+            raise SystemExit("the hand-eye fit with camera='auto' gave no refined camera")
+        refined = cal.refined
         others = {k: fit(m, "refined").calibrated for k, m in MODES.items()}
     view, pts, uv = _rows(s.board, s.held, np.flatnonzero(held))
     A = chain_motions(s.setup, s.held_flange[held])
     models: dict[str, tuple[CameraModel, np.ndarray, np.ndarray]] = {
         "calibrated": (cal.calibrated.camera, cal.calibrated.X, cal.calibrated.B),
         "nominal": (cal.nominal.camera, cal.nominal.X, cal.nominal.B),
-        "camera refined": (cal.refined.camera, cal.refined.X, cal.refined.B),
+        "camera refined": (refined.camera, refined.X, refined.B),
         "linear start": (cal.camera_stage.camera, cal.X0, cal.B0),
         **{k: (f.camera, f.X, f.B) for k, f in others.items()},
     }

@@ -38,12 +38,12 @@ def posture_sets(count: int = 12, random_counts: tuple[int, ...] = (12, 30)) -> 
     pool's first ``random_counts`` postures, and the setup's robot and camera."""
     from selfcal.calibration.board.plan.views import PlanSetup
     from selfcal.io.camera_file import camera_from_fov
-    from selfcal.io.target_toml import load_target
+    from selfcal.io.target_toml import load_board
     from selfcal.robot.definition import load_robot, models_dir
     from selfcal.target.placement import board_pose
 
     robot = load_robot("ur5e")
-    board = load_target(models_dir() / "targets/charuco.toml")
+    board = load_board(models_dir() / "targets/charuco.toml")
     setup = PlanSetup(robot, camera_from_fov(60.0, 640, 480), board,
                       board_pose(board, BOARD_POSE[:3] / 1000.0), KEEP_OUT / 1000.0)  # fmt: skip
     return sets_of(setup, count, random_counts)

@@ -37,11 +37,11 @@ def posture_sets(count: int = 12, random_counts: tuple[int, ...] = (12, 30)) -> 
     from selfcal.benchmarks.plan.compare import sets_of
     from selfcal.calibration.board.plan.views import PlanSetup
     from selfcal.io.camera_file import camera_from_fov
-    from selfcal.io.target_toml import load_target
+    from selfcal.io.target_toml import load_board
     from selfcal.robot.definition import load_robot, models_dir
     from selfcal.target.placement import board_on_flange, camera_pose
 
-    board = load_target(models_dir() / "targets/charuco.toml")
+    board = load_board(models_dir() / "targets/charuco.toml")
     T_bc = camera_pose(CAMERA_POSE[:3] / 1000.0, np.radians(CAMERA_POSE[3:]))
     setup = PlanSetup.eye_to_hand_setup(load_robot("ur5e"), camera_from_fov(40.0, 640, 480),
                                         board, T_bc, board_on_flange(board))  # fmt: skip

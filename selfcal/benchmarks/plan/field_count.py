@@ -101,8 +101,11 @@ def main(argv: list[str] | None = None) -> int:
              "unknowns: camera + kinematics + corners + read-back | equations |",
              "|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
     lines += [_row(cell, name, q) for name, q in sets.items()]
-    r30 = field_forecast(setup, layout, sets["random 30"], ws, pixel_sigma_px=0.5,
-                         joint_sigma=cell["joint_sigma"]).tool_rms_m  # fmt: skip
+    f30 = field_forecast(setup, layout, sets["random 30"], ws, pixel_sigma_px=0.5,
+                         joint_sigma=cell["joint_sigma"])  # fmt: skip
+    r30 = f30.tool_rms_m
+    if r30 is None:
+        raise SystemExit(f"the random 30 postures have no forecast to compare with: {f30.why}")
     lines += ["", f"| plan of | forecast (mm) | chosen by | against the random 30's "
               f"{r30 * 1000:.3f} mm | `selfcal plan`'s advice |", "|---|---|---|---|---|"]  # fmt: skip
     for n in counts:

@@ -68,11 +68,11 @@ def one_draw(config: Path, joints_deg: np.ndarray, seed: int) -> dict:
     frames = {f.frame_index: f for f in truth.frames}
     T_cam = np.stack([frames[int(i)].T_world_cam_left for i in ds.indices])
     posed = place_nominal(nominal_mcpc(robot).with_tool(robot.T_flange_cam), qc, T_cam).model
-    fair = out.result.nominal
-    if fair is None:
+    fair, fair_model = out.result.nominal, out.result.nominal_model
+    if fair is None or fair_model is None:
         raise SystemExit(f"draw {seed}: the fair nominal's fit failed")
     p_true = tool_tips(truth.true_model, qv, truth.T_cam_tip)
-    models = {"drawn": truth.nominal_model, "fair": out.result.nominal_model, "true poses": posed,
+    models = {"drawn": truth.nominal_model, "fair": fair_model, "true poses": posed,
               "calibrated": out.model}  # fmt: skip
     row = {k: aligned_errors(tool_tips(m, qv, truth.T_cam_tip), p_true)["rms"]  # mm
            for k, m in models.items()}  # fmt: skip

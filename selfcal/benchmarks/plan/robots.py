@@ -107,13 +107,13 @@ def cell(name: str, rule=None):
     (:class:`selfcal.calibration.board.plan.views.ViewRule`; None: ``selfcal plan``'s)."""
     from selfcal.calibration.board.plan.views import PlanSetup, ViewRule
     from selfcal.io.camera_file import camera_from_fov
-    from selfcal.io.target_toml import load_target
+    from selfcal.io.target_toml import load_board
     from selfcal.robot.definition import load_robot
     from selfcal.target.placement import board_pose
 
     robot = load_robot(name)
     bp, box = cell_values(robot)
-    board = load_target(cell_target(name))
+    board = load_board(cell_target(name))
     setup = PlanSetup(robot, camera_from_fov(60.0, 640, 480), board,
                       board_pose(board, bp[:3] / 1000.0), box / 1000.0,
                       rule or ViewRule())  # fmt: skip
