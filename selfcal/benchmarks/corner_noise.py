@@ -65,7 +65,8 @@ class CornerNoise:
 
     def to_json(self) -> dict:
         """Plain numbers for a benchmark's row."""
-        out = {"count": self.count, "mean_u_px": self.mean_px[0], "mean_v_px": self.mean_px[1],
+        out: dict[str, float | int | None] = {
+               "count": self.count, "mean_u_px": self.mean_px[0], "mean_v_px": self.mean_px[1],
                "sigma_px": self.sigma_px, "rms_px": self.rms_px, "p99_px": self.p99_px,
                "outliers": self.outliers}  # fmt: skip
         if self.centre_sigma_px is not None:

@@ -89,7 +89,10 @@ def corner_errors_of(root: Path) -> tuple[list[tuple[int, int]], np.ndarray, np.
     corners = dict(zip(field.ids.tolist(), field.corners_world(), strict=True))
     keys, true, err = [], [], []
     for (index, _cam), found in sorted(detect_dataset(ds).detections.items()):
-        T = inv_pose(truth.frame(int(index)).T_world_cam_left)
+        frame = truth.frame(int(index))
+        if frame is None:
+            raise InternalError(f"{root}: truth.json has no frame {int(index)}")
+        T = inv_pose(frame.T_world_cam_left)
         for mid, uv in sorted(found.items()):
             t = truth.intrinsics_left.project(corners[int(mid)] @ T[:3, :3].T + T[:3, 3])
             e = np.asarray(uv, dtype=float).reshape(4, 2) - t
@@ -108,6 +111,7 @@ def _calibrated_on(render: Path, out: Path, keys: list, corners: np.ndarray) -> 
     ``corners`` (M, 4, 2) px of ``keys`` (written to ``out`` as a detections dataset): the
     tool-point error (mm, as the table's draws measure it) and the fit's noise estimate (px)."""
     from selfcal.calibration.field.calibrate import calibrate_detailed
+    from selfcal.errors import InternalError
     from selfcal.io.dataset import Dataset, DatasetWriter
     from selfcal.io.truth import read_truth
     from selfcal.kinematics.accuracy import aligned_errors, tool_tips
@@ -126,6 +130,8 @@ def _calibrated_on(render: Path, out: Path, keys: list, corners: np.ndarray) -> 
     qv = np.radians(ds.info.validation_joints_deg)
     true_tips = tool_tips(truth.true_model, qv, truth.T_cam_tip)
     tip = aligned_errors(tool_tips(res.model, qv, truth.T_cam_tip), true_tips)["rms"]
+    if res.joint is None:
+        raise InternalError(f"{out}: the field route returned no joint refinement")
     return float(tip), float(res.joint.sigma_px)
 
 
@@ -141,7 +147,7 @@ def draw(path: Path, joints_deg: list, seed: int, work: Path) -> dict:
                   "seed": seed, "traj_seed": 1, "perturb_seed": seed, "dither": True,
                   "joints_deg": joints_deg, "render": True}, render)  # fmt: skip
     keys, true, E = corner_errors_of(render)
-    out = {"seed": seed, "sigma_px": float(np.sqrt(np.mean(E**2))),
+    out: dict[str, object] = {"seed": seed, "sigma_px": float(np.sqrt(np.mean(E**2))),
            "centre_sigma_px": marker_centre_sigma(E),
         "shape_sigma_px": marker_shape_sigma(E), "markers": len(keys)}  # fmt: skip
     for name, V in variants(E, np.random.default_rng(seed)).items():
