@@ -61,6 +61,7 @@ from pathlib import Path
 import numpy as np
 
 from selfcal.benchmarks.doc_blocks import ROOT, write_block
+from selfcal.errors import UsageError
 from selfcal.io.atomic import write_text_atomic
 
 
@@ -267,7 +268,7 @@ def measure_part(part: str, args: argparse.Namespace, root: Path) -> dict:
         return {"ba": ba_against_scipy(args.ba_poses, root)}
     if part == "memory":
         return {"memory": calibrate_memory(args.poses)}
-    raise ValueError(f"unknown part {part!r}: one of {', '.join(PARTS)}")
+    raise UsageError(f"unknown part {part!r}: one of {', '.join(PARTS)}")
 
 
 def parts_of(args: argparse.Namespace) -> list[str]:

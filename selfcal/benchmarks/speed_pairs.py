@@ -19,6 +19,8 @@ import statistics
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
+from selfcal.errors import InternalError, UsageError
+
 __all__ = [
     "TREES",
     "Paired",
@@ -38,7 +40,7 @@ def schedule(parts: Sequence[str], rounds: int) -> list[tuple[int, str, str]]:
     """``(round, part, tree)`` in the order they run: in each round every part by one tree and
     at once by the other, this tree first in even rounds, REF first in odd ones."""
     if rounds < 1:
-        raise ValueError(f"rounds must be at least 1, got {rounds}")
+        raise UsageError(f"rounds must be at least 1, got {rounds}")
     order = []
     for k in range(rounds):
         first, second = TREES if k % 2 == 0 else TREES[::-1]
@@ -56,7 +58,7 @@ def merge_parts(fragments: Sequence[dict]) -> dict:
             if key == "load":
                 fig["load"] += list(value)
             elif key in fig:
-                raise ValueError(f"two parts both measured {key!r}")
+                raise InternalError(f"two parts both measured {key!r}")
             else:
                 fig[key] = value
     return fig
@@ -80,7 +82,7 @@ def _median(values: list) -> object:
     first = values[0]
     if isinstance(first, bool | str | int) or first is None:  # a count, a name: the same
         if any(v != first for v in values):
-            raise ValueError(f"a figure differs between the rounds: {values}")
+            raise InternalError(f"a figure differs between the rounds: {values}")
         return first
     if isinstance(first, float):
         return statistics.median(values)
@@ -145,7 +147,7 @@ def paired(this: Sequence[dict], ref: Sequence[dict]) -> dict[str, Paired]:
     """Every figure (:func:`named`) of two trees measured round by round (the same number of
     rounds, :func:`interleave`): the medians and the ratios of the pairs."""
     if len(this) != len(ref):
-        raise ValueError(f"{len(this)} rounds of this tree against {len(ref)} of REF")
+        raise UsageError(f"{len(this)} rounds of this tree against {len(ref)} of REF")
     a, b = [named(f) for f in this], [named(f) for f in ref]
     out = {}
     for key in dict.fromkeys([k for r in a + b for k in r]):

@@ -18,6 +18,7 @@ from selfcal.benchmarks.speed_pairs import (
     paired,
     schedule,
 )
+from selfcal.errors import InternalError, UsageError
 
 
 def test_each_part_is_run_by_both_trees_one_after_the_other_the_first_alternating():
@@ -32,7 +33,7 @@ def test_each_part_is_run_by_both_trees_one_after_the_other_the_first_alternatin
             i = order.index((k, part, "this"))
             j = order.index((k, part, "ref"))
             assert abs(i - j) == 1
-    with pytest.raises(ValueError, match="at least 1"):
+    with pytest.raises(UsageError, match="at least 1"):
         schedule(["a"], 0)
 
 
@@ -48,7 +49,7 @@ def test_the_benchmark_s_parts_are_the_ones_its_options_ask_for():
 def test_a_round_s_parts_are_merged_and_a_figure_measured_twice_is_refused():
     fig = merge_parts([{"load": [1.0, 2.0], "help": [0.1, 0.1]}, {"load": [3.0], "run": [3, 4]}])
     assert fig == {"load": [1.0, 2.0, 3.0], "help": [0.1, 0.1], "run": [3, 4]}
-    with pytest.raises(ValueError, match="'run'"):
+    with pytest.raises(InternalError, match="'run'"):
         merge_parts([{"run": [1, 1]}, {"run": [2, 2]}])
 
 
@@ -69,11 +70,11 @@ def test_the_rounds_medians_keep_the_figures_shape():
     assert fig["load"] == [1.0, 2.0, 3.0] and fig["rounds"] == 3
     assert isinstance(fig["calibrate"][0]["poses"], int)  # "300 poses", not "300.0"
     rounds[1]["ba"]["solver"] = "dense"
-    with pytest.raises(ValueError, match="differs between the rounds"):
+    with pytest.raises(InternalError, match="differs between the rounds"):
         median_figures(rounds)
     rounds[1]["ba"]["solver"] = "schur"
     rounds[2]["calibrate"][0]["used"] = 299
-    with pytest.raises(ValueError, match="differs between the rounds"):
+    with pytest.raises(InternalError, match="differs between the rounds"):
         median_figures(rounds)
 
 
