@@ -177,7 +177,7 @@ def _refuse_no_gain(path: str, force: bool) -> None:
     (:func:`selfcal.calibration.board.evaluate.no_gain`)."""
     import warnings
 
-    from selfcal.calibration.board.evaluate import evaluates, no_gain, read_evaluation
+    from selfcal.calibration.board.evaluate import evaluation_of, no_gain
     from selfcal.errors import SelfCalWarning
     from selfcal.io.board_calibration import calibration_kind, read_board_calibration
 
@@ -186,14 +186,10 @@ def _refuse_no_gain(path: str, force: bool) -> None:
         return
     board = calibration_kind(p) == "board"
     why = read_board_calibration(p).cv_verdict() if board else None
-    ev_path = p.parent / "evaluation.json"
-    if why is None and ev_path.is_file():
-        ev = read_evaluation(ev_path)
-        rms = ev.rms
-        if not evaluates(ev, p):
-            warnings.warn(f"{ev_path} evaluates {ev.calibration_file or ev.calibration}, not {p}: its held-out check is "
-                          "not used", SelfCalWarning, stacklevel=2)  # fmt: skip
-        elif no_gain(rms["calibrated"], rms["nominal"]):
+    if why is None:
+        ev_path, ev = evaluation_of(p, stacklevel=2)
+        rms = ev.rms if ev is not None else None
+        if rms is not None and no_gain(rms["calibrated"], rms["nominal"]):
             why = (f"its held-out reprojection in {ev_path} ({rms['calibrated']:.3f} px) is not "
                    f"below the fair nominal's ({rms['nominal']:.3f} px)")  # fmt: skip
     if why is None:

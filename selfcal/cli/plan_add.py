@@ -158,13 +158,10 @@ def cmd_add(args: argparse.Namespace) -> int:
 def _held_out(root: str | Path) -> tuple[tuple[float, float] | None, str]:
     """The held-out check of the calibration in ``root`` (calibrated, nominal px) from
     ``root/evaluation.json`` when that evaluates this calibration (else None), and its path."""
-    from selfcal.calibration.board.evaluate import evaluates, read_evaluation
+    from selfcal.calibration.board.evaluate import evaluation_of
 
-    path = Path(root) / "evaluation.json"
-    if not path.is_file():
-        return None, str(path)
-    ev = read_evaluation(path)
-    if not evaluates(ev, root):
+    path, ev = evaluation_of(root, warn=False)
+    if ev is None:
         return None, str(path)
     return (ev.rms["calibrated"], ev.rms["nominal"]), str(path)
 

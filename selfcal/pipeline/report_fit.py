@@ -15,13 +15,12 @@ and the ones held (:func:`board_fit_report`). Output: ``DIR/report.json`` and ``
 
 from __future__ import annotations
 
-import warnings
 from pathlib import Path
 
 import numpy as np
 
-from selfcal.calibration.board.evaluate import evaluates, no_gain, read_evaluation, worse
-from selfcal.errors import EXIT_INTERNAL, SelfCalError, SelfCalWarning
+from selfcal.calibration.board.evaluate import evaluation_of, no_gain, worse
+from selfcal.errors import EXIT_INTERNAL, SelfCalError
 from selfcal.io.atomic import write_text_atomic
 from selfcal.io.board_calibration import BoardCalibrationResult
 from selfcal.io.calibration import CalibrationResult
@@ -44,15 +43,12 @@ def _held_out(root: Path, method: str, every: int, chosen: str | None = None) ->
     leave-poses-out check; ``chosen``: the candidate the dataset's board calibration chose
     (its ``selection.chosen``), beside which the check's own calibration's choice is named when
     they differ (``selection_note``: the check then judges another model than the file's)."""
-    ev_path = root / "evaluation.json"
-    ev = read_evaluation(ev_path) if ev_path.is_file() else None
-    if ev is not None and evaluates(ev, root):
+    # as export: an evaluation of another calibration judges that one (warned, not used)
+    ev_path, ev = evaluation_of(root, stacklevel=3)
+    if ev is not None:
         return {"source": "selfcal evaluate", "file": str(ev_path), "dataset": ev.dataset,
                 "images": len(ev.images), "features": sum(i["features"] for i in ev.images),
                 "reprojection_rms_px": dict(ev.rms)}  # fmt: skip
-    if ev is not None:  # as export: an evaluation of another calibration judges that one
-        warnings.warn(f"{ev_path} evaluates {ev.calibration_file or ev.calibration}, not {root}: its held-out check is "
-                      "not used", SelfCalWarning, stacklevel=3)  # fmt: skip
     # the held-out calibrations (both routes' calibrators) load for a report without truth only
     from selfcal.calibration.field.holdout import leave_poses_out
 

@@ -34,6 +34,7 @@ __all__ = [
     "Evaluation",
     "calibration_file",
     "evaluates",
+    "evaluation_of",
     "names_calibration",
     "SAME_RMS",
     "no_gain",
@@ -362,6 +363,27 @@ def evaluates(ev: Evaluation, calibration: str | Path) -> bool:
     ``calibration.json`` or that file's folder): :func:`names_calibration` of its recorded
     paths. An evaluation kept beside another calibration's file judges that one, not this."""
     return names_calibration(ev.calibration, ev.calibration_file, calibration)
+
+
+def evaluation_of(calibration: str | Path, *, warn: bool = True,
+                  stacklevel: int = 2) -> tuple[Path, Evaluation | None]:  # fmt: skip
+    """``evaluation.json`` beside ``calibration`` (its ``calibration.json`` or that file's
+    folder) and the evaluation read from it when it evaluates that calibration
+    (:func:`evaluates`); None when there is none, or when it evaluates another calibration,
+    which ``warn`` says (a :class:`~selfcal.errors.SelfCalWarning` at the caller's
+    ``stacklevel``: its held-out check is not used). The one reader of the held-out check that
+    ``report``, ``export`` and ``plan --add`` find beside a calibration."""
+    p = Path(calibration)
+    path = (p if p.is_dir() else p.parent) / "evaluation.json"
+    if not path.is_file():
+        return path, None
+    ev = read_evaluation(path)
+    if evaluates(ev, p):
+        return path, ev
+    if warn:
+        warnings.warn(f"{path} evaluates {ev.calibration_file or ev.calibration}, not {p}: its "
+                      "held-out check is not used", SelfCalWarning, stacklevel=stacklevel + 1)  # fmt: skip
+    return path, None
 
 
 def names_calibration(given_path: str, absolute: str | None, calibration: str | Path) -> bool:
