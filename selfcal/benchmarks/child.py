@@ -5,8 +5,8 @@ Linux carries a process's resident set at ``fork`` into its child's ``ru_maxrss`
 in-process calibrations, a bag it wrote) would report at least the benchmark's size. A small
 launcher process forks and execs the command instead, so the floor is the launcher's ~10 MB;
 it also times the command from its fork to its exit (the launcher's own start-up left out).
-The speed benchmark (:mod:`selfcal.benchmarks.speed`) and the bag import benchmark
-(:mod:`selfcal.benchmarks.ros`) measure their commands with it.
+The speed benchmark (:mod:`selfcal.benchmarks.speed.measure`) and the bag import benchmark
+(:mod:`selfcal.benchmarks.timing.ros`) measure their commands with it.
 """
 
 from __future__ import annotations

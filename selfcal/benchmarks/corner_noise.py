@@ -1,6 +1,6 @@
 """The detector's corner noise on a simulated board or field dataset, measured against the truth.
 
-For the rendered board benchmarks (:mod:`selfcal.benchmarks.board_accuracy` ``--render``):
+For the rendered board benchmarks (:mod:`selfcal.benchmarks.board.accuracy` ``--render``):
 every detected feature of the dataset's first camera against the true projection of the same
 board point (the true camera at the frame's true camera pose, the board at the truth's pose),
 so the corner noise a row reports is the detector's own, not the calibration's residual (which

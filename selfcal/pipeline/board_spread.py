@@ -55,7 +55,7 @@ class BootstrapRun:
     """The bootstrap a command asks for: ``count`` resamples drawn with ``seed``, refitted by
     ``runner`` (default in this process); ``held``: every refit fits the calibration's chosen
     kinematic parameters (the default), False: each runs its own parameter selection (a
-    benchmark's comparison, ``selfcal.benchmarks.board_spread --selection free``)."""
+    benchmark's comparison, ``selfcal.benchmarks.board.spread --selection free``)."""
 
     count: int
     seed: int = 0

@@ -7,8 +7,8 @@ is given are the readings ``q`` while the links stand at :meth:`JointCompliance.
 A constant chain can absorb only the bend's mean over the calibration postures; what varies with
 ``q2 + q3`` stays a model error that grows with reach.
 
-Used by the accuracy benchmarks (:mod:`selfcal.benchmarks.tool_accuracy` on tracker rows,
-:mod:`selfcal.benchmarks.board_accuracy` through the simulator's actual robot,
+Used by the accuracy benchmarks (:mod:`selfcal.benchmarks.tracker.accuracy` on tracker rows,
+:mod:`selfcal.benchmarks.board.accuracy` through the simulator's actual robot,
 :class:`selfcal.sim.kinematic_robot.KinematicRobot`'s ``compliance``). Simulation only: a
 dataset never carries it, and ``truth.json``'s true chain is the chain without the bend.
 """

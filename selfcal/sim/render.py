@@ -5,7 +5,7 @@ built once per pair (``mjv_updateScene`` for the left camera) and only the camer
 the right one (``mjv_updateCamera``), which halves the CPU-side scene update. Images are uint8
 RGB (H, W, 3) with row 0 at the top, in the pixel convention of ``selfcal.sim.mj_camera``.
 
-Timing (``selfcal/benchmarks/render.py``, 640x480, 2 CPU cores shared with other jobs, Mesa
+Timing (``selfcal/benchmarks/timing/render.py``, 640x480, 2 CPU cores shared with other jobs, Mesa
 llvmpipe via EGL, default LP_NUM_THREADS = 2): about 20-35 ms per stereo pair with 4x MSAA
 (llvmpipe grants at most 4 samples; 8 or 16 fall back to 4) and 9-16 ms without MSAA. Almost all
 of it is llvmpipe rasterisation + the multisample resolve, which ``mjr_readPixels`` waits for;

@@ -1,11 +1,11 @@
-"""selfcal.benchmarks.render runs, with the per-stage breakdown (it crashed: the renderer's
+"""selfcal.benchmarks.timing.render runs, with the per-stage breakdown (it crashed: the renderer's
 rectangle became one per camera, ``_rects``, and the breakdown still read ``_rect``)."""
 
 from __future__ import annotations
 
 import re
 
-from selfcal.benchmarks import render as benchmark_render
+from selfcal.benchmarks.timing import render as benchmark_render
 
 
 def test_breakdown_prints_each_stage(capsys):

@@ -16,7 +16,7 @@ import warnings
 import numpy as np
 import pytest
 
-from selfcal.benchmarks.board_views import board_pose, board_views
+from selfcal.benchmarks.board.views import board_pose, board_views
 from selfcal.calibration.board.robot import calibrate_robot_with_board
 from selfcal.config.scenario import load_scenario
 from selfcal.estimation.joint_report import encoder_sigma

@@ -28,7 +28,7 @@ import numpy as np
 import pytest
 
 from selfcal.acquisition.eye_to_hand import static_cell
-from selfcal.benchmarks.board_accuracy import prior
+from selfcal.benchmarks.board.accuracy import prior
 from selfcal.config.scenario import load_scenario
 from selfcal.io.board_calibration import read_board_calibration
 from selfcal.io.truth import read_truth

@@ -2,7 +2,7 @@
 
 The pipeline runs on the analytic path (projected corners, no rendering) so each dataset takes a
 few seconds. Tolerances are stated per test; the noisy-seed numbers are discussed in the module
-docstring of selfcal/benchmarks/joint.py.
+docstring of selfcal/benchmarks/timing/joint.py.
 """
 
 from __future__ import annotations

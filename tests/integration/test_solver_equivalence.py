@@ -15,7 +15,7 @@ from scipy.optimize import least_squares
 
 import selfcal.calibration.field.joint_refine as joint_refine
 import selfcal.estimation.bundle_adjust as bundle_adjust
-from selfcal.benchmarks.speed import off_minimum as _perturbed
+from selfcal.benchmarks.speed.measure import off_minimum as _perturbed
 from selfcal.calibration.field.calibrate import calibrate
 from selfcal.config.scenario import load_scenario
 from selfcal.pipeline.run import run_acquire

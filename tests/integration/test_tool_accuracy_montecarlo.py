@@ -1,11 +1,11 @@
 """Monte Carlo of the predicted tool-point accuracy (slow; the benchmark
-selfcal/benchmarks/tool_accuracy.py runs 30 draws on two robots and three noise levels)."""
+selfcal/benchmarks/tracker/accuracy.py runs 30 draws on two robots and three noise levels)."""
 
 from __future__ import annotations
 
 import pytest
 
-from selfcal.benchmarks.tool_accuracy import run
+from selfcal.benchmarks.tracker.accuracy import run
 
 
 @pytest.mark.slow

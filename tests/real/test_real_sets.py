@@ -17,7 +17,7 @@ nothing). Asserted per set:
 - ``selfcal check`` finds the Nachi sets' held-out group (same session, unchanged arm) unchanged,
   and changed against the calibration with a small lens change (k3) written into its file;
 - issue #29: the held-out reprojection RMS the board calibration predicts is within 0.67-1.5x
-  the one ``evaluate`` measures, as ``uv run python -m selfcal.benchmarks.board_accuracy --real``
+  the one ``evaluate`` measures, as ``uv run python -m selfcal.benchmarks.board.accuracy --real``
   reports it (docs/tool-accuracy.md), on the splits the commands above imported.
 
 What fails today is marked ``xfail(strict=True)`` with the figure measured, so the tier stays
@@ -40,7 +40,7 @@ import cv2
 import numpy as np
 import pytest
 
-from selfcal.benchmarks.board_accuracy import REAL_SETS, real_set
+from selfcal.benchmarks.board.accuracy import REAL_SETS, real_set
 from selfcal.calibration.board.evaluate import SAME_RMS
 from selfcal.calibration.board.plan.add_ground import SCALE_RANGE
 from selfcal.io.plan_files import read_plan
@@ -573,7 +573,7 @@ def test_a_morning_check_at_the_calibrations_postures(name, outcome, runs_dir):
     the check before selfcal/calibration/drift/paired.py) they carry their posture's misfit and
     the fit's residual there: these five said changed on mecheye (exit 5) and unchanged at p =
     0.021 on photoneo, and 100 of 100 draws of 5 re-noised frames' corners said changed on both
-    sets (`uv run python -m selfcal.benchmarks.drift_real_morning CAL`)."""
+    sets (`uv run python -m selfcal.benchmarks.drift.real_morning CAL`)."""
     outcome.held_out_rms()  # import and calibrate ran
     cal = runs_dir / name / "calib"
     morning = runs_dir / name / "morning"
@@ -607,7 +607,7 @@ def test_check_finds_a_lens_change_in_the_calibration(name, outcome, runs_dir):
     Bonferroni level 0.9 % / 0.5 %); it was found only because the unchanged group already sat
     near an alarm in that test (18.7 / 23.2 on 8 dof) and the move added to it. The camera test
     finds a k3 move with 95 % power from 0.37 / 0.44 (`uv run python -m
-    selfcal.benchmarks.drift_real_lens CAL HELD`)."""
+    selfcal.benchmarks.drift.real_lens CAL HELD`)."""
     outcome.held_out_rms()  # import and calibrate ran
     doc = json.loads((runs_dir / name / "calib" / "calibration.json").read_text())
     doc["cameras"][0]["parameters"]["k3"] += LENS_K3[name]

@@ -90,7 +90,7 @@ def test_huge_integers_are_protocol_errors(n):
 def test_reply_read_byte_by_byte_analyses_each_line_once(monkeypatch):
     """Linear time: a 4 KB reply fed one byte at a time analyses each of its lines once (the
     old reader re-split the whole reply on every byte: 2.6 s for 4 KB; see
-    selfcal/benchmarks/acl.py for the time)."""
+    selfcal/benchmarks/timing/acl.py for the time)."""
     calls = []
     original = ReplyAssembler._take_line
     monkeypatch.setattr(

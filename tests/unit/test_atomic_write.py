@@ -107,7 +107,7 @@ ALLOWED = {
     "selfcal/ros/bag_stage.py",
     "selfcal/sim/build_models.py",
     "selfcal/benchmarks/tracker/compare.py",
-    "selfcal/benchmarks/ros.py",
+    "selfcal/benchmarks/timing/ros.py",
     "selfcal/benchmarks/tracker/pybotics_fit.py",
     "selfcal/benchmarks/handeye/opencv4.py",  # runs in OpenCV 4's environment, without selfcal
 }

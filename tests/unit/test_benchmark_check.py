@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import re
 
-from selfcal.benchmarks.speed_table import TOLERANCE, check, figures_of, readme_block
+from selfcal.benchmarks.speed.table import TOLERANCE, check, figures_of, readme_block
 
 
 def _scaled(block: str, row: str, factor: float) -> str:
@@ -36,7 +36,7 @@ def test_selfcal_run_is_timed_into_a_new_folder_each_time(tmp_path):
     import pathlib
     import sys
 
-    from selfcal.benchmarks.speed import beside_a_busy_process, run_seconds
+    from selfcal.benchmarks.speed.measure import beside_a_busy_process, run_seconds
 
     fake = [sys.executable, "-c", "import pathlib, sys; pathlib.Path(sys.argv[-1]).mkdir()"]
     wall, cpu = run_seconds(fake, tmp_path / "run", 3)

@@ -1,5 +1,5 @@
 """The posture-distance bins of the board accuracy benchmark's points
-(selfcal.benchmarks.board_accuracy_binned): every point in the bin of its distance, the bins'
+(selfcal.benchmarks.board.accuracy_binned): every point in the bin of its distance, the bins'
 statistics of their own points, bad edges refused."""
 
 from __future__ import annotations
@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from selfcal.benchmarks.board_accuracy_binned import binned, table
+from selfcal.benchmarks.board.accuracy_binned import binned, table
 from selfcal.errors import UsageError
 
 

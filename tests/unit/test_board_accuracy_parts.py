@@ -1,12 +1,12 @@
 """The board accuracy Monte Carlo's look inside a row: the orientation covariance's directions
-(selfcal.benchmarks.board_accuracy_parts, issue #29)."""
+(selfcal.benchmarks.board.accuracy_parts, issue #29)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from selfcal.benchmarks.board_accuracy_parts import (
+from selfcal.benchmarks.board.accuracy_parts import (
     bound_check,
     directions,
     first_point,
@@ -108,7 +108,7 @@ def test_a_draw_kept_by_other_code_is_drawn_again(tmp_path, monkeypatch, kept_by
     """``--keep`` never reuses a draw that the code checked out did not draw (review of session
     23: the file's name holds robot, noise, seed and truth only): it is drawn again and kept in
     its place with this code."""
-    from selfcal.benchmarks import board_accuracy_parts
+    from selfcal.benchmarks.board import accuracy_parts as board_accuracy_parts
 
     old = _draw(np.array([2.0, -1.0, 0.5])) | ({"code": kept_by} if kept_by else {})
     path = tmp_path / "ur5e_0.2px_seed7_truthNone.npz"

@@ -1,4 +1,4 @@
-"""The board accuracy benchmark's rows (selfcal.benchmarks.board_accuracy): each says which code
+"""The board accuracy benchmark's rows (selfcal.benchmarks.board.accuracy): each says which code
 measured it, the table names the codes, and ``--from-rows`` merges a rerun of some rows into a
 whole run's."""
 
@@ -9,9 +9,9 @@ import json
 import numpy as np
 import pytest
 
-from selfcal.benchmarks import board_accuracy
-from selfcal.benchmarks.board_accuracy_draw import REGIONS
-from selfcal.benchmarks.board_accuracy_tables import BLOCK_SEEDS, pooled_rows, table
+from selfcal.benchmarks.board import accuracy as board_accuracy
+from selfcal.benchmarks.board.accuracy_draw import REGIONS
+from selfcal.benchmarks.board.accuracy_tables import BLOCK_SEEDS, pooled_rows, table
 from selfcal.benchmarks.doc_blocks import read_block
 from selfcal.errors import InputError
 
@@ -187,7 +187,7 @@ def test_from_rows_writes_docs_only_for_the_seeds_it_is_given(tmp_path, monkeypa
 def test_docs_hold_a_block_for_each_seed_block_write_docs_writes():
     """docs/tool-accuracy.md has the markers of every block of :data:`BLOCK_SEEDS`, so
     ``--write-docs`` of those seeds has where to write (a missing pair is an error there)."""
-    from selfcal.benchmarks.board_accuracy_tables import DOC
+    from selfcal.benchmarks.board.accuracy_tables import DOC
 
     for name in BLOCK_SEEDS.values():
         assert "|---|" in read_block(DOC, name), name

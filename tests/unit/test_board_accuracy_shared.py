@@ -1,12 +1,12 @@
 """Whether two robots' board accuracy draws of one seed share their chance
-(selfcal.benchmarks.board_accuracy_shared, issue #29)."""
+(selfcal.benchmarks.board.accuracy_shared, issue #29)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from selfcal.benchmarks.board_accuracy_shared import main, shared, shared_lines
+from selfcal.benchmarks.board.accuracy_shared import main, shared, shared_lines
 from selfcal.errors import UsageError
 
 SD = np.array([2.0, 1.0, 0.5, 3.0, 1.5])

@@ -60,11 +60,11 @@ def test_the_jackknife_needs_two_fold_fits():
 
 
 def test_the_jackknife_of_a_mean_over_equal_folds_is_unbiased_and_of_a_wide_fit_is_not():
-    """selfcal.benchmarks.jackknife_bias: the expected jackknife variance of a mean (one
+    """selfcal.benchmarks.board.jackknife_bias: the expected jackknife variance of a mean (one
     parameter, every row alike) over equal folds is the true variance, exactly (so the (k - 1) /
     k factor is right; dropped it would read 1.25); with eight parameters on 30 rows it is
     biased upward (the benchmark: 1.55 on average)."""
-    from selfcal.benchmarks.jackknife_bias import expected_ratio
+    from selfcal.benchmarks.board.jackknife_bias import expected_ratio
     from selfcal.calibration.board.folds import fold_labels
 
     fold = fold_labels(np.repeat(np.arange(15), 2))

@@ -1,4 +1,4 @@
-"""One truth, new noise only (selfcal.benchmarks.board_noise_only, issue #29): the read-back
+"""One truth, new noise only (selfcal.benchmarks.board.noise_only, issue #29): the read-back
 whose count grid moves per draw, and the empirical against the predicted covariance."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from selfcal.benchmarks.board_noise_only import DitheredReadBack, ratios
+from selfcal.benchmarks.board.noise_only import DitheredReadBack, ratios
 from selfcal.robot.definition import load_robot
 from selfcal.robot.encoder import EncoderSpec
 

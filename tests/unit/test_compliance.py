@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from selfcal.benchmarks.board_accuracy import scenario, simulated
-from selfcal.benchmarks.compliance_reach import bend_spread
-from selfcal.benchmarks.tool_accuracy import coverage
+from selfcal.benchmarks.board.accuracy import scenario, simulated
+from selfcal.benchmarks.board.compliance_reach import bend_spread
+from selfcal.benchmarks.tracker.accuracy import coverage
 from selfcal.errors import UsageError
 from selfcal.kinematics.forward import fk_tool
 from selfcal.sim.compliance import SHOULDER, JointCompliance
@@ -65,7 +65,7 @@ def test_the_benchmarks_row_statistics():
 
 
 def test_the_bends_spread_is_taken_from_its_mean_at_the_calibration_postures():
-    """selfcal.benchmarks.compliance_reach: what a calibration could see of the bend (its spread
+    """selfcal.benchmarks.board.compliance_reach: what a calibration could see of the bend (its spread
     over the postures, mean removed) against what a region holds (its deviation from that mean)."""
     q_cal = np.zeros((3, 6))
     q_cal[:, 1] = [0.0, 0.1, 0.2]  # q2 + q3 near 0: the bend near its largest

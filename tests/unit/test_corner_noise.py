@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from selfcal.benchmarks.board_accuracy import scenario
+from selfcal.benchmarks.board.accuracy import scenario
 from selfcal.benchmarks.corner_noise import corner_noise
 from selfcal.pipeline.run import run_acquire
 
@@ -32,9 +32,9 @@ def test_rendered_rows_table_the_detectors_corner_noise(tmp_path, capsys):
     ``--from-rows`` tables the rows a run appended, as the rendered block."""
     import json
 
-    from selfcal.benchmarks.board_accuracy import main
-    from selfcal.benchmarks.board_accuracy_draw import REGIONS
-    from selfcal.benchmarks.board_accuracy_tables import pooled_rows
+    from selfcal.benchmarks.board.accuracy import main
+    from selfcal.benchmarks.board.accuracy_draw import REGIONS
+    from selfcal.benchmarks.board.accuracy_tables import pooled_rows
 
     rng = np.random.default_rng(0)
     got = []
@@ -63,7 +63,7 @@ def test_the_analytic_rows_default_to_90_draws_and_the_rendered_to_30():
     """The analytic block pools 90 draws a row (30 left the ER-4u's coverage at the far end of a
     right bound's spread on one seed block, 60 its orientation: docs/tool-accuracy.md), the
     rendered one 30; a given count is kept and a count below one refused."""
-    from selfcal.benchmarks.board_accuracy import draws_per_row
+    from selfcal.benchmarks.board.accuracy import draws_per_row
     from selfcal.errors import InputError
 
     assert draws_per_row(None, render=False) == 90
@@ -77,8 +77,8 @@ def test_the_analytic_tables_command_makes_its_rows():
     """The analytic block's last line names the options that make its rows (draws, robots,
     models, noise levels in the rows' order), and no ``--draws`` when the rows' counts differ
     (rows of several runs tabled with ``--from-rows``)."""
-    from selfcal.benchmarks.board_accuracy_draw import REGIONS
-    from selfcal.benchmarks.board_accuracy_tables import pooled_rows, table
+    from selfcal.benchmarks.board.accuracy_draw import REGIONS
+    from selfcal.benchmarks.board.accuracy_tables import pooled_rows, table
 
     rng = np.random.default_rng(1)
 
@@ -88,7 +88,7 @@ def test_the_analytic_tables_command_makes_its_rows():
 
     rows = [*pooled_rows("ur5e", "fits", 0.2, got(3)), *pooled_rows("ur5e", "compliance", 0.2, got(3)),
             *pooled_rows("kr6-r900", "fits", 0.5, got(3))]  # fmt: skip
-    assert ("3 draws per row (0 failed in all)" in table(rows) and "board_accuracy --draws 3 "
+    assert ("3 draws per row (0 failed in all)" in table(rows) and "board.accuracy --draws 3 "
             "--robots ur5e,kr6-r900 --models fits,compliance --noise-px 0.2,0.5 --jobs 1 "
             "--write-docs`" in table(rows))  # fmt: skip
     mixed = table([*rows, *pooled_rows("kr6-r900", "fits", 0.05, got(4))])
@@ -99,8 +99,8 @@ def test_the_rows_split_the_coverage_where_the_calibration_measured_its_model_er
     """A draw's row 7 (1 where the calibration says its model error is not measured) splits the
     pooled coverage and RMS ratio into the measured and the not-measured points; the table gives
     both beside the share not measured and the folds' median reach; older rows give "-"."""
-    from selfcal.benchmarks.board_accuracy_draw import REGIONS
-    from selfcal.benchmarks.board_accuracy_tables import pooled_rows, table
+    from selfcal.benchmarks.board.accuracy_draw import REGIONS
+    from selfcal.benchmarks.board.accuracy_tables import pooled_rows, table
 
     e = np.ones((8, 4))
     e[0], e[2] = 2.0, 1.0  # the bound 2, the predicted RMS 1

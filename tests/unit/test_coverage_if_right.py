@@ -1,4 +1,4 @@
-"""The coverage a right prediction would show (selfcal.benchmarks.tool_accuracy, issue #29):
+"""The coverage a right prediction would show (selfcal.benchmarks.tracker.accuracy, issue #29):
 the board and tracker Monte Carlos' yardstick for their pooled coverage."""
 
 from __future__ import annotations
@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from selfcal.benchmarks.tool_accuracy import coverage_if_right, right_range
+from selfcal.benchmarks.tracker.accuracy import coverage_if_right, right_range
 from selfcal.kinematics.mcpc import minimal_indices, nominal_mcpc
 from selfcal.kinematics.tool_error import ToolErrorModel
 from selfcal.robot.definition import load_robot
@@ -65,7 +65,7 @@ def test_the_gaussian_read_back_has_the_rounded_counts_standard_deviation():
     longer on the count grid."""
     import dataclasses
 
-    from selfcal.benchmarks.board_accuracy import GaussianReadBack
+    from selfcal.benchmarks.board.accuracy import GaussianReadBack
     from selfcal.robot.encoder import EncoderSpec
 
     enc = load_robot("er4u-paper").encoder

@@ -1,4 +1,4 @@
-"""The image drift benchmark's docs block (selfcal.benchmarks.drift_images, issue #29): a run of
+"""The image drift benchmark's docs block (selfcal.benchmarks.drift.images, issue #29): a run of
 some setups and robots rewrites their rows and keeps the others, and refuses to mix rows
 measured with other options."""
 
@@ -6,9 +6,9 @@ from __future__ import annotations
 
 import pytest
 
-from selfcal.benchmarks import drift_images
 from selfcal.benchmarks.doc_blocks import read_block
-from selfcal.benchmarks.drift_images import BLOCK, DOC, docs_rows, merge_rows, parse_block, table
+from selfcal.benchmarks.drift import images as drift_images
+from selfcal.benchmarks.drift.images import BLOCK, DOC, docs_rows, merge_rows, parse_block, table
 
 
 def _row(setup: str, noise: float, tool: float) -> dict:

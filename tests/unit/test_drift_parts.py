@@ -1,4 +1,4 @@
-"""What limits the drift check's power, per draw (selfcal.benchmarks.drift_parts --per-draw,
+"""What limits the drift check's power, per draw (selfcal.benchmarks.drift.parts --per-draw,
 issue #29): its tests recomputed from the whitened Gram matrix of the candidates' columns and
 the residuals are the check's own, and the statistics it reads against their null are."""
 
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.stats import chi2, norm
 
-from selfcal.benchmarks.drift_parts import _rounded_power, _tests, per_draw_summary
+from selfcal.benchmarks.drift.parts import _rounded_power, _tests, per_draw_summary
 from selfcal.calibration.drift.covariance import change_information, view_covariance
 from selfcal.calibration.drift.images import image_drift_check
 from selfcal.calibration.drift.views import view_jacobians

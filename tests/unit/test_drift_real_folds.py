@@ -1,4 +1,4 @@
-"""The real drift benchmark's joint estimate (selfcal/benchmarks/drift_real_folds.py): the held
+"""The real drift benchmark's joint estimate (selfcal/benchmarks/drift/real_folds.py): the held
 deviation's share ``c`` and the per-view misfit's scale ``a`` from the folds' residual energy in
 the deviation's pixel span and outside it."""
 
@@ -9,7 +9,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from selfcal.benchmarks.drift_real_folds import (
+from selfcal.benchmarks.drift.real_folds import (
     Fold,
     excess_without,
     joint_moments,

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from scipy.stats import chi2, norm
 
-from selfcal.benchmarks.drift_images import chosen_views, read_joints
+from selfcal.benchmarks.drift.images import chosen_views, read_joints
 from selfcal.calibration.drift.covariance import change_information, view_covariance
 from selfcal.calibration.drift.fold_error import fold_error_model, fold_excess
 from selfcal.calibration.drift.images import (

@@ -1,7 +1,7 @@
 """The README states exactly what was measured.
 
 - The times (the test suite, the first and a later `selfcal run`) are the ones the commands printed,
-  recorded in docs/measurements.toml by `python -m selfcal.benchmarks.times` (not timed here).
+  recorded in docs/measurements.toml by `python -m selfcal.benchmarks.speed.times` (not timed here).
 - Every accuracy figure of the "Accuracy and speed" table names its path (analytic or rendered)
   and a test that exists and asserts it; every timing figure names the benchmark that measures it.
 """

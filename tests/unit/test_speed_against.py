@@ -5,8 +5,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from selfcal.benchmarks.speed_against import GOALS, comparison, named, part_argv
-from selfcal.benchmarks.speed_pairs import paired
+from selfcal.benchmarks.speed.against import GOALS, comparison, named, part_argv
+from selfcal.benchmarks.speed.pairs import paired
 
 
 def _fig(run: float, loaded: float, cal300: float, mb: float, load: float = 0.2) -> dict:

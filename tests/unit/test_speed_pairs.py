@@ -9,8 +9,8 @@ import statistics
 
 import pytest
 
-from selfcal.benchmarks.speed import PARTS, parts_of
-from selfcal.benchmarks.speed_pairs import (
+from selfcal.benchmarks.speed.measure import PARTS, parts_of
+from selfcal.benchmarks.speed.pairs import (
     TREES,
     interleave,
     median_figures,

@@ -1,11 +1,11 @@
 """The probe of the tracker benchmark's model error against the truth
-(selfcal.benchmarks.tool_accuracy_growth, issue #29)."""
+(selfcal.benchmarks.tracker.accuracy_growth, issue #29)."""
 
 from __future__ import annotations
 
 import re
 
-from selfcal.benchmarks.tool_accuracy_growth import probe
+from selfcal.benchmarks.tracker.accuracy_growth import probe
 
 
 def test_one_draw_of_the_ur5e_compliance():

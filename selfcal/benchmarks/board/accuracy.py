@@ -24,7 +24,7 @@ expresses it; the true flange is then the true chain's at the bent joints).
 Reported per row: coverage (the share of (draw, point) pairs whose true error is within the
 predicted 95 % bound; target 90-98 %) beside the central 90 % range of the coverage a right
 prediction would show on the same draws (each draw's errors drawn from its own prediction:
-:func:`selfcal.benchmarks.tool_accuracy.coverage_if_right`; one calibration's errors over the
+:func:`selfcal.benchmarks.tracker.accuracy.coverage_if_right`; one calibration's errors over the
 workspace are one draw of its parameters' error, so the pooled coverage of a row's draws
 spreads by several per cent, most where few parameter directions move the tool, as the ER-4u's
 orientation), the same for the covariance alone (no model error), the
@@ -50,11 +50,11 @@ the estimate's errors with the share of the held parameters' deviation its folds
 (:mod:`selfcal.calibration.board.held_prior`), the model error, the joint and pixel noise)
 against the one ``selfcal evaluate`` measures (target 0.67-1.5x).
 
-Run: ``uv run python -m selfcal.benchmarks.board_accuracy [--draws 90] [--jobs 2] [--robots
+Run: ``uv run python -m selfcal.benchmarks.board.accuracy [--draws 90] [--jobs 2] [--robots
 R,..] [--models M,..] [--noise-px S,..] [--poses 30] [--first-seed 1] [--read-back rounded]
 [--render] [--rows-out FILE] [--from-rows FILE ..] [--real] [--write-docs]`` (rewrites the tables in docs/tool-accuracy.md:
 the analytic draws seeded 1, 2, ... and 181, 182, ..., ``--first-seed 181``, have a block each,
-:data:`selfcal.benchmarks.board_accuracy_tables.BLOCK_SEEDS`; an option no block takes is refused
+:data:`selfcal.benchmarks.board.accuracy_tables.BLOCK_SEEDS`; an option no block takes is refused
 in one line before anything runs).
 """
 
@@ -74,7 +74,7 @@ from typing import Any
 
 import numpy as np
 
-from selfcal.benchmarks.board_accuracy_draw import (
+from selfcal.benchmarks.board.accuracy_draw import (
     MODELS,
     POSES,
     REGIONS,
@@ -86,7 +86,7 @@ from selfcal.benchmarks.board_accuracy_draw import (
     simulated,
     simulated_calibration,
 )
-from selfcal.benchmarks.board_accuracy_tables import (
+from selfcal.benchmarks.board.accuracy_tables import (
     BLOCK_REAL,
     DOC,
     docs_block,

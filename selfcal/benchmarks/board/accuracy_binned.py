@@ -1,8 +1,8 @@
 """Benchmark: a board calibration's true flange error against the posture distance (issue #29).
 
 Per robot, model and corner noise level, ``--draws`` draws of the board accuracy Monte Carlo
-(:func:`selfcal.benchmarks.board_accuracy_draw.draw`: the same seeds, calibrations and
-workspace samples as :mod:`selfcal.benchmarks.board_accuracy`'s rows; analytic path), every
+(:func:`selfcal.benchmarks.board.accuracy_draw.draw`: the same seeds, calibrations and
+workspace samples as :mod:`selfcal.benchmarks.board.accuracy`'s rows; analytic path), every
 joint vector of the three regions' samples pooled and binned by its posture distance to the
 nearest calibration posture (:func:`selfcal.kinematics.tool_error.posture_distance` in the unit
 of :func:`selfcal.kinematics.tool_error.joint_spans`: each joint's range, a revolute joint's at
@@ -12,7 +12,7 @@ the true chain's, no noise), the predicted RMS, the coverage of the predicted 95
 share the calibration flags as not measured (farther than its folds' reach); under the table the
 median of the draws' reach (the folds' largest held-out distance, the same unit).
 
-Run: ``uv run python -m selfcal.benchmarks.board_accuracy_binned [--draws 10] [--jobs 1]
+Run: ``uv run python -m selfcal.benchmarks.board.accuracy_binned [--draws 10] [--jobs 1]
 [--robots R,..] [--models M,..] [--noise-px S,..] [--edges 0,0.05,..]`` (prints the table;
 no docs block).
 """
@@ -24,7 +24,7 @@ import sys
 
 import numpy as np
 
-from selfcal.benchmarks.board_accuracy_draw import MODELS, REGIONS, ROBOTS, draw
+from selfcal.benchmarks.board.accuracy_draw import MODELS, REGIONS, ROBOTS, draw
 from selfcal.benchmarks.pool import map_jobs
 from selfcal.errors import UsageError
 from selfcal.threads import limit_threads
@@ -37,7 +37,7 @@ EDGES = (0.0, 0.05, 0.1, 0.2, 0.3, 0.5, 0.7, np.inf)
 
 def binned(points: list[np.ndarray], edges: tuple[float, ...] = EDGES) -> list[dict]:
     """The bins of the joint vectors ``points`` (each (9, m): a draw's region rows, as
-    :func:`selfcal.benchmarks.board_accuracy_draw.draw` returns them: predicted 95 % bound,
+    :func:`selfcal.benchmarks.board.accuracy_draw.draw` returns them: predicted 95 % bound,
     the same without model error, predicted RMS, true error (mm), three orientation rows, the
     not-measured flag, the posture distance) by their distance within ``edges`` (a point at an
     edge goes to the bin above it); empty bins are left out. Each: ``low``, ``high``,

@@ -1,4 +1,4 @@
-"""One draw of the board accuracy Monte Carlo (:mod:`selfcal.benchmarks.board_accuracy`, issue
+"""One draw of the board accuracy Monte Carlo (:mod:`selfcal.benchmarks.board.accuracy`, issue
 #29): the draw's scenario and simulator, the calibration's deviation prior, and one simulated
 board calibration with its predicted against its true flange error over the workspace sample.
 """
@@ -19,7 +19,7 @@ from scipy.spatial.transform import Rotation
 
 from selfcal.acquisition.simulator_setup import SimSetup, sim_setup
 from selfcal.benchmarks.corner_noise import corner_noise
-from selfcal.benchmarks.tool_accuracy import coverage_if_right
+from selfcal.benchmarks.tracker.accuracy import coverage_if_right
 from selfcal.calibration.board.accuracy import (
     board_error_model_from_json,
     board_postures_from_json,
@@ -207,7 +207,7 @@ def draw(args: tuple) -> dict:
     (:func:`selfcal.kinematics.tool_error.posture_distance` in the unit of
     :func:`selfcal.kinematics.tool_error.joint_spans`); ``measured_to``: the folds' reach (unit-free distance, infinite
     without folds); per region also ``<region>_right``, the coverage a right prediction would
-    show there (:func:`selfcal.benchmarks.tool_accuracy.coverage_if_right`); ``model_error_mm``;
+    show there (:func:`selfcal.benchmarks.tracker.accuracy.coverage_if_right`); ``model_error_mm``;
     rendered, the detector's ``corners``
     (:func:`selfcal.benchmarks.corner_noise.corner_noise`); ``status``."""
     robot, sigma_px, model, seed = args[:4]

@@ -1,10 +1,10 @@
 """Benchmark: which parameters' predicted covariance the board calibration's errors realise (#29).
 
-The board accuracy Monte Carlo (:mod:`selfcal.benchmarks.board_accuracy`) pools the predicted
+The board accuracy Monte Carlo (:mod:`selfcal.benchmarks.board.accuracy`) pools the predicted
 95 % bound's coverage of the flange's true error. This script looks inside one of its rows:
-per draw (the same draws, :func:`selfcal.benchmarks.board_accuracy_draw.calibrated`) the
+per draw (the same draws, :func:`selfcal.benchmarks.board.accuracy_draw.calibrated`) the
 calibration's error in every minimal parameter (against the true chain in the board frame, the
-calibration's joint offsets: :func:`selfcal.benchmarks.board_accuracy_draw.true_chain`) and in
+calibration's joint offsets: :func:`selfcal.benchmarks.board.accuracy_draw.true_chain`) and in
 the camera's free parameters (against the simulator's camera), each in units of its predicted
 standard deviation (the accuracy block's ``covariance_si`` and ``camera_covariance_si``): ``z``.
 A right covariance gives ``z`` a mean near 0 and a mean square near 1 over the draws (the mean
@@ -42,7 +42,7 @@ truth, holding the code that drew it: :func:`selfcal.benchmarks.doc_blocks.code_
 read from there when it is already in it and was drawn by the code checked out, a clean commit
 (the numbers the same: each draw is seeded); else it is drawn again and kept in its place.
 
-Run: ``uv run python -m selfcal.benchmarks.board_accuracy_parts [--robot er4u-paper]
+Run: ``uv run python -m selfcal.benchmarks.board.accuracy_parts [--robot er4u-paper]
 [--noise-px 0.2] [--draws 20] [--first-seed 1] [--fixed-truth SEED | --noise-offset N] [--jobs 1]
 [--keep DIR]``.
 """
@@ -58,7 +58,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 from scipy.stats import binom, chi2, kstest
 
-from selfcal.benchmarks.board_accuracy_draw import (
+from selfcal.benchmarks.board.accuracy_draw import (
     calibrated,
     draw_sample,
     scenario,
@@ -322,7 +322,7 @@ def table(got: list[dict], title: str) -> str:
 
 def draw_options(ap: argparse.ArgumentParser, draws: int) -> None:
     """The draws' options ``ap`` gets (this script's and
-    :mod:`selfcal.benchmarks.board_accuracy_shared`'s): ``--noise-px``, ``--draws`` (default
+    :mod:`selfcal.benchmarks.board.accuracy_shared`'s): ``--noise-px``, ``--draws`` (default
     ``draws``), ``--first-seed``, ``--jobs`` and ``--keep``."""
     ap.add_argument("--noise-px", type=float, default=0.2, help="corner noise (px, default 0.2)")
     ap.add_argument("--draws", type=int, default=draws, help=f"draws (default {draws})")

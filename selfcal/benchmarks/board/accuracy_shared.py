@@ -1,21 +1,21 @@
 """Benchmark: whether two robots' board accuracy draws of one seed share their chance (#29).
 
-The board accuracy Monte Carlo (:mod:`selfcal.benchmarks.board_accuracy`) draws every robot
+The board accuracy Monte Carlo (:mod:`selfcal.benchmarks.board.accuracy`) draws every robot
 with the same seeds, and a seed's corner noise is the same stream of standard normals for every
 robot (:func:`selfcal.acquisition.backends.open_robot`: ``default_rng(seed + 7919)``), laid on
 other corners of other views. When two robots' rows of the same seeds both sit at the far end
 of a right bound's spread (the orientation's over-coverage on seeds 1-90), that is one chance
 if their draws' errors go together and two if they do not. Per seed, both robots' draws
-(:func:`selfcal.benchmarks.board_accuracy_parts.kept_draw`) and over the seeds the rank
+(:func:`selfcal.benchmarks.board.accuracy_parts.kept_draw`) and over the seeds the rank
 correlation of each draw's orientation error against its prediction at its first inside joint
-vector (:func:`selfcal.benchmarks.board_accuracy_parts.first_point`: the integral transform
+vector (:func:`selfcal.benchmarks.board.accuracy_parts.first_point`: the integral transform
 ``u`` and the whitened error) and the correlation of the camera's shared free parameters'
 errors in their predicted standard deviations (the parameters the camera mount's tilt trades
 with). Independent draws give correlations within about ``+-1.645 / sqrt(d - 1)`` for ``d``
 seeds (90 %); ``--noise-offset N`` draws the second robot's noise with the seed ``N`` higher
 (its truths and postures kept): a control whose draws share no noise.
 
-Run: ``uv run python -m selfcal.benchmarks.board_accuracy_shared [--robots er4u-paper,ur5e]
+Run: ``uv run python -m selfcal.benchmarks.board.accuracy_shared [--robots er4u-paper,ur5e]
 [--noise-px 0.2] [--draws 90] [--first-seed 1] [--noise-offset N] [--jobs 1] [--keep DIR]``.
 """
 
@@ -27,7 +27,7 @@ import sys
 import numpy as np
 from scipy.stats import pearsonr, spearmanr
 
-from selfcal.benchmarks.board_accuracy_parts import draw_options, first_point, kept_draw
+from selfcal.benchmarks.board.accuracy_parts import draw_options, first_point, kept_draw
 from selfcal.benchmarks.doc_blocks import code_version
 from selfcal.benchmarks.pool import map_jobs
 from selfcal.errors import UsageError
@@ -38,7 +38,7 @@ __all__ = ["main", "shared", "shared_lines"]
 
 def shared(a: list[dict], b: list[dict]) -> dict:
     """The correlations over the seeds of two robots' draws ``a`` and ``b``
-    (:func:`selfcal.benchmarks.board_accuracy_parts.draw_parts`, the same seeds in the same
+    (:func:`selfcal.benchmarks.board.accuracy_parts.draw_parts`, the same seeds in the same
     order; a seed with a failed draw left out): ``seeds``; ``u`` and ``whitened`` the Spearman
     correlation and its p of the two robots' :func:`first_point` values; ``camera`` by name of
     the free camera parameters both draws have, the Pearson correlation and its p of their errors

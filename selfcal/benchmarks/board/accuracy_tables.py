@@ -1,4 +1,4 @@
-"""The board accuracy Monte Carlo's rows and Markdown tables (:mod:`selfcal.benchmarks.board_accuracy`,
+"""The board accuracy Monte Carlo's rows and Markdown tables (:mod:`selfcal.benchmarks.board.accuracy`,
 issue #29): the draws of a row pooled per region, the simulated (analytic and rendered) and the
 real sets' tables, and the docs/tool-accuracy.md blocks they go to.
 """
@@ -7,11 +7,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from selfcal.benchmarks.board_accuracy_draw import COUNT, POSES, REGIONS
+from selfcal.benchmarks.board.accuracy_draw import COUNT, POSES, REGIONS
 from selfcal.benchmarks.corner_noise import corner_stats
 from selfcal.benchmarks.doc_blocks import ROOT, codes_note
-from selfcal.benchmarks.tool_accuracy import coverage, right_range
-from selfcal.benchmarks.tool_accuracy import mark as _mark
+from selfcal.benchmarks.tracker.accuracy import coverage, right_range
+from selfcal.benchmarks.tracker.accuracy import mark as _mark
 from selfcal.errors import InputError
 
 __all__ = [
@@ -86,7 +86,7 @@ def pooled_rows(robot: str, model: str, s: float, got: list[dict],
 def _measured(d: list[np.ndarray], reach: list[float | None]) -> dict:
     """The coverage and the pooled predicted / true RMS apart at the points where the calibration
     measured its model error and where it says it did not (a draw's row 7, 1.0 there:
-    :func:`selfcal.benchmarks.board_accuracy_draw.draw`), the share not measured, and the
+    :func:`selfcal.benchmarks.board.accuracy_draw.draw`), the share not measured, and the
     median of the draws' reach ``reach`` (the folds' largest held-out distance, unit-free) over
     the draws that have one (finite); none for draws without row 7 (older rows)."""
     if not d or any(len(x) < 8 for x in d):
@@ -126,7 +126,7 @@ def _range(r: dict, key: str) -> str:
 
 
 def table(rows: list[dict]) -> str:
-    """The Markdown table of :func:`selfcal.benchmarks.board_accuracy.run`'s rows."""
+    """The Markdown table of :func:`selfcal.benchmarks.board.accuracy.run`'s rows."""
     head = (
         "| robot | model | noise (px) | region | true RMS (mm) | coverage of the 95 % bound "
         "(target 90-98 %) | a right bound's, 90 % range | covariance alone | predicted / true RMS "
@@ -154,14 +154,14 @@ def table(rows: list[dict]) -> str:
     lines += ["", f"{_sizes(first)} draws per row ({failed} failed in all), "
               f"scenarios/mono-charuco.toml on the analytic path with each robot, {poses} "
               f"calibration postures, {COUNT} joint vectors per region and draw; `uv run python "
-              f"-m selfcal.benchmarks.board_accuracy {_options(first)}`"
+              f"-m selfcal.benchmarks.board.accuracy {_options(first)}`"
               f"{_codes(first)}."]  # fmt: skip
     return head + "\n".join(lines)
 
 
 def _codes(first: list[dict]) -> str:
     """The end of the table's last line: the code that measured the rows ``first`` (one per
-    robot, model and noise; their ``code``, :func:`selfcal.benchmarks.board_accuracy.run`),
+    robot, model and noise; their ``code``, :func:`selfcal.benchmarks.board.accuracy.run`),
     :func:`selfcal.benchmarks.doc_blocks.codes_note`."""
     return codes_note(first, ("robot", "model", "noise_px"))
 
@@ -212,7 +212,7 @@ def _options(first: list[dict]) -> str:
 
 
 def table_rendered(rows: list[dict]) -> str:
-    """The Markdown table of :func:`selfcal.benchmarks.board_accuracy.run`'s rendered rows (``noise_px`` the image noise)."""
+    """The Markdown table of :func:`selfcal.benchmarks.board.accuracy.run`'s rendered rows (``noise_px`` the image noise)."""
     head = (
         "| robot | model | image noise (grey levels) | detector corner noise (px, median / "
         "largest draw) | its bias / 99 % (px) | region | true RMS (mm) | coverage of the 95 % "
@@ -238,7 +238,7 @@ def table_rendered(rows: list[dict]) -> str:
               "does (`[noise] render = true`, the image noise as `image_sigma`), "
               f"{POSES} calibration postures, {COUNT} joint vectors per region and draw; the "
               "corner noise is the detected corners against their true projections; "
-              f"`MUJOCO_GL=egl uv run python -m selfcal.benchmarks.board_accuracy --render "
+              f"`MUJOCO_GL=egl uv run python -m selfcal.benchmarks.board.accuracy --render "
               f"{_options(first)}`{_codes(first)}."]  # fmt: skip
     return head + "\n".join(lines)
 
@@ -260,5 +260,5 @@ def real_table(rows: list[dict]) -> str:
     return "\n".join([
         "| " + " | ".join(cols) + " |", "|" + "---|" * len(cols), *map(_real_row, rows), "",
         "the sets' README commands (docs/real-data.md); "
-        "`uv run python -m selfcal.benchmarks.board_accuracy --real --write-docs`.",
+        "`uv run python -m selfcal.benchmarks.board.accuracy --real --write-docs`.",
     ])  # fmt: skip

@@ -1,19 +1,19 @@
 """Benchmark: how much of the simulated compliance the calibration postures show (issue #29).
 
-The board accuracy Monte Carlo's misfit (:mod:`selfcal.benchmarks.board_accuracy`, model
+The board accuracy Monte Carlo's misfit (:mod:`selfcal.benchmarks.board.accuracy`, model
 ``compliance``: :data:`selfcal.sim.compliance.SHOULDER`, joint 2 bends by 0.05 deg x
 cos(q2 + q3)) is judged over three regions of the workspace. A calibration can absorb the
 bend's mean over its postures (joint 2's offset does); what a held-out check can see of the
 rest is the bend's spread over the calibration postures, while the tool point's error over a
 region grows with the bend's deviation there from that mean. Per robot, over the same draws
-(:func:`selfcal.benchmarks.board_accuracy.scenario`: postures seeded by the draw) and the same
+(:func:`selfcal.benchmarks.board.accuracy.scenario`: postures seeded by the draw) and the same
 workspace sample as the Monte Carlo (:func:`selfcal.kinematics.tool_error.workspace_sample`,
 the acquired postures' joint ranges): the RMS (deg) of the bend less its mean over the
 calibration postures, at the calibration postures and over each region, pooled over the draws,
 and the workspace's against the postures'. No calibration is run: the postures come from the
 acquisition alone (analytic path).
 
-Run: ``uv run python -m selfcal.benchmarks.compliance_reach [--draws 10] [--robots R,..]
+Run: ``uv run python -m selfcal.benchmarks.board.compliance_reach [--draws 10] [--robots R,..]
 [--write-docs]`` (rewrites the table in docs/tool-accuracy.md).
 """
 
@@ -29,8 +29,8 @@ from pathlib import Path
 
 import numpy as np
 
-from selfcal.benchmarks.board_accuracy_draw import COUNT, REGIONS, ROBOTS, scenario, simulated
-from selfcal.benchmarks.board_accuracy_tables import DOC
+from selfcal.benchmarks.board.accuracy_draw import COUNT, REGIONS, ROBOTS, scenario, simulated
+from selfcal.benchmarks.board.accuracy_tables import DOC
 from selfcal.benchmarks.doc_blocks import print_table
 from selfcal.io.dataset import Dataset
 from selfcal.kinematics.tool_error import workspace_sample
@@ -91,7 +91,7 @@ def table(rows: list[dict]) -> str:
     draws = "/".join(sorted({str(r["draws"]) for r in rows}))
     lines += ["", f"RMS of joint 2's bend less its mean over the calibration postures; {draws} "
               "draws per robot (the board accuracy Monte Carlo's postures and workspace sample); "
-              "`uv run python -m selfcal.benchmarks.compliance_reach --write-docs`."]  # fmt: skip
+              "`uv run python -m selfcal.benchmarks.board.compliance_reach --write-docs`."]  # fmt: skip
     return head + "\n".join(lines)
 
 

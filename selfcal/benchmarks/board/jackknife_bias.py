@@ -12,7 +12,7 @@ calibration: a linear model of ``p`` parameters, ``rows`` unit-noise rows per co
 variance ``||L||_F^2`` of the fit on every row. Printed: that ratio's mean and range over
 ``--designs`` random designs per case (seeded), 1 meaning no bias.
 
-Run: ``uv run python -m selfcal.benchmarks.jackknife_bias [--designs 200] [--seed 0]``
+Run: ``uv run python -m selfcal.benchmarks.board.jackknife_bias [--designs 200] [--seed 0]``
 (a second at most).
 """
 

@@ -1,4 +1,4 @@
-"""``python -m selfcal.benchmarks.board_montecarlo [--draws 30] [--jobs 2]``: an alias of
+"""``python -m selfcal.benchmarks.board.montecarlo [--draws 30] [--jobs 2]``: an alias of
 ``selfcal montecarlo scenarios/mono-charuco.toml --draws N --out DIR`` (one camera + ChArUco on
 the analytic path against the board route's Cramer-Rao bound, :mod:`selfcal.studies.montecarlo.run` with
 :mod:`selfcal.studies.montecarlo.board`), kept for the commands written before ``selfcal montecarlo``

@@ -1,7 +1,7 @@
 """Benchmark: one truth, new noise only -- the board calibration's predicted covariance against
 the empirical one of its estimates (#29, the orientation's over-coverage).
 
-The board accuracy Monte Carlo (:mod:`selfcal.benchmarks.board_accuracy`) draws a new truth,
+The board accuracy Monte Carlo (:mod:`selfcal.benchmarks.board.accuracy`) draws a new truth,
 new postures and new noise in every draw and pools coverage. This script holds ONE truth and
 ONE set of postures (those of ``--seed``, the Monte Carlo's draw of that seed) and redraws only
 what a calibration's predicted covariance is about: the corner noise (``--draws`` noise seeds
@@ -12,7 +12,7 @@ new in every draw (with the plain rounding a fixed truth and postures read back 
 in every draw: ``--read-back fixed`` keeps that, its spread is then the pixel noise's alone).
 
 At a few joint vectors of each region (the first :data:`POINTS` of the draw's workspace sample,
-:func:`selfcal.benchmarks.board_accuracy_draw.draw_sample`, the same in every draw) it compares
+:func:`selfcal.benchmarks.board.accuracy_draw.draw_sample`, the same in every draw) it compares
 the empirical covariance ``S`` (about the draws' mean, ``K - 1`` degrees of freedom) of the true
 tool errors (position m, orientation rad as rotation vectors, board frame) with the mean over
 the draws of the covariance each calibration predicts there, ``P`` (``J C J^T`` from the
@@ -23,11 +23,11 @@ degrees of freedom: the script prints that 90 % range. The same for the paramete
 empirical covariance of the calibration's errors in its minimal and camera parameters against
 the predicted one (``covariance_si`` with the camera's block and cross block), along the
 directions that carry the orientation's predicted variance
-(:func:`selfcal.benchmarks.board_accuracy_parts.directions`) and per parameter. Also the
+(:func:`selfcal.benchmarks.board.accuracy_parts.directions`) and per parameter. Also the
 bounds' corner noise (``bounds.pixel_sigma_px``, the fit's own, dof-corrected) against the
 simulated one, and in how many draws a model error was counted.
 
-Run: ``nice -n 10 uv run python -m selfcal.benchmarks.board_noise_only --robot ur5e --seed 1
+Run: ``nice -n 10 uv run python -m selfcal.benchmarks.board.noise_only --robot ur5e --seed 1
 --noise-px 0.2 --draws 100``.
 """
 
@@ -43,7 +43,7 @@ import numpy as np
 from scipy import stats
 from scipy.spatial.transform import Rotation
 
-from selfcal.benchmarks.board_accuracy_draw import (
+from selfcal.benchmarks.board.accuracy_draw import (
     REGIONS,
     calibrated,
     draw_sample,
@@ -51,7 +51,7 @@ from selfcal.benchmarks.board_accuracy_draw import (
     simulated,
     true_chain,
 )
-from selfcal.benchmarks.board_accuracy_parts import directions
+from selfcal.benchmarks.board.accuracy_parts import directions
 from selfcal.calibration.board.accuracy import board_error_model_from_json
 from selfcal.camera.spec import values_by_name
 from selfcal.io.atomic import write_bytes_atomic

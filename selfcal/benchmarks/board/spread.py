@@ -17,7 +17,7 @@ failed; under the table per posture count the predicted RMS, the jackknife and t
 calibration's true tool-point error at the validation postures. The rows are stamped with the
 code that measured them (:func:`selfcal.benchmarks.doc_blocks.code_version`).
 
-Run: ``MUJOCO_GL=egl uv run python -m selfcal.benchmarks.board_spread [--poses 15,30]
+Run: ``MUJOCO_GL=egl uv run python -m selfcal.benchmarks.board.spread [--poses 15,30]
 [--seeds 1,2,3] [--refits 20] [--selection held|free] [--jobs 1] [--write-docs]``
 (``--write-docs``: the held table in docs/tool-accuracy.md, between the ``benchmark_board_spread``
 markers; about 2 s of CPU per refit on 15 postures, idle).
@@ -145,7 +145,7 @@ def main(argv: list[str] | None = None) -> int:
                  else "each refit with its own parameter selection")  # fmt: skip
     lines += ["", *notes, "",
               f"Selection: {selection}. Measured by the code at {code or 'an unknown commit'} "
-              f"(`python -m selfcal.benchmarks.board_spread --poses {args.poses} --seeds "
+              f"(`python -m selfcal.benchmarks.board.spread --poses {args.poses} --seeds "
               f"{args.seeds} --refits {args.refits} --selection {args.selection}`)."]  # fmt: skip
     return print_table("\n".join(lines), DOCS, BLOCK, write=args.write_docs)
 

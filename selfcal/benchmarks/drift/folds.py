@@ -1,5 +1,5 @@
 """A real board calibration's folds as new views of the drift check (issue #29, the real drift
-benchmark :mod:`selfcal.benchmarks.drift_real_folds`).
+benchmark :mod:`selfcal.benchmarks.drift.real_folds`).
 
 Each fold of the calibration (the chosen candidate fitted without one arm configuration,
 :func:`selfcal.calibration.board.fold_fits.fold_bounds`) is a calibration and its held-out frames
@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from selfcal.benchmarks.drift_real_deviation import deviation_part, with_share
+from selfcal.benchmarks.drift.real_deviation import deviation_part, with_share
 from selfcal.calibration.board.accuracy import board_error_model, held_out_errors
 from selfcal.calibration.board.dataset import calibrate_board_dataset_detailed
 from selfcal.calibration.board.deviation import Deviation

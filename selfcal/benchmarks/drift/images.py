@@ -37,11 +37,11 @@ codes_note`).
 ``--setup eye-to-hand``: the same on ``scenarios/eye-to-hand.toml`` (a static camera, the board
 on a UR5e's flange; the mount shift moves the board on the flange, analytic path).
 ``--robot``: the eye-in-hand rows on these robots' files instead of the ER-4u's (the same
-scenario, as :mod:`selfcal.benchmarks.board_accuracy` runs it on them), each with its own
+scenario, as :mod:`selfcal.benchmarks.board.accuracy` runs it on them), each with its own
 encoder read-back (e.g. the UR5e's 0.0007 deg per count; the KR 6's file states none: its
 joints are read and taken as exact).
 
-Run: ``nice -n 10 uv run python -m selfcal.benchmarks.drift_images [--calibrations 30]
+Run: ``nice -n 10 uv run python -m selfcal.benchmarks.drift.images [--calibrations 30]
 [--checks 10] [--setup eye-in-hand eye-to-hand] [--robot er4u-paper ur5e kr6-r900] [--jobs 1]
 [--views 5] [--min-p] [--choose POOL] [--write-docs]`` (rewrites the rows of the setups, robots and noise levels it ran
 in the table of docs/tool-accuracy.md and keeps the others, :func:`docs_rows`).
@@ -57,7 +57,7 @@ from functools import partial
 
 import numpy as np
 
-from selfcal.benchmarks.board_accuracy_draw import SCENARIO, simulated_calibration
+from selfcal.benchmarks.board.accuracy_draw import SCENARIO, simulated_calibration
 from selfcal.benchmarks.doc_blocks import (
     ROOT,
     code_version,
@@ -325,7 +325,7 @@ def table(rows: list[dict], checks: int) -> str:
             "of the checks of unchanged data, of the shifted mount and of the offset joint, "
             "how many said neither 'changed' nor 'unchanged' (not counted as "
             "changed; - : not recorded). `nice -n 10 uv run python -m "
-            f"selfcal.benchmarks.drift_images --calibrations {rows[0]['calibrations'] + rows[0]['failed']} "
+            f"selfcal.benchmarks.drift.images --calibrations {rows[0]['calibrations'] + rows[0]['failed']} "
             f"--setup {' '.join(dict.fromkeys(r['setup'].split(',')[0] for r in rows))}"
             f"{robots_arg(rows)}{extra}{' --write-docs' if docs else ''}`"
             f"{codes_note(rows, CODE_KEYS)}.")  # fmt: skip

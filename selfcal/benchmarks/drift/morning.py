@@ -2,7 +2,7 @@
 
 A cell that checks its calibration every morning drives the same few postures, often the
 calibration's own. Per pixel noise level and model: ``--calibrations`` simulated board
-calibrations (:mod:`selfcal.benchmarks.board_accuracy_draw`'s draw: ``scenarios/mono-charuco.toml``
+calibrations (:mod:`selfcal.benchmarks.board.accuracy_draw`'s draw: ``scenarios/mono-charuco.toml``
 on ``--robot``, 30 postures, analytic, calibrated as ``selfcal run`` does), the true arm either
 a chain of the model's kind (``fits``) or bending at the shoulder (``compliance``,
 :data:`selfcal.sim.compliance.SHOULDER`, or ``--amplitude-deg``: a misfit of each posture that
@@ -11,13 +11,13 @@ no chain expresses and that repeats when the arm returns), each checked ``--chec
 through the true, bent, chain with new pixel noise; the joints read back as the acquisition
 reads them, so at the frame's reading): unchanged, the camera moved on its mount by 0.2 mm (a
 random direction) and one joint (drawn) offset by 0.05 deg, as
-:mod:`selfcal.benchmarks.drift_images`. Each set of views is checked two ways on the same draws:
+:mod:`selfcal.benchmarks.drift.images`. Each set of views is checked two ways on the same draws:
 as new views (the check before :mod:`selfcal.calibration.drift.paired`), each against the
 calibration's frame at its posture, and as ``selfcal check`` chooses now (with the calibration's
 dataset beside its file: paired where the calibration counted a per-view misfit, else new). Reported: the share of checks that say "changed" (alpha 0.01; the
 issue's target: below 2 % unchanged, at least 95 % changed).
 
-Run: ``nice -n 10 uv run python -m selfcal.benchmarks.drift_morning [--calibrations 10]
+Run: ``nice -n 10 uv run python -m selfcal.benchmarks.drift.morning [--calibrations 10]
 [--checks 10] [--noise-px 0.05 0.2] [--models fits compliance] [--amplitude-deg A]
 [--robot er4u-paper] [--views 5] [--jobs 1]``.
 """
@@ -31,8 +31,8 @@ import warnings
 
 import numpy as np
 
-from selfcal.benchmarks.board_accuracy_draw import calibrated_folder, scenario, simulated
-from selfcal.benchmarks.drift_images import JOINT_OFFSET_RAD, NEW_VIEWS, TOOL_SHIFT_M, read_joints
+from selfcal.benchmarks.board.accuracy_draw import calibrated_folder, scenario, simulated
+from selfcal.benchmarks.drift.images import JOINT_OFFSET_RAD, NEW_VIEWS, TOOL_SHIFT_M, read_joints
 from selfcal.benchmarks.pool import map_jobs
 from selfcal.calibration.board.evaluate import held_out_views
 from selfcal.calibration.drift.images import (
@@ -163,7 +163,7 @@ def table(rows: list[dict], argv: list[str]) -> str:
              for r in rows]  # fmt: skip
     return (
         head + "\n".join(lines) + "\n\n`nice -n 10 uv run python -m "
-        "selfcal.benchmarks.drift_morning " + " ".join(argv) + "`"
+        "selfcal.benchmarks.drift.morning " + " ".join(argv) + "`"
     )
 
 

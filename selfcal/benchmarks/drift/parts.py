@@ -1,6 +1,6 @@
 """Benchmark: what limits the power of ``selfcal check`` against a mount shift (issue #29).
 
-The drift benchmark (:mod:`selfcal.benchmarks.drift_images`) reports, beside the check's power,
+The drift benchmark (:mod:`selfcal.benchmarks.drift.images`) reports, beside the check's power,
 the power of a test that knew the 0.2 mm mount shift's direction, from the noncentrality
 ``mu^T Sigma^-1 mu`` of the shift's linearised pixels ``mu`` under the check's covariance
 ``Sigma``. ``Sigma`` has four parts: the corner noise, the joint read-back noise (the robot file's
@@ -23,7 +23,7 @@ shift, beside the power of the tests told more (the direction; the size alone,
 :func:`selfcal.calibration.drift.p_value.known_size_power`; the 3 axes, at the whole alpha and
 at the share Bonferroni gives each of the check's tests): is it the data's limit or the test's?
 
-Run: ``nice -n 10 uv run python -m selfcal.benchmarks.drift_parts [--calibrations 6]
+Run: ``nice -n 10 uv run python -m selfcal.benchmarks.drift.parts [--calibrations 6]
 [--checks 10] [--noise-px 0.2] [--robot er4u-paper] [--per-draw]``.
 """
 
@@ -37,8 +37,8 @@ from collections import Counter
 import numpy as np
 from scipy.stats import chi2
 
-from selfcal.benchmarks.board_accuracy_draw import SCENARIO, simulated_calibration
-from selfcal.benchmarks.drift_images import NEW_VIEWS, SPREAD_RAD, TOOL_SHIFT_M, read_joints
+from selfcal.benchmarks.board.accuracy_draw import SCENARIO, simulated_calibration
+from selfcal.benchmarks.drift.images import NEW_VIEWS, SPREAD_RAD, TOOL_SHIFT_M, read_joints
 from selfcal.calibration.drift.covariance import change_information
 from selfcal.calibration.drift.images import (
     ALPHA,

@@ -14,7 +14,7 @@ then the check's p-value on the new views as it is, with the deviation left out 
 the per-view misfit estimated net of what the deviation leaves in the calibration's frames, and
 with the share at its point estimate.
 
-Run: ``uv run python -m selfcal.benchmarks.drift_real_deviation CAL NEW`` (CAL the folder of
+Run: ``uv run python -m selfcal.benchmarks.drift.real_deviation CAL NEW`` (CAL the folder of
 ``selfcal calibrate``, NEW a folder of ``selfcal import``; the real tier's, docs/real-data.md).
 Minutes: the calibration runs again.
 """

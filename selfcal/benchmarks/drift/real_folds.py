@@ -33,7 +33,7 @@ alarms are the per-view misfit the fit averaged as white noise; then NEW checked
 (and the files ``--also``: CAL's with a change written into them, as the real tier's) as is and
 with CAL's own frames' sandwich in the covariance the check reads (:func:`check_with`).
 
-Run: ``uv run python -m selfcal.benchmarks.drift_real_folds CAL NEW`` (CAL the folder of
+Run: ``uv run python -m selfcal.benchmarks.drift.real_folds CAL NEW`` (CAL the folder of
 ``selfcal calibrate``, NEW a folder of ``selfcal import``; the real tier's, docs/real-data.md).
 A minute: the calibration runs again.
 """
@@ -47,7 +47,7 @@ from pathlib import Path
 
 import numpy as np
 
-from selfcal.benchmarks.drift_folds import Fold, folds_of, pose_misfit, sandwich_excess
+from selfcal.benchmarks.drift.folds import Fold, folds_of, pose_misfit, sandwich_excess
 from selfcal.calibration.accuracy import model_error_of
 from selfcal.calibration.board.accuracy import ORIENTATION, POSITION, pose_error_terms
 from selfcal.calibration.board.evaluate import held_out_views

@@ -11,9 +11,9 @@ two (``T_moved = T_unchanged + 2 cross + lambda``); the power that ``lambda`` gi
 test at its Bonferroni level and a test knowing the move's direction at alpha; and the k3 move
 that the camera test would find with 95 % power. ``--sandwich``: the same with the calibration's
 own frames' sandwich covariance added to the estimate covariance the check reads
-(:func:`selfcal.benchmarks.drift_folds.folds_of`; the calibration runs again: minutes).
+(:func:`selfcal.benchmarks.drift.folds.folds_of`; the calibration runs again: minutes).
 
-Run: ``uv run python -m selfcal.benchmarks.drift_real_lens CAL HELD [--k3 0.1] [--sandwich]``
+Run: ``uv run python -m selfcal.benchmarks.drift.real_lens CAL HELD [--k3 0.1] [--sandwich]``
 (the real tier's folders, docs/real-data.md).
 """
 
@@ -79,7 +79,7 @@ def main(argv: list[str] | None = None) -> int:
     C = estimate_covariance(cal, em)
     metrics = [("the check's covariance", C)]
     if a.sandwich:
-        from selfcal.benchmarks.drift_folds import folds_of
+        from selfcal.benchmarks.drift.folds import folds_of
 
         metrics.append(("with its own frames' sandwich", psd_part(C + folds_of(a.calibration)[2])))
     for label, CC in metrics:

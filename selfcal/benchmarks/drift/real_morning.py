@@ -13,7 +13,7 @@ exposures, so this side is conservative by construction; ``--noise-px`` at ``sqr
 the white noise makes it exact). Reported: the share of draws that say "changed" (alpha 0.01)
 and the directed test that fired most often.
 
-Run: ``uv run python -m selfcal.benchmarks.drift_real_morning CAL [--draws 100] [--views 5]
+Run: ``uv run python -m selfcal.benchmarks.drift.real_morning CAL [--draws 100] [--views 5]
 [--noise-px S]`` (CAL the folder of ``selfcal calibrate``, with its dataset; e.g. the real tier's
 Nachi calibrations, docs/real-data.md).
 """

@@ -10,7 +10,7 @@ fit left: how much an equal-weight least-squares fit of each candidate lowers th
 squared norm, as a share of it (zero to rounding where the calibration estimated that change
 with equal weights and the chain's poses, as the board route does).
 
-Run: ``uv run python -m selfcal.benchmarks.drift_real_own CAL`` (CAL the folder of ``selfcal
+Run: ``uv run python -m selfcal.benchmarks.drift.real_own CAL`` (CAL the folder of ``selfcal
 calibrate``, which holds its dataset), e.g. on the real tier's sets after ``uv run pytest -m
 real`` has imported and calibrated them (docs/real-data.md).
 """

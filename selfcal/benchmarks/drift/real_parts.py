@@ -19,7 +19,7 @@ calibration's own frames are fitted ones (smaller than a new view's by what the 
 (``A_j xi_i``) gives them the most energy, and each frame's pose-span energy predicted from the
 other frames by the jitter's mean and by a misfit per pose direction, against its own.
 
-Run: ``uv run python -m selfcal.benchmarks.drift_real_parts CAL DATASET [DATASET ...]`` (CAL the
+Run: ``uv run python -m selfcal.benchmarks.drift.real_parts CAL DATASET [DATASET ...]`` (CAL the
 folder of ``selfcal calibrate`` or its calibration.json; each DATASET a folder of ``selfcal
 import``), e.g. on the real tier's sets after ``uv run pytest -m real`` has imported and
 calibrated them (docs/real-data.md).

@@ -7,7 +7,7 @@ Per robot and noise level: ``--calibrations`` simulated calibrations (:mod:`self
 the share of checks that say "changed" (:func:`selfcal.calibration.tracker.drift.drift_check`,
 alpha = 0.01; the issue's target: below 2 % unchanged, at least 95 % changed).
 
-Run: ``uv run python -m selfcal.benchmarks.drift [--calibrations 40] [--checks 10]
+Run: ``uv run python -m selfcal.benchmarks.drift.tracker [--calibrations 40] [--checks 10]
 [--write-docs]`` (rewrites the table in docs/tool-accuracy.md).
 """
 
@@ -95,7 +95,7 @@ def table(rows: list[dict], calibrations: int) -> str:
         for r in rows
     ]
     return (head + "\n".join(lines) + f"\n\n{calibrations} calibrations per row, {NEW_ROWS} new "
-            "rows per check, alpha = 0.01; `uv run python -m selfcal.benchmarks.drift "
+            "rows per check, alpha = 0.01; `uv run python -m selfcal.benchmarks.drift.tracker "
             "--write-docs`.")  # fmt: skip
 
 

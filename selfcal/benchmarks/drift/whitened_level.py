@@ -5,7 +5,7 @@ them and by session 23's rule that took them as independent.
 Per draw: the analytic scenario of ``--setup`` (eye-in-hand ``scenarios/mono-charuco.toml`` on
 ``--robot``, eye-to-hand ``scenarios/eye-to-hand.toml`` on its UR5e) acquired and calibrated as
 ``selfcal run`` does (the deviation prior the simulated arm's own spread,
-:func:`selfcal.benchmarks.board_accuracy_draw.prior`), then its folds' held-out frames
+:func:`selfcal.benchmarks.board.accuracy_draw.prior`), then its folds' held-out frames
 (:func:`selfcal.calibration.board.accuracy.held_out_errors`, :func:`selfcal.calibration.whitened.whitened_rows`) read as the
 accuracy block reads them. For the position and the orientation: the whitened sum ``Q = sum_i
 e_i^T V_i^-1 e_i`` against ``d rows``; the estimation's share of the rows' covariance (``mean
@@ -17,7 +17,7 @@ rows) > 2``, the rows independent). The simulated arms fit their model, but the 
 holds some of their perturbed parameters at the drawing: an excess the folds show is that
 deviation (which the check carries otherwise) or chance.
 
-Run: ``nice -n 10 uv run python -m selfcal.benchmarks.whitened_level --draws 10 --setup
+Run: ``nice -n 10 uv run python -m selfcal.benchmarks.drift.whitened_level --draws 10 --setup
 eye-to-hand [--robot ur5e er4u-paper] [--noise-px 0.2] [--jobs 1]``; ``--calibration CAL
 [CAL ...]``: the same of folders ``selfcal calibrate`` wrote (calibrated again with the default
 deviation), e.g. the real tier's (docs/real-data.md).
@@ -36,7 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
-from selfcal.benchmarks.board_accuracy_draw import SCENARIO, prior
+from selfcal.benchmarks.board.accuracy_draw import SCENARIO, prior
 from selfcal.benchmarks.pool import map_jobs
 from selfcal.calibration.accuracy import Z_MODEL_ERROR
 from selfcal.calibration.board.accuracy import (

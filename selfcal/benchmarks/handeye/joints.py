@@ -1,6 +1,6 @@
 """The hand-eye against OpenCV 4.x's ``cv2.calibrateRobotWorldHandEye`` on the same board data.
 
-Data: a board projected into a field scenario (:mod:`selfcal.benchmarks.board_views`;
+Data: a board projected into a field scenario (:mod:`selfcal.benchmarks.board.views`;
 ``scenarios/mono.toml``: one camera with the issue's lens, the ChArUco board where the field lies, 30 postures, 0.5 px corner
 noise, read-back at encoder resolution), once with the scenario's perturbed kinematics (±1 mm,
 ±0.5 deg) and once with exact kinematics (the robot is its nominal model, so OpenCV's
@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from selfcal.benchmarks.board_views import BOARD, MONO, board_pose, board_views
+from selfcal.benchmarks.board.views import BOARD, MONO, board_pose, board_views
 from selfcal.calibration.board.robot import calibrate_robot_with_board
 from selfcal.estimation.joint_report import encoder_sigma
 from selfcal.io.atomic import write_text_atomic

@@ -1,9 +1,9 @@
-"""The speed benchmark (:mod:`selfcal.benchmarks.speed`) side by side with a git ref, and issue
+"""The speed benchmark (:mod:`selfcal.benchmarks.speed.measure`) side by side with a git ref, and issue
 32's speed goals met or not.
 
-``python -m selfcal.benchmarks.speed --against REF`` measures this checkout and the commit
+``python -m selfcal.benchmarks.speed.measure --against REF`` measures this checkout and the commit
 ``REF`` (a commit, branch or tag; ``HEAD~1`` is the previous commit) in turn, part by part
-(:mod:`selfcal.benchmarks.speed_pairs`: ``--rounds`` rounds, each part of the benchmark by one
+(:mod:`selfcal.benchmarks.speed.pairs`: ``--rounds`` rounds, each part of the benchmark by one
 tree and at once by the other, the first alternating), so that a drifting machine moves both
 columns alike. REF runs in a temporary worktree (``git worktree add --detach``) with its own
 environment (``uv sync --locked --compile-bytecode``). Every part of either tree is a process of
@@ -34,7 +34,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from selfcal.benchmarks.doc_blocks import ROOT
-from selfcal.benchmarks.speed_pairs import Paired, interleave, median_figures, named, paired
+from selfcal.benchmarks.speed.pairs import Paired, interleave, median_figures, named, paired
 
 __all__ = [
     "GOALS",
@@ -156,16 +156,16 @@ def measure_against(
     ref: str, argv: list[str], parts: list[str], rounds: int
 ) -> tuple[str, dict, dict, dict[str, Paired]]:
     """This tree and git ``ref`` measured in turn, part by part
-    (:func:`selfcal.benchmarks.speed_pairs.interleave`): REF's label (the ref, with its commit
+    (:func:`selfcal.benchmarks.speed.pairs.interleave`): REF's label (the ref, with its commit
     when the ref is not one), each tree's medians over the rounds
-    (:func:`selfcal.benchmarks.speed_pairs.median_figures`) and every figure paired
-    (:func:`selfcal.benchmarks.speed_pairs.paired`). Each part is a process of its own running
+    (:func:`selfcal.benchmarks.speed.pairs.median_figures`) and every figure paired
+    (:func:`selfcal.benchmarks.speed.pairs.paired`). Each part is a process of its own running
     one copy of this checkout's ``speed.py`` (``argv``: this run's options,
     :func:`part_argv`) with the tree's interpreter, in the tree."""
     with tempfile.TemporaryDirectory(prefix="selfcal-parts-") as d, ref_tree(ref) as found:
         tree, python, commit = found
         script = Path(d) / "speed.py"  # alone in its folder: nothing beside it shadows a module
-        shutil.copy(Path(__file__).with_name("speed.py"), script)
+        shutil.copy(Path(__file__).with_name("measure.py"), script)
         where = {"this": (ROOT, sys.executable, os.environ.copy()),
                  "ref": (tree, python, _clean_env())}  # fmt: skip
 

@@ -24,9 +24,9 @@ Measures, in one run on this machine:
 
 With ``--against REF`` also git ``REF`` measured the same way in a temporary worktree, the two
 trees in turn part by part (:data:`PARTS`, ``--rounds`` rounds, each part a process running this
-file with ``--part P --json FILE``: :mod:`selfcal.benchmarks.speed_pairs`), both side by side with
+file with ``--part P --json FILE``: :mod:`selfcal.benchmarks.speed.pairs`), both side by side with
 the ratio of each pair, and issue 32's goals met or not
-(:mod:`selfcal.benchmarks.speed_against`); ``--memory`` adds ``selfcal calibrate``'s peak memory
+(:mod:`selfcal.benchmarks.speed.against`); ``--memory`` adds ``selfcal calibrate``'s peak memory
 per posture. What runs for a part (``--json``) imports only modules every commit of the
 project has: REF's tree runs it with its own package. The checkout's ``selfcal/`` is
 compiled first, as ``pip install`` compiles a wheel (where ``PYTHONDONTWRITEBYTECODE`` is set,
@@ -38,7 +38,7 @@ Writes the table to docs/performance.md (``--write-docs``) and into README.md be
 too). The 1-minute load average before and after each
 part is printed and written with the table: the machines are shared.
 
-Run: ``MUJOCO_GL=egl uv run python -m selfcal.benchmarks.speed [--large] [--with-pybotics]
+Run: ``MUJOCO_GL=egl uv run python -m selfcal.benchmarks.speed.measure [--large] [--with-pybotics]
 [--write-docs] [--write-readme] [--check] [--against REF [--rounds N]] [--memory]``.
 """
 
@@ -233,7 +233,7 @@ PARTS = ("start", "run", "run_loaded", "calibrate", "ba", "memory")
 commands, ``selfcal run`` quiet and beside a CPU-bound process, ``calibrate`` at each pose
 count, the bundle adjustment against scipy, ``selfcal calibrate``'s peak memory (with
 ``--memory``). ``--against REF`` runs each in a process of its own, by the two trees in turn
-(:mod:`selfcal.benchmarks.speed_pairs`)."""
+(:mod:`selfcal.benchmarks.speed.pairs`)."""
 
 
 def _selfcal() -> list[str]:
@@ -323,7 +323,7 @@ def calibrate_memory(poses: list[int]) -> dict:
 
 def add_against_options(ap: argparse.ArgumentParser) -> None:
     """``--against REF``, ``--rounds``, ``--memory``, ``--part`` and ``--json``
-    (selfcal/benchmarks/speed_against.py)."""
+    (selfcal/benchmarks/speed/against.py)."""
     ap.add_argument("--against", metavar="REF",
                     help="also measure git REF (commit, branch, tag; HEAD~1: the previous commit) "
                     "in a temporary worktree with its own environment, the two trees in turn "
@@ -381,8 +381,8 @@ def main(argv: list[str] | None = None) -> int:
         write_text_atomic(Path(args.json), json.dumps(fig))
         return 0
     # the rest of this file runs only in this checkout: REF's tree may lack these modules
-    from selfcal.benchmarks.speed_against import comparison, compile_tree, measure_against
-    from selfcal.benchmarks.speed_table import TOLERANCE, check, command_text, linear_growth, table
+    from selfcal.benchmarks.speed.against import comparison, compile_tree, measure_against
+    from selfcal.benchmarks.speed.table import TOLERANCE, check, command_text, linear_growth, table
 
     compile_tree(ROOT)  # as installed (pip compiles); REF's tree is compiled by its run
     label, pairs, ref = "", None, None

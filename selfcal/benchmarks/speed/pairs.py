@@ -3,14 +3,14 @@
 A shared machine's speed drifts (other tenants: +-20 % within an hour), so two trees measured
 one after the other differ by the drift as much as by their code (session 25: 0.955 side by
 side, 1.08 one after the other, the same hour). Here every part of the benchmark
-(:data:`selfcal.benchmarks.speed.PARTS`) is measured once by each tree, then the next part,
+(:data:`selfcal.benchmarks.speed.measure.PARTS`) is measured once by each tree, then the next part,
 for ``rounds`` rounds; within
 a round the tree that goes first alternates (:func:`schedule`), so neither is always the one
 that runs after the other's warm caches. Each figure is reported as each tree's median over the
 rounds and the median (and range) of the round-by-round ratios this / REF (:func:`paired`): a
 pair is measured seconds apart, so the drift between the pairs cancels in each ratio.
 
-Pure bookkeeping: what is run and how is :mod:`selfcal.benchmarks.speed_against`.
+Pure bookkeeping: what is run and how is :mod:`selfcal.benchmarks.speed.against`.
 """
 
 from __future__ import annotations

@@ -10,9 +10,9 @@ child was started: start, end, wall, the thread's CPU and the process's CPU over
 per-frame stages summed by thread, the child's user + system CPU (forked processes included),
 its wall time and the 1-minute load average before and after.
 
-Run: ``MUJOCO_GL=egl uv run python -m selfcal.benchmarks.run_timeline [SCENARIO] [--out DIR]``.
+Run: ``MUJOCO_GL=egl uv run python -m selfcal.benchmarks.speed.run_timeline [SCENARIO] [--out DIR]``.
 Wrapping costs a few microseconds a call: the times are the run's, not a benchmark's median
-(``selfcal.benchmarks.speed`` measures that).
+(``selfcal.benchmarks.speed.measure`` measures that).
 """
 
 from __future__ import annotations
@@ -226,7 +226,7 @@ def main(argv: list[str] | None = None) -> None:
     with tempfile.TemporaryDirectory(prefix="selfcal-timeline-") as tmp:
         out = a.out or Path(tmp) / "run"
         log = Path(tmp) / "timeline.tsv"
-        cmd = [sys.executable, "-m", "selfcal.benchmarks.run_timeline", "--child", "run",
+        cmd = [sys.executable, "-m", "selfcal.benchmarks.speed.run_timeline", "--child", "run",
                *([a.scenario] if a.scenario else []), "--out", str(out)]  # fmt: skip
         load = os.getloadavg()[0]
         before = resource.getrusage(resource.RUSAGE_CHILDREN)

@@ -1,4 +1,4 @@
-"""The speed benchmark's tables (:mod:`selfcal.benchmarks.speed`): the block README.md and
+"""The speed benchmark's tables (:mod:`selfcal.benchmarks.speed.measure`): the block README.md and
 docs/performance.md show, and the check of a new block against the README's (#17: a figure more
 than :data:`TOLERANCE` off is named)."""
 
@@ -25,7 +25,9 @@ __all__ = [
 
 BEGIN, END = "<!-- benchmark_speed: begin -->", "<!-- benchmark_speed: end -->"
 TOLERANCE = 1.3
-COMMAND = "MUJOCO_GL=egl uv run python -m selfcal.benchmarks.speed --write-docs --write-readme"
+COMMAND = (
+    "MUJOCO_GL=egl uv run python -m selfcal.benchmarks.speed.measure --write-docs --write-readme"
+)
 
 
 def load_text(values: list[float]) -> str:
@@ -39,7 +41,7 @@ def load_text(values: list[float]) -> str:
 
 def command_text(argv: list[str]) -> str:
     """The command that measured a table: this module with ``argv``."""
-    return f"MUJOCO_GL=egl uv run python -m selfcal.benchmarks.speed {shlex.join(argv)}".strip()
+    return f"MUJOCO_GL=egl uv run python -m selfcal.benchmarks.speed.measure {shlex.join(argv)}".strip()
 
 
 def table(fig: dict, command: str = COMMAND) -> str:

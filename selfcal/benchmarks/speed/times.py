@@ -3,8 +3,8 @@
 
 Usage::
 
-    MUJOCO_GL=egl .venv/bin/python -m selfcal.benchmarks.times tests       # uv run pytest -q
-    MUJOCO_GL=egl .venv/bin/python -m selfcal.benchmarks.times first-run   # selfcal run, twice
+    MUJOCO_GL=egl .venv/bin/python -m selfcal.benchmarks.speed.times tests       # uv run pytest -q
+    MUJOCO_GL=egl .venv/bin/python -m selfcal.benchmarks.speed.times first-run   # selfcal run, twice
 
 - ``tests``: the default tier (``pytest -q``): the seconds pytest prints on its last line and the
   numbers of tests passed and failed (the failures are printed; a time is a time either way).
@@ -35,7 +35,7 @@ from selfcal.tomlfile import read_toml
 
 __all__ = ["measure_tests", "measure_first_run", "MEASUREMENTS"]
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 MEASUREMENTS = ROOT / "docs" / "measurements.toml"
 _PYTEST_LINE = re.compile(r"(?:(\d+) failed, )?(\d+) passed.* in ([\d.]+)s")
 _RUN_TOTAL = re.compile(r"total ([\d.]+) s")
@@ -101,7 +101,7 @@ def _toml_value(v: object) -> str:
 
 def write(sections: dict[str, dict], path: Path = MEASUREMENTS) -> Path:
     """Write ``sections`` (flat tables of str, int, float) as ``path``."""
-    lines = ["# Written by `python -m selfcal.benchmarks.times tests|first-run`; do not edit.",
+    lines = ["# Written by `python -m selfcal.benchmarks.speed.times tests|first-run`; do not edit.",
              "# The README's stated times are checked against it (tests/unit/test_measurements.py)."]  # fmt: skip
     for name, table in sections.items():
         lines += ["", f"[{name}]"] + [f"{k} = {_toml_value(v)}" for k, v in table.items()]

@@ -1,7 +1,7 @@
 """Time of the ACL reply reader on a long reply fed one byte at a time (issue #15: the old reader
 re-analysed the whole reply on every byte, 2.6 s for 4 KB, past the 2 s reply timeout).
 
-Run: ``uv run python -m selfcal.benchmarks.acl``.
+Run: ``uv run python -m selfcal.benchmarks.timing.acl``.
 """
 
 from __future__ import annotations

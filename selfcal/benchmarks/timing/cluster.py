@@ -14,7 +14,7 @@ task of the process that ran it (all its threads: a Dask worker's own threads co
 shared machine's load does not inflate the way it inflates wall times. It checks that every configuration
 gives the same rows (all but ``seconds``) and reports the load average (the machine may be shared).
 
-Run: ``uv run python -m selfcal.benchmarks.cluster [--runs 40] [--poses 8] [--write-doc]``
+Run: ``uv run python -m selfcal.benchmarks.timing.cluster [--runs 40] [--poses 8] [--write-doc]``
 (``--write-doc`` replaces the table in docs/cluster.md). Needs the ``[cluster]`` extra.
 """
 
@@ -33,7 +33,7 @@ from selfcal.studies.parallel import run_tasks
 from selfcal.studies.runs import failed_row, run_one
 from selfcal.threads import limit_threads
 
-DOC = Path(__file__).resolve().parents[2] / "docs" / "cluster.md"
+DOC = Path(__file__).resolve().parents[3] / "docs" / "cluster.md"
 VOLATILE = ("seconds", "cpu_s")
 """Row keys that measure this machine (wall and CPU time), not the calibration."""
 BEGIN, END = "<!-- benchmark_cluster:begin -->", "<!-- benchmark_cluster:end -->"

@@ -5,7 +5,7 @@ camera poses in a random world frame with 0.05 mm / 0.02 deg noise. Prints the m
 iterations, the condition number and O1 index, and the RMS of the normalised parameter errors
 (error / reported std; ~1 when the std are honest).
 
-Run: ``uv run python -m selfcal.benchmarks.identify [--robot er4u-vendor]``
+Run: ``uv run python -m selfcal.benchmarks.timing.identify [--robot er4u-vendor]``
 """
 
 from __future__ import annotations

@@ -6,7 +6,7 @@ calibration and then the joint refinement, and prints the refinement's time, ite
 size next to the accuracy of both methods (tool-tip RMS over the 20 validation postures after
 rigid alignment, fx) and the Cramer-Rao bound of that metric from the final Jacobian.
 
-Run: ``MUJOCO_GL=egl .venv/bin/python selfcal/benchmarks/joint.py [--poses 10 30 100]
+Run: ``MUJOCO_GL=egl .venv/bin/python selfcal/benchmarks/timing/joint.py [--poses 10 30 100]
 [--seeds 1 2 3]``.
 """
 

@@ -3,7 +3,7 @@
 Target (foundation issue): FK of all frames plus the identification Jacobian for 1000
 configurations in under 50 ms on 2 cores. Run:
 
-    .venv/bin/python -m selfcal.benchmarks.kinematics [--robot er4u-paper] [--m 1000] [--repeat 7]
+    .venv/bin/python -m selfcal.benchmarks.timing.kinematics [--robot er4u-paper] [--m 1000] [--repeat 7]
 
 Any robot (``--robot ur5e``): the numerical IK's time, success rate and precision on the full tool
 poses of ``--ik-targets`` random in-range postures; the ER-4u's closed form too for ER-type arms.

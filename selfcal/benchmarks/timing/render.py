@@ -4,7 +4,7 @@ Scene: the default marker field (``selfcal.sim.markers.make_marker_field()``) an
 cameras 6 cm apart, 0.35 m above the field looking at it (no robot; the robot's few dozen geoms
 add little). Usage::
 
-    MUJOCO_GL=egl .venv/bin/python -m selfcal.benchmarks.render [--n 50] [--samples 4]
+    MUJOCO_GL=egl .venv/bin/python -m selfcal.benchmarks.timing.render [--n 50] [--samples 4]
         [--width 640 --height 480] [--breakdown]
 
 ``LP_NUM_THREADS`` (Mesa llvmpipe rasteriser threads, default = CPU count) must be set in the

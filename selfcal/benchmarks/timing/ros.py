@@ -9,7 +9,7 @@ while moving it sees a few fixed noise pictures. Then runs ``selfcal import --ba
 in a child process and prints its wall time and peak resident memory (``ru_maxrss`` of that child
 alone, from ``os.wait4`` in a small launcher: :mod:`selfcal.benchmarks.child`) against the bag's size.
 
-Run: ``uv run python -m selfcal.benchmarks.ros [--size-mb 300 2000] [--format ros1]
+Run: ``uv run python -m selfcal.benchmarks.timing.ros [--size-mb 300 2000] [--format ros1]
 [--keep DIR]``.
 """
 

@@ -2,7 +2,7 @@
 
 Synthetic stereo-rig scenes (20 markers, 640x480, fx = 800 px, 60 mm baseline), 0.5 px noise and
 1 % gross outliers (20 px), for 10, 30, 100 and 300 robot configurations. Prints a table of the
-stage timings and the accuracy of fx. Run: ``.venv/bin/python selfcal/benchmarks/self_calibration.py``.
+stage timings and the accuracy of fx. Run: ``.venv/bin/python selfcal/benchmarks/timing/self_calibration.py``.
 """
 
 from __future__ import annotations

@@ -7,7 +7,7 @@ length, poses, rig, points, scale), identify (MCPC least squares), report (again
 self-calibrate + identify + the output document), a cross-check of the sum. Prints a Markdown
 table with the machine (CPU count, CPU model). Not a test.
 
-Run: ``MUJOCO_GL=egl uv run python -m selfcal.benchmarks.stages [--poses 10 30 100 300] [--write-doc]``;
+Run: ``MUJOCO_GL=egl uv run python -m selfcal.benchmarks.timing.stages [--poses 10 30 100 300] [--write-doc]``;
 ``--write-doc`` writes the table, with the date, the command and the load average, into
 docs/performance.md between the ``benchmark_stages`` markers.
 """
@@ -120,7 +120,7 @@ def table(results: list[dict]) -> str:
     return "\n".join(lines)
 
 
-COMMAND = "MUJOCO_GL=egl uv run python -m selfcal.benchmarks.stages --write-doc"
+COMMAND = "MUJOCO_GL=egl uv run python -m selfcal.benchmarks.timing.stages --write-doc"
 
 
 def main() -> None:

@@ -1,3 +1,4 @@
-"""The tracker identification against pybotics (:mod:`.compare`, ``python -m
-selfcal.benchmarks.tracker``; pybotics' side in its own environment: :mod:`.pybotics_fit`) and
-the simulated tracker sets both use (:mod:`.sim`)."""
+"""The tracker calibration's benchmarks: the identification against pybotics (:mod:`.compare`,
+``python -m selfcal.benchmarks.tracker``; pybotics' side in its own environment:
+:mod:`.pybotics_fit`), whether its predicted tool-point accuracy holds (:mod:`.accuracy`,
+:mod:`.accuracy_growth`) and the simulated tracker sets they use (:mod:`.sim`)."""

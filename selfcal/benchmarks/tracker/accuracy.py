@@ -18,7 +18,7 @@ predicted 95 % bound; target 90-98 %), the pooled ratio of the predicted to the 
 0.7-1.4) with the 10-90 % range of the per-draw ratios, and the same coverage for the covariance
 alone (no model error).
 
-Run: ``uv run python -m selfcal.benchmarks.tool_accuracy [--draws 30] [--write-docs]``
+Run: ``uv run python -m selfcal.benchmarks.tracker.accuracy [--draws 30] [--write-docs]``
 (rewrites the table in docs/tool-accuracy.md).
 """
 
@@ -217,7 +217,7 @@ def table(rows: list[dict]) -> str:
     note = (
         f"\n{d['draws']} draws per row, {ROWS} training positions in the central "
         f"{SPAN:.0%} of each joint's range, {COUNT} joint vectors per region and draw; "
-        "`uv run python -m selfcal.benchmarks.tool_accuracy --write-docs`."
+        "`uv run python -m selfcal.benchmarks.tracker.accuracy --write-docs`."
     )
     return head + "\n".join(lines) + "\n" + note
 

@@ -1,7 +1,7 @@
 """Probe: how the tracker benchmark's model error grows with the distance, true and predicted
 (issue #29, docs/tool-accuracy.md).
 
-The draws of :mod:`selfcal.benchmarks.tool_accuracy` (the same set-up and seeds). Per draw: the
+The draws of :mod:`selfcal.benchmarks.tracker.accuracy` (the same set-up and seeds). Per draw: the
 variogram the calibration read from its folds (:mod:`selfcal.calibration.growth`: the level
 ``c0`` and the growth counted ``c1`` as sizes, mm and mm per unit distance; the growth's point
 estimate, signed, and its t; whether the cap set it; the held-out rows' largest distance and the
@@ -14,7 +14,7 @@ model error is what the true error leaves beyond the estimation's predicted part
 does not). The last lines pool them over the draws (root of the mean variance), and the folds'
 held-out excess per coordinate (what a model error would have to explain, counted or not).
 
-Run: ``uv run python -m selfcal.benchmarks.tool_accuracy_growth --robot ur5e --noise-mm 0.1
+Run: ``uv run python -m selfcal.benchmarks.tracker.accuracy_growth --robot ur5e --noise-mm 0.1
 [--draws 20] [--model compliance]``.
 """
 
@@ -25,7 +25,7 @@ import sys
 
 import numpy as np
 
-from selfcal.benchmarks.tool_accuracy import COUNT, MODELS, REGIONS, calibrate, true_points
+from selfcal.benchmarks.tracker.accuracy import COUNT, MODELS, REGIONS, calibrate, true_points
 from selfcal.calibration.accuracy import Z_MODEL_ERROR, ModelError, excess_test
 from selfcal.errors import InputError
 from selfcal.kinematics.tool_error import (

@@ -38,7 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
-from selfcal.benchmarks.stages import machine
+from selfcal.benchmarks.timing.stages import machine
 from selfcal.benchmarks.tracker.sim import TrackerCase, make_case, measure
 from selfcal.calibration.tracker.identify import (
     TrackerMeasurements,

@@ -2,7 +2,7 @@
 candidate fitted without each arm configuration (:mod:`selfcal.calibration.board.param_selection`,
 its folds :mod:`selfcal.calibration.board.folds`) and the Cramer-Rao bounds of each fold's fit
 on its training frames, rebuilt in one place (:mod:`selfcal.calibration.board.accuracy`'s model
-error and share, the real drift benchmark ``selfcal.benchmarks.drift_real_folds``). SI.
+error and share, the real drift benchmark ``selfcal.benchmarks.drift.real_folds``). SI.
 """
 
 from __future__ import annotations

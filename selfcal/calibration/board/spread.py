@@ -28,7 +28,7 @@ variance is biased upward (Efron and Stein) when a fold holds a large share of t
 few configurations for many parameters: for a linear least-squares fit with 15 configurations
 of 2 rows in 5 folds it over-states the variance 1.08 times on average with one parameter, 1.25
 with four and 1.55 with eight, 1.04-1.05 with 150 rows or 60 configurations for four
-(:mod:`selfcal.benchmarks.jackknife_bias`); a board fit has tens of parameters.
+(:mod:`selfcal.benchmarks.board.jackknife_bias`); a board fit has tens of parameters.
 """
 
 from __future__ import annotations

@@ -18,7 +18,7 @@ The directed tests (:attr:`Fits.directed`) are the candidates' drops, except tha
 tool and world are each tested as two changes, their translation and their rotation (3
 parameters each): a mount that moved without turning (or turned in place) shows in one of the
 two, and a chi-square of 3 degrees of freedom finds it with fewer pixels than one of 6 (more
-of the 0.2 mm camera shifts of ``python -m selfcal.benchmarks.drift_images`` at 0.2 px, for
+of the 0.2 mm camera shifts of ``python -m selfcal.benchmarks.drift.images`` at 0.2 px, for
 two more tests in the Bonferroni count).
 """
 

@@ -334,7 +334,7 @@ def image_drift_check(C: np.ndarray, views: list[ViewJacobians], *,
     their smallest p-value's distribution under "unchanged"
     (:func:`selfcal.calibration.drift.p_value.min_p`, Monte Carlo) rather than Bonferroni's
     bound, which the tests' correlation makes conservative; the default stays Bonferroni
-    (``python -m selfcal.benchmarks.drift_images --min-p`` measures the difference).
+    (``python -m selfcal.benchmarks.drift.images --min-p`` measures the difference).
     ``C_noise``: the part of ``C`` from the calibration frames' noise
     (:func:`noise_covariance`), for a paired view's correlation with the others (None: left
     out). Not failed, with a view tested with its own noise (noisier than the calibration's

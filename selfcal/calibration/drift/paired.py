@@ -22,7 +22,7 @@ Only where the calibration's own frames showed a per-view misfit beyond the corn
 (``accuracy.view_jitter`` counted: :attr:`selfcal.calibration.drift.images.ViewNoise.misfit_counted`):
 without it the new view alone is the stronger test, its noise counted once rather than twice (a
 0.2 mm mount shift at 0.2 px found in 86 % of the simulated checks at the calibration's postures
-alone, 55 % paired: ``python -m selfcal.benchmarks.drift_morning``).
+alone, 55 % paired: ``python -m selfcal.benchmarks.drift.morning``).
 
 Every new view at a frame's posture is paired with it; two differences from one frame share
 its noise on the points both compare (``Cov(d1, d2) = Sigma_cal`` there), which the check's

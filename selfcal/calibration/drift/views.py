@@ -134,7 +134,7 @@ def view_white_px(r: np.ndarray, A: np.ndarray, Jc: np.ndarray, than_px: float =
 
     Real images differ in their corner noise (blur, focus, the board's angle: the real mecheye
     set's group 2 shows 0.126 and 0.118 px there in two of its images where the calibration's
-    white noise is 0.078 px, ``python -m selfcal.benchmarks.drift_real_folds``), so one white
+    white noise is 0.078 px, ``python -m selfcal.benchmarks.drift.real_folds``), so one white
     noise for every new view is wrong for some of them; in this span a view measures its
     own."""
     Q = span_basis(np.concatenate([A, Jc], axis=1))
