@@ -183,7 +183,7 @@ def ba_against_scipy(poses: int, root: Path) -> dict:
 
 def pybotics_ratio(n: int, repeats_ours: int = 10, repeats_pybotics: int = 3) -> dict:
     """The tracker identification at ``n`` configurations, the project against pybotics (in its
-    own environment): one row of :func:`selfcal.benchmarks.tracker.run` and its note (the
+    own environment): one row of :func:`selfcal.benchmarks.tracker.compare.run` and its note (the
     pybotics version, or why it did not run)."""
     from selfcal.benchmarks.tracker.compare import run as tracker_run
 
