@@ -19,6 +19,7 @@ from selfcal.acquisition.simulator_setup import (
     DICTIONARY,
     SCALE_IDS,
     SimSetup,
+    check_board_above_table,
     field_center,
     scenario_board_pose,
     sim_setup,
@@ -384,6 +385,7 @@ def make_sim_robot(s: Scenario, setup: SimSetup | None = None):
     """
     setup = setup or sim_setup(s)
     _flange_cameras_only(s, setup, "the rendered arm (of `selfcal emulate`, `selfcal diagnose`)")
+    check_board_above_table(s, setup)
     rig = setup.rig()
     return SimRobot(
         setup.robot,
@@ -436,6 +438,7 @@ def render_posture(
     s = load_scenario(config, overrides={"robot": {"model": model or robot.name}})
     setup = sim_setup(s)
     _flange_cameras_only(s, setup, "`selfcal render`")
+    check_board_above_table(s, setup)
     rig = setup.rig()
     out.mkdir(parents=True, exist_ok=True)
     board = setup.board_pose()

@@ -25,7 +25,7 @@ from selfcal.kinematics.mcpc import (
 from selfcal.kinematics.trajectory import home_target_center
 from selfcal.robot.definition import RobotDef, load_robot
 from selfcal.sim.actual import apply_errors, perturb
-from selfcal.sim.board_scene import board_on_table
+from selfcal.sim.board_scene import BOARD_THICKNESS_M, board_on_table
 from selfcal.sim.compliance import JointCompliance
 from selfcal.sim.markers import MarkerField, make_marker_field
 from selfcal.sim.robot_mjcf import RigConfig
@@ -38,7 +38,9 @@ if TYPE_CHECKING:  # their modules load where they are used (OpenCV, the still c
 __all__ = [
     "DICTIONARY",
     "SCALE_IDS",
+    "TABLE_CLEARANCE_M",
     "SimSetup",
+    "check_board_above_table",
     "field_center",
     "scenario_board_pose",
     "sim_setup",
@@ -47,6 +49,11 @@ __all__ = [
 DICTIONARY = "DICT_4X4_50"
 SCALE_IDS = (48, 49)
 """The scale bar's two markers: the dictionary's last two ids (as ``selfcal.sim.markers`` places them)."""
+
+TABLE_CLEARANCE_M = 1e-4
+"""How far above the table (the world's z = 0 plane, m) every corner of a rendered board's printed
+image must lie: a face in the table's plane is drawn at the table's depth, and the table hides
+parts of it (a face 0.2 mm above it renders whole)."""
 
 
 @dataclass
@@ -127,7 +134,12 @@ def _perturbation_table(s: Scenario, joint_types: tuple[str, ...]) -> dict[str, 
 def sim_setup(s: Scenario) -> SimSetup:
     """The simulated actual robot, rig and marker field or board of a scenario (a board
     scenario has no marker field; eye-to-hand its board rides on the flange, not on the table:
-    no ``T_world_board``, so an arm whose flange camera never sees the table simulates it)."""
+    no ``T_world_board``, so an arm whose flange camera never sees the table simulates it).
+
+    Raises:
+        ConfigError: a rendered scenario whose board touches the table
+            (:func:`check_board_above_table`).
+    """
     robot = load_robot(s.robot.model)
     nominal = nominal_mcpc(robot).with_tool(robot.T_flange_cam)
     actual = perturb(
@@ -163,9 +175,12 @@ def sim_setup(s: Scenario) -> SimSetup:
     T_world_board = (None if board is None or static is not None
                      else scenario_board_pose(s, board, robot, nominal))  # fmt: skip
     right = s.camera.of("right").true_model() if s.camera.own_intrinsics else None
-    return SimSetup(robot, nominal, actual, intr, T_lr, field_, board=board,
-                    T_world_board=T_world_board, intrinsics_right=right,
-                    static=static)  # fmt: skip
+    setup = SimSetup(robot, nominal, actual, intr, T_lr, field_, board=board,
+                     T_world_board=T_world_board, intrinsics_right=right,
+                     static=static)  # fmt: skip
+    if s.noise.render and s.robot.backend == "sim":  # before anything is written (run, acquire)
+        check_board_above_table(s, setup)
+    return setup
 
 
 def scenario_board_pose(s: Scenario, board, robot: RobotDef, nominal: MCPCModel) -> np.ndarray:
@@ -178,3 +193,35 @@ def scenario_board_pose(s: Scenario, board, robot: RobotDef, nominal: MCPCModel)
 
     rpy = np.radians(bp[3:]) if len(bp) == 6 else None
     return board_pose(board, np.asarray(bp[:3]) / 1000.0, rpy)
+
+
+def check_board_above_table(s: Scenario, setup: SimSetup) -> None:
+    """Refuse to render a board (cameras on the flange) whose printed image touches or dips
+    below the table: ``[target] board_pose`` with z = 0 (a board lying on the table is as high as
+    it is thick) puts the print in the table's plane, and the rendered table hides parts of it
+    (frames without the board, corners off by pixels), where the analytic path sees it whole.
+
+    Raises:
+        ConfigError: naming the scenario file, ``target.board_pose``, the printed image's lowest
+            corner (mm above the table) and the fix.
+    """
+    if setup.board is None or setup.T_world_board is None:
+        return
+    x0, y0, x1, y1 = setup.board.image(1.0).extent_m
+    corners = np.array([[x0, y0, 0.0], [x1, y0, 0.0], [x0, y1, 0.0], [x1, y1, 0.0]])
+    T = setup.T_world_board
+    low = float((corners @ T[:3, :3].T + T[:3, 3])[:, 2].min())
+    if low >= TABLE_CLEARANCE_M:
+        return
+    bp = [float(v) for v in s.target.board_pose]
+    lift = bp[:2] + [round(bp[2] + (BOARD_THICKNESS_M - low) * 1000, 1)] + bp[3:]
+    raise ConfigError(
+        f"{s.source}: target.board_pose = {bp}: the board's printed image reaches "
+        f"{low * 1000:.1f} mm above the table (z = 0) at its lowest corner: the rendered table "
+        "hides the print where it touches (frames without the board, corners off), so the "
+        "rendered images would not be the ones the plan or scenario meant",
+        fix=f"lift the board by its thickness: board_pose = {lift} (mm, deg; a board lying on "
+        "the table has z = its thickness, `selfcal plan --board-pose X,Y,3`)"
+        + (", or set [noise] render = false (the analytic corners see it whole)"
+           if s.noise.render else ""),
+    )  # fmt: skip
