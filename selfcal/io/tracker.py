@@ -306,9 +306,11 @@ def _check_joint_columns(table: Table, prefix: str, robot) -> list[str]:
     if present != want and len(named) == robot.n and all(c in by_name for c in named):
         return [by_name[c] for c in named]  # the robot's own joint names (a URDF's, ROS's)
     if present != want:
+        header = "" if present else f" (its header: {', '.join(table.columns)})"
         raise TrackerFileError(
             f"{table.path}: {len(present)} joint columns ({', '.join(present) or 'none'}) do "
-            f"not match robot {robot.name}, which has {robot.n} joints ({', '.join(want)})",
+            f"not match robot {robot.name}, which has {robot.n} joints ({', '.join(want)})"
+            + header,
             fix=f"give exactly the columns {', '.join(want)} (or the robot's joint names "
             f"{', '.join(prefix + j for j in getattr(robot, 'joint_names', ()))}; or choose "
             "the right --robot)",

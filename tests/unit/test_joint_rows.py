@@ -121,6 +121,15 @@ def test_columns_named_by_the_robots_joint_names(tmp_path):
         read_joint_rows(write(tmp_path, _csv(Q_DEG, head=names[:5] + ["x"])), ROBOT, "deg")
 
 
+def test_a_header_without_joint_columns_is_named(tmp_path):
+    """A dataset's own joints.csv (index, q1_deg, ...) given to import named no column: '0 joint
+    columns (none) do not match', and the reader had to be opened to see why."""
+    head = ["index", *(f"q{k + 1}_deg" for k in range(6))]
+    text = _csv(np.c_[np.arange(5), Q_DEG], head=head)
+    with pytest.raises(TrackerFileError, match=r"\(its header: index, q1_deg, q2_deg, .*q6_deg\)"):
+        read_joint_rows(write(tmp_path, text), ROBOT, "deg")
+
+
 def test_other_columns_of_a_controller_log_are_ignored(tmp_path):
     """Timestamps, a gripper state and a comment beside the joints: the joints are read, the
     image column kept, the rest ignored (a text cell there refused the whole file)."""
