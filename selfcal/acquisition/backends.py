@@ -428,8 +428,10 @@ def make_kinematic_robot(s: Scenario, setup: SimSetup | None = None) -> Kinemati
 
 def render_posture(
     robot: RobotDef, q: np.ndarray, out: Path, config: str | None = None, model: str | None = None
-) -> tuple[Path, Path]:
-    """Render the (nominal, unperturbed) robot's stereo pair at posture ``q`` (rad) into ``out``;
+) -> tuple[Path, ...]:
+    """Render the (nominal, unperturbed) robot's cameras at posture ``q`` (rad) into ``out``:
+    ``left.png`` and ``right.png``, or ``left.png`` alone for a scenario of one camera
+    (``[camera] count = 1``; the simulator renders a pair, the right one is not the scenario's);
     ``model``: what ``robot`` was loaded from (a name or a robot file; default its name).
 
     Raises:
@@ -445,7 +447,7 @@ def render_posture(
     with SimRobot(robot, None, rig, setup.field, board=board) as sim:
         sim.move_to(np.degrees(q))
         pair = sim.capture()
-    paths = (out / "left.png", out / "right.png")
+    paths = (out / "left.png", out / "right.png")[: s.camera.count]
     for p, img in zip(paths, (pair.left, pair.right)):
         write_image_atomic(p, img)
     return paths

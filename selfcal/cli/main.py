@@ -71,11 +71,11 @@ def cmd_render(args: argparse.Namespace) -> int:
     robot = load_robot(model)
     q = _joints_rad(robot, args.joints)
     bar = Progress("render", enabled=not args.quiet)
-    with bar.step("render the stereo pair") as st:
+    with bar.step("render the cameras") as st:
         paths = render_posture(robot, q, Path(args.out), config=scenario, model=model)
-        st.result(f"{paths[0].name}, {paths[1].name}")
+        st.result(", ".join(p.name for p in paths))
     note_written(args, *paths)
-    print(json.dumps({"left": str(paths[0]), "right": str(paths[1])}))
+    print(json.dumps({p.stem: str(p) for p in paths}))
     return 0
 
 
@@ -327,8 +327,9 @@ def build_parser() -> argparse.ArgumentParser:
     sp = add(
         "render",
         cmd_render,
-        "render the flange cameras' stereo pair at a posture: OUT/left.png, OUT/right.png; prints "
-        "their paths as JSON (an eye-to-hand scenario is refused)",
+        "render the flange cameras at a posture: OUT/left.png, OUT/right.png (a one-camera "
+        "scenario: OUT/left.png alone); prints their paths as JSON (an eye-to-hand scenario is "
+        "refused)",
     )
     add_scenario_arg(sp, "for the robot, camera and target")
     sp.add_argument("--robot", default=None, help="robot model (default: the scenario's)")

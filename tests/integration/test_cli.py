@@ -108,6 +108,19 @@ def test_render_writes_the_stereo_pair(capsys, tmp_path):
         assert img.shape == (480, 640, 3) and img.std() > 10
 
 
+@pytest.mark.render
+def test_render_of_a_one_camera_scenario_writes_its_one_camera(capsys, tmp_path):
+    """A scenario of one camera ([camera] count = 1) rendered a right.png too: the
+    simulator's pair, from a second camera the scenario does not have."""
+    (tmp_path / "mono.toml").write_text("[camera]\ncount = 1\n")
+    out_dir = tmp_path / "r"
+    code, out, _ = run(capsys, "render", str(tmp_path / "mono.toml"), "--joints",
+                       "38.15,-30,45,-63.54,0", "--out", str(out_dir))  # fmt: skip
+    assert code == 0
+    assert list(json.loads(out)) == ["left"]
+    assert sorted(p.name for p in out_dir.iterdir()) == ["left.png"]
+
+
 def test_help_lists_scenario_keys(capsys):
     assert main(["run", "--help"]) == 0
     out = capsys.readouterr().out
