@@ -121,3 +121,26 @@ def test_the_plan_is_where_no_swap_lowers_its_criterion(setup, plan):
     chosen = np.array([int(np.flatnonzero((g.pool == q).all(axis=1))[0]) for q in plan.q])
     assert sorted(exchange(F, g.G, n_cam, chosen)) == sorted(chosen)
     assert sorted(select_greedy(F, g.G, n_cam, 8)) != sorted(chosen)
+
+
+def test_a_plan_no_posture_serves_says_which_rule_stopped_them(setup):
+    """A still camera turned away from the arm: the refusal listed every rule at once (view,
+    collision, lines of sight) and left the user to guess which one no posture passed (a
+    3-joint arm's eye-to-hand plan, its board facing down and the camera above it); it now counts
+    how many of the last postures drawn pass each rule in turn, up to the first none passes."""
+    import re
+
+    from selfcal.calibration.board.plan.views import candidate_pool
+    from selfcal.errors import InputError
+
+    away = PlanSetup.eye_to_hand_setup(
+        setup.robot, setup.camera, setup.board,
+        camera_pose(POSE[:3] / 1000, np.radians([-90.0, 0.0, 90.0])), setup.T_flange_tool,
+    )  # fmt: skip
+    with pytest.raises(InputError) as err:
+        candidate_pool(away, 4, seed=1, batch=64, max_draws=64)
+    said = re.escape("(of the last 64 drawn (home window): 64 lie within the joint ranges, 0 see "
+                     "the whole board as the view rule asks)")  # fmt: skip
+    assert re.search(said, err.value.message)
+    pool, _ = candidate_pool(setup, 4, seed=1)  # the camera facing the arm: candidates
+    assert len(pool) == 4

@@ -37,6 +37,7 @@ found so far. Units: m, rad, px.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -315,23 +316,46 @@ def _sight_clear(setup: PlanSetup, q: np.ndarray) -> np.ndarray:
     return ok
 
 
+def _checks(setup: PlanSetup) -> tuple[tuple[str, Callable[[np.ndarray], np.ndarray]], ...]:
+    """The candidate rules after the joint ranges, in the order they are applied: (what a
+    posture that passes does, the check: (m, n) rad -> (m,) bool)."""
+    return (
+        ("see the whole board as the view rule asks", lambda x: board_views_ok(setup, setup.T_cam_board(x))),
+        ("are free of self-collision and the table", setup.chain.ok),
+        ("stay out of the keep-out boxes", lambda x: outside_boxes(setup.chain, x, setup.boxes)),
+        (("keep the board's plate above the table and clear", lambda x: _plate_clear(setup, x))
+         if setup.eye_to_hand else
+         ("keep the arm off the board's plate", lambda x: _off_board(setup, x))),
+        ("keep the lines of sight to the board clear", lambda x: _sight_clear(setup, x)),
+    )  # fmt: skip
+
+
 def feasible(setup: PlanSetup, q: np.ndarray) -> np.ndarray:
     """(m,) bool: which postures ``q`` (m, n) rad are candidates (module docstring)."""
+    return _passing(setup, q)[-1][1]
+
+
+def _passing(setup: PlanSetup, q: np.ndarray) -> list[tuple[str, np.ndarray]]:
+    """Per rule in turn (the joint ranges first, then :func:`_checks`): what passing it does
+    and which postures of ``q`` (m, n) rad pass it and every rule before (m,) bool; the list
+    stops after the first rule no posture passes."""
     q = np.atleast_2d(np.asarray(q, dtype=float))
     r = setup.robot
     ok = np.all((q >= r.limits[:, 0]) & (q <= r.limits[:, 1]), axis=1)
-    checks = (
-        lambda x: board_views_ok(setup, setup.T_cam_board(x)),
-        setup.chain.ok,
-        lambda x: outside_boxes(setup.chain, x, setup.boxes),
-        (lambda x: _plate_clear(setup, x)) if setup.eye_to_hand else (lambda x: _off_board(setup, x)),
-        lambda x: _sight_clear(setup, x),
-    )  # fmt: skip
-    for check in checks:
+    out = [("lie within the joint ranges", ok.copy())]
+    for what, check in _checks(setup):
         if not ok.any():
             break
         ok[ok] = check(q[ok])
-    return ok
+        out.append((what, ok.copy()))
+    return out
+
+
+def _tally(setup: PlanSetup, q: np.ndarray, where: str) -> str:
+    """Which rule the postures ``q`` (m, n) rad, drawn ``where``, fail: how many pass each rule
+    and those before it, up to the first no posture passes."""
+    counts = ", ".join(f"{int(ok.sum())} {what}" for what, ok in _passing(setup, q))
+    return f"of the last {len(q)} drawn ({where}): {counts}"
 
 
 def _window(robot: RobotDef, centre: np.ndarray, span: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -405,7 +429,7 @@ def candidate_pool(
             f"(margin {setup.rule.margin_px:g} px, board normal within "
             f"{setup.rule.max_tilt_deg:g} deg of the optical axis, a feature pitch of at least "
             f"{setup.rule.min_pitch_px:g} px{_module_words(setup)}) without collision and with "
-            "the arm out of the camera's lines of sight",
+            f"the arm out of the camera's lines of sight ({_tally(setup, q, where)})",
             fix="check --board-pose (the centre of the printed board in the base frame, mm) or "
             "--camera-pose and the camera (--camera or --fov-deg/--resolution); a board too large for the view at a "
             "working distance needs a wider lens, one too small (or its markers) a closer "
