@@ -273,6 +273,22 @@ def test_a_board_declared_at_the_wrong_size_is_named_with_the_size_that_fits(lab
         res = calibrate_board_dataset(tmp_path / "ds")
     assert res.reprojection_rms_px < 0.35  # the fit itself shows nothing (0.122 px)
     assert any("square_mm = 14.99 would match the arm" in w for w in res.warnings)
+    # where to correct it: import copied the target file's keys into dataset.json, which
+    # calibrate reads (docs/own-data.md said "correct the target file, then calibrate again",
+    # which changed nothing); the warning names that file, and its fix there silences it
+    said = f'corrected in {tmp_path / "ds"}/dataset.json ("target"), then calibrate again'
+    assert any(said in w for w in res.warnings)
+    (tmp_path / "board.toml").write_text(TARGET_TOML)  # the target file alone: no change
+    with pytest.warns(ScaleWarning, match=r"2\.9 % smaller"):
+        calibrate_board_dataset(tmp_path / "ds")
+    info = json.loads((tmp_path / "ds" / "dataset.json").read_text())
+    fixed = tmp_path / "fixed"
+    shutil.copytree(tmp_path / "ds", fixed)
+    info["target"]["square_mm"] = 15.0
+    (fixed / "dataset.json").write_text(json.dumps(info))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ScaleWarning)
+        calibrate_board_dataset(fixed)
     # its export said nothing of it (session 25's new-user trip: a board declared 20 mm for 15
     # exported a robot 32.9 % off in silence): the robot read from the file says it again
     write_board_calibration(tmp_path / "ds" / "calibration.json", res)

@@ -336,7 +336,7 @@ def calibrate_board_dataset_detailed(
     mount = flange_to_tool(res.model, robot) if e2h else robot.T_flange_cam
     notes += check_scale(robot, q[used], fk_tool(res.model, q[used]),
                          f"the board ({scaled_sizes(sizes, 1.0)})",
-                         lambda s: f"{scaled_sizes(sizes, s)} would match the arm",
+                         lambda s: _sizes_fix(ds.root, sizes, s),
                          T_flange_tool=mount if e2h else None)  # fmt: skip
     camera_fits = res.board.rms_px < CAMERA_FIT_PX  # else the camera model misfits: said apart
     if js is None and camera_fits and res.rms_px > READBACK_RATIO * res.board.rms_px:
@@ -444,6 +444,14 @@ def _mounts(model, robot: RobotDef, covariance: np.ndarray) -> tuple:
         return ()
 
 
+def _sizes_fix(root: Path, sizes: dict[str, float], scale: float) -> str:
+    """The board's sizes that would match the arm at ``scale`` and where a wrong one is
+    corrected: the dataset's own ``dataset.json`` (import copied the target file's keys there;
+    calibrate reads them from it, so a corrected target file alone changes nothing)."""
+    return (f"{scaled_sizes(sizes, scale)} would match the arm; a size measured wrong is "
+            f'corrected in {root}/dataset.json ("target"), then calibrate again')  # fmt: skip
+
+
 def _data_notes(ds: Dataset, board: Board, feats: list[Features], names: list[str],
                 robot: RobotDef, W: int, H: int, model: str,
                 free: tuple[str, ...], eye_to_hand: bool = False) -> list[str]:  # fmt: skip
@@ -478,7 +486,7 @@ def _data_notes(ds: Dataset, board: Board, feats: list[Features], names: list[st
         return [] if order is None else [order]
     ms = motion_scale(nominal_mcpc(robot), q[cb.used], T[cb.used], mount0)
     scale = scale_warning(ms, robot.name, f"the board ({scaled_sizes(sizes, 1.0)})",
-                          f"{scaled_sizes(sizes, ms.scale)} would match the arm")  # fmt: skip
+                          _sizes_fix(ds.root, sizes, ms.scale))  # fmt: skip
     if scale is not None:
         return [scale]
     order = order_note(misfits, f"{ds.root}/joints.csv")
