@@ -408,12 +408,15 @@ def _match(
                 fix="give each camera's images distinct file names, or leave out the image "
                 "column (rows then match the files in path order)",
             )
-        missing = [n for n in column if n not in by_name]
+        missing = [(k, n) for k, n in enumerate(column, start=1) if n not in by_name]
         if missing:
+            rows = ", ".join(str(k) for k, _ in missing[:5]) + (", ..." if len(missing) > 5 else "")
             raise ImportError_(
                 f"{joints}: the image column names {len(missing)} file(s) that camera "
-                f"{cam.name} ({cam.pattern}) lacks, e.g. {missing[0]!r}",
-                fix="name files of the --images folders in the image column (file names only)",
+                f"{cam.name} ({cam.pattern}) lacks, e.g. {missing[0][1]!r} (data row "
+                f"{missing[0][0]}; rows {rows})",
+                fix="add the missing images to the --images folder, or remove their rows from "
+                "the joints file (the column holds file names only, no folders)",
             )
         out[cam.name] = [by_name[n] for n in column]
     return out

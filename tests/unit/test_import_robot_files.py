@@ -167,3 +167,22 @@ def test_a_robot_toml_with_an_unknown_key_is_refused(tmp_path, edit, key):
     with pytest.raises(RobotDefinitionError, match=f"unknown key.*{key}") as e:
         load_robot(bad)
     assert str(bad) in str(e.value) and e.value.fix and "name" in e.value.fix
+
+
+def test_an_image_column_naming_a_missing_image_names_its_row_and_the_fix(tmp_path):
+    """One image of a recording missing (never saved) while the joints file's image column
+    names it: the error said only 'lacks, e.g. 0007.png' and asked to 'name files of the
+    --images folders', not which row or that the row or the image is what to mend."""
+    from selfcal.importing.dataset import _match
+
+    for k in (0, 1, 2, 4):
+        (tmp_path / f"{k:04d}.png").write_bytes(b"")
+    column = tuple(f"{k:04d}.png" for k in range(5))
+    cams = [CameraImages.parse(f"cam0={tmp_path}/*.png")]
+    with pytest.raises(
+        ImportError_, match=r"lacks, e\.g\. '0003\.png' \(data row 4; rows 4\)"
+    ) as e:
+        _match(cams, column, 5, tmp_path / "joints.csv")
+    assert "remove their rows from the joints file" in str(e.value.fix)
+    assert [p.name for p in _match(cams, column[:3] + column[4:], 4, tmp_path / "j.csv")["cam0"]] \
+        == ["0000.png", "0001.png", "0002.png", "0004.png"]  # fmt: skip
