@@ -14,8 +14,9 @@ in the code measured. Both trees' ``selfcal/`` are compiled first (:func:`compil
 compile them again (``uv sync --compile-bytecode`` compiles the dependencies, not the editable
 project). The worktree is removed at the end.
 
-Prints one row per figure (each tree's median over the rounds, the median of the rounds' ratios
-this / REF and their range) and one row per goal of issue 32 (:data:`GOALS`): met or not met,
+Prints one row per figure (each tree's median over the rounds, the ratio this / REF balanced over
+the order in the pairs, :attr:`~selfcal.benchmarks.speed.pairs.Paired.ratio`, each order's median
+and the range) and one row per goal of issue 32 (:data:`GOALS`): met or not met,
 for each column.
 """
 
@@ -193,6 +194,10 @@ def _verdict(goal: Goal, v: float | None) -> str:
     return f"{_cell(v)} {goal.unit}: {'met' if v <= goal.limit else 'NOT met'}"
 
 
+def _ratio(r: float | None) -> str:
+    return "n/a" if r is None else f"{r:.3f}"
+
+
 def _load_range(fig: dict) -> str:
     v = fig.get("load", [])
     return f"{min(v):.1f}-{max(v):.1f}" if v else "n/a"
@@ -203,24 +208,31 @@ def comparison(
 ) -> str:
     """The goals table of ``fig`` (this tree) and, with ``ref`` and ``pairs``
     (:func:`measure_against`, REF named ``label``), every figure side by side: each tree's
-    median over the rounds and the median of the rounds' ratios this / REF with their range."""
+    median over the rounds, the ratio this / REF balanced over the order in the pairs
+    (:attr:`Paired.ratio`), each order's median and the range."""
     lines = []
     if ref is not None and pairs is not None:
         n = fig.get("rounds", 1)
         lines += [
             f"This tree against {label}, interleaved: {n} rounds, in each every part of the "
             f"benchmark run by one tree and at once by the other (the first alternating round to "
-            f"round); each tree's median over the rounds and the median of the {n} rounds' "
-            f"ratios this / {label} with their range (1-minute load average over the parts: "
-            f"this tree {_load_range(fig)}, {label} {_load_range(ref)}):",
+            f"round); each tree's median over the rounds, and this / {label}: the geometric "
+            f"mean of the median ratio of the rounds where this tree went first and of those "
+            f"where {label} did (a factor the order puts on every pair cancels), each order's "
+            f"median and the range of the {n} rounds' ratios (1-minute load average over the "
+            f"parts: this tree {_load_range(fig)}, {label} {_load_range(ref)}):",
             "",
-            f"| what | this tree | {label} | this / {label}, paired (range) |",
-            "|---|---|---|---|",
+            f"| what | this tree | {label} | this / {label}, paired | this first; "
+            f"{label} first (range) |",
+            "|---|---|---|---|---|",
         ]
         for k, p in pairs.items():
-            ratio = (f"{p.ratio:.3f} ({min(p.ratios):.2f}-{max(p.ratios):.2f})"
-                     if p.ratio is not None else "n/a")  # fmt: skip
-            lines.append(f"| {k} | {_cell(p.this)} | {_cell(p.ref)} | {ratio} |")
+            a, b = p.by_order
+            orders = (f"{_ratio(a)}; {_ratio(b)} ({min(p.ratios):.2f}-{max(p.ratios):.2f})"
+                      if p.ratios else "n/a")  # fmt: skip
+            lines.append(
+                f"| {k} | {_cell(p.this)} | {_cell(p.ref)} | {_ratio(p.ratio)} | {orders} |"
+            )
         lines.append("")
     both = ref is not None
     head = f"| goal (issue 32) | at most | this tree |{f' {label} |' if both else ''}"

@@ -329,9 +329,10 @@ def add_against_options(ap: argparse.ArgumentParser) -> None:
                     "in a temporary worktree with its own environment, the two trees in turn "
                     "part by part (--rounds), and print both side by side with the medians, the "
                     "ratio of each pair and issue 32's goals met or not")  # fmt: skip
-    ap.add_argument("--rounds", type=int, default=9,
-                    help="with --against: rounds of every part by each tree, in turn (each "
-                    "`selfcal run` once a round: the rounds replace --run-repeat)")  # fmt: skip
+    ap.add_argument("--rounds", type=int, default=10,
+                    help="with --against: rounds of every part by each tree, in turn, the first "
+                    "alternating (each `selfcal run` once a round: the rounds replace "
+                    "--run-repeat; an even number puts each tree first equally often)")  # fmt: skip
     ap.add_argument("--memory", action="store_true",
                     help="also `selfcal calibrate`'s peak memory (a process at the fewest and "
                     "the most --poses) and its growth per posture; implied by --against")  # fmt: skip

@@ -7,14 +7,20 @@ side, 1.08 one after the other, the same hour). Here every part of the benchmark
 for ``rounds`` rounds; within
 a round the tree that goes first alternates (:func:`schedule`), so neither is always the one
 that runs after the other's warm caches. Each figure is reported as each tree's median over the
-rounds and the median (and range) of the round-by-round ratios this / REF (:func:`paired`): a
-pair is measured seconds apart, so the drift between the pairs cancels in each ratio.
+rounds and the ratio this / REF of the round-by-round pairs (:func:`paired`): a pair is
+measured seconds apart, so the drift between the pairs cancels in each ratio. A run's place in
+its pair can matter too (the second after the first's warm caches, or on a machine the first
+has heated): the ratio is the geometric mean of the two orders' medians (:attr:`Paired.ratio`),
+in which a factor the order puts on every pair cancels, as it does not in the median of an odd
+number of rounds (the review of session 26: 9 rounds, identical trees, the second 2 % slower:
+0.980).
 
 Pure bookkeeping: what is run and how is :mod:`selfcal.benchmarks.speed.against`.
 """
 
 from __future__ import annotations
 
+import math
 import statistics
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -75,20 +81,24 @@ def interleave(
     return {t: [merge_parts(got[(t, k)]) for k in range(rounds)] for t in TREES}
 
 
-def _median(values: list) -> object:
-    """The median of one figure over the rounds, keeping its shape (a list or dict of numbers
-    figure by figure); a text or an integer (a count: poses, unknowns) is kept when every round
-    has the same, and refused otherwise."""
+def _median(values: list, path: str) -> object:
+    """The median of one figure (``path``, e.g. ``calibrate[0].used``) over the rounds, keeping
+    its shape (a list or dict of numbers figure by figure); a text or an integer (a count:
+    poses, unknowns) is kept when every round has the same, and refused otherwise."""
     first = values[0]
     if isinstance(first, bool | str | int) or first is None:  # a count, a name: the same
         if any(v != first for v in values):
-            raise InternalError(f"a figure differs between the rounds: {values}")
+            raise InternalError(
+                f"the figure {path} differs between the rounds: {values}: the rounds did "
+                "different work (a count or a name is not a time to take the median of); "
+                "measure that part again (--part) and look at the round that differs"
+            )
         return first
     if isinstance(first, float):
         return statistics.median(values)
     if isinstance(first, dict):
-        return {key: _median([v[key] for v in values]) for key in first}
-    return [_median([v[i] for v in values]) for i in range(len(first))]
+        return {key: _median([v[key] for v in values], f"{path}.{key}") for key in first}
+    return [_median([v[i] for v in values], f"{path}[{i}]") for i in range(len(first))]
 
 
 def median_figures(rounds: Sequence[dict]) -> dict:
@@ -96,7 +106,7 @@ def median_figures(rounds: Sequence[dict]) -> dict:
     round's, so the tables read it as one measurement); ``load`` is every reading, in order,
     and ``rounds`` their number."""
     keys = [k for k in rounds[0] if k != "load"]
-    fig = {k: _median([r[k] for r in rounds]) for k in keys}
+    fig = {k: _median([r[k] for r in rounds], k) for k in keys}
     fig["load"] = [v for r in rounds for v in r.get("load", [])]
     fig["rounds"] = len(rounds)
     return fig
@@ -131,21 +141,40 @@ def named(fig: dict) -> dict[str, float]:
 @dataclass(frozen=True)
 class Paired:
     """One figure of both trees over the rounds: each tree's median, and the round-by-round
-    ratios this / REF (a round's two measurements taken one right after the other)."""
+    ratios this / REF (a round's two measurements taken one right after the other), with
+    whether this tree went first in that round (:func:`schedule`: the even rounds)."""
 
     this: float | None
     ref: float | None
     ratios: tuple[float, ...]
+    this_first: tuple[bool, ...] = ()
+
+    @property
+    def by_order(self) -> tuple[float | None, float | None]:
+        """The median ratio of the rounds where this tree went first, and of those where REF
+        did (None: no such round)."""
+        first = [r for r, f in zip(self.ratios, self.this_first, strict=True) if f]
+        second = [r for r, f in zip(self.ratios, self.this_first, strict=True) if not f]
+        return (statistics.median(first) if first else None,
+                statistics.median(second) if second else None)  # fmt: skip
 
     @property
     def ratio(self) -> float | None:
-        """The median of the round-by-round ratios (None: no round measured both)."""
-        return statistics.median(self.ratios) if self.ratios else None
+        """This / REF: the geometric mean of :attr:`by_order`'s two medians, so that a factor
+        a run's place in its pair puts on every ratio cancels (the median of all the ratios
+        when only one order was measured; None: no round measured both)."""
+        if not self.ratios:
+            return None
+        a, b = self.by_order if len(self.this_first) == len(self.ratios) else (None, None)
+        if a is None or b is None:
+            return statistics.median(self.ratios)
+        return math.sqrt(a * b)
 
 
 def paired(this: Sequence[dict], ref: Sequence[dict]) -> dict[str, Paired]:
     """Every figure (:func:`named`) of two trees measured round by round (the same number of
-    rounds, :func:`interleave`): the medians and the ratios of the pairs."""
+    rounds, :func:`interleave`: this tree first in the even rounds): the medians and the ratios
+    of the pairs."""
     if len(this) != len(ref):
         raise UsageError(f"{len(this)} rounds of this tree against {len(ref)} of REF")
     a, b = [named(f) for f in this], [named(f) for f in ref]
@@ -153,9 +182,12 @@ def paired(this: Sequence[dict], ref: Sequence[dict]) -> dict[str, Paired]:
     for key in dict.fromkeys([k for r in a + b for k in r]):
         xs = [r[key] for r in a if key in r]
         ys = [r[key] for r in b if key in r]
-        ratios = tuple(x[key] / y[key] for x, y in zip(a, b, strict=True)
-                       if key in x and key in y and y[key])  # fmt: skip
+        both = [(x[key] / y[key], k % 2 == 0) for k, (x, y) in enumerate(zip(a, b, strict=True))
+                if key in x and key in y and y[key]]  # fmt: skip
         out[key] = Paired(
-            statistics.median(xs) if xs else None, statistics.median(ys) if ys else None, ratios
+            statistics.median(xs) if xs else None,
+            statistics.median(ys) if ys else None,
+            tuple(r for r, _ in both),
+            tuple(f for _, f in both),
         )
     return out
