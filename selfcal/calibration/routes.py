@@ -356,7 +356,7 @@ def evaluate_pose_dataset(calibration: str | Path, dataset: str | Path) -> dict:
     Raises:
         InputError: the dataset's setup is not the calibration's, or bad files (named).
     """
-    from selfcal.calibration.board.evaluate import calibration_file
+    from selfcal.calibration.board.evaluate import calibration_file, calibration_sha256
     from selfcal.calibration.handeye.calibration_file import read_handeye
     from selfcal.calibration.handeye.held_out import held_out_check
     from selfcal.io.poses.dataset import PoseDataset
@@ -371,6 +371,7 @@ def evaluate_pose_dataset(calibration: str | Path, dataset: str | Path) -> dict:
     check = held_out_check(board, feats, ds.T_base_flange, setup, models, str(dataset))  # type: ignore[arg-type]
     return {"calibration": str(calibration),
             "calibration_file": str(calibration_file(calibration)),  # what report matches
+            "calibration_sha256": calibration_sha256(calibration),  # ... and its contents then
             "dataset": str(dataset), "setup": setup,
             "status": "failed" if check["failures"] else "ok", **check}  # fmt: skip
 

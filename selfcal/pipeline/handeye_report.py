@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from selfcal.calibration.board.evaluate import names_calibration
+from selfcal.calibration.board.evaluate import changed_since, names_calibration
 from selfcal.calibration.handeye.calibration_file import (
     camera_text,
     flange_poses_text,
@@ -61,6 +61,9 @@ def _held_out(root: Path, cal_path: Path) -> dict:
     if "held_out_rms_px" not in ev or not names_calibration(
         ev.get("calibration", ""), ev.get("calibration_file"), cal_path):  # fmt: skip
         return {"error": f"no held-out check: {ev_path} is not an evaluation of {cal_path}; {fix}"}
+    if changed_since(ev.get("calibration_sha256"), cal_path):
+        return {"error": f"no held-out check: {ev_path} evaluates an earlier {cal_path} (the "
+                         f"file changed since); {fix}"}  # fmt: skip
     return {"source": "selfcal evaluate", "file": str(ev_path), "dataset": ev["dataset"],
             "frames": ev["frames"], "corners": ev["corners"],
             "reprojection_rms_px": ev["held_out_rms_px"],

@@ -146,3 +146,36 @@ def test_an_evaluation_of_dot_is_the_reports_from_any_folder(tmp_path, monkeypat
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # not "evaluates ., not ...": its check is used
         assert _held_out(root, "board", 5)["source"] == "selfcal evaluate"
+
+
+def test_an_evaluation_of_a_calibration_redone_in_place_is_not_used(tmp_path, monkeypatch):
+    """`selfcal calibrate DIR` again after `selfcal evaluate DIR held --out DIR/evaluation.json`
+    leaves the same path with other contents: report, export and plan --add used the old
+    held-out figures without a word (review of session 26). The evaluation records the file's
+    SHA-256; one that no longer matches is another calibration's, said and not used; a file
+    written before the digest (none recorded) is judged by its paths as before."""
+    from selfcal.calibration.board.evaluate import (
+        evaluates,
+        evaluation_of,
+        read_evaluation,
+        write_evaluation,
+    )
+    from selfcal.errors import SelfCalWarning
+
+    root = tmp_path / "cal"
+    root.mkdir()
+    (root / "calibration.json").write_text('{"first": 1}')
+    errs = [{"nominal": np.ones((3, 2)), "calibrated": np.zeros((3, 2))}]
+    monkeypatch.chdir(tmp_path)
+    made = Evaluation.of([{"image": "0000_cam0.png", "camera": "cam0", "features": 3}], errs,
+                         (), "held", "cal")  # fmt: skip
+    write_evaluation(root / "evaluation.json", made)
+    ev = read_evaluation(root / "evaluation.json")
+    assert len(ev.calibration_sha256) == 64 and evaluates(ev, root)
+    assert evaluation_of(root)[1] == ev
+    (root / "calibration.json").write_text('{"second": 2}')  # calibrated again, in place
+    assert not evaluates(ev, root)
+    with pytest.warns(SelfCalWarning, match=r"evaluates an earlier .*changed since.*evaluate"):
+        assert evaluation_of(root)[1] is None
+    older = Evaluation(ev.rms, ev.images, (), "held", "cal", calibration_file=ev.calibration_file)
+    assert evaluates(older, root)  # no digest recorded: the paths decide

@@ -15,6 +15,7 @@ pose is part of the model).
 
 from __future__ import annotations
 
+import hashlib
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -33,6 +34,7 @@ __all__ = [
     "EVAL_FORMAT",
     "Evaluation",
     "calibration_file",
+    "calibration_sha256",
     "evaluates",
     "evaluation_of",
     "names_calibration",
@@ -95,7 +97,9 @@ class Evaluation:
     every feature's predicted - detected (k, 2) px in the order of ``images`` (not written to
     ``evaluation.json``; figures draw them); ``calibration`` the calibration's path as
     ``selfcal evaluate`` was given it, ``calibration_file`` its ``calibration.json``'s absolute
-    path there (:func:`calibration_file`; empty in a file written before it)."""
+    path there (:func:`calibration_file`; empty in a file written before it),
+    ``calibration_sha256`` that file's SHA-256 then (:func:`calibration_sha256`; empty in a file
+    written before it): a calibration redone in place since is another calibration."""
 
     rms: dict[str, float]
     images: tuple[dict, ...]
@@ -105,6 +109,7 @@ class Evaluation:
     residuals: dict[str, np.ndarray] = field(default_factory=dict, compare=False, repr=False)
     cameras: dict[str, dict] = field(default_factory=dict)
     calibration_file: str = ""
+    calibration_sha256: str = ""
 
     @classmethod
     def of(
@@ -131,7 +136,7 @@ class Evaluation:
             }  # fmt: skip
         rms = {k: rms_px(v) for k, v in res.items()}
         return cls(rms, tuple(rows), skipped, dataset, calibration, res, per_cam,
-                   str(calibration_file(calibration)))  # fmt: skip
+                   str(calibration_file(calibration)), calibration_sha256(calibration))  # fmt: skip
 
     @property
     def failures(self) -> tuple[str, ...]:
@@ -153,6 +158,7 @@ class Evaluation:
             SCHEMA_KEY: 1,
             "calibration": self.calibration,
             "calibration_file": self.calibration_file or None,
+            "calibration_sha256": self.calibration_sha256 or None,
             "dataset": self.dataset,
             "status": "failed" if self.failures else "ok",
             "failures": list(self.failures),
@@ -346,7 +352,8 @@ def read_evaluation(path: str | Path) -> Evaluation:
     return Evaluation(dict(f.float_map("reprojection_rms_px")), images,
                       f.strs("skipped_images"), f.str("dataset"), f.str("calibration"),
                       cameras=per_cam,
-                      calibration_file=f.opt_str("calibration_file") or "")  # fmt: skip
+                      calibration_file=f.opt_str("calibration_file") or "",
+                      calibration_sha256=f.opt_str("calibration_sha256") or "")  # fmt: skip
 
 
 def calibration_file(calibration: str | Path) -> Path:
@@ -358,11 +365,30 @@ def calibration_file(calibration: str | Path) -> Path:
     return (p / "calibration.json" if p.is_dir() else p).resolve()
 
 
+def calibration_sha256(calibration: str | Path) -> str:
+    """The SHA-256 (hex) of the ``calibration.json`` at ``calibration`` (the file or its
+    folder), empty when there is no such file: what a held-out check records of the calibration
+    it judged, so that one redone in place since (the same path, other contents) is told apart."""
+    p = calibration_file(calibration)
+    return hashlib.sha256(p.read_bytes()).hexdigest() if p.is_file() else ""
+
+
+def changed_since(recorded_sha256: str | None, calibration: str | Path) -> bool:
+    """Whether the ``calibration.json`` at ``calibration`` differs from the one a check recorded
+    (its :func:`calibration_sha256` then; empty or None in files written before it: not known,
+    False)."""
+    return bool(recorded_sha256) and recorded_sha256 != calibration_sha256(calibration)
+
+
 def evaluates(ev: Evaluation, calibration: str | Path) -> bool:
     """Whether ``ev`` (an ``evaluation.json`` read back) evaluates ``calibration`` (its
     ``calibration.json`` or that file's folder): :func:`names_calibration` of its recorded
-    paths. An evaluation kept beside another calibration's file judges that one, not this."""
-    return names_calibration(ev.calibration, ev.calibration_file, calibration)
+    paths, and the file unchanged since (:func:`changed_since`). An evaluation kept beside
+    another calibration's file, or of a calibration redone in place since, judges that one, not
+    this."""
+    return names_calibration(ev.calibration, ev.calibration_file, calibration) and not (
+        changed_since(ev.calibration_sha256, calibration)
+    )
 
 
 def evaluation_of(calibration: str | Path, *, warn: bool = True,
@@ -380,7 +406,12 @@ def evaluation_of(calibration: str | Path, *, warn: bool = True,
     ev = read_evaluation(path)
     if evaluates(ev, p):
         return path, ev
-    if warn:
+    if warn and names_calibration(ev.calibration, ev.calibration_file, p):
+        warnings.warn(f"{path} evaluates an earlier {calibration_file(p)} (the file changed since: "
+                      f"another SHA-256): its held-out check is not used; run `selfcal evaluate "
+                      f"{p} DATASET2 --out {path}` again", SelfCalWarning,
+                      stacklevel=stacklevel + 1)  # fmt: skip
+    elif warn:
         warnings.warn(f"{path} evaluates {ev.calibration_file or ev.calibration}, not {p}: its "
                       "held-out check is not used", SelfCalWarning, stacklevel=stacklevel + 1)  # fmt: skip
     return path, None
