@@ -78,7 +78,8 @@ def plan_lines(plan) -> str:
             first += (f"{plan.random_selected_m * 1000:.3f} mm with what its selection is "
                       f"forecast to keep, {plan.random_m * 1000:.3f} mm with all)")  # fmt: skip
     if plan.chosen_by != "greedy":
-        first += (f"; the pool's {plan.chosen_by}: the greedy choice (its criterion estimates "
+        same = " (the random plan)" if plan.is_the_random_plan else ""
+        first += (f"; the pool's {plan.chosen_by}{same}: the greedy choice (its criterion estimates "
                   f"every parameter) predicted {plan.greedy_m * 1000:.3f} mm with those its "
                   "selection is forecast to keep")  # fmt: skip
     first += f"; joint path {np.degrees(plan.path_rad):.0f} deg"

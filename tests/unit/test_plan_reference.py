@@ -117,7 +117,7 @@ def test_both_references_equal_an_independent_computation(cell, dev):
 
 
 @pytest.mark.slow
-def test_the_plan_says_the_reference_and_whether_it_beats_it(tmp_path, capsys):
+def test_the_plan_says_the_reference_and_whether_it_beats_it(tmp_path, capsys, recwarn):
     from selfcal.cli.main import main
 
     argv = ["plan", "--robot", "ur5e", "--target", str(models_dir() / "targets/charuco.toml"),
@@ -135,3 +135,11 @@ def test_the_plan_says_the_reference_and_whether_it_beats_it(tmp_path, capsys):
     assert doc["rival_beats_nominal"] == (None if rival is None else rival <= CLEAR_MARGIN * best)
     assert ("NOT predicted to beat it" in out) != doc["beats_nominal"]
     assert doc["verdict"] in out
+    # At 8 postures the selection's forecast prefers the pool's first set, which is the random
+    # plan, to the greedy choice: the forecast draws the same postures twice (equal medians by
+    # construction), and the plan gives no warning that it is "no better than a random plan of
+    # 8" (before: "median 1.649 mm ... median 1.649 mm", the plan against itself)
+    draws = doc["forecast_draws"]
+    assert doc["chosen_by"] == "random set 1 of 7" and "random set 1 of 7 (the random plan)" in out
+    assert draws["plan"]["median_mm"] == draws["random"]["median_mm"]
+    assert not [w for w in recwarn if "no better than" in str(w.message)]

@@ -11,7 +11,12 @@ from types import SimpleNamespace
 import numpy as np
 
 from selfcal.calibration.board.nominal_fit import placement_indices
-from selfcal.calibration.board.plan.planner import SEARCH_STEP, Selected, count_to_beat
+from selfcal.calibration.board.plan.planner import (
+    SEARCH_STEP,
+    RecordingPlan,
+    Selected,
+    count_to_beat,
+)
 from selfcal.calibration.board.plan.reference import CLEAR_MARGIN, NominalReference
 from selfcal.calibration.board.plan.selection import SelectionForecast
 from selfcal.cli.plan_text import plan_lines, plan_sections, reference_words
@@ -185,3 +190,18 @@ def test_a_forecast_of_no_gain_beside_a_measured_gain_says_which_is_which():
     assert measured_gain(worse, None) is None  # the calibration predicts no better
     assert measured_gain(worse, (1.731, 1.731)) is None  # evaluate's NO GAIN
     assert measured_gain(None, None) is None
+
+
+def test_a_plan_is_the_random_plan_when_it_holds_its_postures_in_any_order():
+    """The plan that is the pool's first set holds the random plan's postures in path order:
+    the forecast then compares it with itself, and ``selfcal plan`` gives no warning that it is
+    no better than the random plan (tests/unit/test_plan_reference.py)."""
+    r = np.arange(24.0).reshape(8, 3) / 10
+
+    def same(q):
+        return RecordingPlan.is_the_random_plan.fget(SimpleNamespace(q=q, q_random=r))
+
+    assert same(r[[3, 0, 7, 1, 6, 2, 5, 4]])
+    other = r.copy()
+    other[5, 1] += 1e-9
+    assert not same(other) and not same(r[:7]) and not same(r[[0, 0, 1, 2, 3, 4, 5, 6]])

@@ -133,6 +133,16 @@ class RecordingPlan:
     greedy_m: float = float("nan")
     random_selected_m: float | None = None
 
+    @property
+    def is_the_random_plan(self) -> bool:
+        """Whether the plan's postures are the random plan's (in another order): ``chosen_by``
+        the pool's first set, which is the random plan. A comparison of the two (the forecast's
+        draws) then compares the plan with itself."""
+        q, r = self.q, self.q_random
+        return q.shape == r.shape and np.array_equal(
+            q[np.lexsort(q.T[::-1])], r[np.lexsort(r.T[::-1])]
+        )
+
 
 @dataclass(frozen=True, eq=False)
 class Selected:
