@@ -314,6 +314,7 @@ def identify(
     place_base: bool = True,
     rank_rtol: float = 1e-9,
     cond_warn: float = 1e6,
+    pose_names: tuple[str, ...] | None = None,
 ) -> IdentificationResult:
     """Identify the minimal MCPC parameters from joint read-backs and measured tool poses.
 
@@ -336,6 +337,8 @@ def identify(
         place_base: start from :func:`initial_base` (needed when the world frame is arbitrary).
         rank_rtol: relative singular-value threshold of the numerical rank.
         cond_warn: warn above this condition number of the scaled Jacobian.
+        pose_names: what the warnings call each pose (e.g. ``"frame 21"``; default ``"pose k"``,
+            ``k`` its row of ``q`` from 0).
 
     Returns:
         :class:`IdentificationResult`.
@@ -351,6 +354,8 @@ def identify(
     q, T_meas = _check_inputs(model, q, T_world_cam)
     notes: list[str] = []
     m = q.shape[0]
+    if pose_names is not None and len(pose_names) != m:
+        raise InputError(f"{len(pose_names)} pose_names for {m} poses: give one per row of q")
     idx = minimal_indices(model.joint_types)
     names = tuple(param_names(idx))
     hold = tuple(hold or ())
@@ -432,9 +437,13 @@ def identify(
     sigma0 = float(np.sqrt(cost / dof))
     cov = covariance(prob, sol.x, [("mcpc", pos)], sigma2=sigma0**2)
     if sigma0 > 10.0:
+        k = int(np.argmax(np.sum((y / sig) ** 2, axis=1)))  # the pose furthest from the fit
+        name = f"pose {k}" if pose_names is None else pose_names[k]
         _note(
             notes,
-            f"residuals are {sigma0:.3g} times the stated sigmas: outliers, wrong sigmas, or a "
+            f"residuals are {sigma0:.3g} times the stated sigmas (the largest at {name}: "
+            f"{1000 * np.linalg.norm(y[k, :3]):.3g} mm, "
+            f"{np.degrees(np.linalg.norm(y[k, 3:])):.3g} deg): outliers, wrong sigmas, or a "
             "model that does not fit (e.g. joint compliance, wrong camera pairing)",
         )
     phys = np.where(param_is_angle(est), O1_SCALE_RAD, O1_SCALE_M)

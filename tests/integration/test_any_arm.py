@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from selfcal.acquisition.backends import plan_dataset, plan_optimal, planning_inputs
+from selfcal.calibration.identify import IdentificationWarning
 from selfcal.cli.main import main
 from selfcal.config.scenario import ConfigError, load_scenario
 from selfcal.estimation.selfcal_errors import DegenerateConfigurationError
@@ -109,9 +110,23 @@ def test_optimal_postures_are_found(path):
 @pytest.mark.slow  # over 2 s on 2 cores: the default tier keeps to ~90 s
 @pytest.mark.parametrize("path", SCENARIOS, ids=lambda p: p.stem)
 def test_pipeline_calibrates_on_the_analytic_path(tmp_path, path):
-    """Perturbation -> synthetic corners -> calibration -> validation, 30 poses."""
+    """Perturbation -> synthetic corners -> calibration -> validation, 30 poses.
+
+    The KR 6's two-stage start warns, rightly, and the one-step refinement recovers: its frame 21
+    is seen through 3 markers (12 corners; one marker, 48 x 44 px, in the left image), the
+    camera stage's pose of it is 43 mm and 72 mrad from the truth and the identification weighs
+    it as much as the others, one fixed sigma per pose (selfcal/calibration/field/calibrate.py):
+    residuals 29.9 times the stated sigmas, the largest at frame 21 (27.5 mm, 3.8 deg); with the
+    true camera poses they are 1e-12 times (the simulation's own model). The refinement weighs the
+    corners instead: 0.225 mm against the bound's 0.248 mm. The UR5e's start stays below the
+    warning (6.1 times; its worst pose, frame 15, is 9 mm and 17 mrad from the truth)."""
     s = load_scenario(path)
-    run_all(s, tmp_path / "run", quiet=True)
+    if path.stem == "kr6-r900":
+        outlier = r"residuals are [\d.]+ times the stated sigmas \(the largest at frame 21: "
+        with pytest.warns(IdentificationWarning, match=outlier):
+            run_all(s, tmp_path / "run", quiet=True)
+    else:
+        run_all(s, tmp_path / "run", quiet=True)
     rep = json.loads((tmp_path / "run" / "report.json").read_text())["validation"]
     err = rep["tool_tip_error_mm"]
     # measured: ur5e nominal 1.51 mm, calibrated 0.084 mm RMS, Cramer-Rao bound 0.167 mm;

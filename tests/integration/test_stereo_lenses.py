@@ -23,6 +23,7 @@ import numpy as np
 import pytest
 
 from selfcal.calibration.field.evaluate import evaluate_field
+from selfcal.calibration.identify import IdentificationWarning
 from selfcal.cli.main import main
 from selfcal.io.calibration import read_calibration
 
@@ -72,10 +73,20 @@ RIGHT_PINHOLE = ("model = 'pinhole'\nfx = 812.0\nprincipal_point_offset_px = [-9
 @pytest.mark.slow
 @pytest.mark.parametrize("right", [RIGHT_FX_1100, RIGHT_PINHOLE], ids=["fx1100", "pinhole"])
 def test_other_right_cameras_start_from_the_one_pinhole_and_find_their_own(tmp_path, right):
+    """The fx 1100 px variant's two-stage start warns, rightly (the estimate is the one-step
+    refinement's): its frame 25 is seen through 2 markers in each camera (8 corners each), the
+    camera stage's pose of it is 12 mm and 15 mrad from the truth and weighs as much as the
+    others, with one fixed sigma per pose (selfcal/calibration/field/calibrate.py): residuals
+    11.3 times the stated sigmas, the largest at frame 25 (11.5 mm, 0.93 deg)."""
     text = STEREO_TOML.read_text().split("\n[camera.right]\n")[0] + "\n[camera.right]\n" + right
     cfg = tmp_path / "variant.toml"
     cfg.write_text(text + "[noise]\nrender = false\n")
-    assert main(["run", str(cfg), "--out", str(tmp_path / "run")]) == 0
+    if right is RIGHT_FX_1100:
+        outlier = r"residuals are [\d.]+ times the stated sigmas \(the largest at frame 25: "
+        with pytest.warns(IdentificationWarning, match=outlier):
+            assert main(["run", str(cfg), "--out", str(tmp_path / "run")]) == 0
+    else:
+        assert main(["run", str(cfg), "--out", str(tmp_path / "run")]) == 0
     rows = json.loads((tmp_path / "run" / "report.json").read_text())["cameras"]
     z = {f"{c}.{n}": r["z"] for c, params in rows.items() for n, r in params.items()}
     print(f"\nstereo-lenses variant: max |z| {max(map(abs, z.values())):.2f}")

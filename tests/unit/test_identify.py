@@ -19,6 +19,7 @@ from selfcal.calibration.identify import (
     identify,
     initial_base,
 )
+from selfcal.errors import InputError
 from selfcal.kinematics.alignment import (
     align_truth,
     express_in_frame,
@@ -338,7 +339,6 @@ def test_no_canonical_base_of_a_chain_that_starts_prismatic_names_the_robot_and_
     and 2: `selfcal plan --add 5 cal` and `selfcal export cal --format urdf --force` said only
     "no canonical base frame: joints 1 and 2 must be revolute" (new user's trip, session 26);
     the error now names the robot, its joints' kinds and what can be done instead."""
-    from selfcal.errors import InputError
 
     robot = load_robot(str(models_dir().parent / "tests" / "data" / "virtual_chain_xyz.urdf"))
     with pytest.raises(InputError) as got:
@@ -419,3 +419,28 @@ def test_joint_1_along_the_world_x_axis_takes_a_base_offset() -> None:
     back = _model_from(Fields(_model_json(res.model, "camera"), "calibration.json", ""))
     assert back.base_offset == res.model.base_offset
     assert np.abs(fk_tool(back, q) - fk_tool(res.model, q)).max() < 1e-15
+
+
+def test_residuals_beyond_the_stated_sigmas_name_the_pose_furthest_from_the_fit() -> None:
+    """One of 30 poses off by 40 mm (a camera-stage pose seen through one marker, as the KR 6's
+    frame 21 in the slow tier): sigma0 beyond 10 and the warning names that pose -- by the
+    caller's name, or by its row -- with its residual (the fit spreads part of the 40 mm over
+    the others, so the residual there is less); a wrong count of names is refused."""
+    robot = load_robot("er4u-paper")
+    rng = np.random.default_rng(3)
+    nom = nominal(robot)
+    q = configs(robot, rng, 30)
+    T = fk_tool(perturbed(nom, rng), q)
+    T[17, :3, 3] += [0.04, 0.0, 0.0]
+    names = tuple(f"frame {100 + k}" for k in range(30))
+    with pytest.warns(IdentificationWarning, match=r"the largest at frame 117: [\d.]+ mm") as got:
+        res = identify(nom, q, T, pose_names=names)
+    (said,) = [str(w.message) for w in got if "stated sigmas" in str(w.message)]
+    assert res.sigma0 > 10 and f"residuals are {res.sigma0:.3g} times" in said
+    mm = float(said.split("frame 117: ")[1].split(" mm")[0])
+    assert mm == pytest.approx(1000 * np.linalg.norm(res.residuals[17, :3]), rel=1e-2)
+    assert 10 < mm < 40
+    with pytest.warns(IdentificationWarning, match="the largest at pose 17: "):
+        identify(nom, q, T)
+    with pytest.raises(InputError, match="29 pose_names for 30 poses"):
+        identify(nom, q, T, pose_names=names[:29])

@@ -250,9 +250,16 @@ def calibrate_detailed(
             f"needs at least {MIN_POSTURES}: acquire more postures that see the markers"
         )
     # One camera sees its pose less well than a stereo pair (depth from one view): on
-    # scenarios/mono.toml the pose residuals are 11.9x identify's default sigmas (stereo: within
-    # them), so both are scaled by 10 (the estimate does not change, only the warning's scale),
-    # and its Gauss-Newton may need more steps (a Monte Carlo draw of mono.toml took 152).
+    # scenarios/mono.toml the pose residuals are 11.9x identify's default sigmas, so both are
+    # scaled by 10 (the estimate does not change, only the warning's scale), and its
+    # Gauss-Newton may need more steps (a Monte Carlo draw of mono.toml took 152).
+    # Stereo is not within them either: the sigmas are one guess for every pose, not the camera
+    # stage's precision of it. Measured (analytic, seed 1): the well-seen poses scatter
+    # 0.2 - 0.8 mm and 0.8 - 2 mrad per axis about the fit (sigma0 3 - 5 without the two worst);
+    # a pose whose cameras see 1 - 2 markers errs by far more (kr6-r900's frame 21, 12 corners:
+    # 43 mm and 72 mrad from the truth), weighs as much as the others, and sigma0 is 6.1
+    # (ur5e) - 29.9 (kr6-r900). The warning names that frame; weighting each pose by the camera
+    # stage's covariance would be the fix of the cause (a change of the two-stage estimate).
     mono = len(ds.info.cameras) == 1
     s_pose = 10.0 if mono else 1.0
     with _stage(progress, "kinematic identification") as st:
@@ -263,6 +270,7 @@ def calibrate_detailed(
             sigma_t_m=1e-4 * s_pose,
             sigma_r_rad=1e-3 * s_pose,
             max_iter=200 if mono else 50,
+            pose_names=tuple(f"frame {int(i)}" for i in ds.indices[used]),
         )
         st(
             f"tool RMS {ident.rms_t_mm_after:.3f} mm / {ident.rms_r_deg_after:.4f} deg, "
