@@ -168,25 +168,33 @@ def _held_out(root: str | Path) -> tuple[tuple[float, float] | None, str]:
 
 def _halved_json(add: AddedPostures) -> dict:
     """plan.json's ``halved_with``: the fewest postures predicted to halve the error before
-    (``count`` null: none up to ``tried``), and their predicted tool-point RMS (mm)."""
+    (``count`` null: none up to ``tried``) by the medians of the forecast's draws, the median
+    before and theirs after (mm)."""
     h = add.halving
     assert h is not None  # cmd_add asks for it
-    return {"count": h.count, "tried_up_to": h.tried,
-            "predicted_tool_rms_mm": None if h.count is None else round(h.after_m * 1000, 4)}  # fmt: skip
+    return {"count": h.count, "tried_up_to": h.tried, "by": HALVED_BY,
+            "median_before_mm": round(h.before_m * 1000, 4),
+            "median_after_mm": None if h.count is None else round(h.after_m * 1000, 4)}  # fmt: skip
+
+
+HALVED_BY = ("the medians of the tool-point error over the forecast's draws (forecast_draws: the "
+             "same count and seed), before and after, not the first line's prediction")  # fmt: skip
+"""What plan.json's ``halved_with`` judges by."""
 
 
 def halved_words(add: AddedPostures, root: str) -> str:
-    """The line for a plan not predicted to halve the dataset's error: how many postures are
-    (with the command that plans them) or none up to the largest count tried; empty when the
-    plan's own count is."""
+    """The line for a plan not predicted to halve the dataset's error by the medians of the
+    forecast's draws: how many postures are (with the command that plans them) or none up to
+    the largest count tried; empty when the plan's own count is."""
     h = add.halving
     assert h is not None  # cmd_add asks for it
     k = len(add.q)
     if h.count == k:
         return ""
-    short = (f"not predicted to halve the error with {k} added postures ({add.before_m * 1000:.3f}"
-             f" -> {add.after_m * 1000:.3f} mm, {add.before_m / add.after_m:.2f} times lower)")  # fmt: skip
+    short = (f"not predicted to halve the error with {k} added postures (the forecast's draws' "
+             f"median {h.before_m * 1000:.3f} before)")  # fmt: skip
     if h.count is None:
         return f"{short}, nor with any count up to {h.tried} (each planned as {k} are)"
-    return (f"{short}; {h.count} are predicted to ({add.before_m * 1000:.3f} -> "
-            f"{h.after_m * 1000:.3f} mm): selfcal plan --add {h.count} {root}")  # fmt: skip
+    return (f"{short}; {h.count} are predicted to ({h.before_m * 1000:.3f} -> "
+            f"{h.after_m * 1000:.3f} mm, the draws' medians): selfcal plan --add {h.count} "
+            f"{root}")  # fmt: skip

@@ -95,18 +95,23 @@ def test_add_plans_for_an_eye_to_hand_dataset(dataset, tmp_path, capsys, monkeyp
     fair = doc["nominal_before"]["fair_nominal_tool_rms_mm"]
     assert doc["predicted_before_tool_rms_mm"] == pytest.approx(fair, abs=2e-4)
     assert doc["nominal"]["drawn_not_a_reference"] is None  # no camera rides on the flange
-    # how many postures are predicted to halve the error: the fewest of those tried
-    half = doc["predicted_before_tool_rms_mm"] / 2.0
+    # how many postures are predicted to halve the error: the fewest of those tried, by the
+    # medians of the forecast's draws (the fifth line's, the same draws), not the first line
+    drawn = doc["forecast_draws"]
     halved = doc["halved_with"]
+    assert halved["median_before_mm"] == drawn["before"]["median_mm"]
+    half = halved["median_before_mm"] / 2.0
     short = line.splitlines()[-1].startswith("not predicted to halve the error with 2 added")
     assert 2 <= halved["tried_up_to"] <= 2 + HALVE_MORE
     if halved["count"] is None:
-        assert doc["predicted_tool_rms_mm"] > half and halved["tried_up_to"] == 2 + HALVE_MORE
+        assert drawn["after"]["median_mm"] > half and halved["tried_up_to"] == 2 + HALVE_MORE
         assert short and f"nor with any count up to {2 + HALVE_MORE}" in line
     else:
         assert halved["count"] == halved["tried_up_to"]
-        assert halved["predicted_tool_rms_mm"] <= half + 1e-4
-        assert (halved["count"] == 2) == (doc["predicted_tool_rms_mm"] <= half) != short
+        assert halved["median_after_mm"] <= half + 1e-4
+        assert (halved["count"] == 2) == (drawn["after"]["median_mm"] <= half) != short
+        if halved["count"] == 2:
+            assert halved["median_after_mm"] == drawn["after"]["median_mm"]
         if short:  # the command that plans them
             assert line.rstrip().endswith(f"selfcal plan --add {halved['count']} {root}")
 

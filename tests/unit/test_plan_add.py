@@ -178,9 +178,29 @@ def test_the_fewest_postures_that_halve_the_error_are_found_in_order():
         return after[n]
 
     got = first_halving(1.25, 5, predicted, 8)
-    assert (got.count, got.after_m, got.tried) == (6, 0.6, 6)
+    assert (got.count, got.after_m, got.tried, got.before_m) == (6, 0.6, 6, 1.25)
     assert asked == [5, 6]  # stopped at the first: no count above it planned
     short = first_halving(1.25, 5, predicted, 5)
     assert short.count is None and np.isnan(short.after_m) and short.tried == 5
     exact = first_halving(1.2, 6, predicted, 8)  # at most half, not below
     assert exact.count == 6
+
+
+def test_the_halving_line_gives_the_draws_medians_it_judged_by():
+    """``selfcal plan --add``'s sixth line names the medians of the forecast's draws (before and
+    with the count that halves), not the first line's prediction; no line when K halve it."""
+    from types import SimpleNamespace
+
+    from selfcal.calibration.board.plan.add import Halving
+    from selfcal.cli.plan_add import halved_words
+
+    def add(halving: Halving) -> SimpleNamespace:  # the first line's figures: not in the words
+        return SimpleNamespace(q=np.zeros((5, 6)), before_m=9.0, after_m=8.0, halving=halving)
+
+    six = halved_words(add(Halving(6, 0.0003, 6, 0.0012)), "calib")  # type: ignore[arg-type]
+    assert six == ("not predicted to halve the error with 5 added postures (the forecast's "
+                   "draws' median 1.200 before); 6 are predicted to (1.200 -> 0.300 mm, the "
+                   "draws' medians): selfcal plan --add 6 calib")  # fmt: skip
+    none = halved_words(add(Halving(None, float("nan"), 8, 0.0012)), "calib")  # type: ignore[arg-type]
+    assert none.endswith("median 1.200 before), nor with any count up to 8 (each planned as 5 are)")
+    assert halved_words(add(Halving(5, 0.0006, 5, 0.0012)), "calib") == ""  # type: ignore[arg-type]

@@ -11,7 +11,7 @@ calibrated. A row: the predicted tool-point RMS before and after (``plan.json``)
 after of its forecast's draws (the selection deciding in each: ``forecast_draws``), the
 achieved one (``report.json``'s validation tool tip against the simulated truth), the
 parameters each calibration kept and how many postures ``plan.json`` predicts to halve the error
-(``halved_with``: K or more, planned as K is). Prints the table, the medians of the before/after
+(``halved_with``: K or more, planned as K is, by the medians of the forecast's draws). Prints the table, the medians of the before/after
 ratios (the achieved ratio's quartiles and range) and in how many truths K are predicted to
 halve it; ``--write-docs`` puts them between
 docs/plan.md's ``benchmark_plan_add_K`` markers (K the ``--add``).
@@ -302,7 +302,8 @@ def main(argv: list[str] | None = None) -> int:
     mount = " --mount eye-to-hand" if e2h else ""
     lines += ["", f"Median ratio before/after{of}: predicted {pr:.2f} (to the draws' median "
               f"{dr:.2f}), achieved {ac:.2f} (quartiles {q1:.2f} - {q3:.2f}, {ratios.min():.2f} - "
-              f"{ratios.max():.2f} in all); predicted halved by {a.add} postures in {halved} of "
+              f"{ratios.max():.2f} in all); predicted halved by {a.add} postures (the draws' "
+              f"medians) in {halved} of "
               f"{len(ok)}; "
               f"achieved/predicted after {fit:.2f} (`python -m selfcal.benchmarks.plan.add "
               f"--truths {a.truths} --add {a.add}{mount} --write-docs`)."]  # fmt: skip

@@ -231,12 +231,17 @@ class AddedPostures:
 @dataclass(frozen=True)
 class Halving:
     """How many postures the plan predicts to halve the dataset's error (:func:`first_halving`):
-    ``count`` the fewest (None: none of those tried), ``after_m`` its predicted tool-point RMS
-    (m; NaN without a count), ``tried`` the largest count tried."""
+    ``count`` the fewest (None: none of those tried), ``after_m`` its predicted tool-point error
+    (m; NaN without a count), ``tried`` the largest count tried, ``before_m`` the error before
+    it is judged against (m). :func:`plan_additions` judges by the medians of the forecast's
+    draws (:data:`selfcal.calibration.board.plan.spread.DRAWS` of them, seeded with the plan's
+    seed: ``selfcal plan --add``'s third line, plan.json's ``forecast_draws``), not by the first
+    line's prediction, which jumps with the one candidate the selection's forecast keeps."""
 
     count: int | None
     after_m: float
     tried: int
+    before_m: float = float("nan")
 
 
 HALVE_MORE = 3
@@ -252,8 +257,8 @@ def first_halving(before_m: float, count: int, after: Callable[[int], float], mo
     for n in range(count, most + 1):
         got = after(n)
         if got <= 0.5 * before_m:
-            return Halving(n, got, n)
-    return Halving(None, float("nan"), most)
+            return Halving(n, got, n, before_m)
+    return Halving(None, float("nan"), most, before_m)
 
 
 SPARE = 16
@@ -308,8 +313,9 @@ def plan_additions(
     home, as a new plan's; ``selfcal plan --add`` gives
     :func:`selfcal.calibration.board.plan.add_ground.dataset_workspace`'s). With ``more`` > 0
     the result's ``halving`` says how many postures, up to ``count + more``, are predicted to
-    halve the error before (:func:`first_halving`; each larger count planned from the same
-    candidates as ``count`` is: the greedy choice is nested, the swaps its own); 0: not asked.
+    halve the error before (:func:`first_halving` on the medians of the forecast's draws before
+    and after, :class:`Halving`; each larger count planned from the same candidates as
+    ``count`` is: the greedy choice is nested, the swaps its own); 0: not asked.
     ``spare``: how many of the greedy's next picks may replace a chosen posture (more than the
     pool holds: every candidate, one pass of swaps over the whole pool; a benchmark's question,
     ``python -m selfcal.benchmarks.plan.add_pool``).
@@ -356,6 +362,14 @@ def plan_additions(
                                 held_out=A_all).tool_m  # fmt: skip
         return float(np.sqrt(np.mean(tool**2)))
 
+    def median(q_all: np.ndarray, F_all: np.ndarray, nf: np.ndarray, A_all: np.ndarray) -> float:
+        """The median tool-point error (m) over the forecast's draws of these frames: the draws
+        ``selfcal plan --add`` reports (the same count and seed, on draws the swaps were not
+        judged on)."""
+        return selection_spread(model, q_all, G, F_all, nf, n_cam, var, opts.pixel_sigma_px,
+                                seed=opts.seed, directions=dirs,
+                                held_out=A_all).percentile(50)  # fmt: skip
+
     def in_path_order(idx: np.ndarray) -> np.ndarray:
         return idx[order_path(g.pool[idx], home)]
 
@@ -375,8 +389,9 @@ def plan_additions(
     before = predict_kept(setup, plan.q, F_old, G, var, (plan.free_idx, plan.offset_joints))
     halving = None
     if more > 0:
-        halving = first_halving(before, count, lambda n: after if n == count
-                                else predicted(choose(n))[0], most)  # fmt: skip
+        halving = first_halving(median(plan.q, F_frames, plan.n_features, A_old), count,
+                                lambda n: median(*frames(chosen if n == count else choose(n))),
+                                most)  # fmt: skip
     return AddedPostures(
         q=q,
         before_m=before,
