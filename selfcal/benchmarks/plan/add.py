@@ -300,8 +300,8 @@ def main(argv: list[str] | None = None) -> int:
     fit = np.median([r["achieved_after_mm"] / r["predicted_after_mm"] for r in ok])
     of = f" of the {len(ok)} truths that calibrated" if len(ok) < len(rows) else ""
     mount = " --mount eye-to-hand" if e2h else ""
-    lines += ["", f"Median ratio before/after{of}: predicted {pr:.2f} (to the draws' median "
-              f"{dr:.2f}), achieved {ac:.2f} (quartiles {q1:.2f} - {q3:.2f}, {ratios.min():.2f} - "
+    lines += ["", f"Median ratio before/after{of}: predicted {pr:.2f} (the first line's before "
+              f"to the draws' median after {dr:.2f}), achieved {ac:.2f} (quartiles {q1:.2f} - {q3:.2f}, {ratios.min():.2f} - "
               f"{ratios.max():.2f} in all); predicted halved by {a.add} postures (the draws' "
               f"medians) in {halved} of "
               f"{len(ok)}; "

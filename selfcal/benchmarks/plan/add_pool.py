@@ -94,7 +94,7 @@ def main(argv: list[str] | None = None) -> int:
     items = [(int(s), a.add, a.more) for s in a.truths.split(",")]
     print(
         "| truth | added postures | predicted before -> after (mm), kept | all kept (mm) "
-        "| draws' median, RMS (mm) | smaller set kept |\n|---|---|---|---|---|---|"
+        "| draws' median (the first line's before over it), RMS (mm) | smaller set kept |\n|---|---|---|---|---|---|"
     )
     with get_context("spawn").Pool(a.jobs) as pool:
         for rows in pool.imap(_rows, items):
