@@ -77,8 +77,11 @@ the flange, with that mount's view rules; --robot, --target, --mount, --board-po
 --camera-pose, --count and the camera options are refused), predicted with the parameters the
 selection's cross-validation is forecast to keep; PLAN/joints.csv and trajectory.yaml hold the
 added postures in the order to record them (it sets the cross-validation's folds), replay.csv the
-dataset's and the added ones (scenario.toml replays them); the last line and plan.png give the
-draws (as above) of the dataset's frames alone and with the added ones. The error is averaged over
+dataset's and the added ones (scenario.toml replays them); the fifth line and plan.png give the
+draws (as above) of the dataset's frames alone and with the added ones, and the last line
+whether their medians halve the error: when K do not, up to 3 larger counts are planned in turn,
+each costing about as much as the plan itself, and the first that does is named (plan.json
+halved_with). The error is averaged over
 the robot file's planning window, or without one over the dataset's joint region grown by 10 % of
 each joint's range; the held parameters' deviation, unless --deviation-mm / --deviation-deg are
 given, is sized so that the forecast expects the fair nominal's folds at the misfit the dataset's
