@@ -123,7 +123,8 @@ def forecast_draws(
 
     try:
         got = tuple((s, plan_spread(setup, s.q, G, var, args.pixel_sigma, joint_sigma, s.seen,
-                                    seed=args.seed, on_draw=on_draw)) for s in sets)  # fmt: skip
+                                    draws=DRAWS, seed=args.seed, on_draw=on_draw))
+                    for s in sets)  # fmt: skip
     finally:
         bar.finish()
     return Forecast(got, DRAWS, args.seed)

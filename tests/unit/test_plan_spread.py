@@ -108,3 +108,11 @@ def test_selfcal_plans_draws_show_progress_on_a_terminal(cell, monkeypatch):
                             Deviation())  # fmt: skip
         assert fc.draws == 400 and len(fc.sets[0][1].tool_m) == 400
         assert ("forecast" in err.getvalue() and "400/400" in err.getvalue()) != quiet
+    # the count it reports is the count it draws, also where a test lowers spread.DRAWS (the
+    # eye-to-hand --add test set 20, reported 20 and drew 400: review of session 27)
+    import selfcal.calibration.board.plan.spread as spread
+
+    monkeypatch.setattr(spread, "DRAWS", 20)
+    fc = forecast_draws(argparse.Namespace(pixel_sigma=0.5, seed=1, quiet=True, json=False),
+                        setup, workspace, [DrawSet("plan", "the plan", q)], JS, Deviation())  # fmt: skip
+    assert fc.draws == 20 and len(fc.sets[0][1].tool_m) == 20
