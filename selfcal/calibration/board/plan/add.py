@@ -55,6 +55,7 @@ from selfcal.calibration.board.bounds import estimated_parameters
 from selfcal.calibration.board.dataset import dataset_board, detect_board
 from selfcal.calibration.board.deviation import Deviation
 from selfcal.calibration.board.folds import configurations, fold_labels
+from selfcal.calibration.board.plan import spread as forecast_spread
 from selfcal.calibration.board.plan.add_cell import ADD_RULE, calibrated_cell
 from selfcal.calibration.board.plan.greedy import select_greedy
 from selfcal.calibration.board.plan.ground import PlanOptions, plan_ground
@@ -367,7 +368,7 @@ def plan_additions(
         ``selfcal plan --add`` reports (the same count and seed, on draws the swaps were not
         judged on)."""
         return selection_spread(model, q_all, G, F_all, nf, n_cam, var, opts.pixel_sigma_px,
-                                seed=opts.seed, directions=dirs,
+                                draws=forecast_spread.DRAWS, seed=opts.seed, directions=dirs,
                                 held_out=A_all).percentile(50)  # fmt: skip
 
     def in_path_order(idx: np.ndarray) -> np.ndarray:
