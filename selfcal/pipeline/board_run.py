@@ -47,7 +47,16 @@ from selfcal.kinematics.accuracy import aligned_errors, parameter_table, tool_ti
 from selfcal.kinematics.alignment import express_in_frame
 from selfcal.kinematics.forward import fk_tool
 from selfcal.kinematics.mcpc import MCPCModel, shape_matrices
-from selfcal.pipeline.board_accuracy import accuracy_markdown, board_accuracy_section
+from selfcal.pipeline.board_accuracy import (
+    accuracy_markdown,
+    board_accuracy_section,
+    spread_against_prediction,
+)
+from selfcal.pipeline.board_truth_accuracy import (
+    predicted_against_truth,
+    predicted_against_truth_words,
+    predicted_point_markdown,
+)
 from selfcal.pipeline.report_fit import bound_markdown, figure_links, parameter_markdown
 from selfcal.plots.job_figures import (
     parameter_figure,
@@ -197,6 +206,7 @@ def board_truth_report(root: Path, cal: BoardCalibrationResult, truth: Truth) ->
                 "tool-tip errors after the best rigid alignment (rotation and translation, no "
                 "scale) of the predicted positions to the true ones over the validation postures"
             ),
+            "predicted_point": predicted_against_truth(cal, truth, qv),
             "camera_pose_in_board": {
                 "calibrated": pose_errors(fk_tool(cal.model, qv), T_true),
                 "nominal": pose_errors(fk_tool(cal.nominal_model, qv), T_true),
@@ -270,6 +280,7 @@ def _markdown(r: dict) -> str:
             ),
             "",
             bound_markdown(v.get("tool_tip_bound_mm"), t["calibrated"]["rms"]),
+            *predicted_point_markdown(v.get("predicted_point")),
             "",
             f"Hand-eye (last link -> camera) against the truth: calibrated "
             f"{he['calibrated']['position_mm']['rms']:.3f} mm / "
@@ -383,7 +394,9 @@ def calibrate_board_run(
     accuracy = res.accuracy or {}
     folds = accuracy.get("spread")
     if folds:  # the run-to-run spread over the folds (issue #29)
-        _say(quiet, spread_line(folds))
+        more = spread_against_prediction(folds, accuracy.get("regions") or {},
+                                         accuracy.get("cross_validation"))  # fmt: skip
+        _say(quiet, spread_line(folds) + (f".{more}" if more else ""))
     boot = accuracy.get(KEY)
     if boot:
         _say(quiet, spread_line(boot))
@@ -473,12 +486,14 @@ def calibrate_and_report_board(
     rows = [rep["camera"], *(k["camera"] for k in rep["rig"].values())]
     zs = [abs(c["z"]) for r in rows for c in r.values() if c["z"] is not None]
     bound = rep["validation"]["tool_tip_bound_mm"]
+    point = predicted_against_truth_words(rep["validation"].get("predicted_point"))
     print(
-        f"tool-tip error on {rep['validation']['poses']} validation postures: nominal "
-        f"{v['nominal']['rms']:.3f} mm RMS (max {v['nominal']['max']:.3f}), calibrated "
-        f"{v['calibrated']['rms']:.3f} mm RMS (max {v['calibrated']['max']:.3f})"
-        f"{'' if bound is None else f', bound {bound:.3f} mm'}; camera "
-        f"parameters within {max(zs, default=float('nan')):.2f} sigma of the truth; total "
+        f"tool-tip error on {rep['validation']['poses']} validation postures (after the best "
+        f"rigid alignment): nominal {v['nominal']['rms']:.3f} mm RMS (max "
+        f"{v['nominal']['max']:.3f}), calibrated {v['calibrated']['rms']:.3f} mm RMS (max "
+        f"{v['calibrated']['max']:.3f}){'' if bound is None else f', bound {bound:.3f} mm'}; "
+        f"{'' if point is None else f'{point}; '}camera parameters within "
+        f"{max(zs, default=float('nan')):.2f} sigma of the truth; total "
         f"{time.perf_counter() - t0:.1f} s; details in {out}/report.md"
     )
     if rep["failures"]:

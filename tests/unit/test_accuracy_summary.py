@@ -70,7 +70,7 @@ def test_report_md_says_when_the_model_error_grows_away_from_the_postures():
     section = {"line": "tool point within 0.3 mm (95 %)", "regions": regions, "model_error": me}
     flat = "\n".join(accuracy_markdown(section))
     grown = "\n".join(accuracy_markdown({**section, "model_error": {**me, "reach_distance": 0.12}}))
-    assert "model error 0.0300 mm" in flat and "growing" not in flat
+    assert "Model error 0.0300 mm" in flat and "growing" not in flat
     assert "(0.120 of the joints' ranges), growing in proportion" in grown
     # how the folds saw it grow (selfcal/calibration/growth.py): shown, or only bounded
     read = {**me, "reach_distance": 0.12, "constant_share": 0.25, "measured_to_distance": 0.31}
@@ -87,7 +87,7 @@ def test_report_md_says_when_the_model_error_grows_away_from_the_postures():
     # none found: how far the folds tested the model is said all the same
     none = {**me, "position_mm": 0.0, "measured_to_distance": 0.07}
     untested = "\n".join(accuracy_markdown({**section, "model_error": none}))
-    assert ("model error 0.0000 mm" in untested and "beyond 0.070 of the joints' ranges from the "
+    assert ("Model error 0.0000 mm" in untested and "beyond 0.070 of the joints' ranges from the "
             "calibration postures no fold tested the model" in untested)  # fmt: skip
     assert "no fold tested" not in flat
     # tested only at the training postures (0): a limit too, said as one
@@ -114,7 +114,7 @@ def test_report_md_says_why_the_model_error_is_zero():
     section = {"line": "tool point within 6.7 mm (95 %)", "regions": regions, "model_error": me,
                "held_deviation": held, "cross_validation": cv}  # fmt: skip
     text = "\n".join(accuracy_markdown(section))
-    assert ("model error 0.0000 mm and 0.0000 deg per coordinate from 20 cross-validated frames "
+    assert ("Model error 0.0000 mm and 0.0000 deg per coordinate from 20 cross-validated frames "
             "(5 folds): none left, as the folds' excess over what the estimate's errors and the "
             "noise give their held-out frames (cross-validated 1.768 px) is counted as the held "
             "parameters' deviation from the drawing (below), whose share (0.0141 of the prior) "
@@ -130,4 +130,4 @@ def test_report_md_says_why_the_model_error_is_zero():
     assert "none counted, as what the folds' held-out frames" in small
     assert "within 2 standard errors of it" in small
     found = "\n".join(accuracy_markdown({**section, "model_error": {**me, "position_mm": 0.03}}))
-    assert "model error 0.0300 mm" in found and "none" not in found
+    assert "Model error 0.0300 mm" in found and "none" not in found

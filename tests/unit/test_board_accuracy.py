@@ -94,6 +94,54 @@ def test_the_held_share_is_what_the_folds_excess_shows_of_the_prior():
     assert (one.basis, one.used, one.estimate) == ("no_folds", 1.0, None)
 
 
+def test_a_held_deviation_too_small_for_the_folds_is_counted_unscaled_and_said_so():
+    """Held directions a chain cannot tell from the others (a 7-joint arm's betas) add only
+    rounding to the folds' pixels (2.5e-6 px^2 against a 0.23 px^2 standard deviation of the
+    summed excess): the share is not measured (it was: the point estimate -2.05e+07, which
+    report.md printed), the prior is counted unscaled, and the sentence says why, with no share
+    figure; the same folds with a measurable deviation are measured as before."""
+    from selfcal.calibration.board.deviation import Deviation
+    from selfcal.calibration.board.held_prior import held_block, held_sentence, held_share
+
+    excess = np.array([-0.02, 0.01, -0.03, -0.01, 0.0])
+    added = np.full(5, 5e-7)
+    var = np.full(5, 0.0106)
+    s = held_share(excess, added, np.full(5, 1.5), var)
+    assert (s.basis, s.used, s.estimate, s.upper) == ("unmeasurable", 1.0, None, None)
+    words = held_sentence(held_block(Deviation(), s))
+    assert words is not None and "counted unscaled" in words and "too little" in words
+    assert "e+0" not in words
+    before = held_share(excess, added, np.full(5, 1.5))  # without the variance: as before
+    assert before.basis == "folds" and before.estimate is not None and before.estimate < -1e4
+    measured = held_share(excess + 0.3 * 0.2, np.full(5, 0.2), np.full(5, 1.5), var)
+    assert measured.basis == "folds" and measured.estimate == pytest.approx(
+        0.3 - 0.05
+    )  # sums: (0.3 - 0.05) / 1.0
+
+
+def test_the_report_sets_the_rms_beside_the_largest_bound_and_the_spread():
+    """report.md's accuracy section: the line's figures are the largest 95 % bounds, the
+    predicted RMS beside them; the jackknife spread's RMS beside the predicted RMS, and past
+    1.5x the words on the jackknife's upward bias with few configurations (a 7-joint arm's
+    12 configurations: 0.240 against 0.098 mm)."""
+    from selfcal.pipeline.board_accuracy import rms_words, spread_against_prediction
+
+    regions = {"inside": {"position_rms_mm": 0.098}, "calibration_postures":
+               {"position_rms_mm": 0.092}}  # fmt: skip
+    assert (
+        "predicted RMS error is 0.098 mm inside the calibrated region, 0.092 mm at the "
+        "calibration postures" in rms_words(regions)
+    )
+    assert rms_words({}) == ""
+    far = {"resamplings": 5, "regions": {"inside": {"spread_mm_rms": 0.240}}}
+    text = spread_against_prediction(far, regions, {"configurations": 12})
+    assert "0.240 mm, 2.45x the predicted RMS error there (0.098 mm)" in text
+    assert "biased upward" in text and "12 configurations in 5 folds" in text
+    near = {"resamplings": 5, "regions": {"inside": {"spread_mm_rms": 0.120}}}
+    assert spread_against_prediction(near, regions, None).endswith("(0.098 mm).")
+    assert spread_against_prediction({"regions": {}}, regions, None) == ""
+
+
 def test_the_held_shares_upper_bound_covers_the_true_share_on_few_folds():
     """3 folds, each's excess the true share 0.3 of what the prior adds plus noise, 2000 times:
     the upper bound lies above 0.3 in 92-98 % of them (a 95 % bound), and the share counted

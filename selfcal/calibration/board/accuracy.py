@@ -315,7 +315,7 @@ def model_error(obs: BoardObservations, selection: Selection, offsets: np.ndarra
     if not got:
         return None, NO_FOLDS
     per_fold = np.array([[np.sum(g["px2"] - g["px2_expected"]), np.sum(g["px2_held"]),
-                          np.sum(g["px2_expected"])] for g in got])  # fmt: skip
+                          np.sum(g["px2_expected"]), np.sum(g["px2_var"])] for g in got])  # fmt: skip
     share = held_share(*per_fold.T)
     h = {k: np.concatenate([g[k] for g in got]) for k in got[0]}
     # one size m per tool-point coordinate, m / L per rotation coordinate (L the tool point's

@@ -21,6 +21,7 @@ from selfcal.calibration.board.deviation import Deviation
 __all__ = [
     "NO_FOLDS",
     "SHARE_LEVEL",
+    "UNMEASURABLE",
     "Share",
     "held_block",
     "held_sentence",
@@ -64,6 +65,7 @@ class Share:
         used: the share (0-1) the prediction counts: the upper bound ``upper`` clipped to 0-1
             when the folds measured it, else 1 (the prior unscaled).
         basis: ``"folds"`` (measured), ``"no_folds"`` (none, or one fitted: the prior
+            unscaled), ``"unmeasurable"`` (too small in the folds' pixels to measure: the prior
             unscaled) or ``"nothing_held"`` (the held directions add nothing to the folds'
             frames: nothing to measure, and nothing added).
         folds: the folds it was measured on.
@@ -85,7 +87,16 @@ class Share:
         return 1.0 if self.estimate is None else float(np.clip(self.estimate, 0.0, 1.0))
 
 
-def held_share(excess: np.ndarray, added: np.ndarray, expected: np.ndarray) -> Share:
+UNMEASURABLE = 0.01
+"""What the prior's full deviation must add to the folds' frames, as a share of the standard
+deviation of their summed excess without it, for the folds to measure its share
+(:func:`held_share`): below it the share's standard error passes 1/0.01 = 100 and its point
+estimate is rounding (a 7-joint arm's structurally redundant held directions added 2.5e-6 px^2
+against a 0.23 px^2 deviation, and the report printed a share of -2.05e+07)."""
+
+
+def held_share(excess: np.ndarray, added: np.ndarray, expected: np.ndarray,
+               var: np.ndarray | None = None) -> Share:  # fmt: skip
     """The share of the prior's variance the leave-one-configuration-out folds show, one entry
     per fitted fold (each (F,) px^2, summed over its held-out frames): ``excess`` their squared
     pixel errors beyond what the estimate and the noise give them (``expected``), ``added``
@@ -99,13 +110,18 @@ def held_share(excess: np.ndarray, added: np.ndarray, expected: np.ndarray) -> S
     disagreeing folds keep it near 1, and it falls below only as far as the folds show. With
     fewer than two folds there is no spread: the prior is counted unscaled (``"no_folds"``);
     when the prior adds nothing to the folds' frames (to rounding against what they expect)
-    there is nothing to measure (``"nothing_held"``)."""
+    there is nothing to measure (``"nothing_held"``); when it adds less than
+    :data:`UNMEASURABLE` of the standard deviation of the folds' summed excess (``var`` (F,)
+    px^4 each fold's variance of it without a model error, given) the folds cannot measure the
+    share and the prior is counted unscaled (``"unmeasurable"``)."""
     x, h = np.asarray(excess, float), np.asarray(added, float)
     total = float(np.sum(h))
     if total <= 1e-9 * max(float(np.sum(expected)), np.finfo(float).tiny):
         return Share(1.0, "nothing_held", x.size)
     if x.size < 2:
         return Share(1.0, "no_folds", x.size)
+    if var is not None and total < UNMEASURABLE * float(np.sqrt(np.sum(var))):
+        return Share(1.0, "unmeasurable", x.size)
     c = float(np.sum(x)) / total
     r = x - c * h
     se = float(np.sqrt(x.size / (x.size - 1) * np.sum(r**2))) / total
@@ -124,6 +140,9 @@ _BASIS = {
     "is what the folds' excess leaves beyond the point estimate's share",
     "no_folds": "no folds measured it (fewer than two configurations, or fewer than two folds "
     "fitted): the prior is counted unscaled (share 1)",
+    "unmeasurable": "the held directions add too little to the leave-one-configuration-out "
+    "folds' held-out pixels (less than 1 % of the standard deviation of their summed excess) "
+    "for the folds to measure the share: the prior is counted unscaled (share 1)",
     "nothing_held": "the held directions add nothing to the folds' frames' pixels: nothing to "
     "measure, and the prior adds nothing to the prediction",
 }
@@ -161,6 +180,10 @@ def held_sentence(block: dict | None) -> str | None:
     if block.get("share_basis") == "no_folds":
         return (f"the held parameters' deviation from the drawing: {prior} counted unscaled, "
                 "no folds measured its share")  # fmt: skip
+    if block.get("share_basis") == "unmeasurable":
+        return (f"the held parameters' deviation from the drawing: {prior} counted unscaled, "
+                "as it adds too little to the folds' held-out pixels for them to measure its "
+                "share")  # fmt: skip
     if block.get("share_estimate") is None:  # a block written before the share's bound
         return f"the held parameters' deviation from the drawing: {share:.3g} of {prior}"
     return (f"the held parameters' deviation from the drawing: {share:.3g} of {prior}, the "
