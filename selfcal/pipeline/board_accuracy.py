@@ -236,7 +236,7 @@ def spread_against_prediction(spread: dict, regions: dict, cv: dict | None) -> s
     n = (cv or {}).get("configurations")
     few = "" if n is None else f" ({n} configurations in {spread.get('resamplings')} folds)"
     return (text + ": the jackknife's variance is biased upward when each fold removes a large "
-            f"share of the information{few}, so it over-states the calibration's own "
+            f"share of the information{few}, so it can over-state the calibration's own "
             "spread; the predicted RMS is the estimate of its error.")  # fmt: skip
 
 
