@@ -1,0 +1,81 @@
+"""The simulated images' sensor noise (``selfcal.sim.render.noise_field``): drawn as integers,
+it must have the distribution of a Gaussian rounded to the grey levels (what float normals
+added, rounded and clipped gave), stay seeded, and saturate at 0 and 255."""
+
+import numpy as np
+import pytest
+from scipy.stats import chi2
+
+from selfcal.errors import InputError
+from selfcal.sim.render import (
+    apply_noise,
+    noise_field,
+    rounded_gaussian_pmf,
+    rounded_gaussian_table,
+)
+
+SHAPE = (480, 640, 3)  # one image of the default scenario: 921,600 draws
+
+
+def _chi_square(z: np.ndarray, sigma: float) -> tuple[float, int]:
+    """Pearson's chi-square of the integers ``z`` against the rounded Gaussian of std ``sigma``
+    (tails pooled until each bin expects >= 20 draws) and its degrees of freedom."""
+    k, pmf = rounded_gaussian_pmf(sigma)
+    counts = np.bincount(z.ravel() - k[0], minlength=len(k))
+    assert len(counts) == len(k), "a draw outside the pmf's support"
+    expected = pmf * z.size
+    keep = np.flatnonzero(expected >= 20)
+    lo, hi = keep[0], keep[-1]
+    obs = np.r_[counts[: lo + 1].sum(), counts[lo + 1 : hi], counts[hi:].sum()]
+    exp = np.r_[expected[: lo + 1].sum(), expected[lo + 1 : hi], expected[hi:].sum()]
+    return float(((obs - exp) ** 2 / exp).sum()), len(obs) - 1
+
+
+@pytest.mark.parametrize("sigma", [0.7, 2.0, 3.0])
+def test_the_drawn_integers_follow_the_rounded_gaussian(sigma):
+    z = noise_field(SHAPE, sigma, np.random.default_rng(11))
+    assert z.shape == SHAPE
+    stat, dof = _chi_square(z, sigma)
+    assert chi2.sf(stat, dof) > 1e-3, f"chi-square {stat:.1f} on {dof} degrees of freedom"
+    # the moments of the rounded Gaussian: mean 0, variance sigma**2 + 1/12 (Sheppard)
+    assert abs(z.mean()) < 4 * sigma / np.sqrt(z.size)
+    assert z.std() == pytest.approx(np.sqrt(sigma**2 + 1 / 12), rel=3e-3)
+
+
+def test_the_chi_square_tells_a_noise_one_percent_too_strong():
+    """The test above can fail: 2.02 grey levels' draws are rejected against 2.0's pmf."""
+    z = noise_field(SHAPE, 2.02, np.random.default_rng(11))
+    stat, dof = _chi_square(z, 2.0)
+    assert chi2.sf(stat, dof) < 1e-6
+
+
+def test_the_table_is_the_pmf_to_its_resolution():
+    for sigma in (0.5, 2.0, 64.0):
+        k, pmf = rounded_gaussian_pmf(sigma)
+        table = rounded_gaussian_table(sigma)
+        share = np.bincount(table - k[0], minlength=len(k)) / len(table)
+        assert np.abs(share - pmf).max() <= 2.0**-16
+        assert table.min() == -table.max()  # symmetric, as the pmf
+
+
+def test_the_noise_is_seeded():
+    a = noise_field(SHAPE, 2.0, np.random.default_rng(3))
+    b = noise_field(SHAPE, 2.0, np.random.default_rng(3))
+    c = noise_field(SHAPE, 2.0, np.random.default_rng(4))
+    np.testing.assert_array_equal(a, b)
+    assert (a != c).mean() > 0.5
+
+
+def test_applied_noise_saturates_at_the_grey_levels_ends():
+    img = np.repeat(np.array([0, 1, 128, 254, 255], np.uint8), 20_000).reshape(-1, 1)
+    z = noise_field(img.shape, 3.0, np.random.default_rng(5))
+    want = np.clip(img.astype(int) + z, 0, 255)
+    out = apply_noise(img, z.copy())
+    assert out.dtype == np.uint8
+    np.testing.assert_array_equal(out, want)
+    assert out.min() == 0 and out.max() == 255
+
+
+def test_a_sigma_not_above_zero_is_refused():
+    with pytest.raises(InputError, match="must be > 0"):
+        rounded_gaussian_table(0.0)
