@@ -28,7 +28,6 @@ from concurrent.futures import Executor, wait
 from dataclasses import dataclass
 from pathlib import Path
 
-import cv2
 import numpy as np
 
 from selfcal.io.dataset_info import (
@@ -48,6 +47,7 @@ from selfcal.io.detections_csv import (
 )
 from selfcal.io.images import read_gray_image
 from selfcal.io.jsonfile import dumps
+from selfcal.io.png import encode_png
 
 __all__ = [
     "DatasetError",  # defined with dataset.json's reader; what Dataset.open raises
@@ -81,20 +81,9 @@ def _write_png(path: Path, rgb: np.ndarray) -> None:
     _write_bytes_atomic(path, _encode_png(rgb))
 
 
-_PNG_PARAMS = (cv2.IMWRITE_PNG_STRATEGY, cv2.IMWRITE_PNG_STRATEGY_HUFFMAN_ONLY)
-"""Deflate by Huffman codes alone: a camera image's noise leaves little for string matching
-(the files 0.3 % smaller than OpenCV's default RLE strategy, 14 % less CPU; lossless either
-way: the same pixels)."""
-
-
 def _encode_png(rgb: np.ndarray) -> bytes:
-    img = np.asarray(rgb)
-    if img.ndim == 3:
-        img = cv2.cvtColor(img, cv2.COLOR_RGB2BGR)
-    ok, buf = cv2.imencode(".png", img, _PNG_PARAMS)
-    if not ok:  # pragma: no cover
-        raise DatasetError("could not encode a PNG image")
-    return buf.tobytes()
+    """A frame's PNG file (:func:`selfcal.io.png.encode_png`; RGB or grey uint8)."""
+    return encode_png(rgb)
 
 
 def joints_row(index: int, joints_deg: np.ndarray) -> str:

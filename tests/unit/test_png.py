@@ -1,0 +1,59 @@
+"""The dataset's PNG writer (``selfcal.io.png``): OpenCV reads back the very pixels, and the files
+are no larger than OpenCV's own writer makes them."""
+
+import cv2
+import numpy as np
+import pytest
+
+from selfcal.errors import InputError
+from selfcal.io.png import encode_png
+
+
+def _noisy(shape: tuple[int, ...], seed: int = 0) -> np.ndarray:
+    """A smooth gradient with 2 grey levels of noise: a rendered frame's statistics."""
+    rng = np.random.default_rng(seed)
+    h, w = shape[:2]
+    ramp = np.add.outer(np.arange(h), np.arange(w)) * (200 / (h + w))
+    base = ramp if len(shape) == 2 else ramp[..., None] + np.arange(shape[2]) * 20.0
+    return np.clip(np.rint(base + rng.normal(0, 2, shape)), 0, 255).astype(np.uint8)
+
+
+def _read(png: bytes) -> np.ndarray:
+    return cv2.imdecode(np.frombuffer(png, np.uint8), cv2.IMREAD_UNCHANGED)
+
+
+@pytest.mark.parametrize("shape", [(48, 64, 3), (7, 1, 3), (1, 5, 3)])
+def test_rgb_images_read_back_the_same(shape):
+    img = _noisy(shape)
+    np.testing.assert_array_equal(cv2.cvtColor(_read(encode_png(img)), cv2.COLOR_BGR2RGB), img)
+
+
+@pytest.mark.parametrize("shape", [(48, 64), (48, 64, 1)])
+def test_grey_images_read_back_the_same(shape):
+    img = _noisy(shape)
+    back = _read(encode_png(img))
+    assert back.shape == (48, 64)
+    np.testing.assert_array_equal(back, img.reshape(48, 64))
+
+
+def test_extreme_values_wrap_in_the_filter_and_come_back():
+    img = np.zeros((4, 6, 3), np.uint8)
+    img[:, 1::2] = 255  # every SUB difference is +-255, modulo 256
+    np.testing.assert_array_equal(cv2.cvtColor(_read(encode_png(img)), cv2.COLOR_BGR2RGB), img)
+
+
+def test_files_no_larger_than_opencvs():
+    img = _noisy((480, 640, 3), seed=3)
+    params = (cv2.IMWRITE_PNG_STRATEGY, cv2.IMWRITE_PNG_STRATEGY_HUFFMAN_ONLY)
+    ok, theirs = cv2.imencode(".png", cv2.cvtColor(img, cv2.COLOR_RGB2BGR), params)
+    assert ok
+    assert len(encode_png(img)) <= 1.01 * len(theirs)
+
+
+@pytest.mark.parametrize(
+    "bad",
+    [np.zeros((4, 4), np.uint16), np.zeros((4, 4, 4), np.uint8), np.zeros(4, np.uint8)],
+)
+def test_other_images_are_refused(bad):
+    with pytest.raises(InputError, match="uint8 .* grey or .* RGB"):
+        encode_png(bad)
