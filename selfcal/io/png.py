@@ -7,7 +7,7 @@ and the deflate codes Huffman codes alone: a camera image's noise leaves little 
 matching (with OpenCV's writer, its default RLE strategy gave 0.3 % larger files for 14 % more
 CPU). zlib-ng's Huffman coder takes about half the CPU of zlib 1.2's, which OpenCV and Python's
 ``zlib`` link: a default ``selfcal run``'s 60 frames took 0.28 against 0.51 thread-CPU s with
-OpenCV's writer (``MUJOCO_GL=egl python -m selfcal.benchmarks.run_timeline``, ``_encode_png``,
+OpenCV's writer (``MUJOCO_GL=egl python -m selfcal.benchmarks.speed.run_timeline``, ``_encode_png``,
 load 16-20 on 2 cores), the files as large within 1 % (tests/unit/test_png.py). Lossless: any
 PNG reader gives the same pixels back.
 """
