@@ -201,6 +201,7 @@ def _context(model: mujoco.MjModel) -> mujoco.MjrContext:
         quality.shadowsize = size
 
 
+_U64_MAX = np.iinfo(np.uint64).max
 _TABLE_BITS = 16
 """The noise table's resolution: one uniform draw of this many bits per pixel and channel."""
 
@@ -243,7 +244,9 @@ def noise_field(shape: tuple[int, ...], sigma: float, rng: np.random.Generator) 
     takes them from ``rng`` (the same seed, the same fields)."""
     table = rounded_gaussian_table(float(sigma))
     n = math.prod(shape)
-    raw = rng.bit_generator.random_raw((n + 3) // 4)  # 4 draws of 16 bits in each
+    # 4 draws of 16 bits in each full-range 64-bit integer (a 64-bit generator's raw output;
+    # a 32-bit one's two outputs, where its raw output would leave the high half 0)
+    raw = rng.integers(0, _U64_MAX, size=(n + 3) // 4, dtype=np.uint64, endpoint=True)
     bits = raw.astype("<u8", copy=False).view("<u2")[:n]  # the same on every byte order
     return np.take(table, bits).reshape(shape)
 
