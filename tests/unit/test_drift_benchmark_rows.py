@@ -104,3 +104,38 @@ def test_a_run_stamps_its_rows_with_the_code_and_counts_its_cannot_tells(monkeyp
     )
     assert row["tool"] == 24 / 30
     assert "| 3 / 6 / 0 |" in table([row], 10)
+
+
+def test_a_journaled_run_redoes_no_finished_calibration(monkeypatch, tmp_path):
+    """``--journal``: a run stopped after some calibrations and started again computes only the
+    rest and gives the same row; a journal's counts of other code, or of code with uncommitted
+    changes, are computed again."""
+    calls: list[int] = []
+
+    def checks(args):
+        calls.append(args[1])
+        if len(calls) == 3 and stop:
+            raise KeyboardInterrupt  # the run stopped in its third calibration
+        return {"status": "ok", "unchanged": 0, "tool": args[1] % 3, "joint": 10, "checks": 10,
+                "tool_oracle": 9.5, "tool_axes": 8.25, "tool_cannot_tell": args[1]}  # fmt: skip
+
+    journal = tmp_path / "checks.jsonl"
+    monkeypatch.setattr(drift_images, "calibration_checks", checks)
+    monkeypatch.setattr(drift_images, "code_version", lambda: "abc1234")
+    stop = True
+    with pytest.raises(KeyboardInterrupt):
+        drift_images.run(4, 10, (0.2,), 1, ("eye-to-hand",), journal=journal)
+    assert calls == [1, 2, 3] and len(journal.read_text().splitlines()) == 2
+    stop = False
+    calls.clear()
+    (row,) = drift_images.run(4, 10, (0.2,), 1, ("eye-to-hand",), journal=journal)
+    assert calls == [3, 4]
+    calls.clear()
+    (again,) = drift_images.run(4, 10, (0.2,), 1, ("eye-to-hand",), journal=journal)
+    assert calls == [] and again == row
+    assert row["tool_cannot_tell"] == 1 + 2 + 3 + 4 and row["tool"] == (1 + 2 + 0 + 1) / 40
+    for other in ("def5678", "abc1234+changes"):
+        monkeypatch.setattr(drift_images, "code_version", lambda other=other: other)
+        drift_images.run(4, 10, (0.2,), 1, ("eye-to-hand",), journal=journal)
+        assert calls == [1, 2, 3, 4]
+        calls.clear()

@@ -43,7 +43,7 @@ joints are read and taken as exact).
 
 Run: ``nice -n 10 uv run python -m selfcal.benchmarks.drift.images [--calibrations 30]
 [--checks 10] [--setup eye-in-hand eye-to-hand] [--robot er4u-paper ur5e kr6-r900] [--jobs 1]
-[--views 5] [--min-p] [--choose POOL] [--write-docs]`` (rewrites the rows of the setups, robots and noise levels it ran
+[--views 5] [--min-p] [--choose POOL] [--journal FILE] [--write-docs]`` (rewrites the rows of the setups, robots and noise levels it ran
 in the table of docs/tool-accuracy.md and keeps the others, :func:`docs_rows`).
 """
 
@@ -54,6 +54,7 @@ import re
 import sys
 import time
 from functools import partial
+from pathlib import Path
 
 import numpy as np
 
@@ -66,7 +67,7 @@ from selfcal.benchmarks.doc_blocks import (
     print_table,
     read_block,
 )
-from selfcal.benchmarks.pool import map_jobs
+from selfcal.benchmarks.pool import imap_jobs
 from selfcal.calibration.drift.covariance import change_information
 from selfcal.calibration.drift.fold_error import fold_error_model
 from selfcal.calibration.drift.images import (
@@ -88,6 +89,7 @@ from selfcal.kinematics.forward import fk_tool
 from selfcal.robot.definition import RobotDef, load_robot
 from selfcal.sim.analytic import project_board
 from selfcal.sim.kinematic_robot import read_back
+from selfcal.studies.montecarlo.journal import DrawJournal, draw_key
 from selfcal.target.boards import Board
 from selfcal.threads import limit_threads
 
@@ -96,6 +98,7 @@ __all__ = [
     "calibration_checks",
     "chosen_views",
     "docs_rows",
+    "journaled_checks",
     "main",
     "merge_rows",
     "parse_block",
@@ -245,12 +248,43 @@ def calibration_checks(args: tuple) -> dict:
         return {"status": f"failed: {type(exc).__name__}: {str(exc)[:200]}"}
 
 
+def journaled_checks(todo: list[tuple], jobs: int, code: str | None,
+                     journal: Path | None) -> list[dict]:  # fmt: skip
+    """:func:`calibration_checks` of each item of ``todo`` (``jobs`` processes), each result
+    appended to ``journal`` (a JSON line, :class:`selfcal.studies.montecarlo.journal.
+    DrawJournal`) the moment it is done and taken from there when a run before made it: an
+    interrupted run loses no finished calibration. The key is the item and ``code`` (the code
+    that measures, :func:`code_version`): a journal's results of other code are not reused,
+    and none of code with uncommitted changes (``+changes``: which changes is not recorded).
+    Prints each calibration's time as it finishes (stderr), from which a run's end can be told."""
+    book = DrawJournal(journal) if journal is not None else None
+    reuse = book is not None and code is not None and not code.endswith("+changes")
+    keys = [draw_key({"checks": list(item), "code": code}) for item in todo]
+    done = book.load() if book is not None and reuse else {}
+    out = {k: done[k] for k in keys if k in done}
+    left = [(k, item) for k, item in zip(keys, todo, strict=True) if k not in out]
+    if out:
+        print(f"  {len(out)} of {len(todo)} calibrations from {journal}", file=sys.stderr)
+    t0 = time.perf_counter()
+    for n, ((key, item), got) in enumerate(
+        zip(left, imap_jobs(calibration_checks, [i for _, i in left], jobs), strict=True), 1
+    ):
+        out[key] = got
+        if book is not None and got["status"] == "ok":
+            book.append(key, got)
+        print(f"  seed {item[1]}: {n} of {len(left)} in {time.perf_counter() - t0:.0f} s "
+              f"({got['status']})", file=sys.stderr)  # fmt: skip
+    return [out[k] for k in keys]
+
+
 def run(calibrations: int = 30, checks: int = 10, noise_px=NOISE_PX, jobs: int = 1,
         setups: tuple[str, ...] = tuple(SCENARIOS), robots: tuple[str, ...] | None = None,
-        views: int = NEW_VIEWS, exact: bool = False, choose: int = 0) -> list[dict]:  # fmt: skip
+        views: int = NEW_VIEWS, exact: bool = False, choose: int = 0,
+        journal: Path | None = None) -> list[dict]:  # fmt: skip
     """One row per setup (eye-in-hand: per robot of ``robots``, default the scenario's) and
     noise level over ``calibrations`` calibrations (``jobs`` processes), ``views`` new views
-    per check (``exact``, ``choose``: :func:`calibration_checks`)."""
+    per check (``exact``, ``choose``: :func:`calibration_checks`; each calibration's counts
+    kept in ``journal``: :func:`journaled_checks`)."""
     rows, code = [], code_version()
     cells = [(u, r) for u in setups
              for r in (robots if robots and u == "eye-in-hand" else (None,))]  # fmt: skip
@@ -260,7 +294,7 @@ def run(calibrations: int = 30, checks: int = 10, noise_px=NOISE_PX, jobs: int =
         label = f"{setup}, {name}"
         todo = [(s, seed, checks, setup, robot, views, exact, choose)
                 for seed in range(1, calibrations + 1)]  # fmt: skip
-        got = map_jobs(calibration_checks, todo, jobs)
+        got = journaled_checks(todo, jobs, code, journal)
         ok = [g for g in got if g["status"] == "ok"]
         print(f"{label} {s} px: {len(ok)}/{calibrations} calibrations in {time.perf_counter() - t0:.0f} s "
               + "; ".join(sorted({g['status'] for g in got} - {'ok'})), file=sys.stderr)  # fmt: skip
@@ -437,6 +471,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--choose", type=int, default=0, metavar="POOL",
                     help="choose each check's new views from POOL postures by the check's own "
                     "power (not the docs block's)")  # fmt: skip
+    ap.add_argument("--journal", type=Path, default=None, metavar="FILE",
+                    help="append each calibration's counts to FILE (JSON lines) as it finishes "
+                    "and take those of the same settings and committed code from it: a run "
+                    "stopped and started again redoes no finished calibration")  # fmt: skip
     ap.add_argument("--setup", nargs="+", default=list(SCENARIOS), choices=tuple(SCENARIOS),
                     help="camera setups (default both)")  # fmt: skip
     ap.add_argument(
@@ -457,7 +495,7 @@ def main(argv: list[str] | None = None) -> int:
         ap.error(f"--choose {args.choose}: the pool must hold at least --views {args.views}")
     rows = run(args.calibrations, args.checks, tuple(args.noise_px), args.jobs, tuple(args.setup),
                tuple(args.robot) if args.robot else None, args.views, args.min_p,
-               args.choose)  # fmt: skip
+               args.choose, args.journal)  # fmt: skip
     if args.write_docs:
         rows = docs_rows(rows, args.calibrations, args.checks)
     return print_table(table(rows, args.checks), DOC, BLOCK, write=args.write_docs)
