@@ -105,7 +105,7 @@ def _views(obs: BoardObservations, mask: np.ndarray, em: ToolErrorModel, camera:
                            eye_to_hand=obs.eye_to_hand, pixel_sigma_px=noise.pixel_sigma_px,
                            joint_sigma_rad=noise.joint_sigma_rad,
                            camera_misfit_px=noise.camera_misfit_px, own_white=held,
-                           white_level=level)
+                           white_level=level, white_px=noise.white_px)
             for i in np.unique(v)]  # fmt: skip
 
 

@@ -89,7 +89,8 @@ class ViewJacobians:
             :func:`selfcal.calibration.drift.covariance.view_covariance`); None otherwise.
         own_px: ``(own, calibration's)`` the view's own white corner noise (px) where it
             replaced the calibration's (:func:`view_white_px`, ``own_white``) and the
-            calibration's it was above; None where the calibration's is used. Such a view never
+            calibration's white noise it was above (``white_px`` of :func:`view_jacobians`);
+            None where the calibration's is used. Such a view never
             gives "unchanged" (:mod:`selfcal.calibration.drift.noisy`).
         frame_px: a paired view's ``(frame's, calibration's)`` white corner noise (px) where
             its frame, the calibration's own image at that posture, shows more than the
@@ -161,7 +162,8 @@ def view_jacobians(em: ToolErrorModel, camera: CameraModel, q: np.ndarray, X: np
                    joint_sigma_rad: np.ndarray | None,
                    jitter: np.ndarray | None = None, camera_misfit_px: float = 0.0,
                    pose_misfit_px: float = 0.0, own_white: bool = False,
-                   white_level: float = WHITE_LEVEL) -> ViewJacobians:  # fmt: skip
+                   white_level: float = WHITE_LEVEL,
+                   white_px: float | None = None) -> ViewJacobians:  # fmt: skip
     """The view of board points ``X`` (k, 3) (board frame, m) detected at ``uv`` (k, 2) px by
     ``camera`` at the joints ``q`` (n,) rad / m, linearised at the calibration ``em`` (its
     chain, estimated columns and model error) with the corner noise ``pixel_sigma_px``, the
@@ -171,10 +173,10 @@ def view_jacobians(em: ToolErrorModel, camera: CameraModel, q: np.ndarray, X: np
     ``camera_misfit_px`` (px) in each of the camera's directions the pose cannot mimic, and
     ``pose_misfit_px`` (px) in each direction of the view's pose span (orthonormal, in pixels:
     what the calibration's frames carry there when it is known, in place of ``jitter``).
-    ``own_white``: the corner noise is the view's own where it is above ``pixel_sigma_px``
-    (:func:`view_white_px`, where it has the degrees of freedom): an image noisier than the
-    calibration's frames is not read as a change, nor as no change (``own_px``);
-    ``white_level`` that test's level."""
+    ``own_white``: the corner noise is the view's own where it is above the calibration's
+    white noise ``white_px`` (px; default ``pixel_sigma_px``: :func:`view_white_px`, where it
+    has the degrees of freedom): an image noisier than the calibration's frames is not read as
+    a change, nor as no change (``own_px``); ``white_level`` that test's level."""
     model = em.model
     T = fk_tool(model, q[None])[0]
     _, uv_hat, A, Jc = board_view(camera, T, X, eye_to_hand)
@@ -187,7 +189,8 @@ def view_jacobians(em: ToolErrorModel, camera: CameraModel, q: np.ndarray, X: np
     Ad = adjoint(inv_pose(T))
     r = (np.asarray(uv, float) - uv_hat).reshape(-1)
     cam = Jc.reshape(len(A), -1)
-    own = view_white_px(r, A, cam, pixel_sigma_px, white_level) if own_white else None
+    than = pixel_sigma_px if white_px is None else float(white_px)
+    own = view_white_px(r, A, cam, than, white_level) if own_white else None
     white = pixel_sigma_px if own is None else own
     local = tool_pose_error(A, B, m2) + white**2 * np.eye(len(A))
     if jitter is not None:
@@ -210,7 +213,7 @@ def view_jacobians(em: ToolErrorModel, camera: CameraModel, q: np.ndarray, X: np
         B=B,
         Ad=Ad,
         tw=tw,
-        own_px=None if own is None else (own, float(pixel_sigma_px)),
+        own_px=None if own is None else (own, than),
     )
 
 
@@ -220,13 +223,18 @@ class ViewNoise:
     ``pixel_sigma_px`` (px), the joint read-back ``joint_sigma_rad`` (n,) or None, the per-view
     pose ``jitter`` (6, 6) (m, rad) or None (a file written before ``pose_misfit_px``), the
     misfit per camera direction ``camera_misfit_px`` (px) and per direction of a view's pose
-    span ``pose_misfit_px`` (px; 0 where ``jitter`` is used or nothing is counted)."""
+    span ``pose_misfit_px`` (px; 0 where ``jitter`` is used or nothing is counted); ``white_px``
+    (px): the calibration's own frames' white corner noise outside their pose spans and the
+    camera's directions (the ``accuracy`` block's ``view_jitter.white_px``), against which a
+    new view's, measured there (:func:`view_white_px`), is tested; None (a file written before
+    it): ``pixel_sigma_px``."""
 
     pixel_sigma_px: float
     joint_sigma_rad: np.ndarray | None
     jitter: np.ndarray | None
     camera_misfit_px: float
     pose_misfit_px: float = 0.0
+    white_px: float | None = None
 
     @property
     def misfit_counted(self) -> bool:
@@ -244,6 +252,14 @@ def view_noise(cal: BoardCalibrationResult, where: str = "calibration.json") -> 
     noise keeps the bounds' noise. ``where`` the calibration's file, for the
     error a malformed block raises.
 
+    A new view's own white noise is tested against the frames' white noise (``white_px``)
+    whether or not the misfit is counted: the same statistic over the same pixels, which no
+    fitted unknown reaches, while the bounds' noise is the final fit's RMS corrected for its
+    parameters alone, low where the frames' joint read-back corrections are estimated with them
+    (they absorb part of the noise in each frame's pose span): against it an unchanged arm's
+    views were called noisy more often than the level (docs/tool-accuracy.md, the drift check's
+    'cannot tell').
+
     Raises:
         InputError: the accuracy block's ``view_jitter`` is malformed (names ``where``).
     """
@@ -252,13 +268,14 @@ def view_noise(cal: BoardCalibrationResult, where: str = "calibration.json") -> 
     js_rad = None if js is None else np.radians(np.asarray(js, float))
     found = view_jitter_from_json(cal.accuracy, where)
     if found is None or not found.counted:
-        return ViewNoise(cal.bounds.pixel_sigma_px, js_rad, None, 0.0)
+        white = None if found is None else found.white_px
+        return ViewNoise(cal.bounds.pixel_sigma_px, js_rad, None, 0.0, white_px=white)
     if found.white_px is None:
         return ViewNoise(cal.bounds.pixel_sigma_px, js_rad, found.covariance, 0.0)
     cam = found.camera_misfit_px or 0.0
     if found.pose_misfit_px is None:  # written before it: the jitter's mean carried to the view
-        return ViewNoise(found.white_px, js_rad, found.covariance, cam)
-    return ViewNoise(found.white_px, js_rad, None, cam, found.pose_misfit_px)
+        return ViewNoise(found.white_px, js_rad, found.covariance, cam, white_px=found.white_px)
+    return ViewNoise(found.white_px, js_rad, None, cam, found.pose_misfit_px, found.white_px)
 
 
 def calibration_views(cal: BoardCalibrationResult, em: ToolErrorModel, q: np.ndarray,
@@ -278,5 +295,5 @@ def calibration_views(cal: BoardCalibrationResult, em: ToolErrorModel, q: np.nda
                            joint_sigma_rad=noise.joint_sigma_rad, jitter=noise.jitter,
                            camera_misfit_px=noise.camera_misfit_px,
                            pose_misfit_px=noise.pose_misfit_px, own_white=True,
-                           white_level=white_level(len(views)))
+                           white_level=white_level(len(views)), white_px=noise.white_px)
             for f, X, uv in views]  # fmt: skip
