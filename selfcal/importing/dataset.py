@@ -70,6 +70,9 @@ __all__ = [
     "camera_choice",
 ]
 
+_ROWS_SHOWN = 5
+"""How many rows an error lists before "...": enough to see a pattern."""
+
 
 def name_order(name: str) -> tuple[list[str | int], str]:
     """Sort key of an image file name: numbers by value (``img_2`` before ``img_10``, as a
@@ -410,7 +413,8 @@ def _match(
             )
         missing = [(k, n) for k, n in enumerate(column, start=1) if n not in by_name]
         if missing:
-            rows = ", ".join(str(k) for k, _ in missing[:5]) + (", ..." if len(missing) > 5 else "")
+            shown = missing[:_ROWS_SHOWN]
+            rows = ", ".join(str(k) for k, _ in shown) + (", ..." if missing[len(shown) :] else "")
             raise ImportError_(
                 f"{joints}: the image column names {len(missing)} file(s) that camera "
                 f"{cam.name} ({cam.pattern}) lacks, e.g. {missing[0][1]!r} (data row "
