@@ -14,8 +14,10 @@ import numpy.typing as npt
 
 from selfcal.errors import UsageError
 
-# scipy.spatial.transform is imported inside the functions that use it: importing it costs
-# 0.5 s (scipy.spatial loads scipy.sparse), and `selfcal fk` needs none of them (issue 17).
+# Plain numpy, no scipy.spatial.transform: importing it loads scipy.spatial's k-d trees, hulls
+# and distances and scipy.special (0.04 s of `selfcal run`'s serial start, issue 32; 0.5 s of
+# `selfcal fk`'s with scipy.sparse, issue 17). The rotations follow scipy's Rotation step by step
+# (tests/unit/test_transforms.py compares them).
 
 __all__ = [
     "rot_x",
@@ -29,6 +31,9 @@ __all__ = [
     "xyz_euler_from_matrix",
     "rpy_from_matrix",
     "quat_from_matrix",
+    "matrix_from_rotvec",
+    "rotvec_from_matrix",
+    "mean_rotation",
     "pose_from_vec",
     "vec_from_pose",
     "kabsch",
@@ -239,22 +244,133 @@ def quat_from_matrix(R: np.ndarray) -> np.ndarray:
     return np.where(q[..., :1] < 0, -q, q)
 
 
+def matrix_from_rotvec(rotvec: npt.ArrayLike) -> np.ndarray:
+    """Rotation matrices (..., 3, 3) of rotation vectors ``rotvec`` (..., 3) (axis times angle,
+    rad): through the unit quaternion, its scale by the Taylor series below 1e-3 rad, as scipy's
+    ``Rotation.from_rotvec(...).as_matrix()``. One vector (3,) on Python floats: the
+    calibration converts one at a time hundreds of times, where numpy's per-call cost is most
+    of the work."""
+    w = np.asarray(rotvec, dtype=float)
+    if w.shape == (3,):
+        return _quat_matrix_one(*_rotvec_quat_one(*w.tolist()))
+    angle = np.sqrt(np.einsum("...i,...i->...", w, w))[..., None]
+    small = angle <= 1e-3
+    a2 = angle * angle
+    scale = np.where(small, 0.5 - a2 / 48 + a2 * a2 / 3840, np.sin(angle / 2) / (angle + small))
+    q = np.concatenate([w * scale, np.cos(angle / 2)], axis=-1)
+    qq = (q[..., :, None] * q[..., None, :]).reshape(q.shape[:-1] + (16,))
+    return (qq @ _QUAT_PRODUCTS_TO_MATRIX).reshape(q.shape[:-1] + (3, 3))
+
+
+def _rotvec_quat_one(x: float, y: float, z: float) -> tuple[float, float, float, float]:
+    """The unit quaternion ``(x, y, z, w)`` of one rotation vector (rad), on Python floats."""
+    angle = math.sqrt(x * x + y * y + z * z)
+    if angle <= 1e-3:
+        a2 = angle * angle
+        scale = 0.5 - a2 / 48 + a2 * a2 / 3840
+    else:
+        scale = math.sin(angle / 2) / angle
+    return x * scale, y * scale, z * scale, math.cos(angle / 2)
+
+
+def _quat_matrix_one(x: float, y: float, z: float, w: float) -> np.ndarray:
+    """The rotation matrix (3, 3) of one unit quaternion ``(x, y, z, w)``, as scipy's
+    ``Rotation.as_matrix``."""
+    x2, y2, z2, w2 = x * x, y * y, z * z, w * w
+    xy, zw, xz, yw, yz, xw = x * y, z * w, x * z, y * w, y * z, x * w
+    return np.array([[x2 - y2 - z2 + w2, 2 * (xy - zw), 2 * (xz + yw)],
+                     [2 * (xy + zw), -x2 + y2 - z2 + w2, 2 * (yz - xw)],
+                     [2 * (xz - yw), 2 * (yz + xw), -x2 - y2 + z2 + w2]])  # fmt: skip
+
+
+def _quat_products_to_matrix() -> np.ndarray:
+    """(16, 9): the row-major rotation matrix of a unit quaternion ``q = (x, y, z, w)`` is the
+    products ``q_a q_b`` (row ``4 a + b``) times this: the terms of :func:`_quat_matrix_one`."""
+    x, y, z, w = range(4)
+    terms = {  # (row, column) of the matrix: (coefficient, a, b) of its terms
+        (0, 0): [(1, x, x), (-1, y, y), (-1, z, z), (1, w, w)],
+        (0, 1): [(2, x, y), (-2, z, w)],
+        (0, 2): [(2, x, z), (2, y, w)],
+        (1, 0): [(2, x, y), (2, z, w)],
+        (1, 1): [(-1, x, x), (1, y, y), (-1, z, z), (1, w, w)],
+        (1, 2): [(2, y, z), (-2, x, w)],
+        (2, 0): [(2, x, z), (-2, y, w)],
+        (2, 1): [(2, y, z), (2, x, w)],
+        (2, 2): [(-1, x, x), (-1, y, y), (1, z, z), (1, w, w)],
+    }
+    out = np.zeros((16, 9))
+    for (i, j), row in terms.items():
+        for c, a, b in row:
+            out[4 * a + b, 3 * i + j] = c
+    return out
+
+
+_QUAT_PRODUCTS_TO_MATRIX = _quat_products_to_matrix()
+
+
+def _unit_quat_xyzw(R: np.ndarray) -> np.ndarray:
+    """:func:`_quat_xyzw` of rotations (..., 3, 3), each not orthonormal to 1e-12 (``R R^T``)
+    first replaced by the nearest one (SVD), as scipy's ``Rotation.from_matrix`` does.
+
+    Raises:
+        UsageError: a matrix with a determinant <= 0 (mirrored or singular), no rotation.
+    """
+    R = np.asarray(R, dtype=float)
+    det = np.linalg.det(R)
+    if (det <= 0).any():
+        k = int(np.flatnonzero(det.ravel() <= 0)[0])
+        raise UsageError(f"matrix {k} has a determinant <= 0 ({det.ravel()[k]:.3g}): a mirror "
+                         "or a singular matrix is no rotation")  # fmt: skip
+    eye = np.eye(3)
+    off = (np.abs(R @ np.swapaxes(R, -1, -2) - eye) > 1e-12 + 1e-5 * eye).any(axis=(-2, -1))
+    if off.any():
+        U, _, Vt = np.linalg.svd(R[off])
+        R = R.copy()
+        R[off] = U @ Vt
+    return _quat_xyzw(R)
+
+
+def rotvec_from_matrix(R: npt.ArrayLike) -> np.ndarray:
+    """Rotation vectors (..., 3) (axis times angle in [0, pi], rad) of rotations ``R``
+    (..., 3, 3): the steps of scipy's ``Rotation.from_matrix(R).as_rotvec()``.
+
+    Raises:
+        UsageError: a matrix with a determinant <= 0 (no rotation).
+    """
+    q = _unit_quat_xyzw(np.asarray(R, dtype=float))
+    q = np.where(q[..., 3:] < 0, -q, q)  # w >= 0: the angle in [0, pi]
+    angle = 2 * np.arctan2(np.linalg.norm(q[..., :3], axis=-1, keepdims=True), q[..., 3:])
+    small = angle <= 1e-3
+    a2 = angle**2
+    scale = np.where(small, 2 + a2 / 12 + 7 * a2**2 / 2880, angle / (np.sin(angle / 2) + small))
+    return scale * q[..., :3]
+
+
+def mean_rotation(R: npt.ArrayLike) -> np.ndarray:
+    """The mean (3, 3) of rotations ``R`` (k, 3, 3), k >= 1, that minimises the sum of squared
+    chordal distances: the eigenvector of the largest eigenvalue of ``sum q q^T`` over their
+    unit quaternions, as scipy's ``Rotation.mean``.
+
+    Raises:
+        UsageError: no rotation, or a matrix with a determinant <= 0.
+    """
+    R = np.asarray(R, dtype=float).reshape(-1, 3, 3)
+    if len(R) == 0:
+        raise UsageError("the mean of no rotation is undefined: give at least one")
+    q = _unit_quat_xyzw(R)
+    return _quat_matrix_one(*np.linalg.eigh(q.T @ q)[1][:, -1].tolist())
+
+
 def pose_from_vec(v: np.ndarray) -> np.ndarray:
     """Pose from ``[rotvec (rad), translation (m)]`` vectors of shape (..., 6)."""
-    from scipy.spatial.transform import Rotation  # lazy: see the imports
-
     v = np.asarray(v, dtype=float)
-    R = Rotation.from_rotvec(v.reshape(-1, 6)[:, :3]).as_matrix().reshape(v.shape[:-1] + (3, 3))
-    return make_pose(R, v[..., 3:])
+    return make_pose(matrix_from_rotvec(v[..., :3]), v[..., 3:])
 
 
 def vec_from_pose(T: np.ndarray) -> np.ndarray:
     """Inverse of :func:`pose_from_vec`: ``[rotvec, translation]`` (..., 6)."""
-    from scipy.spatial.transform import Rotation  # lazy: see the imports
-
     T = np.asarray(T, dtype=float)
-    rv = Rotation.from_matrix(T[..., :3, :3].reshape(-1, 3, 3)).as_rotvec()
-    return np.concatenate([rv.reshape(T.shape[:-2] + (3,)), T[..., :3, 3]], axis=-1)
+    return np.concatenate([rotvec_from_matrix(T[..., :3, :3]), T[..., :3, 3]], axis=-1)
 
 
 def kabsch(A: np.ndarray, B: np.ndarray) -> np.ndarray:

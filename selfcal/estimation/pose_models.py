@@ -23,11 +23,10 @@ from __future__ import annotations
 from typing import Protocol, runtime_checkable
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from selfcal.errors import UsageError
 from selfcal.estimation.observations import ViewLayout
-from selfcal.transforms import adjoint, make_pose, skew
+from selfcal.transforms import adjoint, make_pose, matrix_from_rotvec, skew
 
 __all__ = ["so3_left_jacobian", "PoseModel", "FreePoses", "ViewPoses", "RigPoses"]
 
@@ -46,7 +45,7 @@ def so3_left_jacobian(w: np.ndarray) -> np.ndarray:
 
 
 def _rot(w: np.ndarray) -> np.ndarray:
-    return Rotation.from_rotvec(np.asarray(w, dtype=float).reshape(-1, 3)).as_matrix()
+    return matrix_from_rotvec(np.asarray(w, dtype=float).reshape(-1, 3))
 
 
 def _tangent_basis(t: np.ndarray) -> np.ndarray:

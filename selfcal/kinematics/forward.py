@@ -17,7 +17,7 @@ from selfcal.errors import UsageError
 from selfcal.kinematics.mcpc import MCPCModel, shape_matrices
 from selfcal.robot.chain import chain_frames, dh_frames
 from selfcal.robot.definition import RobotDef
-from selfcal.transforms import inv_pose, rot_x, rot_y, rot_z, skew, trans
+from selfcal.transforms import inv_pose, rot_x, rot_y, rot_z, rotvec_from_matrix, skew, trans
 
 __all__ = [
     "motion_matrices",
@@ -89,11 +89,8 @@ def pose_error(T_model: np.ndarray, T_actual: np.ndarray) -> np.ndarray:
 
     ``d`` in metres, ``delta`` a rotation vector in radians (exact, not only first order).
     """
-    from scipy.spatial.transform import Rotation  # lazy (0.5 s): `selfcal fk` needs no scipy
-
     E = inv_pose(T_model) @ np.asarray(T_actual, dtype=float)
-    rv = Rotation.from_matrix(E[..., :3, :3].reshape(-1, 3, 3)).as_rotvec()
-    return np.concatenate([E[..., :3, 3], rv.reshape(E.shape[:-2] + (3,))], axis=-1)
+    return np.concatenate([E[..., :3, 3], rotvec_from_matrix(E[..., :3, :3])], axis=-1)
 
 
 def identification_jacobian(

@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from selfcal.errors import InputError
-from selfcal.transforms import inv_pose
+from selfcal.transforms import inv_pose, matrix_from_rotvec
 
 __all__ = ["UrdfError", "UrdfChain", "urdf_chain", "urdf_home", "CONTINUOUS_LIMIT"]
 
@@ -63,8 +63,6 @@ class UrdfChain:
 
 def _z_onto(axis: np.ndarray) -> np.ndarray:
     """4x4 rotation taking the z axis onto the unit vector ``axis``."""
-    from scipy.spatial.transform import Rotation  # lazy (0.5 s): `selfcal fk` loads no scipy
-
     z = np.array([0.0, 0.0, 1.0])
     c = np.cross(z, axis)
     s, cos = np.linalg.norm(c), float(z @ axis)
@@ -73,7 +71,7 @@ def _z_onto(axis: np.ndarray) -> np.ndarray:
         if cos < 0:
             T[:3, :3] = np.diag([1.0, -1.0, -1.0])  # Rx(pi)
         return T
-    T[:3, :3] = Rotation.from_rotvec(c / s * np.arctan2(s, cos)).as_matrix()
+    T[:3, :3] = matrix_from_rotvec(c / s * np.arctan2(s, cos))
     return T
 
 

@@ -101,6 +101,15 @@ def test_the_acquisition_loads_no_scipy():
     assert [m for m in mods if m == "scipy" or m.startswith("scipy.")] == []
 
 
+def test_the_run_pipeline_loads_no_scipy_spatial():
+    """The calibration's rotations are numpy (selfcal.transforms): scipy.spatial (k-d trees,
+    hulls, distances) and scipy.special, which it loads, are off `selfcal run`'s serial start
+    (issue 32: 0.04 s on one core before the first frame)."""
+    mods = _loaded("import selfcal.pipeline.run")
+    assert "selfcal.calibration.field.calibrate" in mods  # the probe did import it
+    assert [m for m in ("scipy.spatial", "scipy.special") if m in mods] == []
+
+
 def test_the_setups_are_one_tuple():
     from selfcal.choices import SETUPS
     from selfcal.config.camera import SETUPS as CONFIG_SETUPS

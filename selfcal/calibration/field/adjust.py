@@ -20,7 +20,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from selfcal.calibration.field.initialise import InitialReconstruction
 from selfcal.camera import Cameras
@@ -31,7 +30,7 @@ from selfcal.estimation.reprojection import reprojection_residuals, robust_sigma
 from selfcal.estimation.selfcal_errors import ConvergenceError, InsufficientDataError
 from selfcal.estimation.triangulation import ray_angle, robust_triangulate
 from selfcal.solver import SchurPlans, SolverOptions
-from selfcal.transforms import inv_pose, make_pose
+from selfcal.transforms import inv_pose, make_pose, mean_rotation
 
 __all__ = ["Reconstruction", "Adjustment", "rig_from_views", "gauge", "adjust", "OUTLIER_FLOOR_PX"]
 
@@ -69,7 +68,7 @@ def rig_from_views(
                 "markers, or call with rig=False"
             )
         Trl = T[both, c] @ inv_pose(T[both, 0])
-        R = Rotation.from_matrix(Trl[:, :3, :3]).mean().as_matrix()
+        R = mean_rotation(Trl[:, :3, :3])
         out.append(make_pose(R, np.median(Trl[:, :3, 3], axis=0)))
     return np.stack(out) if out else np.zeros((0, 4, 4))
 
