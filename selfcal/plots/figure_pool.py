@@ -92,17 +92,48 @@ def draw_figures(jobs: list[Job]) -> list[Path]:
 
 def _warm_up(parent: int) -> None:
     """Worker start: ignore Ctrl-C (the parent handles it), end with the ``parent`` process
-    (its pid, taken before the fork), import matplotlib's Agg canvas, the figures' module and
-    load the default font, the part of a first figure that does not depend on its data."""
+    (its pid, taken before the fork), import matplotlib's Agg canvas and the figures' module,
+    and draw :func:`_first_figure`."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     _die_with_parent(parent)
     _skip_set_docstrings()
     import selfcal.plots.job_figures  # noqa: F401 - unpickles the figures' data
-    from selfcal.plots.plotting import new_figure
 
-    fig = new_figure(1.0, 1.0)
-    fig.text(0.5, 0.5, "0.1")
-    fig.canvas.draw()
+    _first_figure()
+
+
+def _first_figure() -> None:
+    """A small figure with the parts of the report's figures (:mod:`selfcal.plots.job_figures`)
+    whose first drawing in a process costs more than the next: the fonts at their sizes (tick
+    labels, 8 pt legend and rotated names, titles), the log axis' locators and formatter, bars,
+    a histogram, a legend beside the axes, the fixed layout and a PNG encoded (Pillow's
+    plugins load at the first save), written nowhere. Drawn in the worker while the run starts,
+    before the figures are asked for: each drawer it forks for them paid these again, at the
+    end of the run. The files are the same (``tests/unit/test_figure_pool.py``)."""
+    import io
+
+    from selfcal.plots.plotting import (
+        PNG_COMPRESS_LEVEL,
+        legend_outside,
+        log_y,
+        new_figure,
+        stack_layout,
+    )
+
+    fig = new_figure(2.0, 2.0)
+    ax = fig.subplots(1, 1)
+    ax.bar([1.0], [1.0], 0.3, color="0.55", label="0.1")
+    ax.plot([0.0, 1.0], [1.0, 2.0], "s", ms=4, label="a")
+    ax.hist([0.1, 0.2], bins=[0.0, 0.5], histtype="stepfilled", alpha=0.25)
+    log_y(ax)
+    ax.set_xticks([0.0, 1.0], ["lx0", "ly1"], rotation=90, fontsize=8)
+    ax.set(xlabel="x (mm)", ylabel="y (px)")
+    ax.set_title("(a)", y=1.0)
+    ax.grid(alpha=0.3, which="both")
+    legend_outside(ax)
+    fig.suptitle("0.1", y=0.99, va="top")
+    stack_layout(fig)
+    fig.savefig(io.BytesIO(), format="png", pil_kwargs={"compress_level": PNG_COMPRESS_LEVEL})
 
 
 def _skip_set_docstrings() -> None:
