@@ -13,6 +13,8 @@ from selfcal.sim.markers import (
     BLOCK_MARGIN_M,
     MARKER_THICKNESS_M,
     MarkerField,
+    _rect_corners,
+    _rects_overlap,
     make_marker_field,
     marker_texture_rgb,
 )
@@ -61,6 +63,31 @@ def test_no_overlaps_and_clear_of_base(seed):
         t = np.linspace(0, 1, 50)[:, None]
         edge_pts = np.concatenate([p[k] + t * (p[(k + 1) % 4] - p[k]) for k in range(4)])
         assert np.hypot(edge_pts[:, 0], edge_pts[:, 1]).min() > 0.15
+
+
+def _gap(a: np.ndarray, b: np.ndarray) -> float:
+    """Signed distance (m) between convex polygons ``a`` and ``b`` where they are apart (> 0:
+    the least of each vertex's distance to the other polygon), <= 0 where a vertex is inside."""
+    return min(-cv2.pointPolygonTest(q.astype(np.float32), (float(x), float(y)), True)
+               for p, q in ((a, b), (b, a)) for x, y in p)  # fmt: skip
+
+
+def test_the_overlap_test_agrees_with_opencv():
+    """The placement's separating-axis test against OpenCV's intersection of the two squares,
+    over random pairs that overlap by more than 1e-9 m^2 or stand more than 1e-5 m apart."""
+    rng = np.random.default_rng(4)
+    seen = {True: 0, False: 0}
+    for _ in range(3000):
+        a, b = (_rect_corners(*rng.uniform(0.0, 0.06, 2), rng.uniform(-np.pi, np.pi), 0.02, 0.02)
+                for _ in range(2))  # fmt: skip
+        area, _ = cv2.intersectConvexConvex(a.astype(np.float32), b.astype(np.float32))
+        if area > 1e-9:
+            seen[True] += 1
+            assert _rects_overlap(a, b)
+        elif _gap(a, b) > 1e-5:
+            seen[False] += 1
+            assert not _rects_overlap(a, b)
+    assert min(seen.values()) > 300  # both outcomes were tested
 
 
 def test_field_is_not_planar_and_has_raised_markers():
