@@ -225,7 +225,9 @@ def test_the_split_noise_forecast_is_the_bound_for_white_corners_and_a_monte_car
     sample = est @ est.T / draws
     got = split_tool_rms(fs, q, T, centre_sigma_px=0.5, shape_sigma_px=0.0, bound=cr)
     mc = dataclasses.replace(cr, cov_free=sample).aligned_tool_rms(q, T)
-    assert got == pytest.approx(mc, rel=0.05)  # 4000 draws: ~1 % spread
+    # 4000 draws: the Monte Carlo's tool RMS spreads 0.6 % (its standard deviation over seeds
+    # 0-10, mean -0.15 %, largest 1.2 %; seed 0 0.6 % below the forecast): 3 of it
+    assert got == pytest.approx(mc, rel=0.018)
     assert got < cr.aligned_tool_rms(q, T)
     swapped = dataclasses.replace(fs, view=fs.view[::-1].copy(), pidx=fs.pidx[::-1].copy())
     assert split_covariance(swapped, centre_sigma_px=0.5, shape_sigma_px=0.5).shape == white.shape
