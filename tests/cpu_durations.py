@@ -91,7 +91,11 @@ def pytest_runtest_teardown(item: pytest.Item) -> Iterator[None]:
 def summary(folder: Path, top: int = 40) -> str:
     """The run in ``folder``: total CPU and wall seconds, by phase, the ``top`` modules by CPU
     seconds (with their test counts) and the ``top`` test phases."""
-    rows = [json.loads(line) for f in sorted(folder.glob("*.jsonl")) for line in open(f)]
+    rows = [
+        json.loads(line)
+        for f in sorted(folder.glob("*.jsonl"))
+        for line in f.read_text().splitlines()
+    ]
     if not rows:
         raise SystemExit(f"{folder}: no *.jsonl; run pytest --cpu-durations {folder} first")
     by_phase, modules, tests, wall = Counter(), Counter(), Counter(), Counter()

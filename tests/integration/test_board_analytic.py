@@ -319,7 +319,9 @@ def test_a_stereo_board_draw_records_both_cameras_against_the_rig_bound(board_mo
     from selfcal.studies.montecarlo.journal import JOURNAL
     from selfcal.studies.montecarlo.run import draw_one
 
-    journal = [json.loads(ln)["row"] for ln in (board_montecarlo / JOURNAL).open()]
+    journal = [
+        json.loads(ln)["row"] for ln in (board_montecarlo / JOURNAL).read_text().splitlines()
+    ]
     rows = {1: next(r for r in journal if r["seed"] == 1)}
     assert rows[1]["poses"] == 15 and rows[1]["dither"] and rows[1]["pixel_sigma"] == 0.5
     toml = tmp_path / "board2.toml"

@@ -30,7 +30,7 @@ from selfcal.pipeline.run import run_acquire, run_all
 def _offset_joint(src, dst, column: int, deg: float) -> None:
     """Copy the dataset ``src`` to ``dst`` with ``deg`` added to joint ``column``'s readings."""
     shutil.copytree(src, dst)
-    rows = list(csv.reader((dst / "joints.csv").open()))
+    rows = list(csv.reader((dst / "joints.csv").read_text().splitlines()))
     for r in rows[1:]:
         r[column] = f"{float(r[column]) + deg:.6f}"
     with (dst / "joints.csv").open("w", newline="") as f:
@@ -136,7 +136,7 @@ def test_check_with_images_says_unchanged_or_changed(tmp_path, capsys):
     # after its view's own pose fit (not read as a noisy image or a change) and named
     off = tmp_path / "outlier"
     shutil.copytree(new, off)
-    rows = list(csv.reader((off / "detections.csv").open()))
+    rows = list(csv.reader((off / "detections.csv").read_text().splitlines()))
     col = rows[0].index("u_px")
     rows[1][col] = f"{float(rows[1][col]) + 5.0:.6f}"
     with (off / "detections.csv").open("w", newline="") as f:

@@ -63,10 +63,16 @@ def test_workers_end_when_their_parent_is_terminated(tmp_path):
     script.write_text(POOL)
     parent = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, text=True,
                               stderr=subprocess.DEVNULL, cwd=ROOT)  # fmt: skip
-    workers = [int(p) for p in parent.stdout.readline().split()]
-    assert len(workers) == 2
-    parent.send_signal(signal.SIGTERM)
-    parent.wait(timeout=10)
+    try:
+        workers = [int(p) for p in parent.stdout.readline().split()]
+        assert len(workers) == 2
+        parent.send_signal(signal.SIGTERM)
+        parent.wait(timeout=10)
+    finally:  # its pipe closed (a ResourceWarning else), the parent not left behind
+        if parent.poll() is None:
+            parent.kill()
+            parent.wait()
+        parent.stdout.close()
     deadline = time.monotonic() + 10
     while any(map(_alive, workers)) and time.monotonic() < deadline:
         time.sleep(0.1)

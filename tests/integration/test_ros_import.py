@@ -140,7 +140,7 @@ def _import(bag: Path, out: Path, root: Path, *topics: str, extra=()) -> int:
 
 
 def _stamps(out: Path) -> dict[str, list[int]]:
-    rows = list(csv.DictReader((out / "sources.csv").open()))
+    rows = list(csv.DictReader((out / "sources.csv").read_text().splitlines()))
     got: dict[str, list[int]] = {}
     for r in rows:
         got.setdefault(r["camera"], []).append(int(r["source"].rsplit("@", 1)[1]))
@@ -251,7 +251,10 @@ def test_split_recording_reads_as_one_bag(lab, tmp_path):
                                   cv2.imread(str(pb), cv2.IMREAD_UNCHANGED))  # fmt: skip
         rec = ds.info.provenance["import"]
         assert sorted(Path(b).name for b in rec["bag"]) == [p.name for p in parts]
-    src = [r["source"] for r in csv.DictReader((tmp_path / "glob" / "sources.csv").open())]
+    src = [
+        r["source"]
+        for r in csv.DictReader((tmp_path / "glob" / "sources.csv").read_text().splitlines())
+    ]
     assert {Path(s.split("#")[0]).name for s in src} == {"rec_0.bag", "rec_1.bag", "rec_2.bag"}
 
 

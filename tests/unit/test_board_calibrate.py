@@ -250,10 +250,10 @@ def test_a_wide_fisheye_starts_from_its_field_of_view():
     -0.0008; tests/data/fisheye_aprilgrid_views.npz, detected in a stranger's rendered images):
     the homographies' pinhole start is fx 3325 px, from where cv2.fisheye.calibrate failed an
     assertion (InitExtrinsics); the field-of-view starts reach the truth."""
-    data = np.load(Path(__file__).parents[1] / "data" / "fisheye_aprilgrid_views.npz")
-    cuts = np.cumsum(data["counts"])[:-1]
-    views = [Features(i.astype(np.int64), u.astype(float))
-             for i, u in zip(np.split(data["ids"], cuts), np.split(data["uv"], cuts))]  # fmt: skip
+    with np.load(Path(__file__).parents[1] / "data" / "fisheye_aprilgrid_views.npz") as data:
+        cuts = np.cumsum(data["counts"])[:-1]
+        views = [Features(i.astype(np.int64), u.astype(float))
+                 for i, u in zip(np.split(data["ids"], cuts), np.split(data["uv"], cuts))]  # fmt: skip
     board = AprilGrid((6, 6), 0.04, 0.3)
     free = ("fx", "mu", "cx", "cy", "k1", "k2", "k3", "k4")
     res = opencv_calibration(board, views, 1279, 1023, free, "fisheye")

@@ -50,7 +50,9 @@ def test_montecarlo_seed_overrides_every_seed_of_the_truth_and_the_draws(
         rows = list(csv.DictReader(fh))
     assert [r["checks"] for r in rows] == ["passed", "failed", "passed"]
     assert rows[1]["failed_checks"] == FAILURE
-    journal = [json.loads(x)["row"] for x in (tmp_path / "a" / "draws.jsonl").open()]
+    journal = [
+        json.loads(x)["row"] for x in (tmp_path / "a" / "draws.jsonl").read_text().splitlines()
+    ]
     assert count_check_failures(journal) == 1
     assert "1 of 3 draws failed them" in (tmp_path / "a" / "summary.md").read_text()
     # reproducible: the same seed elsewhere gives the same settings and rows

@@ -77,8 +77,8 @@ def _opencv4(T_cam_board: np.ndarray, T_flange_base: np.ndarray, workdir: Path):
     why = run_opencv4(src, dst)
     if why is not None:
         return None, None, why
-    out = np.load(dst)
-    return out["T_board_base"], out["T_cam_flange"], f"OpenCV {out['version']}"
+    with np.load(dst) as out:
+        return out["T_board_base"], out["T_cam_flange"], f"OpenCV {out['version']}"
 
 
 def _case(perturbed: bool, workdir: Path, seed: int = 1) -> dict:

@@ -111,8 +111,8 @@ def _case(cv2, np, case: dict) -> dict:
 
 
 def _robot_world_npz(cv2, np, src: str, dst: str) -> None:
-    d = np.load(src)
-    Tc, Tf = d["T_cam_board"], d["T_flange_base"]
+    with np.load(src) as d:
+        Tc, Tf = d["T_cam_board"], d["T_flange_base"]
     args = ([T[:3, :3] for T in Tc], [T[:3, 3] for T in Tc],
             [T[:3, :3] for T in Tf], [T[:3, 3] for T in Tf])  # fmt: skip
     R_b2w, t_b2w, R_g2c, t_g2c = cv2.calibrateRobotWorldHandEye(*args)

@@ -124,9 +124,9 @@ def _pybotics(case: TrackerCase, q, xyz, q_test, repeats: int, workdir: Path):
     except (subprocess.CalledProcessError, subprocess.TimeoutExpired, OSError) as exc:
         tail_err = getattr(exc, "stderr", "") or str(exc)
         return None, None, None, f"pybotics did not run: {tail_err.strip().splitlines()[-1:]}"
-    out = np.load(dst)
-    wall, cpu = float(out["seconds"].min()), float(out["cpu_seconds"].min())
-    return out["pred_test"] / 1e3, wall, cpu, f"pybotics {out['version']}"
+    with np.load(dst) as out:
+        wall, cpu = float(out["seconds"].min()), float(out["cpu_seconds"].min())
+        return out["pred_test"] / 1e3, wall, cpu, f"pybotics {out['version']}"
 
 
 def _rms(a: np.ndarray, b: np.ndarray) -> float:

@@ -34,7 +34,8 @@ def main(argv: list[str]) -> int:
     )
     from pybotics.robot import Robot  # type: ignore[import-not-found]
 
-    data = np.load(argv[0])
+    with np.load(argv[0]) as npz:
+        data = dict(npz)
     mdh = data["mdh"]
     n = len(mdh)
     mask = np.ones((n, 4), bool)

@@ -410,7 +410,14 @@ class AclLink:
         return problems
 
     def close(self) -> None:
+        """Close the port, also a ``socket://`` one whose peer is gone: pyserial's close skips
+        the socket's own close when its shutdown fails (the peer already closed), leaving the
+        socket open until garbage collection (a ResourceWarning)."""
+        sock = getattr(self.port, "_socket", None)
         try:
             self.port.close()
         except _LINK_ERRORS:
             pass
+        finally:
+            if sock is not None:
+                sock.close()
