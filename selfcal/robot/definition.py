@@ -198,7 +198,7 @@ class RobotDef:
     """Nominal kinematics of a serial robot, SI units.
 
     Attributes:
-        name: robot name (file stem).
+        name: robot name (a robot TOML's name, else its file stem; a bare URDF's ``<robot name>``).
         joint_names: one name per joint.
         joint_types: ``"revolute"`` or ``"prismatic"`` per joint.
         chain: (n + 1, 4, 4) the fixed transforms ``G_0 .. G_n`` (m) of the nominal chain
@@ -298,7 +298,8 @@ def load_robot(name_or_path: str | Path) -> RobotDef:
 
     A URDF alone: the chain runs from the root link to the leaf link reached through the most
     moving joints (:mod:`selfcal.robot.urdf`; an ambiguous choice is an error asking for a robot TOML
-    with ``[urdf] base_link`` and ``tool_link``), the name is the file stem, home is joint value 0
+    with ``[urdf] base_link`` and ``tool_link``), the name is the URDF's ``<robot name>`` (the file
+    stem when it names none), home is joint value 0
     (or the middle of a range that excludes 0, :func:`selfcal.robot.urdf.urdf_home`), the camera sits
     at the flange (the tool link) looking along its z axis, and the tables a robot TOML may add
     (encoder, planning, simulation, MJCF) take their defaults. A robot TOML without
@@ -337,7 +338,7 @@ def _from_urdf_file(path: Path) -> RobotDef:
     """A robot straight from a URDF file, with the defaults :func:`load_robot` describes."""
     ch = urdf_chain(path)
     kin = Kinematics(ch.joint_names, ch.joint_types, ch.limits, ch.chain, None)
-    data = {"name": path.stem, "description": f"{ch.name} (URDF {path.name}, {ch.base_link} -> "
+    data = {"name": ch.name.strip() or path.stem, "description": f"{ch.name} (URDF {path.name}, {ch.base_link} -> "
             f"{ch.tool_link})", "home_deg": list(urdf_home(ch.joint_types, ch.limits))}  # fmt: skip
     return _assemble(path, data, kin, np.eye(4))
 

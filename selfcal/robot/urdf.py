@@ -298,7 +298,7 @@ def urdf_chain(
             fix="give the joints' <origin xyz> in metres, a robot's size",
         )
     return UrdfChain(
-        name=str(robot.name),
+        name=str(robot.name or ""),
         base_link=base_link,
         tool_link=tool_link,
         joint_names=tuple(names),

@@ -31,7 +31,8 @@ def test_a_robot_file_without_camera_mount_is_said(tmp_path):
         robot = calibration_robot(str(tmp_path), "nachi_mz25")
     assert not robot.camera_mount_given
     text = str(got.list[0].message)
-    assert text.startswith(f"{p}: the robot file of nachi_mz25 gives no [camera_mount]")
+    # the URDF's <robot name="nachi_mz25_nominal">, not its file's stem
+    assert text.startswith(f"{p}: the robot file of nachi_mz25_nominal gives no [camera_mount]")
     assert "the tool tip here is the calibrated camera's optical frame" in text
     assert "[camera_mount] xyz_mm, x_axis, z_axis" in text and "[urdf] file" in text
 

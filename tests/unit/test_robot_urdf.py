@@ -56,6 +56,17 @@ def test_direct_urdf_defaults():
     assert not robot.camera_mount_given
 
 
+def test_a_urdf_robot_is_named_by_its_robot_element(tmp_path):
+    """A URDF's ``<robot name>`` names the robot (fk's "model", plan's lines, errors), not the
+    file's stem (a new user's rrr.urdf of ``<robot name="rrr3">`` was called "rrr"); a URDF
+    naming none keeps the stem."""
+    p = tmp_path / "rrr.urdf"
+    p.write_text(URDF.read_text().replace('<robot name="kr6_r900"', '<robot name="rrr3"'))
+    assert load_robot(p).name == "rrr3"
+    p.write_text(URDF.read_text().replace('<robot name="kr6_r900"', '<robot name=""'))
+    assert load_robot(p).name == "rrr"
+
+
 def _variant(tmp_path, old, new, toml_extra=None):
     text = URDF.read_text()
     assert old in text
