@@ -130,21 +130,26 @@ def motion_scale(
     return MotionScale(s, s * float(np.sqrt(max(var, 0.0))), rms, spread, len(T))
 
 
-def scale_warning(ms: MotionScale, robot: str, target: str, correct: str) -> str | None:
+def scale_warning(
+    ms: MotionScale, robot: str, target: str, correct: str, *, failed: bool = False
+) -> str | None:
     """A warning when ``ms`` is off by more than its tolerance and 5 sigma, else None.
     ``robot``: the robot's name; ``target``: what set the scale (e.g. "the chessboard of
     board.toml (square_mm = 15.0)"); ``correct``: the fix, given the scale (e.g. "square_mm =
-    15.45 would match the arm")."""
+    15.45 would match the arm"); ``failed``: the calibration failed, so it took nothing into
+    the link lengths (the cause of a failed fit, not a warning about its result)."""
     off = ms.scale - 1.0
     if abs(off) <= ms.tolerance or abs(off) <= 5 * ms.std:
         return None
     measured = abs(1.0 / ms.scale - 1.0)  # the target's motion against the arm's
+    taken = ("the calibration cannot fit both" if failed else
+             "the calibration has taken this into the link lengths, so its positions are about "
+             f"{measured * 100:.1f} % off")  # fmt: skip
     return (
         f"{DISAGREES}: {target} measures the camera's motion "
         f"{measured * 100:.1f} % {'smaller' if off > 0 else 'larger'} than the nominal "
         f"kinematics of {robot} make it (scale {ms.scale:.4f} +- {ms.std:.4f} over "
-        f"{ms.postures} postures); the calibration has taken this into the link lengths, so its "
-        f"positions are about {measured * 100:.1f} % off. A target printed or measured at "
+        f"{ms.postures} postures); {taken}. A target printed or measured at "
         f"another size does this ({correct}), as does a --robot that is not this arm"
     )
 

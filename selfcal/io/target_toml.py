@@ -33,7 +33,7 @@ from selfcal.target.boards import AprilGrid, Board, Charuco, Chessboard, Circles
 from selfcal.tomlfile import read_toml
 
 __all__ = ["TargetFileError", "load_target", "load_board", "parse_target", "target_document", "TARGET_TYPES",
-           "length_m", "dictionary_name", "MAX_LENGTH_MM",
+           "length_m", "dictionary_name", "MAX_LENGTH_MM", "MIN_LENGTH_MM",
            "load_field_scale"]  # fmt: skip
 
 TARGET_TYPES: dict[str, tuple[set[str], set[str]]] = {
@@ -117,12 +117,22 @@ MAX_LENGTH_MM = 1e5
 a LinAlgError)."""
 
 
+MIN_LENGTH_MM = 1.0
+"""The shortest length a target file may give (1 mm): a printed square, marker, tag, circle or
+marker distance below it is a length written in metres or centimetres (a new user's
+``square_mm = 0.02`` imported silently and the calibration failed 20 s later)."""
+
+
 def length_m(f: Fields, key: str) -> float:
-    """The length ``key`` (mm in the file) in m: finite, above zero, at most
+    """The length ``key`` (mm in the file) in m: finite, at least :data:`MIN_LENGTH_MM`, at most
     :data:`MAX_LENGTH_MM`; else the error naming the file and the key."""
     v = f.float(key)
     if not 0 < v <= MAX_LENGTH_MM:
         raise f.bad(key, f"a length > 0 and at most {MAX_LENGTH_MM:g} (mm)", v)
+    if v < MIN_LENGTH_MM:
+        raise f.bad(key, f"a length in millimetres, at least {MIN_LENGTH_MM:g} (a printed "
+                    f"target's; if {v:g} is metres, write {key} = {v * 1000:g}; if centimetres, "
+                    f"{v * 10:g})", v)  # fmt: skip
     return v / 1000.0
 
 

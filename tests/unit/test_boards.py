@@ -184,6 +184,24 @@ def test_bad_target_files_name_file_and_key(doc, key):
     assert info.value.fix
 
 
+@pytest.mark.parametrize("doc, key", [
+    (_charuco(square_mm=0.02, marker_mm=0.015), "square_mm"),  # a new user's, in metres
+    (_charuco(marker_mm=0.5), "marker_mm"),
+    (_doc(type="chessboard", inner_corners=[11, 8], square_mm=0.015), "square_mm"),
+    (_doc(type="circles", pattern=[4, 11], spacing_mm=0.01), "spacing_mm"),
+    (_doc(type="aprilgrid", tags=[6, 6], tag_mm=0.025, spacing_ratio=0.3), "tag_mm"),
+])  # fmt: skip
+def test_a_length_below_a_millimetre_is_refused_as_metres_or_centimetres(doc, key):
+    """A printed target's length below 1 mm is a length in another unit: refused when the file
+    is read (it imported silently and calibrate failed 20 s later), naming the key and the mm."""
+    with pytest.raises(TargetFileError, match=rf"board\.toml: key '{key}' must be a length in "
+                       r"millimetres, at least 1") as info:  # fmt: skip
+        parse_target(doc, "board.toml")
+    v = doc[key]
+    assert f"if {v:g} is metres, write {key} = {v * 1000:g}" in info.value.message
+    parse_target(_doc(type="chessboard", inner_corners=[11, 8], square_mm=1.0), "board.toml")
+
+
 def test_missing_and_malformed_files(tmp_path):
     with pytest.raises(TargetFileError, match="no such target file"):
         load_target(tmp_path / "none.toml")

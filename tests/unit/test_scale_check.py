@@ -44,6 +44,17 @@ def test_a_target_of_another_size_is_measured(scale):
     assert ("smaller" if scale > 1 else "larger") in text and "square_mm = 15.45" in text
 
 
+def test_a_failed_calibration_is_not_said_to_have_taken_the_scale():
+    """The scale as the cause of a failed fit (a board declared in centimetres): the warning's
+    "the calibration has taken this into the link lengths" was false there."""
+    nominal, q, T, C = camera_poses(1.05)
+    ms = motion_scale(nominal, q, T, C)
+    text = scale_warning(ms, "kr6-r900", "the board", "square_mm = 21", failed=True)
+    assert text is not None and "the calibration cannot fit both" in text
+    assert "taken this into the link lengths" not in text
+    assert "taken this into" in (scale_warning(ms, "kr6-r900", "the board", "") or "")
+
+
 @pytest.mark.parametrize("seed", range(6))
 def test_the_right_size_raises_nothing(seed):
     nominal, q, T, C = camera_poses(1.0, seed)

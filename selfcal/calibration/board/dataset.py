@@ -286,8 +286,9 @@ def calibrate_board_dataset_detailed(
         found = _data_notes(ds, board, feats, names, robot, W, H, model_name, free, e2h)
         if found:
             note = "; ".join(found)
-            raise IdentificationError(
-                f"{ds.root}: the camera poses the board gives do not fit one robot: {what}; {note}",
+            raise IdentificationError(  # the cause first, then the failed fit it explains
+                f"{ds.root}: {note}; so the camera poses the board gives do not fit one robot: "
+                f"{what}",
                 fix=f"check that every joints row belongs to its image ({ds.root}/sources.csv "
                 "names each frame's file), the target's sizes and that --robot is this arm",
             )
@@ -486,7 +487,7 @@ def _data_notes(ds: Dataset, board: Board, feats: list[Features], names: list[st
         return [] if order is None else [order]
     ms = motion_scale(nominal_mcpc(robot), q[cb.used], T[cb.used], mount0)
     scale = scale_warning(ms, robot.name, f"the board ({scaled_sizes(sizes, 1.0)})",
-                          _sizes_fix(ds.root, sizes, ms.scale))  # fmt: skip
+                          _sizes_fix(ds.root, sizes, ms.scale), failed=True)  # fmt: skip
     if scale is not None:
         return [scale]
     order = order_note(misfits, f"{ds.root}/joints.csv")
