@@ -58,17 +58,17 @@ def plan_lines(plan) -> str:
 
     n, dof = len(plan.q), plan.q.shape[1]
     sel = plan.selected
-    pred = f"{sel.selected_m * 1000:.3f}"
-    kept = f"{sel.kept(dof)}"
-    if sel.rival_m is not None:
-        pred += f" - {sel.rival_m * 1000:.3f}"
-        kept += f" or {sel.rival_kept(dof)}"
-    first = (f"plan of {n} postures: predicted tool-point error {pred} mm RMS with the {kept} "
-             "kinematic parameters beyond the placement the calibration's selection is "
-             "forecast to keep")  # fmt: skip
+    kept = (f"{sel.selected_m * 1000:.3f} mm RMS with the {sel.kept(dof)} kinematic parameters "
+            "beyond the placement the calibration's selection is forecast to keep")  # fmt: skip
+    if sel.rival_m is not None:  # each figure beside its own set, not a range
+        kept = (f"{sel.selected_m * 1000:.3f} mm RMS ({sel.kept(dof)} parameters) or "
+                f"{sel.rival_m * 1000:.3f} mm ({sel.rival_kept(dof)}): the kinematic parameters "
+                "beyond the placement the calibration's selection is forecast to keep, or the "
+                "smaller set it may keep instead")  # fmt: skip
+    first = f"plan of {n} postures: predicted tool-point error {kept}"
     if sel.kept(dof) == plan.kept_all and sel.rival_m is None:
-        first += (f", all the postures identify (a random plan of {n}: "
-                  f"{plan.random_m * 1000:.3f} mm so)")  # fmt: skip
+        first += (f", all the postures identify (a random plan of {n} with all it identifies: "
+                  f"{plan.random_m * 1000:.3f} mm)")  # fmt: skip
     else:
         first += (f" (with all {plan.kept_all} the postures identify {plan.predicted_m * 1000:.3f}"
                   f" mm; a random plan of {n}: ")  # fmt: skip

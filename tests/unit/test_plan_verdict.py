@@ -205,3 +205,18 @@ def test_a_plan_is_the_random_plan_when_it_holds_its_postures_in_any_order():
     other = r.copy()
     other[5, 1] += 1e-9
     assert not same(other) and not same(r[:7]) and not same(r[[0, 0, 1, 2, 3, 4, 5, 6]])
+
+
+def test_the_first_line_pairs_each_figure_with_its_parameter_set():
+    """A new user read "3.683 - 2.005 mm RMS with the 6 or 3 ..." as a range, high to low, and
+    "(a random plan of 12: 2.674 mm so)" as a typo: each figure is said beside its own set."""
+    first = plan_lines(_plan(_selected(0.609e-3, 1.160e-3))).splitlines()[0]
+    assert first.startswith("plan of 12 postures: predicted tool-point error 0.609 mm RMS (4 "
+                            "parameters) or 1.160 mm (2): the kinematic parameters beyond the "
+                            "placement the calibration's selection is forecast to keep, or the "
+                            "smaller set it may keep instead (with all 4"), first  # fmt: skip
+    alone = plan_lines(_plan(_selected(0.609e-3, None))).splitlines()[0]
+    assert alone.startswith("plan of 12 postures: predicted tool-point error 0.609 mm RMS with "
+                            "the 4 kinematic parameters beyond the placement"), alone  # fmt: skip
+    assert ", all the postures identify (a random plan of 12 with all it identifies: 1.500 mm)" \
+        in alone and " so)" not in alone  # fmt: skip
