@@ -236,6 +236,7 @@ def _cmd(args: argparse.Namespace) -> int:
                        "tracker's measurement, not a camera's",
                        fix="add --measure tracker, or leave them out")  # fmt: skip
     mount, args.mount = args.mount, args.mount or "eye-in-hand"
+    args.pixel_sigma_given = args.pixel_sigma is not None  # --add: else the calibration's
     args.pixel_sigma = 0.5 if args.pixel_sigma is None else args.pixel_sigma
     if not args.pixel_sigma > 0:
         raise CliError(f"--pixel-sigma {args.pixel_sigma:g}: the corner noise must be > 0 px",
@@ -380,7 +381,7 @@ def register(subparsers) -> argparse.ArgumentParser:
                     help="random candidate postures to choose from (default 400)")  # fmt: skip
     sp.add_argument("--pixel-sigma", type=float, default=None,
                     help="a camera plan: the corner noise the prediction assumes, px "
-                    "(default 0.5)")  # fmt: skip
+                    "(default 0.5; with --add the dataset's calibration's, from its residuals)")  # fmt: skip
     sp.add_argument("--deviation-mm", type=float, default=None,
                     help="how far the arm's lengths, the mount on the flange's included, may lie "
                     "from its drawing, mm (default 1; with --add sized from the dataset's "

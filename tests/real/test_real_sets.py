@@ -429,10 +429,15 @@ def test_plan_add_five_postures_to_the_calibrated_set(name, deviation, outcome, 
     # 0.0012 mm, but another machine's round-off can still tip a draw on the selection's edge)
     page = (Path(__file__).resolve().parents[2] / "docs/plan.md").read_text()
     lines = p.stdout.replace(str(runs_dir / name / "calib"), "calib").strip().splitlines()
-    assert len(lines) == 5, p.stdout
+    assert len(lines) == 6, p.stdout
+    # the corner noise the forecast assumed: the calibration's, from its residuals (the default
+    # 0.5 px was used where the calibration knew its noise: new user's trip, session 27)
+    assert lines[1].startswith("corner noise ") and doc["pixel_sigma"]["source"] == "calibration"
+    cal = json.loads((runs_dir / name / "calib/calibration.json").read_text())
+    assert doc["pixel_sigma"]["px"] == pytest.approx(cal["bounds"]["pixel_sigma_px"], abs=1e-6)
     if not deviation:  # the same 5 postures in 5 calibrations and 3 copies of calibration.json
         # moved by 1e-12 (docs/plan.md; through the eigenvectors' root 3 of 10 runs flipped them)
-        assert all(line in page for line in lines[:4]), p.stdout
+        assert all(line in page for line in lines[:5]), p.stdout
     flat = " ".join(page.split())
     if deviation:  # its prose quotes the first line's figures and joint path (the same postures)
         said = re.search(r"error ([0-9.]+ -> [0-9.]+ mm) RMS .*; (joint path [0-9]+ deg)", lines[0])
