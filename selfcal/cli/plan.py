@@ -77,7 +77,7 @@ the flange, with that mount's view rules; --robot, --target, --mount, --board-po
 --camera-pose, --count and the camera options are refused), predicted with the parameters the
 selection's cross-validation is forecast to keep; PLAN/joints.csv and trajectory.yaml hold the
 added postures in the order to record them (it sets the cross-validation's folds), replay.csv the
-dataset's and the added ones (scenario.toml replays them); the fifth line and plan.png give the
+dataset's and the added ones (scenario.toml replays them); the sixth line and plan.png give the
 draws (as above) of the dataset's frames alone and with the added ones, and the last line
 whether their medians halve the error: when K do not, up to 3 larger counts are planned in turn,
 each costing about as much as the plan itself, and the first that does is named (plan.json
@@ -85,7 +85,8 @@ halved_with). The error is averaged over
 the robot file's planning window, or without one over the dataset's joint region grown by 10 % of
 each joint's range; the held parameters' deviation, unless --deviation-mm / --deviation-deg are
 given, is sized so that the forecast expects the fair nominal's folds at the misfit the dataset's
-calibration measured on them (the second line says which and why).
+calibration measured on them (the third line says which and why; the second the corner noise:
+the calibration's estimate from its residuals unless --pixel-sigma is given).
 --measure tracker: instead, the postures at which a laser tracker measures a tool point (the
 reflector at --tool-point on the flange) for `selfcal identify`: reachable and free of collision
 and the keep-out boxes (the tracker's line of sight is not checked), chosen to minimise the

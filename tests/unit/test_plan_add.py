@@ -208,11 +208,12 @@ def test_the_halving_line_gives_the_draws_medians_it_judged_by():
 
 def test_the_help_says_what_the_halving_line_costs():
     """`selfcal plan --help` said "the last line and plan.png give the draws" after the halving
-    line became the last (review of session 26); it names the fifth line, the halving line and
-    how many larger counts it plans (HALVE_MORE, the one source of that number)."""
+    line became the last (review of session 26); it names the draws' line (the sixth since the
+    corner noise has its own), the halving line and how many larger counts it plans (HALVE_MORE,
+    the one source of that number)."""
     from selfcal.calibration.board.plan.add import HALVE_MORE
     from selfcal.cli.plan import EPILOG
 
     text = " ".join(EPILOG.split())
-    assert "the fifth line and plan.png give the draws" in text
+    assert "the sixth line and plan.png give the draws" in text
     assert f"up to {HALVE_MORE} larger counts are planned in turn" in text
