@@ -96,7 +96,7 @@ def test_add_plans_for_an_eye_to_hand_dataset(dataset, tmp_path, capsys, monkeyp
     assert doc["predicted_before_tool_rms_mm"] == pytest.approx(fair, abs=2e-4)
     assert doc["nominal"]["drawn_not_a_reference"] is None  # no camera rides on the flange
     # how many postures are predicted to halve the error: the fewest of those tried, by the
-    # medians of the forecast's draws (the fifth line's, the same draws), not the first line
+    # medians of the forecast's draws (the sixth line's, the same draws), not the first line
     drawn = doc["forecast_draws"]
     halved = doc["halved_with"]
     assert halved["median_before_mm"] == drawn["before"]["median_mm"]

@@ -14,7 +14,7 @@ draws' RMS); the plans of K + 1 to K + ``--more``. Columns: the predicted tool-p
 before and after (the forecast's candidate, the first line of ``selfcal plan --add``), the
 bound with every parameter kept (the selection's largest candidate at those postures), the
 median and RMS of 400 draws of the arm and the noise with the selection deciding in each
-(seed 1, as the command's fifth line), and the share of those draws keeping a smaller set.
+(seed 1, as the command's sixth line), and the share of those draws keeping a smaller set.
 """
 
 from __future__ import annotations
