@@ -65,7 +65,8 @@ def load_calibration(path: str):
 def calibration_robot(path: str, robot_name: str):
     """The robot of the calibration ``path`` (as :func:`load_calibration` takes it): the robot
     file its dataset carries (:func:`_robot_file`), else the model ``robot_name``. An exported
-    TOML of a robot from a file finds it through the calibration.json it names as ``source``."""
+    TOML finds it through the calibration.json it names as ``source`` when that is still there,
+    else by ``robot_name`` among the shipped robots."""
     from selfcal.export.robot_toml import from_toml
     from selfcal.robot.definition import list_robots, load_robot
 
@@ -73,11 +74,13 @@ def calibration_robot(path: str, robot_name: str):
     if p.suffix == ".json":
         _scale_said(p)
         return _mount_said(_robot_file(p) or load_robot(robot_name), p)
-    if robot_name in list_robots():
-        return _mount_said(load_robot(robot_name), p)
+    # the robot file beside the calibration the TOML was exported from first: a user's robot
+    # may carry a shipped robot's name (a URDF's <robot name="ur5e">) and other dimensions
     src = Path(from_toml(p.read_text()).source)
     if src.suffix == ".json" and src.is_file() and (robot := _robot_file(src)) is not None:
         return _mount_said(robot, p)
+    if robot_name in list_robots():
+        return _mount_said(load_robot(robot_name), p)
     raise CliError(
         f"{p}: robot {robot_name!r} is neither a shipped model nor found through the file's "
         f"source {str(src)!r}",

@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import warnings
 from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
 
@@ -54,3 +55,23 @@ def test_the_exported_tool_frame_words_hold_without_a_camera_mount():
     assert "left camera composed" not in TOOL_FRAME  # a single camera has no left
     assert "without [camera_mount]" in TOOL_FRAME
     assert "the calibrated camera's optical frame (z along its view), not the flange" in TOOL_FRAME
+
+
+def test_an_exported_toml_of_a_users_robot_named_like_a_shipped_one_is_the_users(
+    tmp_path, monkeypatch
+):
+    """A robot loaded from a URDF is named by its <robot name> (session 27); an exported TOML
+    then found its robot by that name among the shipped ones first, so a user's URDF named
+    "ur5e" with other dimensions read back as the shipped UR5e. The calibration the TOML names
+    as its source (its folder's robot file) comes first now."""
+    import selfcal.export.robot_toml as robot_toml
+
+    urdf = tmp_path / "my_arm.urdf"
+    urdf.write_text(NACHI.read_text().replace('name="nachi_mz25_nominal"', 'name="ur5e"', 1))
+    cal = _calibration(tmp_path, str(urdf))
+    toml = tmp_path / "exported.toml"
+    toml.write_text("# an exported calibration")
+    monkeypatch.setattr(robot_toml, "from_toml", lambda text: SimpleNamespace(source=str(cal)))
+    with pytest.warns(NoCameraMountWarning):  # the Nachi URDF has none; the shipped UR5e has
+        robot = calibration_robot(str(toml), "ur5e")
+    assert robot.name == "ur5e" and not robot.camera_mount_given
