@@ -124,7 +124,9 @@ def test_the_pipeline_writes_through_calib_io_atomic():
             if rel in ALLOWED or rel.startswith("selfcal/studies/"):
                 continue
             for i, line in enumerate(f.read_text().splitlines(), 1):
-                if DIRECT.search(line) and "save_figure" not in line:
+                # a figure drawn into memory (the figure worker's warm-up) writes no file
+                in_memory = "savefig(io.BytesIO()" in line
+                if DIRECT.search(line) and "save_figure" not in line and not in_memory:
                     found.append(f"{rel}:{i}: {line.strip()}")
     # the one savefig is inside selfcal.plots.plotting.save_figure
     assert found == [
