@@ -27,8 +27,9 @@ N = 12  # groups 1 - 3 of 4 images
 # The robot file states no encoder resolution, so the readings are taken as exact, and on these
 # three configurations the arm's chain at its readings does not place the camera to the pixels'
 # precision (the free pose per image fits them 4 - 5x closer): the calibration says so, naming
-# the option for the read-back noise (a true finding about the data, which these tests expect)
-READBACK = "nachi_mz25 states no encoder resolution, so they are taken as exact"
+# the option for the read-back noise (a true finding about the data, which these tests expect);
+# the warning names the robot as its URDF does (<robot name="nachi_mz25_nominal">)
+READBACK = "nachi_mz25_nominal states no encoder resolution, so they are taken as exact"
 
 
 def _readback_ratio(got: pytest.WarningsRecorder) -> tuple[float, float]:
