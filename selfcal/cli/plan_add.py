@@ -91,7 +91,7 @@ def cmd_add(args: argparse.Namespace) -> int:
         write_text_atomic(out / "target.toml", "# The board of " + str(root) + "\n" + "".join(
             f"{k} = {json.dumps(v)}\n" for k, v in doc_t.items()))  # fmt: skip
         write_text_atomic(out / "scenario.toml", scenario_text(ref, setup.camera, count=len(q_all),
-                                                              joints="replay.csv",
+                                                              joints="replay.csv", pixel_sigma=args.pixel_sigma,
                                                               deviation=opts.deviation, **where))  # fmt: skip
         write_figure(fc, add.reference, f"{robot.name}: {root} ({m} frames) before and after "
                      f"adding {len(add.q)} postures, predicted over {fc.draws} draws of the arm "

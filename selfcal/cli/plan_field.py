@@ -218,7 +218,7 @@ def cmd_field(
              "marker_size_mm": float(args.marker_mm), "scale_length_mm": scale_m * 1000.0}  # fmt: skip
     # the forecast's markers are the replay's simulated field: built (and checked) before planning
     scenario = scenario_text(ref, camera, None, args.count, deviation=deviation_of(args),
-                             field=field)  # fmt: skip
+                             field=field, pixel_sigma=args.pixel_sigma)  # fmt: skip
     with tempfile.TemporaryDirectory() as tmp:
         write_text_atomic(Path(tmp) / "scenario.toml", scenario)
         try:
@@ -244,7 +244,8 @@ def cmd_field(
                        "--candidates, a camera that sees the field from more postures "
                        "(a wider --fov-deg), or plan without --clear-views") from e  # fmt: skip
     n = len(plan.q)
-    scenario = scenario_text(ref, camera, None, n, deviation=deviation_of(args), field=field)
+    scenario = scenario_text(ref, camera, None, n, deviation=deviation_of(args), field=field,
+                             pixel_sigma=args.pixel_sigma)  # fmt: skip
     fc = {k: field_forecast(setup, layout, q, ws, pixel_sigma_px=args.pixel_sigma,
                             joint_sigma=js) for k, q in (("plan", plan.q), ("random", plan.q_random))}  # fmt: skip
     plan_rms, random_rms = fc["plan"].tool_rms_m, fc["random"].tool_rms_m

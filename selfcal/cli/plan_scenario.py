@@ -48,6 +48,7 @@ def scenario_text(
     deviation=None,
     seed: int = 1,
     field: dict[str, float] | None = None,
+    pixel_sigma: float = 0.5,
 ) -> str:
     """The scenario TOML that replays the plan in simulation (``selfcal run``): the robot, the
     plan's nominal camera as the true one, the board of ``target.toml`` at ``board_pose`` (6,) mm
@@ -57,7 +58,8 @@ def scenario_text(
     (:class:`selfcal.calibration.board.deviation.Deviation`, None: its default), as the plan
     predicts with it. ``field``: instead of the board, the simulated marker field's ``[target]``
     keys (``markers``, ``extent_mm``, ``marker_size_mm``, ``scale_length_mm``), centred where the
-    home posture looks."""
+    home posture looks. ``pixel_sigma``: the corner noise (px per coordinate) the plan forecast
+    with, simulated by the replay (``[noise] pixel_sigma``)."""
     from selfcal.calibration.board.deviation import Deviation
 
     dev = deviation or Deviation()
@@ -115,4 +117,5 @@ rotation_deg = {deg:.10g}  # every angle likewise: the plan's --deviation-mm/--d
 
 [noise]
 render = false  # analytic corners; true renders the MuJoCo scene
+pixel_sigma = {pixel_sigma:.6g}  # px per coordinate: the corner noise the plan forecast with
 """
