@@ -78,8 +78,8 @@ the flange, with that mount's view rules; --robot, --target, --mount, --board-po
 selection's cross-validation is forecast to keep; PLAN/joints.csv and trajectory.yaml hold the
 added postures in the order to record them (it sets the cross-validation's folds), replay.csv the
 dataset's and the added ones (scenario.toml replays them); the sixth line and plan.png give the
-draws (as above) of the dataset's frames alone and with the added ones, and the last line
-whether their medians halve the error: when K do not, up to 3 larger counts are planned in turn,
+draws (as above) of the dataset's frames alone and with the added ones; when their medians do
+not halve the error with K, a seventh line says so: up to 3 larger counts are planned in turn,
 each costing about as much as the plan itself, and the first that does is named (plan.json
 halved_with). The error is averaged over
 the robot file's planning window, or without one over the dataset's joint region grown by 10 % of
@@ -299,7 +299,8 @@ def _cmd(args: argparse.Namespace) -> int:
         ref = robot_reference(args.robot)
         write_text_atomic(out / "scenario.toml", scenario_text(
             ref, camera, None if e2h else pose, len(plan.q),
-            camera_pose=pose if e2h else None, deviation=deviation(args)))  # fmt: skip
+            camera_pose=pose if e2h else None, deviation=deviation(args),
+            pixel_sigma=args.pixel_sigma))  # fmt: skip
         load_scenario(out / "scenario.toml")  # what we wrote reads back
         write_figure(fc, plan.reference, f"{robot.name}, {args.mount}: the plan of {n} postures "
                      f"against a random plan of {n}, predicted over {fc.draws} draws of the arm "

@@ -2,7 +2,7 @@
 tool-point error over draws of the arm within its deviation and of the noise, the selection
 deciding in each (:func:`selfcal.calibration.board.plan.spread.plan_spread`), for the plan and a
 random plan of the same size (``--add``: the dataset before and after the added postures): the
-command's third line, plan.json's ``forecast_draws`` section and PLAN/plan.png
+command's third line (``--add``: its sixth), plan.json's ``forecast_draws`` section and PLAN/plan.png
 (:mod:`selfcal.plots.plan_figure`)."""
 
 from __future__ import annotations

@@ -236,7 +236,7 @@ class Halving:
     (m; NaN without a count), ``tried`` the largest count tried, ``before_m`` the error before
     it is judged against (m). :func:`plan_additions` judges by the medians of the forecast's
     draws (:data:`selfcal.calibration.board.plan.spread.DRAWS` of them, seeded with the plan's
-    seed: ``selfcal plan --add``'s third line, plan.json's ``forecast_draws``), not by the first
+    seed: ``selfcal plan --add``'s sixth line, plan.json's ``forecast_draws``), not by the first
     line's prediction, which jumps with the one candidate the selection's forecast keeps."""
 
     count: int | None
