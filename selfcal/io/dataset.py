@@ -30,6 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
+from selfcal.errors import InputError
 from selfcal.io.dataset_info import (
     DATASET_FIX,
     DatasetError,
@@ -78,7 +79,14 @@ def _write_bytes_atomic(path: Path, data: bytes) -> None:
 
 
 def _write_png(path: Path, rgb: np.ndarray) -> None:
-    _write_bytes_atomic(path, _encode_png(rgb))
+    """Write frame image ``rgb`` to ``path``; ``DatasetError`` naming the file when the image
+    is not one a dataset holds (uint8 grey or RGB)."""
+    try:
+        data = _encode_png(rgb)
+    except InputError as e:
+        raise DatasetError(f"{path}: {e.message}", fix="give the camera's frame as uint8 grey or "
+                           "RGB (scale a 16-bit frame to 8 bits first)") from e  # fmt: skip
+    _write_bytes_atomic(path, data)
 
 
 def _encode_png(rgb: np.ndarray) -> bytes:

@@ -57,3 +57,14 @@ def test_files_no_larger_than_opencvs():
 def test_other_images_are_refused(bad):
     with pytest.raises(InputError, match="uint8 .* grey or .* RGB"):
         encode_png(bad)
+
+
+def test_a_dataset_frame_that_is_not_8_bit_names_its_file(tmp_path):
+    """A 16-bit frame (OpenCV's writer took it) is refused naming the frame's file and the fix."""
+    from selfcal.io.dataset import DatasetError, _write_png
+
+    path = tmp_path / "0003_left.png"
+    with pytest.raises(DatasetError, match="0003_left.png: a PNG image must be uint8") as e:
+        _write_png(path, np.zeros((48, 64, 3), np.uint16))
+    assert "8 bits" in (e.value.fix or "")
+    assert not path.exists()
