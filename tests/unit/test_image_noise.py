@@ -58,6 +58,38 @@ def test_the_chi_square_tells_a_noise_one_percent_too_strong():
     assert chi2.sf(stat, dof) < 1e-6
 
 
+LAGS = (1, 2, 3, 4, 5, 8, SHAPE[1] * SHAPE[2])  # neighbours, channels, pixels and the next row
+
+
+def _lag_correlations(z: np.ndarray) -> np.ndarray:
+    """The correlation of the flattened draws ``z`` with themselves shifted by each of LAGS."""
+    x = z.ravel().astype(np.float64)
+    x -= x.mean()
+    return np.array([np.dot(x[:-k], x[k:]) / np.dot(x, x) for k in LAGS])
+
+
+@pytest.mark.parametrize("bits", ["PCG64", "MT19937"])
+def test_the_draws_are_uncorrelated(bits):
+    """Independent draws (the sensor noise is i.i.d. per pixel and channel): each lag's
+    correlation within 4 standard errors (1/sqrt(n)) of 0; the chi-square above cannot see a
+    draw repeated or shared between neighbours."""
+    rng = np.random.Generator(getattr(np.random, bits)(13))
+    z = noise_field(SHAPE, 2.0, rng)
+    r = _lag_correlations(z)
+    assert np.abs(r).max() < 4 / np.sqrt(z.size), dict(zip(LAGS, r.round(5)))
+
+
+def test_the_correlation_test_tells_repeated_draws():
+    """The test above can fail: every draw used twice (a table index reused) correlates
+    neighbours at 0.5, draws shared a row apart likewise."""
+    z = noise_field(SHAPE, 2.0, np.random.default_rng(13))
+    twice = np.repeat(z.ravel()[: z.size // 2], 2).reshape(SHAPE)
+    assert _lag_correlations(twice)[0] > 0.4
+    rows = z.copy()
+    rows[1::2] = rows[::2]
+    assert _lag_correlations(rows)[-1] > 0.4
+
+
 def test_the_table_is_the_pmf_to_its_resolution():
     for sigma in (0.5, 2.0, 64.0):
         k, pmf = rounded_gaussian_pmf(sigma)
