@@ -97,6 +97,7 @@ from selfcal.benchmarks.board.accuracy_tables import (
 )
 from selfcal.benchmarks.doc_blocks import ROOT, code_version, print_table, write_block
 from selfcal.benchmarks.pool import map_jobs
+from selfcal.benchmarks.usage import benchmark_parser
 from selfcal.calibration.board.accuracy import (
     board_error_model_from_json,
     predicted_reprojection,
@@ -365,7 +366,7 @@ def merged_rows(files: list[Path]) -> list[dict]:
 
 
 def _arguments(argv: list[str] | None) -> argparse.Namespace:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = benchmark_parser(__file__, description=__doc__.splitlines()[0])
     ap.add_argument("--draws", type=int, help=f"draws per row (default {DRAWS}, rendered "
                     f"{DRAWS_RENDERED})")  # fmt: skip
     ap.add_argument("--jobs", type=int, default=2, help="processes (default 2)")

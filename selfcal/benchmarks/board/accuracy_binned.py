@@ -26,6 +26,7 @@ import numpy as np
 
 from selfcal.benchmarks.board.accuracy_draw import MODELS, REGIONS, ROBOTS, draw
 from selfcal.benchmarks.pool import map_jobs
+from selfcal.benchmarks.usage import benchmark_parser
 from selfcal.errors import UsageError
 from selfcal.threads import limit_threads
 
@@ -88,7 +89,7 @@ def table(head: str, bins: list[dict], reach: list[float]) -> str:
 
 
 def _arguments(argv: list[str] | None) -> argparse.Namespace:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = benchmark_parser(__file__, description=__doc__.splitlines()[0])
     ap.add_argument("--draws", type=int, default=10, help="draws per row (default 10)")
     ap.add_argument("--jobs", type=int, default=1, help="processes (default 1)")
     for flag, default in (("--robots", ROBOTS), ("--models", MODELS)):

@@ -67,6 +67,7 @@ from selfcal.benchmarks.board.accuracy_draw import (
 )
 from selfcal.benchmarks.doc_blocks import code_version
 from selfcal.benchmarks.pool import map_jobs
+from selfcal.benchmarks.usage import benchmark_parser
 from selfcal.calibration.board.accuracy import board_error_model_from_json
 from selfcal.camera.spec import values_by_name
 from selfcal.errors import UsageError
@@ -334,7 +335,7 @@ def draw_options(ap: argparse.ArgumentParser, draws: int) -> None:
 
 
 def _arguments(argv: list[str] | None) -> argparse.Namespace:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = benchmark_parser(__file__, description=__doc__.splitlines()[0])
     ap.add_argument("--robot", default="er4u-paper", help="the robot (default er4u-paper)")
     draw_options(ap, 20)
     ap.add_argument("--fixed-truth", type=int, metavar="SEED",

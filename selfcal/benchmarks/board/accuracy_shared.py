@@ -30,6 +30,7 @@ from scipy.stats import pearsonr, spearmanr
 from selfcal.benchmarks.board.accuracy_parts import draw_options, first_point, kept_draw
 from selfcal.benchmarks.doc_blocks import code_version
 from selfcal.benchmarks.pool import map_jobs
+from selfcal.benchmarks.usage import benchmark_parser
 from selfcal.errors import UsageError
 from selfcal.threads import limit_threads
 
@@ -79,7 +80,7 @@ def shared_lines(s: dict, title: str) -> list[str]:
 
 
 def _arguments(argv: list[str] | None) -> argparse.Namespace:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = benchmark_parser(__file__, description=__doc__.splitlines()[0])
     ap.add_argument("--robots", default="er4u-paper,ur5e",
                     help="two robots (default er4u-paper,ur5e)")  # fmt: skip
     draw_options(ap, 90)

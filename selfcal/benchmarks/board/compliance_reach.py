@@ -19,7 +19,6 @@ Run: ``uv run python -m selfcal.benchmarks.board.compliance_reach [--draws 10] [
 
 from __future__ import annotations
 
-import argparse
 import sys
 import tempfile
 import warnings
@@ -32,6 +31,7 @@ import numpy as np
 from selfcal.benchmarks.board.accuracy_draw import COUNT, REGIONS, ROBOTS, scenario, simulated
 from selfcal.benchmarks.board.accuracy_tables import DOC
 from selfcal.benchmarks.doc_blocks import print_table
+from selfcal.benchmarks.usage import benchmark_parser
 from selfcal.io.dataset import Dataset
 from selfcal.kinematics.tool_error import workspace_sample
 from selfcal.pipeline.run import run_acquire
@@ -98,7 +98,7 @@ def table(rows: list[dict]) -> str:
 def main(argv: list[str] | None = None) -> int:
     """Run the benchmark (one BLAS thread) and print, or write, the table."""
     limit_threads(1)
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = benchmark_parser(__file__, description=__doc__.splitlines()[0])
     ap.add_argument("--draws", type=int, default=10, help="draws per robot (default 10)")
     ap.add_argument("--robots", type=lambda t: tuple(t.split(",")), default=ROBOTS,
                     help=f"comma-separated (default {','.join(ROBOTS)})")  # fmt: skip

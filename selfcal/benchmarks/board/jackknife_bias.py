@@ -18,10 +18,9 @@ Run: ``uv run python -m selfcal.benchmarks.board.jackknife_bias [--designs 200] 
 
 from __future__ import annotations
 
-import argparse
-
 import numpy as np
 
+from selfcal.benchmarks.usage import benchmark_parser
 from selfcal.calibration.board.folds import fold_labels
 
 CASES = ((15, 2, 1), (15, 2, 4), (15, 2, 8), (15, 10, 4), (60, 2, 4), (5, 10, 4))
@@ -44,7 +43,7 @@ def expected_ratio(X: np.ndarray, fold: np.ndarray, x0: np.ndarray) -> float:
 
 
 def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = benchmark_parser(__file__, description=__doc__.split("\n\n")[0])
     ap.add_argument("--designs", type=int, default=200)
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args(argv)

@@ -7,8 +7,7 @@ took board scenarios. Prints the summary (``DIR/summary.md``).
 
 from __future__ import annotations
 
-import argparse
-
+from selfcal.benchmarks.usage import benchmark_parser
 from selfcal.config.scenario import scenarios_dir
 
 __all__ = ["MONO_CHARUCO", "main"]
@@ -20,7 +19,7 @@ def main(argv: list[str] | None = None) -> int:
     """Parse the alias's arguments and run ``selfcal montecarlo`` on the board scenario."""
     from selfcal.cli.main import main as selfcal
 
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = benchmark_parser(__file__, description=__doc__.split("\n\n")[0])
     ap.add_argument("--draws", type=int, default=30)
     ap.add_argument("--config", default=str(MONO_CHARUCO), help="a board scenario")
     ap.add_argument("--jobs", type=int, default=2)

@@ -52,6 +52,7 @@ from selfcal.benchmarks.board.accuracy_draw import (
     true_chain,
 )
 from selfcal.benchmarks.board.accuracy_parts import directions
+from selfcal.benchmarks.usage import benchmark_parser
 from selfcal.calibration.board.accuracy import board_error_model_from_json
 from selfcal.camera.spec import values_by_name
 from selfcal.io.atomic import write_bytes_atomic
@@ -229,7 +230,7 @@ def _coverage_table(got: list[dict]) -> list[str]:
 
 
 def _arguments(argv: list[str] | None) -> argparse.Namespace:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = benchmark_parser(__file__, description=__doc__.splitlines()[0])
     ap.add_argument("--robot", default="ur5e", help="the robot (default ur5e)")
     ap.add_argument(
         "--seed", type=int, default=1, help="the truth's and postures' seed (default 1)"

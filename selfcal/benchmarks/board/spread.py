@@ -25,7 +25,6 @@ markers; about 2 s of CPU per refit on 15 postures, idle).
 
 from __future__ import annotations
 
-import argparse
 import contextlib
 import json
 import sys
@@ -35,6 +34,7 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 
 from selfcal.benchmarks.doc_blocks import ROOT, code_version, print_table
+from selfcal.benchmarks.usage import benchmark_parser
 from selfcal.calibration.board.dataset import calibrate_board_dataset_detailed
 from selfcal.config.scenario import load_scenario
 from selfcal.console.progress import TaskCounts
@@ -117,7 +117,7 @@ def measure(poses: int, seeds: list[int], refits: int, held: bool, jobs: int,
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = benchmark_parser(__file__, description=__doc__.split("\n\n")[0])
     ap.add_argument("--poses", default="15,30", help="posture counts, comma separated")
     ap.add_argument("--seeds", default="1,2,3", help="the resamples' seeds, comma separated")
     ap.add_argument("--refits", type=int, default=20)

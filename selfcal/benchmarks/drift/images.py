@@ -49,7 +49,6 @@ in the table of docs/tool-accuracy.md and keeps the others, :func:`docs_rows`).
 
 from __future__ import annotations
 
-import argparse
 import re
 import sys
 import time
@@ -68,6 +67,7 @@ from selfcal.benchmarks.doc_blocks import (
     read_block,
 )
 from selfcal.benchmarks.pool import imap_jobs
+from selfcal.benchmarks.usage import benchmark_parser
 from selfcal.calibration.drift.covariance import change_information
 from selfcal.calibration.drift.fold_error import fold_error_model
 from selfcal.calibration.drift.images import (
@@ -457,7 +457,7 @@ def robots_arg(rows: list[dict]) -> str:
 def main(argv: list[str] | None = None) -> int:
     """Run the benchmark (one BLAS thread per process) and print, or write, the table."""
     limit_threads(1)
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = benchmark_parser(__file__, description=__doc__.splitlines()[0])
     ap.add_argument("--calibrations", type=int, default=30, help="per noise level (default 30)")
     ap.add_argument("--checks", type=int, default=10, help="per calibration (default 10)")
     ap.add_argument("--noise-px", type=float, nargs="+", default=list(NOISE_PX),

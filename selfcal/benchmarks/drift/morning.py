@@ -24,7 +24,6 @@ Run: ``nice -n 10 uv run python -m selfcal.benchmarks.drift.morning [--calibrati
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import sys
 import warnings
@@ -34,6 +33,7 @@ import numpy as np
 from selfcal.benchmarks.board.accuracy_draw import calibrated_folder, scenario, simulated
 from selfcal.benchmarks.drift.images import JOINT_OFFSET_RAD, NEW_VIEWS, TOOL_SHIFT_M, read_joints
 from selfcal.benchmarks.pool import map_jobs
+from selfcal.benchmarks.usage import benchmark_parser
 from selfcal.calibration.board.evaluate import held_out_views
 from selfcal.calibration.drift.images import (
     calibration_error_model,
@@ -170,7 +170,7 @@ def table(rows: list[dict], argv: list[str]) -> str:
 def main(argv: list[str] | None = None) -> int:
     """Run the benchmark (one BLAS thread per process) and print its table."""
     limit_threads(1)
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = benchmark_parser(__file__, description=__doc__.splitlines()[0])
     ap.add_argument("--calibrations", type=int, default=10, help="per row (default 10)")
     ap.add_argument("--checks", type=int, default=10, help="per calibration (default 10)")
     ap.add_argument("--noise-px", type=float, nargs="+", default=[0.05, 0.2])

@@ -25,13 +25,13 @@ Run: ``MUJOCO_GL=egl nice -n 10 uv run python -m selfcal.benchmarks.drift.noise_
 
 from __future__ import annotations
 
-import argparse
 import sys
 
 import numpy as np
 
 from selfcal.benchmarks.board.accuracy_draw import simulated_calibration
 from selfcal.benchmarks.pool import map_jobs
+from selfcal.benchmarks.usage import benchmark_parser
 from selfcal.calibration.board import bounds as board_bounds_module
 from selfcal.calibration.board.view_jitter import view_jitter_from_json
 from selfcal.calibration.drift.fold_error import fold_error_model
@@ -105,7 +105,7 @@ def main(argv: list[str] | None = None) -> int:
     """Run the calibrations (one BLAS thread per process) and print one line per robot and
     noise level."""
     limit_threads(1)
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = benchmark_parser(__file__, description=__doc__.splitlines()[0])
     ap.add_argument("--calibrations", type=int, default=10, help="per row (default 10)")
     ap.add_argument("--noise-px", type=float, nargs="+", default=[0.05, 0.2],
                     help="corner noise levels (default 0.05 0.2)")  # fmt: skip

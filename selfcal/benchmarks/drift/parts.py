@@ -29,7 +29,6 @@ Run: ``nice -n 10 uv run python -m selfcal.benchmarks.drift.parts [--calibration
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import sys
 from collections import Counter
@@ -39,6 +38,7 @@ from scipy.stats import chi2
 
 from selfcal.benchmarks.board.accuracy_draw import SCENARIO, simulated_calibration
 from selfcal.benchmarks.drift.images import NEW_VIEWS, SPREAD_RAD, TOOL_SHIFT_M, read_joints
+from selfcal.benchmarks.usage import benchmark_parser
 from selfcal.calibration.drift.covariance import change_information
 from selfcal.calibration.drift.images import (
     ALPHA,
@@ -319,7 +319,7 @@ def main(argv: list[str] | None = None) -> int:
     """Run the benchmark (one BLAS thread) and print one line per variant (``--per-draw``:
     :func:`per_draw_summary`)."""
     limit_threads(1)
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = benchmark_parser(__file__, description=__doc__.splitlines()[0])
     ap.add_argument("--calibrations", type=int, default=6, help="draws (default 6)")
     ap.add_argument("--checks", type=int, default=10, help="per calibration (default 10)")
     ap.add_argument("--noise-px", type=float, default=0.2, help="pixel noise (default 0.2)")

@@ -21,13 +21,13 @@ Minutes: the calibration runs again.
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import sys
 from pathlib import Path
 
 import numpy as np
 
+from selfcal.benchmarks.usage import benchmark_parser
 from selfcal.calibration.board.bounds import BoardCramerRao
 from selfcal.calibration.board.dataset import calibrate_board_dataset_detailed
 from selfcal.calibration.board.deviation import Deviation
@@ -119,7 +119,7 @@ def _net_misfit(cal: BoardCalibrationResult, own: list[ViewJacobians], V: np.nda
 
 def main(argv: list[str] | None = None) -> int:
     """Print the split and the p-values (module docstring)."""
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = benchmark_parser(__file__, description=__doc__.splitlines()[0])
     ap.add_argument("calibration", type=Path, help="the folder of `selfcal calibrate`")
     ap.add_argument("new", type=Path, help="a folder of `selfcal import`: new views")
     args = ap.parse_args(argv)

@@ -40,7 +40,6 @@ A minute: the calibration runs again.
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import sys
 from pathlib import Path
@@ -48,6 +47,7 @@ from pathlib import Path
 import numpy as np
 
 from selfcal.benchmarks.drift.folds import Fold, folds_of, pose_misfit, sandwich_excess
+from selfcal.benchmarks.usage import benchmark_parser
 from selfcal.calibration.accuracy import model_error_of
 from selfcal.calibration.board.accuracy import ORIENTATION, POSITION, pose_error_terms
 from selfcal.calibration.board.evaluate import held_out_views
@@ -330,7 +330,7 @@ def _print_evidence(folds: list[Fold], used: float, noise: ViewNoise, eye_to_han
 
 def main(argv: list[str] | None = None) -> int:
     """Print the folds' ratios, the joint estimate and NEW's check with it (module docstring)."""
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = benchmark_parser(__file__, description=__doc__.splitlines()[0])
     ap.add_argument("calibration", type=Path, help="the folder of `selfcal calibrate`")
     ap.add_argument("new", type=Path, help="a folder of `selfcal import`: new views")
     ap.add_argument("--grid", action="store_true",

@@ -19,7 +19,6 @@ Run: ``uv run python -m selfcal.benchmarks.drift.real_lens CAL HELD [--k3 0.1] [
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 import tempfile
@@ -29,6 +28,7 @@ import numpy as np
 from scipy.optimize import brentq
 from scipy.stats import chi2, ncx2
 
+from selfcal.benchmarks.usage import benchmark_parser
 from selfcal.calibration.board.evaluate import held_out_views
 from selfcal.calibration.board.view_jitter import psd_part
 from selfcal.calibration.drift.covariance import view_covariance
@@ -52,7 +52,7 @@ translation and rotation, six joints): Bonferroni's factor."""
 
 def main(argv: list[str] | None = None) -> int:
     """Print the lens change's parts (module docstring)."""
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = benchmark_parser(__file__, description=__doc__.split("\n\n")[0])
     ap.add_argument("calibration", type=Path, help="the folder of selfcal calibrate")
     ap.add_argument("held", type=Path, help="a folder of selfcal import: the held-out images")
     ap.add_argument("--k3", type=float, default=0.1, help="the lens change (default 0.1)")

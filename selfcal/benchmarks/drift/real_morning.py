@@ -20,13 +20,13 @@ Nachi calibrations, docs/real-data.md).
 
 from __future__ import annotations
 
-import argparse
 import sys
 from collections import Counter
 from pathlib import Path
 
 import numpy as np
 
+from selfcal.benchmarks.usage import benchmark_parser
 from selfcal.calibration.board.evaluate import held_out_views
 from selfcal.calibration.drift.images import (
     calibration_error_model,
@@ -44,7 +44,7 @@ __all__ = ["main"]
 
 def main(argv: list[str] | None = None) -> int:
     """Run the proxy (module docstring) and print its line."""
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = benchmark_parser(__file__, description=__doc__.split("\n\n")[0])
     ap.add_argument("calibration", type=Path, help="the folder of selfcal calibrate")
     ap.add_argument("--draws", type=int, default=100)
     ap.add_argument("--views", type=int, default=5)

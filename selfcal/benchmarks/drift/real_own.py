@@ -17,7 +17,6 @@ real`` has imported and calibrated them (docs/real-data.md).
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 
@@ -25,6 +24,7 @@ import numpy as np
 from scipy.linalg import solve_triangular
 from scipy.stats import chi2
 
+from selfcal.benchmarks.usage import benchmark_parser
 from selfcal.calibration.board.evaluate import held_out_views
 from selfcal.calibration.drift.attribution import candidate_fits
 from selfcal.calibration.drift.covariance import view_covariance
@@ -58,7 +58,7 @@ def _tests(sigma: np.ndarray, r: np.ndarray, views: list[ViewJacobians], e2h: bo
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = benchmark_parser(__file__, description=__doc__.split("\n\n")[0])
     ap.add_argument("calibration", type=Path, help="the folder of selfcal calibrate")
     root: Path = ap.parse_args(argv).calibration
     limit_threads(1)

@@ -27,13 +27,13 @@ calibrated them (docs/real-data.md).
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from selfcal.benchmarks.usage import benchmark_parser
 from selfcal.calibration.board.evaluate import held_out_views
 from selfcal.calibration.board.view_jitter import camera_directions, psd_part
 from selfcal.calibration.drift.images import (
@@ -133,7 +133,7 @@ def carried(calibration: Path) -> dict:
 
 def main(argv: list[str] | None = None) -> int:
     """Print the parts (module docstring) per dataset."""
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = benchmark_parser(__file__, description=__doc__.splitlines()[0])
     ap.add_argument("calibration", type=Path)
     ap.add_argument("datasets", type=Path, nargs="+")
     ap.add_argument("--frames", action="store_true",

@@ -13,7 +13,6 @@ Run: ``uv run python -m selfcal.benchmarks.drift.tracker [--calibrations 40] [--
 
 from __future__ import annotations
 
-import argparse
 import sys
 import warnings
 
@@ -21,6 +20,7 @@ import numpy as np
 
 from selfcal.benchmarks.doc_blocks import ROOT, print_table
 from selfcal.benchmarks.tracker.sim import make_case
+from selfcal.benchmarks.usage import benchmark_parser
 from selfcal.calibration.identify import IdentificationWarning
 from selfcal.calibration.tracker.accuracy import tracker_accuracy
 from selfcal.calibration.tracker.drift import drift_check
@@ -102,7 +102,7 @@ def table(rows: list[dict], calibrations: int) -> str:
 def main(argv: list[str] | None = None) -> int:
     """Run the benchmark (one BLAS thread) and print, or write, the table."""
     limit_threads(1)
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = benchmark_parser(__file__, description=__doc__.splitlines()[0])
     ap.add_argument("--calibrations", type=int, default=40, help="per row (default 40)")
     ap.add_argument("--checks", type=int, default=10, help="per calibration (default 10)")
     ap.add_argument("--write-docs", action="store_true",

@@ -25,7 +25,6 @@ deviation), e.g. the real tier's (docs/real-data.md).
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 import tempfile
@@ -38,6 +37,7 @@ import numpy as np
 
 from selfcal.benchmarks.board.accuracy_draw import SCENARIO, prior
 from selfcal.benchmarks.pool import map_jobs
+from selfcal.benchmarks.usage import benchmark_parser
 from selfcal.calibration.accuracy import Z_MODEL_ERROR
 from selfcal.calibration.board.accuracy import (
     ORIENTATION,
@@ -140,7 +140,7 @@ def _summary(got: list[dict]) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the draws and print per setup the rules' counts (module docstring)."""
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = benchmark_parser(__file__, description=__doc__.split("\n\n")[0])
     ap.add_argument("--draws", type=int, default=10, help="per setup, robot and noise level")
     ap.add_argument("--setup", nargs="+", choices=sorted(SCENARIOS), default=["eye-to-hand"])
     ap.add_argument("--robot", nargs="+", default=[None],

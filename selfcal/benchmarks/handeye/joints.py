@@ -18,7 +18,6 @@ docs/cameras.md between its markers).
 
 from __future__ import annotations
 
-import argparse
 import shutil
 import subprocess
 import tempfile
@@ -29,6 +28,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from selfcal.benchmarks.board.views import BOARD, MONO, board_pose, board_views
+from selfcal.benchmarks.usage import benchmark_parser
 from selfcal.calibration.board.robot import calibrate_robot_with_board
 from selfcal.estimation.joint_report import encoder_sigma
 from selfcal.io.atomic import write_text_atomic
@@ -141,8 +141,8 @@ def table(rows: list[dict]) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(
-        prog="python -m selfcal.benchmarks.handeye", description=__doc__.split("\n\n")[0]
+    ap = benchmark_parser(
+        Path(__file__).with_name("__main__.py"), description=__doc__.split("\n\n")[0]
     )
     ap.add_argument("--write-docs", action="store_true")
     a = ap.parse_args(argv)

@@ -31,7 +31,6 @@ Run: ``uv run python -m selfcal.benchmarks.handeye.poses [--seeds N] [--write-do
 
 from __future__ import annotations
 
-import argparse
 import json
 import tempfile
 import warnings
@@ -43,6 +42,7 @@ from scipy.spatial.transform import Rotation
 
 from selfcal.benchmarks.doc_blocks import ROOT, write_block
 from selfcal.benchmarks.handeye.joints import run_opencv4
+from selfcal.benchmarks.usage import benchmark_parser
 from selfcal.calibration.handeye.calibrate import (
     CameraChoice,
     calibrate_hand_eye,
@@ -364,7 +364,7 @@ def splits(seeds: int) -> list[Split]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = benchmark_parser(__file__, description=__doc__.split("\n\n")[0])
     ap.add_argument("--seeds", type=int, default=5, help="synthetic seeds per case (5)")
     ap.add_argument("--write-docs", action="store_true",
                     help="rewrite the table in docs/handeye.md")  # fmt: skip

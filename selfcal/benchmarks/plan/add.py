@@ -36,7 +36,6 @@ table never holds rows of another K or of other code.
 
 from __future__ import annotations
 
-import argparse
 import json
 import shutil
 from pathlib import Path
@@ -44,6 +43,7 @@ from pathlib import Path
 import numpy as np
 
 from selfcal.benchmarks.doc_blocks import ROOT, code_version, print_table
+from selfcal.benchmarks.usage import benchmark_parser
 from selfcal.choices import SETUPS
 from selfcal.io.atomic import write_text_atomic
 
@@ -265,7 +265,7 @@ def main(argv: list[str] | None = None) -> int:
     """Run the truths and print the table."""
     from multiprocessing import get_context
 
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = benchmark_parser(__file__, description=__doc__.split("\n\n")[0])
     ap.add_argument("--truths", type=int, default=6)
     ap.add_argument("--add", type=int, default=5)
     ap.add_argument("--jobs", type=int, default=2)

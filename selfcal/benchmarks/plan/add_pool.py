@@ -19,9 +19,9 @@ median and RMS of 400 draws of the arm and the noise with the selection deciding
 
 from __future__ import annotations
 
-import argparse
-
 import numpy as np
+
+from selfcal.benchmarks.usage import benchmark_parser
 
 __all__ = ["pool_rows", "main"]
 
@@ -85,7 +85,7 @@ def main(argv: list[str] | None = None) -> int:
     """Run the truths and print the table."""
     from multiprocessing import get_context
 
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = benchmark_parser(__file__, description=__doc__.split("\n\n")[0])
     ap.add_argument("--truths", default="1,2,3", help="the truths' seeds, comma separated")
     ap.add_argument("--add", type=int, default=5)
     ap.add_argument("--more", type=int, default=2)

@@ -21,7 +21,6 @@ for the rule, not a measurement of another calibration run.
 
 from __future__ import annotations
 
-import argparse
 import json
 from dataclasses import replace
 from pathlib import Path
@@ -29,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from selfcal.benchmarks.doc_blocks import ROOT, print_table
+from selfcal.benchmarks.usage import benchmark_parser
 
 __all__ = ["candidate_row", "main", "majority_fold_left_out"]
 
@@ -118,7 +118,7 @@ def candidate_row(truth: Path, seed: int) -> dict:
 
 def main(argv: list[str] | None = None) -> int:
     """Judge every truth's candidates and print the table."""
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = benchmark_parser(__file__, description=__doc__.split("\n\n")[0])
     ap.add_argument("--runs", required=True, help="the --out of the eye-to-hand add benchmark")
     ap.add_argument("--truths", type=int, default=12)
     ap.add_argument("--write-docs", action="store_true",

@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from selfcal.benchmarks.usage import benchmark_parser
 from selfcal.io.atomic import write_text_atomic
 
 __all__ = ["BOARD_POSE", "KEEP_OUT", "arguments", "draw_all", "main", "posture_sets", "sets_of"]
@@ -91,11 +92,14 @@ def arguments(
     jobs: int,
     write_docs: bool = False,
     parents: tuple[argparse.ArgumentParser, ...] = (),
+    *,
+    module_file: str,
 ) -> argparse.Namespace:
     """A plan benchmark's ``--draws`` (30), ``--jobs`` (``jobs``) and ``--out`` (``out``),
     ``--write-docs`` where ``write_docs``, and the options of ``parents`` (parsers made with
-    ``add_help=False``: the script's own)."""
-    ap = argparse.ArgumentParser(description=doc.split("\n\n")[0], parents=list(parents))
+    ``add_help=False``: the script's own); its usage names the module of ``module_file`` (the
+    script's ``__file__``: :func:`selfcal.benchmarks.usage.benchmark_parser`)."""
+    ap = benchmark_parser(module_file, description=doc.split("\n\n")[0], parents=list(parents))
     ap.add_argument("--draws", type=int, default=30)
     ap.add_argument("--jobs", type=int, default=jobs)
     ap.add_argument("--out", default=out)
@@ -125,7 +129,7 @@ def main(argv: list[str] | None = None) -> int:
     from selfcal.io.plan_files import joints_csv
     from selfcal.robot.definition import models_dir
 
-    a = arguments(argv, __doc__ or "", "runs/plan-compare", 2)
+    a = arguments(argv, __doc__ or "", "runs/plan-compare", 2, module_file=__file__)
     got = posture_sets()
     setup, sets = got["setup"], got["sets"]
     root = Path(a.out)

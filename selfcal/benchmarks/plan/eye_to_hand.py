@@ -17,12 +17,13 @@ posture set, the prediction, the achieved median and 90th percentile and their r
 
 from __future__ import annotations
 
-import argparse
 import shutil
 import tempfile
 from pathlib import Path
 
 import numpy as np
+
+from selfcal.benchmarks.usage import benchmark_parser
 
 __all__ = ["CAMERA_POSE", "achieved", "main", "posture_sets"]
 
@@ -90,7 +91,7 @@ def main(argv: list[str] | None = None) -> int:
     """Draw and print the table."""
     import warnings
 
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = benchmark_parser(__file__, description=__doc__.split("\n\n")[0])
     ap.add_argument("--draws", type=int, default=20)
     ap.add_argument("--out", default="runs/plan-e2h-compare")
     a = ap.parse_args(argv)

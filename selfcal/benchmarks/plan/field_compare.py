@@ -277,7 +277,8 @@ def _options(argv: list[str] | None):
     ap.add_argument("--render", action="store_true", help="rendered and detected images")
     ap.add_argument("--pixel-sigma", type=float, default=0.5,
                     help="the corner noise the plan and the forecast assume (px; default 0.5)")  # fmt: skip
-    a = arguments(argv, __doc__ or "", DEFAULT_OUT, 1, write_docs=True, parents=(ap,))
+    a = arguments(argv, __doc__ or "", DEFAULT_OUT, 1, write_docs=True, parents=(ap,),
+                  module_file=__file__)  # fmt: skip
     if a.out == DEFAULT_OUT:  # each cell its own journal
         a.out = f"runs/{_block(a.robot, a.render)}"
     return a

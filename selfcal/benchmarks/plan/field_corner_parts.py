@@ -42,6 +42,8 @@ from pathlib import Path
 
 import numpy as np
 
+from selfcal.benchmarks.usage import benchmark_parser
+
 __all__ = ["VARIANTS", "corner_errors_of", "main", "variants"]
 
 VARIANTS = ("rendered", "exact", "centres", "shapes", "shuffled", "white")
@@ -159,8 +161,8 @@ def main(argv: list[str] | None = None) -> int:
     """Render, calibrate every variant, print the table."""
     from selfcal.benchmarks.plan.field_compare import field_sets, forecasts_at
 
-    ap = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    ap = benchmark_parser(
+        __file__, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     ap.add_argument("--robot", default="kr6-r900", help="the arm (default kr6-r900)")
     ap.add_argument("--set", default="plan 12", help='"plan 12" (default) or "random 30"')

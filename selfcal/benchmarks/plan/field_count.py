@@ -23,13 +23,13 @@ Units: mm, px.
 
 from __future__ import annotations
 
-import argparse
 import tempfile
 from pathlib import Path
 
 import numpy as np
 
 from selfcal.benchmarks.doc_blocks import ROOT
+from selfcal.benchmarks.usage import benchmark_parser
 
 __all__ = ["main"]
 
@@ -81,7 +81,7 @@ def main(argv: list[str] | None = None) -> int:
     from selfcal.benchmarks.plan.field_compare import field_cell
     from selfcal.calibration.field.plan import CHOICES, field_forecast, plan_field, random_plan
 
-    ap = argparse.ArgumentParser(description=(__doc__ or "").split("\n\n")[0])
+    ap = benchmark_parser(__file__, description=(__doc__ or "").split("\n\n")[0])
     ap.add_argument("--counts", default="12,15,18,24", help="the plans' sizes (comma-separated)")
     ap.add_argument("--write-docs", action="store_true", help="write the tables into the docs")
     a = ap.parse_args(argv)

@@ -22,12 +22,13 @@ focal length and aspect ratio against the truth. Units: mm, deg, px.
 
 from __future__ import annotations
 
-import argparse
 import tempfile
 import warnings
 from pathlib import Path
 
 import numpy as np
+
+from selfcal.benchmarks.usage import benchmark_parser
 
 __all__ = ["main"]
 
@@ -87,7 +88,7 @@ def main(argv: list[str] | None = None) -> int:
     """Draw and print one line per draw and the medians."""
     from selfcal.benchmarks.plan.field_compare import field_sets
 
-    ap = argparse.ArgumentParser(description=(__doc__ or "").split("\n\n")[0])
+    ap = benchmark_parser(__file__, description=(__doc__ or "").split("\n\n")[0])
     ap.add_argument("--set", default="random 30", help="'plan 12' or 'random 30'")
     ap.add_argument("--draws", type=int, default=5, help="seeds 1 .. N")
     ap.add_argument("--out", default="runs/plan-field-fair-nominal")

@@ -17,11 +17,11 @@ rendering. Units: mm.
 
 from __future__ import annotations
 
-import argparse
 import tempfile
 from pathlib import Path
 
 from selfcal.benchmarks.doc_blocks import ROOT
+from selfcal.benchmarks.usage import benchmark_parser
 
 __all__ = ["main"]
 
@@ -57,7 +57,7 @@ def main(argv: list[str] | None = None) -> int:
     """Print (and with ``--write-docs`` write) the table."""
     from selfcal.benchmarks.doc_blocks import print_table
 
-    ap = argparse.ArgumentParser(description=(__doc__ or "").split("\n\n")[0])
+    ap = benchmark_parser(__file__, description=(__doc__ or "").split("\n\n")[0])
     ap.add_argument(
         "--robots", default="ur5e,kr6-r900,er4u-paper", help="the arms (comma-separated)"
     )

@@ -19,11 +19,12 @@ only: no calibration. Units: px.
 
 from __future__ import annotations
 
-import argparse
 import tempfile
 from pathlib import Path
 
 import numpy as np
+
+from selfcal.benchmarks.usage import benchmark_parser
 
 __all__ = ["GROUPS", "main", "marker_errors"]
 
@@ -92,7 +93,7 @@ def main(argv: list[str] | None = None) -> int:
     from selfcal.benchmarks.plan.field_compare import field_sets
     from selfcal.studies.montecarlo.run import acquire_draw
 
-    ap = argparse.ArgumentParser(description=(__doc__ or "").split("\n\n")[0])
+    ap = benchmark_parser(__file__, description=(__doc__ or "").split("\n\n")[0])
     ap.add_argument("--robot", default="kr6-r900", help="the arm (default kr6-r900)")
     ap.add_argument("--seeds", default="1,2,3,4", help="the draws rendered (comma-separated)")
     a = ap.parse_args(argv)

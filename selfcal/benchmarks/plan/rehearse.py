@@ -20,7 +20,6 @@ camera pose rows compare it), and the kinematic parameters beyond the placement 
 
 from __future__ import annotations
 
-import argparse
 import json
 import re
 import shlex
@@ -32,6 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from selfcal.benchmarks.doc_blocks import ROOT, print_table
+from selfcal.benchmarks.usage import benchmark_parser
 
 __all__ = ["PLANS", "aggregate", "main", "plan_args", "rehearse_row", "seeded", "table"]
 
@@ -193,7 +193,7 @@ def main(argv: list[str] | None = None) -> int:
     """Plan, rehearse, print the table and, with ``--write-docs``, put it in docs/plan.md."""
     from multiprocessing import get_context
 
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = benchmark_parser(__file__, description=__doc__.split("\n\n")[0])
     ap.add_argument("--plans", nargs="+", default=list(PLANS),
                     help="ROBOT:COUNT (ROBOT one of ur5e, arm7)")  # fmt: skip
     ap.add_argument("--seeds", type=int, default=8, help="runs per plan, seeds 1 .. this")

@@ -41,6 +41,7 @@ from pathlib import Path
 import numpy as np
 
 from selfcal.benchmarks.doc_blocks import ROOT, print_table
+from selfcal.benchmarks.usage import benchmark_parser
 from selfcal.io.atomic import write_text_atomic
 
 __all__ = [
@@ -292,7 +293,7 @@ def parser() -> argparse.ArgumentParser:
     :mod:`selfcal.benchmarks.plan.robots_forecast` reads a docs block's command back)."""
     from selfcal.calibration.board.plan.views import ViewRule
 
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = benchmark_parser(__file__, description=__doc__.split("\n\n")[0])
     ap.add_argument("--robot", nargs="+", default=list(ROBOTS), choices=ROBOTS)
     ap.add_argument("--render", action="store_true", help="rendered and detected images")
     ap.add_argument("--draws", type=int, default=30)

@@ -26,6 +26,7 @@ from pathlib import Path
 
 from selfcal.benchmarks.doc_blocks import ROOT, code_version, print_table, read_block
 from selfcal.benchmarks.plan.robots import Forecast
+from selfcal.benchmarks.usage import benchmark_parser
 
 __all__ = ["FORECAST_COLUMNS", "NOTE", "command_of", "main", "rewrite", "table_rows"]
 
@@ -153,7 +154,7 @@ def forecasts_now(block: str, name: str) -> dict[tuple[str, str], Forecast]:
 def main(argv: list[str] | None = None) -> int:
     """Draw the block's forecast columns again, print it and, with ``--write-docs``, put it
     in docs/plan.md."""
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = benchmark_parser(__file__, description=__doc__.split("\n\n")[0])
     ap.add_argument("--block", required=True,
                     help="the docs block's name after benchmark_plan_robots_")  # fmt: skip
     ap.add_argument("--doc", type=Path, default=DOC, help=argparse.SUPPRESS)

@@ -24,13 +24,13 @@ the corners instead of rendering. Units: px, SI inside.
 
 from __future__ import annotations
 
-import argparse
 import shutil
 from pathlib import Path
 
 import numpy as np
 
 from selfcal.benchmarks.plan.robots import ROBOTS, cell, cell_target
+from selfcal.benchmarks.usage import benchmark_parser
 from selfcal.io.atomic import write_text_atomic
 
 __all__ = ["linear_fold_rms", "main"]
@@ -110,7 +110,7 @@ def main(argv: list[str] | None = None) -> int:
     from selfcal.kinematics.alignment import express_in_frame, minimal_difference
     from selfcal.transforms import inv_pose
 
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = benchmark_parser(__file__, description=__doc__.split("\n\n")[0])
     ap.add_argument("--robot", default="er4u-paper", choices=ROBOTS)
     ap.add_argument("--seed", type=int, default=30, help="the draw's seed (the benchmark's)")
     ap.add_argument("--pixel-sigma", type=float, default=0.04, help="the plan's corner noise, px")

@@ -16,9 +16,9 @@ the prediction, the achieved median and 90th percentile and their ratio to the p
 
 from __future__ import annotations
 
-import argparse
-
 import numpy as np
+
+from selfcal.benchmarks.usage import benchmark_parser
 
 __all__ = ["TOOL_POINT_M", "achieved", "main"]
 
@@ -63,7 +63,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     from selfcal.robot.definition import load_robot
 
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = benchmark_parser(__file__, description=__doc__.split("\n\n")[0])
     ap.add_argument("--draws", type=int, default=30)
     ap.add_argument("--robot", default="ur5e")
     ap.add_argument("--count", type=int, default=12)

@@ -61,6 +61,7 @@ from pathlib import Path
 import numpy as np
 
 from selfcal.benchmarks.doc_blocks import ROOT, write_block
+from selfcal.benchmarks.usage import benchmark_parser
 from selfcal.errors import UsageError
 from selfcal.io.atomic import write_text_atomic
 
@@ -346,7 +347,7 @@ def add_against_options(ap: argparse.ArgumentParser) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = benchmark_parser(__file__, description=__doc__.splitlines()[0])
     ap.add_argument("--poses", type=int, nargs="+", default=[30, 100, 300, 1000])
     ap.add_argument("--large", action="store_true",
                     help=f"also calibrate at {' and '.join(map(str, LARGE))} poses (issue 32's "

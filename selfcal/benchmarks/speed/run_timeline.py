@@ -17,7 +17,6 @@ Wrapping costs a few microseconds a call: the times are the run's, not a benchma
 
 from __future__ import annotations
 
-import argparse
 import functools
 import importlib.abc
 import os
@@ -30,6 +29,8 @@ import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
+
+from selfcal.benchmarks.usage import benchmark_parser
 
 __all__ = ["STAGES", "IMPORTS", "main"]
 
@@ -219,7 +220,7 @@ def main(argv: list[str] | None = None) -> None:
     args = sys.argv[1:] if argv is None else argv
     if args[:1] == ["--child"]:
         sys.exit(_child(args[1:]))
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p = benchmark_parser(__file__, description=__doc__.split("\n\n")[0])
     p.add_argument("scenario", nargs="?", help="as `selfcal run` takes it (default: the default)")
     p.add_argument("--out", type=Path, help="the run's folder (default: a new temporary one)")
     a = p.parse_args(args)

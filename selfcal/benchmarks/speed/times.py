@@ -20,7 +20,6 @@ shared) beside its numbers and leaves the other section of the file as it is.
 
 from __future__ import annotations
 
-import argparse
 import datetime
 import os
 import re
@@ -30,6 +29,7 @@ import tempfile
 import time
 from pathlib import Path
 
+from selfcal.benchmarks.usage import benchmark_parser
 from selfcal.io.atomic import write_text_atomic
 from selfcal.tomlfile import read_toml
 
@@ -109,7 +109,7 @@ def write(sections: dict[str, dict], path: Path = MEASUREMENTS) -> Path:
 
 
 def main(argv: list[str] | None = None) -> None:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p = benchmark_parser(__file__, description=__doc__.split("\n\n")[0])
     p.add_argument("what", choices=("tests", "first-run"))
     args = p.parse_args(argv)
     sections = read_toml(MEASUREMENTS) if MEASUREMENTS.is_file() else {}

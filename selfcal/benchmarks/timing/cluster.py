@@ -20,12 +20,12 @@ Run: ``uv run python -m selfcal.benchmarks.timing.cluster [--runs 40] [--poses 8
 
 from __future__ import annotations
 
-import argparse
 import os
 import platform
 import time
 from pathlib import Path
 
+from selfcal.benchmarks.usage import benchmark_parser
 from selfcal.io.atomic import write_text_atomic
 from selfcal.studies.cluster import distributed_module
 from selfcal.studies.defs import BASE
@@ -137,7 +137,7 @@ def write_doc(table: str, doc: Path = DOC) -> None:
 
 
 def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap = benchmark_parser(__file__, description=__doc__.split("\n")[0])
     ap.add_argument("--runs", type=int, default=40)
     ap.add_argument("--poses", type=int, default=8)
     ap.add_argument("--write-doc", action="store_true", help=f"update the table in {DOC.name}")

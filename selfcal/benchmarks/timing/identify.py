@@ -10,12 +10,12 @@ Run: ``uv run python -m selfcal.benchmarks.timing.identify [--robot er4u-vendor]
 
 from __future__ import annotations
 
-import argparse
 import time
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from selfcal.benchmarks.usage import benchmark_parser
 from selfcal.calibration.identify import identify
 from selfcal.kinematics.alignment import express_in_frame, minimal_difference
 from selfcal.kinematics.forward import fk_tool
@@ -70,7 +70,7 @@ def run(robot_name: str, sizes: tuple[int, ...], repeats: int) -> None:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = benchmark_parser(__file__, description=__doc__.splitlines()[0])
     ap.add_argument("--robot", default="er4u-vendor")
     ap.add_argument("--repeats", type=int, default=10)
     args = ap.parse_args()

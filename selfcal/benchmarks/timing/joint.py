@@ -12,7 +12,6 @@ Run: ``MUJOCO_GL=egl .venv/bin/python selfcal/benchmarks/timing/joint.py [--pose
 
 from __future__ import annotations
 
-import argparse
 import tempfile
 import time
 import warnings
@@ -20,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from selfcal.benchmarks.usage import benchmark_parser
 from selfcal.calibration.field.calibrate import calibrate_detailed
 from selfcal.calibration.field.joint_refine import aligned_tool_rms_bound
 from selfcal.config.scenario import load_scenario
@@ -82,7 +82,7 @@ def run(poses: list[int], seeds: list[int], pixel_sigma: float) -> None:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = benchmark_parser(__file__, description=__doc__.splitlines()[0])
     ap.add_argument("--poses", type=int, nargs="+", default=[10, 30, 100])
     ap.add_argument("--seeds", type=int, nargs="+", default=[1])
     ap.add_argument("--pixel-sigma", type=float, default=0.5)

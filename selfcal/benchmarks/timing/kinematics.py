@@ -11,7 +11,6 @@ poses of ``--ik-targets`` random in-range postures; the ER-4u's closed form too 
 
 from __future__ import annotations
 
-import argparse
 import os
 import platform
 import time
@@ -20,6 +19,7 @@ from collections.abc import Callable
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from selfcal.benchmarks.usage import benchmark_parser
 from selfcal.cli.pose import is_er
 from selfcal.kinematics.forward import fk_frames, fk_nominal, fk_tool, identification_jacobian
 from selfcal.kinematics.ik import UnreachableError, ik, ik_nearest, nearest_reachable
@@ -99,7 +99,7 @@ def _numeric_ik_rows(robot, qs: np.ndarray) -> list[tuple[str, float, str]]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = benchmark_parser(__file__, description=__doc__.splitlines()[0])
     ap.add_argument("--robot", default="er4u-paper")
     ap.add_argument("--m", type=int, default=1000, help="configurations per batch")
     ap.add_argument("--repeat", type=int, default=7)

@@ -14,11 +14,11 @@ environment before the process starts. ``--breakdown`` times the stages separate
 
 from __future__ import annotations
 
-import argparse
 import os
 import time
 
 import selfcal.sim  # noqa: F401  (first: selfcal/sim/__init__.py sets the MUJOCO_GL default before mujoco loads)
+from selfcal.benchmarks.usage import benchmark_parser
 
 # isort: split
 import mujoco
@@ -48,7 +48,7 @@ def build(width: int, height: int, samples: int) -> tuple[mujoco.MjModel, mujoco
 
 
 def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = benchmark_parser(__file__, description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=50, help="timed stereo pairs")
     ap.add_argument("--samples", type=int, default=4, help="MSAA samples (visual/quality)")
     ap.add_argument("--width", type=int, default=640)

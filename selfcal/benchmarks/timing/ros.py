@@ -15,7 +15,6 @@ Run: ``uv run python -m selfcal.benchmarks.timing.ros [--size-mb 300 2000] [--fo
 
 from __future__ import annotations
 
-import argparse
 import shutil
 import sys
 import tempfile
@@ -26,6 +25,7 @@ import cv2
 import numpy as np
 
 from selfcal.benchmarks.child import run_child
+from selfcal.benchmarks.usage import benchmark_parser
 from selfcal.robot.definition import load_robot
 from selfcal.ros.rosbag import BagWriter
 from selfcal.target import Chessboard
@@ -125,7 +125,7 @@ def measure(bag: Path, work: Path) -> tuple[float, float, int]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p = benchmark_parser(__file__, description=__doc__.split("\n\n")[0])
     p.add_argument("--size-mb", type=float, nargs="+", default=[300.0, 2000.0])
     p.add_argument("--format", default="ros1", choices=("ros1", "ros2", "mcap"))
     p.add_argument("--keep", default=None, help="write the bags here and keep them")

@@ -7,11 +7,11 @@ stage timings and the accuracy of fx. Run: ``.venv/bin/python selfcal/benchmarks
 
 from __future__ import annotations
 
-import argparse
 import time
 
 import numpy as np
 
+from selfcal.benchmarks.usage import benchmark_parser
 from selfcal.calibration.field.self_calibration import self_calibrate
 from selfcal.calibration.field.synthetic import synthetic_stereo_scene
 
@@ -49,7 +49,7 @@ def run(configs: list[int], noise_px: float, outlier_fraction: float, seed: int)
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = benchmark_parser(__file__, description=__doc__.splitlines()[0])
     ap.add_argument("--configs", type=int, nargs="+", default=[10, 30, 100, 300])
     ap.add_argument("--noise-px", type=float, default=0.5)
     ap.add_argument("--outliers", type=float, default=0.01)

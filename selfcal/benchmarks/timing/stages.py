@@ -14,7 +14,6 @@ docs/performance.md between the ``benchmark_stages`` markers.
 
 from __future__ import annotations
 
-import argparse
 import datetime
 import os
 import platform
@@ -25,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from selfcal.benchmarks.usage import benchmark_parser
 from selfcal.calibration.field.calibrate import detect_dataset
 from selfcal.calibration.field.self_calibration import Observations, self_calibrate
 from selfcal.calibration.identify import identify
@@ -124,7 +124,7 @@ COMMAND = "MUJOCO_GL=egl uv run python -m selfcal.benchmarks.timing.stages --wri
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = benchmark_parser(__file__, description=__doc__.splitlines()[0])
     ap.add_argument("--poses", type=int, nargs="+", default=[10, 30, 100, 300])
     ap.add_argument("--write-doc", action="store_true", help="write docs/performance.md's table")
     args = ap.parse_args()

@@ -24,7 +24,6 @@ Run: ``uv run python -m selfcal.benchmarks.tracker.accuracy [--draws 30] [--writ
 
 from __future__ import annotations
 
-import argparse
 import sys
 import time
 import warnings
@@ -33,6 +32,7 @@ import numpy as np
 
 from selfcal.benchmarks.doc_blocks import ROOT, print_table
 from selfcal.benchmarks.tracker.sim import make_case
+from selfcal.benchmarks.usage import benchmark_parser
 from selfcal.calibration.identify import IdentificationWarning
 from selfcal.calibration.tracker.accuracy import tracker_accuracy
 from selfcal.calibration.tracker.identify import identify_tracker
@@ -225,7 +225,7 @@ def table(rows: list[dict]) -> str:
 def main(argv: list[str] | None = None) -> int:
     """Run the benchmark (one BLAS thread) and print, or write, the table."""
     limit_threads(1)
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = benchmark_parser(__file__, description=__doc__.splitlines()[0])
     ap.add_argument("--draws", type=int, default=30, help="draws per row (default 30)")
     ap.add_argument("--write-docs", action="store_true",
                     help="rewrite the table in docs/tool-accuracy.md")  # fmt: skip

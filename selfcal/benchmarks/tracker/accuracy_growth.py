@@ -20,12 +20,12 @@ Run: ``uv run python -m selfcal.benchmarks.tracker.accuracy_growth --robot ur5e 
 
 from __future__ import annotations
 
-import argparse
 import sys
 
 import numpy as np
 
 from selfcal.benchmarks.tracker.accuracy import COUNT, MODELS, REGIONS, calibrate, true_points
+from selfcal.benchmarks.usage import benchmark_parser
 from selfcal.calibration.accuracy import Z_MODEL_ERROR, ModelError, excess_test
 from selfcal.errors import InputError
 from selfcal.kinematics.tool_error import (
@@ -112,7 +112,7 @@ def _test(me: ModelError | None) -> str:
 def main(argv: list[str] | None = None) -> int:
     """Print the probe's lines (one BLAS thread)."""
     limit_threads(1)
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = benchmark_parser(__file__, description=__doc__.splitlines()[0])
     ap.add_argument("--robot", default="ur5e", help="robot file (default ur5e)")
     ap.add_argument("--noise-mm", type=float, default=0.1, help="tracker noise (default 0.1)")
     ap.add_argument("--draws", type=int, default=20, help="draws (default 20)")

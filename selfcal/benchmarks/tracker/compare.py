@@ -27,7 +27,6 @@ table in docs/tracker.md).
 
 from __future__ import annotations
 
-import argparse
 import os
 import shutil
 import subprocess
@@ -40,6 +39,7 @@ import numpy as np
 
 from selfcal.benchmarks.timing.stages import machine
 from selfcal.benchmarks.tracker.sim import TrackerCase, make_case, measure
+from selfcal.benchmarks.usage import benchmark_parser
 from selfcal.calibration.tracker.identify import (
     TrackerMeasurements,
     identify_tracker,
@@ -240,8 +240,8 @@ def main(argv: list[str] | None = None) -> int:
     """Run the benchmark with one BLAS thread for both sides (``limit_threads(1)``, which the
     pybotics process inherits): the matrices are small, threads only add overhead."""
     limit_threads(1)
-    ap = argparse.ArgumentParser(
-        prog="python -m selfcal.benchmarks.tracker", description=__doc__.splitlines()[0]
+    ap = benchmark_parser(
+        Path(__file__).with_name("__main__.py"), description=__doc__.splitlines()[0]
     )
     ap.add_argument("--no-pybotics", action="store_true", help="the project's numbers alone")
     ap.add_argument(

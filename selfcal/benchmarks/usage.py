@@ -1,0 +1,34 @@
+"""The benchmark scripts' argument parsers, whose usage names the command that runs them.
+
+argparse names a script by its file (``sys.argv[0]``): ``python -m
+selfcal.benchmarks.board.accuracy --help`` printed ``usage: accuracy.py``, and so did
+``selfcal.benchmarks.tracker.accuracy``. :func:`benchmark_parser` names the module instead."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+__all__ = ["benchmark_parser", "module_command"]
+
+_PACKAGE_ROOT = Path(__file__).resolve().parents[2]  # the folder that holds selfcal/
+
+
+def module_command(module_file: str | Path) -> str:
+    """``python -m selfcal.benchmarks.PART.NAME`` for the module whose ``__file__`` is
+    ``module_file`` (a package's ``__init__.py`` or ``__main__.py``: the package's name).
+    Raises ``ValueError`` for a file outside the package."""
+    path = Path(module_file).resolve().with_suffix("")
+    parts = list(path.relative_to(_PACKAGE_ROOT).parts)
+    if parts[-1] in ("__init__", "__main__"):
+        parts.pop()
+    return "python -m " + ".".join(parts)
+
+
+def benchmark_parser(module_file: str | Path, **kwargs: Any) -> argparse.ArgumentParser:
+    """An ``argparse.ArgumentParser`` (``kwargs`` as its own: ``description``, ``parents``
+    ...) whose usage and errors name the command of the module ``module_file`` (the caller's
+    ``__file__``, :func:`module_command`), not its file name; a module that its package's
+    ``__main__.py`` runs passes that file (``python -m selfcal.benchmarks.tracker``)."""
+    return argparse.ArgumentParser(prog=module_command(module_file), **kwargs)
