@@ -40,3 +40,8 @@ class Undistorter:
         come from."""
         xn = self.pinhole.normalised(uv_pinhole)
         return self.camera.pixels(self.camera.distort_normalised(xn))
+
+    def undistorted(self, uv: np.ndarray) -> np.ndarray:
+        """Pixels (..., 2) of the pinhole image where the camera's pixels ``uv`` (..., 2) lie:
+        the inverse of :meth:`distorted` (the lens model's undistortion)."""
+        return self.pinhole.pixels(self.camera.unproject_normalised(np.asarray(uv, dtype=float)))

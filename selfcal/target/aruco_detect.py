@@ -32,6 +32,7 @@ Straight sides are exact under a pinhole camera; with strong lens distortion und
 from __future__ import annotations
 
 import warnings
+from collections.abc import Mapping
 from functools import lru_cache
 
 import cv2
@@ -355,11 +356,20 @@ def detect_markers_noise(
     *,
     screen: bool = True,
     passes: int | None = None,
+    start: Mapping[int, np.ndarray] | None = None,
 ) -> tuple[dict[int, np.ndarray], dict[int, float]]:
     """:func:`detect_markers` and the detector's own noise estimate of every marker's corners:
     ``{id: sigma}`` px per coordinate, from the scatter of its sides' edge points about their
     fitted lines (``refine="lines"``; other methods: an empty dict). A bias that shifts a whole
-    side does not enter it (docs/accuracy.md, "The bound's pixel sigma")."""
+    side does not enter it (docs/accuracy.md, "The bound's pixel sigma").
+
+    ``start``: corners (4, 2) px in this image, by marker id, known from elsewhere (another
+    detection of the same view: the image before undistortion, mapped through the lens). A
+    detected marker of ``start`` whose line refinement from the detector's ``subpix`` corners
+    fails is refined again from them (``refine="lines"``): on small oblique markers in a
+    resampled image ``subpix`` can be 1.5 - 3 px off, the refinement then moves more than 2 px
+    and the marker was lost (rendered scenarios/mono.toml, frame 29: two of its three markers,
+    the frame unregistered). Markers that refine from their own corners are not touched."""
     gray = to_gray(image)
     corners, ids, _rejected = make_detector(dictionary, refine).detectMarkers(gray)
     if ids is None or len(ids) == 0:
@@ -379,7 +389,15 @@ def detect_markers_noise(
     if refine == "lines":
         n_modules = int(aruco_dictionary(dictionary).markerSize) + 2
         p = REFINE_PASSES if passes is None else passes
-        c, sigma = _refine_batch(gray, c, n_modules, 20.0, screen, p)
+        raw = c
+        c, sigma = _refine_batch(gray, raw, n_modules, 20.0, screen, p)
+        kept_ids = ids[keep]
+        again = [k for k in np.flatnonzero(np.isnan(c).any(axis=(1, 2)))
+                 if start is not None and int(kept_ids[k]) in start]  # fmt: skip
+        if again:
+            s0 = np.asarray([start[int(kept_ids[k])] for k in again], dtype=np.float64)  # type: ignore[index]
+            c[again], sigma[again] = _refine_batch(gray, s0.reshape(-1, 4, 2), n_modules, 20.0,
+                                                   screen, p)  # fmt: skip
         if screen:
             c[foreshortening(c) < MIN_ASPECT] = np.nan
     found = {int(ids[k]): ck for k, ck in zip(keep, c, strict=True) if not np.isnan(ck).any()}

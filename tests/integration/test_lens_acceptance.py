@@ -4,8 +4,8 @@ from the centre; fx, mu, cx, cy, k1, k2, p1, p2 free, started from the centred d
 pinhole).
 
 - every free camera parameter within 3 sigma of truth (sigma: the calibration's covariance),
-  analytic and rendered (measured |z| <= 1.7 analytic, <= 1.8 rendered; the rendered corners
-  are re-detected through the estimated lens, selfcal.camera.undistort);
+  analytic and rendered (measured |z| <= 1.7 analytic, <= 1.98 rendered (k1); the rendered
+  corners are re-detected through the estimated lens, selfcal.camera.undistort);
 - one camera (self-calibration without a rig, synthetic field): the same, max |z| 1.9;
 - the calibrated tool tip within 1.3x the Cramer-Rao bound over 30 Monte Carlo draws on the
   analytic path (selfcal/studies/montecarlo/run.py).
@@ -57,7 +57,7 @@ def test_every_free_camera_parameter_within_3_sigma(tmp_path, render):
 def test_mono_scenario_every_free_camera_parameter_within_3_sigma(tmp_path, render):
     """scenarios/mono.toml: the left camera alone through the whole pipeline (acquire, the
     self-calibration from views of different configurations, the joint refinement, the report).
-    Measured |z| <= 2.0 analytic (p1), <= 1.3 rendered."""
+    Measured |z| <= 2.0 analytic (p1), <= 1.17 rendered (k2; every frame registered)."""
     z = _z_scores(tmp_path, render, MONO_TOML)
     print(f"\nmono z-scores ({'rendered' if render else 'analytic'}):",
           {k: round(v, 2) for k, v in z.items()})  # fmt: skip

@@ -170,6 +170,8 @@ def test_undistorter_maps_the_pinhole_image_back_through_the_lens():
     inside = (src[..., 0] > 0) & (src[..., 0] < 63) & (src[..., 1] > 0) & (src[..., 1] < 47)
     # bilinear interpolation is exact on a ramp: float32 rounding only (measured 1.8e-5)
     assert np.abs(out - (src[..., 0] + 2 * src[..., 1]))[inside].max() <= 6e-5
+    # undistorted() inverts distorted(): the camera's pixels back into the pinhole image
+    np.testing.assert_allclose(flat.undistorted(cam.project(X)), uv_pin, rtol=0, atol=1e-9)
 
 
 def test_the_renderer_remaps_a_skewed_camera():

@@ -238,7 +238,7 @@ def calibrate_detailed(
     if lenses and ds.info.observation == "images":
         # the lens bends the marker edges: detect again through the estimated lens, refit
         with _stage(progress, "camera stage again through the estimated lens") as st:
-            dets, skipped, corner_sigma = detect_dataset(ds, lens=lenses, cache=cache)
+            dets, skipped, corner_sigma = detect_dataset(ds, lens=lenses, cache=cache, start=dets)
             _check_scale_markers(ds, dets)
             obs = observations_of(ds, dets)
             sc = camera_stage(obs, initial=initial if start == "initial" else None)

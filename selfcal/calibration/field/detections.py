@@ -29,7 +29,7 @@ from selfcal.errors import SelfCalWarning
 from selfcal.io.dataset import Dataset, DatasetError, Detections, read_gray
 from selfcal.io.dataset_info import DatasetInfo
 from selfcal.io.frame_cache import FrameCache
-from selfcal.target.aruco_detect import detect_markers, detect_markers_noise
+from selfcal.target.aruco_detect import detect_markers_noise
 from selfcal.threads import helper_threads
 
 
@@ -62,6 +62,7 @@ def detect_dataset(
     progress=None,
     lens: LensCamera | Mapping[str, LensCamera] | None = None,
     cache: FrameCache | None = None,
+    start: Detections | None = None,
 ) -> MarkerDetections:
     """Marker corners of every image (images path) or the stored detections (analytic path),
     and the images that show no marker (for people also a :class:`NoMarkersWarning`).
@@ -74,6 +75,11 @@ def detect_dataset(
     ``cache``: the images already in memory (the others are read from the files) and the
     detections of an earlier call on the same dataset (reused, and the new ones added; not
     through a lens): :class:`selfcal.io.frame_cache.FrameCache`.
+    ``start``: with ``lens``, the detections of the same images without it (an earlier call):
+    a marker whose refinement in the undistorted image fails from the detector's own corners
+    is refined again from these, mapped through the lens (``start`` of
+    :func:`selfcal.target.aruco_detect.detect_markers_noise`; before, the rendered
+    scenarios/mono.toml lost two of frame 29's three markers and the frame).
 
     Raises:
         DatasetError: a missing or unreadable image, or one whose size is not dataset.json's.
@@ -110,7 +116,13 @@ def detect_dataset(
             if cache is not None:
                 cache.detections[key] = ({k: c.copy() for k, c in dets.items()}, dict(sig))
             return index, cam, dets, sig
-        dets = detect_markers(flat.image(img), dictionary=ds.info.dictionary, screen=False)
+        known = {} if start is None else start.get((index, cam), {})
+        dets, _ = detect_markers_noise(
+            flat.image(img),
+            ds.info.dictionary,
+            screen=False,
+            start={k: flat.undistorted(c) for k, c in known.items()},
+        )
         return index, cam, {k: flat.distorted(c) for k, c in dets.items()}, {}
 
     # OpenCV releases the GIL while decoding and detecting: use every core, keep the order.
