@@ -88,8 +88,11 @@ def measure(
     refine: tuple[str, ...] = ("lines",),
     max_poses: int | None = None,
     msaa: int | None = None,
+    image_sigma: float = 0.0,
 ) -> dict[str, CornerOffsets]:
-    """Render the scenario's planned postures noise-free and measure, per refinement method in
+    """Render the scenario's planned postures (noise-free, or with ``image_sigma`` grey levels of
+    the simulator's image noise, ``selfcal.sim.render.noise_field``) and measure, per refinement
+    method in
     ``refine`` (see :data:`selfcal.target.aruco_detect.REFINE_METHODS`; suffix ``-unscreened``:
     keep occluded and oblique markers and refine the lines once, the detector before issue #14),
     every detected corner's offset from its analytic projection. ``max_poses`` limits the postures (None: all); ``msaa`` sets the renderer's multisample count (None: the
@@ -104,7 +107,9 @@ def measure(
     from selfcal.target.aruco_detect import detect_markers_noise
     from selfcal.transforms import inv_pose
 
-    s = load_scenario(config, overrides={"noise": {"image_sigma": 0.0, "render": True}})
+    s = load_scenario(
+        config, overrides={"noise": {"image_sigma": float(image_sigma), "render": True}}
+    )
     setup = sim_setup(s)
     info = plan_dataset(s, setup)
     q_deg = np.asarray(info.planned_joints_deg)[:max_poses]
@@ -285,12 +290,14 @@ def main(
     figure: Path | None = None,
     max_poses: int | None = None,
     msaa: int | None = None,
+    image_sigma: float = 0.0,
 ) -> str:
-    """Measure, write the figure (if ``figure``) and return the Markdown report."""
+    """Measure (:func:`measure`), write the figure (if ``figure``) and return the Markdown
+    report."""
     from selfcal.config.scenario import load_scenario
 
     s = load_scenario(config)
-    res = measure(config, refine, max_poses, msaa)
+    res = measure(config, refine, max_poses, msaa, image_sigma)
     W, H = s.camera.true_model().width, s.camera.true_model().height
     first = next(iter(res.values()))
     parts = [
@@ -346,11 +353,18 @@ def _add_args(ap: argparse.ArgumentParser) -> None:
     )
     ap.add_argument("--refine", nargs="+", default=["lines", "lines-unscreened", "subpix"])
     ap.add_argument("--msaa", type=int, default=None, help="multisample count (default: 4)")
+    ap.add_argument(
+        "--image-sigma",
+        type=float,
+        default=0.0,
+        metavar="GREY",
+        help="the simulator's image noise, grey levels (default 0: noise-free)",
+    )
 
 
 def _cmd(a: argparse.Namespace) -> int:
     figure = figure_path(a.out, a.figure)
-    print(main(a.config, tuple(a.refine), figure, msaa=a.msaa))
+    print(main(a.config, tuple(a.refine), figure, msaa=a.msaa, image_sigma=a.image_sigma))
     from selfcal.console.common import note_written
 
     note_written(a, figure)

@@ -41,12 +41,26 @@ def test_rendered_corners_match_the_analytic_projection():
     assert want_raw < 0.25 * got_raw, (got_raw, want_raw)
 
 
+@pytest.mark.slow
+def test_image_noise_reaches_the_corners():
+    """``--image-sigma``: the same two postures with 2 grey levels of the simulator's noise
+    give other corners and a larger detector noise estimate than noise-free (docs/accuracy.md's
+    "same with 2 grey levels" row runs every posture)."""
+    clean = measure(None, ("lines",), max_poses=2)["lines"]
+    noisy = measure(None, ("lines",), max_poses=2, image_sigma=2.0)["lines"]
+    assert noisy.noise_check()[1] > 1.02 * clean.noise_check()[1]
+    assert noisy.noise_check()[0] < 0.05  # still corners, to a few hundredths of a pixel
+
+
 def test_selfcal_diagnose_render_parses():
     from selfcal.cli.main import build_parser
     from selfcal.studies.diagnose_render import _cmd
 
     a = build_parser().parse_args(["diagnose", "render", "x.toml", "--refine", "lines"])
     assert a.func is _cmd and a.config == "x.toml" and a.refine == ["lines"]
+    assert a.image_sigma == 0.0
+    b = build_parser().parse_args(["diagnose", "render", "--image-sigma", "2"])
+    assert b.image_sigma == 2.0
 
 
 def test_diagnose_render_figure_goes_into_the_output_folder():
