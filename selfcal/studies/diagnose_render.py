@@ -247,8 +247,11 @@ def format_table(method: str, rows: list) -> str:
 
 
 def plot(results: dict[str, CornerOffsets], path: Path) -> None:
-    """Offset magnitude against marker size and viewing angle, one colour per method (PNG)."""
+    """Offset magnitude against marker size and viewing angle, one colour per method (PNG at
+    ``path``; its folder made if missing: ``--out DIR`` names a new folder)."""
     from selfcal.plots.plotting import legend_outside, pyplot, save_figure
+
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
 
     plt = pyplot()
     fig, ax = plt.subplots(1, 2, figsize=(11, 4), constrained_layout=True)

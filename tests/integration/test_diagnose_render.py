@@ -76,3 +76,21 @@ def test_diagnose_render_figure_goes_into_the_output_folder():
     assert figure_path(a.out, a.figure) == Path("/tmp/d/figures/render_corners.png")
     a = p.parse_args(["diagnose", "render", "--out", "/tmp/d", "--figure", "docs/x.png"])
     assert figure_path(a.out, a.figure) == Path("docs/x.png")
+
+
+def test_figure_into_a_new_output_folder(tmp_path):
+    """``selfcal diagnose render --out NEW`` measured, then failed writing NEW/figures/...png
+    (FileNotFoundError: the folder was never made; session 28)."""
+    from selfcal.studies.diagnose_render import CornerOffsets, plot
+
+    n = 8
+    o = CornerOffsets(
+        d=np.full((n, 2), 0.01), uv=np.zeros((n, 2)), size_px=np.linspace(20, 90, n),
+        angle_deg=np.linspace(0, 60, n), corner=np.arange(n) % 4, marker=np.zeros(n, int),
+        image=np.zeros(n, int), sigma=np.full(n, 0.01), pose_err_m=0.0, joint_quant_rad=0.0,
+        joint_err=np.zeros((1, 5)), joint_step=np.ones(5), joint_sigma=np.ones(5),
+        intrinsics_err_px=0.0,
+    )  # fmt: skip
+    out = tmp_path / "new" / "figures" / "render_corners.png"
+    plot({"lines": o}, out)
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
