@@ -255,10 +255,17 @@ class DatasetWriter:
 
 
 def _missing(path: Path, index: int) -> DatasetError:
+    """A frame's image that joints.csv lists but cannot be read: names the file's full path
+    (the dataset's ``frames/`` folder, where every command reads it; a moved or renamed image
+    is not looked for elsewhere) and both ways on."""
+    joints = path.parent.parent / "joints.csv"
     return DatasetError(
-        f"frame {path.name} is missing or unreadable although joints.csv lists frame {index}; the "
-        f"dataset is damaged: re-acquire it (or remove frame {index}'s row from joints.csv and "
-        "calibrate with --allow-missing-frames)"
+        f"{path}: frame {path.name} is missing or unreadable although {joints} lists frame "
+        f"{index}; the dataset is damaged",
+        fix=f"put the image back under that name (an imported dataset's sources.csv names the "
+        "file each frame was copied from), or write the dataset again (selfcal import, selfcal "
+        f"acquire); or remove frame {index}'s row from joints.csv and calibrate with "
+        "--allow-missing-frames",
     )
 
 

@@ -54,6 +54,8 @@ def read_gray_image(path: str | Path) -> np.ndarray | None:
         InputError: pixels of a depth :func:`gray8` does not take (signed or 32-bit integers),
             naming the file.
     """
+    if not Path(path).is_file():  # no file: None without OpenCV's own warning on stderr
+        return None
     img = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE | cv2.IMREAD_ANYDEPTH)
     if img is None:
         return None

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from selfcal.acquisition.acquire import AcquisitionError, acquire
-from selfcal.io.dataset import Dataset, DatasetError, DatasetWriter
+from selfcal.io.dataset import Dataset, DatasetError, DatasetWriter, read_gray
 from selfcal.io.dataset_info import DatasetInfo
 from selfcal.robot.interface import StereoPair
 
@@ -103,6 +103,22 @@ def test_missing_frame_is_a_clear_error(tmp_path):
     (tmp_path / "frames" / "0002_right.png").unlink()
     with pytest.raises(DatasetError, match="0002_right.png is missing"):
         list(Dataset.open(tmp_path).iter_images())
+
+
+def test_a_moved_image_names_its_path_and_the_fix_without_opencvs_warning(tmp_path, capfd):
+    # a new user's `selfcal plan --add 5 DS` on a dataset whose frames/ had moved: OpenCV's
+    # "[ WARN:0@4.6] global loadsave.cpp:278 findDecoder imread_(...)" lines first, then an error
+    # naming the bare file name with a fix for calibrate alone ("re-acquire it" an import too)
+    acquire(FakeRobot(), DatasetWriter(tmp_path, info()))
+    gone = tmp_path / "frames" / "0002_right.png"
+    gone.unlink()
+    capfd.readouterr()
+    with pytest.raises(DatasetError) as err:
+        read_gray(gone, 2)
+    assert capfd.readouterr().err == ""
+    assert err.value.message.startswith(f"{gone}: frame 0002_right.png is missing")
+    assert f"{tmp_path / 'joints.csv'} lists frame 2" in err.value.message
+    assert "sources.csv" in err.value.fix and "--allow-missing-frames" in err.value.fix
 
 
 def test_not_a_dataset(tmp_path):
