@@ -52,6 +52,7 @@ def cmd_add(args: argparse.Namespace) -> int:
     if count < 1:
         raise CliError(f"--add {count}: add at least 1 posture")
     check_common(args, count)
+    _refuse_other_routes(root)
     dplan = dataset_setup(root, keep_out_boxes(args))
     setup = dplan.setup
     robot = setup.robot
@@ -156,6 +157,37 @@ def cmd_add(args: argparse.Namespace) -> int:
         line += "\n" + short
     print(json.dumps(doc) if args.json else line)
     return 0
+
+
+def _refuse_other_routes(root: str) -> None:
+    """Refuse a dataset whose calibration.json is not a board calibration with joints, naming
+    what it is: --add plans joint postures from a board calibration's chain, and a pose
+    dataset's or a marker field's calibration read as one said "not a
+    scorbot-selfcal-board-calibration file -- re-run `selfcal calibrate DATASET`", which writes
+    the same file again."""
+    from selfcal.calibration.handeye.calibration_file import is_handeye
+    from selfcal.io.board_calibration import FORMAT, calibration_kind
+
+    p = Path(root) / "calibration.json"
+    if not p.is_file() or calibration_kind(p) == "board":
+        return  # missing or a board calibration: dataset_setup says what to do
+    if is_handeye(p):
+        raise CliError(
+            f"{p} is a hand-eye calibration from flange poses (`selfcal import --poses`): "
+            "--add plans joint postures from a board calibration of joint readings, and a "
+            "pose dataset has no joints to plan",
+            fix="plan new postures with `selfcal plan --robot ROBOT --target TARGET.toml "
+            "--mount eye-in-hand|eye-to-hand ...`, or import the images with the joint "
+            "readings (`selfcal import --robot ROBOT --joints FILE ...`), calibrate that "
+            "dataset and give it to --add",
+        )
+    raise CliError(
+        f"{p} is not a board calibration ({FORMAT}): --add plans the postures to add to a "
+        "dataset of images of a known board with joint readings, calibrated by `selfcal "
+        "calibrate`",
+        fix="plan a marker field's postures with `selfcal plan --target FIELD.toml ...` "
+        "(docs/plan.md), or give --add a board dataset's folder",
+    )
 
 
 def corner_noise(args: argparse.Namespace, root: str | Path) -> dict:

@@ -141,6 +141,23 @@ def test_add_needs_a_calibrated_dataset(tmp_path, capsys):
     assert "--robot, --target, --board-pose" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize(("fmt", "said"), [
+    ("scorbot-selfcal-handeye-calibration", "is a hand-eye calibration from flange poses"),
+    ("scorbot-selfcal-calibration", "is not a board calibration"),
+])  # fmt: skip
+def test_add_names_a_calibration_of_another_route(tmp_path, capsys, fmt, said):
+    # a new user's `selfcal plan --add 5` on the ical-charuco set imported with --poses: "not a
+    # scorbot-selfcal-board-calibration file (format = 'scorbot-selfcal-handeye-calibration')
+    # -- re-run `selfcal calibrate DATASET`", which writes the same hand-eye file again
+    from selfcal.cli.main import main
+
+    (tmp_path / "calibration.json").write_text(f'{{"format": "{fmt}", "schema_version": 1}}')
+    assert main(["plan", "--add", "5", str(tmp_path), "--out", str(tmp_path / "p")]) == 2
+    err = capsys.readouterr().err
+    assert said in err and "re-run" not in err, err
+    assert "selfcal plan --" in err.split(" -- ", 1)[1]
+
+
 def test_a_frame_counts_the_features_it_shows(setup, plan):
     ids = setup.board.layout()[0]
     every = frame_information(setup, plan.q[:2], 0.5, JS)
