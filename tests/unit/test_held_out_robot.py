@@ -6,12 +6,13 @@ calibration, printing 2.4e6 px RMS as a change of the camera."""
 from __future__ import annotations
 
 import json
+import re
 from types import SimpleNamespace
 from typing import Any
 
 import pytest
 
-from selfcal.calibration.board.evaluate import held_out_views
+from selfcal.calibration.board.evaluate import EvaluationWarning, held_out_views
 from selfcal.errors import InputError
 
 BOARD = {"type": "charuco", "inner_corners": [11, 8], "square_mm": 20.0, "marker_mm": 15.0,
@@ -52,3 +53,43 @@ def test_a_dataset_without_the_checked_camera_is_named(tmp_path):
                                model=SimpleNamespace(joint_types=(0,) * 5))  # fmt: skip
     with pytest.raises(InputError, match="no images of camera right .the dataset's cameras: left"):
         held_out_views(cal, tmp_path / "new", cameras=("right",))
+
+
+def test_a_dataset_of_another_robot_file_is_refused(tmp_path):
+    """Robot files were compared by joint count alone: a new user imported three Nachi images
+    with the KR 6's URDF and checked them against the Nachi's calibration ("unchanged"). Now
+    the robots' names (a URDF's ``<robot name>``), whatever the files are called."""
+    from pathlib import Path
+
+    urdf = (Path(__file__).resolve().parents[1] / "data" / "kr6_r900.urdf").read_text()
+    renamed = re.sub(r'<robot name="[^"]*"', '<robot name="another_arm"', urdf, count=1)
+    assert renamed != urdf
+
+    def dataset(root, text: str, name: str):
+        _dataset(root, f"robot/{name}")
+        doc = json.loads((root / "dataset.json").read_text())
+        doc["trajectory_joints_deg"] = [[1, 2, 3, 4, 5, 6]]
+        (root / "dataset.json").write_text(json.dumps(doc))
+        (root / "robot").mkdir()
+        (root / "robot" / name).write_text(text)
+        (root / "joints.csv").write_text("index," + ",".join(f"q{j}_deg" for j in range(1, 7))
+                                         + "\n0,1,2,3,4,5,6\n")  # fmt: skip
+        return root
+
+    cal: Any = SimpleNamespace(target=BOARD, camera_names=("left",),
+                               cameras=(SimpleNamespace(width=640, height=480),),
+                               robot_model="robot/kr6_r900.urdf", setup="eye-in-hand",
+                               model=SimpleNamespace(joint_types=(0,) * 6))  # fmt: skip
+    cal_file = dataset(tmp_path / "cal", urdf, "kr6_r900.urdf") / "calibration.json"
+    other = dataset(tmp_path / "other", renamed, "kr6_r900.urdf")  # the same file name
+    with pytest.raises(InputError) as err:
+        held_out_views(cal, other, cal_file=cal_file)
+    assert err.value.message.startswith(
+        f"{other}/dataset.json: robot_model 'robot/kr6_r900.urdf' is robot 'another_arm'"
+    )
+    assert "the calibration's robot file" in err.value.fix
+    # the same robot under another file name passes the robot check (no corner detected)
+    same = dataset(tmp_path / "same", urdf, "my_copy.urdf")
+    with (pytest.raises(InputError, match="no image shows the"),
+          pytest.warns(EvaluationWarning, match="not found in 1 of 1")):  # fmt: skip
+        held_out_views(cal, same, cal_file=cal_file)

@@ -215,12 +215,40 @@ class HeldOutViews:
     skipped: tuple[str, ...]
 
 
+def _robot_names(
+    robots: tuple[str, str], bases: tuple[Path, Path | None]
+) -> tuple[str, str] | None:
+    """The robots' names of a dataset's and a calibration's ``robot_model`` (a shipped robot's
+    name, or a robot file relative to its folder in ``bases``: the file's own name, a URDF's
+    ``<robot name>``); None when the calibration's file cannot be found (no folder given, or
+    moved): nothing to compare."""
+    from selfcal.robot.definition import load_robot
+
+    names = []
+    for ref, base in zip(robots, bases, strict=True):
+        p = Path(ref)
+        if p.suffix not in (".toml", ".urdf"):
+            names.append(ref)
+            continue
+        if not p.is_absolute():
+            if base is None:
+                return None
+            p = base / p
+        if not p.is_file():
+            return None
+        names.append(load_robot(p).name)
+    return names[0], names[1]
+
+
 def held_out_views(cal: BoardCalibrationResult, root: str | Path,
-                   cameras: tuple[str, ...] | None = None) -> HeldOutViews:  # fmt: skip
+                   cameras: tuple[str, ...] | None = None,
+                   cal_file: str | Path | None = None) -> HeldOutViews:  # fmt: skip
     """Read the dataset ``root`` and detect the board in its images of ``cameras`` (default:
     every camera of the dataset), after checking that it shows the calibration's robot, target,
     cameras (names and image sizes) and setup; warn (:class:`EvaluationWarning`) of images
-    without the board.
+    without the board. ``cal_file``: the calibration.json ``cal`` was read from, whose folder a
+    robot file it names is relative to (the robots' names are then compared; None: robot files
+    are compared by joint count alone).
 
     Raises:
         InputError: the datasets' robot (its model's name or joint count), target or cameras do
@@ -261,6 +289,21 @@ def held_out_views(cal: BoardCalibrationResult, root: str | Path,
                          f"{robots[1]!r} (another chain: its joints predict other poses)",
                          fix="use a dataset of the calibrated robot (or set robot_model in "
                          f"its dataset.json to {robots[1]!r} if the same arm took it)")  # fmt: skip
+    # robot files (the same path, e.g. robot/robot.urdf, may hold another robot) by their
+    # robots' names: a new user's KR 6 import of Nachi images passed, "unchanged" against the
+    # Nachi's calibration
+    named = _robot_names(
+        robots, (Path(ds.root), None if cal_file is None else Path(cal_file).parent)
+    )
+    if named is not None and named[0] != named[1]:
+        raise InputError(
+            f"{ds.root}/dataset.json: robot_model {robots[0]!r} is robot {named[0]!r}, the "
+            f"calibration's {robots[1]!r} is {named[1]!r} (another chain: its joints predict "
+            "other poses)",
+            fix="import the new images with the calibration's robot file (selfcal import "
+            "--robot ROBOT as for the calibration's dataset), or check them against a "
+            f"calibration of {named[0]!r}",
+        )
     n = len(cal.model.joint_types)
     if ds.joints_deg.shape[1] != n:
         raise InputError(f"{ds.root}: {ds.joints_deg.shape[1]} joints, the calibration's robot "
@@ -301,7 +344,7 @@ def evaluate_board(cal: BoardCalibrationResult, cal_where: str, root: str | Path
     Raises:
         InputError: as :func:`held_out_views`.
     """
-    held = held_out_views(cal, root)
+    held = held_out_views(cal, root, cal_file=cal_where if Path(cal_where).is_file() else None)
     T_first = np.eye(4)[None] if cal.T_first_cam is None else np.asarray(cal.T_first_cam)
     cams = {n: (cal.cameras[k], T_first[k]) for k, n in enumerate(cal.camera_names)}
     nom_cams, nom_T = cal.nominal_camera_set

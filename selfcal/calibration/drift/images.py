@@ -455,7 +455,7 @@ def check_images(calibration: str | Path, new_data: str | Path, *,
         raise InputError(f"alpha {alpha} is not a probability", fix="e.g. alpha 0.01")
     cal = read_board_calibration(path)
     em = calibration_error_model(cal, str(path))
-    held = held_out_views(cal, new_data, cameras=(cal.camera_names[0],))
+    held = held_out_views(cal, new_data, cameras=(cal.camera_names[0],), cal_file=path)
     noise = view_noise(cal, str(path))
     tol = posture_tol(noise.joint_sigma_rad, cal.model.n) if noise.misfit_counted else JOINT_TOL
     mine = calibration_frames(cal, path, held, cal.camera_names[0], tol)
