@@ -172,6 +172,8 @@ def sim_setup(s: Scenario) -> SimSetup:
         from selfcal.acquisition.eye_to_hand import static_cell
 
         static = static_cell(s, robot)
+        if table:  # its own perturbed chain (the board's mount its tool): the table's errors too
+            static = dataclasses.replace(static, actual=apply_errors(static.actual, table))
     T_world_board = (None if board is None or static is not None
                      else scenario_board_pose(s, board, robot, nominal))  # fmt: skip
     right = s.camera.of("right").true_model() if s.camera.own_intrinsics else None
