@@ -685,3 +685,22 @@ def test_views_chosen_by_the_checks_power(setup):
                            search=False).power  # fmt: skip
 
     assert power(pick) >= power([0, 1, 2])
+
+
+def test_a_miss_beyond_half_the_image_names_the_new_joints_file():
+    """A new user's three Nachi rows in radians imported as degrees: "changed by 308.449 mm
+    ... 38804.933 px RMS against the predicted 19543.391 px ... cause not named", nothing
+    naming the joints; now the line of a change that large names NEW/joints.csv and the units."""
+    from selfcal.calibration.drift.gross import GROSS_FRACTION, gross_miss
+    from selfcal.calibration.drift.images import ImageDriftCheck
+
+    assert gross_miss(GROSS_FRACTION * 2400, 2400, "new/joints.csv") == ""
+    words = gross_miss(38804.933, 2400, "new/joints.csv")
+    assert words.startswith("the new images miss the prediction by 16.2 times the image's width")
+    assert "check new/joints.csv first" in words and "--joint-units deg|rad" in words
+    res = ImageDriftCheck(views=3, corners=255, statistic=1e9, dof=510, p_value=0.0,
+                          changed=True, rms_px=38804.933, expected_rms_px=19543.391,
+                          change_mm=308.449, mean_tip_mm=np.zeros(3), alpha=0.01,
+                          best="world", gross=words)  # fmt: skip
+    assert res.line().startswith("changed by 308.449 mm") and res.line().endswith(words)
+    assert words not in dataclasses.replace(res, gross="").line()

@@ -89,6 +89,7 @@ from selfcal.calibration.board.folds import unseen
 from selfcal.calibration.drift.attribution import Attribution, attribute, candidate_fits
 from selfcal.calibration.drift.covariance import estimate_covariance, view_covariance
 from selfcal.calibration.drift.fold_error import fold_error_model
+from selfcal.calibration.drift.gross import gross_miss
 from selfcal.calibration.drift.noisy import (
     Noisy,
     noisy_frame_line,
@@ -187,7 +188,9 @@ class ImageDriftCheck:
         outliers: the corners left out by the calibration's outlier rule
         (:mod:`selfcal.calibration.drift.outliers`). power: what the check of these views
         finds of a 0.2 mm move of the mount (:mod:`selfcal.calibration.drift.power`; None
-        where not computed: :func:`image_drift_check` alone).
+        where not computed: :func:`image_drift_check` alone). gross: the words naming a miss
+        beyond half the image's width as a likely input error, "" otherwise
+        (:mod:`selfcal.calibration.drift.gross`; in the line of a change).
     """
 
     views: int
@@ -217,6 +220,7 @@ class ImageDriftCheck:
     noisy: tuple[Noisy, ...] = ()
     noisy_frames: tuple[Noisy, ...] = ()
     power: ShiftPower | None = None
+    gross: str = ""
 
     def _own_line(self) -> str:
         out = outlier_line(self.outliers)
@@ -261,6 +265,7 @@ class ImageDriftCheck:
                     f"({p_text(self.fold_p_value)}): {CANNOT_TELL_NOTE}{noisy}" + self._own_line())  # fmt: skip
         if self.changed:
             out = out if self.attribution is None else f"{out}; {self.attribution.line()}"
+            out += f"; {self.gross}" if self.gross else ""
             if np.isfinite(self.fold_p_value):
                 out += (f"; changed also with the calibration's own folds' error at "
                         f"configurations they left out ({self.fold_error_mm:.3f} mm, "
@@ -493,4 +498,6 @@ def check_images(calibration: str | Path, new_data: str | Path, *,
     far = unseen(held.q[[f for f, _, _ in new]], q_cal, cal.model.joint_types)
     return replace(res, unseen=int(np.count_nonzero(far)), own=int(np.count_nonzero(own)),
                    paired=sum(v.paired for v in tested), repeated=repeated,
-                   outliers=outliers, power=power)  # fmt: skip
+                   outliers=outliers, power=power,
+                   gross=gross_miss(res.rms_px, cal.cameras[0].width,
+                                    Path(held.root) / "joints.csv"))  # fmt: skip
