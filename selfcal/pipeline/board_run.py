@@ -32,6 +32,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from selfcal.calibration.board.evaluate import evaluate_board
+from selfcal.calibration.board.parameter_pool import identified_words
 from selfcal.calibration.spread import spread_line
 from selfcal.camera import CameraModel, opencv_values
 from selfcal.config.scenario import Scenario
@@ -351,8 +352,9 @@ def _nominal_text(res: BoardCalibrationResult) -> str:
                 "(geometric mean over the folds)"
             )
         )
-        extra = len(ch["parameters"]) - len(nom["parameters"])
-        out += f"; {extra} kinematic parameter(s) beyond the placement identified{cv}"
+        extra = [p for p in ch["parameters"] if p not in nom["parameters"]]
+        out += (f"; {len(extra)} kinematic parameter(s) beyond the placement identified"
+                f"{identified_words(extra, sel.get('held') or {})}{cv}")  # fmt: skip
     verdict = res.cv_verdict()
     if verdict:
         out += f"; NO GAIN: {verdict}"

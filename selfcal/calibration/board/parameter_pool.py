@@ -32,7 +32,9 @@ from selfcal.terms.base import Term
 
 __all__ = [
     "COND_TOL",
+    "NAMES_SHOWN",
     "RANK_TOL",
+    "identified_words",
     "ColumnSpan",
     "ParameterPool",
     "determined",
@@ -92,6 +94,30 @@ class ColumnSpan:
                     f"(limit {COND_TOL:g})")  # fmt: skip
         self.basis = np.column_stack([self.basis, c / s])
         return None
+
+
+NAMES_SHOWN = 8
+"""Parameter names :func:`identified_words` lists before it counts the rest."""
+
+_UNIDENTIFIABLE = ("rank:", "conditioning:")
+"""The reasons :meth:`ColumnSpan.offer` gives for a parameter the postures cannot identify."""
+
+
+def identified_words(extra: list[str], held: dict[str, str]) -> str:
+    """`` (lx1, alpha1; 4 not identifiable from these postures: offset_j1, ...)``: the
+    parameters identified beyond the placement (``extra``) and those the postures cannot
+    identify (the selection's ``held`` with the rank or conditioning reason), by name, for
+    calibrate's line (a 2-joint arm's said only "2 kinematic parameter(s)"); "" with neither."""
+
+    def names(xs: list[str]) -> str:
+        more = f" and {len(xs) - NAMES_SHOWN} more" if len(xs) > NAMES_SHOWN else ""
+        return ", ".join(xs[:NAMES_SHOWN]) + more
+
+    lost = [k for k, why in held.items() if why.startswith(_UNIDENTIFIABLE)]
+    parts = [names(extra)] if extra else []
+    if lost:
+        parts.append(f"{len(lost)} not identifiable from these postures: {names(lost)}")
+    return f" ({'; '.join(parts)})" if parts else ""
 
 
 def _offered(model: MCPCModel) -> tuple[np.ndarray, list[int], np.ndarray]:
