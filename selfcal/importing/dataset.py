@@ -170,6 +170,30 @@ def _copy_urdf_of(toml: Path, folder: Path) -> None:
         )
 
 
+LINK_TEXT_BYTES = 1024
+"""At most this long, an unreadable image whose text names an existing file is taken for a
+symbolic link saved as text."""
+
+
+def _unreadable(f: Path) -> ImportError_:
+    """The error of an image OpenCV cannot read; a short text file naming an existing file (a
+    symbolic link that git, an archive or a copy wrote as text: a real set's ``images_calib/01.png``
+    held ``../../examples/data/test_set_charuco/images/1.png``) names the file it points to."""
+    try:
+        text = f.read_bytes()[: LINK_TEXT_BYTES + 1].decode("utf-8").strip() if f.is_file() else ""
+    except (OSError, UnicodeDecodeError):
+        text = ""
+    target = f.parent / text if text and len(text) <= LINK_TEXT_BYTES and "\n" not in text else None
+    if target is not None and target.is_file():
+        return ImportError_(
+            f"{f}: not an image but a {f.stat().st_size}-byte text naming {text}: a symbolic "
+            "link saved as a text file (by git without symlink support, an archive or a copy)",
+            fix=f"give --images the files the links name (here {target.resolve()}), or restore "
+            "the links (git config core.symlinks true, then check the files out again)",
+        )
+    return ImportError_(f"{f}: not a readable image", fix="remove it or convert it to PNG")
+
+
 def detect_images(
     cam: CameraImages, files: Sequence[Path], target: Board | FieldTarget, progress=None
 ) -> tuple[tuple[int, int], list[Detection]]:
@@ -182,7 +206,7 @@ def detect_images(
             progress.advance()
         img = read_gray_image(f)
         if img is None:
-            raise ImportError_(f"{f}: not a readable image", fix="remove it or convert it to PNG")
+            raise _unreadable(Path(f))
         size = (img.shape[1], img.shape[0])
         if first is None:
             first = (f, size)

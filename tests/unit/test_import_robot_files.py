@@ -186,3 +186,28 @@ def test_an_image_column_naming_a_missing_image_names_its_row_and_the_fix(tmp_pa
     assert "remove their rows from the joints file" in str(e.value.fix)
     assert [p.name for p in _match(cams, column[:3] + column[4:], 4, tmp_path / "j.csv")["cam0"]] \
         == ["0000.png", "0001.png", "0002.png", "0004.png"]  # fmt: skip
+
+
+def test_a_link_saved_as_text_names_the_file_it_points_to(tmp_path):
+    """A real set's ``images_calib/01.png`` was a 49-byte text naming
+    ``../../examples/data/test_set_charuco/images/1.png`` (a symbolic link copied as text):
+    import said "not a readable image -- remove it or convert it to PNG"."""
+    from selfcal.importing.dataset import detect_images
+
+    (tmp_path / "real").mkdir()
+    real = tmp_path / "real" / "1.png"
+    real.write_bytes(b"\x89PNG")
+    (tmp_path / "links").mkdir()
+    link = tmp_path / "links" / "01.png"
+    link.write_text("../real/1.png")
+    cam = CameraImages.parse(f"cam0={tmp_path}/links/*.png")
+    with pytest.raises(ImportError_) as e:
+        detect_images(cam, [link], None)  # type: ignore[arg-type]  # refused before detecting
+    assert e.value.message == (f"{link}: not an image but a 13-byte text naming ../real/1.png: "
+                               "a symbolic link saved as a text file (by git without symlink "
+                               "support, an archive or a copy)")  # fmt: skip
+    assert str(real.resolve()) in e.value.fix and "core.symlinks" in e.value.fix
+    other = tmp_path / "links" / "02.png"  # text naming no file: as before
+    other.write_text("not a path")
+    with pytest.raises(ImportError_, match=r"not a readable image \(fix: remove it or convert it"):
+        detect_images(cam, [other], None)  # type: ignore[arg-type]
