@@ -93,3 +93,21 @@ def test_a_dataset_of_another_robot_file_is_refused(tmp_path):
     with (pytest.raises(InputError, match="no image shows the"),
           pytest.warns(EvaluationWarning, match="not found in 1 of 1")):  # fmt: skip
         held_out_views(cal, same, cal_file=cal_file)
+
+
+def test_a_dataset_of_another_board_names_the_keys_that_differ(tmp_path):
+    """A new user's ChArUco images checked against a chessboard calibration: the error printed
+    both boards as Python dicts after the folder, naming neither dataset.json nor what differs."""
+    _dataset(tmp_path / "new", "er4u-paper")
+    cal: Any = SimpleNamespace(target={"type": "chessboard", "inner_corners": [11, 8],
+                                       "square_mm": 15.0}, camera_names=("left",),
+                               cameras=(SimpleNamespace(width=640, height=480),),
+                               robot_model="er4u-paper", setup="eye-in-hand",
+                               model=SimpleNamespace(joint_types=(0,) * 5))  # fmt: skip
+    with pytest.raises(InputError) as err:
+        held_out_views(cal, tmp_path / "new")
+    assert err.value.message == (
+        f"{tmp_path / 'new'}/dataset.json: key 'target' is another board than the calibration's "
+        "(type 'charuco' against 'chessboard', square_mm 20.0 against 15.0, marker_mm 15.0 "
+        "against None, dictionary 'DICT_5X5_100' against None)")  # fmt: skip
+    assert "selfcal import --target" in err.value.fix

@@ -262,9 +262,15 @@ def held_out_views(cal: BoardCalibrationResult, root: str | Path,
     ds = Dataset.open(root)
     board = dataset_board(ds)
     if ds.info.board != cal.target:
+        new, old = ds.info.board or {}, cal.target
+        keys = [k for k in {**old, **new} if new.get(k) != old.get(k)]
+        said = ", ".join(f"{k} {new.get(k)!r} against {old.get(k)!r}" for k in keys)
         raise InputError(
-            f"{ds.root}: target {ds.info.board} differs from the calibration's {cal.target}",
-            fix="use a dataset of the same board (import it with the same --target)",
+            f"{ds.root}/dataset.json: key 'target' is another board than the calibration's "
+            f"({said})",
+            fix="import the new images of the calibrated board with the target TOML its "
+            "dataset was imported with (selfcal import --target), or check them against a "
+            "calibration of this board",
         )
     cams = dict(zip(cal.camera_names, cal.cameras, strict=True))
     for cam_name in ds.info.cameras:
