@@ -21,7 +21,7 @@ from scipy.spatial.transform import Rotation
 
 from selfcal.io.board_calibration import Mount
 from selfcal.kinematics.dh_table import canonical_base
-from selfcal.kinematics.forward import fk_frames
+from selfcal.kinematics.forward import fk_tool
 from selfcal.kinematics.mcpc import MCPCModel, minimal_indices, nominal_mcpc, shape_matrices
 from selfcal.robot.definition import RobotDef
 from selfcal.transforms import inv_pose, rot_z
@@ -38,22 +38,32 @@ def flange_to_tool(model: MCPCModel, robot: RobotDef) -> np.ndarray:
     """``model``'s tool (4, 4, m) in the nominal flange of joint n: its last link relative to
     the nominal robot's. The chain's frames are fixed up to a half turn about each joint's
     axis (a common normal's sign: ``a, alpha -> -a, -alpha``; a fit placed in a turned world
-    can come out so): the last joint's frame is taken the way round the nominal's is, by its x
-    axis at zero joints in the frame rebuilt on axes 1 and 2
+    can come out so): of the last link and the last link turned half about joint n's axis, the
+    one taken is that with which the nominal chain turns the tool as ``model`` does at zero
+    joints and at home, seen from the frame rebuilt on axes 1 and 2
     (:func:`selfcal.kinematics.dh_table.canonical_base`; as it stands when that frame cannot be
-    rebuilt)."""
+    rebuilt). The last joint frame's x axis at zero joints, compared before, told the two apart
+    only where it stands near the nominal's or against it: the ER-4u's board calibrations' came
+    out across it (dot product -0.007), and the camera was read out turned half about the
+    flange's z axis (179.6 deg, 90 mm from the robot file's mount;
+    tests/integration/test_plan_check.py)."""
     L = _last_link_tool(model)
+    to_flange = inv_pose(_last_link_tool(nominal_mcpc(robot)))
     try:
         base = canonical_base(model, robot)
     except ValueError:
-        return inv_pose(_last_link_tool(nominal_mcpc(robot))) @ L
-    n = model.n
-    z = np.zeros((1, n))
-    x_model = (inv_pose(base) @ fk_frames(model, z)[0, n - 1])[:3, 0]
-    x_nominal = fk_frames(nominal_mcpc(robot), z)[0, n - 1, :3, 0]
-    if x_model @ x_nominal < 0:  # the half turn: the same frame the nominal's way round
-        L = rot_z(np.pi) @ L
-    return inv_pose(_last_link_tool(nominal_mcpc(robot))) @ L
+        return to_flange @ L
+    q = np.stack([np.zeros(model.n), np.asarray(robot.home, float)])
+    R_model = (inv_pose(base) @ fk_tool(model, q))[:, :3, :3]
+    nominal = nominal_mcpc(robot)
+
+    def agreement(T_flange_tool: np.ndarray) -> float:
+        """The traces of the tool's rotation from ``model``'s, summed (6 where they agree)."""
+        R = fk_tool(nominal.with_tool(T_flange_tool), q)[:, :3, :3]
+        return float(np.einsum("kij,kij->", R_model, R))
+
+    turned = to_flange @ rot_z(np.pi) @ L
+    return turned if agreement(turned) > agreement(to_flange @ L) else to_flange @ L
 
 
 def _poses(model: MCPCModel, robot: RobotDef) -> tuple[np.ndarray, np.ndarray]:
