@@ -255,6 +255,24 @@ def default_analytic_15(tmp_path_factory):
 
 
 @pytest.fixture(scope="session")
+def mono_charuco_15(shared):
+    """scenarios/mono-charuco.toml (the ER-4u, one wrist camera with a lens, a ChArUco board) on
+    the analytic path with 15 postures, acquired, calibrated and reported once per test run
+    (tests/integration/test_board_analytic.py's tests and `selfcal plan --check`'s each ran
+    it): (the folder, what ``run_all`` returned). Read it, never write into the folder."""
+    from selfcal.config.scenario import load_scenario, scenarios_dir
+    from selfcal.pipeline.run import run_all
+
+    def build(folder: Path):
+        out = folder / "run"
+        s = load_scenario(scenarios_dir() / "mono-charuco.toml",
+                          {"noise": {"render": False}, "trajectory": {"poses": 15}})  # fmt: skip
+        return out, run_all(s, out, quiet=True, figures=False)
+
+    return shared("conftest-mono_charuco_15", build)
+
+
+@pytest.fixture(scope="session")
 def default_exact_joints(tmp_path_factory) -> Path:
     """The default scenario on the analytic path with 0.5 px corner noise (seed 4) and exact joint
     read-back, acquired (not calibrated) once per test run: the folder of the dataset. The

@@ -21,7 +21,13 @@ if TYPE_CHECKING:
     from selfcal.io.calibration import CalibrationResult
 
 # Heavy modules are imported by the functions that use them (`selfcal --help` stays fast).
-__all__ = ["NoCameraMountWarning", "calibration_robot", "load_calibration", "load_handeye"]
+__all__ = [
+    "NoCameraMountWarning",
+    "calibration_robot",
+    "load_calibration",
+    "load_handeye",
+    "robot_of_calibration",
+]
 
 
 def _calibration_file(path: str) -> Path:
@@ -132,6 +138,13 @@ def _mount_said(robot, calibration: Path):
         stacklevel=3,
     )
     return robot
+
+
+def robot_of_calibration(calibration: Path, name: str):
+    """The robot of the ``calibration.json`` ``calibration`` whose ``robot_model`` is ``name``:
+    the robot file behind it (:func:`_robot_file`), else the shipped model ``name``, or a
+    :class:`CliError` naming the file."""
+    return _robot_file(calibration) or _named(calibration, name)
 
 
 def _named(calibration: Path, name: str):

@@ -24,6 +24,7 @@ from selfcal.cli.plan_args import (
     plan_inputs,
     trajectory_joint_names,
 )
+from selfcal.cli.plan_check import CHECK_EPILOG, cmd_check_plan
 from selfcal.console.common import CliError, add_json, note_written, parse_floats, writing
 from selfcal.errors import SelfCalWarning
 
@@ -223,6 +224,9 @@ def _cmd(args: argparse.Namespace) -> int:
     from selfcal.robot.definition import load_robot
     from selfcal.target.boards import Board
 
+    if args.check is not None:
+        return cmd_check_plan(args)
+    args.candidates = 400 if args.candidates is None else args.candidates
     args.deviation_given = args.deviation_mm is not None or args.deviation_deg is not None
     args.deviation_mm = 1.0 if args.deviation_mm is None else args.deviation_mm
     args.deviation_deg = 0.5 if args.deviation_deg is None else args.deviation_deg
@@ -340,7 +344,7 @@ def register(subparsers) -> argparse.ArgumentParser:
         "(selfcal run replays a camera plan in simulation), plan.json (the predicted "
         "tool-point error against a random plan) and plan.png (its spread over draws of the "
         "arm and the noise against a random plan's).",
-        epilog=EPILOG + plan_field.FIELD_EPILOG,
+        epilog=EPILOG + CHECK_EPILOG + plan_field.FIELD_EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     sp.add_argument("--robot", default=None,
@@ -377,10 +381,14 @@ def register(subparsers) -> argparse.ArgumentParser:
     sp.add_argument("--add", nargs=2, default=None, metavar=("K", "DATASET"),
                     help="instead of a new plan: the K postures that most improve the calibrated "
                     "DATASET (its robot, camera, board and calibration.json); see below")  # fmt: skip
+    sp.add_argument("--check", nargs=2, default=None, metavar=("K", "CALIBRATION"),
+                    help="instead of a new plan: the K postures a drift check (selfcal check) of "
+                    "the board calibration CALIBRATION finds most with, by its stated power; "
+                    "see below")  # fmt: skip
     sp.add_argument("--out", required=True, metavar="PLAN", help="output folder")
     sp.add_argument("--seed", type=int, default=1, help="seed of the candidates (default 1)")
-    sp.add_argument("--candidates", type=int, default=400,
-                    help="random candidate postures to choose from (default 400)")  # fmt: skip
+    sp.add_argument("--candidates", type=int, default=None,
+                    help="random candidate postures to choose from (default 400; --check 30)")  # fmt: skip
     sp.add_argument("--pixel-sigma", type=float, default=None,
                     help="a camera plan: the corner noise the prediction assumes, px "
                     "(default 0.5; with --add the dataset's calibration's, from its residuals)")  # fmt: skip

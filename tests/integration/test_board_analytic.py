@@ -15,7 +15,6 @@ from selfcal.io.board_calibration import read_board_calibration
 from selfcal.io.dataset import Dataset, DatasetError
 from selfcal.io.truth import read_truth
 from selfcal.kinematics.mcpc import minimal_indices
-from selfcal.pipeline.run import run_all
 from selfcal.sim.analytic import project_board
 from selfcal.target.boards import Board
 from selfcal.transforms import inv_pose
@@ -25,10 +24,11 @@ ANALYTIC = {"noise": {"render": False}, "trajectory": {"poses": 15}}
 
 
 @pytest.fixture(scope="module")
-def run(tmp_path_factory):
-    out = tmp_path_factory.mktemp("board-analytic") / "run"
-    s = load_scenario(MONO_CHARUCO, ANALYTIC)
-    return s, out, run_all(s, out, quiet=True, figures=False)
+def run(mono_charuco_15):
+    """(the scenario, the folder, run_all's result): the shared run (conftest.py) of
+    :data:`ANALYTIC`."""
+    out, res = mono_charuco_15
+    return load_scenario(MONO_CHARUCO, ANALYTIC), out, res
 
 
 def test_the_stored_features_are_the_true_projections_plus_the_scenario_noise(run):

@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 from scipy.stats import chi2, norm
 
-from selfcal.benchmarks.drift.images import chosen_views, read_joints
+from selfcal.benchmarks.drift.images import read_joints
+from selfcal.calibration.drift.choose import chosen_views
 from selfcal.calibration.drift.covariance import change_information, view_covariance
 from selfcal.calibration.drift.fold_error import fold_error_model, fold_excess
 from selfcal.calibration.drift.images import (
@@ -673,7 +674,7 @@ def test_more_images_like_these_are_the_views_repeated(setup):
 
 
 def test_views_chosen_by_the_checks_power(setup):
-    """The benchmark's ``--choose``: three of the five views picked one by one by the check's
+    """``selfcal plan --check``'s and the benchmark's ``--choose``: three of the five views picked one by one by the check's
     power find a 0.2 mm mount shift at least as often as the first three drawn, and are three
     different views."""
     e2h, _, _, views, C = setup

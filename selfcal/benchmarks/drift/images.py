@@ -28,7 +28,8 @@ at the whole alpha). The log line of each row also gives the check's own power a
 shift as ``selfcal check`` states it (:func:`selfcal.calibration.drift.power.shift_power`,
 averaged over the checks) beside the share it found. ``--choose POOL``: each check's new views
 are the ones of POOL postures drawn so that, one by one, each raises that power most
-(:func:`chosen_views`), not the first drawn. Each row also
+(:func:`selfcal.calibration.drift.choose.chosen_views`, what ``selfcal plan --check`` chooses
+by), not the first drawn. Each row also
 counts the checks per kind that answered "cannot tell" (the verdict, exit 6: not counted as
 changed) and records the code that measured it (:func:`selfcal.benchmarks.doc_blocks.
 code_version`), which the table's last line names (:func:`selfcal.benchmarks.doc_blocks.
@@ -68,6 +69,7 @@ from selfcal.benchmarks.doc_blocks import (
 )
 from selfcal.benchmarks.pool import imap_jobs
 from selfcal.benchmarks.usage import benchmark_parser
+from selfcal.calibration.drift.choose import chosen_views
 from selfcal.calibration.drift.covariance import change_information
 from selfcal.calibration.drift.fold_error import fold_error_model
 from selfcal.calibration.drift.images import (
@@ -81,7 +83,6 @@ from selfcal.calibration.drift.images import (
 )
 from selfcal.calibration.drift.p_value import known_change_power, known_size_power
 from selfcal.calibration.drift.power import shift_power
-from selfcal.calibration.drift.views import ViewJacobians
 from selfcal.config.scenario import load_scenario, scenarios_dir
 from selfcal.errors import InternalError
 from selfcal.io.target_toml import parse_target
@@ -96,7 +97,6 @@ from selfcal.threads import limit_threads
 __all__ = [
     "NOISE_PX",
     "calibration_checks",
-    "chosen_views",
     "docs_rows",
     "journaled_checks",
     "main",
@@ -127,31 +127,14 @@ def read_joints(robot: RobotDef, q: np.ndarray) -> np.ndarray:
     return read_back(np.asarray(q, float), robot.encoder, True)
 
 
-def chosen_views(C: np.ndarray, pool: list[ViewJacobians], count: int, *,
-                 eye_to_hand: bool) -> list[int]:  # fmt: skip
-    """``count`` of the linearised views ``pool`` (their indices), chosen one by one, each the
-    one that raises the check's power against the 0.2 mm mount shift most
-    (:func:`selfcal.calibration.drift.power.shift_power`, 500 draws; ``C`` the calibration's
-    covariance)."""
-    pick: list[int] = []
-
-    def power(i: int) -> float:
-        views = [pool[j] for j in (*pick, i)]
-        return shift_power(C, views, eye_to_hand=eye_to_hand, alpha=ALPHA, draws=500,
-                           search=False).power  # fmt: skip
-
-    for _ in range(count):
-        pick.append(max((i for i in range(len(pool)) if i not in pick), key=power))
-    return pick
-
-
 def calibration_checks(args: tuple) -> dict:
     """One calibration (noise ``sigma_px``, ``seed``, ``setup``, ``robot``: the setup's
     scenario's robot replaced, or None; optionally the new views per check, default
     :data:`NEW_VIEWS`, whether the check combines its tests by their smallest p-value's
     exact distribution rather than Bonferroni's bound: ``exact`` of
     :func:`selfcal.calibration.drift.images.image_drift_check`, and a pool of postures to
-    choose the views from, 0: none, :func:`chosen_views`) checked ``checks`` times: per kind the count of "changed" verdicts, and
+    choose the views from, 0: none,
+    :func:`selfcal.calibration.drift.choose.chosen_views`) checked ``checks`` times: per kind the count of "changed" verdicts, and
     of the changes the causes named right and wrong."""
     sigma_px, seed, checks, setup, robot_name = args[:5]
     new_views = int(args[5]) if len(args) > 5 else NEW_VIEWS
