@@ -159,3 +159,19 @@ def test_plan_check_eye_to_hand(tmp_path, capsys):
     assert doc["mount"] == "eye-to-hand" and doc["power"]["mount"] == "board"
     assert doc["power"]["power"] > doc["random_power"]["power"]
     assert _sees_the_board(read_board_calibration(out), np.radians(doc["joints_deg"]))
+
+
+@pytest.mark.slow  # a 30-posture calibration and its checks: ~8 CPU s
+def test_the_benchmark_checks_the_commands_postures():
+    """``python -m selfcal.benchmarks.drift.choose``'s one calibration: the command's choice
+    and the random set, each checked unchanged and shifted; the stated powers are the
+    command's (chosen above random), the counts within the checks made."""
+    from selfcal.benchmarks.drift.choose import SETS, chosen_checks, table
+
+    got = chosen_checks((0.2, 1, 2, "eye-in-hand", None, 3, 8))
+    assert got["status"] == "ok", got["status"]
+    assert 0.0 <= got["random_power"] < got["chosen_power"] <= 1.0
+    for s in SETS:
+        assert 0 <= got[f"{s}_tool"] <= 2 and 0 <= got[f"{s}_unchanged"] <= 2
+    row = {"setup": "eye-in-hand, er4u-paper", "noise_px": 0.2, "calibrations": 1} | got
+    assert "| chosen |" in table([row]) and "| random |" in table([row])

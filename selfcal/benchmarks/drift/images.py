@@ -53,6 +53,7 @@ from __future__ import annotations
 import re
 import sys
 import time
+from collections.abc import Callable
 from functools import partial
 from pathlib import Path
 
@@ -98,6 +99,7 @@ __all__ = [
     "NOISE_PX",
     "calibration_checks",
     "docs_rows",
+    "drawn_calibration",
     "journaled_checks",
     "main",
     "merge_rows",
@@ -127,6 +129,22 @@ def read_joints(robot: RobotDef, q: np.ndarray) -> np.ndarray:
     return read_back(np.asarray(q, float), robot.encoder, True)
 
 
+def drawn_calibration(sigma_px: float, seed: int, setup: str, robot_name: str | None) -> tuple:
+    """One simulated calibration of the benchmark (the ``setup``'s scenario, its robot replaced
+    by ``robot_name`` unless None, noise ``sigma_px``, ``seed``) and what its check uses:
+    ``(cal, truth, robot, board, em, C, wide)`` (the error model, the estimate covariance and
+    the folds' error model, None where the check runs no second null)."""
+    cal, truth = simulated_calibration(sigma_px, seed, scenario_file=SCENARIOS[setup],
+                                       robot=robot_name)  # fmt: skip
+    robot = load_robot(cal.robot_model)
+    board = parse_target(cal.target, "calibration.json: target")
+    assert isinstance(board, Board)
+    em = calibration_error_model(cal, "calibration.json")
+    C = estimate_covariance(cal, em)
+    wide = fold_error_model(em, cal.accuracy, view_noise(cal).misfit_counted)  # as check's
+    return cal, truth, robot, board, em, C, wide
+
+
 def calibration_checks(args: tuple) -> dict:
     """One calibration (noise ``sigma_px``, ``seed``, ``setup``, ``robot``: the setup's
     scenario's robot replaced, or None; optionally the new views per check, default
@@ -147,14 +165,8 @@ def calibration_checks(args: tuple) -> dict:
     out["fold_error"] = 0
     out |= {f"{k}_cannot_tell": 0 for k in KINDS}
     try:
-        cal, truth = simulated_calibration(sigma_px, seed, scenario_file=SCENARIOS[setup],
-                                           robot=robot_name)  # fmt: skip
-        robot = load_robot(cal.robot_model)
-        board = parse_target(cal.target, "calibration.json: target")
-        assert isinstance(board, Board)
-        em = calibration_error_model(cal, "calibration.json")
-        C = estimate_covariance(cal, em)
-        wide = fold_error_model(em, cal.accuracy, view_noise(cal).misfit_counted)  # as check's
+        cal, truth, robot, board, em, C, wide = drawn_calibration(sigma_px, seed, setup,
+                                                                  robot_name)  # fmt: skip
         out["fold_error"] = int(wide is not None)
         camera, true = truth.intrinsics_left, truth.true_model
         board_doc = truth.board or {}
@@ -231,9 +243,10 @@ def calibration_checks(args: tuple) -> dict:
         return {"status": f"failed: {type(exc).__name__}: {str(exc)[:200]}"}
 
 
-def journaled_checks(todo: list[tuple], jobs: int, code: str | None,
-                     journal: Path | None) -> list[dict]:  # fmt: skip
-    """:func:`calibration_checks` of each item of ``todo`` (``jobs`` processes), each result
+def journaled_checks(todo: list[tuple], jobs: int, code: str | None, journal: Path | None,
+                     measure: Callable[[tuple], dict] | None = None) -> list[dict]:  # fmt: skip
+    """``measure`` (default :func:`calibration_checks`; another's items are keyed by its name
+    too) of each item of ``todo`` (``jobs`` processes), each result
     appended to ``journal`` (a JSON line, :class:`selfcal.studies.montecarlo.journal.
     DrawJournal`) the moment it is done and taken from there when a run before made it: an
     interrupted run loses no finished calibration. The key is the item and ``code`` (the code
@@ -242,7 +255,9 @@ def journaled_checks(todo: list[tuple], jobs: int, code: str | None,
     Prints each calibration's time as it finishes (stderr), from which a run's end can be told."""
     book = DrawJournal(journal) if journal is not None else None
     reuse = book is not None and code is not None and not code.endswith("+changes")
-    keys = [draw_key({"checks": list(item), "code": code}) for item in todo]
+    fn = calibration_checks if measure is None else measure
+    what = {} if measure is None else {"measure": fn.__qualname__}
+    keys = [draw_key({"checks": list(item), "code": code} | what) for item in todo]
     done = book.load() if book is not None and reuse else {}
     out = {k: done[k] for k in keys if k in done}
     left = [(k, item) for k, item in zip(keys, todo, strict=True) if k not in out]
@@ -250,7 +265,7 @@ def journaled_checks(todo: list[tuple], jobs: int, code: str | None,
         print(f"  {len(out)} of {len(todo)} calibrations from {journal}", file=sys.stderr)
     t0 = time.perf_counter()
     for n, ((key, item), got) in enumerate(
-        zip(left, imap_jobs(calibration_checks, [i for _, i in left], jobs), strict=True), 1
+        zip(left, imap_jobs(fn, [i for _, i in left], jobs), strict=True), 1
     ):
         out[key] = got
         if book is not None and got["status"] == "ok":

@@ -1,0 +1,165 @@
+"""Benchmark: does a drift check at ``selfcal plan --check``'s postures find what the command
+states? (issue #29)
+
+Per calibration, drawn as :mod:`selfcal.benchmarks.drift.images` draws them (the setup's
+analytic scenario, ``--noise-px``, seeded by the draw; eye-in-hand on ``--robot``), the
+command's own choice (:func:`selfcal.calibration.drift.choose.choose_check_postures`:
+``--views`` of ``--candidates`` of the recording plan's candidates, by the check's stated power)
+and the random set it is set beside (the first ``--views`` candidates) are each checked
+``--checks`` times with new images at those postures: the arm unchanged, and its mount (eye-in-hand
+the camera's, eye-to-hand the board's) moved 0.2 mm in a random direction without turning; the
+corners projected through the true chain and camera with the same pixel noise, the joints read
+back at the robot file's encoder resolution
+(:func:`selfcal.benchmarks.drift.images.read_joints`), tested as the drift benchmark tests them
+(:func:`selfcal.calibration.drift.images.image_drift_check` and its second null). Reported per
+set: the mean stated power (what the command's line says), the share of shifts found (target
+>= 95 %), the share of unchanged checks that say "changed" (target < 2 %) and the "cannot tell"
+counts. A view whose board the true chain does not show whole is left out of its check (counted).
+
+Run: ``nice -n 10 uv run python -m selfcal.benchmarks.drift.choose [--calibrations 30]
+[--checks 10] [--setup eye-in-hand] [--robot er4u-paper] [--noise-px 0.2] [--views 5]
+[--candidates 30] [--jobs 1] [--journal FILE]`` (prints the rows; not a docs block).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from functools import partial
+from pathlib import Path
+
+import numpy as np
+
+from selfcal.benchmarks.doc_blocks import code_version
+from selfcal.benchmarks.drift.images import (
+    SCENARIOS,
+    TOOL_SHIFT_M,
+    drawn_calibration,
+    journaled_checks,
+    read_joints,
+)
+from selfcal.calibration.drift.choose import choose_check_postures
+from selfcal.calibration.drift.images import (
+    calibration_views,
+    fold_recheck,
+    image_drift_check,
+)
+from selfcal.kinematics.forward import fk_tool
+from selfcal.sim.analytic import project_board
+from selfcal.threads import limit_threads
+
+__all__ = ["SETS", "chosen_checks", "main", "table"]
+
+SETS = ("chosen", "random")
+COUNTS = ("unchanged", "tool", "unchanged_cannot_tell", "tool_cannot_tell", "views_left_out")
+
+
+def chosen_checks(args: tuple) -> dict:
+    """One calibration (noise ``sigma_px``, ``seed``, ``checks``, ``setup``, ``robot`` or None,
+    ``views``, ``candidates``): per set (:data:`SETS`) the stated power and the counts of
+    "changed" and "cannot tell" verdicts of its ``checks`` checks unchanged and shifted."""
+    sigma_px, seed, checks, setup, robot_name, views, candidates = args
+    e2h = setup == "eye-to-hand"
+    try:
+        cal, truth, robot, board, em, C, wide = drawn_calibration(sigma_px, seed, setup,
+                                                                  robot_name)  # fmt: skip
+        got = choose_check_postures(cal, robot, views, candidates=candidates, seed=seed)
+        camera, true = truth.intrinsics_left, truth.true_model
+        board_doc = truth.board or {}
+        T_static = np.asarray(board_doc.get("T_world_cam" if e2h else "T_world_board"), float)
+        rng = np.random.default_rng(seed + 9000)
+        out: dict = {"status": "ok", "checks": checks}
+        for name, q, power in (("chosen", got.q, got.power), ("random", got.q_random,
+                                                               got.random_power)):  # fmt: skip
+            out[f"{name}_power"] = power.power
+            counts = dict.fromkeys(COUNTS, 0)
+            T_true = fk_tool(true, q)
+            qs = read_joints(robot, q)
+            for _ in range(checks):
+                u = rng.normal(size=3)
+                shift = np.eye(4)
+                shift[:3, 3] = TOOL_SHIFT_M * u / np.linalg.norm(u)
+                for kind, move in (("unchanged", np.eye(4)), ("tool", shift)):
+                    seen = []
+                    for f, T in enumerate(T_true @ move):
+                        T_cam, T_board = (T_static, T) if e2h else (T, T_static)
+                        pix = project_board(T_cam, camera, board, T_board, pixel_sigma=sigma_px,
+                                            rng=rng)  # fmt: skip
+                        if len(pix) < len(board.layout()[0]):
+                            counts["views_left_out"] += 1
+                            continue
+                        ids = np.array(sorted(pix))
+                        seen.append((f, board.points(ids), np.concatenate([pix[i] for i in ids])))
+                    vj = calibration_views(cal, em, qs, seen)
+                    res = image_drift_check(C, vj, eye_to_hand=e2h,
+                                            camera_names=cal.cameras[0].free)  # fmt: skip
+                    res = fold_recheck(res, wide, partial(calibration_views, cal, q=qs,
+                                                          views=seen), C, eye_to_hand=e2h)  # fmt: skip
+                    counts[kind] += int(res.changed)
+                    counts[f"{kind}_cannot_tell"] += int(res.undecided)
+            out |= {f"{name}_{k}": v for k, v in counts.items()}
+        out["unseen"] = got.unseen
+        return out
+    except Exception as exc:  # noqa: BLE001 - a benchmark counts failed draws
+        return {"status": f"failed: {type(exc).__name__}: {str(exc)[:200]}"}
+
+
+def table(rows: list[dict]) -> str:
+    """The Markdown table of the rows (one per setup, robot and noise level)."""
+    head = ("| setup | noise (px) | calibrations | checks | set | stated power (mean) | 0.2 mm "
+            "mount shift found (target >= 95 %) | 'changed' on unchanged data (target < 2 %) | "
+            "'cannot tell': unchanged / shift |\n|---|---|---|---|---|---|---|---|---|\n")  # fmt: skip
+    lines = []
+    for r in rows:
+        for s in SETS:
+            m = max(r["checks"], 1)
+            lines.append(f"| {r['setup']} | {r['noise_px']:g} | {r['calibrations']} | {r['checks']} "
+                         f"| {s} | {100 * r[f'{s}_power']:.1f} % | {100 * r[f'{s}_tool'] / m:.1f} % | "
+                         f"{100 * r[f'{s}_unchanged'] / m:.1f} % | {r[f'{s}_unchanged_cannot_tell']} / "
+                         f"{r[f'{s}_tool_cannot_tell']} |")  # fmt: skip
+    return head + "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the benchmark (one BLAS thread per process) and print the table."""
+    limit_threads(1)
+    ap = argparse.ArgumentParser(prog="python -m selfcal.benchmarks.drift.choose",
+                                 description=__doc__.splitlines()[0])  # fmt: skip
+    ap.add_argument("--calibrations", type=int, default=30, help="per row (default 30)")
+    ap.add_argument("--checks", type=int, default=10, help="per calibration and set (default 10)")
+    ap.add_argument("--setup", nargs="+", default=["eye-in-hand"], choices=tuple(SCENARIOS))
+    ap.add_argument(
+        "--robot", default=None, help="eye-in-hand: this robot (default the scenario's)"
+    )
+    ap.add_argument("--noise-px", type=float, nargs="+", default=[0.2])
+    ap.add_argument("--views", type=int, default=5, help="postures per check (default 5)")
+    ap.add_argument("--candidates", type=int, default=30, help="the command's pool (default 30)")
+    ap.add_argument("--jobs", type=int, default=1, help="processes (default 1)")
+    ap.add_argument("--journal", type=Path, default=None, metavar="FILE",
+                    help="keep each calibration's counts in FILE (JSON lines) and reuse them")  # fmt: skip
+    args = ap.parse_args(argv)
+    rows, code = [], code_version()
+    for setup in args.setup:
+        robot = args.robot if setup == "eye-in-hand" else None
+        for s in args.noise_px:
+            todo = [(s, seed, args.checks, setup, robot, args.views, args.candidates)
+                    for seed in range(1, args.calibrations + 1)]  # fmt: skip
+            ok = [g for g in journaled_checks(todo, args.jobs, code, args.journal, chosen_checks)
+                  if g["status"] == "ok"]  # fmt: skip
+            row = {"setup": f"{setup}, {robot or 'scenario robot'}", "noise_px": s,
+                   "calibrations": len(ok), "checks": sum(g["checks"] for g in ok)}  # fmt: skip
+            for k in SETS:
+                row[f"{k}_power"] = float(np.mean([g[f"{k}_power"] for g in ok])) if ok else 0.0
+                row |= {f"{k}_{c}": sum(g[f"{k}_{c}"] for g in ok) for c in COUNTS}
+            row["unseen"] = sum(g["unseen"] for g in ok)
+            rows.append(row)
+            print(f"{setup} {s} px: {len(ok)}/{args.calibrations} calibrations; chosen "
+                  f"postures at unseen configurations {row['unseen']}; views left out "
+                  f"{row['chosen_views_left_out']} / {row['random_views_left_out']}",
+                  file=sys.stderr)  # fmt: skip
+    print(table(rows))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
