@@ -148,7 +148,13 @@ def choose_check_postures(cal: BoardCalibrationResult, robot: RobotDef, count: i
     except InputError as exc:
         raise InputError(f"{where}: the check's candidates cannot be placed in the robot's base "
                          f"frame: {exc.message}", fix=exc.fix) from exc  # fmt: skip
-    pool, drawn_from = candidate_pool(setup, candidates, seed=seed)
+    try:
+        pool, drawn_from = candidate_pool(setup, candidates, seed=seed)
+    except InputError as exc:  # its fix names a new plan's options
+        raise InputError(f"{where}: {exc.message}",
+                         fix="the cell is the calibration's (its board pose and camera mount): "
+                         "give fewer keep-out boxes, or calibrate from views that show the whole "
+                         "board") from exc  # fmt: skip
     if len(pool) < count:
         raise InputError(f"{where}: only {len(pool)} candidate postures see the whole board, "
                          f"fewer than the {count} to choose",
