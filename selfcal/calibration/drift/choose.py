@@ -23,9 +23,11 @@ chosen by it (:func:`choose_check_postures`):
 
 What it covers: the mount's translation alone (the issue's 0.2 mm tool shift). A joint's offset
 (the issue's 0.05 deg) is tested by the check but has no stated power, so the choice does not
-weigh it. Measured (``python -m selfcal.benchmarks.drift.images --choose 30``, docs/tool-accuracy.md):
-on the ER-4u at 0.2 px, 5 views chosen so from 30 candidates near the calibration's postures
-found 97.0 % of 300 mount shifts (random 5: 79 %). Units: SI inside, the shift in mm.
+weigh it. Measured (docs/tool-accuracy.md): on the ER-4u at 0.2 px, 5 views chosen so from 30
+candidates near the calibration's postures, not all of the board in view, found 97.0 % of 300
+mount shifts (random 5: 79 %; ``python -m selfcal.benchmarks.drift.images --choose 30``); from
+this function's candidates, which show the whole board, 75.0 % (random 5: 46 %; ``python -m
+selfcal.benchmarks.drift.choose``): NOT met there. Units: SI inside, the shift in mm.
 """
 
 from __future__ import annotations
