@@ -23,7 +23,6 @@ Run: ``nice -n 10 uv run python -m selfcal.benchmarks.drift.choose [--calibratio
 
 from __future__ import annotations
 
-import argparse
 import sys
 from functools import partial
 from pathlib import Path
@@ -38,6 +37,7 @@ from selfcal.benchmarks.drift.images import (
     journaled_checks,
     read_joints,
 )
+from selfcal.benchmarks.usage import benchmark_parser
 from selfcal.calibration.drift.choose import choose_check_postures
 from selfcal.calibration.drift.images import (
     calibration_views,
@@ -123,8 +123,7 @@ def table(rows: list[dict]) -> str:
 def main(argv: list[str] | None = None) -> int:
     """Run the benchmark (one BLAS thread per process) and print the table."""
     limit_threads(1)
-    ap = argparse.ArgumentParser(prog="python -m selfcal.benchmarks.drift.choose",
-                                 description=__doc__.splitlines()[0])  # fmt: skip
+    ap = benchmark_parser(__file__, description=__doc__.splitlines()[0])
     ap.add_argument("--calibrations", type=int, default=30, help="per row (default 30)")
     ap.add_argument("--checks", type=int, default=10, help="per calibration and set (default 10)")
     ap.add_argument("--setup", nargs="+", default=["eye-in-hand"], choices=tuple(SCENARIOS))
