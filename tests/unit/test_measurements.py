@@ -31,8 +31,8 @@ def stated_times(m: dict) -> list[str]:
     return [
         f"`uv run pytest` ran {t['passed'] + t['failed']} tests"
         + (f" ({t['failed']} failed)" if t["failed"] else "")
-        + f" in {_minutes(t['seconds'])} ({t['cpus']} cores, load average "
-        f"{t['load_1min_before']} before the run; {t['date']})",
+        + f" in {_minutes(t['seconds'])} ({_minutes(t['cpu_seconds'])} of CPU; {t['cpus']} cores, "
+        f"load average {t['load_1min_before']} before the run; {t['date']})",
         f"the first `uv run selfcal run` took {r['first_wall_s']:.0f} s from start to exit, "
         f"{r['first_printed_total_s']:.1f} s of it as the run prints it",
         f"a later one {r['second_wall_s']:.0f} s ({r['second_printed_total_s']:.1f} s printed; "

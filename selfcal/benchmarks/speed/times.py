@@ -6,8 +6,10 @@ Usage::
     MUJOCO_GL=egl .venv/bin/python -m selfcal.benchmarks.speed.times tests       # uv run pytest -q
     MUJOCO_GL=egl .venv/bin/python -m selfcal.benchmarks.speed.times first-run   # selfcal run, twice
 
-- ``tests``: the default tier (``pytest -q``): the seconds pytest prints on its last line and the
-  numbers of tests passed and failed (the failures are printed; a time is a time either way).
+- ``tests``: the default tier (``pytest -q``): the seconds pytest prints on its last line, the
+  CPU seconds (user + system) of pytest and its workers (which a shared machine's load inflates
+  far less than the wall seconds) and the numbers of tests passed and failed (the failures are
+  printed; a time is a time either way).
 - ``first-run``: ``selfcal run`` of the default scenario into a new folder with an empty Python
   bytecode cache (``PYTHONPYCACHEPREFIX`` pointing at a new folder: every module compiled afresh,
   as after an install), then again into another new folder with that cache filled: the total
@@ -23,6 +25,7 @@ from __future__ import annotations
 import datetime
 import os
 import re
+import resource
 import subprocess
 import sys
 import tempfile
@@ -52,8 +55,10 @@ def _machine() -> dict:
 def measure_tests() -> dict:
     """Run the default tier (``pytest -q``) and return what its last line says."""
     machine = _machine()
+    cpu0 = _children_cpu_s()
     done = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider"],
                           cwd=ROOT, capture_output=True, text=True, check=False)  # fmt: skip
+    cpu_s = _children_cpu_s() - cpu0
     last = [ln for ln in done.stdout.splitlines() if _PYTEST_LINE.search(ln)]
     if not last:
         raise SystemExit(f"pytest did not finish (exit {done.returncode}):\n{done.stdout[-3000:]}")
@@ -62,7 +67,14 @@ def measure_tests() -> dict:
     failed = [ln for ln in done.stdout.splitlines() if ln.startswith("FAILED ")]
     print("\n".join(failed) or "all passed")
     return {"command": "uv run pytest", "passed": int(m.group(2)), "failed": int(m.group(1) or 0),
-            "seconds": float(m.group(3)), **machine}  # fmt: skip
+            "seconds": float(m.group(3)), "cpu_seconds": round(cpu_s, 1), **machine}  # fmt: skip
+
+
+def _children_cpu_s() -> float:
+    """CPU seconds (user + system) of this process's finished children and theirs (pytest's
+    xdist workers are its children)."""
+    used = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return used.ru_utime + used.ru_stime
 
 
 def _run(out: Path, cache: Path) -> tuple[float, float]:
