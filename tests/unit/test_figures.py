@@ -201,3 +201,37 @@ def test_a_figure_png_is_written_at_the_fast_level_with_the_same_pixels(tmp_path
     default = save_figure(fig, tmp_path / "default.png", pil_kwargs={})
     assert fast.read_bytes() != default.read_bytes()  # another zlib level: other bytes
     assert np.array_equal(np.asarray(Image.open(fast)), np.asarray(Image.open(default)))
+
+
+def test_the_figures_text_is_drawn_unhinted():
+    """new_figure and pyplot set TEXT_HINTING (matplotlib reads it at each text it measures or
+    draws), also after something else changed it; a text then draws other pixels than with
+    FreeType's default hinting."""
+    import io
+
+    import matplotlib
+    from PIL import Image
+
+    from selfcal.plots.plotting import TEXT_HINTING
+
+    def drawn() -> np.ndarray:
+        fig = new_figure(2.0, 1.0)
+        fig.text(0.1, 0.5, "validation posture 0.010 mm")
+        buf = io.BytesIO()
+        fig.savefig(buf, format="png")
+        return np.asarray(Image.open(buf))
+
+    with matplotlib.rc_context({"text.hinting": "default"}):
+        unhinted = drawn()
+        assert matplotlib.rcParams["text.hinting"] == TEXT_HINTING
+        matplotlib.rcParams["text.hinting"] = "default"
+        pyplot()
+        assert matplotlib.rcParams["text.hinting"] == TEXT_HINTING
+        matplotlib.rcParams["text.hinting"] = "default"
+        fig = new_figure(2.0, 1.0)
+        matplotlib.rcParams["text.hinting"] = "default"  # drawn hinted
+        fig.text(0.1, 0.5, "validation posture 0.010 mm")
+        buf = io.BytesIO()
+        fig.savefig(buf, format="png")
+        hinted = np.asarray(Image.open(buf))
+    assert not np.array_equal(unhinted, hinted)
