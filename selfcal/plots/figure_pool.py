@@ -106,14 +106,12 @@ def _first_figure() -> None:
     """A small figure with the parts of the report's figures (:mod:`selfcal.plots.job_figures`)
     whose first drawing in a process costs more than the next: the fonts at their sizes (tick
     labels, 8 pt legend and rotated names, titles), the log axis' locators and formatter, bars,
-    a histogram, a legend beside the axes, the fixed layout and a PNG encoded (Pillow's
-    plugins load at the first save), written nowhere. Drawn in the worker while the run starts,
+    a histogram, a legend beside the axes, the fixed layout and a PNG encoded (the encoder
+    loads at the first), written nowhere. Drawn in the worker while the run starts,
     before the figures are asked for: each drawer it forks for them paid these again, at the
     end of the run. The files are the same (``tests/unit/test_figure_pool.py``)."""
-    import io
-
     from selfcal.plots.plotting import (
-        PNG_COMPRESS_LEVEL,
+        figure_png,
         legend_outside,
         log_y,
         new_figure,
@@ -133,7 +131,7 @@ def _first_figure() -> None:
     legend_outside(ax)
     fig.suptitle("0.1", y=0.99, va="top")
     stack_layout(fig)
-    fig.savefig(io.BytesIO(), format="png", pil_kwargs={"compress_level": PNG_COMPRESS_LEVEL})
+    figure_png(fig)
 
 
 def _skip_set_docstrings() -> None:

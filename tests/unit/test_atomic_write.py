@@ -128,11 +128,14 @@ def test_the_pipeline_writes_through_calib_io_atomic():
                 in_memory = "savefig(io.BytesIO()" in line
                 if DIRECT.search(line) and "save_figure" not in line and not in_memory:
                     found.append(f"{rel}:{i}: {line.strip()}")
-    # the one savefig is inside selfcal.plots.plotting.save_figure
+    # the one savefig, and the figure's own PNG encoding, are inside
+    # selfcal.plots.plotting.save_figure, through write_with_atomic
+    plotting = REPO / "selfcal/plots/plotting.py"
     assert found == [
-        "selfcal/plots/plotting.py:"
-        + str(_line_of(REPO / "selfcal/plots/plotting.py", "fig.savefig("))
-        + ": return write_with_atomic(path, lambda tmp: fig.savefig(tmp, format=fmt, **kwargs))"
+        f"selfcal/plots/plotting.py:{_line_of(plotting, 'tmp.write_bytes(figure_png(fig))')}: "
+        "return write_with_atomic(path, lambda tmp: tmp.write_bytes(figure_png(fig)))",
+        f"selfcal/plots/plotting.py:{_line_of(plotting, 'fig.savefig(')}: "
+        "return write_with_atomic(path, lambda tmp: fig.savefig(tmp, format=fmt, **kwargs))",
     ], "\n".join(found)
 
 

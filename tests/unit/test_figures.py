@@ -190,17 +190,46 @@ def test_the_residual_histogram_separates_each_images_shift():
 
 
 def test_a_figure_png_is_written_at_the_fast_level_with_the_same_pixels(tmp_path):
-    """save_figure's PNG (zlib level 1) holds the pixels of Pillow's default level (6)."""
+    """save_figure's PNG with options (Pillow's, zlib level 1) holds the pixels of Pillow's
+    default level (6)."""
     from PIL import Image
 
     fig = new_figure(3.0, 2.0)
     ax = fig.add_subplot()
     ax.plot(np.arange(50), np.sin(np.arange(50) / 5.0), "o-", label="a line")
     ax.set_title("some text to draw")
-    fast = save_figure(fig, tmp_path / "fast.png")
+    fast = save_figure(fig, tmp_path / "fast.png", pil_kwargs={"compress_level": 1})
     default = save_figure(fig, tmp_path / "default.png", pil_kwargs={})
     assert fast.read_bytes() != default.read_bytes()  # another zlib level: other bytes
     assert np.array_equal(np.asarray(Image.open(fast)), np.asarray(Image.open(default)))
+
+
+@pytest.mark.parametrize("transparent", [False, True])
+def test_a_figure_png_holds_the_pixels_savefig_draws(tmp_path, transparent):
+    """save_figure without options writes the canvas through selfcal.io.png: the pixels of
+    Pillow's savefig (RGB when all are opaque, else RGBA), at the figure's dpi; the main job's
+    figures too."""
+    from PIL import Image
+
+    from selfcal.plots.job_figures import tool_tip_figure
+
+    rng = np.random.default_rng(1)
+    figs = [tool_tip_figure(rng.normal(0, 1, (20, 3)), rng.normal(0, 0.01, (20, 3)))]
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(3.0, 2.0))
+    ax.plot(np.arange(50), np.sin(np.arange(50) / 5.0), "o-", label="a line")
+    ax.set_title("some text to draw")
+    figs.append(fig)
+    for k, fig in enumerate(figs):
+        if transparent:
+            fig.patch.set_alpha(0.0)
+        ours = save_figure(fig, tmp_path / f"ours{k}.png")
+        pillow = save_figure(fig, tmp_path / f"pillow{k}.png", pil_kwargs={})
+        with Image.open(ours) as a, Image.open(pillow) as b:
+            assert a.mode == ("RGBA" if transparent else "RGB")
+            assert a.info["dpi"] == pytest.approx(b.info["dpi"], abs=0.01)
+            assert np.array_equal(np.asarray(a.convert("RGBA")), np.asarray(b.convert("RGBA")))
+        plt.close(fig)
 
 
 def test_the_figures_text_is_drawn_unhinted():

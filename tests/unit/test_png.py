@@ -1,6 +1,8 @@
 """The dataset's PNG writer (``selfcal.io.png``): OpenCV reads back the very pixels, and the files
 are no larger than OpenCV's own writer makes them."""
 
+import io
+
 import cv2
 import numpy as np
 import pytest
@@ -52,10 +54,10 @@ def test_files_no_larger_than_opencvs():
 
 @pytest.mark.parametrize(
     "bad",
-    [np.zeros((4, 4), np.uint16), np.zeros((4, 4, 4), np.uint8), np.zeros(4, np.uint8)],
+    [np.zeros((4, 4), np.uint16), np.zeros((4, 4, 2), np.uint8), np.zeros(4, np.uint8)],
 )
 def test_other_images_are_refused(bad):
-    with pytest.raises(InputError, match="uint8 .* grey or .* RGB"):
+    with pytest.raises(InputError, match="uint8 .* grey, .* RGB or .* RGBA"):
         encode_png(bad)
 
 
@@ -68,3 +70,24 @@ def test_a_dataset_frame_that_is_not_8_bit_names_its_file(tmp_path):
         _write_png(path, np.zeros((48, 64, 3), np.uint16))
     assert "8 bits" in (e.value.fix or "")
     assert not path.exists()
+
+
+@pytest.mark.parametrize("shape", [(48, 64, 3), (48, 64, 4), (48, 64), (1, 5, 4)])
+def test_drawings_read_back_the_same(shape):
+    """The UP filter's rows (the first against zeros) and RGBA come back; OpenCV reads BGR(A)."""
+    img = _noisy(shape)
+    img[10:20] = 255  # flat rows, as a figure's margins
+    back = _read(encode_png(img, drawing=True))
+    if img.ndim == 3:
+        back = cv2.cvtColor(back, cv2.COLOR_BGR2RGB if shape[2] == 3 else cv2.COLOR_BGRA2RGBA)
+    np.testing.assert_array_equal(back, img)
+
+
+def test_a_drawing_records_its_dpi():
+    from PIL import Image
+
+    png = encode_png(np.full((3, 4, 3), 255, np.uint8), drawing=True, dpi=110.0)
+    with Image.open(io.BytesIO(png)) as im:
+        assert im.info["dpi"] == pytest.approx((110.0, 110.0), abs=0.01)
+    with Image.open(io.BytesIO(encode_png(np.zeros((3, 4), np.uint8)))) as im:
+        assert "dpi" not in im.info
