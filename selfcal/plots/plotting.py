@@ -56,7 +56,8 @@ TEXT_HINTING = "no_hinting"
 :func:`pyplot` (a process-wide setting: matplotlib reads it whenever it measures or draws a
 text). Unhinted glyphs are loaded and rendered by FreeType without its auto-hinter, which took
 about a tenth of the main job's three figures' CPU (``selfcal run`` waits for them at its end);
-the text is placed the same, its strokes look slightly softer (the commit that set it gives the
+the text is placed the same, its strokes look slightly softer, and the files are somewhat
+larger (the glyphs' soft edges compress less than hinted ones; the commit that set it gives the
 measurement)."""
 
 
