@@ -56,7 +56,9 @@ __all__ = [
 XYZ = ("x_mm", "y_mm", "z_mm")
 _IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".pgm", ".ppm", ".webp"}
 QUAT = ("qw", "qx", "qy", "qz")
-_MIN_ROWS_FOR_UNIT_GUESS = 5
+# degrees that look like radians are refused from 3 rows on: a drift check's few new postures
+# (selfcal check) in radians declared as degrees got through below 5 (a new user's 3 Nachi rows)
+_MIN_ROWS_FOR_UNIT_GUESS = 3
 
 
 class TrackerFileError(InputError):

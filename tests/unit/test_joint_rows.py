@@ -59,6 +59,13 @@ def test_units_declared_wrong_name_the_file_and_the_fix(tmp_path):
     assert "--joint-units deg" in err.value.fix
 
 
+def test_three_rows_in_radians_declared_as_degrees_are_named(tmp_path):
+    """A drift check's few postures: 3 rows are enough to tell radians."""
+    text = "\n".join(",".join(repr(float(v)) for v in r) for r in np.radians(Q_DEG[:3]))
+    with pytest.raises(TrackerFileError, match="the 3 rows .*look like radians"):
+        read_joint_rows(write(tmp_path, text, "r3.csv"), ROBOT, "deg")
+
+
 def test_a_short_row_is_named(tmp_path):
     p = write(tmp_path, "j1,j2,j3,j4,j5,j6,image\n35,-77,113,0,54,0,a.png\n35,-77,113,0,54,b.png\n")
     with pytest.raises(TrackerFileError, match="row 2 \\(line 3\\): 6 cells"):
