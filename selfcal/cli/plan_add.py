@@ -113,6 +113,11 @@ def cmd_add(args: argparse.Namespace) -> int:
             "forecast": {
                 "chosen": add.forecast.label,
                 "folds": add.forecast.folds,
+                **(
+                    {"folds_counted": list(add.forecast.counted)}
+                    if add.forecast.counted and not all(add.forecast.counted)
+                    else {}
+                ),  # fmt: skip
                 "candidates": [
                     {"label": lab, "fold_rms_px": [round(v, 4) for v in rms]}
                     for lab, rms in zip(add.forecast.labels, add.forecast.fold_rms_px)

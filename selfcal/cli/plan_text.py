@@ -114,6 +114,9 @@ def plan_sections(plan) -> dict:
             "rival_kinematic_parameters": sel.rival_kept(dof),
             "chosen": fc.label,
             "folds": fc.folds,
+            **(
+                {"folds_counted": list(fc.counted)} if fc.counted and not all(fc.counted) else {}
+            ),  # fmt: skip
             "candidates": [
                 {"label": lab, "fold_rms_px": [round(v, 4) for v in rms]}
                 for lab, rms in zip(fc.labels, fc.fold_rms_px)

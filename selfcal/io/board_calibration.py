@@ -242,24 +242,38 @@ class BoardCalibrationResult:
 
     def cv_verdict(self) -> str | None:
         """Why the calibration is no gain over the fair nominal by its cross-validation (one
-        sentence), or None when it predicts better (or the file has no selection)."""
+        sentence), or None when it predicts better (or the file has no selection). Its errors
+        are the selection's, over the folds that count
+        (:func:`selfcal.calibration.board.folds.counted_folds`; ``folds_counted`` in the file
+        when one does not), and the sentence says when a fold does not count."""
         sel = self.selection
         if not sel:
             return None
         cands = {c["label"]: c for c in sel["candidates"]}
         first = sel["candidates"][0]
         chosen = cands[sel["chosen"]]
+        counted = sel.get("folds_counted") or []
+        skipped = ""
+        if counted and not all(counted):
+            skipped = (f" (over the {sum(map(bool, counted))} of {len(counted)} folds that count:"
+                       " a fold leaving out more than half of the frames does not)")  # fmt: skip
         if chosen is first:
+            if (
+                str(sel.get("rule", "")).startswith("no cross-validation")
+                and sel.get("folds", 0) > 1
+            ):
+                return (f"the calibration is the fair nominal: {sel['rule']} "
+                        "(calibration.json selection)")  # fmt: skip
             return (
                 f"the calibration is the fair nominal: cross-validation over "
                 f"{sel['configurations']} arm configuration(s) supports no kinematic parameter "
-                "beyond hand-eye, board pose and camera (calibration.json selection)"
+                f"beyond hand-eye, board pose and camera{skipped} (calibration.json selection)"
             )
         c, n = chosen.get("cv_px"), first.get("cv_px")
         if c is None or n is None or c < n:
             return None
         return (f"the calibrated model's cross-validated error ({c:.3f} px) is not below the fair "
-                f"nominal's ({n:.3f} px)")  # fmt: skip
+                f"nominal's ({n:.3f} px){skipped}")  # fmt: skip
 
     def schema_written(self) -> int:
         """The ``schema_version`` this result is written with (:data:`SCHEMA_VERSION`): the

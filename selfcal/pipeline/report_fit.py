@@ -269,7 +269,8 @@ def fit_markdown(r: dict, figures: list[str]) -> str:
 def selection_markdown(sel: dict) -> list[str]:
     """The parameter selection of a board calibration (calibration.json ``selection``): what
     was identified, the rule and every candidate's cross-validated errors: the geometric mean
-    over the folds (``cv_px``, what the selection compares) and each fold's RMS."""
+    over the folds that count (``cv_px``, what the selection compares) and each fold's RMS, a
+    fold that does not count (``folds_counted``) marked."""
     out = [
         f"Identified: {', '.join(sel['identified'])} (chosen: {sel['chosen']}; {sel['rule']}).",
         "",
@@ -277,10 +278,13 @@ def selection_markdown(sel: dict) -> list[str]:
         "| per fold (px, RMS) |",
         "|---|---|---|---|---|",
     ]
+    counted = sel.get("folds_counted") or []
     for c in sel["candidates"]:
         fit = "-" if c["fit_rms_px"] is None else f"{c['fit_rms_px']:.3f}"
         cv = "-" if c["cv_px"] is None else f"{c['cv_px']:.3f}"
-        folds = ", ".join("-" if v is None else f"{v:.3f}" for v in c["fold_rms_px"])
+        folds = ", ".join(("-" if v is None else f"{v:.3f}")
+                          + ("" if k >= len(counted) or counted[k] else " (not counted)")
+                          for k, v in enumerate(c["fold_rms_px"]))  # fmt: skip
         out.append(f"| {c['label']} | {c['n_parameters']} | {fit} | {cv} | {folds} |")
     return out
 

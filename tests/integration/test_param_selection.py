@@ -22,7 +22,12 @@ from synthetic_features import board_features
 from selfcal.calibration.board.calibrate import calibrate_board
 from selfcal.calibration.board.folds import MAX_FOLDS, configurations, fold_labels, unseen
 from selfcal.calibration.board.nominal_fit import fit_nominal
-from selfcal.calibration.board.param_selection import Candidate, one_se_rule, select_parameters
+from selfcal.calibration.board.param_selection import (
+    Candidate,
+    cv_error,
+    one_se_rule,
+    select_parameters,
+)
 from selfcal.calibration.board.refine import BoardObservations, Refinement, predict_px
 from selfcal.calibration.board.robot import calibrate_robot_with_board
 from selfcal.calibration.identify import IdentificationWarning
@@ -222,3 +227,33 @@ def test_the_one_se_rule_pairs_every_candidate_with_the_best():
              _cand("large", [*(small * [0.8, 1.15, 0.85, 1.2])])]  # fmt: skip
     assert one_se_rule(cands) == (1, 2)
     assert 0 < cands[1].log_diff[0] <= cands[1].log_diff[1]
+
+
+@pytest.mark.slow  # 4 configurations x 4 candidates x 5 fits, and one calibration: ~8 s
+def test_a_fold_leaving_out_the_majority_is_reported_but_does_not_count():
+    """One configuration with 10 wrist postures and three with 2 (16 frames): the fold leaving
+    out the 10 trains on 6 frames, a smaller experiment than the calibration's 16
+    (folds.counted_folds). It is fitted and its RMS reported, but the CV error and the rule
+    take the other three; with two configurations of 8 and 4 frames one fold counts, too few
+    for a cross-validation, and the nominal is kept as for one configuration."""
+    lab = make_lab(0)
+    rng = np.random.default_rng(1)
+    base = postures(lab, 4, seed=3)
+    rows = [10, 2, 2, 2]
+    wrist = np.c_[np.zeros((16, 3)), rng.normal(0, np.radians(4.0), (16, 3))]
+    q = np.repeat(base, rows, axis=0) + wrist
+    sel, _, _ = _selection(q, 0)
+    big = int(np.unique(sel.fold_of[:10])[0])
+    assert sel.folds == 4 and sel.fold_of is not None
+    assert [k for k, c in enumerate(sel.counted) if not c] == [big]
+    assert "(10 of 16 frames) not counted" in sel.rule
+    assert sel.to_json()["folds_counted"] == list(sel.counted)
+    done = [c for c in sel.candidates if not c.note]  # the 30's fit of a fold may not converge
+    assert len(done) >= 3, [(c.label, c.note) for c in sel.candidates]
+    for c in done:
+        assert np.isfinite(c.fold_rms_px[big])  # fitted and reported
+        assert c.cv_px == pytest.approx(cv_error(c.fold_rms_px, sel.counted))
+        assert c.cv_px != pytest.approx(cv_error(c.fold_rms_px))
+    two, _, _ = _selection(np.repeat(base[:2], [8, 4], axis=0) + wrist[:12], 0)
+    assert two.folds == 2 and two.chosen == 0 and len(two.candidates) == 1
+    assert two.fold_of is None and two.rule.startswith("no cross-validation: of 2 folds")

@@ -45,6 +45,27 @@ def _spread(cell, sigma, draws=300, seed=0):
     return sp, F.sum(axis=0), var
 
 
+def test_the_draws_do_not_count_a_fold_leaving_out_the_majority(cell, monkeypatch):
+    """4 wrist postures and the 5 added ones whose first joint is above home's (9 frames, 5
+    folds): the fold leaving out the wrist's frames and one added posture (5 of 9) does not
+    count in the draws' selection, as in the calibration's (folds.counted_folds): 200 draws keep
+    the 23 in 127 and the nominal in 17; counting that fold (the rule before issue #30) they
+    kept the nominal in 106 and the 23 in 23."""
+    from selfcal.calibration.board.plan import selection
+
+    setup, model, q, G, dirs = cell
+    rng = np.random.default_rng(1)
+    w = np.tile(setup.robot.home, (2000, 1))
+    w[:, 3:] += rng.uniform(-1, 1, size=(2000, 3)) * np.radians(WRIST_SPAN_DEG)
+    q9 = np.concatenate([w[feasible(setup, w)][:4], q[q[:, 0] > setup.robot.home[0]]])
+    assert len(q9) == 9
+    sp, _, _ = _spread((setup, model, q9, G, dirs), 0.5, draws=200)
+    assert sp.kept_share(2) > 0.5 and sp.kept_share(0) < 0.2  # 0.635 and 0.085
+    monkeypatch.setattr(selection, "counted_folds", lambda f: np.ones(len(np.unique(f)), bool))
+    every, _, _ = _spread((setup, model, q9, G, dirs), 0.5, draws=200)
+    assert every.kept_share(0) > 0.4 and every.kept_share(2) < 0.2  # 0.53 and 0.115
+
+
 def test_one_configuration_keeps_the_nominal_and_gives_its_prediction(cell):
     setup, model, q, G, dirs = cell
     rng = np.random.default_rng(1)

@@ -18,7 +18,11 @@ upward, the parameters are offered in a fixed order and kept as the data allow:
    joint offsets when they show one configuration -- held at the fair nominal's value) and
    predicts them from their joints alone: each fold's RMS (px); the candidate's CV error is
    their geometric mean (every fold weighs the same, one configuration far outside the others
-   does not decide alone), beside the RMS of all predictions;
+   does not decide alone), beside the RMS of all predictions. Only the folds that count
+   (:func:`selfcal.calibration.board.folds.counted_folds`: those leaving out at most half of
+   the frames; its docstring says why) enter the CV error and step 4; a fold leaving out the
+   majority is fitted and reported but decides nothing, and with fewer than two folds that
+   count there is no cross-validation (the nominal is kept);
 4. the one-standard-error rule with paired folds: the best candidate has the lowest CV error;
    every candidate's log error minus the best's, fold by fold, averaged over the folds, with the
    standard error of that mean from the folds' spread of the difference; the smallest candidate
@@ -38,7 +42,13 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from selfcal.calibration.board.folds import configurations, fold_labels
+from selfcal.calibration.board.folds import (
+    MIN_COUNTED,
+    configurations,
+    counted_folds,
+    fold_labels,
+    not_counted_words,
+)
 from selfcal.calibration.board.parameter_pool import (
     ParameterPool,
     determined,
@@ -58,6 +68,7 @@ from selfcal.kinematics.mcpc import MCPCModel, param_names
 __all__ = [
     "Candidate",
     "Selection",
+    "cv_error",
     "held_selection",
     "nested_candidates",
     "one_se_rule",
@@ -132,7 +143,9 @@ def _num(v: float) -> float | None:
 class Selection:
     """The outcome of :func:`select_parameters`: the ``candidates`` with their CV errors, the
     ``chosen`` one's index, the parameters ``identified`` and ``held`` (name -> reason), the
-    number of ``configurations`` and ``folds``, the ``rule`` in words."""
+    number of ``configurations`` and ``folds``, the ``rule`` in words; ``counted`` per fold
+    whether it counts (:func:`selfcal.calibration.board.folds.counted_folds`; empty without
+    folds)."""
 
     candidates: list[Candidate]
     chosen: int
@@ -145,6 +158,7 @@ class Selection:
     fold_of: np.ndarray | None = field(default=None, repr=False)
     """(m,) every frame's cross-validation fold (:func:`selfcal.calibration.board.folds.fold_labels`
     of the frames with the board; -1: a frame without it), None without folds."""
+    counted: tuple[bool, ...] = ()
 
     @property
     def fit(self) -> Refinement:
@@ -160,6 +174,11 @@ class Selection:
             "rule": self.rule,
             "configurations": self.configurations,
             "folds": self.folds,
+            **(
+                {"folds_counted": [bool(c) for c in self.counted]}
+                if self.counted and not all(self.counted)
+                else {}
+            ),  # fmt: skip
             "candidates": [c.to_json() for c in self.candidates],
         }
 
@@ -186,8 +205,10 @@ def nested_candidates(pool: ParameterPool) -> list[Candidate]:
 
 
 def _cross_validate(obs: BoardObservations, start: MCPCModel, cand: Candidate,
-                    folds: np.ndarray, max_iter: int) -> None:  # fmt: skip
-    """Fill ``cand``'s fit and CV error (step 3). Each fold's fit starts from the fit on every
+                    folds: np.ndarray, counted: np.ndarray, max_iter: int) -> None:  # fmt: skip
+    """Fill ``cand``'s fit and CV error (step 3) over the folds ``counted`` (bool per fold, in
+    the order of ``np.unique``; a fold not counted is fitted and its RMS reported, NaN when its
+    fit fails, but it does not enter the CV error). Each fold's fit starts from the fit on every
     frame, except for the parameters the fold's training frames cannot determine (the test of
     step 1 on those frames, :func:`selfcal.calibration.board.parameter_pool.determined`, e.g. joint offsets when they hold one
     configuration): those are held at the fair nominal's value (``start``) -- not at the fit
@@ -204,7 +225,7 @@ def _cross_validate(obs: BoardObservations, start: MCPCModel, cand: Candidate,
     mcpc_names = param_names(cand.free_idx)
     off_names = [offset_name(j) for j in cand.offset_joints.tolist()]
     fold_ms, fold_n = [], []
-    for f in np.unique(folds[obs.used]).tolist():
+    for f, counts in zip(np.unique(folds[obs.used]).tolist(), counted.tolist()):
         out = folds == f
         held = determined(start, obs.q[obs.used & ~out], cand.names, obs.terms)
         keep_m = np.array([nm not in held for nm in mcpc_names], bool)
@@ -223,6 +244,10 @@ def _cross_validate(obs: BoardObservations, start: MCPCModel, cand: Candidate,
                                   train=~out, cameras=full.cameras, stds=False,
                                   max_iter=max_iter, tol=FOLD_TOL)  # fmt: skip
         except (EstimationError, np.linalg.LinAlgError) as exc:
+            if not counts:  # decides nothing: reported as no prediction
+                fold_ms.append(np.nan)
+                fold_n.append(0)
+                continue
             cand.note = (
                 f"the estimator failed on fold {f} ({_why(exc)}; tried: Levenberg-Marquardt "
                 f"from the fit on every frame on the other folds' frames, "
@@ -237,10 +262,22 @@ def _cross_validate(obs: BoardObservations, start: MCPCModel, cand: Candidate,
         fold_ms.append(float(np.mean(np.sum(e**2, axis=1))) if len(e) else np.nan)
         fold_n.append(len(e))
     ms, n = np.array(fold_ms), np.array(fold_n)
-    ok = n > 0
+    ok = (n > 0) & counted
     cand.cv_rms_px = float(np.sqrt(np.sum(ms[ok] * n[ok]) / np.sum(n[ok])))
     cand.fold_rms_px = tuple(np.sqrt(ms).tolist())
-    cand.cv_px = float(np.exp(np.mean(np.log(np.sqrt(ms[ok])))))
+    cand.cv_px = cv_error(cand.fold_rms_px, counted)
+
+
+def cv_error(fold_rms_px: tuple[float, ...] | np.ndarray,
+             counted: np.ndarray | tuple[bool, ...] | None = None) -> float:  # fmt: skip
+    """A candidate's CV error (px, step 3): the geometric mean of its folds' RMS ``fold_rms_px``
+    (px) over the folds ``counted`` (bool per fold; None: all), a fold without a prediction
+    (NaN) skipped; inf when a counted fold's is; NaN when no fold is left."""
+    r = np.asarray(fold_rms_px, dtype=float)
+    if counted is not None:
+        r = r[np.asarray(counted, dtype=bool)]
+    r = r[~np.isnan(r)]
+    return float(np.exp(np.mean(np.log(r)))) if len(r) else float("nan")
 
 
 def _why(exc: Exception) -> str:
@@ -267,21 +304,30 @@ def select_parameters(obs: BoardObservations, nominal_fit: MCPCModel, *,
     folds = np.full(len(obs.q), -1)
     folds[used] = fold_labels(config[used])
     n_folds = len(np.unique(folds[used]))
+    counted = counted_folds(folds[used])
+    skipped = not_counted_words(folds[used])
     notes = []
+    cross = n_folds >= 2 and int(counted.sum()) >= MIN_COUNTED
     if n_folds < 2:
         cands = cands[:1]
         rule = ("no cross-validation: the frames show one configuration of the arm, so no "
                 "kinematic parameter can be checked on postures it was not fitted to")  # fmt: skip
         notes.append(f"only the placement was estimated: {rule}")
+    elif not cross:
+        cands = cands[:1]
+        rule = (f"no cross-validation: of {n_folds} folds fewer than {MIN_COUNTED} count "
+                f"({skipped}), so no kinematic parameter can be checked on postures it was not "
+                "fitted to")  # fmt: skip
+        notes.append(f"only the placement was estimated: {rule}")
     for c in cands:
-        if n_folds < 2:
+        if not cross:
             try:
                 c.fit = refine_on_board(obs, nominal_fit, c.free_idx, c.offset_joints,
                                         max_iter=max_iter)  # fmt: skip
             except (EstimationError, np.linalg.LinAlgError) as exc:
                 c.note = f"the estimator failed on every frame ({_why(exc)})"
         else:
-            _cross_validate(obs, nominal_fit, c, folds, max_iter)
+            _cross_validate(obs, nominal_fit, c, folds, counted, max_iter)
     if cands[0].fit is None:
         raise EstimationError(
             f"not even the nominal chain could be placed on the board by reprojection "
@@ -289,13 +335,14 @@ def select_parameters(obs: BoardObservations, nominal_fit: MCPCModel, *,
             fix="add frames from other arm configurations (move the first joints, not only the "
             "wrist) and calibrate again",
         )
-    if n_folds >= 2:
-        chosen, best = one_se_rule(cands)
+    if cross:
+        chosen, best = one_se_rule(cands, counted)
         rule = (f"one-standard-error rule with paired folds over leave-one-configuration-out "
                 f"cross-validation ({n_config} configurations, {n_folds} folds): the smallest "
                 f"candidate whose mean log error ratio to the best ({cands[best].label}, "
                 f"{cands[best].cv_px:.3f} px), fold by fold, is at most its standard error, "
-                f"and (but the nominal) below the nominal's")  # fmt: skip
+                f"and (but the nominal) below the nominal's"
+                + (f"; {skipped}" if skipped else ""))  # fmt: skip
     else:
         chosen = 0
     held = dict(pool.held)
@@ -307,7 +354,8 @@ def select_parameters(obs: BoardObservations, nominal_fit: MCPCModel, *,
                               f"{_px(cands[chosen].cv_px)} of the chosen "
                               f"{cands[chosen].label}: not clearly better")  # fmt: skip
     return Selection(cands, chosen, cands[chosen].names, held, n_config, n_folds, rule, notes,
-                     folds if n_folds >= 2 else None)  # fmt: skip
+                     folds if cross else None,
+                     tuple(counted.tolist()) if cross else ())  # fmt: skip
 
 
 def held_selection(obs: BoardObservations, nominal_fit: MCPCModel, names: tuple[str, ...], *,
@@ -355,15 +403,18 @@ def _px(v: float) -> str:
     return f"{v:.3f} px" if np.isfinite(v) else "nothing (a fit failed)"
 
 
-def one_se_rule(cands: list[Candidate]) -> tuple[int, int]:
-    """(chosen, best) by step 4 of the module docstring; every candidate's ``log_ratio`` (to the
+def one_se_rule(cands: list[Candidate],
+                counted: np.ndarray | tuple[bool, ...] | None = None) -> tuple[int, int]:  # fmt: skip
+    """(chosen, best) by step 4 of the module docstring over the folds ``counted`` (bool per
+    fold, :func:`selfcal.calibration.board.folds.counted_folds`; None: all; every candidate's
+    ``cv_px`` over the same, :func:`cv_error`); every candidate's ``log_ratio`` (to the
     nominal, ``cands[0]``) and ``log_diff`` (to the best) set."""
     cv = np.array([c.cv_px for c in cands])
     best = int(np.argmin(cv))
     for c in cands:
         if np.isfinite(c.cv_px):
-            c.log_ratio = _paired(c, cands[0])
-            c.log_diff = _paired(c, cands[best])
+            c.log_ratio = _paired(c, cands[0], counted)
+            c.log_diff = _paired(c, cands[best], counted)
     floor = cands[0].cv_px  # never a candidate that does not predict better than the nominal
     chosen = next((i for i, c in enumerate(cands[: best + 1])
                    if np.isfinite(c.cv_px) and (i == 0 or c.cv_px < floor)
@@ -371,10 +422,13 @@ def one_se_rule(cands: list[Candidate]) -> tuple[int, int]:
     return chosen, best
 
 
-def _paired(c: Candidate, ref: Candidate) -> tuple[float, float]:
-    """The mean over the folds of ``c``'s log RMS minus ``ref``'s and that mean's standard
-    error (0 with one fold); folds without a prediction skipped."""
+def _paired(c: Candidate, ref: Candidate,
+            counted: np.ndarray | tuple[bool, ...] | None) -> tuple[float, float]:  # fmt: skip
+    """The mean over the folds ``counted`` (None: all) of ``c``'s log RMS minus ``ref``'s and
+    that mean's standard error (0 with one fold); folds without a prediction skipped."""
     d = np.log(np.array(c.fold_rms_px)) - np.log(np.array(ref.fold_rms_px))
+    if counted is not None:
+        d = d[np.asarray(counted, dtype=bool)]
     d = d[np.isfinite(d)]
     se = float(np.std(d, ddof=1) / np.sqrt(len(d))) if len(d) > 1 else 0.0
     return (float(np.mean(d)) if len(d) else 0.0, se)

@@ -16,7 +16,9 @@ order of the postures),
 in every fold the parameters its training frames cannot determine held
 (:func:`selfcal.calibration.board.parameter_pool.determined`), and the same paired
 one-standard-error rule (:func:`selfcal.calibration.board.param_selection.one_se_rule`) on the
-folds' expected RMS. A fold's expected mean square per feature (both image coordinates): the
+folds' expected RMS over the folds that count
+(:func:`selfcal.calibration.board.folds.counted_folds`: a fold leaving out more than half of
+the frames does not; with fewer than two counting the nominal is kept). A fold's expected mean square per feature (both image coordinates): the
 corners' noise ``2 sigma^2`` plus ``sigma^2 sum_i (trace(A_i C) + trace(Z_i)) / n``, ``A_i``
 the information of the fold's frames with their joints (``n`` features; the selection predicts
 a left-out fold from its joints alone, their read-back corrections not fitted:
@@ -38,8 +40,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from selfcal.calibration.board.folds import configurations, fold_labels
-from selfcal.calibration.board.param_selection import Candidate, nested_candidates, one_se_rule
+from selfcal.calibration.board.folds import (
+    MIN_COUNTED,
+    configurations,
+    counted_folds,
+    fold_labels,
+)
+from selfcal.calibration.board.param_selection import (
+    Candidate,
+    cv_error,
+    nested_candidates,
+    one_se_rule,
+)
 from selfcal.calibration.board.parameter_pool import determined_each, parameter_pool
 from selfcal.calibration.board.plan.predict import Directions, error_covariance
 from selfcal.errors import UsageError
@@ -60,7 +72,8 @@ class SelectionForecast:
     kinematic parameters (``free_idx`` flat MCPC indices, ``offset_joints`` 0 based); every
     candidate's label and expected fold RMS (px) in ``fold_rms_px``; ``folds`` how many;
     ``kept_sets`` every candidate's (flat MCPC indices, offset joints) and ``chosen`` the
-    chosen one's index among them."""
+    chosen one's index among them; ``counted`` per fold whether it counts
+    (:func:`selfcal.calibration.board.folds.counted_folds`; empty: all)."""
 
     label: str
     free_idx: np.ndarray
@@ -70,12 +83,13 @@ class SelectionForecast:
     folds: int
     kept_sets: tuple[tuple[np.ndarray, np.ndarray], ...] = ()
     chosen: int = 0
+    counted: tuple[bool, ...] = ()
 
     @property
     def cv_px(self) -> tuple[float, ...]:
-        """Every candidate's expected CV error (px): its folds' geometric mean."""
-        return tuple(float(np.exp(np.mean(np.log(r)))) if len(r) else float("nan")
-                     for r in self.fold_rms_px)  # fmt: skip
+        """Every candidate's expected CV error (px): its counted folds' geometric mean
+        (:func:`selfcal.calibration.board.param_selection.cv_error`)."""
+        return tuple(cv_error(r, self.counted or None) for r in self.fold_rms_px)
 
     @property
     def kept(self) -> tuple[np.ndarray, np.ndarray]:
@@ -114,21 +128,22 @@ def forecast_selection(
     folds = selection_folds(model, q, directions)
     cands = folds.candidates
     first = cands[0]
-    if len(folds.labels) < 2:  # no cross-validation: the selection keeps the nominal
+    if not folds.cross_validated:  # no cross-validation: the selection keeps the nominal
         return SelectionForecast(first.label, first.free_idx, first.offset_joints,
-                                 (first.label,), ((),), 1,
+                                 (first.label,), ((),), max(len(folds.labels), 1),
                                  ((first.free_idx, first.offset_joints),), 0)  # fmt: skip
     rms = np.stack([candidate_fold_rms(folds, k, F_frames, A, n_features, n_cam, variance,
                                        sigma_px) for k in range(len(cands))], axis=1)  # fmt: skip
     for c, r in zip(cands, rms.T):
         c.fold_rms_px = tuple(r.tolist())
-        c.cv_px = float(np.exp(np.mean(np.log(r))))
-    chosen, _ = one_se_rule(cands)
+        c.cv_px = cv_error(r, folds.counted)
+    chosen, _ = one_se_rule(cands, folds.counted)
     c = cands[chosen]
     return SelectionForecast(
         c.label, c.free_idx, c.offset_joints, tuple(x.label for x in cands),
         tuple(x.fold_rms_px for x in cands), len(folds.labels),
         tuple((x.free_idx, x.offset_joints) for x in cands), chosen,
+        tuple(folds.counted.tolist()),
     )  # fmt: skip
 
 
@@ -137,12 +152,20 @@ class SelectionFolds:
     """What the selection cross-validates at the joints of :func:`selection_folds`: its nested
     ``candidates``, each frame's fold ``of_frame`` (m,) and the folds' ``labels``, and per fold
     and candidate the kinematic directions (k, e) its fit on the other folds' frames estimates
-    (``directions[fold][candidate]``: those the training frames determine)."""
+    (``directions[fold][candidate]``: those the training frames determine); ``counted`` (f,)
+    bool whether each fold counts (:func:`selfcal.calibration.board.folds.counted_folds`)."""
 
     candidates: list[Candidate]
     of_frame: np.ndarray
     labels: np.ndarray
     directions: tuple[tuple[np.ndarray, ...], ...]
+    counted: np.ndarray
+
+    @property
+    def cross_validated(self) -> bool:
+        """Whether the selection cross-validates: two folds or more, enough of them counted
+        (:data:`selfcal.calibration.board.folds.MIN_COUNTED`); else it keeps the nominal."""
+        return len(self.labels) >= 2 and int(self.counted.sum()) >= MIN_COUNTED
 
     def out(self, fold: int) -> np.ndarray:
         """(m,) bool: the frames fold number ``fold`` leaves out."""
@@ -159,8 +182,9 @@ def selection_folds(
     cands = nested_candidates(parameter_pool(model, q))
     folds = fold_labels(configurations(q, model.joint_types))
     labels = np.unique(folds)
+    counted = counted_folds(folds)
     if len(labels) < 2:
-        return SelectionFolds(cands, folds, labels, ())
+        return SelectionFolds(cands, folds, labels, (), counted)
     last = cands[-1]  # the candidates are nested: every direction is one of the last's
     M = (directions or Directions(model)).of(last.free_idx, last.offset_joints)
     column = {nm: k for k, nm in enumerate(_names(last))}
@@ -168,7 +192,7 @@ def selection_folds(
                        for c, held in zip(cands, determined_each(
                            model, q[folds != f], [c.names for c in cands])))
                  for f in labels)  # fmt: skip
-    return SelectionFolds(cands, folds, labels, dirs)
+    return SelectionFolds(cands, folds, labels, dirs, counted)
 
 
 def candidate_fold_rms(

@@ -26,8 +26,9 @@ its read-back errors drawn
 predicted from its joints alone),
 ``n`` the fold's features and ``chi2_2n`` its corners' squared noise over ``sigma^2``; the
 candidates' fold errors go through the selection's own paired one-standard-error rule
-(:func:`selfcal.calibration.board.param_selection.one_se_rule`), and the chosen candidate's fit on
-every frame errs by ``-R d + C sum_f h_f``, carried to the tool point by the aligned weight
+(:func:`selfcal.calibration.board.param_selection.one_se_rule`) over the folds that count
+(:func:`selfcal.calibration.board.folds.counted_folds`; a fold that does not count still adds
+its frames' noise to every fit that has them), and the chosen candidate's fit on every frame errs by ``-R d + C sum_f h_f``, carried to the tool point by the aligned weight
 ``G``. Linear (the first order of the problem at the drawing), the camera's free parameters
 fitted in every fit, the correlation of a fold's ``chi2`` with its ``h`` neglected (and its
 ``h`` that of the training fits, its joints' corrections eliminated, in the cross term of its
@@ -41,7 +42,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from selfcal.calibration.board.param_selection import one_se_rule
+from selfcal.calibration.board.param_selection import cv_error, one_se_rule
 from selfcal.calibration.board.plan.information import (
     board_model,
     frame_information,
@@ -123,7 +124,8 @@ def selection_spread(
     (:func:`selfcal.calibration.board.plan.information.frame_information`), ``n_features`` (m,)
     the features each shows, ``variance`` (k,) the deviation from the drawing (the placement's
     zero: every fit estimates it), ``sigma_px`` the corner noise (px); deterministic for a
-    ``seed``. With fewer than two folds the selection keeps the nominal in every draw.
+    ``seed``. With fewer than two folds (or than two that count) the selection keeps the
+    nominal in every draw.
     ``on_draw``: called after each draw (a progress bar). ``held_out`` (m, p + j, p + j) what
     each frame's prediction from its joints alone errs by
     (:func:`selfcal.calibration.board.plan.information.prediction_information`: the left-out
@@ -144,7 +146,7 @@ def selection_spread(
     dirs = directions or Directions(model)
     folds = selection_folds(model, q, dirs)
     cands = folds.candidates
-    nf = len(folds.labels)
+    nf = len(folds.labels) if folds.cross_validated else 1
     F_all = F_frames.sum(axis=0)
     full = [linear_estimator(F_all, n_cam, dirs.of(c.free_idx, c.offset_joints)) for c in cands]
     rng = np.random.default_rng(seed)
@@ -189,8 +191,8 @@ def selection_spread(
                     rms.append(float(sigma_px * np.sqrt(max(ss, 0.0) / n_out[f])))
                 r = np.array(rms)
                 trial.append(replace(ci, fold_rms_px=tuple(r.tolist()),
-                                     cv_px=float(np.exp(np.mean(np.log(r))))))  # fmt: skip
-            chosen[t] = one_se_rule(trial)[0]
+                                     cv_px=cv_error(r, folds.counted)))  # fmt: skip
+            chosen[t] = one_se_rule(trial, folds.counted)[0]
         fit = full[chosen[t]]
         if fit is None:
             tool[t] = float("inf")
