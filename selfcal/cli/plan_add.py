@@ -117,7 +117,7 @@ def cmd_add(args: argparse.Namespace) -> int:
                     {"folds_counted": list(add.forecast.counted)}
                     if add.forecast.counted and not all(add.forecast.counted)
                     else {}
-                ),  # fmt: skip
+                ),
                 "candidates": [
                     {"label": lab, "fold_rms_px": [round(v, 4) for v in rms]}
                     for lab, rms in zip(add.forecast.labels, add.forecast.fold_rms_px)

@@ -114,9 +114,7 @@ def plan_sections(plan) -> dict:
             "rival_kinematic_parameters": sel.rival_kept(dof),
             "chosen": fc.label,
             "folds": fc.folds,
-            **(
-                {"folds_counted": list(fc.counted)} if fc.counted and not all(fc.counted) else {}
-            ),  # fmt: skip
+            **({"folds_counted": list(fc.counted)} if fc.counted and not all(fc.counted) else {}),
             "candidates": [
                 {"label": lab, "fold_rms_px": [round(v, 4) for v in rms]}
                 for lab, rms in zip(fc.labels, fc.fold_rms_px)

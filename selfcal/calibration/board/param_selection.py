@@ -178,7 +178,7 @@ class Selection:
                 {"folds_counted": [bool(c) for c in self.counted]}
                 if self.counted and not all(self.counted)
                 else {}
-            ),  # fmt: skip
+            ),
             "candidates": [c.to_json() for c in self.candidates],
         }
 
