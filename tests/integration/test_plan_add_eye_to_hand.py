@@ -78,8 +78,7 @@ def test_add_plans_for_an_eye_to_hand_dataset(dataset, tmp_path, capsys, monkeyp
     T_bc = np.asarray(truth.board["T_world_cam"])  # the camera -> the world, the base
     s = load_scenario(out / "scenario.toml")
     assert s.camera.setup == "eye-to-hand" and s.trajectory.joints == "replay.csv"
-    # the replay simulates the corner noise the forecast assumed (the calibration's, not 0.5 px)
-    assert doc["pixel_sigma"]["source"] == "calibration"
+    # the replay simulates the corner noise the forecast assumed (plan.json's, whatever its source)
     assert s.noise.pixel_sigma == pytest.approx(doc["pixel_sigma"]["px"], rel=1e-5)
     assert np.allclose(s.camera.pose, doc["camera_pose_mm_deg"], atol=1e-5)
     # within the arm's deviation (1 mm) of the first link: the chain's base is the truth's

@@ -66,7 +66,10 @@ def test_the_plan_scenario_draws_the_plan_deviation(tmp_path):
     (tmp_path / "joints.csv").write_text("j1,j2,j3,j4,j5,j6\n" + "0,-90,90,-90,-90,0\n" * 8)
     dev = Deviation(2e-4, np.radians(0.1))
     text = scenario_text("ur5e", camera_from_fov(60.0, 640, 480), np.array([-472, -133, 3, 0, 0, 0]),
-                         8, deviation=dev, seed=3)  # fmt: skip
+                         8, deviation=dev, seed=3, pixel_sigma=0.0517)  # fmt: skip
     (tmp_path / "scenario.toml").write_text(text)
-    p = load_scenario(tmp_path / "scenario.toml").perturbation
+    s = load_scenario(tmp_path / "scenario.toml")
+    p = s.perturbation
     assert (p.seed, p.translation_mm, p.rotation_deg) == (3, pytest.approx(0.2), pytest.approx(0.1))
+    # and the corner noise the plan forecast with (it replayed the default 0.5 px)
+    assert s.noise.pixel_sigma == pytest.approx(0.0517)

@@ -70,8 +70,8 @@ def achieved(setup, q: np.ndarray, qw: np.ndarray, seed: int, folder: Path) -> f
         shutil.copyfile(models_dir() / "targets/charuco.toml", root / "target.toml")
         write_text_atomic(root / "joints.csv", joints_csv(q, robot.edge_unit))
         text = scenario_text("ur5e", setup.camera, None, len(q), camera_pose=CAMERA_POSE,
-                             seed=seed)  # fmt: skip
-        text = text.replace("[noise]\n", f"[noise]\nseed = {seed}\npixel_sigma = 0.5\n")
+                             seed=seed, pixel_sigma=0.5)  # fmt: skip
+        text = text.replace("[noise]\n", f"[noise]\nseed = {seed}\n")
         write_text_atomic(root / "scenario.toml", text)
         if selfcal(["acquire", str(root / "scenario.toml"), "--out", str(root / "run"),
                     "--quiet"]) != 0:  # fmt: skip
