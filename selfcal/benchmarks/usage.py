@@ -30,5 +30,11 @@ def benchmark_parser(module_file: str | Path, **kwargs: Any) -> argparse.Argumen
     """An ``argparse.ArgumentParser`` (``kwargs`` as its own: ``description``, ``parents``
     ...) whose usage and errors name the command of the module ``module_file`` (the caller's
     ``__file__``, :func:`module_command`), not its file name; a module that its package's
-    ``__main__.py`` runs passes that file (``python -m selfcal.benchmarks.tracker``)."""
-    return argparse.ArgumentParser(prog=module_command(module_file), **kwargs)
+    ``__main__.py`` runs passes that file (``python -m selfcal.benchmarks.tracker``). A copy
+    of a module run from outside the package (``speed.measure --against`` runs its script so)
+    keeps argparse's own name, its file's."""
+    try:
+        prog: str | None = module_command(module_file)
+    except ValueError:
+        prog = None
+    return argparse.ArgumentParser(prog=prog, **kwargs)

@@ -77,3 +77,12 @@ def test_module_command_names_the_module_not_the_file():
     assert module_command(handeye) == "python -m selfcal.benchmarks.handeye"
     with pytest.raises(ValueError):
         module_command("/elsewhere/accuracy.py")
+
+
+def test_a_copy_run_from_outside_the_package_keeps_its_file_name(tmp_path):
+    """speed.measure --against runs a copy of its script from a temporary folder: the parser is
+    still made, named by the copy's file (it raised ValueError: the speed block failed)."""
+    from selfcal.benchmarks.usage import benchmark_parser
+
+    ap = benchmark_parser(str(tmp_path / "speed.py"), description="x")
+    assert not ap.prog.startswith("python -m")  # argparse's own: sys.argv[0]'s name
