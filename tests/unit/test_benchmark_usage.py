@@ -46,13 +46,16 @@ def _command(name: str) -> str:
 
 def test_every_parser_comes_from_the_helper():
     """No benchmark module builds its own parser (one with ``add_help=False`` is a parent of
-    one built by the helper)."""
+    one built by the helper; speed.measure's fallback for a reference tree older than the helper,
+    marked "an older tree's fallback", is the one other)."""
     assert len(PARSING) >= 50  # 52 modules parse arguments (session 28)
     own = [
         n
         for n in MODULES
         if n != "selfcal.benchmarks.usage"
-        and re.search(r"ArgumentParser\((?!add_help=False)", _source(n))
+        and re.search(
+            r"ArgumentParser\((?!add_help=False).*(?<!an older tree's fallback)$", _source(n), re.M
+        )
     ]
     assert own == []
 

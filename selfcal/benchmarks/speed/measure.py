@@ -61,7 +61,16 @@ from pathlib import Path
 import numpy as np
 
 from selfcal.benchmarks.doc_blocks import ROOT, write_block
-from selfcal.benchmarks.usage import benchmark_parser
+
+try:  # speed --against runs this file with the reference tree's package, maybe older than usage.py
+    from selfcal.benchmarks.usage import benchmark_parser
+except ImportError:  # that older tree: argparse names the script by its file
+
+    def benchmark_parser(module_file: str | Path, **kwargs) -> argparse.ArgumentParser:
+        """argparse's own parser (``module_file`` unused): a reference tree before usage.py."""
+        return argparse.ArgumentParser(**kwargs)  # an older tree's fallback
+
+
 from selfcal.errors import UsageError
 from selfcal.io.atomic import write_text_atomic
 
