@@ -45,7 +45,7 @@ verdicts are against the fair nominal, whose hand-eye is fitted from the dataset
 from __future__ import annotations
 
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -72,9 +72,10 @@ from selfcal.calibration.board.plan.selection import SelectionForecast, forecast
 from selfcal.calibration.board.plan.spread import selection_spread
 from selfcal.calibration.board.plan.views import PlanSetup
 from selfcal.errors import InputError
-from selfcal.io.board_calibration import read_board_calibration
+from selfcal.io.board_calibration import BoardCalibrationResult, read_board_calibration
 from selfcal.io.dataset import Dataset
 from selfcal.robot.definition import load_robot
+from selfcal.target.base import Features
 
 __all__ = [
     "ADD_RULE",
@@ -85,6 +86,7 @@ __all__ = [
     "HALVE_MORE",
     "Halving",
     "first_halving",
+    "calibration_plan",
     "dataset_setup",
     "plan_additions",
     "swap_spares",
@@ -143,16 +145,35 @@ def dataset_setup(root: str | Path, boxes: np.ndarray | None = None) -> DatasetP
             "(selfcal calibrate) and give that dataset to --add",
         )
     ds = Dataset.open(root)
-    robot = load_robot(ds.robot_source)
     board = dataset_board(ds)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # a frame without the board: left out below, as calibrate
         features, _ = detect_board(ds, board, ds.info.cameras[0])
+    return calibration_plan(root, cal, features, np.radians(ds.joints_deg), boxes)
+
+
+def calibration_plan(
+    root: str | Path,
+    cal: BoardCalibrationResult,
+    features: Sequence[Features],
+    q: np.ndarray,
+    boxes: np.ndarray | None = None,
+) -> DatasetPlan:
+    """:func:`dataset_setup` of the one-camera calibration ``cal`` of the dataset ``root``
+    with its first camera's ``features`` of every frame and the frames' read-back joints ``q``
+    (m, n) rad already at hand (``selfcal calibrate`` detected them).
+
+    Raises:
+        InputError: as :func:`dataset_setup`'s.
+    """
+    ds = Dataset.open(root)
+    robot = load_robot(ds.robot_source)
+    board = dataset_board(ds)
     used = np.array([len(f) >= board.min_features for f in features], bool)
     if not used.any():
         raise InputError(f"{root}: no frame shows the board",
                          fix="calibrate a dataset whose images show the board")  # fmt: skip
-    q = np.radians(ds.joints_deg)[used]
+    q = np.asarray(q, dtype=float)[used]
     try:
         setup, mount_off = calibrated_cell(
             cal, robot, cal.cameras[0], board,
