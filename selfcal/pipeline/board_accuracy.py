@@ -22,6 +22,7 @@ from selfcal.calibration.board.accuracy import (
     board_postures_from_json,
 )
 from selfcal.calibration.board.held_prior import held_sentence
+from selfcal.calibration.board.plan.drawn_check import drawn_words
 from selfcal.calibration.spread import spread_line
 from selfcal.errors import InputError
 from selfcal.io.board_calibration import BoardCalibrationResult
@@ -78,6 +79,7 @@ def board_accuracy_section(root: Path, cal: BoardCalibrationResult, *,
         "held_deviation": block.get("held_deviation"),
         "spread": block.get("spread"),
         "bootstrap_spread": block.get("bootstrap_spread"),
+        "drawn_reference": block.get("drawn_reference"),
     }
     drawn = []
     if figures:
@@ -273,6 +275,10 @@ def accuracy_markdown(section: dict) -> list[str]:
         "",
         *region_table(section["regions"], orientation=True),
     ]
+    drawn = drawn_words(section.get("drawn_reference"))
+    if drawn is not None:
+        out += ["", drawn[0].upper() + drawn[1:] + ' (docs/tool-accuracy.md "Against the chain '
+                'as drawn").']  # fmt: skip
     spread = section.get("spread")
     if spread:
         text = spread_line(spread)

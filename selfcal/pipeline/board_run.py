@@ -311,6 +311,13 @@ def calibrate_board_run(
             res = dataclasses.replace(res, warnings=(*res.warnings, text))
         else:
             res = dataclasses.replace(res, accuracy=with_bootstrap(res.accuracy or {}, spread))
+    if res.accuracy is not None:  # is the calibration predicted to beat the drawing?
+        from selfcal.calibration.board.plan.drawn_check import KEY as DRAWN
+        from selfcal.calibration.board.plan.drawn_check import drawn_reference
+
+        drawn = drawn_reference(root, res, detailed.features[0], detailed.q, deviation)
+        if drawn is not None:
+            res = dataclasses.replace(res, accuracy={**res.accuracy, DRAWN: drawn})
     write_board_calibration(Path(root) / "calibration.json", res)
     if figures:
         ev = evaluate_board(res, str(Path(root) / "calibration.json"), root)
@@ -369,6 +376,11 @@ def summary(res: BoardCalibrationResult) -> str:
         f"({c.model_name} camera): {_camera_text(c)}, "
         f"reprojection RMS {res.reprojection_rms_px:.3f} px" + _nominal_text(res)
     ]
+    from selfcal.calibration.board.plan.drawn_check import KEY, drawn_words
+
+    drawn = drawn_words((res.accuracy or {}).get(KEY))
+    if drawn:
+        lines.append(drawn)
     for name, cam in zip(res.camera_names[1:], res.cameras[1:], strict=True):
         lines.append(f"camera {name} ({cam.model_name}): {_camera_text(cam)}")
     return "\n".join(lines)

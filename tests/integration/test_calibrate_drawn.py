@@ -1,0 +1,58 @@
+"""``selfcal calibrate`` says when a board calibration is not predicted to beat the chain as
+drawn (issue #29, :mod:`selfcal.calibration.board.plan.drawn_check`): a hand-written pan-tilt
+with a wrist camera (tests/data/pantilt2.urdf, planned with ``selfcal plan`` as session 28's
+new user did, 12 postures on the analytic path) where it is not, and the ER-4u's
+well-determined calibration (conftest ``mono_charuco_15``) where it is and nothing is said."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from selfcal.calibration.board.plan.drawn_check import KEY, drawn_words
+
+PANTILT = Path(__file__).resolve().parents[1] / "data" / "pantilt2.urdf"
+
+
+@pytest.mark.slow  # plan, acquisition and calibration: about 6 CPU s
+def test_pantilt_is_not_predicted_to_beat_the_drawing(tmp_path, capsys):
+    from selfcal.cli.main import main
+    from selfcal.config.scenario import load_scenario
+    from selfcal.pipeline.board_run import calibrate_board_run
+    from selfcal.pipeline.run import run_acquire
+
+    plan = tmp_path / "plan"
+    assert main(["plan", "--robot", str(PANTILT), "--target", "models/targets/charuco.toml",
+                 "--fov-deg", "60", "--resolution", "1280x960", "--board-pose", "500,0,3",
+                 "--count", "12", "--out", str(plan)]) == 0  # fmt: skip
+    out = tmp_path / "run"
+    run_acquire(load_scenario(plan / "scenario.toml"), out, quiet=True)
+    capsys.readouterr()
+    calibrate_board_run(out)
+    said = capsys.readouterr().err
+    block = json.loads((out / "calibration.json").read_text())["accuracy"][KEY]
+    assert block["beats_drawn"] is False
+    assert block["drawn_not_a_reference"] is None
+    # the calibration's predicted RMS (3.356 mm) 19 times the drawing's (0.176 mm)
+    assert block["calibrated_tool_rms_mm"] > 8 * block["drawn_tool_rms_mm"]
+    assert 1.1 < block["calibrated_tool_rms_mm"] < 10.0  # docs/own-data.md's figures, 3x
+    assert 0.06 < block["drawn_tool_rms_mm"] < 0.53
+    assert "NOT predicted to beat the chain as drawn" in said
+    assert f"{block['drawn_tool_rms_mm']:.3f} mm" in said and "selfcal plan --add" in said
+
+
+def test_well_determined_calibration_says_nothing_new(mono_charuco_15, capsys):
+    from selfcal.io.board_calibration import read_board_calibration
+    from selfcal.pipeline.board_run import summary
+
+    out, _ = mono_charuco_15
+    block = json.loads((out / "calibration.json").read_text())["accuracy"][KEY]
+    assert block["beats_drawn"] is True  # 0.693 mm against the drawing's 1.815 mm: 0.38 times
+    assert block["calibrated_tool_rms_mm"] <= block["clear_margin"] * block["drawn_tool_rms_mm"]
+    assert 0.23 < block["calibrated_tool_rms_mm"] < 2.1  # docs/own-data.md's figures, 3x
+    assert 0.6 < block["drawn_tool_rms_mm"] < 5.5
+    assert drawn_words(block) is None
+    assert "chain as drawn" not in summary(read_board_calibration(out))
+    assert "chain as drawn" not in (out / "report.md").read_text()
