@@ -14,6 +14,7 @@ import pytest
 from selfcal.calibration.board.plan.drawn_check import KEY, drawn_words
 
 PANTILT = Path(__file__).resolve().parents[1] / "data" / "pantilt2.urdf"
+CHARUCO = Path(__file__).resolve().parents[2] / "models" / "targets" / "charuco.toml"
 
 
 @pytest.mark.slow  # plan, acquisition and calibration: about 6 CPU s
@@ -24,7 +25,7 @@ def test_pantilt_is_not_predicted_to_beat_the_drawing(tmp_path, capsys):
     from selfcal.pipeline.run import run_acquire
 
     plan = tmp_path / "plan"
-    assert main(["plan", "--robot", str(PANTILT), "--target", "models/targets/charuco.toml",
+    assert main(["plan", "--robot", str(PANTILT), "--target", str(CHARUCO),
                  "--fov-deg", "60", "--resolution", "1280x960", "--board-pose", "500,0,3",
                  "--count", "12", "--out", str(plan)]) == 0  # fmt: skip
     out = tmp_path / "run"
