@@ -277,8 +277,8 @@ def accuracy_markdown(section: dict) -> list[str]:
     ]
     drawn = drawn_words(section.get("drawn_reference"))
     if drawn is not None:
-        out += ["", drawn[0].upper() + drawn[1:] + ' (docs/tool-accuracy.md "Against the chain '
-                'as drawn").']  # fmt: skip
+        out += ["", drawn[0].upper() + drawn[1:] + ' (docs/own-data.md "Is the calibration '
+                'predicted to beat the chain as drawn?").']  # fmt: skip
     spread = section.get("spread")
     if spread:
         text = spread_line(spread)
