@@ -24,8 +24,7 @@ def test_the_prediction_holds_on_the_seven_joint_arm_with_few_postures():
     """8 draws (seeds 1-8), 0.5 px, 12 postures: inside the calibrated region the pooled
     predicted RMS over the pooled true RMS of the flange (board frame, unaligned) lies within
     the issue's 0.7-1.4 (measured 1.03), and the 95 % bounds cover 85 % of the (draw, joint
-    vector) pairs or more (measured 100 %). The benchmark's 30 draws gave 1.04 and 94.7 % (93.8 %
-    before the held share's bound took the folds' noise, 639a158):
+    vector) pairs or more (measured 100 %). The benchmark's 30 draws gave 1.04 and 93.8 %:
     ``uv run python -m selfcal.benchmarks.board.accuracy --robots tests/data/arm7.toml
     --models fits --draws 30 --jobs 1 --poses 12 --noise-px 0.5``."""
     rows = [draw((ARM7, 0.5, "fits", seed, 12)) for seed in range(1, 9)]
