@@ -35,14 +35,3 @@ def test_the_prediction_holds_on_the_seven_joint_arm_with_few_postures():
     print(f"predicted / true RMS {ratio:.3f}, coverage {cover:.3f}")
     assert 0.7 < ratio < 1.4, ratio
     assert cover >= 0.85, cover
-
-
-def test_no_model_error_is_counted_where_the_arm_fits_and_its_held_deviation_is_large():
-    """Seed 5 of the benchmark's 12-posture draws: the arm fits (its model's kind), the
-    selection held directions, and the arm's one draw of its deviation along them gave the folds
-    1.22 times what the prior's mean gives: counted as a 0.049 mm model error (2.9 noise
-    standard errors) before the count took the draw's scatter about that mean
-    (selfcal/calibration/board/held_prior.py counted_excess); none now."""
-    row = draw((ARM7, 0.5, "fits", 5, 12))
-    assert row["status"] == "ok", row["status"]
-    assert row["model_error_mm"] == 0.0, row["model_error_mm"]

@@ -5,10 +5,7 @@ deviation, :attr:`selfcal.calibration.board.bounds.BoardCramerRao.held`) weighed
 predicts with) into the bounds' covariances, ``c R S R^T``, ``c`` (0-1) the share of the prior the
 calibration's leave-one-configuration-out frames show, counted at its upper 95 % confidence
 bound (:func:`held_share`; the prior an upper limit: the selection holds a direction more often
-when the arm deviates little along it, and the folds lower it only as far as they show). The
-arm is one draw of the prior: what its held directions add to the folds' excess scatters about
-the prior's mean (:func:`held_excess_variance`), and a model error is counted only beyond that
-scatter and the noise's (:func:`counted_excess`). SI.
+when the arm deviates little along it, and the folds lower it only as far as they show). SI.
 """
 
 from __future__ import annotations
@@ -18,7 +15,6 @@ import dataclasses
 import numpy as np
 from scipy.special import stdtrit
 
-from selfcal.calibration.accuracy import Z_MODEL_ERROR
 from selfcal.calibration.board.bounds import BoardCramerRao
 from selfcal.calibration.board.deviation import Deviation
 
@@ -27,12 +23,9 @@ __all__ = [
     "SHARE_LEVEL",
     "UNMEASURABLE",
     "Share",
-    "counted_excess",
     "held_block",
-    "held_excess_variance",
     "held_sentence",
     "held_share",
-    "null_variance",
     "with_deviation",
 ]
 
@@ -134,57 +127,6 @@ def held_share(excess: np.ndarray, added: np.ndarray, expected: np.ndarray,
     se = float(np.sqrt(x.size / (x.size - 1) * np.sum(r**2))) / total
     upper = c + float(stdtrit(x.size - 1, SHARE_LEVEL)) * se
     return Share(float(np.clip(upper, 0.0, 1.0)), "folds", x.size, c, upper)
-
-
-def held_excess_variance(gram: np.ndarray, variance: np.ndarray) -> float:
-    """The variance (px^4) of what the arm's one deviation ``delta`` from the drawing adds to the
-    folds' summed squared pixel errors, ``delta^T M delta``, ``gram`` (k, k) ``M`` (the held-out
-    frames' ``L^T L`` summed, ``L`` their pixels per unit deviation of each minimal parameter:
-    :func:`selfcal.calibration.board.accuracy.held_out_errors`' ``held_gram``), ``delta``
-    drawn with the prior's ``variance`` (k,) m^2 / rad^2 per minimal parameter
-    (:meth:`Deviation.variance`): ``2 tr((M D)^2)``, ``D = diag(variance)``, a Gaussian
-    ``delta``'s (the prior's uniform one has less: the excess's test is then on the safe side).
-    Its mean ``tr(M D)`` is the folds' ``px2_held``: the arm is one draw of the prior, so the
-    excess its held directions give the folds scatters about that mean by this much, and a
-    model error is counted only beyond it
-    (:func:`counted_excess`; a 7-joint arm's 12 postures held directions whose one draw gave
-    1.22 times their mean, read as a model error at 2.9 standard errors of the noise alone)."""
-    M = np.asarray(gram, float)
-    d = np.sqrt(np.asarray(variance, float))
-    W = d[:, None] * M * d[None, :]  # D^1/2 M D^1/2: the same trace of powers as M D
-    return float(2.0 * np.sum(W * W.T))
-
-
-def null_variance(h: dict[str, np.ndarray], share: Share, variance: np.ndarray | None) -> float:
-    """The variance (px^4) of the folds' summed pixel excess beyond the deviation's counted part
-    (``c = share.point`` of ``px2_held``) when the arm has no model error: the frames' noise and
-    estimate errors (``px2_var``, summed), the scatter of the arm's one deviation along the
-    held directions about its prior mean (:func:`held_excess_variance` of the frames'
-    ``held_gram`` with the prior ``variance`` (k,), times ``c^2``) and their cross term
-    (``4 c sum held_cross . variance``: ``|n + L delta|^2`` has ``4 |Sigma^1/2 L delta|^2``
-    more variance than its two parts); none of the deviation's without a prior; ``h`` the
-    held-out frames of every fold (:func:`selfcal.calibration.board.accuracy.held_out_errors`'
-    keys)."""
-    noise = float(np.sum(h["px2_var"]))
-    if variance is None or not len(h["held_gram"]):
-        return noise
-    c, var = share.point, np.asarray(variance, float)
-    cross = 4.0 * c * float(np.sum(np.sum(h["held_cross"], axis=0) * var))
-    return noise + cross + c**2 * held_excess_variance(np.sum(h["held_gram"], axis=0), var)
-
-
-def counted_excess(h: dict[str, np.ndarray], share: Share, variance: np.ndarray | None) -> float:
-    """The folds' summed squared-pixel excess (px^2) a model error is read from: the held-out
-    frames' ``px2`` beyond what the estimate, the noise (``px2_expected``) and the deviation's
-    counted part (``share.point`` of ``px2_held``) give them, when it exceeds
-    :data:`selfcal.calibration.accuracy.Z_MODEL_ERROR` standard deviations of what it is without
-    a model error (:func:`null_variance`: the noise's and the deviation's one draw's), else 0;
-    ``h`` the held-out frames of every fold
-    (:func:`selfcal.calibration.board.accuracy.held_out_errors`' keys), ``variance`` (k,) the
-    deviation prior's (None: none)."""
-    extra = float(np.sum(h["px2"]) - np.sum(h["px2_expected"])
-                  - share.point * np.sum(h["px2_held"]))  # fmt: skip
-    return extra if extra > Z_MODEL_ERROR * np.sqrt(null_variance(h, share, variance)) else 0.0
 
 
 NO_FOLDS = Share(1.0, "no_folds")
