@@ -155,8 +155,12 @@ def joint_refine(
             pass) or ``"linear"`` (plain least squares on the two-stage inliers only).
         robust_scale_px, outlier_px: soft-L1 scale; minimum outlier threshold (the threshold is
             ``max(outlier_px, 4.5 sigma)``; :data:`selfcal.calibration.field.adjust.
-            OUTLIER_FLOOR_PX`, the camera stage's). The robust rounds stop once a round keeps exactly
-            the rows it was fitted to (another would solve the same problem again).
+            OUTLIER_FLOOR_PX`, the camera stage's). After a robust round the final plain pass
+            comes: on the round's rows when the round keeps exactly them (another round would
+            solve the same problem again), else on the rows it classifies as inliers, and then
+            that pass's own fit classifies them again: when it keeps exactly its rows it is the
+            result, else robust rounds go on from it (at most ``max_rounds`` robust rounds; the
+            pass after the last is not checked).
         terms: further measurements estimated with the rest (:mod:`selfcal.terms`: tracker
             positions, poses or distances, touch-probe points ...): each adds its residual and
             parameter blocks over the free kinematic parameters (block ``poses``), its residuals
@@ -260,15 +264,16 @@ def joint_refine(
         remap[pts_used] = np.arange(int(pts_used.sum()))
         return act & pts_used[pidx_all], pts_used, remap
 
-    rounds = max_rounds if loss != "linear" else 0
-    total_it = 0
+    robust_left = max_rounds if loss != "linear" else 0  # robust rounds still allowed
+    last = robust_left == 0  # the next solve is the plain least-squares pass
+    checked = False  # ... whose own fit classifies its rows again (module docstring)
+    total_it = n_robust = n_solves = 0
     converged = False
     diag: dict = {}
     rank_info: tuple[float, int] | None = None
     status, message = 0, ""
     plans = SchurPlans()  # rounds on the same rows, the rank check and covariance share them
-    for rnd in range(rounds + 1):
-        last = rnd == rounds
+    while True:
         act, pts_used, remap = select(active)
         x0 = np.concatenate([camera.free_values(), p, X[pts_used].ravel()])
         scale = scale_block(
@@ -308,6 +313,7 @@ def joint_refine(
             initial_damping=initial_damping,
         )
         sol = solve(prob.problem, opt, plans)
+        n_solves += 1
         # the next round starts where this one ended (warm): its rows are this fit's inliers
         initial_damping = min(sol.damping, SolverOptions.initial_damping)
         x, cost, status, message = sol.x, sol.cost, sol.status, sol.message
@@ -318,7 +324,7 @@ def joint_refine(
         built = [b.restarted(sol.values) for b in built]
         X = np.full_like(X, np.nan)
         X[pts_used] = Xu
-        if last:
+        if last and not checked:
             converged = status > 0
             break
         # reclassify every candidate row with the current estimate
@@ -334,18 +340,27 @@ def joint_refine(
         sigma = robust_sigma(e[act]) * np.sqrt(n_res / dof)
         thr = max(outlier_px, 4.5 * sigma)
         new_active = ok & (e < thr)
-        if np.array_equal(new_active, active):
-            # the round was fitted to the rows it classifies as inliers: another robust round
-            # would solve the same problem again, so the final plain pass comes next
-            active = new_active
-            rounds = rnd + 1
-            continue
+        same = bool(np.array_equal(new_active, active))
         active = new_active
+        if last:  # a checked final pass: its fit keeps exactly its rows, or robust rounds again
+            if same:
+                converged = status > 0
+                break
+            last = checked = False
+            continue
+        n_robust += 1
+        robust_left -= 1
+        # the final plain pass comes next: on the rows the round was fitted to (another robust
+        # round would solve the same problem again), or on the rows it changed, checked by the
+        # pass's own fit (a robust round on them, the old way, kept them at 300 postures of
+        # the default scenario where it took 3 iterations beside the pass's 3)
+        last = True
+        checked = not same and robust_left > 0
     if not converged:
         raise JointRefinementError(
             f"the joint refinement did not converge within {max_iter} iterations of its final "
             f"pass ({message}): the estimator failed, no check of the data found them wrong; "
-            f"tried: Levenberg-Marquardt from its start, {rnd} robust round(s) ({loss} loss) then "
+            f"tried: Levenberg-Marquardt from its start, {n_robust} robust round(s) ({loss} loss) then "
             f"plain least squares, {int(free.sum())} kinematic parameters free, "
             f"{int(act.sum())} corner observations",
             fix="add postures from other arm configurations, or raise max_iter",
@@ -429,7 +444,7 @@ def joint_refine(
         n_inliers=int(act.sum()),
         n_outliers=int((cand & ~act).sum()),
         iterations=total_it,
-        rounds=rnd + 1,
+        rounds=n_solves,
         converged=converged,
         seconds=time.perf_counter() - t_start,
         rank_min_singular=rank_info[0],
