@@ -10,8 +10,10 @@ view (:class:`FreePoses`).
 :func:`adjust` runs the sparse bundle adjustment (:func:`selfcal.estimation.bundle_adjust.bundle_adjust`) with a
 soft-L1 loss, re-triangulates every point robustly with the adjusted poses, reclassifies the
 observations (threshold ``max(outlier_px, 4.5 sigma)``, ``outlier_px`` by default
-:data:`OUTLIER_FLOOR_PX`) until a round keeps every row it was fitted to, then does a final
-least-squares pass over the rows the last round keeps. Views:
+:data:`OUTLIER_FLOOR_PX`), and ends with a final least-squares pass over the rows the last
+round keeps: at once when a round keeps every row it was fitted to; after a round that drops
+rows, a pass whose own fit classifies its rows again the same way, and which is the result
+when it keeps exactly them (else the robust rounds go on from it). Views:
 :class:`selfcal.estimation.observations.ViewLayout`.
 """
 
@@ -306,7 +308,8 @@ def adjust(
     seed: int = 0,
 ) -> Adjustment:
     """Robust rounds, then the final least-squares pass (module docstring), starting from the
-    rows ``active`` (k,). Updates ``rec`` to the adjusted reconstruction.
+    rows ``active`` (k,): at most ``max_rounds`` robust rounds (the pass after the last is not
+    checked). Updates ``rec`` to the adjusted reconstruction.
 
     Raises :class:`ConvergenceError` when the reference configuration loses its observations."""
     _, pidx = obs.point_index()
@@ -316,8 +319,9 @@ def adjust(
     rnd = 0
     damping = SolverOptions.initial_damping  # each round starts with the last one's (warm)
     plans = SchurPlans()  # rounds on the same rows (and the covariance) share their structure
+    checked = False  # a final pass on rows a robust round changed: its own fit classifies them
     while True:
-        last = rnd == max_rounds
+        last = checked or rnd == max_rounds
         a = _prune(rec, obs, active, min_view_points)
         used = np.flatnonzero(rec.has_X)
         remap = -np.ones(n_points, int)
@@ -350,13 +354,26 @@ def adjust(
             rec.T_rigs = model.rigs(res.pose_params)
         else:
             rec.T = res.T_cam_world
-        if last:
+        if last and not checked:
             return Adjustment(res, a, n_rounds, total_nfev)
+        kept = (rec.X, rec.has_X)  # the pass's points, should its classification keep its rows
         new_active = _retriangulate(rec, obs, res, a, outlier_px, seed + rnd)
+        if checked:
+            checked = False
+            if np.array_equal(new_active, a):
+                rec.X, rec.has_X = kept
+                return Adjustment(res, a, n_rounds, total_nfev)
+            active = new_active  # the plain fit changes its rows: robust rounds go on from it
+            continue
         if not np.any(a & ~new_active):
             # the round keeps every row it was fitted to: another robust round would solve the
             # same problem again, or one with a few more rows that lie within the threshold of
             # this fit (rows an earlier step left out), so the final pass comes next, over them
             max_rounds = rnd + 1
+        elif rnd + 1 < max_rounds:
+            # it drops rows: the final pass comes next, over the rows it keeps, and its own fit
+            # classifies them again (a robust round on them, the old way, kept them at 300
+            # postures of the default scenario, 5 iterations beside the pass's 3)
+            checked = True
         active = new_active
         rnd += 1
