@@ -36,7 +36,10 @@ def express_in_reference(
     """The chain ``model_g`` (optimisation gauge) re-expressed with the world at its tool (left
     camera) at joints ``q_ref`` (1, n), in ``like``'s joint-offset convention, and the
     covariance ``cov_free`` of its free flat parameters ``free_idx`` propagated to all minimal
-    parameters of that frame (central differences, step ``h``). SI units."""
+    parameters of that frame (central differences, step ``h``). SI units. A ``cov_free``
+    without a finite entry (no covariance computed: the fair nominal's refinement) gives the
+    all-NaN covariance it propagates to, without the differences (2 chains re-expressed per
+    free parameter)."""
     theta0 = model_g.params.reshape(-1)[free_idx]
 
     def to_ref_frame(theta: np.ndarray) -> MCPCModel:
@@ -47,7 +50,10 @@ def express_in_reference(
 
     model_ref = to_ref_frame(theta0)
     k = len(free_idx)
-    Hm = np.empty((minimal_indices(like.joint_types).size, k))
+    n_min = minimal_indices(like.joint_types).size
+    if k and not np.isfinite(cov_free).any():
+        return model_ref, np.full((n_min, n_min), np.nan)
+    Hm = np.empty((n_min, k))
     for j in range(k):
         e_ = np.zeros(k)
         e_[j] = h
