@@ -12,7 +12,7 @@ from typing import Any
 
 import pytest
 
-from selfcal.calibration.board.evaluate import EvaluationWarning, held_out_views
+from selfcal.calibration.board.evaluate import EvaluationWarning, evaluate_board, held_out_views
 from selfcal.errors import InputError
 
 BOARD = {"type": "charuco", "inner_corners": [11, 8], "square_mm": 20.0, "marker_mm": 15.0,
@@ -88,6 +88,12 @@ def test_a_dataset_of_another_robot_file_is_refused(tmp_path):
         f"{other}/dataset.json: robot_model 'robot/kr6_r900.urdf' is robot 'another_arm'"
     )
     assert "the calibration's robot file" in err.value.fix
+    # `selfcal evaluate CALIBRATION_DIR DATASET2` (the README's form) gives the folder: the
+    # robot file was then not compared and the other arm's images were predicted
+    cal_file.write_text("{}")  # evaluate_board is given the calibration read from it
+    for where in (cal_file.parent, cal_file):
+        with pytest.raises(InputError, match="is robot 'another_arm'"):
+            evaluate_board(cal, str(where), other)
     # the same robot under another file name passes the robot check (no corner detected)
     same = dataset(tmp_path / "same", urdf, "my_copy.urdf")
     with (pytest.raises(InputError, match="no image shows the"),

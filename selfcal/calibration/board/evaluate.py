@@ -345,12 +345,15 @@ def held_out_views(cal: BoardCalibrationResult, root: str | Path,
 
 def evaluate_board(cal: BoardCalibrationResult, cal_where: str, root: str | Path) -> Evaluation:
     """Predict DATASET2 (``root``) with ``cal`` (module docstring): every camera of DATASET2,
-    each with its calibrated model and extrinsics.
+    each with its calibrated model and extrinsics. ``cal_where``: the calibration.json ``cal``
+    was read from or its folder (a robot file it names is found relative to that folder).
 
     Raises:
         InputError: as :func:`held_out_views`.
     """
-    held = held_out_views(cal, root, cal_file=cal_where if Path(cal_where).is_file() else None)
+    where = Path(cal_where)  # a calibration.json or its folder (the README's form)
+    cal_file = where / "calibration.json" if where.is_dir() else where if where.is_file() else None
+    held = held_out_views(cal, root, cal_file=cal_file)
     T_first = np.eye(4)[None] if cal.T_first_cam is None else np.asarray(cal.T_first_cam)
     cams = {n: (cal.cameras[k], T_first[k]) for k, n in enumerate(cal.camera_names)}
     nom_cams, nom_T = cal.nominal_camera_set
