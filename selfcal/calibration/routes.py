@@ -274,15 +274,17 @@ def calibrate(
                                       pose_noise="auto" if pose_noise is None else pose_noise,
                                       camera="auto" if camera is None else camera)  # fmt: skip
     if route == "board":
-        from selfcal.calibration.board.dataset import calibrate_board_dataset
+        from selfcal.calibration.board.dataset import calibrate_board_dataset_detailed
+        from selfcal.calibration.board.plan.drawn_check import with_drawn_reference
 
-        board = calibrate_board_dataset(
+        detailed = calibrate_board_dataset_detailed(
             root,
             allow_missing_frames=allow_missing_frames,
             joint_sigma=joint_sigma,
             terms=terms,
             deviation=deviation,
-        )
+        )  # and whether it is predicted to beat the chain as drawn, as `selfcal calibrate`
+        board = with_drawn_reference(root, detailed.result, detailed, deviation)
         if write:
             write_calibration(Path(root) / "calibration.json", board)
         return board

@@ -311,13 +311,10 @@ def calibrate_board_run(
             res = dataclasses.replace(res, warnings=(*res.warnings, text))
         else:
             res = dataclasses.replace(res, accuracy=with_bootstrap(res.accuracy or {}, spread))
-    if res.accuracy is not None:  # is the calibration predicted to beat the drawing?
-        from selfcal.calibration.board.plan.drawn_check import KEY as DRAWN
-        from selfcal.calibration.board.plan.drawn_check import drawn_reference
+    # is the calibration predicted to beat the drawing?
+    from selfcal.calibration.board.plan.drawn_check import with_drawn_reference
 
-        drawn = drawn_reference(root, res, detailed.features[0], detailed.q, deviation)
-        if drawn is not None:
-            res = dataclasses.replace(res, accuracy={**res.accuracy, DRAWN: drawn})
+    res = with_drawn_reference(root, res, detailed, deviation)
     write_board_calibration(Path(root) / "calibration.json", res)
     if figures:
         ev = evaluate_board(res, str(Path(root) / "calibration.json"), root)

@@ -66,3 +66,22 @@ def test_well_determined_calibration_says_nothing_new(mono_charuco_15, capsys):
     assert drawn_words(block) is None
     assert "chain as drawn" not in summary(read_board_calibration(out))
     assert "chain as drawn" not in (out / "report.md").read_text()
+
+
+@pytest.mark.slow  # a second calibration of the 15 postures: about 3 CPU s
+def test_the_api_writes_what_selfcal_calibrate_writes(mono_charuco_15, tmp_path):
+    """The API's ``selfcal.calibrate(DIR)`` ("as ``selfcal calibrate`` does") wrote no
+    ``accuracy.drawn_reference``: an API user's pan-tilt never heard it was not predicted to
+    beat the drawing (review of session 28, finding 3)."""
+    import shutil
+
+    import selfcal
+
+    out, _ = mono_charuco_15
+    ds = tmp_path / "ds"
+    shutil.copytree(out, ds, ignore=shutil.ignore_patterns("calibration.json", "report*"))
+    selfcal.calibrate(ds)
+    cli = json.loads((out / "calibration.json").read_text())["accuracy"]
+    api = json.loads((ds / "calibration.json").read_text())["accuracy"]
+    assert sorted(api) == sorted(cli)
+    assert api[KEY] == cli[KEY]

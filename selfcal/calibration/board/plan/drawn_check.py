@@ -25,6 +25,7 @@ in the block.
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -44,10 +45,11 @@ from selfcal.kinematics.tool_error import workspace_sample
 if TYPE_CHECKING:
     from collections.abc import Sequence
 
+    from selfcal.calibration.board.dataset import BoardDatasetCalibration
     from selfcal.io.board_calibration import BoardCalibrationResult
     from selfcal.target.base import Features
 
-__all__ = ["KEY", "drawn_reference", "drawn_words"]
+__all__ = ["KEY", "drawn_reference", "drawn_words", "with_drawn_reference"]
 
 KEY = "drawn_reference"
 """The key of calibration.json's ``accuracy`` block this module writes."""
@@ -104,6 +106,24 @@ def drawn_reference(
             "kinematics for the same frames and the same sample: " + out["note"]
         ),
     }
+
+
+def with_drawn_reference(
+    root: str | Path,
+    cal: BoardCalibrationResult,
+    detailed: BoardDatasetCalibration,
+    deviation: Deviation | None = None,
+) -> BoardCalibrationResult:
+    """``cal`` (the result of ``detailed``, the calibration of the dataset ``root``, or it with
+    more accuracy keys) with :func:`drawn_reference`'s block as ``accuracy[KEY]``; ``cal`` as
+    it is when nothing is to be said. The one place both ``selfcal calibrate`` and the API's
+    ``selfcal.calibrate`` add it."""
+    if cal.accuracy is None:
+        return cal
+    drawn = drawn_reference(root, cal, detailed.features[0], detailed.q, deviation)
+    if drawn is None:
+        return cal
+    return dataclasses.replace(cal, accuracy={**cal.accuracy, KEY: drawn})
 
 
 def drawn_words(block: dict | None) -> str | None:
