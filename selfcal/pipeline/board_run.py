@@ -348,12 +348,15 @@ def _nominal_text(res: BoardCalibrationResult) -> str:
     if sel:
         cands = {c["label"]: c for c in sel["candidates"]}
         ch, nom = cands[sel["chosen"]], sel["candidates"][0]
+        counted = sel.get("folds_counted") or []  # the folds the selection compares over
+        folds = (f"the {sum(map(bool, counted))} of {len(counted)} folds that count"
+                 if counted and not all(counted) else "the folds")  # fmt: skip
         cv = (
             ""
             if ch.get("cv_px") is None or nom.get("cv_px") is None
             else (
                 f", cross-validated {ch['cv_px']:.3f} px against the nominal's {nom['cv_px']:.3f} px "
-                "(geometric mean over the folds)"
+                f"(geometric mean over {folds})"
             )
         )
         extra = [p for p in ch["parameters"] if p not in nom["parameters"]]

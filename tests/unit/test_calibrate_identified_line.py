@@ -41,6 +41,27 @@ def test_a_pan_tilts_line_names_what_it_identified_and_what_it_cannot():
     )
 
 
+def test_the_line_says_which_folds_its_cross_validation_counts():
+    """The selection's errors are over the folds that count (a fold leaving out more than half
+    of the frames does not, folds.counted_folds); the line said "over the folds" (review of
+    session 28, finding 9)."""
+    sel = {
+        "chosen": "+ lx1",
+        "candidates": [
+            {"label": "nominal (placement + camera)", "parameters": PLACEMENT, "cv_px": 0.742},
+            {"label": "+ lx1", "parameters": [*PLACEMENT, "lx1"], "cv_px": 0.735},
+        ],
+        "folds_counted": [True, True, False, True],
+    }
+    res = SimpleNamespace(nominal_rms_px=0.730, selection=sel, cv_verdict=lambda: None)
+    assert _nominal_text(res).endswith(
+        "cross-validated 0.735 px against the nominal's 0.742 px (geometric mean over the 3 of "
+        "4 folds that count)"
+    )
+    sel["folds_counted"] = [True] * 4  # every fold counts: as before
+    assert _nominal_text(res).endswith("(geometric mean over the folds)")
+
+
 def test_long_lists_are_counted():
     many = [f"lx{k}" for k in range(NAMES_SHOWN + 3)]
     words = identified_words(many, {})
