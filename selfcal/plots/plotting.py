@@ -10,6 +10,8 @@ every ``selfcal run``): no pyplot, and one draw per file instead of a layout pas
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from types import ModuleType
 from typing import Any
@@ -47,26 +49,29 @@ def pyplot() -> ModuleType:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt  # optional and slow: see the docstring
 
-    _text_style()
     return plt
 
 
 TEXT_HINTING = "no_hinting"
-"""Matplotlib's ``text.hinting`` for the project's figures, set by :func:`new_figure` and
-:func:`pyplot` (a process-wide setting: matplotlib reads it whenever it measures or draws a
-text). Unhinted glyphs are loaded and rendered by FreeType without its auto-hinter, which took
-about a tenth of the main job's three figures' CPU (``selfcal run`` waits for them at its end);
-the text is placed the same, its strokes look slightly softer, and the files are somewhat
+"""Matplotlib's ``text.hinting`` for the project's figures, in force only while this module
+measures or draws one (:func:`stack_layout`, :func:`save_figure`, :func:`figure_png`, the
+checks): matplotlib reads the process-wide setting whenever it measures or draws a text, and a
+program that imports :mod:`selfcal.plots` keeps its own for its own figures. Unhinted glyphs
+are loaded and rendered by FreeType without its auto-hinter, which took about a tenth of the
+main job's three figures' CPU (``selfcal run`` waits for them at its end); the text is placed
+the same, its strokes look slightly softer, and the files are somewhat
 larger (the glyphs' soft edges compress less than hinted ones; the commit that set it gives the
 measurement)."""
 
 
-def _text_style() -> None:
-    """Set :data:`TEXT_HINTING` (idempotent)."""
+@contextmanager
+def _text_style() -> Iterator[None]:
+    """:data:`TEXT_HINTING` while the block measures or draws text; the setting as it was
+    after."""
     import matplotlib  # slow: see pyplot()
 
-    if matplotlib.rcParams["text.hinting"] != TEXT_HINTING:
-        matplotlib.rcParams["text.hinting"] = TEXT_HINTING
+    with matplotlib.rc_context({"text.hinting": TEXT_HINTING}):
+        yield
 
 
 def new_figure(width_in: float, height_in: float, *, dpi: float = 110.0) -> Any:
@@ -76,7 +81,6 @@ def new_figure(width_in: float, height_in: float, *, dpi: float = 110.0) -> Any:
     from matplotlib.backends.backend_agg import FigureCanvasAgg  # slow: see pyplot()
     from matplotlib.figure import Figure
 
-    _text_style()
     fig = Figure(figsize=(width_in, height_in), dpi=dpi)
     FigureCanvasAgg(fig)
     return fig
@@ -100,7 +104,8 @@ def stack_layout(
     w, h = fig.get_size_inches()
     renderer = fig.canvas.get_renderer()
     legends = [ax.get_legend() for ax in fig.axes if ax.get_legend() is not None]
-    legend_w = max((lg.get_window_extent(renderer).width for lg in legends), default=0.0)
+    with _text_style():
+        legend_w = max((lg.get_window_extent(renderer).width for lg in legends), default=0.0)
     legend_w /= fig.dpi
     # legend_outside anchors the legend 1% of the axes width right of it
     axes_w = (w - left - legend_w - pad) / (1.01 if legends else 1.0)
@@ -150,7 +155,8 @@ def save_figure(fig: Any, path: str | Path, **kwargs: Any) -> Path:
     kwargs.setdefault("dpi", "figure")
     if fmt == "png":
         kwargs.setdefault("pil_kwargs", {"compress_level": PNG_COMPRESS_LEVEL})
-    return write_with_atomic(path, lambda tmp: fig.savefig(tmp, format=fmt, **kwargs))
+    with _text_style():
+        return write_with_atomic(path, lambda tmp: fig.savefig(tmp, format=fmt, **kwargs))
 
 
 def figure_png(fig: Any) -> bytes:
@@ -159,7 +165,8 @@ def figure_png(fig: Any) -> bytes:
     channel when every pixel is opaque."""
     from selfcal.io.png import encode_png
 
-    fig.canvas.draw()
+    with _text_style():
+        fig.canvas.draw()
     rgba = np.asarray(fig.canvas.buffer_rgba())
     img = rgba[..., :3] if (rgba[..., 3] == 255).all() else rgba
     return encode_png(img, drawing=True, dpi=float(fig.dpi))
@@ -214,7 +221,8 @@ def legend_overlaps(fig: Any) -> list[str]:
     """What the legends of ``fig`` cover: one line per data element (line vertex, bar, patch,
     collection vertex) inside the legend box of its axes, or of a figure legend. Empty when
     every legend covers no data. Draws the figure to lay it out."""
-    fig.canvas.draw()
+    with _text_style():
+        fig.canvas.draw()
     out = []
     for ax in fig.axes:
         legends = [lg for lg in (ax.get_legend(), *fig.legends) if lg is not None]
@@ -244,13 +252,14 @@ def layout_problems(fig: Any) -> list[str]:
     """What the layout of ``fig`` cuts off or overlaps: an axes with its ticks, labels, title and
     legend reaching out of the figure, two such axes boxes or a figure title (suptitle) and an
     axes box overlapping. Empty for a good layout. Draws the figure to lay it out."""
-    fig.canvas.draw()
-    renderer = fig.canvas.get_renderer()
+    with _text_style():
+        fig.canvas.draw()
+        renderer = fig.canvas.get_renderer()
+        boxes = [(ax.get_title() or f"axes {k + 1}", ax.get_tightbbox(renderer))
+                 for k, ax in enumerate(fig.axes)]  # fmt: skip
+        boxes += [(f"figure text {t.get_text()!r}", t.get_window_extent(renderer))
+                  for t in fig.texts if t.get_visible() and t.get_text()]  # fmt: skip
     page = fig.bbox
-    boxes = [(ax.get_title() or f"axes {k + 1}", ax.get_tightbbox(renderer))
-             for k, ax in enumerate(fig.axes)]  # fmt: skip
-    boxes += [(f"figure text {t.get_text()!r}", t.get_window_extent(renderer))
-              for t in fig.texts if t.get_visible() and t.get_text()]  # fmt: skip
     out = []
     tol = 0.5  # px: a box that touches the edge is inside
     for name, b in boxes:

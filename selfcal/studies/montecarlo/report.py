@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from selfcal.plots.plotting import legend_outside, pyplot
+from selfcal.plots.plotting import legend_outside, pyplot, save_figure
 from selfcal.studies.montecarlo.stats import METHODS
 
 __all__ = ["summary_markdown", "plot"]
@@ -129,5 +129,5 @@ def plot(rows: list[dict], s: dict, path: Path) -> None:
     a2.set_ylabel("RMS error / bound")
     a2.set_title("parameters (reference-camera frame; of a board: the board frame)")
     legend_outside(a2)
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
