@@ -179,8 +179,11 @@ def _unreadable(f: Path) -> ImportError_:
     """The error of an image OpenCV cannot read; a short text file naming an existing file (a
     symbolic link that git, an archive or a copy wrote as text: a real set's ``images_calib/01.png``
     held ``../../examples/data/test_set_charuco/images/1.png``) names the file it points to."""
+    text = ""
     try:
-        text = f.read_bytes()[: LINK_TEXT_BYTES + 1].decode("utf-8").strip() if f.is_file() else ""
+        if f.is_file():  # the head alone: an unreadable image may be large
+            with f.open("rb") as fh:
+                text = fh.read(LINK_TEXT_BYTES + 1).decode("utf-8").strip()
     except (OSError, UnicodeDecodeError):
         text = ""
     target = f.parent / text if text and len(text) <= LINK_TEXT_BYTES and "\n" not in text else None
