@@ -101,7 +101,8 @@ def distance_unit(block: dict) -> str:
 
 def cross_validation_line(cv: dict | None) -> str | None:
     """One sentence of the cross-validated reprojection (None without it): the RMS over every
-    fold's held-out corners together, which is not the selection table's figure (each
+    fold's held-out corners together (the folds that count, ``folds_counted`` when not all do),
+    which is not the selection table's figure (each
     candidate's geometric mean over the folds' RMS,
     :func:`selfcal.pipeline.report_fit.selection_markdown`): the sentence says which it is, as
     the two differ when one fold predicts much worse than the others."""
@@ -109,9 +110,13 @@ def cross_validation_line(cv: dict | None) -> str | None:
         return None
     c, n = cv["calibrated"], cv["nominal"]
     corners = f"the {c['corners']} " if c.get("corners") else "the "
+    counted = cv.get("folds_counted")  # absent: every fold counts
+    which = ("all folds" if counted is None else
+             f"the {counted} folds that count (a fold leaving out more than half of the frames "
+             "does not)")  # fmt: skip
     return (
         f"cross-validated over {cv['configurations']} configurations in {cv['folds']} folds, "
-        f"RMS over {corners}held-out corners of all folds together (the parameter selection's "
+        f"RMS over {corners}held-out corners of {which} together (the parameter selection's "
         "table gives each fold's RMS and their geometric mean): "
         f"calibrated {c['reprojection_rms_px']:.3f} px ({c['at_board_rms_mm']:.3f} mm at the "
         f"board), fair nominal {n['reprojection_rms_px']:.3f} px "

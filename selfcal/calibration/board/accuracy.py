@@ -56,7 +56,14 @@ the folds do not show (below two standard errors) is not counted anywhere, howev
 held-out configurations far outside the others (few configurations) make the folds'
 extrapolation, not the calibration's, the measure.
 
-Beside it, the cross-validated reprojection (``accuracy.cross_validation``): every fold's
+The folds read here are the ones that count in the selection
+(:func:`selfcal.calibration.board.folds.counted_folds`, :meth:`Selection.counts`): a fold that
+leaves out more than half of the frames is fitted on a smaller experiment than the calibration,
+so its error at the frames it left out is neither the calibration's model error nor its held-out
+error; the model error, the held share and the held-out RMS leave it out as the selection does
+(the jackknife, :mod:`selfcal.calibration.board.spread`, takes every fold: it says why).
+
+Beside it, the cross-validated reprojection (``accuracy.cross_validation``): every counted fold's
 held-out frames predicted by the chosen candidate and by the fair nominal (the first candidate,
 :mod:`selfcal.calibration.board.nominal_fit`'s objective on the same training frames), as the
 2-D RMS in px and in mm at the board (the detected pixel's ray met with the board's plane at the
@@ -287,8 +294,9 @@ def model_error(obs: BoardObservations, selection: Selection, offsets: np.ndarra
                 T_tool_point: np.ndarray, pixel_sigma_px: float,
                 variance: np.ndarray | None = None,
                 span: np.ndarray | None = None) -> tuple[ModelError | None, Share]:  # fmt: skip
-    """The model error (module docstring) from the chosen candidate's fold fits (None without
-    folds, one configuration, or when no fold was fitted) and the share of the deviation
+    """The model error (module docstring) from the chosen candidate's fold fits that count
+    (:func:`selfcal.calibration.board.fold_fits.fold_bounds`; None without folds, one
+    configuration, or when no counted fold was fitted) and the share of the deviation
     ``variance`` (k,) from the drawing (:func:`selfcal.calibration.board.held_prior.held_share`)
     the folds' excess shows (the prior unscaled without folds); the model error is what is left
     beyond its point estimate. ``span`` (n,): the joints' spans (:func:`joint_spans`) when the
@@ -332,7 +340,8 @@ def model_error(obs: BoardObservations, selection: Selection, offsets: np.ndarra
     r2, s2, n2 = ([x] for x in pose_error_terms(h, POSITION))
     r2r, s2r, n2r = ([x] for x in pose_error_terms(h, ORIENTATION))
     reached = float(np.max(h["distance"])) if span is not None else None  # None: not read
-    me = model_error_of(r2, s2, n2, (r2r, s2r, n2r), folds=len(got), failed=selection.folds - len(got),
+    me = model_error_of(r2, s2, n2, (r2r, s2r, n2r), folds=len(got),
+                        failed=selection.folds_counting - len(got),
                         noise_what="the pixel and joint read-back noise",
                         given=(m, m / float(np.mean(h["lever"]))),
                         reach_distance=reach, growth=gram, measured_to=reached)  # fmt: skip
@@ -364,8 +373,9 @@ def _errors_px_mm(obs: BoardObservations, fit: Refinement,
 
 def cross_validated_reprojection(obs: BoardObservations, selection: Selection) -> dict | None:
     """The cross-validated reprojection of the chosen candidate and of the fair nominal (module
-    docstring): per model its 2-D RMS in px and mm at the board over every held-out row; None
-    without folds."""
+    docstring): per model its 2-D RMS in px and mm at the board over every held-out row of the
+    folds that count (:meth:`Selection.counts`; ``folds_counted`` says how many when not all
+    do), None for a model a counted fold's fit failed for; None without folds."""
     if selection.fold_of is None:
         return None
     chosen = selection.candidates[selection.chosen]
@@ -376,13 +386,21 @@ def cross_validated_reprojection(obs: BoardObservations, selection: Selection) -
         "configurations": selection.configurations,
         "folds": selection.folds,
     }
+    if selection.folds_counting < selection.folds:  # as the selection's `folds_counted`
+        out["folds_counted"] = selection.folds_counting
+        out["what"] += (": the folds that count, a fold leaving out more than half of the frames "
+                        "not (its fit stands for a smaller experiment than the calibration)")  # fmt: skip
     for key, cand in (("calibrated", chosen), ("nominal", selection.candidates[0])):
         px, mm = [], []
+        fitted = 0
         for f, (fit, _, _) in sorted(cand.fold_fits.items()):
+            if not selection.counts(f):
+                continue
             e_px, e_mm = _errors_px_mm(obs, fit, selection.fold_of == f)
             px.append(e_px)
             mm.append(e_mm)
-        if not px or len(cand.fold_fits) < selection.folds:
+            fitted += 1
+        if not px or fitted < selection.folds_counting:
             out[key] = None
             continue
         p, m = np.concatenate(px), np.concatenate(mm)

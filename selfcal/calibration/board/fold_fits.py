@@ -28,15 +28,22 @@ def frame_features(obs: BoardObservations, frames: np.ndarray) -> list[list]:
 def fold_bounds(obs: BoardObservations, selection: Selection, offsets: np.ndarray,
                 T_tool_point: np.ndarray, pixel_sigma_px: float,
                 ) -> Iterator[tuple[np.ndarray, Refinement, BoardCramerRao]]:  # fmt: skip
-    """Every fitted fold of the chosen candidate (none without folds): its held-out frames
-    ``out`` (m,) bool, its fit and the Cramer-Rao bounds of that fit on its training frames
-    (the calibration's own rule, ``offsets`` (n,) rad its gauge, the corner noise
-    ``pixel_sigma_px``), in the fold order."""
+    """Every fitted fold of the chosen candidate that counts (none without folds): its held-out
+    frames ``out`` (m,) bool, its fit and the Cramer-Rao bounds of that fit on its training
+    frames (the calibration's own rule, ``offsets`` (n,) rad its gauge, the corner noise
+    ``pixel_sigma_px``), in the fold order. A fold that leaves out more than half of the frames
+    does not count (:meth:`Selection.counts`,
+    :func:`selfcal.calibration.board.folds.counted_folds`): its fit on the rest stands for a
+    smaller experiment than the calibration, so its error at the frames it left out is not the
+    calibration's, neither for the selection nor for the model error and the held share read
+    from these folds."""
     if selection.fold_of is None:
         return
     for f, (fit, free_idx, offset_joints) in sorted(
         selection.candidates[selection.chosen].fold_fits.items()
     ):
+        if not selection.counts(f):
+            continue
         out = selection.fold_of == f
         train = obs.used & ~out
         cr = board_cramer_rao(

@@ -166,6 +166,22 @@ class Selection:
         assert fit is not None
         return fit
 
+    def counts(self, fold: int) -> bool:
+        """Whether the fold ``fold`` (a label of :attr:`fold_of`) counts: :attr:`counted`, from
+        :func:`selfcal.calibration.board.folds.counted_folds` (True when no fold is recorded).
+        The accuracy side (the model error, the held share, the held-out RMS,
+        :mod:`selfcal.calibration.board.accuracy`) reads the folds that count, as the selection
+        does."""
+        if self.fold_of is None or not self.counted:
+            return True
+        labels = np.unique(self.fold_of[self.fold_of >= 0]).tolist()
+        return bool(self.counted[labels.index(int(fold))])
+
+    @property
+    def folds_counting(self) -> int:
+        """How many of the :attr:`folds` count (:meth:`counts`)."""
+        return sum(self.counted) if self.counted else self.folds
+
     def to_json(self) -> dict:
         return {
             "identified": list(self.identified),

@@ -29,6 +29,15 @@ few configurations for many parameters: for a linear least-squares fit with 15 c
 of 2 rows in 5 folds it over-states the variance 1.08 times on average with one parameter, 1.25
 with four and 1.55 with eight, 1.04-1.05 with 150 rows or 60 configurations for four
 (:mod:`selfcal.benchmarks.board.jackknife_bias`); a board fit has tens of parameters.
+
+Every fold enters it, also one that leaves out more than half of the frames and so does not
+count in the selection or the accuracy side (:func:`selfcal.calibration.board.folds.counted_folds`):
+the jackknife is a variance over the groups, each replicate leaving one out, and a replicate
+dropped from the sum takes its group's part of the variance with it (the group is then in every
+replicate left: the spread would hold it fixed and under-state). Such a fold's fit on the
+minority lies far out instead, and the spread over-states (the bias above at its largest); the
+unequal groups' delete-m jackknife, which weighs a fold by the frames it keeps over those it
+leaves out, is not used.
 """
 
 from __future__ import annotations
