@@ -84,7 +84,9 @@ def test_a_configuration_is_the_arm_joints_the_wrist_may_move():
     assert unseen(q, q, types6).tolist() == [False] * 5
 
 
-def _selection(q_true: np.ndarray, seed: int):
+def _selection(q_true: np.ndarray, seed: int, keep: dict | None = None):
+    """The selection on the lab's frames at ``q_true`` (the fair nominal, a held-out check);
+    ``keep`` gets the observations (``obs``) and the robot (``robot``)."""
     robot = load_robot(ROBOT)
     nom = nominal_mcpc(robot).with_tool(robot.T_flange_cam)
     lab = make_lab(0)
@@ -94,6 +96,8 @@ def _selection(q_true: np.ndarray, seed: int):
     cam = calibrate_board(BOARD, feats, W, H, free=CAMERA.free, model="opencv")
     obs = BoardObservations(BOARD, cam, feats, q_read)
     nominal = fit_nominal(obs, nom)
+    if keep is not None:
+        keep.update(obs=obs, robot=robot)
     # new postures to predict, as a held-out set would be
     qv = postures(lab, 12, seed=11)
     fv = board_features(lab.true_model, lab.T_world_board, qv, 0.2, seed + 1)
@@ -242,7 +246,8 @@ def test_a_fold_leaving_out_the_majority_is_reported_but_does_not_count():
     rows = [10, 2, 2, 2]
     wrist = np.c_[np.zeros((16, 3)), rng.normal(0, np.radians(4.0), (16, 3))]
     q = np.repeat(base, rows, axis=0) + wrist
-    sel, _, _ = _selection(q, 0)
+    keep: dict = {}
+    sel, nominal, _ = _selection(q, 0, keep)
     big = int(np.unique(sel.fold_of[:10])[0])
     assert sel.folds == 4 and sel.fold_of is not None
     assert [k for k, c in enumerate(sel.counted) if not c] == [big]
@@ -254,6 +259,23 @@ def test_a_fold_leaving_out_the_majority_is_reported_but_does_not_count():
         assert np.isfinite(c.fold_rms_px[big])  # fitted and reported
         assert c.cv_px == pytest.approx(cv_error(c.fold_rms_px, sel.counted))
         assert c.cv_px != pytest.approx(cv_error(c.fold_rms_px))
+    # the accuracy side reads the same three folds (tests/unit/test_counted_accuracy.py on
+    # stubs): the model error's folds and the cross-validated held-out RMS's
+    from selfcal.calibration.board.accuracy import cross_validated_reprojection, model_error
+    from selfcal.transforms import inv_pose
+
+    obs, robot = keep["obs"], keep["robot"]
+    me, share = model_error(obs, sel, nominal.model.joint_offsets, inv_pose(robot.T_flange_cam),
+                            0.2)  # fmt: skip
+    assert me is not None and (me.folds, me.failed) == (3, 0)
+    assert me.rows == 6  # a row per held-out frame: the three folds' 2 each, not the 10
+    cv = cross_validated_reprojection(obs, sel)
+    assert cv is not None and cv["folds"] == 4 and cv["folds_counted"] == 3
+    chosen = sel.candidates[sel.chosen]
+    e = [predict_px(obs, chosen.fold_fits[f][0], sel.fold_of == f)
+         for f in sorted(chosen.fold_fits) if f != big]  # fmt: skip
+    rms = np.sqrt(np.mean(np.sum(np.concatenate(e) ** 2, axis=1)))
+    assert cv["calibrated"]["reprojection_rms_px"] == pytest.approx(rms, rel=1e-6)
     two, _, _ = _selection(np.repeat(base[:2], [8, 4], axis=0) + wrist[:12], 0)
     assert two.folds == 2 and two.chosen == 0 and len(two.candidates) == 1
     assert two.fold_of is None and two.rule.startswith("no cross-validation: of 2 folds")
