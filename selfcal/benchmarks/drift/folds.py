@@ -2,7 +2,8 @@
 benchmark :mod:`selfcal.benchmarks.drift.real_folds`).
 
 Each fold of the calibration (the chosen candidate fitted without one arm configuration,
-:func:`selfcal.calibration.board.fold_fits.fold_bounds`) is a calibration and its held-out frames
+:func:`selfcal.calibration.board.fold_fits.fold_bounds`: the folds that count, as
+the accuracy block's) is a calibration and its held-out frames
 new views (:class:`Fold`, :func:`folds_of`): every held-out frame linearised at the fold's fit
 (pixels in px, parameters SI, the order of the check's
 :func:`selfcal.calibration.drift.images.estimate_covariance`), the calibration's per-view pose

@@ -10,7 +10,8 @@ frames' residuals hold the deviation's part too, so it is counted twice; taking 
 alone makes the check reject the unchanged held-out group (``drift_real_deviation``).
 
 Here each fold of the calibration (the chosen candidate fitted without one arm configuration,
-:func:`selfcal.calibration.board.fold_fits.fold_bounds`) is the calibration and its held-out
+:func:`selfcal.calibration.board.fold_fits.fold_bounds`: the folds that count, as
+the accuracy block's) is the calibration and its held-out
 frames the new views: what the check would predict for them (the fold's own covariance, the
 deviation at share ``c``, the calibration's per-view misfit scaled by ``a``, its camera misfit,
 white and joint read-back noise, each view's own white noise where above the calibration's as
