@@ -24,7 +24,11 @@ and read-back noise's share, ``b_f`` the default deviation's, ``s`` its scale:
 ``s^2 = (mean(measured^2) - mean(a)) / mean(b)``, within :data:`SCALE_RANGE`; lengths and
 angles scale together (the default's ratio kept). The mean square rather than the selection's
 geometric mean because it is linear in ``s^2``: no search needed (matching geometric means by
-bisection, tried first, gave much the same).
+bisection, tried first, gave much the same). Every fold enters, also one that leaves out more
+than half of the frames and so does not count in the selection
+(:func:`selfcal.calibration.board.folds.counted_folds`): here no fold stands for the
+calibration, the forecast models each fold's own fit on its own training part, and such a
+fold's misfit measures the deviation as well as any.
 
 Its bias: the measured misfit holds everything the fair nominal misses, so the sized deviation
 carries it all as geometry. Model error the chain cannot express (compliance, a lens misfit)
