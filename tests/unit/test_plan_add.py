@@ -112,41 +112,9 @@ def test_one_configuration_leaves_the_added_postures_alone(setup, plan):
     ids = setup.board.layout()[0]
     dp = DatasetPlan(setup, q, (ids,) * 4, np.zeros(0, np.int64), np.zeros(0, np.int64))
     Ff = frame_information(setup, plan.q[:4], 0.5, JS)
-    sets = training_sets(dp, Ff, 4)  # the fold leaves out 4 of 8 frames: it counts
+    sets = training_sets(dp, Ff)
     assert len(sets) == 2
     assert np.allclose(sets[0], Ff.sum(axis=0)) and np.allclose(sets[1], 0.0)
-
-
-def test_a_fold_leaving_out_most_frames_is_not_served(setup, plan):
-    """The fold that leaves out the dataset's one configuration (4 of the 4 + 3 frames) does
-    not count in the selection (folds.counted_folds), so the greedy choice does not serve its
-    training set (issue #30): the whole alone."""
-    q = np.tile(setup.robot.home, (4, 1))
-    q[:, 4] += np.radians([0, 10, 20, 30])
-    ids = setup.board.layout()[0]
-    dp = DatasetPlan(setup, q, (ids,) * 4, np.zeros(0, np.int64), np.zeros(0, np.int64))
-    Ff = frame_information(setup, plan.q[:4], 0.5, JS)
-    for added in (0, 3):
-        sets = training_sets(dp, Ff, added)
-        assert len(sets) == 1 and np.allclose(sets[0], Ff.sum(axis=0))
-
-
-def test_training_sets_of_unequal_folds(setup, plan):
-    """Two configurations of 5 and 1 frames: the fold of 5 leaves out most of 6 frames (not
-    served) until 4 postures are added (5 of 10); the fold of 1 always counts."""
-    q = np.tile(setup.robot.home, (6, 1))
-    q[5, 0] += np.radians(20.0)  # a second arm configuration, one frame
-    q[:, 4] += np.radians([0, 10, 20, 30, 40, 0])
-    ids = setup.board.layout()[0]
-    dp = DatasetPlan(setup, q, (ids,) * 6, np.zeros(0, np.int64), np.zeros(0, np.int64))
-    Ff = frame_information(setup, plan.q[:6], 0.5, JS)
-    total = Ff.sum(axis=0)
-    small = total - Ff[5]  # the training set of the fold of 1 frame
-    for added, n in ((0, 2), (3, 2), (4, 3)):
-        sets = training_sets(dp, Ff, added)
-        assert len(sets) == n and np.allclose(sets[0], total)
-        assert np.allclose(sets[-1], small)
-    assert np.allclose(training_sets(dp, Ff, 4)[1], Ff[5])  # the fold of 5 left out
 
 
 def test_a_stack_of_one_start_is_that_start(setup, plan, parts):

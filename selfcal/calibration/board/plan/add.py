@@ -54,7 +54,7 @@ import numpy as np
 from selfcal.calibration.board.bounds import estimated_parameters
 from selfcal.calibration.board.dataset import dataset_board, detect_board
 from selfcal.calibration.board.deviation import Deviation
-from selfcal.calibration.board.folds import configurations, counted_folds, fold_labels
+from selfcal.calibration.board.folds import configurations, fold_labels
 from selfcal.calibration.board.plan import spread as forecast_spread
 from selfcal.calibration.board.plan.add_cell import ADD_RULE, calibrated_cell
 from selfcal.calibration.board.plan.greedy import select_greedy
@@ -209,27 +209,17 @@ def drawn_mount_words(plan: DatasetPlan, deviation: Deviation) -> str:
             "the chain as drawn has no hand-eye to go by")  # fmt: skip
 
 
-def training_sets(plan: DatasetPlan, F_frames: np.ndarray, added: int = 0) -> np.ndarray:
+def training_sets(plan: DatasetPlan, F_frames: np.ndarray) -> np.ndarray:
     """(1 + f, p, p) the information of the dataset's frames ``F_frames`` (m, p, p) summed:
-    all of them, then the training set of every fold of the selection's cross-validation that
-    counts (all but one fold of its arm configurations,
-    :func:`selfcal.calibration.board.folds.fold_labels`), with ``added`` postures to be added
-    to every training set. A fold counts as the selection counts it
-    (:func:`selfcal.calibration.board.folds.counted_folds`): when it leaves out at most half of
-    the dataset's frames and the ``added`` ones together; a fold leaving out more stands for a smaller
-    experiment, decides nothing in the selection, its error is no part of the predicted
-    accuracy, and the greedy choice does not serve it. So a dataset of one configuration gives
-    the whole and nothing when ``added`` is at least its frames (the fold that leaves it out
-    fits the added postures alone, and they must then predict it), the whole alone when fewer
-    are added."""
+    all of them, then every training set of the selection's cross-validation (all but one
+    fold of its arm configurations,
+    :func:`selfcal.calibration.board.folds.fold_labels`). A dataset of one
+    configuration gives the whole and nothing: the fold that leaves it out fits the added
+    postures alone, and they must then predict it."""
     folds = fold_labels(configurations(plan.q, plan.setup.robot.joint_types))
-    labels = np.unique(folds)
-    # the added postures are in every training part: a fold of their own, past the dataset's
-    # (whether it counts itself is not asked)
-    counted = counted_folds(np.concatenate([folds, np.full(max(added, 0), labels.max() + 1)]))
     total = F_frames.sum(axis=0)
     return np.stack([total, *(total - F_frames[folds == f].sum(axis=0)
-                              for f, c in zip(labels, counted) if c)])  # fmt: skip
+                              for f in np.unique(folds))])  # fmt: skip
 
 
 @dataclass(frozen=True, eq=False)
@@ -366,7 +356,7 @@ def plan_additions(
     A = prediction_information(setup, g.pool, opts.pixel_sigma_px, opts.joint_sigma)
     most = min(count + max(more, 0), len(F))
     picks = select_greedy(F, G, n_cam, min(most + spare, len(F)),
-                          start=training_sets(plan, F_frames, count) + prior_information(var, n_cam))  # fmt: skip
+                          start=training_sets(plan, F_frames) + prior_information(var, n_cam))  # fmt: skip
     home = setup.robot.home
     n_feat = np.concatenate([plan.n_features, np.full(len(F), len(setup.board.layout()[0]))])
     model = board_model(setup)
