@@ -215,7 +215,16 @@ def training_sets(plan: DatasetPlan, F_frames: np.ndarray) -> np.ndarray:
     fold of its arm configurations,
     :func:`selfcal.calibration.board.folds.fold_labels`). A dataset of one
     configuration gives the whole and nothing: the fold that leaves it out fits the added
-    postures alone, and they must then predict it."""
+    postures alone, and they must then predict it.
+
+    Every fold, also one that leaves out more than half of the frames and so does not count in
+    the selection (:func:`selfcal.calibration.board.folds.counted_folds`): its term stands in
+    for the folds that do count, which the greedy cannot name before it has chosen. On a
+    wrist-only dataset those folds each leave out one added posture and train on the dataset,
+    which adds little of the arm's kinematics, and the other added ones: nearly the added
+    postures alone, what this fold's term asks of them. Serving only the folds that count (the
+    whole alone there) was measured and reverted (session 29, commit 9c38632: the eye-in-hand
+    ``--add 5`` benchmark's 12 truths achieved less, docs/plan.md)."""
     folds = fold_labels(configurations(plan.q, plan.setup.robot.joint_types))
     total = F_frames.sum(axis=0)
     return np.stack([total, *(total - F_frames[folds == f].sum(axis=0)
