@@ -196,3 +196,75 @@ def test_the_benchmark_checks_the_commands_postures():
         assert 0 <= got[f"{s}_tool"] <= 2 and 0 <= got[f"{s}_unchanged"] <= 2
     row = {"setup": "eye-in-hand, er4u-paper", "noise_px": 0.2, "calibrations": 1} | got
     assert "| chosen |" in table([row]) and "| random |" in table([row])
+
+
+def test_a_view_of_part_of_the_board_is_linearised_with_the_features_it_would_detect(
+    mono_charuco_15,
+):
+    """Candidates near the calibration's postures that see part of the board: each view is
+    linearised with the features it would detect (expected_features, by the calibration's
+    chain), not the whole board's, and the power stated for three of them is below what the
+    whole board's features there would give (before, every feature was linearised)."""
+    from selfcal.calibration.board.accuracy import board_postures_from_json
+    from selfcal.calibration.board.misfit import board_view
+    from selfcal.calibration.drift.choose import candidates_near, expected_features
+    from selfcal.calibration.drift.covariance import estimate_covariance
+    from selfcal.calibration.drift.views import calibration_views
+    from selfcal.kinematics.forward import fk_tool
+
+    out, _ = mono_charuco_15
+    cal = read_board_calibration(out)
+    board = parse_target(cal.target, "t")
+    setup = check_cell(calibrated_cell(cal, load_robot(cal.robot_model), cal.cameras[0], board,
+                                       np.zeros((0, 6)))[0])  # fmt: skip
+    q_cal = board_postures_from_json(cal.accuracy, cal.model.n, "calibration.json")
+    q = candidates_near(setup, q_cal, 40, seed=2)
+    seen = expected_features(cal, setup, q)
+    _, X = board.layout()
+    k = seen.sum(axis=1)
+    part = np.flatnonzero(k >= CHECK_CORNERS)
+    part = part[np.argsort(k[part], kind="stable")]  # the fewest features first
+    assert len(part) >= 3 and k[part[2]] < len(X), k
+    q = q[part[:3]]
+    em = calibration_error_model(cal, "calibration.json")
+    views = candidate_views(cal, em, setup, q)
+    assert [len(v.r) for v in views] == [2 * k for k in seen[part[:3]].sum(axis=1)]
+    T = fk_tool(cal.model, q)
+    whole = calibration_views(cal, em, q, [(i, X, board_view(cal.cameras[0], T[i], X, False)[1])
+                                           for i in range(len(q))])  # fmt: skip
+    C = estimate_covariance(cal, em)
+    got, all_of_it = (shift_power(C, v, eye_to_hand=False, alpha=0.01, search=False).power
+                      for v in (views, whole))  # fmt: skip
+    assert got < all_of_it
+
+
+@pytest.mark.slow  # 5 rendered images: ~10 CPU s
+def test_the_chosen_postures_render_with_the_corners_the_plan_expects(mono_charuco_15, tmp_path,
+                                                                      capsys):  # fmt: skip
+    """`plan --check 5` on the shared calibration, its postures rendered with MuJoCo on the
+    scenario's true arm (the one the calibration's images came from) and detected: every corner
+    the plan linearised (expected_features, by the calibration's chain) is detected in every
+    image, views of part of the board among them or not."""
+    from selfcal.acquisition.backends import make_sim_robot
+    from selfcal.calibration.drift.choose import expected_features
+    from selfcal.config.scenario import load_scenario, scenarios_dir
+
+    out, _ = mono_charuco_15
+    plan = tmp_path / "plan"
+    assert main(["plan", "--check", "5", str(out), "--out", str(plan), "--json"]) == 0
+    q = np.radians(json.loads(capsys.readouterr().out)["joints_deg"])
+    cal = read_board_calibration(out)
+    board = parse_target(cal.target, "t")
+    setup = check_cell(calibrated_cell(cal, load_robot(cal.robot_model), cal.cameras[0], board,
+                                       np.zeros((0, 6)))[0])  # fmt: skip
+    expected = expected_features(cal, setup, q)
+    ids = board.layout()[0]
+    s = load_scenario(scenarios_dir() / "mono-charuco.toml",
+                      {"noise": {"render": True}, "trajectory": {"poses": 15}})  # fmt: skip
+    with make_sim_robot(s) as sim:
+        for i, qi in enumerate(q):
+            sim.move_to(np.degrees(qi))
+            got = set(board.detect(sim.capture().left).ids.tolist())
+            want = set(ids[expected[i]].tolist())
+            assert want <= got, (i, sorted(want - got))
+    print("features expected per view:", expected.sum(axis=1).tolist())
