@@ -268,3 +268,18 @@ def test_the_chosen_postures_render_with_the_corners_the_plan_expects(mono_charu
             want = set(ids[expected[i]].tolist())
             assert want <= got, (i, sorted(want - got))
     print("features expected per view:", expected.sum(axis=1).tolist())
+
+
+def test_the_help_and_the_docs_say_the_choices_numbers():
+    """`plan --help`'s --check text and docs/tool-accuracy.md give the rule's numbers as the
+    code has them."""
+    from pathlib import Path
+
+    from selfcal.calibration.drift.choose import CHECK_SPREAD, NEAR_DEG
+    from selfcal.cli.plan_check import CHECK_EPILOG
+
+    docs = (Path(__file__).resolve().parents[2] / "docs/tool-accuracy.md").read_text()
+    for text in (" ".join(CHECK_EPILOG.split()), " ".join(docs.split())):
+        assert f"within {NEAR_DEG:g} deg of the calibration's" in text
+        assert f"at least {CHECK_CORNERS} features" in text
+        assert {0.25: "a quarter"}[CHECK_SPREAD] + " of the image each way" in text
