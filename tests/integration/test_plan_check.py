@@ -186,14 +186,17 @@ def test_plan_check_eye_to_hand(tmp_path, capsys):
 def test_the_benchmark_checks_the_commands_postures():
     """``python -m selfcal.benchmarks.drift.choose``'s one calibration: the command's choice
     and the random set, each checked unchanged and shifted; the stated powers are the
-    command's (chosen above random), the counts within the checks made."""
+    command's (chosen above random), the counts within the checks made (with the joint offset's
+    checks), no view misses a corner the command expected."""
     from selfcal.benchmarks.drift.choose import SETS, chosen_checks, table
 
-    got = chosen_checks((0.2, 1, 2, "eye-in-hand", None, 3, 8))
+    got = chosen_checks((0.2, 1, 2, "eye-in-hand", None, 3, 8, True))
     assert got["status"] == "ok", got["status"]
     assert 0.0 <= got["random_power"] < got["chosen_power"] <= 1.0
     for s in SETS:
         assert 0 <= got[f"{s}_tool"] <= 2 and 0 <= got[f"{s}_unchanged"] <= 2
+        assert 0 <= got[f"{s}_joint"] + got[f"{s}_joint_cannot_tell"] <= 2  # --joint-offset
+        assert got[f"{s}_views_missing_expected"] == 0  # the corners the command expected
     row = {"setup": "eye-in-hand, er4u-paper", "noise_px": 0.2, "calibrations": 1} | got
     assert "| chosen |" in table([row]) and "| random |" in table([row])
 
