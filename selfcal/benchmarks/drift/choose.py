@@ -22,8 +22,8 @@ counted.
 
 Run: ``nice -n 10 uv run python -m selfcal.benchmarks.drift.choose [--calibrations 30]
 [--checks 10] [--setup eye-in-hand] [--robot er4u-paper] [--noise-px 0.2] [--views 5]
-[--candidates 30] [--joint-offset] [--jobs 1] [--journal FILE]`` (prints the rows; not a docs
-block). ``--joint-offset``: each set is also checked with one random joint's zero moved by
+[--candidates 30] [--joint-offset] [--jobs 1] [--journal FILE] [--write-docs]`` (prints the
+rows; ``--write-docs`` puts them in docs/tool-accuracy.md's ``benchmark_drift_choose`` block). ``--joint-offset``: each set is also checked with one random joint's zero moved by
 0.05 deg (the issue's other change, which the stated power does not weigh), with draws of its
 own.
 """
@@ -36,8 +36,9 @@ from pathlib import Path
 
 import numpy as np
 
-from selfcal.benchmarks.doc_blocks import code_version
+from selfcal.benchmarks.doc_blocks import code_version, codes_note, print_table
 from selfcal.benchmarks.drift.images import (
+    DOC,
     JOINT_OFFSET_RAD,
     SCENARIOS,
     TOOL_SHIFT_M,
@@ -69,6 +70,8 @@ COUNTS = (
 )
 
 
+BLOCK = "benchmark_drift_choose"
+"""The table's block in docs/tool-accuracy.md (``--write-docs``)."""
 JOINT_COUNTS = ("joint", "joint_cannot_tell")
 """With ``--joint-offset``: the checks of a random joint's zero moved by 0.05 deg."""
 
@@ -147,7 +150,8 @@ def chosen_checks(args: tuple) -> dict:
 
 
 def table(rows: list[dict]) -> str:
-    """The Markdown table of the rows (one per setup, robot and noise level)."""
+    """The Markdown table of the rows (one per setup, robot and noise level) and the line after
+    it naming the command and the code that measured them."""
     head = ("| setup | noise (px) | calibrations | checks | set | stated power (mean) | 0.2 mm "
             "mount shift found (target >= 95 %) | 'changed' on unchanged data (target < 2 %) | "
             "'cannot tell': unchanged / shift |\n|---|---|---|---|---|---|---|---|---|\n")  # fmt: skip
@@ -159,7 +163,12 @@ def table(rows: list[dict]) -> str:
                          f"| {s} | {100 * r[f'{s}_power']:.1f} % | {100 * r[f'{s}_tool'] / m:.1f} % | "
                          f"{100 * r[f'{s}_unchanged'] / m:.1f} % | {r[f'{s}_unchanged_cannot_tell']} / "
                          f"{r[f'{s}_tool_cannot_tell']} |")  # fmt: skip
-    return head + "\n".join(lines)
+    setups = " ".join(dict.fromkeys(r["setup"].split(",")[0] for r in rows))
+    cals = max((r["calibrations"] for r in rows), default=0)
+    noise = " ".join(dict.fromkeys(f"{r['noise_px']:g}" for r in rows))
+    return (head + "\n".join(lines) + f"\n\n(`MUJOCO_GL=egl nice -n 10 uv run python -m "
+            f"selfcal.benchmarks.drift.choose --calibrations {cals} --setup {setups} --noise-px "
+            f"{noise} --jobs 1 --write-docs`{codes_note(rows, ('setup', 'noise_px'))}.)")  # fmt: skip
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -179,9 +188,15 @@ def main(argv: list[str] | None = None) -> int:
                     help="also check each set with one random joint's zero moved by 0.05 deg "
                     "(its own draws; printed after the table)")  # fmt: skip
     ap.add_argument("--jobs", type=int, default=1, help="processes (default 1)")
+    ap.add_argument("--write-docs", action="store_true",
+                    help="put the table in docs/tool-accuracy.md (its benchmark_drift_choose "
+                    "block; the default views, candidates and checks only)")  # fmt: skip
     ap.add_argument("--journal", type=Path, default=None, metavar="FILE",
                     help="keep each calibration's counts in FILE (JSON lines) and reuse them")  # fmt: skip
     args = ap.parse_args(argv)
+    if args.write_docs and (args.views, args.candidates, args.checks) != (5, 30, 10):
+        ap.error("--write-docs writes the table of the command's defaults: leave out --views, "
+                 "--candidates and --checks, or --write-docs")  # fmt: skip
     rows, code = [], code_version()
     for setup in args.setup:
         robot = args.robot if setup == "eye-in-hand" else None
@@ -191,7 +206,7 @@ def main(argv: list[str] | None = None) -> int:
                     for seed in range(1, args.calibrations + 1)]  # fmt: skip
             ok = [g for g in journaled_checks(todo, args.jobs, code, args.journal, chosen_checks)
                   if g["status"] == "ok"]  # fmt: skip
-            row = {"setup": f"{setup}, {robot or 'scenario robot'}", "noise_px": s,
+            row = {"setup": f"{setup}, {robot or 'scenario robot'}", "noise_px": s, "code": code,
                    "calibrations": len(ok), "checks": sum(g["checks"] for g in ok)}  # fmt: skip
             for k in SETS:
                 row[f"{k}_power"] = float(np.mean([g[f"{k}_power"] for g in ok])) if ok else 0.0
@@ -204,7 +219,7 @@ def main(argv: list[str] | None = None) -> int:
                   f"{row['chosen_views_left_out']} / {row['random_views_left_out']}; views "
                   f"missing a corner the command expected {row['chosen_views_missing_expected']}"
                   f" / {row['random_views_missing_expected']}", file=sys.stderr)  # fmt: skip
-    print(table(rows))
+    print_table(table(rows), DOC, BLOCK, write=args.write_docs)
     for r in rows if args.joint_offset else []:
         m = max(r["checks"], 1)
         print(f"{r['setup']} {r['noise_px']:g} px: a 0.05 deg offset of one random joint found "

@@ -239,8 +239,9 @@ def seen_features(setup: PlanSetup, T_cam_board: np.ndarray) -> np.ndarray:
     (m, 4, 4; board -> camera, m) count as seen. The whole-board rule (:attr:`ViewRule.
     min_corners` 0, or a board whose detector finds every feature or none): every feature of a
     view :func:`board_views_ok` passes. A view of part of the board: the board within the
-    rule's tilt, and per feature the square cells about it (one feature pitch each way: a
-    ChArUco corner is interpolated from the markers in those cells, OpenCV's ``minMarkers``)
+    rule's tilt, and per feature the square cells about it (one feature pitch each way: OpenCV
+    returns a ChArUco corner only with ``CharucoParameters.minMarkers``, default 2, of the
+    markers beside it found, the two in those cells)
     inside the image with the rule's margin beyond its least depth, one pitch at least
     :attr:`ViewRule.min_pitch_px` and one marker cell :attr:`ViewRule.min_module_px` at the
     feature in the direction the view foreshortens most."""
