@@ -41,8 +41,10 @@ CHECK_EPILOG = """\
 CALIBRATION NEW`) of a board calibration (`selfcal calibrate` on images of a board, either mount,
 one camera) finds most: chosen one by one from --candidates (default 30) of the plan's candidate
 postures in the calibration's cell (its robot file, calibrated camera, board and mounts; the
-view rule and collision checks above, --keep-out), each the one that raises the check's stated
-power most (the power `selfcal check` states: how often images like these find a 0.2 mm move of
+collision checks above, --keep-out), half of them within 10 deg of the calibration's postures
+on every joint; a view may show part of the board (at least 12 features, each with the squares
+about it in the image, spanning a quarter of the image each way; the power counts only the
+features each view would detect), each the one that raises the check's stated power most (the power `selfcal check` states: how often images like these find a 0.2 mm move of
 the camera's, eye-to-hand the board's, mount on the flange, not turned, in a random direction,
 from calibration.json's covariance). It weighs that change alone: a joint's offset is tested by
 the check but has no stated power. PLAN/joints.csv (for `selfcal import --joints`) and

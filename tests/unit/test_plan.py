@@ -145,3 +145,44 @@ def test_prediction_with_joint_noise_is_the_board_route_bound(setup, plan):
     got = predicted_error(F, G, setup.camera.n_free)
     assert got == pytest.approx(cr.aligned_tool_rms(plan.workspace, T_cam_tip), rel=1e-6)
     assert got > plan.predicted_m  # noisy joints: a larger error than with exact ones
+
+
+def _facing(setup: PlanSetup, dx: float, depth: float = 0.4) -> np.ndarray:
+    """(1, 4, 4) board -> camera: the optical axis along the board's normal through its centre
+    moved by ``dx`` (m) along the board's x axis, ``depth`` m away."""
+    _, X = setup.board.layout()
+    T = np.eye(4)
+    T[:3, 3] = -X.mean(axis=0) + [dx, 0.0, depth]
+    return T[None]
+
+
+def test_a_view_of_part_of_the_board_sees_the_features_whose_cells_are_in_view(setup):
+    """The whole-board rule refuses a view with part of the board out of the image; a check's
+    rule (min_corners) counts the features whose cells about them (one pitch each way) lie in
+    the image with the margin: some but not all here, each of them inside, every feature with
+    room to spare among them; the view passes when that many are asked and not one more."""
+    from dataclasses import replace
+
+    from selfcal.calibration.board.plan.views import seen_features
+
+    _, X = setup.board.layout()
+    T = _facing(setup, 0.2)
+    assert not board_views_ok(setup, T).any() and not seen_features(setup, T).any()
+    part = replace(setup, rule=replace(setup.rule, min_corners=6))
+    assert seen_features(part, _facing(setup, 0.0)).all()  # the whole board in view
+    seen = seen_features(part, T)[0]
+    assert 12 <= seen.sum() <= len(X) - 12
+    uv = project(setup.camera, T[0], X)
+    margin, w, h = setup.rule.margin_px, setup.camera.width, setup.camera.height
+    assert np.all((uv[seen] >= margin) & (uv[seen] <= [w - margin, h - margin]))
+    pitch = np.min(np.linalg.norm(X[1:] - X[0], axis=1))
+    room = [project(setup.camera, T[0], X + pitch * np.array([a, b, 0.0]))
+            for a in (-1.5, 1.5) for b in (-1.5, 1.5)]  # fmt: skip
+    roomy = np.all([np.all((u >= 2 * margin) & (u <= [w - 2 * margin, h - 2 * margin]), axis=1)
+                    for u in room], axis=0)  # fmt: skip
+    assert roomy.any() and np.all(seen[roomy])
+    assert not np.any(seen[uv[:, 0] > w - margin])
+    k = int(seen.sum())
+    for need, passes in ((k, True), (k + 1, False)):
+        rule = replace(setup.rule, min_corners=need)
+        assert board_views_ok(replace(setup, rule=rule), T).tolist() == [passes]

@@ -8,13 +8,18 @@ eye-to-hand the board's; :func:`selfcal.calibration.drift.power.shift_power`), f
 calibration's covariance and the views alone, before any image is taken. So the postures can be
 chosen by it (:func:`choose_check_postures`):
 
-- candidates: the recording plan's (:func:`selfcal.calibration.board.plan.views.candidate_pool`:
-  within the joint ranges, free of collision and the keep-out boxes, the whole board in view
-  with the plan's view rule) in the cell the calibration placed (the robot file, the calibrated
-  camera, the board and the mounts read out of the chain:
-  :func:`selfcal.calibration.board.plan.add_cell.calibrated_cell`), either mount;
-- each linearised at the calibration as the check linearises an image (the board's features at
-  the pixels the calibration predicts, its noise: :func:`selfcal.calibration.drift.views.
+- candidates: the recording plan's (:func:`selfcal.calibration.board.plan.views.feasible`:
+  within the joint ranges, free of collision and the keep-out boxes, the lines of sight clear)
+  in the cell the calibration placed (the robot file, the calibrated camera, the board and the
+  mounts read out of the chain: :func:`selfcal.calibration.board.plan.add_cell.calibrated_cell`),
+  either mount, half drawn as a plan draws them (:func:`selfcal.calibration.board.plan.views.
+  candidate_pool`), half within :data:`NEAR_DEG` of the calibration's own postures
+  (:func:`candidates_near`), shuffled; each may show part of the board (:data:`CHECK_CORNERS`
+  features seen, spanning :data:`CHECK_SPREAD` of the image each way, by
+  :func:`selfcal.calibration.board.plan.views.seen_features`; a board whose detector finds the
+  whole grid or nothing still needs every feature);
+- each linearised at the calibration as the check linearises an image (the features that view
+  would detect, by the calibration's chain, at the pixels the calibration predicts, its noise: :func:`selfcal.calibration.drift.views.
   calibration_views`);
 - chosen one by one, each the candidate that raises the stated power most
   (:func:`chosen_views`, :data:`GREEDY_DRAWS` draws a trial, the same draws for every trial);
@@ -26,13 +31,14 @@ What it covers: the mount's translation alone (the issue's 0.2 mm tool shift). A
 weigh it. Measured (docs/tool-accuracy.md): on the ER-4u at 0.2 px, 5 views chosen so from 30
 candidates near the calibration's postures, not all of the board in view, found 97.0 % of 300
 mount shifts (random 5: 79 %; ``python -m selfcal.benchmarks.drift.images --choose 30``); from
-this function's candidates, which show the whole board, 75.0 % (random 5: 46 %; ``python -m
-selfcal.benchmarks.drift.choose``): NOT met there. Units: SI inside, the shift in mm.
+whole-board candidates alone (this function before it took views of part of the board) 75.0 %
+(random 5: 46 %; ``python -m selfcal.benchmarks.drift.choose``): NOT met there. Units: SI
+inside, the shift in mm.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -40,7 +46,12 @@ from selfcal.calibration.board.accuracy import board_postures_from_json
 from selfcal.calibration.board.folds import unseen
 from selfcal.calibration.board.misfit import board_view
 from selfcal.calibration.board.plan.add_cell import calibrated_cell
-from selfcal.calibration.board.plan.views import PlanSetup, candidate_pool
+from selfcal.calibration.board.plan.views import (
+    PlanSetup,
+    candidate_pool,
+    feasible,
+    seen_features,
+)
 from selfcal.calibration.drift.covariance import estimate_covariance
 from selfcal.calibration.drift.fold_error import fold_error_model
 from selfcal.calibration.drift.images import ALPHA, calibration_error_model
@@ -52,9 +63,25 @@ from selfcal.io.target_toml import parse_target
 from selfcal.kinematics.forward import fk_tool
 from selfcal.robot.definition import RobotDef
 from selfcal.target.boards import Board
+from selfcal.transforms import inv_pose
 
-__all__ = ["GREEDY_DRAWS", "CheckChoice", "candidate_views", "choose_check_postures",
+__all__ = ["CHECK_CORNERS", "CHECK_SPREAD", "GREEDY_DRAWS", "NEAR_DEG", "CheckChoice",
+           "candidate_views", "candidates_near", "check_cell", "expected_features", "choose_check_postures",
            "chosen_views"]  # fmt: skip
+
+CHECK_CORNERS = 12
+"""The fewest board features a check's view of part of the board sees (by the calibration's
+chain; :attr:`selfcal.calibration.board.plan.views.ViewRule.min_corners`): twice the board's
+least usable view (``Board.min_features``, 6 for a ChArUco) so that a view still fixes a pose
+with the detector's losses at its edge."""
+CHECK_SPREAD = 0.25
+"""The share of the image's width and of its height a check view's seen features span at
+least (:attr:`selfcal.calibration.board.plan.views.ViewRule.min_spread`): not a strip or a
+corner of the board."""
+NEAR_DEG = 10.0
+"""Half the candidates lie within this of one of the calibration's postures on every joint
+(deg; the drift benchmark's new views, ``python -m selfcal.benchmarks.drift.images``, at
+:data:`selfcal.benchmarks.drift.images.SPREAD_RAD`)."""
 
 GREEDY_DRAWS = 500
 """Draws of the stated power per trial of the greedy choice (:func:`chosen_views`; the final
@@ -79,16 +106,55 @@ def chosen_views(C: np.ndarray, pool: list[ViewJacobians], count: int, *, eye_to
     return pick
 
 
-def candidate_views(cal: BoardCalibrationResult, em, board: Board, q: np.ndarray, *,
+def candidate_views(cal: BoardCalibrationResult, em, setup: PlanSetup, q: np.ndarray, *,
                     where: str = "calibration.json") -> list[ViewJacobians]:  # fmt: skip
-    """The views of every feature of ``board`` at the joints ``q`` (m, n) rad, linearised at
-    the calibration ``cal`` (``em`` its error model) as the check linearises an image whose
-    corners lie where the calibration predicts them (no residual: what the power needs are the
-    Jacobians and the noise)."""
-    _, X = board.layout()
+    """The views at the joints ``q`` (m, n) rad of the features each would detect
+    (:func:`selfcal.calibration.board.plan.views.seen_features` of the cell ``setup``, the board
+    posed by the calibration's chain), linearised at the calibration ``cal`` (``em`` its error
+    model) as the check linearises an image whose corners lie where the calibration predicts
+    them (no residual: what the power needs are the Jacobians and the noise); every posture's
+    view must see a feature (:func:`expected_features`)."""
+    _, X = setup.board.layout()
     T = fk_tool(cal.model, np.atleast_2d(q))
-    views = [(i, X, board_view(cal.cameras[0], T[i], X, cal.eye_to_hand)[1]) for i in range(len(T))]
+    seen = expected_features(cal, setup, q)
+    views = [(i, X[s], board_view(cal.cameras[0], T[i], X[s], cal.eye_to_hand)[1])
+             for i, s in enumerate(seen)]  # fmt: skip
     return calibration_views(cal, em, np.atleast_2d(q), views, where=where)
+
+
+def expected_features(cal: BoardCalibrationResult, setup: PlanSetup, q: np.ndarray) -> np.ndarray:
+    """(m, k) bool: the features of the board (its layout's order) the views at the joints ``q``
+    (m, n) rad would detect: :func:`selfcal.calibration.board.plan.views.seen_features` of the
+    cell ``setup`` with the board posed by the calibration ``cal``'s chain."""
+    T = fk_tool(cal.model, np.atleast_2d(q))
+    return seen_features(setup, T if cal.eye_to_hand else inv_pose(T))
+
+
+def check_cell(setup: PlanSetup) -> PlanSetup:
+    """The cell ``setup`` with its view rule taking views of part of the board
+    (:data:`CHECK_CORNERS`, :data:`CHECK_SPREAD`)."""
+    rule = replace(setup.rule, min_corners=CHECK_CORNERS, min_spread=CHECK_SPREAD)
+    return replace(setup, rule=rule)
+
+
+def candidates_near(setup: PlanSetup, centres: np.ndarray, n: int, *, seed: int,
+                    spread_deg: float = NEAR_DEG, batch: int = 1024,
+                    max_draws: int = 100_000) -> np.ndarray:  # fmt: skip
+    """Up to ``n`` candidate postures (m, dof) rad of the cell ``setup``
+    (:func:`selfcal.calibration.board.plan.views.feasible`: the plan's rules) drawn uniformly
+    within ``spread_deg`` of one of the ``centres`` (c, dof) rad on every joint (clipped to the
+    joint ranges), in random order (deterministic for ``seed``); none after ``max_draws``."""
+    rng = np.random.default_rng(seed)
+    lim = setup.robot.limits
+    found: list[np.ndarray] = []
+    drawn = 0
+    while sum(map(len, found)) < n and drawn < max_draws and len(centres):
+        c = centres[rng.integers(len(centres), size=batch)]
+        q = np.clip(c + rng.uniform(-1, 1, c.shape) * np.radians(spread_deg), lim[:, 0],
+                    lim[:, 1])  # fmt: skip
+        drawn += batch
+        found.append(q[feasible(setup, q)])
+    return np.concatenate(found)[:n] if found else np.zeros((0, setup.robot.n))
 
 
 @dataclass(frozen=True, eq=False)
@@ -150,27 +216,36 @@ def choose_check_postures(cal: BoardCalibrationResult, robot: RobotDef, count: i
     except InputError as exc:
         raise InputError(f"{where}: the check's candidates cannot be placed in the robot's base "
                          f"frame: {exc.message}", fix=exc.fix) from exc  # fmt: skip
+    setup = check_cell(setup)
+    q_cal = board_postures_from_json(cal.accuracy or {}, cal.model.n, where)
+    near = candidates_near(setup, q_cal, candidates - candidates // 2, seed=seed)
     try:
-        pool, drawn_from = candidate_pool(setup, candidates, seed=seed)
+        pool, drawn_from = candidate_pool(setup, candidates - len(near), seed=seed)
     except InputError as exc:  # its fix names a new plan's options
         raise InputError(f"{where}: {exc.message}",
                          fix="the cell is the calibration's (its board pose and camera mount): "
                          "give fewer keep-out boxes, or calibrate from views that show the whole "
                          "board") from exc  # fmt: skip
-    if len(pool) < count:
-        raise InputError(f"{where}: only {len(pool)} candidate postures see the whole board, "
-                         f"fewer than the {count} to choose",
-                         fix="give fewer postures, or fewer keep-out boxes")  # fmt: skip
+    pool = np.concatenate([near, pool])
+    pool = pool[np.random.default_rng(seed).permutation(len(pool))]
+    drawn_from = f"{len(near)} within {NEAR_DEG:g} deg of the calibration's postures, " \
+        f"{len(pool) - len(near)} in the {drawn_from}"  # fmt: skip
     C = estimate_covariance(cal, em)
     upper = fold_error_model(em, cal.accuracy, view_noise(cal, where).misfit_counted) is not None
-    views = candidate_views(cal, em, board, pool, where=where)
+    least = min(CHECK_CORNERS, len(board.layout()[1]))
+    pool = pool[expected_features(cal, setup, pool).sum(axis=1) >= least]
+    if len(pool) < count:
+        raise InputError(f"{where}: only {len(pool)} candidate postures see the board "
+                         f"({CHECK_CORNERS} features at least, by the calibration's chain), "
+                         f"fewer than the {count} to choose",
+                         fix="give fewer postures, or fewer keep-out boxes")  # fmt: skip
+    views = candidate_views(cal, em, setup, pool, where=where)
     pick = chosen_views(C, views, count, eye_to_hand=cal.eye_to_hand, alpha=alpha)
 
     def stated(idx: list[int]) -> ShiftPower:
         return shift_power(C, [views[i] for i in idx], eye_to_hand=cal.eye_to_hand, alpha=alpha,
                            upper=upper)  # fmt: skip
 
-    q_cal = board_postures_from_json(cal.accuracy or {}, cal.model.n, where)
     far = unseen(pool[pick], q_cal, cal.model.joint_types)
     first = list(range(count))
     return CheckChoice(pool[pick], stated(pick), pool[first], stated(first), len(pool),

@@ -1,5 +1,6 @@
 """The postures a recording plan may use: reachable, collision-free, and seeing the whole board
-well (the candidate pool of :mod:`selfcal.calibration.board.plan.planner`).
+well (the candidate pool of :mod:`selfcal.calibration.board.plan.planner`); a drift check's
+may see part of it (:attr:`ViewRule.min_corners`, :func:`seen_features`).
 
 Two mounts (:class:`PlanSetup`): eye-in-hand (the camera on the flange, the board static in the
 base frame) and eye-to-hand (the camera static in the base frame, the board on the flange). A
@@ -60,6 +61,7 @@ __all__ = [
     "PlanSetup",
     "board_views_ok",
     "module_m",
+    "seen_features",
     "feasible",
     "candidate_pool",
 ]
@@ -78,6 +80,14 @@ class ViewRule:
     max_tilt_deg: float = 60.0
     min_pitch_px: float = 12.0
     min_module_px: float = 2.5
+    min_corners: int = 0
+    """0: the whole board in view (a plan's rule). Otherwise a view of part of the board counts
+    when at least this many features are seen (:func:`seen_features`) and they span
+    :attr:`min_spread` of the image (a drift check's views, :mod:`selfcal.calibration.drift.
+    choose`); a board whose detector finds the whole grid or nothing still needs every feature."""
+    min_spread: float = 0.0
+    """With :attr:`min_corners`: the share of the image's width and of its height the seen
+    features' pixels span at least."""
 
 
 EYE_TO_HAND_RULE = ViewRule(min_pitch_px=24.0, max_tilt_deg=45.0, min_module_px=0.0)
@@ -185,10 +195,16 @@ def _pitch_edges(board: Board) -> tuple[np.ndarray, float]:
 def _in_view(setup: PlanSetup, T_cam_board: np.ndarray, X: np.ndarray) -> np.ndarray:
     """(m,) bool: every point ``X`` (k, 3) board frame m projected by the camera model beyond
     the rule's least depth and inside the image."""
+    return np.asarray(_points_in_view(setup, T_cam_board, X).all(axis=1))
+
+
+def _points_in_view(setup: PlanSetup, T_cam_board: np.ndarray, X: np.ndarray) -> np.ndarray:
+    """(m, k) bool: which points ``X`` (k, 3) board frame m the camera model projects beyond the
+    rule's least depth and inside the image with its margin."""
     rule, cam = setup.rule, setup.camera
     Xc = np.einsum("mij,kj->mki", T_cam_board[:, :3, :3], X) + T_cam_board[:, None, :3, 3]
-    ok = np.all(cam.valid(Xc) & (cam.depth(Xc) > rule.min_depth_m), axis=1)
-    return ok & np.all(cam.in_image(cam.project_valid(Xc)[0], rule.margin_px), axis=1)
+    ok = cam.valid(Xc) & (cam.depth(Xc) > rule.min_depth_m)
+    return ok & cam.in_image(cam.project_valid(Xc)[0], rule.margin_px)
 
 
 def board_views_ok(setup: PlanSetup, T_cam_board: np.ndarray) -> np.ndarray:
@@ -196,6 +212,8 @@ def board_views_ok(setup: PlanSetup, T_cam_board: np.ndarray) -> np.ndarray:
     camera, m) show the board as the module docstring asks."""
     T_cb = np.asarray(T_cam_board, dtype=float).reshape(-1, 4, 4)
     rule = setup.rule
+    if rule.min_corners > 0 and not setup.board.whole_grid:
+        return _part_ok(setup, T_cb)
     # the optical axis against the board's normal (board z, into the board) in the camera frame
     ok = T_cb[:, 2, 2] >= np.cos(np.radians(rule.max_tilt_deg))
     X = setup.board_points()
@@ -213,6 +231,59 @@ def board_views_ok(setup: PlanSetup, T_cam_board: np.ndarray) -> np.ndarray:
     ok[ok] = (side_px[:, has] / side_m[has] * pitch).min(axis=1) >= rule.min_pitch_px
     if module is not None and ok.any():  # at every feature
         ok[ok] = _module_px(setup, T_cb[ok], X[:-4], module) >= rule.min_module_px
+    return ok
+
+
+def seen_features(setup: PlanSetup, T_cam_board: np.ndarray) -> np.ndarray:
+    """(m, k) bool: which of the board's features (its layout's order) the views ``T_cam_board``
+    (m, 4, 4; board -> camera, m) count as seen. The whole-board rule (:attr:`ViewRule.
+    min_corners` 0, or a board whose detector finds every feature or none): every feature of a
+    view :func:`board_views_ok` passes. A view of part of the board: the board within the
+    rule's tilt, and per feature the square cells about it (one feature pitch each way: OpenCV
+    returns a ChArUco corner only with ``CharucoParameters.minMarkers``, default 2, of the
+    markers beside it found, the two in those cells)
+    inside the image with the rule's margin beyond its least depth, one pitch at least
+    :attr:`ViewRule.min_pitch_px` and one marker cell :attr:`ViewRule.min_module_px` at the
+    feature in the direction the view foreshortens most."""
+    T_cb = np.asarray(T_cam_board, dtype=float).reshape(-1, 4, 4)
+    rule, board = setup.rule, setup.board
+    n = len(board.layout()[1])
+    if rule.min_corners <= 0 or board.whole_grid:
+        return np.repeat(board_views_ok(setup, T_cb)[:, None], n, axis=1)
+    out = np.zeros((len(T_cb), n), bool)
+    tilt = T_cb[:, 2, 2] >= np.cos(np.radians(rule.max_tilt_deg))
+    out[tilt] = _seen(setup, T_cb[tilt])
+    return out
+
+
+def _seen(setup: PlanSetup, T_cb: np.ndarray) -> np.ndarray:
+    """(m, k) bool: :func:`seen_features` of a view of part of the board, its tilt passed."""
+    rule, board = setup.rule, setup.board
+    _, X = board.layout()
+    _, pitch = _pitch_edges(board)
+    ok = _points_in_view(setup, T_cb, X)
+    for dx, dy in ((-1, -1), (1, -1), (1, 1), (-1, 1)):  # the cells about each feature
+        ok &= _points_in_view(setup, T_cb, X + pitch * np.array([dx, dy, 0.0]))
+    ok &= _cell_px(setup, T_cb, X, pitch) >= rule.min_pitch_px
+    module = module_m(board) if rule.min_module_px > 0 else None
+    if module is not None:
+        ok &= _cell_px(setup, T_cb, X, module) >= rule.min_module_px
+    return ok
+
+
+def _part_ok(setup: PlanSetup, T_cb: np.ndarray) -> np.ndarray:
+    """(m,) bool: views of part of the board with :attr:`ViewRule.min_corners` features seen,
+    their pixels spanning :attr:`ViewRule.min_spread` of the image each way."""
+    seen = seen_features(setup, T_cb)
+    ok = seen.sum(axis=1) >= setup.rule.min_corners
+    if ok.any() and setup.rule.min_spread > 0:
+        _, X = setup.board.layout()
+        Xc = np.einsum("mij,kj->mki", T_cb[ok, :3, :3], X) + T_cb[ok, None, :3, 3]
+        uv = setup.camera.project(Xc)  # (m, k, 2)
+        m = seen[ok][..., None]
+        span = np.where(m, uv, -np.inf).max(axis=1) - np.where(m, uv, np.inf).min(axis=1)
+        size = np.array([setup.camera.width, setup.camera.height], float)
+        ok[ok] = np.all(span >= setup.rule.min_spread * size, axis=1)
     return ok
 
 
@@ -243,14 +314,19 @@ def module_m(board: Board) -> float | None:
 
 def _module_px(setup: PlanSetup, T_cb: np.ndarray, X: np.ndarray, module: float) -> np.ndarray:
     """(m,) the shortest image length (px) of one marker cell ``module`` (m) over the board
-    points ``X`` (k, 3): at each point the smaller singular value of the projection's derivative
-    along the board's plane (px per m) times the cell, so a board turned about any axis counts
-    its foreshortened direction."""
+    points ``X`` (k, 3) (:func:`_cell_px`)."""
+    return _cell_px(setup, T_cb, X, module).min(axis=1)
+
+
+def _cell_px(setup: PlanSetup, T_cb: np.ndarray, X: np.ndarray, length: float) -> np.ndarray:
+    """(m, k) the image length (px) of ``length`` (m) on the board at each point ``X`` (k, 3):
+    the smaller singular value of the projection's derivative along the board's plane (px per
+    m) times ``length``, so a board turned about any axis counts its foreshortened direction."""
     R = T_cb[:, :3, :3]
     Xc = np.einsum("mij,kj->mki", R, X) + T_cb[:, None, :3, 3]
     _, J_uv_X, _ = setup.camera.project_jacobians(Xc)  # (m, k, 2, 3) px per m
     J = J_uv_X @ R[:, None, :, :2]  # along the board's x and y axes: (m, k, 2, 2)
-    return np.linalg.svd(J, compute_uv=False)[..., -1].min(axis=1) * module
+    return np.linalg.svd(J, compute_uv=False)[..., -1] * length
 
 
 def _off_board(setup: PlanSetup, q: np.ndarray) -> np.ndarray:
@@ -320,7 +396,7 @@ def _checks(setup: PlanSetup) -> tuple[tuple[str, Callable[[np.ndarray], np.ndar
     """The candidate rules after the joint ranges, in the order they are applied: (what a
     posture that passes does, the check: (m, n) rad -> (m,) bool)."""
     return (
-        ("see the whole board as the view rule asks", lambda x: board_views_ok(setup, setup.T_cam_board(x))),
+        (_view_words(setup), lambda x: board_views_ok(setup, setup.T_cam_board(x))),
         ("are free of self-collision and the table", setup.chain.ok),
         ("stay out of the keep-out boxes", lambda x: outside_boxes(setup.chain, x, setup.boxes)),
         (("keep the board's plate above the table and clear", lambda x: _plate_clear(setup, x))
@@ -328,6 +404,15 @@ def _checks(setup: PlanSetup) -> tuple[tuple[str, Callable[[np.ndarray], np.ndar
          ("keep the arm off the board's plate", lambda x: _off_board(setup, x))),
         ("keep the lines of sight to the board clear", lambda x: _sight_clear(setup, x)),
     )  # fmt: skip
+
+
+def _view_words(setup: PlanSetup) -> str:
+    """What a posture passing the view rule does, in words."""
+    rule = setup.rule
+    if rule.min_corners <= 0 or setup.board.whole_grid:
+        return "see the whole board as the view rule asks"
+    return (f"see at least {rule.min_corners} of the board's features spanning "
+            f"{rule.min_spread:.0%} of the image as the view rule asks")  # fmt: skip
 
 
 def feasible(setup: PlanSetup, q: np.ndarray) -> np.ndarray:
