@@ -16,7 +16,8 @@ parts of :mod:`selfcal.calibration.accuracy`:
   first camera, with their correlation), the joint read-back noise and the pixel noise give
   their squared sum is carried to the pixels (:func:`held_out_errors`); the excess beyond
   :data:`selfcal.calibration.accuracy.Z_MODEL_ERROR` standard errors (``2 tr Sigma^2`` per
-  frame) is a model error ``m`` per tool-point coordinate and ``m / L`` per rotation coordinate
+  frame) that no share of the held parameters' one deviation explains across the folds
+  (:mod:`selfcal.calibration.board.held_null`) is a model error ``m`` per tool-point coordinate and ``m / L`` per rotation coordinate
   (``L`` the tool point's mean distance to the board points in view: the rotation then moves
   the view about as much as the translation) whose pixel effect is that excess: in the held-out
   frame itself and through what the same error in the fold's training frames did to its
@@ -95,6 +96,7 @@ from selfcal.calibration.board.covariances import (
 )
 from selfcal.calibration.board.deviation import Deviation
 from selfcal.calibration.board.fold_fits import fold_bounds
+from selfcal.calibration.board.held_null import counted_excess
 from selfcal.calibration.board.held_prior import (
     NO_FOLDS,
     Share,
@@ -186,7 +188,12 @@ def held_out_errors(obs: BoardObservations, fit: Refinement, frames: np.ndarray,
     ``px2_var`` that sum's variance without a model error (``2 tr Sigma^2``), ``px2_unit`` what
     a model error of 1 m per tool-point coordinate (and 1 m / lever rad per rotation coordinate)
     in this frame adds to it, ``px2_misfit`` what the same in the training frames adds through
-    the estimate (:mod:`selfcal.calibration.board.misfit`); ``lever`` the tool point's mean
+    the estimate (:mod:`selfcal.calibration.board.misfit`); ``held_gram`` (k, k) ``L^T L``,
+    ``L`` the frame's pixels per unit deviation of each minimal parameter from the drawing
+    (through ``cr``'s held response, the fit's absorption included; zero when ``cr`` carries
+    none): its deviation ``delta`` adds ``|L delta|^2`` to ``px2``, ``held_cross`` (k,) the
+    diagonal of ``L^T Sigma L`` (``Sigma`` the pixels' covariance of ``px2_var``: the
+    deviation's cross term with the noise; :mod:`selfcal.calibration.board.held_null`); ``lever`` the tool point's mean
     distance (m) to the board points in view; the flange's error as the best pose correction of the pixels ``e`` (6,) (position m, orientation
     rad, world frame) with the covariances the estimate's errors ``S`` (6, 6) and the noise
     ``N`` (6, 6) give it, ``G`` (6, k + c) what an error of the estimate gives it (``S = G C
@@ -201,10 +208,11 @@ def held_out_errors(obs: BoardObservations, fit: Refinement, frames: np.ndarray,
     C_half = psd_sqrt(C)
     G_half = psd_sqrt(bounds_covariance(cr, misfit=True)[1])
     s2 = cr.pixel_sigma_px**2
-    keys = ("frame", "px2", "px2_expected", "px2_var", "px2_unit", "px2_misfit", "lever", "e",
-            "S", "N", "G", "C", "A")  # fmt: skip
+    keys = ("frame", "px2", "px2_expected", "px2_var", "px2_unit", "px2_misfit", "held_gram",
+            "held_cross", "lever", "e", "S", "N", "G", "C", "A")  # fmt: skip
     idx = minimal_indices(cr.model.joint_types)
     C_all = padded_bounds_covariance(cr)
+    held = np.zeros((len(C_all), idx.size)) if cr.held is None else cr.held
     out: dict[str, list] = {k: [] for k in keys}
     for i in np.unique(v).tolist():
         rows = v == i
@@ -231,6 +239,7 @@ def held_out_errors(obs: BoardObservations, fit: Refinement, frames: np.ndarray,
             info -= HU @ np.linalg.solve(s2 * np.eye(Q.shape[1]) + (A @ Q).T @ (A @ Q), HU.T) / s2
         K, lever = unit_rows(A, x, T, t, obs.eye_to_hand)
         UtU = U.T @ U
+        L = H_all @ held  # the pixels per unit deviation of each minimal parameter
         vals = {
             "frame": i,
             "px2": float(r @ r),
@@ -241,6 +250,8 @@ def held_out_errors(obs: BoardObservations, fit: Refinement, frames: np.ndarray,
             ),  # fmt: skip
             "px2_unit": float(np.sum(K**2)),
             "px2_misfit": float(np.sum((H @ G_half) ** 2)),
+            "held_gram": L.T @ L,
+            "held_cross": np.sum((U.T @ L) ** 2, axis=0) + s2 * np.sum(L**2, axis=0),
             "lever": lever,
             "e": -B @ P @ r,
             "S": B @ P @ (H @ C @ H.T) @ P.T @ B.T,
@@ -330,10 +341,8 @@ def model_error(obs: BoardObservations, selection: Selection, offsets: np.ndarra
     # distance to the board points in view: the rotation then moves the view about as much as
     # the translation), from the pixels' excess over what the rest explains: m^2 (u + w), its
     # effect in the frame itself and through the fold's estimate (misfit.py)
-    extra = float(np.sum(h["px2"]) - np.sum(h["px2_expected"])
-                  - share.point * np.sum(h["px2_held"]))  # fmt: skip
     m, reach, gram = 0.0, 0.0, None
-    if extra > Z_MODEL_ERROR * np.sqrt(np.sum(h["px2_var"])):
+    if counted_excess(got, share, variance) > 0:
         y = h["px2"] - h["px2_expected"] - share.point * h["px2_held"]
         m, reach, gram = grown_size(y, h["px2_var"], h["px2_unit"], h["px2_misfit"],
                                     h["distance"])  # fmt: skip
