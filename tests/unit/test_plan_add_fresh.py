@@ -54,3 +54,12 @@ def test_a_folder_without_a_stamp_is_measured_anew(tmp_path, code):
     _measured(root)  # a run of the code before the stamp
     bench.fresh_truth(root, 5, "eye-in-hand")
     assert not (root / "plan").exists() and (root / "benchmark.json").is_file()
+
+
+def test_a_wrist_only_draw_that_selfcal_run_refuses_is_a_row_saying_so(tmp_path):
+    # truth 16's wrist-only draw leaves 5 feasible postures, fewer than `selfcal run` takes:
+    # the benchmark's run of 30 truths stopped there with FileNotFoundError (session 29)
+    row = bench.wrist_only_row(tmp_path / "truth16", 16, 5)
+    assert row["frames"] == 5
+    assert "selfcal run stopped" in row["error"]
+    assert row["predicted_before_mm"] != row["predicted_before_mm"]  # NaN, not a number

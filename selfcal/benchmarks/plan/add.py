@@ -25,8 +25,9 @@ with one configuration); the arm drawn within the plan's default deviation (1 mm
 the rest as above, and the achieved error is the quantity the plan predicts: the flange centre over the same 50 workspace postures before and after (the plan's
 workspace sample of the nominal cell, seed 2) after the best rigid alignment, against the
 truth (:func:`selfcal.pipeline.static_report.flange_centre_errors`). Markers
-``benchmark_plan_add_e2h_K``. A truth whose calibration stops with an error is a row that says
-so, left out of the medians.
+``benchmark_plan_add_e2h_K``. On either mount a truth whose calibration or plan stops with an
+error (a wrist-only draw with fewer feasible postures than ``selfcal run`` takes, say) is a row
+that says so, left out of the medians.
 
 A truth's folder is reused (a stopped run goes on, ``--write-docs`` tables a finished one) only
 when its ``benchmark.json`` names this run's ``--add``, mount and code, a clean commit
@@ -92,20 +93,25 @@ def _write(folder: Path, setup, target: Path, pose: np.ndarray, joints: str, see
     return folder / "scenario.toml"
 
 
-def _achieved(scenario: Path, out: Path) -> float:
+def _achieved(scenario: Path, out: Path) -> float | None:
     """``selfcal run``'s validation tool-tip RMS (mm); a run marked failed (worse than the
-    nominal) still reports it."""
+    nominal) still reports it; None when the run stopped before its report (the scenario
+    refused, say: its error is on stderr)."""
     from selfcal.cli.main import main as selfcal
 
     if not (out / "report.json").is_file():
         selfcal(["run", str(scenario), "--out", str(out), "--quiet"])
+    if not (out / "report.json").is_file():
+        return None
     rep = json.loads((out / "report.json").read_text())
     return float(rep["validation"]["tool_tip_error_mm"]["calibrated"]["rms"])
 
 
 def wrist_only_row(root: Path, seed: int, add: int = 5) -> dict:
     """One truth (module docstring) in ``root``: predicted and achieved tool-point RMS (mm)
-    before and after adding ``add`` postures, and the parameters each calibration kept."""
+    before and after adding ``add`` postures, and the parameters each calibration kept;
+    ``error`` says why a step stopped (a draw with fewer feasible postures than ``selfcal run``
+    takes, say; the figures it would have given NaN), as :func:`still_camera_row`."""
     from selfcal.calibration.board.plan.views import feasible
     from selfcal.cli.main import main as selfcal
     from selfcal.io.plan_files import joints_csv, read_plan
@@ -116,24 +122,35 @@ def wrist_only_row(root: Path, seed: int, add: int = 5) -> dict:
     q = np.tile(robot.home, (4000, 1))
     q[:, 3:] += rng.uniform(-1, 1, size=(4000, 3)) * np.radians(WRIST_SPAN_DEG)
     q = q[feasible(setup, q)][:12]
+    nan = float("nan")
+    row: dict = {"seed": seed, "frames": len(q), "error": "", "halved_with": ""}
+    row |= dict.fromkeys(("predicted_before_mm", "achieved_before_mm", "predicted_after_mm",
+                          "drawn_after_mm", "achieved_after_mm", "kept_before", "kept_after"),
+                         nan)  # fmt: skip
     first = root / "wrist"
     first.mkdir(parents=True, exist_ok=True)
     write_text_atomic(first / "joints.csv", joints_csv(q, robot.edge_unit))
     before = _achieved(_write(first, setup, target, bp, "joints.csv", seed), root / "dataset")
+    if before is None:
+        return row | {"error": f"the dataset's {len(q)} postures: selfcal run stopped"}
+    row |= {"achieved_before_mm": before, "kept_before": _kept(root / "dataset")}
     plan = root / "plan"
     if not (plan / "plan.json").is_file():
         selfcal(["plan", "--add", str(add), str(root / "dataset"), "--out", str(plan), "--quiet"])
+    if not (plan / "plan.json").is_file():
+        return row | {"error": "selfcal plan --add stopped"}
     doc = read_plan(plan / "plan.json", ("add",))
+    row |= {"predicted_before_mm": doc["predicted_before_tool_rms_mm"],
+            "predicted_after_mm": doc["predicted_tool_rms_mm"],
+            "drawn_after_mm": doc["forecast_draws"]["after"]["median_mm"],
+            "halved_with": _halved(doc)}  # fmt: skip
     second = root / "added"
     second.mkdir(parents=True, exist_ok=True)
     shutil.copyfile(plan / "replay.csv", second / "replay.csv")
     after = _achieved(_write(second, setup, target, bp, "replay.csv", seed), root / "calibrated")
-    kept = [len(json.loads((root / d / "calibration.json").read_text())["selection"]["identified"])
-            for d in ("dataset", "calibrated")]  # fmt: skip
-    return {"seed": seed, "frames": len(q), "predicted_before_mm": doc["predicted_before_tool_rms_mm"],
-            "achieved_before_mm": before, "predicted_after_mm": doc["predicted_tool_rms_mm"],
-            "drawn_after_mm": doc["forecast_draws"]["after"]["median_mm"],
-            "halved_with": _halved(doc), "achieved_after_mm": after, "kept_before": kept[0], "kept_after": kept[1]}  # fmt: skip
+    if after is None:
+        return row | {"error": "the calibration with the added postures stopped (selfcal run)"}
+    return row | {"achieved_after_mm": after, "kept_after": _kept(root / "calibrated")}
 
 
 def _flange_rms(run: Path, qw: np.ndarray) -> float:

@@ -1,5 +1,5 @@
 """``python -m selfcal.benchmarks.plan.add_pool [--truths 1,2,3] [--add 5] [--more 2]
-[--jobs 1]``: how far ``selfcal plan --add K`` can lower the predicted error of the eye-to-hand
+[--jobs 1] [--write-docs]``: how far ``selfcal plan --add K`` can lower the predicted error of the eye-to-hand
 benchmark's wrist-only datasets, forecast only (docs/plan.md, issue #30).
 
 For each truth (seed) the dataset :func:`selfcal.benchmarks.plan.add.still_camera_row` records
@@ -15,15 +15,26 @@ before and after (the forecast's candidate, the first line of ``selfcal plan --a
 bound with every parameter kept (the selection's largest candidate at those postures), the
 median and RMS of 400 draws of the arm and the noise with the selection deciding in each
 (seed 1, as the command's sixth line), and the share of those draws keeping a smaller set.
+``--write-docs`` puts the table, with the command and the code that measured it
+(:func:`selfcal.benchmarks.doc_blocks.code_version`: a clean commit, or nothing is written),
+between docs/plan.md's ``benchmark_plan_add_pool`` markers.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from selfcal.benchmarks.doc_blocks import ROOT, code_version, print_table
 from selfcal.benchmarks.usage import benchmark_parser
 
-__all__ = ["pool_rows", "main"]
+__all__ = ["pool_line", "pool_rows", "main"]
+
+HEADER = (
+    "| truth | added postures | predicted before -> after (mm), kept | all kept (mm) "
+    "| draws' median (the first line's before over it), RMS (mm) | smaller set kept |\n"
+    "|---|---|---|---|---|---|"
+)
+"""The table's header (:func:`pool_line` its rows)."""
 
 
 def _dataset(seed: int):
@@ -77,6 +88,16 @@ def pool_rows(seed: int, add: int, more: int) -> list[dict]:
     return rows
 
 
+def pool_line(r: dict) -> str:
+    """One row of :func:`pool_rows` as a line of the table (figures in mm, ratios to the
+    first line's before)."""
+    return (f"| {r['truth']} | {r['set']} | {r['before']:.3f} -> {r['after']:.3f} "
+            f"({r['before'] / r['after']:.2f} times), {r['kept']} | {r['bound']:.3f} "
+            f"({r['before'] / r['bound']:.2f} times) | {r['median']:.3f} "
+            f"({r['before'] / r['median']:.2f} times), {r['rms']:.3f} | "
+            f"{100 * r['smaller']:.0f} % |")  # fmt: skip
+
+
 def _rows(item: tuple[int, int, int]) -> list[dict]:
     return pool_rows(*item)
 
@@ -90,21 +111,19 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--add", type=int, default=5)
     ap.add_argument("--more", type=int, default=2)
     ap.add_argument("--jobs", type=int, default=1)
+    ap.add_argument("--write-docs", action="store_true",
+                    help="rewrite docs/plan.md's benchmark_plan_add_pool block")  # fmt: skip
     a = ap.parse_args(argv)
     items = [(int(s), a.add, a.more) for s in a.truths.split(",")]
-    print(
-        "| truth | added postures | predicted before -> after (mm), kept | all kept (mm) "
-        "| draws' median (the first line's before over it), RMS (mm) | smaller set kept |\n|---|---|---|---|---|---|"
-    )
+    code = code_version()
     with get_context("spawn").Pool(a.jobs) as pool:
-        for rows in pool.imap(_rows, items):
-            for r in rows:
-                print(f"| {r['truth']} | {r['set']} | {r['before']:.3f} -> {r['after']:.3f} "
-                      f"({r['before'] / r['after']:.2f} times), {r['kept']} | {r['bound']:.3f} "
-                      f"({r['before'] / r['bound']:.2f} times) | {r['median']:.3f} "
-                      f"({r['before'] / r['median']:.2f} times), {r['rms']:.3f} | "
-                      f"{100 * r['smaller']:.0f} % |", flush=True)  # fmt: skip
-    return 0
+        rows = [r for rs in pool.map(_rows, items) for r in rs]
+    lines = [HEADER, *(pool_line(r) for r in rows), ""]
+    by = f", measured by the code at {code}" if code else " (no git checkout: the code unknown)"
+    lines.append(f"`python -m selfcal.benchmarks.plan.add_pool --truths {a.truths} --add {a.add} "
+                 f"--more {a.more} --write-docs`{by}.")  # fmt: skip
+    return print_table("\n".join(lines), ROOT / "docs" / "plan.md", "benchmark_plan_add_pool",
+                       write=a.write_docs)  # fmt: skip
 
 
 if __name__ == "__main__":
