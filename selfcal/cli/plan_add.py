@@ -106,6 +106,8 @@ def cmd_add(args: argparse.Namespace) -> int:
             "predicted_tool_rms_mm": round(add.after_m * 1000, 4),
             "kinematic_parameters_before": add.kept_before,
             "kinematic_parameters_after": add.kept_after,
+            "kinematic_parameters_note": "beyond the placement (the board pose and the "
+            "hand-eye, always estimated), as selfcal calibrate's line counts them",
             "criterion": criterion(len(add.workspace), args.pixel_sigma, js, args)
             + "; summed over the dataset and each training set of the selection's "
             "cross-validation; after: with the parameters the selection's cross-validation "
@@ -154,7 +156,7 @@ def cmd_add(args: argparse.Namespace) -> int:
     note_written(args, out)
     line = (f"add {len(add.q)} postures to {root} ({len(dplan.q)} frames): predicted tool-point "
             f"error {add.before_m * 1000:.3f} -> {add.after_m * 1000:.3f} mm RMS (kinematic "
-            f"parameters estimated {add.kept_before} -> {add.kept_after}) over {ws.words}; "
+            f"parameters beyond the placement estimated {add.kept_before} -> {add.kept_after}) over {ws.words}; "
             f"joint path {np.degrees(add.path_rad):.0f} deg\n{noise['words']}\nthe held parameters' "
             f"{dev['words']}"
             "\nbefore, " + before + "\nafter, " + doc["verdict"] + "\n" + fc.line())  # fmt: skip

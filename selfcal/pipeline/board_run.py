@@ -31,7 +31,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from selfcal.calibration.board.bounds import estimated_parameters
 from selfcal.calibration.board.evaluate import evaluate_board
+from selfcal.calibration.board.nominal_fit import beyond_placement, placement_indices
 from selfcal.calibration.board.parameter_pool import identified_words
 from selfcal.calibration.spread import spread_line
 from selfcal.camera import CameraModel, opencv_values
@@ -47,7 +49,7 @@ from selfcal.io.truth import Truth, read_truth
 from selfcal.kinematics.accuracy import aligned_errors, parameter_table, tool_tips
 from selfcal.kinematics.alignment import express_in_frame
 from selfcal.kinematics.forward import fk_tool
-from selfcal.kinematics.mcpc import MCPCModel, shape_matrices
+from selfcal.kinematics.mcpc import MCPCModel, param_names, shape_matrices
 from selfcal.pipeline.board_accuracy import (
     accuracy_markdown,
     board_accuracy_section,
@@ -359,8 +361,11 @@ def _nominal_text(res: BoardCalibrationResult) -> str:
                 f"(geometric mean over {folds})"
             )
         )
-        extra = [p for p in ch["parameters"] if p not in nom["parameters"]]
-        out += (f"; {len(extra)} kinematic parameter(s) beyond the placement identified"
+        # what it estimated beyond the placement (plan and plan --add count the same)
+        count = beyond_placement(*estimated_parameters(res), res.model.n)
+        placed = set(param_names(placement_indices(res.model.n)))
+        extra = [str(p) for p in sel.get("identified", ch["parameters"]) if p not in placed]
+        out += (f"; {count} kinematic parameter(s) beyond the placement identified"
                 f"{identified_words(extra, sel.get('held') or {})}{cv}")  # fmt: skip
     verdict = res.cv_verdict()
     if verdict:

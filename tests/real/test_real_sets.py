@@ -371,7 +371,8 @@ def test_plan_add_five_postures_to_the_calibrated_set(name, deviation, outcome, 
     doc = read_plan(out / "plan.json")
     gain = doc["predicted_before_tool_rms_mm"] / doc["predicted_tool_rms_mm"]
     assert gain >= 2.0, doc  # measured GAIN_NOTE
-    assert doc["kinematic_parameters_after"] > doc["kinematic_parameters_before"]  # 30, 16
+    # beyond the placement, as calibrate counts them: 18, 4 (30, 16 with the placement's 12)
+    assert doc["kinematic_parameters_after"] > doc["kinematic_parameters_before"]
     assert doc["workspace"]["source"] == "dataset region", doc["workspace"]
     dev = doc["deviation"]
     if deviation:

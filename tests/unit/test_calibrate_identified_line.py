@@ -4,17 +4,23 @@ parameter(s) beyond the placement identified" (calibration.json's selection held
 
 from __future__ import annotations
 
+from pathlib import Path
 from types import SimpleNamespace
 
+from selfcal.calibration.board.nominal_fit import placement_indices
 from selfcal.calibration.board.parameter_pool import NAMES_SHOWN, identified_words
+from selfcal.kinematics.mcpc import nominal_mcpc, param_names
 from selfcal.pipeline.board_run import _nominal_text
+from selfcal.robot.definition import load_robot
 
 RANK = "rank: not identifiable from these postures (a combination of the others)"
-PLACEMENT = ["alpha0", "beta0", "gamma0", "lx0", "ly0", "lz0"]
+PANTILT = nominal_mcpc(load_robot(str(Path(__file__).resolve().parents[1] / "data/pantilt2.urdf")))
+PLACEMENT = list(param_names(placement_indices(PANTILT.n)))  # board pose and hand-eye
 
 
 def test_a_pan_tilts_line_names_what_it_identified_and_what_it_cannot():
     sel = {
+        "identified": [*PLACEMENT, "lx1", "alpha1"],
         "chosen": "+ all identifiable",
         "candidates": [
             {"label": "nominal (placement + camera)", "parameters": PLACEMENT, "cv_px": 0.742},
@@ -32,7 +38,8 @@ def test_a_pan_tilts_line_names_what_it_identified_and_what_it_cannot():
             "ly2": "cross-validation: + all identifiable predicts worse",
         },  # fmt: skip
     }
-    res = SimpleNamespace(nominal_rms_px=0.730, selection=sel, cv_verdict=lambda: None)
+    res = SimpleNamespace(nominal_rms_px=0.730, selection=sel, cv_verdict=lambda: None,
+                          model=PANTILT)  # fmt: skip
     assert _nominal_text(res) == (
         " (fair nominal 0.730 px); 2 kinematic parameter(s) beyond the placement identified "
         "(lx1, alpha1; 4 not identifiable from these postures: offset_j1, offset_j2, beta1, "

@@ -4,6 +4,8 @@ bound alone does not see; with every parameter kept the prediction is the Cramer
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
@@ -234,3 +236,35 @@ def test_the_help_says_what_the_halving_line_costs():
     text = " ".join(EPILOG.split())
     assert "the sixth line and plan.png give the draws" in text
     assert f"up to {HALVE_MORE} larger counts are planned in turn" in text
+
+
+def test_add_counts_the_parameters_beyond_the_placement_as_calibrate_does(setup, plan):
+    """`plan --add` said "kinematic parameters estimated 26 -> 26" of a calibration whose
+    `calibrate` line said "14 kinematic parameter(s) beyond the placement identified" (a new
+    user's trip, session 28): --add counted the placement's 12. Both now count with
+    beyond_placement, from the calibration's identified names."""
+    from selfcal.calibration.board.bounds import estimated_parameters
+    from selfcal.calibration.board.nominal_fit import beyond_placement, placement_indices
+    from selfcal.calibration.board.plan.add import plan_additions
+    from selfcal.calibration.board.plan.ground import PlanOptions
+    from selfcal.kinematics.mcpc import param_names
+    from selfcal.pipeline.board_run import _nominal_text
+
+    model = board_model(setup)
+    n = model.n
+    place = placement_indices(n)
+    inner = [k for k in minimal_indices(model.joint_types) if 0 < k // 6 < n][:5]
+    names = [*param_names(place), "offset_j2", "offset_j3", *param_names(np.array(inner))]
+    sel = {"identified": names, "held": {}, "chosen": "+ all", "candidates": [
+        {"label": "nominal (placement + camera)", "parameters": list(param_names(place))},
+        {"label": "+ all", "parameters": names}]}  # fmt: skip
+    res = SimpleNamespace(selection=sel, model=model, nominal_rms_px=None, cv_verdict=lambda: "")
+    free_idx, offsets = estimated_parameters(res)
+    assert len(free_idx) + len(offsets) == 12 + 7
+    assert beyond_placement(free_idx, offsets, n) == 7
+    assert "; 7 kinematic parameter(s) beyond the placement identified" in _nominal_text(res)
+    ids = setup.board.layout()[0]
+    dp = DatasetPlan(setup, plan.q, (ids,) * len(plan.q), free_idx, offsets)
+    add = plan_additions(dp, 1, PlanOptions(candidates=12, workspace=6, joint_sigma=JS), spare=0)
+    assert add.kept_before == 7
+    assert add.kept_after == beyond_placement(*add.forecast.kept, n) <= 30

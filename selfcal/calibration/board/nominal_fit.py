@@ -29,6 +29,7 @@ from selfcal.transforms import make_pose
 
 __all__ = [
     "FAIR_NOMINAL_ITERATIONS",
+    "beyond_placement",
     "fit_nominal",
     "place_nominal",
     "placement",
@@ -61,6 +62,16 @@ def placement_indices(n: int) -> np.ndarray:
     together they move the nominal chain rigidly in the world and the camera on the flange
     (12 dof), the chain itself held."""
     return np.r_[np.arange(6), 6 * n + np.arange(6)]
+
+
+def beyond_placement(free_idx: np.ndarray, offset_joints: np.ndarray, n: int) -> int:
+    """How many kinematic parameters a board calibration of a chain of ``n`` joints estimates
+    beyond its placement (:func:`placement_indices`, always estimated): the flat MCPC indices
+    ``free_idx`` that are not the placement's and the zero offsets of the joints
+    ``offset_joints``. The one count ``selfcal calibrate``'s line, ``selfcal plan``'s and
+    ``selfcal plan --add``'s give (``--add`` counted the placement's 12 where ``calibrate``
+    did not: "14 ... beyond the placement identified" against "estimated 26 -> 26")."""
+    return int(np.setdiff1d(free_idx, placement_indices(n)).size + len(offset_joints))
 
 
 def _turns() -> np.ndarray:

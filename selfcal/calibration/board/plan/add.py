@@ -55,6 +55,7 @@ from selfcal.calibration.board.bounds import estimated_parameters
 from selfcal.calibration.board.dataset import dataset_board, detect_board
 from selfcal.calibration.board.deviation import Deviation
 from selfcal.calibration.board.folds import configurations, fold_labels
+from selfcal.calibration.board.nominal_fit import beyond_placement
 from selfcal.calibration.board.plan import spread as forecast_spread
 from selfcal.calibration.board.plan.add_cell import ADD_RULE, calibrated_cell
 from selfcal.calibration.board.plan.greedy import select_greedy
@@ -236,7 +237,9 @@ class AddedPostures:
     """``q`` (K, n) rad the postures to add in recording order; ``before_m`` the dataset's
     predicted tool-point RMS (m) with its identified parameters, ``after_m`` with the added
     postures and the parameters the ``forecast`` of the selection keeps; ``kept_before``,
-    ``kept_after`` how many kinematic parameters (flat MCPC and joint offsets) each estimates;
+    ``kept_after`` how many kinematic parameters (flat MCPC and joint offsets) each estimates
+    beyond the placement (:func:`selfcal.calibration.board.nominal_fit.beyond_placement`, as
+    ``selfcal calibrate`` counts them);
     the ``workspace`` (w, n) rad the error is averaged over, the pool's size and where it was
     drawn, the joint path (rad) from home through the added ones, and the ``reference``: the
     error without calibrating the kinematics for the dataset's frames and the added ones
@@ -427,8 +430,8 @@ def plan_additions(
         q=q,
         before_m=before,
         after_m=after,
-        kept_before=len(plan.free_idx) + len(plan.offset_joints),
-        kept_after=sum(map(len, forecast.kept)),
+        kept_before=beyond_placement(plan.free_idx, plan.offset_joints, model.n),
+        kept_after=beyond_placement(*forecast.kept, model.n),
         forecast=forecast,
         workspace=g.workspace,
         candidates=len(g.pool),

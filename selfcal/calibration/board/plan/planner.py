@@ -50,7 +50,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from selfcal.calibration.board.deviation import Deviation
-from selfcal.calibration.board.nominal_fit import placement_indices
+from selfcal.calibration.board.nominal_fit import beyond_placement
 from selfcal.calibration.board.plan.greedy import exchange, pool_sets, select_greedy
 from selfcal.calibration.board.plan.ground import PlanOptions, plan_ground
 from selfcal.calibration.board.plan.information import (
@@ -174,18 +174,13 @@ class Selected:
     def kept(self, n: int) -> int:
         """The kinematic parameters beyond the placement the forecast keeps (chain of ``n``
         joints)."""
-        return _beyond_placement(self.forecast.kept, n)
+        return beyond_placement(*self.forecast.kept, n)
 
     def rival_kept(self, n: int) -> int | None:
         """... and its rival keeps (None without one)."""
         if self.rival_m is None:
             return None
-        return _beyond_placement(self.forecast.kept_sets[self.forecast.chosen - 1], n)
-
-
-def _beyond_placement(kept: tuple[np.ndarray, np.ndarray], n: int) -> int:
-    """How many of ``kept`` (flat MCPC indices, offset joints) are not the placement's."""
-    return int(np.setdiff1d(kept[0], placement_indices(n)).size + len(kept[1]))
+        return beyond_placement(*self.forecast.kept_sets[self.forecast.chosen - 1], n)
 
 
 def plan_recording(
@@ -244,13 +239,13 @@ def plan_recording(
         return selected(idx)
 
     sel, ref = selected(chosen)
-    kept_all = _beyond_placement(kept_by_rank(model, pool[chosen]), model.n)
+    kept_all = beyond_placement(*kept_by_rank(model, pool[chosen]), model.n)
     chosen_by, greedy_m, random_sel_m = "greedy", sel.selected_m, None
     if sel.kept(model.n) < kept_all:  # the criterion counted on parameters the CV will drop
         chosen, sel, ref, chosen_by, random_sel_m = _best_with_the_selection(
             len(pool), count, (chosen, sel, ref), selected, lambda i: i[order_path(pool[i], home)]
         )
-        kept_all = _beyond_placement(kept_by_rank(model, pool[chosen]), model.n)
+        kept_all = beyond_placement(*kept_by_rank(model, pool[chosen]), model.n)
     q = pool[chosen]
     to_beat = None
     if not sel.beats(ref):
