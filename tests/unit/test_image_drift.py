@@ -117,6 +117,23 @@ def test_residuals_drawn_from_the_prediction_alarm_below_alpha(setup):
     assert 0.04 <= changed / n <= 0.26
 
 
+def test_a_bonferroni_bound_clipped_at_1_says_so_with_its_smallest_test(setup):
+    """A new user's unchanged simulated check printed "p = 1": Bonferroni's bound over its 11
+    tests (11 times their smallest p-value, 0.24) clipped at 1, not a p-value of 1. The line
+    now says so and gives the smallest; residuals of exactly none print "p > 0.99"."""
+    e2h, _, _, views, C = setup
+    L = np.linalg.cholesky(view_covariance(C, views))
+    r = 0.6 * L @ np.random.default_rng(2).normal(size=len(L))  # smaller than predicted
+    res = image_drift_check(C, _with(views, r), eye_to_hand=e2h)
+    smallest, count = res.p_parts
+    assert res.p_value == 1.0 and 1.0 / count <= smallest < 0.99
+    assert (f"p = 1 as Bonferroni's bound clipped: {count} tests times their smallest p, "
+            f"{smallest:.2g})") in res.line()  # fmt: skip
+    assert res.to_json()["p_value_tests"]["smallest_p_value"] == smallest
+    zero = image_drift_check(C, views, eye_to_hand=e2h)  # the views' own pixels: r = 0
+    assert zero.statistic < 1e-18 and zero.line().endswith("p > 0.99)")
+
+
 def test_the_exact_min_p_spends_the_whole_alpha(setup):
     """Combined by their smallest p-value's exact distribution (``exact``), the same tests on
     residuals drawn from exactly the assumed covariance are called changed in alpha of the

@@ -81,6 +81,8 @@ def test_a_tail_that_underflows_prints_as_a_bound_not_p_zero():
 
     assert p_text(0.0) == "p < 1e-15" and p_text(3e-16) == "p < 1e-15"
     assert p_text(0.0023) == "p = 0.0023" and p_text(1e-15) == "p = 1e-15"
+    # two digits printed 0.995 - 1 as "p = 1" (a new user's unchanged check, session 28)
+    assert p_text(0.985) == "p = 0.98" and p_text(0.996) == "p > 0.99" == p_text(1.0)
     check = DriftCheck(rows=5, statistic=900.0, dof=15, p_value=0.0, changed=True, rms_mm=2.0,
                        expected_rms_mm=0.1, change_mm=1.9, mean_mm=np.zeros(3), alpha=0.01)  # fmt: skip
     assert "p < 1e-15 < 0.01" in check.line() and "p = 0" not in check.line()

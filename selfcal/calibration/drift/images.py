@@ -99,7 +99,7 @@ from selfcal.calibration.drift.noisy import (
 )
 from selfcal.calibration.drift.outliers import Outlier, drop_outliers, outlier_line
 from selfcal.calibration.drift.own import JOINT_TOL, calibration_frames, own_views
-from selfcal.calibration.drift.p_value import combined_p, min_p, p_text
+from selfcal.calibration.drift.p_value import combined_p, min_p, p_text, smallest_p
 from selfcal.calibration.drift.paired import noise_covariance, paired_views, posture_tol
 from selfcal.calibration.drift.power import ShiftPower, shift_power
 from selfcal.calibration.drift.tool_moves import BOUND_LEVEL, kinematic_bound_mm, tool_point_moves
@@ -221,6 +221,15 @@ class ImageDriftCheck:
     noisy_frames: tuple[Noisy, ...] = ()
     power: ShiftPower | None = None
     gross: str = ""
+    p_parts: tuple[float, int] | None = None
+    fold_p_parts: tuple[float, int] | None = None
+
+    def _p(self, fold: bool = False) -> str:
+        """``p_value`` (``fold``: ``fold_p_value``) as the line prints it; Bonferroni's bound
+        clipped at 1 says so with the smallest of its tests' p-values (``p_parts``: that and
+        their count, None where not Bonferroni's)."""
+        p, parts = (self.fold_p_value, self.fold_p_parts) if fold else (self.p_value, self.p_parts)
+        return p_text(p) if parts is None else p_text(p, *parts)
 
     def _own_line(self) -> str:
         out = outlier_line(self.outliers)
@@ -239,7 +248,7 @@ class ImageDriftCheck:
             what += (f" ({self.paired} at the calibration's postures, each against its frame "
                      f"there{again})")  # fmt: skip
         fit = (f"{what}: {self.rms_px:.3f} px RMS against the predicted "
-               f"{self.expected_rms_px:.3f} px; {p_text(self.p_value)} < {self.alpha:g}")  # fmt: skip
+               f"{self.expected_rms_px:.3f} px; {self._p()} < {self.alpha:g}")  # fmt: skip
         if self.changed and self.best == "camera":
             out = (f"changed (the best single change, the camera's intrinsics, moves no tool "
                    f"point; a change of a mount or of one joint's offset fitted beside it "
@@ -255,14 +264,14 @@ class ImageDriftCheck:
         if self.undecided and not np.isfinite(self.fold_p_value):  # noisy views, not failed
             return (f"cannot tell: {what} within the calibration's prediction with their own "
                     f"noise ({self.rms_px:.3f} px RMS, predicted {self.expected_rms_px:.3f} px; "
-                    f"{p_text(self.p_value)}), but {noisy_line(self.noisy)}" + self._own_line())  # fmt: skip
+                    f"{self._p()}), but {noisy_line(self.noisy)}" + self._own_line())  # fmt: skip
         if self.undecided:
             noisy = f"; {noisy_line(self.noisy)}" if self.noisy else ""
             return (f"cannot tell: {fit}, but this calibration's own folds missed the arm "
                     f"configurations they left out by {self.fold_error_mm:.3f} mm and "
                     f"{self.fold_error_deg:.3f} deg of tool pose per coordinate beyond their "
                     f"estimate and noise, and with that error the new images fit "
-                    f"({p_text(self.fold_p_value)}): {CANNOT_TELL_NOTE}{noisy}" + self._own_line())  # fmt: skip
+                    f"({self._p(fold=True)}): {CANNOT_TELL_NOTE}{noisy}" + self._own_line())  # fmt: skip
         if self.changed:
             out = out if self.attribution is None else f"{out}; {self.attribution.line()}"
             out += f"; {self.gross}" if self.gross else ""
@@ -270,13 +279,13 @@ class ImageDriftCheck:
                 out += (f"; changed also with the calibration's own folds' error at "
                         f"configurations they left out ({self.fold_error_mm:.3f} mm, "
                         f"{self.fold_error_deg:.3f} deg per coordinate; "
-                        f"{p_text(self.fold_p_value)})")  # fmt: skip
+                        f"{self._p(fold=True)})")  # fmt: skip
             elif self.unseen:
                 out += (f"; {self.unseen} of {self.views} image(s) at arm configurations the "
                         f"calibration did not see: {UNSEEN_NOTE}")  # fmt: skip
             return out + self._own_line()
         return (f"unchanged: {what} within the calibration's prediction ({self.rms_px:.3f} px "
-                f"RMS, predicted {self.expected_rms_px:.3f} px; {p_text(self.p_value)})"
+                f"RMS, predicted {self.expected_rms_px:.3f} px; {self._p()})"
                 + self._own_line())  # fmt: skip
 
     def to_json(self) -> dict:
@@ -296,6 +305,13 @@ class ImageDriftCheck:
             "statistic": self.statistic,
             "dof": self.dof,
             "p_value": self.p_value,
+            "p_value_tests": None
+            if self.p_parts is None
+            else {
+                "count": self.p_parts[1],
+                "smallest_p_value": self.p_parts[0],
+                "note": "p_value is Bonferroni's bound: count times the smallest, at most 1",
+            },
             "alpha": self.alpha,
             "rms_px": self.rms_px,
             "expected_rms_px": (
@@ -367,6 +383,7 @@ def image_drift_check(C: np.ndarray, views: list[ViewJacobians], *,
     fits = candidate_fits(white, rw, views, eye_to_hand=eye_to_hand)
     p = (min_p(T, dof, fits.directed, fits.directed_columns) if exact
          else combined_p(T, dof, fits.directed))  # fmt: skip
+    parts = None if exact else smallest_p(T, dof, fits.directed)
     best = fits.best(T)
     twists = tool_point_moves(best, fits.x[best], views)
     moves = twists[:, :3]
@@ -393,6 +410,7 @@ def image_drift_check(C: np.ndarray, views: list[ViewJacobians], *,
         undecided=not changed and bool(noisy),
         noisy=noisy,
         noisy_frames=noisy_frames(views, names),
+        p_parts=parts,
     )  # fmt: skip
 
 
@@ -410,6 +428,7 @@ def fold_recheck(res: ImageDriftCheck, wide: ToolErrorModel | None,
     again = image_drift_check(C, views_of(wide), eye_to_hand=eye_to_hand, alpha=alpha,
                               C_noise=C_noise)  # fmt: skip
     res = replace(res, fold_error_mm=wide.model_error_m * 1e3, fold_p_value=again.p_value,
+                  fold_p_parts=again.p_parts,
                   fold_error_deg=float(np.degrees(wide.model_error_rad or 0.0)))  # fmt: skip
     if again.changed:
         return res

@@ -12,6 +12,7 @@ from selfcal.solver.covariance import psd_sqrt
 __all__ = [
     "MIN_P_DRAWS",
     "P_FLOOR",
+    "P_TOP",
     "SIZE_DRAWS",
     "chi2_isf",
     "chi2_sf",
@@ -20,6 +21,7 @@ __all__ = [
     "known_size_power",
     "min_p",
     "p_text",
+    "smallest_p",
 ]
 
 P_FLOOR = 1e-15
@@ -45,10 +47,30 @@ def chi2_isf(p: float, dof: float) -> float:
     return chdtri(dof, p)
 
 
-def p_text(p: float) -> str:
-    """``"p = 0.0023"``, or ``"p < 1e-15"`` below :data:`P_FLOOR` (a tail that underflowed to 0
-    read as "p = 0", an impossible certainty)."""
-    return f"p < {P_FLOOR:g}" if p < P_FLOOR else f"p = {p:.2g}"
+P_TOP = 0.99
+"""Above this a p-value is printed as a bound (two significant digits round 0.995 up to "1")."""
+
+
+def p_text(p: float, smallest: float | None = None, tests: int = 0) -> str:
+    """``"p = 0.0023"``, ``"p < 1e-15"`` below :data:`P_FLOOR` (a tail that underflowed to 0
+    read as "p = 0", an impossible certainty) and ``"p > 0.99"`` above :data:`P_TOP` (two
+    digits printed 0.995 - 1 as "p = 1"). With ``smallest`` (the smallest of the combined
+    ``tests``' own p-values, :func:`smallest_p`), a Bonferroni combination clipped at 1 says
+    so and gives it: the p-value of the combined test lies between that and 1 (a new user's
+    unchanged simulated check printed "p = 1" where its 11 tests' smallest was 0.24)."""
+    if p < P_FLOOR:
+        return f"p < {P_FLOOR:g}"
+    if smallest is not None and p >= 1.0 and smallest <= P_TOP:
+        return (f"p = 1 as Bonferroni's bound clipped: {tests} tests times their smallest p, "
+                f"{smallest:.2g}")  # fmt: skip
+    return f"p > {P_TOP:g}" if p > P_TOP else f"p = {p:.2g}"
+
+
+def smallest_p(T: float, dof: int, directed: dict[str, tuple[float, int]]) -> tuple[float, int]:
+    """``(smallest, count)``: the smallest of the p-values of the tests :func:`combined_p`
+    combines (the omnibus and the directed tests of rank > 0) and their count."""
+    tests = [chi2_sf(T, dof)] + [chi2_sf(d, k) for d, k in directed.values() if k > 0]
+    return float(min(tests)), len(tests)
 
 
 def combined_p(T: float, dof: int, directed: dict[str, tuple[float, int]]) -> float:
@@ -58,8 +80,8 @@ def combined_p(T: float, dof: int, directed: dict[str, tuple[float, int]]) -> fl
     count (Bonferroni; directed tests of rank 0 are left out), at most 1. Below ``alpha`` in at
     most ``alpha`` of the checks of an unchanged robot whose residuals have the assumed
     covariance, whatever the tests' correlation."""
-    tests = [chi2_sf(T, dof)] + [chi2_sf(d, k) for d, k in directed.values() if k > 0]
-    return float(min(1.0, len(tests) * min(tests)))
+    smallest, count = smallest_p(T, dof, directed)
+    return float(min(1.0, count * smallest))
 
 
 def known_change_power(noncentrality: float | np.ndarray, alpha: float,
