@@ -2,7 +2,9 @@
 
 argparse names a script by its file (``sys.argv[0]``): ``python -m
 selfcal.benchmarks.board.accuracy --help`` printed ``usage: accuracy.py``, and so did
-``selfcal.benchmarks.tracker.accuracy``. :func:`benchmark_parser` names the module instead."""
+``selfcal.benchmarks.tracker.accuracy``. :func:`benchmark_parser` names the module instead
+(:func:`selfcal.console.usage.module_parser`, which the studies' and the other ``python -m``
+modules' parsers use too)."""
 
 from __future__ import annotations
 
@@ -10,31 +12,16 @@ import argparse
 from pathlib import Path
 from typing import Any
 
+from selfcal.console.usage import module_command, module_parser
+
 __all__ = ["benchmark_parser", "module_command"]
-
-_PACKAGE_ROOT = Path(__file__).resolve().parents[2]  # the folder that holds selfcal/
-
-
-def module_command(module_file: str | Path) -> str:
-    """``python -m selfcal.benchmarks.PART.NAME`` for the module whose ``__file__`` is
-    ``module_file`` (a package's ``__init__.py`` or ``__main__.py``: the package's name).
-    Raises ``ValueError`` for a file outside the package."""
-    path = Path(module_file).resolve().with_suffix("")
-    parts = list(path.relative_to(_PACKAGE_ROOT).parts)
-    if parts[-1] in ("__init__", "__main__"):
-        parts.pop()
-    return "python -m " + ".".join(parts)
 
 
 def benchmark_parser(module_file: str | Path, **kwargs: Any) -> argparse.ArgumentParser:
     """An ``argparse.ArgumentParser`` (``kwargs`` as its own: ``description``, ``parents``
     ...) whose usage and errors name the command of the module ``module_file`` (the caller's
-    ``__file__``, :func:`module_command`), not its file name; a module that its package's
-    ``__main__.py`` runs passes that file (``python -m selfcal.benchmarks.tracker``). A copy
-    of a module run from outside the package (``speed.measure --against`` runs its script so)
-    keeps argparse's own name, its file's."""
-    try:
-        prog: str | None = module_command(module_file)
-    except ValueError:
-        prog = None
-    return argparse.ArgumentParser(prog=prog, **kwargs)
+    ``__file__``, :func:`selfcal.console.usage.module_command`), not its file name; a module
+    that its package's ``__main__.py`` runs passes that file (``python -m
+    selfcal.benchmarks.tracker``). A copy of a module run from outside the package
+    (``speed.measure --against`` runs its script so) keeps argparse's own name, its file's."""
+    return module_parser(module_file, **kwargs)

@@ -15,6 +15,7 @@ from pathlib import Path
 from selfcal.cli.check import EXIT_CANNOT_TELL, EXIT_CHANGED
 from selfcal.cli.main import build_parser
 from selfcal.console.common import leaf_parsers
+from selfcal.console.usage import module_parser
 from selfcal.errors import EXIT_BROKEN_PIPE
 from selfcal.io.atomic import write_text_atomic
 
@@ -94,7 +95,7 @@ def cli_markdown() -> str:
 
 def main(argv: list[str] | None = None) -> int:
     """``--write``: rewrite docs/cli.md; ``--check``: exit 1 when it differs from the parser."""
-    ap = argparse.ArgumentParser(description=__doc__)
+    ap = module_parser(__file__, description=__doc__)
     g = ap.add_mutually_exclusive_group(required=True)
     g.add_argument("--write", action="store_true", help="rewrite docs/cli.md")
     g.add_argument("--check", action="store_true", help="exit 1 when docs/cli.md is stale")

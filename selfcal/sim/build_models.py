@@ -341,7 +341,10 @@ def render_picture(
 
 def main(argv: list[str] | None = None) -> int:
     """CLI: ``python -m selfcal.sim.build_models [--out DIR] [--no-picture]``."""
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = argparse.ArgumentParser(
+        prog="python -m selfcal.sim.build_models",  # not its file: sim imports no console
+        description=__doc__.split("\n\n")[0],
+    )
     ap.add_argument(
         "--out",
         type=Path,

@@ -19,6 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
+from selfcal.console.usage import module_parser
+
 # Heavy modules (scipy, OpenCV, MuJoCo, the pipeline) are imported by the functions that use
 # them, so that `selfcal --help` builds every command's parser without loading them.
 __all__ = [
@@ -390,6 +392,6 @@ def register(subparsers) -> argparse.ArgumentParser:
 
 
 if __name__ == "__main__":
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = module_parser(__file__, description=__doc__.splitlines()[0])
     _add_args(ap)
     raise SystemExit(_cmd(ap.parse_args()))

@@ -13,13 +13,13 @@ docs/accuracy.md.
 
 from __future__ import annotations
 
-import argparse
 import json
 from pathlib import Path
 
 import numpy as np
 
 from selfcal.config.scenario import load_scenario
+from selfcal.console.usage import module_parser
 from selfcal.io.jsonfile import read_report
 from selfcal.pipeline.run import run_acquire, run_calibrate, run_report
 
@@ -93,7 +93,7 @@ def summarise(rows: list[dict]) -> dict:
 
 
 if __name__ == "__main__":
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = module_parser(__file__, description=__doc__.splitlines()[0])
     ap.add_argument("--draws", type=int, default=20)
     ap.add_argument("--out", type=Path, required=True)
     ap.add_argument("--config", default=None)
