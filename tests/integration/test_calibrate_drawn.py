@@ -7,6 +7,7 @@ well-determined calibration (conftest ``mono_charuco_15``) where it is and nothi
 from __future__ import annotations
 
 import json
+import warnings
 from pathlib import Path
 
 import pytest
@@ -37,9 +38,13 @@ def test_pantilt_is_not_predicted_to_beat_the_drawing(tmp_path, capsys):
     with pytest.warns(DegenerateTrajectoryWarning):
         run_acquire(load_scenario(plan / "scenario.toml"), out, quiet=True)
     capsys.readouterr()
-    # and the mount's poorly determined translation puts the board's scale off the arm's (not
-    # traced: session 28's note)
-    with pytest.warns(ScaleWarning):
+    # the board as rendered: no scale warning. A camera turned about nearly one point barely
+    # determines the scale (a scaled motion with a scaled hand-eye fits as well), so the arm's
+    # own deviation moved it to 0.473 +- 0.056 and the check said "the board 111.4 % larger
+    # than the arm" (session 28); its tolerance now takes the largest shift the nominal
+    # chain's misfit can cause (MotionScale.misfit_shift, 1.36 here)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ScaleWarning)
         calibrate_board_run(out)
     said = capsys.readouterr().err
     block = json.loads((out / "calibration.json").read_text())["accuracy"][KEY]

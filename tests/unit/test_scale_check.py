@@ -3,6 +3,8 @@ the target measures it against the nominal arm's, in scale."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -61,6 +63,33 @@ def test_the_right_size_raises_nothing(seed):
     ms = motion_scale(nominal, q, T, C)
     assert abs(ms.scale - 1) < SCALE_TOL / 3  # measured up to 4.1e-3 over seeds 0-5
     assert scale_warning(ms, "kr6-r900", "the board", "") is None
+
+
+PANTILT = Path(__file__).resolve().parents[1] / "data" / "pantilt2.urdf"
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_a_camera_turned_about_nearly_one_point_is_not_said_off_scale(seed):
+    """A 2-joint pan-tilt (its axes meet) turns the camera about nearly one point: a scaled
+    motion with a scaled hand-eye fits it as well, so the arm's own deviation from its
+    drawing moves the scale far (session 28's pan-tilt: "the board 111 % larger than the arm
+    says" at 9 sigma with the board as rendered); the tolerance takes the largest shift its
+    misfit can cause. A 3 % scale on the KR 6 is still found (above)."""
+    robot = load_robot(str(PANTILT))
+    rng = np.random.default_rng(seed)
+    nominal = nominal_mcpc(robot)
+    p = nominal.params.copy()
+    p[:, :3] += np.radians(rng.uniform(-0.5, 0.5, p[:, :3].shape))
+    p[:, 3:] += rng.uniform(-1e-3, 1e-3, p[:, 3:].shape)
+    q = rng.uniform(robot.limits[:, 0], robot.limits[:, 1], (12, robot.n)) * 0.5
+    C = pose_from_vec(np.r_[0.1, 0.04, 0.05, 0.0, 1.5708, 0.0])
+    T = pose_from_vec(np.r_[0.5, 0.0, 0.0, 0.1, -0.2, 0.3]) @ fk_tool(nominal.with_params(p), q) @ C
+    ms = motion_scale(nominal, q, T, robot.T_flange_cam)
+    assert abs(ms.scale - 1) <= ms.misfit_shift == ms.tolerance
+    assert scale_warning(ms, "pantilt2", "the board", "") is None
+    # the KR 6's well-spread motion bounds its scale tighter than the tolerance's floor
+    kr6 = motion_scale(*camera_poses(1.0, seed)[:3], camera_poses(1.0, seed)[3])
+    assert kr6.misfit_shift < SCALE_TOL < ms.misfit_shift
 
 
 def test_scaled_sizes_name_every_length_of_the_target():
