@@ -210,8 +210,8 @@ def _check_mount(args: argparse.Namespace, mount: str | None) -> None:
 
 def _cmd(args: argparse.Namespace) -> int:
     from selfcal.acquisition.backends import robot_reference
+    from selfcal.calibration.board.folds import MIN_FRAMES, PLACEMENT_FRAMES
     from selfcal.calibration.board.plan.planner import plan_recording
-    from selfcal.calibration.field.failures import MIN_POSTURES
     from selfcal.cli.plan_forecast import DrawSet, forecast_draws, write_figure
     from selfcal.cli.plan_scenario import scenario_text
     from selfcal.cli.plan_text import criterion, plan_lines, plan_sections
@@ -268,10 +268,13 @@ def _cmd(args: argparse.Namespace) -> int:
     board = load_target(args.target)
     assert isinstance(board, Board)  # a marker field took cmd_field above
     boxes = keep_out_boxes(args)
-    if args.count < MIN_POSTURES:
-        raise CliError(f"--count {args.count}: a camera plan needs at least {MIN_POSTURES} "
-                       "postures (what the board calibration and the replay's scenario take)",
-                       fix=f"give --count {MIN_POSTURES} or more")  # fmt: skip
+    if args.count < MIN_FRAMES:
+        raise CliError(f"--count {args.count}: a board calibration needs at least {MIN_FRAMES} "
+                       f"postures that show the board: {PLACEMENT_FRAMES} place the camera and "
+                       "the board (two turns about different axes), and one more lets its "
+                       "cross-validation fit them without each posture, so that a kinematic "
+                       "parameter can be checked on a posture it was not fitted to",
+                       fix=f"give --count {MIN_FRAMES} or more")  # fmt: skip
     check_common(args, args.count)
     setup, pose = _setup(args, robot, camera, board, boxes)
     e2h = setup.eye_to_hand

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from selfcal.calibration.board.folds import MIN_FRAMES  # not .dataset: its imports
 from selfcal.calibration.field.failures import MIN_POSTURES  # not .calibrate: 0.6 s of imports
 from selfcal.config.camera import (
     PER_CAMERA_KEYS,
@@ -188,7 +189,8 @@ RANGES: dict[str, Range] = {
     "perturbation.translation_mm": Range(0.0, 100.0, "mm", "injected length errors"),
     "perturbation.rotation_deg": Range(0.0, 30.0, "deg", "injected angle errors"),
     "perturbation.table": Range(-100.0, 100.0, "deg or mm", "explicit injected errors"),
-    "trajectory.poses": Range(MIN_POSTURES, 10_000, "", "calibration postures"),
+    "trajectory.poses": Range(min(MIN_FRAMES, MIN_POSTURES), 10_000, "",
+                              f"calibration postures; a marker field's {MIN_POSTURES} or more"),
     "trajectory.seed": Range(0, 2**32 - 1, "", "random seed (numpy)"),
     "trajectory.min_markers": Range(1, 36, "", "points of the 36 the planner checks"),
     "noise.image_sigma": Range(0.0, 64.0, "grey levels", "sensor noise on 0-255 images"),
@@ -391,6 +393,13 @@ def _validate(s: Scenario) -> None:
         if not isinstance(v, (int, float)) or isinstance(v, bool):
             raise ConfigError(f"{f}: perturbation.table.{k}: expected number, got {v!r}")
     _check_ranges(s)
+    if not s.target.board and s.trajectory.poses < MIN_POSTURES:
+        raise ConfigError(
+            f"{f}: trajectory.poses = {s.trajectory.poses}: the marker field's self-calibration "
+            f"needs {MIN_POSTURES} postures or more (a board of known geometry, target.board, "
+            f"{MIN_FRAMES})",
+            fix=f"set trajectory.poses = {MIN_POSTURES} or more",
+        )
 
 
 def board_path(s: Scenario) -> Path | None:

@@ -68,3 +68,16 @@ def test_out_of_range_values_name_file_key_value_and_range(tmp_path, section, ke
     r = RANGES[f"{section}.{key}"]
     for word in (str(p), f"{section}.{key}", f"= {shown}", f"{_fmt(r.lo)} .. {_fmt(r.hi)}"):
         assert word in msg, (word, msg)
+
+
+def test_a_marker_field_scenario_needs_its_own_minimum(tmp_path):
+    """trajectory.poses takes the board calibration's 4 (tests/unit/test_fold_counting.py); the
+    marker field's self-calibration still needs 6, said with the key before anything runs."""
+    p = tmp_path / "s.toml"
+    p.write_text("[trajectory]\nposes = 5\n")
+    with pytest.raises(ConfigError, match=r"trajectory.poses = 5: the marker field's "
+                       r"self-calibration needs 6 postures or more"):  # fmt: skip
+        load_scenario(p)
+    board = DOC.parents[1] / "models" / "targets" / "charuco.toml"
+    p.write_text(f'[trajectory]\nposes = 4\n[target]\nboard = "{board}"\n')
+    assert load_scenario(p).trajectory.poses == 4

@@ -10,7 +10,14 @@ import numpy as np
 import pytest
 
 from selfcal.benchmarks.plan.add_selection import every_fold_counted
-from selfcal.calibration.board.folds import MIN_COUNTED, counted_folds, not_counted_words
+from selfcal.calibration.board.folds import (
+    MIN_COUNTED,
+    MIN_FRAMES,
+    PLACEMENT_FRAMES,
+    counted_folds,
+    fold_labels,
+    not_counted_words,
+)
 from selfcal.calibration.board.param_selection import Candidate, cv_error, one_se_rule
 
 # truth 7 of the eye-to-hand --add 5 table (docs/plan.md, its calibration.json's fold RMS, px):
@@ -93,3 +100,18 @@ def test_the_no_gain_verdict_says_which_folds_count():
     # two folds, one leaving out the majority: no cross-validation, said as the selection said it
     sel.update(folds=2, rule="no cross-validation: of 2 folds fewer than 2 count (fold 0 ...)")
     assert "no cross-validation: of 2 folds fewer than 2 count" in (res.cv_verdict() or "")
+
+
+def test_the_fewest_frames_are_what_the_folds_need():
+    """MIN_FRAMES (the board calibration's and ``selfcal plan --count``'s; 6 by hand before) is
+    the fewest frames whose folds, at one frame per configuration (the most folds), all count
+    and each fit the placement on PLACEMENT_FRAMES or more; one frame fewer cannot."""
+
+    def enough(m: int) -> bool:
+        folds = fold_labels(np.arange(m))
+        counted = counted_folds(folds)
+        training = [int(np.sum(folds != f)) for f in np.unique(folds)]
+        return int(counted.sum()) >= MIN_COUNTED and min(training) >= PLACEMENT_FRAMES
+
+    assert enough(MIN_FRAMES) and not enough(MIN_FRAMES - 1)
+    assert MIN_FRAMES == 4

@@ -34,6 +34,7 @@ from selfcal.calibration.board.bootstrap import BoardFitInputs
 from selfcal.calibration.board.bounds import BoardCramerRao, board_bounds
 from selfcal.calibration.board.calibrate import BoardInputError, calibrate_board
 from selfcal.calibration.board.deviation import Deviation
+from selfcal.calibration.board.folds import MIN_FRAMES, PLACEMENT_FRAMES
 from selfcal.calibration.board.mounts import flange_to_tool, mounts
 from selfcal.calibration.board.nominal_fit import placement
 from selfcal.calibration.board.refine import BoardObservations
@@ -76,10 +77,6 @@ __all__ = [
     "calibrate_board_dataset_detailed",
 ]
 
-
-MIN_FRAMES = 6
-"""Fewest frames that show the board for a calibration (``selfcal import`` takes any number:
-a held-out set for ``selfcal evaluate`` may have one)."""
 
 READBACK_RATIO = 1.5
 """The robot's fit RMS over the camera-only fit's (a free pose per image) beyond which joint
@@ -256,7 +253,8 @@ def calibrate_board_dataset_detailed(
     if shown < MIN_FRAMES:
         raise BoardInputError(
             f"the {board.describe()} is found in {shown} of {len(feats)} frames of {ds.root}; "
-            f"calibration needs at least {MIN_FRAMES}",
+            f"calibration needs at least {MIN_FRAMES} ({PLACEMENT_FRAMES} place the camera and "
+            "the board, one more lets its cross-validation fit them without each)",
             fix="add images that show the whole board (a smaller set can be held out: "
             "`selfcal evaluate CALIBRATION HELD_OUT`)",
         )

@@ -18,6 +18,8 @@ import numpy as np
 __all__ = [
     "MAX_FOLDS",
     "MIN_COUNTED",
+    "MIN_FRAMES",
+    "PLACEMENT_FRAMES",
     "SAME_CONFIGURATION",
     "configurations",
     "counted_folds",
@@ -33,6 +35,18 @@ MAX_FOLDS = 5
 MIN_COUNTED = 2
 """Folds that must count (:func:`counted_folds`) for a cross-validation: the paired rule's
 standard error needs two."""
+PLACEMENT_FRAMES = 3
+"""Frames whose camera poses determine the placement (the camera's mount and the board's pose)
+with the nominal chain: two motions about different axes (one motion leaves the mount's
+translation along its axis free)."""
+MIN_FRAMES = PLACEMENT_FRAMES + 1
+"""Fewest frames that show the board for a board calibration (``selfcal calibrate``,
+``selfcal plan --count``): with one frame per arm configuration (the most folds) the
+selection's folds then each leave out one frame, at most half, so they all count
+(:data:`MIN_COUNTED` or more), and each fits the placement on the other
+:data:`PLACEMENT_FRAMES`; with fewer no kinematic parameter can be cross-validated. What the
+postures identify beyond the placement the rank test says (a 2-joint pan-tilt's 4 frames
+calibrate, its selection keeping the fair nominal). It was 6, set by hand."""
 
 
 def _arm(q: np.ndarray, joint_types: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
