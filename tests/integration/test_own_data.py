@@ -381,15 +381,15 @@ def test_images_without_the_board_are_named_and_skipped_and_any_number_imports(l
     q = np.loadtxt(cj, delimiter=",", skiprows=1)
     np.testing.assert_allclose(np.radians(info.planned_joints_deg), np.delete(q, 7, axis=0),
                                atol=1e-11)  # fmt: skip
-    for k in range(15):
+    for k in range(17):
         cv2.imwrite(str(blank / f"img_{k:03d}.png"), np.full((600, 800), 170, np.uint8))
-    with pytest.warns(TargetNotFoundWarning, match="not found in 15 of 20"):
+    with pytest.warns(TargetNotFoundWarning, match="not found in 17 of 20"):
         info = import_dataset("kr6-r900", cams, cj, "rad", board, tmp_path / "o2")
-    # five frames import (a held-out set); the calibration needs six
-    assert len(info.planned_joints_deg) == 5
-    assert info.provenance["detection"] == {"images": 20, "found": 5, "opencv": 5}
+    # three frames import (a held-out set); the calibration needs four (folds.MIN_FRAMES)
+    assert len(info.planned_joints_deg) == 3
+    assert info.provenance["detection"] == {"images": 20, "found": 3, "opencv": 3}
     with pytest.raises(
-        BoardInputError, match="found in 5 of 5 frames of .*; calibration needs at "
+        BoardInputError, match="found in 3 of 3 frames of .*; calibration needs at least 4 "
     ):
         calibrate_board_dataset(tmp_path / "o2")
     # a declared geometry that the images do not show (2 images: OpenCV's search for a pattern
