@@ -60,7 +60,8 @@ def test_the_line_says_which_folds_its_cross_validation_counts():
         ],
         "folds_counted": [True, True, False, True],
     }
-    res = SimpleNamespace(nominal_rms_px=0.730, selection=sel, cv_verdict=lambda: None)
+    res = SimpleNamespace(nominal_rms_px=0.730, selection=sel, cv_verdict=lambda: None,
+                          model=PANTILT)  # fmt: skip
     assert _nominal_text(res).endswith(
         "cross-validated 0.735 px against the nominal's 0.742 px (geometric mean over the 3 of "
         "4 folds that count)"

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
 import pytest
 
 import selfcal.benchmarks.plan.add as bench
@@ -56,10 +57,21 @@ def test_a_folder_without_a_stamp_is_measured_anew(tmp_path, code):
     assert not (root / "plan").exists() and (root / "benchmark.json").is_file()
 
 
-def test_a_wrist_only_draw_that_selfcal_run_refuses_is_a_row_saying_so(tmp_path):
-    # truth 16's wrist-only draw leaves 5 feasible postures, fewer than `selfcal run` takes:
-    # the benchmark's run of 30 truths stopped there with FileNotFoundError (session 29)
+def test_a_wrist_only_draw_that_selfcal_run_refuses_is_a_row_saying_so(tmp_path, monkeypatch):
+    # session 29's run of 30 truths stopped at truth 16 (5 feasible postures, then fewer than
+    # `selfcal run` took) with FileNotFoundError; the board route now takes 4 (folds.MIN_FRAMES),
+    # so the draw is cut to 3 feasible postures here
+    import selfcal.calibration.board.plan.views as views
+
+    real = views.feasible
+
+    def three(setup, q):
+        ok = real(setup, q)
+        ok[np.flatnonzero(ok)[3:]] = False
+        return ok
+
+    monkeypatch.setattr(views, "feasible", three)
     row = bench.wrist_only_row(tmp_path / "truth16", 16, 5)
-    assert row["frames"] == 5
+    assert row["frames"] == 3
     assert "selfcal run stopped" in row["error"]
     assert row["predicted_before_mm"] != row["predicted_before_mm"]  # NaN, not a number
