@@ -12,8 +12,8 @@ thread limit (``SELFCAL_THREADS``, else 1; :func:`selfcal.threads.limited`).
 TYPE_CHECKING = False  # typing.TYPE_CHECKING without importing typing (mypy reads it as such)
 if TYPE_CHECKING:
     from selfcal.calibration.board.evaluate import Evaluation as Evaluation
-    from selfcal.calibration.drift.images import ImageDriftCheck as ImageDriftCheck
     from selfcal.calibration.drift.images import check_images as check_images
+    from selfcal.calibration.drift.verdict import ImageDriftCheck as ImageDriftCheck
     from selfcal.calibration.field.calibrate import (
         CalibrationFailedError as CalibrationFailedError,
     )
@@ -98,7 +98,8 @@ _PARTS: dict[str, tuple[str, ...]] = {
     "selfcal.calibration.tracker.calibrate": ("TrackerRun", "calibrate_tracker"),
     "selfcal.calibration.tracker.identify": ("TrackerMeasurements", "identify_tracker"),
     "selfcal.calibration.tracker.drift": ("DriftCheck", "check_tracker"),
-    "selfcal.calibration.drift.images": ("ImageDriftCheck", "check_images"),
+    "selfcal.calibration.drift.images": ("check_images",),
+    "selfcal.calibration.drift.verdict": ("ImageDriftCheck",),
     "selfcal.terms.probe": ("ProbeTerm",),
     "selfcal.terms.tracker": ("TrackerTerm",),
     # results

@@ -154,7 +154,7 @@ def cmd_check_plan(args: argparse.Namespace) -> int:
     note_written(args, out)
     line = got.line()
     if got.unseen:
-        from selfcal.calibration.drift.images import UNSEEN_NOTE
+        from selfcal.calibration.drift.verdict import UNSEEN_NOTE
 
         line += (f"\n{got.unseen} of {len(got.q)} at arm configurations the calibration did not "
                  f"see: {UNSEEN_NOTE}")  # fmt: skip

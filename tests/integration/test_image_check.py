@@ -14,11 +14,8 @@ import numpy as np
 import pytest
 
 import selfcal
-from selfcal.calibration.drift.images import (
-    UNSEEN_NOTE,
-    calibration_error_model,
-    estimate_covariance,
-)
+from selfcal.calibration.drift.images import calibration_error_model, estimate_covariance
+from selfcal.calibration.drift.verdict import UNSEEN_NOTE
 from selfcal.cli.check import EXIT_CHANGED
 from selfcal.cli.main import main
 from selfcal.config.scenario import load_scenario, scenarios_dir

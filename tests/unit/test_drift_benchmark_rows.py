@@ -7,8 +7,16 @@ from __future__ import annotations
 import pytest
 
 from selfcal.benchmarks.doc_blocks import read_block
+from selfcal.benchmarks.drift import image_table
 from selfcal.benchmarks.drift import images as drift_images
-from selfcal.benchmarks.drift.images import BLOCK, DOC, docs_rows, merge_rows, parse_block, table
+from selfcal.benchmarks.drift.image_table import (
+    BLOCK,
+    DOC,
+    docs_rows,
+    merge_rows,
+    parse_block,
+    table,
+)
 
 
 def _row(setup: str, noise: float, tool: float) -> dict:
@@ -51,7 +59,7 @@ def test_rows_of_other_options_are_not_mixed_in(monkeypatch, tmp_path):
     doc = tmp_path / "doc.md"
     block = table([_row("eye-in-hand, ur5e", 0.2, 1.0)], 10)
     doc.write_text(f"text\n<!-- {BLOCK}: begin -->\n{block}\n<!-- {BLOCK}: end -->\nmore\n")
-    monkeypatch.setattr(drift_images, "DOC", doc)
+    monkeypatch.setattr(image_table, "DOC", doc)
     new = [_row("eye-in-hand, er4u-paper", 0.2, 0.7)]
     assert len(docs_rows(new, 30, 10)) == 2
     with pytest.raises(SystemExit, match="--calibrations 30 --checks 10"):

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from scipy.stats import chi2, norm
 
-from selfcal.benchmarks.drift.images import read_joints
+from selfcal.benchmarks.drift.image_checks import read_joints
 from selfcal.calibration.drift.choose import chosen_views
 from selfcal.calibration.drift.covariance import change_information, view_covariance
 from selfcal.calibration.drift.fold_error import fold_error_model, fold_excess
@@ -710,7 +710,7 @@ def test_a_miss_beyond_half_the_image_names_the_new_joints_file():
     ... 38804.933 px RMS against the predicted 19543.391 px ... cause not named", nothing
     naming the joints; now the line of a change that large names NEW/joints.csv and the units."""
     from selfcal.calibration.drift.gross import GROSS_FRACTION, gross_miss
-    from selfcal.calibration.drift.images import ImageDriftCheck
+    from selfcal.calibration.drift.verdict import ImageDriftCheck
 
     assert gross_miss(GROSS_FRACTION * 2400, 2400, "new/joints.csv") == ""
     words = gross_miss(38804.933, 2400, "new/joints.csv")

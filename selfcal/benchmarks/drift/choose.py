@@ -10,7 +10,7 @@ and the random set it is set beside (the first ``--views`` candidates) are each 
 the camera's, eye-to-hand the board's) moved 0.2 mm in a random direction without turning; the
 corners projected through the true chain and camera with the same pixel noise, the joints read
 back at the robot file's encoder resolution
-(:func:`selfcal.benchmarks.drift.images.read_joints`), tested as the drift benchmark tests them
+(:func:`selfcal.benchmarks.drift.image_checks.read_joints`), tested as the drift benchmark tests them
 (:func:`selfcal.calibration.drift.images.image_drift_check` and its second null). Reported per
 set: the mean stated power (what the command's line says), the share of shifts found (target
 >= 95 %), the share of unchanged checks that say "changed" (target < 2 %) and the "cannot tell"
@@ -37,15 +37,15 @@ from pathlib import Path
 import numpy as np
 
 from selfcal.benchmarks.doc_blocks import code_version, codes_note, print_table
-from selfcal.benchmarks.drift.images import (
-    DOC,
+from selfcal.benchmarks.drift.image_checks import (
     JOINT_OFFSET_RAD,
     SCENARIOS,
     TOOL_SHIFT_M,
     drawn_calibration,
-    journaled_checks,
     read_joints,
 )
+from selfcal.benchmarks.drift.image_table import DOC
+from selfcal.benchmarks.drift.images import journaled_checks
 from selfcal.benchmarks.usage import benchmark_parser
 from selfcal.calibration.drift.choose import choose_check_postures, expected_features
 from selfcal.calibration.drift.images import (

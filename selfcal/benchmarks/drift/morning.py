@@ -31,7 +31,12 @@ import warnings
 import numpy as np
 
 from selfcal.benchmarks.board.accuracy_draw import calibrated_folder, scenario, simulated
-from selfcal.benchmarks.drift.images import JOINT_OFFSET_RAD, NEW_VIEWS, TOOL_SHIFT_M, read_joints
+from selfcal.benchmarks.drift.image_checks import (
+    JOINT_OFFSET_RAD,
+    NEW_VIEWS,
+    TOOL_SHIFT_M,
+    read_joints,
+)
 from selfcal.benchmarks.pool import map_jobs
 from selfcal.benchmarks.usage import benchmark_parser
 from selfcal.calibration.board.evaluate import held_out_views

@@ -37,7 +37,7 @@ import numpy as np
 from scipy.stats import chi2
 
 from selfcal.benchmarks.board.accuracy_draw import SCENARIO, simulated_calibration
-from selfcal.benchmarks.drift.images import NEW_VIEWS, SPREAD_RAD, TOOL_SHIFT_M, read_joints
+from selfcal.benchmarks.drift.image_checks import NEW_VIEWS, SPREAD_RAD, TOOL_SHIFT_M, read_joints
 from selfcal.benchmarks.usage import benchmark_parser
 from selfcal.calibration.drift.covariance import change_information
 from selfcal.calibration.drift.images import (

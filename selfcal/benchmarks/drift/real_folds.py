@@ -56,7 +56,6 @@ from selfcal.calibration.board.view_jitter import psd_part
 from selfcal.calibration.drift import images
 from selfcal.calibration.drift.fold_error import fold_excess
 from selfcal.calibration.drift.images import (
-    ImageDriftCheck,
     ViewNoise,
     calibration_error_model,
     calibration_views,
@@ -65,6 +64,7 @@ from selfcal.calibration.drift.images import (
     image_drift_check,
     view_noise,
 )
+from selfcal.calibration.drift.verdict import ImageDriftCheck
 from selfcal.calibration.drift.views import ViewJacobians, tool_pose_error, view_white_px
 from selfcal.calibration.whitened import whitened_rows, with_whitened
 from selfcal.io.board_calibration import BoardCalibrationResult, read_board_calibration

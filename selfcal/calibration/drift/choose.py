@@ -164,7 +164,7 @@ class CheckChoice:
     the first K candidates and ``random_power`` theirs; the pool's size and where it was drawn
     (``drawn_from``); ``unseen``: how many chosen postures are at arm configurations the
     calibration did not see (the check's false-alarm rate there is measured in simulation only,
-    :data:`selfcal.calibration.drift.images.UNSEEN_NOTE`); ``setup`` the cell."""
+    :data:`selfcal.calibration.drift.verdict.UNSEEN_NOTE`); ``setup`` the cell."""
 
     q: np.ndarray
     power: ShiftPower
