@@ -53,7 +53,11 @@ def render_views(board: Board, poses: list[np.ndarray], image_sigma: float, seed
 
 @pytest.fixture(scope="module")
 def rendered():
-    return render_views(BOARD, random_board_poses(BOARD, 12, seed=13), 3.0, 13)
+    """The 12 rendered views of the ChArUco, the true camera and board poses, and each view's
+    detection (detected once for the two tests that read them)."""
+    images, truth, T_cam_board = render_views(BOARD, random_board_poses(BOARD, 12, seed=13),
+                                              3.0, 13)  # fmt: skip
+    return [BOARD.detect(img) for img in images], truth, T_cam_board
 
 
 @pytest.mark.parametrize(
@@ -89,10 +93,9 @@ def test_every_board_type_is_seen_where_it_is_in_the_scene(board):
 
 
 def test_rendered_corners_match_the_projection(rendered):
-    images, truth, T_cam_board = rendered
+    found, truth, T_cam_board = rendered
     e = []
-    for img, T in zip(images, T_cam_board, strict=True):
-        f = BOARD.detect(img)
+    for f, T in zip(found, T_cam_board, strict=True):
         assert len(f) >= 0.6 * BOARD.n_features
         X = BOARD.points(f.ids)
         e.append(f.uv - truth.project(X @ T[:3, :3].T + T[:3, 3]))
@@ -103,8 +106,8 @@ def test_rendered_corners_match_the_projection(rendered):
 
 
 def test_mono_charuco_calibration_reaches_the_truth_and_opencv(rendered):
-    images, truth, T_cam_board = rendered
-    res = calibrate_board(BOARD, [BOARD.detect(img) for img in images], W, H)
+    found, truth, T_cam_board = rendered
+    res = calibrate_board(BOARD, found, W, H)
     for n in NAMES:
         assert abs(getattr(res.camera, n) - getattr(truth, n)) < 3 * res.std[n], n
     cv = res.opencv

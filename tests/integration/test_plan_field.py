@@ -191,9 +191,13 @@ def test_what_a_field_plan_does_not_take_is_refused(tmp_path, capsys, extra, tar
     assert not (tmp_path / "p").exists()
 
 
-def test_a_field_file_unlike_the_replay_is_warned_of(tmp_path, capsys):
+def test_a_field_file_unlike_the_replay_is_warned_of_and_a_singular_forecast_refused(tmp_path,
+                                                                                   capsys):  # fmt: skip
     """The postures and the forecast hold for the user's field; the replay simulates the
-    DICT_4X4_50 field with scale markers 48, 49: said, not silently substituted."""
+    DICT_4X4_50 field with scale markers 48, 49: said, not silently substituted. And 6
+    postures of one camera do not determine the field route's unknowns (the bound's
+    information has a null direction: rank 271 of 272): refused, nothing written (one plan
+    for both: the warning comes first)."""
     mine = tmp_path / "mine.toml"
     mine.write_text('type = "field"\ndictionary = "DICT_6X6_250"\nscale_marker_ids = [0, 1]\n'
                     "scale_length_mm = 200.0\n")  # fmt: skip
@@ -201,13 +205,6 @@ def test_a_field_file_unlike_the_replay_is_warned_of(tmp_path, capsys):
         assert main(_argv(tmp_path / "p", "--count", "6", target=str(mine))) == 3  # warned first
     err = capsys.readouterr().err
     assert "DICT_6X6_250, scale markers [0, 1]" in err and "DICT_4X4_50 field" in err
-
-
-def test_a_plan_whose_forecast_is_singular_is_refused(tmp_path, capsys):
-    """6 postures of one camera do not determine the field route's unknowns (the bound's
-    information has a null direction: rank 271 of 272): refused, nothing written."""
-    assert main(_argv(tmp_path / "p", "--count", "6")) == 3
-    err = capsys.readouterr().err
     assert "does not determine the field route's unknowns" in err and "--count" in err
     assert not (tmp_path / "p").exists()
 
