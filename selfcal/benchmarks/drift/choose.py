@@ -81,7 +81,7 @@ def chosen_checks(args: tuple) -> dict:
     ``views``, ``candidates``, optionally ``joint``): per set (:data:`SETS`) the stated power and
     the counts of "changed" and "cannot tell" verdicts of its ``checks`` checks unchanged and
     shifted; with ``joint`` also of checks with one random joint's zero moved by
-    :data:`selfcal.benchmarks.drift.images.JOINT_OFFSET_RAD` (:data:`JOINT_COUNTS`; their own
+    :data:`selfcal.benchmarks.drift.image_checks.JOINT_OFFSET_RAD` (:data:`JOINT_COUNTS`; their own
     draws, so the other counts are those of a run without)."""
     sigma_px, seed, checks, setup, robot_name, views, candidates = args[:7]
     joint = bool(args[7]) if len(args) > 7 else False

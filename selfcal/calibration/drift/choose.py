@@ -81,7 +81,7 @@ corner of the board."""
 NEAR_DEG = 10.0
 """Half the candidates lie within this of one of the calibration's postures on every joint
 (deg; the drift benchmark's new views, ``python -m selfcal.benchmarks.drift.images``, at
-:data:`selfcal.benchmarks.drift.images.SPREAD_RAD`)."""
+:data:`selfcal.benchmarks.drift.image_checks.SPREAD_RAD`)."""
 
 GREEDY_DRAWS = 500
 """Draws of the stated power per trial of the greedy choice (:func:`chosen_views`; the final
