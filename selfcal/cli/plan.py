@@ -14,6 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
+from selfcal.calibration.board.folds import MIN_FRAMES
+from selfcal.calibration.field.failures import MIN_POSTURES
 from selfcal.choices import SETUPS
 from selfcal.cli import plan_field
 from selfcal.cli.plan_add import cmd_add
@@ -210,7 +212,7 @@ def _check_mount(args: argparse.Namespace, mount: str | None) -> None:
 
 def _cmd(args: argparse.Namespace) -> int:
     from selfcal.acquisition.backends import robot_reference
-    from selfcal.calibration.board.folds import MIN_FRAMES, PLACEMENT_FRAMES
+    from selfcal.calibration.board.folds import PLACEMENT_FRAMES
     from selfcal.calibration.board.plan.planner import plan_recording
     from selfcal.cli.plan_forecast import DrawSet, forecast_draws, write_figure
     from selfcal.cli.plan_scenario import scenario_text
@@ -378,7 +380,8 @@ def register(subparsers) -> argparse.ArgumentParser:
     sp.add_argument("--sigma-mm", type=float, default=None,
                     help="--measure tracker: the tracker's noise per coordinate, mm (default 0.1)")  # fmt: skip
     sp.add_argument("--count", type=int, default=None,
-                    help="postures to plan (default 12; not with --add)")  # fmt: skip
+                    help=f"postures to plan (default 12; at least {MIN_FRAMES} with a board, "
+                    f"{MIN_POSTURES} with a marker field; not with --add)")  # fmt: skip
     sp.add_argument("--keep-out", action="append", default=[], metavar="BOX",
                     help="XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX (mm, base frame); repeatable")  # fmt: skip
     sp.add_argument("--add", nargs=2, default=None, metavar=("K", "DATASET"),
