@@ -30,6 +30,8 @@ route cannot estimate: with fewer position rows than parameters (e.g. 6 postures
 candidates). So the plan is the best, by the prediction, of the two greedy choices and the
 pool's disjoint sets of ``count`` in draw order (the first of them the random plan): never worse
 than the random plan by its own criterion; :attr:`TrackerPlan.chosen_by` says which won.
+``selfcal plan --add K DIR`` makes the same choice after the rows a calibration already has
+(:func:`choose_postures`' ``measured``; :mod:`selfcal.calibration.tracker.add`).
 
 Too few postures: the route refuses to identify from no more position equations than the
 parameters positions identify on the robot (its structural rank, e.g. 27 on the UR5e: at
@@ -75,6 +77,9 @@ __all__ = [
     "kept_by_rank",
     "minimum_count",
     "predict_tracker",
+    "workspace_weight",
+    "Choice",
+    "choose_postures",
     "plan_tracker",
 ]
 
@@ -157,15 +162,78 @@ def kept_by_rank(setup: TrackerPlanSetup, q: np.ndarray) -> np.ndarray:
 
 
 def predict_tracker(
-    setup: TrackerPlanSetup, q: np.ndarray, F: np.ndarray, G: np.ndarray, variance: np.ndarray
+    setup: TrackerPlanSetup,
+    q: np.ndarray,
+    F: np.ndarray,
+    G: np.ndarray,
+    variance: np.ndarray,
+    keep: np.ndarray | None = None,
 ) -> float:
     """The predicted tool-point RMS (m) of the tracker route on the postures ``q`` with the
     information ``F`` (k, k) (:func:`posture_information` summed over them), the workspace
-    weight ``G`` (k, k) and the deviation's ``variance`` (k,): the parameters
-    :func:`kept_by_rank` keeps estimated, the others held."""
-    keep = kept_by_rank(setup, q)
+    weight ``G`` (k, k) and the deviation's ``variance`` (k,): the parameters ``keep`` (k,)
+    bool estimated (None: those :func:`kept_by_rank` keeps at ``q``), the others held."""
+    keep = kept_by_rank(setup, q) if keep is None else np.asarray(keep, bool)
     M = np.eye(len(keep))[:, keep]
     return predicted_with_held(F, G, 0, M, variance)
+
+
+def workspace_weight(setup: TrackerPlanSetup, qw: np.ndarray) -> np.ndarray:
+    """(k, k) ``G = mean_w J_w^T J_w`` over the workspace postures ``qw`` (w, n) rad (module
+    docstring)."""
+    Jw = position_jacobian(setup.model, qw)
+    return np.einsum("wri,wrj->ij", Jw, Jw) / len(qw)
+
+
+@dataclass(frozen=True, eq=False)
+class Choice:
+    """The best set of ``count`` candidates by the prediction (:func:`choose_postures`):
+    ``index`` (count,) into the pool, unordered; ``predicted_m`` its prediction (m),
+    ``greedy_m`` the better greedy choice's, ``random_m`` the pool's first ``count``'s (the
+    random plan) and ``chosen_by`` which set won (module docstring)."""
+
+    index: np.ndarray
+    predicted_m: float
+    greedy_m: float
+    random_m: float
+    chosen_by: str
+
+
+def choose_postures(
+    setup: TrackerPlanSetup,
+    pool: np.ndarray,
+    G: np.ndarray,
+    variance: np.ndarray,
+    count: int,
+    measured: np.ndarray | None = None,
+) -> Choice:
+    """The ``count`` candidates of ``pool`` (c, n) rad the plan takes (module docstring: the
+    better of the two greedy choices and the pool's disjoint sets, by the prediction with the
+    parameters the route's tests keep), after the postures ``measured`` (m, n) rad already
+    measured (``selfcal plan --add``, :mod:`selfcal.calibration.tracker.add`; None: none):
+    their information starts every greedy choice and every set is predicted with them."""
+    q0 = np.zeros((0, pool.shape[1])) if measured is None else np.asarray(measured, float)
+    F = posture_information(setup, pool)
+    F0 = posture_information(setup, q0).sum(axis=0) if len(q0) else np.zeros(F.shape[1:])
+
+    def predict(i: np.ndarray) -> float:
+        q = np.concatenate([q0, pool[i]])
+        return predict_tracker(setup, q, F0 + F[i].sum(axis=0), G, variance)
+
+    greedy = {
+        "greedy": select_greedy(F, G, 0, count, start=F0),
+        "greedy from the prior": select_greedy(
+            F, G, 0, count, start=F0 + prior_information(variance, 0)
+        ),
+    }
+    tried = {name: (predict(i), i) for name, i in greedy.items()}
+    greedy_m = min(m for m, _ in tried.values())
+    rivals = pool_sets(len(pool), count)
+    for name, i in rivals:
+        tried[name] = (predict(i), i)
+    chosen_by = min(tried, key=lambda name: tried[name][0])  # the first of equals: greedy
+    predicted_m, chosen = tried[chosen_by]
+    return Choice(chosen, predicted_m, greedy_m, tried[rivals[0][0]][0], chosen_by)
 
 
 @dataclass(frozen=True, eq=False)
@@ -219,37 +287,23 @@ def plan_tracker(
             fix=f"plan at least {need} postures (--count {need}), better 3 times that",
         )
     qw = workspace_sample(setup, workspace, seed=seed + 1)
-    Jw = position_jacobian(setup.model, qw)
-    G = np.einsum("wri,wrj->ij", Jw, Jw) / len(qw)
     var = (deviation or Deviation()).variance(setup.model.joint_types)
-    F = posture_information(setup, pool)
-    predict = lambda i: predict_tracker(setup, pool[i], F[i].sum(axis=0), G, var)  # noqa: E731
-    greedy = {
-        "greedy": select_greedy(F, G, 0, count),
-        "greedy from the prior": select_greedy(F, G, 0, count, start=prior_information(var, 0)),
-    }
-    tried = {name: (predict(i), i) for name, i in greedy.items()}
-    greedy_m = min(m for m, _ in tried.values())
-    rivals = pool_sets(len(pool), count)
-    for name, i in rivals:
-        tried[name] = (predict(i), i)
-    chosen_by = min(tried, key=lambda name: tried[name][0])  # the first of equals: greedy
-    predicted_m, chosen = tried[chosen_by]
+    got = choose_postures(setup, pool, workspace_weight(setup, qw), var, count)
     home = setup.robot.home
-    q = pool[chosen]
+    q = pool[got.index]
     q = q[order_path(q, home)]
     rand = pool[:count]
     return TrackerPlan(
         q=q,
-        predicted_m=predicted_m,
+        predicted_m=got.predicted_m,
         q_random=rand,
-        random_m=tried[rivals[0][0]][0],
+        random_m=got.random_m,
         workspace=qw,
         kept=int(kept_by_rank(setup, q).sum()),
         parameters=int(minimal_indices(setup.model.joint_types).size),
         candidates=len(pool),
         path_rad=path_length(q, home),
         random_path_rad=path_length(rand[order_path(rand, home)], home),
-        greedy_m=greedy_m,
-        chosen_by=chosen_by,
+        greedy_m=got.greedy_m,
+        chosen_by=got.chosen_by,
     )
