@@ -27,6 +27,7 @@ from selfcal.cli.plan_args import (
     trajectory_joint_names,
 )
 from selfcal.cli.plan_check import CHECK_EPILOG, cmd_check_plan
+from selfcal.cli.plan_tracker_add import cmd_tracker_add, is_tracker_dataset
 from selfcal.console.common import CliError, add_json, note_written, parse_floats, writing
 from selfcal.errors import SelfCalWarning
 
@@ -97,6 +98,14 @@ tracker route's predicted tool-point error over the workspace in the tracker fra
 covariance with the parameters its rank and conditioning tests keep, noise --sigma-mm per
 coordinate, exact joints); PLAN/joints.csv (add the measured x_mm,y_mm,z_mm to each row for identify),
 trajectory.yaml and plan.json. No camera, board or mount options.
+--add K DIR with DIR the folder `selfcal identify` wrote (a tracker calibration; or with
+--measure tracker): the K postures, from the same candidates, that most lower its predicted
+tool-point error given the rows it has (their joints from its calibration.json), by the same
+criterion (before: the parameters it estimated; after: those the route's tests keep at all the
+rows), the tracker noise its (--sigma-mm overrides it), the held parameters erring by
+--deviation-mm/--deviation-deg; PLAN/joints.csv and trajectory.yaml hold the added postures
+(measure them, append the rows to the measurements and identify again), plan.json the
+prediction before and after.
 """
 
 
@@ -232,6 +241,8 @@ def _cmd(args: argparse.Namespace) -> int:
     args.deviation_given = args.deviation_mm is not None or args.deviation_deg is not None
     args.deviation_mm = 1.0 if args.deviation_mm is None else args.deviation_mm
     args.deviation_deg = 0.5 if args.deviation_deg is None else args.deviation_deg
+    if args.add and (args.measure == "tracker" or is_tracker_dataset(args.add[1])):
+        return cmd_tracker_add(args, deviation(args))
     if args.measure == "tracker":
         from selfcal.cli.plan_tracker import cmd_tracker
 

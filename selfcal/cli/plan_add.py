@@ -23,7 +23,25 @@ from selfcal.console.common import CliError, note_written, writing
 if TYPE_CHECKING:
     from selfcal.calibration.board.plan.add import AddedPostures
 
-__all__ = ["cmd_add", "corner_noise", "halved_words"]
+__all__ = ["add_count", "cmd_add", "corner_noise", "halved_words"]
+
+
+def add_count(args: argparse.Namespace) -> tuple[int, str]:
+    """``--add K DATASET``'s K (a whole number >= 1) and DATASET, for a board dataset and a
+    tracker calibration alike.
+
+    Raises:
+        CliError: K not a whole number, or below 1.
+    """
+    k_text, root = args.add
+    try:
+        count = int(k_text)
+    except ValueError:
+        raise CliError(f"--add {k_text} {root}: K must be a whole number of postures") from None
+    if count < 1:
+        raise CliError(f"--add {count} {root}: add at least 1 posture",
+                       fix=f"e.g. --add 5 {root}")  # fmt: skip
+    return count, root
 
 
 def cmd_add(args: argparse.Namespace) -> int:
@@ -44,13 +62,7 @@ def cmd_add(args: argparse.Namespace) -> int:
     from selfcal.io.plan_files import joints_csv, trajectory_yaml, write_plan
     from selfcal.io.target_toml import target_document
 
-    k_text, root = args.add
-    try:
-        count = int(k_text)
-    except ValueError:
-        raise CliError(f"--add {k_text} {root}: K must be a whole number of postures") from None
-    if count < 1:
-        raise CliError(f"--add {count}: add at least 1 posture")
+    count, root = add_count(args)
     check_common(args, count)
     _refuse_other_routes(root)
     dplan = dataset_setup(root, keep_out_boxes(args))

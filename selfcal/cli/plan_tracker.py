@@ -19,7 +19,7 @@ from selfcal.cli.plan_args import (
 )
 from selfcal.console.common import CliError, note_written, parse_floats, writing
 
-__all__ = ["CAMERA_OPTIONS", "cmd_tracker"]
+__all__ = ["CAMERA_OPTIONS", "cmd_tracker", "greedy_note"]
 
 CAMERA_OPTIONS = (
     ("--target", "target"),
@@ -29,10 +29,19 @@ CAMERA_OPTIONS = (
     ("--mount", "mount"),
     ("--board-pose", "board_pose"),
     ("--camera-pose", "camera_pose"),
-    ("--add", "add"),
     ("--pixel-sigma", "pixel_sigma"),
 )
 """What a camera plan takes and a tracker plan refuses (it has no camera and no board)."""
+
+
+def greedy_note(chosen_by: str, greedy_m: float, what: str) -> str:
+    """Why ``what`` (e.g. "the plan is") is a set of the pool, not the greedy choice, whose
+    prediction ``greedy_m`` (m) was worse (:class:`selfcal.calibration.tracker.plan.Choice`);
+    empty when the greedy choice won."""
+    if chosen_by.startswith("greedy"):
+        return ""
+    return (f"the greedy choice predicted {greedy_m * 1000:.3f} mm, so {what} the pool's "
+            f"{chosen_by}")  # fmt: skip
 
 
 def _check(args: argparse.Namespace) -> None:
@@ -106,8 +115,7 @@ def cmd_tracker(args: argparse.Namespace, deviation) -> int:
             f"{plan.predicted_m * 1000:.3f} mm RMS (a random plan of {len(plan.q)}: "
             f"{plan.random_m * 1000:.3f} mm; {plan.kept} of {plan.parameters} parameters "
             f"identified); joint path {np.degrees(plan.path_rad):.0f} deg")  # fmt: skip
-    if not plan.chosen_by.startswith("greedy"):
-        line += (f"; the greedy choice predicted {plan.greedy_m * 1000:.3f} mm, so the plan is "
-                 f"the pool's {plan.chosen_by}")  # fmt: skip
+    if note := greedy_note(plan.chosen_by, plan.greedy_m, "the plan is"):
+        line += "; " + note
     print(json.dumps(doc) if args.json else line)
     return 0

@@ -48,9 +48,10 @@ __all__ = [
 PLAN_FORMAT = "scorbot-selfcal-plan"
 PLAN_SCHEMA_VERSION = 1
 """``plan.json``'s schema: raise it when a key changes in a way older code cannot read."""
-PLAN_KINDS = ("camera", "add", "field", "tracker", "check")
+PLAN_KINDS = ("camera", "add", "field", "tracker", "check", "tracker-add")
 """``plan.json``'s ``kind``: a camera plan over a board, ``--add K DATASET``, a plan over a
-marker field, ``--measure tracker``, ``--check K CALIBRATION`` (a drift check's postures)."""
+marker field, ``--measure tracker``, ``--check K CALIBRATION`` (a drift check's postures),
+``--add K DIR`` to a tracker calibration."""
 _PLAN_FIX = "re-create it with `selfcal plan ... --out DIR` (docs/plan.md)"
 
 
