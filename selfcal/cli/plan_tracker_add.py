@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from selfcal.calibration.board.plan.reference import CLEAR_MARGIN
 from selfcal.cli.plan_add import add_count
 from selfcal.cli.plan_args import (
     check_common,
@@ -22,7 +23,7 @@ from selfcal.cli.plan_args import (
 from selfcal.cli.plan_tracker import CAMERA_OPTIONS, greedy_note
 from selfcal.console.common import CliError, note_written, writing
 
-__all__ = ["TAKES_FROM_CALIBRATION", "is_tracker_dataset", "cmd_tracker_add"]
+__all__ = ["TAKES_FROM_CALIBRATION", "is_tracker_dataset", "fair_words", "cmd_tracker_add"]
 
 TAKES_FROM_CALIBRATION = (
     ("--robot", "robot"),
@@ -72,6 +73,20 @@ def _check(args: argparse.Namespace) -> int:
     return count
 
 
+def fair_words(fair_m: float, predicted_m: float, rows: str) -> str:
+    """The fair nominal of ``rows`` (words) predicted at ``fair_m`` (m) and whether a
+    calibration predicted at ``predicted_m`` (m) beats it clearly (at most
+    :data:`selfcal.calibration.board.plan.reference.CLEAR_MARGIN` times it, the board plan's
+    rule)."""
+    head = (f"the fair nominal of {rows} (the chain as drawn, the tracker frame and the tool "
+            f"point fitted) {fair_m * 1000:.3f} mm")  # fmt: skip
+    ratio = predicted_m / fair_m
+    if ratio <= CLEAR_MARGIN:
+        return f"{head}: the calibration is predicted at {ratio:.2f} times it"
+    return (f"{head}: the calibration is NOT predicted to beat it by a clear margin ({ratio:.2f} "
+            f"times it, a clear gain is at most {CLEAR_MARGIN:g})")  # fmt: skip
+
+
 def cmd_tracker_add(args: argparse.Namespace, deviation) -> int:
     """Plan, write and print (module docstring); ``deviation`` the arm's deviation from its
     drawing the held parameters err by (:class:`selfcal.calibration.board.deviation.Deviation`)."""
@@ -112,6 +127,11 @@ def cmd_tracker_add(args: argparse.Namespace, deviation) -> int:
             "random_tool_rms_mm": round(add.random_m * 1000, 4),
             "greedy_tool_rms_mm": round(add.greedy_m * 1000, 4),
             "chosen_by": add.chosen_by,
+            "fair_nominal_before_tool_rms_mm": round(add.fair_before_m * 1000, 4),
+            "fair_nominal_tool_rms_mm": round(add.fair_after_m * 1000, 4),
+            "verdict_before": fair_words(add.fair_before_m, add.before_m, f"the {m} rows"),
+            "verdict": fair_words(add.fair_after_m, add.after_m, f"the {m + k} rows"),
+            "clear_margin": CLEAR_MARGIN,
             "kinematic_parameters_before": add.kept_before,
             "kinematic_parameters_after": add.kept_after,
             "minimal_parameters": add.parameters,
@@ -139,7 +159,8 @@ def cmd_tracker_add(args: argparse.Namespace, deviation) -> int:
             f"lower (parameters estimated {add.kept_before} -> {add.kept_after} of "
             f"{add.parameters}; {k} random postures instead: {add.random_m * 1000:.3f} mm) over "
             f"{len(add.workspace)} workspace postures in the tracker frame; joint path "
-            f"{np.degrees(add.path_rad):.0f} deg\n{noise}\n{dev}")  # fmt: skip
+            f"{np.degrees(add.path_rad):.0f} deg\n{noise}\n{dev}\nbefore, "
+            f"{doc['verdict_before']}\nafter, {doc['verdict']}")  # fmt: skip
     if note := greedy_note(add.chosen_by, add.greedy_m, "the added postures are"):
         line += "\n" + note
     if not_counted:

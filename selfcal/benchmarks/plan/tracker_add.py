@@ -15,7 +15,8 @@ before and after (the RMS over :data:`CHECK_POSTURES` postures of the robot file
 window of the distance between the calibration's tool point and the truth's, in the tracker
 frame: the quantity the plan predicts), the same of each calibration's fair nominal (the robot
 file's chain with the tracker frame and the tool point fitted, ``calibration.json``'s
-``nominal``: what a calibration has to beat) and the parameters each calibration estimated. Prints the
+``nominal``: what a calibration has to beat; ``plan.json`` predicts it) and the parameters each
+calibration estimated. Prints the
 first truth's ``selfcal plan --add`` lines, the table and the medians of the before/after
 ratios; ``--write-docs`` puts them between docs/plan.md's ``benchmark_plan_tracker_add_K``
 markers (K the ``--add``).
@@ -145,6 +146,8 @@ def tracker_add_row(folder: str | Path, seed: int, add: int = 5, robot: str = "u
         "achieved_after_mm": after * 1e3,
         "fair_nominal_before_mm": fair_before * 1e3,
         "fair_nominal_after_mm": fair_after * 1e3,
+        "fair_predicted_before_mm": plan["fair_nominal_before_tool_rms_mm"],
+        "fair_predicted_after_mm": plan["fair_nominal_tool_rms_mm"],
         "kept_before": kept_before,
         "kept_after": kept_after,
         "line": line.strip(),
@@ -192,7 +195,9 @@ def main(argv: list[str] | None = None) -> int:
               f"after {span('achieved_after_mm', 'predicted_after_mm')}; fair nominal / "
               f"calibration, achieved: before {span('fair_nominal_before_mm', 'achieved_before_mm')} "
               f"(below 1.1, no clear gain, in {no_gain} of {len(rows)}), after "
-              f"{span('fair_nominal_after_mm', 'achieved_after_mm')}"]  # fmt: skip
+              f"{span('fair_nominal_after_mm', 'achieved_after_mm')}; the fair nominal achieved / "
+              f"predicted: before {span('fair_nominal_before_mm', 'fair_predicted_before_mm')}, "
+              f"after {span('fair_nominal_after_mm', 'fair_predicted_after_mm')}"]  # fmt: skip
     return print_table("\n".join(lines), ROOT / "docs" / "plan.md",
                        f"benchmark_plan_tracker_add_{a.add}", write=a.write_docs)  # fmt: skip
 

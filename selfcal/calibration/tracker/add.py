@@ -18,7 +18,9 @@ conditioning tests keep at them all (:func:`selfcal.calibration.tracker.plan.kep
 
 Predicted before: the rows' information with the parameters the calibration estimated (its
 ``parameters``' ``estimated``), every other one held at the drawing and erring by the
-deviation. Not counted: distance rows (a ball bar's; ``distances`` says how many the
+deviation. Each is judged against the fair nominal of the same rows (the chain held at its
+drawing, the tracker frame and the tool point fitted, as ``identify`` fits it beside the
+calibration: :func:`selfcal.calibration.tracker.plan.predict_fair_nominal`). Not counted: distance rows (a ball bar's; ``distances`` says how many the
 calibration had: the predictions of before and after then both leave their information out,
 so both are pessimistic). A calibration fitted to poses is refused (the planner predicts
 position rows; poses also see the tool frame's orientation). Units: SI inside.
@@ -45,6 +47,7 @@ from selfcal.calibration.tracker.plan import (
     choose_postures,
     kept_by_rank,
     posture_information,
+    predict_fair_nominal,
     predict_tracker,
     workspace_weight,
 )
@@ -126,7 +129,10 @@ class TrackerAddition:
     with the added rows and the parameters the route's tests keep at all of them; ``random_m``
     the pool's first K added instead, ``greedy_m`` the better greedy choice's, ``chosen_by``
     which set won (:class:`selfcal.calibration.tracker.plan.Choice`); ``kept_before``,
-    ``kept_after`` the estimated parameters of ``parameters`` minimal ones; the ``workspace``
+    ``kept_after`` the estimated parameters of ``parameters`` minimal ones; ``fair_before_m``,
+    ``fair_after_m`` the fair nominal's prediction (m) on the rows and on them with the added
+    ones (:func:`selfcal.calibration.tracker.plan.predict_fair_nominal`: what the calibration
+    has to beat); the ``workspace``
     (w, n) rad, the pool's size and the joint path (rad) from home through the added ones."""
 
     q: np.ndarray
@@ -137,6 +143,8 @@ class TrackerAddition:
     chosen_by: str
     kept_before: int
     kept_after: int
+    fair_before_m: float
+    fair_after_m: float
     parameters: int
     workspace: np.ndarray
     candidates: int
@@ -171,6 +179,7 @@ def plan_tracker_additions(
     home = setup.robot.home
     q = pool[got.index]
     q = q[order_path(q, home)]
+    F_all = F_old + posture_information(setup, q).sum(axis=0)
     return TrackerAddition(
         q=q,
         before_m=before,
@@ -180,6 +189,8 @@ def plan_tracker_additions(
         chosen_by=got.chosen_by,
         kept_before=int(data.estimated.sum()),
         kept_after=int(kept_by_rank(setup, np.concatenate([data.q, q])).sum()),
+        fair_before_m=predict_fair_nominal(setup, F_old, G, var),
+        fair_after_m=predict_fair_nominal(setup, F_all, G, var),
         parameters=len(data.estimated),
         workspace=qw,
         candidates=len(pool),

@@ -56,7 +56,11 @@ from selfcal.calibration.board.deviation import Deviation
 from selfcal.calibration.board.plan.greedy import pool_sets, select_greedy
 from selfcal.calibration.board.plan.ground import workspace_sample
 from selfcal.calibration.board.plan.path import order_path, path_length
-from selfcal.calibration.board.plan.predict import predicted_with_held, prior_information
+from selfcal.calibration.board.plan.predict import (
+    Directions,
+    predicted_with_held,
+    prior_information,
+)
 from selfcal.calibration.tracker.identify import conditioned, priority_order
 from selfcal.calibration.tracker.rows import rows_needed
 from selfcal.errors import InputError
@@ -77,6 +81,8 @@ __all__ = [
     "kept_by_rank",
     "minimum_count",
     "predict_tracker",
+    "fair_nominal_indices",
+    "predict_fair_nominal",
     "workspace_weight",
     "Choice",
     "choose_postures",
@@ -176,6 +182,30 @@ def predict_tracker(
     keep = kept_by_rank(setup, q) if keep is None else np.asarray(keep, bool)
     M = np.eye(len(keep))[:, keep]
     return predicted_with_held(F, G, 0, M, variance)
+
+
+def fair_nominal_indices(n: int) -> np.ndarray:
+    """Flat MCPC indices of what the tracker route's fair nominal fits to positions
+    (:mod:`selfcal.calibration.tracker.nominal`) on a chain of ``n`` joints: all six of ``V_0``
+    (the tracker frame) and the translation of ``V_n`` (the tool point), the chain held."""
+    return np.r_[np.arange(6), 6 * n + np.arange(3, 6)]
+
+
+def predict_fair_nominal(
+    setup: TrackerPlanSetup, F: np.ndarray, G: np.ndarray, variance: np.ndarray
+) -> float:
+    """The predicted tool-point RMS (m) of the fair nominal on postures of information ``F``
+    (k, k), with the workspace weight ``G`` and the deviation's ``variance`` (k,): the chain
+    held at its drawing, erring by the deviation less what the fitted tracker frame and tool
+    point absorb (:func:`fair_nominal_indices`, their directions among the minimal parameters
+    at the nominal chain: :class:`selfcal.calibration.board.plan.predict.Directions`), plus
+    their noise; what a calibration of the same rows has to beat (the board's
+    :func:`selfcal.calibration.board.plan.reference.nominal_reference` for its placement)."""
+    model = setup.model
+    fitted = fair_nominal_indices(model.n)
+    M = Directions(model).of(fitted, np.zeros(0, np.int64))
+    held = np.where(np.isin(minimal_indices(model.joint_types), fitted), 0.0, variance)
+    return predicted_with_held(F, G, 0, M, held)
 
 
 def workspace_weight(setup: TrackerPlanSetup, qw: np.ndarray) -> np.ndarray:
