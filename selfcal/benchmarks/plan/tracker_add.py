@@ -19,7 +19,8 @@ file's chain with the tracker frame and the tool point fitted, ``calibration.jso
 calibration estimated. Prints the
 first truth's ``selfcal plan --add`` lines, the table and the medians of the before/after
 ratios; ``--write-docs`` puts them between docs/plan.md's ``benchmark_plan_tracker_add_K``
-markers (K the ``--add``).
+markers (K the ``--add``; ``benchmark_plan_tracker_add_K_ROBOT`` for a ``--robot`` other than the
+UR5e).
 """
 
 from __future__ import annotations
@@ -198,8 +199,8 @@ def main(argv: list[str] | None = None) -> int:
               f"{span('fair_nominal_after_mm', 'achieved_after_mm')}; the fair nominal achieved / "
               f"predicted: before {span('fair_nominal_before_mm', 'fair_predicted_before_mm')}, "
               f"after {span('fair_nominal_after_mm', 'fair_predicted_after_mm')}"]  # fmt: skip
-    return print_table("\n".join(lines), ROOT / "docs" / "plan.md",
-                       f"benchmark_plan_tracker_add_{a.add}", write=a.write_docs)  # fmt: skip
+    marker = f"benchmark_plan_tracker_add_{a.add}" + ("" if a.robot == "ur5e" else f"_{a.robot}")
+    return print_table("\n".join(lines), ROOT / "docs" / "plan.md", marker, write=a.write_docs)
 
 
 if __name__ == "__main__":
