@@ -85,11 +85,12 @@ def test_the_added_postures_lower_the_prediction_by_the_tracker_plans_own_criter
     F = posture_information(setup, q_all).sum(axis=0)
     assert predict_tracker(setup, q_all, F, G, var) == pytest.approx(add.after_m, rel=1e-9)
     assert add.kept_after == kept_by_rank(setup, q_all).sum() > add.kept_before == 15
-    # never worse than the pool's first 5 by its own criterion; measured 3.0 -> 0.23 mm
+    # never worse than the pool's first 5 by its own criterion; measured 14.2 times lower
     assert add.after_m <= min(add.random_m, add.greedy_m)
-    assert add.before_m / add.after_m >= 4.4
+    assert add.before_m / add.after_m >= 4.7
     # the fair nominal of the same rows: the rows and the added postures place the tracker frame
-    # and the tool point better, but the chain's deviation stays (measured 3.51 -> 1.8 mm)
+    # and the tool point better, but the chain's deviation stays (measured 3.50 -> 1.84 mm, the
+    # calibration after 0.115 times it)
     assert add.fair_after_m < add.fair_before_m and add.after_m < 0.3 * add.fair_after_m
 
 
