@@ -389,7 +389,8 @@ def register(subparsers) -> argparse.ArgumentParser:
                     help="--measure tracker: the reflector's centre in the flange frame, mm "
                     "(default 0,0,0)")  # fmt: skip
     sp.add_argument("--sigma-mm", type=float, default=None,
-                    help="--measure tracker: the tracker's noise per coordinate, mm (default 0.1)")  # fmt: skip
+                    help="--measure tracker: the tracker's noise per coordinate, mm (default 0.1; "
+                    "with --add to a tracker calibration, the calibration's)")  # fmt: skip
     sp.add_argument("--count", type=int, default=None,
                     help=f"postures to plan (default 12; at least {MIN_FRAMES} with a board, "
                     f"{MIN_POSTURES} with a marker field; not with --add)")  # fmt: skip
