@@ -4,7 +4,8 @@
   [--distances FILE]``: fit the robot's MCPC chain, the tracker-to-base transform and the tool
   point to the measured tool-point positions (or poses); writes ``DIR/calibration.json``
   (:mod:`selfcal.calibration.tracker.calibration_file`) and ``DIR/residuals.csv``; prints the fit RMS beside the
-  fair nominal's (:mod:`selfcal.calibration.tracker.nominal`).
+  fair nominal's (:mod:`selfcal.calibration.tracker.nominal`) and both k-fold held-out RMS
+  (:mod:`selfcal.calibration.tracker.cross_validation`).
 - ``selfcal predict DIR --joints FILE --joint-units deg|rad [--out predicted.csv]``: the tool
   point in the tracker frame for every joints row (stdout without ``--out``), and the tool
   orientation when the fit used poses; ``--measurements FILE`` instead of ``--joints``: held-out
@@ -49,7 +50,8 @@ configurations (ball bar, a known length).
 --joint-units deg: revolute joints in degrees, prismatic in mm; rad: radians and metres.
 writes DIR/calibration.json (estimates with std, the identifiable set, rank, condition number,
 and the fair nominal: the robot file's chain with the tracker frame and the tool fitted) and
-DIR/residuals.csv; prints both fits; see docs/tracker.md
+DIR/residuals.csv; prints both fits and their k-fold held-out RMS (one configuration left out
+at a time, up to 10 folds; NO GAIN when the calibration predicts no better); see docs/tracker.md
 """
 
 
@@ -238,10 +240,12 @@ def cmd_identify(args: argparse.Namespace) -> int:
     held = ", ".join(f"{k} ({v})" for k, v in res.held_reason.items()) or "none"
     print(f"held at nominal: {held}")
     if cv is not None:
-        _print_cv(cv, meas.R is not None)
+        _print_cv(cv)
     else:
         print(
-            "the fit RMS of more parameters is always lower: judge the calibration on held-out "
+            "no cross-validation (fewer than 2 configurations of position / pose rows, or no "
+            "fold could be fitted); the "
+            "fit RMS of more parameters is always lower: judge the calibration on held-out "
             f"rows, `selfcal predict {out} --measurements HELD_OUT.csv`"
         )
     tool = ", ".join(f"{v:.3f}" for v in cal.tool_point_mm)
@@ -266,17 +270,15 @@ def _deg(v: float, show: bool) -> str:
     return f", {v:.4f} deg" if show else ""
 
 
-def _print_cv(cv, poses: bool) -> None:
-    """The leave-one-out line of ``identify`` and, when the data do not support the calibration,
-    the warning."""
-    print(
-        f"leave-one-out over {cv.rows} rows: calibrated {cv.rms_mm:.4f} mm"
-        f"{_deg(cv.rms_deg, poses)}, nominal {cv.nominal_rms_mm:.4f} mm"
-        f"{_deg(cv.nominal_rms_deg, poses)}"
-    )
+def _print_cv(cv) -> None:
+    """The k-fold held-out line of ``identify`` (the calibration beside the fair nominal) and,
+    when the data do not support the calibration, the warning."""
+    from selfcal.calibration.tracker.cross_validation import cross_validation_line
+
+    print(cross_validation_line(cv.to_json()))
     if not cv.supported:
         get_logger(__name__).warning(
-            "the data do not support the kinematic calibration: it predicts left-out rows no "
+            "the data do not support the kinematic calibration: it predicts held-out rows no "
             "better than the nominal chain with the tracker frame and tool fitted (`nominal` in "
             "calibration.json); measure more, better spread configurations"
         )

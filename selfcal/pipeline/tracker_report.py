@@ -18,6 +18,7 @@ from selfcal.calibration.tracker.accuracy import (
     postures_from_json,
 )
 from selfcal.calibration.tracker.calibration_file import read_tracker_calibration
+from selfcal.calibration.tracker.cross_validation import cross_validation_line
 from selfcal.calibration.tracker.spread import spread_line
 from selfcal.errors import InputError
 from selfcal.io.atomic import write_text_atomic
@@ -83,6 +84,10 @@ def _markdown(report: dict) -> str:
     spread = acc.get("spread")
     if spread:
         note += f".\n\n{spread_line(spread)}"
+    cv = cross_validation_line(report.get("cross_validation"))
+    if cv is not None:
+        note += (f".\n\n{cv[0].upper()}{cv[1:]} (the fair nominal: the robot file's chain with "
+                 "the tracker frame and tool fitted; each fitted to the other folds' rows)")  # fmt: skip
     return (
         "# Tracker calibration: predicted tool-point accuracy\n\n"
         f"{report['accuracy']['line']}\n\n{note}. See docs/tool-accuracy.md.\n\n"
@@ -93,5 +98,8 @@ def _markdown(report: dict) -> str:
 
 
 def tracker_report_summary(report: dict, root: Path) -> str:
-    """The line ``selfcal report`` prints for a tracker calibration."""
-    return f"report: {report['accuracy']['line']}; {Path(root) / 'report.json'}"
+    """The line ``selfcal report`` prints for a tracker calibration: the predicted accuracy and
+    the k-fold held-out RMS beside the fair nominal's, when the calibration has it."""
+    cv = cross_validation_line(report.get("cross_validation"))
+    more = "" if cv is None else f"; {cv}"
+    return f"report: {report['accuracy']['line']}{more}; {Path(root) / 'report.json'}"

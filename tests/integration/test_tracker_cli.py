@@ -11,6 +11,7 @@ import pytest
 from selfcal.benchmarks.tracker.sim import make_case, measure
 from selfcal.cli.main import main
 from selfcal.kinematics.forward import fk_tool
+from selfcal.pipeline.tracker_report import tracker_report
 from selfcal.robot.definition import load_robot, robot_files
 
 SIGMA = 1e-4
@@ -61,6 +62,16 @@ def test_identify_then_predict_round_trip(tmp_path, capsys, er4u):
     assert code == 0, err
     assert "fit RMS" in text and "rank 23/26" in text
     doc = json.loads((out / "calibration.json").read_text())
+    # 40 rows (more than the 20 the leave-one-out check took): the model error's 10 folds give
+    # the held-out RMS of the calibration and of the fair nominal (measured 0.165 and 1.62 mm)
+    cv = doc["fit"]["cross_validation"]
+    assert cv["folds"] == 10 and cv["rows"] == 40 and cv["configurations"] == 40
+    assert cv["supported"] and cv["rms_mm"] < 0.3 < 1.0 < cv["nominal_rms_mm"]
+    line = (f"cross-validated over 40 rows (40 configurations in 10 folds): held-out RMS "
+            f"calibrated {cv['rms_mm']:.4f} mm; fair nominal {cv['nominal_rms_mm']:.4f} mm\n")  # fmt: skip
+    assert line in text and "judge the calibration" not in text and "NO GAIN" not in text
+    tracker_report(out, figures=False)  # report.md says it too (the figure: test_tracker_report)
+    assert "C" + line[1:].strip() + " (the fair nominal: " in (out / "report.md").read_text()
     tool = ", ".join(f"{v:.3f}" for v in doc["tool_point_mm"])
     assert f"tool point in the nominal flange frame: ({tool}) mm" in text
     # the true tool point sits on the true flange, which is within ~1 mm of the nominal one

@@ -9,6 +9,7 @@ import pytest
 
 from selfcal.calibration.tracker.accuracy import SAMPLE_COUNT, error_model_from_json
 from selfcal.calibration.tracker.calibration_file import read_tracker_calibration
+from selfcal.calibration.tracker.cross_validation import cross_validation_line
 from selfcal.calibration.tracker.spread import spread_line
 from selfcal.cli.main import main
 from selfcal.kinematics.tool_error import workspace_sample
@@ -48,6 +49,10 @@ def test_identify_then_report_says_the_predicted_accuracy(tmp_path, capsys):
     assert report["accuracy"]["regions"] == acc["regions"]  # the same numbers, rebuilt
     md = (out / "report.md").read_text()
     assert (out / report["figures"][0]).is_file() and line in md and spread_line(spread) in md
+    # the k-fold held-out RMS beside the fair nominal's, printed and in report.md
+    cv = cross_validation_line(doc["fit"]["cross_validation"])
+    assert cv is not None and cv.startswith("cross-validated over ") and "fair nominal" in cv
+    assert f"{line}; {cv};" in said and cv[1:] in md
 
     cal = read_tracker_calibration(out / "calibration.json")
     em = error_model_from_json(acc, cal.model, cal.T_meas_fit, cal.names, False, "x")

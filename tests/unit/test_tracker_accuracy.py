@@ -10,7 +10,6 @@ import pytest
 from selfcal.benchmarks.tracker.sim import make_case, measure
 from selfcal.calibration.tracker.accuracy import (
     error_model_from_json,
-    fold_index,
     postures_from_json,
     tracker_accuracy,
 )
@@ -21,15 +20,6 @@ from selfcal.kinematics.forward import fk_tool
 from selfcal.robot.definition import load_robot
 
 SIGMA = 1e-4
-
-
-def test_folds_do_not_depend_on_the_rows_order():
-    rng = np.random.default_rng(0)
-    q = rng.normal(size=(23, 5))
-    perm = rng.permutation(23)
-    fold = fold_index(q, 10)
-    assert np.array_equal(fold_index(q[perm], 10), fold[perm])
-    assert np.bincount(fold).tolist() == [3, 3, 3] + [2] * 7
 
 
 @pytest.fixture(scope="module")

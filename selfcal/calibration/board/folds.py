@@ -49,24 +49,31 @@ postures identify beyond the placement the rank test says (a 2-joint pan-tilt's 
 calibrate, its selection keeping the fair nominal). It was 6, set by hand."""
 
 
-def _arm(q: np.ndarray, joint_types: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
+def _arm(
+    q: np.ndarray, joint_types: tuple[str, ...], whole: bool = False
+) -> tuple[np.ndarray, np.ndarray]:
     """The arm joints (m, a) of the joints ``q`` (m, n) rad / m (all but the last three when
-    there are more than three) and their tolerance (a,) for one configuration."""
+    there are more than three; every joint when ``whole``) and their tolerance (a,) for one
+    configuration."""
     q = np.atleast_2d(np.asarray(q, dtype=float))
     n = q.shape[1]
-    arm = q[:, : n - 3] if n > 3 else q
+    arm = q[:, : n - 3] if n > 3 and not whole else q
     tol = np.array([SAME_CONFIGURATION if t == "revolute" else 1e-4 for t in joint_types])
     return arm, tol[: arm.shape[1]]
 
 
-def configurations(q: np.ndarray, joint_types: tuple[str, ...]) -> np.ndarray:
+def configurations(
+    q: np.ndarray, joint_types: tuple[str, ...], *, whole: bool = False
+) -> np.ndarray:
     """(m,) the configuration of every frame of the joints ``q`` (m, n) rad / m: taken in the
     lexicographic order of their arm joints (all but the last three when there are more than
     three; the first joint first), a frame whose arm joints are all within
     :data:`SAME_CONFIGURATION` (0.1 deg, 0.1 mm) of a configuration's first frame belongs to it,
     else starts the next. So the configurations are numbered by their joints (the smallest first
-    joint first), and a permutation of the rows permutes the labels alike (module docstring)."""
-    arm, tol = _arm(q, joint_types)
+    joint first), and a permutation of the rows permutes the labels alike (module docstring).
+    ``whole``: every joint counts (the tracker route's rows, whose tool point the wrist moves:
+    :mod:`selfcal.calibration.tracker.cross_validation`)."""
+    arm, tol = _arm(q, joint_types, whole)
     label = np.empty(len(arm), dtype=int)
     reps: list[np.ndarray] = []
     for i in np.lexsort(arm.T[::-1]):  # stable; rows it ties are equal and so labelled alike

@@ -3,9 +3,11 @@
 The estimation part is the identification's covariance (:class:`TrackerResult`, scaled by the
 a-posteriori ``sigma0``) carried through the chain (:mod:`selfcal.kinematics.tool_error`). The
 model-error part comes from held-out rows, so that a model that misfits is not judged by its
-covariance alone: the rows are split into ``K = min(m, 10)`` folds (by the order of their joint
-vectors, so the input order does not matter), each fold is predicted by the calibration fitted to
-the others (the same options; distance rows stay in every fold), and the held-out squared error
+covariance alone: the rows are split into ``K = min(configurations, 10)`` folds, one
+configuration (rows of the same joints) left out at a time up to 10 and the split independent of
+the rows' order (:mod:`selfcal.calibration.tracker.cross_validation`, whose held-out RMS against
+the fair nominal reads the same fits), each fold is predicted by the calibration fitted to the
+others (the same options; distance rows stay in every fold), and the held-out squared error
 is split as
 
     mean |r_i|^2 = mean tr S_fold(q_i) + 3 nu^2 + 3 m^2
@@ -40,8 +42,6 @@ its reading back are the routes' shared :mod:`selfcal.calibration.accuracy`. SI 
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 
 from selfcal.calibration import accuracy as shared
@@ -55,9 +55,9 @@ from selfcal.calibration.accuracy import (
 )
 from selfcal.calibration.accuracy import Accuracy as TrackerAccuracy
 from selfcal.calibration.growth import fit_variogram
-from selfcal.calibration.tracker.identify import TrackerResult, identify_tracker
+from selfcal.calibration.tracker.cross_validation import MAX_FOLDS, FoldFits, fit_folds
+from selfcal.calibration.tracker.identify import TrackerResult
 from selfcal.calibration.tracker.nominal import pose_errors
-from selfcal.errors import EstimationError
 from selfcal.estimation.tracker import TrackerMeasurements
 from selfcal.kinematics.mcpc import MCPCModel, minimal_indices
 from selfcal.kinematics.tool_error import (
@@ -72,11 +72,9 @@ from selfcal.kinematics.tool_error import (
 )
 
 __all__ = [
-    "MAX_FOLDS",
     "Z_MODEL_ERROR",
     "ModelError",
     "TrackerAccuracy",
-    "fold_index",
     "model_error",
     "error_model",
     "tracker_accuracy",
@@ -84,9 +82,6 @@ __all__ = [
     "postures_from_json",
     "SAMPLE_COUNT",
 ]
-
-MAX_FOLDS = 10
-"""At most this many cross-validation folds (one identification each)."""
 
 WHAT = (
     "predicted error of the calibrated tool point (and tool orientation for a fit of poses) "
@@ -97,19 +92,10 @@ WHAT = (
     f"{EDGE_FRACTION:.0%} of each joint's range, workspace = within the joint limits"
 )
 NOTE = (
-    "no cross-validation possible (fewer than 2 position / pose rows or every fold failed): "
+    "no cross-validation possible (fewer than 2 configurations of position / pose rows or "
+    "every fold failed): "
     "the covariance alone, which is optimistic when the model misfits"
 )
-
-
-def fold_index(q: np.ndarray, k: int) -> np.ndarray:
-    """(m,) fold of each row of ``q`` (m, n): rows sorted by their joint vectors
-    (lexicographically) are dealt to ``k`` folds in turn, so the split does not depend on the
-    rows' order in the file."""
-    order = np.lexsort(np.asarray(q, dtype=float).T[::-1])
-    fold = np.empty(len(order), int)
-    fold[order] = np.arange(len(order)) % k
-    return fold
 
 
 def error_model(
@@ -131,34 +117,29 @@ def model_error(
     sigma_r_rad: float,
     folds: int = MAX_FOLDS,
     span: np.ndarray | None = None,
+    fold_fits: FoldFits | None = None,
     **identify_kw,
 ) -> ModelError | None:
     """Cross-validate ``res`` (:func:`identify_tracker` of ``model`` on ``meas``) and estimate
-    the model error (module docstring); None without position / pose rows or when no fold could
-    be fitted. ``span`` (n,): the joints' spans (:func:`selfcal.kinematics.tool_error.joint_spans`)
-    to read how the model error grows with a held-out row's distance from its fold's training
-    postures (:mod:`selfcal.calibration.growth`), None: the same everywhere. ``identify_kw``: the
-    identification's further options (``sigma_d_m``, ``hold``)."""
-    if meas.m < 2:
+    the model error (module docstring); None with fewer than 2 configurations of position /
+    pose rows or when no fold could be fitted. ``folds``: at most this many folds; ``span`` (n,):
+    the joints' spans (:func:`selfcal.kinematics.tool_error.joint_spans`) to read how the model
+    error grows with a held-out row's distance from its fold's training postures
+    (:mod:`selfcal.calibration.growth`), None: the same everywhere; ``fold_fits``: the folds'
+    identifications when already fitted (:func:`fit_folds` with these options), else they are
+    fitted here. ``identify_kw``: the identification's further options (``sigma_d_m``,
+    ``hold``)."""
+    if fold_fits is None:
+        fold_fits = fit_folds(model, meas, sigma_t_m=sigma_t_m, sigma_r_rad=sigma_r_rad,
+                              folds=folds, **identify_kw)  # fmt: skip
+    if fold_fits is None:
         return None
-    k = min(meas.m, folds)
-    fold = fold_index(meas.q, k)
+    k, failed, fold = fold_fits.k, fold_fits.failed, fold_fits.fold
     poses = meas.R is not None
     revolute = revolute_joints(model.joint_types)
     r2, r2_rot, s2, s2_rot, dist = [], [], [], [], []
-    failed = 0
-    for f in range(k):
+    for f, fit in sorted(fold_fits.fits.items()):
         out = fold == f
-        train = meas.with_rows(~out)
-        try:
-            with warnings.catch_warnings():  # a fold's own rank notes: the whole fit has its own
-                warnings.simplefilter("ignore")
-                fit = identify_tracker(
-                    model, train, sigma_t_m=sigma_t_m, sigma_r_rad=sigma_r_rad, **identify_kw
-                )
-        except EstimationError:
-            failed += 1
-            continue
         q = meas.q[out]
         R_out = None if meas.R is None else meas.R[out]
         pos, ang = pose_errors(fit.predict_poses(q), meas.xyz[out], R_out)
@@ -209,17 +190,19 @@ def tracker_accuracy(
     sigma_t_m: float,
     sigma_r_rad: float,
     count: int = SAMPLE_COUNT,
+    fold_fits: FoldFits | None = None,
     **identify_kw,
 ) -> TrackerAccuracy | None:
     """The predicted accuracy of ``res`` (:func:`identify_tracker` of ``model`` on ``meas``)
     at the calibration postures and over ``count`` joint vectors per region within ``limits``
     (n, 2) rad / m; None without position / pose rows (distances do not place the tracker
-    frame)."""
+    frame). ``fold_fits``: the cross-validation folds' identifications when already fitted
+    (:func:`fit_folds`), else the model error fits them."""
     if meas.m == 0:
         return None
     span = joint_spans(limits, revolute_joints(model.joint_types))
     me = model_error(model, meas, res, sigma_t_m=sigma_t_m, sigma_r_rad=sigma_r_rad, span=span,
-                     **identify_kw)  # fmt: skip
+                     fold_fits=fold_fits, **identify_kw)  # fmt: skip
     pos = 0.0 if me is None else me.position_m
     rot = None if meas.R is None else (0.0 if me is None else me.rotation_rad)
     em = error_model(res, pos, rot)

@@ -1,5 +1,5 @@
 """The tracker route in one call: tracker measurement files -> the identified chain, the fair
-nominal beside it, the leave-one-out check, the predicted tool-point accuracy over the workspace
+nominal beside it, the k-fold held-out check against it, the predicted tool-point accuracy over the workspace
 and the ``calibration.json`` content
 (:mod:`selfcal.calibration.tracker.calibration_file`). ``selfcal identify`` prints and writes
 what :func:`calibrate_tracker` returns; the public API serves it as ``selfcal.calibrate_tracker``.
@@ -18,7 +18,11 @@ import numpy as np
 
 from selfcal.calibration.tracker.accuracy import TrackerAccuracy, tracker_accuracy
 from selfcal.calibration.tracker.calibration_file import TrackerCalibration, from_result
-from selfcal.calibration.tracker.cross_validation import CrossValidation, leave_one_out
+from selfcal.calibration.tracker.cross_validation import (
+    CrossValidation,
+    cross_validate,
+    fit_folds,
+)
 from selfcal.calibration.tracker.identify import (
     TrackerMeasurements,
     TrackerResult,
@@ -40,8 +44,10 @@ __all__ = ["TrackerRun", "calibrate_tracker", "read_tracker_files"]
 class TrackerRun:
     """What :func:`calibrate_tracker` found: the ``result`` (the identified chain, tracker
     frame), the ``calibration`` (the ``calibration.json`` content, mm and deg), the ``nominal``
-    fit (the robot file's chain, tracker frame and tool fitted the same way), the leave-one-out
-    ``cross_validation`` (None when there are no rows or too many), the ``measurements`` (SI)
+    fit (the robot file's chain, tracker frame and tool fitted the same way), the k-fold
+    ``cross_validation`` of both (:mod:`selfcal.calibration.tracker.cross_validation`; None
+    with fewer than 2 configurations of position / pose rows or when no fold could be
+    fitted), the ``measurements`` (SI)
     and the measurements file's ``table``; the predicted tool-point ``accuracy`` over the
     workspace (:mod:`selfcal.calibration.tracker.accuracy`, also ``calibration.accuracy``; None
     without position / pose rows) and the run-to-run ``spread`` of the tool point over bootstrap
@@ -103,9 +109,11 @@ def calibrate_tracker(
     s_t, s_r = sigma_mm / 1e3, float(np.radians(sigma_deg))
     res = identify_tracker(nominal, meas, sigma_t_m=s_t, sigma_r_rad=s_r, sigma_d_m=s_t, hold=hold)
     fair = fit_nominal(nominal, meas, sigma_t_m=s_t, sigma_r_rad=s_r)
-    cv = leave_one_out(nominal, meas, sigma_t_m=s_t, sigma_r_rad=s_r, sigma_d_m=s_t, hold=hold)
+    # one set of fold fits: the model error of the predicted accuracy and the held-out check
+    folds = fit_folds(nominal, meas, sigma_t_m=s_t, sigma_r_rad=s_r, sigma_d_m=s_t, hold=hold)
+    cv = cross_validate(nominal, meas, folds, sigma_t_m=s_t, sigma_r_rad=s_r)
     acc = tracker_accuracy(nominal, meas, res, rd.limits, sigma_t_m=s_t, sigma_r_rad=s_r,
-                           sigma_d_m=s_t, hold=hold)  # fmt: skip
+                           fold_fits=folds, sigma_d_m=s_t, hold=hold)  # fmt: skip
     cal = from_result(
         res,
         nominal,

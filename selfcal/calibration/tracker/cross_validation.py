@@ -1,12 +1,20 @@
-"""Leave-one-configuration-out check of a tracker calibration against its fair nominal.
+"""The cross-validation folds of a tracker calibration and its k-fold held-out check against the
+fair nominal (issue #29).
 
 The fit RMS of a calibration on its own rows always beats the fair nominal's
 (:mod:`selfcal.calibration.tracker.nominal`): it has more parameters. Whether the data support those
-parameters shows on rows the fit did not see. For a small set (few configurations, where the
-question matters and the folds are cheap) each position / pose row is left out in turn, the
-calibration (:func:`selfcal.calibration.tracker.identify.identify_tracker`, the same options) and the fair
-nominal are fitted to the others, and both predict the row left out. Distance rows stay in
-every fold.
+parameters shows on rows the fit did not see. The position / pose rows are grouped into
+configurations (rows whose joints are all within 0.1 deg / 0.1 mm of each other, the board
+route's rule with every joint counted: :func:`selfcal.calibration.board.folds.configurations`),
+numbered in the lexicographic order of their joints, and configuration ``c`` goes to fold
+``c % K`` with ``K = min(configurations, MAX_FOLDS)``: one configuration left out at a time up
+to :data:`MAX_FOLDS` configurations, a repeated measurement never on both sides of a fold, and
+the split independent of the rows' order. Each fold's rows are predicted by the calibration
+(:func:`selfcal.calibration.tracker.identify.identify_tracker`, the same options) fitted to the
+others (:func:`fit_folds`, the fits the model error of
+:mod:`selfcal.calibration.tracker.accuracy` reads too) and by the fair nominal fitted to the
+same others (:func:`cross_validate`); distance rows stay in every fold. A fold counts when both
+fits succeed (a fold whose rest is too few to identify the chain does not).
 
 Units: SI inside; ``_mm`` / ``_deg`` fields for reports.
 """
@@ -18,31 +26,116 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from selfcal.calibration.tracker.identify import identify_tracker
+from selfcal.calibration.board.folds import configurations
+from selfcal.calibration.tracker.identify import TrackerResult, identify_tracker
 from selfcal.calibration.tracker.nominal import fit_nominal, pose_errors
 from selfcal.errors import EstimationError
 from selfcal.estimation.tracker import TrackerMeasurements
+from selfcal.kinematics.mcpc import MCPCModel
 
-__all__ = ["CrossValidation", "leave_one_out", "MAX_ROWS"]
+__all__ = [
+    "MAX_FOLDS",
+    "CrossValidation",
+    "FoldFits",
+    "configuration_index",
+    "cross_validate",
+    "cross_validation_line",
+    "fit_folds",
+    "fold_index",
+]
 
-MAX_ROWS = 20
-"""Sets of at most this many position / pose rows are cross-validated by :func:`leave_one_out`
-(a fold is one identification: milliseconds for small robots)."""
+MAX_FOLDS = 10
+"""At most this many cross-validation folds (one identification and one fair nominal each)."""
+
+
+def configuration_index(q: np.ndarray, joint_types: tuple[str, ...]) -> np.ndarray:
+    """(m,) the configuration of every row of the joints ``q`` (m, n) rad / m: rows whose joints
+    are all within 0.1 deg / 0.1 mm share one, numbered in the lexicographic order of the joints
+    (module docstring)."""
+    return configurations(q, joint_types, whole=True)
+
+
+def fold_index(config: np.ndarray, k: int) -> np.ndarray:
+    """(m,) the fold of every row of the configurations ``config`` (m,)
+    (:func:`configuration_index`): configuration ``c`` to fold ``c % k``, so a configuration's
+    rows are left out together and the split does not depend on the rows' order."""
+    return np.asarray(config, dtype=int) % k
+
+
+@dataclass(frozen=True)
+class FoldFits:
+    """The folds of a tracker calibration's cross-validation and the calibration fitted to each
+    fold's rest (module docstring).
+
+    Attributes:
+        fold: (m,) the fold of every position / pose row.
+        k: the number of folds.
+        configurations: the number of distinct configurations among the rows.
+        fits: fold -> the identification on the other folds' rows (absent: it failed).
+    """
+
+    fold: np.ndarray
+    k: int
+    configurations: int
+    fits: dict[int, TrackerResult]
+
+    @property
+    def failed(self) -> int:
+        """Folds whose identification failed."""
+        return self.k - len(self.fits)
+
+
+def fit_folds(
+    model: MCPCModel,
+    meas: TrackerMeasurements,
+    *,
+    sigma_t_m: float,
+    sigma_r_rad: float,
+    folds: int = MAX_FOLDS,
+    **identify_kw,
+) -> FoldFits | None:
+    """Identify ``model`` on each fold's rest of ``meas`` (at most ``folds`` folds; module
+    docstring); None with fewer than 2 configurations (nothing to leave out). ``identify_kw``:
+    further options of :func:`identify_tracker` (``sigma_d_m``, ``hold``), as the
+    calibration's."""
+    if meas.m < 2:
+        return None
+    config = configuration_index(meas.q, model.joint_types)
+    count = int(config.max()) + 1
+    if count < 2:
+        return None
+    k = min(count, folds)
+    fold = fold_index(config, k)
+    fits: dict[int, TrackerResult] = {}
+    for f in range(k):
+        train = meas.with_rows(fold != f)
+        try:
+            with warnings.catch_warnings():  # a fold's own rank notes: the whole fit has its own
+                warnings.simplefilter("ignore")
+                fits[f] = identify_tracker(
+                    model, train, sigma_t_m=sigma_t_m, sigma_r_rad=sigma_r_rad, **identify_kw
+                )
+        except EstimationError:
+            continue
+    return FoldFits(fold, k, count, fits)
 
 
 @dataclass(frozen=True)
 class CrossValidation:
-    """Leave-one-out prediction errors (RMS over the rows left out).
+    """K-fold held-out prediction errors (RMS over the rows of the folds that count).
 
     Attributes:
-        rows: how many rows were left out in turn.
+        rows: how many rows were predicted held out.
+        folds, configurations: the folds and the distinct configurations they were dealt from.
         rms_mm, nominal_rms_mm: position error of the calibration and of the fair nominal (mm).
         rms_deg, nominal_rms_deg: rotation error (deg) for poses, else nan.
-        failed: folds whose identification failed (too few rows left); their rows are not
-            counted.
+        failed: folds whose identification or fair nominal failed (too few rows left); their
+            rows are not counted.
     """
 
     rows: int
+    folds: int
+    configurations: int
     rms_mm: float
     nominal_rms_mm: float
     rms_deg: float
@@ -56,9 +149,12 @@ class CrossValidation:
             return float(x) if np.isfinite(x) else None
 
         return {
-            "what": "leave one configuration out: the calibration and the fair nominal fitted to "
-            "the others predict it",
+            "what": "k-fold cross-validation, one configuration (rows of the same joints) left "
+            f"out at a time up to {MAX_FOLDS} folds: each fold's rows predicted by the "
+            "calibration and by the fair nominal fitted to the other folds' rows",
             "rows": self.rows,
+            "folds": self.folds,
+            "configurations": self.configurations,
             "rms_mm": num(self.rms_mm),
             "nominal_rms_mm": num(self.nominal_rms_mm),
             "rms_deg": num(self.rms_deg),
@@ -69,7 +165,7 @@ class CrossValidation:
 
     @property
     def supported(self) -> bool:
-        """Whether the calibration predicts the left-out rows better than the nominal (position,
+        """Whether the calibration predicts the held-out rows better than the nominal (position,
         and rotation for poses)."""
         better = self.rms_mm < self.nominal_rms_mm
         if np.isfinite(self.rms_deg):
@@ -77,46 +173,73 @@ class CrossValidation:
         return bool(better)
 
 
-def _rms(v: list[float]) -> float:
-    return float(np.sqrt(np.mean(np.square(v)))) if v else float("nan")
+def _rms(v: list[np.ndarray]) -> float:
+    return float(np.sqrt(np.mean(np.square(np.concatenate(v))))) if v else float("nan")
 
 
-def leave_one_out(
-    model, meas: TrackerMeasurements, *, sigma_t_m: float, sigma_r_rad: float, **identify_kw
+def cross_validate(
+    model: MCPCModel,
+    meas: TrackerMeasurements,
+    folds: FoldFits | None,
+    *,
+    sigma_t_m: float,
+    sigma_r_rad: float,
 ) -> CrossValidation | None:
-    """Leave each position / pose row of ``meas`` out in turn (module docstring); None when
-    there are none or more than :data:`MAX_ROWS`, or when no fold could be identified.
-    ``identify_kw``: further options of :func:`identify_tracker` (``sigma_d_m``, ``hold``)."""
-    if not 0 < meas.m <= MAX_ROWS:
+    """The held-out RMS of the calibration's fold fits ``folds`` (:func:`fit_folds` of ``model``
+    on ``meas``) and of the fair nominal fitted to the same folds' rests (module docstring);
+    None without folds or when no fold counts."""
+    if folds is None:
         return None
-    errs: dict[str, list[float]] = {"pos": [], "rot": [], "npos": [], "nrot": []}
-    failed = 0
-    for i in range(meas.m):
-        keep = np.arange(meas.m) != i
-        train = meas.with_rows(keep)
+    errs: dict[str, list[np.ndarray]] = {"pos": [], "rot": [], "npos": [], "nrot": []}
+    for f, fit in sorted(folds.fits.items()):
+        out = folds.fold == f
         try:
-            with warnings.catch_warnings():  # a fold's own rank notes: the whole fit has its own
-                warnings.simplefilter("ignore")
-                res = identify_tracker(
-                    model, train, sigma_t_m=sigma_t_m, sigma_r_rad=sigma_r_rad, **identify_kw
-                )
-            nom = fit_nominal(model, train, sigma_t_m=sigma_t_m, sigma_r_rad=sigma_r_rad)
+            nom = fit_nominal(model, meas.with_rows(~out), sigma_t_m=sigma_t_m,
+                              sigma_r_rad=sigma_r_rad)  # fmt: skip
         except EstimationError:
-            failed += 1
             continue
-        R = None if meas.R is None else meas.R[i : i + 1]
-        for key, T in (("", res.predict_poses(meas.q[i])), ("n", nom.predict_poses(meas.q[i]))):
-            pos, ang = pose_errors(T, meas.xyz[i : i + 1], R)
-            errs[key + "pos"].append(float(pos[0]))
+        q, R = meas.q[out], None if meas.R is None else meas.R[out]
+        for key, T in (("", fit.predict_poses(q)), ("n", nom.predict_poses(q))):
+            pos, ang = pose_errors(T, meas.xyz[out], R)
+            errs[key + "pos"].append(pos)
             if ang is not None:
-                errs[key + "rot"].append(float(ang[0]))
-    if failed == meas.m:
+                errs[key + "rot"].append(ang)
+    if not errs["pos"]:
         return None
     return CrossValidation(
-        rows=meas.m - failed,
+        rows=int(sum(len(v) for v in errs["pos"])),
+        folds=folds.k,
+        configurations=folds.configurations,
         rms_mm=_rms(errs["pos"]),
         nominal_rms_mm=_rms(errs["npos"]),
         rms_deg=_rms(errs["rot"]),
         nominal_rms_deg=_rms(errs["nrot"]),
-        failed=failed,
+        failed=folds.k - len(errs["pos"]),
     )
+
+
+NO_GAIN = "NO GAIN: the calibration predicts the held-out rows no better than the fair nominal"
+
+
+def cross_validation_line(block: dict | None) -> str | None:
+    """The sentence of a ``calibration.json``'s ``fit.cross_validation`` block
+    (:meth:`CrossValidation.to_json`; a file written before the k-fold check holds a
+    leave-one-out block without ``folds``) that ``selfcal identify`` prints and report.md
+    shows: the held-out RMS of the calibration beside the fair nominal's, and NO GAIN when the
+    calibration is not better (:attr:`CrossValidation.supported`); None without a block."""
+    if not block or block.get("rms_mm") is None or block.get("nominal_rms_mm") is None:
+        return None
+
+    def fig(key: str) -> str:
+        deg = block.get(key.replace("_mm", "_deg"))
+        return f"{block[key]:.4f} mm" + ("" if deg is None else f", {deg:.4f} deg")
+
+    if block.get("folds") is None:
+        how = f"leave-one-out over {block['rows']} rows"
+    else:
+        how = (f"cross-validated over {block['rows']} rows ({block['configurations']} "
+               f"configurations in {block['folds']} folds)")  # fmt: skip
+        if block.get("failed_folds"):
+            how += f", {block['failed_folds']} folds not fitted (their rows not counted)"
+    line = f"{how}: held-out RMS calibrated {fig('rms_mm')}; fair nominal {fig('nominal_rms_mm')}"
+    return line if block.get("supported") else f"{line}; {NO_GAIN}"
