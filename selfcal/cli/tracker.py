@@ -285,7 +285,8 @@ def _print_cv(cv) -> None:
 
 
 def _identify_json(res, meas: TrackerMeasurements, cal, path: Path) -> dict:
-    """``selfcal identify --json``: the fit's headline numbers (mm, deg)."""
+    """``selfcal identify --json``: the fit's headline numbers (mm, deg) and the k-fold held-out
+    check (``calibration.json``'s ``fit.cross_validation``, null without one)."""
     return {
         "calibration": str(path),
         "kinds": list(res.kinds),
@@ -299,6 +300,7 @@ def _identify_json(res, meas: TrackerMeasurements, cal, path: Path) -> dict:
         "held": dict(res.held_reason),
         "tool_point_mm": [float(v) for v in cal.tool_point_mm],
         "nominal": {k: v for k, v in cal.to_json()["nominal"].items() if k.startswith("rms_")},
+        "cross_validation": cal.fit.get("cross_validation"),
         "warnings": list(res.warnings),
     }
 

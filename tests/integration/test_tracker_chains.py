@@ -158,4 +158,9 @@ def test_a_small_set_is_cross_validated_against_the_nominal(tmp_path, capsys):
             f"{cv['rms_mm']:.4f} mm, {cv['rms_deg']:.4f} deg; fair nominal "
             f"{cv['nominal_rms_mm']:.4f} mm, {cv['nominal_rms_deg']:.4f} deg\n")  # fmt: skip
     assert line in text and "do not support" not in err and "NO GAIN" not in text
+    code, text, err = _run(capsys, "identify", tmp_path / "train.csv", "--robot", robot,
+                           "--joint-units", "deg", "--out", tmp_path / "again", "--sigma-mm",
+                           SIGMA_MM, "--sigma-deg", SIGMA_DEG, "--json")  # fmt: skip
+    assert code == 0, err
+    assert json.loads(text)["cross_validation"] == cv  # --json carries the check too
     assert cv["rms_mm"] < cv["nominal_rms_mm"] / 2 and cv["rms_deg"] < cv["nominal_rms_deg"] / 3

@@ -146,3 +146,13 @@ def test_too_few_rows_give_no_check():
     case = make_case(load_robot("tests/data/positioner2.toml"), seed=3)
     assert _cv(case, _meas(case, 3, poses=False)) is None
     assert cross_validation_line(None) is None
+
+
+def test_a_leave_one_out_block_of_an_older_file_still_reads():
+    """calibration.json written before the k-fold check (leave-one-out up to 20 rows, no
+    ``folds``): report.md says what it was."""
+    old = {"rows": 8, "rms_mm": 0.118, "nominal_rms_mm": 0.335, "rms_deg": None,
+           "nominal_rms_deg": None, "failed_folds": 0, "supported": True}  # fmt: skip
+    assert cross_validation_line(old) == (
+        "leave-one-out over 8 rows: held-out RMS calibrated 0.1180 mm; fair nominal 0.3350 mm"
+    )
