@@ -135,7 +135,7 @@ def test_an_over_fitted_calibration_is_reported_no_better_than_the_fair_nominal(
     assert cv is not None and cv.rows == 15 and not cv.supported
     assert cv.rms_mm > 1.2 * cv.nominal_rms_mm
     line = cross_validation_line(cv.to_json())
-    assert line is not None and line.endswith(NO_GAIN)
+    assert line is not None and line.endswith(NO_GAIN.format(what="position"))
     assert (
         f"held-out RMS calibrated {cv.rms_mm:.4f} mm; fair nominal {cv.nominal_rms_mm:.4f}" in line
     )
@@ -155,4 +155,16 @@ def test_a_leave_one_out_block_of_an_older_file_still_reads():
            "nominal_rms_deg": None, "failed_folds": 0, "supported": True}  # fmt: skip
     assert cross_validation_line(old) == (
         "leave-one-out over 8 rows: held-out RMS calibrated 0.1180 mm; fair nominal 0.3350 mm"
+    )
+
+
+def test_no_gain_names_what_is_not_better():
+    """Poses whose positions gain but whose orientations do not: NO GAIN names the
+    orientation alone."""
+    block = {"rows": 20, "folds": 10, "configurations": 20, "rms_mm": 0.1, "nominal_rms_mm": 0.5,
+             "rms_deg": 0.02, "nominal_rms_deg": 0.01, "failed_folds": 0, "supported": False}  # fmt: skip
+    line = cross_validation_line(block)
+    assert line is not None and line.endswith(
+        "0.1000 mm, 0.0200 deg; fair nominal 0.5000 mm, 0.0100 deg; NO GAIN: held out, the "
+        "calibration's orientation error is no smaller than the fair nominal's"
     )

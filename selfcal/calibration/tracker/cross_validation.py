@@ -218,7 +218,18 @@ def cross_validate(
     )
 
 
-NO_GAIN = "NO GAIN: the calibration predicts the held-out rows no better than the fair nominal"
+NO_GAIN = "NO GAIN: held out, the calibration's {what} error is no smaller than the fair nominal's"
+"""The words of a calibration :attr:`CrossValidation.supported` says is no better (``what``:
+position, orientation or both)."""
+
+
+def _no_gain(block: dict) -> str:
+    """:data:`NO_GAIN` naming what is not better in ``block`` (position and/or orientation)."""
+    worse = [what for what, mine, nominal in (("position", "rms_mm", "nominal_rms_mm"),
+                                              ("orientation", "rms_deg", "nominal_rms_deg"))
+             if block.get(mine) is not None and block.get(nominal) is not None
+             and not block[mine] < block[nominal]]  # fmt: skip
+    return NO_GAIN.format(what=" and ".join(worse) or "position")
 
 
 def cross_validation_line(block: dict | None) -> str | None:
@@ -242,4 +253,4 @@ def cross_validation_line(block: dict | None) -> str | None:
         if block.get("failed_folds"):
             how += f", {block['failed_folds']} folds not fitted (their rows not counted)"
     line = f"{how}: held-out RMS calibrated {fig('rms_mm')}; fair nominal {fig('nominal_rms_mm')}"
-    return line if block.get("supported") else f"{line}; {NO_GAIN}"
+    return line if block.get("supported") else f"{line}; {_no_gain(block)}"
