@@ -11,7 +11,6 @@ from pathlib import Path
 
 import numpy as np
 
-from selfcal.calibration.board.plan.reference import CLEAR_MARGIN
 from selfcal.cli.plan_add import add_count
 from selfcal.cli.plan_args import (
     check_common,
@@ -78,6 +77,8 @@ def fair_words(fair_m: float, predicted_m: float, rows: str) -> str:
     calibration predicted at ``predicted_m`` (m) beats it clearly (at most
     :data:`selfcal.calibration.board.plan.reference.CLEAR_MARGIN` times it, the board plan's
     rule)."""
+    from selfcal.calibration.board.plan.reference import CLEAR_MARGIN  # scipy: not at CLI start
+
     head = (f"the fair nominal of {rows} (the chain as drawn, the tracker frame and the tool "
             f"point fitted) {fair_m * 1000:.3f} mm")  # fmt: skip
     ratio = predicted_m / fair_m
@@ -90,6 +91,7 @@ def fair_words(fair_m: float, predicted_m: float, rows: str) -> str:
 def cmd_tracker_add(args: argparse.Namespace, deviation) -> int:
     """Plan, write and print (module docstring); ``deviation`` the arm's deviation from its
     drawing the held parameters err by (:class:`selfcal.calibration.board.deviation.Deviation`)."""
+    from selfcal.calibration.board.plan.reference import CLEAR_MARGIN
     from selfcal.calibration.tracker.add import plan_tracker_additions, tracker_dataset
     from selfcal.io.plan_files import write_plan
 
