@@ -382,9 +382,10 @@ def build_parser() -> argparse.ArgumentParser:
         "calibrate",
         cmd_calibrate,
         "dataset -> DIR/calibration.json (never reads truth.json); the ArUco field: "
-        "self-calibration, a board: the board calibration, its predicted tool-point accuracy and "
-        "the tool point's run-to-run spread over its folds (docs/tool-accuracy.md; --method "
-        "applies to the field)",
+        "self-calibration and its predicted tool-point accuracy (the covariance alone: its model "
+        "error is not measured), a board: the board calibration, its predicted tool-point "
+        "accuracy and the tool point's run-to-run spread over its folds (docs/tool-accuracy.md; "
+        "--method applies to the field)",
     )
     sp.add_argument("dataset", help="dataset folder (the output goes into it)")
     sp.add_argument("--method", choices=METHODS, default="joint", help=METHOD_HELP)
@@ -423,8 +424,8 @@ def build_parser() -> argparse.ArgumentParser:
         "evaluation.json or leave every 5th pose out), the sigmas and the identifiability; of a "
         "pose dataset: the hand-eye and board mount with sigmas beside the nominal, the fit and "
         "DIR/evaluation.json's held-out check (no kinematics identified); of `selfcal "
-        "identify`'s DIR: the predicted tool-point error over the workspace "
-        "(DIR/figures/workspace_accuracy.png, docs/tool-accuracy.md)",
+        "identify`'s DIR: the predicted tool-point error over the workspace; a field or board "
+        "calibration's too (DIR/figures/workspace_accuracy.png, docs/tool-accuracy.md)",
     )
     sp.add_argument("dataset", help="dataset folder (or the DIR of `selfcal identify`)")
     add_json(sp)

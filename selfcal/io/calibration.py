@@ -116,6 +116,9 @@ class CalibrationResult:
         nominal: the fair nominal (the nominal chain with everything but the kinematics fitted
             to the same pixels, :class:`selfcal.io.calibration_blocks.FairNominal`), or None
             (files written before it existed, or its fit failed: ``warnings`` says why).
+        accuracy: the predicted tool-point accuracy over the workspace
+            (:mod:`selfcal.calibration.field.accuracy`, units in its keys), or None (files
+            written before it existed, or no Cramer-Rao bound: ``bounds_error`` says why).
     """
 
     robot_model: str
@@ -150,6 +153,7 @@ class CalibrationResult:
     tool: str = TOOL
     columns: tuple[str, ...] = field(default=tuple(COLUMNS))
     base_offset_rad: float = 0.0
+    accuracy: dict | None = None
 
     # ------------------------------------------------------------------ derived values
     @property
@@ -233,6 +237,8 @@ class CalibrationResult:
             doc["bounds"] = self.bounds.to_json()
         elif self.bounds_error is not None:
             doc["bounds"] = {"error": self.bounds_error}
+        if self.accuracy is not None:
+            doc["accuracy"] = self.accuracy
         doc["warnings"] = list(self.warnings)
         doc["status"] = "failed" if self.failures else "ok"
         doc["failures"] = list(self.failures)
@@ -277,6 +283,7 @@ class CalibrationResult:
         joint = f.maybe_sub("joint")
         scene = f.maybe_sub("scene")
         nominal = f.maybe_sub("nominal")
+        accuracy = f.maybe_sub("accuracy")
         methods = f.sub("methods")
         return cls(
             robot_model=f.str("robot_model"),
@@ -310,6 +317,7 @@ class CalibrationResult:
             scene=None if scene is None else ScenePoints.from_json(scene),
             terms=read_sections(f, sections or {}),
             nominal=None if nominal is None else FairNominal.from_json(nominal),
+            accuracy=None if accuracy is None else dict(accuracy.doc),
             world_frame=f.str("world_frame"),
             tool=m.str("tool"),
             columns=m.strs("columns"),

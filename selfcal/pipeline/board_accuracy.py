@@ -14,9 +14,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
-
-from selfcal.calibration.accuracy import SAMPLE_COUNT, Z_MODEL_ERROR
+from selfcal.calibration.accuracy import Z_MODEL_ERROR
 from selfcal.calibration.board.accuracy import (
     board_error_model_from_json,
     board_postures_from_json,
@@ -24,10 +22,9 @@ from selfcal.calibration.board.accuracy import (
 from selfcal.calibration.board.held_prior import held_sentence
 from selfcal.calibration.board.plan.drawn_check import drawn_words
 from selfcal.calibration.spread import spread_line
-from selfcal.errors import InputError
 from selfcal.io.board_calibration import BoardCalibrationResult
-from selfcal.kinematics.tool_error import accuracy_line, workspace_sample, workspace_summary
-from selfcal.pipeline.accuracy_table import region_table
+from selfcal.kinematics.tool_error import accuracy_line
+from selfcal.pipeline.accuracy_table import rebuilt_regions, region_table, rms_words
 from selfcal.plots.job_figures import write_figure
 from selfcal.plots.workspace_map import workspace_map_figure
 
@@ -60,12 +57,8 @@ def board_accuracy_section(root: Path, cal: BoardCalibrationResult, *,
     where = str(Path(root) / "calibration.json")
     em = board_error_model_from_json(block, cal.model, where)
     q_cal = board_postures_from_json(block, cal.model.n, where)
-    limits = np.asarray(block.get("joint_limits_si", []), dtype=float)
-    if limits.shape != (cal.model.n, 2) or not np.all(np.isfinite(limits)):
-        raise InputError(f"{where}: accuracy.joint_limits_si must be {cal.model.n} rows of "
-                         "[low, high]", fix="re-run `selfcal calibrate` to write it again")  # fmt: skip
-    sample = workspace_sample(q_cal, limits, count=SAMPLE_COUNT)
-    regions = workspace_summary(em, sample, q_cal)
+    sample, regions = rebuilt_regions(block, em, q_cal, where,
+                                      fix="re-run `selfcal calibrate` to write it again")  # fmt: skip
     line = accuracy_line(regions)
     section = {
         "line": line,
@@ -207,22 +200,6 @@ def zero_model_error_words(me: dict, held: dict | None, cv: dict | None) -> str:
     return (f": none counted, as what the folds' held-out frames{px} show beyond the "
             "estimate's errors, the noise and the held parameters' deviation is within "
             f"{Z_MODEL_ERROR:g} standard errors of it")  # fmt: skip
-
-
-def rms_words(regions: dict) -> str:
-    """What the accuracy line's figures are, and the predicted RMS beside them (one sentence,
-    empty without the inside region): the line quotes the largest of a region's joint vectors'
-    95 % bounds of the error's norm, which a measured RMS is not to be set against (a 7-joint
-    arm's line read 0.275 mm where the predicted RMS inside was 0.098 mm)."""
-    inside = regions.get("inside") or {}
-    if inside.get("position_rms_mm") is None:
-        return ""
-    at = regions.get("calibration_postures") or {}
-    there = ("" if at.get("position_rms_mm") is None else
-             f", {at['position_rms_mm']:.3f} mm at the calibration postures")  # fmt: skip
-    return (f"Those are the largest of each region's joint vectors' 95 % bounds of the error's "
-            f"norm; the predicted RMS error is {inside['position_rms_mm']:.3f} mm inside the "
-            f"calibrated region{there} (the figure to set beside a measured RMS).")  # fmt: skip
 
 
 def spread_against_prediction(spread: dict, regions: dict, cv: dict | None) -> str:

@@ -226,7 +226,11 @@ def fit_markdown(r: dict, figures: list[str]) -> str:
         ]
     if "verdict" in r:
         lines += ["", f"**{r['verdict']}**"]
-    if "accuracy" in r:  # a board calibration's (its modules load for it alone)
+    if r.get("accuracy", {}).get("route") == "field":  # a field calibration's
+        from selfcal.pipeline.field_accuracy import field_accuracy_markdown
+
+        lines += field_accuracy_markdown(r["accuracy"])
+    elif "accuracy" in r:  # a board calibration's (its modules load for it alone)
         from selfcal.pipeline.board_accuracy import accuracy_markdown
 
         lines += accuracy_markdown(r["accuracy"])

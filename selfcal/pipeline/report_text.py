@@ -73,10 +73,24 @@ def report_summary(report: dict, root: Path) -> str:
 
 def _accuracy_summary(acc: dict) -> str:
     """:func:`selfcal.pipeline.board_accuracy.accuracy_summary`: the board route's modules load
-    for a report that has a predicted accuracy only (a field run's has none)."""
+    for a board's report alone; a field run's section has its line and nothing beside it
+    (:mod:`selfcal.pipeline.field_accuracy`)."""
+    if acc.get("route") == "field":
+        return acc["line"]
     from selfcal.pipeline.board_accuracy import accuracy_summary
 
     return accuracy_summary(acc)
+
+
+def _accuracy_markdown(r: dict) -> list[str]:
+    """The report.md lines of a field run's predicted tool-point accuracy
+    (:func:`selfcal.pipeline.field_accuracy.field_accuracy_markdown`) with a blank line after
+    them, or none without it."""
+    if not r.get("accuracy"):
+        return []
+    from selfcal.pipeline.field_accuracy import field_accuracy_markdown
+
+    return [*field_accuracy_markdown(r["accuracy"])[1:], ""]
 
 
 def _predicted(r: dict) -> str:
@@ -114,6 +128,7 @@ def _markdown(r: dict) -> str:
         r["validation"]["note"] + ". Per posture: validation.csv.",
         "",
         *rig_camera_markdown(r.get("cameras", {})),
+        *_accuracy_markdown(r),
         "## Parameters",
         "",
         parameter_markdown(r["parameters"], truth=True),

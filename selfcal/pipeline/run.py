@@ -366,6 +366,9 @@ def run_report(
         "table_iv": table_iv,
     }
     write_text_atomic(root / "validation.csv", _validation_csv(qv, err_nom, err_cal))
+    section, workspace_map = _field_accuracy(root, cal)
+    if section is not None:
+        report["accuracy"] = section
     pending = []
     if figures:
         pool = pool or FigurePool(enabled=False)
@@ -377,6 +380,7 @@ def run_report(
             (reprojection_figure, (ReprojectionData.of(ev), "calibration images"), root,
              "reprojection.png"),
             (parameter_figure, (params,), root, "parameters.png"),
+            *([] if workspace_map is None else [workspace_map]),
         ])  # fmt: skip
     report["figures"] = [str(f.wait().relative_to(root)) for f in pending]
     write_report(root / "report.json", report)
@@ -392,7 +396,23 @@ def _report_without_truth(
     root: Path, cal: CalibrationResult, *, quiet: bool, figures: bool, cache: FrameCache | None
 ) -> dict:
     drawn = [reprojection_figures(root, evaluate_field(cal, root, root, cache))] if figures else []
-    return write_fit_report(root, fit_report(root, cal), drawn, quiet=quiet)
+    report = fit_report(root, cal)
+    section, workspace_map = _field_accuracy(root, cal)
+    if section is not None:
+        report["accuracy"] = section
+        if figures and workspace_map is not None:
+            builder, args, _, name = workspace_map
+            drawn.append(write_figure(builder(*args), root, name))
+    return write_fit_report(root, report, drawn, quiet=quiet)
+
+
+def _field_accuracy(root: Path, cal: CalibrationResult) -> tuple[dict | None, Any]:
+    """:func:`selfcal.pipeline.field_accuracy.field_accuracy_section`, the predicted tool-point
+    accuracy (issue #29): imported here, as it loads scipy.special, off `selfcal run`'s serial
+    start (tests/unit/test_cli_imports.py)."""
+    from selfcal.pipeline.field_accuracy import field_accuracy_section
+
+    return field_accuracy_section(root, cal)
 
 
 def _board_report(root: Path, cal: BoardCalibrationResult, *, quiet: bool, figures: bool) -> dict:

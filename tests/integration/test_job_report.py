@@ -47,7 +47,7 @@ def real(job, tmp_path_factory):
 def test_report_writes_the_figures_the_table_and_validation_csv(job):
     out, rep = job
     assert rep["figures"] == ["figures/tool_tip_errors.png", "figures/reprojection.png",
-                              "figures/parameters.png"]  # fmt: skip
+                              "figures/parameters.png", "figures/workspace_accuracy.png"]  # fmt: skip
     md = (out / "report.md").read_text()
     for f in rep["figures"]:
         assert (out / f).read_bytes()[:4] == b"\x89PNG" and f"]({f})" in md
@@ -118,6 +118,13 @@ def test_report_without_truth_reports_fit_held_out_sigmas_and_identifiability(re
     assert not (root / "truth.json").exists() and not (root / "validation.csv").exists()
     line = report_summary(rep, root)
     assert line.startswith("report (no truth): fit ") and "leave-poses-out" in line
+    # the predicted tool-point accuracy without truth too: its line (saying the model error is
+    # not measured), its section in report.md and its map
+    acc = rep["accuracy"]
+    assert f"; {acc['line']}; " in line and acc["line"].endswith(acc["model_error_note"])
+    assert "## Predicted tool-point accuracy" in md and acc["line"] in md
+    assert "figures/workspace_accuracy.png" in rep["figures"]
+    assert (root / "figures" / "workspace_accuracy.png").read_bytes()[:4] == b"\x89PNG"
 
 
 def test_report_without_truth_uses_selfcal_evaluate_when_it_ran(real, tmp_path):

@@ -7,7 +7,9 @@ the SI model):
 - :class:`CalibrationOutput`: the result with the live estimates behind it;
 - :func:`two_stage_result`: the paper's method (camera stage + kinematic fit);
 - :func:`with_joint`: the one-step refinement as the final method (:mod:`selfcal.calibration.field.joint_refine`);
-- :func:`with_bounds`: the Cramer-Rao bounds of the data (:mod:`selfcal.calibration.field.bounds`), or why none;
+- :func:`with_bounds`: the Cramer-Rao bounds of the data (:mod:`selfcal.calibration.field.bounds`), or why none,
+  and the predicted tool-point accuracy over the workspace that follows from them
+  (:mod:`selfcal.calibration.field.accuracy`);
 - :func:`identification_summary`, :func:`method_summary`, :func:`parameter_table`,
   :func:`hand_eye`, :func:`dh_rows`: the blocks they share.
 """
@@ -20,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from selfcal.calibration.field.bounds import BoundsError, cramer_rao
+from selfcal.calibration.field.bounds import BoundsError, CramerRao, FisherSetup, cramer_rao
 from selfcal.calibration.field.bounds_setup import setup_from_output
 from selfcal.calibration.field.self_calibration import Observations, SelfCalibrationResult
 from selfcal.calibration.identify import IdentificationResult
@@ -331,7 +333,8 @@ def with_bounds(
     pixel_sigma_source: str = "residuals",
 ) -> CalibrationResult:
     """``result`` with the Cramer-Rao bounds of its data, evaluated at the final estimate of
-    ``out`` (either method); when the Fisher information cannot be formed or inverted, with
+    ``out`` (either method), and the predicted tool-point accuracy they give
+    (:func:`_accuracy`, ``accuracy``); when the Fisher information cannot be formed or inverted, with
     ``bounds_error`` and a warning saying why instead. ``pixel_sigma_px``: the corner noise
     (px per coordinate; None: from the final fit's residuals), ``pixel_sigma_source`` where it
     comes from (:data:`selfcal.io.calibration_bounds.SIGMA_SOURCES`).
@@ -342,7 +345,7 @@ def with_bounds(
     reference-camera frame like the result's. ``obs`` / ``q`` (rad): as given to the calibration.
     """
     try:
-        bounds = _bounds(result, out, obs, q, robot, ds_info, pixel_sigma_px)
+        bounds, cr, s = _bounds(result, out, obs, q, robot, ds_info, pixel_sigma_px)
         if pixel_sigma_px is not None:
             bounds = dataclasses.replace(bounds, pixel_sigma_source=pixel_sigma_source)
     except BoundsError as exc:
@@ -352,7 +355,26 @@ def with_bounds(
             bounds_error=str(exc),
             warnings=(*result.warnings, f"no Cramer-Rao bound: {exc}"),
         )
-    return dataclasses.replace(result, bounds=bounds, bounds_error=None)
+    return dataclasses.replace(result, bounds=bounds, bounds_error=None,
+                               accuracy=_accuracy(cr, s, robot))  # fmt: skip
+
+
+def _accuracy(cr: CramerRao, s: FisherSetup, robot: RobotDef) -> dict:
+    """The ``accuracy`` block (:func:`selfcal.calibration.field.accuracy.field_accuracy`) of the
+    bounds ``cr`` of the setup ``s`` (its calibration postures) of ``robot`` (its joint limits;
+    the tool point its flange, seen from the left camera)."""
+    # scipy.special (the 95 % bounds) loads here, off `selfcal run`'s serial start
+    # (tests/unit/test_cli_imports.py)
+    from selfcal.calibration.field.accuracy import field_accuracy
+
+    gauge = tuple(n for n, why in cr.held.items() if why.startswith("gauge"))
+    held = tuple(n for n, why in cr.held.items() if not why.startswith("gauge"))
+    # without a mount in the robot file the flange is taken at the camera: said so
+    at = ("the flange" if robot.camera_mount_given else "the camera: the robot file gives no "
+          "[camera_mount], so the flange is taken at the camera")  # fmt: skip
+    acc = field_accuracy(cr.model_ref, cr.cov_ref, gauge, held, s.q, robot.limits,
+                         inv_pose(np.asarray(robot.T_flange_cam, dtype=float)), tool_point=at)  # fmt: skip
+    return acc.to_json()
 
 
 def _bounds(
@@ -363,7 +385,7 @@ def _bounds(
     robot: RobotDef,
     ds_info: DatasetInfo,
     pixel_sigma_px: float | None,
-) -> Bounds:
+) -> tuple[Bounds, CramerRao, FisherSetup]:
     s = setup_from_output(out, obs, q, robot, ds_info, pixel_sigma_px=pixel_sigma_px)
     cr = cramer_rao(s)
     qv = np.atleast_2d(np.radians(np.asarray(ds_info.validation_joints_deg, dtype=float)))
@@ -388,7 +410,7 @@ def _bounds(
             )
         )
     js = s.joint_sigma
-    return Bounds(
+    bounds = Bounds(
         method_evaluated_at=result.method,
         pixel_sigma_px=float(cr.pixel_sigma_px),
         joint_sigma_deg=None if js is None else tuple(float(x) for x in np.degrees(js)),
@@ -404,3 +426,4 @@ def _bounds(
             for name, d in (cr.cameras_std or {}).items()
         ),
     )
+    return bounds, cr, s
