@@ -67,9 +67,10 @@ def field_accuracy_markdown(section: dict) -> list[str]:
         "",
         "## Predicted tool-point accuracy",
         "",
-        f"{section['line']} ({section.get('tool_point') or 'the tool point'}). "
+        f"{section['line'][0].upper()}{section['line'][1:]}. The tool point is "
+        f"{section.get('tool_point') or 'the tool point'}, in {frame}. "
         + (f"{rms} " if rms else "")
-        + f"Points in {frame}. See docs/tool-accuracy.md.",
+        + "See docs/tool-accuracy.md.",
         "",
         *region_table(section["regions"], orientation=True),
     ]

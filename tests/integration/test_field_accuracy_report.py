@@ -5,8 +5,10 @@ workspace, the report's line, section and map."""
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
+import pytest
 
 from selfcal.calibration.accuracy import postures_from_json
 from selfcal.calibration.field.accuracy import (
@@ -25,6 +27,7 @@ from selfcal.plots.workspace_map import workspace_map_figure
 from selfcal.transforms import inv_pose
 
 REGIONS = ("inside", "edge", "workspace", "calibration_postures")
+DOCS = Path(__file__).resolve().parents[2] / "docs" / "tool-accuracy.md"
 
 
 def test_the_calibration_writes_the_block(default_analytic):
@@ -50,8 +53,7 @@ def test_the_prediction_covers_the_true_error_over_the_workspace(default_analyti
     the 95 % bound at 300 joint vectors per region: covered at 85 % of them or more (measured
     100 % in each region: this draw's error is smaller than predicted), and the predicted RMS
     within 0.5-3 times the true one (measured 1.81 inside, 1.68 at the edge, 1.54 over the
-    workspace; another draw of the arm (perturbation seed 2) measured 0.83-0.82 with coverage
-    93 / 88 / 90 %). One draw; the simulated robot is a chain of the model's kind."""
+    workspace). One draw; the simulated robot is a chain of the model's kind."""
     out, result, _, _ = default_analytic
     block = result.accuracy
     truth = read_truth(out / "truth.json")
@@ -84,7 +86,7 @@ def test_the_report_gives_the_line_and_the_section(default_analytic):
     assert f"tool point within {inside:.3f} mm (95 %) inside the calibrated region" in line
     assert f"; predicted: {line}; " in report_summary(report, out)
     md = (out / "report.md").read_text()
-    assert "## Predicted tool-point accuracy" in md and line in md
+    assert "## Predicted tool-point accuracy" in md and f"T{line[1:]}." in md
     assert "| inside | 256 |" in md
 
 
@@ -100,3 +102,14 @@ def test_the_map(default_analytic_15):
     sample = workspace_sample(q_cal, np.asarray(block["joint_limits_si"]))
     fig = workspace_map_figure(em, sample, q_cal, report["accuracy"]["line"], "base frame")
     assert figure_problems(fig) == []
+
+
+@pytest.mark.slow  # the default scenario rendered (tests/conftest.py, shared with its golden test)
+@pytest.mark.render
+def test_the_docs_quote_the_rendered_default_runs_line(default_rendered):
+    """docs/tool-accuracy.md ("The field route") quotes the line `selfcal report runs/paper`
+    prints after `selfcal run` of the default scenario: this run's."""
+    out, report = default_rendered
+    line = report["accuracy"]["line"]
+    assert f"; predicted: {line}; " in report_summary(report, out)
+    assert f"\n{line}\n" in DOCS.read_text()

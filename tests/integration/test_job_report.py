@@ -122,7 +122,7 @@ def test_report_without_truth_reports_fit_held_out_sigmas_and_identifiability(re
     # not measured), its section in report.md and its map
     acc = rep["accuracy"]
     assert f"; {acc['line']}; " in line and acc["line"].endswith(acc["model_error_note"])
-    assert "## Predicted tool-point accuracy" in md and acc["line"] in md
+    assert "## Predicted tool-point accuracy" in md and acc["line"][1:] in md
     assert "figures/workspace_accuracy.png" in rep["figures"]
     assert (root / "figures" / "workspace_accuracy.png").read_bytes()[:4] == b"\x89PNG"
 

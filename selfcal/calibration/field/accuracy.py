@@ -175,8 +175,8 @@ def field_accuracy(
         "T_tool_point_si": np.asarray(T_tool_point, float).tolist(),
         "joint_limits_si": np.asarray(limits, float).tolist(),
         "gauge_held": list(gauge),
-        "frame": "the chain's base frame (before joint 1, z along its axis); errors relative to "
-        "the base the gauge_held parameters fix",
+        "frame": "the chain's base frame (before joint 1, z along its axis), the error relative "
+        "to the robot's base as the held parameters (gauge_held) fix it",
     }
     return Accuracy(em, tuple(np.asarray(names)[est].tolist()), None,
                     workspace_summary(em, sample, q_cal), sample, q_cal,

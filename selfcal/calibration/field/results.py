@@ -27,6 +27,7 @@ from selfcal.calibration.field.bounds_setup import setup_from_output
 from selfcal.calibration.field.self_calibration import Observations, SelfCalibrationResult
 from selfcal.calibration.identify import IdentificationResult
 from selfcal.camera import CameraSet
+from selfcal.errors import InputError
 from selfcal.estimation.joint_result import JointRefinementResult
 from selfcal.io.calibration import CalibrationResult
 from selfcal.io.calibration_blocks import (
@@ -355,8 +356,13 @@ def with_bounds(
             bounds_error=str(exc),
             warnings=(*result.warnings, f"no Cramer-Rao bound: {exc}"),
         )
-    return dataclasses.replace(result, bounds=bounds, bounds_error=None,
-                               accuracy=_accuracy(cr, s, robot))  # fmt: skip
+    try:
+        accuracy = _accuracy(cr, s, robot)
+    except (InputError, np.linalg.LinAlgError) as exc:  # the bounds stand without it
+        text = f"no predicted tool-point accuracy: {exc}"
+        return dataclasses.replace(result, bounds=bounds, bounds_error=None,
+                                   warnings=(*result.warnings, text))  # fmt: skip
+    return dataclasses.replace(result, bounds=bounds, bounds_error=None, accuracy=accuracy)
 
 
 def _accuracy(cr: CramerRao, s: FisherSetup, robot: RobotDef) -> dict:
