@@ -113,3 +113,21 @@ def test_the_docs_quote_the_rendered_default_runs_line(default_rendered):
     line = report["accuracy"]["line"]
     assert f"; predicted: {line}; " in report_summary(report, out)
     assert f"\n{line}\n" in DOCS.read_text()
+
+
+@pytest.mark.slow  # a two-stage calibration of the default scenario: 3-5 s
+def test_the_two_stage_method_gets_no_block_and_says_why(default_analytic):
+    """Its estimate errs by more than the Cramer-Rao covariance (docs/bounds.md), so that
+    covariance is not its error's: no block, and a warning. (calibrate writes nothing into the
+    folder.)"""
+    import warnings
+
+    from selfcal.calibration.field.calibrate import calibrate
+
+    out, _, _, _ = default_analytic
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = calibrate(out, method="two-stage")
+    assert res.accuracy is None and res.bounds is not None
+    assert any(w.startswith("no predicted tool-point accuracy: the two-stage estimate errs by "
+                            "more than") for w in res.warnings)  # fmt: skip

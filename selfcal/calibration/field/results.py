@@ -334,8 +334,9 @@ def with_bounds(
     pixel_sigma_source: str = "residuals",
 ) -> CalibrationResult:
     """``result`` with the Cramer-Rao bounds of its data, evaluated at the final estimate of
-    ``out`` (either method), and the predicted tool-point accuracy they give
-    (:func:`_accuracy`, ``accuracy``); when the Fisher information cannot be formed or inverted, with
+    ``out`` (either method), and for the one-step (joint) method the predicted tool-point
+    accuracy they give (:func:`_accuracy`, ``accuracy``; the two-stage estimate errs by more
+    than the bound, and gets none, with a warning saying so); when the Fisher information cannot be formed or inverted, with
     ``bounds_error`` and a warning saying why instead. ``pixel_sigma_px``: the corner noise
     (px per coordinate; None: from the final fit's residuals), ``pixel_sigma_source`` where it
     comes from (:data:`selfcal.io.calibration_bounds.SIGMA_SOURCES`).
@@ -356,6 +357,12 @@ def with_bounds(
             bounds_error=str(exc),
             warnings=(*result.warnings, f"no Cramer-Rao bound: {exc}"),
         )
+    if result.method != "joint":  # the bound is not this estimate's covariance (docs/bounds.md)
+        text = (f"no predicted tool-point accuracy: the {result.method} estimate errs by more "
+                "than the Cramer-Rao covariance the prediction would carry (the default method, "
+                "joint, reaches it)")  # fmt: skip
+        return dataclasses.replace(result, bounds=bounds, bounds_error=None,
+                                   warnings=(*result.warnings, text))  # fmt: skip
     try:
         accuracy = _accuracy(cr, s, robot)
     except (InputError, np.linalg.LinAlgError) as exc:  # the bounds stand without it
