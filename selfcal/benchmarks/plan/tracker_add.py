@@ -71,6 +71,7 @@ def _measurements(path: Path, true, q: np.ndarray, seed: int) -> Path:
     """A measurements CSV (``selfcal identify``'s format, joints in deg / mm) of the truth
     ``true`` at ``q`` (m, n) SI with noise of ``seed`` (the first rows' noise the same for
     any m)."""
+    from selfcal.io.atomic import write_text_atomic
     from selfcal.kinematics.forward import fk_tool
 
     rng = np.random.default_rng(10_000 + seed)
@@ -78,9 +79,8 @@ def _measurements(path: Path, true, q: np.ndarray, seed: int) -> Path:
     n = q.shape[1]
     header = [f"j{i + 1}" for i in range(n)] + ["x_mm", "y_mm", "z_mm"]
     rows = np.column_stack([np.degrees(q), xyz * 1e3])
-    path.write_text(",".join(header) + "\n"
-                    + "".join(",".join(f"{v:.9f}" for v in r) + "\n" for r in rows))  # fmt: skip
-    return path
+    return write_text_atomic(path, ",".join(header) + "\n"
+                             + "".join(",".join(f"{v:.9f}" for v in r) + "\n" for r in rows))  # fmt: skip
 
 
 def _selfcal(*argv: str) -> str:
