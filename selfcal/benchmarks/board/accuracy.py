@@ -16,10 +16,12 @@ error (the calibrated chain's flange against the true chain's, both in the board
 at the workspace sample's joint vectors (inside the calibrated region, at its edge, over the
 joint limits: :mod:`selfcal.kinematics.tool_error`).
 
-Models: ``fits`` (the true robot is a chain of the model's kind) and ``compliance`` (the
+Models: ``fits`` (the true robot is a chain of the model's kind), ``compliance`` (the
 simulated arm's joint 2 bends by 0.05 deg x cos(q2 + q3) while its encoder reads the commanded
 angle, :data:`selfcal.sim.compliance.SHOULDER`, the tracker benchmark's misfit: no constant chain
-expresses it; the true flange is then the true chain's at the bent joints).
+expresses it; the true flange is then the true chain's at the bent joints) and ``gear`` (one
+joint, drawn per truth, turns ``A sin(theta + phase)`` past its reading, ``A`` moving the tool
+about 0.2 mm: :func:`selfcal.sim.gear.draw_gear`, which no link table expresses).
 
 Reported per row: coverage (the share of (draw, point) pairs whose true error is within the
 predicted 95 % bound; target 90-98 %) beside the central 90 % range of the coverage a right
