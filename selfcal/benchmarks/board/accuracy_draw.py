@@ -58,6 +58,7 @@ __all__ = [
     "simulated_calibration",
     "true_chain",
     "COUNT",
+    "DEFAULT_MODELS",
     "MODELS",
     "POSES",
     "REGIONS",
@@ -67,6 +68,9 @@ __all__ = [
 
 ROBOTS = ("er4u-paper", "ur5e", "kr6-r900")
 MODELS = ("fits", "compliance", "gear")
+DEFAULT_MODELS = ("fits", "compliance")
+"""``--models``'s default: the models of the blocks of seeds (the gear's rows have their own,
+:data:`selfcal.benchmarks.board.accuracy_tables.BLOCK_GEAR`)."""
 POSES = 30
 COUNT = 128
 REGIONS = ("inside", "edge", "workspace")
