@@ -26,7 +26,7 @@ from selfcal.kinematics.trajectory import home_target_center
 from selfcal.robot.definition import RobotDef, load_robot
 from selfcal.sim.actual import apply_errors, perturb
 from selfcal.sim.board_scene import BOARD_THICKNESS_M, board_on_table
-from selfcal.sim.compliance import JointCompliance
+from selfcal.sim.compliance import JointMisfit
 from selfcal.sim.markers import MarkerField, make_marker_field
 from selfcal.sim.robot_mjcf import RigConfig
 from selfcal.transforms import trans
@@ -78,8 +78,9 @@ class SimSetup:
     static: StaticCameraTruth | None = None
     """Eye-to-hand (``[camera] setup``): the cell (selfcal.sim.static_camera.StaticCameraTruth:
     the static camera, the board on the flange), or None: the cameras on the flange."""
-    compliance: JointCompliance | None = None
-    """The actual robot's joint compliance (selfcal.sim.compliance; a benchmark's misfit, not
+    compliance: JointMisfit | None = None
+    """The actual robot's joint misfit (a compliance, selfcal.sim.compliance, or an eccentric
+    gear, selfcal.sim.gear; a benchmark's misfit, not
     in scenarios), or None: a rigid arm."""
 
     def marker_field(self) -> MarkerField:

@@ -16,12 +16,22 @@ dataset never carries it, and ``truth.json``'s true chain is the chain without t
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
 from selfcal.errors import UsageError
 
-__all__ = ["JointCompliance", "SHOULDER"]
+__all__ = ["JointCompliance", "JointMisfit", "SHOULDER"]
+
+
+class JointMisfit(Protocol):
+    """A simulated misfit of the joints: where the links stand for the encoders' readings
+    (:class:`JointCompliance`, :class:`selfcal.sim.gear.EccentricGear`)."""
+
+    def bent(self, q: np.ndarray) -> np.ndarray:
+        """The joints (..., n) the links stand at for the readings ``q`` (..., n) rad / m."""
+        ...
 
 
 @dataclass(frozen=True)

@@ -23,7 +23,7 @@ from selfcal.robot.definition import RobotDef, load_robot
 from selfcal.robot.encoder import EncoderSpec
 from selfcal.robot.interface import RobotError, StereoPair
 from selfcal.sim.actual import make_truth
-from selfcal.sim.compliance import JointCompliance
+from selfcal.sim.compliance import JointMisfit
 from selfcal.sim.link_frames import nominal_camera_model
 from selfcal.sim.markers import MarkerField, make_marker_field
 from selfcal.sim.robot_mjcf import RigConfig
@@ -56,7 +56,8 @@ class KinematicRobot:
     none with a board), ``quantize``, ``board`` (``(board, T_world_board)``: recorded in
     ``truth()``; its features are projected by :func:`selfcal.sim.analytic.project_board`).
     Starts at home.
-    ``compliance`` (:class:`selfcal.sim.compliance.JointCompliance`): the links stand at its bent
+    ``compliance`` (a :class:`selfcal.sim.compliance.JointMisfit`: a joint compliance, or an
+    eccentric gear, :class:`selfcal.sim.gear.EccentricGear`): the links stand at its bent
     joints while the encoders read the commanded ones (a misfit for the benchmarks; ``truth()``'s
     true chain does not include it). ``SimRobot`` is this robot plus MuJoCo (it overrides
     ``_set_q``, ``truth_frame``, ``capture``).
@@ -72,7 +73,7 @@ class KinematicRobot:
         field: MarkerField | None = None,
         quantize: bool = True,
         board: tuple[Board, np.ndarray] | None = None,
-        compliance: JointCompliance | None = None,
+        compliance: JointMisfit | None = None,
     ) -> None:
         self.robot = model_name if isinstance(model_name, RobotDef) else load_robot(model_name)
         self.model_name = self.robot.name

@@ -20,7 +20,7 @@ from selfcal.kinematics.mcpc import MCPCModel
 from selfcal.robot.definition import RobotDef
 from selfcal.robot.interface import StereoPair
 from selfcal.sim.board_scene import add_board
-from selfcal.sim.compliance import JointCompliance
+from selfcal.sim.compliance import JointMisfit
 from selfcal.sim.kinematic_robot import KinematicRobot
 from selfcal.sim.markers import MarkerField
 from selfcal.sim.mj_camera import T_world_cam_cv
@@ -71,7 +71,7 @@ class SimRobot(KinematicRobot):
         quantize: bool = True,
         msaa: int | None = None,
         board: tuple[Board, np.ndarray] | None = None,
-        compliance: JointCompliance | None = None,
+        compliance: JointMisfit | None = None,
     ) -> None:
         if not image_sigma >= 0:
             raise InputError(f"image_sigma must be >= 0 (grey levels), got {image_sigma}")

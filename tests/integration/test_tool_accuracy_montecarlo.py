@@ -1,5 +1,5 @@
 """Monte Carlo of the predicted tool-point accuracy (slow; the benchmark
-selfcal/benchmarks/tracker/accuracy.py runs 30 draws on two robots and three noise levels)."""
+selfcal/benchmarks/tracker/accuracy.py runs 30 draws on three robots and three noise levels)."""
 
 from __future__ import annotations
 

@@ -11,7 +11,7 @@ import pytest
 
 from selfcal.benchmarks.board import accuracy as board_accuracy
 from selfcal.benchmarks.board.accuracy_draw import REGIONS
-from selfcal.benchmarks.board.accuracy_tables import BLOCK_SEEDS, pooled_rows, table
+from selfcal.benchmarks.board.accuracy_tables import BLOCK_GEAR, BLOCK_SEEDS, pooled_rows, table
 from selfcal.benchmarks.doc_blocks import read_block
 from selfcal.errors import InputError
 
@@ -140,6 +140,28 @@ def test_the_draws_seeded_181_have_a_block_of_their_own(tmp_path, monkeypatch, c
     assert read_block(doc, seeds_1) == f"old {seeds_1}"
 
 
+def test_the_gear_rows_have_a_block_of_their_own(tmp_path, monkeypatch, capsys):
+    """``--from-rows FILE --write-docs`` of ``gear`` rows alone writes :data:`BLOCK_GEAR`,
+    leaving the fits / compliance block as it was; the table's command says ``--models gear
+    ... --write-docs``; rows mixing the gear with another model are refused in one line."""
+    doc = tmp_path / "tool-accuracy.md"
+    doc.write_text("".join(f"<!-- {b}: begin -->\nold {b}\n<!-- {b}: end -->\n"
+                           for b in (BLOCK_SEEDS[1], BLOCK_GEAR)))  # fmt: skip
+    monkeypatch.setattr(board_accuracy, "DOC", doc)
+    rows = [*_rows("ur5e", "gear", 0.05, None), *_rows("kr6-r900", "gear", 0.05, None)]
+    path = _write(tmp_path / "rows.jsonl", rows)
+    assert board_accuracy.main(["--from-rows", str(path), "--write-docs"]) == 0
+    written = read_block(doc, BLOCK_GEAR)
+    assert written == table(rows) and written in capsys.readouterr().out
+    assert "--robots ur5e,kr6-r900 --models gear --noise-px 0.05 --jobs 1 --write-docs`" in written
+    assert read_block(doc, BLOCK_SEEDS[1]) == f"old {BLOCK_SEEDS[1]}"
+    mixed = _write(tmp_path / "mixed.jsonl", [*rows, *_rows("ur5e", "fits", 0.05, None)])
+    assert board_accuracy.main(["--from-rows", str(mixed), "--write-docs"]) == 2
+    err = capsys.readouterr().err
+    assert "--models gear,fits: --write-docs writes the gear rows" in err and err.count("\n") == 1
+    assert "--write-docs" not in table([*rows, *_rows("ur5e", "fits", 0.2, None)])
+
+
 @pytest.mark.parametrize(
     ("argv", "said"),
     [(["--first-seed", "91"], "--first-seed 91: --write-docs writes the analytic path's blocks "
@@ -189,5 +211,5 @@ def test_docs_hold_a_block_for_each_seed_block_write_docs_writes():
     ``--write-docs`` of those seeds has where to write (a missing pair is an error there)."""
     from selfcal.benchmarks.board.accuracy_tables import DOC
 
-    for name in BLOCK_SEEDS.values():
+    for name in [*BLOCK_SEEDS.values(), BLOCK_GEAR]:
         assert "|---|" in read_block(DOC, name), name

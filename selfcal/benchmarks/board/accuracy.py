@@ -16,10 +16,12 @@ error (the calibrated chain's flange against the true chain's, both in the board
 at the workspace sample's joint vectors (inside the calibrated region, at its edge, over the
 joint limits: :mod:`selfcal.kinematics.tool_error`).
 
-Models: ``fits`` (the true robot is a chain of the model's kind) and ``compliance`` (the
+Models: ``fits`` (the true robot is a chain of the model's kind), ``compliance`` (the
 simulated arm's joint 2 bends by 0.05 deg x cos(q2 + q3) while its encoder reads the commanded
 angle, :data:`selfcal.sim.compliance.SHOULDER`, the tracker benchmark's misfit: no constant chain
-expresses it; the true flange is then the true chain's at the bent joints).
+expresses it; the true flange is then the true chain's at the bent joints) and ``gear`` (one
+joint, drawn per truth, turns ``A sin(theta + phase)`` past its reading, ``A`` moving the tool
+about 0.2 mm: :func:`selfcal.sim.gear.draw_gear`, which no link table expresses).
 
 Reported per row: coverage (the share of (draw, point) pairs whose true error is within the
 predicted 95 % bound; target 90-98 %) beside the central 90 % range of the coverage a right
@@ -54,7 +56,8 @@ Run: ``uv run python -m selfcal.benchmarks.board.accuracy [--draws 90] [--jobs 2
 R,..] [--models M,..] [--noise-px S,..] [--poses 30] [--first-seed 1] [--read-back rounded]
 [--render] [--rows-out FILE] [--from-rows FILE ..] [--real] [--write-docs]`` (rewrites the tables in docs/tool-accuracy.md:
 the analytic draws seeded 1, 2, ... and 181, 182, ..., ``--first-seed 181``, have a block each,
-:data:`selfcal.benchmarks.board.accuracy_tables.BLOCK_SEEDS`; an option no block takes is refused
+:data:`selfcal.benchmarks.board.accuracy_tables.BLOCK_SEEDS`, and so have the ``gear`` rows,
+``--models gear`` alone, :data:`selfcal.benchmarks.board.accuracy_tables.BLOCK_GEAR`; an option no block takes is refused
 in one line before anything runs).
 """
 
@@ -75,6 +78,7 @@ from typing import Any
 import numpy as np
 
 from selfcal.benchmarks.board.accuracy_draw import (
+    DEFAULT_MODELS,
     MODELS,
     POSES,
     REGIONS,
@@ -180,7 +184,7 @@ def draws_per_row(draws: int | None, render: bool) -> int:
     return int(draws)
 
 
-def run(draws: int = DRAWS, robots=ROBOTS, models=MODELS, noise_px=NOISE_PX,
+def run(draws: int = DRAWS, robots=ROBOTS, models=DEFAULT_MODELS, noise_px=NOISE_PX,
         jobs: int = 2, poses: int = POSES, *, render: bool = False,
         rows_file: Path | None = None, first_seed: int = 1,
         read_back: str = "rounded") -> list[dict]:  # fmt: skip
@@ -370,7 +374,7 @@ def _arguments(argv: list[str] | None) -> argparse.Namespace:
     ap.add_argument("--draws", type=int, help=f"draws per row (default {DRAWS}, rendered "
                     f"{DRAWS_RENDERED})")  # fmt: skip
     ap.add_argument("--jobs", type=int, default=2, help="processes (default 2)")
-    for flag, default in (("--robots", ROBOTS), ("--models", MODELS)):
+    for flag, default in (("--robots", ROBOTS), ("--models", DEFAULT_MODELS)):
         ap.add_argument(flag, type=lambda t: tuple(t.split(",")), default=default,
                         help=f"comma-separated (default {','.join(default)})")  # fmt: skip
     ap.add_argument("--read-back", choices=("rounded", "gaussian"), default="rounded",
@@ -436,7 +440,8 @@ def _main(args: argparse.Namespace) -> int:
         block = rows_block(rows, args.first_seed, args.from_rows) if args.write_docs else ""
     else:
         if args.write_docs:  # refused before any draw runs
-            block = docs_block(args.first_seed, args.read_back, args.poses, args.render)
+            block = docs_block(args.first_seed, args.read_back, args.poses, args.render,
+                               args.models)  # fmt: skip
         noise = IMAGE_SIGMA if args.render and args.noise_px == NOISE_PX else args.noise_px
         draws = draws_per_row(args.draws, args.render)
         rows = run(draws, args.robots, args.models, noise, jobs=args.jobs,
@@ -468,7 +473,8 @@ def rows_block(rows: list[dict], first_seed: int, files: list[Path]) -> str:
     if seed != first_seed:
         raise InputError(f"--from-rows: the rows are of the draws seeded {seed}, ... and "
                          f"--first-seed is {first_seed}", fix=f"give --first-seed {seed}")  # fmt: skip
-    return docs_block(seed, read_back, poses, all("corner_sigma_px" in r for r in rows))
+    return docs_block(seed, read_back, poses, all("corner_sigma_px" in r for r in rows),
+                      tuple(dict.fromkeys(r["model"] for r in rows)))  # fmt: skip
 
 
 if __name__ == "__main__":

@@ -24,7 +24,7 @@ import sys
 
 import numpy as np
 
-from selfcal.benchmarks.board.accuracy_draw import MODELS, REGIONS, ROBOTS, draw
+from selfcal.benchmarks.board.accuracy_draw import DEFAULT_MODELS, REGIONS, ROBOTS, draw
 from selfcal.benchmarks.pool import map_jobs
 from selfcal.benchmarks.usage import benchmark_parser
 from selfcal.errors import UsageError
@@ -92,7 +92,7 @@ def _arguments(argv: list[str] | None) -> argparse.Namespace:
     ap = benchmark_parser(__file__, description=__doc__.splitlines()[0])
     ap.add_argument("--draws", type=int, default=10, help="draws per row (default 10)")
     ap.add_argument("--jobs", type=int, default=1, help="processes (default 1)")
-    for flag, default in (("--robots", ROBOTS), ("--models", MODELS)):
+    for flag, default in (("--robots", ROBOTS), ("--models", DEFAULT_MODELS)):
         ap.add_argument(flag, type=lambda t: tuple(t.split(",")), default=default,
                         help=f"comma-separated (default {','.join(default)})")  # fmt: skip
     ap.add_argument(

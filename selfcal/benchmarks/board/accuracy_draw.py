@@ -43,6 +43,7 @@ from selfcal.pipeline.board_run import calibrate_board_run
 from selfcal.pipeline.run import run_acquire, run_all
 from selfcal.robot.encoder import EncoderSpec
 from selfcal.sim.compliance import SHOULDER
+from selfcal.sim.gear import draw_gear
 from selfcal.transforms import inv_pose
 
 __all__ = [
@@ -57,6 +58,7 @@ __all__ = [
     "simulated_calibration",
     "true_chain",
     "COUNT",
+    "DEFAULT_MODELS",
     "MODELS",
     "POSES",
     "REGIONS",
@@ -65,7 +67,10 @@ __all__ = [
 ]
 
 ROBOTS = ("er4u-paper", "ur5e", "kr6-r900")
-MODELS = ("fits", "compliance")
+MODELS = ("fits", "compliance", "gear")
+DEFAULT_MODELS = ("fits", "compliance")
+"""``--models``'s default: the models of the blocks of seeds (the gear's rows have their own,
+:data:`selfcal.benchmarks.board.accuracy_tables.BLOCK_GEAR`)."""
 POSES = 30
 COUNT = 128
 REGIONS = ("inside", "edge", "workspace")
@@ -96,11 +101,17 @@ def scenario(robot: str, sigma_px: float, seed: int, poses: int = POSES,
 
 def simulated(s: Scenario, model: str) -> SimSetup:
     """The simulator of ``s`` with the model ``model`` (:data:`MODELS`): the scenario's own arm,
-    or with ``"compliance"`` the same arm bending (:data:`selfcal.sim.compliance.SHOULDER`)."""
+    with ``"compliance"`` the same arm bending (:data:`selfcal.sim.compliance.SHOULDER`), with
+    ``"gear"`` one of its joints turning through an eccentric gear drawn for the truth's seed
+    (:func:`selfcal.sim.gear.draw_gear` on the actual chain; the calibration never sees either)."""
     if model not in MODELS:
         raise UsageError(f"unknown model {model!r}: one of {', '.join(MODELS)}")
     setup = sim_setup(s)
-    return setup if model == "fits" else dataclasses.replace(setup, compliance=SHOULDER)
+    if model == "fits":
+        return setup
+    bend = (SHOULDER if model == "compliance"
+            else draw_gear(setup.actual, setup.robot.limits, s.perturbation.seed))  # fmt: skip
+    return dataclasses.replace(setup, compliance=bend)
 
 
 def prior(s: Scenario) -> Deviation:

@@ -5,6 +5,8 @@ real sets' tables, and the docs/tool-accuracy.md blocks they go to.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
 from selfcal.benchmarks.board.accuracy_draw import COUNT, POSES, REGIONS
@@ -21,6 +23,7 @@ __all__ = [
     "real_table",
     "BLOCK",
     "BLOCK_REAL",
+    "BLOCK_GEAR",
     "BLOCK_RENDER",
     "BLOCK_SEEDS",
     "DOC",
@@ -32,15 +35,19 @@ BLOCK = "benchmark_board_accuracy"
 BLOCK_REAL = "benchmark_board_accuracy_real"
 BLOCK_RENDER = "benchmark_board_accuracy_rendered"
 BLOCK_SEEDS = {1: BLOCK, 181: "benchmark_board_accuracy_seeds_181"}
+BLOCK_GEAR = "benchmark_board_accuracy_gear"
+"""The analytic draws seeded 1, 2, ... of the ``gear`` model (``--models gear`` alone): a block
+of their own beside :data:`BLOCK`'s ``fits`` and ``compliance`` rows."""
 """The analytic path's blocks by the draws' first seed (``--first-seed``): the Monte Carlo of
 seeds 1, 2, ... and the new draws of seeds 181, 182, ... that check its orientation's
 over-coverage (docs/tool-accuracy.md); the rendered path's block is of seeds 1, 2, ...."""
 
 
-def docs_block(first_seed: int, read_back: str, poses: int, render: bool) -> str:
+def docs_block(first_seed: int, read_back: str, poses: int, render: bool,
+               models: Sequence[str] = ("fits",)) -> str:  # fmt: skip
     """The docs/tool-accuracy.md block that rows of draws seeded ``first_seed``, ... with the
-    joint read-back ``read_back``, ``poses`` postures each and ``render`` go to
-    (``--write-docs``).
+    joint read-back ``read_back``, ``poses`` postures each, ``render`` and the models ``models``
+    go to (``--write-docs``; the ``gear`` rows to :data:`BLOCK_GEAR`, alone).
 
     Raises:
         InputError: no block holds such rows; the message names the option to drop or change.
@@ -57,7 +64,14 @@ def docs_block(first_seed: int, read_back: str, poses: int, render: bool) -> str
         path = "rendered" if render else "analytic"
         raise InputError(f"--first-seed {first_seed}: --write-docs writes the {path} path's "
                          f"blocks of {seeds}", fix=f"give {seeds}, or drop --write-docs")  # fmt: skip
-    return blocks[first_seed]
+    if "gear" not in models:
+        return blocks[first_seed]
+    if set(models) != {"gear"} or render or first_seed != 1:
+        raise InputError(f"--models {','.join(models)}: --write-docs writes the gear rows, "
+                         "analytic and seeded 1, ..., alone into a block of their own",
+                         fix="run --models gear alone (no --render, --first-seed), or drop "
+                         "--write-docs")  # fmt: skip
+    return BLOCK_GEAR
 
 
 def pooled_rows(robot: str, model: str, s: float, got: list[dict],
@@ -206,7 +220,8 @@ def _options(first: list[dict]) -> str:
     other = (f" --first-seed {'/'.join(map(str, seeds))}" if seeds != [1] else "") + \
         (f" --read-back {'/'.join(backs)}" if backs != ["rounded"] else "")  # fmt: skip
     # --write-docs writes the blocks of BLOCK_SEEDS's seeds with the rounded read-back
-    block = len(seeds) == 1 and seeds[0] in BLOCK_SEEDS and backs == ["rounded"]
+    block = len(seeds) == 1 and seeds[0] in BLOCK_SEEDS and backs == ["rounded"] and \
+        ("gear" not in models.split(",") or (models == "gear" and seeds == [1]))  # fmt: skip
     docs = " --jobs 1 --write-docs" if block else " --jobs 1"
     return f"{count}--robots {robots} --models {models} --noise-px {levels}{other}{docs}"
 

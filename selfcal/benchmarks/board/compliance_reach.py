@@ -66,7 +66,7 @@ def reach(robot: str, draws: int) -> dict:
     for seed in range(1, draws + 1):
         s = scenario(robot, 0.05, seed)
         setup = simulated(s, "compliance")
-        assert setup.compliance is not None
+        assert isinstance(setup.compliance, JointCompliance)
         with (tempfile.TemporaryDirectory(prefix="selfcal-reach-") as d, warnings.catch_warnings(),
               redirect_stdout(StringIO()), redirect_stderr(StringIO())):  # fmt: skip
             warnings.simplefilter("ignore")

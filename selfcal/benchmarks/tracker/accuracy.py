@@ -10,43 +10,50 @@ RMS are compared with the true error (predicted tool point against the true chai
 at the workspace sample's joint vectors (inside the calibrated region, at its edge, over the
 joint limits: :mod:`selfcal.kinematics.tool_error`).
 
-Models: ``fits`` (the true robot is a chain of the model's kind) and ``compliance`` (joint 2
-bends by 0.05 deg x cos(q2 + q3), which no constant chain expresses).
+Models: ``fits`` (the true robot is a chain of the model's kind), ``compliance`` (joint 2
+bends by 0.05 deg x cos(q2 + q3), which no constant chain expresses) and ``gear`` (an eccentric
+gear, :func:`selfcal.sim.gear.draw_gear`: one joint, drawn per truth, turns ``A sin(theta +
+phase)`` past its reading, ``A`` moving the tool about 0.2 mm, which no link table expresses).
 
 Reported per row: coverage (the share of (draw, point) pairs whose true error is within the
 predicted 95 % bound; target 90-98 %), the pooled ratio of the predicted to the true RMS (target
 0.7-1.4) with the 10-90 % range of the per-draw ratios, and the same coverage for the covariance
 alone (no model error).
 
-Run: ``uv run python -m selfcal.benchmarks.tracker.accuracy [--draws 30] [--write-docs]``
-(rewrites the table in docs/tool-accuracy.md).
+Run: ``uv run python -m selfcal.benchmarks.tracker.accuracy [--draws 30] [--robots R,..]
+[--models M,..] [--noise-mm S,..] [--write-docs]`` (rewrites the table in docs/tool-accuracy.md,
+naming the code that measured it: a clean commit, :func:`selfcal.benchmarks.doc_blocks.code_version`).
 """
 
 from __future__ import annotations
 
+import argparse
 import sys
 import time
 import warnings
 
 import numpy as np
 
-from selfcal.benchmarks.doc_blocks import ROOT, print_table
+from selfcal.benchmarks.doc_blocks import ROOT, code_version, codes_note, print_table
 from selfcal.benchmarks.tracker.sim import make_case
 from selfcal.benchmarks.usage import benchmark_parser
 from selfcal.calibration.identify import IdentificationWarning
 from selfcal.calibration.tracker.accuracy import tracker_accuracy
 from selfcal.calibration.tracker.identify import identify_tracker
+from selfcal.errors import UsageError
 from selfcal.estimation.tracker import TrackerMeasurements
 from selfcal.kinematics.forward import fk_tool
 from selfcal.kinematics.tool_error import ToolErrorModel, workspace_sample
 from selfcal.robot.definition import load_robot
-from selfcal.sim.compliance import SHOULDER
+from selfcal.sim.compliance import SHOULDER, JointMisfit
+from selfcal.sim.gear import draw_gear
 from selfcal.threads import limit_threads
 
 __all__ = [
     "calibrate",
     "draw",
     "true_points",
+    "misfit",
     "run",
     "table",
     "main",
@@ -60,9 +67,9 @@ __all__ = [
     "RIGHT_DRAWS",
 ]
 
-ROBOTS = ("er4u-paper", "ur5e")
+ROBOTS = ("er4u-paper", "ur5e", "kr6-r900")
 NOISE_MM = (0.02, 0.1, 0.5)
-MODELS = ("fits", "compliance")
+MODELS = ("fits", "compliance", "gear")
 ROWS = 30
 SPAN = 0.7
 COUNT = 128
@@ -73,22 +80,34 @@ DOC = ROOT / "docs" / "tool-accuracy.md"
 BLOCK = "benchmark_tool_accuracy"
 
 
-def _bend(q: np.ndarray, model: str) -> np.ndarray:
-    """The joints the true robot turns to for readings ``q`` (the ``compliance`` model:
-    :data:`selfcal.sim.compliance.SHOULDER`)."""
-    return q if model == "fits" else SHOULDER.bent(q)
+def misfit(case, model: str, seed: int) -> JointMisfit | None:
+    """The true robot's misfit of the joints under ``model`` (:data:`MODELS`) for the draw
+    ``seed``: None (``fits``), :data:`selfcal.sim.compliance.SHOULDER` (``compliance``) or the
+    truth's eccentric gear (``gear``, :func:`selfcal.sim.gear.draw_gear` on the true chain)."""
+    if model not in MODELS:
+        raise UsageError(f"unknown model {model!r}: one of {', '.join(MODELS)}")
+    if model == "fits":
+        return None
+    return SHOULDER if model == "compliance" else draw_gear(case.true, case.robot.limits, seed)
+
+
+def _bend(q: np.ndarray, bend: JointMisfit | None) -> np.ndarray:
+    """The joints the true robot turns to for readings ``q`` under the misfit ``bend``."""
+    return q if bend is None else bend.bent(q)
 
 
 def calibrate(robot, sigma_m: float, model: str, seed: int):
     """One draw's simulated case (:func:`selfcal.benchmarks.tracker.sim.make_case`), its
-    training joints ``q`` (ROWS, n) and its calibration's predicted accuracy
-    (:class:`selfcal.calibration.tracker.accuracy.TrackerAccuracy`)."""
+    training joints ``q`` (ROWS, n), its calibration's predicted accuracy
+    (:class:`selfcal.calibration.tracker.accuracy.TrackerAccuracy`) and the true robot's misfit
+    (:func:`misfit`; the calibration never sees it)."""
     case = make_case(robot, seed=seed)
+    bend = misfit(case, model, seed)
     rng = np.random.default_rng(seed + 500)
     lim = np.clip(robot.limits, -np.radians(170.0), np.radians(170.0))
     mid, half = lim.mean(axis=1), SPAN * (lim[:, 1] - lim[:, 0]) / 2
     q = rng.uniform(mid - half, mid + half, (ROWS, robot.n))
-    xyz = fk_tool(case.true, _bend(q, model))[:, :3, 3] + rng.normal(0.0, sigma_m, (ROWS, 3))
+    xyz = fk_tool(case.true, _bend(q, bend))[:, :3, 3] + rng.normal(0.0, sigma_m, (ROWS, 3))
     meas = TrackerMeasurements(q, xyz, None, None, None, None)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", IdentificationWarning)
@@ -96,24 +115,25 @@ def calibrate(robot, sigma_m: float, model: str, seed: int):
         acc = tracker_accuracy(case.nominal, meas, res, robot.limits, sigma_t_m=sigma_m,
                                sigma_r_rad=1e-4, count=COUNT)  # fmt: skip
     assert acc is not None
-    return case, q, acc
+    return case, q, acc, bend
 
 
-def true_points(case, model: str, q: np.ndarray) -> np.ndarray:
-    """(m, 3) the true robot's tool points (mm) at the readings ``q`` (m, n)."""
-    return fk_tool(case.true, _bend(q, model))[:, :3, 3] * 1e3
+def true_points(case, bend: JointMisfit | None, q: np.ndarray) -> np.ndarray:
+    """(m, 3) the true robot's tool points (mm) at the readings ``q`` (m, n), the links at
+    ``bend``'s joints (:func:`misfit`)."""
+    return fk_tool(case.true, _bend(q, bend))[:, :3, 3] * 1e3
 
 
 def draw(robot, sigma_m: float, model: str, seed: int) -> dict[str, np.ndarray]:
     """One draw: per region, the predicted 95 % bound, the predicted RMS without and with the
     model error, and the true error (mm) at its joint vectors."""
-    case, q, acc = calibrate(robot, sigma_m, model, seed)
+    case, q, acc, bend = calibrate(robot, sigma_m, model, seed)
     sample = workspace_sample(q, robot.limits, count=COUNT, seed=seed + 1)
     out = {}
     for name in REGIONS:
         qq = getattr(sample, name)
         p = acc.error_model.predicted(qq)
-        true = true_points(case, model, qq)
+        true = true_points(case, bend, qq)
         out[name] = np.stack([p["position_95_mm"], p["estimation_95_mm"], p["position_rms_mm"],
                               np.linalg.norm(p["position_mm"] - true, axis=1)])  # fmt: skip
     return out
@@ -121,7 +141,9 @@ def draw(robot, sigma_m: float, model: str, seed: int) -> dict[str, np.ndarray]:
 
 def run(draws: int = 30, robots=ROBOTS, noise_mm=NOISE_MM, models=MODELS) -> list[dict]:
     """One row per (robot, noise, model, region): coverage, coverage of the covariance alone,
-    pooled predicted / true RMS and the 10-90 % range of the per-draw ratios."""
+    pooled predicted / true RMS and the 10-90 % range of the per-draw ratios, and the code that
+    measured it (``code``, :func:`selfcal.benchmarks.doc_blocks.code_version` at the start)."""
+    code = code_version()
     rows = []
     for rname in robots:
         robot = load_robot(rname)
@@ -132,7 +154,7 @@ def run(draws: int = 30, robots=ROBOTS, noise_mm=NOISE_MM, models=MODELS) -> lis
                 for region in REGIONS:
                     d = [g[region] for g in got]
                     rows.append({"robot": rname, "noise_mm": s_mm, "model": model,
-                                 "region": region, "draws": draws,
+                                 "region": region, "draws": draws, "code": code,
                                  "points": sum(x.shape[1] for x in d), **coverage(d)})  # fmt: skip
                 print(f"{rname} {s_mm} mm {model}: {time.perf_counter() - t0:.1f} s",
                       file=sys.stderr)  # fmt: skip
@@ -217,7 +239,8 @@ def table(rows: list[dict]) -> str:
     note = (
         f"\n{d['draws']} draws per row, {ROWS} training positions in the central "
         f"{SPAN:.0%} of each joint's range, {COUNT} joint vectors per region and draw; "
-        "`uv run python -m selfcal.benchmarks.tracker.accuracy --write-docs`."
+        "`uv run python -m selfcal.benchmarks.tracker.accuracy --write-docs` (options "
+        f"`--robots`, `--models`, `--noise-mm`){codes_note(rows, ('robot', 'model'))}."
     )
     return head + "\n".join(lines) + "\n" + note
 
@@ -227,10 +250,33 @@ def main(argv: list[str] | None = None) -> int:
     limit_threads(1)
     ap = benchmark_parser(__file__, description=__doc__.splitlines()[0])
     ap.add_argument("--draws", type=int, default=30, help="draws per row (default 30)")
+    ap.add_argument("--robots", type=_names(ROBOTS), default=ROBOTS,
+                    help=f"robots, comma-separated (default {','.join(ROBOTS)})")  # fmt: skip
+    ap.add_argument("--models", type=_names(MODELS), default=MODELS,
+                    help=f"models, comma-separated (default {','.join(MODELS)})")  # fmt: skip
+    ap.add_argument("--noise-mm", type=lambda t: tuple(float(x) for x in t.split(",")),
+                    default=NOISE_MM, help="tracker noise levels (mm per coordinate), "
+                    f"comma-separated (default {','.join(f'{x:g}' for x in NOISE_MM)})")  # fmt: skip
     ap.add_argument("--write-docs", action="store_true",
                     help="rewrite the table in docs/tool-accuracy.md")  # fmt: skip
     args = ap.parse_args(argv)
-    return print_table(table(run(args.draws)), DOC, BLOCK, write=args.write_docs)
+    rows = run(args.draws, args.robots, args.noise_mm, args.models)
+    return print_table(table(rows), DOC, BLOCK, write=args.write_docs)
+
+
+def _names(known: tuple[str, ...]):
+    """An argparse type: a comma-separated list of ``known`` names (an unknown one refused,
+    naming the choices)."""
+
+    def parse(text: str) -> tuple[str, ...]:
+        got = tuple(x.strip() for x in text.split(",") if x.strip())
+        bad = [x for x in got if x not in known]
+        if bad or not got:
+            raise argparse.ArgumentTypeError(f"{', '.join(bad) or text!r}: one of "
+                                             f"{', '.join(known)}")  # fmt: skip
+        return got
+
+    return parse
 
 
 if __name__ == "__main__":

@@ -55,7 +55,7 @@ def probe(robot_name: str, noise_mm: float, draws: int, model: str) -> list[str]
     pooled: dict[str, list[tuple[float, float]]] = {r: [] for r in REGIONS}
     lines, held = [], []
     for seed in range(draws):
-        case, q, acc = calibrate(robot, noise_mm / 1e3, model, seed)
+        case, q, acc, bend = calibrate(robot, noise_mm / 1e3, model, seed)
         me, em = acc.model_error, acc.error_model
         g = None if me is None else me.growth
         if me is not None:  # the folds' excess per coordinate, m^2, whether counted or not
@@ -73,7 +73,7 @@ def probe(robot_name: str, noise_mm: float, draws: int, model: str) -> list[str]
         for name in REGIONS:
             qq = getattr(sample, name)
             p = em.predicted(qq)
-            e2 = np.sum((p["position_mm"] - true_points(case, model, qq)) ** 2, axis=1)
+            e2 = np.sum((p["position_mm"] - true_points(case, bend, qq)) ** 2, axis=1)
             est2 = np.trace(em.estimation_covariance(qq)[:, :3, :3], axis1=1, axis2=2) * 1e6
             true2 = float(np.mean(e2 - est2)) / 3.0
             pred2 = float(np.mean(em.model_error_factor(qq))) * (em.model_error_m * 1e3) ** 2
