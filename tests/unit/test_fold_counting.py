@@ -6,6 +6,8 @@ plan/spread.py) and calibration.json's NO GAIN verdict all take the folds that c
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -115,3 +117,21 @@ def test_the_fewest_frames_are_what_the_folds_need():
 
     assert enough(MIN_FRAMES) and not enough(MIN_FRAMES - 1)
     assert MIN_FRAMES == 4
+
+
+def test_a_fold_that_does_not_count_is_left_out_before_the_logs():
+    """A fold that does not count trains on the few frames of the others: its fit may be
+    singular in every candidate (an infinite RMS in both; truth 7 of the eye-in-hand --add 5
+    benchmark, its third fold, in plan --add's forecast draws). The rule pairs the counted folds
+    alone, without a RuntimeWarning ("invalid value encountered in subtract" before)."""
+    counted = counted_folds(FOLDS)
+    rms = [list(r) for r in RMS]
+    for r in rms:
+        r[3] = np.inf  # the fold of 12 frames: its fit on the other 5 singular
+    cands = _cands(rms, counted)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        chosen, best = one_se_rule(cands, counted)
+    assert (chosen, best) == (2, 3)
+    d = (np.log(RMS[2]) - np.log(RMS[3]))[counted]
+    assert cands[2].log_diff == pytest.approx((np.mean(d), np.std(d, ddof=1) / 2.0))

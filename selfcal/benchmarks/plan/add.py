@@ -10,7 +10,8 @@ postures and the added ones are acquired again in simulation with the same truth
 calibrated. A row: the predicted tool-point RMS before and after (``plan.json``), the median
 after of its forecast's draws (the selection deciding in each: ``forecast_draws``), the
 achieved one (``report.json``'s validation tool tip against the simulated truth), the
-parameters each calibration kept and how many postures ``plan.json`` predicts to halve the error
+kinematic parameters each calibration estimated beyond the placement (as ``plan --add`` counts
+them: :func:`kept_beyond_placement`) and how many postures ``plan.json`` predicts to halve the error
 (``halved_with``: K or more, planned as K is, by the medians of the forecast's draws). Prints the table, the medians of the before/after
 ratios (the achieved ratio's quartiles and range) and in how many truths K are predicted to
 halve it; ``--write-docs`` puts them between
@@ -48,8 +49,8 @@ from selfcal.benchmarks.usage import benchmark_parser
 from selfcal.choices import SETUPS
 from selfcal.io.atomic import write_text_atomic
 
-__all__ = ["STILL_POSTURES", "fresh_truth", "still_camera_row", "wrist_cell", "wrist_only_row",
-           "main"]  # fmt: skip
+__all__ = ["STILL_POSTURES", "fresh_truth", "kept_beyond_placement", "still_camera_row",
+           "wrist_cell", "wrist_only_row", "main"]  # fmt: skip
 
 WRIST_SPAN_DEG = (40.0, 40.0, 90.0)
 """How far the wrist's three joints move from home in the wrist-only dataset (deg)."""
@@ -133,7 +134,8 @@ def wrist_only_row(root: Path, seed: int, add: int = 5) -> dict:
     before = _achieved(_write(first, setup, target, bp, "joints.csv", seed), root / "dataset")
     if before is None:
         return row | {"error": f"the dataset's {len(q)} postures: selfcal run stopped"}
-    row |= {"achieved_before_mm": before, "kept_before": _kept(root / "dataset")}
+    row |= {"achieved_before_mm": before,
+            "kept_before": kept_beyond_placement(root / "dataset")}  # fmt: skip
     plan = root / "plan"
     if not (plan / "plan.json").is_file():
         selfcal(["plan", "--add", str(add), str(root / "dataset"), "--out", str(plan), "--quiet"])
@@ -150,7 +152,8 @@ def wrist_only_row(root: Path, seed: int, add: int = 5) -> dict:
     after = _achieved(_write(second, setup, target, bp, "replay.csv", seed), root / "calibrated")
     if after is None:
         return row | {"error": "the calibration with the added postures stopped (selfcal run)"}
-    return row | {"achieved_after_mm": after, "kept_after": _kept(root / "calibrated")}
+    return row | {"achieved_after_mm": after,
+                  "kept_after": kept_beyond_placement(root / "calibrated")}  # fmt: skip
 
 
 def _flange_rms(run: Path, qw: np.ndarray) -> float:
@@ -220,7 +223,7 @@ def still_camera_row(root: Path, seed: int, add: int = 5) -> dict:
     if not (root / "dataset/calibration.json").is_file():
         return row | {"error": "the dataset's calibration stopped (selfcal run)"}
     row |= {"achieved_before_mm": _flange_rms(root / "dataset", qw),
-            "kept_before": _kept(root / "dataset")}  # fmt: skip
+            "kept_before": kept_beyond_placement(root / "dataset")}  # fmt: skip
     plan = root / "plan"
     if not (plan / "plan.json").is_file():
         selfcal(["plan", "--add", str(add), str(root / "dataset"), "--out", str(plan), "--quiet"])
@@ -240,7 +243,7 @@ def still_camera_row(root: Path, seed: int, add: int = 5) -> dict:
     if not (root / "calibrated/calibration.json").is_file():
         return row | {"error": "the calibration with the added postures stopped (selfcal run)"}
     return row | {"achieved_after_mm": _flange_rms(root / "calibrated", qw),
-                  "kept_after": _kept(root / "calibrated")}  # fmt: skip
+                  "kept_after": kept_beyond_placement(root / "calibrated")}  # fmt: skip
 
 
 def _halved(doc: dict) -> str:
@@ -250,9 +253,17 @@ def _halved(doc: dict) -> str:
     return str(h["count"]) if h["count"] is not None else f"none up to {h['tried_up_to']}"
 
 
-def _kept(run: Path) -> int:
-    """How many parameters the calibration in ``run`` identified."""
-    return len(json.loads((run / "calibration.json").read_text())["selection"]["identified"])
+def kept_beyond_placement(run: Path) -> int:
+    """How many kinematic parameters the board calibration in ``run`` estimated beyond its
+    placement (:func:`selfcal.calibration.board.nominal_fit.beyond_placement`): the count
+    ``selfcal calibrate``'s line and ``selfcal plan --add``'s give (its ``kinematic_parameters``
+    before and after), the placement's 12 (board pose and hand-eye) not counted."""
+    from selfcal.calibration.board.bounds import estimated_parameters
+    from selfcal.calibration.board.nominal_fit import beyond_placement
+    from selfcal.io.board_calibration import read_board_calibration
+
+    cal = read_board_calibration(run)
+    return beyond_placement(*estimated_parameters(cal), cal.model.n)
 
 
 def fresh_truth(root: Path, add: int, mount: str) -> None:
@@ -298,7 +309,8 @@ def main(argv: list[str] | None = None) -> int:
     with get_context("spawn").Pool(a.jobs) as pool:
         rows = pool.map(_row, items)
     lines = ["| truth | frames | predicted before -> after (mm) | draws' median after (mm) "
-             "| achieved before -> after (mm) | parameters kept | postures predicted to halve |",
+             "| achieved before -> after (mm) | parameters beyond the placement estimated "
+             "| postures predicted to halve |",
              "|---|---|---|---|---|---|---|"]  # fmt: skip
     for r in rows:
         kept = (f"{r['kept_before']} -> {r['kept_after']}" if not r.get("error") else

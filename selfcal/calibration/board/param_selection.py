@@ -441,10 +441,15 @@ def one_se_rule(cands: list[Candidate],
 def _paired(c: Candidate, ref: Candidate,
             counted: np.ndarray | tuple[bool, ...] | None) -> tuple[float, float]:  # fmt: skip
     """The mean over the folds ``counted`` (None: all) of ``c``'s log RMS minus ``ref``'s and
-    that mean's standard error (0 with one fold); folds without a prediction skipped."""
-    d = np.log(np.array(c.fold_rms_px)) - np.log(np.array(ref.fold_rms_px))
+    that mean's standard error (0 with one fold); folds without a prediction skipped. The folds
+    that do not count are left out before the logs: their fits train on the few frames the
+    other folds hold and may be singular (an infinite RMS in both, whose difference is no
+    number; ``selfcal plan --add``'s forecast draws met it as a RuntimeWarning)."""
+    a, b = np.array(c.fold_rms_px, dtype=float), np.array(ref.fold_rms_px, dtype=float)
     if counted is not None:
-        d = d[np.asarray(counted, dtype=bool)]
+        keep = np.asarray(counted, dtype=bool)
+        a, b = a[keep], b[keep]
+    d = np.log(a) - np.log(b)
     d = d[np.isfinite(d)]
     se = float(np.std(d, ddof=1) / np.sqrt(len(d))) if len(d) > 1 else 0.0
     return (float(np.mean(d)) if len(d) else 0.0, se)
