@@ -15,7 +15,7 @@ from scipy.spatial.transform import Rotation
 
 from selfcal.calibration.board.mounts import mounts
 from selfcal.calibration.board.plan.add_cell import calibrated_cell
-from selfcal.calibration.board.plan.views import candidate_pool
+from selfcal.calibration.board.plan.candidates import candidate_pool
 from selfcal.calibration.drift.choose import CHECK_CORNERS, candidate_views, check_cell
 from selfcal.calibration.drift.images import calibration_error_model
 from selfcal.calibration.drift.power import shift_power

@@ -61,16 +61,16 @@ def test_a_wrist_only_draw_that_selfcal_run_refuses_is_a_row_saying_so(tmp_path,
     # session 29's run of 30 truths stopped at truth 16 (5 feasible postures, then fewer than
     # `selfcal run` took) with FileNotFoundError; the board route now takes 4 (folds.MIN_FRAMES),
     # so the draw is cut to 3 feasible postures here
-    import selfcal.calibration.board.plan.views as views
+    import selfcal.calibration.board.plan.feasible as rules
 
-    real = views.feasible
+    real = rules.feasible
 
     def three(setup, q):
         ok = real(setup, q)
         ok[np.flatnonzero(ok)[3:]] = False
         return ok
 
-    monkeypatch.setattr(views, "feasible", three)
+    monkeypatch.setattr(rules, "feasible", three)
     row = bench.wrist_only_row(tmp_path / "truth16", 16, 5)
     assert row["frames"] == 3
     assert "selfcal run stopped" in row["error"]

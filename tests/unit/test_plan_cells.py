@@ -10,7 +10,8 @@ import pytest
 
 from selfcal.benchmarks.plan.compare import BOARD_POSE, KEEP_OUT
 from selfcal.benchmarks.plan.robots import ROBOTS, cell, cell_values
-from selfcal.calibration.board.plan.views import candidate_pool, feasible
+from selfcal.calibration.board.plan.candidates import candidate_pool
+from selfcal.calibration.board.plan.feasible import feasible
 from selfcal.kinematics.forward import fk_tool
 from selfcal.kinematics.mcpc import nominal_mcpc
 from selfcal.robot.definition import load_robot

@@ -9,16 +9,12 @@ import numpy as np
 import pytest
 
 from selfcal.calibration.board.bounds import board_cramer_rao
+from selfcal.calibration.board.plan.feasible import _plate_clear, _sight_clear, feasible
 from selfcal.calibration.board.plan.greedy import exchange, select_greedy
 from selfcal.calibration.board.plan.ground import PlanOptions, plan_ground
 from selfcal.calibration.board.plan.information import board_model, frame_information
 from selfcal.calibration.board.plan.planner import plan_recording
-from selfcal.calibration.board.plan.views import (
-    PlanSetup,
-    _plate_clear,
-    _sight_clear,
-    feasible,
-)
+from selfcal.calibration.board.plan.views import PlanSetup
 from selfcal.camera import project
 from selfcal.io.camera_file import camera_from_fov
 from selfcal.io.target_toml import load_target
@@ -130,7 +126,7 @@ def test_a_plan_no_posture_serves_says_which_rule_stopped_them(setup):
     how many of the last postures drawn pass each rule in turn, up to the first none passes."""
     import re
 
-    from selfcal.calibration.board.plan.views import candidate_pool
+    from selfcal.calibration.board.plan.candidates import candidate_pool
     from selfcal.errors import InputError
 
     away = PlanSetup.eye_to_hand_setup(

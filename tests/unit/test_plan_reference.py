@@ -11,10 +11,11 @@ import pytest
 
 from selfcal.calibration.board.deviation import Deviation
 from selfcal.calibration.board.nominal_fit import placement_indices
+from selfcal.calibration.board.plan.candidates import candidate_pool
 from selfcal.calibration.board.plan.ground import workspace_sample
 from selfcal.calibration.board.plan.information import board_model, frame_information
 from selfcal.calibration.board.plan.reference import CLEAR_MARGIN, nominal_reference
-from selfcal.calibration.board.plan.views import PlanSetup, candidate_pool
+from selfcal.calibration.board.plan.views import PlanSetup
 from selfcal.estimation.joint_report import aligned_tool_weight
 from selfcal.io.camera_file import camera_from_fov
 from selfcal.io.plan_files import read_plan

@@ -13,6 +13,7 @@ import pytest
 from selfcal.benchmarks.plan.add import WRIST_SPAN_DEG
 from selfcal.calibration.board.deviation import Deviation
 from selfcal.calibration.board.folds import configurations, fold_labels
+from selfcal.calibration.board.plan.feasible import feasible
 from selfcal.calibration.board.plan.information import (
     board_model,
     frame_information,
@@ -20,7 +21,6 @@ from selfcal.calibration.board.plan.information import (
 )
 from selfcal.calibration.board.plan.predict import kept_by_rank
 from selfcal.calibration.board.plan.selection import forecast_selection
-from selfcal.calibration.board.plan.views import feasible
 
 JS = np.full(6, np.radians(0.01))
 

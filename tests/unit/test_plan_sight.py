@@ -11,15 +11,10 @@ import numpy as np
 import pytest
 
 from selfcal.benchmarks.plan.robots import cell
+from selfcal.calibration.board.plan.candidates import candidate_pool
+from selfcal.calibration.board.plan.feasible import _sight_clear
 from selfcal.calibration.board.plan.sight import sight_clear
-from selfcal.calibration.board.plan.views import (
-    PlanSetup,
-    ViewRule,
-    _sight_clear,
-    board_views_ok,
-    candidate_pool,
-    module_m,
-)
+from selfcal.calibration.board.plan.views import PlanSetup, ViewRule, board_views_ok, module_m
 from selfcal.errors import InputError
 from selfcal.io.camera_file import camera_from_fov
 from selfcal.io.target_toml import load_target

@@ -10,6 +10,7 @@ import pytest
 
 from selfcal.benchmarks.plan.add import WRIST_SPAN_DEG
 from selfcal.calibration.board.deviation import Deviation
+from selfcal.calibration.board.plan.feasible import feasible
 from selfcal.calibration.board.plan.information import (
     board_model,
     frame_information,
@@ -18,7 +19,6 @@ from selfcal.calibration.board.plan.information import (
 from selfcal.calibration.board.plan.predict import Directions, predicted_with_held
 from selfcal.calibration.board.plan.selection import selection_folds
 from selfcal.calibration.board.plan.spread import plan_spread, selection_spread
-from selfcal.calibration.board.plan.views import feasible
 from selfcal.errors import UsageError
 from selfcal.estimation.joint_report import aligned_tool_weight
 

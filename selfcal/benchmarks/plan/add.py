@@ -113,7 +113,7 @@ def wrist_only_row(root: Path, seed: int, add: int = 5) -> dict:
     before and after adding ``add`` postures, and the parameters each calibration kept;
     ``error`` says why a step stopped (a draw with fewer feasible postures than ``selfcal run``
     takes, say; the figures it would have given NaN), as :func:`still_camera_row`."""
-    from selfcal.calibration.board.plan.views import feasible
+    from selfcal.calibration.board.plan.feasible import feasible
     from selfcal.cli.main import main as selfcal
     from selfcal.io.plan_files import joints_csv, read_plan
 

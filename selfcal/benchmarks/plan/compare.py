@@ -56,9 +56,9 @@ def sets_of(setup, count: int, random_counts: tuple[int, ...], pixel_sigma_px: f
     "workspace"}``, planned and predicted for corners of ``pixel_sigma_px`` px noise and the
     robot file's joint read-back noise."""
     from selfcal.calibration.board.deviation import Deviation
+    from selfcal.calibration.board.plan.candidates import candidate_pool
     from selfcal.calibration.board.plan.information import board_model, frame_information
     from selfcal.calibration.board.plan.planner import plan_recording, predict_kept
-    from selfcal.calibration.board.plan.views import candidate_pool
     from selfcal.estimation.joint_report import aligned_tool_weight, encoder_sigma
 
     robot = setup.robot

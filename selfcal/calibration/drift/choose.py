@@ -8,12 +8,12 @@ eye-to-hand the board's; :func:`selfcal.calibration.drift.power.shift_power`), f
 calibration's covariance and the views alone, before any image is taken. So the postures can be
 chosen by it (:func:`choose_check_postures`):
 
-- candidates: the recording plan's (:func:`selfcal.calibration.board.plan.views.feasible`:
+- candidates: the recording plan's (:func:`selfcal.calibration.board.plan.feasible.feasible`:
   within the joint ranges, free of collision and the keep-out boxes, the lines of sight clear)
   in the cell the calibration placed (the robot file, the calibrated camera, the board and the
   mounts read out of the chain: :func:`selfcal.calibration.board.plan.add_cell.calibrated_cell`),
-  either mount, half drawn as a plan draws them (:func:`selfcal.calibration.board.plan.views.
-  candidate_pool`), half within :data:`NEAR_DEG` of the calibration's own postures
+  either mount, half drawn as a plan draws them (:func:`selfcal.calibration.board.plan.
+  candidates.candidate_pool`), half within :data:`NEAR_DEG` of the calibration's own postures
   (:func:`candidates_near`), shuffled; each may show part of the board (:data:`CHECK_CORNERS`
   features seen, spanning :data:`CHECK_SPREAD` of the image each way, by
   :func:`selfcal.calibration.board.plan.views.seen_features`; a board whose detector finds the
@@ -46,12 +46,9 @@ from selfcal.calibration.board.accuracy import board_postures_from_json
 from selfcal.calibration.board.folds import unseen
 from selfcal.calibration.board.misfit import board_view
 from selfcal.calibration.board.plan.add_cell import calibrated_cell
-from selfcal.calibration.board.plan.views import (
-    PlanSetup,
-    candidate_pool,
-    feasible,
-    seen_features,
-)
+from selfcal.calibration.board.plan.candidates import candidate_pool
+from selfcal.calibration.board.plan.candidates import candidates_near as plan_candidates_near
+from selfcal.calibration.board.plan.views import PlanSetup, seen_features
 from selfcal.calibration.drift.covariance import estimate_covariance
 from selfcal.calibration.drift.fold_error import fold_error_model
 from selfcal.calibration.drift.images import ALPHA, calibration_error_model
@@ -116,17 +113,20 @@ def candidate_views(cal: BoardCalibrationResult, em, setup: PlanSetup, q: np.nda
     view must see a feature (:func:`expected_features`)."""
     _, X = setup.board.layout()
     T = fk_tool(cal.model, np.atleast_2d(q))
-    seen = expected_features(cal, setup, q)
+    seen = expected_features(cal, setup, q, T)
     views = [(i, X[s], board_view(cal.cameras[0], T[i], X[s], cal.eye_to_hand)[1])
              for i, s in enumerate(seen)]  # fmt: skip
     return calibration_views(cal, em, np.atleast_2d(q), views, where=where)
 
 
-def expected_features(cal: BoardCalibrationResult, setup: PlanSetup, q: np.ndarray) -> np.ndarray:
+def expected_features(cal: BoardCalibrationResult, setup: PlanSetup, q: np.ndarray,
+                      T: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
     """(m, k) bool: the features of the board (its layout's order) the views at the joints ``q``
     (m, n) rad would detect: :func:`selfcal.calibration.board.plan.views.seen_features` of the
-    cell ``setup`` with the board posed by the calibration ``cal``'s chain."""
-    T = fk_tool(cal.model, np.atleast_2d(q))
+    cell ``setup`` with the board posed by the calibration ``cal``'s chain (``T`` (m, 4, 4) m
+    its tool's poses at ``q`` when the caller has them: ``fk_tool(cal.model, q)``)."""
+    if T is None:
+        T = fk_tool(cal.model, np.atleast_2d(q))
     return seen_features(setup, T if cal.eye_to_hand else inv_pose(T))
 
 
@@ -141,20 +141,12 @@ def candidates_near(setup: PlanSetup, centres: np.ndarray, n: int, *, seed: int,
                     spread_deg: float = NEAR_DEG, batch: int = 1024,
                     max_draws: int = 100_000) -> np.ndarray:  # fmt: skip
     """Up to ``n`` candidate postures (m, dof) rad of the cell ``setup``
-    (:func:`selfcal.calibration.board.plan.views.feasible`: the plan's rules) drawn uniformly
+    (:func:`selfcal.calibration.board.plan.feasible.feasible`: the plan's rules) drawn uniformly
     within ``spread_deg`` of one of the ``centres`` (c, dof) rad on every joint (clipped to the
-    joint ranges), in random order (deterministic for ``seed``); none after ``max_draws``."""
-    rng = np.random.default_rng(seed)
-    lim = setup.robot.limits
-    found: list[np.ndarray] = []
-    drawn = 0
-    while sum(map(len, found)) < n and drawn < max_draws and len(centres):
-        c = centres[rng.integers(len(centres), size=batch)]
-        q = np.clip(c + rng.uniform(-1, 1, c.shape) * np.radians(spread_deg), lim[:, 0],
-                    lim[:, 1])  # fmt: skip
-        drawn += batch
-        found.append(q[feasible(setup, q)])
-    return np.concatenate(found)[:n] if found else np.zeros((0, setup.robot.n))
+    joint ranges), in random order (deterministic for ``seed``); none after ``max_draws``: the
+    plan's sampler (:func:`selfcal.calibration.board.plan.candidates.candidates_near`)."""
+    return plan_candidates_near(setup, centres, n, seed=seed, span=np.radians(spread_deg),
+                                batch=batch, max_draws=max_draws)  # fmt: skip
 
 
 @dataclass(frozen=True, eq=False)

@@ -7,7 +7,7 @@ the cell's two mounts where the calibration placed them, either mount (eye-in-ha
 the base and the camera on the flange, eye-to-hand the camera in the base and the board on the
 flange: :func:`selfcal.calibration.board.plan.add_cell.calibrated_cell`, what differs between
 the mounts; everything below is the same code for both). Candidates are drawn as for a new plan
-(:func:`selfcal.calibration.board.plan.views.candidate_pool`). The information the dataset
+(:func:`selfcal.calibration.board.plan.candidates.candidate_pool`). The information the dataset
 already holds is its frames'
 (:func:`selfcal.calibration.board.plan.information.frame_information` at its read-back joints,
 with the board features detected in each) plus the prior of the arm's deviation from its drawing

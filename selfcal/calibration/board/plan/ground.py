@@ -1,6 +1,6 @@
 """The common ground every plan is chosen on (``selfcal plan``, issue #30;
 :mod:`selfcal.calibration.board.plan.planner`): the candidate postures
-(:func:`selfcal.calibration.board.plan.views.candidate_pool`), the random workspace postures the
+(:func:`selfcal.calibration.board.plan.candidates.candidate_pool`), the random workspace postures the
 predicted tool-point error is averaged over, the aligned tool weight over them and the arm's
 deviation from its drawing. Units: SI inside.
 """
@@ -13,8 +13,9 @@ from typing import Protocol
 import numpy as np
 
 from selfcal.calibration.board.deviation import Deviation
+from selfcal.calibration.board.plan.candidates import candidate_pool
 from selfcal.calibration.board.plan.information import board_model
-from selfcal.calibration.board.plan.views import PlanSetup, candidate_pool
+from selfcal.calibration.board.plan.views import PlanSetup
 from selfcal.errors import InputError
 from selfcal.estimation.joint_report import aligned_tool_weight
 from selfcal.kinematics.keep_out import collision_free

@@ -5,7 +5,7 @@ the board on the flange (eye-to-hand: the board route's inverted chain, world = 
 = the board, :class:`selfcal.estimation.kinematic_poses.KinematicPoses`); the tool point is the
 flange's origin either way.
 
-Candidates: :func:`selfcal.calibration.board.plan.views.candidate_pool` (reachable, free of
+Candidates: :func:`selfcal.calibration.board.plan.candidates.candidate_pool` (reachable, free of
 collision and keep-out boxes, the whole board well in view), with the workspace sample the error
 is averaged over (:mod:`selfcal.calibration.board.plan.ground`). Criterion: the Cramer-Rao bound
 of the board route (:func:`selfcal.calibration.board.bounds.board_cramer_rao`: the camera's free
