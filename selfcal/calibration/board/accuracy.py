@@ -96,7 +96,11 @@ from selfcal.calibration.board.covariances import (
 )
 from selfcal.calibration.board.deviation import Deviation
 from selfcal.calibration.board.fold_fits import fold_bounds
-from selfcal.calibration.board.held_null import counted_excess
+from selfcal.calibration.board.held_null import (
+    counted_excess,
+    fold_noise_variance,
+    shared_covariances,
+)
 from selfcal.calibration.board.held_prior import (
     NO_FOLDS,
     Share,
@@ -185,7 +189,10 @@ def held_out_errors(obs: BoardObservations, fit: Refinement, frames: np.ndarray,
     covariance and the pixel noise). By key, one entry per frame: ``frame``; ``px2`` the sum of
     its squared pixel errors, ``px2_expected`` what the estimate's errors (kinematics and first
     camera, with their correlation), the joint read-back noise and the pixel noise give it,
-    ``px2_var`` that sum's variance without a model error (``2 tr Sigma^2``), ``px2_unit`` what
+    ``px2_var`` that sum's variance without a model error (``2 tr Sigma^2``), ``px2_cov`` its
+    covariance with the other frames' sums (``fit``'s one estimate error predicts them all:
+    ``2 sum_j tr(U_i^T U_i U_j^T U_j)``, :func:`selfcal.calibration.board.held_null.shared_covariances`;
+    a fold's sum has the variance ``sum px2_var + sum px2_cov``), ``px2_unit`` what
     a model error of 1 m per tool-point coordinate (and 1 m / lever rad per rotation coordinate)
     in this frame adds to it, ``px2_misfit`` what the same in the training frames adds through
     the estimate (:mod:`selfcal.calibration.board.misfit`); ``held_gram`` (k, k) ``L^T L``,
@@ -193,7 +200,9 @@ def held_out_errors(obs: BoardObservations, fit: Refinement, frames: np.ndarray,
     (through ``cr``'s held response, the fit's absorption included; zero when ``cr`` carries
     none): its deviation ``delta`` adds ``|L delta|^2`` to ``px2``, ``held_cross`` (k,) the
     diagonal of ``L^T Sigma L`` (``Sigma`` the pixels' covariance of ``px2_var``: the
-    deviation's cross term with the noise; :mod:`selfcal.calibration.board.held_null`); ``lever`` the tool point's mean
+    deviation's cross term with the noise; :mod:`selfcal.calibration.board.held_null`) plus its
+    covariance with the other frames' through the shared estimate error (summed over the frames,
+    the diagonal of the stacked frames' ``L^T Sigma L``); ``lever`` the tool point's mean
     distance (m) to the board points in view; the flange's error as the best pose correction of the pixels ``e`` (6,) (position m, orientation
     rad, world frame) with the covariances the estimate's errors ``S`` (6, 6) and the noise
     ``N`` (6, 6) give it, ``G`` (6, k + c) what an error of the estimate gives it (``S = G C
@@ -208,12 +217,14 @@ def held_out_errors(obs: BoardObservations, fit: Refinement, frames: np.ndarray,
     C_half = psd_sqrt(C)
     G_half = psd_sqrt(bounds_covariance(cr, misfit=True)[1])
     s2 = cr.pixel_sigma_px**2
-    keys = ("frame", "px2", "px2_expected", "px2_var", "px2_unit", "px2_misfit", "held_gram",
+    keys = ("frame", "px2", "px2_expected", "px2_var", "px2_cov", "px2_unit", "px2_misfit", "held_gram",
             "held_cross", "lever", "e", "S", "N", "G", "C", "A")  # fmt: skip
     idx = minimal_indices(cr.model.joint_types)
     C_all = padded_bounds_covariance(cr)
     held = np.zeros((len(C_all), idx.size)) if cr.held is None else cr.held
     out: dict[str, list] = {k: [] for k in keys}
+    shared: list[np.ndarray] = []  # per frame the fit's estimate error at its pixels (rows, p)
+    held_px: list[np.ndarray] = []  # per frame its pixels per unit held deviation (rows, k)
     for i in np.unique(v).tolist():
         rows = v == i
         T = fk_tool(cr.model, obs.q[i][None])[0]
@@ -227,6 +238,7 @@ def held_out_errors(obs: BoardObservations, fit: Refinement, frames: np.ndarray,
         H = np.concatenate([A @ J[:, cols], Jc.reshape(-1, n0)], axis=1)
         H_all = np.concatenate([A @ J[:, idx], Jc.reshape(-1, n0)], axis=1)
         U = H @ C_half  # the estimate's pixel errors: U U^T
+        shared.append(U)
         P = AtA_inv @ A.T  # pixels -> the pose correction (body twist)
         N = s2 * B @ AtA_inv @ B.T
         info = H_all.T @ H_all / s2  # the frame's information on the estimate (Woodbury)
@@ -240,6 +252,7 @@ def held_out_errors(obs: BoardObservations, fit: Refinement, frames: np.ndarray,
         K, lever = unit_rows(A, x, T, t, obs.eye_to_hand)
         UtU = U.T @ U
         L = H_all @ held  # the pixels per unit deviation of each minimal parameter
+        held_px.append(L)
         vals = {
             "frame": i,
             "px2": float(r @ r),
@@ -248,6 +261,7 @@ def held_out_errors(obs: BoardObservations, fit: Refinement, frames: np.ndarray,
             * (
                 float(np.sum(UtU * UtU)) + 2 * s2 * float(np.trace(UtU)) + r.size * s2**2
             ),  # fmt: skip
+            "px2_cov": 0.0,  # below, from every frame's shared estimate error
             "px2_unit": float(np.sum(K**2)),
             "px2_misfit": float(np.sum((H @ G_half) ** 2)),
             "held_gram": L.T @ L,
@@ -262,6 +276,10 @@ def held_out_errors(obs: BoardObservations, fit: Refinement, frames: np.ndarray,
         }
         for k in keys:
             out[k].append(vals[k])
+    if shared:  # the frames' covariances through the fit's one estimate error
+        cov, cross = shared_covariances(shared, held_px)
+        out["px2_cov"] = list(cov)
+        out["held_cross"] = [a + b for a, b in zip(out["held_cross"], cross, strict=True)]
     return {k: np.array(val) for k, val in out.items()}
 
 
@@ -334,7 +352,7 @@ def model_error(obs: BoardObservations, selection: Selection, offsets: np.ndarra
     if not got:
         return None, NO_FOLDS
     per_fold = np.array([[np.sum(g["px2"] - g["px2_expected"]), np.sum(g["px2_held"]),
-                          np.sum(g["px2_expected"]), np.sum(g["px2_var"])] for g in got])  # fmt: skip
+                          np.sum(g["px2_expected"]), fold_noise_variance(g)] for g in got])  # fmt: skip
     share = held_share(*per_fold.T)
     h = {k: np.concatenate([g[k] for g in got]) for k in got[0]}
     # one size m per tool-point coordinate, m / L per rotation coordinate (L the tool point's
