@@ -83,6 +83,11 @@ def test_a_tail_that_underflows_prints_as_a_bound_not_p_zero():
     assert p_text(0.0023) == "p = 0.0023" and p_text(1e-15) == "p = 1e-15"
     # two digits printed 0.995 - 1 as "p = 1" (a new user's unchanged check, session 28)
     assert p_text(0.985) == "p = 0.98" and p_text(0.996) == "p > 0.99" == p_text(1.0)
+    # a Bonferroni bound just below 1 printed "p > 0.99" where one of its 11 tests had 0.09
+    bound = p_text(11 * 0.0905, 0.0905, 11)
+    assert bound == "p > 0.99 (Bonferroni's bound: 11 tests times their smallest p, 0.09)", bound
+    assert p_text(0.996, 0.995, 1) == "p > 0.99"  # its one test's own p: no bound
+    assert p_text(0.5, 0.1, 5) == "p = 0.5"
     check = DriftCheck(rows=5, statistic=900.0, dof=15, p_value=0.0, changed=True, rms_mm=2.0,
                        expected_rms_mm=0.1, change_mm=1.9, mean_mm=np.zeros(3), alpha=0.01)  # fmt: skip
     assert "p < 1e-15 < 0.01" in check.line() and "p = 0" not in check.line()

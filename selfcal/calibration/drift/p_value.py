@@ -55,14 +55,19 @@ def p_text(p: float, smallest: float | None = None, tests: int = 0) -> str:
     """``"p = 0.0023"``, ``"p < 1e-15"`` below :data:`P_FLOOR` (a tail that underflowed to 0
     read as "p = 0", an impossible certainty) and ``"p > 0.99"`` above :data:`P_TOP` (two
     digits printed 0.995 - 1 as "p = 1"). With ``smallest`` (the smallest of the combined
-    ``tests``' own p-values, :func:`smallest_p`), a Bonferroni combination clipped at 1 says
-    so and gives it: the p-value of the combined test lies between that and 1 (a new user's
-    unchanged simulated check printed "p = 1" where its 11 tests' smallest was 0.24)."""
+    ``tests``' own p-values, :func:`smallest_p`), a Bonferroni combination above
+    :data:`P_TOP` says so and gives it (clipped at 1 or not): the p-value of the combined test
+    lies between that and the bound (a new user's unchanged simulated check printed "p = 1"
+    where its 11 tests' smallest was 0.24, and a bound of 0.995 "p > 0.99" where one test's
+    was 0.09)."""
     if p < P_FLOOR:
         return f"p < {P_FLOOR:g}"
-    if smallest is not None and p >= 1.0 and smallest <= P_TOP:
-        return (f"p = 1 as Bonferroni's bound clipped: {tests} tests times their smallest p, "
-                f"{smallest:.2g}")  # fmt: skip
+    if smallest is not None and p > P_TOP and smallest <= P_TOP:
+        if p >= 1.0:
+            return (f"p = 1 as Bonferroni's bound clipped: {tests} tests times their smallest "
+                    f"p, {smallest:.2g}")  # fmt: skip
+        return (f"p > {P_TOP:g} (Bonferroni's bound: {tests} tests times their smallest p, "
+                f"{smallest:.2g})")  # fmt: skip
     return f"p > {P_TOP:g}" if p > P_TOP else f"p = {p:.2g}"
 
 
