@@ -94,7 +94,8 @@ def distance_unit(block: dict) -> str:
 
 def cross_validation_line(cv: dict | None) -> str | None:
     """One sentence of the cross-validated reprojection (None without it): the RMS over every
-    fold's held-out corners together (the folds that count, ``folds_counted`` when not all do),
+    fold's held-out corners together (the folds that count, ``folds_counting`` when not all do;
+    ``folds_counted`` in a block of session 29's code),
     which is not the selection table's figure (each
     candidate's geometric mean over the folds' RMS,
     :func:`selfcal.pipeline.report_fit.selection_markdown`): the sentence says which it is, as
@@ -103,7 +104,7 @@ def cross_validation_line(cv: dict | None) -> str | None:
         return None
     c, n = cv["calibrated"], cv["nominal"]
     corners = f"the {c['corners']} " if c.get("corners") else "the "
-    counted = cv.get("folds_counted")  # absent: every fold counts
+    counted = cv.get("folds_counting", cv.get("folds_counted"))  # absent: every fold counts
     which = ("all folds" if counted is None else
              f"the {counted} folds that count (a fold leaving out more than half of the frames "
              "does not)")  # fmt: skip

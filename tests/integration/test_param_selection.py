@@ -270,7 +270,7 @@ def test_a_fold_leaving_out_the_majority_is_reported_but_does_not_count():
     assert me is not None and (me.folds, me.failed) == (3, 0)
     assert me.rows == 6  # a row per held-out frame: the three folds' 2 each, not the 10
     cv = cross_validated_reprojection(obs, sel)
-    assert cv is not None and cv["folds"] == 4 and cv["folds_counted"] == 3
+    assert cv is not None and cv["folds"] == 4 and cv["folds_counting"] == 3
     chosen = sel.candidates[sel.chosen]
     e = [predict_px(obs, chosen.fold_fits[f][0], sel.fold_of == f)
          for f in sorted(chosen.fold_fits) if f != big]  # fmt: skip

@@ -80,7 +80,8 @@ def _errors(fold_of: np.ndarray):
 def test_the_held_out_rms_pools_the_folds_that_count(monkeypatch):
     monkeypatch.setattr(accuracy, "_errors_px_mm", _errors(FOLDS))
     cv = accuracy.cross_validated_reprojection(None, _selection(FOLDS))  # type: ignore[arg-type]
-    assert cv is not None and cv["folds"] == 5 and cv["folds_counted"] == 4
+    assert cv is not None and cv["folds"] == 5 and cv["folds_counting"] == 4
+    assert "folds_counted" not in cv  # the selection's key, a flag per fold: not this int
     e = np.repeat([1.0, 2.0, 3.0, 5.0], [2, 1, 1, 1])  # fold 3 (4 px, 12 frames) left out
     for key in ("calibrated", "nominal"):
         assert cv[key]["corners"] == 5
@@ -91,11 +92,11 @@ def test_the_held_out_rms_pools_the_folds_that_count(monkeypatch):
     assert cv is not None and cv["calibrated"]["corners"] == 5
     cv = accuracy.cross_validated_reprojection(None, _selection(FOLDS, (0, 1, 3, 4)))  # type: ignore[arg-type]
     assert cv is not None and cv["calibrated"] is None and cv["nominal"] is None
-    # every fold counting: every fold pooled, no folds_counted
+    # every fold counting: every fold pooled, no folds_counting
     even = np.repeat([0, 1, 2, 3, 4], [2, 2, 2, 2, 2])
     monkeypatch.setattr(accuracy, "_errors_px_mm", _errors(even))
     cv = accuracy.cross_validated_reprojection(None, _selection(even))  # type: ignore[arg-type]
-    assert cv is not None and "folds_counted" not in cv and cv["calibrated"]["corners"] == 10
+    assert cv is not None and "folds_counting" not in cv and cv["calibrated"]["corners"] == 10
 
 
 def test_the_jackknife_keeps_every_fold(monkeypatch):

@@ -32,6 +32,14 @@ def test_an_older_block_without_corner_counts_still_reads():
     assert line is not None and "RMS over the held-out corners of all folds together" in line
 
 
+def test_the_line_names_how_many_folds_count_in_new_and_older_blocks():
+    """``accuracy.cross_validation`` says how many folds count as ``folds_counting`` (an int;
+    ``folds_counted`` in session 29's blocks, the same name as the selection's flag per fold)."""
+    for key in ("folds_counting", "folds_counted"):
+        line = cross_validation_line({**CV, key: 4})
+        assert line is not None and "held-out corners of the 4 folds that count" in line, line
+
+
 def test_the_selection_table_says_its_cross_validated_column_is_a_geometric_mean():
     sel = {
         "identified": ["offset_j2"],

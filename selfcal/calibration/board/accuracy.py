@@ -401,8 +401,9 @@ def _errors_px_mm(obs: BoardObservations, fit: Refinement,
 def cross_validated_reprojection(obs: BoardObservations, selection: Selection) -> dict | None:
     """The cross-validated reprojection of the chosen candidate and of the fair nominal (module
     docstring): per model its 2-D RMS in px and mm at the board over every held-out row of the
-    folds that count (:meth:`Selection.counts`; ``folds_counted`` says how many when not all
-    do), None for a model a counted fold's fit failed for; None without folds."""
+    folds that count (:meth:`Selection.counts`; ``folds_counting`` says how many when not all
+    do: an int, where the selection's block has ``folds_counted``, a flag per fold), None for
+    a model a counted fold's fit failed for; None without folds."""
     if selection.fold_of is None:
         return None
     chosen = selection.candidates[selection.chosen]
@@ -413,8 +414,8 @@ def cross_validated_reprojection(obs: BoardObservations, selection: Selection) -
         "configurations": selection.configurations,
         "folds": selection.folds,
     }
-    if selection.folds_counting < selection.folds:  # as the selection's `folds_counted`
-        out["folds_counted"] = selection.folds_counting
+    if selection.folds_counting < selection.folds:  # how many of the selection's `folds_counted`
+        out["folds_counting"] = selection.folds_counting
         out["what"] += (": the folds that count, a fold leaving out more than half of the frames "
                         "not (its fit stands for a smaller experiment than the calibration)")  # fmt: skip
     for key, cand in (("calibrated", chosen), ("nominal", selection.candidates[0])):
