@@ -12,6 +12,7 @@ import pytest
 
 from selfcal.calibration.board.calibrate import BoardInputError
 from selfcal.calibration.board.dataset import calibrate_board_dataset
+from selfcal.pipeline.board_run import summary
 
 
 def _first_frames(src: Path, dst: Path, k: int, step: int = 3) -> Path:
@@ -42,8 +43,11 @@ def test_fewer_frames_than_the_calibration_needs_are_refused_saying_why(mono_cha
 def test_four_frames_calibrate(mono_charuco_15, tmp_path):
     """Four frames in four configurations: the camera, the hand-eye and the board pose, each
     fold fitted on the other three; the selection keeps what they support (the fair nominal
-    here) and says so."""
+    here: its first candidate) and says so (NO GAIN in the printed line)."""
     ds = _first_frames(mono_charuco_15[0], tmp_path / "four", 4)
     res = calibrate_board_dataset(ds, allow_missing_frames=True)
     assert res.frames_used == 4
     assert res.selection["configurations"] == 4 and len(res.selection["candidates"]) > 1
+    assert res.selection["chosen"] == res.selection["candidates"][0]["label"]  # the fair nominal
+    said = "NO GAIN: the calibration is the fair nominal: cross-validation over 4 arm"
+    assert said in summary(res), summary(res)
