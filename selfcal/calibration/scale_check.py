@@ -24,8 +24,9 @@ square declared 3 % small, 0.9701 declared 3 % large. The standard deviation is 
 alone: the arm's own kinematic errors bias ``s`` by up to 0.4 % (``tests/unit/test_scale_check.py``),
 which :data:`SCALE_TOL` leaves room for. Where the postures barely determine the scale (a camera
 turned about nearly one point: a scaled motion with a scaled hand-eye fits as well) that bias
-grows without bound: the tolerance takes the largest shift the misfit can cause
-(:attr:`MotionScale.misfit_shift`).
+grows without bound: the tolerance takes the shift a misfit of the residuals' size can cause
+(:attr:`MotionScale.misfit_shift`), and past :data:`SCALE_TOL` the check says it cannot tell
+(:func:`scale_unchecked`): on a pan-tilt (1.2-1.5) a board declared at half its size passed.
 """
 
 from __future__ import annotations
@@ -46,10 +47,13 @@ from selfcal.transforms import pose_from_vec
 __all__ = [
     "DISAGREES",
     "SCALE_TOL",
+    "UNCHECKED",
     "MotionScale",
+    "ScaleUncheckedWarning",
     "ScaleWarning",
     "check_scale",
     "motion_scale",
+    "scale_unchecked",
     "scale_warning",
     "scaled_sizes",
 ]
@@ -69,8 +73,16 @@ _FD_STEP = 1e-6
 """Central-difference step of the fit's Jacobian (rad of the rotation vectors, m, log scale)."""
 
 
+UNCHECKED = "the target's scale could not be checked against the arm's"
+"""How :func:`scale_unchecked` begins."""
+
+
 class ScaleWarning(SelfCalWarning):
     """The target's scale and the arm's disagree (:func:`scale_warning`)."""
+
+
+class ScaleUncheckedWarning(SelfCalWarning):
+    """The postures cannot tell the target's scale from the arm's (:func:`scale_unchecked`)."""
 
 
 @dataclass(frozen=True)
@@ -83,11 +95,13 @@ class MotionScale:
         rms_m: RMS residual of the fit (m; origin and axis tips), the nominal chain's own misfit.
         spread_m: RMS distance of the camera positions from their centroid (m).
         postures: how many camera poses it used.
-        misfit_shift: the largest relative shift of the scale the nominal chain's misfit (the
-            fit's residuals) could cause, were it all along the part of the scale's column
-            outside the placement's and the hand-eye's: ``|r| / |that part|``. Large where the
-            postures barely determine the scale: a camera turned about nearly one point (a
-            pan-tilt, whose axes meet) moves the same as a scaled one with a scaled hand-eye.
+        misfit_shift: the relative shift of the scale a misfit of the residuals' size would
+            cause along the scale's own direction (the part of the scale's column outside the
+            placement's and the hand-eye's): ``|r| / |that part|``. Not a bound: ``r`` is the
+            misfit's part the fit left, and its part inside the fitted columns, which is what
+            biases the scale, is not bounded by ``|r|``. Large where the postures barely
+            determine the scale: a camera turned about nearly one point (a pan-tilt, whose
+            axes meet) moves the same as a scaled one with a scaled hand-eye.
     """
 
     scale: float
@@ -101,7 +115,8 @@ class MotionScale:
     def tolerance(self) -> float:
         """How far from 1 the scale may be from the arm's own kinematic errors: :data:`SCALE_TOL`,
         four times the nominal chain's misfit over the camera's spread, or
-        :attr:`misfit_shift`, whichever is more. The last: a 2-joint pan-tilt with a wrist camera
+        :attr:`misfit_shift`, whichever is more (past :data:`SCALE_TOL`, said:
+        :func:`scale_unchecked`). The last: a 2-joint pan-tilt with a wrist camera
         (tests/integration/test_calibrate_drawn.py's: tests/data/pantilt2.urdf, 12 postures, the
         board as rendered) measured scale 0.473 +- 0.056 from a misfit of 0.04 mm RMS, 9 sigma
         off 1 with nothing wrong but the arm's own deviation from its drawing (the scale's
@@ -169,6 +184,24 @@ def scale_warning(
     )
 
 
+def scale_unchecked(ms: MotionScale, target: str) -> str | None:
+    """What the user is told when ``ms``'s postures cannot tell the target's scale from the
+    arm's (:attr:`MotionScale.misfit_shift` above :data:`SCALE_TOL`: a scaled motion with a
+    scaled hand-eye fits them about as well, and a target declared at half its size passes the
+    tolerance), else None; ``target``: what set the scale (as :func:`scale_warning`'s)."""
+    if ms.misfit_shift <= SCALE_TOL:
+        return None
+    return (
+        f"{UNCHECKED}: a scaled motion with a scaled hand-eye fits the camera's motion over "
+        f"the {ms.postures} postures nearly as well (a camera turned about nearly one point, "
+        "as a pan-tilt's meeting axes turn it), so only a scale off by more than "
+        f"{ms.tolerance * 100:.0f} % would be caught "
+        f"(scale {ms.scale:.3f} +- {ms.std:.3f}). Measure {target} by hand, or add postures "
+        "that move the camera along, not only turn it (a camera mounted off the axes, an arm "
+        "whose axes do not meet)"
+    )
+
+
 def scaled_sizes(sizes: dict[str, float], scale: float) -> str:
     """``"square_mm = 15.45, marker_mm = 11.59"``: the lengths of a target description (its
     keys ending in ``_mm``) times ``scale``, the sizes that would match the arm."""
@@ -190,11 +223,17 @@ def check_scale(
     :class:`ScaleWarning` (also returned, for ``calibration.json``; else ``[]``). ``target`` and
     ``correct(scale)``: the texts of :func:`scale_warning`. ``T_flange_tool``: the chain's tool
     on the flange to start from instead of the camera mount (eye-to-hand: the board's mount,
-    ``T_world_cam`` then the board's poses in the camera frame)."""
+    ``T_world_cam`` then the board's poses in the camera frame). Where the postures cannot
+    tell the scale, a :class:`ScaleUncheckedWarning` says so instead (:func:`scale_unchecked`;
+    also returned)."""
     start = robot.T_flange_cam if T_flange_tool is None else T_flange_tool
     ms = motion_scale(nominal_mcpc(robot), q, T_world_cam, start)
     text = scale_warning(ms, robot.name, target, correct(ms.scale))
-    if text is None:
+    if text is not None:
+        warnings.warn(text, ScaleWarning, stacklevel=3)
+        return [text]
+    unchecked = scale_unchecked(ms, target)
+    if unchecked is None:
         return []
-    warnings.warn(text, ScaleWarning, stacklevel=3)
-    return [text]
+    warnings.warn(unchecked, ScaleUncheckedWarning, stacklevel=3)
+    return [unchecked]

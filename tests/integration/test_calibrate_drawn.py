@@ -20,7 +20,7 @@ CHARUCO = Path(__file__).resolve().parents[2] / "models" / "targets" / "charuco.
 
 @pytest.mark.slow  # plan, acquisition and calibration: about 6 CPU s
 def test_pantilt_is_not_predicted_to_beat_the_drawing(tmp_path, capsys):
-    from selfcal.calibration.scale_check import ScaleWarning
+    from selfcal.calibration.scale_check import UNCHECKED, ScaleUncheckedWarning, ScaleWarning
     from selfcal.cli.main import main
     from selfcal.config.scenario import load_scenario
     from selfcal.errors import SelfCalWarning
@@ -41,13 +41,19 @@ def test_pantilt_is_not_predicted_to_beat_the_drawing(tmp_path, capsys):
     # the board as rendered: no scale warning. A camera turned about nearly one point barely
     # determines the scale (a scaled motion with a scaled hand-eye fits as well), so the arm's
     # own deviation moved it to 0.473 +- 0.056 and the check said "the board 111.4 % larger
-    # than the arm" (session 28); its tolerance now takes the largest shift the nominal
-    # chain's misfit can cause (MotionScale.misfit_shift, 1.36 here)
-    with warnings.catch_warnings():
+    # than the arm" (session 28); its tolerance now takes the shift a misfit of the nominal
+    # chain's residuals' size can cause (MotionScale.misfit_shift, 1.36 here); so it cannot tell a wrong
+    # board either (one at half its size passed), and says so
+    with warnings.catch_warnings(record=True) as got:
         warnings.simplefilter("error", ScaleWarning)
+        warnings.simplefilter("always", ScaleUncheckedWarning)
         calibrate_board_run(out)
+    unchecked = [str(w.message) for w in got if w.category is ScaleUncheckedWarning]
+    assert len(unchecked) == 1 and "Measure the board (" in unchecked[0], unchecked
     said = capsys.readouterr().err
-    block = json.loads((out / "calibration.json").read_text())["accuracy"][KEY]
+    cal = json.loads((out / "calibration.json").read_text())
+    assert any(str(t).startswith(UNCHECKED) for t in cal["warnings"]), cal["warnings"]
+    block = cal["accuracy"][KEY]
     assert block["beats_drawn"] is False
     assert block["drawn_not_a_reference"] is None
     # the calibration's predicted RMS (3.356 mm) 19 times the drawing's (0.176 mm)

@@ -9,7 +9,14 @@ import numpy as np
 import pytest
 
 from selfcal.calibration.row_shift import SHIFT_FIT_M, order_note, row_shift_misfits, shift_note
-from selfcal.calibration.scale_check import SCALE_TOL, motion_scale, scale_warning, scaled_sizes
+from selfcal.calibration.scale_check import (
+    SCALE_TOL,
+    UNCHECKED,
+    motion_scale,
+    scale_unchecked,
+    scale_warning,
+    scaled_sizes,
+)
 from selfcal.kinematics.forward import fk_tool
 from selfcal.kinematics.mcpc import nominal_mcpc
 from selfcal.robot.definition import load_robot
@@ -90,6 +97,18 @@ def test_a_camera_turned_about_nearly_one_point_is_not_said_off_scale(seed):
     # the KR 6's well-spread motion bounds its scale tighter than the tolerance's floor
     kr6 = motion_scale(*camera_poses(1.0, seed)[:3], camera_poses(1.0, seed)[3])
     assert kr6.misfit_shift < SCALE_TOL < ms.misfit_shift
+    assert scale_unchecked(kr6, "the board") is None
+    # so the pan-tilt's check says nothing of a board declared at half its size (every camera
+    # position twice as far): it says instead that it cannot tell, why, and what would tell
+    T2 = T.copy()
+    T2[:, :3, 3] *= 2.0
+    half = motion_scale(nominal, q, T2, robot.T_flange_cam)
+    assert scale_warning(half, "pantilt2", "the board", "") is None
+    said = scale_unchecked(half, "the board (square_mm = 20)")
+    assert said is not None and said.startswith(UNCHECKED), said
+    assert "a scaled motion with a scaled hand-eye fits" in said
+    assert f"more than {half.tolerance * 100:.0f} %" in said and half.tolerance > 1.0
+    assert "Measure the board (square_mm = 20) by hand, or add postures" in said
 
 
 def test_scaled_sizes_name_every_length_of_the_target():
