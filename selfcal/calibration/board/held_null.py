@@ -7,7 +7,7 @@ the noise many times over (a 7-joint arm's 12 postures: 1.22 times the mean, 2.9
 errors of the noise alone), so the excess's size cannot tell a model error from the draw; but
 the draw moves the folds together, in the pattern its ``M_f`` give them, and a model error need
 not (the real mecheye set's four folds, excess ``[406, 283, 260, 138]`` px^2 where the one held
-direction gives ``[539, 169, 74, 142]``: 8-46 noise standard errors off any share of it). A
+direction gives ``[539, 169, 74, 142]``: 7-43 noise standard errors off any share of it). A
 model error is counted when the folds' excess passes the noise (as before the draw's scatter was
 known) and no share of the prior's draw explains its pattern across the folds
 (:func:`pattern_misfit`, :func:`counted_excess`). SI: px^2 and px^4 for the pixels' sums and
