@@ -13,11 +13,13 @@ from __future__ import annotations
 
 import subprocess
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 
-__all__ = ["run_child"]
+__all__ = ["ChildUsage", "child_usage", "run_child"]
 
-# argv[1]: the stderr file ("" for none); argv[2:]: the command. Prints "code peak-kB wall-s".
+# argv[1]: the stderr file ("" for none); argv[2:]: the command. Prints "code peak-kB wall-s
+# user-s sys-s".
 _LAUNCHER = (
     "import os, sys, time\n"
     "t = time.perf_counter()\n"
@@ -29,15 +31,41 @@ _LAUNCHER = (
     "    os.dup2(fd, 2)\n"
     "    os.execvp(sys.argv[2], sys.argv[2:])\n"
     "_, status, usage = os.wait4(pid, 0)\n"
-    "print(os.waitstatus_to_exitcode(status), usage.ru_maxrss, time.perf_counter() - t)\n"
+    "print(os.waitstatus_to_exitcode(status), usage.ru_maxrss, time.perf_counter() - t,\n"
+    "      usage.ru_utime, usage.ru_stime)\n"
 )
+
+
+@dataclass(frozen=True)
+class ChildUsage:
+    """What :func:`child_usage` measured of a command: its exit ``code``, ``wall`` s from its
+    fork to its exit, its ``peak_mb`` resident set (MB) and its ``user`` and ``system`` CPU
+    seconds (its own and its waited-for children's)."""
+
+    code: int
+    wall: float
+    peak_mb: float
+    user: float
+    system: float
+
+    @property
+    def cpu(self) -> float:
+        """User + system CPU seconds."""
+        return self.user + self.system
+
+
+def child_usage(argv: list[str], *, stderr: Path | None = None) -> ChildUsage:
+    """The command ``argv`` run from the launcher (module docstring), its standard output
+    thrown away and its standard error written to ``stderr`` (thrown away when None)."""
+    done = subprocess.run([sys.executable, "-c", _LAUNCHER, "" if stderr is None else str(stderr),
+                           *argv], check=True, capture_output=True, text=True)  # fmt: skip
+    code, kb, wall, user, system = done.stdout.split()
+    return ChildUsage(int(code), float(wall), int(kb) / 1024, float(user), float(system))
 
 
 def run_child(argv: list[str], *, stderr: Path | None = None) -> tuple[int, float, float]:
     """``(exit code, wall time s, peak resident set MB)`` of the command ``argv`` (Linux
-    ``ru_maxrss``), its standard output thrown away and its standard error written to
-    ``stderr`` (thrown away when None)."""
-    done = subprocess.run([sys.executable, "-c", _LAUNCHER, "" if stderr is None else str(stderr),
-                           *argv], check=True, capture_output=True, text=True)  # fmt: skip
-    code, kb, wall = done.stdout.split()
-    return int(code), float(wall), int(kb) / 1024
+    ``ru_maxrss``; :func:`child_usage`), its standard output thrown away and its standard error
+    written to ``stderr`` (thrown away when None)."""
+    u = child_usage(argv, stderr=stderr)
+    return u.code, u.wall, u.peak_mb

@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import os
+import platform
+import subprocess
+import sys
 
 import pytest
 from threadpoolctl import threadpool_info
@@ -67,3 +70,36 @@ def test_helper_threads_follow_the_cores_this_process_may_use(monkeypatch):
     assert helper_threads(100, cap=2) == 2
     assert helper_threads(1) == 1
     assert helper_threads(0) == 1
+
+
+_FAULTS = """
+import sys
+import numpy as np
+from selfcal.threads import reuse_freed_memory
+
+def faults():
+    return int(open("/proc/self/stat").read().rsplit(")", 1)[1].split()[7])  # minflt
+
+applied = reuse_freed_memory() if sys.argv[1] == "1" else False
+a = np.ones(64 * 2**20 // 8); del a  # 64 MiB: above glibc's largest dynamic mmap threshold
+f0 = faults()
+b = np.ones(64 * 2**20 // 8); del b
+print(applied, faults() - f0)
+"""
+
+
+@pytest.mark.skipif(
+    not (sys.platform.startswith("linux") and platform.libc_ver()[0] == "glibc"),
+    reason="glibc's mallopt",
+)
+def test_a_freed_large_array_s_pages_are_reused():
+    """64 MiB is 16384 pages of 4 kB (8192 at 8 kB): glibc maps it afresh after a free unless
+    reuse_freed_memory applied (then its pages are the freed array's: a few faults)."""
+    got = {}
+    for on in ("0", "1"):
+        out = subprocess.run([sys.executable, "-c", _FAULTS, on], capture_output=True, text=True,
+                             check=True).stdout.split()  # fmt: skip
+        got[on] = (out[0] == "True", int(out[1]))
+    assert got["1"][0] and not got["0"][0]
+    assert got["0"][1] > 30  # huge pages may make it 32 faults of 2 MiB
+    assert got["1"][1] < 10, got

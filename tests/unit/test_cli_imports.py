@@ -110,6 +110,17 @@ def test_the_run_pipeline_loads_no_scipy_spatial():
     assert [m for m in ("scipy.spatial", "scipy.special") if m in mods] == []
 
 
+def test_the_board_accuracy_loads_no_scipy_stats():
+    """`selfcal calibrate` of a field dataset loads the board accuracy too (the run pipeline's
+    report: selfcal.pipeline.board_accuracy); scipy.stats (about 24 MB resident and 0.3-0.8 s)
+    loads only where a board's model error is judged (selfcal.calibration.board.held_null's
+    counted_excess): at import it grew a field's 30-posture `selfcal calibrate` peak from
+    173.1 to 194.5 MB (python -m selfcal.benchmarks.speed.measure --memory)."""
+    mods = _loaded("import selfcal.calibration.board.accuracy")
+    assert "selfcal.calibration.board.held_null" in mods  # the probe did import it
+    assert "scipy.stats" not in mods
+
+
 def test_the_setups_are_one_tuple():
     from selfcal.choices import SETUPS
     from selfcal.config.camera import SETUPS as CONFIG_SETUPS

@@ -17,7 +17,6 @@ their variances, m^2 / rad^2 for the prior's variances.
 from __future__ import annotations
 
 import numpy as np
-from scipy.stats import chi2, norm
 
 from selfcal.calibration.accuracy import Z_MODEL_ERROR
 from selfcal.calibration.board.held_prior import Share
@@ -129,4 +128,6 @@ def counted_excess(folds: list[dict[str, np.ndarray]], share: Share,
     grams, cross = (np.array([np.sum(f[k], axis=0) for f in folds]) for k in ("held_gram",
                                                                              "held_cross"))  # fmt: skip
     misfit = pattern_misfit(np.array(x), np.array(a), np.array(var), grams, cross, variance)
+    from scipy.stats import chi2, norm  # here: `selfcal calibrate` of a field imports this module
+
     return extra if misfit > chi2.isf(norm.sf(Z_MODEL_ERROR), len(folds)) else 0.0
