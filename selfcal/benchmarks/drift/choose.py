@@ -20,9 +20,9 @@ seen_features`, the four cells about each corner in the image with the rule's ma
 render test ``test_the_chosen_postures_render_with_the_corners_the_plan_expects`` detects every
 such corner), the corners the stated power counts, so the check is tested with the data the power
 was stated for; ``--all-in-image`` keeps every corner the true chain puts in the image instead
-(about a quarter more: the table's "corners" column says which). A view with fewer than the
-board's least is left out of its check (counted), and a view missing a corner the command
-expected it to detect (by the calibration's chain) is counted. Each row names the robot; a
+(those by the margin and the cut markers too: the table's "corners" column says which). A view
+with fewer than the board's least is left out of its check (counted), and a view missing a
+corner the command expected it to detect (by the calibration's chain) is counted. Each row names the robot; a
 stated power that is an upper bound (:attr:`selfcal.calibration.drift.power.ShiftPower.upper`:
 the command says "at most") is printed so.
 
