@@ -82,8 +82,8 @@ def test_the_camera_mount_is_read_out_the_robot_files_way_round(tmp_path):
 def test_plan_check_round_trip(mono_charuco_15, tmp_path, capsys):
     """3 postures of 10 candidates: joints.csv reads back as plan.json's postures, which see
     at least CHECK_CORNERS of the board's features by the calibration's chain (part of the board
-    may lie outside the image); the stated power of the chosen set is the
-    check's own for those views, and above the first 3 candidates' (the random set) stated
+    may lie outside the image); the stated power of the chosen set is that of the features
+    those views are expected to detect (recomputed from the postures), and above the first 3 candidates' (the random set) stated
     beside it; the line says both."""
     out, _ = mono_charuco_15
     plan = tmp_path / "plan"
@@ -101,7 +101,8 @@ def test_plan_check_round_trip(mono_charuco_15, tmp_path, capsys):
     chosen, random = doc["power"], doc["random_power"]
     assert chosen["size_mm"] == 0.2 and chosen["mount"] == "camera" and chosen["images"] == 3
     assert chosen["power"] > random["power"]
-    # the power stated is the check's own (selfcal check's power line) for images there
+    # the power stated is that of the features each posture is expected to detect (recomputed:
+    # the plan.json round trip, not the power `selfcal check` states from detected corners)
     em = calibration_error_model(cal, "calibration.json")
     from selfcal.calibration.drift.covariance import estimate_covariance
 
